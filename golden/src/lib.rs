@@ -1,0 +1,10 @@
+//! golden: the bit-accurate reference model of hiermerge, and a library for
+//! software that builds, stores, translates, merges and traces hierarchies.
+//!
+//! SPEC.md at the repository root is the specification these modules implement.
+
+pub mod grid;
+pub mod params;
+
+pub use grid::VoxelAddr;
+pub use params::Params;

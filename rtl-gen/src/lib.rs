@@ -1,0 +1,1 @@
+//! rtl-gen: an embedded DSL for synthesizable RTL (see issue 4).

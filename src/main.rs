@@ -1,0 +1,4 @@
+//! The hiermerge command-line program.
+fn main() {
+    println!("hiermerge: under construction");
+}

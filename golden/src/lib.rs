@@ -4,7 +4,9 @@
 //! SPEC.md at the repository root is the specification these modules implement.
 
 pub mod grid;
+pub mod layout;
 pub mod params;
+pub mod store;
 
 pub use grid::VoxelAddr;
 pub use params::Params;

@@ -3,7 +3,9 @@
 //!
 //! SPEC.md at the repository root is the specification these modules implement.
 
+pub mod geom;
 pub mod grid;
+pub mod mesh;
 pub mod layout;
 pub mod params;
 pub mod store;

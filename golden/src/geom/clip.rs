@@ -1,0 +1,183 @@
+//! Conservative clipping of a triangle to a box: the box of the part of the
+//! triangle inside it, as the builder's leaf box (Sutherland–Hodgman).
+//!
+//! The polygon is clipped against the six planes of the box grown by the
+//! margin `m = ROUNDING_MARGIN_REL * M` (see [`super`]), its vertices' AABB is
+//! grown by `m` again and intersected with the box itself. Growing the
+//! clipping box first keeps a triangle that only touches the box (at a corner,
+//! an edge, or lying in a face) from being clipped away by rounding: the grown
+//! box holds a neighbourhood of width `m` around every contact, much wider
+//! than any rounding error. If clipping nevertheless leaves nothing while the
+//! overlap test cannot rule out contact, the answer falls back to the
+//! intersection of the triangle's AABB with the box, which is always
+//! conservative.
+
+use glam::DVec3;
+
+use super::{magnitude, triangle_bounds, triangle_overlaps_box, ROUNDING_MARGIN_REL};
+
+/// An AABB `(lo, hi)` inside `[lo, hi]` that contains every point of the
+/// closed triangle inside the closed box; `None` only when the two are
+/// certainly disjoint. Degenerate triangles (segments, points) are handled.
+pub fn clip_triangle_to_box(tri: &[DVec3; 3], lo: DVec3, hi: DVec3) -> Option<(DVec3, DVec3)> {
+    let (tlo, thi) = triangle_bounds(tri);
+    // Comparisons are exact, so disjoint AABBs are certainly disjoint.
+    if tlo.cmpgt(hi).any() || thi.cmplt(lo).any() {
+        return None;
+    }
+    let bounded_lo = tlo.max(lo);
+    let bounded_hi = thi.min(hi);
+    let fallback = || {
+        if triangle_overlaps_box(tri, lo, hi) {
+            Some((bounded_lo, bounded_hi))
+        } else {
+            None
+        }
+    };
+
+    let m = ROUNDING_MARGIN_REL * magnitude(tri, lo, hi);
+    let grown_lo = lo - DVec3::splat(m);
+    let grown_hi = hi + DVec3::splat(m);
+    let mut poly: Vec<DVec3> = tri.to_vec();
+    for axis in 0..3 {
+        poly = clip_against_plane(&poly, axis, grown_lo[axis], KeepSide::Above);
+        poly = clip_against_plane(&poly, axis, grown_hi[axis], KeepSide::Below);
+        if poly.is_empty() {
+            return fallback();
+        }
+    }
+    let (plo, phi) = polygon_bounds(&poly);
+    let out_lo = (plo - DVec3::splat(m)).max(bounded_lo);
+    let out_hi = (phi + DVec3::splat(m)).min(bounded_hi);
+    if out_lo.cmpgt(out_hi).any() {
+        return fallback();
+    }
+    Some((out_lo, out_hi))
+}
+
+/// Which side of an axis-aligned plane survives a clip.
+#[derive(Clone, Copy)]
+enum KeepSide {
+    /// Keep `p[axis] >= plane`.
+    Above,
+    /// Keep `p[axis] <= plane`.
+    Below,
+}
+
+/// One Sutherland–Hodgman step: the part of the closed polygon on the kept
+/// side of the plane `p[axis] = plane`. A polygon of one or two vertices (a
+/// degenerate triangle after deduplication is not needed: repeated vertices
+/// are simply repeated) is clipped like any other.
+fn clip_against_plane(poly: &[DVec3], axis: usize, plane: f64, keep: KeepSide) -> Vec<DVec3> {
+    let dist = |p: DVec3| match keep {
+        KeepSide::Above => p[axis] - plane,
+        KeepSide::Below => plane - p[axis],
+    };
+    let mut out = Vec::with_capacity(poly.len() + 2);
+    for i in 0..poly.len() {
+        let a = poly[i];
+        let b = poly[(i + 1) % poly.len()];
+        let (da, db) = (dist(a), dist(b));
+        if da >= 0.0 {
+            out.push(a);
+        }
+        if (da >= 0.0) != (db >= 0.0) {
+            // The crossing point; t is in [0, 1] since da and db differ in sign.
+            let t = da / (da - db);
+            let mut p = a + (b - a) * t;
+            // Put the crossing exactly on the plane on its own axis.
+            p[axis] = plane;
+            out.push(p);
+        }
+    }
+    out
+}
+
+fn polygon_bounds(poly: &[DVec3]) -> (DVec3, DVec3) {
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for &p in poly {
+        lo = lo.min(p);
+        hi = hi.max(p);
+    }
+    (lo, hi)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::overlap::tests::{inside, sample_triangle, tri_and_box};
+    use proptest::prelude::*;
+
+    fn d(x: f64, y: f64, z: f64) -> DVec3 {
+        DVec3::new(x, y, z)
+    }
+
+    #[test]
+    fn clip_of_a_big_triangle_is_tight() {
+        // The plane z = 0.5 crosses the unit box fully: the clip is that slab.
+        let tri = [
+            d(-10.0, -10.0, 0.5),
+            d(30.0, -10.0, 0.5),
+            d(-10.0, 30.0, 0.5),
+        ];
+        let (lo, hi) = clip_triangle_to_box(&tri, DVec3::ZERO, DVec3::ONE).unwrap();
+        assert_eq!(lo.x, 0.0);
+        assert_eq!(hi.x, 1.0);
+        assert!((lo.z - 0.5).abs() < 1e-9 && (hi.z - 0.5).abs() < 1e-9);
+        assert!(lo.z <= 0.5 && hi.z >= 0.5);
+    }
+
+    #[test]
+    fn clip_of_a_diagonal_sliver_is_smaller_than_its_aabb() {
+        // A thin triangle along the diagonal x = y, crossing the box [0,1]^2 x [0,1].
+        let tri = [d(-1.0, -1.0, 0.5), d(3.0, 3.0, 0.5), d(3.0, 3.01, 0.5)];
+        let (lo, hi) = clip_triangle_to_box(&tri, d(0.0, 0.0, 0.0), d(1.0, 1.0, 1.0)).unwrap();
+        assert!(lo.x <= 0.0 + 1e-12 && hi.x >= 1.0 - 1e-12);
+        // In the box [2, 3] x [0, 1] it misses entirely.
+        assert_eq!(
+            clip_triangle_to_box(&tri, d(2.0, 0.0, 0.0), d(3.0, 1.0, 1.0)),
+            None
+        );
+        // In [0.5,1] x [0,0.25] it misses though the AABBs overlap.
+        assert_eq!(
+            clip_triangle_to_box(&tri, d(0.5, 0.0, 0.0), d(1.0, 0.25, 1.0)),
+            None
+        );
+    }
+
+    #[test]
+    fn touching_corner_and_degenerates() {
+        let tri = [d(1.0, 1.0, 1.0), d(2.0, 1.0, 1.0), d(1.0, 2.0, 1.0)];
+        let (lo, hi) = clip_triangle_to_box(&tri, DVec3::ZERO, DVec3::ONE).unwrap();
+        assert!(inside(DVec3::ONE, lo, hi));
+        let point = [d(0.25, 0.5, 0.75); 3];
+        let (lo, hi) = clip_triangle_to_box(&point, DVec3::ZERO, DVec3::ONE).unwrap();
+        assert!(inside(point[0], lo, hi));
+        assert!((hi - lo).max_element() < 1e-9);
+        let seg = [d(-1.0, 0.5, 0.5), d(2.0, 0.5, 0.5), d(2.0, 0.5, 0.5)];
+        let (lo, hi) = clip_triangle_to_box(&seg, DVec3::ZERO, DVec3::ONE).unwrap();
+        assert_eq!((lo.x, hi.x), (0.0, 1.0));
+        assert!((hi.y - lo.y) < 1e-9);
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(3000))]
+        #[test]
+        fn clip_box_holds_every_sampled_point_inside((tri, lo, hi) in tri_and_box(), collapse in 0u8..4) {
+            let mut tri = tri;
+            if collapse == 1 { tri[2] = tri[1]; }
+            if collapse == 2 { tri[1] = tri[0]; tri[2] = tri[0]; }
+            let clip = clip_triangle_to_box(&tri, lo, hi);
+            if let Some((clo, chi)) = clip {
+                prop_assert!(clo.cmpge(lo).all() && chi.cmple(hi).all() && clo.cmple(chi).all());
+            }
+            for p in sample_triangle(&tri, 24) {
+                if inside(p, lo, hi) {
+                    let (clo, chi) = clip.expect("a point of the triangle is in the box");
+                    prop_assert!(inside(p, clo, chi), "{p} not in {clo}..{chi}");
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,184 @@
+//! Conservative triangle/box overlap: the separating-axis test of
+//! Akenine-Möller ("Fast 3D Triangle-Box Overlap Testing", 2001).
+//!
+//! Two convex sets are disjoint exactly when some axis separates their
+//! projections; for a triangle and a box it suffices to try the three box
+//! normals, the triangle normal and the nine cross products of a triangle
+//! edge with a box axis. The same thirteen axes are complete for degenerate
+//! triangles: a segment has no face, and its direction is among the edges; a
+//! point needs only the box normals (the other axes vanish and never separate).
+//!
+//! Conservative by construction: an axis is declared separating only when the
+//! gap between the projections exceeds `ROUNDING_MARGIN_REL * |axis|_1 * M`,
+//! where `M` is the largest input coordinate magnitude (see [`super`]). The
+//! computed axis itself may be rounded: that is harmless, since projections of
+//! intersecting sets overlap on *every* axis, and only the projections'
+//! rounding must be covered by the margin. Non-finite input never separates
+//! (every comparison with NaN is false), so it reports an overlap.
+
+use glam::DVec3;
+
+use super::{magnitude, ROUNDING_MARGIN_REL};
+
+/// True unless the closed triangle and the closed box `[lo, hi]` are
+/// certainly disjoint. Never false when they touch, even at one point; may be
+/// true when they miss by less than `2^-40` of the coordinates' magnitude.
+pub fn triangle_overlaps_box(tri: &[DVec3; 3], lo: DVec3, hi: DVec3) -> bool {
+    let scale = magnitude(tri, lo, hi);
+    let center = (lo + hi) * 0.5;
+    let half = (hi - lo) * 0.5;
+    let v = [tri[0] - center, tri[1] - center, tri[2] - center];
+    let edges = [v[1] - v[0], v[2] - v[1], v[0] - v[2]];
+
+    let box_axes = [DVec3::X, DVec3::Y, DVec3::Z];
+    for axis in box_axes {
+        if separates(axis, &v, half, scale) {
+            return false;
+        }
+    }
+    let normal = edges[0].cross(edges[1]);
+    if separates(normal, &v, half, scale) {
+        return false;
+    }
+    for e in edges {
+        for b in box_axes {
+            if separates(e.cross(b), &v, half, scale) {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+/// True when `axis` certainly separates the triangle `v` (relative to the box
+/// center) from the box of half-extents `half`.
+fn separates(axis: DVec3, v: &[DVec3; 3], half: DVec3, scale: f64) -> bool {
+    let p = [axis.dot(v[0]), axis.dot(v[1]), axis.dot(v[2])];
+    let pmin = p[0].min(p[1]).min(p[2]);
+    let pmax = p[0].max(p[1]).max(p[2]);
+    let radius = half.dot(axis.abs());
+    let margin = ROUNDING_MARGIN_REL * axis.abs().element_sum() * scale;
+    pmin > radius + margin || pmax < -radius - margin
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn d(x: f64, y: f64, z: f64) -> DVec3 {
+        DVec3::new(x, y, z)
+    }
+
+    #[test]
+    fn touching_at_a_corner_overlaps() {
+        let tri = [d(1.0, 1.0, 1.0), d(2.0, 1.0, 1.0), d(1.0, 2.0, 1.0)];
+        assert!(triangle_overlaps_box(&tri, DVec3::ZERO, DVec3::ONE));
+    }
+
+    #[test]
+    fn off_axis_triangle_near_corner_is_separated_by_an_edge_axis() {
+        // The triangle's AABB overlaps the box but the triangle passes the
+        // corner (1,1,*) diagonally, missing it: only an edge-cross axis separates.
+        let tri = [d(2.5, 0.0, -1.0), d(0.0, 2.5, -1.0), d(0.0, 2.5, 2.0)];
+        assert!(!triangle_overlaps_box(&tri, DVec3::ZERO, DVec3::ONE));
+        let touching = [d(2.0, 0.0, -1.0), d(0.0, 2.0, -1.0), d(0.0, 2.0, 2.0)];
+        assert!(triangle_overlaps_box(&touching, DVec3::ZERO, DVec3::ONE));
+    }
+
+    #[test]
+    fn plane_passing_beside_box_is_separated_by_normal() {
+        let tri = [d(3.1, 0.0, 0.0), d(0.0, 3.1, 0.0), d(0.0, 0.0, 3.1)];
+        assert!(!triangle_overlaps_box(&tri, DVec3::ZERO, DVec3::ONE));
+        let through = [d(2.9, 0.0, 0.0), d(0.0, 2.9, 0.0), d(0.0, 0.0, 2.9)];
+        assert!(triangle_overlaps_box(&through, DVec3::ZERO, DVec3::ONE));
+    }
+
+    #[test]
+    fn degenerate_segment_and_point() {
+        let seg = [d(-1.0, 0.5, 0.5), d(2.0, 0.5, 0.5), d(0.5, 0.5, 0.5)];
+        assert!(triangle_overlaps_box(&seg, DVec3::ZERO, DVec3::ONE));
+        // A diagonal segment passing the box's corner edge outside.
+        let miss = [d(2.2, 0.0, 0.5), d(0.0, 2.2, 0.5), d(1.1, 1.1, 0.5)];
+        assert!(!triangle_overlaps_box(&miss, DVec3::ZERO, DVec3::ONE));
+        let p_in = [d(0.3, 0.3, 0.3); 3];
+        let p_out = [d(0.3, 1.3, 0.3); 3];
+        assert!(triangle_overlaps_box(&p_in, DVec3::ZERO, DVec3::ONE));
+        assert!(!triangle_overlaps_box(&p_out, DVec3::ZERO, DVec3::ONE));
+    }
+
+    #[test]
+    fn flat_box_and_nan() {
+        // A zero-thickness box (a face) crossed by the triangle.
+        let tri = [d(0.0, 0.0, -1.0), d(1.0, 0.0, 1.0), d(0.0, 1.0, 1.0)];
+        assert!(triangle_overlaps_box(
+            &tri,
+            d(0.0, 0.0, 0.0),
+            d(1.0, 1.0, 0.0)
+        ));
+        let nan = [d(f64::NAN, 0.0, 0.0), d(1.0, 0.0, 0.0), d(0.0, 1.0, 0.0)];
+        assert!(triangle_overlaps_box(&nan, DVec3::ZERO, DVec3::ONE));
+    }
+
+    /// Points on the triangle at a dense barycentric lattice (vertices and
+    /// edges included). Rounding may push a computed point off the exact
+    /// triangle; clamping it to the triangle's AABB keeps it within rounding
+    /// of the triangle and never outside the exact triangle's bounds.
+    pub(crate) fn sample_triangle(tri: &[DVec3; 3], n: u32) -> Vec<DVec3> {
+        let (tlo, thi) = crate::geom::triangle_bounds(tri);
+        let mut out = Vec::new();
+        for i in 0..=n {
+            for j in 0..=(n - i) {
+                let a = i as f64 / n as f64;
+                let b = j as f64 / n as f64;
+                let c = 1.0 - a - b;
+                out.push((tri[0] * c + tri[1] * a + tri[2] * b).clamp(tlo, thi));
+            }
+        }
+        out
+    }
+
+    pub(crate) fn inside(p: DVec3, lo: DVec3, hi: DVec3) -> bool {
+        p.cmpge(lo).all() && p.cmple(hi).all()
+    }
+
+    /// Coordinates on a coarse lattice so that touching and exactly-on-plane
+    /// cases are frequent, mixed with arbitrary values.
+    pub(crate) fn coord() -> impl Strategy<Value = f64> {
+        prop_oneof![(-8i32..=8).prop_map(|k| k as f64 * 0.25), -2.0f64..2.0,]
+    }
+
+    pub(crate) fn point() -> impl Strategy<Value = DVec3> {
+        (coord(), coord(), coord()).prop_map(|(x, y, z)| DVec3::new(x, y, z))
+    }
+
+    pub(crate) fn tri_and_box() -> impl Strategy<Value = ([DVec3; 3], DVec3, DVec3)> {
+        (point(), point(), point(), point(), point()).prop_map(|(a, b, c, p, q)| {
+            // Sometimes collapse a vertex to make segments and points.
+            ([a, b, c], p.min(q), p.max(q))
+        })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(3000))]
+        #[test]
+        fn never_misses_a_sampled_contact((tri, lo, hi) in tri_and_box(), collapse in 0u8..4) {
+            let mut tri = tri;
+            if collapse == 1 { tri[2] = tri[1]; }
+            if collapse == 2 { tri[1] = tri[0]; tri[2] = tri[0]; }
+            let touches = sample_triangle(&tri, 24).into_iter().any(|p| inside(p, lo, hi));
+            if touches {
+                prop_assert!(triangle_overlaps_box(&tri, lo, hi));
+            }
+        }
+
+        #[test]
+        fn never_overlaps_when_bounds_are_disjoint((tri, lo, hi) in tri_and_box()) {
+            let (tlo, thi) = crate::geom::triangle_bounds(&tri);
+            let far = (tlo.cmpgt(hi + DVec3::splat(1e-6))).any() || (thi.cmplt(lo - DVec3::splat(1e-6))).any();
+            if far {
+                prop_assert!(!triangle_overlaps_box(&tri, lo, hi));
+            }
+        }
+    }
+}

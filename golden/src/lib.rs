@@ -9,6 +9,7 @@ pub mod mesh;
 pub mod layout;
 pub mod params;
 pub mod store;
+pub mod translate;
 
 pub use grid::VoxelAddr;
 pub use params::Params;

@@ -477,6 +477,10 @@ fn read_body(
     let mut mesh = Mesh::default();
     let mut corners: Vec<u32> = Vec::new();
     for (ei, e) in h.elements.iter().enumerate() {
+        if e.props.is_empty() {
+            // Nothing to read: a huge count must not become a long empty loop.
+            continue;
+        }
         for index in 0..e.count {
             let mut xyz = [0f32; 3];
             for (pi, p) in e.props.iter().enumerate() {

@@ -3,6 +3,8 @@
 //!
 //! SPEC.md at the repository root is the specification these modules implement.
 
+pub mod build;
+pub mod check;
 pub mod geom;
 pub mod grid;
 pub mod mesh;

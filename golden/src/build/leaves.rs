@@ -1,0 +1,91 @@
+//! S402-S404: each primitive's LOD, the voxels at that LOD it really
+//! intersects, and its box in each of them (SPEC.md sections 4.2-4.4).
+//!
+//! The output is one [`LeafEntry`] per (primitive, voxel): the hot path of
+//! the build. It allocates nothing per triangle; entries go into one vector.
+
+use glam::DVec3;
+
+use super::lod::primitive_lod;
+use super::quantize::quantize_interval;
+use super::radix::morton3_fast;
+use crate::geom::{clip_triangle_to_box, triangle_overlaps_box};
+use crate::params::Params;
+
+/// A primitive in one leaf voxel, with its box there in that voxel's cells.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LeafEntry {
+    /// `(lod << 3D) | morton(x, y, z)`: sorting by it sorts by LOD, then Morton.
+    pub key: u128,
+    /// Triangle index.
+    pub prim: u32,
+    pub lo: [u16; 3],
+    pub hi: [u16; 3],
+}
+
+/// The sort key of voxel `(lod, x, y, z)` under `D = max_lod`.
+#[inline(always)]
+pub fn leaf_key(lod: u8, x: u32, y: u32, z: u32, max_lod: u8) -> u128 {
+    ((lod as u128) << (3 * max_lod as u32)) | morton3_fast(x, y, z)
+}
+
+/// Bits of a [`leaf_key`]: `3D + lod_bits`.
+pub fn leaf_key_bits(p: &Params) -> u32 {
+    3 * p.max_lod as u32 + p.lod_bits()
+}
+
+/// Appends the entries of triangle `prim` (grid units, already checked to be
+/// finite and inside the closed scene cube) to `out`.
+///
+/// Candidate voxels are those at the primitive's LOD whose closed box meets
+/// the triangle's AABB: per axis `floor(min / e) ..= min(floor(max / e),
+/// 2^lod - 1)`. When there is one candidate, the triangle lies in it and its
+/// box there is its AABB. Otherwise a candidate is kept when
+/// [`triangle_overlaps_box`] and [`clip_triangle_to_box`] both find contact,
+/// and its box is the clipped AABB. Either box is quantized outward.
+pub fn place_triangle(tri: &[DVec3; 3], prim: u32, p: &Params, out: &mut Vec<LeafEntry>) {
+    let tlo = tri[0].min(tri[1]).min(tri[2]);
+    let thi = tri[0].max(tri[1]).max(tri[2]);
+    let lod = primitive_lod(tri, tlo, thi, p.max_lod);
+    let edge = p.voxel_edge(lod) as f64;
+    let last = ((1u64 << lod) - 1) as f64;
+    let cells = p.quant_cells();
+    let scale = cells as f64 / edge;
+    let first_voxel = (tlo / edge).floor().min(DVec3::splat(last));
+    let last_voxel = (thi / edge).floor().min(DVec3::splat(last));
+    let (i0, i1) = (first_voxel.as_uvec3(), last_voxel.as_uvec3());
+
+    let entry = |x: u32, y: u32, z: u32, blo: DVec3, bhi: DVec3| {
+        let v0 = DVec3::new(x as f64, y as f64, z as f64) * edge;
+        let mut lo = [0u16; 3];
+        let mut hi = [0u16; 3];
+        for a in 0..3 {
+            (lo[a], hi[a]) = quantize_interval(blo[a], bhi[a], v0[a], scale, cells);
+        }
+        LeafEntry {
+            key: leaf_key(lod, x, y, z, p.max_lod),
+            prim,
+            lo,
+            hi,
+        }
+    };
+
+    if i0 == i1 {
+        out.push(entry(i0.x, i0.y, i0.z, tlo, thi));
+        return;
+    }
+    for z in i0.z..=i1.z {
+        for y in i0.y..=i1.y {
+            for x in i0.x..=i1.x {
+                let vlo = DVec3::new(x as f64, y as f64, z as f64) * edge;
+                let vhi = vlo + DVec3::splat(edge);
+                if !triangle_overlaps_box(tri, vlo, vhi) {
+                    continue;
+                }
+                if let Some((blo, bhi)) = clip_triangle_to_box(tri, vlo, vhi) {
+                    out.push(entry(x, y, z, blo, bhi));
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,289 @@
+//! The bottom-up hierarchy builder, S402-S408 (SPEC.md section 4).
+//!
+//! 1. [`GridMap`] maps each triangle to grid units; bad input is an error
+//!    naming the triangle ([`BuildError`]).
+//! 2. [`leaves`]: each triangle's LOD ([`lod`]), the voxels at that LOD it
+//!    really intersects, its clipped box in each, quantized outward
+//!    ([`quantize`]): one entry per (triangle, voxel).
+//! 3. [`radix`]: one LSD radix sort of the entries by (LOD, Morton).
+//! 4. [`upper`]: one leaf per (LOD, voxel), then level by level one inner
+//!    node per parent voxel, up to the top rule; laid out in store order.
+
+pub mod leaves;
+pub mod lod;
+pub mod quantize;
+pub mod radix;
+mod upper;
+
+use std::fmt;
+
+use glam::{DVec3, Vec3};
+
+use crate::mesh::Mesh;
+use crate::params::{ParamError, Params};
+use crate::store::Hierarchy;
+
+/// How world coordinates map to grid units: `g = (p - origin) / unit`,
+/// computed in binary64 from the f32 position widened exactly.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GridMap {
+    /// The world point at grid coordinate (0, 0, 0).
+    pub origin: DVec3,
+    /// World units per grid unit; finite and > 0.
+    pub unit: f64,
+}
+
+impl GridMap {
+    /// A map fitting the box `[lo, hi]` (world units) into the scene cube of
+    /// `p`: origin at `lo`, unit the largest side over `2^D` (rounded up to a
+    /// power of two so every grid coordinate is exact), never 0.
+    pub fn fit(lo: Vec3, hi: Vec3, p: &Params) -> GridMap {
+        let side = (hi - lo).as_dvec3().max_element().max(f64::MIN_POSITIVE);
+        let unit = side / p.scene_edge() as f64;
+        GridMap {
+            origin: lo.as_dvec3(),
+            unit: 2f64.powi(unit.log2().ceil() as i32),
+        }
+    }
+
+    /// A point in grid units.
+    pub fn to_grid(&self, p: Vec3) -> DVec3 {
+        (p.as_dvec3() - self.origin) / self.unit
+    }
+
+    fn validate(&self) -> Result<(), BuildError> {
+        if !self.origin.is_finite() {
+            return Err(BuildError::BadGridMap {
+                field: "origin",
+                expected: "finite coordinates",
+            });
+        }
+        if !(self.unit.is_finite() && self.unit > 0.0) {
+            return Err(BuildError::BadGridMap {
+                field: "unit",
+                expected: "finite and > 0",
+            });
+        }
+        Ok(())
+    }
+
+    /// Triangle `i` of `mesh` in grid units, checked: indices in range,
+    /// coordinates finite and inside the closed scene cube `[0, 2^D]^3`.
+    pub fn triangle(&self, mesh: &Mesh, i: usize, p: &Params) -> Result<[DVec3; 3], BuildError> {
+        let t = mesh.triangles[i];
+        let mut out = [DVec3::ZERO; 3];
+        for corner in 0..3 {
+            let v = t[corner] as usize;
+            let world = *mesh.vertices.get(v).ok_or(BuildError::BadVertexIndex {
+                triangle: i,
+                corner,
+                vertex: t[corner],
+                vertices: mesh.vertices.len(),
+            })?;
+            out[corner] = self.to_grid(world);
+        }
+        check_grid_triangle(&out, i, p)?;
+        Ok(out)
+    }
+
+    /// Every triangle of `mesh` in grid units (what [`crate::check`] takes).
+    pub fn mesh_to_grid(&self, mesh: &Mesh, p: &Params) -> Result<Vec<[DVec3; 3]>, BuildError> {
+        self.validate()?;
+        (0..mesh.triangles.len())
+            .map(|i| self.triangle(mesh, i, p))
+            .collect()
+    }
+}
+
+/// Checks one grid-space triangle: finite and inside `[0, 2^D]^3`.
+pub fn check_grid_triangle(t: &[DVec3; 3], index: usize, p: &Params) -> Result<(), BuildError> {
+    let edge = p.scene_edge() as f64;
+    for (corner, v) in t.iter().enumerate() {
+        for axis in 0..3 {
+            let g = v[axis];
+            if !g.is_finite() {
+                return Err(BuildError::NonFinite {
+                    triangle: index,
+                    corner,
+                    axis,
+                });
+            }
+            if !(0.0..=edge).contains(&g) {
+                return Err(BuildError::OutsideScene {
+                    triangle: index,
+                    corner,
+                    axis,
+                    value: g,
+                    scene_edge: p.scene_edge(),
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Why a build failed. Every variant names the offending element.
+#[derive(Clone, Debug, PartialEq)]
+pub enum BuildError {
+    Params(ParamError),
+    BadGridMap {
+        field: &'static str,
+        expected: &'static str,
+    },
+    HierIdOutOfRange {
+        id: u8,
+        hier_bits: u8,
+    },
+    EmptyMesh,
+    BadVertexIndex {
+        triangle: usize,
+        corner: usize,
+        vertex: u32,
+        vertices: usize,
+    },
+    NonFinite {
+        triangle: usize,
+        corner: usize,
+        axis: usize,
+    },
+    OutsideScene {
+        triangle: usize,
+        corner: usize,
+        axis: usize,
+        value: f64,
+        scene_edge: u64,
+    },
+    /// An index, length or count does not fit the `I`-bit fields.
+    IndexOverflow {
+        what: &'static str,
+        value: u64,
+        index_bits: u8,
+    },
+}
+
+const AXES: [&str; 3] = ["x", "y", "z"];
+
+impl fmt::Display for BuildError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            BuildError::Params(e) => write!(f, "{e}"),
+            BuildError::BadGridMap { field, expected } => {
+                write!(f, "grid map field `{field}`: expected {expected}")
+            }
+            BuildError::HierIdOutOfRange { id, hier_bits } => {
+                write!(f, "hierarchy id {id} does not fit in H = {hier_bits} bits")
+            }
+            BuildError::EmptyMesh => write!(f, "the mesh has no triangles: nothing to build"),
+            BuildError::BadVertexIndex {
+                triangle,
+                corner,
+                vertex,
+                vertices,
+            } => write!(
+                f,
+                "triangle {triangle} corner {corner}: vertex index {vertex} out of range (mesh has {vertices} vertices)"
+            ),
+            BuildError::NonFinite {
+                triangle,
+                corner,
+                axis,
+            } => write!(
+                f,
+                "triangle {triangle} corner {corner}: {} grid coordinate is not finite",
+                AXES[*axis]
+            ),
+            BuildError::OutsideScene {
+                triangle,
+                corner,
+                axis,
+                value,
+                scene_edge,
+            } => write!(
+                f,
+                "triangle {triangle} corner {corner}: {} grid coordinate {value} is outside the scene [0, {scene_edge}]",
+                AXES[*axis]
+            ),
+            BuildError::IndexOverflow {
+                what,
+                value,
+                index_bits,
+            } => write!(
+                f,
+                "{what} = {value} does not fit in I = {index_bits} index bits"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for BuildError {}
+
+impl From<ParamError> for BuildError {
+    fn from(e: ParamError) -> Self {
+        BuildError::Params(e)
+    }
+}
+
+/// Builds hierarchy `id` over `mesh`, placed in the grid by `grid`
+/// (SPEC.md section 4). Deterministic: the same input gives the same store.
+pub fn build(
+    mesh: &Mesh,
+    grid: &GridMap,
+    params: &Params,
+    id: u8,
+) -> Result<Hierarchy, BuildError> {
+    grid.validate()?;
+    build_with(mesh.triangles.len(), params, id, |i| {
+        grid.triangle(mesh, i, params)
+    })
+}
+
+/// Builds hierarchy `id` over triangles already in grid units.
+pub fn build_grid_triangles(
+    tris: &[[DVec3; 3]],
+    params: &Params,
+    id: u8,
+) -> Result<Hierarchy, BuildError> {
+    build_with(tris.len(), params, id, |i| {
+        check_grid_triangle(&tris[i], i, params)?;
+        Ok(tris[i])
+    })
+}
+
+fn build_with(
+    n: usize,
+    params: &Params,
+    id: u8,
+    triangle: impl Fn(usize) -> Result<[DVec3; 3], BuildError>,
+) -> Result<Hierarchy, BuildError> {
+    params.validate()?;
+    if id as u64 >= params.hier_capacity() {
+        return Err(BuildError::HierIdOutOfRange {
+            id,
+            hier_bits: params.hier_bits,
+        });
+    }
+    if n == 0 {
+        return Err(BuildError::EmptyMesh);
+    }
+    if n as u64 > params.index_capacity() {
+        return Err(BuildError::IndexOverflow {
+            what: "triangle index",
+            value: n as u64 - 1,
+            index_bits: params.index_bits,
+        });
+    }
+    let mut entries = Vec::with_capacity(n * 2);
+    for i in 0..n {
+        let tri = triangle(i)?;
+        leaves::place_triangle(&tri, i as u32, params, &mut entries);
+    }
+    let mut scratch = Vec::new();
+    radix::radix_sort(
+        &mut entries,
+        &mut scratch,
+        leaves::leaf_key_bits(params),
+        |e| e.key,
+    );
+    drop(scratch);
+    upper::assemble(&entries, params, id)
+}

@@ -1,0 +1,88 @@
+//! Outward quantization of boxes into a voxel's `2^Q` cells (SPEC.md section 3).
+//!
+//! Both functions round the minimum down and the maximum up, so the quantized
+//! box always contains what it quantizes: the property that keeps every ray
+//! test conservative.
+
+/// Quantizes the grid-unit interval `[a, b]` (inside the closed voxel
+/// `[v0, v0 + edge]`) into cells of `edge / 2^Q`:
+/// `lo = floor((a - v0) 2^Q / edge)`, `hi = ceil((b - v0) 2^Q / edge) - 1`,
+/// then `lo` clamped to `[0, 2^Q - 1]` and `hi` to `[lo, 2^Q - 1]`.
+///
+/// Exact in binary64: `v0` and `edge` are powers-of-two multiples below
+/// `2^31`, `a - v0` is exact by Sterbenz's lemma when `v0 > 0` (because
+/// `v0 <= a <= v0 + edge <= 2 v0`) and trivially when `v0 = 0`, and the scale
+/// `2^Q / edge` is a power of two. An `a` or `b` slightly outside the voxel
+/// only meets the clamps.
+pub fn quantize_interval(a: f64, b: f64, v0: f64, scale: f64, cells: u32) -> (u16, u16) {
+    let top = (cells - 1) as f64;
+    let lo = ((a - v0) * scale).floor().clamp(0.0, top);
+    let hi = (((b - v0) * scale).ceil() - 1.0).clamp(lo, top);
+    (lo as u16, hi as u16)
+}
+
+/// The cells of the parent voxel (one LOD up) covering a child's cells
+/// `lo..=hi` on one axis, where `odd` is the child's coordinate bit on that
+/// axis (which half of the parent it is in). In child cells relative to the
+/// parent's minimum corner the child box is `[A, B) = [odd 2^Q + lo,
+/// odd 2^Q + hi + 1)`; parent cells are twice as wide, so outward rounding
+/// gives `floor(A / 2)` and `ceil(B / 2) - 1`. Always inside `[0, 2^Q - 1]`.
+pub fn child_cells_in_parent(lo: u16, hi: u16, odd: bool, quant_bits: u8) -> (u16, u16) {
+    let base = (odd as u32) << quant_bits;
+    let a = base + lo as u32;
+    let b = base + hi as u32 + 1;
+    ((a >> 1) as u16, (b.div_ceil(2) - 1) as u16)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn interval_rounds_outward_and_clamps() {
+        // Voxel [8, 16), Q = 2: cells of 2 grid units.
+        let s = 4.0 / 8.0;
+        assert_eq!(quantize_interval(8.0, 16.0, 8.0, s, 4), (0, 3));
+        assert_eq!(quantize_interval(9.0, 9.5, 8.0, s, 4), (0, 0));
+        assert_eq!(
+            quantize_interval(10.0, 12.0, 8.0, s, 4),
+            (1, 1),
+            "max on a cell edge"
+        );
+        assert_eq!(quantize_interval(10.0, 12.1, 8.0, s, 4), (1, 2));
+        assert_eq!(
+            quantize_interval(12.0, 12.0, 8.0, s, 4),
+            (2, 2),
+            "a point on an edge"
+        );
+        assert_eq!(
+            quantize_interval(16.0, 16.0, 8.0, s, 4),
+            (3, 3),
+            "the far face"
+        );
+        // Q = 0: always the whole voxel.
+        assert_eq!(quantize_interval(9.0, 9.5, 8.0, 1.0 / 8.0, 1), (0, 0));
+    }
+
+    #[test]
+    fn parent_cells_contain_child_cells() {
+        for q in 0..=4u8 {
+            let n = 1u32 << q;
+            for odd in [false, true] {
+                for lo in 0..n {
+                    for hi in lo..n {
+                        let (pl, ph) = child_cells_in_parent(lo as u16, hi as u16, odd, q);
+                        let base = (odd as u32) * n;
+                        // In child-cell units the parent box [2 pl, 2 ph + 2) holds [base+lo, base+hi+1).
+                        assert!(2 * pl as u32 <= base + lo);
+                        assert!(2 * ph as u32 + 2 >= base + hi + 1);
+                        assert!(pl <= ph && (ph as u32) < n);
+                        // Tight: one cell less on either side would not contain it.
+                        assert!(2 * (pl as u32 + 1) > base + lo);
+                        assert!(2 * (ph as u32) < base + hi + 1);
+                    }
+                }
+            }
+        }
+    }
+}

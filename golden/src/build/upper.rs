@@ -1,0 +1,252 @@
+//! S406-S408: leaves from sorted entries, the upper levels by grouping on the
+//! parent voxel, the top rule, and the store layout (SPEC.md sections 4.5-4.7).
+
+use super::leaves::LeafEntry;
+use super::quantize::child_cells_in_parent;
+use super::BuildError;
+use crate::grid::VoxelAddr;
+use crate::params::Params;
+use crate::store::{Hierarchy, NodeRecord, Reference};
+
+/// A node while its level is being built. `first`/`count` index the sorted
+/// entries (= `prims`) for a leaf, the level below for an inner node.
+#[derive(Clone, Copy, Debug)]
+struct LevelNode {
+    morton: u128,
+    x: u32,
+    y: u32,
+    z: u32,
+    leaf: bool,
+    lo: [u16; 3],
+    hi: [u16; 3],
+    first: u32,
+    count: u32,
+}
+
+/// Inverse of the 21-bit spread: gathers bits `3i` into bit `i`.
+fn compact21(v: u64) -> u32 {
+    let mut x = v & 0x1249_2492_4924_9249;
+    x = (x ^ (x >> 2)) & 0x10c3_0c30_c30c_30c3;
+    x = (x ^ (x >> 4)) & 0x100f_00f0_0f00_f00f;
+    x = (x ^ (x >> 8)) & 0x001f_0000_ff00_00ff;
+    x = (x ^ (x >> 16)) & 0x001f_0000_0000_ffff;
+    x = (x ^ (x >> 32)) & 0x1f_ffff;
+    x as u32
+}
+
+/// The coordinate at bit offset `axis` of a Morton code.
+fn morton_coord(m: u128, axis: u32) -> u32 {
+    let m = m >> axis;
+    compact21(m as u64 & ((1u64 << 63) - 1)) | compact21((m >> 63) as u64) << 21
+}
+
+/// Groups the sorted entries into one leaf per (LOD, voxel); returns the
+/// leaves of each LOD (index = LOD), each list in Morton order.
+fn leaves_by_lod(entries: &[LeafEntry], p: &Params) -> Vec<Vec<LevelNode>> {
+    let shift = 3 * p.max_lod as u32;
+    let mut out = vec![Vec::new(); p.max_lod as usize + 1];
+    let mut i = 0;
+    while i < entries.len() {
+        let key = entries[i].key;
+        let mut lo = entries[i].lo;
+        let mut hi = entries[i].hi;
+        let mut j = i + 1;
+        while j < entries.len() && entries[j].key == key {
+            for a in 0..3 {
+                lo[a] = lo[a].min(entries[j].lo[a]);
+                hi[a] = hi[a].max(entries[j].hi[a]);
+            }
+            j += 1;
+        }
+        let morton = key & ((1u128 << shift) - 1);
+        out[(key >> shift) as usize].push(LevelNode {
+            morton,
+            x: morton_coord(morton, 0),
+            y: morton_coord(morton, 1),
+            z: morton_coord(morton, 2),
+            leaf: true,
+            lo,
+            hi,
+            first: i as u32,
+            count: (j - i) as u32,
+        });
+        i = j;
+    }
+    out
+}
+
+/// One inner node per parent voxel of `level` (sorted by Morton, so the
+/// children of a parent are a contiguous run); the parent's box is the union
+/// of its children's boxes rounded outward into its own cells.
+fn group_by_parent(level: &[LevelNode], quant_bits: u8) -> Vec<LevelNode> {
+    let mut out = Vec::with_capacity(level.len() / 2 + 1);
+    let mut i = 0;
+    while i < level.len() {
+        let pm = level[i].morton >> 3;
+        let mut node = LevelNode {
+            morton: pm,
+            x: level[i].x >> 1,
+            y: level[i].y >> 1,
+            z: level[i].z >> 1,
+            leaf: false,
+            lo: [u16::MAX; 3],
+            hi: [0; 3],
+            first: i as u32,
+            count: 0,
+        };
+        let mut j = i;
+        while j < level.len() && level[j].morton >> 3 == pm {
+            let c = &level[j];
+            let odd = [c.x & 1 == 1, c.y & 1 == 1, c.z & 1 == 1];
+            for a in 0..3 {
+                let (l, h) = child_cells_in_parent(c.lo[a], c.hi[a], odd[a], quant_bits);
+                node.lo[a] = node.lo[a].min(l);
+                node.hi[a] = node.hi[a].max(h);
+            }
+            j += 1;
+        }
+        node.count = (j - i) as u32;
+        out.push(node);
+        i = j;
+    }
+    out
+}
+
+/// Merges the inner nodes and the leaves of one LOD, both in Morton order;
+/// at the same voxel the inner node comes first.
+fn merge_level(inner: Vec<LevelNode>, leaves: Vec<LevelNode>) -> Vec<LevelNode> {
+    if leaves.is_empty() {
+        return inner;
+    }
+    let mut out = Vec::with_capacity(inner.len() + leaves.len());
+    let (mut a, mut b) = (inner.into_iter().peekable(), leaves.into_iter().peekable());
+    loop {
+        let take_inner = match (a.peek(), b.peek()) {
+            (Some(i), Some(l)) => i.morton <= l.morton,
+            (Some(_), None) => true,
+            (None, Some(_)) => false,
+            (None, None) => break,
+        };
+        out.push(if take_inner { a.next() } else { b.next() }.expect("peeked"));
+    }
+    out
+}
+
+/// The top rule's exception: a single inner LOD-0 node whose box covers more
+/// than half the scene, `(hx-lx+1)(hy-ly+1)(hz-lz+1) * 2 > 2^(3Q)`, exactly.
+fn covers_most_of_scene(n: &LevelNode, quant_bits: u8) -> bool {
+    let cells: u64 = (0..3).map(|a| (n.hi[a] - n.lo[a]) as u64 + 1).product();
+    cells * 2 > 1u64 << (3 * quant_bits as u32)
+}
+
+fn check_index(what: &'static str, value: u64, p: &Params) -> Result<(), BuildError> {
+    if value >= p.index_capacity() {
+        return Err(BuildError::IndexOverflow {
+            what,
+            value,
+            index_bits: p.index_bits,
+        });
+    }
+    Ok(())
+}
+
+/// Builds the hierarchy from entries sorted by key (then primitive index).
+pub(super) fn assemble(entries: &[LeafEntry], p: &Params, id: u8) -> Result<Hierarchy, BuildError> {
+    let mut leaves = leaves_by_lod(entries, p);
+    let deepest = leaves
+        .iter()
+        .rposition(|l| !l.is_empty())
+        .ok_or(BuildError::EmptyMesh)?;
+    let shallowest_leaf = leaves.iter().position(|l| !l.is_empty()).expect("nonempty");
+
+    // levels[d]: the nodes of LOD d, in store order.
+    let mut levels: Vec<Vec<LevelNode>> = vec![Vec::new(); deepest + 1];
+    let mut d = deepest;
+    levels[d] = std::mem::take(&mut leaves[d]);
+    while !(d == 0 || (levels[d].len() == 1 && d <= shallowest_leaf)) {
+        let parents = group_by_parent(&levels[d], p.quant_bits);
+        levels[d - 1] = merge_level(parents, std::mem::take(&mut leaves[d - 1]));
+        d -= 1;
+    }
+    let mut top = d;
+    if top == 0
+        && levels[0].len() == 1
+        && !levels[0][0].leaf
+        && covers_most_of_scene(&levels[0][0], p.quant_bits)
+    {
+        top = 1;
+    }
+
+    let mut offset = vec![0u64; deepest + 2];
+    for lod in top..=deepest {
+        offset[lod + 1] = offset[lod] + levels[lod].len() as u64;
+    }
+    let total_nodes = offset[deepest + 1];
+    check_index("node count - 1", total_nodes.saturating_sub(1), p)?;
+    check_index(
+        "prims length - 1",
+        (entries.len() as u64).saturating_sub(1),
+        p,
+    )?;
+
+    let mut nodes = Vec::with_capacity(total_nodes as usize);
+    let mut refs = Vec::with_capacity(total_nodes as usize);
+    for lod in top..=deepest {
+        for n in &levels[lod] {
+            check_index("count", n.count as u64, p)?;
+            let first = if n.leaf {
+                n.first
+            } else {
+                let first = refs.len() as u32;
+                for c in 0..n.count as u64 {
+                    let child = offset[lod + 1] + n.first as u64 + c;
+                    refs.push(Reference {
+                        hier: id,
+                        node: child as u32,
+                    });
+                }
+                first
+            };
+            nodes.push(NodeRecord {
+                leaf: n.leaf,
+                voxel: VoxelAddr::new(lod as u8, n.x, n.y, n.z),
+                lo: n.lo,
+                hi: n.hi,
+                first,
+                count: n.count,
+            });
+        }
+    }
+    check_index("refs length - 1", (refs.len() as u64).saturating_sub(1), p)?;
+    Ok(Hierarchy {
+        id,
+        params: *p,
+        nodes,
+        refs,
+        prims: entries.iter().map(|e| e.prim).collect(),
+        root_count: levels[top].len() as u32,
+        top_lod: top as u8,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::morton3;
+
+    #[test]
+    fn morton_coordinates_decode() {
+        for (x, y, z) in [
+            (0, 0, 0),
+            (1, 2, 3),
+            ((1 << 31) - 1, 5, (1 << 30) + 7),
+            (123456, 7654321, 2),
+        ] {
+            let m = morton3(x, y, z);
+            assert_eq!(
+                (morton_coord(m, 0), morton_coord(m, 1), morton_coord(m, 2)),
+                (x, y, z)
+            );
+        }
+    }
+}

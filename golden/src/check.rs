@@ -1,0 +1,550 @@
+//! The hierarchy checker (SPEC.md section 5): proves, node by node, the
+//! properties every ray test relies on, and names the first node that breaks one.
+//!
+//! It walks from the roots through the references, which may lead into other
+//! hierarchies (a merged hierarchy references its inputs), so it reads nodes
+//! through a [`CheckView`]: the store, the triangles each hierarchy's
+//! primitive indices point at, and a placement hook for translated inputs.
+
+use std::collections::BTreeMap;
+use std::fmt;
+
+use glam::DVec3;
+
+use crate::geom::clip_triangle_to_box;
+use crate::params::Params;
+use crate::store::{
+    node_box_fine, node_box_grid, voxel_box_fine, Hierarchy, HierarchyStore, NodeRecord,
+    RecordError, Reference,
+};
+
+/// What the checker reads besides the hierarchy under check.
+pub trait CheckView {
+    /// Hierarchy `id`, when the checked one references it (the checked
+    /// hierarchy itself is always found, whatever this returns).
+    fn hierarchy(&self, id: u8) -> Option<&Hierarchy>;
+
+    /// The triangles (grid units, where they sit in the checked hierarchy's
+    /// scene) that hierarchy `id`'s primitive indices point at.
+    fn triangles(&self, id: u8) -> Option<&[[DVec3; 3]]>;
+
+    /// Where node record `node` of hierarchy `id` sits in the checked
+    /// hierarchy's grid. The identity unless overridden: the extension point
+    /// for translated inputs (a translation moves `voxel` and nothing else;
+    /// its triangles must then be given translated by [`CheckView::triangles`]).
+    fn place(&self, id: u8, node: &NodeRecord) -> Result<NodeRecord, String> {
+        let _ = id;
+        Ok(*node)
+    }
+}
+
+/// The view for a built hierarchy alone: its triangles, nothing else.
+pub struct Standalone<'a> {
+    pub triangles: &'a [[DVec3; 3]],
+}
+
+impl CheckView for Standalone<'_> {
+    fn hierarchy(&self, _id: u8) -> Option<&Hierarchy> {
+        None
+    }
+    fn triangles(&self, _id: u8) -> Option<&[[DVec3; 3]]> {
+        Some(self.triangles)
+    }
+}
+
+/// The view for a hierarchy whose references lead into a store, with each
+/// hierarchy's triangles by id; untranslated.
+pub struct StoreView<'a> {
+    pub store: &'a HierarchyStore,
+    pub triangles: BTreeMap<u8, &'a [[DVec3; 3]]>,
+}
+
+impl CheckView for StoreView<'_> {
+    fn hierarchy(&self, id: u8) -> Option<&Hierarchy> {
+        self.store.get(id)
+    }
+    fn triangles(&self, id: u8) -> Option<&[[DVec3; 3]]> {
+        self.triangles.get(&id).copied()
+    }
+}
+
+/// What a passing check saw.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct CheckReport {
+    /// Nodes visited (each exactly once).
+    pub nodes: usize,
+    pub inner: usize,
+    pub leaves: usize,
+    /// Primitive slots of all visited leaves.
+    pub leaf_prims: usize,
+    /// Distinct (hierarchy, primitive) pairs reached.
+    pub prims_reached: usize,
+    /// Leaf slots whose primitive provably misses the leaf's voxel: allowed
+    /// (conservative), counted because a good builder makes few.
+    pub prims_missing_leaf_voxel: usize,
+    /// The hierarchies the walk entered, ascending.
+    pub hierarchies: Vec<u8>,
+    /// Deepest LOD visited.
+    pub deepest_lod: u8,
+}
+
+/// The first violated property: where, and what.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CheckError {
+    /// The hierarchy holding the node (or primitive) at fault.
+    pub hier: u8,
+    /// The node at fault, when the fault is a node's.
+    pub node: Option<u32>,
+    pub kind: CheckErrorKind,
+}
+
+/// The property that failed.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CheckErrorKind {
+    NoRoots,
+    RootCountExceedsNodes {
+        root_count: u32,
+        nodes: usize,
+    },
+    RootLod {
+        lod: u8,
+        top_lod: u8,
+    },
+    BadRecord(RecordError),
+    PlaceFailed(String),
+    UnknownHierarchy {
+        target: Reference,
+        parent: Reference,
+    },
+    ParamsMismatch {
+        expected: Params,
+        found: Params,
+    },
+    ChildLod {
+        parent: Reference,
+        parent_lod: u8,
+        child_lod: u8,
+    },
+    ChildOutsideParentVoxel {
+        parent: Reference,
+    },
+    ChildBoxOutsideParent {
+        parent: Reference,
+        axis: usize,
+        child: (u64, u64),
+        parent_box: (u64, u64),
+    },
+    RefRangeOutOfBounds {
+        first: u32,
+        count: u32,
+        refs: usize,
+    },
+    DanglingReference {
+        ref_index: u64,
+        target: Reference,
+    },
+    DoubleReference {
+        parent: Reference,
+    },
+    PrimRangeOutOfBounds {
+        first: u32,
+        count: u32,
+        prims: usize,
+    },
+    MissingTriangles,
+    PrimIndexOutOfBounds {
+        slot: u64,
+        prim: u32,
+        triangles: usize,
+    },
+    PrimOutsideLeafBox {
+        prim: u32,
+        axis: usize,
+        clipped: (f64, f64),
+        leaf_box: (f64, f64),
+    },
+    UnreachableNode,
+    UnreachablePrim {
+        prim: u32,
+    },
+}
+
+const AXES: [&str; 3] = ["x", "y", "z"];
+
+impl fmt::Display for CheckErrorKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        use CheckErrorKind::*;
+        let r = |r: &Reference| format!("({}, {})", r.hier, r.node);
+        match self {
+            NoRoots => write!(f, "root_count is 0"),
+            RootCountExceedsNodes { root_count, nodes } => {
+                write!(f, "root_count {root_count} exceeds the {nodes} nodes")
+            }
+            RootLod { lod, top_lod } => write!(f, "root at LOD {lod}, header top_lod is {top_lod}"),
+            BadRecord(e) => write!(f, "bad record: {e}"),
+            PlaceFailed(e) => write!(f, "placement failed: {e}"),
+            UnknownHierarchy { target, parent } => {
+                write!(f, "node {} references {}: no such hierarchy", r(parent), r(target))
+            }
+            ParamsMismatch { expected, found } => {
+                write!(f, "parameters {found:?} differ from the checked hierarchy's {expected:?}")
+            }
+            ChildLod { parent, parent_lod, child_lod } => write!(
+                f,
+                "child at LOD {child_lod} of parent {} at LOD {parent_lod}: expected LOD {}",
+                r(parent),
+                *parent_lod as u16 + 1
+            ),
+            ChildOutsideParentVoxel { parent } => {
+                write!(f, "voxel is not a child of parent {}'s voxel", r(parent))
+            }
+            ChildBoxOutsideParent { parent, axis, child, parent_box } => write!(
+                f,
+                "box on {} is [{}, {}] (fine units), outside parent {}'s [{}, {}]",
+                AXES[*axis],
+                child.0,
+                child.1,
+                r(parent),
+                parent_box.0,
+                parent_box.1
+            ),
+            RefRangeOutOfBounds { first, count, refs } => {
+                write!(f, "refs range first {first} count {count} exceeds the {refs} refs")
+            }
+            DanglingReference { ref_index, target } => {
+                write!(f, "refs[{ref_index}] = {} names no node", r(target))
+            }
+            DoubleReference { parent } => {
+                write!(f, "referenced a second time, by {}", r(parent))
+            }
+            PrimRangeOutOfBounds { first, count, prims } => {
+                write!(f, "prims range first {first} count {count} exceeds the {prims} prims")
+            }
+            MissingTriangles => write!(f, "no triangles given for this hierarchy"),
+            PrimIndexOutOfBounds { slot, prim, triangles } => {
+                write!(f, "prims[{slot}] = {prim} but there are {triangles} triangles")
+            }
+            PrimOutsideLeafBox { prim, axis, clipped, leaf_box } => write!(
+                f,
+                "triangle {prim} inside the voxel spans [{}, {}] on {}, outside the leaf box [{}, {}]",
+                clipped.0, clipped.1, AXES[*axis], leaf_box.0, leaf_box.1
+            ),
+            UnreachableNode => write!(f, "not reachable from the roots"),
+            UnreachablePrim { prim } => write!(f, "triangle {prim} is in no reachable leaf"),
+        }
+    }
+}
+
+impl fmt::Display for CheckError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.node {
+            Some(n) => write!(f, "hierarchy {} node {}: {}", self.hier, n, self.kind),
+            None => write!(f, "hierarchy {}: {}", self.hier, self.kind),
+        }
+    }
+}
+
+impl std::error::Error for CheckError {}
+
+fn fail<T>(hier: u8, node: Option<u32>, kind: CheckErrorKind) -> Result<T, CheckError> {
+    Err(CheckError { hier, node, kind })
+}
+
+/// Checks a built hierarchy over its own triangles (grid units).
+pub fn check_built(h: &Hierarchy, triangles: &[[DVec3; 3]]) -> Result<CheckReport, CheckError> {
+    check(h, &Standalone { triangles })
+}
+
+/// The walk's state: what has been seen so far.
+struct Walk<'a, V: CheckView + ?Sized> {
+    root: &'a Hierarchy,
+    view: &'a V,
+    visited: BTreeMap<u8, Vec<bool>>,
+    reached: BTreeMap<u8, Vec<bool>>,
+    report: CheckReport,
+}
+
+impl<'a, V: CheckView + ?Sized> Walk<'a, V> {
+    fn hierarchy(&self, id: u8) -> Option<&'a Hierarchy> {
+        if id == self.root.id {
+            Some(self.root)
+        } else {
+            self.view.hierarchy(id)
+        }
+    }
+
+    /// Marks `r` visited; an error if it was already.
+    fn visit(
+        &mut self,
+        r: Reference,
+        h: &Hierarchy,
+        parent: Option<Reference>,
+    ) -> Result<(), CheckError> {
+        let seen = self
+            .visited
+            .entry(r.hier)
+            .or_insert_with(|| vec![false; h.nodes.len()]);
+        if seen[r.node as usize] {
+            let kind = CheckErrorKind::DoubleReference {
+                parent: parent.unwrap_or(r),
+            };
+            return fail(r.hier, Some(r.node), kind);
+        }
+        seen[r.node as usize] = true;
+        Ok(())
+    }
+
+    /// The placed record of `r` (which exists), validated.
+    fn placed(&self, r: Reference, h: &Hierarchy) -> Result<NodeRecord, CheckError> {
+        let stored = &h.nodes[r.node as usize];
+        let n = self
+            .view
+            .place(r.hier, stored)
+            .or_else(|e| fail(r.hier, Some(r.node), CheckErrorKind::PlaceFailed(e)))?;
+        n.validate(&self.root.params)
+            .or_else(|e| fail(r.hier, Some(r.node), CheckErrorKind::BadRecord(e)))?;
+        Ok(n)
+    }
+
+    /// Child `c` of parent `p`: one LOD below, inside its voxel and its box.
+    fn check_child(
+        &self,
+        c: Reference,
+        cn: &NodeRecord,
+        p: Reference,
+        pn: &NodeRecord,
+    ) -> Result<(), CheckError> {
+        let params = &self.root.params;
+        if cn.voxel.lod != pn.voxel.lod + 1 {
+            let kind = CheckErrorKind::ChildLod {
+                parent: p,
+                parent_lod: pn.voxel.lod,
+                child_lod: cn.voxel.lod,
+            };
+            return fail(c.hier, Some(c.node), kind);
+        }
+        if cn.voxel.parent() != Some(pn.voxel) {
+            return fail(
+                c.hier,
+                Some(c.node),
+                CheckErrorKind::ChildOutsideParentVoxel { parent: p },
+            );
+        }
+        let (clo, chi) = node_box_fine(cn, params);
+        let (plo, phi) = node_box_fine(pn, params);
+        for axis in 0..3 {
+            if clo[axis] < plo[axis] || chi[axis] > phi[axis] {
+                let kind = CheckErrorKind::ChildBoxOutsideParent {
+                    parent: p,
+                    axis,
+                    child: (clo[axis], chi[axis]),
+                    parent_box: (plo[axis], phi[axis]),
+                };
+                return fail(c.hier, Some(c.node), kind);
+            }
+        }
+        Ok(())
+    }
+
+    /// A leaf's primitives: in range, and each one's part inside the leaf's
+    /// voxel inside the leaf's box.
+    fn check_leaf(
+        &mut self,
+        r: Reference,
+        n: &NodeRecord,
+        h: &Hierarchy,
+    ) -> Result<(), CheckError> {
+        let params = &self.root.params;
+        let range = n.range();
+        if range.end > h.prims.len() as u64 {
+            let kind = CheckErrorKind::PrimRangeOutOfBounds {
+                first: n.first,
+                count: n.count,
+                prims: h.prims.len(),
+            };
+            return fail(r.hier, Some(r.node), kind);
+        }
+        let Some(tris) = self.view.triangles(r.hier) else {
+            return fail(r.hier, Some(r.node), CheckErrorKind::MissingTriangles);
+        };
+        let (vlo, vhi) = voxel_box_fine(&n.voxel, params);
+        let to_grid = 1.0 / params.quant_cells() as f64;
+        let vlo = DVec3::from_array(vlo.map(|v| v as f64 * to_grid));
+        let vhi = DVec3::from_array(vhi.map(|v| v as f64 * to_grid));
+        let (blo, bhi) = node_box_grid(n, params);
+        let reached = self
+            .reached
+            .entry(r.hier)
+            .or_insert_with(|| vec![false; tris.len()]);
+        for slot in range {
+            let prim = h.prims[slot as usize];
+            let Some(tri) = tris.get(prim as usize) else {
+                let kind = CheckErrorKind::PrimIndexOutOfBounds {
+                    slot,
+                    prim,
+                    triangles: tris.len(),
+                };
+                return fail(r.hier, Some(r.node), kind);
+            };
+            reached[prim as usize] = true;
+            self.report.leaf_prims += 1;
+            let Some((clo, chi)) = clip_triangle_to_box(tri, vlo, vhi) else {
+                self.report.prims_missing_leaf_voxel += 1;
+                continue;
+            };
+            for axis in 0..3 {
+                if clo[axis] < blo[axis] || chi[axis] > bhi[axis] {
+                    let kind = CheckErrorKind::PrimOutsideLeafBox {
+                        prim,
+                        axis,
+                        clipped: (clo[axis], chi[axis]),
+                        leaf_box: (blo[axis], bhi[axis]),
+                    };
+                    return fail(r.hier, Some(r.node), kind);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Resolves reference `refs[i]` of inner node `r`.
+    fn resolve(
+        &self,
+        r: Reference,
+        i: u64,
+        target: Reference,
+    ) -> Result<&'a Hierarchy, CheckError> {
+        let Some(th) = self.hierarchy(target.hier) else {
+            return fail(
+                r.hier,
+                Some(r.node),
+                CheckErrorKind::UnknownHierarchy { target, parent: r },
+            );
+        };
+        if th.params != self.root.params {
+            let kind = CheckErrorKind::ParamsMismatch {
+                expected: self.root.params,
+                found: th.params,
+            };
+            return fail(target.hier, None, kind);
+        }
+        if target.node as usize >= th.nodes.len() {
+            return fail(
+                r.hier,
+                Some(r.node),
+                CheckErrorKind::DanglingReference {
+                    ref_index: i,
+                    target,
+                },
+            );
+        }
+        Ok(th)
+    }
+
+    fn run(mut self) -> Result<CheckReport, CheckError> {
+        let h = self.root;
+        let id = h.id;
+        if h.root_count == 0 {
+            return fail(id, None, CheckErrorKind::NoRoots);
+        }
+        if h.root_count as usize > h.nodes.len() {
+            let kind = CheckErrorKind::RootCountExceedsNodes {
+                root_count: h.root_count,
+                nodes: h.nodes.len(),
+            };
+            return fail(id, None, kind);
+        }
+        // Depth-first; each stack entry is a node and the parent that referenced it.
+        let mut stack: Vec<(Reference, Option<(Reference, NodeRecord)>)> = (0..h.root_count)
+            .rev()
+            .map(|node| (Reference { hier: id, node }, None))
+            .collect();
+        while let Some((r, parent)) = stack.pop() {
+            let rh = self.hierarchy(r.hier).expect("resolved before pushing");
+            self.visit(r, rh, parent.map(|p| p.0))?;
+            let n = self.placed(r, rh)?;
+            match parent {
+                None if n.voxel.lod != h.top_lod => {
+                    let kind = CheckErrorKind::RootLod {
+                        lod: n.voxel.lod,
+                        top_lod: h.top_lod,
+                    };
+                    return fail(r.hier, Some(r.node), kind);
+                }
+                None => {}
+                Some((p, pn)) => self.check_child(r, &n, p, &pn)?,
+            }
+            self.report.nodes += 1;
+            self.report.deepest_lod = self.report.deepest_lod.max(n.voxel.lod);
+            if n.leaf {
+                self.report.leaves += 1;
+                self.check_leaf(r, &n, rh)?;
+                continue;
+            }
+            self.report.inner += 1;
+            let range = n.range();
+            if range.end > rh.refs.len() as u64 {
+                let kind = CheckErrorKind::RefRangeOutOfBounds {
+                    first: n.first,
+                    count: n.count,
+                    refs: rh.refs.len(),
+                };
+                return fail(r.hier, Some(r.node), kind);
+            }
+            for i in range.rev() {
+                let target = rh.refs[i as usize];
+                self.resolve(r, i, target)?;
+                stack.push((target, Some((r, n))));
+            }
+        }
+        self.finish()
+    }
+
+    /// Every node of the checked hierarchy and every triangle of every
+    /// entered hierarchy was reached.
+    fn finish(mut self) -> Result<CheckReport, CheckError> {
+        let own = &self.visited[&self.root.id];
+        if let Some(node) = own.iter().position(|&v| !v) {
+            return fail(
+                self.root.id,
+                Some(node as u32),
+                CheckErrorKind::UnreachableNode,
+            );
+        }
+        for (&hier, _) in self.visited.iter() {
+            let Some(tris) = self.view.triangles(hier) else {
+                continue; // no leaf of it was visited, or check_leaf had failed
+            };
+            let reached = self.reached.get(&hier);
+            for prim in 0..tris.len() {
+                if !reached.is_some_and(|r| r[prim]) {
+                    return fail(
+                        hier,
+                        None,
+                        CheckErrorKind::UnreachablePrim { prim: prim as u32 },
+                    );
+                }
+            }
+        }
+        self.report.prims_reached = self
+            .reached
+            .values()
+            .map(|r| r.iter().filter(|&&b| b).count())
+            .sum();
+        self.report.hierarchies = self.visited.keys().copied().collect();
+        Ok(self.report)
+    }
+}
+
+/// Checks `h` (SPEC.md section 5), reading referenced hierarchies, triangles
+/// and placements through `view`. Returns what it saw, or the first failure.
+pub fn check<V: CheckView + ?Sized>(h: &Hierarchy, view: &V) -> Result<CheckReport, CheckError> {
+    Walk {
+        root: h,
+        view,
+        visited: BTreeMap::new(),
+        reached: BTreeMap::new(),
+        report: CheckReport::default(),
+    }
+    .run()
+}

@@ -1,1 +1,19 @@
-//! Co-simulation harness (see issue 6).
+//! Co-simulation harness (issue 6): engines that step a Verilog design cycle by
+//! cycle from Rust behind one `Engine` trait (Verilator through a generated C
+//! ABI shim and a content-addressed build cache; Icarus Verilog through a
+//! piped testbench, 4-state), and reusable testbench pieces generic over it.
+//! See `cosim/README.md`.
+
+pub mod bitvec;
+pub mod cache;
+pub mod design;
+pub mod engine;
+pub mod error;
+pub mod icarus;
+pub mod tools;
+pub mod verilator;
+
+pub use bitvec::BitVec;
+pub use design::{Design, PortDir, PortId, PortSpec, Reset};
+pub use engine::Engine;
+pub use error::{CosimError, Result};

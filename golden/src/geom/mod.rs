@@ -9,11 +9,17 @@
 //! rounding error (a few tens of ulps), far below anything a grid could
 //! resolve (2^-40 of the scene extent).
 
+pub mod aabb;
 pub mod clip;
 pub mod overlap;
+pub mod ray;
+pub mod triangle;
 
+pub use aabb::{ray_box, SlabRay};
 pub use clip::clip_triangle_to_box;
 pub use overlap::triangle_overlaps_box;
+pub use ray::Ray;
+pub use triangle::{intersect_triangle, ShearedRay, TriangleHit};
 
 use glam::DVec3;
 

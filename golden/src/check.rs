@@ -12,6 +12,8 @@ use std::fmt;
 use glam::DVec3;
 
 use crate::geom::clip_triangle_to_box;
+use crate::geom::triangle_overlaps_box;
+use crate::grid::VoxelAddr;
 use crate::params::Params;
 use crate::store::{
     node_box_fine, node_box_grid, voxel_box_fine, Hierarchy, HierarchyStore, NodeRecord,
@@ -35,6 +37,14 @@ pub trait CheckView {
     fn place(&self, id: u8, node: &NodeRecord) -> Result<NodeRecord, String> {
         let _ = id;
         Ok(*node)
+    }
+
+    /// True (the default): re-derive the builder's coverage rule (SPEC 5,
+    /// check 9) and require every voxel it names to hold the primitive. Turn
+    /// off for inputs whose triangles are not bit-exact images of the ones
+    /// they were built from.
+    fn exact_coverage(&self) -> bool {
+        true
     }
 }
 
@@ -79,9 +89,8 @@ pub struct CheckReport {
     pub leaf_prims: usize,
     /// Distinct (hierarchy, primitive) pairs reached.
     pub prims_reached: usize,
-    /// Leaf slots whose primitive provably misses the leaf's voxel: allowed
-    /// (conservative), counted because a good builder makes few.
-    pub prims_missing_leaf_voxel: usize,
+    /// Voxels the coverage check (SPEC 5, check 9) examined.
+    pub coverage_voxels: usize,
     /// The hierarchies the walk entered, ascending.
     pub hierarchies: Vec<u8>,
     /// Deepest LOD visited.
@@ -163,6 +172,17 @@ pub enum CheckErrorKind {
         clipped: (f64, f64),
         leaf_box: (f64, f64),
     },
+    PrimMissesLeafVoxel {
+        prim: u32,
+    },
+    PrimLeavesAtMixedLods {
+        prim: u32,
+        lods: (u8, u8),
+    },
+    PrimNotCovered {
+        prim: u32,
+        voxel: VoxelAddr,
+    },
     UnreachableNode,
     UnreachablePrim {
         prim: u32,
@@ -229,6 +249,18 @@ impl fmt::Display for CheckErrorKind {
                 "triangle {prim} inside the voxel spans [{}, {}] on {}, outside the leaf box [{}, {}]",
                 clipped.0, clipped.1, AXES[*axis], leaf_box.0, leaf_box.1
             ),
+            PrimMissesLeafVoxel { prim } => {
+                write!(f, "triangle {prim} certainly misses the leaf's voxel")
+            }
+            PrimLeavesAtMixedLods { prim, lods } => write!(
+                f,
+                "triangle {prim} is in leaves at LOD {} and at LOD {}",
+                lods.0, lods.1
+            ),
+            PrimNotCovered { prim, voxel } => write!(
+                f,
+                "triangle {prim} meets voxel {voxel:?} but no reachable leaf there holds it"
+            ),
             UnreachableNode => write!(f, "not reachable from the roots"),
             UnreachablePrim { prim } => write!(f, "triangle {prim} is in no reachable leaf"),
         }
@@ -261,6 +293,8 @@ struct Walk<'a, V: CheckView + ?Sized> {
     view: &'a V,
     visited: BTreeMap<u8, Vec<bool>>,
     reached: BTreeMap<u8, Vec<bool>>,
+    /// (hierarchy, primitive, placed leaf voxel) of every leaf slot visited.
+    holders: Vec<(u8, u32, VoxelAddr)>,
     report: CheckReport,
 }
 
@@ -387,10 +421,14 @@ impl<'a, V: CheckView + ?Sized> Walk<'a, V> {
                 return fail(r.hier, Some(r.node), kind);
             };
             reached[prim as usize] = true;
+            self.holders.push((r.hier, prim, n.voxel));
             self.report.leaf_prims += 1;
             let Some((clo, chi)) = clip_triangle_to_box(tri, vlo, vhi) else {
-                self.report.prims_missing_leaf_voxel += 1;
-                continue;
+                return fail(
+                    r.hier,
+                    Some(r.node),
+                    CheckErrorKind::PrimMissesLeafVoxel { prim },
+                );
             };
             for axis in 0..3 {
                 if clo[axis] < blo[axis] || chi[axis] > bhi[axis] {
@@ -526,6 +564,9 @@ impl<'a, V: CheckView + ?Sized> Walk<'a, V> {
                 }
             }
         }
+        if self.view.exact_coverage() {
+            self.check_coverage()?;
+        }
         self.report.prims_reached = self
             .reached
             .values()
@@ -533,6 +574,71 @@ impl<'a, V: CheckView + ?Sized> Walk<'a, V> {
             .sum();
         self.report.hierarchies = self.visited.keys().copied().collect();
         Ok(self.report)
+    }
+}
+
+impl<V: CheckView + ?Sized> Walk<'_, V> {
+    /// SPEC 5, check 9: all leaves holding a primitive are at one LOD `l`,
+    /// and every LOD-`l` voxel meeting the triangle's AABB (per axis
+    /// `floor(min / e) ..= min(floor(max / e), 2^l - 1)`) in which both
+    /// kernels find contact holds it.
+    fn check_coverage(&mut self) -> Result<(), CheckError> {
+        let params = self.root.params;
+        let mut holders = std::mem::take(&mut self.holders);
+        holders.sort_unstable();
+        holders.dedup();
+        let mut i = 0;
+        while i < holders.len() {
+            let (hier, prim, first) = holders[i];
+            let mut j = i;
+            while j < holders.len() && holders[j].0 == hier && holders[j].1 == prim {
+                if holders[j].2.lod != first.lod {
+                    let lods = (first.lod, holders[j].2.lod);
+                    return fail(
+                        hier,
+                        None,
+                        CheckErrorKind::PrimLeavesAtMixedLods { prim, lods },
+                    );
+                }
+                j += 1;
+            }
+            let held = &holders[i..j];
+            let tri = self.view.triangles(hier).expect("checked in check_leaf")[prim as usize];
+            let lod = first.lod;
+            let e = params.voxel_edge(lod) as f64;
+            let last = ((1u64 << lod) - 1) as f64;
+            let tlo = tri[0].min(tri[1]).min(tri[2]);
+            let thi = tri[0].max(tri[1]).max(tri[2]);
+            let a = (tlo / e)
+                .floor()
+                .clamp(DVec3::ZERO, DVec3::splat(last))
+                .as_uvec3();
+            let b = (thi / e)
+                .floor()
+                .clamp(DVec3::ZERO, DVec3::splat(last))
+                .as_uvec3();
+            for z in a.z..=b.z {
+                for y in a.y..=b.y {
+                    for x in a.x..=b.x {
+                        let voxel = VoxelAddr::new(lod, x, y, z);
+                        self.report.coverage_voxels += 1;
+                        let vlo = DVec3::new(x as f64, y as f64, z as f64) * e;
+                        let vhi = vlo + DVec3::splat(e);
+                        let meets = triangle_overlaps_box(&tri, vlo, vhi)
+                            && clip_triangle_to_box(&tri, vlo, vhi).is_some();
+                        if meets && held.binary_search(&(hier, prim, voxel)).is_err() {
+                            return fail(
+                                hier,
+                                None,
+                                CheckErrorKind::PrimNotCovered { prim, voxel },
+                            );
+                        }
+                    }
+                }
+            }
+            i = j;
+        }
+        Ok(())
     }
 }
 
@@ -544,6 +650,7 @@ pub fn check<V: CheckView + ?Sized>(h: &Hierarchy, view: &V) -> Result<CheckRepo
         view,
         visited: BTreeMap::new(),
         reached: BTreeMap::new(),
+        holders: Vec::new(),
         report: CheckReport::default(),
     }
     .run()

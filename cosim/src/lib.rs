@@ -10,6 +10,7 @@ pub mod design;
 pub mod engine;
 pub mod error;
 pub mod icarus;
+pub mod tb;
 pub mod tools;
 pub mod verilator;
 

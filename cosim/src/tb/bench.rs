@@ -1,0 +1,299 @@
+//! One stream-in, stream-out testbench run: driver, monitor, scoreboard,
+//! accounting and watchdog around any `Engine`, and the re-run that writes a
+//! VCD around the first mismatch.
+//!
+//! Per cycle: driver and monitor poke their inputs, `eval`, handshakes are
+//! observed (`valid && ready`), outputs go to the scoreboard, then `step`.
+
+use super::accounting::AccountingReport;
+use super::driver::StreamDriver;
+use super::monitor::StreamMonitor;
+use super::scoreboard::{FieldDecoder, Mismatch, Scoreboard};
+use super::stream::{StreamPorts, Transaction};
+use super::trace_window::TraceWindow;
+use super::watchdog::{Hang, Watchdog};
+use crate::engine::Engine;
+use crate::error::Result;
+use std::fmt;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+/// Port names of the input and output streams.
+#[derive(Clone, Debug)]
+pub struct StreamNames {
+    /// Input stream valid.
+    pub in_valid: String,
+    /// Input stream ready.
+    pub in_ready: String,
+    /// Input stream payload ports.
+    pub in_payload: Vec<String>,
+    /// Output stream valid.
+    pub out_valid: String,
+    /// Output stream ready.
+    pub out_ready: String,
+    /// Output stream payload ports.
+    pub out_payload: Vec<String>,
+}
+
+/// One input record and the outputs it must produce, in order.
+#[derive(Clone, Debug)]
+pub struct Vector {
+    /// Input payload.
+    pub input: Transaction,
+    /// Expected outputs (possibly none).
+    pub outputs: Vec<Transaction>,
+}
+
+/// Knobs of a run.
+#[derive(Clone, Debug)]
+pub struct BenchConfig {
+    /// Seed of the stall patterns (and garbage payloads).
+    pub seed: u64,
+    /// Probability the driver leaves valid low (0..=0.9).
+    pub in_stall: f64,
+    /// Probability the monitor holds ready low (0..=0.9).
+    pub out_stall: f64,
+    /// Rising edges with reset held.
+    pub reset_cycles: u32,
+    /// Watchdog limit: cycles without any handshake.
+    pub watchdog_cycles: u64,
+    /// Stop at the first mismatch (otherwise run to the end and count them).
+    pub stop_on_mismatch: bool,
+    /// Where to write the VCD around the first mismatch (None: no VCD).
+    pub vcd_path: Option<PathBuf>,
+    /// Cycles traced either side of the mismatch.
+    pub vcd_radius: u64,
+    /// Command that reproduces this run, copied into the report.
+    pub reproduce: Option<String>,
+    /// Cycles run after the last expected output, so a duplicate that comes
+    /// late is still counted.
+    pub drain_cycles: u64,
+}
+
+impl Default for BenchConfig {
+    fn default() -> Self {
+        BenchConfig {
+            seed: 1,
+            in_stall: 0.0,
+            out_stall: 0.0,
+            reset_cycles: 2,
+            watchdog_cycles: 1000,
+            stop_on_mismatch: true,
+            vcd_path: None,
+            vcd_radius: 20,
+            reproduce: None,
+            drain_cycles: 16,
+        }
+    }
+}
+
+/// What a run found.
+#[derive(Clone, Debug)]
+pub struct BenchReport {
+    /// Engine name.
+    pub engine: String,
+    /// Seed used.
+    pub seed: u64,
+    /// Rising edges simulated, reset included.
+    pub cycles: u64,
+    /// Input records accepted by the design.
+    pub inputs_sent: u64,
+    /// Output transactions collected.
+    pub outputs_received: u64,
+    /// Outputs that matched.
+    pub matched: u64,
+    /// Outputs that did not.
+    pub mismatches: u64,
+    /// The first mismatch, decoded.
+    pub first_mismatch: Option<Mismatch>,
+    /// Nothing lost, nothing duplicated?
+    pub accounting: AccountingReport,
+    /// Set when the watchdog fired.
+    pub hang: Option<Hang>,
+    /// VCD written around the first mismatch or hang.
+    pub vcd: Option<PathBuf>,
+    /// Wall time of the run (not of a VCD re-run).
+    pub wall: Duration,
+    /// Command that reproduces the run.
+    pub reproduce: Option<String>,
+}
+
+impl BenchReport {
+    /// True when every output matched, the books balance and nothing hung.
+    pub fn passed(&self) -> bool {
+        self.mismatches == 0 && self.hang.is_none() && self.accounting.balanced()
+    }
+
+    /// Input records per cycle.
+    pub fn inputs_per_cycle(&self) -> f64 {
+        self.inputs_sent as f64 / self.cycles.max(1) as f64
+    }
+}
+
+impl fmt::Display for BenchReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "{} seed {}: {} cycles, {} inputs, {} outputs, {} matched, {} mismatched, {:.3} inputs/cycle, {:?}",
+            self.engine,
+            self.seed,
+            self.cycles,
+            self.inputs_sent,
+            self.outputs_received,
+            self.matched,
+            self.mismatches,
+            self.inputs_per_cycle(),
+            self.wall
+        )?;
+        writeln!(f, "{}", self.accounting)?;
+        if let Some(m) = &self.first_mismatch {
+            write!(f, "{m}")?;
+        }
+        if let Some(h) = &self.hang {
+            write!(f, "{h}")?;
+        }
+        if let Some(v) = &self.vcd {
+            writeln!(f, "VCD: {}", v.display())?;
+        }
+        if let Some(r) = &self.reproduce {
+            writeln!(f, "reproduce: {r}")?;
+        }
+        Ok(())
+    }
+}
+
+/// Run `vectors` through `engine` once; `window` optionally traces some cycles.
+pub fn run_stream_bench(
+    engine: &mut dyn Engine,
+    names: &StreamNames,
+    vectors: &[Vector],
+    decoder: Option<Box<FieldDecoder>>,
+    config: &BenchConfig,
+    mut window: Option<TraceWindow>,
+) -> Result<BenchReport> {
+    let start = Instant::now();
+    let design = engine.design().clone();
+    let in_payload: Vec<&str> = names.in_payload.iter().map(String::as_str).collect();
+    let out_payload: Vec<&str> = names.out_payload.iter().map(String::as_str).collect();
+    let in_ports = StreamPorts::new(&design, &names.in_valid, &names.in_ready, &in_payload)?;
+    let out_ports = StreamPorts::new(&design, &names.out_valid, &names.out_ready, &out_payload)?;
+    let mut driver = StreamDriver::new(in_ports, config.seed, config.in_stall)?;
+    let mut monitor = StreamMonitor::new(out_ports, config.seed, config.out_stall)?;
+    let mut scoreboard = match decoder {
+        Some(d) => Scoreboard::new(d),
+        None => Scoreboard::with_port_names(names.out_payload.clone()),
+    };
+    for v in vectors {
+        driver.push(v.input.clone());
+        scoreboard.expect_input(v.outputs.clone());
+    }
+
+    if let Some(w) = window.as_mut() {
+        if w.from <= u64::from(config.reset_cycles) {
+            w.update(engine)?;
+        }
+    }
+    // Hold the handshake inputs low through reset.
+    engine.poke_u64(design.port_id(&names.in_valid)?, 0)?;
+    engine.poke_u64(design.port_id(&names.out_ready)?, 0)?;
+    engine.reset(config.reset_cycles)?;
+
+    let mut watchdog = Watchdog::new(config.watchdog_cycles);
+    watchdog.progress(engine.cycle());
+    let mut hang = None;
+    let mut drain_left: Option<u64> = None;
+    loop {
+        if let Some(w) = window.as_mut() {
+            w.update(engine)?;
+        }
+        driver.drive(engine)?;
+        monitor.drive(engine)?;
+        engine.eval()?;
+        if driver.observe(engine)?.is_some() {
+            watchdog.progress(engine.cycle());
+        }
+        if let Some(txn) = monitor.observe(engine)? {
+            watchdog.progress(engine.cycle());
+            scoreboard.check(txn, engine.cycle());
+        }
+        let mismatch_stop = config.stop_on_mismatch && scoreboard.mismatches() > 0;
+        let finished = driver.pending() == 0 && scoreboard.outstanding() == 0;
+        if finished && drain_left.is_none() {
+            drain_left = Some(config.drain_cycles);
+            watchdog = Watchdog::new(config.drain_cycles + 1);
+            watchdog.progress(engine.cycle());
+        }
+        if mismatch_stop || drain_left == Some(0) {
+            break;
+        }
+        drain_left = drain_left.map(|d| d - 1);
+        if let Some(h) = watchdog.check(engine) {
+            hang = Some(h);
+            break;
+        }
+        engine.step()?;
+    }
+    // Trace a few more cycles after a stop so the VCD shows what followed.
+    if let Some(w) = window.as_mut() {
+        while engine.cycle() <= w.to && (scoreboard.mismatches() > 0 || hang.is_some()) {
+            engine.step()?;
+        }
+        w.finish(engine)?;
+    }
+    Ok(BenchReport {
+        engine: engine.name().to_string(),
+        seed: config.seed,
+        cycles: engine.cycle(),
+        inputs_sent: driver.sent(),
+        outputs_received: monitor.received(),
+        matched: scoreboard.matched(),
+        mismatches: scoreboard.mismatches(),
+        first_mismatch: scoreboard.first_mismatch().cloned(),
+        accounting: scoreboard.accounting().report(),
+        hang,
+        vcd: window.map(|w| w.path),
+        wall: start.elapsed(),
+        reproduce: config.reproduce.clone(),
+    })
+}
+
+/// Run once untraced; on a mismatch or hang, when `config.vcd_path` is set,
+/// run again on a tracing engine (`make_engine(true)`) with the same seed and
+/// write the cycles around the failure to that VCD.
+pub fn run_with_vcd_on_failure(
+    make_engine: &mut dyn FnMut(bool) -> Result<Box<dyn Engine>>,
+    names: &StreamNames,
+    vectors: &[Vector],
+    make_decoder: &dyn Fn() -> Option<Box<FieldDecoder>>,
+    config: &BenchConfig,
+) -> Result<BenchReport> {
+    let mut engine = make_engine(false)?;
+    let mut report = run_stream_bench(
+        engine.as_mut(),
+        names,
+        vectors,
+        make_decoder(),
+        config,
+        None,
+    )?;
+    drop(engine);
+    let failure_cycle = report
+        .first_mismatch
+        .as_ref()
+        .map(|m| m.cycle)
+        .or(report.hang.as_ref().map(|h| h.cycle));
+    if let (Some(cycle), Some(path)) = (failure_cycle, config.vcd_path.clone()) {
+        let mut traced = make_engine(true)?;
+        let window = TraceWindow::around(cycle, config.vcd_radius, path);
+        let rerun = run_stream_bench(
+            traced.as_mut(),
+            names,
+            vectors,
+            make_decoder(),
+            config,
+            Some(window),
+        )?;
+        report.vcd = rerun.vcd;
+    }
+    Ok(report)
+}

@@ -1,0 +1,105 @@
+//! Stream driver: feeds queued transactions into a valid/ready input with
+//! seeded random gaps.
+//!
+//! Protocol kept: once `valid` is raised its payload is held until the design
+//! accepts it (`valid && ready` at a rising edge); gaps are only inserted
+//! between transactions. While `valid` is low the payload carries random
+//! garbage so a design that samples data without `valid` is caught.
+
+use super::prng::Prng;
+use super::stream::{StreamPorts, Transaction};
+use crate::bitvec::BitVec;
+use crate::engine::Engine;
+use crate::error::{CosimError, Result};
+use std::collections::VecDeque;
+
+/// Drives one input stream of a design.
+pub struct StreamDriver {
+    ports: StreamPorts,
+    queue: VecDeque<Transaction>,
+    rng: Prng,
+    stall: f64,
+    presenting: bool,
+    sent: u64,
+}
+
+impl StreamDriver {
+    /// A driver that leaves `valid` low with probability `stall` (0..=0.9)
+    /// each cycle it could present a new transaction.
+    pub fn new(ports: StreamPorts, seed: u64, stall: f64) -> Result<StreamDriver> {
+        check_stall(stall)?;
+        Ok(StreamDriver {
+            ports,
+            queue: VecDeque::new(),
+            rng: Prng::derived(seed, 1),
+            stall,
+            presenting: false,
+            sent: 0,
+        })
+    }
+
+    /// Queue a transaction.
+    pub fn push(&mut self, txn: Transaction) {
+        self.queue.push_back(txn);
+    }
+
+    /// Transactions accepted by the design so far.
+    pub fn sent(&self) -> u64 {
+        self.sent
+    }
+
+    /// Transactions still queued (including one being presented).
+    pub fn pending(&self) -> usize {
+        self.queue.len()
+    }
+
+    /// Drive `valid` and the payload for this cycle (call before `eval`).
+    pub fn drive<E: Engine + ?Sized>(&mut self, engine: &mut E) -> Result<()> {
+        if !self.presenting && !self.queue.is_empty() && !self.rng.chance(self.stall) {
+            self.presenting = true;
+        }
+        engine.poke(self.ports.valid, &bool_bits(self.presenting))?;
+        for (k, &port) in self.ports.payload.iter().enumerate() {
+            let value = match (self.presenting, self.queue.front()) {
+                (true, Some(txn)) => txn.get(k).cloned().ok_or_else(|| CosimError::Design {
+                    what: format!(
+                        "transaction has {} fields, stream has {} payload ports",
+                        txn.len(),
+                        self.ports.payload.len()
+                    ),
+                })?,
+                _ => self.rng.bits(engine.design().port(port)?.width),
+            };
+            engine.poke(port, &value)?;
+        }
+        Ok(())
+    }
+
+    /// After `eval`: if the design accepts this cycle, the transaction leaves
+    /// the queue and is returned.
+    pub fn observe<E: Engine + ?Sized>(&mut self, engine: &E) -> Result<Option<Transaction>> {
+        if self.presenting && engine.peek_bool(self.ports.ready)? {
+            self.presenting = false;
+            self.sent += 1;
+            return Ok(self.queue.pop_front());
+        }
+        Ok(None)
+    }
+}
+
+pub(crate) fn bool_bits(b: bool) -> BitVec {
+    if b {
+        BitVec::ones(1)
+    } else {
+        BitVec::zeros(1)
+    }
+}
+
+pub(crate) fn check_stall(stall: f64) -> Result<()> {
+    if !(0.0..=0.9).contains(&stall) {
+        return Err(CosimError::Design {
+            what: format!("stall probability {stall} outside 0..=0.9"),
+        });
+    }
+    Ok(())
+}

@@ -1,0 +1,23 @@
+//! Testbench pieces, generic over `Engine` (SpinalHDL-style small parts).
+
+pub mod accounting;
+pub mod bench;
+pub mod driver;
+pub mod monitor;
+pub mod prng;
+pub mod scoreboard;
+pub mod stream;
+pub mod trace_window;
+pub mod watchdog;
+
+pub use accounting::{Accounting, AccountingReport};
+pub use bench::{
+    run_stream_bench, run_with_vcd_on_failure, BenchConfig, BenchReport, StreamNames, Vector,
+};
+pub use driver::StreamDriver;
+pub use monitor::StreamMonitor;
+pub use prng::Prng;
+pub use scoreboard::{FieldDecoder, FieldDiff, Mismatch, Scoreboard};
+pub use stream::{StreamPorts, Transaction};
+pub use trace_window::TraceWindow;
+pub use watchdog::{dump_ports, Hang, Watchdog};

@@ -1,1 +1,55 @@
-//! rtl-gen: an embedded DSL for synthesizable RTL (see issue 4).
+//! rtl-gen: a Rust embedded DSL for synthesizable RTL.
+//!
+//! Build a [`Module`] with ports, wires, registers, memories and instances;
+//! combine [`Signal`]s with explicitly sized operators; check it with
+//! [`Module::validate`]; emit Verilog-2005 with [`emit_verilog`] /
+//! [`write_design`]; simulate it cycle by cycle with [`Sim`].
+//!
+//! ```
+//! use rtl_gen::{emit_verilog, Module, Sim};
+//! let m = Module::new("acc");
+//! let x = m.input("x", 8);
+//! let en = m.input("en", 1);
+//! let acc = m.reg("acc", 12);
+//! acc.next_when(en, acc.add(x, 12));
+//! m.output("sum", acc);
+//! let verilog = emit_verilog(&m).unwrap();
+//! assert!(verilog.contains("module acc ("));
+//! let mut sim = Sim::new(&m).unwrap();
+//! sim.poke("x", 5u64).unwrap();
+//! sim.poke("en", 1u64).unwrap();
+//! sim.step_n(3);
+//! assert_eq!(sim.peek("sum").unwrap().to_u64(), Some(15));
+//! ```
+//!
+//! See the crate's README.md for the semantics and the emitted-Verilog conventions.
+
+#![warn(missing_docs)]
+
+mod bits;
+mod diagnostic;
+pub mod examples;
+mod graph;
+mod instance;
+mod memory;
+mod module;
+mod names;
+pub mod optest;
+mod signal;
+pub mod sim;
+pub mod stream;
+mod validate;
+pub mod verilog;
+#[doc(hidden)]
+pub mod words;
+
+pub use bits::{Bits, DoesNotFit};
+pub use diagnostic::{DiagKind, Diagnostic, Diagnostics, Loc, Severity};
+pub use graph::{CmpOp, Direction, CLOCK, RESET};
+pub use instance::Instance;
+pub use memory::Memory;
+pub use module::{Module, PortInfo};
+pub use signal::{IntoSignal, ShiftAmount, ShiftBy, Signal};
+pub use sim::{Sim, SimError};
+pub use stream::Stream;
+pub use verilog::{emit_design, emit_verilog, write_design, DesignError};

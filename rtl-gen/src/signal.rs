@@ -1,0 +1,772 @@
+//! [`Signal`]: a cheap handle to a node of a module, and every operator.
+
+use crate::diagnostic::{DiagKind, Loc};
+use crate::graph::{Amount, BinOp, CmpOp, NodeId, Op, RedOp, ShiftKind};
+use crate::{Bits, Module};
+use std::panic::Location;
+
+/// A value in a module: a port, wire, register, constant or the result of an
+/// operator. It is a `Copy` handle into its module's arena; the `signed` flag
+/// says how operators read its bits (two's complement or unsigned) and costs
+/// no hardware.
+///
+/// ```
+/// use rtl_gen::Module;
+/// let m = Module::new("m");
+/// let a = m.input("a", 8);
+/// let b = m.input("b", 8);
+/// let x = (a ^ b) & 0x0f;          // bitwise ops need equal widths; integers adopt them
+/// let s = a.add(b, 9);              // explicit result width, no overflow
+/// let lt = a.as_signed().lt(b.as_signed());
+/// m.output("y", lt.mux(x, s.slice(7, 0)));
+/// m.output("carry", s.bit(8));
+/// assert!(m.validate().is_ok());
+/// ```
+#[derive(Clone, Copy)]
+pub struct Signal<'m> {
+    pub(crate) m: &'m Module,
+    pub(crate) id: NodeId,
+    pub(crate) signed: bool,
+}
+
+impl std::fmt::Debug for Signal<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let g = self.m.graph();
+        write!(f, "Signal({}, {} bits{})", g.describe(self.id), g.node(self.id).width, if self.signed { ", signed" } else { "" })
+    }
+}
+
+/// Something usable as an operand next to a signal: another [`Signal`], or an
+/// integer or [`Bits`] constant, which takes the other operand's width and
+/// signedness (an error if it does not fit).
+pub trait IntoSignal<'m> {
+    /// Converts `self` into a signal of `like`'s module, shaped like `like` when a constant.
+    fn into_signal_like(self, like: Signal<'m>, loc: Loc) -> Signal<'m>;
+}
+
+impl<'m> IntoSignal<'m> for Signal<'m> {
+    fn into_signal_like(self, like: Signal<'m>, loc: Loc) -> Signal<'m> {
+        if like.m.owns(self, loc) {
+            self
+        } else {
+            like.m.fail(DiagKind::Misuse, None, loc, "operand from another module".into(), self.width())
+        }
+    }
+}
+
+fn int_like<'m>(value: i128, like: Signal<'m>, loc: Loc) -> Signal<'m> {
+    let w = like.width();
+    let bits = if like.signed {
+        Bits::from_i128(value, w)
+    } else if value < 0 {
+        return like.m.fail(
+            DiagKind::Width,
+            None,
+            loc,
+            format!("negative constant {value} next to an unsigned signal; make the signal signed with .as_signed()"),
+            w,
+        );
+    } else {
+        Bits::from_u128(value as u128, w)
+    };
+    match bits {
+        Ok(b) => like.m.constant(b, like.signed, loc),
+        Err(e) => like.m.fail(
+            DiagKind::Width,
+            None,
+            loc,
+            format!("{e} ({} operand)", if like.signed { "signed" } else { "unsigned" }),
+            w,
+        ),
+    }
+}
+
+macro_rules! int_operand {
+    ($($t:ty),*) => {$(
+        impl<'m> IntoSignal<'m> for $t {
+            fn into_signal_like(self, like: Signal<'m>, loc: Loc) -> Signal<'m> {
+                int_like(self as i128, like, loc)
+            }
+        }
+    )*};
+}
+int_operand!(i32, i64, u8, u16, u32, u64);
+
+impl<'m> IntoSignal<'m> for u128 {
+    fn into_signal_like(self, like: Signal<'m>, loc: Loc) -> Signal<'m> {
+        match i128::try_from(self) {
+            Ok(v) => int_like(v, like, loc),
+            Err(_) => match Bits::from_u128(self, like.width()) {
+                Ok(b) if !like.signed => like.m.constant(b, false, loc),
+                _ => like.m.fail(DiagKind::Width, None, loc, format!("constant {self} does not fit"), like.width()),
+            },
+        }
+    }
+}
+
+impl<'m> IntoSignal<'m> for bool {
+    fn into_signal_like(self, like: Signal<'m>, loc: Loc) -> Signal<'m> {
+        int_like(self as i128, like, loc)
+    }
+}
+
+impl<'m> IntoSignal<'m> for Bits {
+    fn into_signal_like(self, like: Signal<'m>, loc: Loc) -> Signal<'m> {
+        if self.width() != like.width() {
+            return like.m.fail(
+                DiagKind::Width,
+                None,
+                loc,
+                format!("constant is {} bits, the other operand {}", self.width(), like.width()),
+                like.width(),
+            );
+        }
+        like.m.constant(self, like.signed, loc)
+    }
+}
+
+/// A shift amount: a constant `u32` or an unsigned signal.
+pub trait ShiftAmount<'m> {
+    /// The amount as a constant or a signal.
+    fn shift_by(self) -> ShiftBy<'m>;
+}
+
+/// What a shift is by.
+#[derive(Clone, Copy, Debug)]
+pub enum ShiftBy<'m> {
+    /// A constant number of bits.
+    Const(u32),
+    /// An unsigned signal, any width.
+    Signal(Signal<'m>),
+}
+
+impl<'m> ShiftAmount<'m> for u32 {
+    fn shift_by(self) -> ShiftBy<'m> {
+        ShiftBy::Const(self)
+    }
+}
+
+impl<'m> ShiftAmount<'m> for Signal<'m> {
+    fn shift_by(self) -> ShiftBy<'m> {
+        ShiftBy::Signal(self)
+    }
+}
+
+fn shift_amount<'m>(by: ShiftBy<'m>, m: &'m Module, loc: Loc) -> Option<Amount> {
+    match by {
+        ShiftBy::Const(k) => Some(Amount::Const(k)),
+        ShiftBy::Signal(s) => {
+            if !m.owns(s, loc) {
+                return None;
+            }
+            if s.signed {
+                let what = m.graph().describe(s.id);
+                m.graph_mut().error(DiagKind::Misuse, Some(what), loc, "shift amount must be unsigned (use .as_unsigned())".into());
+                return None;
+            }
+            Some(Amount::Signal(s.id))
+        }
+    }
+}
+
+impl<'m> Signal<'m> {
+    /// Width in bits.
+    pub fn width(&self) -> u32 {
+        self.m.graph().node(self.id).width
+    }
+
+    /// True when operators read this handle as two's complement.
+    pub fn is_signed(&self) -> bool {
+        self.signed
+    }
+
+    /// The same bits, read as two's complement (no hardware).
+    pub fn as_signed(self) -> Signal<'m> {
+        Signal { signed: true, ..self }
+    }
+
+    /// The same bits, read as unsigned (no hardware).
+    pub fn as_unsigned(self) -> Signal<'m> {
+        Signal { signed: false, ..self }
+    }
+
+    /// The module this signal belongs to.
+    pub fn module(&self) -> &'m Module {
+        self.m
+    }
+
+    /// Gives the signal a name in the emitted Verilog and diagnostics
+    /// (made unique if needed); ports keep their port name.
+    ///
+    /// ```
+    /// # use rtl_gen::Module;
+    /// let m = Module::new("m");
+    /// let a = m.input("a", 8);
+    /// let sum = a.add(1, 8).name("sum");
+    /// m.output("y", sum);
+    /// assert!(rtl_gen::emit_verilog(&m).unwrap().contains("wire [7:0] sum;"));
+    /// ```
+    #[track_caller]
+    pub fn name(self, name: &str) -> Signal<'m> {
+        let loc = Location::caller();
+        let is_port = self.m.graph().node(self.id).port.is_some();
+        if is_port {
+            self.m.graph_mut().error(DiagKind::Name, Some(name.into()), loc, "a port cannot be renamed".into());
+            return self;
+        }
+        let mut g = self.m.graph_mut();
+        let n = &mut g.nodes[self.id as usize];
+        n.name = Some(name.to_string());
+        n.base = name.to_string();
+        self
+    }
+
+    fn base(&self) -> String {
+        self.m.graph().node(self.id).base.clone()
+    }
+
+    fn op(&self) -> Op {
+        self.m.graph().node(self.id).op.clone()
+    }
+
+    fn new(self, op: Op, width: u32, opname: &'static str, signed: bool, loc: Loc) -> Signal<'m> {
+        // Name derived temporaries after the first operand that is not a constant.
+        let g = self.m.graph();
+        let base = match &op {
+            Op::Bin(_, a, b) | Op::Cmp(_, _, a, b) => {
+                let pick = |x: NodeId| match g.node(x).op {
+                    Op::Const(_) => None,
+                    Op::Ext(inner, _) => Some(g.node(inner).base.clone()),
+                    _ => Some(g.node(x).base.clone()),
+                };
+                pick(*a).or_else(|| pick(*b)).unwrap_or_else(|| g.node(self.id).base.clone())
+            }
+            _ => g.node(self.id).base.clone(),
+        };
+        drop(g);
+        let id = self.m.add_node(op, width, &base, opname, loc);
+        Signal { m: self.m, id, signed }
+    }
+
+    fn fail(self, kind: DiagKind, loc: Loc, msg: String, width: u32) -> Signal<'m> {
+        let what = self.m.graph().describe(self.id);
+        self.m.fail(kind, Some(what), loc, msg, width)
+    }
+
+    /// Drives a wire or output port with `value` (same width); a wire takes exactly one driver.
+    ///
+    /// ```
+    /// # use rtl_gen::Module;
+    /// let m = Module::new("m");
+    /// let w = m.wire("w", 4);
+    /// w.drive(5);
+    /// m.output("y", w);
+    /// # assert!(m.validate().is_ok());
+    /// ```
+    #[track_caller]
+    pub fn drive(self, value: impl IntoSignal<'m>) {
+        self.drive_at(value, Location::caller());
+    }
+
+    pub(crate) fn drive_at(self, value: impl IntoSignal<'m>, loc: Loc) {
+        let v = value.into_signal_like(self, loc);
+        let problem = match self.op() {
+            Op::Wire { .. } => None,
+            Op::Input => Some("an input is driven from outside the module"),
+            Op::Reg { .. } => Some("a register takes its next value with .next(), not .drive()"),
+            _ => Some("only wires and output ports can be driven; this is the result of an operator"),
+        };
+        if let Some(why) = problem {
+            self.fail(DiagKind::Misuse, loc, format!("cannot drive: {why}"), 1);
+            return;
+        }
+        if v.width() != self.width() {
+            self.fail(DiagKind::Width, loc, format!("driven with {} bits, declared {} bits", v.width(), self.width()), 1);
+            return;
+        }
+        if let Op::Wire { drivers } = &mut self.m.graph_mut().nodes[self.id as usize].op {
+            drivers.push((v.id, loc));
+        }
+    }
+
+    /// Sets a register's next value (same width), loaded at each rising clock
+    /// edge unless reset is high. A register takes exactly one `next`.
+    ///
+    /// ```
+    /// # use rtl_gen::Module;
+    /// let m = Module::new("m");
+    /// let en = m.input("en", 1);
+    /// let r = m.reg("r", 4);
+    /// r.next(en.mux(r.add(1, 4), r));
+    /// # m.output("y", r);
+    /// # assert!(m.validate().is_ok());
+    /// ```
+    #[track_caller]
+    pub fn next(self, value: impl IntoSignal<'m>) {
+        self.next_at(value, Location::caller());
+    }
+
+    fn next_at(self, value: impl IntoSignal<'m>, loc: Loc) {
+        let v = value.into_signal_like(self, loc);
+        if !matches!(self.op(), Op::Reg { .. }) {
+            self.fail(DiagKind::Misuse, loc, "only a register has a next value (use .drive() for wires)".into(), 1);
+            return;
+        }
+        if v.width() != self.width() {
+            self.fail(DiagKind::Width, loc, format!("next value is {} bits, the register {} bits", v.width(), self.width()), 1);
+            return;
+        }
+        let mut g = self.m.graph_mut();
+        let reg_name = g.node(self.id).base.clone();
+        // An unnamed operator result feeding a register is called `<reg>_next`.
+        let vn = &mut g.nodes[v.id as usize];
+        if vn.name.is_none() && vn.port.is_none() && !matches!(vn.op, Op::Const(_) | Op::Slice(..) | Op::Ext(..)) {
+            vn.base = reg_name;
+            vn.opname = "next";
+        }
+        if let Op::Reg { next, .. } = &mut g.nodes[self.id as usize].op {
+            next.push((v.id, loc));
+        }
+    }
+
+    /// `next(cond ? value : self)`: load `value` only when `cond` is high.
+    ///
+    /// ```
+    /// # use rtl_gen::Module;
+    /// let m = Module::new("m");
+    /// let (en, d) = (m.input("en", 1), m.input("d", 8));
+    /// let q = m.reg("q", 8);
+    /// q.next_when(en, d);
+    /// # m.output("y", q);
+    /// # assert!(m.validate().is_ok());
+    /// ```
+    #[track_caller]
+    pub fn next_when(self, cond: Signal<'m>, value: impl IntoSignal<'m>) {
+        let loc = Location::caller();
+        let v = value.into_signal_like(self, loc);
+        let n = cond.mux_at(v, self, loc);
+        self.next_at(n, loc);
+    }
+
+    /// Extension to `width` bits by this handle's signedness (sign or zero).
+    #[track_caller]
+    pub fn ext(self, width: u32) -> Signal<'m> {
+        self.ext_at(width, self.signed, Location::caller())
+    }
+
+    /// Zero extension to `width` bits (result unsigned).
+    ///
+    /// ```
+    /// # use rtl_gen::Module;
+    /// let m = Module::new("m");
+    /// assert_eq!(m.input("a", 8).zext(12).width(), 12);
+    /// ```
+    #[track_caller]
+    pub fn zext(self, width: u32) -> Signal<'m> {
+        self.ext_at(width, false, Location::caller()).as_unsigned()
+    }
+
+    /// Sign extension to `width` bits (result signed).
+    #[track_caller]
+    pub fn sext(self, width: u32) -> Signal<'m> {
+        self.ext_at(width, true, Location::caller()).as_signed()
+    }
+
+    pub(crate) fn ext_at(self, width: u32, signed: bool, loc: Loc) -> Signal<'m> {
+        let w = self.width();
+        if width < w {
+            return self.fail(DiagKind::Width, loc, format!("cannot extend {w} bits to {width}; use .slice() to narrow"), width.max(1));
+        }
+        if width == w {
+            return Signal { signed, ..self };
+        }
+        match self.op() {
+            Op::Const(b) => {
+                let e = b.extend(width, signed).unwrap_or_else(|| Bits::zero(width));
+                self.m.constant(e, signed, loc)
+            }
+            // Extending an extension of the same kind extends the original.
+            Op::Ext(inner, s) if s == signed => Signal { id: inner, ..self }.ext_at(width, signed, loc),
+            _ => self.new(Op::Ext(self.id, signed), width, if signed { "sext" } else { "zext" }, signed, loc),
+        }
+    }
+
+    /// Bits `hi` down to `lo` inclusive, as in Verilog `x[hi:lo]` (result unsigned).
+    ///
+    /// ```
+    /// # use rtl_gen::Module;
+    /// let m = Module::new("m");
+    /// let a = m.input("a", 16);
+    /// assert_eq!(a.slice(11, 4).width(), 8);
+    /// ```
+    #[track_caller]
+    pub fn slice(self, hi: u32, lo: u32) -> Signal<'m> {
+        self.slice_at(hi, lo, Location::caller())
+    }
+
+    pub(crate) fn slice_at(self, hi: u32, lo: u32, loc: Loc) -> Signal<'m> {
+        let w = self.width();
+        if hi < lo || hi >= w {
+            return self.fail(
+                DiagKind::Misuse,
+                loc,
+                format!("slice [{hi}:{lo}] is out of range for a {w}-bit signal"),
+                hi.saturating_sub(lo).saturating_add(1).min(1 << 20),
+            );
+        }
+        let width = hi - lo + 1;
+        if width == w {
+            return self.as_unsigned();
+        }
+        match self.op() {
+            Op::Const(b) => {
+                let s = b.slice(hi, lo).unwrap_or_else(|| Bits::zero(width));
+                self.m.constant(s, false, loc)
+            }
+            Op::Slice(inner, inner_lo) => {
+                let id = self.m.add_node(Op::Slice(inner, inner_lo + lo), width, &self.base(), "slice", loc);
+                Signal { m: self.m, id, signed: false }
+            }
+            _ => self.new(Op::Slice(self.id, lo), width, "slice", false, loc),
+        }
+    }
+
+    /// Bit `i` (one bit, unsigned).
+    #[track_caller]
+    pub fn bit(self, i: u32) -> Signal<'m> {
+        self.slice_at(i, i, Location::caller())
+    }
+
+    /// The most significant bit.
+    #[track_caller]
+    pub fn msb(self) -> Signal<'m> {
+        let w = self.width();
+        self.slice_at(w - 1, w - 1, Location::caller())
+    }
+
+    /// `{self, low}`: this signal in the high bits.
+    #[track_caller]
+    pub fn concat(self, low: Signal<'m>) -> Signal<'m> {
+        let loc = Location::caller();
+        if !self.m.owns(low, loc) {
+            return self;
+        }
+        self.new(Op::Concat(vec![self.id, low.id]), self.width() + low.width(), "cat", false, loc)
+    }
+
+    /// `self + other` in exactly `width` bits (modulo `2^width`); each operand
+    /// is first extended to `width` by its own signedness, and `width` must be
+    /// at least both operand widths. Signed if either operand is.
+    ///
+    /// ```
+    /// # use rtl_gen::Module;
+    /// let m = Module::new("m");
+    /// let a = m.input("a", 8);
+    /// let b = m.input("b", 4);
+    /// assert_eq!(a.add(b, 9).width(), 9);  // full sum with carry
+    /// assert_eq!(a.add(1, 8).width(), 8);  // wrapping counter step
+    /// ```
+    #[track_caller]
+    pub fn add(self, other: impl IntoSignal<'m>, width: u32) -> Signal<'m> {
+        self.arith(BinOp::Add, other, width, Location::caller())
+    }
+
+    /// `self - other` in exactly `width` bits (modulo `2^width`), operands
+    /// extended as for [`Signal::add`].
+    #[track_caller]
+    pub fn sub(self, other: impl IntoSignal<'m>, width: u32) -> Signal<'m> {
+        self.arith(BinOp::Sub, other, width, Location::caller())
+    }
+
+    fn arith(self, op: BinOp, other: impl IntoSignal<'m>, width: u32, loc: Loc) -> Signal<'m> {
+        let b = other.into_signal_like(self, loc);
+        let (wa, wb) = (self.width(), b.width());
+        if width == 0 || width < wa.max(wb) {
+            return self.fail(
+                DiagKind::Width,
+                loc,
+                format!("result width {width} is narrower than the operands ({wa} and {wb} bits); slice the operands first"),
+                width.max(1),
+            );
+        }
+        let x = self.ext_at(width, self.signed, loc);
+        let y = b.ext_at(width, b.signed, loc);
+        let name = if op == BinOp::Add { "add" } else { "sub" };
+        self.new(Op::Bin(op, x.id, y.id), width, name, self.signed || b.signed, loc)
+    }
+
+    fn bitwise(self, op: BinOp, other: impl IntoSignal<'m>, loc: Loc) -> Signal<'m> {
+        let b = other.into_signal_like(self, loc);
+        if b.width() != self.width() {
+            return self.fail(
+                DiagKind::Width,
+                loc,
+                format!("bitwise operands differ in width: {} and {} bits; extend or slice one", self.width(), b.width()),
+                self.width(),
+            );
+        }
+        let name = match op {
+            BinOp::And => "and",
+            BinOp::Or => "or",
+            _ => "xor",
+        };
+        self.new(Op::Bin(op, self.id, b.id), self.width(), name, self.signed && b.signed, loc)
+    }
+
+    /// Bitwise and (same as `&`).
+    #[track_caller]
+    pub fn and(self, other: impl IntoSignal<'m>) -> Signal<'m> {
+        self.bitwise(BinOp::And, other, Location::caller())
+    }
+
+    /// Bitwise or (same as `|`).
+    #[track_caller]
+    pub fn or(self, other: impl IntoSignal<'m>) -> Signal<'m> {
+        self.bitwise(BinOp::Or, other, Location::caller())
+    }
+
+    /// Bitwise exclusive or (same as `^`).
+    #[track_caller]
+    pub fn xor(self, other: impl IntoSignal<'m>) -> Signal<'m> {
+        self.bitwise(BinOp::Xor, other, Location::caller())
+    }
+
+    /// Bitwise not (same as `!`).
+    #[track_caller]
+    pub fn not(self) -> Signal<'m> {
+        self.new(Op::Not(self.id), self.width(), "not", self.signed, Location::caller())
+    }
+
+    fn shift(self, kind: ShiftKind, amount: impl ShiftAmount<'m>, loc: Loc) -> Signal<'m> {
+        let Some(a) = shift_amount(amount.shift_by(), self.m, loc) else {
+            return self.m.fail(DiagKind::Misuse, None, loc, "bad shift amount".into(), self.width());
+        };
+        if a == Amount::Const(0) {
+            return self;
+        }
+        let name = match kind {
+            ShiftKind::Left => "shl",
+            ShiftKind::RightLogical => "shr",
+            ShiftKind::RightArith => "sra",
+        };
+        self.new(Op::Shift(kind, self.id, a), self.width(), name, self.signed, loc)
+    }
+
+    /// Shift left by a constant or an unsigned signal, same width, zero fill;
+    /// shifting by the width or more gives zero.
+    ///
+    /// ```
+    /// # use rtl_gen::Module;
+    /// let m = Module::new("m");
+    /// let a = m.input("a", 8);
+    /// let s = m.input("s", 3);
+    /// m.output("y", a.shl(s) ^ (a << 1));
+    /// # assert!(m.validate().is_ok());
+    /// ```
+    #[track_caller]
+    pub fn shl(self, amount: impl ShiftAmount<'m>) -> Signal<'m> {
+        self.shift(ShiftKind::Left, amount, Location::caller())
+    }
+
+    /// Shift right: arithmetic (sign fill) when this handle is signed, logical otherwise.
+    ///
+    /// ```
+    /// # use rtl_gen::Module;
+    /// let m = Module::new("m");
+    /// let a = m.input("a", 8);
+    /// m.output("sra", a.as_signed().shr(2u32));   // arithmetic
+    /// m.output("srl", a >> 2);                     // logical
+    /// # assert!(m.validate().is_ok());
+    /// ```
+    #[track_caller]
+    pub fn shr(self, amount: impl ShiftAmount<'m>) -> Signal<'m> {
+        let kind = if self.signed { ShiftKind::RightArith } else { ShiftKind::RightLogical };
+        self.shift(kind, amount, Location::caller())
+    }
+
+    /// Logical shift right regardless of signedness.
+    #[track_caller]
+    pub fn srl(self, amount: impl ShiftAmount<'m>) -> Signal<'m> {
+        self.shift(ShiftKind::RightLogical, amount, Location::caller())
+    }
+
+    /// Arithmetic shift right regardless of signedness (result signed).
+    #[track_caller]
+    pub fn sra(self, amount: impl ShiftAmount<'m>) -> Signal<'m> {
+        self.shift(ShiftKind::RightArith, amount, Location::caller()).as_signed()
+    }
+
+    fn compare(self, op: CmpOp, other: impl IntoSignal<'m>, loc: Loc) -> Signal<'m> {
+        let b = other.into_signal_like(self, loc);
+        let (wa, wb) = (self.width(), b.width());
+        // Compare the mathematical values: mixed signedness needs one more bit
+        // so the unsigned operand stays non-negative.
+        let (width, signed) = match (self.signed, b.signed) {
+            (false, false) => (wa.max(wb), false),
+            (true, true) => (wa.max(wb), true),
+            _ => (wa.max(wb) + 1, true),
+        };
+        let x = self.ext_at(width, self.signed, loc);
+        let y = b.ext_at(width, b.signed, loc);
+        let name = match op {
+            CmpOp::Eq => "eq",
+            CmpOp::Ne => "ne",
+            CmpOp::Lt => "lt",
+            CmpOp::Le => "le",
+            CmpOp::Gt => "gt",
+            CmpOp::Ge => "ge",
+        };
+        self.new(Op::Cmp(op, signed, x.id, y.id), 1, name, false, loc)
+    }
+
+    /// `self == other` (one bit). Operands of different widths or signedness
+    /// are compared as the numbers they represent.
+    ///
+    /// ```
+    /// # use rtl_gen::Module;
+    /// let m = Module::new("m");
+    /// let a = m.input("a", 8);
+    /// m.output("is_five", a.eq(5));
+    /// # assert!(m.validate().is_ok());
+    /// ```
+    #[track_caller]
+    pub fn eq(self, other: impl IntoSignal<'m>) -> Signal<'m> {
+        self.compare(CmpOp::Eq, other, Location::caller())
+    }
+
+    /// `self != other` (one bit).
+    #[track_caller]
+    pub fn ne(self, other: impl IntoSignal<'m>) -> Signal<'m> {
+        self.compare(CmpOp::Ne, other, Location::caller())
+    }
+
+    /// `self < other` (one bit), signed when both handles are signed.
+    #[track_caller]
+    pub fn lt(self, other: impl IntoSignal<'m>) -> Signal<'m> {
+        self.compare(CmpOp::Lt, other, Location::caller())
+    }
+
+    /// `self <= other` (one bit).
+    #[track_caller]
+    pub fn le(self, other: impl IntoSignal<'m>) -> Signal<'m> {
+        self.compare(CmpOp::Le, other, Location::caller())
+    }
+
+    /// `self > other` (one bit).
+    #[track_caller]
+    pub fn gt(self, other: impl IntoSignal<'m>) -> Signal<'m> {
+        self.compare(CmpOp::Gt, other, Location::caller())
+    }
+
+    /// `self >= other` (one bit).
+    #[track_caller]
+    pub fn ge(self, other: impl IntoSignal<'m>) -> Signal<'m> {
+        self.compare(CmpOp::Ge, other, Location::caller())
+    }
+
+    /// `self ? then_ : else_` where `self` is one bit and both arms have the same width.
+    ///
+    /// ```
+    /// # use rtl_gen::Module;
+    /// let m = Module::new("m");
+    /// let (s, a) = (m.input("s", 1), m.input("a", 8));
+    /// m.output("y", s.mux(a, 0));
+    /// # assert!(m.validate().is_ok());
+    /// ```
+    #[track_caller]
+    pub fn mux(self, then_: Signal<'m>, else_: impl IntoSignal<'m>) -> Signal<'m> {
+        self.mux_at(then_, else_, Location::caller())
+    }
+
+    pub(crate) fn mux_at(self, then_: Signal<'m>, else_: impl IntoSignal<'m>, loc: Loc) -> Signal<'m> {
+        if !self.m.owns(then_, loc) {
+            return then_;
+        }
+        let e = else_.into_signal_like(then_, loc);
+        if self.width() != 1 {
+            return self.fail(DiagKind::Width, loc, format!("mux select must be 1 bit, is {}", self.width()), then_.width());
+        }
+        if e.width() != then_.width() {
+            return self.fail(
+                DiagKind::Width,
+                loc,
+                format!("mux arms differ in width: {} and {} bits", then_.width(), e.width()),
+                then_.width(),
+            );
+        }
+        let op = Op::Mux { sel: self.id, then_: then_.id, else_: e.id };
+        self.new(op, then_.width(), "mux", then_.signed && e.signed, loc)
+    }
+
+    fn reduce(self, op: RedOp, name: &'static str, loc: Loc) -> Signal<'m> {
+        self.new(Op::Reduce(op, self.id), 1, name, false, loc)
+    }
+
+    /// One bit: all bits are one (`&x`).
+    #[track_caller]
+    pub fn reduce_and(self) -> Signal<'m> {
+        self.reduce(RedOp::And, "all", Location::caller())
+    }
+
+    /// One bit: some bit is one (`|x`).
+    ///
+    /// ```
+    /// # use rtl_gen::Module;
+    /// let m = Module::new("m");
+    /// let a = m.input("a", 8);
+    /// m.output("any", a.reduce_or());
+    /// m.output("parity", a.reduce_xor());
+    /// m.output("all", a.reduce_and());
+    /// # assert!(m.validate().is_ok());
+    /// ```
+    #[track_caller]
+    pub fn reduce_or(self) -> Signal<'m> {
+        self.reduce(RedOp::Or, "any", Location::caller())
+    }
+
+    /// One bit: odd number of ones (`^x`).
+    #[track_caller]
+    pub fn reduce_xor(self) -> Signal<'m> {
+        self.reduce(RedOp::Xor, "parity", Location::caller())
+    }
+}
+
+macro_rules! bit_operator {
+    ($tr:ident, $f:ident, $op:expr) => {
+        impl<'m, T: IntoSignal<'m>> std::ops::$tr<T> for Signal<'m> {
+            type Output = Signal<'m>;
+            #[track_caller]
+            fn $f(self, rhs: T) -> Signal<'m> {
+                self.bitwise($op, rhs, Location::caller())
+            }
+        }
+    };
+}
+bit_operator!(BitAnd, bitand, BinOp::And);
+bit_operator!(BitOr, bitor, BinOp::Or);
+bit_operator!(BitXor, bitxor, BinOp::Xor);
+
+impl<'m> std::ops::Not for Signal<'m> {
+    type Output = Signal<'m>;
+    #[track_caller]
+    fn not(self) -> Signal<'m> {
+        self.new(Op::Not(self.id), self.width(), "not", self.signed, Location::caller())
+    }
+}
+
+impl<'m, A: ShiftAmount<'m>> std::ops::Shl<A> for Signal<'m> {
+    type Output = Signal<'m>;
+    #[track_caller]
+    fn shl(self, amount: A) -> Signal<'m> {
+        self.shift(ShiftKind::Left, amount, Location::caller())
+    }
+}
+
+impl<'m, A: ShiftAmount<'m>> std::ops::Shr<A> for Signal<'m> {
+    type Output = Signal<'m>;
+    #[track_caller]
+    fn shr(self, amount: A) -> Signal<'m> {
+        let kind = if self.signed { ShiftKind::RightArith } else { ShiftKind::RightLogical };
+        self.shift(kind, amount, Location::caller())
+    }
+}

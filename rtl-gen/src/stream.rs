@@ -1,0 +1,170 @@
+//! [`Stream`]: a ready/valid handshake bundle and its usual pieces.
+//!
+//! A transfer happens on a clock edge where `valid` and `ready` are both
+//! high. The producer drives `valid` and `data` and must hold them until
+//! the transfer; the consumer drives `ready`.
+
+use crate::{Module, Signal};
+
+/// A ready/valid stream: `valid` and `data` from the producer, `ready` from
+/// the consumer. Helpers that make a stream leave its `ready` as a wire the
+/// consumer drives (with [`Signal::drive`] or another helper).
+///
+/// ```
+/// use rtl_gen::{Module, Stream};
+/// let m = Module::new("pipe2");
+/// let input = Stream::input(&m, "in", 16);
+/// let out = input.pipeline_reg("stage1").map(|d| d ^ 0x00ff).skid_buffer("stage2");
+/// out.output("out");
+/// assert!(m.validate().is_ok());
+/// ```
+#[derive(Clone, Copy, Debug)]
+pub struct Stream<'m> {
+    /// High when `data` holds a word to transfer.
+    pub valid: Signal<'m>,
+    /// High when the consumer takes the word this cycle.
+    pub ready: Signal<'m>,
+    /// The payload.
+    pub data: Signal<'m>,
+}
+
+impl<'m> Stream<'m> {
+    /// Input ports `<name>_valid`, `<name>_data` and output port `<name>_ready`
+    /// (driven by whatever consumes the returned stream).
+    #[track_caller]
+    pub fn input(m: &'m Module, name: &str, width: u32) -> Stream<'m> {
+        Stream {
+            valid: m.input(&format!("{name}_valid"), 1),
+            data: m.input(&format!("{name}_data"), width),
+            ready: m.output_wire(&format!("{name}_ready"), 1),
+        }
+    }
+
+    /// Three wires `<name>_valid`, `<name>_ready`, `<name>_data`, all to be driven.
+    #[track_caller]
+    pub fn wires(m: &'m Module, name: &str, width: u32) -> Stream<'m> {
+        Stream {
+            valid: m.wire(&format!("{name}_valid"), 1),
+            data: m.wire(&format!("{name}_data"), width),
+            ready: m.wire(&format!("{name}_ready"), 1),
+        }
+    }
+
+    /// Output ports `<name>_valid`, `<name>_data` and input port
+    /// `<name>_ready`, which drives this stream's `ready`.
+    #[track_caller]
+    pub fn output(self, name: &str) {
+        let m = self.valid.module();
+        m.output(&format!("{name}_valid"), self.valid);
+        m.output(&format!("{name}_data"), self.data);
+        self.ready.drive(m.input(&format!("{name}_ready"), 1));
+    }
+
+    /// One bit: a transfer happens at the next edge.
+    #[track_caller]
+    pub fn fire(self) -> Signal<'m> {
+        self.valid & self.ready
+    }
+
+    /// The same handshake with the data transformed combinationally.
+    pub fn map(self, f: impl FnOnce(Signal<'m>) -> Signal<'m>) -> Stream<'m> {
+        Stream { data: f(self.data), ..self }
+    }
+
+    /// A pipeline register: `valid`/`data` registered, full throughput,
+    /// `ready` passes through combinationally (`ready_in = !valid_q | ready_out`).
+    ///
+    /// ```
+    /// # use rtl_gen::{Module, Stream};
+    /// let m = Module::new("m");
+    /// Stream::input(&m, "in", 8).pipeline_reg("p").output("out");
+    /// # assert!(m.validate().is_ok());
+    /// ```
+    #[track_caller]
+    pub fn pipeline_reg(self, name: &str) -> Stream<'m> {
+        let m = self.valid.module();
+        let valid = m.reg(&format!("{name}_valid"), 1);
+        let data = m.reg(&format!("{name}_data"), self.data.width());
+        let ready = m.wire(&format!("{name}_ready"), 1);
+        let take = !valid | ready;
+        self.ready.drive(take);
+        valid.next_when(take, self.valid);
+        data.next_when(take & self.valid, self.data);
+        Stream { valid, ready, data }
+    }
+
+    /// A skid buffer: every output and `ready_in` come straight from
+    /// registers, full throughput; a second register holds the word that
+    /// arrives in the cycle the consumer stalls.
+    ///
+    /// ```
+    /// # use rtl_gen::{Module, Stream};
+    /// let m = Module::new("m");
+    /// Stream::input(&m, "in", 8).skid_buffer("skid").output("out");
+    /// # assert!(m.validate().is_ok());
+    /// ```
+    #[track_caller]
+    pub fn skid_buffer(self, name: &str) -> Stream<'m> {
+        let m = self.valid.module();
+        let w = self.data.width();
+        let out_valid = m.reg(&format!("{name}_valid"), 1);
+        let out_data = m.reg(&format!("{name}_data"), w);
+        let skid_valid = m.reg(&format!("{name}_skid_valid"), 1);
+        let skid_data = m.reg(&format!("{name}_skid_data"), w);
+        let ready = m.wire(&format!("{name}_ready"), 1);
+        self.ready.drive(!skid_valid);
+        // The output register moves when it is empty or being taken.
+        let drain = ready | !out_valid;
+        let take = self.valid & !skid_valid;
+        out_valid.next(drain.mux(skid_valid | self.valid, out_valid));
+        out_data.next_when(drain, skid_valid.mux(skid_data, self.data));
+        skid_valid.next(drain.mux(m.lit(0, 1), skid_valid | take));
+        skid_data.next_when(!drain & take, self.data);
+        Stream { valid: out_valid, ready, data: out_data }
+    }
+
+    /// Merges streams of equal width into one, combinationally, by fixed
+    /// priority: the lowest-numbered valid input wins and is the only one
+    /// told `ready`.
+    ///
+    /// ```
+    /// # use rtl_gen::{Module, Stream};
+    /// let m = Module::new("m");
+    /// let a = Stream::input(&m, "a", 8);
+    /// let b = Stream::input(&m, "b", 8);
+    /// Stream::merge_priority(&m, "arb", &[a, b]).output("out");
+    /// # assert!(m.validate().is_ok());
+    /// ```
+    #[track_caller]
+    pub fn merge_priority(m: &'m Module, name: &str, inputs: &[Stream<'m>]) -> Stream<'m> {
+        let ready = m.wire(&format!("{name}_ready"), 1);
+        let Some(last) = inputs.last() else {
+            let none = m.concat(&[]);
+            return Stream { valid: none, ready, data: none };
+        };
+        let mut valid = last.valid;
+        let mut data = last.data;
+        // Build from the lowest priority up so input 0 ends outermost.
+        for s in inputs.iter().rev().skip(1) {
+            data = s.valid.mux(s.data, data);
+            valid = s.valid | valid;
+        }
+        let mut earlier_valid: Option<Signal<'m>> = None;
+        for s in inputs {
+            let granted = match earlier_valid {
+                None => ready,
+                Some(e) => ready & !e,
+            };
+            s.ready.drive(granted);
+            earlier_valid = Some(match earlier_valid {
+                None => s.valid,
+                Some(e) => e | s.valid,
+            });
+        }
+        Stream {
+            valid: valid.name(&format!("{name}_valid")),
+            ready,
+            data: data.name(&format!("{name}_data")),
+        }
+    }
+}

@@ -9,6 +9,7 @@
 //! - [`table`]: the translation table indexed by hierarchy id;
 //! - [`apply`]: the aligned move of a node at `d >= L`;
 //! - [`expand`]: the expanding variant for finer translations, and its cost;
+//! - [`records`]: the same on hierarchy-store records and whole hierarchies;
 //! - [`unit`]: the RTL-facing transaction (ports, flags) shared with the
 //!   vector writer and the RTL generator.
 
@@ -18,6 +19,7 @@ pub mod error;
 pub mod expand;
 pub mod extents;
 pub mod float;
+pub mod records;
 pub mod table;
 pub mod translation;
 pub mod unit;
@@ -30,6 +32,7 @@ pub use expand::{
 };
 pub use extents::{check_scene_extents, VoxelRange};
 pub use float::Format;
+pub use records::{hierarchy_expansion_cost, hierarchy_extents, translate_record};
 pub use table::TranslationTable;
 pub use translation::{trans_bits, Translation};
 pub use unit::{

@@ -10,7 +10,7 @@
 //! - [`apply`]: the aligned move of a node at `d >= L`;
 //! - [`expand`]: the expanding variant for finer translations, and its cost;
 //! - [`records`]: the same on hierarchy-store records and whole hierarchies;
-//! - [`unit`]: the RTL-facing transaction (ports, flags) shared with the
+//! - [`mod@unit`]: the RTL-facing transaction (ports, flags) shared with the
 //!   vector writer and the RTL generator.
 
 pub mod apply;

@@ -12,6 +12,7 @@ pub mod layout;
 pub mod params;
 pub mod scenes;
 pub mod store;
+pub mod trace;
 pub mod translate;
 
 pub use grid::VoxelAddr;

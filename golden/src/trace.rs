@@ -1,0 +1,719 @@
+//! Ray traversal (S410): the closest hit of a ray against one or more
+//! hierarchies, with the node and primitive tests it took (SPEC.md section 6).
+//!
+//! Traversal is an iterative stack walk from the roots. Every node's exact
+//! box (SPEC.md section 3) is taken from grid units to world units and
+//! rounded outward to f32, grown by a slack that covers the triangle test's
+//! rounding, and tested with the robust slab test ([`crate::geom::aabb`]).
+//! Leaves test their triangles with the watertight test
+//! ([`crate::geom::triangle`]) on the mesh's original f32 vertices. The
+//! closest hit is the smallest `t`, ties broken by the smallest
+//! `(hierarchy id, primitive index)`, so it is unique and equal, bit for
+//! bit, to what [`brute_force_closest`] finds.
+//!
+//! Per-hierarchy translation: an [`Instance`] carries an offset in grid units
+//! (zero for an untranslated hierarchy). Its node boxes move by the offset;
+//! its triangles stay where the mesh has them and are tested against the ray
+//! moved the other way (origin minus the offset in world units, rounded to
+//! f32): instancing, which keeps the original vertices exact. The slack
+//! covers that rounding of the origin too.
+
+use glam::{DVec3, Vec3};
+use serde::Serialize;
+use std::fmt;
+
+use crate::build::GridMap;
+use crate::geom::{intersect_triangle, ray_box, Ray, ShearedRay, SlabRay};
+use crate::mesh::Mesh;
+use crate::scenes::SplitMix64;
+use crate::store::{node_box_grid, Hierarchy, NodeRecord};
+
+/// Relative slack added to every node box: `2^-20` of the magnitude of the
+/// coordinates involved (the ray origin plus the largest vertex
+/// coordinate). The watertight test's edge functions and `t` carry errors of
+/// a few f32 ulps of that magnitude (`2^-24` relative each); `2^-20` covers
+/// them with a factor of 16.
+pub const BOX_SLACK_REL: f64 = 1.0 / (1u64 << 20) as f64;
+
+/// One hierarchy placed in the scene: its nodes, the mesh its primitive
+/// indices point into, and a translation in grid units.
+#[derive(Clone, Copy, Debug)]
+pub struct Instance<'a> {
+    pub hierarchy: &'a Hierarchy,
+    pub mesh: &'a Mesh,
+    /// Added to every node's grid position and, times the grid unit, to every
+    /// triangle's world position. `[0; 3]` for an untranslated hierarchy.
+    pub offset: [i64; 3],
+}
+
+impl<'a> Instance<'a> {
+    /// An untranslated instance.
+    pub fn new(hierarchy: &'a Hierarchy, mesh: &'a Mesh) -> Instance<'a> {
+        Instance {
+            hierarchy,
+            mesh,
+            offset: [0; 3],
+        }
+    }
+}
+
+/// A closest hit.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Hit {
+    pub t: f32,
+    /// Barycentric weights of the triangle's vertices 0, 1, 2.
+    pub u: f32,
+    pub v: f32,
+    pub w: f32,
+    /// The hierarchy whose leaf held the triangle.
+    pub hier: u8,
+    /// The triangle's index in that hierarchy's mesh.
+    pub prim: u32,
+}
+
+impl Hit {
+    /// The closest-hit order: `t`, then hierarchy id, then primitive index.
+    fn precedes(&self, other: &Hit) -> bool {
+        (self.t, self.hier, self.prim) < (other.t, other.hier, other.prim)
+    }
+
+    /// True when two hits are the same triangle at the same `t`, bit for bit.
+    pub fn identical(&self, other: &Hit) -> bool {
+        self.hier == other.hier
+            && self.prim == other.prim
+            && self.t.to_bits() == other.t.to_bits()
+            && self.u.to_bits() == other.u.to_bits()
+            && self.v.to_bits() == other.v.to_bits()
+            && self.w.to_bits() == other.w.to_bits()
+    }
+}
+
+/// What one ray (or many, summed) cost.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct TraceStats {
+    /// Ray/box tests, one per node whose box was tested.
+    pub node_tests: u64,
+    /// Ray/triangle tests.
+    pub prim_tests: u64,
+}
+
+impl std::ops::AddAssign for TraceStats {
+    fn add_assign(&mut self, o: TraceStats) {
+        self.node_tests += o.node_tests;
+        self.prim_tests += o.prim_tests;
+    }
+}
+
+/// A scene that cannot be traced: a reference, range or index that points
+/// nowhere. Traversal itself never fails on a scene that passed these checks.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TraceError {
+    pub hier: u8,
+    /// What is wrong, e.g. `node 12 prims range`.
+    pub field: String,
+    pub expected: String,
+    pub found: String,
+}
+
+impl fmt::Display for TraceError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "hierarchy {}: {}: expected {}, found {}",
+            self.hier, self.field, self.expected, self.found
+        )
+    }
+}
+
+impl std::error::Error for TraceError {}
+
+/// Per-instance data prepared once.
+#[derive(Clone, Debug)]
+struct Placed<'a> {
+    inst: Instance<'a>,
+    /// The offset in world units, `offset * unit`, in binary64.
+    shift: DVec3,
+}
+
+/// Instances ready to trace: checked, indexed by hierarchy id.
+#[derive(Clone, Debug)]
+pub struct TraceScene<'a> {
+    grid: GridMap,
+    placed: Vec<Placed<'a>>,
+    /// Hierarchy id to index in `placed`.
+    by_id: Vec<Option<usize>>,
+    /// Ids whose roots traversal starts from.
+    roots: Vec<u8>,
+    /// Largest absolute world coordinate of any (translated) vertex.
+    magnitude: f64,
+}
+
+impl<'a> TraceScene<'a> {
+    /// Checks the instances (distinct ids, every reference, range and
+    /// primitive index resolvable, finite vertices) and starts traversal from
+    /// the roots of all of them.
+    pub fn new(grid: GridMap, instances: &[Instance<'a>]) -> Result<TraceScene<'a>, TraceError> {
+        let ids: Vec<u8> = instances.iter().map(|i| i.hierarchy.id).collect();
+        TraceScene::with_roots(grid, instances, &ids)
+    }
+
+    /// Like [`TraceScene::new`], starting only from the roots of `roots`;
+    /// the other instances are reached through references (a merged
+    /// hierarchy referencing its inputs).
+    pub fn with_roots(
+        grid: GridMap,
+        instances: &[Instance<'a>],
+        roots: &[u8],
+    ) -> Result<TraceScene<'a>, TraceError> {
+        let mut by_id = vec![None; 256];
+        let mut placed = Vec::with_capacity(instances.len());
+        let mut magnitude = 0f64;
+        for (k, inst) in instances.iter().enumerate() {
+            let id = inst.hierarchy.id;
+            if by_id[id as usize].replace(k).is_some() {
+                return Err(err(
+                    id,
+                    "hierarchy id",
+                    "distinct ids across instances",
+                    "a repeat",
+                ));
+            }
+            let shift = DVec3::new(
+                inst.offset[0] as f64,
+                inst.offset[1] as f64,
+                inst.offset[2] as f64,
+            ) * grid.unit;
+            inst.mesh.validate("mesh").map_err(|e| {
+                err(
+                    id,
+                    "mesh",
+                    "valid indices and finite vertices",
+                    e.to_string(),
+                )
+            })?;
+            if !inst.mesh.vertices.is_empty() {
+                let (lo, hi) = inst.mesh.bounds();
+                let m = lo.as_dvec3().abs().max(hi.as_dvec3().abs()).max_element();
+                let moved = (lo.as_dvec3() + shift)
+                    .abs()
+                    .max((hi.as_dvec3() + shift).abs())
+                    .max_element();
+                magnitude = magnitude.max(m).max(moved);
+            }
+            placed.push(Placed { inst: *inst, shift });
+        }
+        if !(grid.unit.is_finite() && grid.unit > 0.0 && grid.origin.is_finite()) {
+            return Err(err(
+                0,
+                "grid map",
+                "finite origin and unit > 0",
+                format!("{grid:?}"),
+            ));
+        }
+        let scene = TraceScene {
+            grid,
+            placed,
+            by_id,
+            roots: roots.to_vec(),
+            magnitude,
+        };
+        for &r in roots {
+            if scene.by_id[r as usize].is_none() {
+                return Err(err(
+                    r,
+                    "root hierarchy",
+                    "one of the instances",
+                    "no such instance",
+                ));
+            }
+        }
+        for p in &scene.placed {
+            scene.check_instance(p)?;
+        }
+        Ok(scene)
+    }
+
+    fn check_instance(&self, p: &Placed) -> Result<(), TraceError> {
+        let h = p.inst.hierarchy;
+        let id = h.id;
+        if h.root_count as usize > h.nodes.len() {
+            return Err(err(
+                id,
+                "root_count",
+                format!("at most {} nodes", h.nodes.len()),
+                h.root_count.to_string(),
+            ));
+        }
+        let tris = p.inst.mesh.triangles.len() as u64;
+        for (i, n) in h.nodes.iter().enumerate() {
+            let r = n.range();
+            let len = if n.leaf { h.prims.len() } else { h.refs.len() } as u64;
+            if r.end > len {
+                let what = if n.leaf { "prims" } else { "refs" };
+                return Err(err(
+                    id,
+                    format!("node {i} {what} range"),
+                    format!("within 0..{len}"),
+                    format!("{r:?}"),
+                ));
+            }
+            if n.leaf {
+                for &t in h.prims_of(n) {
+                    if t as u64 >= tris {
+                        return Err(err(
+                            id,
+                            format!("node {i} primitive"),
+                            format!("a triangle index below {tris}"),
+                            t.to_string(),
+                        ));
+                    }
+                }
+            } else {
+                for c in h.children_of(n) {
+                    let target = self.by_id[c.hier as usize].map(|k| self.placed[k].inst.hierarchy);
+                    match target {
+                        Some(t) if (c.node as usize) < t.nodes.len() => {}
+                        _ => {
+                            return Err(err(
+                                id,
+                                format!("node {i} reference"),
+                                "a node of an instance in the scene",
+                                format!("({}, {})", c.hier, c.node),
+                            ))
+                        }
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The world box of node `n` of instance `p`, rounded outward to f32 and
+    /// grown by `slack` (world units).
+    fn world_box(&self, p: &Placed, n: &NodeRecord, slack: f64) -> (Vec3, Vec3) {
+        let (lo, hi) = node_box_grid(n, &p.inst.hierarchy.params);
+        let off = p.inst.offset;
+        let to_world =
+            |g: f64, axis: usize| self.grid.origin[axis] + (g + off[axis] as f64) * self.grid.unit;
+        let mut wlo = Vec3::ZERO;
+        let mut whi = Vec3::ZERO;
+        for axis in 0..3 {
+            let a = to_world(lo[axis], axis);
+            let b = to_world(hi[axis], axis);
+            // Binary64 rounding of the three operations above is below 2^-50
+            // of the value; subtract it before rounding to f32 outward.
+            wlo[axis] = f32_down(a - slack - a.abs() * F64_GUARD);
+            whi[axis] = f32_up(b + slack + b.abs() * F64_GUARD);
+        }
+        (wlo, whi)
+    }
+
+    /// The slack of one ray (world units).
+    fn slack(&self, ray: &Ray) -> f64 {
+        BOX_SLACK_REL * (ray.origin.abs().max_element() as f64 + self.magnitude)
+    }
+
+    /// Every instance, for brute force and bounds.
+    pub fn instances(&self) -> impl Iterator<Item = &Instance<'a>> + '_ {
+        self.placed.iter().map(|p| &p.inst)
+    }
+
+    /// The world box of every translated vertex of every instance.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for p in &self.placed {
+            if p.inst.mesh.vertices.is_empty() {
+                continue;
+            }
+            let (l, h) = p.inst.mesh.bounds();
+            lo = lo.min((l.as_dvec3() + p.shift).as_vec3());
+            hi = hi.max((h.as_dvec3() + p.shift).as_vec3());
+        }
+        (lo, hi)
+    }
+}
+
+fn err(
+    hier: u8,
+    field: impl Into<String>,
+    expected: impl Into<String>,
+    found: impl Into<String>,
+) -> TraceError {
+    TraceError {
+        hier,
+        field: field.into(),
+        expected: expected.into(),
+        found: found.into(),
+    }
+}
+
+/// Relative bound on binary64 rounding in [`TraceScene::world_box`].
+const F64_GUARD: f64 = 1.0 / (1u64 << 50) as f64;
+
+/// The largest f32 not above `x`.
+fn f32_down(x: f64) -> f32 {
+    let f = x as f32;
+    if f as f64 > x {
+        next_toward_neg_inf(f)
+    } else {
+        f
+    }
+}
+
+/// The smallest f32 not below `x`.
+fn f32_up(x: f64) -> f32 {
+    let f = x as f32;
+    if (f as f64) < x {
+        -next_toward_neg_inf(-f)
+    } else {
+        f
+    }
+}
+
+/// The next f32 below a finite `f` (`f32::next_down` needs Rust 1.86).
+fn next_toward_neg_inf(f: f32) -> f32 {
+    if f == 0.0 {
+        return -f32::from_bits(1);
+    }
+    let b = f.to_bits();
+    f32::from_bits(if f > 0.0 { b - 1 } else { b + 1 })
+}
+
+/// The ray as instance `p` sees its own triangles: origin moved by minus its
+/// translation (exact when the translation is zero).
+fn local_ray(ray: &Ray, p: &Placed) -> Ray {
+    if p.shift == DVec3::ZERO {
+        return *ray;
+    }
+    Ray {
+        origin: (ray.origin.as_dvec3() - p.shift).as_vec3(),
+        ..*ray
+    }
+}
+
+/// A node waiting on the traversal stack, with the ray's entry into its box.
+#[derive(Clone, Copy)]
+struct Pending {
+    placed: usize,
+    node: u32,
+    entry: f32,
+}
+
+/// The closest hit of `ray` in `scene`, adding the tests it took to `stats`.
+pub fn closest_hit(ray: &Ray, scene: &TraceScene, stats: &mut TraceStats) -> Option<Hit> {
+    let slab = SlabRay::new(ray);
+    let slack = scene.slack(ray);
+    // Sheared rays per instance, made on first use.
+    let mut sheared: Vec<Option<ShearedRay>> = vec![None; scene.placed.len()];
+    let mut best: Option<Hit> = None;
+    let mut stack: Vec<Pending> = Vec::with_capacity(64);
+    let mut children: Vec<Pending> = Vec::with_capacity(8);
+
+    // Tests the boxes of `nodes` and pushes those hit, farthest first so the
+    // nearest is popped first.
+    let visit = |placed: usize,
+                 nodes: &mut dyn Iterator<Item = u32>,
+                 best_t: f32,
+                 stack: &mut Vec<Pending>,
+                 children: &mut Vec<Pending>,
+                 stats: &mut TraceStats| {
+        let p = &scene.placed[placed];
+        children.clear();
+        for node in nodes {
+            let n = &p.inst.hierarchy.nodes[node as usize];
+            stats.node_tests += 1;
+            let (lo, hi) = scene.world_box(p, n, slack);
+            if let Some((entry, _)) = ray_box(&slab, lo, hi, ray.tmin, best_t) {
+                children.push(Pending {
+                    placed,
+                    node,
+                    entry,
+                });
+            }
+        }
+        children.sort_by(|a, b| b.entry.total_cmp(&a.entry));
+        stack.extend_from_slice(children);
+    };
+
+    for &id in scene.roots.iter().rev() {
+        let k = scene.by_id[id as usize].expect("checked in TraceScene::with_roots");
+        let roots = scene.placed[k].inst.hierarchy.root_count;
+        visit(
+            k,
+            &mut (0..roots),
+            ray.tmax,
+            &mut stack,
+            &mut children,
+            stats,
+        );
+    }
+    while let Some(top) = stack.pop() {
+        let best_t = best.map_or(ray.tmax, |h| h.t);
+        if top.entry > best_t {
+            continue;
+        }
+        let p = &scene.placed[top.placed];
+        let h = p.inst.hierarchy;
+        let n = &h.nodes[top.node as usize];
+        if n.leaf {
+            let s = sheared[top.placed].get_or_insert_with(|| ShearedRay::new(&local_ray(ray, p)));
+            for &prim in h.prims_of(n) {
+                stats.prim_tests += 1;
+                let best_t = best.map_or(ray.tmax, |h| h.t);
+                let tri = p.inst.mesh.triangle(prim as usize);
+                if let Some(th) = intersect_triangle(&s.with_range(ray.tmin, best_t), &tri) {
+                    let hit = Hit {
+                        t: th.t,
+                        u: th.u,
+                        v: th.v,
+                        w: th.w,
+                        hier: h.id,
+                        prim,
+                    };
+                    if best.map_or(true, |b| hit.precedes(&b)) {
+                        best = Some(hit);
+                    }
+                }
+            }
+        } else {
+            // Children may live in other instances (a merged hierarchy).
+            let refs = h.children_of(n);
+            let mut i = 0;
+            while i < refs.len() {
+                // Group consecutive references to the same hierarchy.
+                let hier = refs[i].hier;
+                let j = refs[i..]
+                    .iter()
+                    .position(|r| r.hier != hier)
+                    .map_or(refs.len(), |d| i + d);
+                let k = scene.by_id[hier as usize].expect("checked in TraceScene::with_roots");
+                let mut nodes = refs[i..j].iter().map(|r| r.node);
+                let best_t = best.map_or(ray.tmax, |h| h.t);
+                visit(k, &mut nodes, best_t, &mut stack, &mut children, stats);
+                i = j;
+            }
+        }
+    }
+    best
+}
+
+/// The closest hit by testing every triangle of every instance, in the same
+/// order-independent sense as [`closest_hit`]; `prim_tests` counts them.
+pub fn brute_force_closest(ray: &Ray, scene: &TraceScene, stats: &mut TraceStats) -> Option<Hit> {
+    let mut best: Option<Hit> = None;
+    for p in &scene.placed {
+        let s = ShearedRay::new(&local_ray(ray, p));
+        for prim in 0..p.inst.mesh.triangles.len() {
+            stats.prim_tests += 1;
+            if let Some(th) = intersect_triangle(&s, &p.inst.mesh.triangle(prim)) {
+                let hit = Hit {
+                    t: th.t,
+                    u: th.u,
+                    v: th.v,
+                    w: th.w,
+                    hier: p.inst.hierarchy.id,
+                    prim: prim as u32,
+                };
+                if best.map_or(true, |b| hit.precedes(&b)) {
+                    best = Some(hit);
+                }
+            }
+        }
+    }
+    best
+}
+
+/// `n` seeded rays aimed at the box `[lo, hi]`: 70% from outside (a sphere
+/// around the box) at a point inside it, 15% from inside in a random
+/// direction, 15% from outside with one or two direction components exactly
+/// zero (axis-parallel rays, infinite reciprocals).
+pub fn random_rays(lo: Vec3, hi: Vec3, n: usize, seed: u64) -> Vec<Ray> {
+    let mut rng = SplitMix64::new(seed);
+    let center = (lo + hi) * 0.5;
+    let radius = (hi - lo).length().max(1e-6);
+    let mut rays = Vec::with_capacity(n);
+    while rays.len() < n {
+        let kind = rng.below(20);
+        let ray = if kind < 14 {
+            let origin = center + rng.unit_vector() * radius * rng.range_f32(0.6, 1.5);
+            Ray::unbounded(origin, rng.point_in(lo, hi) - origin)
+        } else if kind < 17 {
+            Ray::unbounded(rng.point_in(lo, hi), rng.unit_vector())
+        } else {
+            let target = rng.point_in(lo, hi);
+            let mut origin = center + rng.unit_vector() * radius;
+            let keep = rng.below(3) as usize;
+            let zeros = 1 + rng.below(2) as usize;
+            for k in 1..=zeros {
+                let a = (keep + k) % 3;
+                origin[a] = target[a];
+            }
+            let mut dir = target - origin;
+            for k in 1..=zeros {
+                dir[(keep + k) % 3] = 0.0;
+            }
+            Ray::unbounded(origin, dir)
+        };
+        if ray.is_valid() {
+            rays.push(ray);
+        }
+    }
+    rays
+}
+
+/// What [`verify_rays`] found: the CLI's `hiermerge trace` prints it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TraceSummary {
+    pub rays: u64,
+    pub hits: u64,
+    /// Rays whose hierarchy answer differs (in any bit) from brute force.
+    pub mismatches: u64,
+    pub node_tests_per_ray: f64,
+    pub prim_tests_per_ray: f64,
+    pub max_node_tests: u64,
+    pub max_prim_tests: u64,
+    /// Triangle tests brute force needs per ray (the scene's triangle count).
+    pub brute_prim_tests_per_ray: f64,
+    /// The first mismatching ray and both answers, for debugging.
+    pub first_mismatch: Option<String>,
+}
+
+/// Traces `n` seeded [`random_rays`] aimed at the scene's bounds through the
+/// hierarchies and by brute force, and compares the answers bit for bit.
+pub fn verify_rays(scene: &TraceScene, n: usize, seed: u64) -> TraceSummary {
+    let (lo, hi) = scene.bounds();
+    let rays = random_rays(lo, hi, n, seed);
+    let mut total = TraceStats::default();
+    let mut brute = TraceStats::default();
+    let mut s = TraceSummary {
+        rays: rays.len() as u64,
+        hits: 0,
+        mismatches: 0,
+        node_tests_per_ray: 0.0,
+        prim_tests_per_ray: 0.0,
+        max_node_tests: 0,
+        max_prim_tests: 0,
+        brute_prim_tests_per_ray: 0.0,
+        first_mismatch: None,
+    };
+    for ray in &rays {
+        let mut st = TraceStats::default();
+        let got = closest_hit(ray, scene, &mut st);
+        let want = brute_force_closest(ray, scene, &mut brute);
+        total += st;
+        s.max_node_tests = s.max_node_tests.max(st.node_tests);
+        s.max_prim_tests = s.max_prim_tests.max(st.prim_tests);
+        s.hits += got.is_some() as u64;
+        let same = match (&got, &want) {
+            (Some(a), Some(b)) => a.identical(b),
+            (None, None) => true,
+            _ => false,
+        };
+        if !same {
+            s.mismatches += 1;
+            if s.first_mismatch.is_none() {
+                s.first_mismatch =
+                    Some(format!("{ray:?}: hierarchy {got:?}, brute force {want:?}"));
+            }
+        }
+    }
+    let n = rays.len().max(1) as f64;
+    s.node_tests_per_ray = total.node_tests as f64 / n;
+    s.prim_tests_per_ray = total.prim_tests as f64 / n;
+    s.brute_prim_tests_per_ray = brute.prim_tests as f64 / n;
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::build::build;
+    use crate::params::Params;
+    use crate::scenes::box_mesh;
+    use crate::store::Reference;
+
+    fn setup(mesh: &Mesh, id: u8) -> (GridMap, Hierarchy) {
+        let p = Params::new(8, 4, 24, 4).unwrap();
+        let (lo, hi) = mesh.bounds();
+        let grid = GridMap::fit(lo - Vec3::ONE, hi + Vec3::ONE, &p);
+        (grid, build(mesh, &grid, &p, id).unwrap())
+    }
+
+    #[test]
+    fn ties_go_to_the_smaller_primitive_then_hierarchy() {
+        // Triangles 0 and 2 are the same; 1 is behind them.
+        let tri = [
+            Vec3::new(0.0, 0.0, 1.0),
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(0.0, 1.0, 1.0),
+        ];
+        let mut m = Mesh::default();
+        for z in [1.0, 2.0, 1.0] {
+            crate::scenes::append(
+                &mut m,
+                &Mesh {
+                    vertices: tri.map(|v| Vec3::new(v.x, v.y, z)).to_vec(),
+                    triangles: vec![[0, 1, 2]],
+                },
+            );
+        }
+        let (grid, h) = setup(&m, 5);
+        let ray = Ray::unbounded(Vec3::new(0.2, 0.2, -1.0), Vec3::Z);
+        let scene = TraceScene::new(grid, &[Instance::new(&h, &m)]).unwrap();
+        let mut st = TraceStats::default();
+        let hit = closest_hit(&ray, &scene, &mut st).unwrap();
+        assert_eq!((hit.prim, hit.hier, hit.t), (0, 5, 2.0));
+        assert!(st.node_tests > 0 && st.prim_tests >= 2);
+        // The same mesh as hierarchy 3 as well: 3 wins the tie.
+        let mut h3 = h.clone();
+        h3.id = 3;
+        h3.refs.iter_mut().for_each(|r| r.hier = 3);
+        let scene =
+            TraceScene::new(grid, &[Instance::new(&h, &m), Instance::new(&h3, &m)]).unwrap();
+        let hit = closest_hit(&ray, &scene, &mut TraceStats::default()).unwrap();
+        assert_eq!((hit.prim, hit.hier), (0, 3));
+        let bf = brute_force_closest(&ray, &scene, &mut TraceStats::default()).unwrap();
+        assert!(bf.identical(&hit));
+    }
+
+    #[test]
+    fn bad_scenes_are_refused() {
+        let m = box_mesh(Vec3::ZERO, Vec3::ONE);
+        let (grid, h) = setup(&m, 1);
+        let mut bad = h.clone();
+        bad.prims[0] = 99;
+        let e = TraceScene::new(grid, &[Instance::new(&bad, &m)]).unwrap_err();
+        assert!(e.field.ends_with("primitive"), "{e}");
+        if let Some(i) = h.nodes.iter().position(|n| !n.leaf) {
+            let mut bad = h.clone();
+            bad.refs[bad.nodes[i].first as usize] = Reference { hier: 7, node: 0 };
+            let e = TraceScene::new(grid, &[Instance::new(&bad, &m)]).unwrap_err();
+            assert!(e.field.ends_with("reference"), "{e}");
+        }
+        let e = TraceScene::new(grid, &[Instance::new(&h, &m), Instance::new(&h, &m)]).unwrap_err();
+        assert_eq!(e.field, "hierarchy id");
+        let e = TraceScene::with_roots(grid, &[Instance::new(&h, &m)], &[4]).unwrap_err();
+        assert_eq!(e.field, "root hierarchy");
+    }
+
+    #[test]
+    fn outward_f32_rounding() {
+        for x in [0.1f64, -0.1, 1e-40, -1e-40, 0.0, 3.0, 1e30] {
+            assert!((f32_down(x) as f64) <= x && (f32_up(x) as f64) >= x, "{x}");
+        }
+        assert_eq!(f32_down(3.0), 3.0);
+        assert_eq!(f32_up(0.1), 0.1f32);
+        assert!(f32_down(0.1) < 0.1f32);
+    }
+
+    #[test]
+    fn random_rays_are_valid_and_deterministic() {
+        let a = random_rays(Vec3::ZERO, Vec3::ONE, 1000, 1);
+        assert_eq!(a, random_rays(Vec3::ZERO, Vec3::ONE, 1000, 1));
+        assert!(a.iter().all(|r| r.is_valid()));
+        assert!(a
+            .iter()
+            .any(|r| r.dir.x == 0.0 || r.dir.y == 0.0 || r.dir.z == 0.0));
+    }
+}

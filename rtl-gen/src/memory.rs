@@ -50,7 +50,8 @@ impl<'m> Memory<'m> {
                 addr.width(),
                 if addr.is_signed() { " signed" } else { "" }
             );
-            self.m.graph_mut().error(DiagKind::Width, Some(self.name()), loc, msg);
+            let name = self.name();
+            self.m.graph_mut().error(DiagKind::Width, Some(name), loc, msg);
             return false;
         }
         true
@@ -73,7 +74,8 @@ impl<'m> Memory<'m> {
         }
         if data.width() != self.width() || e.width() != 1 {
             let msg = format!("write data must be {} bits (is {}) and enable 1 bit (is {})", self.width(), data.width(), e.width());
-            self.m.graph_mut().error(DiagKind::Width, Some(self.name()), loc, msg);
+            let name = self.name();
+            self.m.graph_mut().error(DiagKind::Width, Some(name), loc, msg);
             return;
         }
         self.m.clock(loc);

@@ -130,6 +130,12 @@ impl Module {
         self.sig(id, false)
     }
 
+    /// A stand-in signal for a construct whose error is already recorded.
+    pub(crate) fn poison(&self, width: u32, loc: Loc) -> Signal<'_> {
+        let id = self.add_node(Op::Poison, width.max(1), "error", "poison", loc);
+        self.sig(id, false)
+    }
+
     fn named_node(&self, name: &str, width: u32, op: Op, port: Option<Direction>, loc: Loc) -> Result<NodeId, Signal<'_>> {
         if width == 0 {
             return Err(self.fail(DiagKind::Width, Some(name.into()), loc, "a signal needs at least one bit".into(), 1));

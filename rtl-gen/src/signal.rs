@@ -49,7 +49,7 @@ impl<'m> IntoSignal<'m> for Signal<'m> {
         if like.m.owns(self, loc) {
             self
         } else {
-            like.m.fail(DiagKind::Misuse, None, loc, "operand from another module".into(), self.width())
+            like.m.poison(self.width(), loc)
         }
     }
 }
@@ -539,7 +539,7 @@ impl<'m> Signal<'m> {
 
     fn shift(self, kind: ShiftKind, amount: impl ShiftAmount<'m>, loc: Loc) -> Signal<'m> {
         let Some(a) = shift_amount(amount.shift_by(), self.m, loc) else {
-            return self.m.fail(DiagKind::Misuse, None, loc, "bad shift amount".into(), self.width());
+            return self.m.poison(self.width(), loc);
         };
         if a == Amount::Const(0) {
             return self;

@@ -262,3 +262,116 @@ fn random_transactions_succeed_often_enough_to_mean_something() {
     println!("{ok} of {n} random transactions succeed");
     assert!(ok > n / 10, "only {ok} of {n} random transactions succeed");
 }
+
+/// Which outputs a run of transactions raised at least once.
+#[derive(Default, Debug)]
+struct Seen {
+    ok: bool,
+    lod: bool,
+    extents: bool,
+    width: bool,
+    nan: bool,
+    inf: bool,
+    range: bool,
+    outside: bool,
+    write_id: bool,
+    written: bool,
+    read_id: bool,
+    read_valid: bool,
+    nonzero_residual: bool,
+}
+
+impl Seen {
+    fn add(&mut self, o: &TranslateOutputs) {
+        self.ok |= o.ok == 1;
+        self.lod |= o.err_lod == 1;
+        self.extents |= o.err_extents == 1;
+        self.width |= o.err_width != 0;
+        self.nan |= o.err_nan != 0;
+        self.inf |= o.err_inf != 0;
+        self.range |= o.err_range != 0;
+        self.outside |= o.err_outside != 0;
+        self.write_id |= o.err_write_id == 1;
+        self.written |= o.written == 1;
+        self.read_id |= o.err_read_id == 1;
+        self.read_valid |= o.read_valid == 1;
+        self.nonzero_residual |= o.residual.iter().any(|r| *r != 0);
+    }
+
+    /// Everything was seen; `err_lod` only where some port value exceeds D.
+    fn all(&self, p: &Params) -> bool {
+        let lod_reachable = (p.max_lod as u32) < (1 << p.lod_bits()) - 1;
+        self.ok
+            && (self.lod || !lod_reachable)
+            && self.extents
+            && self.width
+            && self.nan
+            && self.inf
+            && self.range
+            && self.outside
+            && self.write_id
+            && self.written
+            && self.read_id
+            && self.read_valid
+            && self.nonzero_residual
+    }
+}
+
+fn configs() -> [TranslateUnitConfig; 3] {
+    [
+        TranslateUnitConfig {
+            params: Params::new(31, 16, 32, 8).unwrap(),
+            table_depth: 200,
+        },
+        TranslateUnitConfig {
+            params: Params::new(4, 2, 8, 2).unwrap(),
+            table_depth: 3,
+        },
+        TranslateUnitConfig {
+            params: Params::default(),
+            table_depth: 10,
+        },
+    ]
+}
+
+#[test]
+fn hard_cases_raise_every_output_and_fit_the_ports() {
+    use golden::translate::stimulus::hard_cases;
+    for c in configs() {
+        let mut u = TranslateUnit::new(c).unwrap();
+        let mut seen = Seen::default();
+        let cases = hard_cases(&c);
+        for i in &cases {
+            seen.add(&u.step(i).unwrap());
+        }
+        assert!(seen.all(&c.params), "{c:?}: {seen:?}");
+        println!("{} hard cases at D = {}", cases.len(), c.params.max_lod);
+    }
+}
+
+#[test]
+fn random_stimulus_is_seeded_and_reaches_every_output() {
+    use golden::translate::stimulus::{random_inputs, SplitMix64};
+    for c in configs() {
+        let mut u = TranslateUnit::new(c).unwrap();
+        let mut rng = SplitMix64(7);
+        let mut seen = Seen::default();
+        let n = 5000;
+        let mut ok = 0;
+        let mut first = Vec::new();
+        for _ in 0..n {
+            let i = random_inputs(&mut rng, &c);
+            let o = u.step(&i).unwrap();
+            ok += o.ok as u32;
+            seen.add(&o);
+            if first.len() < 10 {
+                first.push(i);
+            }
+        }
+        assert!(seen.all(&c.params), "{c:?}: {seen:?}");
+        assert!(ok > n / 4, "{ok} of {n} ok");
+        let mut again = SplitMix64(7);
+        let replay: Vec<_> = (0..10).map(|_| random_inputs(&mut again, &c)).collect();
+        assert_eq!(replay, first, "same seed, same transactions");
+    }
+}

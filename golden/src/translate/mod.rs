@@ -10,6 +10,7 @@
 //! - [`apply`]: the aligned move of a node at `d >= L`;
 //! - [`expand`]: the expanding variant for finer translations, and its cost;
 //! - [`records`]: the same on hierarchy-store records and whole hierarchies;
+//! - [`stimulus`]: hard cases and seeded random transactions for vectors;
 //! - [`mod@unit`]: the RTL-facing transaction (ports, flags) shared with the
 //!   vector writer and the RTL generator.
 
@@ -20,6 +21,7 @@ pub mod expand;
 pub mod extents;
 pub mod float;
 pub mod records;
+pub mod stimulus;
 pub mod table;
 pub mod translation;
 pub mod unit;

@@ -150,16 +150,18 @@ impl<'m> Stream<'m> {
             valid = s.valid | valid;
         }
         let mut earlier_valid: Option<Signal<'m>> = None;
-        for s in inputs {
+        for (i, s) in inputs.iter().enumerate() {
             let granted = match earlier_valid {
                 None => ready,
                 Some(e) => ready & !e,
             };
             s.ready.drive(granted);
-            earlier_valid = Some(match earlier_valid {
-                None => s.valid,
-                Some(e) => e | s.valid,
-            });
+            if i + 1 < inputs.len() {
+                earlier_valid = Some(match earlier_valid {
+                    None => s.valid,
+                    Some(e) => e | s.valid,
+                });
+            }
         }
         Stream {
             valid: valid.name(&format!("{name}_valid")),

@@ -230,6 +230,15 @@ pub(crate) fn used_bits(g: &Graph) -> Vec<Vec<bool>> {
             mark(&mut used, p, 0, w);
         }
     }
+    // The clock is read by every always block; reset by registers that have a reset value.
+    let clocked = g.nodes.iter().any(|n| matches!(n.op, Op::Reg { .. } | Op::MemReadSync { .. }))
+        || g.mems.iter().any(|m| !m.writes.is_empty());
+    let reset = g.nodes.iter().any(|n| matches!(n.op, Op::Reg { reset: Some(_), .. }));
+    for (port, needed) in [(g.clk, clocked), (g.rst, reset)] {
+        if let (Some(p), true) = (port, needed) {
+            mark(&mut used, p, 0, 1);
+        }
+    }
     for mem in &g.mems {
         for wp in &mem.writes {
             for x in [wp.addr, wp.data, wp.en] {

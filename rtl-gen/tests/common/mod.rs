@@ -68,6 +68,10 @@ pub fn write(m: &Module, dir: &Path) -> (Vec<PathBuf>, String) {
 
 /// Lints (and, when `synth`, synthesizes) a design; skips when tools are missing outside CI.
 pub fn check_tools(m: &Module, synth: bool) {
+    // The validator's unused-logic warnings mirror Verilator's UNUSED lint:
+    // a design without warnings must lint clean, and the test designs have none.
+    let warnings = m.validate_design().unwrap_or_else(|e| panic!("{e}"));
+    assert!(warnings.is_empty(), "{}: {}", m.name(), rtl_gen::Diagnostics(warnings.clone()));
     let dir = tempfile::tempdir().expect("temp dir");
     let (files, top) = write(m, dir.path());
     if require_tool("verilator") {

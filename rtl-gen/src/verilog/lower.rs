@@ -40,7 +40,8 @@ fn absorbed_temporaries(g: &Graph, inline: &[bool]) -> Vec<bool> {
         if let Op::Wire { drivers } = &n.op {
             if let [(d, _)] = drivers.as_slice() {
                 let dn = g.node(*d);
-                let temp = dn.name.is_none()
+                // A temporary named like the port it drives also merges into it.
+                let temp = (dn.name.is_none() || (n.port.is_some() && dn.name == n.name))
                     && !inline[*d as usize]
                     && !matches!(dn.op, Op::Reg { .. } | Op::MemReadSync { .. } | Op::InstOut { .. } | Op::Input | Op::Wire { .. });
                 if temp && readers[*d as usize] == 1 {

@@ -2,7 +2,8 @@
 //!
 //! `cargo bench -p cosim --bench verilator_speed`
 //! Measures: raw `step()` rate on the counter, the full stream testbench
-//! (driver, monitor, scoreboard) on the skid buffer, and the cost of a cache hit.
+//! (driver, monitor, scoreboard) on the skid buffer, the cost of a cache hit,
+//! and, for comparison, the same testbench on Icarus Verilog.
 
 use cosim::tb::{run_stream_bench, BenchConfig, Prng, StreamNames, Vector};
 use cosim::verilator::{VerilatorEngine, VerilatorOptions};
@@ -11,7 +12,9 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 fn fixture(name: &str) -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures").join(name)
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/fixtures")
+        .join(name)
 }
 
 fn counter() -> cosim::Result<Design> {
@@ -53,7 +56,11 @@ fn main() -> cosim::Result<()> {
     let design = counter()?;
     let t = Instant::now();
     let mut e = VerilatorEngine::new(&design, &options)?;
-    println!("counter: first load {:?} (built: {})", t.elapsed(), e.build_info().built);
+    println!(
+        "counter: first load {:?} (built: {})",
+        t.elapsed(),
+        e.build_info().built
+    );
     let t = Instant::now();
     let again = VerilatorEngine::new(&design, &options)?;
     println!("counter: cache hit {:?}", t.elapsed());
@@ -80,7 +87,9 @@ fn main() -> cosim::Result<()> {
             let x = rng.below(1 << 16);
             Vector {
                 input: vec![BitVec::from_u64(16, x).expect("16 bits")],
-                outputs: vec![vec![BitVec::from_u64(16, (x + 1) & 0xffff).expect("16 bits")]],
+                outputs: vec![vec![
+                    BitVec::from_u64(16, (x + 1) & 0xffff).expect("16 bits")
+                ]],
             }
         })
         .collect();
@@ -110,5 +119,20 @@ fn main() -> cosim::Result<()> {
             r.passed()
         );
     }
+    // Icarus for comparison: every eval/step is a pipe round trip.
+    let mut e = cosim::icarus::IcarusEngine::new(&design)?;
+    let config = BenchConfig {
+        in_stall: 0.5,
+        out_stall: 0.5,
+        ..BenchConfig::default()
+    };
+    let r = run_stream_bench(&mut e, &names, &vectors[..5000], None, &config, None)?;
+    println!(
+        "skid stream testbench on iverilog, stall 0.5: {} cycles in {:.3} s = {:.0} cycles/s, passed {}",
+        r.cycles,
+        r.wall.as_secs_f64(),
+        r.cycles as f64 / r.wall.as_secs_f64(),
+        r.passed()
+    );
     Ok(())
 }

@@ -29,13 +29,20 @@ fn an_uninitialized_output_is_reported_after_reset_by_port_and_cycle() {
     // The reset output itself is clean: only `forgotten` is unknown.
     assert_eq!(e.peek_raw(q).unwrap(), "0");
     assert_eq!(e.peek_raw(forgotten).unwrap(), "x");
-    // Every later cycle keeps failing, with the right cycle number.
-    match e.step() {
+    // Every later cycle keeps failing, with the right cycle number (a step's
+    // outputs are read back lazily: by the next eval or peek).
+    e.step().unwrap();
+    match e.eval() {
         Err(CosimError::UnknownOutput { port, cycle, .. }) => {
             assert_eq!((port.as_str(), cycle), ("forgotten", 4))
         }
         other => panic!("expected UnknownOutput, got {other:?}"),
     }
+    e.step().unwrap();
+    assert!(matches!(
+        e.peek(q),
+        Err(CosimError::UnknownOutput { cycle: 5, .. })
+    ));
 }
 
 #[test]

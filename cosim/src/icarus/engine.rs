@@ -6,6 +6,7 @@ use crate::design::{Design, PortDir, PortId};
 use crate::engine::Engine;
 use crate::error::{io_err, CosimError, Result};
 use crate::tools::INSTALL_HINT;
+use std::cell::RefCell;
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, Command, Stdio};
@@ -16,21 +17,35 @@ use std::time::Duration;
 pub const DEFAULT_REPLY_TIMEOUT: Duration = Duration::from_secs(120);
 
 /// An Icarus Verilog (iverilog + vvp) simulation of one design.
+///
+/// `step` sends `S` without waiting; the outputs are marked stale and read
+/// back (`R`) only if peeked before the next `eval`, so the usual
+/// poke-eval-peek-step cycle costs one pipe round trip, not two.
 pub struct IcarusEngine {
     design: Design,
     child: Child,
-    stdin: ChildStdin,
-    replies: Receiver<String>,
+    pipe: RefCell<Pipe>,
+    outputs: RefCell<Outputs>,
     work: tempfile::TempDir,
-    /// Output values with X/Z bits read as 0, indexed like `design.ports`.
-    values: Vec<BitVec>,
-    /// Raw `%h` text of each output as of the last reply (empty for inputs).
-    raw: Vec<String>,
     output_ids: Vec<PortId>,
     cycle: u64,
     check_unknown: bool,
     tracing: bool,
-    reply_timeout: Duration,
+}
+
+struct Pipe {
+    stdin: ChildStdin,
+    replies: Receiver<String>,
+    timeout: Duration,
+}
+
+struct Outputs {
+    /// Port values with X/Z bits read as 0, indexed like `design.ports`.
+    values: Vec<BitVec>,
+    /// Raw `%h` text of each output as of the last reply (empty for inputs).
+    raw: Vec<String>,
+    /// True after a step whose reply has not been read.
+    stale: bool,
 }
 
 impl IcarusEngine {
@@ -77,37 +92,41 @@ impl IcarusEngine {
                 }
             }
         });
-        let output_ids = design.output_ids();
-        let values = design
-            .ports
-            .iter()
-            .map(|p| BitVec::zeros(p.width))
-            .collect();
         Ok(IcarusEngine {
             design: design.clone(),
             child,
-            stdin,
-            replies,
+            pipe: RefCell::new(Pipe {
+                stdin,
+                replies,
+                timeout: DEFAULT_REPLY_TIMEOUT,
+            }),
+            outputs: RefCell::new(Outputs {
+                values: design
+                    .ports
+                    .iter()
+                    .map(|p| BitVec::zeros(p.width))
+                    .collect(),
+                raw: vec![String::new(); design.ports.len()],
+                stale: false,
+            }),
             work,
-            values,
-            raw: vec![String::new(); design.ports.len()],
-            output_ids,
+            output_ids: design.output_ids(),
             cycle: 0,
             check_unknown: false,
             tracing: false,
-            reply_timeout: DEFAULT_REPLY_TIMEOUT,
         })
     }
 
     /// Change how long a reply may take before `Protocol` "hung" is returned.
     pub fn set_reply_timeout(&mut self, timeout: Duration) {
-        self.reply_timeout = timeout;
+        self.pipe.get_mut().timeout = timeout;
     }
 
     /// The 4-state text (`%h`, with x/z digits) of an output as of the last reply.
     pub fn peek_raw(&self, port: PortId) -> Result<String> {
         self.design.port(port)?;
-        Ok(self.raw[port.0].clone())
+        self.refresh_if_stale()?;
+        Ok(self.outputs.borrow().raw[port.0].clone())
     }
 
     /// The scratch directory holding the testbench, the compiled image and vvp's stderr.
@@ -115,12 +134,13 @@ impl IcarusEngine {
         self.work.path()
     }
 
-    fn send(&mut self, line: &str) -> Result<()> {
-        writeln!(self.stdin, "{line}")
-            .and_then(|_| self.stdin.flush())
-            .map_err(|e| CosimError::Protocol {
-                what: format!("writing `{line}` to vvp: {e}; {}", self.stderr_tail()),
-            })
+    fn send(&self, line: &str) -> Result<()> {
+        let mut pipe = self.pipe.borrow_mut();
+        let result = writeln!(pipe.stdin, "{line}").and_then(|_| pipe.stdin.flush());
+        drop(pipe);
+        result.map_err(|e| CosimError::Protocol {
+            what: format!("writing `{line}` to vvp: {e}; {}", self.stderr_tail()),
+        })
     }
 
     fn stderr_tail(&self) -> String {
@@ -132,15 +152,26 @@ impl IcarusEngine {
         )
     }
 
-    fn command_with_reply(&mut self, cmd: &str) -> Result<()> {
+    fn refresh_if_stale(&self) -> Result<()> {
+        if self.outputs.borrow().stale {
+            self.command_with_reply("R")?;
+        }
+        Ok(())
+    }
+
+    fn command_with_reply(&self, cmd: &str) -> Result<()> {
         self.send(cmd)?;
-        let line = match self.replies.recv_timeout(self.reply_timeout) {
+        let pipe = self.pipe.borrow();
+        let received = pipe.replies.recv_timeout(pipe.timeout);
+        let timeout = pipe.timeout;
+        drop(pipe);
+        let line = match received {
             Ok(l) => l,
             Err(RecvTimeoutError::Timeout) => {
                 return Err(CosimError::Protocol {
                     what: format!(
-                        "no reply to `{cmd}` within {:?} at cycle {} (hung simulation?)",
-                        self.reply_timeout, self.cycle
+                        "no reply to `{cmd}` within {timeout:?} at cycle {} (hung simulation?)",
+                        self.cycle
                     ),
                 })
             }
@@ -156,7 +187,7 @@ impl IcarusEngine {
         self.absorb_reply(&line)
     }
 
-    fn absorb_reply(&mut self, line: &str) -> Result<()> {
+    fn absorb_reply(&self, line: &str) -> Result<()> {
         let tokens: Vec<&str> = line[REPLY_PREFIX.len()..].split_whitespace().collect();
         if tokens.len() != self.output_ids.len() {
             return Err(CosimError::Protocol {
@@ -167,20 +198,21 @@ impl IcarusEngine {
                 ),
             });
         }
+        let mut outputs = self.outputs.borrow_mut();
+        outputs.stale = false;
         let mut first_unknown = None;
-        for (k, id) in self.output_ids.clone().into_iter().enumerate() {
-            let text = tokens[k];
+        for (&id, text) in self.output_ids.iter().zip(tokens) {
             let port = &self.design.ports[id.0];
             let unknown = text.contains(['x', 'X', 'z', 'Z']);
             let known: String = text
                 .chars()
                 .map(|c| if "xXzZ".contains(c) { '0' } else { c })
                 .collect();
-            self.values[id.0] =
+            outputs.values[id.0] =
                 BitVec::from_hex(port.width, &known).map_err(|e| CosimError::Protocol {
                     what: format!("output `{}`: {e}", port.name),
                 })?;
-            self.raw[id.0] = text.to_string();
+            outputs.raw[id.0] = text.to_string();
             if unknown && first_unknown.is_none() {
                 first_unknown = Some((port.name.clone(), text.to_string()));
             }
@@ -258,13 +290,14 @@ impl Engine for IcarusEngine {
     fn poke(&mut self, port: PortId, value: &BitVec) -> Result<()> {
         self.design.check_poke(port, value)?;
         self.send(&format!("P {} {}", port.0, value.to_hex()))?;
-        self.values[port.0] = value.clone();
+        self.outputs.borrow_mut().values[port.0] = value.clone();
         Ok(())
     }
 
     fn peek(&self, port: PortId) -> Result<BitVec> {
         self.design.port(port)?;
-        Ok(self.values[port.0].clone())
+        self.refresh_if_stale()?;
+        Ok(self.outputs.borrow().values[port.0].clone())
     }
 
     fn eval(&mut self) -> Result<()> {
@@ -273,7 +306,9 @@ impl Engine for IcarusEngine {
 
     fn step(&mut self) -> Result<()> {
         self.cycle += 1;
-        self.command_with_reply("S")
+        self.send("S")?;
+        self.outputs.get_mut().stale = true;
+        Ok(())
     }
 
     fn cycle(&self) -> u64 {
@@ -306,9 +341,7 @@ impl Engine for IcarusEngine {
             self.send("U")?;
             self.tracing = false;
             // A round trip makes sure vvp has flushed before the caller reads the file.
-            let cycle_before = self.cycle;
-            self.command_with_reply("E")?;
-            self.cycle = cycle_before;
+            self.command_with_reply("R")?;
         }
         Ok(())
     }
@@ -320,7 +353,8 @@ impl Engine for IcarusEngine {
 
 impl Drop for IcarusEngine {
     fn drop(&mut self) {
-        let _ = writeln!(self.stdin, "Q").and_then(|_| self.stdin.flush());
+        let pipe = self.pipe.get_mut();
+        let _ = writeln!(pipe.stdin, "Q").and_then(|_| pipe.stdin.flush());
         for _ in 0..50 {
             if let Ok(Some(_)) = self.child.try_wait() {
                 return;

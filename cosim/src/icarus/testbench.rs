@@ -3,7 +3,8 @@
 //! Pipe protocol (one command per line on vvp's stdin, tokens separated by spaces):
 //! - `P <idx> <hex>`: drive input port `idx` (index in `Design::ports`) with `hex`; no reply.
 //! - `E`: let combinational logic settle (`#1`); reply with an output line.
-//! - `S`: clock low, `#1`, clock high, `#1` (designs without a clock: `#2`); reply.
+//! - `S`: clock low, `#1`, clock high, `#1` (designs without a clock: `#2`); no reply.
+//! - `R`: reply with the current outputs (no time passes).
 //! - `T <path>`: start (or resume) the VCD dump to `path` (first call fixes the file).
 //! - `U`: pause the VCD dump and flush it; no reply.
 //! - `Q`: `$finish`.
@@ -95,6 +96,7 @@ module {TB_MODULE};
                 reply;
             end else if (cmd == "S") begin
                 {clock_edge}
+            end else if (cmd == "R") begin
                 reply;
             end else if (cmd == "T") begin
                 got = $fscanf(32'h8000_0000, "%s", path);

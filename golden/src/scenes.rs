@@ -6,6 +6,7 @@
 //! smooth shapes, which only feed vertex positions).
 
 use glam::Vec3;
+use std::f32::consts::TAU;
 use std::path::PathBuf;
 
 use crate::mesh::Mesh;
@@ -171,7 +172,7 @@ pub fn terrain(cells: u32, seed: u64) -> Mesh {
             (
                 rng.range_f32(1.0, 6.0),
                 rng.range_f32(1.0, 6.0),
-                rng.range_f32(0.0, 6.28),
+                rng.range_f32(0.0, TAU),
                 rng.range_f32(0.02, 0.08),
             )
         })
@@ -182,7 +183,7 @@ pub fn terrain(cells: u32, seed: u64) -> Mesh {
             let z = j as f32 / cells as f32;
             let mut y = 0.5;
             for &(fx, fz, ph, amp) in &waves {
-                y += amp * (fx * x * 6.28 + fz * z * 6.28 + ph).sin();
+                y += amp * (fx * x * TAU + fz * z * TAU + ph).sin();
             }
             y += rng.range_f32(-0.25, 0.25) / cells as f32;
             m.vertices.push(Vec3::new(x, y, z));
@@ -295,7 +296,8 @@ mod tests {
 
     #[test]
     fn generators_are_deterministic_and_valid() {
-        let makers: Vec<(&str, Box<dyn Fn(u64) -> Mesh>)> = vec![
+        type Maker = Box<dyn Fn(u64) -> Mesh>;
+        let makers: Vec<(&str, Maker)> = vec![
             ("soup", Box::new(|s| random_soup(200, 0.1, s))),
             ("slivers", Box::new(|s| slivers(200, s))),
             ("axis", Box::new(|s| axis_aligned(200, s))),

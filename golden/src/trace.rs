@@ -392,6 +392,14 @@ fn local_ray(ray: &Ray, p: &Placed) -> Ray {
     }
 }
 
+/// True when `hit` beats the best so far (or there is none yet).
+fn improves(best: &Option<Hit>, hit: &Hit) -> bool {
+    match best {
+        None => true,
+        Some(b) => hit.precedes(b),
+    }
+}
+
 /// A node waiting on the traversal stack, with the ray's entry into its box.
 #[derive(Clone, Copy)]
 struct Pending {
@@ -471,7 +479,7 @@ pub fn closest_hit(ray: &Ray, scene: &TraceScene, stats: &mut TraceStats) -> Opt
                         hier: h.id,
                         prim,
                     };
-                    if best.map_or(true, |b| hit.precedes(&b)) {
+                    if improves(&best, &hit) {
                         best = Some(hit);
                     }
                 }
@@ -515,7 +523,7 @@ pub fn brute_force_closest(ray: &Ray, scene: &TraceScene, stats: &mut TraceStats
                     hier: p.inst.hierarchy.id,
                     prim: prim as u32,
                 };
-                if best.map_or(true, |b| hit.precedes(&b)) {
+                if improves(&best, &hit) {
                     best = Some(hit);
                 }
             }

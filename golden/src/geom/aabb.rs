@@ -85,7 +85,7 @@ mod tests {
         let r = Ray::unbounded(Vec3::new(-1.0, 0.5, 0.5), Vec3::X);
         let (t0, t1) = test(&r, Vec3::ZERO, Vec3::ONE).unwrap();
         assert_eq!(t0, 1.0);
-        assert!(t1 >= 2.0 && t1 < 2.0001);
+        assert!((2.0..2.0001).contains(&t1));
         // Along the face plane y = 1 (zero y, z components): inside, closed box.
         let r = Ray::unbounded(Vec3::new(-1.0, 1.0, 0.5), Vec3::X);
         assert!(test(&r, Vec3::ZERO, Vec3::ONE).is_some());

@@ -171,6 +171,13 @@ mod tests {
             let clip = clip_triangle_to_box(&tri, lo, hi);
             if let Some((clo, chi)) = clip {
                 prop_assert!(clo.cmpge(lo).all() && chi.cmple(hi).all() && clo.cmple(chi).all());
+                // Tight where it can be checked: never beyond the triangle's
+                // AABB, and equal to it when the triangle is inside the box.
+                let (tlo, thi) = crate::geom::triangle_bounds(&tri);
+                prop_assert!(clo.cmpge(tlo).all() && chi.cmple(thi).all());
+                if inside(tlo, lo, hi) && inside(thi, lo, hi) {
+                    prop_assert_eq!((clo, chi), (tlo, thi));
+                }
             }
             for p in sample_triangle(&tri, 24) {
                 if inside(p, lo, hi) {

@@ -172,6 +172,31 @@ pub(crate) mod tests {
             }
         }
 
+        /// Tightness: a triangle beyond a random plane that clears the box by
+        /// a visible gap is never reported as overlapping (the margin is
+        /// 2^-40 relative; the gap here is 1e-3).
+        #[test]
+        fn never_overlaps_beyond_a_separating_plane(
+            (_, lo, hi) in tri_and_box(),
+            n in point(),
+            raw in prop::array::uniform3(point()),
+        ) {
+            prop_assume!(n.length() > 0.1);
+            let n = n.normalize();
+            let corners = (0..8).map(|i| DVec3::new(
+                if i & 1 != 0 { hi.x } else { lo.x },
+                if i & 2 != 0 { hi.y } else { lo.y },
+                if i & 4 != 0 { hi.z } else { lo.z },
+            ));
+            let support = corners.map(|c| n.dot(c)).fold(f64::NEG_INFINITY, f64::max);
+            // Push each vertex along n until it is 1e-3 beyond the plane.
+            let tri = raw.map(|v| {
+                let gap = support + 1e-3 - n.dot(v);
+                if gap > 0.0 { v + n * (gap * 1.001) } else { v }
+            });
+            prop_assert!(!triangle_overlaps_box(&tri, lo, hi), "{tri:?} {lo} {hi} n={n}");
+        }
+
         #[test]
         fn never_overlaps_when_bounds_are_disjoint((tri, lo, hi) in tri_and_box()) {
             let (tlo, thi) = crate::geom::triangle_bounds(&tri);

@@ -215,9 +215,9 @@ mod tests {
             let origin = center + rng.unit_vector() * 2.0 + Vec3::Z * 6.0;
             // Through the shared vertex, and through points on shared edges.
             let mut targets = vec![center];
-            for k in 0..n {
+            for r in &rim {
                 let s = rng.range_f32(0.0, 0.9);
-                targets.push(center + (rim[k] - center) * s);
+                targets.push(center + (*r - center) * s);
             }
             for target in targets {
                 let r = Ray::unbounded(origin, target - origin);

@@ -5,6 +5,10 @@
 //! input gives a [`MeshError`] naming the file, the line (OBJ, ascii PLY) or
 //! element (binary PLY), the field, and what was expected.
 
+// Errors are the cold path and carry the file, line, field and expectation
+// as text; their size is the price of a useful message.
+#![allow(clippy::result_large_err)]
+
 pub mod error;
 pub mod obj;
 pub mod ply;

@@ -421,7 +421,7 @@ impl BodyReader for AsciiReader<'_> {
 
     fn can_hold(&self, n: u64, _ty: Scalar) -> bool {
         // Each token needs at least one byte and one separator, less one.
-        n <= (self.rest.len() as u64 + 1) / 2 + 1
+        n <= (self.rest.len() as u64).div_ceil(2) + 1
     }
 
     fn location(&self, _element: &str, _index: u64) -> MeshLocation {

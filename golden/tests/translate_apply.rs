@@ -171,7 +171,7 @@ proptest! {
             nodes.push(VoxelAddr::new(n.lod, (n.x + dx).min(span - 1), (n.y + dy).min(span - 1), (n.z + dz).min(span - 1)));
         }
         let ext = VoxelRange::of_nodes(&nodes, t.lod, &p).unwrap();
-        let rule = check_scene_extents(&ext, &t).is_ok();
+        let rule = check_scene_extents(&ext, &t, &p).is_ok();
         let all_move = nodes.iter().all(|m| translate_node(*m, &t, &p).is_ok());
         prop_assert_eq!(rule, all_move);
     }

@@ -323,17 +323,17 @@ proptest! {
         };
         prop_assert!((1..=8).contains(&out.len()));
         for a in Axis::ALL {
-            let (lo, hi) = n.fine_interval(a, &p);
-            let o = golden::translate::expand::fine_offset(&t, a, &p);
+            let (lo, hi) = n.fine_interval(a, &p).unwrap();
+            let o = golden::translate::expand::fine_offset(&t, a, &p).unwrap();
             let (lo, hi) = (lo + o, hi + o);
             // Union of the copies' intervals on this axis contains the moved box ...
-            let cmin = out.iter().map(|c| c.fine_interval(a, &p).0).min().unwrap();
-            let cmax = out.iter().map(|c| c.fine_interval(a, &p).1).max().unwrap();
+            let cmin = out.iter().map(|c| c.fine_interval(a, &p).unwrap().0).min().unwrap();
+            let cmax = out.iter().map(|c| c.fine_interval(a, &p).unwrap().1).max().unwrap();
             prop_assert!(cmin <= lo && hi <= cmax);
             for c in &out {
                 prop_assert!(c.validate(&p).is_ok());
                 prop_assert_eq!(c.addr.lod, n.addr.lod);
-                let (clo, chi) = c.fine_interval(a, &p);
+                let (clo, chi) = c.fine_interval(a, &p).unwrap();
                 // ... each copy overlaps it with positive width ...
                 prop_assert!(clo < hi && lo < chi);
                 // ... and is outward by less than one cell on each side.

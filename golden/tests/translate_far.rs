@@ -26,7 +26,7 @@ fn placed_vertex(x: f64, p: &Params) -> f64 {
     let ext = VoxelRange::of_nodes(&[VoxelAddr::new(L, 0, 0, 0)], L, p).unwrap();
     let d = determine(&Placement::binary64([x, 0.0, 0.0]), L, &ext, p).unwrap();
     let local = (LOCAL_VERTEX as f64 + d.residual.value_f64(Axis::X)) as f32;
-    d.translation.grid_offset(Axis::X, p) as f64 + local as f64
+    d.translation.try_grid_offset(Axis::X, p).unwrap() as f64 + local as f64
 }
 
 /// The same with the placement itself given in binary32.
@@ -34,7 +34,7 @@ fn placed_vertex_f32_placement(x: f64, p: &Params) -> f64 {
     let ext = VoxelRange::of_nodes(&[VoxelAddr::new(L, 0, 0, 0)], L, p).unwrap();
     let d = determine(&Placement::binary32([x as f32, 0.0, 0.0]), L, &ext, p).unwrap();
     let local = (LOCAL_VERTEX as f64 + d.residual.value_f64(Axis::X)) as f32;
-    d.translation.grid_offset(Axis::X, p) as f64 + local as f64
+    d.translation.try_grid_offset(Axis::X, p).unwrap() as f64 + local as f64
 }
 
 #[test]

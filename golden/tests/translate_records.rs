@@ -39,7 +39,7 @@ fn fine_intervals_agree_with_the_store() {
         let b = NodeBox::from(n);
         for a in Axis::ALL {
             assert_eq!(
-                b.fine_interval(a, &p),
+                b.fine_interval(a, &p).unwrap(),
                 (lo[a.index()] as i128, hi[a.index()] as i128)
             );
         }
@@ -73,7 +73,7 @@ fn an_aligned_move_keeps_the_hierarchy_valid_over_moved_triangles() {
     for (a, b) in h.nodes.iter().zip(&moved.nodes) {
         let ((alo, ahi), (blo, bhi)) = (node_box_fine(a, &p), node_box_fine(b, &p));
         for ax in Axis::ALL {
-            let o = t.grid_offset(ax, &p) as i128 * (1 << p.quant_bits);
+            let o = t.try_grid_offset(ax, &p).unwrap() as i128 * (1 << p.quant_bits);
             let i = ax.index();
             assert_eq!(
                 (
@@ -89,9 +89,9 @@ fn an_aligned_move_keeps_the_hierarchy_valid_over_moved_triangles() {
         .map(|tri| {
             tri.map(|v| {
                 v + DVec3::new(
-                    t.grid_offset(Axis::X, &p) as f64,
-                    t.grid_offset(Axis::Y, &p) as f64,
-                    t.grid_offset(Axis::Z, &p) as f64,
+                    t.try_grid_offset(Axis::X, &p).unwrap() as f64,
+                    t.try_grid_offset(Axis::Y, &p).unwrap() as f64,
+                    t.try_grid_offset(Axis::Z, &p).unwrap() as f64,
                 )
             })
         })

@@ -13,8 +13,8 @@ use crate::params::Params;
 
 /// `x + (t << s)` as a signed value: `|t| < 2^31`, `s <= 31`, `x < 2^31`,
 /// so the sum is below `2^63` in magnitude (the hardware adder is
-/// `D + 1 + (D - L) + 1` bits wide).
-pub fn shift_add(x: u32, t: i64, s: u32) -> i64 {
+/// `D + 1 + (D - L) + 1` bits wide). For validated inputs only.
+pub(crate) fn shift_add(x: u32, t: i64, s: u32) -> i64 {
     x as i64 + (t << s)
 }
 

@@ -98,17 +98,23 @@ pub struct Shifted {
     pub sticky: bool,
 }
 
-/// Shifts `sig` (below `2^precision`) right by `n >= 1`, keeping round and
+/// Shifts `sig` (below `2^precision`) right by `n` (0 keeps all), keeping round and
 /// sticky bits. Shifts beyond `precision + 1` saturate to `precision + 1`:
 /// they leave `kept = 0, round = 0, sticky = (sig != 0)` either way, so the
 /// shifter is `precision + 2` bits wide.
 pub fn shift_right_round_sticky(sig: u64, n: u32, precision: u32) -> Shifted {
-    debug_assert!(n >= 1 && bit_length(sig) <= precision);
-    let n = n.min(precision + 1);
+    if n == 0 {
+        return Shifted {
+            kept: sig,
+            round: false,
+            sticky: false,
+        };
+    }
+    let n = n.min(precision + 1).min(64);
     Shifted {
-        kept: sig >> n,
-        round: (sig >> (n - 1)) & 1 == 1,
-        sticky: sig & ((1u64 << (n - 1)) - 1) != 0,
+        kept: ((sig as u128) >> n) as u64,
+        round: ((sig as u128) >> (n - 1)) & 1 == 1,
+        sticky: (sig as u128) & ((1u128 << (n - 1)) - 1) != 0,
     }
 }
 
@@ -124,8 +130,8 @@ pub fn round_half_even_increment(s: &Shifted) -> bool {
 /// [`shift_right_round_sticky`] (then nothing is rounded up and the residual
 /// is all of `sig`).
 pub fn residual_units(sig: u64, n: u32, precision: u32, increment: bool) -> i128 {
-    let n = n.min(precision + 1);
-    let low = (sig & ((1u64 << n) - 1)) as i128;
+    let n = n.min(precision + 1).min(64);
+    let low = ((sig as u128) & ((1u128 << n) - 1)) as i128;
     if increment {
         low - (1i128 << n)
     } else {
@@ -279,7 +285,7 @@ pub fn determine(
     }
     extents.validate(p)?;
     let d = round_placement(placement, lod, p)?;
-    check_scene_extents(extents, &d.translation)?;
+    check_scene_extents(extents, &d.translation, p)?;
     Ok(d)
 }
 

@@ -59,8 +59,15 @@ impl NodeBox {
         Ok(())
     }
 
-    /// The box on `axis` as a closed fine-unit interval `[a, b]`.
-    pub fn fine_interval(&self, axis: Axis, p: &Params) -> (i128, i128) {
+    /// The box on `axis` as a closed fine-unit interval `[a, b]`; errors
+    /// when the node is not valid for `p` ([`NodeBox::validate`]).
+    pub fn fine_interval(&self, axis: Axis, p: &Params) -> Result<(i128, i128), TranslateError> {
+        self.validate(p)?;
+        Ok(self.fine_interval_unchecked(axis, p))
+    }
+
+    /// [`NodeBox::fine_interval`] for a node already validated.
+    fn fine_interval_unchecked(&self, axis: Axis, p: &Params) -> (i128, i128) {
         let a = axis.index();
         let c = [self.addr.x, self.addr.y, self.addr.z][a] as i128;
         let cell = cell_shift(self.addr.lod, p);
@@ -82,14 +89,16 @@ fn voxel_shift(d: u8, p: &Params) -> u32 {
     cell_shift(d, p) + p.quant_bits as u32
 }
 
-/// The move of `t` on `axis` in fine units: `t << (D - L + Q)`.
-pub fn fine_offset(t: &Translation, axis: Axis, p: &Params) -> i128 {
-    (t.t[axis.index()] as i128) << voxel_shift(t.lod, p)
+/// The move of `t` on `axis` in fine units: `t << (D - L + Q)`; errors
+/// when the translation is not valid for `p`.
+pub fn fine_offset(t: &Translation, axis: Axis, p: &Params) -> Result<i128, TranslateError> {
+    t.validate(p)?;
+    Ok((t.t[axis.index()] as i128) << voxel_shift(t.lod, p))
 }
 
 /// The LOD-`d` voxel indices `first ..= last` covered by the fine interval
 /// `[a, b]` (`a < b`): `floor(a / V)` to `floor((b - 1) / V)`.
-pub fn covering_span(a: i128, b: i128, d: u8, p: &Params) -> (i128, i128) {
+pub(crate) fn covering_span(a: i128, b: i128, d: u8, p: &Params) -> (i128, i128) {
     let s = voxel_shift(d, p);
     (a >> s, (b - 1) >> s)
 }
@@ -99,7 +108,7 @@ pub fn covering_span(a: i128, b: i128, d: u8, p: &Params) -> (i128, i128) {
 /// `lo = floor((a' - v0) / cell)`, `hi = ceil((b' - v0) / cell) - 1`.
 /// `v` must be in [`covering_span`], so the clipped part has positive width
 /// and `lo <= hi < 2^Q` hold without clamping.
-pub fn quantize_outward(a: i128, b: i128, v: i128, d: u8, p: &Params) -> (u32, u32) {
+pub(crate) fn quantize_outward(a: i128, b: i128, v: i128, d: u8, p: &Params) -> (u32, u32) {
     let (cs, vs) = (cell_shift(d, p), voxel_shift(d, p));
     let v0 = v << vs;
     let a1 = a.max(v0) - v0;
@@ -134,8 +143,8 @@ pub fn expand_node(
     let mut moved = [(0i128, 0i128); 3];
     let mut spans = [(0i128, 0i128); 3];
     for axis in Axis::ALL {
-        let (a, b) = node.fine_interval(axis, p);
-        let o = fine_offset(t, axis, p);
+        let (a, b) = node.fine_interval_unchecked(axis, p);
+        let o = fine_offset(t, axis, p)?;
         let (a, b) = (a + o, b + o);
         if a < 0 || b > limit {
             return Err(TranslateError::BoxOutsideScene {

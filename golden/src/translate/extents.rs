@@ -106,8 +106,15 @@ fn node_span_at(n: &VoxelAddr, lod: u8) -> ([u32; 3], [u32; 3]) {
 
 /// The scene-extents rule: `0 <= lo + t` and `hi + t <= 2^L - 1` on every
 /// axis, checked x, y, z in order; the first failing axis is the error.
-/// `range.lod` must equal `t.lod`.
-pub fn check_scene_extents(range: &VoxelRange, t: &Translation) -> Result<(), TranslateError> {
+/// The range and the translation are validated first, and `range.lod` must
+/// equal `t.lod`.
+pub fn check_scene_extents(
+    range: &VoxelRange,
+    t: &Translation,
+    p: &Params,
+) -> Result<(), TranslateError> {
+    range.validate(p)?;
+    t.validate(p)?;
     if range.lod != t.lod {
         return Err(TranslateError::ExtentsLodMismatch {
             extents_lod: range.lod,
@@ -122,8 +129,9 @@ pub fn check_scene_extents(range: &VoxelRange, t: &Translation) -> Result<(), Tr
     Ok(())
 }
 
-/// The extents rule on one axis; `Some(OutsideScene)` when it fails.
-pub fn axis_outside_scene(
+/// The extents rule on one axis; `Some(OutsideScene)` when it fails. For
+/// validated inputs only (`lod <= 31`, `|t| < 2^31`: no overflow).
+pub(crate) fn axis_outside_scene(
     range: &VoxelRange,
     t: &Translation,
     axis: Axis,
@@ -164,6 +172,7 @@ mod tests {
 
     #[test]
     fn rule_admits_the_edges_and_names_the_failing_axis() {
+        let p = Params::new(8, 0, 16, 2).unwrap();
         let r = VoxelRange {
             lod: 3,
             lo: [2, 0, 5],
@@ -175,7 +184,8 @@ mod tests {
                 &Translation {
                     lod: 3,
                     t: [-2, 0, 2]
-                }
+                },
+                &p
             ),
             Ok(())
         );
@@ -185,7 +195,8 @@ mod tests {
                 &Translation {
                     lod: 3,
                     t: [0, 1, 0]
-                }
+                },
+                &p
             ),
             Err(TranslateError::OutsideScene {
                 axis: Axis::Y,
@@ -200,7 +211,8 @@ mod tests {
                 &Translation {
                     lod: 3,
                     t: [-3, 0, 0]
-                }
+                },
+                &p
             ),
             Err(TranslateError::OutsideScene {
                 axis: Axis::X,

@@ -58,8 +58,21 @@ impl Translation {
     }
 
     /// The move on `axis` in grid units: `t << (D - L)` (exact: below 2^62).
+    /// For a valid translation (table entries and determine results are);
+    /// see [`Translation::try_grid_offset`] for one of unknown origin.
     pub fn grid_offset(&self, axis: Axis, p: &Params) -> i64 {
-        self.t[axis.index()] << (p.max_lod - self.lod)
+        debug_assert!(
+            self.validate(p).is_ok(),
+            "grid_offset of an invalid translation"
+        );
+        // Saturating: an invalid translation gives a meaningless value, never a panic.
+        self.t[axis.index()].saturating_mul(1i64 << p.max_lod.saturating_sub(self.lod).min(62))
+    }
+
+    /// [`Translation::grid_offset`], checking the translation first.
+    pub fn try_grid_offset(&self, axis: Axis, p: &Params) -> Result<i64, TranslateError> {
+        self.validate(p)?;
+        Ok(self.grid_offset(axis, p))
     }
 }
 

@@ -7,7 +7,7 @@
 use glam::DVec3;
 
 use super::lod::primitive_lod;
-use super::quantize::quantize_interval;
+use super::quantize::{floor_nonneg, quantize_interval};
 use super::radix::morton3_fast;
 use crate::geom::{clip_triangle_to_box, triangle_overlaps_box};
 use crate::params::Params;
@@ -48,12 +48,12 @@ pub fn place_triangle(tri: &[DVec3; 3], prim: u32, p: &Params, out: &mut Vec<Lea
     let thi = tri[0].max(tri[1]).max(tri[2]);
     let lod = primitive_lod(tri, tlo, thi, p.max_lod);
     let edge = p.voxel_edge(lod) as f64;
-    let last = ((1u64 << lod) - 1) as f64;
+    let last = (1u64 << lod) - 1;
     let cells = p.quant_cells();
     let scale = cells as f64 / edge;
-    let first_voxel = (tlo / edge).floor().min(DVec3::splat(last));
-    let last_voxel = (thi / edge).floor().min(DVec3::splat(last));
-    let (i0, i1) = (first_voxel.as_uvec3(), last_voxel.as_uvec3());
+    let voxel_of = |v: f64| floor_nonneg(v / edge).min(last) as u32;
+    let i0 = glam::UVec3::new(voxel_of(tlo.x), voxel_of(tlo.y), voxel_of(tlo.z));
+    let i1 = glam::UVec3::new(voxel_of(thi.x), voxel_of(thi.y), voxel_of(thi.z));
 
     let entry = |x: u32, y: u32, z: u32, blo: DVec3, bhi: DVec3| {
         let v0 = DVec3::new(x as f64, y as f64, z as f64) * edge;
@@ -79,7 +79,10 @@ pub fn place_triangle(tri: &[DVec3; 3], prim: u32, p: &Params, out: &mut Vec<Lea
             for x in i0.x..=i1.x {
                 let vlo = DVec3::new(x as f64, y as f64, z as f64) * edge;
                 let vhi = vlo + DVec3::splat(edge);
-                if !triangle_overlaps_box(tri, vlo, vhi) {
+                // A vertex in the closed voxel is contact, where the
+                // conservative overlap test is true: skip computing it.
+                let holds_vertex = tri.iter().any(|v| v.cmpge(vlo).all() && v.cmple(vhi).all());
+                if !holds_vertex && !triangle_overlaps_box(tri, vlo, vhi) {
                     continue;
                 }
                 if let Some((blo, bhi)) = clip_triangle_to_box(tri, vlo, vhi) {

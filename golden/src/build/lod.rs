@@ -30,9 +30,11 @@ pub fn base_lod(extent: f64, max_lod: u8) -> u8 {
     (max_lod as u32).saturating_sub(k) as u8
 }
 
-/// Sliver levels: the largest `k <= SLIVER_LEVEL_CAP` with `r >= 2^k`, where
-/// `r = L / h = L^2 / (2 A)` is the longest edge over the height on it.
-/// Computed without division as `L2^2 >= 4^k * N2`, with `L2` the longest
+/// Sliver levels: the largest `k <= SLIVER_LEVEL_CAP` with `r >= 2^(k+1)`,
+/// where `r = L / h = L^2 / (2 A)` is the longest edge over the height on it
+/// (an equilateral triangle has `r = 1.15`, a right isoceles one `r = 2`: both
+/// 0 levels; `r = 4` is the first sliver). Computed without division as
+/// `L2^2 >= 4^(k+1) * N2`, with `L2` the longest
 /// squared edge length and `N2 = |e0 x e1|^2 = (2 A)^2`, in binary64 in that
 /// operation order. A zero-area triangle with an edge (a segment) gets the
 /// cap; a point gets 0.
@@ -51,7 +53,7 @@ pub fn sliver_levels(tri: &[DVec3; 3]) -> u32 {
     let lhs = l2 * l2;
     let mut k = SLIVER_LEVEL_CAP;
     while k > 0 {
-        if lhs >= (1u64 << (2 * k)) as f64 * n2 {
+        if lhs >= (1u64 << (2 * k + 2)) as f64 * n2 {
             return k;
         }
         k -= 1;
@@ -109,21 +111,35 @@ mod tests {
         assert_eq!(sliver_levels(&eq), 0);
         // Right isoceles with legs 1: L = sqrt 2, h = sqrt 2 / 2, r = 2.
         let right = [DVec3::ZERO, DVec3::X, DVec3::Y];
-        assert_eq!(sliver_levels(&right), 1);
-        // Length 100, height 1: r = 100 >= 8: capped at 3.
+        assert_eq!(sliver_levels(&right), 0);
+        // Length 4, height 1: r = 4 exactly: 1 level.
+        let four = [
+            DVec3::ZERO,
+            DVec3::new(4.0, 0.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+        ];
+        assert_eq!(sliver_levels(&four), 1);
+        // Length 100, height 1: r = 100 >= 16: capped at 3.
         let thin = [
             DVec3::ZERO,
             DVec3::new(100.0, 0.0, 0.0),
             DVec3::new(50.0, 1.0, 0.0),
         ];
         assert_eq!(sliver_levels(&thin), SLIVER_LEVEL_CAP);
-        // Length 10, height 2: r = 5: 4 <= 5 < 8: 2 levels.
+        // Length 10, height 2: r = 5: 4 <= 5 < 8: 1 level.
         let mid = [
             DVec3::ZERO,
             DVec3::new(10.0, 0.0, 0.0),
             DVec3::new(3.0, 2.0, 0.0),
         ];
-        assert_eq!(sliver_levels(&mid), 2);
+        assert_eq!(sliver_levels(&mid), 1);
+        // Length 10, height 1: r = 10: 8 <= 10 < 16: 2 levels.
+        let ten = [
+            DVec3::ZERO,
+            DVec3::new(10.0, 0.0, 0.0),
+            DVec3::new(3.0, 1.0, 0.0),
+        ];
+        assert_eq!(sliver_levels(&ten), 2);
         let segment = [DVec3::ZERO, DVec3::ONE, DVec3::splat(2.0)];
         assert_eq!(sliver_levels(&segment), SLIVER_LEVEL_CAP);
         assert_eq!(sliver_levels(&[DVec3::ONE; 3]), 0);

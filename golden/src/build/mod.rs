@@ -13,7 +13,7 @@ pub mod leaves;
 pub mod lod;
 pub mod quantize;
 pub mod radix;
-mod upper;
+pub(crate) mod upper;
 
 use std::fmt;
 
@@ -272,7 +272,7 @@ fn build_with(
             index_bits: params.index_bits,
         });
     }
-    let mut entries = Vec::with_capacity(n * 2);
+    let mut entries = Vec::with_capacity(n * 4);
     for i in 0..n {
         let tri = triangle(i)?;
         leaves::place_triangle(&tri, i as u32, params, &mut entries);

@@ -14,11 +14,30 @@
 /// `v0 <= a <= v0 + edge <= 2 v0`) and trivially when `v0 = 0`, and the scale
 /// `2^Q / edge` is a power of two. An `a` or `b` slightly outside the voxel
 /// only meets the clamps.
+///
+/// Floor and ceiling are taken through the float-to-integer conversion
+/// (truncation, saturating at 0 for negative values, which is the clamp) to
+/// stay off the C library's `floor` on baseline x86-64.
 pub fn quantize_interval(a: f64, b: f64, v0: f64, scale: f64, cells: u32) -> (u16, u16) {
-    let top = (cells - 1) as f64;
-    let lo = ((a - v0) * scale).floor().clamp(0.0, top);
-    let hi = (((b - v0) * scale).ceil() - 1.0).clamp(lo, top);
+    let top = cells as u64 - 1;
+    let lo = floor_nonneg((a - v0) * scale).min(top);
+    let hi = ceil_nonneg((b - v0) * scale)
+        .saturating_sub(1)
+        .clamp(lo, top);
     (lo as u16, hi as u16)
+}
+
+/// `floor(t)` for `t >= 0`, and 0 for `t < 0` (finite `t`).
+#[inline(always)]
+pub fn floor_nonneg(t: f64) -> u64 {
+    t as u64
+}
+
+/// `ceil(t)` for `t >= 0`, and 0 for `t < 0` (finite `t`).
+#[inline(always)]
+pub fn ceil_nonneg(t: f64) -> u64 {
+    let f = t as u64;
+    f + ((f as f64) < t) as u64
 }
 
 /// The cells of the parent voxel (one LOD up) covering a child's cells
@@ -62,6 +81,24 @@ mod tests {
         );
         // Q = 0: always the whole voxel.
         assert_eq!(quantize_interval(9.0, 9.5, 8.0, 1.0 / 8.0, 1), (0, 0));
+    }
+
+    #[test]
+    fn integer_floor_and_ceil() {
+        for t in [
+            0.0,
+            0.25,
+            1.0,
+            1.5,
+            2.0,
+            1e15 + 0.5,
+            4503599627370495.5,
+            9007199254740992.0,
+        ] {
+            assert_eq!(floor_nonneg(t), t.floor() as u64, "{t}");
+            assert_eq!(ceil_nonneg(t), t.ceil() as u64, "{t}");
+        }
+        assert_eq!((floor_nonneg(-0.5), ceil_nonneg(-0.5)), (0, 0));
     }
 
     #[test]

@@ -8,19 +8,23 @@ use crate::grid::VoxelAddr;
 use crate::params::Params;
 use crate::store::{Hierarchy, NodeRecord, Reference};
 
-/// A node while its level is being built. `first`/`count` index the sorted
-/// entries (= `prims`) for a leaf, the level below for an inner node.
+/// A node while its level is being built. A *base* node is given by the
+/// caller (the builder: every leaf; the merger: the nodes of S610-S614) and
+/// its `first`/`count` mean what the caller says (the builder: the sorted
+/// entries = `prims`); a grouped node (`base = false`, made by
+/// [`group_by_parent`]) has `first`/`count` indexing the level below.
 #[derive(Clone, Copy, Debug)]
-struct LevelNode {
-    morton: u128,
-    x: u32,
-    y: u32,
-    z: u32,
-    leaf: bool,
-    lo: [u16; 3],
-    hi: [u16; 3],
-    first: u32,
-    count: u32,
+pub(crate) struct LevelNode {
+    pub(crate) morton: u128,
+    pub(crate) x: u32,
+    pub(crate) y: u32,
+    pub(crate) z: u32,
+    pub(crate) leaf: bool,
+    pub(crate) base: bool,
+    pub(crate) lo: [u16; 3],
+    pub(crate) hi: [u16; 3],
+    pub(crate) first: u32,
+    pub(crate) count: u32,
 }
 
 /// Inverse of the 21-bit spread: gathers bits `3i` into bit `i`.
@@ -65,6 +69,7 @@ fn leaves_by_lod(entries: &[LeafEntry], p: &Params) -> Vec<Vec<LevelNode>> {
             y: morton_coord(morton, 1),
             z: morton_coord(morton, 2),
             leaf: true,
+            base: true,
             lo,
             hi,
             first: i as u32,
@@ -78,7 +83,7 @@ fn leaves_by_lod(entries: &[LeafEntry], p: &Params) -> Vec<Vec<LevelNode>> {
 /// One inner node per parent voxel of `level` (sorted by Morton, so the
 /// children of a parent are a contiguous run); the parent's box is the union
 /// of its children's boxes rounded outward into its own cells.
-fn group_by_parent(level: &[LevelNode], quant_bits: u8) -> Vec<LevelNode> {
+pub(crate) fn group_by_parent(level: &[LevelNode], quant_bits: u8) -> Vec<LevelNode> {
     let mut out = Vec::with_capacity(level.len() / 2 + 1);
     let mut i = 0;
     while i < level.len() {
@@ -89,6 +94,7 @@ fn group_by_parent(level: &[LevelNode], quant_bits: u8) -> Vec<LevelNode> {
             y: level[i].y >> 1,
             z: level[i].z >> 1,
             leaf: false,
+            base: false,
             lo: [u16::MAX; 3],
             hi: [0; 3],
             first: i as u32,
@@ -134,7 +140,7 @@ fn merge_level(inner: Vec<LevelNode>, leaves: Vec<LevelNode>) -> Vec<LevelNode> 
 
 /// The top rule's exception: a single inner LOD-0 node whose box covers more
 /// than half the scene, `(hx-lx+1)(hy-ly+1)(hz-lz+1) * 2 > 2^(3Q)`, exactly.
-fn covers_most_of_scene(n: &LevelNode, quant_bits: u8) -> bool {
+pub(crate) fn covers_most_of_scene(n: &LevelNode, quant_bits: u8) -> bool {
     let cells: u64 = (0..3).map(|a| (n.hi[a] - n.lo[a]) as u64 + 1).product();
     cells * 2 > 1u64 << (3 * quant_bits as u32)
 }
@@ -150,32 +156,44 @@ fn check_index(what: &'static str, value: u64, p: &Params) -> Result<(), BuildEr
     Ok(())
 }
 
-/// Builds the hierarchy from entries sorted by key (then primitive index).
-pub(super) fn assemble(entries: &[LeafEntry], p: &Params, id: u8) -> Result<Hierarchy, BuildError> {
-    let mut leaves = leaves_by_lod(entries, p);
-    let deepest = leaves
-        .iter()
-        .rposition(|l| !l.is_empty())
-        .ok_or(BuildError::EmptyMesh)?;
-    let shallowest_leaf = leaves.iter().position(|l| !l.is_empty()).expect("nonempty");
+/// The levels of a hierarchy over `base` (index = LOD, each list in Morton
+/// order): from the deepest base level up, each level is the grouping of the
+/// one below merged with that LOD's base nodes, until the top rule stops it
+/// (SPEC.md section 4). Returns the levels (`levels[d]` for `d <= deepest`,
+/// empty above the top) and the top LOD; `None` when `base` is empty. Shared
+/// by the builder (S408) and the merger (S616).
+pub(crate) fn build_levels(
+    mut base: Vec<Vec<LevelNode>>,
+    p: &Params,
+) -> Option<(Vec<Vec<LevelNode>>, usize)> {
+    let deepest = base.iter().rposition(|l| !l.is_empty())?;
+    let shallowest_base = base.iter().position(|l| !l.is_empty())?;
 
     // levels[d]: the nodes of LOD d, in store order.
     let mut levels: Vec<Vec<LevelNode>> = vec![Vec::new(); deepest + 1];
     let mut d = deepest;
-    levels[d] = std::mem::take(&mut leaves[d]);
-    while !(d == 0 || (levels[d].len() == 1 && d <= shallowest_leaf)) {
+    levels[d] = std::mem::take(&mut base[d]);
+    while !(d == 0 || (levels[d].len() == 1 && d <= shallowest_base)) {
         let parents = group_by_parent(&levels[d], p.quant_bits);
-        levels[d - 1] = merge_level(parents, std::mem::take(&mut leaves[d - 1]));
+        levels[d - 1] = merge_level(parents, std::mem::take(&mut base[d - 1]));
         d -= 1;
     }
     let mut top = d;
+    // Only a grouped root can give way to its children: they are level 1.
     if top == 0
         && levels[0].len() == 1
-        && !levels[0][0].leaf
+        && !levels[0][0].base
         && covers_most_of_scene(&levels[0][0], p.quant_bits)
     {
         top = 1;
     }
+    Some((levels, top))
+}
+
+/// Builds the hierarchy from entries sorted by key (then primitive index).
+pub(super) fn assemble(entries: &[LeafEntry], p: &Params, id: u8) -> Result<Hierarchy, BuildError> {
+    let (levels, top) = build_levels(leaves_by_lod(entries, p), p).ok_or(BuildError::EmptyMesh)?;
+    let deepest = levels.len() - 1;
 
     let mut offset = vec![0u64; deepest + 2];
     for lod in top..=deepest {

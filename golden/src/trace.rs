@@ -725,3 +725,39 @@ mod tests {
             .any(|r| r.dir.x == 0.0 || r.dir.y == 0.0 || r.dir.z == 0.0));
     }
 }
+
+/// Traversal speed and cost over seeded random rays (no brute force): what
+/// the CLI's bench subcommand and `cargo bench -p golden --bench trace`
+/// report. Numbers come from here, never from tests.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TraceBench {
+    pub rays: u64,
+    pub hits: u64,
+    pub seconds: f64,
+    pub rays_per_second: f64,
+    pub node_tests_per_ray: f64,
+    pub prim_tests_per_ray: f64,
+}
+
+/// Traces `n` [`random_rays`] aimed at the scene's bounds and times it
+/// (ray generation excluded).
+pub fn bench_trace(scene: &TraceScene, n: usize, seed: u64) -> TraceBench {
+    let (lo, hi) = scene.bounds();
+    let rays = random_rays(lo, hi, n, seed);
+    let mut stats = TraceStats::default();
+    let mut hits = 0u64;
+    let start = std::time::Instant::now();
+    for ray in &rays {
+        hits += closest_hit(ray, scene, &mut stats).is_some() as u64;
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    let n = rays.len().max(1) as f64;
+    TraceBench {
+        rays: rays.len() as u64,
+        hits,
+        seconds,
+        rays_per_second: n / seconds.max(1e-12),
+        node_tests_per_ray: stats.node_tests as f64 / n,
+        prim_tests_per_ray: stats.prim_tests as f64 / n,
+    }
+}

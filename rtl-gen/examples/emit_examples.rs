@@ -6,7 +6,11 @@ use rtl_gen::{examples, write_design};
 use std::path::PathBuf;
 
 fn main() {
-    let dir = PathBuf::from(std::env::args().nth(1).unwrap_or_else(|| "rtl-gen-out".into()));
+    let dir = PathBuf::from(
+        std::env::args()
+            .nth(1)
+            .unwrap_or_else(|| "rtl-gen-out".into()),
+    );
     let designs = [
         examples::counter(8),
         examples::fifo(8, 3),

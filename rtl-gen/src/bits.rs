@@ -36,7 +36,11 @@ pub struct DoesNotFit {
 
 impl fmt::Display for DoesNotFit {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "value {} does not fit in {} bits", self.value, self.width)
+        write!(
+            f,
+            "value {} does not fit in {} bits",
+            self.value, self.width
+        )
     }
 }
 

@@ -72,7 +72,9 @@ pub(crate) enum Op {
     /// An input port.
     Input,
     /// A wire (or an output port): takes the value of its single driver.
-    Wire { drivers: Vec<(NodeId, Loc)> },
+    Wire {
+        drivers: Vec<(NodeId, Loc)>,
+    },
     /// A register: on each rising clock edge takes `next`; `reset` on a
     /// synchronous reset when present.
     Reg {
@@ -99,11 +101,21 @@ pub(crate) enum Op {
     Ext(NodeId, bool),
     Reduce(RedOp, NodeId),
     /// Asynchronous read of memory `mem` at `addr`.
-    MemRead { mem: usize, addr: NodeId },
+    MemRead {
+        mem: usize,
+        addr: NodeId,
+    },
     /// Synchronous read: a register that takes `mem[addr]` on the clock edge when `en`.
-    MemReadSync { mem: usize, addr: NodeId, en: NodeId },
+    MemReadSync {
+        mem: usize,
+        addr: NodeId,
+        en: NodeId,
+    },
     /// Output port `port` of instance `inst`.
-    InstOut { inst: usize, port: String },
+    InstOut {
+        inst: usize,
+        port: String,
+    },
     /// Stands in for the result of a construct that was rejected with an error.
     Poison,
 }
@@ -297,7 +309,10 @@ impl Graph {
     pub fn instance_comb_inputs(&self, depth: u32) -> Result<Vec<Vec<Vec<NodeId>>>, String> {
         let mut all = Vec::new();
         for inst in &self.insts {
-            let child = inst.child.try_borrow().map_err(|_| format!("instance `{}` instantiates its parent", inst.name))?;
+            let child = inst
+                .child
+                .try_borrow()
+                .map_err(|_| format!("instance `{}` instantiates its parent", inst.name))?;
             let deps = child.port_comb_deps(depth + 1)?;
             let mut per_out = Vec::new();
             for (port, _) in &inst.outputs {
@@ -320,9 +335,13 @@ impl Graph {
     pub fn port_comb_deps(
         &self,
         depth: u32,
-    ) -> Result<std::collections::BTreeMap<String, std::collections::BTreeSet<String>>, String> {
+    ) -> Result<std::collections::BTreeMap<String, std::collections::BTreeSet<String>>, String>
+    {
         if depth > 64 {
-            return Err(format!("module `{}` is instantiated more than 64 levels deep (an instantiation cycle?)", self.name));
+            return Err(format!(
+                "module `{}` is instantiated more than 64 levels deep (an instantiation cycle?)",
+                self.name
+            ));
         }
         let inst_deps = self.instance_comb_inputs(depth)?;
         let mut out = std::collections::BTreeMap::new();

@@ -32,32 +32,50 @@ impl<'m> Instance<'m> {
     #[track_caller]
     pub fn connect(&self, port: &str, value: impl IntoSignal<'m>) {
         let loc = Location::caller();
-        let slot = self.m.graph().insts[self.idx].inputs.iter().position(|i| i.port == port);
+        let slot = self.m.graph().insts[self.idx]
+            .inputs
+            .iter()
+            .position(|i| i.port == port);
         let Some(slot) = slot else {
             let msg = format!("instance `{}` has no input port `{port}`", self.name());
-            self.m.graph_mut().error(DiagKind::Misuse, Some(port.into()), loc, msg);
+            self.m
+                .graph_mut()
+                .error(DiagKind::Misuse, Some(port.into()), loc, msg);
             return;
         };
         let width = self.m.graph().insts[self.idx].inputs[slot].width;
         let v = value.into_signal_like(self.m.lit(0, width), loc);
         if v.width() != width {
-            let msg = format!("port `{port}` of `{}` is {width} bits, connected to {} bits", self.name(), v.width());
-            self.m.graph_mut().error(DiagKind::Width, Some(port.into()), loc, msg);
+            let msg = format!(
+                "port `{port}` of `{}` is {width} bits, connected to {} bits",
+                self.name(),
+                v.width()
+            );
+            self.m
+                .graph_mut()
+                .error(DiagKind::Width, Some(port.into()), loc, msg);
             return;
         }
-        self.m.graph_mut().insts[self.idx].inputs[slot].drivers.push((v.id, loc));
+        self.m.graph_mut().insts[self.idx].inputs[slot]
+            .drivers
+            .push((v.id, loc));
     }
 
     /// The child's output port `port`, as a signal of this module.
     #[track_caller]
     pub fn output(&self, port: &str) -> Signal<'m> {
         let loc = Location::caller();
-        let found = self.m.graph().insts[self.idx].outputs.iter().find(|o| o.0 == port).map(|o| o.1);
+        let found = self.m.graph().insts[self.idx]
+            .outputs
+            .iter()
+            .find(|o| o.0 == port)
+            .map(|o| o.1);
         match found {
             Some(id) => self.m.sig(id, false),
             None => {
                 let msg = format!("instance `{}` has no output port `{port}`", self.name());
-                self.m.fail(DiagKind::Misuse, Some(port.into()), loc, msg, 1)
+                self.m
+                    .fail(DiagKind::Misuse, Some(port.into()), loc, msg, 1)
             }
         }
     }

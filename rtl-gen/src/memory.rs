@@ -51,7 +51,9 @@ impl<'m> Memory<'m> {
                 if addr.is_signed() { " signed" } else { "" }
             );
             let name = self.name();
-            self.m.graph_mut().error(DiagKind::Width, Some(name), loc, msg);
+            self.m
+                .graph_mut()
+                .error(DiagKind::Width, Some(name), loc, msg);
             return false;
         }
         true
@@ -73,13 +75,24 @@ impl<'m> Memory<'m> {
             return;
         }
         if data.width() != self.width() || e.width() != 1 {
-            let msg = format!("write data must be {} bits (is {}) and enable 1 bit (is {})", self.width(), data.width(), e.width());
+            let msg = format!(
+                "write data must be {} bits (is {}) and enable 1 bit (is {})",
+                self.width(),
+                data.width(),
+                e.width()
+            );
             let name = self.name();
-            self.m.graph_mut().error(DiagKind::Width, Some(name), loc, msg);
+            self.m
+                .graph_mut()
+                .error(DiagKind::Width, Some(name), loc, msg);
             return;
         }
         self.m.clock(loc);
-        self.m.graph_mut().mems[self.idx].writes.push(WritePort { addr: a.id, data: data.id, en: e.id });
+        self.m.graph_mut().mems[self.idx].writes.push(WritePort {
+            addr: a.id,
+            data: data.id,
+            en: e.id,
+        });
     }
 
     /// Asynchronous read: the word at `addr`, this cycle.
@@ -88,9 +101,24 @@ impl<'m> Memory<'m> {
         let loc = Location::caller();
         let a = self.addr(addr, loc);
         if !self.check_addr(a, loc) {
-            return self.m.fail(DiagKind::Width, None, loc, "bad memory address".into(), self.width());
+            return self.m.fail(
+                DiagKind::Width,
+                None,
+                loc,
+                "bad memory address".into(),
+                self.width(),
+            );
         }
-        let id = self.m.add_node(Op::MemRead { mem: self.idx, addr: a.id }, self.width(), &self.name(), "rd", loc);
+        let id = self.m.add_node(
+            Op::MemRead {
+                mem: self.idx,
+                addr: a.id,
+            },
+            self.width(),
+            &self.name(),
+            "rd",
+            loc,
+        );
         self.m.sig(id, false)
     }
 
@@ -102,11 +130,23 @@ impl<'m> Memory<'m> {
         let a = self.addr(addr, loc);
         let e = en.into_signal_like(self.m.lit(0, 1), loc);
         if !self.check_addr(a, loc) || e.width() != 1 {
-            return self.m.fail(DiagKind::Width, None, loc, "bad memory address or enable".into(), self.width());
+            return self.m.fail(
+                DiagKind::Width,
+                None,
+                loc,
+                "bad memory address or enable".into(),
+                self.width(),
+            );
         }
         self.m.clock(loc);
-        let op = Op::MemReadSync { mem: self.idx, addr: a.id, en: e.id };
-        let id = self.m.add_node(op, self.width(), &self.name(), "rdata", loc);
+        let op = Op::MemReadSync {
+            mem: self.idx,
+            addr: a.id,
+            en: e.id,
+        };
+        let id = self
+            .m
+            .add_node(op, self.width(), &self.name(), "rdata", loc);
         self.m.sig(id, false)
     }
 }

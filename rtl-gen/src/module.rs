@@ -2,7 +2,9 @@
 //! instances are made here; operators live on [`Signal`].
 
 use crate::diagnostic::{DiagKind, Loc};
-use crate::graph::{Direction, Graph, GraphRef, InstData, InstInput, Node, NodeId, Op, CLOCK, RESET};
+use crate::graph::{
+    Direction, Graph, GraphRef, InstData, InstInput, Node, NodeId, Op, CLOCK, RESET,
+};
 use crate::names::check_identifier;
 use crate::{Bits, Instance, Memory, Signal};
 use std::cell::{Ref, RefCell, RefMut};
@@ -124,7 +126,14 @@ impl Module {
 
     /// Records an error and returns a stand-in signal of `width` bits so that
     /// construction can go on and report every mistake at once.
-    pub(crate) fn fail(&self, kind: DiagKind, signal: Option<String>, loc: Loc, msg: String, width: u32) -> Signal<'_> {
+    pub(crate) fn fail(
+        &self,
+        kind: DiagKind,
+        signal: Option<String>,
+        loc: Loc,
+        msg: String,
+        width: u32,
+    ) -> Signal<'_> {
         self.graph_mut().error(kind, signal, loc, msg);
         let id = self.add_node(Op::Poison, width.max(1), "error", "poison", loc);
         self.sig(id, false)
@@ -136,9 +145,22 @@ impl Module {
         self.sig(id, false)
     }
 
-    fn named_node(&self, name: &str, width: u32, op: Op, port: Option<Direction>, loc: Loc) -> Result<NodeId, Signal<'_>> {
+    fn named_node(
+        &self,
+        name: &str,
+        width: u32,
+        op: Op,
+        port: Option<Direction>,
+        loc: Loc,
+    ) -> Result<NodeId, Signal<'_>> {
         if width == 0 {
-            return Err(self.fail(DiagKind::Width, Some(name.into()), loc, "a signal needs at least one bit".into(), 1));
+            return Err(self.fail(
+                DiagKind::Width,
+                Some(name.into()),
+                loc,
+                "a signal needs at least one bit".into(),
+                1,
+            ));
         }
         if port.is_some() {
             let problem = {
@@ -147,7 +169,11 @@ impl Module {
                     Some(why)
                 } else if name == CLOCK || name == RESET {
                     Some(format!("`{name}` is the implicit clock/reset port's name"))
-                } else if g.ports.iter().any(|&p| g.node(p).name.as_deref() == Some(name)) {
+                } else if g
+                    .ports
+                    .iter()
+                    .any(|&p| g.node(p).name.as_deref() == Some(name))
+                {
                     Some(format!("a port named `{name}` already exists"))
                 } else {
                     None
@@ -204,7 +230,13 @@ impl Module {
     pub fn output<'m>(&'m self, name: &str, value: Signal<'m>) -> Signal<'m> {
         let loc = Location::caller();
         let width = value.width();
-        match self.named_node(name, width, Op::Wire { drivers: vec![] }, Some(Direction::Output), loc) {
+        match self.named_node(
+            name,
+            width,
+            Op::Wire { drivers: vec![] },
+            Some(Direction::Output),
+            loc,
+        ) {
             Ok(id) => {
                 let out = self.sig(id, value.signed);
                 out.drive_at(value, loc);
@@ -227,7 +259,13 @@ impl Module {
     #[track_caller]
     pub fn output_wire(&self, name: &str, width: u32) -> Signal<'_> {
         let loc = Location::caller();
-        match self.named_node(name, width, Op::Wire { drivers: vec![] }, Some(Direction::Output), loc) {
+        match self.named_node(
+            name,
+            width,
+            Op::Wire { drivers: vec![] },
+            Some(Direction::Output),
+            loc,
+        ) {
             Ok(id) => self.sig(id, false),
             Err(s) => s,
         }
@@ -288,7 +326,11 @@ impl Module {
                 DiagKind::Width,
                 Some(name.into()),
                 loc,
-                format!("reset value is {} bits, the register {} bits", reset.width(), width),
+                format!(
+                    "reset value is {} bits, the register {} bits",
+                    reset.width(),
+                    width
+                ),
                 width,
             );
         }
@@ -314,7 +356,16 @@ impl Module {
 
     fn make_reg(&self, name: &str, width: u32, reset: Option<Bits>, loc: Loc) -> Signal<'_> {
         let has_reset = reset.is_some();
-        match self.named_node(name, width, Op::Reg { next: vec![], reset }, None, loc) {
+        match self.named_node(
+            name,
+            width,
+            Op::Reg {
+                next: vec![],
+                reset,
+            },
+            None,
+            loc,
+        ) {
             Ok(id) => {
                 self.clock(loc);
                 if has_reset {
@@ -352,7 +403,11 @@ impl Module {
             port: Some(Direction::Input),
         });
         // Clock first, reset second, then the user's ports.
-        let at = if name == CLOCK { 0 } else { usize::from(g.clk.is_some()) };
+        let at = if name == CLOCK {
+            0
+        } else {
+            usize::from(g.clk.is_some())
+        };
         g.ports.insert(at, id);
         if name == CLOCK {
             g.clk = Some(id);
@@ -382,7 +437,13 @@ impl Module {
         let loc = Location::caller();
         match Bits::from_u128(value, width) {
             Ok(b) if width > 0 => self.constant(b, false, loc),
-            Ok(_) => self.fail(DiagKind::Width, None, loc, "a constant needs at least one bit".into(), 1),
+            Ok(_) => self.fail(
+                DiagKind::Width,
+                None,
+                loc,
+                "a constant needs at least one bit".into(),
+                1,
+            ),
             Err(e) => self.fail(DiagKind::Width, None, loc, e.to_string(), width),
         }
     }
@@ -409,7 +470,13 @@ impl Module {
     pub fn lit_bits(&self, value: Bits) -> Signal<'_> {
         let loc = Location::caller();
         if value.width() == 0 {
-            return self.fail(DiagKind::Width, None, loc, "a constant needs at least one bit".into(), 1);
+            return self.fail(
+                DiagKind::Width,
+                None,
+                loc,
+                "a constant needs at least one bit".into(),
+                1,
+            );
         }
         self.constant(value, false, loc)
     }
@@ -433,11 +500,23 @@ impl Module {
     pub fn concat<'m>(&'m self, parts: &[Signal<'m>]) -> Signal<'m> {
         let loc = Location::caller();
         let Some(first) = parts.first() else {
-            return self.fail(DiagKind::Misuse, None, loc, "concatenation of nothing".into(), 1);
+            return self.fail(
+                DiagKind::Misuse,
+                None,
+                loc,
+                "concatenation of nothing".into(),
+                1,
+            );
         };
         for p in parts {
             if !self.owns(*p, loc) {
-                return self.fail(DiagKind::Misuse, None, loc, "concatenation across modules".into(), 1);
+                return self.fail(
+                    DiagKind::Misuse,
+                    None,
+                    loc,
+                    "concatenation across modules".into(),
+                    1,
+                );
             }
         }
         if parts.len() == 1 {
@@ -445,7 +524,13 @@ impl Module {
         }
         let width: u32 = parts.iter().map(|p| p.width()).sum();
         let base = self.graph().node(first.id).base.clone();
-        let id = self.add_node(Op::Concat(parts.iter().map(|p| p.id).collect()), width, &base, "cat", loc);
+        let id = self.add_node(
+            Op::Concat(parts.iter().map(|p| p.id).collect()),
+            width,
+            &base,
+            "cat",
+            loc,
+        );
         self.sig(id, false)
     }
 
@@ -490,7 +575,12 @@ impl Module {
             );
         }
         if width == 0 {
-            self.graph_mut().error(DiagKind::Width, Some(name.into()), loc, "a memory word needs at least one bit".into());
+            self.graph_mut().error(
+                DiagKind::Width,
+                Some(name.into()),
+                loc,
+                "a memory word needs at least one bit".into(),
+            );
         }
         let mut g = self.graph_mut();
         g.mems.push(crate::graph::MemData {
@@ -529,7 +619,12 @@ impl Module {
     pub fn instance<'m>(&'m self, name: &str, child: &Module) -> Instance<'m> {
         let loc = Location::caller();
         if Rc::ptr_eq(&self.g, &child.g) {
-            self.graph_mut().error(DiagKind::Misuse, Some(name.into()), loc, "a module cannot instantiate itself".into());
+            self.graph_mut().error(
+                DiagKind::Misuse,
+                Some(name.into()),
+                loc,
+                "a module cannot instantiate itself".into(),
+            );
             let mut g = self.graph_mut();
             g.insts.push(InstData {
                 name: name.to_string(),
@@ -538,10 +633,18 @@ impl Module {
                 outputs: vec![],
                 loc,
             });
-            return Instance { m: self, idx: g.insts.len() - 1 };
+            return Instance {
+                m: self,
+                idx: g.insts.len() - 1,
+            };
         }
         if let Err(why) = check_identifier(name) {
-            self.graph_mut().error(DiagKind::Name, Some(name.into()), loc, format!("instance name: {why}"));
+            self.graph_mut().error(
+                DiagKind::Name,
+                Some(name.into()),
+                loc,
+                format!("instance name: {why}"),
+            );
         }
         let child_ports: Vec<(String, u32, Direction)> = child
             .ports()
@@ -561,10 +664,17 @@ impl Module {
                     } else {
                         vec![]
                     };
-                    inputs.push(InstInput { port, width, drivers });
+                    inputs.push(InstInput {
+                        port,
+                        width,
+                        drivers,
+                    });
                 }
                 Direction::Output => {
-                    let op = Op::InstOut { inst: idx, port: port.clone() };
+                    let op = Op::InstOut {
+                        inst: idx,
+                        port: port.clone(),
+                    };
                     let id = self.graph_mut().push(Node {
                         op,
                         width,

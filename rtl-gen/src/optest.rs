@@ -295,7 +295,10 @@ fn build<'m>(m: &'m Module, op: OpKind, w: u32, signed: bool, registered: bool) 
 /// module of every operator, with ports `<op>_<port>`; lint and synthesize
 /// it to check every operator module at once.
 pub fn op_suite(width: u32, signed: bool, registered: bool) -> Module {
-    let children: Vec<Module> = OpKind::ALL.iter().map(|&op| op_test_module(op, width, signed, registered)).collect();
+    let children: Vec<Module> = OpKind::ALL
+        .iter()
+        .map(|&op| op_test_module(op, width, signed, registered))
+        .collect();
     let top = Module::new(&format!(
         "op_suite_w{width}_{}{}",
         if signed { "s" } else { "u" },

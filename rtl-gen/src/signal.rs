@@ -32,7 +32,13 @@ pub struct Signal<'m> {
 impl std::fmt::Debug for Signal<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let g = self.m.graph();
-        write!(f, "Signal({}, {} bits{})", g.describe(self.id), g.node(self.id).width, if self.signed { ", signed" } else { "" })
+        write!(
+            f,
+            "Signal({}, {} bits{})",
+            g.describe(self.id),
+            g.node(self.id).width,
+            if self.signed { ", signed" } else { "" }
+        )
     }
 }
 
@@ -75,7 +81,10 @@ fn int_like<'m>(value: i128, like: Signal<'m>, loc: Loc) -> Signal<'m> {
             DiagKind::Width,
             None,
             loc,
-            format!("{e} ({} operand)", if like.signed { "signed" } else { "unsigned" }),
+            format!(
+                "{e} ({} operand)",
+                if like.signed { "signed" } else { "unsigned" }
+            ),
             w,
         ),
     }
@@ -98,7 +107,13 @@ impl<'m> IntoSignal<'m> for u128 {
             Ok(v) => int_like(v, like, loc),
             Err(_) => match Bits::from_u128(self, like.width()) {
                 Ok(b) if !like.signed => like.m.constant(b, false, loc),
-                _ => like.m.fail(DiagKind::Width, None, loc, format!("constant {self} does not fit"), like.width()),
+                _ => like.m.fail(
+                    DiagKind::Width,
+                    None,
+                    loc,
+                    format!("constant {self} does not fit"),
+                    like.width(),
+                ),
             },
         }
     }
@@ -117,7 +132,11 @@ impl<'m> IntoSignal<'m> for Bits {
                 DiagKind::Width,
                 None,
                 loc,
-                format!("constant is {} bits, the other operand {}", self.width(), like.width()),
+                format!(
+                    "constant is {} bits, the other operand {}",
+                    self.width(),
+                    like.width()
+                ),
                 like.width(),
             );
         }
@@ -161,7 +180,12 @@ fn shift_amount<'m>(by: ShiftBy<'m>, m: &'m Module, loc: Loc) -> Option<Amount> 
             }
             if s.signed {
                 let what = m.graph().describe(s.id);
-                m.graph_mut().error(DiagKind::Misuse, Some(what), loc, "shift amount must be unsigned (use .as_unsigned())".into());
+                m.graph_mut().error(
+                    DiagKind::Misuse,
+                    Some(what),
+                    loc,
+                    "shift amount must be unsigned (use .as_unsigned())".into(),
+                );
                 return None;
             }
             Some(Amount::Signal(s.id))
@@ -182,12 +206,18 @@ impl<'m> Signal<'m> {
 
     /// The same bits, read as two's complement (no hardware).
     pub fn as_signed(self) -> Signal<'m> {
-        Signal { signed: true, ..self }
+        Signal {
+            signed: true,
+            ..self
+        }
     }
 
     /// The same bits, read as unsigned (no hardware).
     pub fn as_unsigned(self) -> Signal<'m> {
-        Signal { signed: false, ..self }
+        Signal {
+            signed: false,
+            ..self
+        }
     }
 
     /// The module this signal belongs to.
@@ -211,7 +241,12 @@ impl<'m> Signal<'m> {
         let loc = Location::caller();
         let is_port = self.m.graph().node(self.id).port.is_some();
         if is_port {
-            self.m.graph_mut().error(DiagKind::Name, Some(name.into()), loc, "a port cannot be renamed".into());
+            self.m.graph_mut().error(
+                DiagKind::Name,
+                Some(name.into()),
+                loc,
+                "a port cannot be renamed".into(),
+            );
             return self;
         }
         let mut g = self.m.graph_mut();
@@ -229,7 +264,14 @@ impl<'m> Signal<'m> {
         self.m.graph().node(self.id).op.clone()
     }
 
-    fn new(self, op: Op, width: u32, opname: &'static str, signed: bool, loc: Loc) -> Signal<'m> {
+    fn derive(
+        self,
+        op: Op,
+        width: u32,
+        opname: &'static str,
+        signed: bool,
+        loc: Loc,
+    ) -> Signal<'m> {
         // Name derived temporaries after the first operand that is not a constant.
         let g = self.m.graph();
         let base = match &op {
@@ -239,13 +281,19 @@ impl<'m> Signal<'m> {
                     Op::Ext(inner, _) => Some(g.node(inner).base.clone()),
                     _ => Some(g.node(x).base.clone()),
                 };
-                pick(*a).or_else(|| pick(*b)).unwrap_or_else(|| g.node(self.id).base.clone())
+                pick(*a)
+                    .or_else(|| pick(*b))
+                    .unwrap_or_else(|| g.node(self.id).base.clone())
             }
             _ => g.node(self.id).base.clone(),
         };
         drop(g);
         let id = self.m.add_node(op, width, &base, opname, loc);
-        Signal { m: self.m, id, signed }
+        Signal {
+            m: self.m,
+            id,
+            signed,
+        }
     }
 
     fn fail(self, kind: DiagKind, loc: Loc, msg: String, width: u32) -> Signal<'m> {
@@ -274,14 +322,25 @@ impl<'m> Signal<'m> {
             Op::Wire { .. } => None,
             Op::Input => Some("an input is driven from outside the module"),
             Op::Reg { .. } => Some("a register takes its next value with .next(), not .drive()"),
-            _ => Some("only wires and output ports can be driven; this is the result of an operator"),
+            _ => {
+                Some("only wires and output ports can be driven; this is the result of an operator")
+            }
         };
         if let Some(why) = problem {
             self.fail(DiagKind::Misuse, loc, format!("cannot drive: {why}"), 1);
             return;
         }
         if v.width() != self.width() {
-            self.fail(DiagKind::Width, loc, format!("driven with {} bits, declared {} bits", v.width(), self.width()), 1);
+            self.fail(
+                DiagKind::Width,
+                loc,
+                format!(
+                    "driven with {} bits, declared {} bits",
+                    v.width(),
+                    self.width()
+                ),
+                1,
+            );
             return;
         }
         if let Op::Wire { drivers } = &mut self.m.graph_mut().nodes[self.id as usize].op {
@@ -309,18 +368,35 @@ impl<'m> Signal<'m> {
     fn next_at(self, value: impl IntoSignal<'m>, loc: Loc) {
         let v = value.into_signal_like(self, loc);
         if !matches!(self.op(), Op::Reg { .. }) {
-            self.fail(DiagKind::Misuse, loc, "only a register has a next value (use .drive() for wires)".into(), 1);
+            self.fail(
+                DiagKind::Misuse,
+                loc,
+                "only a register has a next value (use .drive() for wires)".into(),
+                1,
+            );
             return;
         }
         if v.width() != self.width() {
-            self.fail(DiagKind::Width, loc, format!("next value is {} bits, the register {} bits", v.width(), self.width()), 1);
+            self.fail(
+                DiagKind::Width,
+                loc,
+                format!(
+                    "next value is {} bits, the register {} bits",
+                    v.width(),
+                    self.width()
+                ),
+                1,
+            );
             return;
         }
         let mut g = self.m.graph_mut();
         let reg_name = g.node(self.id).base.clone();
         // An unnamed operator result feeding a register is called `<reg>_next`.
         let vn = &mut g.nodes[v.id as usize];
-        if vn.name.is_none() && vn.port.is_none() && !matches!(vn.op, Op::Const(_) | Op::Slice(..) | Op::Ext(..)) {
+        if vn.name.is_none()
+            && vn.port.is_none()
+            && !matches!(vn.op, Op::Const(_) | Op::Slice(..) | Op::Ext(..))
+        {
             vn.base = reg_name;
             vn.opname = "next";
         }
@@ -375,7 +451,12 @@ impl<'m> Signal<'m> {
     pub(crate) fn ext_at(self, width: u32, signed: bool, loc: Loc) -> Signal<'m> {
         let w = self.width();
         if width < w {
-            return self.fail(DiagKind::Width, loc, format!("cannot extend {w} bits to {width}; use .slice() to narrow"), width.max(1));
+            return self.fail(
+                DiagKind::Width,
+                loc,
+                format!("cannot extend {w} bits to {width}; use .slice() to narrow"),
+                width.max(1),
+            );
         }
         if width == w {
             return Signal { signed, ..self };
@@ -386,8 +467,16 @@ impl<'m> Signal<'m> {
                 self.m.constant(e, signed, loc)
             }
             // Extending an extension of the same kind extends the original.
-            Op::Ext(inner, s) if s == signed => Signal { id: inner, ..self }.ext_at(width, signed, loc),
-            _ => self.new(Op::Ext(self.id, signed), width, if signed { "sext" } else { "zext" }, signed, loc),
+            Op::Ext(inner, s) if s == signed => {
+                Signal { id: inner, ..self }.ext_at(width, signed, loc)
+            }
+            _ => self.derive(
+                Op::Ext(self.id, signed),
+                width,
+                if signed { "sext" } else { "zext" },
+                signed,
+                loc,
+            ),
         }
     }
 
@@ -424,10 +513,20 @@ impl<'m> Signal<'m> {
                 self.m.constant(s, false, loc)
             }
             Op::Slice(inner, inner_lo) => {
-                let id = self.m.add_node(Op::Slice(inner, inner_lo + lo), width, &self.base(), "slice", loc);
-                Signal { m: self.m, id, signed: false }
+                let id = self.m.add_node(
+                    Op::Slice(inner, inner_lo + lo),
+                    width,
+                    &self.base(),
+                    "slice",
+                    loc,
+                );
+                Signal {
+                    m: self.m,
+                    id,
+                    signed: false,
+                }
             }
-            _ => self.new(Op::Slice(self.id, lo), width, "slice", false, loc),
+            _ => self.derive(Op::Slice(self.id, lo), width, "slice", false, loc),
         }
     }
 
@@ -451,7 +550,13 @@ impl<'m> Signal<'m> {
         if !self.m.owns(low, loc) {
             return self;
         }
-        self.new(Op::Concat(vec![self.id, low.id]), self.width() + low.width(), "cat", false, loc)
+        self.derive(
+            Op::Concat(vec![self.id, low.id]),
+            self.width() + low.width(),
+            "cat",
+            false,
+            loc,
+        )
     }
 
     /// `self + other` in exactly `width` bits (modulo `2^width`); each operand
@@ -492,7 +597,13 @@ impl<'m> Signal<'m> {
         let x = self.ext_at(width, self.signed, loc);
         let y = b.ext_at(width, b.signed, loc);
         let name = if op == BinOp::Add { "add" } else { "sub" };
-        self.new(Op::Bin(op, x.id, y.id), width, name, self.signed || b.signed, loc)
+        self.derive(
+            Op::Bin(op, x.id, y.id),
+            width,
+            name,
+            self.signed || b.signed,
+            loc,
+        )
     }
 
     fn bitwise(self, op: BinOp, other: impl IntoSignal<'m>, loc: Loc) -> Signal<'m> {
@@ -501,7 +612,11 @@ impl<'m> Signal<'m> {
             return self.fail(
                 DiagKind::Width,
                 loc,
-                format!("bitwise operands differ in width: {} and {} bits; extend or slice one", self.width(), b.width()),
+                format!(
+                    "bitwise operands differ in width: {} and {} bits; extend or slice one",
+                    self.width(),
+                    b.width()
+                ),
                 self.width(),
             );
         }
@@ -510,7 +625,13 @@ impl<'m> Signal<'m> {
             BinOp::Or => "or",
             _ => "xor",
         };
-        self.new(Op::Bin(op, self.id, b.id), self.width(), name, self.signed && b.signed, loc)
+        self.derive(
+            Op::Bin(op, self.id, b.id),
+            self.width(),
+            name,
+            self.signed && b.signed,
+            loc,
+        )
     }
 
     /// Bitwise and (same as `&`).
@@ -531,12 +652,6 @@ impl<'m> Signal<'m> {
         self.bitwise(BinOp::Xor, other, Location::caller())
     }
 
-    /// Bitwise not (same as `!`).
-    #[track_caller]
-    pub fn not(self) -> Signal<'m> {
-        self.new(Op::Not(self.id), self.width(), "not", self.signed, Location::caller())
-    }
-
     fn shift(self, kind: ShiftKind, amount: impl ShiftAmount<'m>, loc: Loc) -> Signal<'m> {
         let Some(a) = shift_amount(amount.shift_by(), self.m, loc) else {
             return self.m.poison(self.width(), loc);
@@ -549,42 +664,31 @@ impl<'m> Signal<'m> {
             ShiftKind::RightLogical => "shr",
             ShiftKind::RightArith => "sra",
         };
-        self.new(Op::Shift(kind, self.id, a), self.width(), name, self.signed, loc)
+        self.derive(
+            Op::Shift(kind, self.id, a),
+            self.width(),
+            name,
+            self.signed,
+            loc,
+        )
     }
 
-    /// Shift left by a constant or an unsigned signal, same width, zero fill;
-    /// shifting by the width or more gives zero.
+    /// Logical shift right regardless of signedness. Shifts are written
+    /// with the operators: `a << k` and `a >> k` (arithmetic when `a` is
+    /// signed, logical otherwise), by a constant `u32` or an unsigned signal;
+    /// the result keeps `a`'s width, and shifting by the width or more gives
+    /// zero (or all sign bits).
     ///
     /// ```
     /// # use rtl_gen::Module;
     /// let m = Module::new("m");
     /// let a = m.input("a", 8);
     /// let s = m.input("s", 3);
-    /// m.output("y", a.shl(s) ^ (a << 1));
+    /// m.output("shl", (a << s) ^ (a << 1));
+    /// m.output("sra", a.as_signed() >> 2);   // arithmetic
+    /// m.output("srl", a.as_signed().srl(2)); // logical
     /// # assert!(m.validate().is_ok());
     /// ```
-    #[track_caller]
-    pub fn shl(self, amount: impl ShiftAmount<'m>) -> Signal<'m> {
-        self.shift(ShiftKind::Left, amount, Location::caller())
-    }
-
-    /// Shift right: arithmetic (sign fill) when this handle is signed, logical otherwise.
-    ///
-    /// ```
-    /// # use rtl_gen::Module;
-    /// let m = Module::new("m");
-    /// let a = m.input("a", 8);
-    /// m.output("sra", a.as_signed().shr(2u32));   // arithmetic
-    /// m.output("srl", a >> 2);                     // logical
-    /// # assert!(m.validate().is_ok());
-    /// ```
-    #[track_caller]
-    pub fn shr(self, amount: impl ShiftAmount<'m>) -> Signal<'m> {
-        let kind = if self.signed { ShiftKind::RightArith } else { ShiftKind::RightLogical };
-        self.shift(kind, amount, Location::caller())
-    }
-
-    /// Logical shift right regardless of signedness.
     #[track_caller]
     pub fn srl(self, amount: impl ShiftAmount<'m>) -> Signal<'m> {
         self.shift(ShiftKind::RightLogical, amount, Location::caller())
@@ -593,7 +697,8 @@ impl<'m> Signal<'m> {
     /// Arithmetic shift right regardless of signedness (result signed).
     #[track_caller]
     pub fn sra(self, amount: impl ShiftAmount<'m>) -> Signal<'m> {
-        self.shift(ShiftKind::RightArith, amount, Location::caller()).as_signed()
+        self.shift(ShiftKind::RightArith, amount, Location::caller())
+            .as_signed()
     }
 
     fn compare(self, op: CmpOp, other: impl IntoSignal<'m>, loc: Loc) -> Signal<'m> {
@@ -616,7 +721,7 @@ impl<'m> Signal<'m> {
             CmpOp::Gt => "gt",
             CmpOp::Ge => "ge",
         };
-        self.new(Op::Cmp(op, signed, x.id, y.id), 1, name, false, loc)
+        self.derive(Op::Cmp(op, signed, x.id, y.id), 1, name, false, loc)
     }
 
     /// `self == other` (one bit). Operands of different widths or signedness
@@ -678,28 +783,46 @@ impl<'m> Signal<'m> {
         self.mux_at(then_, else_, Location::caller())
     }
 
-    pub(crate) fn mux_at(self, then_: Signal<'m>, else_: impl IntoSignal<'m>, loc: Loc) -> Signal<'m> {
+    pub(crate) fn mux_at(
+        self,
+        then_: Signal<'m>,
+        else_: impl IntoSignal<'m>,
+        loc: Loc,
+    ) -> Signal<'m> {
         if !self.m.owns(then_, loc) {
             return then_;
         }
         let e = else_.into_signal_like(then_, loc);
         if self.width() != 1 {
-            return self.fail(DiagKind::Width, loc, format!("mux select must be 1 bit, is {}", self.width()), then_.width());
+            return self.fail(
+                DiagKind::Width,
+                loc,
+                format!("mux select must be 1 bit, is {}", self.width()),
+                then_.width(),
+            );
         }
         if e.width() != then_.width() {
             return self.fail(
                 DiagKind::Width,
                 loc,
-                format!("mux arms differ in width: {} and {} bits", then_.width(), e.width()),
+                format!(
+                    "mux arms differ in width: {} and {} bits",
+                    then_.width(),
+                    e.width()
+                ),
                 then_.width(),
             );
         }
-        let op = Op::Mux { sel: self.id, then_: then_.id, else_: e.id };
-        self.new(op, then_.width(), "mux", then_.signed && e.signed, loc)
+        let op = Op::Mux {
+            sel: self.id,
+            then_: then_.id,
+            else_: e.id,
+        };
+        self.derive(op, then_.width(), "mux", then_.signed && e.signed, loc)
     }
 
     fn reduce(self, op: RedOp, name: &'static str, loc: Loc) -> Signal<'m> {
-        self.new(Op::Reduce(op, self.id), 1, name, false, loc)
+        self.derive(Op::Reduce(op, self.id), 1, name, false, loc)
     }
 
     /// One bit: all bits are one (`&x`).
@@ -750,7 +873,13 @@ impl<'m> std::ops::Not for Signal<'m> {
     type Output = Signal<'m>;
     #[track_caller]
     fn not(self) -> Signal<'m> {
-        self.new(Op::Not(self.id), self.width(), "not", self.signed, Location::caller())
+        self.derive(
+            Op::Not(self.id),
+            self.width(),
+            "not",
+            self.signed,
+            Location::caller(),
+        )
     }
 }
 
@@ -766,7 +895,11 @@ impl<'m, A: ShiftAmount<'m>> std::ops::Shr<A> for Signal<'m> {
     type Output = Signal<'m>;
     #[track_caller]
     fn shr(self, amount: A) -> Signal<'m> {
-        let kind = if self.signed { ShiftKind::RightArith } else { ShiftKind::RightLogical };
+        let kind = if self.signed {
+            ShiftKind::RightArith
+        } else {
+            ShiftKind::RightLogical
+        };
         self.shift(kind, amount, Location::caller())
     }
 }

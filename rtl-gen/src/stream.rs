@@ -68,7 +68,10 @@ impl<'m> Stream<'m> {
 
     /// The same handshake with the data transformed combinationally.
     pub fn map(self, f: impl FnOnce(Signal<'m>) -> Signal<'m>) -> Stream<'m> {
-        Stream { data: f(self.data), ..self }
+        Stream {
+            data: f(self.data),
+            ..self
+        }
     }
 
     /// A pipeline register: `valid`/`data` registered, full throughput,
@@ -120,7 +123,11 @@ impl<'m> Stream<'m> {
         out_data.next_when(drain, skid_valid.mux(skid_data, self.data));
         skid_valid.next(drain.mux(m.lit(0, 1), skid_valid | take));
         skid_data.next_when(!drain & take, self.data);
-        Stream { valid: out_valid, ready, data: out_data }
+        Stream {
+            valid: out_valid,
+            ready,
+            data: out_data,
+        }
     }
 
     /// Merges streams of equal width into one, combinationally, by fixed
@@ -140,7 +147,11 @@ impl<'m> Stream<'m> {
         let ready = m.wire(&format!("{name}_ready"), 1);
         let Some(last) = inputs.last() else {
             let none = m.concat(&[]);
-            return Stream { valid: none, ready, data: none };
+            return Stream {
+                valid: none,
+                ready,
+                data: none,
+            };
         };
         let mut valid = last.valid;
         let mut data = last.data;

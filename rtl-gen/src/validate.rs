@@ -37,7 +37,8 @@ impl Module {
 }
 
 fn split(all: Vec<Diagnostic>) -> Result<Vec<Diagnostic>, Diagnostics> {
-    let (mut errors, warnings): (Vec<_>, Vec<_>) = all.into_iter().partition(|d| d.severity == Severity::Error);
+    let (mut errors, warnings): (Vec<_>, Vec<_>) =
+        all.into_iter().partition(|d| d.severity == Severity::Error);
     if errors.is_empty() {
         Ok(warnings)
     } else {
@@ -56,13 +57,27 @@ pub(crate) fn check_graph(g: &Graph) -> Vec<Diagnostic> {
     check_drivers(g, &mut out);
     match g.instance_comb_inputs(0) {
         Ok(deps) => check_loops(g, &deps, &mut out),
-        Err(msg) => out.push(diag(g, Severity::Error, DiagKind::CombLoop, None, g.loc, msg)),
+        Err(msg) => out.push(diag(
+            g,
+            Severity::Error,
+            DiagKind::CombLoop,
+            None,
+            g.loc,
+            msg,
+        )),
     }
     check_unused(g, &mut out);
     out
 }
 
-fn diag(g: &Graph, severity: Severity, kind: DiagKind, signal: Option<String>, location: Loc, message: String) -> Diagnostic {
+fn diag(
+    g: &Graph,
+    severity: Severity,
+    kind: DiagKind,
+    signal: Option<String>,
+    location: Loc,
+    message: String,
+) -> Diagnostic {
     Diagnostic {
         severity,
         kind,
@@ -76,27 +91,45 @@ fn diag(g: &Graph, severity: Severity, kind: DiagKind, signal: Option<String>, l
 
 /// Every wire, output, register, memory and instance input has exactly one driver.
 fn check_drivers(g: &Graph, out: &mut Vec<Diagnostic>) {
-    let mut check = |what: &str, signal: String, loc: Loc, drivers: &[(NodeId, Loc)]| match drivers.len() {
-        0 => out.push(diag(g, Severity::Error, DiagKind::Undriven, Some(signal), loc, format!("{what} is never driven"))),
-        1 => {}
-        _ => {
-            let mut d = diag(
+    let mut check =
+        |what: &str, signal: String, loc: Loc, drivers: &[(NodeId, Loc)]| match drivers.len() {
+            0 => out.push(diag(
                 g,
                 Severity::Error,
-                DiagKind::MultipleDrivers,
+                DiagKind::Undriven,
                 Some(signal),
                 loc,
-                format!("{what} has {} drivers; it needs exactly one (combine them with .mux())", drivers.len()),
-            );
-            d.related = drivers.iter().map(|(_, l)| ("driven here".to_string(), *l)).collect();
-            out.push(d);
-        }
-    };
+                format!("{what} is never driven"),
+            )),
+            1 => {}
+            _ => {
+                let mut d = diag(
+                    g,
+                    Severity::Error,
+                    DiagKind::MultipleDrivers,
+                    Some(signal),
+                    loc,
+                    format!(
+                        "{what} has {} drivers; it needs exactly one (combine them with .mux())",
+                        drivers.len()
+                    ),
+                );
+                d.related = drivers
+                    .iter()
+                    .map(|(_, l)| ("driven here".to_string(), *l))
+                    .collect();
+                out.push(d);
+            }
+        };
     for (id, n) in g.nodes.iter().enumerate() {
         let name = g.describe(id as NodeId);
         match &n.op {
             Op::Wire { drivers } => {
-                let what = if n.port.is_some() { "output port" } else { "wire" };
+                let what = if n.port.is_some() {
+                    "output port"
+                } else {
+                    "wire"
+                };
                 check(what, name, n.loc, drivers);
             }
             Op::Reg { next, .. } => check("register (its .next())", name, n.loc, next),
@@ -127,7 +160,9 @@ fn check_drivers(g: &Graph, out: &mut Vec<Diagnostic>) {
 /// each reported once with its signals in order.
 fn check_loops(g: &Graph, inst_deps: &[Vec<Vec<NodeId>>], out: &mut Vec<Diagnostic>) {
     let n = g.nodes.len();
-    let succ: Vec<Vec<NodeId>> = (0..n).map(|i| g.comb_inputs_with(i as NodeId, inst_deps)).collect();
+    let succ: Vec<Vec<NodeId>> = (0..n)
+        .map(|i| g.comb_inputs_with(i as NodeId, inst_deps))
+        .collect();
     for comp in strongly_connected(&succ) {
         let is_loop = comp.len() > 1 || succ[comp[0] as usize].contains(&comp[0]);
         if !is_loop {
@@ -143,9 +178,15 @@ fn check_loops(g: &Graph, inst_deps: &[Vec<Vec<NodeId>>], out: &mut Vec<Diagnost
             DiagKind::CombLoop,
             Some(g.describe(first)),
             g.node(first).loc,
-            format!("combinational loop through {}; break it with a register", names.join(" -> ")),
+            format!(
+                "combinational loop through {}; break it with a register",
+                names.join(" -> ")
+            ),
         );
-        d.related = members.iter().map(|&m| (format!("`{}` made here", g.describe(m)), g.node(m).loc)).collect();
+        d.related = members
+            .iter()
+            .map(|&m| (format!("`{}` made here", g.describe(m)), g.node(m).loc))
+            .collect();
         out.push(d);
     }
 }
@@ -210,7 +251,11 @@ fn strongly_connected(succ: &[Vec<NodeId>]) -> Vec<Vec<NodeId>> {
 /// something emitted reads them.
 pub(crate) fn used_bits(g: &Graph) -> Vec<Vec<bool>> {
     let inline = g.inline_nodes();
-    let mut used: Vec<Vec<bool>> = g.nodes.iter().map(|n| vec![false; n.width as usize]).collect();
+    let mut used: Vec<Vec<bool>> = g
+        .nodes
+        .iter()
+        .map(|n| vec![false; n.width as usize])
+        .collect();
     let mark = |used: &mut Vec<Vec<bool>>, id: NodeId, lo: u32, w: u32| {
         let u = &mut used[id as usize];
         for b in lo..lo + w {
@@ -231,9 +276,15 @@ pub(crate) fn used_bits(g: &Graph) -> Vec<Vec<bool>> {
         }
     }
     // The clock is read by every always block; reset by registers that have a reset value.
-    let clocked = g.nodes.iter().any(|n| matches!(n.op, Op::Reg { .. } | Op::MemReadSync { .. }))
+    let clocked = g
+        .nodes
+        .iter()
+        .any(|n| matches!(n.op, Op::Reg { .. } | Op::MemReadSync { .. }))
         || g.mems.iter().any(|m| !m.writes.is_empty());
-    let reset = g.nodes.iter().any(|n| matches!(n.op, Op::Reg { reset: Some(_), .. }));
+    let reset = g
+        .nodes
+        .iter()
+        .any(|n| matches!(n.op, Op::Reg { reset: Some(_), .. }));
     for (port, needed) in [(g.clk, clocked), (g.rst, reset)] {
         if let (Some(p), true) = (port, needed) {
             mark(&mut used, p, 0, 1);
@@ -281,7 +332,10 @@ fn check_unused(g: &Graph, out: &mut Vec<Diagnostic>) {
     let inline = g.inline_nodes();
     let used = used_bits(g);
     for (id, n) in g.nodes.iter().enumerate() {
-        if inline[id] || matches!(n.op, Op::Poison | Op::Const(_)) || n.port == Some(Direction::Output) {
+        if inline[id]
+            || matches!(n.op, Op::Poison | Op::Const(_))
+            || n.port == Some(Direction::Output)
+        {
             continue;
         }
         let unused = bit_ranges(&used[id], false);
@@ -291,18 +345,40 @@ fn check_unused(g: &Graph, out: &mut Vec<Diagnostic>) {
         let msg = if unused.len() == 1 && unused[0] == (n.width - 1, 0) {
             "nothing reads this signal".to_string()
         } else {
-            let r: Vec<String> = unused.iter().map(|(h, l)| if h == l { format!("[{h}]") } else { format!("[{h}:{l}]") }).collect();
+            let r: Vec<String> = unused
+                .iter()
+                .map(|(h, l)| {
+                    if h == l {
+                        format!("[{h}]")
+                    } else {
+                        format!("[{h}:{l}]")
+                    }
+                })
+                .collect();
             format!("bits {} are never read", r.join(", "))
         };
-        out.push(diag(g, Severity::Warning, DiagKind::Unused, Some(g.describe(id as NodeId)), n.loc, msg));
+        out.push(diag(
+            g,
+            Severity::Warning,
+            DiagKind::Unused,
+            Some(g.describe(id as NodeId)),
+            n.loc,
+            msg,
+        ));
     }
     for (mi, mem) in g.mems.iter().enumerate() {
-        let read = g
-            .nodes
-            .iter()
-            .any(|n| matches!(n.op, Op::MemRead { mem, .. } | Op::MemReadSync { mem, .. } if mem == mi));
+        let read = g.nodes.iter().any(
+            |n| matches!(n.op, Op::MemRead { mem, .. } | Op::MemReadSync { mem, .. } if mem == mi),
+        );
         if !read {
-            out.push(diag(g, Severity::Warning, DiagKind::Unused, Some(mem.name.clone()), mem.loc, "memory is never read".into()));
+            out.push(diag(
+                g,
+                Severity::Warning,
+                DiagKind::Unused,
+                Some(mem.name.clone()),
+                mem.loc,
+                "memory is never read".into(),
+            ));
         }
     }
 }

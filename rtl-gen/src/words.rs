@@ -142,10 +142,10 @@ pub fn shr(dst: &mut [u64], a: &[u64], amount: u64, width: u32, arith: bool) {
     // Logical shift first, then set the vacated top `amount` bits when filling.
     let ws = (amount / 64) as usize;
     let bs = (amount % 64) as u32;
-    for i in 0..n {
+    for (i, d) in dst.iter_mut().enumerate().take(n) {
         let hi = if i + ws < n { a[i + ws] } else { 0 };
         let higher = if i + ws + 1 < n { a[i + ws + 1] } else { 0 };
-        dst[i] = if bs == 0 {
+        *d = if bs == 0 {
             hi
         } else {
             (hi >> bs) | (higher << (64 - bs))
@@ -164,10 +164,14 @@ pub fn extract(dst: &mut [u64], src: &[u64], lo: u32, width: u32) {
     let n = words_for(width);
     let ws = (lo / 64) as usize;
     let bs = lo % 64;
-    for i in 0..n {
+    for (i, d) in dst.iter_mut().enumerate().take(n) {
         let a = src.get(i + ws).copied().unwrap_or(0);
         let b = src.get(i + ws + 1).copied().unwrap_or(0);
-        dst[i] = if bs == 0 { a } else { (a >> bs) | (b << (64 - bs)) };
+        *d = if bs == 0 {
+            a
+        } else {
+            (a >> bs) | (b << (64 - bs))
+        };
     }
     clamp(dst, width);
 }

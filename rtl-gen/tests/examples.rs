@@ -42,7 +42,12 @@ struct Producer {
 
 impl Producer {
     fn new() -> Self {
-        Producer { valid: false, data: 0, next: 0, sent: vec![] }
+        Producer {
+            valid: false,
+            data: 0,
+            next: 0,
+            sent: vec![],
+        }
     }
 
     /// Chooses this cycle's valid/data (keeping a pending word).
@@ -64,7 +69,13 @@ impl Producer {
 
 /// Runs a stream design with random input and output back-pressure;
 /// returns (words sent, words received).
-fn run_stream(sim: &mut Sim, cycles: usize, seed: u64, in_mask: u64, check_cycle: &mut dyn FnMut(&mut Sim, &Producer)) -> (Vec<u64>, Vec<u64>) {
+fn run_stream(
+    sim: &mut Sim,
+    cycles: usize,
+    seed: u64,
+    in_mask: u64,
+    check_cycle: &mut dyn FnMut(&mut Sim, &Producer),
+) -> (Vec<u64>, Vec<u64>) {
     let mut rng = Rng(seed);
     sim.reset();
     let mut p = Producer::new();
@@ -96,7 +107,11 @@ fn fifo_matches_a_queue_model_under_back_pressure() {
         let mut sim = Sim::new(&m).unwrap();
         let cap = 1usize << addr_bits;
         let mut model: VecDeque<u64> = VecDeque::new();
-        let mask = if width >= 64 { u64::MAX } else { (1u64 << width) - 1 };
+        let mask = if width >= 64 {
+            u64::MAX
+        } else {
+            (1u64 << width) - 1
+        };
         let mut rng = Rng(42 + width as u64);
         sim.reset();
         let mut p = Producer::new();
@@ -109,8 +124,16 @@ fn fifo_matches_a_queue_model_under_back_pressure() {
             sim.poke("in_valid", p.valid).unwrap();
             sim.poke("in_data", p.data).unwrap();
             sim.poke("out_ready", out_ready).unwrap();
-            assert_eq!(get(&mut sim, "in_ready") == 1, model.len() < cap, "cycle {cycle}");
-            assert_eq!(get(&mut sim, "out_valid") == 1, !model.is_empty(), "cycle {cycle}");
+            assert_eq!(
+                get(&mut sim, "in_ready") == 1,
+                model.len() < cap,
+                "cycle {cycle}"
+            );
+            assert_eq!(
+                get(&mut sim, "out_valid") == 1,
+                !model.is_empty(),
+                "cycle {cycle}"
+            );
             if let Some(&head) = model.front() {
                 assert_eq!(get(&mut sim, "out_data"), head, "cycle {cycle}");
             }
@@ -179,7 +202,10 @@ fn pipelined_datapath_matches_its_model_under_back_pressure() {
         let mask = (1u64 << (2 * width)) - 1;
         let (sent, got) = run_stream(&mut sim, 3000, width as u64, mask, &mut |_, _| {});
         assert!(got.len() > 600, "traffic flowed: {}", got.len());
-        let want: Vec<u64> = sent.iter().map(|&w| abs_diff_model(w, width, limit)).collect();
+        let want: Vec<u64> = sent
+            .iter()
+            .map(|&w| abs_diff_model(w, width, limit))
+            .collect();
         assert_eq!(got[..], want[..got.len()]);
         assert!(sent.len() - got.len() <= 3, "at most three words in flight");
     }
@@ -190,7 +216,6 @@ fn hierarchy_and_merge_deliver_both_streams() {
     // Two producers into a priority merge of two instances, then a register.
     let m = {
         #[path = "designs/mod.rs"]
-        #[allow(dead_code)]
         mod designs;
         designs::hierarchy()
     };
@@ -217,7 +242,12 @@ fn hierarchy_and_merge_deliver_both_streams() {
         pa.after_edge(ra);
         pb.after_edge(rb);
     }
-    let mut all: Vec<u64> = pa.sent.iter().chain(&pb.sent).map(|x| (x + 1) & 0xff).collect();
+    let mut all: Vec<u64> = pa
+        .sent
+        .iter()
+        .chain(&pb.sent)
+        .map(|x| (x + 1) & 0xff)
+        .collect();
     let mut seen = got.clone();
     all.sort_unstable();
     seen.sort_unstable();

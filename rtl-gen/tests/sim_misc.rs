@@ -22,8 +22,16 @@ fn register_file_reads_asynchronously_and_ram_reads_old_word_on_write() {
     sim.poke("re", 1u64).unwrap();
     assert_eq!(sim.peek("async_q").unwrap().to_u64(), Some(0));
     sim.step(); // writes 0xAA; the synchronous read saw the old word
-    assert_eq!(sim.peek("async_q").unwrap().to_u64(), Some(0xAA), "async read sees the write at once");
-    assert_eq!(sim.peek("sync_q").unwrap().to_u64(), Some(0), "sync read returned the word before the write");
+    assert_eq!(
+        sim.peek("async_q").unwrap().to_u64(),
+        Some(0xAA),
+        "async read sees the write at once"
+    );
+    assert_eq!(
+        sim.peek("sync_q").unwrap().to_u64(),
+        Some(0),
+        "sync read returned the word before the write"
+    );
     sim.poke("we", 0u64).unwrap();
     sim.step();
     assert_eq!(sim.peek("sync_q").unwrap().to_u64(), Some(0xAA));
@@ -84,7 +92,10 @@ fn wide_registers_and_handles() {
     sim.set(ha, &big);
     sim.step_n(3); // 3 * (2^300 - 1) mod 2^300 = 2^300 - 3
     assert_eq!(sim.get(hy), Bits::from_i128(-3, 300).unwrap());
-    assert_eq!(sim.peek_signal(acc).unwrap(), Bits::from_i128(-3, 300).unwrap());
+    assert_eq!(
+        sim.peek_signal(acc).unwrap(),
+        Bits::from_i128(-3, 300).unwrap()
+    );
     assert_eq!(sim.cycle(), 3);
 }
 
@@ -96,10 +107,16 @@ fn api_misuse_is_an_error_not_a_panic() {
     r.next(a);
     m.output("y", r);
     let mut sim = Sim::new(&m).unwrap();
-    assert_eq!(sim.poke("nope", 1u64), Err(SimError::UnknownName("nope".into())));
+    assert_eq!(
+        sim.poke("nope", 1u64),
+        Err(SimError::UnknownName("nope".into()))
+    );
     assert_eq!(sim.poke("y", 1u64), Err(SimError::NotAnInput("y".into())));
     assert_eq!(sim.poke("clk", 1u64), Err(SimError::ClockIsImplicit));
-    assert!(matches!(sim.poke("a", 16u64), Err(SimError::DoesNotFit(..))));
+    assert!(matches!(
+        sim.poke("a", 16u64),
+        Err(SimError::DoesNotFit(..))
+    ));
     assert!(sim.poke("a", -8i64).is_ok(), "-8 fits 4 bits signed");
     let other = Module::new("other");
     let x = other.input("x", 1);

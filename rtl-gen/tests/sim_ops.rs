@@ -13,7 +13,9 @@ type V = Vec<bool>;
 
 fn ext(a: &[bool], width: usize, signed: bool) -> V {
     let fill = signed && *a.last().unwrap_or(&false);
-    (0..width).map(|i| if i < a.len() { a[i] } else { fill }).collect()
+    (0..width)
+        .map(|i| if i < a.len() { a[i] } else { fill })
+        .collect()
 }
 
 fn add(a: &[bool], b: &[bool]) -> V {
@@ -39,11 +41,19 @@ fn neg_add(a: &[bool], b: &[bool]) -> V {
 fn cmp(a: &[bool], b: &[bool], signed: bool) -> Ordering {
     let n = a.len();
     if signed && a[n - 1] != b[n - 1] {
-        return if a[n - 1] { Ordering::Less } else { Ordering::Greater };
+        return if a[n - 1] {
+            Ordering::Less
+        } else {
+            Ordering::Greater
+        };
     }
     for i in (0..n).rev() {
         if a[i] != b[i] {
-            return if a[i] { Ordering::Greater } else { Ordering::Less };
+            return if a[i] {
+                Ordering::Greater
+            } else {
+                Ordering::Less
+            };
         }
     }
     Ordering::Equal
@@ -54,12 +64,34 @@ fn b1(x: bool) -> V {
 }
 
 /// The reference result(s) of `op` given the inputs by port name.
-fn reference(op: OpKind, w: usize, signed: bool, a: &[bool], b: &[bool], c: &[bool], s: u64, sel: bool) -> Vec<V> {
+#[allow(clippy::too_many_arguments)]
+fn reference(
+    op: OpKind,
+    w: usize,
+    signed: bool,
+    a: &[bool],
+    b: &[bool],
+    c: &[bool],
+    s: u64,
+    sel: bool,
+) -> Vec<V> {
     let shift_const = OpKind::const_shift(w as u32) as u64;
-    let shl = |amt: u64| -> V { (0..w).map(|i| (i as u64) >= amt && a[i - amt as usize]).collect() };
+    let shl = |amt: u64| -> V {
+        (0..w)
+            .map(|i| (i as u64) >= amt && a[i - amt as usize])
+            .collect()
+    };
     let shr = |amt: u64| -> V {
         let fill = signed && a[w - 1];
-        (0..w).map(|i| if (i as u64 + amt) < w as u64 { a[i + amt as usize] } else { fill }).collect()
+        (0..w)
+            .map(|i| {
+                if (i as u64 + amt) < w as u64 {
+                    a[i + amt as usize]
+                } else {
+                    fill
+                }
+            })
+            .collect()
     };
     match op {
         OpKind::Add => vec![add(&ext(a, w + 1, signed), &ext(b, w + 1, signed))],
@@ -81,7 +113,9 @@ fn reference(op: OpKind, w: usize, signed: bool, a: &[bool], b: &[bool], c: &[bo
         OpKind::Le => vec![b1(cmp(a, b, signed).is_le())],
         OpKind::Gt => vec![b1(cmp(a, b, signed).is_gt())],
         OpKind::Ge => vec![b1(cmp(a, b, signed).is_ge())],
-        OpKind::LtMixed => vec![b1(cmp(&ext(a, w + 1, true), &ext(b, w + 1, false), true).is_lt())],
+        OpKind::LtMixed => vec![b1(
+            cmp(&ext(a, w + 1, true), &ext(b, w + 1, false), true).is_lt()
+        )],
         OpKind::Mux => vec![if sel { a.to_vec() } else { b.to_vec() }],
         OpKind::Concat => vec![b.iter().chain(a).copied().collect()],
         OpKind::Slice if w == 1 => vec![a.to_vec()],
@@ -172,7 +206,11 @@ fn run_op(op: OpKind, w: u32, signed: bool, rng: &mut Rng) {
             4 => (1u64 << sw) - 1,
             _ => rng.below(1 << sw),
         };
-        let c = if i % 3 == 0 { b[..cw as usize].to_vec() } else { rng.bits(cw) };
+        let c = if i % 3 == 0 {
+            b[..cw as usize].to_vec()
+        } else {
+            rng.bits(cw)
+        };
         let sel = rng.bit();
         sim.poke("a", to_bits(&a)).unwrap();
         if has("b") {
@@ -225,14 +263,22 @@ fn registered_operators_show_the_result_one_edge_later() {
             sim.reset();
             let (a, b) = (rng.bits(w), rng.bits(w));
             let zero_len = from_bits(&sim.peek("y").unwrap()).len();
-            assert_eq!(from_bits(&sim.peek("y").unwrap()), vec![false; zero_len], "reset value");
+            assert_eq!(
+                from_bits(&sim.peek("y").unwrap()),
+                vec![false; zero_len],
+                "reset value"
+            );
             sim.poke("a", to_bits(&a)).unwrap();
             if op != OpKind::ShrVar {
                 sim.poke("b", to_bits(&b)).unwrap();
             } else {
                 sim.poke("s", 3u64).unwrap();
             }
-            assert_eq!(from_bits(&sim.peek("y").unwrap()), vec![false; zero_len], "before the edge");
+            assert_eq!(
+                from_bits(&sim.peek("y").unwrap()),
+                vec![false; zero_len],
+                "before the edge"
+            );
             sim.step();
             let want = reference(op, w as usize, true, &a, &b, &a, 3, false);
             assert_eq!(from_bits(&sim.peek("y").unwrap()), want[0], "{}", m.name());

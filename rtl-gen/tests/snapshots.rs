@@ -7,11 +7,15 @@ use rtl_gen::{emit_design, examples, Module};
 use std::path::PathBuf;
 
 fn snapshot_dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests").join("snapshots")
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests")
+        .join("snapshots")
 }
 
 fn check(m: &Module) {
-    let update = std::env::var("UPDATE_SNAPSHOTS").map(|v| v == "1").unwrap_or(false);
+    let update = std::env::var("UPDATE_SNAPSHOTS")
+        .map(|v| v == "1")
+        .unwrap_or(false);
     for (file, text) in emit_design(m).unwrap_or_else(|e| panic!("{e}")) {
         let path = snapshot_dir().join(&file);
         if update {
@@ -19,10 +23,18 @@ fn check(m: &Module) {
             std::fs::write(&path, &text).expect("write snapshot");
             continue;
         }
-        let want = std::fs::read_to_string(&path)
-            .unwrap_or_else(|e| panic!("{}: {e}; run with UPDATE_SNAPSHOTS=1 to create it", path.display()));
+        let want = std::fs::read_to_string(&path).unwrap_or_else(|e| {
+            panic!(
+                "{}: {e}; run with UPDATE_SNAPSHOTS=1 to create it",
+                path.display()
+            )
+        });
         if want != text {
-            let first = want.lines().zip(text.lines()).position(|(a, b)| a != b).unwrap_or(0);
+            let first = want
+                .lines()
+                .zip(text.lines())
+                .position(|(a, b)| a != b)
+                .unwrap_or(0);
             panic!(
                 "{} differs from the emitted text at line {}:\n  snapshot: {:?}\n  emitted:  {:?}\n(UPDATE_SNAPSHOTS=1 rewrites it after review)",
                 path.display(),
@@ -85,13 +97,16 @@ fn emitted_text_follows_the_conventions() {
     // Every literal is sized: outside bit selects `[..]` and repeat counts
     // `{n{..}}`, every number carries a `'` width.
     for line in v.lines().filter(|l| l.trim_start().starts_with("assign")) {
-        let rhs: String = line.splitn(2, '=').nth(1).unwrap_or("").to_string();
-        for tok in unsized_numbers(&rhs) {
+        let rhs = line.split_once('=').map(|x| x.1).unwrap_or("");
+        if let Some(tok) = unsized_numbers(rhs).first() {
             panic!("unsized literal `{tok}` in: {line}");
         }
         assert!(!line.contains("_T_"), "{line}");
     }
-    assert!(v.contains("// rtl-gen/tests/designs/mod.rs:"), "source comments");
+    assert!(
+        v.contains("// rtl-gen/tests/designs/mod.rs:"),
+        "source comments"
+    );
     assert!(v.contains("$signed("), "signed operators are explicit");
     assert!(v.ends_with("`default_nettype wire\n"));
 }
@@ -108,7 +123,10 @@ fn unsized_numbers(expr: &str) -> Vec<String> {
             depth += 1;
         } else if c == ']' {
             depth -= 1;
-        } else if depth == 0 && c.is_ascii_digit() && (i == 0 || !(chars[i - 1].is_ascii_alphanumeric() || chars[i - 1] == '_')) {
+        } else if depth == 0
+            && c.is_ascii_digit()
+            && (i == 0 || !(chars[i - 1].is_ascii_alphanumeric() || chars[i - 1] == '_'))
+        {
             let start = i;
             while i < chars.len() && (chars[i].is_ascii_alphanumeric() || chars[i] == '\'') {
                 i += 1;

@@ -25,7 +25,12 @@ fn examples_lint_and_synthesize() {
 
 #[test]
 fn test_designs_lint_and_synthesize() {
-    for m in [designs::kitchen_sink(), designs::ram(), designs::hierarchy(), designs::wide()] {
+    for m in [
+        designs::kitchen_sink(),
+        designs::ram(),
+        designs::hierarchy(),
+        designs::wide(),
+    ] {
         check_tools(&m, true);
     }
 }

@@ -68,11 +68,15 @@ fn mux_arms_and_select_widths() {
     let m = Module::new("m");
     let (s, a, b) = (m.input("s", 2), m.input("a", 4), m.input("b", 4));
     m.output("y", s.mux(a, b));
-    assert!(only_error(&m, DiagKind::Width).message.contains("select must be 1 bit"));
+    assert!(only_error(&m, DiagKind::Width)
+        .message
+        .contains("select must be 1 bit"));
     let m = Module::new("m");
     let (s, a, b) = (m.input("s", 1), m.input("a", 4), m.input("b", 5));
     m.output("y", s.mux(a, b));
-    assert!(only_error(&m, DiagKind::Width).message.contains("arms differ"));
+    assert!(only_error(&m, DiagKind::Width)
+        .message
+        .contains("arms differ"));
 }
 
 #[test]
@@ -121,7 +125,10 @@ fn slice_out_of_range_is_misuse_at_the_line() {
     m.output("y", s);
     let d = only_error(&m, DiagKind::Misuse);
     at_line(&d, line);
-    assert!(d.message.contains("[8:1]") && d.message.contains("8-bit"), "{d}");
+    assert!(
+        d.message.contains("[8:1]") && d.message.contains("8-bit"),
+        "{d}"
+    );
 }
 
 #[test]
@@ -155,7 +162,9 @@ fn bad_names_are_errors() {
     let m = Module::new("m");
     let a = m.input("a", 1);
     m.output("a", a);
-    assert!(only_error(&m, DiagKind::Name).message.contains("already exists"));
+    assert!(only_error(&m, DiagKind::Name)
+        .message
+        .contains("already exists"));
     let m = Module::new("module");
     m.output("y", m.input("a", 1));
     only_error(&m, DiagKind::Name);
@@ -178,7 +187,9 @@ fn undriven_wire_output_and_register() {
     let m = Module::new("m");
     let r = m.reg("state", 2);
     m.output("y", r);
-    assert!(only_error(&m, DiagKind::Undriven).message.contains("register"));
+    assert!(only_error(&m, DiagKind::Undriven)
+        .message
+        .contains("register"));
 }
 
 #[test]
@@ -189,7 +200,9 @@ fn unconnected_instance_input_and_unwritten_memory() {
     let top = Module::new("top");
     let u = top.instance("u", &child);
     top.output("y", u.output("y"));
-    assert!(only_error(&top, DiagKind::Undriven).message.contains("input `a` of instance `u`"));
+    assert!(only_error(&top, DiagKind::Undriven)
+        .message
+        .contains("input `a` of instance `u`"));
 
     let m = Module::new("rom");
     let mem = m.memory("mem", 8, 4);
@@ -226,7 +239,11 @@ fn memory_shape_errors() {
     let mem = m.memory("mem", 8, 5);
     mem.write(m.input("wa", 3), m.input("wd", 8), m.input("we", 1));
     m.output("q", mem.read(m.input("ra", 3)));
-    assert!(m.validate().unwrap_err().to_string().contains("power of two"));
+    assert!(m
+        .validate()
+        .unwrap_err()
+        .to_string()
+        .contains("power of two"));
 
     let m = Module::new("m");
     let mem = m.memory("mem", 8, 8);
@@ -267,7 +284,10 @@ fn combinational_loop_reports_its_signals() {
     q.drive(!p);
     m.output("y", q);
     let d = only_error(&m, DiagKind::CombLoop);
-    assert!(d.message.contains("`p`") || d.message.contains("p ->") || d.message.contains(" p"), "{d}");
+    assert!(
+        d.message.contains("`p`") || d.message.contains("p ->") || d.message.contains(" p"),
+        "{d}"
+    );
     assert!(d.message.contains('q'), "{d}");
     // A register breaks the loop.
     let m = Module::new("m");
@@ -315,8 +335,13 @@ fn unused_logic_is_a_warning_with_bit_ranges() {
     let _dead = a.add(b, 9);
     m.output("y", a.slice(3, 0) ^ b.slice(3, 0));
     let warnings = m.validate().expect("warnings only");
-    assert!(warnings.iter().all(|w| w.severity == Severity::Warning && w.kind == DiagKind::Unused));
-    let dead = warnings.iter().find(|w| w.location.line() == line).expect("dead add reported");
+    assert!(warnings
+        .iter()
+        .all(|w| w.severity == Severity::Warning && w.kind == DiagKind::Unused));
+    let dead = warnings
+        .iter()
+        .find(|w| w.location.line() == line)
+        .expect("dead add reported");
     assert!(dead.message.contains("nothing reads"), "{dead}");
     // `a` and `b` are fully read by the dead adder, so only it is reported.
     assert_eq!(warnings.len(), 1, "{warnings:?}");

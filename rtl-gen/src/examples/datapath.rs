@@ -22,15 +22,27 @@ pub fn abs_diff_pipeline(width: u32, limit: u128) -> Module {
     let w = width + 1;
     let diff = Stream::input(&m, "in", 2 * width)
         .map(|d| {
-            let (a, b) = (d.slice(2 * width - 1, width).as_signed(), d.slice(width - 1, 0).as_signed());
+            let (a, b) = (
+                d.slice(2 * width - 1, width).as_signed(),
+                d.slice(width - 1, 0).as_signed(),
+            );
             a.sub(b, w).name("diff")
         })
         .pipeline_reg("s1");
     let abs = diff
-        .map(|d| d.as_signed().lt(0).mux(m.lit(0, w).sub(d, w), d).name("abs"))
+        .map(|d| {
+            d.as_signed()
+                .lt(0)
+                .mux(m.lit(0, w).sub(d, w), d)
+                .name("abs")
+        })
         .pipeline_reg("s2");
-    abs.map(|d| d.gt(m.lit(limit, w)).mux(m.lit(limit, w), d).name("clamped"))
-        .pipeline_reg("s3")
-        .output("out");
+    abs.map(|d| {
+        d.gt(m.lit(limit, w))
+            .mux(m.lit(limit, w), d)
+            .name("clamped")
+    })
+    .pipeline_reg("s3")
+    .output("out");
     m
 }

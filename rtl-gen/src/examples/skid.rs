@@ -10,6 +10,8 @@ use crate::{Module, Stream};
 /// ```
 pub fn skid_buffer(width: u32) -> Module {
     let m = Module::new(&format!("skid_buffer_w{width}"));
-    Stream::input(&m, "in", width).skid_buffer("skid").output("out");
+    Stream::input(&m, "in", width)
+        .skid_buffer("skid")
+        .output("out");
     m
 }

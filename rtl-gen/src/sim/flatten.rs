@@ -72,16 +72,35 @@ fn add_module(flat: &mut Flat, g: &Graph, prefix: &str, inputs: &BTreeMap<String
     let base = flat.nodes.len();
     let map: Vec<F> = (0..g.nodes.len()).map(|i| base + i).collect();
     for n in &g.nodes {
-        flat.nodes.push(FNode { op: FOp::Input, width: n.width });
+        flat.nodes.push(FNode {
+            op: FOp::Input,
+            width: n.width,
+        });
     }
     let mem_base = flat.mems.len();
     for m in &g.mems {
-        let writes = m.writes.iter().map(|w| (map[w.addr as usize], map[w.data as usize], map[w.en as usize])).collect();
-        flat.mems.push(FMem { width: m.width, depth: m.depth, writes });
+        let writes = m
+            .writes
+            .iter()
+            .map(|w| {
+                (
+                    map[w.addr as usize],
+                    map[w.data as usize],
+                    map[w.en as usize],
+                )
+            })
+            .collect();
+        flat.mems.push(FMem {
+            width: m.width,
+            depth: m.depth,
+            writes,
+        });
     }
     for (id, n) in g.nodes.iter().enumerate() {
         if let Some(name) = &n.name {
-            flat.names.entry(format!("{prefix}{name}")).or_insert(map[id]);
+            flat.names
+                .entry(format!("{prefix}{name}"))
+                .or_insert(map[id]);
         }
     }
     // Instances: flatten each child with its inputs bound to our drivers.
@@ -140,7 +159,9 @@ impl FOp {
     pub fn comb_inputs(&self) -> Vec<F> {
         match self {
             FOp::Input | FOp::Const(_) | FOp::Reg(..) | FOp::MemReadSync(..) => vec![],
-            FOp::Copy(a) | FOp::Not(a) | FOp::Slice(a, _) | FOp::Ext(a, _) | FOp::Reduce(_, a) => vec![*a],
+            FOp::Copy(a) | FOp::Not(a) | FOp::Slice(a, _) | FOp::Ext(a, _) | FOp::Reduce(_, a) => {
+                vec![*a]
+            }
             FOp::MemRead(_, a) => vec![*a],
             FOp::Bin(_, a, b) | FOp::Cmp(_, _, a, b) => vec![*a, *b],
             FOp::Shift(_, a, s, _) => std::iter::once(*a).chain(*s).collect(),
@@ -151,7 +172,10 @@ impl FOp {
 
     /// True for nodes whose value is held, not computed, each cycle.
     pub fn is_state_or_source(&self) -> bool {
-        matches!(self, FOp::Input | FOp::Const(_) | FOp::Reg(..) | FOp::MemReadSync(..))
+        matches!(
+            self,
+            FOp::Input | FOp::Const(_) | FOp::Reg(..) | FOp::MemReadSync(..)
+        )
     }
 }
 

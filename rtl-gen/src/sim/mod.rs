@@ -73,7 +73,10 @@ impl SimValue for Bits {
             return Ok(self.clone());
         }
         self.to_u128()
-            .ok_or(DoesNotFit { value: self.to_string(), width })
+            .ok_or(DoesNotFit {
+                value: self.to_string(),
+                width,
+            })
             .and_then(|v| Bits::from_u128(v, width))
     }
 }
@@ -83,6 +86,9 @@ impl SimValue for &Bits {
         (*self).to_bits(width)
     }
 }
+
+/// A register: its node, its next-value node, and its reset value with the reset node.
+type RegSlot = (F, F, Option<(Bits, F)>);
 
 /// A resolved port or signal, for fast repeated access.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -125,8 +131,7 @@ pub struct Sim {
     offsets: Vec<usize>,
     vals: Vec<u64>,
     comb: Vec<Instr>,
-    /// (node, next, reset value and reset node)
-    regs: Vec<(F, F, Option<(Bits, F)>)>,
+    regs: Vec<RegSlot>,
     /// (node, memory, addr, en)
     sync_reads: Vec<(F, usize, F, F)>,
     mems: Vec<flatten::FMem>,
@@ -186,15 +191,31 @@ impl Sim {
             .iter()
             .map(|&i| {
                 let op = flat.nodes[i].op.clone();
-                let args = op.comb_inputs().iter().map(|&a| (offsets[a], widths[a])).collect();
-                Instr { op, dst: offsets[i], width: widths[i], args }
+                let args = op
+                    .comb_inputs()
+                    .iter()
+                    .map(|&a| (offsets[a], widths[a]))
+                    .collect();
+                Instr {
+                    op,
+                    dst: offsets[i],
+                    width: widths[i],
+                    args,
+                }
             })
             .collect();
-        let mem_data = flat.mems.iter().map(|m| vec![0u64; m.depth as usize * words_for(m.width)]).collect();
+        let mem_data = flat
+            .mems
+            .iter()
+            .map(|m| vec![0u64; m.depth as usize * words_for(m.width)])
+            .collect();
         let mut ports = BTreeMap::new();
         for &p in &g.ports {
             let n = g.node(p);
-            ports.insert(n.name.clone().unwrap_or_default(), (flat.top[p as usize], n.port.unwrap_or(Direction::Input)));
+            ports.insert(
+                n.name.clone().unwrap_or_default(),
+                (flat.top[p as usize], n.port.unwrap_or(Direction::Input)),
+            );
         }
         drop(g);
         let mut sim = Sim {
@@ -226,9 +247,15 @@ impl Sim {
     /// Resolves a top-level port or named signal once, for [`Sim::set`] / [`Sim::get`].
     pub fn handle(&self, name: &str) -> Result<Handle, SimError> {
         if let Some(&(node, dir)) = self.ports.get(name) {
-            return Ok(Handle { node, input: dir == Direction::Input && name != crate::CLOCK });
+            return Ok(Handle {
+                node,
+                input: dir == Direction::Input && name != crate::CLOCK,
+            });
         }
-        self.names.get(name).map(|&node| Handle { node, input: false }).ok_or_else(|| SimError::UnknownName(name.into()))
+        self.names
+            .get(name)
+            .map(|&node| Handle { node, input: false })
+            .ok_or_else(|| SimError::UnknownName(name.into()))
     }
 
     /// Sets a top-level input port.
@@ -240,7 +267,9 @@ impl Sim {
         if !h.input {
             return Err(SimError::NotAnInput(port.into()));
         }
-        let b = value.to_bits(self.widths[h.node]).map_err(|e| SimError::DoesNotFit(port.into(), e))?;
+        let b = value
+            .to_bits(self.widths[h.node])
+            .map_err(|e| SimError::DoesNotFit(port.into(), e))?;
         self.set(h, &b);
         Ok(())
     }
@@ -330,7 +359,9 @@ impl Sim {
         for (node, next, reset) in &self.regs {
             let w = self.widths[*node];
             let n = words_for(w);
-            let in_reset = reset.as_ref().filter(|(_, r)| self.vals[self.offsets[*r]] & 1 == 1);
+            let in_reset = reset
+                .as_ref()
+                .filter(|(_, r)| self.vals[self.offsets[*r]] & 1 == 1);
             match in_reset {
                 Some((value, _)) => self.staging[s..s + n].copy_from_slice(value.words()),
                 None => {
@@ -363,7 +394,12 @@ impl Sim {
             }
         }
         let mut s = 0;
-        for &node in self.regs.iter().map(|r| &r.0).chain(self.sync_reads.iter().map(|r| &r.0)) {
+        for &node in self
+            .regs
+            .iter()
+            .map(|r| &r.0)
+            .chain(self.sync_reads.iter().map(|r| &r.0))
+        {
             let n = words_for(self.widths[node]);
             let o = self.offsets[node];
             self.vals[o..o + n].copy_from_slice(&self.staging[s..s + n]);
@@ -386,7 +422,7 @@ impl Sim {
     }
 }
 
-fn arg<'a>(src: &'a [u64], a: (usize, u32)) -> &'a [u64] {
+fn arg(src: &[u64], a: (usize, u32)) -> &[u64] {
     &src[a.0..a.0 + words_for(a.1)]
 }
 
@@ -418,7 +454,11 @@ fn eval(ins: &Instr, src: &[u64], dst: &mut [u64], mems: &[Vec<u64>]) {
         }
         FOp::Cmp(op, signed, ..) => {
             let ow = ins.args[0].1;
-            let ord = if *signed { words::cmp_signed(a(), b(), ow) } else { words::cmp_unsigned(a(), b(), ow) };
+            let ord = if *signed {
+                words::cmp_signed(a(), b(), ow)
+            } else {
+                words::cmp_unsigned(a(), b(), ow)
+            };
             let r = match op {
                 CmpOp::Eq => ord.is_eq(),
                 CmpOp::Ne => ord.is_ne(),
@@ -430,7 +470,11 @@ fn eval(ins: &Instr, src: &[u64], dst: &mut [u64], mems: &[Vec<u64>]) {
             dst[0] = r as u64;
         }
         FOp::Mux(..) => {
-            let pick = if arg(src, ins.args[0])[0] & 1 == 1 { ins.args[1] } else { ins.args[2] };
+            let pick = if arg(src, ins.args[0])[0] & 1 == 1 {
+                ins.args[1]
+            } else {
+                ins.args[2]
+            };
             dst.copy_from_slice(arg(src, pick));
         }
         FOp::Concat(_) => {

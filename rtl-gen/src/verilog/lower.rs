@@ -43,7 +43,14 @@ fn absorbed_temporaries(g: &Graph, inline: &[bool]) -> Vec<bool> {
                 // A temporary named like the port it drives also merges into it.
                 let temp = (dn.name.is_none() || (n.port.is_some() && dn.name == n.name))
                     && !inline[*d as usize]
-                    && !matches!(dn.op, Op::Reg { .. } | Op::MemReadSync { .. } | Op::InstOut { .. } | Op::Input | Op::Wire { .. });
+                    && !matches!(
+                        dn.op,
+                        Op::Reg { .. }
+                            | Op::MemReadSync { .. }
+                            | Op::InstOut { .. }
+                            | Op::Input
+                            | Op::Wire { .. }
+                    );
                 if temp && readers[*d as usize] == 1 {
                     absorbed[*d as usize] = true;
                 }
@@ -82,14 +89,23 @@ pub(crate) fn lower(g: &Graph) -> VModule {
         }
         names[id] = match (&n.name, &n.op) {
             // A register sharing its output port's name becomes `<name>_q`.
-            (Some(user), Op::Reg { .. }) if !namer.reserve(user) => namer.fresh(&format!("{user}_q")),
+            (Some(user), Op::Reg { .. }) if !namer.reserve(user) => {
+                namer.fresh(&format!("{user}_q"))
+            }
             (Some(user), Op::Reg { .. }) => user.clone(),
             (Some(user), _) => namer.fresh(user),
             (None, Op::InstOut { port, .. }) => namer.fresh(&format!("{}_{}", n.base, port)),
             (None, _) => namer.fresh(&format!("{}_{}", n.base, n.opname)),
         };
     }
-    let l = Lower { g, inline, absorbed, names, mem_names, inst_names };
+    let l = Lower {
+        g,
+        inline,
+        absorbed,
+        names,
+        mem_names,
+        inst_names,
+    };
     l.module()
 }
 
@@ -103,11 +119,17 @@ impl Lower<'_> {
                 let n = g.node(p);
                 let comment = match n.name.as_deref() {
                     Some(crate::graph::CLOCK) => "clock (implicit)".to_string(),
-                    Some(crate::graph::RESET) => "synchronous reset, active high (implicit)".to_string(),
+                    Some(crate::graph::RESET) => {
+                        "synchronous reset, active high (implicit)".to_string()
+                    }
                     _ => loc_comment(n.loc),
                 };
                 Port {
-                    dir: if n.port == Some(Direction::Output) { PortDir::Output } else { PortDir::Input },
+                    dir: if n.port == Some(Direction::Output) {
+                        PortDir::Output
+                    } else {
+                        PortDir::Input
+                    },
                     name: self.names[p as usize].clone(),
                     width: n.width,
                     comment,
@@ -244,7 +266,11 @@ impl Lower<'_> {
         let o = |x: &NodeId| Box::new(self.operand(*x));
         let n = self.g.node(id);
         Some(match &n.op {
-            Op::Input | Op::Reg { .. } | Op::MemReadSync { .. } | Op::InstOut { .. } | Op::Poison => return None,
+            Op::Input
+            | Op::Reg { .. }
+            | Op::MemReadSync { .. }
+            | Op::InstOut { .. }
+            | Op::Poison => return None,
             Op::Wire { drivers } => {
                 let d = drivers.first()?.0;
                 if self.absorbed[d as usize] {
@@ -289,7 +315,11 @@ impl Lower<'_> {
                 };
                 let ordered = !matches!(op, CmpOp::Eq | CmpOp::Ne);
                 if *signed && ordered {
-                    Expr::Binary(sym, Box::new(Expr::Signed(o(a))), Box::new(Expr::Signed(o(b))))
+                    Expr::Binary(
+                        sym,
+                        Box::new(Expr::Signed(o(a))),
+                        Box::new(Expr::Signed(o(b))),
+                    )
                 } else {
                     Expr::Binary(sym, o(a), o(b))
                 }
@@ -335,7 +365,10 @@ impl Lower<'_> {
     }
 
     fn clock(&self) -> String {
-        self.g.clk.map(|c| self.names[c as usize].clone()).unwrap_or_else(|| crate::graph::CLOCK.into())
+        self.g
+            .clk
+            .map(|c| self.names[c as usize].clone())
+            .unwrap_or_else(|| crate::graph::CLOCK.into())
     }
 
     fn registers(&self, items: &mut Vec<Item>) {
@@ -344,7 +377,9 @@ impl Lower<'_> {
         let mut plain = Vec::new();
         for (id, n) in self.g.nodes.iter().enumerate() {
             if let Op::Reg { next, reset } = &n.op {
-                let Some(&(d, _)) = next.first() else { continue };
+                let Some(&(d, _)) = next.first() else {
+                    continue;
+                };
                 let lv = LValue::Ident(self.names[id].clone());
                 match reset {
                     Some(r) => {
@@ -357,7 +392,11 @@ impl Lower<'_> {
         }
         let mut body = Vec::new();
         if !resets.is_empty() {
-            let rst = self.g.rst.map(|r| self.names[r as usize].clone()).unwrap_or_else(|| crate::graph::RESET.into());
+            let rst = self
+                .g
+                .rst
+                .map(|r| self.names[r as usize].clone())
+                .unwrap_or_else(|| crate::graph::RESET.into());
             body.push(Stmt::If(Expr::Ident(rst), resets, loads));
         }
         body.extend(plain);
@@ -392,11 +431,17 @@ impl Lower<'_> {
                 }
             }
             for w in &mem.writes {
-                let st = Stmt::NonBlocking(LValue::Mem(name.clone(), self.operand(w.addr)), self.operand(w.data));
+                let st = Stmt::NonBlocking(
+                    LValue::Mem(name.clone(), self.operand(w.addr)),
+                    self.operand(w.data),
+                );
                 body.push(self.guarded(w.en, st));
             }
             if !body.is_empty() {
-                items.push(Item::Comment(format!("memory {name}: {} x {} bits", mem.depth, mem.width)));
+                items.push(Item::Comment(format!(
+                    "memory {name}: {} x {} bits",
+                    mem.depth, mem.width
+                )));
                 items.push(Item::AlwaysPosedge(self.clock(), body));
                 items.push(Item::Blank);
             }

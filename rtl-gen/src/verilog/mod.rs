@@ -1,4 +1,4 @@
-//! The Verilog-2005 back-end: IR → syntax tree ([`ast`]) → text ([`print`]).
+//! The Verilog-2005 back-end: IR → syntax tree ([`ast`]) → text ([`mod@print`]).
 
 pub mod ast;
 mod lower;
@@ -19,7 +19,7 @@ use std::rc::Rc;
 /// let a = m.input("a", 8);
 /// m.output("y", a.add(1, 8));
 /// let v = emit_verilog(&m).unwrap();
-/// assert!(v.contains("assign a_add = a + 8'd1;"));
+/// assert!(v.contains("assign y = a + 8'd1;"));
 /// assert_eq!(v, emit_verilog(&m).unwrap());
 /// ```
 pub fn emit_verilog(m: &Module) -> Result<String, Diagnostics> {

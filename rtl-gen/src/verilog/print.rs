@@ -59,7 +59,13 @@ fn print_item(s: &mut String, item: &Item) {
             let _ = writeln!(s, "    // {c}");
         }
         Item::Blank => s.push('\n'),
-        Item::Decl { kind, name, width, depth, comment } => {
+        Item::Decl {
+            kind,
+            name,
+            width,
+            depth,
+            comment,
+        } => {
             let k = match kind {
                 NetKind::Wire => "wire",
                 NetKind::Reg => "reg",
@@ -82,7 +88,12 @@ fn print_item(s: &mut String, item: &Item) {
             }
             s.push_str("    end\n");
         }
-        Item::Instance { module, name, connections, comment } => {
+        Item::Instance {
+            module,
+            name,
+            connections,
+            comment,
+        } => {
             if comment.is_empty() {
                 let _ = writeln!(s, "    {module} {name} (");
             } else {

@@ -19,7 +19,9 @@ pub fn require_tool(tool: &str) -> bool {
     if std::env::var("CI").map(|v| v == "true").unwrap_or(false) {
         panic!("{tool} is required under CI=true but was not found on PATH");
     }
-    eprintln!("SKIPPED: {tool} not found; install it with `apt-get install verilator iverilog yosys`");
+    eprintln!(
+        "SKIPPED: {tool} not found; install it with `apt-get install verilator iverilog yosys`"
+    );
     false
 }
 
@@ -31,7 +33,11 @@ pub fn verilator_lint(files: &[PathBuf], top: &str) -> Result<(), String> {
         .args(files)
         .output()
         .map_err(|e| format!("running verilator: {e}"))?;
-    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
     if !out.status.success() || text.contains("%Warning") || text.contains("%Error") {
         return Err(format!("verilator lint of {top} failed:\n{text}"));
     }
@@ -41,16 +47,26 @@ pub fn verilator_lint(files: &[PathBuf], top: &str) -> Result<(), String> {
 /// `yosys`: read, `synth -top`, `check -assert`, `stat`; fails on any
 /// problem and on any latch cell in the result.
 pub fn yosys_synth(files: &[PathBuf], top: &str) -> Result<(), String> {
-    let reads: Vec<String> = files.iter().map(|f| format!("read_verilog {};", f.display())).collect();
+    let reads: Vec<String> = files
+        .iter()
+        .map(|f| format!("read_verilog {};", f.display()))
+        .collect();
     let script = format!("{} synth -top {top}; check -assert; stat", reads.join(" "));
     let out = Command::new("yosys")
         .args(["-p", &script])
         .output()
         .map_err(|e| format!("running yosys: {e}"))?;
-    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
     if !out.status.success() {
         let tail: Vec<&str> = text.lines().rev().take(30).collect();
-        return Err(format!("yosys failed on {top}:\n{}", tail.into_iter().rev().collect::<Vec<_>>().join("\n")));
+        return Err(format!(
+            "yosys failed on {top}:\n{}",
+            tail.into_iter().rev().collect::<Vec<_>>().join("\n")
+        ));
     }
     for latch in ["$dlatch", "$_DLATCH", "Latch inferred"] {
         if text.contains(latch) {
@@ -62,7 +78,8 @@ pub fn yosys_synth(files: &[PathBuf], top: &str) -> Result<(), String> {
 
 /// Writes the design into `dir` and returns its files and top name.
 pub fn write(m: &Module, dir: &Path) -> (Vec<PathBuf>, String) {
-    let files = rtl_gen::write_design(m, dir).unwrap_or_else(|e| panic!("write_design({}): {e}", m.name()));
+    let files =
+        rtl_gen::write_design(m, dir).unwrap_or_else(|e| panic!("write_design({}): {e}", m.name()));
     (files, m.name())
 }
 
@@ -71,7 +88,12 @@ pub fn check_tools(m: &Module, synth: bool) {
     // The validator's unused-logic warnings mirror Verilator's UNUSED lint:
     // a design without warnings must lint clean, and the test designs have none.
     let warnings = m.validate_design().unwrap_or_else(|e| panic!("{e}"));
-    assert!(warnings.is_empty(), "{}: {}", m.name(), rtl_gen::Diagnostics(warnings.clone()));
+    assert!(
+        warnings.is_empty(),
+        "{}: {}",
+        m.name(),
+        rtl_gen::Diagnostics(warnings.clone())
+    );
     let dir = tempfile::tempdir().expect("temp dir");
     let (files, top) = write(m, dir.path());
     if require_tool("verilator") {

@@ -15,10 +15,26 @@ pub fn kitchen_sink() -> Module {
     m.output("sum", sum);
     m.output("diff", diff);
     m.output("bitwise", (a & b) | (!a ^ b));
-    m.output("shifts", m.concat(&[a << 2, a >> s, a.as_signed() >> s, a.as_signed() >> 1]));
-    m.output("cmp", m.concat(&[a.eq(b), a.ne(b), a.lt(b), a.as_signed().le(b.as_signed()), a.gt(3), a.as_signed().ge(b)]));
+    m.output(
+        "shifts",
+        m.concat(&[a << 2, a >> s, a.as_signed() >> s, a.as_signed() >> 1]),
+    );
+    m.output(
+        "cmp",
+        m.concat(&[
+            a.eq(b),
+            a.ne(b),
+            a.lt(b),
+            a.as_signed().le(b.as_signed()),
+            a.gt(3),
+            a.as_signed().ge(b),
+        ]),
+    );
     m.output("mux", sel.mux(a, b.slice(4, 0)));
-    m.output("red", m.concat(&[a.reduce_and(), a.reduce_or(), b.reduce_xor()]));
+    m.output(
+        "red",
+        m.concat(&[a.reduce_and(), a.reduce_or(), b.reduce_xor()]),
+    );
     m.output("ext", m.concat(&[a.zext(7), b.sext(7)]));
     m
 }
@@ -47,9 +63,17 @@ pub fn hierarchy() -> Module {
     u0.connect("x", a.data);
     let u1 = top.instance("u1", &inc);
     u1.connect("x", b.data);
-    let a2 = Stream { data: u0.output("y"), ..a };
-    let b2 = Stream { data: u1.output("y"), ..b };
-    Stream::merge_priority(&top, "arb", &[a2, b2]).pipeline_reg("out_q").output("out");
+    let a2 = Stream {
+        data: u0.output("y"),
+        ..a
+    };
+    let b2 = Stream {
+        data: u1.output("y"),
+        ..b
+    };
+    Stream::merge_priority(&top, "arb", &[a2, b2])
+        .pipeline_reg("out_q")
+        .output("out");
     top
 }
 

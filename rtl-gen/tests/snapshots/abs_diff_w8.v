@@ -8,40 +8,40 @@ module abs_diff_w8 (
     input  wire in_valid,       // rtl-gen/src/examples/datapath.rs:23
     input  wire [15:0] in_data, // rtl-gen/src/examples/datapath.rs:23
     output wire in_ready,       // rtl-gen/src/examples/datapath.rs:23
-    output wire out_valid,      // rtl-gen/src/examples/datapath.rs:34
-    output wire [8:0] out_data, // rtl-gen/src/examples/datapath.rs:34
-    input  wire out_ready       // rtl-gen/src/examples/datapath.rs:34
+    output wire out_valid,      // rtl-gen/src/examples/datapath.rs:46
+    output wire [8:0] out_data, // rtl-gen/src/examples/datapath.rs:46
+    input  wire out_ready       // rtl-gen/src/examples/datapath.rs:46
 );
-    wire [8:0] diff;                         // rtl-gen/src/examples/datapath.rs:26
-    reg s1_valid;                            // rtl-gen/src/examples/datapath.rs:28
-    reg [8:0] s1_data;                       // rtl-gen/src/examples/datapath.rs:28
-    wire s1_ready;                           // rtl-gen/src/examples/datapath.rs:28
-    wire s1_valid_not;                       // rtl-gen/src/examples/datapath.rs:28
-    wire s1_valid_or;                        // rtl-gen/src/examples/datapath.rs:28
-    wire s1_valid_next;                      // rtl-gen/src/examples/datapath.rs:28
-    wire s1_valid_and;                       // rtl-gen/src/examples/datapath.rs:28
-    wire [8:0] s1_data_next;                 // rtl-gen/src/examples/datapath.rs:28
-    wire s1_data_lt;                         // rtl-gen/src/examples/datapath.rs:30
-    wire [8:0] s1_data_sub;                  // rtl-gen/src/examples/datapath.rs:30
-    wire [8:0] abs;                          // rtl-gen/src/examples/datapath.rs:30
-    reg s2_valid;                            // rtl-gen/src/examples/datapath.rs:31
-    reg [8:0] s2_data;                       // rtl-gen/src/examples/datapath.rs:31
-    wire s2_ready;                           // rtl-gen/src/examples/datapath.rs:31
-    wire s2_valid_not;                       // rtl-gen/src/examples/datapath.rs:31
-    wire s2_valid_or;                        // rtl-gen/src/examples/datapath.rs:31
-    wire s2_valid_next;                      // rtl-gen/src/examples/datapath.rs:31
-    wire s2_valid_and;                       // rtl-gen/src/examples/datapath.rs:31
-    wire [8:0] s2_data_next;                 // rtl-gen/src/examples/datapath.rs:31
-    wire s2_data_gt;                         // rtl-gen/src/examples/datapath.rs:32
-    wire [8:0] clamped;                      // rtl-gen/src/examples/datapath.rs:32
-    reg s3_valid;                            // rtl-gen/src/examples/datapath.rs:33
-    reg [8:0] s3_data;                       // rtl-gen/src/examples/datapath.rs:33
-    wire s3_ready;                           // rtl-gen/src/examples/datapath.rs:33
-    wire s3_valid_not;                       // rtl-gen/src/examples/datapath.rs:33
-    wire s3_valid_or;                        // rtl-gen/src/examples/datapath.rs:33
-    wire s3_valid_next;                      // rtl-gen/src/examples/datapath.rs:33
-    wire s3_valid_and;                       // rtl-gen/src/examples/datapath.rs:33
-    wire [8:0] s3_data_next;                 // rtl-gen/src/examples/datapath.rs:33
+    wire [8:0] diff;                         // rtl-gen/src/examples/datapath.rs:29
+    reg s1_valid;                            // rtl-gen/src/examples/datapath.rs:31
+    reg [8:0] s1_data;                       // rtl-gen/src/examples/datapath.rs:31
+    wire s1_ready;                           // rtl-gen/src/examples/datapath.rs:31
+    wire s1_valid_not;                       // rtl-gen/src/examples/datapath.rs:31
+    wire s1_valid_or;                        // rtl-gen/src/examples/datapath.rs:31
+    wire s1_valid_next;                      // rtl-gen/src/examples/datapath.rs:31
+    wire s1_valid_and;                       // rtl-gen/src/examples/datapath.rs:31
+    wire [8:0] s1_data_next;                 // rtl-gen/src/examples/datapath.rs:31
+    wire s1_data_lt;                         // rtl-gen/src/examples/datapath.rs:35
+    wire [8:0] s1_data_sub;                  // rtl-gen/src/examples/datapath.rs:36
+    wire [8:0] abs;                          // rtl-gen/src/examples/datapath.rs:36
+    reg s2_valid;                            // rtl-gen/src/examples/datapath.rs:39
+    reg [8:0] s2_data;                       // rtl-gen/src/examples/datapath.rs:39
+    wire s2_ready;                           // rtl-gen/src/examples/datapath.rs:39
+    wire s2_valid_not;                       // rtl-gen/src/examples/datapath.rs:39
+    wire s2_valid_or;                        // rtl-gen/src/examples/datapath.rs:39
+    wire s2_valid_next;                      // rtl-gen/src/examples/datapath.rs:39
+    wire s2_valid_and;                       // rtl-gen/src/examples/datapath.rs:39
+    wire [8:0] s2_data_next;                 // rtl-gen/src/examples/datapath.rs:39
+    wire s2_data_gt;                         // rtl-gen/src/examples/datapath.rs:41
+    wire [8:0] clamped;                      // rtl-gen/src/examples/datapath.rs:42
+    reg s3_valid;                            // rtl-gen/src/examples/datapath.rs:45
+    reg [8:0] s3_data;                       // rtl-gen/src/examples/datapath.rs:45
+    wire s3_ready;                           // rtl-gen/src/examples/datapath.rs:45
+    wire s3_valid_not;                       // rtl-gen/src/examples/datapath.rs:45
+    wire s3_valid_or;                        // rtl-gen/src/examples/datapath.rs:45
+    wire s3_valid_next;                      // rtl-gen/src/examples/datapath.rs:45
+    wire s3_valid_and;                       // rtl-gen/src/examples/datapath.rs:45
+    wire [8:0] s3_data_next;                 // rtl-gen/src/examples/datapath.rs:45
 
     assign in_ready = s1_valid_or;
     assign diff = {in_data[15], in_data[15:8]} - {in_data[7], in_data[7:0]};

@@ -11,27 +11,27 @@ module kitchen_sink (
     output wire [5:0] diff,    // rtl-gen/tests/designs/mod.rs:16
     output wire [4:0] bitwise, // rtl-gen/tests/designs/mod.rs:17
     output wire [19:0] shifts, // rtl-gen/tests/designs/mod.rs:18
-    output wire [5:0] cmp,     // rtl-gen/tests/designs/mod.rs:19
-    output wire [4:0] mux,     // rtl-gen/tests/designs/mod.rs:20
-    output wire [2:0] red,     // rtl-gen/tests/designs/mod.rs:21
-    output wire [13:0] ext     // rtl-gen/tests/designs/mod.rs:22
+    output wire [5:0] cmp,     // rtl-gen/tests/designs/mod.rs:22
+    output wire [4:0] mux,     // rtl-gen/tests/designs/mod.rs:33
+    output wire [2:0] red,     // rtl-gen/tests/designs/mod.rs:34
+    output wire [13:0] ext     // rtl-gen/tests/designs/mod.rs:38
 );
     wire [4:0] a_and;                        // rtl-gen/tests/designs/mod.rs:17
     wire [4:0] a_not;                        // rtl-gen/tests/designs/mod.rs:17
     wire [4:0] a_xor;                        // rtl-gen/tests/designs/mod.rs:17
-    wire [4:0] a_shl;                        // rtl-gen/tests/designs/mod.rs:18
-    wire [4:0] a_shr;                        // rtl-gen/tests/designs/mod.rs:18
-    wire [4:0] a_sra;                        // rtl-gen/tests/designs/mod.rs:18
-    wire [4:0] a_sra_1;                      // rtl-gen/tests/designs/mod.rs:18
-    wire a_eq;                               // rtl-gen/tests/designs/mod.rs:19
-    wire a_ne;                               // rtl-gen/tests/designs/mod.rs:19
-    wire a_lt;                               // rtl-gen/tests/designs/mod.rs:19
-    wire a_le;                               // rtl-gen/tests/designs/mod.rs:19
-    wire a_gt;                               // rtl-gen/tests/designs/mod.rs:19
-    wire a_ge;                               // rtl-gen/tests/designs/mod.rs:19
-    wire a_all;                              // rtl-gen/tests/designs/mod.rs:21
-    wire a_any;                              // rtl-gen/tests/designs/mod.rs:21
-    wire b_parity;                           // rtl-gen/tests/designs/mod.rs:21
+    wire [4:0] a_shl;                        // rtl-gen/tests/designs/mod.rs:20
+    wire [4:0] a_shr;                        // rtl-gen/tests/designs/mod.rs:20
+    wire [4:0] a_sra;                        // rtl-gen/tests/designs/mod.rs:20
+    wire [4:0] a_sra_1;                      // rtl-gen/tests/designs/mod.rs:20
+    wire a_eq;                               // rtl-gen/tests/designs/mod.rs:25
+    wire a_ne;                               // rtl-gen/tests/designs/mod.rs:26
+    wire a_lt;                               // rtl-gen/tests/designs/mod.rs:27
+    wire a_le;                               // rtl-gen/tests/designs/mod.rs:28
+    wire a_gt;                               // rtl-gen/tests/designs/mod.rs:29
+    wire a_ge;                               // rtl-gen/tests/designs/mod.rs:30
+    wire a_all;                              // rtl-gen/tests/designs/mod.rs:36
+    wire a_any;                              // rtl-gen/tests/designs/mod.rs:36
+    wire b_parity;                           // rtl-gen/tests/designs/mod.rs:36
 
     assign sum = {1'b0, a} + {1'b0, b};
     assign diff = {a[4], a} - {b[4], b};

@@ -8,28 +8,28 @@ module skid_buffer_w8 (
     input  wire in_valid,       // rtl-gen/src/examples/skid.rs:13
     input  wire [7:0] in_data,  // rtl-gen/src/examples/skid.rs:13
     output wire in_ready,       // rtl-gen/src/examples/skid.rs:13
-    output wire out_valid,      // rtl-gen/src/examples/skid.rs:13
-    output wire [7:0] out_data, // rtl-gen/src/examples/skid.rs:13
-    input  wire out_ready       // rtl-gen/src/examples/skid.rs:13
+    output wire out_valid,      // rtl-gen/src/examples/skid.rs:15
+    output wire [7:0] out_data, // rtl-gen/src/examples/skid.rs:15
+    input  wire out_ready       // rtl-gen/src/examples/skid.rs:15
 );
-    reg skid_valid;                          // rtl-gen/src/examples/skid.rs:13
-    reg [7:0] skid_data;                     // rtl-gen/src/examples/skid.rs:13
-    reg skid_skid_valid;                     // rtl-gen/src/examples/skid.rs:13
-    reg [7:0] skid_skid_data;                // rtl-gen/src/examples/skid.rs:13
-    wire skid_ready;                         // rtl-gen/src/examples/skid.rs:13
-    wire skid_valid_not;                     // rtl-gen/src/examples/skid.rs:13
-    wire skid_ready_or;                      // rtl-gen/src/examples/skid.rs:13
-    wire skid_skid_valid_not;                // rtl-gen/src/examples/skid.rs:13
-    wire in_valid_and;                       // rtl-gen/src/examples/skid.rs:13
-    wire skid_skid_valid_or;                 // rtl-gen/src/examples/skid.rs:13
-    wire skid_valid_next;                    // rtl-gen/src/examples/skid.rs:13
-    wire [7:0] skid_skid_valid_mux;          // rtl-gen/src/examples/skid.rs:13
-    wire [7:0] skid_data_next;               // rtl-gen/src/examples/skid.rs:13
-    wire skid_skid_valid_or_1;               // rtl-gen/src/examples/skid.rs:13
-    wire skid_skid_valid_next;               // rtl-gen/src/examples/skid.rs:13
-    wire skid_ready_not;                     // rtl-gen/src/examples/skid.rs:13
-    wire skid_ready_and;                     // rtl-gen/src/examples/skid.rs:13
-    wire [7:0] skid_skid_data_next;          // rtl-gen/src/examples/skid.rs:13
+    reg skid_valid;                          // rtl-gen/src/examples/skid.rs:14
+    reg [7:0] skid_data;                     // rtl-gen/src/examples/skid.rs:14
+    reg skid_skid_valid;                     // rtl-gen/src/examples/skid.rs:14
+    reg [7:0] skid_skid_data;                // rtl-gen/src/examples/skid.rs:14
+    wire skid_ready;                         // rtl-gen/src/examples/skid.rs:14
+    wire skid_valid_not;                     // rtl-gen/src/examples/skid.rs:14
+    wire skid_ready_or;                      // rtl-gen/src/examples/skid.rs:14
+    wire skid_skid_valid_not;                // rtl-gen/src/examples/skid.rs:14
+    wire in_valid_and;                       // rtl-gen/src/examples/skid.rs:14
+    wire skid_skid_valid_or;                 // rtl-gen/src/examples/skid.rs:14
+    wire skid_valid_next;                    // rtl-gen/src/examples/skid.rs:14
+    wire [7:0] skid_skid_valid_mux;          // rtl-gen/src/examples/skid.rs:14
+    wire [7:0] skid_data_next;               // rtl-gen/src/examples/skid.rs:14
+    wire skid_skid_valid_or_1;               // rtl-gen/src/examples/skid.rs:14
+    wire skid_skid_valid_next;               // rtl-gen/src/examples/skid.rs:14
+    wire skid_ready_not;                     // rtl-gen/src/examples/skid.rs:14
+    wire skid_ready_and;                     // rtl-gen/src/examples/skid.rs:14
+    wire [7:0] skid_skid_data_next;          // rtl-gen/src/examples/skid.rs:14
 
     assign in_ready = ~skid_skid_valid;
     assign skid_ready = out_ready;

@@ -213,3 +213,48 @@ impl Design {
         Ok(p)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ports() -> Vec<PortSpec> {
+        vec![
+            PortSpec::input("clk", 1),
+            PortSpec::input("rst", 1),
+            PortSpec::output("q", 8),
+        ]
+    }
+
+    #[test]
+    fn bad_descriptions_are_refused_with_the_reason() {
+        let f = || vec![PathBuf::from("x.v")];
+        assert!(Design::new("t", f(), ports(), Some("clk"), Some("rst")).is_ok());
+        let err = |d: Result<Design>| d.unwrap_err().to_string();
+        assert!(err(Design::new("t", f(), ports(), Some("q"), None)).contains("clock `q`"));
+        assert!(err(Design::new("t", f(), ports(), Some("nope"), None))
+            .contains("not in the port list"));
+        let mut dup = ports();
+        dup.push(PortSpec::output("q", 8));
+        assert!(err(Design::new("t", f(), dup, None, None)).contains("listed twice"));
+        let mut bad = ports();
+        bad.push(PortSpec::input("a b", 1));
+        assert!(err(Design::new("t", f(), bad, None, None)).contains("plain identifier"));
+        let mut zero = ports();
+        zero.push(PortSpec::input("z", 0));
+        assert!(err(Design::new("t", f(), zero, None, None)).contains("width 0"));
+        assert!(Design::new("t", vec![], ports(), None, None).is_err());
+        assert!(Design::new("1t", f(), ports(), None, None).is_err());
+    }
+
+    #[test]
+    fn pokes_are_checked_for_direction_and_width() {
+        let d = Design::new("t", vec![PathBuf::from("x.v")], ports(), None, None).unwrap();
+        let q = d.port_id("q").unwrap();
+        let clk = d.port_id("clk").unwrap();
+        assert!(d.check_poke(q, &crate::BitVec::zeros(8)).is_err());
+        assert!(d.check_poke(clk, &crate::BitVec::zeros(2)).is_err());
+        assert!(d.check_poke(clk, &crate::BitVec::zeros(1)).is_ok());
+        assert!(d.port(PortId(9)).is_err());
+    }
+}

@@ -3,7 +3,9 @@
 //! (payload + 1 mod 2^16, in order, one output per input).
 mod common;
 
-use cosim::tb::{run_stream_bench, BenchConfig, Prng, StreamNames, Vector};
+use cosim::tb::{
+    run_stream_bench, run_stream_bench_with_progress, BenchConfig, Prng, StreamNames, Vector,
+};
 use cosim::BitVec;
 
 fn names() -> StreamNames {
@@ -94,4 +96,40 @@ fn a_dropped_expectation_shows_up_as_a_duplicate_and_a_missing_one_as_lost() {
     assert!(!r.passed());
     assert!(r.hang.is_some(), "the missing output stalls the run: {r}");
     assert_eq!(r.accounting.inputs_with_lost_outputs, 1, "{r}");
+}
+
+#[test]
+fn progress_is_reported_and_the_json_report_counts_everything() {
+    if !common::all_tools_present() {
+        return;
+    }
+    let design = common::skid();
+    let vs = vectors(11, 10_000);
+    let mut e = common::make_engine("verilator", &design, false).unwrap();
+    let mut calls = Vec::new();
+    let config = BenchConfig {
+        in_stall: 0.2,
+        out_stall: 0.2,
+        ..BenchConfig::default()
+    };
+    let r =
+        run_stream_bench_with_progress(e.as_mut(), &names(), &vs, None, &config, None, &mut |p| {
+            calls.push(p)
+        })
+        .unwrap();
+    assert!(r.passed(), "{r}");
+    assert!(
+        calls.len() as u64 >= r.cycles / 4096 - 1,
+        "{} calls for {} cycles",
+        calls.len(),
+        r.cycles
+    );
+    assert!(calls.windows(2).all(|w| w[0].outputs <= w[1].outputs));
+    assert!(calls.iter().all(|p| p.expected_outputs == 10_000));
+    let json = r.to_json();
+    assert_eq!(json["transactions_in"], 10_000);
+    assert_eq!(json["transactions_out"], 10_000);
+    assert_eq!(json["mismatches"], 0);
+    assert_eq!(json["cycles"], r.cycles);
+    assert_eq!(json["accounting"]["balanced"], true);
 }

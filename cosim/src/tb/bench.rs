@@ -130,6 +130,52 @@ impl BenchReport {
     }
 }
 
+impl BenchReport {
+    /// The report as JSON: counts, cycles, rate, wall time, and the first
+    /// mismatch with its decoded fields.
+    pub fn to_json(&self) -> serde_json::Value {
+        use serde_json::json;
+        let mismatch = self.first_mismatch.as_ref().map(|m| {
+            json!({
+                "cycle": m.cycle,
+                "output_index": m.output_index,
+                "input_record": m.input_id,
+                "fields": m.fields.iter().map(|f| json!({
+                    "name": f.name, "expected": f.expected, "got": f.got, "differs": f.differs(),
+                })).collect::<Vec<_>>(),
+            })
+        });
+        json!({
+            "engine": self.engine,
+            "seed": self.seed,
+            "passed": self.passed(),
+            "cycles": self.cycles,
+            "transactions_in": self.inputs_sent,
+            "transactions_out": self.outputs_received,
+            "matched": self.matched,
+            "mismatches": self.mismatches,
+            "inputs_per_cycle": self.inputs_per_cycle(),
+            "wall_seconds": self.wall.as_secs_f64(),
+            "accounting": {
+                "inputs": self.accounting.inputs,
+                "expected_outputs": self.accounting.expected_outputs,
+                "delivered_outputs": self.accounting.delivered_outputs,
+                "duplicated_outputs": self.accounting.duplicated_outputs,
+                "inputs_with_lost_outputs": self.accounting.inputs_with_lost_outputs,
+                "balanced": self.accounting.balanced(),
+            },
+            "first_mismatch": mismatch,
+            "hang": self.hang.as_ref().map(|h| json!({
+                "cycle": h.cycle,
+                "idle_cycles": h.idle_cycles,
+                "ports": h.ports.iter().map(|(n, v)| json!({"name": n, "value": v})).collect::<Vec<_>>(),
+            })),
+            "vcd": self.vcd.as_ref().map(|p| p.display().to_string()),
+            "reproduce": self.reproduce,
+        })
+    }
+}
+
 impl fmt::Display for BenchReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
@@ -162,6 +208,20 @@ impl fmt::Display for BenchReport {
     }
 }
 
+/// Progress of a run, given to the callback of `run_stream_bench_with_progress`.
+#[derive(Clone, Copy, Debug)]
+pub struct Progress {
+    /// Cycles so far.
+    pub cycle: u64,
+    /// Outputs compared so far.
+    pub outputs: u64,
+    /// Outputs expected in total.
+    pub expected_outputs: u64,
+}
+
+/// Cycles between two progress callbacks.
+pub const PROGRESS_EVERY: u64 = 4096;
+
 /// Run `vectors` through `engine` once; `window` optionally traces some cycles.
 pub fn run_stream_bench(
     engine: &mut dyn Engine,
@@ -169,7 +229,20 @@ pub fn run_stream_bench(
     vectors: &[Vector],
     decoder: Option<Box<FieldDecoder>>,
     config: &BenchConfig,
+    window: Option<TraceWindow>,
+) -> Result<BenchReport> {
+    run_stream_bench_with_progress(engine, names, vectors, decoder, config, window, &mut |_| {})
+}
+
+/// `run_stream_bench` calling `progress` every `PROGRESS_EVERY` cycles (for a progress bar).
+pub fn run_stream_bench_with_progress(
+    engine: &mut dyn Engine,
+    names: &StreamNames,
+    vectors: &[Vector],
+    decoder: Option<Box<FieldDecoder>>,
+    config: &BenchConfig,
     mut window: Option<TraceWindow>,
+    progress: &mut dyn FnMut(Progress),
 ) -> Result<BenchReport> {
     let start = Instant::now();
     let design = engine.design().clone();
@@ -187,6 +260,7 @@ pub fn run_stream_bench(
         driver.push(v.input.clone());
         scoreboard.expect_input(v.outputs.clone());
     }
+    let expected_outputs = scoreboard.outstanding() as u64;
 
     if let Some(w) = window.as_mut() {
         if w.from <= u64::from(config.reset_cycles) {
@@ -230,6 +304,13 @@ pub fn run_stream_bench(
         if let Some(h) = watchdog.check(engine) {
             hang = Some(h);
             break;
+        }
+        if engine.cycle() % PROGRESS_EVERY == 0 {
+            progress(Progress {
+                cycle: engine.cycle(),
+                outputs: scoreboard.compared(),
+                expected_outputs,
+            });
         }
         engine.step()?;
     }

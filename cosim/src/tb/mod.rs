@@ -12,7 +12,8 @@ pub mod watchdog;
 
 pub use accounting::{Accounting, AccountingReport};
 pub use bench::{
-    run_stream_bench, run_with_vcd_on_failure, BenchConfig, BenchReport, StreamNames, Vector,
+    run_stream_bench, run_stream_bench_with_progress, run_with_vcd_on_failure, BenchConfig,
+    BenchReport, Progress, StreamNames, Vector,
 };
 pub use driver::StreamDriver;
 pub use monitor::StreamMonitor;

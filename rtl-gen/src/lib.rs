@@ -44,6 +44,10 @@ pub mod verilog;
 pub mod words;
 
 pub use bits::{Bits, DoesNotFit};
+
+/// The widest signal the DSL accepts (16 Mi bits): wider is a width error,
+/// so a typo cannot allocate gigabytes.
+pub const MAX_WIDTH: u32 = 1 << 24;
 pub use diagnostic::{DiagKind, Diagnostic, Diagnostics, Loc, Severity};
 pub use graph::{CmpOp, Direction, CLOCK, RESET};
 pub use instance::Instance;

@@ -153,12 +153,12 @@ impl Module {
         port: Option<Direction>,
         loc: Loc,
     ) -> Result<NodeId, Signal<'_>> {
-        if width == 0 {
+        if width == 0 || width > crate::MAX_WIDTH {
             return Err(self.fail(
                 DiagKind::Width,
                 Some(name.into()),
                 loc,
-                "a signal needs at least one bit".into(),
+                format!("a signal needs 1 to {} bits, not {width}", crate::MAX_WIDTH),
                 1,
             ));
         }
@@ -522,7 +522,16 @@ impl Module {
         if parts.len() == 1 {
             return first.as_unsigned();
         }
-        let width: u32 = parts.iter().map(|p| p.width()).sum();
+        let width: u64 = parts.iter().map(|p| p.width() as u64).sum();
+        let Some(width) = u32::try_from(width).ok().filter(|&w| w <= crate::MAX_WIDTH) else {
+            return self.fail(
+                DiagKind::Width,
+                None,
+                loc,
+                format!("concatenation of {width} bits is too wide"),
+                1,
+            );
+        };
         let base = self.graph().node(first.id).base.clone();
         let id = self.add_node(
             Op::Concat(parts.iter().map(|p| p.id).collect()),

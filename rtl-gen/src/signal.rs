@@ -450,6 +450,14 @@ impl<'m> Signal<'m> {
 
     pub(crate) fn ext_at(self, width: u32, signed: bool, loc: Loc) -> Signal<'m> {
         let w = self.width();
+        if width > crate::MAX_WIDTH {
+            return self.fail(
+                DiagKind::Width,
+                loc,
+                format!("cannot extend to {width} bits (above {})", crate::MAX_WIDTH),
+                1,
+            );
+        }
         if width < w {
             return self.fail(
                 DiagKind::Width,
@@ -550,6 +558,9 @@ impl<'m> Signal<'m> {
         if !self.m.owns(low, loc) {
             return self;
         }
+        if self.width() as u64 + low.width() as u64 > crate::MAX_WIDTH as u64 {
+            return self.fail(DiagKind::Width, loc, "concatenation too wide".into(), 1);
+        }
         self.derive(
             Op::Concat(vec![self.id, low.id]),
             self.width() + low.width(),
@@ -586,6 +597,14 @@ impl<'m> Signal<'m> {
     fn arith(self, op: BinOp, other: impl IntoSignal<'m>, width: u32, loc: Loc) -> Signal<'m> {
         let b = other.into_signal_like(self, loc);
         let (wa, wb) = (self.width(), b.width());
+        if width > crate::MAX_WIDTH {
+            return self.fail(
+                DiagKind::Width,
+                loc,
+                format!("result width {width} is above {}", crate::MAX_WIDTH),
+                1,
+            );
+        }
         if width == 0 || width < wa.max(wb) {
             return self.fail(
                 DiagKind::Width,

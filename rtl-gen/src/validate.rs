@@ -54,6 +54,7 @@ pub(crate) fn check_graph(g: &Graph) -> Vec<Diagnostic> {
         return g.errors.clone();
     }
     let mut out = Vec::new();
+    check_instances_current(g, &mut out);
     check_drivers(g, &mut out);
     match g.instance_comb_inputs(0) {
         Ok(deps) => check_loops(g, &deps, &mut out),
@@ -86,6 +87,40 @@ fn diag(
         location,
         message,
         related: Vec::new(),
+    }
+}
+
+/// Each instance still matches its child's ports (the child was finished first).
+fn check_instances_current(g: &Graph, out: &mut Vec<Diagnostic>) {
+    for inst in &g.insts {
+        if let Ok(child) = inst.child.try_borrow() {
+            let now: Vec<(String, u32)> = child
+                .ports
+                .iter()
+                .map(|&p| (child.describe(p), child.node(p).width))
+                .collect();
+            let then: Vec<(String, u32)> = inst
+                .inputs
+                .iter()
+                .map(|i| (i.port.clone(), i.width))
+                .chain(
+                    inst.outputs
+                        .iter()
+                        .map(|(p, id)| (p.clone(), g.node(*id).width)),
+                )
+                .collect();
+            let same = now.len() == then.len() && now.iter().all(|p| then.contains(p));
+            if !same {
+                out.push(diag(
+                    g,
+                    Severity::Error,
+                    DiagKind::Misuse,
+                    Some(inst.name.clone()),
+                    inst.loc,
+                    format!("module `{}` gained or changed ports after it was instantiated here; finish it first", child.name),
+                ));
+            }
+        }
     }
 }
 

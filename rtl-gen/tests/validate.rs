@@ -367,3 +367,27 @@ fn every_construction_error_is_reported_at_once() {
     let errs = m.validate().unwrap_err();
     assert_eq!(errs.errors().count(), 3, "{errs}");
 }
+
+#[test]
+fn absurd_widths_are_errors_not_allocations() {
+    let m = Module::new("m");
+    let a = m.input("a", u32::MAX);
+    m.output("y", a);
+    assert!(m.validate().unwrap_err().has(DiagKind::Width));
+}
+
+#[test]
+fn changing_a_child_after_instantiation_is_an_error() {
+    let child = Module::new("child");
+    let a = child.input("a", 1);
+    let top = Module::new("top");
+    let u = top.instance("u", &child);
+    u.connect("a", top.input("x", 1));
+    child.output("late", a);
+    top.output("y", top.input("z", 1));
+    assert!(top
+        .validate()
+        .unwrap_err()
+        .to_string()
+        .contains("after it was instantiated"));
+}

@@ -66,6 +66,7 @@ impl NodeRecord {
     /// Packs the record into `layout`'s bits. Every field is checked against
     /// its width (an error, never truncation); meaning is checked by
     /// [`NodeRecord::validate`], not here, so corrupt records can be packed on purpose.
+    #[allow(clippy::needless_range_loop)] // per-axis loops over parallel arrays
     pub fn pack(&self, layout: &NodeLayout) -> Result<Bits, LayoutError> {
         let mut b = layout.zero();
         b.set(layout.leaf(), self.leaf as u64)?;

@@ -112,7 +112,7 @@ mod tests {
                         let base = (odd as u32) * n;
                         // In child-cell units the parent box [2 pl, 2 ph + 2) holds [base+lo, base+hi+1).
                         assert!(2 * pl as u32 <= base + lo);
-                        assert!(2 * ph as u32 + 2 >= base + hi + 1);
+                        assert!(2 * ph as u32 + 2 > base + hi);
                         assert!(pl <= ph && (ph as u32) < n);
                         // Tight: one cell less on either side would not contain it.
                         assert!(2 * (pl as u32 + 1) > base + lo);

@@ -104,7 +104,7 @@ mod tests {
                 s = s
                     .wrapping_mul(6364136223846793005)
                     .wrapping_add(1442695040888963407);
-                (((s >> 20) as u128) % 300 | ((s as u128 & 3) << 90), i)
+                ((((s >> 20) as u128) % 300) | ((s as u128 & 3) << 90), i)
             })
             .collect();
         let mut expect = v.clone();

@@ -83,6 +83,7 @@ fn leaves_by_lod(entries: &[LeafEntry], p: &Params) -> Vec<Vec<LevelNode>> {
 /// One inner node per parent voxel of `level` (sorted by Morton, so the
 /// children of a parent are a contiguous run); the parent's box is the union
 /// of its children's boxes rounded outward into its own cells.
+#[allow(clippy::needless_range_loop)] // per-axis loops over parallel arrays
 pub(crate) fn group_by_parent(level: &[LevelNode], quant_bits: u8) -> Vec<LevelNode> {
     let mut out = Vec::with_capacity(level.len() / 2 + 1);
     let mut i = 0;

@@ -276,6 +276,7 @@ pub fn run_stream_bench_with_progress(
     watchdog.progress(engine.cycle());
     let mut hang = None;
     let mut drain_left: Option<u64> = None;
+    let mut next_progress = 0;
     loop {
         if let Some(w) = window.as_mut() {
             w.update(engine)?;
@@ -305,7 +306,8 @@ pub fn run_stream_bench_with_progress(
             hang = Some(h);
             break;
         }
-        if engine.cycle() % PROGRESS_EVERY == 0 {
+        if engine.cycle() >= next_progress {
+            next_progress = engine.cycle() + PROGRESS_EVERY;
             progress(Progress {
                 cycle: engine.cycle(),
                 outputs: scoreboard.compared(),

@@ -57,3 +57,8 @@ pub use signal::{IntoSignal, ShiftAmount, ShiftBy, Signal};
 pub use sim::{Sim, SimError};
 pub use stream::Stream;
 pub use verilog::{emit_design, emit_verilog, write_design, DesignError};
+
+/// The README's code examples, compiled and run as doctests.
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;

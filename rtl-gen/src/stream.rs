@@ -112,17 +112,17 @@ impl<'m> Stream<'m> {
         let w = self.data.width();
         let out_valid = m.reg(&format!("{name}_valid"), 1);
         let out_data = m.reg(&format!("{name}_data"), w);
-        let skid_valid = m.reg(&format!("{name}_skid_valid"), 1);
-        let skid_data = m.reg(&format!("{name}_skid_data"), w);
+        let spare_valid = m.reg(&format!("{name}_spare_valid"), 1);
+        let spare_data = m.reg(&format!("{name}_spare_data"), w);
         let ready = m.wire(&format!("{name}_ready"), 1);
-        self.ready.drive(!skid_valid);
+        self.ready.drive(!spare_valid);
         // The output register moves when it is empty or being taken.
         let drain = ready | !out_valid;
-        let take = self.valid & !skid_valid;
-        out_valid.next(drain.mux(skid_valid | self.valid, out_valid));
-        out_data.next_when(drain, skid_valid.mux(skid_data, self.data));
-        skid_valid.next(drain.mux(m.lit(0, 1), skid_valid | take));
-        skid_data.next_when(!drain & take, self.data);
+        let take = self.valid & !spare_valid;
+        out_valid.next(drain.mux(spare_valid | self.valid, out_valid));
+        out_data.next_when(drain, spare_valid.mux(spare_data, self.data));
+        spare_valid.next(drain.mux(m.lit(0, 1), spare_valid | take));
+        spare_data.next_when(!drain & take, self.data);
         Stream {
             valid: out_valid,
             ready,

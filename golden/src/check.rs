@@ -46,6 +46,18 @@ pub trait CheckView {
     fn exact_coverage(&self) -> bool {
         true
     }
+
+    /// False (the default): hierarchy `id`'s leaves are checked placed,
+    /// against [`CheckView::triangles`] in the checked hierarchy's grid.
+    /// True: they are checked as stored, in the hierarchy's own (local)
+    /// frame, and `triangles(id)` must then be local: far from the origin a
+    /// moved binary64 vertex loses the precision the leaf boxes were built
+    /// with (paragraph 71); a voxel-aligned move does not change a box
+    /// relative to its voxel, so the local check is the placed one, exactly.
+    fn leaves_in_local_frame(&self, id: u8) -> bool {
+        let _ = id;
+        false
+    }
 }
 
 /// The view for a built hierarchy alone: its triangles, nothing else.
@@ -516,7 +528,9 @@ impl<'a, V: CheckView + ?Sized> Walk<'a, V> {
             self.report.deepest_lod = self.report.deepest_lod.max(n.voxel.lod);
             if n.leaf {
                 self.report.leaves += 1;
-                self.check_leaf(r, &n, rh)?;
+                let stored = rh.nodes[r.node as usize];
+                let frame = if self.view.leaves_in_local_frame(r.hier) { stored } else { n };
+                self.check_leaf(r, &frame, rh)?;
                 continue;
             }
             self.report.inner += 1;

@@ -4,11 +4,13 @@
 //! SPEC.md at the repository root is the specification these modules implement.
 
 pub mod build;
+pub mod camera;
 pub mod check;
 pub mod geom;
 pub mod grid;
 pub mod mesh;
 pub mod layout;
+pub mod merge;
 pub mod params;
 pub mod scenes;
 pub mod store;

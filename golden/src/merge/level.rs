@@ -1,0 +1,203 @@
+//! S608, the merging level determining unit (508), paragraphs 53-55.
+//!
+//! `occupied(i, l)` is the set of LOD-`l` voxels holding a node (inner or
+//! leaf) of input `i` at LOD `l`, after translation. For `l` at or below an
+//! input's top every deeper node has its ancestor at `l` among the input's
+//! nodes (children are exactly one LOD below their parent), so this is also
+//! "the voxels the input covers at `l`", and one LOD's nodes are one stream.
+//! `shared(l)` counts voxels occupied by two or more inputs, `union(l)` by
+//! any ([`overlap_counts`], a k-way merge of Morton-sorted streams).
+
+use super::error::MergeError;
+use super::walk::WalkedInput;
+use super::MergeMode;
+use crate::store::Hierarchy;
+
+/// The overlap at one candidate level.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+pub struct LevelOverlap {
+    pub lod: u8,
+    /// Voxels occupied by two or more inputs.
+    pub shared: u64,
+    /// Voxels occupied by any input.
+    pub union: u64,
+}
+
+/// The candidate merging levels `[lo, hi]`: `lo` is the deepest top LOD of
+/// the inputs (every input has its top at or above it), `hi` is
+/// `max(lo, min_i deep(i))` where `deep(i)` is the deepest LOD of an inner
+/// node of input `i` (its top LOD when it has none): the deepest level at
+/// which every input that has inner nodes still has one.
+pub fn candidate_range(inputs: &[&Hierarchy]) -> (u8, u8) {
+    let lo = inputs.iter().map(|h| h.top_lod).max().unwrap_or(0);
+    let deep = inputs
+        .iter()
+        .map(|h| {
+            h.nodes
+                .iter()
+                .filter(|n| !n.leaf)
+                .map(|n| n.voxel.lod)
+                .max()
+                .unwrap_or(h.top_lod)
+        })
+        .min()
+        .unwrap_or(lo);
+    (lo, deep.max(lo))
+}
+
+/// `(shared, union)` over `k` streams of voxel keys of one LOD, each sorted
+/// ascending (repeats allowed: an inner node and a leaf at one voxel). The
+/// hardware shape: each step takes the smallest head, consumes it from every
+/// stream whose head equals it, and counts one voxel; the voxel is shared
+/// when two or more streams held it.
+pub fn overlap_counts<I: Iterator<Item = u128>>(streams: Vec<I>) -> (u64, u64) {
+    let mut streams: Vec<std::iter::Peekable<I>> =
+        streams.into_iter().map(|s| s.peekable()).collect();
+    let (mut shared, mut union) = (0u64, 0u64);
+    loop {
+        let Some(v) = streams.iter_mut().filter_map(|s| s.peek().copied()).min() else {
+            return (shared, union);
+        };
+        let mut holders = 0;
+        for s in streams.iter_mut() {
+            let mut held = false;
+            while s.peek() == Some(&v) {
+                s.next();
+                held = true;
+            }
+            holders += held as u32;
+        }
+        union += 1;
+        shared += (holders >= 2) as u64;
+    }
+}
+
+/// The Morton-sorted translated voxel stream of input `w` at LOD `lod`
+/// (sorting restores the order a translation may break).
+pub fn occupied_stream(w: &WalkedInput, lod: u8) -> Vec<u128> {
+    let mut v: Vec<u128> = w
+        .by_lod
+        .get(lod as usize)
+        .map(|l| l.iter().map(|n| n.record.voxel.morton()).collect())
+        .unwrap_or_default();
+    v.sort_unstable();
+    v
+}
+
+/// The overlap of every level in `[lo, hi]`, from inputs walked down to `hi`.
+pub fn overlaps(walked: &[WalkedInput], lo: u8, hi: u8) -> Vec<LevelOverlap> {
+    (lo..=hi)
+        .map(|lod| {
+            let streams = walked
+                .iter()
+                .map(|w| occupied_stream(w, lod).into_iter())
+                .collect();
+            let (shared, union) = overlap_counts(streams);
+            LevelOverlap { lod, shared, union }
+        })
+        .collect()
+}
+
+/// `shared * den > num * union`, exactly.
+pub fn above_threshold(o: &LevelOverlap, num: u32, den: u32) -> bool {
+    o.shared as u128 * den as u128 > num as u128 * o.union as u128
+}
+
+/// Checks `0 <= num <= den`, `den >= 1`.
+pub fn check_ratio(mode: &'static str, num: u32, den: u32) -> Result<(), MergeError> {
+    if den == 0 || num > den {
+        return Err(MergeError::BadRatio { mode, num, den });
+    }
+    Ok(())
+}
+
+/// The merging level of a level mode over candidates `[lo, hi]`; `overlap`
+/// is needed by (and only read in) [`MergeMode::Overlap`]. `None` for
+/// [`MergeMode::PerNode`], which has no single level.
+pub fn choose_level(
+    mode: &MergeMode,
+    lo: u8,
+    hi: u8,
+    overlap: &[LevelOverlap],
+) -> Result<Option<u8>, MergeError> {
+    match *mode {
+        MergeMode::Overlap { num, den } => {
+            check_ratio("Overlap", num, den)?;
+            let deepest = overlap
+                .iter()
+                .filter(|o| above_threshold(o, num, den))
+                .map(|o| o.lod)
+                .max();
+            Ok(Some(deepest.unwrap_or(lo)))
+        }
+        MergeMode::Fixed(level) => {
+            if level < lo || level > hi {
+                return Err(MergeError::LevelNotCandidate { level, lo, hi });
+            }
+            Ok(Some(level))
+        }
+        MergeMode::BelowTop(k) => {
+            if lo as u16 + k as u16 > hi as u16 {
+                return Err(MergeError::BelowTopTooDeep { k, lo, hi });
+            }
+            Ok(Some(lo + k))
+        }
+        MergeMode::Proportion { num, den } => {
+            check_ratio("Proportion", num, den)?;
+            let depth = (hi - lo) as u64 * num as u64 / den as u64;
+            Ok(Some(lo + depth as u8))
+        }
+        MergeMode::PerNode { num, den } => {
+            check_ratio("PerNode", num, den)?;
+            Ok(None)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn overlap_counts_groups_by_voxel_across_streams() {
+        let s = vec![
+            vec![1u128, 3, 3, 7].into_iter(),
+            vec![3u128, 4, 7].into_iter(),
+            vec![].into_iter(),
+            vec![7u128, 9].into_iter(),
+        ];
+        // voxels 1, 3, 4, 7, 9; shared: 3 (two), 7 (three).
+        assert_eq!(overlap_counts(s), (2, 5));
+        assert_eq!(
+            overlap_counts(Vec::<std::vec::IntoIter<u128>>::new()),
+            (0, 0)
+        );
+    }
+
+    #[test]
+    fn thresholds_are_strict_and_exact() {
+        let o = LevelOverlap {
+            lod: 3,
+            shared: 1,
+            union: 2,
+        };
+        assert!(!above_threshold(&o, 1, 2));
+        assert!(above_threshold(&o, 49, 100));
+        assert!(above_threshold(&o, 0, 1));
+        let full = LevelOverlap {
+            lod: 3,
+            shared: 5,
+            union: 5,
+        };
+        assert!(!above_threshold(&full, 1, 1));
+        assert_eq!(
+            check_ratio("x", 3, 2),
+            Err(MergeError::BadRatio {
+                mode: "x",
+                num: 3,
+                den: 2
+            })
+        );
+        assert!(check_ratio("x", 0, 0).is_err());
+    }
+}

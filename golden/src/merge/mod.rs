@@ -1,0 +1,278 @@
+//! The hierarchy merging module (FIG. 5/6, paragraphs 53-68; SPEC.md
+//! section 8): merges translated input hierarchies into a new hierarchy
+//! whose records reference the inputs' nodes, leaving the inputs untouched.
+//!
+//! The stages, each a stream stage the RTL mirrors:
+//! 1. [`level`]: S608, the merging level (unit 508): candidate levels, the
+//!    overlap counts per level, the mode's choice.
+//! 2. [`walk`]: S610 + S612: each input walked from its top down to the
+//!    merging level, every node translated; leaves above the level and the
+//!    nodes at it collected.
+//! 3. [`level_merge`]: S614: merged nodes at the merging level, grouped by
+//!    voxel over the Morton-sorted union of the inputs' nodes
+//!    ([`per_node`] for the per-node mode of paragraph 55).
+//! 4. [`upper`]: S616: the upper levels, with the builder's grouping and top
+//!    rule (shared code), and the records' layout.
+//! 5. [`merge`] / [`merge_into`]: S618, the merged hierarchy (and its
+//!    statistics); [`merge_into`] stores it.
+//!
+//! [`view`] gives the checker and traversal what they need to read a merged
+//! hierarchy through its inputs' translations.
+
+pub mod error;
+pub mod instances;
+pub mod level;
+pub mod level_merge;
+pub mod per_node;
+pub mod upper;
+pub mod view;
+pub mod walk;
+
+pub use error::MergeError;
+pub use level::{overlap_counts, LevelOverlap};
+pub use view::MergedCheckView;
+
+use serde::Serialize;
+
+use crate::params::Params;
+use crate::store::{Hierarchy, HierarchyStore};
+use crate::translate::{Translation, TranslationTable};
+use level_merge::LevelMergeCounts;
+use per_node::{PerNode, PerNodeCounts};
+use walk::{collect, walk_input, WalkedInput};
+
+/// How the merging level is chosen (paragraphs 53-55).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum MergeMode {
+    /// The deepest candidate level whose overlap is above `num / den`
+    /// (strictly: `shared * den > num * union`); the shallowest candidate
+    /// when none is. Default 1/2 (53).
+    Overlap { num: u32, den: u32 },
+    /// A user-specified level (54); an error unless it is a candidate.
+    Fixed(u8),
+    /// `k` levels below the top: `lo + k` (54); an error beyond `hi`.
+    BelowTop(u8),
+    /// A proportion of the depth: `lo + floor((hi - lo) num / den)` (54).
+    Proportion { num: u32, den: u32 },
+    /// No single level: the merged sub-hierarchies' roots are chosen per
+    /// node by the overlap of their children (55, [`per_node`]).
+    PerNode { num: u32, den: u32 },
+}
+
+impl Default for MergeMode {
+    fn default() -> Self {
+        MergeMode::Overlap { num: 1, den: 2 }
+    }
+}
+
+/// What a merge did.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct MergeStats {
+    /// Candidate merging levels `[lo, hi]`.
+    pub candidates: (u8, u8),
+    /// Overlap at every candidate level (overlap mode only; empty otherwise,
+    /// which then need not walk below the merging level).
+    pub overlap: Vec<LevelOverlap>,
+    /// Input nodes walked and translated (S610-S612).
+    pub nodes_walked: u64,
+    /// Input leaves above the merging level, taken as they are (S610).
+    pub leaves_above: u64,
+    /// S614: created merged nodes, reused input inner nodes and leaves.
+    pub level_merge: LevelMergeCounts,
+    /// Per-node mode: descents and the deepest created node.
+    pub per_node: PerNodeCounts,
+    /// Records made by S616's grouping.
+    pub upper_nodes: u64,
+    /// Reused inner nodes copied to be roots.
+    pub materialized: u64,
+    /// Extra groupings because a reused leaf reached the top.
+    pub lifted: u64,
+    /// Records of the merged hierarchy per LOD, `(lod, count)`, top first.
+    pub nodes_per_level: Vec<(u8, u64)>,
+    /// References of the merged hierarchy naming an input.
+    pub refs_to_inputs: u64,
+}
+
+impl MergeStats {
+    /// Records created by the merge (S614 + S616 + materialized roots).
+    pub fn created(&self) -> u64 {
+        self.level_merge.created + self.upper_nodes + self.materialized
+    }
+
+    /// Input nodes the merged hierarchy references directly instead of
+    /// making a node for them: reused inner nodes and leaves at the merging
+    /// level(s), and leaves above it.
+    pub fn reused(&self) -> u64 {
+        self.level_merge.reused_inner + self.level_merge.reused_leaves + self.leaves_above
+    }
+}
+
+/// The merged hierarchy, its merging level (`None` in per-node mode) and
+/// what the merge did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MergeResult {
+    pub merged: Hierarchy,
+    pub level: Option<u8>,
+    pub stats: MergeStats,
+}
+
+/// The inputs and their translations, checked.
+fn resolve_inputs<'a>(
+    store: &'a HierarchyStore,
+    inputs: &[u8],
+    table: &TranslationTable,
+    out_id: u8,
+) -> Result<(Vec<&'a Hierarchy>, Vec<Translation>, Params), MergeError> {
+    let first = *inputs.first().ok_or(MergeError::NoInputs)?;
+    let params = store
+        .get(first)
+        .ok_or(MergeError::UnknownInput(first))?
+        .params;
+    let mut hs: Vec<&Hierarchy> = Vec::with_capacity(inputs.len());
+    let mut ts = Vec::with_capacity(inputs.len());
+    for (k, &id) in inputs.iter().enumerate() {
+        if inputs[..k].contains(&id) {
+            return Err(MergeError::DuplicateInput(id));
+        }
+        let h = store.get(id).ok_or(MergeError::UnknownInput(id))?;
+        if h.params != params {
+            return Err(MergeError::ParamsMismatch {
+                input: id,
+                expected: params,
+                found: h.params,
+            });
+        }
+        let t = table
+            .read(id as u32)
+            .map_err(|error| MergeError::Translation { input: id, error })?;
+        hs.push(h);
+        ts.push(t);
+    }
+    if inputs.len() > u16::MAX as usize {
+        return Err(MergeError::IndexOverflow {
+            what: "input count",
+            value: inputs.len() as u64,
+            index_bits: 16,
+        });
+    }
+    if out_id as u64 >= params.hier_capacity() {
+        return Err(MergeError::OutIdOutOfRange {
+            id: out_id,
+            hier_bits: params.hier_bits,
+        });
+    }
+    if store.get(out_id).is_some() {
+        return Err(MergeError::OutIdInUse(out_id));
+    }
+    Ok((hs, ts, params))
+}
+
+fn walk_all(
+    hs: &[&Hierarchy],
+    ts: &[Translation],
+    down_to: u8,
+) -> Result<Vec<WalkedInput>, MergeError> {
+    hs.iter()
+        .zip(ts)
+        .enumerate()
+        .map(|(rank, (h, t))| walk_input(h, rank as u16, t, down_to))
+        .collect()
+}
+
+/// Merges hierarchies `inputs` of `store`, each placed by its entry in
+/// `table`, into a new hierarchy with id `out_id` (S608-S618; SPEC.md
+/// section 8). Reads the store only: see [`merge_into`] to store the result.
+pub fn merge(
+    store: &HierarchyStore,
+    inputs: &[u8],
+    table: &TranslationTable,
+    mode: MergeMode,
+    out_id: u8,
+) -> Result<MergeResult, MergeError> {
+    let (hs, ts, p) = resolve_inputs(store, inputs, table, out_id)?;
+    let (lo, hi) = level::candidate_range(&hs);
+    let mut stats = MergeStats {
+        candidates: (lo, hi),
+        ..MergeStats::default()
+    };
+    let (base, level) = match mode {
+        MergeMode::PerNode { num, den } => {
+            level::check_ratio("PerNode", num, den)?;
+            let walked = walk_all(&hs, &ts, lo)?;
+            let (above, first_level) = collect(&walked, lo);
+            stats.nodes_walked = walked_count(&walked);
+            stats.leaves_above = above.len() as u64;
+            let decider = PerNode {
+                inputs: &hs,
+                translations: &ts,
+                params: p,
+                num,
+                den,
+            };
+            let mut base: Vec<_> = above.iter().map(level_merge::BaseNode::reused).collect();
+            base.extend(decider.merge_from(
+                first_level,
+                &mut stats.level_merge,
+                &mut stats.per_node,
+            )?);
+            (base, None)
+        }
+        _ => {
+            let walked;
+            let m = if let MergeMode::Overlap { num, den } = mode {
+                level::check_ratio("Overlap", num, den)?;
+                walked = walk_all(&hs, &ts, hi)?;
+                stats.overlap = level::overlaps(&walked, lo, hi);
+                level::choose_level(&mode, lo, hi, &stats.overlap)?.unwrap_or(lo)
+            } else {
+                let m = level::choose_level(&mode, lo, hi, &[])?.unwrap_or(lo);
+                walked = walk_all(&hs, &ts, m)?;
+                m
+            };
+            stats.nodes_walked = walked_count(&walked);
+            let (above, at_level) = collect(&walked, m);
+            stats.leaves_above = above.len() as u64;
+            let mut base: Vec<_> = above.iter().map(level_merge::BaseNode::reused).collect();
+            base.extend(level_merge::merge_level(
+                at_level,
+                &hs,
+                &p,
+                &mut stats.level_merge,
+            )?);
+            (base, Some(m))
+        }
+    };
+    let (merged, upper) = upper::build_upper(&base, &hs, &p, out_id)?;
+    stats.upper_nodes = upper.grouped;
+    stats.materialized = upper.materialized;
+    stats.lifted = upper.lifted;
+    stats.nodes_per_level = upper.nodes_per_level;
+    stats.refs_to_inputs = merged.refs.iter().filter(|r| r.hier != out_id).count() as u64;
+    Ok(MergeResult {
+        merged,
+        level,
+        stats,
+    })
+}
+
+fn walked_count(walked: &[WalkedInput]) -> u64 {
+    walked
+        .iter()
+        .map(|w| w.by_lod.iter().map(|l| l.len() as u64).sum::<u64>())
+        .sum()
+}
+
+/// [`merge`], then S618: the merged hierarchy is stored under `out_id`; the
+/// inputs stay in the store untouched (paragraph 66). Returns the result
+/// (its `merged` is a copy of what was stored).
+pub fn merge_into(
+    store: &mut HierarchyStore,
+    inputs: &[u8],
+    table: &TranslationTable,
+    mode: MergeMode,
+    out_id: u8,
+) -> Result<MergeResult, MergeError> {
+    let r = merge(store, inputs, table, mode, out_id)?;
+    store.insert(r.merged.clone()).map_err(MergeError::Store)?;
+    Ok(r)
+}

@@ -1,0 +1,205 @@
+//! S610 and S612 (paragraphs 56-58): walk each input from its top down to
+//! the merging level, translating every node it meets into the scene.
+//!
+//! The walk goes level by level (a breadth-first stream per LOD), following
+//! each inner node's references. Every node reached is moved by its input's
+//! translation ([`translate_node`]): the level determination (S608) needs
+//! the translated voxels of every candidate level, so translation happens as
+//! nodes stream past rather than as a separate pass; what S612 hands on is
+//! the translated leaves above the merging level and the translated nodes at
+//! it ([`collect`]).
+
+use super::error::MergeError;
+use crate::store::{Hierarchy, NodeRecord, Reference};
+use crate::translate::{translate_node, Translation};
+
+/// A node of an input, as it sits in the scene.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PlacedNode {
+    /// Position of the node's input in the merge's input list: the
+    /// tie-break between inputs at one voxel.
+    pub rank: u16,
+    /// Where the node is stored: (input id, node index).
+    pub at: Reference,
+    /// The stored record with its voxel translated; the box cells, `first`
+    /// and `count` are the stored ones (a box is relative to its voxel).
+    pub record: NodeRecord,
+}
+
+impl PlacedNode {
+    /// The stream key within one LOD: Morton code of the translated voxel,
+    /// then input rank, then inner before leaf.
+    pub fn key(&self) -> (u128, u16, bool) {
+        (self.record.voxel.morton(), self.rank, self.record.leaf)
+    }
+}
+
+/// One input walked from its top down to some LOD.
+#[derive(Clone, Debug)]
+pub struct WalkedInput {
+    pub id: u8,
+    pub rank: u16,
+    pub translation: Translation,
+    pub top_lod: u8,
+    /// The deepest LOD walked.
+    pub down_to: u8,
+    /// `by_lod[d]`: the translated nodes at LOD `d`, in walk order (empty
+    /// above the top and below `down_to`).
+    pub by_lod: Vec<Vec<PlacedNode>>,
+}
+
+fn bad(
+    input: u8,
+    node: Option<u32>,
+    field: &'static str,
+    expected: impl Into<String>,
+    found: impl Into<String>,
+) -> MergeError {
+    MergeError::BadInput {
+        input,
+        node,
+        field,
+        expected: expected.into(),
+        found: found.into(),
+    }
+}
+
+/// The children references of inner node `at`, checked: in range, naming
+/// the input itself (a merging input must be self-contained), existing.
+pub fn children<'h>(
+    h: &'h Hierarchy,
+    at: u32,
+    n: &NodeRecord,
+) -> Result<&'h [Reference], MergeError> {
+    let r = n.range();
+    if n.count == 0 || r.end > h.refs.len() as u64 {
+        return Err(bad(
+            h.id,
+            Some(at),
+            "first/count",
+            format!("a non-empty range within the {} refs", h.refs.len()),
+            format!("{r:?}"),
+        ));
+    }
+    let refs = &h.refs[r.start as usize..r.end as usize];
+    for c in refs {
+        if c.hier != h.id || c.node as usize >= h.nodes.len() {
+            return Err(bad(
+                h.id,
+                Some(at),
+                "reference",
+                format!("a node of hierarchy {} (below {})", h.id, h.nodes.len()),
+                format!("({}, {})", c.hier, c.node),
+            ));
+        }
+    }
+    Ok(refs)
+}
+
+/// S612 for one node: node `i` of input `h`, validated and moved by `t`.
+pub fn place_node(
+    h: &Hierarchy,
+    rank: u16,
+    t: &Translation,
+    i: u32,
+) -> Result<PlacedNode, MergeError> {
+    let n = h.nodes.get(i as usize).ok_or_else(|| {
+        bad(
+            h.id,
+            Some(i),
+            "node index",
+            format!("below {}", h.nodes.len()),
+            i.to_string(),
+        )
+    })?;
+    n.validate(&h.params)
+        .map_err(|e| bad(h.id, Some(i), e.field, e.expected, e.value.to_string()))?;
+    let voxel =
+        translate_node(n.voxel, t, &h.params).map_err(|error| MergeError::TranslateNode {
+            input: h.id,
+            node: i,
+            error,
+        })?;
+    Ok(PlacedNode {
+        rank,
+        at: Reference {
+            hier: h.id,
+            node: i,
+        },
+        record: NodeRecord { voxel, ..*n },
+    })
+}
+
+/// Walks input `h` (rank `rank`, translation `t`) from its roots down to
+/// LOD `down_to` inclusive, translating every node (S612). Errors: a
+/// malformed input (roots, ranges, references, a child not one LOD below
+/// its parent) or a node that cannot be translated.
+pub fn walk_input(
+    h: &Hierarchy,
+    rank: u16,
+    t: &Translation,
+    down_to: u8,
+) -> Result<WalkedInput, MergeError> {
+    let p = &h.params;
+    if h.root_count == 0 || h.root_count as usize > h.nodes.len() {
+        return Err(bad(
+            h.id,
+            None,
+            "root_count",
+            format!("1..={}", h.nodes.len()),
+            h.root_count.to_string(),
+        ));
+    }
+    let mut by_lod = vec![Vec::new(); p.max_lod as usize + 1];
+    let mut level: Vec<u32> = (0..h.root_count).collect();
+    let mut lod = h.top_lod;
+    loop {
+        let mut next = Vec::new();
+        for &i in &level {
+            let n = &h.nodes[i as usize];
+            if n.voxel.lod != lod {
+                return Err(bad(
+                    h.id,
+                    Some(i),
+                    "lod",
+                    format!("{lod} (its parent's plus one, or top_lod for a root)"),
+                    n.voxel.lod.to_string(),
+                ));
+            }
+            let placed = place_node(h, rank, t, i)?;
+            by_lod[lod as usize].push(placed);
+            if !n.leaf && lod < down_to {
+                next.extend(children(h, i, n)?.iter().map(|c| c.node));
+            }
+        }
+        if next.is_empty() || lod >= down_to {
+            break;
+        }
+        level = next;
+        lod += 1;
+    }
+    Ok(WalkedInput {
+        id: h.id,
+        rank,
+        translation: *t,
+        top_lod: h.top_lod,
+        down_to,
+        by_lod,
+    })
+}
+
+/// S610's result for merging level `m`: the leaves above `m` (they go into
+/// the merged hierarchy as they are) and every node at `m`, of all inputs.
+pub fn collect(walked: &[WalkedInput], m: u8) -> (Vec<PlacedNode>, Vec<PlacedNode>) {
+    let mut above = Vec::new();
+    let mut at = Vec::new();
+    for w in walked {
+        for lod in w.top_lod..m.min(w.down_to + 1) {
+            above.extend(w.by_lod[lod as usize].iter().filter(|n| n.record.leaf));
+        }
+        if let Some(level) = w.by_lod.get(m as usize) {
+            at.extend_from_slice(level);
+        }
+    }
+    (above, at)
+}

@@ -840,6 +840,66 @@ impl<'m> Signal<'m> {
         self.derive(op, then_.width(), "mux", then_.signed && e.signed, loc)
     }
 
+    /// `options[self]`: a multi-way mux indexed by this unsigned signal.
+    /// There must be exactly `2^width` options, all of one width (so every
+    /// index selects something); built as a tree of 2-way muxes.
+    ///
+    /// ```
+    /// # use rtl_gen::{Module, Sim};
+    /// let m = Module::new("m");
+    /// let idx = m.input("idx", 2);
+    /// let opts = [m.lit(10, 8), m.lit(20, 8), m.lit(30, 8), m.input("d", 8)];
+    /// m.output("y", idx.select(&opts));
+    /// let mut sim = Sim::new(&m).unwrap();
+    /// sim.poke("idx", 2u64).unwrap();
+    /// assert_eq!(sim.peek("y").unwrap().to_u64(), Some(30));
+    /// ```
+    #[track_caller]
+    pub fn select(self, options: &[Signal<'m>]) -> Signal<'m> {
+        let loc = Location::caller();
+        let w = self.width();
+        let width = options.first().map(|o| o.width()).unwrap_or(1);
+        if w >= 32 || options.len() != 1usize << w {
+            return self.fail(
+                DiagKind::Width,
+                loc,
+                format!(
+                    "a {w}-bit index needs {} options, got {}",
+                    1u64 << w.min(63),
+                    options.len()
+                ),
+                width,
+            );
+        }
+        if let Some(o) = options.iter().find(|o| o.width() != width) {
+            return self.fail(
+                DiagKind::Width,
+                loc,
+                format!(
+                    "select options differ in width: {width} and {} bits",
+                    o.width()
+                ),
+                width,
+            );
+        }
+        if options.iter().any(|o| !self.m.owns(*o, loc)) {
+            return self.m.poison(width, loc);
+        }
+        self.select_tree(options, w, loc)
+    }
+
+    /// Bit `bits - 1` of the index picks the half; recurse on the low bits.
+    fn select_tree(self, options: &[Signal<'m>], bits: u32, loc: Loc) -> Signal<'m> {
+        if bits == 0 {
+            return options[0];
+        }
+        let half = options.len() / 2;
+        let low = self.select_tree(&options[..half], bits - 1, loc);
+        let high = self.select_tree(&options[half..], bits - 1, loc);
+        self.slice_at(bits - 1, bits - 1, loc)
+            .mux_at(high, low, loc)
+    }
+
     fn reduce(self, op: RedOp, name: &'static str, loc: Loc) -> Signal<'m> {
         self.derive(Op::Reduce(op, self.id), 1, name, false, loc)
     }

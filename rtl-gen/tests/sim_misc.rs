@@ -141,3 +141,21 @@ fn registers_without_reset_keep_their_value_through_reset() {
     assert_eq!(sim.peek("k").unwrap().to_u64(), Some(5));
     assert_eq!(sim.peek("c").unwrap().to_u64(), Some(0));
 }
+
+#[test]
+fn select_picks_every_option_and_checks_its_shape() {
+    let m = Module::new("sel");
+    let idx = m.input("idx", 3);
+    let opts: Vec<_> = (0..8).map(|i| m.lit(i * 3 + 1, 6)).collect();
+    m.output("y", idx.select(&opts));
+    let mut sim = Sim::new(&m).unwrap();
+    for i in 0..8u64 {
+        sim.poke("idx", i).unwrap();
+        assert_eq!(sim.peek("y").unwrap().to_u64(), Some(i * 3 + 1));
+    }
+    let bad = Module::new("bad");
+    let idx = bad.input("idx", 2);
+    let three = [bad.lit(1, 4), bad.lit(2, 4), bad.lit(3, 4)];
+    bad.output("y", idx.select(&three));
+    assert!(bad.validate().unwrap_err().has(rtl_gen::DiagKind::Width));
+}

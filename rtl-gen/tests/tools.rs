@@ -46,11 +46,23 @@ fn operator_suites_lint_at_every_width() {
     }
 }
 
-/// Synthesis of the wide suites takes minutes; these widths cover one bit,
-/// odd widths and both sides of each 64-bit word boundary.
+/// Synthesis of every suite takes several minutes, so by default these
+/// widths cover one bit, odd widths and both sides of the 64-bit word
+/// boundaries; `RTL_GEN_FULL_SYNTH=1` synthesizes every width and signedness.
 #[test]
 fn operator_suites_synthesize_without_latches() {
-    for (w, signed) in [(1, true), (7, false), (33, true), (65, false), (129, true)] {
+    let full = std::env::var("RTL_GEN_FULL_SYNTH")
+        .map(|v| v == "1")
+        .unwrap_or(false);
+    let cases: Vec<(u32, bool)> = if full {
+        WIDTHS
+            .iter()
+            .flat_map(|&w| [(w, false), (w, true)])
+            .collect()
+    } else {
+        vec![(1, true), (7, false), (33, true), (65, false), (129, true)]
+    };
+    for (w, signed) in cases {
         check_tools(&op_suite(w, signed, true), true);
     }
 }

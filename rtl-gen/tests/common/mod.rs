@@ -9,7 +9,11 @@ use std::process::Command;
 /// otherwise a printed install hint and `false` (the caller skips).
 pub fn require_tool(tool: &str) -> bool {
     let ok = Command::new(tool)
-        .arg(if tool == "verilator" { "--version" } else { "-V" })
+        .arg(if tool == "verilator" {
+            "--version"
+        } else {
+            "-V"
+        })
         .output()
         .map(|o| o.status.success())
         .unwrap_or(false);

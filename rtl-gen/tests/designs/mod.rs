@@ -31,6 +31,7 @@ pub fn kitchen_sink() -> Module {
         ]),
     );
     m.output("mux", sel.mux(a, b.slice(4, 0)));
+    m.output("select", s.slice(1, 0).select(&[a, b, !b, a ^ b]));
     m.output(
         "red",
         m.concat(&[a.reduce_and(), a.reduce_or(), b.reduce_xor()]),

@@ -13,8 +13,9 @@ module kitchen_sink (
     output wire [19:0] shifts, // rtl-gen/tests/designs/mod.rs:18
     output wire [5:0] cmp,     // rtl-gen/tests/designs/mod.rs:22
     output wire [4:0] mux,     // rtl-gen/tests/designs/mod.rs:33
-    output wire [2:0] red,     // rtl-gen/tests/designs/mod.rs:34
-    output wire [13:0] ext     // rtl-gen/tests/designs/mod.rs:38
+    output wire [4:0] select,  // rtl-gen/tests/designs/mod.rs:34
+    output wire [2:0] red,     // rtl-gen/tests/designs/mod.rs:35
+    output wire [13:0] ext     // rtl-gen/tests/designs/mod.rs:39
 );
     wire [4:0] a_and;                        // rtl-gen/tests/designs/mod.rs:17
     wire [4:0] a_not;                        // rtl-gen/tests/designs/mod.rs:17
@@ -29,9 +30,13 @@ module kitchen_sink (
     wire a_le;                               // rtl-gen/tests/designs/mod.rs:28
     wire a_gt;                               // rtl-gen/tests/designs/mod.rs:29
     wire a_ge;                               // rtl-gen/tests/designs/mod.rs:30
-    wire a_all;                              // rtl-gen/tests/designs/mod.rs:36
-    wire a_any;                              // rtl-gen/tests/designs/mod.rs:36
-    wire b_parity;                           // rtl-gen/tests/designs/mod.rs:36
+    wire [4:0] b_not;                        // rtl-gen/tests/designs/mod.rs:34
+    wire [4:0] a_xor_1;                      // rtl-gen/tests/designs/mod.rs:34
+    wire [4:0] s_mux;                        // rtl-gen/tests/designs/mod.rs:34
+    wire [4:0] s_mux_1;                      // rtl-gen/tests/designs/mod.rs:34
+    wire a_all;                              // rtl-gen/tests/designs/mod.rs:37
+    wire a_any;                              // rtl-gen/tests/designs/mod.rs:37
+    wire b_parity;                           // rtl-gen/tests/designs/mod.rs:37
 
     assign sum = {1'b0, a} + {1'b0, b};
     assign diff = {a[4], a} - {b[4], b};
@@ -52,6 +57,11 @@ module kitchen_sink (
     assign a_ge = $signed({a[4], a}) >= $signed({1'b0, b});
     assign cmp = {a_eq, a_ne, a_lt, a_le, a_gt, a_ge};
     assign mux = sel ? a : b;
+    assign b_not = ~b;
+    assign a_xor_1 = a ^ b;
+    assign s_mux = s[0] ? b : a;
+    assign s_mux_1 = s[0] ? a_xor_1 : b_not;
+    assign select = s[1] ? s_mux_1 : s_mux;
     assign a_all = &a;
     assign a_any = |a;
     assign b_parity = ^b;

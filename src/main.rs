@@ -1,4 +1,45 @@
 //! The hiermerge command-line program.
+//!
+//! Every subcommand builds one report (a `serde::Serialize` value); `--json`
+//! prints it as one JSON object on stdout, otherwise it is printed for people.
+//! Errors go to stderr with a non-zero exit status, never a panic.
+
+mod cmd;
+mod image;
+mod report;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(
+    name = "hiermerge",
+    version,
+    about = "Hierarchy merging and voxel-granular translation for ray-tracing acceleration hierarchies (US 12,386,806)"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Build one hierarchy per mesh and report nodes per LOD, leaves, depth and build speed.
+    Build(cmd::build::Args),
+    /// Trace random rays through a mesh's hierarchy; --verify compares with brute force.
+    Trace(cmd::trace::Args),
+    /// The main job: build, (merge,) and trace a scene; with no argument, the embedded default scene.
+    Run(cmd::run::Args),
+}
+
 fn main() {
-    println!("hiermerge: under construction");
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Build(a) => cmd::build::main(a),
+        Command::Trace(a) => cmd::trace::main(a),
+        Command::Run(a) => cmd::run::main(a),
+    };
+    if let Err(e) = result {
+        eprintln!("error: {e}");
+        std::process::exit(1);
+    }
 }

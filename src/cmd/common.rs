@@ -1,0 +1,102 @@
+//! Options and steps shared by several subcommands.
+
+use std::path::{Path, PathBuf};
+
+use golden::build::{build, GridMap};
+use golden::mesh::Mesh;
+use golden::store::Hierarchy;
+use golden::Params;
+use serde::Serialize;
+
+/// The grid parameters every building command takes.
+#[derive(clap::Args, Clone, Debug)]
+pub struct GridOpts {
+    /// D: the deepest octree level (1..=31).
+    #[arg(long = "max-lod", default_value_t = Params::default().max_lod)]
+    pub max_lod: u8,
+    /// Q: bits per quantized box bound (0..=16; 0: boxes are voxels).
+    #[arg(long = "quant-bits", default_value_t = Params::default().quant_bits)]
+    pub quant_bits: u8,
+    /// Bits of node, reference and primitive indices (1..=32).
+    #[arg(long = "index-bits", default_value_t = Params::default().index_bits)]
+    pub index_bits: u8,
+    /// Bits of a hierarchy id (1..=8).
+    #[arg(long = "hier-bits", default_value_t = Params::default().hier_bits)]
+    pub hier_bits: u8,
+}
+
+impl GridOpts {
+    pub fn params(&self) -> Result<Params, String> {
+        Params::new(
+            self.max_lod,
+            self.quant_bits,
+            self.index_bits,
+            self.hier_bits,
+        )
+        .map_err(|e| e.to_string())
+    }
+}
+
+/// Loads a mesh, with the file named in any error.
+pub fn load_mesh(path: &Path) -> Result<Mesh, String> {
+    Mesh::load(path).map_err(|e| e.to_string())
+}
+
+/// A hierarchy built over one mesh, with the grid map that placed it.
+pub struct Built {
+    pub mesh: Mesh,
+    pub grid: GridMap,
+    pub hierarchy: Hierarchy,
+    pub seconds: f64,
+}
+
+/// Builds `mesh` into a grid fitted to its bounds, timing only the build.
+pub fn build_fitted(path: PathBuf, mesh: Mesh, params: &Params, id: u8) -> Result<Built, String> {
+    let (lo, hi) = mesh.bounds();
+    let grid = GridMap::fit(lo, hi, params);
+    let start = std::time::Instant::now();
+    let hierarchy =
+        build(&mesh, &grid, params, id).map_err(|e| format!("{}: {e}", path.display()))?;
+    let seconds = start.elapsed().as_secs_f64();
+    Ok(Built {
+        mesh,
+        grid,
+        hierarchy,
+        seconds,
+    })
+}
+
+/// The shape of a hierarchy: what `build` reports.
+#[derive(Serialize, Clone, Debug)]
+pub struct Shape {
+    /// Node count at each LOD, index = LOD, from 0 to the deepest node.
+    pub nodes_per_lod: Vec<u64>,
+    pub nodes: u64,
+    pub inner: u64,
+    pub leaves: u64,
+    pub top_lod: u8,
+    pub roots: u32,
+    /// Levels from the top to the deepest node, inclusive.
+    pub depth: u32,
+}
+
+impl Shape {
+    pub fn of(h: &Hierarchy) -> Shape {
+        let deepest = h.nodes.iter().map(|n| n.voxel.lod).max().unwrap_or(0);
+        let mut nodes_per_lod = vec![0u64; deepest as usize + 1];
+        let mut leaves = 0;
+        for n in &h.nodes {
+            nodes_per_lod[n.voxel.lod as usize] += 1;
+            leaves += n.leaf as u64;
+        }
+        Shape {
+            nodes_per_lod,
+            nodes: h.nodes.len() as u64,
+            inner: h.nodes.len() as u64 - leaves,
+            leaves,
+            top_lod: h.top_lod,
+            roots: h.root_count,
+            depth: (deepest - h.top_lod.min(deepest)) as u32 + 1,
+        }
+    }
+}

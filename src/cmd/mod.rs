@@ -1,0 +1,6 @@
+//! One module per subcommand.
+
+pub mod build;
+pub mod common;
+pub mod run;
+pub mod trace;

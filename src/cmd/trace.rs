@@ -1,0 +1,99 @@
+//! `hiermerge trace MESH`: random rays through a mesh's hierarchy; `--verify`
+//! compares every closest hit with brute force over all triangles.
+
+use std::path::PathBuf;
+
+use golden::trace::{bench_trace, verify_rays, Instance, TraceScene};
+use serde::Serialize;
+
+use super::common::{build_fitted, load_mesh, GridOpts};
+use crate::report::{emit, CmdResult};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Mesh file (OBJ or PLY).
+    mesh: PathBuf,
+    /// Number of random rays.
+    #[arg(long, default_value_t = 100_000)]
+    rays: usize,
+    /// Seed of the ray generator.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Also trace every ray by brute force and count the rays whose closest
+    /// hit differs in any bit.
+    #[arg(long)]
+    verify: bool,
+    #[command(flatten)]
+    grid: GridOpts,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Serialize)]
+struct Report {
+    file: String,
+    triangles: u64,
+    params: golden::Params,
+    rays: u64,
+    seed: u64,
+    hits: u64,
+    node_tests_per_ray: f64,
+    prim_tests_per_ray: f64,
+    rays_per_second: f64,
+    /// Present with --verify: rays whose hit differs from brute force.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    mismatches: Option<u64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    first_mismatch: Option<String>,
+}
+
+pub fn main(a: Args) -> CmdResult {
+    if a.rays == 0 {
+        return Err("--rays must be at least 1".into());
+    }
+    let params = a.grid.params()?;
+    let mesh = load_mesh(&a.mesh)?;
+    let b = build_fitted(a.mesh.clone(), mesh, &params, 0)?;
+    let scene = TraceScene::new(b.grid, &[Instance::new(&b.hierarchy, &b.mesh)])
+        .map_err(|e| e.to_string())?;
+    let speed = bench_trace(&scene, a.rays, a.seed);
+    let mut report = Report {
+        file: a.mesh.display().to_string(),
+        triangles: b.mesh.triangles.len() as u64,
+        params,
+        rays: speed.rays,
+        seed: a.seed,
+        hits: speed.hits,
+        node_tests_per_ray: speed.node_tests_per_ray,
+        prim_tests_per_ray: speed.prim_tests_per_ray,
+        rays_per_second: speed.rays_per_second,
+        mismatches: None,
+        first_mismatch: None,
+    };
+    if a.verify {
+        let v = verify_rays(&scene, a.rays, a.seed);
+        report.rays = v.rays;
+        report.hits = v.hits;
+        report.node_tests_per_ray = v.node_tests_per_ray;
+        report.prim_tests_per_ray = v.prim_tests_per_ray;
+        report.mismatches = Some(v.mismatches);
+        report.first_mismatch = v.first_mismatch;
+    }
+    emit(a.json, &report, |r| {
+        println!(
+            "{}: {} triangles, {} rays (seed {}), {} hits, {:.1} node tests/ray, {:.1} triangle tests/ray, {:.0} rays/s",
+            r.file, r.triangles, r.rays, r.seed, r.hits, r.node_tests_per_ray, r.prim_tests_per_ray, r.rays_per_second
+        );
+        if let Some(m) = r.mismatches {
+            println!("verify: {m} mismatches against brute force");
+            if let Some(f) = &r.first_mismatch {
+                println!("first mismatch: {f}");
+            }
+        }
+    })?;
+    match report.mismatches {
+        Some(m) if m > 0 => Err(format!("{m} rays disagree with brute force")),
+        _ => Ok(()),
+    }
+}

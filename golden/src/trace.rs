@@ -587,11 +587,59 @@ pub struct TraceSummary {
     pub first_mismatch: Option<String>,
 }
 
-/// Traces `n` seeded [`random_rays`] aimed at the scene's bounds through the
-/// hierarchies and by brute force, and compares the answers bit for bit.
+/// `n` seeded rays aimed at points on triangle edges and at vertices of the
+/// scene (world positions, translations included), from random origins
+/// around the scene: the rays where watertightness and box conservativeness
+/// are put to the test (shared edges, triangles on quantization planes).
+pub fn edge_rays(scene: &TraceScene, n: usize, seed: u64) -> Vec<Ray> {
+    let mut rng = SplitMix64::new(seed);
+    let (lo, hi) = scene.bounds();
+    let radius = (hi - lo).length().max(1e-6);
+    let with_tris: Vec<&Placed> = scene
+        .placed
+        .iter()
+        .filter(|p| !p.inst.mesh.is_empty())
+        .collect();
+    let mut rays = Vec::with_capacity(n);
+    if with_tris.is_empty() {
+        return rays;
+    }
+    while rays.len() < n {
+        let p = with_tris[rng.below(with_tris.len() as u64) as usize];
+        let tri = p
+            .inst
+            .mesh
+            .triangle(rng.below(p.inst.mesh.len() as u64) as usize);
+        let k = rng.below(3) as usize;
+        // One in four aims at a vertex, the others at a point along an edge.
+        let s = if rng.below(4) == 0 {
+            0.0
+        } else {
+            rng.next_f64() as f32
+        };
+        let local = tri[k] + (tri[(k + 1) % 3] - tri[k]) * s;
+        let target = (local.as_dvec3() + p.shift).as_vec3();
+        let origin = target + rng.unit_vector() * radius * rng.range_f32(0.05, 1.5);
+        let ray = Ray::unbounded(origin, target - origin);
+        if ray.is_valid() {
+            rays.push(ray);
+        }
+    }
+    rays
+}
+
+/// Traces `n` seeded rays through the hierarchies and by brute force and
+/// compares the answers bit for bit: [`random_rays`] aimed at the scene's
+/// bounds for the first half, [`edge_rays`] for the rest.
 pub fn verify_rays(scene: &TraceScene, n: usize, seed: u64) -> TraceSummary {
     let (lo, hi) = scene.bounds();
-    let rays = random_rays(lo, hi, n, seed);
+    let mut rays = random_rays(lo, hi, n - n / 2, seed);
+    rays.extend(edge_rays(scene, n / 2, seed ^ 0xED6E));
+    verify_ray_list(scene, &rays)
+}
+
+/// [`verify_rays`] over given rays.
+pub fn verify_ray_list(scene: &TraceScene, rays: &[Ray]) -> TraceSummary {
     let mut total = TraceStats::default();
     let mut brute = TraceStats::default();
     let mut s = TraceSummary {
@@ -605,7 +653,7 @@ pub fn verify_rays(scene: &TraceScene, n: usize, seed: u64) -> TraceSummary {
         brute_prim_tests_per_ray: 0.0,
         first_mismatch: None,
     };
-    for ray in &rays {
+    for ray in rays {
         let mut st = TraceStats::default();
         let got = closest_hit(ray, scene, &mut st);
         let want = brute_force_closest(ray, scene, &mut brute);

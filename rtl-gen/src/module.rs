@@ -418,6 +418,13 @@ impl Module {
     }
 
     /// The implicit reset input as a signal (so logic can also see reset).
+    ///
+    /// ```
+    /// # use rtl_gen::Module;
+    /// let m = Module::new("m");
+    /// m.output("in_reset", m.reset_signal());
+    /// assert_eq!(m.ports()[0].name, "rst");
+    /// ```
     #[track_caller]
     pub fn reset_signal(&self) -> Signal<'_> {
         let id = self.reset(Location::caller());
@@ -466,6 +473,13 @@ impl Module {
     }
 
     /// A constant with exactly the given bits (any width).
+    ///
+    /// ```
+    /// # use rtl_gen::{Bits, Module};
+    /// let m = Module::new("m");
+    /// let k = m.lit_bits(Bits::ones(200));
+    /// assert_eq!(k.width(), 200);
+    /// ```
     #[track_caller]
     pub fn lit_bits(&self, value: Bits) -> Signal<'_> {
         let loc = Location::caller();

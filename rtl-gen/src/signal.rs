@@ -205,6 +205,15 @@ impl<'m> Signal<'m> {
     }
 
     /// The same bits, read as two's complement (no hardware).
+    ///
+    /// ```
+    /// # use rtl_gen::Module;
+    /// let m = Module::new("m");
+    /// let a = m.input("a", 8).as_signed();
+    /// assert!(a.is_signed() && !a.as_unsigned().is_signed());
+    /// m.output("neg", a.lt(0));
+    /// # assert!(m.validate().is_ok());
+    /// ```
     pub fn as_signed(self) -> Signal<'m> {
         Signal {
             signed: true,
@@ -443,6 +452,15 @@ impl<'m> Signal<'m> {
     }
 
     /// Sign extension to `width` bits (result signed).
+    ///
+    /// ```
+    /// # use rtl_gen::{Module, Sim};
+    /// let m = Module::new("m");
+    /// m.output("y", m.input("a", 4).sext(8));
+    /// let mut sim = Sim::new(&m).unwrap();
+    /// sim.poke("a", 0b1010u64).unwrap();
+    /// assert_eq!(sim.peek("y").unwrap().to_u64(), Some(0b1111_1010));
+    /// ```
     #[track_caller]
     pub fn sext(self, width: u32) -> Signal<'m> {
         self.ext_at(width, true, Location::caller()).as_signed()
@@ -539,6 +557,16 @@ impl<'m> Signal<'m> {
     }
 
     /// Bit `i` (one bit, unsigned).
+    ///
+    /// ```
+    /// # use rtl_gen::Module;
+    /// let m = Module::new("m");
+    /// let a = m.input("a", 8);
+    /// m.output("odd", a.bit(0));
+    /// m.output("top", a.slice(7, 1).msb());
+    /// # m.output("mid", a.slice(6, 1));
+    /// # assert!(m.validate().unwrap().is_empty());
+    /// ```
     #[track_caller]
     pub fn bit(self, i: u32) -> Signal<'m> {
         self.slice_at(i, i, Location::caller())
@@ -552,6 +580,13 @@ impl<'m> Signal<'m> {
     }
 
     /// `{self, low}`: this signal in the high bits.
+    ///
+    /// ```
+    /// # use rtl_gen::Module;
+    /// let m = Module::new("m");
+    /// let (hi, lo) = (m.input("hi", 3), m.input("lo", 5));
+    /// assert_eq!(hi.concat(lo).width(), 8);
+    /// ```
     #[track_caller]
     pub fn concat(self, low: Signal<'m>) -> Signal<'m> {
         let loc = Location::caller();
@@ -589,6 +624,17 @@ impl<'m> Signal<'m> {
 
     /// `self - other` in exactly `width` bits (modulo `2^width`), operands
     /// extended as for [`Signal::add`].
+    ///
+    /// ```
+    /// # use rtl_gen::{Module, Sim};
+    /// let m = Module::new("m");
+    /// let (a, b) = (m.input("a", 8).as_signed(), m.input("b", 8).as_signed());
+    /// m.output("d", a.sub(b, 9)); // never overflows
+    /// let mut sim = Sim::new(&m).unwrap();
+    /// sim.poke("a", -128i64).unwrap();
+    /// sim.poke("b", 127i64).unwrap();
+    /// assert_eq!(sim.peek("d").unwrap().to_i128(), Some(-255));
+    /// ```
     #[track_caller]
     pub fn sub(self, other: impl IntoSignal<'m>, width: u32) -> Signal<'m> {
         self.arith(BinOp::Sub, other, width, Location::caller())
@@ -765,6 +811,21 @@ impl<'m> Signal<'m> {
     }
 
     /// `self < other` (one bit), signed when both handles are signed.
+    ///
+    /// ```
+    /// # use rtl_gen::{Module, Sim};
+    /// let m = Module::new("m");
+    /// let (a, b) = (m.input("a", 8), m.input("b", 8));
+    /// m.output("u", a.lt(b));                         // unsigned
+    /// m.output("s", a.as_signed().lt(b.as_signed())); // signed
+    /// m.output("x", a.as_signed().lt(b));             // mixed: exact
+    /// let mut sim = Sim::new(&m).unwrap();
+    /// sim.poke("a", 0xffu64).unwrap(); // 255 or -1
+    /// sim.poke("b", 1u64).unwrap();
+    /// assert_eq!(sim.peek("u").unwrap().to_u64(), Some(0));
+    /// assert_eq!(sim.peek("s").unwrap().to_u64(), Some(1));
+    /// assert_eq!(sim.peek("x").unwrap().to_u64(), Some(1));
+    /// ```
     #[track_caller]
     pub fn lt(self, other: impl IntoSignal<'m>) -> Signal<'m> {
         self.compare(CmpOp::Lt, other, Location::caller())

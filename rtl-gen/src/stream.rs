@@ -61,6 +61,17 @@ impl<'m> Stream<'m> {
     }
 
     /// One bit: a transfer happens at the next edge.
+    ///
+    /// ```
+    /// # use rtl_gen::{Module, Stream};
+    /// let m = Module::new("m");
+    /// let s = Stream::input(&m, "in", 8);
+    /// let n = m.reg("n", 32);
+    /// n.next_when(s.fire(), n.add(1, 32));
+    /// s.map(|d| !d).output("out");
+    /// # m.output("count", n);
+    /// # assert!(m.validate().unwrap().is_empty());
+    /// ```
     #[track_caller]
     pub fn fire(self) -> Signal<'m> {
         self.valid & self.ready

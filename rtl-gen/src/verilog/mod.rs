@@ -28,6 +28,15 @@ pub fn emit_verilog(m: &Module) -> Result<String, Diagnostics> {
 }
 
 /// The syntax tree of one module (for tools that want to inspect or extend it).
+///
+/// ```
+/// use rtl_gen::{verilog::{ast::Item, print::print_module, verilog_ast}, Module};
+/// let m = Module::new("m");
+/// m.output("y", !m.input("a", 2));
+/// let tree = verilog_ast(&m).unwrap();
+/// assert!(tree.items.iter().any(|i| matches!(i, Item::Assign(lhs, _) if lhs == "y")));
+/// assert_eq!(print_module(&tree), rtl_gen::emit_verilog(&m).unwrap());
+/// ```
 pub fn verilog_ast(m: &Module) -> Result<ast::VModule, Diagnostics> {
     m.validate()?;
     Ok(lower::lower(&m.graph()))
@@ -77,6 +86,19 @@ impl std::error::Error for DesignError {}
 
 /// The text of every module of the design as `(file name, text)`, children
 /// first and the top last. Two different modules with one name are an error.
+///
+/// ```
+/// use rtl_gen::{emit_design, Module};
+/// let leaf = Module::new("leaf");
+/// leaf.output("y", leaf.input("a", 1));
+/// let top = Module::new("top");
+/// let u = top.instance("u", &leaf);
+/// u.connect("a", top.input("a", 1));
+/// top.output("y", u.output("y"));
+/// let files = emit_design(&top).unwrap();
+/// let names: Vec<&str> = files.iter().map(|f| f.0.as_str()).collect();
+/// assert_eq!(names, ["leaf.v", "top.v"]);
+/// ```
 pub fn emit_design(top: &Module) -> Result<Vec<(String, String)>, Diagnostics> {
     top.validate_design()?;
     let mut files: Vec<(String, String)> = Vec::new();

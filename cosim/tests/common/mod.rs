@@ -108,26 +108,14 @@ pub fn uninit() -> Design {
     .unwrap()
 }
 
-use cosim::icarus::IcarusEngine;
-use cosim::verilator::{VerilatorEngine, VerilatorOptions};
-use cosim::Engine;
+use cosim::{open_engine, Engine, EngineKind};
 
 /// The engines every fixture runs on.
 pub const ENGINES: [&str; 2] = ["verilator", "iverilog"];
 
 /// A fresh engine of `kind` for `design`; `trace` asks for a VCD-capable build.
 pub fn make_engine(kind: &str, design: &Design, trace: bool) -> cosim::Result<Box<dyn Engine>> {
-    match kind {
-        "verilator" => {
-            let options = VerilatorOptions {
-                trace,
-                ..VerilatorOptions::default()
-            };
-            Ok(Box::new(VerilatorEngine::new(design, &options)?))
-        }
-        "iverilog" => Ok(Box::new(IcarusEngine::new(design)?)),
-        other => panic!("unknown engine {other}"),
-    }
+    open_engine(kind.parse::<EngineKind>()?, design, trace)
 }
 
 pub fn all_tools_present() -> bool {

@@ -88,7 +88,6 @@ pub fn build_upper(
     p: &Params,
     out_id: u8,
 ) -> Result<(Hierarchy, UpperCounts), MergeError> {
-    check_index("base nodes - 1", (base.len() as u64).saturating_sub(1), p)?;
     let (mut levels, mut top) =
         build_levels(base_by_lod(base, p), p).ok_or(MergeError::NoInputs)?;
     let mut counts = UpperCounts::default();

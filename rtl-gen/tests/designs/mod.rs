@@ -40,12 +40,16 @@ pub fn kitchen_sink() -> Module {
     m
 }
 
-/// A RAM with a synchronous read port and a reset register beside it.
+/// A RAM with two write ports, a synchronous and an asynchronous read port,
+/// and a reset register beside it.
 pub fn ram() -> Module {
     let m = Module::new("ram_sync");
     let mem = m.memory("mem", 12, 16);
     mem.write(m.input("wa", 4), m.input("wd", 12), m.input("we", 1));
     m.output("q", mem.read_sync(m.input("ra", 4), m.input("re", 1)));
+    let wb = m.input("wb", 4);
+    mem.write(wb, m.input("wd_b", 12), wb.ne(0));
+    m.output("peek0", mem.read(0));
     let seen = m.reg_reset("writes", 8, Bits::from_u128(0x80, 8).expect("fits"));
     seen.next(seen.add(1, 8));
     m.output("writes", seen);

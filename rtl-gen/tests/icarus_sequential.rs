@@ -91,7 +91,7 @@ fn run(m: &Module, cycles: usize, seed: u64) {
         }
         sim.step();
     }
-    assert!(compared > cycles, "compared {compared} values");
+    assert!(2 * compared >= (cycles - 1) * outs.len(), "compared only {compared} values");
 }
 
 #[test]

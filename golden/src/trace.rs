@@ -28,11 +28,13 @@ use crate::mesh::Mesh;
 use crate::scenes::SplitMix64;
 use crate::store::{node_box_grid, Hierarchy, NodeRecord};
 
-/// Relative slack added to every node box: `2^-20` of the magnitude of the
-/// coordinates involved (the ray origin plus the largest vertex
-/// coordinate). The watertight test's edge functions and `t` carry errors of
-/// a few f32 ulps of that magnitude (`2^-24` relative each); `2^-20` covers
-/// them with a factor of 16.
+/// Relative slack added to node boxes: `2^-20` of the magnitude of the
+/// coordinates the triangle test works with, per instance: the largest
+/// coordinate of the ray origin as that instance sees it plus the largest
+/// coordinate of its (untranslated) vertices. The watertight test's edge
+/// functions and `t`, the rounding of the moved origin and the slab test's
+/// entry carry errors of a few f32 ulps of that magnitude (`2^-24` relative
+/// each); `2^-20` covers them with a factor of 16.
 pub const BOX_SLACK_REL: f64 = 1.0 / (1u64 << 20) as f64;
 
 /// One hierarchy placed in the scene: its nodes, the mesh its primitive
@@ -133,6 +135,11 @@ struct Placed<'a> {
     inst: Instance<'a>,
     /// The offset in world units, `offset * unit`, in binary64.
     shift: DVec3,
+    /// Largest absolute coordinate of the mesh's own (untranslated) vertices.
+    local_magnitude: f64,
+    /// Instances with triangles whose nodes can be reached from this one's
+    /// (itself included): whose slack its boxes must carry.
+    reach: Vec<usize>,
 }
 
 /// Instances ready to trace: checked, indexed by hierarchy id.
@@ -144,8 +151,6 @@ pub struct TraceScene<'a> {
     by_id: Vec<Option<usize>>,
     /// Ids whose roots traversal starts from.
     roots: Vec<u8>,
-    /// Largest absolute world coordinate of any (translated) vertex.
-    magnitude: f64,
 }
 
 impl<'a> TraceScene<'a> {
@@ -167,7 +172,6 @@ impl<'a> TraceScene<'a> {
     ) -> Result<TraceScene<'a>, TraceError> {
         let mut by_id = vec![None; 256];
         let mut placed = Vec::with_capacity(instances.len());
-        let mut magnitude = 0f64;
         for (k, inst) in instances.iter().enumerate() {
             let id = inst.hierarchy.id;
             if by_id[id as usize].replace(k).is_some() {
@@ -191,16 +195,18 @@ impl<'a> TraceScene<'a> {
                     e.to_string(),
                 )
             })?;
-            if !inst.mesh.vertices.is_empty() {
+            let local_magnitude = if inst.mesh.vertices.is_empty() {
+                0.0
+            } else {
                 let (lo, hi) = inst.mesh.bounds();
-                let m = lo.as_dvec3().abs().max(hi.as_dvec3().abs()).max_element();
-                let moved = (lo.as_dvec3() + shift)
-                    .abs()
-                    .max((hi.as_dvec3() + shift).abs())
-                    .max_element();
-                magnitude = magnitude.max(m).max(moved);
-            }
-            placed.push(Placed { inst: *inst, shift });
+                lo.as_dvec3().abs().max(hi.as_dvec3().abs()).max_element()
+            };
+            placed.push(Placed {
+                inst: *inst,
+                shift,
+                local_magnitude,
+                reach: Vec::new(),
+            });
         }
         if !(grid.unit.is_finite() && grid.unit > 0.0 && grid.origin.is_finite()) {
             return Err(err(
@@ -210,12 +216,11 @@ impl<'a> TraceScene<'a> {
                 format!("{grid:?}"),
             ));
         }
-        let scene = TraceScene {
+        let mut scene = TraceScene {
             grid,
             placed,
             by_id,
             roots: roots.to_vec(),
-            magnitude,
         };
         for &r in roots {
             if scene.by_id[r as usize].is_none() {
@@ -230,7 +235,35 @@ impl<'a> TraceScene<'a> {
         for p in &scene.placed {
             scene.check_instance(p)?;
         }
+        for k in 0..scene.placed.len() {
+            scene.placed[k].reach = scene.reachable_with_triangles(k);
+        }
         Ok(scene)
+    }
+
+    /// Instances with triangles reachable from instance `k` through
+    /// references (a hierarchy-level walk; `k` included).
+    fn reachable_with_triangles(&self, k: usize) -> Vec<usize> {
+        let mut seen = vec![false; self.placed.len()];
+        let mut todo = vec![k];
+        seen[k] = true;
+        while let Some(i) = todo.pop() {
+            let h = self.placed[i].inst.hierarchy;
+            let mut targets: Vec<u8> = h.refs.iter().map(|r| r.hier).collect();
+            targets.sort_unstable();
+            targets.dedup();
+            for id in targets {
+                if let Some(j) = self.by_id[id as usize] {
+                    if !seen[j] {
+                        seen[j] = true;
+                        todo.push(j);
+                    }
+                }
+            }
+        }
+        (0..self.placed.len())
+            .filter(|&j| seen[j] && !self.placed[j].inst.mesh.is_empty())
+            .collect()
     }
 
     fn check_instance(&self, p: &Placed) -> Result<(), TraceError> {
@@ -308,9 +341,22 @@ impl<'a> TraceScene<'a> {
         (wlo, whi)
     }
 
-    /// The slack of one ray (world units).
-    fn slack(&self, ray: &Ray) -> f64 {
-        BOX_SLACK_REL * (ray.origin.abs().max_element() as f64 + self.magnitude)
+    /// The slack of one ray for the boxes of each instance (world units):
+    /// the largest, over the instances with triangles its nodes reach, of
+    /// `BOX_SLACK_REL * (max |local origin| + local magnitude)`.
+    fn slacks(&self, ray: &Ray) -> Vec<f64> {
+        let own: Vec<f64> = self
+            .placed
+            .iter()
+            .map(|p| {
+                let o = local_ray(ray, p).origin.abs().max_element() as f64;
+                BOX_SLACK_REL * (o + p.local_magnitude)
+            })
+            .collect();
+        self.placed
+            .iter()
+            .map(|p| p.reach.iter().map(|&j| own[j]).fold(0.0, f64::max))
+            .collect()
     }
 
     /// Every instance, for brute force and bounds.
@@ -411,7 +457,7 @@ struct Pending {
 /// The closest hit of `ray` in `scene`, adding the tests it took to `stats`.
 pub fn closest_hit(ray: &Ray, scene: &TraceScene, stats: &mut TraceStats) -> Option<Hit> {
     let slab = SlabRay::new(ray);
-    let slack = scene.slack(ray);
+    let slacks = scene.slacks(ray);
     // Sheared rays per instance, made on first use.
     let mut sheared: Vec<Option<ShearedRay>> = vec![None; scene.placed.len()];
     let mut best: Option<Hit> = None;
@@ -431,7 +477,7 @@ pub fn closest_hit(ray: &Ray, scene: &TraceScene, stats: &mut TraceStats) -> Opt
         for node in nodes {
             let n = &p.inst.hierarchy.nodes[node as usize];
             stats.node_tests += 1;
-            let (lo, hi) = scene.world_box(p, n, slack);
+            let (lo, hi) = scene.world_box(p, n, slacks[placed]);
             if let Some((entry, _)) = ray_box(&slab, lo, hi, ray.tmin, best_t) {
                 children.push(Pending {
                     placed,

@@ -141,3 +141,38 @@ fn a_damaged_hierarchy_is_caught() {
     assert!(s.mismatches > 0, "{s:?}");
     assert!(s.first_mismatch.is_some());
 }
+
+/// A copy translated about a million world units away (the ray origins and
+/// targets are f32 world positions there, an ulp of 1/16 or 1/8): traversal
+/// still agrees with brute force, and the far copy is hit.
+#[test]
+fn far_translated_copy_matches_brute_force() {
+    let teapot = load("teapot.obj");
+    let (lo, _) = teapot.bounds();
+    let p = Params::new(24, 8, 24, 4).unwrap();
+    let grid = GridMap {
+        origin: lo.as_dvec3(),
+        unit: 0.125,
+    };
+    let near = build(&teapot, &grid, &p, 1).unwrap();
+    let far = build(&teapot, &grid, &p, 2).unwrap();
+    let offset = [1i64 << 23, 1 << 22, 1 << 21];
+    let scene = TraceScene::new(
+        grid,
+        &[
+            Instance::new(&near, &teapot),
+            Instance {
+                hierarchy: &far,
+                mesh: &teapot,
+                offset,
+            },
+        ],
+    )
+    .unwrap();
+    let (_, shi) = scene.bounds();
+    assert!(shi.x > 1.0e6);
+    let s = verify_rays(&scene, 10_000, 13);
+    report("teapot near + 1e6 away", 24, 8, &s);
+    assert_eq!(s.mismatches, 0, "{:?}", s.first_mismatch);
+    assert!(s.hits > 1000, "{s:?}");
+}

@@ -16,6 +16,8 @@ pub mod scenes;
 pub mod store;
 pub mod trace;
 pub mod translate;
+pub mod vectors;
+pub mod world;
 
 pub use grid::VoxelAddr;
 pub use params::Params;

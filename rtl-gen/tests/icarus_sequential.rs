@@ -18,7 +18,10 @@ fn run(m: &Module, cycles: usize, seed: u64) {
         .iter()
         .filter(|p| p.direction == Direction::Input && p.name != "clk")
         .collect();
-    let outs: Vec<_> = ports.iter().filter(|p| p.direction == Direction::Output).collect();
+    let outs: Vec<_> = ports
+        .iter()
+        .filter(|p| p.direction == Direction::Output)
+        .collect();
     let mut rng = Rng(seed);
     let stimulus: Vec<Vec<Bits>> = (0..cycles)
         .map(|c| {
@@ -36,11 +39,20 @@ fn run(m: &Module, cycles: usize, seed: u64) {
         if p.name == "clk" {
             continue;
         }
-        let kind = if p.direction == Direction::Input { "reg" } else { "wire" };
+        let kind = if p.direction == Direction::Input {
+            "reg"
+        } else {
+            "wire"
+        };
         let _ = writeln!(tb, "    {kind} [{}:0] {};", p.width - 1, p.name);
     }
     let conns: Vec<String> = ports.iter().map(|p| format!(".{0}({0})", p.name)).collect();
-    let _ = writeln!(tb, "    {} dut ({});\n    initial begin", m.name(), conns.join(", "));
+    let _ = writeln!(
+        tb,
+        "    {} dut ({});\n    initial begin",
+        m.name(),
+        conns.join(", ")
+    );
     let fmt = vec!["%h"; outs.len()].join(" ");
     let names: Vec<&str> = outs.iter().map(|p| p.name.as_str()).collect();
     for v in &stimulus {
@@ -64,7 +76,11 @@ fn run(m: &Module, cycles: usize, seed: u64) {
         .args(&files)
         .output()
         .expect("run iverilog");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let run = Command::new("vvp").arg(&exe).output().expect("run vvp");
     let text = String::from_utf8_lossy(&run.stdout);
     let lines: Vec<&str> = text.lines().filter(|l| !l.contains("$finish")).collect();
@@ -81,17 +97,26 @@ fn run(m: &Module, cycles: usize, seed: u64) {
             if unknown {
                 // Before the first (reset) edge every register is unknown;
                 // after it only data words may be.
-                assert!(cycle == 0 || p.width > 1, "{} cycle {cycle}: {} is unknown", m.name(), p.name);
+                assert!(
+                    cycle == 0 || p.width > 1,
+                    "{} cycle {cycle}: {} is unknown",
+                    m.name(),
+                    p.name
+                );
                 continue;
             }
             let want = sim.peek(&p.name).expect("peek");
-            let got = Bits::from_u128(u128::from_str_radix(word, 16).expect("hex"), p.width).expect("fits");
+            let got = Bits::from_u128(u128::from_str_radix(word, 16).expect("hex"), p.width)
+                .expect("fits");
             assert_eq!(got, want, "{} cycle {cycle}: output {}", m.name(), p.name);
             compared += 1;
         }
         sim.step();
     }
-    assert!(2 * compared >= (cycles - 1) * outs.len(), "compared only {compared} values");
+    assert!(
+        2 * compared >= (cycles - 1) * outs.len(),
+        "compared only {compared} values"
+    );
 }
 
 #[test]

@@ -13,6 +13,31 @@ use golden::mesh::Mesh;
 use golden::scenes;
 use golden::Params;
 
+/// CPU time (user + system) of this thread so far, from
+/// `/proc/thread-self/stat` in clock ticks of 1/100 s (Linux's USER_HZ); None
+/// elsewhere. The machine may be shared, so throughput is reported per CPU
+/// second as well as per wall second.
+fn thread_cpu_time() -> Option<Duration> {
+    let stat = std::fs::read_to_string("/proc/thread-self/stat").ok()?;
+    // Fields after the command name, which is in parentheses and may hold spaces.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    // utime and stime are fields 14 and 15 of the whole line, 12 and 13 here (0-based 11, 12).
+    let ticks: u64 = f.get(11)?.parse::<u64>().ok()? + f.get(12)?.parse::<u64>().ok()?;
+    Some(Duration::from_millis(ticks * 10))
+}
+
+/// Runs `f` `runs` times; returns the best wall time and the mean CPU time.
+fn measure(runs: usize, mut f: impl FnMut()) -> (Duration, Option<Duration>) {
+    let cpu0 = thread_cpu_time();
+    let best = best_of(runs, &mut f);
+    let cpu = match (cpu0, thread_cpu_time()) {
+        (Some(a), Some(b)) => Some((b - a) / runs as u32),
+        _ => None,
+    };
+    (best, cpu)
+}
+
 fn best_of(runs: usize, mut f: impl FnMut()) -> Duration {
     (0..runs)
         .map(|_| {
@@ -33,7 +58,7 @@ fn bench(name: &str, mesh: &Mesh, grid: &GridMap, p: &Params, runs: usize) {
     }
     let n = mesh.triangles.len();
     let h = build(mesh, grid, p, 0).expect("bench scene builds");
-    let total = best_of(runs, || {
+    let (total, cpu) = measure(runs, || {
         black_box(build(mesh, grid, p, 0).unwrap());
     });
     // The leaf phase alone (grid mapping included), then the sort alone.
@@ -55,12 +80,15 @@ fn bench(name: &str, mesh: &Mesh, grid: &GridMap, p: &Params, runs: usize) {
         });
     });
     let secs = total.as_secs_f64();
+    let cpu_secs = cpu.map_or(f64::NAN, |c| c.as_secs_f64());
     println!(
-        "{name:<28} D={:<2} Q={:<2} tris {n:>8}  build {:>8.2} ms  {:>6.2} M tris/s  | leaf phase {:>7.2} ms, sort {:>7.2} ms | entries {:>8} nodes {:>8} refs {:>8} top_lod {} roots {}",
+        "{name:<26} D={:<2} Q={:<2} tris {n:>8} | wall {:>8.2} ms {:>5.2} M tris/s | cpu {:>8.2} ms {:>5.2} M tris/s | leaf phase {:>7.2} ms, sort {:>6.2} ms (wall) | entries {:>8} nodes {:>8} refs {:>8} top_lod {} roots {}",
         p.max_lod,
         p.quant_bits,
         secs * 1e3,
         n as f64 / secs / 1e6,
+        cpu_secs * 1e3,
+        n as f64 / cpu_secs / 1e6,
         place.as_secs_f64() * 1e3,
         sort.as_secs_f64() * 1e3,
         h.prims.len(),
@@ -84,11 +112,11 @@ fn main() {
     let (lo, hi) = bunny.bounds();
     for d in [8u8, 12, 16] {
         let pd = Params::new(d, 8, 24, 4).unwrap();
-        bench("bunny", &bunny, &GridMap::fit(lo, hi, &pd), &pd, 20);
+        bench("bunny", &bunny, &GridMap::fit(lo, hi, &pd), &pd, 100);
     }
     let teapot = Mesh::load(&scenes::shared_mesh_path("teapot.obj")).expect("teapot.obj");
     let (lo, hi) = teapot.bounds();
-    bench("teapot", &teapot, &GridMap::fit(lo, hi, &p), &p, 20);
+    bench("teapot", &teapot, &GridMap::fit(lo, hi, &p), &p, 200);
 
     // 1M small triangles: edges up to 1/1000 of the scene (about 65 grid units at D = 16).
     let soup = scenes::random_soup(1_000_000, 0.001, 1);

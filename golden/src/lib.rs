@@ -6,6 +6,7 @@
 pub mod build;
 pub mod camera;
 pub mod check;
+pub mod frames;
 pub mod geom;
 pub mod grid;
 pub mod mesh;

@@ -1,0 +1,360 @@
+//! A scene over frames (paragraphs 41-42, 47, 88; claim 16): static
+//! hierarchies are built once and reused, dynamic ones are rebuilt when
+//! their geometry changes and only re-translated when they merely move, and
+//! the merged hierarchy is redone only when one of its inputs changed.
+//!
+//! [`Frames::step`] takes the whole scene of one frame and returns what it
+//! reused and what it redid, per object, so a run can print it.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use glam::DVec3;
+use serde::Serialize;
+
+use crate::build::GridMap;
+use crate::merge::{MergeMode, MergeStats};
+use crate::mesh::Mesh;
+use crate::params::Params;
+use crate::world::{World, WorldError};
+
+/// Whether an object's geometry may change between frames.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum Motion {
+    /// Built once and reused in every frame (its hierarchy comes from the
+    /// store); it may not move or change.
+    Static,
+    /// Rebuilt when its mesh changes, re-translated when it moves.
+    Dynamic,
+}
+
+/// One object in one frame. Geometry is shared by `Arc`: a frame that hands
+/// in the same `Arc` as the last one has not changed the mesh.
+#[derive(Clone, Debug)]
+pub struct FrameObject {
+    pub id: u8,
+    pub motion: Motion,
+    pub mesh: Arc<Mesh>,
+    /// Placement of the local frame in the scene, world units.
+    pub offset: DVec3,
+}
+
+/// What happened to one object in a frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub enum ObjectAction {
+    /// First frame: built and placed.
+    Built,
+    /// Its mesh changed: rebuilt and placed.
+    Rebuilt,
+    /// Moved only: a new translation, the hierarchy reused.
+    Retranslated,
+    /// Unchanged: hierarchy and translation reused.
+    Reused,
+}
+
+/// What one frame did.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FrameReport {
+    pub frame: u64,
+    /// Per object id, what was done.
+    pub objects: BTreeMap<u8, ObjectAction>,
+    /// Objects removed since the last frame.
+    pub removed: Vec<u8>,
+    /// True when the merge was redone; false when the last one was reused.
+    pub merged: bool,
+    /// The merging level (None in per-node mode or with fewer than two objects).
+    pub merge_level: Option<u8>,
+    /// Statistics of the merge, when it was redone.
+    pub merge_stats: Option<MergeStats>,
+}
+
+impl FrameReport {
+    pub fn count(&self, action: ObjectAction) -> usize {
+        self.objects.values().filter(|&&a| a == action).count()
+    }
+}
+
+/// A frame-to-frame errors: the object and what was wrong.
+#[derive(Clone, Debug, PartialEq)]
+pub enum FrameError {
+    World(WorldError),
+    /// A static object was handed a different mesh or placement than in the
+    /// frame it was built.
+    StaticChanged {
+        id: u8,
+        what: &'static str,
+    },
+    /// The same id twice in one frame.
+    DuplicateId(u8),
+    /// An object uses the id reserved for the merged hierarchy.
+    ReservedId(u8),
+}
+
+impl std::fmt::Display for FrameError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            FrameError::World(e) => e.fmt(f),
+            FrameError::StaticChanged { id, what } => {
+                write!(f, "object {id} is static but its {what} changed")
+            }
+            FrameError::DuplicateId(id) => write!(f, "object id {id} appears twice in one frame"),
+            FrameError::ReservedId(id) => {
+                write!(f, "object id {id} is reserved for the merged hierarchy")
+            }
+        }
+    }
+}
+
+impl std::error::Error for FrameError {}
+
+impl From<WorldError> for FrameError {
+    fn from(e: WorldError) -> Self {
+        FrameError::World(e)
+    }
+}
+
+/// The state kept between frames.
+pub struct Frames {
+    pub world: World,
+    pub mode: MergeMode,
+    /// Id of the merged hierarchy: the largest id, `2^H - 1`.
+    pub merged_id: u8,
+    last: BTreeMap<u8, (Motion, Arc<Mesh>, DVec3)>,
+    merged_inputs: Option<Vec<u8>>,
+    last_level: Option<u8>,
+    frame: u64,
+}
+
+impl Frames {
+    pub fn new(params: Params, grid: GridMap, mode: MergeMode) -> Result<Frames, FrameError> {
+        Ok(Frames {
+            world: World::new(params, grid)?,
+            mode,
+            merged_id: (params.hier_capacity() - 1) as u8,
+            last: BTreeMap::new(),
+            merged_inputs: None,
+            last_level: None,
+            frame: 0,
+        })
+    }
+
+    /// Brings the world to this frame's scene, redoing only what changed,
+    /// and merges all objects into [`Frames::merged_id`] when there are two
+    /// or more.
+    pub fn step(&mut self, objects: &[FrameObject]) -> Result<FrameReport, FrameError> {
+        let mut seen = BTreeMap::new();
+        for o in objects {
+            if o.id == self.merged_id {
+                return Err(FrameError::ReservedId(o.id));
+            }
+            if seen.insert(o.id, ()).is_some() {
+                return Err(FrameError::DuplicateId(o.id));
+            }
+        }
+        let mut actions = BTreeMap::new();
+        let mut changed = false;
+        for o in objects {
+            let action = self.update_object(o)?;
+            changed |= action != ObjectAction::Reused;
+            actions.insert(o.id, action);
+        }
+        let removed: Vec<u8> = self
+            .last
+            .keys()
+            .copied()
+            .filter(|id| !seen.contains_key(id))
+            .collect();
+        for id in &removed {
+            self.world.remove(*id);
+            self.last.remove(id);
+            changed = true;
+        }
+        let ids: Vec<u8> = objects.iter().map(|o| o.id).collect();
+        let mut sorted = ids.clone();
+        sorted.sort_unstable();
+        let (merged, merge_stats) = if sorted.len() < 2 {
+            self.merged_inputs = None;
+            self.last_level = None;
+            (false, None)
+        } else if !changed && self.merged_inputs.as_deref() == Some(&sorted[..]) {
+            (false, None)
+        } else {
+            let r = self.world.merge(&sorted, self.mode, self.merged_id)?;
+            self.merged_inputs = Some(sorted);
+            self.last_level = r.level;
+            (true, Some(r.stats))
+        };
+        let report = FrameReport {
+            frame: self.frame,
+            objects: actions,
+            removed,
+            merged,
+            merge_level: self.last_level,
+            merge_stats,
+        };
+        self.frame += 1;
+        Ok(report)
+    }
+
+    fn update_object(&mut self, o: &FrameObject) -> Result<ObjectAction, FrameError> {
+        let action = match self.last.get(&o.id) {
+            None => {
+                self.world.add(o.id, (*o.mesh).clone(), o.offset)?;
+                ObjectAction::Built
+            }
+            Some((motion, mesh, offset)) => {
+                let same_mesh = Arc::ptr_eq(mesh, &o.mesh);
+                let same_place = *offset == o.offset;
+                if *motion == Motion::Static || o.motion == Motion::Static {
+                    if *motion != o.motion {
+                        return Err(FrameError::StaticChanged {
+                            id: o.id,
+                            what: "motion",
+                        });
+                    }
+                    if !same_mesh {
+                        return Err(FrameError::StaticChanged {
+                            id: o.id,
+                            what: "mesh",
+                        });
+                    }
+                    if !same_place {
+                        return Err(FrameError::StaticChanged {
+                            id: o.id,
+                            what: "placement",
+                        });
+                    }
+                    ObjectAction::Reused
+                } else if !same_mesh {
+                    self.world.add(o.id, (*o.mesh).clone(), o.offset)?;
+                    ObjectAction::Rebuilt
+                } else if !same_place {
+                    self.world.place(o.id, o.offset)?;
+                    ObjectAction::Retranslated
+                } else {
+                    ObjectAction::Reused
+                }
+            }
+        };
+        self.last.insert(o.id, (o.motion, o.mesh.clone(), o.offset));
+        Ok(action)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenes::{sphere, terrain, torus};
+    use glam::Vec3;
+
+    fn frames() -> Frames {
+        let p = Params::new(12, 6, 24, 4).unwrap();
+        Frames::new(
+            p,
+            GridMap {
+                origin: DVec3::ZERO,
+                unit: 1.0 / 1024.0,
+            },
+            MergeMode::default(),
+        )
+        .unwrap()
+    }
+
+    fn obj(id: u8, motion: Motion, mesh: &Arc<Mesh>, x: f64) -> FrameObject {
+        FrameObject {
+            id,
+            motion,
+            mesh: mesh.clone(),
+            offset: DVec3::new(x, 0.0, 0.0),
+        }
+    }
+
+    #[test]
+    fn only_what_changed_is_redone() {
+        let mut f = frames();
+        let ground = Arc::new(terrain(24, 1));
+        let ball = Arc::new(sphere(Vec3::new(0.5, 0.7, 0.5), 0.1, 8, 16));
+        let ring = Arc::new(torus(Vec3::new(0.3, 0.7, 0.3), 0.1, 0.03, 16, 8));
+        let step = |f: &mut Frames, x: f64, ring: &Arc<Mesh>| {
+            f.step(&[
+                obj(0, Motion::Static, &ground, 0.0),
+                obj(1, Motion::Dynamic, &ball, x),
+                obj(2, Motion::Dynamic, ring, 0.0),
+            ])
+            .unwrap()
+        };
+        let r0 = step(&mut f, 0.0, &ring);
+        assert_eq!(r0.count(ObjectAction::Built), 3);
+        assert!(r0.merged);
+        f.world.check(f.merged_id).unwrap();
+
+        // Nothing moved: nothing is redone, the merge is reused.
+        let r1 = step(&mut f, 0.0, &ring);
+        assert_eq!(r1.count(ObjectAction::Reused), 3);
+        assert!(!r1.merged);
+        assert_eq!(r1.merge_level, r0.merge_level);
+
+        // The ball moves: re-translated only, and the merge is redone.
+        let r2 = step(&mut f, 0.25, &ring);
+        assert_eq!(r2.objects[&1], ObjectAction::Retranslated);
+        assert_eq!(r2.objects[&0], ObjectAction::Reused);
+        assert!(r2.merged);
+        f.world.check(f.merged_id).unwrap();
+
+        // The ring deforms: rebuilt.
+        let bigger = Arc::new(torus(Vec3::new(0.3, 0.7, 0.3), 0.12, 0.03, 16, 8));
+        let r3 = step(&mut f, 0.25, &bigger);
+        assert_eq!(r3.objects[&2], ObjectAction::Rebuilt);
+        assert!(r3.merged);
+        f.world.check(f.merged_id).unwrap();
+    }
+
+    #[test]
+    fn static_objects_may_not_change_and_ids_are_checked() {
+        let mut f = frames();
+        let a = Arc::new(sphere(Vec3::splat(0.5), 0.1, 8, 16));
+        f.step(&[obj(0, Motion::Static, &a, 0.0)]).unwrap();
+        let e = f.step(&[obj(0, Motion::Static, &a, 0.5)]).unwrap_err();
+        assert_eq!(
+            e,
+            FrameError::StaticChanged {
+                id: 0,
+                what: "placement"
+            }
+        );
+        let e = f
+            .step(&[
+                obj(1, Motion::Dynamic, &a, 0.0),
+                obj(1, Motion::Dynamic, &a, 0.0),
+            ])
+            .unwrap_err();
+        assert_eq!(e, FrameError::DuplicateId(1));
+        let e = f.step(&[obj(15, Motion::Dynamic, &a, 0.0)]).unwrap_err();
+        assert_eq!(e, FrameError::ReservedId(15));
+    }
+
+    #[test]
+    fn removed_objects_leave_the_merge() {
+        let mut f = frames();
+        let a = Arc::new(sphere(Vec3::splat(0.3), 0.1, 8, 16));
+        let b = Arc::new(sphere(Vec3::splat(0.6), 0.1, 8, 16));
+        let c = Arc::new(sphere(Vec3::new(0.6, 0.3, 0.3), 0.1, 8, 16));
+        f.step(&[
+            obj(0, Motion::Dynamic, &a, 0.0),
+            obj(1, Motion::Dynamic, &b, 0.0),
+            obj(2, Motion::Dynamic, &c, 0.0),
+        ])
+        .unwrap();
+        let r = f
+            .step(&[
+                obj(0, Motion::Dynamic, &a, 0.0),
+                obj(1, Motion::Dynamic, &b, 0.0),
+            ])
+            .unwrap();
+        assert_eq!(r.removed, vec![2]);
+        assert!(r.merged);
+        assert!(f.world.object(2).is_none());
+        let report = f.world.check(f.merged_id).unwrap();
+        assert_eq!(report.hierarchies, vec![0, 1, f.merged_id]);
+    }
+}

@@ -7,7 +7,9 @@
 //! value relative; scaling the far end by `1 + 2 gamma(3)` makes the
 //! computed interval contain the exact one whenever that is non-empty.
 //! A zero direction component (infinite reciprocal) is decided exactly: the
-//! ray is inside that slab for every `t` or for none.
+//! ray is inside that slab for every `t` or for none. A bound equal to the
+//! origin's coordinate is crossed at `t = 0` exactly (so a subnormal
+//! component, whose reciprocal overflows, never gives `0 * inf`).
 
 use glam::Vec3;
 
@@ -56,11 +58,22 @@ pub fn ray_box(ray: &SlabRay, lo: Vec3, hi: Vec3, tmin: f32, tmax: f32) -> Optio
             continue;
         }
         let inv = ray.inv_dir[axis];
-        let t0 = (lo[axis] - o) * inv;
-        let t1 = (hi[axis] - o) * inv;
+        // A bound through the origin is crossed at t = 0 exactly; writing it
+        // out avoids 0 * inf = NaN when a tiny (subnormal) direction
+        // component has an infinite reciprocal.
+        let t0 = if lo[axis] == o {
+            0.0
+        } else {
+            (lo[axis] - o) * inv
+        };
+        let t1 = if hi[axis] == o {
+            0.0
+        } else {
+            (hi[axis] - o) * inv
+        };
         let (t_enter, t_leave) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
-        // NaN-safe: a NaN bound leaves near/far unchanged only if the
-        // comparison fails, so test explicitly and refuse it as a miss.
+        // Only non-finite input gets here with a NaN: refuse it as a miss
+        // rather than let max/min silently drop it.
         if t_enter.is_nan() || t_leave.is_nan() {
             return None;
         }
@@ -99,6 +112,18 @@ mod tests {
         assert!(test(&r, Vec3::ZERO, Vec3::ONE).is_none());
         let r = Ray::new(Vec3::new(-1.0, 0.5, 0.5), Vec3::X, 0.0, 0.5);
         assert!(test(&r, Vec3::ZERO, Vec3::ONE).is_none());
+        // A subnormal direction component (infinite reciprocal) with the
+        // origin on a face plane: inside that slab from t = 0 on.
+        let r = Ray::unbounded(
+            Vec3::new(-1.0, 0.0, 0.5),
+            Vec3::new(1.0, f32::from_bits(1), 0.0),
+        );
+        assert!(test(&r, Vec3::ZERO, Vec3::ONE).is_some());
+        let r = Ray::unbounded(
+            Vec3::new(-1.0, 1.0, 0.5),
+            Vec3::new(1.0, -f32::from_bits(1), 0.0),
+        );
+        assert!(test(&r, Vec3::ZERO, Vec3::ONE).is_some());
         // A flat box (zero thickness) hit head-on.
         let r = Ray::unbounded(Vec3::new(0.5, 0.5, -3.0), Vec3::Z);
         assert_eq!(

@@ -195,6 +195,11 @@ pub enum CheckErrorKind {
         prim: u32,
         voxel: VoxelAddr,
     },
+    PrimSpansTooManyVoxels {
+        prim: u32,
+        lod: u8,
+        voxels: u128,
+    },
     UnreachableNode,
     UnreachablePrim {
         prim: u32,
@@ -202,6 +207,13 @@ pub enum CheckErrorKind {
 }
 
 const AXES: [&str; 3] = ["x", "y", "z"];
+
+/// Most LOD-`l` voxels a primitive's AABB may meet in the coverage check.
+/// The LOD rule (SPEC 4.2) keeps the AABB within 2 voxels per axis at the base
+/// LOD and adds at most 3 sliver levels: at most `17^3 = 4913` candidates. A
+/// primitive held far deeper than its size allows fails instead of making the
+/// check loop over a huge range.
+pub const MAX_COVERAGE_CANDIDATES: u128 = 1 << 15;
 
 impl fmt::Display for CheckErrorKind {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -268,6 +280,11 @@ impl fmt::Display for CheckErrorKind {
                 f,
                 "triangle {prim} is in leaves at LOD {} and at LOD {}",
                 lods.0, lods.1
+            ),
+            PrimSpansTooManyVoxels { prim, lod, voxels } => write!(
+                f,
+                "triangle {prim} held at LOD {lod} meets {voxels} voxels there by its AABB, \
+                 more than the {MAX_COVERAGE_CANDIDATES} any LOD of section 4.2 allows"
             ),
             PrimNotCovered { prim, voxel } => write!(
                 f,
@@ -529,7 +546,11 @@ impl<'a, V: CheckView + ?Sized> Walk<'a, V> {
             if n.leaf {
                 self.report.leaves += 1;
                 let stored = rh.nodes[r.node as usize];
-                let frame = if self.view.leaves_in_local_frame(r.hier) { stored } else { n };
+                let frame = if self.view.leaves_in_local_frame(r.hier) {
+                    stored
+                } else {
+                    n
+                };
                 self.check_leaf(r, &frame, rh)?;
                 continue;
             }
@@ -631,6 +652,17 @@ impl<V: CheckView + ?Sized> Walk<'_, V> {
                 .floor()
                 .clamp(DVec3::ZERO, DVec3::splat(last))
                 .as_uvec3();
+            // b >= a unless the triangle is NaN (then the walk found no box to check).
+            let span = |lo: u32, hi: u32| (hi as u128 + 1).saturating_sub(lo as u128);
+            let candidates = span(a.x, b.x) * span(a.y, b.y) * span(a.z, b.z);
+            if candidates > MAX_COVERAGE_CANDIDATES {
+                let kind = CheckErrorKind::PrimSpansTooManyVoxels {
+                    prim,
+                    lod,
+                    voxels: candidates,
+                };
+                return fail(hier, None, kind);
+            }
             for z in a.z..=b.z {
                 for y in a.y..=b.y {
                     for x in a.x..=b.x {

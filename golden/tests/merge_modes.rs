@@ -39,7 +39,10 @@ fn occupied(s: &Scene, id: u8) -> BTreeSet<(u8, u32, u32, u32)> {
 
 /// The candidate range and `(lod, shared, union)` per candidate level,
 /// computed from sets (not streams).
-fn reference_overlap(s: &Scene, inputs: &[u8]) -> ((u8, u8), Vec<(u8, u64, u64)>) {
+/// `(lod, shared, union)`.
+type Overlaps = Vec<(u8, u64, u64)>;
+
+fn reference_overlap(s: &Scene, inputs: &[u8]) -> ((u8, u8), Overlaps) {
     let hs: Vec<&Hierarchy> = inputs.iter().map(|i| s.store.get(*i).unwrap()).collect();
     let lo = hs.iter().map(|h| h.top_lod).max().unwrap();
     let deep = |h: &Hierarchy| {

@@ -78,7 +78,11 @@ pub fn occupied_stream(w: &WalkedInput, lod: u8) -> Vec<u128> {
     let mut v: Vec<u128> = w
         .by_lod
         .get(lod as usize)
-        .map(|l| l.iter().map(|n| n.record.voxel.morton()).collect())
+        .map(|l| {
+            l.iter()
+                .map(|n| super::walk::morton(&n.record.voxel))
+                .collect()
+        })
         .unwrap_or_default();
     v.sort_unstable();
     v

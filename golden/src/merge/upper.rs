@@ -37,7 +37,7 @@ pub struct UpperCounts {
 fn level_node(b: &BaseNode, k: usize) -> LevelNode {
     let v = b.record.voxel;
     LevelNode {
-        morton: v.morton(),
+        morton: super::walk::morton(&v),
         x: v.x,
         y: v.y,
         z: v.z,

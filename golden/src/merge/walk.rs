@@ -30,8 +30,33 @@ impl PlacedNode {
     /// The stream key within one LOD: Morton code of the translated voxel,
     /// then input rank, then inner before leaf.
     pub fn key(&self) -> (u128, u16, bool) {
-        (self.record.voxel.morton(), self.rank, self.record.leaf)
+        (morton(&self.record.voxel), self.rank, self.record.leaf)
     }
+}
+
+/// Spreads the low 21 bits of `v` so bit `i` lands at bit `3i` (magic
+/// masks: the streams' sort keys are computed for every walked node).
+fn spread21(v: u64) -> u64 {
+    let mut x = v & 0x1f_ffff;
+    x = (x | (x << 32)) & 0x001f_0000_0000_ffff;
+    x = (x | (x << 16)) & 0x001f_0000_ff00_00ff;
+    x = (x | (x << 8)) & 0x100f_00f0_0f00_f00f;
+    x = (x | (x << 4)) & 0x10c3_0c30_c30c_30c3;
+    x = (x | (x << 2)) & 0x1249_2492_4924_9249;
+    x
+}
+
+/// [`crate::grid::VoxelAddr::morton`], computed 21 bits at a time.
+pub fn morton(v: &crate::grid::VoxelAddr) -> u128 {
+    let part = |shift: u32| {
+        let (x, y, z) = (
+            (v.x >> shift) as u64,
+            (v.y >> shift) as u64,
+            (v.z >> shift) as u64,
+        );
+        (spread21(x) | spread21(y) << 1 | spread21(z) << 2) as u128
+    };
+    part(0) | part(21) << 63
 }
 
 /// One input walked from its top down to some LOD.
@@ -202,4 +227,27 @@ pub fn collect(walked: &[WalkedInput], m: u8) -> (Vec<PlacedNode>, Vec<PlacedNod
         }
     }
     (above, at)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::VoxelAddr;
+    use crate::scenes::SplitMix64;
+
+    #[test]
+    fn fast_morton_is_the_grid_morton() {
+        let mut r = SplitMix64::new(9);
+        let m = (1u64 << 31) - 1;
+        for k in 0..20_000 {
+            let pick = |r: &mut SplitMix64| match k % 4 {
+                0 => (r.next_u64() & m) as u32,
+                1 => m as u32,
+                2 => (r.next_u64() & 0xff) as u32,
+                _ => (1u32 << (r.next_u64() % 31)),
+            };
+            let v = VoxelAddr::new(31, pick(&mut r), pick(&mut r), pick(&mut r));
+            assert_eq!(morton(&v), v.morton(), "{v:?}");
+        }
+    }
 }

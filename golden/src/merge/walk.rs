@@ -244,7 +244,7 @@ mod tests {
                 0 => (r.next_u64() & m) as u32,
                 1 => m as u32,
                 2 => (r.next_u64() & 0xff) as u32,
-                _ => (1u32 << (r.next_u64() % 31)),
+                _ => 1u32 << (r.next_u64() % 31),
             };
             let v = VoxelAddr::new(31, pick(&mut r), pick(&mut r), pick(&mut r));
             assert_eq!(morton(&v), v.morton(), "{v:?}");

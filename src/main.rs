@@ -27,6 +27,8 @@ enum Command {
     Build(cmd::build::Args),
     /// Trace random rays through a mesh's hierarchy; --verify compares with brute force.
     Trace(cmd::trace::Args),
+    /// Build a hierarchy per mesh, place each by its translation, merge, check and compare tracing.
+    Merge(cmd::merge::Args),
     /// The main job: build, (merge,) and trace a scene; with no argument, the embedded default scene.
     Run(cmd::run::Args),
 }
@@ -36,6 +38,7 @@ fn main() {
     let result = match cli.command {
         Command::Build(a) => cmd::build::main(a),
         Command::Trace(a) => cmd::trace::main(a),
+        Command::Merge(a) => cmd::merge::main(a),
         Command::Run(a) => cmd::run::main(a),
     };
     if let Err(e) = result {

@@ -2,5 +2,6 @@
 
 pub mod build;
 pub mod common;
+pub mod merge;
 pub mod run;
 pub mod trace;

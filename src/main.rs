@@ -34,6 +34,12 @@ enum Command {
 }
 
 fn main() {
+    // Printing into a closed pipe (`hiermerge ... | head`) ends the program
+    // quietly, as for any Unix tool, instead of a panic on a failed write.
+    // SAFETY: restoring a signal's default disposition before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Build(a) => cmd::build::main(a),

@@ -20,7 +20,9 @@ fn bench(name: &str, m: &rtl_gen::Module, cycles: u64, inputs: &[&str]) {
             x ^= x << 13;
             x ^= x >> 7;
             x ^= x << 17;
-            sim.set_u64(h, x & 1);
+            if sim.set_u64(h, x & 1).is_err() {
+                return;
+            }
         }
         sim.step();
     }

@@ -89,7 +89,12 @@ fn wide_registers_and_handles() {
     let ha = sim.handle("a").unwrap();
     let hy = sim.handle("y").unwrap();
     let big = Bits::from_i128(-1, 300).unwrap(); // 2^300 - 1
-    sim.set(ha, &big);
+    sim.set(ha, &big).unwrap();
+    assert!(matches!(
+        sim.set(ha, &Bits::zero(3)),
+        Err(SimError::DoesNotFit(..))
+    ));
+    assert!(matches!(sim.set(hy, &big), Err(SimError::NotAnInput(..))));
     sim.step_n(3); // 3 * (2^300 - 1) mod 2^300 = 2^300 - 3
     assert_eq!(sim.get(hy), Bits::from_i128(-3, 300).unwrap());
     assert_eq!(

@@ -273,35 +273,57 @@ impl Sim {
         let b = value
             .to_bits(self.widths[h.node])
             .map_err(|e| SimError::DoesNotFit(port.into(), e))?;
-        self.set(h, &b);
-        Ok(())
+        self.set(h, &b)
     }
 
-    /// Sets an input through a handle; `value` must have the port's width
-    /// (other widths are ignored, as the handle was resolved by [`Sim::handle`]).
-    pub fn set(&mut self, h: Handle, value: &Bits) {
-        if !h.input || value.width() != self.widths[h.node] {
-            return;
+    /// Sets an input through a handle; `value` must have the port's width.
+    pub fn set(&mut self, h: Handle, value: &Bits) -> Result<(), SimError> {
+        let w = self.widths[h.node];
+        if !h.input {
+            return Err(SimError::NotAnInput(self.name_of(h)));
+        }
+        if value.width() != w {
+            let e = DoesNotFit {
+                value: value.to_string(),
+                width: w,
+            };
+            return Err(SimError::DoesNotFit(self.name_of(h), e));
         }
         let o = self.offsets[h.node];
         self.vals[o..o + value.words().len()].copy_from_slice(value.words());
         self.dirty = true;
+        Ok(())
     }
 
-    /// Sets an input of at most 64 bits through a handle (extra bits are dropped).
-    pub fn set_u64(&mut self, h: Handle, value: u64) {
-        if !h.input {
-            return;
-        }
+    /// Sets an input through a handle from a `u64`, which must fit the port.
+    pub fn set_u64(&mut self, h: Handle, value: u64) -> Result<(), SimError> {
         let w = self.widths[h.node];
+        if !h.input {
+            return Err(SimError::NotAnInput(self.name_of(h)));
+        }
+        if w < 64 && value >> w != 0 {
+            let e = DoesNotFit {
+                value: value.to_string(),
+                width: w,
+            };
+            return Err(SimError::DoesNotFit(self.name_of(h), e));
+        }
         let o = self.offsets[h.node];
-        let n = words_for(w);
         self.vals[o] = value;
-        for x in &mut self.vals[o + 1..o + n] {
+        for x in &mut self.vals[o + 1..o + words_for(w)] {
             *x = 0;
         }
-        words::clamp(&mut self.vals[o..o + n], w);
         self.dirty = true;
+        Ok(())
+    }
+
+    /// The port name behind a handle, for error messages.
+    fn name_of(&self, h: Handle) -> String {
+        self.ports
+            .iter()
+            .find(|(_, (node, _))| *node == h.node)
+            .map(|(n, _)| n.clone())
+            .unwrap_or_default()
     }
 
     /// The current value of a port or named signal (`inst.name` below the top).

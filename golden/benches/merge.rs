@@ -138,6 +138,7 @@ fn main() {
         MergeMode::BelowTop(2),
         MergeMode::Proportion { num: 1, den: 2 },
         MergeMode::PerNode { num: 1, den: 2 },
+        MergeMode::PerNode { num: 0, den: 1 },
     ] {
         let (merge_time, r) = best_of(10, || {
             merge(&store, &[1, 2], &table, mode, 3).expect("merge")

@@ -158,6 +158,9 @@ fn single_node_inputs() {
     // A single input alone.
     let r = s.merge(&[3], MergeMode::default(), 6);
     assert_eq!(r.merged.nodes.len(), 1);
+    // The lone leaf cannot be a root of the merged hierarchy: one grouping above it.
+    assert_eq!((r.stats.lifted, r.merged.top_lod + 1), (1, s.top(3)));
+    assert_eq!(r.merged.refs, vec![Reference { hier: 3, node: 0 }]);
     s.check(6, &[3]);
     s.compare(6, &[3], 500, 3, 1);
     every_mode(&mut s, &[1, 2, 3, 4], 7, 1_500);
@@ -485,4 +488,32 @@ fn refusals_are_errors_naming_the_input() {
         Err(e @ MergeError::IndexOverflow { index_bits: 4, .. }) => println!("{e}"),
         other => panic!("expected an index overflow at I = 4, got {other:?}"),
     }
+}
+
+#[test]
+fn a_lone_input_root_is_materialized() {
+    let mut s = Scene::new(d16(), 1.0 / 64.0);
+    s.add(1, normalized(&load("bunny.obj"), 8.0, 1.0), [3, 4, 5]);
+    let r = s.merge(&[1], MergeMode::BelowTop(0), 2);
+    let h = s.store.get(1).unwrap();
+    let t = s.table.read(1).unwrap();
+    // The merged hierarchy is a copy of the input's root, placed, with the
+    // root's references (naming the input).
+    assert_eq!(
+        (
+            r.stats.materialized,
+            r.merged.nodes.len(),
+            r.merged.root_count
+        ),
+        (1, 1, 1)
+    );
+    let root = r.merged.nodes[0];
+    assert_eq!(
+        root.voxel,
+        translate_node(h.nodes[0].voxel, &t, &h.params).unwrap()
+    );
+    assert_eq!((root.lo, root.hi), (h.nodes[0].lo, h.nodes[0].hi));
+    assert_eq!(r.merged.children_of(&root), h.children_of(&h.nodes[0]));
+    s.check(2, &[1]);
+    s.compare(2, &[1], 1_000, 4, 1);
 }

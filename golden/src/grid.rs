@@ -55,7 +55,11 @@ impl VoxelAddr {
 
     /// The ancestor at LOD `lod <= self.lod`.
     pub fn ancestor(&self, lod: u8) -> VoxelAddr {
-        assert!(lod <= self.lod, "ancestor LOD {lod} below voxel LOD {}", self.lod);
+        assert!(
+            lod <= self.lod,
+            "ancestor LOD {lod} below voxel LOD {}",
+            self.lod
+        );
         let s = self.lod - lod;
         VoxelAddr::new(lod, self.x >> s, self.y >> s, self.z >> s)
     }
@@ -115,7 +119,12 @@ mod tests {
     fn siblings_are_adjacent_in_morton_order() {
         let v = VoxelAddr::new(5, 9, 17, 30);
         for c in 0..8u32 {
-            let child = VoxelAddr::new(6, v.x * 2 + (c & 1), v.y * 2 + ((c >> 1) & 1), v.z * 2 + (c >> 2));
+            let child = VoxelAddr::new(
+                6,
+                v.x * 2 + (c & 1),
+                v.y * 2 + ((c >> 1) & 1),
+                v.z * 2 + (c >> 2),
+            );
             assert_eq!(child.parent(), Some(v));
             assert_eq!(child.morton() >> 3, v.morton());
             assert_eq!(child.octant() as u32, c);
@@ -128,7 +137,10 @@ mod tests {
         assert!(VoxelAddr::new(4, 15, 15, 15).is_valid(&p));
         assert!(!VoxelAddr::new(4, 16, 0, 0).is_valid(&p));
         assert!(!VoxelAddr::new(5, 0, 0, 0).is_valid(&p));
-        assert_eq!(VoxelAddr::new(4, 15, 8, 1).ancestor(1), VoxelAddr::new(1, 1, 1, 0));
+        assert_eq!(
+            VoxelAddr::new(4, 15, 8, 1).ancestor(1),
+            VoxelAddr::new(1, 1, 1, 0)
+        );
         assert_eq!(VoxelAddr::ROOT.parent(), None);
     }
 }

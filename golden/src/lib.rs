@@ -17,6 +17,7 @@ pub mod scenes;
 pub mod store;
 pub mod trace;
 pub mod translate;
+pub mod vectors;
 pub mod world;
 
 pub use grid::VoxelAddr;

@@ -32,12 +32,14 @@ pub mod examples;
 mod graph;
 mod instance;
 mod memory;
+pub mod merge;
 mod module;
 mod names;
 pub mod optest;
 mod signal;
 pub mod sim;
 pub mod stream;
+pub mod translate;
 mod validate;
 pub mod verilog;
 #[doc(hidden)]

@@ -1,0 +1,110 @@
+//! The apply path (SPEC.md 7.6, 7.9): node records in, moved records out,
+//! one per clock. Step 1 reads the table entry of the record's hierarchy
+//! and checks id, entry, node and level; step 2 moves each coordinate by
+//! shift-and-add, `x' = x + (t << (d - L))`, checks `0 <= x' < 2^d` and
+//! picks the code. A record with a nonzero code leaves unchanged, with the
+//! code: nothing is dropped.
+
+use golden::layout::NodeLayout;
+use golden::vectors::translate::{ApplyCode, TranslateDesign};
+
+use super::bundle::Bundle;
+use super::determine::field;
+use super::ports::apply_in_layout;
+use super::table::Table;
+use crate::{Module, Signal, Stream};
+
+/// Builds the path: ports `apply_in_*`, `apply_out_*`. Returns the valid
+/// bits of its registers, the output handshake and whether the leaving
+/// record carries an error.
+pub(crate) fn apply_path<'m>(
+    m: &'m Module,
+    d: &TranslateDesign,
+    table: &Table<'m>,
+) -> (Vec<Signal<'m>>, Signal<'m>, Signal<'m>) {
+    let p = d.params();
+    let dmax = p.max_lod as u32;
+    let lb = p.lod_bits();
+    let nl = NodeLayout::new(p);
+    let in_layout = apply_in_layout(d);
+    let input = Stream::input(m, "apply_in", in_layout.width());
+    let record = input.data.slice(nl.width() - 1, 0).name("apply_record");
+    let hier = field(input.data, &in_layout, "hier");
+    let node_field =
+        |rec: Signal<'m>, f: &golden::layout::Field| rec.slice(f.offset + f.width - 1, f.offset);
+
+    // Step 1: the entry and every check that does not need the sums.
+    let entry = table.read(hier, "apply_read");
+    let lod = node_field(record, nl.lod());
+    let coords = [0, 1, 2].map(|a| node_field(record, nl.coord(a)));
+    let mut bad_node =
+        coords[0].srl(lod).ne(0) | coords[1].srl(lod).ne(0) | coords[2].srl(lod).ne(0);
+    if (1u32 << lb) - 1 > dmax {
+        bad_node = lod.gt(dmax as u128) | bad_node;
+    }
+    let above = lod.lt(entry.lod);
+    let code = |c: ApplyCode| m.lit(c as u128, ApplyCode::BITS);
+    let early = bad_node.mux(
+        code(ApplyCode::BadNode),
+        above.mux(code(ApplyCode::AboveLevel), code(ApplyCode::Ok)),
+    );
+    let early = (!entry.valid).mux(code(ApplyCode::EmptyEntry), early);
+    let early = match table.id_out_of_range(hier) {
+        Some(o) => o.mux(code(ApplyCode::BadId), early),
+        None => early,
+    };
+    let mut s1 = Bundle::new();
+    s1.put("record", record);
+    s1.put("hier", hier);
+    s1.put("code", early.name("apply_early_code"));
+    s1.put("shift", lod.sub(entry.lod, lb).name("apply_shift"));
+    for (a, t) in entry.t.iter().enumerate() {
+        s1.put(&format!("t{a}"), *t);
+    }
+    let (st1, b1) = s1.pipeline_reg(input.valid, input.ready, "apply_s1");
+
+    // Step 2: shift-and-add per axis, range check, final code.
+    let record = b1.get("record");
+    let lod = node_field(record, nl.lod());
+    let shift = b1.get("shift");
+    let sum_bits = 2 * dmax + 2;
+    let mut moved = Vec::new();
+    let mut outside = Vec::new();
+    for a in 0..3 {
+        let x = node_field(record, nl.coord(a));
+        let t = b1.get(&format!("t{a}")).as_signed();
+        let offset = t.sext(sum_bits) << shift;
+        let sum = x
+            .add(offset, sum_bits)
+            .name(&format!("apply_sum_{}", ["x", "y", "z"][a]));
+        outside.push(sum.as_signed().lt(0) | sum.srl(lod).ne(0));
+        moved.push(sum.slice(dmax - 1, 0));
+    }
+    let early = b1.get("code");
+    let late = outside[0].mux(
+        code(ApplyCode::OutsideX),
+        outside[1].mux(
+            code(ApplyCode::OutsideY),
+            outside[2].mux(code(ApplyCode::OutsideZ), code(ApplyCode::Ok)),
+        ),
+    );
+    let final_code = early.ne(0).mux(early, late).name("apply_code");
+    let (x, z) = (nl.x(), nl.z());
+    let mut parts = vec![];
+    if z.end() < nl.width() {
+        parts.push(record.slice(nl.width() - 1, z.end()));
+    }
+    parts.extend([moved[2], moved[1], moved[0]]);
+    parts.push(record.slice(x.offset - 1, 0));
+    let moved_record = m.concat(&parts);
+    let out_record = final_code.eq(0).mux(moved_record, record);
+    let mut out = Bundle::new();
+    out.put("record", out_record);
+    out.put("hier", b1.get("hier"));
+    out.put("code", final_code);
+    let (st2, b2) = out.skid_buffer(st1.valid, st1.ready, "apply_out_q");
+    let error = b2.get("code").ne(0);
+    let valid = st2.valid;
+    st2.output("apply_out");
+    (vec![st1.valid, st2.valid], valid & st2.ready, error)
+}

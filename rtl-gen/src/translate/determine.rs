@@ -1,0 +1,222 @@
+//! The determine path (SPEC.md 7.2-7.5, 7.9): a stream of placement
+//! transactions in, a stream of results out, the table written on the way.
+//!
+//! Three steps, one pipeline register after each, the last a skid buffer:
+//! 1. unpack the encodings; level, `k = D - L`, extents validity;
+//! 2. align, round half to even, field range;
+//! 3. residual normalization, extents rule, flags; read entry `read_id`
+//!    and, on the edge the result leaves, write entry `write_id`. Reading
+//!    in the same step as the write, before it, is golden's read-first
+//!    order, and transactions reach this step in order.
+
+use golden::vectors::translate::TranslateDesign;
+
+use super::bundle::Bundle;
+use super::float::{pack_residual, round, unpack, FloatPath};
+use super::ports::{det_in_layout, det_out_layout, PortLayout};
+use super::table::Table;
+use crate::{Module, Signal, Stream};
+
+const AXES: [&str; 3] = ["x", "y", "z"];
+
+/// The slice of `data` holding field `name` of `layout`.
+pub(crate) fn field<'m>(data: Signal<'m>, layout: &PortLayout, name: &str) -> Signal<'m> {
+    let f = layout
+        .field(name)
+        .unwrap_or_else(|| panic!("payload has no field `{name}`"));
+    data.slice(f.offset + f.width - 1, f.offset)
+}
+
+/// Builds the path: ports `det_in_*`, `det_out_*`. Returns the valid bits
+/// of its pipeline registers (for `idle`) and the output handshake (for
+/// the error status).
+pub(crate) fn determine_path<'m>(
+    m: &'m Module,
+    d: &TranslateDesign,
+    table: &Table<'m>,
+) -> (Vec<Signal<'m>>, Signal<'m>, Signal<'m>) {
+    let p = d.params();
+    let dmax = p.max_lod as u32;
+    let lb = p.lod_bits();
+    let fp = FloatPath {
+        binary64: d.binary64,
+        max_lod: dmax,
+    };
+    let in_layout = det_in_layout(d);
+    let input = Stream::input(m, "det_in", in_layout.width());
+    let get = |n: &str| field(input.data, &in_layout, n);
+
+    // Step 1.
+    let mut s1 = Bundle::new();
+    let lod = get("lod");
+    let format = d.binary64.then(|| get("format"));
+    let err_lod = ((1u32 << lb) - 1 > dmax).then(|| lod.gt(dmax as u128).name("err_lod"));
+    let k = m.lit(dmax as u128, lb).sub(lod, lb).name("k");
+    for a in AXES {
+        unpack(
+            &fp,
+            get(&format!("placement_{a}")),
+            format,
+            k,
+            &format!("{a}_"),
+            &mut s1,
+        );
+    }
+    let mut bad_extents = Vec::new();
+    for a in AXES {
+        let (lo, hi) = (
+            get(&format!("extents_lo_{a}")),
+            get(&format!("extents_hi_{a}")),
+        );
+        bad_extents.push(lo.gt(hi) | hi.srl(lod).ne(0));
+        s1.put(&format!("lo_{a}"), lo);
+        s1.put(&format!("hi_{a}"), hi);
+    }
+    let err_extents = bad_extents[0] | bad_extents[1] | bad_extents[2];
+    s1.put("err_extents", err_extents);
+    if let Some(e) = err_lod {
+        s1.put("err_lod", e);
+    }
+    if let Some(f) = format {
+        s1.put("format", f);
+    }
+    for n in ["lod", "write_enable", "write_id", "read_id"] {
+        s1.put(n, get(n));
+    }
+    s1.put("k", k);
+    let (st1, b1) = s1.pipeline_reg(input.valid, input.ready, "det_s1");
+
+    // Step 2.
+    let mut s2 = Bundle::new();
+    for a in AXES {
+        round(&fp, &b1, &format!("{a}_"), &mut s2);
+    }
+    let mut common = vec![
+        "err_extents",
+        "lod",
+        "write_enable",
+        "write_id",
+        "read_id",
+        "k",
+    ];
+    for a in ["lo_x", "lo_y", "lo_z", "hi_x", "hi_y", "hi_z"] {
+        common.push(a);
+    }
+    if err_lod.is_some() {
+        common.push("err_lod");
+    }
+    if format.is_some() {
+        common.push("format");
+    }
+    for n in common {
+        s2.put(n, b1.get(n));
+    }
+    let (st2, b2) = s2.pipeline_reg(st1.valid, st1.ready, "det_s2");
+
+    // Step 3.
+    let lod = b2.get("lod");
+    let k = b2.get("k");
+    let format = format.map(|_| b2.get("format"));
+    let err_lod = err_lod.map(|_| b2.get("err_lod"));
+    let err_extents = b2.get("err_extents");
+    let zero = m.lit(0, 1);
+    let live = err_lod.map(|e| !e);
+    let gate = |s: Signal<'m>| match live {
+        Some(l) => l & s,
+        None => s,
+    };
+    let limit = m.lit(1, dmax + 2) << lod;
+    let mut axes = Vec::new();
+    let (mut nan, mut inf, mut range, mut wide, mut outside) =
+        (vec![], vec![], vec![], vec![], vec![]);
+    for a in AXES {
+        let r = pack_residual(&fp, &b2, format, k, &format!("{a}_"));
+        let lo = b2.get(&format!("lo_{a}"));
+        let hi = b2.get(&format!("hi_{a}"));
+        let low = lo.add(r.t, dmax + 2).as_signed().lt(0);
+        let high = hi.add(r.t, dmax + 2).as_signed().ge(limit.as_signed());
+        let fault = match r.wide {
+            Some(w) => w | r.nan | r.inf | r.range,
+            None => r.nan | r.inf | r.range,
+        };
+        outside.push(gate(!err_extents & !fault & (low | high)));
+        nan.push(gate(r.nan));
+        inf.push(gate(r.inf));
+        range.push(gate(r.range));
+        if let Some(w) = r.wide {
+            wide.push(gate(w));
+        }
+        axes.push(r);
+    }
+    let mask = |v: &[Signal<'m>]| m.concat(&[v[2], v[1], v[0]]);
+    let (nan, inf, range, outside) = (mask(&nan), mask(&inf), mask(&range), mask(&outside));
+    let wide = (!wide.is_empty()).then(|| mask(&wide));
+    let err_extents = gate(err_extents);
+    let mut any =
+        err_extents | nan.reduce_or() | inf.reduce_or() | range.reduce_or() | outside.reduce_or();
+    if let Some(w) = wide {
+        any = any | w.reduce_or();
+    }
+    if let Some(e) = err_lod {
+        any = any | e;
+    }
+    let ok = (!any).name("det_ok");
+
+    let write_id = b2.get("write_id");
+    let read_id = b2.get("read_id");
+    let we = b2.get("write_enable");
+    let err_write_id = match table.id_out_of_range(write_id) {
+        Some(o) => we & o,
+        None => zero,
+    };
+    let written = (we & ok & !err_write_id).name("det_written");
+    let err_read_id = table.id_out_of_range(read_id).unwrap_or(zero);
+    let entry = table.read(read_id, "det_read");
+
+    let mut out = Bundle::new();
+    out.put("ok", ok);
+    for (a, r) in AXES.iter().zip(&axes) {
+        out.put(
+            &format!("t_{a}"),
+            ok.mux(r.t.as_unsigned(), m.lit(0, r.t.width())),
+        );
+    }
+    for (a, r) in AXES.iter().zip(&axes) {
+        let w = r.residual.width();
+        out.put(&format!("residual_{a}"), ok.mux(r.residual, m.lit(0, w)));
+    }
+    out.put("err_lod", err_lod.unwrap_or(zero));
+    out.put("err_extents", err_extents);
+    if let Some(w) = wide {
+        out.put("err_width", w);
+    }
+    out.put("err_nan", nan);
+    out.put("err_inf", inf);
+    out.put("err_range", range);
+    out.put("err_outside", outside);
+    out.put("err_write_id", err_write_id);
+    out.put("written", written);
+    out.put("err_read_id", err_read_id);
+    out.put("read_valid", entry.valid);
+    out.put("read_lod", entry.lod);
+    for (a, t) in AXES.iter().zip(entry.t) {
+        out.put(&format!("read_t_{a}"), t.as_unsigned());
+    }
+    debug_assert_eq!(
+        det_out_layout(d)
+            .fields
+            .iter()
+            .map(|f| f.width)
+            .sum::<u32>(),
+        det_out_layout(d).width()
+    );
+    let (st3, _) = out.skid_buffer(st2.valid, st2.ready, "det_out_q");
+    // The entry is written on the edge the result leaves step 3.
+    let t = [axes[0].t, axes[1].t, axes[2].t];
+    table.write(write_id, lod, t, st2.fire() & written);
+    let out_fire_valid = st3.valid;
+    let ok_out = st3.data.bit(0);
+    st3.output("det_out");
+    let out_fire = out_fire_valid & st3.ready;
+    (vec![st1.valid, st2.valid, st3.valid], out_fire, !ok_out)
+}

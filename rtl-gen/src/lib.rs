@@ -32,7 +32,6 @@ pub mod examples;
 mod graph;
 mod instance;
 mod memory;
-pub mod merge;
 mod module;
 mod names;
 pub mod optest;

@@ -19,7 +19,7 @@
 use crate::design::{Design, PortDir};
 
 /// Bump when the generated code changes; part of the cache key.
-pub const SHIM_VERSION: u32 = 1;
+pub const SHIM_VERSION: u32 = 2;
 
 /// The Verilator model class prefix used for every design (`--prefix`).
 pub const MODEL_PREFIX: &str = "Vhm";

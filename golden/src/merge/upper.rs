@@ -1,5 +1,5 @@
 //! S616 and S618's layout: the levels above the base, built bottom-up with
-//! the builder's own grouping and top rule ([`crate::build::upper`]), then
+//! the builder's own grouping and top rule (`build::upper::build_levels`), then
 //! laid out as records of the merged hierarchy.
 //!
 //! Records: every grouped node (made here), every created node (S614), and

@@ -2,7 +2,7 @@
 
 use super::testbench::{generate_testbench, REPLY_PREFIX, TB_MODULE};
 use crate::bitvec::BitVec;
-use crate::design::{Design, PortDir, PortId};
+use crate::design::{Design, PortId};
 use crate::engine::Engine;
 use crate::error::{io_err, CosimError, Result};
 use crate::tools::INSTALL_HINT;
@@ -364,12 +364,4 @@ impl Drop for IcarusEngine {
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
-}
-
-/// Whether `port` is an output of `design` (helper for callers building checks).
-pub fn is_output(design: &Design, port: PortId) -> bool {
-    design
-        .port(port)
-        .map(|p| p.dir == PortDir::Output)
-        .unwrap_or(false)
 }

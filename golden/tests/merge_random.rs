@@ -8,10 +8,13 @@
 mod merge_support;
 
 use glam::Vec3;
+use golden::merge::level::{candidate_range, overlaps, overlaps_pruned};
+use golden::merge::walk::{collect, walk_input};
 use golden::merge::{merge, MergeError, MergeMode};
 use golden::mesh::Mesh;
 use golden::params::Params;
 use golden::scenes::{random_soup, sphere, torus, SplitMix64};
+use golden::store::Hierarchy;
 use golden::translate::{TranslateError, Translation};
 use merge_support::{normalized, Scene};
 
@@ -63,6 +66,29 @@ fn random_mode(r: &mut SplitMix64) -> MergeMode {
     }
 }
 
+/// The overlap mode's pruned counts equal the plain k-way stream counts
+/// over every translated node of every candidate level.
+fn pruned_overlaps_equal_streamed(s: &Scene, inputs: &[u8]) {
+    let hs: Vec<&Hierarchy> = inputs.iter().map(|i| s.store.get(*i).unwrap()).collect();
+    let ts: Vec<Translation> = inputs
+        .iter()
+        .map(|i| s.table.read(*i as u32).unwrap())
+        .collect();
+    let (lo, hi) = candidate_range(&hs);
+    let walked: Result<Vec<_>, _> = hs
+        .iter()
+        .zip(&ts)
+        .enumerate()
+        .map(|(k, (h, t))| walk_input(h, k as u16, t, hi))
+        .collect();
+    let Ok(walked) = walked else { return }; // a translation out of the scene
+    let (_, at_lo) = collect(&walked, lo);
+    assert_eq!(
+        overlaps_pruned(&hs, &ts, at_lo, lo, hi),
+        Ok(overlaps(&walked, lo, hi))
+    );
+}
+
 #[test]
 fn random_merges_check_and_trace_or_are_refused() {
     let mut r = SplitMix64::new(2024);
@@ -87,6 +113,7 @@ fn random_merges_check_and_trace_or_are_refused() {
             s.table.write(id as u32, Translation { lod, t }).unwrap();
         }
         let inputs: Vec<u8> = (1..=k).collect();
+        pruned_overlaps_equal_streamed(&s, &inputs);
         let mode = random_mode(&mut r);
         match merge(&s.store, &inputs, &s.table, mode, 15) {
             Ok(res) => {

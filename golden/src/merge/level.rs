@@ -102,6 +102,104 @@ pub fn overlaps(walked: &[WalkedInput], lo: u8, hi: u8) -> Vec<LevelOverlap> {
         .collect()
 }
 
+/// The number of distinct LOD-`l` voxels holding a node of `h`, for every
+/// `l` in `top_lod..=hi` (index `l`; 0 elsewhere): a walk from the roots
+/// that follows references and compares stored voxels only. A translation
+/// at `L <= l` moves all LOD-`l` voxels by one vector, so the count is that
+/// of the translated voxels too.
+pub fn census(h: &Hierarchy, hi: u8) -> Result<Vec<u64>, MergeError> {
+    let mut out = vec![0u64; hi as usize + 1];
+    let roots = (h.root_count as usize).min(h.nodes.len());
+    let mut level: Vec<u32> = (0..roots as u32).collect();
+    let mut keys: Vec<u128> = Vec::new();
+    let mut lod = h.top_lod;
+    while !level.is_empty() && lod <= hi {
+        keys.clear();
+        let mut next = Vec::new();
+        for &i in &level {
+            let n = &h.nodes[i as usize];
+            if n.voxel.lod != lod {
+                return Err(MergeError::BadInput {
+                    input: h.id,
+                    node: Some(i),
+                    field: "lod",
+                    expected: format!("{lod} (its parent's plus one, or top_lod for a root)"),
+                    found: n.voxel.lod.to_string(),
+                });
+            }
+            keys.push(super::walk::morton(&n.voxel));
+            if !n.leaf && lod < hi {
+                next.extend(super::walk::children(h, i, n)?.iter().map(|c| c.node));
+            }
+        }
+        if !keys.is_sorted() {
+            keys.sort_unstable();
+        }
+        out[lod as usize] = 1 + keys.windows(2).filter(|w| w[0] != w[1]).count() as u64;
+        level = next;
+        lod += 1;
+    }
+    Ok(out)
+}
+
+/// The overlap of every level in `[lo, hi]` without walking everything
+/// below `lo` translated: `shared(l)` and the voxels' extra holders are
+/// counted over the *contested* nodes only (at `lo` all nodes, from `at_lo`;
+/// at `l > lo` the children of the nodes at voxels shared at `l - 1`: a
+/// voxel held by two inputs at `l` has its parent voxel held by both at
+/// `l - 1`, since for `l - 1 >= lo` every node's parent is a node of its
+/// input at the parent voxel), and `union(l) = sum_i distinct_i(l) -
+/// sum over shared voxels of (holders - 1)` with `distinct_i` from
+/// [`census`]. Equal to [`overlaps`] (tested).
+pub fn overlaps_pruned(
+    inputs: &[&Hierarchy],
+    translations: &[crate::translate::Translation],
+    at_lo: Vec<super::walk::PlacedNode>,
+    lo: u8,
+    hi: u8,
+) -> Result<Vec<LevelOverlap>, MergeError> {
+    use super::level_merge::{sort_stream, voxel_groups};
+    let mut distinct = vec![0u64; hi as usize + 1];
+    for h in inputs {
+        for (l, c) in census(h, hi)?.iter().enumerate() {
+            distinct[l] += c;
+        }
+    }
+    let mut out = Vec::with_capacity((hi - lo) as usize + 1);
+    let mut contested = at_lo;
+    for lod in lo..=hi {
+        sort_stream(&mut contested);
+        let (mut shared, mut extra) = (0u64, 0u64);
+        let mut next = Vec::new();
+        for g in voxel_groups(&contested) {
+            let group = &contested[g];
+            let holders = 1 + group.windows(2).filter(|w| w[0].rank != w[1].rank).count() as u64;
+            if holders < 2 {
+                continue;
+            }
+            shared += 1;
+            extra += holders - 1;
+            if lod == hi {
+                continue;
+            }
+            for n in group.iter().filter(|n| !n.record.leaf) {
+                let h = inputs[n.rank as usize];
+                let t = &translations[n.rank as usize];
+                for c in super::walk::children(h, n.at.node, &h.nodes[n.at.node as usize])? {
+                    next.push(super::walk::place_node(h, n.rank, t, c.node)?);
+                }
+            }
+        }
+        out.push(LevelOverlap {
+            lod,
+            shared,
+            union: distinct[lod as usize] - extra,
+        });
+        contested = next;
+    }
+    Ok(out)
+}
+
 /// `shared * den > num * union`, exactly.
 pub fn above_threshold(o: &LevelOverlap, num: u32, den: u32) -> bool {
     o.shared as u128 * den as u128 > num as u128 * o.union as u128

@@ -70,10 +70,10 @@ impl Default for MergeMode {
 pub struct MergeStats {
     /// Candidate merging levels `[lo, hi]`.
     pub candidates: (u8, u8),
-    /// Overlap at every candidate level (overlap mode only; empty otherwise,
-    /// which then need not walk below the merging level).
+    /// Overlap at every candidate level (overlap mode only; empty otherwise).
     pub overlap: Vec<LevelOverlap>,
-    /// Input nodes walked and translated (S610-S612).
+    /// Input nodes walked and translated down to the merging level
+    /// (S610-S612; per-node mode: down to `lo`).
     pub nodes_walked: u64,
     /// Input leaves above the merging level, taken as they are (S610).
     pub leaves_above: u64,
@@ -221,9 +221,16 @@ pub fn merge(
             let walked;
             let m = if let MergeMode::Overlap { num, den } = mode {
                 level::check_ratio("Overlap", num, den)?;
-                walked = walk_all(&hs, &ts, hi)?;
-                stats.overlap = level::overlaps(&walked, lo, hi);
-                level::choose_level(&mode, lo, hi, &stats.overlap)?.unwrap_or(lo)
+                let to_lo = walk_all(&hs, &ts, lo)?;
+                let (_, at_lo) = collect(&to_lo, lo);
+                stats.overlap = level::overlaps_pruned(&hs, &ts, at_lo, lo, hi)?;
+                let m = level::choose_level(&mode, lo, hi, &stats.overlap)?.unwrap_or(lo);
+                walked = if m == lo {
+                    to_lo
+                } else {
+                    walk_all(&hs, &ts, m)?
+                };
+                m
             } else {
                 let m = level::choose_level(&mode, lo, hi, &[])?.unwrap_or(lo);
                 walked = walk_all(&hs, &ts, m)?;

@@ -687,7 +687,7 @@ impl Generator {
             }
             "bad_node" => {
                 let top = (1u32 << p.lod_bits()) - 1;
-                let d = self.rng.below(d_max as u64 + 1) as u8;
+                let d = t.lod + self.rng.below((d_max - t.lod) as u64 + 1) as u8;
                 if top > d_max as u32 && self.rng.below(2) == 0 {
                     let lod = d_max + 1 + self.rng.below((top - d_max as u32) as u64) as u8;
                     VoxelAddr::new(lod, 0, 0, 0)

@@ -6,7 +6,11 @@
 //! nodes (children are exactly one LOD below their parent), so this is also
 //! "the voxels the input covers at `l`", and one LOD's nodes are one stream.
 //! `shared(l)` counts voxels occupied by two or more inputs, `union(l)` by
-//! any ([`overlap_counts`], a k-way merge of Morton-sorted streams).
+//! any ([`overlap_counts`], a k-way merge of Morton-sorted streams;
+//! [`overlaps`] runs it on every candidate level of fully walked inputs, the
+//! reference for [`overlaps_pruned`], which `merge` runs: it translates only
+//! the nodes below voxels where inputs meet, and takes the union from a
+//! per-input [`census`]).
 
 use super::error::MergeError;
 use super::walk::WalkedInput;

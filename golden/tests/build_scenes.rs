@@ -247,3 +247,48 @@ fn index_overflow_is_an_error() {
         })
     ));
 }
+
+#[test]
+fn grid_fit_keeps_every_vertex_inside_the_scene() {
+    let awkward = [
+        (
+            glam::Vec3::new(-1.000_000_1, 3.0, -7.5),
+            glam::Vec3::new(1.0e7, 3.000_001, -7.4),
+        ),
+        (glam::Vec3::splat(1.0e-30), glam::Vec3::splat(1.0e-30)),
+        (
+            glam::Vec3::new(-3.0e38, 0.0, 0.0),
+            glam::Vec3::new(3.0e38, 1.0, 1.0),
+        ),
+        (
+            glam::Vec3::new(0.1, 0.2, 0.3),
+            glam::Vec3::new(0.1, 0.2, 0.3 + 2.0f32.powi(-20)),
+        ),
+    ];
+    for (d, q) in [(1, 0), (16, 8), (31, 16)] {
+        let p = params(d, q);
+        for (lo, hi) in awkward {
+            let mut rng = scenes::SplitMix64::new(d as u64);
+            let mut vertices = vec![lo, hi, glam::Vec3::new(lo.x, hi.y, lo.z)];
+            for _ in 0..30 {
+                let t = glam::Vec3::new(
+                    rng.next_f64() as f32,
+                    rng.next_f64() as f32,
+                    rng.next_f64() as f32,
+                );
+                vertices.push((lo + (hi - lo) * t).clamp(lo, hi));
+            }
+            let triangles = (0..vertices.len() as u32 / 3)
+                .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+                .collect();
+            let mesh = Mesh {
+                vertices,
+                triangles,
+            };
+            let g = GridMap::fit(lo, hi, &p);
+            assert!(g.unit > 0.0 && g.unit.log2().fract() == 0.0, "{g:?}");
+            let h = build(&mesh, &g, &p, 0).unwrap_or_else(|e| panic!("D={d} {lo} {hi}: {e}"));
+            check_built(&h, &g.mesh_to_grid(&mesh, &p).unwrap()).unwrap();
+        }
+    }
+}

@@ -35,14 +35,17 @@ pub struct GridMap {
 
 impl GridMap {
     /// A map fitting the box `[lo, hi]` (world units) into the scene cube of
-    /// `p`: origin at `lo`, unit the largest side over `2^D` (rounded up to a
-    /// power of two so every grid coordinate is exact), never 0.
+    /// `p`: origin at `lo`, unit the smallest power of two at or above the
+    /// largest side over `2^D`. The side is taken in binary64 (exact or
+    /// rounded like every vertex's offset, so no vertex maps past `2^D`), and
+    /// the power of two is found by exact doubling and halving, no logarithm.
+    /// A non-finite box gives a non-finite origin, which [`build`] refuses.
     pub fn fit(lo: Vec3, hi: Vec3, p: &Params) -> GridMap {
-        let side = (hi - lo).as_dvec3().max_element().max(f64::MIN_POSITIVE);
-        let unit = side / p.scene_edge() as f64;
+        let side = (hi.as_dvec3() - lo.as_dvec3()).max_element();
+        let wanted = side / p.scene_edge() as f64;
         GridMap {
             origin: lo.as_dvec3(),
-            unit: 2f64.powi(unit.log2().ceil() as i32),
+            unit: power_of_two_at_least(wanted),
         }
     }
 
@@ -93,6 +96,22 @@ impl GridMap {
             .map(|i| self.triangle(mesh, i, p))
             .collect()
     }
+}
+
+/// The smallest power of two `>= x` (1 for a non-finite or non-positive `x`,
+/// at least the smallest normal binary64).
+fn power_of_two_at_least(x: f64) -> f64 {
+    if !(x.is_finite() && x > 0.0) {
+        return 1.0;
+    }
+    let mut u = 1.0f64;
+    while u < x {
+        u *= 2.0;
+    }
+    while u * 0.5 >= x && u * 0.5 >= f64::MIN_POSITIVE {
+        u *= 0.5;
+    }
+    u
 }
 
 /// Checks one grid-space triangle: finite and inside `[0, 2^D]^3`.

@@ -32,6 +32,7 @@ pub mod examples;
 mod graph;
 mod instance;
 mod memory;
+pub mod merge;
 mod module;
 mod names;
 pub mod optest;

@@ -24,6 +24,7 @@ pub mod instances;
 pub mod level;
 pub mod level_merge;
 pub mod per_node;
+pub mod unit;
 pub mod upper;
 pub mod view;
 pub mod walk;

@@ -1,0 +1,216 @@
+//! Shared pieces of the merging-module RTL tests (`merge_*.rs`): a cosim
+//! `Engine` over rtl-gen's IR simulator, a `Design` from an rtl-gen module
+//! (written to a temporary directory; to be replaced by `cosim::from_rtl`
+//! once it lands), engine selection, tool checks and the bench loop.
+#![allow(dead_code)]
+
+use std::cell::RefCell;
+use std::path::Path;
+
+use cosim::tb::{run_stream_bench, BenchConfig, BenchReport, StreamNames, Vector};
+use cosim::tools::{ci_mode, tool_available, INSTALL_HINT};
+use cosim::{BitVec, CosimError, Design, Engine, PortDir, PortId, PortSpec, Result};
+use rtl_gen::{Direction, Module, Sim};
+
+/// True when Verilator, Icarus and Yosys can run. Under CI=true a missing
+/// tool panics (a failure, never a skip); locally it prints how to install.
+pub fn tools_present(tools: &[&str]) -> bool {
+    let missing: Vec<&str> = tools
+        .iter()
+        .copied()
+        .filter(|t| !tool_available(t))
+        .collect();
+    if missing.is_empty() {
+        return true;
+    }
+    if ci_mode() {
+        panic!("CI=true and {missing:?} missing: {INSTALL_HINT}");
+    }
+    eprintln!("SKIPPING: {missing:?} not installed; {INSTALL_HINT} (or apt-get install yosys)");
+    false
+}
+
+/// The cosim description of `m`, its Verilog written into `dir`.
+pub fn design_of(m: &Module, dir: &Path) -> Design {
+    let files = rtl_gen::write_design(m, dir).expect("the design validates and is written");
+    let ports = m
+        .ports()
+        .iter()
+        .map(|p| match p.direction {
+            Direction::Input => PortSpec::input(&p.name, p.width as usize),
+            _ => PortSpec::output(&p.name, p.width as usize),
+        })
+        .collect();
+    Design::new(&m.name(), files, ports, Some("clk"), Some("rst")).expect("a valid design")
+}
+
+/// rtl-gen's IR simulator behind the cosim `Engine` trait.
+pub struct IrEngine {
+    design: Design,
+    sim: RefCell<Sim>,
+}
+
+impl IrEngine {
+    pub fn new(m: &Module, design: &Design) -> IrEngine {
+        IrEngine {
+            design: design.clone(),
+            sim: RefCell::new(Sim::new(m).expect("the design validates")),
+        }
+    }
+}
+
+fn sim_error(e: rtl_gen::SimError) -> CosimError {
+    CosimError::Protocol {
+        what: format!("IR simulator: {e}"),
+    }
+}
+
+impl Engine for IrEngine {
+    fn name(&self) -> &'static str {
+        "rtl-gen-ir"
+    }
+    fn design(&self) -> &Design {
+        &self.design
+    }
+    fn poke(&mut self, port: PortId, value: &BitVec) -> Result<()> {
+        let spec = self.design.check_poke(port, value)?.clone();
+        let bits = rtl_gen::Bits::from_words(value.words(), spec.width as u32).map_err(|_| {
+            CosimError::Width {
+                port: spec.name.clone(),
+                width: spec.width,
+                value_bits: value.width(),
+            }
+        })?;
+        self.sim
+            .borrow_mut()
+            .poke(&spec.name, bits)
+            .map_err(sim_error)
+    }
+    fn peek(&self, port: PortId) -> Result<BitVec> {
+        let spec = self.design.port(port)?;
+        let b = self.sim.borrow_mut().peek(&spec.name).map_err(sim_error)?;
+        BitVec::from_words(spec.width, b.words())
+    }
+    fn eval(&mut self) -> Result<()> {
+        Ok(())
+    }
+    fn step(&mut self) -> Result<()> {
+        self.sim.borrow_mut().step();
+        Ok(())
+    }
+    fn cycle(&self) -> u64 {
+        self.sim.borrow().cycle()
+    }
+    fn trace_start(&mut self, _path: &Path) -> Result<()> {
+        Err(CosimError::Protocol {
+            what: "the IR engine does not write VCDs here".into(),
+        })
+    }
+    fn trace_stop(&mut self) -> Result<()> {
+        Ok(())
+    }
+}
+
+/// An engine of kind `ir`, `verilator` or `iverilog` for `m` / `design`.
+pub fn engine(kind: &str, m: &Module, design: &Design) -> Box<dyn Engine> {
+    match kind {
+        "ir" => Box::new(IrEngine::new(m, design)),
+        "verilator" => Box::new(
+            cosim::verilator::VerilatorEngine::new(
+                design,
+                &cosim::verilator::VerilatorOptions::default(),
+            )
+            .expect("verilator build"),
+        ),
+        "iverilog" => Box::new(cosim::icarus::IcarusEngine::new(design).expect("iverilog build")),
+        other => panic!("unknown engine {other}"),
+    }
+}
+
+/// `in` -> `out` stream names with one `_data` payload port each.
+pub fn stream_names() -> StreamNames {
+    StreamNames {
+        in_valid: "in_valid".into(),
+        in_ready: "in_ready".into(),
+        in_payload: vec!["in_data".into()],
+        out_valid: "out_valid".into(),
+        out_ready: "out_ready".into(),
+        out_payload: vec!["out_data".into()],
+    }
+}
+
+/// A golden packed beat as a cosim value.
+pub fn bitvec(b: &golden::layout::Bits) -> BitVec {
+    BitVec::from_words(b.width() as usize, b.words()).expect("same width")
+}
+
+/// One bench run, printed; panics with the report when it fails.
+pub fn run(
+    engine: &mut dyn Engine,
+    vectors: &[Vector],
+    seed: u64,
+    stall: f64,
+    what: &str,
+) -> BenchReport {
+    let config = BenchConfig {
+        seed,
+        in_stall: stall,
+        out_stall: stall,
+        reproduce: Some(format!("cargo test -p cosim --test {what}")),
+        ..BenchConfig::default()
+    };
+    let report = run_stream_bench(engine, &stream_names(), vectors, None, &config, None)
+        .expect("the bench runs");
+    eprint!("{what}: stall {stall:.2}: {report}");
+    assert!(report.passed(), "{what} stall {stall}:\n{report}");
+    report
+}
+
+/// `verilator --lint-only -Wall` with zero warnings and Yosys `synth` with
+/// `check -assert` and no latch, on the Verilog files of `design`.
+pub fn lint_and_synth(design: &Design) {
+    let files: Vec<String> = design
+        .verilog_files
+        .iter()
+        .map(|f| f.display().to_string())
+        .collect();
+    let out = std::process::Command::new("verilator")
+        .args(["--lint-only", "-Wall", "--top-module", &design.top])
+        .args(&files)
+        .output()
+        .expect("verilator runs");
+    let text =
+        String::from_utf8_lossy(&out.stderr).to_string() + &String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && text.trim().is_empty(),
+        "verilator lint of {}:\n{text}",
+        design.top
+    );
+    let script = format!(
+        "read_verilog {}; synth -top {}; check -assert; select -assert-none t:$dlatch t:$_DLATCH_* t:$sr t:$_SR_*",
+        files.join(" "),
+        design.top
+    );
+    let out = std::process::Command::new("yosys")
+        .args(["-q", "-p", &script])
+        .output()
+        .expect("yosys runs");
+    assert!(
+        out.status.success(),
+        "yosys synth of {}:\n{}{}",
+        design.top,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// A uniform stall probability in `0..=0.5` from `seed`.
+pub fn stall_of(seed: u64) -> f64 {
+    (golden::translate::stimulus::SplitMix64(seed).next_u64() % 51) as f64 / 100.0
+}
+
+pub fn is_output(d: &Design, name: &str) -> bool {
+    d.ports
+        .iter()
+        .any(|p| p.name == name && p.dir == PortDir::Output)
+}

@@ -1,0 +1,172 @@
+//! S614 (unit 506, `rtl_gen::merge::merge_level_unit`) against the golden
+//! `merge_level` through `golden::merge::unit::level_transaction`, bit for
+//! bit, on rtl-gen's IR simulator, Verilator and Icarus Verilog, with random
+//! back-pressure (stall 0..=0.5 on both streams) and an in-order
+//! scoreboard; a transaction is one voxel group (its beats in, its base
+//! nodes and references out). Also: throughput with no back-pressure
+//! (printed; at least 0.95 input beats per cycle), lint and synthesis.
+mod merge_common;
+
+use cosim::tb::Vector;
+use golden::merge::unit::{random_level_case, BeatLayout, LevelTransaction};
+use golden::params::Params;
+use golden::translate::stimulus::SplitMix64;
+use merge_common::*;
+
+/// Default, D = 31 (widest record), Q = 0 (no box fields), small I (count overflow).
+fn configs() -> Vec<(&'static str, Params)> {
+    vec![
+        ("default", Params::default()),
+        ("d31", Params::new(31, 16, 32, 8).unwrap()),
+        ("q0", Params::new(8, 0, 12, 3).unwrap()),
+        ("i3", Params::new(5, 2, 3, 2).unwrap()),
+    ]
+}
+
+/// Random levels until at least `groups` voxel groups (transactions);
+/// every group's outputs are expected with its first beat.
+fn vectors(p: &Params, seed: u64, groups: usize) -> (Vec<Vector>, usize, LevelStats) {
+    let (li, lo) = (BeatLayout::input(p), BeatLayout::output(p));
+    let mut rng = SplitMix64(seed);
+    let mut out = Vec::new();
+    let mut stats = LevelStats::default();
+    let mut n = 0;
+    while n < groups {
+        let k = 1 + rng.below(p.hier_capacity().min(5)) as usize;
+        let voxels = 1 + rng.below(40) as usize;
+        let case = random_level_case(&mut rng, p, k, voxels);
+        let tx = case.transaction(p).expect("a well-formed case");
+        stats.add(&tx);
+        for g in &tx.groups {
+            for (j, b) in tx.inputs[g.inputs.clone()].iter().enumerate() {
+                let outputs = if j == 0 {
+                    tx.outputs[g.outputs.clone()]
+                        .iter()
+                        .map(|o| vec![bitvec(&o.pack(&lo).unwrap())])
+                        .collect()
+                } else {
+                    Vec::new()
+                };
+                out.push(Vector {
+                    input: vec![bitvec(&b.pack(&li).unwrap())],
+                    outputs,
+                });
+            }
+        }
+        n += tx.groups.len();
+    }
+    (out, n, stats)
+}
+
+/// What the stimulus reached, so a test can insist on the hard cases.
+#[derive(Default, Debug)]
+struct LevelStats {
+    created: usize,
+    overflow: usize,
+    reused: usize,
+    refs: usize,
+}
+
+impl LevelStats {
+    fn add(&mut self, tx: &LevelTransaction) {
+        use golden::merge::unit::BaseBeat::*;
+        for o in &tx.outputs {
+            match o {
+                Created { count_overflow, .. } => {
+                    self.created += 1;
+                    self.overflow += *count_overflow as usize;
+                }
+                Reused { .. } => self.reused += 1,
+                Ref(_) => self.refs += 1,
+                End => {}
+            }
+        }
+    }
+}
+
+fn check_config(name: &str, p: &Params, kinds: &[(&str, usize)], seed: u64) {
+    let dir = tempfile::tempdir().unwrap();
+    let m = rtl_gen::merge::merge_level_unit(p);
+    let design = design_of(&m, dir.path());
+    for &(kind, groups) in kinds {
+        let (vs, n, stats) = vectors(p, seed, groups);
+        eprintln!(
+            "{name}/{kind}: {n} transactions, {} beats, {stats:?}",
+            vs.len()
+        );
+        assert!(stats.created > 0 && stats.reused > 0 && stats.refs > 0);
+        if p.index_bits <= 3 {
+            assert!(stats.overflow > 0, "count overflow reached");
+        }
+        let stall = stall_of(seed ^ kind.len() as u64);
+        let mut e = engine(kind, &m, &design);
+        let r = run(
+            e.as_mut(),
+            &vs,
+            seed,
+            stall.max(0.05),
+            &format!("merge_level {name} {kind}"),
+        );
+        assert_eq!(r.inputs_sent, vs.len() as u64);
+        // No back-pressure: one input beat per clock in steady state (on
+        // the first 100k beats, enough for a steady state).
+        let part = &vs[..vs.len().min(100_000)];
+        let mut e = engine(kind, &m, &design);
+        let r = run(
+            e.as_mut(),
+            part,
+            seed + 1,
+            0.0,
+            &format!("merge_level {name} {kind}"),
+        );
+        // Cycles include reset (2) and the drain after the last output (16).
+        let rate = r.inputs_per_cycle();
+        println!(
+            "merge_level {name} {kind}: {} input beats in {} cycles: {rate:.4} beats/cycle ({} transactions)",
+            r.inputs_sent, r.cycles, n
+        );
+        assert!(rate >= 0.95, "{name} {kind}: {rate}");
+    }
+}
+
+#[test]
+fn merge_level_default_matches_golden_on_100k_transactions() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
+    }
+    check_config(
+        "default",
+        &Params::default(),
+        &[("ir", 100_000), ("verilator", 100_000), ("iverilog", 1_500)],
+        0x5614,
+    );
+}
+
+#[test]
+fn merge_level_other_configs_match_golden() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
+    }
+    for (i, (name, p)) in configs().into_iter().skip(1).enumerate() {
+        check_config(
+            name,
+            &p,
+            &[("ir", 10_000), ("verilator", 20_000), ("iverilog", 500)],
+            0x5615 + i as u64,
+        );
+    }
+}
+
+#[test]
+fn merge_level_verilog_lints_and_synthesizes() {
+    if !tools_present(&["verilator", "yosys"]) {
+        return;
+    }
+    for (_, p) in configs() {
+        let dir = tempfile::tempdir().unwrap();
+        let m = rtl_gen::merge::merge_level_unit(&p);
+        let warnings = m.validate_design().expect("valid");
+        assert!(warnings.is_empty(), "{warnings:?}");
+        lint_and_synth(&design_of(&m, dir.path()));
+    }
+}

@@ -1,0 +1,970 @@
+//! The merging module's stages as the RTL sees them (SPEC.md section 8,
+//! "Merging module RTL"): the beat formats of each stage's ready/valid
+//! streams, packed with [`crate::layout`], and each stage's transaction,
+//! whose expected outputs come from the golden stage functions
+//! ([`super::level_merge::merge_level`], [`super::level::overlap_counts`],
+//! [`super::level::above_threshold`]), never from a second model.
+//!
+//! Two stages:
+//! - **S614, merge level** (unit 506): in, the merging-level nodes of all
+//!   inputs in *delivery order* ([`level_stream`]): per voxel, Morton order,
+//!   the inner nodes (input order), then the leaves (input order), then the
+//!   child references of those inner nodes (same order), then one `End`
+//!   beat after the last voxel. Out, the base nodes in golden order (per
+//!   voxel: the created or reused inner node, then the leaves), each created
+//!   node's references right after that voxel's leaves, then `End`.
+//! - **S608, overlap counter** (unit 508): in, one level's `(voxel, rank)`
+//!   beats in `(Morton, rank)` order then `End`; out, one beat: `shared`,
+//!   `union`, whether `shared * den > num * union`, and a count overflow flag.
+//!
+//! Also the seeded stimulus of both (hard cases on purpose: shared voxels,
+//! lone inner nodes, inner + leaf at one voxel, two inner nodes of one input,
+//! `count` overflow at small `I`, voxels at the grid's edges).
+
+use std::collections::BTreeSet;
+use std::ops::Range;
+
+use super::error::MergeError;
+use super::level::{above_threshold, overlap_counts, LevelOverlap};
+use super::level_merge::{merge_level, BaseKind, BaseNode, LevelMergeCounts};
+use super::walk::PlacedNode;
+use crate::grid::VoxelAddr;
+use crate::layout::{Bits, Field, LayoutError, NodeLayout, RefLayout};
+use crate::params::{bits_to_hold, Params};
+use crate::store::{Hierarchy, NodeRecord, Reference};
+use crate::translate::stimulus::SplitMix64;
+
+// ---------------------------------------------------------------------------
+// S614 beats
+
+/// Kind codes of an S614 input beat (the `kind` field).
+pub mod level_kind {
+    /// A translated inner node at the merging level.
+    pub const INNER: u64 = 0;
+    /// A translated leaf at the merging level.
+    pub const LEAF: u64 = 1;
+    /// A child reference of an inner node of the current voxel.
+    pub const CHILD_REF: u64 = 2;
+    /// End of the level.
+    pub const END: u64 = 3;
+}
+
+/// Kind codes of an S614 output beat.
+pub mod base_kind {
+    /// A created node (record only; its references follow the voxel's leaves).
+    pub const CREATED: u64 = 0;
+    /// An input node referenced where it is stored (`ref` = where).
+    pub const REUSED: u64 = 1;
+    /// A reference of the last created node.
+    pub const REF: u64 = 2;
+    /// End of the level.
+    pub const END: u64 = 3;
+}
+
+/// One beat into the S614 unit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LevelBeat {
+    /// A merging-level inner node, translated, and where it is stored.
+    Inner { record: NodeRecord, at: Reference },
+    /// A merging-level leaf, translated, and where it is stored.
+    Leaf { record: NodeRecord, at: Reference },
+    /// A child reference (as stored in its input's `refs`).
+    ChildRef(Reference),
+    /// End of the level.
+    End,
+}
+
+/// One beat out of the S614 unit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BaseBeat {
+    /// A created node: `first` 0, `count` the number of its references
+    /// modulo `2^I`; `count_overflow` when that number is `>= 2^I`.
+    Created {
+        record: NodeRecord,
+        count_overflow: bool,
+    },
+    /// A reused input node (translated record) and where it is stored.
+    Reused { record: NodeRecord, at: Reference },
+    /// A reference of the preceding created node.
+    Ref(Reference),
+    /// End of the level.
+    End,
+}
+
+/// Bit layout of an S614 beat, from bit 0: `rec` (a node record, section 3),
+/// `ref` (a reference), `kind` (2 bits), and on output beats `err` (1 bit).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BeatLayout {
+    pub node: NodeLayout,
+    pub reference: RefLayout,
+    pub rec: Field,
+    pub refer: Field,
+    pub kind: Field,
+    /// Output beats only: the count-overflow flag.
+    pub err: Option<Field>,
+    pub width: u32,
+}
+
+impl BeatLayout {
+    fn new(p: &Params, with_err: bool) -> BeatLayout {
+        let node = NodeLayout::new(p);
+        let reference = RefLayout::new(p);
+        let rec = Field {
+            name: "rec",
+            offset: 0,
+            width: node.width(),
+        };
+        let refer = Field {
+            name: "ref",
+            offset: rec.end(),
+            width: reference.width(),
+        };
+        let kind = Field {
+            name: "kind",
+            offset: refer.end(),
+            width: 2,
+        };
+        let err = with_err.then_some(Field {
+            name: "err",
+            offset: kind.end(),
+            width: 1,
+        });
+        let width = err.map_or(kind.end(), |e| e.end());
+        BeatLayout {
+            node,
+            reference,
+            rec,
+            refer,
+            kind,
+            err,
+            width,
+        }
+    }
+
+    /// The input beat layout (`rec`, `ref`, `kind`).
+    pub fn input(p: &Params) -> BeatLayout {
+        BeatLayout::new(p, false)
+    }
+
+    /// The output beat layout (`rec`, `ref`, `kind`, `err`).
+    pub fn output(p: &Params) -> BeatLayout {
+        BeatLayout::new(p, true)
+    }
+
+    fn put(
+        &self,
+        rec: Option<&NodeRecord>,
+        r: Option<&Reference>,
+        kind: u64,
+    ) -> Result<Bits, LayoutError> {
+        let mut b = Bits::zero(self.width);
+        if let Some(n) = rec {
+            copy_into(&mut b, self.rec.offset, &n.pack(&self.node)?);
+        }
+        if let Some(r) = r {
+            copy_into(&mut b, self.refer.offset, &r.pack(&self.reference)?);
+        }
+        b.set(&self.kind, kind)?;
+        Ok(b)
+    }
+}
+
+/// Copies `src` into `dst` at bit `offset`.
+fn copy_into(dst: &mut Bits, offset: u32, src: &Bits) {
+    for i in 0..src.width() {
+        if src.bit(i) {
+            let f = Field {
+                name: "bit",
+                offset: offset + i,
+                width: 1,
+            };
+            dst.set(&f, 1).expect("bit inside the beat");
+        }
+    }
+}
+
+impl LevelBeat {
+    /// The packed beat ([`BeatLayout::input`]).
+    pub fn pack(&self, l: &BeatLayout) -> Result<Bits, LayoutError> {
+        match self {
+            LevelBeat::Inner { record, at } => l.put(Some(record), Some(at), level_kind::INNER),
+            LevelBeat::Leaf { record, at } => l.put(Some(record), Some(at), level_kind::LEAF),
+            LevelBeat::ChildRef(r) => l.put(None, Some(r), level_kind::CHILD_REF),
+            LevelBeat::End => l.put(None, None, level_kind::END),
+        }
+    }
+}
+
+impl BaseBeat {
+    /// The packed beat ([`BeatLayout::output`]).
+    pub fn pack(&self, l: &BeatLayout) -> Result<Bits, LayoutError> {
+        match self {
+            BaseBeat::Created {
+                record,
+                count_overflow,
+            } => {
+                let mut b = l.put(Some(record), None, base_kind::CREATED)?;
+                if let Some(e) = &l.err {
+                    b.set(e, *count_overflow as u64)?;
+                }
+                Ok(b)
+            }
+            BaseBeat::Reused { record, at } => l.put(Some(record), Some(at), base_kind::REUSED),
+            BaseBeat::Ref(r) => l.put(None, Some(r), base_kind::REF),
+            BaseBeat::End => l.put(None, None, base_kind::END),
+        }
+    }
+}
+
+/// One S614 transaction per voxel: its input beats and the output beats
+/// they produce (the final `End` is a group of its own).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LevelGroup {
+    pub inputs: Range<usize>,
+    pub outputs: Range<usize>,
+}
+
+/// A whole level through S614: input beats, expected output beats, and the
+/// per-voxel grouping of both.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LevelTransaction {
+    pub inputs: Vec<LevelBeat>,
+    pub outputs: Vec<BaseBeat>,
+    pub groups: Vec<LevelGroup>,
+}
+
+/// One voxel's input beats, with the range of sorted placed nodes they came from.
+pub type VoxelBeats = (Range<usize>, Vec<LevelBeat>);
+
+/// The delivery order of S614's input: sorted by (Morton, leaf, input rank)
+/// (stable), per voxel the inner nodes, the leaves, then the inner nodes'
+/// child references in the same order; `End` last. Grouping is per voxel.
+pub fn level_stream(
+    at_level: &[PlacedNode],
+    inputs: &[&Hierarchy],
+) -> Result<Vec<VoxelBeats>, MergeError> {
+    let mut sorted = at_level.to_vec();
+    sorted.sort_by_key(|n| (n.record.voxel.morton(), n.record.leaf, n.rank));
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < sorted.len() {
+        let v = sorted[i].record.voxel;
+        let j = i + sorted[i..]
+            .iter()
+            .take_while(|n| n.record.voxel == v)
+            .count();
+        let group = &sorted[i..j];
+        let mut beats = Vec::new();
+        for n in group {
+            beats.push(if n.record.leaf {
+                LevelBeat::Leaf {
+                    record: n.record,
+                    at: n.at,
+                }
+            } else {
+                LevelBeat::Inner {
+                    record: n.record,
+                    at: n.at,
+                }
+            });
+        }
+        for n in group.iter().filter(|n| !n.record.leaf) {
+            let h = inputs[n.rank as usize];
+            let refs = super::walk::children(h, n.at.node, &h.nodes[n.at.node as usize])?;
+            beats.extend(refs.iter().map(|r| LevelBeat::ChildRef(*r)));
+        }
+        out.push((i..j, beats));
+        i = j;
+    }
+    Ok(out)
+}
+
+/// S614 as a stream transaction: the input beats in delivery order and the
+/// expected output beats, computed by the golden [`merge_level`].
+pub fn level_transaction(
+    at_level: &[PlacedNode],
+    inputs: &[&Hierarchy],
+    p: &Params,
+) -> Result<LevelTransaction, MergeError> {
+    let mut counts = LevelMergeCounts::default();
+    let base = merge_level(at_level.to_vec(), inputs, p, &mut counts)?;
+    let groups_in = level_stream(at_level, inputs)?;
+    let mut tx = LevelTransaction {
+        inputs: Vec::new(),
+        outputs: Vec::new(),
+        groups: Vec::new(),
+    };
+    let mut b = 0;
+    for (_, beats) in groups_in {
+        let v = match beats[0] {
+            LevelBeat::Inner { record, .. } | LevelBeat::Leaf { record, .. } => record.voxel,
+            _ => unreachable!("a voxel group starts with a node"),
+        };
+        let in_start = tx.inputs.len();
+        let out_start = tx.outputs.len();
+        tx.inputs.extend(beats);
+        let mut refs_after = Vec::new();
+        while b < base.len() && base[b].record.voxel == v {
+            tx.outputs.push(base_beat(&base[b], p, &mut refs_after));
+            b += 1;
+        }
+        tx.outputs.extend(refs_after);
+        tx.groups.push(LevelGroup {
+            inputs: in_start..tx.inputs.len(),
+            outputs: out_start..tx.outputs.len(),
+        });
+    }
+    debug_assert_eq!(b, base.len(), "every base node belongs to a voxel group");
+    let (i, o) = (tx.inputs.len(), tx.outputs.len());
+    tx.inputs.push(LevelBeat::End);
+    tx.outputs.push(BaseBeat::End);
+    tx.groups.push(LevelGroup {
+        inputs: i..i + 1,
+        outputs: o..o + 1,
+    });
+    Ok(tx)
+}
+
+/// The output beat of one golden base node; a created node's references go
+/// to `refs_after` (they follow the voxel's leaves).
+fn base_beat(n: &BaseNode, p: &Params, refs_after: &mut Vec<BaseBeat>) -> BaseBeat {
+    match &n.kind {
+        BaseKind::Reused { at } => BaseBeat::Reused {
+            record: n.record,
+            at: *at,
+        },
+        BaseKind::Created { refs } => {
+            refs_after.extend(refs.iter().map(|r| BaseBeat::Ref(*r)));
+            let total = refs.len() as u64;
+            BaseBeat::Created {
+                record: NodeRecord {
+                    first: 0,
+                    count: (total % p.index_capacity()) as u32,
+                    ..n.record
+                },
+                count_overflow: total >= p.index_capacity(),
+            }
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------
+// S608 overlap counter beats
+
+/// Bit layout of an overlap-counter input beat, from bit 0: `x`, `y`, `z`
+/// (D bits each), `rank` (`bits_to_hold(k - 1)`), `end` (1); and of its
+/// output beat: `shared`, `union` (I bits each), `above` (1), `overflow` (1).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct OverlapLayout {
+    pub coord: [Field; 3],
+    pub rank: Field,
+    pub end: Field,
+    pub in_width: u32,
+    pub shared: Field,
+    pub union: Field,
+    pub above: Field,
+    pub overflow: Field,
+    pub out_width: u32,
+}
+
+fn field_at(name: &'static str, offset: u32, width: u32) -> Field {
+    Field {
+        name,
+        offset,
+        width,
+    }
+}
+
+impl OverlapLayout {
+    /// The layouts for `p` and `k` inputs (`k >= 1`).
+    pub fn new(p: &Params, k: usize) -> OverlapLayout {
+        let d = p.coord_bits();
+        let i = p.index_bits as u32;
+        let coord = [
+            field_at("x", 0, d),
+            field_at("y", d, d),
+            field_at("z", 2 * d, d),
+        ];
+        let rank = field_at("rank", 3 * d, rank_bits(k));
+        let end = field_at("end", rank.end(), 1);
+        let shared = field_at("shared", 0, i);
+        let union = field_at("union", i, i);
+        let above = field_at("above", 2 * i, 1);
+        let overflow = field_at("overflow", 2 * i + 1, 1);
+        OverlapLayout {
+            coord,
+            rank,
+            end,
+            in_width: end.end(),
+            shared,
+            union,
+            above,
+            overflow,
+            out_width: overflow.end(),
+        }
+    }
+}
+
+/// Bits of an input rank for `k` inputs.
+pub fn rank_bits(k: usize) -> u32 {
+    bits_to_hold(k.saturating_sub(1) as u64)
+}
+
+/// One beat into the overlap counter: a voxel of the level and the rank of
+/// the input occupying it, or the end of the level.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OverlapBeat {
+    Voxel { voxel: VoxelAddr, rank: u16 },
+    End,
+}
+
+/// The overlap counter's single output beat of a level.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct OverlapResult {
+    /// `shared`, `union` and `above` are 0 when `overflow` (a count reached `2^I`).
+    pub shared: u64,
+    pub union: u64,
+    pub above: bool,
+    pub overflow: bool,
+}
+
+impl OverlapBeat {
+    /// The packed beat.
+    pub fn pack(&self, l: &OverlapLayout) -> Result<Bits, LayoutError> {
+        let mut b = Bits::zero(l.in_width);
+        match self {
+            OverlapBeat::Voxel { voxel, rank } => {
+                for (f, c) in l.coord.iter().zip([voxel.x, voxel.y, voxel.z]) {
+                    b.set(f, c as u64)?;
+                }
+                b.set(&l.rank, *rank as u64)?;
+            }
+            OverlapBeat::End => b.set(&l.end, 1)?,
+        }
+        Ok(b)
+    }
+}
+
+impl OverlapResult {
+    /// The packed beat.
+    pub fn pack(&self, l: &OverlapLayout) -> Result<Bits, LayoutError> {
+        let mut b = Bits::zero(l.out_width);
+        b.set(&l.shared, self.shared)?;
+        b.set(&l.union, self.union)?;
+        b.set(&l.above, self.above as u64)?;
+        b.set(&l.overflow, self.overflow as u64)?;
+        Ok(b)
+    }
+}
+
+/// S608 for one level as a stream transaction: `voxels[r]` is the
+/// (unsorted) voxel list of input rank `r`; the beats are their union in
+/// (Morton, rank) order then `End`; the result comes from the golden
+/// [`overlap_counts`] and [`above_threshold`].
+pub fn overlap_transaction(
+    voxels: &[Vec<VoxelAddr>],
+    p: &Params,
+    num: u32,
+    den: u32,
+) -> (Vec<OverlapBeat>, OverlapResult) {
+    let mut beats: Vec<(u128, u16, VoxelAddr)> = voxels
+        .iter()
+        .enumerate()
+        .flat_map(|(r, vs)| vs.iter().map(move |v| (v.morton(), r as u16, *v)))
+        .collect();
+    beats.sort_by_key(|b| (b.0, b.1));
+    let streams = voxels
+        .iter()
+        .map(|vs| {
+            let mut m: Vec<u128> = vs.iter().map(|v| v.morton()).collect();
+            m.sort_unstable();
+            m.into_iter()
+        })
+        .collect();
+    let (shared, union) = overlap_counts(streams);
+    let o = LevelOverlap {
+        lod: 0,
+        shared,
+        union,
+    };
+    let overflow = union >= p.index_capacity();
+    let result = if overflow {
+        OverlapResult {
+            shared: 0,
+            union: 0,
+            above: false,
+            overflow,
+        }
+    } else {
+        OverlapResult {
+            shared,
+            union,
+            above: above_threshold(&o, num, den),
+            overflow,
+        }
+    };
+    let mut out: Vec<OverlapBeat> = beats
+        .into_iter()
+        .map(|(_, rank, voxel)| OverlapBeat::Voxel { voxel, rank })
+        .collect();
+    out.push(OverlapBeat::End);
+    (out, result)
+}
+
+// ---------------------------------------------------------------------------
+// Stimulus
+
+/// A synthetic merging level: `k` input hierarchies (ids distinct, rank =
+/// position) holding the level's nodes and their children, and the level's
+/// placed nodes, ready for [`level_transaction`].
+#[derive(Clone, Debug)]
+pub struct LevelCase {
+    pub hierarchies: Vec<Hierarchy>,
+    pub at_level: Vec<PlacedNode>,
+}
+
+fn random_coord(rng: &mut SplitMix64, lod: u8) -> u32 {
+    let n = 1u64 << lod;
+    match rng.below(8) {
+        0 => 0,
+        1 => (n - 1) as u32,
+        _ => rng.below(n) as u32,
+    }
+}
+
+fn random_box(rng: &mut SplitMix64, p: &Params) -> ([u16; 3], [u16; 3]) {
+    let cells = p.quant_cells() as u64;
+    let mut lo = [0u16; 3];
+    let mut hi = [0u16; 3];
+    for a in 0..3 {
+        let (x, y) = match rng.below(6) {
+            0 => (0, cells - 1),
+            1 => (cells - 1, cells - 1),
+            _ => (rng.below(cells), rng.below(cells)),
+        };
+        lo[a] = x.min(y) as u16;
+        hi[a] = x.max(y) as u16;
+    }
+    (lo, hi)
+}
+
+fn random_index(rng: &mut SplitMix64, p: &Params, at_least: u64) -> u32 {
+    let cap = p.index_capacity();
+    match rng.below(4) {
+        0 => (cap - 1) as u32,
+        _ => rng.below(cap - at_least).saturating_add(at_least) as u32,
+    }
+}
+
+/// Children per inner node: mostly 1..=8, sometimes up to 16, never more
+/// than a `count` field holds.
+fn random_child_count(rng: &mut SplitMix64, p: &Params) -> u32 {
+    let most = (p.index_capacity() - 1).min(16);
+    let n = if rng.below(4) == 0 { 16 } else { 8 };
+    (1 + rng.below(n)).min(most) as u32
+}
+
+/// A random merging level with about `voxels` distinct voxels shared among
+/// `k` inputs (`1 <= k <= 2^H`). The LOD is random (both ends included);
+/// each input holds, per voxel, nothing, an inner node, a leaf or both, and
+/// rarely two inner nodes.
+pub fn random_level_case(rng: &mut SplitMix64, p: &Params, k: usize, voxels: usize) -> LevelCase {
+    let lod = match rng.below(5) {
+        0 => 0,
+        1 => p.max_lod,
+        _ => rng.below(p.max_lod as u64 + 1) as u8,
+    };
+    let possible = 1u64.checked_shl(3 * lod as u32).unwrap_or(u64::MAX);
+    let want = (voxels as u64).min(possible) as usize;
+    let mut set = BTreeSet::new();
+    while set.len() < want {
+        set.insert((
+            random_coord(rng, lod),
+            random_coord(rng, lod),
+            random_coord(rng, lod),
+        ));
+    }
+    let mut ids: Vec<u8> = (0..p.hier_capacity()).map(|v| v as u8).collect();
+    for i in 0..ids.len() {
+        let j = i + rng.below((ids.len() - i) as u64) as usize;
+        ids.swap(i, j);
+    }
+    let mut hierarchies: Vec<Hierarchy> = ids[..k]
+        .iter()
+        .map(|&id| Hierarchy {
+            id,
+            params: *p,
+            nodes: Vec::new(),
+            refs: Vec::new(),
+            prims: Vec::new(),
+            root_count: 1,
+            top_lod: lod,
+        })
+        .collect();
+    let mut at_level = Vec::new();
+    let density = 1 + rng.below(4);
+    // Node indices must fit I bits: each input holds at most `limit` nodes.
+    let limit = p.index_capacity().min(64) as usize;
+    // Each input's `refs`: `limit` children, ranges of inner nodes may overlap.
+    for h in &mut hierarchies {
+        h.refs = (0..limit)
+            .map(|_| Reference {
+                hier: h.id,
+                node: rng.below(limit as u64) as u32,
+            })
+            .collect();
+    }
+    for &(x, y, z) in &set {
+        let voxel = VoxelAddr::new(lod, x, y, z);
+        for (rank, h) in hierarchies.iter_mut().enumerate() {
+            if rng.below(4) >= density {
+                continue;
+            }
+            let what = rng.below(16);
+            let inner = match what {
+                0..=5 => 1,
+                6 => 2,
+                7..=10 => 0,
+                _ => 1,
+            };
+            let leaf = matches!(what, 7..=12) && h.nodes.len() + inner < limit;
+            let inner = inner.min(limit - h.nodes.len().min(limit));
+            for _ in 0..inner {
+                let (lo, hi) = random_box(rng, p);
+                let count = random_child_count(rng, p);
+                let first = rng.below((h.refs.len() - count as usize) as u64 + 1) as u32;
+                let record = NodeRecord {
+                    leaf: false,
+                    voxel,
+                    lo,
+                    hi,
+                    first,
+                    count,
+                };
+                let at = Reference {
+                    hier: h.id,
+                    node: h.nodes.len() as u32,
+                };
+                h.nodes.push(record);
+                at_level.push(PlacedNode {
+                    rank: rank as u16,
+                    at,
+                    record,
+                });
+            }
+            if leaf {
+                let (lo, hi) = random_box(rng, p);
+                let record = NodeRecord {
+                    leaf: true,
+                    voxel,
+                    lo,
+                    hi,
+                    first: random_index(rng, p, 0),
+                    count: random_index(rng, p, 1),
+                };
+                let at = Reference {
+                    hier: h.id,
+                    node: h.nodes.len() as u32,
+                };
+                h.nodes.push(record);
+                at_level.push(PlacedNode {
+                    rank: rank as u16,
+                    at,
+                    record,
+                });
+            }
+        }
+    }
+    // Children must name existing nodes of their input: pad with copies.
+    for h in &mut hierarchies {
+        let filler = h.nodes.first().copied().unwrap_or(NodeRecord {
+            leaf: true,
+            voxel: VoxelAddr::ROOT,
+            lo: [0; 3],
+            hi: [0; 3],
+            first: 0,
+            count: 1,
+        });
+        while h.nodes.len() < limit {
+            h.nodes.push(filler);
+        }
+    }
+    // Walk order differs from delivery order: shuffle to prove the sort matters.
+    for i in 0..at_level.len() {
+        let j = i + rng.below((at_level.len() - i) as u64) as usize;
+        at_level.swap(i, j);
+    }
+    LevelCase {
+        hierarchies,
+        at_level,
+    }
+}
+
+impl LevelCase {
+    /// [`level_transaction`] of this case.
+    pub fn transaction(&self, p: &Params) -> Result<LevelTransaction, MergeError> {
+        let hs: Vec<&Hierarchy> = self.hierarchies.iter().collect();
+        level_transaction(&self.at_level, &hs, p)
+    }
+}
+
+/// A random level for the overlap counter: `k` inputs, about `voxels`
+/// voxels each drawn from a shared pool (so overlap ranges from none to
+/// full), repeats allowed within an input (an inner node and a leaf).
+pub fn random_overlap_case(
+    rng: &mut SplitMix64,
+    p: &Params,
+    k: usize,
+    voxels: usize,
+) -> Vec<Vec<VoxelAddr>> {
+    let lod = match rng.below(5) {
+        0 => 0,
+        1 => p.max_lod,
+        _ => rng.below(p.max_lod as u64 + 1) as u8,
+    };
+    let pool_size = 1 + rng.below(voxels as u64 + 1) as usize;
+    let pool: Vec<VoxelAddr> = (0..pool_size)
+        .map(|_| {
+            VoxelAddr::new(
+                lod,
+                random_coord(rng, lod),
+                random_coord(rng, lod),
+                random_coord(rng, lod),
+            )
+        })
+        .collect();
+    (0..k)
+        .map(|_| {
+            let n = rng.below(voxels as u64 + 1) as usize;
+            (0..n)
+                .map(|_| pool[rng.below(pool.len() as u64) as usize])
+                .collect()
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn beats_round_the_golden_merge() {
+        let p = Params::new(5, 2, 3, 2).unwrap();
+        let mut rng = SplitMix64(7);
+        let mut created = 0;
+        let mut overflow = 0;
+        for _ in 0..200 {
+            let case = random_level_case(&mut rng, &p, 3, 6);
+            let tx = case.transaction(&p).unwrap();
+            // Every golden base node appears once, in golden order.
+            let hs: Vec<&Hierarchy> = case.hierarchies.iter().collect();
+            let mut c = LevelMergeCounts::default();
+            let base = merge_level(case.at_level.clone(), &hs, &p, &mut c).unwrap();
+            let nodes: Vec<_> = tx
+                .outputs
+                .iter()
+                .filter(|b| matches!(b, BaseBeat::Created { .. } | BaseBeat::Reused { .. }))
+                .collect();
+            assert_eq!(nodes.len(), base.len());
+            created += c.created;
+            overflow += tx
+                .outputs
+                .iter()
+                .filter(|b| {
+                    matches!(
+                        b,
+                        BaseBeat::Created {
+                            count_overflow: true,
+                            ..
+                        }
+                    )
+                })
+                .count();
+            let l_in = BeatLayout::input(&p);
+            let l_out = BeatLayout::output(&p);
+            for b in &tx.inputs {
+                assert_eq!(b.pack(&l_in).unwrap().width(), l_in.width);
+            }
+            for b in &tx.outputs {
+                b.pack(&l_out).unwrap();
+            }
+        }
+        assert!(
+            created > 50 && overflow > 5,
+            "created {created} overflow {overflow}"
+        );
+    }
+
+    #[test]
+    fn overlap_transaction_counts_distinct_inputs() {
+        let p = Params::new(4, 0, 8, 2).unwrap();
+        let v = |x| VoxelAddr::new(2, x, 0, 0);
+        let (beats, r) = overlap_transaction(&[vec![v(1), v(3), v(3)], vec![v(3), v(2)]], &p, 1, 2);
+        assert_eq!(beats.len(), 6);
+        assert_eq!((r.shared, r.union, r.above), (1, 3, false));
+        let (_, r) = overlap_transaction(&[vec![v(1), v(3)], vec![v(3), v(1)]], &p, 1, 2);
+        assert_eq!((r.shared, r.union, r.above), (2, 2, true));
+    }
+}
+
+// ---------------------------------------------------------------------------
+// S616 one level up: grouping by parent voxel
+
+/// Bit layout of the upper-level unit's beats, from bit 0: `rec` (a node
+/// record), `end` (1), and on output beats `err` (1: the group's `first` or
+/// `count` reached `2^I`; both fields then hold their value modulo `2^I`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct UpperLayout {
+    pub node: NodeLayout,
+    pub rec: Field,
+    pub end: Field,
+    pub err: Field,
+    pub in_width: u32,
+    pub out_width: u32,
+}
+
+impl UpperLayout {
+    pub fn new(p: &Params) -> UpperLayout {
+        let node = NodeLayout::new(p);
+        let rec = field_at("rec", 0, node.width());
+        let end = field_at("end", rec.end(), 1);
+        let err = field_at("err", end.end(), 1);
+        UpperLayout {
+            node,
+            rec,
+            end,
+            err,
+            in_width: end.end(),
+            out_width: err.end(),
+        }
+    }
+}
+
+/// One beat of the upper-level unit: a node record, or the end of a level.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum UpperBeat {
+    Node { record: NodeRecord, err: bool },
+    End,
+}
+
+impl UpperBeat {
+    /// Packed as an input beat (`err` must be false) or an output beat.
+    pub fn pack(&self, l: &UpperLayout, output: bool) -> Result<Bits, LayoutError> {
+        let mut b = Bits::zero(if output { l.out_width } else { l.in_width });
+        match self {
+            UpperBeat::Node { record, err } => {
+                copy_into(&mut b, l.rec.offset, &record.pack(&l.node)?);
+                if output {
+                    b.set(&l.err, *err as u64)?;
+                }
+            }
+            UpperBeat::End => b.set(&l.end, 1)?,
+        }
+        Ok(b)
+    }
+}
+
+/// S616's grouping of one level as a stream transaction: `level` (records
+/// of one LOD `d >= 1`, in Morton order as the level lists of S616 hold
+/// them) in, one inner record per parent voxel out, computed by the golden
+/// [`crate::build::upper::group_by_parent`]: box = union of the children's
+/// cells re-quantized into the parent, `first` = index of its first child
+/// in the level, `count` = its children. Both streams end with `End`.
+pub fn upper_transaction(level: &[NodeRecord], p: &Params) -> (Vec<UpperBeat>, Vec<UpperBeat>) {
+    use crate::build::upper::{group_by_parent, LevelNode};
+    let nodes: Vec<LevelNode> = level
+        .iter()
+        .map(|n| LevelNode {
+            morton: n.voxel.morton(),
+            x: n.voxel.x,
+            y: n.voxel.y,
+            z: n.voxel.z,
+            leaf: n.leaf,
+            base: true,
+            lo: n.lo,
+            hi: n.hi,
+            first: n.first,
+            count: n.count,
+        })
+        .collect();
+    let cap = p.index_capacity();
+    let parent_lod = level.first().map_or(0, |n| n.voxel.lod.saturating_sub(1));
+    let mut outputs: Vec<UpperBeat> = group_by_parent(&nodes, p.quant_bits)
+        .iter()
+        .map(|g| UpperBeat::Node {
+            record: NodeRecord {
+                leaf: false,
+                voxel: VoxelAddr::new(parent_lod, g.x, g.y, g.z),
+                lo: g.lo,
+                hi: g.hi,
+                first: (g.first as u64 % cap) as u32,
+                count: (g.count as u64 % cap) as u32,
+            },
+            err: g.first as u64 >= cap || g.count as u64 >= cap,
+        })
+        .collect();
+    outputs.push(UpperBeat::End);
+    let mut inputs: Vec<UpperBeat> = level
+        .iter()
+        .map(|n| UpperBeat::Node {
+            record: *n,
+            err: false,
+        })
+        .collect();
+    inputs.push(UpperBeat::End);
+    (inputs, outputs)
+}
+
+/// A random level of about `n` nodes at one LOD `d >= 1` in Morton order:
+/// clustered so that parents have 1 to 8 children, sometimes an inner node
+/// and a leaf at one voxel, boxes and `first`/`count` random.
+pub fn random_upper_level(rng: &mut SplitMix64, p: &Params, n: usize) -> Vec<NodeRecord> {
+    let lod = match rng.below(4) {
+        0 => 1,
+        1 => p.max_lod,
+        _ => 1 + rng.below(p.max_lod as u64) as u8,
+    };
+    let mut set = BTreeSet::new();
+    let mut out = Vec::new();
+    while set.len() < n {
+        // A parent voxel and some of its children.
+        let (px, py, pz) = (
+            random_coord(rng, lod - 1),
+            random_coord(rng, lod - 1),
+            random_coord(rng, lod - 1),
+        );
+        let children = 1 + rng.below(8);
+        for _ in 0..children {
+            let o = rng.below(8) as u32;
+            set.insert(VoxelAddr::new(
+                lod,
+                px * 2 + (o & 1),
+                py * 2 + (o >> 1 & 1),
+                pz * 2 + (o >> 2),
+            ));
+        }
+        if rng.below(64) == 0 {
+            break;
+        }
+    }
+    let mut voxels: Vec<VoxelAddr> = set.into_iter().collect();
+    voxels.sort_by_key(|v| v.morton());
+    for v in voxels {
+        let both = rng.below(6) == 0;
+        for leaf in [false, true] {
+            if !both && (rng.below(2) == 0) != leaf {
+                continue;
+            }
+            let (lo, hi) = random_box(rng, p);
+            out.push(NodeRecord {
+                leaf,
+                voxel: v,
+                lo,
+                hi,
+                first: random_index(rng, p, 0),
+                count: random_index(rng, p, 1),
+            });
+        }
+    }
+    out
+}

@@ -292,3 +292,13 @@ fn grid_fit_keeps_every_vertex_inside_the_scene() {
         }
     }
 }
+
+#[test]
+fn bunny_at_extreme_parameters() {
+    let mesh = load("bunny.obj");
+    for (d, q, i) in [(31, 16, 32), (1, 0, 16), (2, 16, 16)] {
+        let p = Params::new(d, q, i, 8).unwrap();
+        let h = build_and_check(&mesh, &p);
+        assert!(h.top_lod <= d);
+    }
+}

@@ -18,6 +18,9 @@
 
 pub mod translate;
 
+#[cfg(test)]
+mod file_tests;
+
 use std::collections::BTreeMap;
 use std::fmt;
 use std::io::{BufRead, BufReader, BufWriter, Write};

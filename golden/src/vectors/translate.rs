@@ -307,10 +307,11 @@ pub const DETERMINE_PER_BLOCK: usize = 32;
 
 /// The determine categories, each given the same share of the determine
 /// slots (slot `i` takes category `i mod len`).
-pub const DETERMINE_CATEGORIES: [&str; 14] = [
+pub const DETERMINE_CATEGORIES: [&str; 15] = [
     "random",
     "random",
     "load_table",
+    "bad_width",
     "tie",
     "subnormal",
     "negative_zero",
@@ -340,10 +341,13 @@ pub const APPLY_CATEGORIES: [&str; 12] = [
     "bad_node",
 ];
 
-/// Generates `count` transactions from `seed`, deterministically: first the
-/// golden hard cases ([`hard_cases`], those this design's ports carry), then
-/// blocks of [`BLOCK`] transactions (determine first, then apply), every
-/// category in [`DETERMINE_CATEGORIES`] / [`APPLY_CATEGORIES`] in turn.
+/// Generates `count` transactions from `seed`, deterministically: blocks of
+/// [`BLOCK`] transactions (determine first, then apply), every category in
+/// [`DETERMINE_CATEGORIES`] / [`APPLY_CATEGORIES`] in turn, then the golden
+/// hard cases ([`hard_cases`], those this design's ports carry; they write
+/// every table entry, so they come last). With `count` below the number of
+/// hard cases, the first `count` hard cases only. The generated writes use
+/// only the lower half of the table, so that empty entries stay to be hit.
 pub fn generate(
     design: &TranslateDesign,
     seed: u64,
@@ -358,16 +362,12 @@ pub fn generate(
         rng: SplitMix64(seed),
     };
     let mut out = Vec::with_capacity(count);
-    for i in hard_cases(&design.unit) {
-        if out.len() == count {
-            return Ok(out);
-        }
-        if gen.carried(&i) {
-            out.push(model.run(&TxnInputs::Determine(i)).map_err(model_err)?);
-        }
-    }
+    let hard: Vec<TranslateInputs> = hard_cases(&design.unit)
+        .into_iter()
+        .filter(|i| gen.carried(i))
+        .collect();
     let (mut det, mut app) = (0usize, 0usize);
-    for slot in 0..count - out.len() {
+    for slot in 0..count.saturating_sub(hard.len()) {
         let inputs = if slot % BLOCK < DETERMINE_PER_BLOCK {
             det += 1;
             let cat = DETERMINE_CATEGORIES[(det - 1) % DETERMINE_CATEGORIES.len()];
@@ -378,6 +378,9 @@ pub fn generate(
             TxnInputs::Apply(gen.apply(cat, model.table()))
         };
         out.push(model.run(&inputs).map_err(model_err)?);
+    }
+    for i in hard.into_iter().take(count - out.len()) {
+        out.push(model.run(&TxnInputs::Determine(i)).map_err(model_err)?);
     }
     Ok(out)
 }
@@ -405,10 +408,20 @@ impl Generator {
         }
     }
 
-    /// A random transaction of golden's stimulus this design carries.
+    /// A table id for generated writes: the lower half of the table.
+    fn write_id(&mut self) -> u32 {
+        self.rng
+            .below((self.design.unit.table_depth as u64 / 2).max(1)) as u32
+    }
+
+    /// A random transaction of golden's stimulus this design carries
+    /// (writes inside the table folded into its lower half).
     fn random(&mut self) -> TranslateInputs {
         loop {
-            let i = random_inputs(&mut self.rng, &self.design.unit);
+            let mut i = random_inputs(&mut self.rng, &self.design.unit);
+            if i.write_id < self.design.unit.table_depth {
+                i.write_id %= (self.design.unit.table_depth / 2).max(1);
+            }
             if self.carried(&i) {
                 return i;
             }
@@ -470,9 +483,17 @@ impl Generator {
         match category {
             "load_table" => {
                 i.write_enable = 1;
-                i.write_id = self.rng.below(self.design.unit.table_depth as u64) as u32;
-                // The largest moves now and then: the whole scene edge.
-                if self.rng.below(4) == 0 {
+                i.write_id = self.write_id();
+                // The largest moves now and then: the whole scene edge,
+                // half of them at the deepest level (`|t| = 2^D - 1`).
+                if self.rng.below(2) == 0 {
+                    if self.rng.below(2) == 0 {
+                        let id = i.write_id;
+                        i = self.placed(format, d);
+                        i.write_enable = 1;
+                        i.write_id = id;
+                    }
+                    let (lod, k) = (i.lod, (d - i.lod) as i32);
                     let edge = (1u32 << lod) - 1;
                     let to_top = self.rng.below(2) == 0;
                     i.extents_lo[axis] = if to_top { 0 } else { edge };
@@ -500,6 +521,12 @@ impl Generator {
                 i.placement[axis] = bits;
             }
             "negative_zero" => i.placement[axis] = Self::encode(format, -0.0),
+            // A binary32 encoding with bits above bit 31 (64-bit ports only).
+            "bad_width" if self.design.binary64 => {
+                i.format = 0;
+                i.placement = i.placement.map(|b| b & 0xffff_ffff);
+                i.placement[axis] |= (self.rng.below(u32::MAX as u64) + 1) << 32;
+            }
             "nan" => {
                 i.placement[axis] = match format {
                     Format::Binary32 => {
@@ -539,7 +566,7 @@ impl Generator {
                 let lod = if self.rng.below(2) == 0 { 0 } else { d };
                 i = self.placed(format, lod);
                 i.write_enable = 1;
-                i.write_id = self.rng.below(self.design.unit.table_depth as u64) as u32;
+                i.write_id = self.write_id();
             }
             "bad_lod" => {
                 let top = (1u32 << p.lod_bits()) - 1;

@@ -12,6 +12,7 @@ pub mod engines;
 pub mod error;
 pub mod from_rtl;
 pub mod icarus;
+pub mod ir_engine;
 pub mod tb;
 pub mod tools;
 pub mod verilator;

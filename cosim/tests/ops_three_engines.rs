@@ -1,0 +1,364 @@
+//! rtl-gen's operator suite, bit for bit, on three engines: the IR simulator
+//! (`IrEngine` over `rtl_gen::Sim`), Verilator and Icarus Verilog, driven by
+//! one Rust testbench through the `Engine` trait.
+//!
+//! Every operator of `OpKind::ALL` at every width of `optest::WIDTHS`,
+//! signed and unsigned. To pay for one Verilator build per signedness
+//! instead of one per (width, signedness), the test builds one top per
+//! signedness that instantiates `op_suite(w, signed, false)` for all 13
+//! widths (ports `w<width>_<op>_<port>`). Operands: first the cross product
+//! of edge values (0, 1, all ones, signed min, signed max, alternating bits)
+//! on `a` and `b`, then random vectors where each port is an edge value, a
+//! small or small-negative value, or uniformly random, and `b` often equals
+//! `a` or differs from it in one bit (comparisons). Shift amounts include
+//! 0, w-1, w, w+1 and 2w. Icarus runs 4-state: an X or Z on any output is a
+//! failure (`Engine::reset` enables the check).
+//!
+//! The engines are compared with each other; the IR simulator itself is
+//! checked against a bit-level reference in rtl-gen's `sim_ops` test.
+//! `HIERMERGE_OPS_VECTORS=<n>` changes the vector count (default below).
+
+mod common;
+
+use cosim::from_rtl::design_from_module;
+use cosim::ir_engine::IrEngine;
+use cosim::tb::Prng;
+use cosim::{open_engine, BitVec, Design, Engine, EngineKind, PortDir};
+use rtl_gen::optest::{op_suite, OpKind, WIDTHS};
+use rtl_gen::{Direction, Module};
+use std::time::Instant;
+
+/// Vectors per run; every operator at every width sees each of them.
+const DEFAULT_VECTORS: usize = 300;
+
+fn vector_count() -> usize {
+    std::env::var("HIERMERGE_OPS_VECTORS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(DEFAULT_VECTORS)
+}
+
+/// One top instantiating the operator suite of every width.
+fn all_widths_top(signed: bool) -> Module {
+    let top = Module::new(&format!("op_suites_{}", if signed { "s" } else { "u" }));
+    for w in WIDTHS {
+        let suite = op_suite(w, signed, false);
+        let u = top.instance(&format!("u_w{w}"), &suite);
+        for p in suite.ports() {
+            let name = format!("w{w}_{}", p.name);
+            match p.direction {
+                Direction::Input => u.connect(&p.name, top.input(&name, p.width)),
+                Direction::Output => {
+                    top.output(&name, u.output(&p.name));
+                }
+            }
+        }
+    }
+    top
+}
+
+/// What a top-level port of `all_widths_top` is: width, operator, port.
+#[derive(Clone, Debug)]
+struct PortRole {
+    width: u32,
+    op: String,
+    port: String,
+}
+
+fn port_role(name: &str) -> PortRole {
+    // `w<width>_<op>_<port>`; operator names have no underscore.
+    let mut parts = name.splitn(3, '_');
+    let width = parts.next().unwrap()[1..].parse().unwrap();
+    let op = parts.next().unwrap().to_string();
+    let port = parts.next().unwrap().to_string();
+    PortRole { width, op, port }
+}
+
+fn shift_op(op: &str) -> bool {
+    op == OpKind::ShlVar.name() || op == OpKind::ShrVar.name()
+}
+
+/// Edge values of a `width`-bit operand.
+fn edges(width: usize) -> Vec<BitVec> {
+    let mut v = vec![
+        BitVec::zeros(width),
+        BitVec::from_u64(width, 1).unwrap(),
+        BitVec::ones(width),
+    ];
+    let mut min = BitVec::zeros(width);
+    min.set_bit(width - 1, true).unwrap();
+    let mut max = BitVec::ones(width);
+    max.set_bit(width - 1, false).unwrap();
+    let mut alternating = BitVec::zeros(width);
+    for i in (0..width).step_by(2) {
+        alternating.set_bit(i, true).unwrap();
+    }
+    v.extend([min, max, alternating]);
+    v
+}
+
+/// Shift amounts around the operand width `w`, for a `port_width`-bit port.
+fn shift_edges(w: u32, port_width: usize) -> Vec<BitVec> {
+    let limit = 1u64 << port_width;
+    [
+        0,
+        1,
+        w as u64 - 1,
+        w as u64,
+        w as u64 + 1,
+        2 * w as u64,
+        limit - 1,
+    ]
+    .into_iter()
+    .filter(|&s| s < limit)
+    .map(|s| BitVec::from_u64(port_width, s).unwrap())
+    .collect()
+}
+
+/// A value with only the low `k` bits random (or its bitwise complement,
+/// a small negative number when read as signed).
+fn small(rng: &mut Prng, width: usize) -> BitVec {
+    let mut v = BitVec::zeros(width);
+    let k = (rng.below(9) as usize).min(width);
+    for i in 0..k {
+        v.set_bit(i, rng.chance(0.5)).unwrap();
+    }
+    if rng.chance(0.5) {
+        for i in 0..width {
+            v.flip_bit(i).unwrap();
+        }
+    }
+    v
+}
+
+/// The input vectors for `design` (one value per input port, port order).
+fn vectors(design: &Design, count: usize, seed: u64) -> Vec<Vec<BitVec>> {
+    let inputs: Vec<(PortRole, usize)> = design
+        .ports
+        .iter()
+        .filter(|p| p.dir == PortDir::Input)
+        .map(|p| (port_role(&p.name), p.width))
+        .collect();
+    let mut rng = Prng::new(seed);
+    (0..count)
+        .map(|k| {
+            let mut values: Vec<BitVec> = Vec::with_capacity(inputs.len());
+            for (i, (role, width)) in inputs.iter().enumerate() {
+                let set = if shift_op(&role.op) && role.port == "s" {
+                    shift_edges(role.width, *width)
+                } else {
+                    edges(*width)
+                };
+                let e = set.len();
+                let value = if k < e * e {
+                    // Cross product: `a` walks slowly, every other port fast.
+                    let j = if role.port == "a" { k / e } else { k % e };
+                    set[j].clone()
+                } else if role.port == "b" && i > 0 && rng.chance(0.25) {
+                    // `a` precedes `b` in every operator's port list.
+                    let mut near = values[i - 1].clone();
+                    if rng.chance(0.5) {
+                        near.flip_bit(rng.below(*width as u64) as usize).unwrap();
+                    }
+                    near
+                } else {
+                    match rng.below(8) {
+                        0 | 1 => set[rng.below(e as u64) as usize].clone(),
+                        2 => small(&mut rng, *width),
+                        _ => rng.bits(*width),
+                    }
+                };
+                values.push(value);
+            }
+            values
+        })
+        .collect()
+}
+
+/// The one testbench every engine runs: apply each vector, settle, read
+/// every output. `reset(0)` on this reset-less design only settles and turns
+/// on Icarus's X/Z check.
+fn apply_vectors(
+    engine: &mut dyn Engine,
+    vectors: &[Vec<BitVec>],
+) -> cosim::Result<Vec<Vec<BitVec>>> {
+    let design = engine.design().clone();
+    let inputs: Vec<_> = (0..design.ports.len())
+        .filter(|&i| design.ports[i].dir == PortDir::Input)
+        .map(cosim::PortId)
+        .collect();
+    let outputs = design.output_ids();
+    engine.reset(0)?;
+    let mut results = Vec::with_capacity(vectors.len());
+    for v in vectors {
+        for (&id, value) in inputs.iter().zip(v) {
+            engine.poke(id, value)?;
+        }
+        engine.eval()?;
+        results.push(
+            outputs
+                .iter()
+                .map(|&id| engine.peek(id))
+                .collect::<cosim::Result<Vec<_>>>()?,
+        );
+    }
+    Ok(results)
+}
+
+/// One output on which the engines disagree.
+#[derive(Debug)]
+struct Disagreement {
+    vector: usize,
+    output: String,
+    operands: Vec<(String, BitVec)>,
+    values: Vec<(&'static str, BitVec)>,
+}
+
+impl std::fmt::Display for Disagreement {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        writeln!(f, "vector {}, output {}:", self.vector, self.output)?;
+        for (name, v) in &self.operands {
+            writeln!(f, "    operand {name} = {v}")?;
+        }
+        for (engine, v) in &self.values {
+            writeln!(f, "    {engine:>9}: {v}")?;
+        }
+        Ok(())
+    }
+}
+
+/// Every output where any engine differs from the first one, with the
+/// operands of that output's operator.
+fn disagreements(
+    design: &Design,
+    vectors: &[Vec<BitVec>],
+    runs: &[(&'static str, Vec<Vec<BitVec>>)],
+) -> Vec<Disagreement> {
+    let input_names: Vec<&str> = design
+        .ports
+        .iter()
+        .filter(|p| p.dir == PortDir::Input)
+        .map(|p| p.name.as_str())
+        .collect();
+    let output_names: Vec<&str> = design
+        .ports
+        .iter()
+        .filter(|p| p.dir == PortDir::Output)
+        .map(|p| p.name.as_str())
+        .collect();
+    let mut found = Vec::new();
+    for (k, vector) in vectors.iter().enumerate() {
+        for (o, name) in output_names.iter().enumerate() {
+            let reference = &runs[0].1[k][o];
+            if runs.iter().all(|(_, r)| &r[k][o] == reference) {
+                continue;
+            }
+            let role = port_role(name);
+            let prefix = format!("w{}_{}_", role.width, role.op);
+            found.push(Disagreement {
+                vector: k,
+                output: name.to_string(),
+                operands: input_names
+                    .iter()
+                    .zip(vector)
+                    .filter(|(n, _)| n.starts_with(&prefix))
+                    .map(|(n, v)| (n.to_string(), v.clone()))
+                    .collect(),
+                values: runs.iter().map(|(e, r)| (*e, r[k][o].clone())).collect(),
+            });
+        }
+    }
+    found
+}
+
+fn check_operators(signed: bool) {
+    if !common::all_tools_present() {
+        return;
+    }
+    let total = Instant::now();
+    let sign = if signed { "signed" } else { "unsigned" };
+    let top = all_widths_top(signed);
+    let dir = tempfile::tempdir().unwrap();
+    let design = design_from_module(&top, dir.path()).unwrap();
+    let count = vector_count();
+    let vecs = vectors(&design, count, 0x5eed_0000 + signed as u64);
+    let outputs = design.output_ids().len();
+    eprintln!(
+        "{sign}: {} operators x {} widths, {} input and {outputs} output ports, {count} vectors",
+        OpKind::ALL.len(),
+        WIDTHS.len(),
+        design.ports.len() - outputs,
+    );
+
+    let mut runs = Vec::new();
+    let t = Instant::now();
+    let mut ir = IrEngine::new(&top, &design).unwrap();
+    runs.push(("ir", apply_vectors(&mut ir, &vecs).unwrap()));
+    eprintln!("{sign}: ir ran in {:?}", t.elapsed());
+    for kind in EngineKind::ALL {
+        let t = Instant::now();
+        let mut engine = open_engine(kind, &design, false)
+            .unwrap_or_else(|e| panic!("{sign}: opening {}: {e}", kind.name()));
+        let opened = t.elapsed();
+        let result = apply_vectors(engine.as_mut(), &vecs)
+            .unwrap_or_else(|e| panic!("{sign}: running {}: {e}", kind.name()));
+        eprintln!(
+            "{sign}: {} built/loaded in {opened:?}, ran in {:?}",
+            kind.name(),
+            t.elapsed() - opened
+        );
+        runs.push((engine.name(), result));
+    }
+
+    let found = disagreements(&design, &vecs, &runs);
+    let shown: Vec<String> = found.iter().take(10).map(|d| d.to_string()).collect();
+    assert!(
+        found.is_empty(),
+        "{sign}: {} disagreements, the first ones:\n{}",
+        found.len(),
+        shown.join("")
+    );
+    eprintln!(
+        "{sign}: {} outputs x {count} vectors agree on ir, verilator and iverilog; total {:?}",
+        outputs,
+        total.elapsed()
+    );
+}
+
+#[test]
+fn unsigned_operators_agree_bit_for_bit_on_ir_verilator_and_icarus() {
+    check_operators(false);
+}
+
+#[test]
+fn signed_operators_agree_bit_for_bit_on_ir_verilator_and_icarus() {
+    check_operators(true);
+}
+
+/// The comparison itself can fail: a single flipped bit in one engine's
+/// results is reported with its output and operands.
+#[test]
+fn a_single_flipped_bit_in_one_engine_is_reported() {
+    let top = all_widths_top(true);
+    let dir = tempfile::tempdir().unwrap();
+    let design = design_from_module(&top, dir.path()).unwrap();
+    let vecs = vectors(&design, 40, 7);
+    let mut ir = IrEngine::new(&top, &design).unwrap();
+    let good = apply_vectors(&mut ir, &vecs).unwrap();
+    let out = design
+        .output_ids()
+        .iter()
+        .position(|&id| design.ports[id.0].name == "w129_sub_y")
+        .unwrap();
+    let mut bad = good.clone();
+    bad[37][out].flip_bit(128).unwrap();
+    let found = disagreements(&design, &vecs, &[("ir", good.clone()), ("mutant", bad)]);
+    assert_eq!(found.len(), 1);
+    assert_eq!(
+        (found[0].vector, found[0].output.as_str()),
+        (37, "w129_sub_y")
+    );
+    let operands: Vec<&str> = found[0].operands.iter().map(|(n, _)| n.as_str()).collect();
+    assert_eq!(operands, ["w129_sub_a", "w129_sub_b"]);
+    assert!(disagreements(&design, &vecs, &[("a", good.clone()), ("b", good)]).is_empty());
+}

@@ -25,11 +25,12 @@ fn configs() -> Vec<(&'static str, Params)> {
 
 /// Random levels until at least `groups` voxel groups (transactions);
 /// every group's outputs are expected with its first beat.
-fn vectors(p: &Params, seed: u64, groups: usize) -> (Vec<Vector>, usize, LevelStats) {
+fn vectors(p: &Params, seed: u64, groups: usize) -> (Vec<Vector>, usize, LevelStats, Vec<usize>) {
     let (li, lo) = (BeatLayout::input(p), BeatLayout::output(p));
     let mut rng = SplitMix64(seed);
     let mut out = Vec::new();
     let mut stats = LevelStats::default();
+    let mut ends = Vec::new();
     let mut n = 0;
     while n < groups {
         let k = 1 + rng.below(p.hier_capacity().min(5)) as usize;
@@ -54,8 +55,9 @@ fn vectors(p: &Params, seed: u64, groups: usize) -> (Vec<Vector>, usize, LevelSt
             }
         }
         n += tx.groups.len();
+        ends.push(out.len());
     }
-    (out, n, stats)
+    (out, n, stats, ends)
 }
 
 /// What the stimulus reached, so a test can insist on the hard cases.
@@ -89,7 +91,7 @@ fn check_config(name: &str, p: &Params, kinds: &[(&str, usize)], seed: u64) {
     let m = rtl_gen::merge::merge_level_unit(p);
     let design = design_of(&m, dir.path());
     for &(kind, groups) in kinds {
-        let (vs, n, stats) = vectors(p, seed, groups);
+        let (vs, n, stats, ends) = vectors(p, seed, groups);
         eprintln!(
             "{name}/{kind}: {n} transactions, {} beats, {stats:?}",
             vs.len()
@@ -110,7 +112,7 @@ fn check_config(name: &str, p: &Params, kinds: &[(&str, usize)], seed: u64) {
         assert_eq!(r.inputs_sent, vs.len() as u64);
         // No back-pressure: one input beat per clock in steady state (on
         // the first 100k beats, enough for a steady state).
-        let part = &vs[..vs.len().min(100_000)];
+        let part = &vs[..level_prefix(&ends, 100_000)];
         let mut e = engine(kind, &m, &design);
         let r = run(
             e.as_mut(),

@@ -214,3 +214,15 @@ pub fn is_output(d: &Design, name: &str) -> bool {
         .iter()
         .any(|p| p.name == name && p.dir == PortDir::Output)
 }
+
+/// The length of the longest prefix of a vector list that ends at one of
+/// `ends` (indices just past a level's `End` beat) and is at most `max`
+/// long (at least the first level): a run must not stop inside a level,
+/// whose last outputs wait for its `End`.
+pub fn level_prefix(ends: &[usize], max: usize) -> usize {
+    ends.iter()
+        .copied()
+        .filter(|&e| e <= max)
+        .max()
+        .unwrap_or_else(|| ends.first().copied().unwrap_or(0))
+}

@@ -810,12 +810,17 @@ mod tests {
 // ---------------------------------------------------------------------------
 // S616 one level up: grouping by parent voxel
 
-/// Bit layout of the upper-level unit's beats, from bit 0: `rec` (a node
-/// record), `end` (1), and on output beats `err` (1: the group's `first` or
-/// `count` reached `2^I`; both fields then hold their value modulo `2^I`).
+/// Bit layout of the upper-level unit's beats. Input, from bit 0: `child`
+/// (the bits of a node record S616 reads: `lod` through `hi_z`, i.e. record
+/// bits `[1, first.offset)`, in the record's order), `end` (1). Output:
+/// `rec` (a node record), `end` (1), `err` (1: the group's `first` or
+/// `count` reached `2^I`, both then modulo `2^I`, or a child had `lo > hi`
+/// on some axis).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct UpperLayout {
     pub node: NodeLayout,
+    pub child: Field,
+    pub in_end: Field,
     pub rec: Field,
     pub end: Field,
     pub err: Field,
@@ -826,16 +831,29 @@ pub struct UpperLayout {
 impl UpperLayout {
     pub fn new(p: &Params) -> UpperLayout {
         let node = NodeLayout::new(p);
+        let child = field_at("child", 0, node.first().offset - 1);
+        let in_end = field_at("end", child.end(), 1);
         let rec = field_at("rec", 0, node.width());
         let end = field_at("end", rec.end(), 1);
         let err = field_at("err", end.end(), 1);
         UpperLayout {
-            node,
+            child,
+            in_end,
             rec,
             end,
             err,
-            in_width: end.end(),
+            in_width: in_end.end(),
             out_width: err.end(),
+            node,
+        }
+    }
+
+    /// Field `f` of a node record as it sits in an input beat's `child`
+    /// (one bit lower: the `leaf` bit is not carried).
+    pub fn in_child(&self, f: &Field) -> Field {
+        Field {
+            offset: f.offset - 1,
+            ..*f
         }
     }
 }
@@ -848,17 +866,25 @@ pub enum UpperBeat {
 }
 
 impl UpperBeat {
-    /// Packed as an input beat (`err` must be false) or an output beat.
+    /// Packed as an input beat (`child` bits of the record; `err` ignored)
+    /// or an output beat.
     pub fn pack(&self, l: &UpperLayout, output: bool) -> Result<Bits, LayoutError> {
         let mut b = Bits::zero(if output { l.out_width } else { l.in_width });
         match self {
             UpperBeat::Node { record, err } => {
-                copy_into(&mut b, l.rec.offset, &record.pack(&l.node)?);
+                let r = record.pack(&l.node)?;
                 if output {
+                    copy_into(&mut b, l.rec.offset, &r);
                     b.set(&l.err, *err as u64)?;
+                } else {
+                    for i in 0..l.child.width {
+                        if r.bit(i + 1) {
+                            b.set(&field_at("bit", i, 1), 1)?;
+                        }
+                    }
                 }
             }
-            UpperBeat::End => b.set(&l.end, 1)?,
+            UpperBeat::End => b.set(if output { &l.end } else { &l.in_end }, 1)?,
         }
         Ok(b)
     }
@@ -889,6 +915,7 @@ pub fn upper_transaction(level: &[NodeRecord], p: &Params) -> (Vec<UpperBeat>, V
         .collect();
     let cap = p.index_capacity();
     let parent_lod = level.first().map_or(0, |n| n.voxel.lod.saturating_sub(1));
+    let bad_box = |n: &NodeRecord| (0..3).any(|a| n.lo[a] > n.hi[a]);
     let mut outputs: Vec<UpperBeat> = group_by_parent(&nodes, p.quant_bits)
         .iter()
         .map(|g| UpperBeat::Node {
@@ -900,7 +927,11 @@ pub fn upper_transaction(level: &[NodeRecord], p: &Params) -> (Vec<UpperBeat>, V
                 first: (g.first as u64 % cap) as u32,
                 count: (g.count as u64 % cap) as u32,
             },
-            err: g.first as u64 >= cap || g.count as u64 >= cap,
+            err: g.first as u64 >= cap
+                || g.count as u64 >= cap
+                || level[g.first as usize..(g.first + g.count) as usize]
+                    .iter()
+                    .any(bad_box),
         })
         .collect();
     outputs.push(UpperBeat::End);
@@ -955,7 +986,12 @@ pub fn random_upper_level(rng: &mut SplitMix64, p: &Params, n: usize) -> Vec<Nod
             if !both && (rng.below(2) == 0) != leaf {
                 continue;
             }
-            let (lo, hi) = random_box(rng, p);
+            let (mut lo, mut hi) = random_box(rng, p);
+            if p.quant_bits > 0 && rng.below(200) == 0 {
+                // A corrupt box (lo > hi) on purpose: the unit flags it.
+                let a = rng.below(3) as usize;
+                (lo[a], hi[a]) = (hi[a].max(1), lo[a].min(hi[a].max(1) - 1));
+            }
             out.push(NodeRecord {
                 leaf,
                 voxel: v,

@@ -60,8 +60,8 @@ pub fn overlap_counter_unit(p: &Params, inputs: usize, num: u32, den: u32) -> Mo
     let g_voxel = m.reg("g_voxel", voxel.width());
     let g_rank = m.reg("g_rank", rank.width());
     let g_shared = m.reg("g_shared", 1);
-    let shared = m.reg("shared", i);
-    let union = m.reg("union", i);
+    let shared = m.reg("shared_count", i);
+    let union = m.reg("union_count", i);
     let overflow = m.reg("overflow", 1);
     let out_valid = m.reg("out_valid", 1);
     let out_ready = m.input("out_ready", 1);
@@ -75,13 +75,14 @@ pub fn overlap_counter_unit(p: &Params, inputs: usize, num: u32, den: u32) -> Mo
     // The current group closes on a new voxel or the end of the level.
     let close = (fire & g_valid & (end | !same)).name("close");
     let union_next = union.add(1, i + 1).name("union_inc");
-    let shared_next = shared.add(1, i + 1).name("shared_inc");
+    // shared <= union, so only the union count can overflow.
+    let shared_next = shared.add(1, i).name("shared_inc");
     let counts_shared = close & g_shared;
     let lit0 = m.lit(0, 1);
 
     let ovf_now = overflow | (close & union_next.bit(i));
     let union_after = close.mux(union_next.slice(i - 1, 0), union);
-    let shared_after = counts_shared.mux(shared_next.slice(i - 1, 0), shared);
+    let shared_after = counts_shared.mux(shared_next, shared);
     let level_done = fire & end;
     // The end of a level resets the counters for the next one; the result
     // is kept in `r_*` until taken.

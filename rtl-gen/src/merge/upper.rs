@@ -10,7 +10,9 @@
 //! floor((o 2^Q + hi) / 2)`, i.e. the bits `{o, lo[Q-1:1]}` and
 //! `{o, hi[Q-1:1]}`: no arithmetic. The parent's box is their per-axis
 //! min/max. `first` is the level index of the group's first child and
-//! `count` the group's size, with an error flag when either reaches `2^I`.
+//! `count` the group's size, with an error flag when either reaches `2^I`
+//! or a child's box has `lo > hi` (the only use of the cells' bit 0).
+//! The input beat carries only the record bits S616 reads (`lod` to `hi_z`).
 
 use golden::merge::unit::UpperLayout;
 use golden::params::Params;
@@ -45,14 +47,17 @@ pub fn upper_level_unit(p: &Params) -> Module {
     let i = p.index_bits as u32;
     let input = Stream::input(&m, "in", l.in_width);
     let out_ready = m.wire("h_out_ready", 1);
-    let rec = field(input.data, &l.rec).expect("record bits");
-    let end = field(input.data, &l.end).expect("end bit").name("in_end");
+    let rec = input.data;
+    let end = field(input.data, &l.in_end)
+        .expect("end bit")
+        .name("in_end");
+    let f = |x: &golden::layout::Field| l.in_child(x);
 
     // The parent of the incoming record: lod - 1, coordinates >> 1.
-    let lod = field(rec, nl.lod()).expect("lod bits");
+    let lod = field(rec, &f(nl.lod())).expect("lod bits");
     let parent_lod = lod.sub(1, lod.width()).name("parent_lod");
     let coords: Vec<Signal> = (0..3)
-        .map(|a| field(rec, nl.coord(a)).expect("coordinate"))
+        .map(|a| field(rec, &f(nl.coord(a))).expect("coordinate"))
         .collect();
     let parent_xyz: Vec<Signal> = coords.iter().map(|c| c.srl(1u32)).collect();
     let parent_voxel = m
@@ -60,13 +65,16 @@ pub fn upper_level_unit(p: &Params) -> Module {
         .name("parent_voxel");
     let mut in_lo = Vec::new();
     let mut in_hi = Vec::new();
+    let mut bad_box = m.lit(0, 1);
     for a in 0..3 {
-        if let (Some(lo), Some(hi)) = (field(rec, nl.lo(a)), field(rec, nl.hi(a))) {
+        if let (Some(lo), Some(hi)) = (field(rec, &f(nl.lo(a))), field(rec, &f(nl.hi(a)))) {
             let odd = coords[a].bit(0);
             in_lo.push(cell_in_parent(&m, lo, odd));
             in_hi.push(cell_in_parent(&m, hi, odd));
+            bad_box = bad_box | lo.gt(hi);
         }
     }
+    let bad_box = bad_box.name("bad_box");
 
     let h_valid = m.reg("h_valid", 1);
     let h_end = m.reg("h_end", 1);
@@ -113,7 +121,10 @@ pub fn upper_level_unit(p: &Params) -> Module {
     h_first.next_when(load, index);
     h_count.next(load.mux(m.lit(1, i), absorb.mux(count_next.slice(i - 1, 0), h_count)));
     // `first` overflowed when the index did before this group; `count` when it wraps.
-    h_err.next(load.mux(index_ovf, h_err | (absorb & count_next.bit(i))));
+    h_err.next(load.mux(
+        index_ovf | bad_box,
+        h_err | (absorb & (count_next.bit(i) | bad_box)),
+    ));
 
     // The parent record: leaf 0, voxel, box, first, count; fields low first.
     let mut low_first: Vec<Signal> = vec![lit0, h_voxel];

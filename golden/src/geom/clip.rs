@@ -38,21 +38,70 @@ pub fn clip_triangle_to_box(tri: &[DVec3; 3], lo: DVec3, hi: DVec3) -> Option<(D
     let m = ROUNDING_MARGIN_REL * magnitude(tri, lo, hi);
     let grown_lo = lo - DVec3::splat(m);
     let grown_hi = hi + DVec3::splat(m);
-    let mut poly: Vec<DVec3> = tri.to_vec();
+    let mut poly = Polygon::triangle(tri);
+    let mut next = Polygon::empty();
     for axis in 0..3 {
-        poly = clip_against_plane(&poly, axis, grown_lo[axis], KeepSide::Above);
-        poly = clip_against_plane(&poly, axis, grown_hi[axis], KeepSide::Below);
-        if poly.is_empty() {
+        clip_against_plane(&poly, &mut next, axis, grown_lo[axis], KeepSide::Above);
+        clip_against_plane(&next, &mut poly, axis, grown_hi[axis], KeepSide::Below);
+        if poly.len == 0 {
             return fallback();
         }
     }
-    let (plo, phi) = polygon_bounds(&poly);
+    let (plo, phi) = poly.bounds();
     let out_lo = (plo - DVec3::splat(m)).max(bounded_lo);
     let out_hi = (phi + DVec3::splat(m)).min(bounded_hi);
     if out_lo.cmpgt(out_hi).any() {
         return fallback();
     }
     Some((out_lo, out_hi))
+}
+
+/// Most vertices a clipped polygon can have. One Sutherland–Hodgman step
+/// outputs the kept vertices plus one per sign change; with `k` kept runs
+/// there are `2k` changes and at least `k` dropped vertices, so `n` vertices
+/// become at most `n + n/2` (a convex polygon gains at most one, but rounding
+/// is not promised to keep it convex). From 3: 4, 6, 9, 13, 19, 28.
+const MAX_POLYGON: usize = 28;
+
+/// A polygon in a fixed buffer: clipping allocates nothing.
+struct Polygon {
+    v: [DVec3; MAX_POLYGON],
+    len: usize,
+}
+
+impl Polygon {
+    #[inline(always)]
+    fn empty() -> Polygon {
+        Polygon {
+            v: [DVec3::ZERO; MAX_POLYGON],
+            len: 0,
+        }
+    }
+
+    #[inline(always)]
+    fn triangle(tri: &[DVec3; 3]) -> Polygon {
+        let mut p = Polygon::empty();
+        p.v[..3].copy_from_slice(tri);
+        p.len = 3;
+        p
+    }
+
+    #[inline(always)]
+    fn push(&mut self, p: DVec3) {
+        self.v[self.len] = p;
+        self.len += 1;
+    }
+
+    /// The vertices' AABB, folded in vertex order.
+    fn bounds(&self) -> (DVec3, DVec3) {
+        let mut lo = DVec3::splat(f64::INFINITY);
+        let mut hi = DVec3::splat(f64::NEG_INFINITY);
+        for &p in &self.v[..self.len] {
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
+        (lo, hi)
+    }
 }
 
 /// Which side of an axis-aligned plane survives a clip.
@@ -64,20 +113,32 @@ enum KeepSide {
     Below,
 }
 
-/// One Sutherland–Hodgman step: the part of the closed polygon on the kept
-/// side of the plane `p[axis] = plane`. A polygon of one or two vertices (a
-/// degenerate triangle after deduplication is not needed: repeated vertices
-/// are simply repeated) is clipped like any other.
-fn clip_against_plane(poly: &[DVec3], axis: usize, plane: f64, keep: KeepSide) -> Vec<DVec3> {
+/// One Sutherland–Hodgman step: the part of the closed polygon `poly` on the
+/// kept side of the plane `p[axis] = plane`, written to `out`. A polygon of
+/// one or two vertices (repeated vertices are simply repeated) is clipped
+/// like any other.
+#[inline(always)]
+fn clip_against_plane(poly: &Polygon, out: &mut Polygon, axis: usize, plane: f64, keep: KeepSide) {
     let dist = |p: DVec3| match keep {
         KeepSide::Above => p[axis] - plane,
         KeepSide::Below => plane - p[axis],
     };
-    let mut out = Vec::with_capacity(poly.len() + 2);
-    for i in 0..poly.len() {
-        let a = poly[i];
-        let b = poly[(i + 1) % poly.len()];
-        let (da, db) = (dist(a), dist(b));
+    out.len = 0;
+    let n = poly.len;
+    if n == 0 {
+        return;
+    }
+    // Each vertex's distance is computed once and carried to the next edge.
+    let first = poly.v[0];
+    let d_first = dist(first);
+    let (mut a, mut da) = (first, d_first);
+    for i in 0..n {
+        let (b, db) = if i + 1 == n {
+            (first, d_first)
+        } else {
+            let b = poly.v[i + 1];
+            (b, dist(b))
+        };
         if da >= 0.0 {
             out.push(a);
         }
@@ -89,18 +150,8 @@ fn clip_against_plane(poly: &[DVec3], axis: usize, plane: f64, keep: KeepSide) -
             p[axis] = plane;
             out.push(p);
         }
+        (a, da) = (b, db);
     }
-    out
-}
-
-fn polygon_bounds(poly: &[DVec3]) -> (DVec3, DVec3) {
-    let mut lo = DVec3::splat(f64::INFINITY);
-    let mut hi = DVec3::splat(f64::NEG_INFINITY);
-    for &p in poly {
-        lo = lo.min(p);
-        hi = hi.max(p);
-    }
-    (lo, hi)
 }
 
 #[cfg(test)]

@@ -23,13 +23,13 @@ mod common;
 use cosim::from_rtl::design_from_module;
 use cosim::ir_engine::IrEngine;
 use cosim::tb::Prng;
-use cosim::{open_engine, BitVec, Design, Engine, EngineKind, PortDir};
+use cosim::{open_engine, BitVec, Design, Engine, EngineKind, PortDir, PortId};
 use rtl_gen::optest::{op_suite, OpKind, WIDTHS};
 use rtl_gen::{Direction, Module};
 use std::time::Instant;
 
 /// Vectors per run; every operator at every width sees each of them.
-const DEFAULT_VECTORS: usize = 300;
+const DEFAULT_VECTORS: usize = 400;
 
 fn vector_count() -> usize {
     std::env::var("HIERMERGE_OPS_VECTORS")
@@ -38,15 +38,22 @@ fn vector_count() -> usize {
         .unwrap_or(DEFAULT_VECTORS)
 }
 
-/// One top instantiating the operator suite of every width.
-fn all_widths_top(signed: bool) -> Module {
-    let top = Module::new(&format!("op_suites_{}", if signed { "s" } else { "u" }));
+/// One top instantiating the operator suite of every width; `registered`
+/// puts a reset-to-zero register before every output (the children's `clk`
+/// and `rst` are the top's).
+fn all_widths_top(signed: bool, registered: bool) -> Module {
+    let top = Module::new(&format!(
+        "op_suites_{}{}",
+        if signed { "s" } else { "u" },
+        if registered { "_reg" } else { "" }
+    ));
     for w in WIDTHS {
-        let suite = op_suite(w, signed, false);
+        let suite = op_suite(w, signed, registered);
         let u = top.instance(&format!("u_w{w}"), &suite);
         for p in suite.ports() {
             let name = format!("w{w}_{}", p.name);
             match p.direction {
+                _ if p.name == rtl_gen::CLOCK || p.name == rtl_gen::RESET => {}
                 Direction::Input => u.connect(&p.name, top.input(&name, p.width)),
                 Direction::Output => {
                     top.output(&name, u.output(&p.name));
@@ -55,6 +62,19 @@ fn all_widths_top(signed: bool) -> Module {
         }
     }
     top
+}
+
+/// The operator inputs: every input but the clock and the reset.
+fn operand_ports(design: &Design) -> Vec<PortId> {
+    let special = [
+        design.clock.as_deref(),
+        design.reset.as_ref().map(|r| r.port.as_str()),
+    ];
+    (0..design.ports.len())
+        .filter(|&i| design.ports[i].dir == PortDir::Input)
+        .filter(|&i| !special.contains(&Some(design.ports[i].name.as_str())))
+        .map(PortId)
+        .collect()
 }
 
 /// What a top-level port of `all_widths_top` is: width, operator, port.
@@ -133,10 +153,9 @@ fn small(rng: &mut Prng, width: usize) -> BitVec {
 
 /// The input vectors for `design` (one value per input port, port order).
 fn vectors(design: &Design, count: usize, seed: u64) -> Vec<Vec<BitVec>> {
-    let inputs: Vec<(PortRole, usize)> = design
-        .ports
+    let inputs: Vec<(PortRole, usize)> = operand_ports(design)
         .iter()
-        .filter(|p| p.dir == PortDir::Input)
+        .map(|&id| &design.ports[id.0])
         .map(|p| (port_role(&p.name), p.width))
         .collect();
     let mut rng = Prng::new(seed);
@@ -175,26 +194,41 @@ fn vectors(design: &Design, count: usize, seed: u64) -> Vec<Vec<BitVec>> {
         .collect()
 }
 
-/// The one testbench every engine runs: apply each vector, settle, read
-/// every output. `reset(0)` on this reset-less design only settles and turns
-/// on Icarus's X/Z check.
+/// The one testbench every engine runs: apply each vector, read every
+/// output once it shows that vector's result: after `eval` for the
+/// combinational tops, after one rising edge for the registered ones (whose
+/// outputs must all be zero right after reset). `reset` also turns on
+/// Icarus's X/Z check; on a reset-less design it only settles.
 fn apply_vectors(
     engine: &mut dyn Engine,
     vectors: &[Vec<BitVec>],
 ) -> cosim::Result<Vec<Vec<BitVec>>> {
     let design = engine.design().clone();
-    let inputs: Vec<_> = (0..design.ports.len())
-        .filter(|&i| design.ports[i].dir == PortDir::Input)
-        .map(cosim::PortId)
-        .collect();
+    let inputs = operand_ports(&design);
     let outputs = design.output_ids();
-    engine.reset(0)?;
+    let clocked = design.clock.is_some();
+    engine.reset(2)?;
+    if clocked {
+        for &id in &outputs {
+            let value = engine.peek(id)?;
+            assert!(
+                value.is_zero(),
+                "{}: {} = {value} after reset, expected 0",
+                engine.name(),
+                design.ports[id.0].name
+            );
+        }
+    }
     let mut results = Vec::with_capacity(vectors.len());
     for v in vectors {
         for (&id, value) in inputs.iter().zip(v) {
             engine.poke(id, value)?;
         }
-        engine.eval()?;
+        if clocked {
+            engine.step()?;
+        } else {
+            engine.eval()?;
+        }
         results.push(
             outputs
                 .iter()
@@ -234,11 +268,9 @@ fn disagreements(
     vectors: &[Vec<BitVec>],
     runs: &[(&'static str, Vec<Vec<BitVec>>)],
 ) -> Vec<Disagreement> {
-    let input_names: Vec<&str> = design
-        .ports
+    let input_names: Vec<&str> = operand_ports(design)
         .iter()
-        .filter(|p| p.dir == PortDir::Input)
-        .map(|p| p.name.as_str())
+        .map(|&id| design.ports[id.0].name.as_str())
         .collect();
     let output_names: Vec<&str> = design
         .ports
@@ -271,17 +303,22 @@ fn disagreements(
     found
 }
 
-fn check_operators(signed: bool) {
+fn check_operators(signed: bool, registered: bool, count: usize) {
     if !common::all_tools_present() {
         return;
     }
     let total = Instant::now();
-    let sign = if signed { "signed" } else { "unsigned" };
-    let top = all_widths_top(signed);
+    let sign = match (signed, registered) {
+        (false, false) => "unsigned",
+        (true, false) => "signed",
+        (false, true) => "unsigned registered",
+        (true, true) => "signed registered",
+    };
+    let top = all_widths_top(signed, registered);
     let dir = tempfile::tempdir().unwrap();
     let design = design_from_module(&top, dir.path()).unwrap();
-    let count = vector_count();
-    let vecs = vectors(&design, count, 0x5eed_0000 + signed as u64);
+    let seed = 0x5eed_0000 + 2 * registered as u64 + signed as u64;
+    let vecs = vectors(&design, count, seed);
     let outputs = design.output_ids().len();
     eprintln!(
         "{sign}: {} operators x {} widths, {} input and {outputs} output ports, {count} vectors",
@@ -327,19 +364,29 @@ fn check_operators(signed: bool) {
 
 #[test]
 fn unsigned_operators_agree_bit_for_bit_on_ir_verilator_and_icarus() {
-    check_operators(false);
+    check_operators(false, false, vector_count());
 }
 
 #[test]
 fn signed_operators_agree_bit_for_bit_on_ir_verilator_and_icarus() {
-    check_operators(true);
+    check_operators(true, false, vector_count());
+}
+
+/// The same operators behind a reset-to-zero register: clock, reset and
+/// register widths up to 600 bits (`Ext` at 300), with fewer vectors (the
+/// operators themselves are covered above).
+#[test]
+fn registered_operators_agree_bit_for_bit_on_ir_verilator_and_icarus() {
+    for signed in [false, true] {
+        check_operators(signed, true, vector_count() / 4);
+    }
 }
 
 /// The comparison itself can fail: a single flipped bit in one engine's
 /// results is reported with its output and operands.
 #[test]
 fn a_single_flipped_bit_in_one_engine_is_reported() {
-    let top = all_widths_top(true);
+    let top = all_widths_top(true, false);
     let dir = tempfile::tempdir().unwrap();
     let design = design_from_module(&top, dir.path()).unwrap();
     let vecs = vectors(&design, 40, 7);

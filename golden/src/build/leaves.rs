@@ -9,7 +9,8 @@ use glam::DVec3;
 use super::lod::primitive_lod;
 use super::quantize::{floor_nonneg, quantize_interval};
 use super::radix::morton3_fast;
-use crate::geom::{clip_triangle_to_box, triangle_overlaps_box};
+use crate::geom::clip::{clip_triangle_to_box_with, ClipScratch};
+use crate::geom::triangle_overlaps_box;
 use crate::params::Params;
 
 /// A primitive in one leaf voxel, with its box there in that voxel's cells.
@@ -44,6 +45,17 @@ pub fn leaf_key_bits(p: &Params) -> u32 {
 /// [`triangle_overlaps_box`] and [`clip_triangle_to_box`] both find contact,
 /// and its box is the clipped AABB. Either box is quantized outward.
 pub fn place_triangle(tri: &[DVec3; 3], prim: u32, p: &Params, out: &mut Vec<LeafEntry>) {
+    place_triangle_with(tri, prim, p, out, &mut ClipScratch::new())
+}
+
+/// [`place_triangle`] with clip buffers reused across triangles.
+pub fn place_triangle_with(
+    tri: &[DVec3; 3],
+    prim: u32,
+    p: &Params,
+    out: &mut Vec<LeafEntry>,
+    scratch: &mut ClipScratch,
+) {
     let tlo = tri[0].min(tri[1]).min(tri[2]);
     let thi = tri[0].max(tri[1]).max(tri[2]);
     let lod = primitive_lod(tri, tlo, thi, p.max_lod);
@@ -85,7 +97,7 @@ pub fn place_triangle(tri: &[DVec3; 3], prim: u32, p: &Params, out: &mut Vec<Lea
                 if !holds_vertex && !triangle_overlaps_box(tri, vlo, vhi) {
                     continue;
                 }
-                if let Some((blo, bhi)) = clip_triangle_to_box(tri, vlo, vhi) {
+                if let Some((blo, bhi)) = clip_triangle_to_box_with(tri, vlo, vhi, scratch) {
                     out.push(entry(x, y, z, blo, bhi));
                 }
             }

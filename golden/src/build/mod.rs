@@ -292,9 +292,10 @@ fn build_with(
         });
     }
     let mut entries = Vec::with_capacity(n * 4);
+    let mut clip_scratch = crate::geom::clip::ClipScratch::new();
     for i in 0..n {
         let tri = triangle(i)?;
-        leaves::place_triangle(&tri, i as u32, params, &mut entries);
+        leaves::place_triangle_with(&tri, i as u32, params, &mut entries, &mut clip_scratch);
     }
     let mut scratch = Vec::new();
     radix::radix_sort(

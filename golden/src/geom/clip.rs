@@ -20,6 +20,45 @@ use super::{magnitude, triangle_bounds, triangle_overlaps_box, ROUNDING_MARGIN_R
 /// closed triangle inside the closed box; `None` only when the two are
 /// certainly disjoint. Degenerate triangles (segments, points) are handled.
 pub fn clip_triangle_to_box(tri: &[DVec3; 3], lo: DVec3, hi: DVec3) -> Option<(DVec3, DVec3)> {
+    clip_triangle_to_box_with(tri, lo, hi, &mut ClipScratch::new())
+}
+
+/// Reusable polygon buffers for [`clip_triangle_to_box_with`], so that a
+/// caller clipping many times (the builder) sets them up once.
+pub struct ClipScratch {
+    polys: [Polygon; 2],
+}
+
+impl ClipScratch {
+    /// Fresh buffers.
+    pub fn new() -> ClipScratch {
+        ClipScratch {
+            polys: [Polygon::empty(), Polygon::empty()],
+        }
+    }
+}
+
+impl Default for ClipScratch {
+    fn default() -> Self {
+        ClipScratch::new()
+    }
+}
+
+/// [`clip_triangle_to_box`] with caller-provided buffers; the same result,
+/// bit for bit.
+///
+/// A clip step whose plane has every vertex on its kept side returns its
+/// input unchanged (no vertex dropped, no crossing), so it is skipped: with
+/// finite coordinates `p - plane >= 0` exactly when `p >= plane`, so the
+/// test "the polygon's minimum is at or above the plane" decides it without
+/// looking at the vertices again. With a non-finite coordinate nothing is
+/// skipped, as the plain algorithm would do.
+pub fn clip_triangle_to_box_with(
+    tri: &[DVec3; 3],
+    lo: DVec3,
+    hi: DVec3,
+    scratch: &mut ClipScratch,
+) -> Option<(DVec3, DVec3)> {
     let (tlo, thi) = triangle_bounds(tri);
     // Comparisons are exact, so disjoint AABBs are certainly disjoint.
     if tlo.cmpgt(hi).any() || thi.cmplt(lo).any() {
@@ -38,16 +77,30 @@ pub fn clip_triangle_to_box(tri: &[DVec3; 3], lo: DVec3, hi: DVec3) -> Option<(D
     let m = ROUNDING_MARGIN_REL * magnitude(tri, lo, hi);
     let grown_lo = lo - DVec3::splat(m);
     let grown_hi = hi + DVec3::splat(m);
-    let mut poly = Polygon::triangle(tri);
-    let mut next = Polygon::empty();
+    let may_skip =
+        tri.iter().all(|v| v.is_finite()) && grown_lo.is_finite() && grown_hi.is_finite();
+    let [a, b] = &mut scratch.polys;
+    let (mut cur, mut next) = (a, b);
+    cur.set_triangle(tri);
+    let (mut plo, mut phi) = cur.bounds();
     for axis in 0..3 {
-        clip_against_plane(&poly, &mut next, axis, grown_lo[axis], KeepSide::Above);
-        clip_against_plane(&next, &mut poly, axis, grown_hi[axis], KeepSide::Below);
-        if poly.len == 0 {
-            return fallback();
+        if !(may_skip && plo[axis] >= grown_lo[axis]) {
+            clip_against_plane(cur, next, axis, grown_lo[axis], KeepSide::Above);
+            std::mem::swap(&mut cur, &mut next);
+            if cur.len == 0 {
+                return fallback();
+            }
+            (plo, phi) = cur.bounds();
+        }
+        if !(may_skip && phi[axis] <= grown_hi[axis]) {
+            clip_against_plane(cur, next, axis, grown_hi[axis], KeepSide::Below);
+            std::mem::swap(&mut cur, &mut next);
+            if cur.len == 0 {
+                return fallback();
+            }
+            (plo, phi) = cur.bounds();
         }
     }
-    let (plo, phi) = poly.bounds();
     let out_lo = (plo - DVec3::splat(m)).max(bounded_lo);
     let out_hi = (phi + DVec3::splat(m)).min(bounded_hi);
     if out_lo.cmpgt(out_hi).any() {
@@ -79,11 +132,9 @@ impl Polygon {
     }
 
     #[inline(always)]
-    fn triangle(tri: &[DVec3; 3]) -> Polygon {
-        let mut p = Polygon::empty();
-        p.v[..3].copy_from_slice(tri);
-        p.len = 3;
-        p
+    fn set_triangle(&mut self, tri: &[DVec3; 3]) {
+        self.v[..3].copy_from_slice(tri);
+        self.len = 3;
     }
 
     #[inline(always)]
@@ -92,7 +143,9 @@ impl Polygon {
         self.len += 1;
     }
 
-    /// The vertices' AABB, folded in vertex order.
+    /// The vertices' AABB, folded in vertex order (as the plain algorithm
+    /// does once at the end).
+    #[inline(always)]
     fn bounds(&self) -> (DVec3, DVec3) {
         let mut lo = DVec3::splat(f64::INFINITY);
         let mut hi = DVec3::splat(f64::NEG_INFINITY);

@@ -25,6 +25,22 @@ use super::{magnitude, ROUNDING_MARGIN_REL};
 /// true when they miss by less than `2^-40` of the coordinates' magnitude.
 pub fn triangle_overlaps_box(tri: &[DVec3; 3], lo: DVec3, hi: DVec3) -> bool {
     let scale = magnitude(tri, lo, hi);
+    if scale < FAST_PATH_LIMIT
+        && tri.iter().all(|v| v.is_finite())
+        && lo.is_finite()
+        && hi.is_finite()
+    {
+        overlaps_finite(tri, lo, hi, scale)
+    } else {
+        overlaps_any(tri, lo, hi, scale)
+    }
+}
+
+/// Below this magnitude no product or sum of the test overflows.
+const FAST_PATH_LIMIT: f64 = 1e150;
+
+/// The test as written: thirteen axes, each through [`separates`].
+fn overlaps_any(tri: &[DVec3; 3], lo: DVec3, hi: DVec3, scale: f64) -> bool {
     let center = (lo + hi) * 0.5;
     let half = (hi - lo) * 0.5;
     let v = [tri[0] - center, tri[1] - center, tri[2] - center];
@@ -50,14 +66,73 @@ pub fn triangle_overlaps_box(tri: &[DVec3; 3], lo: DVec3, hi: DVec3) -> bool {
     true
 }
 
+/// [`overlaps_any`] for finite input of moderate magnitude, with the zero
+/// components of the box axes and of the edge-by-axis crosses left out.
+///
+/// The same booleans, not just close ones: with finite operands a product
+/// by 0 is a zero and adding a zero to `a` gives `a` exactly (or a zero when
+/// `a` is one), so every projection, radius and margin below equals the
+/// general one's up to the sign of a zero, which no comparison sees. E.g.
+/// `e x X = (e.y 0 - 0 e.z, e.z 1 - 0 e.x, e.x 0 - 1 e.y) = (0, e.z, -e.y)`,
+/// and its projection `(0 v.x + e.z v.y) + (-e.y) v.z` is
+/// `e.z v.y - e.y v.z` rounded the same way.
+fn overlaps_finite(tri: &[DVec3; 3], lo: DVec3, hi: DVec3, scale: f64) -> bool {
+    let center = (lo + hi) * 0.5;
+    let half = (hi - lo) * 0.5;
+    let v = [tri[0] - center, tri[1] - center, tri[2] - center];
+    let edges = [v[1] - v[0], v[2] - v[1], v[0] - v[2]];
+
+    // Box axes: projections are the coordinates, radius the half extent,
+    // |axis|_1 = 1.
+    let box_margin = ROUNDING_MARGIN_REL * 1.0 * scale;
+    for a in 0..3 {
+        let p = [v[0][a], v[1][a], v[2][a]];
+        if gap_exceeds(p, half[a], box_margin) {
+            return false;
+        }
+    }
+    let normal = edges[0].cross(edges[1]);
+    if separates(normal, &v, half, scale) {
+        return false;
+    }
+    let margin = |a: f64, b: f64| ROUNDING_MARGIN_REL * (a.abs() + b.abs()) * scale;
+    for e in edges {
+        // e x X = (0, e.z, -e.y)
+        let p = v.map(|w| e.z * w.y + (-e.y) * w.z);
+        let r = half.y * e.z.abs() + half.z * e.y.abs();
+        if gap_exceeds(p, r, margin(e.z, e.y)) {
+            return false;
+        }
+        // e x Y = (-e.z, 0, e.x)
+        let p = v.map(|w| (-e.z) * w.x + e.x * w.z);
+        let r = half.x * e.z.abs() + half.z * e.x.abs();
+        if gap_exceeds(p, r, margin(e.z, e.x)) {
+            return false;
+        }
+        // e x Z = (e.y, -e.x, 0)
+        let p = v.map(|w| e.y * w.x + (-e.x) * w.y);
+        let r = half.x * e.y.abs() + half.y * e.x.abs();
+        if gap_exceeds(p, r, margin(e.y, e.x)) {
+            return false;
+        }
+    }
+    true
+}
+
 /// True when `axis` certainly separates the triangle `v` (relative to the box
 /// center) from the box of half-extents `half`.
 fn separates(axis: DVec3, v: &[DVec3; 3], half: DVec3, scale: f64) -> bool {
     let p = [axis.dot(v[0]), axis.dot(v[1]), axis.dot(v[2])];
-    let pmin = p[0].min(p[1]).min(p[2]);
-    let pmax = p[0].max(p[1]).max(p[2]);
     let radius = half.dot(axis.abs());
     let margin = ROUNDING_MARGIN_REL * axis.abs().element_sum() * scale;
+    gap_exceeds(p, radius, margin)
+}
+
+/// True when the projections `p` lie beyond `radius + margin` on one side.
+#[inline(always)]
+fn gap_exceeds(p: [f64; 3], radius: f64, margin: f64) -> bool {
+    let pmin = p[0].min(p[1]).min(p[2]);
+    let pmax = p[0].max(p[1]).max(p[2]);
     pmin > radius + margin || pmax < -radius - margin
 }
 

@@ -13,6 +13,7 @@ pub mod mesh;
 pub mod layout;
 pub mod merge;
 pub mod params;
+pub mod scene;
 pub mod scenes;
 pub mod store;
 pub mod trace;

@@ -1,0 +1,126 @@
+//! Scene files (SPEC.md section 12): the grid, the objects (mesh files or
+//! procedural shapes, static or dynamic, placed per frame), the camera, the
+//! lights and the effects a scene calls for (which units, which merge mode,
+//! which rays). [`Scene::load`] reads and checks a file; every error names
+//! the JSON path of the element at fault and what was expected.
+//!
+//! The JSON Schema of the format is `scene.schema.json` beside this file
+//! ([`SCHEMA`]).
+
+mod error;
+pub mod file;
+mod shapes;
+mod validate;
+
+use std::path::Path;
+use std::sync::Arc;
+
+use glam::{DVec3, Vec3};
+
+use crate::build::GridMap;
+use crate::camera::Camera;
+use crate::frames::Motion;
+use crate::merge::MergeMode;
+use crate::mesh::Mesh;
+use crate::params::Params;
+
+pub use error::SceneError;
+pub use file::SceneFile;
+
+/// The JSON Schema (draft 2020-12) of the scene file.
+pub const SCHEMA: &str = include_str!("scene.schema.json");
+
+/// A point light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Light {
+    pub position: Vec3,
+    pub intensity: f32,
+}
+
+/// One object, checked: its local mesh and its offset in every frame.
+#[derive(Clone, Debug)]
+pub struct SceneObject {
+    pub name: String,
+    pub motion: Motion,
+    /// The mesh in its local frame (world units), shared by every frame.
+    pub mesh: Arc<Mesh>,
+    /// Placement of the local frame in each frame (world units); one entry
+    /// per frame.
+    pub offsets: Vec<DVec3>,
+    pub color: Vec3,
+    /// Mirror reflectance in [0, 1].
+    pub mirror: f32,
+}
+
+/// What the scene calls for, checked.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Effects {
+    /// Placement by the translation unit; else placements are baked into
+    /// vertices and a moved object is rebuilt.
+    pub translation: bool,
+    pub merge: MergeMode,
+    /// The merging module's upper-level stage (S616) is simulated in RTL.
+    pub upper_build: bool,
+    pub primary: bool,
+    pub shadow: bool,
+    /// Mirror bounces per primary ray; 0: no reflection rays.
+    pub reflection_depth: u32,
+    /// Rays end this far from their origin (world units, > 0).
+    pub clip_distance: f32,
+}
+
+/// A checked scene.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    pub name: String,
+    pub params: Params,
+    pub grid: GridMap,
+    pub frames: u32,
+    pub width: u32,
+    pub height: u32,
+    pub camera: Camera,
+    pub lights: Vec<Light>,
+    pub objects: Vec<SceneObject>,
+    pub effects: Effects,
+}
+
+impl Scene {
+    /// Reads and checks the scene file at `path`; mesh files are relative
+    /// to its folder.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let name = path.display().to_string();
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| SceneError::new(&name, ".", "a readable scene file", e.to_string()))?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        Scene::parse(&text, &name, base)
+    }
+
+    /// Parses and checks scene text; `file` names it in errors, `base` is
+    /// the folder mesh files are relative to.
+    pub fn parse(text: &str, file: &str, base: &Path) -> Result<Scene, SceneError> {
+        let raw = parse_file(text, file)?;
+        validate::validate(&raw, file, base)
+    }
+
+    /// The ids objects get: their index in the file.
+    pub fn object_id(index: usize) -> u8 {
+        index as u8
+    }
+}
+
+/// Parses the JSON into the file types, naming the JSON path of the first
+/// element that does not fit.
+pub fn parse_file(text: &str, file: &str) -> Result<SceneFile, SceneError> {
+    let de = &mut serde_json::Deserializer::from_str(text);
+    let raw: SceneFile = serde_path_to_error::deserialize(de).map_err(|e| {
+        let path = e.path().to_string();
+        let inner = e.into_inner();
+        let expected = if inner.is_syntax() || inner.is_eof() {
+            "well-formed JSON"
+        } else {
+            "the scene format (SPEC.md section 12)"
+        };
+        SceneError::new(file, path, expected, inner.to_string())
+    })?;
+    Ok(raw)
+}

@@ -1,16 +1,15 @@
-//! Shared pieces of the merging-module RTL tests (`merge_*.rs`): a cosim
-//! `Engine` over rtl-gen's IR simulator, a `Design` from an rtl-gen module
-//! (written to a temporary directory; to be replaced by `cosim::from_rtl`
-//! once it lands), engine selection, tool checks and the bench loop.
+//! Shared pieces of the merging-module RTL tests (`merge_*.rs`): engine
+//! selection (`cosim::ir_engine::IrEngine`, Verilator, Icarus) for a design
+//! from `cosim::from_rtl`, tool checks, lint/synthesis, and the bench loop.
 #![allow(dead_code)]
 
-use std::cell::RefCell;
 use std::path::Path;
 
+use cosim::ir_engine::IrEngine;
 use cosim::tb::{run_stream_bench, BenchConfig, BenchReport, StreamNames, Vector};
 use cosim::tools::{ci_mode, tool_available, INSTALL_HINT};
-use cosim::{BitVec, CosimError, Design, Engine, PortDir, PortId, PortSpec, Result};
-use rtl_gen::{Direction, Module, Sim};
+use cosim::{BitVec, Design, Engine, PortDir};
+use rtl_gen::Module;
 
 /// True when Verilator, Icarus and Yosys can run. Under CI=true a missing
 /// tool panics (a failure, never a skip); locally it prints how to install.
@@ -32,89 +31,13 @@ pub fn tools_present(tools: &[&str]) -> bool {
 
 /// The cosim description of `m`, its Verilog written into `dir`.
 pub fn design_of(m: &Module, dir: &Path) -> Design {
-    let files = rtl_gen::write_design(m, dir).expect("the design validates and is written");
-    let ports = m
-        .ports()
-        .iter()
-        .map(|p| match p.direction {
-            Direction::Input => PortSpec::input(&p.name, p.width as usize),
-            _ => PortSpec::output(&p.name, p.width as usize),
-        })
-        .collect();
-    Design::new(&m.name(), files, ports, Some("clk"), Some("rst")).expect("a valid design")
-}
-
-/// rtl-gen's IR simulator behind the cosim `Engine` trait.
-pub struct IrEngine {
-    design: Design,
-    sim: RefCell<Sim>,
-}
-
-impl IrEngine {
-    pub fn new(m: &Module, design: &Design) -> IrEngine {
-        IrEngine {
-            design: design.clone(),
-            sim: RefCell::new(Sim::new(m).expect("the design validates")),
-        }
-    }
-}
-
-fn sim_error(e: rtl_gen::SimError) -> CosimError {
-    CosimError::Protocol {
-        what: format!("IR simulator: {e}"),
-    }
-}
-
-impl Engine for IrEngine {
-    fn name(&self) -> &'static str {
-        "rtl-gen-ir"
-    }
-    fn design(&self) -> &Design {
-        &self.design
-    }
-    fn poke(&mut self, port: PortId, value: &BitVec) -> Result<()> {
-        let spec = self.design.check_poke(port, value)?.clone();
-        let bits = rtl_gen::Bits::from_words(value.words(), spec.width as u32).map_err(|_| {
-            CosimError::Width {
-                port: spec.name.clone(),
-                width: spec.width,
-                value_bits: value.width(),
-            }
-        })?;
-        self.sim
-            .borrow_mut()
-            .poke(&spec.name, bits)
-            .map_err(sim_error)
-    }
-    fn peek(&self, port: PortId) -> Result<BitVec> {
-        let spec = self.design.port(port)?;
-        let b = self.sim.borrow_mut().peek(&spec.name).map_err(sim_error)?;
-        BitVec::from_words(spec.width, b.words())
-    }
-    fn eval(&mut self) -> Result<()> {
-        Ok(())
-    }
-    fn step(&mut self) -> Result<()> {
-        self.sim.borrow_mut().step();
-        Ok(())
-    }
-    fn cycle(&self) -> u64 {
-        self.sim.borrow().cycle()
-    }
-    fn trace_start(&mut self, _path: &Path) -> Result<()> {
-        Err(CosimError::Protocol {
-            what: "the IR engine does not write VCDs here".into(),
-        })
-    }
-    fn trace_stop(&mut self) -> Result<()> {
-        Ok(())
-    }
+    cosim::from_rtl::design_from_module(m, dir).expect("the design validates and is written")
 }
 
 /// An engine of kind `ir`, `verilator` or `iverilog` for `m` / `design`.
 pub fn engine(kind: &str, m: &Module, design: &Design) -> Box<dyn Engine> {
     match kind {
-        "ir" => Box::new(IrEngine::new(m, design)),
+        "ir" => Box::new(IrEngine::new(m, design).expect("the design validates")),
         "verilator" => Box::new(
             cosim::verilator::VerilatorEngine::new(
                 design,

@@ -6,14 +6,17 @@
 //! - [`merge_level_unit`]: S614 (unit 506), merged nodes at the merging level.
 //! - [`overlap_counter_unit`]: S608's overlap counts and threshold (unit 508).
 //! - [`upper_level_unit`]: S616, one level up (grouping by parent voxel).
+//! - [`root_sorter_unit`]: Morton order of an input's translated roots.
 
 mod fields;
 mod level;
 mod overlap;
+mod sorter;
 mod upper;
 
 pub use level::{merge_level_name, merge_level_unit};
 pub use overlap::{overlap_counter_name, overlap_counter_unit};
+pub use sorter::{root_sorter_name, root_sorter_unit};
 pub use upper::{upper_level_name, upper_level_unit};
 
 use std::path::{Path, PathBuf};
@@ -33,6 +36,8 @@ pub struct MergeConfig {
     pub num: u32,
     /// Overlap threshold denominator (`>= 1`, `>= num`).
     pub den: u32,
+    /// Root sorter capacity: most roots of one input (16 for builder-made inputs).
+    pub roots: usize,
 }
 
 impl Default for MergeConfig {
@@ -42,6 +47,7 @@ impl Default for MergeConfig {
             inputs: 4,
             num: 1,
             den: 2,
+            roots: 16,
         }
     }
 }
@@ -52,6 +58,7 @@ pub fn merge_units(c: &MergeConfig) -> Vec<Module> {
         merge_level_unit(&c.params),
         overlap_counter_unit(&c.params, c.inputs, c.num, c.den),
         upper_level_unit(&c.params),
+        root_sorter_unit(&c.params, c.roots),
     ]
 }
 

@@ -66,9 +66,9 @@ pub fn upper_level_unit(p: &Params) -> Module {
     let mut in_lo = Vec::new();
     let mut in_hi = Vec::new();
     let mut bad_box = m.lit(0, 1);
-    for a in 0..3 {
+    for (a, coord) in coords.iter().enumerate() {
         if let (Some(lo), Some(hi)) = (field(rec, &f(nl.lo(a))), field(rec, &f(nl.hi(a)))) {
-            let odd = coords[a].bit(0);
+            let odd = coord.bit(0);
             in_lo.push(cell_in_parent(&m, lo, odd));
             in_hi.push(cell_in_parent(&m, hi, odd));
             bad_box = bad_box | lo.gt(hi);

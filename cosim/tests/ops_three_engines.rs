@@ -151,6 +151,22 @@ fn small(rng: &mut Prng, width: usize) -> BitVec {
     v
 }
 
+/// True when input `i` is a `b` right after the `a` of the same operator
+/// (then `b` may copy `a`, so equality and near-equality are exercised).
+fn follows_its_a(inputs: &[(PortRole, usize)], i: usize) -> bool {
+    let (role, width) = &inputs[i];
+    match i.checked_sub(1).map(|j| &inputs[j]) {
+        Some((prev, prev_width)) => {
+            role.port == "b"
+                && prev.port == "a"
+                && prev.op == role.op
+                && prev.width == role.width
+                && prev_width == width
+        }
+        None => false,
+    }
+}
+
 /// The input vectors for `design` (one value per input port, port order).
 fn vectors(design: &Design, count: usize, seed: u64) -> Vec<Vec<BitVec>> {
     let inputs: Vec<(PortRole, usize)> = operand_ports(design)
@@ -173,8 +189,7 @@ fn vectors(design: &Design, count: usize, seed: u64) -> Vec<Vec<BitVec>> {
                     // Cross product: `a` walks slowly, every other port fast.
                     let j = if role.port == "a" { k / e } else { k % e };
                     set[j].clone()
-                } else if role.port == "b" && i > 0 && rng.chance(0.25) {
-                    // `a` precedes `b` in every operator's port list.
+                } else if follows_its_a(&inputs, i) && rng.chance(0.25) {
                     let mut near = values[i - 1].clone();
                     if rng.chance(0.5) {
                         near.flip_bit(rng.below(*width as u64) as usize).unwrap();

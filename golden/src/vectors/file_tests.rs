@@ -25,7 +25,7 @@ fn design(d: u8, q: u8, i: u8, h: u8, depth: u32, binary64: bool) -> TranslateDe
 fn designs() -> Vec<TranslateDesign> {
     vec![
         TranslateDesign::default(),
-        design(31, 16, 32, 8, 200, true),
+        design(31, 16, 32, 8, 24, true),
         design(10, 0, 12, 3, 5, false),
         design(1, 0, 1, 1, 1, true),
     ]

@@ -52,7 +52,7 @@ pub fn reference_designs() -> Vec<TranslateDesign> {
     };
     vec![
         TranslateDesign::default(),
-        design(31, 16, 32, 8, 200, true),
+        design(31, 16, 32, 8, 24, true),
         design(10, 0, 12, 3, 5, false),
         design(16, 8, 24, 4, 16, true),
         design(1, 0, 1, 1, 1, true),

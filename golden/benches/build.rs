@@ -1,102 +1,140 @@
 //! Build throughput: `cargo bench -p golden --bench build`.
 //!
-//! Prints, per scene, triangles per second of the whole build (best of a few
-//! runs), the node/prim counts, and the share of the leaf phase (LOD, voxel
-//! overlap, clip, quantize) and of the radix sort, measured on their own.
+//! Per scene: the optimized builder and the frozen reference builder
+//! (`tests/support/reference_builder.rs`, the builder before the speed
+//! work) are run alternately on the same input, their outputs are compared
+//! bit for bit, and each one's CPU time per build and triangles per CPU
+//! second are printed with the speed-up. CPU time (this thread's, from
+//! `clock_gettime`) is the number to read: the machine may be shared, so wall
+//! time is printed too but is noisy.
+//!
+//! `BUILD_BENCH=<substring>` runs only the scenes whose name contains it;
+//! `BUILD_BENCH_NEW_ONLY=1` skips the reference (for profiling the new path).
+
+#[path = "../tests/support/reference_builder.rs"]
+mod reference_builder;
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
 use glam::DVec3;
-use golden::build::{build, leaves, radix, GridMap};
+use golden::build::{build, GridMap};
 use golden::mesh::Mesh;
 use golden::scenes;
+use golden::store::Hierarchy;
 use golden::Params;
 
-/// CPU time (user + system) of this thread so far, from
-/// `/proc/thread-self/stat` in clock ticks of 1/100 s (Linux's USER_HZ); None
-/// elsewhere. The machine may be shared, so throughput is reported per CPU
-/// second as well as per wall second.
+/// CPU time of this thread so far, from `clock_gettime(CLOCK_THREAD_CPUTIME_ID)`
+/// (nanosecond resolution; `/proc`'s tick counts are too coarse for a
+/// few-millisecond build); None off Linux.
+#[cfg(target_os = "linux")]
 fn thread_cpu_time() -> Option<Duration> {
-    let stat = std::fs::read_to_string("/proc/thread-self/stat").ok()?;
-    // Fields after the command name, which is in parentheses and may hold spaces.
-    let rest = &stat[stat.rfind(')')? + 2..];
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    // utime and stime are fields 14 and 15 of the whole line, 12 and 13 here (0-based 11, 12).
-    let ticks: u64 = f.get(11)?.parse::<u64>().ok()? + f.get(12)?.parse::<u64>().ok()?;
-    Some(Duration::from_millis(ticks * 10))
-}
-
-/// Runs `f` `runs` times; returns the best wall time and the mean CPU time.
-fn measure(runs: usize, mut f: impl FnMut()) -> (Duration, Option<Duration>) {
-    let cpu0 = thread_cpu_time();
-    let best = best_of(runs, &mut f);
-    let cpu = match (cpu0, thread_cpu_time()) {
-        (Some(a), Some(b)) => Some((b - a) / runs as u32),
-        _ => None,
+    #[repr(C)]
+    struct Timespec {
+        tv_sec: i64,
+        tv_nsec: i64,
+    }
+    extern "C" {
+        fn clock_gettime(clock: i32, tp: *mut Timespec) -> i32;
+    }
+    const CLOCK_THREAD_CPUTIME_ID: i32 = 3;
+    let mut ts = Timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
     };
-    (best, cpu)
+    // SAFETY: `ts` is a valid, writable timespec (64-bit Linux layout).
+    let rc = unsafe { clock_gettime(CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    (rc == 0).then(|| Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32))
 }
 
-fn best_of(runs: usize, mut f: impl FnMut()) -> Duration {
-    (0..runs)
-        .map(|_| {
-            let t = Instant::now();
-            f();
-            t.elapsed()
-        })
-        .min()
-        .expect("at least one run")
+#[cfg(not(target_os = "linux"))]
+fn thread_cpu_time() -> Option<Duration> {
+    None
+}
+
+/// Accumulated CPU and best wall time of one builder over several runs.
+#[derive(Default)]
+struct Timing {
+    cpu: Duration,
+    runs: u32,
+    best_wall: Option<Duration>,
+}
+
+impl Timing {
+    fn run(&mut self, f: impl FnOnce() -> Hierarchy) -> Hierarchy {
+        let cpu0 = thread_cpu_time().unwrap_or_default();
+        let t = Instant::now();
+        let h = black_box(f());
+        let wall = t.elapsed();
+        self.cpu += thread_cpu_time().unwrap_or_default().saturating_sub(cpu0);
+        self.runs += 1;
+        self.best_wall = Some(self.best_wall.map_or(wall, |b| b.min(wall)));
+        h
+    }
+
+    /// Mean CPU seconds per run (NaN without /proc).
+    fn cpu_secs(&self) -> f64 {
+        if self.cpu.is_zero() {
+            return f64::NAN;
+        }
+        self.cpu.as_secs_f64() / self.runs as f64
+    }
+
+    fn wall_secs(&self) -> f64 {
+        self.best_wall.map_or(f64::NAN, |w| w.as_secs_f64())
+    }
+}
+
+fn selected(name: &str) -> bool {
+    std::env::var("BUILD_BENCH").map_or(true, |f| name.contains(&f))
 }
 
 fn bench(name: &str, mesh: &Mesh, grid: &GridMap, p: &Params, runs: usize) {
-    // `BUILD_BENCH=soup cargo bench ...` runs only the scenes whose name contains "soup".
-    if let Ok(filter) = std::env::var("BUILD_BENCH") {
-        if !name.contains(&filter) {
-            return;
+    let n = mesh.triangles.len() as f64;
+    let new_only = std::env::var("BUILD_BENCH_NEW_ONLY").is_ok_and(|v| v == "1");
+    let (mut new, mut old) = (Timing::default(), Timing::default());
+    let mut last = None;
+    for _ in 0..runs {
+        let h = new.run(|| build(mesh, grid, p, 0).expect("bench scene builds"));
+        if !new_only {
+            let r =
+                old.run(|| reference_builder::build(mesh, grid, p, 0).expect("reference builds"));
+            assert!(
+                h == r,
+                "{name}: the builder's output differs from the reference"
+            );
         }
+        last = Some(h);
     }
-    let n = mesh.triangles.len();
-    let h = build(mesh, grid, p, 0).expect("bench scene builds");
-    let (total, cpu) = measure(runs, || {
-        black_box(build(mesh, grid, p, 0).unwrap());
-    });
-    // The leaf phase alone (grid mapping included), then the sort alone.
-    let tris = grid.mesh_to_grid(mesh, p).unwrap();
-    let mut entries = Vec::with_capacity(n * 4);
-    let place = best_of(runs, || {
-        entries.clear();
-        for (i, t) in tris.iter().enumerate() {
-            leaves::place_triangle(t, i as u32, p, &mut entries);
-        }
-        black_box(&entries);
-    });
-    let unsorted = entries.clone();
-    let mut scratch = Vec::new();
-    let sort = best_of(runs, || {
-        entries.clone_from(&unsorted);
-        radix::radix_sort(&mut entries, &mut scratch, leaves::leaf_key_bits(p), |e| {
-            e.key
-        });
-    });
-    let secs = total.as_secs_f64();
-    let cpu_secs = cpu.map_or(f64::NAN, |c| c.as_secs_f64());
-    println!(
-        "{name:<26} D={:<2} Q={:<2} tris {n:>8} | wall {:>8.2} ms {:>5.2} M tris/s | cpu {:>8.2} ms {:>5.2} M tris/s | leaf phase {:>7.2} ms, sort {:>6.2} ms (wall) | entries {:>8} nodes {:>8} refs {:>8} top_lod {} roots {}",
+    let h = last.expect("at least one run");
+    let rate = |s: f64| n / s / 1e6;
+    let mut line = format!(
+        "{name:<26} D={:<2} Q={:<2} tris {:>8} | new cpu {:>8.2} ms {:>6.2} M tris/s (wall best {:>8.2} ms)",
         p.max_lod,
         p.quant_bits,
-        secs * 1e3,
-        n as f64 / secs / 1e6,
-        cpu_secs * 1e3,
-        n as f64 / cpu_secs / 1e6,
-        place.as_secs_f64() * 1e3,
-        sort.as_secs_f64() * 1e3,
+        n,
+        new.cpu_secs() * 1e3,
+        rate(new.cpu_secs()),
+        new.wall_secs() * 1e3,
+    );
+    if !new_only {
+        line += &format!(
+            " | reference cpu {:>8.2} ms {:>6.2} M tris/s (wall best {:>8.2} ms) | speed-up cpu {:>5.2}x wall {:>5.2}x, identical",
+            old.cpu_secs() * 1e3,
+            rate(old.cpu_secs()),
+            old.wall_secs() * 1e3,
+            old.cpu_secs() / new.cpu_secs(),
+            old.wall_secs() / new.wall_secs(),
+        );
+    }
+    line += &format!(
+        " | entries {} nodes {} top_lod {} roots {}",
         h.prims.len(),
         h.nodes.len(),
-        h.refs.len(),
         h.top_lod,
-        h.root_count,
+        h.root_count
     );
+    println!("{line}");
 }
 
 fn unit_cube_grid(p: &Params) -> GridMap {
@@ -108,29 +146,40 @@ fn unit_cube_grid(p: &Params) -> GridMap {
 
 fn main() {
     let p = Params::new(16, 8, 24, 4).unwrap();
-    let bunny = Mesh::load(&scenes::shared_mesh_path("bunny.obj")).expect("bunny.obj");
-    let (lo, hi) = bunny.bounds();
-    for d in [8u8, 12, 16] {
-        let pd = Params::new(d, 8, 24, 4).unwrap();
-        bench("bunny", &bunny, &GridMap::fit(lo, hi, &pd), &pd, 100);
+    if selected("bunny") {
+        let bunny = Mesh::load(&scenes::shared_mesh_path("bunny.obj")).expect("bunny.obj");
+        let (lo, hi) = bunny.bounds();
+        for d in [8u8, 12, 16] {
+            let pd = Params::new(d, 8, 24, 4).unwrap();
+            bench("bunny", &bunny, &GridMap::fit(lo, hi, &pd), &pd, 100);
+        }
     }
-    let teapot = Mesh::load(&scenes::shared_mesh_path("teapot.obj")).expect("teapot.obj");
-    let (lo, hi) = teapot.bounds();
-    bench("teapot", &teapot, &GridMap::fit(lo, hi, &p), &p, 200);
-
+    if selected("teapot") {
+        let teapot = Mesh::load(&scenes::shared_mesh_path("teapot.obj")).expect("teapot.obj");
+        let (lo, hi) = teapot.bounds();
+        bench("teapot", &teapot, &GridMap::fit(lo, hi, &p), &p, 100);
+    }
     // 1M small triangles: edges up to 1/1000 of the scene (about 65 grid units at D = 16).
-    let soup = scenes::random_soup(1_000_000, 0.001, 1);
-    bench("soup 1M size 1e-3", &soup, &unit_cube_grid(&p), &p, 3);
-    let soup = scenes::random_soup(1_000_000, 0.0001, 2);
-    bench("soup 1M size 1e-4", &soup, &unit_cube_grid(&p), &p, 3);
-    let terrain = scenes::terrain(708, 3);
-    bench(
-        "terrain 1M (shared edges)",
-        &terrain,
-        &unit_cube_grid(&p),
-        &p,
-        3,
-    );
-    let slivers = scenes::slivers(100_000, 4);
-    bench("slivers 100k", &slivers, &unit_cube_grid(&p), &p, 3);
+    if selected("soup 1M size 1e-3") {
+        let soup = scenes::random_soup(1_000_000, 0.001, 1);
+        bench("soup 1M size 1e-3", &soup, &unit_cube_grid(&p), &p, 3);
+    }
+    if selected("soup 1M size 1e-4") {
+        let soup = scenes::random_soup(1_000_000, 0.0001, 2);
+        bench("soup 1M size 1e-4", &soup, &unit_cube_grid(&p), &p, 3);
+    }
+    if selected("terrain 1M (shared edges)") {
+        let terrain = scenes::terrain(708, 3);
+        bench(
+            "terrain 1M (shared edges)",
+            &terrain,
+            &unit_cube_grid(&p),
+            &p,
+            3,
+        );
+    }
+    if selected("slivers 100k") {
+        let slivers = scenes::slivers(100_000, 4);
+        bench("slivers 100k", &slivers, &unit_cube_grid(&p), &p, 3);
+    }
 }

@@ -172,3 +172,34 @@ fn merge_level_verilog_lints_and_synthesizes() {
         lint_and_synth(&design_of(&m, dir.path()));
     }
 }
+
+/// The bench notices a wrong bit: a flipped bit of one expected created
+/// node's box (or count) is a mismatch, so passing runs mean agreement.
+#[test]
+fn merge_level_bench_catches_a_flipped_bit() {
+    let p = Params::default();
+    let (mut vs, _, _, _) = vectors(&p, 0xbad, 300);
+    let l = BeatLayout::output(&p);
+    let flip = l.rec.offset + l.node.count().offset;
+    let target = vs
+        .iter()
+        .position(|v| {
+            v.outputs
+                .first()
+                .is_some_and(|o| o[0].field(l.kind.offset as usize, 2).unwrap().to_u64() == Some(0))
+        })
+        .expect("a created node");
+    vs[target].outputs[0][0].flip_bit(flip as usize).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let m = rtl_gen::merge::merge_level_unit(&p);
+    let design = design_of(&m, dir.path());
+    let mut e = engine("ir", &m, &design);
+    let config = cosim::tb::BenchConfig {
+        stop_on_mismatch: false,
+        ..cosim::tb::BenchConfig::default()
+    };
+    let r =
+        cosim::tb::run_stream_bench(e.as_mut(), &stream_names(), &vs, None, &config, None).unwrap();
+    assert!(!r.passed());
+    assert_eq!(r.mismatches, 1, "{r}");
+}

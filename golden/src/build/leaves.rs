@@ -9,8 +9,8 @@ use glam::DVec3;
 use super::lod::primitive_lod;
 use super::quantize::{floor_nonneg, quantize_interval};
 use super::radix::morton3_fast;
-use crate::geom::clip::{clip_triangle_to_box_with, ClipScratch};
-use crate::geom::triangle_overlaps_box;
+use crate::geom::clip::{clip_prepared, ClipScratch, PreparedTriangle};
+use crate::geom::overlap::triangle_overlaps_box_prepared;
 use crate::params::Params;
 
 /// A primitive in one leaf voxel, with its box there in that voxel's cells.
@@ -86,6 +86,7 @@ pub fn place_triangle_with(
         out.push(entry(i0.x, i0.y, i0.z, tlo, thi));
         return;
     }
+    let prepared = PreparedTriangle::new(tri);
     for z in i0.z..=i1.z {
         for y in i0.y..=i1.y {
             for x in i0.x..=i1.x {
@@ -94,10 +95,10 @@ pub fn place_triangle_with(
                 // A vertex in the closed voxel is contact, where the
                 // conservative overlap test is true: skip computing it.
                 let holds_vertex = tri.iter().any(|v| v.cmpge(vlo).all() && v.cmple(vhi).all());
-                if !holds_vertex && !triangle_overlaps_box(tri, vlo, vhi) {
+                if !holds_vertex && !triangle_overlaps_box_prepared(&prepared, vlo, vhi) {
                     continue;
                 }
-                if let Some((blo, bhi)) = clip_triangle_to_box_with(tri, vlo, vhi, scratch) {
+                if let Some((blo, bhi)) = clip_prepared(&prepared, vlo, vhi, scratch) {
                     out.push(entry(x, y, z, blo, bhi));
                 }
             }

@@ -14,7 +14,56 @@
 
 use glam::DVec3;
 
-use super::{magnitude, triangle_bounds, triangle_overlaps_box, ROUNDING_MARGIN_REL};
+use super::overlap::triangle_overlaps_box_prepared;
+use super::{magnitude, triangle_bounds, ROUNDING_MARGIN_REL};
+
+/// What the kernels need of a triangle whatever the box: its vertices, AABB,
+/// per-axis largest magnitude and finiteness, computed once for the many
+/// voxels the builder tests it against. Every value is the one the kernels
+/// computed per box before, by the same operations in the same order.
+#[derive(Clone, Copy, Debug)]
+pub struct PreparedTriangle {
+    /// The vertices.
+    pub tri: [DVec3; 3],
+    /// The vertices' AABB.
+    pub lo: DVec3,
+    /// The vertices' AABB.
+    pub hi: DVec3,
+    /// `|v0|.max(|v1|).max(|v2|)`: the triangle's part of the magnitude.
+    abs_max: DVec3,
+    /// Every coordinate finite.
+    finite: bool,
+}
+
+impl PreparedTriangle {
+    /// Prepares `tri`.
+    #[inline]
+    pub fn new(tri: &[DVec3; 3]) -> PreparedTriangle {
+        let (lo, hi) = triangle_bounds(tri);
+        PreparedTriangle {
+            tri: *tri,
+            lo,
+            hi,
+            abs_max: tri[0].abs().max(tri[1].abs()).max(tri[2].abs()),
+            finite: tri.iter().all(|v| v.is_finite()),
+        }
+    }
+
+    /// `geom::magnitude(tri, lo, hi)`, continuing its fold from the
+    /// triangle's part (`max` of non-negative values: the same result).
+    #[inline(always)]
+    pub(crate) fn magnitude(&self, lo: DVec3, hi: DVec3) -> f64 {
+        let m = self.abs_max.max(lo.abs()).max(hi.abs()).max_element();
+        debug_assert_eq!(m.to_bits(), magnitude(&self.tri, lo, hi).to_bits());
+        m
+    }
+
+    /// Every coordinate of the triangle is finite.
+    #[inline(always)]
+    pub(crate) fn is_finite(&self) -> bool {
+        self.finite
+    }
+}
 
 /// An AABB `(lo, hi)` inside `[lo, hi]` that contains every point of the
 /// closed triangle inside the closed box; `None` only when the two are
@@ -59,7 +108,19 @@ pub fn clip_triangle_to_box_with(
     hi: DVec3,
     scratch: &mut ClipScratch,
 ) -> Option<(DVec3, DVec3)> {
-    let (tlo, thi) = triangle_bounds(tri);
+    clip_prepared(&PreparedTriangle::new(tri), lo, hi, scratch)
+}
+
+/// [`clip_triangle_to_box`] of a prepared triangle, with reused buffers; the
+/// same result, bit for bit.
+pub fn clip_prepared(
+    pt: &PreparedTriangle,
+    lo: DVec3,
+    hi: DVec3,
+    scratch: &mut ClipScratch,
+) -> Option<(DVec3, DVec3)> {
+    let tri = &pt.tri;
+    let (tlo, thi) = (pt.lo, pt.hi);
     // Comparisons are exact, so disjoint AABBs are certainly disjoint.
     if tlo.cmpgt(hi).any() || thi.cmplt(lo).any() {
         return None;
@@ -67,18 +128,17 @@ pub fn clip_triangle_to_box_with(
     let bounded_lo = tlo.max(lo);
     let bounded_hi = thi.min(hi);
     let fallback = || {
-        if triangle_overlaps_box(tri, lo, hi) {
+        if triangle_overlaps_box_prepared(pt, lo, hi) {
             Some((bounded_lo, bounded_hi))
         } else {
             None
         }
     };
 
-    let m = ROUNDING_MARGIN_REL * magnitude(tri, lo, hi);
+    let m = ROUNDING_MARGIN_REL * pt.magnitude(lo, hi);
     let grown_lo = lo - DVec3::splat(m);
     let grown_hi = hi + DVec3::splat(m);
-    let may_skip =
-        tri.iter().all(|v| v.is_finite()) && grown_lo.is_finite() && grown_hi.is_finite();
+    let may_skip = pt.is_finite() && grown_lo.is_finite() && grown_hi.is_finite();
     let [a, b] = &mut scratch.polys;
     let (mut cur, mut next) = (a, b);
     cur.set_triangle(tri);

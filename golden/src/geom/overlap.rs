@@ -18,18 +18,21 @@
 
 use glam::DVec3;
 
-use super::{magnitude, ROUNDING_MARGIN_REL};
+use super::clip::PreparedTriangle;
+use super::ROUNDING_MARGIN_REL;
 
 /// True unless the closed triangle and the closed box `[lo, hi]` are
 /// certainly disjoint. Never false when they touch, even at one point; may be
 /// true when they miss by less than `2^-40` of the coordinates' magnitude.
 pub fn triangle_overlaps_box(tri: &[DVec3; 3], lo: DVec3, hi: DVec3) -> bool {
-    let scale = magnitude(tri, lo, hi);
-    if scale < FAST_PATH_LIMIT
-        && tri.iter().all(|v| v.is_finite())
-        && lo.is_finite()
-        && hi.is_finite()
-    {
+    triangle_overlaps_box_prepared(&PreparedTriangle::new(tri), lo, hi)
+}
+
+/// [`triangle_overlaps_box`] of a prepared triangle: the same answer.
+pub fn triangle_overlaps_box_prepared(pt: &PreparedTriangle, lo: DVec3, hi: DVec3) -> bool {
+    let tri = &pt.tri;
+    let scale = pt.magnitude(lo, hi);
+    if scale < FAST_PATH_LIMIT && pt.is_finite() && lo.is_finite() && hi.is_finite() {
         overlaps_finite(tri, lo, hi, scale)
     } else {
         overlaps_any(tri, lo, hi, scale)

@@ -1,0 +1,304 @@
+//! Test vectors of the merging module's stream units (`hiermerge vectors
+//! --unit merge`; SPEC.md section 8.9): JSON Lines through
+//! [`super::write_jsonl`], header params = every generator parameter.
+//!
+//! Record `i` exercises stage `STAGES[i % 4]` with one transaction from the
+//! seeded stimulus of [`crate::merge::unit`]:
+//! `{"stage": "merge_level" | "overlap_counter" | "upper_level" | "root_sorter",
+//!   "in": [beat, ...], "out": [beat, ...]}`, every beat the unit's `in_data` /
+//! `out_data` port value (an integer up to 64 bits, else a `"0x..."` hex string
+//! of `ceil(width / 4)` digits), in stream order.
+
+use serde_json::{json, Value};
+use std::path::Path;
+
+use super::{read_jsonl, wide_from_hex, wide_to_json, Header, ParamMap, UnitKind, VectorError};
+use crate::layout::Bits;
+use crate::merge::unit::*;
+use crate::params::Params;
+use crate::translate::stimulus::SplitMix64;
+
+/// The stages, in record order.
+pub const STAGES: [&str; 4] = [
+    "merge_level",
+    "overlap_counter",
+    "upper_level",
+    "root_sorter",
+];
+
+/// The merging module configuration the vectors are for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MergeDesign {
+    pub params: Params,
+    /// Inputs `k` of the overlap counter (and of the S614 stimulus).
+    pub inputs: usize,
+    /// Overlap threshold `num / den`.
+    pub num: u32,
+    pub den: u32,
+    /// Root sorter capacity.
+    pub roots: usize,
+}
+
+impl Default for MergeDesign {
+    fn default() -> Self {
+        MergeDesign {
+            params: Params::default(),
+            inputs: 4,
+            num: 1,
+            den: 2,
+            roots: 16,
+        }
+    }
+}
+
+impl MergeDesign {
+    /// Every parameter by name, as the header holds them.
+    pub fn param_map(&self) -> ParamMap {
+        let p = &self.params;
+        [
+            ("max_lod", json!(p.max_lod)),
+            ("quant_bits", json!(p.quant_bits)),
+            ("index_bits", json!(p.index_bits)),
+            ("hier_bits", json!(p.hier_bits)),
+            ("inputs", json!(self.inputs)),
+            ("num", json!(self.num)),
+            ("den", json!(self.den)),
+            ("roots", json!(self.roots)),
+        ]
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v))
+        .collect()
+    }
+}
+
+/// One record: a stage and its beats in and out, as port words (LSB first).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MergeVector {
+    pub stage: &'static str,
+    pub in_width: u32,
+    pub out_width: u32,
+    pub inputs: Vec<Vec<u64>>,
+    pub outputs: Vec<Vec<u64>>,
+}
+
+fn words(b: Result<Bits, crate::layout::LayoutError>) -> Result<Vec<u64>, VectorError> {
+    b.map(|b| b.words().to_vec())
+        .map_err(|e| VectorError::Model {
+            what: e.to_string(),
+        })
+}
+
+fn model(e: impl std::fmt::Display) -> VectorError {
+    VectorError::Model {
+        what: e.to_string(),
+    }
+}
+
+/// The `i`-th record's transaction from `rng`.
+pub fn generate(
+    d: &MergeDesign,
+    rng: &mut SplitMix64,
+    i: usize,
+) -> Result<MergeVector, VectorError> {
+    let p = &d.params;
+    let stage = STAGES[i % STAGES.len()];
+    let (iw, ow, ins, outs) = match stage {
+        "merge_level" => {
+            let (li, lo) = (BeatLayout::input(p), BeatLayout::output(p));
+            let case = random_level_case(rng, p, d.inputs.min(p.hier_capacity() as usize), 12);
+            let tx = case.transaction(p).map_err(model)?;
+            let ins = tx
+                .inputs
+                .iter()
+                .map(|b| words(b.pack(&li)))
+                .collect::<Result<_, _>>()?;
+            let outs = tx
+                .outputs
+                .iter()
+                .map(|b| words(b.pack(&lo)))
+                .collect::<Result<_, _>>()?;
+            (li.width, lo.width, ins, outs)
+        }
+        "overlap_counter" => {
+            let l = OverlapLayout::new(p, d.inputs);
+            let voxels = random_overlap_case(rng, p, d.inputs, 8);
+            let (beats, r) = overlap_transaction(&voxels, p, d.num, d.den);
+            let ins = beats
+                .iter()
+                .map(|b| words(b.pack(&l)))
+                .collect::<Result<_, _>>()?;
+            (l.in_width, l.out_width, ins, vec![words(r.pack(&l))?])
+        }
+        "upper_level" => {
+            let l = UpperLayout::new(p);
+            let level = random_upper_level(rng, p, 24);
+            let (ins, outs) = upper_transaction(&level, p);
+            let i = ins
+                .iter()
+                .map(|b| words(b.pack(&l, false)))
+                .collect::<Result<_, _>>()?;
+            let o = outs
+                .iter()
+                .map(|b| words(b.pack(&l, true)))
+                .collect::<Result<_, _>>()?;
+            (l.in_width, l.out_width, i, o)
+        }
+        _ => {
+            let (li, lo) = (BeatLayout::input(p), BeatLayout::output(p));
+            let err = lo.err.expect("output beats have err");
+            let roots = random_roots(rng, p, d.roots);
+            let (ins, outs) = root_sort_transaction(&roots, d.roots);
+            let i = ins
+                .iter()
+                .map(|b| words(b.pack(&li)))
+                .collect::<Result<_, _>>()?;
+            let mut o = Vec::new();
+            for (b, e) in outs {
+                let mut bits = Bits::zero(lo.width);
+                let packed = b.pack(&li).map_err(model)?;
+                for k in 0..packed.width() {
+                    if packed.bit(k) {
+                        let f = crate::layout::Field {
+                            name: "bit",
+                            offset: k,
+                            width: 1,
+                        };
+                        bits.set(&f, 1).map_err(model)?;
+                    }
+                }
+                bits.set(&err, e as u64).map_err(model)?;
+                o.push(bits.words().to_vec());
+            }
+            (li.width, lo.width, i, o)
+        }
+    };
+    Ok(MergeVector {
+        stage,
+        in_width: iw,
+        out_width: ow,
+        inputs: ins,
+        outputs: outs,
+    })
+}
+
+fn beat_json(w: &[u64], width: u32) -> Value {
+    if width <= 64 {
+        json!(w.first().copied().unwrap_or(0))
+    } else {
+        wide_to_json(w, width)
+    }
+}
+
+/// Writes `count` records for `d` from `seed` to `path`, atomically.
+pub fn write_merge_vectors(
+    path: &Path,
+    d: &MergeDesign,
+    seed: u64,
+    count: u64,
+) -> Result<(), VectorError> {
+    let header = Header {
+        unit: UnitKind::Merge,
+        params: d.param_map(),
+        seed,
+        count,
+    };
+    let mut rng = SplitMix64(seed);
+    let records = (0..count as usize).map(move |i| {
+        let v = generate(d, &mut rng, i)?;
+        Ok(json!({
+            "stage": v.stage,
+            "in": v.inputs.iter().map(|w| beat_json(w, v.in_width)).collect::<Vec<_>>(),
+            "out": v.outputs.iter().map(|w| beat_json(w, v.out_width)).collect::<Vec<_>>(),
+        }))
+    });
+    super::write_jsonl(path, &header, records)
+}
+
+/// Reads a file written by [`write_merge_vectors`] for design `d` (a
+/// parameter that differs is an error naming it); beats as port words.
+pub fn read_merge_vectors(path: &Path, d: &MergeDesign) -> Result<Vec<MergeVector>, VectorError> {
+    let raw = read_jsonl(path, UnitKind::Merge, &d.param_map())?;
+    let bad = |line: usize, field: &str, expected: &str| VectorError::Malformed {
+        path: path.to_path_buf(),
+        line,
+        field: field.to_string(),
+        expected: expected.to_string(),
+    };
+    let mut out = Vec::new();
+    for (line, v) in raw.records {
+        let stage = v
+            .get("stage")
+            .and_then(Value::as_str)
+            .and_then(|s| STAGES.iter().find(|&&t| t == s).copied())
+            .ok_or_else(|| {
+                bad(
+                    line,
+                    "stage",
+                    "one of merge_level, overlap_counter, upper_level, root_sorter",
+                )
+            })?;
+        let i = STAGES.iter().position(|&s| s == stage).expect("a stage");
+        // Widths come from the design, never from the file.
+        let template = generate(d, &mut SplitMix64(0), i)?;
+        let beats = |key: &str, width: u32| -> Result<Vec<Vec<u64>>, VectorError> {
+            let arr = v
+                .get(key)
+                .and_then(Value::as_array)
+                .ok_or_else(|| bad(line, key, "an array of beats"))?;
+            arr.iter()
+                .enumerate()
+                .map(|(k, b)| {
+                    let field = format!("{key}[{k}]");
+                    if width <= 64 {
+                        b.as_u64()
+                            .filter(|&n| width == 64 || n >> width == 0)
+                            .map(|n| vec![n])
+                            .ok_or_else(|| {
+                                bad(line, &field, &format!("an integer below 2^{width}"))
+                            })
+                    } else {
+                        b.as_str()
+                            .and_then(|s| wide_from_hex(s, width))
+                            .ok_or_else(|| {
+                                bad(line, &field, &format!("a {width}-bit 0x hex string"))
+                            })
+                    }
+                })
+                .collect()
+        };
+        out.push(MergeVector {
+            stage,
+            in_width: template.in_width,
+            out_width: template.out_width,
+            inputs: beats("in", template.in_width)?,
+            outputs: beats("out", template.out_width)?,
+        });
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn merge_vectors_round_trip_and_refuse_other_params() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("merge.jsonl");
+        let d = MergeDesign::default();
+        write_merge_vectors(&path, &d, 5, 12).unwrap();
+        let back = read_merge_vectors(&path, &d).unwrap();
+        assert_eq!(back.len(), 12);
+        let mut rng = SplitMix64(5);
+        for (i, v) in back.iter().enumerate() {
+            assert_eq!(v, &generate(&d, &mut rng, i).unwrap());
+        }
+        let other = MergeDesign {
+            num: 2,
+            den: 3,
+            ..d
+        };
+        let e = read_merge_vectors(&path, &other).unwrap_err();
+        assert!(e.to_string().contains("num"), "{e}");
+    }
+}

@@ -10,7 +10,7 @@ use golden::vectors::translate::{ApplyCode, TranslateDesign};
 
 use super::bundle::Bundle;
 use super::determine::field;
-use super::ports::apply_in_layout;
+use super::ports::{apply_in_layout, apply_out_layout};
 use super::table::Table;
 use crate::{Module, Signal, Stream};
 
@@ -102,6 +102,7 @@ pub(crate) fn apply_path<'m>(
     out.put("record", out_record);
     out.put("hier", b1.get("hier"));
     out.put("code", final_code);
+    debug_assert_eq!(out.width(), apply_out_layout(d).width());
     let (st2, b2) = out.skid_buffer(st1.valid, st1.ready, "apply_out_q");
     let error = b2.get("code").ne(0);
     let valid = st2.valid;

@@ -30,6 +30,11 @@ impl<'m> Bundle<'m> {
             .unwrap_or_else(|| panic!("bundle has no signal `{name}`"))
     }
 
+    /// Total width of the parts.
+    pub(crate) fn width(&self) -> u32 {
+        self.parts.iter().map(|(_, s)| s.width()).sum()
+    }
+
     /// The bus: the first part in the low bits.
     fn pack(&self) -> Signal<'m> {
         let sigs: Vec<Signal<'m>> = self.parts.iter().rev().map(|(_, s)| *s).collect();

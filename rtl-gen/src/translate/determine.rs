@@ -202,14 +202,8 @@ pub(crate) fn determine_path<'m>(
     for (a, t) in AXES.iter().zip(entry.t) {
         out.put(&format!("read_t_{a}"), t.as_unsigned());
     }
-    debug_assert_eq!(
-        det_out_layout(d)
-            .fields
-            .iter()
-            .map(|f| f.width)
-            .sum::<u32>(),
-        det_out_layout(d).width()
-    );
+    // The bundle is built in the payload's field order (ports.rs).
+    debug_assert_eq!(out.width(), det_out_layout(d).width());
     let (st3, _) = out.skid_buffer(st2.valid, st2.ready, "det_out_q");
     // The entry is written on the edge the result leaves step 3.
     let t = [axes[0].t, axes[1].t, axes[2].t];

@@ -192,60 +192,107 @@ pub(crate) fn build_levels(
 }
 
 /// Builds the hierarchy from entries sorted by key (then primitive index).
+///
+/// The same levels and top as [`build_levels`], streamed: each level is
+/// written out as node records as soon as the one above it has been grouped,
+/// so only two levels of [`LevelNode`]s are alive at a time (not all of them:
+/// a sparse scene has several nodes per primitive). Each level's records are
+/// appended reversed, deepest level first, so that reversing the whole array
+/// at the end gives store order (top level first, each level in order).
+///
+/// References need no per-child loop: the inner nodes of a level, in order,
+/// have as children every node of the next level exactly once, in order, so
+/// in store order `refs[k]` names node `root_count + k`, and an inner node's
+/// `first` is its first child's store index minus `root_count`.
 pub(super) fn assemble(entries: &[LeafEntry], p: &Params, id: u8) -> Result<Hierarchy, BuildError> {
-    let (levels, top) = build_levels(leaves_by_lod(entries, p), p).ok_or(BuildError::EmptyMesh)?;
-    let deepest = levels.len() - 1;
+    let mut base = leaves_by_lod(entries, p);
+    let deepest = base
+        .iter()
+        .rposition(|l| !l.is_empty())
+        .ok_or(BuildError::EmptyMesh)?;
+    let shallowest_base = base
+        .iter()
+        .position(|l| !l.is_empty())
+        .ok_or(BuildError::EmptyMesh)?;
 
+    // Records, deepest level first; inner nodes' `first` is still the index
+    // of the first child within the level below.
+    let mut nodes: Vec<NodeRecord> = Vec::with_capacity(entries.len());
+    let mut level_len = vec![0usize; deepest + 1];
+    let mut d = deepest;
+    let mut level = std::mem::take(&mut base[d]);
+    while !(d == 0 || (level.len() == 1 && d <= shallowest_base)) {
+        push_records(&mut nodes, &level, d);
+        level_len[d] = level.len();
+        let parents = group_by_parent(&level, p.quant_bits);
+        level = merge_level(parents, std::mem::take(&mut base[d - 1]));
+        d -= 1;
+    }
+    // Only a grouped root can give way to its children: they are level 1.
+    let top = if d == 0
+        && level.len() == 1
+        && !level[0].base
+        && covers_most_of_scene(&level[0], p.quant_bits)
+    {
+        1
+    } else {
+        push_records(&mut nodes, &level, d);
+        level_len[d] = level.len();
+        d
+    };
+    drop(level);
+
+    nodes.reverse();
     let mut offset = vec![0u64; deepest + 2];
     for lod in top..=deepest {
-        offset[lod + 1] = offset[lod] + levels[lod].len() as u64;
+        offset[lod + 1] = offset[lod] + level_len[lod] as u64;
     }
     let total_nodes = offset[deepest + 1];
+    let root_count = level_len[top] as u64;
     check_index("node count - 1", total_nodes.saturating_sub(1), p)?;
     check_index(
         "prims length - 1",
         (entries.len() as u64).saturating_sub(1),
         p,
     )?;
-
-    let mut nodes = Vec::with_capacity(total_nodes as usize);
-    let mut refs = Vec::with_capacity(total_nodes as usize);
     for lod in top..=deepest {
-        for n in &levels[lod] {
+        for n in &mut nodes[offset[lod] as usize..offset[lod + 1] as usize] {
             check_index("count", n.count as u64, p)?;
-            let first = if n.leaf {
-                n.first
-            } else {
-                let first = refs.len() as u32;
-                for c in 0..n.count as u64 {
-                    let child = offset[lod + 1] + n.first as u64 + c;
-                    refs.push(Reference {
-                        hier: id,
-                        node: child as u32,
-                    });
-                }
-                first
-            };
-            nodes.push(NodeRecord {
-                leaf: n.leaf,
-                voxel: VoxelAddr::new(lod as u8, n.x, n.y, n.z),
-                lo: n.lo,
-                hi: n.hi,
-                first,
-                count: n.count,
-            });
+            if !n.leaf {
+                n.first = (offset[lod + 1] + n.first as u64 - root_count) as u32;
+            }
         }
     }
-    check_index("refs length - 1", (refs.len() as u64).saturating_sub(1), p)?;
+    let refs_len = total_nodes - root_count;
+    check_index("refs length - 1", refs_len.saturating_sub(1), p)?;
+    let refs = (root_count..total_nodes)
+        .map(|node| Reference {
+            hier: id,
+            node: node as u32,
+        })
+        .collect();
     Ok(Hierarchy {
         id,
         params: *p,
         nodes,
         refs,
         prims: entries.iter().map(|e| e.prim).collect(),
-        root_count: levels[top].len() as u32,
+        root_count: root_count as u32,
         top_lod: top as u8,
     })
+}
+
+/// Appends the records of one level (LOD `lod`) in reverse order, so that
+/// reversing the whole array later puts them back in order.
+fn push_records(nodes: &mut Vec<NodeRecord>, level: &[LevelNode], lod: usize) {
+    nodes.extend(level.iter().rev().map(|n| NodeRecord {
+        leaf: n.leaf,
+        voxel: VoxelAddr::new(lod as u8, n.x, n.y, n.z),
+        lo: n.lo,
+        hi: n.hi,
+        first: n.first,
+        count: n.count,
+    }));
 }
 
 #[cfg(test)]

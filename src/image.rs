@@ -40,8 +40,8 @@ pub fn heat_rgb(counts: &[u64]) -> Vec<u8> {
         let x = (c as f32 / max) * (stops.len() - 1) as f32;
         let i = (x.floor() as usize).min(stops.len() - 2);
         let f = x - i as f32;
-        for k in 0..3 {
-            let v = stops[i][k] * (1.0 - f) + stops[i + 1][k] * f;
+        for (a, b) in stops[i].iter().zip(&stops[i + 1]) {
+            let v = a * (1.0 - f) + b * f;
             out.push((v * 255.0).round() as u8);
         }
     }

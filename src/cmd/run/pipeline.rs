@@ -1,0 +1,558 @@
+//! The frame loop of `hiermerge run`: what is simulated, what is reused,
+//! and the report.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+use glam::DVec3;
+use golden::frames::{FrameObject, FrameReport, Frames, Motion, ObjectAction};
+use golden::mesh::Mesh;
+use golden::scene::Scene;
+use golden::translate::Axis;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use serde::Serialize;
+
+use super::compare::{compare, Comparison, SUBSAMPLE};
+use super::render::{trace_frame, RayCounts, Traced};
+use super::rtl::{Placed, RtlFrame, TranslateRtl};
+use crate::image::{heat_rgb, write_png};
+
+/// Why the merging module's RTL is not simulated: it is not in the tree yet.
+pub const MERGE_RTL_STATUS: &str =
+    "merge RTL: not available (the merging module generator rtl-gen/src/merge is not committed yet); no RTL comparison of merges is made";
+
+/// How to run.
+pub struct Options {
+    pub out: PathBuf,
+    /// Build and simulate RTL for the units the scene uses.
+    pub rtl: bool,
+    /// Draw progress bars on stderr.
+    pub progress: bool,
+    /// Print per-frame lines on stderr.
+    pub narrate: bool,
+}
+
+/// The whole run.
+#[derive(Serialize)]
+pub struct RunReport {
+    pub scene: String,
+    pub params: golden::Params,
+    pub frame_count: u32,
+    pub objects: Vec<ObjectInfo>,
+    pub effects: EffectsInfo,
+    /// What happened to each unit's RTL over the run.
+    pub rtl: RtlInfo,
+    pub frames: Vec<FrameOut>,
+    /// The last frame's image (what `image.png` and `heat.png` hold).
+    pub image: ImageSummary,
+    /// RTL mismatches plus merged-vs-separate hit mismatches, all frames.
+    pub mismatches: u64,
+    pub seconds: f64,
+}
+
+#[derive(Serialize)]
+pub struct ObjectInfo {
+    pub id: u8,
+    pub name: String,
+    pub motion: Motion,
+    pub triangles: u64,
+}
+
+#[derive(Serialize)]
+pub struct EffectsInfo {
+    pub translation: bool,
+    pub merge_mode: String,
+    pub upper_build: bool,
+    pub primary: bool,
+    pub shadow: bool,
+    pub reflection_depth: u32,
+    pub clip_distance: f32,
+}
+
+#[derive(Serialize)]
+pub struct RtlInfo {
+    /// `built`, `not used by the scene`, `disabled (--no-rtl)`, `not needed`.
+    pub translation: String,
+    pub translation_build_seconds: f64,
+    pub merge: String,
+}
+
+#[derive(Serialize)]
+pub struct ImageSummary {
+    pub width: u32,
+    pub height: u32,
+    pub rays: u64,
+    pub hits: u64,
+    pub image: String,
+    pub heat_map: String,
+}
+
+/// One frame.
+#[derive(Serialize, Clone)]
+pub struct FrameOut {
+    pub frame: u32,
+    pub actions: BTreeMap<String, ObjectAction>,
+    pub built: usize,
+    pub rebuilt: usize,
+    pub retranslated: usize,
+    pub reused: usize,
+    pub merged: bool,
+    pub merge_level: Option<u8>,
+    pub nodes_created: u64,
+    pub merged_nodes: u64,
+    /// Largest placement residual this frame (world units) that the voxel
+    /// grid could not express, over re-translated objects.
+    pub max_residual: f64,
+    pub rtl: Option<RtlFrame>,
+    pub rays: RayCounts,
+    pub node_tests_per_ray: f64,
+    /// Node tests per primary ray on the subsample: merged, separate, full rebuild.
+    pub comparison: Option<Comparison>,
+    pub mismatches: u64,
+    pub simulated: Vec<String>,
+    pub skipped: Vec<String>,
+    pub image: String,
+    pub heat_map: String,
+    pub seconds: StageSeconds,
+}
+
+/// Wall time per stage.
+#[derive(Serialize, Clone, Copy, Default)]
+pub struct StageSeconds {
+    /// Frames::step: builds, translations, merge.
+    pub step: f64,
+    pub check: f64,
+    pub rtl: f64,
+    pub trace: f64,
+    pub compare: f64,
+    pub write: f64,
+}
+
+fn bar(options: &Options, what: String) -> ProgressBar {
+    let b = ProgressBar::new(0);
+    if options.progress {
+        b.set_style(
+            ProgressStyle::with_template("{prefix:>22} [{bar:30}] {pos}/{len} {elapsed}")
+                .expect("a valid template")
+                .progress_chars("=> "),
+        );
+        b.set_prefix(what);
+    } else {
+        b.set_draw_target(ProgressDrawTarget::hidden());
+    }
+    b
+}
+
+/// The objects of frame `k`. Without translation a placement is baked into
+/// the vertices (a new mesh whenever the offset changes, so Frames rebuilds
+/// the object) and the offset handed on is zero.
+fn frame_objects(
+    scene: &Scene,
+    k: usize,
+    baked: &mut [Option<(DVec3, Arc<Mesh>)>],
+) -> Vec<FrameObject> {
+    scene
+        .objects
+        .iter()
+        .enumerate()
+        .map(|(i, o)| {
+            let offset = o.offsets[k];
+            if scene.effects.translation {
+                return FrameObject {
+                    id: Scene::object_id(i),
+                    motion: o.motion,
+                    mesh: o.mesh.clone(),
+                    offset,
+                };
+            }
+            let mesh = match &baked[i] {
+                Some((at, m)) if *at == offset => m.clone(),
+                _ => {
+                    let m = Arc::new(Mesh {
+                        vertices: o
+                            .mesh
+                            .vertices
+                            .iter()
+                            .map(|v| (v.as_dvec3() + offset).as_vec3())
+                            .collect(),
+                        triangles: o.mesh.triangles.clone(),
+                    });
+                    baked[i] = Some((offset, m.clone()));
+                    m
+                }
+            };
+            FrameObject {
+                id: Scene::object_id(i),
+                motion: o.motion,
+                mesh,
+                offset: DVec3::ZERO,
+            }
+        })
+        .collect()
+}
+
+/// Runs every frame of `scene`.
+pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
+    let run_start = Instant::now();
+    let fx = &scene.effects;
+    let mut frames = Frames::new(scene.params, scene.grid, fx.merge).map_err(|e| e.to_string())?;
+    let ids: Vec<u8> = (0..scene.objects.len()).map(Scene::object_id).collect();
+    let mut baked = vec![None; scene.objects.len()];
+    let mut translate_rtl: Option<TranslateRtl> = None;
+    let mut rtl_info = RtlInfo {
+        translation: if !fx.translation {
+            "not used by the scene: no translation unit generated or built".into()
+        } else if !options.rtl {
+            "disabled (--no-rtl)".into()
+        } else {
+            "not needed (no placement to determine)".into()
+        },
+        translation_build_seconds: 0.0,
+        merge: MERGE_RTL_STATUS.into(),
+    };
+    let mut outs: Vec<FrameOut> = Vec::new();
+    let mut last_traced: Option<(Traced, Option<Comparison>)> = None;
+    let mut total_mismatches = 0;
+    let say = |s: String| {
+        if options.narrate {
+            eprintln!("{s}");
+        }
+    };
+    say(format!(
+        "scene {}: {} objects, {} frames, {}x{}, D={} Q={}; {}",
+        scene.name,
+        scene.objects.len(),
+        scene.frames,
+        scene.width,
+        scene.height,
+        scene.params.max_lod,
+        scene.params.quant_bits,
+        MERGE_RTL_STATUS
+    ));
+    for k in 0..scene.frames as usize {
+        let mut secs = StageSeconds::default();
+        let mut simulated = Vec::new();
+        let mut skipped = Vec::new();
+        let objs = frame_objects(scene, k, &mut baked);
+
+        let t = Instant::now();
+        let step_bar = bar(options, format!("frame {k} hierarchies"));
+        step_bar.set_length(1);
+        let rep: FrameReport = frames.step(&objs).map_err(|e| format!("frame {k}: {e}"))?;
+        step_bar.finish_and_clear();
+        secs.step = t.elapsed().as_secs_f64();
+        describe_actions(scene, &rep, &mut simulated, &mut skipped);
+        let changed = rep.merged || rep.objects.values().any(|&a| a != ObjectAction::Reused);
+
+        let merged_id = frames.merged_id;
+        let is_merged = ids.len() >= 2;
+        let mut nodes_created = 0;
+        if rep.merged {
+            let s = rep.merge_stats.as_ref().expect("a redone merge has stats");
+            nodes_created = s.created();
+            simulated.push(format!(
+                "merge ({:?}): level {:?}, {} nodes created, {} input nodes reused",
+                fx.merge,
+                rep.merge_level,
+                s.created(),
+                s.reused()
+            ));
+            let t = Instant::now();
+            frames
+                .world
+                .check(merged_id)
+                .map_err(|e| format!("frame {k}: merged hierarchy: {e}"))?;
+            secs.check = t.elapsed().as_secs_f64();
+            simulated.push("checker on the merged hierarchy: passed".into());
+        } else if is_merged {
+            skipped.push("merge: no input changed, last frame's merged hierarchy reused".into());
+        } else {
+            skipped.push("merge: a single object, nothing to merge".into());
+        }
+        let merged_nodes = if is_merged {
+            frames
+                .world
+                .store
+                .get(merged_id)
+                .map_or(0, |h| h.nodes.len() as u64)
+        } else {
+            0
+        };
+
+        // The translation unit: the placements determined this frame.
+        let moved: Vec<u8> = rep
+            .objects
+            .iter()
+            .filter(|(_, &a)| a != ObjectAction::Reused)
+            .map(|(&id, _)| id)
+            .collect();
+        let mut max_residual: f64 = 0.0;
+        for &id in &moved {
+            let o = frames.world.object(id).expect("placed this frame");
+            for a in Axis::ALL {
+                max_residual =
+                    max_residual.max(o.determined.residual.value_f64(a).abs() * scene.grid.unit);
+            }
+        }
+        let mut rtl_frame = None;
+        if !fx.translation {
+            skipped.push(
+                "translation unit: the scene uses no translation (placements baked into vertices)"
+                    .into(),
+            );
+        } else if !options.rtl {
+            skipped.push("translation unit RTL: --no-rtl".into());
+        } else if moved.is_empty() {
+            skipped.push("translation unit RTL: no placement changed, table entries reused".into());
+        } else {
+            let t = Instant::now();
+            if translate_rtl.is_none() {
+                let b = bar(options, "build translate RTL".into());
+                b.set_length(1);
+                let unit = TranslateRtl::build(&scene.params)?;
+                b.finish_and_clear();
+                rtl_info.translation = format!("built (Verilator), {:.1} s", unit.build_seconds);
+                rtl_info.translation_build_seconds = unit.build_seconds;
+                simulated.push(format!(
+                    "translation unit RTL generated and built with Verilator ({:.1} s, cached by content)",
+                    unit.build_seconds
+                ));
+                translate_rtl = Some(unit);
+            }
+            let unit = translate_rtl.as_mut().expect("built above");
+            let placed: Vec<Placed> = moved
+                .iter()
+                .map(|&id| {
+                    let o = frames.world.object(id).expect("placed this frame");
+                    Placed {
+                        id,
+                        hierarchy: frames.world.store.get(id).expect("in the store"),
+                        grid_units: (o.offset / scene.grid.unit).to_array(),
+                        translation: o.determined.translation,
+                    }
+                })
+                .collect();
+            let b = bar(options, format!("frame {k} translate RTL"));
+            b.set_length(1);
+            let r = unit.run_frame(&placed)?;
+            b.finish_and_clear();
+            simulated.push(format!(
+                "translation unit RTL: {} determine + {} apply transactions, {} cycles, {} mismatches",
+                r.determine, r.apply, r.cycles, r.mismatches
+            ));
+            rtl_frame = Some(r);
+            secs.rtl = t.elapsed().as_secs_f64();
+        }
+        if fx.upper_build {
+            skipped.push("merging module RTL incl. upper-level build: not available".into());
+        } else {
+            skipped
+                .push("merging module RTL: not available; upper-level build not asked for".into());
+        }
+
+        // Rays.
+        let (traced, comparison) = match (&last_traced, changed) {
+            (Some(last), false) => {
+                skipped.push(format!(
+                    "trace: nothing changed since frame {}, its image and counts reused",
+                    k - 1
+                ));
+                last.clone()
+            }
+            _ => {
+                let instances = if is_merged {
+                    frames.world.merged_instances(merged_id, &ids)
+                } else {
+                    frames.world.separate_instances(&ids)
+                }
+                .map_err(|e| format!("frame {k}: {e}"))?;
+                let roots = if is_merged {
+                    vec![merged_id]
+                } else {
+                    ids.clone()
+                };
+                let ts = frames
+                    .world
+                    .trace_scene(&instances, &roots)
+                    .map_err(|e| format!("frame {k}: {e}"))?;
+                let b = bar(options, format!("frame {k} trace"));
+                let traced = trace_frame(scene, &ts, &b);
+                b.finish_and_clear();
+                secs.trace = traced.seconds;
+                simulated.push(ray_line(scene, &traced.rays));
+                let comparison = if fx.primary {
+                    let b = bar(options, format!("frame {k} compare"));
+                    let c = compare(scene, &frames.world, &ids, &ts, &b)
+                        .map_err(|e| format!("frame {k}: {e}"))?;
+                    b.finish_and_clear();
+                    secs.compare = c.seconds;
+                    simulated.push(format!(
+                        "comparison on 1 primary ray in {} ({} rays): merged, separate, full rebuild",
+                        SUBSAMPLE * SUBSAMPLE,
+                        c.rays
+                    ));
+                    Some(c)
+                } else {
+                    None
+                };
+                (traced, comparison)
+            }
+        };
+        if !fx.primary {
+            skipped.push("primary rays: not asked for (no image traced)".into());
+        }
+        if !fx.shadow {
+            skipped.push("shadow rays: not asked for".into());
+        }
+        if fx.reflection_depth == 0 {
+            skipped.push("reflections: not asked for".into());
+        }
+
+        let t = Instant::now();
+        let image = options.out.join(format!("frame_{k:03}.png"));
+        let heat = options.out.join(format!("heat_{k:03}.png"));
+        write_png(&image, scene.width, scene.height, &traced.rgb)?;
+        write_png(
+            &heat,
+            scene.width,
+            scene.height,
+            &heat_rgb(&traced.node_tests),
+        )?;
+        secs.write = t.elapsed().as_secs_f64();
+
+        let rays = traced.rays.primary + traced.rays.shadow + traced.rays.reflection;
+        let mismatches = rtl_frame.as_ref().map_or(0, |r| r.mismatches)
+            + comparison.as_ref().map_or(0, |c| c.hit_mismatches);
+        total_mismatches += mismatches;
+        let out = FrameOut {
+            frame: k as u32,
+            actions: rep
+                .objects
+                .iter()
+                .map(|(&id, &a)| (scene.objects[id as usize].name.clone(), a))
+                .collect(),
+            built: rep.count(ObjectAction::Built),
+            rebuilt: rep.count(ObjectAction::Rebuilt),
+            retranslated: rep.count(ObjectAction::Retranslated),
+            reused: rep.count(ObjectAction::Reused),
+            merged: rep.merged,
+            merge_level: rep.merge_level,
+            nodes_created,
+            merged_nodes,
+            max_residual,
+            rtl: rtl_frame,
+            rays: traced.rays,
+            node_tests_per_ray: traced.stats.node_tests as f64 / rays.max(1) as f64,
+            comparison,
+            mismatches,
+            simulated,
+            skipped,
+            image: image.display().to_string(),
+            heat_map: heat.display().to_string(),
+            seconds: secs,
+        };
+        say(format!("frame {k}:"));
+        for s in &out.simulated {
+            say(format!("  simulated: {s}"));
+        }
+        for s in &out.skipped {
+            say(format!("  skipped:   {s}"));
+        }
+        outs.push(out);
+        last_traced = Some((traced, comparison));
+    }
+    let (traced, _) = last_traced.expect("at least one frame");
+    let image = options.out.join("image.png");
+    let heat = options.out.join("heat.png");
+    write_png(&image, scene.width, scene.height, &traced.rgb)?;
+    write_png(
+        &heat,
+        scene.width,
+        scene.height,
+        &heat_rgb(&traced.node_tests),
+    )?;
+    Ok(RunReport {
+        scene: scene.name.clone(),
+        params: scene.params,
+        frame_count: scene.frames,
+        objects: scene
+            .objects
+            .iter()
+            .enumerate()
+            .map(|(i, o)| ObjectInfo {
+                id: Scene::object_id(i),
+                name: o.name.clone(),
+                motion: o.motion,
+                triangles: o.mesh.len() as u64,
+            })
+            .collect(),
+        effects: EffectsInfo {
+            translation: fx.translation,
+            merge_mode: format!("{:?}", fx.merge),
+            upper_build: fx.upper_build,
+            primary: fx.primary,
+            shadow: fx.shadow,
+            reflection_depth: fx.reflection_depth,
+            clip_distance: fx.clip_distance,
+        },
+        rtl: rtl_info,
+        frames: outs,
+        image: ImageSummary {
+            width: scene.width,
+            height: scene.height,
+            rays: traced.rays.primary,
+            hits: traced.rays.primary_hits,
+            image: image.display().to_string(),
+            heat_map: heat.display().to_string(),
+        },
+        mismatches: total_mismatches,
+        seconds: run_start.elapsed().as_secs_f64(),
+    })
+}
+
+fn describe_actions(
+    scene: &Scene,
+    rep: &FrameReport,
+    simulated: &mut Vec<String>,
+    skipped: &mut Vec<String>,
+) {
+    for (&id, &a) in &rep.objects {
+        let name = &scene.objects[id as usize].name;
+        match a {
+            ObjectAction::Built => simulated.push(format!("{name}: hierarchy built and placed")),
+            ObjectAction::Rebuilt => simulated.push(format!(
+                "{name}: hierarchy rebuilt ({})",
+                if scene.effects.translation {
+                    "its mesh changed"
+                } else {
+                    "moved, and the scene uses no translation"
+                }
+            )),
+            ObjectAction::Retranslated => simulated.push(format!(
+                "{name}: moved, new translation determined (hierarchy reused, not rebuilt)"
+            )),
+            ObjectAction::Reused => skipped.push(format!(
+                "{name}: unchanged, hierarchy and translation reused"
+            )),
+        }
+    }
+}
+
+fn ray_line(scene: &Scene, r: &RayCounts) -> String {
+    let mut s = format!(
+        "trace: {} primary rays ({} hits)",
+        r.primary, r.primary_hits
+    );
+    if scene.effects.shadow {
+        s += &format!(", {} shadow rays ({} blocked)", r.shadow, r.shadowed);
+    }
+    if scene.effects.reflection_depth > 0 {
+        s += &format!(
+            ", {} reflection rays (depth <= {})",
+            r.reflection, scene.effects.reflection_depth
+        );
+    }
+    s
+}

@@ -1,0 +1,65 @@
+//! The closing table: one row per frame.
+
+use std::fmt::Write;
+
+use super::pipeline::RunReport;
+
+/// The per-frame table printed at the end of a run.
+pub fn closing_table(r: &RunReport) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "scene {} (D={} Q={}), merge {}, translation {}; RTL: translation {}; {}",
+        r.scene,
+        r.params.max_lod,
+        r.params.quant_bits,
+        r.effects.merge_mode,
+        if r.effects.translation { "on" } else { "off" },
+        r.rtl.translation,
+        r.rtl.merge
+    );
+    let _ = writeln!(
+        s,
+        "{:>5} {:>19} {:>6} {:>5} {:>7} {:>8} {:>5} {:>24} {:>33}",
+        "frame",
+        "hierarchies",
+        "merge",
+        "level",
+        "created",
+        "RTL cyc",
+        "mism",
+        "node tests/ray m/s/full",
+        "ms step/check/rtl/trace/cmp/png"
+    );
+    let _ = writeln!(
+        s,
+        "{:>5} {:>19} {:>6} {:>5} {:>7} {:>8} {:>5} {:>24} {:>33}",
+        "", "reused/rebuilt/moved", "", "", "", "", "", "(subsample)", ""
+    );
+    for f in &r.frames {
+        let hier = format!("{}/{}/{}", f.reused, f.built + f.rebuilt, f.retranslated);
+        let tests = f.comparison.as_ref().map_or("-".to_string(), |c| {
+            format!("{:.1}/{:.1}/{:.1}", c.merged, c.separate, c.full_rebuild)
+        });
+        let ms = |x: f64| format!("{:.0}", x * 1e3);
+        let t = &f.seconds;
+        let times = [t.step, t.check, t.rtl, t.trace, t.compare, t.write]
+            .map(ms)
+            .join("/");
+        let _ = writeln!(
+            s,
+            "{:>5} {:>19} {:>6} {:>5} {:>7} {:>8} {:>5} {:>24} {:>33}",
+            f.frame,
+            hier,
+            if f.merged { "redone" } else { "reused" },
+            f.merge_level.map_or("-".into(), |l| l.to_string()),
+            f.nodes_created,
+            f.rtl.as_ref().map_or("-".into(), |r| r.cycles.to_string()),
+            f.mismatches,
+            tests,
+            times
+        );
+    }
+    let _ = writeln!(s, "total {:.1} s, {} mismatches", r.seconds, r.mismatches);
+    s
+}

@@ -29,6 +29,8 @@ enum Command {
     Trace(cmd::trace::Args),
     /// Build a hierarchy per mesh, place each by its translation, merge, check and compare tracing.
     Merge(cmd::merge::Args),
+    /// Emit the Verilog of a unit's configuration, or of every default configuration.
+    Gen(cmd::gen::Args),
     /// The main job: build, (merge,) and trace a scene; with no argument, the embedded default scene.
     Run(cmd::run::Args),
 }
@@ -45,6 +47,7 @@ fn main() {
         Command::Build(a) => cmd::build::main(a),
         Command::Trace(a) => cmd::trace::main(a),
         Command::Merge(a) => cmd::merge::main(a),
+        Command::Gen(a) => cmd::gen::main(a),
         Command::Run(a) => cmd::run::main(a),
     };
     if let Err(e) = result {

@@ -68,7 +68,7 @@ fn parse_vec3(s: &str) -> Result<DVec3, String> {
     Ok(DVec3::from_array(v))
 }
 
-fn parse_ratio(s: &str) -> Result<(u32, u32), String> {
+pub fn parse_ratio(s: &str) -> Result<(u32, u32), String> {
     let (n, d) = s
         .split_once('/')
         .ok_or_else(|| format!("`{s}`: expected a ratio N/D"))?;

@@ -31,6 +31,8 @@ enum Command {
     Merge(cmd::merge::Args),
     /// Emit the Verilog of a unit's configuration, or of every default configuration.
     Gen(cmd::gen::Args),
+    /// Write a unit's test vectors (JSON Lines) for the RTL.
+    Vectors(cmd::vectors::Args),
     /// The main job: build, (merge,) and trace a scene; with no argument, the embedded default scene.
     Run(cmd::run::Args),
 }
@@ -49,6 +51,7 @@ fn main() {
         Command::Merge(a) => cmd::merge::main(a),
         Command::Gen(a) => cmd::gen::main(a),
         Command::Run(a) => cmd::run::main(a),
+        Command::Vectors(a) => cmd::vectors::main(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");

@@ -6,3 +6,4 @@ pub mod gen;
 pub mod merge;
 pub mod run;
 pub mod trace;
+pub mod vectors;

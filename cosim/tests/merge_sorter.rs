@@ -109,7 +109,7 @@ fn root_sorter_default_matches_golden_on_100k_sets() {
         name,
         &p,
         n,
-        &[("ir", 20_000), ("verilator", 100_000), ("iverilog", 300)],
+        &[("ir", 4_000), ("verilator", 100_000), ("iverilog", 150)],
         0x5107,
     );
 }
@@ -124,7 +124,7 @@ fn root_sorter_other_configs_match_golden() {
             name,
             &p,
             n,
-            &[("ir", 3_000), ("verilator", 10_000), ("iverilog", 200)],
+            &[("ir", 1_000), ("verilator", 10_000), ("iverilog", 100)],
             0x5108 + i as u64,
         );
     }

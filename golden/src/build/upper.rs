@@ -83,9 +83,16 @@ fn leaves_by_lod(entries: &[LeafEntry], p: &Params) -> Vec<Vec<LevelNode>> {
 /// One inner node per parent voxel of `level` (sorted by Morton, so the
 /// children of a parent are a contiguous run); the parent's box is the union
 /// of its children's boxes rounded outward into its own cells.
-#[allow(clippy::needless_range_loop)] // per-axis loops over parallel arrays
 pub(crate) fn group_by_parent(level: &[LevelNode], quant_bits: u8) -> Vec<LevelNode> {
     let mut out = Vec::with_capacity(level.len() / 2 + 1);
+    group_by_parent_into(level, quant_bits, &mut out);
+    out
+}
+
+/// [`group_by_parent`] into `out` (cleared first), reusing its storage.
+#[allow(clippy::needless_range_loop)] // per-axis loops over parallel arrays
+fn group_by_parent_into(level: &[LevelNode], quant_bits: u8, out: &mut Vec<LevelNode>) {
+    out.clear();
     let mut i = 0;
     while i < level.len() {
         let pm = level[i].morton >> 3;
@@ -116,7 +123,24 @@ pub(crate) fn group_by_parent(level: &[LevelNode], quant_bits: u8) -> Vec<LevelN
         out.push(node);
         i = j;
     }
-    out
+}
+
+/// [`merge_level`] into `out` (cleared first), reusing its storage.
+fn merge_level_into(inner: &[LevelNode], leaves: &[LevelNode], out: &mut Vec<LevelNode>) {
+    out.clear();
+    out.reserve(inner.len() + leaves.len());
+    let (mut a, mut b) = (0, 0);
+    while a < inner.len() && b < leaves.len() {
+        if inner[a].morton <= leaves[b].morton {
+            out.push(inner[a]);
+            a += 1;
+        } else {
+            out.push(leaves[b]);
+            b += 1;
+        }
+    }
+    out.extend_from_slice(&inner[a..]);
+    out.extend_from_slice(&leaves[b..]);
 }
 
 /// Merges the inner nodes and the leaves of one LOD, both in Morton order;
@@ -221,11 +245,18 @@ pub(super) fn assemble(entries: &[LeafEntry], p: &Params, id: u8) -> Result<Hier
     let mut level_len = vec![0usize; deepest + 1];
     let mut d = deepest;
     let mut level = std::mem::take(&mut base[d]);
+    // Grouping and merging reuse two buffers from level to level.
+    let mut parents = Vec::with_capacity(level.len() / 2 + 1);
     while !(d == 0 || (level.len() == 1 && d <= shallowest_base)) {
         push_records(&mut nodes, &level, d);
         level_len[d] = level.len();
-        let parents = group_by_parent(&level, p.quant_bits);
-        level = merge_level(parents, std::mem::take(&mut base[d - 1]));
+        group_by_parent_into(&level, p.quant_bits, &mut parents);
+        let leaves = std::mem::take(&mut base[d - 1]);
+        if leaves.is_empty() {
+            std::mem::swap(&mut level, &mut parents);
+        } else {
+            merge_level_into(&parents, &leaves, &mut level);
+        }
         d -= 1;
     }
     // Only a grouped root can give way to its children: they are level 1.

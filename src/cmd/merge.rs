@@ -187,11 +187,19 @@ pub fn main(a: Args) -> CmdResult {
 
     // One grid for every local frame and the scene: it holds each mesh where
     // it is and where it is placed.
-    let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
     for (m, off) in meshes.iter().zip(&offsets) {
         let (l, h) = m.bounds();
-        lo = lo.min(l).min((l.as_dvec3() + *off).as_vec3());
-        hi = hi.max(h).max((h.as_dvec3() + *off).as_vec3());
+        let (l, h) = (l.as_dvec3(), h.as_dvec3());
+        lo = lo.min(l).min(l + *off);
+        hi = hi.max(h).max(h + *off);
+    }
+    let (lo, hi) = (lo.as_vec3(), hi.as_vec3());
+    if !(lo.is_finite() && hi.is_finite() && (hi - lo).is_finite()) {
+        return Err(
+            "--translate: the placed meshes span more than binary32 world coordinates can hold"
+                .into(),
+        );
     }
     let fitted = GridMap::fit(lo, hi, &params);
     // Doubling the unit leaves room for voxel-aligned rounding of placements.

@@ -1,0 +1,305 @@
+//! The command-line contract: every subcommand with `--json` prints one JSON
+//! object; bad input gives one clear error and a non-zero exit, never a panic.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn hiermerge(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_hiermerge"))
+        .args(args)
+        .output()
+        .expect("the hiermerge binary runs")
+}
+
+fn scene(name: &str) -> String {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/scenes")
+        .join(name);
+    assert!(p.exists(), "{} is missing", p.display());
+    p.display().to_string()
+}
+
+/// Runs a command expected to succeed and parses its one JSON object.
+fn json(args: &[&str]) -> Value {
+    let out = hiermerge(args);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{args:?} failed: {}\n{stdout}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(
+        stdout.trim().lines().count(),
+        1,
+        "{args:?}: expected one line of JSON, got {stdout}"
+    );
+    serde_json::from_str(stdout.trim())
+        .unwrap_or_else(|e| panic!("{args:?}: not JSON ({e}): {stdout}"))
+}
+
+/// Runs a command expected to fail; returns its stderr.
+fn fails(args: &[&str]) -> String {
+    let out = hiermerge(args);
+    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(!out.status.success(), "{args:?} succeeded");
+    assert!(!stderr.contains("panicked"), "{args:?} panicked: {stderr}");
+    stderr
+}
+
+#[test]
+fn build_reports_every_mesh() {
+    let v = json(&[
+        "build",
+        &scene("bunny.obj"),
+        &scene("teapot.obj"),
+        "--max-lod",
+        "12",
+        "--quant-bits",
+        "4",
+        "--json",
+    ]);
+    let hs = v["hierarchies"].as_array().unwrap();
+    assert_eq!(hs.len(), 2);
+    assert_eq!(hs[0]["triangles"], 3674);
+    assert_eq!(hs[1]["triangles"], 992);
+    for h in hs {
+        let per_lod: u64 = h["nodes_per_lod"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c.as_u64().unwrap())
+            .sum();
+        assert_eq!(per_lod, h["nodes"].as_u64().unwrap());
+        assert!(h["leaves"].as_u64().unwrap() > 0);
+        assert_eq!(h["checked"], true);
+    }
+    assert_eq!(v["params"]["max_lod"], 12);
+}
+
+#[test]
+fn trace_verify_finds_no_mismatch() {
+    let v = json(&[
+        "trace",
+        &scene("teapot.obj"),
+        "--rays",
+        "3000",
+        "--seed",
+        "5",
+        "--verify",
+        "--json",
+    ]);
+    assert_eq!(v["rays"], 3000);
+    assert_eq!(v["mismatches"], 0);
+    assert!(v["hits"].as_u64().unwrap() > 0);
+    assert!(v["node_tests_per_ray"].as_f64().unwrap() > 1.0);
+}
+
+#[test]
+fn merge_verify_reports_level_and_costs() {
+    let v = json(&[
+        "merge",
+        &scene("bunny.obj"),
+        &scene("teapot.obj"),
+        "--translate",
+        "0,0,0",
+        "--translate",
+        "-2,1,0.5",
+        "--rays",
+        "3000",
+        "--verify",
+        "--json",
+    ]);
+    assert_eq!(v["mismatches"], 0);
+    assert!(v["checker"].as_str().unwrap().starts_with("ok"));
+    assert!(v["merging_level"].is_u64());
+    let per = &v["node_tests_per_ray"];
+    for k in ["merged", "separate", "rebuild"] {
+        assert!(per[k].as_f64().unwrap() > 0.0, "{k}");
+    }
+    assert_eq!(v["inputs"].as_array().unwrap().len(), 2);
+    let created = v["nodes_created"].as_u64().unwrap();
+    let per_level: u64 = v["nodes_per_level"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p[1].as_u64().unwrap())
+        .sum();
+    assert_eq!(
+        per_level, created,
+        "every record of the merged hierarchy is created by the merge"
+    );
+    for mode in ["fixed:3", "below-top:1", "proportion:1/2", "per-node"] {
+        let v = json(&[
+            "merge",
+            &scene("bunny.obj"),
+            &scene("teapot.obj"),
+            "--mode",
+            mode,
+            "--rays",
+            "500",
+            "--verify",
+            "--json",
+        ]);
+        assert_eq!(v["mismatches"], 0, "mode {mode}");
+    }
+}
+
+#[test]
+fn run_writes_images_and_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let out: PathBuf = dir.path().join("run");
+    let v = json(&[
+        "run",
+        "--out",
+        out.to_str().unwrap(),
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--json",
+    ]);
+    assert_eq!(v["image"]["rays"], 64 * 48);
+    assert!(v["image"]["hits"].as_u64().unwrap() > 0);
+    for f in ["image.png", "heat.png", "report.json"] {
+        let len = std::fs::metadata(out.join(f))
+            .unwrap_or_else(|e| panic!("{f}: {e}"))
+            .len();
+        assert!(len > 100, "{f} is {len} bytes");
+    }
+    let png = std::fs::read(out.join("image.png")).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+}
+
+#[test]
+fn bad_input_is_one_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.obj");
+    std::fs::write(&bad, "v 0 0 0\nv 1 0 0\nv 0 1 nan\nf 1 2 3\n").unwrap();
+    let e = fails(&["build", bad.to_str().unwrap()]);
+    assert!(e.contains("bad.obj") && e.contains("line 3"), "{e}");
+
+    let e = fails(&["build", "/no/such/mesh.obj"]);
+    assert!(e.contains("/no/such/mesh.obj"), "{e}");
+
+    let e = fails(&["build", &scene("teapot.obj"), "--max-lod", "32"]);
+    assert!(e.contains("max_lod") && e.contains("1..=31"), "{e}");
+
+    let e = fails(&["merge", &scene("teapot.obj"), "--mode", "sideways"]);
+    assert!(e.contains("unknown mode"), "{e}");
+
+    let e = fails(&["merge", &scene("teapot.obj"), "--translate", "1,2"]);
+    assert!(e.contains("x,y,z"), "{e}");
+
+    let e = fails(&["merge", &scene("teapot.obj"), "--translate", "1e300,0,0"]);
+    assert!(e.contains("--translate"), "{e}");
+
+    let e = fails(&["trace", &scene("teapot.obj"), "--rays", "0"]);
+    assert!(e.contains("--rays"), "{e}");
+}
+
+#[test]
+fn vectors_are_written_with_a_header_and_one_record_per_transaction() {
+    let dir = tempfile::tempdir().unwrap();
+    for unit in ["translate", "merge"] {
+        let path = dir.path().join(format!("{unit}.jsonl"));
+        let v = json(&[
+            "vectors",
+            "--unit",
+            unit,
+            "--seed",
+            "9",
+            "--count",
+            "300",
+            "--out",
+            path.to_str().unwrap(),
+            "--json",
+        ]);
+        assert_eq!(v["count"], 300);
+        let text = std::fs::read_to_string(&path).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 301, "{unit}: header + 300 records");
+        let header: Value = serde_json::from_str(lines[0]).unwrap();
+        assert_eq!(header["unit"], unit);
+        assert_eq!(header["seed"], 9);
+        assert_eq!(header["params"]["max_lod"], 16);
+        for l in &lines[1..] {
+            let r: Value = serde_json::from_str(l).unwrap();
+            assert!(r.is_object());
+        }
+        // The same seed gives the same file.
+        let again = dir.path().join(format!("{unit}2.jsonl"));
+        json(&[
+            "vectors",
+            "--unit",
+            unit,
+            "--seed",
+            "9",
+            "--count",
+            "300",
+            "--out",
+            again.to_str().unwrap(),
+            "--json",
+        ]);
+        assert_eq!(
+            std::fs::read(&path).unwrap(),
+            std::fs::read(&again).unwrap()
+        );
+    }
+    let e = fails(&[
+        "vectors",
+        "--unit",
+        "translate",
+        "--out",
+        "/no/such/dir/v.jsonl",
+    ]);
+    assert!(e.contains("/no/such/dir"), "{e}");
+}
+
+#[test]
+fn gen_emits_a_configuration() {
+    let dir = tempfile::tempdir().unwrap();
+    let v = json(&[
+        "gen",
+        "--unit",
+        "translate",
+        "--max-lod",
+        "31",
+        "--quant-bits",
+        "0",
+        "--binary64",
+        "--out",
+        dir.path().to_str().unwrap(),
+        "--json",
+    ]);
+    let files = v["files"].as_array().unwrap();
+    assert_eq!(files.len(), 1);
+    let text = std::fs::read_to_string(files[0].as_str().unwrap()).unwrap();
+    assert!(
+        text.contains("module translate_unit"),
+        "{}",
+        &text[..200.min(text.len())]
+    );
+    let v = json(&[
+        "gen",
+        "--unit",
+        "merge",
+        "--inputs",
+        "3",
+        "--out",
+        dir.path().to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(v["files"].as_array().unwrap().len() >= 3);
+    let e = fails(&[
+        "gen",
+        "--unit",
+        "merge",
+        "--threshold",
+        "3/2",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(e.contains("threshold"), "{e}");
+}

@@ -14,7 +14,7 @@
 //!
 //! Port `idx` is the index in `Design::ports`. Values cross as 64-bit words and
 //! are split into Verilator's storage class: CData (<= 8 bits), SData (<= 16),
-//! IData (<= 32), QData (<= 64), VlWide<N> of 32-bit EData words above that.
+//! IData (<= 32), QData (<= 64), `VlWide<N>` of 32-bit EData words above that.
 
 use crate::design::{Design, PortDir};
 

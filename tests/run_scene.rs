@@ -1,0 +1,370 @@
+//! `hiermerge run` end to end (issue 7): the embedded default scene, the
+//! bunny + teapot scene file, a scene without translation, a frame where
+//! nothing moved, and malformed scenes. The translation unit's RTL runs
+//! under Verilator; without Verilator these tests fail under CI=true and
+//! otherwise run golden-only (`--no-rtl`) after printing how to install it.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use serde_json::{json, Value};
+
+fn exe() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_hiermerge"))
+}
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// True when Verilator is usable; under CI=true its absence is a failure.
+fn verilator() -> bool {
+    let ok = Command::new("verilator")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !ok {
+        assert!(
+            std::env::var("CI").map_or(true, |v| v != "true"),
+            "verilator is required under CI=true"
+        );
+        eprintln!(
+            "verilator missing: apt-get install verilator iverilog yosys; running golden only"
+        );
+    }
+    ok
+}
+
+/// Runs `hiermerge run ARGS --json --out OUT`, expecting success; the report.
+fn run_ok(args: &[&str], out: &Path, cache: Option<&Path>) -> Value {
+    let mut c = exe();
+    c.arg("run").args(args).arg("--json").arg("--out").arg(out);
+    if !verilator() {
+        c.arg("--no-rtl");
+    }
+    if let Some(dir) = cache {
+        c.env("HIERMERGE_CACHE", dir);
+    }
+    let o = c.output().unwrap();
+    assert!(
+        o.status.success(),
+        "run {args:?} failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let text = String::from_utf8(o.stdout).unwrap();
+    assert_eq!(text.lines().count(), 1, "one JSON object: {text}");
+    serde_json::from_str(&text).unwrap()
+}
+
+/// Decodes an RGB PNG.
+fn pixels(path: &Path) -> (u32, u32, Vec<[u8; 3]>) {
+    let dec = png::Decoder::new(std::fs::File::open(path).unwrap());
+    let mut r = dec.read_info().unwrap();
+    let mut buf = vec![0; r.output_buffer_size()];
+    let info = r.next_frame(&mut buf).unwrap();
+    let px = buf[..info.buffer_size()]
+        .chunks(3)
+        .map(|c| [c[0], c[1], c[2]])
+        .collect();
+    (info.width, info.height, px)
+}
+
+fn strings(v: &Value) -> Vec<String> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s.as_str().unwrap().to_string())
+        .collect()
+}
+
+#[test]
+fn default_scene_runs_with_zero_mismatches_and_writes_every_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let v = run_ok(&[], dir.path(), None);
+    assert_eq!(v["mismatches"], 0);
+    let frames = v["frames"].as_array().unwrap();
+    assert_eq!(frames.len(), 4);
+    for (k, f) in frames.iter().enumerate() {
+        for key in ["image", "heat_map"] {
+            let (w, h, px) = pixels(Path::new(f[key].as_str().unwrap()));
+            assert_eq!((w, h), (320, 240));
+            assert!(px.iter().any(|p| p != &px[0]), "frame {k} {key} is flat");
+        }
+        assert_eq!(f["mismatches"], 0);
+    }
+    // Frame 0 builds everything, and merged and separate hierarchies agree.
+    assert_eq!(frames[0]["built"], 6);
+    assert!(frames[0]["merged"].as_bool().unwrap());
+    let c = &frames[0]["comparison"];
+    assert_eq!(c["hit_mismatches"], 0);
+    assert!(c["rays"].as_u64().unwrap() > 1000);
+    for way in ["merged", "separate", "full_rebuild"] {
+        assert!(c[way].as_f64().unwrap() > 1.0, "{way}");
+    }
+    // Frames 1 and 2 move the three dynamic objects only.
+    for f in &frames[1..3] {
+        assert_eq!(f["retranslated"], 3);
+        assert_eq!(f["reused"], 3);
+        assert_eq!(f["rebuilt"], 0);
+    }
+    if verilator() {
+        assert_eq!(frames[0]["rtl"]["determine"], 6);
+        assert_eq!(frames[1]["rtl"]["determine"], 3);
+        assert!(frames[1]["rtl"]["cycles"].as_u64().unwrap() > 0);
+        assert_eq!(frames[1]["rtl"]["mismatches"], 0);
+    }
+    // Shadows and reflections were traced.
+    let rays = &frames[0]["rays"];
+    assert!(rays["shadow"].as_u64().unwrap() > 1000);
+    assert!(rays["shadowed"].as_u64().unwrap() > 100);
+    assert!(rays["reflection"].as_u64().unwrap() > 100);
+    // The image shows the sky, the green terrain and the red ball.
+    let (_, _, px) = pixels(Path::new(frames[0]["image"].as_str().unwrap()));
+    let count = |f: &dyn Fn([i32; 3]) -> bool| px.iter().filter(|p| f(p.map(i32::from))).count();
+    assert!(count(&|p| p[2] > 180 && p[2] > p[0] + 40) > 5000, "sky");
+    assert!(
+        count(&|p| p[1] > p[0] + 20 && p[1] > p[2] + 20) > 5000,
+        "terrain"
+    );
+    assert!(
+        count(&|p| p[0] > p[1] + 60 && p[0] > p[2] + 60) > 50,
+        "ball"
+    );
+    for f in ["image.png", "heat.png", "report.json"] {
+        assert!(dir.path().join(f).exists(), "{f}");
+    }
+}
+
+#[test]
+fn bunny_and_teapot_scene_file_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = repo().join("scenes/bunny_teapot.json");
+    let v = run_ok(&[scene.to_str().unwrap()], dir.path(), None);
+    assert_eq!(v["mismatches"], 0);
+    let tris: Vec<u64> = v["objects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|o| o["triangles"].as_u64().unwrap())
+        .collect();
+    assert_eq!(tris, vec![12, 3674, 992]);
+    let frames = v["frames"].as_array().unwrap();
+    assert_eq!(frames.len(), 3);
+    assert!(frames[0]["rays"]["primary_hits"].as_u64().unwrap() > 1000);
+    assert!(v["effects"]["merge_mode"]
+        .as_str()
+        .unwrap()
+        .starts_with("PerNode"));
+}
+
+/// A small procedural scene: a static slab and two spheres, frames given.
+fn small_scene(translation: bool, ball: Value) -> Value {
+    json!({
+        "grid": { "max_lod": 16, "quant_bits": 8, "unit": 0.000244140625, "origin": [0, 0, 0] },
+        "frames": ball.as_array().unwrap().len(),
+        "image": { "width": 64, "height": 48 },
+        "camera": { "eye": [4, 4, -4], "target": [4, 1, 4], "fov_y_degrees": 50 },
+        "lights": [ { "position": [2, 10, 0] } ],
+        "objects": [
+            { "name": "slab", "motion": "static",
+              "shape": { "box": { "lo": [1, 0.1, 1], "hi": [7, 0.3, 7] } },
+              "placement": { "offsets": [[0, 0, 0]] } },
+            { "name": "ball", "motion": "dynamic",
+              "shape": { "sphere": { "center": [0.5, 0.5, 0.5], "radius": 0.4 } },
+              "placement": { "offsets": ball } },
+            { "name": "other", "motion": "dynamic",
+              "shape": { "sphere": { "center": [5, 1, 5], "radius": 0.5 } },
+              "placement": { "offsets": [[0, 0, 0]] } }
+        ],
+        "effects": {
+            "units": { "translation": translation, "merge": { "mode": "proportion", "num": 1, "den": 2 }, "upper_build": false },
+            "rays": { "primary": true, "shadow": true, "clip_distance": 50 }
+        }
+    })
+}
+
+fn write_scene(dir: &Path, name: &str, v: &Value) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, serde_json::to_string_pretty(v).unwrap()).unwrap();
+    p
+}
+
+#[test]
+fn scene_without_translation_builds_no_translation_unit_and_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = tempfile::tempdir().unwrap();
+    let scene = small_scene(false, json!([[2, 1, 2], [3, 1, 3]]));
+    let path = write_scene(dir.path(), "no_translation.json", &scene);
+    let v = run_ok(
+        &[path.to_str().unwrap()],
+        &dir.path().join("out"),
+        Some(cache.path()),
+    );
+    assert!(v["rtl"]["translation"]
+        .as_str()
+        .unwrap()
+        .starts_with("not used by the scene"));
+    // Nothing was generated or built: the RTL build cache stays empty.
+    assert_eq!(std::fs::read_dir(cache.path()).unwrap().count(), 0);
+    let frames = v["frames"].as_array().unwrap();
+    for f in frames {
+        assert!(f["rtl"].is_null());
+        assert!(strings(&f["skipped"])
+            .iter()
+            .any(|s| s.starts_with("translation unit: the scene uses no translation")));
+        assert!(strings(&f["skipped"])
+            .iter()
+            .any(|s| s.starts_with("reflections: not asked for")));
+        assert_eq!(f["rays"]["reflection"], 0);
+    }
+    // Without translation the moving ball is rebuilt, not re-translated.
+    assert_eq!(frames[1]["actions"]["ball"], "Rebuilt");
+    assert_eq!(frames[1]["actions"]["slab"], "Reused");
+    assert_eq!(frames[1]["retranslated"], 0);
+    assert_eq!(v["effects"]["merge_mode"], "Proportion { num: 1, den: 2 }");
+    assert_eq!(v["mismatches"], 0);
+}
+
+#[test]
+fn a_frame_where_nothing_moved_resimulates_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = small_scene(true, json!([[2, 1, 2], [4, 1, 4], [4, 1, 4]]));
+    let path = write_scene(dir.path(), "still.json", &scene);
+    let v = run_ok(&[path.to_str().unwrap()], &dir.path().join("out"), None);
+    let frames = v["frames"].as_array().unwrap();
+    assert_eq!(frames[1]["retranslated"], 1);
+    let still = &frames[2];
+    assert_eq!(still["reused"], 3);
+    assert_eq!(still["built"], 0);
+    assert_eq!(still["rebuilt"], 0);
+    assert_eq!(still["retranslated"], 0);
+    assert_eq!(still["merged"], false);
+    assert_eq!(still["nodes_created"], 0);
+    assert!(still["rtl"].is_null());
+    let skipped = strings(&still["skipped"]);
+    for what in [
+        "merge: no input changed",
+        "trace: nothing changed",
+        "translation unit RTL: no placement changed",
+    ] {
+        assert!(
+            skipped.iter().any(|s| s.starts_with(what)),
+            "{what}: {skipped:?}"
+        );
+    }
+    assert!(
+        strings(&still["simulated"]).is_empty(),
+        "{:?}",
+        still["simulated"]
+    );
+    let s = &still["seconds"];
+    assert_eq!(s["step"].as_f64().unwrap() < 0.05, true);
+    assert_eq!(s["trace"], 0.0);
+    // The reused frame's image is the last one's.
+    let a = std::fs::read(frames[1]["image"].as_str().unwrap()).unwrap();
+    let b = std::fs::read(still["image"].as_str().unwrap()).unwrap();
+    assert_eq!(a, b);
+}
+
+/// Runs a malformed scene: a non-zero exit and one error line that
+/// contains every piece of `expect`.
+fn fails(dir: &Path, name: &str, text: &str, expect: &[&str]) {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    let o = exe()
+        .arg("run")
+        .arg(&p)
+        .arg("--out")
+        .arg(dir.join("out"))
+        .output()
+        .unwrap();
+    assert!(!o.status.success(), "{name} was accepted");
+    let err = String::from_utf8(o.stderr).unwrap();
+    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "{name}: one error line: {err}");
+    for e in expect {
+        assert!(lines[0].contains(e), "{name}: `{e}` not in: {}", lines[0]);
+    }
+    assert!(
+        lines[0].contains(name),
+        "{name}: the file is named: {}",
+        lines[0]
+    );
+}
+
+#[test]
+fn malformed_scenes_give_one_clear_error_each() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let good = small_scene(true, json!([[2, 1, 2]]));
+    let text = |v: &Value| serde_json::to_string_pretty(v).unwrap();
+
+    fails(
+        d,
+        "bad.json",
+        "{ \"grid\": [1, 2,",
+        &["well-formed JSON", "line"],
+    );
+
+    let mut v = good.clone();
+    v["objects"][1]["shape"] =
+        json!({ "mesh": { "file": "nowhere/missing.obj", "center": [1, 1, 1], "size": 1 } });
+    fails(
+        d,
+        "missing_mesh.json",
+        &text(&v),
+        &["objects[1].shape.mesh.file", "missing.obj"],
+    );
+
+    let mut v = good.clone();
+    v["effects"]["rays"]["clip_distance"] = json!(-1.0);
+    fails(
+        d,
+        "negative_clip.json",
+        &text(&v),
+        &["effects.rays.clip_distance", "> 0", "-1"],
+    );
+
+    let mut v = good.clone();
+    v["frames"] = json!(2);
+    v["objects"][1]["placement"] = json!({ "offsets": [[2, 1, 2], [20, 1, 2]] });
+    fails(
+        d,
+        "outside.json",
+        &text(&v),
+        &[
+            "objects[1].placement.offsets[1]",
+            "inside the scene cube",
+            "frame 1",
+        ],
+    );
+
+    let mut v = good.clone();
+    v["effects"]["rays"]["glow"] = json!(true);
+    fails(
+        d,
+        "unknown_effect.json",
+        &text(&v),
+        &["effects.rays", "unknown field `glow`"],
+    );
+
+    let mut v = good.clone();
+    v["effects"]["units"]["merge"] = json!({ "mode": "sideways" });
+    fails(
+        d,
+        "unknown_mode.json",
+        &text(&v),
+        &["effects.units.merge", "sideways"],
+    );
+
+    let mut v = good;
+    v["objects"][0]["placement"] = json!({ "offsets": [[0, 0, 0], [1, 0, 0]] });
+    v["frames"] = json!(2);
+    v["objects"][1]["placement"] = json!({ "offsets": [[2, 1, 2], [2, 1, 2]] });
+    fails(
+        d,
+        "static_moves.json",
+        &text(&v),
+        &["objects[0].placement", "static"],
+    );
+}

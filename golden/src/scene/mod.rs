@@ -124,3 +124,6 @@ pub fn parse_file(text: &str, file: &str) -> Result<SceneFile, SceneError> {
     })?;
     Ok(raw)
 }
+
+#[cfg(test)]
+mod tests;

@@ -279,7 +279,7 @@ fn object(
         let shift = *off / grid.unit;
         if !inside(glo + shift, ghi + shift) {
             return Err(e(
-                placement_path(&o.placement, path, k),
+                placement_path(&o.placement, &format!("{path}.placement"), k),
                 &format!(
                     "a placement keeping the object inside the scene cube, grid units [0, {edge}]"
                 ),

@@ -1,0 +1,161 @@
+//! Scene files: the shipped scenes parse, placements per frame, the JSON
+//! paths of errors, the schema's agreement with the serde types.
+
+use std::path::Path;
+
+use glam::DVec3;
+use serde_json::{json, Value};
+
+use super::*;
+
+const DEFAULT: &str = include_str!("../../../scenes/default.json");
+const BUNNY_TEAPOT: &str = include_str!("../../../scenes/bunny_teapot.json");
+
+fn small() -> Value {
+    json!({
+        "grid": { "max_lod": 12, "quant_bits": 6, "unit": 0.001953125, "origin": [0, 0, 0] },
+        "frames": 5,
+        "image": { "width": 8, "height": 6 },
+        "camera": { "eye": [4, 4, -4], "target": [4, 1, 4], "fov_y_degrees": 50 },
+        "objects": [
+            { "name": "ball", "motion": "dynamic",
+              "shape": { "sphere": { "center": [0.5, 0.5, 0.5], "radius": 0.4 } },
+              "placement": { "keyframes": [ { "frame": 1, "offset": [1, 0, 0] },
+                                            { "frame": 3, "offset": [3, 2, 0] } ] } }
+        ],
+        "effects": {
+            "units": { "translation": true, "merge": { "mode": "fixed", "level": 3 }, "upper_build": true },
+            "rays": { "primary": true, "clip_distance": 10 }
+        }
+    })
+}
+
+fn parse(v: &Value) -> Result<Scene, SceneError> {
+    Scene::parse(&v.to_string(), "t.json", Path::new("."))
+}
+
+#[test]
+fn shipped_scenes_parse() {
+    let d = Scene::parse(DEFAULT, "default.json", Path::new(".")).unwrap();
+    assert_eq!(d.frames, 4);
+    assert_eq!(d.objects.len(), 6);
+    assert!(d.effects.translation && d.effects.shadow);
+    assert_eq!(d.effects.reflection_depth, 2);
+    let statics = d
+        .objects
+        .iter()
+        .filter(|o| o.motion == Motion::Static)
+        .count();
+    assert_eq!(statics, 3);
+    let base = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
+    let b = Scene::parse(BUNNY_TEAPOT, "bunny_teapot.json", &base).unwrap();
+    assert_eq!(b.objects[1].mesh.len(), 3674);
+    assert_eq!(b.objects[2].mesh.len(), 992);
+    assert_eq!(b.effects.merge, MergeMode::PerNode { num: 1, den: 2 });
+}
+
+#[test]
+fn keyframes_hold_outside_and_interpolate_between() {
+    let s = parse(&small()).unwrap();
+    let o = &s.objects[0].offsets;
+    let x = |i: usize| o[i];
+    assert_eq!(o.len(), 5);
+    assert_eq!(x(0), DVec3::new(1.0, 0.0, 0.0));
+    assert_eq!(x(1), DVec3::new(1.0, 0.0, 0.0));
+    assert_eq!(x(2), DVec3::new(2.0, 1.0, 0.0));
+    assert_eq!(x(3), DVec3::new(3.0, 2.0, 0.0));
+    assert_eq!(x(4), DVec3::new(3.0, 2.0, 0.0));
+    assert_eq!(s.effects.merge, MergeMode::Fixed(3));
+}
+
+#[test]
+fn errors_name_the_json_path() {
+    let path_of = |v: &Value| parse(v).unwrap_err().path;
+    let mut v = small();
+    v["objects"][0]["placement"]["keyframes"][1]["frame"] = json!(0);
+    assert_eq!(path_of(&v), "objects[0].placement.keyframes[1].frame");
+    let mut v = small();
+    v["objects"][0]["shape"]["sphere"]["radius"] = json!(0);
+    assert_eq!(path_of(&v), "objects[0].shape.sphere.radius");
+    let mut v = small();
+    v["objects"][0]["color"] = json!([0.5, 2, 0]);
+    assert_eq!(path_of(&v), "objects[0].color[1]");
+    let mut v = small();
+    v["effects"]["units"]["merge"] = json!({ "mode": "overlap", "num": 3, "den": 2 });
+    assert_eq!(path_of(&v), "effects.units.merge");
+    let mut v = small();
+    v["effects"]["units"]["merge"]["level"] = json!(13);
+    assert_eq!(path_of(&v), "effects.units.merge.level");
+    let mut v = small();
+    v["effects"]["units"]["rtx"] = json!(true);
+    let e = parse(&v).unwrap_err();
+    assert_eq!(e.path, "effects.units.rtx");
+    assert!(e.found.contains("unknown field `rtx`"), "{e}");
+    let mut v = small();
+    v["objects"][0]["placement"]["keyframes"][0]["offset"] = json!([1, 0]);
+    assert!(path_of(&v).starts_with("objects[0].placement.keyframes[0].offset"));
+    let mut v = small();
+    v["effects"]["rays"]["primary"] = json!(false);
+    v["effects"]["rays"]["shadow"] = json!(true);
+    assert_eq!(path_of(&v), "effects.rays.primary");
+    let mut v = small();
+    v["grid"]["max_lod"] = json!(40);
+    assert_eq!(path_of(&v), "grid");
+    let e = Scene::parse("{\"grid\": ", "t.json", Path::new(".")).unwrap_err();
+    assert_eq!(e.expected, "well-formed JSON");
+    assert!(e.to_string().starts_with("t.json: "), "{e}");
+}
+
+/// Every key a shipped scene uses is a property the schema declares at that
+/// place (through `$ref`s; the merge mode's variants through `oneOf`).
+#[test]
+fn schema_declares_every_key_the_shipped_scenes_use() {
+    let schema: Value = serde_json::from_str(SCHEMA).unwrap();
+    fn resolve<'a>(root: &'a Value, s: &'a Value) -> &'a Value {
+        match s.get("$ref").and_then(Value::as_str) {
+            Some(r) => resolve(root, &root["$defs"][r.trim_start_matches("#/$defs/")]),
+            None => s,
+        }
+    }
+    fn walk(root: &Value, s: &Value, v: &Value, path: &str) {
+        let s = resolve(root, s);
+        match v {
+            Value::Object(m) => {
+                for (k, child) in m {
+                    let sub = s["properties"].get(k).or_else(|| {
+                        s["oneOf"]
+                            .as_array()?
+                            .iter()
+                            .find_map(|alt| alt["properties"].get(k))
+                    });
+                    let sub = sub.unwrap_or_else(|| panic!("{path}.{k} not in the schema"));
+                    walk(root, sub, child, &format!("{path}.{k}"));
+                }
+            }
+            Value::Array(items) if s.get("items").is_some() => {
+                for (i, child) in items.iter().enumerate() {
+                    walk(root, &s["items"], child, &format!("{path}[{i}]"));
+                }
+            }
+            _ => {}
+        }
+    }
+    for text in [DEFAULT, BUNNY_TEAPOT] {
+        let v: Value = serde_json::from_str(text).unwrap();
+        walk(&schema, &schema, &v, "");
+    }
+    // And the schema's top-level required keys are the serde type's.
+    let required: Vec<&str> = schema["required"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|k| k.as_str().unwrap())
+        .collect();
+    let mut v = small();
+    for key in &required {
+        let removed = v.as_object_mut().unwrap().remove(*key).unwrap();
+        let e = parse(&v).unwrap_err();
+        assert!(e.found.contains(&format!("missing field `{key}`")), "{e}");
+        v[*key] = removed;
+    }
+}

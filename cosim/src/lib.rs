@@ -15,6 +15,7 @@ pub mod icarus;
 pub mod ir_engine;
 pub mod tb;
 pub mod tools;
+pub mod units;
 pub mod verilator;
 
 pub use bitvec::BitVec;

@@ -6,13 +6,11 @@
 //! cosim's engines, with random back-pressure. A missing tool fails under
 //! CI=true and is a printed skip otherwise.
 
-mod translate_harness;
-
 use cosim::from_rtl::design_from_module;
+use cosim::units::translate::{run, RunConfig};
 use cosim::{open_engine, EngineKind};
 use golden::vectors::translate::{generate, TranslateDesign};
 use rtl_gen::translate::{reference_designs, translate_unit};
-use translate_harness::{run, EngineDut};
 
 fn tools_present(kind: EngineKind) -> bool {
     match kind.check_tools() {
@@ -31,10 +29,15 @@ fn check(kind: EngineKind, d: &TranslateDesign, count: usize, seed: u64, stall: 
     let txns = generate(d, seed, count).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let design = design_from_module(&translate_unit(d), dir.path()).unwrap();
-    let engine = open_engine(kind, &design, false).unwrap_or_else(|e| panic!("{e}"));
-    let mut dut = EngineDut::new(engine);
+    let mut engine = open_engine(kind, &design, false).unwrap_or_else(|e| panic!("{e}"));
     let start = std::time::Instant::now();
-    let o = run(&mut dut, d, &txns, stall, seed);
+    let config = RunConfig {
+        seed,
+        stall,
+        flip_expected: None,
+    };
+    let o = run(engine.as_mut(), d, &txns, &config, None, &mut |_, _| {})
+        .unwrap_or_else(|f| panic!("{f}"));
     println!(
         "{} {}: {} transactions ({} determine, {} apply) in {} cycles at stall {stall}, {:?}",
         kind.name(),

@@ -4,17 +4,30 @@
 //! 20,000 in each other reference configuration, with random
 //! back-pressure; and the cycle count with none (one record per clock).
 
-mod translate_harness;
-
+use cosim::from_rtl::design_from_module;
+use cosim::ir_engine::IrEngine;
+use cosim::units::translate::{run, Outcome, RunConfig};
 use golden::vectors::translate::{generate, TranslateDesign, TranslateTxn};
 use rtl_gen::translate::{reference_designs, translate_unit};
-use translate_harness::{run, SimDut};
+
+/// Runs `txns` on the IR simulator through the library testbench; panics
+/// with the decoded report at the first mismatch.
+fn run_ir(d: &TranslateDesign, txns: &[TranslateTxn], stall: f64, seed: u64) -> Outcome {
+    let m = translate_unit(d);
+    let dir = tempfile::tempdir().unwrap();
+    let design = design_from_module(&m, dir.path()).unwrap();
+    let mut engine = IrEngine::new(&m, &design).unwrap();
+    let config = RunConfig {
+        seed,
+        stall,
+        flip_expected: None,
+    };
+    run(&mut engine, d, txns, &config, None, &mut |_, _| {}).unwrap_or_else(|f| panic!("{f}"))
+}
 
 fn check(d: &TranslateDesign, count: usize, seed: u64, stall: f64) {
     let txns = generate(d, seed, count).unwrap();
-    let m = translate_unit(d);
-    let mut dut = SimDut::new(&m);
-    let o = run(&mut dut, d, &txns, stall, seed);
+    let o = run_ir(d, &txns, stall, seed);
     println!(
         "{}: {} transactions ({} determine, {} apply) in {} cycles at stall {stall}",
         d.tag(),
@@ -74,9 +87,7 @@ fn one_record_per_clock_without_back_pressure() {
             };
             txns.push(model.run(&inputs).unwrap());
         }
-        let m = translate_unit(&d);
-        let mut dut = SimDut::new(&m);
-        let o = run(&mut dut, &d, &txns, 0.0, 3);
+        let o = run_ir(&d, &txns, 0.0, 3);
         let (nd, na) = (1 + dets.len() as u64, apps.len() as u64);
         println!(
             "{}: determine {nd} + apply {na} records in {} cycles: {:.4} records/cycle",

@@ -1,0 +1,205 @@
+//! The merging module's S614 merge-level stage (unit 506,
+//! `rtl_gen::merge::merge_level_unit`) against the golden model through
+//! `golden::vectors::merge` (stage `merge_level`), bit for bit, with random
+//! back-pressure on both streams and an in-order scoreboard
+//! ([`crate::tb::run_stream_bench`]). A transaction is one level: its input
+//! beats in and its base-node / reference beats out; all of a level's
+//! outputs are expected after its first input beat.
+
+use std::path::{Path, PathBuf};
+
+use golden::layout::{Bits, Field};
+use golden::merge::unit::BeatLayout;
+use golden::params::Params;
+use golden::translate::stimulus::SplitMix64;
+use golden::vectors::merge::{generate, read_merge_vectors, MergeDesign, MergeVector};
+
+use super::{EngineFactory, ProgressFn};
+use crate::bitvec::BitVec;
+use crate::error::{CosimError, Result};
+use crate::tb::{
+    run_stream_bench_with_progress, BenchConfig, BenchReport, StreamNames, TraceWindow,
+    Transaction, Vector,
+};
+
+/// The stage `hiermerge cosim --unit merge` exercises.
+pub const STAGE: &str = "merge_level";
+
+/// The unit under test.
+pub fn merge_level_module(p: &Params) -> rtl_gen::Module {
+    rtl_gen::merge::merge_level_unit(p)
+}
+
+/// `count` merge-level transactions from `seed`: the `merge_level` record
+/// of `golden::vectors::merge::generate`, drawn `count` times from one stream.
+pub fn generate_levels(d: &MergeDesign, seed: u64, count: usize) -> Result<Vec<MergeVector>> {
+    let mut rng = SplitMix64(seed);
+    (0..count)
+        .map(|_| {
+            generate(d, &mut rng, 0).map_err(|e| CosimError::Design {
+                what: format!("golden merge vectors: {e}"),
+            })
+        })
+        .collect()
+}
+
+/// The `merge_level` records of a file written by
+/// `golden::vectors::merge::write_merge_vectors` for `d` (other stages are
+/// skipped; a header whose parameters differ from `d` is an error naming them).
+pub fn read_levels(path: &Path, d: &MergeDesign) -> std::result::Result<Vec<MergeVector>, String> {
+    let all = read_merge_vectors(path, d).map_err(|e| e.to_string())?;
+    Ok(all.into_iter().filter(|v| v.stage == STAGE).collect())
+}
+
+fn port_value(words: &[u64], width: u32) -> Result<BitVec> {
+    BitVec::from_words(width as usize, words)
+}
+
+/// Bench vectors of the levels; returns them and the number of input beats.
+pub fn bench_vectors(levels: &[MergeVector], flip_expected: Option<usize>) -> Result<Vec<Vector>> {
+    let mut out = Vec::new();
+    for (n, level) in levels.iter().enumerate() {
+        let mut outputs: Vec<Transaction> = level
+            .outputs
+            .iter()
+            .map(|w| port_value(w, level.out_width).map(|v| vec![v]))
+            .collect::<Result<_>>()?;
+        if flip_expected == Some(n) {
+            if let Some(first) = outputs.first_mut() {
+                let mut w = first[0].words().to_vec();
+                w[0] ^= 1;
+                first[0] = BitVec::from_words(level.out_width as usize, &w)?;
+            }
+        }
+        for (j, beat) in level.inputs.iter().enumerate() {
+            out.push(Vector {
+                input: vec![port_value(beat, level.in_width)?],
+                outputs: if j == 0 {
+                    std::mem::take(&mut outputs)
+                } else {
+                    Vec::new()
+                },
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// The unit's stream ports: `in` -> `out`, one `_data` payload each.
+pub fn stream_names() -> StreamNames {
+    StreamNames {
+        in_valid: "in_valid".into(),
+        in_ready: "in_ready".into(),
+        in_payload: vec!["in_data".into()],
+        out_valid: "out_valid".into(),
+        out_ready: "out_ready".into(),
+        out_payload: vec!["out_data".into()],
+    }
+}
+
+/// Decodes an output beat by field name: the node record's fields, the
+/// reference's, `kind` and `err`.
+pub fn decoder(p: &Params) -> Box<crate::tb::FieldDecoder> {
+    let lo = BeatLayout::output(p);
+    Box::new(move |t: &Transaction| {
+        let Some(v) = t.first() else {
+            return Vec::new();
+        };
+        let Ok(bits) = Bits::from_words(v.width() as u32, v.words()) else {
+            return vec![("out_data".into(), v.to_string())];
+        };
+        let mut fields: Vec<(String, Field)> = lo
+            .node
+            .fields()
+            .map(|f| (format!("rec.{}", f.name), shifted(f, lo.rec.offset)))
+            .collect();
+        fields.extend(
+            lo.reference
+                .fields()
+                .map(|f| (format!("ref.{}", f.name), shifted(f, lo.refer.offset))),
+        );
+        fields.push(("kind".into(), lo.kind));
+        fields.extend(lo.err.map(|f| ("err".to_string(), f)));
+        fields
+            .into_iter()
+            .map(|(name, f)| {
+                let shown = match bits.get(&f) {
+                    Ok(x) => format!("{x:#x}"),
+                    Err(e) => format!("({e})"),
+                };
+                (name, shown)
+            })
+            .collect()
+    })
+}
+
+fn shifted(f: &Field, by: u32) -> Field {
+    Field {
+        offset: f.offset + by,
+        ..*f
+    }
+}
+
+/// How one merge-level run is driven.
+#[derive(Clone, Debug)]
+pub struct RunConfig {
+    /// Seed of the stall patterns.
+    pub seed: u64,
+    /// Stall probability of the driver and of the monitor.
+    pub stall: f64,
+    /// Copied into the report.
+    pub reproduce: Option<String>,
+}
+
+/// Runs `vectors` on `make_engine(false)`; on a mismatch or hang, when `vcd`
+/// is given, again on `make_engine(true)` writing the cycles within
+/// `radius` of the failure to `vcd`. `progress` gets (outputs compared, cycle).
+pub fn run_with_vcd_on_mismatch(
+    make_engine: &mut EngineFactory,
+    p: &Params,
+    vectors: &[Vector],
+    config: &RunConfig,
+    vcd: Option<PathBuf>,
+    radius: u64,
+    progress: &mut ProgressFn,
+) -> Result<BenchReport> {
+    let bench = BenchConfig {
+        seed: config.seed,
+        in_stall: config.stall,
+        out_stall: config.stall,
+        reproduce: config.reproduce.clone(),
+        ..BenchConfig::default()
+    };
+    let names = stream_names();
+    let mut engine = make_engine(false)?;
+    let mut report = run_stream_bench_with_progress(
+        engine.as_mut(),
+        &names,
+        vectors,
+        Some(decoder(p)),
+        &bench,
+        None,
+        &mut |pr| progress(pr.outputs, pr.cycle),
+    )?;
+    drop(engine);
+    let failure_cycle = report
+        .first_mismatch
+        .as_ref()
+        .map(|m| m.cycle)
+        .or(report.hang.as_ref().map(|h| h.cycle));
+    if let (Some(cycle), Some(path)) = (failure_cycle, vcd) {
+        let mut traced = make_engine(true)?;
+        let window = TraceWindow::around(cycle, radius, path);
+        let rerun = run_stream_bench_with_progress(
+            traced.as_mut(),
+            &names,
+            vectors,
+            Some(decoder(p)),
+            &bench,
+            Some(window),
+            &mut |_| {},
+        )?;
+        report.vcd = rerun.vcd;
+    }
+    Ok(report)
+}

@@ -19,9 +19,11 @@ use super::render::{trace_frame, RayCounts, Traced};
 use super::rtl::{Placed, RtlFrame, TranslateRtl};
 use crate::image::{heat_rgb, write_png};
 
-/// Why the merging module's RTL is not simulated: it is not in the tree yet.
+/// Why the merging module's RTL is not simulated: its stage generators
+/// (`rtl_gen::merge`) are verified by their own cosim tests, but this run
+/// does not yet feed a frame's merge into them.
 pub const MERGE_RTL_STATUS: &str =
-    "merge RTL: not available (the merging module generator rtl-gen/src/merge is not committed yet); no RTL comparison of merges is made";
+    "merge RTL: not simulated by run yet (rtl_gen::merge stages are verified by their own cosim tests; feeding a frame's merge into them is not wired); no RTL comparison of merges is made";
 
 /// How to run.
 pub struct Options {
@@ -346,10 +348,14 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
             secs.rtl = t.elapsed().as_secs_f64();
         }
         if fx.upper_build {
-            skipped.push("merging module RTL incl. upper-level build: not available".into());
+            skipped.push(
+                "merging module RTL (incl. upper-level build): not wired into run yet".into(),
+            );
         } else {
-            skipped
-                .push("merging module RTL: not available; upper-level build not asked for".into());
+            skipped.push(
+                "merging module RTL: not wired into run yet; upper-level build not asked for"
+                    .into(),
+            );
         }
 
         // Rays.

@@ -44,18 +44,38 @@ fn morton_coord(m: u128, axis: u32) -> u32 {
     compact21(m as u64 & ((1u64 << 63) - 1)) | compact21((m >> 63) as u64) << 21
 }
 
-/// Groups the sorted entries into one leaf per (LOD, voxel); returns the
-/// leaves of each LOD (index = LOD), each list in Morton order.
-fn leaves_by_lod(entries: &[LeafEntry], p: &Params) -> Vec<Vec<LevelNode>> {
+/// The entries of each LOD (index = LOD) as a range of the sorted entries:
+/// the key's high bits are the LOD, so each LOD's entries are contiguous.
+fn entry_ranges_by_lod(entries: &[LeafEntry], p: &Params) -> Vec<std::ops::Range<usize>> {
     let shift = 3 * p.max_lod as u32;
-    let mut out = vec![Vec::new(); p.max_lod as usize + 1];
-    let mut i = 0;
-    while i < entries.len() {
+    (0..=p.max_lod as u128)
+        .map(|lod| {
+            let start = entries.partition_point(|e| e.key >> shift < lod);
+            let end = entries.partition_point(|e| e.key >> shift <= lod);
+            start..end
+        })
+        .collect()
+}
+
+/// Groups the sorted entries `entries[range]` (all of one LOD) into one leaf
+/// per voxel, in Morton order, into `out` (cleared first). A leaf's `first`
+/// indexes the whole entry array.
+#[allow(clippy::needless_range_loop)] // per-axis loops over parallel arrays
+fn leaves_of_lod_into(
+    entries: &[LeafEntry],
+    range: std::ops::Range<usize>,
+    p: &Params,
+    out: &mut Vec<LevelNode>,
+) {
+    out.clear();
+    let shift = 3 * p.max_lod as u32;
+    let mut i = range.start;
+    while i < range.end {
         let key = entries[i].key;
         let mut lo = entries[i].lo;
         let mut hi = entries[i].hi;
         let mut j = i + 1;
-        while j < entries.len() && entries[j].key == key {
+        while j < range.end && entries[j].key == key {
             for a in 0..3 {
                 lo[a] = lo[a].min(entries[j].lo[a]);
                 hi[a] = hi[a].max(entries[j].hi[a]);
@@ -63,7 +83,7 @@ fn leaves_by_lod(entries: &[LeafEntry], p: &Params) -> Vec<Vec<LevelNode>> {
             j += 1;
         }
         let morton = key & ((1u128 << shift) - 1);
-        out[(key >> shift) as usize].push(LevelNode {
+        out.push(LevelNode {
             morton,
             x: morton_coord(morton, 0),
             y: morton_coord(morton, 1),
@@ -77,7 +97,6 @@ fn leaves_by_lod(entries: &[LeafEntry], p: &Params) -> Vec<Vec<LevelNode>> {
         });
         i = j;
     }
-    out
 }
 
 /// One inner node per parent voxel of `level` (sorted by Morton, so the
@@ -229,14 +248,15 @@ pub(crate) fn build_levels(
 /// in store order `refs[k]` names node `root_count + k`, and an inner node's
 /// `first` is its first child's store index minus `root_count`.
 pub(super) fn assemble(entries: &[LeafEntry], p: &Params, id: u8) -> Result<Hierarchy, BuildError> {
-    let mut base = leaves_by_lod(entries, p);
-    let deepest = base
+    // Leaves are made one LOD at a time, when the build reaches it.
+    let ranges = entry_ranges_by_lod(entries, p);
+    let deepest = ranges
         .iter()
-        .rposition(|l| !l.is_empty())
+        .rposition(|r| !r.is_empty())
         .ok_or(BuildError::EmptyMesh)?;
-    let shallowest_base = base
+    let shallowest_base = ranges
         .iter()
-        .position(|l| !l.is_empty())
+        .position(|r| !r.is_empty())
         .ok_or(BuildError::EmptyMesh)?;
 
     // Records, deepest level first; inner nodes' `first` is still the index
@@ -244,14 +264,16 @@ pub(super) fn assemble(entries: &[LeafEntry], p: &Params, id: u8) -> Result<Hier
     let mut nodes: Vec<NodeRecord> = Vec::with_capacity(entries.len());
     let mut level_len = vec![0usize; deepest + 1];
     let mut d = deepest;
-    let mut level = std::mem::take(&mut base[d]);
-    // Grouping and merging reuse two buffers from level to level.
+    let mut level = Vec::new();
+    leaves_of_lod_into(entries, ranges[d].clone(), p, &mut level);
+    // Grouping, leaves and merging reuse three buffers from level to level.
     let mut parents = Vec::with_capacity(level.len() / 2 + 1);
+    let mut leaves = Vec::new();
     while !(d == 0 || (level.len() == 1 && d <= shallowest_base)) {
         push_records(&mut nodes, &level, d);
         level_len[d] = level.len();
         group_by_parent_into(&level, p.quant_bits, &mut parents);
-        let leaves = std::mem::take(&mut base[d - 1]);
+        leaves_of_lod_into(entries, ranges[d - 1].clone(), p, &mut leaves);
         if leaves.is_empty() {
             std::mem::swap(&mut level, &mut parents);
         } else {

@@ -11,6 +11,7 @@
 //! frame's results and says so.
 
 mod compare;
+mod merge_rtl;
 mod pipeline;
 mod render;
 mod rtl;

@@ -15,15 +15,10 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
 
 use super::compare::{compare, Comparison, SUBSAMPLE};
+use super::merge_rtl::{MergeRtl, MergeRtlFrame};
 use super::render::{trace_frame, RayCounts, Traced};
 use super::rtl::{Placed, RtlFrame, TranslateRtl};
 use crate::image::{heat_rgb, write_png};
-
-/// Why the merging module's RTL is not simulated: its stage generators
-/// (`rtl_gen::merge`) are verified by their own cosim tests, but this run
-/// does not yet feed a frame's merge into them.
-pub const MERGE_RTL_STATUS: &str =
-    "merge RTL: not simulated by run yet (rtl_gen::merge stages are verified by their own cosim tests; feeding a frame's merge into them is not wired); no RTL comparison of merges is made";
 
 /// How to run.
 pub struct Options {
@@ -108,6 +103,8 @@ pub struct FrameOut {
     /// grid could not express, over re-translated objects.
     pub max_residual: f64,
     pub rtl: Option<RtlFrame>,
+    /// The merging module's stages on this frame's merge.
+    pub merge_rtl: Option<MergeRtlFrame>,
     pub rays: RayCounts,
     pub node_tests_per_ray: f64,
     /// Node tests per primary ray on the subsample: merged, separate, full rebuild.
@@ -212,8 +209,13 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
             "not needed (no placement to determine)".into()
         },
         translation_build_seconds: 0.0,
-        merge: MERGE_RTL_STATUS.into(),
+        merge: if options.rtl {
+            "not needed (no merge redone)".into()
+        } else {
+            "disabled (--no-rtl)".into()
+        },
     };
+    let mut merge_rtl = MergeRtl::default();
     let mut outs: Vec<FrameOut> = Vec::new();
     let mut last_traced: Option<(Traced, Option<Comparison>)> = None;
     let mut total_mismatches = 0;
@@ -223,7 +225,7 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
         }
     };
     say(format!(
-        "scene {}: {} objects, {} frames, {}x{}, D={} Q={}; {}",
+        "scene {}: {} objects, {} frames, {}x{}, D={} Q={}",
         scene.name,
         scene.objects.len(),
         scene.frames,
@@ -231,7 +233,6 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
         scene.height,
         scene.params.max_lod,
         scene.params.quant_bits,
-        MERGE_RTL_STATUS
     ));
     for k in 0..scene.frames as usize {
         let mut secs = StageSeconds::default();
@@ -345,15 +346,43 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
                 r.determine, r.apply, r.cycles, r.mismatches
             ));
             rtl_frame = Some(r);
-            secs.rtl = t.elapsed().as_secs_f64();
+            secs.rtl += t.elapsed().as_secs_f64();
         }
-        if fx.upper_build {
-            skipped.push(
-                "merging module RTL (incl. upper-level build): not wired into run yet".into(),
-            );
+        let mut merge_rtl_frame = None;
+        if !rep.merged {
+            skipped.push("merging module RTL: no merge redone this frame".into());
+        } else if !options.rtl {
+            skipped.push("merging module RTL: --no-rtl".into());
+        } else if let Some(level) = rep.merge_level {
+            let t = Instant::now();
+            let b = bar(options, format!("frame {k} merge RTL"));
+            b.set_length(1);
+            let r = merge_rtl.run_frame(&frames.world, &ids, level, fx.merge, fx.upper_build)?;
+            b.finish_and_clear();
+            if r.build_seconds > 0.0 {
+                rtl_info.merge = format!("built (Verilator): {}", r.stages.join(", "));
+            }
+            simulated.push(format!(
+                "merging module RTL at level {level}: {} ({} beats in, {} cycles, {} mismatches)",
+                r.stages.join(", "),
+                r.beats_in,
+                r.cycles,
+                r.mismatches
+            ));
+            if !fx.upper_build {
+                skipped.push(
+                    "S616 upper-level RTL: the scene does not ask for the upper-level build".into(),
+                );
+            }
+            if !matches!(fx.merge, golden::merge::MergeMode::Overlap { .. }) {
+                skipped
+                    .push("S608 overlap counter RTL: the merge mode does not count overlap".into());
+            }
+            secs.rtl += t.elapsed().as_secs_f64();
+            merge_rtl_frame = Some(r);
         } else {
             skipped.push(
-                "merging module RTL: not wired into run yet; upper-level build not asked for"
+                "merging module RTL: per-node mode has no single merging level to feed the stages"
                     .into(),
             );
         }
@@ -430,6 +459,7 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
 
         let rays = traced.rays.primary + traced.rays.shadow + traced.rays.reflection;
         let mismatches = rtl_frame.as_ref().map_or(0, |r| r.mismatches)
+            + merge_rtl_frame.as_ref().map_or(0, |r| r.mismatches)
             + comparison.as_ref().map_or(0, |c| c.hit_mismatches);
         total_mismatches += mismatches;
         let out = FrameOut {
@@ -449,6 +479,7 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
             merged_nodes,
             max_residual,
             rtl: rtl_frame,
+            merge_rtl: merge_rtl_frame,
             rays: traced.rays,
             node_tests_per_ray: traced.stats.node_tests as f64 / rays.max(1) as f64,
             comparison,

@@ -4,12 +4,22 @@ use std::fmt::Write;
 
 use super::pipeline::RunReport;
 
+/// Translation unit plus merging-module cycles, `-` when no RTL ran.
+fn rtl_cycles(f: &super::pipeline::FrameOut) -> String {
+    let t = f.rtl.as_ref().map(|r| r.cycles);
+    let m = f.merge_rtl.as_ref().map(|r| r.cycles);
+    match (t, m) {
+        (None, None) => "-".into(),
+        (t, m) => (t.unwrap_or(0) + m.unwrap_or(0)).to_string(),
+    }
+}
+
 /// The per-frame table printed at the end of a run.
 pub fn closing_table(r: &RunReport) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "scene {} (D={} Q={}), merge {}, translation {}; RTL: translation {}; {}",
+        "scene {} (D={} Q={}), merge {}, translation {}; RTL: translation {}; merge {}",
         r.scene,
         r.params.max_lod,
         r.params.quant_bits,
@@ -54,7 +64,7 @@ pub fn closing_table(r: &RunReport) -> String {
             if f.merged { "redone" } else { "reused" },
             f.merge_level.map_or("-".into(), |l| l.to_string()),
             f.nodes_created,
-            f.rtl.as_ref().map_or("-".into(), |r| r.cycles.to_string()),
+            rtl_cycles(f),
             f.mismatches,
             tests,
             times

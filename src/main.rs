@@ -35,6 +35,8 @@ enum Command {
     Vectors(cmd::vectors::Args),
     /// The main job: build, (merge,) and trace a scene; with no argument, the embedded default scene.
     Run(cmd::run::Args),
+    /// Co-simulate a unit (translate; merge: the S614 merge-level stage) against golden, cycle by cycle.
+    Cosim(cmd::cosim::Args),
 }
 
 fn main() {
@@ -52,6 +54,7 @@ fn main() {
         Command::Gen(a) => cmd::gen::main(a),
         Command::Run(a) => cmd::run::main(a),
         Command::Vectors(a) => cmd::vectors::main(a),
+        Command::Cosim(a) => cmd::cosim::main(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");

@@ -2,6 +2,7 @@
 
 pub mod build;
 pub mod common;
+pub mod cosim;
 pub mod gen;
 pub mod merge;
 pub mod run;

@@ -1,0 +1,539 @@
+//! `hiermerge cosim`: run a generated unit's Verilog (or its IR) against the
+//! golden model, transaction by transaction, with random back-pressure; print
+//! what it measured, or the first mismatch decoded field by field with the
+//! one command that reproduces it and a VCD of the cycles around it (SPEC 9).
+//!
+//! Test hook: the environment variable `HIERMERGE_COSIM_FLIP_EXPECTED=<n>`
+//! flips the lowest bit of transaction `n`'s expected output (translate: the
+//! n-th transaction; merge: the first output beat of the n-th level), so a
+//! test can check that a broken run is caught and reported.
+
+use std::path::{Path, PathBuf};
+
+use cosim::from_rtl::design_from_module;
+use cosim::ir_engine::IrEngine;
+use cosim::units::translate::{self, Failure, RunConfig};
+use cosim::units::{check_stall, merge};
+use cosim::{open_engine, Design, Engine, EngineKind};
+use golden::translate::TranslateUnitConfig;
+use golden::vectors::merge::MergeDesign;
+use golden::vectors::translate::{generate, read_translate_vectors, TranslateDesign};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
+
+use super::common::GridOpts;
+use super::gen::Unit;
+use crate::report::{emit, CmdResult};
+
+/// The environment variable of the test hook (see the module docs).
+pub const FLIP_EXPECTED_VAR: &str = "HIERMERGE_COSIM_FLIP_EXPECTED";
+
+/// Cycles either side of a mismatch written to its VCD.
+const VCD_RADIUS: u64 = 20;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum EngineChoice {
+    /// Verilator (2-state, compiled).
+    Verilator,
+    /// Icarus Verilog (4-state, X/Z checked).
+    Iverilog,
+    /// rtl-gen's IR simulator (the model the Verilog was emitted from).
+    Ir,
+}
+
+impl EngineChoice {
+    fn name(self) -> &'static str {
+        match self {
+            EngineChoice::Verilator => "verilator",
+            EngineChoice::Iverilog => "iverilog",
+            EngineChoice::Ir => "ir",
+        }
+    }
+}
+
+/// --unit translate: the whole translation unit (determine and apply
+/// streams). --unit merge: the merging module's S614 merge-level stage
+/// (unit 506, `merge_level`); a transaction is one level.
+#[derive(clap::Args)]
+pub struct Args {
+    /// translate: the translation unit; merge: the merge-level stage S614.
+    #[arg(long, value_enum)]
+    unit: Unit,
+    #[arg(long, value_enum, default_value = "verilator")]
+    engine: EngineChoice,
+    /// Run the transactions of this vectors file (`hiermerge vectors`;
+    /// its header's parameters must equal the design's). Merge: its
+    /// merge_level records.
+    #[arg(long, conflicts_with = "count")]
+    vectors: Option<PathBuf>,
+    /// Seed of the generated transactions and of the stall patterns.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Transactions to generate (translate: determine/apply records;
+    /// merge: levels).
+    #[arg(long)]
+    count: Option<u64>,
+    /// Probability that the driver holds valid low and the monitor ready low (0 <= P < 1).
+    #[arg(long, default_value_t = 0.3)]
+    stall: f64,
+    /// Directory of the VCD written on a mismatch.
+    #[arg(long = "vcd-dir", default_value = "out/cosim")]
+    vcd_dir: PathBuf,
+    #[command(flatten)]
+    grid: GridOpts,
+    /// Translation unit: entries of the translation table (default: one per hierarchy id).
+    #[arg(long = "table-depth")]
+    table_depth: Option<u32>,
+    /// Translation unit: binary64 placements as well as binary32.
+    #[arg(long)]
+    binary64: bool,
+    /// Merging module: number of merged inputs.
+    #[arg(long, default_value_t = MergeDesign::default().inputs)]
+    inputs: usize,
+    /// Merging module: overlap threshold N/D (part of a vectors file's header).
+    #[arg(long, default_value = "1/2")]
+    threshold: String,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    json: bool,
+}
+
+const DEFAULT_COUNT: u64 = 10_000;
+
+#[derive(Serialize, Clone, Debug)]
+struct FieldReport {
+    name: String,
+    expected: String,
+    got: String,
+    differs: bool,
+}
+
+#[derive(Serialize, Clone, Debug)]
+struct MismatchReport {
+    transaction: u64,
+    kind: String,
+    cycle: u64,
+    seed: u64,
+    what: String,
+    fields: Vec<FieldReport>,
+}
+
+#[derive(Serialize)]
+struct Report {
+    unit: Unit,
+    stage: &'static str,
+    engine: &'static str,
+    seed: u64,
+    stall: f64,
+    vectors: Option<String>,
+    passed: bool,
+    transactions: u64,
+    /// Input records (translate: transactions; merge: input beats).
+    records: u64,
+    /// Output records (translate: transactions; merge: base-node/reference beats).
+    nodes: u64,
+    mismatches: u64,
+    cycles: u64,
+    records_per_cycle: f64,
+    nodes_per_cycle: f64,
+    wall_seconds: f64,
+    first_mismatch: Option<MismatchReport>,
+    vcd: Option<String>,
+    reproduce: Option<String>,
+}
+
+fn flip_expected() -> Result<Option<usize>, String> {
+    match std::env::var(FLIP_EXPECTED_VAR) {
+        Ok(v) => v
+            .trim()
+            .parse()
+            .map(Some)
+            .map_err(|_| format!("{FLIP_EXPECTED_VAR}={v}: expected a transaction index")),
+        Err(_) => Ok(None),
+    }
+}
+
+/// The one command line that runs this again, the same way.
+fn reproduce(a: &Args, flip: Option<usize>) -> String {
+    let mut s = String::new();
+    if let Some(n) = flip {
+        s += &format!("{FLIP_EXPECTED_VAR}={n} ");
+    }
+    let unit = match a.unit {
+        Unit::Translate => "translate",
+        Unit::Merge => "merge",
+    };
+    s += &format!("hiermerge cosim --unit {unit} --engine {}", a.engine.name());
+    match &a.vectors {
+        Some(p) => s += &format!(" --vectors {} --seed {}", p.display(), a.seed),
+        None => {
+            s += &format!(
+                " --seed {} --count {}",
+                a.seed,
+                a.count.unwrap_or(DEFAULT_COUNT)
+            )
+        }
+    }
+    s += &format!(" --stall {}", a.stall);
+    let g = &a.grid;
+    s += &format!(
+        " --max-lod {} --quant-bits {} --index-bits {} --hier-bits {}",
+        g.max_lod, g.quant_bits, g.index_bits, g.hier_bits
+    );
+    match a.unit {
+        Unit::Translate => {
+            if let Some(t) = a.table_depth {
+                s += &format!(" --table-depth {t}");
+            }
+            if a.binary64 {
+                s += " --binary64";
+            }
+        }
+        Unit::Merge => s += &format!(" --inputs {} --threshold {}", a.inputs, a.threshold),
+    }
+    s
+}
+
+/// An engine factory for `module` / `design` (`true`: able to trace).
+fn factory<'a>(
+    choice: EngineChoice,
+    module: &'a rtl_gen::Module,
+    design: &'a Design,
+) -> Result<impl FnMut(bool) -> cosim::Result<Box<dyn Engine>> + 'a, String> {
+    let kind = match choice {
+        EngineChoice::Verilator => Some(EngineKind::Verilator),
+        EngineChoice::Iverilog => Some(EngineKind::Icarus),
+        EngineChoice::Ir => None,
+    };
+    if let Some(k) = kind {
+        k.check_tools().map_err(|e| e.to_string())?;
+    }
+    Ok(move |trace: bool| -> cosim::Result<Box<dyn Engine>> {
+        match kind {
+            Some(k) => open_engine(k, design, trace),
+            None => Ok(Box::new(IrEngine::new(module, design)?)),
+        }
+    })
+}
+
+fn bar(len: u64, json: bool) -> ProgressBar {
+    if json {
+        return ProgressBar::hidden();
+    }
+    let pb = ProgressBar::new(len);
+    pb.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} {msg} [{elapsed_precise} / ~{eta}]")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    pb
+}
+
+fn vcd_path(a: &Args, unit: &str) -> PathBuf {
+    a.vcd_dir
+        .join(format!("{unit}-{}-seed{}.vcd", a.engine.name(), a.seed))
+}
+
+pub fn main(a: Args) -> CmdResult {
+    check_stall(a.stall).map_err(|e| format!("--stall: {e}"))?;
+    if a.count == Some(0) {
+        return Err("--count 0: expected at least one transaction".into());
+    }
+    let flip = flip_expected()?;
+    let params = a.grid.params()?;
+    let dir = tempfile::tempdir().map_err(|e| format!("temporary directory: {e}"))?;
+    let report = match a.unit {
+        Unit::Translate => {
+            let design = TranslateDesign {
+                unit: TranslateUnitConfig {
+                    params,
+                    table_depth: a.table_depth.unwrap_or(params.hier_capacity() as u32),
+                },
+                binary64: a.binary64,
+            };
+            design
+                .validate()
+                .map_err(|e| format!("translation unit configuration: {e}"))?;
+            run_translate(&a, &design, flip, dir.path())?
+        }
+        Unit::Merge => {
+            let (num, den) = super::merge::parse_ratio(&a.threshold)?;
+            if num > den || den == 0 {
+                return Err(format!(
+                    "--threshold {}: expected N <= D, D >= 1",
+                    a.threshold
+                ));
+            }
+            let design = MergeDesign {
+                params,
+                inputs: a.inputs,
+                num,
+                den,
+                ..MergeDesign::default()
+            };
+            run_merge(&a, &design, flip, dir.path())?
+        }
+    };
+    let passed = report.passed;
+    let summary = report.first_mismatch.as_ref().map(|m| {
+        format!(
+            "transaction {} at cycle {}: {}",
+            m.transaction, m.cycle, m.what
+        )
+    });
+    emit(a.json, &report, print_text)?;
+    if passed {
+        Ok(())
+    } else {
+        Err(format!(
+            "co-simulation failed: {}; reproduce: {}",
+            summary.unwrap_or_else(|| "see the report".into()),
+            report.reproduce.clone().unwrap_or_default()
+        ))
+    }
+}
+
+fn run_translate(
+    a: &Args,
+    design: &TranslateDesign,
+    flip: Option<usize>,
+    dir: &Path,
+) -> Result<Report, String> {
+    let txns = match &a.vectors {
+        Some(p) => {
+            read_translate_vectors(p, design)
+                .map_err(|e| e.to_string())?
+                .1
+        }
+        None => {
+            let count = usize::try_from(a.count.unwrap_or(DEFAULT_COUNT))
+                .map_err(|_| "--count is too large".to_string())?;
+            generate(design, a.seed, count).map_err(|e| e.to_string())?
+        }
+    };
+    let module = rtl_gen::translate::translate_unit(design);
+    let cdesign = design_from_module(&module, dir).map_err(|e| e.to_string())?;
+    let mut make = factory(a.engine, &module, &cdesign)?;
+    let config = RunConfig {
+        seed: a.seed,
+        stall: a.stall,
+        flip_expected: flip,
+    };
+    let pb = bar(txns.len() as u64, a.json);
+    let result = translate::run_with_vcd_on_mismatch(
+        &mut make,
+        design,
+        &txns,
+        &config,
+        Some(vcd_path(a, "translate")),
+        VCD_RADIUS,
+        &mut |done, cycle| {
+            pb.set_position(done);
+            pb.set_message(format!("cycle {cycle}"));
+        },
+    );
+    pb.finish_and_clear();
+    let mut r = Report {
+        unit: a.unit,
+        stage: "translate_unit",
+        engine: a.engine.name(),
+        seed: a.seed,
+        stall: a.stall,
+        vectors: a.vectors.as_ref().map(|p| p.display().to_string()),
+        passed: true,
+        transactions: txns.len() as u64,
+        records: txns.len() as u64,
+        nodes: txns.len() as u64,
+        mismatches: 0,
+        cycles: 0,
+        records_per_cycle: 0.0,
+        nodes_per_cycle: 0.0,
+        wall_seconds: 0.0,
+        first_mismatch: None,
+        vcd: None,
+        reproduce: None,
+    };
+    match result {
+        Ok(o) => {
+            r.cycles = o.cycles;
+            r.records_per_cycle = o.records_per_cycle();
+            r.nodes_per_cycle = o.records_per_cycle();
+            r.wall_seconds = o.wall.as_secs_f64();
+        }
+        Err(Failure::Engine(e)) => return Err(e.to_string()),
+        Err(Failure::Mismatch(m)) => {
+            r.passed = false;
+            r.mismatches = 1;
+            r.cycles = m.cycle;
+            r.vcd = m.vcd.as_ref().map(|p| p.display().to_string());
+            r.reproduce = Some(reproduce(a, flip));
+            r.first_mismatch = Some(MismatchReport {
+                transaction: m.transaction as u64,
+                kind: m.kind.to_string(),
+                cycle: m.cycle,
+                seed: m.seed,
+                what: m.what.clone(),
+                fields: m
+                    .fields
+                    .iter()
+                    .map(|f| FieldReport {
+                        name: f.name.clone(),
+                        expected: format!("{:#x}", f.expected),
+                        got: format!("{:#x}", f.got),
+                        differs: f.differs(),
+                    })
+                    .collect(),
+            });
+        }
+    }
+    Ok(r)
+}
+
+fn run_merge(
+    a: &Args,
+    design: &MergeDesign,
+    flip: Option<usize>,
+    dir: &Path,
+) -> Result<Report, String> {
+    let levels = match &a.vectors {
+        Some(p) => merge::read_levels(p, design)?,
+        None => {
+            let count = usize::try_from(a.count.unwrap_or(DEFAULT_COUNT))
+                .map_err(|_| "--count is too large".to_string())?;
+            merge::generate_levels(design, a.seed, count).map_err(|e| e.to_string())?
+        }
+    };
+    let vectors = merge::bench_vectors(&levels, flip).map_err(|e| e.to_string())?;
+    let module = merge::merge_level_module(&design.params);
+    let cdesign = design_from_module(&module, dir).map_err(|e| e.to_string())?;
+    let mut make = factory(a.engine, &module, &cdesign)?;
+    let expected_outputs: u64 = levels.iter().map(|l| l.outputs.len() as u64).sum();
+    let config = merge::RunConfig {
+        seed: a.seed,
+        stall: a.stall,
+        reproduce: Some(reproduce(a, flip)),
+    };
+    let pb = bar(expected_outputs, a.json);
+    let report = merge::run_with_vcd_on_mismatch(
+        &mut make,
+        &design.params,
+        &vectors,
+        &config,
+        Some(vcd_path(a, "merge")),
+        VCD_RADIUS,
+        &mut |outputs, cycle| {
+            pb.set_position(outputs);
+            pb.set_message(format!("cycle {cycle}"));
+        },
+    )
+    .map_err(|e| e.to_string())?;
+    pb.finish_and_clear();
+    // The level (transaction) of an input beat.
+    let level_of = |beat: u64| -> u64 {
+        let mut end = 0u64;
+        for (n, l) in levels.iter().enumerate() {
+            end += l.inputs.len() as u64;
+            if beat < end {
+                return n as u64;
+            }
+        }
+        levels.len() as u64
+    };
+    let passed = report.passed();
+    let mut first = report.first_mismatch.as_ref().map(|m| MismatchReport {
+        transaction: level_of(m.input_id),
+        kind: merge::STAGE.to_string(),
+        cycle: m.cycle,
+        seed: a.seed,
+        what: format!("output beat {} differs", m.output_index),
+        fields: m
+            .fields
+            .iter()
+            .map(|f| FieldReport {
+                name: f.name.clone(),
+                expected: f.expected.clone(),
+                got: f.got.clone(),
+                differs: f.differs(),
+            })
+            .collect(),
+    });
+    if first.is_none() && !passed {
+        first = Some(MismatchReport {
+            transaction: level_of(report.inputs_sent),
+            kind: merge::STAGE.to_string(),
+            cycle: report.hang.as_ref().map_or(report.cycles, |h| h.cycle),
+            seed: a.seed,
+            what: match &report.hang {
+                Some(h) => format!("no handshake for {} cycles", h.idle_cycles),
+                None => format!("outputs lost or duplicated: {}", report.accounting),
+            },
+            fields: Vec::new(),
+        });
+    }
+    Ok(Report {
+        unit: a.unit,
+        stage: merge::STAGE,
+        engine: a.engine.name(),
+        seed: a.seed,
+        stall: a.stall,
+        vectors: a.vectors.as_ref().map(|p| p.display().to_string()),
+        passed,
+        transactions: levels.len() as u64,
+        records: report.inputs_sent,
+        nodes: report.outputs_received,
+        mismatches: report.mismatches,
+        cycles: report.cycles,
+        records_per_cycle: report.inputs_per_cycle(),
+        nodes_per_cycle: report.outputs_received as f64 / report.cycles.max(1) as f64,
+        wall_seconds: report.wall.as_secs_f64(),
+        first_mismatch: first,
+        vcd: report.vcd.as_ref().map(|p| p.display().to_string()),
+        reproduce: (!passed).then(|| reproduce(a, flip)),
+    })
+}
+
+fn print_text(r: &Report) {
+    println!(
+        "{} ({}) on {}: {} transactions, {} records in, {} out, {} cycles ({:.3} records/cycle, {:.3} nodes/cycle), {} mismatches, {:.2} s",
+        r.unit_name(),
+        r.stage,
+        r.engine,
+        r.transactions,
+        r.records,
+        r.nodes,
+        r.cycles,
+        r.records_per_cycle,
+        r.nodes_per_cycle,
+        r.mismatches,
+        r.wall_seconds
+    );
+    if let Some(m) = &r.first_mismatch {
+        println!(
+            "MISMATCH: transaction {} ({}), cycle {}, seed {}: {}",
+            m.transaction, m.kind, m.cycle, m.seed, m.what
+        );
+        for f in &m.fields {
+            println!(
+                "  {}{}: expected {} got {}",
+                if f.differs { "*" } else { " " },
+                f.name,
+                f.expected,
+                f.got
+            );
+        }
+    }
+    if let Some(v) = &r.vcd {
+        println!("VCD: {v}");
+    }
+    if let Some(c) = &r.reproduce {
+        println!("reproduce: {c}");
+    }
+}
+
+impl Report {
+    fn unit_name(&self) -> &'static str {
+        match self.unit {
+            Unit::Translate => "translate",
+            Unit::Merge => "merge",
+        }
+    }
+}

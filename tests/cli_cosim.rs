@@ -1,0 +1,260 @@
+//! `hiermerge cosim`: passing runs on the IR simulator and Verilator report
+//! zero mismatches and their cycles; a vectors file for other parameters is
+//! refused naming them; a run broken through the test hook
+//! (`HIERMERGE_COSIM_FLIP_EXPECTED`) exits non-zero with the decoded fields,
+//! the reproduce command and a VCD. Under CI=true a missing Verilator fails.
+
+use std::process::{Command, Output};
+
+use golden::params::Params;
+use golden::translate::TranslateUnitConfig;
+use golden::vectors::translate::{write_translate_vectors, TranslateDesign};
+use serde_json::Value;
+
+fn hiermerge(args: &[&str], env: &[(&str, &str)]) -> Output {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_hiermerge"));
+    c.args(args).env_remove("HIERMERGE_COSIM_FLIP_EXPECTED");
+    for (k, v) in env {
+        c.env(k, v);
+    }
+    c.output().expect("hiermerge runs")
+}
+
+fn json_of(o: &Output) -> Value {
+    let text = String::from_utf8_lossy(&o.stdout);
+    serde_json::from_str(text.trim()).unwrap_or_else(|e| {
+        panic!(
+            "stdout is not one JSON object ({e}):\n{text}\nstderr:\n{}",
+            String::from_utf8_lossy(&o.stderr)
+        )
+    })
+}
+
+fn verilator_present() -> bool {
+    if cosim::tools::tool_available("verilator") {
+        return true;
+    }
+    if cosim::tools::ci_mode() {
+        panic!(
+            "CI=true and verilator missing: {}",
+            cosim::tools::INSTALL_HINT
+        );
+    }
+    eprintln!(
+        "SKIPPING: verilator missing; {}",
+        cosim::tools::INSTALL_HINT
+    );
+    false
+}
+
+/// A passing run: exit 0, every transaction, no mismatch, cycles at least
+/// one per input record (the units take at most one record per clock).
+fn assert_passes(o: &Output, transactions: u64) -> Value {
+    assert!(
+        o.status.success(),
+        "stderr:\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let r = json_of(o);
+    assert_eq!(r["passed"], true, "{r}");
+    assert_eq!(r["mismatches"], 0, "{r}");
+    assert_eq!(r["transactions"], transactions, "{r}");
+    let cycles = r["cycles"].as_u64().unwrap();
+    assert!(cycles >= r["records"].as_u64().unwrap(), "{r}");
+    assert!(r["wall_seconds"].as_f64().unwrap() > 0.0, "{r}");
+    r
+}
+
+#[test]
+fn translate_on_the_ir_simulator_passes() {
+    let o = hiermerge(
+        &[
+            "cosim",
+            "--unit",
+            "translate",
+            "--engine",
+            "ir",
+            "--seed",
+            "1",
+            "--count",
+            "2000",
+            "--json",
+        ],
+        &[],
+    );
+    let r = assert_passes(&o, 2000);
+    assert_eq!(r["records"], 2000);
+}
+
+#[test]
+fn translate_on_verilator_with_back_pressure_passes() {
+    if !verilator_present() {
+        return;
+    }
+    let o = hiermerge(
+        &[
+            "cosim",
+            "--unit",
+            "translate",
+            "--engine",
+            "verilator",
+            "--seed",
+            "1",
+            "--count",
+            "2000",
+            "--stall",
+            "0.5",
+            "--json",
+        ],
+        &[],
+    );
+    let r = assert_passes(&o, 2000);
+    // Half the cycles stall on each side: well under one record per clock.
+    assert!(r["records_per_cycle"].as_f64().unwrap() < 0.75, "{r}");
+}
+
+#[test]
+fn merge_level_on_verilator_with_back_pressure_passes() {
+    if !verilator_present() {
+        return;
+    }
+    let o = hiermerge(
+        &[
+            "cosim", "--unit", "merge", "--seed", "1", "--count", "2000", "--stall", "0.5",
+            "--json",
+        ],
+        &[],
+    );
+    let r = assert_passes(&o, 2000);
+    assert_eq!(r["stage"], "merge_level");
+    assert_eq!(r["engine"], "verilator");
+    assert!(r["nodes"].as_u64().unwrap() > 0, "{r}");
+}
+
+#[test]
+fn vectors_for_other_parameters_are_refused_naming_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("t.jsonl");
+    let params = Params::new(12, 8, 24, 4).unwrap();
+    let other = TranslateDesign {
+        unit: TranslateUnitConfig {
+            params,
+            table_depth: params.hier_capacity() as u32,
+        },
+        binary64: false,
+    };
+    write_translate_vectors(&path, &other, 3, 50).unwrap();
+    let o = hiermerge(
+        &[
+            "cosim",
+            "--unit",
+            "translate",
+            "--engine",
+            "ir",
+            "--vectors",
+            path.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("max_lod"), "{err}");
+    assert!(err.contains("other parameters"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    // The same file is accepted with the file's parameters.
+    let o = hiermerge(
+        &[
+            "cosim",
+            "--unit",
+            "translate",
+            "--engine",
+            "ir",
+            "--max-lod",
+            "12",
+            "--vectors",
+            path.to_str().unwrap(),
+            "--json",
+        ],
+        &[],
+    );
+    assert_passes(&o, 50);
+}
+
+/// A broken run: non-zero exit, the first differing transaction decoded by
+/// field name, its cycle and seed, the one command that reproduces it (which
+/// does), and a VCD of the cycles around it.
+fn check_broken(unit: &str, flip: &str, count: &str) {
+    let dir = tempfile::tempdir().unwrap();
+    let vcd_dir = dir.path().join("vcd");
+    let args = [
+        "cosim",
+        "--unit",
+        unit,
+        "--engine",
+        "ir",
+        "--seed",
+        "7",
+        "--count",
+        count,
+        "--stall",
+        "0.25",
+        "--vcd-dir",
+        vcd_dir.to_str().unwrap(),
+        "--json",
+    ];
+    let env = [("HIERMERGE_COSIM_FLIP_EXPECTED", flip)];
+    let o = hiermerge(&args, &env);
+    assert!(!o.status.success(), "a flipped bit must fail the run");
+    let r = json_of(&o);
+    assert_eq!(r["passed"], false);
+    assert!(r["mismatches"].as_u64().unwrap() >= 1);
+    let m = &r["first_mismatch"];
+    assert_eq!(
+        m["transaction"].as_u64().unwrap(),
+        flip.parse::<u64>().unwrap(),
+        "{m}"
+    );
+    assert_eq!(m["seed"], 7);
+    assert!(m["cycle"].as_u64().unwrap() > 0);
+    let fields = m["fields"].as_array().unwrap();
+    assert!(fields.len() > 1, "{m}");
+    let differing: Vec<&Value> = fields.iter().filter(|f| f["differs"] == true).collect();
+    assert_eq!(differing.len(), 1, "one flipped bit, one field: {m}");
+    assert_ne!(differing[0]["expected"], differing[0]["got"]);
+    assert!(!differing[0]["name"].as_str().unwrap().is_empty());
+    let rep = r["reproduce"].as_str().unwrap();
+    for part in [
+        format!("HIERMERGE_COSIM_FLIP_EXPECTED={flip} "),
+        format!("hiermerge cosim --unit {unit} --engine ir"),
+        "--seed 7".into(),
+        format!("--count {count}"),
+        "--stall 0.25".into(),
+    ] {
+        assert!(rep.contains(&part), "{part} in {rep}");
+    }
+    let vcd = std::path::PathBuf::from(r["vcd"].as_str().unwrap());
+    assert!(vcd.starts_with(&vcd_dir), "{}", vcd.display());
+    let text = std::fs::read_to_string(&vcd).unwrap();
+    assert!(text.contains("$enddefinitions"), "a VCD: {}", vcd.display());
+    assert!(text.contains('#'), "with time steps");
+    // The reproduce command, run as printed, fails the same way.
+    let words: Vec<&str> = rep.split_whitespace().collect();
+    assert_eq!(words[1], "hiermerge");
+    let mut again: Vec<&str> = words[2..].to_vec();
+    again.extend(["--vcd-dir", vcd_dir.to_str().unwrap(), "--json"]);
+    let o2 = hiermerge(&again, &env);
+    assert!(!o2.status.success());
+    assert_eq!(json_of(&o2)["first_mismatch"], r["first_mismatch"]);
+    // Without the hook the same run passes: the failure was the flipped bit.
+    assert!(hiermerge(&args, &[]).status.success());
+}
+
+#[test]
+fn a_broken_translate_run_is_caught_and_reported() {
+    check_broken("translate", "37", "300");
+}
+
+#[test]
+fn a_broken_merge_run_is_caught_and_reported() {
+    check_broken("merge", "4", "20");
+}

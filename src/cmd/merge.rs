@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use glam::{DVec3, Vec3};
+use glam::DVec3;
 use golden::build::{build, GridMap};
 use golden::merge::MergeMode;
 use golden::trace::{

@@ -10,9 +10,7 @@ use glam::{DVec3, Vec3};
 use golden::build::{build, GridMap};
 use golden::mesh::Mesh;
 use golden::scenes::shared_mesh_path;
-use golden::trace::{
-    brute_force_closest, closest_hit, random_rays, Hit, Instance, TraceScene, TraceStats,
-};
+use golden::trace::{brute_force_closest, closest_hit, Hit, Instance, TraceScene, TraceStats};
 use golden::world::World;
 use golden::Params;
 

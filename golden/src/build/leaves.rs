@@ -42,7 +42,7 @@ pub fn leaf_key_bits(p: &Params) -> u32 {
 /// the triangle's AABB: per axis `floor(min / e) ..= min(floor(max / e),
 /// 2^lod - 1)`. When there is one candidate, the triangle lies in it and its
 /// box there is its AABB. Otherwise a candidate is kept when
-/// [`triangle_overlaps_box`] and [`clip_triangle_to_box`] both find contact,
+/// [`triangle_overlaps_box`](crate::geom::overlap::triangle_overlaps_box) and [`clip_triangle_to_box`](crate::geom::clip::clip_triangle_to_box) both find contact,
 /// and its box is the clipped AABB. Either box is quantized outward.
 pub fn place_triangle(tri: &[DVec3; 3], prim: u32, p: &Params, out: &mut Vec<LeafEntry>) {
     place_triangle_with(tri, prim, p, out, &mut ClipScratch::new())

@@ -6,7 +6,7 @@
 //!    really intersects, its clipped box in each, quantized outward
 //!    ([`quantize`]): one entry per (triangle, voxel).
 //! 3. [`radix`]: one LSD radix sort of the entries by (LOD, Morton).
-//! 4. [`upper`]: one leaf per (LOD, voxel), then level by level one inner
+//! 4. `upper`: one leaf per (LOD, voxel), then level by level one inner
 //!    node per parent voxel, up to the top rule; laid out in store order.
 
 pub mod leaves;

@@ -893,7 +893,7 @@ impl UpperBeat {
 /// S616's grouping of one level as a stream transaction: `level` (records
 /// of one LOD `d >= 1`, in Morton order as the level lists of S616 hold
 /// them) in, one inner record per parent voxel out, computed by the golden
-/// [`crate::build::upper::group_by_parent`]: box = union of the children's
+/// `build::upper::group_by_parent`: box = union of the children's
 /// cells re-quantized into the parent, `first` = index of its first child
 /// in the level, `count` = its children. Both streams end with `End`.
 pub fn upper_transaction(level: &[NodeRecord], p: &Params) -> (Vec<UpperBeat>, Vec<UpperBeat>) {

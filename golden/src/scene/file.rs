@@ -1,5 +1,5 @@
 //! The scene file as written (JSON, SPEC.md section 12): plain serde types,
-//! every struct closed to unknown fields. [`super::validate`] turns a
+//! every struct closed to unknown fields. `super::validate` turns a
 //! [`SceneFile`] into a checked [`super::Scene`].
 
 use serde::{Deserialize, Serialize};

@@ -100,3 +100,64 @@ impl Shape {
         }
     }
 }
+
+/// The configuration flags of a generated unit, shared by `gen`, `vectors`
+/// and `cosim`: the grid, and each unit's own parameters.
+#[derive(clap::Args, Clone, Debug)]
+pub struct UnitOpts {
+    #[command(flatten)]
+    pub grid: GridOpts,
+    /// Translation unit: entries of the translation table (default: one per hierarchy id).
+    #[arg(long = "table-depth")]
+    pub table_depth: Option<u32>,
+    /// Translation unit: binary64 placements as well as binary32.
+    #[arg(long)]
+    pub binary64: bool,
+    /// Merging module: number of merged inputs.
+    #[arg(long, default_value_t = golden::vectors::merge::MergeDesign::default().inputs)]
+    pub inputs: usize,
+    /// Merging module: overlap threshold N/D.
+    #[arg(long, default_value = "1/2")]
+    pub threshold: String,
+}
+
+impl UnitOpts {
+    /// The translation unit these flags ask for, validated.
+    pub fn translate_design(&self) -> Result<golden::vectors::translate::TranslateDesign, String> {
+        let params = self.grid.params()?;
+        let design = golden::vectors::translate::TranslateDesign {
+            unit: golden::translate::TranslateUnitConfig {
+                params,
+                table_depth: self.table_depth.unwrap_or(params.hier_capacity() as u32),
+            },
+            binary64: self.binary64,
+        };
+        design
+            .validate()
+            .map_err(|e| format!("translation unit configuration: {e}"))?;
+        Ok(design)
+    }
+
+    /// The merging module these flags ask for, validated.
+    pub fn merge_design(&self) -> Result<golden::vectors::merge::MergeDesign, String> {
+        let params = self.grid.params()?;
+        let (num, den) = super::merge::parse_ratio(&self.threshold)?;
+        if num > den {
+            return Err(format!("--threshold {}: expected N <= D", self.threshold));
+        }
+        if self.inputs < 2 || self.inputs as u64 > params.hier_capacity() {
+            return Err(format!(
+                "--inputs {}: expected 2..={} (2^hier_bits)",
+                self.inputs,
+                params.hier_capacity()
+            ));
+        }
+        Ok(golden::vectors::merge::MergeDesign {
+            params,
+            inputs: self.inputs,
+            num,
+            den,
+            ..Default::default()
+        })
+    }
+}

@@ -15,13 +15,12 @@ use cosim::ir_engine::IrEngine;
 use cosim::units::translate::{self, Failure, RunConfig};
 use cosim::units::{check_stall, merge};
 use cosim::{open_engine, Design, Engine, EngineKind};
-use golden::translate::TranslateUnitConfig;
 use golden::vectors::merge::MergeDesign;
 use golden::vectors::translate::{generate, read_translate_vectors, TranslateDesign};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
-use super::common::GridOpts;
+use super::common::UnitOpts;
 use super::gen::Unit;
 use crate::report::{emit, CmdResult};
 
@@ -80,19 +79,7 @@ pub struct Args {
     #[arg(long = "vcd-dir", default_value = "out/cosim")]
     vcd_dir: PathBuf,
     #[command(flatten)]
-    grid: GridOpts,
-    /// Translation unit: entries of the translation table (default: one per hierarchy id).
-    #[arg(long = "table-depth")]
-    table_depth: Option<u32>,
-    /// Translation unit: binary64 placements as well as binary32.
-    #[arg(long)]
-    binary64: bool,
-    /// Merging module: number of merged inputs.
-    #[arg(long, default_value_t = MergeDesign::default().inputs)]
-    inputs: usize,
-    /// Merging module: overlap threshold N/D (part of a vectors file's header).
-    #[arg(long, default_value = "1/2")]
-    threshold: String,
+    design: UnitOpts,
     /// Print one JSON object on stdout.
     #[arg(long)]
     json: bool,
@@ -175,21 +162,26 @@ fn reproduce(a: &Args, flip: Option<usize>) -> String {
         }
     }
     s += &format!(" --stall {}", a.stall);
-    let g = &a.grid;
+    let g = &a.design.grid;
     s += &format!(
         " --max-lod {} --quant-bits {} --index-bits {} --hier-bits {}",
         g.max_lod, g.quant_bits, g.index_bits, g.hier_bits
     );
     match a.unit {
         Unit::Translate => {
-            if let Some(t) = a.table_depth {
+            if let Some(t) = a.design.table_depth {
                 s += &format!(" --table-depth {t}");
             }
-            if a.binary64 {
+            if a.design.binary64 {
                 s += " --binary64";
             }
         }
-        Unit::Merge => s += &format!(" --inputs {} --threshold {}", a.inputs, a.threshold),
+        Unit::Merge => {
+            s += &format!(
+                " --inputs {} --threshold {}",
+                a.design.inputs, a.design.threshold
+            )
+        }
     }
     s
 }
@@ -239,39 +231,10 @@ pub fn main(a: Args) -> CmdResult {
         return Err("--count 0: expected at least one transaction".into());
     }
     let flip = flip_expected()?;
-    let params = a.grid.params()?;
     let dir = tempfile::tempdir().map_err(|e| format!("temporary directory: {e}"))?;
     let report = match a.unit {
-        Unit::Translate => {
-            let design = TranslateDesign {
-                unit: TranslateUnitConfig {
-                    params,
-                    table_depth: a.table_depth.unwrap_or(params.hier_capacity() as u32),
-                },
-                binary64: a.binary64,
-            };
-            design
-                .validate()
-                .map_err(|e| format!("translation unit configuration: {e}"))?;
-            run_translate(&a, &design, flip, dir.path())?
-        }
-        Unit::Merge => {
-            let (num, den) = super::merge::parse_ratio(&a.threshold)?;
-            if num > den || den == 0 {
-                return Err(format!(
-                    "--threshold {}: expected N <= D, D >= 1",
-                    a.threshold
-                ));
-            }
-            let design = MergeDesign {
-                params,
-                inputs: a.inputs,
-                num,
-                den,
-                ..MergeDesign::default()
-            };
-            run_merge(&a, &design, flip, dir.path())?
-        }
+        Unit::Translate => run_translate(&a, &a.design.translate_design()?, flip, dir.path())?,
+        Unit::Merge => run_merge(&a, &a.design.merge_design()?, flip, dir.path())?,
     };
     let passed = report.passed;
     let summary = report.first_mismatch.as_ref().map(|m| {

@@ -3,12 +3,10 @@
 
 use std::path::{Path, PathBuf};
 
-use golden::translate::TranslateUnitConfig;
-use golden::vectors::translate::TranslateDesign;
 use rtl_gen::merge::{emit_merge, MergeConfig};
 use serde::Serialize;
 
-use super::common::GridOpts;
+use super::common::UnitOpts;
 use crate::report::{emit, CmdResult};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
@@ -30,19 +28,7 @@ pub struct Args {
     #[arg(long)]
     out: PathBuf,
     #[command(flatten)]
-    grid: GridOpts,
-    /// Translation unit: entries of the translation table (default: one per hierarchy id).
-    #[arg(long = "table-depth")]
-    table_depth: Option<u32>,
-    /// Translation unit: accept binary64 placements as well as binary32.
-    #[arg(long)]
-    binary64: bool,
-    /// Merging module: number of merged inputs.
-    #[arg(long, default_value_t = MergeConfig::default().inputs)]
-    inputs: usize,
-    /// Merging module: overlap threshold N/D.
-    #[arg(long, default_value = "1/2")]
-    threshold: String,
+    design: UnitOpts,
     /// Print one JSON object on stdout.
     #[arg(long)]
     json: bool,
@@ -66,38 +52,12 @@ pub fn main(a: Args) -> CmdResult {
     let files = if a.defaults {
         emit_defaults(&a.out)?
     } else {
-        let params = a.grid.params()?;
         match a.unit {
             Some(Unit::Translate) => {
-                let design = TranslateDesign {
-                    unit: TranslateUnitConfig {
-                        params,
-                        table_depth: a.table_depth.unwrap_or(params.hier_capacity() as u32),
-                    },
-                    binary64: a.binary64,
-                };
-                rtl_gen::translate::emit(&design, &a.out)?
+                rtl_gen::translate::emit(&a.design.translate_design()?, &a.out)?
             }
             Some(Unit::Merge) => {
-                let (num, den) = super::merge::parse_ratio(&a.threshold)?;
-                if num > den {
-                    return Err(format!("--threshold {}: expected N <= D", a.threshold));
-                }
-                if a.inputs < 2 || a.inputs as u64 > params.hier_capacity() {
-                    return Err(format!(
-                        "--inputs {}: expected 2..={} (2^hier_bits)",
-                        a.inputs,
-                        params.hier_capacity()
-                    ));
-                }
-                let c = MergeConfig {
-                    params,
-                    inputs: a.inputs,
-                    num,
-                    den,
-                    ..MergeConfig::default()
-                };
-                emit_merge(&c, &a.out).map_err(|e| e.to_string())?
+                emit_merge(&a.design.merge_design()?, &a.out).map_err(|e| e.to_string())?
             }
             None => return Err("expected --unit translate|merge, or --defaults".into()),
         }

@@ -4,12 +4,11 @@
 
 use std::path::PathBuf;
 
-use golden::translate::TranslateUnitConfig;
-use golden::vectors::merge::{write_merge_vectors, MergeDesign};
-use golden::vectors::translate::{write_translate_vectors, TranslateDesign};
+use golden::vectors::merge::write_merge_vectors;
+use golden::vectors::translate::write_translate_vectors;
 use serde::Serialize;
 
-use super::common::GridOpts;
+use super::common::UnitOpts;
 use super::gen::Unit;
 use crate::report::{emit, CmdResult};
 
@@ -26,19 +25,7 @@ pub struct Args {
     #[arg(long)]
     out: PathBuf,
     #[command(flatten)]
-    grid: GridOpts,
-    /// Translation unit: entries of the translation table (default: one per hierarchy id).
-    #[arg(long = "table-depth")]
-    table_depth: Option<u32>,
-    /// Translation unit: binary64 placements as well as binary32.
-    #[arg(long)]
-    binary64: bool,
-    /// Merging module: number of merged inputs.
-    #[arg(long, default_value_t = MergeDesign::default().inputs)]
-    inputs: usize,
-    /// Merging module: overlap threshold N/D.
-    #[arg(long, default_value = "1/2")]
-    threshold: String,
+    design: UnitOpts,
     /// Print one JSON object on stdout.
     #[arg(long)]
     json: bool,
@@ -54,35 +41,15 @@ struct Report {
 }
 
 pub fn main(a: Args) -> CmdResult {
-    let params = a.grid.params()?;
     match a.unit {
         Unit::Translate => {
-            let design = TranslateDesign {
-                unit: TranslateUnitConfig {
-                    params,
-                    table_depth: a.table_depth.unwrap_or(params.hier_capacity() as u32),
-                },
-                binary64: a.binary64,
-            };
-            design
-                .validate()
-                .map_err(|e| format!("translation unit configuration: {e}"))?;
+            let design = a.design.translate_design()?;
             let count = usize::try_from(a.count)
                 .map_err(|_| format!("--count {} is too large", a.count))?;
             write_translate_vectors(&a.out, &design, a.seed, count).map_err(|e| e.to_string())?;
         }
         Unit::Merge => {
-            let (num, den) = super::merge::parse_ratio(&a.threshold)?;
-            if num > den {
-                return Err(format!("--threshold {}: expected N <= D", a.threshold));
-            }
-            let design = MergeDesign {
-                params,
-                inputs: a.inputs,
-                num,
-                den,
-                ..MergeDesign::default()
-            };
+            let design = a.design.merge_design()?;
             write_merge_vectors(&a.out, &design, a.seed, a.count).map_err(|e| e.to_string())?;
         }
     }

@@ -22,35 +22,11 @@ pub use upper::{upper_level_name, upper_level_unit};
 use std::path::{Path, PathBuf};
 
 use crate::{write_design, DesignError, Module};
-use golden::params::Params;
 
-/// The merging module's configuration: grid parameters, number of inputs
-/// and the overlap threshold `num / den` (golden's `MergeMode::Overlap`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct MergeConfig {
-    /// Grid and record parameters.
-    pub params: Params,
-    /// Number of merged inputs `k` (the width of an input rank).
-    pub inputs: usize,
-    /// Overlap threshold numerator.
-    pub num: u32,
-    /// Overlap threshold denominator (`>= 1`, `>= num`).
-    pub den: u32,
-    /// Root sorter capacity: most roots of one input (16 for builder-made inputs).
-    pub roots: usize,
-}
-
-impl Default for MergeConfig {
-    fn default() -> Self {
-        MergeConfig {
-            params: Params::default(),
-            inputs: 4,
-            num: 1,
-            den: 2,
-            roots: 16,
-        }
-    }
-}
+/// The merging module's configuration (grid parameters, inputs, overlap
+/// threshold, root-sorter capacity) is golden's [`MergeDesign`]: the one
+/// definition the vectors, the generators and the harness share.
+pub use golden::vectors::merge::MergeDesign as MergeConfig;
 
 /// Every merging-module stage for `c`, top modules in a fixed order.
 pub fn merge_units(c: &MergeConfig) -> Vec<Module> {

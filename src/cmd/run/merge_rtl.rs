@@ -8,7 +8,7 @@
 //! no single merging level: the stages are not run, and the run says so.
 
 use cosim::from_rtl::design_from_module;
-use cosim::tb::{run_stream_bench, BenchConfig, StreamNames, Vector};
+use cosim::tb::{run_stream_bench, BenchConfig, Vector};
 use cosim::{open_engine, BitVec, Engine, EngineKind};
 use golden::layout::Bits;
 use golden::merge::level::candidate_range;
@@ -41,17 +41,6 @@ pub struct MergeRtl {
     level: Option<Box<dyn Engine>>,
     overlap: Option<(usize, Box<dyn Engine>)>,
     upper: Option<Box<dyn Engine>>,
-}
-
-fn names() -> StreamNames {
-    StreamNames {
-        in_valid: "in_valid".into(),
-        in_ready: "in_ready".into(),
-        in_payload: vec!["in_data".into()],
-        out_valid: "out_valid".into(),
-        out_ready: "out_ready".into(),
-        out_payload: vec!["out_data".into()],
-    }
 }
 
 fn bitvec(b: &Bits) -> Result<BitVec, String> {
@@ -235,8 +224,15 @@ fn bench(
         ..BenchConfig::default()
     };
     let before = engine.cycle();
-    let r = run_stream_bench(&mut *engine, &names(), v, None, &config, None)
-        .map_err(|e| format!("merge RTL {stage}: {e}"))?;
+    let r = run_stream_bench(
+        &mut *engine,
+        &cosim::units::merge::stream_names(),
+        v,
+        None,
+        &config,
+        None,
+    )
+    .map_err(|e| format!("merge RTL {stage}: {e}"))?;
     out.stages.push(stage.to_string());
     out.beats_in += r.inputs_sent;
     // The engine is reused across frames: count this run's edges only.

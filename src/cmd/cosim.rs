@@ -124,6 +124,8 @@ struct Report {
     records_per_cycle: f64,
     nodes_per_cycle: f64,
     wall_seconds: f64,
+    /// Simulation speed of the engine under the testbench: cycles / wall_seconds.
+    cycles_per_second: f64,
     first_mismatch: Option<MismatchReport>,
     vcd: Option<String>,
     reproduce: Option<String>,
@@ -311,6 +313,7 @@ fn run_translate(
         records_per_cycle: 0.0,
         nodes_per_cycle: 0.0,
         wall_seconds: 0.0,
+        cycles_per_second: 0.0,
         first_mismatch: None,
         vcd: None,
         reproduce: None,
@@ -321,6 +324,7 @@ fn run_translate(
             r.records_per_cycle = o.records_per_cycle();
             r.nodes_per_cycle = o.records_per_cycle();
             r.wall_seconds = o.wall.as_secs_f64();
+            r.cycles_per_second = crate::report::per_second(r.cycles as f64, r.wall_seconds);
         }
         Err(Failure::Engine(e)) => return Err(e.to_string()),
         Err(Failure::Mismatch(m)) => {
@@ -448,6 +452,10 @@ fn run_merge(
         records_per_cycle: report.inputs_per_cycle(),
         nodes_per_cycle: report.outputs_received as f64 / report.cycles.max(1) as f64,
         wall_seconds: report.wall.as_secs_f64(),
+        cycles_per_second: crate::report::per_second(
+            report.cycles as f64,
+            report.wall.as_secs_f64(),
+        ),
         first_mismatch: first,
         vcd: report.vcd.as_ref().map(|p| p.display().to_string()),
         reproduce: (!passed).then(|| reproduce(a, flip)),

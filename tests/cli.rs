@@ -180,6 +180,16 @@ fn bad_input_is_one_clear_error() {
     let e = fails(&["build", bad.to_str().unwrap()]);
     assert!(e.contains("bad.obj") && e.contains("line 3"), "{e}");
 
+    let empty = dir.path().join("empty.obj");
+    std::fs::write(&empty, "# no faces\nv 0 0 0\n").unwrap();
+    for cmd in ["build", "trace", "merge"] {
+        let e = fails(&[cmd, empty.to_str().unwrap()]);
+        assert!(
+            e.contains("empty.obj") && e.contains("no triangles"),
+            "{cmd}: {e}"
+        );
+    }
+
     let e = fails(&["build", "/no/such/mesh.obj"]);
     assert!(e.contains("/no/such/mesh.obj"), "{e}");
 

@@ -37,9 +37,16 @@ impl GridOpts {
     }
 }
 
-/// Loads a mesh, with the file named in any error.
+/// Loads a mesh, with the file named in any error; a mesh needs a triangle.
 pub fn load_mesh(path: &Path) -> Result<Mesh, String> {
-    Mesh::load(path).map_err(|e| e.to_string())
+    let mesh = Mesh::load(path).map_err(|e| e.to_string())?;
+    if mesh.triangles.is_empty() {
+        return Err(format!(
+            "{}: the mesh has no triangles: expected at least one face",
+            path.display()
+        ));
+    }
+    Ok(mesh)
 }
 
 /// A hierarchy built over one mesh, with the grid map that placed it.

@@ -24,7 +24,7 @@ use std::path::{Path, PathBuf};
 use crate::{write_design, DesignError, Module};
 
 /// The merging module's configuration (grid parameters, inputs, overlap
-/// threshold, root-sorter capacity) is golden's [`MergeDesign`]: the one
+/// threshold, root-sorter capacity) is golden's [`MergeDesign`](golden::vectors::merge::MergeDesign): the one
 /// definition the vectors, the generators and the harness share.
 pub use golden::vectors::merge::MergeDesign as MergeConfig;
 

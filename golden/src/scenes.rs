@@ -12,6 +12,17 @@ use std::path::PathBuf;
 use crate::mesh::Mesh;
 
 /// splitmix64 (Steele, Lea, Flood 2014): a tiny, well-mixed 64-bit PRNG.
+/// One step of SplitMix64 (Steele, Lea, Flood 2014): the one definition of
+/// the generator behind every seeded stream in the project (scenes, vectors,
+/// cosim stall patterns), so a seed means the same numbers everywhere.
+pub fn splitmix64_next(state: &mut u64) -> u64 {
+    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    let mut z = *state;
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
 #[derive(Clone, Debug)]
 pub struct SplitMix64 {
     state: u64,
@@ -23,11 +34,7 @@ impl SplitMix64 {
     }
 
     pub fn next_u64(&mut self) -> u64 {
-        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        splitmix64_next(&mut self.state)
     }
 
     /// Uniform in `[0, 1)` with 53 random bits.

@@ -229,10 +229,16 @@ impl IcarusEngine {
 }
 
 fn compile(design: &Design, tb: &Path, out: &Path) -> Result<()> {
+    compile_top(design, tb, out, TB_MODULE)
+}
+
+/// `iverilog -g2005 -s <top>` of the testbench `tb` and the design's files
+/// into `out`; a port-width warning is a `PortMismatch`.
+pub(crate) fn compile_top(design: &Design, tb: &Path, out: &Path, top: &str) -> Result<()> {
     let mut cmd = Command::new("iverilog");
     cmd.arg("-g2005")
         .arg("-s")
-        .arg(TB_MODULE)
+        .arg(top)
         .arg("-o")
         .arg(out)
         .arg(tb)

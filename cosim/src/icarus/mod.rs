@@ -1,6 +1,12 @@
-//! The Icarus Verilog engine: generated testbench, pipe protocol, X/Z checks.
+//! The Icarus Verilog engine: generated testbench, pipe protocol, X/Z checks;
+//! and the batch mode, a whole stream bench inside one `vvp` run.
 
+pub mod batch;
+pub mod batch_testbench;
+#[cfg(test)]
+mod batch_tests;
 pub mod engine;
 pub mod testbench;
 
+pub use batch::{BatchReport, BatchSpec, IcarusBatch, LaneVector, WatchLog};
 pub use engine::IcarusEngine;

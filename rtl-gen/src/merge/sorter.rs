@@ -1,23 +1,25 @@
-//! The root sorter (SPEC.md section 8, "Merging module RTL"; patent
-//! paragraph 107's Morton code sorter, bounded): the roots of one input,
-//! translated, in stored order, then `End`; out, the same beats in
-//! (translated Morton code, inner before leaf) order, stable, then `End`.
-//! Sorting the roots is enough (`golden::merge::unit::root_sort_transaction`
-//! says why): below the top a translation keeps every child's octant.
+//! The root sorter (SPEC.md section 8.9, "Root sorter"; patent paragraph
+//! 107's Morton code sorter, bounded): the roots of one input, translated,
+//! in stored order, then `End`; out, the same beats in (translated Morton
+//! code, inner before leaf) order, stable, then `End`. Sorting the roots is
+//! enough (`golden::merge::unit::root_sort_transaction` says why): below the
+//! top a translation keeps every child's octant.
 //!
-//! An insertion array of `capacity` entries takes one beat per clock: every
-//! entry compares its key with the new one in parallel, entries with a
-//! greater key shift up by one, the new beat lands in the gap (equal keys
-//! stay in arrival order). `End` copies the array in one clock into the
-//! output bank, or into a second, waiting bank while the output bank still
-//! drains; the output bank drains one beat per clock (then `End`, with `err`
-//! set if a root beyond the capacity was dropped) while the next input fills
-//! the array. Skid buffers register both streams' handshakes.
+//! One shift-register queue of `capacity + 1` entries holds output beats:
+//! the sets already complete (each ending in its `End` beat) at the head,
+//! then the set still arriving (its entries marked *open*), kept sorted.
+//! Each clock the head leaves when its set is complete, and one input beat
+//! is inserted: a root at its place among the open entries (every open
+//! entry compares its key with the new one in parallel, stable), an `End`
+//! after them, closing the set. Both happen in the same clock, so the space
+//! the output frees is the space the input needs: with no back-pressure the
+//! queue never holds more than `capacity + 1` entries and the input never
+//! waits (SPEC.md 8.9 proves it). Skid buffers register both handshakes.
 
 use golden::merge::unit::{level_kind, BeatLayout};
-use golden::params::Params;
+use golden::params::{bits_to_hold, Params};
 
-use super::fields::field;
+use super::fields::{field, with_fields};
 use crate::{Module, Signal, Stream};
 
 /// Module name of the root sorter.
@@ -44,92 +46,143 @@ fn sort_key<'m>(m: &'m Module, beat: Signal<'m>, l: &BeatLayout) -> Signal<'m> {
     m.concat(&high_first)
 }
 
-/// The root sorter for `p` with room for `capacity >= 1` roots: stream `in`
-/// of [`BeatLayout::input`] beats (kinds INNER, LEAF, END), stream `out` of
-/// [`BeatLayout::output`] beats (same kinds; `err` on END).
+/// One queue entry: an output beat, whether the entry holds one, and whether
+/// that beat belongs to the set still arriving (sorted, not yet sent).
+#[derive(Clone, Copy)]
+struct Entry<'m> {
+    beat: Signal<'m>,
+    valid: Signal<'m>,
+    open: Signal<'m>,
+}
+
+impl<'m> Entry<'m> {
+    fn reg(m: &'m Module, i: usize, width: u32) -> Entry<'m> {
+        Entry {
+            beat: m.reg(&format!("e{i}_beat"), width),
+            valid: m.reg(&format!("e{i}_valid"), 1),
+            open: m.reg(&format!("e{i}_open"), 1),
+        }
+    }
+
+    /// `a` when `cond`, else `b`.
+    fn mux(cond: Signal<'m>, a: Entry<'m>, b: Entry<'m>) -> Entry<'m> {
+        Entry {
+            beat: cond.mux(a.beat, b.beat),
+            valid: cond.mux(a.valid, b.valid),
+            open: cond.mux(a.open, b.open),
+        }
+    }
+}
+
+/// The output beat stored for an input beat: a root as it came with `err`
+/// 0; an `End` as a bare `End` beat carrying the set's overflow flag.
+fn output_beat<'m>(
+    m: &'m Module,
+    beat: Signal<'m>,
+    is_end: Signal<'m>,
+    overflow: Signal<'m>,
+    lo: &BeatLayout,
+) -> Signal<'m> {
+    let err = lo.err.expect("output beats have err");
+    let root = m.concat(&[m.lit(0, 1), beat]);
+    let end = with_fields(
+        m,
+        m.lit(0, lo.width),
+        &[
+            (lo.kind, m.lit(level_kind::END as u128, lo.kind.width)),
+            (err, overflow),
+        ],
+    );
+    is_end.mux(end, root)
+}
+
+/// The root sorter for `p` with room for `capacity >= 1` roots per set:
+/// stream `in` of [`BeatLayout::input`] beats (kinds INNER, LEAF, END),
+/// stream `out` of [`BeatLayout::output`] beats (same kinds; `err` on END).
 pub fn root_sorter_unit(p: &Params, capacity: usize) -> Module {
     let m = Module::new(&root_sorter_name(p, capacity));
-    let li = BeatLayout::input(p);
-    let w = li.width;
+    let (li, lo) = (BeatLayout::input(p), BeatLayout::output(p));
     let n = capacity.max(1);
-    let input = Stream::input(&m, "in", w).skid_buffer("in_skid");
+    // Room for a full set and its `End`: the least that cannot deadlock,
+    // and enough for one beat per clock (SPEC.md 8.9).
+    let depth = n + 1;
+    let input = Stream::input(&m, "in", li.width).skid_buffer("in_skid");
     let out_ready = m.wire("core_out_ready", 1);
     let kind = field(input.data, &li.kind).expect("kind").name("in_kind");
     let is_end = kind.eq(level_kind::END).name("in_is_end");
     let new_key = sort_key(&m, input.data, &li).name("new_key");
 
-    let e: Vec<Signal> = (0..n).map(|i| m.reg(&format!("e{i}"), w)).collect();
-    let v: Vec<Signal> = (0..n).map(|i| m.reg(&format!("v{i}"), 1)).collect();
-    let ovf = m.reg("ovf", 1);
-    let o: Vec<Signal> = (0..n).map(|i| m.reg(&format!("o{i}"), w)).collect();
-    let ov: Vec<Signal> = (0..n).map(|i| m.reg(&format!("ov{i}"), 1)).collect();
-    let o_end = m.reg("o_end", 1);
-    let o_err = m.reg("o_err", 1);
-    // A second, waiting bank: a sorted set whose turn comes after `o`'s.
-    let q: Vec<Signal> = (0..n).map(|i| m.reg(&format!("q{i}"), w)).collect();
-    let qv: Vec<Signal> = (0..n).map(|i| m.reg(&format!("qv{i}"), 1)).collect();
-    let q_full = m.reg("q_full", 1);
-    let q_err = m.reg("q_err", 1);
+    let q: Vec<Entry> = (0..depth).map(|i| Entry::reg(&m, i, lo.width)).collect();
+    // Roots of the arriving set taken so far (at most `n`), and whether one
+    // beyond `n` was dropped.
+    let count_bits = bits_to_hold(n as u64);
+    let taken = m.reg("set_taken", count_bits);
+    let overflow = m.reg("set_overflow", 1);
 
-    // The output bank drains from entry 0, then gives its END.
-    let out_valid = ov[0] | o_end;
-    let out_fire = (out_valid & out_ready).name("out_fire");
-    // `o` is free after this edge when empty or when its END is taken now.
-    let o_free = (!out_valid | (out_fire & !ov[0])).name("o_free");
-    let bank_free = (!q_full | o_free).name("bank_free");
-    input.ready.drive(!is_end | bank_free);
-    let fire = (input.valid & (!is_end | bank_free)).name("in_fire");
-    let insert = (fire & !is_end).name("insert");
-    let flush = (fire & is_end).name("flush");
-    let full = v[n - 1];
+    // The head leaves once its set is complete (its `End` is in the queue).
+    let head_done = (q[0].valid & !q[0].open).name("head_done");
+    let pop = (head_done & out_ready).name("pop");
+    let set_full = taken.eq(n as u64).name("set_full");
+    let needs_entry = (is_end | !set_full).name("needs_entry");
+    let has_room = (!q[depth - 1].valid | pop).name("has_room");
+    input.ready.drive(!needs_entry | has_room);
+    let fire = (input.valid & (!needs_entry | has_room)).name("in_fire");
+    let insert = (fire & needs_entry).name("insert");
+    let close = (fire & is_end).name("close");
+    let take_root = (insert & !is_end).name("take_root");
+    let drop_root = (fire & !needs_entry).name("drop_root");
 
-    // Position mask: entry i moves up when it is empty or its key is greater.
-    let gt: Vec<Signal> = (0..n)
-        .map(|i| (!v[i] | sort_key(&m, e[i], &li).gt(new_key)).name(&format!("gt{i}")))
+    // Entry i moves up by one when the new beat belongs below it: it is
+    // empty, or open with a greater key (equal keys stay in arrival order,
+    // an `End` goes after every open entry). Complete sets are never
+    // greater, so the mask is a suffix of the queue.
+    let moves_up: Vec<Signal> = (0..depth)
+        .map(|i| {
+            let greater = q[i].open & !is_end & sort_key(&m, q[i].beat, &lo).gt(new_key);
+            (insert & (!q[i].valid | greater)).name(&format!("e{i}_moves_up"))
+        })
         .collect();
-    let lit0 = m.lit(0, 1);
-    for i in 0..n {
-        let shifted = if i == 0 {
-            input.data
-        } else {
-            gt[i - 1].mux(e[i - 1], input.data)
-        };
-        let placed = gt[i].mux(shifted, e[i]);
-        e[i].next_when(insert & !full, placed);
-        let grown = if i == 0 { m.lit(1, 1) } else { v[i - 1] | v[i] };
-        v[i].next(flush.mux(lit0, (insert & !full).mux(grown, v[i])));
+    let new_entry = Entry {
+        beat: output_beat(&m, input.data, is_end, overflow, &lo).name("new_beat"),
+        valid: m.lit(1, 1),
+        open: !is_end,
+    };
+    // The queue after the insertion, one entry longer (the last one only
+    // filled when the head leaves in the same clock), then shifted down by
+    // one when the head leaves.
+    let inserted: Vec<Entry> = (0..=depth)
+        .map(|i| {
+            let here = q.get(i).copied().unwrap_or(Entry {
+                beat: m.lit(0, lo.width),
+                valid: m.lit(0, 1),
+                open: m.lit(0, 1),
+            });
+            let moves = moves_up.get(i).copied().unwrap_or(insert);
+            let from_below = if i == 0 {
+                new_entry
+            } else {
+                Entry::mux(moves_up[i - 1], q[i - 1], new_entry)
+            };
+            Entry::mux(moves, from_below, here)
+        })
+        .collect();
+    for (i, e) in q.iter().enumerate() {
+        let next = Entry::mux(pop, inserted[i + 1], inserted[i]);
+        e.beat.next(next.beat);
+        e.valid.next(next.valid);
+        // An `End` closes the set: every entry becomes sendable.
+        e.open.next(!close & next.open);
     }
-    ovf.next(flush.mux(lit0, ovf | (insert & full)));
+    taken.next(close.mux(
+        m.lit(0, count_bits),
+        take_root.mux(taken.add(1, count_bits), taken),
+    ));
+    overflow.next(close.mux(m.lit(0, 1), overflow | drop_root));
 
-    // Bank moves at the edge: `o` takes `q` (or the flushed array when `q`
-    // is empty) once free; otherwise it shifts as it drains and `q` takes
-    // the flushed array.
-    let o_from_q = (o_free & q_full).name("o_from_q");
-    let o_from_e = (o_free & !q_full & flush).name("o_from_e");
-    let q_from_e = (flush & !o_from_e).name("q_from_e");
-    let shift = (out_fire & ov[0]).name("o_shift");
-    for i in 0..n {
-        let next_o = if i + 1 < n { o[i + 1] } else { m.lit(0, w) };
-        let next_ov = if i + 1 < n { ov[i + 1] } else { lit0 };
-        o[i].next(o_from_q.mux(q[i], o_from_e.mux(e[i], shift.mux(next_o, o[i]))));
-        ov[i].next(o_from_q.mux(qv[i], o_from_e.mux(v[i], shift.mux(next_ov, ov[i]))));
-        q[i].next_when(q_from_e, e[i]);
-        qv[i].next_when(q_from_e, v[i]);
-    }
-    let loaded = o_from_q | o_from_e;
-    o_end.next(loaded.mux(m.lit(1, 1), (out_fire & !ov[0]).mux(lit0, o_end)));
-    o_err.next(o_from_q.mux(q_err, o_from_e.mux(ovf, o_err)));
-    q_full.next(q_from_e.mux(m.lit(1, 1), o_from_q.mux(lit0, q_full)));
-    q_err.next_when(q_from_e, ovf);
-
-    let end_beat = m.concat(&[o_err, m.lit(level_kind::END as u128, 2), m.lit(0, w - 2)]);
-    let data = ov[0]
-        .mux(m.concat(&[lit0, o[0]]), end_beat)
-        .name("core_out_data");
     let out = Stream {
-        valid: out_valid.name("core_out_valid"),
+        valid: head_done.name("core_out_valid"),
         ready: out_ready,
-        data,
+        data: q[0].beat.name("core_out_data"),
     };
     out.skid_buffer("out_skid").output("out");
     m

@@ -306,10 +306,20 @@ fn gen_emits_a_configuration() {
         "gen",
         "--unit",
         "merge",
-        "--threshold",
-        "3/2",
+        "--mode",
+        "overlap:3/2",
         "--out",
         dir.path().to_str().unwrap(),
     ]);
-    assert!(e.contains("threshold"), "{e}");
+    assert!(e.contains("overlap:3/2") && e.contains("N <= D"), "{e}");
+    let e = fails(&[
+        "gen",
+        "--unit",
+        "merge",
+        "--mode",
+        "per-node",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(e.contains("per-node merging is not built"), "{e}");
 }

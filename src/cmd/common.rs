@@ -123,9 +123,10 @@ pub struct UnitOpts {
     /// Merging module: number of merged inputs.
     #[arg(long, default_value_t = golden::vectors::merge::MergeDesign::default().inputs)]
     pub inputs: usize,
-    /// Merging module: overlap threshold N/D.
-    #[arg(long, default_value = "1/2")]
-    pub threshold: String,
+    /// Merging module: how it chooses the merging level, the one mode it builds:
+    /// overlap[:N/D] (default 1/2), fixed:L, below-top:K or proportion:N/D.
+    #[arg(long, default_value = "overlap:1/2")]
+    pub mode: String,
 }
 
 impl UnitOpts {
@@ -148,23 +149,15 @@ impl UnitOpts {
     /// The merging module these flags ask for, validated.
     pub fn merge_design(&self) -> Result<golden::vectors::merge::MergeDesign, String> {
         let params = self.grid.params()?;
-        let (num, den) = super::merge::parse_ratio(&self.threshold)?;
-        if num > den {
-            return Err(format!("--threshold {}: expected N <= D", self.threshold));
-        }
-        if self.inputs < 2 || self.inputs as u64 > params.hier_capacity() {
-            return Err(format!(
-                "--inputs {}: expected 2..={} (2^hier_bits)",
-                self.inputs,
-                params.hier_capacity()
-            ));
-        }
-        Ok(golden::vectors::merge::MergeDesign {
+        let design = golden::vectors::merge::MergeDesign {
             params,
             inputs: self.inputs,
-            num,
-            den,
+            mode: super::merge::parse_mode(&self.mode).map_err(|e| format!("--mode {e}"))?,
             ..Default::default()
-        })
+        };
+        design
+            .validate()
+            .map_err(|e| format!("merging module configuration: {e}"))?;
+        Ok(design)
     }
 }

@@ -178,12 +178,7 @@ fn reproduce(a: &Args, flip: Option<usize>) -> String {
                 s += " --binary64";
             }
         }
-        Unit::Merge => {
-            s += &format!(
-                " --inputs {} --threshold {}",
-                a.design.inputs, a.design.threshold
-            )
-        }
+        Unit::Merge => s += &format!(" --inputs {} --mode {}", a.design.inputs, a.design.mode),
     }
     s
 }

@@ -4,6 +4,7 @@ pub mod accounting;
 pub mod bench;
 pub mod driver;
 pub mod monitor;
+pub mod multi;
 pub mod prng;
 pub mod scoreboard;
 pub mod stream;
@@ -17,6 +18,7 @@ pub use bench::{
 };
 pub use driver::StreamDriver;
 pub use monitor::StreamMonitor;
+pub use multi::{run_multi_stream_bench, MultiReport, StreamBeats};
 pub use prng::Prng;
 pub use scoreboard::{FieldDecoder, FieldDiff, Mismatch, Scoreboard};
 pub use stream::{StreamPorts, Transaction};

@@ -65,6 +65,9 @@ pub enum MergeError {
     },
     /// Storing the merged hierarchy failed (S618).
     Store(StoreError),
+    /// Asked of the merging module's hardware, which does not build it
+    /// (e.g. per-node merging).
+    Unsupported { what: &'static str },
 }
 
 impl fmt::Display for MergeError {
@@ -134,6 +137,7 @@ impl fmt::Display for MergeError {
                 "merge: {what} = {value} does not fit in I = {index_bits} index bits"
             ),
             Store(e) => write!(f, "merge: S618 storing the merged hierarchy: {e}"),
+            Unsupported { what } => write!(f, "merge: {what}"),
         }
     }
 }

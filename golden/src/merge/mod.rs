@@ -24,6 +24,7 @@ pub mod instances;
 pub mod level;
 pub mod level_merge;
 pub mod per_node;
+pub mod top;
 pub mod unit;
 pub mod upper;
 pub mod view;
@@ -58,6 +59,20 @@ pub enum MergeMode {
     /// No single level: the merged sub-hierarchies' roots are chosen per
     /// node by the overlap of their children (55, [`per_node`]).
     PerNode { num: u32, den: u32 },
+}
+
+impl std::fmt::Display for MergeMode {
+    /// The command line's spelling: `overlap:1/2`, `fixed:5`, `below-top:2`,
+    /// `proportion:1/2`, `per-node:1/2`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            MergeMode::Overlap { num, den } => write!(f, "overlap:{num}/{den}"),
+            MergeMode::Fixed(l) => write!(f, "fixed:{l}"),
+            MergeMode::BelowTop(k) => write!(f, "below-top:{k}"),
+            MergeMode::Proportion { num, den } => write!(f, "proportion:{num}/{den}"),
+            MergeMode::PerNode { num, den } => write!(f, "per-node:{num}/{den}"),
+        }
+    }
 }
 
 impl Default for MergeMode {

@@ -574,6 +574,17 @@ pub fn random_level_case(rng: &mut SplitMix64, p: &Params, k: usize, voxels: usi
         1 => p.max_lod,
         _ => rng.below(p.max_lod as u64 + 1) as u8,
     };
+    random_level_case_at(rng, p, k, voxels, lod)
+}
+
+/// [`random_level_case`] at a given LOD (`lod <= D`).
+pub fn random_level_case_at(
+    rng: &mut SplitMix64,
+    p: &Params,
+    k: usize,
+    voxels: usize,
+    lod: u8,
+) -> LevelCase {
     let possible = 1u64.checked_shl(3 * lod as u32).unwrap_or(u64::MAX);
     let want = (voxels as u64).min(possible) as usize;
     let mut set = BTreeSet::new();

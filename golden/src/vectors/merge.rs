@@ -2,7 +2,8 @@
 //! --unit merge`; SPEC.md section 8.9): JSON Lines through
 //! [`super::write_jsonl`], header params = every generator parameter.
 //!
-//! Record `i` exercises stage `STAGES[i % 4]` with one transaction from the
+//! Record `i` exercises stage `stages[i % stages.len()]` (the stages the
+//! configuration builds, [`MergeDesign::stages`]) with one transaction from the
 //! seeded stimulus of [`crate::merge::unit`]:
 //! `{"stage": "merge_level" | "overlap_counter" | "upper_level" | "root_sorter",
 //!   "in": [beat, ...], "out": [beat, ...]}`, every beat the unit's `in_data` /
@@ -15,6 +16,7 @@ use std::path::Path;
 use super::{read_jsonl, wide_from_hex, wide_to_json, Header, ParamMap, UnitKind, VectorError};
 use crate::layout::Bits;
 use crate::merge::unit::*;
+use crate::merge::MergeMode;
 use crate::params::Params;
 use crate::translate::stimulus::SplitMix64;
 
@@ -32,9 +34,9 @@ pub struct MergeDesign {
     pub params: Params,
     /// Inputs `k` of the overlap counter (and of the S614 stimulus).
     pub inputs: usize,
-    /// Overlap threshold `num / den`.
-    pub num: u32,
-    pub den: u32,
+    /// How the merging module chooses the merging level: the only mode its
+    /// hardware builds (per-node merging is not built; [`Self::validate`]).
+    pub mode: MergeMode,
     /// Root sorter capacity.
     pub roots: usize,
 }
@@ -44,14 +46,67 @@ impl Default for MergeDesign {
         MergeDesign {
             params: Params::default(),
             inputs: 4,
-            num: 1,
-            den: 2,
+            mode: MergeMode::default(),
             roots: 16,
         }
     }
 }
 
 impl MergeDesign {
+    /// The overlap counter's threshold `num / den`, in overlap mode (the
+    /// only mode that counts).
+    pub fn threshold(&self) -> Option<(u32, u32)> {
+        match self.mode {
+            MergeMode::Overlap { num, den } => Some((num, den)),
+            _ => None,
+        }
+    }
+
+    /// The stream stages this configuration builds, in record order: the
+    /// overlap counter only in overlap mode.
+    pub fn stages(&self) -> Vec<&'static str> {
+        STAGES
+            .iter()
+            .copied()
+            .filter(|s| *s != "overlap_counter" || self.threshold().is_some())
+            .collect()
+    }
+
+    /// Refuses what the hardware cannot build: fewer than 2 or more than
+    /// `2^H` inputs, a bad ratio, per-node merging, no root capacity.
+    pub fn validate(&self) -> Result<(), String> {
+        let cap = self.params.hier_capacity();
+        if self.inputs < 2 || self.inputs as u64 > cap {
+            return Err(format!(
+                "inputs = {}: expected 2..={cap} (2^hier_bits)",
+                self.inputs
+            ));
+        }
+        if self.roots == 0 {
+            return Err("roots = 0: expected a root sorter capacity of at least 1".into());
+        }
+        match self.mode {
+            MergeMode::Overlap { num, den } | MergeMode::Proportion { num, den }
+                if den == 0 || num > den =>
+            {
+                Err(format!(
+                    "mode {}: expected N/D with 0 <= N <= D, D >= 1",
+                    self.mode
+                ))
+            }
+            MergeMode::PerNode { .. } => Err(format!(
+                "mode {}: per-node merging is not built into the merging module RTL \
+                 (expected overlap[:N/D], fixed:L, below-top:K or proportion:N/D)",
+                self.mode
+            )),
+            MergeMode::Fixed(l) if l > self.params.max_lod => Err(format!(
+                "mode {}: expected a level at most max_lod = {}",
+                self.mode, self.params.max_lod
+            )),
+            _ => Ok(()),
+        }
+    }
+
     /// Every parameter by name, as the header holds them.
     pub fn param_map(&self) -> ParamMap {
         let p = &self.params;
@@ -61,8 +116,7 @@ impl MergeDesign {
             ("index_bits", json!(p.index_bits)),
             ("hier_bits", json!(p.hier_bits)),
             ("inputs", json!(self.inputs)),
-            ("num", json!(self.num)),
-            ("den", json!(self.den)),
+            ("mode", json!(self.mode.to_string())),
             ("roots", json!(self.roots)),
         ]
         .into_iter()
@@ -101,7 +155,8 @@ pub fn generate(
     i: usize,
 ) -> Result<MergeVector, VectorError> {
     let p = &d.params;
-    let stage = STAGES[i % STAGES.len()];
+    let stages = d.stages();
+    let stage = stages[i % stages.len()];
     let (iw, ow, ins, outs) = match stage {
         "merge_level" => {
             let (li, lo) = (BeatLayout::input(p), BeatLayout::output(p));
@@ -122,7 +177,8 @@ pub fn generate(
         "overlap_counter" => {
             let l = OverlapLayout::new(p, d.inputs);
             let voxels = random_overlap_case(rng, p, d.inputs, 8);
-            let (beats, r) = overlap_transaction(&voxels, p, d.num, d.den);
+            let (num, den) = d.threshold().expect("overlap_counter only in overlap mode");
+            let (beats, r) = overlap_transaction(&voxels, p, num, den);
             let ins = beats
                 .iter()
                 .map(|b| words(b.pack(&l)))
@@ -237,7 +293,13 @@ pub fn read_merge_vectors(path: &Path, d: &MergeDesign) -> Result<Vec<MergeVecto
                     "one of merge_level, overlap_counter, upper_level, root_sorter",
                 )
             })?;
-        let i = STAGES.iter().position(|&s| s == stage).expect("a stage");
+        let i = d.stages().iter().position(|&s| s == stage).ok_or_else(|| {
+            bad(
+                line,
+                "stage",
+                "a stage this configuration builds (no overlap_counter outside overlap mode)",
+            )
+        })?;
         // Widths come from the design, never from the file.
         let template = generate(d, &mut SplitMix64(0), i)?;
         let beats = |key: &str, width: u32| -> Result<Vec<Vec<u64>>, VectorError> {
@@ -294,11 +356,28 @@ mod tests {
             assert_eq!(v, &generate(&d, &mut rng, i).unwrap());
         }
         let other = MergeDesign {
-            num: 2,
-            den: 3,
+            mode: MergeMode::Overlap { num: 2, den: 3 },
             ..d
         };
         let e = read_merge_vectors(&path, &other).unwrap_err();
-        assert!(e.to_string().contains("num"), "{e}");
+        assert!(e.to_string().contains("mode"), "{e}");
+        // Outside overlap mode no overlap counter is built, nor tested.
+        let fixed = MergeDesign {
+            mode: MergeMode::Fixed(3),
+            ..d
+        };
+        assert_eq!(
+            fixed.stages(),
+            vec!["merge_level", "upper_level", "root_sorter"]
+        );
+        let mut rng = SplitMix64(5);
+        assert!((0..6).all(|i| generate(&fixed, &mut rng, i).unwrap().stage != "overlap_counter"));
+        assert!(MergeDesign {
+            mode: MergeMode::PerNode { num: 1, den: 2 },
+            ..d
+        }
+        .validate()
+        .is_err());
+        assert!(MergeDesign { inputs: 1, ..d }.validate().is_err());
     }
 }

@@ -7,16 +7,24 @@
 //! - [`overlap_counter_unit`]: S608's overlap counts and threshold (unit 508).
 //! - [`upper_level_unit`]: S616, one level up (grouping by parent voxel).
 //! - [`root_sorter_unit`]: Morton order of an input's translated roots.
+//! - [`morton_merge_unit`]: the k-way Morton merge of the inputs' streams.
+//! - [`merge_module_unit`]: the merging module as one unit: `cfg`, `k`
+//!   input streams, `report`, `out` around the merge network, the overlap
+//!   counter (overlap mode only) and S614, with the mode's level choice.
 
 mod fields;
 mod level;
+mod network;
 mod overlap;
 mod sorter;
+mod top;
 mod upper;
 
 pub use level::{merge_level_name, merge_level_unit};
+pub use network::{morton_code, morton_merge_name, morton_merge_unit};
 pub use overlap::{overlap_counter_name, overlap_counter_unit};
 pub use sorter::{root_sorter_name, root_sorter_unit};
+pub use top::{merge_module_name, merge_module_unit};
 pub use upper::{upper_level_name, upper_level_unit};
 
 use std::path::{Path, PathBuf};
@@ -28,22 +36,27 @@ use crate::{write_design, DesignError, Module};
 /// definition the vectors, the generators and the harness share.
 pub use golden::vectors::merge::MergeDesign as MergeConfig;
 
-/// Every merging-module stage for `c`, top modules in a fixed order.
+/// The top modules a configuration `c` emits, in a fixed order: the merging
+/// module (whose instances, the merge network, the overlap counter in
+/// overlap mode and S614, come with it), then S616's upper-level unit and
+/// the root sorter, which the fetcher drives on their own. `c` must pass
+/// `c.validate()`.
 pub fn merge_units(c: &MergeConfig) -> Vec<Module> {
     vec![
-        merge_level_unit(&c.params),
-        overlap_counter_unit(&c.params, c.inputs, c.num, c.den),
+        merge_module_unit(c),
         upper_level_unit(&c.params),
         root_sorter_unit(&c.params, c.roots),
     ]
 }
 
-/// Writes the Verilog of every merging-module stage for `c` into `dir`
-/// (one `<module>.v` per module); returns the files written.
+/// Writes the Verilog of every module of `c` into `dir` (one `<module>.v`
+/// per module, instances included, each once); returns the files written,
+/// sorted. Refuses a configuration `c.validate()` refuses.
 pub fn emit_merge(c: &MergeConfig, dir: &Path) -> Result<Vec<PathBuf>, DesignError> {
-    let mut files = Vec::new();
+    c.validate().map_err(DesignError::Config)?;
+    let mut files = std::collections::BTreeSet::new();
     for m in merge_units(c) {
         files.extend(write_design(&m, dir)?);
     }
-    Ok(files)
+    Ok(files.into_iter().collect())
 }

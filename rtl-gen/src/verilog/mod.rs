@@ -71,6 +71,8 @@ pub enum DesignError {
     Invalid(Diagnostics),
     /// Writing a file failed.
     Io(PathBuf, std::io::Error),
+    /// The configuration asks for something the generator does not build.
+    Config(String),
 }
 
 impl std::fmt::Display for DesignError {
@@ -78,6 +80,7 @@ impl std::fmt::Display for DesignError {
         match self {
             DesignError::Invalid(d) => write!(f, "{d}"),
             DesignError::Io(p, e) => write!(f, "{}: {e}", p.display()),
+            DesignError::Config(why) => write!(f, "configuration: {why}"),
         }
     }
 }

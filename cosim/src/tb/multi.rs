@@ -1,0 +1,198 @@
+//! A testbench run over any number of input and output streams: one
+//! [`StreamDriver`] per input, one [`StreamMonitor`] and in-order
+//! [`Scoreboard`] per output, each with its own seeded stall pattern, one
+//! watchdog over all handshakes. For units whose streams are related only
+//! through the design (the merging module's `cfg`, `in*`, `report`, `out`):
+//! the drivers present every stream's beats as soon as they may, so the
+//! design meets every interleaving the stall patterns produce.
+
+use super::driver::StreamDriver;
+use super::monitor::StreamMonitor;
+use super::scoreboard::{Mismatch, Scoreboard};
+use super::stream::{StreamPorts, Transaction};
+use super::watchdog::{Hang, Watchdog};
+use super::BenchConfig;
+use crate::engine::Engine;
+use crate::error::Result;
+use std::fmt;
+use std::time::{Duration, Instant};
+
+/// One stream: ports `<name>_valid`, `<name>_ready`, `<name>_data`, and its
+/// beats (to send, or expected in order).
+#[derive(Clone, Debug)]
+pub struct StreamBeats {
+    pub name: String,
+    pub beats: Vec<Transaction>,
+}
+
+/// What a multi-stream run found, per stream and in all.
+#[derive(Clone, Debug)]
+pub struct MultiReport {
+    pub engine: String,
+    pub seed: u64,
+    pub cycles: u64,
+    /// Beats accepted per input stream, in the order given.
+    pub sent: Vec<(String, u64)>,
+    /// Beats received per output stream.
+    pub received: Vec<(String, u64)>,
+    pub matched: u64,
+    pub mismatches: u64,
+    /// The first mismatch and the stream it was on.
+    pub first_mismatch: Option<(String, Mismatch)>,
+    /// Expected beats that never came, per output stream.
+    pub missing: Vec<(String, usize)>,
+    pub hang: Option<Hang>,
+    pub wall: Duration,
+}
+
+impl MultiReport {
+    /// Every beat matched, none missing, nothing hung.
+    pub fn passed(&self) -> bool {
+        self.mismatches == 0 && self.hang.is_none() && self.missing.iter().all(|m| m.1 == 0)
+    }
+
+    /// Beats accepted on input stream `name` per cycle.
+    pub fn sent_per_cycle(&self, name: &str) -> f64 {
+        let n = self.sent.iter().find(|s| s.0 == name).map_or(0, |s| s.1);
+        n as f64 / self.cycles.max(1) as f64
+    }
+}
+
+impl fmt::Display for MultiReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "{} seed {}: {} cycles, {} matched, {} mismatches, {:.2?}",
+            self.engine, self.seed, self.cycles, self.matched, self.mismatches, self.wall
+        )?;
+        for (name, n) in &self.sent {
+            writeln!(f, "  in  {name}: {n} beats")?;
+        }
+        for ((name, n), (_, missing)) in self.received.iter().zip(&self.missing) {
+            writeln!(
+                f,
+                "  out {name}: {n} beats, {missing} expected beats missing"
+            )?;
+        }
+        if let Some((stream, m)) = &self.first_mismatch {
+            writeln!(f, "  first mismatch on {stream}:\n{m}")?;
+        }
+        if let Some(h) = &self.hang {
+            writeln!(f, "  {h}")?;
+        }
+        Ok(())
+    }
+}
+
+fn ports(engine: &dyn Engine, name: &str) -> Result<StreamPorts> {
+    StreamPorts::new(
+        engine.design(),
+        &format!("{name}_valid"),
+        &format!("{name}_ready"),
+        &[&format!("{name}_data")],
+    )
+}
+
+/// Runs `inputs` into and `outputs` out of the design on `engine` with the
+/// stall probabilities, seed, reset and watchdog of `config`.
+pub fn run_multi_stream_bench(
+    engine: &mut dyn Engine,
+    inputs: &[StreamBeats],
+    outputs: &[StreamBeats],
+    config: &BenchConfig,
+) -> Result<MultiReport> {
+    let start = Instant::now();
+    // Distinct stall patterns per stream from one seed.
+    let seed_of = |j: usize| config.seed ^ (0x9e37_79b9_7f4a_7c15u64.wrapping_mul(j as u64 + 1));
+    let mut drivers = Vec::new();
+    for (j, s) in inputs.iter().enumerate() {
+        let mut d = StreamDriver::new(ports(engine, &s.name)?, seed_of(j), config.in_stall)?;
+        for b in &s.beats {
+            d.push(b.clone());
+        }
+        engine.poke_u64(engine.design().port_id(&format!("{}_valid", s.name))?, 0)?;
+        drivers.push(d);
+    }
+    let mut monitors = Vec::new();
+    for (j, s) in outputs.iter().enumerate() {
+        let p = ports(engine, &s.name)?;
+        let mut board = Scoreboard::with_port_names(p.payload_names.clone());
+        board.expect_input(s.beats.clone());
+        let mon = StreamMonitor::new(p, seed_of(100 + j), config.out_stall)?;
+        engine.poke_u64(engine.design().port_id(&format!("{}_ready", s.name))?, 0)?;
+        monitors.push((mon, board));
+    }
+    engine.reset(config.reset_cycles)?;
+
+    let mut watchdog = Watchdog::new(config.watchdog_cycles);
+    watchdog.progress(engine.cycle());
+    let mut hang = None;
+    let mut drain_left: Option<u64> = None;
+    loop {
+        for d in drivers.iter_mut() {
+            d.drive(engine)?;
+        }
+        for (mon, _) in monitors.iter_mut() {
+            mon.drive(engine)?;
+        }
+        engine.eval()?;
+        for d in drivers.iter_mut() {
+            if d.observe(engine)?.is_some() {
+                watchdog.progress(engine.cycle());
+            }
+        }
+        for (mon, board) in monitors.iter_mut() {
+            if let Some(txn) = mon.observe(engine)? {
+                watchdog.progress(engine.cycle());
+                board.check(txn, engine.cycle());
+            }
+        }
+        let mismatched = monitors.iter().any(|(_, b)| b.mismatches() > 0);
+        let finished = drivers.iter().all(|d| d.pending() == 0)
+            && monitors.iter().all(|(_, b)| b.outstanding() == 0);
+        if finished && drain_left.is_none() {
+            drain_left = Some(config.drain_cycles);
+            watchdog = Watchdog::new(config.drain_cycles + 1);
+            watchdog.progress(engine.cycle());
+        }
+        if (config.stop_on_mismatch && mismatched) || drain_left == Some(0) {
+            break;
+        }
+        drain_left = drain_left.map(|d| d - 1);
+        if let Some(h) = watchdog.check(engine) {
+            hang = Some(h);
+            break;
+        }
+        engine.step()?;
+    }
+    let first_mismatch = outputs
+        .iter()
+        .zip(&monitors)
+        .filter_map(|(s, (_, b))| b.first_mismatch().map(|m| (s.name.clone(), m.clone())))
+        .min_by_key(|(_, m)| m.cycle);
+    Ok(MultiReport {
+        engine: engine.name().to_string(),
+        seed: config.seed,
+        cycles: engine.cycle(),
+        sent: inputs
+            .iter()
+            .zip(&drivers)
+            .map(|(s, d)| (s.name.clone(), d.sent()))
+            .collect(),
+        received: outputs
+            .iter()
+            .zip(&monitors)
+            .map(|(s, (m, _))| (s.name.clone(), m.received()))
+            .collect(),
+        matched: monitors.iter().map(|(_, b)| b.matched()).sum(),
+        mismatches: monitors.iter().map(|(_, b)| b.mismatches()).sum(),
+        first_mismatch,
+        missing: outputs
+            .iter()
+            .zip(&monitors)
+            .map(|(s, (_, b))| (s.name.clone(), b.outstanding()))
+            .collect(),
+        hang,
+        wall: start.elapsed(),
+    })
+}

@@ -1,0 +1,278 @@
+//! The merging module as one unit (`rtl_gen::merge::merge_module_unit`)
+//! against the golden `golden::merge::top` transactions, bit for bit on every
+//! stream (`report`, `out`), on the IR simulator, Verilator and Icarus, with
+//! random stalls on every input and output stream independently; one
+//! transaction = one merge (cfg, count pass in overlap mode, choice, merge
+//! pass). Configurations: the default (overlap 1/2, k = 4), D = 31 (k = 5),
+//! Q = 0 with a fixed level, a small-I proportion mode (count overflows),
+//! below-top. Throughput with no back-pressure is printed and asserted from
+//! simulated cycle counts (deterministic); lint and synthesis of each.
+mod merge_common;
+
+use cosim::tb::{run_multi_stream_bench, BenchConfig, MultiReport, StreamBeats};
+use golden::merge::top::{random_top_transaction, Report, TopLayout, TopTransaction};
+use golden::merge::unit::BeatLayout;
+use golden::merge::MergeMode;
+use golden::params::Params;
+use golden::translate::stimulus::SplitMix64;
+use golden::vectors::merge::MergeDesign;
+use merge_common::*;
+
+/// Configurations, each with the most voxels of a random level.
+fn configs() -> Vec<(&'static str, MergeDesign, usize)> {
+    let d = MergeDesign::default();
+    vec![
+        ("default", d, 12),
+        (
+            "d31",
+            MergeDesign {
+                params: Params::new(31, 16, 32, 8).unwrap(),
+                inputs: 5,
+                ..d
+            },
+            12,
+        ),
+        (
+            "q0_fixed",
+            MergeDesign {
+                params: Params::new(8, 0, 12, 3).unwrap(),
+                inputs: 2,
+                mode: MergeMode::Fixed(3),
+                ..d
+            },
+            12,
+        ),
+        (
+            "i6_proportion",
+            MergeDesign {
+                params: Params::new(4, 2, 6, 2).unwrap(),
+                inputs: 3,
+                mode: MergeMode::Proportion { num: 1, den: 3 },
+                ..d
+            },
+            12,
+        ),
+        (
+            // 2^I = 16: a level's union overflows the counter.
+            "i4_overlap",
+            MergeDesign {
+                params: Params::new(4, 2, 4, 2).unwrap(),
+                inputs: 3,
+                mode: MergeMode::Overlap { num: 1, den: 3 },
+                ..d
+            },
+            30,
+        ),
+        (
+            "below_top",
+            MergeDesign {
+                mode: MergeMode::BelowTop(2),
+                ..d
+            },
+            12,
+        ),
+    ]
+}
+
+/// Counts of what the stimulus exercised.
+#[derive(Default, Debug)]
+struct Seen {
+    merges: usize,
+    refused: usize,
+    counted_levels: usize,
+    above: usize,
+    overflow: usize,
+}
+
+/// `merges` random merges for `d` as streams in and out of the unit.
+fn streams(
+    d: &MergeDesign,
+    seed: u64,
+    merges: usize,
+    most_voxels: usize,
+) -> (Vec<StreamBeats>, Vec<StreamBeats>, Seen) {
+    let p = &d.params;
+    let (tl, li, lo) = (
+        TopLayout::new(p),
+        BeatLayout::input(p),
+        BeatLayout::output(p),
+    );
+    let mut rng = SplitMix64(seed);
+    let mut cfg = Vec::new();
+    let mut ins = vec![Vec::new(); d.inputs];
+    let mut report = Vec::new();
+    let mut out = Vec::new();
+    let mut seen = Seen::default();
+    for _ in 0..merges {
+        let tx: TopTransaction =
+            random_top_transaction(&mut rng, p, d.inputs, &d.mode, most_voxels).unwrap();
+        seen.merges += 1;
+        cfg.push(vec![bitvec(&tl.pack_cfg(tx.lo, tx.hi).unwrap())]);
+        for (s, beats) in ins.iter_mut().zip(&tx.inputs) {
+            s.extend(beats.iter().map(|b| vec![bitvec(&b.pack(&li).unwrap())]));
+        }
+        for r in &tx.reports {
+            match r {
+                Report::Counted { result, .. } => {
+                    seen.counted_levels += 1;
+                    seen.above += result.above as usize;
+                    seen.overflow += result.overflow as usize;
+                }
+                Report::Chosen { err, .. } => seen.refused += (*err != 0) as usize,
+            }
+            report.push(vec![bitvec(&r.pack(&tl).unwrap())]);
+        }
+        out.extend(tx.out.iter().map(|b| vec![bitvec(&b.pack(&lo).unwrap())]));
+    }
+    let mut inputs = vec![StreamBeats {
+        name: "cfg".into(),
+        beats: cfg,
+    }];
+    inputs.extend(ins.into_iter().enumerate().map(|(i, beats)| StreamBeats {
+        name: format!("in{i}"),
+        beats,
+    }));
+    let outputs = vec![
+        StreamBeats {
+            name: "report".into(),
+            beats: report,
+        },
+        StreamBeats {
+            name: "out".into(),
+            beats: out,
+        },
+    ];
+    (inputs, outputs, seen)
+}
+
+fn bench(
+    engine: &mut dyn cosim::Engine,
+    ins: &[StreamBeats],
+    outs: &[StreamBeats],
+    seed: u64,
+    stall: f64,
+    what: &str,
+) -> MultiReport {
+    let config = BenchConfig {
+        seed,
+        in_stall: stall,
+        out_stall: stall,
+        ..BenchConfig::default()
+    };
+    let r = run_multi_stream_bench(engine, ins, outs, &config).expect("the bench runs");
+    eprint!("{what}: stall {stall:.2}: {r}");
+    assert!(r.passed(), "{what} stall {stall}:\n{r}");
+    r
+}
+
+fn check(name: &str, d: &MergeDesign, most_voxels: usize, runs: &[(&str, usize)], seed: u64) {
+    d.validate().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let m = rtl_gen::merge::merge_module_unit(d);
+    let design = design_of(&m, dir.path());
+    for &(kind, merges) in runs {
+        let (ins, outs, seen) = streams(d, seed, merges, most_voxels);
+        eprintln!("merge_module {name}/{kind}: {seen:?}");
+        // Both refusals and merges are exercised.
+        assert!(
+            seen.refused > 0 && seen.refused * 10 < merges * 6,
+            "{seen:?}"
+        );
+        if d.threshold().is_some() {
+            assert!(
+                seen.above > 0 && seen.above < seen.counted_levels,
+                "{seen:?}"
+            );
+        }
+        if d.params.index_bits <= 4 && d.threshold().is_some() {
+            assert!(seen.overflow > 0, "{seen:?}");
+        }
+        let stall = stall_of(seed ^ kind.len() as u64).max(0.05);
+        let mut e = engine(kind, &m, &design);
+        let what = format!("merge_module {name} {kind}");
+        let r = bench(e.as_mut(), &ins, &outs, seed, stall, &what);
+        println!(
+            "merge_module {name} {kind}: {merges} merges, {} out beats, {} cycles, stall {stall:.2}, {:.1?}",
+            r.received[1].1, r.cycles, r.wall
+        );
+    }
+}
+
+/// Input beats (all streams) per cycle with no back-pressure, on merges of
+/// large levels, from simulated cycles.
+fn throughput(name: &str, d: &MergeDesign) -> f64 {
+    let dir = tempfile::tempdir().unwrap();
+    let m = rtl_gen::merge::merge_module_unit(d);
+    let design = design_of(&m, dir.path());
+    let (ins, outs, _) = streams(d, 0x70, 40, 400);
+    let mut e = engine("verilator", &m, &design);
+    let r = bench(
+        e.as_mut(),
+        &ins,
+        &outs,
+        1,
+        0.0,
+        &format!("merge_module {name} throughput"),
+    );
+    let beats: u64 = r.sent.iter().filter(|s| s.0 != "cfg").map(|s| s.1).sum();
+    let rate = beats as f64 / r.cycles as f64;
+    println!(
+        "merge_module {name} throughput: {beats} input beats ({} streams) in {} cycles: {rate:.4} beats/cycle merged",
+        d.inputs, r.cycles
+    );
+    rate
+}
+
+#[test]
+fn merge_module_default_matches_golden() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
+    }
+    let (name, d, most) = &configs()[0];
+    check(
+        name,
+        d,
+        *most,
+        &[("ir", 300), ("verilator", 3_000), ("iverilog", 60)],
+        0x70d,
+    );
+}
+
+#[test]
+fn merge_module_other_configs_match_golden() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
+    }
+    for (i, (name, d, most)) in configs().iter().enumerate().skip(1) {
+        check(
+            name,
+            d,
+            *most,
+            &[("ir", 200), ("verilator", 2_000), ("iverilog", 40)],
+            0x70e + i as u64,
+        );
+    }
+}
+
+#[test]
+fn merge_module_streams_one_beat_per_clock() {
+    if !tools_present(&["verilator"]) {
+        return;
+    }
+    for (name, d, _) in configs() {
+        let rate = throughput(name, &d);
+        assert!(rate >= 0.95, "{name}: {rate:.4} merged beats per cycle");
+    }
+}
+
+#[test]
+fn merge_module_verilog_lints_and_synthesizes() {
+    if !tools_present(&["verilator", "yosys"]) {
+        return;
+    }
+    for (_, d, _) in configs() {
+        let dir = tempfile::tempdir().unwrap();
+        let m = rtl_gen::merge::merge_module_unit(&d);
+        lint_and_synth(&design_of(&m, dir.path()));
+    }
+}

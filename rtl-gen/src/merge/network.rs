@@ -1,0 +1,154 @@
+//! The k-way Morton merge in front of S608 and S614 (SPEC.md section 8.10):
+//! `k` input streams, each one input's level in (Morton, leaf) order with
+//! every inner node's child references after the voxel's leaf, become one
+//! stream in S614's delivery order, each beat tagged with its input's rank.
+//!
+//! Every head (a skid buffer per input, so `in*_ready` is registered) has
+//! the key `{end, morton, kind}` and its rank: `End` sorts last, the Morton code of
+//! the voxel orders voxels, the kind code (inner 0, leaf 1, child reference
+//! 2) is the phase within a voxel, and the lower rank wins a tie, so the
+//! minimum is one head. A child reference carries no voxel:
+//! its key takes the voxel of the last node taken from its input (its
+//! parent's). Only when every head is present is the minimum known (a
+//! missing head may be smaller), so the merge waits for all `k`; with no
+//! back-pressure the skid buffers keep them all present and one beat leaves
+//! per clock. When every head is `End`, one `End` leaves and all are taken.
+
+use golden::layout::NodeLayout;
+use golden::merge::unit::{level_kind, rank_bits, BeatLayout};
+use golden::params::Params;
+
+use super::fields::field;
+use crate::{Module, Signal, Stream};
+
+/// Module name of the merge network for `p`, `k` inputs, rank tag or not.
+pub fn morton_merge_name(p: &Params, k: usize, tag_rank: bool) -> String {
+    format!(
+        "morton_merge_d{}_q{}_i{}_h{}_k{k}{}",
+        p.max_lod,
+        p.quant_bits,
+        p.index_bits,
+        p.hier_bits,
+        if tag_rank { "_ranked" } else { "" }
+    )
+}
+
+/// The Morton code of a voxel's coordinates, bit `i` of `x`, `y`, `z` at
+/// `3i`, `3i + 1`, `3i + 2` (golden `grid::morton3`): wiring only.
+pub fn morton_code<'m>(m: &'m Module, xyz: [Signal<'m>; 3]) -> Signal<'m> {
+    let d = xyz[0].width();
+    let mut high_first = Vec::with_capacity(3 * d as usize);
+    for b in (0..d).rev() {
+        for c in xyz.iter().rev() {
+            high_first.push(c.bit(b));
+        }
+    }
+    m.concat(&high_first)
+}
+
+/// The voxel coordinates of a record's `x`, `y`, `z` fields.
+fn coords<'m>(rec: Signal<'m>, nl: &NodeLayout) -> [Signal<'m>; 3] {
+    [0, 1, 2].map(|a| field(rec, nl.coord(a)).expect("coordinate bits"))
+}
+
+/// The merge network for `p` and `k >= 2` inputs: streams `in0`..`in{k-1}`
+/// of [`BeatLayout::input`] beats; stream `out` of `{rank, beat}` with
+/// `tag_rank` (the overlap counter needs the rank), else of `beat`.
+pub fn morton_merge_unit(p: &Params, k: usize, tag_rank: bool) -> Module {
+    let m = Module::new(&morton_merge_name(p, k, tag_rank));
+    let l = BeatLayout::input(p);
+    let nl = &l.node;
+    let rb = rank_bits(k);
+
+    let out_ready = m.wire("net_out_ready", 1);
+    let mut heads = Vec::with_capacity(k);
+    let mut keys = Vec::with_capacity(k);
+    let mut all_valid = m.lit(1, 1);
+    let mut all_end = m.lit(1, 1);
+    for i in 0..k {
+        let head =
+            Stream::input(&m, &format!("in{i}"), l.width).skid_buffer(&format!("in{i}_head"));
+        let kind = field(head.data, &l.kind)
+            .expect("kind bits")
+            .name(&format!("in{i}_kind"));
+        let is_end = kind.eq(level_kind::END).name(&format!("in{i}_is_end"));
+        let is_ref = kind.eq(level_kind::CHILD_REF);
+        let xyz = coords(field(head.data, &l.rec).expect("record bits"), nl);
+        let last: [Signal; 3] = [0, 1, 2].map(|a| {
+            m.reg(
+                &format!("in{i}_parent_{}", ["x", "y", "z"][a]),
+                xyz[a].width(),
+            )
+        });
+        let key_xyz = [0, 1, 2].map(|a| is_ref.mux(last[a], xyz[a]));
+        let key = m
+            .concat(&[is_end, morton_code(&m, key_xyz), kind])
+            .name(&format!("in{i}_key"));
+        all_valid = all_valid & head.valid;
+        all_end = all_end & is_end;
+        heads.push((head, last, xyz));
+        keys.push(key);
+    }
+    let all_valid = all_valid.name("all_heads");
+
+    // A tournament of pairwise minima over (key, rank); on equal keys the
+    // lower rank (the left one) wins. The final round needs only the rank.
+    let mut round: Vec<(Signal, Signal)> = keys
+        .iter()
+        .enumerate()
+        .map(|(i, key)| (*key, m.lit(i as u128, rb)))
+        .collect();
+    let mut depth = 0;
+    while round.len() > 1 {
+        let last_round = round.len() == 2;
+        round = round
+            .chunks(2)
+            .enumerate()
+            .map(|(j, pair)| match pair {
+                [(ka, ra), (kb, rb_)] => {
+                    let take_b = kb.lt(*ka).name(&format!("take_r{depth}_{j}"));
+                    let key = if last_round {
+                        *ka
+                    } else {
+                        take_b.mux(*kb, *ka).name(&format!("min_r{depth}_{j}"))
+                    };
+                    (key, take_b.mux(*rb_, *ra))
+                }
+                [one] => *one,
+                _ => unreachable!("chunks of two"),
+            })
+            .collect();
+        depth += 1;
+    }
+    let winner = round[0].1.name("winner_rank");
+    let winner_end = all_end.name("winner_is_end");
+
+    let mut options: Vec<Signal> = heads.iter().map(|h| h.0.data).collect();
+    while options.len() < 1usize << rb {
+        options.push(heads[k - 1].0.data);
+    }
+    let beat = winner.select(&options).name("winner_beat");
+    let fire = (all_valid & out_ready).name("net_fire");
+    for (i, (head, last, xyz)) in heads.iter().enumerate() {
+        let chosen = winner.eq(m.lit(i as u128, rb));
+        // Every head is End when the winner is: all leave together.
+        head.ready.drive(fire & (winner_end | chosen));
+        let took_node =
+            fire & chosen & !winner_end & !field(head.data, &l.kind).expect("kind").bit(1);
+        for a in 0..3 {
+            last[a].next_when(took_node, xyz[a]);
+        }
+    }
+    Stream {
+        valid: all_valid,
+        ready: out_ready,
+        data: if tag_rank {
+            m.concat(&[winner, beat]).name("net_beat")
+        } else {
+            beat
+        },
+    }
+    .skid_buffer("out_skid")
+    .output("out");
+    m
+}

@@ -390,3 +390,114 @@ fn hard_case_scenes_through_every_unit() {
         "some input's translated roots are out of Morton order"
     );
 }
+
+/// Every hard-case merge through the merging module as one unit
+/// (`merge_module_unit`): the candidate levels of the real inputs, the count
+/// pass over their walked, translated levels, the choice, the merge pass;
+/// bit for bit against `golden::merge::top`, whose overlap choice must equal
+/// golden S608 on the fully walked inputs (`level::overlaps` +
+/// `choose_level`), on the IR simulator, Verilator and Icarus.
+#[test]
+fn hard_case_merges_through_the_merging_module() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
+    }
+    use cosim::tb::{run_multi_stream_bench, BenchConfig, StreamBeats};
+    use golden::merge::level::{choose_level, overlaps};
+    use golden::merge::top::{top_transaction, Report, TopLayout};
+    use golden::merge::MergeMode;
+    use golden::vectors::merge::MergeDesign;
+    for c in cases() {
+        let p = c.params;
+        let k = c.inputs.len();
+        let hs: Vec<&Hierarchy> = c.inputs.iter().map(|(h, _)| h).collect();
+        let (lo, hi) = candidate_range(&hs);
+        let walked: Vec<WalkedInput> = c
+            .inputs
+            .iter()
+            .enumerate()
+            .map(|(r, (h, t))| walk_input(h, r as u16, t, hi).expect("the input walks"))
+            .collect();
+        let levels: Vec<Option<LevelCase>> = (lo..=hi)
+            .map(|l| {
+                Some(LevelCase {
+                    hierarchies: c.inputs.iter().map(|(h, _)| h.clone()).collect(),
+                    at_level: collect(&walked, l).1,
+                })
+            })
+            .collect();
+        for mode in [
+            MergeMode::Overlap { num: 1, den: 2 },
+            MergeMode::BelowTop(1),
+        ] {
+            let tx = top_transaction(&mode, &p, k, lo, hi, &levels, true).expect("golden top");
+            let want = choose_level(&mode, lo, hi, &overlaps(&walked, lo, hi));
+            match (tx.reports.last(), want) {
+                (Some(Report::Chosen { lod, err: 0 }), Ok(Some(l))) => assert_eq!(*lod, l),
+                (Some(Report::Chosen { err, .. }), Err(_)) => assert_ne!(*err, 0),
+                (got, want) => panic!("{}: {mode}: unit {got:?}, golden {want:?}", c.name),
+            }
+            let d = MergeDesign {
+                params: p,
+                inputs: k,
+                mode,
+                ..MergeDesign::default()
+            };
+            let (tl, li, lo_) = (
+                TopLayout::new(&p),
+                BeatLayout::input(&p),
+                BeatLayout::output(&p),
+            );
+            let mut ins = vec![StreamBeats {
+                name: "cfg".into(),
+                beats: vec![vec![bitvec(&tl.pack_cfg(lo, hi).unwrap())]],
+            }];
+            for (i, s) in tx.inputs.iter().enumerate() {
+                ins.push(StreamBeats {
+                    name: format!("in{i}"),
+                    beats: s
+                        .iter()
+                        .map(|b| vec![bitvec(&b.pack(&li).unwrap())])
+                        .collect(),
+                });
+            }
+            let outs = vec![
+                StreamBeats {
+                    name: "report".into(),
+                    beats: tx
+                        .reports
+                        .iter()
+                        .map(|r| vec![bitvec(&r.pack(&tl).unwrap())])
+                        .collect(),
+                },
+                StreamBeats {
+                    name: "out".into(),
+                    beats: tx
+                        .out
+                        .iter()
+                        .map(|b| vec![bitvec(&b.pack(&lo_).unwrap())])
+                        .collect(),
+                },
+            ];
+            eprintln!(
+                "{} {mode}: levels {lo}..={hi}, {} out beats",
+                c.name,
+                tx.out.len()
+            );
+            let m = rtl_gen::merge::merge_module_unit(&d);
+            let dir = tempfile::tempdir().unwrap();
+            let design = design_of(&m, dir.path());
+            for kind in ["ir", "verilator", "iverilog"] {
+                let mut e = engine(kind, &m, &design);
+                let config = BenchConfig {
+                    seed: 5,
+                    in_stall: 0.3,
+                    out_stall: 0.3,
+                    ..BenchConfig::default()
+                };
+                let r = run_multi_stream_bench(e.as_mut(), &ins, &outs, &config).unwrap();
+                assert!(r.passed(), "{} {mode} {kind}:\n{r}", c.name);
+            }
+        }
+    }
+}

@@ -117,8 +117,7 @@ fn default_scene_runs_with_zero_mismatches_and_writes_every_frame() {
             assert_eq!(
                 strings(&m["stages"]),
                 vec![
-                    "S614 merge level",
-                    "S608 overlap counter",
+                    "merging module (S608 count pass, choice, S614)",
                     "S616 upper level"
                 ]
             );
@@ -230,7 +229,7 @@ fn scene_without_translation_builds_no_translation_unit_and_says_so() {
             "{built:?}"
         );
         assert!(
-            built.iter().any(|n| n.starts_with("merge_level")),
+            built.iter().any(|n| n.starts_with("merge_module")),
             "{built:?}"
         );
         assert!(
@@ -240,7 +239,7 @@ fn scene_without_translation_builds_no_translation_unit_and_says_so() {
             "{built:?}"
         );
         let m = &v["frames"][0]["merge_rtl"];
-        assert_eq!(strings(&m["stages"]), vec!["S614 merge level"]);
+        assert_eq!(strings(&m["stages"]), vec!["merging module (choice, S614)"]);
         assert_eq!(m["mismatches"], 0);
         let skipped = strings(&v["frames"][0]["skipped"]);
         for what in [

@@ -1,21 +1,21 @@
-//! The merging module's stage RTL (`rtl_gen::merge`) on the frame's own
-//! merge, under Verilator, bit for bit against the golden stage
-//! transactions (`golden::merge::unit`): S614 (merge level) at the frame's
-//! merging level; S608 (overlap counter) at that level when the mode is
-//! overlap; S616 (one upper level, grouping by parent voxel) on that level's
-//! nodes when the scene asks for the upper-level build. Each stage is
-//! generated and built the first time a frame needs it. Per-node mode has
-//! no single merging level: the stages are not run, and the run says so.
+//! The merging module's RTL on the frame's own merge, under Verilator, bit
+//! for bit against golden: the merging module as one unit
+//! (`rtl_gen::merge::merge_module_unit`, SPEC 8.10) with the frame's inputs
+//! as its `k` input streams: `cfg` = the candidate levels, the count pass
+//! (overlap mode), the choice, which must equal the frame's golden merging
+//! level, and the merge pass (S614) against `golden::merge::top`; then S616
+//! (one upper level, grouping by parent voxel) on that level's nodes when the
+//! scene asks for the upper-level build. Each unit is generated and built the
+//! first time a frame needs it. Per-node mode has no single merging level and
+//! is not built in RTL: the units are not run, and the run says so.
 
 use cosim::from_rtl::design_from_module;
-use cosim::tb::{run_stream_bench, BenchConfig, Vector};
+use cosim::tb::{run_multi_stream_bench, run_stream_bench, BenchConfig, StreamBeats, Vector};
 use cosim::{open_engine, BitVec, Engine, EngineKind};
 use golden::layout::Bits;
 use golden::merge::level::candidate_range;
-use golden::merge::unit::{
-    level_transaction, overlap_transaction, upper_transaction, BeatLayout, OverlapLayout,
-    UpperLayout,
-};
+use golden::merge::top::{top_transaction, Report, TopLayout};
+use golden::merge::unit::{upper_transaction, BeatLayout, LevelCase, UpperLayout};
 use golden::merge::walk::{collect, walk_input, PlacedNode, WalkedInput};
 use golden::merge::MergeMode;
 use golden::store::{Hierarchy, NodeRecord};
@@ -35,11 +35,10 @@ pub struct MergeRtlFrame {
     pub seconds: f64,
 }
 
-/// The stage engines, built on first use.
+/// The engines, built on first use: the merging module per input count.
 #[derive(Default)]
 pub struct MergeRtl {
-    level: Option<Box<dyn Engine>>,
-    overlap: Option<(usize, Box<dyn Engine>)>,
+    module: Option<(usize, Box<dyn Engine>)>,
     upper: Option<Box<dyn Engine>>,
 }
 
@@ -90,7 +89,7 @@ impl MergeRtl {
                     .ok_or(format!("merge RTL: no hierarchy {i}"))
             })
             .collect::<Result<_, _>>()?;
-        let (_, hi) = candidate_range(&hs);
+        let (lo, hi) = candidate_range(&hs);
         let walked: Vec<WalkedInput> = hs
             .iter()
             .enumerate()
@@ -107,68 +106,105 @@ impl MergeRtl {
         let (_, at) = collect(&walked, level);
         let mut out = MergeRtlFrame::default();
 
-        let (li, lo) = (BeatLayout::input(&p), BeatLayout::output(&p));
-        let tx = level_transaction(&at, &hs, &p).map_err(|e| format!("merge RTL S614: {e}"))?;
-        let ins = tx.inputs.iter().map(|b| {
-            b.pack(&li)
-                .map_err(|e| e.to_string())
-                .and_then(|x| bitvec(&x))
-        });
-        let outs = tx.outputs.iter().map(|b| {
-            b.pack(&lo)
-                .map_err(|e| e.to_string())
-                .and_then(|x| bitvec(&x))
-        });
-        let v = vectors(
-            ins.collect::<Result<_, _>>()?,
-            outs.collect::<Result<_, _>>()?,
-        );
-        if self.level.is_none() {
-            let t = std::time::Instant::now();
-            self.level = Some(build(&rtl_gen::merge::merge_level_unit(&p))?);
-            out.build_seconds += t.elapsed().as_secs_f64();
-        }
-        bench(
-            self.level.as_mut().expect("built").as_mut(),
-            &v,
-            "S614 merge level",
-            &mut out,
-        )?;
-
-        if let MergeMode::Overlap { num, den } = mode {
-            let ol = OverlapLayout::new(&p, hs.len());
-            let voxels: Vec<Vec<_>> = walked
-                .iter()
-                .map(|w| {
-                    w.by_lod[level as usize]
-                        .iter()
-                        .map(|n| n.record.voxel)
-                        .collect()
+        // The merging module: every candidate level in overlap mode (its
+        // count pass), else the merging level only.
+        let counts = matches!(mode, MergeMode::Overlap { .. });
+        let levels: Vec<Option<LevelCase>> = (lo..=hi)
+            .map(|l| {
+                (counts || l == level).then(|| LevelCase {
+                    hierarchies: hs.iter().map(|h| (*h).clone()).collect(),
+                    at_level: collect(&walked, l).1,
                 })
-                .collect();
-            let (beats, r) = overlap_transaction(&voxels, &p, num, den);
-            let ins = beats.iter().map(|b| {
-                b.pack(&ol)
-                    .map_err(|e| e.to_string())
-                    .and_then(|x| bitvec(&x))
-            });
-            let v = vectors(
-                ins.collect::<Result<_, _>>()?,
-                vec![bitvec(&r.pack(&ol).map_err(|e| e.to_string())?)?],
-            );
-            if self.overlap.as_ref().is_none_or(|(k, _)| *k != hs.len()) {
-                let t = std::time::Instant::now();
-                let e = build(&rtl_gen::merge::overlap_counter_unit(
-                    &p,
-                    hs.len(),
-                    num,
-                    den,
-                ))?;
-                out.build_seconds += t.elapsed().as_secs_f64();
-                self.overlap = Some((hs.len(), e));
+            })
+            .collect();
+        let k = hs.len();
+        let tx = top_transaction(&mode, &p, k, lo, hi, &levels, false)
+            .map_err(|e| format!("merge RTL merging module: {e}"))?;
+        match tx.reports.last() {
+            Some(Report::Chosen { lod, err: 0 }) if *lod == level => {}
+            other => {
+                return Err(format!(
+                    "merge RTL: the merging module's golden choice {other:?} differs from the frame's merging level {level}"
+                ))
             }
-            let e = &mut self.overlap.as_mut().expect("built").1;
-            bench(e.as_mut(), &v, "S608 overlap counter", &mut out)?;
+        }
+        let (tl, li, lo_) = (
+            TopLayout::new(&p),
+            BeatLayout::input(&p),
+            BeatLayout::output(&p),
+        );
+        let pack = |b: Result<Bits, golden::layout::LayoutError>| -> Result<Vec<BitVec>, String> {
+            Ok(vec![bitvec(&b.map_err(|e| e.to_string())?)?])
+        };
+        let mut ins = vec![StreamBeats {
+            name: "cfg".into(),
+            beats: vec![pack(tl.pack_cfg(lo, hi))?],
+        }];
+        for (i, s) in tx.inputs.iter().enumerate() {
+            ins.push(StreamBeats {
+                name: format!("in{i}"),
+                beats: s
+                    .iter()
+                    .map(|b| pack(b.pack(&li)))
+                    .collect::<Result<_, _>>()?,
+            });
+        }
+        let outs = [
+            StreamBeats {
+                name: "report".into(),
+                beats: tx
+                    .reports
+                    .iter()
+                    .map(|r| pack(r.pack(&tl)))
+                    .collect::<Result<_, _>>()?,
+            },
+            StreamBeats {
+                name: "out".into(),
+                beats: tx
+                    .out
+                    .iter()
+                    .map(|b| pack(b.pack(&lo_)))
+                    .collect::<Result<_, _>>()?,
+            },
+        ];
+        if self.module.as_ref().is_none_or(|(n, _)| *n != k) {
+            let t = std::time::Instant::now();
+            let design = golden::vectors::merge::MergeDesign {
+                params: p,
+                inputs: k,
+                mode,
+                ..Default::default()
+            };
+            design
+                .validate()
+                .map_err(|e| format!("merge RTL merging module: {e}"))?;
+            let e = build(&rtl_gen::merge::merge_module_unit(&design))?;
+            out.build_seconds += t.elapsed().as_secs_f64();
+            self.module = Some((k, e));
+        }
+        let engine = &mut self.module.as_mut().expect("built").1;
+        let config = BenchConfig {
+            stop_on_mismatch: false,
+            watchdog_cycles: 10_000,
+            ..BenchConfig::default()
+        };
+        let before = engine.cycle();
+        let r = run_multi_stream_bench(engine.as_mut(), &ins, &outs, &config)
+            .map_err(|e| format!("merge RTL merging module: {e}"))?;
+        let stage = if counts {
+            "merging module (S608 count pass, choice, S614)"
+        } else {
+            "merging module (choice, S614)"
+        };
+        out.stages.push(stage.to_string());
+        out.beats_in += r.sent.iter().map(|s| s.1).sum::<u64>();
+        out.cycles += engine.cycle() - before;
+        let bad = r.mismatches
+            + r.hang.is_some() as u64
+            + r.missing.iter().map(|m| m.1 as u64).sum::<u64>();
+        out.mismatches += bad;
+        if bad > 0 && out.first_mismatch.is_none() {
+            out.first_mismatch = Some(format!("{stage}: {r}"));
         }
 
         if upper_build && level >= 1 {

@@ -376,13 +376,13 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
             }
             if !matches!(fx.merge, golden::merge::MergeMode::Overlap { .. }) {
                 skipped
-                    .push("S608 overlap counter RTL: the merge mode does not count overlap".into());
+                    .push("S608 overlap counter RTL: the merge mode does not count overlap (the merging module is built without it)".into());
             }
             secs.rtl += t.elapsed().as_secs_f64();
             merge_rtl_frame = Some(r);
         } else {
             skipped.push(
-                "merging module RTL: per-node mode has no single merging level to feed the stages"
+                "merging module RTL: per-node mode has no single merging level and is not built in RTL"
                     .into(),
             );
         }

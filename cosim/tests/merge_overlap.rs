@@ -1,9 +1,11 @@
 //! S608's overlap counter (unit 508, `rtl_gen::merge::overlap_counter_unit`)
 //! against the golden `overlap_counts` + `above_threshold` through
-//! `golden::merge::unit::overlap_transaction`, bit for bit, on the IR
-//! simulator, Verilator and Icarus, random back-pressure (0..=0.5), in-order
-//! scoreboard; one transaction = one level (its beats, then `End`; one
-//! result beat). Throughput with no back-pressure printed (>= 0.95 beats per
+//! `golden::merge::unit::overlap_transaction`, bit for bit, random
+//! back-pressure (0.05..=0.5), in-order scoreboard; one transaction = one
+//! level (its beats, then `End`; one result beat). The default, D = 31,
+//! Q = 0 and I = 4 run 100,000 levels each on Verilator and on Icarus
+//! Verilog (batch mode, 4-state), k = 1 20,000; the IR simulator 100,000
+//! default, 5,000 other. Throughput with no back-pressure printed (>= 0.95 beats per
 //! cycle); lint and synthesis of every configuration.
 mod merge_common;
 
@@ -67,14 +69,28 @@ fn vectors(
     (out, seen, ends)
 }
 
-fn check(name: &str, p: &Params, k: usize, num: u32, den: u32, runs: &[(&str, usize)], seed: u64) {
+/// Every engine on `levels` random transactions with random back-pressure
+/// (stall 0.05..=0.5; the IR simulator on `ir_levels`), then without
+/// back-pressure on the first 100k beats (at least 0.95 beats per cycle).
+/// Icarus runs in batch mode (`IcarusBatch`, 4-state).
+fn check(name: &str, levels: usize, ir_levels: usize) {
+    let all = configs();
+    let i = all.iter().position(|c| c.0 == name).unwrap();
+    let (_, p, k, num, den) = all[i];
+    let seed = 0x5608 + i as u64;
     let dir = tempfile::tempdir().unwrap();
-    let m = rtl_gen::merge::overlap_counter_unit(p, k, num, den);
+    let m = rtl_gen::merge::overlap_counter_unit(&p, k, num, den);
     let design = design_of(&m, dir.path());
-    for &(kind, levels) in runs {
-        let (vs, seen, ends) = vectors(p, k, num, den, seed, levels);
+    let batch = icarus_batch(&design);
+    let full = vectors(&p, k, num, den, seed, levels);
+    let ir = (ir_levels != levels).then(|| vectors(&p, k, num, den, seed, ir_levels));
+    for kind in ["ir", "verilator", "iverilog"] {
+        let ((vs, seen, ends), n) = match (&ir, kind) {
+            (Some(v), "ir") => (v, ir_levels),
+            _ => (&full, levels),
+        };
         eprintln!(
-            "overlap {name}/{kind}: {levels} levels, {} beats, above/not/overflow {seen:?}",
+            "overlap {name}/{kind}: {n} levels, {} beats, above/not/overflow {seen:?}",
             vs.len()
         );
         assert!(seen[1] > 0, "some level below the threshold");
@@ -84,24 +100,17 @@ fn check(name: &str, p: &Params, k: usize, num: u32, den: u32, runs: &[(&str, us
         if p.index_bits <= 4 {
             assert!(seen[2] > 0, "count overflow reached");
         }
+        let sim = |kind: &str| match kind {
+            "iverilog" => Sim::Batch(&batch),
+            k => Sim::Stepped(engine(k, &m, &design)),
+        };
         let stall = stall_of(seed ^ kind.len() as u64).max(0.05);
-        let mut e = engine(kind, &m, &design);
-        run(
-            e.as_mut(),
-            &vs,
-            seed,
-            stall,
-            &format!("merge_overlap {name} {kind}"),
-        );
-        let part = &vs[..level_prefix(&ends, 100_000)];
-        let mut e = engine(kind, &m, &design);
-        let r = run(
-            e.as_mut(),
-            part,
-            seed + 1,
-            0.0,
-            &format!("merge_overlap {name} {kind}"),
-        );
+        let what = format!("merge_overlap {name} {kind}");
+        let r = run_sim(sim(kind), vs, n, seed, stall, &what);
+        assert_eq!(r.inputs_sent, vs.len() as u64);
+        let cut = level_prefix(ends, 100_000);
+        let part_levels = ends.iter().position(|&e| e == cut).unwrap() + 1;
+        let r = run_sim(sim(kind), &vs[..cut], part_levels, seed + 1, 0.0, &what);
         println!(
             "overlap_counter {name} {kind}: {} input beats in {} cycles: {:.4} beats/cycle",
             r.inputs_sent,
@@ -121,34 +130,39 @@ fn overlap_counter_default_matches_golden_on_100k_levels() {
     if !tools_present(&["verilator", "iverilog"]) {
         return;
     }
-    let (name, p, k, num, den) = configs()[0];
-    check(
-        name,
-        &p,
-        k,
-        num,
-        den,
-        &[("ir", 100_000), ("verilator", 100_000), ("iverilog", 2_000)],
-        0x5608,
-    );
+    check("default", 100_000, 100_000);
 }
 
 #[test]
-fn overlap_counter_other_configs_match_golden() {
+fn overlap_counter_d31_matches_golden_on_100k_levels() {
     if !tools_present(&["verilator", "iverilog"]) {
         return;
     }
-    for (i, (name, p, k, num, den)) in configs().into_iter().skip(1).enumerate() {
-        check(
-            name,
-            &p,
-            k,
-            num,
-            den,
-            &[("ir", 5_000), ("verilator", 20_000), ("iverilog", 300)],
-            0x5609 + i as u64,
-        );
+    check("d31", 100_000, 5_000);
+}
+
+#[test]
+fn overlap_counter_q0_matches_golden_on_100k_levels() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
     }
+    check("q0", 100_000, 5_000);
+}
+
+#[test]
+fn overlap_counter_i4_matches_golden_on_100k_levels() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
+    }
+    check("i4", 100_000, 5_000);
+}
+
+#[test]
+fn overlap_counter_k1_matches_golden_on_20k_levels() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
+    }
+    check("k1", 20_000, 5_000);
 }
 
 #[test]

@@ -1,9 +1,11 @@
 //! S616 one level up (`rtl_gen::merge::upper_level_unit`) against the
 //! golden `build::upper::group_by_parent` through
-//! `golden::merge::unit::upper_transaction`, bit for bit, on the IR
-//! simulator, Verilator and Icarus, random back-pressure (0..=0.5), in-order
-//! scoreboard; one transaction = one parent group (its children in, its
-//! record out). Throughput with no back-pressure printed (>= 0.95 beats per
+//! `golden::merge::unit::upper_transaction`, bit for bit, random
+//! back-pressure (0.05..=0.5), in-order scoreboard; one transaction = one
+//! parent group (its children in, its record out). The default, D = 31,
+//! Q = 0 and I = 3 run 100,000 groups each on Verilator and on Icarus
+//! Verilog (batch mode, 4-state), Q = 1 20,000; the IR simulator 100,000
+//! default, 5,000 other. Throughput with no back-pressure printed (>= 0.95 beats per
 //! cycle); lint and synthesis of every configuration.
 mod merge_common;
 
@@ -23,14 +25,17 @@ fn configs() -> Vec<(&'static str, Params)> {
     ]
 }
 
+/// Where each level ends: (beats so far, transactions so far).
+type Ends = (Vec<usize>, Vec<usize>);
+
 /// Levels until `groups` parent groups (transactions); a level's outputs
 /// are expected with its first beat. Also counts the groups with `err`.
-fn vectors(p: &Params, seed: u64, groups: usize) -> (Vec<Vector>, usize, usize, Vec<usize>) {
+fn vectors(p: &Params, seed: u64, groups: usize) -> (Vec<Vector>, usize, usize, Ends) {
     let l = UpperLayout::new(p);
     let mut rng = SplitMix64(seed);
     let mut out = Vec::new();
     let (mut n, mut errs) = (0, 0);
-    let mut ends = Vec::new();
+    let mut ends = (Vec::new(), Vec::new());
     while n < groups {
         let size = 1 + rng.below(40) as usize;
         let level = random_upper_level(&mut rng, p, size);
@@ -50,42 +55,49 @@ fn vectors(p: &Params, seed: u64, groups: usize) -> (Vec<Vector>, usize, usize, 
                 outputs: if j == 0 { expected.clone() } else { Vec::new() },
             });
         }
-        ends.push(out.len());
+        ends.0.push(out.len());
+        ends.1.push(n);
     }
     (out, n, errs, ends)
 }
 
-fn check(name: &str, p: &Params, runs: &[(&str, usize)], seed: u64) {
+/// Every engine on `groups` random transactions with random back-pressure
+/// (stall 0.05..=0.5; the IR simulator on `ir_groups`), then without
+/// back-pressure on the first 100k beats (at least 0.95 beats per cycle).
+/// Icarus runs in batch mode (`IcarusBatch`, 4-state).
+fn check(name: &str, groups: usize, ir_groups: usize) {
+    let all = configs();
+    let i = all.iter().position(|c| c.0 == name).unwrap();
+    let p = all[i].1;
+    let seed = 0x5616 + i as u64;
     let dir = tempfile::tempdir().unwrap();
-    let m = rtl_gen::merge::upper_level_unit(p);
+    let m = rtl_gen::merge::upper_level_unit(&p);
     let design = design_of(&m, dir.path());
-    for &(kind, groups) in runs {
-        let (vs, n, errs, ends) = vectors(p, seed, groups);
+    let batch = icarus_batch(&design);
+    let full = vectors(&p, seed, groups);
+    let ir = (ir_groups != groups).then(|| vectors(&p, seed, ir_groups));
+    for kind in ["ir", "verilator", "iverilog"] {
+        let (vs, n, errs, ends) = match (&ir, kind) {
+            (Some(v), "ir") => v,
+            _ => &full,
+        };
         eprintln!(
             "upper {name}/{kind}: {n} groups, {} beats, {errs} with err",
             vs.len()
         );
         if p.index_bits <= 3 {
-            assert!(errs > 0, "index overflow reached");
+            assert!(*errs > 0, "index overflow reached");
         }
+        let sim = |kind: &str| match kind {
+            "iverilog" => Sim::Batch(&batch),
+            k => Sim::Stepped(engine(k, &m, &design)),
+        };
         let stall = stall_of(seed ^ kind.len() as u64).max(0.05);
-        let mut e = engine(kind, &m, &design);
-        run(
-            e.as_mut(),
-            &vs,
-            seed,
-            stall,
-            &format!("merge_upper {name} {kind}"),
-        );
-        let part = &vs[..level_prefix(&ends, 100_000)];
-        let mut e = engine(kind, &m, &design);
-        let r = run(
-            e.as_mut(),
-            part,
-            seed + 1,
-            0.0,
-            &format!("merge_upper {name} {kind}"),
-        );
+        let what = format!("merge_upper {name} {kind}");
+        run_sim(sim(kind), vs, *n, seed, stall, &what);
+        let cut = level_prefix(&ends.0, 100_000);
+        let part_groups = ends.1[ends.0.iter().position(|&e| e == cut).unwrap()];
+        let r = run_sim(sim(kind), &vs[..cut], part_groups, seed + 1, 0.0, &what);
         println!(
             "upper_level {name} {kind}: {} input beats in {} cycles: {:.4} beats/cycle",
             r.inputs_sent,
@@ -105,27 +117,39 @@ fn upper_level_default_matches_golden_on_100k_groups() {
     if !tools_present(&["verilator", "iverilog"]) {
         return;
     }
-    check(
-        "default",
-        &Params::default(),
-        &[("ir", 100_000), ("verilator", 100_000), ("iverilog", 2_000)],
-        0x5616,
-    );
+    check("default", 100_000, 100_000);
 }
 
 #[test]
-fn upper_level_other_configs_match_golden() {
+fn upper_level_d31_matches_golden_on_100k_groups() {
     if !tools_present(&["verilator", "iverilog"]) {
         return;
     }
-    for (i, (name, p)) in configs().into_iter().skip(1).enumerate() {
-        check(
-            name,
-            &p,
-            &[("ir", 5_000), ("verilator", 20_000), ("iverilog", 300)],
-            0x5617 + i as u64,
-        );
+    check("d31", 100_000, 5_000);
+}
+
+#[test]
+fn upper_level_q0_matches_golden_on_100k_groups() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
     }
+    check("q0", 100_000, 5_000);
+}
+
+#[test]
+fn upper_level_q1_matches_golden_on_20k_groups() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
+    }
+    check("q1", 20_000, 5_000);
+}
+
+#[test]
+fn upper_level_i3_matches_golden_on_100k_groups() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
+    }
+    check("i3", 100_000, 5_000);
 }
 
 #[test]

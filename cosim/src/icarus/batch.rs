@@ -2,13 +2,19 @@
 //!
 //! The pipe engine (`super::IcarusEngine`) pays one round trip per clock
 //! (~15-22 k cycles/s); here the generated testbench
-//! (`super::batch_testbench`) drives the input beats from a file, draws the
-//! valid gaps, the garbage payloads and the ready back-pressure from the same
-//! seeded SplitMix64 streams as `tb::StreamDriver`/`tb::StreamMonitor`,
-//! checks every output for X/Z after reset (4-state, as the pipe engine
-//! does), runs the watchdog and the drain, and records every output transfer
-//! (lane, cycle, data) to a file. Rust then feeds the transfers in order to
-//! the usual `tb::Scoreboard` (with its `Accounting`) and builds a
+//! (`super::batch_testbench`) drives the input beats from a file and the
+//! valid gaps and ready back-pressure from per-cycle stall masks that Rust
+//! draws from the seeded `tb::Prng` (the driver's and the monitor's streams,
+//! `Prng::derived(seed, 1 + 2 * lane)` and `(seed, 2 + 2 * lane)`, a bit
+//! per cycle: go with probability `1 - stall`) and streams into vvp's stdin
+//! ahead of it; while `valid` is low the payload shows a random value (from
+//! a pool drawn from `Prng::derived(seed, 1000 + lane)`, a new one after
+//! each beat the lane delivers: held, not redrawn every cycle, because a
+//! changing input makes vvp re-evaluate the design's whole input cone).
+//! The testbench checks every output for X/Z after reset (4-state, as the
+//! pipe engine does), runs the watchdog and the drain, and records every
+//! output transfer (lane, cycle, data) to a file. Rust then feeds the transfers in order to the
+//! usual `tb::Scoreboard` (with its `Accounting`) and builds a
 //! `tb::BenchReport`, so a mismatch is decoded exactly as in a pipe run.
 //!
 //! A run is one or more *lanes* (an input stream and the output stream its
@@ -21,20 +27,22 @@
 //! Each lane's outputs are compared in order with that lane's expected
 //! outputs.
 //!
-//! With one lane and no waits a run is cycle for cycle the run of
-//! `tb::run_stream_bench` on the pipe engine with the same seed (same
-//! draws, same handshakes, same report) except that it does not stop at
-//! the first mismatch (the testbench cannot know): it runs to the end and
-//! counts every mismatch.
+//! With one lane and no waits a run follows `tb::run_stream_bench` step for
+//! step (same cycle order, reset, watchdog, drain, counts); the stall
+//! pattern differs from a pipe run with the same seed (a bit per cycle
+//! here, a draw per opportunity there) but has the same law. Unlike the
+//! pipe bench it does not stop at the first mismatch (the testbench cannot
+//! know): it runs to the end and counts every mismatch.
 
 use super::batch_testbench::{
-    generate_batch_testbench, BatchTbSpec, LanePorts, BATCH_TB_MODULE, SPLITMIX_GAMMA,
+    generate_batch_testbench, meta_file, payload_file, pool_file, BatchTbSpec, LanePorts,
+    BATCH_TB_MODULE, GARBAGE_POOL, STIM_CHUNK,
 };
 use crate::bitvec::BitVec;
 use crate::design::{Design, PortId};
 use crate::error::{io_err, CosimError, Result};
 use crate::tb::{
-    AccountingReport, BenchConfig, BenchReport, FieldDecoder, Hang, Mismatch, Scoreboard,
+    AccountingReport, BenchConfig, BenchReport, FieldDecoder, Hang, Mismatch, Prng, Scoreboard,
     StreamNames, Transaction, Vector,
 };
 use crate::tools::INSTALL_HINT;
@@ -291,9 +299,11 @@ impl IcarusBatch {
             .tempdir_in(self.work.path())
             .map_err(io_err(self.work.path()))?;
         let total_out = self.write_stimulus(dir.path(), vectors)?;
-        self.write_params(dir.path(), config, total_out, dump.as_ref().map(|d| d.0))?;
+        let totals = (vectors.len() as u64, total_out);
+        self.write_params(dir.path(), config, totals, dump.as_ref().map(|d| d.0))?;
+        self.write_pools(dir.path(), config.seed)?;
         let sim_start = Instant::now();
-        self.run_vvp(dir.path())?;
+        self.run_vvp(dir.path(), config)?;
         let sim_wall = sim_start.elapsed();
         let text = fs::read_to_string(dir.path().join("out.txt"))
             .map_err(io_err(dir.path().join("out.txt")))?;
@@ -313,13 +323,11 @@ impl IcarusBatch {
         Ok(report)
     }
 
-    /// `stim.txt`: per beat `<lane> <after> <hex>...`; returns the number of
-    /// outputs expected in total.
+    /// The stimulus chunks (`meta_<c>.hex`, `pay_<c>_<lane>_<k>.hex`, see
+    /// `batch_testbench`); returns the number of outputs expected in total.
     fn write_stimulus(&self, dir: &Path, vectors: &[LaneVector]) -> Result<u64> {
-        let path = dir.join("stim.txt");
-        let file = fs::File::create(&path).map_err(io_err(&path))?;
-        let mut w = BufWriter::with_capacity(1 << 20, file);
         let mut expected = 0u64;
+        let mut after = Vec::with_capacity(vectors.len());
         for (i, v) in vectors.iter().enumerate() {
             let lane = self.lanes.get(v.lane).ok_or_else(|| CosimError::Design {
                 what: format!(
@@ -338,24 +346,45 @@ impl IcarusBatch {
                     ),
                 });
             }
-            let after = if v.wait_for_earlier_outputs {
-                expected
-            } else {
-                0
-            };
-            write!(w, "{} {after}", v.lane).map_err(io_err(&path))?;
             for (value, &port) in v.vector.input.iter().zip(&lane.in_payload) {
                 self.design
                     .check_poke(port, value)
                     .map_err(|e| CosimError::Design {
                         what: format!("vector {i}: {e}"),
                     })?;
-                write!(w, " {}", value.to_hex()).map_err(io_err(&path))?;
             }
-            writeln!(w).map_err(io_err(&path))?;
+            let wait = if v.wait_for_earlier_outputs {
+                expected
+            } else {
+                0
+            };
+            if wait >= 1 << 48 || v.lane >= 1 << 16 {
+                return Err(CosimError::Unsupported {
+                    what: format!("vector {i}: more than 2^48 outputs or 2^16 lanes"),
+                });
+            }
+            after.push((v.lane as u64) << 48 | wait);
             expected += v.vector.outputs.len() as u64;
         }
-        w.flush().map_err(io_err(&path))?;
+        for (c, beats) in vectors.chunks(STIM_CHUNK).enumerate() {
+            let first = c * STIM_CHUNK;
+            let meta: Vec<String> = (0..STIM_CHUNK)
+                .map(|j| format!("{:x}", after.get(first + j).copied().unwrap_or(0)))
+                .collect();
+            write_lines(&dir.join(meta_file(c)), &meta)?;
+            for (l, lane) in self.lanes.iter().enumerate() {
+                for (k, &port) in lane.in_payload.iter().enumerate() {
+                    let zero = BitVec::zeros(self.design.ports[port.0].width).to_hex();
+                    let lines: Vec<String> = (0..STIM_CHUNK)
+                        .map(|j| match beats.get(j) {
+                            Some(v) if v.lane == l => v.vector.input[k].to_hex(),
+                            _ => zero.clone(),
+                        })
+                        .collect();
+                    write_lines(&dir.join(payload_file(c, l, k)), &lines)?;
+                }
+            }
+        }
         Ok(expected)
     }
 
@@ -363,37 +392,47 @@ impl IcarusBatch {
         &self,
         dir: &Path,
         config: &BenchConfig,
-        total_out: u64,
+        (total_in, total_out): (u64, u64),
         dump: Option<(u64, u64)>,
     ) -> Result<()> {
         let (dump_on, from, to) = match dump {
             Some((from, to)) => (1, from, to),
             None => (0, 0, 0),
         };
-        let mut text = format!(
-            "{:x} {:x} {:x} {:x} {:x} {:x} {:x} {:x} {:x}\n",
+        let text = format!(
+            "{:x} {:x} {:x} {:x} {:x} {:x} {:x} {:x}\n",
             config.reset_cycles,
             config.watchdog_cycles,
             config.drain_cycles,
+            total_in,
             total_out,
-            chance_threshold(config.in_stall),
-            chance_threshold(config.out_stall),
             dump_on,
             from,
             to
         );
-        for lane in 0..self.lanes.len() as u64 {
-            text.push_str(&format!(
-                "{:x} {:x}\n",
-                derived_state(config.seed, 1 + 2 * lane),
-                derived_state(config.seed, 2 + 2 * lane)
-            ));
-        }
         let path = dir.join("params.txt");
         fs::write(&path, text).map_err(io_err(&path))
     }
 
-    fn run_vvp(&self, dir: &Path) -> Result<()> {
+    /// The garbage pools: `GARBAGE_POOL` random values per payload port.
+    fn write_pools(&self, dir: &Path, seed: u64) -> Result<()> {
+        for (l, lane) in self.lanes.iter().enumerate() {
+            let mut rng = Prng::derived(seed, 1000 + l as u64);
+            for (k, &port) in lane.in_payload.iter().enumerate() {
+                let width = self.design.ports[port.0].width;
+                let mut text = String::with_capacity(GARBAGE_POOL * (width / 4 + 2));
+                for _ in 0..GARBAGE_POOL {
+                    text.push_str(&rng.bits(width).to_hex());
+                    text.push('\n');
+                }
+                let path = dir.join(pool_file(l, k));
+                fs::write(&path, text).map_err(io_err(&path))?;
+            }
+        }
+        Ok(())
+    }
+
+    fn run_vvp(&self, dir: &Path, config: &BenchConfig) -> Result<()> {
         let log_path = dir.join("vvp.log");
         let log = fs::File::create(&log_path).map_err(io_err(&log_path))?;
         let log_err = log.try_clone().map_err(io_err(&log_path))?;
@@ -401,7 +440,7 @@ impl IcarusBatch {
             .arg("-n")
             .arg(&self.image)
             .current_dir(dir)
-            .stdin(Stdio::null())
+            .stdin(Stdio::piped())
             .stdout(log)
             .stderr(log_err)
             .spawn()
@@ -409,6 +448,12 @@ impl IcarusBatch {
                 tool: "vvp".to_string(),
                 hint: format!("{e}; {INSTALL_HINT}"),
             })?;
+        let stdin = child.stdin.take().ok_or_else(|| CosimError::Protocol {
+            what: "vvp stdin not captured".to_string(),
+        })?;
+        let masks = StallMasks::new(config, self.lanes.len());
+        // Writes ahead until vvp exits and the pipe breaks.
+        let writer = std::thread::spawn(move || masks.write_until_closed(stdin));
         let started = Instant::now();
         let status = loop {
             if let Some(status) = child.try_wait().map_err(io_err(&self.image))? {
@@ -427,6 +472,7 @@ impl IcarusBatch {
             }
             std::thread::sleep(Duration::from_millis(5));
         };
+        let _ = writer.join();
         if !status.success() {
             return Err(CosimError::ToolFailed {
                 tool: "vvp".to_string(),
@@ -525,6 +571,7 @@ impl IcarusBatch {
                     });
                 }
                 "E" => end = Some((number()?, number()?, number()?)),
+                "M" => return Err(bad("the stall masks ran out")),
                 _ => return Err(bad("unknown record")),
             }
         }
@@ -578,6 +625,16 @@ impl IcarusBatch {
             })
             .collect()
     }
+}
+
+/// `lines`, one per line, into `path`.
+fn write_lines(path: &Path, lines: &[String]) -> Result<()> {
+    let file = fs::File::create(path).map_err(io_err(path))?;
+    let mut w = BufWriter::with_capacity(1 << 16, file);
+    for l in lines {
+        writeln!(w, "{l}").map_err(io_err(path))?;
+    }
+    w.flush().map_err(io_err(path))
 }
 
 /// One report from the lanes' scoreboards: counts summed, the earliest
@@ -687,14 +744,46 @@ fn lane_ports(design: &Design, n: &StreamNames) -> Result<LanePorts> {
     })
 }
 
-/// `Prng::chance(p)` is `(x >> 11) as f64 / 2^53 < p`; both sides scaled by
-/// 2^53 are exact, so it is `(x >> 11) < ceil(p * 2^53)` on integers.
-pub fn chance_threshold(p: f64) -> u64 {
-    (p * (1u64 << 53) as f64).ceil() as u64
+/// The per-cycle stall masks of a run: per lane the driver's and the
+/// monitor's generator, a bit per cycle, 1 (go) with probability `1 - stall`.
+pub struct StallMasks {
+    streams: Vec<(Prng, f64)>,
 }
 
-/// The SplitMix64 state of `Prng::derived(seed, stream)` (seeded with
-/// `seed ^ stream * 0xA0761D6478BD642F`, one step taken).
-pub fn derived_state(seed: u64, stream: u64) -> u64 {
-    (seed ^ stream.wrapping_mul(0xA076_1D64_78BD_642F)).wrapping_add(SPLITMIX_GAMMA)
+impl StallMasks {
+    /// The masks of `lanes` lanes for `config`'s seed and stalls.
+    pub fn new(config: &BenchConfig, lanes: usize) -> StallMasks {
+        let streams = (0..lanes as u64)
+            .flat_map(|l| {
+                [
+                    (Prng::derived(config.seed, 1 + 2 * l), config.in_stall),
+                    (Prng::derived(config.seed, 2 + 2 * l), config.out_stall),
+                ]
+            })
+            .collect();
+        StallMasks { streams }
+    }
+
+    /// The next 64 cycles: one word per stream (lane 0 driver, lane 0
+    /// monitor, lane 1 driver, ...), bit `k` = cycle `k` of the block.
+    pub fn next_block(&mut self) -> Vec<u64> {
+        self.streams
+            .iter_mut()
+            .map(|(rng, stall)| {
+                (0..64).fold(0u64, |w, k| w | (u64::from(!rng.chance(*stall)) << k))
+            })
+            .collect()
+    }
+
+    /// Write blocks (one line of `%h` words each) to `out` until it fails
+    /// (vvp exited and closed the pipe).
+    fn write_until_closed(mut self, out: impl Write) {
+        let mut w = BufWriter::with_capacity(1 << 14, out);
+        loop {
+            let line: Vec<String> = self.next_block().iter().map(|x| format!("{x:x}")).collect();
+            if writeln!(w, "{}", line.join(" ")).is_err() {
+                return;
+            }
+        }
+    }
 }

@@ -5,34 +5,51 @@
 //!
 //! Files (in vvp's working directory, written by `super::batch`):
 //! - `params.txt` (read once, all `%h`): reset cycles, watchdog limit, drain
-//!   cycles, expected output count, driver threshold, monitor threshold,
-//!   dump flag, first and last dumped cycle, then per lane the driver's and
-//!   the monitor's SplitMix64 state.
-//! - `stim.txt` (read one beat ahead): per input beat `<lane> <after>
-//!   <payload hex>...`; the beat may be presented once `after` outputs
-//!   (all lanes together) have been accepted by earlier cycles.
+//!   cycles, input beat count, expected output count, dump flag, first and
+//!   last dumped cycle.
+//! - `pool_<lane>_<k>.hex` (`$readmemh`): `GARBAGE_POOL` random values of
+//!   payload port `k` of the lane, shown while its `valid` is low (entry
+//!   `n mod GARBAGE_POOL` after the lane's `n`-th accepted beat).
+//! - the input beats in chunks of `STIM_CHUNK` (`$readmemh` when the
+//!   first beat of a chunk is needed; `$fscanf` costs ~5 us a beat in vvp):
+//!   `meta_<c>.hex`, per beat `lane << 48 | after` (the beat may be
+//!   presented once `after` outputs, all lanes together, have been accepted
+//!   by earlier cycles), and `pay_<c>_<lane>_<k>.hex`, per beat payload port
+//!   `k` of `lane` (0 on beats of other lanes); every file holds exactly
+//!   `STIM_CHUNK` lines (zero padded).
+//! - stdin: the stall masks, one line per 64 cycles of the main loop:
+//!   per lane the driver's and the monitor's 64-bit word (`%h`); bit `k` of
+//!   a word is cycle `k` of the block, 1 = go (the driver may raise `valid`,
+//!   the monitor raises `ready`). Rust writes them ahead from the seeded
+//!   generators, as many as vvp reads.
 //! - `out.txt` (written): `O <lane> <cycle> <hex>...` per output transfer,
 //!   `W <cycle> <hex>...` whenever a watched output changes (and once at the
 //!   first cycle), `X <cycle> <hex>...` (every output) at the first X/Z on
 //!   any output after reset, `H <cycle> <idle> <hex>...` (every port) when
-//!   the watchdog fires, and last `E <cycle> <inputs accepted> <outputs>`.
+//!   the watchdog fires, `M <cycle>` when the stall masks ran out, and last
+//!   `E <cycle> <inputs accepted> <outputs>`.
 //!
 //! Per cycle, in the order of `crate::tb::run_stream_bench`: each lane's
-//! driver (a SplitMix64 draw against the threshold decides whether an
-//! available beat is raised; while `valid` is low each payload port gets
-//! random words from the same generator), each lane's monitor (one draw for
-//! `ready`), `#1`, the X/Z check, accepted inputs, output transfers, watched
-//! outputs, end and watchdog, then the clock edge. With one lane and no
-//! `after` constraints this is draw for draw the pipe engine's
-//! `StreamDriver`/`StreamMonitor`, so both runs see the same cycles.
+//! driver (an available beat is raised on a go bit and held until
+//! accepted; while `valid` is low the payload shows a pool value, a new one
+//! after each accepted beat), each
+//! lane's monitor (`ready` = its go bit), `#1`, the X/Z check, accepted
+//! inputs, output transfers, watched outputs, end and watchdog, then the
+//! clock edge. Random numbers are not drawn in Verilog: vvp's 64-bit shifts
+//! cost microseconds each, which made a SplitMix64 draw per decision the
+//! bottleneck.
 
 use crate::design::{Design, PortDir, PortId};
 
 /// Name of the generated module.
 pub const BATCH_TB_MODULE: &str = "hm_batch_tb";
 
-/// The SplitMix64 increment (`golden::scenes::splitmix64_next`).
-pub const SPLITMIX_GAMMA: u64 = 0x9E37_79B9_7F4A_7C15;
+/// Input beats per stimulus chunk file (a power of two).
+pub const STIM_CHUNK: usize = 1 << 14;
+
+/// Random payload values per lane and payload port, shown while the
+/// lane's `valid` is low (a new one after each beat the lane delivers).
+pub const GARBAGE_POOL: usize = 1024;
 
 /// Port ids of one valid/ready lane pair (an input stream and the output
 /// stream its results leave on).
@@ -72,6 +89,21 @@ fn lane_reg(kind: &str, lane: usize, k: usize) -> String {
     format!("hm_{kind}_{lane}_{k}")
 }
 
+/// `$readmemh` file of lane `lane`'s payload port `k` garbage pool.
+pub fn pool_file(lane: usize, k: usize) -> String {
+    format!("pool_{lane}_{k}.hex")
+}
+
+/// `$readmemh` file of chunk `chunk`'s beat lanes and waits.
+pub fn meta_file(chunk: usize) -> String {
+    format!("meta_{chunk}.hex")
+}
+
+/// `$readmemh` file of chunk `chunk`'s payload port `k` of lane `lane`.
+pub fn payload_file(chunk: usize, lane: usize, k: usize) -> String {
+    format!("pay_{chunk}_{lane}_{k}.hex")
+}
+
 /// The testbench source.
 pub fn generate_batch_testbench(spec: &BatchTbSpec) -> String {
     let d = spec.design;
@@ -105,94 +137,95 @@ pub fn generate_batch_testbench(spec: &BatchTbSpec) -> String {
         constants.push_str(&format!("        {} = {}'h{hex};\n", sig(*id), width(*id)));
     }
     let all_ports: Vec<String> = (0..d.ports.len()).map(|i| sig(PortId(i))).collect();
-    let max_payload = spec
-        .lanes
-        .iter()
-        .flat_map(|l| l.in_payload.iter())
-        .map(|&p| width(p).div_ceil(64) * 64)
-        .max()
-        .unwrap_or(64);
 
     let mut lane_decls = String::new();
-    let mut read_params = String::new();
+    let mut load_pools = String::new();
+    let mut load_chunk = String::new();
     let mut read_head = String::new();
     let mut drive = String::new();
     let mut accept = String::new();
     let mut transfer = String::new();
     let mut any_presenting = Vec::new();
+    let mut mask_regs = Vec::new();
     for (l, lane) in spec.lanes.iter().enumerate() {
         lane_decls.push_str(&format!(
-            "    reg [63:0] hm_drv_{l}, hm_mon_{l};\n    reg hm_pres_{l}, hm_rdy_{l};\n"
+            "    reg [63:0] hm_go_{l}, hm_rd_{l}, hm_taken_{l};\n    reg hm_pres_{l}, hm_rdy_{l};\n"
         ));
+        mask_regs.push(format!("hm_go_{l}"));
+        mask_regs.push(format!("hm_rd_{l}"));
         for (k, &p) in lane.in_payload.iter().enumerate() {
+            let w = width(p) - 1;
             lane_decls.push_str(&format!(
-                "    reg [{}:0] {};\n",
-                width(p) - 1,
-                lane_reg("head", l, k)
+                "    reg [{w}:0] {};\n    reg [{w}:0] {} [0:{}];\n    reg [{w}:0] {} [0:{}];\n",
+                lane_reg("head", l, k),
+                lane_reg("pool", l, k),
+                GARBAGE_POOL - 1,
+                lane_reg("stim", l, k),
+                STIM_CHUNK - 1
+            ));
+            load_chunk.push_str(&format!(
+                "                $sformat(hm_fname, \"pay_%0d_{l}_{k}.hex\", hm_next / {STIM_CHUNK});\n                $readmemh(hm_fname, {});\n",
+                lane_reg("stim", l, k)
+            ));
+            load_pools.push_str(&format!(
+                "        $readmemh(\"{}\", {});\n",
+                pool_file(l, k),
+                lane_reg("pool", l, k)
             ));
         }
-        read_params.push_str(&format!(
-            "        got = $fscanf(fd, \"%h %h\", hm_drv_{l}, hm_mon_{l});\n        hm_pres_{l} = 0; hm_rdy_{l} = 0;\n"
-        ));
         let reads: String = (0..lane.in_payload.len())
             .map(|k| {
                 format!(
-                    "                    got = $fscanf(stim, \" %h\", {});\n",
-                    lane_reg("head", l, k)
+                    "                    {} = {}[hm_index];\n",
+                    lane_reg("head", l, k),
+                    lane_reg("stim", l, k)
                 )
             })
             .collect();
         read_head.push_str(&format!(
             "                {l}: begin\n{reads}                end\n"
         ));
-
-        // Driver: raise valid on an available beat unless the draw stalls;
-        // while valid is low, random words on every payload port.
-        let mut garbage = String::new();
-        for &p in &lane.in_payload {
-            let w = width(p);
-            for word in 0..w.div_ceil(64) {
-                garbage.push_str(&format!(
-                    "                draw(hm_drv_{l}, hm_rnd); hm_garbage[{}:{}] = hm_rnd;\n",
-                    word * 64 + 63,
-                    word * 64
-                ));
-            }
-            garbage.push_str(&format!(
-                "                {} = hm_garbage[{}:0];\n",
-                sig(p),
-                w - 1
-            ));
-        }
-        let present: String = lane
+        // One garbage value per beat of the lane (not per cycle): a payload
+        // that does not change costs vvp nothing, and an idle lane of a
+        // multi-lane design would otherwise re-evaluate its whole datapath
+        // every cycle.
+        let pool_index = format!("hm_taken_{l}[{}:0]", GARBAGE_POOL.trailing_zeros() - 1);
+        let (present, garbage): (String, String) = lane
             .in_payload
             .iter()
             .enumerate()
-            .map(|(k, &p)| format!("                {} = {};\n", sig(p), lane_reg("head", l, k)))
-            .collect();
+            .map(|(k, &p)| {
+                (
+                    format!("                {} = {};\n", sig(p), lane_reg("head", l, k)),
+                    format!(
+                        "                {} = {}[{pool_index}];\n",
+                        sig(p),
+                        lane_reg("pool", l, k)
+                    ),
+                )
+            })
+            .unzip();
         drive.push_str(&format!(
-            r#"            if (!hm_pres_{l} && hm_head_ok && hm_head_lane == {l} && hm_received >= hm_head_after) begin
-                draw(hm_drv_{l}, hm_rnd);
-                if (!((hm_rnd >> 11) < hm_in_thr)) hm_pres_{l} = 1'b1;
-            end
+            r#"            if (!hm_pres_{l} && hm_go_{l}[hm_bit] && hm_head_ok && hm_head_lane == {l} && hm_received >= hm_head_after)
+                hm_pres_{l} = 1'b1;
             {valid} = hm_pres_{l};
             if (hm_pres_{l}) begin
 {present}            end else begin
 {garbage}            end
-            draw(hm_mon_{l}, hm_rnd);
-            hm_rdy_{l} = !((hm_rnd >> 11) < hm_out_thr);
+            hm_rdy_{l} = hm_rd_{l}[hm_bit];
             {ready} = hm_rdy_{l};
 "#,
             valid = sig(lane.in_valid),
             ready = sig(lane.out_ready),
         ));
         accept.push_str(&format!(
-            r#"            if (hm_pres_{l} && {in_ready} === 1'b1) begin
-                hm_pres_{l} = 1'b0;
-                hm_sent = hm_sent + 1;
-                hm_last_progress = hm_cycle;
-                load_head;
-            end
+            r#"                if (hm_pres_{l} && {in_ready} === 1'b1) begin
+                    hm_pres_{l} = 1'b0;
+                    hm_sent = hm_sent + 1;
+                    hm_taken_{l} = hm_taken_{l} + 1;
+                    hm_last_progress = hm_cycle;
+                    load_head;
+                end
 "#,
             in_ready = sig(lane.in_ready)
         ));
@@ -203,16 +236,17 @@ pub fn generate_batch_testbench(spec: &BatchTbSpec) -> String {
             .map(|&p| format!(", {}", sig(p)))
             .collect();
         transfer.push_str(&format!(
-            r#"            if (hm_rdy_{l} && {out_valid} === 1'b1) begin
-                $fwrite(out, "O {l} %0d{fmt}\n", hm_cycle{args});
-                hm_received = hm_received + 1;
-                hm_last_progress = hm_cycle;
-            end
+            r#"                if (hm_rdy_{l} && {out_valid} === 1'b1) begin
+                    $fwrite(out, "O {l} %0d{fmt}\n", hm_cycle{args});
+                    hm_received = hm_received + 1;
+                    hm_last_progress = hm_cycle;
+                end
 "#,
             out_valid = sig(lane.out_valid)
         ));
         any_presenting.push(format!("hm_pres_{l}"));
     }
+    let mask_fmt: Vec<&str> = mask_regs.iter().map(|_| "%h").collect();
     let (watch_decl, watch_log) = if spec.watch.is_empty() {
         (String::new(), String::new())
     } else {
@@ -225,11 +259,11 @@ pub fn generate_batch_testbench(spec: &BatchTbSpec) -> String {
                 total - 1
             ),
             format!(
-                r#"            if (hm_watch_first || {{{cat}}} !== hm_watch_prev) begin
-                $fwrite(out, "W %0d{fmt}\n", hm_cycle, {args});
-                hm_watch_prev = {{{cat}}};
-                hm_watch_first = 1'b0;
-            end
+                r#"                if (hm_watch_first || {{{cat}}} !== hm_watch_prev) begin
+                    $fwrite(out, "W %0d{fmt}\n", hm_cycle, {args});
+                    hm_watch_prev = {{{cat}}};
+                    hm_watch_first = 1'b0;
+                end
 "#,
                 cat = cat.join(", "),
                 args = cat.join(", ")
@@ -274,6 +308,9 @@ pub fn generate_batch_testbench(spec: &BatchTbSpec) -> String {
             )
         })
         .collect();
+    let clear_lanes: String = (0..spec.lanes.len())
+        .map(|l| format!("        hm_pres_{l} = 1'b0; hm_rdy_{l} = 1'b0; hm_taken_{l} = 0;\n"))
+        .collect();
     let presenting = if any_presenting.is_empty() {
         "1'b0".to_string()
     } else {
@@ -282,40 +319,21 @@ pub fn generate_batch_testbench(spec: &BatchTbSpec) -> String {
     format!(
         r#"// Generated by hiermerge cosim (Icarus batch mode) for top `{top}`. Do not edit.
 module {BATCH_TB_MODULE};
-{decls}{lane_decls}{watch_decl}    reg [{gw}:0] hm_garbage;
-    reg [63:0] hm_rnd;
-    reg [63:0] hm_reset_cycles, hm_watchdog, hm_drain, hm_total_out, hm_in_thr, hm_out_thr;
+{decls}{lane_decls}{watch_decl}    reg [63:0] hm_reset_cycles, hm_watchdog, hm_drain, hm_total_out;
     reg [63:0] hm_dump, hm_dump_from, hm_dump_to;
     reg [63:0] hm_cycle, hm_sent, hm_received, hm_last_progress, hm_limit, hm_drain_left;
-    reg [63:0] hm_head_after;
+    reg [63:0] hm_head_after, hm_total_in, hm_next;
+    reg [63:0] hm_meta [0:{chunk_last}];
+    reg [{index_msb}:0] hm_index;
+    reg [8*64-1:0] hm_fname;
+    reg [5:0] hm_bit;
     integer hm_head_lane;
     reg hm_head_ok, hm_draining, hm_stop, hm_dumping;
-    integer fd, stim, out, got;
+    integer fd, out, got;
 
     {top} dut (
 {conns}
     );
-
-    function [63:0] splitmix_mix;
-        input [63:0] s;
-        reg [63:0] z;
-        begin
-            z = s;
-            z = (z ^ (z >> 30)) * 64'hBF58476D1CE4E5B9;
-            z = (z ^ (z >> 27)) * 64'h94D049BB133111EB;
-            splitmix_mix = z ^ (z >> 31);
-        end
-    endfunction
-
-    // One SplitMix64 step of `state`, its output in `r`.
-    task draw;
-        inout [63:0] state;
-        output [63:0] r;
-        begin
-            state = state + 64'h{gamma:016X};
-            r = splitmix_mix(state);
-        end
-    endtask
 
     task dump_window;
         begin
@@ -336,15 +354,23 @@ module {BATCH_TB_MODULE};
         begin
             {clk} = 1'b0; #1; {clk} = 1'b1; #1;
             hm_cycle = hm_cycle + 1;
-            dump_window;
+            if (hm_dump != 0) dump_window;
         end
     endtask
 
+    // The next beat into the head registers (hm_head_ok = 0 after the last).
     task load_head;
         begin
-            got = $fscanf(stim, " %d %d", hm_head_lane, hm_head_after);
-            hm_head_ok = (got == 2);
+            hm_head_ok = hm_next < hm_total_in;
             if (hm_head_ok) begin
+                hm_index = hm_next[{index_msb}:0];
+                if (hm_index == 0) begin
+                    $sformat(hm_fname, "meta_%0d.hex", hm_next / {STIM_CHUNK});
+                    $readmemh(hm_fname, hm_meta);
+{load_chunk}                end
+                hm_head_lane = hm_meta[hm_index][63:48];
+                hm_head_after = {{16'd0, hm_meta[hm_index][47:0]}};
+                hm_next = hm_next + 1;
                 case (hm_head_lane)
 {read_head}                default: hm_head_ok = 1'b0;
                 endcase
@@ -354,19 +380,26 @@ module {BATCH_TB_MODULE};
 
     initial begin
         fd = $fopen("params.txt", "r");
-        got = $fscanf(fd, "%h %h %h %h %h %h %h %h %h", hm_reset_cycles, hm_watchdog, hm_drain,
-            hm_total_out, hm_in_thr, hm_out_thr, hm_dump, hm_dump_from, hm_dump_to);
-{read_params}        $fclose(fd);
-        stim = $fopen("stim.txt", "r");
-        out = $fopen("out.txt", "w");
-        hm_cycle = 0; hm_sent = 0; hm_received = 0;
+        got = $fscanf(fd, "%h %h %h %h %h %h %h %h", hm_reset_cycles, hm_watchdog, hm_drain,
+            hm_total_in, hm_total_out, hm_dump, hm_dump_from, hm_dump_to);
+        $fclose(fd);
+{load_pools}        out = $fopen("out.txt", "w");
+        hm_next = 0;
+        hm_cycle = 0; hm_sent = 0; hm_received = 0; hm_bit = 0;
         hm_draining = 1'b0; hm_stop = 1'b0; hm_dumping = 1'b0; hm_drain_left = 0;
-{watch_init}{constants}{clear_handshakes}        dump_window;
+{clear_lanes}{watch_init}{constants}{clear_handshakes}        dump_window;
 {reset_assert}{reset_release}        #1;
         load_head;
         hm_limit = hm_watchdog;
         hm_last_progress = hm_cycle;
         while (!hm_stop) begin
+            if (hm_bit == 0) begin
+                got = $fscanf(32'h8000_0000, "{mask_fmt}", {mask_regs});
+                if (got != {mask_count}) begin
+                    $fwrite(out, "M %0d\n", hm_cycle);
+                    hm_stop = 1'b1;
+                end
+            end
 {drive}            #1;
 {x_check}            if (!hm_stop) begin
 {accept}{transfer}{watch_log}                if (!hm_draining && !hm_head_ok && !({presenting}) && hm_received >= hm_total_out) begin
@@ -384,6 +417,7 @@ module {BATCH_TB_MODULE};
                         hm_stop = 1'b1;
                     end else begin
                         tick;
+                        hm_bit = hm_bit + 1;
                     end
                 end
             end
@@ -392,15 +426,17 @@ module {BATCH_TB_MODULE};
         while (hm_dumping) tick;
         $fwrite(out, "E %0d %0d %0d\n", hm_cycle, hm_sent, hm_received);
         $fclose(out);
-        $fclose(stim);
         $finish;
     end
 endmodule
 "#,
         top = d.top,
         conns = conns.join(",\n"),
-        gw = max_payload - 1,
-        gamma = SPLITMIX_GAMMA,
+        mask_fmt = mask_fmt.join(" "),
+        mask_regs = mask_regs.join(", "),
+        mask_count = mask_regs.len(),
+        chunk_last = STIM_CHUNK - 1,
+        index_msb = STIM_CHUNK.trailing_zeros() - 1,
         watch_init = if spec.watch.is_empty() {
             ""
         } else {

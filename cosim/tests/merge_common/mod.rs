@@ -149,3 +149,58 @@ pub fn level_prefix(ends: &[usize], max: usize) -> usize {
         .max()
         .unwrap_or_else(|| ends.first().copied().unwrap_or(0))
 }
+
+/// The Icarus batch simulator (`cosim::icarus::IcarusBatch`, 4-state, the
+/// whole bench inside one `vvp` run) of `design` for the `in` -> `out`
+/// stream; built once, used for every Icarus run of a configuration.
+pub fn icarus_batch(design: &Design) -> cosim::icarus::IcarusBatch {
+    cosim::icarus::IcarusBatch::new(design, &cosim::icarus::BatchSpec::single(&stream_names()))
+        .expect("iverilog batch build")
+}
+
+/// Where a bench run goes: an engine stepped from Rust, or the Icarus batch mode.
+pub enum Sim<'a> {
+    /// rtl-gen's IR simulator, Verilator or the Icarus pipe engine.
+    Stepped(Box<dyn Engine>),
+    /// The Icarus batch simulator.
+    Batch(&'a cosim::icarus::IcarusBatch),
+}
+
+/// One bench run of `transactions` transactions on `sim`, with the line
+/// `what: engine, transactions, beats, cycles, wall seconds, cycles/s`
+/// printed; panics with the report when it fails.
+pub fn run_sim(
+    sim: Sim,
+    vectors: &[Vector],
+    transactions: usize,
+    seed: u64,
+    stall: f64,
+    what: &str,
+) -> BenchReport {
+    let config = BenchConfig {
+        seed,
+        in_stall: stall,
+        out_stall: stall,
+        reproduce: Some(format!("cargo test -p cosim --release --test {what}")),
+        ..BenchConfig::default()
+    };
+    let report = match sim {
+        Sim::Stepped(mut e) => {
+            run_stream_bench(e.as_mut(), &stream_names(), vectors, None, &config, None)
+                .expect("the bench runs")
+        }
+        Sim::Batch(b) => b
+            .run_stream(vectors, None, &config)
+            .unwrap_or_else(|e| panic!("{what}: {e}")),
+    };
+    println!(
+        "{what}: {} stall {stall:.2}: {transactions} transactions, {} beats, {} cycles, {:.2} s wall, {:.0} cycles/s",
+        report.engine,
+        report.inputs_sent,
+        report.cycles,
+        report.wall.as_secs_f64(),
+        report.cycles as f64 / report.wall.as_secs_f64().max(1e-9)
+    );
+    assert!(report.passed(), "{what} stall {stall}:\n{report}");
+    report
+}

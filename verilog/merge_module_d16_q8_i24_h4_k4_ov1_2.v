@@ -26,7 +26,8 @@ module merge_module_d16_q8_i24_h4_k4_ov1_2 (
     input  wire out_ready,          // rtl-gen/src/merge/top.rs:255
     output wire out_valid,          // rtl-gen/src/merge/top.rs:257
     output wire [180:0] out_data,   // rtl-gen/src/merge/top.rs:258
-    output wire idle                // rtl-gen/src/merge/top.rs:290
+    output wire idle,               // rtl-gen/src/merge/top.rs:290
+    output wire done                // rtl-gen/src/merge/top.rs:295
 );
     reg [1:0] state;                         // rtl-gen/src/merge/top.rs:113
     wire is_idle;                            // rtl-gen/src/merge/top.rs:114
@@ -150,6 +151,11 @@ module merge_module_d16_q8_i24_h4_k4_ov1_2 (
     wire [1:0] choice_reported_mux;          // rtl-gen/src/merge/top.rs:286
     wire [1:0] count_done_mux_2;             // rtl-gen/src/merge/top.rs:284
     wire [1:0] state_next;                   // rtl-gen/src/merge/top.rs:282
+    reg done_pulse;                          // rtl-gen/src/merge/top.rs:293
+    wire choice_err_eq_1;                    // rtl-gen/src/merge/top.rs:294
+    wire choice_err_not;                     // rtl-gen/src/merge/top.rs:294
+    wire choice_reported_and;                // rtl-gen/src/merge/top.rs:294
+    wire done_pulse_next;                    // rtl-gen/src/merge/top.rs:294
 
     assign is_idle = state == 2'd0;
     assign is_choose = state == 2'd2;
@@ -257,6 +263,11 @@ module merge_module_d16_q8_i24_h4_k4_ov1_2 (
     assign count_done_mux_2 = count_done ? 2'd2 : choice_reported_mux;
     assign state_next = cfg_fire ? bad_range_mux_1 : count_done_mux_2;
     assign idle = is_idle;
+    assign choice_err_eq_1 = choice_err == 2'd0;
+    assign choice_err_not = ~choice_err_eq_1;
+    assign choice_reported_and = choice_reported & choice_err_not;
+    assign done_pulse_next = merge_done | choice_reported_and;
+    assign done = done_pulse;
 
     morton_merge_d16_q8_i24_h4_k4_ranked u_network ( // rtl-gen/src/merge/top.rs:121
         .clk(clk),
@@ -316,6 +327,7 @@ module merge_module_d16_q8_i24_h4_k4_ov1_2 (
             report_skid_spare_valid <= 1'b0;
             report_skid_spare_data <= 58'd0;
             merge_feeding <= 1'b0;
+            done_pulse <= 1'b0;
         end else begin
             state <= state_next;
             choice_lod <= choice_lod_next;
@@ -331,6 +343,7 @@ module merge_module_d16_q8_i24_h4_k4_ov1_2 (
             report_skid_spare_valid <= report_skid_spare_valid_next;
             report_skid_spare_data <= report_skid_spare_data_next;
             merge_feeding <= merge_feeding_next;
+            done_pulse <= done_pulse_next;
         end
     end
 endmodule

@@ -9,7 +9,7 @@
 //! simulated cycle counts (deterministic); lint and synthesis of each.
 mod merge_common;
 
-use cosim::tb::{run_multi_stream_bench, BenchConfig, MultiReport, StreamBeats};
+use cosim::tb::{run_multi_stream_bench_watching, BenchConfig, MultiReport, StreamBeats};
 use golden::merge::top::{random_top_transaction, Report, TopLayout, TopTransaction};
 use golden::merge::unit::BeatLayout;
 use golden::merge::MergeMode;
@@ -159,9 +159,16 @@ fn bench(
         out_stall: stall,
         ..BenchConfig::default()
     };
-    let r = run_multi_stream_bench(engine, ins, outs, &config).expect("the bench runs");
+    let (r, pulses) = run_multi_stream_bench_watching(engine, ins, outs, &config, &["done"])
+        .expect("the bench runs");
     eprint!("{what}: stall {stall:.2}: {r}");
     assert!(r.passed(), "{what} stall {stall}:\n{r}");
+    // `done` pulses once per merge: one cfg beat each.
+    assert_eq!(
+        pulses[0].1,
+        ins[0].beats.len() as u64,
+        "{what}: done pulses"
+    );
     r
 }
 

@@ -18,7 +18,9 @@ pub use bench::{
 };
 pub use driver::StreamDriver;
 pub use monitor::StreamMonitor;
-pub use multi::{run_multi_stream_bench, MultiReport, StreamBeats};
+pub use multi::{
+    run_multi_stream_bench, run_multi_stream_bench_watching, MultiReport, PulseCounts, StreamBeats,
+};
 pub use prng::Prng;
 pub use scoreboard::{FieldDecoder, FieldDiff, Mismatch, Scoreboard};
 pub use stream::{StreamPorts, Transaction};

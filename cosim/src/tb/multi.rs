@@ -45,6 +45,9 @@ pub struct MultiReport {
     pub wall: Duration,
 }
 
+/// Cycles each watched 1-bit output was high, by name.
+pub type PulseCounts = Vec<(String, u64)>;
+
 impl MultiReport {
     /// Every beat matched, none missing, nothing hung.
     pub fn passed(&self) -> bool {
@@ -101,6 +104,18 @@ pub fn run_multi_stream_bench(
     outputs: &[StreamBeats],
     config: &BenchConfig,
 ) -> Result<MultiReport> {
+    run_multi_stream_bench_watching(engine, inputs, outputs, config, &[]).map(|r| r.0)
+}
+
+/// [`run_multi_stream_bench`] also counting, per cycle, the 1-bit outputs
+/// named in `pulses` that are high (status pulses such as `done`).
+pub fn run_multi_stream_bench_watching(
+    engine: &mut dyn Engine,
+    inputs: &[StreamBeats],
+    outputs: &[StreamBeats],
+    config: &BenchConfig,
+    pulses: &[&str],
+) -> Result<(MultiReport, PulseCounts)> {
     let start = Instant::now();
     // Distinct stall patterns per stream from one seed.
     let seed_of = |j: usize| config.seed ^ (0x9e37_79b9_7f4a_7c15u64.wrapping_mul(j as u64 + 1));
@@ -123,6 +138,11 @@ pub fn run_multi_stream_bench(
         monitors.push((mon, board));
     }
     engine.reset(config.reset_cycles)?;
+    let pulse_ids = pulses
+        .iter()
+        .map(|p| engine.design().port_id(p))
+        .collect::<Result<Vec<_>>>()?;
+    let mut pulse_counts = vec![0u64; pulses.len()];
 
     let mut watchdog = Watchdog::new(config.watchdog_cycles);
     watchdog.progress(engine.cycle());
@@ -136,6 +156,9 @@ pub fn run_multi_stream_bench(
             mon.drive(engine)?;
         }
         engine.eval()?;
+        for (n, id) in pulse_counts.iter_mut().zip(&pulse_ids) {
+            *n += engine.peek_bool(*id)? as u64;
+        }
         for d in drivers.iter_mut() {
             if d.observe(engine)?.is_some() {
                 watchdog.progress(engine.cycle());
@@ -170,7 +193,7 @@ pub fn run_multi_stream_bench(
         .zip(&monitors)
         .filter_map(|(s, (_, b))| b.first_mismatch().map(|m| (s.name.clone(), m.clone())))
         .min_by_key(|(_, m)| m.cycle);
-    Ok(MultiReport {
+    let report = MultiReport {
         engine: engine.name().to_string(),
         seed: config.seed,
         cycles: engine.cycle(),
@@ -194,5 +217,11 @@ pub fn run_multi_stream_bench(
             .collect(),
         hang,
         wall: start.elapsed(),
-    })
+    };
+    let counts = pulses
+        .iter()
+        .map(|p| p.to_string())
+        .zip(pulse_counts)
+        .collect();
+    Ok((report, counts))
 }

@@ -288,5 +288,10 @@ pub fn merge_module_unit(c: &MergeConfig) -> Module {
     );
     st.next(next);
     m.output("idle", idle);
+    // One clock high after a merge ends: its End left on `out`, or its
+    // refusal left on `report`.
+    let done = m.reg("done_pulse", 1);
+    done.next(merge_done | (choice_fire & !choice_err_r.eq(lit(choice_err::NONE, 2))));
+    m.output("done", done);
     m
 }

@@ -198,8 +198,9 @@ fn check_batch(batch: &IcarusBatch, d: &TranslateDesign, count: usize, seed: u64
     );
 }
 
-#[test]
-fn icarus_100k_in_every_configuration() {
+/// The Icarus batch runs of the reference configurations `which` (100,000
+/// transactions each, stall 0.05..=0.5 per configuration).
+fn icarus_batch_configurations(which: &[usize]) {
     if !tools_present(EngineKind::Icarus) {
         return;
     }
@@ -210,13 +211,27 @@ fn icarus_100k_in_every_configuration() {
             .to_vec(),
         constants: Vec::new(),
     };
-    for (n, d) in reference_designs().iter().enumerate() {
+    let designs = reference_designs();
+    for &n in which {
+        let d = &designs[n];
         let dir = tempfile::tempdir().unwrap();
         let design = design_from_module(&translate_unit(d), dir.path()).unwrap();
         let batch = IcarusBatch::new(&design, &spec).unwrap_or_else(|e| panic!("{e}"));
         let stall = [0.3, 0.5, 0.2, 0.45, 0.05][n % 5];
         check_batch(&batch, d, 100_000, 31 + n as u64, stall);
     }
+}
+
+// Two tests of about equal time, so the test harness runs them side by side.
+#[test]
+fn icarus_100k_default_d31_and_smallest_grid() {
+    icarus_batch_configurations(&[0, 1, 4]);
+}
+
+#[test]
+fn icarus_100k_q0_and_binary64() {
+    icarus_batch_configurations(&[2, 3]);
+    assert_eq!(reference_designs().len(), 5, "every configuration is run");
 }
 
 /// The library testbench (`units::translate::run`) on the Icarus pipe

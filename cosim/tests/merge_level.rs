@@ -287,7 +287,9 @@ fn emit_merge_writes_every_stage() {
         .map(|m| m.name())
         .collect();
     want.push(rtl_gen::merge::merge_level_name(&c.params));
-    want.push(rtl_gen::merge::overlap_counter_name(&c.params, c.inputs, 1, 2));
+    want.push(rtl_gen::merge::overlap_counter_name(
+        &c.params, c.inputs, 1, 2,
+    ));
     want.push(rtl_gen::merge::morton_merge_name(&c.params, c.inputs, true));
     want.sort();
     assert_eq!(names, want);

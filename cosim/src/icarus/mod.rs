@@ -6,7 +6,10 @@ pub mod batch_testbench;
 #[cfg(test)]
 mod batch_tests;
 pub mod engine;
+pub mod multi_batch;
+pub mod multi_batch_testbench;
 pub mod testbench;
 
 pub use batch::{BatchReport, BatchSpec, IcarusBatch, LaneVector, WatchLog};
 pub use engine::IcarusEngine;
+pub use multi_batch::{IcarusMultiBatch, MultiBatchReport};

@@ -4,6 +4,7 @@
 //! module's S614 merge-level stage ([`merge`]). `hiermerge cosim` runs them.
 
 pub mod merge;
+pub mod merge_module;
 pub mod translate;
 
 use crate::engine::Engine;

@@ -1,0 +1,343 @@
+//! The merging module as one unit (`rtl_gen::merge::merge_module_unit`,
+//! SPEC 8.10) against the golden `golden::merge::top` transactions, bit for
+//! bit on both output streams, with independent seeded stalls on every
+//! stream: `cfg`, `in0`..`in{k-1}` in, `report`, `out` out. A transaction
+//! is one merge (its `cfg` beat, count pass, choice, merge pass).
+//!
+//! Engines: the IR simulator and Verilator through
+//! [`crate::tb::run_multi_stream_bench`]; Icarus through the multi-stream
+//! batch ([`crate::icarus::IcarusMultiBatch`], the whole bench inside one
+//! `vvp` run, same stall patterns).
+
+use std::path::Path;
+use std::time::Duration;
+
+use golden::layout::{Bits, Field};
+use golden::merge::top::{random_top_transaction, TopLayout};
+use golden::merge::unit::BeatLayout;
+use golden::translate::stimulus::SplitMix64;
+use golden::vectors::merge::MergeDesign;
+
+use crate::bitvec::BitVec;
+use crate::design::Design;
+use crate::engines::{open_engine, EngineKind};
+use crate::error::{CosimError, Result};
+use crate::icarus::IcarusMultiBatch;
+use crate::ir_engine::IrEngine;
+use crate::tb::{
+    run_multi_stream_bench, BenchConfig, FieldDecoder, Hang, MultiReport, StreamBeats, Transaction,
+};
+
+/// The stage name `hiermerge cosim --unit merge` reports for this unit.
+pub const STAGE: &str = "merge_module";
+
+/// Most voxels of a random level (as `cosim/tests/merge_module.rs`).
+pub const DEFAULT_MOST_VOXELS: usize = 12;
+
+/// The unit under test.
+pub fn merge_module(d: &MergeDesign) -> rtl_gen::Module {
+    rtl_gen::merge::merge_module_unit(d)
+}
+
+/// Names of the unit's input streams: `cfg`, `in0`..`in{k-1}`.
+pub fn input_names(d: &MergeDesign) -> Vec<String> {
+    std::iter::once("cfg".to_string())
+        .chain((0..d.inputs).map(|i| format!("in{i}")))
+        .collect()
+}
+
+/// Names of the unit's output streams.
+pub const OUTPUT_NAMES: [&str; 2] = ["report", "out"];
+
+/// `count` random merges as streams, and where each merge's beats start.
+#[derive(Clone, Debug)]
+pub struct MergeStreams {
+    /// `cfg`, `in0`.. in that order.
+    pub inputs: Vec<StreamBeats>,
+    /// `report`, `out`.
+    pub outputs: Vec<StreamBeats>,
+    /// Per output stream (same order), the index of each merge's first
+    /// expected beat: merge `n`'s beats are `starts[s][n]..starts[s][n + 1]`.
+    pub starts: Vec<Vec<usize>>,
+}
+
+impl MergeStreams {
+    /// Merges in the stimulus.
+    pub fn merges(&self) -> usize {
+        self.inputs.first().map_or(0, |cfg| cfg.beats.len())
+    }
+
+    /// Beats on the `in*` streams (the merged data, not `cfg`).
+    pub fn data_beats(&self) -> u64 {
+        self.inputs
+            .iter()
+            .skip(1)
+            .map(|s| s.beats.len() as u64)
+            .sum()
+    }
+
+    /// The merge that output beat `beat` of output stream `stream` belongs to.
+    pub fn merge_of(&self, stream: usize, beat: usize) -> usize {
+        let starts = &self.starts[stream];
+        starts.partition_point(|&s| s <= beat).saturating_sub(1)
+    }
+}
+
+fn bitvec(b: &Bits) -> Result<BitVec> {
+    BitVec::from_words(b.width() as usize, b.words())
+}
+
+fn golden_err(what: impl std::fmt::Display) -> CosimError {
+    CosimError::Design {
+        what: format!("golden merging module: {what}"),
+    }
+}
+
+/// `count` random merges for `d` from `seed` (`random_top_transaction`,
+/// levels of at most `most_voxels` voxels). `flip_expected = Some(n)`: bit
+/// 0 of merge `n`'s first expected `report` beat is flipped (the test hook).
+pub fn generate_streams(
+    d: &MergeDesign,
+    seed: u64,
+    count: usize,
+    most_voxels: usize,
+    flip_expected: Option<usize>,
+) -> Result<MergeStreams> {
+    d.validate().map_err(golden_err)?;
+    let p = &d.params;
+    let (tl, li, lo) = (
+        TopLayout::new(p),
+        BeatLayout::input(p),
+        BeatLayout::output(p),
+    );
+    let mut rng = SplitMix64(seed);
+    let mut cfg = Vec::with_capacity(count);
+    let mut ins: Vec<Vec<Transaction>> = vec![Vec::new(); d.inputs];
+    let mut report: Vec<Transaction> = Vec::new();
+    let mut out: Vec<Transaction> = Vec::new();
+    let mut starts = vec![Vec::with_capacity(count + 1), Vec::with_capacity(count + 1)];
+    for n in 0..count {
+        let tx = random_top_transaction(&mut rng, p, d.inputs, &d.mode, most_voxels)
+            .map_err(golden_err)?;
+        cfg.push(vec![bitvec(
+            &tl.pack_cfg(tx.lo, tx.hi).map_err(golden_err)?,
+        )?]);
+        for (s, beats) in ins.iter_mut().zip(&tx.inputs) {
+            for b in beats {
+                s.push(vec![bitvec(&b.pack(&li).map_err(golden_err)?)?]);
+            }
+        }
+        starts[0].push(report.len());
+        starts[1].push(out.len());
+        for r in &tx.reports {
+            report.push(vec![bitvec(&r.pack(&tl).map_err(golden_err)?)?]);
+        }
+        for b in &tx.out {
+            out.push(vec![bitvec(&b.pack(&lo).map_err(golden_err)?)?]);
+        }
+        if flip_expected == Some(n) {
+            if let Some(first) = report.get_mut(starts[0][n]) {
+                let mut w = first[0].words().to_vec();
+                w[0] ^= 1;
+                first[0] = BitVec::from_words(first[0].width(), &w)?;
+            }
+        }
+    }
+    starts[0].push(report.len());
+    starts[1].push(out.len());
+    let mut inputs = vec![StreamBeats {
+        name: "cfg".into(),
+        beats: cfg,
+    }];
+    inputs.extend(ins.into_iter().enumerate().map(|(i, beats)| StreamBeats {
+        name: format!("in{i}"),
+        beats,
+    }));
+    let outputs = vec![
+        StreamBeats {
+            name: "report".into(),
+            beats: report,
+        },
+        StreamBeats {
+            name: "out".into(),
+            beats: out,
+        },
+    ];
+    Ok(MergeStreams {
+        inputs,
+        outputs,
+        starts,
+    })
+}
+
+fn decode(bits: &BitVec, fields: &[(String, Field)]) -> Vec<(String, String)> {
+    let Ok(b) = Bits::from_words(bits.width() as u32, bits.words()) else {
+        return vec![("data".into(), bits.to_string())];
+    };
+    fields
+        .iter()
+        .map(|(name, f)| {
+            let shown = match b.get(f) {
+                Ok(x) => format!("{x:#x}"),
+                Err(e) => format!("({e})"),
+            };
+            (name.clone(), shown)
+        })
+        .collect()
+}
+
+/// Decodes a `report` beat by field name (`TopLayout`).
+pub fn report_decoder(d: &MergeDesign) -> Box<FieldDecoder> {
+    let l = TopLayout::new(&d.params);
+    let fields: Vec<(String, Field)> = [
+        l.lod, l.shared, l.union, l.above, l.overflow, l.chosen, l.err,
+    ]
+    .into_iter()
+    .map(|f| (f.name.to_string(), f))
+    .collect();
+    Box::new(move |t: &Transaction| t.first().map_or(Vec::new(), |v| decode(v, &fields)))
+}
+
+/// The decoder of output stream `name` (`report` or `out`).
+pub fn decoder_of(d: &MergeDesign, name: &str) -> Box<FieldDecoder> {
+    match name {
+        "report" => report_decoder(d),
+        _ => super::merge::decoder(&d.params),
+    }
+}
+
+/// Which simulator runs the unit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ModuleEngine {
+    /// rtl-gen's IR simulator (`run_multi_stream_bench`).
+    Ir,
+    /// Verilator (`run_multi_stream_bench`).
+    Verilator,
+    /// Icarus, the multi-stream batch (one `vvp` run).
+    Iverilog,
+}
+
+/// How one run is driven.
+#[derive(Clone, Debug)]
+pub struct RunConfig {
+    /// Seed of the stall patterns.
+    pub seed: u64,
+    /// Stall probability of every driver and every monitor.
+    pub stall: f64,
+}
+
+/// The first failing output beat, decoded.
+#[derive(Clone, Debug)]
+pub struct ModuleMismatch {
+    /// Output stream (`report` or `out`).
+    pub stream: String,
+    /// 0-based index of the beat on its stream.
+    pub beat: u64,
+    /// The merge it belongs to.
+    pub merge: usize,
+    /// Cycle of the transfer.
+    pub cycle: u64,
+    /// (field, expected, got), decoded per stream.
+    pub fields: Vec<(String, String, String)>,
+}
+
+/// What a run measured.
+#[derive(Clone, Debug)]
+pub struct Outcome {
+    /// The bench's report (counts per stream, hang, wall time).
+    pub report: MultiReport,
+    /// Merges run.
+    pub merges: usize,
+    /// Beats into the unit on the `in*` streams.
+    pub data_beats_in: u64,
+    /// Beats out on `report` and `out`.
+    pub beats_out: u64,
+    /// The first mismatch, decoded with the stream's fields.
+    pub first_mismatch: Option<ModuleMismatch>,
+    /// Wall time of the bench (the Verilator build and the Icarus compile excluded).
+    pub wall: Duration,
+}
+
+impl Outcome {
+    /// Every beat matched, none missing, nothing hung.
+    pub fn passed(&self) -> bool {
+        self.report.passed()
+    }
+
+    /// Input beats over all `in*` streams per cycle.
+    pub fn records_per_cycle(&self) -> f64 {
+        self.data_beats_in as f64 / self.report.cycles.max(1) as f64
+    }
+
+    /// The watchdog's finding, if it fired.
+    pub fn hang(&self) -> Option<&Hang> {
+        self.report.hang.as_ref()
+    }
+}
+
+/// Runs `streams` through the unit `d` on `engine`, the Verilog written to
+/// `dir`. Mismatches are counted to the end of the run on every engine
+/// (`stop_on_mismatch` off), so counts agree between engines.
+pub fn run(
+    d: &MergeDesign,
+    streams: &MergeStreams,
+    engine: ModuleEngine,
+    config: &RunConfig,
+    dir: &Path,
+) -> Result<Outcome> {
+    let module = merge_module(d);
+    let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
+    let bench = BenchConfig {
+        seed: config.seed,
+        in_stall: config.stall,
+        out_stall: config.stall,
+        stop_on_mismatch: false,
+        ..BenchConfig::default()
+    };
+    let report = match engine {
+        ModuleEngine::Ir => {
+            let mut e = IrEngine::new(&module, &design)?;
+            run_multi_stream_bench(&mut e, &streams.inputs, &streams.outputs, &bench)?
+        }
+        ModuleEngine::Verilator => {
+            let mut e = open_engine(EngineKind::Verilator, &design, false)?;
+            run_multi_stream_bench(e.as_mut(), &streams.inputs, &streams.outputs, &bench)?
+        }
+        ModuleEngine::Iverilog => {
+            let names = input_names(d);
+            let names: Vec<&str> = names.iter().map(String::as_str).collect();
+            let batch = IcarusMultiBatch::new(&design, &names, &OUTPUT_NAMES)?;
+            batch.run(&streams.inputs, &streams.outputs, &bench)?.report
+        }
+    };
+    let wall = report.wall;
+    let first_mismatch = report.first_mismatch.as_ref().map(|(stream, m)| {
+        let s = OUTPUT_NAMES.iter().position(|n| n == stream).unwrap_or(0);
+        let decoder = decoder_of(d, stream);
+        let (e, g) = (decoder(&m.expected), decoder(&m.got));
+        ModuleMismatch {
+            stream: stream.clone(),
+            beat: m.output_index,
+            merge: streams.merge_of(s, m.output_index as usize),
+            cycle: m.cycle,
+            fields: (0..e.len().max(g.len()))
+                .map(|i| {
+                    let name = e.get(i).or(g.get(i)).map(|f| f.0.clone());
+                    let shown = |v: &[(String, String)]| {
+                        v.get(i)
+                            .map_or_else(|| "(none)".to_string(), |f| f.1.clone())
+                    };
+                    (name.unwrap_or_default(), shown(&e), shown(&g))
+                })
+                .collect(),
+        }
+    });
+    Ok(Outcome {
+        merges: streams.merges(),
+        data_beats_in: streams.data_beats(),
+        beats_out: report.received.iter().map(|r| r.1).sum(),
+        report,
+        first_mismatch,
+        wall,
+    })
+}

@@ -198,7 +198,7 @@ fn merge_level_icarus_batch_agrees_with_the_pipe_engine() {
     let m = rtl_gen::merge::merge_level_unit(&p);
     let design = design_of(&m, dir.path());
     let batch = icarus_batch(&design);
-    let (vs, n, _, _) = vectors(&p, 0x5ee, 400);
+    let (vs, n, _, _) = vectors(&p, 0x5ee, 1_500);
     for stall in [0.0, 0.3] {
         let what = "merge_level icarus pipe vs batch";
         let pipe = engine("iverilog", &m, &design);
@@ -268,7 +268,7 @@ fn merge_level_bench_catches_a_flipped_bit() {
 }
 
 /// `emit_merge` writes one Verilog file per module of a configuration, named
-/// after it, each of which lints clean.
+/// after it, each of which lints clean as the top.
 #[test]
 fn emit_merge_writes_every_stage() {
     if !tools_present(&["verilator"]) {
@@ -294,10 +294,12 @@ fn emit_merge_writes_every_stage() {
     want.sort();
     assert_eq!(names, want);
     assert_eq!(names.len(), 6);
-    for f in &files {
+    // Each module as the top, with every emitted file so that a module
+    // that instantiates others (the merging module) finds them.
+    for name in &names {
         let out = std::process::Command::new("verilator")
-            .args(["--lint-only", "-Wall"])
-            .arg(f)
+            .args(["--lint-only", "-Wall", "--top-module", name])
+            .args(&files)
             .output()
             .unwrap();
         assert!(

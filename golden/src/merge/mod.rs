@@ -19,6 +19,7 @@
 //! [`view`] gives the checker and traversal what they need to read a merged
 //! hierarchy through its inputs' translations.
 
+pub mod builder_unit;
 pub mod error;
 pub mod instances;
 pub mod level;

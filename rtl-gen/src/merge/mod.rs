@@ -12,6 +12,7 @@
 //!   input streams, `report`, `out` around the merge network, the overlap
 //!   counter (overlap mode only) and S614, with the mode's level choice.
 
+mod builder;
 mod fields;
 mod level;
 mod network;
@@ -20,6 +21,7 @@ mod sorter;
 mod top;
 mod upper;
 
+pub use builder::{upper_builder_name, upper_builder_unit};
 pub use level::{merge_level_name, merge_level_unit};
 pub use network::{morton_code, morton_merge_name, morton_merge_unit};
 pub use overlap::{overlap_counter_name, overlap_counter_unit};

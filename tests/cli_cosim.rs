@@ -2,7 +2,10 @@
 //! zero mismatches and their cycles; a vectors file for other parameters is
 //! refused naming them; a run broken through the test hook
 //! (`HIERMERGE_COSIM_FLIP_EXPECTED`) exits non-zero with the decoded fields,
-//! the reproduce command and a VCD. Under CI=true a missing Verilator fails.
+//! the reproduce command and a VCD. `--unit merge` runs the merging module
+//! (Verilator, and Icarus through the multi-stream batch, cycle for cycle
+//! the same run); `--stage merge-level` its S614 stage. Under CI=true a
+//! missing Verilator or Icarus fails.
 
 use std::process::{Command, Output};
 
@@ -30,21 +33,19 @@ fn json_of(o: &Output) -> Value {
     })
 }
 
-fn verilator_present() -> bool {
-    if cosim::tools::tool_available("verilator") {
+fn tool_present(tool: &str) -> bool {
+    if cosim::tools::tool_available(tool) {
         return true;
     }
     if cosim::tools::ci_mode() {
-        panic!(
-            "CI=true and verilator missing: {}",
-            cosim::tools::INSTALL_HINT
-        );
+        panic!("CI=true and {tool} missing: {}", cosim::tools::INSTALL_HINT);
     }
-    eprintln!(
-        "SKIPPING: verilator missing; {}",
-        cosim::tools::INSTALL_HINT
-    );
+    eprintln!("SKIPPING: {tool} missing; {}", cosim::tools::INSTALL_HINT);
     false
+}
+
+fn verilator_present() -> bool {
+    tool_present("verilator")
 }
 
 /// A passing run: exit 0, every transaction, no mismatch, cycles at least
@@ -120,7 +121,17 @@ fn merge_level_on_verilator_with_back_pressure_passes() {
     }
     let o = hiermerge(
         &[
-            "cosim", "--unit", "merge", "--seed", "1", "--count", "2000", "--stall", "0.5",
+            "cosim",
+            "--unit",
+            "merge",
+            "--stage",
+            "merge-level",
+            "--seed",
+            "1",
+            "--count",
+            "2000",
+            "--stall",
+            "0.5",
             "--json",
         ],
         &[],
@@ -183,13 +194,12 @@ fn vectors_for_other_parameters_are_refused_naming_them() {
 /// A broken run: non-zero exit, the first differing transaction decoded by
 /// field name, its cycle and seed, the one command that reproduces it (which
 /// does), and a VCD of the cycles around it.
-fn check_broken(unit: &str, flip: &str, count: &str) {
+fn check_broken(unit: &[&str], flip: &str, count: &str) {
     let dir = tempfile::tempdir().unwrap();
     let vcd_dir = dir.path().join("vcd");
-    let args = [
-        "cosim",
-        "--unit",
-        unit,
+    let mut args = vec!["cosim", "--unit"];
+    args.extend(unit);
+    args.extend([
         "--engine",
         "ir",
         "--seed",
@@ -201,7 +211,7 @@ fn check_broken(unit: &str, flip: &str, count: &str) {
         "--vcd-dir",
         vcd_dir.to_str().unwrap(),
         "--json",
-    ];
+    ]);
     let env = [("HIERMERGE_COSIM_FLIP_EXPECTED", flip)];
     let o = hiermerge(&args, &env);
     assert!(!o.status.success(), "a flipped bit must fail the run");
@@ -225,7 +235,7 @@ fn check_broken(unit: &str, flip: &str, count: &str) {
     let rep = r["reproduce"].as_str().unwrap();
     for part in [
         format!("HIERMERGE_COSIM_FLIP_EXPECTED={flip} "),
-        format!("hiermerge cosim --unit {unit} --engine ir"),
+        format!("hiermerge cosim --unit {} --engine ir", unit.join(" ")),
         "--seed 7".into(),
         format!("--count {count}"),
         "--stall 0.25".into(),
@@ -251,10 +261,150 @@ fn check_broken(unit: &str, flip: &str, count: &str) {
 
 #[test]
 fn a_broken_translate_run_is_caught_and_reported() {
-    check_broken("translate", "37", "300");
+    check_broken(&["translate"], "37", "300");
 }
 
 #[test]
-fn a_broken_merge_run_is_caught_and_reported() {
-    check_broken("merge", "4", "20");
+fn a_broken_merge_level_run_is_caught_and_reported() {
+    check_broken(&["merge", "--stage", "merge-level"], "4", "20");
+}
+
+fn merge_module_args<'a>(engine: &'a str, seed: &'a str, count: &'a str) -> Vec<&'a str> {
+    vec![
+        "cosim", "--unit", "merge", "--engine", engine, "--seed", seed, "--count", count,
+        "--stall", "0.3", "--json",
+    ]
+}
+
+/// The merging module on Verilator and on Icarus (the multi-stream batch):
+/// both pass, and since the batch replays the pipe bench's stall draws, the
+/// two runs take the same cycles and move the same beats.
+#[test]
+fn merge_module_on_verilator_and_iverilog_passes_cycle_for_cycle() {
+    if !verilator_present() || !tool_present("iverilog") {
+        return;
+    }
+    let v = assert_passes(
+        &hiermerge(&merge_module_args("verilator", "3", "150"), &[]),
+        150,
+    );
+    let i = assert_passes(
+        &hiermerge(&merge_module_args("iverilog", "3", "150"), &[]),
+        150,
+    );
+    for r in [&v, &i] {
+        assert_eq!(r["stage"], "merge_module", "{r}");
+        assert!(r["nodes"].as_u64().unwrap() > 150, "{r}");
+        // At most one merged beat per clock, well below it at stall 0.3.
+        let rate = r["records_per_cycle"].as_f64().unwrap();
+        assert!(rate > 0.3 && rate < 1.0, "{r}");
+    }
+    assert_eq!(v["engine"], "verilator");
+    assert_eq!(i["engine"], "iverilog");
+    for key in ["cycles", "records", "nodes", "transactions"] {
+        assert_eq!(v[key], i[key], "{key}: {v} / {i}");
+    }
+    // Another seed is another run.
+    let other = assert_passes(
+        &hiermerge(&merge_module_args("iverilog", "4", "150"), &[]),
+        150,
+    );
+    assert_ne!(other["records"], i["records"]);
+}
+
+/// A merging-module run broken through the hook fails on both engines at
+/// merge `flip`'s first `report` beat, with its fields decoded (one differs:
+/// `lod`), the stream and beat named, and a reproduce command that fails
+/// the same way; without the hook the same run passes.
+fn check_broken_module(engine: &str) {
+    let flip = "6";
+    let args = merge_module_args(engine, "11", "25");
+    let env = [("HIERMERGE_COSIM_FLIP_EXPECTED", flip)];
+    let o = hiermerge(&args, &env);
+    assert!(!o.status.success(), "a flipped bit must fail the run");
+    let r = json_of(&o);
+    assert_eq!(r["passed"], false);
+    assert_eq!(r["mismatches"], 1, "{r}");
+    let m = &r["first_mismatch"];
+    assert_eq!(m["transaction"], 6, "{m}");
+    assert_eq!(m["stream"], "report", "{m}");
+    assert!(m["beat"].as_u64().unwrap() >= 6, "{m}");
+    assert_eq!(m["kind"], "merge_module");
+    assert_eq!(m["seed"], 11);
+    let fields = m["fields"].as_array().unwrap();
+    let names: Vec<&str> = fields.iter().map(|f| f["name"].as_str().unwrap()).collect();
+    assert_eq!(
+        names,
+        ["lod", "shared", "union", "above", "overflow", "chosen", "err"],
+        "{m}"
+    );
+    let differing: Vec<&Value> = fields.iter().filter(|f| f["differs"] == true).collect();
+    assert_eq!(differing.len(), 1, "one flipped bit, one field: {m}");
+    assert_eq!(differing[0]["name"], "lod");
+    let rep = r["reproduce"].as_str().unwrap();
+    for part in [
+        format!("HIERMERGE_COSIM_FLIP_EXPECTED={flip} "),
+        format!("hiermerge cosim --unit merge --engine {engine} --seed 11 --count 25"),
+        "--stall 0.3".into(),
+        "--inputs 4 --mode overlap:1/2".into(),
+    ] {
+        assert!(rep.contains(&part), "{part} in {rep}");
+    }
+    assert!(!rep.contains("--stage"), "{rep}");
+    let words: Vec<&str> = rep.split_whitespace().collect();
+    let mut again: Vec<&str> = words[2..].to_vec();
+    again.push("--json");
+    let o2 = hiermerge(&again, &env);
+    assert!(!o2.status.success());
+    assert_eq!(json_of(&o2)["first_mismatch"], r["first_mismatch"]);
+    assert_passes(&hiermerge(&args, &[]), 25);
+}
+
+#[test]
+fn a_broken_merge_module_run_is_caught_on_verilator() {
+    if verilator_present() {
+        check_broken_module("verilator");
+    }
+}
+
+#[test]
+fn a_broken_merge_module_run_is_caught_on_iverilog() {
+    if tool_present("iverilog") {
+        check_broken_module("iverilog");
+    }
+}
+
+#[test]
+fn stage_flags_that_do_not_fit_are_refused() {
+    let o = hiermerge(
+        &[
+            "cosim",
+            "--unit",
+            "translate",
+            "--stage",
+            "merge-level",
+            "--count",
+            "5",
+        ],
+        &[],
+    );
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("--stage applies to --unit merge"), "{err}");
+    let o = hiermerge(
+        &[
+            "cosim",
+            "--unit",
+            "merge",
+            "--stage",
+            "module",
+            "--vectors",
+            "x.jsonl",
+        ],
+        &[],
+    );
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("--stage merge-level"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
 }

@@ -5,13 +5,15 @@
 //!
 //! Test hook: the environment variable `HIERMERGE_COSIM_FLIP_EXPECTED=<n>`
 //! flips the lowest bit of transaction `n`'s expected output (translate: the
-//! n-th transaction; merge: the first output beat of the n-th level), so a
+//! n-th transaction; merge: the first `report` beat of the n-th merge;
+//! `--stage merge-level`: the first output beat of the n-th level), so a
 //! test can check that a broken run is caught and reported.
 
 use std::path::{Path, PathBuf};
 
 use cosim::from_rtl::design_from_module;
 use cosim::ir_engine::IrEngine;
+use cosim::units::merge_module::{self, ModuleEngine};
 use cosim::units::translate::{self, Failure, RunConfig};
 use cosim::units::{check_stall, merge};
 use cosim::{open_engine, Design, Engine, EngineKind};
@@ -50,29 +52,48 @@ impl EngineChoice {
     }
 }
 
+/// Which part of the merging module `--unit merge` runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum MergeStage {
+    /// The whole merging module (`merge_module_unit`): a transaction is one
+    /// merge, seeded random stimulus on every stream.
+    Module,
+    /// Only its S614 merge-level stage (`merge_level_unit`): a transaction
+    /// is one level; what `--vectors` files hold.
+    MergeLevel,
+}
+
 /// --unit translate: the whole translation unit (determine and apply
-/// streams). --unit merge: the merging module's S614 merge-level stage
-/// (unit 506, `merge_level`); a transaction is one level.
+/// streams). --unit merge: the merging module as one unit (streams cfg,
+/// in0.., report, out; a transaction is one merge; Icarus runs the
+/// multi-stream batch, the whole bench inside one vvp run); with
+/// `--stage merge-level` its S614 stage alone (unit 506; a transaction is
+/// one level).
 #[derive(clap::Args)]
 pub struct Args {
-    /// translate: the translation unit; merge: the merge-level stage S614.
+    /// translate: the translation unit; merge: the merging module.
     #[arg(long, value_enum)]
     unit: Unit,
+    /// --unit merge only: `module` (default) or `merge-level`, the S614
+    /// stage alone (the default with --vectors, whose files hold its records).
+    #[arg(long, value_enum)]
+    stage: Option<MergeStage>,
     #[arg(long, value_enum, default_value = "verilator")]
     engine: EngineChoice,
     /// Run the transactions of this vectors file (`hiermerge vectors`;
     /// its header's parameters must equal the design's). Merge: its
-    /// merge_level records.
+    /// merge_level records (implies --stage merge-level).
     #[arg(long, conflicts_with = "count")]
     vectors: Option<PathBuf>,
     /// Seed of the generated transactions and of the stall patterns.
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Transactions to generate (translate: determine/apply records;
-    /// merge: levels).
+    /// merge: merges; --stage merge-level: levels).
     #[arg(long)]
     count: Option<u64>,
-    /// Probability that the driver holds valid low and the monitor ready low (0 <= P < 1).
+    /// Probability that the driver holds valid low and the monitor ready low
+    /// (0 <= P < 1; merge: on every stream, each with its own pattern).
     #[arg(long, default_value_t = 0.3)]
     stall: f64,
     /// Directory of the VCD written on a mismatch.
@@ -98,6 +119,10 @@ struct FieldReport {
 #[derive(Serialize, Clone, Debug)]
 struct MismatchReport {
     transaction: u64,
+    /// Merging module: the output stream (`report`, `out`) and the beat's
+    /// index on it.
+    stream: Option<String>,
+    beat: Option<u64>,
     kind: String,
     cycle: u64,
     seed: u64,
@@ -115,9 +140,11 @@ struct Report {
     vectors: Option<String>,
     passed: bool,
     transactions: u64,
-    /// Input records (translate: transactions; merge: input beats).
+    /// Input records (translate: transactions; merge: beats on in0..;
+    /// merge-level: input beats).
     records: u64,
-    /// Output records (translate: transactions; merge: base-node/reference beats).
+    /// Output records (translate: transactions; merge: report and out
+    /// beats; merge-level: base-node/reference beats).
     nodes: u64,
     mismatches: u64,
     cycles: u64,
@@ -143,7 +170,7 @@ fn flip_expected() -> Result<Option<usize>, String> {
 }
 
 /// The one command line that runs this again, the same way.
-fn reproduce(a: &Args, flip: Option<usize>) -> String {
+fn reproduce(a: &Args, flip: Option<usize>) -> Result<String, String> {
     let mut s = String::new();
     if let Some(n) = flip {
         s += &format!("{FLIP_EXPECTED_VAR}={n} ");
@@ -152,7 +179,11 @@ fn reproduce(a: &Args, flip: Option<usize>) -> String {
         Unit::Translate => "translate",
         Unit::Merge => "merge",
     };
-    s += &format!("hiermerge cosim --unit {unit} --engine {}", a.engine.name());
+    s += &format!("hiermerge cosim --unit {unit}");
+    if a.unit == Unit::Merge && merge_stage(a)? == MergeStage::MergeLevel {
+        s += " --stage merge-level";
+    }
+    s += &format!(" --engine {}", a.engine.name());
     match &a.vectors {
         Some(p) => s += &format!(" --vectors {} --seed {}", p.display(), a.seed),
         None => {
@@ -180,7 +211,22 @@ fn reproduce(a: &Args, flip: Option<usize>) -> String {
         }
         Unit::Merge => s += &format!(" --inputs {} --mode {}", a.design.inputs, a.design.mode),
     }
-    s
+    Ok(s)
+}
+
+/// The merging module's stage to run: `--stage`, else merge-level with
+/// `--vectors` (its files hold merge_level records), else the module.
+fn merge_stage(a: &Args) -> Result<MergeStage, String> {
+    match (a.stage, &a.vectors) {
+        (Some(MergeStage::Module), Some(_)) => Err(
+            "--stage module takes no --vectors (vectors files hold merge_level records): \
+             use --stage merge-level, or --seed/--count for the module"
+                .into(),
+        ),
+        (Some(s), _) => Ok(s),
+        (None, Some(_)) => Ok(MergeStage::MergeLevel),
+        (None, None) => Ok(MergeStage::Module),
+    }
 }
 
 /// An engine factory for `module` / `design` (`true`: able to trace).
@@ -228,10 +274,18 @@ pub fn main(a: Args) -> CmdResult {
         return Err("--count 0: expected at least one transaction".into());
     }
     let flip = flip_expected()?;
+    if a.stage.is_some() && a.unit != Unit::Merge {
+        return Err("--stage applies to --unit merge only".into());
+    }
     let dir = tempfile::tempdir().map_err(|e| format!("temporary directory: {e}"))?;
     let report = match a.unit {
         Unit::Translate => run_translate(&a, &a.design.translate_design()?, flip, dir.path())?,
-        Unit::Merge => run_merge(&a, &a.design.merge_design()?, flip, dir.path())?,
+        Unit::Merge => match merge_stage(&a)? {
+            MergeStage::Module => {
+                run_merge_module(&a, &a.design.merge_design()?, flip, dir.path())?
+            }
+            MergeStage::MergeLevel => run_merge(&a, &a.design.merge_design()?, flip, dir.path())?,
+        },
     };
     let passed = report.passed;
     let summary = report.first_mismatch.as_ref().map(|m| {
@@ -327,9 +381,11 @@ fn run_translate(
             r.mismatches = 1;
             r.cycles = m.cycle;
             r.vcd = m.vcd.as_ref().map(|p| p.display().to_string());
-            r.reproduce = Some(reproduce(a, flip));
+            r.reproduce = Some(reproduce(a, flip)?);
             r.first_mismatch = Some(MismatchReport {
                 transaction: m.transaction as u64,
+                stream: None,
+                beat: None,
                 kind: m.kind.to_string(),
                 cycle: m.cycle,
                 seed: m.seed,
@@ -372,7 +428,7 @@ fn run_merge(
     let config = merge::RunConfig {
         seed: a.seed,
         stall: a.stall,
-        reproduce: Some(reproduce(a, flip)),
+        reproduce: Some(reproduce(a, flip)?),
     };
     let pb = bar(expected_outputs, a.json);
     let report = merge::run_with_vcd_on_mismatch(
@@ -403,6 +459,8 @@ fn run_merge(
     let passed = report.passed();
     let mut first = report.first_mismatch.as_ref().map(|m| MismatchReport {
         transaction: level_of(m.input_id),
+        stream: None,
+        beat: None,
         kind: merge::STAGE.to_string(),
         cycle: m.cycle,
         seed: a.seed,
@@ -421,6 +479,8 @@ fn run_merge(
     if first.is_none() && !passed {
         first = Some(MismatchReport {
             transaction: level_of(report.inputs_sent),
+            stream: None,
+            beat: None,
             kind: merge::STAGE.to_string(),
             cycle: report.hang.as_ref().map_or(report.cycles, |h| h.cycle),
             seed: a.seed,
@@ -453,7 +513,131 @@ fn run_merge(
         ),
         first_mismatch: first,
         vcd: report.vcd.as_ref().map(|p| p.display().to_string()),
-        reproduce: (!passed).then(|| reproduce(a, flip)),
+        reproduce: if passed {
+            None
+        } else {
+            Some(reproduce(a, flip)?)
+        },
+    })
+}
+
+/// `--unit merge`: seeded merges through the merging module, every stream
+/// with its own stall pattern.
+fn run_merge_module(
+    a: &Args,
+    design: &MergeDesign,
+    flip: Option<usize>,
+    dir: &Path,
+) -> Result<Report, String> {
+    let count = usize::try_from(a.count.unwrap_or(DEFAULT_COUNT))
+        .map_err(|_| "--count is too large".to_string())?;
+    let engine = match a.engine {
+        EngineChoice::Ir => ModuleEngine::Ir,
+        EngineChoice::Verilator => {
+            EngineKind::Verilator
+                .check_tools()
+                .map_err(|e| e.to_string())?;
+            ModuleEngine::Verilator
+        }
+        EngineChoice::Iverilog => {
+            EngineKind::Icarus
+                .check_tools()
+                .map_err(|e| e.to_string())?;
+            ModuleEngine::Iverilog
+        }
+    };
+    let streams = merge_module::generate_streams(
+        design,
+        a.seed,
+        count,
+        merge_module::DEFAULT_MOST_VOXELS,
+        flip,
+    )
+    .map_err(|e| e.to_string())?;
+    if !a.json {
+        eprintln!(
+            "running {count} merges ({} beats in, {} expected out) on {}",
+            streams.data_beats(),
+            streams.outputs.iter().map(|s| s.beats.len()).sum::<usize>(),
+            a.engine.name()
+        );
+    }
+    let config = merge_module::RunConfig {
+        seed: a.seed,
+        stall: a.stall,
+    };
+    let o = merge_module::run(design, &streams, engine, &config, dir).map_err(|e| e.to_string())?;
+    let r = &o.report;
+    let passed = o.passed();
+    let mut first = o.first_mismatch.as_ref().map(|m| MismatchReport {
+        transaction: m.merge as u64,
+        stream: Some(m.stream.clone()),
+        beat: Some(m.beat),
+        kind: merge_module::STAGE.to_string(),
+        cycle: m.cycle,
+        seed: a.seed,
+        what: format!("`{}` beat {} (merge {}) differs", m.stream, m.beat, m.merge),
+        fields: m
+            .fields
+            .iter()
+            .map(|(name, expected, got)| FieldReport {
+                name: name.clone(),
+                expected: expected.clone(),
+                got: got.clone(),
+                differs: expected != got,
+            })
+            .collect(),
+    });
+    if first.is_none() && !passed {
+        let missing: Vec<String> = r
+            .missing
+            .iter()
+            .filter(|m| m.1 > 0)
+            .map(|(s, n)| format!("{n} `{s}` beats"))
+            .collect();
+        first = Some(MismatchReport {
+            transaction: r.sent.first().map_or(0, |cfg| cfg.1.saturating_sub(1)),
+            stream: None,
+            beat: None,
+            kind: merge_module::STAGE.to_string(),
+            cycle: r.hang.as_ref().map_or(r.cycles, |h| h.cycle),
+            seed: a.seed,
+            what: match &r.hang {
+                Some(h) => format!(
+                    "no handshake for {} cycles; missing {}",
+                    h.idle_cycles,
+                    missing.join(", ")
+                ),
+                None => format!("missing {}", missing.join(", ")),
+            },
+            fields: Vec::new(),
+        });
+    }
+    let wall = o.wall.as_secs_f64();
+    Ok(Report {
+        unit: a.unit,
+        stage: merge_module::STAGE,
+        engine: a.engine.name(),
+        seed: a.seed,
+        stall: a.stall,
+        vectors: None,
+        passed,
+        transactions: o.merges as u64,
+        records: o.data_beats_in,
+        nodes: o.beats_out,
+        mismatches: r.mismatches,
+        cycles: r.cycles,
+        records_per_cycle: o.records_per_cycle(),
+        nodes_per_cycle: o.beats_out as f64 / r.cycles.max(1) as f64,
+        wall_seconds: wall,
+        cycles_per_second: crate::report::per_second(r.cycles as f64, wall),
+        first_mismatch: first,
+        vcd: None,
+        reproduce: if passed {
+            None
+        } else {
+            Some(reproduce(a, flip)?)
+        },
     })
 }
 

@@ -14,7 +14,8 @@
 //! draws do not depend on the design, Rust replays them ahead and gives each
 //! beat its *gap* (stalled opportunities before it goes), and the testbench
 //! counts the gap down. Output stream `j`'s `ready` is one draw per cycle
-//! from `Prng::derived(seed_of(100 + j), 2)`, streamed into vvp's stdin.
+//! from `Prng::derived(seed_of(100 + j), 2)`, streamed to vvp through a
+//! named pipe (see `MaskPipe`).
 //! `seed_of(j) = seed ^ (0x9e3779b97f4a7c15 * (j + 1))`. So cycles, counts
 //! and transfer cycles equal a pipe run's; only the garbage shown while
 //! `valid` is low differs (a pool of random values per stream, drawn from
@@ -31,8 +32,8 @@
 
 use super::batch_testbench::GARBAGE_POOL;
 use super::multi_batch_testbench::{
-    beat_file, gap_file, generate_multi_testbench, multi_pool_file, MultiTbSpec, MULTI_STIM_CHUNK,
-    MULTI_TB_MODULE,
+    beat_file, gap_file, generate_multi_testbench, multi_pool_file, MultiTbSpec, MASKS_FIFO,
+    MULTI_STIM_CHUNK, MULTI_TB_MODULE,
 };
 use crate::bitvec::BitVec;
 use crate::design::{Design, PortDir, PortId};
@@ -312,6 +313,22 @@ impl IcarusMultiBatch {
     }
 
     fn run_vvp(&self, dir: &Path, config: &BenchConfig) -> Result<()> {
+        let masks = MaskPipe::open(dir, config, self.outputs.len())?;
+        let status = self.wait_vvp(dir);
+        masks.close()?;
+        let status = status?;
+        if !status.success() {
+            let log_path = dir.join("vvp.log");
+            return Err(CosimError::ToolFailed {
+                tool: "vvp".to_string(),
+                command: format!("vvp -n {} (in {})", self.image.display(), dir.display()),
+                log: fs::read_to_string(&log_path).unwrap_or_default(),
+            });
+        }
+        Ok(())
+    }
+
+    fn wait_vvp(&self, dir: &Path) -> Result<std::process::ExitStatus> {
         let log_path = dir.join("vvp.log");
         let log = fs::File::create(&log_path).map_err(io_err(&log_path))?;
         let log_err = log.try_clone().map_err(io_err(&log_path))?;
@@ -319,7 +336,7 @@ impl IcarusMultiBatch {
             .arg("-n")
             .arg(&self.image)
             .current_dir(dir)
-            .stdin(Stdio::piped())
+            .stdin(Stdio::null())
             .stdout(log)
             .stderr(log_err)
             .spawn()
@@ -327,16 +344,10 @@ impl IcarusMultiBatch {
                 tool: "vvp".to_string(),
                 hint: format!("{e}; {INSTALL_HINT}"),
             })?;
-        let stdin = child.stdin.take().ok_or_else(|| CosimError::Protocol {
-            what: "vvp stdin not captured".to_string(),
-        })?;
-        let masks = ReadyMasks::new(config, self.outputs.len());
-        // Writes ahead until vvp exits and the pipe breaks.
-        let writer = std::thread::spawn(move || masks.write_until_closed(stdin));
         let started = Instant::now();
-        let status = loop {
+        loop {
             if let Some(status) = child.try_wait().map_err(io_err(&self.image))? {
-                break status;
+                return Ok(status);
             }
             if started.elapsed() > self.timeout {
                 let _ = child.kill();
@@ -350,16 +361,7 @@ impl IcarusMultiBatch {
                 });
             }
             std::thread::sleep(Duration::from_millis(5));
-        };
-        let _ = writer.join();
-        if !status.success() {
-            return Err(CosimError::ToolFailed {
-                tool: "vvp".to_string(),
-                command: format!("vvp -n {} (in {})", self.image.display(), dir.display()),
-                log: fs::read_to_string(&log_path).unwrap_or_default(),
-            });
         }
-        Ok(())
     }
 
     /// Reads `out.txt` and checks each output stream in order.
@@ -557,21 +559,12 @@ struct ReadyMasks {
 }
 
 impl ReadyMasks {
-    fn new(config: &BenchConfig, outputs: usize) -> ReadyMasks {
-        ReadyMasks {
-            streams: (0..outputs)
-                .map(|j| Prng::derived(stream_seed(config.seed, 100 + j), 2))
-                .collect(),
-            stall: config.out_stall,
-        }
-    }
-
-    /// Lines of one 64-cycle word per stream until `out` fails (vvp exited).
-    fn write_until_closed(mut self, out: impl Write) {
-        let mut w = BufWriter::with_capacity(1 << 14, out);
-        loop {
-            let stall = self.stall;
-            let line: Vec<String> = self
+    /// Lines of one 64-cycle word per stream, `lines` of them.
+    fn next_lines(&mut self, lines: usize) -> String {
+        let stall = self.stall;
+        let mut text = String::new();
+        for _ in 0..lines {
+            let words: Vec<String> = self
                 .streams
                 .iter_mut()
                 .map(|rng| {
@@ -579,9 +572,90 @@ impl ReadyMasks {
                     format!("{word:x}")
                 })
                 .collect();
-            if writeln!(w, "{}", line.join(" ")).is_err() {
+            text.push_str(&words.join(" "));
+            text.push('\n');
+        }
+        text
+    }
+}
+
+/// The line that tells the draining reader the writer has stopped.
+const MASKS_END: &str = "end\n";
+
+/// The named pipe `MASKS_FIFO` and the thread writing the ready masks into
+/// it ahead of vvp. Rust holds the pipe open for reading and writing, so a
+/// write never meets a closed pipe (no SIGPIPE when vvp has exited; the
+/// CLI restores SIGPIPE's default, which would end the process); when vvp
+/// is done, `close` reads the pipe empty until the writer's end line, so a
+/// writer blocked on a full pipe finishes.
+struct MaskPipe {
+    pipe: fs::File,
+    path: PathBuf,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    writer: std::thread::JoinHandle<()>,
+}
+
+impl MaskPipe {
+    fn open(dir: &Path, config: &BenchConfig, outputs: usize) -> Result<MaskPipe> {
+        let path = dir.join(MASKS_FIFO);
+        let made = Command::new("mkfifo")
+            .arg(&path)
+            .status()
+            .map_err(io_err(&path))?;
+        if !made.success() {
+            return Err(CosimError::ToolFailed {
+                tool: "mkfifo".to_string(),
+                command: format!("mkfifo {}", path.display()),
+                log: String::new(),
+            });
+        }
+        let pipe = fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .open(&path)
+            .map_err(io_err(&path))?;
+        let mut out = pipe.try_clone().map_err(io_err(&path))?;
+        let mut masks = ReadyMasks {
+            streams: (0..outputs)
+                .map(|j| Prng::derived(stream_seed(config.seed, 100 + j), 2))
+                .collect(),
+            stall: config.out_stall,
+        };
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let stopped = stop.clone();
+        let writer = std::thread::spawn(move || loop {
+            if stopped.load(std::sync::atomic::Ordering::SeqCst) {
+                let _ = out.write_all(MASKS_END.as_bytes());
                 return;
             }
+            if out.write_all(masks.next_lines(16).as_bytes()).is_err() {
+                return;
+            }
+        });
+        Ok(MaskPipe {
+            pipe,
+            path,
+            stop,
+            writer,
+        })
+    }
+
+    /// Stop the writer, read what is left until its end line, join it.
+    fn close(mut self) -> Result<()> {
+        use std::io::Read;
+        self.stop.store(true, std::sync::atomic::Ordering::SeqCst);
+        let mut tail = Vec::new();
+        let mut buf = vec![0u8; 1 << 16];
+        while !tail.ends_with(MASKS_END.as_bytes()) {
+            let n = self.pipe.read(&mut buf).map_err(io_err(&self.path))?;
+            if n == 0 {
+                break;
+            }
+            tail.extend_from_slice(&buf[..n]);
+            let keep = tail.len().saturating_sub(MASKS_END.len());
+            tail.drain(..keep);
         }
+        let _ = self.writer.join();
+        Ok(())
     }
 }

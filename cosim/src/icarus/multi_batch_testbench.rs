@@ -16,9 +16,10 @@
 //!   `gap_<s>_<c>.hex`, per beat the number of cycles the driver lets pass
 //!   (stalls) before raising `valid` for it, and `in_<s>_<c>_<k>.hex`, per
 //!   beat payload port `k`; every file holds exactly `STIM_CHUNK` lines.
-//! - stdin: the ready masks, one line per 64 cycles of the main loop, one
-//!   64-bit word (`%h`) per output stream; bit `k` = `ready` in cycle `k`
-//!   of the block. Rust writes them ahead from the seeded generators.
+//! - `masks.fifo` (a named pipe): the ready masks, one line per 64 cycles
+//!   of the main loop, one 64-bit word (`%h`) per output stream; bit `k` =
+//!   `ready` in cycle `k` of the block. Rust writes them ahead from the
+//!   seeded generators.
 //! - `out.txt` (written): `O <stream> <cycle> <hex>...` per output transfer,
 //!   `X <cycle> <hex>...` (every output) at the first X/Z on any output
 //!   after reset, `H <cycle> <idle> <hex>...` (every port) when the
@@ -38,6 +39,9 @@ use crate::tb::StreamPorts;
 
 /// Name of the generated module.
 pub const MULTI_TB_MODULE: &str = "hm_multi_tb";
+
+/// The named pipe the ready masks come through.
+pub const MASKS_FIFO: &str = "masks.fifo";
 
 /// Input beats per stimulus chunk file, per input stream (a power of two).
 pub const MULTI_STIM_CHUNK: usize = 1 << 14;
@@ -298,7 +302,7 @@ pub fn generate_multi_testbench(spec: &MultiTbSpec) -> String {
     } else {
         format!(
             r#"            if (hm_bit == 0) begin
-                got = $fscanf(32'h8000_0000, "{fmt}", {regs});
+                got = $fscanf(hm_masks, "{fmt}", {regs});
                 if (got != {n}) begin
                     $fwrite(out, "M %0d\n", hm_cycle);
                     hm_stop = 1'b1;
@@ -318,7 +322,7 @@ module {MULTI_TB_MODULE};
     reg [8*64-1:0] hm_fname;
     reg [5:0] hm_bit;
     reg hm_draining, hm_stop;
-    integer fd, out, got;
+    integer fd, out, got, hm_masks;
 
     {top} dut (
 {conns}
@@ -335,6 +339,7 @@ module {MULTI_TB_MODULE};
         fd = $fopen("params.txt", "r");
         got = $fscanf(fd, "{params_fmt}", {params_args});
         $fclose(fd);
+        hm_masks = $fopen("{MASKS_FIFO}", "r");
 {load_pools}        out = $fopen("out.txt", "w");
         hm_cycle = 0; hm_received = 0; hm_bit = 0;
         hm_draining = 1'b0; hm_stop = 1'b0; hm_drain_left = 0;

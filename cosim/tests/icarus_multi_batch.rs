@@ -3,15 +3,17 @@
 //! (`cosim::units::merge_module` streams): same pass/fail, same cycles and
 //! per-stream counts for the same seed and stalls (the batch replays the
 //! pipe bench's stall draws), a planted wrong expected beat caught on the
-//! same stream and beat, a missing beat caught by the same watchdog. Prints
+//! same stream and beat, a missing beat caught by the same watchdog, an X
+//! on an output an error naming the port and cycle on both Icarus. Prints
 //! cycles per second of the batch, the Icarus pipe engine and Verilator.
 
 use cosim::icarus::{IcarusEngine, IcarusMultiBatch};
+use cosim::tb::StreamBeats;
 use cosim::tb::{run_multi_stream_bench, BenchConfig, MultiReport};
 use cosim::tools::{ci_mode, tool_available, INSTALL_HINT};
 use cosim::units::merge_module::{generate_streams, input_names, MergeStreams, OUTPUT_NAMES};
 use cosim::verilator::{VerilatorEngine, VerilatorOptions};
-use cosim::{BitVec, Design};
+use cosim::{BitVec, CosimError, Design, PortSpec};
 use golden::merge::MergeMode;
 use golden::params::Params;
 use golden::vectors::merge::MergeDesign;
@@ -221,4 +223,80 @@ fn batch_speed_against_the_pipe_engines() {
         rate(&p),
         rate(&v)
     );
+}
+
+/// A one-register pass-through whose data turns X while it holds a 5.
+const X_ON_FIVE: &str = "module x_on_five(input clk, input rst,
+    input a_valid, output a_ready, input [7:0] a_data,
+    output b_valid, input b_ready, output [7:0] b_data);
+    reg full;
+    reg [7:0] d;
+    assign a_ready = !full || b_ready;
+    assign b_valid = full;
+    assign b_data = d == 8'd5 ? 8'bx : d;
+    always @(posedge clk)
+        if (rst) begin full <= 1'b0; d <= 8'd0; end
+        else if (a_ready) begin full <= a_valid; if (a_valid) d <= a_data; end
+endmodule
+";
+
+fn beats(values: &[u64]) -> Vec<cosim::tb::Transaction> {
+    values
+        .iter()
+        .map(|&v| vec![BitVec::from_u64(8, v).unwrap()])
+        .collect()
+}
+
+#[test]
+fn an_x_on_an_output_is_an_error_naming_port_and_cycle() {
+    if !tools_present() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("x_on_five.v");
+    std::fs::write(&file, X_ON_FIVE).unwrap();
+    let design = Design::new(
+        "x_on_five",
+        vec![file],
+        vec![
+            PortSpec::input("clk", 1),
+            PortSpec::input("rst", 1),
+            PortSpec::input("a_valid", 1),
+            PortSpec::output("a_ready", 1),
+            PortSpec::input("a_data", 8),
+            PortSpec::output("b_valid", 1),
+            PortSpec::input("b_ready", 1),
+            PortSpec::output("b_data", 8),
+        ],
+        Some("clk"),
+        Some("rst"),
+    )
+    .unwrap();
+    let batch = IcarusMultiBatch::new(&design, &["a"], &["b"]).unwrap();
+    let stream = |name: &str, v: &[u64]| StreamBeats {
+        name: name.into(),
+        beats: beats(v),
+    };
+    let c = config(3, 0.4);
+    // Clean beats pass and match the Icarus pipe engine.
+    let (ins, outs) = ([stream("a", &[1, 2, 3, 4])], [stream("b", &[1, 2, 3, 4])]);
+    let b = batch.run(&ins, &outs, &c).unwrap().report;
+    let mut e = IcarusEngine::new(&design).unwrap();
+    let p = run_multi_stream_bench(&mut e, &ins, &outs, &c).unwrap();
+    assert!(b.passed(), "{b}");
+    assert_same(&p, &b);
+    // A 5 makes b_data X: both Icarus benches fail on it, same port and cycle.
+    let (ins, outs) = ([stream("a", &[1, 2, 5, 4])], [stream("b", &[1, 2, 5, 4])]);
+    let cycle_of = |r: cosim::Result<MultiReport>| match r {
+        Err(CosimError::UnknownOutput { port, cycle, .. }) => {
+            assert_eq!(port, "b_data");
+            cycle
+        }
+        other => panic!("expected UnknownOutput on b_data, got {other:?}"),
+    };
+    let batch_cycle = cycle_of(batch.run(&ins, &outs, &c).map(|r| r.report));
+    let mut e = IcarusEngine::new(&design).unwrap();
+    let pipe_cycle = cycle_of(run_multi_stream_bench(&mut e, &ins, &outs, &c));
+    assert_eq!(batch_cycle, pipe_cycle);
+    assert!(batch_cycle > 2, "after reset: {batch_cycle}");
 }

@@ -371,6 +371,31 @@ fn upper_builder_streams_one_beat_per_clock() {
     }
 }
 
+/// `verilator --lint-only -Wall` with zero warnings on the Verilog of `design`.
+fn lint_only(design: &cosim::Design) {
+    let files: Vec<String> = design
+        .verilog_files
+        .iter()
+        .map(|f| f.display().to_string())
+        .collect();
+    let out = std::process::Command::new("verilator")
+        .args(["--lint-only", "-Wall", "--top-module", &design.top])
+        .args(&files)
+        .output()
+        .expect("verilator runs");
+    let text =
+        String::from_utf8_lossy(&out.stderr).to_string() + &String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && text.trim().is_empty(),
+        "verilator lint of {}:\n{text}",
+        design.top
+    );
+}
+
+/// Every configuration lints clean; the small ones (D = 8, D = 5) also go
+/// through Yosys `synth` with no latch. The stages are the same logic at
+/// every D; the default and D = 31 synthesize the same way but take 45 s
+/// and 140 s, too long for every run.
 #[test]
 fn upper_builder_verilog_lints_and_synthesizes() {
     if !tools_present(&["verilator", "yosys"]) {
@@ -382,9 +407,14 @@ fn upper_builder_verilog_lints_and_synthesizes() {
         let m = rtl_gen::merge::upper_builder_unit(&p);
         let warnings = m.validate_design().expect("valid");
         assert!(warnings.is_empty(), "{name}: {warnings:?}");
-        lint_and_synth(&design_of(&m, dir.path()));
+        let design = design_of(&m, dir.path());
+        if p.max_lod <= 8 {
+            lint_and_synth(&design);
+        } else {
+            lint_only(&design);
+        }
         println!(
-            "upper_builder {name}: lint and synthesis in {:.1?}",
+            "upper_builder {name}: lint (and synthesis) in {:.1?}",
             t.elapsed()
         );
     }

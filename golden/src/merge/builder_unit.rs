@@ -9,7 +9,8 @@
 //! - in `base{d}` (`d = 0..=D`): the base nodes at LOD `d` (S614's nodes at
 //!   the merging level, the reused leaves above it) in the order S616's level
 //!   lists hold them (Morton, stable), then `End`; S614's input layout
-//!   ([`BeatLayout::input`]) with S614's output kind codes ([`base_kind`]:
+//!   ([`BeatLayout::input`]) with S614's output kind codes
+//!   ([`base_kind`](super::unit::base_kind):
 //!   created, reused, end; no reference beats).
 //! - out `level{d}`: level `d`'s nodes in level order, then `End` with the
 //!   level's node and record counts, for every `d` from `D` up to the top;

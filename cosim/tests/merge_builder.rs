@@ -42,6 +42,8 @@ struct Seen {
     no_top: usize,
     top_above_base: usize,
     several_roots: usize,
+    lifted: usize,
+    root_cut: usize,
     overflow: usize,
     base_beats: usize,
     level_beats: usize,
@@ -58,6 +60,8 @@ fn streams(p: &Params, txs: &[BuilderTransaction]) -> (Vec<StreamBeats>, Vec<Str
     for tx in txs {
         seen.merges += 1;
         seen.no_top += tx.done.err as usize;
+        seen.lifted += (tx.lifted > 0) as usize;
+        seen.root_cut += tx.root_cut as usize;
         let top = tx.done.top as usize;
         let n_top = tx.levels[top].len() - 1;
         seen.several_roots += (!tx.done.err && n_top > 1) as usize;
@@ -236,6 +240,9 @@ fn check(name: &str, runs: &[(&str, usize)], most: u64) {
             seen.no_top > 0 && seen.several_roots > 0 && seen.top_above_base > 0,
             "{seen:?}"
         );
+        if merges >= 150 {
+            assert!(seen.lifted > 0 && seen.root_cut > 0, "{seen:?}");
+        }
         if p.index_bits <= 3 {
             assert!(seen.overflow > 0, "{seen:?}");
         }

@@ -202,6 +202,10 @@ pub struct BuilderTransaction {
     pub base: Vec<Vec<BaseBeat>>,
     pub levels: Vec<Vec<LevelOut>>,
     pub done: Done,
+    /// Which rules decided the top (to check that stimulus reaches them):
+    /// lifts of a reused leaf (8.6), and the half-scene cut of 4.7.
+    pub lifted: usize,
+    pub root_cut: bool,
 }
 
 /// The base as S616's level lists (`merge::upper`'s `base_by_lod`): by LOD,
@@ -233,21 +237,26 @@ fn base_by_lod(base: &[BaseNode], p: &Params) -> Vec<Vec<LevelNode>> {
 /// The levels and the top of 8.6: `build_levels`, then the lift rule
 /// exactly as `merge::upper::build_upper` applies it. `Err` carries the
 /// levels and the top (0) when a reused leaf is at the LOD-0 top.
-type Levels = (Vec<Vec<LevelNode>>, usize);
+/// The levels, the top, the lifts and whether the half-scene rule cut the root.
+type Levels = (Vec<Vec<LevelNode>>, usize, usize, bool);
 
 fn levels_and_top(base: &[BaseNode], p: &Params) -> Option<Result<Levels, Levels>> {
     let is_reused_leaf = |n: &LevelNode| {
         n.base && n.leaf && matches!(base[n.first as usize].kind, BaseKind::Reused { .. })
     };
     let (mut levels, mut top) = build_levels(base_by_lod(base, p), p)?;
+    // build_levels reaches LOD 0 only when no level below is the top.
+    let cut = top == 1 && !levels[0].is_empty();
+    let mut lifted = 0;
     while levels[top].iter().any(is_reused_leaf) {
         if top == 0 {
-            return Some(Err((levels, top)));
+            return Some(Err((levels, top, lifted, false)));
         }
         levels[top - 1] = group_by_parent(&levels[top], p.quant_bits);
         top -= 1;
+        lifted += 1;
     }
-    Some(Ok((levels, top)))
+    Some(Ok((levels, top, lifted, cut && lifted == 0)))
 }
 
 /// The transaction of one merge over `base` (any base: empty, several
@@ -279,10 +288,10 @@ pub fn builder_transaction(base: &[BaseNode], p: &Params) -> BuilderTransaction 
             v
         })
         .collect();
-    let (levels, top, err) = match levels_and_top(base, p) {
-        None => (vec![Vec::new(); dmax + 1], 0, true),
-        Some(Ok((l, t))) => (l, t, false),
-        Some(Err((l, t))) => (l, t, true),
+    let ((levels, top, lifted, root_cut), err) = match levels_and_top(base, p) {
+        None => ((vec![Vec::new(); dmax + 1], 0, 0, false), true),
+        Some(Ok(l)) => (l, false),
+        Some(Err(l)) => (l, true),
     };
     let bad_box = |n: &LevelNode| (0..3).any(|a| n.lo[a] > n.hi[a]);
     let mut out = vec![Vec::new(); dmax + 1];
@@ -335,6 +344,8 @@ pub fn builder_transaction(base: &[BaseNode], p: &Params) -> BuilderTransaction 
             top: top as u8,
             err,
         },
+        lifted,
+        root_cut,
     }
 }
 
@@ -544,9 +555,10 @@ mod tests {
                 (Ok((h, c)), false) => {
                     assert_eq!(h.top_lod, tx.done.top);
                     assert_eq!(records_per_level(&tx), c.nodes_per_level);
+                    assert_eq!(c.lifted as usize, tx.lifted);
                     lifted += (c.lifted > 0) as usize;
                     several += (h.root_count > 1) as usize;
-                    half += (tx.done.top == 1 && tx.levels[1].len() > 2) as usize;
+                    half += tx.root_cut as usize;
                 }
                 // A reused inner node at the top needs its input.
                 (Err(MergeError::UnknownInput(_)), false) => {}

@@ -18,9 +18,10 @@
 //! named pipe (see `MaskPipe`).
 //! `seed_of(j) = seed ^ (0x9e3779b97f4a7c15 * (j + 1))`. So cycles, counts
 //! and transfer cycles equal a pipe run's; only the garbage shown while
-//! `valid` is low differs (a pool of random values per stream, drawn from
-//! `Prng::derived(seed, 1000 + j)`), which matters only to a design that
-//! samples data without `valid`.
+//! `valid` is low differs (from a pool of random values per stream drawn
+//! from `Prng::derived(seed, 1000 + j)`, a new one after each accepted beat
+//! rather than every cycle), which matters only to a design that samples
+//! data without `valid`.
 //!
 //! Every output is checked for X/Z each cycle after reset (X/Z is
 //! `CosimError::UnknownOutput` naming the port and cycle); the testbench
@@ -224,6 +225,15 @@ impl IcarusMultiBatch {
             });
         }
         for (g, (_, ports)) in given.iter().zip(built) {
+            if g.beats.len() >= 1 << 31 {
+                return Err(CosimError::Unsupported {
+                    what: format!(
+                        "{what} stream `{}`: {} beats, the testbench counts at most 2^31 - 1",
+                        g.name,
+                        g.beats.len()
+                    ),
+                });
+            }
             for (i, beat) in g.beats.iter().enumerate() {
                 if beat.len() != ports.payload.len() {
                     return Err(CosimError::Design {

@@ -9,8 +9,8 @@
 //!   drain cycles, expected output beats (all output streams), then the
 //!   beat count of each input stream.
 //! - `pool_<s>_<k>.hex` (`$readmemh`): `GARBAGE_POOL` random values of
-//!   payload port `k` of input stream `s`, shown (cycle modulo the pool)
-//!   while its `valid` is low.
+//!   payload port `k` of input stream `s`, shown (beats accepted modulo
+//!   the pool) while its `valid` is low.
 //! - per input stream `s`, in chunks of `STIM_CHUNK` beats (read with
 //!   `$readmemh` when the stream reaches the chunk's first beat):
 //!   `gap_<s>_<c>.hex`, per beat the number of cycles the driver lets pass
@@ -29,7 +29,9 @@
 //! Per cycle, in the order of `crate::tb::run_multi_stream_bench`: each
 //! input stream's driver (not presenting and a beat left: raise `valid` if
 //! the beat's gap is used up, else use up one gap cycle; while `valid` is
-//! low the payload shows a pool value), each output stream's `ready`, `#1`,
+//! low the payload shows a pool value, a new one after each accepted beat:
+//! inputs change only when they must, a changed input costs vvp the
+//! re-evaluation of its cone), each output stream's `ready`, `#1`,
 //! the X/Z check, accepted inputs (the next beat becomes the head), output
 //! transfers, end and watchdog, then the clock edge.
 
@@ -82,14 +84,15 @@ struct InputCode {
     load_task: String,
     drive: String,
     accept: String,
+    show_garbage: String,
 }
 
 fn input_code(d: &Design, s: usize, ports: &StreamPorts) -> InputCode {
     let width = |id: PortId| d.ports[id.0].width;
     let index_msb = MULTI_STIM_CHUNK.trailing_zeros() - 1;
-    let pool_index = format!("hm_cycle[{}:0]", GARBAGE_POOL.trailing_zeros() - 1);
+    let pool_index = format!("hm_sent_{s}[{}:0]", GARBAGE_POOL.trailing_zeros() - 1);
     let mut decls = format!(
-        "    reg hm_pres_{s}, hm_ok_{s};\n    reg [31:0] hm_gap_{s};\n    reg [31:0] hm_gaps_{s} [0:{last}];\n    reg [63:0] hm_next_{s}, hm_total_{s}, hm_sent_{s};\n    reg [{index_msb}:0] hm_index_{s};\n",
+        "    reg hm_pres_{s}, hm_ok_{s}, hm_wait_{s}, hm_taken_{s};\n    reg [31:0] hm_gap_{s};\n    reg [31:0] hm_gaps_{s} [0:{last}];\n    reg [31:0] hm_next_{s}, hm_total_{s}, hm_sent_{s};\n    reg [{index_msb}:0] hm_index_{s};\n",
         last = MULTI_STIM_CHUNK - 1
     );
     let mut load_pools = String::new();
@@ -116,9 +119,12 @@ fn input_code(d: &Design, s: usize, ports: &StreamPorts) -> InputCode {
         read_head.push_str(&format!(
             "                hm_head_{s}_{k} = hm_stim_{s}_{k}[hm_index_{s}];\n"
         ));
-        present.push_str(&format!("                {} = hm_head_{s}_{k};\n", sig(p)));
+        present.push_str(&format!(
+            "                    {} = hm_head_{s}_{k};\n",
+            sig(p)
+        ));
         garbage.push_str(&format!(
-            "                {} = hm_pool_{s}_{k}[{pool_index}];\n",
+            "                    {} = hm_pool_{s}_{k}[{pool_index}];\n",
             sig(p)
         ));
     }
@@ -127,6 +133,7 @@ fn input_code(d: &Design, s: usize, ports: &StreamPorts) -> InputCode {
     task load_head_{s};
         begin
             hm_ok_{s} = hm_next_{s} < hm_total_{s};
+            hm_wait_{s} = hm_ok_{s};
             if (hm_ok_{s}) begin
                 hm_index_{s} = hm_next_{s}[{index_msb}:0];
                 if (hm_index_{s} == 0) begin
@@ -139,34 +146,50 @@ fn input_code(d: &Design, s: usize, ports: &StreamPorts) -> InputCode {
 
 "#
     );
+    // Inputs are assigned only when they change: an assignment makes vvp
+    // re-evaluate the input's cone.
     let drive = format!(
-        r#"            if (!hm_pres_{s} && hm_ok_{s}) begin
-                if (hm_gap_{s} == 0) hm_pres_{s} = 1'b1;
-                else hm_gap_{s} = hm_gap_{s} - 1;
-            end
-            {valid} = hm_pres_{s};
-            if (hm_pres_{s}) begin
-{present}            end else begin
+        r#"            if (hm_wait_{s}) begin
+                if (hm_gap_{s} == 0) begin
+                    hm_wait_{s} = 1'b0;
+                    hm_pres_{s} = 1'b1;
+                    hm_taken_{s} = 1'b0;
+                    {valid} = 1'b1;
+{present}                end else begin
+                    hm_gap_{s} = hm_gap_{s} - 1;
+                    if (hm_taken_{s}) begin
+                        hm_taken_{s} = 1'b0;
+                        {valid} = 1'b0;
+{garbage_deep}                    end
+                end
+            end else if (hm_taken_{s}) begin
+                hm_taken_{s} = 1'b0;
+                {valid} = 1'b0;
 {garbage}            end
 "#,
-        valid = sig(ports.valid)
+        valid = sig(ports.valid),
+        garbage_deep = garbage.replace("                    ", "                        "),
+        garbage = garbage.replace("                    ", "                "),
     );
     let accept = format!(
         r#"                if (hm_pres_{s} && {ready} === 1'b1) begin
                     hm_pres_{s} = 1'b0;
+                    hm_taken_{s} = 1'b1;
                     hm_sent_{s} = hm_sent_{s} + 1;
                     hm_last_progress = hm_cycle;
                     load_head_{s};
                 end
 "#,
-        ready = sig(ports.ready)
+        ready = sig(ports.ready),
     );
+    let show_garbage = garbage.replace("                    ", "        ");
     InputCode {
         decls,
         load_pools,
         load_task,
         drive,
         accept,
+        show_garbage,
     }
 }
 
@@ -217,13 +240,13 @@ pub fn generate_multi_testbench(spec: &MultiTbSpec) -> String {
         drive.push_str(&c.drive);
         accept.push_str(&c.accept);
         init.push_str(&format!(
-            "        hm_pres_{s} = 1'b0; hm_next_{s} = 0; hm_sent_{s} = 0; {} = 1'b0;\n",
+            "        hm_pres_{s} = 1'b0; hm_wait_{s} = 1'b0; hm_taken_{s} = 1'b0; hm_next_{s} = 0; hm_sent_{s} = 0; {} = 1'b0;\n",
             sig(ports.valid)
         ));
-        load_heads.push_str(&format!("        load_head_{s};\n"));
+        load_heads.push_str(&format!("        load_head_{s};\n{}", c.show_garbage));
         totals.push(format!("hm_total_{s}"));
         sent.push(format!("hm_sent_{s}"));
-        pending.push(format!("hm_ok_{s} || hm_pres_{s}"));
+        pending.push(format!("hm_ok_{s}"));
     }
     let mut masks = Vec::new();
     let mut transfer = String::new();
@@ -349,7 +372,7 @@ module {MULTI_TB_MODULE};
         while (!hm_stop) begin
 {read_masks}{drive}            #1;
 {x_check}            if (!hm_stop) begin
-{accept}{transfer}                if (!hm_draining && !({busy}) && hm_received >= hm_total_out) begin
+{accept}{transfer}                if (!hm_draining) if (!({busy})) if (hm_received >= hm_total_out) begin
                     hm_draining = 1'b1;
                     hm_drain_left = hm_drain;
                     hm_limit = hm_drain + 1;

@@ -276,6 +276,15 @@ fn merge_module_args<'a>(engine: &'a str, seed: &'a str, count: &'a str) -> Vec<
     ]
 }
 
+#[test]
+fn merge_module_on_the_ir_simulator_passes() {
+    let r = assert_passes(&hiermerge(&merge_module_args("ir", "2", "40"), &[]), 40);
+    assert_eq!(r["stage"], "merge_module");
+    assert_eq!(r["engine"], "ir");
+    assert!(r["nodes"].as_u64().unwrap() > 40, "{r}");
+    assert!(r["cycles_per_second"].as_f64().unwrap() > 0.0, "{r}");
+}
+
 /// The merging module on Verilator and on Icarus (the multi-stream batch):
 /// both pass, and since the batch replays the pipe bench's stall draws, the
 /// two runs take the same cycles and move the same beats.

@@ -11,6 +11,8 @@
 //! - [`merge_module_unit`]: the merging module as one unit: `cfg`, `k`
 //!   input streams, `report`, `out` around the merge network, the overlap
 //!   counter (overlap mode only) and S614, with the mode's level choice.
+//! - [`upper_builder_unit`]: every S616 level above the base at once (a
+//!   chain of grouping and Morton-merge stages, the top rule in flight).
 
 mod builder;
 mod fields;
@@ -40,12 +42,14 @@ pub use golden::vectors::merge::MergeDesign as MergeConfig;
 
 /// The top modules a configuration `c` emits, in a fixed order: the merging
 /// module (whose instances, the merge network, the overlap counter in
-/// overlap mode and S614, come with it), then S616's upper-level unit and
-/// the root sorter, which the fetcher drives on their own. `c` must pass
-/// `c.validate()`.
+/// overlap mode and S614, come with it), the upper builder (every S616 level
+/// above the base, SPEC 8.11; its `upper_level` instances come with it),
+/// then S616's one-level unit and the root sorter, which the fetcher may
+/// drive on their own. `c` must pass `c.validate()`.
 pub fn merge_units(c: &MergeConfig) -> Vec<Module> {
     vec![
         merge_module_unit(c),
+        upper_builder_unit(&c.params),
         upper_level_unit(&c.params),
         root_sorter_unit(&c.params, c.roots),
     ]

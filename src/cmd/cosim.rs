@@ -36,7 +36,8 @@ const VCD_RADIUS: u64 = 20;
 pub enum EngineChoice {
     /// Verilator (2-state, compiled).
     Verilator,
-    /// Icarus Verilog (4-state, X/Z checked).
+    /// Icarus Verilog (4-state, X/Z checked; --unit merge: the whole bench
+    /// inside one vvp run, the multi-stream batch).
     Iverilog,
     /// rtl-gen's IR simulator (the model the Verilog was emitted from).
     Ir,

@@ -6,8 +6,8 @@
 //! valid gaps and ready back-pressure from per-cycle stall masks that Rust
 //! draws from the seeded `tb::Prng` (the driver's and the monitor's streams,
 //! `Prng::derived(seed, 1 + 2 * lane)` and `(seed, 2 + 2 * lane)`, a bit
-//! per cycle: go with probability `1 - stall`) and streams into vvp's stdin
-//! ahead of it; while `valid` is low the payload shows a random value (from
+//! per cycle: go with probability `1 - stall`) and streams through a named
+//! pipe ahead of vvp; while `valid` is low the payload shows a random value (from
 //! a pool drawn from `Prng::derived(seed, 1000 + lane)`, a new one after
 //! each beat the lane delivers: held, not redrawn every cycle, because a
 //! changing input makes vvp re-evaluate the design's whole input cone).
@@ -49,7 +49,9 @@ use crate::tools::INSTALL_HINT;
 use std::fs;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::{Command, ExitStatus, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// Engine name in batch reports.
@@ -436,28 +438,38 @@ impl IcarusBatch {
         let log_path = dir.join("vvp.log");
         let log = fs::File::create(&log_path).map_err(io_err(&log_path))?;
         let log_err = log.try_clone().map_err(io_err(&log_path))?;
-        let mut child = Command::new("vvp")
+        let masks = MaskFifo::open(dir, StallMasks::new(config, self.lanes.len()))?;
+        let child = Command::new("vvp")
             .arg("-n")
             .arg(&self.image)
             .current_dir(dir)
-            .stdin(Stdio::piped())
+            .stdin(Stdio::null())
             .stdout(log)
             .stderr(log_err)
             .spawn()
             .map_err(|e| CosimError::ToolMissing {
                 tool: "vvp".to_string(),
                 hint: format!("{e}; {INSTALL_HINT}"),
-            })?;
-        let stdin = child.stdin.take().ok_or_else(|| CosimError::Protocol {
-            what: "vvp stdin not captured".to_string(),
-        })?;
-        let masks = StallMasks::new(config, self.lanes.len());
-        // Writes ahead until vvp exits and the pipe breaks.
-        let writer = std::thread::spawn(move || masks.write_until_closed(stdin));
+            });
+        let status = child.and_then(|mut child| self.wait_for(&mut child, dir));
+        masks.close()?;
+        let status = status?;
+        if !status.success() {
+            return Err(CosimError::ToolFailed {
+                tool: "vvp".to_string(),
+                command: format!("vvp -n {} (in {})", self.image.display(), dir.display()),
+                log: fs::read_to_string(&log_path).unwrap_or_default(),
+            });
+        }
+        Ok(())
+    }
+
+    /// Waits for `child` at most the run timeout (then kills it).
+    fn wait_for(&self, child: &mut std::process::Child, dir: &Path) -> Result<ExitStatus> {
         let started = Instant::now();
-        let status = loop {
+        loop {
             if let Some(status) = child.try_wait().map_err(io_err(&self.image))? {
-                break status;
+                return Ok(status);
             }
             if started.elapsed() > self.timeout {
                 let _ = child.kill();
@@ -471,16 +483,7 @@ impl IcarusBatch {
                 });
             }
             std::thread::sleep(Duration::from_millis(5));
-        };
-        let _ = writer.join();
-        if !status.success() {
-            return Err(CosimError::ToolFailed {
-                tool: "vvp".to_string(),
-                command: format!("vvp -n {} (in {})", self.image.display(), dir.display()),
-                log: fs::read_to_string(&log_path).unwrap_or_default(),
-            });
         }
-        Ok(())
     }
 
     /// Reads `out.txt` and checks it against the expected outputs.
@@ -775,15 +778,97 @@ impl StallMasks {
             .collect()
     }
 
-    /// Write blocks (one line of `%h` words each) to `out` until it fails
-    /// (vvp exited and closed the pipe).
-    fn write_until_closed(mut self, out: impl Write) {
-        let mut w = BufWriter::with_capacity(1 << 14, out);
-        loop {
-            let line: Vec<String> = self.next_block().iter().map(|x| format!("{x:x}")).collect();
-            if writeln!(w, "{}", line.join(" ")).is_err() {
+    /// `blocks` blocks, one line of `%h` words each.
+    fn lines(&mut self, blocks: usize) -> String {
+        let mut text = String::new();
+        for _ in 0..blocks {
+            let words: Vec<String> = self.next_block().iter().map(|x| format!("{x:x}")).collect();
+            text.push_str(&words.join(" "));
+            text.push('\n');
+        }
+        text
+    }
+}
+
+/// Name of the named pipe the stall masks go through (in the run directory).
+pub const MASKS_FIFO: &str = "masks.fifo";
+
+/// The line that tells `MaskFifo::close` the writer has stopped (no mask
+/// line ends with it: hex words have no `n`).
+const MASKS_END: &str = "end\n";
+
+/// The named pipe `MASKS_FIFO` and the thread writing the stall masks into
+/// it ahead of vvp. Rust holds the pipe open for reading and writing, so a
+/// write never meets a closed pipe: no SIGPIPE when vvp has exited (a
+/// process that restores SIGPIPE's default, as the `hiermerge` CLI does,
+/// would otherwise end). `close` stops the writer and reads the pipe empty
+/// until the writer's end line, so a writer blocked on a full pipe finishes.
+struct MaskFifo {
+    pipe: fs::File,
+    path: PathBuf,
+    stop: Arc<AtomicBool>,
+    writer: std::thread::JoinHandle<()>,
+}
+
+impl MaskFifo {
+    fn open(dir: &Path, mut masks: StallMasks) -> Result<MaskFifo> {
+        let path = dir.join(MASKS_FIFO);
+        let made =
+            Command::new("mkfifo")
+                .arg(&path)
+                .output()
+                .map_err(|e| CosimError::ToolMissing {
+                    tool: "mkfifo".to_string(),
+                    hint: e.to_string(),
+                })?;
+        if !made.status.success() {
+            return Err(CosimError::ToolFailed {
+                tool: "mkfifo".to_string(),
+                command: format!("mkfifo {}", path.display()),
+                log: String::from_utf8_lossy(&made.stderr).into_owned(),
+            });
+        }
+        let pipe = fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .open(&path)
+            .map_err(io_err(&path))?;
+        let mut out = pipe.try_clone().map_err(io_err(&path))?;
+        let stop = Arc::new(AtomicBool::new(false));
+        let stopped = stop.clone();
+        let writer = std::thread::spawn(move || loop {
+            if stopped.load(Ordering::SeqCst) {
+                let _ = out.write_all(MASKS_END.as_bytes());
                 return;
             }
+            if out.write_all(masks.lines(16).as_bytes()).is_err() {
+                return;
+            }
+        });
+        Ok(MaskFifo {
+            pipe,
+            path,
+            stop,
+            writer,
+        })
+    }
+
+    /// Stop the writer, read what is left up to its end line, join it.
+    fn close(mut self) -> Result<()> {
+        use std::io::Read;
+        self.stop.store(true, Ordering::SeqCst);
+        let mut tail = Vec::new();
+        let mut buf = vec![0u8; 1 << 16];
+        while !tail.ends_with(MASKS_END.as_bytes()) {
+            let n = self.pipe.read(&mut buf).map_err(io_err(&self.path))?;
+            if n == 0 {
+                break;
+            }
+            tail.extend_from_slice(&buf[..n]);
+            let keep = tail.len().saturating_sub(MASKS_END.len());
+            tail.drain(..keep);
         }
+        let _ = self.writer.join();
+        Ok(())
     }
 }

@@ -17,8 +17,8 @@
 //!   by earlier cycles), and `pay_<c>_<lane>_<k>.hex`, per beat payload port
 //!   `k` of `lane` (0 on beats of other lanes); every file holds exactly
 //!   `STIM_CHUNK` lines (zero padded).
-//! - stdin: the stall masks, one line per 64 cycles of the main loop:
-//!   per lane the driver's and the monitor's 64-bit word (`%h`); bit `k` of
+//! - `masks.fifo` (a named pipe): the stall masks, one line per 64 cycles
+//!   of the main loop: per lane the driver's and the monitor's 64-bit word (`%h`); bit `k` of
 //!   a word is cycle `k` of the block, 1 = go (the driver may raise `valid`,
 //!   the monitor raises `ready`). Rust writes them ahead from the seeded
 //!   generators, as many as vvp reads.
@@ -329,7 +329,7 @@ module {BATCH_TB_MODULE};
     reg [5:0] hm_bit;
     integer hm_head_lane;
     reg hm_head_ok, hm_draining, hm_stop, hm_dumping;
-    integer fd, out, got;
+    integer fd, out, got, hm_masks;
 
     {top} dut (
 {conns}
@@ -383,7 +383,8 @@ module {BATCH_TB_MODULE};
         got = $fscanf(fd, "%h %h %h %h %h %h %h %h", hm_reset_cycles, hm_watchdog, hm_drain,
             hm_total_in, hm_total_out, hm_dump, hm_dump_from, hm_dump_to);
         $fclose(fd);
-{load_pools}        out = $fopen("out.txt", "w");
+{load_pools}        hm_masks = $fopen("masks.fifo", "r");
+        out = $fopen("out.txt", "w");
         hm_next = 0;
         hm_cycle = 0; hm_sent = 0; hm_received = 0; hm_bit = 0;
         hm_draining = 1'b0; hm_stop = 1'b0; hm_dumping = 1'b0; hm_drain_left = 0;
@@ -394,7 +395,7 @@ module {BATCH_TB_MODULE};
         hm_last_progress = hm_cycle;
         while (!hm_stop) begin
             if (hm_bit == 0) begin
-                got = $fscanf(32'h8000_0000, "{mask_fmt}", {mask_regs});
+                got = $fscanf(hm_masks, "{mask_fmt}", {mask_regs});
                 if (got != {mask_count}) begin
                     $fwrite(out, "M %0d\n", hm_cycle);
                     hm_stop = 1'b1;

@@ -10,11 +10,9 @@
 mod merge_common;
 
 use cosim::tb::{run_multi_stream_bench_watching, BenchConfig, MultiReport, StreamBeats};
-use golden::merge::top::{random_top_transaction, Report, TopLayout, TopTransaction};
-use golden::merge::unit::BeatLayout;
+use golden::merge::top::TopLayout;
 use golden::merge::MergeMode;
 use golden::params::Params;
-use golden::translate::stimulus::SplitMix64;
 use golden::vectors::merge::MergeDesign;
 use merge_common::*;
 
@@ -84,65 +82,35 @@ struct Seen {
     overflow: usize,
 }
 
-/// `merges` random merges for `d` as streams in and out of the unit.
+/// `merges` random merges for `d` as streams in and out of the unit
+/// (`cosim::units::merge_module::generate_streams`, what `hiermerge cosim`
+/// runs), and what they exercise, read off the expected `report` beats.
 fn streams(
     d: &MergeDesign,
     seed: u64,
     merges: usize,
     most_voxels: usize,
 ) -> (Vec<StreamBeats>, Vec<StreamBeats>, Seen) {
-    let p = &d.params;
-    let (tl, li, lo) = (
-        TopLayout::new(p),
-        BeatLayout::input(p),
-        BeatLayout::output(p),
-    );
-    let mut rng = SplitMix64(seed);
-    let mut cfg = Vec::new();
-    let mut ins = vec![Vec::new(); d.inputs];
-    let mut report = Vec::new();
-    let mut out = Vec::new();
-    let mut seen = Seen::default();
-    for _ in 0..merges {
-        let tx: TopTransaction =
-            random_top_transaction(&mut rng, p, d.inputs, &d.mode, most_voxels).unwrap();
-        seen.merges += 1;
-        cfg.push(vec![bitvec(&tl.pack_cfg(tx.lo, tx.hi).unwrap())]);
-        for (s, beats) in ins.iter_mut().zip(&tx.inputs) {
-            s.extend(beats.iter().map(|b| vec![bitvec(&b.pack(&li).unwrap())]));
+    let s = cosim::units::merge_module::generate_streams(d, seed, merges, most_voxels, None)
+        .expect("golden merges");
+    let tl = TopLayout::new(&d.params);
+    let mut seen = Seen {
+        merges: s.merges(),
+        ..Seen::default()
+    };
+    for beat in &s.outputs[0].beats {
+        let b = golden::layout::Bits::from_words(beat[0].width() as u32, beat[0].words())
+            .expect("a report beat");
+        let get = |f| b.get(f).expect("a report field");
+        if get(&tl.chosen) == 1 {
+            seen.refused += (get(&tl.err) != 0) as usize;
+        } else {
+            seen.counted_levels += 1;
+            seen.above += get(&tl.above) as usize;
+            seen.overflow += get(&tl.overflow) as usize;
         }
-        for r in &tx.reports {
-            match r {
-                Report::Counted { result, .. } => {
-                    seen.counted_levels += 1;
-                    seen.above += result.above as usize;
-                    seen.overflow += result.overflow as usize;
-                }
-                Report::Chosen { err, .. } => seen.refused += (*err != 0) as usize,
-            }
-            report.push(vec![bitvec(&r.pack(&tl).unwrap())]);
-        }
-        out.extend(tx.out.iter().map(|b| vec![bitvec(&b.pack(&lo).unwrap())]));
     }
-    let mut inputs = vec![StreamBeats {
-        name: "cfg".into(),
-        beats: cfg,
-    }];
-    inputs.extend(ins.into_iter().enumerate().map(|(i, beats)| StreamBeats {
-        name: format!("in{i}"),
-        beats,
-    }));
-    let outputs = vec![
-        StreamBeats {
-            name: "report".into(),
-            beats: report,
-        },
-        StreamBeats {
-            name: "out".into(),
-            beats: out,
-        },
-    ];
-    (inputs, outputs, seen)
+    (s.inputs, s.outputs, seen)
 }
 
 fn bench(
@@ -210,6 +178,7 @@ fn check(name: &str, d: &MergeDesign, most_voxels: usize, runs: &[(&str, usize)]
     for &(kind, merges) in runs {
         let (ins, outs, seen) = streams(d, seed, merges, most_voxels);
         eprintln!("merge_module {name}/{kind}: {seen:?}");
+        assert_eq!(seen.merges, merges);
         // Both refusals and merges are exercised (in runs long enough to
         // meet a bad range, 1 in 32).
         assert!(

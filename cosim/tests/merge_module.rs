@@ -170,41 +170,62 @@ fn batch_bench(
     r
 }
 
+/// Merges per bench run: longer runs go in chunks of fresh stimulus (the
+/// seed plus the chunk's number) on the same simulator, so the stimulus held
+/// in memory stays small (100,000 merges at once take several GB).
+const CHUNK: usize = 10_000;
+
 fn check(name: &str, d: &MergeDesign, most_voxels: usize, runs: &[(&str, usize)], seed: u64) {
     d.validate().unwrap();
     let dir = tempfile::tempdir().unwrap();
     let m = rtl_gen::merge::merge_module_unit(d);
     let design = design_of(&m, dir.path());
-    for &(kind, merges) in runs {
-        let (ins, outs, seen) = streams(d, seed, merges, most_voxels);
-        eprintln!("merge_module {name}/{kind}: {seen:?}");
-        assert_eq!(seen.merges, merges);
-        // Both refusals and merges are exercised (in runs long enough to
-        // meet a bad range, 1 in 32).
-        assert!(
-            (seen.refused > 0 || merges < 100) && seen.refused * 10 < merges * 6,
-            "{seen:?}"
-        );
-        if d.threshold().is_some() {
-            assert!(
-                seen.above > 0 && seen.above < seen.counted_levels,
-                "{seen:?}"
-            );
-        }
-        if d.params.index_bits <= 4 && d.threshold().is_some() {
-            assert!(seen.overflow > 0, "{seen:?}");
-        }
+    for &(kind, total) in runs {
         let stall = stall_of(seed ^ kind.len() as u64).max(0.05);
         let what = format!("merge_module {name} {kind}");
-        let r = if kind == "iverilog-batch" {
-            batch_bench(&design, &ins, &outs, seed, stall, &what)
-        } else {
-            let mut e = engine(kind, &m, &design);
-            bench(e.as_mut(), &ins, &outs, seed, stall, &what)
-        };
+        let mut e = (kind != "iverilog-batch").then(|| engine(kind, &m, &design));
+        let (mut done, mut cycles, mut out_beats, mut chunk) = (0, 0, 0, 0u64);
+        while done < total {
+            let merges = CHUNK.min(total - done);
+            let (ins, outs, seen) = streams(d, seed + chunk, merges, most_voxels);
+            eprintln!("merge_module {name}/{kind}: {seen:?}");
+            assert_eq!(seen.merges, merges);
+            // Both refusals and merges are exercised (in runs long enough
+            // to meet a bad range, 1 in 32).
+            assert!(
+                (seen.refused > 0 || merges < 100) && seen.refused * 10 < merges * 6,
+                "{seen:?}"
+            );
+            if d.threshold().is_some() {
+                assert!(
+                    seen.above > 0 && seen.above < seen.counted_levels,
+                    "{seen:?}"
+                );
+            }
+            if d.params.index_bits <= 4 && d.threshold().is_some() {
+                assert!(seen.overflow > 0, "{seen:?}");
+            }
+            // An engine's cycle count runs on across chunks; a batch starts at 0.
+            let (r, before) = match e.as_mut() {
+                Some(e) => {
+                    let before = e.cycle();
+                    (
+                        bench(e.as_mut(), &ins, &outs, seed + chunk, stall, &what),
+                        before,
+                    )
+                }
+                None => (
+                    batch_bench(&design, &ins, &outs, seed + chunk, stall, &what),
+                    0,
+                ),
+            };
+            done += merges;
+            cycles += r.cycles - before;
+            out_beats += r.received[1].1;
+            chunk += 1;
+        }
         println!(
-            "merge_module {name} {kind}: {merges} merges, {} out beats, {} cycles, stall {stall:.2}, {:.1?}",
-            r.received[1].1, r.cycles, r.wall
+            "merge_module {name} {kind}: {total} merges, {out_beats} out beats, {cycles} cycles, stall {stall:.2}"
         );
     }
 }

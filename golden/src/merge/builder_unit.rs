@@ -20,8 +20,9 @@
 use super::error::MergeError;
 use super::level_merge::{merge_level, BaseKind, BaseNode, LevelMergeCounts};
 use super::unit::{BaseBeat, BeatLayout};
+use super::upper::{base_by_lod, upper_levels};
 use super::walk::{collect, walk_input, WalkedInput};
-use crate::build::upper::{build_levels, group_by_parent, LevelNode};
+use crate::build::upper::LevelNode;
 use crate::grid::VoxelAddr;
 use crate::layout::{Bits, Field, LayoutError, NodeLayout, RefLayout};
 use crate::params::Params;
@@ -208,57 +209,6 @@ pub struct BuilderTransaction {
     pub root_cut: bool,
 }
 
-/// The base as S616's level lists (`merge::upper`'s `base_by_lod`): by LOD,
-/// each stably sorted by Morton code; a node's `first` is its position in
-/// `base`.
-fn base_by_lod(base: &[BaseNode], p: &Params) -> Vec<Vec<LevelNode>> {
-    let mut out = vec![Vec::new(); p.max_lod as usize + 1];
-    for (k, b) in base.iter().enumerate() {
-        let v = b.record.voxel;
-        out[v.lod as usize].push(LevelNode {
-            morton: v.morton(),
-            x: v.x,
-            y: v.y,
-            z: v.z,
-            leaf: b.record.leaf,
-            base: true,
-            lo: b.record.lo,
-            hi: b.record.hi,
-            first: k as u32,
-            count: 1,
-        });
-    }
-    for l in &mut out {
-        l.sort_by_key(|n| n.morton);
-    }
-    out
-}
-
-/// The levels and the top of 8.6: `build_levels`, then the lift rule
-/// exactly as `merge::upper::build_upper` applies it. `Err` carries the
-/// levels and the top (0) when a reused leaf is at the LOD-0 top.
-/// The levels, the top, the lifts and whether the half-scene rule cut the root.
-type Levels = (Vec<Vec<LevelNode>>, usize, usize, bool);
-
-fn levels_and_top(base: &[BaseNode], p: &Params) -> Option<Result<Levels, Levels>> {
-    let is_reused_leaf = |n: &LevelNode| {
-        n.base && n.leaf && matches!(base[n.first as usize].kind, BaseKind::Reused { .. })
-    };
-    let (mut levels, mut top) = build_levels(base_by_lod(base, p), p)?;
-    // build_levels reaches LOD 0 only when no level below is the top.
-    let cut = top == 1 && !levels[0].is_empty();
-    let mut lifted = 0;
-    while levels[top].iter().any(is_reused_leaf) {
-        if top == 0 {
-            return Some(Err((levels, top, lifted, false)));
-        }
-        levels[top - 1] = group_by_parent(&levels[top], p.quant_bits);
-        top -= 1;
-        lifted += 1;
-    }
-    Some(Ok((levels, top, lifted, cut && lifted == 0)))
-}
-
 /// The transaction of one merge over `base` (any base: empty, several
 /// LODs, any kinds).
 pub fn builder_transaction(base: &[BaseNode], p: &Params) -> BuilderTransaction {
@@ -288,10 +238,16 @@ pub fn builder_transaction(base: &[BaseNode], p: &Params) -> BuilderTransaction 
             v
         })
         .collect();
-    let ((levels, top, lifted, root_cut), err) = match levels_and_top(base, p) {
+    // The levels and the top of 8.6 exactly as `merge::upper::build_upper`
+    // makes them; `build_levels` reaches LOD 0 only when no level below is
+    // the top, so a built top of 1 with a LOD-0 level is the half-scene cut.
+    let ((levels, top, lifted, root_cut), err) = match upper_levels(base, p) {
         None => ((vec![Vec::new(); dmax + 1], 0, 0, false), true),
-        Some(Ok(l)) => (l, false),
-        Some(Err(l)) => (l, true),
+        Some(u) => {
+            let cut = u.built_top == 1 && u.lifted == 0 && !u.levels[0].is_empty();
+            let err = u.leaf_at_top.is_some();
+            ((u.levels, u.top, u.lifted as usize, cut && !err), err)
+        }
     };
     let bad_box = |n: &LevelNode| (0..3).any(|a| n.lo[a] > n.hi[a]);
     let mut out = vec![Vec::new(); dmax + 1];

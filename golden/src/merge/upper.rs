@@ -62,8 +62,9 @@ fn check_index(what: &'static str, value: u64, p: &Params) -> Result<(), MergeEr
 }
 
 /// The base nodes as the builder's level lists: by LOD, Morton order
-/// (stable: the base's own order within a voxel).
-fn base_by_lod(base: &[BaseNode], p: &Params) -> Vec<Vec<LevelNode>> {
+/// (stable: the base's own order within a voxel); a node's `first` is its
+/// index in `base`.
+pub(crate) fn base_by_lod(base: &[BaseNode], p: &Params) -> Vec<Vec<LevelNode>> {
     let mut out = vec![Vec::new(); p.max_lod as usize + 1];
     for (k, b) in base.iter().enumerate() {
         out[b.record.voxel.lod as usize].push(level_node(b, k));
@@ -81,6 +82,50 @@ fn reused_leaf<'a>(n: &LevelNode, base: &'a [BaseNode]) -> Option<&'a Reference>
     }
 }
 
+/// S616's levels over `base` (8.6): the builder's level loop and top rule,
+/// then the lift rule.
+#[derive(Clone, Debug)]
+pub(crate) struct UpperLevels {
+    /// The level lists by LOD (a base node's `first` is its index in `base`).
+    pub levels: Vec<Vec<LevelNode>>,
+    /// The top LOD after the lifts.
+    pub top: usize,
+    /// The top LOD the builder's top rule chose, before any lift.
+    pub built_top: usize,
+    /// Extra groupings because a reused leaf was at the top.
+    pub lifted: u64,
+    /// The reused input leaf still at the top at LOD 0, if any
+    /// ([`MergeError::InputLeafAtTop`]).
+    pub leaf_at_top: Option<Reference>,
+}
+
+/// The levels and the top over `base`; `None` when `base` is empty.
+pub(crate) fn upper_levels(base: &[BaseNode], p: &Params) -> Option<UpperLevels> {
+    let (mut levels, built_top) = build_levels(base_by_lod(base, p), p)?;
+    let (mut top, mut lifted) = (built_top, 0);
+    while let Some(at) = levels[top].iter().find_map(|n| reused_leaf(n, base)) {
+        if top == 0 {
+            return Some(UpperLevels {
+                levels,
+                top,
+                built_top,
+                lifted,
+                leaf_at_top: Some(*at),
+            });
+        }
+        levels[top - 1] = group_by_parent(&levels[top], p.quant_bits);
+        top -= 1;
+        lifted += 1;
+    }
+    Some(UpperLevels {
+        levels,
+        top,
+        built_top,
+        lifted,
+        leaf_at_top: None,
+    })
+}
+
 /// Builds the merged hierarchy `out_id` over `base` (non-empty).
 pub fn build_upper(
     base: &[BaseNode],
@@ -88,20 +133,18 @@ pub fn build_upper(
     p: &Params,
     out_id: u8,
 ) -> Result<(Hierarchy, UpperCounts), MergeError> {
-    let (mut levels, mut top) =
-        build_levels(base_by_lod(base, p), p).ok_or(MergeError::NoInputs)?;
-    let mut counts = UpperCounts::default();
-    while let Some(at) = levels[top].iter().find_map(|n| reused_leaf(n, base)) {
-        if top == 0 {
-            return Err(MergeError::InputLeafAtTop {
-                input: at.hier,
-                node: at.node,
-            });
-        }
-        levels[top - 1] = group_by_parent(&levels[top], p.quant_bits);
-        top -= 1;
-        counts.lifted += 1;
+    let u = upper_levels(base, p).ok_or(MergeError::NoInputs)?;
+    if let Some(at) = u.leaf_at_top {
+        return Err(MergeError::InputLeafAtTop {
+            input: at.hier,
+            node: at.node,
+        });
     }
+    let (levels, top) = (u.levels, u.top);
+    let mut counts = UpperCounts {
+        lifted: u.lifted,
+        ..UpperCounts::default()
+    };
     let deepest = levels.len() - 1;
 
     // Record index of every node that is a record, level by level.

@@ -12,6 +12,7 @@
 //! last). The mode is built in: a configuration holds only its own choice
 //! logic, and no overlap counter unless it counts.
 
+use golden::merge::level::choose_level;
 use golden::merge::top::{choice_err, TopLayout};
 use golden::merge::unit::{base_kind, level_kind, rank_bits, BeatLayout, OverlapLayout};
 use golden::merge::MergeMode;
@@ -75,17 +76,18 @@ fn choose_from_range<'m>(
             let deep = lo.zext(w).add(m.lit(k as u128, w), w).name("below_top");
             (deep.slice(lb - 1, 0), deep.gt(hi.zext(w)))
         }
-        MergeMode::Proportion { num, den } => {
-            // floor((hi - lo) num / den) for every depth the range can have:
-            // a constant table indexed by hi - lo.
+        MergeMode::Proportion { .. } => {
+            // The depth below `lo` for every depth `hi - lo` the range can
+            // have, from golden's own `choose_level` over `[0, j]`: a
+            // constant table indexed by hi - lo.
             let depth = hi.sub(lo, lb).name("range_depth");
             let table: Vec<Signal> = (0..1u64 << lb)
                 .map(|j| {
-                    let v = if j <= p.max_lod as u64 {
-                        j * num as u64 / den as u64
-                    } else {
-                        0
-                    };
+                    let v = u8::try_from(j)
+                        .ok()
+                        .filter(|&j| j <= p.max_lod)
+                        .and_then(|j| choose_level(mode, 0, j, &[]).ok().flatten())
+                        .unwrap_or(0);
                     m.lit(v as u128, lb)
                 })
                 .collect();

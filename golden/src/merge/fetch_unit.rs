@@ -1,0 +1,886 @@
+//! The fetcher (S610 + S612 in hardware, SPEC.md section 8.13): one input
+//! hierarchy walked from the store and translated, producing the merging
+//! module's per-input stream (8.10's `in<i>`, [`super::top::input_stream`]'s
+//! order) and the leaves above the walked level for the upper builder.
+//!
+//! This module holds the beat layouts of the fetcher's ports and its
+//! transaction: a store image of one input, its `cfg` beat and a list of
+//! commands give the expected memory requests (node and reference read
+//! ports), the responses the memory answers with, the `out` beats and the
+//! `leaves` beats. Every value comes from golden's walk functions
+//! ([`super::walk::place_node`] validates and translates, [`super::walk::children`]
+//! checks reference ranges, [`super::level_merge::sort_stream`] orders the
+//! roots); the model adds only the visiting order the hardware promises (a
+//! breadth-first walk from the sorted roots, one read at a time), and the
+//! tests check that on well-formed inputs its streams equal
+//! [`super::walk::walk_input`] + [`super::walk::collect`] +
+//! [`super::top::input_stream`].
+
+use std::collections::VecDeque;
+
+use super::error::MergeError;
+use super::level_merge::sort_stream;
+use super::unit::{BeatLayout, LevelBeat};
+use super::walk::{children, morton, place_node, PlacedNode};
+use crate::layout::{Bits, Field, LayoutError, NodeLayout, RefLayout};
+use crate::params::Params;
+use crate::store::{Hierarchy, NodeRecord, Reference};
+use crate::translate::table::{entry_bits, unpack_entry};
+use crate::translate::{TranslateError, Translation};
+
+/// Error codes of an `out` error beat (the `err` field), each naming the
+/// record it found wrong in the beat's `ref`.
+pub mod fetch_err {
+    /// No error (every beat but an error beat).
+    pub const NONE: u64 = 0;
+    /// The `cfg` translation entry is invalid (`valid` 0, `L > D`, or a
+    /// component code `-2^D`). Node 0.
+    pub const ENTRY: u64 = 1;
+    /// `root_count` is 0 or above `nodes`. Node 0.
+    pub const ROOT_COUNT: u64 = 2;
+    /// More roots than the root sorter holds. Node 0.
+    pub const ROOT_CAPACITY: u64 = 3;
+    /// A record that does not validate (section 3). The node.
+    pub const RECORD: u64 = 4;
+    /// A node not at its parent's LOD + 1 (a root: not at `top_lod`). The node.
+    pub const LOD: u64 = 5;
+    /// An inner node whose reference range leaves `refs`. The node.
+    pub const RANGE: u64 = 6;
+    /// A reference naming another hierarchy. The parent node.
+    pub const REF_HIER: u64 = 7;
+    /// A reference to a node at or above `nodes`. The parent node.
+    pub const REF_NODE: u64 = 8;
+    /// `AboveTranslationLevel`: the node's LOD is below `L`. The node.
+    pub const ABOVE: u64 = 9;
+    /// `NodeOutsideScene` on x; y and z are the next two codes. The node.
+    pub const OUTSIDE_X: u64 = 10;
+    pub const OUTSIDE_Y: u64 = 11;
+    pub const OUTSIDE_Z: u64 = 12;
+    /// The frontier FIFO was full when an inner node's range arrived. The node.
+    pub const FRONTIER: u64 = 13;
+    /// A node not after the previous node of its level in (Morton code,
+    /// inner before leaf) order: the walk would not be the stream's order
+    /// (two inner nodes at one voxel, a child outside its parent's voxel or
+    /// children stored out of order). The node.
+    pub const ORDER: u64 = 14;
+    /// Bits of the `err` field.
+    pub const BITS: u32 = 4;
+}
+
+/// The bit layouts of the fetcher's streams, from bit 0 upward; widths from
+/// [`Params`], [`NodeLayout`], [`RefLayout`] and the translation table's
+/// [`entry_bits`] only.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FetchLayout {
+    pub node: NodeLayout,
+    pub reference: RefLayout,
+    /// `cfg`: `hier` (H), `roots` (I: root_count), `top` (lod_bits),
+    /// `nodes`, `refs` (I each: the input's array lengths), `entry` (the
+    /// translation table's packed entry, section 7.5).
+    pub hier: Field,
+    pub roots: Field,
+    pub top: Field,
+    pub nodes: Field,
+    pub refs: Field,
+    pub entry: Field,
+    pub cfg_width: u32,
+    /// `cmd`: `lod` (lod_bits), `send_refs`, `send_leaves`, `last` (1 each).
+    pub lod: Field,
+    pub send_refs: Field,
+    pub send_leaves: Field,
+    pub last: Field,
+    pub cmd_width: u32,
+    /// `node_req` / `ref_req`: an index (I). `node_resp`: a record (W);
+    /// `ref_resp`: a reference (I + H).
+    pub index_width: u32,
+    /// `out`: an S614 input beat ([`BeatLayout::input`]) then `err`
+    /// ([`fetch_err::BITS`]).
+    pub beat: BeatLayout,
+    pub err: Field,
+    pub out_width: u32,
+    /// `leaves`: `rec` (W), `ref` (I + H), `lod` (lod_bits), `end` (1).
+    pub leaf_rec: Field,
+    pub leaf_ref: Field,
+    pub leaf_lod: Field,
+    pub leaf_end: Field,
+    pub leaves_width: u32,
+}
+
+/// Lays out `(name, width)` consecutively from bit 0.
+fn consecutive<const N: usize>(spec: [(&'static str, u32); N]) -> ([Field; N], u32) {
+    let mut at = 0;
+    let f = spec.map(|(name, width)| {
+        let f = Field {
+            name,
+            offset: at,
+            width,
+        };
+        at += width;
+        f
+    });
+    (f, at)
+}
+
+impl FetchLayout {
+    /// The layouts for `p`.
+    pub fn new(p: &Params) -> FetchLayout {
+        let node = NodeLayout::new(p);
+        let reference = RefLayout::new(p);
+        let (i, h, lb) = (p.index_bits as u32, p.hier_bits as u32, p.lod_bits());
+        let ([hier, roots, top, nodes, refs, entry], cfg_width) = consecutive([
+            ("hier", h),
+            ("roots", i),
+            ("top", lb),
+            ("nodes", i),
+            ("refs", i),
+            ("entry", entry_bits(p)),
+        ]);
+        let ([lod, send_refs, send_leaves, last], cmd_width) = consecutive([
+            ("lod", lb),
+            ("send_refs", 1),
+            ("send_leaves", 1),
+            ("last", 1),
+        ]);
+        let beat = BeatLayout::input(p);
+        let err = Field {
+            name: "err",
+            offset: beat.width,
+            width: fetch_err::BITS,
+        };
+        let ([leaf_rec, leaf_ref, leaf_lod, leaf_end], leaves_width) = consecutive([
+            ("rec", node.width()),
+            ("ref", reference.width()),
+            ("lod", lb),
+            ("end", 1),
+        ]);
+        FetchLayout {
+            node,
+            reference,
+            hier,
+            roots,
+            top,
+            nodes,
+            refs,
+            entry,
+            cfg_width,
+            lod,
+            send_refs,
+            send_leaves,
+            last,
+            cmd_width,
+            index_width: i,
+            err,
+            out_width: err.end(),
+            beat,
+            leaf_rec,
+            leaf_ref,
+            leaf_lod,
+            leaf_end,
+            leaves_width,
+        }
+    }
+}
+
+/// Sets a field wider than 64 bits (the translation entry) from a `u128`.
+fn set_wide(b: &mut Bits, f: &Field, v: u128) -> Result<(), LayoutError> {
+    if f.width < 128 && v >> f.width != 0 {
+        return Err(LayoutError::DoesNotFit {
+            field: f.name,
+            value: v as u64,
+            width: f.width,
+        });
+    }
+    let mut at = 0;
+    while at < f.width {
+        let w = (f.width - at).min(64);
+        let part = Field {
+            name: f.name,
+            offset: f.offset + at,
+            width: w,
+        };
+        let mask = if w == 64 { u64::MAX } else { (1u64 << w) - 1 };
+        b.set(&part, (v >> at) as u64 & mask)?;
+        at += w;
+    }
+    Ok(())
+}
+
+/// Copies `src` into `dst` at bit `offset`.
+fn put_bits(dst: &mut Bits, offset: u32, src: &Bits) -> Result<(), LayoutError> {
+    for i in 0..src.width() {
+        if src.bit(i) {
+            dst.set(
+                &Field {
+                    name: "bit",
+                    offset: offset + i,
+                    width: 1,
+                },
+                1,
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// The header of one input as the `cfg` beat carries it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FetchCfg {
+    pub hier: u8,
+    pub root_count: u32,
+    pub top_lod: u8,
+    pub nodes: u32,
+    pub refs: u32,
+    /// The translation table's packed entry for `hier` (section 7.5).
+    pub entry: u128,
+}
+
+impl FetchCfg {
+    /// The header of `h` with translation `t` (`None`: an invalid entry).
+    pub fn of(h: &Hierarchy, t: Option<&Translation>) -> FetchCfg {
+        FetchCfg {
+            hier: h.id,
+            root_count: h.root_count,
+            top_lod: h.top_lod,
+            nodes: h.nodes.len() as u32,
+            refs: h.refs.len() as u32,
+            entry: crate::translate::table::pack_entry(t, &h.params),
+        }
+    }
+
+    /// The packed `cfg` beat; an error when a count needs more than `I` bits.
+    pub fn pack(&self, l: &FetchLayout) -> Result<Bits, LayoutError> {
+        let mut b = Bits::zero(l.cfg_width);
+        b.set(&l.hier, self.hier as u64)?;
+        b.set(&l.roots, self.root_count as u64)?;
+        b.set(&l.top, self.top_lod as u64)?;
+        b.set(&l.nodes, self.nodes as u64)?;
+        b.set(&l.refs, self.refs as u64)?;
+        set_wide(&mut b, &l.entry, self.entry)?;
+        Ok(b)
+    }
+}
+
+/// One command: walk to LOD `lod` and send its nodes on `out`, with the
+/// inner nodes' child references when `send_refs` (the merge pass), and the
+/// leaves above `lod` on `leaves` when `send_leaves`; `last`: the next beat
+/// on `cfg` starts another input.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FetchCmd {
+    pub lod: u8,
+    pub send_refs: bool,
+    pub send_leaves: bool,
+    pub last: bool,
+}
+
+impl FetchCmd {
+    /// The packed `cmd` beat.
+    pub fn pack(&self, l: &FetchLayout) -> Result<Bits, LayoutError> {
+        let mut b = Bits::zero(l.cmd_width);
+        b.set(&l.lod, self.lod as u64)?;
+        b.set(&l.send_refs, self.send_refs as u64)?;
+        b.set(&l.send_leaves, self.send_leaves as u64)?;
+        b.set(&l.last, self.last as u64)?;
+        Ok(b)
+    }
+}
+
+/// One beat of `out`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FetchOut {
+    /// An S614 input beat (`End` closes a command's level).
+    Beat(LevelBeat),
+    /// The walk stopped: `kind` END, `ref` = (hier, node), `err` = code.
+    Error { hier: u8, node: u32, code: u64 },
+}
+
+impl FetchOut {
+    /// The packed beat.
+    pub fn pack(&self, l: &FetchLayout) -> Result<Bits, LayoutError> {
+        let mut b = Bits::zero(l.out_width);
+        match self {
+            FetchOut::Beat(beat) => put_bits(&mut b, 0, &beat.pack(&l.beat)?)?,
+            FetchOut::Error { hier, node, code } => {
+                let r = Reference {
+                    hier: *hier,
+                    node: *node,
+                };
+                put_bits(&mut b, 0, &LevelBeat::End.pack(&l.beat)?)?;
+                put_bits(&mut b, l.beat.refer.offset, &r.pack(&l.reference)?)?;
+                b.set(&l.err, *code)?;
+            }
+        }
+        Ok(b)
+    }
+}
+
+/// One beat of `leaves`: a translated leaf above the command's LOD, where it
+/// is stored; or the command's `End`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LeafOut {
+    Leaf { record: NodeRecord, at: Reference },
+    End,
+}
+
+impl LeafOut {
+    /// The packed beat (`lod` = the record's LOD).
+    pub fn pack(&self, l: &FetchLayout) -> Result<Bits, LayoutError> {
+        let mut b = Bits::zero(l.leaves_width);
+        match self {
+            LeafOut::Leaf { record, at } => {
+                put_bits(&mut b, l.leaf_rec.offset, &record.pack(&l.node)?)?;
+                put_bits(&mut b, l.leaf_ref.offset, &at.pack(&l.reference)?)?;
+                b.set(&l.leaf_lod, record.voxel.lod as u64)?;
+            }
+            LeafOut::End => b.set(&l.leaf_end, 1)?,
+        }
+        Ok(b)
+    }
+}
+
+/// The fetcher's fixed sizes: the root sorter's capacity and the frontier
+/// FIFO's depth (generator parameters).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FetchSizes {
+    pub roots: usize,
+    pub frontier: usize,
+}
+
+impl Default for FetchSizes {
+    /// 16 roots (a builder-made input has at most 16), 256 ranges.
+    fn default() -> Self {
+        FetchSizes {
+            roots: 16,
+            frontier: 256,
+        }
+    }
+}
+
+/// One input's run through the fetcher: its `cfg`, its commands, and what
+/// every stream carries, in order, over all commands.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FetchTransaction {
+    pub cfg: FetchCfg,
+    pub cmds: Vec<FetchCmd>,
+    /// Node indices requested on `node_req`, and the records answered.
+    pub node_reqs: Vec<u32>,
+    pub node_resps: Vec<NodeRecord>,
+    /// Reference indices requested on `ref_req`, and the references answered.
+    pub ref_reqs: Vec<u32>,
+    pub ref_resps: Vec<Reference>,
+    pub out: Vec<FetchOut>,
+    pub leaves: Vec<LeafOut>,
+}
+
+/// The code of a [`place_node`] failure.
+fn place_code(e: &MergeError) -> u64 {
+    match e {
+        MergeError::TranslateNode { error, .. } => match error {
+            TranslateError::AboveTranslationLevel { .. } => fetch_err::ABOVE,
+            TranslateError::NodeOutsideScene { axis, .. } => {
+                fetch_err::OUTSIDE_X + axis.index() as u64
+            }
+            _ => fetch_err::RECORD,
+        },
+        _ => fetch_err::RECORD,
+    }
+}
+
+/// A walk stopped by an error: (node named, code).
+type Stop = (u32, u64);
+
+/// The walk of one command, appending to `tx`.
+struct Walk<'a> {
+    h: &'a Hierarchy,
+    t: Translation,
+    cmd: FetchCmd,
+    sizes: FetchSizes,
+}
+
+impl Walk<'_> {
+    /// Reads node `i` (expected at LOD `lod`) and places it.
+    fn read_node(&self, tx: &mut FetchTransaction, i: u32, lod: u8) -> Result<PlacedNode, Stop> {
+        tx.node_reqs.push(i);
+        let n = self.h.nodes[i as usize];
+        tx.node_resps.push(n);
+        if n.voxel.lod != lod {
+            return Err((i, fetch_err::LOD));
+        }
+        place_node(self.h, 0, &self.t, i).map_err(|e| (i, place_code(&e)))
+    }
+
+    /// Reads reference `j` of parent `parent` and checks it names a node of
+    /// this input.
+    fn read_ref(&self, tx: &mut FetchTransaction, j: u32, parent: u32) -> Result<Reference, Stop> {
+        tx.ref_reqs.push(j);
+        let r = self.h.refs[j as usize];
+        tx.ref_resps.push(r);
+        if r.hier != self.h.id {
+            return Err((parent, fetch_err::REF_HIER));
+        }
+        if r.node as usize >= self.h.nodes.len() {
+            return Err((parent, fetch_err::REF_NODE));
+        }
+        Ok(r)
+    }
+
+    /// An inner node's reference range must lie inside `refs` ([`children`]'s
+    /// range check; the references themselves are checked as they are read).
+    fn check_range(&self, n: &PlacedNode) -> Result<(), Stop> {
+        match children(self.h, n.at.node, &self.h.nodes[n.at.node as usize]) {
+            Err(MergeError::BadInput {
+                field: "first/count",
+                ..
+            }) => Err((n.at.node, fetch_err::RANGE)),
+            _ => Ok(()),
+        }
+    }
+
+    /// The child references of `n` at the command's level, on `out`.
+    fn send_refs(&self, tx: &mut FetchTransaction, n: &PlacedNode) -> Result<(), Stop> {
+        let r = n.record.range();
+        for j in r.start as u32..r.end as u32 {
+            let c = self.read_ref(tx, j, n.at.node)?;
+            tx.out.push(FetchOut::Beat(LevelBeat::ChildRef(c)));
+        }
+        Ok(())
+    }
+
+    fn run(&self, tx: &mut FetchTransaction) -> Result<(), Stop> {
+        let (h, cmd) = (self.h, self.cmd);
+        if h.root_count == 0 || h.root_count as usize > h.nodes.len() {
+            return Err((0, fetch_err::ROOT_COUNT));
+        }
+        if h.root_count as usize > self.sizes.roots {
+            return Err((0, fetch_err::ROOT_CAPACITY));
+        }
+        let mut level = Vec::new();
+        for i in 0..h.root_count {
+            level.push(self.read_node(tx, i, h.top_lod)?);
+        }
+        sort_stream(&mut level);
+        let mut frontier: VecDeque<(u32, u32, u32)> = VecDeque::new();
+        let mut d = h.top_lod;
+        let mut first_level = true;
+        loop {
+            let mut prev: Option<(u128, bool)> = None;
+            let mut pending: Option<PlacedNode> = None;
+            let mut this_level = frontier.len();
+            let mut roots = level.drain(..);
+            loop {
+                // The level's next node: a sorted root, or the next child
+                // of the frontier's ranges.
+                let n = if first_level {
+                    match roots.next() {
+                        Some(n) => n,
+                        None => break,
+                    }
+                } else {
+                    if this_level == 0 {
+                        break;
+                    }
+                    let (first, count, parent) = frontier.pop_front().expect("counted");
+                    this_level -= 1;
+                    for j in first..first + count {
+                        let c = self.read_ref(tx, j, parent)?;
+                        let n = self.read_node(tx, c.node, d)?;
+                        self.visit(tx, &n, d, &mut prev, &mut pending, &mut frontier)?;
+                    }
+                    continue;
+                };
+                self.visit(tx, &n, d, &mut prev, &mut pending, &mut frontier)?;
+            }
+            drop(roots);
+            if let Some(p) = pending.take() {
+                self.send_refs(tx, &p)?;
+            }
+            if d >= cmd.lod || frontier.is_empty() {
+                break;
+            }
+            first_level = false;
+            d += 1;
+        }
+        tx.out.push(FetchOut::Beat(LevelBeat::End));
+        if cmd.send_leaves {
+            tx.leaves.push(LeafOut::End);
+        }
+        Ok(())
+    }
+
+    /// One node of level `d` in walk order.
+    fn visit(
+        &self,
+        tx: &mut FetchTransaction,
+        n: &PlacedNode,
+        d: u8,
+        prev: &mut Option<(u128, bool)>,
+        pending: &mut Option<PlacedNode>,
+        frontier: &mut VecDeque<(u32, u32, u32)>,
+    ) -> Result<(), Stop> {
+        let cmd = self.cmd;
+        let key = (morton(&n.record.voxel), n.record.leaf);
+        if prev.is_some_and(|p| p >= key) {
+            return Err((n.at.node, fetch_err::ORDER));
+        }
+        *prev = Some(key);
+        let inner = !n.record.leaf;
+        if inner && (d < cmd.lod || (d == cmd.lod && cmd.send_refs)) {
+            self.check_range(n)?;
+        }
+        if d < cmd.lod {
+            if inner {
+                if frontier.len() >= self.sizes.frontier {
+                    return Err((n.at.node, fetch_err::FRONTIER));
+                }
+                frontier.push_back((n.record.first, n.record.count, n.at.node));
+            } else if cmd.send_leaves {
+                tx.leaves.push(LeafOut::Leaf {
+                    record: n.record,
+                    at: n.at,
+                });
+            }
+            return Ok(());
+        }
+        if d > cmd.lod {
+            return Ok(());
+        }
+        // At the level: a voxel's inner node, its leaf, then the inner
+        // node's references (held until the voxel's leaf has passed).
+        if let Some(p) = pending.take() {
+            let leaf_of_p = n.record.leaf && n.record.voxel == p.record.voxel;
+            if !leaf_of_p {
+                self.send_refs(tx, &p)?;
+            }
+            tx.out.push(FetchOut::Beat(beat_of(n)));
+            if leaf_of_p {
+                self.send_refs(tx, &p)?;
+            }
+        } else {
+            tx.out.push(FetchOut::Beat(beat_of(n)));
+        }
+        if inner && cmd.send_refs {
+            *pending = Some(*n);
+        }
+        Ok(())
+    }
+}
+
+/// A placed node as an S614 input beat.
+fn beat_of(n: &PlacedNode) -> LevelBeat {
+    if n.record.leaf {
+        LevelBeat::Leaf {
+            record: n.record,
+            at: n.at,
+        }
+    } else {
+        LevelBeat::Inner {
+            record: n.record,
+            at: n.at,
+        }
+    }
+}
+
+/// The fetcher's run of input `h` with translation entry `entry` (packed,
+/// as the table holds it) over `cmds`. Refused (an error, never a panic)
+/// when `h`'s array lengths do not fit the `cfg` fields (`I` bits).
+pub fn fetch_transaction(
+    h: &Hierarchy,
+    entry: u128,
+    cmds: &[FetchCmd],
+    sizes: FetchSizes,
+) -> Result<FetchTransaction, MergeError> {
+    let p = &h.params;
+    let cap = p.index_capacity();
+    for (what, n) in [("nodes", h.nodes.len()), ("refs", h.refs.len())] {
+        if n as u64 >= cap {
+            return Err(MergeError::BadInput {
+                input: h.id,
+                node: None,
+                field: what,
+                expected: format!("fewer than 2^I = {cap} (the cfg field)"),
+                found: n.to_string(),
+            });
+        }
+    }
+    if h.root_count as u64 >= cap {
+        return Err(MergeError::BadInput {
+            input: h.id,
+            node: None,
+            field: "root_count",
+            expected: format!("below 2^I = {cap}"),
+            found: h.root_count.to_string(),
+        });
+    }
+    let mut cfg = FetchCfg::of(h, None);
+    cfg.entry = entry;
+    let mut tx = FetchTransaction {
+        cfg,
+        cmds: cmds.to_vec(),
+        node_reqs: Vec::new(),
+        node_resps: Vec::new(),
+        ref_reqs: Vec::new(),
+        ref_resps: Vec::new(),
+        out: Vec::new(),
+        leaves: Vec::new(),
+    };
+    let t = unpack_entry(entry, p).ok().flatten();
+    for &cmd in cmds {
+        let stop = match t {
+            None => Err((0, fetch_err::ENTRY)),
+            Some(t) => Walk { h, t, cmd, sizes }.run(&mut tx),
+        };
+        if let Err((node, code)) = stop {
+            tx.out.push(FetchOut::Error {
+                hier: h.id,
+                node,
+                code,
+            });
+            if cmd.send_leaves {
+                tx.leaves.push(LeafOut::End);
+            }
+        }
+    }
+    Ok(tx)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::build::{build, GridMap};
+    use crate::merge::top::input_stream;
+    use crate::merge::walk::{collect, walk_input};
+    use crate::scenes::random_soup;
+    use crate::translate::table::pack_entry;
+
+    fn soup(p: &Params, id: u8, n: usize, size: f32, seed: u64) -> Hierarchy {
+        let mesh = random_soup(n, size, seed);
+        let grid = GridMap {
+            origin: glam::DVec3::ZERO,
+            unit: 1.0 / (p.scene_edge() >> 3) as f64,
+        };
+        build(&mesh, &grid, p, id).expect("the soup builds")
+    }
+
+    /// A translation at the top LOD by about `frac` of the room left.
+    fn place(h: &Hierarchy, frac: f64) -> Translation {
+        let l = h.top_lod;
+        let t = [0, 1, 2].map(|a| {
+            let max = h
+                .roots()
+                .iter()
+                .map(|n| [n.voxel.x, n.voxel.y, n.voxel.z][a] as i64)
+                .max()
+                .unwrap();
+            (((1i64 << l) - 1 - max) as f64 * frac) as i64
+        });
+        Translation { lod: l, t }
+    }
+
+    fn deepest(h: &Hierarchy) -> u8 {
+        h.nodes.iter().map(|n| n.voxel.lod).max().unwrap()
+    }
+
+    /// On builder-made inputs, every level's stream equals the walk's
+    /// `input_stream` and the leaves equal `collect`'s leaves above, in
+    /// (LOD, Morton) order.
+    #[test]
+    fn fetch_equals_the_walk_on_built_inputs() {
+        let p = Params::default();
+        let mut levels = 0;
+        for (i, (n, size)) in [(1, 0.01), (40, 0.2), (200, 0.3), (60, 0.05)]
+            .iter()
+            .enumerate()
+        {
+            let h = soup(&p, 1 + i as u8, *n, *size, 7 + i as u64);
+            for frac in [0.0, 0.5, 1.0] {
+                let t = place(&h, frac);
+                for l in h.top_lod.saturating_sub(1)..=deepest(&h) + 1 {
+                    let cmd = FetchCmd {
+                        lod: l,
+                        send_refs: l % 2 == 0,
+                        send_leaves: true,
+                        last: true,
+                    };
+                    let tx = fetch_transaction(
+                        &h,
+                        pack_entry(Some(&t), &p),
+                        &[cmd],
+                        FetchSizes::default(),
+                    )
+                    .unwrap();
+                    let w = walk_input(&h, 0, &t, l).unwrap();
+                    let (above, at) = collect(std::slice::from_ref(&w), l);
+                    let want = input_stream(&at, &[&h], 0, cmd.send_refs).unwrap();
+                    let got: Vec<LevelBeat> = tx
+                        .out
+                        .iter()
+                        .map(|o| match o {
+                            FetchOut::Beat(b) => *b,
+                            e => panic!("{e:?}"),
+                        })
+                        .collect();
+                    assert_eq!(got, want, "level {l}");
+                    let mut above = above.clone();
+                    above.sort_by_key(|n| (n.record.voxel.lod, n.record.voxel.morton()));
+                    let mut want_leaves: Vec<LeafOut> = above
+                        .iter()
+                        .map(|n| LeafOut::Leaf {
+                            record: n.record,
+                            at: n.at,
+                        })
+                        .collect();
+                    want_leaves.push(LeafOut::End);
+                    assert_eq!(tx.leaves, want_leaves, "level {l}");
+                    assert_eq!(tx.node_reqs.len(), tx.node_resps.len());
+                    let walked: usize = w.by_lod.iter().map(Vec::len).sum();
+                    assert_eq!(tx.node_reqs.len(), walked, "one read per walked node");
+                    levels += 1;
+                }
+            }
+        }
+        assert!(levels > 30);
+    }
+
+    /// A small hand-made input: root 0 (inner, LOD 1) with children 1, 2.
+    fn tiny(p: &Params) -> Hierarchy {
+        let rec = |leaf: bool, lod: u8, x: u32, first: u32, count: u32| NodeRecord {
+            leaf,
+            voxel: crate::grid::VoxelAddr::new(lod, x, 0, 0),
+            lo: [0; 3],
+            hi: [0; 3],
+            first,
+            count,
+        };
+        Hierarchy {
+            id: 3,
+            params: *p,
+            nodes: vec![
+                rec(false, 1, 0, 0, 2),
+                rec(true, 2, 0, 0, 1),
+                rec(true, 2, 1, 0, 1),
+            ],
+            refs: vec![
+                Reference { hier: 3, node: 1 },
+                Reference { hier: 3, node: 2 },
+            ],
+            prims: vec![0],
+            root_count: 1,
+            top_lod: 1,
+        }
+    }
+
+    fn error_of(h: &Hierarchy, t: Option<&Translation>, lod: u8, sizes: FetchSizes) -> (u32, u64) {
+        let cmd = FetchCmd {
+            lod,
+            send_refs: true,
+            send_leaves: true,
+            last: true,
+        };
+        let tx = fetch_transaction(h, pack_entry(t, &h.params), &[cmd], sizes).unwrap();
+        match tx.out.last() {
+            Some(FetchOut::Error { node, code, .. }) => (*node, *code),
+            o => panic!("no error: {o:?} in {tx:?}"),
+        }
+    }
+
+    #[test]
+    fn every_error_code_names_its_record() {
+        let p = Params::new(4, 1, 6, 2).unwrap();
+        let h = tiny(&p);
+        let t0 = Translation::zero(1);
+        let s = FetchSizes::default();
+        assert_eq!(error_of(&h, None, 2, s), (0, fetch_err::ENTRY));
+        let mut b = h.clone();
+        b.root_count = 0;
+        assert_eq!(error_of(&b, Some(&t0), 2, s), (0, fetch_err::ROOT_COUNT));
+        b.root_count = 4;
+        assert_eq!(error_of(&b, Some(&t0), 2, s), (0, fetch_err::ROOT_COUNT));
+        b.root_count = 2;
+        b.nodes[1].voxel.lod = 1;
+        let small = FetchSizes {
+            roots: 1,
+            frontier: 4,
+        };
+        assert_eq!(
+            error_of(&b, Some(&t0), 2, small),
+            (0, fetch_err::ROOT_CAPACITY)
+        );
+        let mut b = h.clone();
+        b.nodes[2].lo[0] = 1;
+        b.nodes[2].hi[0] = 0;
+        assert_eq!(error_of(&b, Some(&t0), 2, s), (2, fetch_err::RECORD));
+        let mut b = h.clone();
+        b.nodes[2].voxel.lod = 3;
+        assert_eq!(error_of(&b, Some(&t0), 2, s), (2, fetch_err::LOD));
+        let mut b = h.clone();
+        b.nodes[0].count = 3;
+        assert_eq!(error_of(&b, Some(&t0), 2, s), (0, fetch_err::RANGE));
+        let mut b = h.clone();
+        b.refs[1].hier = 2;
+        assert_eq!(error_of(&b, Some(&t0), 2, s), (0, fetch_err::REF_HIER));
+        let mut b = h.clone();
+        b.refs[1].node = 3;
+        assert_eq!(error_of(&b, Some(&t0), 2, s), (0, fetch_err::REF_NODE));
+        let above = Translation::zero(2);
+        assert_eq!(error_of(&h, Some(&above), 2, s), (0, fetch_err::ABOVE));
+        for a in 0..3 {
+            let mut t = t0;
+            // The root at LOD 1 leaves [0, 2) moved by 2.
+            t.t[a] = 2;
+            let code = error_of(&h, Some(&t), 2, s).1;
+            assert_eq!(code, fetch_err::OUTSIDE_X + a as u64, "axis {a}");
+        }
+        let tight = FetchSizes {
+            roots: 16,
+            frontier: 0,
+        };
+        assert_eq!(error_of(&h, Some(&t0), 2, tight), (0, fetch_err::FRONTIER));
+        let mut b = h.clone();
+        b.refs.swap(0, 1);
+        assert_eq!(error_of(&b, Some(&t0), 2, s), (1, fetch_err::ORDER));
+    }
+
+    /// The walk's own errors for the same defects: the codes match what
+    /// `walk_input` / `input_stream` refuse.
+    #[test]
+    fn errors_are_the_walks_refusals() {
+        let p = Params::new(4, 1, 6, 2).unwrap();
+        let h = tiny(&p);
+        let t0 = Translation::zero(1);
+        let mut b = h.clone();
+        b.refs[1].hier = 2;
+        assert!(matches!(
+            walk_input(&b, 0, &t0, 2),
+            Err(MergeError::BadInput {
+                node: Some(0),
+                field: "reference",
+                ..
+            })
+        ));
+        let mut b = h.clone();
+        b.nodes[2].voxel.lod = 3;
+        assert!(matches!(
+            walk_input(&b, 0, &t0, 2),
+            Err(MergeError::BadInput {
+                node: Some(2),
+                field: "lod",
+                ..
+            })
+        ));
+        assert!(matches!(
+            walk_input(&h, 0, &Translation::zero(2), 2),
+            Err(MergeError::TranslateNode { node: 0, .. })
+        ));
+        // A fine input passes: End after the two leaves.
+        let cmd = FetchCmd {
+            lod: 2,
+            send_refs: true,
+            send_leaves: false,
+            last: true,
+        };
+        let tx = fetch_transaction(&h, pack_entry(Some(&t0), &p), &[cmd], FetchSizes::default())
+            .unwrap();
+        assert_eq!(tx.out.len(), 3);
+        assert_eq!(tx.node_reqs, vec![0, 1, 2]);
+        assert_eq!(tx.ref_reqs, vec![0, 1]);
+    }
+}

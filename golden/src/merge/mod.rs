@@ -26,11 +26,13 @@ pub mod instances;
 pub mod level;
 pub mod level_merge;
 pub mod per_node;
+pub mod per_node_unit;
 pub mod top;
 pub mod unit;
 pub mod upper;
 pub mod view;
 pub mod walk;
+pub mod writer_unit;
 
 pub use error::MergeError;
 pub use level::{overlap_counts, LevelOverlap};

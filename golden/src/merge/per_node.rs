@@ -34,6 +34,20 @@ pub struct PerNodeCounts {
     pub deepest_created: u8,
 }
 
+/// One contested voxel: what [`PerNode::contest`] found.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Contest {
+    /// The translated children of the contested inner nodes, in stream
+    /// order (8.4 key): the next LOD's voxel groups when descending.
+    pub children: Vec<PlacedNode>,
+    /// `S`: child voxels holding children of two or more inputs.
+    pub shared: u64,
+    /// `U`: child voxels.
+    pub union: u64,
+    /// `S * den > num * U`.
+    pub descend: bool,
+}
+
 /// The decider's context.
 pub struct PerNode<'a> {
     pub inputs: &'a [&'a Hierarchy],
@@ -73,6 +87,21 @@ impl PerNode<'_> {
         (shared, groups.len() as u64)
     }
 
+    /// The rule at one voxel whose inner nodes `inner` (two or more) are
+    /// contested: their translated children in stream order, `S`, `U` and
+    /// whether to descend (`S * den > num * U`, strict, exact).
+    pub fn contest(&self, inner: &[&PlacedNode]) -> Result<Contest, MergeError> {
+        let children = self.children_stream(inner)?;
+        let (shared, union) = Self::child_overlap(&children);
+        let descend = shared as u128 * self.den as u128 > self.num as u128 * union as u128;
+        Ok(Contest {
+            children,
+            shared,
+            union,
+            descend,
+        })
+    }
+
     /// Decides the voxel group `group` (one voxel, stream order), appending
     /// base nodes to `out`.
     pub fn decide(
@@ -84,12 +113,11 @@ impl PerNode<'_> {
     ) -> Result<(), MergeError> {
         let inner: Vec<&PlacedNode> = group.iter().filter(|n| !n.record.leaf).collect();
         if inner.len() >= 2 {
-            let stream = self.children_stream(&inner)?;
-            let (s, u) = Self::child_overlap(&stream);
-            if s as u128 * self.den as u128 > self.num as u128 * u as u128 {
+            let c = self.contest(&inner)?;
+            if c.descend {
                 pn.descents += 1;
-                for g in voxel_groups(&stream) {
-                    self.decide(&stream[g], out, counts, pn)?;
+                for g in voxel_groups(&c.children) {
+                    self.decide(&c.children[g], out, counts, pn)?;
                 }
             } else {
                 out.push(created_node(&inner, self.inputs, &self.params)?);

@@ -32,6 +32,7 @@ pub mod unit;
 pub mod upper;
 pub mod view;
 pub mod walk;
+pub mod writer_unit;
 
 pub use error::MergeError;
 pub use level::{overlap_counts, LevelOverlap};

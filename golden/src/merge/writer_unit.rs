@@ -1,0 +1,783 @@
+//! S618 in hardware (SPEC.md section 8.12, `rtl_gen::merge::record_writer_unit`):
+//! the beat formats of the record writer's streams and its transaction,
+//! whose expected outputs are the merged hierarchy `merge::upper::build_upper`
+//! lays out (the records and references `merge()` stores), never a second
+//! model of the layout.
+//!
+//! Streams of one merge:
+//! - in `cfg`: the output hierarchy's id.
+//! - in `level{d}`, `done`: the upper builder's out beats (8.11,
+//!   [`BuilderLayout`]), as `builder_unit::builder_transaction` makes them.
+//! - in `crefs`: the references of every created node (S614's reference
+//!   beats) in store order: by LOD from the shallowest, each LOD in its
+//!   level order (Morton, stable), each node's references in order; then
+//!   `End`. At one merging level this is S614's order; per-node merging
+//!   (8.5) makes created nodes at several LODs and its driver sorts them so.
+//! - out `node_req` / in `node_resp`: the store read of a reused inner node
+//!   at the top (materialized): the request is its reference, the response
+//!   its stored record.
+//! - out `ref_req` / in `ref_resp`: the store read of a materialized root's
+//!   references: the request is `(input id, index into its refs)`, the
+//!   response the stored reference.
+//! - out `nodes`: the merged hierarchy's records in store order; out `refs`:
+//!   its references in order; out `header`: one beat per merge.
+
+use super::builder_unit::LevelOut;
+use super::builder_unit::{builder_transaction, level_out_kind, BuilderLayout, BuilderTransaction};
+use super::error::MergeError;
+use super::level_merge::{BaseKind, BaseNode};
+use super::upper::{base_by_lod, build_upper};
+use crate::layout::{Bits, Field, LayoutError, NodeLayout, RefLayout};
+use crate::params::Params;
+use crate::store::{Hierarchy, NodeRecord, Reference};
+
+/// Error codes of the header's `err` field, in priority order (the
+/// smallest non-zero code that applies is reported).
+pub mod writer_err {
+    /// The merged hierarchy was written.
+    pub const NONE: u64 = 0;
+    /// The builder found no top (`done.err`: an empty base, or a reused
+    /// leaf at the LOD-0 top, 8.1's `InputLeafAtTop`).
+    pub const NO_TOP: u64 = 1;
+    /// A level held more than `2^C` nodes, or the created nodes more than
+    /// `2^C` references (`C` = the writer's capacity bits).
+    pub const CAPACITY: u64 = 2;
+    /// A level beat came with its `err` flag (8.11: a grouped node's
+    /// `first` or `count`, or a position, reached `2^I`).
+    pub const LEVEL_OVERFLOW: u64 = 3;
+    /// 8.1's `IndexOverflow`: more than `2^I` records or references.
+    pub const INDEX_OVERFLOW: u64 = 4;
+}
+
+/// A capacity the writer cannot be built with.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CapacityError {
+    pub capacity_bits: u32,
+    pub index_bits: u8,
+}
+
+impl std::fmt::Display for CapacityError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "record writer: capacity_bits = {} is outside 1..{} (expected at least 1 and below I = {}, \
+             so a position past the capacity shows in the level beats' I-bit index)",
+            self.capacity_bits, self.index_bits, self.index_bits
+        )
+    }
+}
+
+impl std::error::Error for CapacityError {}
+
+fn field_at(name: &'static str, offset: u32, width: u32) -> Field {
+    Field {
+        name,
+        offset,
+        width,
+    }
+}
+
+/// Bit layouts of the record writer's beats (fields from bit 0).
+///
+/// - `cfg`: `out_id` (H).
+/// - `level{d}`, `done`: [`BuilderLayout`].
+/// - `crefs`: `ref` (I + H), `end` (1).
+/// - `node_req`, `ref_req`, `ref_resp`, `refs`: a reference (I + H);
+///   `node_resp`, `nodes`: a node record (W).
+/// - `header`: `out_id` (H), `top` (lod bits), `roots`, `nodes`, `refs`
+///   (I + 1 each: a count up to `2^I`), `err` (3, [`writer_err`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct WriterLayout {
+    pub builder: BuilderLayout,
+    pub node: NodeLayout,
+    pub reference: RefLayout,
+    /// Each level's and the created references' buffer holds `2^C` entries.
+    pub capacity_bits: u32,
+    pub cfg_out_id: Field,
+    pub cfg_width: u32,
+    pub cref: Field,
+    pub cref_end: Field,
+    pub cref_width: u32,
+    pub h_out_id: Field,
+    pub h_top: Field,
+    pub h_roots: Field,
+    pub h_nodes: Field,
+    pub h_refs: Field,
+    pub h_err: Field,
+    pub header_width: u32,
+}
+
+impl WriterLayout {
+    /// The layout for `p` with buffers of `2^capacity_bits` entries;
+    /// `capacity_bits` must be in `1..I`.
+    pub fn new(p: &Params, capacity_bits: u32) -> Result<WriterLayout, CapacityError> {
+        let i = p.index_bits as u32;
+        if capacity_bits == 0 || capacity_bits >= i {
+            return Err(CapacityError {
+                capacity_bits,
+                index_bits: p.index_bits,
+            });
+        }
+        let node = NodeLayout::new(p);
+        let reference = RefLayout::new(p);
+        let h = p.hier_bits as u32;
+        let cfg_out_id = field_at("out_id", 0, h);
+        let cref = field_at("ref", 0, reference.width());
+        let cref_end = field_at("end", cref.end(), 1);
+        let h_out_id = field_at("out_id", 0, h);
+        let h_top = field_at("top", h_out_id.end(), p.lod_bits());
+        let h_roots = field_at("roots", h_top.end(), i + 1);
+        let h_nodes = field_at("nodes", h_roots.end(), i + 1);
+        let h_refs = field_at("refs", h_nodes.end(), i + 1);
+        let h_err = field_at("err", h_refs.end(), 3);
+        Ok(WriterLayout {
+            builder: BuilderLayout::new(p),
+            capacity_bits,
+            cfg_width: cfg_out_id.end(),
+            cfg_out_id,
+            cref_width: cref_end.end(),
+            cref,
+            cref_end,
+            header_width: h_err.end(),
+            h_out_id,
+            h_top,
+            h_roots,
+            h_nodes,
+            h_refs,
+            h_err,
+            node,
+            reference,
+        })
+    }
+}
+
+/// One beat on `crefs`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CrefBeat {
+    Ref(Reference),
+    End,
+}
+
+impl CrefBeat {
+    pub fn pack(&self, l: &WriterLayout) -> Result<Bits, LayoutError> {
+        let mut b = Bits::zero(l.cref_width);
+        match self {
+            CrefBeat::Ref(r) => copy_into(&mut b, l.cref.offset, &r.pack(&l.reference)?),
+            CrefBeat::End => b.set(&l.cref_end, 1)?,
+        }
+        Ok(b)
+    }
+}
+
+/// The `header` beat of a merge. On an error every count and `top` are 0.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Header {
+    pub out_id: u8,
+    pub top: u8,
+    pub roots: u64,
+    pub nodes: u64,
+    pub refs: u64,
+    /// A [`writer_err`] code.
+    pub err: u64,
+}
+
+impl Header {
+    pub fn pack(&self, l: &WriterLayout) -> Result<Bits, LayoutError> {
+        let mut b = Bits::zero(l.header_width);
+        b.set(&l.h_out_id, self.out_id as u64)?;
+        b.set(&l.h_top, self.top as u64)?;
+        b.set(&l.h_roots, self.roots)?;
+        b.set(&l.h_nodes, self.nodes)?;
+        b.set(&l.h_refs, self.refs)?;
+        b.set(&l.h_err, self.err)?;
+        Ok(b)
+    }
+}
+
+/// The `cfg` beat.
+pub fn pack_cfg(out_id: u8, l: &WriterLayout) -> Result<Bits, LayoutError> {
+    let mut b = Bits::zero(l.cfg_width);
+    b.set(&l.cfg_out_id, out_id as u64)?;
+    Ok(b)
+}
+
+fn copy_into(dst: &mut Bits, offset: u32, src: &Bits) {
+    for i in 0..src.width() {
+        if src.bit(i) {
+            dst.set(&field_at("bit", offset + i, 1), 1)
+                .expect("bit inside the beat");
+        }
+    }
+}
+
+/// One merge through the record writer: its in beats (the builder's
+/// `level{d}` and `done` in `builder`, `cfg`, `crefs`, the store's
+/// responses) and its expected out beats.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct WriterTransaction {
+    pub out_id: u8,
+    /// The upper builder's transaction: its `levels` and `done` are the
+    /// writer's `level{d}` and `done` in beats.
+    pub builder: BuilderTransaction,
+    pub crefs: Vec<CrefBeat>,
+    pub node_reqs: Vec<Reference>,
+    pub node_resps: Vec<NodeRecord>,
+    pub ref_reqs: Vec<Reference>,
+    pub ref_resps: Vec<Reference>,
+    pub nodes: Vec<NodeRecord>,
+    pub refs: Vec<Reference>,
+    pub header: Header,
+}
+
+/// The created nodes' references in store order (by LOD from the
+/// shallowest, each LOD in level order, S616's level lists).
+pub fn created_refs_in_store_order(base: &[BaseNode], p: &Params) -> Vec<Reference> {
+    let mut out = Vec::new();
+    for level in base_by_lod(base, p) {
+        for n in level {
+            if let BaseKind::Created { refs } = &base[n.first as usize].kind {
+                out.extend_from_slice(refs);
+            }
+        }
+    }
+    out
+}
+
+fn stored<'h>(inputs: &[&'h Hierarchy], at: &Reference) -> Result<&'h Hierarchy, MergeError> {
+    inputs
+        .iter()
+        .find(|h| h.id == at.hier)
+        .copied()
+        .ok_or(MergeError::UnknownInput(at.hier))
+}
+
+fn stored_node(inputs: &[&Hierarchy], at: &Reference) -> Result<NodeRecord, MergeError> {
+    let h = stored(inputs, at)?;
+    h.nodes
+        .get(at.node as usize)
+        .copied()
+        .ok_or_else(|| MergeError::BadInput {
+            input: at.hier,
+            node: Some(at.node),
+            field: "node index",
+            expected: format!("below {}", h.nodes.len()),
+            found: at.node.to_string(),
+        })
+}
+
+/// The code the writer reports before it reads the store (its fill pass):
+/// no top, capacity, a level beat's error flag (in that priority).
+fn fill_code(b: &BuilderTransaction, created_refs: usize, capacity: u64) -> u64 {
+    let top = b.done.top as usize;
+    let sent = &b.levels[top.min(b.levels.len())..];
+    let over = sent.iter().any(|l| l.len() as u64 - 1 > capacity);
+    let flagged = sent.iter().flatten().any(|beat| {
+        matches!(
+            beat,
+            LevelOut::Node { err: true, .. } | LevelOut::End { err: true, .. }
+        )
+    });
+    if b.done.err {
+        writer_err::NO_TOP
+    } else if over || created_refs as u64 > capacity {
+        writer_err::CAPACITY
+    } else if flagged {
+        writer_err::LEVEL_OVERFLOW
+    } else {
+        writer_err::NONE
+    }
+}
+
+/// The reused nodes at the top (materialized roots), in level order.
+fn top_reused(b: &BuilderTransaction) -> Vec<Reference> {
+    b.levels[b.done.top as usize]
+        .iter()
+        .filter_map(|beat| match beat {
+            LevelOut::Node { kind, at, .. } if *kind == level_out_kind::REUSED => Some(*at),
+            _ => None,
+        })
+        .collect()
+}
+
+fn failed(out_id: u8, err: u64) -> Header {
+    Header {
+        out_id,
+        top: 0,
+        roots: 0,
+        nodes: 0,
+        refs: 0,
+        err,
+    }
+}
+
+/// The transaction of one merge over `base` (the upper builder's input)
+/// into hierarchy `out_id`, with `inputs` the stored input hierarchies
+/// (read for materialized roots) and buffers of `2^capacity_bits`.
+/// Errors: an input the store does not hold or a malformed input (as
+/// `build_upper` reports them); every writer error is a header code.
+pub fn writer_transaction(
+    base: &[BaseNode],
+    inputs: &[&Hierarchy],
+    p: &Params,
+    capacity_bits: u32,
+    out_id: u8,
+) -> Result<WriterTransaction, MergeError> {
+    let builder = builder_transaction(base, p);
+    let created = created_refs_in_store_order(base, p);
+    let mut crefs: Vec<CrefBeat> = created.iter().map(|r| CrefBeat::Ref(*r)).collect();
+    crefs.push(CrefBeat::End);
+    let mut tx = WriterTransaction {
+        out_id,
+        crefs,
+        node_reqs: Vec::new(),
+        node_resps: Vec::new(),
+        ref_reqs: Vec::new(),
+        ref_resps: Vec::new(),
+        nodes: Vec::new(),
+        refs: Vec::new(),
+        header: failed(out_id, writer_err::NONE),
+        builder,
+    };
+    let code = fill_code(&tx.builder, created.len(), 1u64 << capacity_bits);
+    if code != writer_err::NONE {
+        tx.header.err = code;
+        return Ok(tx);
+    }
+    // The store pass: every reused node at the top is read.
+    tx.node_reqs = top_reused(&tx.builder);
+    tx.node_resps = tx
+        .node_reqs
+        .iter()
+        .map(|at| stored_node(inputs, at))
+        .collect::<Result<_, _>>()?;
+    match build_upper(base, inputs, p, out_id) {
+        Ok((h, _)) => {
+            for (at, rec) in tx.node_reqs.iter().zip(&tx.node_resps) {
+                let input = stored(inputs, at)?;
+                for k in rec.first..rec.first + rec.count {
+                    tx.ref_reqs.push(Reference {
+                        hier: at.hier,
+                        node: k,
+                    });
+                    tx.ref_resps.push(input.refs[k as usize]);
+                }
+            }
+            tx.header = Header {
+                out_id,
+                top: h.top_lod,
+                roots: h.root_count as u64,
+                nodes: h.nodes.len() as u64,
+                refs: h.refs.len() as u64,
+                err: writer_err::NONE,
+            };
+            tx.nodes = h.nodes;
+            tx.refs = h.refs;
+        }
+        Err(MergeError::IndexOverflow { .. }) => tx.header.err = writer_err::INDEX_OVERFLOW,
+        Err(e) => return Err(e),
+    }
+    Ok(tx)
+}
+
+/// A random writer case: `builder_unit::random_base` (every top rule,
+/// leaves above the merging level) with each created node's `count` its
+/// number of references (as S614 makes it) and every reused inner node
+/// pointing at a node of small synthetic stored inputs (ids from 1, never
+/// `out_id`), so a materialized root has references to read. Returns the
+/// base and the inputs.
+pub fn random_case(
+    rng: &mut crate::translate::stimulus::SplitMix64,
+    p: &Params,
+    n: usize,
+    out_id: u8,
+) -> (Vec<BaseNode>, Vec<Hierarchy>) {
+    let ids: Vec<u8> = (0..p.hier_capacity() as u8)
+        .filter(|&i| i != out_id)
+        .take(3)
+        .collect();
+    // Records per input: few, so `first` and the refs fit at small I.
+    let per_input = (p.index_capacity() / 2).clamp(1, 4) as u32;
+    let inputs: Vec<Hierarchy> = ids
+        .iter()
+        .map(|&id| synthetic_input(rng, p, id, per_input))
+        .collect();
+    let mut base = super::builder_unit::random_base(rng, p, n);
+    for b in &mut base {
+        match &mut b.kind {
+            BaseKind::Created { refs } => b.record.count = refs.len() as u32,
+            BaseKind::Reused { at } if !b.record.leaf => {
+                let h = &inputs[rng.below(inputs.len() as u64) as usize];
+                *at = Reference {
+                    hier: h.id,
+                    node: rng.below(per_input as u64) as u32,
+                };
+            }
+            BaseKind::Reused { .. } => {}
+        }
+    }
+    (base, inputs)
+}
+
+/// An input holding `n` inner records, each with 1 or 2 references to its
+/// own records (what a materialized root's references may be).
+fn synthetic_input(
+    rng: &mut crate::translate::stimulus::SplitMix64,
+    p: &Params,
+    id: u8,
+    n: u32,
+) -> Hierarchy {
+    let mut nodes = Vec::new();
+    let mut refs = Vec::new();
+    for _ in 0..n {
+        let count = 1 + rng.below(2) as u32;
+        nodes.push(NodeRecord {
+            leaf: false,
+            voxel: crate::grid::VoxelAddr::new(0, 0, 0, 0),
+            lo: [0; 3],
+            hi: [0; 3],
+            first: refs.len() as u32,
+            count,
+        });
+        for _ in 0..count {
+            refs.push(Reference {
+                hier: id,
+                node: rng.below(n as u64) as u32,
+            });
+        }
+    }
+    Hierarchy {
+        id,
+        params: *p,
+        nodes,
+        refs,
+        prims: Vec::new(),
+        root_count: 1,
+        top_lod: 0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::build::{build, GridMap};
+    use crate::merge::builder_unit::fixed_level_base;
+    use crate::merge::level::candidate_range;
+    use crate::merge::level_merge::LevelMergeCounts;
+    use crate::merge::per_node::{PerNode, PerNodeCounts};
+    use crate::merge::walk::{collect, walk_input};
+    use crate::merge::{merge, MergeMode};
+    use crate::scenes::random_soup;
+    use crate::store::HierarchyStore;
+    use crate::translate::stimulus::SplitMix64;
+    use crate::translate::{Translation, TranslationTable};
+
+    /// 8.11's "What the writer adds", read off the in beats alone (the
+    /// level beats, `done`, `crefs` and the store's responses): a second
+    /// derivation of the layout, to show the beats carry everything the
+    /// records and references need.
+    fn lay_out_from_beats(tx: &WriterTransaction) -> (Vec<NodeRecord>, Vec<Reference>) {
+        let b = &tx.builder;
+        let top = b.done.top as usize;
+        let nodes_of = |d: usize| -> Vec<(u64, NodeRecord, Reference, u32)> {
+            b.levels[d]
+                .iter()
+                .filter_map(|beat| match beat {
+                    LevelOut::Node {
+                        kind,
+                        record,
+                        at,
+                        records,
+                        ..
+                    } => Some((*kind, *record, *at, *records)),
+                    LevelOut::End { .. } => None,
+                })
+                .collect()
+        };
+        let levels: Vec<_> = (0..b.levels.len()).map(nodes_of).collect();
+        let is_record = |d: usize, kind: u64| d == top || kind != level_out_kind::REUSED;
+        // off(t) = 0, off(d + 1) = off(d) + level d's records.
+        let mut off = vec![0u64; levels.len() + 1];
+        for d in top..levels.len() {
+            let records = levels[d].iter().filter(|n| is_record(d, n.0)).count() as u64;
+            off[d + 1] = off[d] + records;
+        }
+        let created: Vec<Reference> = tx
+            .crefs
+            .iter()
+            .filter_map(|c| match c {
+                CrefBeat::Ref(r) => Some(*r),
+                CrefBeat::End => None,
+            })
+            .collect();
+        let (mut nodes, mut refs) = (Vec::new(), Vec::new());
+        let (mut cref, mut mat) = (0usize, 0usize);
+        let mut mat_refs = tx.ref_resps.iter();
+        for d in top..levels.len() {
+            let mut child = 0usize;
+            for &(kind, rec, _, _) in levels[d].iter().filter(|n| is_record(d, n.0)) {
+                let first = refs.len() as u32;
+                let count = match kind {
+                    level_out_kind::GROUPED => {
+                        for &(ck, _, cat, crecords) in
+                            &levels[d + 1][child..child + rec.count as usize]
+                        {
+                            refs.push(if ck == level_out_kind::REUSED {
+                                cat
+                            } else {
+                                Reference {
+                                    hier: tx.out_id,
+                                    node: (off[d + 1] + crecords as u64) as u32,
+                                }
+                            });
+                        }
+                        child += rec.count as usize;
+                        rec.count
+                    }
+                    level_out_kind::CREATED => {
+                        refs.extend_from_slice(&created[cref..cref + rec.count as usize]);
+                        cref += rec.count as usize;
+                        rec.count
+                    }
+                    _ => {
+                        let count = tx.node_resps[mat].count;
+                        mat += 1;
+                        refs.extend(mat_refs.by_ref().take(count as usize));
+                        count
+                    }
+                };
+                nodes.push(NodeRecord {
+                    leaf: false,
+                    first,
+                    count,
+                    ..rec
+                });
+            }
+        }
+        (nodes, refs)
+    }
+
+    fn soup(p: &Params, id: u8, n: usize, size: f32, seed: u64) -> Hierarchy {
+        let mesh = random_soup(n, size, seed);
+        let (lo, hi) = mesh.bounds();
+        let fitted = GridMap::fit(lo, hi, p);
+        let grid = GridMap {
+            origin: fitted.origin * 0.0,
+            unit: 1.0 / (p.scene_edge() >> 3) as f64,
+        };
+        build(&mesh, &grid, p, id).expect("the soup builds")
+    }
+
+    /// A translation at `h`'s top LOD by `frac` of the room left.
+    fn place(h: &Hierarchy, frac: [f64; 3]) -> Translation {
+        let l = h.top_lod;
+        let max = [0, 1, 2].map(|a| {
+            h.roots()
+                .iter()
+                .map(|n| [n.voxel.x, n.voxel.y, n.voxel.z][a] as i64)
+                .max()
+                .unwrap()
+        });
+        let room = [0, 1, 2].map(|a| (1i64 << l) - 1 - max[a]);
+        Translation {
+            lod: l,
+            t: [0, 1, 2].map(|a| (room[a] as f64 * frac[a]) as i64),
+        }
+    }
+
+    /// S610-S614 in per-node mode as `merge` runs them.
+    fn per_node_base(
+        inputs: &[(&Hierarchy, Translation)],
+        num: u32,
+        den: u32,
+        p: &Params,
+    ) -> Vec<BaseNode> {
+        let hs: Vec<&Hierarchy> = inputs.iter().map(|(h, _)| *h).collect();
+        let ts: Vec<Translation> = inputs.iter().map(|(_, t)| *t).collect();
+        let (lo, _) = candidate_range(&hs);
+        let walked: Vec<_> = inputs
+            .iter()
+            .enumerate()
+            .map(|(r, (h, t))| walk_input(h, r as u16, t, lo).unwrap())
+            .collect();
+        let (above, first) = collect(&walked, lo);
+        let mut base: Vec<BaseNode> = above.iter().map(BaseNode::reused).collect();
+        let decider = PerNode {
+            inputs: &hs,
+            translations: &ts,
+            params: *p,
+            num,
+            den,
+        };
+        let mut counts = LevelMergeCounts::default();
+        base.extend(
+            decider
+                .merge_from(first, &mut counts, &mut PerNodeCounts::default())
+                .unwrap(),
+        );
+        base
+    }
+
+    /// Stored soups: overlapping, disjoint, single-triangle inputs with a
+    /// big one; the store, the table and the input ids of each case.
+    fn real_cases(p: &Params) -> Vec<(HierarchyStore, TranslationTable, Vec<u8>)> {
+        let same = [0.4, 0.5, 0.6];
+        let hs: Vec<Hierarchy> = (1..=3).map(|i| soup(p, i, 60, 0.2, i as u64)).collect();
+        let overlapping: Vec<(Hierarchy, Translation)> =
+            hs.iter().map(|h| (h.clone(), place(h, same))).collect();
+        let disjoint: Vec<(Hierarchy, Translation)> = hs
+            .iter()
+            .enumerate()
+            .map(|(i, h)| {
+                let f = [0.1 + 0.3 * i as f64, 0.9 - 0.3 * i as f64, 0.3];
+                (h.clone(), place(h, f))
+            })
+            .collect();
+        let mut single: Vec<(Hierarchy, Translation)> = (1..=2)
+            .map(|i| {
+                let h = soup(p, i, 1, 0.001, 10 + i as u64);
+                let t = place(&h, if i < 2 { same } else { [0.9, 0.1, 0.2] });
+                (h, t)
+            })
+            .collect();
+        let big = soup(p, 3, 80, 0.3, 99);
+        single.push((big.clone(), place(&big, same)));
+        // One input alone: its root is reused at the top (materialized).
+        let alone = vec![(big.clone(), place(&big, same))];
+        [overlapping, disjoint, single, alone]
+            .into_iter()
+            .map(|case| {
+                let mut store = HierarchyStore::new();
+                let mut table = TranslationTable::new(p.hier_capacity() as usize, p).unwrap();
+                let ids = case.iter().map(|(h, _)| h.id).collect();
+                for (h, t) in case {
+                    table.write(h.id as u32, t).unwrap();
+                    store.insert(h).unwrap();
+                }
+                (store, table, ids)
+            })
+            .collect()
+    }
+
+    /// What the real merges reached.
+    #[derive(Default, Debug)]
+    struct Reached {
+        merges: usize,
+        materialized: usize,
+        several_roots: usize,
+        lifted: usize,
+        created_lods: usize,
+    }
+
+    fn check_real(p: &Params, out_id: u8) -> Reached {
+        let mut seen = Reached::default();
+        for (store, table, ids) in real_cases(p) {
+            let hs: Vec<&Hierarchy> = ids.iter().map(|i| store.get(*i).unwrap()).collect();
+            let inputs: Vec<(&Hierarchy, Translation)> = hs
+                .iter()
+                .map(|h| (*h, table.read(h.id as u32).unwrap()))
+                .collect();
+            let (lo, hi) = candidate_range(&hs);
+            let mut runs: Vec<(MergeMode, Vec<BaseNode>)> = (lo..=hi)
+                .map(|m| {
+                    (
+                        MergeMode::Fixed(m),
+                        fixed_level_base(&inputs, m, p).unwrap(),
+                    )
+                })
+                .collect();
+            for (num, den) in [(0, 1), (1, 4), (1, 2)] {
+                let mode = MergeMode::PerNode { num, den };
+                runs.push((mode, per_node_base(&inputs, num, den, p)));
+            }
+            for (mode, base) in runs {
+                let tx = writer_transaction(&base, &hs, p, 12, out_id).unwrap();
+                let r = merge(&store, &ids, &table, mode, out_id).unwrap();
+                assert_eq!(tx.header.err, writer_err::NONE, "{mode}");
+                assert_eq!(tx.nodes, r.merged.nodes, "{mode}");
+                assert_eq!(tx.refs, r.merged.refs, "{mode}");
+                assert_eq!(tx.header.roots, r.merged.root_count as u64, "{mode}");
+                assert_eq!(tx.header.top, r.merged.top_lod, "{mode}");
+                assert_eq!(tx.header.nodes, r.merged.nodes.len() as u64);
+                assert_eq!(tx.header.refs, r.merged.refs.len() as u64);
+                assert_eq!(lay_out_from_beats(&tx), (tx.nodes.clone(), tx.refs.clone()));
+                seen.merges += 1;
+                seen.materialized += (r.stats.materialized > 0) as usize;
+                seen.several_roots += (r.merged.root_count > 1) as usize;
+                seen.lifted += (r.stats.lifted > 0) as usize;
+                let lods: std::collections::BTreeSet<u8> = base
+                    .iter()
+                    .filter(|b| matches!(b.kind, BaseKind::Created { .. }))
+                    .map(|b| b.record.voxel.lod)
+                    .collect();
+                seen.created_lods += (lods.len() > 1) as usize;
+            }
+        }
+        seen
+    }
+
+    /// On real merges (fixed levels and per-node mode), the transaction's
+    /// expected output is `merge()`'s merged hierarchy, and the in beats
+    /// alone give it back.
+    #[test]
+    fn expected_output_is_merges_hierarchy() {
+        let p = Params::default();
+        let seen = check_real(&p, 9);
+        assert!(seen.merges >= 10 && seen.materialized > 0, "{seen:?}");
+        let seen = check_real(&Params::new(8, 0, 12, 3).unwrap(), 7);
+        assert!(seen.merges >= 5, "{seen:?}");
+    }
+
+    /// Random bases: every header code is reached; with no error the
+    /// transaction's records and references equal the layout read off the
+    /// beats, the header counts them, the store reads are the top's reused
+    /// nodes; with an error nothing is written.
+    #[test]
+    fn random_cases_reach_every_code_and_match_the_beats() {
+        for (p, cap) in [
+            (Params::new(6, 2, 10, 3).unwrap(), 3),
+            (Params::new(5, 2, 3, 2).unwrap(), 2),
+        ] {
+            let mut rng = SplitMix64(0x5a1e + cap as u64);
+            let mut codes = [0usize; 5];
+            let (mut materialized, mut several_roots) = (0, 0);
+            for _ in 0..3000 {
+                let n = rng.below(12) as usize;
+                let (base, inputs) = random_case(&mut rng, &p, n, 0);
+                let hs: Vec<&Hierarchy> = inputs.iter().collect();
+                let tx = writer_transaction(&base, &hs, &p, cap, 0).unwrap();
+                codes[tx.header.err as usize] += 1;
+                if tx.header.err == writer_err::NONE {
+                    assert_eq!(lay_out_from_beats(&tx), (tx.nodes.clone(), tx.refs.clone()));
+                    assert_eq!(tx.header.nodes, tx.nodes.len() as u64);
+                    assert_eq!(tx.header.refs, tx.refs.len() as u64);
+                    assert_eq!(tx.ref_reqs.len(), tx.ref_resps.len());
+                    materialized += !tx.node_reqs.is_empty() as usize;
+                    several_roots += (tx.header.roots > 1) as usize;
+                } else {
+                    assert!(tx.nodes.is_empty() && tx.refs.is_empty() && tx.ref_reqs.is_empty());
+                }
+            }
+            assert!(materialized > 0 && several_roots > 0, "{codes:?}");
+            // LEVEL_OVERFLOW needs a level of 2^I nodes (over the capacity,
+            // which comes first) or a corrupt child box: not reached here.
+            let need: &[u64] = if p.index_bits <= 3 {
+                &[0, 1, 2, 4]
+            } else {
+                &[0, 1, 2]
+            };
+            for &c in need {
+                assert!(codes[c as usize] > 0, "code {c} never reached: {codes:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn capacity_outside_one_to_i_is_refused() {
+        let p = Params::default();
+        assert!(WriterLayout::new(&p, 0).is_err());
+        assert!(WriterLayout::new(&p, p.index_bits as u32).is_err());
+        assert!(WriterLayout::new(&p, p.index_bits as u32 - 1).is_ok());
+        let msg = WriterLayout::new(&p, 0).unwrap_err().to_string();
+        assert!(msg.contains("capacity_bits = 0"), "{msg}");
+    }
+}

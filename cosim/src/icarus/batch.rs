@@ -34,6 +34,10 @@
 //! pipe bench it does not stop at the first mismatch (the testbench cannot
 //! know): it runs to the end and counts every mismatch.
 
+use super::batch_runner::{
+    failure_window, go_word, keep_window_vcd, mask_line, read_out, write_lines, BatchImage,
+};
+use super::batch_tb_frame::frame_params;
 use super::batch_testbench::{
     generate_batch_testbench, meta_file, payload_file, pool_file, BatchTbSpec, LanePorts,
     BATCH_TB_MODULE, GARBAGE_POOL, STIM_CHUNK,
@@ -43,19 +47,13 @@ use crate::design::{Design, PortId};
 use crate::error::{io_err, CosimError, Result};
 use crate::tb::{
     AccountingReport, BenchConfig, BenchReport, FieldDecoder, Hang, Mismatch, Prng, Scoreboard,
-    StreamNames, Transaction, Vector,
+    StreamNames, Vector,
 };
-use crate::tools::INSTALL_HINT;
 use std::fs;
-use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use std::process::{Command, ExitStatus, Stdio};
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-/// Engine name in batch reports.
-pub const BATCH_ENGINE_NAME: &str = "iverilog-batch";
+pub use super::batch_runner::{BATCH_ENGINE_NAME, MASKS_FIFO};
 
 /// How long one `vvp` run may take before it is killed and reported hung.
 pub const DEFAULT_RUN_TIMEOUT: Duration = Duration::from_secs(3600);
@@ -92,6 +90,17 @@ pub struct LaneVector {
     pub wait_for_earlier_outputs: bool,
     /// The input payload and its expected outputs.
     pub vector: Vector,
+}
+
+impl LaneVector {
+    /// `vector` on lane `lane`, offered as soon as the lane may.
+    pub fn new(lane: usize, vector: Vector) -> LaneVector {
+        LaneVector {
+            lane,
+            wait_for_earlier_outputs: false,
+            vector,
+        }
+    }
 }
 
 /// Every change of the watched outputs: `(cycle, values in watch order)`,
@@ -148,9 +157,7 @@ pub struct IcarusBatch {
     out_names: Vec<Vec<String>>,
     watch: Vec<PortId>,
     watch_names: Vec<String>,
-    work: tempfile::TempDir,
-    image: PathBuf,
-    timeout: Duration,
+    image: BatchImage,
 }
 
 impl IcarusBatch {
@@ -195,40 +202,38 @@ impl IcarusBatch {
                 Ok((id, v.to_hex()))
             })
             .collect::<Result<Vec<_>>>()?;
-        let work = tempfile::Builder::new()
-            .prefix("hm-icarus-batch-")
-            .tempdir()
-            .map_err(io_err(std::env::temp_dir()))?;
-        let tb = work.path().join("hm_batch_tb.v");
         let text = generate_batch_testbench(&BatchTbSpec {
             design,
             lanes: &lanes,
             watch: &watch,
             constants: &constants,
         });
-        fs::write(&tb, text).map_err(io_err(&tb))?;
-        let image = work.path().join("hm_batch_tb.vvp");
-        super::engine::compile_top(design, &tb, &image, BATCH_TB_MODULE)?;
+        let image = BatchImage::compile(
+            design,
+            "hm-icarus-batch-",
+            "hm_batch_tb",
+            BATCH_TB_MODULE,
+            &text,
+            DEFAULT_RUN_TIMEOUT,
+        )?;
         Ok(IcarusBatch {
             design: design.clone(),
             lanes,
             out_names: spec.lanes.iter().map(|n| n.out_payload.clone()).collect(),
             watch,
             watch_names: spec.watch.clone(),
-            work,
             image,
-            timeout: DEFAULT_RUN_TIMEOUT,
         })
     }
 
     /// Change how long one `vvp` run may take.
     pub fn set_timeout(&mut self, timeout: Duration) {
-        self.timeout = timeout;
+        self.image.timeout = timeout;
     }
 
     /// The scratch directory (testbench, compiled image, one directory per run).
     pub fn work_dir(&self) -> &Path {
-        self.work.path()
+        self.image.work_dir()
     }
 
     /// The design this simulator was built for.
@@ -246,11 +251,7 @@ impl IcarusBatch {
     ) -> Result<BenchReport> {
         let lane_vectors: Vec<LaneVector> = vectors
             .iter()
-            .map(|v| LaneVector {
-                lane: 0,
-                wait_for_earlier_outputs: false,
-                vector: v.clone(),
-            })
+            .map(|v| LaneVector::new(0, v.clone()))
             .collect();
         let mut decoder = Some(decoder);
         let mut decoders = |_| decoder.take().flatten();
@@ -269,18 +270,13 @@ impl IcarusBatch {
         config: &BenchConfig,
     ) -> Result<BatchReport> {
         let mut report = self.run_once(vectors, decoders, config, None)?;
-        let failure_cycle = report
-            .bench
-            .first_mismatch
-            .as_ref()
-            .map(|m| m.cycle)
-            .or(report.bench.hang.as_ref().map(|h| h.cycle));
-        if let (Some(cycle), Some(path)) = (failure_cycle, config.vcd_path.clone()) {
-            let window = (
-                cycle.saturating_sub(config.vcd_radius),
-                cycle.saturating_add(config.vcd_radius),
-            );
-            let rerun = self.run_once(vectors, &mut |_| None, config, Some((window, path)))?;
+        let failure = failure_window(
+            report.bench.first_mismatch.as_ref().map(|m| m.cycle),
+            report.bench.hang.as_ref().map(|h| h.cycle),
+            config,
+        );
+        if let Some(dump) = failure {
+            let rerun = self.run_once(vectors, &mut |_| None, config, Some(dump))?;
             report.bench.vcd = rerun.bench.vcd;
         }
         Ok(report)
@@ -296,29 +292,21 @@ impl IcarusBatch {
         let start = Instant::now();
         crate::tb::driver::check_stall(config.in_stall)?;
         crate::tb::driver::check_stall(config.out_stall)?;
-        let dir = tempfile::Builder::new()
-            .prefix("run-")
-            .tempdir_in(self.work.path())
-            .map_err(io_err(self.work.path()))?;
+        let dir = self.image.run_dir()?;
         let total_out = self.write_stimulus(dir.path(), vectors)?;
-        let totals = (vectors.len() as u64, total_out);
-        self.write_params(dir.path(), config, totals, dump.as_ref().map(|d| d.0))?;
+        let mut params = frame_params(config, total_out, dump.as_ref().map(|d| d.0));
+        params.push(vectors.len() as u64);
+        write_params(dir.path(), &params)?;
         self.write_pools(dir.path(), config.seed)?;
-        let sim_start = Instant::now();
-        self.run_vvp(dir.path(), config)?;
-        let sim_wall = sim_start.elapsed();
+        let mut masks = StallMasks::new(config, self.lanes.len());
+        let sim_wall = self.image.run_vvp(dir.path(), move || {
+            mask_line(masks.next_block().into_iter())
+        })?;
         let text = fs::read_to_string(dir.path().join("out.txt"))
             .map_err(io_err(dir.path().join("out.txt")))?;
         let mut report = self.compare(&text, vectors, decoders, config)?;
         if let Some((_, path)) = dump {
-            let vcd = dir.path().join("window.vcd");
-            if vcd.exists() {
-                if let Some(parent) = path.parent() {
-                    fs::create_dir_all(parent).map_err(io_err(parent))?;
-                }
-                fs::copy(&vcd, &path).map_err(io_err(&path))?;
-                report.bench.vcd = Some(path);
-            }
+            report.bench.vcd = keep_window_vcd(dir.path(), &path)?;
         }
         report.sim_wall = sim_wall;
         report.bench.wall = start.elapsed();
@@ -390,32 +378,6 @@ impl IcarusBatch {
         Ok(expected)
     }
 
-    fn write_params(
-        &self,
-        dir: &Path,
-        config: &BenchConfig,
-        (total_in, total_out): (u64, u64),
-        dump: Option<(u64, u64)>,
-    ) -> Result<()> {
-        let (dump_on, from, to) = match dump {
-            Some((from, to)) => (1, from, to),
-            None => (0, 0, 0),
-        };
-        let text = format!(
-            "{:x} {:x} {:x} {:x} {:x} {:x} {:x} {:x}\n",
-            config.reset_cycles,
-            config.watchdog_cycles,
-            config.drain_cycles,
-            total_in,
-            total_out,
-            dump_on,
-            from,
-            to
-        );
-        let path = dir.join("params.txt");
-        fs::write(&path, text).map_err(io_err(&path))
-    }
-
     /// The garbage pools: `GARBAGE_POOL` random values per payload port.
     fn write_pools(&self, dir: &Path, seed: u64) -> Result<()> {
         for (l, lane) in self.lanes.iter().enumerate() {
@@ -432,58 +394,6 @@ impl IcarusBatch {
             }
         }
         Ok(())
-    }
-
-    fn run_vvp(&self, dir: &Path, config: &BenchConfig) -> Result<()> {
-        let log_path = dir.join("vvp.log");
-        let log = fs::File::create(&log_path).map_err(io_err(&log_path))?;
-        let log_err = log.try_clone().map_err(io_err(&log_path))?;
-        let masks = MaskFifo::open(dir, StallMasks::new(config, self.lanes.len()))?;
-        let child = Command::new("vvp")
-            .arg("-n")
-            .arg(&self.image)
-            .current_dir(dir)
-            .stdin(Stdio::null())
-            .stdout(log)
-            .stderr(log_err)
-            .spawn()
-            .map_err(|e| CosimError::ToolMissing {
-                tool: "vvp".to_string(),
-                hint: format!("{e}; {INSTALL_HINT}"),
-            });
-        let status = child.and_then(|mut child| self.wait_for(&mut child, dir));
-        masks.close()?;
-        let status = status?;
-        if !status.success() {
-            return Err(CosimError::ToolFailed {
-                tool: "vvp".to_string(),
-                command: format!("vvp -n {} (in {})", self.image.display(), dir.display()),
-                log: fs::read_to_string(&log_path).unwrap_or_default(),
-            });
-        }
-        Ok(())
-    }
-
-    /// Waits for `child` at most the run timeout (then kills it).
-    fn wait_for(&self, child: &mut std::process::Child, dir: &Path) -> Result<ExitStatus> {
-        let started = Instant::now();
-        loop {
-            if let Some(status) = child.try_wait().map_err(io_err(&self.image))? {
-                return Ok(status);
-            }
-            if started.elapsed() > self.timeout {
-                let _ = child.kill();
-                let _ = child.wait();
-                return Err(CosimError::Protocol {
-                    what: format!(
-                        "batch vvp run in {} did not finish within {:?} (hung simulation?)",
-                        dir.display(),
-                        self.timeout
-                    ),
-                });
-            }
-            std::thread::sleep(Duration::from_millis(5));
-        }
     }
 
     /// Reads `out.txt` and checks it against the expected outputs.
@@ -510,74 +420,32 @@ impl IcarusBatch {
             ports: self.watch_names.clone(),
             changes: Vec::new(),
         };
-        let mut hang = None;
         let mut end = None;
         let mut received = 0u64;
-        for (n, line) in text.lines().enumerate() {
-            let bad = |what: &str| CosimError::Protocol {
-                what: format!("batch out.txt line {}: {what}: `{line}`", n + 1),
-            };
-            let mut tokens = line.split_whitespace();
-            let tag = tokens.next().unwrap_or("");
-            let mut number = || -> Result<u64> {
-                tokens
-                    .next()
-                    .and_then(|t| t.parse().ok())
-                    .ok_or_else(|| bad("expected a decimal number"))
-            };
-            match tag {
+        let hang = read_out(text, &self.design, "batch", |l| {
+            match l.tag {
                 "O" => {
-                    let lane = number()? as usize;
-                    let cycle = number()?;
-                    let ports = self
+                    let lane = l.number(0)? as usize;
+                    let cycle = l.number(1)?;
+                    let ports = &self
                         .lanes
                         .get(lane)
-                        .ok_or_else(|| bad("unknown lane"))?
-                        .out_payload
-                        .clone();
-                    let values: Vec<&str> = line.split_whitespace().skip(3).collect();
-                    let txn = self.values(&ports, &values, cycle, &bad)?;
+                        .ok_or_else(|| l.bad("unknown lane"))?
+                        .out_payload;
+                    let txn = l.values(&self.design, ports, 2, cycle)?;
                     boards[lane].check(txn, cycle);
                     received += 1;
                 }
                 "W" => {
-                    let cycle = number()?;
-                    let values: Vec<&str> = line.split_whitespace().skip(2).collect();
-                    let txn = self.values(&self.watch, &values, cycle, &bad)?;
+                    let cycle = l.number(0)?;
+                    let txn = l.values(&self.design, &self.watch, 1, cycle)?;
                     watch.changes.push((cycle, txn));
                 }
-                "X" => {
-                    let cycle = number()?;
-                    let values: Vec<&str> = line.split_whitespace().skip(2).collect();
-                    let outputs = self.design.output_ids();
-                    self.values(&outputs, &values, cycle, &bad)?;
-                    return Err(bad("an output is X/Z but none was found"));
-                }
-                "H" => {
-                    let cycle = number()?;
-                    let idle_cycles = number()?;
-                    let values: Vec<&str> = line.split_whitespace().skip(3).collect();
-                    if values.len() != self.design.ports.len() {
-                        return Err(bad("expected every port's value"));
-                    }
-                    let ports = self
-                        .design
-                        .ports
-                        .iter()
-                        .zip(values)
-                        .map(|(p, v)| (p.name.clone(), format!("{}'h{v}", p.width)))
-                        .collect();
-                    hang = Some(Hang {
-                        cycle,
-                        idle_cycles,
-                        ports,
-                    });
-                }
-                "E" => end = Some((number()?, number()?, number()?)),
-                "M" => return Err(bad("the stall masks ran out")),
-                _ => return Err(bad("unknown record")),
+                "E" => end = Some((l.number(0)?, l.number(2)?, l.number(1)?)),
+                _ => return Ok(false),
             }
-        }
+            Ok(true)
+        })?;
         let (cycles, inputs_sent, outputs) = end.ok_or_else(|| CosimError::Protocol {
             what: "batch out.txt has no end record (vvp stopped early)".to_string(),
         })?;
@@ -600,44 +468,13 @@ impl IcarusBatch {
             sim_wall: Duration::ZERO,
         })
     }
-
-    /// Hex texts of `ports` as values; X/Z is `UnknownOutput`.
-    fn values(
-        &self,
-        ports: &[PortId],
-        texts: &[&str],
-        cycle: u64,
-        bad: &dyn Fn(&str) -> CosimError,
-    ) -> Result<Transaction> {
-        if texts.len() != ports.len() {
-            return Err(bad(&format!("expected {} values", ports.len())));
-        }
-        ports
-            .iter()
-            .zip(texts)
-            .map(|(&id, text)| {
-                let port = &self.design.ports[id.0];
-                if text.contains(['x', 'X', 'z', 'Z']) {
-                    return Err(CosimError::UnknownOutput {
-                        port: port.name.clone(),
-                        cycle,
-                        value: text.to_string(),
-                    });
-                }
-                BitVec::from_hex(port.width, text).map_err(|e| bad(&e.to_string()))
-            })
-            .collect()
-    }
 }
 
-/// `lines`, one per line, into `path`.
-fn write_lines(path: &Path, lines: &[String]) -> Result<()> {
-    let file = fs::File::create(path).map_err(io_err(path))?;
-    let mut w = BufWriter::with_capacity(1 << 16, file);
-    for l in lines {
-        writeln!(w, "{l}").map_err(io_err(path))?;
-    }
-    w.flush().map_err(io_err(path))
+/// `words` (`%h`) on one line into `params.txt`.
+fn write_params(dir: &Path, words: &[u64]) -> Result<()> {
+    let text: Vec<String> = words.iter().map(|w| format!("{w:x}")).collect();
+    let path = dir.join("params.txt");
+    fs::write(&path, text.join(" ") + "\n").map_err(io_err(&path))
 }
 
 /// One report from the lanes' scoreboards: counts summed, the earliest
@@ -772,103 +609,7 @@ impl StallMasks {
     pub fn next_block(&mut self) -> Vec<u64> {
         self.streams
             .iter_mut()
-            .map(|(rng, stall)| {
-                (0..64).fold(0u64, |w, k| w | (u64::from(!rng.chance(*stall)) << k))
-            })
+            .map(|(rng, stall)| go_word(rng, *stall))
             .collect()
-    }
-
-    /// `blocks` blocks, one line of `%h` words each.
-    fn lines(&mut self, blocks: usize) -> String {
-        let mut text = String::new();
-        for _ in 0..blocks {
-            let words: Vec<String> = self.next_block().iter().map(|x| format!("{x:x}")).collect();
-            text.push_str(&words.join(" "));
-            text.push('\n');
-        }
-        text
-    }
-}
-
-/// Name of the named pipe the stall masks go through (in the run directory).
-pub const MASKS_FIFO: &str = "masks.fifo";
-
-/// The line that tells `MaskFifo::close` the writer has stopped (no mask
-/// line ends with it: hex words have no `n`).
-const MASKS_END: &str = "end\n";
-
-/// The named pipe `MASKS_FIFO` and the thread writing the stall masks into
-/// it ahead of vvp. Rust holds the pipe open for reading and writing, so a
-/// write never meets a closed pipe: no SIGPIPE when vvp has exited (a
-/// process that restores SIGPIPE's default, as the `hiermerge` CLI does,
-/// would otherwise end). `close` stops the writer and reads the pipe empty
-/// until the writer's end line, so a writer blocked on a full pipe finishes.
-struct MaskFifo {
-    pipe: fs::File,
-    path: PathBuf,
-    stop: Arc<AtomicBool>,
-    writer: std::thread::JoinHandle<()>,
-}
-
-impl MaskFifo {
-    fn open(dir: &Path, mut masks: StallMasks) -> Result<MaskFifo> {
-        let path = dir.join(MASKS_FIFO);
-        let made =
-            Command::new("mkfifo")
-                .arg(&path)
-                .output()
-                .map_err(|e| CosimError::ToolMissing {
-                    tool: "mkfifo".to_string(),
-                    hint: e.to_string(),
-                })?;
-        if !made.status.success() {
-            return Err(CosimError::ToolFailed {
-                tool: "mkfifo".to_string(),
-                command: format!("mkfifo {}", path.display()),
-                log: String::from_utf8_lossy(&made.stderr).into_owned(),
-            });
-        }
-        let pipe = fs::OpenOptions::new()
-            .read(true)
-            .write(true)
-            .open(&path)
-            .map_err(io_err(&path))?;
-        let mut out = pipe.try_clone().map_err(io_err(&path))?;
-        let stop = Arc::new(AtomicBool::new(false));
-        let stopped = stop.clone();
-        let writer = std::thread::spawn(move || loop {
-            if stopped.load(Ordering::SeqCst) {
-                let _ = out.write_all(MASKS_END.as_bytes());
-                return;
-            }
-            if out.write_all(masks.lines(16).as_bytes()).is_err() {
-                return;
-            }
-        });
-        Ok(MaskFifo {
-            pipe,
-            path,
-            stop,
-            writer,
-        })
-    }
-
-    /// Stop the writer, read what is left up to its end line, join it.
-    fn close(mut self) -> Result<()> {
-        use std::io::Read;
-        self.stop.store(true, Ordering::SeqCst);
-        let mut tail = Vec::new();
-        let mut buf = vec![0u8; 1 << 16];
-        while !tail.ends_with(MASKS_END.as_bytes()) {
-            let n = self.pipe.read(&mut buf).map_err(io_err(&self.path))?;
-            if n == 0 {
-                break;
-            }
-            tail.extend_from_slice(&buf[..n]);
-            let keep = tail.len().saturating_sub(MASKS_END.len());
-            tail.drain(..keep);
-        }
-        let _ = self.writer.join();
-        Ok(())
     }
 }

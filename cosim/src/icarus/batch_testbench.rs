@@ -3,10 +3,11 @@
 //! the watchdog and the drain all run inside `vvp`, so a cycle costs no pipe
 //! round trip.
 //!
-//! Files (in vvp's working directory, written by `super::batch`):
-//! - `params.txt` (read once, all `%h`): reset cycles, watchdog limit, drain
-//!   cycles, input beat count, expected output count, dump flag, first and
-//!   last dumped cycle.
+//! The frame (files, reset, masks, X/Z check, drain, watchdog, VCD
+//! window, the `X`/`H`/`M`/`E` records) is `super::batch_tb_frame`'s; this
+//! testbench's own files (in vvp's working directory, written by
+//! `super::batch`):
+//! - `params.txt`, after the frame's words: the input beat count.
 //! - `pool_<lane>_<k>.hex` (`$readmemh`): `GARBAGE_POOL` random values of
 //!   payload port `k` of the lane, shown while its `valid` is low (entry
 //!   `n mod GARBAGE_POOL` after the lane's `n`-th accepted beat).
@@ -17,17 +18,12 @@
 //!   by earlier cycles), and `pay_<c>_<lane>_<k>.hex`, per beat payload port
 //!   `k` of `lane` (0 on beats of other lanes); every file holds exactly
 //!   `STIM_CHUNK` lines (zero padded).
-//! - `masks.fifo` (a named pipe): the stall masks, one line per 64 cycles
-//!   of the main loop: per lane the driver's and the monitor's 64-bit word (`%h`); bit `k` of
-//!   a word is cycle `k` of the block, 1 = go (the driver may raise `valid`,
-//!   the monitor raises `ready`). Rust writes them ahead from the seeded
-//!   generators, as many as vvp reads.
-//! - `out.txt` (written): `O <lane> <cycle> <hex>...` per output transfer,
+//! - `masks.fifo`: per lane the driver's and the monitor's word (1 = the
+//!   driver may raise `valid`, the monitor raises `ready`). Rust writes
+//!   them ahead from the seeded generators, as many as vvp reads.
+//! - `out.txt`: `O <lane> <cycle> <hex>...` per output transfer,
 //!   `W <cycle> <hex>...` whenever a watched output changes (and once at the
-//!   first cycle), `X <cycle> <hex>...` (every output) at the first X/Z on
-//!   any output after reset, `H <cycle> <idle> <hex>...` (every port) when
-//!   the watchdog fires, `M <cycle>` when the stall masks ran out, and last
-//!   `E <cycle> <inputs accepted> <outputs>`.
+//!   first cycle); the end record is `E <cycle> <outputs> <inputs accepted>`.
 //!
 //! Per cycle, in the order of `crate::tb::run_stream_bench`: each lane's
 //! driver (an available beat is raised on a go bit and held until
@@ -39,7 +35,8 @@
 //! cost microseconds each, which made a SplitMix64 draw per decision the
 //! bottleneck.
 
-use crate::design::{Design, PortDir, PortId};
+use super::batch_tb_frame::{self, sig, TbBody};
+use crate::design::{Design, PortId};
 
 /// Name of the generated module.
 pub const BATCH_TB_MODULE: &str = "hm_batch_tb";
@@ -81,10 +78,6 @@ pub struct BatchTbSpec<'a> {
     pub constants: &'a [(PortId, String)],
 }
 
-fn sig(id: PortId) -> String {
-    format!("hm_p{}", id.0)
-}
-
 fn lane_reg(kind: &str, lane: usize, k: usize) -> String {
     format!("hm_{kind}_{lane}_{k}")
 }
@@ -108,36 +101,6 @@ pub fn payload_file(chunk: usize, lane: usize, k: usize) -> String {
 pub fn generate_batch_testbench(spec: &BatchTbSpec) -> String {
     let d = spec.design;
     let width = |id: PortId| d.ports[id.0].width;
-    let clk = d
-        .clock
-        .as_deref()
-        .and_then(|c| d.port_id(c).ok())
-        .map(sig)
-        .unwrap_or_default();
-    let mut decls = String::new();
-    let mut conns = Vec::new();
-    let mut outputs = Vec::new();
-    for (i, p) in d.ports.iter().enumerate() {
-        let s = sig(PortId(i));
-        match p.dir {
-            PortDir::Input => decls.push_str(&format!(
-                "    reg  [{}:0] {s} = {{{}{{1'b0}}}};\n",
-                p.width - 1,
-                p.width
-            )),
-            PortDir::Output => {
-                decls.push_str(&format!("    wire [{}:0] {s};\n", p.width - 1));
-                outputs.push(s.clone());
-            }
-        }
-        conns.push(format!("        .{}({s})", p.name));
-    }
-    let mut constants = String::new();
-    for (id, hex) in spec.constants {
-        constants.push_str(&format!("        {} = {}'h{hex};\n", sig(*id), width(*id)));
-    }
-    let all_ports: Vec<String> = (0..d.ports.len()).map(|i| sig(PortId(i))).collect();
-
     let mut lane_decls = String::new();
     let mut load_pools = String::new();
     let mut load_chunk = String::new();
@@ -229,74 +192,19 @@ pub fn generate_batch_testbench(spec: &BatchTbSpec) -> String {
 "#,
             in_ready = sig(lane.in_ready)
         ));
-        let fmt: String = lane.out_payload.iter().map(|_| " %h").collect();
-        let args: String = lane
-            .out_payload
-            .iter()
-            .map(|&p| format!(", {}", sig(p)))
-            .collect();
-        transfer.push_str(&format!(
-            r#"                if (hm_rdy_{l} && {out_valid} === 1'b1) begin
-                    $fwrite(out, "O {l} %0d{fmt}\n", hm_cycle{args});
-                    hm_received = hm_received + 1;
-                    hm_last_progress = hm_cycle;
-                end
-"#,
-            out_valid = sig(lane.out_valid)
+        transfer.push_str(&record_transfer(
+            l,
+            &format!("hm_rdy_{l}"),
+            lane.out_valid,
+            &lane.out_payload,
         ));
         any_presenting.push(format!("hm_pres_{l}"));
     }
-    let mask_fmt: Vec<&str> = mask_regs.iter().map(|_| "%h").collect();
-    let (watch_decl, watch_log) = if spec.watch.is_empty() {
-        (String::new(), String::new())
-    } else {
-        let total: usize = spec.watch.iter().map(|&p| width(p)).sum();
-        let cat: Vec<String> = spec.watch.iter().map(|&p| sig(p)).collect();
-        let fmt: String = spec.watch.iter().map(|_| " %h").collect();
-        (
-            format!(
-                "    reg [{}:0] hm_watch_prev;\n    reg hm_watch_first;\n",
-                total - 1
-            ),
-            format!(
-                r#"                if (hm_watch_first || {{{cat}}} !== hm_watch_prev) begin
-                    $fwrite(out, "W %0d{fmt}\n", hm_cycle, {args});
-                    hm_watch_prev = {{{cat}}};
-                    hm_watch_first = 1'b0;
-                end
-"#,
-                cat = cat.join(", "),
-                args = cat.join(", ")
-            ),
-        )
-    };
-    let (reset_assert, reset_release) = match &d.reset {
-        Some(r) => {
-            let id = d.port_id(&r.port).map(sig).unwrap_or_default();
-            let active = u8::from(!r.active_low);
-            (
-                format!("        {id} = 1'b{active};\n        repeat (hm_reset_cycles) tick;\n"),
-                format!("        {id} = 1'b{};\n", 1 - active),
-            )
-        }
-        None => (String::new(), String::new()),
-    };
-    let out_fmt: String = outputs.iter().map(|_| " %h").collect();
-    let out_args: String = outputs.iter().map(|o| format!(", {o}")).collect();
-    let all_fmt: String = all_ports.iter().map(|_| " %h").collect();
-    let all_args: String = all_ports.iter().map(|o| format!(", {o}")).collect();
-    let x_check = if outputs.is_empty() {
-        String::new()
-    } else {
-        format!(
-            r#"            if (^{{{cat}}} === 1'bx) begin
-                $fwrite(out, "X %0d{out_fmt}\n", hm_cycle{out_args});
-                hm_stop = 1'b1;
-            end
-"#,
-            cat = outputs.join(", ")
-        )
-    };
+    let (watch_decl, watch_init, watch_log) = watch_code(spec);
+    let mut constants = String::new();
+    for (id, hex) in spec.constants {
+        constants.push_str(&format!("        {} = {}'h{hex};\n", sig(*id), width(*id)));
+    }
     let clear_handshakes: String = spec
         .lanes
         .iter()
@@ -316,49 +224,21 @@ pub fn generate_batch_testbench(spec: &BatchTbSpec) -> String {
     } else {
         any_presenting.join(" || ")
     };
-    format!(
-        r#"// Generated by hiermerge cosim (Icarus batch mode) for top `{top}`. Do not edit.
-module {BATCH_TB_MODULE};
-{decls}{lane_decls}{watch_decl}    reg [63:0] hm_reset_cycles, hm_watchdog, hm_drain, hm_total_out;
-    reg [63:0] hm_dump, hm_dump_from, hm_dump_to;
-    reg [63:0] hm_cycle, hm_sent, hm_received, hm_last_progress, hm_limit, hm_drain_left;
-    reg [63:0] hm_head_after, hm_total_in, hm_next;
+    let chunk_last = STIM_CHUNK - 1;
+    let index_msb = STIM_CHUNK.trailing_zeros() - 1;
+    let body = TbBody {
+        module: BATCH_TB_MODULE,
+        title: "Icarus batch mode",
+        decls: format!(
+            r#"{lane_decls}{watch_decl}    reg [63:0] hm_sent, hm_head_after, hm_total_in, hm_next;
     reg [63:0] hm_meta [0:{chunk_last}];
     reg [{index_msb}:0] hm_index;
-    reg [8*64-1:0] hm_fname;
-    reg [5:0] hm_bit;
     integer hm_head_lane;
-    reg hm_head_ok, hm_draining, hm_stop, hm_dumping;
-    integer fd, out, got, hm_masks;
-
-    {top} dut (
-{conns}
-    );
-
-    task dump_window;
-        begin
-            if (hm_dump != 0 && !hm_dumping && hm_cycle >= hm_dump_from && hm_cycle <= hm_dump_to) begin
-                $dumpfile("window.vcd");
-                $dumpvars(0, {BATCH_TB_MODULE});
-                hm_dumping = 1'b1;
-            end else if (hm_dumping && hm_cycle > hm_dump_to) begin
-                $dumpoff;
-                $dumpflush;
-                hm_dump = 0;
-                hm_dumping = 1'b0;
-            end
-        end
-    endtask
-
-    task tick;
-        begin
-            {clk} = 1'b0; #1; {clk} = 1'b1; #1;
-            hm_cycle = hm_cycle + 1;
-            if (hm_dump != 0) dump_window;
-        end
-    endtask
-
-    // The next beat into the head registers (hm_head_ok = 0 after the last).
+    reg hm_head_ok;
+"#
+        ),
+        tasks: format!(
+            r#"    // The next beat into the head registers (hm_head_ok = 0 after the last).
     task load_head;
         begin
             hm_head_ok = hm_next < hm_total_in;
@@ -378,70 +258,66 @@ module {BATCH_TB_MODULE};
         end
     endtask
 
-    initial begin
-        fd = $fopen("params.txt", "r");
-        got = $fscanf(fd, "%h %h %h %h %h %h %h %h", hm_reset_cycles, hm_watchdog, hm_drain,
-            hm_total_in, hm_total_out, hm_dump, hm_dump_from, hm_dump_to);
-        $fclose(fd);
-{load_pools}        hm_masks = $fopen("masks.fifo", "r");
-        out = $fopen("out.txt", "w");
-        hm_next = 0;
-        hm_cycle = 0; hm_sent = 0; hm_received = 0; hm_bit = 0;
-        hm_draining = 1'b0; hm_stop = 1'b0; hm_dumping = 1'b0; hm_drain_left = 0;
-{clear_lanes}{watch_init}{constants}{clear_handshakes}        dump_window;
-{reset_assert}{reset_release}        #1;
-        load_head;
-        hm_limit = hm_watchdog;
-        hm_last_progress = hm_cycle;
-        while (!hm_stop) begin
-            if (hm_bit == 0) begin
-                got = $fscanf(hm_masks, "{mask_fmt}", {mask_regs});
-                if (got != {mask_count}) begin
-                    $fwrite(out, "M %0d\n", hm_cycle);
-                    hm_stop = 1'b1;
-                end
-            end
-{drive}            #1;
-{x_check}            if (!hm_stop) begin
-{accept}{transfer}{watch_log}                if (!hm_draining && !hm_head_ok && !({presenting}) && hm_received >= hm_total_out) begin
-                    hm_draining = 1'b1;
-                    hm_drain_left = hm_drain;
-                    hm_limit = hm_drain + 1;
+"#
+        ),
+        params: vec!["hm_total_in".to_string()],
+        init: format!(
+            "{load_pools}        hm_next = 0; hm_sent = 0;\n{clear_lanes}{watch_init}{constants}{clear_handshakes}"
+        ),
+        after_reset: "        load_head;\n".to_string(),
+        masks: mask_regs,
+        drive,
+        observe: format!("{accept}{transfer}{watch_log}"),
+        all_sent: format!("!hm_head_ok && !({presenting})"),
+        sent: vec!["hm_sent".to_string()],
+        before_end: String::new(),
+    };
+    batch_tb_frame::generate(d, &body)
+}
+
+/// Records an output transfer of stream `n` (`ready` high, `valid` high)
+/// as `O <n> <cycle> <hex>...`, and counts it as progress.
+pub fn record_transfer(n: usize, ready: &str, valid: PortId, payload: &[PortId]) -> String {
+    let fmt = " %h".repeat(payload.len());
+    let args: String = payload.iter().map(|&p| format!(", {}", sig(p))).collect();
+    format!(
+        r#"                if ({ready} && {valid} === 1'b1) begin
+                    $fwrite(out, "O {n} %0d{fmt}\n", hm_cycle{args});
+                    hm_received = hm_received + 1;
                     hm_last_progress = hm_cycle;
                 end
-                if (hm_draining && hm_drain_left == 0) begin
-                    hm_stop = 1'b1;
-                end else begin
-                    if (hm_draining) hm_drain_left = hm_drain_left - 1;
-                    if (hm_cycle - hm_last_progress > hm_limit) begin
-                        $fwrite(out, "H %0d %0d{all_fmt}\n", hm_cycle, hm_cycle - hm_last_progress{all_args});
-                        hm_stop = 1'b1;
-                    end else begin
-                        tick;
-                        hm_bit = hm_bit + 1;
-                    end
-                end
-            end
-        end
-        // Trace the cycles after a stop too, so a VCD shows what followed.
-        while (hm_dumping) tick;
-        $fwrite(out, "E %0d %0d %0d\n", hm_cycle, hm_sent, hm_received);
-        $fclose(out);
-        $finish;
-    end
-endmodule
 "#,
-        top = d.top,
-        conns = conns.join(",\n"),
-        mask_fmt = mask_fmt.join(" "),
-        mask_regs = mask_regs.join(", "),
-        mask_count = mask_regs.len(),
-        chunk_last = STIM_CHUNK - 1,
-        index_msb = STIM_CHUNK.trailing_zeros() - 1,
-        watch_init = if spec.watch.is_empty() {
-            ""
-        } else {
-            "        hm_watch_first = 1'b1;\n"
-        },
+        valid = sig(valid)
+    )
+}
+
+/// Declarations, initialisation and per-cycle logging (`W` records) of the
+/// watched outputs.
+fn watch_code(spec: &BatchTbSpec) -> (String, String, String) {
+    if spec.watch.is_empty() {
+        return (String::new(), String::new(), String::new());
+    }
+    let total: usize = spec
+        .watch
+        .iter()
+        .map(|&p| spec.design.ports[p.0].width)
+        .sum();
+    let cat: Vec<String> = spec.watch.iter().map(|&p| sig(p)).collect();
+    let fmt = " %h".repeat(spec.watch.len());
+    (
+        format!(
+            "    reg [{}:0] hm_watch_prev;\n    reg hm_watch_first;\n",
+            total - 1
+        ),
+        "        hm_watch_first = 1'b1;\n".to_string(),
+        format!(
+            r#"                if (hm_watch_first || {{{cat}}} !== hm_watch_prev) begin
+                    $fwrite(out, "W %0d{fmt}\n", hm_cycle, {cat});
+                    hm_watch_prev = {{{cat}}};
+                    hm_watch_first = 1'b0;
+                end
+"#,
+            cat = cat.join(", "),
+        ),
     )
 }

@@ -184,14 +184,7 @@ fn a_broken_design_fails_with_a_vcd_around_the_mismatch() {
         ..config(2, 0.3)
     };
     let vs = skid_vectors(2, 2000);
-    let lanes: Vec<LaneVector> = vs
-        .iter()
-        .map(|v| LaneVector {
-            lane: 0,
-            wait_for_earlier_outputs: false,
-            vector: v.clone(),
-        })
-        .collect();
+    let lanes: Vec<LaneVector> = vs.iter().map(|v| LaneVector::new(0, v.clone())).collect();
     let r = batch.run(&lanes, &mut |_| None, &c).unwrap();
     eprint!("{}", r.bench);
     assert!(!r.bench.passed());

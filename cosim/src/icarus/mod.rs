@@ -2,6 +2,8 @@
 //! and the batch mode, a whole stream bench inside one `vvp` run.
 
 pub mod batch;
+pub mod batch_runner;
+pub mod batch_tb_frame;
 pub mod batch_testbench;
 #[cfg(test)]
 mod batch_tests;

@@ -29,28 +29,37 @@
 //! (stream, cycle, data); Rust feeds each stream's transfers in order to a
 //! `tb::Scoreboard` and builds a `tb::MultiReport`. Unlike the pipe bench
 //! it cannot stop at the first mismatch: it runs to the end and counts
-//! every mismatch (`BenchConfig::stop_on_mismatch` is ignored, as is the VCD).
+//! every mismatch (`BenchConfig::stop_on_mismatch` is ignored). On a
+//! mismatch or hang, when `BenchConfig::vcd_path` is set, the run is
+//! repeated with a VCD of the cycles within `vcd_radius` of the first
+//! failure (the earliest mismatch on any stream, else the hang), written
+//! there. Pulse outputs named at `new_watching` (the merging module's
+//! `done`, `idle`) have their high cycles counted as
+//! `tb::run_multi_stream_bench_watching` counts them, and their values at
+//! the end reported.
 
+use super::batch_runner::{
+    failure_window, go_word, keep_window_vcd, mask_line, read_out, write_lines, BatchImage,
+    BATCH_ENGINE_NAME,
+};
+use super::batch_tb_frame::frame_params;
 use super::batch_testbench::GARBAGE_POOL;
 use super::multi_batch_testbench::{
-    beat_file, gap_file, generate_multi_testbench, multi_pool_file, MultiTbSpec, MASKS_FIFO,
-    MULTI_STIM_CHUNK, MULTI_TB_MODULE,
+    beat_file, gap_file, generate_multi_testbench, multi_pool_file, MultiTbSpec, MULTI_STIM_CHUNK,
+    MULTI_TB_MODULE,
 };
 use crate::bitvec::BitVec;
 use crate::design::{Design, PortDir, PortId};
 use crate::error::{io_err, CosimError, Result};
 use crate::tb::{
-    BenchConfig, Hang, MultiReport, Prng, Scoreboard, StreamBeats, StreamPorts, Transaction,
+    BenchConfig, MultiReport, Prng, PulseCounts, Scoreboard, StreamBeats, StreamPorts,
 };
-use crate::tools::INSTALL_HINT;
 use std::fs;
-use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 /// Engine name in multi-stream batch reports.
-pub const MULTI_BATCH_ENGINE_NAME: &str = "iverilog-batch";
+pub const MULTI_BATCH_ENGINE_NAME: &str = BATCH_ENGINE_NAME;
 
 /// How long one `vvp` run may take before it is killed and reported hung.
 pub const MULTI_RUN_TIMEOUT: Duration = Duration::from_secs(6 * 3600);
@@ -69,9 +78,8 @@ pub struct IcarusMultiBatch {
     design: Design,
     inputs: Vec<(String, StreamPorts)>,
     outputs: Vec<(String, StreamPorts)>,
-    work: tempfile::TempDir,
-    image: PathBuf,
-    timeout: Duration,
+    pulses: Vec<(String, PortId)>,
+    image: BatchImage,
 }
 
 /// What a multi-stream batch run found, and how long `vvp` took.
@@ -82,6 +90,10 @@ pub struct MultiBatchReport {
     pub report: MultiReport,
     /// Wall time of `vvp` alone.
     pub sim_wall: Duration,
+    /// Per pulse output named at `new_watching`, the cycles it was high.
+    pub pulses: PulseCounts,
+    /// Per pulse output, whether it was high in the last cycle.
+    pub pulses_at_end: Vec<(String, bool)>,
 }
 
 impl MultiBatchReport {
@@ -126,6 +138,17 @@ impl IcarusMultiBatch {
     /// streams and compile it with `iverilog -g2005`. The design must have
     /// a clock and every stream's three ports with the right directions.
     pub fn new(design: &Design, inputs: &[&str], outputs: &[&str]) -> Result<IcarusMultiBatch> {
+        Self::new_watching(design, inputs, outputs, &[])
+    }
+
+    /// `new`, also counting the cycles each 1-bit output in `pulses` is
+    /// high (see `MultiBatchReport::pulses`).
+    pub fn new_watching(
+        design: &Design,
+        inputs: &[&str],
+        outputs: &[&str],
+        pulses: &[&str],
+    ) -> Result<IcarusMultiBatch> {
         design.validate()?;
         if design.clock.is_none() {
             return Err(CosimError::Unsupported {
@@ -140,72 +163,107 @@ impl IcarusMultiBatch {
         };
         let inputs = named(inputs, true)?;
         let outputs = named(outputs, false)?;
-        let work = tempfile::Builder::new()
-            .prefix("hm-icarus-multi-")
-            .tempdir()
-            .map_err(io_err(std::env::temp_dir()))?;
-        let tb = work.path().join("hm_multi_tb.v");
+        let pulses = pulses
+            .iter()
+            .map(|n| Ok((n.to_string(), pulse_port(design, n)?)))
+            .collect::<Result<Vec<_>>>()?;
         let in_ports: Vec<StreamPorts> = inputs.iter().map(|s| s.1.clone()).collect();
         let out_ports: Vec<StreamPorts> = outputs.iter().map(|s| s.1.clone()).collect();
+        let pulse_ids: Vec<PortId> = pulses.iter().map(|p| p.1).collect();
         let text = generate_multi_testbench(&MultiTbSpec {
             design,
             inputs: &in_ports,
             outputs: &out_ports,
+            pulses: &pulse_ids,
         });
-        fs::write(&tb, text).map_err(io_err(&tb))?;
-        let image = work.path().join("hm_multi_tb.vvp");
-        super::engine::compile_top(design, &tb, &image, MULTI_TB_MODULE)?;
+        let image = BatchImage::compile(
+            design,
+            "hm-icarus-multi-",
+            "hm_multi_tb",
+            MULTI_TB_MODULE,
+            &text,
+            MULTI_RUN_TIMEOUT,
+        )?;
         Ok(IcarusMultiBatch {
             design: design.clone(),
             inputs,
             outputs,
-            work,
+            pulses,
             image,
-            timeout: MULTI_RUN_TIMEOUT,
         })
     }
 
     /// Change how long one `vvp` run may take.
     pub fn set_timeout(&mut self, timeout: Duration) {
-        self.timeout = timeout;
+        self.image.timeout = timeout;
     }
 
     /// The scratch directory (testbench, compiled image, one directory per run).
     pub fn work_dir(&self) -> &Path {
-        self.work.path()
+        self.image.work_dir()
     }
 
     /// Run `inputs` into and `outputs` out of the design (the streams named
     /// at `new`, in that order) with the stalls, seed, reset, watchdog and
-    /// drain of `config`.
+    /// drain of `config`; on a failure, the VCD rerun (see the module docs).
     pub fn run(
         &self,
         inputs: &[StreamBeats],
         outputs: &[StreamBeats],
         config: &BenchConfig,
     ) -> Result<MultiBatchReport> {
+        let mut run = self.run_once(inputs, outputs, config, None)?;
+        let r = &run.report;
+        let failure = failure_window(
+            r.first_mismatch.as_ref().map(|m| m.1.cycle),
+            r.hang.as_ref().map(|h| h.cycle),
+            config,
+        );
+        if let Some(dump) = failure {
+            run.report.vcd = self
+                .run_once(inputs, outputs, config, Some(dump))?
+                .report
+                .vcd;
+        }
+        Ok(run)
+    }
+
+    fn run_once(
+        &self,
+        inputs: &[StreamBeats],
+        outputs: &[StreamBeats],
+        config: &BenchConfig,
+        dump: Option<((u64, u64), PathBuf)>,
+    ) -> Result<MultiBatchReport> {
         let start = Instant::now();
         crate::tb::driver::check_stall(config.in_stall)?;
         crate::tb::driver::check_stall(config.out_stall)?;
         self.check_streams(inputs, &self.inputs, "input")?;
         self.check_streams(outputs, &self.outputs, "output")?;
-        let dir = tempfile::Builder::new()
-            .prefix("run-")
-            .tempdir_in(self.work.path())
-            .map_err(io_err(self.work.path()))?;
+        let dir = self.image.run_dir()?;
         let total_out: u64 = outputs.iter().map(|s| s.beats.len() as u64).sum();
-        self.write_params(dir.path(), config, inputs, total_out)?;
+        let mut params = frame_params(config, total_out, dump.as_ref().map(|d| d.0));
+        params.extend(inputs.iter().map(|s| s.beats.len() as u64));
+        let text: Vec<String> = params.iter().map(|w| format!("{w:x}")).collect();
+        let params_path = dir.path().join("params.txt");
+        fs::write(&params_path, text.join(" ") + "\n").map_err(io_err(&params_path))?;
         for (s, beats) in inputs.iter().enumerate() {
             self.write_input(dir.path(), s, beats, config)?;
         }
-        let sim_start = Instant::now();
-        self.run_vvp(dir.path(), config)?;
-        let sim_wall = sim_start.elapsed();
+        let mut masks = ready_masks(config.seed, self.outputs.len());
+        let stall = config.out_stall;
+        let sim_wall = self.image.run_vvp(dir.path(), move || {
+            mask_line(masks.iter_mut().map(|rng| go_word(rng, stall)))
+        })?;
         let out = dir.path().join("out.txt");
         let text = fs::read_to_string(&out).map_err(io_err(&out))?;
-        let mut report = self.compare(&text, inputs, outputs, config)?;
-        report.wall = start.elapsed();
-        Ok(MultiBatchReport { report, sim_wall })
+        let mut run = self.compare(&text, inputs, outputs, config)?;
+        if let Some((_, path)) = dump {
+            run.report.vcd = keep_window_vcd(dir.path(), &path)?;
+        }
+        run.sim_wall = sim_wall;
+        run.report.wall = start.elapsed();
+        Ok(run)
     }
 
     fn check_streams(
@@ -264,25 +322,6 @@ impl IcarusMultiBatch {
         Ok(())
     }
 
-    fn write_params(
-        &self,
-        dir: &Path,
-        config: &BenchConfig,
-        inputs: &[StreamBeats],
-        total_out: u64,
-    ) -> Result<()> {
-        let mut words = vec![
-            u64::from(config.reset_cycles),
-            config.watchdog_cycles,
-            config.drain_cycles,
-            total_out,
-        ];
-        words.extend(inputs.iter().map(|s| s.beats.len() as u64));
-        let text: Vec<String> = words.iter().map(|w| format!("{w:x}")).collect();
-        let path = dir.join("params.txt");
-        fs::write(&path, text.join(" ") + "\n").map_err(io_err(&path))
-    }
-
     /// Input stream `s`'s gaps, beats (chunked) and garbage pool.
     fn write_input(
         &self,
@@ -322,58 +361,6 @@ impl IcarusMultiBatch {
         Ok(())
     }
 
-    fn run_vvp(&self, dir: &Path, config: &BenchConfig) -> Result<()> {
-        let masks = MaskPipe::open(dir, config, self.outputs.len())?;
-        let status = self.wait_vvp(dir);
-        masks.close()?;
-        let status = status?;
-        if !status.success() {
-            let log_path = dir.join("vvp.log");
-            return Err(CosimError::ToolFailed {
-                tool: "vvp".to_string(),
-                command: format!("vvp -n {} (in {})", self.image.display(), dir.display()),
-                log: fs::read_to_string(&log_path).unwrap_or_default(),
-            });
-        }
-        Ok(())
-    }
-
-    fn wait_vvp(&self, dir: &Path) -> Result<std::process::ExitStatus> {
-        let log_path = dir.join("vvp.log");
-        let log = fs::File::create(&log_path).map_err(io_err(&log_path))?;
-        let log_err = log.try_clone().map_err(io_err(&log_path))?;
-        let mut child = Command::new("vvp")
-            .arg("-n")
-            .arg(&self.image)
-            .current_dir(dir)
-            .stdin(Stdio::null())
-            .stdout(log)
-            .stderr(log_err)
-            .spawn()
-            .map_err(|e| CosimError::ToolMissing {
-                tool: "vvp".to_string(),
-                hint: format!("{e}; {INSTALL_HINT}"),
-            })?;
-        let started = Instant::now();
-        loop {
-            if let Some(status) = child.try_wait().map_err(io_err(&self.image))? {
-                return Ok(status);
-            }
-            if started.elapsed() > self.timeout {
-                let _ = child.kill();
-                let _ = child.wait();
-                return Err(CosimError::Protocol {
-                    what: format!(
-                        "multi-stream vvp run in {} did not finish within {:?} (hung simulation?)",
-                        dir.display(),
-                        self.timeout
-                    ),
-                });
-            }
-            std::thread::sleep(Duration::from_millis(5));
-        }
-    }
-
     /// Reads `out.txt` and checks each output stream in order.
     fn compare(
         &self,
@@ -381,7 +368,7 @@ impl IcarusMultiBatch {
         inputs: &[StreamBeats],
         outputs: &[StreamBeats],
         config: &BenchConfig,
-    ) -> Result<MultiReport> {
+    ) -> Result<MultiBatchReport> {
         let mut boards: Vec<Scoreboard> = self
             .outputs
             .iter()
@@ -393,68 +380,45 @@ impl IcarusMultiBatch {
             })
             .collect();
         let mut received = vec![0u64; outputs.len()];
-        let mut hang = None;
         let mut end = None;
-        for (n, line) in text.lines().enumerate() {
-            let bad = |what: &str| CosimError::Protocol {
-                what: format!(
-                    "multi-stream batch out.txt line {}: {what}: `{line}`",
-                    n + 1
-                ),
-            };
-            let tokens: Vec<&str> = line.split_whitespace().collect();
-            let number = |i: usize| -> Result<u64> {
-                tokens
-                    .get(i)
-                    .and_then(|t| t.parse().ok())
-                    .ok_or_else(|| bad("expected a decimal number"))
-            };
-            match tokens.first().copied().unwrap_or("") {
+        let mut pulses = None;
+        let hang = read_out(text, &self.design, "multi-stream batch", |l| {
+            match l.tag {
                 "O" => {
-                    let o = number(1)? as usize;
-                    let cycle = number(2)?;
-                    let ports = &self.outputs.get(o).ok_or_else(|| bad("unknown stream"))?.1;
-                    let txn = self.values(&ports.payload, &tokens[3..], cycle, &bad)?;
+                    let o = l.number(0)? as usize;
+                    let cycle = l.number(1)?;
+                    let ports = &self
+                        .outputs
+                        .get(o)
+                        .ok_or_else(|| l.bad("unknown stream"))?
+                        .1;
+                    let txn = l.values(&self.design, &ports.payload, 2, cycle)?;
                     boards[o].check(txn, cycle);
                     received[o] += 1;
                 }
-                "X" => {
-                    let cycle = number(1)?;
-                    self.values(&self.design.output_ids(), &tokens[2..], cycle, &bad)?;
-                    return Err(bad("an output is X/Z but none was found"));
-                }
-                "H" => {
-                    let (cycle, idle_cycles) = (number(1)?, number(2)?);
-                    let values = &tokens[3..];
-                    if values.len() != self.design.ports.len() {
-                        return Err(bad("expected every port's value"));
+                "P" => {
+                    let n = self.pulses.len();
+                    if l.words.len() != 1 + 2 * n {
+                        return Err(l.bad("expected the cycle, a count and a value per pulse"));
                     }
-                    let ports = self
-                        .design
-                        .ports
-                        .iter()
-                        .zip(values)
-                        .map(|(p, v)| (p.name.clone(), format!("{}'h{v}", p.width)))
-                        .collect();
-                    hang = Some(Hang {
-                        cycle,
-                        idle_cycles,
-                        ports,
-                    });
+                    let counts = (1..=n).map(|i| l.number(i)).collect::<Result<Vec<u64>>>()?;
+                    let ids: Vec<PortId> = self.pulses.iter().map(|p| p.1).collect();
+                    let last = l.values(&self.design, &ids, 1 + n, l.number(0)?)?;
+                    pulses = Some((counts, last));
                 }
                 "E" => {
-                    if tokens.len() != 3 + inputs.len() {
-                        return Err(bad("expected cycle, outputs and one count per input"));
+                    if l.words.len() != 2 + inputs.len() {
+                        return Err(l.bad("expected cycle, outputs and one count per input"));
                     }
                     let sent = (0..inputs.len())
-                        .map(|s| number(3 + s))
+                        .map(|s| l.number(2 + s))
                         .collect::<Result<Vec<u64>>>()?;
-                    end = Some((number(1)?, number(2)?, sent));
+                    end = Some((l.number(0)?, l.number(1)?, sent));
                 }
-                "M" => return Err(bad("the ready masks ran out")),
-                _ => return Err(bad("unknown record")),
+                _ => return Ok(false),
             }
-        }
+            Ok(true)
+        })?;
         let (cycles, counted, sent) = end.ok_or_else(|| CosimError::Protocol {
             what: "multi-stream batch out.txt has no end record (vvp stopped early)".to_string(),
         })?;
@@ -468,7 +432,7 @@ impl IcarusMultiBatch {
             .zip(&boards)
             .filter_map(|(s, b)| b.first_mismatch().map(|m| (s.name.clone(), m.clone())))
             .min_by_key(|(_, m)| m.cycle);
-        Ok(MultiReport {
+        let report = MultiReport {
             engine: MULTI_BATCH_ENGINE_NAME.to_string(),
             seed: config.seed,
             cycles,
@@ -487,36 +451,25 @@ impl IcarusMultiBatch {
                 .map(|(s, b)| (s.name.clone(), b.outstanding()))
                 .collect(),
             hang,
+            vcd: None,
             wall: Duration::ZERO,
+        };
+        let (counts, last) = match pulses {
+            Some(p) => p,
+            None if self.pulses.is_empty() => (Vec::new(), Vec::new()),
+            None => {
+                return Err(CosimError::Protocol {
+                    what: "multi-stream batch out.txt has no pulse record".to_string(),
+                })
+            }
+        };
+        let names = self.pulses.iter().map(|p| p.0.clone());
+        Ok(MultiBatchReport {
+            report,
+            sim_wall: Duration::ZERO,
+            pulses: names.clone().zip(counts).collect(),
+            pulses_at_end: names.zip(last.iter().map(|v| !v.is_zero())).collect(),
         })
-    }
-
-    /// Hex texts of `ports` as values; X/Z is `UnknownOutput`.
-    fn values(
-        &self,
-        ports: &[PortId],
-        texts: &[&str],
-        cycle: u64,
-        bad: &dyn Fn(&str) -> CosimError,
-    ) -> Result<Transaction> {
-        if texts.len() != ports.len() {
-            return Err(bad(&format!("expected {} values", ports.len())));
-        }
-        ports
-            .iter()
-            .zip(texts)
-            .map(|(&id, text)| {
-                let port = &self.design.ports[id.0];
-                if text.contains(['x', 'X', 'z', 'Z']) {
-                    return Err(CosimError::UnknownOutput {
-                        port: port.name.clone(),
-                        cycle,
-                        value: text.to_string(),
-                    });
-                }
-                BitVec::from_hex(port.width, text).map_err(|e| bad(&e.to_string()))
-            })
-            .collect()
     }
 }
 
@@ -550,122 +503,24 @@ fn padded(lines: impl Iterator<Item = String>, fill: &str) -> Vec<String> {
     v
 }
 
-/// `lines`, one per line, into `path`.
-fn write_lines(path: &Path, lines: &[String]) -> Result<()> {
-    let file = fs::File::create(path).map_err(io_err(path))?;
-    let mut w = BufWriter::with_capacity(1 << 16, file);
-    for l in lines {
-        writeln!(w, "{l}").map_err(io_err(path))?;
-    }
-    w.flush().map_err(io_err(path))
-}
-
-/// The ready masks of the output streams: output `j` draws
+/// The ready generators of `outputs` output streams: output `j` draws
 /// `Prng::derived(stream_seed(seed, 100 + j), 2)` once per cycle, ready
 /// with probability `1 - out_stall` (as `tb::StreamMonitor`).
-struct ReadyMasks {
-    streams: Vec<Prng>,
-    stall: f64,
+fn ready_masks(seed: u64, outputs: usize) -> Vec<Prng> {
+    (0..outputs)
+        .map(|j| Prng::derived(stream_seed(seed, 100 + j), 2))
+        .collect()
 }
 
-impl ReadyMasks {
-    /// Lines of one 64-cycle word per stream, `lines` of them.
-    fn next_lines(&mut self, lines: usize) -> String {
-        let stall = self.stall;
-        let mut text = String::new();
-        for _ in 0..lines {
-            let words: Vec<String> = self
-                .streams
-                .iter_mut()
-                .map(|rng| {
-                    let word = (0..64).fold(0u64, |w, k| w | (u64::from(!rng.chance(stall)) << k));
-                    format!("{word:x}")
-                })
-                .collect();
-            text.push_str(&words.join(" "));
-            text.push('\n');
-        }
-        text
-    }
-}
-
-/// The line that tells the draining reader the writer has stopped.
-const MASKS_END: &str = "end\n";
-
-/// The named pipe `MASKS_FIFO` and the thread writing the ready masks into
-/// it ahead of vvp. Rust holds the pipe open for reading and writing, so a
-/// write never meets a closed pipe (no SIGPIPE when vvp has exited; the
-/// CLI restores SIGPIPE's default, which would end the process); when vvp
-/// is done, `close` reads the pipe empty until the writer's end line, so a
-/// writer blocked on a full pipe finishes.
-struct MaskPipe {
-    pipe: fs::File,
-    path: PathBuf,
-    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
-    writer: std::thread::JoinHandle<()>,
-}
-
-impl MaskPipe {
-    fn open(dir: &Path, config: &BenchConfig, outputs: usize) -> Result<MaskPipe> {
-        let path = dir.join(MASKS_FIFO);
-        let made = Command::new("mkfifo")
-            .arg(&path)
-            .status()
-            .map_err(io_err(&path))?;
-        if !made.success() {
-            return Err(CosimError::ToolFailed {
-                tool: "mkfifo".to_string(),
-                command: format!("mkfifo {}", path.display()),
-                log: String::new(),
-            });
-        }
-        let pipe = fs::OpenOptions::new()
-            .read(true)
-            .write(true)
-            .open(&path)
-            .map_err(io_err(&path))?;
-        let mut out = pipe.try_clone().map_err(io_err(&path))?;
-        let mut masks = ReadyMasks {
-            streams: (0..outputs)
-                .map(|j| Prng::derived(stream_seed(config.seed, 100 + j), 2))
-                .collect(),
-            stall: config.out_stall,
-        };
-        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-        let stopped = stop.clone();
-        let writer = std::thread::spawn(move || loop {
-            if stopped.load(std::sync::atomic::Ordering::SeqCst) {
-                let _ = out.write_all(MASKS_END.as_bytes());
-                return;
-            }
-            if out.write_all(masks.next_lines(16).as_bytes()).is_err() {
-                return;
-            }
+/// A 1-bit output whose high cycles are counted.
+fn pulse_port(design: &Design, name: &str) -> Result<PortId> {
+    let id = design.port_id(name)?;
+    let port = design.port(id)?;
+    if port.dir != PortDir::Output || port.width != 1 {
+        return Err(CosimError::PortMismatch {
+            port: name.to_string(),
+            what: "a watched pulse must be a 1-bit output".to_string(),
         });
-        Ok(MaskPipe {
-            pipe,
-            path,
-            stop,
-            writer,
-        })
     }
-
-    /// Stop the writer, read what is left until its end line, join it.
-    fn close(mut self) -> Result<()> {
-        use std::io::Read;
-        self.stop.store(true, std::sync::atomic::Ordering::SeqCst);
-        let mut tail = Vec::new();
-        let mut buf = vec![0u8; 1 << 16];
-        while !tail.ends_with(MASKS_END.as_bytes()) {
-            let n = self.pipe.read(&mut buf).map_err(io_err(&self.path))?;
-            if n == 0 {
-                break;
-            }
-            tail.extend_from_slice(&buf[..n]);
-            let keep = tail.len().saturating_sub(MASKS_END.len());
-            tail.drain(..keep);
-        }
-        let _ = self.writer.join();
-        Ok(())
-    }
+    Ok(id)
 }

@@ -19,7 +19,8 @@ pub use bench::{
 pub use driver::StreamDriver;
 pub use monitor::StreamMonitor;
 pub use multi::{
-    run_multi_stream_bench, run_multi_stream_bench_watching, MultiReport, PulseCounts, StreamBeats,
+    run_multi_stream_bench, run_multi_stream_bench_traced, run_multi_stream_bench_watching,
+    MultiReport, PulseCounts, PulseWatch, StreamBeats,
 };
 pub use prng::Prng;
 pub use scoreboard::{FieldDecoder, FieldDiff, Mismatch, Scoreboard};

@@ -6,15 +6,18 @@
 //! the drivers present every stream's beats as soon as they may, so the
 //! design meets every interleaving the stall patterns produce.
 
+use super::bench::{Progress, PROGRESS_EVERY};
 use super::driver::StreamDriver;
 use super::monitor::StreamMonitor;
 use super::scoreboard::{Mismatch, Scoreboard};
 use super::stream::{StreamPorts, Transaction};
+use super::trace_window::TraceWindow;
 use super::watchdog::{Hang, Watchdog};
 use super::BenchConfig;
 use crate::engine::Engine;
 use crate::error::Result;
 use std::fmt;
+use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 /// One stream: ports `<name>_valid`, `<name>_ready`, `<name>_data`, and its
@@ -42,11 +45,22 @@ pub struct MultiReport {
     /// Expected beats that never came, per output stream.
     pub missing: Vec<(String, usize)>,
     pub hang: Option<Hang>,
+    /// VCD written around the first mismatch or hang.
+    pub vcd: Option<PathBuf>,
     pub wall: Duration,
 }
 
 /// Cycles each watched 1-bit output was high, by name.
 pub type PulseCounts = Vec<(String, u64)>;
+
+/// What the watched 1-bit outputs did in a run.
+#[derive(Clone, Debug, Default)]
+pub struct PulseWatch {
+    /// Cycles each was high.
+    pub counts: PulseCounts,
+    /// Whether each was high in the last cycle.
+    pub at_end: Vec<(String, bool)>,
+}
 
 impl MultiReport {
     /// Every beat matched, none missing, nothing hung.
@@ -83,6 +97,9 @@ impl fmt::Display for MultiReport {
         if let Some(h) = &self.hang {
             writeln!(f, "  {h}")?;
         }
+        if let Some(v) = &self.vcd {
+            writeln!(f, "  VCD: {}", v.display())?;
+        }
         Ok(())
     }
 }
@@ -116,6 +133,22 @@ pub fn run_multi_stream_bench_watching(
     config: &BenchConfig,
     pulses: &[&str],
 ) -> Result<(MultiReport, PulseCounts)> {
+    run_multi_stream_bench_traced(engine, inputs, outputs, config, pulses, None, &mut |_| {})
+        .map(|(r, w)| (r, w.counts))
+}
+
+/// [`run_multi_stream_bench_watching`] with the watched outputs' values at
+/// the end, `window` optionally tracing some cycles (and a few after a stop
+/// on a failure), and `progress` called every `PROGRESS_EVERY` cycles.
+pub fn run_multi_stream_bench_traced(
+    engine: &mut dyn Engine,
+    inputs: &[StreamBeats],
+    outputs: &[StreamBeats],
+    config: &BenchConfig,
+    pulses: &[&str],
+    mut window: Option<TraceWindow>,
+    progress: &mut dyn FnMut(Progress),
+) -> Result<(MultiReport, PulseWatch)> {
     let start = Instant::now();
     // Distinct stall patterns per stream from one seed.
     let seed_of = |j: usize| config.seed ^ (0x9e37_79b9_7f4a_7c15u64.wrapping_mul(j as u64 + 1));
@@ -137,6 +170,12 @@ pub fn run_multi_stream_bench_watching(
         engine.poke_u64(engine.design().port_id(&format!("{}_ready", s.name))?, 0)?;
         monitors.push((mon, board));
     }
+    let expected_outputs: u64 = outputs.iter().map(|s| s.beats.len() as u64).sum();
+    if let Some(w) = window.as_mut() {
+        if w.from <= u64::from(config.reset_cycles) {
+            w.update(engine)?;
+        }
+    }
     engine.reset(config.reset_cycles)?;
     let pulse_ids = pulses
         .iter()
@@ -148,7 +187,11 @@ pub fn run_multi_stream_bench_watching(
     watchdog.progress(engine.cycle());
     let mut hang = None;
     let mut drain_left: Option<u64> = None;
+    let mut next_progress = 0;
     loop {
+        if let Some(w) = window.as_mut() {
+            w.update(engine)?;
+        }
         for d in drivers.iter_mut() {
             d.drive(engine)?;
         }
@@ -186,7 +229,27 @@ pub fn run_multi_stream_bench_watching(
             hang = Some(h);
             break;
         }
+        if engine.cycle() >= next_progress {
+            next_progress = engine.cycle() + PROGRESS_EVERY;
+            progress(Progress {
+                cycle: engine.cycle(),
+                outputs: monitors.iter().map(|(_, b)| b.compared()).sum(),
+                expected_outputs,
+            });
+        }
         engine.step()?;
+    }
+    let at_end = pulse_ids
+        .iter()
+        .map(|&id| engine.peek_bool(id))
+        .collect::<Result<Vec<bool>>>()?;
+    // Trace a few more cycles after a failure so the VCD shows what followed.
+    if let Some(w) = window.as_mut() {
+        let failed = hang.is_some() || monitors.iter().any(|(_, b)| b.mismatches() > 0);
+        while failed && engine.cycle() <= w.to {
+            engine.step()?;
+        }
+        w.finish(engine)?;
     }
     let first_mismatch = outputs
         .iter()
@@ -216,12 +279,13 @@ pub fn run_multi_stream_bench_watching(
             .map(|(s, (_, b))| (s.name.clone(), b.outstanding()))
             .collect(),
         hang,
+        vcd: window.map(|w| w.path),
         wall: start.elapsed(),
     };
-    let counts = pulses
-        .iter()
-        .map(|p| p.to_string())
-        .zip(pulse_counts)
-        .collect();
-    Ok((report, counts))
+    let names = pulses.iter().map(|p| p.to_string());
+    let watch = PulseWatch {
+        counts: names.clone().zip(pulse_counts).collect(),
+        at_end: names.zip(at_end).collect(),
+    };
+    Ok((report, watch))
 }

@@ -1,0 +1,399 @@
+//! What both Icarus batch modes (`super::batch`, one beat sequence over
+//! lanes; `super::multi_batch`, a driver per stream) do around their
+//! generated testbench the same way: compile it once, give every run its own
+//! directory, stream the per-cycle stall masks to vvp through a named pipe,
+//! run vvp under a timeout, and read back the common records of `out.txt`
+//! (`X`, `H`, `M`; see `super::batch_tb_frame`), a window VCD included.
+
+use crate::bitvec::BitVec;
+use crate::design::{Design, PortId};
+use crate::error::{io_err, CosimError, Result};
+use crate::tb::{BenchConfig, Hang, Prng, Transaction};
+use crate::tools::INSTALL_HINT;
+use std::fs;
+use std::io::{BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// Engine name in batch reports (both modes).
+pub const BATCH_ENGINE_NAME: &str = "iverilog-batch";
+
+/// Name of the named pipe the stall masks go through (in the run directory).
+pub const MASKS_FIFO: &str = "masks.fifo";
+
+/// The VCD the testbench writes when a dump window is set.
+pub const WINDOW_VCD: &str = "window.vcd";
+
+/// Mask lines the writer thread produces per write.
+const MASK_LINES_PER_WRITE: usize = 16;
+
+/// A generated batch testbench compiled with `iverilog -g2005`, and the
+/// scratch directory that holds it and one directory per run.
+pub struct BatchImage {
+    work: tempfile::TempDir,
+    image: PathBuf,
+    /// How long one `vvp` run may take before it is killed.
+    pub timeout: Duration,
+}
+
+impl BatchImage {
+    /// Writes `text` as `<stem>.v` into a fresh scratch directory named
+    /// `<prefix>...` and compiles it with top `module`.
+    pub fn compile(
+        design: &Design,
+        prefix: &str,
+        stem: &str,
+        module: &str,
+        text: &str,
+        timeout: Duration,
+    ) -> Result<BatchImage> {
+        let work = tempfile::Builder::new()
+            .prefix(prefix)
+            .tempdir()
+            .map_err(io_err(std::env::temp_dir()))?;
+        let tb = work.path().join(format!("{stem}.v"));
+        fs::write(&tb, text).map_err(io_err(&tb))?;
+        let image = work.path().join(format!("{stem}.vvp"));
+        super::engine::compile_top(design, &tb, &image, module)?;
+        Ok(BatchImage {
+            work,
+            image,
+            timeout,
+        })
+    }
+
+    /// The scratch directory (testbench, compiled image, run directories).
+    pub fn work_dir(&self) -> &Path {
+        self.work.path()
+    }
+
+    /// A fresh directory for one run (removed when dropped).
+    pub fn run_dir(&self) -> Result<tempfile::TempDir> {
+        tempfile::Builder::new()
+            .prefix("run-")
+            .tempdir_in(self.work.path())
+            .map_err(io_err(self.work.path()))
+    }
+
+    /// Runs vvp in `dir` while a thread writes `mask_lines()` into the
+    /// named pipe ahead of it; returns vvp's wall time. A failed vvp is
+    /// `ToolFailed` with its log; one past the timeout is killed.
+    pub fn run_vvp(
+        &self,
+        dir: &Path,
+        mask_lines: impl FnMut() -> String + Send + 'static,
+    ) -> Result<Duration> {
+        let start = Instant::now();
+        let log_path = dir.join("vvp.log");
+        let log = fs::File::create(&log_path).map_err(io_err(&log_path))?;
+        let log_err = log.try_clone().map_err(io_err(&log_path))?;
+        let masks = MaskFifo::open(dir, mask_lines)?;
+        let child = Command::new("vvp")
+            .arg("-n")
+            .arg(&self.image)
+            .current_dir(dir)
+            .stdin(Stdio::null())
+            .stdout(log)
+            .stderr(log_err)
+            .spawn()
+            .map_err(|e| CosimError::ToolMissing {
+                tool: "vvp".to_string(),
+                hint: format!("{e}; {INSTALL_HINT}"),
+            });
+        let status = child.and_then(|mut child| self.wait_for(&mut child, dir));
+        masks.close()?;
+        if !status?.success() {
+            return Err(CosimError::ToolFailed {
+                tool: "vvp".to_string(),
+                command: format!("vvp -n {} (in {})", self.image.display(), dir.display()),
+                log: fs::read_to_string(&log_path).unwrap_or_default(),
+            });
+        }
+        Ok(start.elapsed())
+    }
+
+    /// Waits for `child` at most the run timeout (then kills it).
+    fn wait_for(&self, child: &mut Child, dir: &Path) -> Result<ExitStatus> {
+        let started = Instant::now();
+        loop {
+            if let Some(status) = child.try_wait().map_err(io_err(&self.image))? {
+                return Ok(status);
+            }
+            if started.elapsed() > self.timeout {
+                let _ = child.kill();
+                let _ = child.wait();
+                return Err(CosimError::Protocol {
+                    what: format!(
+                        "batch vvp run in {} did not finish within {:?} (hung simulation?)",
+                        dir.display(),
+                        self.timeout
+                    ),
+                });
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+}
+
+/// 64 cycles of one seeded stream: bit `k` is 1 (go: the driver may raise
+/// `valid`, the monitor raises `ready`) with probability `1 - stall`.
+pub fn go_word(rng: &mut Prng, stall: f64) -> u64 {
+    (0..64).fold(0u64, |w, k| w | (u64::from(!rng.chance(stall)) << k))
+}
+
+/// One mask line: the words in `%h`, space separated.
+pub fn mask_line(words: impl Iterator<Item = u64>) -> String {
+    let mut line = words
+        .map(|w| format!("{w:x}"))
+        .collect::<Vec<_>>()
+        .join(" ");
+    line.push('\n');
+    line
+}
+
+/// The line that tells `MaskFifo::close` the writer has stopped (no mask
+/// line is `end`: hex words have no `n`).
+const MASKS_END: &str = "end\n";
+
+/// The named pipe `MASKS_FIFO` and the thread writing the stall masks into
+/// it ahead of vvp. Rust holds the pipe open for reading and writing, so a
+/// write never meets a closed pipe: no SIGPIPE when vvp has exited (a
+/// process that restores SIGPIPE's default, as the `hiermerge` CLI does,
+/// would otherwise end). `close` stops the writer and reads the pipe empty
+/// until the writer's end line, so a writer blocked on a full pipe finishes.
+struct MaskFifo {
+    pipe: fs::File,
+    path: PathBuf,
+    stop: Arc<AtomicBool>,
+    writer: std::thread::JoinHandle<()>,
+}
+
+impl MaskFifo {
+    fn open(
+        dir: &Path,
+        mut mask_line: impl FnMut() -> String + Send + 'static,
+    ) -> Result<MaskFifo> {
+        let path = dir.join(MASKS_FIFO);
+        let made =
+            Command::new("mkfifo")
+                .arg(&path)
+                .output()
+                .map_err(|e| CosimError::ToolMissing {
+                    tool: "mkfifo".to_string(),
+                    hint: e.to_string(),
+                })?;
+        if !made.status.success() {
+            return Err(CosimError::ToolFailed {
+                tool: "mkfifo".to_string(),
+                command: format!("mkfifo {}", path.display()),
+                log: String::from_utf8_lossy(&made.stderr).into_owned(),
+            });
+        }
+        let pipe = fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .open(&path)
+            .map_err(io_err(&path))?;
+        let mut out = pipe.try_clone().map_err(io_err(&path))?;
+        let stop = Arc::new(AtomicBool::new(false));
+        let stopped = stop.clone();
+        let writer = std::thread::spawn(move || loop {
+            if stopped.load(Ordering::SeqCst) {
+                let _ = out.write_all(MASKS_END.as_bytes());
+                return;
+            }
+            let block: String = (0..MASK_LINES_PER_WRITE).map(|_| mask_line()).collect();
+            if out.write_all(block.as_bytes()).is_err() {
+                return;
+            }
+        });
+        Ok(MaskFifo {
+            pipe,
+            path,
+            stop,
+            writer,
+        })
+    }
+
+    /// Stop the writer, read what is left up to its end line, join it.
+    fn close(mut self) -> Result<()> {
+        self.stop.store(true, Ordering::SeqCst);
+        let mut tail = Vec::new();
+        let mut buf = vec![0u8; 1 << 16];
+        while !tail.ends_with(MASKS_END.as_bytes()) {
+            let n = self.pipe.read(&mut buf).map_err(io_err(&self.path))?;
+            if n == 0 {
+                break;
+            }
+            tail.extend_from_slice(&buf[..n]);
+            let keep = tail.len().saturating_sub(MASKS_END.len());
+            tail.drain(..keep);
+        }
+        let _ = self.writer.join();
+        Ok(())
+    }
+}
+
+/// `lines`, one per line, into `path`.
+pub fn write_lines(path: &Path, lines: &[String]) -> Result<()> {
+    let file = fs::File::create(path).map_err(io_err(path))?;
+    let mut w = BufWriter::with_capacity(1 << 16, file);
+    for l in lines {
+        writeln!(w, "{l}").map_err(io_err(path))?;
+    }
+    w.flush().map_err(io_err(path))
+}
+
+/// The first and last cycle of the VCD window around a run's failure (its
+/// first mismatch, else its hang), and where the VCD goes: None when the
+/// run passed or `config.vcd_path` is unset.
+pub fn failure_window(
+    mismatch_cycle: Option<u64>,
+    hang_cycle: Option<u64>,
+    config: &BenchConfig,
+) -> Option<((u64, u64), PathBuf)> {
+    let cycle = mismatch_cycle.or(hang_cycle)?;
+    let path = config.vcd_path.clone()?;
+    let window = (
+        cycle.saturating_sub(config.vcd_radius),
+        cycle.saturating_add(config.vcd_radius),
+    );
+    Some((window, path))
+}
+
+/// Copies the run's window VCD (if the testbench wrote one) to `path`.
+pub fn keep_window_vcd(dir: &Path, path: &Path) -> Result<Option<PathBuf>> {
+    let vcd = dir.join(WINDOW_VCD);
+    if !vcd.exists() {
+        return Ok(None);
+    }
+    if let Some(parent) = path.parent() {
+        fs::create_dir_all(parent).map_err(io_err(parent))?;
+    }
+    fs::copy(&vcd, path).map_err(io_err(path))?;
+    Ok(Some(path.to_path_buf()))
+}
+
+/// One line of `out.txt` split into its tag and words, and the error that
+/// names the file, the line and the text.
+pub struct OutLine<'a> {
+    /// The record tag (`O`, `E`, ...).
+    pub tag: &'a str,
+    /// The words after the tag.
+    pub words: Vec<&'a str>,
+    n: usize,
+    line: &'a str,
+    what: &'a str,
+}
+
+impl OutLine<'_> {
+    /// A protocol error naming this line.
+    pub fn bad(&self, why: &str) -> CosimError {
+        CosimError::Protocol {
+            what: format!(
+                "{} out.txt line {}: {why}: `{}`",
+                self.what, self.n, self.line
+            ),
+        }
+    }
+
+    /// Word `i` as a decimal number.
+    pub fn number(&self, i: usize) -> Result<u64> {
+        self.words
+            .get(i)
+            .and_then(|t| t.parse().ok())
+            .ok_or_else(|| self.bad("expected a decimal number"))
+    }
+
+    /// Words from `i` on as the values of `ports` (hex); X/Z in a value is
+    /// `UnknownOutput` naming the port and `cycle`.
+    pub fn values(
+        &self,
+        design: &Design,
+        ports: &[PortId],
+        i: usize,
+        cycle: u64,
+    ) -> Result<Transaction> {
+        let texts = self.words.get(i..).unwrap_or(&[]);
+        if texts.len() != ports.len() {
+            return Err(self.bad(&format!("expected {} values", ports.len())));
+        }
+        ports
+            .iter()
+            .zip(texts)
+            .map(|(&id, text)| {
+                let port = &design.ports[id.0];
+                if text.contains(['x', 'X', 'z', 'Z']) {
+                    return Err(CosimError::UnknownOutput {
+                        port: port.name.clone(),
+                        cycle,
+                        value: text.to_string(),
+                    });
+                }
+                BitVec::from_hex(port.width, text).map_err(|e| self.bad(&e.to_string()))
+            })
+            .collect()
+    }
+}
+
+/// Reads `out.txt` (`what` names the batch mode in errors): the records
+/// every batch testbench writes are handled here (`X`: X/Z on an output is
+/// `UnknownOutput`; `H`: the watchdog's hang, returned; `M`: the masks ran
+/// out), every other line goes to `record`, which returns false for a tag
+/// it does not know.
+pub fn read_out(
+    text: &str,
+    design: &Design,
+    what: &str,
+    mut record: impl FnMut(&OutLine) -> Result<bool>,
+) -> Result<Option<Hang>> {
+    let mut hang = None;
+    for (n, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        let l = OutLine {
+            tag: words.next().unwrap_or(""),
+            words: words.collect(),
+            n: n + 1,
+            line,
+            what,
+        };
+        match l.tag {
+            "X" => {
+                let cycle = l.number(0)?;
+                l.values(design, &design.output_ids(), 1, cycle)?;
+                return Err(l.bad("an output is X/Z but none was found"));
+            }
+            "H" => hang = Some(hang_of(design, &l)?),
+            "M" => return Err(l.bad("the stall masks ran out")),
+            _ => {
+                if !record(&l)? {
+                    return Err(l.bad("unknown record"));
+                }
+            }
+        }
+    }
+    Ok(hang)
+}
+
+/// `H <cycle> <idle cycles> <every port's value>`.
+fn hang_of(design: &Design, l: &OutLine) -> Result<Hang> {
+    let (cycle, idle_cycles) = (l.number(0)?, l.number(1)?);
+    let values = &l.words[2..];
+    if values.len() != design.ports.len() {
+        return Err(l.bad("expected every port's value"));
+    }
+    let ports = design
+        .ports
+        .iter()
+        .zip(values)
+        .map(|(p, v)| (p.name.clone(), format!("{}'h{v}", p.width)))
+        .collect();
+    Ok(Hang {
+        cycle,
+        idle_cycles,
+        ports,
+    })
+}

@@ -26,6 +26,7 @@ use crate::layout::{Bits, Field, LayoutError, NodeLayout, RefLayout};
 use crate::params::Params;
 use crate::store::{Hierarchy, NodeRecord, Reference};
 use crate::translate::table::{entry_bits, unpack_entry};
+use crate::translate::translation::trans_bits;
 use crate::translate::{TranslateError, Translation};
 
 /// Error codes of an `out` error beat (the `err` field), each naming the
@@ -83,6 +84,11 @@ pub struct FetchLayout {
     pub nodes: Field,
     pub refs: Field,
     pub entry: Field,
+    /// The entry's own fields inside `cfg` (section 7.5's packing: `valid`,
+    /// `L`, `tx`, `ty`, `tz`), tested against [`pack_entry`](crate::translate::table::pack_entry).
+    pub entry_valid: Field,
+    pub entry_lod: Field,
+    pub entry_t: [Field; 3],
     pub cfg_width: u32,
     /// `cmd`: `lod` (lod_bits), `send_refs`, `send_leaves`, `last` (1 each).
     pub lod: Field,
@@ -135,6 +141,17 @@ impl FetchLayout {
             ("refs", i),
             ("entry", entry_bits(p)),
         ]);
+        let (inside, _) = consecutive([
+            ("entry_valid", 1),
+            ("entry_lod", lb),
+            ("entry_tx", trans_bits(p)),
+            ("entry_ty", trans_bits(p)),
+            ("entry_tz", trans_bits(p)),
+        ]);
+        let at = |f: Field| Field {
+            offset: f.offset + entry.offset,
+            ..f
+        };
         let ([lod, send_refs, send_leaves, last], cmd_width) = consecutive([
             ("lod", lb),
             ("send_refs", 1),
@@ -162,6 +179,9 @@ impl FetchLayout {
             nodes,
             refs,
             entry,
+            entry_valid: at(inside[0]),
+            entry_lod: at(inside[1]),
+            entry_t: [at(inside[2]), at(inside[3]), at(inside[4])],
             cfg_width,
             lod,
             send_refs,
@@ -779,6 +799,36 @@ mod tests {
         match tx.out.last() {
             Some(FetchOut::Error { node, code, .. }) => (*node, *code),
             o => panic!("no error: {o:?} in {tx:?}"),
+        }
+    }
+
+    #[test]
+    fn entry_fields_read_the_packed_entry() {
+        for p in [Params::default(), Params::new(31, 16, 32, 8).unwrap()] {
+            let l = FetchLayout::new(&p);
+            let t = Translation {
+                lod: 3,
+                t: [-5, 7, -(1 << (p.max_lod - 1))],
+            };
+            let b = FetchCfg {
+                hier: 1,
+                root_count: 1,
+                top_lod: 3,
+                nodes: 1,
+                refs: 0,
+                entry: pack_entry(Some(&t), &p),
+            }
+            .pack(&l)
+            .unwrap();
+            assert_eq!(b.get(&l.entry_valid).unwrap(), 1);
+            assert_eq!(b.get(&l.entry_lod).unwrap(), 3);
+            for a in 0..3 {
+                let code = b.get(&l.entry_t[a]).unwrap();
+                let w = l.entry_t[a].width;
+                let v = ((code << (64 - w)) as i64) >> (64 - w);
+                assert_eq!(v, t.t[a], "axis {a}");
+            }
+            assert_eq!(l.entry_t[2].end(), l.entry.end());
         }
     }
 

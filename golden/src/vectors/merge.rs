@@ -35,7 +35,7 @@ pub struct MergeDesign {
     /// Inputs `k` of the overlap counter (and of the S614 stimulus).
     pub inputs: usize,
     /// How the merging module chooses the merging level: the only mode its
-    /// hardware builds (per-node merging is not built; [`Self::validate`]).
+    /// hardware builds ([`Self::validate`]).
     pub mode: MergeMode,
     /// Root sorter capacity.
     pub roots: usize,
@@ -73,7 +73,7 @@ impl MergeDesign {
     }
 
     /// Refuses what the hardware cannot build: fewer than 2 or more than
-    /// `2^H` inputs, a bad ratio, per-node merging, no root capacity.
+    /// `2^H` inputs, a bad ratio, no root capacity.
     pub fn validate(&self) -> Result<(), String> {
         let cap = self.params.hier_capacity();
         if self.inputs < 2 || self.inputs as u64 > cap {
@@ -86,7 +86,9 @@ impl MergeDesign {
             return Err("roots = 0: expected a root sorter capacity of at least 1".into());
         }
         match self.mode {
-            MergeMode::Overlap { num, den } | MergeMode::Proportion { num, den }
+            MergeMode::Overlap { num, den }
+            | MergeMode::Proportion { num, den }
+            | MergeMode::PerNode { num, den }
                 if den == 0 || num > den =>
             {
                 Err(format!(
@@ -94,11 +96,6 @@ impl MergeDesign {
                     self.mode
                 ))
             }
-            MergeMode::PerNode { .. } => Err(format!(
-                "mode {}: per-node merging is not built into the merging module RTL \
-                 (expected overlap[:N/D], fixed:L, below-top:K or proportion:N/D)",
-                self.mode
-            )),
             MergeMode::Fixed(l) if l > self.params.max_lod => Err(format!(
                 "mode {}: expected a level at most max_lod = {}",
                 self.mode, self.params.max_lod
@@ -372,8 +369,15 @@ mod tests {
         );
         let mut rng = SplitMix64(5);
         assert!((0..6).all(|i| generate(&fixed, &mut rng, i).unwrap().stage != "overlap_counter"));
+        // Per-node merging is built (SPEC 8.14); its ratio is checked.
         assert!(MergeDesign {
             mode: MergeMode::PerNode { num: 1, den: 2 },
+            ..d
+        }
+        .validate()
+        .is_ok());
+        assert!(MergeDesign {
+            mode: MergeMode::PerNode { num: 3, den: 2 },
             ..d
         }
         .validate()

@@ -11,26 +11,31 @@
 //! - [`merge_module_unit`]: the merging module as one unit: `cfg`, `k`
 //!   input streams, `report`, `out` around the merge network, the overlap
 //!   counter (overlap mode only) and S614, with the mode's level choice.
-//! - [`fetcher_unit`]: S610 + S612 for one input: walks it in the store
-//!   (node and reference read ports), translating, into an input stream.
+//! - [`per_node_module_unit`]: the merging module of a `per-node:N/D`
+//!   configuration (what `merge_module_unit` builds for it): breadth-first
+//!   LOD passes through a probe-aware merge network, the per-node decider
+//!   and S614 (SPEC 8.14).
 //! - [`upper_builder_unit`]: every S616 level above the base at once (a
 //!   chain of grouping and Morton-merge stages, the top rule in flight).
 
 mod builder;
-mod fetcher;
 mod fields;
 mod level;
 mod network;
 mod overlap;
+mod per_node;
 mod sorter;
 mod top;
 mod upper;
 
 pub use builder::{upper_builder_name, upper_builder_unit};
-pub use fetcher::{fetcher_name, fetcher_unit};
 pub use level::{merge_level_name, merge_level_unit};
 pub use network::{morton_code, morton_merge_name, morton_merge_unit};
 pub use overlap::{overlap_counter_name, overlap_counter_unit};
+pub use per_node::{
+    per_node_decider_name, per_node_decider_unit, per_node_module_unit, per_node_network_name,
+    per_node_network_unit,
+};
 pub use sorter::{root_sorter_name, root_sorter_unit};
 pub use top::{merge_module_name, merge_module_unit};
 pub use upper::{upper_level_name, upper_level_unit};

@@ -95,14 +95,18 @@ fn choose_from_range<'m>(
             (lo.add(below, lb), m.lit(0, 1))
         }
         MergeMode::Overlap { .. } | MergeMode::PerNode { .. } => {
-            unreachable!("the overlap choice is the count pass's; per-node is refused")
+            unreachable!("the overlap choice is the count pass's; per-node has its own module")
         }
     }
 }
 
-/// The merging module for `c` (validated with `MergeConfig::validate`:
-/// per-node merging is refused there, not built).
+/// The merging module for `c` (validated with `MergeConfig::validate`). A
+/// `per-node:N/D` configuration is [`super::per_node_module_unit`]'s: per-node
+/// logic only there.
 pub fn merge_module_unit(c: &MergeConfig) -> Module {
+    if let MergeMode::PerNode { num, den } = c.mode {
+        return super::per_node_module_unit(c, num, den);
+    }
     let p = &c.params;
     let k = c.inputs;
     let m = Module::new(&merge_module_name(c));

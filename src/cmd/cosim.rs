@@ -7,7 +7,11 @@
 //! flips the lowest bit of transaction `n`'s expected output (translate: the
 //! n-th transaction; merge: the first `report` beat of the n-th merge;
 //! `--stage merge-level`: the first output beat of the n-th level), so a
-//! test can check that a broken run is caught and reported.
+//! test can check that a broken run is caught and reported. With `--unit
+//! merge` (the module), `HIERMERGE_COSIM_PATCH_FROM=<text>` and
+//! `HIERMERGE_COSIM_PATCH_TO=<text>` replace the one occurrence of the first
+//! in the emitted Verilog by the second before Verilator or Icarus reads it:
+//! a deliberately broken merging module.
 
 use std::path::{Path, PathBuf};
 
@@ -28,6 +32,10 @@ use crate::report::{emit, CmdResult};
 
 /// The environment variable of the test hook (see the module docs).
 pub const FLIP_EXPECTED_VAR: &str = "HIERMERGE_COSIM_FLIP_EXPECTED";
+
+/// The environment variables of the Verilog patch hook (see the module docs).
+pub const PATCH_FROM_VAR: &str = "HIERMERGE_COSIM_PATCH_FROM";
+pub const PATCH_TO_VAR: &str = "HIERMERGE_COSIM_PATCH_TO";
 
 /// Cycles either side of a mismatch written to its VCD.
 const VCD_RADIUS: u64 = 20;
@@ -170,11 +178,30 @@ fn flip_expected() -> Result<Option<usize>, String> {
     }
 }
 
+/// The Verilog patch of the test hook, when both variables are set.
+fn verilog_patch() -> Result<Option<merge_module::VerilogPatch>, String> {
+    match (std::env::var(PATCH_FROM_VAR), std::env::var(PATCH_TO_VAR)) {
+        (Ok(from), Ok(to)) if !from.is_empty() => Ok(Some(merge_module::VerilogPatch { from, to })),
+        (Err(_), Err(_)) => Ok(None),
+        _ => Err(format!(
+            "{PATCH_FROM_VAR} (not empty) and {PATCH_TO_VAR} go together"
+        )),
+    }
+}
+
 /// The one command line that runs this again, the same way.
 fn reproduce(a: &Args, flip: Option<usize>) -> Result<String, String> {
     let mut s = String::new();
     if let Some(n) = flip {
         s += &format!("{FLIP_EXPECTED_VAR}={n} ");
+    }
+    if let Some(p) = verilog_patch()? {
+        let quoted = |t: &str| format!("'{}'", t.replace('\'', "'\\''"));
+        s += &format!(
+            "{PATCH_FROM_VAR}={} {PATCH_TO_VAR}={} ",
+            quoted(&p.from),
+            quoted(&p.to)
+        );
     }
     let unit = match a.unit {
         Unit::Translate => "translate",
@@ -566,8 +593,21 @@ fn run_merge_module(
     let config = merge_module::RunConfig {
         seed: a.seed,
         stall: a.stall,
+        vcd_path: Some(vcd_path(a, merge_module::STAGE)),
+        vcd_radius: VCD_RADIUS,
+        verilog_patch: verilog_patch()?,
     };
-    let o = merge_module::run(design, &streams, engine, &config, dir).map_err(|e| e.to_string())?;
+    let expected_out: u64 = streams.outputs.iter().map(|s| s.beats.len() as u64).sum();
+    let pb = bar(expected_out, a.json);
+    if engine == ModuleEngine::Iverilog {
+        pb.set_message("one vvp run (the batch reports at its end)");
+    }
+    let o = merge_module::run(design, &streams, engine, &config, dir, &mut |p| {
+        pb.set_position(p.outputs);
+        pb.set_message(format!("cycle {}", p.cycle));
+    });
+    pb.finish_and_clear();
+    let o = o.map_err(|e| e.to_string())?;
     let r = &o.report;
     let passed = o.passed();
     let mut first = o.first_mismatch.as_ref().map(|m| MismatchReport {
@@ -603,13 +643,14 @@ fn run_merge_module(
             kind: merge_module::STAGE.to_string(),
             cycle: r.hang.as_ref().map_or(r.cycles, |h| h.cycle),
             seed: a.seed,
-            what: match &r.hang {
-                Some(h) => format!(
+            what: match (&r.hang, missing.is_empty()) {
+                (Some(h), _) => format!(
                     "no handshake for {} cycles; missing {}",
                     h.idle_cycles,
                     missing.join(", ")
                 ),
-                None => format!("missing {}", missing.join(", ")),
+                (None, false) => format!("missing {}", missing.join(", ")),
+                (None, true) => o.status_failure().unwrap_or_default(),
             },
             fields: Vec::new(),
         });
@@ -633,7 +674,7 @@ fn run_merge_module(
         wall_seconds: wall,
         cycles_per_second: crate::report::per_second(r.cycles as f64, wall),
         first_mismatch: first,
-        vcd: None,
+        vcd: o.vcd.as_ref().map(|p| p.display().to_string()),
         reproduce: if passed {
             None
         } else {

@@ -35,7 +35,8 @@
 //! know): it runs to the end and counts every mismatch.
 
 use super::batch_runner::{
-    failure_window, go_word, keep_window_vcd, mask_line, read_out, write_lines, BatchImage,
+    failure_window, go_word, keep_window_vcd, mask_line, read_out, write_lines, write_params,
+    BatchImage,
 };
 use super::batch_tb_frame::frame_params;
 use super::batch_testbench::{
@@ -468,13 +469,6 @@ impl IcarusBatch {
             sim_wall: Duration::ZERO,
         })
     }
-}
-
-/// `words` (`%h`) on one line into `params.txt`.
-fn write_params(dir: &Path, words: &[u64]) -> Result<()> {
-    let text: Vec<String> = words.iter().map(|w| format!("{w:x}")).collect();
-    let path = dir.join("params.txt");
-    fs::write(&path, text.join(" ") + "\n").map_err(io_err(&path))
 }
 
 /// One report from the lanes' scoreboards: counts summed, the earliest

@@ -247,6 +247,13 @@ pub fn write_lines(path: &Path, lines: &[String]) -> Result<()> {
     w.flush().map_err(io_err(path))
 }
 
+/// `words` (`%h`) on one line into `params.txt`.
+pub fn write_params(dir: &Path, words: &[u64]) -> Result<()> {
+    let text: Vec<String> = words.iter().map(|w| format!("{w:x}")).collect();
+    let path = dir.join("params.txt");
+    fs::write(&path, text.join(" ") + "\n").map_err(io_err(&path))
+}
+
 /// The first and last cycle of the VCD window around a run's failure (its
 /// first mismatch, else its hang), and where the VCD goes: None when the
 /// run passed or `config.vcd_path` is unset.

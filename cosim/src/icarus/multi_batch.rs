@@ -39,8 +39,8 @@
 //! the end reported.
 
 use super::batch_runner::{
-    failure_window, go_word, keep_window_vcd, mask_line, read_out, write_lines, BatchImage,
-    BATCH_ENGINE_NAME,
+    failure_window, go_word, keep_window_vcd, mask_line, read_out, write_lines, write_params,
+    BatchImage, BATCH_ENGINE_NAME,
 };
 use super::batch_tb_frame::frame_params;
 use super::batch_testbench::GARBAGE_POOL;
@@ -244,9 +244,7 @@ impl IcarusMultiBatch {
         let total_out: u64 = outputs.iter().map(|s| s.beats.len() as u64).sum();
         let mut params = frame_params(config, total_out, dump.as_ref().map(|d| d.0));
         params.extend(inputs.iter().map(|s| s.beats.len() as u64));
-        let text: Vec<String> = params.iter().map(|w| format!("{w:x}")).collect();
-        let params_path = dir.path().join("params.txt");
-        fs::write(&params_path, text.join(" ") + "\n").map_err(io_err(&params_path))?;
+        write_params(dir.path(), &params)?;
         for (s, beats) in inputs.iter().enumerate() {
             self.write_input(dir.path(), s, beats, config)?;
         }

@@ -289,3 +289,49 @@ pub fn run_multi_stream_bench_traced(
     };
     Ok((report, watch))
 }
+
+/// Run once untraced ([`run_multi_stream_bench_traced`]); on a mismatch or
+/// hang, when `config.vcd_path` is set, run again on a tracing engine
+/// (`make_engine(true)`) with the same seed and write the cycles within
+/// `config.vcd_radius` of the first failure (the earliest mismatch on any
+/// stream, else the hang) to that VCD (`MultiReport::vcd`).
+pub fn run_multi_with_vcd_on_failure(
+    make_engine: &mut dyn FnMut(bool) -> Result<Box<dyn Engine>>,
+    inputs: &[StreamBeats],
+    outputs: &[StreamBeats],
+    config: &BenchConfig,
+    pulses: &[&str],
+    progress: &mut dyn FnMut(Progress),
+) -> Result<(MultiReport, PulseWatch)> {
+    let mut engine = make_engine(false)?;
+    let (mut report, watch) = run_multi_stream_bench_traced(
+        engine.as_mut(),
+        inputs,
+        outputs,
+        config,
+        pulses,
+        None,
+        progress,
+    )?;
+    drop(engine);
+    let failure_cycle = report
+        .first_mismatch
+        .as_ref()
+        .map(|m| m.1.cycle)
+        .or(report.hang.as_ref().map(|h| h.cycle));
+    if let (Some(cycle), Some(path)) = (failure_cycle, config.vcd_path.clone()) {
+        let mut traced = make_engine(true)?;
+        let window = TraceWindow::around(cycle, config.vcd_radius, path);
+        let (rerun, _) = run_multi_stream_bench_traced(
+            traced.as_mut(),
+            inputs,
+            outputs,
+            config,
+            pulses,
+            Some(window),
+            &mut |_| {},
+        )?;
+        report.vcd = rerun.vcd;
+    }
+    Ok((report, watch))
+}

@@ -7,9 +7,12 @@
 //! Engines: the IR simulator and Verilator through
 //! [`crate::tb::run_multi_stream_bench`]; Icarus through the multi-stream
 //! batch ([`crate::icarus::IcarusMultiBatch`], the whole bench inside one
-//! `vvp` run, same stall patterns).
+//! `vvp` run, same stall patterns). Every engine also counts the unit's
+//! `done` pulses (one per merge, refused or not) and checks `idle` is high
+//! at the end; on a mismatch or hang every engine reruns with a VCD of the
+//! cycles around the first failure when a VCD path is given.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use golden::layout::{Bits, Field};
@@ -25,7 +28,8 @@ use crate::error::{CosimError, Result};
 use crate::icarus::IcarusMultiBatch;
 use crate::ir_engine::IrEngine;
 use crate::tb::{
-    run_multi_stream_bench, BenchConfig, FieldDecoder, Hang, MultiReport, StreamBeats, Transaction,
+    run_multi_with_vcd_on_failure, BenchConfig, FieldDecoder, Hang, MultiReport, Progress,
+    PulseWatch, StreamBeats, Transaction,
 };
 
 /// The stage name `hiermerge cosim --unit merge` reports for this unit.
@@ -218,13 +222,33 @@ pub enum ModuleEngine {
 }
 
 /// How one run is driven.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct RunConfig {
     /// Seed of the stall patterns.
     pub seed: u64,
     /// Stall probability of every driver and every monitor.
     pub stall: f64,
+    /// Where the VCD around the first failure goes (None: no VCD).
+    pub vcd_path: Option<PathBuf>,
+    /// Cycles traced either side of the failure.
+    pub vcd_radius: u64,
+    /// A deliberate break of the emitted Verilog (the test hook): its one
+    /// occurrence of `from` replaced by `to` before simulation (Verilator
+    /// and Icarus only: the IR engine does not read the Verilog).
+    pub verilog_patch: Option<VerilogPatch>,
 }
+
+/// One text replacement in the emitted Verilog.
+#[derive(Clone, Debug)]
+pub struct VerilogPatch {
+    /// Text that must occur exactly once in the emitted files.
+    pub from: String,
+    /// What replaces it.
+    pub to: String,
+}
+
+/// The status outputs whose pulses a run counts.
+pub const PULSES: [&str; 2] = ["done", "idle"];
 
 /// The first failing output beat, decoded.
 #[derive(Clone, Debug)]
@@ -248,20 +272,43 @@ pub struct Outcome {
     pub report: MultiReport,
     /// Merges run.
     pub merges: usize,
-    /// Beats into the unit on the `in*` streams.
+    /// Beats the unit accepted on the `in*` streams.
     pub data_beats_in: u64,
     /// Beats out on `report` and `out`.
     pub beats_out: u64,
     /// The first mismatch, decoded with the stream's fields.
     pub first_mismatch: Option<ModuleMismatch>,
+    /// Cycles `done` was high (one per merge expected).
+    pub done_pulses: u64,
+    /// `idle` high in the last cycle.
+    pub idle_at_end: bool,
+    /// VCD of the cycles around the first failure (with `RunConfig::vcd_path`).
+    pub vcd: Option<PathBuf>,
     /// Wall time of the bench (the Verilator build and the Icarus compile excluded).
     pub wall: Duration,
 }
 
 impl Outcome {
-    /// Every beat matched, none missing, nothing hung.
+    /// Every beat matched, none missing, nothing hung, one `done` pulse
+    /// per merge, and the unit idle at the end.
     pub fn passed(&self) -> bool {
-        self.report.passed()
+        self.report.passed() && self.status_failure().is_none()
+    }
+
+    /// What the status outputs got wrong, if anything: `done` not pulsed
+    /// once per merge, or `idle` low at the end.
+    pub fn status_failure(&self) -> Option<String> {
+        let mut wrong = Vec::new();
+        if self.done_pulses != self.merges as u64 {
+            wrong.push(format!(
+                "`done` pulsed {} times for {} merges",
+                self.done_pulses, self.merges
+            ));
+        }
+        if !self.idle_at_end {
+            wrong.push("`idle` low at the end of the run".to_string());
+        }
+        (!wrong.is_empty()).then(|| wrong.join("; "))
     }
 
     /// Input beats over all `in*` streams per cycle.
@@ -277,39 +324,68 @@ impl Outcome {
 
 /// Runs `streams` through the unit `d` on `engine`, the Verilog written to
 /// `dir`. Mismatches are counted to the end of the run on every engine
-/// (`stop_on_mismatch` off), so counts agree between engines.
+/// (`stop_on_mismatch` off), so counts agree between engines. `progress` is
+/// called every few thousand cycles on the IR and Verilator engines (the
+/// Icarus batch reports only at its end).
 pub fn run(
     d: &MergeDesign,
     streams: &MergeStreams,
     engine: ModuleEngine,
     config: &RunConfig,
     dir: &Path,
+    progress: &mut dyn FnMut(Progress),
 ) -> Result<Outcome> {
     let module = merge_module(d);
     let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
+    if let Some(patch) = &config.verilog_patch {
+        if engine == ModuleEngine::Ir {
+            return Err(CosimError::Unsupported {
+                what: "a Verilog patch on the IR engine (it simulates the module, not its Verilog)"
+                    .to_string(),
+            });
+        }
+        apply_patch(&design, patch)?;
+    }
     let bench = BenchConfig {
         seed: config.seed,
         in_stall: config.stall,
         out_stall: config.stall,
         stop_on_mismatch: false,
+        vcd_path: config.vcd_path.clone(),
+        vcd_radius: config.vcd_radius,
         ..BenchConfig::default()
     };
-    let report = match engine {
-        ModuleEngine::Ir => {
-            let mut e = IrEngine::new(&module, &design)?;
-            run_multi_stream_bench(&mut e, &streams.inputs, &streams.outputs, &bench)?
-        }
-        ModuleEngine::Verilator => {
-            let mut e = open_engine(EngineKind::Verilator, &design, false)?;
-            run_multi_stream_bench(e.as_mut(), &streams.inputs, &streams.outputs, &bench)?
+    let (report, watch) = match engine {
+        ModuleEngine::Ir | ModuleEngine::Verilator => {
+            let mut make = |trace: bool| -> Result<Box<dyn crate::Engine>> {
+                match engine {
+                    ModuleEngine::Ir => Ok(Box::new(IrEngine::new(&module, &design)?)),
+                    _ => open_engine(EngineKind::Verilator, &design, trace),
+                }
+            };
+            run_multi_with_vcd_on_failure(
+                &mut make,
+                &streams.inputs,
+                &streams.outputs,
+                &bench,
+                &PULSES,
+                progress,
+            )?
         }
         ModuleEngine::Iverilog => {
             let names = input_names(d);
             let names: Vec<&str> = names.iter().map(String::as_str).collect();
-            let batch = IcarusMultiBatch::new(&design, &names, &OUTPUT_NAMES)?;
-            batch.run(&streams.inputs, &streams.outputs, &bench)?.report
+            let batch = IcarusMultiBatch::new_watching(&design, &names, &OUTPUT_NAMES, &PULSES)?;
+            let r = batch.run(&streams.inputs, &streams.outputs, &bench)?;
+            let watch = PulseWatch {
+                counts: r.pulses,
+                at_end: r.pulses_at_end,
+            };
+            (r.report, watch)
         }
     };
+    let pulse = |name: &str| watch.counts.iter().find(|p| p.0 == name).map_or(0, |p| p.1);
+    let idle_at_end = watch.at_end.iter().any(|p| p.0 == "idle" && p.1);
     let wall = report.wall;
     let first_mismatch = report.first_mismatch.as_ref().map(|(stream, m)| {
         let s = OUTPUT_NAMES.iter().position(|n| n == stream).unwrap_or(0);
@@ -334,10 +410,38 @@ pub fn run(
     });
     Ok(Outcome {
         merges: streams.merges(),
-        data_beats_in: streams.data_beats(),
+        // Accepted, not offered: a hung run moved fewer.
+        data_beats_in: report.sent.iter().skip(1).map(|s| s.1).sum(),
         beats_out: report.received.iter().map(|r| r.1).sum(),
+        done_pulses: pulse("done"),
+        idle_at_end,
+        vcd: report.vcd.clone(),
         report,
         first_mismatch,
         wall,
     })
+}
+
+/// Replaces the one occurrence of `patch.from` in the design's Verilog.
+fn apply_patch(design: &Design, patch: &VerilogPatch) -> Result<()> {
+    let mut found = Vec::new();
+    for file in &design.verilog_files {
+        let text = std::fs::read_to_string(file).map_err(crate::error::io_err(file))?;
+        let n = text.matches(patch.from.as_str()).count();
+        if n > 0 {
+            found.push((file, text, n));
+        }
+    }
+    let total: usize = found.iter().map(|f| f.2).sum();
+    if total != 1 {
+        return Err(CosimError::Design {
+            what: format!(
+                "Verilog patch: `{}` occurs {total} times in the emitted files of `{}`; expected exactly once",
+                patch.from, design.top
+            ),
+        });
+    }
+    let (file, text, _) = &found[0];
+    std::fs::write(file, text.replacen(patch.from.as_str(), &patch.to, 1))
+        .map_err(crate::error::io_err(file.as_path()))
 }

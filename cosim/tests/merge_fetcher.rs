@@ -1,0 +1,546 @@
+//! The fetcher (`rtl_gen::merge::fetcher_unit`, SPEC.md section 8.13)
+//! against `golden::merge::fetch_unit::fetch_transaction`, bit for bit on
+//! `out`, `leaves`, `node_req` and `ref_req`; the store's answers
+//! (`node_resp`, `ref_resp`) are precomputed from golden and presented as
+//! ordinary input streams (the unit raises `*_resp_ready` only with a read
+//! outstanding), with independent random stalls on every stream
+//! (`cosim::tb::run_multi_stream_bench`), on the IR simulator, Verilator and
+//! Icarus (`IcarusMultiBatch`). Stimulus: builder-made soups (`golden::build`
+//! of `golden::scenes::random_soup`), translated, walked to every level with
+//! random flags, and the same inputs corrupted so that every error code
+//! occurs. Throughput with no back-pressure printed; lint and synthesis.
+mod merge_common;
+
+use cosim::tb::{run_multi_stream_bench, BenchConfig, MultiReport, StreamBeats};
+use cosim::BitVec;
+use golden::build::{build, GridMap};
+use golden::merge::fetch_unit::{
+    fetch_err, fetch_transaction, FetchCmd, FetchLayout, FetchOut, FetchSizes, FetchTransaction,
+};
+use golden::params::Params;
+use golden::scenes::random_soup;
+use golden::store::{Hierarchy, Reference};
+use golden::translate::stimulus::SplitMix64;
+use golden::translate::table::pack_entry;
+use golden::translate::Translation;
+use merge_common::*;
+
+/// Name, parameters and sizes (root sorter, frontier FIFO) per configuration.
+fn configs() -> Vec<(&'static str, Params, FetchSizes)> {
+    vec![
+        ("default", Params::default(), FetchSizes::default()),
+        (
+            "d31",
+            Params::new(31, 16, 32, 8).unwrap(),
+            FetchSizes {
+                roots: 16,
+                frontier: 64,
+            },
+        ),
+        (
+            "q0",
+            Params::new(8, 0, 12, 3).unwrap(),
+            FetchSizes {
+                roots: 16,
+                frontier: 32,
+            },
+        ),
+        // Small sizes: the root capacity and the frontier overflow.
+        (
+            "small",
+            Params::new(6, 2, 8, 2).unwrap(),
+            FetchSizes {
+                roots: 3,
+                frontier: 4,
+            },
+        ),
+    ]
+}
+
+/// A soup hierarchy `id` of `n` triangles in the scene's `2^-3` corner.
+fn soup(p: &Params, id: u8, n: usize, size: f32, seed: u64) -> Option<Hierarchy> {
+    let mesh = random_soup(n, size, seed);
+    let (lo, hi) = mesh.bounds();
+    let grid = GridMap {
+        origin: GridMap::fit(lo, hi, p).origin * 0.0,
+        unit: 1.0 / (p.scene_edge() >> 3) as f64,
+    };
+    let h = build(&mesh, &grid, p, id).ok()?;
+    let cap = p.index_capacity() as usize;
+    (h.nodes.len() < cap && h.refs.len() < cap).then_some(h)
+}
+
+/// A random translation of `h`: mostly at or above its top, inside the
+/// scene; sometimes past the edge or below the top (errors).
+fn random_translation(rng: &mut SplitMix64, h: &Hierarchy) -> Translation {
+    let top = h.top_lod;
+    let p = &h.params;
+    let lod = if rng.below(20) == 0 && top < p.max_lod {
+        top + 1
+    } else {
+        rng.below(top as u64 + 1) as u8
+    };
+    let t = [0, 1, 2].map(|a| {
+        let shift = top - lod;
+        let (mut lo, mut hi) = (i64::MAX, i64::MIN);
+        for n in h.roots() {
+            let c = [n.voxel.x, n.voxel.y, n.voxel.z][a] as i64 >> shift;
+            lo = lo.min(c);
+            hi = hi.max(c);
+        }
+        let room_hi = (1i64 << lod) - 1 - hi;
+        if rng.below(25) == 0 {
+            room_hi + 1
+        } else if room_hi + lo <= 0 {
+            0
+        } else {
+            rng.range_i64(-lo, room_hi)
+        }
+    });
+    Translation { lod, t }
+}
+
+/// `h` with one random defect (or none), and the sizes' limits in play.
+fn corrupt(rng: &mut SplitMix64, h: &Hierarchy) -> Hierarchy {
+    let mut h = h.clone();
+    let p = h.params;
+    let n = h.nodes.len();
+    let pick = rng.below(n as u64) as usize;
+    match rng.below(16) {
+        0 => h.nodes[pick].voxel.lod = (h.nodes[pick].voxel.lod + 1).min(p.max_lod),
+        1 => {
+            let lod = h.nodes[pick].voxel.lod;
+            if lod < p.max_lod {
+                h.nodes[pick].voxel.x = 1 << lod;
+            }
+        }
+        2 if p.quant_bits > 0 => {
+            h.nodes[pick].lo[1] = 1;
+            h.nodes[pick].hi[1] = 0;
+        }
+        3 => h.nodes[pick].count = 0,
+        4 if !h.nodes[pick].leaf => h.nodes[pick].count = h.refs.len() as u32,
+        5 if !h.refs.is_empty() => {
+            let j = rng.below(h.refs.len() as u64) as usize;
+            h.refs[j].hier = ((h.id as u64 + 1) % p.hier_capacity()) as u8;
+        }
+        6 if !h.refs.is_empty() => {
+            let j = rng.below(h.refs.len() as u64) as usize;
+            h.refs[j].node = n as u32 + rng.below(3) as u32;
+        }
+        7 if h.refs.len() >= 2 => {
+            let j = rng.below(h.refs.len() as u64 - 1) as usize;
+            h.refs.swap(j, j + 1);
+        }
+        8 => h.root_count = if rng.below(2) == 0 { 0 } else { n as u32 + 1 },
+        // Every node a root: LOD errors, or more roots than the sorter holds.
+        9 => h.root_count = n as u32,
+        _ => {}
+    }
+    h
+}
+
+/// What the stimulus reached.
+#[derive(Default, Debug)]
+struct Seen {
+    inputs: usize,
+    cmds: usize,
+    codes: [usize; 15],
+    out_beats: usize,
+    leaf_beats: usize,
+    node_reads: usize,
+    ref_reads: usize,
+}
+
+/// Random fetches: soups of 1 to `most` triangles, random translations,
+/// corrupted half the time, each with 1 to 4 commands at random levels.
+fn random_fetches(
+    p: &Params,
+    sizes: FetchSizes,
+    seed: u64,
+    cmds: usize,
+    most: usize,
+) -> Vec<FetchTransaction> {
+    let mut rng = SplitMix64(seed);
+    let mut out = Vec::new();
+    let mut pool: Vec<Hierarchy> = Vec::new();
+    let mut sent = 0;
+    while sent < cmds {
+        if pool.len() < 24 || rng.below(8) == 0 {
+            let n = 1 + rng.below(most as u64) as usize;
+            let size = [0.01, 0.05, 0.2][rng.below(3) as usize];
+            let id = rng.below(p.hier_capacity()) as u8;
+            if let Some(h) = soup(p, id, n, size, rng.next_u64()) {
+                if pool.len() >= 24 {
+                    let at = rng.below(pool.len() as u64) as usize;
+                    pool[at] = h;
+                } else {
+                    pool.push(h);
+                }
+            }
+            continue;
+        }
+        let h = &pool[rng.below(pool.len() as u64) as usize];
+        let t = random_translation(&mut rng, h);
+        let h = if rng.below(2) == 0 {
+            corrupt(&mut rng, h)
+        } else {
+            h.clone()
+        };
+        let entry = if rng.below(40) == 0 {
+            0
+        } else {
+            pack_entry(Some(&t), p)
+        };
+        let deepest = h.nodes.iter().map(|n| n.voxel.lod).max().unwrap_or(0);
+        let k = 1 + rng.below(4) as usize;
+        let list: Vec<FetchCmd> = (0..k)
+            .map(|i| FetchCmd {
+                lod: (h.top_lod as u64 + rng.below((deepest - h.top_lod) as u64 + 3))
+                    .saturating_sub(1)
+                    .min(p.max_lod as u64) as u8,
+                send_refs: rng.below(2) == 0,
+                send_leaves: rng.below(3) != 0,
+                last: i + 1 == k,
+            })
+            .collect();
+        sent += k;
+        out.push(fetch_transaction(&h, entry, &list, sizes).expect("representable"));
+    }
+    out
+}
+
+fn bits(b: golden::layout::Bits) -> Vec<BitVec> {
+    vec![bitvec(&b)]
+}
+
+/// Index `v` as an `I`-bit beat.
+fn index_beat(v: u32, width: u32) -> Vec<BitVec> {
+    let mut b = golden::layout::Bits::zero(width);
+    b.set(
+        &golden::layout::Field {
+            name: "index",
+            offset: 0,
+            width,
+        },
+        v as u64,
+    )
+    .unwrap();
+    bits(b)
+}
+
+/// The streams of a list of fetches.
+fn streams(p: &Params, txs: &[FetchTransaction]) -> (Vec<StreamBeats>, Vec<StreamBeats>, Seen) {
+    let l = FetchLayout::new(p);
+    let mut s: [Vec<Vec<BitVec>>; 8] = Default::default();
+    let mut seen = Seen::default();
+    for tx in txs {
+        seen.inputs += 1;
+        seen.cmds += tx.cmds.len();
+        s[0].push(bits(tx.cfg.pack(&l).unwrap()));
+        s[1].extend(tx.cmds.iter().map(|c| bits(c.pack(&l).unwrap())));
+        s[2].extend(tx.node_resps.iter().map(|r| bits(r.pack(&l.node).unwrap())));
+        s[3].extend(
+            tx.ref_resps
+                .iter()
+                .map(|r: &Reference| bits(r.pack(&l.reference).unwrap())),
+        );
+        s[4].extend(tx.node_reqs.iter().map(|&i| index_beat(i, l.index_width)));
+        s[5].extend(tx.ref_reqs.iter().map(|&i| index_beat(i, l.index_width)));
+        s[6].extend(tx.out.iter().map(|o| bits(o.pack(&l).unwrap())));
+        s[7].extend(tx.leaves.iter().map(|o| bits(o.pack(&l).unwrap())));
+        for o in &tx.out {
+            if let FetchOut::Error { code, .. } = o {
+                seen.codes[*code as usize] += 1;
+            }
+        }
+        seen.out_beats += tx.out.len();
+        seen.leaf_beats += tx.leaves.len();
+        seen.node_reads += tx.node_reqs.len();
+        seen.ref_reads += tx.ref_reqs.len();
+    }
+    let names = [
+        "cfg",
+        "cmd",
+        "node_resp",
+        "ref_resp",
+        "node_req",
+        "ref_req",
+        "out",
+        "leaves",
+    ];
+    let mut all: Vec<StreamBeats> = names
+        .iter()
+        .zip(s)
+        .map(|(n, beats)| StreamBeats {
+            name: n.to_string(),
+            beats,
+        })
+        .collect();
+    let outs = all.split_off(4);
+    (all, outs, seen)
+}
+
+fn bench(
+    engine: &mut dyn cosim::Engine,
+    ins: &[StreamBeats],
+    outs: &[StreamBeats],
+    seed: u64,
+    stall: f64,
+    what: &str,
+) -> MultiReport {
+    let config = BenchConfig {
+        seed,
+        in_stall: stall,
+        out_stall: stall,
+        ..BenchConfig::default()
+    };
+    let r = run_multi_stream_bench(engine, ins, outs, &config).expect("the bench runs");
+    eprint!("{what}: stall {stall:.2}: {r}");
+    assert!(r.passed(), "{what} stall {stall}:\n{r}");
+    r
+}
+
+/// The same run inside one Icarus `vvp` (`cosim::icarus::IcarusMultiBatch`).
+fn batch_bench(
+    design: &cosim::Design,
+    ins: &[StreamBeats],
+    outs: &[StreamBeats],
+    seed: u64,
+    stall: f64,
+    what: &str,
+) -> MultiReport {
+    let names = |s: &[StreamBeats]| s.iter().map(|b| b.name.clone()).collect::<Vec<_>>();
+    let (i, o) = (names(ins), names(outs));
+    let i: Vec<&str> = i.iter().map(String::as_str).collect();
+    let o: Vec<&str> = o.iter().map(String::as_str).collect();
+    let batch = cosim::icarus::IcarusMultiBatch::new(design, &i, &o).expect("iverilog build");
+    let config = BenchConfig {
+        seed,
+        in_stall: stall,
+        out_stall: stall,
+        ..BenchConfig::default()
+    };
+    let r = batch
+        .run(ins, outs, &config)
+        .expect("the batch runs")
+        .report;
+    eprint!("{what}: stall {stall:.2}: {r}");
+    assert!(r.passed(), "{what} stall {stall}:\n{r}");
+    r
+}
+
+/// Commands per bench run: longer runs go in chunks of fresh stimulus.
+///
+/// Verilator runs: 100,000 commands at the small configuration; the larger
+/// grids fit fewer in about 60 s of wall each (measured at 100,000: default
+/// 168 s, D = 31 209 s, Q = 0 99 s, small 26 s, most of it the stimulus and
+/// 60-80 million cycles), so 40,000 (default), 30,000 (D = 31), 60,000 (Q = 0).
+const CHUNK: usize = 10_000;
+
+/// Random fetches on each engine of `runs` (engine, commands), in chunks.
+fn check(name: &str, runs: &[(&str, usize)], most: usize) {
+    let all = configs();
+    let i = all.iter().position(|c| c.0 == name).unwrap();
+    let (_, p, sizes) = all[i];
+    let dir = tempfile::tempdir().unwrap();
+    let m = rtl_gen::merge::fetcher_unit(&p, &sizes);
+    let design = design_of(&m, dir.path());
+    for &(kind, cmds) in runs {
+        let mut codes = [0usize; 15];
+        let (mut total, mut chunk) = (0, 0u64);
+        let (mut beats, mut cycles, mut wall) = (0usize, 0u64, 0.0f64);
+        let mut e = (kind != "iverilog").then(|| engine(kind, &m, &design));
+        while total < cmds {
+            let n = CHUNK.min(cmds - total);
+            let seed = 0xfe7c + 0x100 * i as u64 + chunk;
+            let stall = stall_of(seed ^ kind.len() as u64).max(0.05);
+            let txs = random_fetches(&p, sizes, seed, n, most);
+            let (ins, outs, seen) = streams(&p, &txs);
+            let what = format!("merge_fetcher {name} {kind} chunk {chunk}");
+            let r = match e.as_mut() {
+                Some(e) => bench(e.as_mut(), &ins, &outs, seed, stall, &what),
+                None => batch_bench(&design, &ins, &outs, seed, stall, &what),
+            };
+            for (c, k) in codes.iter_mut().zip(seen.codes) {
+                *c += k;
+            }
+            total += seen.cmds;
+            beats += seen.out_beats + seen.leaf_beats + seen.node_reads + seen.ref_reads;
+            cycles += r.cycles;
+            wall += r.wall.as_secs_f64();
+            chunk += 1;
+        }
+        println!(
+            "fetcher {name} {kind}: {total} commands, {beats} beats (out, leaves, requests), {cycles} cycles, {wall:.1} s wall; error codes {codes:?}"
+        );
+        // The sizes' limits only in the small configuration.
+        let needed: Vec<u64> = (fetch_err::ENTRY..=fetch_err::ORDER)
+            .filter(|&c| {
+                name == "small" || !matches!(c, fetch_err::ROOT_CAPACITY | fetch_err::FRONTIER)
+            })
+            .collect();
+        if total >= 2_000 {
+            for c in needed {
+                assert!(
+                    codes[c as usize] > 0,
+                    "{name} {kind}: code {c} never reached: {codes:?}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn fetcher_default_matches_golden() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
+    }
+    check(
+        "default",
+        &[("ir", 500), ("verilator", 40_000), ("iverilog", 300)],
+        12,
+    );
+}
+
+#[test]
+fn fetcher_d31_matches_golden() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
+    }
+    check(
+        "d31",
+        &[("ir", 300), ("verilator", 30_000), ("iverilog", 200)],
+        12,
+    );
+}
+
+#[test]
+fn fetcher_q0_matches_golden() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
+    }
+    check(
+        "q0",
+        &[("ir", 500), ("verilator", 60_000), ("iverilog", 300)],
+        12,
+    );
+}
+
+#[test]
+fn fetcher_small_sizes_matches_golden() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
+    }
+    check(
+        "small",
+        &[("ir", 500), ("verilator", 100_000), ("iverilog", 300)],
+        8,
+    );
+}
+
+/// Out beats per cycle with no back-pressure and a memory that answers
+/// every clock, on error-free walks of larger soups (Verilator cycles).
+#[test]
+fn fetcher_throughput_without_back_pressure() {
+    if !tools_present(&["verilator"]) {
+        return;
+    }
+    for (name, p, sizes) in configs().into_iter().take(3) {
+        let dir = tempfile::tempdir().unwrap();
+        let m = rtl_gen::merge::fetcher_unit(&p, &sizes);
+        let design = design_of(&m, dir.path());
+        let mut txs = Vec::new();
+        for s in 0..6u64 {
+            let Some(h) = soup(&p, 1, 40 + 20 * s as usize, 0.2, 100 + s) else {
+                continue;
+            };
+            let t = Translation::zero(h.top_lod);
+            let deepest = h.nodes.iter().map(|n| n.voxel.lod).max().unwrap();
+            let cmds: Vec<FetchCmd> = (h.top_lod..=deepest)
+                .map(|l| FetchCmd {
+                    lod: l,
+                    send_refs: true,
+                    send_leaves: true,
+                    last: l == deepest,
+                })
+                .collect();
+            if let Ok(tx) = fetch_transaction(&h, pack_entry(Some(&t), &p), &cmds, sizes) {
+                if tx.out.iter().all(|o| matches!(o, FetchOut::Beat(_))) {
+                    txs.push(tx);
+                }
+            }
+        }
+        assert!(!txs.is_empty());
+        let (ins, outs, seen) = streams(&p, &txs);
+        let mut e = engine("verilator", &m, &design);
+        let r = bench(
+            e.as_mut(),
+            &ins,
+            &outs,
+            1,
+            0.0,
+            &format!("fetcher {name} rate"),
+        );
+        let c = r.cycles as f64;
+        println!(
+            "fetcher {name} throughput: {} commands, {} out beats in {} cycles: {:.4} out beats/cycle; {} node reads, {} ref reads ({:.3} reads/cycle)",
+            seen.cmds,
+            seen.out_beats,
+            r.cycles,
+            seen.out_beats as f64 / c,
+            seen.node_reads,
+            seen.ref_reads,
+            (seen.node_reads + seen.ref_reads) as f64 / c
+        );
+    }
+}
+
+/// `verilator --lint-only -Wall` with zero warnings on the Verilog of `design`.
+fn lint_only(design: &cosim::Design) {
+    let files: Vec<String> = design
+        .verilog_files
+        .iter()
+        .map(|f| f.display().to_string())
+        .collect();
+    let out = std::process::Command::new("verilator")
+        .args(["--lint-only", "-Wall", "--top-module", &design.top])
+        .args(&files)
+        .output()
+        .expect("verilator runs");
+    let text =
+        String::from_utf8_lossy(&out.stderr).to_string() + &String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && text.trim().is_empty(),
+        "verilator lint of {}:\n{text}",
+        design.top
+    );
+}
+
+/// Every configuration lints clean; Q = 0 and the small one also go
+/// through Yosys `synth` with no latch (the same logic at every size; the
+/// default and D = 31 pass too, in about 55 s and 50 s, mostly the frontier
+/// FIFO's flops: too long for every run).
+#[test]
+fn fetcher_verilog_lints_and_synthesizes() {
+    if !tools_present(&["verilator", "yosys"]) {
+        return;
+    }
+    for (name, p, sizes) in configs() {
+        let t = std::time::Instant::now();
+        let dir = tempfile::tempdir().unwrap();
+        let m = rtl_gen::merge::fetcher_unit(&p, &sizes);
+        let warnings = m.validate_design().expect("valid");
+        assert!(warnings.is_empty(), "{name}: {warnings:?}");
+        let design = design_of(&m, dir.path());
+        if p.max_lod <= 8 {
+            lint_and_synth(&design);
+        } else {
+            lint_only(&design);
+        }
+        println!(
+            "fetcher {name}: lint (and synthesis) in {:.1?}",
+            t.elapsed()
+        );
+    }
+}

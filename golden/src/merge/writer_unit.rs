@@ -13,12 +13,10 @@
 //!   level order (Morton, stable), each node's references in order; then
 //!   `End`. At one merging level this is S614's order; per-node merging
 //!   (8.5) makes created nodes at several LODs and its driver sorts them so.
-//! - out `node_req` / in `node_resp`: the store read of a reused inner node
-//!   at the top (materialized): the request is its reference, the response
-//!   its stored record.
 //! - out `ref_req` / in `ref_resp`: the store read of a materialized root's
-//!   references: the request is `(input id, index into its refs)`, the
-//!   response the stored reference.
+//!   references (a reused inner node at the top, whose level beat carries
+//!   its stored `first` and `count`, 8.3): the request is `(input id, index
+//!   into its refs)`, the response the stored reference.
 //! - out `nodes`: the merged hierarchy's records in store order; out `refs`:
 //!   its references in order; out `header`: one beat per merge.
 
@@ -27,9 +25,16 @@ use super::builder_unit::{builder_transaction, level_out_kind, BuilderLayout, Bu
 use super::error::MergeError;
 use super::level_merge::{BaseKind, BaseNode};
 use super::upper::{base_by_lod, build_upper};
+use crate::build::{build, GridMap};
 use crate::layout::{Bits, Field, LayoutError, NodeLayout, RefLayout};
+use crate::merge::level::candidate_range;
+use crate::merge::level_merge::LevelMergeCounts;
+use crate::merge::per_node::{PerNode, PerNodeCounts};
+use crate::merge::walk::{collect, walk_input, WalkedInput};
 use crate::params::Params;
-use crate::store::{Hierarchy, NodeRecord, Reference};
+use crate::scenes::random_soup;
+use crate::store::{Hierarchy, HierarchyStore, NodeRecord, Reference};
+use crate::translate::{Translation, TranslationTable};
 
 /// Error codes of the header's `err` field, in priority order (the
 /// smallest non-zero code that applies is reported).
@@ -82,8 +87,8 @@ fn field_at(name: &'static str, offset: u32, width: u32) -> Field {
 /// - `cfg`: `out_id` (H).
 /// - `level{d}`, `done`: [`BuilderLayout`].
 /// - `crefs`: `ref` (I + H), `end` (1).
-/// - `node_req`, `ref_req`, `ref_resp`, `refs`: a reference (I + H);
-///   `node_resp`, `nodes`: a node record (W).
+/// - `ref_req`, `ref_resp`, `refs`: a reference (I + H); `nodes`: a node
+///   record (W).
 /// - `header`: `out_id` (H), `top` (lod bits), `roots`, `nodes`, `refs`
 ///   (I + 1 each: a count up to `2^I`), `err` (3, [`writer_err`]).
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -220,8 +225,6 @@ pub struct WriterTransaction {
     /// writer's `level{d}` and `done` in beats.
     pub builder: BuilderTransaction,
     pub crefs: Vec<CrefBeat>,
-    pub node_reqs: Vec<Reference>,
-    pub node_resps: Vec<NodeRecord>,
     pub ref_reqs: Vec<Reference>,
     pub ref_resps: Vec<Reference>,
     pub nodes: Vec<NodeRecord>,
@@ -288,12 +291,15 @@ fn fill_code(b: &BuilderTransaction, created_refs: usize, capacity: u64) -> u64 
     }
 }
 
-/// The reused nodes at the top (materialized roots), in level order.
-fn top_reused(b: &BuilderTransaction) -> Vec<Reference> {
+/// The reused nodes at the top (materialized roots), in level order: where
+/// each is stored and its record as the level beat carries it.
+fn top_reused(b: &BuilderTransaction) -> Vec<(Reference, NodeRecord)> {
     b.levels[b.done.top as usize]
         .iter()
         .filter_map(|beat| match beat {
-            LevelOut::Node { kind, at, .. } if *kind == level_out_kind::REUSED => Some(*at),
+            LevelOut::Node {
+                kind, at, record, ..
+            } if *kind == level_out_kind::REUSED => Some((*at, *record)),
             _ => None,
         })
         .collect()
@@ -329,8 +335,6 @@ pub fn writer_transaction(
     let mut tx = WriterTransaction {
         out_id,
         crefs,
-        node_reqs: Vec::new(),
-        node_resps: Vec::new(),
         ref_reqs: Vec::new(),
         ref_resps: Vec::new(),
         nodes: Vec::new(),
@@ -343,16 +347,24 @@ pub fn writer_transaction(
         tx.header.err = code;
         return Ok(tx);
     }
-    // The store pass: every reused node at the top is read.
-    tx.node_reqs = top_reused(&tx.builder);
-    tx.node_resps = tx
-        .node_reqs
-        .iter()
-        .map(|at| stored_node(inputs, at))
-        .collect::<Result<_, _>>()?;
+    // A materialized root's references are read from the store at the
+    // `first` / `count` its beat carries: the stored ones (8.3).
+    let roots = top_reused(&tx.builder);
+    for (at, beat) in &roots {
+        let rec = stored_node(inputs, at)?;
+        if (rec.first, rec.count) != (beat.first, beat.count) {
+            return Err(MergeError::BadInput {
+                input: at.hier,
+                node: Some(at.node),
+                field: "first/count",
+                expected: format!("the stored ({}, {})", rec.first, rec.count),
+                found: format!("({}, {}) in the base", beat.first, beat.count),
+            });
+        }
+    }
     match build_upper(base, inputs, p, out_id) {
         Ok((h, _)) => {
-            for (at, rec) in tx.node_reqs.iter().zip(&tx.node_resps) {
+            for (at, rec) in &roots {
                 let input = stored(inputs, at)?;
                 for k in rec.first..rec.first + rec.count {
                     tx.ref_reqs.push(Reference {
@@ -407,10 +419,11 @@ pub fn random_case(
             BaseKind::Created { refs } => b.record.count = refs.len() as u32,
             BaseKind::Reused { at } if !b.record.leaf => {
                 let h = &inputs[rng.below(inputs.len() as u64) as usize];
-                *at = Reference {
-                    hier: h.id,
-                    node: rng.below(per_input as u64) as u32,
-                };
+                let node = rng.below(per_input as u64) as u32;
+                *at = Reference { hier: h.id, node };
+                // A reused node's record carries its stored first/count.
+                b.record.first = h.nodes[node as usize].first;
+                b.record.count = h.nodes[node as usize].count;
             }
             BaseKind::Reused { .. } => {}
         }
@@ -456,20 +469,115 @@ fn synthetic_input(
     }
 }
 
+/// A soup hierarchy `id` of `n` triangles in the scene's `2^-3` corner.
+pub fn soup(p: &Params, id: u8, n: usize, size: f32, seed: u64) -> Hierarchy {
+    let mesh = random_soup(n, size, seed);
+    let (lo, hi) = mesh.bounds();
+    let fitted = GridMap::fit(lo, hi, p);
+    let grid = GridMap {
+        origin: fitted.origin * 0.0,
+        unit: 1.0 / (p.scene_edge() >> 3) as f64,
+    };
+    build(&mesh, &grid, p, id).expect("the soup builds")
+}
+
+/// A translation at `h`'s top LOD by `frac` of the room left.
+pub fn place(h: &Hierarchy, frac: [f64; 3]) -> Translation {
+    let l = h.top_lod;
+    let max = [0, 1, 2].map(|a| {
+        h.roots()
+            .iter()
+            .map(|n| [n.voxel.x, n.voxel.y, n.voxel.z][a] as i64)
+            .max()
+            .unwrap()
+    });
+    let room = [0, 1, 2].map(|a| (1i64 << l) - 1 - max[a]);
+    Translation {
+        lod: l,
+        t: [0, 1, 2].map(|a| (room[a] as f64 * frac[a]) as i64),
+    }
+}
+
+/// S610-S614 in per-node mode (8.5) as `merge` runs them: the reused
+/// leaves above `lo`, then the per-node decider's base (created and reused
+/// nodes at several LODs).
+pub fn per_node_base(
+    inputs: &[(&Hierarchy, Translation)],
+    num: u32,
+    den: u32,
+    p: &Params,
+) -> Result<Vec<BaseNode>, MergeError> {
+    let hs: Vec<&Hierarchy> = inputs.iter().map(|(h, _)| *h).collect();
+    let ts: Vec<Translation> = inputs.iter().map(|(_, t)| *t).collect();
+    let (lo, _) = candidate_range(&hs);
+    let walked: Vec<WalkedInput> = inputs
+        .iter()
+        .enumerate()
+        .map(|(r, (h, t))| walk_input(h, r as u16, t, lo).unwrap())
+        .collect();
+    let (above, first) = collect(&walked, lo);
+    let mut base: Vec<BaseNode> = above.iter().map(BaseNode::reused).collect();
+    let decider = PerNode {
+        inputs: &hs,
+        translations: &ts,
+        params: *p,
+        num,
+        den,
+    };
+    let mut counts = LevelMergeCounts::default();
+    base.extend(decider.merge_from(first, &mut counts, &mut PerNodeCounts::default())?);
+    Ok(base)
+}
+
+/// Real merges for the writer's tests (golden here, RTL in cosim): stored soups: overlapping, disjoint, single-triangle inputs with a
+/// big one; the store, the table and the input ids of each case.
+pub fn real_cases(p: &Params) -> Vec<(HierarchyStore, TranslationTable, Vec<u8>)> {
+    let same = [0.4, 0.5, 0.6];
+    let hs: Vec<Hierarchy> = (1..=3).map(|i| soup(p, i, 60, 0.2, i as u64)).collect();
+    let overlapping: Vec<(Hierarchy, Translation)> =
+        hs.iter().map(|h| (h.clone(), place(h, same))).collect();
+    let disjoint: Vec<(Hierarchy, Translation)> = hs
+        .iter()
+        .enumerate()
+        .map(|(i, h)| {
+            let f = [0.1 + 0.3 * i as f64, 0.9 - 0.3 * i as f64, 0.3];
+            (h.clone(), place(h, f))
+        })
+        .collect();
+    let mut single: Vec<(Hierarchy, Translation)> = (1..=2)
+        .map(|i| {
+            let h = soup(p, i, 1, 0.001, 10 + i as u64);
+            let t = place(&h, if i < 2 { same } else { [0.9, 0.1, 0.2] });
+            (h, t)
+        })
+        .collect();
+    let big = soup(p, 3, 80, 0.3, 99);
+    single.push((big.clone(), place(&big, same)));
+    // One input alone: its root is reused at the top (materialized).
+    let alone = vec![(big.clone(), place(&big, same))];
+    [overlapping, disjoint, single, alone]
+        .into_iter()
+        .map(|case| {
+            let mut store = HierarchyStore::new();
+            let mut table = TranslationTable::new(p.hier_capacity() as usize, p).unwrap();
+            let ids = case.iter().map(|(h, _)| h.id).collect();
+            for (h, t) in case {
+                table.write(h.id as u32, t).unwrap();
+                store.insert(h).unwrap();
+            }
+            (store, table, ids)
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::build::{build, GridMap};
     use crate::merge::builder_unit::fixed_level_base;
     use crate::merge::level::candidate_range;
-    use crate::merge::level_merge::LevelMergeCounts;
-    use crate::merge::per_node::{PerNode, PerNodeCounts};
-    use crate::merge::walk::{collect, walk_input};
     use crate::merge::{merge, MergeMode};
-    use crate::scenes::random_soup;
-    use crate::store::HierarchyStore;
     use crate::translate::stimulus::SplitMix64;
-    use crate::translate::{Translation, TranslationTable};
+    use crate::translate::Translation;
 
     /// 8.11's "What the writer adds", read off the in beats alone (the
     /// level beats, `done`, `crefs` and the store's responses): a second
@@ -510,7 +618,7 @@ mod tests {
             })
             .collect();
         let (mut nodes, mut refs) = (Vec::new(), Vec::new());
-        let (mut cref, mut mat) = (0usize, 0usize);
+        let mut cref = 0usize;
         let mut mat_refs = tx.ref_resps.iter();
         for d in top..levels.len() {
             let mut child = 0usize;
@@ -539,10 +647,8 @@ mod tests {
                         rec.count
                     }
                     _ => {
-                        let count = tx.node_resps[mat].count;
-                        mat += 1;
-                        refs.extend(mat_refs.by_ref().take(count as usize));
-                        count
+                        refs.extend(mat_refs.by_ref().take(rec.count as usize));
+                        rec.count
                     }
                 };
                 nodes.push(NodeRecord {
@@ -554,108 +660,6 @@ mod tests {
             }
         }
         (nodes, refs)
-    }
-
-    fn soup(p: &Params, id: u8, n: usize, size: f32, seed: u64) -> Hierarchy {
-        let mesh = random_soup(n, size, seed);
-        let (lo, hi) = mesh.bounds();
-        let fitted = GridMap::fit(lo, hi, p);
-        let grid = GridMap {
-            origin: fitted.origin * 0.0,
-            unit: 1.0 / (p.scene_edge() >> 3) as f64,
-        };
-        build(&mesh, &grid, p, id).expect("the soup builds")
-    }
-
-    /// A translation at `h`'s top LOD by `frac` of the room left.
-    fn place(h: &Hierarchy, frac: [f64; 3]) -> Translation {
-        let l = h.top_lod;
-        let max = [0, 1, 2].map(|a| {
-            h.roots()
-                .iter()
-                .map(|n| [n.voxel.x, n.voxel.y, n.voxel.z][a] as i64)
-                .max()
-                .unwrap()
-        });
-        let room = [0, 1, 2].map(|a| (1i64 << l) - 1 - max[a]);
-        Translation {
-            lod: l,
-            t: [0, 1, 2].map(|a| (room[a] as f64 * frac[a]) as i64),
-        }
-    }
-
-    /// S610-S614 in per-node mode as `merge` runs them.
-    fn per_node_base(
-        inputs: &[(&Hierarchy, Translation)],
-        num: u32,
-        den: u32,
-        p: &Params,
-    ) -> Vec<BaseNode> {
-        let hs: Vec<&Hierarchy> = inputs.iter().map(|(h, _)| *h).collect();
-        let ts: Vec<Translation> = inputs.iter().map(|(_, t)| *t).collect();
-        let (lo, _) = candidate_range(&hs);
-        let walked: Vec<_> = inputs
-            .iter()
-            .enumerate()
-            .map(|(r, (h, t))| walk_input(h, r as u16, t, lo).unwrap())
-            .collect();
-        let (above, first) = collect(&walked, lo);
-        let mut base: Vec<BaseNode> = above.iter().map(BaseNode::reused).collect();
-        let decider = PerNode {
-            inputs: &hs,
-            translations: &ts,
-            params: *p,
-            num,
-            den,
-        };
-        let mut counts = LevelMergeCounts::default();
-        base.extend(
-            decider
-                .merge_from(first, &mut counts, &mut PerNodeCounts::default())
-                .unwrap(),
-        );
-        base
-    }
-
-    /// Stored soups: overlapping, disjoint, single-triangle inputs with a
-    /// big one; the store, the table and the input ids of each case.
-    fn real_cases(p: &Params) -> Vec<(HierarchyStore, TranslationTable, Vec<u8>)> {
-        let same = [0.4, 0.5, 0.6];
-        let hs: Vec<Hierarchy> = (1..=3).map(|i| soup(p, i, 60, 0.2, i as u64)).collect();
-        let overlapping: Vec<(Hierarchy, Translation)> =
-            hs.iter().map(|h| (h.clone(), place(h, same))).collect();
-        let disjoint: Vec<(Hierarchy, Translation)> = hs
-            .iter()
-            .enumerate()
-            .map(|(i, h)| {
-                let f = [0.1 + 0.3 * i as f64, 0.9 - 0.3 * i as f64, 0.3];
-                (h.clone(), place(h, f))
-            })
-            .collect();
-        let mut single: Vec<(Hierarchy, Translation)> = (1..=2)
-            .map(|i| {
-                let h = soup(p, i, 1, 0.001, 10 + i as u64);
-                let t = place(&h, if i < 2 { same } else { [0.9, 0.1, 0.2] });
-                (h, t)
-            })
-            .collect();
-        let big = soup(p, 3, 80, 0.3, 99);
-        single.push((big.clone(), place(&big, same)));
-        // One input alone: its root is reused at the top (materialized).
-        let alone = vec![(big.clone(), place(&big, same))];
-        [overlapping, disjoint, single, alone]
-            .into_iter()
-            .map(|case| {
-                let mut store = HierarchyStore::new();
-                let mut table = TranslationTable::new(p.hier_capacity() as usize, p).unwrap();
-                let ids = case.iter().map(|(h, _)| h.id).collect();
-                for (h, t) in case {
-                    table.write(h.id as u32, t).unwrap();
-                    store.insert(h).unwrap();
-                }
-                (store, table, ids)
-            })
-            .collect()
     }
 
     /// What the real merges reached.
@@ -687,7 +691,7 @@ mod tests {
                 .collect();
             for (num, den) in [(0, 1), (1, 4), (1, 2)] {
                 let mode = MergeMode::PerNode { num, den };
-                runs.push((mode, per_node_base(&inputs, num, den, p)));
+                runs.push((mode, per_node_base(&inputs, num, den, p).unwrap()));
             }
             for (mode, base) in runs {
                 let tx = writer_transaction(&base, &hs, p, 12, out_id).unwrap();
@@ -751,7 +755,7 @@ mod tests {
                     assert_eq!(tx.header.nodes, tx.nodes.len() as u64);
                     assert_eq!(tx.header.refs, tx.refs.len() as u64);
                     assert_eq!(tx.ref_reqs.len(), tx.ref_resps.len());
-                    materialized += !tx.node_reqs.is_empty() as usize;
+                    materialized += !tx.ref_reqs.is_empty() as usize;
                     several_roots += (tx.header.roots > 1) as usize;
                 } else {
                     assert!(tx.nodes.is_empty() && tx.refs.is_empty() && tx.ref_reqs.is_empty());

@@ -1,0 +1,500 @@
+//! S618 in hardware (SPEC.md section 8.12): the record writer. It takes the
+//! upper builder's level streams (8.11) and the created nodes' references,
+//! buffers every level in its own memory while the builder streams, and once
+//! the top is known lays out the merged hierarchy in the store's format:
+//! records in store order on `nodes`, references on `refs`, one `header`.
+//!
+//! Why buffer: a record's index is its level's offset plus its position,
+//! and a level's offset is the number of records above it, known only when
+//! the top is decided, which the builder does last. Why two sequencers in
+//! the drain: the records and the references are two arrays of the store;
+//! each is written at one word per clock by its own sequencer walking the
+//! same store order (a record's `first` is the running sum of the counts,
+//! which the record sequencer keeps without waiting for the references).
+//!
+//! Why level `d`'s buffer may hold the next merge's beats: the builder
+//! sends level `d` only in merges whose top is at or above `d`, and the
+//! streams are independent, so level `d`'s next sequence belongs to the
+//! next merge whose top is `<= d`. A merge ending with top `t` clears the
+//! levels `d >= t` and leaves the others as they are.
+
+use golden::merge::builder_unit::level_out_kind;
+use golden::merge::writer_unit::{writer_err, CapacityError, WriterLayout};
+use golden::params::Params;
+
+use super::fields::field;
+use crate::{Module, Signal, Stream};
+
+/// Module name of the record writer for `p` with `2^capacity_bits` entries
+/// per level.
+pub fn record_writer_name(p: &Params, capacity_bits: u32) -> String {
+    format!(
+        "record_writer_d{}_q{}_i{}_h{}_c{}",
+        p.max_lod, p.quant_bits, p.index_bits, p.hier_bits, capacity_bits
+    )
+}
+
+/// States of a merge.
+mod state {
+    /// Taking the level streams, `done`, `crefs` and `cfg`.
+    pub const FILL: u64 = 0;
+    /// Writing the records and the references.
+    pub const DRAIN: u64 = 1;
+    /// Sending the header.
+    pub const HEADER: u64 = 2;
+}
+
+/// `vals[d]` for the level index `d` (missing levels read as zero).
+fn by_level<'m>(m: &'m Module, d: Signal<'m>, vals: &[Signal<'m>]) -> Signal<'m> {
+    let w = vals[0].width();
+    let opts: Vec<Signal<'m>> = (0..1usize << d.width())
+        .map(|k| vals.get(k).copied().unwrap_or_else(|| m.lit(0, w)))
+        .collect();
+    d.select(&opts)
+}
+
+/// The 2-bit level-beat kind `k` is `code` ([`level_out_kind`]).
+fn kind_is<'m>(m: &'m Module, k: Signal<'m>, code: u64) -> Signal<'m> {
+    k.eq(m.lit(code as u128, 2))
+}
+
+/// Some `flags[d]` is set at a level where `take[d]`.
+fn any_where<'m>(m: &'m Module, flags: &[Signal<'m>], take: &[Signal<'m>]) -> Signal<'m> {
+    flags
+        .iter()
+        .zip(take)
+        .fold(m.lit(0, 1), |acc, (f, t)| acc | (*f & *t))
+}
+
+/// Sum of `vals[d]` over the levels where `take[d]`, `width` bits.
+fn sum_where<'m>(
+    m: &'m Module,
+    vals: &[Signal<'m>],
+    take: &[Signal<'m>],
+    width: u32,
+) -> Signal<'m> {
+    vals.iter().zip(take).fold(m.lit(0, width), |acc, (v, t)| {
+        acc.add(t.mux(v.zext(width), m.lit(0, width)), width)
+    })
+}
+
+/// A parent's word in the drain: `kind` (2), `count`, `first`, `hier`.
+struct Parent<'m> {
+    kind: Signal<'m>,
+    count: Signal<'m>,
+    first: Signal<'m>,
+    hier: Signal<'m>,
+}
+
+fn parent<'m>(word: Signal<'m>, i: u32) -> Parent<'m> {
+    Parent {
+        kind: word.slice(1, 0),
+        count: word.slice(i + 1, 2),
+        first: word.slice(2 * i + 1, i + 2),
+        hier: word.slice(word.width() - 1, 2 * i + 2),
+    }
+}
+
+/// A node's word for its parent's references: `reused` (1), `ref`, `records`.
+struct Child<'m> {
+    reused: Signal<'m>,
+    refer: Signal<'m>,
+    records: Signal<'m>,
+}
+
+fn child<'m>(word: Signal<'m>, ref_w: u32) -> Child<'m> {
+    Child {
+        reused: word.bit(0),
+        refer: word.slice(ref_w, 1),
+        records: word.slice(word.width() - 1, ref_w + 1),
+    }
+}
+
+/// The record writer for `p` with `2^capacity_bits` entries per level
+/// buffer and for the created nodes' references (`capacity_bits` in
+/// `1..I`). Streams ([`WriterLayout`]): in `cfg`, `level0` .. `level{D}`,
+/// `done`, `crefs`, `ref_resp`; out `ref_req`, `nodes`, `refs`, `header`.
+/// Status outputs: `filling` (taking a merge's beats), `drain_records` /
+/// `drain_refs` (that sequencer has words left to write).
+pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, CapacityError> {
+    let wl = WriterLayout::new(p, capacity_bits)?;
+    let m = Module::new(&record_writer_name(p, capacity_bits));
+    let bl = &wl.builder;
+    let nl = &wl.node;
+    let rl = &wl.reference;
+    let dmax = p.max_lod as usize;
+    let c = capacity_bits;
+    let i = p.index_bits as u32;
+    let h = p.hier_bits as u32;
+    let lb = p.lod_bits();
+    let lit = |v: u64, w: u32| m.lit(v as u128, w);
+    let zero = lit(0, 1);
+    let one = lit(1, 1);
+    let ref_w = rl.width();
+    // A record without `first` and `count`: leaf .. hi_z.
+    let body_w = nl.first().offset;
+    let body_word_w = body_w + i;
+    let parent_w = 2 + 2 * i + h;
+    let child_w = 1 + ref_w + i;
+    // Wide enough for every sum the header checks against 2^I.
+    let nodes_w = i + 7;
+    let refs_w = i + c + 7;
+    let sum_w = i + c + 1;
+
+    let st = m.reg("state", 2);
+    let in_fill = st.eq(lit(state::FILL, 2)).name("in_fill");
+    let in_drain = st.eq(lit(state::DRAIN, 2)).name("in_drain");
+    let in_header = st.eq(lit(state::HEADER, 2)).name("in_header");
+    let header_ready = m.wire("header_in_ready", 1);
+    let clear = (in_header & header_ready).name("merge_clear");
+
+    // cfg: the output id, one beat per merge.
+    let cfg = Stream::input(&m, "cfg", wl.cfg_width);
+    let have_cfg = m.reg("have_cfg", 1);
+    let out_id = m.reg("out_id", h);
+    cfg.ready.drive(!have_cfg);
+    let cfg_fire = cfg.valid & !have_cfg;
+    have_cfg.next(clear.mux(zero, have_cfg | cfg_fire));
+    out_id.next(cfg_fire.mux(field(cfg.data, &wl.cfg_out_id).expect("out_id"), out_id));
+
+    // done: the top.
+    let done = Stream::input(&m, "done", bl.done_width);
+    let have_done = m.reg("have_done", 1);
+    let top = m.reg("top", lb);
+    let done_err = m.reg("done_err", 1);
+    let done_ready = in_fill & !have_done;
+    done.ready.drive(done_ready);
+    let done_fire = done.valid & done_ready;
+    have_done.next(clear.mux(zero, have_done | done_fire));
+    top.next(done_fire.mux(field(done.data, &bl.top).expect("top"), top));
+    done_err.next(done_fire.mux(field(done.data, &bl.done_err).expect("err"), done_err));
+
+    // crefs: the created nodes' references, buffered in arrival order.
+    let crefs = Stream::input(&m, "crefs", wl.cref_width);
+    let crefs_mem = m.memory("crefs_mem", ref_w, 1 << c);
+    let cref_end = m.reg("cref_end", 1);
+    let cref_wptr = m.reg("cref_wptr", c + 1);
+    let cref_cap_err = m.reg("cref_cap_err", 1);
+    let cref_ready = in_fill & !cref_end;
+    crefs.ready.drive(cref_ready);
+    let cref_fire = crefs.valid & cref_ready;
+    let cref_is_end = field(crefs.data, &wl.cref_end).expect("end");
+    let cref_ref_fire = cref_fire & !cref_is_end;
+    let cref_full = cref_wptr.bit(c);
+    crefs_mem.write(
+        cref_wptr.slice(c - 1, 0),
+        field(crefs.data, &wl.cref).expect("ref"),
+        cref_ref_fire & !cref_full,
+    );
+    cref_end.next(clear.mux(zero, cref_end | (cref_fire & cref_is_end)));
+    let wptr_next = cref_full.mux(cref_wptr, cref_wptr.add(1, c + 1));
+    cref_wptr.next(clear.mux(lit(0, c + 1), cref_ref_fire.mux(wptr_next, cref_wptr)));
+    cref_cap_err.next(clear.mux(zero, cref_cap_err | (cref_ref_fire & cref_full)));
+
+    // Per level: five buffers, each holding exactly what one reader takes.
+    // By record slot (`records`), for the levels below the top: a record's
+    // body and count (the record sequencer), its parent word (the
+    // reference sequencer). By position (`index`), for the top, where every
+    // node is a record: the same two words. By position, for the parents
+    // one level up: the child word.
+    let mem = |name: &str, d: usize, w: u32| m.memory(&format!("{name}{d}_mem"), w, 1 << c);
+    let rbody: Vec<_> = (0..=dmax).map(|d| mem("rbody", d, body_word_w)).collect();
+    let nbody: Vec<_> = (0..=dmax).map(|d| mem("nbody", d, body_word_w)).collect();
+    let rpar: Vec<_> = (0..=dmax).map(|d| mem("rpar", d, parent_w)).collect();
+    let npar: Vec<_> = (0..=dmax).map(|d| mem("npar", d, parent_w)).collect();
+    let childm: Vec<_> = (0..=dmax).map(|d| mem("child", d, child_w)).collect();
+    // d >= top and d > top, with the comparisons that are constant (no LOD is
+    // below 0 or above the widest field value) written as constants.
+    let in_merge: Vec<Signal> = (0..=dmax)
+        .map(|d| match d as u64 == (1u64 << lb) - 1 {
+            true => one,
+            false => lit(d as u64, lb).ge(top).name(&format!("l{d}_in_merge")),
+        })
+        .collect();
+    let below_top: Vec<Signal> = (0..=dmax)
+        .map(|d| match d {
+            0 => zero,
+            _ => lit(d as u64, lb).gt(top),
+        })
+        .collect();
+    let mut end_seen = Vec::new();
+    let mut n_nodes = Vec::new();
+    let mut n_records = Vec::new();
+    let mut rec_sum = Vec::new();
+    let mut reused_sum = Vec::new();
+    let mut level_cap_err = Vec::new();
+    let mut level_err = Vec::new();
+    for d in 0..=dmax {
+        let s = Stream::input(&m, &format!("level{d}"), bl.level_width);
+        let seen = m.reg(&format!("l{d}_end_seen"), 1);
+        let n = m.reg(&format!("l{d}_nodes"), c + 1);
+        let r = m.reg(&format!("l{d}_records"), c + 1);
+        let rsum = m.reg(&format!("l{d}_record_counts"), sum_w);
+        let usum = m.reg(&format!("l{d}_reused_counts"), sum_w);
+        let cerr = m.reg(&format!("l{d}_cap_err"), 1);
+        let lerr = m.reg(&format!("l{d}_err"), 1);
+        let ready = in_fill & !seen;
+        s.ready.drive(ready);
+        let fire = s.valid & ready;
+        let kind = field(s.data, &bl.kind).expect("kind");
+        let rec = field(s.data, &bl.rec).expect("rec");
+        let refer = field(s.data, &bl.refer).expect("ref");
+        let index = field(s.data, &bl.index).expect("index");
+        let records = field(s.data, &bl.records).expect("records");
+        let err = field(s.data, &bl.err).expect("err");
+        let count = field(rec, nl.count()).expect("count");
+        let first = field(rec, nl.first()).expect("first");
+        let hier = field(refer, rl.hier()).expect("hier");
+        let is_end = kind_is(&m, kind, level_out_kind::END);
+        let reused = kind_is(&m, kind, level_out_kind::REUSED);
+        let node_fire = fire & !is_end;
+        let fits = index.slice(i - 1, c).eq(lit(0, i - c));
+        let body_word = m.concat(&[count, rec.slice(body_w - 1, 0)]);
+        let parent_word = m.concat(&[hier, first, count, kind]);
+        let child_word = m.concat(&[records, refer, reused]);
+        let slot = records.slice(c - 1, 0);
+        let pos = index.slice(c - 1, 0);
+        let put = node_fire & fits;
+        nbody[d].write(pos, body_word, put);
+        npar[d].write(pos, parent_word, put);
+        childm[d].write(pos, child_word, put);
+        rbody[d].write(slot, body_word, put & !reused);
+        rpar[d].write(slot, parent_word, put & !reused);
+        // A merge with its top at or above d consumes the level.
+        let clear_d = clear & in_merge[d];
+        let end_fire = fire & is_end;
+        seen.next(clear_d.mux(zero, seen | end_fire));
+        n.next(clear_d.mux(lit(0, c + 1), end_fire.mux(index.slice(c, 0), n)));
+        r.next(clear_d.mux(lit(0, c + 1), end_fire.mux(records.slice(c, 0), r)));
+        let counted = count.zext(sum_w);
+        let none = lit(0, sum_w);
+        rsum.next(clear_d.mux(
+            none,
+            rsum.add((node_fire & !reused).mux(counted, none), sum_w),
+        ));
+        usum.next(clear_d.mux(
+            none,
+            usum.add((node_fire & reused).mux(counted, none), sum_w),
+        ));
+        cerr.next(clear_d.mux(zero, cerr | (node_fire & !fits)));
+        lerr.next(clear_d.mux(zero, lerr | (fire & err)));
+        end_seen.push(seen);
+        n_nodes.push(n);
+        n_records.push(r);
+        rec_sum.push(rsum);
+        reused_sum.push(usum);
+        level_cap_err.push(cerr);
+        level_err.push(lerr);
+    }
+
+    // The fill is complete when every level of the merge has ended; then
+    // every count is known and the header's checks are made.
+    let levels_ended = (0..=dmax).fold(one, |acc, d| acc & (end_seen[d] | !in_merge[d]));
+    let fill_done = (in_fill & have_cfg & have_done & cref_end & levels_ended).name("fill_done");
+    let n_top = by_level(&m, top, &n_nodes).name("top_nodes");
+    let nodes_total = n_top
+        .zext(nodes_w)
+        .add(sum_where(&m, &n_records, &below_top, nodes_w), nodes_w)
+        .name("nodes_total");
+    let refs_total = by_level(&m, top, &reused_sum)
+        .zext(refs_w)
+        .add(sum_where(&m, &rec_sum, &in_merge, refs_w), refs_w)
+        .name("refs_total");
+    let limit = |w: u32| m.lit(1u128 << i, w);
+    let overflow = nodes_total.gt(limit(nodes_w)) | refs_total.gt(limit(refs_w));
+    let cap_err = any_where(&m, &level_cap_err, &in_merge) | cref_cap_err;
+    let lev_err = any_where(&m, &level_err, &in_merge);
+    let code = |v: u64| lit(v, 3);
+    let fill_code = done_err.mux(
+        code(writer_err::NO_TOP),
+        cap_err.mux(
+            code(writer_err::CAPACITY),
+            lev_err.mux(
+                code(writer_err::LEVEL_OVERFLOW),
+                overflow.mux(code(writer_err::INDEX_OVERFLOW), code(writer_err::NONE)),
+            ),
+        ),
+    );
+    let fill_ok = fill_code.eq(code(writer_err::NONE)).name("fill_ok");
+    let err_code = m.reg("err_code", 3);
+    let h_roots = m.reg("h_roots", i + 1);
+    let h_nodes = m.reg("h_nodes", i + 1);
+    let h_refs = m.reg("h_refs", i + 1);
+    err_code.next(clear.mux(code(0), fill_done.mux(fill_code, err_code)));
+    h_roots.next(fill_done.mux(n_top.zext(i + 1), h_roots));
+    h_nodes.next(fill_done.mux(nodes_total.slice(i, 0), h_nodes));
+    h_refs.next(fill_done.mux(refs_total.slice(i, 0), h_refs));
+    let drain_start = (fill_done & fill_ok).name("drain_start");
+
+    // Record sequencer: one record per clock in store order; a record's
+    // `first` is the running sum of the counts before it.
+    let rs_d = m.reg("rs_lod", lb);
+    let rs_ptr = m.reg("rs_ptr", c + 1);
+    let rs_first = m.reg("rs_first", i + 1);
+    let rs_done = m.reg("rs_done", 1);
+    let rs_addr = rs_ptr.slice(c - 1, 0);
+    let rs_top = rs_d.eq(top);
+    let rs_len = rs_top.mux(n_top, by_level(&m, rs_d, &n_records));
+    let rs_at_end = rs_ptr.eq(rs_len);
+    let at_top: Vec<Signal> = nbody.iter().map(|b| b.read(rs_addr)).collect();
+    let below: Vec<Signal> = rbody.iter().map(|b| b.read(rs_addr)).collect();
+    let body_word = rs_top.mux(by_level(&m, rs_d, &at_top), by_level(&m, rs_d, &below));
+    let rs_count = body_word.slice(body_word_w - 1, body_w);
+    let record = m.concat(&[
+        rs_count,
+        rs_first.slice(i - 1, 0),
+        body_word.slice(body_w - 1, 0),
+    ]);
+    debug_assert_eq!(record.width(), nl.width());
+    let rs_active = (in_drain & !rs_done).name("rs_active");
+    let nodes_valid = (rs_active & !rs_at_end).name("nodes_in_valid");
+    let nodes_out = Stream {
+        valid: nodes_valid,
+        ready: m.wire("nodes_in_ready", 1),
+        // Masked: an unwritten buffer word reads as X in 4-state simulation.
+        data: nodes_valid.mux(record, lit(0, nl.width())),
+    };
+    let rs_fire = nodes_out.valid & nodes_out.ready;
+    nodes_out.skid_buffer("nodes_skid").output("nodes");
+    let rs_last_level = rs_d.eq(lit(dmax as u64, lb));
+    let rs_step_level = rs_active & rs_at_end & !rs_last_level;
+    let rs_finish = rs_active & rs_at_end & rs_last_level;
+    rs_d.next(drain_start.mux(top, rs_step_level.mux(rs_d.add(1, lb), rs_d)));
+    rs_ptr.next(
+        (drain_start | rs_step_level).mux(lit(0, c + 1), rs_fire.mux(rs_ptr.add(1, c + 1), rs_ptr)),
+    );
+    rs_first.next(drain_start.mux(
+        lit(0, i + 1),
+        rs_fire.mux(rs_first.add(rs_count.zext(i + 1), i + 1), rs_first),
+    ));
+    rs_done.next(clear.mux(zero, rs_done | rs_finish));
+
+    // Reference sequencer: one reference per clock in store order, walking
+    // the parents (the records) and, for a grouped one, the next nodes of
+    // the level below; a created one's come from `crefs`, a materialized
+    // root's from the store (`ref_req` runs ahead of `ref_resp`).
+    let fs_d = m.reg("fs_lod", lb);
+    let fs_ptr = m.reg("fs_ptr", c + 1);
+    let fs_j = m.reg("fs_j", i);
+    let fs_req = m.reg("fs_req", i);
+    let fs_child = m.reg("fs_child", c + 1);
+    let fs_cref = m.reg("fs_cref", c + 1);
+    let fs_off = m.reg("fs_child_offset", i + 1);
+    let fs_done = m.reg("fs_done", 1);
+    let fs_addr = fs_ptr.slice(c - 1, 0);
+    let fs_top = fs_d.eq(top);
+    let fs_len = fs_top.mux(n_top, by_level(&m, fs_d, &n_records));
+    let fs_at_end = fs_ptr.eq(fs_len);
+    let par_top: Vec<Signal> = npar.iter().map(|b| b.read(fs_addr)).collect();
+    let par_below: Vec<Signal> = rpar.iter().map(|b| b.read(fs_addr)).collect();
+    let par = parent(
+        fs_top.mux(by_level(&m, fs_d, &par_top), by_level(&m, fs_d, &par_below)),
+        i,
+    );
+    let p_grouped = kind_is(&m, par.kind, level_out_kind::GROUPED);
+    let p_created = kind_is(&m, par.kind, level_out_kind::CREATED);
+    let p_mat = kind_is(&m, par.kind, level_out_kind::REUSED);
+    let child_addr = fs_child.slice(c - 1, 0);
+    let children: Vec<Signal> = childm.iter().map(|b| b.read(child_addr)).collect();
+    // The children of level d's parents are in level d + 1.
+    let ch = child(by_level(&m, fs_d.add(1, lb), &children), ref_w);
+    let ch_index = fs_off.slice(i - 1, 0).add(ch.records, i);
+    let ch_ref = ch.reused.mux(ch.refer, m.concat(&[out_id, ch_index]));
+    let fs_busy = (in_drain & !fs_done).name("fs_busy");
+    let fs_active = (fs_busy & !fs_at_end).name("fs_active");
+    let outstanding = fs_req.ne(fs_j);
+    let ref_resp = Stream::input(&m, "ref_resp", ref_w);
+    let refs_ready = m.wire("refs_in_ready", 1);
+    let source_valid = p_mat.mux(ref_resp.valid & outstanding, one);
+    let refs_valid = (fs_active & source_valid).name("refs_in_valid");
+    let word = p_grouped.mux(
+        ch_ref,
+        p_created.mux(crefs_mem.read(fs_cref.slice(c - 1, 0)), ref_resp.data),
+    );
+    let refs_out = Stream {
+        valid: refs_valid,
+        ready: refs_ready,
+        data: refs_valid.mux(word, lit(0, ref_w)),
+    };
+    let fs_fire = (refs_out.valid & refs_out.ready).name("refs_fire");
+    refs_out.skid_buffer("refs_skid").output("refs");
+    ref_resp
+        .ready
+        .drive(fs_active & p_mat & outstanding & refs_ready);
+    let req_valid = (fs_active & p_mat & fs_req.ne(par.count)).name("ref_req_in_valid");
+    let req_index = par.first.add(fs_req, i);
+    let ref_req = Stream {
+        valid: req_valid,
+        ready: m.wire("ref_req_in_ready", 1),
+        data: req_valid.mux(m.concat(&[par.hier, req_index]), lit(0, ref_w)),
+    };
+    let req_fire = ref_req.valid & ref_req.ready;
+    ref_req.skid_buffer("ref_req_skid").output("ref_req");
+    let parent_last = fs_fire & fs_j.add(1, i).eq(par.count);
+    let fs_last_level = fs_d.eq(lit(dmax as u64, lb));
+    let fs_step_level = fs_busy & fs_at_end & !fs_last_level;
+    let fs_finish = fs_busy & fs_at_end & fs_last_level;
+    let zc = lit(0, c + 1);
+    let zi = lit(0, i);
+    fs_d.next(drain_start.mux(top, fs_step_level.mux(fs_d.add(1, lb), fs_d)));
+    fs_ptr
+        .next((drain_start | fs_step_level).mux(zc, parent_last.mux(fs_ptr.add(1, c + 1), fs_ptr)));
+    fs_j.next((drain_start | parent_last).mux(zi, fs_fire.mux(fs_j.add(1, i), fs_j)));
+    fs_req.next((drain_start | parent_last).mux(zi, req_fire.mux(fs_req.add(1, i), fs_req)));
+    fs_child.next((drain_start | fs_step_level).mux(
+        zc,
+        (fs_fire & p_grouped).mux(fs_child.add(1, c + 1), fs_child),
+    ));
+    fs_cref.next(drain_start.mux(
+        zc,
+        (fs_fire & p_created).mux(fs_cref.add(1, c + 1), fs_cref),
+    ));
+    // off(t + 1) = the top's node count; off(d + 2) = off(d + 1) + level
+    // d + 1's records.
+    let next_records: Vec<Signal> = (0..=dmax)
+        .map(|d| {
+            n_records
+                .get(d + 1)
+                .copied()
+                .unwrap_or_else(|| lit(0, c + 1))
+        })
+        .collect();
+    let next_len = by_level(&m, fs_d, &next_records).zext(i + 1);
+    fs_off.next(drain_start.mux(
+        n_top.zext(i + 1),
+        fs_step_level.mux(fs_off.add(next_len, i + 1), fs_off),
+    ));
+    fs_done.next(clear.mux(zero, fs_done | fs_finish));
+
+    // The header; on an error every count and the top are 0.
+    let header_data = m.concat(&[err_code, h_refs, h_nodes, h_roots, top, out_id]);
+    debug_assert_eq!(header_data.width(), wl.header_width);
+    let header_ok = err_code.eq(code(writer_err::NONE));
+    let failed = m.concat(&[err_code, lit(0, 3 * (i + 1) + lb), out_id]);
+    Stream {
+        valid: in_header,
+        ready: header_ready,
+        data: header_ok.mux(header_data, failed),
+    }
+    .skid_buffer("header_skid")
+    .output("header");
+
+    // State changes.
+    let rs_over = rs_done | rs_finish;
+    let fs_over = fs_done | fs_finish;
+    let drain_done = in_drain & rs_over & fs_over;
+    let next_state = clear.mux(
+        lit(state::FILL, 2),
+        fill_done.mux(
+            fill_ok.mux(lit(state::DRAIN, 2), lit(state::HEADER, 2)),
+            drain_done.mux(lit(state::HEADER, 2), st),
+        ),
+    );
+    st.next(next_state);
+
+    // Status, for throughput counts.
+    m.output("filling", in_fill);
+    m.output("drain_records", rs_active);
+    m.output("drain_refs", fs_busy);
+    Ok(m)
+}

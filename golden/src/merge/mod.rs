@@ -25,6 +25,7 @@ pub mod fetch_unit;
 pub mod instances;
 pub mod level;
 pub mod level_merge;
+pub mod merger_unit;
 pub mod per_node;
 pub mod per_node_unit;
 pub mod top;

@@ -1,0 +1,827 @@
+//! The hierarchy merger as one unit (SPEC.md section 8.15,
+//! `rtl_gen::merge::hierarchy_merger_unit`): S610-S618 end to end, as the
+//! chain of the units' golden transactions. Nothing here recomputes a merge:
+//! every stream is what a unit's own transaction says it carries, and the
+//! chain only routes one unit's out beats to the next unit's in beats the way
+//! the merger's glue does.
+//!
+//! One merge:
+//! 1. `cfg`: per input its fetcher `cfg` ([`FetchCfg`]: header and packed
+//!    translation entry), the number of inputs `n <= k`, the candidate range
+//!    `(lo, hi)` (8.2, computed by software from the headers: the hardware
+//!    does not scan the inputs' node arrays for `deep(i)`) and `out_id`.
+//! 2. The controller sends the merging module `(lo, hi)` and, in overlap
+//!    mode with a good range, one fetcher command per candidate LOD to every
+//!    used fetcher (the **count pass**: no references, no leaves); the
+//!    fetchers' `out` beats are the module's `in<i>` (an unused input `i >= n`
+//!    gets one `End` per pass from the glue).
+//! 3. The module's `report` ends with the choice. Chosen `m`: every fetcher
+//!    gets the **merge-pass** command (LOD `m`, references and leaves, last);
+//!    refused: a **closing** command (LOD `lo`, nothing sent but the walk,
+//!    last) whose `out` beats the glue drops, and the base is empty.
+//! 4. The module's `out` at `m`: created and reused nodes go to the upper
+//!    builder's `base{m}`, reference beats to the writer's `crefs`. The
+//!    fetchers' `leaves` (each in (LOD, Morton) order) are merged by
+//!    (LOD, Morton, rank) into the builder's `base{d}`, `d < m`.
+//! 5. The builder's `level{d}` and `done` feed the writer, which reads the
+//!    materialized roots from the store and writes `nodes`, `refs`, `header`.
+//!
+//! Per-node mode (8.5) is modelled with [`per_node_transaction`] as its
+//! module: its input streams carry probes (the children of every live inner
+//! node, 8.14) that a level walk does not produce, so its module inputs are
+//! not fetcher streams; the fetchers give only the leaves above `lo` (one
+//! command). The merger RTL refuses per-node configurations.
+
+use super::builder_unit::BuilderTransaction;
+use super::error::MergeError;
+use super::fetch_unit::{
+    fetch_err, fetch_transaction, FetchCfg, FetchCmd, FetchLayout, FetchOut, FetchSizes,
+    FetchTransaction, LeafOut,
+};
+use super::level::candidate_range;
+use super::level_merge::{BaseKind, BaseNode};
+use super::per_node_unit::{self, per_node_transaction, PerNodeTransaction};
+use super::top::{choice_err, choose, top_transaction, Report, TopLayout, TopTransaction};
+use super::unit::{BaseBeat, LevelBeat, LevelCase};
+use super::walk::{collect, morton, walk_input, PlacedNode};
+use super::writer_unit::{writer_transaction, CapacityError, WriterLayout, WriterTransaction};
+use super::MergeMode;
+use crate::layout::{Bits, Field, LayoutError};
+use crate::params::{bits_to_hold, Params};
+use crate::store::{Hierarchy, HierarchyStore, Reference};
+use crate::translate::table::pack_entry;
+use crate::translate::{Translation, TranslationTable};
+
+/// The merger's fixed sizes: the fetchers' (root sorter, frontier FIFO) and
+/// the writer's buffers (`2^capacity_bits` entries).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MergerSizes {
+    pub fetch: FetchSizes,
+    pub capacity_bits: u32,
+}
+
+impl MergerSizes {
+    /// The default fetcher sizes and a writer of `2^10` entries per buffer.
+    pub fn new(p: &Params) -> MergerSizes {
+        MergerSizes {
+            fetch: FetchSizes::default(),
+            capacity_bits: 10.min(p.index_bits as u32 - 1),
+        }
+    }
+}
+
+/// Bit layout of the merger's `cfg` beat, from bit 0: `input0` ..
+/// `input{k-1}` (each a fetcher `cfg` beat, [`FetchLayout::cfg_width`]
+/// bits), `count` (`bits_to_hold(k)`: inputs used, `1..=k`), `lo`, `hi`
+/// (`lod_bits` each), `out_id` (H). `report` is the merging module's
+/// ([`TopLayout`]), `header` the writer's ([`WriterLayout`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MergerLayout {
+    pub k: usize,
+    pub fetch: FetchLayout,
+    pub top: TopLayout,
+    pub writer: WriterLayout,
+    /// Offset of `input<i>`: `i * fetch.cfg_width`.
+    pub input_width: u32,
+    pub count: Field,
+    pub lo: Field,
+    pub hi: Field,
+    pub out_id: Field,
+    pub cfg_width: u32,
+}
+
+fn field_at(name: &'static str, offset: u32, width: u32) -> Field {
+    Field {
+        name,
+        offset,
+        width,
+    }
+}
+
+impl MergerLayout {
+    /// The layout for `p`, `k` inputs and writer buffers of `2^capacity_bits`.
+    pub fn new(p: &Params, k: usize, capacity_bits: u32) -> Result<MergerLayout, CapacityError> {
+        let fetch = FetchLayout::new(p);
+        let input_width = fetch.cfg_width;
+        let lb = p.lod_bits();
+        let count = field_at("count", k as u32 * input_width, bits_to_hold(k as u64));
+        let lo = field_at("lo", count.end(), lb);
+        let hi = field_at("hi", lo.end(), lb);
+        let out_id = field_at("out_id", hi.end(), p.hier_bits as u32);
+        Ok(MergerLayout {
+            k,
+            top: TopLayout::new(p),
+            writer: WriterLayout::new(p, capacity_bits)?,
+            fetch,
+            input_width,
+            count,
+            lo,
+            hi,
+            out_id,
+            cfg_width: out_id.end(),
+        })
+    }
+
+    /// Where `input<i>` starts in `cfg`.
+    pub fn input_offset(&self, i: usize) -> u32 {
+        i as u32 * self.input_width
+    }
+}
+
+/// The merger's `cfg` beat.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MergerCfg {
+    /// The used inputs' fetcher configurations, in rank order.
+    pub inputs: Vec<FetchCfg>,
+    pub lo: u8,
+    pub hi: u8,
+    pub out_id: u8,
+}
+
+impl MergerCfg {
+    /// The packed beat (unused inputs' fields 0); an error when more inputs
+    /// than `k` or a value does not fit its field.
+    pub fn pack(&self, l: &MergerLayout) -> Result<Bits, LayoutError> {
+        if self.inputs.len() > l.k {
+            return Err(LayoutError::DoesNotFit {
+                field: "count",
+                value: self.inputs.len() as u64,
+                width: l.count.width,
+            });
+        }
+        let mut b = Bits::zero(l.cfg_width);
+        for (i, c) in self.inputs.iter().enumerate() {
+            copy_into(&mut b, l.input_offset(i), &c.pack(&l.fetch)?);
+        }
+        b.set(&l.count, self.inputs.len() as u64)?;
+        b.set(&l.lo, self.lo as u64)?;
+        b.set(&l.hi, self.hi as u64)?;
+        b.set(&l.out_id, self.out_id as u64)?;
+        Ok(b)
+    }
+}
+
+fn copy_into(dst: &mut Bits, offset: u32, src: &Bits) {
+    for i in 0..src.width() {
+        if src.bit(i) {
+            dst.set(&field_at("bit", offset + i, 1), 1)
+                .expect("bit inside the beat");
+        }
+    }
+}
+
+/// The merging module's run inside the merger.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ModulePass {
+    /// A single merging level (overlap, fixed, below-top, proportion).
+    Level(TopTransaction),
+    /// Per-node merging (golden only: the RTL refuses it).
+    PerNode(PerNodeTransaction),
+}
+
+impl ModulePass {
+    /// The module's `out` beats.
+    pub fn out(&self) -> &[BaseBeat] {
+        match self {
+            ModulePass::Level(t) => &t.out,
+            ModulePass::PerNode(t) => &t.out,
+        }
+    }
+}
+
+/// One merge through the merger: the in beats (`cfg`, the store's
+/// responses inside each unit's transaction) and every unit's streams.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MergerTransaction {
+    pub mode: MergeMode,
+    pub cfg: MergerCfg,
+    /// The commands the controller issues to every used fetcher.
+    pub cmds: Vec<FetchCmd>,
+    /// Per used input (rank order): the fetcher's run over `cmds`, with its
+    /// memory requests and responses.
+    pub fetch: Vec<FetchTransaction>,
+    pub module: ModulePass,
+    /// The merging level (`None`: per-node mode or refused).
+    pub chosen: Option<u8>,
+    /// The inputs' leaves above the merging level, reused, merged by
+    /// (LOD, Morton, rank): the builder's `base{d}` for `d` above it.
+    pub leaves: Vec<BaseNode>,
+    /// The builder's base: `leaves`, then the module's nodes.
+    pub base: Vec<BaseNode>,
+    /// The writer's run (its `builder` is the upper builder's run).
+    pub writer: WriterTransaction,
+}
+
+impl MergerTransaction {
+    /// The upper builder's run.
+    pub fn builder(&self) -> &BuilderTransaction {
+        &self.writer.builder
+    }
+
+    /// The merging module's `report` beats (level modes; per-node mode's
+    /// reports are [`PerNodeTransaction::reports`]).
+    pub fn reports(&self) -> &[Report] {
+        match &self.module {
+            ModulePass::Level(t) => &t.reports,
+            ModulePass::PerNode(_) => &[],
+        }
+    }
+}
+
+/// The fetcher commands of a merge: the count pass (overlap mode, good
+/// range: one per candidate LOD), then the merge pass at `chosen` or, when
+/// refused, the closing command at `lo` (its beats are dropped).
+pub fn controller_cmds(count_pass: &[u8], chosen: Option<u8>, lo: u8) -> Vec<FetchCmd> {
+    let mut cmds: Vec<FetchCmd> = count_pass
+        .iter()
+        .map(|&lod| FetchCmd {
+            lod,
+            send_refs: false,
+            send_leaves: false,
+            last: false,
+        })
+        .collect();
+    cmds.push(match chosen {
+        Some(m) => FetchCmd {
+            lod: m,
+            send_refs: true,
+            send_leaves: true,
+            last: true,
+        },
+        None => FetchCmd {
+            lod: lo,
+            send_refs: false,
+            send_leaves: false,
+            last: true,
+        },
+    });
+    cmds
+}
+
+/// A fetcher's `out` beats split per command (each ends with `End`); an
+/// error beat is refused naming the input, record and code.
+pub fn fetch_passes(tx: &FetchTransaction) -> Result<Vec<Vec<LevelBeat>>, MergeError> {
+    let mut passes = vec![Vec::new()];
+    for o in &tx.out {
+        match *o {
+            FetchOut::Beat(b) => {
+                passes.last_mut().expect("one open pass").push(b);
+                if b == LevelBeat::End {
+                    passes.push(Vec::new());
+                }
+            }
+            FetchOut::Error { hier, node, code } => {
+                return Err(MergeError::BadInput {
+                    input: hier,
+                    node: Some(node),
+                    field: "fetcher walk",
+                    expected: "no fetcher error (fetch_unit::fetch_err)".into(),
+                    found: format!("error code {code} ({})", fetch_err_name(code)),
+                })
+            }
+        }
+    }
+    passes.pop();
+    Ok(passes)
+}
+
+/// What a [`fetch_err`] code means, for error messages.
+pub fn fetch_err_name(code: u64) -> &'static str {
+    match code {
+        fetch_err::ENTRY => "invalid translation entry",
+        fetch_err::ROOT_COUNT => "root_count 0 or above nodes",
+        fetch_err::ROOT_CAPACITY => "more roots than the root sorter holds",
+        fetch_err::RECORD => "record does not validate",
+        fetch_err::LOD => "node not at its parent's LOD + 1",
+        fetch_err::RANGE => "reference range outside refs",
+        fetch_err::REF_HIER => "reference names another hierarchy",
+        fetch_err::REF_NODE => "reference to a missing node",
+        fetch_err::ABOVE => "node above the translation level",
+        fetch_err::OUTSIDE_X | fetch_err::OUTSIDE_Y | fetch_err::OUTSIDE_Z => {
+            "node moved outside the scene"
+        }
+        fetch_err::FRONTIER => "frontier FIFO full",
+        fetch_err::ORDER => "node out of Morton order",
+        _ => "unknown code",
+    }
+}
+
+/// The leaves of a fetcher's last command, as reused base nodes of `rank`.
+fn fetched_leaves(tx: &FetchTransaction, rank: u16) -> Vec<(PlacedNode, u16)> {
+    tx.leaves
+        .iter()
+        .filter_map(|l| match *l {
+            LeafOut::Leaf { record, at } => Some((PlacedNode { rank, at, record }, rank)),
+            LeafOut::End => None,
+        })
+        .collect()
+}
+
+/// The k-way merge of the fetchers' leaves by (LOD, Morton, rank): each
+/// stream is in (LOD, Morton) order, so this is a stable sort of their
+/// concatenation in rank order.
+pub fn merge_leaves(fetch: &[FetchTransaction]) -> Vec<BaseNode> {
+    let mut all: Vec<(PlacedNode, u16)> = fetch
+        .iter()
+        .enumerate()
+        .flat_map(|(r, tx)| fetched_leaves(tx, r as u16))
+        .collect();
+    all.sort_by_key(|(n, r)| (n.record.voxel.lod, morton(&n.record.voxel), *r));
+    all.iter().map(|(n, _)| BaseNode::reused(n)).collect()
+}
+
+/// The base nodes the module's `out` beats carry (created nodes with the
+/// reference beats that follow them), in stream order per LOD, shallowest
+/// LOD first; an error when a created node's reference count overflowed.
+pub fn module_base(out: &[BaseBeat], p: &Params) -> Result<Vec<BaseNode>, MergeError> {
+    let by_lod = per_node_unit::base_by_lod(out, p).ok_or(MergeError::IndexOverflow {
+        what: "created node's reference count",
+        value: p.index_capacity(),
+        index_bits: p.index_bits,
+    })?;
+    Ok(by_lod.into_iter().flatten().collect())
+}
+
+/// The inputs of a merge: hierarchies and translations, checked as the
+/// merger needs them (1..=k inputs in the store; entries read from `table`,
+/// an invalid one packed as 0 for the fetcher to refuse).
+fn inputs_of<'s>(
+    store: &'s HierarchyStore,
+    table: &TranslationTable,
+    ids: &[u8],
+    k: usize,
+) -> Result<(Vec<&'s Hierarchy>, Vec<Option<Translation>>), MergeError> {
+    if ids.is_empty() {
+        return Err(MergeError::NoInputs);
+    }
+    if ids.len() > k {
+        return Err(MergeError::IndexOverflow {
+            what: "inputs of the merger (its k)",
+            value: ids.len() as u64,
+            index_bits: bits_to_hold(k as u64) as u8,
+        });
+    }
+    let hs = ids
+        .iter()
+        .map(|&id| store.get(id).ok_or(MergeError::UnknownInput(id)))
+        .collect::<Result<Vec<_>, _>>()?;
+    let ts = ids
+        .iter()
+        .map(|&id| table.get(id as u32).ok().flatten())
+        .collect();
+    Ok((hs, ts))
+}
+
+/// One level's placed nodes of all inputs, as the merging module's
+/// transaction takes them.
+fn level_case(hs: &[&Hierarchy], ts: &[Translation], lod: u8) -> Result<LevelCase, MergeError> {
+    let walked = hs
+        .iter()
+        .zip(ts)
+        .enumerate()
+        .map(|(r, (h, t))| walk_input(h, r as u16, t, lod))
+        .collect::<Result<Vec<_>, _>>()?;
+    let (_, at_level) = collect(&walked, lod);
+    Ok(LevelCase {
+        hierarchies: hs.iter().map(|h| (*h).clone()).collect(),
+        at_level,
+    })
+}
+
+/// The merge of `ids` (rank order) of `store`, placed by `table`, into
+/// `out_id`, through a merger of `k` inputs with `sizes`: every unit's
+/// streams. Errors (never a panic): inputs missing or more than `k`, a
+/// malformed input or translation (the walk's and the fetcher's refusals),
+/// a created node's reference count at `2^I`, a writer capacity outside
+/// `1..I`.
+pub fn merger_transaction(
+    store: &HierarchyStore,
+    table: &TranslationTable,
+    ids: &[u8],
+    mode: MergeMode,
+    out_id: u8,
+    k: usize,
+    sizes: MergerSizes,
+) -> Result<MergerTransaction, MergeError> {
+    let (hs, entries) = inputs_of(store, table, ids, k)?;
+    let p = hs[0].params;
+    let (lo, hi) = candidate_range(&hs);
+    let ts: Vec<Translation> = entries
+        .iter()
+        .zip(ids)
+        .map(|(t, &id)| {
+            t.ok_or(MergeError::Translation {
+                input: id,
+                error: crate::translate::TranslateError::EmptyEntry { id: id as u32 },
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    let cfg = MergerCfg {
+        inputs: hs
+            .iter()
+            .zip(&entries)
+            .map(|(h, t)| FetchCfg::of(h, t.as_ref()))
+            .collect(),
+        lo,
+        hi,
+        out_id,
+    };
+    let range_ok = lo <= hi && hi <= p.max_lod;
+    let (module, count_pass, chosen, leaves_cmd_lod) = match mode {
+        MergeMode::PerNode { num, den } => {
+            let pn = per_node_transaction(&p, &hs, &ts, num, den, lo, hi)?;
+            (
+                ModulePass::PerNode(pn),
+                Vec::new(),
+                None,
+                range_ok.then_some(lo),
+            )
+        }
+        _ => {
+            let count_pass: Vec<u8> = match mode {
+                MergeMode::Overlap { .. } if range_ok => (lo..=hi).collect(),
+                _ => Vec::new(),
+            };
+            let mut levels: Vec<Option<LevelCase>> = vec![None; (hi.max(lo) - lo) as usize + 1];
+            for &l in &count_pass {
+                levels[(l - lo) as usize] = Some(level_case(&hs, &ts, l)?);
+            }
+            // Outside overlap mode the choice needs no counts: only the
+            // chosen level is walked.
+            if count_pass.is_empty() {
+                if let Report::Chosen {
+                    lod,
+                    err: choice_err::NONE,
+                } = choose(&mode, &p, lo, hi, &[])
+                {
+                    levels[(lod - lo) as usize] = Some(level_case(&hs, &ts, lod)?);
+                }
+            }
+            let top = top_transaction(&mode, &p, k, lo, hi, &levels, false)?;
+            let chosen = top.reports.iter().find_map(|r| match *r {
+                Report::Chosen {
+                    lod,
+                    err: choice_err::NONE,
+                } => Some(lod),
+                _ => None,
+            });
+            (ModulePass::Level(top), count_pass, chosen, chosen)
+        }
+    };
+    let cmds = controller_cmds(&count_pass, leaves_cmd_lod, lo);
+    let fetch = hs
+        .iter()
+        .zip(&entries)
+        .map(|(h, t)| fetch_transaction(h, pack_entry(t.as_ref(), &p), &cmds, sizes.fetch))
+        .collect::<Result<Vec<_>, _>>()?;
+    for f in &fetch {
+        fetch_passes(f)?;
+    }
+    let ok = match &module {
+        ModulePass::Level(_) => chosen.is_some(),
+        ModulePass::PerNode(pn) => pn.passes > 0,
+    };
+    let (leaves, base) = if ok {
+        let leaves = merge_leaves(&fetch);
+        let mut base = leaves.clone();
+        base.extend(module_base(module.out(), &p)?);
+        (leaves, base)
+    } else {
+        (Vec::new(), Vec::new())
+    };
+    let writer = writer_transaction(&base, &hs, &p, sizes.capacity_bits, out_id)?;
+    Ok(MergerTransaction {
+        mode,
+        cfg,
+        cmds,
+        fetch,
+        module,
+        chosen,
+        leaves,
+        base,
+        writer,
+    })
+}
+
+/// The reference beats of the module's `out` in stream order: the writer's
+/// `crefs` (before its `End`) at a single merging level.
+pub fn module_refs(out: &[BaseBeat]) -> Vec<Reference> {
+    out.iter()
+        .filter_map(|b| match b {
+            BaseBeat::Ref(r) => Some(*r),
+            _ => None,
+        })
+        .collect()
+}
+
+/// The module's created and reused nodes at `m` as the builder's `base{m}`
+/// beats (reference beats dropped), `End` last.
+pub fn module_nodes(out: &[BaseBeat]) -> Vec<BaseBeat> {
+    out.iter()
+        .filter(|b| !matches!(b, BaseBeat::Ref(_)))
+        .copied()
+        .collect()
+}
+
+/// The base kinds of `base` (for counting what a case reached).
+pub fn created_count(base: &[BaseNode]) -> usize {
+    base.iter()
+        .filter(|b| matches!(b.kind, BaseKind::Created { .. }))
+        .count()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::merge::writer_unit::{place, real_cases, soup, writer_err, CrefBeat};
+    use crate::merge::{merge, MergeMode};
+
+    fn modes(lo: u8, hi: u8) -> Vec<MergeMode> {
+        let mut v = vec![
+            MergeMode::Overlap { num: 1, den: 2 },
+            MergeMode::Overlap { num: 0, den: 1 },
+            MergeMode::Overlap { num: 1, den: 1 },
+            MergeMode::BelowTop(0),
+            MergeMode::BelowTop(hi - lo),
+            MergeMode::Proportion { num: 1, den: 2 },
+            MergeMode::Proportion { num: 1, den: 1 },
+            MergeMode::PerNode { num: 0, den: 1 },
+            MergeMode::PerNode { num: 1, den: 4 },
+            MergeMode::PerNode { num: 1, den: 1 },
+        ];
+        v.extend((lo..=hi).map(MergeMode::Fixed));
+        v
+    }
+
+    /// Every hand-off between two units carries what the receiving unit's
+    /// transaction expects.
+    fn check_hand_offs(tx: &MergerTransaction, p: &Params, k: usize) {
+        let b = tx.builder();
+        if let ModulePass::Level(top) = &tx.module {
+            // Fetcher out -> module in<i>, pass by pass (the closing
+            // command's beats are dropped).
+            for (r, f) in tx.fetch.iter().enumerate() {
+                let passes = fetch_passes(f).unwrap();
+                assert_eq!(passes.len(), tx.cmds.len());
+                let fed: Vec<LevelBeat> = if tx.chosen.is_some() {
+                    passes.concat()
+                } else {
+                    passes[..passes.len() - 1].concat()
+                };
+                assert_eq!(fed, top.inputs[r], "input {r}");
+            }
+            for r in tx.fetch.len()..k {
+                assert!(top.inputs[r].iter().all(|b| *b == LevelBeat::End));
+            }
+            if let Some(m) = tx.chosen {
+                // Module out -> builder base{m} and writer crefs.
+                assert_eq!(b.base[m as usize], module_nodes(&top.out));
+                let mut crefs: Vec<CrefBeat> = module_refs(&top.out)
+                    .into_iter()
+                    .map(CrefBeat::Ref)
+                    .collect();
+                crefs.push(CrefBeat::End);
+                assert_eq!(tx.writer.crefs, crefs);
+            }
+        }
+        // Fetcher leaves -> builder base{d} above the level: each fetcher's
+        // stream is in (LOD, Morton) order, the merge keeps rank order.
+        for f in &tx.fetch {
+            let keys: Vec<(u8, u128)> = f
+                .leaves
+                .iter()
+                .filter_map(|l| match l {
+                    LeafOut::Leaf { record, .. } => Some((record.voxel.lod, morton(&record.voxel))),
+                    LeafOut::End => None,
+                })
+                .collect();
+            assert!(keys.windows(2).all(|w| w[0] < w[1]), "{keys:?}");
+        }
+        let top_lod = tx.chosen.unwrap_or(tx.cfg.lo) as usize;
+        for d in 0..top_lod.min(p.max_lod as usize + 1) {
+            let want: Vec<BaseBeat> = tx
+                .leaves
+                .iter()
+                .filter(|n| n.record.voxel.lod as usize == d)
+                .map(|n| match n.kind {
+                    BaseKind::Reused { at } => BaseBeat::Reused {
+                        record: n.record,
+                        at,
+                    },
+                    _ => unreachable!("leaves are reused"),
+                })
+                .chain([BaseBeat::End])
+                .collect();
+            assert_eq!(b.base[d], want, "base{d}");
+        }
+    }
+
+    #[derive(Default, Debug)]
+    struct Reached {
+        merges: usize,
+        per_node: usize,
+        count_passes: usize,
+        leaves_above: usize,
+        materialized: usize,
+        several_roots: usize,
+        several_root_inputs: usize,
+        created: usize,
+    }
+
+    fn run_cases(
+        p: &Params,
+        k: usize,
+        out_id: u8,
+        cases: Vec<(HierarchyStore, TranslationTable, Vec<u8>)>,
+    ) -> Reached {
+        let mut seen = Reached::default();
+        // The scene-filling input has thousands of nodes per level.
+        let sizes = MergerSizes {
+            fetch: FetchSizes {
+                roots: 16,
+                frontier: 8192,
+            },
+            capacity_bits: 13.min(p.index_bits as u32 - 1),
+        };
+        for (store, table, ids) in cases {
+            let hs: Vec<&Hierarchy> = ids.iter().map(|i| store.get(*i).unwrap()).collect();
+            seen.several_root_inputs += hs.iter().filter(|h| h.root_count > 1).count();
+            let (lo, hi) = candidate_range(&hs);
+            for mode in modes(lo, hi) {
+                let tx = merger_transaction(&store, &table, &ids, mode, out_id, k, sizes).unwrap();
+                check_hand_offs(&tx, p, k);
+                let r = merge(&store, &ids, &table, mode, out_id).unwrap();
+                let w = &tx.writer;
+                assert_eq!(w.header.err, writer_err::NONE, "{mode}");
+                assert_eq!(w.nodes, r.merged.nodes, "{mode}");
+                assert_eq!(w.refs, r.merged.refs, "{mode}");
+                assert_eq!(w.header.roots, r.merged.root_count as u64, "{mode}");
+                assert_eq!(w.header.top, r.merged.top_lod, "{mode}");
+                assert_eq!(w.header.nodes, r.merged.nodes.len() as u64);
+                assert_eq!(w.header.refs, r.merged.refs.len() as u64);
+                assert_eq!(tx.chosen, r.level, "{mode}");
+                assert_eq!(tx.leaves.len() as u64, r.stats.leaves_above, "{mode}");
+                if let MergeMode::Overlap { .. } = mode {
+                    let counted: Vec<(u8, u64, u64)> = tx
+                        .reports()
+                        .iter()
+                        .filter_map(|r| match r {
+                            Report::Counted { lod, result } => {
+                                Some((*lod, result.shared, result.union))
+                            }
+                            _ => None,
+                        })
+                        .collect();
+                    let want: Vec<(u8, u64, u64)> = r
+                        .stats
+                        .overlap
+                        .iter()
+                        .map(|o| (o.lod, o.shared, o.union))
+                        .collect();
+                    assert_eq!(counted, want, "{mode}");
+                    seen.count_passes += 1;
+                }
+                seen.merges += 1;
+                seen.per_node += matches!(tx.module, ModulePass::PerNode(_)) as usize;
+                seen.leaves_above += !tx.leaves.is_empty() as usize;
+                seen.materialized += (r.stats.materialized > 0) as usize;
+                seen.several_roots += (r.merged.root_count > 1) as usize;
+                seen.created += (created_count(&tx.base) > 0) as usize;
+            }
+        }
+        seen
+    }
+
+    /// An input filling the scene (its LOD-0 root gives way to several
+    /// roots, 4.7) with a small translated input, in both rank orders.
+    fn several_roots_cases(p: &Params) -> Vec<(HierarchyStore, TranslationTable, Vec<u8>)> {
+        let mesh = crate::scenes::random_soup(1500, 0.05, 77);
+        let (lo, hi) = mesh.bounds();
+        let big = crate::build::build(&mesh, &crate::build::GridMap::fit(lo, hi, p), p, 1)
+            .expect("the soup builds");
+        let small = soup(p, 2, 40, 0.2, 78);
+        let mut out = Vec::new();
+        for ids in [vec![1u8, 2], vec![2, 1]] {
+            let mut store = HierarchyStore::new();
+            let mut table = TranslationTable::new(p.hier_capacity() as usize, p).unwrap();
+            table.write(1, Translation::zero(big.top_lod)).unwrap();
+            table.write(2, place(&small, [0.7, 0.2, 0.5])).unwrap();
+            store.insert(big.clone()).unwrap();
+            store.insert(small.clone()).unwrap();
+            out.push((store, table, ids));
+        }
+        out
+    }
+
+    /// The chain's output is `merge()`'s hierarchy on real merges in every
+    /// level mode, and every unit hands the next what it expects.
+    #[test]
+    fn chain_equals_merge_on_real_merges() {
+        let p = Params::default();
+        let mut cases = real_cases(&p);
+        cases.extend(several_roots_cases(&p));
+        let seen = run_cases(&p, 4, 9, cases);
+        eprintln!("default: {seen:?}");
+        assert!(seen.merges >= 40, "{seen:?}");
+        assert!(seen.per_node > 0 && seen.count_passes > 0, "{seen:?}");
+        assert!(seen.leaves_above > 0 && seen.materialized > 0, "{seen:?}");
+        assert!(
+            seen.several_roots > 0 && seen.several_root_inputs > 0,
+            "{seen:?}"
+        );
+        assert!(seen.created > 0, "{seen:?}");
+        let q0 = Params::new(8, 0, 12, 3).unwrap();
+        let seen = run_cases(&q0, 3, 7, real_cases(&q0));
+        eprintln!("D = 8, Q = 0: {seen:?}");
+        assert!(seen.merges >= 20 && seen.per_node > 0, "{seen:?}");
+    }
+
+    /// A refused choice: the closing command, no base, the writer's
+    /// `NO_TOP` header; the report says why.
+    #[test]
+    fn refused_choice_closes_the_fetchers() {
+        let p = Params::default();
+        let (store, table, ids) = real_cases(&p).remove(0);
+        let hs: Vec<&Hierarchy> = ids.iter().map(|i| store.get(*i).unwrap()).collect();
+        let (lo, hi) = candidate_range(&hs);
+        let sizes = MergerSizes::new(&p);
+        for mode in [MergeMode::Fixed(hi + 1), MergeMode::BelowTop(hi - lo + 1)] {
+            let tx = merger_transaction(&store, &table, &ids, mode, 9, 4, sizes).unwrap();
+            check_hand_offs(&tx, &p, 4);
+            assert_eq!(tx.chosen, None);
+            assert_eq!(
+                tx.reports(),
+                &[Report::Chosen {
+                    lod: 0,
+                    err: choice_err::NOT_CANDIDATE
+                }]
+            );
+            assert_eq!(tx.cmds.len(), 1);
+            assert!(tx.cmds[0].last && !tx.cmds[0].send_leaves);
+            assert!(tx.base.is_empty());
+            assert_eq!(tx.writer.header.err, writer_err::NO_TOP);
+            assert!(merge(&store, &ids, &table, mode, 9).is_err());
+        }
+    }
+
+    /// Refusals of the chain itself: more inputs than `k`, an unknown id,
+    /// an input the fetcher cannot walk (a frontier too small).
+    #[test]
+    fn chain_refuses_what_the_merger_cannot_do() {
+        let p = Params::default();
+        let (store, table, ids) = real_cases(&p).remove(0);
+        let sizes = MergerSizes::new(&p);
+        let mode = MergeMode::default();
+        assert!(matches!(
+            merger_transaction(&store, &table, &ids, mode, 9, 2, sizes),
+            Err(MergeError::IndexOverflow { .. })
+        ));
+        assert!(matches!(
+            merger_transaction(&store, &table, &[1, 12], mode, 9, 4, sizes),
+            Err(MergeError::UnknownInput(12))
+        ));
+        let tiny = MergerSizes {
+            fetch: FetchSizes {
+                roots: 16,
+                frontier: 1,
+            },
+            ..sizes
+        };
+        let e = merger_transaction(&store, &table, &ids, mode, 9, 4, tiny).unwrap_err();
+        assert!(e.to_string().contains("fetcher"), "{e}");
+    }
+
+    #[test]
+    fn cfg_packs_every_input_and_the_range() {
+        let p = Params::default();
+        let l = MergerLayout::new(&p, 4, 10).unwrap();
+        let (store, _, ids) = real_cases(&p).remove(0);
+        let cfg = MergerCfg {
+            inputs: ids
+                .iter()
+                .map(|i| FetchCfg::of(store.get(*i).unwrap(), None))
+                .collect(),
+            lo: 3,
+            hi: 5,
+            out_id: 9,
+        };
+        let b = cfg.pack(&l).unwrap();
+        assert_eq!(b.get(&l.count).unwrap(), ids.len() as u64);
+        assert_eq!(b.get(&l.lo).unwrap(), 3);
+        assert_eq!(b.get(&l.hi).unwrap(), 5);
+        assert_eq!(b.get(&l.out_id).unwrap(), 9);
+        let roots = Field {
+            offset: l.input_offset(1) + l.fetch.roots.offset,
+            ..l.fetch.roots
+        };
+        assert_eq!(
+            b.get(&roots).unwrap(),
+            store.get(ids[1]).unwrap().root_count as u64
+        );
+        let five = MergerCfg {
+            inputs: vec![cfg.inputs[0]; 5],
+            ..cfg
+        };
+        assert!(five.pack(&l).is_err());
+    }
+}

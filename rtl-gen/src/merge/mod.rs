@@ -17,6 +17,8 @@
 //!   and S614 (SPEC 8.14).
 //! - [`upper_builder_unit`]: every S616 level above the base at once (a
 //!   chain of grouping and Morton-merge stages, the top rule in flight).
+//! - [`record_writer_unit`]: S618, the merged hierarchy's records,
+//!   references and header from the builder's levels (buffered per level).
 
 mod builder;
 mod fields;
@@ -27,6 +29,7 @@ mod per_node;
 mod sorter;
 mod top;
 mod upper;
+mod writer;
 
 pub use builder::{upper_builder_name, upper_builder_unit};
 pub use level::{merge_level_name, merge_level_unit};
@@ -39,6 +42,7 @@ pub use per_node::{
 pub use sorter::{root_sorter_name, root_sorter_unit};
 pub use top::{merge_module_name, merge_module_unit};
 pub use upper::{upper_level_name, upper_level_unit};
+pub use writer::{record_writer_name, record_writer_unit};
 
 use std::path::{Path, PathBuf};
 

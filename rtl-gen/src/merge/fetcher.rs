@@ -135,9 +135,9 @@ fn check_and_move<'m>(
     let sum_bits = 2 * dmax + 2;
     let mut outside = Vec::new();
     let mut moved = Vec::new();
-    for a in 0..3 {
-        let offset = mv.t[a].as_signed().sext(sum_bits) << shift;
-        let sum = coords[a].zext(sum_bits).add(offset.as_unsigned(), sum_bits);
+    for (c, t) in coords.iter().zip(&mv.t) {
+        let offset = t.as_signed().sext(sum_bits) << shift;
+        let sum = c.zext(sum_bits).add(offset.as_unsigned(), sum_bits);
         outside.push(sum.msb() | sum.srl(lod).ne(0));
         moved.push(sum.slice(dmax - 1, 0));
     }

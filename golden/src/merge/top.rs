@@ -245,7 +245,8 @@ pub fn choose(mode: &MergeMode, p: &Params, lo: u8, hi: u8, counted: &[OverlapRe
 /// only the chosen level is read outside overlap mode, so the others may be
 /// absent: `levels[l - lo]` must exist for the chosen `l`). `count_refs`:
 /// the count pass's streams carry child references too (the unit drops
-/// them). Refuses [`MergeMode::PerNode`], which the unit does not build.
+/// them). Refuses [`MergeMode::PerNode`]: its merges go in LOD passes
+/// ([`super::per_node_unit::per_node_transaction`]).
 pub fn top_transaction(
     mode: &MergeMode,
     p: &Params,
@@ -259,7 +260,7 @@ pub fn top_transaction(
         MergeMode::Overlap { .. } => true,
         MergeMode::PerNode { .. } => {
             return Err(MergeError::Unsupported {
-                what: "per-node merging is not built into the merging module RTL",
+                what: "a per-node merge is per_node_unit::per_node_transaction's (SPEC 8.14)",
             })
         }
         _ => false,

@@ -42,9 +42,11 @@ use super::level::candidate_range;
 use super::level_merge::{BaseKind, BaseNode};
 use super::per_node_unit::{self, per_node_transaction, PerNodeTransaction};
 use super::top::{choice_err, choose, top_transaction, Report, TopLayout, TopTransaction};
-use super::unit::{BaseBeat, LevelBeat, LevelCase};
+use super::unit::{rank_bits, BaseBeat, LevelBeat, LevelCase};
 use super::walk::{collect, morton, walk_input, PlacedNode};
-use super::writer_unit::{writer_transaction, CapacityError, WriterLayout, WriterTransaction};
+use super::writer_unit::{
+    writer_transaction, CapacityError, Header, WriterLayout, WriterTransaction,
+};
 use super::MergeMode;
 use crate::layout::{Bits, Field, LayoutError};
 use crate::params::{bits_to_hold, Params};
@@ -52,21 +54,54 @@ use crate::store::{Hierarchy, HierarchyStore, Reference};
 use crate::translate::table::pack_entry;
 use crate::translate::{Translation, TranslationTable};
 
-/// The merger's fixed sizes: the fetchers' (root sorter, frontier FIFO) and
-/// the writer's buffers (`2^capacity_bits` entries).
+/// The merger's fixed sizes: the fetchers' (root sorter, frontier FIFO),
+/// the writer's buffers (`2^capacity_bits` entries) and the leaf FIFO of
+/// every LOD (`2^leaf_bits` leaves).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct MergerSizes {
     pub fetch: FetchSizes,
     pub capacity_bits: u32,
+    pub leaf_bits: u32,
 }
 
 impl MergerSizes {
-    /// The default fetcher sizes and a writer of `2^10` entries per buffer.
+    /// The default fetcher sizes, a writer of `2^10` entries per buffer and
+    /// leaf FIFOs of 16.
     pub fn new(p: &Params) -> MergerSizes {
         MergerSizes {
             fetch: FetchSizes::default(),
             capacity_bits: 10.min(p.index_bits as u32 - 1),
+            leaf_bits: 4,
         }
+    }
+}
+
+/// The merger's `header` beat: the writer's header, then flags of what the
+/// merger's glue saw.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MergerHeader {
+    pub writer: Header,
+    /// A leaf FIFO was full when a leaf of its LOD came: the leaf was not
+    /// stored and the merged hierarchy is wrong (make `leaf_bits` larger).
+    pub leaf_overflow: bool,
+    /// A created node's reference count reached `2^I` (S614's `err`).
+    pub count_overflow: bool,
+    /// The first fetcher error code of the merge ([`fetch_err`]; 0 none) and
+    /// the input rank that reported it.
+    pub fetch_err: u64,
+    pub fetch_rank: u16,
+}
+
+impl MergerHeader {
+    /// The packed beat.
+    pub fn pack(&self, l: &MergerLayout) -> Result<Bits, LayoutError> {
+        let mut b = Bits::zero(l.header_width);
+        copy_into(&mut b, 0, &self.writer.pack(&l.writer)?);
+        b.set(&l.leaf_overflow, self.leaf_overflow as u64)?;
+        b.set(&l.count_overflow, self.count_overflow as u64)?;
+        b.set(&l.fetch_err, self.fetch_err)?;
+        b.set(&l.fetch_rank, self.fetch_rank as u64)?;
+        Ok(b)
     }
 }
 
@@ -74,7 +109,9 @@ impl MergerSizes {
 /// `input{k-1}` (each a fetcher `cfg` beat, [`FetchLayout::cfg_width`]
 /// bits), `count` (`bits_to_hold(k)`: inputs used, `1..=k`), `lo`, `hi`
 /// (`lod_bits` each), `out_id` (H). `report` is the merging module's
-/// ([`TopLayout`]), `header` the writer's ([`WriterLayout`]).
+/// ([`TopLayout`]). `header`, from bit 0: the writer's header
+/// ([`WriterLayout`]), `leaf_overflow`, `count_overflow` (1 each),
+/// `fetch_err` ([`fetch_err::BITS`]), `fetch_rank` (`rank_bits(k)`).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct MergerLayout {
     pub k: usize,
@@ -88,6 +125,11 @@ pub struct MergerLayout {
     pub hi: Field,
     pub out_id: Field,
     pub cfg_width: u32,
+    pub leaf_overflow: Field,
+    pub count_overflow: Field,
+    pub fetch_err: Field,
+    pub fetch_rank: Field,
+    pub header_width: u32,
 }
 
 fn field_at(name: &'static str, offset: u32, width: u32) -> Field {
@@ -108,10 +150,20 @@ impl MergerLayout {
         let lo = field_at("lo", count.end(), lb);
         let hi = field_at("hi", lo.end(), lb);
         let out_id = field_at("out_id", hi.end(), p.hier_bits as u32);
+        let writer = WriterLayout::new(p, capacity_bits)?;
+        let leaf_overflow = field_at("leaf_overflow", writer.header_width, 1);
+        let count_overflow = field_at("count_overflow", leaf_overflow.end(), 1);
+        let fetch_err = field_at("fetch_err", count_overflow.end(), fetch_err::BITS);
+        let fetch_rank = field_at("fetch_rank", fetch_err.end(), rank_bits(k));
         Ok(MergerLayout {
             k,
             top: TopLayout::new(p),
-            writer: WriterLayout::new(p, capacity_bits)?,
+            writer,
+            leaf_overflow,
+            count_overflow,
+            fetch_err,
+            fetch_rank,
+            header_width: fetch_rank.end(),
             fetch,
             input_width,
             count,
@@ -210,6 +262,8 @@ pub struct MergerTransaction {
     pub base: Vec<BaseNode>,
     /// The writer's run (its `builder` is the upper builder's run).
     pub writer: WriterTransaction,
+    /// The merger's `header` beat.
+    pub header: MergerHeader,
 }
 
 impl MergerTransaction {
@@ -328,6 +382,15 @@ pub fn merge_leaves(fetch: &[FetchTransaction]) -> Vec<BaseNode> {
         .collect();
     all.sort_by_key(|(n, r)| (n.record.voxel.lod, morton(&n.record.voxel), *r));
     all.iter().map(|(n, _)| BaseNode::reused(n)).collect()
+}
+
+/// Whether some LOD has more leaves than its FIFO holds (`2^leaf_bits`).
+pub fn leaf_overflow(leaves: &[BaseNode], leaf_bits: u32) -> bool {
+    let mut per_lod = std::collections::BTreeMap::<u8, u64>::new();
+    for n in leaves {
+        *per_lod.entry(n.record.voxel.lod).or_default() += 1;
+    }
+    per_lod.values().any(|&c| c > 1u64 << leaf_bits)
 }
 
 /// The base nodes the module's `out` beats carry (created nodes with the
@@ -490,7 +553,15 @@ pub fn merger_transaction(
         (Vec::new(), Vec::new())
     };
     let writer = writer_transaction(&base, &hs, &p, sizes.capacity_bits, out_id)?;
+    let header = MergerHeader {
+        writer: writer.header,
+        leaf_overflow: leaf_overflow(&leaves, sizes.leaf_bits),
+        count_overflow: false,
+        fetch_err: fetch_err::NONE,
+        fetch_rank: 0,
+    };
     Ok(MergerTransaction {
+        header,
         mode,
         cfg,
         cmds,
@@ -642,6 +713,7 @@ mod tests {
                 frontier: 8192,
             },
             capacity_bits: 13.min(p.index_bits as u32 - 1),
+            leaf_bits: 12,
         };
         for (store, table, ids) in cases {
             let hs: Vec<&Hierarchy> = ids.iter().map(|i| store.get(*i).unwrap()).collect();
@@ -653,6 +725,8 @@ mod tests {
                 let r = merge(&store, &ids, &table, mode, out_id).unwrap();
                 let w = &tx.writer;
                 assert_eq!(w.header.err, writer_err::NONE, "{mode}");
+                assert!(!tx.header.leaf_overflow, "{mode}");
+                assert_eq!(tx.header.writer, w.header);
                 assert_eq!(w.nodes, r.merged.nodes, "{mode}");
                 assert_eq!(w.refs, r.merged.refs, "{mode}");
                 assert_eq!(w.header.roots, r.merged.root_count as u64, "{mode}");
@@ -791,10 +865,44 @@ mod tests {
         assert!(e.to_string().contains("fetcher"), "{e}");
     }
 
+    /// The header flags a LOD with more leaves than its FIFO holds.
+    #[test]
+    fn leaf_overflow_is_flagged() {
+        let p = Params::default();
+        let mut flagged = 0;
+        for (store, table, ids) in real_cases(&p) {
+            for leaf_bits in [0, 12] {
+                let sizes = MergerSizes {
+                    leaf_bits,
+                    ..MergerSizes::new(&p)
+                };
+                let mode = MergeMode::BelowTop(2);
+                let tx = merger_transaction(&store, &table, &ids, mode, 9, 4, sizes).unwrap();
+                let most = tx
+                    .leaves
+                    .iter()
+                    .map(|a| {
+                        let lod = a.record.voxel.lod;
+                        tx.leaves
+                            .iter()
+                            .filter(|b| b.record.voxel.lod == lod)
+                            .count()
+                    })
+                    .max()
+                    .unwrap_or(0);
+                assert_eq!(tx.header.leaf_overflow, most > 1 << leaf_bits);
+                flagged += tx.header.leaf_overflow as usize;
+            }
+        }
+        assert!(flagged > 0);
+    }
+
     #[test]
     fn cfg_packs_every_input_and_the_range() {
         let p = Params::default();
         let l = MergerLayout::new(&p, 4, 10).unwrap();
+        assert_eq!(l.fetch_rank.width, 2);
+        assert_eq!(l.header_width, l.writer.header_width + 8);
         let (store, _, ids) = real_cases(&p).remove(0);
         let cfg = MergerCfg {
             inputs: ids

@@ -48,7 +48,6 @@ mod st {
     pub const EMIT: u64 = 13;
     pub const PREF_REQ: u64 = 14;
     pub const PREF_RESP: u64 = 15;
-    pub const CONT: u64 = 16;
     pub const LEVEL_END: u64 = 17;
     pub const FINISH: u64 = 18;
     pub const LEAF_END: u64 = 19;
@@ -502,6 +501,17 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     node_req.valid.drive(root_req | node_req_st);
     node_req.data.drive(root_req.mux(idx, node_idx));
 
+    // After a node, the level's next one: the sorter's next root, the
+    // range's next child, or the next range (no state of its own).
+    let after_node = from_sorter
+        .mux(
+            goto(st::TOP_NEXT),
+            idx.zext(ib + 1)
+                .ne(rng_end)
+                .mux(goto(st::REF_REQ), goto(st::RANGE_NEXT)),
+        )
+        .name("after_node");
+
     // ---- VISIT: order, range and frontier checks, then where the node goes
     let visit = is(st::VISIT);
     let leaf = field(node, nl.leaf()).expect("leaf").name("node_leaf");
@@ -549,11 +559,11 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     n_next_level.when(push, next_level.add(1, cb));
     next_state.when(visit_ok & above_level & leaf & c_leaves, goto(st::LEAF_OUT));
     next_state.when(visit_ok & at_level, goto(st::EMIT));
-    next_state.when(visit_ok, goto(st::CONT));
+    next_state.when(visit_ok, after_node);
     fifo.write(tail, m.concat(&[node_idx, n_count, n_first]), push);
 
     let leaf_out = is(st::LEAF_OUT);
-    next_state.when(leaf_out & leaves.ready, goto(st::CONT));
+    next_state.when(leaf_out & leaves.ready, after_node);
 
     // ---- EMIT: a node at the level; a held inner node's references go
     // after its voxel's leaf, or before any other node.
@@ -564,7 +574,7 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     next_state.when(refs_first, goto(st::PREF_REQ));
     let emit_node = (emit & !(pend_valid & !same_leaf)).name("emit_node");
     let emitted = (emit_node & out.ready).name("emitted");
-    n_drain_ret.when(emitted & same_leaf, goto(st::CONT));
+    n_drain_ret.when(emitted & same_leaf, after_node);
     next_state.when(emitted & same_leaf, goto(st::PREF_REQ));
     let hold = (emitted & inner & c_refs).name("hold_refs");
     n_pend_valid.when(hold, lit(1, 1));
@@ -572,7 +582,7 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     pend_end.next_when(hold, n_end);
     pend_voxel.next_when(hold, voxel);
     pend_node.next_when(hold, node_idx);
-    next_state.when(emitted, goto(st::CONT));
+    next_state.when(emitted, after_node);
 
     // ---- the held node's references
     let pref_req = is(st::PREF_REQ);
@@ -591,12 +601,6 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     next_state.when(pref_ok & pref_last, drain_ret);
     next_state.when(pref_ok, goto(st::PREF_REQ));
     ref_resp.ready.drive(ref_resp_st | pref_resp & out.ready);
-
-    // ---- CONT: the next node of the level
-    let cont = is(st::CONT);
-    next_state.when(cont & from_sorter, goto(st::TOP_NEXT));
-    next_state.when(cont & idx.zext(ib + 1).ne(rng_end), goto(st::REF_REQ));
-    next_state.when(cont, goto(st::RANGE_NEXT));
 
     // ---- LEVEL_END: held references, then the next level or the end
     let le_refs = (level_end & pend_valid).name("level_end_refs");

@@ -1,0 +1,198 @@
+//! Where a cycle of the Icarus batch modes goes: the generated testbench's
+//! own statements against the design's evaluation. Printed, never asserted.
+//!
+//! `cargo bench -p cosim --bench icarus_batch_speed`
+//!
+//! Each bench runs twice: on the real unit, and on a stand-in with the
+//! same ports that accepts every input beat at once (`*_ready` tied high,
+//! every other output 0) and is given no expected outputs, so vvp runs the
+//! same testbench over a design that costs nearly nothing. vvp's wall time
+//! per cycle on the stand-in is the testbench's share. Best of three runs.
+//! Merging module (`IcarusMultiBatch`): default design, 300 merges, stall
+//! 0.3; merge-level stage (`IcarusBatch`): default design, 1,500 levels,
+//! stall 0.3.
+
+use cosim::icarus::{BatchSpec, IcarusBatch, IcarusMultiBatch, LaneVector};
+use cosim::tb::{BenchConfig, StreamBeats, StreamNames, Vector};
+use cosim::units::{merge, merge_module};
+use cosim::{Design, PortDir};
+use golden::vectors::merge::MergeDesign;
+use std::path::Path;
+use std::time::Duration;
+
+const RUNS: usize = 3;
+
+type Res<T> = Result<T, Box<dyn std::error::Error>>;
+
+fn config() -> BenchConfig {
+    BenchConfig {
+        seed: 5,
+        in_stall: 0.3,
+        out_stall: 0.3,
+        stop_on_mismatch: false,
+        watchdog_cycles: 100_000,
+        ..BenchConfig::default()
+    }
+}
+
+/// A design with `real`'s ports whose outputs named in `ready_high` are 1
+/// and every other output 0, written to `dir`.
+fn stand_in(real: &Design, ready_high: &[String], dir: &Path) -> Res<Design> {
+    let mut text = format!("module {}(\n", real.top);
+    let decls: Vec<String> = real
+        .ports
+        .iter()
+        .map(|p| {
+            let dir = if p.dir == PortDir::Input {
+                "input wire"
+            } else {
+                "output wire"
+            };
+            format!("    {dir} [{}:0] {}", p.width - 1, p.name)
+        })
+        .collect();
+    text += &decls.join(",\n");
+    text += "\n);\n";
+    for p in real.ports.iter().filter(|p| p.dir == PortDir::Output) {
+        let value = u8::from(ready_high.contains(&p.name));
+        text += &format!("    assign {} = {}'d{value};\n", p.name, p.width);
+    }
+    text += "endmodule\n";
+    let file = dir.join("stand_in.v");
+    std::fs::write(&file, text)?;
+    Ok(Design {
+        verilog_files: vec![file],
+        ..real.clone()
+    })
+}
+
+/// The fastest of `RUNS` runs: (cycles, vvp wall).
+fn best(mut run: impl FnMut() -> cosim::Result<(u64, Duration)>) -> cosim::Result<(u64, Duration)> {
+    let mut best: Option<(u64, Duration)> = None;
+    for _ in 0..RUNS {
+        let (cycles, wall) = run()?;
+        if best.is_none_or(|b| wall < b.1) {
+            best = Some((cycles, wall));
+        }
+    }
+    Ok(best.expect("at least one run"))
+}
+
+/// vvp's wall time per cycle, without its fixed costs (start, file
+/// loads): the difference between a long run and a short one of the same
+/// bench, over the difference of their cycles. `run(true)`: the long one.
+fn per_cycle(
+    mut run: impl FnMut(bool) -> cosim::Result<(u64, Duration)>,
+) -> cosim::Result<(u64, f64)> {
+    let long = best(|| run(true))?;
+    let short = best(|| run(false))?;
+    let us = (long.1.as_secs_f64() - short.1.as_secs_f64()) * 1e6
+        / long.0.saturating_sub(short.0).max(1) as f64;
+    Ok((long.0, us))
+}
+
+fn print(what: &str, real: (u64, f64), stand: (u64, f64)) {
+    println!(
+        "{what}: real {} cycles, {:.2} us/cycle of vvp ({:.0} cycles/s); stand-in {} cycles, \
+         {:.2} us/cycle: the testbench is {:.0}% of a cycle",
+        real.0,
+        real.1,
+        1e6 / real.1,
+        stand.0,
+        stand.1,
+        100.0 * stand.1 / real.1
+    );
+}
+
+fn merging_module(dir: &Path) -> Res<()> {
+    let d = MergeDesign::default();
+    let design = cosim::from_rtl::design_from_module(&merge_module::merge_module(&d), dir)?;
+    let most = merge_module::DEFAULT_MOST_VOXELS;
+    let long = merge_module::generate_streams(&d, 5, 300, most, None)?;
+    let short = merge_module::generate_streams(&d, 5, 10, most, None)?;
+    let names = merge_module::input_names(&d);
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    let c = config();
+    let batch = IcarusMultiBatch::new(&design, &names, &merge_module::OUTPUT_NAMES)?;
+    let real = per_cycle(|is_long| {
+        let s = if is_long { &long } else { &short };
+        let r = batch.run(&s.inputs, &s.outputs, &c)?;
+        assert!(r.report.passed(), "{}", r.report);
+        Ok((r.report.cycles, r.sim_wall))
+    })?;
+    let readies: Vec<String> = names.iter().map(|n| format!("{n}_ready")).collect();
+    let stand_dir = tempfile::tempdir()?;
+    let standin = stand_in(&design, &readies, stand_dir.path())?;
+    let none: Vec<StreamBeats> = merge_module::OUTPUT_NAMES
+        .iter()
+        .map(|o| StreamBeats {
+            name: o.to_string(),
+            beats: Vec::new(),
+        })
+        .collect();
+    let sbatch = IcarusMultiBatch::new(&standin, &names, &merge_module::OUTPUT_NAMES)?;
+    let stand = per_cycle(|is_long| {
+        let s = if is_long { &long } else { &short };
+        let r = sbatch.run(&s.inputs, &none, &c)?;
+        assert!(r.report.passed(), "{}", r.report);
+        Ok((r.report.cycles, r.sim_wall))
+    })?;
+    print("merging module, IcarusMultiBatch", real, stand);
+    Ok(())
+}
+
+fn merge_level(dir: &Path) -> Res<()> {
+    let d = MergeDesign::default();
+    let design = cosim::from_rtl::design_from_module(&merge::merge_level_module(&d.params), dir)?;
+    let levels = merge::generate_levels(&d, 5, 1500)?;
+    let vectors = merge::bench_vectors(&levels, None)?;
+    let names: StreamNames = merge::stream_names();
+    let c = config();
+    let batch = IcarusBatch::new(&design, &BatchSpec::single(&names))?;
+    let lanes: Vec<LaneVector> = vectors
+        .iter()
+        .map(|v| LaneVector::new(0, v.clone()))
+        .collect();
+    // A short run: whole levels (a level's beats belong together).
+    let short = merge::bench_vectors(&levels[..levels.len() / 50], None)?.len();
+    let real = per_cycle(|is_long| {
+        let n = if is_long { lanes.len() } else { short };
+        let r = batch.run(&lanes[..n], &mut |_| None, &c)?;
+        assert!(r.bench.passed(), "{}", r.bench);
+        Ok((r.bench.cycles, r.sim_wall))
+    })?;
+    let stand_dir = tempfile::tempdir()?;
+    let standin = stand_in(&design, &[names.in_ready.clone()], stand_dir.path())?;
+    let sbatch = IcarusBatch::new(&standin, &BatchSpec::single(&names))?;
+    let no_outputs: Vec<LaneVector> = vectors
+        .iter()
+        .map(|v| {
+            LaneVector::new(
+                0,
+                Vector {
+                    input: v.input.clone(),
+                    outputs: Vec::new(),
+                },
+            )
+        })
+        .collect();
+    let stand = per_cycle(|is_long| {
+        let n = if is_long { no_outputs.len() } else { short };
+        let r = sbatch.run(&no_outputs[..n], &mut |_| None, &c)?;
+        assert!(r.bench.passed(), "{}", r.bench);
+        Ok((r.bench.cycles, r.sim_wall))
+    })?;
+    print("merge-level stage, IcarusBatch", real, stand);
+    Ok(())
+}
+
+fn main() -> Res<()> {
+    if !cosim::tools::tool_available("iverilog") {
+        eprintln!("iverilog missing: {}", cosim::tools::INSTALL_HINT);
+        return Ok(());
+    }
+    let dir = tempfile::tempdir()?;
+    merging_module(dir.path())?;
+    merge_level(dir.path())?;
+    Ok(())
+}

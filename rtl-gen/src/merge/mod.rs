@@ -15,12 +15,15 @@
 //!   configuration (what `merge_module_unit` builds for it): breadth-first
 //!   LOD passes through a probe-aware merge network, the per-node decider
 //!   and S614 (SPEC 8.14).
+//! - [`fetcher_unit`]: S610 + S612 for one input: walks it in the store
+//!   (node and reference read ports), translating, into an input stream.
 //! - [`upper_builder_unit`]: every S616 level above the base at once (a
 //!   chain of grouping and Morton-merge stages, the top rule in flight).
 //! - [`record_writer_unit`]: S618, the merged hierarchy's records,
 //!   references and header from the builder's levels (buffered per level).
 
 mod builder;
+mod fetcher;
 mod fields;
 mod level;
 mod network;
@@ -32,6 +35,7 @@ mod upper;
 mod writer;
 
 pub use builder::{upper_builder_name, upper_builder_unit};
+pub use fetcher::{fetcher_name, fetcher_unit};
 pub use level::{merge_level_name, merge_level_unit};
 pub use network::{morton_code, morton_merge_name, morton_merge_unit};
 pub use overlap::{overlap_counter_name, overlap_counter_unit};

@@ -21,11 +21,15 @@
 //!   chain of grouping and Morton-merge stages, the top rule in flight).
 //! - [`record_writer_unit`]: S618, the merged hierarchy's records,
 //!   references and header from the builder's levels (buffered per level).
+//! - [`hierarchy_merger_unit`]: S610-S618 as one top module: `k` fetchers,
+//!   the merging module, the upper builder and the record writer, with the
+//!   controller, the routing of S614's out and the leaf FIFOs (SPEC 8.15).
 
 mod builder;
 mod fetcher;
 mod fields;
 mod level;
+mod merger;
 mod network;
 mod overlap;
 mod per_node;
@@ -37,6 +41,7 @@ mod writer;
 pub use builder::{upper_builder_name, upper_builder_unit};
 pub use fetcher::{fetcher_name, fetcher_unit};
 pub use level::{merge_level_name, merge_level_unit};
+pub use merger::{hierarchy_merger_name, hierarchy_merger_unit, MergerConfig};
 pub use network::{morton_code, morton_merge_name, morton_merge_unit};
 pub use overlap::{overlap_counter_name, overlap_counter_unit};
 pub use per_node::{

@@ -1,0 +1,457 @@
+//! The hierarchy merger, S610-S618 as one top module
+//! (`rtl_gen::merge::hierarchy_merger_unit`, SPEC.md section 8.15), against
+//! `golden::merge::merger_unit::merger_transaction` (the chain of the units'
+//! golden transactions, tested equal to `merge()` in golden), bit for bit on
+//! every out stream: `report`, every fetcher's `node_req` / `ref_req`, the
+//! writer's `ref_req`, `nodes`, `refs`, `header`. The store's responses are
+//! precomputed from golden and presented as ordinary input streams (each
+//! unit raises `resp_ready` only while a request is outstanding). Random
+//! stalls on every stream (`cosim::tb::run_multi_stream_bench`); Verilator,
+//! Icarus (multi-stream batch) and the IR simulator; throughput with no
+//! back-pressure; lint and synthesis.
+mod merge_common;
+
+use cosim::tb::{run_multi_stream_bench_watching, BenchConfig, MultiReport, StreamBeats};
+use golden::merge::level::candidate_range;
+use golden::merge::merger_unit::{
+    merger_transaction, MergerLayout, MergerSizes, MergerTransaction,
+};
+use golden::merge::writer_unit::{place, real_cases, soup, writer_err};
+use golden::merge::MergeMode;
+use golden::params::Params;
+use golden::store::{Hierarchy, HierarchyStore};
+use golden::translate::stimulus::SplitMix64;
+use golden::translate::TranslationTable;
+use golden::vectors::merge::MergeDesign;
+use merge_common::*;
+use rtl_gen::merge::MergerConfig;
+
+/// Name and configuration: the default (D = 16, k = 4, overlap 1/2) and a
+/// small one (D = 8, Q = 0, k = 3, below-top:1).
+fn configs() -> Vec<(&'static str, MergerConfig)> {
+    let sizes = |p: &Params, cap: u32| MergerSizes {
+        capacity_bits: cap,
+        leaf_bits: 6,
+        ..MergerSizes::new(p)
+    };
+    let default = MergeDesign::default();
+    let q0 = MergeDesign {
+        params: Params::new(8, 0, 12, 3).unwrap(),
+        inputs: 3,
+        mode: MergeMode::BelowTop(1),
+        roots: 16,
+    };
+    vec![
+        (
+            "default",
+            MergerConfig {
+                sizes: sizes(&default.params, 8),
+                design: default,
+            },
+        ),
+        (
+            "q0",
+            MergerConfig {
+                sizes: sizes(&q0.params, 7),
+                design: q0,
+            },
+        ),
+    ]
+}
+
+/// One stream's beats from packed golden values.
+fn beats(name: &str, v: Vec<golden::layout::Bits>) -> StreamBeats {
+    StreamBeats {
+        name: name.into(),
+        beats: v.iter().map(|b| vec![bitvec(b)]).collect(),
+    }
+}
+
+/// What a list of merges exercised.
+#[derive(Default, Debug)]
+struct Seen {
+    merges: usize,
+    refused: usize,
+    records: u64,
+    refs: u64,
+    leaves_above: usize,
+    materialized: usize,
+    several_roots: usize,
+    /// Beats into the merging module's `in*` (fetcher out, over all inputs).
+    module_in: u64,
+}
+
+/// The streams of `txs` for configuration `c`: (inputs, outputs).
+fn streams(
+    c: &MergerConfig,
+    txs: &[MergerTransaction],
+) -> (Vec<StreamBeats>, Vec<StreamBeats>, Seen) {
+    let p = &c.design.params;
+    let k = c.design.inputs;
+    let ml = MergerLayout::new(p, k, c.sizes.capacity_bits).unwrap();
+    let fl = &ml.fetch;
+    let idx = |i: &u32| {
+        let mut b = golden::layout::Bits::zero(fl.index_width);
+        let f = golden::layout::Field {
+            name: "index",
+            offset: 0,
+            width: fl.index_width,
+        };
+        b.set(&f, *i as u64).unwrap();
+        b
+    };
+    let node = |n: &golden::store::NodeRecord| n.pack(&fl.node).unwrap();
+    let rf = |r: &golden::store::Reference| r.pack(&fl.reference).unwrap();
+    let mut seen = Seen::default();
+    let (mut cfg, mut report, mut nodes, mut refs, mut header) =
+        (vec![], vec![], vec![], vec![], vec![]);
+    let (mut w_req, mut w_resp) = (vec![], vec![]);
+    let mut f_node_req = vec![vec![]; k];
+    let mut f_node_resp = vec![vec![]; k];
+    let mut f_ref_req = vec![vec![]; k];
+    let mut f_ref_resp = vec![vec![]; k];
+    for tx in txs {
+        seen.merges += 1;
+        seen.refused += tx.chosen.is_none() as usize;
+        cfg.push(tx.cfg.pack(&ml).unwrap());
+        report.extend(tx.reports().iter().map(|r| r.pack(&ml.top).unwrap()));
+        let w = &tx.writer;
+        nodes.extend(w.nodes.iter().map(node));
+        refs.extend(w.refs.iter().map(rf));
+        w_req.extend(w.ref_reqs.iter().map(rf));
+        w_resp.extend(w.ref_resps.iter().map(rf));
+        header.push(tx.header.pack(&ml).unwrap());
+        for (i, f) in tx.fetch.iter().enumerate() {
+            f_node_req[i].extend(f.node_reqs.iter().map(idx));
+            f_node_resp[i].extend(f.node_resps.iter().map(node));
+            f_ref_req[i].extend(f.ref_reqs.iter().map(idx));
+            f_ref_resp[i].extend(f.ref_resps.iter().map(rf));
+            seen.module_in += f.out.len() as u64;
+        }
+        seen.records += w.nodes.len() as u64;
+        seen.refs += w.refs.len() as u64;
+        seen.leaves_above += !tx.leaves.is_empty() as usize;
+        seen.materialized += !w.ref_reqs.is_empty() as usize;
+        seen.several_roots += (w.header.roots > 1) as usize;
+    }
+    let mut ins = vec![beats("cfg", cfg)];
+    let mut outs = vec![beats("report", report)];
+    for i in 0..k {
+        ins.push(beats(
+            &format!("f{i}_node_resp"),
+            std::mem::take(&mut f_node_resp[i]),
+        ));
+        ins.push(beats(
+            &format!("f{i}_ref_resp"),
+            std::mem::take(&mut f_ref_resp[i]),
+        ));
+        outs.push(beats(
+            &format!("f{i}_node_req"),
+            std::mem::take(&mut f_node_req[i]),
+        ));
+        outs.push(beats(
+            &format!("f{i}_ref_req"),
+            std::mem::take(&mut f_ref_req[i]),
+        ));
+    }
+    ins.push(beats("w_ref_resp", w_resp));
+    outs.extend([
+        beats("w_ref_req", w_req),
+        beats("nodes", nodes),
+        beats("refs", refs),
+        beats("header", header),
+    ]);
+    (ins, outs, seen)
+}
+
+fn modes(c: &MergerConfig) -> Vec<MergeMode> {
+    vec![c.design.mode]
+}
+
+/// Real merges (overlapping, disjoint, single-triangle soups, one input
+/// alone) through the configuration's mode, plus refusals when the mode
+/// refuses the case.
+fn real_merges(c: &MergerConfig) -> Vec<MergerTransaction> {
+    let p = &c.design.params;
+    let mut out = Vec::new();
+    for (store, table, ids) in real_cases(p) {
+        for mode in modes(c) {
+            out.push(
+                merger_transaction(
+                    &store,
+                    &table,
+                    &ids,
+                    mode,
+                    9 % p.hier_capacity() as u8,
+                    c.design.inputs,
+                    c.sizes,
+                )
+                .expect("a real merge"),
+            );
+        }
+    }
+    out
+}
+
+/// A random merge: 1..=k soups of random sizes, each translated at its top
+/// LOD by a random fraction of the room left.
+fn random_merge(rng: &mut SplitMix64, c: &MergerConfig) -> MergerTransaction {
+    let p = &c.design.params;
+    let k = c.design.inputs;
+    loop {
+        let n = 1 + rng.below(k as u64) as usize;
+        let mut store = HierarchyStore::new();
+        let mut table = TranslationTable::new(p.hier_capacity() as usize, p).unwrap();
+        let mut ids = Vec::new();
+        for r in 0..n {
+            let id = 1 + r as u8;
+            let tris = 1 + rng.below(40) as usize;
+            let size = 0.02 + rng.below(30) as f32 / 100.0;
+            let h = soup(p, id, tris, size, rng.next_u64());
+            let frac = [0, 1, 2].map(|_| rng.below(101) as f64 / 100.0);
+            table.write(id as u32, place(&h, frac)).unwrap();
+            store.insert(h).unwrap();
+            ids.push(id);
+        }
+        let out_id = (p.hier_capacity() - 1) as u8;
+        if let Ok(tx) = merger_transaction(&store, &table, &ids, c.design.mode, out_id, k, c.sizes)
+        {
+            if !tx.header.leaf_overflow {
+                return tx;
+            }
+        }
+    }
+}
+
+fn bench(
+    engine: &mut dyn cosim::Engine,
+    ins: &[StreamBeats],
+    outs: &[StreamBeats],
+    seed: u64,
+    stall: f64,
+    what: &str,
+) -> MultiReport {
+    let config = BenchConfig {
+        seed,
+        in_stall: stall,
+        out_stall: stall,
+        ..BenchConfig::default()
+    };
+    let (r, counts) = run_multi_stream_bench_watching(engine, ins, outs, &config, &["done"])
+        .expect("the bench runs");
+    eprint!("{what}: stall {stall:.2}: {r}");
+    assert!(r.passed(), "{what} stall {stall}:\n{r}");
+    let headers = outs
+        .iter()
+        .find(|s| s.name == "header")
+        .unwrap()
+        .beats
+        .len() as u64;
+    assert_eq!(counts[0].1, headers, "{what}: one done pulse per merge");
+    r
+}
+
+fn batch_bench(
+    design: &cosim::Design,
+    ins: &[StreamBeats],
+    outs: &[StreamBeats],
+    seed: u64,
+    stall: f64,
+    what: &str,
+) -> MultiReport {
+    let names = |s: &[StreamBeats]| s.iter().map(|b| b.name.clone()).collect::<Vec<_>>();
+    let (i, o) = (names(ins), names(outs));
+    let i: Vec<&str> = i.iter().map(String::as_str).collect();
+    let o: Vec<&str> = o.iter().map(String::as_str).collect();
+    let batch = cosim::icarus::IcarusMultiBatch::new(design, &i, &o).expect("iverilog build");
+    let config = BenchConfig {
+        seed,
+        in_stall: stall,
+        out_stall: stall,
+        ..BenchConfig::default()
+    };
+    let r = batch
+        .run(ins, outs, &config)
+        .expect("the batch runs")
+        .report;
+    eprint!("{what}: stall {stall:.2}: {r}");
+    assert!(r.passed(), "{what} stall {stall}:\n{r}");
+    r
+}
+
+/// Real merges, then `random` random merges, on every engine in `runs`.
+fn check(name: &str, runs: &[(&str, usize)]) {
+    let all = configs();
+    let at = all.iter().position(|c| c.0 == name).unwrap();
+    let c = &all[at].1;
+    let seed = 0x5615 + at as u64;
+    let dir = tempfile::tempdir().unwrap();
+    let m = rtl_gen::merge::hierarchy_merger_unit(c).expect("a valid merger");
+    let design = design_of(&m, dir.path());
+    let real = real_merges(c);
+    for &(kind, random) in runs {
+        let t = std::time::Instant::now();
+        let stall = stall_of(seed ^ kind.len() as u64).max(0.05);
+        let mut rng = SplitMix64(seed);
+        let mut txs = real.clone();
+        txs.extend((0..random).map(|_| random_merge(&mut rng, c)));
+        let (ins, outs, seen) = streams(c, &txs);
+        let what = format!("merge_merger {name} {kind}");
+        let r = match kind {
+            "iverilog-batch" => batch_bench(&design, &ins, &outs, seed, stall, &what),
+            _ => {
+                let mut e = engine(kind, &m, &design);
+                bench(e.as_mut(), &ins, &outs, seed, stall, &what)
+            }
+        };
+        println!(
+            "merge_merger {name} {kind}: {} merges ({} real, {random} random, {} refused), {} module-in beats, {} records, {} refs, {} cycles, stall {stall:.2}, {:.1?} wall; {seen:?}",
+            seen.merges,
+            real.len(),
+            seen.refused,
+            seen.module_in,
+            seen.records,
+            seen.refs,
+            r.cycles,
+            t.elapsed()
+        );
+        assert!(seen.leaves_above > 0 && seen.materialized > 0, "{seen:?}");
+    }
+}
+
+#[test]
+fn hierarchy_merger_default_matches_golden() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
+    }
+    check(
+        "default",
+        &[("verilator", 40), ("iverilog-batch", 4), ("ir", 2)],
+    );
+}
+
+#[test]
+fn hierarchy_merger_q0_matches_golden() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
+    }
+    check("q0", &[("verilator", 40), ("iverilog-batch", 4), ("ir", 2)]);
+}
+
+/// Merged nodes (records written) per cycle with no back-pressure, on
+/// Verilator, over the real merges and random ones.
+#[test]
+fn hierarchy_merger_throughput() {
+    if !tools_present(&["verilator"]) {
+        return;
+    }
+    for (name, c) in configs() {
+        let dir = tempfile::tempdir().unwrap();
+        let m = rtl_gen::merge::hierarchy_merger_unit(&c).expect("a valid merger");
+        let design = design_of(&m, dir.path());
+        let mut rng = SplitMix64(77);
+        let mut txs = real_merges(&c);
+        txs.extend((0..20).map(|_| random_merge(&mut rng, &c)));
+        let (ins, outs, seen) = streams(&c, &txs);
+        let mut e = engine("verilator", &m, &design);
+        let r = bench(e.as_mut(), &ins, &outs, 5, 0.0, "merge_merger throughput");
+        let reads: u64 = txs
+            .iter()
+            .map(|t| {
+                t.fetch
+                    .iter()
+                    .map(|f| f.node_reqs.len() + f.ref_reqs.len())
+                    .sum::<usize>() as u64
+            })
+            .sum();
+        println!(
+            "merge_merger {name} throughput: {} merges, {} records + {} refs written, {} module-in beats, {reads} store reads by the fetchers, {} cycles: {:.4} records/cycle, {:.4} module-in beats/cycle",
+            seen.merges,
+            seen.records,
+            seen.refs,
+            seen.module_in,
+            r.cycles,
+            seen.records as f64 / r.cycles as f64,
+            seen.module_in as f64 / r.cycles as f64
+        );
+    }
+}
+
+/// Both configurations lint clean (`verilator --lint-only -Wall`) with no
+/// warning from the generator; the small one also goes through Yosys
+/// `synth; check -assert` with no latch (at small capacities).
+#[test]
+fn hierarchy_merger_verilog_lints_and_synthesizes() {
+    if !tools_present(&["verilator", "yosys"]) {
+        return;
+    }
+    for (name, c) in configs() {
+        let dir = tempfile::tempdir().unwrap();
+        let m = rtl_gen::merge::hierarchy_merger_unit(&c).expect("a valid merger");
+        let warnings = m.validate_design().expect("valid");
+        assert!(warnings.is_empty(), "{name}: {warnings:?}");
+        let design = design_of(&m, dir.path());
+        if name == "q0" {
+            let small = MergerConfig {
+                sizes: MergerSizes {
+                    capacity_bits: 2,
+                    leaf_bits: 1,
+                    fetch: golden::merge::fetch_unit::FetchSizes {
+                        roots: 4,
+                        frontier: 4,
+                    },
+                },
+                design: MergeDesign {
+                    roots: 4,
+                    ..c.design
+                },
+            };
+            let sm = rtl_gen::merge::hierarchy_merger_unit(&small).expect("a valid merger");
+            let sdir = tempfile::tempdir().unwrap();
+            let t = std::time::Instant::now();
+            lint_and_synth(&design_of(&sm, sdir.path()));
+            println!(
+                "merge_merger {name} small: lint + yosys synth in {:.1?}",
+                t.elapsed()
+            );
+        }
+        let t = std::time::Instant::now();
+        lint_only(&design);
+        println!("merge_merger {name}: lint in {:.1?}", t.elapsed());
+    }
+}
+
+/// Per-node mode is refused with a message that says why.
+#[test]
+fn per_node_is_refused() {
+    let c = MergerConfig::new(MergeDesign {
+        mode: MergeMode::PerNode { num: 1, den: 2 },
+        ..MergeDesign::default()
+    });
+    let e = rtl_gen::merge::hierarchy_merger_unit(&c)
+        .err()
+        .expect("refused");
+    assert!(e.contains("per-node") && e.contains("probes"), "{e}");
+    let _ = (candidate_range, writer_err::NONE);
+    let _: Option<&Hierarchy> = None;
+}
+
+fn lint_only(design: &cosim::Design) {
+    let files: Vec<String> = design
+        .verilog_files
+        .iter()
+        .map(|f| f.display().to_string())
+        .collect();
+    let out = std::process::Command::new("verilator")
+        .args(["--lint-only", "-Wall", "--top-module", &design.top])
+        .args(&files)
+        .output()
+        .expect("verilator runs");
+    let text =
+        String::from_utf8_lossy(&out.stderr).to_string() + &String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && text.trim().is_empty(),
+        "verilator lint of {}:\n{text}",
+        design.top
+    );
+}

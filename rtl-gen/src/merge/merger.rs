@@ -1,0 +1,600 @@
+//! The hierarchy merger as one top module (SPEC.md section 8.15): S610-S618
+//! end to end. `k` fetchers walk the inputs in the store, the merging module
+//! chooses the level and merges it, the upper builder builds every level
+//! above, the record writer lays out the merged hierarchy; the glue here is
+//! a controller (the fetchers' `cfg` and commands, pass by pass), the routing
+//! of the merging module's `out` (nodes to the builder's `base{m}`,
+//! references to the writer's `crefs`), and the leaves above `m`: a k-way
+//! merge by (LOD, Morton, rank) into one FIFO per LOD, because the builder
+//! takes `base{d}` at its own pace while level `m` streams.
+//!
+//! Golden: `golden::merge::merger_unit::merger_transaction`, the chain of the
+//! units' own transactions.
+
+use golden::merge::fetch_unit::FetchSizes;
+use golden::merge::merger_unit::{MergerLayout, MergerSizes};
+use golden::merge::top::TopLayout;
+use golden::merge::unit::{base_kind, level_kind, rank_bits, BeatLayout};
+use golden::merge::MergeMode;
+
+use super::fields::{field, with_fields};
+use super::network::morton_code;
+use super::{
+    fetcher_unit, merge_module_name, merge_module_unit, record_writer_unit, upper_builder_unit,
+    MergeConfig,
+};
+use crate::{Direction, Module, Signal, Stream};
+
+/// The merger's configuration: the merging module's design (grid
+/// parameters, `k` inputs, mode, root-sorter capacity) and the sizes of the
+/// fetchers' frontier FIFOs, the writer's buffers and the leaf FIFOs.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MergerConfig {
+    /// The merging module's design; its `roots` is every fetcher's root
+    /// sorter capacity.
+    pub design: MergeConfig,
+    /// Frontier FIFO (`fetch.frontier`; `fetch.roots` is not read), writer
+    /// capacity and leaf FIFO sizes.
+    pub sizes: MergerSizes,
+}
+
+impl MergerConfig {
+    /// The merging module's default with `sizes` from
+    /// [`MergerSizes::new`] (roots from the design).
+    pub fn new(design: MergeConfig) -> MergerConfig {
+        let mut sizes = MergerSizes::new(&design.params);
+        sizes.fetch.roots = design.roots;
+        MergerConfig { design, sizes }
+    }
+
+    /// The fetchers' sizes (the root sorter's capacity is the design's).
+    pub fn fetch_sizes(&self) -> FetchSizes {
+        FetchSizes {
+            roots: self.design.roots,
+            frontier: self.sizes.fetch.frontier,
+        }
+    }
+
+    /// Refuses what the merger cannot build: what the merging module
+    /// refuses, per-node mode (its input streams carry probes that a level
+    /// walk does not make, SPEC 8.15), a writer capacity outside `1..I`,
+    /// leaf FIFOs outside `1..=16` bits, a frontier outside `1..=2^16`.
+    pub fn validate(&self) -> Result<(), String> {
+        self.design.validate()?;
+        if let MergeMode::PerNode { .. } = self.design.mode {
+            return Err(format!(
+                "mode {}: the hierarchy merger does not build per-node merging (its module \
+                 input carries probes the fetcher's level walk does not make); expected \
+                 overlap, fixed, below-top or proportion",
+                self.design.mode
+            ));
+        }
+        let p = &self.design.params;
+        MergerLayout::new(p, self.design.inputs, self.sizes.capacity_bits)
+            .map_err(|e| e.to_string())?;
+        if !(1..=16).contains(&self.sizes.leaf_bits) {
+            return Err(format!(
+                "leaf_bits = {}: expected 1..=16 (a leaf FIFO of 2^leaf_bits per LOD)",
+                self.sizes.leaf_bits
+            ));
+        }
+        if !(1..=1 << 16).contains(&self.sizes.fetch.frontier) {
+            return Err(format!(
+                "frontier = {}: expected 1..=65536",
+                self.sizes.fetch.frontier
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Module name of the merger for `c`.
+pub fn hierarchy_merger_name(c: &MergerConfig) -> String {
+    let inner = merge_module_name(&c.design);
+    let rest = inner.strip_prefix("merge_module_").unwrap_or(&inner);
+    format!(
+        "hierarchy_merger_{rest}_r{}_f{}_c{}_l{}",
+        c.design.roots, c.sizes.fetch.frontier, c.sizes.capacity_bits, c.sizes.leaf_bits
+    )
+}
+
+/// Phases of one input's command issuer.
+mod phase {
+    /// No merge.
+    pub const NONE: u64 = 0;
+    /// Issuing the count pass, one command per candidate LOD.
+    pub const COUNT: u64 = 1;
+    /// Waiting for the merging module's choice.
+    pub const WAIT: u64 = 2;
+    /// Issuing the merge-pass (or closing) command.
+    pub const FINAL: u64 = 3;
+    /// Every command issued.
+    pub const DONE: u64 = 4;
+    pub const BITS: u32 = 3;
+}
+
+/// Field `f` of `s`.
+fn get<'m>(s: Signal<'m>, f: &golden::layout::Field) -> Signal<'m> {
+    field(s, f).expect("a non-empty field")
+}
+
+/// The count pass runs in overlap mode on a good range (the merging
+/// module's own test, 8.10).
+fn counts_pass<'m>(m: &'m Module, c: &MergerConfig, lo: Signal<'m>, hi: Signal<'m>) -> Signal<'m> {
+    let lb = c.design.params.lod_bits();
+    let dmax = c.design.params.max_lod as u128;
+    if c.design.threshold().is_none() {
+        return m.lit(0, 1);
+    }
+    let beyond = if (1u128 << lb) - 1 > dmax {
+        hi.gt(m.lit(dmax, lb))
+    } else {
+        m.lit(0, 1)
+    };
+    !(lo.gt(hi) | beyond)
+}
+
+/// The hierarchy merger for `c`; an error when `c.validate()` refuses it.
+///
+/// Ports: `clk`, `rst`; streams `cfg` (in, [`MergerLayout::cfg_width`]),
+/// `report` (out, the merging module's), `nodes`, `refs` (out, the
+/// writer's), `header` (out, [`MergerLayout::header_width`]); per input `i`
+/// the fetcher's store ports `f{i}_node_req`, `f{i}_ref_req` (out) and
+/// `f{i}_node_resp`, `f{i}_ref_resp` (in); the writer's store ports
+/// `w_<port>`; outputs `idle`, `done` (one clock after a header leaves),
+/// `module_done` and the writer's status outputs as `w_<name>`.
+pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
+    c.validate()?;
+    let p = &c.design.params;
+    let k = c.design.inputs;
+    let ml = MergerLayout::new(p, k, c.sizes.capacity_bits).map_err(|e| e.to_string())?;
+    let fl = &ml.fetch;
+    let wl = &ml.writer;
+    let tl = TopLayout::new(p);
+    let inb = BeatLayout::input(p);
+    let outb = BeatLayout::output(p);
+    let lb = p.lod_bits();
+    let dmax = p.max_lod as usize;
+    let m = Module::new(&hierarchy_merger_name(c));
+    let lit = |v: u64, w: u32| m.lit(v as u128, w);
+    let zero = lit(0, 1);
+    let one = lit(1, 1);
+
+    let fetch_mod = fetcher_unit(p, &c.fetch_sizes());
+    let writer_mod = record_writer_unit(p, c.sizes.capacity_bits).map_err(|e| e.to_string())?;
+    let fetchers: Vec<_> = (0..k)
+        .map(|i| m.instance(&format!("u_fetch{i}"), &fetch_mod))
+        .collect();
+    let module = m.instance("u_module", &merge_module_unit(&c.design));
+    let builder = m.instance("u_builder", &upper_builder_unit(p));
+    let writer = m.instance("u_writer", &writer_mod);
+
+    // ---- cfg: taken when no merge is in progress and every unit is idle.
+    let busy = m.reg("busy", 1);
+    let closing: Vec<Signal> = (0..k).map(|i| m.reg(&format!("closing{i}"), 1)).collect();
+    let header_fire = m.wire("header_fire", 1);
+    let mut quiet = !busy & module.output("idle");
+    for (i, f) in fetchers.iter().enumerate() {
+        quiet = quiet & f.output("idle") & !closing[i];
+    }
+    let quiet = quiet.name("quiet");
+    let cfg = Stream::input(&m, "cfg", ml.cfg_width);
+    cfg.ready.drive(quiet);
+    let cfg_fire = cfg.fire().name("cfg_fire");
+    let cfg_q = m.reg("cfg_q", ml.cfg_width);
+    cfg_q.next_when(cfg_fire, cfg.data);
+    busy.next(cfg_fire.mux(one, header_fire.mux(zero, busy)));
+    let count_in = get(cfg.data, &ml.count);
+    let count_q = get(cfg_q, &ml.count);
+    let lo = get(cfg_q, &ml.lo).name("lo");
+    let hi = get(cfg_q, &ml.hi).name("hi");
+    let out_id = get(cfg_q, &ml.out_id);
+    let counting_in =
+        counts_pass(&m, c, get(cfg.data, &ml.lo), get(cfg.data, &ml.hi)).name("count_pass");
+    let cw = ml.count.width;
+    let used_in: Vec<Signal> = (0..k).map(|i| count_in.gt(lit(i as u64, cw))).collect();
+    let used: Vec<Signal> = (0..k)
+        .map(|i| count_q.gt(lit(i as u64, cw)).name(&format!("used{i}")))
+        .collect();
+
+    // ---- the choice, read off the module's report on its way out.
+    let report_ready = m.input("report_ready", 1);
+    let report_valid = module.output("report_valid");
+    let report_data = module.output("report_data");
+    module.connect("report_ready", report_ready);
+    m.output("report_valid", report_valid);
+    m.output("report_data", report_data);
+    let chosen_beat =
+        (report_valid & report_ready & get(report_data, &tl.chosen).eq(1)).name("choice_seen");
+    let known = m.reg("choice_known", 1);
+    let ok = m.reg("choice_ok", 1);
+    let level = m.reg("merge_lod", lb);
+    known.next(chosen_beat.mux(one, header_fire.mux(zero, known)));
+    ok.next(chosen_beat.mux(get(report_data, &tl.err).eq(0), header_fire.mux(zero, ok)));
+    level.next_when(chosen_beat, get(report_data, &tl.lod));
+    let merging = (known & ok).name("merging");
+
+    // ---- cfg beats to the module, the fetchers and the writer.
+    let mcfg_pend = m.reg("module_cfg_pending", 1);
+    module.connect("cfg_valid", mcfg_pend);
+    module.connect(
+        "cfg_data",
+        with_fields(&m, lit(0, tl.cfg_width), &[(tl.lo, lo), (tl.hi, hi)]),
+    );
+    let mcfg_fire = mcfg_pend & module.output("cfg_ready");
+    mcfg_pend.next(cfg_fire.mux(one, mcfg_fire.mux(zero, mcfg_pend)));
+    let wcfg_pend = m.reg("writer_cfg_pending", 1);
+    writer.connect("cfg_valid", wcfg_pend);
+    writer.connect(
+        "cfg_data",
+        with_fields(&m, lit(0, wl.cfg_width), &[(wl.cfg_out_id, out_id)]),
+    );
+    let wcfg_fire = wcfg_pend & writer.output("cfg_ready");
+    wcfg_pend.next(cfg_fire.mux(one, wcfg_fire.mux(zero, wcfg_pend)));
+
+    // ---- per input: its cfg, its commands, its stream into the module.
+    let rb = rank_bits(k);
+    let ferr = m.reg("fetch_err", fl.err.width);
+    let ferr_rank = m.reg("fetch_rank", rb);
+    let mut ferr_next = header_fire.mux(lit(0, fl.err.width), ferr);
+    let mut ferr_rank_next = header_fire.mux(lit(0, rb), ferr_rank);
+    let end_beat = with_fields(
+        &m,
+        lit(0, inb.width),
+        &[(inb.kind, lit(level_kind::END, 2))],
+    );
+    let mut leaves_in = Vec::new();
+    for (i, f) in fetchers.iter().enumerate() {
+        let fcfg_pend = m.reg(&format!("fetch{i}_cfg_pending"), 1);
+        f.connect("cfg_valid", fcfg_pend);
+        let off = ml.input_offset(i);
+        f.connect("cfg_data", cfg_q.slice(off + fl.cfg_width - 1, off));
+        let fcfg_fire = fcfg_pend & f.output("cfg_ready");
+        fcfg_pend.next(cfg_fire.mux(used_in[i], fcfg_fire.mux(zero, fcfg_pend)));
+
+        let ph = m.reg(&format!("phase{i}"), phase::BITS);
+        let in_ph = |v: u64| ph.eq(lit(v, phase::BITS));
+        let cmd_lod = m.reg(&format!("cmd_lod{i}"), lb);
+        let count_ph = in_ph(phase::COUNT);
+        let final_ph = in_ph(phase::FINAL);
+        let lod = count_ph.mux(cmd_lod, merging.mux(level, lo));
+        let cmd_data = with_fields(
+            &m,
+            lit(0, fl.cmd_width),
+            &[
+                (fl.lod, lod),
+                (fl.send_refs, final_ph & merging),
+                (fl.send_leaves, final_ph & merging),
+                (fl.last, final_ph),
+            ],
+        );
+        let issuing = (count_ph | final_ph).name(&format!("issuing{i}"));
+        f.connect("cmd_valid", used[i] & issuing);
+        f.connect("cmd_data", cmd_data);
+        let cmd_fire = used[i] & issuing & f.output("cmd_ready");
+
+        // The module's in<i>: the fetcher's beats, or one End per pass for
+        // an unused input; the closing command's beats are dropped.
+        let in_ready = module.output(&format!("in{i}_ready"));
+        let fo_valid = f.output("out_valid");
+        let fo_data = f.output("out_data");
+        let fo_err = get(fo_data, &fl.err);
+        let fo_beat = fo_data.slice(fl.beat.width - 1, 0);
+        let fo_end = get(fo_beat, &inb.kind).eq(level_kind::END);
+        let virt = (!used[i] & (count_ph | (final_ph & merging))).name(&format!("virtual_end{i}"));
+        let drop = closing[i];
+        module.connect(&format!("in{i}_valid"), used[i].mux(fo_valid & !drop, virt));
+        module.connect(&format!("in{i}_data"), used[i].mux(fo_beat, end_beat));
+        f.connect("out_ready", drop | (used[i] & in_ready));
+        let fo_fire = fo_valid & (drop | (used[i] & in_ready));
+        let virt_fire = virt & in_ready;
+        let first_err = fo_fire & fo_err.ne(0) & ferr_next.eq(0);
+        ferr_next = first_err.mux(fo_err, ferr_next);
+        ferr_rank_next = first_err.mux(lit(i as u64, rb), ferr_rank_next);
+        let step =
+            (cmd_fire | virt_fire | (!used[i] & final_ph & !merging)).name(&format!("step{i}"));
+        let last_count = cmd_lod.eq(hi);
+        let after_step = count_ph.mux(
+            last_count.mux(lit(phase::WAIT, phase::BITS), ph),
+            lit(phase::DONE, phase::BITS),
+        );
+        let ph_next = cfg_fire.mux(
+            counting_in.mux(
+                lit(phase::COUNT, phase::BITS),
+                lit(phase::WAIT, phase::BITS),
+            ),
+            header_fire.mux(
+                lit(phase::NONE, phase::BITS),
+                step.mux(
+                    after_step,
+                    (in_ph(phase::WAIT) & known).mux(lit(phase::FINAL, phase::BITS), ph),
+                ),
+            ),
+        );
+        ph.next(ph_next);
+        cmd_lod.next(cfg_fire.mux(
+            get(cfg.data, &ml.lo),
+            (step & count_ph).mux(cmd_lod.add(1, lb), cmd_lod),
+        ));
+        let close_issued = cmd_fire & final_ph & !merging;
+        closing[i].next(close_issued.mux(one, (fo_fire & fo_end).mux(zero, closing[i])));
+
+        // The store ports, straight through.
+        for port in ["node_req", "ref_req"] {
+            let s = Stream {
+                valid: f.output(&format!("{port}_valid")),
+                data: f.output(&format!("{port}_data")),
+                ready: m.wire(&format!("f{i}_{port}_ready_w"), 1),
+            };
+            f.connect(&format!("{port}_ready"), s.ready);
+            s.output(&format!("f{i}_{port}"));
+        }
+        for port in ["node_resp", "ref_resp"] {
+            let w = fetch_mod
+                .ports()
+                .into_iter()
+                .find(|q| q.name == format!("{port}_data"))
+                .map(|q| q.width)
+                .expect("a fetcher response port");
+            let s = Stream::input(&m, &format!("f{i}_{port}"), w);
+            f.connect(&format!("{port}_valid"), s.valid);
+            f.connect(&format!("{port}_data"), s.data);
+            s.ready.drive(f.output(&format!("{port}_ready")));
+        }
+        leaves_in.push((f.output("leaves_valid"), f.output("leaves_data"), i));
+    }
+    ferr.next(ferr_next);
+    ferr_rank.next(ferr_rank_next);
+
+    // ---- the leaves above m: k-way merge by (LOD, Morton, rank).
+    let leaves_done = m.reg("leaves_done", 1);
+    let active = (busy & !leaves_done).name("leaves_active");
+    let nl = &fl.node;
+    let mut all_valid = active;
+    let mut all_end = one;
+    let mut heads = Vec::new();
+    for &(v, d, i) in &leaves_in {
+        let end = get(d, &fl.leaf_end);
+        let rec = get(d, &fl.leaf_rec);
+        let xyz = [0, 1, 2].map(|a| field(rec, nl.coord(a)).expect("coordinate"));
+        let key = m
+            .concat(&[!used[i] | end, get(d, &fl.leaf_lod), morton_code(&m, xyz)])
+            .name(&format!("leaf_key{i}"));
+        all_valid = all_valid & (!used[i] | v);
+        all_end = all_end & (!used[i] | end);
+        // What a winner carries on: rec, ref, lod (not the end flag).
+        heads.push((key, d.slice(fl.leaf_lod.end() - 1, 0)));
+    }
+    let all_valid = all_valid.name("leaves_all_valid");
+    let all_end = all_end.name("leaves_all_end");
+    // The lowest key wins, the lower rank on a tie (strictly lower keys
+    // replace).
+    let (mut best_key, mut best_data) = heads[0];
+    let mut best = lit(0, rb);
+    for (j, &(key, d)) in heads.iter().enumerate().skip(1) {
+        let better = key.lt(best_key);
+        if j + 1 < heads.len() {
+            best_key = better.mux(key, best_key);
+        }
+        best_data = better.mux(d, best_data);
+        best = better.mux(lit(j as u64, rb), best);
+    }
+    let best = best.name("leaf_best");
+    let best_data = best_data.name("leaf_best_data");
+    let take_leaf = (all_valid & !all_end).name("leaf_take");
+    for (f, &(_, _, i)) in fetchers.iter().zip(&leaves_in) {
+        f.connect(
+            "leaves_ready",
+            used[i] & all_valid & (all_end | best.eq(lit(i as u64, rb))),
+        );
+    }
+    leaves_done.next((all_valid & all_end).mux(one, header_fire.mux(zero, leaves_done)));
+    let best_lod = get(best_data, &fl.leaf_lod);
+    // A FIFO word: the leaves beat's `rec` and `ref` (from bit 0).
+    let word_w = fl.leaf_ref.end().max(fl.leaf_rec.end());
+    let word = best_data.slice(word_w - 1, 0);
+
+    // ---- routing of the module's out.
+    let mo_valid = module.output("out_valid");
+    let mo_data = module.output("out_data");
+    let mo_kind = get(mo_data, &outb.kind);
+    let mo_ref = mo_kind.eq(base_kind::REF).name("out_is_ref");
+    let mo_end = mo_kind.eq(base_kind::END).name("out_is_end");
+    let mo_err = get(mo_data, outb.err.as_ref().expect("an output beat has err"));
+    let mo_refer = get(mo_data, &outb.refer);
+    let mo_beat = with_fields(
+        &m,
+        lit(0, inb.width),
+        &[
+            (inb.rec, get(mo_data, &outb.rec)),
+            (inb.refer, mo_refer),
+            (inb.kind, mo_kind),
+        ],
+    );
+
+    // crefs: the reference beats, then End (a refused merge: End alone).
+    let csent = m.reg("crefs_end_sent", 1);
+    let cref_ready = writer.output("crefs_ready");
+    let cref_valid = !csent & known & (!ok | (mo_valid & (mo_ref | mo_end)));
+    let cref_is_end = !ok | mo_end;
+    let cref_data = with_fields(
+        &m,
+        lit(0, wl.cref_width),
+        &[
+            (
+                wl.cref,
+                (ok & mo_ref).mux(mo_refer, lit(0, mo_refer.width())),
+            ),
+            (wl.cref_end, cref_is_end),
+        ],
+    );
+    writer.connect("crefs_valid", cref_valid);
+    writer.connect("crefs_data", cref_data);
+    let cref_fire = cref_valid & cref_ready;
+    csent.next((cref_fire & cref_is_end).mux(one, header_fire.mux(zero, csent)));
+
+    // base{d}: the module's nodes at m, a leaf FIFO above m, End below m or
+    // when refused.
+    let cb = c.sizes.leaf_bits;
+    let mut base_m_ready = zero;
+    let mut base_m_sent = zero;
+    let mut leaf_over = m.reg("leaf_overflow", 1);
+    let mut over_next = header_fire.mux(zero, leaf_over);
+    let reused_kind = lit(base_kind::REUSED, 2);
+    for d in 0..=dmax {
+        let dl = lit(d as u64, lb);
+        let bsent = m.reg(&format!("base{d}_end_sent"), 1);
+        let ready = builder.output(&format!("base{d}_ready"));
+        let at_m = (merging & level.eq(dl)).name(&format!("base{d}_at_m"));
+        let (valid, data, is_end) = if d < dmax {
+            // The FIFO of LOD d.
+            let mem = m.memory(&format!("leaves{d}"), word_w, 1 << cb);
+            let wr = m.reg(&format!("leaves{d}_wr"), cb + 1);
+            let rd = m.reg(&format!("leaves{d}_rd"), cb + 1);
+            let empty = wr.eq(rd);
+            let full = wr.slice(cb - 1, 0).eq(rd.slice(cb - 1, 0)) & !wr.bit(cb).eq(rd.bit(cb));
+            let push = take_leaf & best_lod.eq(dl);
+            mem.write(wr.slice(cb - 1, 0), word, push & !full);
+            over_next = (push & full).mux(one, over_next);
+            let head = mem.read(rd.slice(cb - 1, 0));
+            let above = (merging & dl.lt(level)).name(&format!("base{d}_above_m"));
+            let leaf_beat = with_fields(
+                &m,
+                lit(0, inb.width),
+                &[
+                    (inb.rec, get(head, &fl.leaf_rec)),
+                    (inb.refer, get(head, &fl.leaf_ref)),
+                    (inb.kind, reused_kind),
+                ],
+            );
+            let fifo_end = empty & leaves_done;
+            let valid = !bsent
+                & (at_m & mo_valid & !mo_ref
+                    | above & (!empty | leaves_done)
+                    | known & !at_m & !above);
+            let data = at_m.mux(mo_beat, (above & !empty).mux(leaf_beat, end_beat));
+            let is_end = at_m.mux(mo_end, above.mux(fifo_end, one));
+            let pop = valid & ready & above & !empty;
+            wr.next(header_fire.mux(lit(0, cb + 1), (push & !full).mux(wr.add(1, cb + 1), wr)));
+            rd.next(header_fire.mux(lit(0, cb + 1), pop.mux(rd.add(1, cb + 1), rd)));
+            (valid, data, is_end)
+        } else {
+            let valid = !bsent & (at_m & mo_valid & !mo_ref | known & !at_m);
+            let data = at_m.mux(mo_beat, end_beat);
+            let is_end = at_m.mux(mo_end, one);
+            (valid, data, is_end)
+        };
+        builder.connect(&format!("base{d}_valid"), valid);
+        builder.connect(&format!("base{d}_data"), data);
+        let fire = valid & ready;
+        bsent.next((fire & is_end).mux(one, header_fire.mux(zero, bsent)));
+        base_m_ready = at_m.mux(ready & !bsent, base_m_ready);
+        base_m_sent = at_m.mux(bsent, base_m_sent);
+    }
+    leaf_over.next(over_next);
+    leaf_over = leaf_over.name("leaf_overflow_q");
+    let mo_ready = merging
+        & mo_ref.mux(
+            cref_ready,
+            mo_end.mux(
+                (base_m_sent | base_m_ready) & (csent | cref_ready),
+                base_m_ready,
+            ),
+        );
+    module.connect("out_ready", mo_ready);
+    let count_over = m.reg("count_overflow", 1);
+    let created = mo_kind.eq(base_kind::CREATED);
+    count_over
+        .next((mo_valid & mo_ready & created & mo_err).mux(one, header_fire.mux(zero, count_over)));
+
+    // ---- builder -> writer.
+    for d in 0..=dmax {
+        let s = format!("level{d}");
+        writer.connect(&format!("{s}_valid"), builder.output(&format!("{s}_valid")));
+        writer.connect(&format!("{s}_data"), builder.output(&format!("{s}_data")));
+        builder.connect(&format!("{s}_ready"), writer.output(&format!("{s}_ready")));
+    }
+    writer.connect("done_valid", builder.output("done_valid"));
+    writer.connect("done_data", builder.output("done_data"));
+    builder.connect("done_ready", writer.output("done_ready"));
+
+    // ---- the writer's ports: nodes, refs, store ports straight through;
+    // header with the merger's flags.
+    for q in writer_mod.ports() {
+        let name = q.name.as_str();
+        let Some(stream) = name.strip_suffix("_valid") else {
+            continue;
+        };
+        let known_in = ["cfg", "crefs", "done"].contains(&stream) || stream.starts_with("level");
+        if known_in || stream == "header" {
+            continue;
+        }
+        let w = writer_mod
+            .ports()
+            .into_iter()
+            .find(|x| x.name == format!("{stream}_data"))
+            .map(|x| x.width)
+            .expect("a data port");
+        let outer = if stream == "nodes" || stream == "refs" {
+            stream.to_string()
+        } else {
+            format!("w_{stream}")
+        };
+        match q.direction {
+            Direction::Output => {
+                let s = Stream {
+                    valid: writer.output(&format!("{stream}_valid")),
+                    data: writer.output(&format!("{stream}_data")),
+                    ready: m.wire(&format!("{outer}_ready_w"), 1),
+                };
+                writer.connect(&format!("{stream}_ready"), s.ready);
+                s.output(&outer);
+            }
+            Direction::Input => {
+                let s = Stream::input(&m, &outer, w);
+                writer.connect(&format!("{stream}_valid"), s.valid);
+                writer.connect(&format!("{stream}_data"), s.data);
+                s.ready.drive(writer.output(&format!("{stream}_ready")));
+            }
+        }
+    }
+    for q in writer_mod.ports() {
+        let is_stream = ["_valid", "_data", "_ready"]
+            .iter()
+            .any(|s| q.name.ends_with(s));
+        if q.direction == Direction::Output && !is_stream {
+            m.output(&format!("w_{}", q.name), writer.output(&q.name));
+        }
+    }
+    let h_valid = writer.output("header_valid");
+    let h_data = writer.output("header_data");
+    let header_ready = m.input("header_ready", 1);
+    writer.connect("header_ready", header_ready);
+    header_fire.drive(h_valid & header_ready);
+    let writer_header = golden::layout::Field {
+        name: "writer_header",
+        offset: 0,
+        width: wl.header_width,
+    };
+    let header = with_fields(
+        &m,
+        lit(0, ml.header_width),
+        &[
+            (writer_header, h_data),
+            (ml.leaf_overflow, leaf_over),
+            (ml.count_overflow, count_over),
+            (ml.fetch_err, ferr),
+            (ml.fetch_rank, ferr_rank),
+        ],
+    );
+    m.output("header_valid", h_valid);
+    m.output("header_data", header);
+
+    let done = m.reg("done_pulse", 1);
+    done.next(header_fire);
+    m.output("done", done);
+    let idle = (!busy & closing.iter().fold(one, |a, c| a & !*c)).name("merger_idle");
+    m.output("idle", idle);
+    m.output("module_done", module.output("done"));
+    Ok(m)
+}

@@ -224,7 +224,7 @@ fn check(name: &str, d: &MergeDesign, depth: u8, runs: &[(&str, usize)], seed: u
                     assert_eq!(seen.descended, 0, "{seen:?}");
                 } else {
                     assert!(
-                        seen.multi_pass * 4 > merges && seen.descended * 10 > seen.decisions,
+                        seen.multi_pass * 10 > merges && seen.descended * 10 > seen.decisions,
                         "{seen:?}"
                     );
                 }
@@ -258,42 +258,50 @@ fn check(name: &str, d: &MergeDesign, depth: u8, runs: &[(&str, usize)], seed: u
     }
 }
 
-fn runs(verilator: usize, batch: usize) -> Vec<(&'static str, usize)> {
+/// Merges per engine: the IR simulator, Verilator, Icarus over pipes (a
+/// few) and Icarus in batch mode.
+fn runs(ir: usize, verilator: usize, batch: usize) -> Vec<(&'static str, usize)> {
     vec![
-        ("ir", 100),
+        ("ir", ir),
         ("verilator", verilator),
-        ("iverilog", 10),
+        ("iverilog", ir / 10),
         ("iverilog-batch", batch),
     ]
 }
 
-fn check_config(i: usize, verilator: usize, batch: usize) {
+fn check_config(i: usize, ir: usize, verilator: usize, batch: usize) {
     if !tools_present(&["verilator", "iverilog"]) {
         return;
     }
     let (name, d, depth) = &configs()[i];
-    check(name, d, *depth, &runs(verilator, batch), 0x9e0 + i as u64);
+    check(
+        name,
+        d,
+        *depth,
+        &runs(ir, verilator, batch),
+        0x9e0 + i as u64,
+    );
 }
 
 #[test]
 fn per_node_default_matches_golden() {
-    check_config(0, 20_000, 200);
+    check_config(0, 100, 10_000, 200);
 }
 
 #[test]
 fn per_node_d31_matches_golden() {
-    check_config(1, 5_000, 100);
+    check_config(1, 40, 2_000, 40);
 }
 
 #[test]
 fn per_node_q0_matches_golden() {
-    check_config(2, 10_000, 100);
+    check_config(2, 100, 5_000, 100);
 }
 
 #[test]
 fn per_node_edge_ratios_match_golden() {
-    check_config(3, 3_000, 100);
-    check_config(4, 3_000, 100);
+    check_config(3, 100, 3_000, 100);
+    check_config(4, 100, 3_000, 100);
 }
 
 /// A golden-built soup hierarchy `id` filling `2^-shrink` of the scene.

@@ -48,7 +48,8 @@ pub mod writer_err {
     /// `2^C` references (`C` = the writer's capacity bits).
     pub const CAPACITY: u64 = 2;
     /// A level beat came with its `err` flag (8.11: a grouped node's
-    /// `first` or `count`, or a position, reached `2^I`).
+    /// `first` or `count`, or a position, reached `2^I`; a child box with
+    /// `lo > hi`), or a node with `count` 0 (a record needs references).
     pub const LEVEL_OVERFLOW: u64 = 3;
     /// 8.1's `IndexOverflow`: more than `2^I` records or references.
     pub const INDEX_OVERFLOW: u64 = 4;
@@ -274,11 +275,9 @@ fn fill_code(b: &BuilderTransaction, created_refs: usize, capacity: u64) -> u64 
     let top = b.done.top as usize;
     let sent = &b.levels[top.min(b.levels.len())..];
     let over = sent.iter().any(|l| l.len() as u64 - 1 > capacity);
-    let flagged = sent.iter().flatten().any(|beat| {
-        matches!(
-            beat,
-            LevelOut::Node { err: true, .. } | LevelOut::End { err: true, .. }
-        )
+    let flagged = sent.iter().flatten().any(|beat| match beat {
+        LevelOut::Node { err, record, .. } => *err || record.count == 0,
+        LevelOut::End { err, .. } => *err,
     });
     if b.done.err {
         writer_err::NO_TOP
@@ -403,7 +402,8 @@ pub fn random_case(
     n: usize,
     out_id: u8,
 ) -> (Vec<BaseNode>, Vec<Hierarchy>) {
-    let ids: Vec<u8> = (0..p.hier_capacity() as u8)
+    let ids: Vec<u8> = (0..p.hier_capacity())
+        .map(|i| i as u8)
         .filter(|&i| i != out_id)
         .take(3)
         .collect();
@@ -414,6 +414,32 @@ pub fn random_case(
         .map(|&id| synthetic_input(rng, p, id, per_input))
         .collect();
     let mut base = super::builder_unit::random_base(rng, p, n);
+    // Sometimes created nodes at shallower LODs too, as per-node merging
+    // (8.5) makes them.
+    if rng.below(3) == 0 {
+        for _ in 0..1 + rng.below(3) {
+            let lod = rng.below(p.max_lod as u64 + 1) as u8;
+            let v = [0; 3].map(|_| rng.below(1u64 << lod) as u32);
+            let refs: Vec<Reference> = (0..1 + rng.below(3))
+                .map(|_| Reference {
+                    hier: ids[rng.below(ids.len() as u64) as usize],
+                    node: rng.below(per_input as u64) as u32,
+                })
+                .collect();
+            let record = NodeRecord {
+                leaf: false,
+                voxel: crate::grid::VoxelAddr::new(lod, v[0], v[1], v[2]),
+                lo: [0; 3],
+                hi: [0; 3],
+                first: 0,
+                count: refs.len() as u32,
+            };
+            base.push(BaseNode {
+                record,
+                kind: BaseKind::Created { refs },
+            });
+        }
+    }
     for b in &mut base {
         match &mut b.kind {
             BaseKind::Created { refs } => b.record.count = refs.len() as u32,
@@ -555,7 +581,14 @@ pub fn real_cases(p: &Params) -> Vec<(HierarchyStore, TranslationTable, Vec<u8>)
     single.push((big.clone(), place(&big, same)));
     // One input alone: its root is reused at the top (materialized).
     let alone = vec![(big.clone(), place(&big, same))];
-    [overlapping, disjoint, single, alone]
+    // Two inputs overlapping in part: per-node merging creates nodes at
+    // several LODs.
+    let partial: Vec<(Hierarchy, Translation)> = hs[..2]
+        .iter()
+        .zip([[0.4, 0.5, 0.6], [0.45, 0.5, 0.6]])
+        .map(|(h, f)| (h.clone(), place(h, f)))
+        .collect();
+    [overlapping, disjoint, single, alone, partial]
         .into_iter()
         .map(|case| {
             let mut store = HierarchyStore::new();
@@ -726,6 +759,7 @@ mod tests {
     fn expected_output_is_merges_hierarchy() {
         let p = Params::default();
         let seen = check_real(&p, 9);
+        eprintln!("real merges at the default: {seen:?}");
         assert!(seen.merges >= 10 && seen.materialized > 0, "{seen:?}");
         let seen = check_real(&Params::new(8, 0, 12, 3).unwrap(), 7);
         assert!(seen.merges >= 5, "{seen:?}");
@@ -743,10 +777,16 @@ mod tests {
         ] {
             let mut rng = SplitMix64(0x5a1e + cap as u64);
             let mut codes = [0usize; 5];
-            let (mut materialized, mut several_roots) = (0, 0);
+            let (mut materialized, mut several_roots, mut created_lods) = (0, 0, 0);
             for _ in 0..3000 {
                 let n = rng.below(12) as usize;
                 let (base, inputs) = random_case(&mut rng, &p, n, 0);
+                let lods: std::collections::BTreeSet<u8> = base
+                    .iter()
+                    .filter(|b| matches!(b.kind, BaseKind::Created { .. }))
+                    .map(|b| b.record.voxel.lod)
+                    .collect();
+                created_lods += (lods.len() > 1) as usize;
                 let hs: Vec<&Hierarchy> = inputs.iter().collect();
                 let tx = writer_transaction(&base, &hs, &p, cap, 0).unwrap();
                 codes[tx.header.err as usize] += 1;
@@ -761,7 +801,10 @@ mod tests {
                     assert!(tx.nodes.is_empty() && tx.refs.is_empty() && tx.ref_reqs.is_empty());
                 }
             }
-            assert!(materialized > 0 && several_roots > 0, "{codes:?}");
+            assert!(
+                materialized > 0 && several_roots > 0 && created_lods > 0,
+                "{codes:?}"
+            );
             // LEVEL_OVERFLOW needs a level of 2^I nodes (over the capacity,
             // which comes first) or a corrupt child box: not reached here.
             let need: &[u64] = if p.index_bits <= 3 {

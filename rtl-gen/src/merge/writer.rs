@@ -78,6 +78,26 @@ fn sum_where<'m>(
     })
 }
 
+/// The next level below `d` holding records: `(found, lod)`, the smallest
+/// `e > d` with `records[e] > 0`. The sequencers step to it in the clock
+/// they take a level's last word, so an empty level costs no clock.
+fn next_level_with_records<'m>(
+    m: &'m Module,
+    d: Signal<'m>,
+    records: &[Signal<'m>],
+) -> (Signal<'m>, Signal<'m>) {
+    let w = d.width();
+    let mut found = m.lit(0, 1);
+    let mut lod = m.lit(0, w);
+    // Level 0 is below no level.
+    for (e, r) in records.iter().enumerate().skip(1).rev() {
+        let here = m.lit(e as u128, w).gt(d) & r.ne(m.lit(0, r.width()));
+        found = found | here;
+        lod = here.mux(m.lit(e as u128, w), lod);
+    }
+    (found, lod)
+}
+
 /// A parent's word in the drain: `kind` (2), `count`, `first`, `hier`.
 struct Parent<'m> {
     kind: Signal<'m>,
@@ -277,7 +297,9 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
             usum.add((node_fire & reused).mux(counted, none), sum_w),
         ));
         cerr.next(clear_d.mux(zero, cerr | (node_fire & !fits)));
-        lerr.next(clear_d.mux(zero, lerr | (fire & err)));
+        // A node with no references would hold its parent's sequencer forever.
+        let no_refs = node_fire & count.eq(lit(0, i));
+        lerr.next(clear_d.mux(zero, lerr | (fire & err) | no_refs));
         end_seen.push(seen);
         n_nodes.push(n);
         n_records.push(r);
@@ -335,7 +357,7 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let rs_addr = rs_ptr.slice(c - 1, 0);
     let rs_top = rs_d.eq(top);
     let rs_len = rs_top.mux(n_top, by_level(&m, rs_d, &n_records));
-    let rs_at_end = rs_ptr.eq(rs_len);
+    let rs_level_last = rs_ptr.add(1, c + 1).eq(rs_len);
     let at_top: Vec<Signal> = nbody.iter().map(|b| b.read(rs_addr)).collect();
     let below: Vec<Signal> = rbody.iter().map(|b| b.read(rs_addr)).collect();
     let body_word = rs_top.mux(by_level(&m, rs_d, &at_top), by_level(&m, rs_d, &below));
@@ -347,7 +369,7 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     ]);
     debug_assert_eq!(record.width(), nl.width());
     let rs_active = (in_drain & !rs_done).name("rs_active");
-    let nodes_valid = (rs_active & !rs_at_end).name("nodes_in_valid");
+    let nodes_valid = rs_active.name("nodes_in_valid");
     let nodes_out = Stream {
         valid: nodes_valid,
         ready: m.wire("nodes_in_ready", 1),
@@ -356,10 +378,12 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     };
     let rs_fire = nodes_out.valid & nodes_out.ready;
     nodes_out.skid_buffer("nodes_skid").output("nodes");
-    let rs_last_level = rs_d.eq(lit(dmax as u64, lb));
-    let rs_step_level = rs_active & rs_at_end & !rs_last_level;
-    let rs_finish = rs_active & rs_at_end & rs_last_level;
-    rs_d.next(drain_start.mux(top, rs_step_level.mux(rs_d.add(1, lb), rs_d)));
+    // (rs_lod, rs_ptr) always names a record to write (the top has one).
+    let (rs_more, rs_next_lod) = next_level_with_records(&m, rs_d, &n_records);
+    let rs_level_done = rs_fire & rs_level_last;
+    let rs_step_level = rs_level_done & rs_more;
+    let rs_finish = rs_level_done & !rs_more;
+    rs_d.next(drain_start.mux(top, rs_step_level.mux(rs_next_lod, rs_d)));
     rs_ptr.next(
         (drain_start | rs_step_level).mux(lit(0, c + 1), rs_fire.mux(rs_ptr.add(1, c + 1), rs_ptr)),
     );
@@ -384,7 +408,7 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let fs_addr = fs_ptr.slice(c - 1, 0);
     let fs_top = fs_d.eq(top);
     let fs_len = fs_top.mux(n_top, by_level(&m, fs_d, &n_records));
-    let fs_at_end = fs_ptr.eq(fs_len);
+    let fs_level_last = fs_ptr.add(1, c + 1).eq(fs_len);
     let par_top: Vec<Signal> = npar.iter().map(|b| b.read(fs_addr)).collect();
     let par_below: Vec<Signal> = rpar.iter().map(|b| b.read(fs_addr)).collect();
     let par = parent(
@@ -401,7 +425,7 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let ch_index = fs_off.slice(i - 1, 0).add(ch.records, i);
     let ch_ref = ch.reused.mux(ch.refer, m.concat(&[out_id, ch_index]));
     let fs_busy = (in_drain & !fs_done).name("fs_busy");
-    let fs_active = (fs_busy & !fs_at_end).name("fs_active");
+    let fs_active = fs_busy;
     let outstanding = fs_req.ne(fs_j);
     let ref_resp = Stream::input(&m, "ref_resp", ref_w);
     let refs_ready = m.wire("refs_in_ready", 1);
@@ -431,12 +455,14 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let req_fire = ref_req.valid & ref_req.ready;
     ref_req.skid_buffer("ref_req_skid").output("ref_req");
     let parent_last = fs_fire & fs_j.add(1, i).eq(par.count);
-    let fs_last_level = fs_d.eq(lit(dmax as u64, lb));
-    let fs_step_level = fs_busy & fs_at_end & !fs_last_level;
-    let fs_finish = fs_busy & fs_at_end & fs_last_level;
+    // (fs_lod, fs_ptr) always names a parent with references left.
+    let (fs_more, fs_next_lod) = next_level_with_records(&m, fs_d, &n_records);
+    let fs_level_done = parent_last & fs_level_last;
+    let fs_step_level = fs_level_done & fs_more;
+    let fs_finish = fs_level_done & !fs_more;
     let zc = lit(0, c + 1);
     let zi = lit(0, i);
-    fs_d.next(drain_start.mux(top, fs_step_level.mux(fs_d.add(1, lb), fs_d)));
+    fs_d.next(drain_start.mux(top, fs_step_level.mux(fs_next_lod, fs_d)));
     fs_ptr
         .next((drain_start | fs_step_level).mux(zc, parent_last.mux(fs_ptr.add(1, c + 1), fs_ptr)));
     fs_j.next((drain_start | parent_last).mux(zi, fs_fire.mux(fs_j.add(1, i), fs_j)));
@@ -449,17 +475,10 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
         zc,
         (fs_fire & p_created).mux(fs_cref.add(1, c + 1), fs_cref),
     ));
-    // off(t + 1) = the top's node count; off(d + 2) = off(d + 1) + level
-    // d + 1's records.
-    let next_records: Vec<Signal> = (0..=dmax)
-        .map(|d| {
-            n_records
-                .get(d + 1)
-                .copied()
-                .unwrap_or_else(|| lit(0, c + 1))
-        })
-        .collect();
-    let next_len = by_level(&m, fs_d, &next_records).zext(i + 1);
+    // off(t + 1) = the top's node count; stepping from level d to the next
+    // level e with records (those between have none), off(e + 1) = off(d +
+    // 1) + level e's records.
+    let next_len = by_level(&m, fs_next_lod, &n_records).zext(i + 1);
     fs_off.next(drain_start.mux(
         n_top.zext(i + 1),
         fs_step_level.mux(fs_off.add(next_len, i + 1), fs_off),
@@ -480,9 +499,7 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     .output("header");
 
     // State changes.
-    let rs_over = rs_done | rs_finish;
-    let fs_over = fs_done | fs_finish;
-    let drain_done = in_drain & rs_over & fs_over;
+    let drain_done = in_drain & rs_done & fs_done;
     let next_state = clear.mux(
         lit(state::FILL, 2),
         fill_done.mux(

@@ -16,7 +16,8 @@
 //!    fetchers' `out` beats are the module's `in<i>` (an unused input `i >= n`
 //!    gets one `End` per pass from the glue).
 //! 3. The module's `report` ends with the choice. Chosen `m`: every fetcher
-//!    gets the **merge-pass** command (LOD `m`, references and leaves, last);
+//!    gets the **leaves pass** (LOD `m`, leaves only; `out` dropped), then
+//!    the **merge pass** (LOD `m`, references, last) ([`controller_cmds`]);
 //!    refused: a **closing** command (LOD `lo`, nothing sent but the walk,
 //!    last) whose `out` beats the glue drops, and the base is empty.
 //! 4. The module's `out` at `m`: created and reused nodes go to the upper
@@ -283,33 +284,37 @@ impl MergerTransaction {
 }
 
 /// The fetcher commands of a merge: the count pass (overlap mode, good
-/// range: one per candidate LOD), then the merge pass at `chosen` or, when
-/// refused, the closing command at `lo` (its beats are dropped).
+/// range: one per candidate LOD); then, chosen `m`, the **leaves pass** (LOD
+/// `m`, leaves only: its `out` beats are dropped) and the **merge pass** (LOD
+/// `m`, references, last); refused, the **closing** command at `lo` (its
+/// beats are dropped). Why a leaves pass: the builder needs the head of
+/// every `base{d}`, `d < m`, to take level `m`'s nodes, and a leaf's place
+/// in `base{d}` is known only when every input has sent its leaves; were the
+/// leaves sent with level `m`, an input whose leaves come late would hold
+/// level `m` (whose beats wait in the merging module for every input) while
+/// the builder waits for the leaves: a deadlock.
 pub fn controller_cmds(count_pass: &[u8], chosen: Option<u8>, lo: u8) -> Vec<FetchCmd> {
+    let cmd = |lod, send_refs, send_leaves, last| FetchCmd {
+        lod,
+        send_refs,
+        send_leaves,
+        last,
+    };
     let mut cmds: Vec<FetchCmd> = count_pass
         .iter()
-        .map(|&lod| FetchCmd {
-            lod,
-            send_refs: false,
-            send_leaves: false,
-            last: false,
-        })
+        .map(|&lod| cmd(lod, false, false, false))
         .collect();
-    cmds.push(match chosen {
-        Some(m) => FetchCmd {
-            lod: m,
-            send_refs: true,
-            send_leaves: true,
-            last: true,
-        },
-        None => FetchCmd {
-            lod: lo,
-            send_refs: false,
-            send_leaves: false,
-            last: true,
-        },
-    });
+    match chosen {
+        Some(m) => cmds.extend([cmd(m, false, true, false), cmd(m, true, false, true)]),
+        None => cmds.push(cmd(lo, false, false, true)),
+    }
     cmds
+}
+
+/// Whether a command's `out` beats go to the merging module (count and
+/// merge passes) or are dropped by the glue (leaves pass, closing command).
+pub fn feeds_module(c: &FetchCmd) -> bool {
+    !c.send_leaves && (c.send_refs || !c.last)
 }
 
 /// A fetcher's `out` beats split per command (each ends with `End`); an
@@ -490,15 +495,17 @@ pub fn merger_transaction(
         out_id,
     };
     let range_ok = lo <= hi && hi <= p.max_lod;
-    let (module, count_pass, chosen, leaves_cmd_lod) = match mode {
+    let (module, cmds, chosen) = match mode {
         MergeMode::PerNode { num, den } => {
+            // The fetchers give the leaves above `lo` only (one command).
             let pn = per_node_transaction(&p, &hs, &ts, num, den, lo, hi)?;
-            (
-                ModulePass::PerNode(pn),
-                Vec::new(),
-                None,
-                range_ok.then_some(lo),
-            )
+            let cmds = vec![FetchCmd {
+                lod: lo,
+                send_refs: false,
+                send_leaves: range_ok,
+                last: true,
+            }];
+            (ModulePass::PerNode(pn), cmds, None)
         }
         _ => {
             let count_pass: Vec<u8> = match mode {
@@ -528,10 +535,10 @@ pub fn merger_transaction(
                 } => Some(lod),
                 _ => None,
             });
-            (ModulePass::Level(top), count_pass, chosen, chosen)
+            let cmds = controller_cmds(&count_pass, chosen, lo);
+            (ModulePass::Level(top), cmds, chosen)
         }
     };
-    let cmds = controller_cmds(&count_pass, leaves_cmd_lod, lo);
     let fetch = hs
         .iter()
         .zip(&entries)
@@ -629,16 +636,17 @@ mod tests {
     fn check_hand_offs(tx: &MergerTransaction, p: &Params, k: usize) {
         let b = tx.builder();
         if let ModulePass::Level(top) = &tx.module {
-            // Fetcher out -> module in<i>, pass by pass (the closing
-            // command's beats are dropped).
+            // Fetcher out -> module in<i>, pass by pass (the leaves pass's
+            // and the closing command's beats are dropped).
             for (r, f) in tx.fetch.iter().enumerate() {
                 let passes = fetch_passes(f).unwrap();
                 assert_eq!(passes.len(), tx.cmds.len());
-                let fed: Vec<LevelBeat> = if tx.chosen.is_some() {
-                    passes.concat()
-                } else {
-                    passes[..passes.len() - 1].concat()
-                };
+                let fed: Vec<LevelBeat> = passes
+                    .iter()
+                    .zip(&tx.cmds)
+                    .filter(|(_, c)| feeds_module(c))
+                    .flat_map(|(p, _)| p.iter().copied())
+                    .collect();
                 assert_eq!(fed, top.inputs[r], "input {r}");
             }
             for r in tx.fetch.len()..k {
@@ -832,6 +840,7 @@ mod tests {
             );
             assert_eq!(tx.cmds.len(), 1);
             assert!(tx.cmds[0].last && !tx.cmds[0].send_leaves);
+            assert!(!feeds_module(&tx.cmds[0]));
             assert!(tx.base.is_empty());
             assert_eq!(tx.writer.header.err, writer_err::NO_TOP);
             assert!(merge(&store, &ids, &table, mode, 9).is_err());

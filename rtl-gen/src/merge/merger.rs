@@ -106,10 +106,12 @@ mod phase {
     pub const COUNT: u64 = 1;
     /// Waiting for the merging module's choice.
     pub const WAIT: u64 = 2;
+    /// Issuing the leaves pass (a level was chosen).
+    pub const LEAVES: u64 = 3;
     /// Issuing the merge-pass (or closing) command.
-    pub const FINAL: u64 = 3;
+    pub const FINAL: u64 = 4;
     /// Every command issued.
-    pub const DONE: u64 = 4;
+    pub const DONE: u64 = 5;
     pub const BITS: u32 = 3;
 }
 
@@ -171,11 +173,13 @@ pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
 
     // ---- cfg: taken when no merge is in progress and every unit is idle.
     let busy = m.reg("busy", 1);
-    let closing: Vec<Signal> = (0..k).map(|i| m.reg(&format!("closing{i}"), 1)).collect();
+    // Set while a command whose `out` beats are dropped (the leaves pass,
+    // the closing command) has not sent its End.
+    let dropping: Vec<Signal> = (0..k).map(|i| m.reg(&format!("dropping{i}"), 1)).collect();
     let header_fire = m.wire("header_fire", 1);
     let mut quiet = !busy & module.output("idle");
     for (i, f) in fetchers.iter().enumerate() {
-        quiet = quiet & f.output("idle") & !closing[i];
+        quiet = quiet & f.output("idle") & !dropping[i];
     }
     let quiet = quiet.name("quiet");
     let cfg = Stream::input(&m, "cfg", ml.cfg_width);
@@ -256,6 +260,7 @@ pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
         let in_ph = |v: u64| ph.eq(lit(v, phase::BITS));
         let cmd_lod = m.reg(&format!("cmd_lod{i}"), lb);
         let count_ph = in_ph(phase::COUNT);
+        let leaves_ph = in_ph(phase::LEAVES);
         let final_ph = in_ph(phase::FINAL);
         let lod = count_ph.mux(cmd_lod, merging.mux(level, lo));
         let cmd_data = with_fields(
@@ -264,11 +269,11 @@ pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
             &[
                 (fl.lod, lod),
                 (fl.send_refs, final_ph & merging),
-                (fl.send_leaves, final_ph & merging),
+                (fl.send_leaves, leaves_ph),
                 (fl.last, final_ph),
             ],
         );
-        let issuing = (count_ph | final_ph).name(&format!("issuing{i}"));
+        let issuing = (count_ph | leaves_ph | final_ph).name(&format!("issuing{i}"));
         f.connect("cmd_valid", used[i] & issuing);
         f.connect("cmd_data", cmd_data);
         let cmd_fire = used[i] & issuing & f.output("cmd_ready");
@@ -282,7 +287,7 @@ pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
         let fo_beat = fo_data.slice(fl.beat.width - 1, 0);
         let fo_end = get(fo_beat, &inb.kind).eq(level_kind::END);
         let virt = (!used[i] & (count_ph | (final_ph & merging))).name(&format!("virtual_end{i}"));
-        let drop = closing[i];
+        let drop = dropping[i];
         module.connect(&format!("in{i}_valid"), used[i].mux(fo_valid & !drop, virt));
         module.connect(&format!("in{i}_data"), used[i].mux(fo_beat, end_beat));
         f.connect("out_ready", drop | (used[i] & in_ready));
@@ -291,12 +296,20 @@ pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
         let first_err = fo_fire & fo_err.ne(0) & ferr_next.eq(0);
         ferr_next = first_err.mux(fo_err, ferr_next);
         ferr_rank_next = first_err.mux(lit(i as u64, rb), ferr_rank_next);
-        let step =
-            (cmd_fire | virt_fire | (!used[i] & final_ph & !merging)).name(&format!("step{i}"));
+        // An unused input has no leaves pass and no closing command.
+        let skip = !used[i] & (leaves_ph | (final_ph & !merging));
+        let step = (cmd_fire | virt_fire | skip).name(&format!("step{i}"));
         let last_count = cmd_lod.eq(hi);
         let after_step = count_ph.mux(
             last_count.mux(lit(phase::WAIT, phase::BITS), ph),
-            lit(phase::DONE, phase::BITS),
+            leaves_ph.mux(
+                lit(phase::FINAL, phase::BITS),
+                lit(phase::DONE, phase::BITS),
+            ),
+        );
+        let after_choice = merging.mux(
+            lit(phase::LEAVES, phase::BITS),
+            lit(phase::FINAL, phase::BITS),
         );
         let ph_next = cfg_fire.mux(
             counting_in.mux(
@@ -307,7 +320,7 @@ pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
                 lit(phase::NONE, phase::BITS),
                 step.mux(
                     after_step,
-                    (in_ph(phase::WAIT) & known).mux(lit(phase::FINAL, phase::BITS), ph),
+                    (in_ph(phase::WAIT) & known).mux(after_choice, ph),
                 ),
             ),
         );
@@ -316,8 +329,8 @@ pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
             get(cfg.data, &ml.lo),
             (step & count_ph).mux(cmd_lod.add(1, lb), cmd_lod),
         ));
-        let close_issued = cmd_fire & final_ph & !merging;
-        closing[i].next(close_issued.mux(one, (fo_fire & fo_end).mux(zero, closing[i])));
+        let drop_issued = cmd_fire & (leaves_ph | (final_ph & !merging));
+        dropping[i].next(drop_issued.mux(one, (fo_fire & fo_end).mux(zero, dropping[i])));
 
         // The store ports, straight through.
         for port in ["node_req", "ref_req"] {
@@ -593,7 +606,7 @@ pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
     let done = m.reg("done_pulse", 1);
     done.next(header_fire);
     m.output("done", done);
-    let idle = (!busy & closing.iter().fold(one, |a, c| a & !*c)).name("merger_idle");
+    let idle = (!busy & dropping.iter().fold(one, |a, c| a & !*c)).name("merger_idle");
     m.output("idle", idle);
     m.output("module_done", module.output("done"));
     Ok(m)

@@ -27,31 +27,26 @@ fn tool_present(tool: &str) -> bool {
     false
 }
 
-/// `hiermerge cosim --unit merge` (default design, 40 merges, seed 7) on
-/// `engine` with the emitted line `from` replaced by `to`, VCDs into `vcd_dir`.
-fn run_patched(engine: &str, from: &str, to: &str, vcd_dir: &Path) -> (Output, Value) {
-    let o = Command::new(env!("CARGO_BIN_EXE_hiermerge"))
+/// `hiermerge cosim --unit merge --json` (default design, `count` merges,
+/// seed 7, stall 0.3) on `engine` with the emitted text `from` replaced by
+/// `to`, VCDs into `vcd_dir`.
+fn hiermerge_patched(engine: &str, count: &str, from: &str, to: &str, vcd_dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_hiermerge"))
         .args([
-            "cosim",
-            "--unit",
-            "merge",
-            "--engine",
-            engine,
-            "--seed",
-            "7",
-            "--count",
-            "40",
-            "--stall",
-            "0.3",
-            "--json",
-            "--vcd-dir",
+            "cosim", "--unit", "merge", "--engine", engine, "--count", count,
         ])
+        .args(["--seed", "7", "--stall", "0.3", "--json", "--vcd-dir"])
         .arg(vcd_dir)
         .env_remove("HIERMERGE_COSIM_FLIP_EXPECTED")
         .env(FROM, from)
         .env(TO, to)
         .output()
-        .expect("hiermerge runs");
+        .expect("hiermerge runs")
+}
+
+/// [`hiermerge_patched`] with 40 merges, and its JSON report.
+fn run_patched(engine: &str, from: &str, to: &str, vcd_dir: &Path) -> (Output, Value) {
+    let o = hiermerge_patched(engine, "40", from, to, vcd_dir);
     let text = String::from_utf8_lossy(&o.stdout).into_owned();
     let r = serde_json::from_str(text.trim()).unwrap_or_else(|e| {
         panic!(
@@ -213,22 +208,13 @@ fn a_patch_that_does_not_match_once_is_refused() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let o = Command::new(env!("CARGO_BIN_EXE_hiermerge"))
-        .args([
-            "cosim",
-            "--unit",
-            "merge",
-            "--engine",
-            "verilator",
-            "--count",
-            "2",
-        ])
-        .arg("--vcd-dir")
-        .arg(dir.path())
-        .env(FROM, "no such text in any emitted module")
-        .env(TO, "x")
-        .output()
-        .unwrap();
+    let o = hiermerge_patched(
+        "verilator",
+        "2",
+        "no such text in any emitted module",
+        "x",
+        dir.path(),
+    );
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("occurs 0 times"), "{err}");

@@ -354,7 +354,7 @@ fn record_writer_q0_matches_golden() {
     if !tools_present(&["verilator", "iverilog"]) {
         return;
     }
-    check("q0", &runs(300, 20_000, 30, 1_000), 40);
+    check("q0", &runs(300, 40_000, 30, 1_000), 40);
 }
 
 #[test]
@@ -362,7 +362,7 @@ fn record_writer_small_capacity_matches_golden() {
     if !tools_present(&["verilator", "iverilog"]) {
         return;
     }
-    check("small", &runs(300, 50_000, 30, 1_000), 12);
+    check("small", &runs(300, 100_000, 30, 1_000), 12);
 }
 
 /// With no back-pressure (Verilator cycle counts, status outputs counted

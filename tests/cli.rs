@@ -312,14 +312,68 @@ fn gen_emits_a_configuration() {
         dir.path().to_str().unwrap(),
     ]);
     assert!(e.contains("overlap:3/2") && e.contains("N <= D"), "{e}");
-    let e = fails(&[
+    // Per-node merging is built (SPEC 8.14): its module, decider and
+    // network, and they lint clean together.
+    let pn = tempfile::tempdir().unwrap();
+    let v = json(&[
         "gen",
         "--unit",
         "merge",
         "--mode",
-        "per-node",
+        "per-node:1/2",
         "--out",
-        dir.path().to_str().unwrap(),
+        pn.path().to_str().unwrap(),
+        "--json",
     ]);
-    assert!(e.contains("per-node merging is not built"), "{e}");
+    let files: Vec<String> = v["files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap().to_string())
+        .collect();
+    let base = |f: &String| {
+        std::path::Path::new(f)
+            .file_name()
+            .unwrap()
+            .to_string_lossy()
+            .into_owned()
+    };
+    for prefix in ["per_node_decider_", "per_node_network_"] {
+        assert!(
+            files.iter().any(|f| base(f).starts_with(prefix)),
+            "{prefix}*.v in {files:?}"
+        );
+    }
+    let top = files
+        .iter()
+        .map(base)
+        .find(|n| n.ends_with("_pn1_2.v"))
+        .unwrap_or_else(|| panic!("the per-node merging module in {files:?}"));
+    lint_clean(top.trim_end_matches(".v"), &files);
+}
+
+/// `verilator --lint-only -Wall` of `files` with `top` is silent; without
+/// Verilator a failure under CI=true, else a printed hint.
+fn lint_clean(top: &str, files: &[String]) {
+    let Ok(lint) = Command::new("verilator")
+        .args(["--lint-only", "-Wall", "--top-module", top])
+        .args(files)
+        .output()
+    else {
+        assert!(
+            std::env::var("CI").map_or(true, |v| v != "true"),
+            "verilator is required under CI=true"
+        );
+        eprintln!("verilator missing: apt-get install verilator iverilog yosys; lint not run");
+        return;
+    };
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&lint.stdout),
+        String::from_utf8_lossy(&lint.stderr)
+    );
+    assert!(
+        lint.status.success() && text.trim().is_empty(),
+        "verilator -Wall on {top}:\n{text}"
+    );
 }

@@ -16,8 +16,10 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use golden::layout::{Bits, Field};
+use golden::merge::per_node_unit::{random_per_node_case, PerNodeLayout};
 use golden::merge::top::{random_top_transaction, TopLayout};
 use golden::merge::unit::BeatLayout;
+use golden::merge::MergeMode;
 use golden::translate::stimulus::SplitMix64;
 use golden::vectors::merge::MergeDesign;
 
@@ -37,6 +39,11 @@ pub const STAGE: &str = "merge_module";
 
 /// Most voxels of a random level (as `cosim/tests/merge_module.rs`).
 pub const DEFAULT_MOST_VOXELS: usize = 12;
+
+/// LODs below `lo` of a random per-node merge's trees (as
+/// `cosim/tests/merge_per_node.rs`'s default configuration: deep enough
+/// for merges of several passes).
+pub const PER_NODE_DEPTH: u8 = 4;
 
 /// The unit under test.
 pub fn merge_module(d: &MergeDesign) -> rtl_gen::Module {
@@ -97,8 +104,64 @@ fn golden_err(what: impl std::fmt::Display) -> CosimError {
     }
 }
 
+/// One merge's beats, packed: the `cfg` beat, each input's beats, the
+/// expected `report` and `out` beats.
+struct PackedMerge {
+    cfg: BitVec,
+    inputs: Vec<Vec<BitVec>>,
+    reports: Vec<BitVec>,
+    out: Vec<BitVec>,
+}
+
+fn pack_all<T>(
+    items: &[T],
+    pack: impl Fn(&T) -> std::result::Result<Bits, golden::layout::LayoutError>,
+) -> Result<Vec<BitVec>> {
+    items
+        .iter()
+        .map(|x| bitvec(&pack(x).map_err(golden_err)?))
+        .collect()
+}
+
+/// One random merge for `d`: per-node configurations draw a
+/// `random_per_node_case` (its `PerNodeCase::transaction`, SPEC 8.14),
+/// the others a `random_top_transaction` (SPEC 8.10).
+fn random_merge(rng: &mut SplitMix64, d: &MergeDesign, most_voxels: usize) -> Result<PackedMerge> {
+    let p = &d.params;
+    let (tl, lo) = (TopLayout::new(p), BeatLayout::output(p));
+    if let MergeMode::PerNode { num, den } = d.mode {
+        let pl = PerNodeLayout::new(p);
+        let tx = random_per_node_case(rng, p, d.inputs, PER_NODE_DEPTH)
+            .transaction(p, num, den)
+            .map_err(golden_err)?;
+        return Ok(PackedMerge {
+            cfg: bitvec(&tl.pack_cfg(tx.lo, tx.hi).map_err(golden_err)?)?,
+            inputs: tx
+                .inputs
+                .iter()
+                .map(|beats| pack_all(beats, |b| b.pack(&pl)))
+                .collect::<Result<_>>()?,
+            reports: pack_all(&tx.reports, |r| r.pack(&pl))?,
+            out: pack_all(&tx.out, |b| b.pack(&lo))?,
+        });
+    }
+    let li = BeatLayout::input(p);
+    let tx = random_top_transaction(rng, p, d.inputs, &d.mode, most_voxels).map_err(golden_err)?;
+    Ok(PackedMerge {
+        cfg: bitvec(&tl.pack_cfg(tx.lo, tx.hi).map_err(golden_err)?)?,
+        inputs: tx
+            .inputs
+            .iter()
+            .map(|beats| pack_all(beats, |b| b.pack(&li)))
+            .collect::<Result<_>>()?,
+        reports: pack_all(&tx.reports, |r| r.pack(&tl))?,
+        out: pack_all(&tx.out, |b| b.pack(&lo))?,
+    })
+}
+
 /// `count` random merges for `d` from `seed` (`random_top_transaction`,
-/// levels of at most `most_voxels` voxels). `flip_expected = Some(n)`: bit
+/// levels of at most `most_voxels` voxels; per-node configurations:
+/// `random_per_node_case`, trees [`PER_NODE_DEPTH`] LODs deep). `flip_expected = Some(n)`: bit
 /// 0 of merge `n`'s first expected `report` beat is flipped (the test hook).
 pub fn generate_streams(
     d: &MergeDesign,
@@ -108,12 +171,6 @@ pub fn generate_streams(
     flip_expected: Option<usize>,
 ) -> Result<MergeStreams> {
     d.validate().map_err(golden_err)?;
-    let p = &d.params;
-    let (tl, li, lo) = (
-        TopLayout::new(p),
-        BeatLayout::input(p),
-        BeatLayout::output(p),
-    );
     let mut rng = SplitMix64(seed);
     let mut cfg = Vec::with_capacity(count);
     let mut ins: Vec<Vec<Transaction>> = vec![Vec::new(); d.inputs];
@@ -121,24 +178,15 @@ pub fn generate_streams(
     let mut out: Vec<Transaction> = Vec::new();
     let mut starts = vec![Vec::with_capacity(count + 1), Vec::with_capacity(count + 1)];
     for n in 0..count {
-        let tx = random_top_transaction(&mut rng, p, d.inputs, &d.mode, most_voxels)
-            .map_err(golden_err)?;
-        cfg.push(vec![bitvec(
-            &tl.pack_cfg(tx.lo, tx.hi).map_err(golden_err)?,
-        )?]);
-        for (s, beats) in ins.iter_mut().zip(&tx.inputs) {
-            for b in beats {
-                s.push(vec![bitvec(&b.pack(&li).map_err(golden_err)?)?]);
-            }
+        let tx = random_merge(&mut rng, d, most_voxels)?;
+        cfg.push(vec![tx.cfg]);
+        for (s, beats) in ins.iter_mut().zip(tx.inputs) {
+            s.extend(beats.into_iter().map(|b| vec![b]));
         }
         starts[0].push(report.len());
         starts[1].push(out.len());
-        for r in &tx.reports {
-            report.push(vec![bitvec(&r.pack(&tl).map_err(golden_err)?)?]);
-        }
-        for b in &tx.out {
-            out.push(vec![bitvec(&b.pack(&lo).map_err(golden_err)?)?]);
-        }
+        report.extend(tx.reports.into_iter().map(|b| vec![b]));
+        out.extend(tx.out.into_iter().map(|b| vec![b]));
         if flip_expected == Some(n) {
             if let Some(first) = report.get_mut(starts[0][n]) {
                 let mut w = first[0].words().to_vec();
@@ -190,15 +238,25 @@ fn decode(bits: &BitVec, fields: &[(String, Field)]) -> Vec<(String, String)> {
         .collect()
 }
 
-/// Decodes a `report` beat by field name (`TopLayout`).
+/// Decodes a `report` beat by field name (`TopLayout`; per-node
+/// configurations: `PerNodeLayout`).
 pub fn report_decoder(d: &MergeDesign) -> Box<FieldDecoder> {
-    let l = TopLayout::new(&d.params);
-    let fields: Vec<(String, Field)> = [
-        l.lod, l.shared, l.union, l.above, l.overflow, l.chosen, l.err,
-    ]
-    .into_iter()
-    .map(|f| (f.name.to_string(), f))
-    .collect();
+    let fields: Vec<Field> = if matches!(d.mode, MergeMode::PerNode { .. }) {
+        let l = PerNodeLayout::new(&d.params);
+        let [x, y, z] = l.coord;
+        vec![
+            x, y, z, l.lod, l.shared, l.union, l.descend, l.pass_end, l.more, l.err,
+        ]
+    } else {
+        let l = TopLayout::new(&d.params);
+        vec![
+            l.lod, l.shared, l.union, l.above, l.overflow, l.chosen, l.err,
+        ]
+    };
+    let fields: Vec<(String, Field)> = fields
+        .into_iter()
+        .map(|f| (f.name.to_string(), f))
+        .collect();
     Box::new(move |t: &Transaction| t.first().map_or(Vec::new(), |v| decode(v, &fields)))
 }
 

@@ -168,6 +168,71 @@ fn bunny_and_teapot_scene_file_runs() {
         .as_str()
         .unwrap()
         .starts_with("PerNode"));
+    // Every redone per-node merge ran through the per-node merging module.
+    if verilator() {
+        for f in frames.iter().filter(|f| f["merged"] == true) {
+            assert_per_node_simulated(f);
+        }
+    }
+}
+
+/// A frame whose per-node merge ran through the per-node merging module
+/// (SPEC 8.14): one stage, 0 mismatches, beats and cycles counted, said so
+/// in `simulated`, and no "not built" left in `skipped`.
+fn assert_per_node_simulated(f: &Value) {
+    let m = &f["merge_rtl"];
+    let stages = strings(&m["stages"]);
+    assert_eq!(stages.len(), 1, "{m}");
+    assert!(stages[0].starts_with("per-node merging module ("), "{m}");
+    assert_eq!(m["mismatches"], 0, "{m}");
+    assert!(m["first_mismatch"].is_null(), "{m}");
+    let beats = m["beats_in"].as_u64().unwrap();
+    assert!(beats > 0 && m["cycles"].as_u64().unwrap() >= beats, "{m}");
+    assert!(
+        strings(&f["simulated"])
+            .iter()
+            .any(|s| s.starts_with("merging module RTL, per-node:")),
+        "{f}"
+    );
+    assert!(
+        strings(&f["skipped"])
+            .iter()
+            .all(|s| !s.starts_with("merging module RTL")),
+        "{f}"
+    );
+}
+
+#[test]
+fn per_node_frames_run_through_the_per_node_merging_module() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = tempfile::tempdir().unwrap();
+    let mut scene = small_scene(true, json!([[2, 1, 2], [3, 1, 3]]));
+    scene["effects"]["units"]["merge"] = json!({ "mode": "per_node", "num": 1, "den": 2 });
+    let path = write_scene(dir.path(), "per_node.json", &scene);
+    let v = run_ok(
+        &[path.to_str().unwrap()],
+        &dir.path().join("out"),
+        Some(cache.path()),
+    );
+    assert_eq!(v["mismatches"], 0);
+    assert_eq!(v["effects"]["merge_mode"], "PerNode { num: 1, den: 2 }");
+    let frames = v["frames"].as_array().unwrap();
+    assert!(frames.iter().all(|f| f["merged"] == true), "{v}");
+    if verilator() {
+        for f in frames {
+            assert_per_node_simulated(f);
+        }
+        let built: Vec<String> = std::fs::read_dir(cache.path().join("verilator"))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert!(
+            built
+                .iter()
+                .any(|n| n.starts_with("merge_module") && n.contains("_pn1_2")),
+            "{built:?}"
+        );
+    }
 }
 
 /// A small procedural scene: a static slab and two spheres, frames given.

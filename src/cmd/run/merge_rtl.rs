@@ -6,18 +6,22 @@
 //! level, and the merge pass (S614) against `golden::merge::top`; then S616
 //! (one upper level, grouping by parent voxel) on that level's nodes when the
 //! scene asks for the upper-level build. Each unit is generated and built the
-//! first time a frame needs it. Per-node mode has no single merging level and
-//! is not built in RTL: the units are not run, and the run says so.
+//! first time a frame needs it. Per-node mode has no single merging level:
+//! its merging module (SPEC 8.14) runs every pass of the frame's merge
+//! (`per_node_transaction`, bit for bit), and the base it streams out is
+//! checked per LOD against golden per-node merging and against the frame's
+//! own merge counts (descents, created, reused).
 
 use cosim::from_rtl::design_from_module;
 use cosim::tb::{run_multi_stream_bench, run_stream_bench, BenchConfig, StreamBeats, Vector};
 use cosim::{open_engine, BitVec, Engine, EngineKind};
 use golden::layout::Bits;
 use golden::merge::level::candidate_range;
+use golden::merge::per_node_unit::{base_by_lod, PerNodeCase, PerNodeLayout};
 use golden::merge::top::{top_transaction, Report, TopLayout};
-use golden::merge::unit::{upper_transaction, BeatLayout, LevelCase, UpperLayout};
+use golden::merge::unit::{upper_transaction, BaseBeat, BeatLayout, LevelCase, UpperLayout};
 use golden::merge::walk::{collect, walk_input, PlacedNode, WalkedInput};
-use golden::merge::MergeMode;
+use golden::merge::{MergeMode, MergeStats};
 use golden::store::{Hierarchy, NodeRecord};
 use golden::world::World;
 use golden::Params;
@@ -35,10 +39,11 @@ pub struct MergeRtlFrame {
     pub seconds: f64,
 }
 
-/// The engines, built on first use: the merging module per input count.
+/// The engines, built on first use: the merging module per input count
+/// and mode.
 #[derive(Default)]
 pub struct MergeRtl {
-    module: Option<(usize, Box<dyn Engine>)>,
+    module: Option<(usize, MergeMode, Box<dyn Engine>)>,
     upper: Option<Box<dyn Engine>>,
 }
 
@@ -167,45 +172,12 @@ impl MergeRtl {
                     .collect::<Result<_, _>>()?,
             },
         ];
-        if self.module.as_ref().is_none_or(|(n, _)| *n != k) {
-            let t = std::time::Instant::now();
-            let design = golden::vectors::merge::MergeDesign {
-                params: p,
-                inputs: k,
-                mode,
-                ..Default::default()
-            };
-            design
-                .validate()
-                .map_err(|e| format!("merge RTL merging module: {e}"))?;
-            let e = build(&rtl_gen::merge::merge_module_unit(&design))?;
-            out.build_seconds += t.elapsed().as_secs_f64();
-            self.module = Some((k, e));
-        }
-        let engine = &mut self.module.as_mut().expect("built").1;
-        let config = BenchConfig {
-            stop_on_mismatch: false,
-            watchdog_cycles: 10_000,
-            ..BenchConfig::default()
-        };
-        let before = engine.cycle();
-        let r = run_multi_stream_bench(engine.as_mut(), &ins, &outs, &config)
-            .map_err(|e| format!("merge RTL merging module: {e}"))?;
         let stage = if counts {
             "merging module (S608 count pass, choice, S614)"
         } else {
             "merging module (choice, S614)"
         };
-        out.stages.push(stage.to_string());
-        out.beats_in += r.sent.iter().map(|s| s.1).sum::<u64>();
-        out.cycles += engine.cycle() - before;
-        let bad = r.mismatches
-            + r.hang.is_some() as u64
-            + r.missing.iter().map(|m| m.1 as u64).sum::<u64>();
-        out.mismatches += bad;
-        if bad > 0 && out.first_mismatch.is_none() {
-            out.first_mismatch = Some(format!("{stage}: {r}"));
-        }
+        self.run_module(&p, k, mode, &ins, &outs, stage, &mut out)?;
 
         if upper_build && level >= 1 {
             let ul = UpperLayout::new(&p);
@@ -239,6 +211,210 @@ impl MergeRtl {
         out.seconds = start.elapsed().as_secs_f64();
         Ok(out)
     }
+    /// Runs one merge's streams (`cfg`, `in*`; `report`, `out`) through the
+    /// merging module of `k` inputs in `mode` (built on first use, rebuilt
+    /// when `k` or the mode changes), adding its counts to `out`.
+    #[allow(clippy::too_many_arguments)]
+    fn run_module(
+        &mut self,
+        p: &Params,
+        k: usize,
+        mode: MergeMode,
+        ins: &[StreamBeats],
+        outs: &[StreamBeats],
+        stage: &str,
+        out: &mut MergeRtlFrame,
+    ) -> Result<(), String> {
+        if self
+            .module
+            .as_ref()
+            .is_none_or(|(n, m, _)| *n != k || *m != mode)
+        {
+            let t = std::time::Instant::now();
+            let design = golden::vectors::merge::MergeDesign {
+                params: *p,
+                inputs: k,
+                mode,
+                ..Default::default()
+            };
+            design
+                .validate()
+                .map_err(|e| format!("merge RTL merging module: {e}"))?;
+            let e = build(&rtl_gen::merge::merge_module_unit(&design))?;
+            out.build_seconds += t.elapsed().as_secs_f64();
+            self.module = Some((k, mode, e));
+        }
+        let engine = &mut self.module.as_mut().expect("built").2;
+        let config = BenchConfig {
+            stop_on_mismatch: false,
+            watchdog_cycles: 10_000,
+            ..BenchConfig::default()
+        };
+        let before = engine.cycle();
+        let r = run_multi_stream_bench(engine.as_mut(), ins, outs, &config)
+            .map_err(|e| format!("merge RTL merging module: {e}"))?;
+        out.stages.push(stage.to_string());
+        out.beats_in += r.sent.iter().map(|s| s.1).sum::<u64>();
+        out.cycles += engine.cycle() - before;
+        let bad = r.mismatches
+            + r.hang.is_some() as u64
+            + r.missing.iter().map(|m| m.1 as u64).sum::<u64>();
+        out.mismatches += bad;
+        if bad > 0 && out.first_mismatch.is_none() {
+            out.first_mismatch = Some(format!("{stage}: {r}"));
+        }
+        Ok(())
+    }
+
+    /// Runs the per-node merging module (`per-node:num/den`, SPEC 8.14) on
+    /// the merge of `ids`: every pass from the candidate range's `lo`, bit
+    /// for bit on `report` and `out`. The `out` beats the RTL matched are
+    /// then read as a base per LOD, which must equal golden per-node
+    /// merging's (`PerNodeCase::golden_base`), and their descents, created
+    /// and reused nodes must equal the frame's merge (`stats`). A
+    /// disagreement of golden with itself is an error, not a mismatch.
+    pub fn run_per_node_frame(
+        &mut self,
+        world: &World,
+        ids: &[u8],
+        (num, den): (u32, u32),
+        stats: &MergeStats,
+    ) -> Result<MergeRtlFrame, String> {
+        let start = std::time::Instant::now();
+        let p: Params = world.params;
+        let hs: Vec<&Hierarchy> = ids
+            .iter()
+            .map(|&i| {
+                world
+                    .store
+                    .get(i)
+                    .ok_or(format!("merge RTL: no hierarchy {i}"))
+            })
+            .collect::<Result<_, _>>()?;
+        let (lo, hi) = candidate_range(&hs);
+        let case = PerNodeCase {
+            hierarchies: hs.iter().map(|h| (*h).clone()).collect(),
+            translations: hs
+                .iter()
+                .map(|h| {
+                    world
+                        .table
+                        .get(h.id as u32)
+                        .ok()
+                        .flatten()
+                        .ok_or(format!("merge RTL: hierarchy {} has no translation", h.id))
+                })
+                .collect::<Result<_, _>>()?,
+            lo,
+            hi,
+        };
+        let golden_err = |e: &dyn std::fmt::Display| format!("merge RTL per-node module: {e}");
+        let tx = case.transaction(&p, num, den).map_err(|e| golden_err(&e))?;
+        check_against_frame(&case, &tx.out, tx.descents, &p, (num, den), stats)?;
+        let (tl, pl, ol) = (
+            TopLayout::new(&p),
+            PerNodeLayout::new(&p),
+            BeatLayout::output(&p),
+        );
+        let pack = |b: Result<Bits, golden::layout::LayoutError>| -> Result<Vec<BitVec>, String> {
+            Ok(vec![bitvec(&b.map_err(|e| e.to_string())?)?])
+        };
+        let mut ins = vec![StreamBeats {
+            name: "cfg".into(),
+            beats: vec![pack(tl.pack_cfg(lo, hi))?],
+        }];
+        for (i, s) in tx.inputs.iter().enumerate() {
+            ins.push(StreamBeats {
+                name: format!("in{i}"),
+                beats: s
+                    .iter()
+                    .map(|b| pack(b.pack(&pl)))
+                    .collect::<Result<_, _>>()?,
+            });
+        }
+        let outs = [
+            StreamBeats {
+                name: "report".into(),
+                beats: tx
+                    .reports
+                    .iter()
+                    .map(|r| pack(r.pack(&pl)))
+                    .collect::<Result<_, _>>()?,
+            },
+            StreamBeats {
+                name: "out".into(),
+                beats: tx
+                    .out
+                    .iter()
+                    .map(|b| pack(b.pack(&ol)))
+                    .collect::<Result<_, _>>()?,
+            },
+        ];
+        let mut out = MergeRtlFrame::default();
+        let stage = format!(
+            "per-node merging module ({} passes from LOD {lo}, {} descents)",
+            tx.passes, tx.descents
+        );
+        self.run_module(
+            &p,
+            hs.len(),
+            MergeMode::PerNode { num, den },
+            &ins,
+            &outs,
+            &stage,
+            &mut out,
+        )?;
+        out.seconds = start.elapsed().as_secs_f64();
+        Ok(out)
+    }
+}
+
+/// The per-node merge's `out` beats as a base per LOD against golden
+/// per-node merging of the same case, and its counts against the frame's
+/// merge: the streams the RTL is checked against are the frame's merge.
+fn check_against_frame(
+    case: &PerNodeCase,
+    beats: &[BaseBeat],
+    descents: u64,
+    p: &Params,
+    (num, den): (u32, u32),
+    stats: &MergeStats,
+) -> Result<(), String> {
+    let fail = |what: String| Err(format!("merge RTL per-node module: {what}"));
+    let Some(got) = base_by_lod(beats, p) else {
+        return fail("a created node's child count overflowed in the out beats".into());
+    };
+    let (want, _) = case
+        .golden_base(p, num, den)
+        .map_err(|e| format!("merge RTL per-node module: {e}"))?;
+    if let Some(l) = (0..want.len().max(got.len())).find(|&l| want.get(l) != got.get(l)) {
+        return fail(format!(
+            "the base at LOD {l} ({} nodes) differs from golden per-node merging's ({} nodes)",
+            got.get(l).map_or(0, Vec::len),
+            want.get(l).map_or(0, Vec::len)
+        ));
+    }
+    let created = beats
+        .iter()
+        .filter(|b| matches!(b, BaseBeat::Created { .. }))
+        .count() as u64;
+    let reused = beats
+        .iter()
+        .filter(|b| matches!(b, BaseBeat::Reused { .. }))
+        .count() as u64;
+    let lm = &stats.level_merge;
+    let frame = (
+        stats.per_node.descents,
+        lm.created,
+        lm.reused_inner + lm.reused_leaves,
+    );
+    if (descents, created, reused) != frame {
+        return fail(format!(
+            "(descents, created, reused) = {:?} differs from the frame's merge {frame:?}",
+            (descents, created, reused)
+        ));
+    }
+    Ok(())
 }
 
 /// The Morton-sorted nodes of one level (the order of S616's level lists).

@@ -380,11 +380,36 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
             }
             secs.rtl += t.elapsed().as_secs_f64();
             merge_rtl_frame = Some(r);
+        } else if let golden::merge::MergeMode::PerNode { num, den } = fx.merge {
+            let t = Instant::now();
+            let b = bar(options, format!("frame {k} per-node merge RTL"));
+            b.set_length(1);
+            let stats = rep.merge_stats.as_ref().expect("a redone merge has stats");
+            let r = merge_rtl.run_per_node_frame(&frames.world, &ids, (num, den), stats)?;
+            b.finish_and_clear();
+            if r.build_seconds > 0.0 {
+                rtl_info.merge = format!("built (Verilator): {}", r.stages.join(", "));
+            }
+            simulated.push(format!(
+                "merging module RTL, per-node:{num}/{den}: {} ({} beats in, {} cycles, {} mismatches; base per LOD = golden per-node merge)",
+                r.stages.join(", "),
+                r.beats_in,
+                r.cycles,
+                r.mismatches
+            ));
+            skipped.push(if fx.upper_build {
+                "S616 upper-level RTL: per-node merges have base nodes at several LODs (S616 is built for one level)".into()
+            } else {
+                "S616 upper-level RTL: the scene does not ask for the upper-level build".into()
+            });
+            skipped.push("S608 overlap counter RTL: the per-node module decides per voxel (no overlap counter)".into());
+            secs.rtl += t.elapsed().as_secs_f64();
+            merge_rtl_frame = Some(r);
         } else {
-            skipped.push(
-                "merging module RTL: per-node mode has no single merging level and is not built in RTL"
-                    .into(),
-            );
+            skipped.push(format!(
+                "merging module RTL: mode {} has no merging level",
+                fx.merge
+            ));
         }
 
         // Rays.

@@ -12,14 +12,13 @@
 mod merge_common;
 
 use cosim::tb::{run_multi_stream_bench_watching, BenchConfig, MultiReport, StreamBeats};
-use golden::merge::level::candidate_range;
 use golden::merge::merger_unit::{
-    merger_transaction, MergerLayout, MergerSizes, MergerTransaction,
+    merger_transaction, merger_transaction_in_range, MergerLayout, MergerSizes, MergerTransaction,
 };
-use golden::merge::writer_unit::{place, real_cases, soup, writer_err};
+use golden::merge::writer_unit::{place, real_cases, soup};
 use golden::merge::MergeMode;
 use golden::params::Params;
-use golden::store::{Hierarchy, HierarchyStore};
+use golden::store::HierarchyStore;
 use golden::translate::stimulus::SplitMix64;
 use golden::translate::TranslationTable;
 use golden::vectors::merge::MergeDesign;
@@ -168,27 +167,64 @@ fn modes(c: &MergerConfig) -> Vec<MergeMode> {
     vec![c.design.mode]
 }
 
+/// An input filling the scene (its LOD-0 root gives way to several roots
+/// at LOD 1, 4.7) and a small translated one.
+fn several_roots_case(p: &Params) -> (HierarchyStore, TranslationTable, Vec<u8>) {
+    let mesh = golden::scenes::random_soup(60, 0.3, 77);
+    let (lo, hi) = mesh.bounds();
+    let grid = golden::build::GridMap::fit(lo, hi, p);
+    let big = golden::build::build(&mesh, &grid, p, 1).expect("the soup builds");
+    let small = soup(p, 2, 20, 0.2, 78);
+    let mut store = HierarchyStore::new();
+    let mut table = TranslationTable::new(p.hier_capacity() as usize, p).unwrap();
+    table
+        .write(1, golden::translate::Translation::zero(big.top_lod))
+        .unwrap();
+    table.write(2, place(&small, [0.7, 0.2, 0.5])).unwrap();
+    store.insert(big).unwrap();
+    store.insert(small).unwrap();
+    (store, table, vec![1, 2])
+}
+
 /// Real merges (overlapping, disjoint, single-triangle soups, one input
-/// alone) through the configuration's mode, plus refusals when the mode
-/// refuses the case.
-fn real_merges(c: &MergerConfig) -> Vec<MergerTransaction> {
+/// alone, an input with several roots) through the configuration's mode,
+/// refusals included when the mode refuses the case.
+fn real_merges(c: &MergerConfig) -> Vec<(MergerTransaction, bool)> {
     let p = &c.design.params;
     let mut out = Vec::new();
-    for (store, table, ids) in real_cases(p) {
+    let mut cases = real_cases(p);
+    cases.push(several_roots_case(p));
+    for (store, table, ids) in cases {
+        let several = ids.iter().any(|i| store.get(*i).unwrap().root_count > 1);
         for mode in modes(c) {
-            out.push(
-                merger_transaction(
-                    &store,
-                    &table,
-                    &ids,
-                    mode,
-                    9 % p.hier_capacity() as u8,
-                    c.design.inputs,
-                    c.sizes,
-                )
-                .expect("a real merge"),
+            let out_id = 9 % p.hier_capacity() as u8;
+            let tx =
+                merger_transaction(&store, &table, &ids, mode, out_id, c.design.inputs, c.sizes)
+                    .expect("a real merge");
+            assert!(
+                !tx.header.leaf_overflow,
+                "the leaf FIFOs hold the real merges"
             );
+            out.push((tx, several));
         }
+    }
+    // Bad ranges from software: refused by the merging module (the closing
+    // command, an empty base, the writer's NO_TOP header).
+    let (store, table, ids) = real_cases(p).remove(0);
+    for range in [(4, 3), (2, p.max_lod + 1)] {
+        let tx = merger_transaction_in_range(
+            &store,
+            &table,
+            &ids,
+            c.design.mode,
+            9 % p.hier_capacity() as u8,
+            c.design.inputs,
+            c.sizes,
+            Some(range),
+        )
+        .expect("a refused merge");
+        assert!(tx.chosen.is_none());
+        out.insert(1, (tx, false));
     }
     out
 }
@@ -288,7 +324,10 @@ fn check(name: &str, runs: &[(&str, usize)]) {
     let dir = tempfile::tempdir().unwrap();
     let m = rtl_gen::merge::hierarchy_merger_unit(c).expect("a valid merger");
     let design = design_of(&m, dir.path());
-    let real = real_merges(c);
+    let real: Vec<(MergerTransaction, bool)> = real_merges(c);
+    let several_root_inputs = real.iter().filter(|r| r.1).count();
+    assert!(several_root_inputs > 0);
+    let real: Vec<MergerTransaction> = real.into_iter().map(|r| r.0).collect();
     for &(kind, random) in runs {
         let t = std::time::Instant::now();
         let stall = stall_of(seed ^ kind.len() as u64).max(0.05);
@@ -315,7 +354,12 @@ fn check(name: &str, runs: &[(&str, usize)]) {
             r.cycles,
             t.elapsed()
         );
-        assert!(seen.leaves_above > 0 && seen.several_roots > 0, "{seen:?}");
+        // Leaves above the level, roots that are input nodes or several,
+        // refusals.
+        assert!(
+            seen.leaves_above > 0 && seen.materialized + seen.several_roots > 0 && seen.refused > 0,
+            "{seen:?}"
+        );
     }
 }
 
@@ -350,7 +394,7 @@ fn hierarchy_merger_throughput() {
         let m = rtl_gen::merge::hierarchy_merger_unit(&c).expect("a valid merger");
         let design = design_of(&m, dir.path());
         let mut rng = SplitMix64(77);
-        let mut txs = real_merges(&c);
+        let mut txs: Vec<MergerTransaction> = real_merges(&c).into_iter().map(|r| r.0).collect();
         txs.extend((0..20).map(|_| random_merge(&mut rng, &c)));
         let (ins, outs, seen) = streams(&c, &txs);
         let mut e = engine("verilator", &m, &design);
@@ -432,8 +476,6 @@ fn per_node_is_refused() {
         .err()
         .expect("refused");
     assert!(e.contains("per-node") && e.contains("probes"), "{e}");
-    let _ = (candidate_range, writer_err::NONE);
-    let _: Option<&Hierarchy> = None;
 }
 
 fn lint_only(design: &cosim::Design) {

@@ -471,9 +471,26 @@ pub fn merger_transaction(
     k: usize,
     sizes: MergerSizes,
 ) -> Result<MergerTransaction, MergeError> {
+    merger_transaction_in_range(store, table, ids, mode, out_id, k, sizes, None)
+}
+
+/// [`merger_transaction`] with the `cfg` beat's `(lo, hi)` given instead of
+/// 8.2's candidate range (software may send any range: a bad one, `lo > hi`
+/// or `hi > D`, is the merging module's refusal).
+#[allow(clippy::too_many_arguments)]
+pub fn merger_transaction_in_range(
+    store: &HierarchyStore,
+    table: &TranslationTable,
+    ids: &[u8],
+    mode: MergeMode,
+    out_id: u8,
+    k: usize,
+    sizes: MergerSizes,
+    range: Option<(u8, u8)>,
+) -> Result<MergerTransaction, MergeError> {
     let (hs, entries) = inputs_of(store, table, ids, k)?;
     let p = hs[0].params;
-    let (lo, hi) = candidate_range(&hs);
+    let (lo, hi) = range.unwrap_or_else(|| candidate_range(&hs));
     let ts: Vec<Translation> = entries
         .iter()
         .zip(ids)
@@ -844,6 +861,40 @@ mod tests {
             assert!(tx.base.is_empty());
             assert_eq!(tx.writer.header.err, writer_err::NO_TOP);
             assert!(merge(&store, &ids, &table, mode, 9).is_err());
+        }
+    }
+
+    /// A bad range from software: the module refuses it, the fetchers get
+    /// the closing command, the writer's header says `NO_TOP`.
+    #[test]
+    fn bad_range_is_refused() {
+        let p = Params::default();
+        let (store, table, ids) = real_cases(&p).remove(0);
+        let sizes = MergerSizes::new(&p);
+        for mode in [MergeMode::default(), MergeMode::Fixed(4)] {
+            for (lo, hi) in [(5, 4), (3, p.max_lod + 1)] {
+                let tx = merger_transaction_in_range(
+                    &store,
+                    &table,
+                    &ids,
+                    mode,
+                    9,
+                    4,
+                    sizes,
+                    Some((lo, hi)),
+                )
+                .unwrap();
+                check_hand_offs(&tx, &p, 4);
+                assert_eq!(
+                    tx.reports(),
+                    &[Report::Chosen {
+                        lod: 0,
+                        err: choice_err::BAD_RANGE
+                    }]
+                );
+                assert_eq!(tx.cmds.len(), 1);
+                assert_eq!(tx.writer.header.err, writer_err::NO_TOP);
+            }
         }
     }
 

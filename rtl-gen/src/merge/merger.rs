@@ -136,6 +136,55 @@ fn counts_pass<'m>(m: &'m Module, c: &MergerConfig, lo: Signal<'m>, hi: Signal<'
     !(lo.gt(hi) | beyond)
 }
 
+/// A child's store-port streams: `(name, direction, data width)` of every
+/// stream whose name ends in `_req` (out) or `_resp` (in).
+fn store_streams(child: &Module) -> Vec<(String, Direction, u32)> {
+    let ports = child.ports();
+    ports
+        .iter()
+        .filter_map(|q| {
+            let name = q.name.strip_suffix("_valid")?;
+            (name.ends_with("_req") || name.ends_with("_resp")).then(|| {
+                let w = ports
+                    .iter()
+                    .find(|x| x.name == format!("{name}_data"))
+                    .map_or(0, |x| x.width);
+                (name.to_string(), q.direction, w)
+            })
+        })
+        .collect()
+}
+
+/// Stream `port` of instance `inst` as this module's stream `outer`: an
+/// output stream (`dir` Output) leaves, an input stream (`width` bits)
+/// comes in.
+fn pass_stream<'m>(
+    m: &'m Module,
+    inst: crate::Instance<'m>,
+    port: &str,
+    outer: &str,
+    dir: Direction,
+    width: u32,
+) {
+    match dir {
+        Direction::Output => {
+            let s = Stream {
+                valid: inst.output(&format!("{port}_valid")),
+                data: inst.output(&format!("{port}_data")),
+                ready: m.wire(&format!("{outer}_ready_w"), 1),
+            };
+            inst.connect(&format!("{port}_ready"), s.ready);
+            s.output(outer);
+        }
+        Direction::Input => {
+            let s = Stream::input(m, outer, width);
+            inst.connect(&format!("{port}_valid"), s.valid);
+            inst.connect(&format!("{port}_data"), s.data);
+            s.ready.drive(inst.output(&format!("{port}_ready")));
+        }
+    }
+}
+
 /// The hierarchy merger for `c`; an error when `c.validate()` refuses it.
 ///
 /// Ports: `clk`, `rst`; streams `cfg` (in, [`MergerLayout::cfg_width`]),
@@ -332,27 +381,9 @@ pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
         let drop_issued = cmd_fire & (leaves_ph | (final_ph & !merging));
         dropping[i].next(drop_issued.mux(one, (fo_fire & fo_end).mux(zero, dropping[i])));
 
-        // The store ports, straight through.
-        for port in ["node_req", "ref_req"] {
-            let s = Stream {
-                valid: f.output(&format!("{port}_valid")),
-                data: f.output(&format!("{port}_data")),
-                ready: m.wire(&format!("f{i}_{port}_ready_w"), 1),
-            };
-            f.connect(&format!("{port}_ready"), s.ready);
-            s.output(&format!("f{i}_{port}"));
-        }
-        for port in ["node_resp", "ref_resp"] {
-            let w = fetch_mod
-                .ports()
-                .into_iter()
-                .find(|q| q.name == format!("{port}_data"))
-                .map(|q| q.width)
-                .expect("a fetcher response port");
-            let s = Stream::input(&m, &format!("f{i}_{port}"), w);
-            f.connect(&format!("{port}_valid"), s.valid);
-            f.connect(&format!("{port}_data"), s.data);
-            s.ready.drive(f.output(&format!("{port}_ready")));
+        // The store ports (every `*_req` / `*_resp` stream), straight through.
+        for (port, dir, w) in store_streams(&fetch_mod) {
+            pass_stream(&m, *f, &port, &format!("f{i}_{port}"), dir, w);
         }
         leaves_in.push((f.output("leaves_valid"), f.output("leaves_data"), i));
     }
@@ -533,43 +564,11 @@ pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
 
     // ---- the writer's ports: nodes, refs, store ports straight through;
     // header with the merger's flags.
-    for q in writer_mod.ports() {
-        let name = q.name.as_str();
-        let Some(stream) = name.strip_suffix("_valid") else {
-            continue;
-        };
-        let known_in = ["cfg", "crefs", "done"].contains(&stream) || stream.starts_with("level");
-        if known_in || stream == "header" {
-            continue;
-        }
-        let w = writer_mod
-            .ports()
-            .into_iter()
-            .find(|x| x.name == format!("{stream}_data"))
-            .map(|x| x.width)
-            .expect("a data port");
-        let outer = if stream == "nodes" || stream == "refs" {
-            stream.to_string()
-        } else {
-            format!("w_{stream}")
-        };
-        match q.direction {
-            Direction::Output => {
-                let s = Stream {
-                    valid: writer.output(&format!("{stream}_valid")),
-                    data: writer.output(&format!("{stream}_data")),
-                    ready: m.wire(&format!("{outer}_ready_w"), 1),
-                };
-                writer.connect(&format!("{stream}_ready"), s.ready);
-                s.output(&outer);
-            }
-            Direction::Input => {
-                let s = Stream::input(&m, &outer, w);
-                writer.connect(&format!("{stream}_valid"), s.valid);
-                writer.connect(&format!("{stream}_data"), s.data);
-                s.ready.drive(writer.output(&format!("{stream}_ready")));
-            }
-        }
+    for (port, dir, w) in store_streams(&writer_mod) {
+        pass_stream(&m, writer, &port, &format!("w_{port}"), dir, w);
+    }
+    for port in ["nodes", "refs"] {
+        pass_stream(&m, writer, port, port, Direction::Output, 0);
     }
     for q in writer_mod.ports() {
         let is_stream = ["_valid", "_data", "_ready"]

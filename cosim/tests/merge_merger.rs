@@ -12,6 +12,7 @@
 mod merge_common;
 
 use cosim::tb::{run_multi_stream_bench_watching, BenchConfig, MultiReport, StreamBeats};
+use golden::merge::fetch_unit::{fetch_err, fetch_transaction, FetchCfg, FetchOut};
 use golden::merge::merger_unit::{
     merger_transaction, merger_transaction_in_range, MergerLayout, MergerSizes, MergerTransaction,
 };
@@ -89,6 +90,8 @@ struct Seen {
     leaves_above: usize,
     materialized: usize,
     several_roots: usize,
+    /// Merges with a fetcher error in the header.
+    fetch_errors: usize,
     /// Beats into the merging module's `in*` (fetcher out, over all inputs).
     module_in: u64,
 }
@@ -125,6 +128,7 @@ fn streams(
     for tx in txs {
         seen.merges += 1;
         seen.refused += tx.chosen.is_none() as usize;
+        seen.fetch_errors += (tx.header.fetch_err != 0) as usize;
         cfg.push(tx.cfg.pack(&ml).unwrap());
         report.extend(tx.reports().iter().map(|r| r.pack(&ml.top).unwrap()));
         let w = &tx.writer;
@@ -223,6 +227,12 @@ fn real_merges(c: &MergerConfig) -> Vec<(MergerTransaction, bool)> {
             out.push((tx, several));
         }
     }
+    let broken = real_cases(p)
+        .iter()
+        .find_map(|(store, table, ids)| broken_entry_merge(c, store, table, ids));
+    if let Some(tx) = broken {
+        out.insert(1, (tx, false));
+    }
     // Bad ranges from software: refused by the merging module (the closing
     // command, an empty base, the writer's NO_TOP header).
     let (store, table, ids) = real_cases(p)
@@ -245,6 +255,54 @@ fn real_merges(c: &MergerConfig) -> Vec<(MergerTransaction, bool)> {
         out.insert(1, (tx, false));
     }
     out
+}
+
+/// A merge whose last input has an invalid translation entry: its fetcher
+/// answers every command with an error beat (8.13, no store read), which
+/// the glue passes on as that input's `End`, so the rest is the merge of
+/// the other inputs over the same `(lo, hi)` with the rank left empty; the
+/// header names the error and the input. `None` when the case has one input
+/// or more than `k`.
+fn broken_entry_merge(
+    c: &MergerConfig,
+    store: &HierarchyStore,
+    table: &TranslationTable,
+    ids: &[u8],
+) -> Option<MergerTransaction> {
+    let p = &c.design.params;
+    let n = ids.len();
+    if n < 2 || n > c.design.inputs {
+        return None;
+    }
+    let hs: Vec<&golden::store::Hierarchy> = ids.iter().map(|i| store.get(*i).unwrap()).collect();
+    let range = golden::merge::level::candidate_range(&hs);
+    let out_id = 9 % p.hier_capacity() as u8;
+    let mut tx = merger_transaction_in_range(
+        store,
+        table,
+        &ids[..n - 1],
+        c.design.mode,
+        out_id,
+        c.design.inputs,
+        c.sizes,
+        Some(range),
+    )
+    .ok()?;
+    let broken = hs[n - 1];
+    tx.cfg.inputs.push(FetchCfg::of(broken, None));
+    let f = fetch_transaction(broken, 0, &tx.cmds, c.fetch_sizes()).unwrap();
+    assert!(f.node_reqs.is_empty() && f.ref_reqs.is_empty());
+    assert!(f.out.iter().all(|o| matches!(
+        o,
+        FetchOut::Error {
+            code: fetch_err::ENTRY,
+            ..
+        }
+    )));
+    tx.fetch.push(f);
+    tx.header.fetch_err = fetch_err::ENTRY;
+    tx.header.fetch_rank = (n - 1) as u16;
+    Some(tx)
 }
 
 /// A random merge: 1..=k soups of random sizes, each translated at its top
@@ -374,9 +432,9 @@ fn check(name: &str, runs: &[(&str, usize)], leaves: bool) {
             r.cycles,
             t.elapsed()
         );
-        // Refusals in every run; on the long run, leaves above the level
+        // Refusals and a fetcher error in every run; on the long run, leaves above the level
         // and roots that are input nodes or several.
-        assert!(seen.refused > 0, "{seen:?}");
+        assert!(seen.refused > 0 && seen.fetch_errors > 0, "{seen:?}");
         if kind == "verilator" {
             assert!(
                 (seen.leaves_above > 0 || !leaves) && seen.materialized + seen.several_roots > 0,

@@ -206,8 +206,10 @@ fn assert_per_node_simulated(f: &Value) {
 fn per_node_frames_run_through_the_per_node_merging_module() {
     let dir = tempfile::tempdir().unwrap();
     let cache = tempfile::tempdir().unwrap();
-    let mut scene = small_scene(true, json!([[2, 1, 2], [3, 1, 3]]));
-    scene["effects"]["units"]["merge"] = json!({ "mode": "per_node", "num": 1, "den": 2 });
+    // The ball overlaps the other sphere, and 0/1 descends wherever
+    // children are shared: merges of several passes.
+    let mut scene = small_scene(true, json!([[4.2, 0.6, 4.2], [4.4, 0.6, 4.4]]));
+    scene["effects"]["units"]["merge"] = json!({ "mode": "per_node", "num": 0, "den": 1 });
     let path = write_scene(dir.path(), "per_node.json", &scene);
     let v = run_ok(
         &[path.to_str().unwrap()],
@@ -215,12 +217,15 @@ fn per_node_frames_run_through_the_per_node_merging_module() {
         Some(cache.path()),
     );
     assert_eq!(v["mismatches"], 0);
-    assert_eq!(v["effects"]["merge_mode"], "PerNode { num: 1, den: 2 }");
+    assert_eq!(v["effects"]["merge_mode"], "PerNode { num: 0, den: 1 }");
     let frames = v["frames"].as_array().unwrap();
     assert!(frames.iter().all(|f| f["merged"] == true), "{v}");
     if verilator() {
         for f in frames {
             assert_per_node_simulated(f);
+            let m = &f["merge_rtl"];
+            assert!(m["passes"].as_u64().unwrap() > 1, "{m}");
+            assert!(m["descents"].as_u64().unwrap() > 0, "{m}");
         }
         let built: Vec<String> = std::fs::read_dir(cache.path().join("verilator"))
             .unwrap()
@@ -229,7 +234,7 @@ fn per_node_frames_run_through_the_per_node_merging_module() {
         assert!(
             built
                 .iter()
-                .any(|n| n.starts_with("merge_module") && n.contains("_pn1_2")),
+                .any(|n| n.starts_with("merge_module") && n.contains("_pn0_1")),
             "{built:?}"
         );
     }

@@ -37,6 +37,11 @@ pub struct MergeRtlFrame {
     pub first_mismatch: Option<String>,
     pub build_seconds: f64,
     pub seconds: f64,
+    /// Per-node mode: passes the merge made (one per LOD from `lo`); 0 in
+    /// level modes.
+    pub passes: u32,
+    /// Per-node mode: voxels that descended; 0 in level modes.
+    pub descents: u64,
 }
 
 /// The engines, built on first use: the merging module per input count
@@ -350,7 +355,11 @@ impl MergeRtl {
                     .collect::<Result<_, _>>()?,
             },
         ];
-        let mut out = MergeRtlFrame::default();
+        let mut out = MergeRtlFrame {
+            passes: tx.passes,
+            descents: tx.descents,
+            ..MergeRtlFrame::default()
+        };
         let stage = format!(
             "per-node merging module ({} passes from LOD {lo}, {} descents)",
             tx.passes, tx.descents
@@ -464,4 +473,59 @@ fn bench(
         ));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use golden::translate::stimulus::SplitMix64;
+
+    /// A random multi-pass per-node case, its transaction, and the merge
+    /// counts golden `merge` would report for it.
+    fn case_with_descents() -> (
+        PerNodeCase,
+        golden::merge::per_node_unit::PerNodeTransaction,
+        MergeStats,
+    ) {
+        let p = Params::default();
+        let mut rng = SplitMix64(3);
+        loop {
+            let case = golden::merge::per_node_unit::random_per_node_case(&mut rng, &p, 3, 4);
+            let tx = case.transaction(&p, 1, 2).unwrap();
+            if tx.descents == 0 || tx.passes == 0 {
+                continue;
+            }
+            let count = |f: fn(&BaseBeat) -> bool| tx.out.iter().filter(|b| f(b)).count() as u64;
+            let mut stats = MergeStats::default();
+            stats.per_node.descents = tx.descents;
+            stats.level_merge.created = count(|b| matches!(b, BaseBeat::Created { .. }));
+            stats.level_merge.reused_inner = count(|b| matches!(b, BaseBeat::Reused { .. }));
+            return (case, tx, stats);
+        }
+    }
+
+    #[test]
+    fn per_node_out_beats_are_checked_per_lod_and_against_the_frame() {
+        let p = Params::default();
+        let (case, tx, stats) = case_with_descents();
+        let check = |out: &[BaseBeat], stats: &MergeStats| {
+            check_against_frame(&case, out, tx.descents, &p, (1, 2), stats)
+        };
+        check(&tx.out, &stats).expect("golden agrees with itself");
+        // A base node lost from the stream: its LOD's base differs.
+        let at = tx
+            .out
+            .iter()
+            .position(|b| matches!(b, BaseBeat::Reused { .. }))
+            .expect("a reused node");
+        let mut lost = tx.out.clone();
+        lost.remove(at);
+        let e = check(&lost, &stats).unwrap_err();
+        assert!(e.contains("the base at LOD"), "{e}");
+        // The frame's merge created one node more than the stream.
+        let mut other = stats.clone();
+        other.level_merge.created += 1;
+        let e = check(&tx.out, &other).unwrap_err();
+        assert!(e.contains("differs from the frame's merge"), "{e}");
+    }
 }

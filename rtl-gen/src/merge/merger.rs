@@ -189,10 +189,10 @@ fn pass_stream<'m>(
 ///
 /// Ports: `clk`, `rst`; streams `cfg` (in, [`MergerLayout::cfg_width`]),
 /// `report` (out, the merging module's), `nodes`, `refs` (out, the
-/// writer's), `header` (out, [`MergerLayout::header_width`]); per input `i`
-/// the fetcher's store ports `f{i}_node_req`, `f{i}_ref_req` (out) and
-/// `f{i}_node_resp`, `f{i}_ref_resp` (in); the writer's store ports
-/// `w_<port>`; outputs `idle`, `done` (one clock after a header leaves),
+/// writer's), `header` (out, [`MergerLayout::header_width`]); every store
+/// port stream (`*_req` out, `*_resp` in) of fetcher `i` as `f{i}_<name>`
+/// (`f{i}_node_req`, `f{i}_ref_req`, ...) and of the writer as `w_<name>`,
+/// not arbitrated; outputs `idle`, `done` (one clock after a header leaves),
 /// `module_done` and the writer's status outputs as `w_<name>`.
 pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
     c.validate()?;

@@ -28,8 +28,8 @@ use rtl_gen::merge::MergerConfig;
 
 /// Name and configuration: the default (D = 16, k = 4, overlap 1/2), a
 /// small one (D = 8, Q = 0, k = 3, proportion:1/1: the deepest candidate)
-/// and `fixed:4` with k = 2 at D = 8, Q = 0 (refuses a merge whose
-/// candidates do not hold 4).
+/// D = 31 (Q = 16, I = 32, H = 8, k = 5, overlap 1/3) and `fixed:4` with
+/// k = 2 at D = 8, Q = 0 (refuses a merge whose candidates do not hold 4).
 fn configs() -> Vec<(&'static str, MergerConfig)> {
     let sizes = |p: &Params, cap: u32| MergerSizes {
         capacity_bits: cap,
@@ -41,6 +41,12 @@ fn configs() -> Vec<(&'static str, MergerConfig)> {
         params: Params::new(8, 0, 12, 3).unwrap(),
         inputs: 3,
         mode: MergeMode::Proportion { num: 1, den: 1 },
+        roots: 16,
+    };
+    let d31 = MergeDesign {
+        params: Params::new(31, 16, 32, 8).unwrap(),
+        inputs: 5,
+        mode: MergeMode::Overlap { num: 1, den: 3 },
         roots: 16,
     };
     vec![
@@ -56,6 +62,13 @@ fn configs() -> Vec<(&'static str, MergerConfig)> {
             MergerConfig {
                 sizes: sizes(&q0.params, 7),
                 design: q0,
+            },
+        ),
+        (
+            "d31",
+            MergerConfig {
+                sizes: sizes(&d31.params, 7),
+                design: d31,
             },
         ),
         (
@@ -216,7 +229,7 @@ fn real_merges(c: &MergerConfig) -> Vec<(MergerTransaction, bool)> {
     for (store, table, ids) in cases {
         let several = ids.iter().any(|i| store.get(*i).unwrap().root_count > 1);
         for mode in modes(c) {
-            let out_id = 9 % p.hier_capacity() as u8;
+            let out_id = (9 % p.hier_capacity()) as u8;
             let tx =
                 merger_transaction(&store, &table, &ids, mode, out_id, c.design.inputs, c.sizes)
                     .expect("a real merge");
@@ -239,13 +252,19 @@ fn real_merges(c: &MergerConfig) -> Vec<(MergerTransaction, bool)> {
         .into_iter()
         .find(|(_, _, ids)| ids.len() <= c.design.inputs)
         .expect("a case of at most k inputs");
-    for range in [(4, 3), (2, p.max_lod + 1)] {
+    // `hi > D` when the field holds it (not at D = 31: 5 bits).
+    let beyond = if (1u64 << p.lod_bits()) - 1 > p.max_lod as u64 {
+        (2, p.max_lod + 1)
+    } else {
+        (5, 2)
+    };
+    for range in [(4, 3), beyond] {
         let tx = merger_transaction_in_range(
             &store,
             &table,
             &ids,
             c.design.mode,
-            9 % p.hier_capacity() as u8,
+            (9 % p.hier_capacity()) as u8,
             c.design.inputs,
             c.sizes,
             Some(range),
@@ -276,7 +295,7 @@ fn broken_entry_merge(
     }
     let hs: Vec<&golden::store::Hierarchy> = ids.iter().map(|i| store.get(*i).unwrap()).collect();
     let range = golden::merge::level::candidate_range(&hs);
-    let out_id = 9 % p.hier_capacity() as u8;
+    let out_id = (9 % p.hier_capacity()) as u8;
     let mut tx = merger_transaction_in_range(
         store,
         table,
@@ -457,6 +476,14 @@ fn hierarchy_merger_default_matches_golden() {
 }
 
 #[test]
+fn hierarchy_merger_d31_matches_golden() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
+    }
+    check("d31", &[("verilator", 10), ("iverilog-batch", 1)], true);
+}
+
+#[test]
 fn hierarchy_merger_fixed_matches_golden() {
     if !tools_present(&["verilator", "iverilog"]) {
         return;
@@ -487,7 +514,10 @@ fn hierarchy_merger_throughput() {
     if !tools_present(&["verilator"]) {
         return;
     }
-    for (name, c) in configs().into_iter().filter(|c| c.0 != "fixed") {
+    for (name, c) in configs()
+        .into_iter()
+        .filter(|c| c.0 == "default" || c.0 == "q0")
+    {
         let dir = tempfile::tempdir().unwrap();
         let m = rtl_gen::merge::hierarchy_merger_unit(&c).expect("a valid merger");
         let design = design_of(&m, dir.path());

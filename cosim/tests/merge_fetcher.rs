@@ -1,7 +1,7 @@
 //! The fetcher (`rtl_gen::merge::fetcher_unit`, SPEC.md section 8.13)
 //! against `golden::merge::fetch_unit::fetch_transaction`, bit for bit on
-//! `out`, `leaves`, `node_req` and `ref_req`; the store's answers
-//! (`node_resp`, `ref_resp`) are precomputed from golden and presented as
+//! `out`, `leaves`, `node_req`, `ref_req` and `cref_req`; the store's answers
+//! (`node_resp`, `ref_resp`, `cref_resp`) are precomputed from golden and presented as
 //! ordinary input streams (the unit raises `*_resp_ready` only with a read
 //! outstanding), with independent random stalls on every stream
 //! (`cosim::tb::run_multi_stream_bench`), on the IR simulator, Verilator and
@@ -232,7 +232,7 @@ fn index_beat(v: u32, width: u32) -> Vec<BitVec> {
 /// The streams of a list of fetches.
 fn streams(p: &Params, txs: &[FetchTransaction]) -> (Vec<StreamBeats>, Vec<StreamBeats>, Seen) {
     let l = FetchLayout::new(p);
-    let mut s: [Vec<Vec<BitVec>>; 8] = Default::default();
+    let mut s: [Vec<Vec<BitVec>>; 10] = Default::default();
     let mut seen = Seen::default();
     for tx in txs {
         seen.inputs += 1;
@@ -245,10 +245,16 @@ fn streams(p: &Params, txs: &[FetchTransaction]) -> (Vec<StreamBeats>, Vec<Strea
                 .iter()
                 .map(|r: &Reference| bits(r.pack(&l.reference).unwrap())),
         );
-        s[4].extend(tx.node_reqs.iter().map(|&i| index_beat(i, l.index_width)));
-        s[5].extend(tx.ref_reqs.iter().map(|&i| index_beat(i, l.index_width)));
-        s[6].extend(tx.out.iter().map(|o| bits(o.pack(&l).unwrap())));
-        s[7].extend(tx.leaves.iter().map(|o| bits(o.pack(&l).unwrap())));
+        s[4].extend(
+            tx.cref_resps
+                .iter()
+                .map(|r: &Reference| bits(r.pack(&l.reference).unwrap())),
+        );
+        s[5].extend(tx.node_reqs.iter().map(|&i| index_beat(i, l.index_width)));
+        s[6].extend(tx.ref_reqs.iter().map(|&i| index_beat(i, l.index_width)));
+        s[7].extend(tx.cref_reqs.iter().map(|&i| index_beat(i, l.index_width)));
+        s[8].extend(tx.out.iter().map(|o| bits(o.pack(&l).unwrap())));
+        s[9].extend(tx.leaves.iter().map(|o| bits(o.pack(&l).unwrap())));
         for o in &tx.out {
             if let FetchOut::Error { code, .. } = o {
                 seen.codes[*code as usize] += 1;
@@ -257,15 +263,17 @@ fn streams(p: &Params, txs: &[FetchTransaction]) -> (Vec<StreamBeats>, Vec<Strea
         seen.out_beats += tx.out.len();
         seen.leaf_beats += tx.leaves.len();
         seen.node_reads += tx.node_reqs.len();
-        seen.ref_reads += tx.ref_reqs.len();
+        seen.ref_reads += tx.ref_reqs.len() + tx.cref_reqs.len();
     }
     let names = [
         "cfg",
         "cmd",
         "node_resp",
         "ref_resp",
+        "cref_resp",
         "node_req",
         "ref_req",
+        "cref_req",
         "out",
         "leaves",
     ];
@@ -277,7 +285,7 @@ fn streams(p: &Params, txs: &[FetchTransaction]) -> (Vec<StreamBeats>, Vec<Strea
             beats,
         })
         .collect();
-    let outs = all.split_off(4);
+    let outs = all.split_off(5);
     (all, outs, seen)
 }
 
@@ -332,10 +340,10 @@ fn batch_bench(
 
 /// Commands per bench run: longer runs go in chunks of fresh stimulus.
 ///
-/// Verilator runs: 100,000 commands at the small configuration; the larger
-/// grids fit fewer in about 60 s of wall each (measured at 100,000: default
-/// 168 s, D = 31 209 s, Q = 0 99 s, small 26 s, most of it the stimulus and
-/// 60-80 million cycles), so 40,000 (default), 30,000 (D = 31), 60,000 (Q = 0).
+/// Verilator runs: 100,000 commands at the small configuration; 40,000
+/// (default), 30,000 (D = 31), 60,000 (Q = 0): with the read pipeline the
+/// benches take 21 s, 9 s, 11 s and 8 s of wall (5.3, 2.7, 8.9 and 12.3
+/// million cycles), the stimulus about as long again.
 const CHUNK: usize = 10_000;
 
 /// Random fetches on each engine of `runs` (engine, commands), in chunks.
@@ -439,8 +447,11 @@ fn fetcher_small_sizes_matches_golden() {
     );
 }
 
-/// Out beats per cycle with no back-pressure and a memory that answers
-/// every clock, on error-free walks of larger soups (Verilator cycles).
+/// Out beats and node reads per cycle with no back-pressure and a memory
+/// that answers every clock, on error-free walks of larger soups (Verilator
+/// cycles): every level of each soup in turn (each command re-walks from
+/// the roots), then one command at each soup's deepest level (the stream a
+/// merge pass reads).
 #[test]
 fn fetcher_throughput_without_back_pressure() {
     if !tools_present(&["verilator"]) {
@@ -450,49 +461,58 @@ fn fetcher_throughput_without_back_pressure() {
         let dir = tempfile::tempdir().unwrap();
         let m = rtl_gen::merge::fetcher_unit(&p, &sizes);
         let design = design_of(&m, dir.path());
-        let mut txs = Vec::new();
-        for s in 0..6u64 {
-            let Some(h) = soup(&p, 1, 40 + 20 * s as usize, 0.2, 100 + s) else {
-                continue;
-            };
-            let t = Translation::zero(h.top_lod);
-            let deepest = h.nodes.iter().map(|n| n.voxel.lod).max().unwrap();
-            let cmds: Vec<FetchCmd> = (h.top_lod..=deepest)
-                .map(|l| FetchCmd {
-                    lod: l,
-                    send_refs: true,
-                    send_leaves: true,
-                    last: l == deepest,
-                })
-                .collect();
-            if let Ok(tx) = fetch_transaction(&h, pack_entry(Some(&t), &p), &cmds, sizes) {
-                if tx.out.iter().all(|o| matches!(o, FetchOut::Beat(_))) {
-                    txs.push(tx);
+        for every_level in [true, false] {
+            let mut txs = Vec::new();
+            for s in 0..6u64 {
+                let Some(h) = soup(&p, 1, 40 + 20 * s as usize, 0.2, 100 + s) else {
+                    continue;
+                };
+                let t = Translation::zero(h.top_lod);
+                let deepest = h.nodes.iter().map(|n| n.voxel.lod).max().unwrap();
+                let from = if every_level { h.top_lod } else { deepest };
+                let cmds: Vec<FetchCmd> = (from..=deepest)
+                    .map(|l| FetchCmd {
+                        lod: l,
+                        send_refs: true,
+                        send_leaves: true,
+                        last: l == deepest,
+                    })
+                    .collect();
+                if let Ok(tx) = fetch_transaction(&h, pack_entry(Some(&t), &p), &cmds, sizes) {
+                    if tx.out.iter().all(|o| matches!(o, FetchOut::Beat(_))) {
+                        txs.push(tx);
+                    }
                 }
             }
+            assert!(!txs.is_empty());
+            let (ins, outs, seen) = streams(&p, &txs);
+            let mut e = engine("verilator", &m, &design);
+            let what = if every_level {
+                "every level"
+            } else {
+                "deepest level"
+            };
+            let r = bench(
+                e.as_mut(),
+                &ins,
+                &outs,
+                1,
+                0.0,
+                &format!("fetcher {name} rate ({what})"),
+            );
+            let c = r.cycles as f64;
+            println!(
+                "fetcher {name} throughput ({what}): {} commands, {} out beats in {} cycles: {:.4} out beats/cycle; {} node reads: {:.4} node reads/cycle; {} ref + cref reads; {:.3} reads/cycle in all",
+                seen.cmds,
+                seen.out_beats,
+                r.cycles,
+                seen.out_beats as f64 / c,
+                seen.node_reads,
+                seen.node_reads as f64 / c,
+                seen.ref_reads,
+                (seen.node_reads + seen.ref_reads) as f64 / c
+            );
         }
-        assert!(!txs.is_empty());
-        let (ins, outs, seen) = streams(&p, &txs);
-        let mut e = engine("verilator", &m, &design);
-        let r = bench(
-            e.as_mut(),
-            &ins,
-            &outs,
-            1,
-            0.0,
-            &format!("fetcher {name} rate"),
-        );
-        let c = r.cycles as f64;
-        println!(
-            "fetcher {name} throughput: {} commands, {} out beats in {} cycles: {:.4} out beats/cycle; {} node reads, {} ref reads ({:.3} reads/cycle)",
-            seen.cmds,
-            seen.out_beats,
-            r.cycles,
-            seen.out_beats as f64 / c,
-            seen.node_reads,
-            seen.ref_reads,
-            (seen.node_reads + seen.ref_reads) as f64 / c
-        );
     }
 }
 

@@ -138,6 +138,8 @@ fn streams(
     let mut f_node_resp = vec![vec![]; k];
     let mut f_ref_req = vec![vec![]; k];
     let mut f_ref_resp = vec![vec![]; k];
+    let mut f_cref_req = vec![vec![]; k];
+    let mut f_cref_resp = vec![vec![]; k];
     for tx in txs {
         seen.merges += 1;
         seen.refused += tx.chosen.is_none() as usize;
@@ -155,6 +157,8 @@ fn streams(
             f_node_resp[i].extend(f.node_resps.iter().map(node));
             f_ref_req[i].extend(f.ref_reqs.iter().map(idx));
             f_ref_resp[i].extend(f.ref_resps.iter().map(rf));
+            f_cref_req[i].extend(f.cref_reqs.iter().map(idx));
+            f_cref_resp[i].extend(f.cref_resps.iter().map(rf));
             seen.module_in += f.out.len() as u64;
         }
         seen.records += w.nodes.len() as u64;
@@ -181,6 +185,14 @@ fn streams(
         outs.push(beats(
             &format!("f{i}_ref_req"),
             std::mem::take(&mut f_ref_req[i]),
+        ));
+        ins.push(beats(
+            &format!("f{i}_cref_resp"),
+            std::mem::take(&mut f_cref_resp[i]),
+        ));
+        outs.push(beats(
+            &format!("f{i}_cref_req"),
+            std::mem::take(&mut f_cref_req[i]),
         ));
     }
     ins.push(beats("w_ref_resp", w_resp));
@@ -532,7 +544,7 @@ fn hierarchy_merger_throughput() {
             .map(|t| {
                 t.fetch
                     .iter()
-                    .map(|f| f.node_reqs.len() + f.ref_reqs.len())
+                    .map(|f| f.node_reqs.len() + f.ref_reqs.len() + f.cref_reqs.len())
                     .sum::<usize>() as u64
             })
             .sum();

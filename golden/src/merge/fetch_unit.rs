@@ -387,6 +387,10 @@ pub struct FetchTransaction {
     /// Reference indices requested on `ref_req`, and the references answered.
     pub ref_reqs: Vec<u32>,
     pub ref_resps: Vec<Reference>,
+    /// Reference indices requested on `cref_req` (the child references of
+    /// the nodes at the command's level, with `send_refs`), and the answers.
+    pub cref_reqs: Vec<u32>,
+    pub cref_resps: Vec<Reference>,
     pub out: Vec<FetchOut>,
     pub leaves: Vec<LeafOut>,
 }
@@ -430,10 +434,21 @@ impl Walk<'_> {
 
     /// Reads reference `j` of parent `parent` and checks it names a node of
     /// this input.
-    fn read_ref(&self, tx: &mut FetchTransaction, j: u32, parent: u32) -> Result<Reference, Stop> {
-        tx.ref_reqs.push(j);
+    fn read_ref(
+        &self,
+        tx: &mut FetchTransaction,
+        j: u32,
+        parent: u32,
+        child_port: bool,
+    ) -> Result<Reference, Stop> {
         let r = self.h.refs[j as usize];
-        tx.ref_resps.push(r);
+        if child_port {
+            tx.cref_reqs.push(j);
+            tx.cref_resps.push(r);
+        } else {
+            tx.ref_reqs.push(j);
+            tx.ref_resps.push(r);
+        }
         if r.hier != self.h.id {
             return Err((parent, fetch_err::REF_HIER));
         }
@@ -455,16 +470,10 @@ impl Walk<'_> {
         }
     }
 
-    /// The child references of `n` at the command's level, on `out`.
-    fn send_refs(&self, tx: &mut FetchTransaction, n: &PlacedNode) -> Result<(), Stop> {
-        let r = n.record.range();
-        for j in r.start as u32..r.end as u32 {
-            let c = self.read_ref(tx, j, n.at.node)?;
-            tx.out.push(FetchOut::Beat(LevelBeat::ChildRef(c)));
-        }
-        Ok(())
-    }
-
+    /// The walk after the header checks: every read derived from valid
+    /// data is made (so the request streams do not depend on timing);
+    /// `out` stops after the first error beat, `leaves` after the first
+    /// error the visit stage sees.
     fn run(&self, tx: &mut FetchTransaction) -> Result<(), Stop> {
         let (h, cmd) = (self.h, self.cmd);
         if h.root_count == 0 || h.root_count as usize > h.nodes.len() {
@@ -473,114 +482,181 @@ impl Walk<'_> {
         if h.root_count as usize > self.sizes.roots {
             return Err((0, fetch_err::ROOT_CAPACITY));
         }
+        let mut v = Visit::default();
+        let mut o = OutOrder::default();
+        // Roots in stored order; the first failing one is reported before
+        // any visit, the others are sorted and walked.
         let mut level = Vec::new();
+        let mut root_err = None;
         for i in 0..h.root_count {
-            level.push(self.read_node(tx, i, h.top_lod)?);
+            match self.read_node(tx, i, h.top_lod) {
+                Ok(n) => level.push(n),
+                Err(e) => {
+                    root_err.get_or_insert(e);
+                }
+            }
         }
         sort_stream(&mut level);
+        if let Some(e) = root_err {
+            self.error(tx, &mut v, &mut o, e);
+        }
         let mut frontier: VecDeque<(u32, u32, u32)> = VecDeque::new();
         let mut d = h.top_lod;
-        let mut first_level = true;
-        loop {
-            let mut prev: Option<(u128, bool)> = None;
-            let mut pending: Option<PlacedNode> = None;
-            let mut this_level = frontier.len();
-            let mut roots = level.drain(..);
-            loop {
-                // The level's next node: a sorted root, or the next child
-                // of the frontier's ranges.
-                let n = if first_level {
-                    match roots.next() {
-                        Some(n) => n,
-                        None => break,
-                    }
-                } else {
-                    if this_level == 0 {
-                        break;
-                    }
-                    let (first, count, parent) = frontier.pop_front().expect("counted");
-                    this_level -= 1;
-                    for j in first..first + count {
-                        let c = self.read_ref(tx, j, parent)?;
-                        let n = self.read_node(tx, c.node, d)?;
-                        self.visit(tx, &n, d, &mut prev, &mut pending, &mut frontier)?;
-                    }
-                    continue;
-                };
-                self.visit(tx, &n, d, &mut prev, &mut pending, &mut frontier)?;
-            }
-            drop(roots);
-            if let Some(p) = pending.take() {
-                self.send_refs(tx, &p)?;
-            }
-            if d >= cmd.lod || frontier.is_empty() {
-                break;
-            }
-            first_level = false;
-            d += 1;
+        for n in &level {
+            self.visit(tx, n, d, &mut v, &mut o, &mut frontier);
         }
-        tx.out.push(FetchOut::Beat(LevelBeat::End));
+        while d < cmd.lod && !frontier.is_empty() {
+            d += 1;
+            v.prev = None;
+            v.pushed = 0;
+            let ranges: Vec<_> = frontier.drain(..).collect();
+            for (first, count, parent) in ranges {
+                for j in first..first + count {
+                    let n = self
+                        .read_ref(tx, j, parent, false)
+                        .and_then(|c| self.read_node(tx, c.node, d));
+                    match n {
+                        Ok(n) => self.visit(tx, &n, d, &mut v, &mut o, &mut frontier),
+                        Err(e) => self.error(tx, &mut v, &mut o, e),
+                    }
+                }
+            }
+        }
+        if let Some(p) = o.pending.take() {
+            self.send_refs(tx, &mut o, &p);
+        }
+        o.emit(tx, FetchOut::Beat(LevelBeat::End));
         if cmd.send_leaves {
             tx.leaves.push(LeafOut::End);
         }
         Ok(())
     }
 
-    /// One node of level `d` in walk order.
+    /// An error met in visit order: the visit stage stops sending leaves;
+    /// the out stage sends a held node's references first.
+    fn error(&self, tx: &mut FetchTransaction, v: &mut Visit, o: &mut OutOrder, e: Stop) {
+        v.errored = true;
+        if let Some(p) = o.pending.take() {
+            self.send_refs(tx, o, &p);
+        }
+        o.emit(
+            tx,
+            FetchOut::Error {
+                hier: self.h.id,
+                node: e.0,
+                code: e.1,
+            },
+        );
+    }
+
+    /// The child references of `n` at the command's level (`cref` reads),
+    /// on `out`; a bad one is an error beat naming `n`.
+    fn send_refs(&self, tx: &mut FetchTransaction, o: &mut OutOrder, n: &PlacedNode) {
+        let r = n.record.range();
+        for j in r.start as u32..r.end as u32 {
+            match self.read_ref(tx, j, n.at.node, true) {
+                Ok(c) => o.emit(tx, FetchOut::Beat(LevelBeat::ChildRef(c))),
+                Err((node, code)) => o.emit(
+                    tx,
+                    FetchOut::Error {
+                        hier: self.h.id,
+                        node,
+                        code,
+                    },
+                ),
+            }
+        }
+    }
+
+    /// One node of level `d` that passed its reference and record checks,
+    /// in walk order.
     fn visit(
         &self,
         tx: &mut FetchTransaction,
         n: &PlacedNode,
         d: u8,
-        prev: &mut Option<(u128, bool)>,
-        pending: &mut Option<PlacedNode>,
+        v: &mut Visit,
+        o: &mut OutOrder,
         frontier: &mut VecDeque<(u32, u32, u32)>,
-    ) -> Result<(), Stop> {
+    ) {
         let cmd = self.cmd;
         let key = (morton(&n.record.voxel), n.record.leaf);
-        if prev.is_some_and(|p| p >= key) {
-            return Err((n.at.node, fetch_err::ORDER));
+        // Every visited node is the next one's predecessor, passing or not.
+        let order_bad = v.prev.is_some_and(|p| p >= key);
+        v.prev = Some(key);
+        if order_bad {
+            return self.error(tx, v, o, (n.at.node, fetch_err::ORDER));
         }
-        *prev = Some(key);
         let inner = !n.record.leaf;
         if inner && (d < cmd.lod || (d == cmd.lod && cmd.send_refs)) {
-            self.check_range(n)?;
+            if let Err(e) = self.check_range(n) {
+                return self.error(tx, v, o, e);
+            }
         }
         if d < cmd.lod {
             if inner {
-                if frontier.len() >= self.sizes.frontier {
-                    return Err((n.at.node, fetch_err::FRONTIER));
+                if v.pushed >= self.sizes.frontier {
+                    return self.error(tx, v, o, (n.at.node, fetch_err::FRONTIER));
                 }
+                v.pushed += 1;
                 frontier.push_back((n.record.first, n.record.count, n.at.node));
-            } else if cmd.send_leaves {
+            } else if cmd.send_leaves && !v.errored {
                 tx.leaves.push(LeafOut::Leaf {
                     record: n.record,
                     at: n.at,
                 });
             }
-            return Ok(());
+            return;
         }
         if d > cmd.lod {
-            return Ok(());
+            return;
         }
         // At the level: a voxel's inner node, its leaf, then the inner
         // node's references (held until the voxel's leaf has passed).
-        if let Some(p) = pending.take() {
+        if let Some(p) = o.pending.take() {
             let leaf_of_p = n.record.leaf && n.record.voxel == p.record.voxel;
             if !leaf_of_p {
-                self.send_refs(tx, &p)?;
+                self.send_refs(tx, o, &p);
             }
-            tx.out.push(FetchOut::Beat(beat_of(n)));
+            o.emit(tx, FetchOut::Beat(beat_of(n)));
             if leaf_of_p {
-                self.send_refs(tx, &p)?;
+                self.send_refs(tx, o, &p);
             }
         } else {
-            tx.out.push(FetchOut::Beat(beat_of(n)));
+            o.emit(tx, FetchOut::Beat(beat_of(n)));
         }
         if inner && cmd.send_refs {
-            *pending = Some(*n);
+            o.pending = Some(*n);
         }
-        Ok(())
+    }
+}
+
+/// The visit stage's state over one command.
+#[derive(Default)]
+struct Visit {
+    /// The key (Morton code, leaf) of the level's previous visited node.
+    prev: Option<(u128, bool)>,
+    /// Ranges pushed at this level (the frontier's capacity rule).
+    pushed: usize,
+    /// An error has passed: no more leaves.
+    errored: bool,
+}
+
+/// The out stage's state over one command.
+#[derive(Default)]
+struct OutOrder {
+    /// An inner node at the level whose references wait for its leaf.
+    pending: Option<PlacedNode>,
+    /// The error beat has been sent: nothing more on `out`.
+    errored: bool,
+}
+
+impl OutOrder {
+    fn emit(&mut self, tx: &mut FetchTransaction, o: FetchOut) {
+        if !self.errored {
+            self.errored = matches!(o, FetchOut::Error { .. });
+            tx.out.push(o);
+        }
     }
 }
 
@@ -639,6 +715,8 @@ pub fn fetch_transaction(
         node_resps: Vec::new(),
         ref_reqs: Vec::new(),
         ref_resps: Vec::new(),
+        cref_reqs: Vec::new(),
+        cref_resps: Vec::new(),
         out: Vec::new(),
         leaves: Vec::new(),
     };
@@ -887,6 +965,42 @@ mod tests {
         let mut b = h.clone();
         b.refs.swap(0, 1);
         assert_eq!(error_of(&b, Some(&t0), 2, s), (1, fetch_err::ORDER));
+    }
+
+    /// After an error the walk still makes every read derived from valid
+    /// data (the request streams do not depend on timing); `out` ends with
+    /// the first error beat.
+    #[test]
+    fn reads_continue_after_the_first_error() {
+        let p = Params::new(4, 1, 6, 2).unwrap();
+        let mut b = tiny(&p);
+        b.refs[0].hier = 2;
+        b.nodes[2].voxel.lod = 3;
+        let cmd = FetchCmd {
+            lod: 2,
+            send_refs: true,
+            send_leaves: true,
+            last: true,
+        };
+        let t0 = pack_entry(Some(&Translation::zero(1)), &p);
+        let tx = fetch_transaction(&b, t0, &[cmd], FetchSizes::default()).unwrap();
+        assert_eq!(tx.ref_reqs, vec![0, 1]);
+        assert_eq!(tx.node_reqs, vec![0, 2], "node 2 read though ref 0 failed");
+        assert_eq!(
+            tx.out,
+            vec![FetchOut::Error {
+                hier: 3,
+                node: 0,
+                code: fetch_err::REF_HIER
+            }]
+        );
+        assert_eq!(tx.leaves, vec![LeafOut::End]);
+        // At LOD 1 with send_refs the root's references go on `cref`.
+        let cmd1 = FetchCmd { lod: 1, ..cmd };
+        let tx = fetch_transaction(&tiny(&p), t0, &[cmd1], FetchSizes::default()).unwrap();
+        assert_eq!(tx.cref_reqs, vec![0, 1]);
+        assert!(tx.ref_reqs.is_empty());
+        assert_eq!(tx.out.len(), 4, "root, two child references, End");
     }
 
     /// The walk's own errors for the same defects: the codes match what

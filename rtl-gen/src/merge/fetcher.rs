@@ -3,15 +3,19 @@
 //! the merging module's per-input stream (`golden::merge::top::input_stream`
 //! order) and the leaves above the walked level.
 //!
-//! A sequential walker, one store read at a time: the roots are read in
-//! stored order, checked, moved and handed to a root sorter instance (the
-//! only level a translation can put out of Morton order); the sorted roots
-//! start a breadth-first walk whose frontier is a FIFO of the inner nodes'
-//! `(first, count, parent)` ranges. Each deeper node costs a reference
-//! read and a node read. Every check of `golden::merge::fetch_unit`'s
-//! `fetch_err` ends the walk with an error beat naming the record; the
-//! sorter is closed and drained and the FIFO emptied so the next command
-//! starts clean.
+//! A read pipeline, one node per clock: the roots are read in stored
+//! order, checked, moved and handed to a root sorter instance (the only
+//! level a translation can put out of Morton order); the sorted roots start
+//! a breadth-first walk whose frontier is a FIFO of the inner nodes'
+//! `(first, count, parent)` ranges and one end-of-level marker. Stages,
+//! each with a small FIFO of the reads in flight beside it: the range stage
+//! issues one `ref` read a clock; the reference stage checks each answer
+//! and issues its `node` read; the visit stage checks and moves the node,
+//! pushes ranges, sends leaves, and passes the level's nodes to the out
+//! stage, which issues the held inner nodes' `cref` reads and sends `out`.
+//! Reads are issued from validated data only and all of them are made even
+//! after an error (`out` stops after its error beat), so every request
+//! stream is fixed by the data, never by timing.
 
 use golden::merge::fetch_unit::{fetch_err, FetchLayout, FetchSizes};
 use golden::merge::unit::{level_kind, BeatLayout};
@@ -30,31 +34,72 @@ pub fn fetcher_name(p: &Params, sizes: &FetchSizes) -> String {
     )
 }
 
-/// The walker's states (one action each).
-mod st {
+/// The command's phases.
+mod ph {
     pub const IDLE: u64 = 0;
     pub const START: u64 = 1;
-    pub const ROOT_REQ: u64 = 2;
-    pub const ROOT_RESP: u64 = 3;
-    pub const ROOT_END: u64 = 4;
-    pub const TOP_NEXT: u64 = 5;
-    pub const RANGE_NEXT: u64 = 6;
-    pub const REF_REQ: u64 = 7;
-    pub const REF_RESP: u64 = 8;
-    pub const NODE_REQ: u64 = 9;
-    pub const NODE_RESP: u64 = 10;
-    pub const VISIT: u64 = 11;
-    pub const LEAF_OUT: u64 = 12;
-    pub const EMIT: u64 = 13;
-    pub const PREF_REQ: u64 = 14;
-    pub const PREF_RESP: u64 = 15;
-    pub const LEVEL_END: u64 = 17;
-    pub const FINISH: u64 = 18;
-    pub const LEAF_END: u64 = 19;
-    pub const DONE: u64 = 20;
-    pub const ERR: u64 = 21;
-    pub const ERR_EMIT: u64 = 22;
-    pub const BITS: u32 = 5;
+    pub const ROOTS: u64 = 2;
+    pub const WALK: u64 = 3;
+    pub const DONE: u64 = 4;
+    pub const BITS: u32 = 3;
+}
+
+/// Kinds of the reference stage's in-flight words (`node_ctx`).
+mod nk {
+    pub const NODE: u64 = 0;
+    pub const ERR: u64 = 1;
+    pub const END: u64 = 2;
+}
+
+/// Kinds of the out stage's words (`out_items` from the visit stage; the
+/// ordered `out_tokens`).
+mod ok {
+    pub const NODE: u64 = 0;
+    pub const ERR: u64 = 1;
+    pub const FINAL: u64 = 2;
+    pub const TOK_BEAT: u64 = 0;
+    pub const TOK_ERR: u64 = 1;
+    pub const TOK_CREF: u64 = 2;
+    pub const TOK_FINAL: u64 = 3;
+}
+
+/// A FIFO of `depth` (a power of two) words, in-order: `input.ready` is
+/// driven here (space left), the returned stream's `ready` by its consumer.
+/// A word pushed is readable from the next clock; push and pop may share a
+/// clock, so a depth of 2 runs one word a clock.
+fn fifo<'m>(m: &'m Module, name: &str, input: Stream<'m>, depth: u32) -> Stream<'m> {
+    let aw = depth.trailing_zeros();
+    let cb = bits_to_hold(depth as u64);
+    let mem = m.memory(name, input.data.width(), depth);
+    let head = m.reg(&format!("{name}_head"), aw.max(1));
+    let tail = m.reg(&format!("{name}_tail"), aw.max(1));
+    let count = m.reg(&format!("{name}_count"), cb);
+    let out = Stream::wires(m, &format!("{name}_out"), input.data.width());
+    input.ready.drive(count.ne(m.lit(depth as u128, cb)));
+    let nonempty = count.ne(0);
+    out.valid.drive(nonempty);
+    // Zero when empty: an unwritten word is X in 4-state simulators.
+    out.data.drive(nonempty.mux(
+        mem.read(head.slice(aw.max(1) - 1, 0)),
+        m.lit(0, input.data.width()),
+    ));
+    let push = input.fire();
+    let pop = out.fire();
+    mem.write(tail, input.data, push);
+    let step = |r: Signal<'m>| {
+        if aw == 0 {
+            r
+        } else {
+            r.add(1, aw)
+        }
+    };
+    head.next(pop.mux(step(head), head));
+    tail.next(push.mux(step(tail), tail));
+    count.next(push.mux(
+        pop.mux(count, count.add(1, cb)),
+        pop.mux(count.sub(1, cb), count),
+    ));
+    out
 }
 
 /// Prioritized register updates: the first arm whose condition holds sets
@@ -198,10 +243,12 @@ fn out_beat<'m>(
 }
 
 /// The fetcher for `p` with a root sorter of `sizes.roots` entries and a
-/// frontier FIFO of `sizes.frontier` ranges. Streams (beats of
-/// `golden::merge::fetch_unit::FetchLayout`): `cfg`, `cmd`, `node_resp`,
-/// `ref_resp` in; `node_req`, `ref_req`, `out`, `leaves` out. `idle` is high
-/// while no command is in progress.
+/// frontier FIFO of `2 * sizes.frontier + 1` words (one level's ranges
+/// popped while the next level's are pushed, and the level marker).
+/// Streams (beats of `golden::merge::fetch_unit::FetchLayout`): `cfg`,
+/// `cmd`, `node_resp`, `ref_resp`, `cref_resp` in; `node_req`, `ref_req`,
+/// `cref_req`, `out`, `leaves` out. `idle` is high while no command is in
+/// progress.
 pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     let m = Module::new(&fetcher_name(p, sizes));
     let l = FetchLayout::new(p);
@@ -211,17 +258,21 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     let sorted = BeatLayout::output(p);
     let (ib, lb) = (p.index_bits as u32, p.lod_bits());
     let lit = |v: u64, w: u32| m.lit(v as u128, w);
+    let code4 = |c: u64| lit(c, fetch_err::BITS);
+    // Words in flight per read port: enough for a memory answering a few
+    // clocks after the request at one read a clock.
+    const IN_FLIGHT: u32 = 8;
 
-    let state = m.reg("state", st::BITS);
-    let is = |s: u64| state.eq(lit(s, st::BITS));
-    let goto = |s: u64| lit(s, st::BITS);
-    let mut next_state = Next::new(state);
+    let phase = m.reg("phase", ph::BITS);
+    let is = |s: u64| phase.eq(lit(s, ph::BITS));
+    let goto = |s: u64| lit(s, ph::BITS);
+    let mut n_phase = Next::new(phase);
 
     // ---- cfg and cmd
     let cfg = Stream::input(&m, "cfg", l.cfg_width);
     let cmd = Stream::input(&m, "cmd", l.cmd_width);
     let cfg_have = m.reg("cfg_have", 1);
-    let idle = is(st::IDLE).name("is_idle");
+    let idle = is(ph::IDLE).name("is_idle");
     cfg.ready.drive(idle & !cfg_have);
     cmd.ready.drive(idle & cfg_have);
     let cfg_fire = cfg.fire().name("cfg_fire");
@@ -264,81 +315,58 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
         field(cmd.data, &l.send_leaves).expect("send_leaves"),
     );
     c_last.next_when(cmd_fire, field(cmd.data, &l.last).expect("last"));
+    n_phase.when(cmd_fire, goto(ph::START));
 
-    // ---- walk registers
-    let idx = m.reg("idx", ib);
-    let rng_end = m.reg("range_end", ib + 1);
-    let parent = m.reg("parent", ib);
-    let d = m.reg("level", lb);
-    let from_sorter = m.reg("from_sorter", 1);
-    let node = m.reg("node", nl.width());
-    // Where the node is stored, (hier, node): the sorter's `ref` for a root,
-    // the checked reference for a deeper node.
-    let node_ref = m.reg("node_ref", rl.width());
-    let node_idx = field(node_ref, rl.node()).expect("node").name("node_idx");
-    let key_bits = 3 * p.coord_bits() + 1;
-    let prev_valid = m.reg("prev_valid", 1);
-    let prev_key = m.reg("prev_key", key_bits);
-    let pend_valid = m.reg("pend_valid", 1);
-    let pend_first = m.reg("pend_first", ib);
-    let pend_end = m.reg("pend_end", ib + 1);
-    let pend_voxel = m.reg("pend_voxel", 3 * p.coord_bits());
-    let pend_node = m.reg("pend_node", ib);
-    let drain_ret = m.reg("drain_ret", st::BITS);
-    let err_code = m.reg("err_code", fetch_err::BITS);
-    let err_node = m.reg("err_node", ib);
-    let sorter_used = m.reg("sorter_used", 1);
-    let sorter_closed = m.reg("sorter_closed", 1);
-    let fcap = sizes.frontier as u64;
-    let cb = bits_to_hold(fcap);
-    let this_level = m.reg("this_level", cb);
-    let next_level = m.reg("next_level", cb);
+    let walk = is(ph::WALK).name("walking");
+    let start = is(ph::START);
+    let roots_ph = is(ph::ROOTS);
 
-    let mut n_idx = Next::new(idx);
-    let mut n_rng_end = Next::new(rng_end);
-    let mut n_parent = Next::new(parent);
-    let mut n_d = Next::new(d);
-    let mut n_from_sorter = Next::new(from_sorter);
-    let mut n_node = Next::new(node);
-    let mut n_node_ref = Next::new(node_ref);
-    let mut n_prev_valid = Next::new(prev_valid);
-    let mut n_prev_key = Next::new(prev_key);
-    let mut n_pend_valid = Next::new(pend_valid);
-    let mut n_pend_first = Next::new(pend_first);
-    let mut n_drain_ret = Next::new(drain_ret);
-    let mut n_err_code = Next::new(err_code);
-    let mut n_err_node = Next::new(err_node);
-    let mut n_sorter_used = Next::new(sorter_used);
-    let mut n_sorter_closed = Next::new(sorter_closed);
-    let mut n_this_level = Next::new(this_level);
-    let mut n_next_level = Next::new(next_level);
-    let mut n_cfg_have = Next::new(cfg_have);
-
-    // An error: remember the code and the record, go to ERR.
-    let mut failures: Vec<(Signal, Signal, Signal)> = Vec::new();
-
-    // ---- frontier FIFO of (first, count, parent)
-    let words = (fcap.max(2)).next_power_of_two() as u32;
-    let aw = words.trailing_zeros();
-    let fifo = m.memory("frontier", 3 * ib, words);
-    let head = m.reg("fifo_head", aw);
-    let tail = m.reg("fifo_tail", aw);
-    let fcount = m.reg("fifo_count", cb);
-    let fifo_full = fcount.ge(lit(fcap, cb)).name("fifo_full");
-    let popped = fifo.read(head).name("fifo_head_word");
-    let pop_first = popped.slice(ib - 1, 0);
-    let pop_count = popped.slice(2 * ib - 1, ib);
-    let pop_parent = popped.slice(3 * ib - 1, 2 * ib);
-
-    // ---- output streams (registered through skid buffers)
+    // ---- ports
     let node_req = Stream::wires(&m, "node_req_core", ib);
     let ref_req = Stream::wires(&m, "ref_req_core", ib);
+    let cref_req = Stream::wires(&m, "cref_req_core", ib);
     let out = Stream::wires(&m, "out_core", l.out_width);
     let leaves = Stream::wires(&m, "leaves_core", l.leaves_width);
     let node_resp = Stream::input(&m, "node_resp", nl.width());
     let ref_resp = Stream::input(&m, "ref_resp", rl.width());
+    let cref_resp = Stream::input(&m, "cref_resp", rl.width());
 
-    // ---- the root sorter
+    // ---- START: header checks. A failure is reported as the command's
+    // first error, before a walk with no roots.
+    let roots_bad = (roots.eq(0) | roots.gt(nodes)).name("roots_bad");
+    let roots_over = if (sizes.roots as u64) >> ib != 0 {
+        lit(0, 1)
+    } else {
+        roots.gt(lit(sizes.roots as u64, ib))
+    }
+    .name("roots_over");
+    let hdr_code = (!entry_ok)
+        .mux(
+            code4(fetch_err::ENTRY),
+            roots_bad.mux(
+                code4(fetch_err::ROOT_COUNT),
+                roots_over.mux(code4(fetch_err::ROOT_CAPACITY), code4(0)),
+            ),
+        )
+        .name("header_code");
+    let hdr_bad = hdr_code.ne(0);
+    n_phase.when(start, hdr_bad.mux(goto(ph::WALK), goto(ph::ROOTS)));
+    let zero_i = lit(0, ib);
+    // The first error before the walk (header or root), reported by the
+    // visit stage ahead of the top level.
+    let rerr_valid = m.reg("first_err_valid", 1);
+    let rerr_code = m.reg("first_err_code", fetch_err::BITS);
+    let rerr_node = m.reg("first_err_node", ib);
+    let hdr_err = m.reg("header_err", 1);
+    let mut n_rerr_valid = Next::new(rerr_valid);
+    let mut n_rerr_code = Next::new(rerr_code);
+    let mut n_rerr_node = Next::new(rerr_node);
+    n_rerr_valid.when(start, hdr_bad);
+    n_rerr_code.when(start, hdr_code);
+    n_rerr_node.when(start, zero_i);
+    hdr_err.next_when(start, hdr_bad);
+
+    // ---- ROOTS: read 0..root_count, one a clock, into the sorter
     let sorter = m.instance("u_root_sorter", &root_sorter_unit(p, sizes.roots.max(1)));
     let s_in_ready = sorter.output("in_ready");
     let s_out_valid = sorter.output("out_valid");
@@ -347,63 +375,48 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
         .expect("rec")
         .name("sorted_rec");
     let s_ref = field(s_out_data, &sorted.refer).expect("ref");
-    let s_err = field(s_out_data, &sorted.err.expect("output beats have err")).expect("err");
     let s_end = field(s_out_data, &sorted.kind)
         .expect("kind")
         .eq(level_kind::END)
         .name("sorted_end");
-
-    // ---- START: header checks
-    let start = is(st::START);
-    let roots_bad = (roots.eq(0) | roots.gt(nodes)).name("roots_bad");
-    let roots_over = if (sizes.roots as u64) >> ib != 0 {
-        lit(0, 1)
-    } else {
-        roots.gt(lit(sizes.roots as u64, ib))
-    }
-    .name("roots_over");
-    let zero_i = lit(0, ib);
-    failures.push((start & !entry_ok, lit(fetch_err::ENTRY, 4), zero_i));
-    failures.push((
-        start & entry_ok & roots_bad,
-        lit(fetch_err::ROOT_COUNT, 4),
+    let s_err = field(s_out_data, &sorted.err.expect("output beats have err")).expect("err");
+    let issued = m.reg("roots_issued", ib);
+    let taken = m.reg("roots_taken", ib);
+    issued.next(start.mux(
         zero_i,
+        (roots_ph & node_req.fire()).mux(issued.add(1, ib), issued),
     ));
-    failures.push((
-        start & entry_ok & !roots_bad & roots_over,
-        lit(fetch_err::ROOT_CAPACITY, 4),
-        zero_i,
-    ));
-    let start_ok = (start & entry_ok & !roots_bad & !roots_over).name("start_ok");
-    next_state.when(cmd_fire, goto(st::START));
-    n_idx.when(start_ok, zero_i);
-    n_sorter_used.when(start_ok, lit(1, 1));
-    n_sorter_closed.when(start_ok, lit(0, 1));
-    next_state.when(start_ok, goto(st::ROOT_REQ));
+    let root_req_v = (roots_ph & issued.ne(roots)).name("root_req_valid");
+    let root_out = (roots_ph & issued.ne(taken)).name("root_outstanding");
+    let all_taken = (roots_ph & taken.eq(roots)).name("roots_all_taken");
 
-    // ---- roots: read, check, into the sorter
-    let root_req = is(st::ROOT_REQ);
-    let root_resp = is(st::ROOT_RESP);
-    let root_end = is(st::ROOT_END);
-    next_state.when(root_req & node_req.ready, goto(st::ROOT_RESP));
-    let got_root = check_and_move(&m, p, &l, node_resp.data, top, &mv);
-    let root_code = got_root.code.name("root_code");
-    let root_take = (root_resp & node_resp.valid & s_in_ready).name("root_take");
-    failures.push((root_take & root_code.ne(0), root_code, idx));
-    let root_ok = (root_take & root_code.eq(0)).name("root_ok");
-    let idx_next = idx.add(1, ib);
-    let last_root = idx_next.eq(roots);
-    n_idx.when(root_ok, idx_next);
-    next_state.when(
-        root_ok,
-        last_root.mux(goto(st::ROOT_END), goto(st::ROOT_REQ)),
-    );
+    // ---- walk state, reset by each command's START
+    let v_d = m.reg("level", lb);
+    let v_top = m.reg("at_top", 1);
+    let v_done = m.reg("walk_done", 1);
+    let prev_valid = m.reg("prev_valid", 1);
+    let key_bits = 3 * p.coord_bits() + 1;
+    let prev_key = m.reg("prev_key", key_bits);
+    let fcap = sizes.frontier as u64;
+    let cb = bits_to_hold(fcap);
+    let pushed = m.reg("pushed", cb);
+    let v_errored = m.reg("visit_errored", 1);
+    let o_errored = m.reg("out_errored", 1);
+
+    let got = check_and_move(&m, p, &l, node_resp.data, roots_ph.mux(top, v_d), &mv);
+    let got_code = got.code.name("node_code");
+    let root_take = (root_out & node_resp.valid & s_in_ready).name("root_take");
+    taken.next(start.mux(zero_i, root_take.mux(taken.add(1, ib), taken)));
+    let root_fail = (root_take & got_code.ne(0)).name("root_fail");
+    n_rerr_valid.when(root_fail, lit(1, 1));
+    n_rerr_code.when(root_fail & !rerr_valid, got_code);
+    n_rerr_node.when(root_fail & !rerr_valid, taken);
     let root_beat = with_fields(
         &m,
         m.lit(0, bl.width),
         &[
-            (bl.rec, got_root.moved),
-            (bl.refer, reference(&m, hier, idx)),
+            (bl.rec, got.moved),
+            (bl.refer, reference(&m, hier, taken)),
             (
                 bl.kind,
                 field(node_resp.data, nl.leaf())
@@ -417,326 +430,400 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
         m.lit(0, bl.width),
         &[(bl.kind, lit(level_kind::END, 2))],
     );
-    let err_st = is(st::ERR);
-    let err_close = (err_st & sorter_used & !sorter_closed).name("err_close");
-    let s_in_valid = (root_resp & node_resp.valid & root_code.eq(0)) | root_end | err_close;
-    sorter.connect("in_valid", s_in_valid);
-    sorter.connect("in_data", root_resp.mux(root_beat, end_beat));
-    node_resp
-        .ready
-        .drive(root_resp & s_in_ready | is(st::NODE_RESP));
-    let end_in = (root_end & s_in_ready).name("sorter_end_in");
-    n_sorter_closed.when(end_in | err_close & s_in_ready, lit(1, 1));
-    n_d.when(end_in, top);
-    n_prev_valid.when(end_in, lit(0, 1));
-    n_pend_valid.when(end_in, lit(0, 1));
-    n_from_sorter.when(end_in, lit(1, 1));
-    n_next_level.when(end_in, lit(0, cb));
-    next_state.when(end_in, goto(st::TOP_NEXT));
-
-    // ---- top level: the sorted roots
-    let top_next = is(st::TOP_NEXT);
-    let err_drain = (err_st & sorter_used & sorter_closed).name("err_drain");
-    sorter.connect("out_ready", top_next | err_drain);
-    let s_take = (top_next & s_out_valid).name("sorted_take");
-    n_sorter_used.when((s_take | err_drain & s_out_valid) & s_end, lit(0, 1));
-    next_state.when(s_take & s_end, goto(st::LEVEL_END));
-    n_node.when(s_take & !s_end, s_rec);
-    n_node_ref.when(s_take & !s_end, s_ref);
-    // The sorter drops roots beyond its capacity and says so at `End`; the
-    // START check keeps that from happening, and this keeps it from passing
-    // silently if it ever did.
-    failures.push((
-        s_take & s_end & s_err,
-        lit(fetch_err::ROOT_CAPACITY, 4),
-        zero_i,
-    ));
-    next_state.when(s_take & !s_end, goto(st::VISIT));
-
-    // ---- deeper levels: ranges from the frontier
-    let range_next = is(st::RANGE_NEXT);
-    let level_done = this_level.eq(0);
-    next_state.when(range_next & level_done, goto(st::LEVEL_END));
-    let pop = (range_next & !level_done).name("fifo_pop");
-    n_idx.when(pop, pop_first);
-    n_rng_end.when(
-        pop,
-        pop_first.zext(ib + 1).add(pop_count.zext(ib + 1), ib + 1),
+    sorter.connect(
+        "in_valid",
+        root_out & node_resp.valid & got_code.eq(0) | all_taken,
     );
-    n_parent.when(pop, pop_parent);
-    n_this_level.when(pop, this_level.sub(1, cb));
-    next_state.when(pop, goto(st::REF_REQ));
+    sorter.connect("in_data", all_taken.mux(end_beat, root_beat));
+    n_phase.when(all_taken & s_in_ready, goto(ph::WALK));
 
-    let ref_req_st = is(st::REF_REQ);
-    next_state.when(ref_req_st & ref_req.ready, goto(st::REF_RESP));
-    let ref_resp_st = is(st::REF_RESP);
+    // ---- the frontier: ranges (first, count, parent) and level markers
+    let f_words = (2 * fcap + 1).max(2).next_power_of_two() as u32;
+    let front_in = Stream::wires(&m, "frontier_in", 3 * ib + 1);
+    let front = fifo(&m, "frontier", front_in, f_words);
+    let fo_marker = front.data.bit(3 * ib);
+    let fo_first = front.data.slice(ib - 1, 0);
+    let fo_count = front.data.slice(2 * ib - 1, ib);
+    let fo_parent = front.data.slice(3 * ib - 1, 2 * ib);
+
+    // ---- range stage: one `ref` read a clock
+    let cur_valid = m.reg("range_valid", 1);
+    let cur_idx = m.reg("range_idx", ib);
+    let cur_end = m.reg("range_end", ib + 1);
+    let cur_parent = m.reg("range_parent", ib);
+    let ctx1_in = Stream::wires(&m, "ref_ctx_in", ib + 1);
+    let ctx1 = fifo(&m, "ref_ctx", ctx1_in, IN_FLIGHT);
+    ref_req.valid.drive(walk & cur_valid & ctx1_in.ready);
+    ref_req.data.drive(cur_idx);
+    let issue = ref_req.fire().name("ref_issue");
+    let idx_next = cur_idx.add(1, ib);
+    let cur_last = idx_next.zext(ib + 1).eq(cur_end);
+    let load =
+        (walk & front.valid & !fo_marker & (!cur_valid | issue & cur_last)).name("range_load");
+    let pop_marker =
+        (walk & front.valid & fo_marker & !cur_valid & ctx1_in.ready).name("marker_pop");
+    front.ready.drive(load | pop_marker);
+    cur_valid.next(start.mux(
+        lit(0, 1),
+        load.mux(lit(1, 1), (issue & cur_last).mux(lit(0, 1), cur_valid)),
+    ));
+    cur_idx.next(load.mux(fo_first, issue.mux(idx_next, cur_idx)));
+    cur_end.next_when(
+        load,
+        fo_first.zext(ib + 1).add(fo_count.zext(ib + 1), ib + 1),
+    );
+    cur_parent.next_when(load, fo_parent);
+    ctx1_in.valid.drive(issue | pop_marker);
+    ctx1_in
+        .data
+        .drive(m.concat(&[pop_marker, pop_marker.mux(zero_i, cur_parent)]));
+
+    // ---- reference stage: check each answer, issue its `node` read
+    let c1_end = ctx1.data.bit(ib);
+    let c1_parent = ctx1.data.slice(ib - 1, 0);
+    let ctx2_w = 2 + fetch_err::BITS + rl.width();
+    let ctx2_in = Stream::wires(&m, "node_ctx_in", ctx2_w);
+    let ctx2 = fifo(&m, "node_ctx", ctx2_in, IN_FLIGHT);
     let r_node = field(ref_resp.data, rl.node())
         .expect("node")
         .name("resp_ref_node");
     let r_hier = field(ref_resp.data, rl.hier())
         .expect("hier")
         .name("resp_ref_hier");
-    let ref_code = r_hier.ne(hier).mux(
-        lit(fetch_err::REF_HIER, 4),
-        r_node.ge(nodes).mux(lit(fetch_err::REF_NODE, 4), lit(0, 4)),
-    );
-    let ref_code = ref_code.name("ref_code");
-    let child_ref = (ref_resp_st & ref_resp.valid).name("child_ref_take");
-    failures.push((child_ref & ref_code.ne(0), ref_code, parent));
-    let child_ok = child_ref & ref_code.eq(0);
-    n_node_ref.when(child_ok, ref_resp.data);
-    n_idx.when(child_ok, idx_next);
-    next_state.when(child_ok, goto(st::NODE_REQ));
-
-    let node_req_st = is(st::NODE_REQ);
-    next_state.when(node_req_st & node_req.ready, goto(st::NODE_RESP));
-    let node_resp_st = is(st::NODE_RESP);
-    let got = check_and_move(&m, p, &l, node_resp.data, d, &mv);
-    let node_code = got.code.name("node_code");
-    let node_take = (node_resp_st & node_resp.valid).name("node_take");
-    failures.push((node_take & node_code.ne(0), node_code, node_idx));
-    n_node.when(node_take & node_code.eq(0), got.moved);
-    next_state.when(node_take & node_code.eq(0), goto(st::VISIT));
-
-    node_req.valid.drive(root_req | node_req_st);
-    node_req.data.drive(root_req.mux(idx, node_idx));
-
-    // After a node, the level's next one: the sorter's next root, the
-    // range's next child, or the next range (no state of its own).
-    let after_node = from_sorter
+    let ref_code = r_hier
+        .ne(hier)
         .mux(
-            goto(st::TOP_NEXT),
-            idx.zext(ib + 1)
-                .ne(rng_end)
-                .mux(goto(st::REF_REQ), goto(st::RANGE_NEXT)),
+            code4(fetch_err::REF_HIER),
+            r_node.ge(nodes).mux(code4(fetch_err::REF_NODE), code4(0)),
         )
-        .name("after_node");
+        .name("ref_code");
+    let rr_wait = (walk & ctx1.valid & !c1_end & ctx2_in.ready & node_req.ready).name("ref_wait");
+    ref_resp.ready.drive(rr_wait);
+    let rr_take = (rr_wait & ref_resp.valid).name("ref_take");
+    let rr_end = (walk & ctx1.valid & c1_end & ctx2_in.ready).name("ref_stage_end");
+    ctx1.ready.drive(rr_take | rr_end);
+    let walk_node_req =
+        (walk & ctx1.valid & !c1_end & ctx2_in.ready & ref_resp.valid & ref_code.eq(0))
+            .name("walk_node_req");
+    node_req.valid.drive(root_req_v | walk_node_req);
+    node_req.data.drive(roots_ph.mux(issued, r_node));
+    ctx2_in.valid.drive(rr_take | rr_end);
+    ctx2_in.data.drive(rr_end.mux(
+        m.concat(&[lit(nk::END, 2), code4(0), m.lit(0, rl.width())]),
+        ref_code.eq(0).mux(
+            m.concat(&[lit(nk::NODE, 2), code4(0), ref_resp.data]),
+            m.concat(&[lit(nk::ERR, 2), ref_code, reference(&m, hier, c1_parent)]),
+        ),
+    ));
 
-    // ---- VISIT: order, range and frontier checks, then where the node goes
-    let visit = is(st::VISIT);
-    let leaf = field(node, nl.leaf()).expect("leaf").name("node_leaf");
+    // ---- visit stage: the item at its head (top level: the header or
+    // first root error, then the sorter; deeper: the reference stage's
+    // word with its node's answer)
+    let c2_ref = ctx2.data.slice(rl.width() - 1, 0);
+    let c2_code = ctx2
+        .data
+        .slice(rl.width() + fetch_err::BITS - 1, rl.width());
+    let c2_kind = ctx2.data.slice(ctx2_w - 1, ctx2_w - 2);
+    let c2_node = c2_kind.eq(lit(nk::NODE, 2));
+    let oin_w = 2 + fetch_err::BITS + rl.width() + nl.width();
+    let oin = Stream::wires(&m, "out_items_in", oin_w);
+    let items = fifo(&m, "out_items", oin, 4);
+    let downstream = (leaves.ready & oin.ready & front_in.ready).name("visit_room");
+    let live = (walk & !v_done).name("visit_live");
+    let top_err = v_top & rerr_valid;
+    let top_hdr_end = v_top & !rerr_valid & hdr_err;
+    let top_sorted = v_top & !rerr_valid & !hdr_err;
+    let deep = !v_top;
+    // The sorter drops roots beyond its capacity and says so at `End`; the
+    // START check keeps that from happening, and this keeps it from passing
+    // silently if it ever did (an error item before the `End`).
+    let cap_told = m.reg("capacity_told", 1);
+    let top_cap = (top_sorted & s_out_valid & s_end & s_err & !cap_told).name("sorter_dropped");
+    let in_avail = (live
+        & (top_err
+            | top_hdr_end
+            | top_sorted & s_out_valid
+            | deep & ctx2.valid & (!c2_node | node_resp.valid)))
+        .name("visit_avail");
+    let go = (in_avail & downstream).name("visit_go");
+    sorter.connect("out_ready", live & top_sorted & !top_cap & downstream);
+    cap_told.next(start.mux(lit(0, 1), (go & top_cap).mux(lit(1, 1), cap_told)));
+    ctx2.ready
+        .drive(live & deep & (!c2_node | node_resp.valid) & downstream);
+    node_resp
+        .ready
+        .drive(root_out & s_in_ready | live & deep & ctx2.valid & c2_node & downstream);
+    n_rerr_valid.when(go & top_err, lit(0, 1));
+    let deep_fail = c2_node.mux(got_code.ne(0), c2_kind.eq(lit(nk::ERR, 2)));
+    let in_err = (top_err | top_cap | deep & deep_fail).name("item_err");
+    let in_end = (top_hdr_end | top_sorted & s_end & !top_cap | deep & c2_kind.eq(lit(nk::END, 2)))
+        .name("item_end");
+    let in_node = (!in_err & !in_end).name("item_node");
+    let in_err_code = top_err.mux(
+        rerr_code,
+        top_cap.mux(
+            code4(fetch_err::ROOT_CAPACITY),
+            c2_node.mux(got_code, c2_code),
+        ),
+    );
+    let c2_ref_node = field(c2_ref, rl.node()).expect("node");
+    let in_err_node = top_err.mux(rerr_node, top_cap.mux(zero_i, c2_ref_node));
+    let rec = v_top.mux(s_rec, got.moved).name("item_rec");
+    let rec_ref = v_top.mux(s_ref, c2_ref).name("item_ref");
+    let rec_idx = field(rec_ref, rl.node()).expect("node");
+
+    let leaf = field(rec, nl.leaf()).expect("leaf").name("item_leaf");
     let inner = !leaf;
-    let voxel = m
-        .concat(&[
-            field(node, nl.z()).expect("z"),
-            field(node, nl.y()).expect("y"),
-            field(node, nl.x()).expect("x"),
-        ])
-        .name("node_voxel");
     let key = m
         .concat(&[
             morton_code(
                 &m,
-                [0, 1, 2].map(|a| field(node, nl.coord(a)).expect("coord")),
+                [0, 1, 2].map(|a| field(rec, nl.coord(a)).expect("coord")),
             ),
             leaf,
         ])
-        .name("node_key");
-    let n_first = field(node, nl.first()).expect("first");
-    let n_count = field(node, nl.count()).expect("count");
+        .name("item_key");
+    let n_first = field(rec, nl.first()).expect("first");
+    let n_count = field(rec, nl.count()).expect("count");
     let n_end = n_first
         .zext(ib + 1)
         .add(n_count.zext(ib + 1), ib + 1)
-        .name("node_range_end");
-    let above_level = d.lt(c_lod).name("above_level");
-    let at_level = d.eq(c_lod).name("at_level");
+        .name("item_range_end");
+    let above = v_d.lt(c_lod).name("above_level");
+    let at_level = v_d.eq(c_lod).name("at_level");
     let order_bad = (prev_valid & key.le(prev_key)).name("order_bad");
     let range_bad =
-        (inner & (above_level | at_level & c_refs) & n_end.gt(refs.zext(ib + 1))).name("range_bad");
-    let front_bad = (inner & above_level & fifo_full).name("frontier_bad");
-    let visit_code = order_bad.mux(
-        lit(fetch_err::ORDER, 4),
-        range_bad.mux(
-            lit(fetch_err::RANGE, 4),
-            front_bad.mux(lit(fetch_err::FRONTIER, 4), lit(0, 4)),
+        (inner & (above | at_level & c_refs) & n_end.gt(refs.zext(ib + 1))).name("range_bad");
+    let front_bad = (inner & above & pushed.ge(lit(fcap, cb))).name("frontier_bad");
+    let visit_code = in_err.mux(
+        in_err_code,
+        in_end.mux(
+            code4(0),
+            order_bad.mux(
+                code4(fetch_err::ORDER),
+                range_bad.mux(
+                    code4(fetch_err::RANGE),
+                    front_bad.mux(code4(fetch_err::FRONTIER), code4(0)),
+                ),
+            ),
         ),
     );
-    failures.push((visit & visit_code.ne(0), visit_code, node_idx));
-    let visit_ok = (visit & visit_code.eq(0)).name("visit_ok");
-    n_prev_valid.when(visit_ok, lit(1, 1));
-    n_prev_key.when(visit_ok, key);
-    let push = (visit_ok & above_level & inner).name("fifo_push");
-    n_next_level.when(push, next_level.add(1, cb));
-    next_state.when(visit_ok & above_level & leaf & c_leaves, goto(st::LEAF_OUT));
-    next_state.when(visit_ok & at_level, goto(st::EMIT));
-    next_state.when(visit_ok, after_node);
-    fifo.write(tail, m.concat(&[node_idx, n_count, n_first]), push);
+    let visit_code = visit_code.name("visit_code");
+    let err_node = in_err.mux(in_err_node, rec_idx);
+    let fails = (go & visit_code.ne(0)).name("visit_fails");
+    let passes = (go & in_node & visit_code.eq(0)).name("visit_passes");
+    let push = (passes & above & inner).name("frontier_push");
+    let leaf_out = (passes & above & leaf & c_leaves & !v_errored).name("leaf_out");
+    let to_out = (passes & at_level).name("to_out");
+    let more = (above & pushed.ne(0)).name("next_level");
+    let level_end = (go & in_end).name("level_end");
+    let walk_over = (level_end & !more).name("walk_over");
+    let marker = (level_end & more).name("marker_push");
 
-    let leaf_out = is(st::LEAF_OUT);
-    next_state.when(leaf_out & leaves.ready, after_node);
-
-    // ---- EMIT: a node at the level; a held inner node's references go
-    // after its voxel's leaf, or before any other node.
-    let emit = is(st::EMIT);
-    let same_leaf = (pend_valid & leaf & voxel.eq(pend_voxel)).name("leaf_of_held");
-    let refs_first = (emit & pend_valid & !same_leaf).name("refs_first");
-    n_drain_ret.when(refs_first, goto(st::EMIT));
-    next_state.when(refs_first, goto(st::PREF_REQ));
-    let emit_node = (emit & !(pend_valid & !same_leaf)).name("emit_node");
-    let emitted = (emit_node & out.ready).name("emitted");
-    n_drain_ret.when(emitted & same_leaf, after_node);
-    next_state.when(emitted & same_leaf, goto(st::PREF_REQ));
-    let hold = (emitted & inner & c_refs).name("hold_refs");
-    n_pend_valid.when(hold, lit(1, 1));
-    n_pend_first.when(hold, n_first);
-    pend_end.next_when(hold, n_end);
-    pend_voxel.next_when(hold, voxel);
-    pend_node.next_when(hold, node_idx);
-    next_state.when(emitted, after_node);
-
-    // ---- the held node's references
-    let pref_req = is(st::PREF_REQ);
-    let level_end = is(st::LEVEL_END);
-    next_state.when(pref_req & ref_req.ready, goto(st::PREF_RESP));
-    ref_req.valid.drive(ref_req_st | pref_req);
-    ref_req.data.drive(ref_req_st.mux(idx, pend_first));
-    let pref_resp = is(st::PREF_RESP);
-    let pref_take = (pref_resp & ref_resp.valid & out.ready).name("pref_take");
-    failures.push((pref_take & ref_code.ne(0), ref_code, pend_node));
-    let pref_ok = (pref_take & ref_code.eq(0)).name("pref_ok");
-    let pf_next = pend_first.add(1, ib);
-    let pref_last = pf_next.zext(ib + 1).eq(pend_end);
-    n_pend_first.when(pref_ok, pf_next);
-    n_pend_valid.when(pref_ok & pref_last, lit(0, 1));
-    next_state.when(pref_ok & pref_last, drain_ret);
-    next_state.when(pref_ok, goto(st::PREF_REQ));
-    ref_resp.ready.drive(ref_resp_st | pref_resp & out.ready);
-
-    // ---- LEVEL_END: held references, then the next level or the end
-    let le_refs = (level_end & pend_valid).name("level_end_refs");
-    n_drain_ret.when(le_refs, goto(st::LEVEL_END));
-    next_state.when(le_refs, goto(st::PREF_REQ));
-    let walk_over = (d.ge(c_lod) | next_level.eq(0)).name("walk_over");
-    next_state.when(level_end & walk_over, goto(st::FINISH));
-    let deeper = (level_end & !pend_valid & !walk_over).name("deeper");
-    n_d.when(deeper, d.add(1, lb));
-    n_this_level.when(deeper, next_level);
-    n_next_level.when(deeper, lit(0, cb));
-    n_prev_valid.when(deeper, lit(0, 1));
-    n_from_sorter.when(deeper, lit(0, 1));
-    next_state.when(deeper, goto(st::RANGE_NEXT));
-
-    // ---- FINISH / LEAF_END / DONE
-    let finish = is(st::FINISH);
-    let err_emit = is(st::ERR_EMIT);
-    let closing = ((finish | err_emit) & out.ready).name("closing");
-    next_state.when(closing & c_leaves, goto(st::LEAF_END));
-    next_state.when(closing, goto(st::DONE));
-    let leaf_end = is(st::LEAF_END);
-    next_state.when(leaf_end & leaves.ready, goto(st::DONE));
-    let done = is(st::DONE);
-    n_cfg_have.when(cfg_fire, lit(1, 1));
-    n_cfg_have.when(done & c_last, lit(0, 1));
-    next_state.when(done, goto(st::IDLE));
-
-    // ---- ERR: close and drain the sorter, empty the frontier, then report
-    let failed = failures
-        .iter()
-        .map(|f| f.0)
-        .reduce(|a, b| a | b)
-        .expect("checks")
-        .name("failed");
-    let mut code_sel = lit(0, 4);
-    let mut node_sel = zero_i;
-    for (c, code, at) in failures.iter().rev() {
-        code_sel = c.mux(*code, code_sel);
-        node_sel = c.mux(*at, node_sel);
-    }
-    n_err_code.when(failed, code_sel);
-    n_err_node.when(failed, node_sel);
-    n_pend_valid.when(failed, lit(0, 1));
-    let clean = (err_st & !sorter_used).name("err_clean");
-    next_state.when(clean, goto(st::ERR_EMIT));
-    // A failure wins over every other transition of the same clock.
-    let mut arms = vec![(failed, goto(st::ERR))];
-    arms.append(&mut next_state.arms);
-    next_state.arms = arms;
-
-    let front_reset = failed;
-    let popped_now = pop;
-    head.next(front_reset.mux(lit(0, aw), popped_now.mux(head.add(1, aw), head)));
-    tail.next(front_reset.mux(lit(0, aw), push.mux(tail.add(1, aw), tail)));
-    fcount.next(front_reset.mux(
+    prev_valid.next(start.mux(
+        lit(0, 1),
+        marker.mux(lit(0, 1), (go & in_node).mux(lit(1, 1), prev_valid)),
+    ));
+    prev_key.next_when(go & in_node, key);
+    pushed.next(start.mux(
         lit(0, cb),
-        push.mux(
-            popped_now.mux(fcount, fcount.add(1, cb)),
-            popped_now.mux(fcount.sub(1, cb), fcount),
-        ),
+        marker.mux(lit(0, cb), push.mux(pushed.add(1, cb), pushed)),
     ));
+    v_d.next(start.mux(top, marker.mux(v_d.add(1, lb), v_d)));
+    v_top.next(start.mux(lit(1, 1), level_end.mux(lit(0, 1), v_top)));
+    v_done.next(start.mux(lit(0, 1), walk_over.mux(lit(1, 1), v_done)));
+    v_errored.next(start.mux(lit(0, 1), fails.mux(lit(1, 1), v_errored)));
 
-    // ---- out and leaves beats
-    let node_beat = out_beat(
-        &m,
-        &l,
-        Some(node),
-        Some(node_ref),
-        leaf.mux(lit(level_kind::LEAF, 2), lit(level_kind::INNER, 2)),
-        None,
-    );
-    let child_beat = out_beat(
-        &m,
-        &l,
-        None,
-        Some(ref_resp.data),
-        lit(level_kind::CHILD_REF, 2),
-        None,
-    );
-    let end_out = out_beat(&m, &l, None, None, lit(level_kind::END, 2), None);
-    let err_out = out_beat(
-        &m,
-        &l,
-        None,
-        Some(reference(&m, hier, err_node)),
-        lit(level_kind::END, 2),
-        Some(err_code),
-    );
-    out.valid
-        .drive(emit_node | pref_resp & ref_resp.valid & ref_code.eq(0) | finish | err_emit);
-    out.data.drive(emit.mux(
-        node_beat,
-        pref_resp.mux(child_beat, finish.mux(end_out, err_out)),
-    ));
+    front_in.valid.drive(push | marker);
+    front_in
+        .data
+        .drive(m.concat(&[marker, rec_idx, n_count, n_first]));
     let leaf_beat = with_fields(
         &m,
         m.lit(0, l.leaves_width),
         &[
-            (l.leaf_rec, node),
-            (l.leaf_ref, node_ref),
-            (l.leaf_lod, field(node, nl.lod()).expect("lod")),
+            (l.leaf_rec, rec),
+            (l.leaf_ref, rec_ref),
+            (l.leaf_lod, field(rec, nl.lod()).expect("lod")),
         ],
     );
     let leaf_end_beat = with_fields(&m, m.lit(0, l.leaves_width), &[(l.leaf_end, lit(1, 1))]);
-    leaves.valid.drive(leaf_out | leaf_end);
+    leaves.valid.drive(leaf_out | walk_over & c_leaves);
     leaves.data.drive(leaf_out.mux(leaf_beat, leaf_end_beat));
+    oin.valid.drive(to_out | fails | walk_over);
+    oin.data.drive(m.concat(&[
+        fails.mux(
+            lit(ok::ERR, 2),
+            walk_over.mux(lit(ok::FINAL, 2), lit(ok::NODE, 2)),
+        ),
+        visit_code,
+        fails.mux(reference(&m, hier, err_node), rec_ref),
+        rec,
+    ]));
+
+    // ---- out ordering stage: a voxel's inner node, its leaf, then the
+    // inner node's child references (`cref` reads, one a clock)
+    let o_rec = items.data.slice(nl.width() - 1, 0);
+    let o_ref = items.data.slice(nl.width() + rl.width() - 1, nl.width());
+    let o_code = items.data.slice(
+        nl.width() + rl.width() + fetch_err::BITS - 1,
+        nl.width() + rl.width(),
+    );
+    let o_kind = items.data.slice(oin_w - 1, oin_w - 2);
+    let o_is_node = o_kind.eq(lit(ok::NODE, 2));
+    let o_leaf = field(o_rec, nl.leaf()).expect("leaf");
+    let o_voxel = m.concat(&[
+        field(o_rec, nl.z()).expect("z"),
+        field(o_rec, nl.y()).expect("y"),
+        field(o_rec, nl.x()).expect("x"),
+    ]);
+    let o_first = field(o_rec, nl.first()).expect("first");
+    let o_end = o_first.zext(ib + 1).add(
+        field(o_rec, nl.count()).expect("count").zext(ib + 1),
+        ib + 1,
+    );
+    let pend_valid = m.reg("pend_valid", 1);
+    let pend_first = m.reg("pend_first", ib);
+    let pend_end = m.reg("pend_end", ib + 1);
+    let pend_voxel = m.reg("pend_voxel", 3 * p.coord_bits());
+    let pend_node = m.reg("pend_node", ib);
+    let cr_active = m.reg("cref_active", 1);
+    let cr_idx = m.reg("cref_idx", ib);
+    let cr_end = m.reg("cref_end", ib + 1);
+    let cr_parent = m.reg("cref_parent", ib);
+    let tok_w = 2 + l.out_width;
+    let tok_in = Stream::wires(&m, "out_tokens_in", tok_w);
+    let toks = fifo(&m, "out_tokens", tok_in, 4);
+    let can = (walk & tok_in.ready & cref_req.ready).name("order_room");
+    let same_leaf = (pend_valid & o_is_node & o_leaf & o_voxel.eq(pend_voxel)).name("leaf_of_held");
+    let a_cref = (can & cr_active).name("cref_next");
+    let b_leaf = (can & !cr_active & items.valid & same_leaf).name("held_leaf");
+    let c_flush =
+        (can & !cr_active & items.valid & pend_valid & !same_leaf).name("held_refs_first");
+    let d_item = (can & !cr_active & items.valid & !pend_valid).name("item_out");
+    items.ready.drive(b_leaf | d_item);
+    cref_req.valid.drive(
+        walk & tok_in.ready & (cr_active | !cr_active & items.valid & pend_valid & !same_leaf),
+    );
+    cref_req.data.drive(cr_active.mux(cr_idx, pend_first));
+    let cr_next = cr_idx.add(1, ib);
+    let pf_next = pend_first.add(1, ib);
+    cr_active.next(start.mux(
+        lit(0, 1),
+        a_cref.mux(
+            cr_next.zext(ib + 1).ne(cr_end),
+            b_leaf.mux(
+                lit(1, 1),
+                c_flush.mux(pf_next.zext(ib + 1).ne(pend_end), cr_active),
+            ),
+        ),
+    ));
+    cr_idx.next(a_cref.mux(
+        cr_next,
+        b_leaf.mux(pend_first, c_flush.mux(pf_next, cr_idx)),
+    ));
+    cr_end.next_when(b_leaf | c_flush, pend_end);
+    cr_parent.next_when(b_leaf | c_flush, pend_node);
+    let hold = (d_item & o_is_node & !o_leaf & c_refs).name("hold_refs");
+    pend_valid.next(start.mux(
+        lit(0, 1),
+        (b_leaf | c_flush).mux(lit(0, 1), hold.mux(lit(1, 1), pend_valid)),
+    ));
+    pend_first.next_when(hold, o_first);
+    pend_end.next_when(hold, o_end);
+    pend_voxel.next_when(hold, o_voxel);
+    pend_node.next_when(hold, field(o_ref, rl.node()).expect("node"));
+    let node_beat = out_beat(
+        &m,
+        &l,
+        Some(o_rec),
+        Some(o_ref),
+        o_leaf.mux(lit(level_kind::LEAF, 2), lit(level_kind::INNER, 2)),
+        None,
+    );
+    let err_beat = out_beat(
+        &m,
+        &l,
+        None,
+        Some(o_ref),
+        lit(level_kind::END, 2),
+        Some(o_code),
+    );
+    let end_out = out_beat(&m, &l, None, None, lit(level_kind::END, 2), None);
+    let cref_tok = m.concat(&[
+        lit(ok::TOK_CREF, 2),
+        m.lit(0, l.out_width - ib),
+        cr_active.mux(cr_parent, pend_node),
+    ]);
+    let item_tok = o_kind.eq(lit(ok::NODE, 2)).mux(
+        m.concat(&[lit(ok::TOK_BEAT, 2), node_beat]),
+        o_kind.eq(lit(ok::ERR, 2)).mux(
+            m.concat(&[lit(ok::TOK_ERR, 2), err_beat]),
+            m.concat(&[lit(ok::TOK_FINAL, 2), end_out]),
+        ),
+    );
+    tok_in.valid.drive(a_cref | b_leaf | c_flush | d_item);
+    tok_in
+        .data
+        .drive((a_cref | c_flush).mux(cref_tok, item_tok));
+
+    // ---- out stage: beats in order, the child references checked as
+    // their answers come; nothing after the error beat
+    let t_kind = toks.data.slice(tok_w - 1, tok_w - 2);
+    let t_beat = toks.data.slice(l.out_width - 1, 0);
+    let t_parent = toks.data.slice(ib - 1, 0);
+    let t_cref = t_kind.eq(lit(ok::TOK_CREF, 2)).name("token_cref");
+    let cr_node = field(cref_resp.data, rl.node()).expect("node");
+    let cr_hier = field(cref_resp.data, rl.hier()).expect("hier");
+    let cref_code = cr_hier
+        .ne(hier)
+        .mux(
+            code4(fetch_err::REF_HIER),
+            cr_node.ge(nodes).mux(code4(fetch_err::REF_NODE), code4(0)),
+        )
+        .name("cref_code");
+    let answered = (!t_cref | cref_resp.valid).name("token_answered");
+    let t_fire = (walk & toks.valid & answered & (o_errored | out.ready)).name("token_fire");
+    toks.ready.drive(t_fire);
+    cref_resp
+        .ready
+        .drive(walk & toks.valid & t_cref & (o_errored | out.ready));
+    let child_beat = out_beat(
+        &m,
+        &l,
+        None,
+        Some(cref_resp.data),
+        lit(level_kind::CHILD_REF, 2),
+        None,
+    );
+    let cref_err_beat = out_beat(
+        &m,
+        &l,
+        None,
+        Some(reference(&m, hier, t_parent)),
+        lit(level_kind::END, 2),
+        Some(cref_code),
+    );
+    out.valid.drive(walk & toks.valid & answered & !o_errored);
+    out.data
+        .drive(t_cref.mux(cref_code.eq(0).mux(child_beat, cref_err_beat), t_beat));
+    let errs = t_kind.eq(lit(ok::TOK_ERR, 2)) | t_cref & cref_code.ne(0);
+    o_errored.next(start.mux(lit(0, 1), (t_fire & errs).mux(lit(1, 1), o_errored)));
+    n_phase.when(t_fire & t_kind.eq(lit(ok::TOK_FINAL, 2)), goto(ph::DONE));
+
+    // ---- DONE
+    let done = is(ph::DONE);
+    cfg_have.next(cfg_fire.mux(lit(1, 1), (done & c_last).mux(lit(0, 1), cfg_have)));
+    n_phase.when(done, goto(ph::IDLE));
 
     node_req.skid_buffer("node_req_q").output("node_req");
     ref_req.skid_buffer("ref_req_q").output("ref_req");
+    cref_req.skid_buffer("cref_req_q").output("cref_req");
     out.skid_buffer("out_q").output("out");
     leaves.skid_buffer("leaves_q").output("leaves");
     m.output("idle", idle);
 
-    for n in [
-        next_state,
-        n_idx,
-        n_rng_end,
-        n_parent,
-        n_d,
-        n_from_sorter,
-        n_node,
-        n_node_ref,
-        n_prev_valid,
-        n_prev_key,
-        n_pend_valid,
-        n_pend_first,
-        n_drain_ret,
-        n_err_code,
-        n_err_node,
-        n_sorter_used,
-        n_sorter_closed,
-        n_this_level,
-        n_next_level,
-        n_cfg_have,
-    ] {
+    for n in [n_phase, n_rerr_valid, n_rerr_code, n_rerr_node] {
         n.apply();
     }
     m

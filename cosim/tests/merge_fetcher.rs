@@ -516,6 +516,73 @@ fn fetcher_throughput_without_back_pressure() {
     }
 }
 
+/// Steady state: one command at the deepest level of one large input
+/// (1,500 triangles; 300 where I is small), where the per-command costs (roots, sorter, drain)
+/// and the one-clock bubble per level are small against the level's reads.
+/// The node port's stream is the unit's datapath: at least 0.95 node
+/// records read per cycle (Verilator cycle counts, no back-pressure, a
+/// memory that answers every clock).
+#[test]
+fn fetcher_steady_state_on_a_large_input() {
+    if !tools_present(&["verilator"]) {
+        return;
+    }
+    for (name, p, _) in configs().into_iter().take(3) {
+        // A frontier wide enough for the large input's levels.
+        let sizes = FetchSizes {
+            roots: 16,
+            frontier: 2048,
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let m = rtl_gen::merge::fetcher_unit(&p, &sizes);
+        let design = design_of(&m, dir.path());
+        // The largest of these soups that fits the configuration's I.
+        let h = [1500, 300]
+            .into_iter()
+            .find_map(|n| soup(&p, 1, n, 0.05, 7))
+            .expect("a 300-triangle soup fits every configuration's I");
+        let deepest = h.nodes.iter().map(|n| n.voxel.lod).max().unwrap();
+        let cmd = FetchCmd {
+            lod: deepest,
+            send_refs: true,
+            send_leaves: true,
+            last: true,
+        };
+        let t = Translation::zero(h.top_lod);
+        let tx = fetch_transaction(&h, pack_entry(Some(&t), &p), &[cmd], sizes)
+            .expect("the walk of a builder-made input");
+        if !tx.out.iter().all(|o| matches!(o, FetchOut::Beat(_))) {
+            // The frontier of a level this wide is over the configuration's
+            // capacity: an error walk is not a steady state.
+            println!("fetcher {name} steady state: frontier over capacity, not measured");
+            continue;
+        }
+        let (ins, outs, seen) = streams(&p, &[tx]);
+        let mut e = engine("verilator", &m, &design);
+        let r = bench(
+            e.as_mut(),
+            &ins,
+            &outs,
+            1,
+            0.0,
+            &format!("fetcher {name} steady state"),
+        );
+        let rate = seen.node_reads as f64 / r.cycles as f64;
+        println!(
+            "fetcher {name} steady state ({} nodes, {} refs, deepest LOD {deepest}): {} node reads in {} cycles: {rate:.4} node reads/cycle; {} out beats",
+            h.nodes.len(),
+            h.refs.len(),
+            seen.node_reads,
+            r.cycles,
+            seen.out_beats
+        );
+        assert!(
+            rate >= 0.95,
+            "fetcher {name}: {rate:.4} node reads per cycle"
+        );
+    }
+}
+
 /// `verilator --lint-only -Wall` with zero warnings on the Verilog of `design`.
 fn lint_only(design: &cosim::Design) {
     let files: Vec<String> = design

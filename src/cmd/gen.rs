@@ -44,6 +44,15 @@ struct Report {
 pub fn emit_defaults(dir: &Path) -> Result<Vec<PathBuf>, String> {
     let mut files = rtl_gen::translate::emit_default(dir)?;
     files.extend(emit_merge(&MergeConfig::default(), dir).map_err(|e| e.to_string())?);
+    // Per-node merging is its own merging module (SPEC 8.14): the default
+    // design with the default per-node ratio.
+    let per_node = MergeConfig {
+        mode: golden::merge::MergeMode::PerNode { num: 1, den: 2 },
+        ..MergeConfig::default()
+    };
+    files.extend(emit_merge(&per_node, dir).map_err(|e| e.to_string())?);
+    files.sort();
+    files.dedup();
     Ok(files)
 }
 

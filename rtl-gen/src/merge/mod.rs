@@ -66,15 +66,24 @@ pub use golden::vectors::merge::MergeDesign as MergeConfig;
 /// module (whose instances, the merge network, the overlap counter in
 /// overlap mode and S614, come with it), the upper builder (every S616 level
 /// above the base, SPEC 8.11; its `upper_level` instances come with it),
-/// then S616's one-level unit and the root sorter, which the fetcher may
-/// drive on their own. `c` must pass `c.validate()`.
-pub fn merge_units(c: &MergeConfig) -> Vec<Module> {
-    vec![
+/// then S616's one-level unit and the root sorter; then the fetcher (S610 +
+/// S612, 8.13) and the record writer (S618, 8.12) with the sizes of
+/// [`MergerConfig::new`], and, for every mode but per-node, the hierarchy
+/// merger that instantiates them all (8.15). `c` must pass `c.validate()`.
+pub fn merge_units(c: &MergeConfig) -> Result<Vec<Module>, String> {
+    let merger = MergerConfig::new(*c);
+    let mut units = vec![
         merge_module_unit(c),
         upper_builder_unit(&c.params),
         upper_level_unit(&c.params),
         root_sorter_unit(&c.params, c.roots),
-    ]
+        fetcher_unit(&c.params, &merger.fetch_sizes()),
+        record_writer_unit(&c.params, merger.sizes.capacity_bits).map_err(|e| e.to_string())?,
+    ];
+    if !matches!(c.mode, golden::merge::MergeMode::PerNode { .. }) {
+        units.push(hierarchy_merger_unit(&merger)?);
+    }
+    Ok(units)
 }
 
 /// Writes the Verilog of every module of `c` into `dir` (one `<module>.v`
@@ -83,7 +92,7 @@ pub fn merge_units(c: &MergeConfig) -> Vec<Module> {
 pub fn emit_merge(c: &MergeConfig, dir: &Path) -> Result<Vec<PathBuf>, DesignError> {
     c.validate().map_err(DesignError::Config)?;
     let mut files = std::collections::BTreeSet::new();
-    for m in merge_units(c) {
+    for m in merge_units(c).map_err(DesignError::Config)? {
         files.extend(write_design(&m, dir)?);
     }
     Ok(files.into_iter().collect())

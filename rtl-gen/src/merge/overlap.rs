@@ -27,7 +27,12 @@ pub fn overlap_counter_name(p: &Params, inputs: usize, num: u32, den: u32) -> St
 
 /// `value * c` for a constant `c`, as a sum of shifted copies, `width` bits
 /// (wide enough for the exact product).
-pub(super) fn times_constant<'m>(m: &'m Module, value: Signal<'m>, c: u32, width: u32) -> Signal<'m> {
+pub(super) fn times_constant<'m>(
+    m: &'m Module,
+    value: Signal<'m>,
+    c: u32,
+    width: u32,
+) -> Signal<'m> {
     let v = value.zext(width);
     let mut acc = m.lit(0, width);
     for b in 0..32 {

@@ -18,6 +18,7 @@ use std::path::{Path, PathBuf};
 use cosim::from_rtl::design_from_module;
 use cosim::ir_engine::IrEngine;
 use cosim::units::merge_module::{self, ModuleEngine};
+use cosim::units::merger;
 use cosim::units::translate::{self, Failure, RunConfig};
 use cosim::units::{check_stall, merge};
 use cosim::{open_engine, Design, Engine, EngineKind};
@@ -27,7 +28,6 @@ use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
 use super::common::UnitOpts;
-use super::gen::Unit;
 use crate::report::{emit, CmdResult};
 
 /// The environment variable of the test hook (see the module docs).
@@ -61,6 +61,18 @@ impl EngineChoice {
     }
 }
 
+/// The unit `hiermerge cosim` runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Unit {
+    /// The translation unit.
+    Translate,
+    /// The merging module (or, with `--stage merge-level`, its S614 stage).
+    Merge,
+    /// The hierarchy merger, S610-S618 as one top (SPEC 8.15).
+    Merger,
+}
+
 /// Which part of the merging module `--unit merge` runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum MergeStage {
@@ -77,10 +89,13 @@ pub enum MergeStage {
 /// in0.., report, out; a transaction is one merge; Icarus runs the
 /// multi-stream batch, the whole bench inside one vvp run); with
 /// `--stage merge-level` its S614 stage alone (unit 506; a transaction is
-/// one level).
+/// one level). --unit merger: the hierarchy merger (S610-S618; a
+/// transaction is one merge, store responses precomputed from golden;
+/// run in chunks of 10,000 merges).
 #[derive(clap::Args)]
 pub struct Args {
-    /// translate: the translation unit; merge: the merging module.
+    /// translate: the translation unit; merge: the merging module; merger:
+    /// the hierarchy merger.
     #[arg(long, value_enum)]
     unit: Unit,
     /// --unit merge only: `module` (default) or `merge-level`, the S614
@@ -110,6 +125,13 @@ pub struct Args {
     vcd_dir: PathBuf,
     #[command(flatten)]
     design: UnitOpts,
+    /// --unit merger only: log2 of the writer's entries per buffer
+    /// (default: the merger's default, min(10, index bits - 1)).
+    #[arg(long = "capacity-bits")]
+    capacity_bits: Option<u32>,
+    /// --unit merger only: log2 of each leaf FIFO's entries (default 4).
+    #[arg(long = "leaf-bits")]
+    leaf_bits: Option<u32>,
     /// Print one JSON object on stdout.
     #[arg(long)]
     json: bool,
@@ -150,10 +172,11 @@ struct Report {
     passed: bool,
     transactions: u64,
     /// Input records (translate: transactions; merge: beats on in0..;
-    /// merge-level: input beats).
+    /// merge-level: input beats; merger: beats into its merging module).
     records: u64,
     /// Output records (translate: transactions; merge: report and out
-    /// beats; merge-level: base-node/reference beats).
+    /// beats; merge-level: base-node/reference beats; merger: node
+    /// records written).
     nodes: u64,
     mismatches: u64,
     cycles: u64,
@@ -165,6 +188,30 @@ struct Report {
     first_mismatch: Option<MismatchReport>,
     vcd: Option<String>,
     reproduce: Option<String>,
+    /// --unit merger: what the merges exercised.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    merger: Option<MergerReport>,
+}
+
+/// What `--unit merger`'s merges exercised.
+#[derive(Serialize)]
+struct MergerReport {
+    /// Chunks of at most 10,000 merges, each run from reset.
+    chunks: u64,
+    refused: u64,
+    fetch_errors: u64,
+    /// References written (`refs` beats).
+    refs_written: u64,
+    /// Beats accepted on every input stream and out on every output stream.
+    beats_in: u64,
+    beats_out: u64,
+    leaves_above: u64,
+    materialized: u64,
+    several_roots: u64,
+    /// One `done` pulse per merge expected.
+    done_pulses: u64,
+    /// Wall time of generating the golden stimulus (not in wall_seconds).
+    golden_seconds: f64,
 }
 
 fn flip_expected() -> Result<Option<usize>, String> {
@@ -206,6 +253,7 @@ fn reproduce(a: &Args, flip: Option<usize>) -> Result<String, String> {
     let unit = match a.unit {
         Unit::Translate => "translate",
         Unit::Merge => "merge",
+        Unit::Merger => "merger",
     };
     s += &format!("hiermerge cosim --unit {unit}");
     if a.unit == Unit::Merge && merge_stage(a)? == MergeStage::MergeLevel {
@@ -238,6 +286,15 @@ fn reproduce(a: &Args, flip: Option<usize>) -> Result<String, String> {
             }
         }
         Unit::Merge => s += &format!(" --inputs {} --mode {}", a.design.inputs, a.design.mode),
+        Unit::Merger => {
+            s += &format!(" --inputs {} --mode {}", a.design.inputs, a.design.mode);
+            if let Some(c) = a.capacity_bits {
+                s += &format!(" --capacity-bits {c}");
+            }
+            if let Some(l) = a.leaf_bits {
+                s += &format!(" --leaf-bits {l}");
+            }
+        }
     }
     Ok(s)
 }
@@ -305,6 +362,9 @@ pub fn main(a: Args) -> CmdResult {
     if a.stage.is_some() && a.unit != Unit::Merge {
         return Err("--stage applies to --unit merge only".into());
     }
+    if (a.capacity_bits.is_some() || a.leaf_bits.is_some()) && a.unit != Unit::Merger {
+        return Err("--capacity-bits and --leaf-bits apply to --unit merger only".into());
+    }
     let dir = tempfile::tempdir().map_err(|e| format!("temporary directory: {e}"))?;
     let report = match a.unit {
         Unit::Translate => run_translate(&a, &a.design.translate_design()?, flip, dir.path())?,
@@ -314,6 +374,14 @@ pub fn main(a: Args) -> CmdResult {
             }
             MergeStage::MergeLevel => run_merge(&a, &a.design.merge_design()?, flip, dir.path())?,
         },
+        Unit::Merger => {
+            if flip.is_some() {
+                return Err(format!(
+                    "{FLIP_EXPECTED_VAR} applies to --unit translate and merge only"
+                ));
+            }
+            run_merger(&a, &a.design.merge_design()?, dir.path())?
+        }
     };
     let passed = report.passed;
     let summary = report.first_mismatch.as_ref().map(|m| {
@@ -394,6 +462,7 @@ fn run_translate(
         first_mismatch: None,
         vcd: None,
         reproduce: None,
+        merger: None,
     };
     match result {
         Ok(o) => {
@@ -546,6 +615,7 @@ fn run_merge(
         } else {
             Some(reproduce(a, flip)?)
         },
+        merger: None,
     })
 }
 
@@ -680,6 +750,147 @@ fn run_merge_module(
         } else {
             Some(reproduce(a, flip)?)
         },
+        merger: None,
+    })
+}
+
+/// `--unit merger`: seeded random merges through the hierarchy merger,
+/// every stream with its own stall pattern, 10,000 merges at a time.
+fn run_merger(a: &Args, design: &MergeDesign, dir: &Path) -> Result<Report, String> {
+    let count = usize::try_from(a.count.unwrap_or(DEFAULT_COUNT))
+        .map_err(|_| "--count is too large".to_string())?;
+    if a.vectors.is_some() {
+        return Err("--unit merger takes no --vectors: use --seed/--count".into());
+    }
+    let engine = match a.engine {
+        EngineChoice::Ir => merger::MergerEngine::Ir,
+        EngineChoice::Verilator => {
+            EngineKind::Verilator
+                .check_tools()
+                .map_err(|e| e.to_string())?;
+            merger::MergerEngine::Verilator
+        }
+        EngineChoice::Iverilog => {
+            EngineKind::Icarus
+                .check_tools()
+                .map_err(|e| e.to_string())?;
+            merger::MergerEngine::Iverilog
+        }
+    };
+    let mut c = rtl_gen::merge::MergerConfig::new(*design);
+    if let Some(bits) = a.capacity_bits {
+        c.sizes.capacity_bits = bits;
+    }
+    if let Some(bits) = a.leaf_bits {
+        c.sizes.leaf_bits = bits;
+    }
+    c.validate()
+        .map_err(|e| format!("hierarchy merger configuration: {e}"))?;
+    let config = merger::RunConfig {
+        seed: a.seed,
+        count,
+        stall: a.stall,
+        vcd_path: Some(vcd_path(a, merger::STAGE)),
+        vcd_radius: VCD_RADIUS,
+    };
+    if !a.json {
+        eprintln!(
+            "running {count} merges on {} in chunks of {}",
+            a.engine.name(),
+            merger::CHUNK
+        );
+    }
+    let pb = bar(count as u64, a.json);
+    let o = merger::run(&c, engine, &config, dir, &mut |merges, cycle| {
+        pb.set_position(merges);
+        pb.set_message(format!("cycle {cycle}"));
+    });
+    pb.finish_and_clear();
+    let o = o.map_err(|e| e.to_string())?;
+    let passed = o.passed();
+    let mut first = o.first_mismatch.as_ref().map(|m| MismatchReport {
+        transaction: m.merge as u64,
+        stream: Some(m.stream.clone()),
+        beat: Some(m.beat),
+        kind: merger::STAGE.to_string(),
+        cycle: m.cycle,
+        seed: a.seed,
+        what: format!(
+            "`{}` beat {} of its chunk (merge {}) differs",
+            m.stream, m.beat, m.merge
+        ),
+        fields: vec![FieldReport {
+            name: "data".into(),
+            expected: m.expected.clone(),
+            got: m.got.clone(),
+            differs: true,
+        }],
+    });
+    if first.is_none() && !passed {
+        let missing: Vec<String> = o
+            .missing
+            .iter()
+            .filter(|m| m.1 > 0)
+            .map(|(s, n)| format!("{n} `{s}` beats"))
+            .collect();
+        first = Some(MismatchReport {
+            transaction: o.merges.saturating_sub(1) as u64,
+            stream: None,
+            beat: None,
+            kind: merger::STAGE.to_string(),
+            cycle: o.hang.as_ref().map_or(o.cycles, |h| h.cycle),
+            seed: a.seed,
+            what: match (&o.hang, missing.is_empty()) {
+                (Some(h), _) => format!(
+                    "no handshake for {} cycles; missing {}",
+                    h.idle_cycles,
+                    missing.join(", ")
+                ),
+                (None, false) => format!("missing {}", missing.join(", ")),
+                (None, true) => o.status_failure().unwrap_or_default(),
+            },
+            fields: Vec::new(),
+        });
+    }
+    let wall = o.wall.as_secs_f64();
+    let s = &o.stats;
+    Ok(Report {
+        unit: a.unit,
+        stage: merger::STAGE,
+        engine: a.engine.name(),
+        seed: a.seed,
+        stall: a.stall,
+        vectors: None,
+        passed,
+        transactions: o.merges as u64,
+        records: s.module_in,
+        nodes: s.records,
+        mismatches: o.mismatches,
+        cycles: o.cycles,
+        records_per_cycle: s.module_in as f64 / o.cycles.max(1) as f64,
+        nodes_per_cycle: s.records as f64 / o.cycles.max(1) as f64,
+        wall_seconds: wall,
+        cycles_per_second: crate::report::per_second(o.cycles as f64, wall),
+        first_mismatch: first,
+        vcd: o.vcd.as_ref().map(|p| p.display().to_string()),
+        reproduce: if passed {
+            None
+        } else {
+            Some(reproduce(a, None)?)
+        },
+        merger: Some(MergerReport {
+            chunks: o.chunks as u64,
+            refused: s.refused as u64,
+            fetch_errors: s.fetch_errors as u64,
+            refs_written: s.refs,
+            beats_in: o.beats_in,
+            beats_out: o.beats_out,
+            leaves_above: s.leaves_above as u64,
+            materialized: s.materialized as u64,
+            several_roots: s.several_roots as u64,
+            done_pulses: o.done_pulses,
+            golden_seconds: o.golden_wall.as_secs_f64(),
+        }),
     })
 }
 
@@ -726,6 +937,7 @@ impl Report {
         match self.unit {
             Unit::Translate => "translate",
             Unit::Merge => "merge",
+            Unit::Merger => "merger",
         }
     }
 }

@@ -5,6 +5,7 @@
 
 pub mod merge;
 pub mod merge_module;
+pub mod merger;
 pub mod translate;
 
 use crate::engine::Engine;

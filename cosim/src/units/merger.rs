@@ -1,0 +1,548 @@
+//! The hierarchy merger (`rtl_gen::merge::hierarchy_merger_unit`, S610-S618
+//! as one top, SPEC 8.15) against
+//! `golden::merge::merger_unit::merger_transaction`, bit for bit on every
+//! out stream, with independent seeded stalls on every stream. A
+//! transaction is one merge: its `cfg` beat in, its `header` beat out.
+//!
+//! The store's responses are precomputed from golden and presented as
+//! ordinary input streams (every unit raises `resp_ready` only while a
+//! request is outstanding), so the same stimulus runs on the IR simulator,
+//! Verilator ([`crate::tb::run_multi_stream_bench`]) and Icarus (the
+//! multi-stream batch, one `vvp` run per chunk). Long runs go in chunks of
+//! [`CHUNK`] merges, each chunk generated, run and dropped before the next,
+//! so memory stays bounded whatever the count.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use golden::layout::{Bits, Field};
+use golden::merge::merger_unit::{merger_transaction, MergerLayout, MergerTransaction};
+use golden::merge::writer_unit::{place, soup};
+use golden::store::{HierarchyStore, NodeRecord, Reference};
+use golden::translate::stimulus::SplitMix64;
+use golden::translate::TranslationTable;
+use rtl_gen::merge::MergerConfig;
+
+use crate::bitvec::BitVec;
+use crate::design::Design;
+use crate::engines::{open_engine, EngineKind};
+use crate::error::{CosimError, Result};
+use crate::icarus::IcarusMultiBatch;
+use crate::ir_engine::IrEngine;
+use crate::tb::{
+    run_multi_with_vcd_on_failure, BenchConfig, Hang, Progress, PulseWatch, StreamBeats,
+};
+
+pub use super::merge_module::ModuleEngine as MergerEngine;
+
+/// The stage name `hiermerge cosim --unit merger` reports.
+pub const STAGE: &str = "hierarchy_merger";
+
+/// Merges of stimulus held at a time on one simulator.
+pub const CHUNK: usize = 10_000;
+
+/// Most soups in a random merge is the merger's `k`; most triangles per soup.
+pub const MOST_TRIANGLES: u64 = 40;
+
+/// Random merges drawn before giving up on one whose leaves fit the leaf
+/// FIFOs (the merger's `leaf_bits` too small for the random scenes).
+pub const MOST_DRAWS: usize = 1000;
+
+/// The status outputs whose pulses a run counts.
+pub const PULSES: [&str; 2] = ["done", "idle"];
+
+fn golden_err(what: impl std::fmt::Display) -> CosimError {
+    CosimError::Design {
+        what: format!("golden hierarchy merger: {what}"),
+    }
+}
+
+/// What a list of merges exercised.
+#[derive(Clone, Default, Debug, PartialEq, Eq)]
+pub struct MergeStats {
+    /// Merges.
+    pub merges: usize,
+    /// Merges the merging module refused (no candidate LOD).
+    pub refused: usize,
+    /// Node records written (`nodes` beats).
+    pub records: u64,
+    /// References written (`refs` beats).
+    pub refs: u64,
+    /// Merges with leaves above the merging level.
+    pub leaves_above: usize,
+    /// Merges that materialized references (`w_ref_req` beats).
+    pub materialized: usize,
+    /// Merges whose output has several roots.
+    pub several_roots: usize,
+    /// Merges with a fetcher error in the header.
+    pub fetch_errors: usize,
+    /// Beats into the merging module's `in*` (fetcher out, over all inputs).
+    pub module_in: u64,
+}
+
+impl MergeStats {
+    /// Adds `other`'s counts to these.
+    pub fn add(&mut self, other: &MergeStats) {
+        self.merges += other.merges;
+        self.refused += other.refused;
+        self.records += other.records;
+        self.refs += other.refs;
+        self.leaves_above += other.leaves_above;
+        self.materialized += other.materialized;
+        self.several_roots += other.several_roots;
+        self.fetch_errors += other.fetch_errors;
+        self.module_in += other.module_in;
+    }
+}
+
+/// Merges as the merger's streams.
+#[derive(Clone, Debug)]
+pub struct MergerStreams {
+    /// `cfg`, then per fetcher `f{i}_node_resp`, `f{i}_ref_resp`,
+    /// `f{i}_cref_resp`, then `w_ref_resp`.
+    pub inputs: Vec<StreamBeats>,
+    /// `report`, per fetcher `f{i}_node_req`, `f{i}_ref_req`,
+    /// `f{i}_cref_req`, then `w_ref_req`, `nodes`, `refs`, `header`.
+    pub outputs: Vec<StreamBeats>,
+    /// Per output stream (same order), the index of each merge's first
+    /// expected beat, and one past the last.
+    pub starts: Vec<Vec<usize>>,
+    /// What the merges exercised.
+    pub stats: MergeStats,
+}
+
+impl MergerStreams {
+    /// The merge (0-based, in these streams) that output beat `beat` of
+    /// output stream `stream` belongs to.
+    pub fn merge_of(&self, stream: usize, beat: usize) -> usize {
+        self.starts[stream]
+            .partition_point(|&s| s <= beat)
+            .saturating_sub(1)
+    }
+}
+
+fn bitvec(b: &Bits) -> Result<BitVec> {
+    BitVec::from_words(b.width() as usize, b.words())
+}
+
+/// Per-stream beats of the merges, appended merge by merge.
+struct Lanes {
+    names: Vec<String>,
+    beats: Vec<Vec<Bits>>,
+}
+
+impl Lanes {
+    fn new(names: Vec<String>) -> Lanes {
+        let beats = vec![Vec::new(); names.len()];
+        Lanes { names, beats }
+    }
+
+    fn into_streams(self) -> Result<Vec<StreamBeats>> {
+        self.names
+            .into_iter()
+            .zip(self.beats)
+            .map(|(name, v)| {
+                Ok(StreamBeats {
+                    name,
+                    beats: v
+                        .iter()
+                        .map(|b| Ok(vec![bitvec(b)?]))
+                        .collect::<Result<_>>()?,
+                })
+            })
+            .collect()
+    }
+}
+
+fn input_names(k: usize) -> Vec<String> {
+    let mut v = vec!["cfg".to_string()];
+    for i in 0..k {
+        v.extend(["node_resp", "ref_resp", "cref_resp"].map(|s| format!("f{i}_{s}")));
+    }
+    v.push("w_ref_resp".into());
+    v
+}
+
+fn output_names(k: usize) -> Vec<String> {
+    let mut v = vec!["report".to_string()];
+    for i in 0..k {
+        v.extend(["node_req", "ref_req", "cref_req"].map(|s| format!("f{i}_{s}")));
+    }
+    v.extend(["w_ref_req", "nodes", "refs", "header"].map(String::from));
+    v
+}
+
+/// The streams of `txs` for the merger `c`, and what they exercise.
+pub fn merger_streams(c: &MergerConfig, txs: &[MergerTransaction]) -> Result<MergerStreams> {
+    let p = &c.design.params;
+    let k = c.design.inputs;
+    let ml = MergerLayout::new(p, k, c.sizes.capacity_bits).map_err(golden_err)?;
+    let fl = &ml.fetch;
+    let index_field = Field {
+        name: "index",
+        offset: 0,
+        width: fl.index_width,
+    };
+    let idx = |i: &u32| -> Result<Bits> {
+        let mut b = Bits::zero(fl.index_width);
+        b.set(&index_field, *i as u64).map_err(golden_err)?;
+        Ok(b)
+    };
+    let node = |n: &NodeRecord| n.pack(&fl.node).map_err(golden_err);
+    let rf = |r: &Reference| r.pack(&fl.reference).map_err(golden_err);
+    let mut ins = Lanes::new(input_names(k));
+    let mut outs = Lanes::new(output_names(k));
+    let mut starts = vec![Vec::with_capacity(txs.len() + 1); outs.names.len()];
+    let mut stats = MergeStats::default();
+    let w_resp = 1 + 3 * k;
+    let (report, w_req) = (0, 1 + 3 * k);
+    let (nodes, refs, header) = (w_req + 1, w_req + 2, w_req + 3);
+    for tx in txs {
+        for (s, at) in starts.iter_mut().zip(&outs.beats) {
+            s.push(at.len());
+        }
+        ins.beats[0].push(tx.cfg.pack(&ml).map_err(golden_err)?);
+        for r in tx.reports() {
+            outs.beats[report].push(r.pack(&ml.top).map_err(golden_err)?);
+        }
+        let w = &tx.writer;
+        for n in &w.nodes {
+            outs.beats[nodes].push(node(n)?);
+        }
+        for r in &w.refs {
+            outs.beats[refs].push(rf(r)?);
+        }
+        for r in &w.ref_reqs {
+            outs.beats[w_req].push(rf(r)?);
+        }
+        for r in &w.ref_resps {
+            ins.beats[w_resp].push(rf(r)?);
+        }
+        outs.beats[header].push(tx.header.pack(&ml).map_err(golden_err)?);
+        for (i, f) in tx.fetch.iter().enumerate() {
+            let (fi, fo) = (1 + 3 * i, 1 + 3 * i);
+            for n in &f.node_resps {
+                ins.beats[fi].push(node(n)?);
+            }
+            for r in &f.ref_resps {
+                ins.beats[fi + 1].push(rf(r)?);
+            }
+            for r in &f.cref_resps {
+                ins.beats[fi + 2].push(rf(r)?);
+            }
+            for r in &f.node_reqs {
+                outs.beats[fo].push(idx(r)?);
+            }
+            for r in &f.ref_reqs {
+                outs.beats[fo + 1].push(idx(r)?);
+            }
+            for r in &f.cref_reqs {
+                outs.beats[fo + 2].push(idx(r)?);
+            }
+            stats.module_in += f.out.len() as u64;
+        }
+        stats.merges += 1;
+        stats.refused += tx.chosen.is_none() as usize;
+        stats.fetch_errors += (tx.header.fetch_err != 0) as usize;
+        stats.records += w.nodes.len() as u64;
+        stats.refs += w.refs.len() as u64;
+        stats.leaves_above += !tx.leaves.is_empty() as usize;
+        stats.materialized += !w.ref_reqs.is_empty() as usize;
+        stats.several_roots += (w.header.roots > 1) as usize;
+    }
+    for (s, at) in starts.iter_mut().zip(&outs.beats) {
+        s.push(at.len());
+    }
+    Ok(MergerStreams {
+        inputs: ins.into_streams()?,
+        outputs: outs.into_streams()?,
+        starts,
+        stats,
+    })
+}
+
+/// A random merge: 1..=k soups of 1..=[`MOST_TRIANGLES`] triangles, each
+/// translated at its top LOD by a random fraction of the room left; drawn
+/// again while the leaves overflow the merger's leaf FIFOs (at most
+/// [`MOST_DRAWS`] times).
+pub fn random_merge(rng: &mut SplitMix64, c: &MergerConfig) -> Result<MergerTransaction> {
+    let p = &c.design.params;
+    let k = c.design.inputs;
+    let out_id = u8::try_from(p.hier_capacity() - 1).map_err(golden_err)?;
+    for _ in 0..MOST_DRAWS {
+        let n = 1 + rng.below(k as u64) as usize;
+        let mut store = HierarchyStore::new();
+        let mut table = TranslationTable::new(p.hier_capacity() as usize, p).map_err(golden_err)?;
+        let mut ids = Vec::new();
+        for r in 0..n {
+            let id = 1 + r as u8;
+            let tris = 1 + rng.below(MOST_TRIANGLES) as usize;
+            let size = 0.02 + rng.below(30) as f32 / 100.0;
+            let h = soup(p, id, tris, size, rng.next_u64());
+            let frac = [0, 1, 2].map(|_| rng.below(101) as f64 / 100.0);
+            table
+                .write(id as u32, place(&h, frac))
+                .map_err(golden_err)?;
+            store.insert(h).map_err(golden_err)?;
+            ids.push(id);
+        }
+        if let Ok(tx) = merger_transaction(&store, &table, &ids, c.design.mode, out_id, k, c.sizes)
+        {
+            if !tx.header.leaf_overflow {
+                return Ok(tx);
+            }
+        }
+    }
+    Err(golden_err(format!(
+        "no random merge of {MOST_DRAWS} drawn fits leaf FIFOs of 2^{} entries: expected a larger leaf_bits",
+        c.sizes.leaf_bits
+    )))
+}
+
+/// How one run is driven.
+#[derive(Clone, Debug, Default)]
+pub struct RunConfig {
+    /// Seed of the merges and of the stall patterns.
+    pub seed: u64,
+    /// Merges to run.
+    pub count: usize,
+    /// Stall probability of every driver and every monitor.
+    pub stall: f64,
+    /// Where the VCD around the first failure goes (None: no VCD).
+    pub vcd_path: Option<PathBuf>,
+    /// Cycles traced either side of the failure.
+    pub vcd_radius: u64,
+}
+
+/// The first failing output beat.
+#[derive(Clone, Debug)]
+pub struct MergerMismatch {
+    /// Output stream.
+    pub stream: String,
+    /// 0-based index of the beat on its stream within its chunk.
+    pub beat: u64,
+    /// The merge it belongs to (0-based over the whole run).
+    pub merge: usize,
+    /// Cycle of the transfer, counted from the start of its chunk.
+    pub cycle: u64,
+    /// Expected and observed beat, as bits.
+    pub expected: String,
+    /// Observed beat.
+    pub got: String,
+}
+
+/// What a run measured (over every chunk run).
+#[derive(Clone, Debug, Default)]
+pub struct Outcome {
+    /// Merges run (all of them, or up to the end of the failing chunk).
+    pub merges: usize,
+    /// Chunks run.
+    pub chunks: usize,
+    /// What the merges exercised.
+    pub stats: MergeStats,
+    /// Cycles over every chunk (each chunk starts from reset).
+    pub cycles: u64,
+    /// Beats accepted on every input stream.
+    pub beats_in: u64,
+    /// Beats out on every output stream.
+    pub beats_out: u64,
+    /// Output beats that differed.
+    pub mismatches: u64,
+    /// Expected output beats that never came (failing chunk).
+    pub missing: Vec<(String, usize)>,
+    /// The first mismatch.
+    pub first_mismatch: Option<MergerMismatch>,
+    /// The watchdog's finding in the failing chunk.
+    pub hang: Option<Hang>,
+    /// Cycles `done` was high (one per merge expected).
+    pub done_pulses: u64,
+    /// `idle` high in the last cycle of every chunk.
+    pub idle_at_end: bool,
+    /// VCD of the cycles around the first failure.
+    pub vcd: Option<PathBuf>,
+    /// Wall time of the benches (stimulus generation, the Verilator build
+    /// and the Icarus compile excluded).
+    pub wall: Duration,
+    /// Wall time of generating the golden stimulus.
+    pub golden_wall: Duration,
+}
+
+impl Outcome {
+    /// Every beat matched, none missing, nothing hung, one `done` pulse
+    /// per merge, and the unit idle at the end of every chunk.
+    pub fn passed(&self) -> bool {
+        self.mismatches == 0
+            && self.hang.is_none()
+            && self.missing.iter().all(|m| m.1 == 0)
+            && self.status_failure().is_none()
+    }
+
+    /// What the status outputs got wrong, if anything.
+    pub fn status_failure(&self) -> Option<String> {
+        let mut wrong = Vec::new();
+        if self.done_pulses != self.merges as u64 {
+            wrong.push(format!(
+                "`done` pulsed {} times for {} merges",
+                self.done_pulses, self.merges
+            ));
+        }
+        if !self.idle_at_end {
+            wrong.push("`idle` low at the end of a chunk".to_string());
+        }
+        (!wrong.is_empty()).then(|| wrong.join("; "))
+    }
+
+    /// Records written (`nodes` beats) per cycle.
+    pub fn records_per_cycle(&self) -> f64 {
+        self.stats.records as f64 / self.cycles.max(1) as f64
+    }
+}
+
+/// One simulator, built once, run chunk after chunk.
+enum Sim {
+    Stepped {
+        module: rtl_gen::Module,
+        design: Design,
+        kind: MergerEngine,
+    },
+    Batch(Box<IcarusMultiBatch>),
+}
+
+/// Runs `config.count` random merges (seeded by `config.seed`) through the
+/// merger `c` on `engine`, the Verilog written to `dir`, [`CHUNK`] merges
+/// at a time; stops after the first chunk that fails. `progress` gets
+/// (merges whose chunk is done or whose outputs arrived so far, cycle).
+pub fn run(
+    c: &MergerConfig,
+    engine: MergerEngine,
+    config: &RunConfig,
+    dir: &Path,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Outcome> {
+    let module = rtl_gen::merge::hierarchy_merger_unit(c).map_err(|what| CosimError::Design {
+        what: format!("hierarchy merger: {what}"),
+    })?;
+    let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
+    let k = c.design.inputs;
+    let sim = match engine {
+        MergerEngine::Iverilog => {
+            let (i, o) = (input_names(k), output_names(k));
+            let i: Vec<&str> = i.iter().map(String::as_str).collect();
+            let o: Vec<&str> = o.iter().map(String::as_str).collect();
+            Sim::Batch(Box::new(IcarusMultiBatch::new_watching(
+                &design, &i, &o, &PULSES,
+            )?))
+        }
+        kind => Sim::Stepped {
+            module,
+            design,
+            kind,
+        },
+    };
+    let mut rng = SplitMix64(config.seed);
+    let mut out = Outcome {
+        idle_at_end: true,
+        ..Outcome::default()
+    };
+    while out.merges < config.count {
+        let n = CHUNK.min(config.count - out.merges);
+        let t = std::time::Instant::now();
+        let txs = (0..n)
+            .map(|_| random_merge(&mut rng, c))
+            .collect::<Result<Vec<_>>>()?;
+        let streams = merger_streams(c, &txs)?;
+        drop(txs);
+        out.golden_wall += t.elapsed();
+        let bench = BenchConfig {
+            seed: config.seed ^ out.chunks as u64,
+            in_stall: config.stall,
+            out_stall: config.stall,
+            stop_on_mismatch: false,
+            vcd_path: config.vcd_path.clone(),
+            vcd_radius: config.vcd_radius,
+            ..BenchConfig::default()
+        };
+        let done_before = out.merges as u64;
+        let headers = streams.outputs.len() - 1;
+        let (report, watch) = match &sim {
+            Sim::Stepped {
+                module,
+                design,
+                kind,
+            } => {
+                let mut make = |trace: bool| -> Result<Box<dyn crate::Engine>> {
+                    match kind {
+                        MergerEngine::Ir => Ok(Box::new(IrEngine::new(module, design)?)),
+                        _ => open_engine(EngineKind::Verilator, design, trace),
+                    }
+                };
+                let mut on_progress = |p: Progress| {
+                    // Headers are the last output stream; outputs count all streams,
+                    // so report merges by the share of beats arrived.
+                    let total = p.expected_outputs.max(1);
+                    let share = p.outputs.min(total) as f64 / total as f64;
+                    progress(done_before + (share * n as f64) as u64, p.cycle);
+                };
+                run_multi_with_vcd_on_failure(
+                    &mut make,
+                    &streams.inputs,
+                    &streams.outputs,
+                    &bench,
+                    &PULSES,
+                    &mut on_progress,
+                )?
+            }
+            Sim::Batch(batch) => {
+                let r = batch.run(&streams.inputs, &streams.outputs, &bench)?;
+                let watch = PulseWatch {
+                    counts: r.pulses,
+                    at_end: r.pulses_at_end,
+                };
+                (r.report, watch)
+            }
+        };
+        let pulse = |name: &str| watch.counts.iter().find(|p| p.0 == name).map_or(0, |p| p.1);
+        out.done_pulses += pulse("done");
+        out.idle_at_end &= watch.at_end.iter().any(|p| p.0 == "idle" && p.1);
+        out.cycles += report.cycles;
+        out.beats_in += report.sent.iter().map(|s| s.1).sum::<u64>();
+        out.beats_out += report.received.iter().map(|s| s.1).sum::<u64>();
+        out.mismatches += report.mismatches;
+        out.wall += report.wall;
+        out.stats.add(&streams.stats);
+        if out.first_mismatch.is_none() {
+            out.first_mismatch = report.first_mismatch.as_ref().map(|(stream, m)| {
+                let s = streams
+                    .outputs
+                    .iter()
+                    .position(|o| &o.name == stream)
+                    .unwrap_or(headers);
+                let show = |t: &Vec<BitVec>| {
+                    t.iter()
+                        .map(|b| b.to_string())
+                        .collect::<Vec<_>>()
+                        .join(" ")
+                };
+                MergerMismatch {
+                    stream: stream.clone(),
+                    beat: m.output_index,
+                    merge: out.merges + streams.merge_of(s, m.output_index as usize),
+                    cycle: m.cycle,
+                    expected: show(&m.expected),
+                    got: show(&m.got),
+                }
+            });
+        }
+        out.merges += n;
+        out.chunks += 1;
+        progress(out.merges as u64, out.cycles);
+        let chunk_failed = !report.passed() || pulse("done") != n as u64;
+        if chunk_failed {
+            out.missing = report.missing.clone();
+            out.hang = report.hang.clone();
+            out.vcd = report.vcd.clone();
+            break;
+        }
+    }
+    Ok(out)
+}

@@ -1,0 +1,158 @@
+//! `hiermerge cosim --unit merger`: the hierarchy merger (S610-S618 as one
+//! top, SPEC 8.15) through the CLI against golden `merger_transaction`s, on
+//! Verilator (50 merges) and Icarus (the multi-stream batch, 5 merges): 0
+//! mismatches, one `done` pulse per merge, the JSON report's fields, the
+//! same stimulus on both engines; flags that do not apply are refused.
+//! Under CI=true a missing Verilator or Icarus fails.
+
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn hiermerge(args: &[&str], env: &[(&str, &str)]) -> Output {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_hiermerge"));
+    c.args(args).env_remove("HIERMERGE_COSIM_FLIP_EXPECTED");
+    for (k, v) in env {
+        c.env(k, v);
+    }
+    c.output().expect("hiermerge runs")
+}
+
+fn json_of(o: &Output) -> Value {
+    let text = String::from_utf8_lossy(&o.stdout);
+    serde_json::from_str(text.trim()).unwrap_or_else(|e| {
+        panic!(
+            "stdout is not one JSON object ({e}):\n{text}\nstderr:\n{}",
+            String::from_utf8_lossy(&o.stderr)
+        )
+    })
+}
+
+fn tool_present(tool: &str) -> bool {
+    if cosim::tools::tool_available(tool) {
+        return true;
+    }
+    if cosim::tools::ci_mode() {
+        panic!("CI=true and {tool} missing: {}", cosim::tools::INSTALL_HINT);
+    }
+    eprintln!("SKIPPING: {tool} missing; {}", cosim::tools::INSTALL_HINT);
+    false
+}
+
+fn merger_run(engine: &str, seed: &str, count: &str) -> Output {
+    hiermerge(
+        &[
+            "cosim", "--unit", "merger", "--engine", engine, "--seed", seed, "--count", count,
+            "--stall", "0.2", "--json",
+        ],
+        &[],
+    )
+}
+
+/// A passing run: exit 0, every merge, no mismatch, one `done` pulse per
+/// merge, one chunk, and counts that hang together.
+fn assert_passes(o: &Output, engine: &str, merges: u64) -> Value {
+    assert!(
+        o.status.success(),
+        "stderr:\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let r = json_of(o);
+    assert_eq!(r["unit"], "merger", "{r}");
+    assert_eq!(r["stage"], "hierarchy_merger", "{r}");
+    assert_eq!(r["engine"], engine, "{r}");
+    assert_eq!(r["passed"], true, "{r}");
+    assert_eq!(r["mismatches"], 0, "{r}");
+    assert_eq!(r["transactions"], merges, "{r}");
+    assert!(
+        r["first_mismatch"].is_null() && r["reproduce"].is_null(),
+        "{r}"
+    );
+    let m = &r["merger"];
+    assert_eq!(m["chunks"], 1, "{r}");
+    assert_eq!(m["done_pulses"], merges, "{r}");
+    let cycles = r["cycles"].as_u64().unwrap();
+    let (records, nodes) = (r["records"].as_u64().unwrap(), r["nodes"].as_u64().unwrap());
+    // Every merge sends a cfg beat and gets a header and a report beat back;
+    // a merge that is not refused writes at least one node.
+    let (beats_in, beats_out) = (
+        m["beats_in"].as_u64().unwrap(),
+        m["beats_out"].as_u64().unwrap(),
+    );
+    assert!(beats_in > merges && beats_out >= 2 * merges, "{r}");
+    let refused = m["refused"].as_u64().unwrap();
+    assert!(nodes >= merges - refused && records > 0, "{r}");
+    assert!(cycles > merges, "{r}");
+    let per_cycle = r["records_per_cycle"].as_f64().unwrap();
+    assert!(
+        (per_cycle - records as f64 / cycles as f64).abs() < 1e-9,
+        "{r}"
+    );
+    r
+}
+
+#[test]
+fn merger_cli_runs_on_verilator_and_icarus() {
+    if !tool_present("verilator") || !tool_present("iverilog") {
+        return;
+    }
+    let v = assert_passes(&merger_run("verilator", "2", "50"), "verilator", 50);
+    let small = assert_passes(&merger_run("verilator", "3", "5"), "verilator", 5);
+    let i = assert_passes(&merger_run("iverilog", "3", "5"), "iverilog", 5);
+    // The seed fixes the merges: both engines see the same stimulus and
+    // must give the same beats back.
+    for f in ["records", "nodes"] {
+        assert_eq!(small[f], i[f], "{f}: {small} vs {i}");
+    }
+    for f in ["refused", "refs_written", "beats_in", "beats_out"] {
+        assert_eq!(small["merger"][f], i["merger"][f], "{f}: {small} vs {i}");
+    }
+    println!(
+        "cli merger: verilator 50 merges {} cycles {:.2} s; icarus 5 merges {} cycles {:.2} s",
+        v["cycles"], v["wall_seconds"], i["cycles"], i["wall_seconds"]
+    );
+}
+
+#[test]
+fn merger_flags_are_checked() {
+    let o = hiermerge(
+        &["cosim", "--unit", "merge", "--leaf-bits", "5", "--json"],
+        &[],
+    );
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && e.contains("--unit merger only"),
+        "{e}"
+    );
+    let o = hiermerge(
+        &[
+            "cosim", "--unit", "merger", "--engine", "ir", "--count", "1",
+        ],
+        &[("HIERMERGE_COSIM_FLIP_EXPECTED", "0")],
+    );
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && e.contains("HIERMERGE_COSIM_FLIP_EXPECTED"),
+        "{e}"
+    );
+    // A writer of 2^40 entries per buffer does not fit the index width.
+    let o = hiermerge(
+        &[
+            "cosim",
+            "--unit",
+            "merger",
+            "--engine",
+            "ir",
+            "--count",
+            "1",
+            "--capacity-bits",
+            "40",
+        ],
+        &[],
+    );
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && e.contains("hierarchy merger configuration"),
+        "{e}"
+    );
+}

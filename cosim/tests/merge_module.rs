@@ -9,7 +9,7 @@
 //! simulated cycle counts (deterministic); lint and synthesis of each.
 mod merge_common;
 
-use cosim::tb::{run_multi_stream_bench_watching, BenchConfig, MultiReport, StreamBeats};
+use cosim::tb::StreamBeats;
 use golden::merge::top::TopLayout;
 use golden::merge::MergeMode;
 use golden::params::Params;
@@ -113,63 +113,6 @@ fn streams(
     (s.inputs, s.outputs, seen)
 }
 
-fn bench(
-    engine: &mut dyn cosim::Engine,
-    ins: &[StreamBeats],
-    outs: &[StreamBeats],
-    seed: u64,
-    stall: f64,
-    what: &str,
-) -> MultiReport {
-    let config = BenchConfig {
-        seed,
-        in_stall: stall,
-        out_stall: stall,
-        ..BenchConfig::default()
-    };
-    let (r, pulses) = run_multi_stream_bench_watching(engine, ins, outs, &config, &["done"])
-        .expect("the bench runs");
-    eprint!("{what}: stall {stall:.2}: {r}");
-    assert!(r.passed(), "{what} stall {stall}:\n{r}");
-    // `done` pulses once per merge: one cfg beat each.
-    assert_eq!(
-        pulses[0].1,
-        ins[0].beats.len() as u64,
-        "{what}: done pulses"
-    );
-    r
-}
-
-/// The same run inside one Icarus `vvp` (`cosim::icarus::IcarusMultiBatch`):
-/// every stream its own driver and back-pressure in the testbench.
-fn batch_bench(
-    design: &cosim::Design,
-    ins: &[StreamBeats],
-    outs: &[StreamBeats],
-    seed: u64,
-    stall: f64,
-    what: &str,
-) -> MultiReport {
-    let names = |s: &[StreamBeats]| s.iter().map(|b| b.name.clone()).collect::<Vec<_>>();
-    let (i, o) = (names(ins), names(outs));
-    let i: Vec<&str> = i.iter().map(String::as_str).collect();
-    let o: Vec<&str> = o.iter().map(String::as_str).collect();
-    let batch = cosim::icarus::IcarusMultiBatch::new(design, &i, &o).expect("iverilog build");
-    let config = BenchConfig {
-        seed,
-        in_stall: stall,
-        out_stall: stall,
-        ..BenchConfig::default()
-    };
-    let r = batch
-        .run(ins, outs, &config)
-        .expect("the batch runs")
-        .report;
-    eprint!("{what}: stall {stall:.2}: {r}");
-    assert!(r.passed(), "{what} stall {stall}:\n{r}");
-    r
-}
-
 /// Merges per bench run: longer runs go in chunks of fresh stimulus (the
 /// seed plus the chunk's number) on the same simulator, so the stimulus held
 /// in memory stays small (100,000 merges at once take several GB).
@@ -210,12 +153,19 @@ fn check(name: &str, d: &MergeDesign, most_voxels: usize, runs: &[(&str, usize)]
                 Some(e) => {
                     let before = e.cycle();
                     (
-                        bench(e.as_mut(), &ins, &outs, seed + chunk, stall, &what),
+                        multi_bench_done_per_merge(
+                            e.as_mut(),
+                            &ins,
+                            &outs,
+                            seed + chunk,
+                            stall,
+                            &what,
+                        ),
                         before,
                     )
                 }
                 None => (
-                    batch_bench(&design, &ins, &outs, seed + chunk, stall, &what),
+                    multi_batch_bench(&design, &ins, &outs, seed + chunk, stall, &what),
                     0,
                 ),
             };
@@ -238,7 +188,7 @@ fn throughput(name: &str, d: &MergeDesign) -> f64 {
     let design = design_of(&m, dir.path());
     let (ins, outs, _) = streams(d, 0x70, 40, 400);
     let mut e = engine("verilator", &m, &design);
-    let r = bench(
+    let r = multi_bench_done_per_merge(
         e.as_mut(),
         &ins,
         &outs,

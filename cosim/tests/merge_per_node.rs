@@ -11,7 +11,7 @@
 //! lint and synthesis.
 mod merge_common;
 
-use cosim::tb::{run_multi_stream_bench_watching, BenchConfig, MultiReport, StreamBeats};
+use cosim::tb::StreamBeats;
 use golden::build::{build, GridMap};
 use golden::merge::per_node_unit::{
     random_per_node_case, PerNodeCase, PerNodeLayout, PerNodeReport, PerNodeTransaction,
@@ -144,60 +144,6 @@ fn random_streams(
     (i, o, seen)
 }
 
-fn bench(
-    engine: &mut dyn cosim::Engine,
-    ins: &[StreamBeats],
-    outs: &[StreamBeats],
-    seed: u64,
-    stall: f64,
-    what: &str,
-) -> MultiReport {
-    let config = BenchConfig {
-        seed,
-        in_stall: stall,
-        out_stall: stall,
-        ..BenchConfig::default()
-    };
-    let (r, pulses) = run_multi_stream_bench_watching(engine, ins, outs, &config, &["done"])
-        .expect("the bench runs");
-    eprint!("{what}: stall {stall:.2}: {r}");
-    assert!(r.passed(), "{what} stall {stall}:\n{r}");
-    assert_eq!(
-        pulses[0].1,
-        ins[0].beats.len() as u64,
-        "{what}: one done pulse per merge"
-    );
-    r
-}
-
-fn batch_bench(
-    design: &cosim::Design,
-    ins: &[StreamBeats],
-    outs: &[StreamBeats],
-    seed: u64,
-    stall: f64,
-    what: &str,
-) -> MultiReport {
-    let names = |s: &[StreamBeats]| s.iter().map(|b| b.name.clone()).collect::<Vec<_>>();
-    let (i, o) = (names(ins), names(outs));
-    let i: Vec<&str> = i.iter().map(String::as_str).collect();
-    let o: Vec<&str> = o.iter().map(String::as_str).collect();
-    let batch = cosim::icarus::IcarusMultiBatch::new(design, &i, &o).expect("iverilog build");
-    let config = BenchConfig {
-        seed,
-        in_stall: stall,
-        out_stall: stall,
-        ..BenchConfig::default()
-    };
-    let r = batch
-        .run(ins, outs, &config)
-        .expect("the batch runs")
-        .report;
-    eprint!("{what}: stall {stall:.2}: {r}");
-    assert!(r.passed(), "{what} stall {stall}:\n{r}");
-    r
-}
-
 /// Merges per bench run: long runs go in chunks of fresh stimulus.
 const CHUNK: usize = 5_000;
 
@@ -236,12 +182,19 @@ fn check(name: &str, d: &MergeDesign, depth: u8, runs: &[(&str, usize)], seed: u
                 Some(e) => {
                     let before = e.cycle();
                     (
-                        bench(e.as_mut(), &ins, &outs, seed + chunk, stall, &what),
+                        multi_bench_done_per_merge(
+                            e.as_mut(),
+                            &ins,
+                            &outs,
+                            seed + chunk,
+                            stall,
+                            &what,
+                        ),
                         before,
                     )
                 }
                 None => (
-                    batch_bench(&design, &ins, &outs, seed + chunk, stall, &what),
+                    multi_batch_bench(&design, &ins, &outs, seed + chunk, stall, &what),
                     0,
                 ),
             };
@@ -379,7 +332,7 @@ fn per_node_real_merges_match_golden() {
         let design = design_of(&m, dir.path());
         for kind in ["ir", "verilator", "iverilog"] {
             let mut e = engine(kind, &m, &design);
-            bench(
+            multi_bench_done_per_merge(
                 e.as_mut(),
                 &ins,
                 &outs,
@@ -404,7 +357,7 @@ fn per_node_streams_one_beat_per_clock() {
         let design = design_of(&m, dir.path());
         let (ins, outs, seen) = random_streams(&d, 0x71, 60, 6);
         let mut e = engine("verilator", &m, &design);
-        let r = bench(
+        let r = multi_bench_done_per_merge(
             e.as_mut(),
             &ins,
             &outs,

@@ -11,6 +11,10 @@ use cosim::tools::{ci_mode, tool_available, INSTALL_HINT};
 use cosim::{BitVec, Design, Engine, PortDir};
 use rtl_gen::Module;
 
+mod multi;
+#[allow(unused_imports)] // not every test uses the multi-stream runs
+pub use multi::*;
+
 /// True when Verilator, Icarus and Yosys can run. Under CI=true a missing
 /// tool panics (a failure, never a skip); locally it prints how to install.
 pub fn tools_present(tools: &[&str]) -> bool {
@@ -89,14 +93,9 @@ pub fn run(
     report
 }
 
-/// `verilator --lint-only -Wall` with zero warnings and Yosys `synth` with
-/// `check -assert` and no latch, on the Verilog files of `design`.
-pub fn lint_and_synth(design: &Design) {
-    let files: Vec<String> = design
-        .verilog_files
-        .iter()
-        .map(|f| f.display().to_string())
-        .collect();
+/// `verilator --lint-only -Wall` with zero warnings on the Verilog of `design`.
+pub fn lint_only(design: &Design) {
+    let files = verilog_files(design);
     let out = std::process::Command::new("verilator")
         .args(["--lint-only", "-Wall", "--top-module", &design.top])
         .args(&files)
@@ -109,6 +108,21 @@ pub fn lint_and_synth(design: &Design) {
         "verilator lint of {}:\n{text}",
         design.top
     );
+}
+
+fn verilog_files(design: &Design) -> Vec<String> {
+    design
+        .verilog_files
+        .iter()
+        .map(|f| f.display().to_string())
+        .collect()
+}
+
+/// [`lint_only`], then Yosys `synth` with `check -assert` and no latch, on
+/// the Verilog files of `design`.
+pub fn lint_and_synth(design: &Design) {
+    lint_only(design);
+    let files = verilog_files(design);
     let script = format!(
         "read_verilog {}; synth -top {}; check -assert; select -assert-none t:$dlatch t:$_DLATCH_* t:$sr t:$_SR_*",
         files.join(" "),

@@ -51,46 +51,35 @@ fn coords<'m>(rec: Signal<'m>, nl: &NodeLayout) -> [Signal<'m>; 3] {
     [0, 1, 2].map(|a| field(rec, nl.coord(a)).expect("coordinate bits"))
 }
 
-/// The merge network for `p` and `k >= 2` inputs: streams `in0`..`in{k-1}`
-/// of [`BeatLayout::input`] beats; stream `out` of `{rank, beat}` with
-/// `tag_rank` (the overlap counter needs the rank), else of `beat`.
-pub fn morton_merge_unit(p: &Params, k: usize, tag_rank: bool) -> Module {
-    let m = Module::new(&morton_merge_name(p, k, tag_rank));
-    let l = BeatLayout::input(p);
-    let nl = &l.node;
+/// One input of a merge network as the shared choice sees it: its head
+/// (skid-buffered) stream, the registers holding the voxel of the last node
+/// taken from it, that head's voxel, and whether taking it is a node (which
+/// moves the parent voxel a later child reference keys on).
+pub(super) struct MergeHead<'m> {
+    /// The skid-buffered head; its `ready` is driven by [`take_minimum_head`].
+    pub stream: Stream<'m>,
+    /// The voxel of the last node taken from this input.
+    pub parent: [Signal<'m>; 3],
+    /// The head record's voxel.
+    pub xyz: [Signal<'m>; 3],
+    /// High when the head is a node (not `End`, not a child reference).
+    pub takes_node: Signal<'m>,
+}
+
+/// The choice shared by both merge networks: with every head present, the
+/// head of least `key` (the lower rank on a tie) leaves when `out_ready`;
+/// when all are `End` all leave together. Returns the winner's rank and its
+/// head's data; drives every head's `ready` and updates the parent voxels.
+pub(super) fn take_minimum_head<'m>(
+    m: &'m Module,
+    heads: &[MergeHead<'m>],
+    keys: &[Signal<'m>],
+    all_valid: Signal<'m>,
+    all_end: Signal<'m>,
+    out_ready: Signal<'m>,
+) -> (Signal<'m>, Signal<'m>) {
+    let k = heads.len();
     let rb = rank_bits(k);
-
-    let out_ready = m.wire("net_out_ready", 1);
-    let mut heads = Vec::with_capacity(k);
-    let mut keys = Vec::with_capacity(k);
-    let mut all_valid = m.lit(1, 1);
-    let mut all_end = m.lit(1, 1);
-    for i in 0..k {
-        let head =
-            Stream::input(&m, &format!("in{i}"), l.width).skid_buffer(&format!("in{i}_head"));
-        let kind = field(head.data, &l.kind)
-            .expect("kind bits")
-            .name(&format!("in{i}_kind"));
-        let is_end = kind.eq(level_kind::END).name(&format!("in{i}_is_end"));
-        let is_ref = kind.eq(level_kind::CHILD_REF);
-        let xyz = coords(field(head.data, &l.rec).expect("record bits"), nl);
-        let last: [Signal; 3] = [0, 1, 2].map(|a| {
-            m.reg(
-                &format!("in{i}_parent_{}", ["x", "y", "z"][a]),
-                xyz[a].width(),
-            )
-        });
-        let key_xyz = [0, 1, 2].map(|a| is_ref.mux(last[a], xyz[a]));
-        let key = m
-            .concat(&[is_end, morton_code(&m, key_xyz), kind])
-            .name(&format!("in{i}_key"));
-        all_valid = all_valid & head.valid;
-        all_end = all_end & is_end;
-        heads.push((head, last, xyz));
-        keys.push(key);
-    }
-    let all_valid = all_valid.name("all_heads");
-
     // A tournament of pairwise minima over (key, rank); on equal keys the
     // lower rank (the left one) wins. The final round needs only the rank.
     let mut round: Vec<(Signal, Signal)> = keys
@@ -123,22 +112,69 @@ pub fn morton_merge_unit(p: &Params, k: usize, tag_rank: bool) -> Module {
     let winner = round[0].1.name("winner_rank");
     let winner_end = all_end.name("winner_is_end");
 
-    let mut options: Vec<Signal> = heads.iter().map(|h| h.0.data).collect();
+    let mut options: Vec<Signal> = heads.iter().map(|h| h.stream.data).collect();
     while options.len() < 1usize << rb {
-        options.push(heads[k - 1].0.data);
+        options.push(heads[k - 1].stream.data);
     }
     let beat = winner.select(&options).name("winner_beat");
     let fire = (all_valid & out_ready).name("net_fire");
-    for (i, (head, last, xyz)) in heads.iter().enumerate() {
+    for (i, head) in heads.iter().enumerate() {
         let chosen = winner.eq(m.lit(i as u128, rb));
         // Every head is End when the winner is: all leave together.
-        head.ready.drive(fire & (winner_end | chosen));
-        let took_node =
-            fire & chosen & !winner_end & !field(head.data, &l.kind).expect("kind").bit(1);
+        head.stream.ready.drive(fire & (winner_end | chosen));
+        let took_node = fire & chosen & !winner_end & head.takes_node;
         for a in 0..3 {
-            last[a].next_when(took_node, xyz[a]);
+            head.parent[a].next_when(took_node, head.xyz[a]);
         }
     }
+    (winner, beat)
+}
+
+/// The merge network for `p` and `k >= 2` inputs: streams `in0`..`in{k-1}`
+/// of [`BeatLayout::input`] beats; stream `out` of `{rank, beat}` with
+/// `tag_rank` (the overlap counter needs the rank), else of `beat`.
+pub fn morton_merge_unit(p: &Params, k: usize, tag_rank: bool) -> Module {
+    let m = Module::new(&morton_merge_name(p, k, tag_rank));
+    let l = BeatLayout::input(p);
+    let nl = &l.node;
+
+    let out_ready = m.wire("net_out_ready", 1);
+    let mut heads = Vec::with_capacity(k);
+    let mut keys = Vec::with_capacity(k);
+    let mut all_valid = m.lit(1, 1);
+    let mut all_end = m.lit(1, 1);
+    for i in 0..k {
+        let head =
+            Stream::input(&m, &format!("in{i}"), l.width).skid_buffer(&format!("in{i}_head"));
+        let kind = field(head.data, &l.kind)
+            .expect("kind bits")
+            .name(&format!("in{i}_kind"));
+        let is_end = kind.eq(level_kind::END).name(&format!("in{i}_is_end"));
+        let is_ref = kind.eq(level_kind::CHILD_REF);
+        let xyz = coords(field(head.data, &l.rec).expect("record bits"), nl);
+        let last: [Signal; 3] = [0, 1, 2].map(|a| {
+            m.reg(
+                &format!("in{i}_parent_{}", ["x", "y", "z"][a]),
+                xyz[a].width(),
+            )
+        });
+        let key_xyz = [0, 1, 2].map(|a| is_ref.mux(last[a], xyz[a]));
+        let key = m
+            .concat(&[is_end, morton_code(&m, key_xyz), kind])
+            .name(&format!("in{i}_key"));
+        all_valid = all_valid & head.valid;
+        all_end = all_end & is_end;
+        let takes_node = !kind.bit(1);
+        heads.push(MergeHead {
+            stream: head,
+            parent: last,
+            xyz,
+            takes_node,
+        });
+        keys.push(key);
+    }
+    let all_valid = all_valid.name("all_heads");
+    let (winner, beat) = take_minimum_head(&m, &heads, &keys, all_valid, all_end, out_ready);
     Stream {
         valid: all_valid,
         ready: out_ready,

@@ -22,7 +22,7 @@ use golden::merge::unit::{base_kind, level_kind, rank_bits, BeatLayout};
 use golden::params::Params;
 
 use super::fields::{field, with_fields};
-use super::network::morton_code;
+use super::network::{morton_code, take_minimum_head, MergeHead};
 use super::overlap::times_constant;
 use super::top::merge_module_name;
 use super::{merge_level_unit, MergeConfig};
@@ -64,7 +64,6 @@ pub fn per_node_network_unit(p: &Params, k: usize) -> Module {
     let m = Module::new(&per_node_network_name(p, k));
     let pl = PerNodeLayout::new(p);
     let bl = &pl.beat;
-    let rb = rank_bits(k);
 
     let out_ready = m.wire("net_out_ready", 1);
     let mut heads = Vec::with_capacity(k);
@@ -98,58 +97,16 @@ pub fn per_node_network_unit(p: &Params, k: usize) -> Module {
         all_valid = all_valid & head.valid;
         all_end = all_end & is_end;
         let takes_node = !probe & !kind.bit(1);
-        heads.push((head, last, xyz, takes_node));
+        heads.push(MergeHead {
+            stream: head,
+            parent: last,
+            xyz,
+            takes_node,
+        });
         keys.push(key);
     }
     let all_valid = all_valid.name("all_heads");
-
-    // A tournament of pairwise minima over (key, rank); on equal keys the
-    // lower rank (the left one) wins.
-    let mut round: Vec<(Signal, Signal)> = keys
-        .iter()
-        .enumerate()
-        .map(|(i, key)| (*key, m.lit(i as u128, rb)))
-        .collect();
-    let mut depth = 0;
-    while round.len() > 1 {
-        let last_round = round.len() == 2;
-        round = round
-            .chunks(2)
-            .enumerate()
-            .map(|(j, pair)| match pair {
-                [(ka, ra), (kb, rb_)] => {
-                    let take_b = kb.lt(*ka).name(&format!("take_r{depth}_{j}"));
-                    let key = if last_round {
-                        *ka
-                    } else {
-                        take_b.mux(*kb, *ka).name(&format!("min_r{depth}_{j}"))
-                    };
-                    (key, take_b.mux(*rb_, *ra))
-                }
-                [one] => *one,
-                _ => unreachable!("chunks of two"),
-            })
-            .collect();
-        depth += 1;
-    }
-    let winner = round[0].1.name("winner_rank");
-    let winner_end = all_end.name("winner_is_end");
-
-    let mut options: Vec<Signal> = heads.iter().map(|h| h.0.data).collect();
-    while options.len() < 1usize << rb {
-        options.push(heads[k - 1].0.data);
-    }
-    let beat = winner.select(&options).name("winner_beat");
-    let fire = (all_valid & out_ready).name("net_fire");
-    for (i, (head, last, xyz, takes_node)) in heads.iter().enumerate() {
-        let chosen = winner.eq(m.lit(i as u128, rb));
-        // Every head is End when the winner is: all leave together.
-        head.ready.drive(fire & (winner_end | chosen));
-        let took_node = fire & chosen & !winner_end & *takes_node;
-        for a in 0..3 {
-            last[a].next_when(took_node, xyz[a]);
-        }
-    }
+    let (winner, beat) = take_minimum_head(&m, &heads, &keys, all_valid, all_end, out_ready);
     Stream {
         valid: all_valid,
         ready: out_ready,

@@ -1,0 +1,90 @@
+//! The multi-stream bench runs shared by the merging-module tests whose
+//! units have several input and output streams (fetcher, record writer,
+//! builder, per-node and merging module): one stall setting for every
+//! stream, the report printed, a failed run a panic naming the run.
+
+use cosim::tb::{run_multi_stream_bench_watching, BenchConfig, MultiReport, StreamBeats};
+
+/// Every stream stalls with probability `stall`, drawn from `seed`.
+pub fn stalled(seed: u64, stall: f64) -> BenchConfig {
+    BenchConfig {
+        seed,
+        in_stall: stall,
+        out_stall: stall,
+        ..BenchConfig::default()
+    }
+}
+
+/// One run of `ins` -> `outs` on `engine`, counting the cycles each of
+/// `pulses` (1-bit outputs) is high; printed, and a panic when it fails.
+pub fn multi_bench_watching(
+    engine: &mut dyn cosim::Engine,
+    ins: &[StreamBeats],
+    outs: &[StreamBeats],
+    seed: u64,
+    stall: f64,
+    what: &str,
+    pulses: &[&str],
+) -> (MultiReport, Vec<(String, u64)>) {
+    let (r, counts) =
+        run_multi_stream_bench_watching(engine, ins, outs, &stalled(seed, stall), pulses)
+            .expect("the bench runs");
+    eprint!("{what}: stall {stall:.2}: {r}");
+    assert!(r.passed(), "{what} stall {stall}:\n{r}");
+    (r, counts)
+}
+
+/// One run of `ins` -> `outs` on `engine`; printed, a panic when it fails.
+pub fn multi_bench(
+    engine: &mut dyn cosim::Engine,
+    ins: &[StreamBeats],
+    outs: &[StreamBeats],
+    seed: u64,
+    stall: f64,
+    what: &str,
+) -> MultiReport {
+    multi_bench_watching(engine, ins, outs, seed, stall, what, &[]).0
+}
+
+/// One run of a merging module: as [`multi_bench`], and its `done` output
+/// pulses once per merge, i.e. once per beat of the first input (`cfg`).
+pub fn multi_bench_done_per_merge(
+    engine: &mut dyn cosim::Engine,
+    ins: &[StreamBeats],
+    outs: &[StreamBeats],
+    seed: u64,
+    stall: f64,
+    what: &str,
+) -> MultiReport {
+    let (r, pulses) = multi_bench_watching(engine, ins, outs, seed, stall, what, &["done"]);
+    assert_eq!(
+        pulses[0].1,
+        ins[0].beats.len() as u64,
+        "{what}: one done pulse per merge"
+    );
+    r
+}
+
+/// The same run inside one Icarus `vvp` (`cosim::icarus::IcarusMultiBatch`):
+/// every stream its own driver and back-pressure in the testbench.
+pub fn multi_batch_bench(
+    design: &cosim::Design,
+    ins: &[StreamBeats],
+    outs: &[StreamBeats],
+    seed: u64,
+    stall: f64,
+    what: &str,
+) -> MultiReport {
+    let names = |s: &[StreamBeats]| s.iter().map(|b| b.name.clone()).collect::<Vec<_>>();
+    let (i, o) = (names(ins), names(outs));
+    let i: Vec<&str> = i.iter().map(String::as_str).collect();
+    let o: Vec<&str> = o.iter().map(String::as_str).collect();
+    let batch = cosim::icarus::IcarusMultiBatch::new(design, &i, &o).expect("iverilog build");
+    let r = batch
+        .run(ins, outs, &stalled(seed, stall))
+        .expect("the batch runs")
+        .report;
+    eprint!("{what}: stall {stall:.2}: {r}");
+    assert!(r.passed(), "{what} stall {stall}:\n{r}");
+    r
+}

@@ -12,9 +12,10 @@
 mod merge_common;
 
 use cosim::tb::{run_multi_stream_bench_watching, BenchConfig, MultiReport, StreamBeats};
+use cosim::units::merger::{merger_streams, random_merge, MergeStats};
 use golden::merge::fetch_unit::{fetch_err, fetch_transaction, FetchCfg, FetchOut};
 use golden::merge::merger_unit::{
-    merger_transaction, merger_transaction_in_range, MergerLayout, MergerSizes, MergerTransaction,
+    merger_transaction, merger_transaction_in_range, MergerSizes, MergerTransaction,
 };
 use golden::merge::writer_unit::{place, real_cases, soup};
 use golden::merge::MergeMode;
@@ -85,124 +86,14 @@ fn configs() -> Vec<(&'static str, MergerConfig)> {
     ]
 }
 
-/// One stream's beats from packed golden values.
-fn beats(name: &str, v: Vec<golden::layout::Bits>) -> StreamBeats {
-    StreamBeats {
-        name: name.into(),
-        beats: v.iter().map(|b| vec![bitvec(b)]).collect(),
-    }
-}
-
-/// What a list of merges exercised.
-#[derive(Default, Debug)]
-struct Seen {
-    merges: usize,
-    refused: usize,
-    records: u64,
-    refs: u64,
-    leaves_above: usize,
-    materialized: usize,
-    several_roots: usize,
-    /// Merges with a fetcher error in the header.
-    fetch_errors: usize,
-    /// Beats into the merging module's `in*` (fetcher out, over all inputs).
-    module_in: u64,
-}
-
-/// The streams of `txs` for configuration `c`: (inputs, outputs).
+/// The merger's streams of `txs` (the CLI's stimulus packing), unwrapped:
+/// (inputs, outputs, what they exercise).
 fn streams(
     c: &MergerConfig,
     txs: &[MergerTransaction],
-) -> (Vec<StreamBeats>, Vec<StreamBeats>, Seen) {
-    let p = &c.design.params;
-    let k = c.design.inputs;
-    let ml = MergerLayout::new(p, k, c.sizes.capacity_bits).unwrap();
-    let fl = &ml.fetch;
-    let idx = |i: &u32| {
-        let mut b = golden::layout::Bits::zero(fl.index_width);
-        let f = golden::layout::Field {
-            name: "index",
-            offset: 0,
-            width: fl.index_width,
-        };
-        b.set(&f, *i as u64).unwrap();
-        b
-    };
-    let node = |n: &golden::store::NodeRecord| n.pack(&fl.node).unwrap();
-    let rf = |r: &golden::store::Reference| r.pack(&fl.reference).unwrap();
-    let mut seen = Seen::default();
-    let (mut cfg, mut report, mut nodes, mut refs, mut header) =
-        (vec![], vec![], vec![], vec![], vec![]);
-    let (mut w_req, mut w_resp) = (vec![], vec![]);
-    let mut f_node_req = vec![vec![]; k];
-    let mut f_node_resp = vec![vec![]; k];
-    let mut f_ref_req = vec![vec![]; k];
-    let mut f_ref_resp = vec![vec![]; k];
-    let mut f_cref_req = vec![vec![]; k];
-    let mut f_cref_resp = vec![vec![]; k];
-    for tx in txs {
-        seen.merges += 1;
-        seen.refused += tx.chosen.is_none() as usize;
-        seen.fetch_errors += (tx.header.fetch_err != 0) as usize;
-        cfg.push(tx.cfg.pack(&ml).unwrap());
-        report.extend(tx.reports().iter().map(|r| r.pack(&ml.top).unwrap()));
-        let w = &tx.writer;
-        nodes.extend(w.nodes.iter().map(node));
-        refs.extend(w.refs.iter().map(rf));
-        w_req.extend(w.ref_reqs.iter().map(rf));
-        w_resp.extend(w.ref_resps.iter().map(rf));
-        header.push(tx.header.pack(&ml).unwrap());
-        for (i, f) in tx.fetch.iter().enumerate() {
-            f_node_req[i].extend(f.node_reqs.iter().map(idx));
-            f_node_resp[i].extend(f.node_resps.iter().map(node));
-            f_ref_req[i].extend(f.ref_reqs.iter().map(idx));
-            f_ref_resp[i].extend(f.ref_resps.iter().map(rf));
-            f_cref_req[i].extend(f.cref_reqs.iter().map(idx));
-            f_cref_resp[i].extend(f.cref_resps.iter().map(rf));
-            seen.module_in += f.out.len() as u64;
-        }
-        seen.records += w.nodes.len() as u64;
-        seen.refs += w.refs.len() as u64;
-        seen.leaves_above += !tx.leaves.is_empty() as usize;
-        seen.materialized += !w.ref_reqs.is_empty() as usize;
-        seen.several_roots += (w.header.roots > 1) as usize;
-    }
-    let mut ins = vec![beats("cfg", cfg)];
-    let mut outs = vec![beats("report", report)];
-    for i in 0..k {
-        ins.push(beats(
-            &format!("f{i}_node_resp"),
-            std::mem::take(&mut f_node_resp[i]),
-        ));
-        ins.push(beats(
-            &format!("f{i}_ref_resp"),
-            std::mem::take(&mut f_ref_resp[i]),
-        ));
-        outs.push(beats(
-            &format!("f{i}_node_req"),
-            std::mem::take(&mut f_node_req[i]),
-        ));
-        outs.push(beats(
-            &format!("f{i}_ref_req"),
-            std::mem::take(&mut f_ref_req[i]),
-        ));
-        ins.push(beats(
-            &format!("f{i}_cref_resp"),
-            std::mem::take(&mut f_cref_resp[i]),
-        ));
-        outs.push(beats(
-            &format!("f{i}_cref_req"),
-            std::mem::take(&mut f_cref_req[i]),
-        ));
-    }
-    ins.push(beats("w_ref_resp", w_resp));
-    outs.extend([
-        beats("w_ref_req", w_req),
-        beats("nodes", nodes),
-        beats("refs", refs),
-        beats("header", header),
-    ]);
-    (ins, outs, seen)
+) -> (Vec<StreamBeats>, Vec<StreamBeats>, MergeStats) {
+    let s = merger_streams(c, txs).expect("the golden merges pack");
+    (s.inputs, s.outputs, s.stats)
 }
 
 fn modes(c: &MergerConfig) -> Vec<MergeMode> {
@@ -336,36 +227,6 @@ fn broken_entry_merge(
     Some(tx)
 }
 
-/// A random merge: 1..=k soups of random sizes, each translated at its top
-/// LOD by a random fraction of the room left.
-fn random_merge(rng: &mut SplitMix64, c: &MergerConfig) -> MergerTransaction {
-    let p = &c.design.params;
-    let k = c.design.inputs;
-    loop {
-        let n = 1 + rng.below(k as u64) as usize;
-        let mut store = HierarchyStore::new();
-        let mut table = TranslationTable::new(p.hier_capacity() as usize, p).unwrap();
-        let mut ids = Vec::new();
-        for r in 0..n {
-            let id = 1 + r as u8;
-            let tris = 1 + rng.below(40) as usize;
-            let size = 0.02 + rng.below(30) as f32 / 100.0;
-            let h = soup(p, id, tris, size, rng.next_u64());
-            let frac = [0, 1, 2].map(|_| rng.below(101) as f64 / 100.0);
-            table.write(id as u32, place(&h, frac)).unwrap();
-            store.insert(h).unwrap();
-            ids.push(id);
-        }
-        let out_id = (p.hier_capacity() - 1) as u8;
-        if let Ok(tx) = merger_transaction(&store, &table, &ids, c.design.mode, out_id, k, c.sizes)
-        {
-            if !tx.header.leaf_overflow {
-                return tx;
-            }
-        }
-    }
-}
-
 fn bench(
     engine: &mut dyn cosim::Engine,
     ins: &[StreamBeats],
@@ -442,7 +303,7 @@ fn check(name: &str, runs: &[(&str, usize)], leaves: bool) {
         let stall = stall_of(seed ^ kind.len() as u64).max(0.05);
         let mut rng = SplitMix64(seed);
         let mut txs = real.clone();
-        txs.extend((0..random).map(|_| random_merge(&mut rng, c)));
+        txs.extend((0..random).map(|_| random_merge(&mut rng, c).expect("a random merge")));
         let (ins, outs, seen) = streams(c, &txs);
         let what = format!("merge_merger {name} {kind}");
         let r = match kind {
@@ -535,7 +396,7 @@ fn hierarchy_merger_throughput() {
         let design = design_of(&m, dir.path());
         let mut rng = SplitMix64(77);
         let mut txs: Vec<MergerTransaction> = real_merges(&c).into_iter().map(|r| r.0).collect();
-        txs.extend((0..20).map(|_| random_merge(&mut rng, &c)));
+        txs.extend((0..20).map(|_| random_merge(&mut rng, &c).expect("a random merge")));
         let (ins, outs, seen) = streams(&c, &txs);
         let mut e = engine("verilator", &m, &design);
         let r = bench(e.as_mut(), &ins, &outs, 5, 0.0, "merge_merger throughput");

@@ -15,7 +15,7 @@
 use cosim::from_rtl::design_from_module;
 use cosim::tb::{run_multi_stream_bench, run_stream_bench, BenchConfig, StreamBeats, Vector};
 use cosim::{open_engine, BitVec, Engine, EngineKind};
-use golden::layout::Bits;
+use golden::layout::{Bits, LayoutError};
 use golden::merge::level::candidate_range;
 use golden::merge::per_node_unit::{base_by_lod, PerNodeCase, PerNodeLayout};
 use golden::merge::top::{top_transaction, Report, TopLayout};
@@ -54,6 +54,46 @@ pub struct MergeRtl {
 
 fn bitvec(b: &Bits) -> Result<BitVec, String> {
     BitVec::from_words(b.width() as usize, b.words()).map_err(|e| e.to_string())
+}
+
+/// One stream's beats, each packed by `pack` into a one-word beat; a
+/// packing error (a field too wide for its layout) is returned.
+fn packed_stream<T>(
+    name: String,
+    items: &[T],
+    pack: impl Fn(&T) -> Result<Bits, LayoutError>,
+) -> Result<StreamBeats, String> {
+    let beats = items
+        .iter()
+        .map(|item| Ok(vec![bitvec(&pack(item).map_err(|e| e.to_string())?)?]))
+        .collect::<Result<_, String>>()?;
+    Ok(StreamBeats { name, beats })
+}
+
+/// A merging module's streams in its port order, the same for every mode:
+/// inputs `cfg` (the candidate range `lo..=hi`, one beat) and `in0`..,
+/// outputs `report` and `out` (base beats); each beat packed by its layout.
+fn module_streams<I, R>(
+    p: &Params,
+    (lo, hi): (u8, u8),
+    inputs: &[Vec<I>],
+    pack_in: impl Fn(&I) -> Result<Bits, LayoutError>,
+    reports: &[R],
+    pack_report: impl Fn(&R) -> Result<Bits, LayoutError>,
+    out: &[BaseBeat],
+) -> Result<(Vec<StreamBeats>, [StreamBeats; 2]), String> {
+    let (tl, ol) = (TopLayout::new(p), BeatLayout::output(p));
+    let mut ins = vec![packed_stream("cfg".into(), &[(lo, hi)], |&(lo, hi)| {
+        tl.pack_cfg(lo, hi)
+    })?];
+    for (i, s) in inputs.iter().enumerate() {
+        ins.push(packed_stream(format!("in{i}"), s, &pack_in)?);
+    }
+    let outs = [
+        packed_stream("report".into(), reports, pack_report)?,
+        packed_stream("out".into(), out, |b| b.pack(&ol))?,
+    ];
+    Ok((ins, outs))
 }
 
 fn build(m: &rtl_gen::Module) -> Result<Box<dyn Engine>, String> {
@@ -138,45 +178,16 @@ impl MergeRtl {
                 ))
             }
         }
-        let (tl, li, lo_) = (
-            TopLayout::new(&p),
-            BeatLayout::input(&p),
-            BeatLayout::output(&p),
-        );
-        let pack = |b: Result<Bits, golden::layout::LayoutError>| -> Result<Vec<BitVec>, String> {
-            Ok(vec![bitvec(&b.map_err(|e| e.to_string())?)?])
-        };
-        let mut ins = vec![StreamBeats {
-            name: "cfg".into(),
-            beats: vec![pack(tl.pack_cfg(lo, hi))?],
-        }];
-        for (i, s) in tx.inputs.iter().enumerate() {
-            ins.push(StreamBeats {
-                name: format!("in{i}"),
-                beats: s
-                    .iter()
-                    .map(|b| pack(b.pack(&li)))
-                    .collect::<Result<_, _>>()?,
-            });
-        }
-        let outs = [
-            StreamBeats {
-                name: "report".into(),
-                beats: tx
-                    .reports
-                    .iter()
-                    .map(|r| pack(r.pack(&tl)))
-                    .collect::<Result<_, _>>()?,
-            },
-            StreamBeats {
-                name: "out".into(),
-                beats: tx
-                    .out
-                    .iter()
-                    .map(|b| pack(b.pack(&lo_)))
-                    .collect::<Result<_, _>>()?,
-            },
-        ];
+        let (tl, li) = (TopLayout::new(&p), BeatLayout::input(&p));
+        let (ins, outs) = module_streams(
+            &p,
+            (lo, hi),
+            &tx.inputs,
+            |b| b.pack(&li),
+            &tx.reports,
+            |r| r.pack(&tl),
+            &tx.out,
+        )?;
         let stage = if counts {
             "merging module (S608 count pass, choice, S614)"
         } else {
@@ -316,45 +327,16 @@ impl MergeRtl {
         let golden_err = |e: &dyn std::fmt::Display| format!("merge RTL per-node module: {e}");
         let tx = case.transaction(&p, num, den).map_err(|e| golden_err(&e))?;
         check_against_frame(&case, &tx.out, tx.descents, &p, (num, den), stats)?;
-        let (tl, pl, ol) = (
-            TopLayout::new(&p),
-            PerNodeLayout::new(&p),
-            BeatLayout::output(&p),
-        );
-        let pack = |b: Result<Bits, golden::layout::LayoutError>| -> Result<Vec<BitVec>, String> {
-            Ok(vec![bitvec(&b.map_err(|e| e.to_string())?)?])
-        };
-        let mut ins = vec![StreamBeats {
-            name: "cfg".into(),
-            beats: vec![pack(tl.pack_cfg(lo, hi))?],
-        }];
-        for (i, s) in tx.inputs.iter().enumerate() {
-            ins.push(StreamBeats {
-                name: format!("in{i}"),
-                beats: s
-                    .iter()
-                    .map(|b| pack(b.pack(&pl)))
-                    .collect::<Result<_, _>>()?,
-            });
-        }
-        let outs = [
-            StreamBeats {
-                name: "report".into(),
-                beats: tx
-                    .reports
-                    .iter()
-                    .map(|r| pack(r.pack(&pl)))
-                    .collect::<Result<_, _>>()?,
-            },
-            StreamBeats {
-                name: "out".into(),
-                beats: tx
-                    .out
-                    .iter()
-                    .map(|b| pack(b.pack(&ol)))
-                    .collect::<Result<_, _>>()?,
-            },
-        ];
+        let pl = PerNodeLayout::new(&p);
+        let (ins, outs) = module_streams(
+            &p,
+            (lo, hi),
+            &tx.inputs,
+            |b| b.pack(&pl),
+            &tx.reports,
+            |r| r.pack(&pl),
+            &tx.out,
+        )?;
         let mut out = MergeRtlFrame {
             passes: tx.passes,
             descents: tx.descents,

@@ -11,7 +11,7 @@
 //! back-pressure printed; lint and synthesis.
 mod merge_common;
 
-use cosim::tb::{run_multi_stream_bench, BenchConfig, MultiReport, StreamBeats};
+use cosim::tb::StreamBeats;
 use golden::build::{build, GridMap};
 use golden::merge::builder_unit::{
     builder_transaction, fixed_level_base, random_base, BuilderLayout, BuilderTransaction, LevelOut,
@@ -194,26 +194,6 @@ fn real_merges(p: &Params) -> Vec<BuilderTransaction> {
     out
 }
 
-fn bench(
-    engine: &mut dyn cosim::Engine,
-    ins: &[StreamBeats],
-    outs: &[StreamBeats],
-    seed: u64,
-    stall: f64,
-    what: &str,
-) -> MultiReport {
-    let config = BenchConfig {
-        seed,
-        in_stall: stall,
-        out_stall: stall,
-        ..BenchConfig::default()
-    };
-    let r = run_multi_stream_bench(engine, ins, outs, &config).expect("the bench runs");
-    eprint!("{what}: stall {stall:.2}: {r}");
-    assert!(r.passed(), "{what} stall {stall}:\n{r}");
-    r
-}
-
 /// Random merges on every engine (`runs`: engine, merges), then the real
 /// merges on the IR simulator and Verilator (Icarus on the first few).
 fn check(name: &str, runs: &[(&str, usize)], most: u64) {
@@ -247,7 +227,7 @@ fn check(name: &str, runs: &[(&str, usize)], most: u64) {
             assert!(seen.overflow > 0, "{seen:?}");
         }
         let what = format!("merge_builder {name} {kind} random");
-        let r = bench(e.as_mut(), &ins, &outs, seed, stall, &what);
+        let r = multi_bench(e.as_mut(), &ins, &outs, seed, stall, &what);
         println!(
             "upper_builder {name} {kind}: {merges} random merges, {} base beats, {} level beats, {} cycles, stall {stall:.2}, {:.1?}",
             seen.base_beats, seen.level_beats, r.cycles, r.wall
@@ -259,7 +239,7 @@ fn check(name: &str, runs: &[(&str, usize)], most: u64) {
         let (ins, outs, seen) = streams(&p, &real[..count.min(real.len())]);
         let mut e = engine(kind, &m, &design);
         let what = format!("merge_builder {name} {kind} real");
-        let r = bench(e.as_mut(), &ins, &outs, seed + 1, stall, &what);
+        let r = multi_bench(e.as_mut(), &ins, &outs, seed + 1, stall, &what);
         println!(
             "upper_builder {name} {kind}: {} real merges, {} base beats, {} level beats, {} cycles",
             seen.merges, seen.base_beats, seen.level_beats, r.cycles
@@ -288,7 +268,7 @@ fn throughput(name: &str) -> (f64, f64) {
     }
     let (ins, outs, seen) = streams(&p, &txs);
     let mut e = engine("verilator", &m, &design);
-    let r = bench(
+    let r = multi_bench(
         e.as_mut(),
         &ins,
         &outs,
@@ -376,27 +356,6 @@ fn upper_builder_streams_one_beat_per_clock() {
         let (deepest, _) = throughput(name);
         assert!(deepest >= 0.95, "{name}: {deepest:.4} beats per cycle");
     }
-}
-
-/// `verilator --lint-only -Wall` with zero warnings on the Verilog of `design`.
-fn lint_only(design: &cosim::Design) {
-    let files: Vec<String> = design
-        .verilog_files
-        .iter()
-        .map(|f| f.display().to_string())
-        .collect();
-    let out = std::process::Command::new("verilator")
-        .args(["--lint-only", "-Wall", "--top-module", &design.top])
-        .args(&files)
-        .output()
-        .expect("verilator runs");
-    let text =
-        String::from_utf8_lossy(&out.stderr).to_string() + &String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success() && text.trim().is_empty(),
-        "verilator lint of {}:\n{text}",
-        design.top
-    );
 }
 
 /// Every configuration lints clean; the small ones (D = 8, D = 5) also go

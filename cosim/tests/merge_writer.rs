@@ -13,7 +13,7 @@
 //! lint and synthesis.
 mod merge_common;
 
-use cosim::tb::{run_multi_stream_bench_watching, BenchConfig, MultiReport, StreamBeats};
+use cosim::tb::{MultiReport, StreamBeats};
 use golden::merge::builder_unit::fixed_level_base;
 use golden::merge::level::candidate_range;
 use golden::merge::level_merge::BaseNode;
@@ -169,7 +169,8 @@ fn real_merges(p: &Params, cap: u32) -> Vec<WriterTransaction> {
     out
 }
 
-fn bench(
+/// A writer run counting the cycles each phase output is high.
+fn writer_bench(
     engine: &mut dyn cosim::Engine,
     ins: &[StreamBeats],
     outs: &[StreamBeats],
@@ -177,47 +178,8 @@ fn bench(
     stall: f64,
     what: &str,
 ) -> (MultiReport, Vec<(String, u64)>) {
-    let config = BenchConfig {
-        seed,
-        in_stall: stall,
-        out_stall: stall,
-        ..BenchConfig::default()
-    };
     let pulses = ["filling", "drain_records", "drain_refs"];
-    let (r, counts) = run_multi_stream_bench_watching(engine, ins, outs, &config, &pulses)
-        .expect("the bench runs");
-    eprint!("{what}: stall {stall:.2}: {r}");
-    assert!(r.passed(), "{what} stall {stall}:\n{r}");
-    (r, counts)
-}
-
-/// The same run inside one Icarus `vvp` (`cosim::icarus::IcarusMultiBatch`).
-fn batch_bench(
-    design: &cosim::Design,
-    ins: &[StreamBeats],
-    outs: &[StreamBeats],
-    seed: u64,
-    stall: f64,
-    what: &str,
-) -> MultiReport {
-    let names = |s: &[StreamBeats]| s.iter().map(|b| b.name.clone()).collect::<Vec<_>>();
-    let (i, o) = (names(ins), names(outs));
-    let i: Vec<&str> = i.iter().map(String::as_str).collect();
-    let o: Vec<&str> = o.iter().map(String::as_str).collect();
-    let batch = cosim::icarus::IcarusMultiBatch::new(design, &i, &o).expect("iverilog build");
-    let config = BenchConfig {
-        seed,
-        in_stall: stall,
-        out_stall: stall,
-        ..BenchConfig::default()
-    };
-    let r = batch
-        .run(ins, outs, &config)
-        .expect("the batch runs")
-        .report;
-    eprint!("{what}: stall {stall:.2}: {r}");
-    assert!(r.passed(), "{what} stall {stall}:\n{r}");
-    r
+    multi_bench_watching(engine, ins, outs, seed, stall, what, &pulses)
 }
 
 /// Merges per bench run; longer runs go in chunks of fresh stimulus on the
@@ -254,12 +216,12 @@ fn check(name: &str, runs: &[(&str, usize)], most: u64) {
             let r = match e.as_mut() {
                 Some(e) => {
                     let before = e.cycle();
-                    bench(e.as_mut(), &ins, &outs, seed + chunk, stall, &what)
+                    writer_bench(e.as_mut(), &ins, &outs, seed + chunk, stall, &what)
                         .0
                         .cycles
                         - before
                 }
-                None => batch_bench(&design, &ins, &outs, seed + chunk, stall, &what).cycles,
+                None => multi_batch_bench(&design, &ins, &outs, seed + chunk, stall, &what).cycles,
             };
             cycles += r;
             done += merges;
@@ -306,10 +268,12 @@ fn check(name: &str, runs: &[(&str, usize)], most: u64) {
         assert_eq!(seen.codes[0], seen.merges, "real merges fit: {seen:?}");
         let what = format!("merge_writer {name} {kind} real");
         let cycles = match kind {
-            "iverilog-batch" => batch_bench(&design, &ins, &outs, seed + 1, stall, &what).cycles,
+            "iverilog-batch" => {
+                multi_batch_bench(&design, &ins, &outs, seed + 1, stall, &what).cycles
+            }
             _ => {
                 let mut e = engine(kind, &m, &design);
-                bench(e.as_mut(), &ins, &outs, seed + 1, stall, &what)
+                writer_bench(e.as_mut(), &ins, &outs, seed + 1, stall, &what)
                     .0
                     .cycles
             }
@@ -387,7 +351,7 @@ fn record_writer_one_word_per_clock() {
         );
         let (ins, outs, seen) = streams(&p, cap, &txs);
         let mut e = engine("verilator", &m, &design);
-        let (r, counts) = bench(
+        let (r, counts) = writer_bench(
             e.as_mut(),
             &ins,
             &outs,
@@ -446,25 +410,4 @@ fn capacity_outside_one_to_i_is_an_error() {
     let p = Params::default();
     assert!(rtl_gen::merge::record_writer_unit(&p, 0).is_err());
     assert!(rtl_gen::merge::record_writer_unit(&p, p.index_bits as u32).is_err());
-}
-
-/// `verilator --lint-only -Wall` with zero warnings on `design`.
-fn lint_only(design: &cosim::Design) {
-    let files: Vec<String> = design
-        .verilog_files
-        .iter()
-        .map(|f| f.display().to_string())
-        .collect();
-    let out = std::process::Command::new("verilator")
-        .args(["--lint-only", "-Wall", "--top-module", &design.top])
-        .args(&files)
-        .output()
-        .expect("verilator runs");
-    let text =
-        String::from_utf8_lossy(&out.stderr).to_string() + &String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success() && text.trim().is_empty(),
-        "verilator lint of {}:\n{text}",
-        design.top
-    );
 }

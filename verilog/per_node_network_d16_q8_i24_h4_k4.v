@@ -5,278 +5,278 @@
 module per_node_network_d16_q8_i24_h4_k4 (
     input  wire clk,              // clock (implicit)
     input  wire rst,              // synchronous reset, active high (implicit)
-    input  wire in0_valid,        // rtl-gen/src/merge/per_node.rs:76
-    input  wire [180:0] in0_data, // rtl-gen/src/merge/per_node.rs:76
-    output wire in0_ready,        // rtl-gen/src/merge/per_node.rs:76
-    input  wire in1_valid,        // rtl-gen/src/merge/per_node.rs:76
-    input  wire [180:0] in1_data, // rtl-gen/src/merge/per_node.rs:76
-    output wire in1_ready,        // rtl-gen/src/merge/per_node.rs:76
-    input  wire in2_valid,        // rtl-gen/src/merge/per_node.rs:76
-    input  wire [180:0] in2_data, // rtl-gen/src/merge/per_node.rs:76
-    output wire in2_ready,        // rtl-gen/src/merge/per_node.rs:76
-    input  wire in3_valid,        // rtl-gen/src/merge/per_node.rs:76
-    input  wire [180:0] in3_data, // rtl-gen/src/merge/per_node.rs:76
-    output wire in3_ready,        // rtl-gen/src/merge/per_node.rs:76
-    output wire out_valid,        // rtl-gen/src/merge/per_node.rs:159
-    output wire [182:0] out_data, // rtl-gen/src/merge/per_node.rs:159
-    input  wire out_ready         // rtl-gen/src/merge/per_node.rs:159
+    input  wire in0_valid,        // rtl-gen/src/merge/per_node.rs:75
+    input  wire [180:0] in0_data, // rtl-gen/src/merge/per_node.rs:75
+    output wire in0_ready,        // rtl-gen/src/merge/per_node.rs:75
+    input  wire in1_valid,        // rtl-gen/src/merge/per_node.rs:75
+    input  wire [180:0] in1_data, // rtl-gen/src/merge/per_node.rs:75
+    output wire in1_ready,        // rtl-gen/src/merge/per_node.rs:75
+    input  wire in2_valid,        // rtl-gen/src/merge/per_node.rs:75
+    input  wire [180:0] in2_data, // rtl-gen/src/merge/per_node.rs:75
+    output wire in2_ready,        // rtl-gen/src/merge/per_node.rs:75
+    input  wire in3_valid,        // rtl-gen/src/merge/per_node.rs:75
+    input  wire [180:0] in3_data, // rtl-gen/src/merge/per_node.rs:75
+    output wire in3_ready,        // rtl-gen/src/merge/per_node.rs:75
+    output wire out_valid,        // rtl-gen/src/merge/per_node.rs:116
+    output wire [182:0] out_data, // rtl-gen/src/merge/per_node.rs:116
+    input  wire out_ready         // rtl-gen/src/merge/per_node.rs:116
 );
-    wire net_out_ready;                      // rtl-gen/src/merge/per_node.rs:69
-    reg in0_head_valid;                      // rtl-gen/src/merge/per_node.rs:76
-    reg [180:0] in0_head_data;               // rtl-gen/src/merge/per_node.rs:76
-    reg in0_head_spare_valid;                // rtl-gen/src/merge/per_node.rs:76
-    reg [180:0] in0_head_spare_data;         // rtl-gen/src/merge/per_node.rs:76
-    wire in0_head_ready;                     // rtl-gen/src/merge/per_node.rs:76
-    wire in0_head_valid_not;                 // rtl-gen/src/merge/per_node.rs:76
-    wire in0_head_ready_or;                  // rtl-gen/src/merge/per_node.rs:76
-    wire in0_head_spare_valid_not;           // rtl-gen/src/merge/per_node.rs:76
-    wire in0_valid_and;                      // rtl-gen/src/merge/per_node.rs:76
-    wire in0_head_spare_valid_or;            // rtl-gen/src/merge/per_node.rs:76
-    wire in0_head_valid_next;                // rtl-gen/src/merge/per_node.rs:76
-    wire [180:0] in0_head_spare_valid_mux;   // rtl-gen/src/merge/per_node.rs:76
-    wire [180:0] in0_head_data_next;         // rtl-gen/src/merge/per_node.rs:76
-    wire in0_head_spare_valid_or_1;          // rtl-gen/src/merge/per_node.rs:76
-    wire in0_head_spare_valid_next;          // rtl-gen/src/merge/per_node.rs:76
-    wire in0_head_ready_not;                 // rtl-gen/src/merge/per_node.rs:76
-    wire in0_head_ready_and;                 // rtl-gen/src/merge/per_node.rs:76
-    wire [180:0] in0_head_spare_data_next;   // rtl-gen/src/merge/per_node.rs:76
+    wire net_out_ready;                      // rtl-gen/src/merge/per_node.rs:68
+    reg in0_head_valid;                      // rtl-gen/src/merge/per_node.rs:75
+    reg [180:0] in0_head_data;               // rtl-gen/src/merge/per_node.rs:75
+    reg in0_head_spare_valid;                // rtl-gen/src/merge/per_node.rs:75
+    reg [180:0] in0_head_spare_data;         // rtl-gen/src/merge/per_node.rs:75
+    wire in0_head_ready;                     // rtl-gen/src/merge/per_node.rs:75
+    wire in0_head_valid_not;                 // rtl-gen/src/merge/per_node.rs:75
+    wire in0_head_ready_or;                  // rtl-gen/src/merge/per_node.rs:75
+    wire in0_head_spare_valid_not;           // rtl-gen/src/merge/per_node.rs:75
+    wire in0_valid_and;                      // rtl-gen/src/merge/per_node.rs:75
+    wire in0_head_spare_valid_or;            // rtl-gen/src/merge/per_node.rs:75
+    wire in0_head_valid_next;                // rtl-gen/src/merge/per_node.rs:75
+    wire [180:0] in0_head_spare_valid_mux;   // rtl-gen/src/merge/per_node.rs:75
+    wire [180:0] in0_head_data_next;         // rtl-gen/src/merge/per_node.rs:75
+    wire in0_head_spare_valid_or_1;          // rtl-gen/src/merge/per_node.rs:75
+    wire in0_head_spare_valid_next;          // rtl-gen/src/merge/per_node.rs:75
+    wire in0_head_ready_not;                 // rtl-gen/src/merge/per_node.rs:75
+    wire in0_head_ready_and;                 // rtl-gen/src/merge/per_node.rs:75
+    wire [180:0] in0_head_spare_data_next;   // rtl-gen/src/merge/per_node.rs:75
     wire in0_probe;                          // rtl-gen/src/merge/fields.rs:13
     wire [1:0] in0_kind;                     // rtl-gen/src/merge/fields.rs:13
-    wire in0_probe_not;                      // rtl-gen/src/merge/per_node.rs:84
-    wire in0_kind_eq;                        // rtl-gen/src/merge/per_node.rs:84
-    wire in0_is_end;                         // rtl-gen/src/merge/per_node.rs:84
-    wire in0_probe_not_1;                    // rtl-gen/src/merge/per_node.rs:85
-    wire in0_kind_eq_1;                      // rtl-gen/src/merge/per_node.rs:85
-    wire in0_probe_and;                      // rtl-gen/src/merge/per_node.rs:85
-    reg [15:0] in0_parent_x;                 // rtl-gen/src/merge/per_node.rs:88
-    reg [15:0] in0_parent_y;                 // rtl-gen/src/merge/per_node.rs:88
-    reg [15:0] in0_parent_z;                 // rtl-gen/src/merge/per_node.rs:88
-    wire [15:0] in0_head_data_shr;           // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in0_probe_mux;               // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in0_probe_mux_1;             // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in0_head_data_shr_1;         // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in0_probe_mux_2;             // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in0_probe_mux_3;             // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in0_head_data_shr_2;         // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in0_probe_mux_4;             // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in0_probe_mux_5;             // rtl-gen/src/merge/per_node.rs:93
-    wire [1:0] in0_kind_add;                 // rtl-gen/src/merge/per_node.rs:94
-    wire [1:0] in0_probe_mux_6;              // rtl-gen/src/merge/per_node.rs:94
+    wire in0_probe_not;                      // rtl-gen/src/merge/per_node.rs:83
+    wire in0_kind_eq;                        // rtl-gen/src/merge/per_node.rs:83
+    wire in0_is_end;                         // rtl-gen/src/merge/per_node.rs:83
+    wire in0_probe_not_1;                    // rtl-gen/src/merge/per_node.rs:84
+    wire in0_kind_eq_1;                      // rtl-gen/src/merge/per_node.rs:84
+    wire in0_probe_and;                      // rtl-gen/src/merge/per_node.rs:84
+    reg [15:0] in0_parent_x;                 // rtl-gen/src/merge/per_node.rs:87
+    reg [15:0] in0_parent_y;                 // rtl-gen/src/merge/per_node.rs:87
+    reg [15:0] in0_parent_z;                 // rtl-gen/src/merge/per_node.rs:87
+    wire [15:0] in0_head_data_shr;           // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in0_probe_mux;               // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in0_probe_mux_1;             // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in0_head_data_shr_1;         // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in0_probe_mux_2;             // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in0_probe_mux_3;             // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in0_head_data_shr_2;         // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in0_probe_mux_4;             // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in0_probe_mux_5;             // rtl-gen/src/merge/per_node.rs:92
+    wire [1:0] in0_kind_add;                 // rtl-gen/src/merge/per_node.rs:93
+    wire [1:0] in0_probe_mux_6;              // rtl-gen/src/merge/per_node.rs:93
     wire [47:0] in0_probe_cat;               // rtl-gen/src/merge/network.rs:46
-    wire [50:0] in0_key;                     // rtl-gen/src/merge/per_node.rs:96
-    wire in0_head_valid_and;                 // rtl-gen/src/merge/per_node.rs:98
-    wire in0_is_end_and;                     // rtl-gen/src/merge/per_node.rs:99
-    wire in0_probe_not_2;                    // rtl-gen/src/merge/per_node.rs:100
-    wire in0_kind_not;                       // rtl-gen/src/merge/per_node.rs:100
-    wire in0_probe_and_1;                    // rtl-gen/src/merge/per_node.rs:100
-    reg in1_head_valid;                      // rtl-gen/src/merge/per_node.rs:76
-    reg [180:0] in1_head_data;               // rtl-gen/src/merge/per_node.rs:76
-    reg in1_head_spare_valid;                // rtl-gen/src/merge/per_node.rs:76
-    reg [180:0] in1_head_spare_data;         // rtl-gen/src/merge/per_node.rs:76
-    wire in1_head_ready;                     // rtl-gen/src/merge/per_node.rs:76
-    wire in1_head_valid_not;                 // rtl-gen/src/merge/per_node.rs:76
-    wire in1_head_ready_or;                  // rtl-gen/src/merge/per_node.rs:76
-    wire in1_head_spare_valid_not;           // rtl-gen/src/merge/per_node.rs:76
-    wire in1_valid_and;                      // rtl-gen/src/merge/per_node.rs:76
-    wire in1_head_spare_valid_or;            // rtl-gen/src/merge/per_node.rs:76
-    wire in1_head_valid_next;                // rtl-gen/src/merge/per_node.rs:76
-    wire [180:0] in1_head_spare_valid_mux;   // rtl-gen/src/merge/per_node.rs:76
-    wire [180:0] in1_head_data_next;         // rtl-gen/src/merge/per_node.rs:76
-    wire in1_head_spare_valid_or_1;          // rtl-gen/src/merge/per_node.rs:76
-    wire in1_head_spare_valid_next;          // rtl-gen/src/merge/per_node.rs:76
-    wire in1_head_ready_not;                 // rtl-gen/src/merge/per_node.rs:76
-    wire in1_head_ready_and;                 // rtl-gen/src/merge/per_node.rs:76
-    wire [180:0] in1_head_spare_data_next;   // rtl-gen/src/merge/per_node.rs:76
+    wire [50:0] in0_key;                     // rtl-gen/src/merge/per_node.rs:95
+    wire in0_head_valid_and;                 // rtl-gen/src/merge/per_node.rs:97
+    wire in0_is_end_and;                     // rtl-gen/src/merge/per_node.rs:98
+    wire in0_probe_not_2;                    // rtl-gen/src/merge/per_node.rs:99
+    wire in0_kind_not;                       // rtl-gen/src/merge/per_node.rs:99
+    wire in0_probe_and_1;                    // rtl-gen/src/merge/per_node.rs:99
+    reg in1_head_valid;                      // rtl-gen/src/merge/per_node.rs:75
+    reg [180:0] in1_head_data;               // rtl-gen/src/merge/per_node.rs:75
+    reg in1_head_spare_valid;                // rtl-gen/src/merge/per_node.rs:75
+    reg [180:0] in1_head_spare_data;         // rtl-gen/src/merge/per_node.rs:75
+    wire in1_head_ready;                     // rtl-gen/src/merge/per_node.rs:75
+    wire in1_head_valid_not;                 // rtl-gen/src/merge/per_node.rs:75
+    wire in1_head_ready_or;                  // rtl-gen/src/merge/per_node.rs:75
+    wire in1_head_spare_valid_not;           // rtl-gen/src/merge/per_node.rs:75
+    wire in1_valid_and;                      // rtl-gen/src/merge/per_node.rs:75
+    wire in1_head_spare_valid_or;            // rtl-gen/src/merge/per_node.rs:75
+    wire in1_head_valid_next;                // rtl-gen/src/merge/per_node.rs:75
+    wire [180:0] in1_head_spare_valid_mux;   // rtl-gen/src/merge/per_node.rs:75
+    wire [180:0] in1_head_data_next;         // rtl-gen/src/merge/per_node.rs:75
+    wire in1_head_spare_valid_or_1;          // rtl-gen/src/merge/per_node.rs:75
+    wire in1_head_spare_valid_next;          // rtl-gen/src/merge/per_node.rs:75
+    wire in1_head_ready_not;                 // rtl-gen/src/merge/per_node.rs:75
+    wire in1_head_ready_and;                 // rtl-gen/src/merge/per_node.rs:75
+    wire [180:0] in1_head_spare_data_next;   // rtl-gen/src/merge/per_node.rs:75
     wire in1_probe;                          // rtl-gen/src/merge/fields.rs:13
     wire [1:0] in1_kind;                     // rtl-gen/src/merge/fields.rs:13
-    wire in1_probe_not;                      // rtl-gen/src/merge/per_node.rs:84
-    wire in1_kind_eq;                        // rtl-gen/src/merge/per_node.rs:84
-    wire in1_is_end;                         // rtl-gen/src/merge/per_node.rs:84
-    wire in1_probe_not_1;                    // rtl-gen/src/merge/per_node.rs:85
-    wire in1_kind_eq_1;                      // rtl-gen/src/merge/per_node.rs:85
-    wire in1_probe_and;                      // rtl-gen/src/merge/per_node.rs:85
-    reg [15:0] in1_parent_x;                 // rtl-gen/src/merge/per_node.rs:88
-    reg [15:0] in1_parent_y;                 // rtl-gen/src/merge/per_node.rs:88
-    reg [15:0] in1_parent_z;                 // rtl-gen/src/merge/per_node.rs:88
-    wire [15:0] in1_head_data_shr;           // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in1_probe_mux;               // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in1_probe_mux_1;             // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in1_head_data_shr_1;         // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in1_probe_mux_2;             // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in1_probe_mux_3;             // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in1_head_data_shr_2;         // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in1_probe_mux_4;             // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in1_probe_mux_5;             // rtl-gen/src/merge/per_node.rs:93
-    wire [1:0] in1_kind_add;                 // rtl-gen/src/merge/per_node.rs:94
-    wire [1:0] in1_probe_mux_6;              // rtl-gen/src/merge/per_node.rs:94
+    wire in1_probe_not;                      // rtl-gen/src/merge/per_node.rs:83
+    wire in1_kind_eq;                        // rtl-gen/src/merge/per_node.rs:83
+    wire in1_is_end;                         // rtl-gen/src/merge/per_node.rs:83
+    wire in1_probe_not_1;                    // rtl-gen/src/merge/per_node.rs:84
+    wire in1_kind_eq_1;                      // rtl-gen/src/merge/per_node.rs:84
+    wire in1_probe_and;                      // rtl-gen/src/merge/per_node.rs:84
+    reg [15:0] in1_parent_x;                 // rtl-gen/src/merge/per_node.rs:87
+    reg [15:0] in1_parent_y;                 // rtl-gen/src/merge/per_node.rs:87
+    reg [15:0] in1_parent_z;                 // rtl-gen/src/merge/per_node.rs:87
+    wire [15:0] in1_head_data_shr;           // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in1_probe_mux;               // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in1_probe_mux_1;             // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in1_head_data_shr_1;         // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in1_probe_mux_2;             // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in1_probe_mux_3;             // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in1_head_data_shr_2;         // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in1_probe_mux_4;             // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in1_probe_mux_5;             // rtl-gen/src/merge/per_node.rs:92
+    wire [1:0] in1_kind_add;                 // rtl-gen/src/merge/per_node.rs:93
+    wire [1:0] in1_probe_mux_6;              // rtl-gen/src/merge/per_node.rs:93
     wire [47:0] in1_probe_cat;               // rtl-gen/src/merge/network.rs:46
-    wire [50:0] in1_key;                     // rtl-gen/src/merge/per_node.rs:96
-    wire in0_head_valid_and_1;               // rtl-gen/src/merge/per_node.rs:98
-    wire in0_is_end_and_1;                   // rtl-gen/src/merge/per_node.rs:99
-    wire in1_probe_not_2;                    // rtl-gen/src/merge/per_node.rs:100
-    wire in1_kind_not;                       // rtl-gen/src/merge/per_node.rs:100
-    wire in1_probe_and_1;                    // rtl-gen/src/merge/per_node.rs:100
-    reg in2_head_valid;                      // rtl-gen/src/merge/per_node.rs:76
-    reg [180:0] in2_head_data;               // rtl-gen/src/merge/per_node.rs:76
-    reg in2_head_spare_valid;                // rtl-gen/src/merge/per_node.rs:76
-    reg [180:0] in2_head_spare_data;         // rtl-gen/src/merge/per_node.rs:76
-    wire in2_head_ready;                     // rtl-gen/src/merge/per_node.rs:76
-    wire in2_head_valid_not;                 // rtl-gen/src/merge/per_node.rs:76
-    wire in2_head_ready_or;                  // rtl-gen/src/merge/per_node.rs:76
-    wire in2_head_spare_valid_not;           // rtl-gen/src/merge/per_node.rs:76
-    wire in2_valid_and;                      // rtl-gen/src/merge/per_node.rs:76
-    wire in2_head_spare_valid_or;            // rtl-gen/src/merge/per_node.rs:76
-    wire in2_head_valid_next;                // rtl-gen/src/merge/per_node.rs:76
-    wire [180:0] in2_head_spare_valid_mux;   // rtl-gen/src/merge/per_node.rs:76
-    wire [180:0] in2_head_data_next;         // rtl-gen/src/merge/per_node.rs:76
-    wire in2_head_spare_valid_or_1;          // rtl-gen/src/merge/per_node.rs:76
-    wire in2_head_spare_valid_next;          // rtl-gen/src/merge/per_node.rs:76
-    wire in2_head_ready_not;                 // rtl-gen/src/merge/per_node.rs:76
-    wire in2_head_ready_and;                 // rtl-gen/src/merge/per_node.rs:76
-    wire [180:0] in2_head_spare_data_next;   // rtl-gen/src/merge/per_node.rs:76
+    wire [50:0] in1_key;                     // rtl-gen/src/merge/per_node.rs:95
+    wire in0_head_valid_and_1;               // rtl-gen/src/merge/per_node.rs:97
+    wire in0_is_end_and_1;                   // rtl-gen/src/merge/per_node.rs:98
+    wire in1_probe_not_2;                    // rtl-gen/src/merge/per_node.rs:99
+    wire in1_kind_not;                       // rtl-gen/src/merge/per_node.rs:99
+    wire in1_probe_and_1;                    // rtl-gen/src/merge/per_node.rs:99
+    reg in2_head_valid;                      // rtl-gen/src/merge/per_node.rs:75
+    reg [180:0] in2_head_data;               // rtl-gen/src/merge/per_node.rs:75
+    reg in2_head_spare_valid;                // rtl-gen/src/merge/per_node.rs:75
+    reg [180:0] in2_head_spare_data;         // rtl-gen/src/merge/per_node.rs:75
+    wire in2_head_ready;                     // rtl-gen/src/merge/per_node.rs:75
+    wire in2_head_valid_not;                 // rtl-gen/src/merge/per_node.rs:75
+    wire in2_head_ready_or;                  // rtl-gen/src/merge/per_node.rs:75
+    wire in2_head_spare_valid_not;           // rtl-gen/src/merge/per_node.rs:75
+    wire in2_valid_and;                      // rtl-gen/src/merge/per_node.rs:75
+    wire in2_head_spare_valid_or;            // rtl-gen/src/merge/per_node.rs:75
+    wire in2_head_valid_next;                // rtl-gen/src/merge/per_node.rs:75
+    wire [180:0] in2_head_spare_valid_mux;   // rtl-gen/src/merge/per_node.rs:75
+    wire [180:0] in2_head_data_next;         // rtl-gen/src/merge/per_node.rs:75
+    wire in2_head_spare_valid_or_1;          // rtl-gen/src/merge/per_node.rs:75
+    wire in2_head_spare_valid_next;          // rtl-gen/src/merge/per_node.rs:75
+    wire in2_head_ready_not;                 // rtl-gen/src/merge/per_node.rs:75
+    wire in2_head_ready_and;                 // rtl-gen/src/merge/per_node.rs:75
+    wire [180:0] in2_head_spare_data_next;   // rtl-gen/src/merge/per_node.rs:75
     wire in2_probe;                          // rtl-gen/src/merge/fields.rs:13
     wire [1:0] in2_kind;                     // rtl-gen/src/merge/fields.rs:13
-    wire in2_probe_not;                      // rtl-gen/src/merge/per_node.rs:84
-    wire in2_kind_eq;                        // rtl-gen/src/merge/per_node.rs:84
-    wire in2_is_end;                         // rtl-gen/src/merge/per_node.rs:84
-    wire in2_probe_not_1;                    // rtl-gen/src/merge/per_node.rs:85
-    wire in2_kind_eq_1;                      // rtl-gen/src/merge/per_node.rs:85
-    wire in2_probe_and;                      // rtl-gen/src/merge/per_node.rs:85
-    reg [15:0] in2_parent_x;                 // rtl-gen/src/merge/per_node.rs:88
-    reg [15:0] in2_parent_y;                 // rtl-gen/src/merge/per_node.rs:88
-    reg [15:0] in2_parent_z;                 // rtl-gen/src/merge/per_node.rs:88
-    wire [15:0] in2_head_data_shr;           // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in2_probe_mux;               // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in2_probe_mux_1;             // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in2_head_data_shr_1;         // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in2_probe_mux_2;             // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in2_probe_mux_3;             // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in2_head_data_shr_2;         // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in2_probe_mux_4;             // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in2_probe_mux_5;             // rtl-gen/src/merge/per_node.rs:93
-    wire [1:0] in2_kind_add;                 // rtl-gen/src/merge/per_node.rs:94
-    wire [1:0] in2_probe_mux_6;              // rtl-gen/src/merge/per_node.rs:94
+    wire in2_probe_not;                      // rtl-gen/src/merge/per_node.rs:83
+    wire in2_kind_eq;                        // rtl-gen/src/merge/per_node.rs:83
+    wire in2_is_end;                         // rtl-gen/src/merge/per_node.rs:83
+    wire in2_probe_not_1;                    // rtl-gen/src/merge/per_node.rs:84
+    wire in2_kind_eq_1;                      // rtl-gen/src/merge/per_node.rs:84
+    wire in2_probe_and;                      // rtl-gen/src/merge/per_node.rs:84
+    reg [15:0] in2_parent_x;                 // rtl-gen/src/merge/per_node.rs:87
+    reg [15:0] in2_parent_y;                 // rtl-gen/src/merge/per_node.rs:87
+    reg [15:0] in2_parent_z;                 // rtl-gen/src/merge/per_node.rs:87
+    wire [15:0] in2_head_data_shr;           // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in2_probe_mux;               // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in2_probe_mux_1;             // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in2_head_data_shr_1;         // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in2_probe_mux_2;             // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in2_probe_mux_3;             // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in2_head_data_shr_2;         // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in2_probe_mux_4;             // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in2_probe_mux_5;             // rtl-gen/src/merge/per_node.rs:92
+    wire [1:0] in2_kind_add;                 // rtl-gen/src/merge/per_node.rs:93
+    wire [1:0] in2_probe_mux_6;              // rtl-gen/src/merge/per_node.rs:93
     wire [47:0] in2_probe_cat;               // rtl-gen/src/merge/network.rs:46
-    wire [50:0] in2_key;                     // rtl-gen/src/merge/per_node.rs:96
-    wire in0_head_valid_and_2;               // rtl-gen/src/merge/per_node.rs:98
-    wire in0_is_end_and_2;                   // rtl-gen/src/merge/per_node.rs:99
-    wire in2_probe_not_2;                    // rtl-gen/src/merge/per_node.rs:100
-    wire in2_kind_not;                       // rtl-gen/src/merge/per_node.rs:100
-    wire in2_probe_and_1;                    // rtl-gen/src/merge/per_node.rs:100
-    reg in3_head_valid;                      // rtl-gen/src/merge/per_node.rs:76
-    reg [180:0] in3_head_data;               // rtl-gen/src/merge/per_node.rs:76
-    reg in3_head_spare_valid;                // rtl-gen/src/merge/per_node.rs:76
-    reg [180:0] in3_head_spare_data;         // rtl-gen/src/merge/per_node.rs:76
-    wire in3_head_ready;                     // rtl-gen/src/merge/per_node.rs:76
-    wire in3_head_valid_not;                 // rtl-gen/src/merge/per_node.rs:76
-    wire in3_head_ready_or;                  // rtl-gen/src/merge/per_node.rs:76
-    wire in3_head_spare_valid_not;           // rtl-gen/src/merge/per_node.rs:76
-    wire in3_valid_and;                      // rtl-gen/src/merge/per_node.rs:76
-    wire in3_head_spare_valid_or;            // rtl-gen/src/merge/per_node.rs:76
-    wire in3_head_valid_next;                // rtl-gen/src/merge/per_node.rs:76
-    wire [180:0] in3_head_spare_valid_mux;   // rtl-gen/src/merge/per_node.rs:76
-    wire [180:0] in3_head_data_next;         // rtl-gen/src/merge/per_node.rs:76
-    wire in3_head_spare_valid_or_1;          // rtl-gen/src/merge/per_node.rs:76
-    wire in3_head_spare_valid_next;          // rtl-gen/src/merge/per_node.rs:76
-    wire in3_head_ready_not;                 // rtl-gen/src/merge/per_node.rs:76
-    wire in3_head_ready_and;                 // rtl-gen/src/merge/per_node.rs:76
-    wire [180:0] in3_head_spare_data_next;   // rtl-gen/src/merge/per_node.rs:76
+    wire [50:0] in2_key;                     // rtl-gen/src/merge/per_node.rs:95
+    wire in0_head_valid_and_2;               // rtl-gen/src/merge/per_node.rs:97
+    wire in0_is_end_and_2;                   // rtl-gen/src/merge/per_node.rs:98
+    wire in2_probe_not_2;                    // rtl-gen/src/merge/per_node.rs:99
+    wire in2_kind_not;                       // rtl-gen/src/merge/per_node.rs:99
+    wire in2_probe_and_1;                    // rtl-gen/src/merge/per_node.rs:99
+    reg in3_head_valid;                      // rtl-gen/src/merge/per_node.rs:75
+    reg [180:0] in3_head_data;               // rtl-gen/src/merge/per_node.rs:75
+    reg in3_head_spare_valid;                // rtl-gen/src/merge/per_node.rs:75
+    reg [180:0] in3_head_spare_data;         // rtl-gen/src/merge/per_node.rs:75
+    wire in3_head_ready;                     // rtl-gen/src/merge/per_node.rs:75
+    wire in3_head_valid_not;                 // rtl-gen/src/merge/per_node.rs:75
+    wire in3_head_ready_or;                  // rtl-gen/src/merge/per_node.rs:75
+    wire in3_head_spare_valid_not;           // rtl-gen/src/merge/per_node.rs:75
+    wire in3_valid_and;                      // rtl-gen/src/merge/per_node.rs:75
+    wire in3_head_spare_valid_or;            // rtl-gen/src/merge/per_node.rs:75
+    wire in3_head_valid_next;                // rtl-gen/src/merge/per_node.rs:75
+    wire [180:0] in3_head_spare_valid_mux;   // rtl-gen/src/merge/per_node.rs:75
+    wire [180:0] in3_head_data_next;         // rtl-gen/src/merge/per_node.rs:75
+    wire in3_head_spare_valid_or_1;          // rtl-gen/src/merge/per_node.rs:75
+    wire in3_head_spare_valid_next;          // rtl-gen/src/merge/per_node.rs:75
+    wire in3_head_ready_not;                 // rtl-gen/src/merge/per_node.rs:75
+    wire in3_head_ready_and;                 // rtl-gen/src/merge/per_node.rs:75
+    wire [180:0] in3_head_spare_data_next;   // rtl-gen/src/merge/per_node.rs:75
     wire in3_probe;                          // rtl-gen/src/merge/fields.rs:13
     wire [1:0] in3_kind;                     // rtl-gen/src/merge/fields.rs:13
-    wire in3_probe_not;                      // rtl-gen/src/merge/per_node.rs:84
-    wire in3_kind_eq;                        // rtl-gen/src/merge/per_node.rs:84
-    wire in3_is_end;                         // rtl-gen/src/merge/per_node.rs:84
-    wire in3_probe_not_1;                    // rtl-gen/src/merge/per_node.rs:85
-    wire in3_kind_eq_1;                      // rtl-gen/src/merge/per_node.rs:85
-    wire in3_probe_and;                      // rtl-gen/src/merge/per_node.rs:85
-    reg [15:0] in3_parent_x;                 // rtl-gen/src/merge/per_node.rs:88
-    reg [15:0] in3_parent_y;                 // rtl-gen/src/merge/per_node.rs:88
-    reg [15:0] in3_parent_z;                 // rtl-gen/src/merge/per_node.rs:88
-    wire [15:0] in3_head_data_shr;           // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in3_probe_mux;               // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in3_probe_mux_1;             // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in3_head_data_shr_1;         // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in3_probe_mux_2;             // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in3_probe_mux_3;             // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in3_head_data_shr_2;         // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in3_probe_mux_4;             // rtl-gen/src/merge/per_node.rs:93
-    wire [15:0] in3_probe_mux_5;             // rtl-gen/src/merge/per_node.rs:93
-    wire [1:0] in3_kind_add;                 // rtl-gen/src/merge/per_node.rs:94
-    wire [1:0] in3_probe_mux_6;              // rtl-gen/src/merge/per_node.rs:94
+    wire in3_probe_not;                      // rtl-gen/src/merge/per_node.rs:83
+    wire in3_kind_eq;                        // rtl-gen/src/merge/per_node.rs:83
+    wire in3_is_end;                         // rtl-gen/src/merge/per_node.rs:83
+    wire in3_probe_not_1;                    // rtl-gen/src/merge/per_node.rs:84
+    wire in3_kind_eq_1;                      // rtl-gen/src/merge/per_node.rs:84
+    wire in3_probe_and;                      // rtl-gen/src/merge/per_node.rs:84
+    reg [15:0] in3_parent_x;                 // rtl-gen/src/merge/per_node.rs:87
+    reg [15:0] in3_parent_y;                 // rtl-gen/src/merge/per_node.rs:87
+    reg [15:0] in3_parent_z;                 // rtl-gen/src/merge/per_node.rs:87
+    wire [15:0] in3_head_data_shr;           // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in3_probe_mux;               // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in3_probe_mux_1;             // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in3_head_data_shr_1;         // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in3_probe_mux_2;             // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in3_probe_mux_3;             // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in3_head_data_shr_2;         // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in3_probe_mux_4;             // rtl-gen/src/merge/per_node.rs:92
+    wire [15:0] in3_probe_mux_5;             // rtl-gen/src/merge/per_node.rs:92
+    wire [1:0] in3_kind_add;                 // rtl-gen/src/merge/per_node.rs:93
+    wire [1:0] in3_probe_mux_6;              // rtl-gen/src/merge/per_node.rs:93
     wire [47:0] in3_probe_cat;               // rtl-gen/src/merge/network.rs:46
-    wire [50:0] in3_key;                     // rtl-gen/src/merge/per_node.rs:96
-    wire all_heads;                          // rtl-gen/src/merge/per_node.rs:98
-    wire winner_is_end;                      // rtl-gen/src/merge/per_node.rs:99
-    wire in3_probe_not_2;                    // rtl-gen/src/merge/per_node.rs:100
-    wire in3_kind_not;                       // rtl-gen/src/merge/per_node.rs:100
-    wire in3_probe_and_1;                    // rtl-gen/src/merge/per_node.rs:100
-    wire take_r0_0;                          // rtl-gen/src/merge/per_node.rs:121
-    wire [50:0] min_r0_0;                    // rtl-gen/src/merge/per_node.rs:125
-    wire [1:0] take_r0_0_mux;                // rtl-gen/src/merge/per_node.rs:127
-    wire take_r0_1;                          // rtl-gen/src/merge/per_node.rs:121
-    wire [50:0] min_r0_1;                    // rtl-gen/src/merge/per_node.rs:125
-    wire [1:0] take_r0_1_mux;                // rtl-gen/src/merge/per_node.rs:127
-    wire take_r1_0;                          // rtl-gen/src/merge/per_node.rs:121
-    wire [1:0] winner_rank;                  // rtl-gen/src/merge/per_node.rs:127
-    wire [180:0] winner_rank_mux;            // rtl-gen/src/merge/per_node.rs:142
-    wire [180:0] winner_rank_mux_1;          // rtl-gen/src/merge/per_node.rs:142
-    wire [180:0] winner_beat;                // rtl-gen/src/merge/per_node.rs:142
-    wire net_fire;                           // rtl-gen/src/merge/per_node.rs:143
-    wire winner_rank_eq;                     // rtl-gen/src/merge/per_node.rs:145
-    wire winner_is_end_or;                   // rtl-gen/src/merge/per_node.rs:147
-    wire net_fire_and;                       // rtl-gen/src/merge/per_node.rs:148
-    wire winner_is_end_not;                  // rtl-gen/src/merge/per_node.rs:148
-    wire net_fire_and_1;                     // rtl-gen/src/merge/per_node.rs:148
-    wire net_fire_and_2;                     // rtl-gen/src/merge/per_node.rs:148
-    wire [15:0] in0_parent_x_next;           // rtl-gen/src/merge/per_node.rs:150
-    wire [15:0] in0_parent_y_next;           // rtl-gen/src/merge/per_node.rs:150
-    wire [15:0] in0_parent_z_next;           // rtl-gen/src/merge/per_node.rs:150
-    wire winner_rank_eq_1;                   // rtl-gen/src/merge/per_node.rs:145
-    wire winner_is_end_or_1;                 // rtl-gen/src/merge/per_node.rs:147
-    wire net_fire_and_3;                     // rtl-gen/src/merge/per_node.rs:148
-    wire winner_is_end_not_1;                // rtl-gen/src/merge/per_node.rs:148
-    wire net_fire_and_4;                     // rtl-gen/src/merge/per_node.rs:148
-    wire net_fire_and_5;                     // rtl-gen/src/merge/per_node.rs:148
-    wire [15:0] in1_parent_x_next;           // rtl-gen/src/merge/per_node.rs:150
-    wire [15:0] in1_parent_y_next;           // rtl-gen/src/merge/per_node.rs:150
-    wire [15:0] in1_parent_z_next;           // rtl-gen/src/merge/per_node.rs:150
-    wire winner_rank_eq_2;                   // rtl-gen/src/merge/per_node.rs:145
-    wire winner_is_end_or_2;                 // rtl-gen/src/merge/per_node.rs:147
-    wire net_fire_and_6;                     // rtl-gen/src/merge/per_node.rs:148
-    wire winner_is_end_not_2;                // rtl-gen/src/merge/per_node.rs:148
-    wire net_fire_and_7;                     // rtl-gen/src/merge/per_node.rs:148
-    wire net_fire_and_8;                     // rtl-gen/src/merge/per_node.rs:148
-    wire [15:0] in2_parent_x_next;           // rtl-gen/src/merge/per_node.rs:150
-    wire [15:0] in2_parent_y_next;           // rtl-gen/src/merge/per_node.rs:150
-    wire [15:0] in2_parent_z_next;           // rtl-gen/src/merge/per_node.rs:150
-    wire winner_rank_eq_3;                   // rtl-gen/src/merge/per_node.rs:145
-    wire winner_is_end_or_3;                 // rtl-gen/src/merge/per_node.rs:147
-    wire net_fire_and_9;                     // rtl-gen/src/merge/per_node.rs:148
-    wire winner_is_end_not_3;                // rtl-gen/src/merge/per_node.rs:148
-    wire net_fire_and_10;                    // rtl-gen/src/merge/per_node.rs:148
-    wire net_fire_and_11;                    // rtl-gen/src/merge/per_node.rs:148
-    wire [15:0] in3_parent_x_next;           // rtl-gen/src/merge/per_node.rs:150
-    wire [15:0] in3_parent_y_next;           // rtl-gen/src/merge/per_node.rs:150
-    wire [15:0] in3_parent_z_next;           // rtl-gen/src/merge/per_node.rs:150
-    wire [182:0] net_beat;                   // rtl-gen/src/merge/per_node.rs:156
-    reg out_skid_valid;                      // rtl-gen/src/merge/per_node.rs:158
-    reg [182:0] out_skid_data;               // rtl-gen/src/merge/per_node.rs:158
-    reg out_skid_spare_valid;                // rtl-gen/src/merge/per_node.rs:158
-    reg [182:0] out_skid_spare_data;         // rtl-gen/src/merge/per_node.rs:158
-    wire out_skid_ready;                     // rtl-gen/src/merge/per_node.rs:158
-    wire out_skid_valid_not;                 // rtl-gen/src/merge/per_node.rs:158
-    wire out_skid_ready_or;                  // rtl-gen/src/merge/per_node.rs:158
-    wire out_skid_spare_valid_not;           // rtl-gen/src/merge/per_node.rs:158
-    wire all_heads_and;                      // rtl-gen/src/merge/per_node.rs:158
-    wire out_skid_spare_valid_or;            // rtl-gen/src/merge/per_node.rs:158
-    wire out_skid_valid_next;                // rtl-gen/src/merge/per_node.rs:158
-    wire [182:0] out_skid_spare_valid_mux;   // rtl-gen/src/merge/per_node.rs:158
-    wire [182:0] out_skid_data_next;         // rtl-gen/src/merge/per_node.rs:158
-    wire out_skid_spare_valid_or_1;          // rtl-gen/src/merge/per_node.rs:158
-    wire out_skid_spare_valid_next;          // rtl-gen/src/merge/per_node.rs:158
-    wire out_skid_ready_not;                 // rtl-gen/src/merge/per_node.rs:158
-    wire out_skid_ready_and;                 // rtl-gen/src/merge/per_node.rs:158
-    wire [182:0] out_skid_spare_data_next;   // rtl-gen/src/merge/per_node.rs:158
+    wire [50:0] in3_key;                     // rtl-gen/src/merge/per_node.rs:95
+    wire all_heads;                          // rtl-gen/src/merge/per_node.rs:97
+    wire winner_is_end;                      // rtl-gen/src/merge/per_node.rs:98
+    wire in3_probe_not_2;                    // rtl-gen/src/merge/per_node.rs:99
+    wire in3_kind_not;                       // rtl-gen/src/merge/per_node.rs:99
+    wire in3_probe_and_1;                    // rtl-gen/src/merge/per_node.rs:99
+    wire take_r0_0;                          // rtl-gen/src/merge/network.rs:98
+    wire [50:0] min_r0_0;                    // rtl-gen/src/merge/network.rs:102
+    wire [1:0] take_r0_0_mux;                // rtl-gen/src/merge/network.rs:104
+    wire take_r0_1;                          // rtl-gen/src/merge/network.rs:98
+    wire [50:0] min_r0_1;                    // rtl-gen/src/merge/network.rs:102
+    wire [1:0] take_r0_1_mux;                // rtl-gen/src/merge/network.rs:104
+    wire take_r1_0;                          // rtl-gen/src/merge/network.rs:98
+    wire [1:0] winner_rank;                  // rtl-gen/src/merge/network.rs:104
+    wire [180:0] winner_rank_mux;            // rtl-gen/src/merge/network.rs:119
+    wire [180:0] winner_rank_mux_1;          // rtl-gen/src/merge/network.rs:119
+    wire [180:0] winner_beat;                // rtl-gen/src/merge/network.rs:119
+    wire net_fire;                           // rtl-gen/src/merge/network.rs:120
+    wire winner_rank_eq;                     // rtl-gen/src/merge/network.rs:122
+    wire winner_is_end_or;                   // rtl-gen/src/merge/network.rs:124
+    wire net_fire_and;                       // rtl-gen/src/merge/network.rs:125
+    wire winner_is_end_not;                  // rtl-gen/src/merge/network.rs:125
+    wire net_fire_and_1;                     // rtl-gen/src/merge/network.rs:125
+    wire net_fire_and_2;                     // rtl-gen/src/merge/network.rs:125
+    wire [15:0] in0_parent_x_next;           // rtl-gen/src/merge/network.rs:127
+    wire [15:0] in0_parent_y_next;           // rtl-gen/src/merge/network.rs:127
+    wire [15:0] in0_parent_z_next;           // rtl-gen/src/merge/network.rs:127
+    wire winner_rank_eq_1;                   // rtl-gen/src/merge/network.rs:122
+    wire winner_is_end_or_1;                 // rtl-gen/src/merge/network.rs:124
+    wire net_fire_and_3;                     // rtl-gen/src/merge/network.rs:125
+    wire winner_is_end_not_1;                // rtl-gen/src/merge/network.rs:125
+    wire net_fire_and_4;                     // rtl-gen/src/merge/network.rs:125
+    wire net_fire_and_5;                     // rtl-gen/src/merge/network.rs:125
+    wire [15:0] in1_parent_x_next;           // rtl-gen/src/merge/network.rs:127
+    wire [15:0] in1_parent_y_next;           // rtl-gen/src/merge/network.rs:127
+    wire [15:0] in1_parent_z_next;           // rtl-gen/src/merge/network.rs:127
+    wire winner_rank_eq_2;                   // rtl-gen/src/merge/network.rs:122
+    wire winner_is_end_or_2;                 // rtl-gen/src/merge/network.rs:124
+    wire net_fire_and_6;                     // rtl-gen/src/merge/network.rs:125
+    wire winner_is_end_not_2;                // rtl-gen/src/merge/network.rs:125
+    wire net_fire_and_7;                     // rtl-gen/src/merge/network.rs:125
+    wire net_fire_and_8;                     // rtl-gen/src/merge/network.rs:125
+    wire [15:0] in2_parent_x_next;           // rtl-gen/src/merge/network.rs:127
+    wire [15:0] in2_parent_y_next;           // rtl-gen/src/merge/network.rs:127
+    wire [15:0] in2_parent_z_next;           // rtl-gen/src/merge/network.rs:127
+    wire winner_rank_eq_3;                   // rtl-gen/src/merge/network.rs:122
+    wire winner_is_end_or_3;                 // rtl-gen/src/merge/network.rs:124
+    wire net_fire_and_9;                     // rtl-gen/src/merge/network.rs:125
+    wire winner_is_end_not_3;                // rtl-gen/src/merge/network.rs:125
+    wire net_fire_and_10;                    // rtl-gen/src/merge/network.rs:125
+    wire net_fire_and_11;                    // rtl-gen/src/merge/network.rs:125
+    wire [15:0] in3_parent_x_next;           // rtl-gen/src/merge/network.rs:127
+    wire [15:0] in3_parent_y_next;           // rtl-gen/src/merge/network.rs:127
+    wire [15:0] in3_parent_z_next;           // rtl-gen/src/merge/network.rs:127
+    wire [182:0] net_beat;                   // rtl-gen/src/merge/per_node.rs:113
+    reg out_skid_valid;                      // rtl-gen/src/merge/per_node.rs:115
+    reg [182:0] out_skid_data;               // rtl-gen/src/merge/per_node.rs:115
+    reg out_skid_spare_valid;                // rtl-gen/src/merge/per_node.rs:115
+    reg [182:0] out_skid_spare_data;         // rtl-gen/src/merge/per_node.rs:115
+    wire out_skid_ready;                     // rtl-gen/src/merge/per_node.rs:115
+    wire out_skid_valid_not;                 // rtl-gen/src/merge/per_node.rs:115
+    wire out_skid_ready_or;                  // rtl-gen/src/merge/per_node.rs:115
+    wire out_skid_spare_valid_not;           // rtl-gen/src/merge/per_node.rs:115
+    wire all_heads_and;                      // rtl-gen/src/merge/per_node.rs:115
+    wire out_skid_spare_valid_or;            // rtl-gen/src/merge/per_node.rs:115
+    wire out_skid_valid_next;                // rtl-gen/src/merge/per_node.rs:115
+    wire [182:0] out_skid_spare_valid_mux;   // rtl-gen/src/merge/per_node.rs:115
+    wire [182:0] out_skid_data_next;         // rtl-gen/src/merge/per_node.rs:115
+    wire out_skid_spare_valid_or_1;          // rtl-gen/src/merge/per_node.rs:115
+    wire out_skid_spare_valid_next;          // rtl-gen/src/merge/per_node.rs:115
+    wire out_skid_ready_not;                 // rtl-gen/src/merge/per_node.rs:115
+    wire out_skid_ready_and;                 // rtl-gen/src/merge/per_node.rs:115
+    wire [182:0] out_skid_spare_data_next;   // rtl-gen/src/merge/per_node.rs:115
 
     assign net_out_ready = ~out_skid_spare_valid;
     assign in0_ready = ~in0_head_spare_valid;

@@ -11,7 +11,7 @@
 //! occurs. Throughput with no back-pressure printed; lint and synthesis.
 mod merge_common;
 
-use cosim::tb::{run_multi_stream_bench, BenchConfig, MultiReport, StreamBeats};
+use cosim::tb::StreamBeats;
 use cosim::BitVec;
 use golden::build::{build, GridMap};
 use golden::merge::fetch_unit::{
@@ -289,55 +289,6 @@ fn streams(p: &Params, txs: &[FetchTransaction]) -> (Vec<StreamBeats>, Vec<Strea
     (all, outs, seen)
 }
 
-fn bench(
-    engine: &mut dyn cosim::Engine,
-    ins: &[StreamBeats],
-    outs: &[StreamBeats],
-    seed: u64,
-    stall: f64,
-    what: &str,
-) -> MultiReport {
-    let config = BenchConfig {
-        seed,
-        in_stall: stall,
-        out_stall: stall,
-        ..BenchConfig::default()
-    };
-    let r = run_multi_stream_bench(engine, ins, outs, &config).expect("the bench runs");
-    eprint!("{what}: stall {stall:.2}: {r}");
-    assert!(r.passed(), "{what} stall {stall}:\n{r}");
-    r
-}
-
-/// The same run inside one Icarus `vvp` (`cosim::icarus::IcarusMultiBatch`).
-fn batch_bench(
-    design: &cosim::Design,
-    ins: &[StreamBeats],
-    outs: &[StreamBeats],
-    seed: u64,
-    stall: f64,
-    what: &str,
-) -> MultiReport {
-    let names = |s: &[StreamBeats]| s.iter().map(|b| b.name.clone()).collect::<Vec<_>>();
-    let (i, o) = (names(ins), names(outs));
-    let i: Vec<&str> = i.iter().map(String::as_str).collect();
-    let o: Vec<&str> = o.iter().map(String::as_str).collect();
-    let batch = cosim::icarus::IcarusMultiBatch::new(design, &i, &o).expect("iverilog build");
-    let config = BenchConfig {
-        seed,
-        in_stall: stall,
-        out_stall: stall,
-        ..BenchConfig::default()
-    };
-    let r = batch
-        .run(ins, outs, &config)
-        .expect("the batch runs")
-        .report;
-    eprint!("{what}: stall {stall:.2}: {r}");
-    assert!(r.passed(), "{what} stall {stall}:\n{r}");
-    r
-}
-
 /// Commands per bench run: longer runs go in chunks of fresh stimulus.
 ///
 /// Verilator runs: 100,000 commands at the small configuration; 40,000
@@ -367,8 +318,8 @@ fn check(name: &str, runs: &[(&str, usize)], most: usize) {
             let (ins, outs, seen) = streams(&p, &txs);
             let what = format!("merge_fetcher {name} {kind} chunk {chunk}");
             let r = match e.as_mut() {
-                Some(e) => bench(e.as_mut(), &ins, &outs, seed, stall, &what),
-                None => batch_bench(&design, &ins, &outs, seed, stall, &what),
+                Some(e) => multi_bench(e.as_mut(), &ins, &outs, seed, stall, &what),
+                None => multi_batch_bench(&design, &ins, &outs, seed, stall, &what),
             };
             for (c, k) in codes.iter_mut().zip(seen.codes) {
                 *c += k;
@@ -492,7 +443,7 @@ fn fetcher_throughput_without_back_pressure() {
             } else {
                 "deepest level"
             };
-            let r = bench(
+            let r = multi_bench(
                 e.as_mut(),
                 &ins,
                 &outs,
@@ -559,7 +510,7 @@ fn fetcher_steady_state_on_a_large_input() {
         }
         let (ins, outs, seen) = streams(&p, &[tx]);
         let mut e = engine("verilator", &m, &design);
-        let r = bench(
+        let r = multi_bench(
             e.as_mut(),
             &ins,
             &outs,
@@ -581,27 +532,6 @@ fn fetcher_steady_state_on_a_large_input() {
             "fetcher {name}: {rate:.4} node reads per cycle"
         );
     }
-}
-
-/// `verilator --lint-only -Wall` with zero warnings on the Verilog of `design`.
-fn lint_only(design: &cosim::Design) {
-    let files: Vec<String> = design
-        .verilog_files
-        .iter()
-        .map(|f| f.display().to_string())
-        .collect();
-    let out = std::process::Command::new("verilator")
-        .args(["--lint-only", "-Wall", "--top-module", &design.top])
-        .args(&files)
-        .output()
-        .expect("verilator runs");
-    let text =
-        String::from_utf8_lossy(&out.stderr).to_string() + &String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success() && text.trim().is_empty(),
-        "verilator lint of {}:\n{text}",
-        design.top
-    );
 }
 
 /// Every configuration lints clean; Q = 0 and the small one also go

@@ -700,30 +700,13 @@ fn run_merge_module(
             .collect(),
     });
     if first.is_none() && !passed {
-        let missing: Vec<String> = r
-            .missing
-            .iter()
-            .filter(|m| m.1 > 0)
-            .map(|(s, n)| format!("{n} `{s}` beats"))
-            .collect();
-        first = Some(MismatchReport {
-            transaction: r.sent.first().map_or(0, |cfg| cfg.1.saturating_sub(1)),
-            stream: None,
-            beat: None,
-            kind: merge_module::STAGE.to_string(),
-            cycle: r.hang.as_ref().map_or(r.cycles, |h| h.cycle),
-            seed: a.seed,
-            what: match (&r.hang, missing.is_empty()) {
-                (Some(h), _) => format!(
-                    "no handshake for {} cycles; missing {}",
-                    h.idle_cycles,
-                    missing.join(", ")
-                ),
-                (None, false) => format!("missing {}", missing.join(", ")),
-                (None, true) => o.status_failure().unwrap_or_default(),
-            },
-            fields: Vec::new(),
-        });
+        first = Some(no_mismatch_failure(
+            merge_module::STAGE,
+            r.sent.first().map_or(0, |cfg| cfg.1.saturating_sub(1)),
+            (r.cycles, r.hang.as_ref(), &r.missing),
+            a.seed,
+            o.status_failure(),
+        ));
     }
     let wall = o.wall.as_secs_f64();
     Ok(Report {
@@ -827,30 +810,13 @@ fn run_merger(a: &Args, design: &MergeDesign, dir: &Path) -> Result<Report, Stri
         }],
     });
     if first.is_none() && !passed {
-        let missing: Vec<String> = o
-            .missing
-            .iter()
-            .filter(|m| m.1 > 0)
-            .map(|(s, n)| format!("{n} `{s}` beats"))
-            .collect();
-        first = Some(MismatchReport {
-            transaction: o.merges.saturating_sub(1) as u64,
-            stream: None,
-            beat: None,
-            kind: merger::STAGE.to_string(),
-            cycle: o.hang.as_ref().map_or(o.cycles, |h| h.cycle),
-            seed: a.seed,
-            what: match (&o.hang, missing.is_empty()) {
-                (Some(h), _) => format!(
-                    "no handshake for {} cycles; missing {}",
-                    h.idle_cycles,
-                    missing.join(", ")
-                ),
-                (None, false) => format!("missing {}", missing.join(", ")),
-                (None, true) => o.status_failure().unwrap_or_default(),
-            },
-            fields: Vec::new(),
-        });
+        first = Some(no_mismatch_failure(
+            merger::STAGE,
+            o.merges.saturating_sub(1) as u64,
+            (o.cycles, o.hang.as_ref(), &o.missing),
+            a.seed,
+            o.status_failure(),
+        ));
     }
     let wall = o.wall.as_secs_f64();
     let s = &o.stats;
@@ -939,5 +905,40 @@ impl Report {
             Unit::Merge => "merge",
             Unit::Merger => "merger",
         }
+    }
+}
+
+/// The report of a multi-stream run that failed without a mismatched beat:
+/// a hang, expected beats that never came, or a status output (`done`,
+/// `idle`) that broke its rule. `transaction` is the last one started.
+fn no_mismatch_failure(
+    kind: &str,
+    transaction: u64,
+    (cycles, hang, missing): (u64, Option<&cosim::tb::Hang>, &[(String, usize)]),
+    seed: u64,
+    status: Option<String>,
+) -> MismatchReport {
+    let missing: Vec<String> = missing
+        .iter()
+        .filter(|m| m.1 > 0)
+        .map(|(s, n)| format!("{n} `{s}` beats"))
+        .collect();
+    MismatchReport {
+        transaction,
+        stream: None,
+        beat: None,
+        kind: kind.to_string(),
+        cycle: hang.map_or(cycles, |h| h.cycle),
+        seed,
+        what: match (hang, missing.is_empty()) {
+            (Some(h), _) => format!(
+                "no handshake for {} cycles; missing {}",
+                h.idle_cycles,
+                missing.join(", ")
+            ),
+            (None, false) => format!("missing {}", missing.join(", ")),
+            (None, true) => status.unwrap_or_default(),
+        },
+        fields: Vec::new(),
     }
 }

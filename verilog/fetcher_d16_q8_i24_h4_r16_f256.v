@@ -20,22 +20,22 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
     input  wire cref_resp_valid,        // rtl-gen/src/merge/fetcher.rs:332
     input  wire [27:0] cref_resp_data,  // rtl-gen/src/merge/fetcher.rs:332
     output wire cref_resp_ready,        // rtl-gen/src/merge/fetcher.rs:332
-    output wire node_req_valid,         // rtl-gen/src/merge/fetcher.rs:819
-    output wire [23:0] node_req_data,   // rtl-gen/src/merge/fetcher.rs:819
-    input  wire node_req_ready,         // rtl-gen/src/merge/fetcher.rs:819
-    output wire ref_req_valid,          // rtl-gen/src/merge/fetcher.rs:820
-    output wire [23:0] ref_req_data,    // rtl-gen/src/merge/fetcher.rs:820
-    input  wire ref_req_ready,          // rtl-gen/src/merge/fetcher.rs:820
-    output wire cref_req_valid,         // rtl-gen/src/merge/fetcher.rs:821
-    output wire [23:0] cref_req_data,   // rtl-gen/src/merge/fetcher.rs:821
-    input  wire cref_req_ready,         // rtl-gen/src/merge/fetcher.rs:821
-    output wire out_valid,              // rtl-gen/src/merge/fetcher.rs:822
-    output wire [183:0] out_data,       // rtl-gen/src/merge/fetcher.rs:822
-    input  wire out_ready,              // rtl-gen/src/merge/fetcher.rs:822
-    output wire leaves_valid,           // rtl-gen/src/merge/fetcher.rs:823
-    output wire [183:0] leaves_data,    // rtl-gen/src/merge/fetcher.rs:823
-    input  wire leaves_ready,           // rtl-gen/src/merge/fetcher.rs:823
-    output wire idle                    // rtl-gen/src/merge/fetcher.rs:824
+    output wire node_req_valid,         // rtl-gen/src/merge/fetcher.rs:830
+    output wire [23:0] node_req_data,   // rtl-gen/src/merge/fetcher.rs:830
+    input  wire node_req_ready,         // rtl-gen/src/merge/fetcher.rs:830
+    output wire ref_req_valid,          // rtl-gen/src/merge/fetcher.rs:831
+    output wire [23:0] ref_req_data,    // rtl-gen/src/merge/fetcher.rs:831
+    input  wire ref_req_ready,          // rtl-gen/src/merge/fetcher.rs:831
+    output wire cref_req_valid,         // rtl-gen/src/merge/fetcher.rs:832
+    output wire [23:0] cref_req_data,   // rtl-gen/src/merge/fetcher.rs:832
+    input  wire cref_req_ready,         // rtl-gen/src/merge/fetcher.rs:832
+    output wire out_valid,              // rtl-gen/src/merge/fetcher.rs:833
+    output wire [183:0] out_data,       // rtl-gen/src/merge/fetcher.rs:833
+    input  wire out_ready,              // rtl-gen/src/merge/fetcher.rs:833
+    output wire leaves_valid,           // rtl-gen/src/merge/fetcher.rs:834
+    output wire [183:0] leaves_data,    // rtl-gen/src/merge/fetcher.rs:834
+    input  wire leaves_ready,           // rtl-gen/src/merge/fetcher.rs:834
+    output wire idle                    // rtl-gen/src/merge/fetcher.rs:835
 );
     reg [72:0] frontier [0:1023];            // rtl-gen/src/merge/fetcher.rs:73
     reg [24:0] ref_ctx [0:7];                // rtl-gen/src/merge/fetcher.rs:73
@@ -199,18 +199,18 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
     wire first_err_valid_not_1;              // rtl-gen/src/merge/fetcher.rs:413
     wire root_fail_and_1;                    // rtl-gen/src/merge/fetcher.rs:413
     wire [27:0] cfg_hier_cat;                // rtl-gen/src/merge/fetcher.rs:219
-    wire [1:0] node_resp_data_mux_5;         // rtl-gen/src/merge/fetcher.rs:424
+    wire [1:0] node_resp_data_mux_5;         // rtl-gen/src/merge/fetcher.rs:422
     wire [179:0] node_resp_data_cat_1;       // rtl-gen/src/merge/fetcher.rs:414
-    wire [179:0] const_cat;                  // rtl-gen/src/merge/fetcher.rs:428
-    wire root_outstanding_and_1;             // rtl-gen/src/merge/fetcher.rs:435
-    wire node_code_eq;                       // rtl-gen/src/merge/fetcher.rs:435
-    wire root_outstanding_and_2;             // rtl-gen/src/merge/fetcher.rs:435
-    wire root_outstanding_or;                // rtl-gen/src/merge/fetcher.rs:435
-    wire [179:0] roots_all_taken_mux;        // rtl-gen/src/merge/fetcher.rs:437
-    wire roots_all_taken_and;                // rtl-gen/src/merge/fetcher.rs:438
-    wire frontier_in_valid;                  // rtl-gen/src/merge/fetcher.rs:442
-    wire [72:0] frontier_in_data;            // rtl-gen/src/merge/fetcher.rs:442
-    wire frontier_in_ready;                  // rtl-gen/src/merge/fetcher.rs:442
+    wire [179:0] const_cat;                  // rtl-gen/src/merge/fetcher.rs:429
+    wire root_outstanding_and_1;             // rtl-gen/src/merge/fetcher.rs:436
+    wire node_code_eq;                       // rtl-gen/src/merge/fetcher.rs:436
+    wire root_outstanding_and_2;             // rtl-gen/src/merge/fetcher.rs:436
+    wire root_outstanding_or;                // rtl-gen/src/merge/fetcher.rs:436
+    wire [179:0] roots_all_taken_mux;        // rtl-gen/src/merge/fetcher.rs:438
+    wire roots_all_taken_and;                // rtl-gen/src/merge/fetcher.rs:439
+    wire frontier_in_valid;                  // rtl-gen/src/merge/fetcher.rs:443
+    wire [72:0] frontier_in_data;            // rtl-gen/src/merge/fetcher.rs:443
+    wire frontier_in_ready;                  // rtl-gen/src/merge/fetcher.rs:443
     reg [9:0] frontier_head;                 // rtl-gen/src/merge/fetcher.rs:74
     reg [9:0] frontier_tail;                 // rtl-gen/src/merge/fetcher.rs:75
     reg [10:0] frontier_count;               // rtl-gen/src/merge/fetcher.rs:76
@@ -230,13 +230,13 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
     wire [10:0] frontier_count_sub;          // rtl-gen/src/merge/fetcher.rs:100
     wire [10:0] frontier_out_valid_mux_1;    // rtl-gen/src/merge/fetcher.rs:100
     wire [10:0] frontier_count_next;         // rtl-gen/src/merge/fetcher.rs:98
-    reg range_valid;                         // rtl-gen/src/merge/fetcher.rs:450
-    reg [23:0] range_idx;                    // rtl-gen/src/merge/fetcher.rs:451
-    reg [24:0] range_end;                    // rtl-gen/src/merge/fetcher.rs:452
-    reg [23:0] range_parent;                 // rtl-gen/src/merge/fetcher.rs:453
-    wire ref_ctx_in_valid;                   // rtl-gen/src/merge/fetcher.rs:454
-    wire [24:0] ref_ctx_in_data;             // rtl-gen/src/merge/fetcher.rs:454
-    wire ref_ctx_in_ready;                   // rtl-gen/src/merge/fetcher.rs:454
+    reg range_valid;                         // rtl-gen/src/merge/fetcher.rs:451
+    reg [23:0] range_idx;                    // rtl-gen/src/merge/fetcher.rs:452
+    reg [24:0] range_end;                    // rtl-gen/src/merge/fetcher.rs:453
+    reg [23:0] range_parent;                 // rtl-gen/src/merge/fetcher.rs:454
+    wire ref_ctx_in_valid;                   // rtl-gen/src/merge/fetcher.rs:455
+    wire [24:0] ref_ctx_in_data;             // rtl-gen/src/merge/fetcher.rs:455
+    wire ref_ctx_in_ready;                   // rtl-gen/src/merge/fetcher.rs:455
     reg [2:0] ref_ctx_head;                  // rtl-gen/src/merge/fetcher.rs:74
     reg [2:0] ref_ctx_tail;                  // rtl-gen/src/merge/fetcher.rs:75
     reg [3:0] ref_ctx_count;                 // rtl-gen/src/merge/fetcher.rs:76
@@ -256,35 +256,35 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
     wire [3:0] ref_ctx_count_sub;            // rtl-gen/src/merge/fetcher.rs:100
     wire [3:0] ref_ctx_out_valid_mux_1;      // rtl-gen/src/merge/fetcher.rs:100
     wire [3:0] ref_ctx_count_next;           // rtl-gen/src/merge/fetcher.rs:98
-    wire walking_and;                        // rtl-gen/src/merge/fetcher.rs:456
-    wire ref_issue;                          // rtl-gen/src/merge/fetcher.rs:458
-    wire [23:0] range_idx_add;               // rtl-gen/src/merge/fetcher.rs:459
-    wire range_idx_eq;                       // rtl-gen/src/merge/fetcher.rs:460
-    wire walking_and_1;                      // rtl-gen/src/merge/fetcher.rs:462
-    wire frontier_out_data_not;              // rtl-gen/src/merge/fetcher.rs:462
-    wire walking_and_2;                      // rtl-gen/src/merge/fetcher.rs:462
-    wire range_valid_not;                    // rtl-gen/src/merge/fetcher.rs:462
-    wire ref_issue_and;                      // rtl-gen/src/merge/fetcher.rs:462
-    wire range_valid_or;                     // rtl-gen/src/merge/fetcher.rs:462
-    wire range_load;                         // rtl-gen/src/merge/fetcher.rs:462
-    wire walking_and_3;                      // rtl-gen/src/merge/fetcher.rs:464
-    wire walking_and_4;                      // rtl-gen/src/merge/fetcher.rs:464
-    wire range_valid_not_1;                  // rtl-gen/src/merge/fetcher.rs:464
-    wire walking_and_5;                      // rtl-gen/src/merge/fetcher.rs:464
-    wire marker_pop;                         // rtl-gen/src/merge/fetcher.rs:464
-    wire ref_issue_and_1;                    // rtl-gen/src/merge/fetcher.rs:468
-    wire ref_issue_mux;                      // rtl-gen/src/merge/fetcher.rs:468
-    wire range_load_mux;                     // rtl-gen/src/merge/fetcher.rs:468
-    wire range_valid_next;                   // rtl-gen/src/merge/fetcher.rs:466
-    wire [23:0] ref_issue_mux_1;             // rtl-gen/src/merge/fetcher.rs:470
-    wire [23:0] range_idx_next;              // rtl-gen/src/merge/fetcher.rs:470
-    wire [24:0] frontier_out_data_add;       // rtl-gen/src/merge/fetcher.rs:473
-    wire [24:0] range_end_next;              // rtl-gen/src/merge/fetcher.rs:471
-    wire [23:0] range_parent_next;           // rtl-gen/src/merge/fetcher.rs:475
-    wire [23:0] marker_pop_mux;              // rtl-gen/src/merge/fetcher.rs:479
-    wire node_ctx_in_valid;                  // rtl-gen/src/merge/fetcher.rs:485
-    wire [33:0] node_ctx_in_data;            // rtl-gen/src/merge/fetcher.rs:485
-    wire node_ctx_in_ready;                  // rtl-gen/src/merge/fetcher.rs:485
+    wire walking_and;                        // rtl-gen/src/merge/fetcher.rs:457
+    wire ref_issue;                          // rtl-gen/src/merge/fetcher.rs:459
+    wire [23:0] range_idx_add;               // rtl-gen/src/merge/fetcher.rs:460
+    wire range_idx_eq;                       // rtl-gen/src/merge/fetcher.rs:461
+    wire walking_and_1;                      // rtl-gen/src/merge/fetcher.rs:463
+    wire frontier_out_data_not;              // rtl-gen/src/merge/fetcher.rs:463
+    wire walking_and_2;                      // rtl-gen/src/merge/fetcher.rs:463
+    wire range_valid_not;                    // rtl-gen/src/merge/fetcher.rs:463
+    wire ref_issue_and;                      // rtl-gen/src/merge/fetcher.rs:463
+    wire range_valid_or;                     // rtl-gen/src/merge/fetcher.rs:463
+    wire range_load;                         // rtl-gen/src/merge/fetcher.rs:463
+    wire walking_and_3;                      // rtl-gen/src/merge/fetcher.rs:465
+    wire walking_and_4;                      // rtl-gen/src/merge/fetcher.rs:465
+    wire range_valid_not_1;                  // rtl-gen/src/merge/fetcher.rs:465
+    wire walking_and_5;                      // rtl-gen/src/merge/fetcher.rs:465
+    wire marker_pop;                         // rtl-gen/src/merge/fetcher.rs:465
+    wire ref_issue_and_1;                    // rtl-gen/src/merge/fetcher.rs:469
+    wire ref_issue_mux;                      // rtl-gen/src/merge/fetcher.rs:469
+    wire range_load_mux;                     // rtl-gen/src/merge/fetcher.rs:469
+    wire range_valid_next;                   // rtl-gen/src/merge/fetcher.rs:467
+    wire [23:0] ref_issue_mux_1;             // rtl-gen/src/merge/fetcher.rs:471
+    wire [23:0] range_idx_next;              // rtl-gen/src/merge/fetcher.rs:471
+    wire [24:0] frontier_out_data_add;       // rtl-gen/src/merge/fetcher.rs:474
+    wire [24:0] range_end_next;              // rtl-gen/src/merge/fetcher.rs:472
+    wire [23:0] range_parent_next;           // rtl-gen/src/merge/fetcher.rs:476
+    wire [23:0] marker_pop_mux;              // rtl-gen/src/merge/fetcher.rs:480
+    wire node_ctx_in_valid;                  // rtl-gen/src/merge/fetcher.rs:486
+    wire [33:0] node_ctx_in_data;            // rtl-gen/src/merge/fetcher.rs:486
+    wire node_ctx_in_ready;                  // rtl-gen/src/merge/fetcher.rs:486
     reg [2:0] node_ctx_head;                 // rtl-gen/src/merge/fetcher.rs:74
     reg [2:0] node_ctx_tail;                 // rtl-gen/src/merge/fetcher.rs:75
     reg [3:0] node_ctx_count;                // rtl-gen/src/merge/fetcher.rs:76
@@ -306,36 +306,36 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
     wire [3:0] node_ctx_count_next;          // rtl-gen/src/merge/fetcher.rs:98
     wire [23:0] resp_ref_node;               // rtl-gen/src/merge/fields.rs:13
     wire [3:0] resp_ref_hier;                // rtl-gen/src/merge/fields.rs:13
-    wire resp_ref_hier_ne;                   // rtl-gen/src/merge/fetcher.rs:494
-    wire resp_ref_node_ge;                   // rtl-gen/src/merge/fetcher.rs:497
-    wire [3:0] resp_ref_node_mux;            // rtl-gen/src/merge/fetcher.rs:497
-    wire [3:0] ref_code;                     // rtl-gen/src/merge/fetcher.rs:495
-    wire walking_and_6;                      // rtl-gen/src/merge/fetcher.rs:500
-    wire ref_ctx_out_data_not;               // rtl-gen/src/merge/fetcher.rs:500
-    wire walking_and_7;                      // rtl-gen/src/merge/fetcher.rs:500
-    wire walking_and_8;                      // rtl-gen/src/merge/fetcher.rs:500
-    wire ref_wait;                           // rtl-gen/src/merge/fetcher.rs:500
-    wire ref_take;                           // rtl-gen/src/merge/fetcher.rs:502
-    wire walking_and_9;                      // rtl-gen/src/merge/fetcher.rs:503
-    wire walking_and_10;                     // rtl-gen/src/merge/fetcher.rs:503
-    wire ref_stage_end;                      // rtl-gen/src/merge/fetcher.rs:503
-    wire walking_and_11;                     // rtl-gen/src/merge/fetcher.rs:506
-    wire ref_ctx_out_data_not_1;             // rtl-gen/src/merge/fetcher.rs:506
-    wire walking_and_12;                     // rtl-gen/src/merge/fetcher.rs:506
-    wire walking_and_13;                     // rtl-gen/src/merge/fetcher.rs:506
-    wire walking_and_14;                     // rtl-gen/src/merge/fetcher.rs:506
-    wire ref_code_eq;                        // rtl-gen/src/merge/fetcher.rs:506
-    wire walk_node_req;                      // rtl-gen/src/merge/fetcher.rs:506
-    wire [33:0] const_cat_1;                 // rtl-gen/src/merge/fetcher.rs:512
-    wire ref_code_eq_1;                      // rtl-gen/src/merge/fetcher.rs:513
-    wire [33:0] const_cat_2;                 // rtl-gen/src/merge/fetcher.rs:514
+    wire resp_ref_hier_ne;                   // rtl-gen/src/merge/fetcher.rs:495
+    wire resp_ref_node_ge;                   // rtl-gen/src/merge/fetcher.rs:498
+    wire [3:0] resp_ref_node_mux;            // rtl-gen/src/merge/fetcher.rs:498
+    wire [3:0] ref_code;                     // rtl-gen/src/merge/fetcher.rs:496
+    wire walking_and_6;                      // rtl-gen/src/merge/fetcher.rs:501
+    wire ref_ctx_out_data_not;               // rtl-gen/src/merge/fetcher.rs:501
+    wire walking_and_7;                      // rtl-gen/src/merge/fetcher.rs:501
+    wire walking_and_8;                      // rtl-gen/src/merge/fetcher.rs:501
+    wire ref_wait;                           // rtl-gen/src/merge/fetcher.rs:501
+    wire ref_take;                           // rtl-gen/src/merge/fetcher.rs:503
+    wire walking_and_9;                      // rtl-gen/src/merge/fetcher.rs:504
+    wire walking_and_10;                     // rtl-gen/src/merge/fetcher.rs:504
+    wire ref_stage_end;                      // rtl-gen/src/merge/fetcher.rs:504
+    wire walking_and_11;                     // rtl-gen/src/merge/fetcher.rs:507
+    wire ref_ctx_out_data_not_1;             // rtl-gen/src/merge/fetcher.rs:507
+    wire walking_and_12;                     // rtl-gen/src/merge/fetcher.rs:507
+    wire walking_and_13;                     // rtl-gen/src/merge/fetcher.rs:507
+    wire walking_and_14;                     // rtl-gen/src/merge/fetcher.rs:507
+    wire ref_code_eq;                        // rtl-gen/src/merge/fetcher.rs:507
+    wire walk_node_req;                      // rtl-gen/src/merge/fetcher.rs:507
+    wire [33:0] const_cat_1;                 // rtl-gen/src/merge/fetcher.rs:513
+    wire ref_code_eq_1;                      // rtl-gen/src/merge/fetcher.rs:514
+    wire [33:0] const_cat_2;                 // rtl-gen/src/merge/fetcher.rs:515
     wire [27:0] cfg_hier_cat_1;              // rtl-gen/src/merge/fetcher.rs:219
-    wire [33:0] const_cat_3;                 // rtl-gen/src/merge/fetcher.rs:515
-    wire [33:0] ref_code_mux;                // rtl-gen/src/merge/fetcher.rs:513
-    wire node_ctx_out_data_eq;               // rtl-gen/src/merge/fetcher.rs:527
-    wire out_items_in_valid;                 // rtl-gen/src/merge/fetcher.rs:529
-    wire [183:0] out_items_in_data;          // rtl-gen/src/merge/fetcher.rs:529
-    wire out_items_in_ready;                 // rtl-gen/src/merge/fetcher.rs:529
+    wire [33:0] const_cat_3;                 // rtl-gen/src/merge/fetcher.rs:516
+    wire [33:0] ref_code_mux;                // rtl-gen/src/merge/fetcher.rs:514
+    wire node_ctx_out_data_eq;               // rtl-gen/src/merge/fetcher.rs:528
+    wire out_items_in_valid;                 // rtl-gen/src/merge/fetcher.rs:530
+    wire [183:0] out_items_in_data;          // rtl-gen/src/merge/fetcher.rs:530
+    wire out_items_in_ready;                 // rtl-gen/src/merge/fetcher.rs:530
     reg [1:0] out_items_head;                // rtl-gen/src/merge/fetcher.rs:74
     reg [1:0] out_items_tail;                // rtl-gen/src/merge/fetcher.rs:75
     reg [2:0] out_items_count;               // rtl-gen/src/merge/fetcher.rs:76
@@ -355,159 +355,159 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
     wire [2:0] out_items_count_sub;          // rtl-gen/src/merge/fetcher.rs:100
     wire [2:0] out_items_out_valid_mux_1;    // rtl-gen/src/merge/fetcher.rs:100
     wire [2:0] out_items_count_next;         // rtl-gen/src/merge/fetcher.rs:98
-    wire leaves_core_ready_and;              // rtl-gen/src/merge/fetcher.rs:531
-    wire visit_room;                         // rtl-gen/src/merge/fetcher.rs:531
-    wire walk_done_not;                      // rtl-gen/src/merge/fetcher.rs:532
-    wire visit_live;                         // rtl-gen/src/merge/fetcher.rs:532
-    wire at_top_and;                         // rtl-gen/src/merge/fetcher.rs:533
-    wire first_err_valid_not_2;              // rtl-gen/src/merge/fetcher.rs:534
-    wire at_top_and_1;                       // rtl-gen/src/merge/fetcher.rs:534
-    wire at_top_and_2;                       // rtl-gen/src/merge/fetcher.rs:534
-    wire first_err_valid_not_3;              // rtl-gen/src/merge/fetcher.rs:535
-    wire at_top_and_3;                       // rtl-gen/src/merge/fetcher.rs:535
-    wire header_err_not;                     // rtl-gen/src/merge/fetcher.rs:535
-    wire at_top_and_4;                       // rtl-gen/src/merge/fetcher.rs:535
-    wire at_top_not;                         // rtl-gen/src/merge/fetcher.rs:536
-    reg capacity_told;                       // rtl-gen/src/merge/fetcher.rs:540
-    wire at_top_and_5;                       // rtl-gen/src/merge/fetcher.rs:541
-    wire at_top_and_6;                       // rtl-gen/src/merge/fetcher.rs:541
-    wire at_top_and_7;                       // rtl-gen/src/merge/fetcher.rs:541
-    wire capacity_told_not;                  // rtl-gen/src/merge/fetcher.rs:541
-    wire sorter_dropped;                     // rtl-gen/src/merge/fetcher.rs:541
-    wire at_top_or;                          // rtl-gen/src/merge/fetcher.rs:543
-    wire at_top_and_8;                       // rtl-gen/src/merge/fetcher.rs:545
-    wire at_top_or_1;                        // rtl-gen/src/merge/fetcher.rs:543
-    wire at_top_and_9;                       // rtl-gen/src/merge/fetcher.rs:546
-    wire node_ctx_out_data_not;              // rtl-gen/src/merge/fetcher.rs:546
-    wire node_ctx_out_data_or;               // rtl-gen/src/merge/fetcher.rs:546
-    wire at_top_and_10;                      // rtl-gen/src/merge/fetcher.rs:546
-    wire at_top_or_2;                        // rtl-gen/src/merge/fetcher.rs:543
-    wire visit_avail;                        // rtl-gen/src/merge/fetcher.rs:542
-    wire visit_go;                           // rtl-gen/src/merge/fetcher.rs:548
-    wire visit_live_and;                     // rtl-gen/src/merge/fetcher.rs:549
-    wire sorter_dropped_not;                 // rtl-gen/src/merge/fetcher.rs:549
-    wire visit_live_and_1;                   // rtl-gen/src/merge/fetcher.rs:549
-    wire visit_live_and_2;                   // rtl-gen/src/merge/fetcher.rs:549
-    wire visit_go_and;                       // rtl-gen/src/merge/fetcher.rs:550
-    wire visit_go_mux;                       // rtl-gen/src/merge/fetcher.rs:550
-    wire capacity_told_next;                 // rtl-gen/src/merge/fetcher.rs:550
-    wire visit_live_and_3;                   // rtl-gen/src/merge/fetcher.rs:552
-    wire node_ctx_out_data_not_1;            // rtl-gen/src/merge/fetcher.rs:552
-    wire node_ctx_out_data_or_1;             // rtl-gen/src/merge/fetcher.rs:552
-    wire visit_live_and_4;                   // rtl-gen/src/merge/fetcher.rs:552
-    wire root_outstanding_and_3;             // rtl-gen/src/merge/fetcher.rs:555
-    wire visit_live_and_5;                   // rtl-gen/src/merge/fetcher.rs:555
-    wire visit_live_and_6;                   // rtl-gen/src/merge/fetcher.rs:555
-    wire visit_live_and_7;                   // rtl-gen/src/merge/fetcher.rs:555
-    wire visit_live_and_8;                   // rtl-gen/src/merge/fetcher.rs:555
-    wire visit_go_and_1;                     // rtl-gen/src/merge/fetcher.rs:556
-    wire node_code_ne_1;                     // rtl-gen/src/merge/fetcher.rs:557
-    wire node_ctx_out_data_eq_1;             // rtl-gen/src/merge/fetcher.rs:557
-    wire node_ctx_out_data_mux;              // rtl-gen/src/merge/fetcher.rs:557
-    wire at_top_or_3;                        // rtl-gen/src/merge/fetcher.rs:558
-    wire at_top_and_11;                      // rtl-gen/src/merge/fetcher.rs:558
-    wire item_err;                           // rtl-gen/src/merge/fetcher.rs:558
-    wire at_top_and_12;                      // rtl-gen/src/merge/fetcher.rs:559
-    wire sorter_dropped_not_1;               // rtl-gen/src/merge/fetcher.rs:559
-    wire at_top_and_13;                      // rtl-gen/src/merge/fetcher.rs:559
-    wire at_top_or_4;                        // rtl-gen/src/merge/fetcher.rs:559
-    wire node_ctx_out_data_eq_2;             // rtl-gen/src/merge/fetcher.rs:559
-    wire at_top_and_14;                      // rtl-gen/src/merge/fetcher.rs:559
-    wire item_end;                           // rtl-gen/src/merge/fetcher.rs:559
-    wire item_err_not;                       // rtl-gen/src/merge/fetcher.rs:561
-    wire item_end_not;                       // rtl-gen/src/merge/fetcher.rs:561
-    wire item_node;                          // rtl-gen/src/merge/fetcher.rs:561
-    wire [3:0] node_ctx_out_data_mux_1;      // rtl-gen/src/merge/fetcher.rs:566
-    wire [3:0] sorter_dropped_mux;           // rtl-gen/src/merge/fetcher.rs:564
-    wire [3:0] at_top_mux;                   // rtl-gen/src/merge/fetcher.rs:562
-    wire [23:0] sorter_dropped_mux_1;        // rtl-gen/src/merge/fetcher.rs:570
-    wire [23:0] at_top_mux_1;                // rtl-gen/src/merge/fetcher.rs:570
-    wire [149:0] item_rec;                   // rtl-gen/src/merge/fetcher.rs:571
-    wire [27:0] item_ref;                    // rtl-gen/src/merge/fetcher.rs:572
+    wire leaves_core_ready_and;              // rtl-gen/src/merge/fetcher.rs:532
+    wire visit_room;                         // rtl-gen/src/merge/fetcher.rs:532
+    wire walk_done_not;                      // rtl-gen/src/merge/fetcher.rs:533
+    wire visit_live;                         // rtl-gen/src/merge/fetcher.rs:533
+    wire at_top_and;                         // rtl-gen/src/merge/fetcher.rs:534
+    wire first_err_valid_not_2;              // rtl-gen/src/merge/fetcher.rs:535
+    wire at_top_and_1;                       // rtl-gen/src/merge/fetcher.rs:535
+    wire at_top_and_2;                       // rtl-gen/src/merge/fetcher.rs:535
+    wire first_err_valid_not_3;              // rtl-gen/src/merge/fetcher.rs:536
+    wire at_top_and_3;                       // rtl-gen/src/merge/fetcher.rs:536
+    wire header_err_not;                     // rtl-gen/src/merge/fetcher.rs:536
+    wire at_top_and_4;                       // rtl-gen/src/merge/fetcher.rs:536
+    wire at_top_not;                         // rtl-gen/src/merge/fetcher.rs:537
+    reg capacity_told;                       // rtl-gen/src/merge/fetcher.rs:541
+    wire at_top_and_5;                       // rtl-gen/src/merge/fetcher.rs:542
+    wire at_top_and_6;                       // rtl-gen/src/merge/fetcher.rs:542
+    wire at_top_and_7;                       // rtl-gen/src/merge/fetcher.rs:542
+    wire capacity_told_not;                  // rtl-gen/src/merge/fetcher.rs:542
+    wire sorter_dropped;                     // rtl-gen/src/merge/fetcher.rs:542
+    wire at_top_or;                          // rtl-gen/src/merge/fetcher.rs:544
+    wire at_top_and_8;                       // rtl-gen/src/merge/fetcher.rs:546
+    wire at_top_or_1;                        // rtl-gen/src/merge/fetcher.rs:544
+    wire at_top_and_9;                       // rtl-gen/src/merge/fetcher.rs:547
+    wire node_ctx_out_data_not;              // rtl-gen/src/merge/fetcher.rs:547
+    wire node_ctx_out_data_or;               // rtl-gen/src/merge/fetcher.rs:547
+    wire at_top_and_10;                      // rtl-gen/src/merge/fetcher.rs:547
+    wire at_top_or_2;                        // rtl-gen/src/merge/fetcher.rs:544
+    wire visit_avail;                        // rtl-gen/src/merge/fetcher.rs:543
+    wire visit_go;                           // rtl-gen/src/merge/fetcher.rs:549
+    wire visit_live_and;                     // rtl-gen/src/merge/fetcher.rs:550
+    wire sorter_dropped_not;                 // rtl-gen/src/merge/fetcher.rs:550
+    wire visit_live_and_1;                   // rtl-gen/src/merge/fetcher.rs:550
+    wire visit_live_and_2;                   // rtl-gen/src/merge/fetcher.rs:550
+    wire visit_go_and;                       // rtl-gen/src/merge/fetcher.rs:551
+    wire visit_go_mux;                       // rtl-gen/src/merge/fetcher.rs:551
+    wire capacity_told_next;                 // rtl-gen/src/merge/fetcher.rs:551
+    wire visit_live_and_3;                   // rtl-gen/src/merge/fetcher.rs:553
+    wire node_ctx_out_data_not_1;            // rtl-gen/src/merge/fetcher.rs:553
+    wire node_ctx_out_data_or_1;             // rtl-gen/src/merge/fetcher.rs:553
+    wire visit_live_and_4;                   // rtl-gen/src/merge/fetcher.rs:553
+    wire root_outstanding_and_3;             // rtl-gen/src/merge/fetcher.rs:556
+    wire visit_live_and_5;                   // rtl-gen/src/merge/fetcher.rs:556
+    wire visit_live_and_6;                   // rtl-gen/src/merge/fetcher.rs:556
+    wire visit_live_and_7;                   // rtl-gen/src/merge/fetcher.rs:556
+    wire visit_live_and_8;                   // rtl-gen/src/merge/fetcher.rs:556
+    wire visit_go_and_1;                     // rtl-gen/src/merge/fetcher.rs:557
+    wire node_code_ne_1;                     // rtl-gen/src/merge/fetcher.rs:558
+    wire node_ctx_out_data_eq_1;             // rtl-gen/src/merge/fetcher.rs:558
+    wire node_ctx_out_data_mux;              // rtl-gen/src/merge/fetcher.rs:558
+    wire at_top_or_3;                        // rtl-gen/src/merge/fetcher.rs:559
+    wire at_top_and_11;                      // rtl-gen/src/merge/fetcher.rs:559
+    wire item_err;                           // rtl-gen/src/merge/fetcher.rs:559
+    wire at_top_and_12;                      // rtl-gen/src/merge/fetcher.rs:560
+    wire sorter_dropped_not_1;               // rtl-gen/src/merge/fetcher.rs:560
+    wire at_top_and_13;                      // rtl-gen/src/merge/fetcher.rs:560
+    wire at_top_or_4;                        // rtl-gen/src/merge/fetcher.rs:560
+    wire node_ctx_out_data_eq_2;             // rtl-gen/src/merge/fetcher.rs:560
+    wire at_top_and_14;                      // rtl-gen/src/merge/fetcher.rs:560
+    wire item_end;                           // rtl-gen/src/merge/fetcher.rs:560
+    wire item_err_not;                       // rtl-gen/src/merge/fetcher.rs:562
+    wire item_end_not;                       // rtl-gen/src/merge/fetcher.rs:562
+    wire item_node;                          // rtl-gen/src/merge/fetcher.rs:562
+    wire [3:0] node_ctx_out_data_mux_1;      // rtl-gen/src/merge/fetcher.rs:567
+    wire [3:0] sorter_dropped_mux;           // rtl-gen/src/merge/fetcher.rs:565
+    wire [3:0] at_top_mux;                   // rtl-gen/src/merge/fetcher.rs:563
+    wire [23:0] sorter_dropped_mux_1;        // rtl-gen/src/merge/fetcher.rs:571
+    wire [23:0] at_top_mux_1;                // rtl-gen/src/merge/fetcher.rs:571
+    wire [149:0] item_rec;                   // rtl-gen/src/merge/fetcher.rs:572
+    wire [27:0] item_ref;                    // rtl-gen/src/merge/fetcher.rs:573
     wire item_leaf;                          // rtl-gen/src/merge/fields.rs:13
-    wire item_leaf_not;                      // rtl-gen/src/merge/fetcher.rs:576
+    wire item_leaf_not;                      // rtl-gen/src/merge/fetcher.rs:577
     wire [47:0] item_rec_cat;                // rtl-gen/src/merge/network.rs:46
-    wire [48:0] item_key;                    // rtl-gen/src/merge/fetcher.rs:578
-    wire [24:0] item_range_end;              // rtl-gen/src/merge/fetcher.rs:590
-    wire above_level;                        // rtl-gen/src/merge/fetcher.rs:592
-    wire at_level;                           // rtl-gen/src/merge/fetcher.rs:593
-    wire item_key_le;                        // rtl-gen/src/merge/fetcher.rs:594
-    wire order_bad;                          // rtl-gen/src/merge/fetcher.rs:594
-    wire at_level_and;                       // rtl-gen/src/merge/fetcher.rs:596
-    wire above_level_or;                     // rtl-gen/src/merge/fetcher.rs:596
-    wire item_leaf_and;                      // rtl-gen/src/merge/fetcher.rs:596
-    wire item_range_end_gt;                  // rtl-gen/src/merge/fetcher.rs:596
-    wire range_bad;                          // rtl-gen/src/merge/fetcher.rs:596
-    wire item_leaf_and_1;                    // rtl-gen/src/merge/fetcher.rs:597
-    wire pushed_ge;                          // rtl-gen/src/merge/fetcher.rs:597
-    wire frontier_bad;                       // rtl-gen/src/merge/fetcher.rs:597
-    wire [3:0] frontier_bad_mux;             // rtl-gen/src/merge/fetcher.rs:606
-    wire [3:0] range_bad_mux;                // rtl-gen/src/merge/fetcher.rs:604
-    wire [3:0] order_bad_mux;                // rtl-gen/src/merge/fetcher.rs:602
-    wire [3:0] item_end_mux;                 // rtl-gen/src/merge/fetcher.rs:600
-    wire [3:0] visit_code;                   // rtl-gen/src/merge/fetcher.rs:598
-    wire [23:0] item_err_mux;                // rtl-gen/src/merge/fetcher.rs:612
-    wire visit_code_ne;                      // rtl-gen/src/merge/fetcher.rs:613
-    wire visit_fails;                        // rtl-gen/src/merge/fetcher.rs:613
-    wire visit_go_and_2;                     // rtl-gen/src/merge/fetcher.rs:614
-    wire visit_code_eq;                      // rtl-gen/src/merge/fetcher.rs:614
-    wire visit_passes;                       // rtl-gen/src/merge/fetcher.rs:614
-    wire visit_passes_and;                   // rtl-gen/src/merge/fetcher.rs:615
-    wire frontier_push;                      // rtl-gen/src/merge/fetcher.rs:615
-    wire visit_passes_and_1;                 // rtl-gen/src/merge/fetcher.rs:616
-    wire visit_passes_and_2;                 // rtl-gen/src/merge/fetcher.rs:616
-    wire visit_passes_and_3;                 // rtl-gen/src/merge/fetcher.rs:616
-    wire visit_errored_not;                  // rtl-gen/src/merge/fetcher.rs:616
-    wire leaf_out;                           // rtl-gen/src/merge/fetcher.rs:616
-    wire to_out;                             // rtl-gen/src/merge/fetcher.rs:617
-    wire pushed_ne;                          // rtl-gen/src/merge/fetcher.rs:618
-    wire next_level;                         // rtl-gen/src/merge/fetcher.rs:618
-    wire level_end;                          // rtl-gen/src/merge/fetcher.rs:619
-    wire next_level_not;                     // rtl-gen/src/merge/fetcher.rs:620
-    wire walk_over;                          // rtl-gen/src/merge/fetcher.rs:620
-    wire marker_push;                        // rtl-gen/src/merge/fetcher.rs:621
-    wire visit_go_and_3;                     // rtl-gen/src/merge/fetcher.rs:625
-    wire visit_go_mux_1;                     // rtl-gen/src/merge/fetcher.rs:625
-    wire marker_push_mux;                    // rtl-gen/src/merge/fetcher.rs:625
-    wire prev_valid_next;                    // rtl-gen/src/merge/fetcher.rs:623
-    wire visit_go_and_4;                     // rtl-gen/src/merge/fetcher.rs:627
-    wire [48:0] prev_key_next;               // rtl-gen/src/merge/fetcher.rs:627
-    wire [8:0] pushed_add;                   // rtl-gen/src/merge/fetcher.rs:630
-    wire [8:0] frontier_push_mux;            // rtl-gen/src/merge/fetcher.rs:630
-    wire [8:0] marker_push_mux_1;            // rtl-gen/src/merge/fetcher.rs:630
-    wire [8:0] pushed_next;                  // rtl-gen/src/merge/fetcher.rs:628
-    wire [4:0] level_add;                    // rtl-gen/src/merge/fetcher.rs:632
-    wire [4:0] marker_push_mux_2;            // rtl-gen/src/merge/fetcher.rs:632
-    wire [4:0] level_next;                   // rtl-gen/src/merge/fetcher.rs:632
-    wire level_end_mux;                      // rtl-gen/src/merge/fetcher.rs:633
-    wire at_top_next;                        // rtl-gen/src/merge/fetcher.rs:633
-    wire walk_over_mux;                      // rtl-gen/src/merge/fetcher.rs:634
-    wire walk_done_next;                     // rtl-gen/src/merge/fetcher.rs:634
-    wire visit_fails_mux;                    // rtl-gen/src/merge/fetcher.rs:635
-    wire visit_errored_next;                 // rtl-gen/src/merge/fetcher.rs:635
-    wire [183:0] const_cat_4;                // rtl-gen/src/merge/fetcher.rs:641
-    wire [183:0] const_cat_5;                // rtl-gen/src/merge/fetcher.rs:650
-    wire walk_over_and;                      // rtl-gen/src/merge/fetcher.rs:651
-    wire to_out_or;                          // rtl-gen/src/merge/fetcher.rs:653
-    wire [1:0] walk_over_mux_1;              // rtl-gen/src/merge/fetcher.rs:657
-    wire [1:0] visit_fails_mux_1;            // rtl-gen/src/merge/fetcher.rs:655
+    wire [48:0] item_key;                    // rtl-gen/src/merge/fetcher.rs:579
+    wire [24:0] item_range_end;              // rtl-gen/src/merge/fetcher.rs:591
+    wire above_level;                        // rtl-gen/src/merge/fetcher.rs:593
+    wire at_level;                           // rtl-gen/src/merge/fetcher.rs:594
+    wire item_key_le;                        // rtl-gen/src/merge/fetcher.rs:595
+    wire order_bad;                          // rtl-gen/src/merge/fetcher.rs:595
+    wire at_level_and;                       // rtl-gen/src/merge/fetcher.rs:597
+    wire above_level_or;                     // rtl-gen/src/merge/fetcher.rs:597
+    wire item_leaf_and;                      // rtl-gen/src/merge/fetcher.rs:597
+    wire item_range_end_gt;                  // rtl-gen/src/merge/fetcher.rs:597
+    wire range_bad;                          // rtl-gen/src/merge/fetcher.rs:597
+    wire item_leaf_and_1;                    // rtl-gen/src/merge/fetcher.rs:598
+    wire pushed_ge;                          // rtl-gen/src/merge/fetcher.rs:598
+    wire frontier_bad;                       // rtl-gen/src/merge/fetcher.rs:598
+    wire [3:0] frontier_bad_mux;             // rtl-gen/src/merge/fetcher.rs:607
+    wire [3:0] range_bad_mux;                // rtl-gen/src/merge/fetcher.rs:605
+    wire [3:0] order_bad_mux;                // rtl-gen/src/merge/fetcher.rs:603
+    wire [3:0] item_end_mux;                 // rtl-gen/src/merge/fetcher.rs:601
+    wire [3:0] visit_code;                   // rtl-gen/src/merge/fetcher.rs:599
+    wire [23:0] item_err_mux;                // rtl-gen/src/merge/fetcher.rs:613
+    wire visit_code_ne;                      // rtl-gen/src/merge/fetcher.rs:614
+    wire visit_fails;                        // rtl-gen/src/merge/fetcher.rs:614
+    wire visit_go_and_2;                     // rtl-gen/src/merge/fetcher.rs:615
+    wire visit_code_eq;                      // rtl-gen/src/merge/fetcher.rs:615
+    wire visit_passes;                       // rtl-gen/src/merge/fetcher.rs:615
+    wire visit_passes_and;                   // rtl-gen/src/merge/fetcher.rs:616
+    wire frontier_push;                      // rtl-gen/src/merge/fetcher.rs:616
+    wire visit_passes_and_1;                 // rtl-gen/src/merge/fetcher.rs:617
+    wire visit_passes_and_2;                 // rtl-gen/src/merge/fetcher.rs:617
+    wire visit_passes_and_3;                 // rtl-gen/src/merge/fetcher.rs:617
+    wire visit_errored_not;                  // rtl-gen/src/merge/fetcher.rs:617
+    wire leaf_out;                           // rtl-gen/src/merge/fetcher.rs:617
+    wire to_out;                             // rtl-gen/src/merge/fetcher.rs:618
+    wire pushed_ne;                          // rtl-gen/src/merge/fetcher.rs:619
+    wire next_level;                         // rtl-gen/src/merge/fetcher.rs:619
+    wire level_end;                          // rtl-gen/src/merge/fetcher.rs:620
+    wire next_level_not;                     // rtl-gen/src/merge/fetcher.rs:621
+    wire walk_over;                          // rtl-gen/src/merge/fetcher.rs:621
+    wire marker_push;                        // rtl-gen/src/merge/fetcher.rs:622
+    wire visit_go_and_3;                     // rtl-gen/src/merge/fetcher.rs:626
+    wire visit_go_mux_1;                     // rtl-gen/src/merge/fetcher.rs:626
+    wire marker_push_mux;                    // rtl-gen/src/merge/fetcher.rs:626
+    wire prev_valid_next;                    // rtl-gen/src/merge/fetcher.rs:624
+    wire visit_go_and_4;                     // rtl-gen/src/merge/fetcher.rs:628
+    wire [48:0] prev_key_next;               // rtl-gen/src/merge/fetcher.rs:628
+    wire [8:0] pushed_add;                   // rtl-gen/src/merge/fetcher.rs:631
+    wire [8:0] frontier_push_mux;            // rtl-gen/src/merge/fetcher.rs:631
+    wire [8:0] marker_push_mux_1;            // rtl-gen/src/merge/fetcher.rs:631
+    wire [8:0] pushed_next;                  // rtl-gen/src/merge/fetcher.rs:629
+    wire [4:0] level_add;                    // rtl-gen/src/merge/fetcher.rs:633
+    wire [4:0] marker_push_mux_2;            // rtl-gen/src/merge/fetcher.rs:633
+    wire [4:0] level_next;                   // rtl-gen/src/merge/fetcher.rs:633
+    wire level_end_mux;                      // rtl-gen/src/merge/fetcher.rs:634
+    wire at_top_next;                        // rtl-gen/src/merge/fetcher.rs:634
+    wire walk_over_mux;                      // rtl-gen/src/merge/fetcher.rs:635
+    wire walk_done_next;                     // rtl-gen/src/merge/fetcher.rs:635
+    wire visit_fails_mux;                    // rtl-gen/src/merge/fetcher.rs:636
+    wire visit_errored_next;                 // rtl-gen/src/merge/fetcher.rs:636
+    wire [183:0] const_cat_4;                // rtl-gen/src/merge/fetcher.rs:642
+    wire [183:0] const_cat_5;                // rtl-gen/src/merge/fetcher.rs:651
+    wire walk_over_and;                      // rtl-gen/src/merge/fetcher.rs:652
+    wire to_out_or;                          // rtl-gen/src/merge/fetcher.rs:654
+    wire [1:0] walk_over_mux_1;              // rtl-gen/src/merge/fetcher.rs:658
+    wire [1:0] visit_fails_mux_1;            // rtl-gen/src/merge/fetcher.rs:656
     wire [27:0] cfg_hier_cat_2;              // rtl-gen/src/merge/fetcher.rs:219
-    wire [27:0] visit_fails_mux_2;           // rtl-gen/src/merge/fetcher.rs:660
-    wire out_items_out_data_eq;              // rtl-gen/src/merge/fetcher.rs:673
-    wire [47:0] out_items_out_data_cat;      // rtl-gen/src/merge/fetcher.rs:675
-    wire [24:0] out_items_out_data_add;      // rtl-gen/src/merge/fetcher.rs:681
-    reg pend_valid;                          // rtl-gen/src/merge/fetcher.rs:685
-    reg [23:0] pend_first;                   // rtl-gen/src/merge/fetcher.rs:686
-    reg [24:0] pend_end;                     // rtl-gen/src/merge/fetcher.rs:687
-    reg [47:0] pend_voxel;                   // rtl-gen/src/merge/fetcher.rs:688
-    reg [23:0] pend_node;                    // rtl-gen/src/merge/fetcher.rs:689
-    reg cref_active;                         // rtl-gen/src/merge/fetcher.rs:690
-    reg [23:0] cref_idx;                     // rtl-gen/src/merge/fetcher.rs:691
-    reg [24:0] cref_end;                     // rtl-gen/src/merge/fetcher.rs:692
-    reg [23:0] cref_parent;                  // rtl-gen/src/merge/fetcher.rs:693
-    wire out_tokens_in_valid;                // rtl-gen/src/merge/fetcher.rs:695
-    wire [185:0] out_tokens_in_data;         // rtl-gen/src/merge/fetcher.rs:695
-    wire out_tokens_in_ready;                // rtl-gen/src/merge/fetcher.rs:695
+    wire [27:0] visit_fails_mux_2;           // rtl-gen/src/merge/fetcher.rs:661
+    wire out_items_out_data_eq;              // rtl-gen/src/merge/fetcher.rs:674
+    wire [47:0] out_items_out_data_cat;      // rtl-gen/src/merge/fetcher.rs:676
+    wire [24:0] out_items_out_data_add;      // rtl-gen/src/merge/fetcher.rs:682
+    reg pend_valid;                          // rtl-gen/src/merge/fetcher.rs:686
+    reg [23:0] pend_first;                   // rtl-gen/src/merge/fetcher.rs:687
+    reg [24:0] pend_end;                     // rtl-gen/src/merge/fetcher.rs:688
+    reg [47:0] pend_voxel;                   // rtl-gen/src/merge/fetcher.rs:689
+    reg [23:0] pend_node;                    // rtl-gen/src/merge/fetcher.rs:690
+    reg cref_active;                         // rtl-gen/src/merge/fetcher.rs:691
+    reg [23:0] cref_idx;                     // rtl-gen/src/merge/fetcher.rs:692
+    reg [24:0] cref_end;                     // rtl-gen/src/merge/fetcher.rs:693
+    reg [23:0] cref_parent;                  // rtl-gen/src/merge/fetcher.rs:694
+    wire out_tokens_in_valid;                // rtl-gen/src/merge/fetcher.rs:696
+    wire [185:0] out_tokens_in_data;         // rtl-gen/src/merge/fetcher.rs:696
+    wire out_tokens_in_ready;                // rtl-gen/src/merge/fetcher.rs:696
     reg [1:0] out_tokens_head;               // rtl-gen/src/merge/fetcher.rs:74
     reg [1:0] out_tokens_tail;               // rtl-gen/src/merge/fetcher.rs:75
     reg [2:0] out_tokens_count;              // rtl-gen/src/merge/fetcher.rs:76
@@ -527,203 +527,203 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
     wire [2:0] out_tokens_count_sub;         // rtl-gen/src/merge/fetcher.rs:100
     wire [2:0] out_tokens_out_valid_mux_1;   // rtl-gen/src/merge/fetcher.rs:100
     wire [2:0] out_tokens_count_next;        // rtl-gen/src/merge/fetcher.rs:98
-    wire walking_and_15;                     // rtl-gen/src/merge/fetcher.rs:697
-    wire order_room;                         // rtl-gen/src/merge/fetcher.rs:697
-    wire pend_valid_and;                     // rtl-gen/src/merge/fetcher.rs:698
-    wire pend_valid_and_1;                   // rtl-gen/src/merge/fetcher.rs:698
-    wire out_items_out_data_eq_1;            // rtl-gen/src/merge/fetcher.rs:698
-    wire leaf_of_held;                       // rtl-gen/src/merge/fetcher.rs:698
-    wire cref_next;                          // rtl-gen/src/merge/fetcher.rs:699
-    wire cref_active_not;                    // rtl-gen/src/merge/fetcher.rs:700
-    wire order_room_and;                     // rtl-gen/src/merge/fetcher.rs:700
-    wire order_room_and_1;                   // rtl-gen/src/merge/fetcher.rs:700
-    wire held_leaf;                          // rtl-gen/src/merge/fetcher.rs:700
-    wire cref_active_not_1;                  // rtl-gen/src/merge/fetcher.rs:702
-    wire order_room_and_2;                   // rtl-gen/src/merge/fetcher.rs:702
-    wire order_room_and_3;                   // rtl-gen/src/merge/fetcher.rs:702
-    wire order_room_and_4;                   // rtl-gen/src/merge/fetcher.rs:702
-    wire leaf_of_held_not;                   // rtl-gen/src/merge/fetcher.rs:702
-    wire held_refs_first;                    // rtl-gen/src/merge/fetcher.rs:702
-    wire cref_active_not_2;                  // rtl-gen/src/merge/fetcher.rs:703
-    wire order_room_and_5;                   // rtl-gen/src/merge/fetcher.rs:703
-    wire order_room_and_6;                   // rtl-gen/src/merge/fetcher.rs:703
-    wire pend_valid_not;                     // rtl-gen/src/merge/fetcher.rs:703
-    wire item_out;                           // rtl-gen/src/merge/fetcher.rs:703
-    wire walking_and_16;                     // rtl-gen/src/merge/fetcher.rs:706
-    wire cref_active_not_3;                  // rtl-gen/src/merge/fetcher.rs:706
-    wire cref_active_and;                    // rtl-gen/src/merge/fetcher.rs:706
-    wire cref_active_and_1;                  // rtl-gen/src/merge/fetcher.rs:706
-    wire leaf_of_held_not_1;                 // rtl-gen/src/merge/fetcher.rs:706
-    wire cref_active_and_2;                  // rtl-gen/src/merge/fetcher.rs:706
-    wire cref_active_or;                     // rtl-gen/src/merge/fetcher.rs:706
-    wire [23:0] cref_idx_add;                // rtl-gen/src/merge/fetcher.rs:709
-    wire [23:0] pend_first_add;              // rtl-gen/src/merge/fetcher.rs:710
-    wire cref_idx_ne;                        // rtl-gen/src/merge/fetcher.rs:714
-    wire pend_first_ne;                      // rtl-gen/src/merge/fetcher.rs:717
-    wire held_refs_first_mux;                // rtl-gen/src/merge/fetcher.rs:717
-    wire held_leaf_mux;                      // rtl-gen/src/merge/fetcher.rs:715
-    wire cref_next_mux;                      // rtl-gen/src/merge/fetcher.rs:713
-    wire cref_active_next;                   // rtl-gen/src/merge/fetcher.rs:711
-    wire [23:0] held_refs_first_mux_1;       // rtl-gen/src/merge/fetcher.rs:723
-    wire [23:0] held_leaf_mux_1;             // rtl-gen/src/merge/fetcher.rs:723
-    wire [23:0] cref_idx_next;               // rtl-gen/src/merge/fetcher.rs:721
-    wire held_leaf_or;                       // rtl-gen/src/merge/fetcher.rs:725
-    wire [24:0] cref_end_next;               // rtl-gen/src/merge/fetcher.rs:725
-    wire held_leaf_or_1;                     // rtl-gen/src/merge/fetcher.rs:726
-    wire [23:0] cref_parent_next;            // rtl-gen/src/merge/fetcher.rs:726
-    wire item_out_and;                       // rtl-gen/src/merge/fetcher.rs:727
-    wire out_items_out_data_not;             // rtl-gen/src/merge/fetcher.rs:727
-    wire item_out_and_1;                     // rtl-gen/src/merge/fetcher.rs:727
-    wire hold_refs;                          // rtl-gen/src/merge/fetcher.rs:727
-    wire held_leaf_or_2;                     // rtl-gen/src/merge/fetcher.rs:730
-    wire hold_refs_mux;                      // rtl-gen/src/merge/fetcher.rs:730
-    wire held_leaf_mux_2;                    // rtl-gen/src/merge/fetcher.rs:730
-    wire pend_valid_next;                    // rtl-gen/src/merge/fetcher.rs:728
-    wire [23:0] pend_first_next;             // rtl-gen/src/merge/fetcher.rs:732
-    wire [24:0] pend_end_next;               // rtl-gen/src/merge/fetcher.rs:733
-    wire [47:0] pend_voxel_next;             // rtl-gen/src/merge/fetcher.rs:734
-    wire [23:0] pend_node_next;              // rtl-gen/src/merge/fetcher.rs:735
-    wire [1:0] out_items_out_data_mux;       // rtl-gen/src/merge/fetcher.rs:741
+    wire walking_and_15;                     // rtl-gen/src/merge/fetcher.rs:698
+    wire order_room;                         // rtl-gen/src/merge/fetcher.rs:698
+    wire pend_valid_and;                     // rtl-gen/src/merge/fetcher.rs:699
+    wire pend_valid_and_1;                   // rtl-gen/src/merge/fetcher.rs:699
+    wire out_items_out_data_eq_1;            // rtl-gen/src/merge/fetcher.rs:699
+    wire leaf_of_held;                       // rtl-gen/src/merge/fetcher.rs:699
+    wire cref_next;                          // rtl-gen/src/merge/fetcher.rs:700
+    wire cref_active_not;                    // rtl-gen/src/merge/fetcher.rs:701
+    wire order_room_and;                     // rtl-gen/src/merge/fetcher.rs:701
+    wire order_room_and_1;                   // rtl-gen/src/merge/fetcher.rs:701
+    wire held_leaf;                          // rtl-gen/src/merge/fetcher.rs:701
+    wire cref_active_not_1;                  // rtl-gen/src/merge/fetcher.rs:703
+    wire order_room_and_2;                   // rtl-gen/src/merge/fetcher.rs:703
+    wire order_room_and_3;                   // rtl-gen/src/merge/fetcher.rs:703
+    wire order_room_and_4;                   // rtl-gen/src/merge/fetcher.rs:703
+    wire leaf_of_held_not;                   // rtl-gen/src/merge/fetcher.rs:703
+    wire held_refs_first;                    // rtl-gen/src/merge/fetcher.rs:703
+    wire cref_active_not_2;                  // rtl-gen/src/merge/fetcher.rs:704
+    wire order_room_and_5;                   // rtl-gen/src/merge/fetcher.rs:704
+    wire order_room_and_6;                   // rtl-gen/src/merge/fetcher.rs:704
+    wire pend_valid_not;                     // rtl-gen/src/merge/fetcher.rs:704
+    wire item_out;                           // rtl-gen/src/merge/fetcher.rs:704
+    wire walking_and_16;                     // rtl-gen/src/merge/fetcher.rs:707
+    wire cref_active_not_3;                  // rtl-gen/src/merge/fetcher.rs:707
+    wire cref_active_and;                    // rtl-gen/src/merge/fetcher.rs:707
+    wire cref_active_and_1;                  // rtl-gen/src/merge/fetcher.rs:707
+    wire leaf_of_held_not_1;                 // rtl-gen/src/merge/fetcher.rs:707
+    wire cref_active_and_2;                  // rtl-gen/src/merge/fetcher.rs:707
+    wire cref_active_or;                     // rtl-gen/src/merge/fetcher.rs:707
+    wire [23:0] cref_idx_add;                // rtl-gen/src/merge/fetcher.rs:710
+    wire [23:0] pend_first_add;              // rtl-gen/src/merge/fetcher.rs:711
+    wire cref_idx_ne;                        // rtl-gen/src/merge/fetcher.rs:715
+    wire pend_first_ne;                      // rtl-gen/src/merge/fetcher.rs:718
+    wire held_refs_first_mux;                // rtl-gen/src/merge/fetcher.rs:718
+    wire held_leaf_mux;                      // rtl-gen/src/merge/fetcher.rs:716
+    wire cref_next_mux;                      // rtl-gen/src/merge/fetcher.rs:714
+    wire cref_active_next;                   // rtl-gen/src/merge/fetcher.rs:712
+    wire [23:0] held_refs_first_mux_1;       // rtl-gen/src/merge/fetcher.rs:724
+    wire [23:0] held_leaf_mux_1;             // rtl-gen/src/merge/fetcher.rs:724
+    wire [23:0] cref_idx_next;               // rtl-gen/src/merge/fetcher.rs:722
+    wire held_leaf_or;                       // rtl-gen/src/merge/fetcher.rs:726
+    wire [24:0] cref_end_next;               // rtl-gen/src/merge/fetcher.rs:726
+    wire held_leaf_or_1;                     // rtl-gen/src/merge/fetcher.rs:727
+    wire [23:0] cref_parent_next;            // rtl-gen/src/merge/fetcher.rs:727
+    wire item_out_and;                       // rtl-gen/src/merge/fetcher.rs:728
+    wire out_items_out_data_not;             // rtl-gen/src/merge/fetcher.rs:728
+    wire item_out_and_1;                     // rtl-gen/src/merge/fetcher.rs:728
+    wire hold_refs;                          // rtl-gen/src/merge/fetcher.rs:728
+    wire held_leaf_or_2;                     // rtl-gen/src/merge/fetcher.rs:731
+    wire hold_refs_mux;                      // rtl-gen/src/merge/fetcher.rs:731
+    wire held_leaf_mux_2;                    // rtl-gen/src/merge/fetcher.rs:731
+    wire pend_valid_next;                    // rtl-gen/src/merge/fetcher.rs:729
+    wire [23:0] pend_first_next;             // rtl-gen/src/merge/fetcher.rs:733
+    wire [24:0] pend_end_next;               // rtl-gen/src/merge/fetcher.rs:734
+    wire [47:0] pend_voxel_next;             // rtl-gen/src/merge/fetcher.rs:735
+    wire [23:0] pend_node_next;              // rtl-gen/src/merge/fetcher.rs:736
+    wire [1:0] out_items_out_data_mux;       // rtl-gen/src/merge/fetcher.rs:742
     wire [183:0] const_cat_6;                // rtl-gen/src/merge/fetcher.rs:242
     wire [183:0] out_items_out_data_cat_1;   // rtl-gen/src/merge/fetcher.rs:242
     wire [183:0] const_cat_7;                // rtl-gen/src/merge/fetcher.rs:242
-    wire [23:0] cref_active_mux;             // rtl-gen/src/merge/fetcher.rs:756
-    wire [185:0] const_cat_8;                // rtl-gen/src/merge/fetcher.rs:753
-    wire out_items_out_data_eq_2;            // rtl-gen/src/merge/fetcher.rs:758
-    wire [185:0] const_cat_9;                // rtl-gen/src/merge/fetcher.rs:759
-    wire out_items_out_data_eq_3;            // rtl-gen/src/merge/fetcher.rs:760
-    wire [185:0] const_cat_10;               // rtl-gen/src/merge/fetcher.rs:761
-    wire [185:0] const_cat_11;               // rtl-gen/src/merge/fetcher.rs:762
-    wire [185:0] out_items_out_data_mux_1;   // rtl-gen/src/merge/fetcher.rs:760
-    wire [185:0] out_items_out_data_mux_2;   // rtl-gen/src/merge/fetcher.rs:758
-    wire cref_next_or;                       // rtl-gen/src/merge/fetcher.rs:765
-    wire cref_next_or_1;                     // rtl-gen/src/merge/fetcher.rs:765
-    wire cref_next_or_2;                     // rtl-gen/src/merge/fetcher.rs:768
-    wire token_cref;                         // rtl-gen/src/merge/fetcher.rs:775
-    wire cref_resp_data_ne;                  // rtl-gen/src/merge/fetcher.rs:779
-    wire cref_resp_data_ge;                  // rtl-gen/src/merge/fetcher.rs:782
-    wire [3:0] cref_resp_data_mux;           // rtl-gen/src/merge/fetcher.rs:782
-    wire [3:0] cref_code;                    // rtl-gen/src/merge/fetcher.rs:780
-    wire token_cref_not;                     // rtl-gen/src/merge/fetcher.rs:785
-    wire token_answered;                     // rtl-gen/src/merge/fetcher.rs:785
-    wire walking_and_17;                     // rtl-gen/src/merge/fetcher.rs:786
-    wire walking_and_18;                     // rtl-gen/src/merge/fetcher.rs:786
-    wire out_errored_or;                     // rtl-gen/src/merge/fetcher.rs:786
-    wire token_fire;                         // rtl-gen/src/merge/fetcher.rs:786
-    wire walking_and_19;                     // rtl-gen/src/merge/fetcher.rs:790
-    wire walking_and_20;                     // rtl-gen/src/merge/fetcher.rs:790
-    wire out_errored_or_1;                   // rtl-gen/src/merge/fetcher.rs:790
+    wire [23:0] cref_active_mux;             // rtl-gen/src/merge/fetcher.rs:767
+    wire [185:0] const_cat_8;                // rtl-gen/src/merge/fetcher.rs:764
+    wire out_items_out_data_eq_2;            // rtl-gen/src/merge/fetcher.rs:769
+    wire [185:0] const_cat_9;                // rtl-gen/src/merge/fetcher.rs:770
+    wire out_items_out_data_eq_3;            // rtl-gen/src/merge/fetcher.rs:771
+    wire [185:0] const_cat_10;               // rtl-gen/src/merge/fetcher.rs:772
+    wire [185:0] const_cat_11;               // rtl-gen/src/merge/fetcher.rs:773
+    wire [185:0] out_items_out_data_mux_1;   // rtl-gen/src/merge/fetcher.rs:771
+    wire [185:0] out_items_out_data_mux_2;   // rtl-gen/src/merge/fetcher.rs:769
+    wire cref_next_or;                       // rtl-gen/src/merge/fetcher.rs:776
+    wire cref_next_or_1;                     // rtl-gen/src/merge/fetcher.rs:776
+    wire cref_next_or_2;                     // rtl-gen/src/merge/fetcher.rs:779
+    wire token_cref;                         // rtl-gen/src/merge/fetcher.rs:786
+    wire cref_resp_data_ne;                  // rtl-gen/src/merge/fetcher.rs:790
+    wire cref_resp_data_ge;                  // rtl-gen/src/merge/fetcher.rs:793
+    wire [3:0] cref_resp_data_mux;           // rtl-gen/src/merge/fetcher.rs:793
+    wire [3:0] cref_code;                    // rtl-gen/src/merge/fetcher.rs:791
+    wire token_cref_not;                     // rtl-gen/src/merge/fetcher.rs:796
+    wire token_answered;                     // rtl-gen/src/merge/fetcher.rs:796
+    wire walking_and_17;                     // rtl-gen/src/merge/fetcher.rs:797
+    wire walking_and_18;                     // rtl-gen/src/merge/fetcher.rs:797
+    wire out_errored_or;                     // rtl-gen/src/merge/fetcher.rs:797
+    wire token_fire;                         // rtl-gen/src/merge/fetcher.rs:797
+    wire walking_and_19;                     // rtl-gen/src/merge/fetcher.rs:801
+    wire walking_and_20;                     // rtl-gen/src/merge/fetcher.rs:801
+    wire out_errored_or_1;                   // rtl-gen/src/merge/fetcher.rs:801
     wire [183:0] const_cat_12;               // rtl-gen/src/merge/fetcher.rs:242
     wire [27:0] cfg_hier_cat_3;              // rtl-gen/src/merge/fetcher.rs:219
     wire [183:0] cref_code_cat;              // rtl-gen/src/merge/fetcher.rs:242
-    wire walking_and_21;                     // rtl-gen/src/merge/fetcher.rs:807
-    wire walking_and_22;                     // rtl-gen/src/merge/fetcher.rs:807
-    wire out_errored_not;                    // rtl-gen/src/merge/fetcher.rs:807
-    wire cref_code_eq;                       // rtl-gen/src/merge/fetcher.rs:809
-    wire [183:0] cref_code_mux;              // rtl-gen/src/merge/fetcher.rs:809
-    wire out_tokens_out_data_eq;             // rtl-gen/src/merge/fetcher.rs:810
-    wire cref_code_ne;                       // rtl-gen/src/merge/fetcher.rs:810
-    wire token_cref_and;                     // rtl-gen/src/merge/fetcher.rs:810
-    wire out_tokens_out_data_or;             // rtl-gen/src/merge/fetcher.rs:810
-    wire token_fire_and;                     // rtl-gen/src/merge/fetcher.rs:811
-    wire token_fire_mux;                     // rtl-gen/src/merge/fetcher.rs:811
-    wire out_errored_next;                   // rtl-gen/src/merge/fetcher.rs:811
-    wire out_tokens_out_data_eq_1;           // rtl-gen/src/merge/fetcher.rs:812
-    wire token_fire_and_1;                   // rtl-gen/src/merge/fetcher.rs:812
+    wire walking_and_21;                     // rtl-gen/src/merge/fetcher.rs:818
+    wire walking_and_22;                     // rtl-gen/src/merge/fetcher.rs:818
+    wire out_errored_not;                    // rtl-gen/src/merge/fetcher.rs:818
+    wire cref_code_eq;                       // rtl-gen/src/merge/fetcher.rs:820
+    wire [183:0] cref_code_mux;              // rtl-gen/src/merge/fetcher.rs:820
+    wire out_tokens_out_data_eq;             // rtl-gen/src/merge/fetcher.rs:821
+    wire cref_code_ne;                       // rtl-gen/src/merge/fetcher.rs:821
+    wire token_cref_and;                     // rtl-gen/src/merge/fetcher.rs:821
+    wire out_tokens_out_data_or;             // rtl-gen/src/merge/fetcher.rs:821
+    wire token_fire_and;                     // rtl-gen/src/merge/fetcher.rs:822
+    wire token_fire_mux;                     // rtl-gen/src/merge/fetcher.rs:822
+    wire out_errored_next;                   // rtl-gen/src/merge/fetcher.rs:822
+    wire out_tokens_out_data_eq_1;           // rtl-gen/src/merge/fetcher.rs:823
+    wire token_fire_and_1;                   // rtl-gen/src/merge/fetcher.rs:823
     wire phase_eq_2;                         // rtl-gen/src/merge/fetcher.rs:267
-    wire phase_and_1;                        // rtl-gen/src/merge/fetcher.rs:816
-    wire phase_mux_2;                        // rtl-gen/src/merge/fetcher.rs:816
-    wire cfg_have_next;                      // rtl-gen/src/merge/fetcher.rs:816
-    reg node_req_q_valid;                    // rtl-gen/src/merge/fetcher.rs:819
-    reg [23:0] node_req_q_data;              // rtl-gen/src/merge/fetcher.rs:819
-    reg node_req_q_spare_valid;              // rtl-gen/src/merge/fetcher.rs:819
-    reg [23:0] node_req_q_spare_data;        // rtl-gen/src/merge/fetcher.rs:819
-    wire node_req_q_ready;                   // rtl-gen/src/merge/fetcher.rs:819
-    wire node_req_q_valid_not;               // rtl-gen/src/merge/fetcher.rs:819
-    wire node_req_q_ready_or;                // rtl-gen/src/merge/fetcher.rs:819
-    wire node_req_q_spare_valid_not;         // rtl-gen/src/merge/fetcher.rs:819
-    wire node_req_core_valid_and_1;          // rtl-gen/src/merge/fetcher.rs:819
-    wire node_req_q_spare_valid_or;          // rtl-gen/src/merge/fetcher.rs:819
-    wire node_req_q_valid_next;              // rtl-gen/src/merge/fetcher.rs:819
-    wire [23:0] node_req_q_spare_valid_mux;  // rtl-gen/src/merge/fetcher.rs:819
-    wire [23:0] node_req_q_data_next;        // rtl-gen/src/merge/fetcher.rs:819
-    wire node_req_q_spare_valid_or_1;        // rtl-gen/src/merge/fetcher.rs:819
-    wire node_req_q_spare_valid_next;        // rtl-gen/src/merge/fetcher.rs:819
-    wire node_req_q_ready_not;               // rtl-gen/src/merge/fetcher.rs:819
-    wire node_req_q_ready_and;               // rtl-gen/src/merge/fetcher.rs:819
-    wire [23:0] node_req_q_spare_data_next;  // rtl-gen/src/merge/fetcher.rs:819
-    reg ref_req_q_valid;                     // rtl-gen/src/merge/fetcher.rs:820
-    reg [23:0] ref_req_q_data;               // rtl-gen/src/merge/fetcher.rs:820
-    reg ref_req_q_spare_valid;               // rtl-gen/src/merge/fetcher.rs:820
-    reg [23:0] ref_req_q_spare_data;         // rtl-gen/src/merge/fetcher.rs:820
-    wire ref_req_q_ready;                    // rtl-gen/src/merge/fetcher.rs:820
-    wire ref_req_q_valid_not;                // rtl-gen/src/merge/fetcher.rs:820
-    wire ref_req_q_ready_or;                 // rtl-gen/src/merge/fetcher.rs:820
-    wire ref_req_q_spare_valid_not;          // rtl-gen/src/merge/fetcher.rs:820
-    wire ref_req_core_valid_and;             // rtl-gen/src/merge/fetcher.rs:820
-    wire ref_req_q_spare_valid_or;           // rtl-gen/src/merge/fetcher.rs:820
-    wire ref_req_q_valid_next;               // rtl-gen/src/merge/fetcher.rs:820
-    wire [23:0] ref_req_q_spare_valid_mux;   // rtl-gen/src/merge/fetcher.rs:820
-    wire [23:0] ref_req_q_data_next;         // rtl-gen/src/merge/fetcher.rs:820
-    wire ref_req_q_spare_valid_or_1;         // rtl-gen/src/merge/fetcher.rs:820
-    wire ref_req_q_spare_valid_next;         // rtl-gen/src/merge/fetcher.rs:820
-    wire ref_req_q_ready_not;                // rtl-gen/src/merge/fetcher.rs:820
-    wire ref_req_q_ready_and;                // rtl-gen/src/merge/fetcher.rs:820
-    wire [23:0] ref_req_q_spare_data_next;   // rtl-gen/src/merge/fetcher.rs:820
-    reg cref_req_q_valid;                    // rtl-gen/src/merge/fetcher.rs:821
-    reg [23:0] cref_req_q_data;              // rtl-gen/src/merge/fetcher.rs:821
-    reg cref_req_q_spare_valid;              // rtl-gen/src/merge/fetcher.rs:821
-    reg [23:0] cref_req_q_spare_data;        // rtl-gen/src/merge/fetcher.rs:821
-    wire cref_req_q_ready;                   // rtl-gen/src/merge/fetcher.rs:821
-    wire cref_req_q_valid_not;               // rtl-gen/src/merge/fetcher.rs:821
-    wire cref_req_q_ready_or;                // rtl-gen/src/merge/fetcher.rs:821
-    wire cref_req_q_spare_valid_not;         // rtl-gen/src/merge/fetcher.rs:821
-    wire cref_req_core_valid_and;            // rtl-gen/src/merge/fetcher.rs:821
-    wire cref_req_q_spare_valid_or;          // rtl-gen/src/merge/fetcher.rs:821
-    wire cref_req_q_valid_next;              // rtl-gen/src/merge/fetcher.rs:821
-    wire [23:0] cref_req_q_spare_valid_mux;  // rtl-gen/src/merge/fetcher.rs:821
-    wire [23:0] cref_req_q_data_next;        // rtl-gen/src/merge/fetcher.rs:821
-    wire cref_req_q_spare_valid_or_1;        // rtl-gen/src/merge/fetcher.rs:821
-    wire cref_req_q_spare_valid_next;        // rtl-gen/src/merge/fetcher.rs:821
-    wire cref_req_q_ready_not;               // rtl-gen/src/merge/fetcher.rs:821
-    wire cref_req_q_ready_and;               // rtl-gen/src/merge/fetcher.rs:821
-    wire [23:0] cref_req_q_spare_data_next;  // rtl-gen/src/merge/fetcher.rs:821
-    reg out_q_valid;                         // rtl-gen/src/merge/fetcher.rs:822
-    reg [183:0] out_q_data;                  // rtl-gen/src/merge/fetcher.rs:822
-    reg out_q_spare_valid;                   // rtl-gen/src/merge/fetcher.rs:822
-    reg [183:0] out_q_spare_data;            // rtl-gen/src/merge/fetcher.rs:822
-    wire out_q_ready;                        // rtl-gen/src/merge/fetcher.rs:822
-    wire out_q_valid_not;                    // rtl-gen/src/merge/fetcher.rs:822
-    wire out_q_ready_or;                     // rtl-gen/src/merge/fetcher.rs:822
-    wire out_q_spare_valid_not;              // rtl-gen/src/merge/fetcher.rs:822
-    wire out_core_valid_and;                 // rtl-gen/src/merge/fetcher.rs:822
-    wire out_q_spare_valid_or;               // rtl-gen/src/merge/fetcher.rs:822
-    wire out_q_valid_next;                   // rtl-gen/src/merge/fetcher.rs:822
-    wire [183:0] out_q_spare_valid_mux;      // rtl-gen/src/merge/fetcher.rs:822
-    wire [183:0] out_q_data_next;            // rtl-gen/src/merge/fetcher.rs:822
-    wire out_q_spare_valid_or_1;             // rtl-gen/src/merge/fetcher.rs:822
-    wire out_q_spare_valid_next;             // rtl-gen/src/merge/fetcher.rs:822
-    wire out_q_ready_not;                    // rtl-gen/src/merge/fetcher.rs:822
-    wire out_q_ready_and;                    // rtl-gen/src/merge/fetcher.rs:822
-    wire [183:0] out_q_spare_data_next;      // rtl-gen/src/merge/fetcher.rs:822
-    reg leaves_q_valid;                      // rtl-gen/src/merge/fetcher.rs:823
-    reg [183:0] leaves_q_data;               // rtl-gen/src/merge/fetcher.rs:823
-    reg leaves_q_spare_valid;                // rtl-gen/src/merge/fetcher.rs:823
-    reg [183:0] leaves_q_spare_data;         // rtl-gen/src/merge/fetcher.rs:823
-    wire leaves_q_ready;                     // rtl-gen/src/merge/fetcher.rs:823
-    wire leaves_q_valid_not;                 // rtl-gen/src/merge/fetcher.rs:823
-    wire leaves_q_ready_or;                  // rtl-gen/src/merge/fetcher.rs:823
-    wire leaves_q_spare_valid_not;           // rtl-gen/src/merge/fetcher.rs:823
-    wire leaves_core_valid_and;              // rtl-gen/src/merge/fetcher.rs:823
-    wire leaves_q_spare_valid_or;            // rtl-gen/src/merge/fetcher.rs:823
-    wire leaves_q_valid_next;                // rtl-gen/src/merge/fetcher.rs:823
-    wire [183:0] leaves_q_spare_valid_mux;   // rtl-gen/src/merge/fetcher.rs:823
-    wire [183:0] leaves_q_data_next;         // rtl-gen/src/merge/fetcher.rs:823
-    wire leaves_q_spare_valid_or_1;          // rtl-gen/src/merge/fetcher.rs:823
-    wire leaves_q_spare_valid_next;          // rtl-gen/src/merge/fetcher.rs:823
-    wire leaves_q_ready_not;                 // rtl-gen/src/merge/fetcher.rs:823
-    wire leaves_q_ready_and;                 // rtl-gen/src/merge/fetcher.rs:823
-    wire [183:0] leaves_q_spare_data_next;   // rtl-gen/src/merge/fetcher.rs:823
+    wire phase_and_1;                        // rtl-gen/src/merge/fetcher.rs:827
+    wire phase_mux_2;                        // rtl-gen/src/merge/fetcher.rs:827
+    wire cfg_have_next;                      // rtl-gen/src/merge/fetcher.rs:827
+    reg node_req_q_valid;                    // rtl-gen/src/merge/fetcher.rs:830
+    reg [23:0] node_req_q_data;              // rtl-gen/src/merge/fetcher.rs:830
+    reg node_req_q_spare_valid;              // rtl-gen/src/merge/fetcher.rs:830
+    reg [23:0] node_req_q_spare_data;        // rtl-gen/src/merge/fetcher.rs:830
+    wire node_req_q_ready;                   // rtl-gen/src/merge/fetcher.rs:830
+    wire node_req_q_valid_not;               // rtl-gen/src/merge/fetcher.rs:830
+    wire node_req_q_ready_or;                // rtl-gen/src/merge/fetcher.rs:830
+    wire node_req_q_spare_valid_not;         // rtl-gen/src/merge/fetcher.rs:830
+    wire node_req_core_valid_and_1;          // rtl-gen/src/merge/fetcher.rs:830
+    wire node_req_q_spare_valid_or;          // rtl-gen/src/merge/fetcher.rs:830
+    wire node_req_q_valid_next;              // rtl-gen/src/merge/fetcher.rs:830
+    wire [23:0] node_req_q_spare_valid_mux;  // rtl-gen/src/merge/fetcher.rs:830
+    wire [23:0] node_req_q_data_next;        // rtl-gen/src/merge/fetcher.rs:830
+    wire node_req_q_spare_valid_or_1;        // rtl-gen/src/merge/fetcher.rs:830
+    wire node_req_q_spare_valid_next;        // rtl-gen/src/merge/fetcher.rs:830
+    wire node_req_q_ready_not;               // rtl-gen/src/merge/fetcher.rs:830
+    wire node_req_q_ready_and;               // rtl-gen/src/merge/fetcher.rs:830
+    wire [23:0] node_req_q_spare_data_next;  // rtl-gen/src/merge/fetcher.rs:830
+    reg ref_req_q_valid;                     // rtl-gen/src/merge/fetcher.rs:831
+    reg [23:0] ref_req_q_data;               // rtl-gen/src/merge/fetcher.rs:831
+    reg ref_req_q_spare_valid;               // rtl-gen/src/merge/fetcher.rs:831
+    reg [23:0] ref_req_q_spare_data;         // rtl-gen/src/merge/fetcher.rs:831
+    wire ref_req_q_ready;                    // rtl-gen/src/merge/fetcher.rs:831
+    wire ref_req_q_valid_not;                // rtl-gen/src/merge/fetcher.rs:831
+    wire ref_req_q_ready_or;                 // rtl-gen/src/merge/fetcher.rs:831
+    wire ref_req_q_spare_valid_not;          // rtl-gen/src/merge/fetcher.rs:831
+    wire ref_req_core_valid_and;             // rtl-gen/src/merge/fetcher.rs:831
+    wire ref_req_q_spare_valid_or;           // rtl-gen/src/merge/fetcher.rs:831
+    wire ref_req_q_valid_next;               // rtl-gen/src/merge/fetcher.rs:831
+    wire [23:0] ref_req_q_spare_valid_mux;   // rtl-gen/src/merge/fetcher.rs:831
+    wire [23:0] ref_req_q_data_next;         // rtl-gen/src/merge/fetcher.rs:831
+    wire ref_req_q_spare_valid_or_1;         // rtl-gen/src/merge/fetcher.rs:831
+    wire ref_req_q_spare_valid_next;         // rtl-gen/src/merge/fetcher.rs:831
+    wire ref_req_q_ready_not;                // rtl-gen/src/merge/fetcher.rs:831
+    wire ref_req_q_ready_and;                // rtl-gen/src/merge/fetcher.rs:831
+    wire [23:0] ref_req_q_spare_data_next;   // rtl-gen/src/merge/fetcher.rs:831
+    reg cref_req_q_valid;                    // rtl-gen/src/merge/fetcher.rs:832
+    reg [23:0] cref_req_q_data;              // rtl-gen/src/merge/fetcher.rs:832
+    reg cref_req_q_spare_valid;              // rtl-gen/src/merge/fetcher.rs:832
+    reg [23:0] cref_req_q_spare_data;        // rtl-gen/src/merge/fetcher.rs:832
+    wire cref_req_q_ready;                   // rtl-gen/src/merge/fetcher.rs:832
+    wire cref_req_q_valid_not;               // rtl-gen/src/merge/fetcher.rs:832
+    wire cref_req_q_ready_or;                // rtl-gen/src/merge/fetcher.rs:832
+    wire cref_req_q_spare_valid_not;         // rtl-gen/src/merge/fetcher.rs:832
+    wire cref_req_core_valid_and;            // rtl-gen/src/merge/fetcher.rs:832
+    wire cref_req_q_spare_valid_or;          // rtl-gen/src/merge/fetcher.rs:832
+    wire cref_req_q_valid_next;              // rtl-gen/src/merge/fetcher.rs:832
+    wire [23:0] cref_req_q_spare_valid_mux;  // rtl-gen/src/merge/fetcher.rs:832
+    wire [23:0] cref_req_q_data_next;        // rtl-gen/src/merge/fetcher.rs:832
+    wire cref_req_q_spare_valid_or_1;        // rtl-gen/src/merge/fetcher.rs:832
+    wire cref_req_q_spare_valid_next;        // rtl-gen/src/merge/fetcher.rs:832
+    wire cref_req_q_ready_not;               // rtl-gen/src/merge/fetcher.rs:832
+    wire cref_req_q_ready_and;               // rtl-gen/src/merge/fetcher.rs:832
+    wire [23:0] cref_req_q_spare_data_next;  // rtl-gen/src/merge/fetcher.rs:832
+    reg out_q_valid;                         // rtl-gen/src/merge/fetcher.rs:833
+    reg [183:0] out_q_data;                  // rtl-gen/src/merge/fetcher.rs:833
+    reg out_q_spare_valid;                   // rtl-gen/src/merge/fetcher.rs:833
+    reg [183:0] out_q_spare_data;            // rtl-gen/src/merge/fetcher.rs:833
+    wire out_q_ready;                        // rtl-gen/src/merge/fetcher.rs:833
+    wire out_q_valid_not;                    // rtl-gen/src/merge/fetcher.rs:833
+    wire out_q_ready_or;                     // rtl-gen/src/merge/fetcher.rs:833
+    wire out_q_spare_valid_not;              // rtl-gen/src/merge/fetcher.rs:833
+    wire out_core_valid_and;                 // rtl-gen/src/merge/fetcher.rs:833
+    wire out_q_spare_valid_or;               // rtl-gen/src/merge/fetcher.rs:833
+    wire out_q_valid_next;                   // rtl-gen/src/merge/fetcher.rs:833
+    wire [183:0] out_q_spare_valid_mux;      // rtl-gen/src/merge/fetcher.rs:833
+    wire [183:0] out_q_data_next;            // rtl-gen/src/merge/fetcher.rs:833
+    wire out_q_spare_valid_or_1;             // rtl-gen/src/merge/fetcher.rs:833
+    wire out_q_spare_valid_next;             // rtl-gen/src/merge/fetcher.rs:833
+    wire out_q_ready_not;                    // rtl-gen/src/merge/fetcher.rs:833
+    wire out_q_ready_and;                    // rtl-gen/src/merge/fetcher.rs:833
+    wire [183:0] out_q_spare_data_next;      // rtl-gen/src/merge/fetcher.rs:833
+    reg leaves_q_valid;                      // rtl-gen/src/merge/fetcher.rs:834
+    reg [183:0] leaves_q_data;               // rtl-gen/src/merge/fetcher.rs:834
+    reg leaves_q_spare_valid;                // rtl-gen/src/merge/fetcher.rs:834
+    reg [183:0] leaves_q_spare_data;         // rtl-gen/src/merge/fetcher.rs:834
+    wire leaves_q_ready;                     // rtl-gen/src/merge/fetcher.rs:834
+    wire leaves_q_valid_not;                 // rtl-gen/src/merge/fetcher.rs:834
+    wire leaves_q_ready_or;                  // rtl-gen/src/merge/fetcher.rs:834
+    wire leaves_q_spare_valid_not;           // rtl-gen/src/merge/fetcher.rs:834
+    wire leaves_core_valid_and;              // rtl-gen/src/merge/fetcher.rs:834
+    wire leaves_q_spare_valid_or;            // rtl-gen/src/merge/fetcher.rs:834
+    wire leaves_q_valid_next;                // rtl-gen/src/merge/fetcher.rs:834
+    wire [183:0] leaves_q_spare_valid_mux;   // rtl-gen/src/merge/fetcher.rs:834
+    wire [183:0] leaves_q_data_next;         // rtl-gen/src/merge/fetcher.rs:834
+    wire leaves_q_spare_valid_or_1;          // rtl-gen/src/merge/fetcher.rs:834
+    wire leaves_q_spare_valid_next;          // rtl-gen/src/merge/fetcher.rs:834
+    wire leaves_q_ready_not;                 // rtl-gen/src/merge/fetcher.rs:834
+    wire leaves_q_ready_and;                 // rtl-gen/src/merge/fetcher.rs:834
+    wire [183:0] leaves_q_spare_data_next;   // rtl-gen/src/merge/fetcher.rs:834
     wire [2:0] phase_mux_3;                  // rtl-gen/src/merge/fetcher.rs:127
     wire [2:0] token_fire_mux_1;             // rtl-gen/src/merge/fetcher.rs:127
     wire [2:0] roots_all_taken_mux_1;        // rtl-gen/src/merge/fetcher.rs:127

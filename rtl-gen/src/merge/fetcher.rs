@@ -419,16 +419,17 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
             (bl.refer, reference(&m, hier, taken)),
             (
                 bl.kind,
-                field(node_resp.data, nl.leaf())
-                    .expect("leaf")
-                    .mux(lit(level_kind::LEAF, 2), lit(level_kind::INNER, 2)),
+                field(node_resp.data, nl.leaf()).expect("leaf").mux(
+                    lit(level_kind::LEAF, bl.kind.width),
+                    lit(level_kind::INNER, bl.kind.width),
+                ),
             ),
         ],
     );
     let end_beat = with_fields(
         &m,
         m.lit(0, bl.width),
-        &[(bl.kind, lit(level_kind::END, 2))],
+        &[(bl.kind, lit(level_kind::END, bl.kind.width))],
     );
     sorter.connect(
         "in_valid",
@@ -738,7 +739,10 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
         &l,
         Some(o_rec),
         Some(o_ref),
-        o_leaf.mux(lit(level_kind::LEAF, 2), lit(level_kind::INNER, 2)),
+        o_leaf.mux(
+            lit(level_kind::LEAF, bl.kind.width),
+            lit(level_kind::INNER, bl.kind.width),
+        ),
         None,
     );
     let err_beat = out_beat(
@@ -746,10 +750,17 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
         &l,
         None,
         Some(o_ref),
-        lit(level_kind::END, 2),
+        lit(level_kind::END, bl.kind.width),
         Some(o_code),
     );
-    let end_out = out_beat(&m, &l, None, None, lit(level_kind::END, 2), None);
+    let end_out = out_beat(
+        &m,
+        &l,
+        None,
+        None,
+        lit(level_kind::END, bl.kind.width),
+        None,
+    );
     let cref_tok = m.concat(&[
         lit(ok::TOK_CREF, 2),
         m.lit(0, l.out_width - ib),
@@ -793,7 +804,7 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
         &l,
         None,
         Some(cref_resp.data),
-        lit(level_kind::CHILD_REF, 2),
+        lit(level_kind::CHILD_REF, bl.kind.width),
         None,
     );
     let cref_err_beat = out_beat(
@@ -801,7 +812,7 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
         &l,
         None,
         Some(reference(&m, hier, t_parent)),
-        lit(level_kind::END, 2),
+        lit(level_kind::END, bl.kind.width),
         Some(cref_code),
     );
     out.valid.drive(walk & toks.valid & answered & !o_errored);

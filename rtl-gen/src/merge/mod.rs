@@ -51,7 +51,7 @@ pub use per_node::{
 pub use sorter::{root_sorter_name, root_sorter_unit};
 pub use top::{merge_module_name, merge_module_unit};
 pub use upper::{upper_level_name, upper_level_unit};
-pub use writer::{record_writer_name, record_writer_unit};
+pub use writer::{record_writer_buffers, record_writer_name, record_writer_unit, WriterBuffer};
 
 use std::path::{Path, PathBuf};
 

@@ -23,7 +23,7 @@ use golden::merge::writer_unit::{writer_err, CapacityError, WriterLayout};
 use golden::params::Params;
 
 use super::fields::field;
-use crate::{Module, Signal, Stream};
+use crate::{Memory, Module, Signal, Stream};
 
 /// Module name of the record writer for `p` with `2^capacity_bits` entries
 /// per level.
@@ -32,6 +32,73 @@ pub fn record_writer_name(p: &Params, capacity_bits: u32) -> String {
         "record_writer_d{}_q{}_i{}_h{}_c{}",
         p.max_lod, p.quant_bits, p.index_bits, p.hier_bits, capacity_bits
     )
+}
+
+/// One of the writer's buffers: a simple dual-port RAM of `depth` words of
+/// `width` bits (one write port, one registered read port).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct WriterBuffer {
+    /// The memory's name in the emitted Verilog (`<name>` in `reg [..] <name> [..]`).
+    pub name: String,
+    /// Word width in bits.
+    pub width: u32,
+    /// Words (`2^C`).
+    pub depth: u32,
+}
+
+/// The writer's buffers for `p` and `2^capacity_bits` entries (SPEC.md
+/// 8.12, "Buffers"), named as the emitted Verilog names them: `crefs_mem`;
+/// `rbody{d}_mem`, `rpar{d}_mem` and `child{d}_mem` for the levels 1..=D
+/// (level 0 is never below a top, nor anyone's child); `nbody{d}_mem` and
+/// `npar{d}_mem` for every level. Each is read synchronously, so a flow
+/// maps each onto RAM macros; `record_writer_unit` builds exactly these.
+pub fn record_writer_buffers(
+    p: &Params,
+    capacity_bits: u32,
+) -> Result<Vec<WriterBuffer>, CapacityError> {
+    let wl = WriterLayout::new(p, capacity_bits)?;
+    let w = BufferWidths::of(&wl, p);
+    let depth = 1u32 << capacity_bits;
+    let buf = |name: String, width: u32| WriterBuffer { name, width, depth };
+    let mut out = vec![buf("crefs_mem".into(), w.cref)];
+    for d in 0..=p.max_lod as usize {
+        if d > 0 {
+            out.push(buf(format!("rbody{d}_mem"), w.body));
+            out.push(buf(format!("rpar{d}_mem"), w.parent));
+        }
+        out.push(buf(format!("nbody{d}_mem"), w.body));
+        out.push(buf(format!("npar{d}_mem"), w.parent));
+        if d > 0 {
+            out.push(buf(format!("child{d}_mem"), w.child));
+        }
+    }
+    Ok(out)
+}
+
+/// Word widths of the buffers: each holds exactly what its reader takes.
+struct BufferWidths {
+    /// A record below `first` (leaf .. hi_z) and its `count`.
+    body: u32,
+    /// `kind`, `count`, `first`, `hier`.
+    parent: u32,
+    /// `reused`, `ref`, `records`.
+    child: u32,
+    /// A created node's reference.
+    cref: u32,
+}
+
+impl BufferWidths {
+    fn of(wl: &WriterLayout, p: &Params) -> BufferWidths {
+        let i = p.index_bits as u32;
+        let h = p.hier_bits as u32;
+        let ref_w = wl.reference.width();
+        BufferWidths {
+            body: wl.node.first().offset + i,
+            parent: 2 + 2 * i + h,
+            child: 1 + ref_w + i,
+            cref: ref_w,
+        }
+    }
 }
 
 /// States of a merge.
@@ -98,6 +165,43 @@ fn next_level_with_records<'m>(
     (found, lod)
 }
 
+/// Which level buffers a sequencer reads this clock: the level its pointer
+/// names in the next clock (`next_lod`), in the by-position buffer when that
+/// level is the top and in the by-record-slot one below it. `(top, below)`
+/// per level.
+fn read_wants<'m>(
+    m: &'m Module,
+    reading: Signal<'m>,
+    next_lod: Signal<'m>,
+    next_is_top: Signal<'m>,
+    dmax: usize,
+) -> (Vec<Signal<'m>>, Vec<Signal<'m>>) {
+    let at = |d: usize| reading & next_lod.eq(m.lit(d as u128, next_lod.width()));
+    let top = (0..=dmax).map(|d| at(d) & next_is_top).collect();
+    let below = (0..=dmax).map(|d| at(d) & !next_is_top).collect();
+    (top, below)
+}
+
+/// Each level's buffer read a clock ahead: level `d`'s read register takes
+/// the word at `addr` in a clock where `want[d]`, and holds it otherwise
+/// (a RAM's registered read port with its enable). A level without the
+/// buffer reads as zero.
+fn read_ahead<'m>(
+    m: &'m Module,
+    bufs: &[Option<Memory<'m>>],
+    addr: Signal<'m>,
+    want: &[Signal<'m>],
+    width: u32,
+) -> Vec<Signal<'m>> {
+    bufs.iter()
+        .zip(want)
+        .map(|(b, en)| match b {
+            Some(b) => b.read_sync(addr, *en),
+            None => m.lit(0, width),
+        })
+        .collect()
+}
+
 /// A parent's word in the drain: `kind` (2), `count`, `first`, `hier`.
 struct Parent<'m> {
     kind: Signal<'m>,
@@ -153,9 +257,7 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let ref_w = rl.width();
     // A record without `first` and `count`: leaf .. hi_z.
     let body_w = nl.first().offset;
-    let body_word_w = body_w + i;
-    let parent_w = 2 + 2 * i + h;
-    let child_w = 1 + ref_w + i;
+    let widths = BufferWidths::of(&wl, p);
     // Wide enough for every sum the header checks against 2^I.
     let nodes_w = i + 7;
     let refs_w = i + c + 7;
@@ -191,7 +293,7 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
 
     // crefs: the created nodes' references, buffered in arrival order.
     let crefs = Stream::input(&m, "crefs", wl.cref_width);
-    let crefs_mem = m.memory("crefs_mem", ref_w, 1 << c);
+    let crefs_mem = m.memory("crefs_mem", widths.cref, 1 << c);
     let cref_end = m.reg("cref_end", 1);
     let cref_wptr = m.reg("cref_wptr", c + 1);
     let cref_cap_err = m.reg("cref_cap_err", 1);
@@ -211,18 +313,27 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     cref_wptr.next(clear.mux(lit(0, c + 1), cref_ref_fire.mux(wptr_next, cref_wptr)));
     cref_cap_err.next(clear.mux(zero, cref_cap_err | (cref_ref_fire & cref_full)));
 
-    // Per level: five buffers, each holding exactly what one reader takes.
-    // By record slot (`records`), for the levels below the top: a record's
-    // body and count (the record sequencer), its parent word (the
-    // reference sequencer). By position (`index`), for the top, where every
-    // node is a record: the same two words. By position, for the parents
-    // one level up: the child word.
+    // Per level: up to five buffers (`record_writer_buffers`), each holding
+    // exactly what one reader takes. By record slot (`records`), for the
+    // levels below the top: a record's body and count (the record
+    // sequencer), its parent word (the reference sequencer). By position
+    // (`index`), for the top, where every node is a record: the same two
+    // words. By position, for the parents one level up: the child word.
+    // Level 0 is never below a top nor anyone's child: `None` there.
     let mem = |name: &str, d: usize, w: u32| m.memory(&format!("{name}{d}_mem"), w, 1 << c);
-    let rbody: Vec<_> = (0..=dmax).map(|d| mem("rbody", d, body_word_w)).collect();
-    let nbody: Vec<_> = (0..=dmax).map(|d| mem("nbody", d, body_word_w)).collect();
-    let rpar: Vec<_> = (0..=dmax).map(|d| mem("rpar", d, parent_w)).collect();
-    let npar: Vec<_> = (0..=dmax).map(|d| mem("npar", d, parent_w)).collect();
-    let childm: Vec<_> = (0..=dmax).map(|d| mem("child", d, child_w)).collect();
+    let below_only = |name: &str, w: u32| -> Vec<Option<Memory>> {
+        (0..=dmax)
+            .map(|d| (d > 0).then(|| mem(name, d, w)))
+            .collect()
+    };
+    let rbody = below_only("rbody", widths.body);
+    let rpar = below_only("rpar", widths.parent);
+    let every_level = |name: &str, w: u32| -> Vec<Option<Memory>> {
+        (0..=dmax).map(|d| Some(mem(name, d, w))).collect()
+    };
+    let nbody = every_level("nbody", widths.body);
+    let npar = every_level("npar", widths.parent);
+    let childm = below_only("child", widths.child);
     // d >= top and d > top, with the comparisons that are constant (no LOD is
     // below 0 or above the widest field value) written as constants.
     let in_merge: Vec<Signal> = (0..=dmax)
@@ -275,11 +386,15 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
         let slot = records.slice(c - 1, 0);
         let pos = index.slice(c - 1, 0);
         let put = node_fire & fits;
-        nbody[d].write(pos, body_word, put);
-        npar[d].write(pos, parent_word, put);
-        childm[d].write(pos, child_word, put);
-        rbody[d].write(slot, body_word, put & !reused);
-        rpar[d].write(slot, parent_word, put & !reused);
+        if let (Some(nb), Some(np)) = (nbody[d], npar[d]) {
+            nb.write(pos, body_word, put);
+            np.write(pos, parent_word, put);
+        }
+        if let (Some(ch), Some(rb), Some(rp)) = (childm[d], rbody[d], rpar[d]) {
+            ch.write(pos, child_word, put);
+            rb.write(slot, body_word, put & !reused);
+            rp.write(slot, parent_word, put & !reused);
+        }
         // A merge with its top at or above d consumes the level.
         let clear_d = clear & in_merge[d];
         let end_fire = fire & is_end;
@@ -349,44 +464,55 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let drain_start = (fill_done & fill_ok).name("drain_start");
 
     // Record sequencer: one record per clock in store order; a record's
-    // `first` is the running sum of the counts before it.
+    // `first` is the running sum of the counts before it. The buffers read
+    // a clock ahead: each clock reads the word (rs_lod, rs_ptr) names in the
+    // next clock (their next values), from drain_start on, so the first
+    // record is in its read register in the drain's first clock.
     let rs_d = m.reg("rs_lod", lb);
     let rs_ptr = m.reg("rs_ptr", c + 1);
     let rs_first = m.reg("rs_first", i + 1);
     let rs_done = m.reg("rs_done", 1);
-    let rs_addr = rs_ptr.slice(c - 1, 0);
     let rs_top = rs_d.eq(top);
     let rs_len = rs_top.mux(n_top, by_level(&m, rs_d, &n_records));
     let rs_level_last = rs_ptr.add(1, c + 1).eq(rs_len);
-    let at_top: Vec<Signal> = nbody.iter().map(|b| b.read(rs_addr)).collect();
-    let below: Vec<Signal> = rbody.iter().map(|b| b.read(rs_addr)).collect();
+    let rs_active = (in_drain & !rs_done).name("rs_active");
+    let nodes_valid = rs_active.name("nodes_in_valid");
+    let nodes_ready = m.wire("nodes_in_ready", 1);
+    let rs_fire = nodes_valid & nodes_ready;
+    // (rs_lod, rs_ptr) always names a record to write (the top has one).
+    let (rs_more, rs_next_lod) = next_level_with_records(&m, rs_d, &n_records);
+    let rs_level_done = rs_fire & rs_level_last;
+    let rs_step_level = rs_level_done & rs_more;
+    let rs_finish = rs_level_done & !rs_more;
+    let rs_d_next = drain_start
+        .mux(top, rs_step_level.mux(rs_next_lod, rs_d))
+        .name("rs_lod_next");
+    let rs_ptr_next = (drain_start | rs_step_level)
+        .mux(lit(0, c + 1), rs_fire.mux(rs_ptr.add(1, c + 1), rs_ptr))
+        .name("rs_ptr_next");
+    rs_d.next(rs_d_next);
+    rs_ptr.next(rs_ptr_next);
+    let rs_reading = drain_start | rs_active;
+    let rs_next_top = rs_d_next.eq(top);
+    let rs_addr_next = rs_ptr_next.slice(c - 1, 0);
+    let (want_top, want_below) = read_wants(&m, rs_reading, rs_d_next, rs_next_top, dmax);
+    let at_top = read_ahead(&m, &nbody, rs_addr_next, &want_top, widths.body);
+    let below = read_ahead(&m, &rbody, rs_addr_next, &want_below, widths.body);
     let body_word = rs_top.mux(by_level(&m, rs_d, &at_top), by_level(&m, rs_d, &below));
-    let rs_count = body_word.slice(body_word_w - 1, body_w);
+    let rs_count = body_word.slice(widths.body - 1, body_w);
     let record = m.concat(&[
         rs_count,
         rs_first.slice(i - 1, 0),
         body_word.slice(body_w - 1, 0),
     ]);
     debug_assert_eq!(record.width(), nl.width());
-    let rs_active = (in_drain & !rs_done).name("rs_active");
-    let nodes_valid = rs_active.name("nodes_in_valid");
     let nodes_out = Stream {
         valid: nodes_valid,
-        ready: m.wire("nodes_in_ready", 1),
+        ready: nodes_ready,
         // Masked: an unwritten buffer word reads as X in 4-state simulation.
         data: nodes_valid.mux(record, lit(0, nl.width())),
     };
-    let rs_fire = nodes_out.valid & nodes_out.ready;
     nodes_out.skid_buffer("nodes_skid").output("nodes");
-    // (rs_lod, rs_ptr) always names a record to write (the top has one).
-    let (rs_more, rs_next_lod) = next_level_with_records(&m, rs_d, &n_records);
-    let rs_level_done = rs_fire & rs_level_last;
-    let rs_step_level = rs_level_done & rs_more;
-    let rs_finish = rs_level_done & !rs_more;
-    rs_d.next(drain_start.mux(top, rs_step_level.mux(rs_next_lod, rs_d)));
-    rs_ptr.next(
-        (drain_start | rs_step_level).mux(lit(0, c + 1), rs_fire.mux(rs_ptr.add(1, c + 1), rs_ptr)),
-    );
     rs_first.next(drain_start.mux(
         lit(0, i + 1),
         rs_fire.mux(rs_first.add(rs_count.zext(i + 1), i + 1), rs_first),
@@ -396,7 +522,9 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     // Reference sequencer: one reference per clock in store order, walking
     // the parents (the records) and, for a grouped one, the next nodes of
     // the level below; a created one's come from `crefs`, a materialized
-    // root's from the store (`ref_req` runs ahead of `ref_resp`).
+    // root's from the store (`ref_req` runs ahead of `ref_resp`). As in the
+    // record sequencer, every buffer reads at the next values of the
+    // pointers (parent, child, created reference), a clock ahead.
     let fs_d = m.reg("fs_lod", lb);
     let fs_ptr = m.reg("fs_ptr", c + 1);
     let fs_j = m.reg("fs_j", i);
@@ -405,12 +533,19 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let fs_cref = m.reg("fs_cref", c + 1);
     let fs_off = m.reg("fs_child_offset", i + 1);
     let fs_done = m.reg("fs_done", 1);
-    let fs_addr = fs_ptr.slice(c - 1, 0);
+    let fs_d_next = m.wire("fs_lod_next", lb);
+    let fs_ptr_next = m.wire("fs_ptr_next", c + 1);
+    let fs_child_next = m.wire("fs_child_next", c + 1);
+    let fs_cref_next = m.wire("fs_cref_next", c + 1);
     let fs_top = fs_d.eq(top);
     let fs_len = fs_top.mux(n_top, by_level(&m, fs_d, &n_records));
     let fs_level_last = fs_ptr.add(1, c + 1).eq(fs_len);
-    let par_top: Vec<Signal> = npar.iter().map(|b| b.read(fs_addr)).collect();
-    let par_below: Vec<Signal> = rpar.iter().map(|b| b.read(fs_addr)).collect();
+    let fs_busy = (in_drain & !fs_done).name("fs_busy");
+    let fs_reading = drain_start | fs_busy;
+    let (want_top, want_below) = read_wants(&m, fs_reading, fs_d_next, fs_d_next.eq(top), dmax);
+    let par_addr = fs_ptr_next.slice(c - 1, 0);
+    let par_top = read_ahead(&m, &npar, par_addr, &want_top, widths.parent);
+    let par_below = read_ahead(&m, &rpar, par_addr, &want_below, widths.parent);
     let par = parent(
         fs_top.mux(by_level(&m, fs_d, &par_top), by_level(&m, fs_d, &par_below)),
         i,
@@ -418,13 +553,22 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let p_grouped = kind_is(&m, par.kind, level_out_kind::GROUPED);
     let p_created = kind_is(&m, par.kind, level_out_kind::CREATED);
     let p_mat = kind_is(&m, par.kind, level_out_kind::REUSED);
-    let child_addr = fs_child.slice(c - 1, 0);
-    let children: Vec<Signal> = childm.iter().map(|b| b.read(child_addr)).collect();
-    // The children of level d's parents are in level d + 1.
+    // The children of level d's parents are in level d + 1 (one bit wider:
+    // at D = 2^lod_bits - 1 the deepest level has no level below).
+    let child_level = fs_d_next.zext(lb + 1).add(1, lb + 1);
+    let want_child: Vec<Signal> = (0..=dmax)
+        .map(|e| fs_reading & child_level.eq(lit(e as u64, lb + 1)))
+        .collect();
+    let children = read_ahead(
+        &m,
+        &childm,
+        fs_child_next.slice(c - 1, 0),
+        &want_child,
+        widths.child,
+    );
     let ch = child(by_level(&m, fs_d.add(1, lb), &children), ref_w);
     let ch_index = fs_off.slice(i - 1, 0).add(ch.records, i);
     let ch_ref = ch.reused.mux(ch.refer, m.concat(&[out_id, ch_index]));
-    let fs_busy = (in_drain & !fs_done).name("fs_busy");
     let fs_active = fs_busy;
     let outstanding = fs_req.ne(fs_j);
     let ref_resp = Stream::input(&m, "ref_resp", ref_w);
@@ -433,7 +577,10 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let refs_valid = (fs_active & source_valid).name("refs_in_valid");
     let word = p_grouped.mux(
         ch_ref,
-        p_created.mux(crefs_mem.read(fs_cref.slice(c - 1, 0)), ref_resp.data),
+        p_created.mux(
+            crefs_mem.read_sync(fs_cref_next.slice(c - 1, 0), fs_reading),
+            ref_resp.data,
+        ),
     );
     let refs_out = Stream {
         valid: refs_valid,
@@ -462,19 +609,24 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let fs_finish = fs_level_done & !fs_more;
     let zc = lit(0, c + 1);
     let zi = lit(0, i);
-    fs_d.next(drain_start.mux(top, fs_step_level.mux(fs_next_lod, fs_d)));
-    fs_ptr
-        .next((drain_start | fs_step_level).mux(zc, parent_last.mux(fs_ptr.add(1, c + 1), fs_ptr)));
+    fs_d_next.drive(drain_start.mux(top, fs_step_level.mux(fs_next_lod, fs_d)));
+    fs_ptr_next.drive(
+        (drain_start | fs_step_level).mux(zc, parent_last.mux(fs_ptr.add(1, c + 1), fs_ptr)),
+    );
+    fs_d.next(fs_d_next);
+    fs_ptr.next(fs_ptr_next);
     fs_j.next((drain_start | parent_last).mux(zi, fs_fire.mux(fs_j.add(1, i), fs_j)));
     fs_req.next((drain_start | parent_last).mux(zi, req_fire.mux(fs_req.add(1, i), fs_req)));
-    fs_child.next((drain_start | fs_step_level).mux(
+    fs_child_next.drive((drain_start | fs_step_level).mux(
         zc,
         (fs_fire & p_grouped).mux(fs_child.add(1, c + 1), fs_child),
     ));
-    fs_cref.next(drain_start.mux(
+    fs_child.next(fs_child_next);
+    fs_cref_next.drive(drain_start.mux(
         zc,
         (fs_fire & p_created).mux(fs_cref.add(1, c + 1), fs_cref),
     ));
+    fs_cref.next(fs_cref_next);
     // off(t + 1) = the top's node count; stepping from level d to the next
     // level e with records (those between have none), off(e + 1) = off(d +
     // 1) + level e's records.

@@ -7,42 +7,16 @@
 //! the same run); `--stage merge-level` its S614 stage. Under CI=true a
 //! missing Verilator or Icarus fails.
 
-use std::process::{Command, Output};
+mod common;
+
+use std::process::Output;
 
 use golden::params::Params;
 use golden::translate::TranslateUnitConfig;
 use golden::vectors::translate::{write_translate_vectors, TranslateDesign};
 use serde_json::Value;
 
-fn hiermerge(args: &[&str], env: &[(&str, &str)]) -> Output {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_hiermerge"));
-    c.args(args).env_remove("HIERMERGE_COSIM_FLIP_EXPECTED");
-    for (k, v) in env {
-        c.env(k, v);
-    }
-    c.output().expect("hiermerge runs")
-}
-
-fn json_of(o: &Output) -> Value {
-    let text = String::from_utf8_lossy(&o.stdout);
-    serde_json::from_str(text.trim()).unwrap_or_else(|e| {
-        panic!(
-            "stdout is not one JSON object ({e}):\n{text}\nstderr:\n{}",
-            String::from_utf8_lossy(&o.stderr)
-        )
-    })
-}
-
-fn tool_present(tool: &str) -> bool {
-    if cosim::tools::tool_available(tool) {
-        return true;
-    }
-    if cosim::tools::ci_mode() {
-        panic!("CI=true and {tool} missing: {}", cosim::tools::INSTALL_HINT);
-    }
-    eprintln!("SKIPPING: {tool} missing; {}", cosim::tools::INSTALL_HINT);
-    false
-}
+use common::{hiermerge, json_of, tool_present};
 
 fn verilator_present() -> bool {
     tool_present("verilator")

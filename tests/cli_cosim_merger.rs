@@ -5,39 +5,13 @@
 //! same stimulus on both engines; flags that do not apply are refused.
 //! Under CI=true a missing Verilator or Icarus fails.
 
-use std::process::{Command, Output};
+mod common;
+
+use std::process::Output;
 
 use serde_json::Value;
 
-fn hiermerge(args: &[&str], env: &[(&str, &str)]) -> Output {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_hiermerge"));
-    c.args(args).env_remove("HIERMERGE_COSIM_FLIP_EXPECTED");
-    for (k, v) in env {
-        c.env(k, v);
-    }
-    c.output().expect("hiermerge runs")
-}
-
-fn json_of(o: &Output) -> Value {
-    let text = String::from_utf8_lossy(&o.stdout);
-    serde_json::from_str(text.trim()).unwrap_or_else(|e| {
-        panic!(
-            "stdout is not one JSON object ({e}):\n{text}\nstderr:\n{}",
-            String::from_utf8_lossy(&o.stderr)
-        )
-    })
-}
-
-fn tool_present(tool: &str) -> bool {
-    if cosim::tools::tool_available(tool) {
-        return true;
-    }
-    if cosim::tools::ci_mode() {
-        panic!("CI=true and {tool} missing: {}", cosim::tools::INSTALL_HINT);
-    }
-    eprintln!("SKIPPING: {tool} missing; {}", cosim::tools::INSTALL_HINT);
-    false
-}
+use common::{hiermerge, json_of, tool_present};
 
 fn merger_run(engine: &str, seed: &str, count: &str) -> Output {
     hiermerge(
@@ -124,15 +98,34 @@ fn merger_flags_are_checked() {
         !o.status.success() && e.contains("--unit merger only"),
         "{e}"
     );
+    // The Verilog patch hook needs a Verilog engine and a unit that takes it.
+    let patch = [
+        ("HIERMERGE_COSIM_PATCH_FROM", "assign"),
+        ("HIERMERGE_COSIM_PATCH_TO", "assign"),
+    ];
     let o = hiermerge(
         &[
             "cosim", "--unit", "merger", "--engine", "ir", "--count", "1",
         ],
-        &[("HIERMERGE_COSIM_FLIP_EXPECTED", "0")],
+        &patch,
+    );
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("IR engine"), "{e}");
+    let o = hiermerge(
+        &[
+            "cosim",
+            "--unit",
+            "translate",
+            "--engine",
+            "ir",
+            "--count",
+            "1",
+        ],
+        &patch,
     );
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(
-        !o.status.success() && e.contains("HIERMERGE_COSIM_FLIP_EXPECTED"),
+        !o.status.success() && e.contains("HIERMERGE_COSIM_PATCH_FROM applies to"),
         "{e}"
     );
     // A writer of 2^40 entries per buffer does not fit the index width.

@@ -6,18 +6,19 @@
 //! Test hook: the environment variable `HIERMERGE_COSIM_FLIP_EXPECTED=<n>`
 //! flips the lowest bit of transaction `n`'s expected output (translate: the
 //! n-th transaction; merge: the first `report` beat of the n-th merge;
-//! `--stage merge-level`: the first output beat of the n-th level), so a
-//! test can check that a broken run is caught and reported. With `--unit
-//! merge` (the module), `HIERMERGE_COSIM_PATCH_FROM=<text>` and
+//! `--stage merge-level`: the first output beat of the n-th level; merger:
+//! the `header` beat of the n-th merge), so a test can check that a broken
+//! run is caught and reported. With `--unit merge` (the module) and `--unit
+//! merger`, `HIERMERGE_COSIM_PATCH_FROM=<text>` and
 //! `HIERMERGE_COSIM_PATCH_TO=<text>` replace the one occurrence of the first
 //! in the emitted Verilog by the second before Verilator or Icarus reads it:
-//! a deliberately broken merging module.
+//! a deliberately broken unit.
 
 use std::path::{Path, PathBuf};
 
 use cosim::from_rtl::design_from_module;
 use cosim::ir_engine::IrEngine;
-use cosim::units::merge_module::{self, ModuleEngine};
+use cosim::units::merge_module::{self, ModuleEngine, ModuleMismatch};
 use cosim::units::merger;
 use cosim::units::translate::{self, Failure, RunConfig};
 use cosim::units::{check_stall, merge};
@@ -365,6 +366,16 @@ pub fn main(a: Args) -> CmdResult {
     if (a.capacity_bits.is_some() || a.leaf_bits.is_some()) && a.unit != Unit::Merger {
         return Err("--capacity-bits and --leaf-bits apply to --unit merger only".into());
     }
+    let patchable = match a.unit {
+        Unit::Translate => false,
+        Unit::Merge => merge_stage(&a)? == MergeStage::Module,
+        Unit::Merger => true,
+    };
+    if verilog_patch()?.is_some() && !patchable {
+        return Err(format!(
+            "{PATCH_FROM_VAR} applies to --unit merge (the module) and --unit merger only"
+        ));
+    }
     let dir = tempfile::tempdir().map_err(|e| format!("temporary directory: {e}"))?;
     let report = match a.unit {
         Unit::Translate => run_translate(&a, &a.design.translate_design()?, flip, dir.path())?,
@@ -374,14 +385,7 @@ pub fn main(a: Args) -> CmdResult {
             }
             MergeStage::MergeLevel => run_merge(&a, &a.design.merge_design()?, flip, dir.path())?,
         },
-        Unit::Merger => {
-            if flip.is_some() {
-                return Err(format!(
-                    "{FLIP_EXPECTED_VAR} applies to --unit translate and merge only"
-                ));
-            }
-            run_merger(&a, &a.design.merge_design()?, dir.path())?
-        }
+        Unit::Merger => run_merger(&a, &a.design.merge_design()?, flip, dir.path())?,
     };
     let passed = report.passed;
     let summary = report.first_mismatch.as_ref().map(|m| {
@@ -588,28 +592,97 @@ fn run_merge(
             fields: Vec::new(),
         });
     }
-    Ok(Report {
-        unit: a.unit,
-        stage: merge::STAGE,
-        engine: a.engine.name(),
-        seed: a.seed,
-        stall: a.stall,
-        vectors: a.vectors.as_ref().map(|p| p.display().to_string()),
-        passed,
+    let counts = Counts {
         transactions: levels.len() as u64,
         records: report.inputs_sent,
         nodes: report.outputs_received,
         mismatches: report.mismatches,
         cycles: report.cycles,
-        records_per_cycle: report.inputs_per_cycle(),
-        nodes_per_cycle: report.outputs_received as f64 / report.cycles.max(1) as f64,
         wall_seconds: report.wall.as_secs_f64(),
-        cycles_per_second: crate::report::per_second(
-            report.cycles as f64,
-            report.wall.as_secs_f64(),
+    };
+    finish_report(a, merge::STAGE, flip, counts, first, report.vcd.as_ref())
+}
+
+/// The multi-stream engine `choice` names, its tools checked.
+fn module_engine(choice: EngineChoice) -> Result<ModuleEngine, String> {
+    let (engine, kind) = match choice {
+        EngineChoice::Ir => return Ok(ModuleEngine::Ir),
+        EngineChoice::Verilator => (ModuleEngine::Verilator, EngineKind::Verilator),
+        EngineChoice::Iverilog => (ModuleEngine::Iverilog, EngineKind::Icarus),
+    };
+    kind.check_tools().map_err(|e| e.to_string())?;
+    Ok(engine)
+}
+
+/// The report of a multi-stream unit's first mismatched beat: its merge,
+/// stream and beat, each field of the stream's layout expected against got.
+/// `beat_is` says where the beat index counts from (`""`, ` of its chunk`).
+fn stream_mismatch(kind: &str, m: &ModuleMismatch, seed: u64, beat_is: &str) -> MismatchReport {
+    MismatchReport {
+        transaction: m.merge as u64,
+        stream: Some(m.stream.clone()),
+        beat: Some(m.beat),
+        kind: kind.to_string(),
+        cycle: m.cycle,
+        seed,
+        what: format!(
+            "`{}` beat {}{beat_is} (merge {}) differs",
+            m.stream, m.beat, m.merge
         ),
-        first_mismatch: first,
-        vcd: report.vcd.as_ref().map(|p| p.display().to_string()),
+        fields: m
+            .fields
+            .iter()
+            .map(|(name, expected, got)| FieldReport {
+                name: name.clone(),
+                expected: expected.clone(),
+                got: got.clone(),
+                differs: expected != got,
+            })
+            .collect(),
+    }
+}
+
+/// What a run counted, for [`finish_report`].
+struct Counts {
+    transactions: u64,
+    records: u64,
+    nodes: u64,
+    mismatches: u64,
+    cycles: u64,
+    wall_seconds: f64,
+}
+
+/// The report of a finished run: its counts, the rates derived from them,
+/// and on a failure the reproduce command.
+fn finish_report(
+    a: &Args,
+    stage: &'static str,
+    flip: Option<usize>,
+    counts: Counts,
+    first_mismatch: Option<MismatchReport>,
+    vcd: Option<&PathBuf>,
+) -> Result<Report, String> {
+    let passed = first_mismatch.is_none();
+    let per_cycle = |n: u64| n as f64 / counts.cycles.max(1) as f64;
+    Ok(Report {
+        unit: a.unit,
+        stage,
+        engine: a.engine.name(),
+        seed: a.seed,
+        stall: a.stall,
+        vectors: a.vectors.as_ref().map(|p| p.display().to_string()),
+        passed,
+        transactions: counts.transactions,
+        records: counts.records,
+        nodes: counts.nodes,
+        mismatches: counts.mismatches,
+        cycles: counts.cycles,
+        records_per_cycle: per_cycle(counts.records),
+        nodes_per_cycle: per_cycle(counts.nodes),
+        wall_seconds: counts.wall_seconds,
+        cycles_per_second: crate::report::per_second(counts.cycles as f64, counts.wall_seconds),
+        first_mismatch,
+        vcd: vcd.map(|p| p.display().to_string()),
         reproduce: if passed {
             None
         } else {
@@ -629,21 +702,7 @@ fn run_merge_module(
 ) -> Result<Report, String> {
     let count = usize::try_from(a.count.unwrap_or(DEFAULT_COUNT))
         .map_err(|_| "--count is too large".to_string())?;
-    let engine = match a.engine {
-        EngineChoice::Ir => ModuleEngine::Ir,
-        EngineChoice::Verilator => {
-            EngineKind::Verilator
-                .check_tools()
-                .map_err(|e| e.to_string())?;
-            ModuleEngine::Verilator
-        }
-        EngineChoice::Iverilog => {
-            EngineKind::Icarus
-                .check_tools()
-                .map_err(|e| e.to_string())?;
-            ModuleEngine::Iverilog
-        }
-    };
+    let engine = module_engine(a.engine)?;
     let streams = merge_module::generate_streams(
         design,
         a.seed,
@@ -679,87 +738,45 @@ fn run_merge_module(
     pb.finish_and_clear();
     let o = o.map_err(|e| e.to_string())?;
     let r = &o.report;
-    let passed = o.passed();
-    let mut first = o.first_mismatch.as_ref().map(|m| MismatchReport {
-        transaction: m.merge as u64,
-        stream: Some(m.stream.clone()),
-        beat: Some(m.beat),
-        kind: merge_module::STAGE.to_string(),
-        cycle: m.cycle,
-        seed: a.seed,
-        what: format!("`{}` beat {} (merge {}) differs", m.stream, m.beat, m.merge),
-        fields: m
-            .fields
-            .iter()
-            .map(|(name, expected, got)| FieldReport {
-                name: name.clone(),
-                expected: expected.clone(),
-                got: got.clone(),
-                differs: expected != got,
-            })
-            .collect(),
-    });
-    if first.is_none() && !passed {
+    let stage = merge_module::STAGE;
+    let mut first = o
+        .first_mismatch
+        .as_ref()
+        .map(|m| stream_mismatch(stage, m, a.seed, ""));
+    if first.is_none() && !o.passed() {
         first = Some(no_mismatch_failure(
-            merge_module::STAGE,
+            stage,
             r.sent.first().map_or(0, |cfg| cfg.1.saturating_sub(1)),
             (r.cycles, r.hang.as_ref(), &r.missing),
             a.seed,
             o.status_failure(),
         ));
     }
-    let wall = o.wall.as_secs_f64();
-    Ok(Report {
-        unit: a.unit,
-        stage: merge_module::STAGE,
-        engine: a.engine.name(),
-        seed: a.seed,
-        stall: a.stall,
-        vectors: None,
-        passed,
+    let counts = Counts {
         transactions: o.merges as u64,
         records: o.data_beats_in,
         nodes: o.beats_out,
         mismatches: r.mismatches,
         cycles: r.cycles,
-        records_per_cycle: o.records_per_cycle(),
-        nodes_per_cycle: o.beats_out as f64 / r.cycles.max(1) as f64,
-        wall_seconds: wall,
-        cycles_per_second: crate::report::per_second(r.cycles as f64, wall),
-        first_mismatch: first,
-        vcd: o.vcd.as_ref().map(|p| p.display().to_string()),
-        reproduce: if passed {
-            None
-        } else {
-            Some(reproduce(a, flip)?)
-        },
-        merger: None,
-    })
+        wall_seconds: o.wall.as_secs_f64(),
+    };
+    finish_report(a, stage, flip, counts, first, o.vcd.as_ref())
 }
 
 /// `--unit merger`: seeded random merges through the hierarchy merger,
 /// every stream with its own stall pattern, 10,000 merges at a time.
-fn run_merger(a: &Args, design: &MergeDesign, dir: &Path) -> Result<Report, String> {
+fn run_merger(
+    a: &Args,
+    design: &MergeDesign,
+    flip: Option<usize>,
+    dir: &Path,
+) -> Result<Report, String> {
     let count = usize::try_from(a.count.unwrap_or(DEFAULT_COUNT))
         .map_err(|_| "--count is too large".to_string())?;
     if a.vectors.is_some() {
         return Err("--unit merger takes no --vectors: use --seed/--count".into());
     }
-    let engine = match a.engine {
-        EngineChoice::Ir => merger::MergerEngine::Ir,
-        EngineChoice::Verilator => {
-            EngineKind::Verilator
-                .check_tools()
-                .map_err(|e| e.to_string())?;
-            merger::MergerEngine::Verilator
-        }
-        EngineChoice::Iverilog => {
-            EngineKind::Icarus
-                .check_tools()
-                .map_err(|e| e.to_string())?;
-            merger::MergerEngine::Iverilog
-        }
-    };
+    let engine = module_engine(a.engine)?;
     let mut c = rtl_gen::merge::MergerConfig::new(*design);
     if let Some(bits) = a.capacity_bits {
         c.sizes.capacity_bits = bits;
@@ -775,6 +792,8 @@ fn run_merger(a: &Args, design: &MergeDesign, dir: &Path) -> Result<Report, Stri
         stall: a.stall,
         vcd_path: Some(vcd_path(a, merger::STAGE)),
         vcd_radius: VCD_RADIUS,
+        verilog_patch: verilog_patch()?,
+        flip_expected: flip,
     };
     if !a.json {
         eprintln!(
@@ -790,74 +809,44 @@ fn run_merger(a: &Args, design: &MergeDesign, dir: &Path) -> Result<Report, Stri
     });
     pb.finish_and_clear();
     let o = o.map_err(|e| e.to_string())?;
-    let passed = o.passed();
-    let mut first = o.first_mismatch.as_ref().map(|m| MismatchReport {
-        transaction: m.merge as u64,
-        stream: Some(m.stream.clone()),
-        beat: Some(m.beat),
-        kind: merger::STAGE.to_string(),
-        cycle: m.cycle,
-        seed: a.seed,
-        what: format!(
-            "`{}` beat {} of its chunk (merge {}) differs",
-            m.stream, m.beat, m.merge
-        ),
-        fields: vec![FieldReport {
-            name: "data".into(),
-            expected: m.expected.clone(),
-            got: m.got.clone(),
-            differs: true,
-        }],
-    });
-    if first.is_none() && !passed {
+    let stage = merger::STAGE;
+    let mut first = o
+        .first_mismatch
+        .as_ref()
+        .map(|m| stream_mismatch(stage, m, a.seed, " of its chunk"));
+    if first.is_none() && !o.passed() {
         first = Some(no_mismatch_failure(
-            merger::STAGE,
-            o.merges.saturating_sub(1) as u64,
+            stage,
+            o.cfg_accepted.saturating_sub(1),
             (o.cycles, o.hang.as_ref(), &o.missing),
             a.seed,
             o.status_failure(),
         ));
     }
-    let wall = o.wall.as_secs_f64();
     let s = &o.stats;
-    Ok(Report {
-        unit: a.unit,
-        stage: merger::STAGE,
-        engine: a.engine.name(),
-        seed: a.seed,
-        stall: a.stall,
-        vectors: None,
-        passed,
+    let counts = Counts {
         transactions: o.merges as u64,
         records: s.module_in,
         nodes: s.records,
         mismatches: o.mismatches,
         cycles: o.cycles,
-        records_per_cycle: s.module_in as f64 / o.cycles.max(1) as f64,
-        nodes_per_cycle: s.records as f64 / o.cycles.max(1) as f64,
-        wall_seconds: wall,
-        cycles_per_second: crate::report::per_second(o.cycles as f64, wall),
-        first_mismatch: first,
-        vcd: o.vcd.as_ref().map(|p| p.display().to_string()),
-        reproduce: if passed {
-            None
-        } else {
-            Some(reproduce(a, None)?)
-        },
-        merger: Some(MergerReport {
-            chunks: o.chunks as u64,
-            refused: s.refused as u64,
-            fetch_errors: s.fetch_errors as u64,
-            refs_written: s.refs,
-            beats_in: o.beats_in,
-            beats_out: o.beats_out,
-            leaves_above: s.leaves_above as u64,
-            materialized: s.materialized as u64,
-            several_roots: s.several_roots as u64,
-            done_pulses: o.done_pulses,
-            golden_seconds: o.golden_wall.as_secs_f64(),
-        }),
-    })
+        wall_seconds: o.wall.as_secs_f64(),
+    };
+    let mut report = finish_report(a, stage, flip, counts, first, o.vcd.as_ref())?;
+    report.merger = Some(MergerReport {
+        chunks: o.chunks as u64,
+        refused: s.refused as u64,
+        fetch_errors: s.fetch_errors as u64,
+        refs_written: s.refs,
+        beats_in: o.beats_in,
+        beats_out: o.beats_out,
+        leaves_above: s.leaves_above as u64,
+        materialized: s.materialized as u64,
+        several_roots: s.several_roots as u64,
+        done_pulses: o.done_pulses,
+        golden_seconds: o.golden_wall.as_secs_f64(),
+    });
+    Ok(report)
 }
 
 fn print_text(r: &Report) {

@@ -189,9 +189,7 @@ pub fn generate_streams(
         out.extend(tx.out.into_iter().map(|b| vec![b]));
         if flip_expected == Some(n) {
             if let Some(first) = report.get_mut(starts[0][n]) {
-                let mut w = first[0].words().to_vec();
-                w[0] ^= 1;
-                first[0] = BitVec::from_words(first[0].width(), &w)?;
+                flip_bit0(&mut first[0])?;
             }
         }
     }
@@ -222,7 +220,10 @@ pub fn generate_streams(
     })
 }
 
-fn decode(bits: &BitVec, fields: &[(String, Field)]) -> Vec<(String, String)> {
+/// `bits` decoded field by field: `(name, value in hex)` per field, in
+/// the order given; a beat that is not a layout's width shows as one
+/// `data` field of raw bits.
+pub fn decode_fields(bits: &BitVec, fields: &[(String, Field)]) -> Vec<(String, String)> {
     let Ok(b) = Bits::from_words(bits.width() as u32, bits.words()) else {
         return vec![("data".into(), bits.to_string())];
     };
@@ -238,6 +239,27 @@ fn decode(bits: &BitVec, fields: &[(String, Field)]) -> Vec<(String, String)> {
         .collect()
 }
 
+/// A layout's fields named by their own names.
+pub fn named(fields: impl IntoIterator<Item = Field>) -> Vec<(String, Field)> {
+    fields
+        .into_iter()
+        .map(|f| (f.name.to_string(), f))
+        .collect()
+}
+
+/// The merging module's `report` fields in bit order (`TopLayout`).
+pub fn top_report_fields(l: &TopLayout) -> Vec<Field> {
+    vec![
+        l.lod, l.shared, l.union, l.above, l.overflow, l.chosen, l.err,
+    ]
+}
+
+/// Decodes a single-payload beat with `fields` (a beat without payload
+/// decodes to nothing).
+pub fn beat_decoder(fields: Vec<(String, Field)>) -> Box<FieldDecoder> {
+    Box::new(move |t: &Transaction| t.first().map_or(Vec::new(), |v| decode_fields(v, &fields)))
+}
+
 /// Decodes a `report` beat by field name (`TopLayout`; per-node
 /// configurations: `PerNodeLayout`).
 pub fn report_decoder(d: &MergeDesign) -> Box<FieldDecoder> {
@@ -248,16 +270,29 @@ pub fn report_decoder(d: &MergeDesign) -> Box<FieldDecoder> {
             x, y, z, l.lod, l.shared, l.union, l.descend, l.pass_end, l.more, l.err,
         ]
     } else {
-        let l = TopLayout::new(&d.params);
-        vec![
-            l.lod, l.shared, l.union, l.above, l.overflow, l.chosen, l.err,
-        ]
+        top_report_fields(&TopLayout::new(&d.params))
     };
-    let fields: Vec<(String, Field)> = fields
-        .into_iter()
-        .map(|f| (f.name.to_string(), f))
-        .collect();
-    Box::new(move |t: &Transaction| t.first().map_or(Vec::new(), |v| decode(v, &fields)))
+    beat_decoder(named(fields))
+}
+
+/// `expected` and `got` decoded with `decoder`, side by side: `(field,
+/// expected, got)`, `(none)` where one side has fewer fields.
+pub fn decoded_pair(
+    decoder: &FieldDecoder,
+    expected: &Transaction,
+    got: &Transaction,
+) -> Vec<(String, String, String)> {
+    let (e, g) = (decoder(expected), decoder(got));
+    let shown = |v: &[(String, String)], i: usize| {
+        v.get(i)
+            .map_or_else(|| "(none)".to_string(), |f| f.1.clone())
+    };
+    (0..e.len().max(g.len()))
+        .map(|i| {
+            let name = e.get(i).or(g.get(i)).map(|f| f.0.clone());
+            (name.unwrap_or_default(), shown(&e, i), shown(&g, i))
+        })
+        .collect()
 }
 
 /// The decoder of output stream `name` (`report` or `out`).
@@ -308,16 +343,17 @@ pub struct VerilogPatch {
 /// The status outputs whose pulses a run counts.
 pub const PULSES: [&str; 2] = ["done", "idle"];
 
-/// The first failing output beat, decoded.
+/// The first failing output beat, decoded (also the hierarchy merger's,
+/// `merger::MergerMismatch`).
 #[derive(Clone, Debug)]
 pub struct ModuleMismatch {
-    /// Output stream (`report` or `out`).
+    /// Output stream (`report` or `out`; the merger's: any of its outputs).
     pub stream: String,
-    /// 0-based index of the beat on its stream.
+    /// 0-based index of the beat on its stream (the merger: in its chunk).
     pub beat: u64,
-    /// The merge it belongs to.
+    /// The merge it belongs to (the merger: over the whole run).
     pub merge: usize,
-    /// Cycle of the transfer.
+    /// Cycle of the transfer (the merger: from the start of its chunk).
     pub cycle: u64,
     /// (field, expected, got), decoded per stream.
     pub fields: Vec<(String, String, String)>,
@@ -356,17 +392,7 @@ impl Outcome {
     /// What the status outputs got wrong, if anything: `done` not pulsed
     /// once per merge, or `idle` low at the end.
     pub fn status_failure(&self) -> Option<String> {
-        let mut wrong = Vec::new();
-        if self.done_pulses != self.merges as u64 {
-            wrong.push(format!(
-                "`done` pulsed {} times for {} merges",
-                self.done_pulses, self.merges
-            ));
-        }
-        if !self.idle_at_end {
-            wrong.push("`idle` low at the end of the run".to_string());
-        }
-        (!wrong.is_empty()).then(|| wrong.join("; "))
+        status_failure(self.done_pulses, self.merges, self.idle_at_end, "the run")
     }
 
     /// Input beats over all `in*` streams per cycle.
@@ -396,13 +422,7 @@ pub fn run(
     let module = merge_module(d);
     let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
     if let Some(patch) = &config.verilog_patch {
-        if engine == ModuleEngine::Ir {
-            return Err(CosimError::Unsupported {
-                what: "a Verilog patch on the IR engine (it simulates the module, not its Verilog)"
-                    .to_string(),
-            });
-        }
-        apply_patch(&design, patch)?;
+        apply_patch(&design, patch, engine)?;
     }
     let bench = BenchConfig {
         seed: config.seed,
@@ -415,12 +435,8 @@ pub fn run(
     };
     let (report, watch) = match engine {
         ModuleEngine::Ir | ModuleEngine::Verilator => {
-            let mut make = |trace: bool| -> Result<Box<dyn crate::Engine>> {
-                match engine {
-                    ModuleEngine::Ir => Ok(Box::new(IrEngine::new(&module, &design)?)),
-                    _ => open_engine(EngineKind::Verilator, &design, trace),
-                }
-            };
+            let patched = config.verilog_patch.is_some();
+            let mut make = stepped_engines(&module, &design, engine, patched);
             run_multi_with_vcd_on_failure(
                 &mut make,
                 &streams.inputs,
@@ -447,23 +463,12 @@ pub fn run(
     let wall = report.wall;
     let first_mismatch = report.first_mismatch.as_ref().map(|(stream, m)| {
         let s = OUTPUT_NAMES.iter().position(|n| n == stream).unwrap_or(0);
-        let decoder = decoder_of(d, stream);
-        let (e, g) = (decoder(&m.expected), decoder(&m.got));
         ModuleMismatch {
             stream: stream.clone(),
             beat: m.output_index,
             merge: streams.merge_of(s, m.output_index as usize),
             cycle: m.cycle,
-            fields: (0..e.len().max(g.len()))
-                .map(|i| {
-                    let name = e.get(i).or(g.get(i)).map(|f| f.0.clone());
-                    let shown = |v: &[(String, String)]| {
-                        v.get(i)
-                            .map_or_else(|| "(none)".to_string(), |f| f.1.clone())
-                    };
-                    (name.unwrap_or_default(), shown(&e), shown(&g))
-                })
-                .collect(),
+            fields: decoded_pair(&*decoder_of(d, stream), &m.expected, &m.got),
         }
     });
     Ok(Outcome {
@@ -480,8 +485,66 @@ pub fn run(
     })
 }
 
-/// Replaces the one occurrence of `patch.from` in the design's Verilog.
-fn apply_patch(design: &Design, patch: &VerilogPatch) -> Result<()> {
+/// The engine factory of a stepped run (IR or Verilator) for
+/// `run_multi_with_vcd_on_failure`. A patched design is there to fail, so
+/// it gets the tracing Verilator build from the start: the VCD rerun then
+/// reuses that build instead of compiling the design a second time.
+pub(crate) fn stepped_engines<'a>(
+    module: &'a rtl_gen::Module,
+    design: &'a Design,
+    engine: ModuleEngine,
+    patched: bool,
+) -> impl FnMut(bool) -> Result<Box<dyn crate::Engine>> + 'a {
+    move |trace| match engine {
+        ModuleEngine::Ir => Ok(Box::new(IrEngine::new(module, design)?)),
+        _ => open_engine(EngineKind::Verilator, design, trace || patched),
+    }
+}
+
+/// What the status outputs of a multi-stream unit got wrong, if anything:
+/// `done` not high in exactly one cycle per merge, or `idle` low at the end
+/// of `scope` (`the run`, `a chunk`).
+pub fn status_failure(
+    done_pulses: u64,
+    merges: usize,
+    idle_at_end: bool,
+    scope: &str,
+) -> Option<String> {
+    let mut wrong = Vec::new();
+    if done_pulses != merges as u64 {
+        wrong.push(format!(
+            "`done` pulsed {done_pulses} times for {merges} merges"
+        ));
+    }
+    if !idle_at_end {
+        wrong.push(format!("`idle` low at the end of {scope}"));
+    }
+    (!wrong.is_empty()).then(|| wrong.join("; "))
+}
+
+/// Flips bit 0 of an expected beat (the `FLIP_EXPECTED` test hook).
+pub(crate) fn flip_bit0(beat: &mut BitVec) -> Result<()> {
+    let mut w = beat.words().to_vec();
+    if let Some(low) = w.first_mut() {
+        *low ^= 1;
+    }
+    *beat = BitVec::from_words(beat.width(), &w)?;
+    Ok(())
+}
+
+/// Replaces the one occurrence of `patch.from` in the design's Verilog;
+/// refused on the IR engine, which simulates the module, not its Verilog.
+pub(crate) fn apply_patch(
+    design: &Design,
+    patch: &VerilogPatch,
+    engine: ModuleEngine,
+) -> Result<()> {
+    if engine == ModuleEngine::Ir {
+        return Err(CosimError::Unsupported {
+            what: "a Verilog patch on the IR engine (it simulates the module, not its Verilog)"
+                .to_string(),
+        });
+    }
     let mut found = Vec::new();
     for file in &design.verilog_files {
         let text = std::fs::read_to_string(file).map_err(crate::error::io_err(file))?;

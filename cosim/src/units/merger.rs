@@ -16,6 +16,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use golden::layout::{Bits, Field};
+use golden::merge::fetch_unit::FetchLayout;
 use golden::merge::merger_unit::{merger_transaction, MergerLayout, MergerTransaction};
 use golden::merge::writer_unit::{place, soup};
 use golden::store::{HierarchyStore, NodeRecord, Reference};
@@ -25,15 +26,20 @@ use rtl_gen::merge::MergerConfig;
 
 use crate::bitvec::BitVec;
 use crate::design::Design;
-use crate::engines::{open_engine, EngineKind};
 use crate::error::{CosimError, Result};
 use crate::icarus::IcarusMultiBatch;
-use crate::ir_engine::IrEngine;
 use crate::tb::{
-    run_multi_with_vcd_on_failure, BenchConfig, Hang, Progress, PulseWatch, StreamBeats,
+    run_multi_with_vcd_on_failure, BenchConfig, FieldDecoder, Hang, Progress, PulseWatch,
+    StreamBeats,
 };
 
 pub use super::merge_module::ModuleEngine as MergerEngine;
+pub use super::merge_module::ModuleMismatch as MergerMismatch;
+pub use super::merge_module::VerilogPatch;
+use super::merge_module::{
+    apply_patch, beat_decoder, decoded_pair, flip_bit0, named, status_failure, stepped_engines,
+    top_report_fields,
+};
 
 /// The stage name `hiermerge cosim --unit merger` reports.
 pub const STAGE: &str = "hierarchy_merger";
@@ -125,6 +131,64 @@ fn bitvec(b: &Bits) -> Result<BitVec> {
     BitVec::from_words(b.width() as usize, b.words())
 }
 
+/// A store read request (`f{i}_node_req`, `_ref_req`, `_cref_req`): the
+/// whole beat is the index read.
+fn index_field(fl: &FetchLayout) -> Field {
+    Field {
+        name: "index",
+        offset: 0,
+        width: fl.index_width,
+    }
+}
+
+/// The `header` beat's fields in bit order: the writer's header, then the
+/// merger's flags.
+fn header_fields(ml: &MergerLayout) -> Vec<Field> {
+    let w = &ml.writer;
+    vec![
+        w.h_out_id,
+        w.h_top,
+        w.h_roots,
+        w.h_nodes,
+        w.h_refs,
+        w.h_err,
+        ml.leaf_overflow,
+        ml.count_overflow,
+        ml.fetch_err,
+        ml.fetch_rank,
+    ]
+}
+
+/// The fields of output stream `stream`'s beats, from golden's layouts:
+/// `report` the merging module's (`TopLayout`), a fetcher's `*_req` an
+/// index, `w_ref_req` and `refs` a reference (`RefLayout`), `nodes` a
+/// node record (`NodeLayout`), `header` [`header_fields`]; None for a
+/// name that is no output stream of the merger.
+pub fn output_fields(ml: &MergerLayout, stream: &str) -> Option<Vec<Field>> {
+    let fetcher_read = |s: &str| {
+        s.strip_prefix('f')
+            .and_then(|rest| rest.split_once('_'))
+            .is_some_and(|(i, port)| {
+                i.parse::<usize>().is_ok_and(|i| i < ml.k)
+                    && ["node_req", "ref_req", "cref_req"].contains(&port)
+            })
+    };
+    match stream {
+        "report" => Some(top_report_fields(&ml.top)),
+        "w_ref_req" | "refs" => Some(ml.writer.reference.fields().copied().collect()),
+        "nodes" => Some(ml.writer.node.fields().copied().collect()),
+        "header" => Some(header_fields(ml)),
+        s if fetcher_read(s) => Some(vec![index_field(&ml.fetch)]),
+        _ => None,
+    }
+}
+
+/// Decodes a beat of output stream `stream` field by field
+/// ([`output_fields`]; an unknown stream shows its raw bits as `data`).
+pub fn decoder_of(ml: &MergerLayout, stream: &str) -> Box<FieldDecoder> {
+    beat_decoder(named(output_fields(ml, stream).unwrap_or_default()))
+}
+
 /// Per-stream beats of the merges, appended merge by merge.
 struct Lanes {
     names: Vec<String>,
@@ -178,11 +242,7 @@ pub fn merger_streams(c: &MergerConfig, txs: &[MergerTransaction]) -> Result<Mer
     let k = c.design.inputs;
     let ml = MergerLayout::new(p, k, c.sizes.capacity_bits).map_err(golden_err)?;
     let fl = &ml.fetch;
-    let index_field = Field {
-        name: "index",
-        offset: 0,
-        width: fl.index_width,
-    };
+    let index_field = index_field(fl);
     let idx = |i: &u32| -> Result<Bits> {
         let mut b = Bits::zero(fl.index_width);
         b.set(&index_field, *i as u64).map_err(golden_err)?;
@@ -312,23 +372,12 @@ pub struct RunConfig {
     pub vcd_path: Option<PathBuf>,
     /// Cycles traced either side of the failure.
     pub vcd_radius: u64,
-}
-
-/// The first failing output beat.
-#[derive(Clone, Debug)]
-pub struct MergerMismatch {
-    /// Output stream.
-    pub stream: String,
-    /// 0-based index of the beat on its stream within its chunk.
-    pub beat: u64,
-    /// The merge it belongs to (0-based over the whole run).
-    pub merge: usize,
-    /// Cycle of the transfer, counted from the start of its chunk.
-    pub cycle: u64,
-    /// Expected and observed beat, as bits.
-    pub expected: String,
-    /// Observed beat.
-    pub got: String,
+    /// A deliberate break of the emitted Verilog (the test hook; Verilator
+    /// and Icarus only).
+    pub verilog_patch: Option<VerilogPatch>,
+    /// The test hook: bit 0 of merge `n`'s expected `header` beat (its
+    /// `out_id`) flipped.
+    pub flip_expected: Option<usize>,
 }
 
 /// What a run measured (over every chunk run).
@@ -344,6 +393,8 @@ pub struct Outcome {
     pub cycles: u64,
     /// Beats accepted on every input stream.
     pub beats_in: u64,
+    /// `cfg` beats accepted: merges started.
+    pub cfg_accepted: u64,
     /// Beats out on every output stream.
     pub beats_out: u64,
     /// Output beats that differed.
@@ -379,22 +430,22 @@ impl Outcome {
 
     /// What the status outputs got wrong, if anything.
     pub fn status_failure(&self) -> Option<String> {
-        let mut wrong = Vec::new();
-        if self.done_pulses != self.merges as u64 {
-            wrong.push(format!(
-                "`done` pulsed {} times for {} merges",
-                self.done_pulses, self.merges
-            ));
-        }
-        if !self.idle_at_end {
-            wrong.push("`idle` low at the end of a chunk".to_string());
-        }
-        (!wrong.is_empty()).then(|| wrong.join("; "))
+        status_failure(self.done_pulses, self.merges, self.idle_at_end, "a chunk")
     }
 
     /// Records written (`nodes` beats) per cycle.
     pub fn records_per_cycle(&self) -> f64 {
         self.stats.records as f64 / self.cycles.max(1) as f64
+    }
+}
+
+/// Flips bit 0 of merge `merge`'s expected `header` beat (its `out_id`).
+fn flip_header(streams: &mut MergerStreams, merge: usize) -> Result<()> {
+    let header = streams.outputs.len() - 1;
+    let at = streams.starts[header][merge];
+    match streams.outputs[header].beats.get_mut(at) {
+        Some(beat) => flip_bit0(&mut beat[0]),
+        None => Ok(()),
     }
 }
 
@@ -423,6 +474,11 @@ pub fn run(
         what: format!("hierarchy merger: {what}"),
     })?;
     let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
+    if let Some(patch) = &config.verilog_patch {
+        apply_patch(&design, patch, engine)?;
+    }
+    let ml = MergerLayout::new(&c.design.params, c.design.inputs, c.sizes.capacity_bits)
+        .map_err(golden_err)?;
     let k = c.design.inputs;
     let sim = match engine {
         MergerEngine::Iverilog => {
@@ -450,8 +506,13 @@ pub fn run(
         let txs = (0..n)
             .map(|_| random_merge(&mut rng, c))
             .collect::<Result<Vec<_>>>()?;
-        let streams = merger_streams(c, &txs)?;
+        let mut streams = merger_streams(c, &txs)?;
         drop(txs);
+        if let Some(f) = config.flip_expected {
+            if (out.merges..out.merges + n).contains(&f) {
+                flip_header(&mut streams, f - out.merges)?;
+            }
+        }
         out.golden_wall += t.elapsed();
         let bench = BenchConfig {
             seed: config.seed ^ out.chunks as u64,
@@ -470,12 +531,8 @@ pub fn run(
                 design,
                 kind,
             } => {
-                let mut make = |trace: bool| -> Result<Box<dyn crate::Engine>> {
-                    match kind {
-                        MergerEngine::Ir => Ok(Box::new(IrEngine::new(module, design)?)),
-                        _ => open_engine(EngineKind::Verilator, design, trace),
-                    }
-                };
+                let patched = config.verilog_patch.is_some();
+                let mut make = stepped_engines(module, design, *kind, patched);
                 let mut on_progress = |p: Progress| {
                     // Headers are the last output stream; outputs count all streams,
                     // so report merges by the share of beats arrived.
@@ -506,6 +563,7 @@ pub fn run(
         out.idle_at_end &= watch.at_end.iter().any(|p| p.0 == "idle" && p.1);
         out.cycles += report.cycles;
         out.beats_in += report.sent.iter().map(|s| s.1).sum::<u64>();
+        out.cfg_accepted += report.sent.first().map_or(0, |cfg| cfg.1);
         out.beats_out += report.received.iter().map(|s| s.1).sum::<u64>();
         out.mismatches += report.mismatches;
         out.wall += report.wall;
@@ -517,19 +575,12 @@ pub fn run(
                     .iter()
                     .position(|o| &o.name == stream)
                     .unwrap_or(headers);
-                let show = |t: &Vec<BitVec>| {
-                    t.iter()
-                        .map(|b| b.to_string())
-                        .collect::<Vec<_>>()
-                        .join(" ")
-                };
                 MergerMismatch {
                     stream: stream.clone(),
                     beat: m.output_index,
                     merge: out.merges + streams.merge_of(s, m.output_index as usize),
                     cycle: m.cycle,
-                    expected: show(&m.expected),
-                    got: show(&m.got),
+                    fields: decoded_pair(&*decoder_of(&ml, stream), &m.expected, &m.got),
                 }
             });
         }

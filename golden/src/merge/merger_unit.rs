@@ -16,8 +16,8 @@
 //!    fetchers' `out` beats are the module's `in<i>` (an unused input `i >= n`
 //!    gets one `End` per pass from the glue).
 //! 3. The module's `report` ends with the choice. Chosen `m`: every fetcher
-//!    gets the **leaves pass** (LOD `m`, leaves only; `out` dropped), then
-//!    the **merge pass** (LOD `m`, references, last) ([`controller_cmds`]);
+//!    gets the **merge pass** (LOD `m`, references, the leaves above `m`,
+//!    last) ([`controller_cmds`]);
 //!    refused: a **closing** command (LOD `lo`, nothing sent but the walk,
 //!    last) whose `out` beats the glue drops, and the base is empty.
 //! 4. The module's `out` at `m`: created and reused nodes go to the upper
@@ -284,15 +284,12 @@ impl MergerTransaction {
 }
 
 /// The fetcher commands of a merge: the count pass (overlap mode, good
-/// range: one per candidate LOD); then, chosen `m`, the **leaves pass** (LOD
-/// `m`, leaves only: its `out` beats are dropped) and the **merge pass** (LOD
-/// `m`, references, last); refused, the **closing** command at `lo` (its
-/// beats are dropped). Why a leaves pass: the builder needs the head of
-/// every `base{d}`, `d < m`, to take level `m`'s nodes, and a leaf's place
-/// in `base{d}` is known only when every input has sent its leaves; were the
-/// leaves sent with level `m`, an input whose leaves come late would hold
-/// level `m` (whose beats wait in the merging module for every input) while
-/// the builder waits for the leaves: a deadlock.
+/// range: one per candidate LOD); then, chosen `m`, the **merge pass** (LOD
+/// `m`, references, the leaves above `m`, last); refused, the **closing**
+/// command at `lo` (its beats are dropped). The leaves come with level `m`
+/// in one walk: the fetcher ends its `leaves` stream before it visits level
+/// `m`, so the leaf merge never waits on a fetcher whose level beats wait
+/// in the merging module (SPEC 8.15's deadlock argument).
 pub fn controller_cmds(count_pass: &[u8], chosen: Option<u8>, lo: u8) -> Vec<FetchCmd> {
     let cmd = |lod, send_refs, send_leaves, last| FetchCmd {
         lod,
@@ -305,16 +302,17 @@ pub fn controller_cmds(count_pass: &[u8], chosen: Option<u8>, lo: u8) -> Vec<Fet
         .map(|&lod| cmd(lod, false, false, false))
         .collect();
     match chosen {
-        Some(m) => cmds.extend([cmd(m, false, true, false), cmd(m, true, false, true)]),
+        Some(m) => cmds.push(cmd(m, true, true, true)),
         None => cmds.push(cmd(lo, false, false, true)),
     }
     cmds
 }
 
 /// Whether a command's `out` beats go to the merging module (count and
-/// merge passes) or are dropped by the glue (leaves pass, closing command).
+/// merge passes) or are dropped by the glue (the closing command, and
+/// per-node mode's leaves command).
 pub fn feeds_module(c: &FetchCmd) -> bool {
-    !c.send_leaves && (c.send_refs || !c.last)
+    c.send_refs || !c.last
 }
 
 /// A fetcher's `out` beats split per command (each ends with `End`); an
@@ -653,8 +651,8 @@ mod tests {
     fn check_hand_offs(tx: &MergerTransaction, p: &Params, k: usize) {
         let b = tx.builder();
         if let ModulePass::Level(top) = &tx.module {
-            // Fetcher out -> module in<i>, pass by pass (the leaves pass's
-            // and the closing command's beats are dropped).
+            // Fetcher out -> module in<i>, pass by pass (the closing
+            // command's beats are dropped).
             for (r, f) in tx.fetch.iter().enumerate() {
                 let passes = fetch_passes(f).unwrap();
                 assert_eq!(passes.len(), tx.cmds.len());

@@ -529,8 +529,18 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     let oin_w = 2 + fetch_err::BITS + rl.width() + nl.width();
     let oin = Stream::wires(&m, "out_items_in", oin_w);
     let items = fifo(&m, "out_items", oin, 4);
-    let downstream = (leaves.ready & oin.ready & front_in.ready).name("visit_room");
     let live = (walk & !v_done).name("visit_live");
+    let above = v_d.lt(c_lod).name("above_level");
+    // The `leaves` end beat leaves as soon as the visit stage is at the
+    // level (every node above it visited), before any level item may wait
+    // on `out`: the merger's leaf merge then never waits on a fetcher whose
+    // level beats wait on the merging module (SPEC 8.15, the deadlock
+    // argument). A level item waits for it; above the level only leaves
+    // need `leaves`.
+    let lend_sent = m.reg("leaves_end_sent", 1);
+    let lend_due = (live & c_leaves & !lend_sent & !above).name("leaves_end_due");
+    let downstream = (oin.ready & front_in.ready & above.mux(leaves.ready, !c_leaves | lend_sent))
+        .name("visit_room");
     let top_err = v_top & rerr_valid;
     let top_hdr_end = v_top & !rerr_valid & hdr_err;
     let top_sorted = v_top & !rerr_valid & !hdr_err;
@@ -590,7 +600,6 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
         .zext(ib + 1)
         .add(n_count.zext(ib + 1), ib + 1)
         .name("item_range_end");
-    let above = v_d.lt(c_lod).name("above_level");
     let at_level = v_d.eq(c_lod).name("at_level");
     let order_bad = (prev_valid & key.le(prev_key)).name("order_bad");
     let range_bad =
@@ -649,9 +658,18 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
         ],
     );
     let leaf_end_beat = with_fields(&m, m.lit(0, l.leaves_width), &[(l.leaf_end, lit(1, 1))]);
-    leaves.valid.drive(leaf_out | walk_over & c_leaves);
+    // The end beat: the walk over above the level, or the level reached.
+    let lend_fire =
+        (walk_over & above & c_leaves | lend_due & leaves.ready).name("leaves_end_fire");
+    lend_sent.next(start.mux(lit(0, 1), lend_fire.mux(lit(1, 1), lend_sent)));
+    leaves
+        .valid
+        .drive(leaf_out | walk_over & above & c_leaves | lend_due);
     leaves.data.drive(leaf_out.mux(leaf_beat, leaf_end_beat));
-    oin.valid.drive(to_out | fails | walk_over);
+    // Only the first error goes on: `out` drops what follows it, and so at
+    // most one item enters `out_items` above the level (it never fills
+    // there, so the walk above the level never waits on `out`).
+    oin.valid.drive(to_out | fails & !v_errored | walk_over);
     oin.data.drive(m.concat(&[
         fails.mux(
             lit(ok::ERR, 2),

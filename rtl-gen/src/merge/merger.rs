@@ -106,12 +106,10 @@ mod phase {
     pub const COUNT: u64 = 1;
     /// Waiting for the merging module's choice.
     pub const WAIT: u64 = 2;
-    /// Issuing the leaves pass (a level was chosen).
-    pub const LEAVES: u64 = 3;
     /// Issuing the merge-pass (or closing) command.
-    pub const FINAL: u64 = 4;
+    pub const FINAL: u64 = 3;
     /// Every command issued.
-    pub const DONE: u64 = 5;
+    pub const DONE: u64 = 4;
     pub const BITS: u32 = 3;
 }
 
@@ -222,8 +220,8 @@ pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
 
     // ---- cfg: taken when no merge is in progress and every unit is idle.
     let busy = m.reg("busy", 1);
-    // Set while a command whose `out` beats are dropped (the leaves pass,
-    // the closing command) has not sent its End.
+    // Set while a command whose `out` beats are dropped (the closing
+    // command) has not sent its End.
     let dropping: Vec<Signal> = (0..k).map(|i| m.reg(&format!("dropping{i}"), 1)).collect();
     let header_fire = m.wire("header_fire", 1);
     let mut quiet = !busy & module.output("idle");
@@ -309,7 +307,6 @@ pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
         let in_ph = |v: u64| ph.eq(lit(v, phase::BITS));
         let cmd_lod = m.reg(&format!("cmd_lod{i}"), lb);
         let count_ph = in_ph(phase::COUNT);
-        let leaves_ph = in_ph(phase::LEAVES);
         let final_ph = in_ph(phase::FINAL);
         let lod = count_ph.mux(cmd_lod, merging.mux(level, lo));
         let cmd_data = with_fields(
@@ -318,11 +315,13 @@ pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
             &[
                 (fl.lod, lod),
                 (fl.send_refs, final_ph & merging),
-                (fl.send_leaves, leaves_ph),
+                // The leaves above m come with level m (SPEC 8.15: no
+                // deadlock, the fetcher ends `leaves` before level m).
+                (fl.send_leaves, final_ph & merging),
                 (fl.last, final_ph),
             ],
         );
-        let issuing = (count_ph | leaves_ph | final_ph).name(&format!("issuing{i}"));
+        let issuing = (count_ph | final_ph).name(&format!("issuing{i}"));
         f.connect("cmd_valid", used[i] & issuing);
         f.connect("cmd_data", cmd_data);
         let cmd_fire = used[i] & issuing & f.output("cmd_ready");
@@ -345,21 +344,15 @@ pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
         let first_err = fo_fire & fo_err.ne(0) & ferr_next.eq(0);
         ferr_next = first_err.mux(fo_err, ferr_next);
         ferr_rank_next = first_err.mux(lit(i as u64, rb), ferr_rank_next);
-        // An unused input has no leaves pass and no closing command.
-        let skip = !used[i] & (leaves_ph | (final_ph & !merging));
+        // An unused input has no closing command.
+        let skip = !used[i] & final_ph & !merging;
         let step = (cmd_fire | virt_fire | skip).name(&format!("step{i}"));
         let last_count = cmd_lod.eq(hi);
         let after_step = count_ph.mux(
             last_count.mux(lit(phase::WAIT, phase::BITS), ph),
-            leaves_ph.mux(
-                lit(phase::FINAL, phase::BITS),
-                lit(phase::DONE, phase::BITS),
-            ),
+            lit(phase::DONE, phase::BITS),
         );
-        let after_choice = merging.mux(
-            lit(phase::LEAVES, phase::BITS),
-            lit(phase::FINAL, phase::BITS),
-        );
+        let after_choice = lit(phase::FINAL, phase::BITS);
         let ph_next = cfg_fire.mux(
             counting_in.mux(
                 lit(phase::COUNT, phase::BITS),
@@ -378,7 +371,7 @@ pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
             get(cfg.data, &ml.lo),
             (step & count_ph).mux(cmd_lod.add(1, lb), cmd_lod),
         ));
-        let drop_issued = cmd_fire & (leaves_ph | (final_ph & !merging));
+        let drop_issued = cmd_fire & final_ph & !merging;
         dropping[i].next(drop_issued.mux(one, (fo_fire & fo_end).mux(zero, dropping[i])));
 
         // The store ports (every `*_req` / `*_resp` stream), straight through.

@@ -16,7 +16,7 @@ use golden::translate::TranslateUnitConfig;
 use golden::vectors::translate::{write_translate_vectors, TranslateDesign};
 use serde_json::Value;
 
-use common::{hiermerge, json_of, tool_present};
+use common::{assert_passed, hiermerge, json_of, tool_present};
 
 fn verilator_present() -> bool {
     tool_present("verilator")
@@ -25,15 +25,7 @@ fn verilator_present() -> bool {
 /// A passing run: exit 0, every transaction, no mismatch, cycles at least
 /// one per input record (the units take at most one record per clock).
 fn assert_passes(o: &Output, transactions: u64) -> Value {
-    assert!(
-        o.status.success(),
-        "stderr:\n{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let r = json_of(o);
-    assert_eq!(r["passed"], true, "{r}");
-    assert_eq!(r["mismatches"], 0, "{r}");
-    assert_eq!(r["transactions"], transactions, "{r}");
+    let r = assert_passed(o, transactions);
     let cycles = r["cycles"].as_u64().unwrap();
     assert!(cycles >= r["records"].as_u64().unwrap(), "{r}");
     assert!(r["wall_seconds"].as_f64().unwrap() > 0.0, "{r}");

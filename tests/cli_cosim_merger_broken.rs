@@ -15,8 +15,8 @@ use std::path::Path;
 use std::process::Output;
 
 use common::{
-    assert_fails, assert_one_field_differs, assert_vcd, emitted_assign, hiermerge, json_of,
-    tool_present, FLIP, PATCH_FROM, PATCH_TO,
+    assert_fails, assert_one_field_differs, assert_vcd, emitted_assign, field_names, hiermerge,
+    json_of, tool_present, FLIP, PATCH_FROM, PATCH_TO,
 };
 use golden::layout::NodeLayout;
 use golden::params::Params;
@@ -105,12 +105,7 @@ fn a_flipped_nodes_bit_is_caught_decoded_with_a_vcd_on_both_engines() {
         assert_eq!(m["stream"], "nodes", "{m}");
         assert_eq!(m["beat"], 0, "the first record written is wrong: {m}");
         assert_one_field_differs(m, "leaf");
-        let names: Vec<&str> = m["fields"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|f| f["name"].as_str().unwrap())
-            .collect();
+        let names = field_names(m);
         let layout = NodeLayout::new(&small().design.params);
         let expected: Vec<&str> = layout.fields().map(|f| f.name).collect();
         assert_eq!(names, expected, "NodeLayout's fields in bit order: {m}");
@@ -173,12 +168,7 @@ fn a_flipped_expectation_is_caught_with_the_header_decoded() {
     assert_eq!(m["transaction"], 3, "{m}");
     assert_eq!(m["beat"], 3, "one header per merge: {m}");
     assert_one_field_differs(m, "out_id");
-    let names: Vec<&str> = m["fields"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|f| f["name"].as_str().unwrap())
-        .collect();
+    let names = field_names(m);
     assert_eq!(
         names,
         [

@@ -83,6 +83,32 @@ pub fn port_width(module: &rtl_gen::Module, name: &str) -> u32 {
         .unwrap_or_else(|| panic!("no port `{name}`"))
 }
 
+/// A passing run's report: exit 0, `passed`, no mismatch, no
+/// first-mismatch report, `transactions` transactions.
+pub fn assert_passed(o: &Output, transactions: u64) -> Value {
+    assert!(
+        o.status.success(),
+        "stderr:\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let r = json_of(o);
+    assert_eq!(r["passed"], true, "{r}");
+    assert_eq!(r["mismatches"], 0, "{r}");
+    assert_eq!(r["transactions"], transactions, "{r}");
+    assert!(r["first_mismatch"].is_null(), "{r}");
+    r
+}
+
+/// The names of a mismatch report's decoded fields, in order.
+pub fn field_names(m: &Value) -> Vec<&str> {
+    m["fields"]
+        .as_array()
+        .unwrap_or_else(|| panic!("no fields: {m}"))
+        .iter()
+        .map(|f| f["name"].as_str().unwrap())
+        .collect()
+}
+
 /// A failed run: exit non-zero, `passed: false`, a reproduce command that
 /// names `hook` (a test hook variable).
 pub fn assert_fails(o: &Output, r: &Value, hook: &str) {

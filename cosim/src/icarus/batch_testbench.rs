@@ -229,6 +229,7 @@ pub fn generate_batch_testbench(spec: &BatchTbSpec) -> String {
     let body = TbBody {
         module: BATCH_TB_MODULE,
         title: "Icarus batch mode",
+        wired: Vec::new(),
         decls: format!(
             r#"{lane_decls}{watch_decl}    reg [63:0] hm_sent, hm_head_after, hm_total_in, hm_next;
     reg [63:0] hm_meta [0:{chunk_last}];

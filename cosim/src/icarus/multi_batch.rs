@@ -48,7 +48,6 @@ use super::multi_batch_testbench::{
     beat_file, gap_file, generate_multi_testbench, multi_pool_file, MultiTbSpec, MULTI_STIM_CHUNK,
     MULTI_TB_MODULE,
 };
-use crate::bitvec::BitVec;
 use crate::design::{Design, PortDir, PortId};
 use crate::error::{io_err, CosimError, Result};
 use crate::tb::{
@@ -341,13 +340,12 @@ impl IcarusMultiBatch {
             stream.beats.len(),
         )?;
         for (c, chunk) in gaps.chunks(MULTI_STIM_CHUNK).enumerate() {
-            let lines = padded(chunk.iter().map(|g| format!("{g:x}")), "0");
+            let lines: Vec<String> = chunk.iter().map(|g| format!("{g:x}")).collect();
             write_lines(&dir.join(gap_file(s, c)), &lines)?;
         }
         for (k, &width) in widths.iter().enumerate() {
-            let zero = BitVec::zeros(width).to_hex();
             for (c, chunk) in stream.beats.chunks(MULTI_STIM_CHUNK).enumerate() {
-                let lines = padded(chunk.iter().map(|b| b[k].to_hex()), &zero);
+                let lines: Vec<String> = chunk.iter().map(|b| b[k].to_hex()).collect();
                 write_lines(&dir.join(beat_file(s, c, k)), &lines)?;
             }
             let mut rng = Prng::derived(config.seed, 1000 + s as u64);
@@ -492,13 +490,6 @@ pub fn driver_gaps(seed: u64, stall: f64, widths: &[usize], beats: usize) -> Res
             Ok(gap)
         })
         .collect()
-}
-
-/// `lines` padded with `fill` to `MULTI_STIM_CHUNK` lines.
-fn padded(lines: impl Iterator<Item = String>, fill: &str) -> Vec<String> {
-    let mut v: Vec<String> = lines.collect();
-    v.resize(MULTI_STIM_CHUNK, fill.to_string());
-    v
 }
 
 /// The ready generators of `outputs` output streams: output `j` draws

@@ -76,65 +76,38 @@ fn merger_cli_runs_on_verilator_and_icarus() {
     );
 }
 
+/// `hiermerge <args>` (a space-separated line) with `env` fails, its
+/// error saying `what`.
+fn assert_refused(args: &str, env: &[(&str, &str)], what: &str) {
+    let args: Vec<&str> = args.split(' ').collect();
+    let o = hiermerge(&args, env);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains(what), "{args:?}: {e}");
+}
+
 #[test]
 fn merger_flags_are_checked() {
-    let o = hiermerge(
-        &["cosim", "--unit", "merge", "--leaf-bits", "5", "--json"],
+    assert_refused(
+        "cosim --unit merge --leaf-bits 5 --json",
         &[],
-    );
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert!(
-        !o.status.success() && e.contains("--unit merger only"),
-        "{e}"
+        "--unit merger only",
     );
     // The Verilog patch hook needs a Verilog engine and a unit that takes it.
     let patch = [
         ("HIERMERGE_COSIM_PATCH_FROM", "assign"),
         ("HIERMERGE_COSIM_PATCH_TO", "assign"),
     ];
-    let o = hiermerge(
-        &[
-            "cosim", "--unit", "merger", "--engine", "ir", "--count", "1",
-        ],
+    let ir_merger = "cosim --unit merger --engine ir --count 1";
+    assert_refused(ir_merger, &patch, "IR engine");
+    assert_refused(
+        "cosim --unit translate --engine ir --count 1",
         &patch,
-    );
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success() && e.contains("IR engine"), "{e}");
-    let o = hiermerge(
-        &[
-            "cosim",
-            "--unit",
-            "translate",
-            "--engine",
-            "ir",
-            "--count",
-            "1",
-        ],
-        &patch,
-    );
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert!(
-        !o.status.success() && e.contains("HIERMERGE_COSIM_PATCH_FROM applies to"),
-        "{e}"
+        "HIERMERGE_COSIM_PATCH_FROM applies to",
     );
     // A writer of 2^40 entries per buffer does not fit the index width.
-    let o = hiermerge(
-        &[
-            "cosim",
-            "--unit",
-            "merger",
-            "--engine",
-            "ir",
-            "--count",
-            "1",
-            "--capacity-bits",
-            "40",
-        ],
+    assert_refused(
+        &format!("{ir_merger} --capacity-bits 40"),
         &[],
-    );
-    let e = String::from_utf8_lossy(&o.stderr);
-    assert!(
-        !o.status.success() && e.contains("hierarchy merger configuration"),
-        "{e}"
+        "hierarchy merger configuration",
     );
 }

@@ -379,9 +379,10 @@ fn record_writer_one_word_per_clock() {
 }
 
 /// Every configuration lints clean; the small one (D = 5, C = 2) goes
-/// through Yosys `synth; check -assert` with no latch (the level buffers
-/// map to flops in Yosys: D = 8 at C = 2 takes 70 s, the default's C = 8
-/// far longer; the logic is the same at every D and C).
+/// through Yosys' plain `synth; check -assert` with no latch (its 4-word
+/// buffers are flip-flops). The default configuration's synthesis, with
+/// the buffers mapped onto RAM macros, is in tests/verilog_fresh.rs
+/// (SPEC.md 11, "Mapping the RAMs").
 #[test]
 fn record_writer_verilog_lints_and_synthesizes() {
     if !tools_present(&["verilator", "yosys"]) {

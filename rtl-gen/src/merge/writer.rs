@@ -48,10 +48,10 @@ pub struct WriterBuffer {
 
 /// The writer's buffers for `p` and `2^capacity_bits` entries (SPEC.md
 /// 8.12, "Buffers"), named as the emitted Verilog names them: `crefs_mem`;
-/// `rbody{d}_mem`, `rpar{d}_mem` and `child{d}_mem` for the levels 1..=D
-/// (level 0 is never below a top, nor anyone's child); `nbody{d}_mem` and
-/// `npar{d}_mem` for every level. Each is read synchronously, so a flow
-/// maps each onto RAM macros; `record_writer_unit` builds exactly these.
+/// `rbody{d}_mem` and `rpar{d}_mem` for the levels 1..=D (level 0 is never
+/// below a top); `nbody{d}_mem`, `npar{d}_mem` and `child{d}_mem` for every
+/// level. Each is read synchronously, so a flow maps each onto RAM macros;
+/// `record_writer_unit` builds exactly these.
 pub fn record_writer_buffers(
     p: &Params,
     capacity_bits: u32,
@@ -68,9 +68,7 @@ pub fn record_writer_buffers(
         }
         out.push(buf(format!("nbody{d}_mem"), w.body));
         out.push(buf(format!("npar{d}_mem"), w.parent));
-        if d > 0 {
-            out.push(buf(format!("child{d}_mem"), w.child));
-        }
+        out.push(buf(format!("child{d}_mem"), w.child));
     }
     Ok(out)
 }
@@ -165,38 +163,40 @@ fn next_level_with_records<'m>(
     (found, lod)
 }
 
-/// Which level buffers a sequencer reads this clock: the level its pointer
-/// names in the next clock (`next_lod`), in the by-position buffer when that
-/// level is the top and in the by-record-slot one below it. `(top, below)`
-/// per level.
-fn read_wants<'m>(
-    m: &'m Module,
+/// Whether a sequencer reads level `d`'s by-position buffer (`at_top`) or
+/// its by-record-slot one this clock: while `reading`, the level its
+/// pointer names in the next clock (`next_lod`), by position when that
+/// level is the top, by record slot below it.
+fn reads_level<'m>(
     reading: Signal<'m>,
     next_lod: Signal<'m>,
     next_is_top: Signal<'m>,
-    dmax: usize,
-) -> (Vec<Signal<'m>>, Vec<Signal<'m>>) {
-    let at = |d: usize| reading & next_lod.eq(m.lit(d as u128, next_lod.width()));
-    let top = (0..=dmax).map(|d| at(d) & next_is_top).collect();
-    let below = (0..=dmax).map(|d| at(d) & !next_is_top).collect();
-    (top, below)
+    d: usize,
+    at_top: bool,
+) -> Signal<'m> {
+    let m = reading.module();
+    let here = reading & next_lod.eq(m.lit(d as u128, next_lod.width()));
+    match at_top {
+        true => here & next_is_top,
+        false => here & !next_is_top,
+    }
 }
 
 /// Each level's buffer read a clock ahead: level `d`'s read register takes
-/// the word at `addr` in a clock where `want[d]`, and holds it otherwise
+/// the word at `addr` in a clock where `want(d)`, and holds it otherwise
 /// (a RAM's registered read port with its enable). A level without the
 /// buffer reads as zero.
 fn read_ahead<'m>(
     m: &'m Module,
     bufs: &[Option<Memory<'m>>],
     addr: Signal<'m>,
-    want: &[Signal<'m>],
+    want: impl Fn(usize) -> Signal<'m>,
     width: u32,
 ) -> Vec<Signal<'m>> {
     bufs.iter()
-        .zip(want)
-        .map(|(b, en)| match b {
-            Some(b) => b.read_sync(addr, *en),
+        .enumerate()
+        .map(|(d, b)| match b {
+            Some(b) => b.read_sync(addr, want(d)),
             None => m.lit(0, width),
         })
         .collect()
@@ -319,7 +319,10 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     // sequencer), its parent word (the reference sequencer). By position
     // (`index`), for the top, where every node is a record: the same two
     // words. By position, for the parents one level up: the child word.
-    // Level 0 is never below a top nor anyone's child: `None` there.
+    // Level 0 is never below a top: no by-record-slot words there. It is
+    // nobody's child either, but its child word is what takes the level
+    // beat's `ref` index and `records`, fields the builder's beat carries
+    // at every level and nothing else reads at level 0 (SPEC 8.12).
     let mem = |name: &str, d: usize, w: u32| m.memory(&format!("{name}{d}_mem"), w, 1 << c);
     let below_only = |name: &str, w: u32| -> Vec<Option<Memory>> {
         (0..=dmax)
@@ -333,7 +336,7 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     };
     let nbody = every_level("nbody", widths.body);
     let npar = every_level("npar", widths.parent);
-    let childm = below_only("child", widths.child);
+    let childm = every_level("child", widths.child);
     // d >= top and d > top, with the comparisons that are constant (no LOD is
     // below 0 or above the widest field value) written as constants.
     let in_merge: Vec<Signal> = (0..=dmax)
@@ -382,16 +385,15 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
         let fits = index.slice(i - 1, c).eq(lit(0, i - c));
         let body_word = m.concat(&[count, rec.slice(body_w - 1, 0)]);
         let parent_word = m.concat(&[hier, first, count, kind]);
-        let child_word = m.concat(&[records, refer, reused]);
         let slot = records.slice(c - 1, 0);
         let pos = index.slice(c - 1, 0);
         let put = node_fire & fits;
-        if let (Some(nb), Some(np)) = (nbody[d], npar[d]) {
+        if let (Some(nb), Some(np), Some(ch)) = (nbody[d], npar[d], childm[d]) {
             nb.write(pos, body_word, put);
             np.write(pos, parent_word, put);
+            ch.write(pos, m.concat(&[records, refer, reused]), put);
         }
-        if let (Some(ch), Some(rb), Some(rp)) = (childm[d], rbody[d], rpar[d]) {
-            ch.write(pos, child_word, put);
+        if let (Some(rb), Some(rp)) = (rbody[d], rpar[d]) {
             rb.write(slot, body_word, put & !reused);
             rp.write(slot, parent_word, put & !reused);
         }
@@ -495,9 +497,10 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let rs_reading = drain_start | rs_active;
     let rs_next_top = rs_d_next.eq(top);
     let rs_addr_next = rs_ptr_next.slice(c - 1, 0);
-    let (want_top, want_below) = read_wants(&m, rs_reading, rs_d_next, rs_next_top, dmax);
-    let at_top = read_ahead(&m, &nbody, rs_addr_next, &want_top, widths.body);
-    let below = read_ahead(&m, &rbody, rs_addr_next, &want_below, widths.body);
+    let rs_reads =
+        |at_top: bool| move |d| reads_level(rs_reading, rs_d_next, rs_next_top, d, at_top);
+    let at_top = read_ahead(&m, &nbody, rs_addr_next, rs_reads(true), widths.body);
+    let below = read_ahead(&m, &rbody, rs_addr_next, rs_reads(false), widths.body);
     let body_word = rs_top.mux(by_level(&m, rs_d, &at_top), by_level(&m, rs_d, &below));
     let rs_count = body_word.slice(widths.body - 1, body_w);
     let record = m.concat(&[
@@ -542,10 +545,12 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let fs_level_last = fs_ptr.add(1, c + 1).eq(fs_len);
     let fs_busy = (in_drain & !fs_done).name("fs_busy");
     let fs_reading = drain_start | fs_busy;
-    let (want_top, want_below) = read_wants(&m, fs_reading, fs_d_next, fs_d_next.eq(top), dmax);
+    let fs_next_top = fs_d_next.eq(top);
+    let fs_reads =
+        |at_top: bool| move |d| reads_level(fs_reading, fs_d_next, fs_next_top, d, at_top);
     let par_addr = fs_ptr_next.slice(c - 1, 0);
-    let par_top = read_ahead(&m, &npar, par_addr, &want_top, widths.parent);
-    let par_below = read_ahead(&m, &rpar, par_addr, &want_below, widths.parent);
+    let par_top = read_ahead(&m, &npar, par_addr, fs_reads(true), widths.parent);
+    let par_below = read_ahead(&m, &rpar, par_addr, fs_reads(false), widths.parent);
     let par = parent(
         fs_top.mux(by_level(&m, fs_d, &par_top), by_level(&m, fs_d, &par_below)),
         i,
@@ -553,17 +558,16 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let p_grouped = kind_is(&m, par.kind, level_out_kind::GROUPED);
     let p_created = kind_is(&m, par.kind, level_out_kind::CREATED);
     let p_mat = kind_is(&m, par.kind, level_out_kind::REUSED);
-    // The children of level d's parents are in level d + 1 (one bit wider:
-    // at D = 2^lod_bits - 1 the deepest level has no level below).
-    let child_level = fs_d_next.zext(lb + 1).add(1, lb + 1);
-    let want_child: Vec<Signal> = (0..=dmax)
-        .map(|e| fs_reading & child_level.eq(lit(e as u64, lb + 1)))
-        .collect();
+    // The children of level d's parents are in level d + 1, modulo 2^lod_bits
+    // as the selection below reads them (level 0 only past the widest LOD,
+    // whose nodes have no children).
+    let child_level = fs_d_next.add(1, lb);
+    let want_child = |e: usize| fs_reading & child_level.eq(lit(e as u64, lb));
     let children = read_ahead(
         &m,
         &childm,
         fs_child_next.slice(c - 1, 0),
-        &want_child,
+        want_child,
         widths.child,
     );
     let ch = child(by_level(&m, fs_d.add(1, lb), &children), ref_w);
@@ -666,4 +670,63 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     m.output("drain_records", rs_active);
     m.output("drain_refs", fs_busy);
     Ok(m)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A memory declaration of the emitted Verilog,
+    /// `reg [W-1:0] name [0:DEPTH-1];`, as a buffer.
+    fn declared_memory(line: &str) -> Option<WriterBuffer> {
+        let rest = line.trim().strip_prefix("reg [")?;
+        let (hi, rest) = rest.split_once(":0] ")?;
+        let (name, rest) = rest.split_once(" [0:")?;
+        let (last, _) = rest.split_once("];")?;
+        Some(WriterBuffer {
+            name: name.trim().to_string(),
+            width: hi.parse::<u32>().ok()? + 1,
+            depth: last.parse::<u32>().ok()? + 1,
+        })
+    }
+
+    /// The writer builds with no warning (no unread logic); and
+    /// `record_writer_buffers` names exactly the memories the generator
+    /// declares (what a synthesis test counts macros from), `5D + 4` of
+    /// them, and none is read asynchronously (no `assign x = mem[a]`).
+    #[test]
+    fn the_buffer_list_is_the_emitted_memories_all_read_synchronously() {
+        let configs = [
+            (Params::default(), 10),
+            (Params::new(31, 16, 32, 8).unwrap(), 4),
+            (Params::new(5, 2, 3, 2).unwrap(), 2),
+        ];
+        for (p, c) in configs {
+            let m = record_writer_unit(&p, c).unwrap();
+            let warnings = m.validate_design().expect("valid");
+            assert!(warnings.is_empty(), "D = {}: {warnings:?}", p.max_lod);
+            let text = crate::emit_verilog(&m).unwrap();
+            let mut emitted: Vec<WriterBuffer> = text.lines().filter_map(declared_memory).collect();
+            let mut listed = record_writer_buffers(&p, c).unwrap();
+            emitted.sort_by(|a, b| a.name.cmp(&b.name));
+            listed.sort_by(|a, b| a.name.cmp(&b.name));
+            assert_eq!(emitted, listed, "D = {}", p.max_lod);
+            assert_eq!(listed.len(), 5 * p.max_lod as usize + 4);
+            for b in &listed {
+                let async_read = format!("= {}[", b.name);
+                assert!(
+                    !text
+                        .lines()
+                        .any(|l| l.trim_start().starts_with("assign") && l.contains(&async_read)),
+                    "{} is read asynchronously",
+                    b.name
+                );
+                assert!(
+                    text.contains(&format!("<= {}[", b.name)),
+                    "{} has no registered read",
+                    b.name
+                );
+            }
+        }
+    }
 }

@@ -11,7 +11,7 @@ use std::process::Output;
 
 use serde_json::Value;
 
-use common::{assert_passed, hiermerge, json_of, tool_present};
+use common::{assert_passed, hiermerge, tool_present};
 
 fn merger_run(engine: &str, seed: &str, count: &str) -> Output {
     hiermerge(

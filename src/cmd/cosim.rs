@@ -171,19 +171,10 @@ struct Report {
     stall: f64,
     vectors: Option<String>,
     passed: bool,
-    transactions: u64,
-    /// Input records (translate: transactions; merge: beats on in0..;
-    /// merge-level: input beats; merger: beats into its merging module).
-    records: u64,
-    /// Output records (translate: transactions; merge: report and out
-    /// beats; merge-level: base-node/reference beats; merger: node
-    /// records written).
-    nodes: u64,
-    mismatches: u64,
-    cycles: u64,
+    #[serde(flatten)]
+    counts: Counts,
     records_per_cycle: f64,
     nodes_per_cycle: f64,
-    wall_seconds: f64,
     /// Simulation speed of the engine under the testbench: cycles / wall_seconds.
     cycles_per_second: f64,
     first_mismatch: Option<MismatchReport>,
@@ -446,44 +437,30 @@ fn run_translate(
         },
     );
     pb.finish_and_clear();
-    let mut r = Report {
-        unit: a.unit,
-        stage: "translate_unit",
-        engine: a.engine.name(),
-        seed: a.seed,
-        stall: a.stall,
-        vectors: a.vectors.as_ref().map(|p| p.display().to_string()),
-        passed: true,
-        transactions: txns.len() as u64,
-        records: txns.len() as u64,
-        nodes: txns.len() as u64,
-        mismatches: 0,
-        cycles: 0,
-        records_per_cycle: 0.0,
-        nodes_per_cycle: 0.0,
-        wall_seconds: 0.0,
-        cycles_per_second: 0.0,
-        first_mismatch: None,
-        vcd: None,
-        reproduce: None,
-        merger: None,
-    };
-    match result {
+    let n = txns.len() as u64;
+    let (counts, first, vcd) = match result {
         Ok(o) => {
-            r.cycles = o.cycles;
-            r.records_per_cycle = o.records_per_cycle();
-            r.nodes_per_cycle = o.records_per_cycle();
-            r.wall_seconds = o.wall.as_secs_f64();
-            r.cycles_per_second = crate::report::per_second(r.cycles as f64, r.wall_seconds);
+            let counts = Counts {
+                transactions: n,
+                records: n,
+                nodes: n,
+                mismatches: 0,
+                cycles: o.cycles,
+                wall_seconds: o.wall.as_secs_f64(),
+            };
+            (counts, None, None)
         }
         Err(Failure::Engine(e)) => return Err(e.to_string()),
         Err(Failure::Mismatch(m)) => {
-            r.passed = false;
-            r.mismatches = 1;
-            r.cycles = m.cycle;
-            r.vcd = m.vcd.as_ref().map(|p| p.display().to_string());
-            r.reproduce = Some(reproduce(a, flip)?);
-            r.first_mismatch = Some(MismatchReport {
+            let counts = Counts {
+                transactions: n,
+                records: n,
+                nodes: n,
+                mismatches: 1,
+                cycles: m.cycle,
+                wall_seconds: 0.0,
+            };
+            let first = MismatchReport {
                 transaction: m.transaction as u64,
                 stream: None,
                 beat: None,
@@ -501,10 +478,11 @@ fn run_translate(
                         differs: f.differs(),
                     })
                     .collect(),
-            });
+            };
+            (counts, Some(first), m.vcd.clone())
         }
-    }
-    Ok(r)
+    };
+    finish_report(a, "translate_unit", flip, counts, first, vcd.as_ref())
 }
 
 fn run_merge(
@@ -614,6 +592,18 @@ fn module_engine(choice: EngineChoice) -> Result<ModuleEngine, String> {
     Ok(engine)
 }
 
+/// How a multi-stream unit's run is driven: the flags' seed and stall, its
+/// VCD under `--vcd-dir`, the Verilog patch hook.
+fn bench_config(a: &Args, stage: &str) -> Result<merge_module::RunConfig, String> {
+    Ok(merge_module::RunConfig {
+        seed: a.seed,
+        stall: a.stall,
+        vcd_path: Some(vcd_path(a, stage)),
+        vcd_radius: VCD_RADIUS,
+        verilog_patch: verilog_patch()?,
+    })
+}
+
 /// The report of a multi-stream unit's first mismatched beat: its merge,
 /// stream and beat, each field of the stream's layout expected against got.
 /// `beat_is` says where the beat index counts from (`""`, ` of its chunk`).
@@ -642,13 +632,20 @@ fn stream_mismatch(kind: &str, m: &ModuleMismatch, seed: u64, beat_is: &str) -> 
     }
 }
 
-/// What a run counted, for [`finish_report`].
+/// What a run counted (the report's counts, [`finish_report`]).
+#[derive(Serialize)]
 struct Counts {
     transactions: u64,
+    /// Input records (translate: transactions; merge: beats on in0..;
+    /// merge-level: input beats; merger: beats into its merging module).
     records: u64,
+    /// Output records (translate: transactions; merge: report and out
+    /// beats; merge-level: base-node/reference beats; merger: node
+    /// records written).
     nodes: u64,
     mismatches: u64,
     cycles: u64,
+    /// Of the bench: the Verilator build and the Icarus compile excluded.
     wall_seconds: f64,
 }
 
@@ -672,15 +669,10 @@ fn finish_report(
         stall: a.stall,
         vectors: a.vectors.as_ref().map(|p| p.display().to_string()),
         passed,
-        transactions: counts.transactions,
-        records: counts.records,
-        nodes: counts.nodes,
-        mismatches: counts.mismatches,
-        cycles: counts.cycles,
         records_per_cycle: per_cycle(counts.records),
         nodes_per_cycle: per_cycle(counts.nodes),
-        wall_seconds: counts.wall_seconds,
         cycles_per_second: crate::report::per_second(counts.cycles as f64, counts.wall_seconds),
+        counts,
         first_mismatch,
         vcd: vcd.map(|p| p.display().to_string()),
         reproduce: if passed {
@@ -719,13 +711,7 @@ fn run_merge_module(
             a.engine.name()
         );
     }
-    let config = merge_module::RunConfig {
-        seed: a.seed,
-        stall: a.stall,
-        vcd_path: Some(vcd_path(a, merge_module::STAGE)),
-        vcd_radius: VCD_RADIUS,
-        verilog_patch: verilog_patch()?,
-    };
+    let config = bench_config(a, merge_module::STAGE)?;
     let expected_out: u64 = streams.outputs.iter().map(|s| s.beats.len() as u64).sum();
     let pb = bar(expected_out, a.json);
     if engine == ModuleEngine::Iverilog {
@@ -739,19 +725,15 @@ fn run_merge_module(
     let o = o.map_err(|e| e.to_string())?;
     let r = &o.report;
     let stage = merge_module::STAGE;
-    let mut first = o
-        .first_mismatch
-        .as_ref()
-        .map(|m| stream_mismatch(stage, m, a.seed, ""));
-    if first.is_none() && !o.passed() {
-        first = Some(no_mismatch_failure(
-            stage,
-            r.sent.first().map_or(0, |cfg| cfg.1.saturating_sub(1)),
-            (r.cycles, r.hang.as_ref(), &r.missing),
-            a.seed,
-            o.status_failure(),
-        ));
-    }
+    let end = RunEnd {
+        failed: !o.passed(),
+        started: r.sent.first().map_or(0, |cfg| cfg.1),
+        cycles: r.cycles,
+        hang: r.hang.as_ref(),
+        missing: &r.missing,
+        status: o.status_failure(),
+    };
+    let first = multi_stream_failure(stage, a.seed, o.first_mismatch.as_ref(), "", end);
     let counts = Counts {
         transactions: o.merges as u64,
         records: o.data_beats_in,
@@ -787,12 +769,8 @@ fn run_merger(
     c.validate()
         .map_err(|e| format!("hierarchy merger configuration: {e}"))?;
     let config = merger::RunConfig {
-        seed: a.seed,
+        bench: bench_config(a, merger::STAGE)?,
         count,
-        stall: a.stall,
-        vcd_path: Some(vcd_path(a, merger::STAGE)),
-        vcd_radius: VCD_RADIUS,
-        verilog_patch: verilog_patch()?,
         flip_expected: flip,
     };
     if !a.json {
@@ -810,19 +788,16 @@ fn run_merger(
     pb.finish_and_clear();
     let o = o.map_err(|e| e.to_string())?;
     let stage = merger::STAGE;
-    let mut first = o
-        .first_mismatch
-        .as_ref()
-        .map(|m| stream_mismatch(stage, m, a.seed, " of its chunk"));
-    if first.is_none() && !o.passed() {
-        first = Some(no_mismatch_failure(
-            stage,
-            o.cfg_accepted.saturating_sub(1),
-            (o.cycles, o.hang.as_ref(), &o.missing),
-            a.seed,
-            o.status_failure(),
-        ));
-    }
+    let end = RunEnd {
+        failed: !o.passed(),
+        started: o.cfg_accepted,
+        cycles: o.cycles,
+        hang: o.hang.as_ref(),
+        missing: &o.missing,
+        status: o.status_failure(),
+    };
+    let mismatch = o.first_mismatch.as_ref();
+    let first = multi_stream_failure(stage, a.seed, mismatch, " of its chunk", end);
     let s = &o.stats;
     let counts = Counts {
         transactions: o.merges as u64,
@@ -855,14 +830,14 @@ fn print_text(r: &Report) {
         r.unit_name(),
         r.stage,
         r.engine,
-        r.transactions,
-        r.records,
-        r.nodes,
-        r.cycles,
+        r.counts.transactions,
+        r.counts.records,
+        r.counts.nodes,
+        r.counts.cycles,
         r.records_per_cycle,
         r.nodes_per_cycle,
-        r.mismatches,
-        r.wall_seconds
+        r.counts.mismatches,
+        r.counts.wall_seconds
     );
     if let Some(m) = &r.first_mismatch {
         println!(
@@ -897,36 +872,61 @@ impl Report {
     }
 }
 
+/// How a multi-stream run ended, for its failure report.
+struct RunEnd<'a> {
+    /// Anything wrong: a mismatch, a hang, missing beats, a status rule.
+    failed: bool,
+    /// Transactions started (`cfg` beats accepted).
+    started: u64,
+    cycles: u64,
+    hang: Option<&'a cosim::tb::Hang>,
+    missing: &'a [(String, usize)],
+    /// What the status outputs (`done`, `idle`) got wrong.
+    status: Option<String>,
+}
+
+/// The first failure of a multi-stream run (merging module, hierarchy
+/// merger): its first mismatched beat ([`stream_mismatch`]), else, when it
+/// failed, [`no_mismatch_failure`]; None when it passed.
+fn multi_stream_failure(
+    kind: &str,
+    seed: u64,
+    mismatch: Option<&ModuleMismatch>,
+    beat_is: &str,
+    end: RunEnd,
+) -> Option<MismatchReport> {
+    match mismatch {
+        Some(m) => Some(stream_mismatch(kind, m, seed, beat_is)),
+        None if end.failed => Some(no_mismatch_failure(kind, seed, end)),
+        None => None,
+    }
+}
+
 /// The report of a multi-stream run that failed without a mismatched beat:
 /// a hang, expected beats that never came, or a status output (`done`,
-/// `idle`) that broke its rule. `transaction` is the last one started.
-fn no_mismatch_failure(
-    kind: &str,
-    transaction: u64,
-    (cycles, hang, missing): (u64, Option<&cosim::tb::Hang>, &[(String, usize)]),
-    seed: u64,
-    status: Option<String>,
-) -> MismatchReport {
-    let missing: Vec<String> = missing
+/// `idle`) that broke its rule; its transaction is the last one started.
+fn no_mismatch_failure(kind: &str, seed: u64, end: RunEnd) -> MismatchReport {
+    let missing: Vec<String> = end
+        .missing
         .iter()
         .filter(|m| m.1 > 0)
         .map(|(s, n)| format!("{n} `{s}` beats"))
         .collect();
     MismatchReport {
-        transaction,
+        transaction: end.started.saturating_sub(1),
         stream: None,
         beat: None,
         kind: kind.to_string(),
-        cycle: hang.map_or(cycles, |h| h.cycle),
+        cycle: end.hang.map_or(end.cycles, |h| h.cycle),
         seed,
-        what: match (hang, missing.is_empty()) {
+        what: match (end.hang, missing.is_empty()) {
             (Some(h), _) => format!(
                 "no handshake for {} cycles; missing {}",
                 h.idle_cycles,
                 missing.join(", ")
             ),
             (None, false) => format!("missing {}", missing.join(", ")),
-            (None, true) => status.unwrap_or_default(),
+            (None, true) => end.status.unwrap_or_default(),
         },
         fields: Vec::new(),
     }

@@ -35,11 +35,11 @@ use crate::tb::{
 
 pub use super::merge_module::ModuleEngine as MergerEngine;
 pub use super::merge_module::ModuleMismatch as MergerMismatch;
-pub use super::merge_module::VerilogPatch;
 use super::merge_module::{
     apply_patch, beat_decoder, decoded_pair, flip_bit0, named, status_failure, stepped_engines,
     top_report_fields,
 };
+pub use super::merge_module::{RunConfig as ModuleRunConfig, VerilogPatch};
 
 /// The stage name `hiermerge cosim --unit merger` reports.
 pub const STAGE: &str = "hierarchy_merger";
@@ -362,19 +362,11 @@ pub fn random_merge(rng: &mut SplitMix64, c: &MergerConfig) -> Result<MergerTran
 /// How one run is driven.
 #[derive(Clone, Debug, Default)]
 pub struct RunConfig {
-    /// Seed of the merges and of the stall patterns.
-    pub seed: u64,
+    /// As the merging module's runs: seed (of the merges too), stall, VCD
+    /// and the Verilog patch hook.
+    pub bench: ModuleRunConfig,
     /// Merges to run.
     pub count: usize,
-    /// Stall probability of every driver and every monitor.
-    pub stall: f64,
-    /// Where the VCD around the first failure goes (None: no VCD).
-    pub vcd_path: Option<PathBuf>,
-    /// Cycles traced either side of the failure.
-    pub vcd_radius: u64,
-    /// A deliberate break of the emitted Verilog (the test hook; Verilator
-    /// and Icarus only).
-    pub verilog_patch: Option<VerilogPatch>,
     /// The test hook: bit 0 of merge `n`'s expected `header` beat (its
     /// `out_id`) flipped.
     pub flip_expected: Option<usize>,
@@ -459,7 +451,7 @@ enum Sim {
     Batch(Box<IcarusMultiBatch>),
 }
 
-/// Runs `config.count` random merges (seeded by `config.seed`) through the
+/// Runs `config.count` random merges (seeded by `config.bench.seed`) through the
 /// merger `c` on `engine`, the Verilog written to `dir`, [`CHUNK`] merges
 /// at a time; stops after the first chunk that fails. `progress` gets
 /// (merges whose chunk is done or whose outputs arrived so far, cycle).
@@ -474,7 +466,7 @@ pub fn run(
         what: format!("hierarchy merger: {what}"),
     })?;
     let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
-    if let Some(patch) = &config.verilog_patch {
+    if let Some(patch) = &config.bench.verilog_patch {
         apply_patch(&design, patch, engine)?;
     }
     let ml = MergerLayout::new(&c.design.params, c.design.inputs, c.sizes.capacity_bits)
@@ -495,7 +487,7 @@ pub fn run(
             kind,
         },
     };
-    let mut rng = SplitMix64(config.seed);
+    let mut rng = SplitMix64(config.bench.seed);
     let mut out = Outcome {
         idle_at_end: true,
         ..Outcome::default()
@@ -515,12 +507,12 @@ pub fn run(
         }
         out.golden_wall += t.elapsed();
         let bench = BenchConfig {
-            seed: config.seed ^ out.chunks as u64,
-            in_stall: config.stall,
-            out_stall: config.stall,
+            seed: config.bench.seed ^ out.chunks as u64,
+            in_stall: config.bench.stall,
+            out_stall: config.bench.stall,
             stop_on_mismatch: false,
-            vcd_path: config.vcd_path.clone(),
-            vcd_radius: config.vcd_radius,
+            vcd_path: config.bench.vcd_path.clone(),
+            vcd_radius: config.bench.vcd_radius,
             ..BenchConfig::default()
         };
         let done_before = out.merges as u64;
@@ -531,7 +523,7 @@ pub fn run(
                 design,
                 kind,
             } => {
-                let patched = config.verilog_patch.is_some();
+                let patched = config.bench.verilog_patch.is_some();
                 let mut make = stepped_engines(module, design, *kind, patched);
                 let mut on_progress = |p: Progress| {
                     // Headers are the last output stream; outputs count all streams,

@@ -165,20 +165,13 @@ fn header_fields(ml: &MergerLayout) -> Vec<Field> {
 /// node record (`NodeLayout`), `header` [`header_fields`]; None for a
 /// name that is no output stream of the merger.
 pub fn output_fields(ml: &MergerLayout, stream: &str) -> Option<Vec<Field>> {
-    let fetcher_read = |s: &str| {
-        s.strip_prefix('f')
-            .and_then(|rest| rest.split_once('_'))
-            .is_some_and(|(i, port)| {
-                i.parse::<usize>().is_ok_and(|i| i < ml.k)
-                    && ["node_req", "ref_req", "cref_req"].contains(&port)
-            })
-    };
     match stream {
         "report" => Some(top_report_fields(&ml.top)),
         "w_ref_req" | "refs" => Some(ml.writer.reference.fields().copied().collect()),
         "nodes" => Some(ml.writer.node.fields().copied().collect()),
         "header" => Some(header_fields(ml)),
-        s if fetcher_read(s) => Some(vec![index_field(&ml.fetch)]),
+        // The other outputs are the fetchers' store reads.
+        s if output_names(ml.k).iter().any(|n| n == s) => Some(vec![index_field(&ml.fetch)]),
         _ => None,
     }
 }
@@ -588,4 +581,42 @@ pub fn run(
         }
     }
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every output stream's decoding fields tile its beats exactly, bit 0
+    /// to the width golden packs them at: nothing undecoded, nothing made up.
+    #[test]
+    fn output_fields_tile_every_packed_beat() {
+        let c = MergerConfig::new(golden::vectors::merge::MergeDesign::default());
+        let ml =
+            MergerLayout::new(&c.design.params, c.design.inputs, c.sizes.capacity_bits).unwrap();
+        let mut rng = SplitMix64(5);
+        let txs: Vec<_> = (0..4)
+            .map(|_| random_merge(&mut rng, &c).unwrap())
+            .collect();
+        let streams = merger_streams(&c, &txs).unwrap();
+        for out in &streams.outputs {
+            let fields = output_fields(&ml, &out.name).unwrap();
+            let mut end = 0;
+            for f in &fields {
+                assert_eq!(
+                    f.offset, end,
+                    "`{}`: field {} not adjacent",
+                    out.name, f.name
+                );
+                end = f.end();
+            }
+            let beat = out
+                .beats
+                .first()
+                .unwrap_or_else(|| panic!("no `{}` beat", out.name));
+            assert_eq!(end as usize, beat[0].width(), "`{}`", out.name);
+        }
+        assert_eq!(output_fields(&ml, "f9_node_req"), None);
+        assert_eq!(output_fields(&ml, "cfg"), None);
+    }
 }

@@ -146,6 +146,9 @@ struct Seen {
     inputs: usize,
     cmds: usize,
     codes: [usize; 15],
+    /// Commands sending several levels, and those with an error.
+    multi: usize,
+    multi_errors: usize,
     out_beats: usize,
     leaf_beats: usize,
     node_reads: usize,
@@ -195,13 +198,21 @@ fn random_fetches(
         let deepest = h.nodes.iter().map(|n| n.voxel.lod).max().unwrap_or(0);
         let k = 1 + rng.below(4) as usize;
         let list: Vec<FetchCmd> = (0..k)
-            .map(|i| FetchCmd {
-                lod: (h.top_lod as u64 + rng.below((deepest - h.top_lod) as u64 + 3))
+            .map(|i| {
+                let lod = (h.top_lod as u64 + rng.below((deepest - h.top_lod) as u64 + 3))
                     .saturating_sub(1)
-                    .min(p.max_lod as u64) as u8,
-                send_refs: rng.below(2) == 0,
-                send_leaves: rng.below(3) != 0,
-                last: i + 1 == k,
+                    .min(p.max_lod as u64) as u8;
+                // A third of the commands send several levels from one walk
+                // (from above the top at times), a few have `from` past `lod`.
+                let from = match rng.below(12) {
+                    0..=3 => rng.below(lod as u64 + 1) as u8,
+                    4 => (lod as u64 + 1 + rng.below(3)).min((1 << p.lod_bits()) - 1) as u8,
+                    _ => lod,
+                };
+                FetchCmd {
+                    from,
+                    ..FetchCmd::level(lod, rng.below(2) == 0, rng.below(3) != 0, i + 1 == k)
+                }
             })
             .collect();
         sent += k;
@@ -237,6 +248,12 @@ fn streams(p: &Params, txs: &[FetchTransaction]) -> (Vec<StreamBeats>, Vec<Strea
     for tx in txs {
         seen.inputs += 1;
         seen.cmds += tx.cmds.len();
+        seen.multi += tx.cmds.iter().filter(|c| c.levels() > 1).count();
+        if tx.cmds.iter().any(|c| c.levels() > 1)
+            && tx.out.iter().any(|o| matches!(o, FetchOut::Error { .. }))
+        {
+            seen.multi_errors += 1;
+        }
         s[0].push(bits(tx.cfg.pack(&l).unwrap()));
         s[1].extend(tx.cmds.iter().map(|c| bits(c.pack(&l).unwrap())));
         s[2].extend(tx.node_resps.iter().map(|r| bits(r.pack(&l.node).unwrap())));
@@ -307,6 +324,7 @@ fn check(name: &str, runs: &[(&str, usize)], most: usize) {
     let design = design_of(&m, dir.path());
     for &(kind, cmds) in runs {
         let mut codes = [0usize; 15];
+        let (mut multi, mut multi_errors) = (0, 0);
         let (mut total, mut chunk) = (0, 0u64);
         let (mut beats, mut cycles, mut wall) = (0usize, 0u64, 0.0f64);
         let mut e = (kind != "iverilog").then(|| engine(kind, &m, &design));
@@ -325,14 +343,17 @@ fn check(name: &str, runs: &[(&str, usize)], most: usize) {
                 *c += k;
             }
             total += seen.cmds;
+            multi += seen.multi;
+            multi_errors += seen.multi_errors;
             beats += seen.out_beats + seen.leaf_beats + seen.node_reads + seen.ref_reads;
             cycles += r.cycles;
             wall += r.wall.as_secs_f64();
             chunk += 1;
         }
         println!(
-            "fetcher {name} {kind}: {total} commands, {beats} beats (out, leaves, requests), {cycles} cycles, {wall:.1} s wall; error codes {codes:?}"
+            "fetcher {name} {kind}: {total} commands ({multi} sending several levels, {multi_errors} inputs with such a command and an error), {beats} beats (out, leaves, requests), {cycles} cycles, {wall:.1} s wall; error codes {codes:?}"
         );
+        assert!(multi > 0 && multi_errors > 0, "{name} {kind}");
         // The sizes' limits only in the small configuration.
         let needed: Vec<u64> = (fetch_err::ENTRY..=fetch_err::ORDER)
             .filter(|&c| {
@@ -400,9 +421,10 @@ fn fetcher_small_sizes_matches_golden() {
 
 /// Out beats and node reads per cycle with no back-pressure and a memory
 /// that answers every clock, on error-free walks of larger soups (Verilator
-/// cycles): every level of each soup in turn (each command re-walks from
-/// the roots), then one command at each soup's deepest level (the stream a
-/// merge pass reads).
+/// cycles): every level of each soup in turn, one command per level (each
+/// re-walks from the roots), then every level from one command (one walk,
+/// as the merger's count pass), then one command at each soup's deepest
+/// level (the stream a merge pass reads).
 #[test]
 fn fetcher_throughput_without_back_pressure() {
     if !tools_present(&["verilator"]) {
@@ -412,7 +434,7 @@ fn fetcher_throughput_without_back_pressure() {
         let dir = tempfile::tempdir().unwrap();
         let m = rtl_gen::merge::fetcher_unit(&p, &sizes);
         let design = design_of(&m, dir.path());
-        for every_level in [true, false] {
+        for what in ["every level", "every level, one walk", "deepest level"] {
             let mut txs = Vec::new();
             for s in 0..6u64 {
                 let Some(h) = soup(&p, 1, 40 + 20 * s as usize, 0.2, 100 + s) else {
@@ -420,15 +442,16 @@ fn fetcher_throughput_without_back_pressure() {
                 };
                 let t = Translation::zero(h.top_lod);
                 let deepest = h.nodes.iter().map(|n| n.voxel.lod).max().unwrap();
-                let from = if every_level { h.top_lod } else { deepest };
-                let cmds: Vec<FetchCmd> = (from..=deepest)
-                    .map(|l| FetchCmd {
-                        lod: l,
-                        send_refs: true,
-                        send_leaves: true,
-                        last: l == deepest,
-                    })
-                    .collect();
+                let cmds: Vec<FetchCmd> = match what {
+                    "every level" => (h.top_lod..=deepest)
+                        .map(|l| FetchCmd::level(l, true, true, l == deepest))
+                        .collect(),
+                    "deepest level" => vec![FetchCmd::level(deepest, true, true, true)],
+                    _ => vec![FetchCmd {
+                        from: h.top_lod,
+                        ..FetchCmd::level(deepest, true, true, true)
+                    }],
+                };
                 if let Ok(tx) = fetch_transaction(&h, pack_entry(Some(&t), &p), &cmds, sizes) {
                     if tx.out.iter().all(|o| matches!(o, FetchOut::Beat(_))) {
                         txs.push(tx);
@@ -438,11 +461,6 @@ fn fetcher_throughput_without_back_pressure() {
             assert!(!txs.is_empty());
             let (ins, outs, seen) = streams(&p, &txs);
             let mut e = engine("verilator", &m, &design);
-            let what = if every_level {
-                "every level"
-            } else {
-                "deepest level"
-            };
             let r = multi_bench(
                 e.as_mut(),
                 &ins,
@@ -493,12 +511,7 @@ fn fetcher_steady_state_on_a_large_input() {
             .find_map(|n| soup(&p, 1, n, 0.05, 7))
             .expect("a 300-triangle soup fits every configuration's I");
         let deepest = h.nodes.iter().map(|n| n.voxel.lod).max().unwrap();
-        let cmd = FetchCmd {
-            lod: deepest,
-            send_refs: true,
-            send_leaves: true,
-            last: true,
-        };
+        let cmd = FetchCmd::level(deepest, true, true, true);
         let t = Translation::zero(h.top_lod);
         let tx = fetch_transaction(&h, pack_entry(Some(&t), &p), &[cmd], sizes)
             .expect("the walk of a builder-made input");

@@ -13,10 +13,14 @@ mod merge_common;
 
 use cosim::tb::{run_multi_stream_bench_watching, BenchConfig, MultiReport, StreamBeats};
 use cosim::units::merger::{merger_streams, random_merge, MergeStats};
-use golden::merge::fetch_unit::{fetch_err, fetch_transaction, FetchCfg, FetchOut};
-use golden::merge::merger_unit::{
-    merger_transaction, merger_transaction_in_range, MergerSizes, MergerTransaction,
+use golden::merge::fetch_unit::{
+    fetch_err, fetch_transaction, FetchCfg, FetchCmd, FetchOut, FetchTransaction,
 };
+use golden::merge::merger_unit::{
+    cmd_per_level, feeds_module, merger_transaction, merger_transaction_in_range, MergerSizes,
+    MergerTransaction,
+};
+use golden::merge::unit::LevelBeat;
 use golden::merge::writer_unit::{place, real_cases, soup};
 use golden::merge::MergeMode;
 use golden::params::Params;
@@ -214,13 +218,24 @@ fn broken_entry_merge(
     tx.cfg.inputs.push(FetchCfg::of(broken, None));
     let f = fetch_transaction(broken, 0, &tx.cmds, c.fetch_sizes()).unwrap();
     assert!(f.node_reqs.is_empty() && f.ref_reqs.is_empty());
-    assert!(f.out.iter().all(|o| matches!(
-        o,
-        FetchOut::Error {
-            code: fetch_err::ENTRY,
-            ..
-        }
-    )));
+    // Per command the error beat (for its first level's End), then the
+    // later levels' Ends.
+    let errors = f
+        .out
+        .iter()
+        .filter(|o| {
+            matches!(
+                o,
+                FetchOut::Error {
+                    code: fetch_err::ENTRY,
+                    ..
+                }
+            )
+        })
+        .count();
+    let levels: usize = tx.cmds.iter().map(|c| c.levels()).sum();
+    assert_eq!(errors, tx.cmds.len());
+    assert_eq!(f.out.len(), levels);
     tx.fetch.push(f);
     tx.header.fetch_err = fetch_err::ENTRY;
     tx.header.fetch_rank = (n - 1) as u16;
@@ -380,8 +395,29 @@ fn hierarchy_merger_q0_matches_golden() {
     );
 }
 
+/// The `out` beats of `f` the glue passes to the merging module (those of
+/// the count and merge passes; the closing command's are dropped).
+fn fed_beats(f: &FetchTransaction, cmds: &[FetchCmd]) -> u64 {
+    let per_level = cmd_per_level(cmds);
+    let mut level = 0;
+    let mut fed = 0;
+    for o in &f.out {
+        if per_level.get(level).is_some_and(feeds_module) {
+            fed += 1;
+        }
+        let closes = match o {
+            FetchOut::Beat(b) => *b == LevelBeat::End,
+            FetchOut::Error { .. } => true,
+        };
+        level += closes as usize;
+    }
+    fed
+}
+
 /// Merged nodes (records written) per cycle with no back-pressure, on
-/// Verilator, over the real merges and random ones.
+/// Verilator, over the real merges and random ones; what the fetchers read
+/// and send per merge. No back-pressure anywhere also runs the merge pass's
+/// one walk (leaves and level `m` together) where nothing hides a wait.
 #[test]
 fn hierarchy_merger_throughput() {
     if !tools_present(&["verilator"]) {
@@ -409,15 +445,25 @@ fn hierarchy_merger_throughput() {
                     .sum::<usize>() as u64
             })
             .sum();
+        let fed: u64 = txs
+            .iter()
+            .map(|t| t.fetch.iter().map(|f| fed_beats(f, &t.cmds)).sum::<u64>())
+            .sum();
+        let cmds: usize = txs.iter().map(|t| t.cmds.len() * t.fetch.len()).sum();
+        let merges = seen.merges as f64;
+        let cycles = r.cycles as f64;
         println!(
-            "merge_merger {name} throughput: {} merges, {} records + {} refs written, {} module-in beats, {reads} store reads by the fetchers, {} cycles: {:.4} records/cycle, {:.4} module-in beats/cycle",
+            "merge_merger {name} throughput: {} merges, {cmds} fetcher commands, {} records + {} refs written, {} fetcher out beats ({fed} into the module), {reads} store reads by the fetchers, {} cycles: {:.4} records/cycle, {:.4} module-in beats/cycle ({:.4} counting every fetcher out beat), {:.1} store reads and {:.1} cycles per merge",
             seen.merges,
             seen.records,
             seen.refs,
             seen.module_in,
             r.cycles,
-            seen.records as f64 / r.cycles as f64,
-            seen.module_in as f64 / r.cycles as f64
+            seen.records as f64 / cycles,
+            fed as f64 / cycles,
+            seen.module_in as f64 / cycles,
+            reads as f64 / merges,
+            cycles / merges,
         );
     }
 }

@@ -90,11 +90,13 @@ pub struct FetchLayout {
     pub entry_lod: Field,
     pub entry_t: [Field; 3],
     pub cfg_width: u32,
-    /// `cmd`: `lod` (lod_bits), `send_refs`, `send_leaves`, `last` (1 each).
+    /// `cmd`: `lod` (lod_bits), `send_refs`, `send_leaves`, `last` (1
+    /// each), `from` (lod_bits: the first level sent, [`FetchCmd::from`]).
     pub lod: Field,
     pub send_refs: Field,
     pub send_leaves: Field,
     pub last: Field,
+    pub from: Field,
     pub cmd_width: u32,
     /// `node_req` / `ref_req`: an index (I). `node_resp`: a record (W);
     /// `ref_resp`: a reference (I + H).
@@ -152,11 +154,12 @@ impl FetchLayout {
             offset: f.offset + entry.offset,
             ..f
         };
-        let ([lod, send_refs, send_leaves, last], cmd_width) = consecutive([
+        let ([lod, send_refs, send_leaves, last, from], cmd_width) = consecutive([
             ("lod", lb),
             ("send_refs", 1),
             ("send_leaves", 1),
             ("last", 1),
+            ("from", lb),
         ]);
         let beat = BeatLayout::input(p);
         let err = Field {
@@ -187,6 +190,7 @@ impl FetchLayout {
             send_refs,
             send_leaves,
             last,
+            from,
             cmd_width,
             index_width: i,
             err,
@@ -280,19 +284,45 @@ impl FetchCfg {
     }
 }
 
-/// One command: walk to LOD `lod` and send its nodes on `out`, with the
-/// inner nodes' child references when `send_refs` (the merge pass), and the
-/// leaves above `lod` on `leaves` when `send_leaves`; `last`: the next beat
-/// on `cfg` starts another input.
+/// One command: one walk to LOD `lod` that sends on `out` every level
+/// [`first`](FetchCmd::first)`..=lod` in turn (each level's nodes, with the
+/// inner nodes' child references when `send_refs`, then `End`), and the
+/// leaves above the first level on `leaves` when `send_leaves`; `last`: the
+/// next beat on `cfg` starts another input. `from >= lod` is the
+/// single-level command at `lod` (the merge pass); `from < lod` sends
+/// several levels from one walk (the count pass, SPEC 8.13).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FetchCmd {
     pub lod: u8,
     pub send_refs: bool,
     pub send_leaves: bool,
     pub last: bool,
+    pub from: u8,
 }
 
 impl FetchCmd {
+    /// The single-level command at `lod`.
+    pub fn level(lod: u8, send_refs: bool, send_leaves: bool, last: bool) -> FetchCmd {
+        FetchCmd {
+            lod,
+            send_refs,
+            send_leaves,
+            last,
+            from: lod,
+        }
+    }
+
+    /// The first (shallowest) level sent: `min(from, lod)`.
+    pub fn first(&self) -> u8 {
+        self.from.min(self.lod)
+    }
+
+    /// Levels sent, each closed by one `End` (or the error beat in its
+    /// place): `lod - first + 1`.
+    pub fn levels(&self) -> usize {
+        (self.lod - self.first()) as usize + 1
+    }
+
     /// The packed `cmd` beat.
     pub fn pack(&self, l: &FetchLayout) -> Result<Bits, LayoutError> {
         let mut b = Bits::zero(l.cmd_width);
@@ -300,6 +330,7 @@ impl FetchCmd {
         b.set(&l.send_refs, self.send_refs as u64)?;
         b.set(&l.send_leaves, self.send_leaves as u64)?;
         b.set(&l.last, self.last as u64)?;
+        b.set(&l.from, self.from as u64)?;
         Ok(b)
     }
 }
@@ -474,7 +505,7 @@ impl Walk<'_> {
     /// data is made (so the request streams do not depend on timing);
     /// `out` stops after the first error beat, `leaves` after the first
     /// error the visit stage sees.
-    fn run(&self, tx: &mut FetchTransaction) -> Result<(), Stop> {
+    fn run(&self, tx: &mut FetchTransaction, o: &mut OutOrder) -> Result<(), Stop> {
         let (h, cmd) = (self.h, self.cmd);
         if h.root_count == 0 || h.root_count as usize > h.nodes.len() {
             return Err((0, fetch_err::ROOT_COUNT));
@@ -483,7 +514,6 @@ impl Walk<'_> {
             return Err((0, fetch_err::ROOT_CAPACITY));
         }
         let mut v = Visit::default();
-        let mut o = OutOrder::default();
         // Roots in stored order; the first failing one is reported before
         // any visit, the others are sorted and walked.
         let mut level = Vec::new();
@@ -498,14 +528,18 @@ impl Walk<'_> {
         }
         sort_stream(&mut level);
         if let Some(e) = root_err {
-            self.error(tx, &mut v, &mut o, e);
+            self.error(tx, &mut v, o, e);
         }
         let mut frontier: VecDeque<(u32, u32, u32)> = VecDeque::new();
         let mut d = h.top_lod;
         for n in &level {
-            self.visit(tx, n, d, &mut v, &mut o, &mut frontier);
+            self.visit(tx, n, d, &mut v, o, &mut frontier);
         }
         while d < cmd.lod && !frontier.is_empty() {
+            // Level d is over and the walk goes on: its End when it is sent.
+            if o.next_end == d {
+                o.level_end(self, tx);
+            }
             d += 1;
             v.prev = None;
             v.pushed = 0;
@@ -516,16 +550,12 @@ impl Walk<'_> {
                         .read_ref(tx, j, parent, false)
                         .and_then(|c| self.read_node(tx, c.node, d));
                     match n {
-                        Ok(n) => self.visit(tx, &n, d, &mut v, &mut o, &mut frontier),
-                        Err(e) => self.error(tx, &mut v, &mut o, e),
+                        Ok(n) => self.visit(tx, &n, d, &mut v, o, &mut frontier),
+                        Err(e) => self.error(tx, &mut v, o, e),
                     }
                 }
             }
         }
-        if let Some(p) = o.pending.take() {
-            self.send_refs(tx, &mut o, &p);
-        }
-        o.emit(tx, FetchOut::Beat(LevelBeat::End));
         if cmd.send_leaves {
             tx.leaves.push(LeafOut::End);
         }
@@ -593,14 +623,15 @@ impl Walk<'_> {
                 return self.error(tx, v, o, e);
             }
         }
-        if d < cmd.lod {
-            if inner {
-                if v.pushed >= self.sizes.frontier {
-                    return self.error(tx, v, o, (n.at.node, fetch_err::FRONTIER));
-                }
-                v.pushed += 1;
-                frontier.push_back((n.record.first, n.record.count, n.at.node));
-            } else if cmd.send_leaves && !v.errored {
+        if d < cmd.lod && inner {
+            if v.pushed >= self.sizes.frontier {
+                return self.error(tx, v, o, (n.at.node, fetch_err::FRONTIER));
+            }
+            v.pushed += 1;
+            frontier.push_back((n.record.first, n.record.count, n.at.node));
+        }
+        if d < cmd.first() {
+            if !inner && cmd.send_leaves && !v.errored {
                 tx.leaves.push(LeafOut::Leaf {
                     record: n.record,
                     at: n.at,
@@ -647,15 +678,63 @@ struct Visit {
 struct OutOrder {
     /// An inner node at the level whose references wait for its leaf.
     pending: Option<PlacedNode>,
-    /// The error beat has been sent: nothing more on `out`.
+    /// The error beat has been sent: only the later levels' `End`s follow.
     errored: bool,
+    /// The error beat stands for the `End` of the level it fell in: the
+    /// next `End` is not sent.
+    skip_end: bool,
+    /// The level whose `End` is owed next (`first..=lod`).
+    next_end: u8,
 }
 
 impl OutOrder {
+    fn new(cmd: &FetchCmd) -> OutOrder {
+        OutOrder {
+            pending: None,
+            errored: false,
+            skip_end: false,
+            next_end: cmd.first(),
+        }
+    }
+
+    /// `o` in out order: after the first error beat only `End`s go on,
+    /// the first of them replaced by the error.
     fn emit(&mut self, tx: &mut FetchTransaction, o: FetchOut) {
-        if !self.errored {
-            self.errored = matches!(o, FetchOut::Error { .. });
-            tx.out.push(o);
+        match o {
+            FetchOut::Error { .. } if !self.errored => {
+                self.errored = true;
+                self.skip_end = true;
+                tx.out.push(o);
+            }
+            FetchOut::Beat(LevelBeat::End) if self.skip_end => self.skip_end = false,
+            FetchOut::Beat(LevelBeat::End) => tx.out.push(o),
+            _ if !self.errored => tx.out.push(o),
+            _ => {}
+        }
+    }
+
+    /// The `End` of level `next_end`, after a held node's references.
+    fn level_end(&mut self, walk: &Walk, tx: &mut FetchTransaction) {
+        if let Some(p) = self.pending.take() {
+            walk.send_refs(tx, self, &p);
+        }
+        self.emit(tx, FetchOut::Beat(LevelBeat::End));
+        self.next_end += 1;
+    }
+
+    /// The command's start: the `End`s of the levels above the top but
+    /// the last (they hold no node; the last level's `End` closes the
+    /// walk), before any check.
+    fn start(&mut self, walk: &Walk, tx: &mut FetchTransaction) {
+        while self.next_end < walk.cmd.lod.min(walk.h.top_lod) {
+            self.level_end(walk, tx);
+        }
+    }
+
+    /// The walk is over: every level still owed its `End`, `lod`'s last.
+    fn finish(&mut self, walk: &Walk, tx: &mut FetchTransaction) {
+        while self.next_end <= walk.cmd.lod {
+            self.level_end(walk, tx);
         }
     }
 }
@@ -722,20 +801,33 @@ pub fn fetch_transaction(
     };
     let t = unpack_entry(entry, p).ok().flatten();
     for &cmd in cmds {
+        // An invalid entry reads nothing; the walk's translation is unused.
+        let walk = Walk {
+            h,
+            t: t.unwrap_or(Translation::zero(0)),
+            cmd,
+            sizes,
+        };
+        let mut o = OutOrder::new(&cmd);
+        o.start(&walk, &mut tx);
         let stop = match t {
             None => Err((0, fetch_err::ENTRY)),
-            Some(t) => Walk { h, t, cmd, sizes }.run(&mut tx),
+            Some(_) => walk.run(&mut tx, &mut o),
         };
         if let Err((node, code)) = stop {
-            tx.out.push(FetchOut::Error {
-                hier: h.id,
-                node,
-                code,
-            });
+            o.emit(
+                &mut tx,
+                FetchOut::Error {
+                    hier: h.id,
+                    node,
+                    code,
+                },
+            );
             if cmd.send_leaves {
                 tx.leaves.push(LeafOut::End);
             }
         }
+        o.finish(&walk, &mut tx);
     }
     Ok(tx)
 }
@@ -797,6 +889,7 @@ mod tests {
                         send_refs: l % 2 == 0,
                         send_leaves: true,
                         last: true,
+                        from: l,
                     };
                     let tx = fetch_transaction(
                         &h,
@@ -872,6 +965,7 @@ mod tests {
             send_refs: true,
             send_leaves: true,
             last: true,
+            from: lod,
         };
         let tx = fetch_transaction(h, pack_entry(t, &h.params), &[cmd], sizes).unwrap();
         match tx.out.last() {
@@ -908,6 +1002,126 @@ mod tests {
             }
             assert_eq!(l.entry_t[2].end(), l.entry.end());
         }
+    }
+
+    /// One command sending `from..=lod` is one walk to `lod`: its `out` is
+    /// the single-level commands' `out`s one after the other, its node and
+    /// reference reads the walk to `lod`'s, its child-reference reads the
+    /// levels' in turn, its leaves those above `from`.
+    #[test]
+    fn one_walk_sends_every_level() {
+        let p = Params::default();
+        let mut runs = 0;
+        for (i, (n, size)) in [(1, 0.01), (40, 0.2), (120, 0.3)].iter().enumerate() {
+            let h = soup(&p, 1 + i as u8, *n, *size, 17 + i as u64);
+            let entry = pack_entry(Some(&place(&h, 0.5)), &p);
+            let s = FetchSizes::default();
+            let top = h.top_lod;
+            for from in top.saturating_sub(2)..=deepest(&h) {
+                for lod in from..=deepest(&h) + 1 {
+                    let refs = (from + lod) % 2 == 0;
+                    let multi = FetchCmd {
+                        from,
+                        ..FetchCmd::level(lod, refs, true, true)
+                    };
+                    let tx = fetch_transaction(&h, entry, &[multi], s).unwrap();
+                    let one = |l: u8| {
+                        fetch_transaction(&h, entry, &[FetchCmd::level(l, refs, true, true)], s)
+                            .unwrap()
+                    };
+                    let deep = one(lod);
+                    let want: Vec<FetchOut> = (from..=lod).flat_map(|l| one(l).out).collect();
+                    assert_eq!(tx.out, want, "{from}..={lod}");
+                    let ends = tx
+                        .out
+                        .iter()
+                        .filter(|o| **o == FetchOut::Beat(LevelBeat::End))
+                        .count();
+                    assert_eq!(ends, multi.levels());
+                    assert_eq!(tx.node_reqs, deep.node_reqs);
+                    assert_eq!(tx.ref_reqs, deep.ref_reqs);
+                    let crefs: Vec<u32> = (from..=lod).flat_map(|l| one(l).cref_reqs).collect();
+                    assert_eq!(tx.cref_reqs, crefs);
+                    assert_eq!(tx.leaves, one(from).leaves);
+                    runs += 1;
+                }
+            }
+        }
+        assert!(runs > 20);
+        // `from` past `lod` is the single-level command.
+        let h = soup(&p, 1, 40, 0.2, 3);
+        let entry = pack_entry(Some(&place(&h, 0.0)), &p);
+        let l = h.top_lod + 1;
+        let run = |c| fetch_transaction(&h, entry, &[c], FetchSizes::default()).unwrap();
+        let past = FetchCmd {
+            from: l + 3,
+            ..FetchCmd::level(l, true, true, true)
+        };
+        assert_eq!(run(past).out, run(FetchCmd::level(l, true, true, true)).out);
+    }
+
+    /// An error ends the level it falls in (the error beat for its `End`);
+    /// every later level sends its `End` alone; the levels above the top
+    /// but the last end before any check.
+    #[test]
+    fn an_error_ends_its_level_and_later_levels_send_end() {
+        let p = Params::new(4, 1, 6, 2).unwrap();
+        let t0 = pack_entry(Some(&Translation::zero(1)), &p);
+        let cmd = |from, lod| FetchCmd {
+            from,
+            ..FetchCmd::level(lod, false, false, false)
+        };
+        let end = FetchOut::Beat(LevelBeat::End);
+        let err = |node, code| FetchOut::Error {
+            hier: 3,
+            node,
+            code,
+        };
+        let run = |h: &Hierarchy, entry, c| {
+            fetch_transaction(h, entry, &[c], FetchSizes::default())
+                .unwrap()
+                .out
+        };
+        // tiny: the root (inner, LOD 1), leaves 1 and 2 at LOD 2.
+        let h = tiny(&p);
+        let beat = |i: usize| {
+            FetchOut::Beat(beat_of(
+                &place_node(&h, 0, &Translation::zero(1), i as u32).unwrap(),
+            ))
+        };
+        assert_eq!(
+            run(&h, t0, cmd(0, 3)),
+            vec![end, beat(0), end, beat(1), beat(2), end, end]
+        );
+        // Node 2's LOD is wrong: level 2 ends with the error, level 3 sends End.
+        let mut b = h.clone();
+        b.nodes[2].voxel.lod = 3;
+        assert_eq!(
+            run(&b, t0, cmd(0, 3)),
+            vec![end, beat(0), end, beat(1), err(2, fetch_err::LOD), end]
+        );
+        // The header: level 0 (above the top) ends first, then the error
+        // for level 1, then level 2's End.
+        assert_eq!(
+            run(&h, 0, cmd(0, 2)),
+            vec![end, err(0, fetch_err::ENTRY), end]
+        );
+        // A RANGE error at level 1 (its range is walked for level 2).
+        let mut b = h.clone();
+        b.nodes[0].count = 3;
+        assert_eq!(run(&b, t0, cmd(1, 2)), vec![err(0, fetch_err::RANGE), end]);
+        // A level above the top: its End after the roots' checks (an error
+        // there stands for it).
+        assert_eq!(run(&h, t0, cmd(0, 0)), vec![end]);
+        let mut b = h.clone();
+        b.nodes[0].voxel.x = 2;
+        assert_eq!(run(&b, t0, cmd(0, 0)), vec![err(0, fetch_err::RECORD)]);
+        // Levels 0..=2 with that root: level 0 ends first, the root's error
+        // ends level 1, level 2 sends End.
+        assert_eq!(
+            run(&b, t0, cmd(0, 2)),
+            vec![end, err(0, fetch_err::RECORD), end]
+        );
     }
 
     #[test]
@@ -981,6 +1195,7 @@ mod tests {
             send_refs: true,
             send_leaves: true,
             last: true,
+            from: 2,
         };
         let t0 = pack_entry(Some(&Translation::zero(1)), &p);
         let tx = fetch_transaction(&b, t0, &[cmd], FetchSizes::default()).unwrap();
@@ -996,7 +1211,11 @@ mod tests {
         );
         assert_eq!(tx.leaves, vec![LeafOut::End]);
         // At LOD 1 with send_refs the root's references go on `cref`.
-        let cmd1 = FetchCmd { lod: 1, ..cmd };
+        let cmd1 = FetchCmd {
+            lod: 1,
+            from: 1,
+            ..cmd
+        };
         let tx = fetch_transaction(&tiny(&p), t0, &[cmd1], FetchSizes::default()).unwrap();
         assert_eq!(tx.cref_reqs, vec![0, 1]);
         assert!(tx.ref_reqs.is_empty());
@@ -1040,6 +1259,7 @@ mod tests {
             send_refs: true,
             send_leaves: false,
             last: true,
+            from: 2,
         };
         let tx = fetch_transaction(&h, pack_entry(Some(&t0), &p), &[cmd], FetchSizes::default())
             .unwrap();

@@ -11,10 +11,11 @@
 //!    `(lo, hi)` (8.2, computed by software from the headers: the hardware
 //!    does not scan the inputs' node arrays for `deep(i)`) and `out_id`.
 //! 2. The controller sends the merging module `(lo, hi)` and, in overlap
-//!    mode with a good range, one fetcher command per candidate LOD to every
-//!    used fetcher (the **count pass**: no references, no leaves); the
-//!    fetchers' `out` beats are the module's `in<i>` (an unused input `i >= n`
-//!    gets one `End` per pass from the glue).
+//!    mode with a good range, one fetcher command to every used fetcher that
+//!    walks once to `hi` and sends every candidate level `lo..=hi` in turn
+//!    (the **count pass**: no references, no leaves); the fetchers' `out`
+//!    beats are the module's `in<i>` (an unused input `i >= n` gets one
+//!    `End` per level from the glue).
 //! 3. The module's `report` ends with the choice. Chosen `m`: every fetcher
 //!    gets the **merge pass** (LOD `m`, references, the leaves above `m`,
 //!    last) ([`controller_cmds`]);
@@ -283,29 +284,35 @@ impl MergerTransaction {
     }
 }
 
-/// The fetcher commands of a merge: the count pass (overlap mode, good
-/// range: one per candidate LOD); then, chosen `m`, the **merge pass** (LOD
+/// The fetcher commands of a merge: the count pass (`count`: overlap mode,
+/// a good range `(lo, hi)`: one walk to `hi` sending every level
+/// `lo..=hi`); then, chosen `m`, the **merge pass** (LOD
 /// `m`, references, the leaves above `m`, last); refused, the **closing**
 /// command at `lo` (its beats are dropped). The leaves come with level `m`
 /// in one walk: the fetcher ends its `leaves` stream before it visits level
 /// `m`, so the leaf merge never waits on a fetcher whose level beats wait
 /// in the merging module (SPEC 8.15's deadlock argument).
-pub fn controller_cmds(count_pass: &[u8], chosen: Option<u8>, lo: u8) -> Vec<FetchCmd> {
-    let cmd = |lod, send_refs, send_leaves, last| FetchCmd {
-        lod,
-        send_refs,
-        send_leaves,
-        last,
-    };
-    let mut cmds: Vec<FetchCmd> = count_pass
-        .iter()
-        .map(|&lod| cmd(lod, false, false, false))
+pub fn controller_cmds(count: Option<(u8, u8)>, chosen: Option<u8>, lo: u8) -> Vec<FetchCmd> {
+    let mut cmds: Vec<FetchCmd> = count
+        .map(|(from, hi)| FetchCmd {
+            from,
+            ..FetchCmd::level(hi, false, false, false)
+        })
+        .into_iter()
         .collect();
     match chosen {
-        Some(m) => cmds.push(cmd(m, true, true, true)),
-        None => cmds.push(cmd(lo, false, false, true)),
+        Some(m) => cmds.push(FetchCmd::level(m, true, true, true)),
+        None => cmds.push(FetchCmd::level(lo, false, false, true)),
     }
     cmds
+}
+
+/// Each command of `cmds` once per level it sends: the per-level passes of
+/// a fetcher's `out` ([`fetch_passes`]) line up with these.
+pub fn cmd_per_level(cmds: &[FetchCmd]) -> Vec<FetchCmd> {
+    cmds.iter()
+        .flat_map(|c| std::iter::repeat_n(*c, c.levels()))
+        .collect()
 }
 
 /// Whether a command's `out` beats go to the merging module (count and
@@ -315,7 +322,7 @@ pub fn feeds_module(c: &FetchCmd) -> bool {
     c.send_refs || !c.last
 }
 
-/// A fetcher's `out` beats split per command (each ends with `End`); an
+/// A fetcher's `out` beats split per sent level (each ends with `End`); an
 /// error beat is refused naming the input, record and code.
 pub fn fetch_passes(tx: &FetchTransaction) -> Result<Vec<Vec<LevelBeat>>, MergeError> {
     let mut passes = vec![Vec::new()];
@@ -514,12 +521,7 @@ pub fn merger_transaction_in_range(
         MergeMode::PerNode { num, den } => {
             // The fetchers give the leaves above `lo` only (one command).
             let pn = per_node_transaction(&p, &hs, &ts, num, den, lo, hi)?;
-            let cmds = vec![FetchCmd {
-                lod: lo,
-                send_refs: false,
-                send_leaves: range_ok,
-                last: true,
-            }];
+            let cmds = vec![FetchCmd::level(lo, false, range_ok, true)];
             (ModulePass::PerNode(pn), cmds, None)
         }
         _ => {
@@ -550,7 +552,8 @@ pub fn merger_transaction_in_range(
                 } => Some(lod),
                 _ => None,
             });
-            let cmds = controller_cmds(&count_pass, chosen, lo);
+            let count = (!count_pass.is_empty()).then_some((lo, hi));
+            let cmds = controller_cmds(count, chosen, lo);
             (ModulePass::Level(top), cmds, chosen)
         }
     };
@@ -655,10 +658,11 @@ mod tests {
             // command's beats are dropped).
             for (r, f) in tx.fetch.iter().enumerate() {
                 let passes = fetch_passes(f).unwrap();
-                assert_eq!(passes.len(), tx.cmds.len());
+                let per_level = cmd_per_level(&tx.cmds);
+                assert_eq!(passes.len(), per_level.len());
                 let fed: Vec<LevelBeat> = passes
                     .iter()
-                    .zip(&tx.cmds)
+                    .zip(&per_level)
                     .filter(|(_, c)| feeds_module(c))
                     .flat_map(|(p, _)| p.iter().copied())
                     .collect();

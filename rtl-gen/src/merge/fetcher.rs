@@ -56,7 +56,10 @@ mod nk {
 mod ok {
     pub const NODE: u64 = 0;
     pub const ERR: u64 = 1;
+    /// The last level's `End`: the command is over once it has left.
     pub const FINAL: u64 = 2;
+    /// Another sent level's `End`.
+    pub const LEVEL_END: u64 = 3;
     pub const TOK_BEAT: u64 = 0;
     pub const TOK_ERR: u64 = 1;
     pub const TOK_CREF: u64 = 2;
@@ -315,6 +318,11 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
         field(cmd.data, &l.send_leaves).expect("send_leaves"),
     );
     c_last.next_when(cmd_fire, field(cmd.data, &l.last).expect("last"));
+    // The first level sent: `min(from, lod)` (`from >= lod`: one level).
+    let c_first = m.reg("cmd_first", lb);
+    let cmd_from = field(cmd.data, &l.from).expect("from");
+    let cmd_lod = field(cmd.data, &l.lod).expect("lod");
+    c_first.next_when(cmd_fire, cmd_from.gt(cmd_lod).mux(cmd_lod, cmd_from));
     n_phase.when(cmd_fire, goto(ph::START));
 
     let walk = is(ph::WALK).name("walking");
@@ -530,17 +538,35 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     let oin = Stream::wires(&m, "out_items_in", oin_w);
     let items = fifo(&m, "out_items", oin, 4);
     let live = (walk & !v_done).name("visit_live");
+    // Ranges are followed above `lod`; levels `first..=lod` are sent, the
+    // leaves above `first` go to `leaves`.
     let above = v_d.lt(c_lod).name("above_level");
+    let above_first = v_d.lt(c_first).name("above_first");
+    let sending = (!above_first & v_d.le(c_lod)).name("sending_level");
     // The `leaves` end beat leaves as soon as the visit stage is at the
-    // level (every node above it visited), before any level item may wait
-    // on `out`: the merger's leaf merge then never waits on a fetcher whose
-    // level beats wait on the merging module (SPEC 8.15, the deadlock
-    // argument). A level item waits for it; above the level only leaves
-    // need `leaves`.
+    // first sent level (every node above it visited), before any item of
+    // a sent level may wait on `out`: the merger's leaf merge then never
+    // waits on a fetcher whose level beats wait on the merging module
+    // (SPEC 8.15, the deadlock argument). A sent level's item waits for
+    // it; above the first level only leaves need `leaves`.
     let lend_sent = m.reg("leaves_end_sent", 1);
-    let lend_due = (live & c_leaves & !lend_sent & !above).name("leaves_end_due");
-    let downstream = (oin.ready & front_in.ready & above.mux(leaves.ready, !c_leaves | lend_sent))
-        .name("visit_room");
+    let lend_due = (live & c_leaves & !lend_sent & !above_first).name("leaves_end_due");
+    let downstream =
+        (oin.ready & front_in.ready & above_first.mux(leaves.ready, !c_leaves | lend_sent))
+            .name("visit_room");
+    // The sent levels' `End`s: `end_next` is the level owed next. The
+    // levels above the top but the last hold no node: their `End`s go
+    // first, before any item (`pre_ends`); a level's `End` goes with its
+    // end marker while the walk goes on; at the walk's end every level
+    // still owed gets its `End`, `lod`'s last (`FINAL`: the command is
+    // over once it has left).
+    let end_next = m.reg("end_next", lb);
+    let fin_sent = m.reg("final_sent", 1);
+    let pre_ends = (live & end_next.lt(top) & end_next.lt(c_lod)).name("pre_ends");
+    let drain = (walk & v_done & !fin_sent).name("ends_drain");
+    let end_emit = (pre_ends | drain).name("end_emit");
+    let end_final = (drain & end_next.eq(c_lod)).name("end_final");
+    let end_fire = (end_emit & oin.ready).name("end_fire");
     let top_err = v_top & rerr_valid;
     let top_hdr_end = v_top & !rerr_valid & hdr_err;
     let top_sorted = v_top & !rerr_valid & !hdr_err;
@@ -556,14 +582,15 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
             | top_sorted & s_out_valid
             | deep & ctx2.valid & (!c2_node | node_resp.valid)))
         .name("visit_avail");
-    let go = (in_avail & downstream).name("visit_go");
-    sorter.connect("out_ready", live & top_sorted & !top_cap & downstream);
+    let visit_room = (downstream & !pre_ends).name("visit_free");
+    let go = (in_avail & visit_room).name("visit_go");
+    sorter.connect("out_ready", live & top_sorted & !top_cap & visit_room);
     cap_told.next(start.mux(lit(0, 1), (go & top_cap).mux(lit(1, 1), cap_told)));
     ctx2.ready
-        .drive(live & deep & (!c2_node | node_resp.valid) & downstream);
+        .drive(live & deep & (!c2_node | node_resp.valid) & visit_room);
     node_resp
         .ready
-        .drive(root_out & s_in_ready | live & deep & ctx2.valid & c2_node & downstream);
+        .drive(root_out & s_in_ready | live & deep & ctx2.valid & c2_node & visit_room);
     n_rerr_valid.when(go & top_err, lit(0, 1));
     let deep_fail = c2_node.mux(got_code.ne(0), c2_kind.eq(lit(nk::ERR, 2)));
     let in_err = (top_err | top_cap | deep & deep_fail).name("item_err");
@@ -623,12 +650,18 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     let fails = (go & visit_code.ne(0)).name("visit_fails");
     let passes = (go & in_node & visit_code.eq(0)).name("visit_passes");
     let push = (passes & above & inner).name("frontier_push");
-    let leaf_out = (passes & above & leaf & c_leaves & !v_errored).name("leaf_out");
-    let to_out = (passes & at_level).name("to_out");
+    let leaf_out = (passes & above_first & leaf & c_leaves & !v_errored).name("leaf_out");
+    let to_out = (passes & sending).name("to_out");
     let more = (above & pushed.ne(0)).name("next_level");
     let level_end = (go & in_end).name("level_end");
     let walk_over = (level_end & !more).name("walk_over");
     let marker = (level_end & more).name("marker_push");
+    let level_end_push = (marker & end_next.eq(v_d)).name("level_end_push");
+    end_next.next(start.mux(
+        c_first,
+        (end_fire & !end_final | level_end_push).mux(end_next.add(1, lb), end_next),
+    ));
+    fin_sent.next(start.mux(lit(0, 1), (end_fire & end_final).mux(lit(1, 1), fin_sent)));
 
     prev_valid.next(start.mux(
         lit(0, 1),
@@ -658,22 +691,26 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
         ],
     );
     let leaf_end_beat = with_fields(&m, m.lit(0, l.leaves_width), &[(l.leaf_end, lit(1, 1))]);
-    // The end beat: the walk over above the level, or the level reached.
+    // The end beat: the walk over above the first level, or it reached.
     let lend_fire =
-        (walk_over & above & c_leaves | lend_due & leaves.ready).name("leaves_end_fire");
+        (walk_over & above_first & c_leaves | lend_due & leaves.ready).name("leaves_end_fire");
     lend_sent.next(start.mux(lit(0, 1), lend_fire.mux(lit(1, 1), lend_sent)));
     leaves
         .valid
-        .drive(leaf_out | walk_over & above & c_leaves | lend_due);
+        .drive(leaf_out | walk_over & above_first & c_leaves | lend_due);
     leaves.data.drive(leaf_out.mux(leaf_beat, leaf_end_beat));
     // Only the first error goes on: `out` drops what follows it, and so at
     // most one item enters `out_items` above the level (it never fills
     // there, so the walk above the level never waits on `out`).
-    oin.valid.drive(to_out | fails & !v_errored | walk_over);
+    oin.valid
+        .drive(to_out | fails & !v_errored | level_end_push | end_emit);
     oin.data.drive(m.concat(&[
         fails.mux(
             lit(ok::ERR, 2),
-            walk_over.mux(lit(ok::FINAL, 2), lit(ok::NODE, 2)),
+            end_final.mux(
+                lit(ok::FINAL, 2),
+                (level_end_push | end_emit).mux(lit(ok::LEVEL_END, 2), lit(ok::NODE, 2)),
+            ),
         ),
         visit_code,
         fails.mux(reference(&m, hier, err_node), rec_ref),
@@ -788,7 +825,10 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
         m.concat(&[lit(ok::TOK_BEAT, 2), node_beat]),
         o_kind.eq(lit(ok::ERR, 2)).mux(
             m.concat(&[lit(ok::TOK_ERR, 2), err_beat]),
-            m.concat(&[lit(ok::TOK_FINAL, 2), end_out]),
+            o_kind.eq(lit(ok::FINAL, 2)).mux(
+                m.concat(&[lit(ok::TOK_FINAL, 2), end_out]),
+                m.concat(&[lit(ok::TOK_BEAT, 2), end_out]),
+            ),
         ),
     );
     tok_in.valid.drive(a_cref | b_leaf | c_flush | d_item);
@@ -797,7 +837,8 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
         .drive((a_cref | c_flush).mux(cref_tok, item_tok));
 
     // ---- out stage: beats in order, the child references checked as
-    // their answers come; nothing after the error beat
+    // their answers come; after the error beat only the later levels'
+    // `End`s, the first of them dropped (the error stands for it)
     let t_kind = toks.data.slice(tok_w - 1, tok_w - 2);
     let t_beat = toks.data.slice(l.out_width - 1, 0);
     let t_parent = toks.data.slice(ib - 1, 0);
@@ -812,11 +853,17 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
         )
         .name("cref_code");
     let answered = (!t_cref | cref_resp.valid).name("token_answered");
-    let t_fire = (walk & toks.valid & answered & (o_errored | out.ready)).name("token_fire");
+    let o_skip = m.reg("out_skip_end", 1);
+    let t_end = (t_kind.eq(lit(ok::TOK_FINAL, 2))
+        | t_kind.eq(lit(ok::TOK_BEAT, 2))
+            & field(t_beat, &bl.kind).expect("kind").eq(level_kind::END))
+    .name("token_end");
+    let t_send = (!o_errored | t_end & !o_skip).name("token_sent");
+    let t_fire = (walk & toks.valid & answered & (!t_send | out.ready)).name("token_fire");
     toks.ready.drive(t_fire);
     cref_resp
         .ready
-        .drive(walk & toks.valid & t_cref & (o_errored | out.ready));
+        .drive(walk & toks.valid & t_cref & (!t_send | out.ready));
     let child_beat = out_beat(
         &m,
         &l,
@@ -833,11 +880,19 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
         lit(level_kind::END, bl.kind.width),
         Some(cref_code),
     );
-    out.valid.drive(walk & toks.valid & answered & !o_errored);
+    out.valid.drive(walk & toks.valid & answered & t_send);
     out.data
         .drive(t_cref.mux(cref_code.eq(0).mux(child_beat, cref_err_beat), t_beat));
     let errs = t_kind.eq(lit(ok::TOK_ERR, 2)) | t_cref & cref_code.ne(0);
-    o_errored.next(start.mux(lit(0, 1), (t_fire & errs).mux(lit(1, 1), o_errored)));
+    let first_err = (t_fire & errs & !o_errored).name("out_first_error");
+    o_errored.next(start.mux(lit(0, 1), first_err.mux(lit(1, 1), o_errored)));
+    o_skip.next(start.mux(
+        lit(0, 1),
+        first_err.mux(
+            lit(1, 1),
+            (t_fire & t_end & o_errored).mux(lit(0, 1), o_skip),
+        ),
+    ));
     n_phase.when(t_fire & t_kind.eq(lit(ok::TOK_FINAL, 2)), goto(ph::DONE));
 
     // ---- DONE

@@ -102,7 +102,8 @@ pub fn hierarchy_merger_name(c: &MergerConfig) -> String {
 mod phase {
     /// No merge.
     pub const NONE: u64 = 0;
-    /// Issuing the count pass, one command per candidate LOD.
+    /// The count pass: one command walking to `hi` and sending `lo..=hi`
+    /// (an unused input: one `End` per candidate LOD from the glue).
     pub const COUNT: u64 = 1;
     /// Waiting for the merging module's choice.
     pub const WAIT: u64 = 2;
@@ -305,10 +306,11 @@ pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
 
         let ph = m.reg(&format!("phase{i}"), phase::BITS);
         let in_ph = |v: u64| ph.eq(lit(v, phase::BITS));
+        // The candidate level an unused input's next `End` stands for.
         let cmd_lod = m.reg(&format!("cmd_lod{i}"), lb);
         let count_ph = in_ph(phase::COUNT);
         let final_ph = in_ph(phase::FINAL);
-        let lod = count_ph.mux(cmd_lod, merging.mux(level, lo));
+        let lod = count_ph.mux(hi, merging.mux(level, lo));
         let cmd_data = with_fields(
             &m,
             lit(0, fl.cmd_width),
@@ -319,6 +321,9 @@ pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
                 // deadlock, the fetcher ends `leaves` before level m).
                 (fl.send_leaves, final_ph & merging),
                 (fl.last, final_ph),
+                // The count pass sends lo..=hi from one walk; the other
+                // commands one level.
+                (fl.from, count_ph.mux(lo, lod)),
             ],
         );
         let issuing = (count_ph | final_ph).name(&format!("issuing{i}"));
@@ -349,7 +354,7 @@ pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
         let step = (cmd_fire | virt_fire | skip).name(&format!("step{i}"));
         let last_count = cmd_lod.eq(hi);
         let after_step = count_ph.mux(
-            last_count.mux(lit(phase::WAIT, phase::BITS), ph),
+            (used[i] | last_count).mux(lit(phase::WAIT, phase::BITS), ph),
             lit(phase::DONE, phase::BITS),
         );
         let after_choice = lit(phase::FINAL, phase::BITS);

@@ -574,3 +574,86 @@ fn fetcher_verilog_lints_and_synthesizes() {
         );
     }
 }
+
+/// The `leaves` end beat does not wait on `out` (SPEC 8.13 step 6, the
+/// merger's deadlock argument in 8.15): with `out` never ready, a command
+/// whose level holds more beats than the out pipeline (`out_items`,
+/// `out_tokens`, the skid buffer) still sends every leaf above the level and
+/// its end beat, while its first level beat waits on `out`. Before session
+/// 4 the end beat came after the walk and never left here. IR simulator,
+/// memory answering every clock.
+#[test]
+fn leaves_end_does_not_wait_on_out() {
+    let (_, p, sizes) = configs()[0];
+    // The level with the most beats among those with leaves above it.
+    let h = soup(&p, 1, 120, 0.2, 104).expect("a soup");
+    let entry = pack_entry(Some(&Translation::zero(h.top_lod)), &p);
+    let deepest = h.nodes.iter().map(|n| n.voxel.lod).max().unwrap();
+    let tx = (h.top_lod + 1..=deepest)
+        .map(|l| {
+            let cmd = FetchCmd::level(l, true, true, true);
+            fetch_transaction(&h, entry, &[cmd], sizes).unwrap()
+        })
+        .filter(|t| t.leaves.len() > 1)
+        .max_by_key(|t| t.out.len())
+        .expect("a level with leaves above it");
+    assert!(tx.out.len() > 16, "{} beats at the level", tx.out.len());
+    let (ins, outs, _) = streams(&p, std::slice::from_ref(&tx));
+    let dir = tempfile::tempdir().unwrap();
+    let m = rtl_gen::merge::fetcher_unit(&p, &sizes);
+    let design = design_of(&m, dir.path());
+    let mut e = engine("ir", &m, &design);
+    let port = |e: &dyn cosim::Engine, n: &str| e.port_id(n).unwrap();
+    e.reset(2).unwrap();
+    let mut next = vec![0usize; ins.len()];
+    let mut leaves = Vec::new();
+    let want_leaves = &outs.iter().find(|s| s.name == "leaves").unwrap().beats;
+    for _ in 0..20_000 {
+        for (s, at) in ins.iter().zip(&next) {
+            let valid = *at < s.beats.len();
+            let v = port(e.as_ref(), &format!("{}_valid", s.name));
+            e.poke_u64(v, valid as u64).unwrap();
+            if valid {
+                let d = port(e.as_ref(), &format!("{}_data", s.name));
+                e.poke(d, &s.beats[*at][0]).unwrap();
+            }
+        }
+        for s in ["node_req", "ref_req", "cref_req", "leaves"] {
+            let r = port(e.as_ref(), &format!("{s}_ready"));
+            e.poke_u64(r, 1).unwrap();
+        }
+        let r = port(e.as_ref(), "out_ready");
+        e.poke_u64(r, 0).unwrap();
+        e.eval().unwrap();
+        for (s, at) in ins.iter().zip(next.iter_mut()) {
+            let fire = *at < s.beats.len()
+                && e.peek_bool(port(e.as_ref(), &format!("{}_ready", s.name)))
+                    .unwrap();
+            *at += fire as usize;
+        }
+        if e.peek_bool(port(e.as_ref(), "leaves_valid")).unwrap() {
+            leaves.push(e.peek(port(e.as_ref(), "leaves_data")).unwrap());
+        }
+        e.step().unwrap();
+        // A while after the end beat, to see the level's beats wait.
+        if leaves.len() == want_leaves.len() && e.cycle() > 500 {
+            break;
+        }
+    }
+    let want: Vec<BitVec> = want_leaves.iter().map(|b| b[0].clone()).collect();
+    assert_eq!(
+        leaves, want,
+        "every leaf and the end beat, `out` never ready"
+    );
+    e.eval().unwrap();
+    assert!(
+        e.peek_bool(port(e.as_ref(), "out_valid")).unwrap(),
+        "the level's first beat waits on out"
+    );
+    println!(
+        "fetcher leaves end with out blocked: {} leaves beats in {} cycles, {} level beats waiting",
+        leaves.len(),
+        e.cycle(),
+        tx.out.len()
+    );
+}

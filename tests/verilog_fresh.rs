@@ -1,10 +1,14 @@
 //! `verilog/` holds exactly what the generators emit for the default
-//! configurations; each file lints clean and synthesizes with no latch
-//! (the record writer and the merger around it: elaborated, see below).
+//! configurations; each file lints clean and synthesizes with no latch,
+//! its memories mapped onto the RAM library of rtl-gen/yosys (SPEC.md 11);
+//! the record writer's buffers all become RAM macros (SPEC.md 8.12).
 
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::time::Instant;
+
+use rtl_gen::merge::{record_writer_buffers, record_writer_name, MergeConfig, MergerConfig};
 
 fn verilog_files(dir: &Path) -> BTreeMap<String, Vec<u8>> {
     std::fs::read_dir(dir)
@@ -67,6 +71,109 @@ fn tool(name: &str) -> bool {
     ok
 }
 
+/// The RAM library an RTL engineer maps the buffers with (SPEC.md 11).
+fn ram_library() -> PathBuf {
+    repo().join("rtl-gen").join("yosys")
+}
+
+/// The macro the library maps a memory of 1024 words or more onto, and its
+/// data bits (`hiermerge_sdp_ram_<words>x<bits>` in sdp_rams_macros.v).
+const DEEP_MACRO: &str = "hiermerge_sdp_ram_1024x32";
+const DEEP_CELL: &str = "$__HIERMERGE_SDP_1024X32_";
+const DEEP_WORDS: u32 = 1024;
+const MACRO_BITS: u32 = 32;
+
+/// Yosys' generic `synth` of `top`, with the memories mapped onto the RAM
+/// library between the coarse and the fine steps (what SPEC.md 11 tells an
+/// RTL engineer to run).
+fn synth_with_rams(top: &str) -> String {
+    let lib = ram_library();
+    format!(
+        "read_verilog {macros}; synth -top {top} -run begin:fine; memory_libmap -lib {rams}; techmap -map {map}; synth -top {top} -run fine:",
+        macros = lib.join("sdp_rams_macros.v").display(),
+        rams = lib.join("sdp_rams.txt").display(),
+        map = lib.join("sdp_rams_map.v").display(),
+    )
+}
+
+const NO_LATCH: &str = "check -assert; select -assert-none t:$dlatch t:$_DLATCH_*";
+
+/// Runs a Yosys script, its log into a file; returns the log.
+fn yosys(script: &str, what: &str) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    let log_file = dir.path().join("yosys.log");
+    let out = Command::new("yosys")
+        .arg("-q")
+        .arg("-l")
+        .arg(&log_file)
+        .arg("-p")
+        .arg(script)
+        .output()
+        .unwrap();
+    let log = std::fs::read_to_string(&log_file).unwrap_or_default();
+    let err = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(out.status.success(), "yosys on {what}:\n{err}");
+    assert!(
+        !log.contains("Latch inferred") && !err.contains("Latch inferred"),
+        "yosys inferred a latch in {what}:\n{err}"
+    );
+    log
+}
+
+/// The record writer's default configuration whose module is `top`: its
+/// buffers (the writer's own list) each map onto `DEEP_MACRO`s, none is
+/// left to flip-flops, and exactly the macros they need appear. The Yosys
+/// command asserting the count, and the check of the log.
+fn writer_macros_and_check(top: &str) -> (String, impl Fn(&str)) {
+    let c = MergerConfig::new(MergeConfig::default());
+    let p = c.design.params;
+    let cap = c.sizes.capacity_bits;
+    assert_eq!(
+        record_writer_name(&p, cap),
+        top,
+        "verilog/ holds another writer than the default's"
+    );
+    let buffers = record_writer_buffers(&p, cap).expect("the default capacity is valid");
+    let macros: u32 = buffers
+        .iter()
+        .map(|b| {
+            assert!(
+                b.depth >= DEEP_WORDS,
+                "{}: {} words map onto the shallow macro",
+                b.name,
+                b.depth
+            );
+            b.width.div_ceil(MACRO_BITS) * b.depth.div_ceil(DEEP_WORDS)
+        })
+        .sum();
+    let script = format!("select -assert-count {macros} t:{DEEP_MACRO}");
+    let top = top.to_string();
+    let check = move |log: &str| {
+        for b in &buffers {
+            let mapped = format!("mapping memory {top}.{} via {DEEP_CELL}", b.name);
+            assert!(
+                log.contains(&mapped),
+                "{top}: buffer {} is not a RAM macro",
+                b.name
+            );
+        }
+        let to_flops = format!("using FF mapping for memory {top}.");
+        assert!(
+            !log.contains(&to_flops),
+            "{top}: a memory left to flip-flops"
+        );
+        println!(
+            "{top}: {} buffers on {macros} {DEEP_MACRO} macros",
+            buffers.len()
+        );
+    };
+    (script, check)
+}
+
 #[test]
 fn verilog_folder_lints_clean_and_synthesizes_without_latches() {
     if !tool("verilator") || !tool("yosys") {
@@ -97,35 +204,35 @@ fn verilog_folder_lints_clean_and_synthesizes_without_latches() {
             lint.status.success() && text.trim().is_empty(),
             "verilator -Wall on {name}:\n{text}"
         );
-        // The record writer's level buffers (SPEC 8.12: register files of
-        // 2^C words per level, several Mbit at the default C = 10) are an
-        // SRAM macro's job in a real flow; Yosys' generic `synth` maps them
-        // to flip-flops, which takes hours. Those two tops get Yosys'
-        // elaboration here (hierarchy, processes, `check -assert`, no
-        // latch), and the full `synth` at small capacities in
-        // cosim/tests/merge_writer.rs and merge_merger.rs (the same
-        // generator, only the buffers' depth differs).
-        let buffered = top.starts_with("record_writer_") || top.starts_with("hierarchy_merger_");
-        let script = if buffered {
-            format!("read_verilog {all_text}; hierarchy -check -top {top}; proc; opt -fast; check -assert; select -assert-none t:$dlatch t:$_DLATCH_*")
+        // Every module is a file of verilog/ and a top of this loop: the
+        // modules a top instantiates are black boxes here (their ports
+        // checked), so each module's logic is synthesized exactly once.
+        // Every top takes the RAM flow of SPEC 11: the writer's buffers and
+        // the fetcher's frontier FIFO become macros, small memories stay
+        // flip-flops.
+        let t = Instant::now();
+        let others: Vec<String> = verilog_files(&dir)
+            .keys()
+            .map(|n| n.trim_end_matches(".v").to_string())
+            .filter(|n| n != top)
+            .collect();
+        let head = format!(
+            "read_verilog {all_text}; blackbox {}; hierarchy -check -top {top}; {}; {NO_LATCH}",
+            others.join(" "),
+            synth_with_rams(top)
+        );
+        if top.starts_with("record_writer_") {
+            let (macros, check) = writer_macros_and_check(top);
+            check(&yosys(&format!("{head}; {macros}"), name));
+        } else if top.starts_with("hierarchy_merger_") {
+            // The writer is in it (synthesized with its RAMs above).
+            yosys(
+                &format!("{head}; select -assert-count 1 t:record_writer_*"),
+                name,
+            );
         } else {
-            format!("read_verilog {all_text}; synth -top {top}; check -assert; select -assert-none t:$dlatch t:$_DLATCH_*")
-        };
-        let synth = Command::new("yosys")
-            .arg("-q")
-            .arg("-p")
-            .arg(script)
-            .output()
-            .unwrap();
-        let log = format!(
-            "{}{}",
-            String::from_utf8_lossy(&synth.stdout),
-            String::from_utf8_lossy(&synth.stderr)
-        );
-        assert!(synth.status.success(), "yosys on {name}:\n{log}");
-        assert!(
-            !log.contains("Latch inferred"),
-            "yosys inferred a latch in {name}:\n{log}"
-        );
+            yosys(&head, name);
+        }
+        println!("yosys {top}: {:.1?}", t.elapsed());
     }
 }

@@ -162,7 +162,7 @@ fn header_fields(ml: &MergerLayout) -> Vec<Field> {
 /// The fields of output stream `stream`'s beats, from golden's layouts:
 /// `report` the merging module's (`TopLayout`), a fetcher's `*_req` an
 /// index, `w_ref_req` and `refs` a reference (`RefLayout`), `nodes` a
-/// node record (`NodeLayout`), `header` [`header_fields`]; None for a
+/// node record (`NodeLayout`), `header` (`header_fields`); None for a
 /// name that is no output stream of the merger.
 pub fn output_fields(ml: &MergerLayout, stream: &str) -> Option<Vec<Field>> {
     match stream {

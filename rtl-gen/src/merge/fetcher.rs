@@ -46,6 +46,8 @@ mod ph {
 
 /// Kinds of the reference stage's in-flight words (`node_ctx`).
 mod nk {
+    /// Width of the encoding (internal to the fetcher, no golden format).
+    pub const BITS: u32 = 2;
     pub const NODE: u64 = 0;
     pub const ERR: u64 = 1;
     pub const END: u64 = 2;
@@ -54,6 +56,8 @@ mod nk {
 /// Kinds of the out stage's words (`out_items` from the visit stage; the
 /// ordered `out_tokens`).
 mod ok {
+    /// Width of both encodings (internal to the fetcher, no golden format).
+    pub const BITS: u32 = 2;
     pub const NODE: u64 = 0;
     pub const ERR: u64 = 1;
     /// The last level's `End`: the command is over once it has left.
@@ -490,7 +494,7 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     // ---- reference stage: check each answer, issue its `node` read
     let c1_end = ctx1.data.bit(ib);
     let c1_parent = ctx1.data.slice(ib - 1, 0);
-    let ctx2_w = 2 + fetch_err::BITS + rl.width();
+    let ctx2_w = nk::BITS + fetch_err::BITS + rl.width();
     let ctx2_in = Stream::wires(&m, "node_ctx_in", ctx2_w);
     let ctx2 = fifo(&m, "node_ctx", ctx2_in, IN_FLIGHT);
     let r_node = field(ref_resp.data, rl.node())
@@ -518,10 +522,14 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     node_req.data.drive(roots_ph.mux(issued, r_node));
     ctx2_in.valid.drive(rr_take | rr_end);
     ctx2_in.data.drive(rr_end.mux(
-        m.concat(&[lit(nk::END, 2), code4(0), m.lit(0, rl.width())]),
+        m.concat(&[lit(nk::END, nk::BITS), code4(0), m.lit(0, rl.width())]),
         ref_code.eq(0).mux(
-            m.concat(&[lit(nk::NODE, 2), code4(0), ref_resp.data]),
-            m.concat(&[lit(nk::ERR, 2), ref_code, reference(&m, hier, c1_parent)]),
+            m.concat(&[lit(nk::NODE, nk::BITS), code4(0), ref_resp.data]),
+            m.concat(&[
+                lit(nk::ERR, nk::BITS),
+                ref_code,
+                reference(&m, hier, c1_parent),
+            ]),
         ),
     ));
 
@@ -532,9 +540,9 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     let c2_code = ctx2
         .data
         .slice(rl.width() + fetch_err::BITS - 1, rl.width());
-    let c2_kind = ctx2.data.slice(ctx2_w - 1, ctx2_w - 2);
-    let c2_node = c2_kind.eq(lit(nk::NODE, 2));
-    let oin_w = 2 + fetch_err::BITS + rl.width() + nl.width();
+    let c2_kind = ctx2.data.slice(ctx2_w - 1, ctx2_w - nk::BITS);
+    let c2_node = c2_kind.eq(lit(nk::NODE, nk::BITS));
+    let oin_w = ok::BITS + fetch_err::BITS + rl.width() + nl.width();
     let oin = Stream::wires(&m, "out_items_in", oin_w);
     let items = fifo(&m, "out_items", oin, 4);
     let live = (walk & !v_done).name("visit_live");
@@ -592,10 +600,11 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
         .ready
         .drive(root_out & s_in_ready | live & deep & ctx2.valid & c2_node & visit_room);
     n_rerr_valid.when(go & top_err, lit(0, 1));
-    let deep_fail = c2_node.mux(got_code.ne(0), c2_kind.eq(lit(nk::ERR, 2)));
+    let deep_fail = c2_node.mux(got_code.ne(0), c2_kind.eq(lit(nk::ERR, nk::BITS)));
     let in_err = (top_err | top_cap | deep & deep_fail).name("item_err");
-    let in_end = (top_hdr_end | top_sorted & s_end & !top_cap | deep & c2_kind.eq(lit(nk::END, 2)))
-        .name("item_end");
+    let in_end =
+        (top_hdr_end | top_sorted & s_end & !top_cap | deep & c2_kind.eq(lit(nk::END, nk::BITS)))
+            .name("item_end");
     let in_node = (!in_err & !in_end).name("item_node");
     let in_err_code = top_err.mux(
         rerr_code,
@@ -704,18 +713,21 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     // there, so the walk above the level never waits on `out`).
     oin.valid
         .drive(to_out | fails & !v_errored | level_end_push | end_emit);
-    oin.data.drive(m.concat(&[
-        fails.mux(
-            lit(ok::ERR, 2),
-            end_final.mux(
-                lit(ok::FINAL, 2),
-                (level_end_push | end_emit).mux(lit(ok::LEVEL_END, 2), lit(ok::NODE, 2)),
+    oin.data.drive(
+        m.concat(&[
+            fails.mux(
+                lit(ok::ERR, ok::BITS),
+                end_final.mux(
+                    lit(ok::FINAL, ok::BITS),
+                    (level_end_push | end_emit)
+                        .mux(lit(ok::LEVEL_END, ok::BITS), lit(ok::NODE, ok::BITS)),
+                ),
             ),
-        ),
-        visit_code,
-        fails.mux(reference(&m, hier, err_node), rec_ref),
-        rec,
-    ]));
+            visit_code,
+            fails.mux(reference(&m, hier, err_node), rec_ref),
+            rec,
+        ]),
+    );
 
     // ---- out ordering stage: a voxel's inner node, its leaf, then the
     // inner node's child references (`cref` reads, one a clock)
@@ -725,8 +737,8 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
         nl.width() + rl.width() + fetch_err::BITS - 1,
         nl.width() + rl.width(),
     );
-    let o_kind = items.data.slice(oin_w - 1, oin_w - 2);
-    let o_is_node = o_kind.eq(lit(ok::NODE, 2));
+    let o_kind = items.data.slice(oin_w - 1, oin_w - ok::BITS);
+    let o_is_node = o_kind.eq(lit(ok::NODE, ok::BITS));
     let o_leaf = field(o_rec, nl.leaf()).expect("leaf");
     let o_voxel = m.concat(&[
         field(o_rec, nl.z()).expect("z"),
@@ -747,7 +759,7 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     let cr_idx = m.reg("cref_idx", ib);
     let cr_end = m.reg("cref_end", ib + 1);
     let cr_parent = m.reg("cref_parent", ib);
-    let tok_w = 2 + l.out_width;
+    let tok_w = ok::BITS + l.out_width;
     let tok_in = Stream::wires(&m, "out_tokens_in", tok_w);
     let toks = fifo(&m, "out_tokens", tok_in, 4);
     let can = (walk & tok_in.ready & cref_req.ready).name("order_room");
@@ -817,17 +829,17 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
         None,
     );
     let cref_tok = m.concat(&[
-        lit(ok::TOK_CREF, 2),
+        lit(ok::TOK_CREF, ok::BITS),
         m.lit(0, l.out_width - ib),
         cr_active.mux(cr_parent, pend_node),
     ]);
-    let item_tok = o_kind.eq(lit(ok::NODE, 2)).mux(
-        m.concat(&[lit(ok::TOK_BEAT, 2), node_beat]),
-        o_kind.eq(lit(ok::ERR, 2)).mux(
-            m.concat(&[lit(ok::TOK_ERR, 2), err_beat]),
-            o_kind.eq(lit(ok::FINAL, 2)).mux(
-                m.concat(&[lit(ok::TOK_FINAL, 2), end_out]),
-                m.concat(&[lit(ok::TOK_BEAT, 2), end_out]),
+    let item_tok = o_kind.eq(lit(ok::NODE, ok::BITS)).mux(
+        m.concat(&[lit(ok::TOK_BEAT, ok::BITS), node_beat]),
+        o_kind.eq(lit(ok::ERR, ok::BITS)).mux(
+            m.concat(&[lit(ok::TOK_ERR, ok::BITS), err_beat]),
+            o_kind.eq(lit(ok::FINAL, ok::BITS)).mux(
+                m.concat(&[lit(ok::TOK_FINAL, ok::BITS), end_out]),
+                m.concat(&[lit(ok::TOK_BEAT, ok::BITS), end_out]),
             ),
         ),
     );
@@ -839,10 +851,10 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     // ---- out stage: beats in order, the child references checked as
     // their answers come; after the error beat only the later levels'
     // `End`s, the first of them dropped (the error stands for it)
-    let t_kind = toks.data.slice(tok_w - 1, tok_w - 2);
+    let t_kind = toks.data.slice(tok_w - 1, tok_w - ok::BITS);
     let t_beat = toks.data.slice(l.out_width - 1, 0);
     let t_parent = toks.data.slice(ib - 1, 0);
-    let t_cref = t_kind.eq(lit(ok::TOK_CREF, 2)).name("token_cref");
+    let t_cref = t_kind.eq(lit(ok::TOK_CREF, ok::BITS)).name("token_cref");
     let cr_node = field(cref_resp.data, rl.node()).expect("node");
     let cr_hier = field(cref_resp.data, rl.hier()).expect("hier");
     let cref_code = cr_hier
@@ -854,8 +866,8 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
         .name("cref_code");
     let answered = (!t_cref | cref_resp.valid).name("token_answered");
     let o_skip = m.reg("out_skip_end", 1);
-    let t_end = (t_kind.eq(lit(ok::TOK_FINAL, 2))
-        | t_kind.eq(lit(ok::TOK_BEAT, 2))
+    let t_end = (t_kind.eq(lit(ok::TOK_FINAL, ok::BITS))
+        | t_kind.eq(lit(ok::TOK_BEAT, ok::BITS))
             & field(t_beat, &bl.kind).expect("kind").eq(level_kind::END))
     .name("token_end");
     let t_send = (!o_errored | t_end & !o_skip).name("token_sent");
@@ -883,7 +895,7 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     out.valid.drive(walk & toks.valid & answered & t_send);
     out.data
         .drive(t_cref.mux(cref_code.eq(0).mux(child_beat, cref_err_beat), t_beat));
-    let errs = t_kind.eq(lit(ok::TOK_ERR, 2)) | t_cref & cref_code.ne(0);
+    let errs = t_kind.eq(lit(ok::TOK_ERR, ok::BITS)) | t_cref & cref_code.ne(0);
     let first_err = (t_fire & errs & !o_errored).name("out_first_error");
     o_errored.next(start.mux(lit(0, 1), first_err.mux(lit(1, 1), o_errored)));
     o_skip.next(start.mux(
@@ -893,7 +905,10 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
             (t_fire & t_end & o_errored).mux(lit(0, 1), o_skip),
         ),
     ));
-    n_phase.when(t_fire & t_kind.eq(lit(ok::TOK_FINAL, 2)), goto(ph::DONE));
+    n_phase.when(
+        t_fire & t_kind.eq(lit(ok::TOK_FINAL, ok::BITS)),
+        goto(ph::DONE),
+    );
 
     // ---- DONE
     let done = is(ph::DONE);

@@ -57,7 +57,7 @@ pub fn record_writer_buffers(
     capacity_bits: u32,
 ) -> Result<Vec<WriterBuffer>, CapacityError> {
     let wl = WriterLayout::new(p, capacity_bits)?;
-    let w = BufferWidths::of(&wl, p);
+    let w = BufferWidths::of(&wl);
     let depth = 1u32 << capacity_bits;
     let buf = |name: String, width: u32| WriterBuffer { name, width, depth };
     let mut out = vec![buf("crefs_mem".into(), w.cref)];
@@ -86,15 +86,15 @@ struct BufferWidths {
 }
 
 impl BufferWidths {
-    fn of(wl: &WriterLayout, p: &Params) -> BufferWidths {
-        let i = p.index_bits as u32;
-        let h = p.hier_bits as u32;
-        let ref_w = wl.reference.width();
+    /// Each word is the concatenation the fill side writes, so each width
+    /// is the sum of those fields' widths in golden's layouts.
+    fn of(wl: &WriterLayout) -> BufferWidths {
+        let (bl, nl, rl) = (&wl.builder, &wl.node, &wl.reference);
         BufferWidths {
-            body: wl.node.first().offset + i,
-            parent: 2 + 2 * i + h,
-            child: 1 + ref_w + i,
-            cref: ref_w,
+            body: nl.first().offset + nl.count().width,
+            parent: bl.kind.width + nl.count().width + nl.first().width + rl.hier().width,
+            child: 1 + bl.refer.width + bl.records.width,
+            cref: rl.width(),
         }
     }
 }
@@ -257,7 +257,7 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let ref_w = rl.width();
     // A record without `first` and `count`: leaf .. hi_z.
     let body_w = nl.first().offset;
-    let widths = BufferWidths::of(&wl, p);
+    let widths = BufferWidths::of(&wl);
     // Wide enough for every sum the header checks against 2^I.
     let nodes_w = i + 7;
     let refs_w = i + c + 7;

@@ -408,6 +408,7 @@ fn fed_beats(f: &FetchTransaction, cmds: &[FetchCmd]) -> u64 {
         let closes = match o {
             FetchOut::Beat(b) => *b == LevelBeat::End,
             FetchOut::Error { .. } => true,
+            FetchOut::Probe { .. } => false,
         };
         level += closes as usize;
     }

@@ -20,6 +20,7 @@ use std::collections::VecDeque;
 
 use super::error::MergeError;
 use super::level_merge::sort_stream;
+use super::per_node_unit::{PerNodeLayout, PerNodeReport};
 use super::unit::{BeatLayout, LevelBeat};
 use super::walk::{children, morton, place_node, PlacedNode};
 use crate::layout::{Bits, Field, LayoutError, NodeLayout, RefLayout};
@@ -112,6 +113,26 @@ pub struct FetchLayout {
     pub leaf_lod: Field,
     pub leaf_end: Field,
     pub leaves_width: u32,
+    /// The per-node command's fields, only in a fetcher built for
+    /// per-node merging ([`FetchLayout::per_node`]); without them the
+    /// layout (and the fetcher) is exactly the level modes' one.
+    pub pn: Option<PerNodeFetchLayout>,
+}
+
+/// What a fetcher built for per-node merging adds to [`FetchLayout`]: a
+/// `cmd` bit, an `out` bit, the `report` input and the `probe` read port
+/// (request an index, I bits; response a record, W bits, as `node`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PerNodeFetchLayout {
+    /// `cmd`: `per_node` (1), after `from`: the per-node command
+    /// ([`FetchCmd::per_node`]).
+    pub per_node: Field,
+    /// `out`: `probe` (1), after `err`: the beat is a probe (a child of the
+    /// inner node that follows, section 8.14).
+    pub probe: Field,
+    /// The `report` input: the per-node module's `report` beat, as it
+    /// leaves the module ([`PerNodeLayout`]'s `report_width` bits).
+    pub report: PerNodeLayout,
 }
 
 /// Lays out `(name, width)` consecutively from bit 0.
@@ -130,8 +151,20 @@ fn consecutive<const N: usize>(spec: [(&'static str, u32); N]) -> ([Field; N], u
 }
 
 impl FetchLayout {
-    /// The layouts for `p`.
+    /// The layouts for `p` (no per-node command).
     pub fn new(p: &Params) -> FetchLayout {
+        FetchLayout::build(p, false)
+    }
+
+    /// The layouts for `p` of a fetcher built with the per-node command:
+    /// [`FetchLayout::new`]'s fields and, after them, `cmd`'s `per_node`
+    /// and `out`'s `probe` bit ([`PerNodeFetchLayout`]).
+    pub fn per_node(p: &Params) -> FetchLayout {
+        FetchLayout::build(p, true)
+    }
+
+    /// The layouts, with the per-node fields when `per_node`.
+    pub fn build(p: &Params, per_node: bool) -> FetchLayout {
         let node = NodeLayout::new(p);
         let reference = RefLayout::new(p);
         let (i, h, lb) = (p.index_bits as u32, p.hier_bits as u32, p.lod_bits());
@@ -173,6 +206,21 @@ impl FetchLayout {
             ("lod", lb),
             ("end", 1),
         ]);
+        let pn = per_node.then(|| PerNodeFetchLayout {
+            per_node: Field {
+                name: "per_node",
+                offset: cmd_width,
+                width: 1,
+            },
+            probe: Field {
+                name: "probe",
+                offset: err.end(),
+                width: 1,
+            },
+            report: PerNodeLayout::new(p),
+        });
+        let cmd_width = pn.as_ref().map_or(cmd_width, |f| f.per_node.end());
+        let out_width = pn.as_ref().map_or(err.end(), |f| f.probe.end());
         FetchLayout {
             node,
             reference,
@@ -194,13 +242,14 @@ impl FetchLayout {
             cmd_width,
             index_width: i,
             err,
-            out_width: err.end(),
+            out_width,
             beat,
             leaf_rec,
             leaf_ref,
             leaf_lod,
             leaf_end,
             leaves_width,
+            pn,
         }
     }
 }
@@ -291,6 +340,16 @@ impl FetchCfg {
 /// next beat on `cfg` starts another input. `from >= lod` is the
 /// single-level command at `lod` (the merge pass); `from < lod` sends
 /// several levels from one walk (the count pass, SPEC 8.13).
+///
+/// `per_node` (a fetcher built for per-node merging only): the **per-node
+/// command** at `lo = lod`: the walk to `lo`, then pass after pass the
+/// per-node module's input stream for this input (8.14: per live voxel the
+/// probes, the inner node, the leaf, the child references; `End`), the
+/// live voxels of pass `l + 1` the children of this input's inner nodes
+/// whose voxel the module's `report` says descended in pass `l`; the
+/// command ends with the pass whose `report` `pass_end` beat has `more` 0.
+/// `from` and `send_refs` are not read (a pass always carries the
+/// references).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FetchCmd {
     pub lod: u8,
@@ -298,6 +357,7 @@ pub struct FetchCmd {
     pub send_leaves: bool,
     pub last: bool,
     pub from: u8,
+    pub per_node: bool,
 }
 
 impl FetchCmd {
@@ -309,21 +369,38 @@ impl FetchCmd {
             send_leaves,
             last,
             from: lod,
+            per_node: false,
         }
     }
 
-    /// The first (shallowest) level sent: `min(from, lod)`.
-    pub fn first(&self) -> u8 {
-        self.from.min(self.lod)
+    /// The per-node command from pass `lo` (references always sent; `from`
+    /// = `lo`).
+    pub fn per_node(lo: u8, send_leaves: bool, last: bool) -> FetchCmd {
+        FetchCmd {
+            per_node: true,
+            ..FetchCmd::level(lo, true, send_leaves, last)
+        }
     }
 
-    /// Levels sent, each closed by one `End` (or the error beat in its
-    /// place): `lod - first + 1`.
+    /// The first (shallowest) level sent: `min(from, lod)` (`lod` for the
+    /// per-node command).
+    pub fn first(&self) -> u8 {
+        if self.per_node {
+            self.lod
+        } else {
+            self.from.min(self.lod)
+        }
+    }
+
+    /// Levels sent by a level command, each closed by one `End` (or the
+    /// error beat in its place): `lod - first + 1`. (A per-node command
+    /// sends one `End` per pass, as many as its `report` says.)
     pub fn levels(&self) -> usize {
         (self.lod - self.first()) as usize + 1
     }
 
-    /// The packed `cmd` beat.
+    /// The packed `cmd` beat; `per_node` needs a layout that has the field
+    /// ([`FetchLayout::per_node`]).
     pub fn pack(&self, l: &FetchLayout) -> Result<Bits, LayoutError> {
         let mut b = Bits::zero(l.cmd_width);
         b.set(&l.lod, self.lod as u64)?;
@@ -331,7 +408,21 @@ impl FetchCmd {
         b.set(&l.send_leaves, self.send_leaves as u64)?;
         b.set(&l.last, self.last as u64)?;
         b.set(&l.from, self.from as u64)?;
+        match &l.pn {
+            Some(f) => b.set(&f.per_node, self.per_node as u64)?,
+            None if self.per_node => return Err(no_per_node_field("per_node")),
+            None => {}
+        }
         Ok(b)
+    }
+}
+
+/// The refusal to pack a per-node field into a layout built without them.
+fn no_per_node_field(field: &'static str) -> LayoutError {
+    LayoutError::DoesNotFit {
+        field,
+        value: 1,
+        width: 0,
     }
 }
 
@@ -340,6 +431,10 @@ impl FetchCmd {
 pub enum FetchOut {
     /// An S614 input beat (`End` closes a command's level).
     Beat(LevelBeat),
+    /// A per-node probe: a child (translated, where it is stored) of the
+    /// inner node that follows; packed as an inner-node beat with `probe`
+    /// 1 (the per-node module's input beat, 8.14).
+    Probe { record: NodeRecord, at: Reference },
     /// The walk stopped: `kind` END, `ref` = (hier, node), `err` = code.
     Error { hier: u8, node: u32, code: u64 },
 }
@@ -350,6 +445,15 @@ impl FetchOut {
         let mut b = Bits::zero(l.out_width);
         match self {
             FetchOut::Beat(beat) => put_bits(&mut b, 0, &beat.pack(&l.beat)?)?,
+            FetchOut::Probe { record, at } => {
+                let inner = LevelBeat::Inner {
+                    record: *record,
+                    at: *at,
+                };
+                put_bits(&mut b, 0, &inner.pack(&l.beat)?)?;
+                let probe = l.pn.as_ref().ok_or(no_per_node_field("probe"))?.probe;
+                b.set(&probe, 1)?;
+            }
             FetchOut::Error { hier, node, code } => {
                 let r = Reference {
                     hier: *hier,
@@ -422,6 +526,12 @@ pub struct FetchTransaction {
     /// the nodes at the command's level, with `send_refs`), and the answers.
     pub cref_reqs: Vec<u32>,
     pub cref_resps: Vec<Reference>,
+    /// Node indices requested on `probe_req` (the probes of per-node
+    /// commands: the children of each live inner node), and the records.
+    pub probe_reqs: Vec<u32>,
+    pub probe_resps: Vec<NodeRecord>,
+    /// The `report` beats taken (per-node commands), in order.
+    pub reports: Vec<PerNodeReport>,
     pub out: Vec<FetchOut>,
     pub leaves: Vec<LeafOut>,
 }
@@ -501,21 +611,28 @@ impl Walk<'_> {
         }
     }
 
-    /// The walk after the header checks: every read derived from valid
-    /// data is made (so the request streams do not depend on timing);
-    /// `out` stops after the first error beat, `leaves` after the first
-    /// error the visit stage sees.
-    fn run(&self, tx: &mut FetchTransaction, o: &mut OutOrder) -> Result<(), Stop> {
-        let (h, cmd) = (self.h, self.cmd);
+    /// The header checks after the entry's: `root_count` and the sorter's
+    /// capacity (before any read).
+    fn check_header(&self) -> Result<(), Stop> {
+        let h = self.h;
         if h.root_count == 0 || h.root_count as usize > h.nodes.len() {
             return Err((0, fetch_err::ROOT_COUNT));
         }
         if h.root_count as usize > self.sizes.roots {
             return Err((0, fetch_err::ROOT_CAPACITY));
         }
-        let mut v = Visit::default();
-        // Roots in stored order; the first failing one is reported before
-        // any visit, the others are sorted and walked.
+        Ok(())
+    }
+
+    /// Roots in stored order; the first failing one is reported before any
+    /// visit, the others are sorted (the top level in walk order).
+    fn read_roots(
+        &self,
+        tx: &mut FetchTransaction,
+        v: &mut Visit,
+        o: &mut OutOrder,
+    ) -> Vec<PlacedNode> {
+        let h = self.h;
         let mut level = Vec::new();
         let mut root_err = None;
         for i in 0..h.root_count {
@@ -528,8 +645,20 @@ impl Walk<'_> {
         }
         sort_stream(&mut level);
         if let Some(e) = root_err {
-            self.error(tx, &mut v, o, e);
+            self.error(tx, v, o, e);
         }
+        level
+    }
+
+    /// The walk after the header checks: every read derived from valid
+    /// data is made (so the request streams do not depend on timing);
+    /// `out` stops after the first error beat, `leaves` after the first
+    /// error the visit stage sees.
+    fn run(&self, tx: &mut FetchTransaction, o: &mut OutOrder) -> Result<(), Stop> {
+        let (h, cmd) = (self.h, self.cmd);
+        self.check_header()?;
+        let mut v = Visit::default();
+        let level = self.read_roots(tx, &mut v, o);
         let mut frontier: VecDeque<(u32, u32, u32)> = VecDeque::new();
         let mut d = h.top_lod;
         for n in &level {
@@ -662,6 +791,253 @@ impl Walk<'_> {
     }
 }
 
+/// One inner node of a per-node pass, kept for the join with the module's
+/// decisions: its translated voxel's Morton code and its reference range.
+#[derive(Clone, Copy, Debug)]
+struct PassEntry {
+    key: u128,
+    first: u32,
+    count: u32,
+    node: u32,
+}
+
+/// The `report` beats the fetcher is given, taken in order over all
+/// commands.
+struct ReportCursor<'r> {
+    beats: &'r [PerNodeReport],
+    next: usize,
+}
+
+/// A range `(first, count, parent)` of the frontier.
+type Range = (u32, u32, u32);
+
+impl Walk<'_> {
+    /// The per-node command (SPEC 8.13): the walk to `lo` (the leaves above
+    /// it), then pass after pass; `header`: the entry's error, met before
+    /// any read. An error (in out order) stands for its pass's `End`; the
+    /// command still takes the `report` beats pass by pass, each later pass
+    /// sending `End` alone and reading nothing, until `more` is 0, so the
+    /// module's per-pass framing holds and nobody waits for this input.
+    fn run_per_node(
+        &self,
+        tx: &mut FetchTransaction,
+        o: &mut OutOrder,
+        rep: &mut ReportCursor,
+        header: Option<Stop>,
+    ) -> Result<(), MergeError> {
+        let lo = self.cmd.lod;
+        let mut v = Visit::default();
+        let mut entries = Vec::new();
+        match header.or_else(|| self.check_header().err()) {
+            Some(e) => self.error(tx, &mut v, o, e),
+            None => {
+                let level = self.read_roots(tx, &mut v, o);
+                let mut frontier: VecDeque<Range> = VecDeque::new();
+                let mut d = self.h.top_lod;
+                for n in &level {
+                    self.visit_per_node(tx, n, d, &mut v, o, &mut frontier, &mut entries);
+                }
+                while d < lo && !frontier.is_empty() {
+                    d += 1;
+                    v.prev = None;
+                    v.pushed = 0;
+                    let ranges: Vec<Range> = frontier.drain(..).collect();
+                    self.walk_ranges(tx, &ranges, d, &mut v, o, &mut frontier, &mut entries);
+                }
+            }
+        }
+        if self.cmd.send_leaves {
+            tx.leaves.push(LeafOut::End);
+        }
+        let mut l = lo;
+        loop {
+            // The pass's `End`, after a held node's references.
+            o.level_end(self, tx);
+            let (descended, more) = self.join(tx, rep, &entries)?;
+            entries.clear();
+            if !more {
+                return Ok(());
+            }
+            l = l.checked_add(1).ok_or(MergeError::BadInput {
+                input: self.h.id,
+                node: None,
+                field: "report",
+                expected: "a pass_end beat with more = 0 before LOD 255".into(),
+                found: "more = 1".into(),
+            })?;
+            v.prev = None;
+            v.pushed = 0;
+            // After an error the command follows no descent.
+            let ranges = if o.errored { Vec::new() } else { descended };
+            let mut unused = VecDeque::new();
+            self.walk_ranges(tx, &ranges, l, &mut v, o, &mut unused, &mut entries);
+        }
+    }
+
+    /// Level `d`'s nodes: each reference of `ranges` read (`ref`), checked,
+    /// its node read (`node`) at LOD `d` and visited.
+    #[allow(clippy::too_many_arguments)]
+    fn walk_ranges(
+        &self,
+        tx: &mut FetchTransaction,
+        ranges: &[Range],
+        d: u8,
+        v: &mut Visit,
+        o: &mut OutOrder,
+        frontier: &mut VecDeque<Range>,
+        entries: &mut Vec<PassEntry>,
+    ) {
+        for &(first, count, parent) in ranges {
+            for j in first..first + count {
+                let n = self
+                    .read_ref(tx, j, parent, false)
+                    .and_then(|c| self.read_node(tx, c.node, d));
+                match n {
+                    Ok(n) => self.visit_per_node(tx, &n, d, v, o, frontier, entries),
+                    Err(e) => self.error(tx, v, o, e),
+                }
+            }
+        }
+    }
+
+    /// A node of level `d` of a per-node command: above the first pass the
+    /// level walk's visit (ranges pushed, leaves sent); at or below it a
+    /// live node of the pass: the order check, an inner node's range check
+    /// and the pass's capacity (`frontier` inner nodes: `FRONTIER`), its
+    /// entry kept for the join, then the out stage: per voxel the inner
+    /// node's probes and the node, the leaf, the inner node's references.
+    #[allow(clippy::too_many_arguments)]
+    fn visit_per_node(
+        &self,
+        tx: &mut FetchTransaction,
+        n: &PlacedNode,
+        d: u8,
+        v: &mut Visit,
+        o: &mut OutOrder,
+        frontier: &mut VecDeque<Range>,
+        entries: &mut Vec<PassEntry>,
+    ) {
+        if d < self.cmd.lod {
+            return self.visit(tx, n, d, v, o, frontier);
+        }
+        let key = (morton(&n.record.voxel), n.record.leaf);
+        let order_bad = v.prev.is_some_and(|p| p >= key);
+        v.prev = Some(key);
+        if order_bad {
+            return self.error(tx, v, o, (n.at.node, fetch_err::ORDER));
+        }
+        let inner = !n.record.leaf;
+        if inner {
+            if let Err(e) = self.check_range(n) {
+                return self.error(tx, v, o, e);
+            }
+            if v.pushed >= self.sizes.frontier {
+                return self.error(tx, v, o, (n.at.node, fetch_err::FRONTIER));
+            }
+            v.pushed += 1;
+            entries.push(PassEntry {
+                key: key.0,
+                first: n.record.first,
+                count: n.record.count,
+                node: n.at.node,
+            });
+        }
+        match o.pending.take() {
+            Some(p) if n.record.leaf && n.record.voxel == p.record.voxel => {
+                o.emit(tx, FetchOut::Beat(beat_of(n)));
+                self.send_refs(tx, o, &p);
+            }
+            held => {
+                if let Some(p) = held {
+                    self.send_refs(tx, o, &p);
+                }
+                if inner {
+                    self.send_probes(tx, o, n, d);
+                }
+                o.emit(tx, FetchOut::Beat(beat_of(n)));
+            }
+        }
+        if inner {
+            o.pending = Some(*n);
+        }
+    }
+
+    /// The probes of inner node `n` at LOD `d`: each child reference read
+    /// (`cref`) and checked (naming `n`), its node read on the `probe` port,
+    /// checked at LOD `d + 1` and moved (naming the child).
+    fn send_probes(&self, tx: &mut FetchTransaction, o: &mut OutOrder, n: &PlacedNode, d: u8) {
+        let r = n.record.range();
+        for j in r.start as u32..r.end as u32 {
+            let probe = self.read_ref(tx, j, n.at.node, true).and_then(|c| {
+                tx.probe_reqs.push(c.node);
+                let rec = self.h.nodes[c.node as usize];
+                tx.probe_resps.push(rec);
+                if d.checked_add(1) != Some(rec.voxel.lod) {
+                    return Err((c.node, fetch_err::LOD));
+                }
+                place_node(self.h, 0, &self.t, c.node).map_err(|e| (c.node, place_code(&e)))
+            });
+            let beat = match probe {
+                Ok(c) => FetchOut::Probe {
+                    record: c.record,
+                    at: c.at,
+                },
+                Err((node, code)) => FetchOut::Error {
+                    hier: self.h.id,
+                    node,
+                    code,
+                },
+            };
+            o.emit(tx, beat);
+        }
+    }
+
+    /// The join of the pass's inner nodes (`entries`, in Morton order) with
+    /// the module's decisions (contested voxels in Morton order, then the
+    /// `pass_end` beat): a decision at an entry's voxel with `descend` puts
+    /// the entry's range on the next pass; a decision at a voxel of no
+    /// entry is passed over. Returns the descending ranges and `more` (a
+    /// refusal beat ends the command as `more` = 0).
+    fn join(
+        &self,
+        tx: &mut FetchTransaction,
+        rep: &mut ReportCursor,
+        entries: &[PassEntry],
+    ) -> Result<(Vec<Range>, bool), MergeError> {
+        let mut ranges = Vec::new();
+        let mut i = 0;
+        loop {
+            let Some(&r) = rep.beats.get(rep.next) else {
+                return Err(MergeError::BadInput {
+                    input: self.h.id,
+                    node: None,
+                    field: "report",
+                    expected: "a pass_end beat closing every pass of a per-node command".into(),
+                    found: format!("the stream's end after {} beats", rep.next),
+                });
+            };
+            rep.next += 1;
+            tx.reports.push(r);
+            match r {
+                PerNodeReport::Decision { voxel, descend, .. } => {
+                    let key = morton(&voxel);
+                    while entries.get(i).is_some_and(|e| e.key < key) {
+                        i += 1;
+                    }
+                    if let Some(e) = entries.get(i).filter(|e| e.key == key) {
+                        if descend {
+                            ranges.push((e.first, e.count, e.node));
+                        }
+                        i += 1;
+                    }
+                }
+                PerNodeReport::PassEnd { more, .. } => return Ok((ranges, more)),
+                PerNodeReport::Refused { .. } => return Ok((ranges, false)),
+            }
+        }
+    }
+}
+
 /// The visit stage's state over one command.
 #[derive(Default)]
 struct Visit {
@@ -756,11 +1132,27 @@ fn beat_of(n: &PlacedNode) -> LevelBeat {
 
 /// The fetcher's run of input `h` with translation entry `entry` (packed,
 /// as the table holds it) over `cmds`. Refused (an error, never a panic)
-/// when `h`'s array lengths do not fit the `cfg` fields (`I` bits).
+/// when `h`'s array lengths do not fit the `cfg` fields (`I` bits), or a
+/// command is per-node ([`fetch_transaction_with_reports`] gives those
+/// their `report` beats).
 pub fn fetch_transaction(
     h: &Hierarchy,
     entry: u128,
     cmds: &[FetchCmd],
+    sizes: FetchSizes,
+) -> Result<FetchTransaction, MergeError> {
+    fetch_transaction_with_reports(h, entry, cmds, &[], sizes)
+}
+
+/// [`fetch_transaction`] with the `report` beats the fetcher's per-node
+/// commands take, in order (the per-node module's `report` stream, e.g.
+/// [`super::per_node_unit::PerNodeTransaction::reports`]). Refused when a
+/// per-node command's pass finds no `pass_end` beat left.
+pub fn fetch_transaction_with_reports(
+    h: &Hierarchy,
+    entry: u128,
+    cmds: &[FetchCmd],
+    reports: &[PerNodeReport],
     sizes: FetchSizes,
 ) -> Result<FetchTransaction, MergeError> {
     let p = &h.params;
@@ -796,10 +1188,17 @@ pub fn fetch_transaction(
         ref_resps: Vec::new(),
         cref_reqs: Vec::new(),
         cref_resps: Vec::new(),
+        probe_reqs: Vec::new(),
+        probe_resps: Vec::new(),
+        reports: Vec::new(),
         out: Vec::new(),
         leaves: Vec::new(),
     };
     let t = unpack_entry(entry, p).ok().flatten();
+    let mut rep = ReportCursor {
+        beats: reports,
+        next: 0,
+    };
     for &cmd in cmds {
         // An invalid entry reads nothing; the walk's translation is unused.
         let walk = Walk {
@@ -809,6 +1208,11 @@ pub fn fetch_transaction(
             sizes,
         };
         let mut o = OutOrder::new(&cmd);
+        if cmd.per_node {
+            let header = t.is_none().then_some((0, fetch_err::ENTRY));
+            walk.run_per_node(&mut tx, &mut o, &mut rep, header)?;
+            continue;
+        }
         o.start(&walk, &mut tx);
         let stop = match t {
             None => Err((0, fetch_err::ENTRY)),
@@ -890,6 +1294,7 @@ mod tests {
                         send_leaves: true,
                         last: true,
                         from: l,
+                        per_node: false,
                     };
                     let tx = fetch_transaction(
                         &h,
@@ -966,6 +1371,7 @@ mod tests {
             send_leaves: true,
             last: true,
             from: lod,
+            per_node: false,
         };
         let tx = fetch_transaction(h, pack_entry(t, &h.params), &[cmd], sizes).unwrap();
         match tx.out.last() {
@@ -1196,6 +1602,7 @@ mod tests {
             send_leaves: true,
             last: true,
             from: 2,
+            per_node: false,
         };
         let t0 = pack_entry(Some(&Translation::zero(1)), &p);
         let tx = fetch_transaction(&b, t0, &[cmd], FetchSizes::default()).unwrap();
@@ -1260,11 +1667,356 @@ mod tests {
             send_leaves: false,
             last: true,
             from: 2,
+            per_node: false,
         };
         let tx = fetch_transaction(&h, pack_entry(Some(&t0), &p), &[cmd], FetchSizes::default())
             .unwrap();
         assert_eq!(tx.out.len(), 3);
         assert_eq!(tx.node_reqs, vec![0, 1, 2]);
         assert_eq!(tx.ref_reqs, vec![0, 1]);
+    }
+
+    use crate::merge::per_node_unit::{random_per_node_case, PerNodeBeat, PerNodeCase};
+    use crate::translate::stimulus::SplitMix64;
+
+    /// What the per-node checks reached.
+    #[derive(Default, Debug)]
+    struct PerNodeSeen {
+        merges: usize,
+        inputs: usize,
+        multi_pass: usize,
+        descended_inputs: usize,
+        roots_reordered: usize,
+        leaves: usize,
+        probes: usize,
+    }
+
+    /// Input `r` of `c` through one per-node command given the module's
+    /// `report` stream: its `out` must be the module's input stream for
+    /// that input, every `report` beat taken, the leaves those above `lo`.
+    fn check_per_node_input(
+        p: &Params,
+        c: &PerNodeCase,
+        tx: &crate::merge::per_node_unit::PerNodeTransaction,
+        r: usize,
+        seen: &mut PerNodeSeen,
+    ) {
+        let h = &c.hierarchies[r];
+        let t = c.translations[r];
+        let cmd = FetchCmd::per_node(c.lo, true, true);
+        let l = FetchLayout::per_node(p);
+        assert!(cmd.pack(&l).is_ok() && cmd.pack(&FetchLayout::new(p)).is_err());
+        let f = fetch_transaction_with_reports(
+            h,
+            pack_entry(Some(&t), p),
+            &[cmd],
+            &tx.reports,
+            FetchSizes::default(),
+        )
+        .unwrap();
+        let got: Vec<PerNodeBeat> = f
+            .out
+            .iter()
+            .map(|o| match *o {
+                FetchOut::Beat(b) => PerNodeBeat::Level(b),
+                FetchOut::Probe { record, at } => PerNodeBeat::Probe { record, at },
+                e => panic!("input {r}: {e:?}"),
+            })
+            .collect();
+        assert_eq!(got, tx.inputs[r], "input {r}");
+        assert_eq!(f.reports, tx.reports, "input {r}: every report beat taken");
+        // Each probe beat packs with its bit; the layout tiles `out`.
+        for o in &f.out {
+            let b = o.pack(&l).unwrap();
+            let probe = l.pn.as_ref().unwrap().probe;
+            assert_eq!(
+                b.get(&probe).unwrap(),
+                matches!(o, FetchOut::Probe { .. }) as u64
+            );
+        }
+        let w = walk_input(h, r as u16, &t, c.lo).unwrap();
+        let (mut above, _) = collect(std::slice::from_ref(&w), c.lo);
+        above.sort_by_key(|n| (n.record.voxel.lod, n.record.voxel.morton()));
+        let mut want: Vec<LeafOut> = above
+            .iter()
+            .map(|n| LeafOut::Leaf {
+                record: n.record,
+                at: n.at,
+            })
+            .collect();
+        want.push(LeafOut::End);
+        assert_eq!(f.leaves, want, "input {r}");
+        // One probe read per probe beat; the walk and the passes on `node`.
+        let probes = f
+            .out
+            .iter()
+            .filter(|o| matches!(o, FetchOut::Probe { .. }))
+            .count();
+        assert_eq!(f.probe_reqs.len(), probes);
+        seen.inputs += 1;
+        seen.probes += probes;
+        seen.leaves += above.len();
+        let mut stored: Vec<u128> = Vec::new();
+        let mut moved = Vec::new();
+        for i in 0..h.root_count {
+            if let Ok(n) = place_node(h, 0, &t, i) {
+                stored.push(morton(&h.nodes[i as usize].voxel));
+                moved.push(morton(&n.record.voxel));
+            }
+        }
+        let order = |v: &[u128]| {
+            let mut i: Vec<usize> = (0..v.len()).collect();
+            i.sort_by_key(|&j| v[j]);
+            i
+        };
+        seen.roots_reordered += (order(&stored) != order(&moved)) as usize;
+        let descents = f.reports.iter().filter(|r| {
+            matches!(r, PerNodeReport::Decision { descend: true, voxel, .. }
+                if got.iter().any(|b| matches!(b, PerNodeBeat::Level(LevelBeat::Inner { record, .. })
+                    if record.voxel == *voxel)))
+        });
+        seen.descended_inputs += (descents.count() > 0) as usize;
+    }
+
+    /// Moves the second root's subtree of `h` by one voxel on y at the top
+    /// (its descendants by the same distance at their LODs), so that the
+    /// two roots differ on two axes and a translation can swap their
+    /// Morton order; false when `h` has one root or the move leaves the grid.
+    fn skew_second_root(h: &mut Hierarchy, up: bool) -> bool {
+        if h.root_count != 2 {
+            return false;
+        }
+        let top = h.top_lod;
+        let y = h.nodes[1].voxel.y as i64 + if up { 1 } else { -1 };
+        if !(0..1i64 << top).contains(&y) {
+            return false;
+        }
+        let mut todo = vec![1u32];
+        while let Some(i) = todo.pop() {
+            let n = &mut h.nodes[i as usize];
+            let d = n.voxel.lod - top;
+            n.voxel.y = if up {
+                n.voxel.y + (1 << d)
+            } else {
+                n.voxel.y - (1 << d)
+            };
+            if !n.leaf {
+                let r = n.range();
+                todo.extend(
+                    h.refs[r.start as usize..r.end as usize]
+                        .iter()
+                        .map(|r| r.node),
+                );
+            }
+        }
+        true
+    }
+
+    /// The per-node command sends, for every input, exactly the per-node
+    /// module's input stream of that input (`per_node_transaction`), pass
+    /// after pass, from the module's `report` beats: random octree merges
+    /// (`random_per_node_case`, translations that reorder the roots among
+    /// them) at the default, D = 31 and Q = 0 and four ratios.
+    #[test]
+    fn per_node_command_sends_the_modules_inputs() {
+        let mut rng = SplitMix64(55);
+        let mut seen = PerNodeSeen::default();
+        let configs = [
+            (Params::default(), 4),
+            (Params::new(31, 16, 32, 8).unwrap(), 5),
+            (Params::new(8, 0, 12, 3).unwrap(), 2),
+        ];
+        for (p, k) in configs {
+            for (num, den) in [(1, 2), (0, 1), (1, 1), (1, 3)] {
+                for i in 0..40 {
+                    let mut c = random_per_node_case(&mut rng, &p, k, 4);
+                    if i % 2 == 1 {
+                        for h in &mut c.hierarchies {
+                            skew_second_root(h, rng.below(2) == 0);
+                        }
+                    }
+                    let Ok(tx) = c.transaction(&p, num, den) else {
+                        continue;
+                    };
+                    if tx.passes == 0 {
+                        continue;
+                    }
+                    seen.merges += 1;
+                    seen.multi_pass += (tx.passes > 1) as usize;
+                    for r in 0..k {
+                        check_per_node_input(&p, &c, &tx, r, &mut seen);
+                    }
+                }
+            }
+        }
+        eprintln!("{seen:?}");
+        assert!(seen.merges > 300 && seen.multi_pass > 100, "{seen:?}");
+        assert!(
+            seen.descended_inputs > 300 && seen.roots_reordered > 5,
+            "{seen:?}"
+        );
+        assert!(seen.leaves > 100 && seen.probes > 10_000, "{seen:?}");
+    }
+
+    /// The same on real merges: golden-built soups, overlapping and moved
+    /// apart, 2-4 inputs, at the ratios that descend and stay.
+    #[test]
+    fn per_node_command_on_real_merges() {
+        let p = Params::new(10, 3, 16, 3).unwrap();
+        let mut rng = SplitMix64(8);
+        let mut seen = PerNodeSeen::default();
+        for case in 0..12u64 {
+            let k = 2 + (case % 3) as usize;
+            let hs: Vec<Hierarchy> = (0..k)
+                .map(|i| {
+                    let mesh = random_soup(
+                        5 + rng.below(60) as usize,
+                        0.05 + rng.below(30) as f32 / 100.0,
+                        case * 10 + i as u64,
+                    );
+                    let grid = GridMap {
+                        origin: glam::DVec3::ZERO,
+                        unit: 1.0 / (p.scene_edge() >> 2) as f64,
+                    };
+                    build(&mesh, &grid, &p, i as u8 + 1).unwrap()
+                })
+                .collect();
+            let translations: Vec<Translation> = hs
+                .iter()
+                .enumerate()
+                .map(|(i, h)| Translation {
+                    lod: h.top_lod,
+                    t: [if case % 4 == 3 { i as i64 % 2 } else { 0 }, 0, 0],
+                })
+                .collect();
+            let refs: Vec<&Hierarchy> = hs.iter().collect();
+            let (lo, hi) = crate::merge::level::candidate_range(&refs);
+            let c = PerNodeCase {
+                hierarchies: hs,
+                translations,
+                lo,
+                hi,
+            };
+            for (num, den) in [(1, 2), (0, 1), (1, 4)] {
+                let Ok(tx) = c.transaction(&p, num, den) else {
+                    continue;
+                };
+                seen.merges += 1;
+                seen.multi_pass += (tx.passes > 1) as usize;
+                for r in 0..k {
+                    check_per_node_input(&p, &c, &tx, r, &mut seen);
+                }
+            }
+        }
+        eprintln!("{seen:?}");
+        assert!(seen.merges > 20 && seen.multi_pass > 5, "{seen:?}");
+        assert!(seen.descended_inputs > 10, "{seen:?}");
+    }
+
+    /// Errors of a per-node command: the error beat stands for its pass's
+    /// `End`; the command still takes every `report` beat, each later pass
+    /// sending `End` alone and reading nothing; a header error reads
+    /// nothing at all; a `report` stream that ends early is refused.
+    #[test]
+    fn per_node_errors_end_their_pass_and_follow_the_report() {
+        let p = Params::new(4, 1, 6, 2).unwrap();
+        let t0 = pack_entry(Some(&Translation::zero(1)), &p);
+        let s = FetchSizes::default();
+        let end = FetchOut::Beat(LevelBeat::End);
+        let v = |lod, x| crate::grid::VoxelAddr::new(lod, x, 0, 0);
+        let decide = |voxel, descend| PerNodeReport::Decision {
+            voxel,
+            shared: 1,
+            union: 1,
+            descend,
+        };
+        let pass_end = |lod, more| PerNodeReport::PassEnd { lod, more };
+        // tiny: root 0 (inner, LOD 1, x 0), leaves 1 (x 0) and 2 (x 1) at LOD 2.
+        let h = tiny(&p);
+        let place = |i: u32| place_node(&h, 0, &Translation::zero(1), i).unwrap();
+        let probe = |i: u32| FetchOut::Probe {
+            record: place(i).record,
+            at: place(i).at,
+        };
+        let beat = |i: u32| FetchOut::Beat(beat_of(&place(i)));
+        let cref = |i: u32| FetchOut::Beat(LevelBeat::ChildRef(h.refs[i as usize]));
+        let reports = [decide(v(1, 0), true), pass_end(1, true), pass_end(2, false)];
+        let run = |h: &Hierarchy, entry, reports: &[PerNodeReport]| {
+            fetch_transaction_with_reports(
+                h,
+                entry,
+                &[FetchCmd::per_node(1, true, true)],
+                reports,
+                s,
+            )
+        };
+        // Pass 1: probes, the root, its references; the root descends, so
+        // pass 2 sends its two leaves.
+        let tx = run(&h, t0, &reports).unwrap();
+        assert_eq!(
+            tx.out,
+            vec![
+                probe(1),
+                probe(2),
+                beat(0),
+                cref(0),
+                cref(1),
+                end,
+                beat(1),
+                beat(2),
+                end
+            ]
+        );
+        assert_eq!(tx.node_reqs, vec![0, 1, 2]);
+        assert_eq!(tx.ref_reqs, vec![0, 1]);
+        assert_eq!(tx.cref_reqs, vec![0, 1, 0, 1]);
+        assert_eq!(tx.probe_reqs, vec![1, 2]);
+        // A decision at another voxel, or not descending: one pass.
+        for r in [decide(v(1, 1), true), decide(v(1, 0), false)] {
+            let tx = run(&h, t0, &[r, pass_end(1, true), pass_end(2, false)]).unwrap();
+            assert_eq!(
+                tx.out[..6],
+                [probe(1), probe(2), beat(0), cref(0), cref(1), end]
+            );
+            assert_eq!(tx.out[6..], [end], "pass 2 is empty");
+            assert_eq!(tx.node_reqs, vec![0]);
+        }
+        // A probe at the wrong LOD: the error (naming the child) stands for
+        // pass 1's End; pass 2 sends End alone and reads nothing.
+        let mut b = h.clone();
+        b.nodes[2].voxel.lod = 3;
+        let tx = run(&b, t0, &reports).unwrap();
+        let err = |node, code| FetchOut::Error {
+            hier: 3,
+            node,
+            code,
+        };
+        assert_eq!(tx.out, vec![probe(1), err(2, fetch_err::LOD), end]);
+        assert_eq!(tx.node_reqs, vec![0], "no pass-2 reads after the error");
+        assert_eq!(tx.reports, reports.to_vec());
+        // An invalid entry: no read, the error for pass 1, End for pass 2.
+        let tx = run(&h, 0, &reports).unwrap();
+        assert_eq!(tx.out, vec![err(0, fetch_err::ENTRY), end]);
+        assert!(tx.node_reqs.is_empty() && tx.cref_reqs.is_empty());
+        assert_eq!(tx.leaves, vec![LeafOut::End]);
+        // A refusal beat ends the command like `more` = 0.
+        let refused = PerNodeReport::Refused { err: 3 };
+        let tx = run(&h, t0, &[refused]).unwrap();
+        assert_eq!(tx.out.last(), Some(&end));
+        assert_eq!(tx.reports, vec![refused]);
+        // The report stream ends before the last pass: refused.
+        let e = run(&h, t0, &reports[..2]).unwrap_err();
+        assert!(e.to_string().contains("report"), "{e}");
+        // Too many inner nodes in a pass for `frontier`.
+        let tight = FetchSizes {
+            roots: 16,
+            frontier: 0,
+        };
+        let cmd = [FetchCmd::per_node(1, true, true)];
+        let tx = fetch_transaction_with_reports(&h, t0, &cmd, &reports[1..2], tight);
+        assert!(tx.is_err(), "pass 2 needs a pass_end too");
+        let tx =
+            fetch_transaction_with_reports(&h, t0, &cmd, &[pass_end(1, false)], tight).unwrap();
+        assert_eq!(tx.out, vec![err(0, fetch_err::FRONTIER)]);
     }
 }

@@ -28,21 +28,22 @@
 //! 5. The builder's `level{d}` and `done` feed the writer, which reads the
 //!    materialized roots from the store and writes `nodes`, `refs`, `header`.
 //!
-//! Per-node mode (8.5) is modelled with [`per_node_transaction`] as its
-//! module: its input streams carry probes (the children of every live inner
-//! node, 8.14) that a level walk does not produce, so its module inputs are
-//! not fetcher streams; the fetchers give only the leaves above `lo` (one
-//! command). The merger RTL refuses per-node configurations.
+//! Per-node mode (8.5): [`per_node_transaction`] is the module; with a
+//! good range every used fetcher gets one **per-node command** at `lo`
+//! (leaves above `lo`, last) and the module's `report` beats, and sends the
+//! module's input stream pass after pass (probes, nodes, references; 8.13),
+//! which the chain checks equal to the module's inputs; a bad range gets
+//! the closing command.
 
 use super::builder_unit::BuilderTransaction;
 use super::error::MergeError;
 use super::fetch_unit::{
-    fetch_err, fetch_transaction, FetchCfg, FetchCmd, FetchLayout, FetchOut, FetchSizes,
-    FetchTransaction, LeafOut,
+    fetch_err, fetch_transaction_with_reports, FetchCfg, FetchCmd, FetchLayout, FetchOut,
+    FetchSizes, FetchTransaction, LeafOut,
 };
 use super::level::candidate_range;
 use super::level_merge::{BaseKind, BaseNode};
-use super::per_node_unit::{self, per_node_transaction, PerNodeTransaction};
+use super::per_node_unit::{self, per_node_transaction, PerNodeBeat, PerNodeTransaction};
 use super::top::{choice_err, choose, top_transaction, Report, TopLayout, TopTransaction};
 use super::unit::{rank_bits, BaseBeat, LevelBeat, LevelCase};
 use super::walk::{collect, morton, walk_input, PlacedNode};
@@ -315,9 +316,8 @@ pub fn cmd_per_level(cmds: &[FetchCmd]) -> Vec<FetchCmd> {
         .collect()
 }
 
-/// Whether a command's `out` beats go to the merging module (count and
-/// merge passes) or are dropped by the glue (the closing command, and
-/// per-node mode's leaves command).
+/// Whether a command's `out` beats go to the merging module (count, merge
+/// and per-node passes) or are dropped by the glue (the closing command).
 pub fn feeds_module(c: &FetchCmd) -> bool {
     c.send_refs || !c.last
 }
@@ -334,19 +334,45 @@ pub fn fetch_passes(tx: &FetchTransaction) -> Result<Vec<Vec<LevelBeat>>, MergeE
                     passes.push(Vec::new());
                 }
             }
-            FetchOut::Error { hier, node, code } => {
+            FetchOut::Error { hier, node, code } => return Err(fetch_error(hier, node, code)),
+            FetchOut::Probe { at, .. } => {
                 return Err(MergeError::BadInput {
-                    input: hier,
-                    node: Some(node),
-                    field: "fetcher walk",
-                    expected: "no fetcher error (fetch_unit::fetch_err)".into(),
-                    found: format!("error code {code} ({})", fetch_err_name(code)),
+                    input: at.hier,
+                    node: Some(at.node),
+                    field: "fetcher out",
+                    expected: "no probe beat from a level command".into(),
+                    found: "a probe".into(),
                 })
             }
         }
     }
     passes.pop();
     Ok(passes)
+}
+
+/// A fetcher error beat as the chain's refusal.
+fn fetch_error(hier: u8, node: u32, code: u64) -> MergeError {
+    MergeError::BadInput {
+        input: hier,
+        node: Some(node),
+        field: "fetcher walk",
+        expected: "no fetcher error (fetch_unit::fetch_err)".into(),
+        found: format!("error code {code} ({})", fetch_err_name(code)),
+    }
+}
+
+/// A fetcher's `out` beats of a per-node command as the per-node module's
+/// input stream (probes and S614 beats, every pass); an error beat is
+/// refused naming the input, record and code.
+pub fn fetch_per_node_stream(tx: &FetchTransaction) -> Result<Vec<PerNodeBeat>, MergeError> {
+    tx.out
+        .iter()
+        .map(|o| match *o {
+            FetchOut::Beat(b) => Ok(PerNodeBeat::Level(b)),
+            FetchOut::Probe { record, at } => Ok(PerNodeBeat::Probe { record, at }),
+            FetchOut::Error { hier, node, code } => Err(fetch_error(hier, node, code)),
+        })
+        .collect()
 }
 
 /// What a [`fetch_err`] code means, for error messages.
@@ -519,9 +545,12 @@ pub fn merger_transaction_in_range(
     let range_ok = lo <= hi && hi <= p.max_lod;
     let (module, cmds, chosen) = match mode {
         MergeMode::PerNode { num, den } => {
-            // The fetchers give the leaves above `lo` only (one command).
             let pn = per_node_transaction(&p, &hs, &ts, num, den, lo, hi)?;
-            let cmds = vec![FetchCmd::level(lo, false, range_ok, true)];
+            let cmds = vec![if range_ok {
+                FetchCmd::per_node(lo, true, true)
+            } else {
+                FetchCmd::level(lo, false, false, true)
+            }];
             (ModulePass::PerNode(pn), cmds, None)
         }
         _ => {
@@ -557,13 +586,24 @@ pub fn merger_transaction_in_range(
             (ModulePass::Level(top), cmds, chosen)
         }
     };
+    // Every fetcher takes the whole `report` stream (per-node commands).
+    let reports = match &module {
+        ModulePass::PerNode(pn) => pn.reports.as_slice(),
+        ModulePass::Level(_) => &[],
+    };
     let fetch = hs
         .iter()
         .zip(&entries)
-        .map(|(h, t)| fetch_transaction(h, pack_entry(t.as_ref(), &p), &cmds, sizes.fetch))
+        .map(|(h, t)| {
+            let entry = pack_entry(t.as_ref(), &p);
+            fetch_transaction_with_reports(h, entry, &cmds, reports, sizes.fetch)
+        })
         .collect::<Result<Vec<_>, _>>()?;
     for f in &fetch {
-        fetch_passes(f)?;
+        match cmds[0].per_node {
+            true => fetch_per_node_stream(f).map(|_| ())?,
+            false => fetch_passes(f).map(|_| ())?,
+        }
     }
     let ok = match &module {
         ModulePass::Level(_) => chosen.is_some(),
@@ -642,6 +682,7 @@ mod tests {
             MergeMode::Proportion { num: 1, den: 2 },
             MergeMode::Proportion { num: 1, den: 1 },
             MergeMode::PerNode { num: 0, den: 1 },
+            MergeMode::PerNode { num: 1, den: 2 },
             MergeMode::PerNode { num: 1, den: 4 },
             MergeMode::PerNode { num: 1, den: 1 },
         ];
@@ -653,6 +694,27 @@ mod tests {
     /// transaction expects.
     fn check_hand_offs(tx: &MergerTransaction, p: &Params, k: usize) {
         let b = tx.builder();
+        if let ModulePass::PerNode(pn) = &tx.module {
+            // Fetcher out -> module in<i>: every pass of the per-node
+            // command is the module's input stream; each fetcher took the
+            // module's whole `report`.
+            if pn.passes > 0 {
+                assert!(tx.cmds.len() == 1 && tx.cmds[0].per_node);
+                for (r, f) in tx.fetch.iter().enumerate() {
+                    assert_eq!(fetch_per_node_stream(f).unwrap(), pn.inputs[r], "input {r}");
+                    assert_eq!(f.reports, pn.reports, "input {r}");
+                }
+                // Module out -> builder base{d} at and below lo.
+                let by_lod = per_node_unit::base_by_lod(&pn.out, p).unwrap();
+                for (d, nodes) in by_lod.iter().enumerate().skip(tx.cfg.lo as usize) {
+                    let got: Vec<&BaseBeat> =
+                        b.base[d].iter().filter(|x| **x != BaseBeat::End).collect();
+                    assert_eq!(got.len(), nodes.len(), "base{d}");
+                }
+            } else {
+                assert!(!tx.cmds[0].per_node && !feeds_module(&tx.cmds[0]));
+            }
+        }
         if let ModulePass::Level(top) = &tx.module {
             // Fetcher out -> module in<i>, pass by pass (the closing
             // command's beats are dropped).
@@ -718,6 +780,7 @@ mod tests {
     struct Reached {
         merges: usize,
         per_node: usize,
+        per_node_multi_pass: usize,
         count_passes: usize,
         leaves_above: usize,
         materialized: usize,
@@ -784,6 +847,9 @@ mod tests {
                 }
                 seen.merges += 1;
                 seen.per_node += matches!(tx.module, ModulePass::PerNode(_)) as usize;
+                if let ModulePass::PerNode(pn) = &tx.module {
+                    seen.per_node_multi_pass += (pn.passes > 1) as usize;
+                }
                 seen.leaves_above += !tx.leaves.is_empty() as usize;
                 seen.materialized += (r.stats.materialized > 0) as usize;
                 seen.several_roots += (r.merged.root_count > 1) as usize;
@@ -825,6 +891,7 @@ mod tests {
         eprintln!("default: {seen:?}");
         assert!(seen.merges >= 40, "{seen:?}");
         assert!(seen.per_node > 0 && seen.count_passes > 0, "{seen:?}");
+        assert!(seen.per_node_multi_pass > 0, "{seen:?}");
         assert!(seen.leaves_above > 0 && seen.materialized > 0, "{seen:?}");
         assert!(
             seen.several_roots > 0 && seen.several_root_inputs > 0,

@@ -130,9 +130,49 @@ pub struct PerNodeFetchLayout {
     /// `out`: `probe` (1), after `err`: the beat is a probe (a child of the
     /// inner node that follows, section 8.14).
     pub probe: Field,
-    /// The `report` input: the per-node module's `report` beat, as it
-    /// leaves the module ([`PerNodeLayout`]'s `report_width` bits).
-    pub report: PerNodeLayout,
+    /// The `report` input, the fields of the per-node module's `report`
+    /// beat ([`PerNodeLayout`]) the fetcher reads, which the merger's glue
+    /// takes out of it, from bit 0: `x`, `y`, `z` (D each), `descend`,
+    /// `pass_end`, `more` (1 each). A refusal beat is `pass_end` 1, `more` 0.
+    pub report_coord: [Field; 3],
+    pub report_descend: Field,
+    pub report_pass_end: Field,
+    pub report_more: Field,
+    pub report_width: u32,
+}
+
+impl PerNodeFetchLayout {
+    /// The fetcher's `report` beat of the module's `report` beat `r`.
+    pub fn pack_report(&self, r: &PerNodeReport) -> Result<Bits, LayoutError> {
+        let mut b = Bits::zero(self.report_width);
+        match *r {
+            PerNodeReport::Decision { voxel, descend, .. } => {
+                for (f, v) in self.report_coord.iter().zip([voxel.x, voxel.y, voxel.z]) {
+                    b.set(f, v as u64)?;
+                }
+                b.set(&self.report_descend, descend as u64)?;
+            }
+            PerNodeReport::PassEnd { more, .. } => {
+                b.set(&self.report_pass_end, 1)?;
+                b.set(&self.report_more, more as u64)?;
+            }
+            PerNodeReport::Refused { .. } => b.set(&self.report_pass_end, 1)?,
+        }
+        Ok(b)
+    }
+
+    /// Where each field of the fetcher's `report` beat sits in the module's
+    /// `report` beat ([`PerNodeLayout`]): (fetcher field, module field).
+    pub fn report_sources(&self, module: &PerNodeLayout) -> [(Field, Field); 6] {
+        [
+            (self.report_coord[0], module.coord[0]),
+            (self.report_coord[1], module.coord[1]),
+            (self.report_coord[2], module.coord[2]),
+            (self.report_descend, module.descend),
+            (self.report_pass_end, module.pass_end),
+            (self.report_more, module.more),
+        ]
+    }
 }
 
 /// Lays out `(name, width)` consecutively from bit 0.
@@ -206,6 +246,15 @@ impl FetchLayout {
             ("lod", lb),
             ("end", 1),
         ]);
+        let d = p.coord_bits();
+        let (report, report_width) = consecutive([
+            ("x", d),
+            ("y", d),
+            ("z", d),
+            ("descend", 1),
+            ("pass_end", 1),
+            ("more", 1),
+        ]);
         let pn = per_node.then(|| PerNodeFetchLayout {
             per_node: Field {
                 name: "per_node",
@@ -217,7 +266,11 @@ impl FetchLayout {
                 offset: err.end(),
                 width: 1,
             },
-            report: PerNodeLayout::new(p),
+            report_coord: report[..3].try_into().expect("three axes"),
+            report_descend: report[3],
+            report_pass_end: report[4],
+            report_more: report[5],
+            report_width,
         });
         let cmd_width = pn.as_ref().map_or(cmd_width, |f| f.per_node.end());
         let out_width = pn.as_ref().map_or(err.end(), |f| f.probe.end());
@@ -813,11 +866,14 @@ type Range = (u32, u32, u32);
 
 impl Walk<'_> {
     /// The per-node command (SPEC 8.13): the walk to `lo` (the leaves above
-    /// it), then pass after pass; `header`: the entry's error, met before
-    /// any read. An error (in out order) stands for its pass's `End`; the
-    /// command still takes the `report` beats pass by pass, each later pass
-    /// sending `End` alone and reading nothing, until `more` is 0, so the
-    /// module's per-pass framing holds and nobody waits for this input.
+    /// it), then pass after pass (the first at `max(lo, top)`); `header`:
+    /// the entry's error, met before any read. An error (in out order)
+    /// stands for its pass's `End`, and each later pass sends its `End`
+    /// alone; the walk itself goes on (every read derived from valid data
+    /// and the `report`'s decisions is made, so the request streams do not
+    /// depend on timing) and the command takes the `report` beats pass by
+    /// pass until `more` is 0, so the module's per-pass framing holds and
+    /// nobody waits for this input.
     fn run_per_node(
         &self,
         tx: &mut FetchTransaction,
@@ -849,7 +905,7 @@ impl Walk<'_> {
         if self.cmd.send_leaves {
             tx.leaves.push(LeafOut::End);
         }
-        let mut l = lo;
+        let mut l = lo.max(self.h.top_lod);
         loop {
             // The pass's `End`, after a held node's references.
             o.level_end(self, tx);
@@ -867,10 +923,8 @@ impl Walk<'_> {
             })?;
             v.prev = None;
             v.pushed = 0;
-            // After an error the command follows no descent.
-            let ranges = if o.errored { Vec::new() } else { descended };
             let mut unused = VecDeque::new();
-            self.walk_ranges(tx, &ranges, l, &mut v, o, &mut unused, &mut entries);
+            self.walk_ranges(tx, &descended, l, &mut v, o, &mut unused, &mut entries);
         }
     }
 
@@ -1725,6 +1779,14 @@ mod tests {
             .collect();
         assert_eq!(got, tx.inputs[r], "input {r}");
         assert_eq!(f.reports, tx.reports, "input {r}: every report beat taken");
+        // The glue's narrow `report` beat is the module's, field by field.
+        let (pl, module) = (l.pn.as_ref().unwrap(), PerNodeLayout::new(p));
+        for rep in &tx.reports {
+            let (narrow, wide) = (pl.pack_report(rep).unwrap(), rep.pack(&module).unwrap());
+            for (f, g) in pl.report_sources(&module) {
+                assert_eq!(narrow.get(&f).unwrap(), wide.get(&g).unwrap(), "{}", f.name);
+            }
+        }
         // Each probe beat packs with its bit; the layout tiles `out`.
         for o in &f.out {
             let b = o.pack(&l).unwrap();
@@ -1982,7 +2044,7 @@ mod tests {
             assert_eq!(tx.node_reqs, vec![0]);
         }
         // A probe at the wrong LOD: the error (naming the child) stands for
-        // pass 1's End; pass 2 sends End alone and reads nothing.
+        // pass 1's End; pass 2 sends End alone, its reads still made.
         let mut b = h.clone();
         b.nodes[2].voxel.lod = 3;
         let tx = run(&b, t0, &reports).unwrap();
@@ -1992,7 +2054,7 @@ mod tests {
             code,
         };
         assert_eq!(tx.out, vec![probe(1), err(2, fetch_err::LOD), end]);
-        assert_eq!(tx.node_reqs, vec![0], "no pass-2 reads after the error");
+        assert_eq!(tx.node_reqs, vec![0, 1, 2], "pass-2 reads after the error");
         assert_eq!(tx.reports, reports.to_vec());
         // An invalid entry: no read, the error for pass 1, End for pass 2.
         let tx = run(&h, 0, &reports).unwrap();

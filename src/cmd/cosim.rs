@@ -685,7 +685,7 @@ fn finish_report(
 }
 
 /// `--unit merge`: seeded merges through the merging module, every stream
-/// with its own stall pattern.
+/// with its own stall pattern, 10,000 merges at a time.
 fn run_merge_module(
     a: &Args,
     design: &MergeDesign,
@@ -695,51 +695,50 @@ fn run_merge_module(
     let count = usize::try_from(a.count.unwrap_or(DEFAULT_COUNT))
         .map_err(|_| "--count is too large".to_string())?;
     let engine = module_engine(a.engine)?;
-    let streams = merge_module::generate_streams(
-        design,
-        a.seed,
+    let run = merge_module::LongRun {
         count,
-        merge_module::DEFAULT_MOST_VOXELS,
-        flip,
-    )
-    .map_err(|e| e.to_string())?;
+        seed: a.seed,
+        most_voxels: merge_module::DEFAULT_MOST_VOXELS,
+        flip_expected: flip,
+        chunk: cosim::units::chunked::CHUNK,
+        bench: bench_config(a, merge_module::STAGE)?,
+    };
     if !a.json {
         eprintln!(
-            "running {count} merges ({} beats in, {} expected out) on {}",
-            streams.data_beats(),
-            streams.outputs.iter().map(|s| s.beats.len()).sum::<usize>(),
-            a.engine.name()
+            "running {count} merges on {} in chunks of {}",
+            a.engine.name(),
+            cosim::units::chunked::CHUNK
         );
     }
-    let config = bench_config(a, merge_module::STAGE)?;
-    let expected_out: u64 = streams.outputs.iter().map(|s| s.beats.len() as u64).sum();
-    let pb = bar(expected_out, a.json);
-    if engine == ModuleEngine::Iverilog {
-        pb.set_message("one vvp run (the batch reports at its end)");
-    }
-    let o = merge_module::run(design, &streams, engine, &config, dir, &mut |p| {
-        pb.set_position(p.outputs);
-        pb.set_message(format!("cycle {}", p.cycle));
+    let pb = bar(count as u64, a.json);
+    let o = merge_module::run_chunked(design, engine, &run, dir, &mut |merges, cycle| {
+        pb.set_position(merges);
+        pb.set_message(format!("cycle {cycle}"));
     });
     pb.finish_and_clear();
     let o = o.map_err(|e| e.to_string())?;
-    let r = &o.report;
     let stage = merge_module::STAGE;
     let end = RunEnd {
         failed: !o.passed(),
-        started: r.sent.first().map_or(0, |cfg| cfg.1),
-        cycles: r.cycles,
-        hang: r.hang.as_ref(),
-        missing: &r.missing,
+        started: o.cfg_accepted,
+        cycles: o.cycles,
+        hang: o.hang.as_ref(),
+        missing: &o.missing,
         status: o.status_failure(),
     };
-    let first = multi_stream_failure(stage, a.seed, o.first_mismatch.as_ref(), "", end);
+    let first = multi_stream_failure(
+        stage,
+        a.seed,
+        o.first_mismatch.as_ref(),
+        " of its chunk",
+        end,
+    );
     let counts = Counts {
         transactions: o.merges as u64,
         records: o.data_beats_in,
         nodes: o.beats_out,
-        mismatches: r.mismatches,
-        cycles: r.cycles,
+        mismatches: o.mismatches,
+        cycles: o.cycles,
         wall_seconds: o.wall.as_secs_f64(),
     };
     finish_report(a, stage, flip, counts, first, o.vcd.as_ref())

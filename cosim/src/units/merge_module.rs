@@ -34,6 +34,8 @@ use crate::tb::{
     PulseWatch, StreamBeats, Transaction,
 };
 
+use super::chunked::{ChunkStreams, ChunkTotals, ChunkedSim};
+
 /// The stage name `hiermerge cosim --unit merge` reports for this unit.
 pub const STAGE: &str = "merge_module";
 
@@ -170,15 +172,26 @@ pub fn generate_streams(
     most_voxels: usize,
     flip_expected: Option<usize>,
 ) -> Result<MergeStreams> {
+    generate_streams_from(&mut SplitMix64(seed), d, count, most_voxels, flip_expected)
+}
+
+/// [`generate_streams`] drawing from `rng`, so chunks of one long run
+/// continue one random sequence.
+fn generate_streams_from(
+    rng: &mut SplitMix64,
+    d: &MergeDesign,
+    count: usize,
+    most_voxels: usize,
+    flip_expected: Option<usize>,
+) -> Result<MergeStreams> {
     d.validate().map_err(golden_err)?;
-    let mut rng = SplitMix64(seed);
     let mut cfg = Vec::with_capacity(count);
     let mut ins: Vec<Vec<Transaction>> = vec![Vec::new(); d.inputs];
     let mut report: Vec<Transaction> = Vec::new();
     let mut out: Vec<Transaction> = Vec::new();
     let mut starts = vec![Vec::with_capacity(count + 1), Vec::with_capacity(count + 1)];
     for n in 0..count {
-        let tx = random_merge(&mut rng, d, most_voxels)?;
+        let tx = random_merge(rng, d, most_voxels)?;
         cfg.push(vec![tx.cfg]);
         for (s, beats) in ins.iter_mut().zip(tx.inputs) {
             s.extend(beats.into_iter().map(|b| vec![b]));
@@ -485,6 +498,72 @@ pub fn run(
     })
 }
 
+/// What a long run asks for: `count` random merges from `seed` (levels of
+/// at most `most_voxels` voxels), the bench settings, and the test hook
+/// (bit 0 of merge `flip_expected`'s first expected `report` beat flipped).
+#[derive(Clone, Debug)]
+pub struct LongRun {
+    /// Merges to run.
+    pub count: usize,
+    /// Seed of the merges (the stalls: `bench.seed`).
+    pub seed: u64,
+    /// Most voxels of a random level.
+    pub most_voxels: usize,
+    /// The test hook.
+    pub flip_expected: Option<usize>,
+    /// Merges per chunk ([`super::chunked::CHUNK`]; smaller in tests of the chunking).
+    pub chunk: usize,
+    /// Stalls, VCD, Verilog patch.
+    pub bench: RunConfig,
+}
+
+/// Runs `run.count` random merges through the unit `d` on `engine`, the
+/// Verilog written to `dir`, `run.chunk` merges at a time on one simulator
+/// (memory bounded at any count); stops after the first chunk that fails.
+/// `progress` gets (merges done, cycle).
+pub fn run_chunked(
+    d: &MergeDesign,
+    engine: ModuleEngine,
+    run: &LongRun,
+    dir: &Path,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<ChunkTotals> {
+    let module = merge_module(d);
+    let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
+    if let Some(patch) = &run.bench.verilog_patch {
+        apply_patch(&design, patch, engine)?;
+    }
+    let names = input_names(d);
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    let patched = run.bench.verilog_patch.is_some();
+    let sim = ChunkedSim::new(module, design, engine, &names, &OUTPUT_NAMES, patched)?;
+    let decode = |stream: &str, e: &Transaction, g: &Transaction| {
+        decoded_pair(&*decoder_of(d, stream), e, g)
+    };
+    let mut rng = SplitMix64(run.seed);
+    let mut totals = ChunkTotals::default();
+    while totals.merges < run.count {
+        let n = run.chunk.max(1).min(run.count - totals.merges);
+        let t = std::time::Instant::now();
+        let flip = run
+            .flip_expected
+            .and_then(|f| f.checked_sub(totals.merges))
+            .filter(|&f| f < n);
+        let streams = generate_streams_from(&mut rng, d, n, run.most_voxels, flip)?;
+        totals.golden_wall += t.elapsed();
+        let merge_of = |s: usize, beat: usize| streams.merge_of(s, beat);
+        let chunk = ChunkStreams {
+            inputs: &streams.inputs,
+            outputs: &streams.outputs,
+            merge_of: &merge_of,
+        };
+        if sim.run_chunk(&mut totals, n, &chunk, &run.bench, &decode, progress)? {
+            break;
+        }
+    }
+    Ok(totals)
+}
+
 /// The engine factory of a stepped run (IR or Verilator) for
 /// `run_multi_with_vcd_on_failure`. A patched design is there to fail, so
 /// it gets the tracing Verilator build from the start: the VCD rerun then
@@ -565,4 +644,94 @@ pub(crate) fn apply_patch(
     let (file, text, _) = &found[0];
     std::fs::write(file, text.replacen(patch.from.as_str(), &patch.to, 1))
         .map_err(crate::error::io_err(file.as_path()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use golden::params::Params;
+
+    fn small() -> MergeDesign {
+        MergeDesign {
+            params: Params::new(8, 0, 12, 3).unwrap(),
+            inputs: 2,
+            mode: MergeMode::Overlap { num: 1, den: 2 },
+            ..MergeDesign::default()
+        }
+    }
+
+    fn long_run(count: usize, chunk: usize, flip_expected: Option<usize>) -> LongRun {
+        LongRun {
+            count,
+            seed: 9,
+            most_voxels: 4,
+            flip_expected,
+            chunk,
+            bench: RunConfig {
+                seed: 9,
+                stall: 0.2,
+                ..RunConfig::default()
+            },
+        }
+    }
+
+    /// One chunk is the unchunked run: the same merges, the same stalls,
+    /// the same cycles.
+    #[test]
+    fn one_chunk_is_the_plain_run() {
+        let (d, dir) = (small(), tempfile::tempdir().unwrap());
+        let r = long_run(12, 12, None);
+        let chunked = run_chunked(&d, ModuleEngine::Ir, &r, dir.path(), &mut |_, _| {}).unwrap();
+        let streams = generate_streams(&d, r.seed, r.count, r.most_voxels, None).unwrap();
+        let plain = run(
+            &d,
+            &streams,
+            ModuleEngine::Ir,
+            &r.bench,
+            dir.path(),
+            &mut |_| {},
+        )
+        .unwrap();
+        assert!(chunked.passed() && plain.passed());
+        assert_eq!(chunked.chunks, 1);
+        assert_eq!(chunked.cycles, plain.report.cycles);
+        assert_eq!(chunked.data_beats_in, plain.data_beats_in);
+        assert_eq!(chunked.beats_out, plain.beats_out);
+    }
+
+    /// Chunks continue one random sequence and each starts from reset: the
+    /// beats of three chunks are the beats of the same merges in one run,
+    /// every merge pulses `done`, and a flipped expectation in the third
+    /// chunk is reported at its merge over the whole run, after which the
+    /// run stops.
+    #[test]
+    fn chunks_cover_every_merge_and_place_a_failure() {
+        let (d, dir) = (small(), tempfile::tempdir().unwrap());
+        let whole = long_run(25, 25, None);
+        let whole = run_chunked(&d, ModuleEngine::Ir, &whole, dir.path(), &mut |_, _| {}).unwrap();
+        let mut seen = Vec::new();
+        let split = long_run(25, 10, None);
+        let split = run_chunked(&d, ModuleEngine::Ir, &split, dir.path(), &mut |m, _| {
+            seen.push(m)
+        })
+        .unwrap();
+        assert!(whole.passed() && split.passed(), "{split:?}");
+        assert_eq!((split.chunks, split.merges, split.done_pulses), (3, 25, 25));
+        assert_eq!(split.cfg_accepted, 25);
+        assert_eq!(split.data_beats_in, whole.data_beats_in);
+        assert_eq!(split.beats_out, whole.beats_out);
+        assert_eq!(seen.last(), Some(&25));
+
+        let broken = long_run(40, 10, Some(23));
+        let broken =
+            run_chunked(&d, ModuleEngine::Ir, &broken, dir.path(), &mut |_, _| {}).unwrap();
+        assert!(!broken.passed());
+        assert_eq!(
+            (broken.chunks, broken.merges),
+            (3, 30),
+            "stops after the failing chunk"
+        );
+        let m = broken.first_mismatch.expect("the flipped beat");
+        assert_eq!((m.stream.as_str(), m.merge), ("report", 23));
+    }
 }

@@ -3,6 +3,7 @@
 //! (never panicking): the translation unit ([`translate`]) and the merging
 //! module's S614 merge-level stage ([`merge`]). `hiermerge cosim` runs them.
 
+pub mod chunked;
 pub mod merge;
 pub mod merge_module;
 pub mod merger;

@@ -1,0 +1,263 @@
+//! Long runs of a multi-stream unit in chunks (SPEC 10.1): the stimulus of
+//! [`CHUNK`] merges is generated, run and dropped before the next chunk's,
+//! on one simulator built once, so memory stays bounded whatever the count
+//! (100,000 per-node merges held at once took 15-24 GB). Each chunk starts
+//! from reset with its own stall seed (`seed ^ chunk`); the run stops after
+//! the first chunk that fails, with its VCD.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use crate::design::Design;
+use crate::error::Result;
+use crate::icarus::IcarusMultiBatch;
+use crate::tb::{
+    run_multi_with_vcd_on_failure, BenchConfig, Hang, MultiReport, Progress, PulseWatch,
+    StreamBeats, Transaction,
+};
+
+use super::merge_module::{
+    status_failure, stepped_engines, ModuleEngine, ModuleMismatch, RunConfig,
+};
+
+/// Merges of stimulus held at a time on one simulator.
+pub const CHUNK: usize = 10_000;
+
+/// One chunk's stimulus and expectations.
+pub struct ChunkStreams<'a> {
+    /// Input streams; the first is `cfg` (one beat per merge).
+    pub inputs: &'a [StreamBeats],
+    /// Output streams.
+    pub outputs: &'a [StreamBeats],
+    /// The merge (in the chunk) that beat `beat` of output stream `stream`
+    /// belongs to.
+    pub merge_of: &'a dyn Fn(usize, usize) -> usize,
+}
+
+/// Decodes an (expected, got) pair of output stream `name` field by field.
+pub type PairDecoder<'a> =
+    dyn Fn(&str, &Transaction, &Transaction) -> Vec<(String, String, String)> + 'a;
+
+/// What every chunk run so far measured.
+#[derive(Clone, Debug)]
+pub struct ChunkTotals {
+    /// Merges run (all of them, or up to the end of the failing chunk).
+    pub merges: usize,
+    /// Chunks run.
+    pub chunks: usize,
+    /// Cycles over every chunk (each chunk starts from reset).
+    pub cycles: u64,
+    /// `cfg` beats accepted: merges started.
+    pub cfg_accepted: u64,
+    /// Beats accepted on the other input streams.
+    pub data_beats_in: u64,
+    /// Beats out on every output stream.
+    pub beats_out: u64,
+    /// Output beats that differed.
+    pub mismatches: u64,
+    /// Expected output beats that never came (failing chunk).
+    pub missing: Vec<(String, usize)>,
+    /// The first mismatch, decoded; its merge counted over the whole run.
+    pub first_mismatch: Option<ModuleMismatch>,
+    /// The watchdog's finding in the failing chunk.
+    pub hang: Option<Hang>,
+    /// Cycles `done` was high (one per merge expected).
+    pub done_pulses: u64,
+    /// `idle` high in the last cycle of every chunk.
+    pub idle_at_end: bool,
+    /// VCD of the cycles around the first failure.
+    pub vcd: Option<PathBuf>,
+    /// Wall time of the benches (stimulus generation, the Verilator build
+    /// and the Icarus compile excluded).
+    pub wall: Duration,
+    /// Wall time of generating the golden stimulus.
+    pub golden_wall: Duration,
+}
+
+impl Default for ChunkTotals {
+    fn default() -> Self {
+        ChunkTotals {
+            merges: 0,
+            chunks: 0,
+            cycles: 0,
+            cfg_accepted: 0,
+            data_beats_in: 0,
+            beats_out: 0,
+            mismatches: 0,
+            missing: Vec::new(),
+            first_mismatch: None,
+            hang: None,
+            done_pulses: 0,
+            // Vacuously true until a chunk ends with `idle` low.
+            idle_at_end: true,
+            vcd: None,
+            wall: Duration::ZERO,
+            golden_wall: Duration::ZERO,
+        }
+    }
+}
+
+impl ChunkTotals {
+    /// Every beat matched, none missing, nothing hung, one `done` pulse
+    /// per merge, and the unit idle at the end of every chunk.
+    pub fn passed(&self) -> bool {
+        self.mismatches == 0
+            && self.hang.is_none()
+            && self.missing.iter().all(|m| m.1 == 0)
+            && self.status_failure().is_none()
+    }
+
+    /// What the status outputs got wrong, if anything.
+    pub fn status_failure(&self) -> Option<String> {
+        status_failure(self.done_pulses, self.merges, self.idle_at_end, "a chunk")
+    }
+
+    /// Adds one chunk of `n` merges; returns whether the chunk failed.
+    fn add(
+        &mut self,
+        n: usize,
+        chunk: &ChunkStreams,
+        report: &MultiReport,
+        watch: &PulseWatch,
+        decode: &PairDecoder,
+    ) -> bool {
+        let pulse = |name: &str| watch.counts.iter().find(|p| p.0 == name).map_or(0, |p| p.1);
+        self.done_pulses += pulse("done");
+        self.idle_at_end &= watch.at_end.iter().any(|p| p.0 == "idle" && p.1);
+        self.cycles += report.cycles;
+        self.cfg_accepted += report.sent.first().map_or(0, |cfg| cfg.1);
+        self.data_beats_in += report.sent.iter().skip(1).map(|s| s.1).sum::<u64>();
+        self.beats_out += report.received.iter().map(|s| s.1).sum::<u64>();
+        self.mismatches += report.mismatches;
+        self.wall += report.wall;
+        if self.first_mismatch.is_none() {
+            self.first_mismatch = report.first_mismatch.as_ref().map(|(stream, m)| {
+                let s = chunk
+                    .outputs
+                    .iter()
+                    .position(|o| &o.name == stream)
+                    .unwrap_or(0);
+                ModuleMismatch {
+                    stream: stream.clone(),
+                    beat: m.output_index,
+                    merge: self.merges + (chunk.merge_of)(s, m.output_index as usize),
+                    cycle: m.cycle,
+                    fields: decode(stream, &m.expected, &m.got),
+                }
+            });
+        }
+        self.merges += n;
+        self.chunks += 1;
+        let failed = !report.passed() || pulse("done") != n as u64;
+        if failed {
+            self.missing = report.missing.clone();
+            self.hang = report.hang.clone();
+            self.vcd = report.vcd.clone();
+        }
+        failed
+    }
+}
+
+/// How the simulator runs: stepped from Rust (IR, Verilator) or a whole
+/// chunk inside one `vvp` run (Icarus).
+enum Sim {
+    Stepped {
+        module: rtl_gen::Module,
+        design: Design,
+        kind: ModuleEngine,
+    },
+    Batch(Box<IcarusMultiBatch>),
+}
+
+/// One simulator of a multi-stream unit, built once, run chunk after chunk.
+pub struct ChunkedSim {
+    sim: Sim,
+    patched: bool,
+}
+
+impl ChunkedSim {
+    /// The unit `module` (its Verilog in `design`) on `engine`, with the
+    /// named input and output streams; `patched`: the Verilog was broken on
+    /// purpose (Verilator then builds with tracing at once).
+    pub fn new(
+        module: rtl_gen::Module,
+        design: Design,
+        engine: ModuleEngine,
+        inputs: &[&str],
+        outputs: &[&str],
+        patched: bool,
+    ) -> Result<Self> {
+        let sim = match engine {
+            ModuleEngine::Iverilog => Sim::Batch(Box::new(IcarusMultiBatch::new_watching(
+                &design,
+                inputs,
+                outputs,
+                &super::merge_module::PULSES,
+            )?)),
+            kind => Sim::Stepped {
+                module,
+                design,
+                kind,
+            },
+        };
+        Ok(ChunkedSim { sim, patched })
+    }
+
+    /// Runs one chunk of `n` merges and adds it to `totals`; returns
+    /// whether it failed. `progress` gets (merges whose chunk is done or
+    /// whose outputs arrived so far, cycle over the run).
+    pub fn run_chunk(
+        &self,
+        totals: &mut ChunkTotals,
+        n: usize,
+        chunk: &ChunkStreams,
+        config: &RunConfig,
+        decode: &PairDecoder,
+        progress: &mut dyn FnMut(u64, u64),
+    ) -> Result<bool> {
+        let bench = BenchConfig {
+            seed: config.seed ^ totals.chunks as u64,
+            in_stall: config.stall,
+            out_stall: config.stall,
+            stop_on_mismatch: false,
+            vcd_path: config.vcd_path.clone(),
+            vcd_radius: config.vcd_radius,
+            ..BenchConfig::default()
+        };
+        let (before, cycles_before) = (totals.merges as u64, totals.cycles);
+        let (report, watch) = match &self.sim {
+            Sim::Stepped {
+                module,
+                design,
+                kind,
+            } => {
+                let mut make = stepped_engines(module, design, *kind, self.patched);
+                let mut on_progress = |p: Progress| {
+                    // Merges by the share of expected beats arrived.
+                    let total = p.expected_outputs.max(1);
+                    let share = p.outputs.min(total) as f64 / total as f64;
+                    progress(before + (share * n as f64) as u64, cycles_before + p.cycle);
+                };
+                run_multi_with_vcd_on_failure(
+                    &mut make,
+                    chunk.inputs,
+                    chunk.outputs,
+                    &bench,
+                    &super::merge_module::PULSES,
+                    &mut on_progress,
+                )?
+            }
+            Sim::Batch(batch) => {
+                let r = batch.run(chunk.inputs, chunk.outputs, &bench)?;
+                let watch = PulseWatch {
+                    counts: r.pulses,
+                    at_end: r.pulses_at_end,
+                };
+                (r.report, watch)
+            }
+        };
+        let failed = totals.add(n, chunk, &report, &watch, decode);
+        progress(totals.merges as u64, totals.cycles);
+        Ok(failed)
+    }
+}

@@ -15,8 +15,10 @@ use cosim::tb::StreamBeats;
 use cosim::BitVec;
 use golden::build::{build, GridMap};
 use golden::merge::fetch_unit::{
-    fetch_err, fetch_transaction, FetchCmd, FetchLayout, FetchOut, FetchSizes, FetchTransaction,
+    fetch_err, fetch_transaction, fetch_transaction_with_reports, FetchCmd, FetchLayout, FetchOut,
+    FetchSizes, FetchTransaction,
 };
+use golden::merge::per_node_unit::{random_per_node_case, PerNodeReport};
 use golden::params::Params;
 use golden::scenes::random_soup;
 use golden::store::{Hierarchy, Reference};
@@ -153,6 +155,7 @@ struct Seen {
     leaf_beats: usize,
     node_reads: usize,
     ref_reads: usize,
+    probe_reads: usize,
 }
 
 /// Random fetches: soups of 1 to `most` triangles, random translations,
@@ -242,8 +245,20 @@ fn index_beat(v: u32, width: u32) -> Vec<BitVec> {
 
 /// The streams of a list of fetches.
 fn streams(p: &Params, txs: &[FetchTransaction]) -> (Vec<StreamBeats>, Vec<StreamBeats>, Seen) {
-    let l = FetchLayout::new(p);
+    streams_of(&FetchLayout::new(p), txs)
+}
+
+/// The streams of a list of fetches for a fetcher of layout `l` (with the
+/// per-node command's `probe_resp`, `report` and `probe_req` when it has
+/// them).
+fn streams_of(
+    l: &FetchLayout,
+    txs: &[FetchTransaction],
+) -> (Vec<StreamBeats>, Vec<StreamBeats>, Seen) {
     let mut s: [Vec<Vec<BitVec>>; 10] = Default::default();
+    let mut probe_resp = Vec::new();
+    let mut report = Vec::new();
+    let mut probe_req = Vec::new();
     let mut seen = Seen::default();
     for tx in txs {
         seen.inputs += 1;
@@ -254,8 +269,8 @@ fn streams(p: &Params, txs: &[FetchTransaction]) -> (Vec<StreamBeats>, Vec<Strea
         {
             seen.multi_errors += 1;
         }
-        s[0].push(bits(tx.cfg.pack(&l).unwrap()));
-        s[1].extend(tx.cmds.iter().map(|c| bits(c.pack(&l).unwrap())));
+        s[0].push(bits(tx.cfg.pack(l).unwrap()));
+        s[1].extend(tx.cmds.iter().map(|c| bits(c.pack(l).unwrap())));
         s[2].extend(tx.node_resps.iter().map(|r| bits(r.pack(&l.node).unwrap())));
         s[3].extend(
             tx.ref_resps
@@ -270,8 +285,18 @@ fn streams(p: &Params, txs: &[FetchTransaction]) -> (Vec<StreamBeats>, Vec<Strea
         s[5].extend(tx.node_reqs.iter().map(|&i| index_beat(i, l.index_width)));
         s[6].extend(tx.ref_reqs.iter().map(|&i| index_beat(i, l.index_width)));
         s[7].extend(tx.cref_reqs.iter().map(|&i| index_beat(i, l.index_width)));
-        s[8].extend(tx.out.iter().map(|o| bits(o.pack(&l).unwrap())));
-        s[9].extend(tx.leaves.iter().map(|o| bits(o.pack(&l).unwrap())));
+        s[8].extend(tx.out.iter().map(|o| bits(o.pack(l).unwrap())));
+        s[9].extend(tx.leaves.iter().map(|o| bits(o.pack(l).unwrap())));
+        if let Some(f) = &l.pn {
+            probe_resp.extend(
+                tx.probe_resps
+                    .iter()
+                    .map(|r| bits(r.pack(&l.node).unwrap())),
+            );
+            report.extend(tx.reports.iter().map(|r| bits(f.pack_report(r).unwrap())));
+            probe_req.extend(tx.probe_reqs.iter().map(|&i| index_beat(i, l.index_width)));
+        }
+        seen.probe_reads += tx.probe_reqs.len();
         for o in &tx.out {
             if let FetchOut::Error { code, .. } = o {
                 seen.codes[*code as usize] += 1;
@@ -302,7 +327,19 @@ fn streams(p: &Params, txs: &[FetchTransaction]) -> (Vec<StreamBeats>, Vec<Strea
             beats,
         })
         .collect();
-    let outs = all.split_off(5);
+    let mut outs = all.split_off(5);
+    if l.pn.is_some() {
+        for (name, beats) in [("probe_resp", probe_resp), ("report", report)] {
+            all.push(StreamBeats {
+                name: name.into(),
+                beats,
+            });
+        }
+        outs.push(StreamBeats {
+            name: "probe_req".into(),
+            beats: probe_req,
+        });
+    }
     (all, outs, seen)
 }
 
@@ -656,4 +693,314 @@ fn leaves_end_does_not_wait_on_out() {
         e.cycle(),
         tx.out.len()
     );
+}
+
+// ---------------------------------------------------------------------------
+// The per-node command (`rtl_gen::merge::fetcher_per_node_unit`)
+
+/// What the per-node stimulus reached.
+#[derive(Default, Debug)]
+struct PnSeen {
+    fetches: usize,
+    passes: usize,
+    multi_pass: usize,
+    descents: usize,
+    probes: usize,
+    level_cmds: usize,
+    errors: usize,
+    corrupted: usize,
+}
+
+/// Random per-node fetches: the inputs of random per-node merges
+/// (`random_per_node_case`, 2-`k` inputs, trees 4 LODs deep, ratio 1/2 or
+/// 0/1), each input's fetcher given the module's `report` stream with one
+/// decision in 8 flipped (so descents are random, at the contested voxels),
+/// one input in 4 corrupted (errors: then only the passes' `End`s follow
+/// it), half the inputs first given a level command.
+fn random_per_node_fetches(
+    p: &Params,
+    sizes: FetchSizes,
+    seed: u64,
+    merges: usize,
+) -> (Vec<FetchTransaction>, PnSeen) {
+    let mut rng = SplitMix64(seed);
+    let mut out = Vec::new();
+    let mut seen = PnSeen::default();
+    let k = 2 + (seed % 3) as usize;
+    while seen.fetches < merges {
+        let c = random_per_node_case(&mut rng, p, k, 4);
+        let (num, den) = if rng.below(2) == 0 { (1, 2) } else { (0, 1) };
+        let Ok(tx) = c.transaction(p, num, den) else {
+            continue;
+        };
+        if tx.passes == 0 {
+            continue;
+        }
+        seen.fetches += 1;
+        for (h, t) in c.hierarchies.iter().zip(&c.translations) {
+            // One descent in 4 refused; a pass left with none ends the
+            // merge (the module's `more`: some voxel descended, `l < D`).
+            let mut reports = Vec::new();
+            let mut descended = false;
+            for r in &tx.reports {
+                match *r {
+                    PerNodeReport::Decision {
+                        voxel,
+                        shared,
+                        union,
+                        descend,
+                    } => {
+                        let descend = descend && rng.below(4) != 0;
+                        descended |= descend;
+                        reports.push(PerNodeReport::Decision {
+                            voxel,
+                            shared,
+                            union,
+                            descend,
+                        });
+                    }
+                    PerNodeReport::PassEnd { lod, more } => {
+                        let more = more && descended;
+                        reports.push(PerNodeReport::PassEnd { lod, more });
+                        if !more {
+                            break;
+                        }
+                        descended = false;
+                    }
+                    other => reports.push(other),
+                }
+            }
+            let h = if rng.below(4) == 0 {
+                seen.corrupted += 1;
+                corrupt(&mut rng, h)
+            } else {
+                h.clone()
+            };
+            let entry = if rng.below(40) == 0 {
+                0
+            } else {
+                pack_entry(Some(t), p)
+            };
+            let mut cmds = Vec::new();
+            if rng.below(2) == 0 {
+                seen.level_cmds += 1;
+                let lod = c.lo.saturating_sub(rng.below(2) as u8);
+                cmds.push(FetchCmd::level(
+                    lod,
+                    rng.below(2) == 0,
+                    rng.below(2) == 0,
+                    false,
+                ));
+            }
+            cmds.push(FetchCmd::per_node(c.lo, rng.below(4) != 0, true));
+            let f = fetch_transaction_with_reports(&h, entry, &cmds, &reports, sizes)
+                .expect("representable, every pass closed");
+            let passes = f
+                .reports
+                .iter()
+                .filter(|r| !matches!(r, PerNodeReport::Decision { .. }))
+                .count();
+            seen.passes += passes;
+            seen.multi_pass += (passes > 1) as usize;
+            seen.descents += f
+                .reports
+                .iter()
+                .filter(|r| matches!(r, PerNodeReport::Decision { descend: true, .. }))
+                .count();
+            seen.probes += f.probe_reqs.len();
+            seen.errors += f.out.iter().any(|o| matches!(o, FetchOut::Error { .. })) as usize;
+            out.push(f);
+        }
+    }
+    (out, seen)
+}
+
+/// Per-node fetches on each engine of `runs` (engine, merges), in chunks.
+fn check_per_node(name: &str, runs: &[(&str, usize)]) {
+    let all = configs();
+    let i = all.iter().position(|c| c.0 == name).unwrap();
+    let (_, p, sizes) = all[i];
+    let dir = tempfile::tempdir().unwrap();
+    let m = rtl_gen::merge::fetcher_per_node_unit(&p, &sizes);
+    let design = design_of(&m, dir.path());
+    let l = FetchLayout::per_node(&p);
+    for &(kind, merges) in runs {
+        let (mut total, mut chunk) = (0, 0u64);
+        let (mut beats, mut cycles, mut wall) = (0usize, 0u64, 0.0f64);
+        let mut all_seen = PnSeen::default();
+        let mut e = (kind != "iverilog").then(|| engine(kind, &m, &design));
+        while total < merges {
+            let n = 2_000.min(merges - total);
+            let seed = 0x9e7c + 0x100 * i as u64 + chunk;
+            let stall = stall_of(seed ^ kind.len() as u64).max(0.05);
+            let (txs, seen) = random_per_node_fetches(&p, sizes, seed, n);
+            let (ins, outs, s) = streams_of(&l, &txs);
+            let what = format!("merge_fetcher per-node {name} {kind} chunk {chunk}");
+            let r = match e.as_mut() {
+                Some(e) => multi_bench(e.as_mut(), &ins, &outs, seed, stall, &what),
+                None => multi_batch_bench(&design, &ins, &outs, seed, stall, &what),
+            };
+            total += seen.fetches;
+            beats += s.out_beats + s.leaf_beats + s.node_reads + s.ref_reads + s.probe_reads;
+            cycles += r.cycles;
+            wall += r.wall.as_secs_f64();
+            chunk += 1;
+            all_seen.fetches += seen.fetches;
+            all_seen.passes += seen.passes;
+            all_seen.multi_pass += seen.multi_pass;
+            all_seen.descents += seen.descents;
+            all_seen.probes += seen.probes;
+            all_seen.level_cmds += seen.level_cmds;
+            all_seen.errors += seen.errors;
+            all_seen.corrupted += seen.corrupted;
+        }
+        println!(
+            "fetcher per-node {name} {kind}: {total} merges, {beats} beats (out, leaves, requests), {cycles} cycles, {wall:.1} s wall; {all_seen:?}"
+        );
+        assert!(
+            all_seen.multi_pass > 0 && all_seen.descents > 0,
+            "{name} {kind}: {all_seen:?}"
+        );
+        assert!(
+            all_seen.errors > 0 && all_seen.level_cmds > 0,
+            "{name} {kind}: {all_seen:?}"
+        );
+    }
+}
+
+#[test]
+fn fetcher_per_node_default_matches_golden() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
+    }
+    check_per_node(
+        "default",
+        &[("ir", 40), ("verilator", 1_000), ("iverilog", 20)],
+    );
+}
+
+#[test]
+fn fetcher_per_node_d31_matches_golden() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
+    }
+    check_per_node("d31", &[("ir", 20), ("verilator", 300), ("iverilog", 10)]);
+}
+
+#[test]
+fn fetcher_per_node_q0_matches_golden() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
+    }
+    check_per_node("q0", &[("ir", 40), ("verilator", 1_000), ("iverilog", 20)]);
+}
+
+/// The per-node fetcher lints clean at every configuration (Yosys at the
+/// small one), and the level modes' fetcher has none of its logic.
+#[test]
+fn fetcher_per_node_lints_and_synthesizes() {
+    if !tools_present(&["verilator", "yosys"]) {
+        return;
+    }
+    for (name, p, sizes) in configs() {
+        let dir = tempfile::tempdir().unwrap();
+        let m = rtl_gen::merge::fetcher_per_node_unit(&p, &sizes);
+        let warnings = m.validate_design().expect("valid");
+        assert!(warnings.is_empty(), "{name}: {warnings:?}");
+        let design = design_of(&m, dir.path());
+        if name == "small" {
+            lint_and_synth(&design);
+        } else {
+            lint_only(&design);
+        }
+        let plain = rtl_gen::merge::fetcher_unit(&p, &sizes);
+        let plain = design_of(&plain, tempfile::tempdir().unwrap().path());
+        for port in ["report", "probe_req", "probe_resp"] {
+            assert!(
+                design.ports.iter().any(|x| x.name.starts_with(port)),
+                "{name} {port}"
+            );
+            assert!(
+                !plain.ports.iter().any(|x| x.name.starts_with(port)),
+                "{name} {port}"
+            );
+        }
+    }
+}
+
+/// Per-node steady state: one per-node command on a large builder-made
+/// input at its top, every inner voxel of every pass descending (a
+/// `report` of one decision per inner node of the pass, always valid), no
+/// back-pressure, a memory answering every clock (Verilator cycles). Every
+/// node below the top is read once on `node` (as a pass's live node) and
+/// once on `probe` (as its parent's probe).
+#[test]
+fn fetcher_per_node_steady_state() {
+    if !tools_present(&["verilator"]) {
+        return;
+    }
+    for (name, p, _) in configs().into_iter().take(3) {
+        let sizes = FetchSizes {
+            roots: 16,
+            frontier: 2048,
+        };
+        let h = [1500, 300]
+            .into_iter()
+            .find_map(|n| soup(&p, 1, n, 0.05, 7))
+            .expect("a 300-triangle soup fits every configuration's I");
+        let t = Translation::zero(h.top_lod);
+        let deepest = h.nodes.iter().map(|n| n.voxel.lod).max().unwrap();
+        let mut reports = Vec::new();
+        for l in h.top_lod..=deepest {
+            let w = golden::merge::walk::walk_input(&h, 0, &t, l).unwrap();
+            let (_, mut at) = golden::merge::walk::collect(std::slice::from_ref(&w), l);
+            golden::merge::level_merge::sort_stream(&mut at);
+            for n in at.iter().filter(|n| !n.record.leaf) {
+                reports.push(PerNodeReport::Decision {
+                    voxel: n.record.voxel,
+                    shared: 1,
+                    union: 1,
+                    descend: true,
+                });
+            }
+            reports.push(PerNodeReport::PassEnd {
+                lod: l,
+                more: l < deepest,
+            });
+        }
+        let cmd = FetchCmd::per_node(h.top_lod, true, true);
+        let entry = pack_entry(Some(&t), &p);
+        let tx = fetch_transaction_with_reports(&h, entry, &[cmd], &reports, sizes).unwrap();
+        if !tx.out.iter().all(|o| !matches!(o, FetchOut::Error { .. })) {
+            println!("fetcher per-node {name} steady state: an error (capacity), not measured");
+            continue;
+        }
+        let l = FetchLayout::per_node(&p);
+        let (ins, outs, seen) = streams_of(&l, std::slice::from_ref(&tx));
+        let dir = tempfile::tempdir().unwrap();
+        let m = rtl_gen::merge::fetcher_per_node_unit(&p, &sizes);
+        let design = design_of(&m, dir.path());
+        let mut e = engine("verilator", &m, &design);
+        let r = multi_bench(
+            e.as_mut(),
+            &ins,
+            &outs,
+            1,
+            0.0,
+            &format!("fetcher per-node {name} steady state"),
+        );
+        let c = r.cycles as f64;
+        println!(
+            "fetcher per-node {name} steady state ({} nodes, {} passes): {} node reads, {} probe reads, {} cref reads in {} cycles: {:.4} node + probe reads/cycle, {:.4} out beats/cycle ({} beats)",
+            h.nodes.len(),
+            deepest - h.top_lod + 1,
+            seen.node_reads,
+            seen.probe_reads,
+            tx.cref_reqs.len(),
+            r.cycles,
+            (seen.node_reads + seen.probe_reads) as f64 / c,
+            seen.out_beats as f64 / c,
+            seen.out_beats
+        );
+    }
 }

@@ -132,9 +132,11 @@ pub struct PerNodeFetchLayout {
     pub probe: Field,
     /// The `report` input, the fields of the per-node module's `report`
     /// beat ([`PerNodeLayout`]) the fetcher reads, which the merger's glue
-    /// takes out of it, from bit 0: `x`, `y`, `z` (D each), `descend`,
-    /// `pass_end`, `more` (1 each). A refusal beat is `pass_end` 1, `more` 0.
+    /// takes out of it, from bit 0: `x`, `y`, `z` (D each), `lod`
+    /// (`lod_bits`), `descend`, `pass_end`, `more` (1 each). A refusal beat
+    /// is `pass_end` 1, `more` 0.
     pub report_coord: [Field; 3],
+    pub report_lod: Field,
     pub report_descend: Field,
     pub report_pass_end: Field,
     pub report_more: Field,
@@ -150,9 +152,11 @@ impl PerNodeFetchLayout {
                 for (f, v) in self.report_coord.iter().zip([voxel.x, voxel.y, voxel.z]) {
                     b.set(f, v as u64)?;
                 }
+                b.set(&self.report_lod, voxel.lod as u64)?;
                 b.set(&self.report_descend, descend as u64)?;
             }
-            PerNodeReport::PassEnd { more, .. } => {
+            PerNodeReport::PassEnd { lod, more } => {
+                b.set(&self.report_lod, lod as u64)?;
                 b.set(&self.report_pass_end, 1)?;
                 b.set(&self.report_more, more as u64)?;
             }
@@ -163,11 +167,12 @@ impl PerNodeFetchLayout {
 
     /// Where each field of the fetcher's `report` beat sits in the module's
     /// `report` beat ([`PerNodeLayout`]): (fetcher field, module field).
-    pub fn report_sources(&self, module: &PerNodeLayout) -> [(Field, Field); 6] {
+    pub fn report_sources(&self, module: &PerNodeLayout) -> [(Field, Field); 7] {
         [
             (self.report_coord[0], module.coord[0]),
             (self.report_coord[1], module.coord[1]),
             (self.report_coord[2], module.coord[2]),
+            (self.report_lod, module.lod),
             (self.report_descend, module.descend),
             (self.report_pass_end, module.pass_end),
             (self.report_more, module.more),
@@ -251,6 +256,7 @@ impl FetchLayout {
             ("x", d),
             ("y", d),
             ("z", d),
+            ("lod", p.lod_bits()),
             ("descend", 1),
             ("pass_end", 1),
             ("more", 1),
@@ -267,9 +273,10 @@ impl FetchLayout {
                 width: 1,
             },
             report_coord: report[..3].try_into().expect("three axes"),
-            report_descend: report[3],
-            report_pass_end: report[4],
-            report_more: report[5],
+            report_lod: report[3],
+            report_descend: report[4],
+            report_pass_end: report[5],
+            report_more: report[6],
             report_width,
         });
         let cmd_width = pn.as_ref().map_or(cmd_width, |f| f.per_node.end());
@@ -1048,9 +1055,10 @@ impl Walk<'_> {
 
     /// The join of the pass's inner nodes (`entries`, in Morton order) with
     /// the module's decisions (contested voxels in Morton order, then the
-    /// `pass_end` beat): a decision at an entry's voxel with `descend` puts
-    /// the entry's range on the next pass; a decision at a voxel of no
-    /// entry is passed over. Returns the descending ranges and `more` (a
+    /// `pass_end` beat): a decision at an entry's voxel with `descend` (at a
+    /// LOD above D: a voxel at D has no child voxels) puts the entry's
+    /// range on the next pass; a decision at a voxel of no entry is passed
+    /// over. Returns the descending ranges and `more` (a
     /// refusal beat ends the command as `more` = 0).
     fn join(
         &self,
@@ -1079,7 +1087,7 @@ impl Walk<'_> {
                         i += 1;
                     }
                     if let Some(e) = entries.get(i).filter(|e| e.key == key) {
-                        if descend {
+                        if descend && voxel.lod < self.h.params.max_lod {
                             ranges.push((e.first, e.count, e.node));
                         }
                         i += 1;

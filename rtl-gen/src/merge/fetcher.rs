@@ -34,6 +34,11 @@ pub fn fetcher_name(p: &Params, sizes: &FetchSizes) -> String {
     )
 }
 
+/// Module name of the fetcher built with the per-node command.
+pub fn fetcher_per_node_name(p: &Params, sizes: &FetchSizes) -> String {
+    format!("{}_pn", fetcher_name(p, sizes))
+}
+
 /// The command's phases.
 mod ph {
     pub const IDLE: u64 = 0;
@@ -257,8 +262,29 @@ fn out_beat<'m>(
 /// `cref_req`, `out`, `leaves` out. `idle` is high while no command is in
 /// progress.
 pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
-    let m = Module::new(&fetcher_name(p, sizes));
-    let l = FetchLayout::new(p);
+    fetcher_unit_with(p, sizes, false)
+}
+
+/// [`fetcher_unit`] with the per-node command (SPEC 8.13): `cmd`'s
+/// `per_node` bit, `out`'s `probe` bit, the `report` input (the glue's
+/// narrow beat of the per-node module's `report`) and the `probe` read
+/// port (`probe_req` out, `probe_resp` in: a node index, a record), all
+/// from `golden::merge::fetch_unit::FetchLayout::per_node`. Level commands
+/// run as in [`fetcher_unit`] (one more out stage: the probes' answers).
+pub fn fetcher_per_node_unit(p: &Params, sizes: &FetchSizes) -> Module {
+    fetcher_unit_with(p, sizes, true)
+}
+
+/// The fetcher, with the per-node command when `pn`; without it every
+/// signal, register and port is the level modes' fetcher's, built in the
+/// same order (the same Verilog).
+fn fetcher_unit_with(p: &Params, sizes: &FetchSizes, pn: bool) -> Module {
+    let name = match pn {
+        true => fetcher_per_node_name(p, sizes),
+        false => fetcher_name(p, sizes),
+    };
+    let m = Module::new(&name);
+    let l = FetchLayout::build(p, pn);
     let nl = &l.node;
     let rl = &l.reference;
     let bl = BeatLayout::input(p);
@@ -326,7 +352,20 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     let c_first = m.reg("cmd_first", lb);
     let cmd_from = field(cmd.data, &l.from).expect("from");
     let cmd_lod = field(cmd.data, &l.lod).expect("lod");
-    c_first.next_when(cmd_fire, cmd_from.gt(cmd_lod).mux(cmd_lod, cmd_from));
+    let first = cmd_from.gt(cmd_lod).mux(cmd_lod, cmd_from);
+    // The per-node command's passes start at `lod` (`from` not read).
+    let c_pn = l.pn.as_ref().map(|f| {
+        let r = m.reg("cmd_per_node", 1);
+        r.next_when(cmd_fire, field(cmd.data, &f.per_node).expect("per_node"));
+        r
+    });
+    let first = match &l.pn {
+        Some(f) => field(cmd.data, &f.per_node)
+            .expect("per_node")
+            .mux(cmd_lod, first),
+        None => first,
+    };
+    c_first.next_when(cmd_fire, first);
     n_phase.when(cmd_fire, goto(ph::START));
 
     let walk = is(ph::WALK).name("walking");
@@ -550,7 +589,18 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     // leaves above `first` go to `leaves`.
     let above = v_d.lt(c_lod).name("above_level");
     let above_first = v_d.lt(c_first).name("above_first");
-    let sending = (!above_first & v_d.le(c_lod)).name("sending_level");
+    // Per-node: every level from the first pass on is a pass (`pn_pass`).
+    let sending = match c_pn {
+        Some(c) => !above_first & (v_d.le(c_lod) | c),
+        None => !above_first & v_d.le(c_lod),
+    }
+    .name("sending_level");
+    let pn_pass = c_pn.map(|c| (c & !above).name("pn_pass"));
+    // The visit stage has sent a pass's `End` and waits for the join to
+    // take the pass's `pass_end` (the next pass's nodes wait behind it).
+    let pn_visited = c_pn.map(|_| m.reg("pn_visited", 1));
+    // The pass's inner nodes (Morton code, range, node) for the join.
+    let pass_in = c_pn.map(|_| Stream::wires(&m, "pass_in", 3 * p.coord_bits() + 3 * ib));
     // The `leaves` end beat leaves as soon as the visit stage is at the
     // first sent level (every node above it visited), before any item of
     // a sent level may wait on `out`: the merger's leaf merge then never
@@ -590,7 +640,11 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
             | top_sorted & s_out_valid
             | deep & ctx2.valid & (!c2_node | node_resp.valid)))
         .name("visit_avail");
-    let visit_room = (downstream & !pre_ends).name("visit_free");
+    let visit_room = match (pn_visited, pass_in) {
+        (Some(w), Some(e)) => downstream & !pre_ends & !w & e.ready,
+        _ => downstream & !pre_ends,
+    }
+    .name("visit_free");
     let go = (in_avail & visit_room).name("visit_go");
     sorter.connect("out_ready", live & top_sorted & !top_cap & visit_room);
     cap_told.next(start.mux(lit(0, 1), (go & top_cap).mux(lit(1, 1), cap_told)));
@@ -638,9 +692,14 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
         .name("item_range_end");
     let at_level = v_d.eq(c_lod).name("at_level");
     let order_bad = (prev_valid & key.le(prev_key)).name("order_bad");
-    let range_bad =
-        (inner & (above | at_level & c_refs) & n_end.gt(refs.zext(ib + 1))).name("range_bad");
-    let front_bad = (inner & above & pushed.ge(lit(fcap, cb))).name("frontier_bad");
+    // A pass's inner nodes use their ranges (probes, references) and are
+    // kept for the join, `frontier` of them at most per pass.
+    let (uses_range, counted) = match pn_pass {
+        Some(q) => (above | at_level & c_refs | q, above | q),
+        None => (above | at_level & c_refs, above),
+    };
+    let range_bad = (inner & uses_range & n_end.gt(refs.zext(ib + 1))).name("range_bad");
+    let front_bad = (inner & counted & pushed.ge(lit(fcap, cb))).name("frontier_bad");
     let visit_code = in_err.mux(
         in_err_code,
         in_end.mux(
@@ -663,8 +722,35 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     let to_out = (passes & sending).name("to_out");
     let more = (above & pushed.ne(0)).name("next_level");
     let level_end = (go & in_end).name("level_end");
-    let walk_over = (level_end & !more).name("walk_over");
+    // Per-node: a level end with nothing pushed (a pass's end, or the walk
+    // run out above the first pass) is a pass's `End`; the command ends
+    // with the join, not with the walk.
+    let (walk_over, pn_end, ran_out) = match c_pn {
+        Some(c) => {
+            let ran_out = (level_end & !more).name("walk_ran_out");
+            let pn_end = (ran_out & c).name("pn_pass_end");
+            ((ran_out & !c).name("walk_over"), Some(pn_end), ran_out)
+        }
+        None => {
+            let w = (level_end & !more).name("walk_over");
+            (w, None, w)
+        }
+    };
     let marker = (level_end & more).name("marker_push");
+    let pass_fifo = pn_pass.zip(pass_in).map(|(q, pass_in)| {
+        let e_push = (passes & q & inner).name("pass_push");
+        pass_in.valid.drive(e_push);
+        let morton_part = key.slice(key_bits - 1, 1);
+        pass_in
+            .data
+            .drive(m.concat(&[rec_idx, n_count, n_first, morton_part]));
+        let depth = (fcap.max(2)).next_power_of_two() as u32;
+        (e_push, fifo(&m, "pass", pass_in, depth))
+    });
+    let step_level = match pn_end {
+        Some(e) => marker | e,
+        None => marker,
+    };
     let level_end_push = (marker & end_next.eq(v_d)).name("level_end_push");
     end_next.next(start.mux(
         c_first,
@@ -674,22 +760,82 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
 
     prev_valid.next(start.mux(
         lit(0, 1),
-        marker.mux(lit(0, 1), (go & in_node).mux(lit(1, 1), prev_valid)),
+        step_level.mux(lit(0, 1), (go & in_node).mux(lit(1, 1), prev_valid)),
     ));
     prev_key.next_when(go & in_node, key);
+    let counted_push = match &pass_fifo {
+        Some((e_push, _)) => push | *e_push,
+        None => push,
+    };
     pushed.next(start.mux(
         lit(0, cb),
-        marker.mux(lit(0, cb), push.mux(pushed.add(1, cb), pushed)),
+        step_level.mux(lit(0, cb), counted_push.mux(pushed.add(1, cb), pushed)),
     ));
-    v_d.next(start.mux(top, marker.mux(v_d.add(1, lb), v_d)));
+    v_d.next(start.mux(top, step_level.mux(v_d.add(1, lb), v_d)));
     v_top.next(start.mux(lit(1, 1), level_end.mux(lit(0, 1), v_top)));
     v_done.next(start.mux(lit(0, 1), walk_over.mux(lit(1, 1), v_done)));
     v_errored.next(start.mux(lit(0, 1), fails.mux(lit(1, 1), v_errored)));
 
-    front_in.valid.drive(push | marker);
-    front_in
-        .data
-        .drive(m.concat(&[marker, rec_idx, n_count, n_first]));
+    // ---- the join (per-node): the pass's inner nodes against the
+    // module's decisions; a descending one's range goes on the frontier
+    // for the next pass, whose end marker goes on at `pass_end` with
+    // `more`. It pushes only while the visit stage is at a pass (which
+    // pushes nothing there), so the two never push in one clock.
+    let mut pn_end_left = None;
+    let mut pn_join_take = None;
+    match (&pass_fifo, &l.pn) {
+        (Some((_, entries)), Some(f)) => {
+            let report = Stream::input(&m, "report", f.report_width);
+            let visited = pn_visited.expect("per-node");
+            let end_left = m.reg("pn_end_left", 1);
+            pn_end_left = Some(end_left);
+            let r = |f: &golden::layout::Field| field(report.data, f).expect("report field");
+            let r_key =
+                morton_code(&m, [0, 1, 2].map(|a| r(&f.report_coord[a]))).name("report_key");
+            let r_pe = r(&f.report_pass_end);
+            let r_more = r(&f.report_more);
+            // A voxel at D has no child voxels: never followed.
+            let r_desc = r(&f.report_descend) & r(&f.report_lod).lt(lit(dmax, lb));
+            let kb = 3 * p.coord_bits();
+            let e_key = entries.data.slice(kb - 1, 0);
+            let e_first = entries.data.slice(kb + ib - 1, kb);
+            let e_count = entries.data.slice(kb + 2 * ib - 1, kb + ib);
+            let e_node = entries.data.slice(kb + 3 * ib - 1, kb + 2 * ib);
+            let jv = (walk & c_pn.expect("per-node") & report.valid).name("join_valid");
+            let dec = (jv & !r_pe).name("join_decision");
+            let e_lt = (entries.valid & e_key.lt(r_key)).name("join_entry_before");
+            let e_eq = (entries.valid & e_key.eq(r_key)).name("join_entry_at");
+            let skip = (dec & e_lt | jv & r_pe & entries.valid).name("join_entry_stays");
+            let matched = (dec & e_eq & (!r_desc | front_in.ready)).name("join_match");
+            let j_push = (matched & r_desc).name("join_descend");
+            let passed = (dec & (!entries.valid & visited | entries.valid & !e_lt & !e_eq))
+                .name("join_other_voxel");
+            let pe_take =
+                (jv & r_pe & !entries.valid & visited & end_left & (!r_more | front_in.ready))
+                    .name("join_pass_end");
+            let j_marker = (pe_take & r_more).name("join_marker");
+            entries.ready.drive(skip | matched);
+            report.ready.drive(matched | passed | pe_take);
+            front_in.valid.drive(push | marker | j_push | j_marker);
+            front_in.data.drive((j_push | j_marker).mux(
+                m.concat(&[j_marker, e_node, e_count, e_first]),
+                m.concat(&[marker, rec_idx, n_count, n_first]),
+            ));
+            let pn_end = pn_end.expect("per-node");
+            visited.next(start.mux(
+                lit(0, 1),
+                pn_end.mux(lit(1, 1), pe_take.mux(lit(0, 1), visited)),
+            ));
+            pn_join_take = Some(pe_take);
+            n_phase.when(pe_take & !r_more, goto(ph::DONE));
+        }
+        _ => {
+            front_in.valid.drive(push | marker);
+            front_in
+                .data
+                .drive(m.concat(&[marker, rec_idx, n_count, n_first]));
+        }
+    }
     let leaf_beat = with_fields(
         &m,
         m.lit(0, l.leaves_width),
@@ -701,26 +847,40 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     );
     let leaf_end_beat = with_fields(&m, m.lit(0, l.leaves_width), &[(l.leaf_end, lit(1, 1))]);
     // The end beat: the walk over above the first level, or it reached.
+    // (Per-node: the walk may run out above the first pass once per pass.)
+    let lend_out = match c_pn {
+        Some(_) => ran_out & !lend_sent,
+        None => walk_over,
+    };
     let lend_fire =
-        (walk_over & above_first & c_leaves | lend_due & leaves.ready).name("leaves_end_fire");
+        (lend_out & above_first & c_leaves | lend_due & leaves.ready).name("leaves_end_fire");
     lend_sent.next(start.mux(lit(0, 1), lend_fire.mux(lit(1, 1), lend_sent)));
     leaves
         .valid
-        .drive(leaf_out | walk_over & above_first & c_leaves | lend_due);
+        .drive(leaf_out | lend_out & above_first & c_leaves | lend_due);
     leaves.data.drive(leaf_out.mux(leaf_beat, leaf_end_beat));
     // Only the first error goes on: `out` drops what follows it, and so at
     // most one item enters `out_items` above the level (it never fills
     // there, so the walk above the level never waits on `out`).
-    oin.valid
-        .drive(to_out | fails & !v_errored | level_end_push | end_emit);
+    match pn_end {
+        Some(e) => oin
+            .valid
+            .drive(to_out | fails & !v_errored | level_end_push | end_emit | e),
+        None => oin
+            .valid
+            .drive(to_out | fails & !v_errored | level_end_push | end_emit),
+    }
     oin.data.drive(
         m.concat(&[
             fails.mux(
                 lit(ok::ERR, ok::BITS),
                 end_final.mux(
                     lit(ok::FINAL, ok::BITS),
-                    (level_end_push | end_emit)
-                        .mux(lit(ok::LEVEL_END, ok::BITS), lit(ok::NODE, ok::BITS)),
+                    match pn_end {
+                        Some(e) => level_end_push | end_emit | e,
+                        None => level_end_push | end_emit,
+                    }
+                    .mux(lit(ok::LEVEL_END, ok::BITS), lit(ok::NODE, ok::BITS)),
                 ),
             ),
             visit_code,
@@ -768,12 +928,91 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     let b_leaf = (can & !cr_active & items.valid & same_leaf).name("held_leaf");
     let c_flush =
         (can & !cr_active & items.valid & pend_valid & !same_leaf).name("held_refs_first");
-    let d_item = (can & !cr_active & items.valid & !pend_valid).name("item_out");
+    // Per-node: a pass's inner node first sends its probes, one `cref`
+    // read a clock (a probe token beside each), then goes out as the
+    // others (`probes_sent`).
+    struct ProbeRun<'m> {
+        active: Signal<'m>,
+        sent: Signal<'m>,
+        idx: Signal<'m>,
+        end: Signal<'m>,
+        parent: Signal<'m>,
+        lod: Signal<'m>,
+        begin_ok: Signal<'m>,
+        begin: Signal<'m>,
+        next: Signal<'m>,
+    }
+    let o_pn_inner = c_pn.map(|c| (o_is_node & !o_leaf & c).name("item_pass_inner"));
+    let probe_run = o_pn_inner.map(|pi| {
+        let active = m.reg("probe_active", 1);
+        let sent = m.reg("probes_sent", 1);
+        let begin_ok =
+            (!cr_active & !active & items.valid & !pend_valid & pi & !sent).name("probe_first_ok");
+        ProbeRun {
+            active,
+            sent,
+            idx: m.reg("probe_idx", ib),
+            end: m.reg("probe_end", ib + 1),
+            parent: m.reg("probe_parent", ib),
+            lod: m.reg("probe_lod", lb),
+            begin_ok,
+            begin: (can & begin_ok).name("probe_first"),
+            next: (can & active).name("probe_next"),
+        }
+    });
+    let d_item = match (&probe_run, o_pn_inner) {
+        (Some(pr), Some(pi)) => {
+            can & !cr_active & items.valid & !pend_valid & !pr.active & (!pi | pr.sent)
+        }
+        _ => can & !cr_active & items.valid & !pend_valid,
+    }
+    .name("item_out");
     items.ready.drive(b_leaf | d_item);
-    cref_req.valid.drive(
-        walk & tok_in.ready & (cr_active | !cr_active & items.valid & pend_valid & !same_leaf),
-    );
-    cref_req.data.drive(cr_active.mux(cr_idx, pend_first));
+    match &probe_run {
+        Some(pr) => {
+            cref_req.valid.drive(
+                walk & tok_in.ready
+                    & (cr_active
+                        | !cr_active & items.valid & pend_valid & !same_leaf
+                        | pr.active
+                        | pr.begin_ok),
+            );
+            cref_req.data.drive(pr.active.mux(
+                pr.idx,
+                pr.begin_ok.mux(o_first, cr_active.mux(cr_idx, pend_first)),
+            ));
+            let o_count = field(o_rec, nl.count()).expect("count");
+            let idx_next = pr.idx.add(1, ib);
+            let last = idx_next.zext(ib + 1).eq(pr.end);
+            pr.active.next(start.mux(
+                lit(0, 1),
+                pr.next.mux(!last, pr.begin.mux(o_count.ne(1), pr.active)),
+            ));
+            pr.sent.next(
+                start.mux(
+                    lit(0, 1),
+                    (pr.next & last | pr.begin & o_count.eq(1))
+                        .mux(lit(1, 1), d_item.mux(lit(0, 1), pr.sent)),
+                ),
+            );
+            pr.idx.next(
+                pr.begin
+                    .mux(o_first.add(1, ib), pr.next.mux(idx_next, pr.idx)),
+            );
+            pr.end.next_when(pr.begin, o_end);
+            pr.parent
+                .next_when(pr.begin, field(o_ref, rl.node()).expect("node"));
+            pr.lod
+                .next_when(pr.begin, field(o_rec, nl.lod()).expect("lod"));
+        }
+        None => {
+            cref_req.valid.drive(
+                walk & tok_in.ready
+                    & (cr_active | !cr_active & items.valid & pend_valid & !same_leaf),
+            );
+            cref_req.data.drive(cr_active.mux(cr_idx, pend_first));
+        }
+    }
     let cr_next = cr_idx.add(1, ib);
     let pf_next = pend_first.add(1, ib);
     cr_active.next(start.mux(
@@ -792,7 +1031,11 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     ));
     cr_end.next_when(b_leaf | c_flush, pend_end);
     cr_parent.next_when(b_leaf | c_flush, pend_node);
-    let hold = (d_item & o_is_node & !o_leaf & c_refs).name("hold_refs");
+    let hold = match c_pn {
+        Some(c) => d_item & o_is_node & !o_leaf & (c_refs | c),
+        None => d_item & o_is_node & !o_leaf & c_refs,
+    }
+    .name("hold_refs");
     pend_valid.next(start.mux(
         lit(0, 1),
         (b_leaf | c_flush).mux(lit(0, 1), hold.mux(lit(1, 1), pend_valid)),
@@ -843,72 +1086,125 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
             ),
         ),
     );
-    tok_in.valid.drive(a_cref | b_leaf | c_flush | d_item);
-    tok_in
-        .data
-        .drive((a_cref | c_flush).mux(cref_tok, item_tok));
+    match &probe_run {
+        Some(pr) => {
+            // A probe token: a `cref` token with bit I set and the parent's
+            // LOD above it.
+            let probe_tok = m.concat(&[
+                lit(ok::TOK_CREF, ok::BITS),
+                m.lit(0, l.out_width - ib - 1 - lb),
+                pr.begin.mux(field(o_rec, nl.lod()).expect("lod"), pr.lod),
+                lit(1, 1),
+                pr.begin
+                    .mux(field(o_ref, rl.node()).expect("node"), pr.parent),
+            ]);
+            tok_in
+                .valid
+                .drive(a_cref | b_leaf | c_flush | d_item | pr.begin | pr.next);
+            tok_in.data.drive(
+                (pr.begin | pr.next).mux(probe_tok, (a_cref | c_flush).mux(cref_tok, item_tok)),
+            );
+        }
+        None => {
+            tok_in.valid.drive(a_cref | b_leaf | c_flush | d_item);
+            tok_in
+                .data
+                .drive((a_cref | c_flush).mux(cref_tok, item_tok));
+        }
+    }
 
-    // ---- out stage: beats in order, the child references checked as
-    // their answers come; after the error beat only the later levels'
-    // `End`s, the first of them dropped (the error stands for it)
-    let t_kind = toks.data.slice(tok_w - 1, tok_w - ok::BITS);
-    let t_beat = toks.data.slice(l.out_width - 1, 0);
-    let t_parent = toks.data.slice(ib - 1, 0);
-    let t_cref = t_kind.eq(lit(ok::TOK_CREF, ok::BITS)).name("token_cref");
-    let cr_node = field(cref_resp.data, rl.node()).expect("node");
-    let cr_hier = field(cref_resp.data, rl.hier()).expect("hier");
-    let cref_code = cr_hier
-        .ne(hier)
-        .mux(
-            code4(fetch_err::REF_HIER),
-            cr_node.ge(nodes).mux(code4(fetch_err::REF_NODE), code4(0)),
-        )
-        .name("cref_code");
-    let answered = (!t_cref | cref_resp.valid).name("token_answered");
-    let o_skip = m.reg("out_skip_end", 1);
-    let t_end = (t_kind.eq(lit(ok::TOK_FINAL, ok::BITS))
-        | t_kind.eq(lit(ok::TOK_BEAT, ok::BITS))
-            & field(t_beat, &bl.kind).expect("kind").eq(level_kind::END))
-    .name("token_end");
-    let t_send = (!o_errored | t_end & !o_skip).name("token_sent");
-    let t_fire = (walk & toks.valid & answered & (!t_send | out.ready)).name("token_fire");
-    toks.ready.drive(t_fire);
-    cref_resp
-        .ready
-        .drive(walk & toks.valid & t_cref & (!t_send | out.ready));
-    let child_beat = out_beat(
-        &m,
-        &l,
-        None,
-        Some(cref_resp.data),
-        lit(level_kind::CHILD_REF, bl.kind.width),
-        None,
-    );
-    let cref_err_beat = out_beat(
-        &m,
-        &l,
-        None,
-        Some(reference(&m, hier, t_parent)),
-        lit(level_kind::END, bl.kind.width),
-        Some(cref_code),
-    );
-    out.valid.drive(walk & toks.valid & answered & t_send);
-    out.data
-        .drive(t_cref.mux(cref_code.eq(0).mux(child_beat, cref_err_beat), t_beat));
-    let errs = t_kind.eq(lit(ok::TOK_ERR, ok::BITS)) | t_cref & cref_code.ne(0);
-    let first_err = (t_fire & errs & !o_errored).name("out_first_error");
-    o_errored.next(start.mux(lit(0, 1), first_err.mux(lit(1, 1), o_errored)));
-    o_skip.next(start.mux(
-        lit(0, 1),
-        first_err.mux(
-            lit(1, 1),
-            (t_fire & t_end & o_errored).mux(lit(0, 1), o_skip),
-        ),
-    ));
-    n_phase.when(
-        t_fire & t_kind.eq(lit(ok::TOK_FINAL, ok::BITS)),
-        goto(ph::DONE),
-    );
+    let pn_ports = match &l.pn {
+        None => {
+            // ---- out stage: beats in order, the child references checked as
+            // their answers come; after the error beat only the later levels'
+            // `End`s, the first of them dropped (the error stands for it)
+            let t_kind = toks.data.slice(tok_w - 1, tok_w - ok::BITS);
+            let t_beat = toks.data.slice(l.out_width - 1, 0);
+            let t_parent = toks.data.slice(ib - 1, 0);
+            let t_cref = t_kind.eq(lit(ok::TOK_CREF, ok::BITS)).name("token_cref");
+            let cr_node = field(cref_resp.data, rl.node()).expect("node");
+            let cr_hier = field(cref_resp.data, rl.hier()).expect("hier");
+            let cref_code = cr_hier
+                .ne(hier)
+                .mux(
+                    code4(fetch_err::REF_HIER),
+                    cr_node.ge(nodes).mux(code4(fetch_err::REF_NODE), code4(0)),
+                )
+                .name("cref_code");
+            let answered = (!t_cref | cref_resp.valid).name("token_answered");
+            let o_skip = m.reg("out_skip_end", 1);
+            let t_end = (t_kind.eq(lit(ok::TOK_FINAL, ok::BITS))
+                | t_kind.eq(lit(ok::TOK_BEAT, ok::BITS))
+                    & field(t_beat, &bl.kind).expect("kind").eq(level_kind::END))
+            .name("token_end");
+            let t_send = (!o_errored | t_end & !o_skip).name("token_sent");
+            let t_fire = (walk & toks.valid & answered & (!t_send | out.ready)).name("token_fire");
+            toks.ready.drive(t_fire);
+            cref_resp
+                .ready
+                .drive(walk & toks.valid & t_cref & (!t_send | out.ready));
+            let child_beat = out_beat(
+                &m,
+                &l,
+                None,
+                Some(cref_resp.data),
+                lit(level_kind::CHILD_REF, bl.kind.width),
+                None,
+            );
+            let cref_err_beat = out_beat(
+                &m,
+                &l,
+                None,
+                Some(reference(&m, hier, t_parent)),
+                lit(level_kind::END, bl.kind.width),
+                Some(cref_code),
+            );
+            out.valid.drive(walk & toks.valid & answered & t_send);
+            out.data
+                .drive(t_cref.mux(cref_code.eq(0).mux(child_beat, cref_err_beat), t_beat));
+            let errs = t_kind.eq(lit(ok::TOK_ERR, ok::BITS)) | t_cref & cref_code.ne(0);
+            let first_err = (t_fire & errs & !o_errored).name("out_first_error");
+            o_errored.next(start.mux(lit(0, 1), first_err.mux(lit(1, 1), o_errored)));
+            o_skip.next(start.mux(
+                lit(0, 1),
+                first_err.mux(
+                    lit(1, 1),
+                    (t_fire & t_end & o_errored).mux(lit(0, 1), o_skip),
+                ),
+            ));
+            n_phase.when(
+                t_fire & t_kind.eq(lit(ok::TOK_FINAL, ok::BITS)),
+                goto(ph::DONE),
+            );
+
+            None
+        }
+        Some(f) => Some(per_node_out_stages(
+            &m,
+            p,
+            &l,
+            f,
+            OutStageIo {
+                walk,
+                start,
+                hier,
+                nodes,
+                mv: &mv,
+                toks,
+                tok_w,
+                cref_resp,
+                out,
+                o_errored,
+            },
+            &mut n_phase,
+        )),
+    };
+    if let (Some(ps), Some(end_left), Some(take)) = (&pn_ports, pn_end_left, pn_join_take) {
+        end_left.next(start.mux(
+            lit(0, 1),
+            take.mux(lit(0, 1), ps.end_fire.mux(lit(1, 1), end_left)),
+        ));
+    }
 
     // ---- DONE
     let done = is(ph::DONE);
@@ -920,10 +1216,199 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
     cref_req.skid_buffer("cref_req_q").output("cref_req");
     out.skid_buffer("out_q").output("out");
     leaves.skid_buffer("leaves_q").output("leaves");
+    if let Some(ps) = pn_ports {
+        ps.probe_req.skid_buffer("probe_req_q").output("probe_req");
+    }
     m.output("idle", idle);
 
     for n in [n_phase, n_rerr_valid, n_rerr_code, n_rerr_node] {
         n.apply();
     }
     m
+}
+
+/// The signals the per-node out stages take from the fetcher.
+struct OutStageIo<'a, 'm> {
+    walk: Signal<'m>,
+    start: Signal<'m>,
+    hier: Signal<'m>,
+    nodes: Signal<'m>,
+    mv: &'a Move<'m>,
+    toks: Stream<'m>,
+    tok_w: u32,
+    cref_resp: Stream<'m>,
+    out: Stream<'m>,
+    o_errored: Signal<'m>,
+}
+
+/// What the per-node out stages give back: the `probe` request stream
+/// (its skid buffer and port are added with the others) and the clock in
+/// which an `End` token leaves (the join's "the pass's `End` has left").
+struct PerNodePorts<'m> {
+    probe_req: Stream<'m>,
+    end_fire: Signal<'m>,
+}
+
+/// The out stages of a fetcher built with the per-node command: the
+/// **answer stage** takes each token with its `cref` answer, turning a
+/// child-reference token into its beat (or the error naming the parent)
+/// and a probe token into a `probe` read (its child's index and expected
+/// LOD beside it in `out_probes`, 8 words), and the **send stage** sends
+/// each beat in order, a probe's beat made from its `probe` answer (checked
+/// at the parent's LOD + 1 and moved; an error names the child), with
+/// [`fetcher_unit`]'s first-error rule.
+fn per_node_out_stages<'m>(
+    m: &'m Module,
+    p: &Params,
+    l: &FetchLayout,
+    f: &golden::merge::fetch_unit::PerNodeFetchLayout,
+    io: OutStageIo<'_, 'm>,
+    n_phase: &mut Next<'m>,
+) -> PerNodePorts<'m> {
+    const IN_FLIGHT: u32 = 8;
+    let (nl, rl, bl) = (&l.node, &l.reference, &l.beat);
+    let (ib, lb) = (p.index_bits as u32, p.lod_bits());
+    let lit = |v: u64, w: u32| m.lit(v as u128, w);
+    let code4 = |c: u64| lit(c, fetch_err::BITS);
+    let kind = |k: u64| lit(k, ok::BITS);
+    let OutStageIo {
+        walk,
+        start,
+        hier,
+        nodes,
+        mv,
+        toks,
+        tok_w,
+        cref_resp,
+        out,
+        o_errored,
+    } = io;
+    // ---- answer stage
+    let t_kind = toks.data.slice(tok_w - 1, tok_w - ok::BITS);
+    let t_parent = toks.data.slice(ib - 1, 0);
+    let t_cref = t_kind.eq(kind(ok::TOK_CREF)).name("token_cref");
+    let t_probe = (t_cref & toks.data.bit(ib)).name("token_probe");
+    let t_plod = toks.data.slice(ib + lb, ib + 1);
+    let cr_node = field(cref_resp.data, rl.node()).expect("node");
+    let cr_hier = field(cref_resp.data, rl.hier()).expect("hier");
+    let cref_code = cr_hier
+        .ne(hier)
+        .mux(
+            code4(fetch_err::REF_HIER),
+            cr_node.ge(nodes).mux(code4(fetch_err::REF_NODE), code4(0)),
+        )
+        .name("cref_code");
+    let cref_ok = cref_code.eq(0);
+    let probe_req = Stream::wires(m, "probe_req_core", ib);
+    let probe_resp = Stream::input(m, "probe_resp", nl.width());
+    let tok2_in = Stream::wires(m, "out_probes_in", tok_w);
+    let toks2 = fifo(m, "out_probes", tok2_in, IN_FLIGHT);
+    let answered = (!t_cref | cref_resp.valid).name("token_answered");
+    let room = (tok2_in.ready & (!t_probe | probe_req.ready)).name("answer_room");
+    let a_fire = (walk & toks.valid & answered & room).name("token_fire");
+    toks.ready.drive(a_fire);
+    cref_resp.ready.drive(walk & toks.valid & t_cref & room);
+    probe_req
+        .valid
+        .drive(walk & toks.valid & t_probe & cref_resp.valid & cref_ok & tok2_in.ready);
+    probe_req.data.drive(cr_node);
+    // The probe's LOD is its parent's + 1, carry kept (a child of a node at
+    // the deepest LOD is never at a valid one).
+    let want = t_plod.zext(lb + 1).add(1, lb + 1);
+    let wait_tok = m.concat(&[
+        kind(ok::TOK_CREF),
+        m.lit(0, l.out_width - ib - lb - 1),
+        want,
+        cr_node,
+    ]);
+    let child_beat = out_beat(
+        m,
+        l,
+        None,
+        Some(cref_resp.data),
+        lit(level_kind::CHILD_REF, bl.kind.width),
+        None,
+    );
+    let cref_err_beat = out_beat(
+        m,
+        l,
+        None,
+        Some(reference(m, hier, t_parent)),
+        lit(level_kind::END, bl.kind.width),
+        Some(cref_code),
+    );
+    tok2_in.valid.drive(a_fire);
+    tok2_in.data.drive(t_cref.mux(
+        cref_ok.mux(
+            t_probe.mux(wait_tok, m.concat(&[kind(ok::TOK_BEAT), child_beat])),
+            m.concat(&[kind(ok::TOK_ERR), cref_err_beat]),
+        ),
+        toks.data,
+    ));
+
+    // ---- send stage: after the error beat only the later passes' `End`s,
+    // the first of them dropped (the error stands for it)
+    let k2 = toks2.data.slice(tok_w - 1, tok_w - ok::BITS);
+    let b2 = toks2.data.slice(l.out_width - 1, 0);
+    let t_wait = k2.eq(kind(ok::TOK_CREF)).name("token_probe_wait");
+    let p_idx = toks2.data.slice(ib - 1, 0);
+    let p_want = toks2.data.slice(ib + lb, ib);
+    let got = check_and_move(m, p, l, probe_resp.data, p_want.slice(lb - 1, 0), mv);
+    let p_code = p_want
+        .bit(lb)
+        .mux(code4(fetch_err::LOD), got.code)
+        .name("probe_code");
+    let p_ref = reference(m, hier, p_idx);
+    let probe_beat = with_fields(
+        m,
+        m.lit(0, l.out_width),
+        &[
+            (bl.kind, lit(level_kind::INNER, bl.kind.width)),
+            (bl.rec, got.moved),
+            (bl.refer, p_ref),
+            (f.probe, lit(1, 1)),
+        ],
+    );
+    let probe_err = out_beat(
+        m,
+        l,
+        None,
+        Some(p_ref),
+        lit(level_kind::END, bl.kind.width),
+        Some(p_code),
+    );
+    let answered2 = (!t_wait | probe_resp.valid).name("probe_answered");
+    let o_skip = m.reg("out_skip_end", 1);
+    let t_end = (k2.eq(kind(ok::TOK_FINAL))
+        | k2.eq(kind(ok::TOK_BEAT)) & field(b2, &bl.kind).expect("kind").eq(level_kind::END))
+    .name("token_end");
+    let t_send = (!o_errored | t_end & !o_skip).name("token_sent");
+    let t_fire = (walk & toks2.valid & answered2 & (!t_send | out.ready)).name("send_fire");
+    toks2.ready.drive(t_fire);
+    probe_resp
+        .ready
+        .drive(walk & toks2.valid & t_wait & (!t_send | out.ready));
+    out.valid.drive(walk & toks2.valid & answered2 & t_send);
+    out.data
+        .drive(t_wait.mux(p_code.eq(0).mux(probe_beat, probe_err), b2));
+    let errs = k2.eq(kind(ok::TOK_ERR)) | t_wait & p_code.ne(0);
+    let first_err = (t_fire & errs & !o_errored).name("out_first_error");
+    o_errored.next(start.mux(lit(0, 1), first_err.mux(lit(1, 1), o_errored)));
+    o_skip.next(start.mux(
+        lit(0, 1),
+        first_err.mux(
+            lit(1, 1),
+            (t_fire & t_end & o_errored).mux(lit(0, 1), o_skip),
+        ),
+    ));
+    n_phase.when(t_fire & k2.eq(kind(ok::TOK_FINAL)), goto_done(m));
+    PerNodePorts {
+        probe_req,
+        end_fire: (t_fire & t_end).name("pass_end_left"),
+    }
+}
+
+/// The `DONE` phase's code.
+fn goto_done(m: &Module) -> Signal<'_> {
+    m.lit(ph::DONE as u128, ph::BITS)
 }

@@ -39,7 +39,7 @@ mod upper;
 mod writer;
 
 pub use builder::{upper_builder_name, upper_builder_unit};
-pub use fetcher::{fetcher_name, fetcher_unit};
+pub use fetcher::{fetcher_name, fetcher_per_node_name, fetcher_per_node_unit, fetcher_unit};
 pub use level::{merge_level_name, merge_level_unit};
 pub use merger::{hierarchy_merger_name, hierarchy_merger_unit, MergerConfig};
 pub use network::{morton_code, morton_merge_name, morton_merge_unit};

@@ -17,7 +17,8 @@ pub enum Expr {
     Concat(Vec<Expr>),
     /// `{n{e}}`.
     Repeat(u32, Box<Expr>),
-    /// Prefix operator: `~`, or a reduction `&`, `|`, `^`.
+    /// Prefix operator: `~`, a reduction `&`, `|`, `^`, or `!` (the
+    /// negated condition of an `if`, one bit).
     Unary(&'static str, Box<Expr>),
     /// Infix operator.
     Binary(&'static str, Box<Expr>, Box<Expr>),
@@ -41,9 +42,10 @@ pub enum LValue {
 /// A statement inside `always @(posedge clk)`.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Stmt {
-    /// `lhs <= rhs;`
-    NonBlocking(LValue, Expr),
-    /// `if (c) begin ... end else begin ... end` (no else when empty).
+    /// `lhs <= rhs;` with a trailing comment (none when empty).
+    NonBlocking(LValue, Expr, String),
+    /// `if (c) begin ... end else begin ... end` (no else when empty; an
+    /// else holding only an `if` is printed `end else if (..) begin`).
     If(Expr, Vec<Stmt>, Vec<Stmt>),
 }
 

@@ -2,6 +2,8 @@
 //! width of the operator, so no Verilog width rule can change a result.
 
 use super::ast::{Expr, Item, LValue, NetKind, Port, PortDir, Stmt, VModule};
+use super::enables::{reader_counts, register_plans, statements, Entry, RegisterPlans};
+use super::RegisterStyle;
 use crate::diagnostic::Loc;
 use crate::graph::{Amount, BinOp, CmpOp, Direction, Graph, NodeId, Op, RedOp, ShiftKind};
 use crate::names::Namer;
@@ -14,27 +16,7 @@ pub(crate) fn loc_comment(loc: Loc) -> String {
 
 /// Unnamed operator results whose only reader is a wire or output port:
 /// the wire's `assign` takes the operator directly, so `y = ~a` is one line.
-fn absorbed_temporaries(g: &Graph, inline: &[bool]) -> Vec<bool> {
-    let mut readers = vec![0u32; g.nodes.len()];
-    for id in 0..g.nodes.len() {
-        for (r, _, _) in g.reads(id as NodeId) {
-            readers[r as usize] += 1;
-        }
-    }
-    for mem in &g.mems {
-        for w in &mem.writes {
-            for x in [w.addr, w.data, w.en] {
-                readers[x as usize] += 1;
-            }
-        }
-    }
-    for inst in &g.insts {
-        for i in &inst.inputs {
-            for d in &i.drivers {
-                readers[d.0 as usize] += 1;
-            }
-        }
-    }
+fn absorbed_temporaries(g: &Graph, inline: &[bool], readers: &[u32]) -> Vec<bool> {
     let mut absorbed = vec![false; g.nodes.len()];
     for n in &g.nodes {
         if let Op::Wire { drivers } = &n.op {
@@ -65,15 +47,19 @@ struct Lower<'g> {
     inline: Vec<bool>,
     /// Unnamed temporaries written straight into the one wire or port they drive.
     absorbed: Vec<bool>,
+    /// How each register is written, and the muxes folded into those plans.
+    regs: RegisterPlans,
     names: Vec<String>,
     mem_names: Vec<String>,
     inst_names: Vec<String>,
 }
 
 /// The syntax tree of one module (validated beforehand).
-pub(crate) fn lower(g: &Graph) -> VModule {
+pub(crate) fn lower(g: &Graph, style: RegisterStyle) -> VModule {
     let inline = g.inline_nodes();
-    let absorbed = absorbed_temporaries(g, &inline);
+    let readers = reader_counts(g);
+    let absorbed = absorbed_temporaries(g, &inline, &readers);
+    let regs = register_plans(g, &inline, &readers, style == RegisterStyle::Enables);
     let mut namer = Namer::default();
     let mut names = vec![String::new(); g.nodes.len()];
     for &p in &g.ports {
@@ -102,6 +88,7 @@ pub(crate) fn lower(g: &Graph) -> VModule {
         g,
         inline,
         absorbed,
+        regs,
         names,
         mem_names,
         inst_names,
@@ -157,7 +144,10 @@ impl Lower<'_> {
     }
 
     fn declared(&self, id: usize) -> bool {
-        !self.inline[id] && !self.absorbed[id] && self.g.nodes[id].port.is_none()
+        !self.inline[id]
+            && !self.absorbed[id]
+            && !self.regs.folded[id]
+            && self.g.nodes[id].port.is_none()
     }
 
     fn declarations(&self, items: &mut Vec<Item>) {
@@ -197,7 +187,7 @@ impl Lower<'_> {
     fn assigns(&self, items: &mut Vec<Item>) {
         let mut any = false;
         for id in 0..self.g.nodes.len() {
-            if self.inline[id] || self.absorbed[id] {
+            if self.inline[id] || self.absorbed[id] || self.regs.folded[id] {
                 continue;
             }
             if let Some(rhs) = self.rhs(id as NodeId) {
@@ -371,25 +361,34 @@ impl Lower<'_> {
             .unwrap_or_else(|| crate::graph::CLOCK.into())
     }
 
+    /// One `always` block for every register: reset values under `if (rst)`,
+    /// then each register's plan (see [`super::enables`]), registers with
+    /// a reset value in the reset's `else`, the others after it.
     fn registers(&self, items: &mut Vec<Item>) {
         let mut resets = Vec::new();
         let mut loads = Vec::new();
         let mut plain = Vec::new();
         for (id, n) in self.g.nodes.iter().enumerate() {
-            if let Op::Reg { next, reset } = &n.op {
-                let Some(&(d, _)) = next.first() else {
-                    continue;
-                };
-                let lv = LValue::Ident(self.names[id].clone());
-                match reset {
-                    Some(r) => {
-                        resets.push(Stmt::NonBlocking(lv.clone(), Expr::Literal(r.clone())));
-                        loads.push(Stmt::NonBlocking(lv, self.operand(d)));
-                    }
-                    None => plain.push(Stmt::NonBlocking(lv, self.operand(d))),
+            let (Op::Reg { reset, .. }, Some(plan)) = (&n.op, &self.regs.plans[id]) else {
+                continue;
+            };
+            let entry = Entry {
+                name: self.names[id].clone(),
+                plan,
+            };
+            match reset {
+                Some(r) => {
+                    resets.push(Stmt::NonBlocking(
+                        LValue::Ident(entry.name.clone()),
+                        Expr::Literal(r.clone()),
+                        String::new(),
+                    ));
+                    loads.push(entry);
                 }
+                None => plain.push(entry),
             }
         }
+        let operand = |x| self.operand(x);
         let mut body = Vec::new();
         if !resets.is_empty() {
             let rst = self
@@ -397,9 +396,13 @@ impl Lower<'_> {
                 .rst
                 .map(|r| self.names[r as usize].clone())
                 .unwrap_or_else(|| crate::graph::RESET.into());
-            body.push(Stmt::If(Expr::Ident(rst), resets, loads));
+            body.push(Stmt::If(
+                Expr::Ident(rst),
+                resets,
+                statements(loads, &operand, &loc_comment),
+            ));
         }
-        body.extend(plain);
+        body.extend(statements(plain, &operand, &loc_comment));
         if !body.is_empty() {
             items.push(Item::AlwaysPosedge(self.clock(), body));
             items.push(Item::Blank);
@@ -425,6 +428,7 @@ impl Lower<'_> {
                         let st = Stmt::NonBlocking(
                             LValue::Ident(self.names[id].clone()),
                             Expr::MemIndex(name.clone(), Box::new(self.operand(*addr))),
+                            String::new(),
                         );
                         body.push(self.guarded(*en, st));
                     }
@@ -434,6 +438,7 @@ impl Lower<'_> {
                 let st = Stmt::NonBlocking(
                     LValue::Mem(name.clone(), self.operand(w.addr)),
                     self.operand(w.data),
+                    String::new(),
                 );
                 body.push(self.guarded(w.en, st));
             }

@@ -1,6 +1,7 @@
 //! The Verilog-2005 back-end: IR → syntax tree ([`ast`]) → text ([`mod@print`]).
 
 pub mod ast;
+mod enables;
 mod lower;
 pub mod print;
 
@@ -9,6 +10,20 @@ use crate::graph::GraphRef;
 use crate::Module;
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
+
+/// How registers are written in the `always` block.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum RegisterStyle {
+    /// A register whose next value is a mux with the register itself on an
+    /// arm is written as the enable idiom, `if (en) r <= d;`, registers
+    /// testing one select grouped under one `if` (SPEC 11). The default.
+    #[default]
+    Enables,
+    /// Every register loads its next value every cycle, `r <= r_next;`,
+    /// with `r_next` a continuous mux (the emission before the enable
+    /// idiom; for comparing the two, e.g. by a Yosys equivalence check).
+    NextWires,
+}
 
 /// The Verilog text of one module (one file, named `<module>.v`), after
 /// [`Module::validate`]; the same design always gives the same bytes.
@@ -24,7 +39,10 @@ use std::rc::Rc;
 /// ```
 pub fn emit_verilog(m: &Module) -> Result<String, Diagnostics> {
     m.validate()?;
-    Ok(print::print_module(&lower::lower(&m.graph())))
+    Ok(print::print_module(&lower::lower(
+        &m.graph(),
+        RegisterStyle::Enables,
+    )))
 }
 
 /// The syntax tree of one module (for tools that want to inspect or extend it).
@@ -39,7 +57,7 @@ pub fn emit_verilog(m: &Module) -> Result<String, Diagnostics> {
 /// ```
 pub fn verilog_ast(m: &Module) -> Result<ast::VModule, Diagnostics> {
     m.validate()?;
-    Ok(lower::lower(&m.graph()))
+    Ok(lower::lower(&m.graph(), RegisterStyle::Enables))
 }
 
 /// Every module of a design, children before parents, each once.
@@ -103,11 +121,32 @@ impl std::error::Error for DesignError {}
 /// assert_eq!(names, ["leaf.v", "top.v"]);
 /// ```
 pub fn emit_design(top: &Module) -> Result<Vec<(String, String)>, Diagnostics> {
+    emit_design_with_style(top, RegisterStyle::Enables)
+}
+
+/// [`emit_design`] with registers written in `style`.
+///
+/// ```
+/// use rtl_gen::{verilog::{emit_design_with_style, RegisterStyle}, Module};
+/// let m = Module::new("m");
+/// let (en, d) = (m.input("en", 1), m.input("d", 4));
+/// let q = m.reg("q", 4);
+/// q.next_when(en, d);
+/// m.output("y", q);
+/// let old = emit_design_with_style(&m, RegisterStyle::NextWires).unwrap();
+/// assert!(old[0].1.contains("q <= q_next;"));
+/// let new = emit_design_with_style(&m, RegisterStyle::Enables).unwrap();
+/// assert!(new[0].1.contains("if (en) begin") && !new[0].1.contains("q_next"));
+/// ```
+pub fn emit_design_with_style(
+    top: &Module,
+    style: RegisterStyle,
+) -> Result<Vec<(String, String)>, Diagnostics> {
     top.validate_design()?;
     let mut files: Vec<(String, String)> = Vec::new();
     for g in design_modules(top) {
         let g = g.borrow();
-        let text = print::print_module(&lower::lower(&g));
+        let text = print::print_module(&lower::lower(&g, style));
         let file = format!("{}.v", g.name);
         match files.iter().find(|f| f.0 == file) {
             Some(f) if f.1 == text => continue,
@@ -140,7 +179,16 @@ pub fn emit_design(top: &Module) -> Result<Vec<(String, String)>, Diagnostics> {
 /// assert!(files[0].ends_with("top.v"));
 /// ```
 pub fn write_design(top: &Module, dir: &Path) -> Result<Vec<PathBuf>, DesignError> {
-    let files = emit_design(top).map_err(DesignError::Invalid)?;
+    write_design_with_style(top, dir, RegisterStyle::Enables)
+}
+
+/// [`write_design`] with registers written in `style`.
+pub fn write_design_with_style(
+    top: &Module,
+    dir: &Path,
+    style: RegisterStyle,
+) -> Result<Vec<PathBuf>, DesignError> {
+    let files = emit_design_with_style(top, style).map_err(DesignError::Invalid)?;
     std::fs::create_dir_all(dir).map_err(|e| DesignError::Io(dir.to_path_buf(), e))?;
     let mut out = Vec::new();
     for (name, text) in files {

@@ -75,7 +75,7 @@ fn print_item(s: &mut String, item: &Item) {
             if comment.is_empty() {
                 let _ = writeln!(s, "    {decl}");
             } else {
-                let _ = writeln!(s, "    {decl:<40} // {comment}");
+                let _ = writeln!(s, "    {decl:<w$} // {comment}", w = COMMENT_COLUMN - 4);
             }
         }
         Item::Assign(lhs, rhs) => {
@@ -108,30 +108,53 @@ fn print_item(s: &mut String, item: &Item) {
     }
 }
 
+/// Column where a statement's trailing comment starts (declarations use
+/// the same one).
+const COMMENT_COLUMN: usize = 44;
+
 fn print_stmt(s: &mut String, st: &Stmt, depth: usize) {
     let ind = "    ".repeat(depth);
     match st {
-        Stmt::NonBlocking(lv, e) => {
+        Stmt::NonBlocking(lv, e, comment) => {
             let l = match lv {
                 LValue::Ident(n) => n.clone(),
                 LValue::Mem(n, a) => format!("{n}[{}]", expr(a)),
             };
-            let _ = writeln!(s, "{ind}{l} <= {};", expr(e));
+            let text = format!("{ind}{l} <= {};", expr(e));
+            if comment.is_empty() {
+                let _ = writeln!(s, "{text}");
+            } else {
+                let _ = writeln!(s, "{text:<w$} // {comment}", w = COMMENT_COLUMN);
+            }
         }
         Stmt::If(c, then_, else_) => {
             let _ = writeln!(s, "{ind}if ({}) begin", expr(c));
-            for t in then_ {
+            print_branches(s, then_, else_, depth);
+        }
+    }
+}
+
+/// The body of an `if` from its `begin`: an else that is one `if` reads
+/// as `end else if (..) begin`, so priority chains stay flat.
+fn print_branches(s: &mut String, then_: &[Stmt], else_: &[Stmt], depth: usize) {
+    let ind = "    ".repeat(depth);
+    for t in then_ {
+        print_stmt(s, t, depth + 1);
+    }
+    match else_ {
+        [] => {
+            let _ = writeln!(s, "{ind}end");
+        }
+        [Stmt::If(c, t, e)] => {
+            let _ = writeln!(s, "{ind}end else if ({}) begin", expr(c));
+            print_branches(s, t, e, depth);
+        }
+        _ => {
+            let _ = writeln!(s, "{ind}end else begin");
+            for t in else_ {
                 print_stmt(s, t, depth + 1);
             }
-            if else_.is_empty() {
-                let _ = writeln!(s, "{ind}end");
-            } else {
-                let _ = writeln!(s, "{ind}end else begin");
-                for t in else_ {
-                    print_stmt(s, t, depth + 1);
-                }
-                let _ = writeln!(s, "{ind}end");
-            }
+            let _ = writeln!(s, "{ind}end");
         }
     }
 }

@@ -10,17 +10,15 @@ module counter_w8 (
 );
     reg [7:0] count_q;                       // rtl-gen/src/examples/counter.rs:19
     wire [7:0] count_add;                    // rtl-gen/src/examples/counter.rs:20
-    wire [7:0] count_next;                   // rtl-gen/src/examples/counter.rs:20
 
     assign count_add = count_q + 8'd1;
-    assign count_next = en ? count_add : count_q;
     assign count = count_q;
 
     always @(posedge clk) begin
         if (rst) begin
             count_q <= 8'd0;
-        end else begin
-            count_q <= count_next;
+        end else if (en) begin
+            count_q <= count_add;            // rtl-gen/src/examples/counter.rs:20
         end
     end
 endmodule

@@ -24,9 +24,7 @@ module fifo_w8_a2 (
     wire empty_not;                          // rtl-gen/src/examples/fifo.rs:30
     wire pop;                                // rtl-gen/src/examples/fifo.rs:30
     wire [2:0] wr_ptr_add;                   // rtl-gen/src/examples/fifo.rs:33
-    wire [2:0] wr_ptr_next;                  // rtl-gen/src/examples/fifo.rs:33
     wire [2:0] rd_ptr_add;                   // rtl-gen/src/examples/fifo.rs:34
-    wire [2:0] rd_ptr_next;                  // rtl-gen/src/examples/fifo.rs:34
 
     assign in_ready = ~full;
     assign empty = wr_ptr == rd_ptr;
@@ -38,9 +36,7 @@ module fifo_w8_a2 (
     assign empty_not = ~empty;
     assign pop = empty_not & out_ready;
     assign wr_ptr_add = wr_ptr + 3'd1;
-    assign wr_ptr_next = push ? wr_ptr_add : wr_ptr;
     assign rd_ptr_add = rd_ptr + 3'd1;
-    assign rd_ptr_next = pop ? rd_ptr_add : rd_ptr;
     assign out_valid = ~empty;
     assign out_data = mem[rd_ptr[1:0]];
 
@@ -49,8 +45,12 @@ module fifo_w8_a2 (
             wr_ptr <= 3'd0;
             rd_ptr <= 3'd0;
         end else begin
-            wr_ptr <= wr_ptr_next;
-            rd_ptr <= rd_ptr_next;
+            if (push) begin
+                wr_ptr <= wr_ptr_add;        // rtl-gen/src/examples/fifo.rs:33
+            end
+            if (pop) begin
+                rd_ptr <= rd_ptr_add;        // rtl-gen/src/examples/fifo.rs:34
+            end
         end
     end
 

@@ -26,9 +26,7 @@ module hier_top (
     wire out_q_ready;                        // rtl-gen/tests/designs/mod.rs:80
     wire out_q_valid_not;                    // rtl-gen/tests/designs/mod.rs:80
     wire out_q_valid_or;                     // rtl-gen/tests/designs/mod.rs:80
-    wire out_q_valid_next;                   // rtl-gen/tests/designs/mod.rs:80
     wire out_q_valid_and;                    // rtl-gen/tests/designs/mod.rs:80
-    wire [7:0] out_q_data_next;              // rtl-gen/tests/designs/mod.rs:80
 
     assign a_ready = arb_ready;
     assign b_ready = arb_ready & a_valid_not;
@@ -39,9 +37,7 @@ module hier_top (
     assign out_q_ready = out_ready;
     assign out_q_valid_not = ~out_q_valid;
     assign out_q_valid_or = out_q_valid_not | out_q_ready;
-    assign out_q_valid_next = out_q_valid_or ? arb_valid : out_q_valid;
     assign out_q_valid_and = out_q_valid_or & arb_valid;
-    assign out_q_data_next = out_q_valid_and ? arb_data : out_q_data;
     assign out_valid = out_q_valid;
     assign out_data = out_q_data;
 
@@ -60,8 +56,12 @@ module hier_top (
             out_q_valid <= 1'b0;
             out_q_data <= 8'd0;
         end else begin
-            out_q_valid <= out_q_valid_next;
-            out_q_data <= out_q_data_next;
+            if (out_q_valid_or) begin
+                out_q_valid <= arb_valid;    // rtl-gen/tests/designs/mod.rs:80
+            end
+            if (out_q_valid_and) begin
+                out_q_data <= arb_data;      // rtl-gen/tests/designs/mod.rs:80
+            end
         end
     end
 endmodule

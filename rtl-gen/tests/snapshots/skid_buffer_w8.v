@@ -22,14 +22,11 @@ module skid_buffer_w8 (
     wire skid_spare_valid_not;               // rtl-gen/src/examples/skid.rs:14
     wire in_valid_and;                       // rtl-gen/src/examples/skid.rs:14
     wire skid_spare_valid_or;                // rtl-gen/src/examples/skid.rs:14
-    wire skid_valid_next;                    // rtl-gen/src/examples/skid.rs:14
     wire [7:0] skid_spare_valid_mux;         // rtl-gen/src/examples/skid.rs:14
-    wire [7:0] skid_data_next;               // rtl-gen/src/examples/skid.rs:14
     wire skid_spare_valid_or_1;              // rtl-gen/src/examples/skid.rs:14
     wire skid_spare_valid_next;              // rtl-gen/src/examples/skid.rs:14
     wire skid_ready_not;                     // rtl-gen/src/examples/skid.rs:14
     wire skid_ready_and;                     // rtl-gen/src/examples/skid.rs:14
-    wire [7:0] skid_spare_data_next;         // rtl-gen/src/examples/skid.rs:14
 
     assign in_ready = ~skid_spare_valid;
     assign skid_ready = out_ready;
@@ -38,14 +35,11 @@ module skid_buffer_w8 (
     assign skid_spare_valid_not = ~skid_spare_valid;
     assign in_valid_and = in_valid & skid_spare_valid_not;
     assign skid_spare_valid_or = skid_spare_valid | in_valid;
-    assign skid_valid_next = skid_ready_or ? skid_spare_valid_or : skid_valid;
     assign skid_spare_valid_mux = skid_spare_valid ? skid_spare_data : in_data;
-    assign skid_data_next = skid_ready_or ? skid_spare_valid_mux : skid_data;
     assign skid_spare_valid_or_1 = skid_spare_valid | in_valid_and;
     assign skid_spare_valid_next = skid_ready_or ? 1'b0 : skid_spare_valid_or_1;
     assign skid_ready_not = ~skid_ready_or;
     assign skid_ready_and = skid_ready_not & in_valid_and;
-    assign skid_spare_data_next = skid_ready_and ? in_data : skid_spare_data;
     assign out_valid = skid_valid;
     assign out_data = skid_data;
 
@@ -56,10 +50,14 @@ module skid_buffer_w8 (
             skid_spare_valid <= 1'b0;
             skid_spare_data <= 8'd0;
         end else begin
-            skid_valid <= skid_valid_next;
-            skid_data <= skid_data_next;
+            if (skid_ready_or) begin
+                skid_valid <= skid_spare_valid_or; // rtl-gen/src/examples/skid.rs:14
+                skid_data <= skid_spare_valid_mux; // rtl-gen/src/examples/skid.rs:14
+            end
             skid_spare_valid <= skid_spare_valid_next;
-            skid_spare_data <= skid_spare_data_next;
+            if (skid_ready_and) begin
+                skid_spare_data <= in_data;  // rtl-gen/src/examples/skid.rs:14
+            end
         end
     end
 endmodule

@@ -17,6 +17,10 @@
 //!   and S614 (SPEC 8.14).
 //! - [`fetcher_unit`]: S610 + S612 for one input: walks it in the store
 //!   (node and reference read ports), translating, into an input stream.
+//! - [`fetcher_per_node_unit`]: the fetcher with the per-node command (the
+//!   per-node module's input stream of one input, pass after pass, from the
+//!   module's `report`; a `probe` read port), built only for per-node
+//!   merging (SPEC 8.13).
 //! - [`upper_builder_unit`]: every S616 level above the base at once (a
 //!   chain of grouping and Morton-merge stages, the top rule in flight).
 //! - [`record_writer_unit`]: S618, the merged hierarchy's records,

@@ -71,7 +71,8 @@ pub use golden::vectors::merge::MergeDesign as MergeConfig;
 /// overlap mode and S614, come with it), the upper builder (every S616 level
 /// above the base, SPEC 8.11; its `upper_level` instances come with it),
 /// then S616's one-level unit and the root sorter; then the fetcher (S610 +
-/// S612, 8.13) and the record writer (S618, 8.12) with the sizes of
+/// S612, 8.13; per-node configurations: the fetcher with the per-node
+/// command) and the record writer (S618, 8.12) with the sizes of
 /// [`MergerConfig::new`], and, for every mode but per-node, the hierarchy
 /// merger that instantiates them all (8.15). `c` must pass `c.validate()`.
 pub fn merge_units(c: &MergeConfig) -> Result<Vec<Module>, String> {
@@ -81,13 +82,24 @@ pub fn merge_units(c: &MergeConfig) -> Result<Vec<Module>, String> {
         upper_builder_unit(&c.params),
         upper_level_unit(&c.params),
         root_sorter_unit(&c.params, c.roots),
-        fetcher_unit(&c.params, &merger.fetch_sizes()),
+        fetcher_of(c, &merger),
         record_writer_unit(&c.params, merger.sizes.capacity_bits).map_err(|e| e.to_string())?,
     ];
     if !matches!(c.mode, golden::merge::MergeMode::PerNode { .. }) {
         units.push(hierarchy_merger_unit(&merger)?);
     }
     Ok(units)
+}
+
+/// The fetcher a configuration needs: with the per-node command only for
+/// per-node merging (a configuration holds only what it asks for).
+fn fetcher_of(c: &MergeConfig, merger: &MergerConfig) -> Module {
+    match c.mode {
+        golden::merge::MergeMode::PerNode { .. } => {
+            fetcher_per_node_unit(&c.params, &merger.fetch_sizes())
+        }
+        _ => fetcher_unit(&c.params, &merger.fetch_sizes()),
+    }
 }
 
 /// Writes the Verilog of every module of `c` into `dir` (one `<module>.v`

@@ -10,15 +10,15 @@
 //! per cycle on the stand-in is the testbench's share (per cycle: a long
 //! run's CPU minus a short one's, over the difference in cycles; each the
 //! cheapest of three runs).
-//! Hierarchy merger top (`IcarusMultiBatch`, `cosim::units::merger`):
-//! default design, 16 random merges against 3, stall 0.3; also the same
-//! design with each register block's registers packed into vectors of at
-//! most 512 bits (`packed_registers`: one nonblocking assignment per
-//! vector instead of one per register; an experiment on the emitted text,
-//! the report must equal the real one). Merging module
-//! (`IcarusMultiBatch`): default design, 300 merges, stall 0.3;
-//! merge-level stage (`IcarusBatch`): default design, 1,500 levels,
-//! stall 0.3.
+//! Every unit is also run as emitted with `RegisterStyle::NextWires` (every
+//! register loaded every cycle from a continuous `r_next` mux, the emission
+//! before the enable idiom; SPEC 11), on the same beats: the report must
+//! equal the default emission's, and the two CPU figures side by side are
+//! the idiom's gain. Hierarchy merger top (`IcarusMultiBatch`,
+//! `cosim::units::merger`): default design, 16 random merges against 3,
+//! stall 0.3. Merging module (`IcarusMultiBatch`): default design, 300
+//! merges, stall 0.3; merge-level stage (`IcarusBatch`): default design,
+//! 1,500 levels, stall 0.3.
 
 use cosim::icarus::{BatchSpec, IcarusBatch, IcarusMultiBatch, LaneVector};
 use cosim::tb::{BenchConfig, StreamBeats, StreamNames, Vector};
@@ -26,6 +26,7 @@ use cosim::units::{merge, merge_module, merger};
 use cosim::{Design, PortDir};
 use golden::translate::stimulus::SplitMix64;
 use golden::vectors::merge::MergeDesign;
+use rtl_gen::verilog::{write_design_with_style, RegisterStyle};
 use std::path::Path;
 use std::time::Duration;
 
@@ -73,6 +74,29 @@ fn stand_in(real: &Design, ready_high: &[String], dir: &Path) -> Res<Design> {
         verilog_files: vec![file],
         ..real.clone()
     })
+}
+
+/// `design` (of `module`) as emitted with every register loaded every cycle
+/// (`RegisterStyle::NextWires`), written to `dir`.
+fn next_wires(module: &rtl_gen::Module, design: &Design, dir: &Path) -> Res<Design> {
+    let files = write_design_with_style(module, dir, RegisterStyle::NextWires)?;
+    Ok(Design {
+        verilog_files: files,
+        ..design.clone()
+    })
+}
+
+/// The line comparing a unit's default emission with `NextWires`.
+fn print_styles(what: &str, enables: (u64, f64), next_wires: (u64, f64)) {
+    println!(
+        "{what}: enable idiom {:.2} us/cycle of vvp CPU ({:.0} cycles/s); NextWires {:.2} \
+         us/cycle ({:.0} cycles/s): {:.2}x faster",
+        enables.1,
+        1e6 / enables.1,
+        next_wires.1,
+        1e6 / next_wires.1,
+        next_wires.1 / enables.1
+    );
 }
 
 /// CPU time of the waited-for children of this process so far (user +
@@ -131,20 +155,27 @@ fn print(what: &str, real: (u64, f64), stand: (u64, f64)) {
 
 fn merging_module(dir: &Path) -> Res<()> {
     let d = MergeDesign::default();
-    let design = cosim::from_rtl::design_from_module(&merge_module::merge_module(&d), dir)?;
+    let module = merge_module::merge_module(&d);
+    let design = cosim::from_rtl::design_from_module(&module, dir)?;
     let most = merge_module::DEFAULT_MOST_VOXELS;
     let long = merge_module::generate_streams(&d, 5, 300, most, None)?;
     let short = merge_module::generate_streams(&d, 5, 10, most, None)?;
     let names = merge_module::input_names(&d);
     let names: Vec<&str> = names.iter().map(String::as_str).collect();
     let c = config();
-    let batch = IcarusMultiBatch::new(&design, &names, &merge_module::OUTPUT_NAMES)?;
-    let real = per_cycle(|is_long| {
-        let s = if is_long { &long } else { &short };
-        let r = batch.run(&s.inputs, &s.outputs, &c)?;
-        assert!(r.report.passed(), "{}", r.report);
-        Ok(r.report.cycles)
-    })?;
+    let run_on = |design: &Design| -> Res<(u64, f64)> {
+        let batch = IcarusMultiBatch::new(design, &names, &merge_module::OUTPUT_NAMES)?;
+        Ok(per_cycle(|is_long| {
+            let s = if is_long { &long } else { &short };
+            let r = batch.run(&s.inputs, &s.outputs, &c)?;
+            assert!(r.report.passed(), "{}", r.report);
+            Ok(r.report.cycles)
+        })?)
+    };
+    let real = run_on(&design)?;
+    let old_dir = tempfile::tempdir()?;
+    let old = run_on(&next_wires(&module, &design, old_dir.path())?)?;
+    assert_eq!(old.0, real.0, "both emissions take the same cycles");
     let readies: Vec<String> = names.iter().map(|n| format!("{n}_ready")).collect();
     let stand_dir = tempfile::tempdir()?;
     let standin = stand_in(&design, &readies, stand_dir.path())?;
@@ -163,15 +194,13 @@ fn merging_module(dir: &Path) -> Res<()> {
         Ok(r.report.cycles)
     })?;
     print("merging module, IcarusMultiBatch", real, stand);
+    print_styles("merging module", real, old);
     Ok(())
 }
 
 /// Merges of the hierarchy merger bench's long and short runs.
 const MERGER_LONG: usize = 16;
 const MERGER_SHORT: usize = 3;
-
-/// Registers packed at most this many bits to a vector (`packed_registers`).
-const PACK_BITS: usize = 512;
 
 fn hierarchy_merger(dir: &Path) -> Res<()> {
     let c = rtl_gen::merge::MergerConfig::new(MergeDesign::default());
@@ -203,21 +232,16 @@ fn hierarchy_merger(dir: &Path) -> Res<()> {
         Ok((r, wall_rate, report.expect("a long run")))
     };
     let (real, real_wall, real_report) = run_on(&design)?;
-    let pack_dir = tempfile::tempdir()?;
-    let packed = packed_design(&design, PACK_BITS, pack_dir.path())?;
-    let (pack, pack_wall, pack_report) = run_on(&packed)?;
+    let old_dir = tempfile::tempdir()?;
+    let (old, old_wall, old_report) = run_on(&next_wires(&module, &design, old_dir.path())?)?;
     assert_eq!(
-        (
-            pack_report.cycles,
-            &pack_report.received,
-            pack_report.matched
-        ),
+        (old_report.cycles, &old_report.received, old_report.matched),
         (
             real_report.cycles,
             &real_report.received,
             real_report.matched
         ),
-        "the packed design must behave as the emitted one"
+        "both emissions must behave alike"
     );
     let readies: Vec<String> = ins.iter().map(|n| format!("{n}_ready")).collect();
     let stand_dir = tempfile::tempdir()?;
@@ -237,190 +261,18 @@ fn hierarchy_merger(dir: &Path) -> Res<()> {
         Ok(r.report.cycles)
     })?;
     print("hierarchy merger top, IcarusMultiBatch", real, stand);
+    print_styles("hierarchy merger top", real, old);
     println!(
-        "hierarchy merger top: {real_wall:.0} cycles/s of a long run's wall (files, vvp, compare); \
-         registers packed in vectors of <= {PACK_BITS} bits: {:.2} us/cycle of vvp CPU ({:.0} cycles/s), \
-         {pack_wall:.0} cycles/s of wall",
-        pack.1,
-        1e6 / pack.1
+        "hierarchy merger top: a long run's wall (files, vvp, compare): enable idiom \
+         {real_wall:.0} cycles/s, NextWires {old_wall:.0} cycles/s"
     );
     Ok(())
 }
 
-/// `real` with every Verilog file rewritten by `packed_registers`, into `dir`.
-fn packed_design(real: &Design, bits: usize, dir: &Path) -> Res<Design> {
-    let mut files = Vec::new();
-    for f in &real.verilog_files {
-        let text = std::fs::read_to_string(f)?;
-        let to = dir.join(f.file_name().ok_or("a Verilog file without a name")?);
-        std::fs::write(&to, packed_registers(&text, bits))?;
-        files.push(to);
-    }
-    Ok(Design {
-        verilog_files: files,
-        ..real.clone()
-    })
-}
-
-/// The emitted Verilog with each `always @(posedge clk)` register block
-/// (`if (rst) <r <= const;>... else <r <= next;>...`, the same registers in
-/// both branches) rewritten to assign vectors of at most `bits` bits: per
-/// vector `reg [..] hm_pk_<n>`, `wire [..] hm_pk_<n>_next = {nexts}`,
-/// `assign {regs} = hm_pk_<n>` (the registers become wires). vvp runs a
-/// procedural load and a nonblocking assignment per statement every cycle,
-/// changed or not; a vector of registers costs one of each. Blocks of any
-/// other shape are left as they are.
-fn packed_registers(text: &str, bits: usize) -> String {
-    let lines: Vec<&str> = text.lines().collect();
-    let widths = reg_widths(&lines);
-    let mut out = Vec::new();
-    let mut packed = std::collections::HashSet::new();
-    let mut n = 0;
-    let mut i = 0;
-    while i < lines.len() {
-        match register_block(&lines[i..]) {
-            Some((len, reset, next)) if same_registers(&reset, &next, &widths) => {
-                let (code, names) = packed_block(&reset, &next, &widths, bits, &mut n);
-                out.push(code);
-                packed.extend(names);
-                i += len;
-            }
-            _ => {
-                out.push(lines[i].to_string());
-                i += 1;
-            }
-        }
-    }
-    out.iter()
-        .map(|l| match reg_decl(l) {
-            Some((name, _)) if packed.contains(name) => l.replacen("reg", "wire", 1) + "\n",
-            _ => format!("{l}\n"),
-        })
-        .collect()
-}
-
-/// `reg [w-1:0] name;` (comment allowed after): the name and width.
-fn reg_decl(line: &str) -> Option<(&str, usize)> {
-    let rest = line.trim_start().strip_prefix("reg")?.trim_start();
-    let (width, rest) = match rest.strip_prefix('[') {
-        Some(r) => {
-            let (msb, r) = r.split_once(":0]")?;
-            (msb.trim().parse::<usize>().ok()? + 1, r.trim_start())
-        }
-        None => (1, rest),
-    };
-    let name = rest.split_once(';')?.0.trim();
-    let plain = !name.is_empty() && name.chars().all(|c| c.is_alphanumeric() || c == '_');
-    plain.then_some((name, width))
-}
-
-fn reg_widths<'a>(lines: &[&'a str]) -> std::collections::HashMap<&'a str, usize> {
-    lines.iter().filter_map(|l| reg_decl(l)).collect()
-}
-
-/// `name <= expr;`
-fn nonblocking(line: &str) -> Option<(String, String)> {
-    let (name, expr) = line.trim().strip_suffix(';')?.split_once(" <= ")?;
-    Some((name.to_string(), expr.to_string()))
-}
-
-type Assigns = Vec<(String, String)>;
-
-/// A register block at the start of `lines`: its length in lines, the
-/// reset branch's assignments and the other branch's.
-fn register_block(lines: &[&str]) -> Option<(usize, Assigns, Assigns)> {
-    if lines.len() < 4
-        || lines[0] != "    always @(posedge clk) begin"
-        || lines[1] != "        if (rst) begin"
-    {
-        return None;
-    }
-    let mut i = 2;
-    let mut reset = Vec::new();
-    while lines.get(i)? != &"        end else begin" {
-        reset.push(nonblocking(lines[i])?);
-        i += 1;
-    }
-    i += 1;
-    let mut next = Vec::new();
-    while lines.get(i)? != &"        end" {
-        next.push(nonblocking(lines[i])?);
-        i += 1;
-    }
-    (lines.get(i + 1)? == &"    end").then_some((i + 2, reset, next))
-}
-
-fn same_registers(
-    reset: &Assigns,
-    next: &Assigns,
-    widths: &std::collections::HashMap<&str, usize>,
-) -> bool {
-    let names = |a: &Assigns| {
-        let mut v: Vec<String> = a.iter().map(|x| x.0.clone()).collect();
-        v.sort();
-        v
-    };
-    !next.is_empty()
-        && names(reset) == names(next)
-        && next.iter().all(|x| widths.contains_key(x.0.as_str()))
-}
-
-/// The vectors of one block, and the registers they hold.
-fn packed_block(
-    reset: &Assigns,
-    next: &Assigns,
-    widths: &std::collections::HashMap<&str, usize>,
-    bits: usize,
-    n: &mut usize,
-) -> (String, Vec<String>) {
-    let width = |r: &String| widths[r.as_str()];
-    let mut groups: Vec<Vec<&(String, String)>> = vec![Vec::new()];
-    for a in next {
-        let used: usize = groups
-            .last()
-            .map_or(0, |g| g.iter().map(|x| width(&x.0)).sum());
-        if used > 0 && used + width(&a.0) > bits {
-            groups.push(Vec::new());
-        }
-        groups.last_mut().expect("a group").push(a);
-    }
-    let mut code = String::new();
-    let (mut on_reset, mut on_clock) = (String::new(), String::new());
-    for g in &groups {
-        let v = format!("hm_pk_{n}");
-        *n += 1;
-        let total: usize = g.iter().map(|x| width(&x.0)).sum();
-        let join = |f: &dyn Fn(&(String, String)) -> String| {
-            g.iter().map(|x| f(x)).collect::<Vec<_>>().join(", ")
-        };
-        let reset_of = |r: &String| {
-            reset
-                .iter()
-                .find(|x| &x.0 == r)
-                .expect("same registers")
-                .1
-                .clone()
-        };
-        code += &format!("    reg [{}:0] {v};\n", total - 1);
-        code += &format!(
-            "    wire [{}:0] {v}_next = {{{}}};\n",
-            total - 1,
-            join(&|x| x.1.clone())
-        );
-        code += &format!("    assign {{{}}} = {v};\n", join(&|x| x.0.clone()));
-        on_reset += &format!("            {v} <= {{{}}};\n", join(&|x| reset_of(&x.0)));
-        on_clock += &format!("            {v} <= {v}_next;\n");
-    }
-    code += &format!(
-        "    always @(posedge clk) begin\n        if (rst) begin\n{on_reset}        end else begin\n{on_clock}        end\n    end"
-    );
-    let names = next.iter().map(|x| x.0.clone()).collect();
-    (code, names)
-}
-
 fn merge_level(dir: &Path) -> Res<()> {
     let d = MergeDesign::default();
-    let design = cosim::from_rtl::design_from_module(&merge::merge_level_module(&d.params), dir)?;
+    let module = merge::merge_level_module(&d.params);
+    let design = cosim::from_rtl::design_from_module(&module, dir)?;
     let levels = merge::generate_levels(&d, 5, 1500)?;
     let vectors = merge::bench_vectors(&levels, None)?;
     let names: StreamNames = merge::stream_names();
@@ -432,12 +284,19 @@ fn merge_level(dir: &Path) -> Res<()> {
         .collect();
     // A short run: whole levels (a level's beats belong together).
     let short = merge::bench_vectors(&levels[..levels.len() / 50], None)?.len();
-    let real = per_cycle(|is_long| {
-        let n = if is_long { lanes.len() } else { short };
-        let r = batch.run(&lanes[..n], &mut |_| None, &c)?;
-        assert!(r.bench.passed(), "{}", r.bench);
-        Ok(r.bench.cycles)
-    })?;
+    let run_on = |batch: &IcarusBatch| {
+        per_cycle(|is_long| {
+            let n = if is_long { lanes.len() } else { short };
+            let r = batch.run(&lanes[..n], &mut |_| None, &c)?;
+            assert!(r.bench.passed(), "{}", r.bench);
+            Ok(r.bench.cycles)
+        })
+    };
+    let real = run_on(&batch)?;
+    let old_dir = tempfile::tempdir()?;
+    let old_design = next_wires(&module, &design, old_dir.path())?;
+    let old = run_on(&IcarusBatch::new(&old_design, &BatchSpec::single(&names))?)?;
+    assert_eq!(old.0, real.0, "both emissions take the same cycles");
     let stand_dir = tempfile::tempdir()?;
     let standin = stand_in(
         &design,
@@ -464,6 +323,7 @@ fn merge_level(dir: &Path) -> Res<()> {
         Ok(r.bench.cycles)
     })?;
     print("merge-level stage, IcarusBatch", real, stand);
+    print_styles("merge-level stage", real, old);
     Ok(())
 }
 

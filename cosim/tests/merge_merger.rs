@@ -488,7 +488,12 @@ fn hierarchy_merger_throughput() {
             .map(|t| {
                 t.fetch
                     .iter()
-                    .map(|f| f.node_reqs.len() + f.ref_reqs.len() + f.cref_reqs.len())
+                    .map(|f| {
+                        f.node_reqs.len()
+                            + f.ref_reqs.len()
+                            + f.cref_reqs.len()
+                            + f.probe_reqs.len()
+                    })
                     .sum::<usize>() as u64
             })
             .sum();
@@ -561,7 +566,7 @@ fn hierarchy_merger_verilog_lints_and_synthesizes() {
 
 /// Per-node logic only in the per-node merger: its fetchers' probe ports
 /// come out of the top, a level mode's top has none; the per-node merger
-/// at small sizes (D = 8, Q = 0, k = 3) lints clean and goes through Yosys
+/// at small sizes (D = 4, Q = 0, I = 8, H = 2, k = 2) lints clean and goes through Yosys
 /// `synth; check -assert` with no latch.
 #[test]
 fn hierarchy_merger_per_node_ports_lint_and_synth() {
@@ -586,8 +591,8 @@ fn hierarchy_merger_per_node_ports_lint_and_synth() {
             },
         },
         design: MergeDesign {
-            params: Params::new(8, 0, 12, 3).unwrap(),
-            inputs: 3,
+            params: Params::new(4, 0, 8, 2).unwrap(),
+            inputs: 2,
             mode: MergeMode::PerNode { num: 1, den: 2 },
             roots: 4,
         },

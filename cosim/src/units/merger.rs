@@ -692,9 +692,9 @@ mod tests {
             MergerLayout::new(&c.design.params, c.design.inputs, c.sizes.capacity_bits).unwrap();
         let mut rng = SplitMix64(5);
         let txs: Vec<_> = (0..4)
-            .map(|_| random_merge(&mut rng, &c).unwrap())
+            .map(|_| random_merge(&mut rng, c).unwrap())
             .collect();
-        let streams = merger_streams(&c, &txs).unwrap();
+        let streams = merger_streams(c, &txs).unwrap();
         for out in &streams.outputs {
             let fields = output_fields(&ml, pn, &out.name).unwrap();
             let mut end = 0;

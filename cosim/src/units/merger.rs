@@ -691,10 +691,11 @@ mod tests {
         let ml =
             MergerLayout::new(&c.design.params, c.design.inputs, c.sizes.capacity_bits).unwrap();
         let mut rng = SplitMix64(5);
-        let txs: Vec<_> = (0..4)
+        let txs: Vec<_> = (0..30)
             .map(|_| random_merge(&mut rng, c).unwrap())
             .collect();
         let streams = merger_streams(c, &txs).unwrap();
+        let mut checked = 0;
         for out in &streams.outputs {
             let fields = output_fields(&ml, pn, &out.name).unwrap();
             let mut end = 0;
@@ -706,12 +707,16 @@ mod tests {
                 );
                 end = f.end();
             }
-            let beat = out
-                .beats
-                .first()
-                .unwrap_or_else(|| panic!("no `{}` beat", out.name));
+            // A per-node merge at its inputs' top reads no root
+            // reference (`f{i}_ref_req` may stay empty).
+            let Some(beat) = out.beats.first() else {
+                assert!(out.name.ends_with("_ref_req"), "no `{}` beat", out.name);
+                continue;
+            };
             assert_eq!(end as usize, beat[0].width(), "`{}`", out.name);
+            checked += 1;
         }
+        assert!(checked >= streams.outputs.len() - c.design.inputs);
         assert_eq!(output_fields(&ml, pn, "f9_node_req"), None);
         assert_eq!(output_fields(&ml, pn, "f9_probe_req"), None);
         assert_eq!(output_fields(&ml, pn, "cfg"), None);

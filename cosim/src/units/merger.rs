@@ -392,7 +392,8 @@ pub fn merger_streams(c: &MergerConfig, txs: &[MergerTransaction]) -> Result<Mer
 }
 
 /// A random merge: 1..=k soups of 1..=[`MOST_TRIANGLES`] triangles, each
-/// translated at its top LOD by a random fraction of the room left; drawn
+/// translated at its top LOD by a random fraction of the room left (per-node
+/// mode: in half the merges every soup by the first one's fraction); drawn
 /// again while the leaves overflow the merger's leaf FIFOs (at most
 /// [`MOST_DRAWS`] times).
 pub fn random_merge(rng: &mut SplitMix64, c: &MergerConfig) -> Result<MergerTransaction> {
@@ -401,6 +402,10 @@ pub fn random_merge(rng: &mut SplitMix64, c: &MergerConfig) -> Result<MergerTran
     let out_id = u8::try_from(p.hier_capacity() - 1).map_err(golden_err)?;
     for _ in 0..MOST_DRAWS {
         let n = 1 + rng.below(k as u64) as usize;
+        // Per-node mode: half the merges place every soup where the first
+        // goes, so that voxels are contested and passes descend.
+        let together = is_per_node(c) && rng.below(2) == 0;
+        let mut first_frac = None;
         let mut store = HierarchyStore::new();
         let mut table = TranslationTable::new(p.hier_capacity() as usize, p).map_err(golden_err)?;
         let mut ids = Vec::new();
@@ -409,7 +414,10 @@ pub fn random_merge(rng: &mut SplitMix64, c: &MergerConfig) -> Result<MergerTran
             let tris = 1 + rng.below(MOST_TRIANGLES) as usize;
             let size = 0.02 + rng.below(30) as f32 / 100.0;
             let h = soup(p, id, tris, size, rng.next_u64());
-            let frac = [0, 1, 2].map(|_| rng.below(101) as f64 / 100.0);
+            let mut frac = [0, 1, 2].map(|_| rng.below(101) as f64 / 100.0);
+            if together {
+                frac = *first_frac.get_or_insert(frac);
+            }
             table
                 .write(id as u32, place(&h, frac))
                 .map_err(golden_err)?;

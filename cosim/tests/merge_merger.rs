@@ -14,11 +14,11 @@ mod merge_common;
 use cosim::tb::{run_multi_stream_bench_watching, BenchConfig, MultiReport, StreamBeats};
 use cosim::units::merger::{merger_streams, random_merge, MergeStats};
 use golden::merge::fetch_unit::{
-    fetch_err, fetch_transaction, FetchCfg, FetchCmd, FetchOut, FetchTransaction,
+    fetch_err, fetch_transaction_with_reports, FetchCfg, FetchCmd, FetchOut, FetchTransaction,
 };
 use golden::merge::merger_unit::{
     cmd_per_level, feeds_module, merger_transaction, merger_transaction_in_range, MergerSizes,
-    MergerTransaction,
+    MergerTransaction, ModulePass,
 };
 use golden::merge::unit::LevelBeat;
 use golden::merge::writer_unit::{place, real_cases, soup};
@@ -34,7 +34,9 @@ use rtl_gen::merge::MergerConfig;
 /// Name and configuration: the default (D = 16, k = 4, overlap 1/2), a
 /// small one (D = 8, Q = 0, k = 3, proportion:1/1: the deepest candidate)
 /// D = 31 (Q = 16, I = 32, H = 8, k = 5, overlap 1/3) and `fixed:4` with
-/// k = 2 at D = 8, Q = 0 (refuses a merge whose candidates do not hold 4).
+/// k = 2 at D = 8, Q = 0 (refuses a merge whose candidates do not hold 4),
+/// and per-node 1/2 at the default (k = 4; its FIFOs hold every LOD's
+/// pass nodes, so 256 each).
 fn configs() -> Vec<(&'static str, MergerConfig)> {
     let sizes = |p: &Params, cap: u32| MergerSizes {
         capacity_bits: cap,
@@ -84,6 +86,19 @@ fn configs() -> Vec<(&'static str, MergerConfig)> {
                     inputs: 2,
                     mode: MergeMode::Fixed(4),
                     ..q0
+                },
+            },
+        ),
+        (
+            "pernode",
+            MergerConfig {
+                sizes: MergerSizes {
+                    leaf_bits: 8,
+                    ..sizes(&default.params, 8)
+                },
+                design: MergeDesign {
+                    mode: MergeMode::PerNode { num: 1, den: 2 },
+                    ..default
                 },
             },
         ),
@@ -216,8 +231,14 @@ fn broken_entry_merge(
     .ok()?;
     let broken = hs[n - 1];
     tx.cfg.inputs.push(FetchCfg::of(broken, None));
-    let f = fetch_transaction(broken, 0, &tx.cmds, c.fetch_sizes()).unwrap();
-    assert!(f.node_reqs.is_empty() && f.ref_reqs.is_empty());
+    // Per-node mode: the fetcher takes the module's whole `report` (that
+    // of the other inputs' merge: an empty input changes no decision).
+    let (reports, passes) = match &tx.module {
+        ModulePass::PerNode(pn) => (pn.reports.clone(), Some(pn.passes)),
+        ModulePass::Level(_) => (Vec::new(), None),
+    };
+    let f = fetch_transaction_with_reports(broken, 0, &tx.cmds, &reports, c.fetch_sizes()).unwrap();
+    assert!(f.node_reqs.is_empty() && f.ref_reqs.is_empty() && f.probe_reqs.is_empty());
     // Per command the error beat (for its first level's End), then the
     // later levels' Ends.
     let errors = f
@@ -235,7 +256,9 @@ fn broken_entry_merge(
         .count();
     let levels: usize = tx.cmds.iter().map(|c| c.levels()).sum();
     assert_eq!(errors, tx.cmds.len());
-    assert_eq!(f.out.len(), levels);
+    // Per-node: the error beat stands for the first pass's End, then one
+    // End per later pass.
+    assert_eq!(f.out.len(), passes.map_or(levels, |n| n.max(1) as usize));
     tx.fetch.push(f);
     tx.header.fetch_err = fetch_err::ENTRY;
     tx.header.fetch_rank = (n - 1) as u16;
@@ -340,8 +363,12 @@ fn check(name: &str, runs: &[(&str, usize)], leaves: bool) {
             t.elapsed()
         );
         // Refusals and a fetcher error in every run; on the long run, leaves above the level
-        // and roots that are input nodes or several.
+        // and roots that are input nodes or several (per-node: multi-pass merges with
+        // descents).
         assert!(seen.refused > 0 && seen.fetch_errors > 0, "{seen:?}");
+        if matches!(c.design.mode, MergeMode::PerNode { .. }) {
+            assert!(seen.multi_pass > 0 && seen.descents > 0, "{seen:?}");
+        }
         if kind == "verilator" {
             assert!(
                 (seen.leaves_above > 0 || !leaves) && seen.materialized + seen.several_roots > 0,
@@ -383,6 +410,21 @@ fn hierarchy_merger_fixed_matches_golden() {
     );
 }
 
+/// Per-node 1/2 at the default (k = 4): every fetcher runs the per-node
+/// command, the module's `report` forks to the top and the fetchers, the
+/// passes' nodes come out of the per-LOD FIFOs.
+#[test]
+fn hierarchy_merger_per_node_matches_golden() {
+    if !tools_present(&["verilator", "iverilog"]) {
+        return;
+    }
+    check(
+        "pernode",
+        &[("verilator", 20), ("iverilog-batch", 2), ("ir", 1)],
+        true,
+    );
+}
+
 #[test]
 fn hierarchy_merger_q0_matches_golden() {
     if !tools_present(&["verilator", "iverilog"]) {
@@ -398,6 +440,10 @@ fn hierarchy_merger_q0_matches_golden() {
 /// The `out` beats of `f` the glue passes to the merging module (those of
 /// the count and merge passes; the closing command's are dropped).
 fn fed_beats(f: &FetchTransaction, cmds: &[FetchCmd]) -> u64 {
+    if cmds.first().is_some_and(|c| c.per_node) {
+        // Every pass of the per-node command goes to the module.
+        return f.out.len() as u64;
+    }
     let per_level = cmd_per_level(cmds);
     let mut level = 0;
     let mut fed = 0;
@@ -426,7 +472,7 @@ fn hierarchy_merger_throughput() {
     }
     for (name, c) in configs()
         .into_iter()
-        .filter(|c| c.0 == "default" || c.0 == "q0")
+        .filter(|c| c.0 == "default" || c.0 == "q0" || c.0 == "pernode")
     {
         let dir = tempfile::tempdir().unwrap();
         let m = rtl_gen::merge::hierarchy_merger_unit(&c).expect("a valid merger");
@@ -442,7 +488,12 @@ fn hierarchy_merger_throughput() {
             .map(|t| {
                 t.fetch
                     .iter()
-                    .map(|f| f.node_reqs.len() + f.ref_reqs.len() + f.cref_reqs.len())
+                    .map(|f| {
+                        f.node_reqs.len()
+                            + f.ref_reqs.len()
+                            + f.cref_reqs.len()
+                            + f.probe_reqs.len()
+                    })
                     .sum::<usize>() as u64
             })
             .sum();
@@ -513,17 +564,49 @@ fn hierarchy_merger_verilog_lints_and_synthesizes() {
     }
 }
 
-/// Per-node mode is refused with a message that says why.
+/// Per-node logic only in the per-node merger: its fetchers' probe ports
+/// come out of the top, a level mode's top has none; the per-node merger
+/// at small sizes (D = 4, Q = 0, I = 8, H = 2, k = 2) lints clean and goes through Yosys
+/// `synth; check -assert` with no latch.
 #[test]
-fn per_node_is_refused() {
-    let c = MergerConfig::new(MergeDesign {
-        mode: MergeMode::PerNode { num: 1, den: 2 },
-        ..MergeDesign::default()
-    });
-    let e = rtl_gen::merge::hierarchy_merger_unit(&c)
-        .err()
-        .expect("refused");
-    assert!(e.contains("per-node") && e.contains("probes"), "{e}");
+fn hierarchy_merger_per_node_ports_lint_and_synth() {
+    let has_probe = |c: &MergerConfig| {
+        let m = rtl_gen::merge::hierarchy_merger_unit(c).expect("a valid merger");
+        m.ports().iter().any(|q| q.name.contains("probe"))
+    };
+    for (name, c) in configs() {
+        let pn = matches!(c.design.mode, MergeMode::PerNode { .. });
+        assert_eq!(has_probe(&c), pn, "{name}");
+    }
+    if !tools_present(&["verilator", "yosys"]) {
+        return;
+    }
+    let small = MergerConfig {
+        sizes: MergerSizes {
+            capacity_bits: 2,
+            leaf_bits: 1,
+            fetch: golden::merge::fetch_unit::FetchSizes {
+                roots: 4,
+                frontier: 4,
+            },
+        },
+        design: MergeDesign {
+            params: Params::new(4, 0, 8, 2).unwrap(),
+            inputs: 2,
+            mode: MergeMode::PerNode { num: 1, den: 2 },
+            roots: 4,
+        },
+    };
+    let sm = rtl_gen::merge::hierarchy_merger_unit(&small).expect("a valid merger");
+    let warnings = sm.validate_design().expect("valid");
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let sdir = tempfile::tempdir().unwrap();
+    let t = std::time::Instant::now();
+    lint_and_synth(&design_of(&sm, sdir.path()));
+    println!(
+        "merge_merger per-node small: lint + yosys synth in {:.1?}",
+        t.elapsed()
+    );
 }
 
 fn lint_only(design: &cosim::Design) {

@@ -17,8 +17,10 @@ use std::time::Duration;
 
 use golden::layout::{Bits, Field};
 use golden::merge::fetch_unit::FetchLayout;
-use golden::merge::merger_unit::{merger_transaction, MergerLayout, MergerTransaction};
+use golden::merge::merger_unit::{merger_transaction, MergerLayout, MergerTransaction, ModulePass};
+use golden::merge::per_node_unit::{PerNodeLayout, PerNodeReport};
 use golden::merge::writer_unit::{place, soup};
+use golden::merge::MergeMode;
 use golden::store::{HierarchyStore, NodeRecord, Reference};
 use golden::translate::stimulus::SplitMix64;
 use golden::translate::TranslationTable;
@@ -84,6 +86,10 @@ pub struct MergeStats {
     pub fetch_errors: usize,
     /// Beats into the merging module's `in*` (fetcher out, over all inputs).
     pub module_in: u64,
+    /// Per-node merges of more than one pass.
+    pub multi_pass: usize,
+    /// Per-node decisions that descended.
+    pub descents: u64,
 }
 
 impl MergeStats {
@@ -98,6 +104,8 @@ impl MergeStats {
         self.several_roots += other.several_roots;
         self.fetch_errors += other.fetch_errors;
         self.module_in += other.module_in;
+        self.multi_pass += other.multi_pass;
+        self.descents += other.descents;
     }
 }
 
@@ -105,10 +113,12 @@ impl MergeStats {
 #[derive(Clone, Debug)]
 pub struct MergerStreams {
     /// `cfg`, then per fetcher `f{i}_node_resp`, `f{i}_ref_resp`,
-    /// `f{i}_cref_resp`, then `w_ref_resp`.
+    /// `f{i}_cref_resp`, then (per-node mode) every `f{i}_probe_resp`,
+    /// then `w_ref_resp`.
     pub inputs: Vec<StreamBeats>,
     /// `report`, per fetcher `f{i}_node_req`, `f{i}_ref_req`,
-    /// `f{i}_cref_req`, then `w_ref_req`, `nodes`, `refs`, `header`.
+    /// `f{i}_cref_req`, then (per-node mode) every `f{i}_probe_req`, then
+    /// `w_ref_req`, `nodes`, `refs`, `header` (always last).
     pub outputs: Vec<StreamBeats>,
     /// Per output stream (same order), the index of each merge's first
     /// expected beat, and one past the last.
@@ -159,27 +169,61 @@ fn header_fields(ml: &MergerLayout) -> Vec<Field> {
     ]
 }
 
+/// The per-node module's `report` fields in bit order (8.14).
+fn per_node_report_fields(l: &PerNodeLayout) -> Vec<Field> {
+    let mut v = l.coord.to_vec();
+    v.extend([
+        l.lod, l.shared, l.union, l.descend, l.pass_end, l.more, l.err,
+    ]);
+    v
+}
+
+/// Whether `c` merges per node (its fetchers have a probe port, its
+/// `report` is the per-node module's).
+pub fn is_per_node(c: &MergerConfig) -> bool {
+    matches!(c.design.mode, MergeMode::PerNode { .. })
+}
+
 /// The fields of output stream `stream`'s beats, from golden's layouts:
-/// `report` the merging module's (`TopLayout`), a fetcher's `*_req` an
-/// index, `w_ref_req` and `refs` a reference (`RefLayout`), `nodes` a
-/// node record (`NodeLayout`), `header` (`header_fields`); None for a
-/// name that is no output stream of the merger.
-pub fn output_fields(ml: &MergerLayout, stream: &str) -> Option<Vec<Field>> {
+/// `report` the merging module's (`TopLayout`, or `per_node`'s
+/// `PerNodeLayout` in per-node mode), a fetcher's `*_req` an index, `w_ref_req` and `refs` a
+/// reference (`RefLayout`), `nodes` a node record (`NodeLayout`), `header`
+/// (`header_fields`); None for a name that is no output stream of the
+/// merger.
+pub fn output_fields(
+    ml: &MergerLayout,
+    per_node: Option<&PerNodeLayout>,
+    stream: &str,
+) -> Option<Vec<Field>> {
     match stream {
-        "report" => Some(top_report_fields(&ml.top)),
+        "report" => Some(match per_node {
+            Some(pl) => per_node_report_fields(pl),
+            None => top_report_fields(&ml.top),
+        }),
         "w_ref_req" | "refs" => Some(ml.writer.reference.fields().copied().collect()),
         "nodes" => Some(ml.writer.node.fields().copied().collect()),
         "header" => Some(header_fields(ml)),
         // The other outputs are the fetchers' store reads.
-        s if output_names(ml.k).iter().any(|n| n == s) => Some(vec![index_field(&ml.fetch)]),
+        s if output_names(ml.k, per_node.is_some())
+            .iter()
+            .any(|n| n == s) =>
+        {
+            Some(vec![index_field(&ml.fetch)])
+        }
         _ => None,
     }
 }
 
 /// Decodes a beat of output stream `stream` field by field
 /// ([`output_fields`]; an unknown stream shows its raw bits as `data`).
-pub fn decoder_of(ml: &MergerLayout, stream: &str) -> Box<FieldDecoder> {
-    beat_decoder(named(output_fields(ml, stream).unwrap_or_default()))
+pub fn decoder_of(
+    ml: &MergerLayout,
+    per_node: Option<&PerNodeLayout>,
+    stream: &str,
+) -> Box<FieldDecoder> {
+    beat_decoder(named(
+        output_fields(ml, per_node, stream).unwrap_or_default(),
+    ))
 }
 
 /// Per-stream beats of the merges, appended merge by merge.
@@ -211,19 +255,25 @@ impl Lanes {
     }
 }
 
-fn input_names(k: usize) -> Vec<String> {
+fn input_names(k: usize, per_node: bool) -> Vec<String> {
     let mut v = vec!["cfg".to_string()];
     for i in 0..k {
         v.extend(["node_resp", "ref_resp", "cref_resp"].map(|s| format!("f{i}_{s}")));
+    }
+    if per_node {
+        v.extend((0..k).map(|i| format!("f{i}_probe_resp")));
     }
     v.push("w_ref_resp".into());
     v
 }
 
-fn output_names(k: usize) -> Vec<String> {
+fn output_names(k: usize, per_node: bool) -> Vec<String> {
     let mut v = vec!["report".to_string()];
     for i in 0..k {
         v.extend(["node_req", "ref_req", "cref_req"].map(|s| format!("f{i}_{s}")));
+    }
+    if per_node {
+        v.extend((0..k).map(|i| format!("f{i}_probe_req")));
     }
     v.extend(["w_ref_req", "nodes", "refs", "header"].map(String::from));
     v
@@ -243,12 +293,18 @@ pub fn merger_streams(c: &MergerConfig, txs: &[MergerTransaction]) -> Result<Mer
     };
     let node = |n: &NodeRecord| n.pack(&fl.node).map_err(golden_err);
     let rf = |r: &Reference| r.pack(&fl.reference).map_err(golden_err);
-    let mut ins = Lanes::new(input_names(k));
-    let mut outs = Lanes::new(output_names(k));
+    let per_node = is_per_node(c);
+    let pl = PerNodeLayout::new(p);
+    let mut ins = Lanes::new(input_names(k, per_node));
+    let mut outs = Lanes::new(output_names(k, per_node));
     let mut starts = vec![Vec::with_capacity(txs.len() + 1); outs.names.len()];
     let mut stats = MergeStats::default();
-    let w_resp = 1 + 3 * k;
-    let (report, w_req) = (0, 1 + 3 * k);
+    // The probe ports (per-node mode) sit between the fetchers' and the
+    // writer's streams.
+    let probes = 1 + 3 * k;
+    let np = if per_node { k } else { 0 };
+    let w_resp = probes + np;
+    let (report, w_req) = (0, probes + np);
     let (nodes, refs, header) = (w_req + 1, w_req + 2, w_req + 3);
     for tx in txs {
         for (s, at) in starts.iter_mut().zip(&outs.beats) {
@@ -257,6 +313,19 @@ pub fn merger_streams(c: &MergerConfig, txs: &[MergerTransaction]) -> Result<Mer
         ins.beats[0].push(tx.cfg.pack(&ml).map_err(golden_err)?);
         for r in tx.reports() {
             outs.beats[report].push(r.pack(&ml.top).map_err(golden_err)?);
+        }
+        let mut refused = tx.chosen.is_none();
+        if let ModulePass::PerNode(pn) = &tx.module {
+            for r in &pn.reports {
+                outs.beats[report].push(r.pack(&pl).map_err(golden_err)?);
+            }
+            refused = pn.passes == 0;
+            stats.multi_pass += (pn.passes > 1) as usize;
+            stats.descents += pn
+                .reports
+                .iter()
+                .filter(|r| matches!(r, PerNodeReport::Decision { descend: true, .. }))
+                .count() as u64;
         }
         let w = &tx.writer;
         for n in &w.nodes {
@@ -292,10 +361,18 @@ pub fn merger_streams(c: &MergerConfig, txs: &[MergerTransaction]) -> Result<Mer
             for r in &f.cref_reqs {
                 outs.beats[fo + 2].push(idx(r)?);
             }
+            if per_node {
+                for n in &f.probe_resps {
+                    ins.beats[probes + i].push(node(n)?);
+                }
+                for r in &f.probe_reqs {
+                    outs.beats[probes + i].push(idx(r)?);
+                }
+            }
             stats.module_in += f.out.len() as u64;
         }
         stats.merges += 1;
-        stats.refused += tx.chosen.is_none() as usize;
+        stats.refused += refused as usize;
         stats.fetch_errors += (tx.header.fetch_err != 0) as usize;
         stats.records += w.nodes.len() as u64;
         stats.refs += w.refs.len() as u64;
@@ -315,7 +392,8 @@ pub fn merger_streams(c: &MergerConfig, txs: &[MergerTransaction]) -> Result<Mer
 }
 
 /// A random merge: 1..=k soups of 1..=[`MOST_TRIANGLES`] triangles, each
-/// translated at its top LOD by a random fraction of the room left; drawn
+/// translated at its top LOD by a random fraction of the room left (per-node
+/// mode: in half the merges every soup by the first one's fraction); drawn
 /// again while the leaves overflow the merger's leaf FIFOs (at most
 /// [`MOST_DRAWS`] times).
 pub fn random_merge(rng: &mut SplitMix64, c: &MergerConfig) -> Result<MergerTransaction> {
@@ -324,6 +402,10 @@ pub fn random_merge(rng: &mut SplitMix64, c: &MergerConfig) -> Result<MergerTran
     let out_id = u8::try_from(p.hier_capacity() - 1).map_err(golden_err)?;
     for _ in 0..MOST_DRAWS {
         let n = 1 + rng.below(k as u64) as usize;
+        // Per-node mode: half the merges place every soup where the first
+        // goes, so that voxels are contested and passes descend.
+        let together = is_per_node(c) && rng.below(2) == 0;
+        let mut first_frac = None;
         let mut store = HierarchyStore::new();
         let mut table = TranslationTable::new(p.hier_capacity() as usize, p).map_err(golden_err)?;
         let mut ids = Vec::new();
@@ -332,7 +414,10 @@ pub fn random_merge(rng: &mut SplitMix64, c: &MergerConfig) -> Result<MergerTran
             let tris = 1 + rng.below(MOST_TRIANGLES) as usize;
             let size = 0.02 + rng.below(30) as f32 / 100.0;
             let h = soup(p, id, tris, size, rng.next_u64());
-            let frac = [0, 1, 2].map(|_| rng.below(101) as f64 / 100.0);
+            let mut frac = [0, 1, 2].map(|_| rng.below(101) as f64 / 100.0);
+            if together {
+                frac = *first_frac.get_or_insert(frac);
+            }
             table
                 .write(id as u32, place(&h, frac))
                 .map_err(golden_err)?;
@@ -465,9 +550,13 @@ pub fn run(
     let ml = MergerLayout::new(&c.design.params, c.design.inputs, c.sizes.capacity_bits)
         .map_err(golden_err)?;
     let k = c.design.inputs;
+    let pn_layout = is_per_node(c).then(|| PerNodeLayout::new(&c.design.params));
     let sim = match engine {
         MergerEngine::Iverilog => {
-            let (i, o) = (input_names(k), output_names(k));
+            let (i, o) = (
+                input_names(k, is_per_node(c)),
+                output_names(k, is_per_node(c)),
+            );
             let i: Vec<&str> = i.iter().map(String::as_str).collect();
             let o: Vec<&str> = o.iter().map(String::as_str).collect();
             Sim::Batch(Box::new(IcarusMultiBatch::new_watching(
@@ -565,7 +654,11 @@ pub fn run(
                     beat: m.output_index,
                     merge: out.merges + streams.merge_of(s, m.output_index as usize),
                     cycle: m.cycle,
-                    fields: decoded_pair(&*decoder_of(&ml, stream), &m.expected, &m.got),
+                    fields: decoded_pair(
+                        &*decoder_of(&ml, pn_layout.as_ref(), stream),
+                        &m.expected,
+                        &m.got,
+                    ),
                 }
             });
         }
@@ -591,16 +684,28 @@ mod tests {
     /// to the width golden packs them at: nothing undecoded, nothing made up.
     #[test]
     fn output_fields_tile_every_packed_beat() {
-        let c = MergerConfig::new(golden::vectors::merge::MergeDesign::default());
+        let per_node = golden::vectors::merge::MergeDesign {
+            mode: MergeMode::PerNode { num: 1, den: 2 },
+            ..golden::vectors::merge::MergeDesign::default()
+        };
+        for design in [golden::vectors::merge::MergeDesign::default(), per_node] {
+            fields_tile(&MergerConfig::new(design));
+        }
+    }
+
+    fn fields_tile(c: &MergerConfig) {
+        let pl = PerNodeLayout::new(&c.design.params);
+        let pn = is_per_node(c).then_some(&pl);
         let ml =
             MergerLayout::new(&c.design.params, c.design.inputs, c.sizes.capacity_bits).unwrap();
         let mut rng = SplitMix64(5);
-        let txs: Vec<_> = (0..4)
-            .map(|_| random_merge(&mut rng, &c).unwrap())
+        let txs: Vec<_> = (0..30)
+            .map(|_| random_merge(&mut rng, c).unwrap())
             .collect();
-        let streams = merger_streams(&c, &txs).unwrap();
+        let streams = merger_streams(c, &txs).unwrap();
+        let mut checked = 0;
         for out in &streams.outputs {
-            let fields = output_fields(&ml, &out.name).unwrap();
+            let fields = output_fields(&ml, pn, &out.name).unwrap();
             let mut end = 0;
             for f in &fields {
                 assert_eq!(
@@ -610,13 +715,22 @@ mod tests {
                 );
                 end = f.end();
             }
-            let beat = out
-                .beats
-                .first()
-                .unwrap_or_else(|| panic!("no `{}` beat", out.name));
+            // A per-node merge at its inputs' top reads no root
+            // reference (`f{i}_ref_req` may stay empty).
+            let Some(beat) = out.beats.first() else {
+                assert!(out.name.ends_with("_ref_req"), "no `{}` beat", out.name);
+                continue;
+            };
             assert_eq!(end as usize, beat[0].width(), "`{}`", out.name);
+            checked += 1;
         }
-        assert_eq!(output_fields(&ml, "f9_node_req"), None);
-        assert_eq!(output_fields(&ml, "cfg"), None);
+        assert!(checked >= streams.outputs.len() - c.design.inputs);
+        assert_eq!(output_fields(&ml, pn, "f9_node_req"), None);
+        assert_eq!(output_fields(&ml, pn, "f9_probe_req"), None);
+        assert_eq!(output_fields(&ml, pn, "cfg"), None);
+        assert_eq!(
+            output_fields(&ml, pn, "f0_probe_req").is_some(),
+            pn.is_some()
+        );
     }
 }

@@ -230,7 +230,7 @@ fn copy_into(dst: &mut Bits, offset: u32, src: &Bits) {
 pub enum ModulePass {
     /// A single merging level (overlap, fixed, below-top, proportion).
     Level(TopTransaction),
-    /// Per-node merging (golden only: the RTL refuses it).
+    /// Per-node merging.
     PerNode(PerNodeTransaction),
 }
 
@@ -620,7 +620,13 @@ pub fn merger_transaction_in_range(
     let writer = writer_transaction(&base, &hs, &p, sizes.capacity_bits, out_id)?;
     let header = MergerHeader {
         writer: writer.header,
-        leaf_overflow: leaf_overflow(&leaves, sizes.leaf_bits),
+        // Per-node mode: every LOD's FIFO holds the leaves above `lo` or the
+        // module's nodes of that LOD's pass (the builder sees them once the
+        // module is done, SPEC 8.15), so the whole base counts.
+        leaf_overflow: match &module {
+            ModulePass::Level(_) => leaf_overflow(&leaves, sizes.leaf_bits),
+            ModulePass::PerNode(_) => leaf_overflow(&base, sizes.leaf_bits),
+        },
         count_overflow: false,
         fetch_err: fetch_err::NONE,
         fetch_rank: 0,
@@ -711,6 +717,14 @@ mod tests {
                         b.base[d].iter().filter(|x| **x != BaseBeat::End).collect();
                     assert_eq!(got.len(), nodes.len(), "base{d}");
                 }
+                // Module out -> writer crefs: every pass's reference beats
+                // in stream order (shallow pass first), then End.
+                let mut crefs: Vec<CrefBeat> = module_refs(&pn.out)
+                    .into_iter()
+                    .map(CrefBeat::Ref)
+                    .collect();
+                crefs.push(CrefBeat::End);
+                assert_eq!(tx.writer.crefs, crefs);
             } else {
                 assert!(!tx.cmds[0].per_node && !feeds_module(&tx.cmds[0]));
             }

@@ -60,22 +60,14 @@ module merge_level_d16_q8_i24_h4 (
     wire [7:0] h_rec_mux_5;                  // rtl-gen/src/merge/level.rs:87
     wire [149:0] merged_rec;                 // rtl-gen/src/merge/level.rs:90
     wire complete_and_1;                     // rtl-gen/src/merge/level.rs:93
-    wire complete_mux;                       // rtl-gen/src/merge/level.rs:94
-    wire h_valid_next;                       // rtl-gen/src/merge/level.rs:94
-    wire h_open_next;                        // rtl-gen/src/merge/level.rs:95
     wire absorb_or;                          // rtl-gen/src/merge/level.rs:96
     wire h_multi_next;                       // rtl-gen/src/merge/level.rs:96
     wire absorb_and;                         // rtl-gen/src/merge/level.rs:97
     wire absorb_or_1;                        // rtl-gen/src/merge/level.rs:97
     wire h_ovf_next;                         // rtl-gen/src/merge/level.rs:97
     wire [1:0] in_kind_mux;                  // rtl-gen/src/merge/level.rs:99
-    wire [1:0] h_kind_next;                  // rtl-gen/src/merge/level.rs:99
-    wire [149:0] absorb_mux;                 // rtl-gen/src/merge/level.rs:100
-    wire [149:0] h_rec_next;                 // rtl-gen/src/merge/level.rs:100
-    wire [27:0] h_ref_next;                  // rtl-gen/src/merge/level.rs:101
     wire load_and;                           // rtl-gen/src/merge/level.rs:102
     wire load_and_1;                         // rtl-gen/src/merge/level.rs:102
-    wire grp_created_next;                   // rtl-gen/src/merge/level.rs:102
     wire h_created;                          // rtl-gen/src/merge/level.rs:105
     wire [1:0] h_multi_mux;                  // rtl-gen/src/merge/level.rs:107
     wire [1:0] h_open_mux;                   // rtl-gen/src/merge/level.rs:106
@@ -94,14 +86,11 @@ module merge_level_d16_q8_i24_h4 (
     wire out_skid_spare_valid_not;           // rtl-gen/src/merge/level.rs:120
     wire complete_and_2;                     // rtl-gen/src/merge/level.rs:120
     wire out_skid_spare_valid_or;            // rtl-gen/src/merge/level.rs:120
-    wire out_skid_valid_next;                // rtl-gen/src/merge/level.rs:120
     wire [180:0] out_skid_spare_valid_mux;   // rtl-gen/src/merge/level.rs:120
-    wire [180:0] out_skid_data_next;         // rtl-gen/src/merge/level.rs:120
     wire out_skid_spare_valid_or_1;          // rtl-gen/src/merge/level.rs:120
     wire out_skid_spare_valid_next;          // rtl-gen/src/merge/level.rs:120
     wire out_skid_ready_not;                 // rtl-gen/src/merge/level.rs:120
     wire out_skid_ready_and;                 // rtl-gen/src/merge/level.rs:120
-    wire [180:0] out_skid_spare_data_next;   // rtl-gen/src/merge/level.rs:120
 
     assign in_ready = absorb | free;
     assign h_out_ready = ~out_skid_spare_valid;
@@ -144,22 +133,14 @@ module merge_level_d16_q8_i24_h4 (
     assign h_rec_mux_5 = h_rec_gt_2 ? h_rec[101:94] : in_data[101:94];
     assign merged_rec = {count_sum[23:0], h_rec[125:102], h_rec_mux_5, h_rec_mux_3, h_rec_mux_1, h_rec_mux_4, h_rec_mux_2, h_rec_mux, h_rec[53:0]};
     assign complete_and_1 = complete & h_out_ready;
-    assign complete_mux = complete_and_1 ? 1'b0 : h_valid;
-    assign h_valid_next = load ? in_is_ref_not : complete_mux;
-    assign h_open_next = load ? in_is_inner : h_open;
     assign absorb_or = absorb | h_multi;
     assign h_multi_next = load ? 1'b0 : absorb_or;
     assign absorb_and = absorb & count_sum[24];
     assign absorb_or_1 = absorb_and | h_ovf;
     assign h_ovf_next = load ? 1'b0 : absorb_or_1;
     assign in_kind_mux = in_data[179] ? in_kind : 2'd1;
-    assign h_kind_next = load ? in_kind_mux : h_kind;
-    assign absorb_mux = absorb ? merged_rec : h_rec;
-    assign h_rec_next = load ? in_data[149:0] : absorb_mux;
-    assign h_ref_next = load ? in_data[177:150] : h_ref;
     assign load_and = load & h_valid;
     assign load_and_1 = load_and & h_open;
-    assign grp_created_next = load_and_1 ? h_multi : grp_created;
     assign h_created = h_open & h_multi;
     assign h_multi_mux = h_multi ? 2'd0 : 2'd1;
     assign h_open_mux = h_open ? h_multi_mux : h_kind;
@@ -174,14 +155,11 @@ module merge_level_d16_q8_i24_h4 (
     assign out_skid_spare_valid_not = ~out_skid_spare_valid;
     assign complete_and_2 = complete & out_skid_spare_valid_not;
     assign out_skid_spare_valid_or = out_skid_spare_valid | complete;
-    assign out_skid_valid_next = out_skid_ready_or ? out_skid_spare_valid_or : out_skid_valid;
     assign out_skid_spare_valid_mux = out_skid_spare_valid ? out_skid_spare_data : h_beat;
-    assign out_skid_data_next = out_skid_ready_or ? out_skid_spare_valid_mux : out_skid_data;
     assign out_skid_spare_valid_or_1 = out_skid_spare_valid | complete_and_2;
     assign out_skid_spare_valid_next = out_skid_ready_or ? 1'b0 : out_skid_spare_valid_or_1;
     assign out_skid_ready_not = ~out_skid_ready_or;
     assign out_skid_ready_and = out_skid_ready_not & complete_and_2;
-    assign out_skid_spare_data_next = out_skid_ready_and ? h_beat : out_skid_spare_data;
     assign out_valid = out_skid_valid;
     assign out_data = out_skid_data;
 
@@ -200,18 +178,33 @@ module merge_level_d16_q8_i24_h4 (
             out_skid_spare_valid <= 1'b0;
             out_skid_spare_data <= 181'h0000000000000000000000000000000000000000000000;
         end else begin
-            h_valid <= h_valid_next;
-            h_open <= h_open_next;
+            if (load) begin
+                h_valid <= in_is_ref_not;    // rtl-gen/src/merge/level.rs:94
+                h_open <= in_is_inner;       // rtl-gen/src/merge/level.rs:95
+                h_kind <= in_kind_mux;       // rtl-gen/src/merge/level.rs:99
+                h_rec <= in_data[149:0];     // rtl-gen/src/merge/level.rs:100
+                h_ref <= in_data[177:150];   // rtl-gen/src/merge/level.rs:101
+            end else begin
+                if (complete_and_1) begin
+                    h_valid <= 1'b0;         // rtl-gen/src/merge/level.rs:94
+                end
+                if (absorb) begin
+                    h_rec <= merged_rec;     // rtl-gen/src/merge/level.rs:100
+                end
+            end
             h_multi <= h_multi_next;
             h_ovf <= h_ovf_next;
-            h_kind <= h_kind_next;
-            h_rec <= h_rec_next;
-            h_ref <= h_ref_next;
-            grp_created <= grp_created_next;
-            out_skid_valid <= out_skid_valid_next;
-            out_skid_data <= out_skid_data_next;
+            if (load_and_1) begin
+                grp_created <= h_multi;      // rtl-gen/src/merge/level.rs:102
+            end
+            if (out_skid_ready_or) begin
+                out_skid_valid <= out_skid_spare_valid_or; // rtl-gen/src/merge/level.rs:120
+                out_skid_data <= out_skid_spare_valid_mux; // rtl-gen/src/merge/level.rs:120
+            end
             out_skid_spare_valid <= out_skid_spare_valid_next;
-            out_skid_spare_data <= out_skid_spare_data_next;
+            if (out_skid_ready_and) begin
+                out_skid_spare_data <= h_beat; // rtl-gen/src/merge/level.rs:120
+            end
         end
     end
 endmodule

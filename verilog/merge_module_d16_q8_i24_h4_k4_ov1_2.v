@@ -54,7 +54,6 @@ module merge_module_d16_q8_i24_h4_k4_ov1_2 (
     wire [180:0] u_merge_level_out_data;     // rtl-gen/src/merge/top.rs:156
     wire is_count;                           // rtl-gen/src/merge/top.rs:120
     reg [4:0] hi;                            // rtl-gen/src/merge/top.rs:162
-    wire [4:0] hi_next;                      // rtl-gen/src/merge/top.rs:163
     wire [1:0] net_rank;                     // rtl-gen/src/merge/top.rs:164
     wire [1:0] net_kind;                     // rtl-gen/src/merge/fields.rs:13
     wire net_end;                            // rtl-gen/src/merge/top.rs:166
@@ -80,34 +79,20 @@ module merge_module_d16_q8_i24_h4_k4_ov1_2 (
     wire bad_range_not;                      // rtl-gen/src/merge/top.rs:194
     wire send_lod_eq;                        // rtl-gen/src/merge/top.rs:195
     wire count_level_sent_and;               // rtl-gen/src/merge/top.rs:195
-    wire count_level_sent_mux;               // rtl-gen/src/merge/top.rs:195
-    wire sending_next;                       // rtl-gen/src/merge/top.rs:193
     wire [4:0] send_lod_add;                 // rtl-gen/src/merge/top.rs:197
-    wire [4:0] count_level_sent_mux_1;       // rtl-gen/src/merge/top.rs:197
-    wire [4:0] send_lod_next;                // rtl-gen/src/merge/top.rs:197
     wire result_valid;                       // rtl-gen/src/merge/top.rs:203
     wire is_count_and_3;                     // rtl-gen/src/merge/top.rs:204
     wire result_taken;                       // rtl-gen/src/merge/top.rs:205
     wire result_lod_eq;                      // rtl-gen/src/merge/top.rs:206
     wire count_done;                         // rtl-gen/src/merge/top.rs:206
     wire [4:0] result_lod_add;               // rtl-gen/src/merge/top.rs:207
-    wire [4:0] result_taken_mux;             // rtl-gen/src/merge/top.rs:207
-    wire [4:0] result_lod_next;              // rtl-gen/src/merge/top.rs:207
     wire u_overlap_not;                      // rtl-gen/src/merge/top.rs:208
     wire u_overlap_and;                      // rtl-gen/src/merge/top.rs:208
     wire [4:0] u_overlap_mux;                // rtl-gen/src/merge/top.rs:208
-    wire [4:0] result_taken_mux_1;           // rtl-gen/src/merge/top.rs:209
-    wire [4:0] best_lod_next;                // rtl-gen/src/merge/top.rs:209
     wire count_overflowed_or;                // rtl-gen/src/merge/top.rs:210
-    wire result_taken_mux_2;                 // rtl-gen/src/merge/top.rs:211
-    wire count_overflowed_next;              // rtl-gen/src/merge/top.rs:211
     wire [4:0] count_overflowed_mux;         // rtl-gen/src/merge/top.rs:214
-    wire [4:0] count_done_mux;               // rtl-gen/src/merge/top.rs:214
-    wire [4:0] choice_lod_next;              // rtl-gen/src/merge/top.rs:212
     wire [1:0] bad_range_mux;                // rtl-gen/src/merge/top.rs:217
     wire [1:0] count_overflowed_mux_1;       // rtl-gen/src/merge/top.rs:219
-    wire [1:0] count_done_mux_1;             // rtl-gen/src/merge/top.rs:218
-    wire [1:0] choice_err_next;              // rtl-gen/src/merge/top.rs:216
     wire [57:0] const_cat;                   // rtl-gen/src/merge/top.rs:224
     wire [57:0] choice_err_cat;              // rtl-gen/src/merge/top.rs:225
     wire [57:0] report_in_data;              // rtl-gen/src/merge/top.rs:226
@@ -123,14 +108,11 @@ module merge_module_d16_q8_i24_h4_k4_ov1_2 (
     wire report_skid_spare_valid_not;        // rtl-gen/src/merge/top.rs:248
     wire report_in_valid_and;                // rtl-gen/src/merge/top.rs:248
     wire report_skid_spare_valid_or;         // rtl-gen/src/merge/top.rs:248
-    wire report_skid_valid_next;             // rtl-gen/src/merge/top.rs:248
     wire [57:0] report_skid_spare_valid_mux; // rtl-gen/src/merge/top.rs:248
-    wire [57:0] report_skid_data_next;       // rtl-gen/src/merge/top.rs:248
     wire report_skid_spare_valid_or_1;       // rtl-gen/src/merge/top.rs:248
     wire report_skid_spare_valid_next;       // rtl-gen/src/merge/top.rs:248
     wire report_skid_ready_not;              // rtl-gen/src/merge/top.rs:248
     wire report_skid_ready_and;              // rtl-gen/src/merge/top.rs:248
-    wire [57:0] report_skid_spare_data_next; // rtl-gen/src/merge/top.rs:248
     reg merge_feeding;                       // rtl-gen/src/merge/top.rs:253
     wire is_merge_and;                       // rtl-gen/src/merge/top.rs:254
     wire to_merge_level_valid;               // rtl-gen/src/merge/top.rs:254
@@ -142,15 +124,9 @@ module merge_module_d16_q8_i24_h4_k4_ov1_2 (
     wire to_merge_level_valid_and;           // rtl-gen/src/merge/top.rs:274
     wire net_beat_eq;                        // rtl-gen/src/merge/top.rs:274
     wire merge_level_sent;                   // rtl-gen/src/merge/top.rs:274
-    wire merge_level_sent_mux;               // rtl-gen/src/merge/top.rs:275
-    wire merge_feeding_next;                 // rtl-gen/src/merge/top.rs:275
     wire [1:0] bad_range_mux_1;              // rtl-gen/src/merge/top.rs:281
     wire choice_err_eq;                      // rtl-gen/src/merge/top.rs:286
     wire [1:0] choice_err_mux;               // rtl-gen/src/merge/top.rs:287
-    wire [1:0] merge_done_mux;               // rtl-gen/src/merge/top.rs:292
-    wire [1:0] choice_reported_mux;          // rtl-gen/src/merge/top.rs:292
-    wire [1:0] count_done_mux_2;             // rtl-gen/src/merge/top.rs:290
-    wire [1:0] state_next;                   // rtl-gen/src/merge/top.rs:288
     reg done_pulse;                          // rtl-gen/src/merge/top.rs:299
     wire choice_err_eq_1;                    // rtl-gen/src/merge/top.rs:300
     wire choice_err_not;                     // rtl-gen/src/merge/top.rs:300
@@ -174,7 +150,6 @@ module merge_module_d16_q8_i24_h4_k4_ov1_2 (
     assign bad_range = cfg_lo_gt | cfg_hi_gt;
     assign report_in_ready = ~report_skid_spare_valid;
     assign is_count = state == 2'd1;
-    assign hi_next = cfg_fire ? cfg_hi : hi;
     assign net_rank = u_network_out_data[181:180];
     assign net_kind = u_network_out_data[179:178];
     assign net_end = net_kind == 2'd3;
@@ -192,34 +167,20 @@ module merge_module_d16_q8_i24_h4_k4_ov1_2 (
     assign bad_range_not = ~bad_range;
     assign send_lod_eq = send_lod == hi;
     assign count_level_sent_and = count_level_sent & send_lod_eq;
-    assign count_level_sent_mux = count_level_sent_and ? 1'b0 : sending;
-    assign sending_next = cfg_fire ? bad_range_not : count_level_sent_mux;
     assign send_lod_add = send_lod + 5'd1;
-    assign count_level_sent_mux_1 = count_level_sent ? send_lod_add : send_lod;
-    assign send_lod_next = cfg_fire ? cfg_lo : count_level_sent_mux_1;
     assign result_valid = is_count & u_overlap_out_valid;
     assign is_count_and_3 = is_count & report_in_ready;
     assign result_taken = result_valid & report_in_ready;
     assign result_lod_eq = result_lod == hi;
     assign count_done = result_taken & result_lod_eq;
     assign result_lod_add = result_lod + 5'd1;
-    assign result_taken_mux = result_taken ? result_lod_add : result_lod;
-    assign result_lod_next = cfg_fire ? cfg_lo : result_taken_mux;
     assign u_overlap_not = ~u_overlap_out_data[49];
     assign u_overlap_and = u_overlap_out_data[48] & u_overlap_not;
     assign u_overlap_mux = u_overlap_and ? result_lod : best_lod;
-    assign result_taken_mux_1 = result_taken ? u_overlap_mux : best_lod;
-    assign best_lod_next = cfg_fire ? cfg_lo : result_taken_mux_1;
     assign count_overflowed_or = count_overflowed | u_overlap_out_data[49];
-    assign result_taken_mux_2 = result_taken ? count_overflowed_or : count_overflowed;
-    assign count_overflowed_next = cfg_fire ? 1'b0 : result_taken_mux_2;
     assign count_overflowed_mux = count_overflowed_or ? 5'd0 : u_overlap_mux;
-    assign count_done_mux = count_done ? count_overflowed_mux : choice_lod;
-    assign choice_lod_next = cfg_fire ? 5'd0 : count_done_mux;
     assign bad_range_mux = bad_range ? 2'd3 : 2'd0;
     assign count_overflowed_mux_1 = count_overflowed_or ? 2'd2 : 2'd0;
-    assign count_done_mux_1 = count_done ? count_overflowed_mux_1 : choice_err;
-    assign choice_err_next = cfg_fire ? bad_range_mux : count_done_mux_1;
     assign const_cat = {3'd0, u_overlap_out_data, result_lod};
     assign choice_err_cat = {choice_err, 1'b1, 50'd0, choice_lod};
     assign report_in_data = is_count ? const_cat : choice_err_cat;
@@ -231,14 +192,11 @@ module merge_module_d16_q8_i24_h4_k4_ov1_2 (
     assign report_skid_spare_valid_not = ~report_skid_spare_valid;
     assign report_in_valid_and = report_in_valid & report_skid_spare_valid_not;
     assign report_skid_spare_valid_or = report_skid_spare_valid | report_in_valid;
-    assign report_skid_valid_next = report_skid_ready_or ? report_skid_spare_valid_or : report_skid_valid;
     assign report_skid_spare_valid_mux = report_skid_spare_valid ? report_skid_spare_data : report_in_data;
-    assign report_skid_data_next = report_skid_ready_or ? report_skid_spare_valid_mux : report_skid_data;
     assign report_skid_spare_valid_or_1 = report_skid_spare_valid | report_in_valid_and;
     assign report_skid_spare_valid_next = report_skid_ready_or ? 1'b0 : report_skid_spare_valid_or_1;
     assign report_skid_ready_not = ~report_skid_ready_or;
     assign report_skid_ready_and = report_skid_ready_not & report_in_valid_and;
-    assign report_skid_spare_data_next = report_skid_ready_and ? report_in_data : report_skid_spare_data;
     assign report_valid = report_skid_valid;
     assign report_data = report_skid_data;
     assign is_merge_and = is_merge & merge_feeding;
@@ -253,15 +211,9 @@ module merge_module_d16_q8_i24_h4_k4_ov1_2 (
     assign to_merge_level_valid_and = to_merge_level_valid & u_merge_level_in_ready;
     assign net_beat_eq = u_network_out_data[179:178] == 2'd3;
     assign merge_level_sent = to_merge_level_valid_and & net_beat_eq;
-    assign merge_level_sent_mux = merge_level_sent ? 1'b0 : merge_feeding;
-    assign merge_feeding_next = choice_reported ? 1'b1 : merge_level_sent_mux;
     assign bad_range_mux_1 = bad_range ? 2'd2 : 2'd1;
     assign choice_err_eq = choice_err == 2'd0;
     assign choice_err_mux = choice_err_eq ? 2'd3 : 2'd0;
-    assign merge_done_mux = merge_done ? 2'd0 : state;
-    assign choice_reported_mux = choice_reported ? choice_err_mux : merge_done_mux;
-    assign count_done_mux_2 = count_done ? 2'd2 : choice_reported_mux;
-    assign state_next = cfg_fire ? bad_range_mux_1 : count_done_mux_2;
     assign idle = is_idle;
     assign choice_err_eq_1 = choice_err == 2'd0;
     assign choice_err_not = ~choice_err_eq_1;
@@ -329,20 +281,51 @@ module merge_module_d16_q8_i24_h4_k4_ov1_2 (
             merge_feeding <= 1'b0;
             done_pulse <= 1'b0;
         end else begin
-            state <= state_next;
-            choice_lod <= choice_lod_next;
-            choice_err <= choice_err_next;
-            hi <= hi_next;
-            sending <= sending_next;
-            send_lod <= send_lod_next;
-            result_lod <= result_lod_next;
-            best_lod <= best_lod_next;
-            count_overflowed <= count_overflowed_next;
-            report_skid_valid <= report_skid_valid_next;
-            report_skid_data <= report_skid_data_next;
+            if (cfg_fire) begin
+                state <= bad_range_mux_1;    // rtl-gen/src/merge/top.rs:288
+                choice_lod <= 5'd0;          // rtl-gen/src/merge/top.rs:212
+                choice_err <= bad_range_mux; // rtl-gen/src/merge/top.rs:216
+                hi <= cfg_hi;                // rtl-gen/src/merge/top.rs:163
+                sending <= bad_range_not;    // rtl-gen/src/merge/top.rs:193
+                send_lod <= cfg_lo;          // rtl-gen/src/merge/top.rs:197
+                result_lod <= cfg_lo;        // rtl-gen/src/merge/top.rs:207
+                best_lod <= cfg_lo;          // rtl-gen/src/merge/top.rs:209
+                count_overflowed <= 1'b0;    // rtl-gen/src/merge/top.rs:211
+            end else begin
+                if (count_done) begin
+                    state <= 2'd2;           // rtl-gen/src/merge/top.rs:290
+                    choice_lod <= count_overflowed_mux; // rtl-gen/src/merge/top.rs:214
+                    choice_err <= count_overflowed_mux_1; // rtl-gen/src/merge/top.rs:218
+                end else if (choice_reported) begin
+                    state <= choice_err_mux; // rtl-gen/src/merge/top.rs:292
+                end else if (merge_done) begin
+                    state <= 2'd0;           // rtl-gen/src/merge/top.rs:292
+                end
+                if (count_level_sent_and) begin
+                    sending <= 1'b0;         // rtl-gen/src/merge/top.rs:195
+                end
+                if (count_level_sent) begin
+                    send_lod <= send_lod_add; // rtl-gen/src/merge/top.rs:197
+                end
+                if (result_taken) begin
+                    result_lod <= result_lod_add; // rtl-gen/src/merge/top.rs:207
+                    best_lod <= u_overlap_mux; // rtl-gen/src/merge/top.rs:209
+                    count_overflowed <= count_overflowed_or; // rtl-gen/src/merge/top.rs:211
+                end
+            end
+            if (report_skid_ready_or) begin
+                report_skid_valid <= report_skid_spare_valid_or; // rtl-gen/src/merge/top.rs:248
+                report_skid_data <= report_skid_spare_valid_mux; // rtl-gen/src/merge/top.rs:248
+            end
             report_skid_spare_valid <= report_skid_spare_valid_next;
-            report_skid_spare_data <= report_skid_spare_data_next;
-            merge_feeding <= merge_feeding_next;
+            if (report_skid_ready_and) begin
+                report_skid_spare_data <= report_in_data; // rtl-gen/src/merge/top.rs:248
+            end
+            if (choice_reported) begin
+                merge_feeding <= 1'b1;       // rtl-gen/src/merge/top.rs:275
+            end else if (merge_level_sent) begin
+                merge_feeding <= 1'b0;       // rtl-gen/src/merge/top.rs:275
+            end
             done_pulse <= done_pulse_next;
         end
     end

@@ -71,8 +71,6 @@ module merge_module_d16_q8_i24_h4_k4_pn1_2 (
     wire out_end_and;                        // rtl-gen/src/merge/per_node.rs:376
     wire passes_in_flight_eq;                // rtl-gen/src/merge/per_node.rs:376
     wire merge_done;                         // rtl-gen/src/merge/per_node.rs:376
-    wire u_decider_mux;                      // rtl-gen/src/merge/per_node.rs:379
-    wire final_taken_next;                   // rtl-gen/src/merge/per_node.rs:377
     wire report_in_ready;                    // rtl-gen/src/merge/per_node.rs:383
     wire [65:0] const_cat;                   // rtl-gen/src/merge/per_node.rs:385
     wire u_decider_not;                      // rtl-gen/src/merge/per_node.rs:394
@@ -90,18 +88,13 @@ module merge_module_d16_q8_i24_h4_k4_pn1_2 (
     wire report_skid_spare_valid_not;        // rtl-gen/src/merge/per_node.rs:402
     wire report_in_valid_and;                // rtl-gen/src/merge/per_node.rs:402
     wire report_skid_spare_valid_or;         // rtl-gen/src/merge/per_node.rs:402
-    wire report_skid_valid_next;             // rtl-gen/src/merge/per_node.rs:402
     wire [65:0] report_skid_spare_valid_mux; // rtl-gen/src/merge/per_node.rs:402
-    wire [65:0] report_skid_data_next;       // rtl-gen/src/merge/per_node.rs:402
     wire report_skid_spare_valid_or_1;       // rtl-gen/src/merge/per_node.rs:402
     wire report_skid_spare_valid_next;       // rtl-gen/src/merge/per_node.rs:402
     wire report_skid_ready_not;              // rtl-gen/src/merge/per_node.rs:402
     wire report_skid_ready_and;              // rtl-gen/src/merge/per_node.rs:402
-    wire [65:0] report_skid_spare_data_next; // rtl-gen/src/merge/per_node.rs:402
     wire [1:0] bad_range_mux;                // rtl-gen/src/merge/per_node.rs:407
     wire refusal_sent_or;                    // rtl-gen/src/merge/per_node.rs:410
-    wire [1:0] refusal_sent_mux;             // rtl-gen/src/merge/per_node.rs:410
-    wire [1:0] state_next;                   // rtl-gen/src/merge/per_node.rs:408
     reg done_pulse;                          // rtl-gen/src/merge/per_node.rs:413
     wire done_pulse_next;                    // rtl-gen/src/merge/per_node.rs:414
 
@@ -135,8 +128,6 @@ module merge_module_d16_q8_i24_h4_k4_pn1_2 (
     assign out_end_and = out_end & final_taken;
     assign passes_in_flight_eq = passes_in_flight == 6'd1;
     assign merge_done = out_end_and & passes_in_flight_eq;
-    assign u_decider_mux = u_decider_last_taken ? 1'b1 : final_taken;
-    assign final_taken_next = cfg_fire ? 1'b0 : u_decider_mux;
     assign report_in_ready = ~report_skid_spare_valid;
     assign const_cat = {2'd3, 1'b0, 1'b1, 62'd0};
     assign u_decider_not = ~u_decider_report_valid;
@@ -150,20 +141,15 @@ module merge_module_d16_q8_i24_h4_k4_pn1_2 (
     assign report_skid_spare_valid_not = ~report_skid_spare_valid;
     assign report_in_valid_and = report_in_valid & report_skid_spare_valid_not;
     assign report_skid_spare_valid_or = report_skid_spare_valid | report_in_valid;
-    assign report_skid_valid_next = report_skid_ready_or ? report_skid_spare_valid_or : report_skid_valid;
     assign report_skid_spare_valid_mux = report_skid_spare_valid ? report_skid_spare_data : report_in_data;
-    assign report_skid_data_next = report_skid_ready_or ? report_skid_spare_valid_mux : report_skid_data;
     assign report_skid_spare_valid_or_1 = report_skid_spare_valid | report_in_valid_and;
     assign report_skid_spare_valid_next = report_skid_ready_or ? 1'b0 : report_skid_spare_valid_or_1;
     assign report_skid_ready_not = ~report_skid_ready_or;
     assign report_skid_ready_and = report_skid_ready_not & report_in_valid_and;
-    assign report_skid_spare_data_next = report_skid_ready_and ? report_in_data : report_skid_spare_data;
     assign report_valid = report_skid_valid;
     assign report_data = report_skid_data;
     assign bad_range_mux = bad_range ? 2'd2 : 2'd1;
     assign refusal_sent_or = refusal_sent | merge_done;
-    assign refusal_sent_mux = refusal_sent_or ? 2'd0 : state;
-    assign state_next = cfg_fire ? bad_range_mux : refusal_sent_mux;
     assign idle = is_idle;
     assign done_pulse_next = merge_done | refusal_sent;
     assign done = done_pulse;
@@ -228,13 +214,26 @@ module merge_module_d16_q8_i24_h4_k4_pn1_2 (
             report_skid_spare_data <= 66'h00000000000000000;
             done_pulse <= 1'b0;
         end else begin
-            state <= state_next;
-            final_taken <= final_taken_next;
+            if (cfg_fire) begin
+                state <= bad_range_mux;      // rtl-gen/src/merge/per_node.rs:408
+                final_taken <= 1'b0;         // rtl-gen/src/merge/per_node.rs:377
+            end else begin
+                if (refusal_sent_or) begin
+                    state <= 2'd0;           // rtl-gen/src/merge/per_node.rs:410
+                end
+                if (u_decider_last_taken) begin
+                    final_taken <= 1'b1;     // rtl-gen/src/merge/per_node.rs:379
+                end
+            end
             passes_in_flight <= passes_in_flight_next;
-            report_skid_valid <= report_skid_valid_next;
-            report_skid_data <= report_skid_data_next;
+            if (report_skid_ready_or) begin
+                report_skid_valid <= report_skid_spare_valid_or; // rtl-gen/src/merge/per_node.rs:402
+                report_skid_data <= report_skid_spare_valid_mux; // rtl-gen/src/merge/per_node.rs:402
+            end
             report_skid_spare_valid <= report_skid_spare_valid_next;
-            report_skid_spare_data <= report_skid_spare_data_next;
+            if (report_skid_ready_and) begin
+                report_skid_spare_data <= report_in_data; // rtl-gen/src/merge/per_node.rs:402
+            end
             done_pulse <= done_pulse_next;
         end
     end

@@ -44,23 +44,16 @@ module overlap_counter_d16_i24_k4_t1_2 (
     wire [23:0] union_count_next;            // rtl-gen/src/merge/overlap.rs:95
     wire [23:0] shared_count_next;           // rtl-gen/src/merge/overlap.rs:96
     wire in_end_not;                         // rtl-gen/src/merge/overlap.rs:97
-    wire g_valid_next;                       // rtl-gen/src/merge/overlap.rs:97
-    wire [47:0] g_voxel_next;                // rtl-gen/src/merge/overlap.rs:98
     wire same_voxel_not_1;                   // rtl-gen/src/merge/overlap.rs:99
     wire fire_and_2;                         // rtl-gen/src/merge/overlap.rs:99
-    wire [1:0] g_rank_next;                  // rtl-gen/src/merge/overlap.rs:99
     wire in_rank_ne;                         // rtl-gen/src/merge/overlap.rs:100
     wire g_shared_or;                        // rtl-gen/src/merge/overlap.rs:100
     wire same_voxel_mux;                     // rtl-gen/src/merge/overlap.rs:100
-    wire g_shared_next;                      // rtl-gen/src/merge/overlap.rs:100
     reg [23:0] r_shared;                     // rtl-gen/src/merge/overlap.rs:102
     reg [23:0] r_union;                      // rtl-gen/src/merge/overlap.rs:103
     reg r_overflow;                          // rtl-gen/src/merge/overlap.rs:104
     wire [23:0] overflow_mux;                // rtl-gen/src/merge/overlap.rs:105
-    wire [23:0] r_shared_next;               // rtl-gen/src/merge/overlap.rs:105
     wire [23:0] overflow_mux_1;              // rtl-gen/src/merge/overlap.rs:106
-    wire [23:0] r_union_next;                // rtl-gen/src/merge/overlap.rs:106
-    wire r_overflow_next;                    // rtl-gen/src/merge/overlap.rs:107
     wire out_ready_not;                      // rtl-gen/src/merge/overlap.rs:108
     wire out_held;                           // rtl-gen/src/merge/overlap.rs:108
     wire out_valid_next;                     // rtl-gen/src/merge/overlap.rs:108
@@ -94,20 +87,13 @@ module overlap_counter_d16_i24_k4_t1_2 (
     assign union_count_next = fire_and_1 ? 24'd0 : close_mux;
     assign shared_count_next = fire_and_1 ? 24'd0 : close_mux_1;
     assign in_end_not = ~in_end;
-    assign g_valid_next = fire ? in_end_not : g_valid;
-    assign g_voxel_next = fire ? in_voxel : g_voxel;
     assign same_voxel_not_1 = ~same_voxel;
     assign fire_and_2 = fire & same_voxel_not_1;
-    assign g_rank_next = fire_and_2 ? in_rank : g_rank;
     assign in_rank_ne = in_rank != g_rank;
     assign g_shared_or = g_shared | in_rank_ne;
     assign same_voxel_mux = same_voxel ? g_shared_or : 1'b0;
-    assign g_shared_next = fire ? same_voxel_mux : g_shared;
     assign overflow_mux = overflow_or ? 24'd0 : close_mux_1;
-    assign r_shared_next = fire_and_1 ? overflow_mux : r_shared;
     assign overflow_mux_1 = overflow_or ? 24'd0 : close_mux;
-    assign r_union_next = fire_and_1 ? overflow_mux_1 : r_union;
-    assign r_overflow_next = fire_and_1 ? overflow_or : r_overflow;
     assign out_ready_not = ~out_ready;
     assign out_held = out_valid_q & out_ready_not;
     assign out_valid_next = fire_and_1 ? 1'b1 : out_held;
@@ -132,17 +118,23 @@ module overlap_counter_d16_i24_k4_t1_2 (
             r_union <= 24'd0;
             r_overflow <= 1'b0;
         end else begin
-            g_valid <= g_valid_next;
-            g_voxel <= g_voxel_next;
-            g_rank <= g_rank_next;
-            g_shared <= g_shared_next;
+            if (fire) begin
+                g_valid <= in_end_not;       // rtl-gen/src/merge/overlap.rs:97
+                g_voxel <= in_voxel;         // rtl-gen/src/merge/overlap.rs:98
+                g_shared <= same_voxel_mux;  // rtl-gen/src/merge/overlap.rs:100
+            end
+            if (fire_and_2) begin
+                g_rank <= in_rank;           // rtl-gen/src/merge/overlap.rs:99
+            end
             shared_count <= shared_count_next;
             union_count <= union_count_next;
             overflow <= overflow_next;
             out_valid_q <= out_valid_next;
-            r_shared <= r_shared_next;
-            r_union <= r_union_next;
-            r_overflow <= r_overflow_next;
+            if (fire_and_1) begin
+                r_shared <= overflow_mux;    // rtl-gen/src/merge/overlap.rs:105
+                r_union <= overflow_mux_1;   // rtl-gen/src/merge/overlap.rs:106
+                r_overflow <= overflow_or;   // rtl-gen/src/merge/overlap.rs:107
+            end
         end
     end
 endmodule

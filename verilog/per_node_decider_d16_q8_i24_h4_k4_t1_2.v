@@ -100,14 +100,11 @@ module per_node_decider_d16_q8_i24_h4_k4_t1_2 (
     wire out_skid_spare_valid_not;           // rtl-gen/src/merge/per_node.rs:216
     wire out_in_valid_and;                   // rtl-gen/src/merge/per_node.rs:216
     wire out_skid_spare_valid_or;            // rtl-gen/src/merge/per_node.rs:216
-    wire out_skid_valid_next;                // rtl-gen/src/merge/per_node.rs:216
     wire [179:0] out_skid_spare_valid_mux;   // rtl-gen/src/merge/per_node.rs:216
-    wire [179:0] out_skid_data_next;         // rtl-gen/src/merge/per_node.rs:216
     wire out_skid_spare_valid_or_1;          // rtl-gen/src/merge/per_node.rs:216
     wire out_skid_spare_valid_next;          // rtl-gen/src/merge/per_node.rs:216
     wire out_skid_ready_not;                 // rtl-gen/src/merge/per_node.rs:216
     wire out_skid_ready_and;                 // rtl-gen/src/merge/per_node.rs:216
-    wire [179:0] out_skid_spare_data_next;   // rtl-gen/src/merge/per_node.rs:216
     wire [3:0] in_is_end_mux;                // rtl-gen/src/merge/per_node.rs:227
     wire [3:0] in_is_end_mux_1;              // rtl-gen/src/merge/per_node.rs:228
     wire in_is_end_not;                      // rtl-gen/src/merge/per_node.rs:229
@@ -128,14 +125,11 @@ module per_node_decider_d16_q8_i24_h4_k4_t1_2 (
     wire report_skid_spare_valid_not;        // rtl-gen/src/merge/per_node.rs:250
     wire report_in_valid_and;                // rtl-gen/src/merge/per_node.rs:250
     wire report_skid_spare_valid_or;         // rtl-gen/src/merge/per_node.rs:250
-    wire report_skid_valid_next;             // rtl-gen/src/merge/per_node.rs:250
     wire [65:0] report_skid_spare_valid_mux; // rtl-gen/src/merge/per_node.rs:250
-    wire [65:0] report_skid_data_next;       // rtl-gen/src/merge/per_node.rs:250
     wire report_skid_spare_valid_or_1;       // rtl-gen/src/merge/per_node.rs:250
     wire report_skid_spare_valid_next;       // rtl-gen/src/merge/per_node.rs:250
     wire report_skid_ready_not;              // rtl-gen/src/merge/per_node.rs:250
     wire report_skid_ready_and;              // rtl-gen/src/merge/per_node.rs:250
-    wire [65:0] report_skid_spare_data_next; // rtl-gen/src/merge/per_node.rs:250
     wire take_probe;                         // rtl-gen/src/merge/per_node.rs:254
     wire probe_run_not;                      // rtl-gen/src/merge/per_node.rs:255
     wire g_rank_ne;                          // rtl-gen/src/merge/per_node.rs:256
@@ -152,44 +146,25 @@ module per_node_decider_d16_q8_i24_h4_k4_t1_2 (
     wire [7:0] g_any_or_1;                   // rtl-gen/src/merge/per_node.rs:258
     wire [7:0] g_rank_mux;                   // rtl-gen/src/merge/per_node.rs:258
     wire [7:0] probe_run_mux;                // rtl-gen/src/merge/per_node.rs:260
-    wire [7:0] g_any_next;                   // rtl-gen/src/merge/per_node.rs:260
     wire probe_run_or;                       // rtl-gen/src/merge/per_node.rs:261
     wire [7:0] g_cur_or;                     // rtl-gen/src/merge/per_node.rs:261
     wire [7:0] probe_run_mux_1;              // rtl-gen/src/merge/per_node.rs:261
-    wire [7:0] g_cur_next;                   // rtl-gen/src/merge/per_node.rs:261
     wire [7:0] g_rank_and;                   // rtl-gen/src/merge/per_node.rs:262
     wire [7:0] g_multi_or;                   // rtl-gen/src/merge/per_node.rs:262
     wire [7:0] probe_run_mux_2;              // rtl-gen/src/merge/per_node.rs:262
-    wire [7:0] g_multi_next;                 // rtl-gen/src/merge/per_node.rs:262
-    wire [1:0] g_rank_next;                  // rtl-gen/src/merge/per_node.rs:263
     wire probe_run_not_1;                    // rtl-gen/src/merge/per_node.rs:264
     wire g_many_or;                          // rtl-gen/src/merge/per_node.rs:264
     wire probe_run_and;                      // rtl-gen/src/merge/per_node.rs:264
-    wire g_many_next;                        // rtl-gen/src/merge/per_node.rs:264
     wire take_probe_and;                     // rtl-gen/src/merge/per_node.rs:266
     wire [15:0] in_beat_shr;                 // rtl-gen/src/merge/per_node.rs:266
-    wire [15:0] g_x_next;                    // rtl-gen/src/merge/per_node.rs:266
     wire take_probe_and_1;                   // rtl-gen/src/merge/per_node.rs:266
     wire [15:0] in_beat_shr_1;               // rtl-gen/src/merge/per_node.rs:266
-    wire [15:0] g_y_next;                    // rtl-gen/src/merge/per_node.rs:266
     wire take_probe_and_2;                   // rtl-gen/src/merge/per_node.rs:266
     wire [15:0] in_beat_shr_2;               // rtl-gen/src/merge/per_node.rs:266
-    wire [15:0] g_z_next;                    // rtl-gen/src/merge/per_node.rs:266
-    wire probe_run_next;                     // rtl-gen/src/merge/per_node.rs:268
-    wire after_probes_mux_1;                 // rtl-gen/src/merge/per_node.rs:273
-    wire in_is_end_mux_2;                    // rtl-gen/src/merge/per_node.rs:273
-    wire fire_mux;                           // rtl-gen/src/merge/per_node.rs:273
-    wire dropping_next;                      // rtl-gen/src/merge/per_node.rs:271
     wire after_probes_and_1;                 // rtl-gen/src/merge/per_node.rs:278
-    wire after_probes_mux_2;                 // rtl-gen/src/merge/per_node.rs:278
-    wire in_is_end_mux_3;                    // rtl-gen/src/merge/per_node.rs:278
-    wire fire_mux_1;                         // rtl-gen/src/merge/per_node.rs:277
-    wire pass_descended_next;                // rtl-gen/src/merge/per_node.rs:275
     wire pass_taken_now;                     // rtl-gen/src/merge/per_node.rs:282
     wire pass_taken_now_and;                 // rtl-gen/src/merge/per_node.rs:283
     wire [4:0] pass_lod_add;                 // rtl-gen/src/merge/per_node.rs:283
-    wire [4:0] pass_taken_now_mux;           // rtl-gen/src/merge/per_node.rs:283
-    wire [4:0] pass_lod_next;                // rtl-gen/src/merge/per_node.rs:283
     wire more_not;                           // rtl-gen/src/merge/per_node.rs:285
     wire last_taken_now;                     // rtl-gen/src/merge/per_node.rs:285
 
@@ -259,14 +234,11 @@ module per_node_decider_d16_q8_i24_h4_k4_t1_2 (
     assign out_skid_spare_valid_not = ~out_skid_spare_valid;
     assign out_in_valid_and = out_in_valid & out_skid_spare_valid_not;
     assign out_skid_spare_valid_or = out_skid_spare_valid | out_in_valid;
-    assign out_skid_valid_next = out_skid_ready_or ? out_skid_spare_valid_or : out_skid_valid;
     assign out_skid_spare_valid_mux = out_skid_spare_valid ? out_skid_spare_data : in_beat;
-    assign out_skid_data_next = out_skid_ready_or ? out_skid_spare_valid_mux : out_skid_data;
     assign out_skid_spare_valid_or_1 = out_skid_spare_valid | out_in_valid_and;
     assign out_skid_spare_valid_next = out_skid_ready_or ? 1'b0 : out_skid_spare_valid_or_1;
     assign out_skid_ready_not = ~out_skid_ready_or;
     assign out_skid_ready_and = out_skid_ready_not & out_in_valid_and;
-    assign out_skid_spare_data_next = out_skid_ready_and ? in_beat : out_skid_spare_data;
     assign out_valid = out_skid_valid;
     assign out_data = out_skid_data;
     assign in_is_end_mux = in_is_end ? 4'd0 : voxel_shared;
@@ -285,14 +257,11 @@ module per_node_decider_d16_q8_i24_h4_k4_t1_2 (
     assign report_skid_spare_valid_not = ~report_skid_spare_valid;
     assign report_in_valid_and = report_in_valid & report_skid_spare_valid_not;
     assign report_skid_spare_valid_or = report_skid_spare_valid | report_in_valid;
-    assign report_skid_valid_next = report_skid_ready_or ? report_skid_spare_valid_or : report_skid_valid;
     assign report_skid_spare_valid_mux = report_skid_spare_valid ? report_skid_spare_data : report_beat;
-    assign report_skid_data_next = report_skid_ready_or ? report_skid_spare_valid_mux : report_skid_data;
     assign report_skid_spare_valid_or_1 = report_skid_spare_valid | report_in_valid_and;
     assign report_skid_spare_valid_next = report_skid_ready_or ? 1'b0 : report_skid_spare_valid_or_1;
     assign report_skid_ready_not = ~report_skid_ready_or;
     assign report_skid_ready_and = report_skid_ready_not & report_in_valid_and;
-    assign report_skid_spare_data_next = report_skid_ready_and ? report_beat : report_skid_spare_data;
     assign report_valid = report_skid_valid;
     assign report_data = report_skid_data;
     assign take_probe = fire & in_probe;
@@ -311,44 +280,25 @@ module per_node_decider_d16_q8_i24_h4_k4_t1_2 (
     assign g_any_or_1 = g_any | g_cur;
     assign g_rank_mux = g_rank_ne ? g_any_or_1 : g_any;
     assign probe_run_mux = probe_run_not ? 8'd0 : g_rank_mux;
-    assign g_any_next = take_probe ? probe_run_mux : g_any;
     assign probe_run_or = probe_run_not | g_rank_ne;
     assign g_cur_or = g_cur | probe_octant;
     assign probe_run_mux_1 = probe_run_or ? probe_octant : g_cur_or;
-    assign g_cur_next = take_probe ? probe_run_mux_1 : g_cur;
     assign g_rank_and = g_rank_mux & probe_octant;
     assign g_multi_or = g_multi | g_rank_and;
     assign probe_run_mux_2 = probe_run_not ? 8'd0 : g_multi_or;
-    assign g_multi_next = take_probe ? probe_run_mux_2 : g_multi;
-    assign g_rank_next = take_probe ? in_rank : g_rank;
     assign probe_run_not_1 = ~probe_run_not;
     assign g_many_or = g_many | g_rank_ne;
     assign probe_run_and = probe_run_not_1 & g_many_or;
-    assign g_many_next = take_probe ? probe_run_and : g_many;
     assign take_probe_and = take_probe & probe_run_not;
     assign in_beat_shr = in_data[21:6] >> 1'b1;
-    assign g_x_next = take_probe_and ? in_beat_shr : g_x;
     assign take_probe_and_1 = take_probe & probe_run_not;
     assign in_beat_shr_1 = in_data[37:22] >> 1'b1;
-    assign g_y_next = take_probe_and_1 ? in_beat_shr_1 : g_y;
     assign take_probe_and_2 = take_probe & probe_run_not;
     assign in_beat_shr_2 = in_data[53:38] >> 1'b1;
-    assign g_z_next = take_probe_and_2 ? in_beat_shr_2 : g_z;
-    assign probe_run_next = fire ? in_probe : probe_run;
-    assign after_probes_mux_1 = after_probes ? voxel_descends : dropping;
-    assign in_is_end_mux_2 = in_is_end ? 1'b0 : after_probes_mux_1;
-    assign fire_mux = fire ? in_is_end_mux_2 : dropping;
-    assign dropping_next = start ? 1'b0 : fire_mux;
     assign after_probes_and_1 = after_probes & voxel_descends;
-    assign after_probes_mux_2 = after_probes_and_1 ? 1'b1 : pass_descended;
-    assign in_is_end_mux_3 = in_is_end ? 1'b0 : after_probes_mux_2;
-    assign fire_mux_1 = fire ? in_is_end_mux_3 : pass_descended;
-    assign pass_descended_next = start ? 1'b0 : fire_mux_1;
     assign pass_taken_now = fire & in_is_end;
     assign pass_taken_now_and = pass_taken_now & more;
     assign pass_lod_add = pass_lod + 5'd1;
-    assign pass_taken_now_mux = pass_taken_now_and ? pass_lod_add : pass_lod;
-    assign pass_lod_next = start ? start_lod : pass_taken_now_mux;
     assign pass_taken = pass_taken_now;
     assign more_not = ~more;
     assign last_taken_now = pass_taken_now & more_not;
@@ -377,26 +327,63 @@ module per_node_decider_d16_q8_i24_h4_k4_t1_2 (
             report_skid_spare_valid <= 1'b0;
             report_skid_spare_data <= 66'h00000000000000000;
         end else begin
-            probe_run <= probe_run_next;
-            g_any <= g_any_next;
-            g_cur <= g_cur_next;
-            g_multi <= g_multi_next;
-            g_rank <= g_rank_next;
-            g_many <= g_many_next;
-            g_x <= g_x_next;
-            g_y <= g_y_next;
-            g_z <= g_z_next;
-            dropping <= dropping_next;
-            pass_descended <= pass_descended_next;
-            pass_lod <= pass_lod_next;
-            out_skid_valid <= out_skid_valid_next;
-            out_skid_data <= out_skid_data_next;
+            if (fire) begin
+                probe_run <= in_probe;       // rtl-gen/src/merge/per_node.rs:268
+            end
+            if (take_probe) begin
+                g_any <= probe_run_mux;      // rtl-gen/src/merge/per_node.rs:260
+                g_cur <= probe_run_mux_1;    // rtl-gen/src/merge/per_node.rs:261
+                g_multi <= probe_run_mux_2;  // rtl-gen/src/merge/per_node.rs:262
+                g_rank <= in_rank;           // rtl-gen/src/merge/per_node.rs:263
+                g_many <= probe_run_and;     // rtl-gen/src/merge/per_node.rs:264
+            end
+            if (take_probe_and) begin
+                g_x <= in_beat_shr;          // rtl-gen/src/merge/per_node.rs:266
+            end
+            if (take_probe_and_1) begin
+                g_y <= in_beat_shr_1;        // rtl-gen/src/merge/per_node.rs:266
+            end
+            if (take_probe_and_2) begin
+                g_z <= in_beat_shr_2;        // rtl-gen/src/merge/per_node.rs:266
+            end
+            if (start) begin
+                dropping <= 1'b0;            // rtl-gen/src/merge/per_node.rs:271
+                pass_descended <= 1'b0;      // rtl-gen/src/merge/per_node.rs:275
+                pass_lod <= start_lod;       // rtl-gen/src/merge/per_node.rs:283
+            end else begin
+                if (fire) begin
+                    if (in_is_end) begin
+                        dropping <= 1'b0;    // rtl-gen/src/merge/per_node.rs:273
+                        pass_descended <= 1'b0; // rtl-gen/src/merge/per_node.rs:278
+                    end else begin
+                        if (after_probes) begin
+                            dropping <= voxel_descends; // rtl-gen/src/merge/per_node.rs:273
+                        end
+                        if (after_probes_and_1) begin
+                            pass_descended <= 1'b1; // rtl-gen/src/merge/per_node.rs:278
+                        end
+                    end
+                end
+                if (pass_taken_now_and) begin
+                    pass_lod <= pass_lod_add; // rtl-gen/src/merge/per_node.rs:283
+                end
+            end
+            if (out_skid_ready_or) begin
+                out_skid_valid <= out_skid_spare_valid_or; // rtl-gen/src/merge/per_node.rs:216
+                out_skid_data <= out_skid_spare_valid_mux; // rtl-gen/src/merge/per_node.rs:216
+            end
             out_skid_spare_valid <= out_skid_spare_valid_next;
-            out_skid_spare_data <= out_skid_spare_data_next;
-            report_skid_valid <= report_skid_valid_next;
-            report_skid_data <= report_skid_data_next;
+            if (out_skid_ready_and) begin
+                out_skid_spare_data <= in_beat; // rtl-gen/src/merge/per_node.rs:216
+            end
+            if (report_skid_ready_or) begin
+                report_skid_valid <= report_skid_spare_valid_or; // rtl-gen/src/merge/per_node.rs:250
+                report_skid_data <= report_skid_spare_valid_mux; // rtl-gen/src/merge/per_node.rs:250
+            end
             report_skid_spare_valid <= report_skid_spare_valid_next;
-            report_skid_spare_data <= report_skid_spare_data_next;
+            if (report_skid_ready_and) begin
+                report_skid_spare_data <= report_beat; // rtl-gen/src/merge/per_node.rs:250
+            end
         end
     end
 endmodule

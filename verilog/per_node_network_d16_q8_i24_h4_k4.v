@@ -32,14 +32,11 @@ module per_node_network_d16_q8_i24_h4_k4 (
     wire in0_head_spare_valid_not;           // rtl-gen/src/merge/per_node.rs:75
     wire in0_valid_and;                      // rtl-gen/src/merge/per_node.rs:75
     wire in0_head_spare_valid_or;            // rtl-gen/src/merge/per_node.rs:75
-    wire in0_head_valid_next;                // rtl-gen/src/merge/per_node.rs:75
     wire [180:0] in0_head_spare_valid_mux;   // rtl-gen/src/merge/per_node.rs:75
-    wire [180:0] in0_head_data_next;         // rtl-gen/src/merge/per_node.rs:75
     wire in0_head_spare_valid_or_1;          // rtl-gen/src/merge/per_node.rs:75
     wire in0_head_spare_valid_next;          // rtl-gen/src/merge/per_node.rs:75
     wire in0_head_ready_not;                 // rtl-gen/src/merge/per_node.rs:75
     wire in0_head_ready_and;                 // rtl-gen/src/merge/per_node.rs:75
-    wire [180:0] in0_head_spare_data_next;   // rtl-gen/src/merge/per_node.rs:75
     wire in0_probe;                          // rtl-gen/src/merge/fields.rs:13
     wire [1:0] in0_kind;                     // rtl-gen/src/merge/fields.rs:13
     wire in0_probe_not;                      // rtl-gen/src/merge/per_node.rs:83
@@ -79,14 +76,11 @@ module per_node_network_d16_q8_i24_h4_k4 (
     wire in1_head_spare_valid_not;           // rtl-gen/src/merge/per_node.rs:75
     wire in1_valid_and;                      // rtl-gen/src/merge/per_node.rs:75
     wire in1_head_spare_valid_or;            // rtl-gen/src/merge/per_node.rs:75
-    wire in1_head_valid_next;                // rtl-gen/src/merge/per_node.rs:75
     wire [180:0] in1_head_spare_valid_mux;   // rtl-gen/src/merge/per_node.rs:75
-    wire [180:0] in1_head_data_next;         // rtl-gen/src/merge/per_node.rs:75
     wire in1_head_spare_valid_or_1;          // rtl-gen/src/merge/per_node.rs:75
     wire in1_head_spare_valid_next;          // rtl-gen/src/merge/per_node.rs:75
     wire in1_head_ready_not;                 // rtl-gen/src/merge/per_node.rs:75
     wire in1_head_ready_and;                 // rtl-gen/src/merge/per_node.rs:75
-    wire [180:0] in1_head_spare_data_next;   // rtl-gen/src/merge/per_node.rs:75
     wire in1_probe;                          // rtl-gen/src/merge/fields.rs:13
     wire [1:0] in1_kind;                     // rtl-gen/src/merge/fields.rs:13
     wire in1_probe_not;                      // rtl-gen/src/merge/per_node.rs:83
@@ -126,14 +120,11 @@ module per_node_network_d16_q8_i24_h4_k4 (
     wire in2_head_spare_valid_not;           // rtl-gen/src/merge/per_node.rs:75
     wire in2_valid_and;                      // rtl-gen/src/merge/per_node.rs:75
     wire in2_head_spare_valid_or;            // rtl-gen/src/merge/per_node.rs:75
-    wire in2_head_valid_next;                // rtl-gen/src/merge/per_node.rs:75
     wire [180:0] in2_head_spare_valid_mux;   // rtl-gen/src/merge/per_node.rs:75
-    wire [180:0] in2_head_data_next;         // rtl-gen/src/merge/per_node.rs:75
     wire in2_head_spare_valid_or_1;          // rtl-gen/src/merge/per_node.rs:75
     wire in2_head_spare_valid_next;          // rtl-gen/src/merge/per_node.rs:75
     wire in2_head_ready_not;                 // rtl-gen/src/merge/per_node.rs:75
     wire in2_head_ready_and;                 // rtl-gen/src/merge/per_node.rs:75
-    wire [180:0] in2_head_spare_data_next;   // rtl-gen/src/merge/per_node.rs:75
     wire in2_probe;                          // rtl-gen/src/merge/fields.rs:13
     wire [1:0] in2_kind;                     // rtl-gen/src/merge/fields.rs:13
     wire in2_probe_not;                      // rtl-gen/src/merge/per_node.rs:83
@@ -173,14 +164,11 @@ module per_node_network_d16_q8_i24_h4_k4 (
     wire in3_head_spare_valid_not;           // rtl-gen/src/merge/per_node.rs:75
     wire in3_valid_and;                      // rtl-gen/src/merge/per_node.rs:75
     wire in3_head_spare_valid_or;            // rtl-gen/src/merge/per_node.rs:75
-    wire in3_head_valid_next;                // rtl-gen/src/merge/per_node.rs:75
     wire [180:0] in3_head_spare_valid_mux;   // rtl-gen/src/merge/per_node.rs:75
-    wire [180:0] in3_head_data_next;         // rtl-gen/src/merge/per_node.rs:75
     wire in3_head_spare_valid_or_1;          // rtl-gen/src/merge/per_node.rs:75
     wire in3_head_spare_valid_next;          // rtl-gen/src/merge/per_node.rs:75
     wire in3_head_ready_not;                 // rtl-gen/src/merge/per_node.rs:75
     wire in3_head_ready_and;                 // rtl-gen/src/merge/per_node.rs:75
-    wire [180:0] in3_head_spare_data_next;   // rtl-gen/src/merge/per_node.rs:75
     wire in3_probe;                          // rtl-gen/src/merge/fields.rs:13
     wire [1:0] in3_kind;                     // rtl-gen/src/merge/fields.rs:13
     wire in3_probe_not;                      // rtl-gen/src/merge/per_node.rs:83
@@ -228,36 +216,24 @@ module per_node_network_d16_q8_i24_h4_k4 (
     wire winner_is_end_not;                  // rtl-gen/src/merge/network.rs:125
     wire net_fire_and_1;                     // rtl-gen/src/merge/network.rs:125
     wire net_fire_and_2;                     // rtl-gen/src/merge/network.rs:125
-    wire [15:0] in0_parent_x_next;           // rtl-gen/src/merge/network.rs:127
-    wire [15:0] in0_parent_y_next;           // rtl-gen/src/merge/network.rs:127
-    wire [15:0] in0_parent_z_next;           // rtl-gen/src/merge/network.rs:127
     wire winner_rank_eq_1;                   // rtl-gen/src/merge/network.rs:122
     wire winner_is_end_or_1;                 // rtl-gen/src/merge/network.rs:124
     wire net_fire_and_3;                     // rtl-gen/src/merge/network.rs:125
     wire winner_is_end_not_1;                // rtl-gen/src/merge/network.rs:125
     wire net_fire_and_4;                     // rtl-gen/src/merge/network.rs:125
     wire net_fire_and_5;                     // rtl-gen/src/merge/network.rs:125
-    wire [15:0] in1_parent_x_next;           // rtl-gen/src/merge/network.rs:127
-    wire [15:0] in1_parent_y_next;           // rtl-gen/src/merge/network.rs:127
-    wire [15:0] in1_parent_z_next;           // rtl-gen/src/merge/network.rs:127
     wire winner_rank_eq_2;                   // rtl-gen/src/merge/network.rs:122
     wire winner_is_end_or_2;                 // rtl-gen/src/merge/network.rs:124
     wire net_fire_and_6;                     // rtl-gen/src/merge/network.rs:125
     wire winner_is_end_not_2;                // rtl-gen/src/merge/network.rs:125
     wire net_fire_and_7;                     // rtl-gen/src/merge/network.rs:125
     wire net_fire_and_8;                     // rtl-gen/src/merge/network.rs:125
-    wire [15:0] in2_parent_x_next;           // rtl-gen/src/merge/network.rs:127
-    wire [15:0] in2_parent_y_next;           // rtl-gen/src/merge/network.rs:127
-    wire [15:0] in2_parent_z_next;           // rtl-gen/src/merge/network.rs:127
     wire winner_rank_eq_3;                   // rtl-gen/src/merge/network.rs:122
     wire winner_is_end_or_3;                 // rtl-gen/src/merge/network.rs:124
     wire net_fire_and_9;                     // rtl-gen/src/merge/network.rs:125
     wire winner_is_end_not_3;                // rtl-gen/src/merge/network.rs:125
     wire net_fire_and_10;                    // rtl-gen/src/merge/network.rs:125
     wire net_fire_and_11;                    // rtl-gen/src/merge/network.rs:125
-    wire [15:0] in3_parent_x_next;           // rtl-gen/src/merge/network.rs:127
-    wire [15:0] in3_parent_y_next;           // rtl-gen/src/merge/network.rs:127
-    wire [15:0] in3_parent_z_next;           // rtl-gen/src/merge/network.rs:127
     wire [182:0] net_beat;                   // rtl-gen/src/merge/per_node.rs:113
     reg out_skid_valid;                      // rtl-gen/src/merge/per_node.rs:115
     reg [182:0] out_skid_data;               // rtl-gen/src/merge/per_node.rs:115
@@ -269,14 +245,11 @@ module per_node_network_d16_q8_i24_h4_k4 (
     wire out_skid_spare_valid_not;           // rtl-gen/src/merge/per_node.rs:115
     wire all_heads_and;                      // rtl-gen/src/merge/per_node.rs:115
     wire out_skid_spare_valid_or;            // rtl-gen/src/merge/per_node.rs:115
-    wire out_skid_valid_next;                // rtl-gen/src/merge/per_node.rs:115
     wire [182:0] out_skid_spare_valid_mux;   // rtl-gen/src/merge/per_node.rs:115
-    wire [182:0] out_skid_data_next;         // rtl-gen/src/merge/per_node.rs:115
     wire out_skid_spare_valid_or_1;          // rtl-gen/src/merge/per_node.rs:115
     wire out_skid_spare_valid_next;          // rtl-gen/src/merge/per_node.rs:115
     wire out_skid_ready_not;                 // rtl-gen/src/merge/per_node.rs:115
     wire out_skid_ready_and;                 // rtl-gen/src/merge/per_node.rs:115
-    wire [182:0] out_skid_spare_data_next;   // rtl-gen/src/merge/per_node.rs:115
 
     assign net_out_ready = ~out_skid_spare_valid;
     assign in0_ready = ~in0_head_spare_valid;
@@ -286,14 +259,11 @@ module per_node_network_d16_q8_i24_h4_k4 (
     assign in0_head_spare_valid_not = ~in0_head_spare_valid;
     assign in0_valid_and = in0_valid & in0_head_spare_valid_not;
     assign in0_head_spare_valid_or = in0_head_spare_valid | in0_valid;
-    assign in0_head_valid_next = in0_head_ready_or ? in0_head_spare_valid_or : in0_head_valid;
     assign in0_head_spare_valid_mux = in0_head_spare_valid ? in0_head_spare_data : in0_data;
-    assign in0_head_data_next = in0_head_ready_or ? in0_head_spare_valid_mux : in0_head_data;
     assign in0_head_spare_valid_or_1 = in0_head_spare_valid | in0_valid_and;
     assign in0_head_spare_valid_next = in0_head_ready_or ? 1'b0 : in0_head_spare_valid_or_1;
     assign in0_head_ready_not = ~in0_head_ready_or;
     assign in0_head_ready_and = in0_head_ready_not & in0_valid_and;
-    assign in0_head_spare_data_next = in0_head_ready_and ? in0_data : in0_head_spare_data;
     assign in0_probe = in0_head_data[180];
     assign in0_kind = in0_head_data[179:178];
     assign in0_probe_not = ~in0_probe;
@@ -327,14 +297,11 @@ module per_node_network_d16_q8_i24_h4_k4 (
     assign in1_head_spare_valid_not = ~in1_head_spare_valid;
     assign in1_valid_and = in1_valid & in1_head_spare_valid_not;
     assign in1_head_spare_valid_or = in1_head_spare_valid | in1_valid;
-    assign in1_head_valid_next = in1_head_ready_or ? in1_head_spare_valid_or : in1_head_valid;
     assign in1_head_spare_valid_mux = in1_head_spare_valid ? in1_head_spare_data : in1_data;
-    assign in1_head_data_next = in1_head_ready_or ? in1_head_spare_valid_mux : in1_head_data;
     assign in1_head_spare_valid_or_1 = in1_head_spare_valid | in1_valid_and;
     assign in1_head_spare_valid_next = in1_head_ready_or ? 1'b0 : in1_head_spare_valid_or_1;
     assign in1_head_ready_not = ~in1_head_ready_or;
     assign in1_head_ready_and = in1_head_ready_not & in1_valid_and;
-    assign in1_head_spare_data_next = in1_head_ready_and ? in1_data : in1_head_spare_data;
     assign in1_probe = in1_head_data[180];
     assign in1_kind = in1_head_data[179:178];
     assign in1_probe_not = ~in1_probe;
@@ -368,14 +335,11 @@ module per_node_network_d16_q8_i24_h4_k4 (
     assign in2_head_spare_valid_not = ~in2_head_spare_valid;
     assign in2_valid_and = in2_valid & in2_head_spare_valid_not;
     assign in2_head_spare_valid_or = in2_head_spare_valid | in2_valid;
-    assign in2_head_valid_next = in2_head_ready_or ? in2_head_spare_valid_or : in2_head_valid;
     assign in2_head_spare_valid_mux = in2_head_spare_valid ? in2_head_spare_data : in2_data;
-    assign in2_head_data_next = in2_head_ready_or ? in2_head_spare_valid_mux : in2_head_data;
     assign in2_head_spare_valid_or_1 = in2_head_spare_valid | in2_valid_and;
     assign in2_head_spare_valid_next = in2_head_ready_or ? 1'b0 : in2_head_spare_valid_or_1;
     assign in2_head_ready_not = ~in2_head_ready_or;
     assign in2_head_ready_and = in2_head_ready_not & in2_valid_and;
-    assign in2_head_spare_data_next = in2_head_ready_and ? in2_data : in2_head_spare_data;
     assign in2_probe = in2_head_data[180];
     assign in2_kind = in2_head_data[179:178];
     assign in2_probe_not = ~in2_probe;
@@ -409,14 +373,11 @@ module per_node_network_d16_q8_i24_h4_k4 (
     assign in3_head_spare_valid_not = ~in3_head_spare_valid;
     assign in3_valid_and = in3_valid & in3_head_spare_valid_not;
     assign in3_head_spare_valid_or = in3_head_spare_valid | in3_valid;
-    assign in3_head_valid_next = in3_head_ready_or ? in3_head_spare_valid_or : in3_head_valid;
     assign in3_head_spare_valid_mux = in3_head_spare_valid ? in3_head_spare_data : in3_data;
-    assign in3_head_data_next = in3_head_ready_or ? in3_head_spare_valid_mux : in3_head_data;
     assign in3_head_spare_valid_or_1 = in3_head_spare_valid | in3_valid_and;
     assign in3_head_spare_valid_next = in3_head_ready_or ? 1'b0 : in3_head_spare_valid_or_1;
     assign in3_head_ready_not = ~in3_head_ready_or;
     assign in3_head_ready_and = in3_head_ready_not & in3_valid_and;
-    assign in3_head_spare_data_next = in3_head_ready_and ? in3_data : in3_head_spare_data;
     assign in3_probe = in3_head_data[180];
     assign in3_kind = in3_head_data[179:178];
     assign in3_probe_not = ~in3_probe;
@@ -461,36 +422,24 @@ module per_node_network_d16_q8_i24_h4_k4 (
     assign winner_is_end_not = ~winner_is_end;
     assign net_fire_and_1 = net_fire_and & winner_is_end_not;
     assign net_fire_and_2 = net_fire_and_1 & in0_probe_and_1;
-    assign in0_parent_x_next = net_fire_and_2 ? in0_head_data[21:6] : in0_parent_x;
-    assign in0_parent_y_next = net_fire_and_2 ? in0_head_data[37:22] : in0_parent_y;
-    assign in0_parent_z_next = net_fire_and_2 ? in0_head_data[53:38] : in0_parent_z;
     assign winner_rank_eq_1 = winner_rank == 2'd1;
     assign winner_is_end_or_1 = winner_is_end | winner_rank_eq_1;
     assign net_fire_and_3 = net_fire & winner_rank_eq_1;
     assign winner_is_end_not_1 = ~winner_is_end;
     assign net_fire_and_4 = net_fire_and_3 & winner_is_end_not_1;
     assign net_fire_and_5 = net_fire_and_4 & in1_probe_and_1;
-    assign in1_parent_x_next = net_fire_and_5 ? in1_head_data[21:6] : in1_parent_x;
-    assign in1_parent_y_next = net_fire_and_5 ? in1_head_data[37:22] : in1_parent_y;
-    assign in1_parent_z_next = net_fire_and_5 ? in1_head_data[53:38] : in1_parent_z;
     assign winner_rank_eq_2 = winner_rank == 2'd2;
     assign winner_is_end_or_2 = winner_is_end | winner_rank_eq_2;
     assign net_fire_and_6 = net_fire & winner_rank_eq_2;
     assign winner_is_end_not_2 = ~winner_is_end;
     assign net_fire_and_7 = net_fire_and_6 & winner_is_end_not_2;
     assign net_fire_and_8 = net_fire_and_7 & in2_probe_and_1;
-    assign in2_parent_x_next = net_fire_and_8 ? in2_head_data[21:6] : in2_parent_x;
-    assign in2_parent_y_next = net_fire_and_8 ? in2_head_data[37:22] : in2_parent_y;
-    assign in2_parent_z_next = net_fire_and_8 ? in2_head_data[53:38] : in2_parent_z;
     assign winner_rank_eq_3 = winner_rank == 2'd3;
     assign winner_is_end_or_3 = winner_is_end | winner_rank_eq_3;
     assign net_fire_and_9 = net_fire & winner_rank_eq_3;
     assign winner_is_end_not_3 = ~winner_is_end;
     assign net_fire_and_10 = net_fire_and_9 & winner_is_end_not_3;
     assign net_fire_and_11 = net_fire_and_10 & in3_probe_and_1;
-    assign in3_parent_x_next = net_fire_and_11 ? in3_head_data[21:6] : in3_parent_x;
-    assign in3_parent_y_next = net_fire_and_11 ? in3_head_data[37:22] : in3_parent_y;
-    assign in3_parent_z_next = net_fire_and_11 ? in3_head_data[53:38] : in3_parent_z;
     assign net_beat = {winner_rank, winner_beat};
     assign out_skid_ready = out_ready;
     assign out_skid_valid_not = ~out_skid_valid;
@@ -498,14 +447,11 @@ module per_node_network_d16_q8_i24_h4_k4 (
     assign out_skid_spare_valid_not = ~out_skid_spare_valid;
     assign all_heads_and = all_heads & out_skid_spare_valid_not;
     assign out_skid_spare_valid_or = out_skid_spare_valid | all_heads;
-    assign out_skid_valid_next = out_skid_ready_or ? out_skid_spare_valid_or : out_skid_valid;
     assign out_skid_spare_valid_mux = out_skid_spare_valid ? out_skid_spare_data : net_beat;
-    assign out_skid_data_next = out_skid_ready_or ? out_skid_spare_valid_mux : out_skid_data;
     assign out_skid_spare_valid_or_1 = out_skid_spare_valid | all_heads_and;
     assign out_skid_spare_valid_next = out_skid_ready_or ? 1'b0 : out_skid_spare_valid_or_1;
     assign out_skid_ready_not = ~out_skid_ready_or;
     assign out_skid_ready_and = out_skid_ready_not & all_heads_and;
-    assign out_skid_spare_data_next = out_skid_ready_and ? net_beat : out_skid_spare_data;
     assign out_valid = out_skid_valid;
     assign out_data = out_skid_data;
 
@@ -544,38 +490,66 @@ module per_node_network_d16_q8_i24_h4_k4 (
             out_skid_spare_valid <= 1'b0;
             out_skid_spare_data <= 183'h0000000000000000000000000000000000000000000000;
         end else begin
-            in0_head_valid <= in0_head_valid_next;
-            in0_head_data <= in0_head_data_next;
+            if (in0_head_ready_or) begin
+                in0_head_valid <= in0_head_spare_valid_or; // rtl-gen/src/merge/per_node.rs:75
+                in0_head_data <= in0_head_spare_valid_mux; // rtl-gen/src/merge/per_node.rs:75
+            end
             in0_head_spare_valid <= in0_head_spare_valid_next;
-            in0_head_spare_data <= in0_head_spare_data_next;
-            in0_parent_x <= in0_parent_x_next;
-            in0_parent_y <= in0_parent_y_next;
-            in0_parent_z <= in0_parent_z_next;
-            in1_head_valid <= in1_head_valid_next;
-            in1_head_data <= in1_head_data_next;
+            if (in0_head_ready_and) begin
+                in0_head_spare_data <= in0_data; // rtl-gen/src/merge/per_node.rs:75
+            end
+            if (net_fire_and_2) begin
+                in0_parent_x <= in0_head_data[21:6]; // rtl-gen/src/merge/network.rs:127
+                in0_parent_y <= in0_head_data[37:22]; // rtl-gen/src/merge/network.rs:127
+                in0_parent_z <= in0_head_data[53:38]; // rtl-gen/src/merge/network.rs:127
+            end
+            if (in1_head_ready_or) begin
+                in1_head_valid <= in1_head_spare_valid_or; // rtl-gen/src/merge/per_node.rs:75
+                in1_head_data <= in1_head_spare_valid_mux; // rtl-gen/src/merge/per_node.rs:75
+            end
             in1_head_spare_valid <= in1_head_spare_valid_next;
-            in1_head_spare_data <= in1_head_spare_data_next;
-            in1_parent_x <= in1_parent_x_next;
-            in1_parent_y <= in1_parent_y_next;
-            in1_parent_z <= in1_parent_z_next;
-            in2_head_valid <= in2_head_valid_next;
-            in2_head_data <= in2_head_data_next;
+            if (in1_head_ready_and) begin
+                in1_head_spare_data <= in1_data; // rtl-gen/src/merge/per_node.rs:75
+            end
+            if (net_fire_and_5) begin
+                in1_parent_x <= in1_head_data[21:6]; // rtl-gen/src/merge/network.rs:127
+                in1_parent_y <= in1_head_data[37:22]; // rtl-gen/src/merge/network.rs:127
+                in1_parent_z <= in1_head_data[53:38]; // rtl-gen/src/merge/network.rs:127
+            end
+            if (in2_head_ready_or) begin
+                in2_head_valid <= in2_head_spare_valid_or; // rtl-gen/src/merge/per_node.rs:75
+                in2_head_data <= in2_head_spare_valid_mux; // rtl-gen/src/merge/per_node.rs:75
+            end
             in2_head_spare_valid <= in2_head_spare_valid_next;
-            in2_head_spare_data <= in2_head_spare_data_next;
-            in2_parent_x <= in2_parent_x_next;
-            in2_parent_y <= in2_parent_y_next;
-            in2_parent_z <= in2_parent_z_next;
-            in3_head_valid <= in3_head_valid_next;
-            in3_head_data <= in3_head_data_next;
+            if (in2_head_ready_and) begin
+                in2_head_spare_data <= in2_data; // rtl-gen/src/merge/per_node.rs:75
+            end
+            if (net_fire_and_8) begin
+                in2_parent_x <= in2_head_data[21:6]; // rtl-gen/src/merge/network.rs:127
+                in2_parent_y <= in2_head_data[37:22]; // rtl-gen/src/merge/network.rs:127
+                in2_parent_z <= in2_head_data[53:38]; // rtl-gen/src/merge/network.rs:127
+            end
+            if (in3_head_ready_or) begin
+                in3_head_valid <= in3_head_spare_valid_or; // rtl-gen/src/merge/per_node.rs:75
+                in3_head_data <= in3_head_spare_valid_mux; // rtl-gen/src/merge/per_node.rs:75
+            end
             in3_head_spare_valid <= in3_head_spare_valid_next;
-            in3_head_spare_data <= in3_head_spare_data_next;
-            in3_parent_x <= in3_parent_x_next;
-            in3_parent_y <= in3_parent_y_next;
-            in3_parent_z <= in3_parent_z_next;
-            out_skid_valid <= out_skid_valid_next;
-            out_skid_data <= out_skid_data_next;
+            if (in3_head_ready_and) begin
+                in3_head_spare_data <= in3_data; // rtl-gen/src/merge/per_node.rs:75
+            end
+            if (net_fire_and_11) begin
+                in3_parent_x <= in3_head_data[21:6]; // rtl-gen/src/merge/network.rs:127
+                in3_parent_y <= in3_head_data[37:22]; // rtl-gen/src/merge/network.rs:127
+                in3_parent_z <= in3_head_data[53:38]; // rtl-gen/src/merge/network.rs:127
+            end
+            if (out_skid_ready_or) begin
+                out_skid_valid <= out_skid_spare_valid_or; // rtl-gen/src/merge/per_node.rs:115
+                out_skid_data <= out_skid_spare_valid_mux; // rtl-gen/src/merge/per_node.rs:115
+            end
             out_skid_spare_valid <= out_skid_spare_valid_next;
-            out_skid_spare_data <= out_skid_spare_data_next;
+            if (out_skid_ready_and) begin
+                out_skid_spare_data <= net_beat; // rtl-gen/src/merge/per_node.rs:115
+            end
         end
     end
 endmodule

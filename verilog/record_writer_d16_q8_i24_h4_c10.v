@@ -180,7 +180,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire cfg_valid_and;                      // rtl-gen/src/merge/writer.rs:278
     wire have_cfg_or;                        // rtl-gen/src/merge/writer.rs:279
     wire have_cfg_next;                      // rtl-gen/src/merge/writer.rs:279
-    wire [3:0] out_id_next;                  // rtl-gen/src/merge/writer.rs:280
     reg have_done;                           // rtl-gen/src/merge/writer.rs:284
     reg [4:0] top;                           // rtl-gen/src/merge/writer.rs:285
     reg done_err;                            // rtl-gen/src/merge/writer.rs:286
@@ -189,8 +188,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire done_valid_and;                     // rtl-gen/src/merge/writer.rs:289
     wire have_done_or;                       // rtl-gen/src/merge/writer.rs:290
     wire have_done_next;                     // rtl-gen/src/merge/writer.rs:290
-    wire [4:0] top_next;                     // rtl-gen/src/merge/writer.rs:291
-    wire done_err_next;                      // rtl-gen/src/merge/writer.rs:292
     reg cref_end;                            // rtl-gen/src/merge/writer.rs:297
     reg [10:0] cref_wptr;                    // rtl-gen/src/merge/writer.rs:298
     reg cref_cap_err;                        // rtl-gen/src/merge/writer.rs:299
@@ -205,9 +202,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire cref_end_or;                        // rtl-gen/src/merge/writer.rs:311
     wire cref_end_next;                      // rtl-gen/src/merge/writer.rs:311
     wire [10:0] cref_wptr_add;               // rtl-gen/src/merge/writer.rs:312
-    wire [10:0] cref_wptr_mux;               // rtl-gen/src/merge/writer.rs:312
-    wire [10:0] crefs_valid_mux;             // rtl-gen/src/merge/writer.rs:313
-    wire [10:0] cref_wptr_next;              // rtl-gen/src/merge/writer.rs:313
     wire crefs_valid_and_4;                  // rtl-gen/src/merge/writer.rs:314
     wire cref_cap_err_or;                    // rtl-gen/src/merge/writer.rs:314
     wire cref_cap_err_next;                  // rtl-gen/src/merge/writer.rs:314
@@ -267,10 +261,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire level0_valid_and_3;                 // rtl-gen/src/merge/writer.rs:402
     wire l0_end_seen_or;                     // rtl-gen/src/merge/writer.rs:403
     wire l0_end_seen_next;                   // rtl-gen/src/merge/writer.rs:403
-    wire [10:0] level0_valid_mux;            // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] l0_nodes_next;               // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] level0_valid_mux_1;          // rtl-gen/src/merge/writer.rs:405
-    wire [10:0] l0_records_next;             // rtl-gen/src/merge/writer.rs:405
     wire level0_data_not_1;                  // rtl-gen/src/merge/writer.rs:410
     wire level0_valid_and_4;                 // rtl-gen/src/merge/writer.rs:410
     wire [34:0] level0_valid_mux_2;          // rtl-gen/src/merge/writer.rs:410
@@ -317,10 +307,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire level1_valid_and_5;                 // rtl-gen/src/merge/writer.rs:402
     wire l1_end_seen_or;                     // rtl-gen/src/merge/writer.rs:403
     wire l1_end_seen_next;                   // rtl-gen/src/merge/writer.rs:403
-    wire [10:0] level1_valid_mux;            // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] l1_nodes_next;               // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] level1_valid_mux_1;          // rtl-gen/src/merge/writer.rs:405
-    wire [10:0] l1_records_next;             // rtl-gen/src/merge/writer.rs:405
     wire level1_data_not_3;                  // rtl-gen/src/merge/writer.rs:410
     wire level1_valid_and_6;                 // rtl-gen/src/merge/writer.rs:410
     wire [34:0] level1_valid_mux_2;          // rtl-gen/src/merge/writer.rs:410
@@ -367,10 +353,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire level2_valid_and_5;                 // rtl-gen/src/merge/writer.rs:402
     wire l2_end_seen_or;                     // rtl-gen/src/merge/writer.rs:403
     wire l2_end_seen_next;                   // rtl-gen/src/merge/writer.rs:403
-    wire [10:0] level2_valid_mux;            // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] l2_nodes_next;               // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] level2_valid_mux_1;          // rtl-gen/src/merge/writer.rs:405
-    wire [10:0] l2_records_next;             // rtl-gen/src/merge/writer.rs:405
     wire level2_data_not_3;                  // rtl-gen/src/merge/writer.rs:410
     wire level2_valid_and_6;                 // rtl-gen/src/merge/writer.rs:410
     wire [34:0] level2_valid_mux_2;          // rtl-gen/src/merge/writer.rs:410
@@ -417,10 +399,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire level3_valid_and_5;                 // rtl-gen/src/merge/writer.rs:402
     wire l3_end_seen_or;                     // rtl-gen/src/merge/writer.rs:403
     wire l3_end_seen_next;                   // rtl-gen/src/merge/writer.rs:403
-    wire [10:0] level3_valid_mux;            // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] l3_nodes_next;               // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] level3_valid_mux_1;          // rtl-gen/src/merge/writer.rs:405
-    wire [10:0] l3_records_next;             // rtl-gen/src/merge/writer.rs:405
     wire level3_data_not_3;                  // rtl-gen/src/merge/writer.rs:410
     wire level3_valid_and_6;                 // rtl-gen/src/merge/writer.rs:410
     wire [34:0] level3_valid_mux_2;          // rtl-gen/src/merge/writer.rs:410
@@ -467,10 +445,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire level4_valid_and_5;                 // rtl-gen/src/merge/writer.rs:402
     wire l4_end_seen_or;                     // rtl-gen/src/merge/writer.rs:403
     wire l4_end_seen_next;                   // rtl-gen/src/merge/writer.rs:403
-    wire [10:0] level4_valid_mux;            // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] l4_nodes_next;               // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] level4_valid_mux_1;          // rtl-gen/src/merge/writer.rs:405
-    wire [10:0] l4_records_next;             // rtl-gen/src/merge/writer.rs:405
     wire level4_data_not_3;                  // rtl-gen/src/merge/writer.rs:410
     wire level4_valid_and_6;                 // rtl-gen/src/merge/writer.rs:410
     wire [34:0] level4_valid_mux_2;          // rtl-gen/src/merge/writer.rs:410
@@ -517,10 +491,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire level5_valid_and_5;                 // rtl-gen/src/merge/writer.rs:402
     wire l5_end_seen_or;                     // rtl-gen/src/merge/writer.rs:403
     wire l5_end_seen_next;                   // rtl-gen/src/merge/writer.rs:403
-    wire [10:0] level5_valid_mux;            // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] l5_nodes_next;               // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] level5_valid_mux_1;          // rtl-gen/src/merge/writer.rs:405
-    wire [10:0] l5_records_next;             // rtl-gen/src/merge/writer.rs:405
     wire level5_data_not_3;                  // rtl-gen/src/merge/writer.rs:410
     wire level5_valid_and_6;                 // rtl-gen/src/merge/writer.rs:410
     wire [34:0] level5_valid_mux_2;          // rtl-gen/src/merge/writer.rs:410
@@ -567,10 +537,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire level6_valid_and_5;                 // rtl-gen/src/merge/writer.rs:402
     wire l6_end_seen_or;                     // rtl-gen/src/merge/writer.rs:403
     wire l6_end_seen_next;                   // rtl-gen/src/merge/writer.rs:403
-    wire [10:0] level6_valid_mux;            // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] l6_nodes_next;               // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] level6_valid_mux_1;          // rtl-gen/src/merge/writer.rs:405
-    wire [10:0] l6_records_next;             // rtl-gen/src/merge/writer.rs:405
     wire level6_data_not_3;                  // rtl-gen/src/merge/writer.rs:410
     wire level6_valid_and_6;                 // rtl-gen/src/merge/writer.rs:410
     wire [34:0] level6_valid_mux_2;          // rtl-gen/src/merge/writer.rs:410
@@ -617,10 +583,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire level7_valid_and_5;                 // rtl-gen/src/merge/writer.rs:402
     wire l7_end_seen_or;                     // rtl-gen/src/merge/writer.rs:403
     wire l7_end_seen_next;                   // rtl-gen/src/merge/writer.rs:403
-    wire [10:0] level7_valid_mux;            // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] l7_nodes_next;               // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] level7_valid_mux_1;          // rtl-gen/src/merge/writer.rs:405
-    wire [10:0] l7_records_next;             // rtl-gen/src/merge/writer.rs:405
     wire level7_data_not_3;                  // rtl-gen/src/merge/writer.rs:410
     wire level7_valid_and_6;                 // rtl-gen/src/merge/writer.rs:410
     wire [34:0] level7_valid_mux_2;          // rtl-gen/src/merge/writer.rs:410
@@ -667,10 +629,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire level8_valid_and_5;                 // rtl-gen/src/merge/writer.rs:402
     wire l8_end_seen_or;                     // rtl-gen/src/merge/writer.rs:403
     wire l8_end_seen_next;                   // rtl-gen/src/merge/writer.rs:403
-    wire [10:0] level8_valid_mux;            // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] l8_nodes_next;               // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] level8_valid_mux_1;          // rtl-gen/src/merge/writer.rs:405
-    wire [10:0] l8_records_next;             // rtl-gen/src/merge/writer.rs:405
     wire level8_data_not_3;                  // rtl-gen/src/merge/writer.rs:410
     wire level8_valid_and_6;                 // rtl-gen/src/merge/writer.rs:410
     wire [34:0] level8_valid_mux_2;          // rtl-gen/src/merge/writer.rs:410
@@ -717,10 +675,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire level9_valid_and_5;                 // rtl-gen/src/merge/writer.rs:402
     wire l9_end_seen_or;                     // rtl-gen/src/merge/writer.rs:403
     wire l9_end_seen_next;                   // rtl-gen/src/merge/writer.rs:403
-    wire [10:0] level9_valid_mux;            // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] l9_nodes_next;               // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] level9_valid_mux_1;          // rtl-gen/src/merge/writer.rs:405
-    wire [10:0] l9_records_next;             // rtl-gen/src/merge/writer.rs:405
     wire level9_data_not_3;                  // rtl-gen/src/merge/writer.rs:410
     wire level9_valid_and_6;                 // rtl-gen/src/merge/writer.rs:410
     wire [34:0] level9_valid_mux_2;          // rtl-gen/src/merge/writer.rs:410
@@ -767,10 +721,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire level10_valid_and_5;                // rtl-gen/src/merge/writer.rs:402
     wire l10_end_seen_or;                    // rtl-gen/src/merge/writer.rs:403
     wire l10_end_seen_next;                  // rtl-gen/src/merge/writer.rs:403
-    wire [10:0] level10_valid_mux;           // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] l10_nodes_next;              // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] level10_valid_mux_1;         // rtl-gen/src/merge/writer.rs:405
-    wire [10:0] l10_records_next;            // rtl-gen/src/merge/writer.rs:405
     wire level10_data_not_3;                 // rtl-gen/src/merge/writer.rs:410
     wire level10_valid_and_6;                // rtl-gen/src/merge/writer.rs:410
     wire [34:0] level10_valid_mux_2;         // rtl-gen/src/merge/writer.rs:410
@@ -817,10 +767,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire level11_valid_and_5;                // rtl-gen/src/merge/writer.rs:402
     wire l11_end_seen_or;                    // rtl-gen/src/merge/writer.rs:403
     wire l11_end_seen_next;                  // rtl-gen/src/merge/writer.rs:403
-    wire [10:0] level11_valid_mux;           // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] l11_nodes_next;              // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] level11_valid_mux_1;         // rtl-gen/src/merge/writer.rs:405
-    wire [10:0] l11_records_next;            // rtl-gen/src/merge/writer.rs:405
     wire level11_data_not_3;                 // rtl-gen/src/merge/writer.rs:410
     wire level11_valid_and_6;                // rtl-gen/src/merge/writer.rs:410
     wire [34:0] level11_valid_mux_2;         // rtl-gen/src/merge/writer.rs:410
@@ -867,10 +813,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire level12_valid_and_5;                // rtl-gen/src/merge/writer.rs:402
     wire l12_end_seen_or;                    // rtl-gen/src/merge/writer.rs:403
     wire l12_end_seen_next;                  // rtl-gen/src/merge/writer.rs:403
-    wire [10:0] level12_valid_mux;           // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] l12_nodes_next;              // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] level12_valid_mux_1;         // rtl-gen/src/merge/writer.rs:405
-    wire [10:0] l12_records_next;            // rtl-gen/src/merge/writer.rs:405
     wire level12_data_not_3;                 // rtl-gen/src/merge/writer.rs:410
     wire level12_valid_and_6;                // rtl-gen/src/merge/writer.rs:410
     wire [34:0] level12_valid_mux_2;         // rtl-gen/src/merge/writer.rs:410
@@ -917,10 +859,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire level13_valid_and_5;                // rtl-gen/src/merge/writer.rs:402
     wire l13_end_seen_or;                    // rtl-gen/src/merge/writer.rs:403
     wire l13_end_seen_next;                  // rtl-gen/src/merge/writer.rs:403
-    wire [10:0] level13_valid_mux;           // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] l13_nodes_next;              // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] level13_valid_mux_1;         // rtl-gen/src/merge/writer.rs:405
-    wire [10:0] l13_records_next;            // rtl-gen/src/merge/writer.rs:405
     wire level13_data_not_3;                 // rtl-gen/src/merge/writer.rs:410
     wire level13_valid_and_6;                // rtl-gen/src/merge/writer.rs:410
     wire [34:0] level13_valid_mux_2;         // rtl-gen/src/merge/writer.rs:410
@@ -967,10 +905,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire level14_valid_and_5;                // rtl-gen/src/merge/writer.rs:402
     wire l14_end_seen_or;                    // rtl-gen/src/merge/writer.rs:403
     wire l14_end_seen_next;                  // rtl-gen/src/merge/writer.rs:403
-    wire [10:0] level14_valid_mux;           // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] l14_nodes_next;              // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] level14_valid_mux_1;         // rtl-gen/src/merge/writer.rs:405
-    wire [10:0] l14_records_next;            // rtl-gen/src/merge/writer.rs:405
     wire level14_data_not_3;                 // rtl-gen/src/merge/writer.rs:410
     wire level14_valid_and_6;                // rtl-gen/src/merge/writer.rs:410
     wire [34:0] level14_valid_mux_2;         // rtl-gen/src/merge/writer.rs:410
@@ -1017,10 +951,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire level15_valid_and_5;                // rtl-gen/src/merge/writer.rs:402
     wire l15_end_seen_or;                    // rtl-gen/src/merge/writer.rs:403
     wire l15_end_seen_next;                  // rtl-gen/src/merge/writer.rs:403
-    wire [10:0] level15_valid_mux;           // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] l15_nodes_next;              // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] level15_valid_mux_1;         // rtl-gen/src/merge/writer.rs:405
-    wire [10:0] l15_records_next;            // rtl-gen/src/merge/writer.rs:405
     wire level15_data_not_3;                 // rtl-gen/src/merge/writer.rs:410
     wire level15_valid_and_6;                // rtl-gen/src/merge/writer.rs:410
     wire [34:0] level15_valid_mux_2;         // rtl-gen/src/merge/writer.rs:410
@@ -1067,10 +997,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire level16_valid_and_5;                // rtl-gen/src/merge/writer.rs:402
     wire l16_end_seen_or;                    // rtl-gen/src/merge/writer.rs:403
     wire l16_end_seen_next;                  // rtl-gen/src/merge/writer.rs:403
-    wire [10:0] level16_valid_mux;           // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] l16_nodes_next;              // rtl-gen/src/merge/writer.rs:404
-    wire [10:0] level16_valid_mux_1;         // rtl-gen/src/merge/writer.rs:405
-    wire [10:0] l16_records_next;            // rtl-gen/src/merge/writer.rs:405
     wire level16_data_not_3;                 // rtl-gen/src/merge/writer.rs:410
     wire level16_valid_and_6;                // rtl-gen/src/merge/writer.rs:410
     wire [34:0] level16_valid_mux_2;         // rtl-gen/src/merge/writer.rs:410
@@ -1358,11 +1284,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     reg [24:0] h_roots;                      // rtl-gen/src/merge/writer.rs:459
     reg [24:0] h_nodes;                      // rtl-gen/src/merge/writer.rs:460
     reg [24:0] h_refs;                       // rtl-gen/src/merge/writer.rs:461
-    wire [2:0] fill_done_mux;                // rtl-gen/src/merge/writer.rs:462
-    wire [2:0] err_code_next;                // rtl-gen/src/merge/writer.rs:462
-    wire [24:0] h_roots_next;                // rtl-gen/src/merge/writer.rs:463
-    wire [24:0] h_nodes_next;                // rtl-gen/src/merge/writer.rs:464
-    wire [24:0] h_refs_next;                 // rtl-gen/src/merge/writer.rs:465
     wire drain_start;                        // rtl-gen/src/merge/writer.rs:466
     reg [4:0] rs_lod;                        // rtl-gen/src/merge/writer.rs:473
     reg [10:0] rs_ptr;                       // rtl-gen/src/merge/writer.rs:474
@@ -1722,17 +1643,12 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire nodes_skid_spare_valid_not;         // rtl-gen/src/merge/writer.rs:518
     wire nodes_in_valid_and_4;               // rtl-gen/src/merge/writer.rs:518
     wire nodes_skid_spare_valid_or;          // rtl-gen/src/merge/writer.rs:518
-    wire nodes_skid_valid_next;              // rtl-gen/src/merge/writer.rs:518
     wire [149:0] nodes_skid_spare_valid_mux; // rtl-gen/src/merge/writer.rs:518
-    wire [149:0] nodes_skid_data_next;       // rtl-gen/src/merge/writer.rs:518
     wire nodes_skid_spare_valid_or_1;        // rtl-gen/src/merge/writer.rs:518
     wire nodes_skid_spare_valid_next;        // rtl-gen/src/merge/writer.rs:518
     wire nodes_skid_ready_not;               // rtl-gen/src/merge/writer.rs:518
     wire nodes_skid_ready_and;               // rtl-gen/src/merge/writer.rs:518
-    wire [149:0] nodes_skid_spare_data_next; // rtl-gen/src/merge/writer.rs:518
     wire [24:0] rs_first_add;                // rtl-gen/src/merge/writer.rs:521
-    wire [24:0] nodes_in_valid_mux_3;        // rtl-gen/src/merge/writer.rs:521
-    wire [24:0] rs_first_next;               // rtl-gen/src/merge/writer.rs:519
     wire rs_done_or;                         // rtl-gen/src/merge/writer.rs:523
     wire rs_done_next;                       // rtl-gen/src/merge/writer.rs:523
     reg [4:0] fs_lod;                        // rtl-gen/src/merge/writer.rs:531
@@ -2107,14 +2023,11 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire refs_skid_spare_valid_not;          // rtl-gen/src/merge/writer.rs:595
     wire refs_in_valid_and;                  // rtl-gen/src/merge/writer.rs:595
     wire refs_skid_spare_valid_or;           // rtl-gen/src/merge/writer.rs:595
-    wire refs_skid_valid_next;               // rtl-gen/src/merge/writer.rs:595
     wire [27:0] refs_skid_spare_valid_mux;   // rtl-gen/src/merge/writer.rs:595
-    wire [27:0] refs_skid_data_next;         // rtl-gen/src/merge/writer.rs:595
     wire refs_skid_spare_valid_or_1;         // rtl-gen/src/merge/writer.rs:595
     wire refs_skid_spare_valid_next;         // rtl-gen/src/merge/writer.rs:595
     wire refs_skid_ready_not;                // rtl-gen/src/merge/writer.rs:595
     wire refs_skid_ready_and;                // rtl-gen/src/merge/writer.rs:595
-    wire [27:0] refs_skid_spare_data_next;   // rtl-gen/src/merge/writer.rs:595
     wire fs_busy_and;                        // rtl-gen/src/merge/writer.rs:598
     wire fs_busy_and_1;                      // rtl-gen/src/merge/writer.rs:598
     wire fs_busy_and_2;                      // rtl-gen/src/merge/writer.rs:599
@@ -2135,14 +2048,11 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire ref_req_skid_spare_valid_not;       // rtl-gen/src/merge/writer.rs:607
     wire ref_req_in_valid_and_1;             // rtl-gen/src/merge/writer.rs:607
     wire ref_req_skid_spare_valid_or;        // rtl-gen/src/merge/writer.rs:607
-    wire ref_req_skid_valid_next;            // rtl-gen/src/merge/writer.rs:607
     wire [27:0] ref_req_skid_spare_valid_mux; // rtl-gen/src/merge/writer.rs:607
-    wire [27:0] ref_req_skid_data_next;      // rtl-gen/src/merge/writer.rs:607
     wire ref_req_skid_spare_valid_or_1;      // rtl-gen/src/merge/writer.rs:607
     wire ref_req_skid_spare_valid_next;      // rtl-gen/src/merge/writer.rs:607
     wire ref_req_skid_ready_not;             // rtl-gen/src/merge/writer.rs:607
     wire ref_req_skid_ready_and;             // rtl-gen/src/merge/writer.rs:607
-    wire [27:0] ref_req_skid_spare_data_next; // rtl-gen/src/merge/writer.rs:607
     wire [23:0] fs_j_add;                    // rtl-gen/src/merge/writer.rs:608
     wire fs_j_eq;                            // rtl-gen/src/merge/writer.rs:608
     wire refs_fire_and;                      // rtl-gen/src/merge/writer.rs:608
@@ -2236,12 +2146,8 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire [10:0] refs_fire_mux_1;             // rtl-gen/src/merge/writer.rs:618
     wire drain_start_or_4;                   // rtl-gen/src/merge/writer.rs:622
     wire [23:0] fs_j_add_1;                  // rtl-gen/src/merge/writer.rs:622
-    wire [23:0] refs_fire_mux_2;             // rtl-gen/src/merge/writer.rs:622
-    wire [23:0] fs_j_next;                   // rtl-gen/src/merge/writer.rs:622
     wire drain_start_or_5;                   // rtl-gen/src/merge/writer.rs:623
     wire [23:0] fs_req_add;                  // rtl-gen/src/merge/writer.rs:623
-    wire [23:0] ref_req_in_valid_mux_1;      // rtl-gen/src/merge/writer.rs:623
-    wire [23:0] fs_req_next;                 // rtl-gen/src/merge/writer.rs:623
     wire drain_start_or_6;                   // rtl-gen/src/merge/writer.rs:624
     wire refs_fire_and_4;                    // rtl-gen/src/merge/writer.rs:626
     wire [10:0] fs_child_add;                // rtl-gen/src/merge/writer.rs:626
@@ -2281,8 +2187,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire [10:0] fs_lod_mux_175;              // rtl-gen/src/merge/writer.rs:118
     wire [10:0] fs_lod_mux_176;              // rtl-gen/src/merge/writer.rs:118
     wire [24:0] fs_child_offset_add_1;       // rtl-gen/src/merge/writer.rs:640
-    wire [24:0] refs_fire_mux_5;             // rtl-gen/src/merge/writer.rs:640
-    wire [24:0] fs_child_offset_next;        // rtl-gen/src/merge/writer.rs:638
     wire fs_done_or;                         // rtl-gen/src/merge/writer.rs:642
     wire fs_done_next;                       // rtl-gen/src/merge/writer.rs:642
     wire [86:0] err_code_cat;                // rtl-gen/src/merge/writer.rs:645
@@ -2299,20 +2203,14 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire header_skid_spare_valid_not;        // rtl-gen/src/merge/writer.rs:654
     wire in_header_and;                      // rtl-gen/src/merge/writer.rs:654
     wire header_skid_spare_valid_or;         // rtl-gen/src/merge/writer.rs:654
-    wire header_skid_valid_next;             // rtl-gen/src/merge/writer.rs:654
     wire [86:0] header_skid_spare_valid_mux; // rtl-gen/src/merge/writer.rs:654
-    wire [86:0] header_skid_data_next;       // rtl-gen/src/merge/writer.rs:654
     wire header_skid_spare_valid_or_1;       // rtl-gen/src/merge/writer.rs:654
     wire header_skid_spare_valid_next;       // rtl-gen/src/merge/writer.rs:654
     wire header_skid_ready_not;              // rtl-gen/src/merge/writer.rs:654
     wire header_skid_ready_and;              // rtl-gen/src/merge/writer.rs:654
-    wire [86:0] header_skid_spare_data_next; // rtl-gen/src/merge/writer.rs:654
     wire in_drain_and;                       // rtl-gen/src/merge/writer.rs:658
     wire in_drain_and_1;                     // rtl-gen/src/merge/writer.rs:658
     wire [1:0] fill_ok_mux;                  // rtl-gen/src/merge/writer.rs:662
-    wire [1:0] in_drain_mux;                 // rtl-gen/src/merge/writer.rs:663
-    wire [1:0] fill_done_mux_1;              // rtl-gen/src/merge/writer.rs:661
-    wire [1:0] state_next;                   // rtl-gen/src/merge/writer.rs:659
 
     assign in_fill = state == 2'd0;
     assign in_drain = state == 2'd1;
@@ -2324,15 +2222,12 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign cfg_valid_and = cfg_valid & have_cfg_not;
     assign have_cfg_or = have_cfg | cfg_valid_and;
     assign have_cfg_next = merge_clear ? 1'b0 : have_cfg_or;
-    assign out_id_next = cfg_valid_and ? cfg_data : out_id;
     assign done_ready = in_fill_and;
     assign have_done_not = ~have_done;
     assign in_fill_and = in_fill & have_done_not;
     assign done_valid_and = done_valid & in_fill_and;
     assign have_done_or = have_done | done_valid_and;
     assign have_done_next = merge_clear ? 1'b0 : have_done_or;
-    assign top_next = done_valid_and ? done_data[4:0] : top;
-    assign done_err_next = done_valid_and ? done_data[5] : done_err;
     assign crefs_ready = in_fill_and_1;
     assign cref_end_not = ~cref_end;
     assign in_fill_and_1 = in_fill & cref_end_not;
@@ -2345,9 +2240,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign cref_end_or = cref_end | crefs_valid_and_3;
     assign cref_end_next = merge_clear ? 1'b0 : cref_end_or;
     assign cref_wptr_add = cref_wptr + 11'd1;
-    assign cref_wptr_mux = cref_wptr[10] ? cref_wptr : cref_wptr_add;
-    assign crefs_valid_mux = crefs_valid_and_1 ? cref_wptr_mux : cref_wptr;
-    assign cref_wptr_next = merge_clear ? 11'd0 : crefs_valid_mux;
     assign crefs_valid_and_4 = crefs_valid_and_1 & cref_wptr[10];
     assign cref_cap_err_or = cref_cap_err | crefs_valid_and_4;
     assign cref_cap_err_next = merge_clear ? 1'b0 : cref_cap_err_or;
@@ -2401,10 +2293,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign level0_valid_and_3 = level0_valid_and & level0_data_eq;
     assign l0_end_seen_or = l0_end_seen | level0_valid_and_3;
     assign l0_end_seen_next = merge_clear_and ? 1'b0 : l0_end_seen_or;
-    assign level0_valid_mux = level0_valid_and_3 ? level0_data[190:180] : l0_nodes;
-    assign l0_nodes_next = merge_clear_and ? 11'd0 : level0_valid_mux;
-    assign level0_valid_mux_1 = level0_valid_and_3 ? level0_data[214:204] : l0_records;
-    assign l0_records_next = merge_clear_and ? 11'd0 : level0_valid_mux_1;
     assign level0_data_not_1 = ~level0_data_eq_1;
     assign level0_valid_and_4 = level0_valid_and_1 & level0_data_not_1;
     assign level0_valid_mux_2 = level0_valid_and_4 ? {11'd0, level0_data[149:126]} : 35'd0;
@@ -2445,10 +2333,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign level1_valid_and_5 = level1_valid_and & level1_data_eq;
     assign l1_end_seen_or = l1_end_seen | level1_valid_and_5;
     assign l1_end_seen_next = merge_clear_and_1 ? 1'b0 : l1_end_seen_or;
-    assign level1_valid_mux = level1_valid_and_5 ? level1_data[190:180] : l1_nodes;
-    assign l1_nodes_next = merge_clear_and_1 ? 11'd0 : level1_valid_mux;
-    assign level1_valid_mux_1 = level1_valid_and_5 ? level1_data[214:204] : l1_records;
-    assign l1_records_next = merge_clear_and_1 ? 11'd0 : level1_valid_mux_1;
     assign level1_data_not_3 = ~level1_data_eq_1;
     assign level1_valid_and_6 = level1_valid_and_1 & level1_data_not_3;
     assign level1_valid_mux_2 = level1_valid_and_6 ? {11'd0, level1_data[149:126]} : 35'd0;
@@ -2489,10 +2373,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign level2_valid_and_5 = level2_valid_and & level2_data_eq;
     assign l2_end_seen_or = l2_end_seen | level2_valid_and_5;
     assign l2_end_seen_next = merge_clear_and_2 ? 1'b0 : l2_end_seen_or;
-    assign level2_valid_mux = level2_valid_and_5 ? level2_data[190:180] : l2_nodes;
-    assign l2_nodes_next = merge_clear_and_2 ? 11'd0 : level2_valid_mux;
-    assign level2_valid_mux_1 = level2_valid_and_5 ? level2_data[214:204] : l2_records;
-    assign l2_records_next = merge_clear_and_2 ? 11'd0 : level2_valid_mux_1;
     assign level2_data_not_3 = ~level2_data_eq_1;
     assign level2_valid_and_6 = level2_valid_and_1 & level2_data_not_3;
     assign level2_valid_mux_2 = level2_valid_and_6 ? {11'd0, level2_data[149:126]} : 35'd0;
@@ -2533,10 +2413,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign level3_valid_and_5 = level3_valid_and & level3_data_eq;
     assign l3_end_seen_or = l3_end_seen | level3_valid_and_5;
     assign l3_end_seen_next = merge_clear_and_3 ? 1'b0 : l3_end_seen_or;
-    assign level3_valid_mux = level3_valid_and_5 ? level3_data[190:180] : l3_nodes;
-    assign l3_nodes_next = merge_clear_and_3 ? 11'd0 : level3_valid_mux;
-    assign level3_valid_mux_1 = level3_valid_and_5 ? level3_data[214:204] : l3_records;
-    assign l3_records_next = merge_clear_and_3 ? 11'd0 : level3_valid_mux_1;
     assign level3_data_not_3 = ~level3_data_eq_1;
     assign level3_valid_and_6 = level3_valid_and_1 & level3_data_not_3;
     assign level3_valid_mux_2 = level3_valid_and_6 ? {11'd0, level3_data[149:126]} : 35'd0;
@@ -2577,10 +2453,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign level4_valid_and_5 = level4_valid_and & level4_data_eq;
     assign l4_end_seen_or = l4_end_seen | level4_valid_and_5;
     assign l4_end_seen_next = merge_clear_and_4 ? 1'b0 : l4_end_seen_or;
-    assign level4_valid_mux = level4_valid_and_5 ? level4_data[190:180] : l4_nodes;
-    assign l4_nodes_next = merge_clear_and_4 ? 11'd0 : level4_valid_mux;
-    assign level4_valid_mux_1 = level4_valid_and_5 ? level4_data[214:204] : l4_records;
-    assign l4_records_next = merge_clear_and_4 ? 11'd0 : level4_valid_mux_1;
     assign level4_data_not_3 = ~level4_data_eq_1;
     assign level4_valid_and_6 = level4_valid_and_1 & level4_data_not_3;
     assign level4_valid_mux_2 = level4_valid_and_6 ? {11'd0, level4_data[149:126]} : 35'd0;
@@ -2621,10 +2493,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign level5_valid_and_5 = level5_valid_and & level5_data_eq;
     assign l5_end_seen_or = l5_end_seen | level5_valid_and_5;
     assign l5_end_seen_next = merge_clear_and_5 ? 1'b0 : l5_end_seen_or;
-    assign level5_valid_mux = level5_valid_and_5 ? level5_data[190:180] : l5_nodes;
-    assign l5_nodes_next = merge_clear_and_5 ? 11'd0 : level5_valid_mux;
-    assign level5_valid_mux_1 = level5_valid_and_5 ? level5_data[214:204] : l5_records;
-    assign l5_records_next = merge_clear_and_5 ? 11'd0 : level5_valid_mux_1;
     assign level5_data_not_3 = ~level5_data_eq_1;
     assign level5_valid_and_6 = level5_valid_and_1 & level5_data_not_3;
     assign level5_valid_mux_2 = level5_valid_and_6 ? {11'd0, level5_data[149:126]} : 35'd0;
@@ -2665,10 +2533,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign level6_valid_and_5 = level6_valid_and & level6_data_eq;
     assign l6_end_seen_or = l6_end_seen | level6_valid_and_5;
     assign l6_end_seen_next = merge_clear_and_6 ? 1'b0 : l6_end_seen_or;
-    assign level6_valid_mux = level6_valid_and_5 ? level6_data[190:180] : l6_nodes;
-    assign l6_nodes_next = merge_clear_and_6 ? 11'd0 : level6_valid_mux;
-    assign level6_valid_mux_1 = level6_valid_and_5 ? level6_data[214:204] : l6_records;
-    assign l6_records_next = merge_clear_and_6 ? 11'd0 : level6_valid_mux_1;
     assign level6_data_not_3 = ~level6_data_eq_1;
     assign level6_valid_and_6 = level6_valid_and_1 & level6_data_not_3;
     assign level6_valid_mux_2 = level6_valid_and_6 ? {11'd0, level6_data[149:126]} : 35'd0;
@@ -2709,10 +2573,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign level7_valid_and_5 = level7_valid_and & level7_data_eq;
     assign l7_end_seen_or = l7_end_seen | level7_valid_and_5;
     assign l7_end_seen_next = merge_clear_and_7 ? 1'b0 : l7_end_seen_or;
-    assign level7_valid_mux = level7_valid_and_5 ? level7_data[190:180] : l7_nodes;
-    assign l7_nodes_next = merge_clear_and_7 ? 11'd0 : level7_valid_mux;
-    assign level7_valid_mux_1 = level7_valid_and_5 ? level7_data[214:204] : l7_records;
-    assign l7_records_next = merge_clear_and_7 ? 11'd0 : level7_valid_mux_1;
     assign level7_data_not_3 = ~level7_data_eq_1;
     assign level7_valid_and_6 = level7_valid_and_1 & level7_data_not_3;
     assign level7_valid_mux_2 = level7_valid_and_6 ? {11'd0, level7_data[149:126]} : 35'd0;
@@ -2753,10 +2613,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign level8_valid_and_5 = level8_valid_and & level8_data_eq;
     assign l8_end_seen_or = l8_end_seen | level8_valid_and_5;
     assign l8_end_seen_next = merge_clear_and_8 ? 1'b0 : l8_end_seen_or;
-    assign level8_valid_mux = level8_valid_and_5 ? level8_data[190:180] : l8_nodes;
-    assign l8_nodes_next = merge_clear_and_8 ? 11'd0 : level8_valid_mux;
-    assign level8_valid_mux_1 = level8_valid_and_5 ? level8_data[214:204] : l8_records;
-    assign l8_records_next = merge_clear_and_8 ? 11'd0 : level8_valid_mux_1;
     assign level8_data_not_3 = ~level8_data_eq_1;
     assign level8_valid_and_6 = level8_valid_and_1 & level8_data_not_3;
     assign level8_valid_mux_2 = level8_valid_and_6 ? {11'd0, level8_data[149:126]} : 35'd0;
@@ -2797,10 +2653,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign level9_valid_and_5 = level9_valid_and & level9_data_eq;
     assign l9_end_seen_or = l9_end_seen | level9_valid_and_5;
     assign l9_end_seen_next = merge_clear_and_9 ? 1'b0 : l9_end_seen_or;
-    assign level9_valid_mux = level9_valid_and_5 ? level9_data[190:180] : l9_nodes;
-    assign l9_nodes_next = merge_clear_and_9 ? 11'd0 : level9_valid_mux;
-    assign level9_valid_mux_1 = level9_valid_and_5 ? level9_data[214:204] : l9_records;
-    assign l9_records_next = merge_clear_and_9 ? 11'd0 : level9_valid_mux_1;
     assign level9_data_not_3 = ~level9_data_eq_1;
     assign level9_valid_and_6 = level9_valid_and_1 & level9_data_not_3;
     assign level9_valid_mux_2 = level9_valid_and_6 ? {11'd0, level9_data[149:126]} : 35'd0;
@@ -2841,10 +2693,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign level10_valid_and_5 = level10_valid_and & level10_data_eq;
     assign l10_end_seen_or = l10_end_seen | level10_valid_and_5;
     assign l10_end_seen_next = merge_clear_and_10 ? 1'b0 : l10_end_seen_or;
-    assign level10_valid_mux = level10_valid_and_5 ? level10_data[190:180] : l10_nodes;
-    assign l10_nodes_next = merge_clear_and_10 ? 11'd0 : level10_valid_mux;
-    assign level10_valid_mux_1 = level10_valid_and_5 ? level10_data[214:204] : l10_records;
-    assign l10_records_next = merge_clear_and_10 ? 11'd0 : level10_valid_mux_1;
     assign level10_data_not_3 = ~level10_data_eq_1;
     assign level10_valid_and_6 = level10_valid_and_1 & level10_data_not_3;
     assign level10_valid_mux_2 = level10_valid_and_6 ? {11'd0, level10_data[149:126]} : 35'd0;
@@ -2885,10 +2733,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign level11_valid_and_5 = level11_valid_and & level11_data_eq;
     assign l11_end_seen_or = l11_end_seen | level11_valid_and_5;
     assign l11_end_seen_next = merge_clear_and_11 ? 1'b0 : l11_end_seen_or;
-    assign level11_valid_mux = level11_valid_and_5 ? level11_data[190:180] : l11_nodes;
-    assign l11_nodes_next = merge_clear_and_11 ? 11'd0 : level11_valid_mux;
-    assign level11_valid_mux_1 = level11_valid_and_5 ? level11_data[214:204] : l11_records;
-    assign l11_records_next = merge_clear_and_11 ? 11'd0 : level11_valid_mux_1;
     assign level11_data_not_3 = ~level11_data_eq_1;
     assign level11_valid_and_6 = level11_valid_and_1 & level11_data_not_3;
     assign level11_valid_mux_2 = level11_valid_and_6 ? {11'd0, level11_data[149:126]} : 35'd0;
@@ -2929,10 +2773,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign level12_valid_and_5 = level12_valid_and & level12_data_eq;
     assign l12_end_seen_or = l12_end_seen | level12_valid_and_5;
     assign l12_end_seen_next = merge_clear_and_12 ? 1'b0 : l12_end_seen_or;
-    assign level12_valid_mux = level12_valid_and_5 ? level12_data[190:180] : l12_nodes;
-    assign l12_nodes_next = merge_clear_and_12 ? 11'd0 : level12_valid_mux;
-    assign level12_valid_mux_1 = level12_valid_and_5 ? level12_data[214:204] : l12_records;
-    assign l12_records_next = merge_clear_and_12 ? 11'd0 : level12_valid_mux_1;
     assign level12_data_not_3 = ~level12_data_eq_1;
     assign level12_valid_and_6 = level12_valid_and_1 & level12_data_not_3;
     assign level12_valid_mux_2 = level12_valid_and_6 ? {11'd0, level12_data[149:126]} : 35'd0;
@@ -2973,10 +2813,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign level13_valid_and_5 = level13_valid_and & level13_data_eq;
     assign l13_end_seen_or = l13_end_seen | level13_valid_and_5;
     assign l13_end_seen_next = merge_clear_and_13 ? 1'b0 : l13_end_seen_or;
-    assign level13_valid_mux = level13_valid_and_5 ? level13_data[190:180] : l13_nodes;
-    assign l13_nodes_next = merge_clear_and_13 ? 11'd0 : level13_valid_mux;
-    assign level13_valid_mux_1 = level13_valid_and_5 ? level13_data[214:204] : l13_records;
-    assign l13_records_next = merge_clear_and_13 ? 11'd0 : level13_valid_mux_1;
     assign level13_data_not_3 = ~level13_data_eq_1;
     assign level13_valid_and_6 = level13_valid_and_1 & level13_data_not_3;
     assign level13_valid_mux_2 = level13_valid_and_6 ? {11'd0, level13_data[149:126]} : 35'd0;
@@ -3017,10 +2853,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign level14_valid_and_5 = level14_valid_and & level14_data_eq;
     assign l14_end_seen_or = l14_end_seen | level14_valid_and_5;
     assign l14_end_seen_next = merge_clear_and_14 ? 1'b0 : l14_end_seen_or;
-    assign level14_valid_mux = level14_valid_and_5 ? level14_data[190:180] : l14_nodes;
-    assign l14_nodes_next = merge_clear_and_14 ? 11'd0 : level14_valid_mux;
-    assign level14_valid_mux_1 = level14_valid_and_5 ? level14_data[214:204] : l14_records;
-    assign l14_records_next = merge_clear_and_14 ? 11'd0 : level14_valid_mux_1;
     assign level14_data_not_3 = ~level14_data_eq_1;
     assign level14_valid_and_6 = level14_valid_and_1 & level14_data_not_3;
     assign level14_valid_mux_2 = level14_valid_and_6 ? {11'd0, level14_data[149:126]} : 35'd0;
@@ -3061,10 +2893,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign level15_valid_and_5 = level15_valid_and & level15_data_eq;
     assign l15_end_seen_or = l15_end_seen | level15_valid_and_5;
     assign l15_end_seen_next = merge_clear_and_15 ? 1'b0 : l15_end_seen_or;
-    assign level15_valid_mux = level15_valid_and_5 ? level15_data[190:180] : l15_nodes;
-    assign l15_nodes_next = merge_clear_and_15 ? 11'd0 : level15_valid_mux;
-    assign level15_valid_mux_1 = level15_valid_and_5 ? level15_data[214:204] : l15_records;
-    assign l15_records_next = merge_clear_and_15 ? 11'd0 : level15_valid_mux_1;
     assign level15_data_not_3 = ~level15_data_eq_1;
     assign level15_valid_and_6 = level15_valid_and_1 & level15_data_not_3;
     assign level15_valid_mux_2 = level15_valid_and_6 ? {11'd0, level15_data[149:126]} : 35'd0;
@@ -3105,10 +2933,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign level16_valid_and_5 = level16_valid_and & level16_data_eq;
     assign l16_end_seen_or = l16_end_seen | level16_valid_and_5;
     assign l16_end_seen_next = merge_clear_and_16 ? 1'b0 : l16_end_seen_or;
-    assign level16_valid_mux = level16_valid_and_5 ? level16_data[190:180] : l16_nodes;
-    assign l16_nodes_next = merge_clear_and_16 ? 11'd0 : level16_valid_mux;
-    assign level16_valid_mux_1 = level16_valid_and_5 ? level16_data[214:204] : l16_records;
-    assign l16_records_next = merge_clear_and_16 ? 11'd0 : level16_valid_mux_1;
     assign level16_data_not_3 = ~level16_data_eq_1;
     assign level16_valid_and_6 = level16_valid_and_1 & level16_data_not_3;
     assign level16_valid_mux_2 = level16_valid_and_6 ? {11'd0, level16_data[149:126]} : 35'd0;
@@ -3392,11 +3216,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign l0_cap_err_mux = l0_cap_err_or_18 ? 3'd2 : l0_err_mux;
     assign done_err_mux = done_err ? 3'd1 : l0_cap_err_mux;
     assign fill_ok = done_err_mux == 3'd0;
-    assign fill_done_mux = fill_done ? done_err_mux : err_code;
-    assign err_code_next = merge_clear ? 3'd0 : fill_done_mux;
-    assign h_roots_next = fill_done ? {14'd0, top_nodes} : h_roots;
-    assign h_nodes_next = fill_done ? nodes_total[24:0] : h_nodes;
-    assign h_refs_next = fill_done ? refs_total[24:0] : h_refs;
     assign drain_start = fill_done & fill_ok;
     assign rs_lod_eq = rs_lod == top;
     assign rs_lod_mux = rs_lod[0] ? l1_records : l0_records;
@@ -3715,19 +3534,14 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign nodes_skid_spare_valid_not = ~nodes_skid_spare_valid;
     assign nodes_in_valid_and_4 = nodes_in_valid & nodes_skid_spare_valid_not;
     assign nodes_skid_spare_valid_or = nodes_skid_spare_valid | nodes_in_valid;
-    assign nodes_skid_valid_next = nodes_skid_ready_or ? nodes_skid_spare_valid_or : nodes_skid_valid;
     assign nodes_skid_spare_valid_mux = nodes_skid_spare_valid ? nodes_skid_spare_data : nodes_in_valid_mux_2;
-    assign nodes_skid_data_next = nodes_skid_ready_or ? nodes_skid_spare_valid_mux : nodes_skid_data;
     assign nodes_skid_spare_valid_or_1 = nodes_skid_spare_valid | nodes_in_valid_and_4;
     assign nodes_skid_spare_valid_next = nodes_skid_ready_or ? 1'b0 : nodes_skid_spare_valid_or_1;
     assign nodes_skid_ready_not = ~nodes_skid_ready_or;
     assign nodes_skid_ready_and = nodes_skid_ready_not & nodes_in_valid_and_4;
-    assign nodes_skid_spare_data_next = nodes_skid_ready_and ? nodes_in_valid_mux_2 : nodes_skid_spare_data;
     assign nodes_valid = nodes_skid_valid;
     assign nodes_data = nodes_skid_data;
     assign rs_first_add = rs_first + {1'b0, rs_lod_mux_110[125:102]};
-    assign nodes_in_valid_mux_3 = nodes_in_valid_and ? rs_first_add : rs_first;
-    assign rs_first_next = drain_start ? 25'd0 : nodes_in_valid_mux_3;
     assign rs_done_or = rs_done | nodes_in_valid_and_3;
     assign rs_done_next = merge_clear ? 1'b0 : rs_done_or;
     assign fs_lod_next = drain_start ? top : refs_fire_mux;
@@ -4040,14 +3854,11 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign refs_skid_spare_valid_not = ~refs_skid_spare_valid;
     assign refs_in_valid_and = refs_in_valid & refs_skid_spare_valid_not;
     assign refs_skid_spare_valid_or = refs_skid_spare_valid | refs_in_valid;
-    assign refs_skid_valid_next = refs_skid_ready_or ? refs_skid_spare_valid_or : refs_skid_valid;
     assign refs_skid_spare_valid_mux = refs_skid_spare_valid ? refs_skid_spare_data : refs_in_valid_mux;
-    assign refs_skid_data_next = refs_skid_ready_or ? refs_skid_spare_valid_mux : refs_skid_data;
     assign refs_skid_spare_valid_or_1 = refs_skid_spare_valid | refs_in_valid_and;
     assign refs_skid_spare_valid_next = refs_skid_ready_or ? 1'b0 : refs_skid_spare_valid_or_1;
     assign refs_skid_ready_not = ~refs_skid_ready_or;
     assign refs_skid_ready_and = refs_skid_ready_not & refs_in_valid_and;
-    assign refs_skid_spare_data_next = refs_skid_ready_and ? refs_in_valid_mux : refs_skid_spare_data;
     assign refs_valid = refs_skid_valid;
     assign refs_data = refs_skid_data;
     assign fs_busy_and = fs_busy & fs_lod_eq_3;
@@ -4066,14 +3877,11 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign ref_req_skid_spare_valid_not = ~ref_req_skid_spare_valid;
     assign ref_req_in_valid_and_1 = ref_req_in_valid & ref_req_skid_spare_valid_not;
     assign ref_req_skid_spare_valid_or = ref_req_skid_spare_valid | ref_req_in_valid;
-    assign ref_req_skid_valid_next = ref_req_skid_ready_or ? ref_req_skid_spare_valid_or : ref_req_skid_valid;
     assign ref_req_skid_spare_valid_mux = ref_req_skid_spare_valid ? ref_req_skid_spare_data : ref_req_in_valid_mux;
-    assign ref_req_skid_data_next = ref_req_skid_ready_or ? ref_req_skid_spare_valid_mux : ref_req_skid_data;
     assign ref_req_skid_spare_valid_or_1 = ref_req_skid_spare_valid | ref_req_in_valid_and_1;
     assign ref_req_skid_spare_valid_next = ref_req_skid_ready_or ? 1'b0 : ref_req_skid_spare_valid_or_1;
     assign ref_req_skid_ready_not = ~ref_req_skid_ready_or;
     assign ref_req_skid_ready_and = ref_req_skid_ready_not & ref_req_in_valid_and_1;
-    assign ref_req_skid_spare_data_next = ref_req_skid_ready_and ? ref_req_in_valid_mux : ref_req_skid_spare_data;
     assign ref_req_valid = ref_req_skid_valid;
     assign ref_req_data = ref_req_skid_data;
     assign fs_j_add = fs_j + 24'd1;
@@ -4169,12 +3977,8 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign refs_fire_mux_1 = refs_fire_and ? fs_ptr_add_1 : fs_ptr;
     assign drain_start_or_4 = drain_start | refs_fire_and;
     assign fs_j_add_1 = fs_j + 24'd1;
-    assign refs_fire_mux_2 = refs_fire ? fs_j_add_1 : fs_j;
-    assign fs_j_next = drain_start_or_4 ? 24'd0 : refs_fire_mux_2;
     assign drain_start_or_5 = drain_start | refs_fire_and;
     assign fs_req_add = fs_req + 24'd1;
-    assign ref_req_in_valid_mux_1 = ref_req_in_valid_and ? fs_req_add : fs_req;
-    assign fs_req_next = drain_start_or_5 ? 24'd0 : ref_req_in_valid_mux_1;
     assign drain_start_or_6 = drain_start | refs_fire_and_2;
     assign refs_fire_and_4 = refs_fire & fs_lod_eq_1;
     assign fs_child_add = fs_child + 11'd1;
@@ -4214,8 +4018,6 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign fs_lod_mux_175 = fs_lod_mux_145[3] ? fs_lod_mux_174 : fs_lod_mux_167;
     assign fs_lod_mux_176 = fs_lod_mux_145[4] ? fs_lod_mux_175 : fs_lod_mux_160;
     assign fs_child_offset_add_1 = fs_child_offset + {14'd0, fs_lod_mux_176};
-    assign refs_fire_mux_5 = refs_fire_and_2 ? fs_child_offset_add_1 : fs_child_offset;
-    assign fs_child_offset_next = drain_start ? {14'd0, top_nodes} : refs_fire_mux_5;
     assign fs_done_or = fs_done | refs_fire_and_3;
     assign fs_done_next = merge_clear ? 1'b0 : fs_done_or;
     assign err_code_cat = {err_code, h_refs, h_nodes, h_roots, top, out_id};
@@ -4228,22 +4030,16 @@ module record_writer_d16_q8_i24_h4_c10 (
     assign header_skid_spare_valid_not = ~header_skid_spare_valid;
     assign in_header_and = in_header & header_skid_spare_valid_not;
     assign header_skid_spare_valid_or = header_skid_spare_valid | in_header;
-    assign header_skid_valid_next = header_skid_ready_or ? header_skid_spare_valid_or : header_skid_valid;
     assign header_skid_spare_valid_mux = header_skid_spare_valid ? header_skid_spare_data : err_code_mux;
-    assign header_skid_data_next = header_skid_ready_or ? header_skid_spare_valid_mux : header_skid_data;
     assign header_skid_spare_valid_or_1 = header_skid_spare_valid | in_header_and;
     assign header_skid_spare_valid_next = header_skid_ready_or ? 1'b0 : header_skid_spare_valid_or_1;
     assign header_skid_ready_not = ~header_skid_ready_or;
     assign header_skid_ready_and = header_skid_ready_not & in_header_and;
-    assign header_skid_spare_data_next = header_skid_ready_and ? err_code_mux : header_skid_spare_data;
     assign header_valid = header_skid_valid;
     assign header_data = header_skid_data;
     assign in_drain_and = in_drain & rs_done;
     assign in_drain_and_1 = in_drain_and & fs_done;
     assign fill_ok_mux = fill_ok ? 2'd1 : 2'd2;
-    assign in_drain_mux = in_drain_and_1 ? 2'd2 : state;
-    assign fill_done_mux_1 = fill_done ? fill_ok_mux : in_drain_mux;
-    assign state_next = merge_clear ? 2'd0 : fill_done_mux_1;
     assign filling = in_fill;
     assign drain_records = nodes_in_valid;
     assign drain_refs = fs_busy;
@@ -4411,166 +4207,304 @@ module record_writer_d16_q8_i24_h4_c10 (
             header_skid_spare_valid <= 1'b0;
             header_skid_spare_data <= 87'h0000000000000000000000;
         end else begin
-            state <= state_next;
+            if (merge_clear) begin
+                state <= 2'd0;               // rtl-gen/src/merge/writer.rs:659
+                cref_wptr <= 11'd0;          // rtl-gen/src/merge/writer.rs:313
+                err_code <= 3'd0;            // rtl-gen/src/merge/writer.rs:462
+            end else begin
+                if (fill_done) begin
+                    state <= fill_ok_mux;    // rtl-gen/src/merge/writer.rs:661
+                    err_code <= done_err_mux; // rtl-gen/src/merge/writer.rs:462
+                end else if (in_drain_and_1) begin
+                    state <= 2'd2;           // rtl-gen/src/merge/writer.rs:663
+                end
+                if (crefs_valid_and_1) begin
+                    if (!cref_wptr[10]) begin
+                        cref_wptr <= cref_wptr_add; // rtl-gen/src/merge/writer.rs:312
+                    end
+                end
+            end
             have_cfg <= have_cfg_next;
-            out_id <= out_id_next;
+            if (cfg_valid_and) begin
+                out_id <= cfg_data;          // rtl-gen/src/merge/writer.rs:280
+            end
             have_done <= have_done_next;
-            top <= top_next;
-            done_err <= done_err_next;
+            if (done_valid_and) begin
+                top <= done_data[4:0];       // rtl-gen/src/merge/writer.rs:291
+                done_err <= done_data[5];    // rtl-gen/src/merge/writer.rs:292
+            end
             cref_end <= cref_end_next;
-            cref_wptr <= cref_wptr_next;
             cref_cap_err <= cref_cap_err_next;
             l0_end_seen <= l0_end_seen_next;
-            l0_nodes <= l0_nodes_next;
-            l0_records <= l0_records_next;
+            if (merge_clear_and) begin
+                l0_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:404
+                l0_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:405
+            end else if (level0_valid_and_3) begin
+                l0_nodes <= level0_data[190:180]; // rtl-gen/src/merge/writer.rs:404
+                l0_records <= level0_data[214:204]; // rtl-gen/src/merge/writer.rs:405
+            end
             l0_record_counts <= l0_record_counts_next;
             l0_reused_counts <= l0_reused_counts_next;
             l0_cap_err <= l0_cap_err_next;
             l0_err <= l0_err_next;
             l1_end_seen <= l1_end_seen_next;
-            l1_nodes <= l1_nodes_next;
-            l1_records <= l1_records_next;
+            if (merge_clear_and_1) begin
+                l1_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:404
+                l1_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:405
+            end else if (level1_valid_and_5) begin
+                l1_nodes <= level1_data[190:180]; // rtl-gen/src/merge/writer.rs:404
+                l1_records <= level1_data[214:204]; // rtl-gen/src/merge/writer.rs:405
+            end
             l1_record_counts <= l1_record_counts_next;
             l1_reused_counts <= l1_reused_counts_next;
             l1_cap_err <= l1_cap_err_next;
             l1_err <= l1_err_next;
             l2_end_seen <= l2_end_seen_next;
-            l2_nodes <= l2_nodes_next;
-            l2_records <= l2_records_next;
+            if (merge_clear_and_2) begin
+                l2_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:404
+                l2_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:405
+            end else if (level2_valid_and_5) begin
+                l2_nodes <= level2_data[190:180]; // rtl-gen/src/merge/writer.rs:404
+                l2_records <= level2_data[214:204]; // rtl-gen/src/merge/writer.rs:405
+            end
             l2_record_counts <= l2_record_counts_next;
             l2_reused_counts <= l2_reused_counts_next;
             l2_cap_err <= l2_cap_err_next;
             l2_err <= l2_err_next;
             l3_end_seen <= l3_end_seen_next;
-            l3_nodes <= l3_nodes_next;
-            l3_records <= l3_records_next;
+            if (merge_clear_and_3) begin
+                l3_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:404
+                l3_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:405
+            end else if (level3_valid_and_5) begin
+                l3_nodes <= level3_data[190:180]; // rtl-gen/src/merge/writer.rs:404
+                l3_records <= level3_data[214:204]; // rtl-gen/src/merge/writer.rs:405
+            end
             l3_record_counts <= l3_record_counts_next;
             l3_reused_counts <= l3_reused_counts_next;
             l3_cap_err <= l3_cap_err_next;
             l3_err <= l3_err_next;
             l4_end_seen <= l4_end_seen_next;
-            l4_nodes <= l4_nodes_next;
-            l4_records <= l4_records_next;
+            if (merge_clear_and_4) begin
+                l4_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:404
+                l4_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:405
+            end else if (level4_valid_and_5) begin
+                l4_nodes <= level4_data[190:180]; // rtl-gen/src/merge/writer.rs:404
+                l4_records <= level4_data[214:204]; // rtl-gen/src/merge/writer.rs:405
+            end
             l4_record_counts <= l4_record_counts_next;
             l4_reused_counts <= l4_reused_counts_next;
             l4_cap_err <= l4_cap_err_next;
             l4_err <= l4_err_next;
             l5_end_seen <= l5_end_seen_next;
-            l5_nodes <= l5_nodes_next;
-            l5_records <= l5_records_next;
+            if (merge_clear_and_5) begin
+                l5_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:404
+                l5_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:405
+            end else if (level5_valid_and_5) begin
+                l5_nodes <= level5_data[190:180]; // rtl-gen/src/merge/writer.rs:404
+                l5_records <= level5_data[214:204]; // rtl-gen/src/merge/writer.rs:405
+            end
             l5_record_counts <= l5_record_counts_next;
             l5_reused_counts <= l5_reused_counts_next;
             l5_cap_err <= l5_cap_err_next;
             l5_err <= l5_err_next;
             l6_end_seen <= l6_end_seen_next;
-            l6_nodes <= l6_nodes_next;
-            l6_records <= l6_records_next;
+            if (merge_clear_and_6) begin
+                l6_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:404
+                l6_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:405
+            end else if (level6_valid_and_5) begin
+                l6_nodes <= level6_data[190:180]; // rtl-gen/src/merge/writer.rs:404
+                l6_records <= level6_data[214:204]; // rtl-gen/src/merge/writer.rs:405
+            end
             l6_record_counts <= l6_record_counts_next;
             l6_reused_counts <= l6_reused_counts_next;
             l6_cap_err <= l6_cap_err_next;
             l6_err <= l6_err_next;
             l7_end_seen <= l7_end_seen_next;
-            l7_nodes <= l7_nodes_next;
-            l7_records <= l7_records_next;
+            if (merge_clear_and_7) begin
+                l7_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:404
+                l7_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:405
+            end else if (level7_valid_and_5) begin
+                l7_nodes <= level7_data[190:180]; // rtl-gen/src/merge/writer.rs:404
+                l7_records <= level7_data[214:204]; // rtl-gen/src/merge/writer.rs:405
+            end
             l7_record_counts <= l7_record_counts_next;
             l7_reused_counts <= l7_reused_counts_next;
             l7_cap_err <= l7_cap_err_next;
             l7_err <= l7_err_next;
             l8_end_seen <= l8_end_seen_next;
-            l8_nodes <= l8_nodes_next;
-            l8_records <= l8_records_next;
+            if (merge_clear_and_8) begin
+                l8_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:404
+                l8_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:405
+            end else if (level8_valid_and_5) begin
+                l8_nodes <= level8_data[190:180]; // rtl-gen/src/merge/writer.rs:404
+                l8_records <= level8_data[214:204]; // rtl-gen/src/merge/writer.rs:405
+            end
             l8_record_counts <= l8_record_counts_next;
             l8_reused_counts <= l8_reused_counts_next;
             l8_cap_err <= l8_cap_err_next;
             l8_err <= l8_err_next;
             l9_end_seen <= l9_end_seen_next;
-            l9_nodes <= l9_nodes_next;
-            l9_records <= l9_records_next;
+            if (merge_clear_and_9) begin
+                l9_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:404
+                l9_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:405
+            end else if (level9_valid_and_5) begin
+                l9_nodes <= level9_data[190:180]; // rtl-gen/src/merge/writer.rs:404
+                l9_records <= level9_data[214:204]; // rtl-gen/src/merge/writer.rs:405
+            end
             l9_record_counts <= l9_record_counts_next;
             l9_reused_counts <= l9_reused_counts_next;
             l9_cap_err <= l9_cap_err_next;
             l9_err <= l9_err_next;
             l10_end_seen <= l10_end_seen_next;
-            l10_nodes <= l10_nodes_next;
-            l10_records <= l10_records_next;
+            if (merge_clear_and_10) begin
+                l10_nodes <= 11'd0;          // rtl-gen/src/merge/writer.rs:404
+                l10_records <= 11'd0;        // rtl-gen/src/merge/writer.rs:405
+            end else if (level10_valid_and_5) begin
+                l10_nodes <= level10_data[190:180]; // rtl-gen/src/merge/writer.rs:404
+                l10_records <= level10_data[214:204]; // rtl-gen/src/merge/writer.rs:405
+            end
             l10_record_counts <= l10_record_counts_next;
             l10_reused_counts <= l10_reused_counts_next;
             l10_cap_err <= l10_cap_err_next;
             l10_err <= l10_err_next;
             l11_end_seen <= l11_end_seen_next;
-            l11_nodes <= l11_nodes_next;
-            l11_records <= l11_records_next;
+            if (merge_clear_and_11) begin
+                l11_nodes <= 11'd0;          // rtl-gen/src/merge/writer.rs:404
+                l11_records <= 11'd0;        // rtl-gen/src/merge/writer.rs:405
+            end else if (level11_valid_and_5) begin
+                l11_nodes <= level11_data[190:180]; // rtl-gen/src/merge/writer.rs:404
+                l11_records <= level11_data[214:204]; // rtl-gen/src/merge/writer.rs:405
+            end
             l11_record_counts <= l11_record_counts_next;
             l11_reused_counts <= l11_reused_counts_next;
             l11_cap_err <= l11_cap_err_next;
             l11_err <= l11_err_next;
             l12_end_seen <= l12_end_seen_next;
-            l12_nodes <= l12_nodes_next;
-            l12_records <= l12_records_next;
+            if (merge_clear_and_12) begin
+                l12_nodes <= 11'd0;          // rtl-gen/src/merge/writer.rs:404
+                l12_records <= 11'd0;        // rtl-gen/src/merge/writer.rs:405
+            end else if (level12_valid_and_5) begin
+                l12_nodes <= level12_data[190:180]; // rtl-gen/src/merge/writer.rs:404
+                l12_records <= level12_data[214:204]; // rtl-gen/src/merge/writer.rs:405
+            end
             l12_record_counts <= l12_record_counts_next;
             l12_reused_counts <= l12_reused_counts_next;
             l12_cap_err <= l12_cap_err_next;
             l12_err <= l12_err_next;
             l13_end_seen <= l13_end_seen_next;
-            l13_nodes <= l13_nodes_next;
-            l13_records <= l13_records_next;
+            if (merge_clear_and_13) begin
+                l13_nodes <= 11'd0;          // rtl-gen/src/merge/writer.rs:404
+                l13_records <= 11'd0;        // rtl-gen/src/merge/writer.rs:405
+            end else if (level13_valid_and_5) begin
+                l13_nodes <= level13_data[190:180]; // rtl-gen/src/merge/writer.rs:404
+                l13_records <= level13_data[214:204]; // rtl-gen/src/merge/writer.rs:405
+            end
             l13_record_counts <= l13_record_counts_next;
             l13_reused_counts <= l13_reused_counts_next;
             l13_cap_err <= l13_cap_err_next;
             l13_err <= l13_err_next;
             l14_end_seen <= l14_end_seen_next;
-            l14_nodes <= l14_nodes_next;
-            l14_records <= l14_records_next;
+            if (merge_clear_and_14) begin
+                l14_nodes <= 11'd0;          // rtl-gen/src/merge/writer.rs:404
+                l14_records <= 11'd0;        // rtl-gen/src/merge/writer.rs:405
+            end else if (level14_valid_and_5) begin
+                l14_nodes <= level14_data[190:180]; // rtl-gen/src/merge/writer.rs:404
+                l14_records <= level14_data[214:204]; // rtl-gen/src/merge/writer.rs:405
+            end
             l14_record_counts <= l14_record_counts_next;
             l14_reused_counts <= l14_reused_counts_next;
             l14_cap_err <= l14_cap_err_next;
             l14_err <= l14_err_next;
             l15_end_seen <= l15_end_seen_next;
-            l15_nodes <= l15_nodes_next;
-            l15_records <= l15_records_next;
+            if (merge_clear_and_15) begin
+                l15_nodes <= 11'd0;          // rtl-gen/src/merge/writer.rs:404
+                l15_records <= 11'd0;        // rtl-gen/src/merge/writer.rs:405
+            end else if (level15_valid_and_5) begin
+                l15_nodes <= level15_data[190:180]; // rtl-gen/src/merge/writer.rs:404
+                l15_records <= level15_data[214:204]; // rtl-gen/src/merge/writer.rs:405
+            end
             l15_record_counts <= l15_record_counts_next;
             l15_reused_counts <= l15_reused_counts_next;
             l15_cap_err <= l15_cap_err_next;
             l15_err <= l15_err_next;
             l16_end_seen <= l16_end_seen_next;
-            l16_nodes <= l16_nodes_next;
-            l16_records <= l16_records_next;
+            if (merge_clear_and_16) begin
+                l16_nodes <= 11'd0;          // rtl-gen/src/merge/writer.rs:404
+                l16_records <= 11'd0;        // rtl-gen/src/merge/writer.rs:405
+            end else if (level16_valid_and_5) begin
+                l16_nodes <= level16_data[190:180]; // rtl-gen/src/merge/writer.rs:404
+                l16_records <= level16_data[214:204]; // rtl-gen/src/merge/writer.rs:405
+            end
             l16_record_counts <= l16_record_counts_next;
             l16_reused_counts <= l16_reused_counts_next;
             l16_cap_err <= l16_cap_err_next;
             l16_err <= l16_err_next;
-            err_code <= err_code_next;
-            h_roots <= h_roots_next;
-            h_nodes <= h_nodes_next;
-            h_refs <= h_refs_next;
+            if (fill_done) begin
+                h_roots <= {14'd0, top_nodes}; // rtl-gen/src/merge/writer.rs:463
+                h_nodes <= nodes_total[24:0]; // rtl-gen/src/merge/writer.rs:464
+                h_refs <= refs_total[24:0];  // rtl-gen/src/merge/writer.rs:465
+            end
             rs_lod <= rs_lod_next;
             rs_ptr <= rs_ptr_next;
-            rs_first <= rs_first_next;
+            if (drain_start) begin
+                rs_first <= 25'd0;           // rtl-gen/src/merge/writer.rs:519
+                fs_child_offset <= {14'd0, top_nodes}; // rtl-gen/src/merge/writer.rs:638
+            end else begin
+                if (nodes_in_valid_and) begin
+                    rs_first <= rs_first_add; // rtl-gen/src/merge/writer.rs:521
+                end
+                if (refs_fire_and_2) begin
+                    fs_child_offset <= fs_child_offset_add_1; // rtl-gen/src/merge/writer.rs:640
+                end
+            end
             rs_done <= rs_done_next;
-            nodes_skid_valid <= nodes_skid_valid_next;
-            nodes_skid_data <= nodes_skid_data_next;
+            if (nodes_skid_ready_or) begin
+                nodes_skid_valid <= nodes_skid_spare_valid_or; // rtl-gen/src/merge/writer.rs:518
+                nodes_skid_data <= nodes_skid_spare_valid_mux; // rtl-gen/src/merge/writer.rs:518
+            end
             nodes_skid_spare_valid <= nodes_skid_spare_valid_next;
-            nodes_skid_spare_data <= nodes_skid_spare_data_next;
+            if (nodes_skid_ready_and) begin
+                nodes_skid_spare_data <= nodes_in_valid_mux_2; // rtl-gen/src/merge/writer.rs:518
+            end
             fs_lod <= fs_lod_next;
             fs_ptr <= fs_ptr_next;
-            fs_j <= fs_j_next;
-            fs_req <= fs_req_next;
+            if (drain_start_or_4) begin
+                fs_j <= 24'd0;               // rtl-gen/src/merge/writer.rs:622
+            end else if (refs_fire) begin
+                fs_j <= fs_j_add_1;          // rtl-gen/src/merge/writer.rs:622
+            end
+            if (drain_start_or_5) begin
+                fs_req <= 24'd0;             // rtl-gen/src/merge/writer.rs:623
+            end else if (ref_req_in_valid_and) begin
+                fs_req <= fs_req_add;        // rtl-gen/src/merge/writer.rs:623
+            end
             fs_child <= fs_child_next;
             fs_cref <= fs_cref_next;
-            fs_child_offset <= fs_child_offset_next;
             fs_done <= fs_done_next;
-            refs_skid_valid <= refs_skid_valid_next;
-            refs_skid_data <= refs_skid_data_next;
+            if (refs_skid_ready_or) begin
+                refs_skid_valid <= refs_skid_spare_valid_or; // rtl-gen/src/merge/writer.rs:595
+                refs_skid_data <= refs_skid_spare_valid_mux; // rtl-gen/src/merge/writer.rs:595
+            end
             refs_skid_spare_valid <= refs_skid_spare_valid_next;
-            refs_skid_spare_data <= refs_skid_spare_data_next;
-            ref_req_skid_valid <= ref_req_skid_valid_next;
-            ref_req_skid_data <= ref_req_skid_data_next;
+            if (refs_skid_ready_and) begin
+                refs_skid_spare_data <= refs_in_valid_mux; // rtl-gen/src/merge/writer.rs:595
+            end
+            if (ref_req_skid_ready_or) begin
+                ref_req_skid_valid <= ref_req_skid_spare_valid_or; // rtl-gen/src/merge/writer.rs:607
+                ref_req_skid_data <= ref_req_skid_spare_valid_mux; // rtl-gen/src/merge/writer.rs:607
+            end
             ref_req_skid_spare_valid <= ref_req_skid_spare_valid_next;
-            ref_req_skid_spare_data <= ref_req_skid_spare_data_next;
-            header_skid_valid <= header_skid_valid_next;
-            header_skid_data <= header_skid_data_next;
+            if (ref_req_skid_ready_and) begin
+                ref_req_skid_spare_data <= ref_req_in_valid_mux; // rtl-gen/src/merge/writer.rs:607
+            end
+            if (header_skid_ready_or) begin
+                header_skid_valid <= header_skid_spare_valid_or; // rtl-gen/src/merge/writer.rs:654
+                header_skid_data <= header_skid_spare_valid_mux; // rtl-gen/src/merge/writer.rs:654
+            end
             header_skid_spare_valid <= header_skid_spare_valid_next;
-            header_skid_spare_data <= header_skid_spare_data_next;
+            if (header_skid_ready_and) begin
+                header_skid_spare_data <= err_code_mux; // rtl-gen/src/merge/writer.rs:654
+            end
         end
     end
 

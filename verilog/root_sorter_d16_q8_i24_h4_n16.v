@@ -22,14 +22,11 @@ module root_sorter_d16_q8_i24_h4_n16 (
     wire in_skid_spare_valid_not;            // rtl-gen/src/merge/sorter.rs:109
     wire in_valid_and;                       // rtl-gen/src/merge/sorter.rs:109
     wire in_skid_spare_valid_or;             // rtl-gen/src/merge/sorter.rs:109
-    wire in_skid_valid_next;                 // rtl-gen/src/merge/sorter.rs:109
     wire [179:0] in_skid_spare_valid_mux;    // rtl-gen/src/merge/sorter.rs:109
-    wire [179:0] in_skid_data_next;          // rtl-gen/src/merge/sorter.rs:109
     wire in_skid_spare_valid_or_1;           // rtl-gen/src/merge/sorter.rs:109
     wire in_skid_spare_valid_next;           // rtl-gen/src/merge/sorter.rs:109
     wire in_skid_ready_not;                  // rtl-gen/src/merge/sorter.rs:109
     wire in_skid_ready_and;                  // rtl-gen/src/merge/sorter.rs:109
-    wire [179:0] in_skid_spare_data_next;    // rtl-gen/src/merge/sorter.rs:109
     wire core_out_ready;                     // rtl-gen/src/merge/sorter.rs:110
     wire [1:0] in_kind;                      // rtl-gen/src/merge/fields.rs:13
     wire in_is_end;                          // rtl-gen/src/merge/sorter.rs:112
@@ -245,8 +242,6 @@ module root_sorter_d16_q8_i24_h4_n16 (
     wire [180:0] set_overflow_cat;           // rtl-gen/src/merge/sorter.rs:88
     wire [180:0] new_beat;                   // rtl-gen/src/merge/sorter.rs:96
     wire in_is_end_not_18;                   // rtl-gen/src/merge/sorter.rs:148
-    wire [180:0] e0_moves_up_mux;            // rtl-gen/src/merge/sorter.rs:70
-    wire e0_moves_up_mux_1;                  // rtl-gen/src/merge/sorter.rs:71
     wire e0_moves_up_mux_2;                  // rtl-gen/src/merge/sorter.rs:72
     wire [180:0] e0_moves_up_mux_3;          // rtl-gen/src/merge/sorter.rs:70
     wire e0_moves_up_mux_4;                  // rtl-gen/src/merge/sorter.rs:71
@@ -344,14 +339,8 @@ module root_sorter_d16_q8_i24_h4_n16 (
     wire [180:0] e16_moves_up_mux;           // rtl-gen/src/merge/sorter.rs:70
     wire e16_moves_up_mux_1;                 // rtl-gen/src/merge/sorter.rs:71
     wire e16_moves_up_mux_2;                 // rtl-gen/src/merge/sorter.rs:72
-    wire [180:0] e16_moves_up_mux_3;         // rtl-gen/src/merge/sorter.rs:70
-    wire e16_moves_up_mux_4;                 // rtl-gen/src/merge/sorter.rs:71
     wire e16_moves_up_mux_5;                 // rtl-gen/src/merge/sorter.rs:72
-    wire [180:0] insert_mux;                 // rtl-gen/src/merge/sorter.rs:70
-    wire insert_mux_1;                       // rtl-gen/src/merge/sorter.rs:71
     wire insert_mux_2;                       // rtl-gen/src/merge/sorter.rs:72
-    wire [180:0] e0_beat_next;               // rtl-gen/src/merge/sorter.rs:70
-    wire e0_valid_next;                      // rtl-gen/src/merge/sorter.rs:71
     wire pop_mux;                            // rtl-gen/src/merge/sorter.rs:72
     wire close_not;                          // rtl-gen/src/merge/sorter.rs:174
     wire e0_open_next;                       // rtl-gen/src/merge/sorter.rs:174
@@ -430,14 +419,10 @@ module root_sorter_d16_q8_i24_h4_n16 (
     wire pop_mux_15;                         // rtl-gen/src/merge/sorter.rs:72
     wire close_not_15;                       // rtl-gen/src/merge/sorter.rs:174
     wire e15_open_next;                      // rtl-gen/src/merge/sorter.rs:174
-    wire [180:0] e16_beat_next;              // rtl-gen/src/merge/sorter.rs:70
-    wire e16_valid_next;                     // rtl-gen/src/merge/sorter.rs:71
     wire pop_mux_16;                         // rtl-gen/src/merge/sorter.rs:72
     wire close_not_16;                       // rtl-gen/src/merge/sorter.rs:174
     wire e16_open_next;                      // rtl-gen/src/merge/sorter.rs:174
     wire [4:0] set_taken_add;                // rtl-gen/src/merge/sorter.rs:178
-    wire [4:0] take_root_mux;                // rtl-gen/src/merge/sorter.rs:178
-    wire [4:0] set_taken_next;               // rtl-gen/src/merge/sorter.rs:176
     wire set_overflow_or;                    // rtl-gen/src/merge/sorter.rs:180
     wire set_overflow_next;                  // rtl-gen/src/merge/sorter.rs:180
     reg out_skid_valid;                      // rtl-gen/src/merge/sorter.rs:187
@@ -450,14 +435,11 @@ module root_sorter_d16_q8_i24_h4_n16 (
     wire out_skid_spare_valid_not;           // rtl-gen/src/merge/sorter.rs:187
     wire core_out_valid_and;                 // rtl-gen/src/merge/sorter.rs:187
     wire out_skid_spare_valid_or;            // rtl-gen/src/merge/sorter.rs:187
-    wire out_skid_valid_next;                // rtl-gen/src/merge/sorter.rs:187
     wire [180:0] out_skid_spare_valid_mux;   // rtl-gen/src/merge/sorter.rs:187
-    wire [180:0] out_skid_data_next;         // rtl-gen/src/merge/sorter.rs:187
     wire out_skid_spare_valid_or_1;          // rtl-gen/src/merge/sorter.rs:187
     wire out_skid_spare_valid_next;          // rtl-gen/src/merge/sorter.rs:187
     wire out_skid_ready_not;                 // rtl-gen/src/merge/sorter.rs:187
     wire out_skid_ready_and;                 // rtl-gen/src/merge/sorter.rs:187
-    wire [180:0] out_skid_spare_data_next;   // rtl-gen/src/merge/sorter.rs:187
 
     assign in_ready = ~in_skid_spare_valid;
     assign in_skid_ready = needs_entry_not | has_room;
@@ -466,14 +448,11 @@ module root_sorter_d16_q8_i24_h4_n16 (
     assign in_skid_spare_valid_not = ~in_skid_spare_valid;
     assign in_valid_and = in_valid & in_skid_spare_valid_not;
     assign in_skid_spare_valid_or = in_skid_spare_valid | in_valid;
-    assign in_skid_valid_next = in_skid_ready_or ? in_skid_spare_valid_or : in_skid_valid;
     assign in_skid_spare_valid_mux = in_skid_spare_valid ? in_skid_spare_data : in_data;
-    assign in_skid_data_next = in_skid_ready_or ? in_skid_spare_valid_mux : in_skid_data;
     assign in_skid_spare_valid_or_1 = in_skid_spare_valid | in_valid_and;
     assign in_skid_spare_valid_next = in_skid_ready_or ? 1'b0 : in_skid_spare_valid_or_1;
     assign in_skid_ready_not = ~in_skid_ready_or;
     assign in_skid_ready_and = in_skid_ready_not & in_valid_and;
-    assign in_skid_spare_data_next = in_skid_ready_and ? in_data : in_skid_spare_data;
     assign core_out_ready = ~out_skid_spare_valid;
     assign in_kind = in_skid_data[179:178];
     assign in_is_end = in_kind == 2'd3;
@@ -636,8 +615,6 @@ module root_sorter_d16_q8_i24_h4_n16 (
     assign set_overflow_cat = {set_overflow, 2'd3, 178'h000000000000000000000000000000000000000000000};
     assign new_beat = in_is_end ? set_overflow_cat : const_cat;
     assign in_is_end_not_18 = ~in_is_end;
-    assign e0_moves_up_mux = e0_moves_up ? new_beat : core_out_data;
-    assign e0_moves_up_mux_1 = e0_moves_up ? 1'b1 : e0_valid;
     assign e0_moves_up_mux_2 = e0_moves_up ? in_is_end_not_18 : e0_open;
     assign e0_moves_up_mux_3 = e0_moves_up ? core_out_data : new_beat;
     assign e0_moves_up_mux_4 = e0_moves_up ? e0_valid : 1'b1;
@@ -735,14 +712,8 @@ module root_sorter_d16_q8_i24_h4_n16 (
     assign e16_moves_up_mux = e16_moves_up ? e15_moves_up_mux_3 : e16_beat;
     assign e16_moves_up_mux_1 = e16_moves_up ? e15_moves_up_mux_4 : e16_valid;
     assign e16_moves_up_mux_2 = e16_moves_up ? e15_moves_up_mux_5 : e16_open;
-    assign e16_moves_up_mux_3 = e16_moves_up ? e16_beat : new_beat;
-    assign e16_moves_up_mux_4 = e16_moves_up ? e16_valid : 1'b1;
     assign e16_moves_up_mux_5 = e16_moves_up ? e16_open : in_is_end_not_18;
-    assign insert_mux = insert ? e16_moves_up_mux_3 : 181'h0000000000000000000000000000000000000000000000;
-    assign insert_mux_1 = insert ? e16_moves_up_mux_4 : 1'b0;
     assign insert_mux_2 = insert ? e16_moves_up_mux_5 : 1'b0;
-    assign e0_beat_next = pop ? e1_moves_up_mux : e0_moves_up_mux;
-    assign e0_valid_next = pop ? e1_moves_up_mux_1 : e0_moves_up_mux_1;
     assign pop_mux = pop ? e1_moves_up_mux_2 : e0_moves_up_mux_2;
     assign close_not = ~close;
     assign e0_open_next = close_not & pop_mux;
@@ -821,14 +792,10 @@ module root_sorter_d16_q8_i24_h4_n16 (
     assign pop_mux_15 = pop ? e16_moves_up_mux_2 : e15_moves_up_mux_2;
     assign close_not_15 = ~close;
     assign e15_open_next = close_not_15 & pop_mux_15;
-    assign e16_beat_next = pop ? insert_mux : e16_moves_up_mux;
-    assign e16_valid_next = pop ? insert_mux_1 : e16_moves_up_mux_1;
     assign pop_mux_16 = pop ? insert_mux_2 : e16_moves_up_mux_2;
     assign close_not_16 = ~close;
     assign e16_open_next = close_not_16 & pop_mux_16;
     assign set_taken_add = set_taken + 5'd1;
-    assign take_root_mux = take_root ? set_taken_add : set_taken;
-    assign set_taken_next = close ? 5'd0 : take_root_mux;
     assign set_overflow_or = set_overflow | drop_root;
     assign set_overflow_next = close ? 1'b0 : set_overflow_or;
     assign out_skid_ready = out_ready;
@@ -837,14 +804,11 @@ module root_sorter_d16_q8_i24_h4_n16 (
     assign out_skid_spare_valid_not = ~out_skid_spare_valid;
     assign core_out_valid_and = core_out_valid & out_skid_spare_valid_not;
     assign out_skid_spare_valid_or = out_skid_spare_valid | core_out_valid;
-    assign out_skid_valid_next = out_skid_ready_or ? out_skid_spare_valid_or : out_skid_valid;
     assign out_skid_spare_valid_mux = out_skid_spare_valid ? out_skid_spare_data : core_out_data;
-    assign out_skid_data_next = out_skid_ready_or ? out_skid_spare_valid_mux : out_skid_data;
     assign out_skid_spare_valid_or_1 = out_skid_spare_valid | core_out_valid_and;
     assign out_skid_spare_valid_next = out_skid_ready_or ? 1'b0 : out_skid_spare_valid_or_1;
     assign out_skid_ready_not = ~out_skid_ready_or;
     assign out_skid_ready_and = out_skid_ready_not & core_out_valid_and;
-    assign out_skid_spare_data_next = out_skid_ready_and ? core_out_data : out_skid_spare_data;
     assign out_valid = out_skid_valid;
     assign out_data = out_skid_data;
 
@@ -912,12 +876,34 @@ module root_sorter_d16_q8_i24_h4_n16 (
             out_skid_spare_valid <= 1'b0;
             out_skid_spare_data <= 181'h0000000000000000000000000000000000000000000000;
         end else begin
-            in_skid_valid <= in_skid_valid_next;
-            in_skid_data <= in_skid_data_next;
+            if (in_skid_ready_or) begin
+                in_skid_valid <= in_skid_spare_valid_or; // rtl-gen/src/merge/sorter.rs:109
+                in_skid_data <= in_skid_spare_valid_mux; // rtl-gen/src/merge/sorter.rs:109
+            end
             in_skid_spare_valid <= in_skid_spare_valid_next;
-            in_skid_spare_data <= in_skid_spare_data_next;
-            core_out_data <= e0_beat_next;
-            e0_valid <= e0_valid_next;
+            if (in_skid_ready_and) begin
+                in_skid_spare_data <= in_data; // rtl-gen/src/merge/sorter.rs:109
+            end
+            if (pop) begin
+                core_out_data <= e1_moves_up_mux; // rtl-gen/src/merge/sorter.rs:70
+                e0_valid <= e1_moves_up_mux_1; // rtl-gen/src/merge/sorter.rs:71
+                if (insert) begin
+                    if (!e16_moves_up) begin
+                        e16_beat <= new_beat; // rtl-gen/src/merge/sorter.rs:70
+                        e16_valid <= 1'b1;   // rtl-gen/src/merge/sorter.rs:71
+                    end
+                end else begin
+                    e16_beat <= 181'h0000000000000000000000000000000000000000000000; // rtl-gen/src/merge/sorter.rs:70
+                    e16_valid <= 1'b0;       // rtl-gen/src/merge/sorter.rs:71
+                end
+            end else begin
+                if (e0_moves_up) begin
+                    core_out_data <= new_beat; // rtl-gen/src/merge/sorter.rs:70
+                    e0_valid <= 1'b1;        // rtl-gen/src/merge/sorter.rs:71
+                end
+                e16_beat <= e16_moves_up_mux; // rtl-gen/src/merge/sorter.rs:70
+                e16_valid <= e16_moves_up_mux_1; // rtl-gen/src/merge/sorter.rs:71
+            end
             e0_open <= e0_open_next;
             e1_beat <= e1_beat_next;
             e1_valid <= e1_valid_next;
@@ -964,15 +950,21 @@ module root_sorter_d16_q8_i24_h4_n16 (
             e15_beat <= e15_beat_next;
             e15_valid <= e15_valid_next;
             e15_open <= e15_open_next;
-            e16_beat <= e16_beat_next;
-            e16_valid <= e16_valid_next;
             e16_open <= e16_open_next;
-            set_taken <= set_taken_next;
+            if (close) begin
+                set_taken <= 5'd0;           // rtl-gen/src/merge/sorter.rs:176
+            end else if (take_root) begin
+                set_taken <= set_taken_add;  // rtl-gen/src/merge/sorter.rs:178
+            end
             set_overflow <= set_overflow_next;
-            out_skid_valid <= out_skid_valid_next;
-            out_skid_data <= out_skid_data_next;
+            if (out_skid_ready_or) begin
+                out_skid_valid <= out_skid_spare_valid_or; // rtl-gen/src/merge/sorter.rs:187
+                out_skid_data <= out_skid_spare_valid_mux; // rtl-gen/src/merge/sorter.rs:187
+            end
             out_skid_spare_valid <= out_skid_spare_valid_next;
-            out_skid_spare_data <= out_skid_spare_data_next;
+            if (out_skid_ready_and) begin
+                out_skid_spare_data <= core_out_data; // rtl-gen/src/merge/sorter.rs:187
+            end
         end
     end
 endmodule

@@ -91,9 +91,7 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire det_s1_ready;                       // rtl-gen/src/translate/bundle.rs:83
     wire det_s1_valid_not;                   // rtl-gen/src/translate/bundle.rs:83
     wire det_s1_valid_or;                    // rtl-gen/src/translate/bundle.rs:83
-    wire det_s1_valid_next;                  // rtl-gen/src/translate/bundle.rs:83
     wire det_s1_valid_and;                   // rtl-gen/src/translate/bundle.rs:83
-    wire [311:0] det_s1_data_next;           // rtl-gen/src/translate/bundle.rs:83
     wire [64:0] x_aligned;                   // rtl-gen/src/translate/float.rs:152
     wire x_aligned_any;                      // rtl-gen/src/translate/float.rs:156
     wire x_aligned_or;                       // rtl-gen/src/translate/float.rs:157
@@ -139,9 +137,7 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire det_s2_ready;                       // rtl-gen/src/translate/bundle.rs:83
     wire det_s2_valid_not;                   // rtl-gen/src/translate/bundle.rs:83
     wire det_s2_valid_or;                    // rtl-gen/src/translate/bundle.rs:83
-    wire det_s2_valid_next;                  // rtl-gen/src/translate/bundle.rs:83
     wire det_s2_valid_and;                   // rtl-gen/src/translate/bundle.rs:83
-    wire [356:0] det_s2_data_next;           // rtl-gen/src/translate/bundle.rs:83
     wire det_s2_data_not;                    // rtl-gen/src/translate/determine.rs:123
     wire [17:0] const_shl;                   // rtl-gen/src/translate/determine.rs:128
     wire det_s2_data_eq;                     // rtl-gen/src/translate/float.rs:188
@@ -316,20 +312,16 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire det_out_q_spare_valid_not;          // rtl-gen/src/translate/bundle.rs:100
     wire det_s2_valid_and_1;                 // rtl-gen/src/translate/bundle.rs:100
     wire det_out_q_spare_valid_or;           // rtl-gen/src/translate/bundle.rs:100
-    wire det_out_q_valid_next;               // rtl-gen/src/translate/bundle.rs:100
     wire [221:0] det_out_q_spare_valid_mux;  // rtl-gen/src/translate/bundle.rs:100
-    wire [221:0] det_out_q_data_next;        // rtl-gen/src/translate/bundle.rs:100
     wire det_out_q_spare_valid_or_1;         // rtl-gen/src/translate/bundle.rs:100
     wire det_out_q_spare_valid_next;         // rtl-gen/src/translate/bundle.rs:100
     wire det_out_q_ready_not;                // rtl-gen/src/translate/bundle.rs:100
     wire det_out_q_ready_and;                // rtl-gen/src/translate/bundle.rs:100
-    wire [221:0] det_out_q_spare_data_next;  // rtl-gen/src/translate/bundle.rs:100
     wire det_s2_valid_and_2;                 // rtl-gen/src/translate/determine.rs:210
     wire det_s2_valid_and_3;                 // rtl-gen/src/translate/determine.rs:210
     wire [55:0] det_s2_data_cat_13;          // rtl-gen/src/translate/table.rs:101
     wire [15:0] const_shl_1;                 // rtl-gen/src/translate/table.rs:108
     wire [15:0] table_valid_or;              // rtl-gen/src/translate/table.rs:109
-    wire [15:0] table_valid_next;            // rtl-gen/src/translate/table.rs:109
     wire det_out_q_valid_and;                // rtl-gen/src/translate/determine.rs:214
     wire det_out_q_data_not;                 // rtl-gen/src/translate/determine.rs:215
     wire [149:0] apply_record;               // rtl-gen/src/translate/apply.rs:31
@@ -372,9 +364,7 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire apply_s1_ready;                     // rtl-gen/src/translate/bundle.rs:83
     wire apply_s1_valid_not;                 // rtl-gen/src/translate/bundle.rs:83
     wire apply_s1_valid_or;                  // rtl-gen/src/translate/bundle.rs:83
-    wire apply_s1_valid_next;                // rtl-gen/src/translate/bundle.rs:83
     wire apply_s1_valid_and;                 // rtl-gen/src/translate/bundle.rs:83
-    wire [212:0] apply_s1_data_next;         // rtl-gen/src/translate/bundle.rs:83
     wire [33:0] apply_s1_data_shl;           // rtl-gen/src/translate/apply.rs:76
     wire [33:0] apply_sum_x;                 // rtl-gen/src/translate/apply.rs:78
     wire apply_sum_x_lt;                     // rtl-gen/src/translate/apply.rs:80
@@ -412,14 +402,11 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire apply_out_q_spare_valid_not;        // rtl-gen/src/translate/bundle.rs:100
     wire apply_s1_valid_and_1;               // rtl-gen/src/translate/bundle.rs:100
     wire apply_out_q_spare_valid_or;         // rtl-gen/src/translate/bundle.rs:100
-    wire apply_out_q_valid_next;             // rtl-gen/src/translate/bundle.rs:100
     wire [156:0] apply_out_q_spare_valid_mux; // rtl-gen/src/translate/bundle.rs:100
-    wire [156:0] apply_out_q_data_next;      // rtl-gen/src/translate/bundle.rs:100
     wire apply_out_q_spare_valid_or_1;       // rtl-gen/src/translate/bundle.rs:100
     wire apply_out_q_spare_valid_next;       // rtl-gen/src/translate/bundle.rs:100
     wire apply_out_q_ready_not;              // rtl-gen/src/translate/bundle.rs:100
     wire apply_out_q_ready_and;              // rtl-gen/src/translate/bundle.rs:100
-    wire [156:0] apply_out_q_spare_data_next; // rtl-gen/src/translate/bundle.rs:100
     wire apply_out_q_data_ne;                // rtl-gen/src/translate/apply.rs:107
     wire apply_out_q_valid_and;              // rtl-gen/src/translate/apply.rs:110
     wire det_s1_valid_or_1;                  // rtl-gen/src/translate/unit.rs:30
@@ -501,9 +488,7 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     assign det_s1_ready = det_s2_valid_or;
     assign det_s1_valid_not = ~det_s1_valid;
     assign det_s1_valid_or = det_s1_valid_not | det_s1_ready;
-    assign det_s1_valid_next = det_s1_valid_or ? det_in_valid : det_s1_valid;
     assign det_s1_valid_and = det_s1_valid_or & det_in_valid;
-    assign det_s1_data_next = det_s1_valid_and ? k_cat : det_s1_data;
     assign x_aligned = {41'd0, det_s1_data[24:1]} << det_s1_data[30:25];
     assign x_aligned_any = |x_aligned[23:0];
     assign x_aligned_or = x_aligned_any | x_aligned[25];
@@ -547,9 +532,7 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     assign det_s2_ready = ~det_out_q_spare_valid;
     assign det_s2_valid_not = ~det_s2_valid;
     assign det_s2_valid_or = det_s2_valid_not | det_s2_ready;
-    assign det_s2_valid_next = det_s2_valid_or ? det_s1_valid : det_s2_valid;
     assign det_s2_valid_and = det_s2_valid_or & det_s1_valid;
-    assign det_s2_data_next = det_s2_valid_and ? det_s1_data_cat : det_s2_data;
     assign det_s2_data_not = ~det_s2_data[356];
     assign const_shl = 18'd1 << det_s2_data[245:241];
     assign det_s2_data_eq = det_s2_data[42:27] == 16'd0;
@@ -720,20 +703,16 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     assign det_out_q_spare_valid_not = ~det_out_q_spare_valid;
     assign det_s2_valid_and_1 = det_s2_valid & det_out_q_spare_valid_not;
     assign det_out_q_spare_valid_or = det_out_q_spare_valid | det_s2_valid;
-    assign det_out_q_valid_next = det_out_q_ready_or ? det_out_q_spare_valid_or : det_out_q_valid;
     assign det_out_q_spare_valid_mux = det_out_q_spare_valid ? det_out_q_spare_data : det_read_entry_cat;
-    assign det_out_q_data_next = det_out_q_ready_or ? det_out_q_spare_valid_mux : det_out_q_data;
     assign det_out_q_spare_valid_or_1 = det_out_q_spare_valid | det_s2_valid_and_1;
     assign det_out_q_spare_valid_next = det_out_q_ready_or ? 1'b0 : det_out_q_spare_valid_or_1;
     assign det_out_q_ready_not = ~det_out_q_ready_or;
     assign det_out_q_ready_and = det_out_q_ready_not & det_s2_valid_and_1;
-    assign det_out_q_spare_data_next = det_out_q_ready_and ? det_read_entry_cat : det_out_q_spare_data;
     assign det_s2_valid_and_2 = det_s2_valid & det_s2_ready;
     assign det_s2_valid_and_3 = det_s2_valid_and_2 & det_written;
     assign det_s2_data_cat_13 = {det_s2_data[176:160], det_s2_data[96:80], det_s2_data[16:0], det_s2_data[245:241]};
     assign const_shl_1 = 16'd1 << det_s2_data[250:247];
     assign table_valid_or = table_valid | const_shl_1;
-    assign table_valid_next = det_s2_valid_and_3 ? table_valid_or : table_valid;
     assign det_out_valid = det_out_q_valid;
     assign det_out_data = det_out_q_data;
     assign det_out_q_valid_and = det_out_q_valid & det_out_q_ready;
@@ -777,9 +756,7 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     assign apply_s1_ready = ~apply_out_q_spare_valid;
     assign apply_s1_valid_not = ~apply_s1_valid;
     assign apply_s1_valid_or = apply_s1_valid_not | apply_s1_ready;
-    assign apply_s1_valid_next = apply_s1_valid_or ? apply_in_valid : apply_s1_valid;
     assign apply_s1_valid_and = apply_s1_valid_or & apply_in_valid;
-    assign apply_s1_data_next = apply_s1_valid_and ? apply_read_entry_cat : apply_s1_data;
     assign apply_s1_data_shl = {{17{apply_s1_data[178]}}, apply_s1_data[178:162]} << apply_s1_data[161:157];
     assign apply_sum_x = {18'd0, apply_s1_data[21:6]} + apply_s1_data_shl;
     assign apply_sum_x_lt = $signed(apply_sum_x) < $signed(34'd0);
@@ -813,14 +790,11 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     assign apply_out_q_spare_valid_not = ~apply_out_q_spare_valid;
     assign apply_s1_valid_and_1 = apply_s1_valid & apply_out_q_spare_valid_not;
     assign apply_out_q_spare_valid_or = apply_out_q_spare_valid | apply_s1_valid;
-    assign apply_out_q_valid_next = apply_out_q_ready_or ? apply_out_q_spare_valid_or : apply_out_q_valid;
     assign apply_out_q_spare_valid_mux = apply_out_q_spare_valid ? apply_out_q_spare_data : apply_code_cat;
-    assign apply_out_q_data_next = apply_out_q_ready_or ? apply_out_q_spare_valid_mux : apply_out_q_data;
     assign apply_out_q_spare_valid_or_1 = apply_out_q_spare_valid | apply_s1_valid_and_1;
     assign apply_out_q_spare_valid_next = apply_out_q_ready_or ? 1'b0 : apply_out_q_spare_valid_or_1;
     assign apply_out_q_ready_not = ~apply_out_q_ready_or;
     assign apply_out_q_ready_and = apply_out_q_ready_not & apply_s1_valid_and_1;
-    assign apply_out_q_spare_data_next = apply_out_q_ready_and ? apply_code_cat : apply_out_q_spare_data;
     assign apply_out_q_data_ne = apply_out_q_data[156:154] != 3'd0;
     assign apply_out_valid = apply_out_q_valid;
     assign apply_out_data = apply_out_q_data;
@@ -860,21 +834,43 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
             det_error_seen_q <= 1'b0;
             apply_error_seen_q <= 1'b0;
         end else begin
-            table_valid <= table_valid_next;
-            det_s1_valid <= det_s1_valid_next;
-            det_s1_data <= det_s1_data_next;
-            det_s2_valid <= det_s2_valid_next;
-            det_s2_data <= det_s2_data_next;
-            det_out_q_valid <= det_out_q_valid_next;
-            det_out_q_data <= det_out_q_data_next;
+            if (det_s2_valid_and_3) begin
+                table_valid <= table_valid_or; // rtl-gen/src/translate/table.rs:109
+            end
+            if (det_s1_valid_or) begin
+                det_s1_valid <= det_in_valid; // rtl-gen/src/translate/bundle.rs:83
+            end
+            if (det_s1_valid_and) begin
+                det_s1_data <= k_cat;        // rtl-gen/src/translate/bundle.rs:83
+            end
+            if (det_s2_valid_or) begin
+                det_s2_valid <= det_s1_valid; // rtl-gen/src/translate/bundle.rs:83
+            end
+            if (det_s2_valid_and) begin
+                det_s2_data <= det_s1_data_cat; // rtl-gen/src/translate/bundle.rs:83
+            end
+            if (det_out_q_ready_or) begin
+                det_out_q_valid <= det_out_q_spare_valid_or; // rtl-gen/src/translate/bundle.rs:100
+                det_out_q_data <= det_out_q_spare_valid_mux; // rtl-gen/src/translate/bundle.rs:100
+            end
             det_out_q_spare_valid <= det_out_q_spare_valid_next;
-            det_out_q_spare_data <= det_out_q_spare_data_next;
-            apply_s1_valid <= apply_s1_valid_next;
-            apply_s1_data <= apply_s1_data_next;
-            apply_out_q_valid <= apply_out_q_valid_next;
-            apply_out_q_data <= apply_out_q_data_next;
+            if (det_out_q_ready_and) begin
+                det_out_q_spare_data <= det_read_entry_cat; // rtl-gen/src/translate/bundle.rs:100
+            end
+            if (apply_s1_valid_or) begin
+                apply_s1_valid <= apply_in_valid; // rtl-gen/src/translate/bundle.rs:83
+            end
+            if (apply_s1_valid_and) begin
+                apply_s1_data <= apply_read_entry_cat; // rtl-gen/src/translate/bundle.rs:83
+            end
+            if (apply_out_q_ready_or) begin
+                apply_out_q_valid <= apply_out_q_spare_valid_or; // rtl-gen/src/translate/bundle.rs:100
+                apply_out_q_data <= apply_out_q_spare_valid_mux; // rtl-gen/src/translate/bundle.rs:100
+            end
             apply_out_q_spare_valid <= apply_out_q_spare_valid_next;
-            apply_out_q_spare_data <= apply_out_q_spare_data_next;
+            if (apply_out_q_ready_and) begin
+                apply_out_q_spare_data <= apply_code_cat; // rtl-gen/src/translate/bundle.rs:100
+            end
             was_busy <= was_busy_next;
             det_error_seen_q <= det_error_seen_next;
             apply_error_seen_q <= apply_error_seen_next;

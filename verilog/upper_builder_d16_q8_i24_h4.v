@@ -126,14 +126,11 @@ module upper_builder_d16_q8_i24_h4 (
     wire base0_skid_spare_valid_not;         // rtl-gen/src/merge/builder.rs:148
     wire base0_valid_and;                    // rtl-gen/src/merge/builder.rs:148
     wire base0_skid_spare_valid_or;          // rtl-gen/src/merge/builder.rs:148
-    wire base0_skid_valid_next;              // rtl-gen/src/merge/builder.rs:148
     wire [179:0] base0_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base0_skid_data_next;       // rtl-gen/src/merge/builder.rs:148
     wire base0_skid_spare_valid_or_1;        // rtl-gen/src/merge/builder.rs:148
     wire base0_skid_spare_valid_next;        // rtl-gen/src/merge/builder.rs:148
     wire base0_skid_ready_not;               // rtl-gen/src/merge/builder.rs:148
     wire base0_skid_ready_and;               // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base0_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:148
     reg base1_skid_valid;                    // rtl-gen/src/merge/builder.rs:148
     reg [179:0] base1_skid_data;             // rtl-gen/src/merge/builder.rs:148
     reg base1_skid_spare_valid;              // rtl-gen/src/merge/builder.rs:148
@@ -144,14 +141,11 @@ module upper_builder_d16_q8_i24_h4 (
     wire base1_skid_spare_valid_not;         // rtl-gen/src/merge/builder.rs:148
     wire base1_valid_and;                    // rtl-gen/src/merge/builder.rs:148
     wire base1_skid_spare_valid_or;          // rtl-gen/src/merge/builder.rs:148
-    wire base1_skid_valid_next;              // rtl-gen/src/merge/builder.rs:148
     wire [179:0] base1_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base1_skid_data_next;       // rtl-gen/src/merge/builder.rs:148
     wire base1_skid_spare_valid_or_1;        // rtl-gen/src/merge/builder.rs:148
     wire base1_skid_spare_valid_next;        // rtl-gen/src/merge/builder.rs:148
     wire base1_skid_ready_not;               // rtl-gen/src/merge/builder.rs:148
     wire base1_skid_ready_and;               // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base1_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:148
     reg base2_skid_valid;                    // rtl-gen/src/merge/builder.rs:148
     reg [179:0] base2_skid_data;             // rtl-gen/src/merge/builder.rs:148
     reg base2_skid_spare_valid;              // rtl-gen/src/merge/builder.rs:148
@@ -162,14 +156,11 @@ module upper_builder_d16_q8_i24_h4 (
     wire base2_skid_spare_valid_not;         // rtl-gen/src/merge/builder.rs:148
     wire base2_valid_and;                    // rtl-gen/src/merge/builder.rs:148
     wire base2_skid_spare_valid_or;          // rtl-gen/src/merge/builder.rs:148
-    wire base2_skid_valid_next;              // rtl-gen/src/merge/builder.rs:148
     wire [179:0] base2_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base2_skid_data_next;       // rtl-gen/src/merge/builder.rs:148
     wire base2_skid_spare_valid_or_1;        // rtl-gen/src/merge/builder.rs:148
     wire base2_skid_spare_valid_next;        // rtl-gen/src/merge/builder.rs:148
     wire base2_skid_ready_not;               // rtl-gen/src/merge/builder.rs:148
     wire base2_skid_ready_and;               // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base2_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:148
     reg base3_skid_valid;                    // rtl-gen/src/merge/builder.rs:148
     reg [179:0] base3_skid_data;             // rtl-gen/src/merge/builder.rs:148
     reg base3_skid_spare_valid;              // rtl-gen/src/merge/builder.rs:148
@@ -180,14 +171,11 @@ module upper_builder_d16_q8_i24_h4 (
     wire base3_skid_spare_valid_not;         // rtl-gen/src/merge/builder.rs:148
     wire base3_valid_and;                    // rtl-gen/src/merge/builder.rs:148
     wire base3_skid_spare_valid_or;          // rtl-gen/src/merge/builder.rs:148
-    wire base3_skid_valid_next;              // rtl-gen/src/merge/builder.rs:148
     wire [179:0] base3_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base3_skid_data_next;       // rtl-gen/src/merge/builder.rs:148
     wire base3_skid_spare_valid_or_1;        // rtl-gen/src/merge/builder.rs:148
     wire base3_skid_spare_valid_next;        // rtl-gen/src/merge/builder.rs:148
     wire base3_skid_ready_not;               // rtl-gen/src/merge/builder.rs:148
     wire base3_skid_ready_and;               // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base3_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:148
     reg base4_skid_valid;                    // rtl-gen/src/merge/builder.rs:148
     reg [179:0] base4_skid_data;             // rtl-gen/src/merge/builder.rs:148
     reg base4_skid_spare_valid;              // rtl-gen/src/merge/builder.rs:148
@@ -198,14 +186,11 @@ module upper_builder_d16_q8_i24_h4 (
     wire base4_skid_spare_valid_not;         // rtl-gen/src/merge/builder.rs:148
     wire base4_valid_and;                    // rtl-gen/src/merge/builder.rs:148
     wire base4_skid_spare_valid_or;          // rtl-gen/src/merge/builder.rs:148
-    wire base4_skid_valid_next;              // rtl-gen/src/merge/builder.rs:148
     wire [179:0] base4_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base4_skid_data_next;       // rtl-gen/src/merge/builder.rs:148
     wire base4_skid_spare_valid_or_1;        // rtl-gen/src/merge/builder.rs:148
     wire base4_skid_spare_valid_next;        // rtl-gen/src/merge/builder.rs:148
     wire base4_skid_ready_not;               // rtl-gen/src/merge/builder.rs:148
     wire base4_skid_ready_and;               // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base4_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:148
     reg base5_skid_valid;                    // rtl-gen/src/merge/builder.rs:148
     reg [179:0] base5_skid_data;             // rtl-gen/src/merge/builder.rs:148
     reg base5_skid_spare_valid;              // rtl-gen/src/merge/builder.rs:148
@@ -216,14 +201,11 @@ module upper_builder_d16_q8_i24_h4 (
     wire base5_skid_spare_valid_not;         // rtl-gen/src/merge/builder.rs:148
     wire base5_valid_and;                    // rtl-gen/src/merge/builder.rs:148
     wire base5_skid_spare_valid_or;          // rtl-gen/src/merge/builder.rs:148
-    wire base5_skid_valid_next;              // rtl-gen/src/merge/builder.rs:148
     wire [179:0] base5_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base5_skid_data_next;       // rtl-gen/src/merge/builder.rs:148
     wire base5_skid_spare_valid_or_1;        // rtl-gen/src/merge/builder.rs:148
     wire base5_skid_spare_valid_next;        // rtl-gen/src/merge/builder.rs:148
     wire base5_skid_ready_not;               // rtl-gen/src/merge/builder.rs:148
     wire base5_skid_ready_and;               // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base5_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:148
     reg base6_skid_valid;                    // rtl-gen/src/merge/builder.rs:148
     reg [179:0] base6_skid_data;             // rtl-gen/src/merge/builder.rs:148
     reg base6_skid_spare_valid;              // rtl-gen/src/merge/builder.rs:148
@@ -234,14 +216,11 @@ module upper_builder_d16_q8_i24_h4 (
     wire base6_skid_spare_valid_not;         // rtl-gen/src/merge/builder.rs:148
     wire base6_valid_and;                    // rtl-gen/src/merge/builder.rs:148
     wire base6_skid_spare_valid_or;          // rtl-gen/src/merge/builder.rs:148
-    wire base6_skid_valid_next;              // rtl-gen/src/merge/builder.rs:148
     wire [179:0] base6_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base6_skid_data_next;       // rtl-gen/src/merge/builder.rs:148
     wire base6_skid_spare_valid_or_1;        // rtl-gen/src/merge/builder.rs:148
     wire base6_skid_spare_valid_next;        // rtl-gen/src/merge/builder.rs:148
     wire base6_skid_ready_not;               // rtl-gen/src/merge/builder.rs:148
     wire base6_skid_ready_and;               // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base6_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:148
     reg base7_skid_valid;                    // rtl-gen/src/merge/builder.rs:148
     reg [179:0] base7_skid_data;             // rtl-gen/src/merge/builder.rs:148
     reg base7_skid_spare_valid;              // rtl-gen/src/merge/builder.rs:148
@@ -252,14 +231,11 @@ module upper_builder_d16_q8_i24_h4 (
     wire base7_skid_spare_valid_not;         // rtl-gen/src/merge/builder.rs:148
     wire base7_valid_and;                    // rtl-gen/src/merge/builder.rs:148
     wire base7_skid_spare_valid_or;          // rtl-gen/src/merge/builder.rs:148
-    wire base7_skid_valid_next;              // rtl-gen/src/merge/builder.rs:148
     wire [179:0] base7_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base7_skid_data_next;       // rtl-gen/src/merge/builder.rs:148
     wire base7_skid_spare_valid_or_1;        // rtl-gen/src/merge/builder.rs:148
     wire base7_skid_spare_valid_next;        // rtl-gen/src/merge/builder.rs:148
     wire base7_skid_ready_not;               // rtl-gen/src/merge/builder.rs:148
     wire base7_skid_ready_and;               // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base7_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:148
     reg base8_skid_valid;                    // rtl-gen/src/merge/builder.rs:148
     reg [179:0] base8_skid_data;             // rtl-gen/src/merge/builder.rs:148
     reg base8_skid_spare_valid;              // rtl-gen/src/merge/builder.rs:148
@@ -270,14 +246,11 @@ module upper_builder_d16_q8_i24_h4 (
     wire base8_skid_spare_valid_not;         // rtl-gen/src/merge/builder.rs:148
     wire base8_valid_and;                    // rtl-gen/src/merge/builder.rs:148
     wire base8_skid_spare_valid_or;          // rtl-gen/src/merge/builder.rs:148
-    wire base8_skid_valid_next;              // rtl-gen/src/merge/builder.rs:148
     wire [179:0] base8_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base8_skid_data_next;       // rtl-gen/src/merge/builder.rs:148
     wire base8_skid_spare_valid_or_1;        // rtl-gen/src/merge/builder.rs:148
     wire base8_skid_spare_valid_next;        // rtl-gen/src/merge/builder.rs:148
     wire base8_skid_ready_not;               // rtl-gen/src/merge/builder.rs:148
     wire base8_skid_ready_and;               // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base8_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:148
     reg base9_skid_valid;                    // rtl-gen/src/merge/builder.rs:148
     reg [179:0] base9_skid_data;             // rtl-gen/src/merge/builder.rs:148
     reg base9_skid_spare_valid;              // rtl-gen/src/merge/builder.rs:148
@@ -288,14 +261,11 @@ module upper_builder_d16_q8_i24_h4 (
     wire base9_skid_spare_valid_not;         // rtl-gen/src/merge/builder.rs:148
     wire base9_valid_and;                    // rtl-gen/src/merge/builder.rs:148
     wire base9_skid_spare_valid_or;          // rtl-gen/src/merge/builder.rs:148
-    wire base9_skid_valid_next;              // rtl-gen/src/merge/builder.rs:148
     wire [179:0] base9_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base9_skid_data_next;       // rtl-gen/src/merge/builder.rs:148
     wire base9_skid_spare_valid_or_1;        // rtl-gen/src/merge/builder.rs:148
     wire base9_skid_spare_valid_next;        // rtl-gen/src/merge/builder.rs:148
     wire base9_skid_ready_not;               // rtl-gen/src/merge/builder.rs:148
     wire base9_skid_ready_and;               // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base9_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:148
     reg base10_skid_valid;                   // rtl-gen/src/merge/builder.rs:148
     reg [179:0] base10_skid_data;            // rtl-gen/src/merge/builder.rs:148
     reg base10_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:148
@@ -306,14 +276,11 @@ module upper_builder_d16_q8_i24_h4 (
     wire base10_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:148
     wire base10_valid_and;                   // rtl-gen/src/merge/builder.rs:148
     wire base10_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:148
-    wire base10_skid_valid_next;             // rtl-gen/src/merge/builder.rs:148
     wire [179:0] base10_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base10_skid_data_next;      // rtl-gen/src/merge/builder.rs:148
     wire base10_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:148
     wire base10_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:148
     wire base10_skid_ready_not;              // rtl-gen/src/merge/builder.rs:148
     wire base10_skid_ready_and;              // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base10_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:148
     reg base11_skid_valid;                   // rtl-gen/src/merge/builder.rs:148
     reg [179:0] base11_skid_data;            // rtl-gen/src/merge/builder.rs:148
     reg base11_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:148
@@ -324,14 +291,11 @@ module upper_builder_d16_q8_i24_h4 (
     wire base11_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:148
     wire base11_valid_and;                   // rtl-gen/src/merge/builder.rs:148
     wire base11_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:148
-    wire base11_skid_valid_next;             // rtl-gen/src/merge/builder.rs:148
     wire [179:0] base11_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base11_skid_data_next;      // rtl-gen/src/merge/builder.rs:148
     wire base11_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:148
     wire base11_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:148
     wire base11_skid_ready_not;              // rtl-gen/src/merge/builder.rs:148
     wire base11_skid_ready_and;              // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base11_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:148
     reg base12_skid_valid;                   // rtl-gen/src/merge/builder.rs:148
     reg [179:0] base12_skid_data;            // rtl-gen/src/merge/builder.rs:148
     reg base12_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:148
@@ -342,14 +306,11 @@ module upper_builder_d16_q8_i24_h4 (
     wire base12_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:148
     wire base12_valid_and;                   // rtl-gen/src/merge/builder.rs:148
     wire base12_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:148
-    wire base12_skid_valid_next;             // rtl-gen/src/merge/builder.rs:148
     wire [179:0] base12_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base12_skid_data_next;      // rtl-gen/src/merge/builder.rs:148
     wire base12_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:148
     wire base12_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:148
     wire base12_skid_ready_not;              // rtl-gen/src/merge/builder.rs:148
     wire base12_skid_ready_and;              // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base12_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:148
     reg base13_skid_valid;                   // rtl-gen/src/merge/builder.rs:148
     reg [179:0] base13_skid_data;            // rtl-gen/src/merge/builder.rs:148
     reg base13_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:148
@@ -360,14 +321,11 @@ module upper_builder_d16_q8_i24_h4 (
     wire base13_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:148
     wire base13_valid_and;                   // rtl-gen/src/merge/builder.rs:148
     wire base13_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:148
-    wire base13_skid_valid_next;             // rtl-gen/src/merge/builder.rs:148
     wire [179:0] base13_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base13_skid_data_next;      // rtl-gen/src/merge/builder.rs:148
     wire base13_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:148
     wire base13_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:148
     wire base13_skid_ready_not;              // rtl-gen/src/merge/builder.rs:148
     wire base13_skid_ready_and;              // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base13_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:148
     reg base14_skid_valid;                   // rtl-gen/src/merge/builder.rs:148
     reg [179:0] base14_skid_data;            // rtl-gen/src/merge/builder.rs:148
     reg base14_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:148
@@ -378,14 +336,11 @@ module upper_builder_d16_q8_i24_h4 (
     wire base14_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:148
     wire base14_valid_and;                   // rtl-gen/src/merge/builder.rs:148
     wire base14_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:148
-    wire base14_skid_valid_next;             // rtl-gen/src/merge/builder.rs:148
     wire [179:0] base14_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base14_skid_data_next;      // rtl-gen/src/merge/builder.rs:148
     wire base14_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:148
     wire base14_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:148
     wire base14_skid_ready_not;              // rtl-gen/src/merge/builder.rs:148
     wire base14_skid_ready_and;              // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base14_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:148
     reg base15_skid_valid;                   // rtl-gen/src/merge/builder.rs:148
     reg [179:0] base15_skid_data;            // rtl-gen/src/merge/builder.rs:148
     reg base15_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:148
@@ -396,14 +351,11 @@ module upper_builder_d16_q8_i24_h4 (
     wire base15_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:148
     wire base15_valid_and;                   // rtl-gen/src/merge/builder.rs:148
     wire base15_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:148
-    wire base15_skid_valid_next;             // rtl-gen/src/merge/builder.rs:148
     wire [179:0] base15_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base15_skid_data_next;      // rtl-gen/src/merge/builder.rs:148
     wire base15_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:148
     wire base15_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:148
     wire base15_skid_ready_not;              // rtl-gen/src/merge/builder.rs:148
     wire base15_skid_ready_and;              // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base15_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:148
     reg base16_skid_valid;                   // rtl-gen/src/merge/builder.rs:148
     reg [179:0] base16_skid_data;            // rtl-gen/src/merge/builder.rs:148
     reg base16_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:148
@@ -414,14 +366,11 @@ module upper_builder_d16_q8_i24_h4 (
     wire base16_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:148
     wire base16_valid_and;                   // rtl-gen/src/merge/builder.rs:148
     wire base16_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:148
-    wire base16_skid_valid_next;             // rtl-gen/src/merge/builder.rs:148
     wire [179:0] base16_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base16_skid_data_next;      // rtl-gen/src/merge/builder.rs:148
     wire base16_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:148
     wire base16_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:148
     wire base16_skid_ready_not;              // rtl-gen/src/merge/builder.rs:148
     wire base16_skid_ready_and;              // rtl-gen/src/merge/builder.rs:148
-    wire [179:0] base16_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:148
     wire base0_skid_data_eq;                 // rtl-gen/src/merge/builder.rs:61
     wire base0_skid_data_eq_1;               // rtl-gen/src/merge/builder.rs:62
     wire [1:0] base0_skid_data_mux;          // rtl-gen/src/merge/builder.rs:69
@@ -938,18 +887,13 @@ module upper_builder_d16_q8_i24_h4 (
     wire level16_skid_spare_valid_not;       // rtl-gen/src/merge/builder.rs:273
     wire level16_in_valid_and;               // rtl-gen/src/merge/builder.rs:273
     wire level16_skid_spare_valid_or;        // rtl-gen/src/merge/builder.rs:273
-    wire level16_skid_valid_next;            // rtl-gen/src/merge/builder.rs:273
     wire [228:0] level16_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level16_skid_data_next;     // rtl-gen/src/merge/builder.rs:273
     wire level16_skid_spare_valid_or_1;      // rtl-gen/src/merge/builder.rs:273
     wire level16_skid_spare_valid_next;      // rtl-gen/src/merge/builder.rs:273
     wire level16_skid_ready_not;             // rtl-gen/src/merge/builder.rs:273
     wire level16_skid_ready_and;             // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level16_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:273
     wire l16_done_or;                        // rtl-gen/src/merge/builder.rs:277
     wire l16_done_next;                      // rtl-gen/src/merge/builder.rs:277
-    wire [23:0] l16_fire_mux;                // rtl-gen/src/merge/builder.rs:278
-    wire [23:0] l16_nodes_next;              // rtl-gen/src/merge/builder.rs:278
     wire l16_fire_and_1;                     // rtl-gen/src/merge/builder.rs:279
     wire l16_nodes_ovf_or_1;                 // rtl-gen/src/merge/builder.rs:279
     wire l16_nodes_ovf_next;                 // rtl-gen/src/merge/builder.rs:279
@@ -957,8 +901,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire base16_skid_data_not_4;             // rtl-gen/src/merge/builder.rs:280
     wire l16_fire_and_2;                     // rtl-gen/src/merge/builder.rs:281
     wire [23:0] l16_records_add;             // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l16_fire_mux_1;              // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l16_records_next;            // rtl-gen/src/merge/builder.rs:281
     wire base16_skid_data_eq_3;              // rtl-gen/src/merge/builder.rs:285
     wire base16_skid_data_and;               // rtl-gen/src/merge/builder.rs:285
     wire l16_fire_and_3;                     // rtl-gen/src/merge/builder.rs:286
@@ -974,7 +916,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire top_found_not_2;                    // rtl-gen/src/merge/builder.rs:291
     wire l16_end_fire_and;                   // rtl-gen/src/merge/builder.rs:291
     wire l16_is_top;                         // rtl-gen/src/merge/builder.rs:291
-    wire [4:0] l16_is_top_mux;               // rtl-gen/src/merge/builder.rs:292
     wire l16_is_top_or;                      // rtl-gen/src/merge/builder.rs:293
     reg l15_done;                            // rtl-gen/src/merge/builder.rs:222
     reg [23:0] l15_nodes;                    // rtl-gen/src/merge/builder.rs:223
@@ -1022,18 +963,13 @@ module upper_builder_d16_q8_i24_h4 (
     wire level15_skid_spare_valid_not;       // rtl-gen/src/merge/builder.rs:273
     wire level15_in_valid_and;               // rtl-gen/src/merge/builder.rs:273
     wire level15_skid_spare_valid_or;        // rtl-gen/src/merge/builder.rs:273
-    wire level15_skid_valid_next;            // rtl-gen/src/merge/builder.rs:273
     wire [228:0] level15_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level15_skid_data_next;     // rtl-gen/src/merge/builder.rs:273
     wire level15_skid_spare_valid_or_1;      // rtl-gen/src/merge/builder.rs:273
     wire level15_skid_spare_valid_next;      // rtl-gen/src/merge/builder.rs:273
     wire level15_skid_ready_not;             // rtl-gen/src/merge/builder.rs:273
     wire level15_skid_ready_and;             // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level15_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:273
     wire l15_done_or;                        // rtl-gen/src/merge/builder.rs:277
     wire l15_done_next;                      // rtl-gen/src/merge/builder.rs:277
-    wire [23:0] l15_fire_mux;                // rtl-gen/src/merge/builder.rs:278
-    wire [23:0] l15_nodes_next;              // rtl-gen/src/merge/builder.rs:278
     wire l15_fire_and_2;                     // rtl-gen/src/merge/builder.rs:279
     wire l15_nodes_ovf_or;                   // rtl-gen/src/merge/builder.rs:279
     wire l15_nodes_ovf_next;                 // rtl-gen/src/merge/builder.rs:279
@@ -1041,8 +977,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire l15_take_group_not_1;               // rtl-gen/src/merge/builder.rs:280
     wire l15_fire_and_3;                     // rtl-gen/src/merge/builder.rs:281
     wire [23:0] l15_records_add;             // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l15_fire_mux_1;              // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l15_records_next;            // rtl-gen/src/merge/builder.rs:281
     wire l15_fire_and_4;                     // rtl-gen/src/merge/builder.rs:283
     wire l15_had_base_or_2;                  // rtl-gen/src/merge/builder.rs:283
     wire l15_had_base_next;                  // rtl-gen/src/merge/builder.rs:283
@@ -1061,7 +995,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire top_found_not_5;                    // rtl-gen/src/merge/builder.rs:291
     wire l15_end_fire_and;                   // rtl-gen/src/merge/builder.rs:291
     wire l15_is_top;                         // rtl-gen/src/merge/builder.rs:291
-    wire [4:0] l15_is_top_mux;               // rtl-gen/src/merge/builder.rs:292
     wire l16_is_top_or_1;                    // rtl-gen/src/merge/builder.rs:293
     reg l14_done;                            // rtl-gen/src/merge/builder.rs:222
     reg [23:0] l14_nodes;                    // rtl-gen/src/merge/builder.rs:223
@@ -1109,18 +1042,13 @@ module upper_builder_d16_q8_i24_h4 (
     wire level14_skid_spare_valid_not;       // rtl-gen/src/merge/builder.rs:273
     wire level14_in_valid_and;               // rtl-gen/src/merge/builder.rs:273
     wire level14_skid_spare_valid_or;        // rtl-gen/src/merge/builder.rs:273
-    wire level14_skid_valid_next;            // rtl-gen/src/merge/builder.rs:273
     wire [228:0] level14_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level14_skid_data_next;     // rtl-gen/src/merge/builder.rs:273
     wire level14_skid_spare_valid_or_1;      // rtl-gen/src/merge/builder.rs:273
     wire level14_skid_spare_valid_next;      // rtl-gen/src/merge/builder.rs:273
     wire level14_skid_ready_not;             // rtl-gen/src/merge/builder.rs:273
     wire level14_skid_ready_and;             // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level14_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:273
     wire l14_done_or;                        // rtl-gen/src/merge/builder.rs:277
     wire l14_done_next;                      // rtl-gen/src/merge/builder.rs:277
-    wire [23:0] l14_fire_mux;                // rtl-gen/src/merge/builder.rs:278
-    wire [23:0] l14_nodes_next;              // rtl-gen/src/merge/builder.rs:278
     wire l14_fire_and_2;                     // rtl-gen/src/merge/builder.rs:279
     wire l14_nodes_ovf_or;                   // rtl-gen/src/merge/builder.rs:279
     wire l14_nodes_ovf_next;                 // rtl-gen/src/merge/builder.rs:279
@@ -1128,8 +1056,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire l14_take_group_not_1;               // rtl-gen/src/merge/builder.rs:280
     wire l14_fire_and_3;                     // rtl-gen/src/merge/builder.rs:281
     wire [23:0] l14_records_add;             // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l14_fire_mux_1;              // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l14_records_next;            // rtl-gen/src/merge/builder.rs:281
     wire l14_fire_and_4;                     // rtl-gen/src/merge/builder.rs:283
     wire l14_had_base_or_2;                  // rtl-gen/src/merge/builder.rs:283
     wire l14_had_base_next;                  // rtl-gen/src/merge/builder.rs:283
@@ -1148,7 +1074,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire top_found_not_8;                    // rtl-gen/src/merge/builder.rs:291
     wire l14_end_fire_and;                   // rtl-gen/src/merge/builder.rs:291
     wire l14_is_top;                         // rtl-gen/src/merge/builder.rs:291
-    wire [4:0] l14_is_top_mux;               // rtl-gen/src/merge/builder.rs:292
     wire l16_is_top_or_2;                    // rtl-gen/src/merge/builder.rs:293
     reg l13_done;                            // rtl-gen/src/merge/builder.rs:222
     reg [23:0] l13_nodes;                    // rtl-gen/src/merge/builder.rs:223
@@ -1196,18 +1121,13 @@ module upper_builder_d16_q8_i24_h4 (
     wire level13_skid_spare_valid_not;       // rtl-gen/src/merge/builder.rs:273
     wire level13_in_valid_and;               // rtl-gen/src/merge/builder.rs:273
     wire level13_skid_spare_valid_or;        // rtl-gen/src/merge/builder.rs:273
-    wire level13_skid_valid_next;            // rtl-gen/src/merge/builder.rs:273
     wire [228:0] level13_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level13_skid_data_next;     // rtl-gen/src/merge/builder.rs:273
     wire level13_skid_spare_valid_or_1;      // rtl-gen/src/merge/builder.rs:273
     wire level13_skid_spare_valid_next;      // rtl-gen/src/merge/builder.rs:273
     wire level13_skid_ready_not;             // rtl-gen/src/merge/builder.rs:273
     wire level13_skid_ready_and;             // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level13_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:273
     wire l13_done_or;                        // rtl-gen/src/merge/builder.rs:277
     wire l13_done_next;                      // rtl-gen/src/merge/builder.rs:277
-    wire [23:0] l13_fire_mux;                // rtl-gen/src/merge/builder.rs:278
-    wire [23:0] l13_nodes_next;              // rtl-gen/src/merge/builder.rs:278
     wire l13_fire_and_2;                     // rtl-gen/src/merge/builder.rs:279
     wire l13_nodes_ovf_or;                   // rtl-gen/src/merge/builder.rs:279
     wire l13_nodes_ovf_next;                 // rtl-gen/src/merge/builder.rs:279
@@ -1215,8 +1135,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire l13_take_group_not_1;               // rtl-gen/src/merge/builder.rs:280
     wire l13_fire_and_3;                     // rtl-gen/src/merge/builder.rs:281
     wire [23:0] l13_records_add;             // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l13_fire_mux_1;              // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l13_records_next;            // rtl-gen/src/merge/builder.rs:281
     wire l13_fire_and_4;                     // rtl-gen/src/merge/builder.rs:283
     wire l13_had_base_or_2;                  // rtl-gen/src/merge/builder.rs:283
     wire l13_had_base_next;                  // rtl-gen/src/merge/builder.rs:283
@@ -1235,7 +1153,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire top_found_not_11;                   // rtl-gen/src/merge/builder.rs:291
     wire l13_end_fire_and;                   // rtl-gen/src/merge/builder.rs:291
     wire l13_is_top;                         // rtl-gen/src/merge/builder.rs:291
-    wire [4:0] l13_is_top_mux;               // rtl-gen/src/merge/builder.rs:292
     wire l16_is_top_or_3;                    // rtl-gen/src/merge/builder.rs:293
     reg l12_done;                            // rtl-gen/src/merge/builder.rs:222
     reg [23:0] l12_nodes;                    // rtl-gen/src/merge/builder.rs:223
@@ -1283,18 +1200,13 @@ module upper_builder_d16_q8_i24_h4 (
     wire level12_skid_spare_valid_not;       // rtl-gen/src/merge/builder.rs:273
     wire level12_in_valid_and;               // rtl-gen/src/merge/builder.rs:273
     wire level12_skid_spare_valid_or;        // rtl-gen/src/merge/builder.rs:273
-    wire level12_skid_valid_next;            // rtl-gen/src/merge/builder.rs:273
     wire [228:0] level12_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level12_skid_data_next;     // rtl-gen/src/merge/builder.rs:273
     wire level12_skid_spare_valid_or_1;      // rtl-gen/src/merge/builder.rs:273
     wire level12_skid_spare_valid_next;      // rtl-gen/src/merge/builder.rs:273
     wire level12_skid_ready_not;             // rtl-gen/src/merge/builder.rs:273
     wire level12_skid_ready_and;             // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level12_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:273
     wire l12_done_or;                        // rtl-gen/src/merge/builder.rs:277
     wire l12_done_next;                      // rtl-gen/src/merge/builder.rs:277
-    wire [23:0] l12_fire_mux;                // rtl-gen/src/merge/builder.rs:278
-    wire [23:0] l12_nodes_next;              // rtl-gen/src/merge/builder.rs:278
     wire l12_fire_and_2;                     // rtl-gen/src/merge/builder.rs:279
     wire l12_nodes_ovf_or;                   // rtl-gen/src/merge/builder.rs:279
     wire l12_nodes_ovf_next;                 // rtl-gen/src/merge/builder.rs:279
@@ -1302,8 +1214,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire l12_take_group_not_1;               // rtl-gen/src/merge/builder.rs:280
     wire l12_fire_and_3;                     // rtl-gen/src/merge/builder.rs:281
     wire [23:0] l12_records_add;             // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l12_fire_mux_1;              // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l12_records_next;            // rtl-gen/src/merge/builder.rs:281
     wire l12_fire_and_4;                     // rtl-gen/src/merge/builder.rs:283
     wire l12_had_base_or_2;                  // rtl-gen/src/merge/builder.rs:283
     wire l12_had_base_next;                  // rtl-gen/src/merge/builder.rs:283
@@ -1322,7 +1232,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire top_found_not_14;                   // rtl-gen/src/merge/builder.rs:291
     wire l12_end_fire_and;                   // rtl-gen/src/merge/builder.rs:291
     wire l12_is_top;                         // rtl-gen/src/merge/builder.rs:291
-    wire [4:0] l12_is_top_mux;               // rtl-gen/src/merge/builder.rs:292
     wire l16_is_top_or_4;                    // rtl-gen/src/merge/builder.rs:293
     reg l11_done;                            // rtl-gen/src/merge/builder.rs:222
     reg [23:0] l11_nodes;                    // rtl-gen/src/merge/builder.rs:223
@@ -1370,18 +1279,13 @@ module upper_builder_d16_q8_i24_h4 (
     wire level11_skid_spare_valid_not;       // rtl-gen/src/merge/builder.rs:273
     wire level11_in_valid_and;               // rtl-gen/src/merge/builder.rs:273
     wire level11_skid_spare_valid_or;        // rtl-gen/src/merge/builder.rs:273
-    wire level11_skid_valid_next;            // rtl-gen/src/merge/builder.rs:273
     wire [228:0] level11_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level11_skid_data_next;     // rtl-gen/src/merge/builder.rs:273
     wire level11_skid_spare_valid_or_1;      // rtl-gen/src/merge/builder.rs:273
     wire level11_skid_spare_valid_next;      // rtl-gen/src/merge/builder.rs:273
     wire level11_skid_ready_not;             // rtl-gen/src/merge/builder.rs:273
     wire level11_skid_ready_and;             // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level11_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:273
     wire l11_done_or;                        // rtl-gen/src/merge/builder.rs:277
     wire l11_done_next;                      // rtl-gen/src/merge/builder.rs:277
-    wire [23:0] l11_fire_mux;                // rtl-gen/src/merge/builder.rs:278
-    wire [23:0] l11_nodes_next;              // rtl-gen/src/merge/builder.rs:278
     wire l11_fire_and_2;                     // rtl-gen/src/merge/builder.rs:279
     wire l11_nodes_ovf_or;                   // rtl-gen/src/merge/builder.rs:279
     wire l11_nodes_ovf_next;                 // rtl-gen/src/merge/builder.rs:279
@@ -1389,8 +1293,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire l11_take_group_not_1;               // rtl-gen/src/merge/builder.rs:280
     wire l11_fire_and_3;                     // rtl-gen/src/merge/builder.rs:281
     wire [23:0] l11_records_add;             // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l11_fire_mux_1;              // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l11_records_next;            // rtl-gen/src/merge/builder.rs:281
     wire l11_fire_and_4;                     // rtl-gen/src/merge/builder.rs:283
     wire l11_had_base_or_2;                  // rtl-gen/src/merge/builder.rs:283
     wire l11_had_base_next;                  // rtl-gen/src/merge/builder.rs:283
@@ -1409,7 +1311,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire top_found_not_17;                   // rtl-gen/src/merge/builder.rs:291
     wire l11_end_fire_and;                   // rtl-gen/src/merge/builder.rs:291
     wire l11_is_top;                         // rtl-gen/src/merge/builder.rs:291
-    wire [4:0] l11_is_top_mux;               // rtl-gen/src/merge/builder.rs:292
     wire l16_is_top_or_5;                    // rtl-gen/src/merge/builder.rs:293
     reg l10_done;                            // rtl-gen/src/merge/builder.rs:222
     reg [23:0] l10_nodes;                    // rtl-gen/src/merge/builder.rs:223
@@ -1457,18 +1358,13 @@ module upper_builder_d16_q8_i24_h4 (
     wire level10_skid_spare_valid_not;       // rtl-gen/src/merge/builder.rs:273
     wire level10_in_valid_and;               // rtl-gen/src/merge/builder.rs:273
     wire level10_skid_spare_valid_or;        // rtl-gen/src/merge/builder.rs:273
-    wire level10_skid_valid_next;            // rtl-gen/src/merge/builder.rs:273
     wire [228:0] level10_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level10_skid_data_next;     // rtl-gen/src/merge/builder.rs:273
     wire level10_skid_spare_valid_or_1;      // rtl-gen/src/merge/builder.rs:273
     wire level10_skid_spare_valid_next;      // rtl-gen/src/merge/builder.rs:273
     wire level10_skid_ready_not;             // rtl-gen/src/merge/builder.rs:273
     wire level10_skid_ready_and;             // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level10_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:273
     wire l10_done_or;                        // rtl-gen/src/merge/builder.rs:277
     wire l10_done_next;                      // rtl-gen/src/merge/builder.rs:277
-    wire [23:0] l10_fire_mux;                // rtl-gen/src/merge/builder.rs:278
-    wire [23:0] l10_nodes_next;              // rtl-gen/src/merge/builder.rs:278
     wire l10_fire_and_2;                     // rtl-gen/src/merge/builder.rs:279
     wire l10_nodes_ovf_or;                   // rtl-gen/src/merge/builder.rs:279
     wire l10_nodes_ovf_next;                 // rtl-gen/src/merge/builder.rs:279
@@ -1476,8 +1372,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire l10_take_group_not_1;               // rtl-gen/src/merge/builder.rs:280
     wire l10_fire_and_3;                     // rtl-gen/src/merge/builder.rs:281
     wire [23:0] l10_records_add;             // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l10_fire_mux_1;              // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l10_records_next;            // rtl-gen/src/merge/builder.rs:281
     wire l10_fire_and_4;                     // rtl-gen/src/merge/builder.rs:283
     wire l10_had_base_or_2;                  // rtl-gen/src/merge/builder.rs:283
     wire l10_had_base_next;                  // rtl-gen/src/merge/builder.rs:283
@@ -1496,7 +1390,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire top_found_not_20;                   // rtl-gen/src/merge/builder.rs:291
     wire l10_end_fire_and;                   // rtl-gen/src/merge/builder.rs:291
     wire l10_is_top;                         // rtl-gen/src/merge/builder.rs:291
-    wire [4:0] l10_is_top_mux;               // rtl-gen/src/merge/builder.rs:292
     wire l16_is_top_or_6;                    // rtl-gen/src/merge/builder.rs:293
     reg l9_done;                             // rtl-gen/src/merge/builder.rs:222
     reg [23:0] l9_nodes;                     // rtl-gen/src/merge/builder.rs:223
@@ -1544,18 +1437,13 @@ module upper_builder_d16_q8_i24_h4 (
     wire level9_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:273
     wire level9_in_valid_and;                // rtl-gen/src/merge/builder.rs:273
     wire level9_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:273
-    wire level9_skid_valid_next;             // rtl-gen/src/merge/builder.rs:273
     wire [228:0] level9_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level9_skid_data_next;      // rtl-gen/src/merge/builder.rs:273
     wire level9_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:273
     wire level9_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:273
     wire level9_skid_ready_not;              // rtl-gen/src/merge/builder.rs:273
     wire level9_skid_ready_and;              // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level9_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:273
     wire l9_done_or;                         // rtl-gen/src/merge/builder.rs:277
     wire l9_done_next;                       // rtl-gen/src/merge/builder.rs:277
-    wire [23:0] l9_fire_mux;                 // rtl-gen/src/merge/builder.rs:278
-    wire [23:0] l9_nodes_next;               // rtl-gen/src/merge/builder.rs:278
     wire l9_fire_and_2;                      // rtl-gen/src/merge/builder.rs:279
     wire l9_nodes_ovf_or;                    // rtl-gen/src/merge/builder.rs:279
     wire l9_nodes_ovf_next;                  // rtl-gen/src/merge/builder.rs:279
@@ -1563,8 +1451,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire l9_take_group_not_1;                // rtl-gen/src/merge/builder.rs:280
     wire l9_fire_and_3;                      // rtl-gen/src/merge/builder.rs:281
     wire [23:0] l9_records_add;              // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l9_fire_mux_1;               // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l9_records_next;             // rtl-gen/src/merge/builder.rs:281
     wire l9_fire_and_4;                      // rtl-gen/src/merge/builder.rs:283
     wire l9_had_base_or_2;                   // rtl-gen/src/merge/builder.rs:283
     wire l9_had_base_next;                   // rtl-gen/src/merge/builder.rs:283
@@ -1583,7 +1469,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire top_found_not_23;                   // rtl-gen/src/merge/builder.rs:291
     wire l9_end_fire_and;                    // rtl-gen/src/merge/builder.rs:291
     wire l9_is_top;                          // rtl-gen/src/merge/builder.rs:291
-    wire [4:0] l9_is_top_mux;                // rtl-gen/src/merge/builder.rs:292
     wire l16_is_top_or_7;                    // rtl-gen/src/merge/builder.rs:293
     reg l8_done;                             // rtl-gen/src/merge/builder.rs:222
     reg [23:0] l8_nodes;                     // rtl-gen/src/merge/builder.rs:223
@@ -1631,18 +1516,13 @@ module upper_builder_d16_q8_i24_h4 (
     wire level8_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:273
     wire level8_in_valid_and;                // rtl-gen/src/merge/builder.rs:273
     wire level8_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:273
-    wire level8_skid_valid_next;             // rtl-gen/src/merge/builder.rs:273
     wire [228:0] level8_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level8_skid_data_next;      // rtl-gen/src/merge/builder.rs:273
     wire level8_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:273
     wire level8_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:273
     wire level8_skid_ready_not;              // rtl-gen/src/merge/builder.rs:273
     wire level8_skid_ready_and;              // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level8_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:273
     wire l8_done_or;                         // rtl-gen/src/merge/builder.rs:277
     wire l8_done_next;                       // rtl-gen/src/merge/builder.rs:277
-    wire [23:0] l8_fire_mux;                 // rtl-gen/src/merge/builder.rs:278
-    wire [23:0] l8_nodes_next;               // rtl-gen/src/merge/builder.rs:278
     wire l8_fire_and_2;                      // rtl-gen/src/merge/builder.rs:279
     wire l8_nodes_ovf_or;                    // rtl-gen/src/merge/builder.rs:279
     wire l8_nodes_ovf_next;                  // rtl-gen/src/merge/builder.rs:279
@@ -1650,8 +1530,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire l8_take_group_not_1;                // rtl-gen/src/merge/builder.rs:280
     wire l8_fire_and_3;                      // rtl-gen/src/merge/builder.rs:281
     wire [23:0] l8_records_add;              // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l8_fire_mux_1;               // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l8_records_next;             // rtl-gen/src/merge/builder.rs:281
     wire l8_fire_and_4;                      // rtl-gen/src/merge/builder.rs:283
     wire l8_had_base_or_2;                   // rtl-gen/src/merge/builder.rs:283
     wire l8_had_base_next;                   // rtl-gen/src/merge/builder.rs:283
@@ -1670,7 +1548,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire top_found_not_26;                   // rtl-gen/src/merge/builder.rs:291
     wire l8_end_fire_and;                    // rtl-gen/src/merge/builder.rs:291
     wire l8_is_top;                          // rtl-gen/src/merge/builder.rs:291
-    wire [4:0] l8_is_top_mux;                // rtl-gen/src/merge/builder.rs:292
     wire l16_is_top_or_8;                    // rtl-gen/src/merge/builder.rs:293
     reg l7_done;                             // rtl-gen/src/merge/builder.rs:222
     reg [23:0] l7_nodes;                     // rtl-gen/src/merge/builder.rs:223
@@ -1718,18 +1595,13 @@ module upper_builder_d16_q8_i24_h4 (
     wire level7_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:273
     wire level7_in_valid_and;                // rtl-gen/src/merge/builder.rs:273
     wire level7_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:273
-    wire level7_skid_valid_next;             // rtl-gen/src/merge/builder.rs:273
     wire [228:0] level7_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level7_skid_data_next;      // rtl-gen/src/merge/builder.rs:273
     wire level7_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:273
     wire level7_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:273
     wire level7_skid_ready_not;              // rtl-gen/src/merge/builder.rs:273
     wire level7_skid_ready_and;              // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level7_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:273
     wire l7_done_or;                         // rtl-gen/src/merge/builder.rs:277
     wire l7_done_next;                       // rtl-gen/src/merge/builder.rs:277
-    wire [23:0] l7_fire_mux;                 // rtl-gen/src/merge/builder.rs:278
-    wire [23:0] l7_nodes_next;               // rtl-gen/src/merge/builder.rs:278
     wire l7_fire_and_2;                      // rtl-gen/src/merge/builder.rs:279
     wire l7_nodes_ovf_or;                    // rtl-gen/src/merge/builder.rs:279
     wire l7_nodes_ovf_next;                  // rtl-gen/src/merge/builder.rs:279
@@ -1737,8 +1609,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire l7_take_group_not_1;                // rtl-gen/src/merge/builder.rs:280
     wire l7_fire_and_3;                      // rtl-gen/src/merge/builder.rs:281
     wire [23:0] l7_records_add;              // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l7_fire_mux_1;               // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l7_records_next;             // rtl-gen/src/merge/builder.rs:281
     wire l7_fire_and_4;                      // rtl-gen/src/merge/builder.rs:283
     wire l7_had_base_or_2;                   // rtl-gen/src/merge/builder.rs:283
     wire l7_had_base_next;                   // rtl-gen/src/merge/builder.rs:283
@@ -1757,7 +1627,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire top_found_not_29;                   // rtl-gen/src/merge/builder.rs:291
     wire l7_end_fire_and;                    // rtl-gen/src/merge/builder.rs:291
     wire l7_is_top;                          // rtl-gen/src/merge/builder.rs:291
-    wire [4:0] l7_is_top_mux;                // rtl-gen/src/merge/builder.rs:292
     wire l16_is_top_or_9;                    // rtl-gen/src/merge/builder.rs:293
     reg l6_done;                             // rtl-gen/src/merge/builder.rs:222
     reg [23:0] l6_nodes;                     // rtl-gen/src/merge/builder.rs:223
@@ -1805,18 +1674,13 @@ module upper_builder_d16_q8_i24_h4 (
     wire level6_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:273
     wire level6_in_valid_and;                // rtl-gen/src/merge/builder.rs:273
     wire level6_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:273
-    wire level6_skid_valid_next;             // rtl-gen/src/merge/builder.rs:273
     wire [228:0] level6_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level6_skid_data_next;      // rtl-gen/src/merge/builder.rs:273
     wire level6_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:273
     wire level6_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:273
     wire level6_skid_ready_not;              // rtl-gen/src/merge/builder.rs:273
     wire level6_skid_ready_and;              // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level6_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:273
     wire l6_done_or;                         // rtl-gen/src/merge/builder.rs:277
     wire l6_done_next;                       // rtl-gen/src/merge/builder.rs:277
-    wire [23:0] l6_fire_mux;                 // rtl-gen/src/merge/builder.rs:278
-    wire [23:0] l6_nodes_next;               // rtl-gen/src/merge/builder.rs:278
     wire l6_fire_and_2;                      // rtl-gen/src/merge/builder.rs:279
     wire l6_nodes_ovf_or;                    // rtl-gen/src/merge/builder.rs:279
     wire l6_nodes_ovf_next;                  // rtl-gen/src/merge/builder.rs:279
@@ -1824,8 +1688,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire l6_take_group_not_1;                // rtl-gen/src/merge/builder.rs:280
     wire l6_fire_and_3;                      // rtl-gen/src/merge/builder.rs:281
     wire [23:0] l6_records_add;              // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l6_fire_mux_1;               // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l6_records_next;             // rtl-gen/src/merge/builder.rs:281
     wire l6_fire_and_4;                      // rtl-gen/src/merge/builder.rs:283
     wire l6_had_base_or_2;                   // rtl-gen/src/merge/builder.rs:283
     wire l6_had_base_next;                   // rtl-gen/src/merge/builder.rs:283
@@ -1844,7 +1706,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire top_found_not_32;                   // rtl-gen/src/merge/builder.rs:291
     wire l6_end_fire_and;                    // rtl-gen/src/merge/builder.rs:291
     wire l6_is_top;                          // rtl-gen/src/merge/builder.rs:291
-    wire [4:0] l6_is_top_mux;                // rtl-gen/src/merge/builder.rs:292
     wire l16_is_top_or_10;                   // rtl-gen/src/merge/builder.rs:293
     reg l5_done;                             // rtl-gen/src/merge/builder.rs:222
     reg [23:0] l5_nodes;                     // rtl-gen/src/merge/builder.rs:223
@@ -1892,18 +1753,13 @@ module upper_builder_d16_q8_i24_h4 (
     wire level5_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:273
     wire level5_in_valid_and;                // rtl-gen/src/merge/builder.rs:273
     wire level5_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:273
-    wire level5_skid_valid_next;             // rtl-gen/src/merge/builder.rs:273
     wire [228:0] level5_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level5_skid_data_next;      // rtl-gen/src/merge/builder.rs:273
     wire level5_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:273
     wire level5_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:273
     wire level5_skid_ready_not;              // rtl-gen/src/merge/builder.rs:273
     wire level5_skid_ready_and;              // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level5_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:273
     wire l5_done_or;                         // rtl-gen/src/merge/builder.rs:277
     wire l5_done_next;                       // rtl-gen/src/merge/builder.rs:277
-    wire [23:0] l5_fire_mux;                 // rtl-gen/src/merge/builder.rs:278
-    wire [23:0] l5_nodes_next;               // rtl-gen/src/merge/builder.rs:278
     wire l5_fire_and_2;                      // rtl-gen/src/merge/builder.rs:279
     wire l5_nodes_ovf_or;                    // rtl-gen/src/merge/builder.rs:279
     wire l5_nodes_ovf_next;                  // rtl-gen/src/merge/builder.rs:279
@@ -1911,8 +1767,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire l5_take_group_not_1;                // rtl-gen/src/merge/builder.rs:280
     wire l5_fire_and_3;                      // rtl-gen/src/merge/builder.rs:281
     wire [23:0] l5_records_add;              // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l5_fire_mux_1;               // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l5_records_next;             // rtl-gen/src/merge/builder.rs:281
     wire l5_fire_and_4;                      // rtl-gen/src/merge/builder.rs:283
     wire l5_had_base_or_2;                   // rtl-gen/src/merge/builder.rs:283
     wire l5_had_base_next;                   // rtl-gen/src/merge/builder.rs:283
@@ -1931,7 +1785,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire top_found_not_35;                   // rtl-gen/src/merge/builder.rs:291
     wire l5_end_fire_and;                    // rtl-gen/src/merge/builder.rs:291
     wire l5_is_top;                          // rtl-gen/src/merge/builder.rs:291
-    wire [4:0] l5_is_top_mux;                // rtl-gen/src/merge/builder.rs:292
     wire l16_is_top_or_11;                   // rtl-gen/src/merge/builder.rs:293
     reg l4_done;                             // rtl-gen/src/merge/builder.rs:222
     reg [23:0] l4_nodes;                     // rtl-gen/src/merge/builder.rs:223
@@ -1979,18 +1832,13 @@ module upper_builder_d16_q8_i24_h4 (
     wire level4_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:273
     wire level4_in_valid_and;                // rtl-gen/src/merge/builder.rs:273
     wire level4_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:273
-    wire level4_skid_valid_next;             // rtl-gen/src/merge/builder.rs:273
     wire [228:0] level4_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level4_skid_data_next;      // rtl-gen/src/merge/builder.rs:273
     wire level4_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:273
     wire level4_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:273
     wire level4_skid_ready_not;              // rtl-gen/src/merge/builder.rs:273
     wire level4_skid_ready_and;              // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level4_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:273
     wire l4_done_or;                         // rtl-gen/src/merge/builder.rs:277
     wire l4_done_next;                       // rtl-gen/src/merge/builder.rs:277
-    wire [23:0] l4_fire_mux;                 // rtl-gen/src/merge/builder.rs:278
-    wire [23:0] l4_nodes_next;               // rtl-gen/src/merge/builder.rs:278
     wire l4_fire_and_2;                      // rtl-gen/src/merge/builder.rs:279
     wire l4_nodes_ovf_or;                    // rtl-gen/src/merge/builder.rs:279
     wire l4_nodes_ovf_next;                  // rtl-gen/src/merge/builder.rs:279
@@ -1998,8 +1846,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire l4_take_group_not_1;                // rtl-gen/src/merge/builder.rs:280
     wire l4_fire_and_3;                      // rtl-gen/src/merge/builder.rs:281
     wire [23:0] l4_records_add;              // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l4_fire_mux_1;               // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l4_records_next;             // rtl-gen/src/merge/builder.rs:281
     wire l4_fire_and_4;                      // rtl-gen/src/merge/builder.rs:283
     wire l4_had_base_or_2;                   // rtl-gen/src/merge/builder.rs:283
     wire l4_had_base_next;                   // rtl-gen/src/merge/builder.rs:283
@@ -2018,7 +1864,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire top_found_not_38;                   // rtl-gen/src/merge/builder.rs:291
     wire l4_end_fire_and;                    // rtl-gen/src/merge/builder.rs:291
     wire l4_is_top;                          // rtl-gen/src/merge/builder.rs:291
-    wire [4:0] l4_is_top_mux;                // rtl-gen/src/merge/builder.rs:292
     wire l16_is_top_or_12;                   // rtl-gen/src/merge/builder.rs:293
     reg l3_done;                             // rtl-gen/src/merge/builder.rs:222
     reg [23:0] l3_nodes;                     // rtl-gen/src/merge/builder.rs:223
@@ -2066,18 +1911,13 @@ module upper_builder_d16_q8_i24_h4 (
     wire level3_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:273
     wire level3_in_valid_and;                // rtl-gen/src/merge/builder.rs:273
     wire level3_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:273
-    wire level3_skid_valid_next;             // rtl-gen/src/merge/builder.rs:273
     wire [228:0] level3_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level3_skid_data_next;      // rtl-gen/src/merge/builder.rs:273
     wire level3_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:273
     wire level3_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:273
     wire level3_skid_ready_not;              // rtl-gen/src/merge/builder.rs:273
     wire level3_skid_ready_and;              // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level3_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:273
     wire l3_done_or;                         // rtl-gen/src/merge/builder.rs:277
     wire l3_done_next;                       // rtl-gen/src/merge/builder.rs:277
-    wire [23:0] l3_fire_mux;                 // rtl-gen/src/merge/builder.rs:278
-    wire [23:0] l3_nodes_next;               // rtl-gen/src/merge/builder.rs:278
     wire l3_fire_and_2;                      // rtl-gen/src/merge/builder.rs:279
     wire l3_nodes_ovf_or;                    // rtl-gen/src/merge/builder.rs:279
     wire l3_nodes_ovf_next;                  // rtl-gen/src/merge/builder.rs:279
@@ -2085,8 +1925,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire l3_take_group_not_1;                // rtl-gen/src/merge/builder.rs:280
     wire l3_fire_and_3;                      // rtl-gen/src/merge/builder.rs:281
     wire [23:0] l3_records_add;              // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l3_fire_mux_1;               // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l3_records_next;             // rtl-gen/src/merge/builder.rs:281
     wire l3_fire_and_4;                      // rtl-gen/src/merge/builder.rs:283
     wire l3_had_base_or_2;                   // rtl-gen/src/merge/builder.rs:283
     wire l3_had_base_next;                   // rtl-gen/src/merge/builder.rs:283
@@ -2105,7 +1943,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire top_found_not_41;                   // rtl-gen/src/merge/builder.rs:291
     wire l3_end_fire_and;                    // rtl-gen/src/merge/builder.rs:291
     wire l3_is_top;                          // rtl-gen/src/merge/builder.rs:291
-    wire [4:0] l3_is_top_mux;                // rtl-gen/src/merge/builder.rs:292
     wire l16_is_top_or_13;                   // rtl-gen/src/merge/builder.rs:293
     reg l2_done;                             // rtl-gen/src/merge/builder.rs:222
     reg [23:0] l2_nodes;                     // rtl-gen/src/merge/builder.rs:223
@@ -2153,18 +1990,13 @@ module upper_builder_d16_q8_i24_h4 (
     wire level2_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:273
     wire level2_in_valid_and;                // rtl-gen/src/merge/builder.rs:273
     wire level2_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:273
-    wire level2_skid_valid_next;             // rtl-gen/src/merge/builder.rs:273
     wire [228:0] level2_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level2_skid_data_next;      // rtl-gen/src/merge/builder.rs:273
     wire level2_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:273
     wire level2_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:273
     wire level2_skid_ready_not;              // rtl-gen/src/merge/builder.rs:273
     wire level2_skid_ready_and;              // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level2_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:273
     wire l2_done_or;                         // rtl-gen/src/merge/builder.rs:277
     wire l2_done_next;                       // rtl-gen/src/merge/builder.rs:277
-    wire [23:0] l2_fire_mux;                 // rtl-gen/src/merge/builder.rs:278
-    wire [23:0] l2_nodes_next;               // rtl-gen/src/merge/builder.rs:278
     wire l2_fire_and_2;                      // rtl-gen/src/merge/builder.rs:279
     wire l2_nodes_ovf_or;                    // rtl-gen/src/merge/builder.rs:279
     wire l2_nodes_ovf_next;                  // rtl-gen/src/merge/builder.rs:279
@@ -2172,8 +2004,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire l2_take_group_not_1;                // rtl-gen/src/merge/builder.rs:280
     wire l2_fire_and_3;                      // rtl-gen/src/merge/builder.rs:281
     wire [23:0] l2_records_add;              // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l2_fire_mux_1;               // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l2_records_next;             // rtl-gen/src/merge/builder.rs:281
     wire l2_fire_and_4;                      // rtl-gen/src/merge/builder.rs:283
     wire l2_had_base_or_2;                   // rtl-gen/src/merge/builder.rs:283
     wire l2_had_base_next;                   // rtl-gen/src/merge/builder.rs:283
@@ -2192,7 +2022,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire top_found_not_44;                   // rtl-gen/src/merge/builder.rs:291
     wire l2_end_fire_and;                    // rtl-gen/src/merge/builder.rs:291
     wire l2_is_top;                          // rtl-gen/src/merge/builder.rs:291
-    wire [4:0] l2_is_top_mux;                // rtl-gen/src/merge/builder.rs:292
     wire l16_is_top_or_14;                   // rtl-gen/src/merge/builder.rs:293
     reg l1_done;                             // rtl-gen/src/merge/builder.rs:222
     reg [23:0] l1_nodes;                     // rtl-gen/src/merge/builder.rs:223
@@ -2240,18 +2069,13 @@ module upper_builder_d16_q8_i24_h4 (
     wire level1_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:273
     wire level1_in_valid_and;                // rtl-gen/src/merge/builder.rs:273
     wire level1_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:273
-    wire level1_skid_valid_next;             // rtl-gen/src/merge/builder.rs:273
     wire [228:0] level1_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level1_skid_data_next;      // rtl-gen/src/merge/builder.rs:273
     wire level1_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:273
     wire level1_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:273
     wire level1_skid_ready_not;              // rtl-gen/src/merge/builder.rs:273
     wire level1_skid_ready_and;              // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level1_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:273
     wire l1_done_or;                         // rtl-gen/src/merge/builder.rs:277
     wire l1_done_next;                       // rtl-gen/src/merge/builder.rs:277
-    wire [23:0] l1_fire_mux;                 // rtl-gen/src/merge/builder.rs:278
-    wire [23:0] l1_nodes_next;               // rtl-gen/src/merge/builder.rs:278
     wire l1_fire_and_2;                      // rtl-gen/src/merge/builder.rs:279
     wire l1_nodes_ovf_or;                    // rtl-gen/src/merge/builder.rs:279
     wire l1_nodes_ovf_next;                  // rtl-gen/src/merge/builder.rs:279
@@ -2259,8 +2083,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire l1_take_group_not_1;                // rtl-gen/src/merge/builder.rs:280
     wire l1_fire_and_3;                      // rtl-gen/src/merge/builder.rs:281
     wire [23:0] l1_records_add;              // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l1_fire_mux_1;               // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l1_records_next;             // rtl-gen/src/merge/builder.rs:281
     wire l1_fire_and_4;                      // rtl-gen/src/merge/builder.rs:283
     wire l1_had_base_or_2;                   // rtl-gen/src/merge/builder.rs:283
     wire l1_had_base_next;                   // rtl-gen/src/merge/builder.rs:283
@@ -2279,7 +2101,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire top_found_not_47;                   // rtl-gen/src/merge/builder.rs:291
     wire l1_end_fire_and;                    // rtl-gen/src/merge/builder.rs:291
     wire l1_is_top;                          // rtl-gen/src/merge/builder.rs:291
-    wire [4:0] l1_is_top_mux;                // rtl-gen/src/merge/builder.rs:292
     wire l16_is_top_or_15;                   // rtl-gen/src/merge/builder.rs:293
     reg l0_done;                             // rtl-gen/src/merge/builder.rs:222
     reg [23:0] l0_nodes;                     // rtl-gen/src/merge/builder.rs:223
@@ -2389,18 +2210,13 @@ module upper_builder_d16_q8_i24_h4 (
     wire level0_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:273
     wire level0_in_valid_and;                // rtl-gen/src/merge/builder.rs:273
     wire level0_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:273
-    wire level0_skid_valid_next;             // rtl-gen/src/merge/builder.rs:273
     wire [228:0] level0_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level0_skid_data_next;      // rtl-gen/src/merge/builder.rs:273
     wire level0_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:273
     wire level0_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:273
     wire level0_skid_ready_not;              // rtl-gen/src/merge/builder.rs:273
     wire level0_skid_ready_and;              // rtl-gen/src/merge/builder.rs:273
-    wire [228:0] level0_skid_spare_data_next; // rtl-gen/src/merge/builder.rs:273
     wire l0_done_or;                         // rtl-gen/src/merge/builder.rs:277
     wire l0_done_next;                       // rtl-gen/src/merge/builder.rs:277
-    wire [23:0] l0_fire_mux;                 // rtl-gen/src/merge/builder.rs:278
-    wire [23:0] l0_nodes_next;               // rtl-gen/src/merge/builder.rs:278
     wire l0_fire_and_2;                      // rtl-gen/src/merge/builder.rs:279
     wire l0_nodes_ovf_or;                    // rtl-gen/src/merge/builder.rs:279
     wire l0_nodes_ovf_next;                  // rtl-gen/src/merge/builder.rs:279
@@ -2408,8 +2224,6 @@ module upper_builder_d16_q8_i24_h4 (
     wire l0_take_group_not_1;                // rtl-gen/src/merge/builder.rs:280
     wire l0_fire_and_3;                      // rtl-gen/src/merge/builder.rs:281
     wire [23:0] l0_records_add;              // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l0_fire_mux_1;               // rtl-gen/src/merge/builder.rs:281
-    wire [23:0] l0_records_next;             // rtl-gen/src/merge/builder.rs:281
     wire l0_fire_and_4;                      // rtl-gen/src/merge/builder.rs:283
     wire l0_had_base_or_2;                   // rtl-gen/src/merge/builder.rs:283
     wire l0_had_base_next;                   // rtl-gen/src/merge/builder.rs:283
@@ -2428,13 +2242,11 @@ module upper_builder_d16_q8_i24_h4 (
     wire l0_nodes_or;                        // rtl-gen/src/merge/builder.rs:299
     wire root_suppressed_and;                // rtl-gen/src/merge/builder.rs:299
     wire [4:0] root_suppressed_mux;          // rtl-gen/src/merge/builder.rs:300
-    wire [4:0] l0_end_fire_mux;              // rtl-gen/src/merge/builder.rs:300
     wire l16_is_top_or_16;                   // rtl-gen/src/merge/builder.rs:301
     wire done_valid_or;                      // rtl-gen/src/merge/builder.rs:303
     wire done_valid_next;                    // rtl-gen/src/merge/builder.rs:303
     wire top_found_or;                       // rtl-gen/src/merge/builder.rs:306
     wire top_found_next;                     // rtl-gen/src/merge/builder.rs:306
-    wire [4:0] top_lod_next;                 // rtl-gen/src/merge/builder.rs:307
     wire l0_end_fire_and_1;                  // rtl-gen/src/merge/builder.rs:308
     wire done_err_or;                        // rtl-gen/src/merge/builder.rs:308
     wire done_err_next;                      // rtl-gen/src/merge/builder.rs:308
@@ -2451,14 +2263,11 @@ module upper_builder_d16_q8_i24_h4 (
     wire done_skid_spare_valid_not;          // rtl-gen/src/merge/builder.rs:319
     wire done_valid_and;                     // rtl-gen/src/merge/builder.rs:319
     wire done_skid_spare_valid_or;           // rtl-gen/src/merge/builder.rs:319
-    wire done_skid_valid_next;               // rtl-gen/src/merge/builder.rs:319
     wire [5:0] done_skid_spare_valid_mux;    // rtl-gen/src/merge/builder.rs:319
-    wire [5:0] done_skid_data_next;          // rtl-gen/src/merge/builder.rs:319
     wire done_skid_spare_valid_or_1;         // rtl-gen/src/merge/builder.rs:319
     wire done_skid_spare_valid_next;         // rtl-gen/src/merge/builder.rs:319
     wire done_skid_ready_not;                // rtl-gen/src/merge/builder.rs:319
     wire done_skid_ready_and;                // rtl-gen/src/merge/builder.rs:319
-    wire [5:0] done_skid_spare_data_next;    // rtl-gen/src/merge/builder.rs:319
 
     assign done_in_ready = ~done_skid_spare_valid;
     assign base0_ready = ~base0_skid_spare_valid;
@@ -2468,14 +2277,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign base0_skid_spare_valid_not = ~base0_skid_spare_valid;
     assign base0_valid_and = base0_valid & base0_skid_spare_valid_not;
     assign base0_skid_spare_valid_or = base0_skid_spare_valid | base0_valid;
-    assign base0_skid_valid_next = base0_skid_ready_or ? base0_skid_spare_valid_or : base0_skid_valid;
     assign base0_skid_spare_valid_mux = base0_skid_spare_valid ? base0_skid_spare_data : base0_data;
-    assign base0_skid_data_next = base0_skid_ready_or ? base0_skid_spare_valid_mux : base0_skid_data;
     assign base0_skid_spare_valid_or_1 = base0_skid_spare_valid | base0_valid_and;
     assign base0_skid_spare_valid_next = base0_skid_ready_or ? 1'b0 : base0_skid_spare_valid_or_1;
     assign base0_skid_ready_not = ~base0_skid_ready_or;
     assign base0_skid_ready_and = base0_skid_ready_not & base0_valid_and;
-    assign base0_skid_spare_data_next = base0_skid_ready_and ? base0_data : base0_skid_spare_data;
     assign base1_ready = ~base1_skid_spare_valid;
     assign base1_skid_ready = l1_fire & l1_take_group_not;
     assign base1_skid_valid_not = ~base1_skid_valid;
@@ -2483,14 +2289,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign base1_skid_spare_valid_not = ~base1_skid_spare_valid;
     assign base1_valid_and = base1_valid & base1_skid_spare_valid_not;
     assign base1_skid_spare_valid_or = base1_skid_spare_valid | base1_valid;
-    assign base1_skid_valid_next = base1_skid_ready_or ? base1_skid_spare_valid_or : base1_skid_valid;
     assign base1_skid_spare_valid_mux = base1_skid_spare_valid ? base1_skid_spare_data : base1_data;
-    assign base1_skid_data_next = base1_skid_ready_or ? base1_skid_spare_valid_mux : base1_skid_data;
     assign base1_skid_spare_valid_or_1 = base1_skid_spare_valid | base1_valid_and;
     assign base1_skid_spare_valid_next = base1_skid_ready_or ? 1'b0 : base1_skid_spare_valid_or_1;
     assign base1_skid_ready_not = ~base1_skid_ready_or;
     assign base1_skid_ready_and = base1_skid_ready_not & base1_valid_and;
-    assign base1_skid_spare_data_next = base1_skid_ready_and ? base1_data : base1_skid_spare_data;
     assign base2_ready = ~base2_skid_spare_valid;
     assign base2_skid_ready = l2_fire & l2_take_group_not;
     assign base2_skid_valid_not = ~base2_skid_valid;
@@ -2498,14 +2301,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign base2_skid_spare_valid_not = ~base2_skid_spare_valid;
     assign base2_valid_and = base2_valid & base2_skid_spare_valid_not;
     assign base2_skid_spare_valid_or = base2_skid_spare_valid | base2_valid;
-    assign base2_skid_valid_next = base2_skid_ready_or ? base2_skid_spare_valid_or : base2_skid_valid;
     assign base2_skid_spare_valid_mux = base2_skid_spare_valid ? base2_skid_spare_data : base2_data;
-    assign base2_skid_data_next = base2_skid_ready_or ? base2_skid_spare_valid_mux : base2_skid_data;
     assign base2_skid_spare_valid_or_1 = base2_skid_spare_valid | base2_valid_and;
     assign base2_skid_spare_valid_next = base2_skid_ready_or ? 1'b0 : base2_skid_spare_valid_or_1;
     assign base2_skid_ready_not = ~base2_skid_ready_or;
     assign base2_skid_ready_and = base2_skid_ready_not & base2_valid_and;
-    assign base2_skid_spare_data_next = base2_skid_ready_and ? base2_data : base2_skid_spare_data;
     assign base3_ready = ~base3_skid_spare_valid;
     assign base3_skid_ready = l3_fire & l3_take_group_not;
     assign base3_skid_valid_not = ~base3_skid_valid;
@@ -2513,14 +2313,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign base3_skid_spare_valid_not = ~base3_skid_spare_valid;
     assign base3_valid_and = base3_valid & base3_skid_spare_valid_not;
     assign base3_skid_spare_valid_or = base3_skid_spare_valid | base3_valid;
-    assign base3_skid_valid_next = base3_skid_ready_or ? base3_skid_spare_valid_or : base3_skid_valid;
     assign base3_skid_spare_valid_mux = base3_skid_spare_valid ? base3_skid_spare_data : base3_data;
-    assign base3_skid_data_next = base3_skid_ready_or ? base3_skid_spare_valid_mux : base3_skid_data;
     assign base3_skid_spare_valid_or_1 = base3_skid_spare_valid | base3_valid_and;
     assign base3_skid_spare_valid_next = base3_skid_ready_or ? 1'b0 : base3_skid_spare_valid_or_1;
     assign base3_skid_ready_not = ~base3_skid_ready_or;
     assign base3_skid_ready_and = base3_skid_ready_not & base3_valid_and;
-    assign base3_skid_spare_data_next = base3_skid_ready_and ? base3_data : base3_skid_spare_data;
     assign base4_ready = ~base4_skid_spare_valid;
     assign base4_skid_ready = l4_fire & l4_take_group_not;
     assign base4_skid_valid_not = ~base4_skid_valid;
@@ -2528,14 +2325,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign base4_skid_spare_valid_not = ~base4_skid_spare_valid;
     assign base4_valid_and = base4_valid & base4_skid_spare_valid_not;
     assign base4_skid_spare_valid_or = base4_skid_spare_valid | base4_valid;
-    assign base4_skid_valid_next = base4_skid_ready_or ? base4_skid_spare_valid_or : base4_skid_valid;
     assign base4_skid_spare_valid_mux = base4_skid_spare_valid ? base4_skid_spare_data : base4_data;
-    assign base4_skid_data_next = base4_skid_ready_or ? base4_skid_spare_valid_mux : base4_skid_data;
     assign base4_skid_spare_valid_or_1 = base4_skid_spare_valid | base4_valid_and;
     assign base4_skid_spare_valid_next = base4_skid_ready_or ? 1'b0 : base4_skid_spare_valid_or_1;
     assign base4_skid_ready_not = ~base4_skid_ready_or;
     assign base4_skid_ready_and = base4_skid_ready_not & base4_valid_and;
-    assign base4_skid_spare_data_next = base4_skid_ready_and ? base4_data : base4_skid_spare_data;
     assign base5_ready = ~base5_skid_spare_valid;
     assign base5_skid_ready = l5_fire & l5_take_group_not;
     assign base5_skid_valid_not = ~base5_skid_valid;
@@ -2543,14 +2337,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign base5_skid_spare_valid_not = ~base5_skid_spare_valid;
     assign base5_valid_and = base5_valid & base5_skid_spare_valid_not;
     assign base5_skid_spare_valid_or = base5_skid_spare_valid | base5_valid;
-    assign base5_skid_valid_next = base5_skid_ready_or ? base5_skid_spare_valid_or : base5_skid_valid;
     assign base5_skid_spare_valid_mux = base5_skid_spare_valid ? base5_skid_spare_data : base5_data;
-    assign base5_skid_data_next = base5_skid_ready_or ? base5_skid_spare_valid_mux : base5_skid_data;
     assign base5_skid_spare_valid_or_1 = base5_skid_spare_valid | base5_valid_and;
     assign base5_skid_spare_valid_next = base5_skid_ready_or ? 1'b0 : base5_skid_spare_valid_or_1;
     assign base5_skid_ready_not = ~base5_skid_ready_or;
     assign base5_skid_ready_and = base5_skid_ready_not & base5_valid_and;
-    assign base5_skid_spare_data_next = base5_skid_ready_and ? base5_data : base5_skid_spare_data;
     assign base6_ready = ~base6_skid_spare_valid;
     assign base6_skid_ready = l6_fire & l6_take_group_not;
     assign base6_skid_valid_not = ~base6_skid_valid;
@@ -2558,14 +2349,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign base6_skid_spare_valid_not = ~base6_skid_spare_valid;
     assign base6_valid_and = base6_valid & base6_skid_spare_valid_not;
     assign base6_skid_spare_valid_or = base6_skid_spare_valid | base6_valid;
-    assign base6_skid_valid_next = base6_skid_ready_or ? base6_skid_spare_valid_or : base6_skid_valid;
     assign base6_skid_spare_valid_mux = base6_skid_spare_valid ? base6_skid_spare_data : base6_data;
-    assign base6_skid_data_next = base6_skid_ready_or ? base6_skid_spare_valid_mux : base6_skid_data;
     assign base6_skid_spare_valid_or_1 = base6_skid_spare_valid | base6_valid_and;
     assign base6_skid_spare_valid_next = base6_skid_ready_or ? 1'b0 : base6_skid_spare_valid_or_1;
     assign base6_skid_ready_not = ~base6_skid_ready_or;
     assign base6_skid_ready_and = base6_skid_ready_not & base6_valid_and;
-    assign base6_skid_spare_data_next = base6_skid_ready_and ? base6_data : base6_skid_spare_data;
     assign base7_ready = ~base7_skid_spare_valid;
     assign base7_skid_ready = l7_fire & l7_take_group_not;
     assign base7_skid_valid_not = ~base7_skid_valid;
@@ -2573,14 +2361,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign base7_skid_spare_valid_not = ~base7_skid_spare_valid;
     assign base7_valid_and = base7_valid & base7_skid_spare_valid_not;
     assign base7_skid_spare_valid_or = base7_skid_spare_valid | base7_valid;
-    assign base7_skid_valid_next = base7_skid_ready_or ? base7_skid_spare_valid_or : base7_skid_valid;
     assign base7_skid_spare_valid_mux = base7_skid_spare_valid ? base7_skid_spare_data : base7_data;
-    assign base7_skid_data_next = base7_skid_ready_or ? base7_skid_spare_valid_mux : base7_skid_data;
     assign base7_skid_spare_valid_or_1 = base7_skid_spare_valid | base7_valid_and;
     assign base7_skid_spare_valid_next = base7_skid_ready_or ? 1'b0 : base7_skid_spare_valid_or_1;
     assign base7_skid_ready_not = ~base7_skid_ready_or;
     assign base7_skid_ready_and = base7_skid_ready_not & base7_valid_and;
-    assign base7_skid_spare_data_next = base7_skid_ready_and ? base7_data : base7_skid_spare_data;
     assign base8_ready = ~base8_skid_spare_valid;
     assign base8_skid_ready = l8_fire & l8_take_group_not;
     assign base8_skid_valid_not = ~base8_skid_valid;
@@ -2588,14 +2373,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign base8_skid_spare_valid_not = ~base8_skid_spare_valid;
     assign base8_valid_and = base8_valid & base8_skid_spare_valid_not;
     assign base8_skid_spare_valid_or = base8_skid_spare_valid | base8_valid;
-    assign base8_skid_valid_next = base8_skid_ready_or ? base8_skid_spare_valid_or : base8_skid_valid;
     assign base8_skid_spare_valid_mux = base8_skid_spare_valid ? base8_skid_spare_data : base8_data;
-    assign base8_skid_data_next = base8_skid_ready_or ? base8_skid_spare_valid_mux : base8_skid_data;
     assign base8_skid_spare_valid_or_1 = base8_skid_spare_valid | base8_valid_and;
     assign base8_skid_spare_valid_next = base8_skid_ready_or ? 1'b0 : base8_skid_spare_valid_or_1;
     assign base8_skid_ready_not = ~base8_skid_ready_or;
     assign base8_skid_ready_and = base8_skid_ready_not & base8_valid_and;
-    assign base8_skid_spare_data_next = base8_skid_ready_and ? base8_data : base8_skid_spare_data;
     assign base9_ready = ~base9_skid_spare_valid;
     assign base9_skid_ready = l9_fire & l9_take_group_not;
     assign base9_skid_valid_not = ~base9_skid_valid;
@@ -2603,14 +2385,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign base9_skid_spare_valid_not = ~base9_skid_spare_valid;
     assign base9_valid_and = base9_valid & base9_skid_spare_valid_not;
     assign base9_skid_spare_valid_or = base9_skid_spare_valid | base9_valid;
-    assign base9_skid_valid_next = base9_skid_ready_or ? base9_skid_spare_valid_or : base9_skid_valid;
     assign base9_skid_spare_valid_mux = base9_skid_spare_valid ? base9_skid_spare_data : base9_data;
-    assign base9_skid_data_next = base9_skid_ready_or ? base9_skid_spare_valid_mux : base9_skid_data;
     assign base9_skid_spare_valid_or_1 = base9_skid_spare_valid | base9_valid_and;
     assign base9_skid_spare_valid_next = base9_skid_ready_or ? 1'b0 : base9_skid_spare_valid_or_1;
     assign base9_skid_ready_not = ~base9_skid_ready_or;
     assign base9_skid_ready_and = base9_skid_ready_not & base9_valid_and;
-    assign base9_skid_spare_data_next = base9_skid_ready_and ? base9_data : base9_skid_spare_data;
     assign base10_ready = ~base10_skid_spare_valid;
     assign base10_skid_ready = l10_fire & l10_take_group_not;
     assign base10_skid_valid_not = ~base10_skid_valid;
@@ -2618,14 +2397,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign base10_skid_spare_valid_not = ~base10_skid_spare_valid;
     assign base10_valid_and = base10_valid & base10_skid_spare_valid_not;
     assign base10_skid_spare_valid_or = base10_skid_spare_valid | base10_valid;
-    assign base10_skid_valid_next = base10_skid_ready_or ? base10_skid_spare_valid_or : base10_skid_valid;
     assign base10_skid_spare_valid_mux = base10_skid_spare_valid ? base10_skid_spare_data : base10_data;
-    assign base10_skid_data_next = base10_skid_ready_or ? base10_skid_spare_valid_mux : base10_skid_data;
     assign base10_skid_spare_valid_or_1 = base10_skid_spare_valid | base10_valid_and;
     assign base10_skid_spare_valid_next = base10_skid_ready_or ? 1'b0 : base10_skid_spare_valid_or_1;
     assign base10_skid_ready_not = ~base10_skid_ready_or;
     assign base10_skid_ready_and = base10_skid_ready_not & base10_valid_and;
-    assign base10_skid_spare_data_next = base10_skid_ready_and ? base10_data : base10_skid_spare_data;
     assign base11_ready = ~base11_skid_spare_valid;
     assign base11_skid_ready = l11_fire & l11_take_group_not;
     assign base11_skid_valid_not = ~base11_skid_valid;
@@ -2633,14 +2409,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign base11_skid_spare_valid_not = ~base11_skid_spare_valid;
     assign base11_valid_and = base11_valid & base11_skid_spare_valid_not;
     assign base11_skid_spare_valid_or = base11_skid_spare_valid | base11_valid;
-    assign base11_skid_valid_next = base11_skid_ready_or ? base11_skid_spare_valid_or : base11_skid_valid;
     assign base11_skid_spare_valid_mux = base11_skid_spare_valid ? base11_skid_spare_data : base11_data;
-    assign base11_skid_data_next = base11_skid_ready_or ? base11_skid_spare_valid_mux : base11_skid_data;
     assign base11_skid_spare_valid_or_1 = base11_skid_spare_valid | base11_valid_and;
     assign base11_skid_spare_valid_next = base11_skid_ready_or ? 1'b0 : base11_skid_spare_valid_or_1;
     assign base11_skid_ready_not = ~base11_skid_ready_or;
     assign base11_skid_ready_and = base11_skid_ready_not & base11_valid_and;
-    assign base11_skid_spare_data_next = base11_skid_ready_and ? base11_data : base11_skid_spare_data;
     assign base12_ready = ~base12_skid_spare_valid;
     assign base12_skid_ready = l12_fire & l12_take_group_not;
     assign base12_skid_valid_not = ~base12_skid_valid;
@@ -2648,14 +2421,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign base12_skid_spare_valid_not = ~base12_skid_spare_valid;
     assign base12_valid_and = base12_valid & base12_skid_spare_valid_not;
     assign base12_skid_spare_valid_or = base12_skid_spare_valid | base12_valid;
-    assign base12_skid_valid_next = base12_skid_ready_or ? base12_skid_spare_valid_or : base12_skid_valid;
     assign base12_skid_spare_valid_mux = base12_skid_spare_valid ? base12_skid_spare_data : base12_data;
-    assign base12_skid_data_next = base12_skid_ready_or ? base12_skid_spare_valid_mux : base12_skid_data;
     assign base12_skid_spare_valid_or_1 = base12_skid_spare_valid | base12_valid_and;
     assign base12_skid_spare_valid_next = base12_skid_ready_or ? 1'b0 : base12_skid_spare_valid_or_1;
     assign base12_skid_ready_not = ~base12_skid_ready_or;
     assign base12_skid_ready_and = base12_skid_ready_not & base12_valid_and;
-    assign base12_skid_spare_data_next = base12_skid_ready_and ? base12_data : base12_skid_spare_data;
     assign base13_ready = ~base13_skid_spare_valid;
     assign base13_skid_ready = l13_fire & l13_take_group_not;
     assign base13_skid_valid_not = ~base13_skid_valid;
@@ -2663,14 +2433,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign base13_skid_spare_valid_not = ~base13_skid_spare_valid;
     assign base13_valid_and = base13_valid & base13_skid_spare_valid_not;
     assign base13_skid_spare_valid_or = base13_skid_spare_valid | base13_valid;
-    assign base13_skid_valid_next = base13_skid_ready_or ? base13_skid_spare_valid_or : base13_skid_valid;
     assign base13_skid_spare_valid_mux = base13_skid_spare_valid ? base13_skid_spare_data : base13_data;
-    assign base13_skid_data_next = base13_skid_ready_or ? base13_skid_spare_valid_mux : base13_skid_data;
     assign base13_skid_spare_valid_or_1 = base13_skid_spare_valid | base13_valid_and;
     assign base13_skid_spare_valid_next = base13_skid_ready_or ? 1'b0 : base13_skid_spare_valid_or_1;
     assign base13_skid_ready_not = ~base13_skid_ready_or;
     assign base13_skid_ready_and = base13_skid_ready_not & base13_valid_and;
-    assign base13_skid_spare_data_next = base13_skid_ready_and ? base13_data : base13_skid_spare_data;
     assign base14_ready = ~base14_skid_spare_valid;
     assign base14_skid_ready = l14_fire & l14_take_group_not;
     assign base14_skid_valid_not = ~base14_skid_valid;
@@ -2678,14 +2445,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign base14_skid_spare_valid_not = ~base14_skid_spare_valid;
     assign base14_valid_and = base14_valid & base14_skid_spare_valid_not;
     assign base14_skid_spare_valid_or = base14_skid_spare_valid | base14_valid;
-    assign base14_skid_valid_next = base14_skid_ready_or ? base14_skid_spare_valid_or : base14_skid_valid;
     assign base14_skid_spare_valid_mux = base14_skid_spare_valid ? base14_skid_spare_data : base14_data;
-    assign base14_skid_data_next = base14_skid_ready_or ? base14_skid_spare_valid_mux : base14_skid_data;
     assign base14_skid_spare_valid_or_1 = base14_skid_spare_valid | base14_valid_and;
     assign base14_skid_spare_valid_next = base14_skid_ready_or ? 1'b0 : base14_skid_spare_valid_or_1;
     assign base14_skid_ready_not = ~base14_skid_ready_or;
     assign base14_skid_ready_and = base14_skid_ready_not & base14_valid_and;
-    assign base14_skid_spare_data_next = base14_skid_ready_and ? base14_data : base14_skid_spare_data;
     assign base15_ready = ~base15_skid_spare_valid;
     assign base15_skid_ready = l15_fire & l15_take_group_not;
     assign base15_skid_valid_not = ~base15_skid_valid;
@@ -2693,14 +2457,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign base15_skid_spare_valid_not = ~base15_skid_spare_valid;
     assign base15_valid_and = base15_valid & base15_skid_spare_valid_not;
     assign base15_skid_spare_valid_or = base15_skid_spare_valid | base15_valid;
-    assign base15_skid_valid_next = base15_skid_ready_or ? base15_skid_spare_valid_or : base15_skid_valid;
     assign base15_skid_spare_valid_mux = base15_skid_spare_valid ? base15_skid_spare_data : base15_data;
-    assign base15_skid_data_next = base15_skid_ready_or ? base15_skid_spare_valid_mux : base15_skid_data;
     assign base15_skid_spare_valid_or_1 = base15_skid_spare_valid | base15_valid_and;
     assign base15_skid_spare_valid_next = base15_skid_ready_or ? 1'b0 : base15_skid_spare_valid_or_1;
     assign base15_skid_ready_not = ~base15_skid_ready_or;
     assign base15_skid_ready_and = base15_skid_ready_not & base15_valid_and;
-    assign base15_skid_spare_data_next = base15_skid_ready_and ? base15_data : base15_skid_spare_data;
     assign base16_ready = ~base16_skid_spare_valid;
     assign base16_skid_ready = l16_fire & 1'b1;
     assign base16_skid_valid_not = ~base16_skid_valid;
@@ -2708,14 +2469,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign base16_skid_spare_valid_not = ~base16_skid_spare_valid;
     assign base16_valid_and = base16_valid & base16_skid_spare_valid_not;
     assign base16_skid_spare_valid_or = base16_skid_spare_valid | base16_valid;
-    assign base16_skid_valid_next = base16_skid_ready_or ? base16_skid_spare_valid_or : base16_skid_valid;
     assign base16_skid_spare_valid_mux = base16_skid_spare_valid ? base16_skid_spare_data : base16_data;
-    assign base16_skid_data_next = base16_skid_ready_or ? base16_skid_spare_valid_mux : base16_skid_data;
     assign base16_skid_spare_valid_or_1 = base16_skid_spare_valid | base16_valid_and;
     assign base16_skid_spare_valid_next = base16_skid_ready_or ? 1'b0 : base16_skid_spare_valid_or_1;
     assign base16_skid_ready_not = ~base16_skid_ready_or;
     assign base16_skid_ready_and = base16_skid_ready_not & base16_valid_and;
-    assign base16_skid_spare_data_next = base16_skid_ready_and ? base16_data : base16_skid_spare_data;
     assign base0_skid_data_eq = base0_skid_data[179:178] == 2'd3;
     assign base0_skid_data_eq_1 = base0_skid_data[179:178] == 2'd0;
     assign base0_skid_data_mux = base0_skid_data_eq_1 ? 2'd1 : 2'd2;
@@ -3142,20 +2900,15 @@ module upper_builder_d16_q8_i24_h4 (
     assign level16_skid_spare_valid_not = ~level16_skid_spare_valid;
     assign level16_in_valid_and = level16_in_valid & level16_skid_spare_valid_not;
     assign level16_skid_spare_valid_or = level16_skid_spare_valid | level16_in_valid;
-    assign level16_skid_valid_next = level16_skid_ready_or ? level16_skid_spare_valid_or : level16_skid_valid;
     assign level16_skid_spare_valid_mux = level16_skid_spare_valid ? level16_skid_spare_data : level16_beat;
-    assign level16_skid_data_next = level16_skid_ready_or ? level16_skid_spare_valid_mux : level16_skid_data;
     assign level16_skid_spare_valid_or_1 = level16_skid_spare_valid | level16_in_valid_and;
     assign level16_skid_spare_valid_next = level16_skid_ready_or ? 1'b0 : level16_skid_spare_valid_or_1;
     assign level16_skid_ready_not = ~level16_skid_ready_or;
     assign level16_skid_ready_and = level16_skid_ready_not & level16_in_valid_and;
-    assign level16_skid_spare_data_next = level16_skid_ready_and ? level16_beat : level16_skid_spare_data;
     assign level16_valid = level16_skid_valid;
     assign level16_data = level16_skid_data;
     assign l16_done_or = l16_done | l16_end_fire;
     assign l16_done_next = merge_clear ? 1'b0 : l16_done_or;
-    assign l16_fire_mux = l16_fire_and ? l16_nodes_add[23:0] : l16_nodes;
-    assign l16_nodes_next = merge_clear ? 24'd0 : l16_fire_mux;
     assign l16_fire_and_1 = l16_fire_and & l16_nodes_add[24];
     assign l16_nodes_ovf_or_1 = l16_nodes_ovf | l16_fire_and_1;
     assign l16_nodes_ovf_next = merge_clear ? 1'b0 : l16_nodes_ovf_or_1;
@@ -3163,8 +2916,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign base16_skid_data_not_4 = ~base16_skid_data_eq_2;
     assign l16_fire_and_2 = l16_fire_and & base16_skid_data_not_4;
     assign l16_records_add = l16_records + 24'd1;
-    assign l16_fire_mux_1 = l16_fire_and_2 ? l16_records_add : l16_records;
-    assign l16_records_next = merge_clear ? 24'd0 : l16_fire_mux_1;
     assign base16_skid_data_eq_3 = base16_skid_data_mux_1 == 2'd2;
     assign base16_skid_data_and = base16_skid_data_eq_3 & base16_skid_data[0];
     assign l16_fire_and_3 = l16_fire_and & base16_skid_data_and;
@@ -3180,7 +2931,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign top_found_not_2 = ~top_found;
     assign l16_end_fire_and = l16_end_fire & top_found_not_2;
     assign l16_is_top = l16_end_fire_and & l16_nodes_and_2;
-    assign l16_is_top_mux = l16_is_top ? 5'd16 : top_lod;
     assign l16_is_top_or = 1'b0 | l16_is_top;
     assign level15_in_ready = ~level15_skid_spare_valid;
     assign l15_end_not = ~l15_end;
@@ -3220,20 +2970,15 @@ module upper_builder_d16_q8_i24_h4 (
     assign level15_skid_spare_valid_not = ~level15_skid_spare_valid;
     assign level15_in_valid_and = level15_in_valid & level15_skid_spare_valid_not;
     assign level15_skid_spare_valid_or = level15_skid_spare_valid | level15_in_valid;
-    assign level15_skid_valid_next = level15_skid_ready_or ? level15_skid_spare_valid_or : level15_skid_valid;
     assign level15_skid_spare_valid_mux = level15_skid_spare_valid ? level15_skid_spare_data : level15_beat;
-    assign level15_skid_data_next = level15_skid_ready_or ? level15_skid_spare_valid_mux : level15_skid_data;
     assign level15_skid_spare_valid_or_1 = level15_skid_spare_valid | level15_in_valid_and;
     assign level15_skid_spare_valid_next = level15_skid_ready_or ? 1'b0 : level15_skid_spare_valid_or_1;
     assign level15_skid_ready_not = ~level15_skid_ready_or;
     assign level15_skid_ready_and = level15_skid_ready_not & level15_in_valid_and;
-    assign level15_skid_spare_data_next = level15_skid_ready_and ? level15_beat : level15_skid_spare_data;
     assign level15_valid = level15_skid_valid;
     assign level15_data = level15_skid_data;
     assign l15_done_or = l15_done | l15_end_fire;
     assign l15_done_next = merge_clear ? 1'b0 : l15_done_or;
-    assign l15_fire_mux = l15_fire_and ? l15_nodes_add[23:0] : l15_nodes;
-    assign l15_nodes_next = merge_clear ? 24'd0 : l15_fire_mux;
     assign l15_fire_and_2 = l15_fire_and & l15_nodes_add[24];
     assign l15_nodes_ovf_or = l15_nodes_ovf | l15_fire_and_2;
     assign l15_nodes_ovf_next = merge_clear ? 1'b0 : l15_nodes_ovf_or;
@@ -3241,8 +2986,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign l15_take_group_not_1 = ~l15_take_group_eq;
     assign l15_fire_and_3 = l15_fire_and & l15_take_group_not_1;
     assign l15_records_add = l15_records + 24'd1;
-    assign l15_fire_mux_1 = l15_fire_and_3 ? l15_records_add : l15_records;
-    assign l15_records_next = merge_clear ? 24'd0 : l15_fire_mux_1;
     assign l15_fire_and_4 = l15_fire_and & l15_take_group_not;
     assign l15_had_base_or_2 = l15_had_base | l15_fire_and_4;
     assign l15_had_base_next = merge_clear ? 1'b0 : l15_had_base_or_2;
@@ -3261,7 +3004,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign top_found_not_5 = ~top_found;
     assign l15_end_fire_and = l15_end_fire & top_found_not_5;
     assign l15_is_top = l15_end_fire_and & l15_nodes_and_2;
-    assign l15_is_top_mux = l15_is_top ? 5'd15 : l16_is_top_mux;
     assign l16_is_top_or_1 = l16_is_top_or | l15_is_top;
     assign level14_in_ready = ~level14_skid_spare_valid;
     assign l14_end_not = ~l14_end;
@@ -3301,20 +3043,15 @@ module upper_builder_d16_q8_i24_h4 (
     assign level14_skid_spare_valid_not = ~level14_skid_spare_valid;
     assign level14_in_valid_and = level14_in_valid & level14_skid_spare_valid_not;
     assign level14_skid_spare_valid_or = level14_skid_spare_valid | level14_in_valid;
-    assign level14_skid_valid_next = level14_skid_ready_or ? level14_skid_spare_valid_or : level14_skid_valid;
     assign level14_skid_spare_valid_mux = level14_skid_spare_valid ? level14_skid_spare_data : level14_beat;
-    assign level14_skid_data_next = level14_skid_ready_or ? level14_skid_spare_valid_mux : level14_skid_data;
     assign level14_skid_spare_valid_or_1 = level14_skid_spare_valid | level14_in_valid_and;
     assign level14_skid_spare_valid_next = level14_skid_ready_or ? 1'b0 : level14_skid_spare_valid_or_1;
     assign level14_skid_ready_not = ~level14_skid_ready_or;
     assign level14_skid_ready_and = level14_skid_ready_not & level14_in_valid_and;
-    assign level14_skid_spare_data_next = level14_skid_ready_and ? level14_beat : level14_skid_spare_data;
     assign level14_valid = level14_skid_valid;
     assign level14_data = level14_skid_data;
     assign l14_done_or = l14_done | l14_end_fire;
     assign l14_done_next = merge_clear ? 1'b0 : l14_done_or;
-    assign l14_fire_mux = l14_fire_and ? l14_nodes_add[23:0] : l14_nodes;
-    assign l14_nodes_next = merge_clear ? 24'd0 : l14_fire_mux;
     assign l14_fire_and_2 = l14_fire_and & l14_nodes_add[24];
     assign l14_nodes_ovf_or = l14_nodes_ovf | l14_fire_and_2;
     assign l14_nodes_ovf_next = merge_clear ? 1'b0 : l14_nodes_ovf_or;
@@ -3322,8 +3059,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign l14_take_group_not_1 = ~l14_take_group_eq;
     assign l14_fire_and_3 = l14_fire_and & l14_take_group_not_1;
     assign l14_records_add = l14_records + 24'd1;
-    assign l14_fire_mux_1 = l14_fire_and_3 ? l14_records_add : l14_records;
-    assign l14_records_next = merge_clear ? 24'd0 : l14_fire_mux_1;
     assign l14_fire_and_4 = l14_fire_and & l14_take_group_not;
     assign l14_had_base_or_2 = l14_had_base | l14_fire_and_4;
     assign l14_had_base_next = merge_clear ? 1'b0 : l14_had_base_or_2;
@@ -3342,7 +3077,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign top_found_not_8 = ~top_found;
     assign l14_end_fire_and = l14_end_fire & top_found_not_8;
     assign l14_is_top = l14_end_fire_and & l14_nodes_and_2;
-    assign l14_is_top_mux = l14_is_top ? 5'd14 : l15_is_top_mux;
     assign l16_is_top_or_2 = l16_is_top_or_1 | l14_is_top;
     assign level13_in_ready = ~level13_skid_spare_valid;
     assign l13_end_not = ~l13_end;
@@ -3382,20 +3116,15 @@ module upper_builder_d16_q8_i24_h4 (
     assign level13_skid_spare_valid_not = ~level13_skid_spare_valid;
     assign level13_in_valid_and = level13_in_valid & level13_skid_spare_valid_not;
     assign level13_skid_spare_valid_or = level13_skid_spare_valid | level13_in_valid;
-    assign level13_skid_valid_next = level13_skid_ready_or ? level13_skid_spare_valid_or : level13_skid_valid;
     assign level13_skid_spare_valid_mux = level13_skid_spare_valid ? level13_skid_spare_data : level13_beat;
-    assign level13_skid_data_next = level13_skid_ready_or ? level13_skid_spare_valid_mux : level13_skid_data;
     assign level13_skid_spare_valid_or_1 = level13_skid_spare_valid | level13_in_valid_and;
     assign level13_skid_spare_valid_next = level13_skid_ready_or ? 1'b0 : level13_skid_spare_valid_or_1;
     assign level13_skid_ready_not = ~level13_skid_ready_or;
     assign level13_skid_ready_and = level13_skid_ready_not & level13_in_valid_and;
-    assign level13_skid_spare_data_next = level13_skid_ready_and ? level13_beat : level13_skid_spare_data;
     assign level13_valid = level13_skid_valid;
     assign level13_data = level13_skid_data;
     assign l13_done_or = l13_done | l13_end_fire;
     assign l13_done_next = merge_clear ? 1'b0 : l13_done_or;
-    assign l13_fire_mux = l13_fire_and ? l13_nodes_add[23:0] : l13_nodes;
-    assign l13_nodes_next = merge_clear ? 24'd0 : l13_fire_mux;
     assign l13_fire_and_2 = l13_fire_and & l13_nodes_add[24];
     assign l13_nodes_ovf_or = l13_nodes_ovf | l13_fire_and_2;
     assign l13_nodes_ovf_next = merge_clear ? 1'b0 : l13_nodes_ovf_or;
@@ -3403,8 +3132,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign l13_take_group_not_1 = ~l13_take_group_eq;
     assign l13_fire_and_3 = l13_fire_and & l13_take_group_not_1;
     assign l13_records_add = l13_records + 24'd1;
-    assign l13_fire_mux_1 = l13_fire_and_3 ? l13_records_add : l13_records;
-    assign l13_records_next = merge_clear ? 24'd0 : l13_fire_mux_1;
     assign l13_fire_and_4 = l13_fire_and & l13_take_group_not;
     assign l13_had_base_or_2 = l13_had_base | l13_fire_and_4;
     assign l13_had_base_next = merge_clear ? 1'b0 : l13_had_base_or_2;
@@ -3423,7 +3150,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign top_found_not_11 = ~top_found;
     assign l13_end_fire_and = l13_end_fire & top_found_not_11;
     assign l13_is_top = l13_end_fire_and & l13_nodes_and_2;
-    assign l13_is_top_mux = l13_is_top ? 5'd13 : l14_is_top_mux;
     assign l16_is_top_or_3 = l16_is_top_or_2 | l13_is_top;
     assign level12_in_ready = ~level12_skid_spare_valid;
     assign l12_end_not = ~l12_end;
@@ -3463,20 +3189,15 @@ module upper_builder_d16_q8_i24_h4 (
     assign level12_skid_spare_valid_not = ~level12_skid_spare_valid;
     assign level12_in_valid_and = level12_in_valid & level12_skid_spare_valid_not;
     assign level12_skid_spare_valid_or = level12_skid_spare_valid | level12_in_valid;
-    assign level12_skid_valid_next = level12_skid_ready_or ? level12_skid_spare_valid_or : level12_skid_valid;
     assign level12_skid_spare_valid_mux = level12_skid_spare_valid ? level12_skid_spare_data : level12_beat;
-    assign level12_skid_data_next = level12_skid_ready_or ? level12_skid_spare_valid_mux : level12_skid_data;
     assign level12_skid_spare_valid_or_1 = level12_skid_spare_valid | level12_in_valid_and;
     assign level12_skid_spare_valid_next = level12_skid_ready_or ? 1'b0 : level12_skid_spare_valid_or_1;
     assign level12_skid_ready_not = ~level12_skid_ready_or;
     assign level12_skid_ready_and = level12_skid_ready_not & level12_in_valid_and;
-    assign level12_skid_spare_data_next = level12_skid_ready_and ? level12_beat : level12_skid_spare_data;
     assign level12_valid = level12_skid_valid;
     assign level12_data = level12_skid_data;
     assign l12_done_or = l12_done | l12_end_fire;
     assign l12_done_next = merge_clear ? 1'b0 : l12_done_or;
-    assign l12_fire_mux = l12_fire_and ? l12_nodes_add[23:0] : l12_nodes;
-    assign l12_nodes_next = merge_clear ? 24'd0 : l12_fire_mux;
     assign l12_fire_and_2 = l12_fire_and & l12_nodes_add[24];
     assign l12_nodes_ovf_or = l12_nodes_ovf | l12_fire_and_2;
     assign l12_nodes_ovf_next = merge_clear ? 1'b0 : l12_nodes_ovf_or;
@@ -3484,8 +3205,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign l12_take_group_not_1 = ~l12_take_group_eq;
     assign l12_fire_and_3 = l12_fire_and & l12_take_group_not_1;
     assign l12_records_add = l12_records + 24'd1;
-    assign l12_fire_mux_1 = l12_fire_and_3 ? l12_records_add : l12_records;
-    assign l12_records_next = merge_clear ? 24'd0 : l12_fire_mux_1;
     assign l12_fire_and_4 = l12_fire_and & l12_take_group_not;
     assign l12_had_base_or_2 = l12_had_base | l12_fire_and_4;
     assign l12_had_base_next = merge_clear ? 1'b0 : l12_had_base_or_2;
@@ -3504,7 +3223,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign top_found_not_14 = ~top_found;
     assign l12_end_fire_and = l12_end_fire & top_found_not_14;
     assign l12_is_top = l12_end_fire_and & l12_nodes_and_2;
-    assign l12_is_top_mux = l12_is_top ? 5'd12 : l13_is_top_mux;
     assign l16_is_top_or_4 = l16_is_top_or_3 | l12_is_top;
     assign level11_in_ready = ~level11_skid_spare_valid;
     assign l11_end_not = ~l11_end;
@@ -3544,20 +3262,15 @@ module upper_builder_d16_q8_i24_h4 (
     assign level11_skid_spare_valid_not = ~level11_skid_spare_valid;
     assign level11_in_valid_and = level11_in_valid & level11_skid_spare_valid_not;
     assign level11_skid_spare_valid_or = level11_skid_spare_valid | level11_in_valid;
-    assign level11_skid_valid_next = level11_skid_ready_or ? level11_skid_spare_valid_or : level11_skid_valid;
     assign level11_skid_spare_valid_mux = level11_skid_spare_valid ? level11_skid_spare_data : level11_beat;
-    assign level11_skid_data_next = level11_skid_ready_or ? level11_skid_spare_valid_mux : level11_skid_data;
     assign level11_skid_spare_valid_or_1 = level11_skid_spare_valid | level11_in_valid_and;
     assign level11_skid_spare_valid_next = level11_skid_ready_or ? 1'b0 : level11_skid_spare_valid_or_1;
     assign level11_skid_ready_not = ~level11_skid_ready_or;
     assign level11_skid_ready_and = level11_skid_ready_not & level11_in_valid_and;
-    assign level11_skid_spare_data_next = level11_skid_ready_and ? level11_beat : level11_skid_spare_data;
     assign level11_valid = level11_skid_valid;
     assign level11_data = level11_skid_data;
     assign l11_done_or = l11_done | l11_end_fire;
     assign l11_done_next = merge_clear ? 1'b0 : l11_done_or;
-    assign l11_fire_mux = l11_fire_and ? l11_nodes_add[23:0] : l11_nodes;
-    assign l11_nodes_next = merge_clear ? 24'd0 : l11_fire_mux;
     assign l11_fire_and_2 = l11_fire_and & l11_nodes_add[24];
     assign l11_nodes_ovf_or = l11_nodes_ovf | l11_fire_and_2;
     assign l11_nodes_ovf_next = merge_clear ? 1'b0 : l11_nodes_ovf_or;
@@ -3565,8 +3278,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign l11_take_group_not_1 = ~l11_take_group_eq;
     assign l11_fire_and_3 = l11_fire_and & l11_take_group_not_1;
     assign l11_records_add = l11_records + 24'd1;
-    assign l11_fire_mux_1 = l11_fire_and_3 ? l11_records_add : l11_records;
-    assign l11_records_next = merge_clear ? 24'd0 : l11_fire_mux_1;
     assign l11_fire_and_4 = l11_fire_and & l11_take_group_not;
     assign l11_had_base_or_2 = l11_had_base | l11_fire_and_4;
     assign l11_had_base_next = merge_clear ? 1'b0 : l11_had_base_or_2;
@@ -3585,7 +3296,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign top_found_not_17 = ~top_found;
     assign l11_end_fire_and = l11_end_fire & top_found_not_17;
     assign l11_is_top = l11_end_fire_and & l11_nodes_and_2;
-    assign l11_is_top_mux = l11_is_top ? 5'd11 : l12_is_top_mux;
     assign l16_is_top_or_5 = l16_is_top_or_4 | l11_is_top;
     assign level10_in_ready = ~level10_skid_spare_valid;
     assign l10_end_not = ~l10_end;
@@ -3625,20 +3335,15 @@ module upper_builder_d16_q8_i24_h4 (
     assign level10_skid_spare_valid_not = ~level10_skid_spare_valid;
     assign level10_in_valid_and = level10_in_valid & level10_skid_spare_valid_not;
     assign level10_skid_spare_valid_or = level10_skid_spare_valid | level10_in_valid;
-    assign level10_skid_valid_next = level10_skid_ready_or ? level10_skid_spare_valid_or : level10_skid_valid;
     assign level10_skid_spare_valid_mux = level10_skid_spare_valid ? level10_skid_spare_data : level10_beat;
-    assign level10_skid_data_next = level10_skid_ready_or ? level10_skid_spare_valid_mux : level10_skid_data;
     assign level10_skid_spare_valid_or_1 = level10_skid_spare_valid | level10_in_valid_and;
     assign level10_skid_spare_valid_next = level10_skid_ready_or ? 1'b0 : level10_skid_spare_valid_or_1;
     assign level10_skid_ready_not = ~level10_skid_ready_or;
     assign level10_skid_ready_and = level10_skid_ready_not & level10_in_valid_and;
-    assign level10_skid_spare_data_next = level10_skid_ready_and ? level10_beat : level10_skid_spare_data;
     assign level10_valid = level10_skid_valid;
     assign level10_data = level10_skid_data;
     assign l10_done_or = l10_done | l10_end_fire;
     assign l10_done_next = merge_clear ? 1'b0 : l10_done_or;
-    assign l10_fire_mux = l10_fire_and ? l10_nodes_add[23:0] : l10_nodes;
-    assign l10_nodes_next = merge_clear ? 24'd0 : l10_fire_mux;
     assign l10_fire_and_2 = l10_fire_and & l10_nodes_add[24];
     assign l10_nodes_ovf_or = l10_nodes_ovf | l10_fire_and_2;
     assign l10_nodes_ovf_next = merge_clear ? 1'b0 : l10_nodes_ovf_or;
@@ -3646,8 +3351,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign l10_take_group_not_1 = ~l10_take_group_eq;
     assign l10_fire_and_3 = l10_fire_and & l10_take_group_not_1;
     assign l10_records_add = l10_records + 24'd1;
-    assign l10_fire_mux_1 = l10_fire_and_3 ? l10_records_add : l10_records;
-    assign l10_records_next = merge_clear ? 24'd0 : l10_fire_mux_1;
     assign l10_fire_and_4 = l10_fire_and & l10_take_group_not;
     assign l10_had_base_or_2 = l10_had_base | l10_fire_and_4;
     assign l10_had_base_next = merge_clear ? 1'b0 : l10_had_base_or_2;
@@ -3666,7 +3369,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign top_found_not_20 = ~top_found;
     assign l10_end_fire_and = l10_end_fire & top_found_not_20;
     assign l10_is_top = l10_end_fire_and & l10_nodes_and_2;
-    assign l10_is_top_mux = l10_is_top ? 5'd10 : l11_is_top_mux;
     assign l16_is_top_or_6 = l16_is_top_or_5 | l10_is_top;
     assign level9_in_ready = ~level9_skid_spare_valid;
     assign l9_end_not = ~l9_end;
@@ -3706,20 +3408,15 @@ module upper_builder_d16_q8_i24_h4 (
     assign level9_skid_spare_valid_not = ~level9_skid_spare_valid;
     assign level9_in_valid_and = level9_in_valid & level9_skid_spare_valid_not;
     assign level9_skid_spare_valid_or = level9_skid_spare_valid | level9_in_valid;
-    assign level9_skid_valid_next = level9_skid_ready_or ? level9_skid_spare_valid_or : level9_skid_valid;
     assign level9_skid_spare_valid_mux = level9_skid_spare_valid ? level9_skid_spare_data : level9_beat;
-    assign level9_skid_data_next = level9_skid_ready_or ? level9_skid_spare_valid_mux : level9_skid_data;
     assign level9_skid_spare_valid_or_1 = level9_skid_spare_valid | level9_in_valid_and;
     assign level9_skid_spare_valid_next = level9_skid_ready_or ? 1'b0 : level9_skid_spare_valid_or_1;
     assign level9_skid_ready_not = ~level9_skid_ready_or;
     assign level9_skid_ready_and = level9_skid_ready_not & level9_in_valid_and;
-    assign level9_skid_spare_data_next = level9_skid_ready_and ? level9_beat : level9_skid_spare_data;
     assign level9_valid = level9_skid_valid;
     assign level9_data = level9_skid_data;
     assign l9_done_or = l9_done | l9_end_fire;
     assign l9_done_next = merge_clear ? 1'b0 : l9_done_or;
-    assign l9_fire_mux = l9_fire_and ? l9_nodes_add[23:0] : l9_nodes;
-    assign l9_nodes_next = merge_clear ? 24'd0 : l9_fire_mux;
     assign l9_fire_and_2 = l9_fire_and & l9_nodes_add[24];
     assign l9_nodes_ovf_or = l9_nodes_ovf | l9_fire_and_2;
     assign l9_nodes_ovf_next = merge_clear ? 1'b0 : l9_nodes_ovf_or;
@@ -3727,8 +3424,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign l9_take_group_not_1 = ~l9_take_group_eq;
     assign l9_fire_and_3 = l9_fire_and & l9_take_group_not_1;
     assign l9_records_add = l9_records + 24'd1;
-    assign l9_fire_mux_1 = l9_fire_and_3 ? l9_records_add : l9_records;
-    assign l9_records_next = merge_clear ? 24'd0 : l9_fire_mux_1;
     assign l9_fire_and_4 = l9_fire_and & l9_take_group_not;
     assign l9_had_base_or_2 = l9_had_base | l9_fire_and_4;
     assign l9_had_base_next = merge_clear ? 1'b0 : l9_had_base_or_2;
@@ -3747,7 +3442,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign top_found_not_23 = ~top_found;
     assign l9_end_fire_and = l9_end_fire & top_found_not_23;
     assign l9_is_top = l9_end_fire_and & l9_nodes_and_2;
-    assign l9_is_top_mux = l9_is_top ? 5'd9 : l10_is_top_mux;
     assign l16_is_top_or_7 = l16_is_top_or_6 | l9_is_top;
     assign level8_in_ready = ~level8_skid_spare_valid;
     assign l8_end_not = ~l8_end;
@@ -3787,20 +3481,15 @@ module upper_builder_d16_q8_i24_h4 (
     assign level8_skid_spare_valid_not = ~level8_skid_spare_valid;
     assign level8_in_valid_and = level8_in_valid & level8_skid_spare_valid_not;
     assign level8_skid_spare_valid_or = level8_skid_spare_valid | level8_in_valid;
-    assign level8_skid_valid_next = level8_skid_ready_or ? level8_skid_spare_valid_or : level8_skid_valid;
     assign level8_skid_spare_valid_mux = level8_skid_spare_valid ? level8_skid_spare_data : level8_beat;
-    assign level8_skid_data_next = level8_skid_ready_or ? level8_skid_spare_valid_mux : level8_skid_data;
     assign level8_skid_spare_valid_or_1 = level8_skid_spare_valid | level8_in_valid_and;
     assign level8_skid_spare_valid_next = level8_skid_ready_or ? 1'b0 : level8_skid_spare_valid_or_1;
     assign level8_skid_ready_not = ~level8_skid_ready_or;
     assign level8_skid_ready_and = level8_skid_ready_not & level8_in_valid_and;
-    assign level8_skid_spare_data_next = level8_skid_ready_and ? level8_beat : level8_skid_spare_data;
     assign level8_valid = level8_skid_valid;
     assign level8_data = level8_skid_data;
     assign l8_done_or = l8_done | l8_end_fire;
     assign l8_done_next = merge_clear ? 1'b0 : l8_done_or;
-    assign l8_fire_mux = l8_fire_and ? l8_nodes_add[23:0] : l8_nodes;
-    assign l8_nodes_next = merge_clear ? 24'd0 : l8_fire_mux;
     assign l8_fire_and_2 = l8_fire_and & l8_nodes_add[24];
     assign l8_nodes_ovf_or = l8_nodes_ovf | l8_fire_and_2;
     assign l8_nodes_ovf_next = merge_clear ? 1'b0 : l8_nodes_ovf_or;
@@ -3808,8 +3497,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign l8_take_group_not_1 = ~l8_take_group_eq;
     assign l8_fire_and_3 = l8_fire_and & l8_take_group_not_1;
     assign l8_records_add = l8_records + 24'd1;
-    assign l8_fire_mux_1 = l8_fire_and_3 ? l8_records_add : l8_records;
-    assign l8_records_next = merge_clear ? 24'd0 : l8_fire_mux_1;
     assign l8_fire_and_4 = l8_fire_and & l8_take_group_not;
     assign l8_had_base_or_2 = l8_had_base | l8_fire_and_4;
     assign l8_had_base_next = merge_clear ? 1'b0 : l8_had_base_or_2;
@@ -3828,7 +3515,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign top_found_not_26 = ~top_found;
     assign l8_end_fire_and = l8_end_fire & top_found_not_26;
     assign l8_is_top = l8_end_fire_and & l8_nodes_and_2;
-    assign l8_is_top_mux = l8_is_top ? 5'd8 : l9_is_top_mux;
     assign l16_is_top_or_8 = l16_is_top_or_7 | l8_is_top;
     assign level7_in_ready = ~level7_skid_spare_valid;
     assign l7_end_not = ~l7_end;
@@ -3868,20 +3554,15 @@ module upper_builder_d16_q8_i24_h4 (
     assign level7_skid_spare_valid_not = ~level7_skid_spare_valid;
     assign level7_in_valid_and = level7_in_valid & level7_skid_spare_valid_not;
     assign level7_skid_spare_valid_or = level7_skid_spare_valid | level7_in_valid;
-    assign level7_skid_valid_next = level7_skid_ready_or ? level7_skid_spare_valid_or : level7_skid_valid;
     assign level7_skid_spare_valid_mux = level7_skid_spare_valid ? level7_skid_spare_data : level7_beat;
-    assign level7_skid_data_next = level7_skid_ready_or ? level7_skid_spare_valid_mux : level7_skid_data;
     assign level7_skid_spare_valid_or_1 = level7_skid_spare_valid | level7_in_valid_and;
     assign level7_skid_spare_valid_next = level7_skid_ready_or ? 1'b0 : level7_skid_spare_valid_or_1;
     assign level7_skid_ready_not = ~level7_skid_ready_or;
     assign level7_skid_ready_and = level7_skid_ready_not & level7_in_valid_and;
-    assign level7_skid_spare_data_next = level7_skid_ready_and ? level7_beat : level7_skid_spare_data;
     assign level7_valid = level7_skid_valid;
     assign level7_data = level7_skid_data;
     assign l7_done_or = l7_done | l7_end_fire;
     assign l7_done_next = merge_clear ? 1'b0 : l7_done_or;
-    assign l7_fire_mux = l7_fire_and ? l7_nodes_add[23:0] : l7_nodes;
-    assign l7_nodes_next = merge_clear ? 24'd0 : l7_fire_mux;
     assign l7_fire_and_2 = l7_fire_and & l7_nodes_add[24];
     assign l7_nodes_ovf_or = l7_nodes_ovf | l7_fire_and_2;
     assign l7_nodes_ovf_next = merge_clear ? 1'b0 : l7_nodes_ovf_or;
@@ -3889,8 +3570,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign l7_take_group_not_1 = ~l7_take_group_eq;
     assign l7_fire_and_3 = l7_fire_and & l7_take_group_not_1;
     assign l7_records_add = l7_records + 24'd1;
-    assign l7_fire_mux_1 = l7_fire_and_3 ? l7_records_add : l7_records;
-    assign l7_records_next = merge_clear ? 24'd0 : l7_fire_mux_1;
     assign l7_fire_and_4 = l7_fire_and & l7_take_group_not;
     assign l7_had_base_or_2 = l7_had_base | l7_fire_and_4;
     assign l7_had_base_next = merge_clear ? 1'b0 : l7_had_base_or_2;
@@ -3909,7 +3588,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign top_found_not_29 = ~top_found;
     assign l7_end_fire_and = l7_end_fire & top_found_not_29;
     assign l7_is_top = l7_end_fire_and & l7_nodes_and_2;
-    assign l7_is_top_mux = l7_is_top ? 5'd7 : l8_is_top_mux;
     assign l16_is_top_or_9 = l16_is_top_or_8 | l7_is_top;
     assign level6_in_ready = ~level6_skid_spare_valid;
     assign l6_end_not = ~l6_end;
@@ -3949,20 +3627,15 @@ module upper_builder_d16_q8_i24_h4 (
     assign level6_skid_spare_valid_not = ~level6_skid_spare_valid;
     assign level6_in_valid_and = level6_in_valid & level6_skid_spare_valid_not;
     assign level6_skid_spare_valid_or = level6_skid_spare_valid | level6_in_valid;
-    assign level6_skid_valid_next = level6_skid_ready_or ? level6_skid_spare_valid_or : level6_skid_valid;
     assign level6_skid_spare_valid_mux = level6_skid_spare_valid ? level6_skid_spare_data : level6_beat;
-    assign level6_skid_data_next = level6_skid_ready_or ? level6_skid_spare_valid_mux : level6_skid_data;
     assign level6_skid_spare_valid_or_1 = level6_skid_spare_valid | level6_in_valid_and;
     assign level6_skid_spare_valid_next = level6_skid_ready_or ? 1'b0 : level6_skid_spare_valid_or_1;
     assign level6_skid_ready_not = ~level6_skid_ready_or;
     assign level6_skid_ready_and = level6_skid_ready_not & level6_in_valid_and;
-    assign level6_skid_spare_data_next = level6_skid_ready_and ? level6_beat : level6_skid_spare_data;
     assign level6_valid = level6_skid_valid;
     assign level6_data = level6_skid_data;
     assign l6_done_or = l6_done | l6_end_fire;
     assign l6_done_next = merge_clear ? 1'b0 : l6_done_or;
-    assign l6_fire_mux = l6_fire_and ? l6_nodes_add[23:0] : l6_nodes;
-    assign l6_nodes_next = merge_clear ? 24'd0 : l6_fire_mux;
     assign l6_fire_and_2 = l6_fire_and & l6_nodes_add[24];
     assign l6_nodes_ovf_or = l6_nodes_ovf | l6_fire_and_2;
     assign l6_nodes_ovf_next = merge_clear ? 1'b0 : l6_nodes_ovf_or;
@@ -3970,8 +3643,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign l6_take_group_not_1 = ~l6_take_group_eq;
     assign l6_fire_and_3 = l6_fire_and & l6_take_group_not_1;
     assign l6_records_add = l6_records + 24'd1;
-    assign l6_fire_mux_1 = l6_fire_and_3 ? l6_records_add : l6_records;
-    assign l6_records_next = merge_clear ? 24'd0 : l6_fire_mux_1;
     assign l6_fire_and_4 = l6_fire_and & l6_take_group_not;
     assign l6_had_base_or_2 = l6_had_base | l6_fire_and_4;
     assign l6_had_base_next = merge_clear ? 1'b0 : l6_had_base_or_2;
@@ -3990,7 +3661,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign top_found_not_32 = ~top_found;
     assign l6_end_fire_and = l6_end_fire & top_found_not_32;
     assign l6_is_top = l6_end_fire_and & l6_nodes_and_2;
-    assign l6_is_top_mux = l6_is_top ? 5'd6 : l7_is_top_mux;
     assign l16_is_top_or_10 = l16_is_top_or_9 | l6_is_top;
     assign level5_in_ready = ~level5_skid_spare_valid;
     assign l5_end_not = ~l5_end;
@@ -4030,20 +3700,15 @@ module upper_builder_d16_q8_i24_h4 (
     assign level5_skid_spare_valid_not = ~level5_skid_spare_valid;
     assign level5_in_valid_and = level5_in_valid & level5_skid_spare_valid_not;
     assign level5_skid_spare_valid_or = level5_skid_spare_valid | level5_in_valid;
-    assign level5_skid_valid_next = level5_skid_ready_or ? level5_skid_spare_valid_or : level5_skid_valid;
     assign level5_skid_spare_valid_mux = level5_skid_spare_valid ? level5_skid_spare_data : level5_beat;
-    assign level5_skid_data_next = level5_skid_ready_or ? level5_skid_spare_valid_mux : level5_skid_data;
     assign level5_skid_spare_valid_or_1 = level5_skid_spare_valid | level5_in_valid_and;
     assign level5_skid_spare_valid_next = level5_skid_ready_or ? 1'b0 : level5_skid_spare_valid_or_1;
     assign level5_skid_ready_not = ~level5_skid_ready_or;
     assign level5_skid_ready_and = level5_skid_ready_not & level5_in_valid_and;
-    assign level5_skid_spare_data_next = level5_skid_ready_and ? level5_beat : level5_skid_spare_data;
     assign level5_valid = level5_skid_valid;
     assign level5_data = level5_skid_data;
     assign l5_done_or = l5_done | l5_end_fire;
     assign l5_done_next = merge_clear ? 1'b0 : l5_done_or;
-    assign l5_fire_mux = l5_fire_and ? l5_nodes_add[23:0] : l5_nodes;
-    assign l5_nodes_next = merge_clear ? 24'd0 : l5_fire_mux;
     assign l5_fire_and_2 = l5_fire_and & l5_nodes_add[24];
     assign l5_nodes_ovf_or = l5_nodes_ovf | l5_fire_and_2;
     assign l5_nodes_ovf_next = merge_clear ? 1'b0 : l5_nodes_ovf_or;
@@ -4051,8 +3716,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign l5_take_group_not_1 = ~l5_take_group_eq;
     assign l5_fire_and_3 = l5_fire_and & l5_take_group_not_1;
     assign l5_records_add = l5_records + 24'd1;
-    assign l5_fire_mux_1 = l5_fire_and_3 ? l5_records_add : l5_records;
-    assign l5_records_next = merge_clear ? 24'd0 : l5_fire_mux_1;
     assign l5_fire_and_4 = l5_fire_and & l5_take_group_not;
     assign l5_had_base_or_2 = l5_had_base | l5_fire_and_4;
     assign l5_had_base_next = merge_clear ? 1'b0 : l5_had_base_or_2;
@@ -4071,7 +3734,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign top_found_not_35 = ~top_found;
     assign l5_end_fire_and = l5_end_fire & top_found_not_35;
     assign l5_is_top = l5_end_fire_and & l5_nodes_and_2;
-    assign l5_is_top_mux = l5_is_top ? 5'd5 : l6_is_top_mux;
     assign l16_is_top_or_11 = l16_is_top_or_10 | l5_is_top;
     assign level4_in_ready = ~level4_skid_spare_valid;
     assign l4_end_not = ~l4_end;
@@ -4111,20 +3773,15 @@ module upper_builder_d16_q8_i24_h4 (
     assign level4_skid_spare_valid_not = ~level4_skid_spare_valid;
     assign level4_in_valid_and = level4_in_valid & level4_skid_spare_valid_not;
     assign level4_skid_spare_valid_or = level4_skid_spare_valid | level4_in_valid;
-    assign level4_skid_valid_next = level4_skid_ready_or ? level4_skid_spare_valid_or : level4_skid_valid;
     assign level4_skid_spare_valid_mux = level4_skid_spare_valid ? level4_skid_spare_data : level4_beat;
-    assign level4_skid_data_next = level4_skid_ready_or ? level4_skid_spare_valid_mux : level4_skid_data;
     assign level4_skid_spare_valid_or_1 = level4_skid_spare_valid | level4_in_valid_and;
     assign level4_skid_spare_valid_next = level4_skid_ready_or ? 1'b0 : level4_skid_spare_valid_or_1;
     assign level4_skid_ready_not = ~level4_skid_ready_or;
     assign level4_skid_ready_and = level4_skid_ready_not & level4_in_valid_and;
-    assign level4_skid_spare_data_next = level4_skid_ready_and ? level4_beat : level4_skid_spare_data;
     assign level4_valid = level4_skid_valid;
     assign level4_data = level4_skid_data;
     assign l4_done_or = l4_done | l4_end_fire;
     assign l4_done_next = merge_clear ? 1'b0 : l4_done_or;
-    assign l4_fire_mux = l4_fire_and ? l4_nodes_add[23:0] : l4_nodes;
-    assign l4_nodes_next = merge_clear ? 24'd0 : l4_fire_mux;
     assign l4_fire_and_2 = l4_fire_and & l4_nodes_add[24];
     assign l4_nodes_ovf_or = l4_nodes_ovf | l4_fire_and_2;
     assign l4_nodes_ovf_next = merge_clear ? 1'b0 : l4_nodes_ovf_or;
@@ -4132,8 +3789,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign l4_take_group_not_1 = ~l4_take_group_eq;
     assign l4_fire_and_3 = l4_fire_and & l4_take_group_not_1;
     assign l4_records_add = l4_records + 24'd1;
-    assign l4_fire_mux_1 = l4_fire_and_3 ? l4_records_add : l4_records;
-    assign l4_records_next = merge_clear ? 24'd0 : l4_fire_mux_1;
     assign l4_fire_and_4 = l4_fire_and & l4_take_group_not;
     assign l4_had_base_or_2 = l4_had_base | l4_fire_and_4;
     assign l4_had_base_next = merge_clear ? 1'b0 : l4_had_base_or_2;
@@ -4152,7 +3807,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign top_found_not_38 = ~top_found;
     assign l4_end_fire_and = l4_end_fire & top_found_not_38;
     assign l4_is_top = l4_end_fire_and & l4_nodes_and_2;
-    assign l4_is_top_mux = l4_is_top ? 5'd4 : l5_is_top_mux;
     assign l16_is_top_or_12 = l16_is_top_or_11 | l4_is_top;
     assign level3_in_ready = ~level3_skid_spare_valid;
     assign l3_end_not = ~l3_end;
@@ -4192,20 +3846,15 @@ module upper_builder_d16_q8_i24_h4 (
     assign level3_skid_spare_valid_not = ~level3_skid_spare_valid;
     assign level3_in_valid_and = level3_in_valid & level3_skid_spare_valid_not;
     assign level3_skid_spare_valid_or = level3_skid_spare_valid | level3_in_valid;
-    assign level3_skid_valid_next = level3_skid_ready_or ? level3_skid_spare_valid_or : level3_skid_valid;
     assign level3_skid_spare_valid_mux = level3_skid_spare_valid ? level3_skid_spare_data : level3_beat;
-    assign level3_skid_data_next = level3_skid_ready_or ? level3_skid_spare_valid_mux : level3_skid_data;
     assign level3_skid_spare_valid_or_1 = level3_skid_spare_valid | level3_in_valid_and;
     assign level3_skid_spare_valid_next = level3_skid_ready_or ? 1'b0 : level3_skid_spare_valid_or_1;
     assign level3_skid_ready_not = ~level3_skid_ready_or;
     assign level3_skid_ready_and = level3_skid_ready_not & level3_in_valid_and;
-    assign level3_skid_spare_data_next = level3_skid_ready_and ? level3_beat : level3_skid_spare_data;
     assign level3_valid = level3_skid_valid;
     assign level3_data = level3_skid_data;
     assign l3_done_or = l3_done | l3_end_fire;
     assign l3_done_next = merge_clear ? 1'b0 : l3_done_or;
-    assign l3_fire_mux = l3_fire_and ? l3_nodes_add[23:0] : l3_nodes;
-    assign l3_nodes_next = merge_clear ? 24'd0 : l3_fire_mux;
     assign l3_fire_and_2 = l3_fire_and & l3_nodes_add[24];
     assign l3_nodes_ovf_or = l3_nodes_ovf | l3_fire_and_2;
     assign l3_nodes_ovf_next = merge_clear ? 1'b0 : l3_nodes_ovf_or;
@@ -4213,8 +3862,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign l3_take_group_not_1 = ~l3_take_group_eq;
     assign l3_fire_and_3 = l3_fire_and & l3_take_group_not_1;
     assign l3_records_add = l3_records + 24'd1;
-    assign l3_fire_mux_1 = l3_fire_and_3 ? l3_records_add : l3_records;
-    assign l3_records_next = merge_clear ? 24'd0 : l3_fire_mux_1;
     assign l3_fire_and_4 = l3_fire_and & l3_take_group_not;
     assign l3_had_base_or_2 = l3_had_base | l3_fire_and_4;
     assign l3_had_base_next = merge_clear ? 1'b0 : l3_had_base_or_2;
@@ -4233,7 +3880,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign top_found_not_41 = ~top_found;
     assign l3_end_fire_and = l3_end_fire & top_found_not_41;
     assign l3_is_top = l3_end_fire_and & l3_nodes_and_2;
-    assign l3_is_top_mux = l3_is_top ? 5'd3 : l4_is_top_mux;
     assign l16_is_top_or_13 = l16_is_top_or_12 | l3_is_top;
     assign level2_in_ready = ~level2_skid_spare_valid;
     assign l2_end_not = ~l2_end;
@@ -4273,20 +3919,15 @@ module upper_builder_d16_q8_i24_h4 (
     assign level2_skid_spare_valid_not = ~level2_skid_spare_valid;
     assign level2_in_valid_and = level2_in_valid & level2_skid_spare_valid_not;
     assign level2_skid_spare_valid_or = level2_skid_spare_valid | level2_in_valid;
-    assign level2_skid_valid_next = level2_skid_ready_or ? level2_skid_spare_valid_or : level2_skid_valid;
     assign level2_skid_spare_valid_mux = level2_skid_spare_valid ? level2_skid_spare_data : level2_beat;
-    assign level2_skid_data_next = level2_skid_ready_or ? level2_skid_spare_valid_mux : level2_skid_data;
     assign level2_skid_spare_valid_or_1 = level2_skid_spare_valid | level2_in_valid_and;
     assign level2_skid_spare_valid_next = level2_skid_ready_or ? 1'b0 : level2_skid_spare_valid_or_1;
     assign level2_skid_ready_not = ~level2_skid_ready_or;
     assign level2_skid_ready_and = level2_skid_ready_not & level2_in_valid_and;
-    assign level2_skid_spare_data_next = level2_skid_ready_and ? level2_beat : level2_skid_spare_data;
     assign level2_valid = level2_skid_valid;
     assign level2_data = level2_skid_data;
     assign l2_done_or = l2_done | l2_end_fire;
     assign l2_done_next = merge_clear ? 1'b0 : l2_done_or;
-    assign l2_fire_mux = l2_fire_and ? l2_nodes_add[23:0] : l2_nodes;
-    assign l2_nodes_next = merge_clear ? 24'd0 : l2_fire_mux;
     assign l2_fire_and_2 = l2_fire_and & l2_nodes_add[24];
     assign l2_nodes_ovf_or = l2_nodes_ovf | l2_fire_and_2;
     assign l2_nodes_ovf_next = merge_clear ? 1'b0 : l2_nodes_ovf_or;
@@ -4294,8 +3935,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign l2_take_group_not_1 = ~l2_take_group_eq;
     assign l2_fire_and_3 = l2_fire_and & l2_take_group_not_1;
     assign l2_records_add = l2_records + 24'd1;
-    assign l2_fire_mux_1 = l2_fire_and_3 ? l2_records_add : l2_records;
-    assign l2_records_next = merge_clear ? 24'd0 : l2_fire_mux_1;
     assign l2_fire_and_4 = l2_fire_and & l2_take_group_not;
     assign l2_had_base_or_2 = l2_had_base | l2_fire_and_4;
     assign l2_had_base_next = merge_clear ? 1'b0 : l2_had_base_or_2;
@@ -4314,7 +3953,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign top_found_not_44 = ~top_found;
     assign l2_end_fire_and = l2_end_fire & top_found_not_44;
     assign l2_is_top = l2_end_fire_and & l2_nodes_and_2;
-    assign l2_is_top_mux = l2_is_top ? 5'd2 : l3_is_top_mux;
     assign l16_is_top_or_14 = l16_is_top_or_13 | l2_is_top;
     assign level1_in_ready = ~level1_skid_spare_valid;
     assign l1_end_not = ~l1_end;
@@ -4354,20 +3992,15 @@ module upper_builder_d16_q8_i24_h4 (
     assign level1_skid_spare_valid_not = ~level1_skid_spare_valid;
     assign level1_in_valid_and = level1_in_valid & level1_skid_spare_valid_not;
     assign level1_skid_spare_valid_or = level1_skid_spare_valid | level1_in_valid;
-    assign level1_skid_valid_next = level1_skid_ready_or ? level1_skid_spare_valid_or : level1_skid_valid;
     assign level1_skid_spare_valid_mux = level1_skid_spare_valid ? level1_skid_spare_data : level1_beat;
-    assign level1_skid_data_next = level1_skid_ready_or ? level1_skid_spare_valid_mux : level1_skid_data;
     assign level1_skid_spare_valid_or_1 = level1_skid_spare_valid | level1_in_valid_and;
     assign level1_skid_spare_valid_next = level1_skid_ready_or ? 1'b0 : level1_skid_spare_valid_or_1;
     assign level1_skid_ready_not = ~level1_skid_ready_or;
     assign level1_skid_ready_and = level1_skid_ready_not & level1_in_valid_and;
-    assign level1_skid_spare_data_next = level1_skid_ready_and ? level1_beat : level1_skid_spare_data;
     assign level1_valid = level1_skid_valid;
     assign level1_data = level1_skid_data;
     assign l1_done_or = l1_done | l1_end_fire;
     assign l1_done_next = merge_clear ? 1'b0 : l1_done_or;
-    assign l1_fire_mux = l1_fire_and ? l1_nodes_add[23:0] : l1_nodes;
-    assign l1_nodes_next = merge_clear ? 24'd0 : l1_fire_mux;
     assign l1_fire_and_2 = l1_fire_and & l1_nodes_add[24];
     assign l1_nodes_ovf_or = l1_nodes_ovf | l1_fire_and_2;
     assign l1_nodes_ovf_next = merge_clear ? 1'b0 : l1_nodes_ovf_or;
@@ -4375,8 +4008,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign l1_take_group_not_1 = ~l1_take_group_eq;
     assign l1_fire_and_3 = l1_fire_and & l1_take_group_not_1;
     assign l1_records_add = l1_records + 24'd1;
-    assign l1_fire_mux_1 = l1_fire_and_3 ? l1_records_add : l1_records;
-    assign l1_records_next = merge_clear ? 24'd0 : l1_fire_mux_1;
     assign l1_fire_and_4 = l1_fire_and & l1_take_group_not;
     assign l1_had_base_or_2 = l1_had_base | l1_fire_and_4;
     assign l1_had_base_next = merge_clear ? 1'b0 : l1_had_base_or_2;
@@ -4395,7 +4026,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign top_found_not_47 = ~top_found;
     assign l1_end_fire_and = l1_end_fire & top_found_not_47;
     assign l1_is_top = l1_end_fire_and & l1_nodes_and_2;
-    assign l1_is_top_mux = l1_is_top ? 5'd1 : l2_is_top_mux;
     assign l16_is_top_or_15 = l16_is_top_or_14 | l1_is_top;
     assign level0_in_ready = ~level0_skid_spare_valid;
     assign l0_end_not = ~l0_end;
@@ -4497,20 +4127,15 @@ module upper_builder_d16_q8_i24_h4 (
     assign level0_skid_spare_valid_not = ~level0_skid_spare_valid;
     assign level0_in_valid_and = level0_in_valid & level0_skid_spare_valid_not;
     assign level0_skid_spare_valid_or = level0_skid_spare_valid | level0_in_valid;
-    assign level0_skid_valid_next = level0_skid_ready_or ? level0_skid_spare_valid_or : level0_skid_valid;
     assign level0_skid_spare_valid_mux = level0_skid_spare_valid ? level0_skid_spare_data : level0_beat;
-    assign level0_skid_data_next = level0_skid_ready_or ? level0_skid_spare_valid_mux : level0_skid_data;
     assign level0_skid_spare_valid_or_1 = level0_skid_spare_valid | level0_in_valid_and;
     assign level0_skid_spare_valid_next = level0_skid_ready_or ? 1'b0 : level0_skid_spare_valid_or_1;
     assign level0_skid_ready_not = ~level0_skid_ready_or;
     assign level0_skid_ready_and = level0_skid_ready_not & level0_in_valid_and;
-    assign level0_skid_spare_data_next = level0_skid_ready_and ? level0_beat : level0_skid_spare_data;
     assign level0_valid = level0_skid_valid;
     assign level0_data = level0_skid_data;
     assign l0_done_or = l0_done | l0_end_fire;
     assign l0_done_next = merge_clear ? 1'b0 : l0_done_or;
-    assign l0_fire_mux = l0_fire_and ? l0_nodes_add[23:0] : l0_nodes;
-    assign l0_nodes_next = merge_clear ? 24'd0 : l0_fire_mux;
     assign l0_fire_and_2 = l0_fire_and & l0_nodes_add[24];
     assign l0_nodes_ovf_or = l0_nodes_ovf | l0_fire_and_2;
     assign l0_nodes_ovf_next = merge_clear ? 1'b0 : l0_nodes_ovf_or;
@@ -4518,8 +4143,6 @@ module upper_builder_d16_q8_i24_h4 (
     assign l0_take_group_not_1 = ~l0_take_group_eq;
     assign l0_fire_and_3 = l0_fire_and & l0_take_group_not_1;
     assign l0_records_add = l0_records + 24'd1;
-    assign l0_fire_mux_1 = l0_fire_and_3 ? l0_records_add : l0_records;
-    assign l0_records_next = merge_clear ? 24'd0 : l0_fire_mux_1;
     assign l0_fire_and_4 = l0_fire_and & l0_take_group_not;
     assign l0_had_base_or_2 = l0_had_base | l0_fire_and_4;
     assign l0_had_base_next = merge_clear ? 1'b0 : l0_had_base_or_2;
@@ -4538,13 +4161,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign l0_nodes_or = l0_nodes_and | l0_has_leaf;
     assign root_suppressed_and = root_suppressed_not_1 & l0_nodes_or;
     assign root_suppressed_mux = root_suppressed ? 5'd1 : 5'd0;
-    assign l0_end_fire_mux = l0_end_fire_and ? root_suppressed_mux : l1_is_top_mux;
     assign l16_is_top_or_16 = l16_is_top_or_15 | l0_end_fire_and;
     assign done_valid_or = done_valid_q | l0_end_fire;
     assign done_valid_next = merge_clear ? 1'b0 : done_valid_or;
     assign top_found_or = top_found | l16_is_top_or_16;
     assign top_found_next = merge_clear ? 1'b0 : top_found_or;
-    assign top_lod_next = merge_clear ? 5'd0 : l0_end_fire_mux;
     assign l0_end_fire_and_1 = l0_end_fire_and & root_suppressed_and;
     assign done_err_or = done_err | l0_end_fire_and_1;
     assign done_err_next = merge_clear ? 1'b0 : done_err_or;
@@ -4557,14 +4178,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign done_skid_spare_valid_not = ~done_skid_spare_valid;
     assign done_valid_and = done_valid_q & done_skid_spare_valid_not;
     assign done_skid_spare_valid_or = done_skid_spare_valid | done_valid_q;
-    assign done_skid_valid_next = done_skid_ready_or ? done_skid_spare_valid_or : done_skid_valid;
     assign done_skid_spare_valid_mux = done_skid_spare_valid ? done_skid_spare_data : done_err_cat;
-    assign done_skid_data_next = done_skid_ready_or ? done_skid_spare_valid_mux : done_skid_data;
     assign done_skid_spare_valid_or_1 = done_skid_spare_valid | done_valid_and;
     assign done_skid_spare_valid_next = done_skid_ready_or ? 1'b0 : done_skid_spare_valid_or_1;
     assign done_skid_ready_not = ~done_skid_ready_or;
     assign done_skid_ready_and = done_skid_ready_not & done_valid_and;
-    assign done_skid_spare_data_next = done_skid_ready_and ? done_err_cat : done_skid_spare_data;
     assign done_valid = done_skid_valid;
     assign done_data = done_skid_data;
 
@@ -4994,77 +4612,319 @@ module upper_builder_d16_q8_i24_h4 (
             done_skid_spare_data <= 6'd0;
         end else begin
             top_found <= top_found_next;
-            top_lod <= top_lod_next;
+            if (merge_clear) begin
+                top_lod <= 5'd0;             // rtl-gen/src/merge/builder.rs:307
+                l16_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:278
+                l16_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:281
+                l15_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:278
+                l15_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:281
+                l14_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:278
+                l14_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:281
+                l13_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:278
+                l13_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:281
+                l12_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:278
+                l12_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:281
+                l11_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:278
+                l11_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:281
+                l10_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:278
+                l10_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:281
+                l9_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:278
+                l9_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:281
+                l8_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:278
+                l8_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:281
+                l7_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:278
+                l7_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:281
+                l6_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:278
+                l6_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:281
+                l5_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:278
+                l5_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:281
+                l4_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:278
+                l4_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:281
+                l3_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:278
+                l3_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:281
+                l2_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:278
+                l2_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:281
+                l1_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:278
+                l1_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:281
+                l0_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:278
+                l0_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:281
+            end else begin
+                if (l0_end_fire_and) begin
+                    top_lod <= root_suppressed_mux; // rtl-gen/src/merge/builder.rs:300
+                end else if (l1_is_top) begin
+                    top_lod <= 5'd1;         // rtl-gen/src/merge/builder.rs:292
+                end else if (l2_is_top) begin
+                    top_lod <= 5'd2;         // rtl-gen/src/merge/builder.rs:292
+                end else if (l3_is_top) begin
+                    top_lod <= 5'd3;         // rtl-gen/src/merge/builder.rs:292
+                end else if (l4_is_top) begin
+                    top_lod <= 5'd4;         // rtl-gen/src/merge/builder.rs:292
+                end else if (l5_is_top) begin
+                    top_lod <= 5'd5;         // rtl-gen/src/merge/builder.rs:292
+                end else if (l6_is_top) begin
+                    top_lod <= 5'd6;         // rtl-gen/src/merge/builder.rs:292
+                end else if (l7_is_top) begin
+                    top_lod <= 5'd7;         // rtl-gen/src/merge/builder.rs:292
+                end else if (l8_is_top) begin
+                    top_lod <= 5'd8;         // rtl-gen/src/merge/builder.rs:292
+                end else if (l9_is_top) begin
+                    top_lod <= 5'd9;         // rtl-gen/src/merge/builder.rs:292
+                end else if (l10_is_top) begin
+                    top_lod <= 5'd10;        // rtl-gen/src/merge/builder.rs:292
+                end else if (l11_is_top) begin
+                    top_lod <= 5'd11;        // rtl-gen/src/merge/builder.rs:292
+                end else if (l12_is_top) begin
+                    top_lod <= 5'd12;        // rtl-gen/src/merge/builder.rs:292
+                end else if (l13_is_top) begin
+                    top_lod <= 5'd13;        // rtl-gen/src/merge/builder.rs:292
+                end else if (l14_is_top) begin
+                    top_lod <= 5'd14;        // rtl-gen/src/merge/builder.rs:292
+                end else if (l15_is_top) begin
+                    top_lod <= 5'd15;        // rtl-gen/src/merge/builder.rs:292
+                end else if (l16_is_top) begin
+                    top_lod <= 5'd16;        // rtl-gen/src/merge/builder.rs:292
+                end
+                if (l16_fire_and) begin
+                    l16_nodes <= l16_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:278
+                end
+                if (l16_fire_and_2) begin
+                    l16_records <= l16_records_add; // rtl-gen/src/merge/builder.rs:281
+                end
+                if (l15_fire_and) begin
+                    l15_nodes <= l15_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:278
+                end
+                if (l15_fire_and_3) begin
+                    l15_records <= l15_records_add; // rtl-gen/src/merge/builder.rs:281
+                end
+                if (l14_fire_and) begin
+                    l14_nodes <= l14_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:278
+                end
+                if (l14_fire_and_3) begin
+                    l14_records <= l14_records_add; // rtl-gen/src/merge/builder.rs:281
+                end
+                if (l13_fire_and) begin
+                    l13_nodes <= l13_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:278
+                end
+                if (l13_fire_and_3) begin
+                    l13_records <= l13_records_add; // rtl-gen/src/merge/builder.rs:281
+                end
+                if (l12_fire_and) begin
+                    l12_nodes <= l12_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:278
+                end
+                if (l12_fire_and_3) begin
+                    l12_records <= l12_records_add; // rtl-gen/src/merge/builder.rs:281
+                end
+                if (l11_fire_and) begin
+                    l11_nodes <= l11_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:278
+                end
+                if (l11_fire_and_3) begin
+                    l11_records <= l11_records_add; // rtl-gen/src/merge/builder.rs:281
+                end
+                if (l10_fire_and) begin
+                    l10_nodes <= l10_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:278
+                end
+                if (l10_fire_and_3) begin
+                    l10_records <= l10_records_add; // rtl-gen/src/merge/builder.rs:281
+                end
+                if (l9_fire_and) begin
+                    l9_nodes <= l9_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:278
+                end
+                if (l9_fire_and_3) begin
+                    l9_records <= l9_records_add; // rtl-gen/src/merge/builder.rs:281
+                end
+                if (l8_fire_and) begin
+                    l8_nodes <= l8_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:278
+                end
+                if (l8_fire_and_3) begin
+                    l8_records <= l8_records_add; // rtl-gen/src/merge/builder.rs:281
+                end
+                if (l7_fire_and) begin
+                    l7_nodes <= l7_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:278
+                end
+                if (l7_fire_and_3) begin
+                    l7_records <= l7_records_add; // rtl-gen/src/merge/builder.rs:281
+                end
+                if (l6_fire_and) begin
+                    l6_nodes <= l6_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:278
+                end
+                if (l6_fire_and_3) begin
+                    l6_records <= l6_records_add; // rtl-gen/src/merge/builder.rs:281
+                end
+                if (l5_fire_and) begin
+                    l5_nodes <= l5_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:278
+                end
+                if (l5_fire_and_3) begin
+                    l5_records <= l5_records_add; // rtl-gen/src/merge/builder.rs:281
+                end
+                if (l4_fire_and) begin
+                    l4_nodes <= l4_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:278
+                end
+                if (l4_fire_and_3) begin
+                    l4_records <= l4_records_add; // rtl-gen/src/merge/builder.rs:281
+                end
+                if (l3_fire_and) begin
+                    l3_nodes <= l3_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:278
+                end
+                if (l3_fire_and_3) begin
+                    l3_records <= l3_records_add; // rtl-gen/src/merge/builder.rs:281
+                end
+                if (l2_fire_and) begin
+                    l2_nodes <= l2_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:278
+                end
+                if (l2_fire_and_3) begin
+                    l2_records <= l2_records_add; // rtl-gen/src/merge/builder.rs:281
+                end
+                if (l1_fire_and) begin
+                    l1_nodes <= l1_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:278
+                end
+                if (l1_fire_and_3) begin
+                    l1_records <= l1_records_add; // rtl-gen/src/merge/builder.rs:281
+                end
+                if (l0_fire_and) begin
+                    l0_nodes <= l0_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:278
+                end
+                if (l0_fire_and_3) begin
+                    l0_records <= l0_records_add; // rtl-gen/src/merge/builder.rs:281
+                end
+            end
             done_err <= done_err_next;
             root_suppressed <= root_suppressed_next;
-            base0_skid_valid <= base0_skid_valid_next;
-            base0_skid_data <= base0_skid_data_next;
+            if (base0_skid_ready_or) begin
+                base0_skid_valid <= base0_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:148
+                base0_skid_data <= base0_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
+            end
             base0_skid_spare_valid <= base0_skid_spare_valid_next;
-            base0_skid_spare_data <= base0_skid_spare_data_next;
-            base1_skid_valid <= base1_skid_valid_next;
-            base1_skid_data <= base1_skid_data_next;
+            if (base0_skid_ready_and) begin
+                base0_skid_spare_data <= base0_data; // rtl-gen/src/merge/builder.rs:148
+            end
+            if (base1_skid_ready_or) begin
+                base1_skid_valid <= base1_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:148
+                base1_skid_data <= base1_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
+            end
             base1_skid_spare_valid <= base1_skid_spare_valid_next;
-            base1_skid_spare_data <= base1_skid_spare_data_next;
-            base2_skid_valid <= base2_skid_valid_next;
-            base2_skid_data <= base2_skid_data_next;
+            if (base1_skid_ready_and) begin
+                base1_skid_spare_data <= base1_data; // rtl-gen/src/merge/builder.rs:148
+            end
+            if (base2_skid_ready_or) begin
+                base2_skid_valid <= base2_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:148
+                base2_skid_data <= base2_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
+            end
             base2_skid_spare_valid <= base2_skid_spare_valid_next;
-            base2_skid_spare_data <= base2_skid_spare_data_next;
-            base3_skid_valid <= base3_skid_valid_next;
-            base3_skid_data <= base3_skid_data_next;
+            if (base2_skid_ready_and) begin
+                base2_skid_spare_data <= base2_data; // rtl-gen/src/merge/builder.rs:148
+            end
+            if (base3_skid_ready_or) begin
+                base3_skid_valid <= base3_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:148
+                base3_skid_data <= base3_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
+            end
             base3_skid_spare_valid <= base3_skid_spare_valid_next;
-            base3_skid_spare_data <= base3_skid_spare_data_next;
-            base4_skid_valid <= base4_skid_valid_next;
-            base4_skid_data <= base4_skid_data_next;
+            if (base3_skid_ready_and) begin
+                base3_skid_spare_data <= base3_data; // rtl-gen/src/merge/builder.rs:148
+            end
+            if (base4_skid_ready_or) begin
+                base4_skid_valid <= base4_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:148
+                base4_skid_data <= base4_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
+            end
             base4_skid_spare_valid <= base4_skid_spare_valid_next;
-            base4_skid_spare_data <= base4_skid_spare_data_next;
-            base5_skid_valid <= base5_skid_valid_next;
-            base5_skid_data <= base5_skid_data_next;
+            if (base4_skid_ready_and) begin
+                base4_skid_spare_data <= base4_data; // rtl-gen/src/merge/builder.rs:148
+            end
+            if (base5_skid_ready_or) begin
+                base5_skid_valid <= base5_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:148
+                base5_skid_data <= base5_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
+            end
             base5_skid_spare_valid <= base5_skid_spare_valid_next;
-            base5_skid_spare_data <= base5_skid_spare_data_next;
-            base6_skid_valid <= base6_skid_valid_next;
-            base6_skid_data <= base6_skid_data_next;
+            if (base5_skid_ready_and) begin
+                base5_skid_spare_data <= base5_data; // rtl-gen/src/merge/builder.rs:148
+            end
+            if (base6_skid_ready_or) begin
+                base6_skid_valid <= base6_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:148
+                base6_skid_data <= base6_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
+            end
             base6_skid_spare_valid <= base6_skid_spare_valid_next;
-            base6_skid_spare_data <= base6_skid_spare_data_next;
-            base7_skid_valid <= base7_skid_valid_next;
-            base7_skid_data <= base7_skid_data_next;
+            if (base6_skid_ready_and) begin
+                base6_skid_spare_data <= base6_data; // rtl-gen/src/merge/builder.rs:148
+            end
+            if (base7_skid_ready_or) begin
+                base7_skid_valid <= base7_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:148
+                base7_skid_data <= base7_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
+            end
             base7_skid_spare_valid <= base7_skid_spare_valid_next;
-            base7_skid_spare_data <= base7_skid_spare_data_next;
-            base8_skid_valid <= base8_skid_valid_next;
-            base8_skid_data <= base8_skid_data_next;
+            if (base7_skid_ready_and) begin
+                base7_skid_spare_data <= base7_data; // rtl-gen/src/merge/builder.rs:148
+            end
+            if (base8_skid_ready_or) begin
+                base8_skid_valid <= base8_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:148
+                base8_skid_data <= base8_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
+            end
             base8_skid_spare_valid <= base8_skid_spare_valid_next;
-            base8_skid_spare_data <= base8_skid_spare_data_next;
-            base9_skid_valid <= base9_skid_valid_next;
-            base9_skid_data <= base9_skid_data_next;
+            if (base8_skid_ready_and) begin
+                base8_skid_spare_data <= base8_data; // rtl-gen/src/merge/builder.rs:148
+            end
+            if (base9_skid_ready_or) begin
+                base9_skid_valid <= base9_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:148
+                base9_skid_data <= base9_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
+            end
             base9_skid_spare_valid <= base9_skid_spare_valid_next;
-            base9_skid_spare_data <= base9_skid_spare_data_next;
-            base10_skid_valid <= base10_skid_valid_next;
-            base10_skid_data <= base10_skid_data_next;
+            if (base9_skid_ready_and) begin
+                base9_skid_spare_data <= base9_data; // rtl-gen/src/merge/builder.rs:148
+            end
+            if (base10_skid_ready_or) begin
+                base10_skid_valid <= base10_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:148
+                base10_skid_data <= base10_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
+            end
             base10_skid_spare_valid <= base10_skid_spare_valid_next;
-            base10_skid_spare_data <= base10_skid_spare_data_next;
-            base11_skid_valid <= base11_skid_valid_next;
-            base11_skid_data <= base11_skid_data_next;
+            if (base10_skid_ready_and) begin
+                base10_skid_spare_data <= base10_data; // rtl-gen/src/merge/builder.rs:148
+            end
+            if (base11_skid_ready_or) begin
+                base11_skid_valid <= base11_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:148
+                base11_skid_data <= base11_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
+            end
             base11_skid_spare_valid <= base11_skid_spare_valid_next;
-            base11_skid_spare_data <= base11_skid_spare_data_next;
-            base12_skid_valid <= base12_skid_valid_next;
-            base12_skid_data <= base12_skid_data_next;
+            if (base11_skid_ready_and) begin
+                base11_skid_spare_data <= base11_data; // rtl-gen/src/merge/builder.rs:148
+            end
+            if (base12_skid_ready_or) begin
+                base12_skid_valid <= base12_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:148
+                base12_skid_data <= base12_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
+            end
             base12_skid_spare_valid <= base12_skid_spare_valid_next;
-            base12_skid_spare_data <= base12_skid_spare_data_next;
-            base13_skid_valid <= base13_skid_valid_next;
-            base13_skid_data <= base13_skid_data_next;
+            if (base12_skid_ready_and) begin
+                base12_skid_spare_data <= base12_data; // rtl-gen/src/merge/builder.rs:148
+            end
+            if (base13_skid_ready_or) begin
+                base13_skid_valid <= base13_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:148
+                base13_skid_data <= base13_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
+            end
             base13_skid_spare_valid <= base13_skid_spare_valid_next;
-            base13_skid_spare_data <= base13_skid_spare_data_next;
-            base14_skid_valid <= base14_skid_valid_next;
-            base14_skid_data <= base14_skid_data_next;
+            if (base13_skid_ready_and) begin
+                base13_skid_spare_data <= base13_data; // rtl-gen/src/merge/builder.rs:148
+            end
+            if (base14_skid_ready_or) begin
+                base14_skid_valid <= base14_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:148
+                base14_skid_data <= base14_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
+            end
             base14_skid_spare_valid <= base14_skid_spare_valid_next;
-            base14_skid_spare_data <= base14_skid_spare_data_next;
-            base15_skid_valid <= base15_skid_valid_next;
-            base15_skid_data <= base15_skid_data_next;
+            if (base14_skid_ready_and) begin
+                base14_skid_spare_data <= base14_data; // rtl-gen/src/merge/builder.rs:148
+            end
+            if (base15_skid_ready_or) begin
+                base15_skid_valid <= base15_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:148
+                base15_skid_data <= base15_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
+            end
             base15_skid_spare_valid <= base15_skid_spare_valid_next;
-            base15_skid_spare_data <= base15_skid_spare_data_next;
-            base16_skid_valid <= base16_skid_valid_next;
-            base16_skid_data <= base16_skid_data_next;
+            if (base15_skid_ready_and) begin
+                base15_skid_spare_data <= base15_data; // rtl-gen/src/merge/builder.rs:148
+            end
+            if (base16_skid_ready_or) begin
+                base16_skid_valid <= base16_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:148
+                base16_skid_data <= base16_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:148
+            end
             base16_skid_spare_valid <= base16_skid_spare_valid_next;
-            base16_skid_spare_data <= base16_skid_spare_data_next;
+            if (base16_skid_ready_and) begin
+                base16_skid_spare_data <= base16_data; // rtl-gen/src/merge/builder.rs:148
+            end
             l0_had_base <= l0_had_base_next;
             l1_had_base <= l1_had_base_next;
             l2_had_base <= l2_had_base_next;
@@ -5100,145 +4960,183 @@ module upper_builder_d16_q8_i24_h4 (
             l15_has_leaf <= l15_has_leaf_next;
             l16_has_leaf <= l16_has_leaf_next;
             l16_done <= l16_done_next;
-            l16_nodes <= l16_nodes_next;
             l16_nodes_ovf <= l16_nodes_ovf_next;
-            l16_records <= l16_records_next;
-            level16_skid_valid <= level16_skid_valid_next;
-            level16_skid_data <= level16_skid_data_next;
+            if (level16_skid_ready_or) begin
+                level16_skid_valid <= level16_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:273
+                level16_skid_data <= level16_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
+            end
             level16_skid_spare_valid <= level16_skid_spare_valid_next;
-            level16_skid_spare_data <= level16_skid_spare_data_next;
+            if (level16_skid_ready_and) begin
+                level16_skid_spare_data <= level16_beat; // rtl-gen/src/merge/builder.rs:273
+            end
             l15_done <= l15_done_next;
-            l15_nodes <= l15_nodes_next;
             l15_nodes_ovf <= l15_nodes_ovf_next;
-            l15_records <= l15_records_next;
-            level15_skid_valid <= level15_skid_valid_next;
-            level15_skid_data <= level15_skid_data_next;
+            if (level15_skid_ready_or) begin
+                level15_skid_valid <= level15_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:273
+                level15_skid_data <= level15_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
+            end
             level15_skid_spare_valid <= level15_skid_spare_valid_next;
-            level15_skid_spare_data <= level15_skid_spare_data_next;
+            if (level15_skid_ready_and) begin
+                level15_skid_spare_data <= level15_beat; // rtl-gen/src/merge/builder.rs:273
+            end
             l14_done <= l14_done_next;
-            l14_nodes <= l14_nodes_next;
             l14_nodes_ovf <= l14_nodes_ovf_next;
-            l14_records <= l14_records_next;
-            level14_skid_valid <= level14_skid_valid_next;
-            level14_skid_data <= level14_skid_data_next;
+            if (level14_skid_ready_or) begin
+                level14_skid_valid <= level14_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:273
+                level14_skid_data <= level14_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
+            end
             level14_skid_spare_valid <= level14_skid_spare_valid_next;
-            level14_skid_spare_data <= level14_skid_spare_data_next;
+            if (level14_skid_ready_and) begin
+                level14_skid_spare_data <= level14_beat; // rtl-gen/src/merge/builder.rs:273
+            end
             l13_done <= l13_done_next;
-            l13_nodes <= l13_nodes_next;
             l13_nodes_ovf <= l13_nodes_ovf_next;
-            l13_records <= l13_records_next;
-            level13_skid_valid <= level13_skid_valid_next;
-            level13_skid_data <= level13_skid_data_next;
+            if (level13_skid_ready_or) begin
+                level13_skid_valid <= level13_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:273
+                level13_skid_data <= level13_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
+            end
             level13_skid_spare_valid <= level13_skid_spare_valid_next;
-            level13_skid_spare_data <= level13_skid_spare_data_next;
+            if (level13_skid_ready_and) begin
+                level13_skid_spare_data <= level13_beat; // rtl-gen/src/merge/builder.rs:273
+            end
             l12_done <= l12_done_next;
-            l12_nodes <= l12_nodes_next;
             l12_nodes_ovf <= l12_nodes_ovf_next;
-            l12_records <= l12_records_next;
-            level12_skid_valid <= level12_skid_valid_next;
-            level12_skid_data <= level12_skid_data_next;
+            if (level12_skid_ready_or) begin
+                level12_skid_valid <= level12_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:273
+                level12_skid_data <= level12_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
+            end
             level12_skid_spare_valid <= level12_skid_spare_valid_next;
-            level12_skid_spare_data <= level12_skid_spare_data_next;
+            if (level12_skid_ready_and) begin
+                level12_skid_spare_data <= level12_beat; // rtl-gen/src/merge/builder.rs:273
+            end
             l11_done <= l11_done_next;
-            l11_nodes <= l11_nodes_next;
             l11_nodes_ovf <= l11_nodes_ovf_next;
-            l11_records <= l11_records_next;
-            level11_skid_valid <= level11_skid_valid_next;
-            level11_skid_data <= level11_skid_data_next;
+            if (level11_skid_ready_or) begin
+                level11_skid_valid <= level11_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:273
+                level11_skid_data <= level11_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
+            end
             level11_skid_spare_valid <= level11_skid_spare_valid_next;
-            level11_skid_spare_data <= level11_skid_spare_data_next;
+            if (level11_skid_ready_and) begin
+                level11_skid_spare_data <= level11_beat; // rtl-gen/src/merge/builder.rs:273
+            end
             l10_done <= l10_done_next;
-            l10_nodes <= l10_nodes_next;
             l10_nodes_ovf <= l10_nodes_ovf_next;
-            l10_records <= l10_records_next;
-            level10_skid_valid <= level10_skid_valid_next;
-            level10_skid_data <= level10_skid_data_next;
+            if (level10_skid_ready_or) begin
+                level10_skid_valid <= level10_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:273
+                level10_skid_data <= level10_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
+            end
             level10_skid_spare_valid <= level10_skid_spare_valid_next;
-            level10_skid_spare_data <= level10_skid_spare_data_next;
+            if (level10_skid_ready_and) begin
+                level10_skid_spare_data <= level10_beat; // rtl-gen/src/merge/builder.rs:273
+            end
             l9_done <= l9_done_next;
-            l9_nodes <= l9_nodes_next;
             l9_nodes_ovf <= l9_nodes_ovf_next;
-            l9_records <= l9_records_next;
-            level9_skid_valid <= level9_skid_valid_next;
-            level9_skid_data <= level9_skid_data_next;
+            if (level9_skid_ready_or) begin
+                level9_skid_valid <= level9_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:273
+                level9_skid_data <= level9_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
+            end
             level9_skid_spare_valid <= level9_skid_spare_valid_next;
-            level9_skid_spare_data <= level9_skid_spare_data_next;
+            if (level9_skid_ready_and) begin
+                level9_skid_spare_data <= level9_beat; // rtl-gen/src/merge/builder.rs:273
+            end
             l8_done <= l8_done_next;
-            l8_nodes <= l8_nodes_next;
             l8_nodes_ovf <= l8_nodes_ovf_next;
-            l8_records <= l8_records_next;
-            level8_skid_valid <= level8_skid_valid_next;
-            level8_skid_data <= level8_skid_data_next;
+            if (level8_skid_ready_or) begin
+                level8_skid_valid <= level8_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:273
+                level8_skid_data <= level8_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
+            end
             level8_skid_spare_valid <= level8_skid_spare_valid_next;
-            level8_skid_spare_data <= level8_skid_spare_data_next;
+            if (level8_skid_ready_and) begin
+                level8_skid_spare_data <= level8_beat; // rtl-gen/src/merge/builder.rs:273
+            end
             l7_done <= l7_done_next;
-            l7_nodes <= l7_nodes_next;
             l7_nodes_ovf <= l7_nodes_ovf_next;
-            l7_records <= l7_records_next;
-            level7_skid_valid <= level7_skid_valid_next;
-            level7_skid_data <= level7_skid_data_next;
+            if (level7_skid_ready_or) begin
+                level7_skid_valid <= level7_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:273
+                level7_skid_data <= level7_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
+            end
             level7_skid_spare_valid <= level7_skid_spare_valid_next;
-            level7_skid_spare_data <= level7_skid_spare_data_next;
+            if (level7_skid_ready_and) begin
+                level7_skid_spare_data <= level7_beat; // rtl-gen/src/merge/builder.rs:273
+            end
             l6_done <= l6_done_next;
-            l6_nodes <= l6_nodes_next;
             l6_nodes_ovf <= l6_nodes_ovf_next;
-            l6_records <= l6_records_next;
-            level6_skid_valid <= level6_skid_valid_next;
-            level6_skid_data <= level6_skid_data_next;
+            if (level6_skid_ready_or) begin
+                level6_skid_valid <= level6_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:273
+                level6_skid_data <= level6_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
+            end
             level6_skid_spare_valid <= level6_skid_spare_valid_next;
-            level6_skid_spare_data <= level6_skid_spare_data_next;
+            if (level6_skid_ready_and) begin
+                level6_skid_spare_data <= level6_beat; // rtl-gen/src/merge/builder.rs:273
+            end
             l5_done <= l5_done_next;
-            l5_nodes <= l5_nodes_next;
             l5_nodes_ovf <= l5_nodes_ovf_next;
-            l5_records <= l5_records_next;
-            level5_skid_valid <= level5_skid_valid_next;
-            level5_skid_data <= level5_skid_data_next;
+            if (level5_skid_ready_or) begin
+                level5_skid_valid <= level5_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:273
+                level5_skid_data <= level5_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
+            end
             level5_skid_spare_valid <= level5_skid_spare_valid_next;
-            level5_skid_spare_data <= level5_skid_spare_data_next;
+            if (level5_skid_ready_and) begin
+                level5_skid_spare_data <= level5_beat; // rtl-gen/src/merge/builder.rs:273
+            end
             l4_done <= l4_done_next;
-            l4_nodes <= l4_nodes_next;
             l4_nodes_ovf <= l4_nodes_ovf_next;
-            l4_records <= l4_records_next;
-            level4_skid_valid <= level4_skid_valid_next;
-            level4_skid_data <= level4_skid_data_next;
+            if (level4_skid_ready_or) begin
+                level4_skid_valid <= level4_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:273
+                level4_skid_data <= level4_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
+            end
             level4_skid_spare_valid <= level4_skid_spare_valid_next;
-            level4_skid_spare_data <= level4_skid_spare_data_next;
+            if (level4_skid_ready_and) begin
+                level4_skid_spare_data <= level4_beat; // rtl-gen/src/merge/builder.rs:273
+            end
             l3_done <= l3_done_next;
-            l3_nodes <= l3_nodes_next;
             l3_nodes_ovf <= l3_nodes_ovf_next;
-            l3_records <= l3_records_next;
-            level3_skid_valid <= level3_skid_valid_next;
-            level3_skid_data <= level3_skid_data_next;
+            if (level3_skid_ready_or) begin
+                level3_skid_valid <= level3_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:273
+                level3_skid_data <= level3_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
+            end
             level3_skid_spare_valid <= level3_skid_spare_valid_next;
-            level3_skid_spare_data <= level3_skid_spare_data_next;
+            if (level3_skid_ready_and) begin
+                level3_skid_spare_data <= level3_beat; // rtl-gen/src/merge/builder.rs:273
+            end
             l2_done <= l2_done_next;
-            l2_nodes <= l2_nodes_next;
             l2_nodes_ovf <= l2_nodes_ovf_next;
-            l2_records <= l2_records_next;
-            level2_skid_valid <= level2_skid_valid_next;
-            level2_skid_data <= level2_skid_data_next;
+            if (level2_skid_ready_or) begin
+                level2_skid_valid <= level2_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:273
+                level2_skid_data <= level2_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
+            end
             level2_skid_spare_valid <= level2_skid_spare_valid_next;
-            level2_skid_spare_data <= level2_skid_spare_data_next;
+            if (level2_skid_ready_and) begin
+                level2_skid_spare_data <= level2_beat; // rtl-gen/src/merge/builder.rs:273
+            end
             l1_done <= l1_done_next;
-            l1_nodes <= l1_nodes_next;
             l1_nodes_ovf <= l1_nodes_ovf_next;
-            l1_records <= l1_records_next;
-            level1_skid_valid <= level1_skid_valid_next;
-            level1_skid_data <= level1_skid_data_next;
+            if (level1_skid_ready_or) begin
+                level1_skid_valid <= level1_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:273
+                level1_skid_data <= level1_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
+            end
             level1_skid_spare_valid <= level1_skid_spare_valid_next;
-            level1_skid_spare_data <= level1_skid_spare_data_next;
+            if (level1_skid_ready_and) begin
+                level1_skid_spare_data <= level1_beat; // rtl-gen/src/merge/builder.rs:273
+            end
             l0_done <= l0_done_next;
-            l0_nodes <= l0_nodes_next;
             l0_nodes_ovf <= l0_nodes_ovf_next;
-            l0_records <= l0_records_next;
-            level0_skid_valid <= level0_skid_valid_next;
-            level0_skid_data <= level0_skid_data_next;
+            if (level0_skid_ready_or) begin
+                level0_skid_valid <= level0_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:273
+                level0_skid_data <= level0_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:273
+            end
             level0_skid_spare_valid <= level0_skid_spare_valid_next;
-            level0_skid_spare_data <= level0_skid_spare_data_next;
-            done_skid_valid <= done_skid_valid_next;
-            done_skid_data <= done_skid_data_next;
+            if (level0_skid_ready_and) begin
+                level0_skid_spare_data <= level0_beat; // rtl-gen/src/merge/builder.rs:273
+            end
+            if (done_skid_ready_or) begin
+                done_skid_valid <= done_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:319
+                done_skid_data <= done_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:319
+            end
             done_skid_spare_valid <= done_skid_spare_valid_next;
-            done_skid_spare_data <= done_skid_spare_data_next;
+            if (done_skid_ready_and) begin
+                done_skid_spare_data <= done_err_cat; // rtl-gen/src/merge/builder.rs:319
+            end
         end
     end
 endmodule

@@ -68,44 +68,17 @@ module upper_level_d16_q8_i24 (
     wire absorb_and;                         // rtl-gen/src/merge/upper.rs:104
     wire [24:0] index_inc;                   // rtl-gen/src/merge/upper.rs:106
     wire load_and;                           // rtl-gen/src/merge/upper.rs:107
-    wire [23:0] absorb_mux;                  // rtl-gen/src/merge/upper.rs:108
-    wire [23:0] index_next;                  // rtl-gen/src/merge/upper.rs:108
     wire absorb_and_1;                       // rtl-gen/src/merge/upper.rs:109
     wire index_ovf_or;                       // rtl-gen/src/merge/upper.rs:109
     wire index_ovf_next;                     // rtl-gen/src/merge/upper.rs:109
     wire [24:0] count_inc;                   // rtl-gen/src/merge/upper.rs:111
     wire complete_and_1;                     // rtl-gen/src/merge/upper.rs:113
-    wire complete_mux;                       // rtl-gen/src/merge/upper.rs:113
-    wire h_valid_next;                       // rtl-gen/src/merge/upper.rs:113
-    wire h_end_next;                         // rtl-gen/src/merge/upper.rs:114
-    wire [52:0] h_voxel_next;                // rtl-gen/src/merge/upper.rs:115
     wire h_lo0_lt;                           // rtl-gen/src/merge/upper.rs:118
-    wire [7:0] h_lo0_mux;                    // rtl-gen/src/merge/upper.rs:118
-    wire [7:0] absorb_mux_1;                 // rtl-gen/src/merge/upper.rs:118
-    wire [7:0] h_lo0_next;                   // rtl-gen/src/merge/upper.rs:118
     wire h_hi0_gt;                           // rtl-gen/src/merge/upper.rs:119
-    wire [7:0] h_hi0_mux;                    // rtl-gen/src/merge/upper.rs:119
-    wire [7:0] absorb_mux_2;                 // rtl-gen/src/merge/upper.rs:119
-    wire [7:0] h_hi0_next;                   // rtl-gen/src/merge/upper.rs:119
     wire h_lo1_lt;                           // rtl-gen/src/merge/upper.rs:118
-    wire [7:0] h_lo1_mux;                    // rtl-gen/src/merge/upper.rs:118
-    wire [7:0] absorb_mux_3;                 // rtl-gen/src/merge/upper.rs:118
-    wire [7:0] h_lo1_next;                   // rtl-gen/src/merge/upper.rs:118
     wire h_hi1_gt;                           // rtl-gen/src/merge/upper.rs:119
-    wire [7:0] h_hi1_mux;                    // rtl-gen/src/merge/upper.rs:119
-    wire [7:0] absorb_mux_4;                 // rtl-gen/src/merge/upper.rs:119
-    wire [7:0] h_hi1_next;                   // rtl-gen/src/merge/upper.rs:119
     wire h_lo2_lt;                           // rtl-gen/src/merge/upper.rs:118
-    wire [7:0] h_lo2_mux;                    // rtl-gen/src/merge/upper.rs:118
-    wire [7:0] absorb_mux_5;                 // rtl-gen/src/merge/upper.rs:118
-    wire [7:0] h_lo2_next;                   // rtl-gen/src/merge/upper.rs:118
     wire h_hi2_gt;                           // rtl-gen/src/merge/upper.rs:119
-    wire [7:0] h_hi2_mux;                    // rtl-gen/src/merge/upper.rs:119
-    wire [7:0] absorb_mux_6;                 // rtl-gen/src/merge/upper.rs:119
-    wire [7:0] h_hi2_next;                   // rtl-gen/src/merge/upper.rs:119
-    wire [23:0] h_first_next;                // rtl-gen/src/merge/upper.rs:121
-    wire [23:0] absorb_mux_7;                // rtl-gen/src/merge/upper.rs:122
-    wire [23:0] h_count_next;                // rtl-gen/src/merge/upper.rs:122
     wire index_ovf_or_1;                     // rtl-gen/src/merge/upper.rs:125
     wire count_inc_or;                       // rtl-gen/src/merge/upper.rs:126
     wire absorb_and_2;                       // rtl-gen/src/merge/upper.rs:126
@@ -125,14 +98,11 @@ module upper_level_d16_q8_i24 (
     wire out_skid_spare_valid_not;           // rtl-gen/src/merge/upper.rs:144
     wire complete_and_2;                     // rtl-gen/src/merge/upper.rs:144
     wire out_skid_spare_valid_or;            // rtl-gen/src/merge/upper.rs:144
-    wire out_skid_valid_next;                // rtl-gen/src/merge/upper.rs:144
     wire [151:0] out_skid_spare_valid_mux;   // rtl-gen/src/merge/upper.rs:144
-    wire [151:0] out_skid_data_next;         // rtl-gen/src/merge/upper.rs:144
     wire out_skid_spare_valid_or_1;          // rtl-gen/src/merge/upper.rs:144
     wire out_skid_spare_valid_next;          // rtl-gen/src/merge/upper.rs:144
     wire out_skid_ready_not;                 // rtl-gen/src/merge/upper.rs:144
     wire out_skid_ready_and;                 // rtl-gen/src/merge/upper.rs:144
-    wire [151:0] out_skid_spare_data_next;   // rtl-gen/src/merge/upper.rs:144
 
     assign in_ready = absorb | free;
     assign h_out_ready = ~out_skid_spare_valid;
@@ -177,44 +147,17 @@ module upper_level_d16_q8_i24 (
     assign absorb_and = absorb_or & in_end_not_1;
     assign index_inc = {1'b0, index} + 25'd1;
     assign load_and = load & in_end;
-    assign absorb_mux = absorb_and ? index_inc[23:0] : index;
-    assign index_next = load_and ? 24'd0 : absorb_mux;
     assign absorb_and_1 = absorb_and & index_inc[24];
     assign index_ovf_or = index_ovf | absorb_and_1;
     assign index_ovf_next = load_and ? 1'b0 : index_ovf_or;
     assign count_inc = {1'b0, h_count} + 25'd1;
     assign complete_and_1 = complete & h_out_ready;
-    assign complete_mux = complete_and_1 ? 1'b0 : h_valid;
-    assign h_valid_next = load ? 1'b1 : complete_mux;
-    assign h_end_next = load ? in_end : h_end;
-    assign h_voxel_next = load ? parent_voxel : h_voxel;
     assign h_lo0_lt = h_lo0 < in_data_cat;
-    assign h_lo0_mux = h_lo0_lt ? h_lo0 : in_data_cat;
-    assign absorb_mux_1 = absorb ? h_lo0_mux : h_lo0;
-    assign h_lo0_next = load ? in_data_cat : absorb_mux_1;
     assign h_hi0_gt = h_hi0 > in_data_cat_1;
-    assign h_hi0_mux = h_hi0_gt ? h_hi0 : in_data_cat_1;
-    assign absorb_mux_2 = absorb ? h_hi0_mux : h_hi0;
-    assign h_hi0_next = load ? in_data_cat_1 : absorb_mux_2;
     assign h_lo1_lt = h_lo1 < in_data_cat_2;
-    assign h_lo1_mux = h_lo1_lt ? h_lo1 : in_data_cat_2;
-    assign absorb_mux_3 = absorb ? h_lo1_mux : h_lo1;
-    assign h_lo1_next = load ? in_data_cat_2 : absorb_mux_3;
     assign h_hi1_gt = h_hi1 > in_data_cat_3;
-    assign h_hi1_mux = h_hi1_gt ? h_hi1 : in_data_cat_3;
-    assign absorb_mux_4 = absorb ? h_hi1_mux : h_hi1;
-    assign h_hi1_next = load ? in_data_cat_3 : absorb_mux_4;
     assign h_lo2_lt = h_lo2 < in_data_cat_4;
-    assign h_lo2_mux = h_lo2_lt ? h_lo2 : in_data_cat_4;
-    assign absorb_mux_5 = absorb ? h_lo2_mux : h_lo2;
-    assign h_lo2_next = load ? in_data_cat_4 : absorb_mux_5;
     assign h_hi2_gt = h_hi2 > in_data_cat_5;
-    assign h_hi2_mux = h_hi2_gt ? h_hi2 : in_data_cat_5;
-    assign absorb_mux_6 = absorb ? h_hi2_mux : h_hi2;
-    assign h_hi2_next = load ? in_data_cat_5 : absorb_mux_6;
-    assign h_first_next = load ? index : h_first;
-    assign absorb_mux_7 = absorb ? count_inc[23:0] : h_count;
-    assign h_count_next = load ? 24'd1 : absorb_mux_7;
     assign index_ovf_or_1 = index_ovf | bad_box;
     assign count_inc_or = count_inc[24] | bad_box;
     assign absorb_and_2 = absorb & count_inc_or;
@@ -230,14 +173,11 @@ module upper_level_d16_q8_i24 (
     assign out_skid_spare_valid_not = ~out_skid_spare_valid;
     assign complete_and_2 = complete & out_skid_spare_valid_not;
     assign out_skid_spare_valid_or = out_skid_spare_valid | complete;
-    assign out_skid_valid_next = out_skid_ready_or ? out_skid_spare_valid_or : out_skid_valid;
     assign out_skid_spare_valid_mux = out_skid_spare_valid ? out_skid_spare_data : h_beat;
-    assign out_skid_data_next = out_skid_ready_or ? out_skid_spare_valid_mux : out_skid_data;
     assign out_skid_spare_valid_or_1 = out_skid_spare_valid | complete_and_2;
     assign out_skid_spare_valid_next = out_skid_ready_or ? 1'b0 : out_skid_spare_valid_or_1;
     assign out_skid_ready_not = ~out_skid_ready_or;
     assign out_skid_ready_and = out_skid_ready_not & complete_and_2;
-    assign out_skid_spare_data_next = out_skid_ready_and ? h_beat : out_skid_spare_data;
     assign out_valid = out_skid_valid;
     assign out_data = out_skid_data;
 
@@ -262,24 +202,59 @@ module upper_level_d16_q8_i24 (
             out_skid_spare_valid <= 1'b0;
             out_skid_spare_data <= 152'h00000000000000000000000000000000000000;
         end else begin
-            h_valid <= h_valid_next;
-            h_end <= h_end_next;
-            h_voxel <= h_voxel_next;
-            h_lo0 <= h_lo0_next;
-            h_lo1 <= h_lo1_next;
-            h_lo2 <= h_lo2_next;
-            h_hi0 <= h_hi0_next;
-            h_hi1 <= h_hi1_next;
-            h_hi2 <= h_hi2_next;
-            h_first <= h_first_next;
-            h_count <= h_count_next;
+            if (load) begin
+                h_valid <= 1'b1;             // rtl-gen/src/merge/upper.rs:113
+                h_end <= in_end;             // rtl-gen/src/merge/upper.rs:114
+                h_voxel <= parent_voxel;     // rtl-gen/src/merge/upper.rs:115
+                h_lo0 <= in_data_cat;        // rtl-gen/src/merge/upper.rs:118
+                h_lo1 <= in_data_cat_2;      // rtl-gen/src/merge/upper.rs:118
+                h_lo2 <= in_data_cat_4;      // rtl-gen/src/merge/upper.rs:118
+                h_hi0 <= in_data_cat_1;      // rtl-gen/src/merge/upper.rs:119
+                h_hi1 <= in_data_cat_3;      // rtl-gen/src/merge/upper.rs:119
+                h_hi2 <= in_data_cat_5;      // rtl-gen/src/merge/upper.rs:119
+                h_first <= index;            // rtl-gen/src/merge/upper.rs:121
+                h_count <= 24'd1;            // rtl-gen/src/merge/upper.rs:122
+            end else begin
+                if (complete_and_1) begin
+                    h_valid <= 1'b0;         // rtl-gen/src/merge/upper.rs:113
+                end
+                if (absorb) begin
+                    if (!h_lo0_lt) begin
+                        h_lo0 <= in_data_cat; // rtl-gen/src/merge/upper.rs:118
+                    end
+                    if (!h_lo1_lt) begin
+                        h_lo1 <= in_data_cat_2; // rtl-gen/src/merge/upper.rs:118
+                    end
+                    if (!h_lo2_lt) begin
+                        h_lo2 <= in_data_cat_4; // rtl-gen/src/merge/upper.rs:118
+                    end
+                    if (!h_hi0_gt) begin
+                        h_hi0 <= in_data_cat_1; // rtl-gen/src/merge/upper.rs:119
+                    end
+                    if (!h_hi1_gt) begin
+                        h_hi1 <= in_data_cat_3; // rtl-gen/src/merge/upper.rs:119
+                    end
+                    if (!h_hi2_gt) begin
+                        h_hi2 <= in_data_cat_5; // rtl-gen/src/merge/upper.rs:119
+                    end
+                    h_count <= count_inc[23:0]; // rtl-gen/src/merge/upper.rs:122
+                end
+            end
             h_err <= h_err_next;
-            index <= index_next;
+            if (load_and) begin
+                index <= 24'd0;              // rtl-gen/src/merge/upper.rs:108
+            end else if (absorb_and) begin
+                index <= index_inc[23:0];    // rtl-gen/src/merge/upper.rs:108
+            end
             index_ovf <= index_ovf_next;
-            out_skid_valid <= out_skid_valid_next;
-            out_skid_data <= out_skid_data_next;
+            if (out_skid_ready_or) begin
+                out_skid_valid <= out_skid_spare_valid_or; // rtl-gen/src/merge/upper.rs:144
+                out_skid_data <= out_skid_spare_valid_mux; // rtl-gen/src/merge/upper.rs:144
+            end
             out_skid_spare_valid <= out_skid_spare_valid_next;
-            out_skid_spare_data <= out_skid_spare_data_next;
+            if (out_skid_ready_and) begin
+                out_skid_spare_data <= h_beat; // rtl-gen/src/merge/upper.rs:144
+            end
         end
     end
 endmodule

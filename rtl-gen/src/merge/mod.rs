@@ -73,8 +73,8 @@ pub use golden::vectors::merge::MergeDesign as MergeConfig;
 /// then S616's one-level unit and the root sorter; then the fetcher (S610 +
 /// S612, 8.13; per-node configurations: the fetcher with the per-node
 /// command) and the record writer (S618, 8.12) with the sizes of
-/// [`MergerConfig::new`], and, for every mode but per-node, the hierarchy
-/// merger that instantiates them all (8.15). `c` must pass `c.validate()`.
+/// [`MergerConfig::new`], and the hierarchy merger that instantiates them
+/// all (8.15). `c` must pass `c.validate()`.
 pub fn merge_units(c: &MergeConfig) -> Result<Vec<Module>, String> {
     let merger = MergerConfig::new(*c);
     let mut units = vec![
@@ -85,9 +85,7 @@ pub fn merge_units(c: &MergeConfig) -> Result<Vec<Module>, String> {
         fetcher_of(c, &merger),
         record_writer_unit(&c.params, merger.sizes.capacity_bits).map_err(|e| e.to_string())?,
     ];
-    if !matches!(c.mode, golden::merge::MergeMode::PerNode { .. }) {
-        units.push(hierarchy_merger_unit(&merger)?);
-    }
+    units.push(hierarchy_merger_unit(&merger)?);
     Ok(units)
 }
 

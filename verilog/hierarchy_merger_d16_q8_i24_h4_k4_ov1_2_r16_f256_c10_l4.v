@@ -95,15 +95,15 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     output wire refs_valid,                // rtl-gen/src/merge/merger.rs:168
     output wire [27:0] refs_data,          // rtl-gen/src/merge/merger.rs:168
     input  wire refs_ready,                // rtl-gen/src/merge/merger.rs:168
-    output wire w_filling,                 // rtl-gen/src/merge/merger.rs:571
-    output wire w_drain_records,           // rtl-gen/src/merge/merger.rs:571
-    output wire w_drain_refs,              // rtl-gen/src/merge/merger.rs:571
-    input  wire header_ready,              // rtl-gen/src/merge/merger.rs:576
-    output wire header_valid,              // rtl-gen/src/merge/merger.rs:595
-    output wire [94:0] header_data,        // rtl-gen/src/merge/merger.rs:596
-    output wire done,                      // rtl-gen/src/merge/merger.rs:600
-    output wire idle,                      // rtl-gen/src/merge/merger.rs:602
-    output wire module_done                // rtl-gen/src/merge/merger.rs:603
+    output wire w_filling,                 // rtl-gen/src/merge/merger.rs:1006
+    output wire w_drain_records,           // rtl-gen/src/merge/merger.rs:1006
+    output wire w_drain_refs,              // rtl-gen/src/merge/merger.rs:1006
+    input  wire header_ready,              // rtl-gen/src/merge/merger.rs:1011
+    output wire header_valid,              // rtl-gen/src/merge/merger.rs:1030
+    output wire [94:0] header_data,        // rtl-gen/src/merge/merger.rs:1031
+    output wire done,                      // rtl-gen/src/merge/merger.rs:1035
+    output wire idle,                      // rtl-gen/src/merge/merger.rs:1037
+    output wire module_done                // rtl-gen/src/merge/merger.rs:1038
 );
     reg [177:0] leaves0 [0:15];              // rtl-gen/src/merge/merger.rs:488
     reg [177:0] leaves1 [0:15];              // rtl-gen/src/merge/merger.rs:488
@@ -1547,17 +1547,17 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger.rs:165
     wire nodes_ready_w;                      // rtl-gen/src/merge/merger.rs:165
     wire refs_ready_w;                       // rtl-gen/src/merge/merger.rs:165
-    reg done_pulse;                          // rtl-gen/src/merge/merger.rs:598
-    wire busy_not_1;                         // rtl-gen/src/merge/merger.rs:601
-    wire dropping0_not_2;                    // rtl-gen/src/merge/merger.rs:601
-    wire dropping0_and;                      // rtl-gen/src/merge/merger.rs:601
-    wire dropping1_not_2;                    // rtl-gen/src/merge/merger.rs:601
-    wire dropping0_and_1;                    // rtl-gen/src/merge/merger.rs:601
-    wire dropping2_not_2;                    // rtl-gen/src/merge/merger.rs:601
-    wire dropping0_and_2;                    // rtl-gen/src/merge/merger.rs:601
-    wire dropping3_not_2;                    // rtl-gen/src/merge/merger.rs:601
-    wire dropping0_and_3;                    // rtl-gen/src/merge/merger.rs:601
-    wire merger_idle;                        // rtl-gen/src/merge/merger.rs:601
+    reg done_pulse;                          // rtl-gen/src/merge/merger.rs:1033
+    wire busy_not_1;                         // rtl-gen/src/merge/merger.rs:1036
+    wire dropping0_not_2;                    // rtl-gen/src/merge/merger.rs:1036
+    wire dropping0_and;                      // rtl-gen/src/merge/merger.rs:1036
+    wire dropping1_not_2;                    // rtl-gen/src/merge/merger.rs:1036
+    wire dropping0_and_1;                    // rtl-gen/src/merge/merger.rs:1036
+    wire dropping2_not_2;                    // rtl-gen/src/merge/merger.rs:1036
+    wire dropping0_and_2;                    // rtl-gen/src/merge/merger.rs:1036
+    wire dropping3_not_2;                    // rtl-gen/src/merge/merger.rs:1036
+    wire dropping0_and_3;                    // rtl-gen/src/merge/merger.rs:1036
+    wire merger_idle;                        // rtl-gen/src/merge/merger.rs:1036
 
     assign header_fire = u_writer_header_valid & header_ready;
     assign busy_not = ~busy;

@@ -200,6 +200,9 @@ struct MergerReport {
     leaves_above: u64,
     materialized: u64,
     several_roots: u64,
+    /// Per-node merges of more than one pass, and voxels that descended.
+    multi_pass: u64,
+    descents: u64,
     /// One `done` pulse per merge expected.
     done_pulses: u64,
     /// Wall time of generating the golden stimulus (not in wall_seconds).
@@ -786,39 +789,41 @@ fn run_merger(
     });
     pb.finish_and_clear();
     let o = o.map_err(|e| e.to_string())?;
+    let (t, s) = (&o.totals, &o.stats);
     let stage = merger::STAGE;
     let end = RunEnd {
         failed: !o.passed(),
-        started: o.cfg_accepted,
-        cycles: o.cycles,
-        hang: o.hang.as_ref(),
-        missing: &o.missing,
-        status: o.status_failure(),
+        started: t.cfg_accepted,
+        cycles: t.cycles,
+        hang: t.hang.as_ref(),
+        missing: &t.missing,
+        status: t.status_failure(),
     };
-    let mismatch = o.first_mismatch.as_ref();
+    let mismatch = t.first_mismatch.as_ref();
     let first = multi_stream_failure(stage, a.seed, mismatch, " of its chunk", end);
-    let s = &o.stats;
     let counts = Counts {
-        transactions: o.merges as u64,
+        transactions: t.merges as u64,
         records: s.module_in,
         nodes: s.records,
-        mismatches: o.mismatches,
-        cycles: o.cycles,
-        wall_seconds: o.wall.as_secs_f64(),
+        mismatches: t.mismatches,
+        cycles: t.cycles,
+        wall_seconds: t.wall.as_secs_f64(),
     };
-    let mut report = finish_report(a, stage, flip, counts, first, o.vcd.as_ref())?;
+    let mut report = finish_report(a, stage, flip, counts, first, t.vcd.as_ref())?;
     report.merger = Some(MergerReport {
-        chunks: o.chunks as u64,
+        chunks: t.chunks as u64,
         refused: s.refused as u64,
         fetch_errors: s.fetch_errors as u64,
         refs_written: s.refs,
-        beats_in: o.beats_in,
-        beats_out: o.beats_out,
+        beats_in: t.cfg_accepted + t.data_beats_in,
+        beats_out: t.beats_out,
         leaves_above: s.leaves_above as u64,
         materialized: s.materialized as u64,
         several_roots: s.several_roots as u64,
-        done_pulses: o.done_pulses,
-        golden_seconds: o.golden_wall.as_secs_f64(),
+        multi_pass: s.multi_pass as u64,
+        descents: s.descents,
+        done_pulses: t.done_pulses,
+        golden_seconds: t.golden_wall.as_secs_f64(),
     });
     Ok(report)
 }

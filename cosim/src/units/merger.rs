@@ -12,8 +12,7 @@
 //! [`CHUNK`] merges, each chunk generated, run and dropped before the next,
 //! so memory stays bounded whatever the count.
 
-use std::path::{Path, PathBuf};
-use std::time::Duration;
+use std::path::Path;
 
 use golden::layout::{Bits, Field};
 use golden::merge::fetch_unit::FetchLayout;
@@ -29,25 +28,19 @@ use rtl_gen::merge::MergerConfig;
 use crate::bitvec::BitVec;
 use crate::design::Design;
 use crate::error::{CosimError, Result};
-use crate::icarus::IcarusMultiBatch;
-use crate::tb::{
-    run_multi_with_vcd_on_failure, BenchConfig, FieldDecoder, Hang, Progress, PulseWatch,
-    StreamBeats,
-};
+use crate::tb::{FieldDecoder, StreamBeats, Transaction};
 
+use super::chunked::{ChunkStreams, ChunkedSim};
+pub use super::chunked::{ChunkTotals, CHUNK};
 pub use super::merge_module::ModuleEngine as MergerEngine;
 pub use super::merge_module::ModuleMismatch as MergerMismatch;
 use super::merge_module::{
-    apply_patch, beat_decoder, decoded_pair, flip_bit0, named, status_failure, stepped_engines,
-    top_report_fields,
+    apply_patch, beat_decoder, decoded_pair, flip_bit0, named, top_report_fields,
 };
 pub use super::merge_module::{RunConfig as ModuleRunConfig, VerilogPatch};
 
 /// The stage name `hiermerge cosim --unit merger` reports.
 pub const STAGE: &str = "hierarchy_merger";
-
-/// Merges of stimulus held at a time on one simulator.
-pub const CHUNK: usize = 10_000;
 
 /// Most soups in a random merge is the merger's `k`; most triangles per soup.
 pub const MOST_TRIANGLES: u64 = 40;
@@ -450,62 +443,26 @@ pub struct RunConfig {
     pub flip_expected: Option<usize>,
 }
 
-/// What a run measured (over every chunk run).
+/// What a run measured (over every chunk run): the bench's totals and
+/// what the merges exercised.
 #[derive(Clone, Debug, Default)]
 pub struct Outcome {
-    /// Merges run (all of them, or up to the end of the failing chunk).
-    pub merges: usize,
-    /// Chunks run.
-    pub chunks: usize,
+    /// Merges, chunks, cycles, beats, mismatches, status pulses, VCD.
+    pub totals: ChunkTotals,
     /// What the merges exercised.
     pub stats: MergeStats,
-    /// Cycles over every chunk (each chunk starts from reset).
-    pub cycles: u64,
-    /// Beats accepted on every input stream.
-    pub beats_in: u64,
-    /// `cfg` beats accepted: merges started.
-    pub cfg_accepted: u64,
-    /// Beats out on every output stream.
-    pub beats_out: u64,
-    /// Output beats that differed.
-    pub mismatches: u64,
-    /// Expected output beats that never came (failing chunk).
-    pub missing: Vec<(String, usize)>,
-    /// The first mismatch.
-    pub first_mismatch: Option<MergerMismatch>,
-    /// The watchdog's finding in the failing chunk.
-    pub hang: Option<Hang>,
-    /// Cycles `done` was high (one per merge expected).
-    pub done_pulses: u64,
-    /// `idle` high in the last cycle of every chunk.
-    pub idle_at_end: bool,
-    /// VCD of the cycles around the first failure.
-    pub vcd: Option<PathBuf>,
-    /// Wall time of the benches (stimulus generation, the Verilator build
-    /// and the Icarus compile excluded).
-    pub wall: Duration,
-    /// Wall time of generating the golden stimulus.
-    pub golden_wall: Duration,
 }
 
 impl Outcome {
     /// Every beat matched, none missing, nothing hung, one `done` pulse
     /// per merge, and the unit idle at the end of every chunk.
     pub fn passed(&self) -> bool {
-        self.mismatches == 0
-            && self.hang.is_none()
-            && self.missing.iter().all(|m| m.1 == 0)
-            && self.status_failure().is_none()
-    }
-
-    /// What the status outputs got wrong, if anything.
-    pub fn status_failure(&self) -> Option<String> {
-        status_failure(self.done_pulses, self.merges, self.idle_at_end, "a chunk")
+        self.totals.passed()
     }
 
     /// Records written (`nodes` beats) per cycle.
     pub fn records_per_cycle(&self) -> f64 {
-        self.stats.records as f64 / self.cycles.max(1) as f64
+        self.stats.records as f64 / self.totals.cycles.max(1) as f64
     }
 }
 
@@ -519,20 +476,11 @@ fn flip_header(streams: &mut MergerStreams, merge: usize) -> Result<()> {
     }
 }
 
-/// One simulator, built once, run chunk after chunk.
-enum Sim {
-    Stepped {
-        module: rtl_gen::Module,
-        design: Design,
-        kind: MergerEngine,
-    },
-    Batch(Box<IcarusMultiBatch>),
-}
-
 /// Runs `config.count` random merges (seeded by `config.bench.seed`) through the
 /// merger `c` on `engine`, the Verilog written to `dir`, [`CHUNK`] merges
-/// at a time; stops after the first chunk that fails. `progress` gets
-/// (merges whose chunk is done or whose outputs arrived so far, cycle).
+/// at a time on one simulator ([`ChunkedSim`]); stops after the first chunk
+/// that fails. `progress` gets (merges whose chunk is done or whose outputs
+/// arrived so far, cycle).
 pub fn run(
     c: &MergerConfig,
     engine: MergerEngine,
@@ -551,31 +499,22 @@ pub fn run(
         .map_err(golden_err)?;
     let k = c.design.inputs;
     let pn_layout = is_per_node(c).then(|| PerNodeLayout::new(&c.design.params));
-    let sim = match engine {
-        MergerEngine::Iverilog => {
-            let (i, o) = (
-                input_names(k, is_per_node(c)),
-                output_names(k, is_per_node(c)),
-            );
-            let i: Vec<&str> = i.iter().map(String::as_str).collect();
-            let o: Vec<&str> = o.iter().map(String::as_str).collect();
-            Sim::Batch(Box::new(IcarusMultiBatch::new_watching(
-                &design, &i, &o, &PULSES,
-            )?))
-        }
-        kind => Sim::Stepped {
-            module,
-            design,
-            kind,
-        },
+    let (i, o) = (
+        input_names(k, is_per_node(c)),
+        output_names(k, is_per_node(c)),
+    );
+    let i: Vec<&str> = i.iter().map(String::as_str).collect();
+    let o: Vec<&str> = o.iter().map(String::as_str).collect();
+    let patched = config.bench.verilog_patch.is_some();
+    let sim = ChunkedSim::new(module, design, engine, &i, &o, patched)?;
+    let decode = |stream: &str, e: &Transaction, g: &Transaction| {
+        decoded_pair(&*decoder_of(&ml, pn_layout.as_ref(), stream), e, g)
     };
     let mut rng = SplitMix64(config.bench.seed);
-    let mut out = Outcome {
-        idle_at_end: true,
-        ..Outcome::default()
-    };
-    while out.merges < config.count {
-        let n = CHUNK.min(config.count - out.merges);
+    let mut out = Outcome::default();
+    while out.totals.merges < config.count {
+        let first = out.totals.merges;
+        let n = CHUNK.min(config.count - first);
         let t = std::time::Instant::now();
         let txs = (0..n)
             .map(|_| random_merge(&mut rng, c))
@@ -583,93 +522,19 @@ pub fn run(
         let mut streams = merger_streams(c, &txs)?;
         drop(txs);
         if let Some(f) = config.flip_expected {
-            if (out.merges..out.merges + n).contains(&f) {
-                flip_header(&mut streams, f - out.merges)?;
+            if (first..first + n).contains(&f) {
+                flip_header(&mut streams, f - first)?;
             }
         }
-        out.golden_wall += t.elapsed();
-        let bench = BenchConfig {
-            seed: config.bench.seed ^ out.chunks as u64,
-            in_stall: config.bench.stall,
-            out_stall: config.bench.stall,
-            stop_on_mismatch: false,
-            vcd_path: config.bench.vcd_path.clone(),
-            vcd_radius: config.bench.vcd_radius,
-            ..BenchConfig::default()
-        };
-        let done_before = out.merges as u64;
-        let headers = streams.outputs.len() - 1;
-        let (report, watch) = match &sim {
-            Sim::Stepped {
-                module,
-                design,
-                kind,
-            } => {
-                let patched = config.bench.verilog_patch.is_some();
-                let mut make = stepped_engines(module, design, *kind, patched);
-                let mut on_progress = |p: Progress| {
-                    // Headers are the last output stream; outputs count all streams,
-                    // so report merges by the share of beats arrived.
-                    let total = p.expected_outputs.max(1);
-                    let share = p.outputs.min(total) as f64 / total as f64;
-                    progress(done_before + (share * n as f64) as u64, p.cycle);
-                };
-                run_multi_with_vcd_on_failure(
-                    &mut make,
-                    &streams.inputs,
-                    &streams.outputs,
-                    &bench,
-                    &PULSES,
-                    &mut on_progress,
-                )?
-            }
-            Sim::Batch(batch) => {
-                let r = batch.run(&streams.inputs, &streams.outputs, &bench)?;
-                let watch = PulseWatch {
-                    counts: r.pulses,
-                    at_end: r.pulses_at_end,
-                };
-                (r.report, watch)
-            }
-        };
-        let pulse = |name: &str| watch.counts.iter().find(|p| p.0 == name).map_or(0, |p| p.1);
-        out.done_pulses += pulse("done");
-        out.idle_at_end &= watch.at_end.iter().any(|p| p.0 == "idle" && p.1);
-        out.cycles += report.cycles;
-        out.beats_in += report.sent.iter().map(|s| s.1).sum::<u64>();
-        out.cfg_accepted += report.sent.first().map_or(0, |cfg| cfg.1);
-        out.beats_out += report.received.iter().map(|s| s.1).sum::<u64>();
-        out.mismatches += report.mismatches;
-        out.wall += report.wall;
+        out.totals.golden_wall += t.elapsed();
         out.stats.add(&streams.stats);
-        if out.first_mismatch.is_none() {
-            out.first_mismatch = report.first_mismatch.as_ref().map(|(stream, m)| {
-                let s = streams
-                    .outputs
-                    .iter()
-                    .position(|o| &o.name == stream)
-                    .unwrap_or(headers);
-                MergerMismatch {
-                    stream: stream.clone(),
-                    beat: m.output_index,
-                    merge: out.merges + streams.merge_of(s, m.output_index as usize),
-                    cycle: m.cycle,
-                    fields: decoded_pair(
-                        &*decoder_of(&ml, pn_layout.as_ref(), stream),
-                        &m.expected,
-                        &m.got,
-                    ),
-                }
-            });
-        }
-        out.merges += n;
-        out.chunks += 1;
-        progress(out.merges as u64, out.cycles);
-        let chunk_failed = !report.passed() || pulse("done") != n as u64;
-        if chunk_failed {
-            out.missing = report.missing.clone();
-            out.hang = report.hang.clone();
-            out.vcd = report.vcd.clone();
+        let merge_of = |s: usize, beat: usize| streams.merge_of(s, beat);
+        let chunk = ChunkStreams {
+            inputs: &streams.inputs,
+            outputs: &streams.outputs,
+            merge_of: &merge_of,
+        };
+        if sim.run_chunk(&mut out.totals, n, &chunk, &config.bench, &decode, progress)? {
             break;
         }
     }

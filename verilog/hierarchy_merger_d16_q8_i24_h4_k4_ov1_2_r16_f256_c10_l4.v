@@ -95,32 +95,32 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     output wire refs_valid,                // rtl-gen/src/merge/merger.rs:168
     output wire [27:0] refs_data,          // rtl-gen/src/merge/merger.rs:168
     input  wire refs_ready,                // rtl-gen/src/merge/merger.rs:168
-    output wire w_filling,                 // rtl-gen/src/merge/merger.rs:1045
-    output wire w_drain_records,           // rtl-gen/src/merge/merger.rs:1045
-    output wire w_drain_refs,              // rtl-gen/src/merge/merger.rs:1045
-    input  wire header_ready,              // rtl-gen/src/merge/merger.rs:1050
-    output wire header_valid,              // rtl-gen/src/merge/merger.rs:1069
-    output wire [94:0] header_data,        // rtl-gen/src/merge/merger.rs:1070
-    output wire done,                      // rtl-gen/src/merge/merger.rs:1074
-    output wire idle,                      // rtl-gen/src/merge/merger.rs:1076
-    output wire module_done                // rtl-gen/src/merge/merger.rs:1077
+    output wire w_filling,                 // rtl-gen/src/merge/merger.rs:1092
+    output wire w_drain_records,           // rtl-gen/src/merge/merger.rs:1092
+    output wire w_drain_refs,              // rtl-gen/src/merge/merger.rs:1092
+    input  wire header_ready,              // rtl-gen/src/merge/merger.rs:1097
+    output wire header_valid,              // rtl-gen/src/merge/merger.rs:1116
+    output wire [94:0] header_data,        // rtl-gen/src/merge/merger.rs:1117
+    output wire done,                      // rtl-gen/src/merge/merger.rs:1121
+    output wire idle,                      // rtl-gen/src/merge/merger.rs:1123
+    output wire module_done                // rtl-gen/src/merge/merger.rs:1124
 );
-    reg [177:0] leaves0 [0:15];              // rtl-gen/src/merge/merger.rs:462
-    reg [177:0] leaves1 [0:15];              // rtl-gen/src/merge/merger.rs:462
-    reg [177:0] leaves2 [0:15];              // rtl-gen/src/merge/merger.rs:462
-    reg [177:0] leaves3 [0:15];              // rtl-gen/src/merge/merger.rs:462
-    reg [177:0] leaves4 [0:15];              // rtl-gen/src/merge/merger.rs:462
-    reg [177:0] leaves5 [0:15];              // rtl-gen/src/merge/merger.rs:462
-    reg [177:0] leaves6 [0:15];              // rtl-gen/src/merge/merger.rs:462
-    reg [177:0] leaves7 [0:15];              // rtl-gen/src/merge/merger.rs:462
-    reg [177:0] leaves8 [0:15];              // rtl-gen/src/merge/merger.rs:462
-    reg [177:0] leaves9 [0:15];              // rtl-gen/src/merge/merger.rs:462
-    reg [177:0] leaves10 [0:15];             // rtl-gen/src/merge/merger.rs:462
-    reg [177:0] leaves11 [0:15];             // rtl-gen/src/merge/merger.rs:462
-    reg [177:0] leaves12 [0:15];             // rtl-gen/src/merge/merger.rs:462
-    reg [177:0] leaves13 [0:15];             // rtl-gen/src/merge/merger.rs:462
-    reg [177:0] leaves14 [0:15];             // rtl-gen/src/merge/merger.rs:462
-    reg [177:0] leaves15 [0:15];             // rtl-gen/src/merge/merger.rs:462
+    reg [177:0] leaves0 [0:15];              // rtl-gen/src/merge/merger.rs:909
+    reg [177:0] leaves1 [0:15];              // rtl-gen/src/merge/merger.rs:909
+    reg [177:0] leaves2 [0:15];              // rtl-gen/src/merge/merger.rs:909
+    reg [177:0] leaves3 [0:15];              // rtl-gen/src/merge/merger.rs:909
+    reg [177:0] leaves4 [0:15];              // rtl-gen/src/merge/merger.rs:909
+    reg [177:0] leaves5 [0:15];              // rtl-gen/src/merge/merger.rs:909
+    reg [177:0] leaves6 [0:15];              // rtl-gen/src/merge/merger.rs:909
+    reg [177:0] leaves7 [0:15];              // rtl-gen/src/merge/merger.rs:909
+    reg [177:0] leaves8 [0:15];              // rtl-gen/src/merge/merger.rs:909
+    reg [177:0] leaves9 [0:15];              // rtl-gen/src/merge/merger.rs:909
+    reg [177:0] leaves10 [0:15];             // rtl-gen/src/merge/merger.rs:909
+    reg [177:0] leaves11 [0:15];             // rtl-gen/src/merge/merger.rs:909
+    reg [177:0] leaves12 [0:15];             // rtl-gen/src/merge/merger.rs:909
+    reg [177:0] leaves13 [0:15];             // rtl-gen/src/merge/merger.rs:909
+    reg [177:0] leaves14 [0:15];             // rtl-gen/src/merge/merger.rs:909
+    reg [177:0] leaves15 [0:15];             // rtl-gen/src/merge/merger.rs:909
     wire u_fetch0_cfg_ready;                 // rtl-gen/src/merge/merger.rs:211
     wire u_fetch0_cmd_ready;                 // rtl-gen/src/merge/merger.rs:211
     wire u_fetch0_node_resp_ready;           // rtl-gen/src/merge/merger.rs:211
@@ -558,79 +558,79 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger.rs:165
     wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger.rs:165
     wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger.rs:165
-    reg leaves_done;                         // rtl-gen/src/merge/merger.rs:935
-    wire leaves_done_not;                    // rtl-gen/src/merge/merger.rs:936
-    wire leaves_active;                      // rtl-gen/src/merge/merger.rs:936
-    wire used0_not_2;                        // rtl-gen/src/merge/merger.rs:946
-    wire used0_or_2;                         // rtl-gen/src/merge/merger.rs:946
+    reg leaves_done;                         // rtl-gen/src/merge/merger.rs:982
+    wire leaves_done_not;                    // rtl-gen/src/merge/merger.rs:983
+    wire leaves_active;                      // rtl-gen/src/merge/merger.rs:983
+    wire used0_not_2;                        // rtl-gen/src/merge/merger.rs:993
+    wire used0_or_2;                         // rtl-gen/src/merge/merger.rs:993
     wire [47:0] u_fetch0_cat;                // rtl-gen/src/merge/network.rs:46
-    wire [53:0] leaf_key0;                   // rtl-gen/src/merge/merger.rs:946
-    wire used0_not_3;                        // rtl-gen/src/merge/merger.rs:948
-    wire used0_or_3;                         // rtl-gen/src/merge/merger.rs:948
-    wire leaves_active_and;                  // rtl-gen/src/merge/merger.rs:948
-    wire used0_not_4;                        // rtl-gen/src/merge/merger.rs:949
-    wire used0_or_4;                         // rtl-gen/src/merge/merger.rs:949
-    wire used0_and_9;                        // rtl-gen/src/merge/merger.rs:949
-    wire used1_not_2;                        // rtl-gen/src/merge/merger.rs:946
-    wire used1_or_2;                         // rtl-gen/src/merge/merger.rs:946
+    wire [53:0] leaf_key0;                   // rtl-gen/src/merge/merger.rs:993
+    wire used0_not_3;                        // rtl-gen/src/merge/merger.rs:995
+    wire used0_or_3;                         // rtl-gen/src/merge/merger.rs:995
+    wire leaves_active_and;                  // rtl-gen/src/merge/merger.rs:995
+    wire used0_not_4;                        // rtl-gen/src/merge/merger.rs:996
+    wire used0_or_4;                         // rtl-gen/src/merge/merger.rs:996
+    wire used0_and_9;                        // rtl-gen/src/merge/merger.rs:996
+    wire used1_not_2;                        // rtl-gen/src/merge/merger.rs:993
+    wire used1_or_2;                         // rtl-gen/src/merge/merger.rs:993
     wire [47:0] u_fetch1_cat;                // rtl-gen/src/merge/network.rs:46
-    wire [53:0] leaf_key1;                   // rtl-gen/src/merge/merger.rs:946
-    wire used1_not_3;                        // rtl-gen/src/merge/merger.rs:948
-    wire used1_or_3;                         // rtl-gen/src/merge/merger.rs:948
-    wire leaves_active_and_1;                // rtl-gen/src/merge/merger.rs:948
-    wire used1_not_4;                        // rtl-gen/src/merge/merger.rs:949
-    wire used1_or_4;                         // rtl-gen/src/merge/merger.rs:949
-    wire used0_and_10;                       // rtl-gen/src/merge/merger.rs:949
-    wire used2_not_2;                        // rtl-gen/src/merge/merger.rs:946
-    wire used2_or_2;                         // rtl-gen/src/merge/merger.rs:946
+    wire [53:0] leaf_key1;                   // rtl-gen/src/merge/merger.rs:993
+    wire used1_not_3;                        // rtl-gen/src/merge/merger.rs:995
+    wire used1_or_3;                         // rtl-gen/src/merge/merger.rs:995
+    wire leaves_active_and_1;                // rtl-gen/src/merge/merger.rs:995
+    wire used1_not_4;                        // rtl-gen/src/merge/merger.rs:996
+    wire used1_or_4;                         // rtl-gen/src/merge/merger.rs:996
+    wire used0_and_10;                       // rtl-gen/src/merge/merger.rs:996
+    wire used2_not_2;                        // rtl-gen/src/merge/merger.rs:993
+    wire used2_or_2;                         // rtl-gen/src/merge/merger.rs:993
     wire [47:0] u_fetch2_cat;                // rtl-gen/src/merge/network.rs:46
-    wire [53:0] leaf_key2;                   // rtl-gen/src/merge/merger.rs:946
-    wire used2_not_3;                        // rtl-gen/src/merge/merger.rs:948
-    wire used2_or_3;                         // rtl-gen/src/merge/merger.rs:948
-    wire leaves_active_and_2;                // rtl-gen/src/merge/merger.rs:948
-    wire used2_not_4;                        // rtl-gen/src/merge/merger.rs:949
-    wire used2_or_4;                         // rtl-gen/src/merge/merger.rs:949
-    wire used0_and_11;                       // rtl-gen/src/merge/merger.rs:949
-    wire used3_not_2;                        // rtl-gen/src/merge/merger.rs:946
-    wire used3_or_2;                         // rtl-gen/src/merge/merger.rs:946
+    wire [53:0] leaf_key2;                   // rtl-gen/src/merge/merger.rs:993
+    wire used2_not_3;                        // rtl-gen/src/merge/merger.rs:995
+    wire used2_or_3;                         // rtl-gen/src/merge/merger.rs:995
+    wire leaves_active_and_2;                // rtl-gen/src/merge/merger.rs:995
+    wire used2_not_4;                        // rtl-gen/src/merge/merger.rs:996
+    wire used2_or_4;                         // rtl-gen/src/merge/merger.rs:996
+    wire used0_and_11;                       // rtl-gen/src/merge/merger.rs:996
+    wire used3_not_2;                        // rtl-gen/src/merge/merger.rs:993
+    wire used3_or_2;                         // rtl-gen/src/merge/merger.rs:993
     wire [47:0] u_fetch3_cat;                // rtl-gen/src/merge/network.rs:46
-    wire [53:0] leaf_key3;                   // rtl-gen/src/merge/merger.rs:946
-    wire used3_not_3;                        // rtl-gen/src/merge/merger.rs:948
-    wire used3_or_3;                         // rtl-gen/src/merge/merger.rs:948
-    wire leaves_all_valid;                   // rtl-gen/src/merge/merger.rs:948
-    wire used3_not_4;                        // rtl-gen/src/merge/merger.rs:949
-    wire used3_or_4;                         // rtl-gen/src/merge/merger.rs:949
-    wire leaves_all_end;                     // rtl-gen/src/merge/merger.rs:949
-    wire leaf_key1_lt;                       // rtl-gen/src/merge/merger.rs:960
-    wire [53:0] leaf_key1_mux;               // rtl-gen/src/merge/merger.rs:962
-    wire [182:0] leaf_key1_mux_1;            // rtl-gen/src/merge/merger.rs:964
-    wire [1:0] leaf_key1_mux_2;              // rtl-gen/src/merge/merger.rs:965
-    wire leaf_key2_lt;                       // rtl-gen/src/merge/merger.rs:960
-    wire [53:0] leaf_key2_mux;               // rtl-gen/src/merge/merger.rs:962
-    wire [182:0] leaf_key2_mux_1;            // rtl-gen/src/merge/merger.rs:964
-    wire [1:0] leaf_key2_mux_2;              // rtl-gen/src/merge/merger.rs:965
-    wire leaf_key3_lt;                       // rtl-gen/src/merge/merger.rs:960
-    wire [182:0] leaf_best_data;             // rtl-gen/src/merge/merger.rs:964
-    wire [1:0] leaf_best;                    // rtl-gen/src/merge/merger.rs:965
-    wire leaves_all_end_not;                 // rtl-gen/src/merge/merger.rs:969
-    wire leaf_take;                          // rtl-gen/src/merge/merger.rs:969
-    wire used0_and_12;                       // rtl-gen/src/merge/merger.rs:973
-    wire leaf_best_eq;                       // rtl-gen/src/merge/merger.rs:973
-    wire leaves_all_end_or;                  // rtl-gen/src/merge/merger.rs:973
-    wire used0_and_13;                       // rtl-gen/src/merge/merger.rs:973
-    wire used1_and_9;                        // rtl-gen/src/merge/merger.rs:973
-    wire leaf_best_eq_1;                     // rtl-gen/src/merge/merger.rs:973
-    wire leaves_all_end_or_1;                // rtl-gen/src/merge/merger.rs:973
-    wire used1_and_10;                       // rtl-gen/src/merge/merger.rs:973
-    wire used2_and_9;                        // rtl-gen/src/merge/merger.rs:973
-    wire leaf_best_eq_2;                     // rtl-gen/src/merge/merger.rs:973
-    wire leaves_all_end_or_2;                // rtl-gen/src/merge/merger.rs:973
-    wire used2_and_10;                       // rtl-gen/src/merge/merger.rs:973
-    wire used3_and_9;                        // rtl-gen/src/merge/merger.rs:973
-    wire leaf_best_eq_3;                     // rtl-gen/src/merge/merger.rs:973
-    wire leaves_all_end_or_3;                // rtl-gen/src/merge/merger.rs:973
-    wire used3_and_10;                       // rtl-gen/src/merge/merger.rs:973
-    wire leaves_all_valid_and;               // rtl-gen/src/merge/merger.rs:976
+    wire [53:0] leaf_key3;                   // rtl-gen/src/merge/merger.rs:993
+    wire used3_not_3;                        // rtl-gen/src/merge/merger.rs:995
+    wire used3_or_3;                         // rtl-gen/src/merge/merger.rs:995
+    wire leaves_all_valid;                   // rtl-gen/src/merge/merger.rs:995
+    wire used3_not_4;                        // rtl-gen/src/merge/merger.rs:996
+    wire used3_or_4;                         // rtl-gen/src/merge/merger.rs:996
+    wire leaves_all_end;                     // rtl-gen/src/merge/merger.rs:996
+    wire leaf_key1_lt;                       // rtl-gen/src/merge/merger.rs:1007
+    wire [53:0] leaf_key1_mux;               // rtl-gen/src/merge/merger.rs:1009
+    wire [182:0] leaf_key1_mux_1;            // rtl-gen/src/merge/merger.rs:1011
+    wire [1:0] leaf_key1_mux_2;              // rtl-gen/src/merge/merger.rs:1012
+    wire leaf_key2_lt;                       // rtl-gen/src/merge/merger.rs:1007
+    wire [53:0] leaf_key2_mux;               // rtl-gen/src/merge/merger.rs:1009
+    wire [182:0] leaf_key2_mux_1;            // rtl-gen/src/merge/merger.rs:1011
+    wire [1:0] leaf_key2_mux_2;              // rtl-gen/src/merge/merger.rs:1012
+    wire leaf_key3_lt;                       // rtl-gen/src/merge/merger.rs:1007
+    wire [182:0] leaf_best_data;             // rtl-gen/src/merge/merger.rs:1011
+    wire [1:0] leaf_best;                    // rtl-gen/src/merge/merger.rs:1012
+    wire leaves_all_end_not;                 // rtl-gen/src/merge/merger.rs:1016
+    wire leaf_take;                          // rtl-gen/src/merge/merger.rs:1016
+    wire used0_and_12;                       // rtl-gen/src/merge/merger.rs:1020
+    wire leaf_best_eq;                       // rtl-gen/src/merge/merger.rs:1020
+    wire leaves_all_end_or;                  // rtl-gen/src/merge/merger.rs:1020
+    wire used0_and_13;                       // rtl-gen/src/merge/merger.rs:1020
+    wire used1_and_9;                        // rtl-gen/src/merge/merger.rs:1020
+    wire leaf_best_eq_1;                     // rtl-gen/src/merge/merger.rs:1020
+    wire leaves_all_end_or_1;                // rtl-gen/src/merge/merger.rs:1020
+    wire used1_and_10;                       // rtl-gen/src/merge/merger.rs:1020
+    wire used2_and_9;                        // rtl-gen/src/merge/merger.rs:1020
+    wire leaf_best_eq_2;                     // rtl-gen/src/merge/merger.rs:1020
+    wire leaves_all_end_or_2;                // rtl-gen/src/merge/merger.rs:1020
+    wire used2_and_10;                       // rtl-gen/src/merge/merger.rs:1020
+    wire used3_and_9;                        // rtl-gen/src/merge/merger.rs:1020
+    wire leaf_best_eq_3;                     // rtl-gen/src/merge/merger.rs:1020
+    wire leaves_all_end_or_3;                // rtl-gen/src/merge/merger.rs:1020
+    wire used3_and_10;                       // rtl-gen/src/merge/merger.rs:1020
+    wire leaves_all_valid_and;               // rtl-gen/src/merge/merger.rs:1023
     wire out_is_ref;                         // rtl-gen/src/merge/merger.rs:412
     wire out_is_end;                         // rtl-gen/src/merge/merger.rs:413
     wire [179:0] u_module_cat;               // rtl-gen/src/merge/merger.rs:416
@@ -653,911 +653,911 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     reg base0_end_sent;                      // rtl-gen/src/merge/merger.rs:457
     wire merge_lod_eq;                       // rtl-gen/src/merge/merger.rs:459
     wire base0_at_m;                         // rtl-gen/src/merge/merger.rs:459
-    reg [4:0] leaves0_wr;                    // rtl-gen/src/merge/merger.rs:463
-    reg [4:0] leaves0_rd;                    // rtl-gen/src/merge/merger.rs:464
-    wire leaves0_wr_eq;                      // rtl-gen/src/merge/merger.rs:465
-    wire leaves0_wr_eq_1;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves0_wr_eq_2;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves0_wr_not;                     // rtl-gen/src/merge/merger.rs:466
-    wire leaves0_wr_and;                     // rtl-gen/src/merge/merger.rs:466
-    wire leaf_best_data_eq;                  // rtl-gen/src/merge/merger.rs:467
-    wire leaf_take_and;                      // rtl-gen/src/merge/merger.rs:467
-    wire leaves0_wr_not_1;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_1;                    // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_2;                    // rtl-gen/src/merge/merger.rs:469
-    wire [177:0] leaves0_rd_1;               // rtl-gen/src/merge/merger.rs:470
-    wire merge_lod_lt;                       // rtl-gen/src/merge/merger.rs:471
-    wire base0_above_m;                      // rtl-gen/src/merge/merger.rs:471
-    wire [179:0] const_cat_1;                // rtl-gen/src/merge/merger.rs:472
-    wire leaves0_wr_and_1;                   // rtl-gen/src/merge/merger.rs:481
-    wire base0_end_sent_not;                 // rtl-gen/src/merge/merger.rs:482
-    wire base0_at_m_and;                     // rtl-gen/src/merge/merger.rs:483
-    wire out_is_ref_not;                     // rtl-gen/src/merge/merger.rs:483
-    wire base0_at_m_and_1;                   // rtl-gen/src/merge/merger.rs:483
-    wire leaves0_wr_not_2;                   // rtl-gen/src/merge/merger.rs:484
-    wire leaves0_wr_or;                      // rtl-gen/src/merge/merger.rs:484
-    wire base0_above_m_and;                  // rtl-gen/src/merge/merger.rs:484
-    wire base0_at_m_or;                      // rtl-gen/src/merge/merger.rs:483
-    wire base0_at_m_not;                     // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and;                   // rtl-gen/src/merge/merger.rs:485
-    wire base0_above_m_not;                  // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_1;                 // rtl-gen/src/merge/merger.rs:485
-    wire base0_at_m_or_1;                    // rtl-gen/src/merge/merger.rs:483
-    wire base0_end_sent_and;                 // rtl-gen/src/merge/merger.rs:482
-    wire leaves0_wr_not_3;                   // rtl-gen/src/merge/merger.rs:486
-    wire base0_above_m_and_1;                // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base0_above_m_mux;          // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base0_at_m_mux;             // rtl-gen/src/merge/merger.rs:486
-    wire base0_above_m_mux_1;                // rtl-gen/src/merge/merger.rs:487
-    wire base0_at_m_mux_1;                   // rtl-gen/src/merge/merger.rs:487
-    wire base0_end_sent_and_1;               // rtl-gen/src/merge/merger.rs:488
-    wire base0_end_sent_and_2;               // rtl-gen/src/merge/merger.rs:488
-    wire leaves0_wr_not_4;                   // rtl-gen/src/merge/merger.rs:488
-    wire base0_end_sent_and_3;               // rtl-gen/src/merge/merger.rs:488
-    wire leaves0_wr_not_5;                   // rtl-gen/src/merge/merger.rs:489
-    wire leaf_take_and_3;                    // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves0_wr_add;               // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves0_rd_add;               // rtl-gen/src/merge/merger.rs:490
-    wire base0_end_sent_and_4;               // rtl-gen/src/merge/merger.rs:500
-    wire base0_end_sent_and_5;               // rtl-gen/src/merge/merger.rs:501
-    wire base0_end_sent_not_1;               // rtl-gen/src/merge/merger.rs:502
-    wire u_builder_and;                      // rtl-gen/src/merge/merger.rs:502
-    wire base0_at_m_mux_2;                   // rtl-gen/src/merge/merger.rs:502
-    wire base0_at_m_mux_3;                   // rtl-gen/src/merge/merger.rs:503
+    reg [4:0] leaves0_wr;                    // rtl-gen/src/merge/merger.rs:910
+    reg [4:0] leaves0_rd;                    // rtl-gen/src/merge/merger.rs:911
+    wire leaves0_wr_eq;                      // rtl-gen/src/merge/merger.rs:912
+    wire leaves0_wr_eq_1;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves0_wr_eq_2;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves0_wr_not;                     // rtl-gen/src/merge/merger.rs:913
+    wire leaves0_wr_and;                     // rtl-gen/src/merge/merger.rs:913
+    wire leaf_best_data_eq;                  // rtl-gen/src/merge/merger.rs:464
+    wire leaf_take_and;                      // rtl-gen/src/merge/merger.rs:464
+    wire leaves0_wr_not_1;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_1;                    // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_2;                    // rtl-gen/src/merge/merger.rs:466
+    wire [177:0] leaves0_rd_1;               // rtl-gen/src/merge/merger.rs:934
+    wire merge_lod_lt;                       // rtl-gen/src/merge/merger.rs:468
+    wire base0_above_m;                      // rtl-gen/src/merge/merger.rs:468
+    wire [179:0] const_cat_1;                // rtl-gen/src/merge/merger.rs:469
+    wire leaves0_wr_and_1;                   // rtl-gen/src/merge/merger.rs:478
+    wire base0_end_sent_not;                 // rtl-gen/src/merge/merger.rs:479
+    wire base0_at_m_and;                     // rtl-gen/src/merge/merger.rs:480
+    wire out_is_ref_not;                     // rtl-gen/src/merge/merger.rs:480
+    wire base0_at_m_and_1;                   // rtl-gen/src/merge/merger.rs:480
+    wire leaves0_wr_not_2;                   // rtl-gen/src/merge/merger.rs:481
+    wire leaves0_wr_or;                      // rtl-gen/src/merge/merger.rs:481
+    wire base0_above_m_and;                  // rtl-gen/src/merge/merger.rs:481
+    wire base0_at_m_or;                      // rtl-gen/src/merge/merger.rs:480
+    wire base0_at_m_not;                     // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and;                   // rtl-gen/src/merge/merger.rs:482
+    wire base0_above_m_not;                  // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_1;                 // rtl-gen/src/merge/merger.rs:482
+    wire base0_at_m_or_1;                    // rtl-gen/src/merge/merger.rs:480
+    wire base0_end_sent_and;                 // rtl-gen/src/merge/merger.rs:479
+    wire leaves0_wr_not_3;                   // rtl-gen/src/merge/merger.rs:483
+    wire base0_above_m_and_1;                // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base0_above_m_mux;          // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base0_at_m_mux;             // rtl-gen/src/merge/merger.rs:483
+    wire base0_above_m_mux_1;                // rtl-gen/src/merge/merger.rs:484
+    wire base0_at_m_mux_1;                   // rtl-gen/src/merge/merger.rs:484
+    wire base0_end_sent_and_1;               // rtl-gen/src/merge/merger.rs:485
+    wire base0_end_sent_and_2;               // rtl-gen/src/merge/merger.rs:485
+    wire leaves0_wr_not_4;                   // rtl-gen/src/merge/merger.rs:485
+    wire base0_end_sent_and_3;               // rtl-gen/src/merge/merger.rs:485
+    wire leaves0_wr_not_5;                   // rtl-gen/src/merge/merger.rs:941
+    wire leaf_take_and_3;                    // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves0_wr_add;               // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves0_rd_add;               // rtl-gen/src/merge/merger.rs:942
+    wire base0_end_sent_and_4;               // rtl-gen/src/merge/merger.rs:496
+    wire base0_end_sent_and_5;               // rtl-gen/src/merge/merger.rs:497
+    wire base0_end_sent_not_1;               // rtl-gen/src/merge/merger.rs:498
+    wire u_builder_and;                      // rtl-gen/src/merge/merger.rs:498
+    wire base0_at_m_mux_2;                   // rtl-gen/src/merge/merger.rs:498
+    wire base0_at_m_mux_3;                   // rtl-gen/src/merge/merger.rs:499
     reg base1_end_sent;                      // rtl-gen/src/merge/merger.rs:457
     wire merge_lod_eq_1;                     // rtl-gen/src/merge/merger.rs:459
     wire base1_at_m;                         // rtl-gen/src/merge/merger.rs:459
-    reg [4:0] leaves1_wr;                    // rtl-gen/src/merge/merger.rs:463
-    reg [4:0] leaves1_rd;                    // rtl-gen/src/merge/merger.rs:464
-    wire leaves1_wr_eq;                      // rtl-gen/src/merge/merger.rs:465
-    wire leaves1_wr_eq_1;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves1_wr_eq_2;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves1_wr_not;                     // rtl-gen/src/merge/merger.rs:466
-    wire leaves1_wr_and;                     // rtl-gen/src/merge/merger.rs:466
-    wire leaf_best_data_eq_1;                // rtl-gen/src/merge/merger.rs:467
-    wire leaf_take_and_4;                    // rtl-gen/src/merge/merger.rs:467
-    wire leaves1_wr_not_1;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_5;                    // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_6;                    // rtl-gen/src/merge/merger.rs:469
-    wire [177:0] leaves1_rd_1;               // rtl-gen/src/merge/merger.rs:470
-    wire merge_lod_lt_1;                     // rtl-gen/src/merge/merger.rs:471
-    wire base1_above_m;                      // rtl-gen/src/merge/merger.rs:471
-    wire [179:0] const_cat_2;                // rtl-gen/src/merge/merger.rs:472
-    wire leaves1_wr_and_1;                   // rtl-gen/src/merge/merger.rs:481
-    wire base1_end_sent_not;                 // rtl-gen/src/merge/merger.rs:482
-    wire base1_at_m_and;                     // rtl-gen/src/merge/merger.rs:483
-    wire out_is_ref_not_1;                   // rtl-gen/src/merge/merger.rs:483
-    wire base1_at_m_and_1;                   // rtl-gen/src/merge/merger.rs:483
-    wire leaves1_wr_not_2;                   // rtl-gen/src/merge/merger.rs:484
-    wire leaves1_wr_or;                      // rtl-gen/src/merge/merger.rs:484
-    wire base1_above_m_and;                  // rtl-gen/src/merge/merger.rs:484
-    wire base1_at_m_or;                      // rtl-gen/src/merge/merger.rs:483
-    wire base1_at_m_not;                     // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_2;                 // rtl-gen/src/merge/merger.rs:485
-    wire base1_above_m_not;                  // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_3;                 // rtl-gen/src/merge/merger.rs:485
-    wire base1_at_m_or_1;                    // rtl-gen/src/merge/merger.rs:483
-    wire base1_end_sent_and;                 // rtl-gen/src/merge/merger.rs:482
-    wire leaves1_wr_not_3;                   // rtl-gen/src/merge/merger.rs:486
-    wire base1_above_m_and_1;                // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base1_above_m_mux;          // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base1_at_m_mux;             // rtl-gen/src/merge/merger.rs:486
-    wire base1_above_m_mux_1;                // rtl-gen/src/merge/merger.rs:487
-    wire base1_at_m_mux_1;                   // rtl-gen/src/merge/merger.rs:487
-    wire base1_end_sent_and_1;               // rtl-gen/src/merge/merger.rs:488
-    wire base1_end_sent_and_2;               // rtl-gen/src/merge/merger.rs:488
-    wire leaves1_wr_not_4;                   // rtl-gen/src/merge/merger.rs:488
-    wire base1_end_sent_and_3;               // rtl-gen/src/merge/merger.rs:488
-    wire leaves1_wr_not_5;                   // rtl-gen/src/merge/merger.rs:489
-    wire leaf_take_and_7;                    // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves1_wr_add;               // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves1_rd_add;               // rtl-gen/src/merge/merger.rs:490
-    wire base1_end_sent_and_4;               // rtl-gen/src/merge/merger.rs:500
-    wire base1_end_sent_and_5;               // rtl-gen/src/merge/merger.rs:501
-    wire base1_end_sent_not_1;               // rtl-gen/src/merge/merger.rs:502
-    wire u_builder_and_1;                    // rtl-gen/src/merge/merger.rs:502
-    wire base1_at_m_mux_2;                   // rtl-gen/src/merge/merger.rs:502
-    wire base1_at_m_mux_3;                   // rtl-gen/src/merge/merger.rs:503
+    reg [4:0] leaves1_wr;                    // rtl-gen/src/merge/merger.rs:910
+    reg [4:0] leaves1_rd;                    // rtl-gen/src/merge/merger.rs:911
+    wire leaves1_wr_eq;                      // rtl-gen/src/merge/merger.rs:912
+    wire leaves1_wr_eq_1;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves1_wr_eq_2;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves1_wr_not;                     // rtl-gen/src/merge/merger.rs:913
+    wire leaves1_wr_and;                     // rtl-gen/src/merge/merger.rs:913
+    wire leaf_best_data_eq_1;                // rtl-gen/src/merge/merger.rs:464
+    wire leaf_take_and_4;                    // rtl-gen/src/merge/merger.rs:464
+    wire leaves1_wr_not_1;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_5;                    // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_6;                    // rtl-gen/src/merge/merger.rs:466
+    wire [177:0] leaves1_rd_1;               // rtl-gen/src/merge/merger.rs:934
+    wire merge_lod_lt_1;                     // rtl-gen/src/merge/merger.rs:468
+    wire base1_above_m;                      // rtl-gen/src/merge/merger.rs:468
+    wire [179:0] const_cat_2;                // rtl-gen/src/merge/merger.rs:469
+    wire leaves1_wr_and_1;                   // rtl-gen/src/merge/merger.rs:478
+    wire base1_end_sent_not;                 // rtl-gen/src/merge/merger.rs:479
+    wire base1_at_m_and;                     // rtl-gen/src/merge/merger.rs:480
+    wire out_is_ref_not_1;                   // rtl-gen/src/merge/merger.rs:480
+    wire base1_at_m_and_1;                   // rtl-gen/src/merge/merger.rs:480
+    wire leaves1_wr_not_2;                   // rtl-gen/src/merge/merger.rs:481
+    wire leaves1_wr_or;                      // rtl-gen/src/merge/merger.rs:481
+    wire base1_above_m_and;                  // rtl-gen/src/merge/merger.rs:481
+    wire base1_at_m_or;                      // rtl-gen/src/merge/merger.rs:480
+    wire base1_at_m_not;                     // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_2;                 // rtl-gen/src/merge/merger.rs:482
+    wire base1_above_m_not;                  // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_3;                 // rtl-gen/src/merge/merger.rs:482
+    wire base1_at_m_or_1;                    // rtl-gen/src/merge/merger.rs:480
+    wire base1_end_sent_and;                 // rtl-gen/src/merge/merger.rs:479
+    wire leaves1_wr_not_3;                   // rtl-gen/src/merge/merger.rs:483
+    wire base1_above_m_and_1;                // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base1_above_m_mux;          // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base1_at_m_mux;             // rtl-gen/src/merge/merger.rs:483
+    wire base1_above_m_mux_1;                // rtl-gen/src/merge/merger.rs:484
+    wire base1_at_m_mux_1;                   // rtl-gen/src/merge/merger.rs:484
+    wire base1_end_sent_and_1;               // rtl-gen/src/merge/merger.rs:485
+    wire base1_end_sent_and_2;               // rtl-gen/src/merge/merger.rs:485
+    wire leaves1_wr_not_4;                   // rtl-gen/src/merge/merger.rs:485
+    wire base1_end_sent_and_3;               // rtl-gen/src/merge/merger.rs:485
+    wire leaves1_wr_not_5;                   // rtl-gen/src/merge/merger.rs:941
+    wire leaf_take_and_7;                    // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves1_wr_add;               // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves1_rd_add;               // rtl-gen/src/merge/merger.rs:942
+    wire base1_end_sent_and_4;               // rtl-gen/src/merge/merger.rs:496
+    wire base1_end_sent_and_5;               // rtl-gen/src/merge/merger.rs:497
+    wire base1_end_sent_not_1;               // rtl-gen/src/merge/merger.rs:498
+    wire u_builder_and_1;                    // rtl-gen/src/merge/merger.rs:498
+    wire base1_at_m_mux_2;                   // rtl-gen/src/merge/merger.rs:498
+    wire base1_at_m_mux_3;                   // rtl-gen/src/merge/merger.rs:499
     reg base2_end_sent;                      // rtl-gen/src/merge/merger.rs:457
     wire merge_lod_eq_2;                     // rtl-gen/src/merge/merger.rs:459
     wire base2_at_m;                         // rtl-gen/src/merge/merger.rs:459
-    reg [4:0] leaves2_wr;                    // rtl-gen/src/merge/merger.rs:463
-    reg [4:0] leaves2_rd;                    // rtl-gen/src/merge/merger.rs:464
-    wire leaves2_wr_eq;                      // rtl-gen/src/merge/merger.rs:465
-    wire leaves2_wr_eq_1;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves2_wr_eq_2;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves2_wr_not;                     // rtl-gen/src/merge/merger.rs:466
-    wire leaves2_wr_and;                     // rtl-gen/src/merge/merger.rs:466
-    wire leaf_best_data_eq_2;                // rtl-gen/src/merge/merger.rs:467
-    wire leaf_take_and_8;                    // rtl-gen/src/merge/merger.rs:467
-    wire leaves2_wr_not_1;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_9;                    // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_10;                   // rtl-gen/src/merge/merger.rs:469
-    wire [177:0] leaves2_rd_1;               // rtl-gen/src/merge/merger.rs:470
-    wire merge_lod_lt_2;                     // rtl-gen/src/merge/merger.rs:471
-    wire base2_above_m;                      // rtl-gen/src/merge/merger.rs:471
-    wire [179:0] const_cat_3;                // rtl-gen/src/merge/merger.rs:472
-    wire leaves2_wr_and_1;                   // rtl-gen/src/merge/merger.rs:481
-    wire base2_end_sent_not;                 // rtl-gen/src/merge/merger.rs:482
-    wire base2_at_m_and;                     // rtl-gen/src/merge/merger.rs:483
-    wire out_is_ref_not_2;                   // rtl-gen/src/merge/merger.rs:483
-    wire base2_at_m_and_1;                   // rtl-gen/src/merge/merger.rs:483
-    wire leaves2_wr_not_2;                   // rtl-gen/src/merge/merger.rs:484
-    wire leaves2_wr_or;                      // rtl-gen/src/merge/merger.rs:484
-    wire base2_above_m_and;                  // rtl-gen/src/merge/merger.rs:484
-    wire base2_at_m_or;                      // rtl-gen/src/merge/merger.rs:483
-    wire base2_at_m_not;                     // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_4;                 // rtl-gen/src/merge/merger.rs:485
-    wire base2_above_m_not;                  // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_5;                 // rtl-gen/src/merge/merger.rs:485
-    wire base2_at_m_or_1;                    // rtl-gen/src/merge/merger.rs:483
-    wire base2_end_sent_and;                 // rtl-gen/src/merge/merger.rs:482
-    wire leaves2_wr_not_3;                   // rtl-gen/src/merge/merger.rs:486
-    wire base2_above_m_and_1;                // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base2_above_m_mux;          // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base2_at_m_mux;             // rtl-gen/src/merge/merger.rs:486
-    wire base2_above_m_mux_1;                // rtl-gen/src/merge/merger.rs:487
-    wire base2_at_m_mux_1;                   // rtl-gen/src/merge/merger.rs:487
-    wire base2_end_sent_and_1;               // rtl-gen/src/merge/merger.rs:488
-    wire base2_end_sent_and_2;               // rtl-gen/src/merge/merger.rs:488
-    wire leaves2_wr_not_4;                   // rtl-gen/src/merge/merger.rs:488
-    wire base2_end_sent_and_3;               // rtl-gen/src/merge/merger.rs:488
-    wire leaves2_wr_not_5;                   // rtl-gen/src/merge/merger.rs:489
-    wire leaf_take_and_11;                   // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves2_wr_add;               // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves2_rd_add;               // rtl-gen/src/merge/merger.rs:490
-    wire base2_end_sent_and_4;               // rtl-gen/src/merge/merger.rs:500
-    wire base2_end_sent_and_5;               // rtl-gen/src/merge/merger.rs:501
-    wire base2_end_sent_not_1;               // rtl-gen/src/merge/merger.rs:502
-    wire u_builder_and_2;                    // rtl-gen/src/merge/merger.rs:502
-    wire base2_at_m_mux_2;                   // rtl-gen/src/merge/merger.rs:502
-    wire base2_at_m_mux_3;                   // rtl-gen/src/merge/merger.rs:503
+    reg [4:0] leaves2_wr;                    // rtl-gen/src/merge/merger.rs:910
+    reg [4:0] leaves2_rd;                    // rtl-gen/src/merge/merger.rs:911
+    wire leaves2_wr_eq;                      // rtl-gen/src/merge/merger.rs:912
+    wire leaves2_wr_eq_1;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves2_wr_eq_2;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves2_wr_not;                     // rtl-gen/src/merge/merger.rs:913
+    wire leaves2_wr_and;                     // rtl-gen/src/merge/merger.rs:913
+    wire leaf_best_data_eq_2;                // rtl-gen/src/merge/merger.rs:464
+    wire leaf_take_and_8;                    // rtl-gen/src/merge/merger.rs:464
+    wire leaves2_wr_not_1;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_9;                    // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_10;                   // rtl-gen/src/merge/merger.rs:466
+    wire [177:0] leaves2_rd_1;               // rtl-gen/src/merge/merger.rs:934
+    wire merge_lod_lt_2;                     // rtl-gen/src/merge/merger.rs:468
+    wire base2_above_m;                      // rtl-gen/src/merge/merger.rs:468
+    wire [179:0] const_cat_3;                // rtl-gen/src/merge/merger.rs:469
+    wire leaves2_wr_and_1;                   // rtl-gen/src/merge/merger.rs:478
+    wire base2_end_sent_not;                 // rtl-gen/src/merge/merger.rs:479
+    wire base2_at_m_and;                     // rtl-gen/src/merge/merger.rs:480
+    wire out_is_ref_not_2;                   // rtl-gen/src/merge/merger.rs:480
+    wire base2_at_m_and_1;                   // rtl-gen/src/merge/merger.rs:480
+    wire leaves2_wr_not_2;                   // rtl-gen/src/merge/merger.rs:481
+    wire leaves2_wr_or;                      // rtl-gen/src/merge/merger.rs:481
+    wire base2_above_m_and;                  // rtl-gen/src/merge/merger.rs:481
+    wire base2_at_m_or;                      // rtl-gen/src/merge/merger.rs:480
+    wire base2_at_m_not;                     // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_4;                 // rtl-gen/src/merge/merger.rs:482
+    wire base2_above_m_not;                  // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_5;                 // rtl-gen/src/merge/merger.rs:482
+    wire base2_at_m_or_1;                    // rtl-gen/src/merge/merger.rs:480
+    wire base2_end_sent_and;                 // rtl-gen/src/merge/merger.rs:479
+    wire leaves2_wr_not_3;                   // rtl-gen/src/merge/merger.rs:483
+    wire base2_above_m_and_1;                // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base2_above_m_mux;          // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base2_at_m_mux;             // rtl-gen/src/merge/merger.rs:483
+    wire base2_above_m_mux_1;                // rtl-gen/src/merge/merger.rs:484
+    wire base2_at_m_mux_1;                   // rtl-gen/src/merge/merger.rs:484
+    wire base2_end_sent_and_1;               // rtl-gen/src/merge/merger.rs:485
+    wire base2_end_sent_and_2;               // rtl-gen/src/merge/merger.rs:485
+    wire leaves2_wr_not_4;                   // rtl-gen/src/merge/merger.rs:485
+    wire base2_end_sent_and_3;               // rtl-gen/src/merge/merger.rs:485
+    wire leaves2_wr_not_5;                   // rtl-gen/src/merge/merger.rs:941
+    wire leaf_take_and_11;                   // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves2_wr_add;               // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves2_rd_add;               // rtl-gen/src/merge/merger.rs:942
+    wire base2_end_sent_and_4;               // rtl-gen/src/merge/merger.rs:496
+    wire base2_end_sent_and_5;               // rtl-gen/src/merge/merger.rs:497
+    wire base2_end_sent_not_1;               // rtl-gen/src/merge/merger.rs:498
+    wire u_builder_and_2;                    // rtl-gen/src/merge/merger.rs:498
+    wire base2_at_m_mux_2;                   // rtl-gen/src/merge/merger.rs:498
+    wire base2_at_m_mux_3;                   // rtl-gen/src/merge/merger.rs:499
     reg base3_end_sent;                      // rtl-gen/src/merge/merger.rs:457
     wire merge_lod_eq_3;                     // rtl-gen/src/merge/merger.rs:459
     wire base3_at_m;                         // rtl-gen/src/merge/merger.rs:459
-    reg [4:0] leaves3_wr;                    // rtl-gen/src/merge/merger.rs:463
-    reg [4:0] leaves3_rd;                    // rtl-gen/src/merge/merger.rs:464
-    wire leaves3_wr_eq;                      // rtl-gen/src/merge/merger.rs:465
-    wire leaves3_wr_eq_1;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves3_wr_eq_2;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves3_wr_not;                     // rtl-gen/src/merge/merger.rs:466
-    wire leaves3_wr_and;                     // rtl-gen/src/merge/merger.rs:466
-    wire leaf_best_data_eq_3;                // rtl-gen/src/merge/merger.rs:467
-    wire leaf_take_and_12;                   // rtl-gen/src/merge/merger.rs:467
-    wire leaves3_wr_not_1;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_13;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_14;                   // rtl-gen/src/merge/merger.rs:469
-    wire [177:0] leaves3_rd_1;               // rtl-gen/src/merge/merger.rs:470
-    wire merge_lod_lt_3;                     // rtl-gen/src/merge/merger.rs:471
-    wire base3_above_m;                      // rtl-gen/src/merge/merger.rs:471
-    wire [179:0] const_cat_4;                // rtl-gen/src/merge/merger.rs:472
-    wire leaves3_wr_and_1;                   // rtl-gen/src/merge/merger.rs:481
-    wire base3_end_sent_not;                 // rtl-gen/src/merge/merger.rs:482
-    wire base3_at_m_and;                     // rtl-gen/src/merge/merger.rs:483
-    wire out_is_ref_not_3;                   // rtl-gen/src/merge/merger.rs:483
-    wire base3_at_m_and_1;                   // rtl-gen/src/merge/merger.rs:483
-    wire leaves3_wr_not_2;                   // rtl-gen/src/merge/merger.rs:484
-    wire leaves3_wr_or;                      // rtl-gen/src/merge/merger.rs:484
-    wire base3_above_m_and;                  // rtl-gen/src/merge/merger.rs:484
-    wire base3_at_m_or;                      // rtl-gen/src/merge/merger.rs:483
-    wire base3_at_m_not;                     // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_6;                 // rtl-gen/src/merge/merger.rs:485
-    wire base3_above_m_not;                  // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_7;                 // rtl-gen/src/merge/merger.rs:485
-    wire base3_at_m_or_1;                    // rtl-gen/src/merge/merger.rs:483
-    wire base3_end_sent_and;                 // rtl-gen/src/merge/merger.rs:482
-    wire leaves3_wr_not_3;                   // rtl-gen/src/merge/merger.rs:486
-    wire base3_above_m_and_1;                // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base3_above_m_mux;          // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base3_at_m_mux;             // rtl-gen/src/merge/merger.rs:486
-    wire base3_above_m_mux_1;                // rtl-gen/src/merge/merger.rs:487
-    wire base3_at_m_mux_1;                   // rtl-gen/src/merge/merger.rs:487
-    wire base3_end_sent_and_1;               // rtl-gen/src/merge/merger.rs:488
-    wire base3_end_sent_and_2;               // rtl-gen/src/merge/merger.rs:488
-    wire leaves3_wr_not_4;                   // rtl-gen/src/merge/merger.rs:488
-    wire base3_end_sent_and_3;               // rtl-gen/src/merge/merger.rs:488
-    wire leaves3_wr_not_5;                   // rtl-gen/src/merge/merger.rs:489
-    wire leaf_take_and_15;                   // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves3_wr_add;               // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves3_rd_add;               // rtl-gen/src/merge/merger.rs:490
-    wire base3_end_sent_and_4;               // rtl-gen/src/merge/merger.rs:500
-    wire base3_end_sent_and_5;               // rtl-gen/src/merge/merger.rs:501
-    wire base3_end_sent_not_1;               // rtl-gen/src/merge/merger.rs:502
-    wire u_builder_and_3;                    // rtl-gen/src/merge/merger.rs:502
-    wire base3_at_m_mux_2;                   // rtl-gen/src/merge/merger.rs:502
-    wire base3_at_m_mux_3;                   // rtl-gen/src/merge/merger.rs:503
+    reg [4:0] leaves3_wr;                    // rtl-gen/src/merge/merger.rs:910
+    reg [4:0] leaves3_rd;                    // rtl-gen/src/merge/merger.rs:911
+    wire leaves3_wr_eq;                      // rtl-gen/src/merge/merger.rs:912
+    wire leaves3_wr_eq_1;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves3_wr_eq_2;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves3_wr_not;                     // rtl-gen/src/merge/merger.rs:913
+    wire leaves3_wr_and;                     // rtl-gen/src/merge/merger.rs:913
+    wire leaf_best_data_eq_3;                // rtl-gen/src/merge/merger.rs:464
+    wire leaf_take_and_12;                   // rtl-gen/src/merge/merger.rs:464
+    wire leaves3_wr_not_1;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_13;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_14;                   // rtl-gen/src/merge/merger.rs:466
+    wire [177:0] leaves3_rd_1;               // rtl-gen/src/merge/merger.rs:934
+    wire merge_lod_lt_3;                     // rtl-gen/src/merge/merger.rs:468
+    wire base3_above_m;                      // rtl-gen/src/merge/merger.rs:468
+    wire [179:0] const_cat_4;                // rtl-gen/src/merge/merger.rs:469
+    wire leaves3_wr_and_1;                   // rtl-gen/src/merge/merger.rs:478
+    wire base3_end_sent_not;                 // rtl-gen/src/merge/merger.rs:479
+    wire base3_at_m_and;                     // rtl-gen/src/merge/merger.rs:480
+    wire out_is_ref_not_3;                   // rtl-gen/src/merge/merger.rs:480
+    wire base3_at_m_and_1;                   // rtl-gen/src/merge/merger.rs:480
+    wire leaves3_wr_not_2;                   // rtl-gen/src/merge/merger.rs:481
+    wire leaves3_wr_or;                      // rtl-gen/src/merge/merger.rs:481
+    wire base3_above_m_and;                  // rtl-gen/src/merge/merger.rs:481
+    wire base3_at_m_or;                      // rtl-gen/src/merge/merger.rs:480
+    wire base3_at_m_not;                     // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_6;                 // rtl-gen/src/merge/merger.rs:482
+    wire base3_above_m_not;                  // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_7;                 // rtl-gen/src/merge/merger.rs:482
+    wire base3_at_m_or_1;                    // rtl-gen/src/merge/merger.rs:480
+    wire base3_end_sent_and;                 // rtl-gen/src/merge/merger.rs:479
+    wire leaves3_wr_not_3;                   // rtl-gen/src/merge/merger.rs:483
+    wire base3_above_m_and_1;                // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base3_above_m_mux;          // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base3_at_m_mux;             // rtl-gen/src/merge/merger.rs:483
+    wire base3_above_m_mux_1;                // rtl-gen/src/merge/merger.rs:484
+    wire base3_at_m_mux_1;                   // rtl-gen/src/merge/merger.rs:484
+    wire base3_end_sent_and_1;               // rtl-gen/src/merge/merger.rs:485
+    wire base3_end_sent_and_2;               // rtl-gen/src/merge/merger.rs:485
+    wire leaves3_wr_not_4;                   // rtl-gen/src/merge/merger.rs:485
+    wire base3_end_sent_and_3;               // rtl-gen/src/merge/merger.rs:485
+    wire leaves3_wr_not_5;                   // rtl-gen/src/merge/merger.rs:941
+    wire leaf_take_and_15;                   // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves3_wr_add;               // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves3_rd_add;               // rtl-gen/src/merge/merger.rs:942
+    wire base3_end_sent_and_4;               // rtl-gen/src/merge/merger.rs:496
+    wire base3_end_sent_and_5;               // rtl-gen/src/merge/merger.rs:497
+    wire base3_end_sent_not_1;               // rtl-gen/src/merge/merger.rs:498
+    wire u_builder_and_3;                    // rtl-gen/src/merge/merger.rs:498
+    wire base3_at_m_mux_2;                   // rtl-gen/src/merge/merger.rs:498
+    wire base3_at_m_mux_3;                   // rtl-gen/src/merge/merger.rs:499
     reg base4_end_sent;                      // rtl-gen/src/merge/merger.rs:457
     wire merge_lod_eq_4;                     // rtl-gen/src/merge/merger.rs:459
     wire base4_at_m;                         // rtl-gen/src/merge/merger.rs:459
-    reg [4:0] leaves4_wr;                    // rtl-gen/src/merge/merger.rs:463
-    reg [4:0] leaves4_rd;                    // rtl-gen/src/merge/merger.rs:464
-    wire leaves4_wr_eq;                      // rtl-gen/src/merge/merger.rs:465
-    wire leaves4_wr_eq_1;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves4_wr_eq_2;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves4_wr_not;                     // rtl-gen/src/merge/merger.rs:466
-    wire leaves4_wr_and;                     // rtl-gen/src/merge/merger.rs:466
-    wire leaf_best_data_eq_4;                // rtl-gen/src/merge/merger.rs:467
-    wire leaf_take_and_16;                   // rtl-gen/src/merge/merger.rs:467
-    wire leaves4_wr_not_1;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_17;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_18;                   // rtl-gen/src/merge/merger.rs:469
-    wire [177:0] leaves4_rd_1;               // rtl-gen/src/merge/merger.rs:470
-    wire merge_lod_lt_4;                     // rtl-gen/src/merge/merger.rs:471
-    wire base4_above_m;                      // rtl-gen/src/merge/merger.rs:471
-    wire [179:0] const_cat_5;                // rtl-gen/src/merge/merger.rs:472
-    wire leaves4_wr_and_1;                   // rtl-gen/src/merge/merger.rs:481
-    wire base4_end_sent_not;                 // rtl-gen/src/merge/merger.rs:482
-    wire base4_at_m_and;                     // rtl-gen/src/merge/merger.rs:483
-    wire out_is_ref_not_4;                   // rtl-gen/src/merge/merger.rs:483
-    wire base4_at_m_and_1;                   // rtl-gen/src/merge/merger.rs:483
-    wire leaves4_wr_not_2;                   // rtl-gen/src/merge/merger.rs:484
-    wire leaves4_wr_or;                      // rtl-gen/src/merge/merger.rs:484
-    wire base4_above_m_and;                  // rtl-gen/src/merge/merger.rs:484
-    wire base4_at_m_or;                      // rtl-gen/src/merge/merger.rs:483
-    wire base4_at_m_not;                     // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_8;                 // rtl-gen/src/merge/merger.rs:485
-    wire base4_above_m_not;                  // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_9;                 // rtl-gen/src/merge/merger.rs:485
-    wire base4_at_m_or_1;                    // rtl-gen/src/merge/merger.rs:483
-    wire base4_end_sent_and;                 // rtl-gen/src/merge/merger.rs:482
-    wire leaves4_wr_not_3;                   // rtl-gen/src/merge/merger.rs:486
-    wire base4_above_m_and_1;                // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base4_above_m_mux;          // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base4_at_m_mux;             // rtl-gen/src/merge/merger.rs:486
-    wire base4_above_m_mux_1;                // rtl-gen/src/merge/merger.rs:487
-    wire base4_at_m_mux_1;                   // rtl-gen/src/merge/merger.rs:487
-    wire base4_end_sent_and_1;               // rtl-gen/src/merge/merger.rs:488
-    wire base4_end_sent_and_2;               // rtl-gen/src/merge/merger.rs:488
-    wire leaves4_wr_not_4;                   // rtl-gen/src/merge/merger.rs:488
-    wire base4_end_sent_and_3;               // rtl-gen/src/merge/merger.rs:488
-    wire leaves4_wr_not_5;                   // rtl-gen/src/merge/merger.rs:489
-    wire leaf_take_and_19;                   // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves4_wr_add;               // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves4_rd_add;               // rtl-gen/src/merge/merger.rs:490
-    wire base4_end_sent_and_4;               // rtl-gen/src/merge/merger.rs:500
-    wire base4_end_sent_and_5;               // rtl-gen/src/merge/merger.rs:501
-    wire base4_end_sent_not_1;               // rtl-gen/src/merge/merger.rs:502
-    wire u_builder_and_4;                    // rtl-gen/src/merge/merger.rs:502
-    wire base4_at_m_mux_2;                   // rtl-gen/src/merge/merger.rs:502
-    wire base4_at_m_mux_3;                   // rtl-gen/src/merge/merger.rs:503
+    reg [4:0] leaves4_wr;                    // rtl-gen/src/merge/merger.rs:910
+    reg [4:0] leaves4_rd;                    // rtl-gen/src/merge/merger.rs:911
+    wire leaves4_wr_eq;                      // rtl-gen/src/merge/merger.rs:912
+    wire leaves4_wr_eq_1;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves4_wr_eq_2;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves4_wr_not;                     // rtl-gen/src/merge/merger.rs:913
+    wire leaves4_wr_and;                     // rtl-gen/src/merge/merger.rs:913
+    wire leaf_best_data_eq_4;                // rtl-gen/src/merge/merger.rs:464
+    wire leaf_take_and_16;                   // rtl-gen/src/merge/merger.rs:464
+    wire leaves4_wr_not_1;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_17;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_18;                   // rtl-gen/src/merge/merger.rs:466
+    wire [177:0] leaves4_rd_1;               // rtl-gen/src/merge/merger.rs:934
+    wire merge_lod_lt_4;                     // rtl-gen/src/merge/merger.rs:468
+    wire base4_above_m;                      // rtl-gen/src/merge/merger.rs:468
+    wire [179:0] const_cat_5;                // rtl-gen/src/merge/merger.rs:469
+    wire leaves4_wr_and_1;                   // rtl-gen/src/merge/merger.rs:478
+    wire base4_end_sent_not;                 // rtl-gen/src/merge/merger.rs:479
+    wire base4_at_m_and;                     // rtl-gen/src/merge/merger.rs:480
+    wire out_is_ref_not_4;                   // rtl-gen/src/merge/merger.rs:480
+    wire base4_at_m_and_1;                   // rtl-gen/src/merge/merger.rs:480
+    wire leaves4_wr_not_2;                   // rtl-gen/src/merge/merger.rs:481
+    wire leaves4_wr_or;                      // rtl-gen/src/merge/merger.rs:481
+    wire base4_above_m_and;                  // rtl-gen/src/merge/merger.rs:481
+    wire base4_at_m_or;                      // rtl-gen/src/merge/merger.rs:480
+    wire base4_at_m_not;                     // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_8;                 // rtl-gen/src/merge/merger.rs:482
+    wire base4_above_m_not;                  // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_9;                 // rtl-gen/src/merge/merger.rs:482
+    wire base4_at_m_or_1;                    // rtl-gen/src/merge/merger.rs:480
+    wire base4_end_sent_and;                 // rtl-gen/src/merge/merger.rs:479
+    wire leaves4_wr_not_3;                   // rtl-gen/src/merge/merger.rs:483
+    wire base4_above_m_and_1;                // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base4_above_m_mux;          // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base4_at_m_mux;             // rtl-gen/src/merge/merger.rs:483
+    wire base4_above_m_mux_1;                // rtl-gen/src/merge/merger.rs:484
+    wire base4_at_m_mux_1;                   // rtl-gen/src/merge/merger.rs:484
+    wire base4_end_sent_and_1;               // rtl-gen/src/merge/merger.rs:485
+    wire base4_end_sent_and_2;               // rtl-gen/src/merge/merger.rs:485
+    wire leaves4_wr_not_4;                   // rtl-gen/src/merge/merger.rs:485
+    wire base4_end_sent_and_3;               // rtl-gen/src/merge/merger.rs:485
+    wire leaves4_wr_not_5;                   // rtl-gen/src/merge/merger.rs:941
+    wire leaf_take_and_19;                   // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves4_wr_add;               // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves4_rd_add;               // rtl-gen/src/merge/merger.rs:942
+    wire base4_end_sent_and_4;               // rtl-gen/src/merge/merger.rs:496
+    wire base4_end_sent_and_5;               // rtl-gen/src/merge/merger.rs:497
+    wire base4_end_sent_not_1;               // rtl-gen/src/merge/merger.rs:498
+    wire u_builder_and_4;                    // rtl-gen/src/merge/merger.rs:498
+    wire base4_at_m_mux_2;                   // rtl-gen/src/merge/merger.rs:498
+    wire base4_at_m_mux_3;                   // rtl-gen/src/merge/merger.rs:499
     reg base5_end_sent;                      // rtl-gen/src/merge/merger.rs:457
     wire merge_lod_eq_5;                     // rtl-gen/src/merge/merger.rs:459
     wire base5_at_m;                         // rtl-gen/src/merge/merger.rs:459
-    reg [4:0] leaves5_wr;                    // rtl-gen/src/merge/merger.rs:463
-    reg [4:0] leaves5_rd;                    // rtl-gen/src/merge/merger.rs:464
-    wire leaves5_wr_eq;                      // rtl-gen/src/merge/merger.rs:465
-    wire leaves5_wr_eq_1;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves5_wr_eq_2;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves5_wr_not;                     // rtl-gen/src/merge/merger.rs:466
-    wire leaves5_wr_and;                     // rtl-gen/src/merge/merger.rs:466
-    wire leaf_best_data_eq_5;                // rtl-gen/src/merge/merger.rs:467
-    wire leaf_take_and_20;                   // rtl-gen/src/merge/merger.rs:467
-    wire leaves5_wr_not_1;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_21;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_22;                   // rtl-gen/src/merge/merger.rs:469
-    wire [177:0] leaves5_rd_1;               // rtl-gen/src/merge/merger.rs:470
-    wire merge_lod_lt_5;                     // rtl-gen/src/merge/merger.rs:471
-    wire base5_above_m;                      // rtl-gen/src/merge/merger.rs:471
-    wire [179:0] const_cat_6;                // rtl-gen/src/merge/merger.rs:472
-    wire leaves5_wr_and_1;                   // rtl-gen/src/merge/merger.rs:481
-    wire base5_end_sent_not;                 // rtl-gen/src/merge/merger.rs:482
-    wire base5_at_m_and;                     // rtl-gen/src/merge/merger.rs:483
-    wire out_is_ref_not_5;                   // rtl-gen/src/merge/merger.rs:483
-    wire base5_at_m_and_1;                   // rtl-gen/src/merge/merger.rs:483
-    wire leaves5_wr_not_2;                   // rtl-gen/src/merge/merger.rs:484
-    wire leaves5_wr_or;                      // rtl-gen/src/merge/merger.rs:484
-    wire base5_above_m_and;                  // rtl-gen/src/merge/merger.rs:484
-    wire base5_at_m_or;                      // rtl-gen/src/merge/merger.rs:483
-    wire base5_at_m_not;                     // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_10;                // rtl-gen/src/merge/merger.rs:485
-    wire base5_above_m_not;                  // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_11;                // rtl-gen/src/merge/merger.rs:485
-    wire base5_at_m_or_1;                    // rtl-gen/src/merge/merger.rs:483
-    wire base5_end_sent_and;                 // rtl-gen/src/merge/merger.rs:482
-    wire leaves5_wr_not_3;                   // rtl-gen/src/merge/merger.rs:486
-    wire base5_above_m_and_1;                // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base5_above_m_mux;          // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base5_at_m_mux;             // rtl-gen/src/merge/merger.rs:486
-    wire base5_above_m_mux_1;                // rtl-gen/src/merge/merger.rs:487
-    wire base5_at_m_mux_1;                   // rtl-gen/src/merge/merger.rs:487
-    wire base5_end_sent_and_1;               // rtl-gen/src/merge/merger.rs:488
-    wire base5_end_sent_and_2;               // rtl-gen/src/merge/merger.rs:488
-    wire leaves5_wr_not_4;                   // rtl-gen/src/merge/merger.rs:488
-    wire base5_end_sent_and_3;               // rtl-gen/src/merge/merger.rs:488
-    wire leaves5_wr_not_5;                   // rtl-gen/src/merge/merger.rs:489
-    wire leaf_take_and_23;                   // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves5_wr_add;               // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves5_rd_add;               // rtl-gen/src/merge/merger.rs:490
-    wire base5_end_sent_and_4;               // rtl-gen/src/merge/merger.rs:500
-    wire base5_end_sent_and_5;               // rtl-gen/src/merge/merger.rs:501
-    wire base5_end_sent_not_1;               // rtl-gen/src/merge/merger.rs:502
-    wire u_builder_and_5;                    // rtl-gen/src/merge/merger.rs:502
-    wire base5_at_m_mux_2;                   // rtl-gen/src/merge/merger.rs:502
-    wire base5_at_m_mux_3;                   // rtl-gen/src/merge/merger.rs:503
+    reg [4:0] leaves5_wr;                    // rtl-gen/src/merge/merger.rs:910
+    reg [4:0] leaves5_rd;                    // rtl-gen/src/merge/merger.rs:911
+    wire leaves5_wr_eq;                      // rtl-gen/src/merge/merger.rs:912
+    wire leaves5_wr_eq_1;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves5_wr_eq_2;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves5_wr_not;                     // rtl-gen/src/merge/merger.rs:913
+    wire leaves5_wr_and;                     // rtl-gen/src/merge/merger.rs:913
+    wire leaf_best_data_eq_5;                // rtl-gen/src/merge/merger.rs:464
+    wire leaf_take_and_20;                   // rtl-gen/src/merge/merger.rs:464
+    wire leaves5_wr_not_1;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_21;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_22;                   // rtl-gen/src/merge/merger.rs:466
+    wire [177:0] leaves5_rd_1;               // rtl-gen/src/merge/merger.rs:934
+    wire merge_lod_lt_5;                     // rtl-gen/src/merge/merger.rs:468
+    wire base5_above_m;                      // rtl-gen/src/merge/merger.rs:468
+    wire [179:0] const_cat_6;                // rtl-gen/src/merge/merger.rs:469
+    wire leaves5_wr_and_1;                   // rtl-gen/src/merge/merger.rs:478
+    wire base5_end_sent_not;                 // rtl-gen/src/merge/merger.rs:479
+    wire base5_at_m_and;                     // rtl-gen/src/merge/merger.rs:480
+    wire out_is_ref_not_5;                   // rtl-gen/src/merge/merger.rs:480
+    wire base5_at_m_and_1;                   // rtl-gen/src/merge/merger.rs:480
+    wire leaves5_wr_not_2;                   // rtl-gen/src/merge/merger.rs:481
+    wire leaves5_wr_or;                      // rtl-gen/src/merge/merger.rs:481
+    wire base5_above_m_and;                  // rtl-gen/src/merge/merger.rs:481
+    wire base5_at_m_or;                      // rtl-gen/src/merge/merger.rs:480
+    wire base5_at_m_not;                     // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_10;                // rtl-gen/src/merge/merger.rs:482
+    wire base5_above_m_not;                  // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_11;                // rtl-gen/src/merge/merger.rs:482
+    wire base5_at_m_or_1;                    // rtl-gen/src/merge/merger.rs:480
+    wire base5_end_sent_and;                 // rtl-gen/src/merge/merger.rs:479
+    wire leaves5_wr_not_3;                   // rtl-gen/src/merge/merger.rs:483
+    wire base5_above_m_and_1;                // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base5_above_m_mux;          // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base5_at_m_mux;             // rtl-gen/src/merge/merger.rs:483
+    wire base5_above_m_mux_1;                // rtl-gen/src/merge/merger.rs:484
+    wire base5_at_m_mux_1;                   // rtl-gen/src/merge/merger.rs:484
+    wire base5_end_sent_and_1;               // rtl-gen/src/merge/merger.rs:485
+    wire base5_end_sent_and_2;               // rtl-gen/src/merge/merger.rs:485
+    wire leaves5_wr_not_4;                   // rtl-gen/src/merge/merger.rs:485
+    wire base5_end_sent_and_3;               // rtl-gen/src/merge/merger.rs:485
+    wire leaves5_wr_not_5;                   // rtl-gen/src/merge/merger.rs:941
+    wire leaf_take_and_23;                   // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves5_wr_add;               // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves5_rd_add;               // rtl-gen/src/merge/merger.rs:942
+    wire base5_end_sent_and_4;               // rtl-gen/src/merge/merger.rs:496
+    wire base5_end_sent_and_5;               // rtl-gen/src/merge/merger.rs:497
+    wire base5_end_sent_not_1;               // rtl-gen/src/merge/merger.rs:498
+    wire u_builder_and_5;                    // rtl-gen/src/merge/merger.rs:498
+    wire base5_at_m_mux_2;                   // rtl-gen/src/merge/merger.rs:498
+    wire base5_at_m_mux_3;                   // rtl-gen/src/merge/merger.rs:499
     reg base6_end_sent;                      // rtl-gen/src/merge/merger.rs:457
     wire merge_lod_eq_6;                     // rtl-gen/src/merge/merger.rs:459
     wire base6_at_m;                         // rtl-gen/src/merge/merger.rs:459
-    reg [4:0] leaves6_wr;                    // rtl-gen/src/merge/merger.rs:463
-    reg [4:0] leaves6_rd;                    // rtl-gen/src/merge/merger.rs:464
-    wire leaves6_wr_eq;                      // rtl-gen/src/merge/merger.rs:465
-    wire leaves6_wr_eq_1;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves6_wr_eq_2;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves6_wr_not;                     // rtl-gen/src/merge/merger.rs:466
-    wire leaves6_wr_and;                     // rtl-gen/src/merge/merger.rs:466
-    wire leaf_best_data_eq_6;                // rtl-gen/src/merge/merger.rs:467
-    wire leaf_take_and_24;                   // rtl-gen/src/merge/merger.rs:467
-    wire leaves6_wr_not_1;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_25;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_26;                   // rtl-gen/src/merge/merger.rs:469
-    wire [177:0] leaves6_rd_1;               // rtl-gen/src/merge/merger.rs:470
-    wire merge_lod_lt_6;                     // rtl-gen/src/merge/merger.rs:471
-    wire base6_above_m;                      // rtl-gen/src/merge/merger.rs:471
-    wire [179:0] const_cat_7;                // rtl-gen/src/merge/merger.rs:472
-    wire leaves6_wr_and_1;                   // rtl-gen/src/merge/merger.rs:481
-    wire base6_end_sent_not;                 // rtl-gen/src/merge/merger.rs:482
-    wire base6_at_m_and;                     // rtl-gen/src/merge/merger.rs:483
-    wire out_is_ref_not_6;                   // rtl-gen/src/merge/merger.rs:483
-    wire base6_at_m_and_1;                   // rtl-gen/src/merge/merger.rs:483
-    wire leaves6_wr_not_2;                   // rtl-gen/src/merge/merger.rs:484
-    wire leaves6_wr_or;                      // rtl-gen/src/merge/merger.rs:484
-    wire base6_above_m_and;                  // rtl-gen/src/merge/merger.rs:484
-    wire base6_at_m_or;                      // rtl-gen/src/merge/merger.rs:483
-    wire base6_at_m_not;                     // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_12;                // rtl-gen/src/merge/merger.rs:485
-    wire base6_above_m_not;                  // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_13;                // rtl-gen/src/merge/merger.rs:485
-    wire base6_at_m_or_1;                    // rtl-gen/src/merge/merger.rs:483
-    wire base6_end_sent_and;                 // rtl-gen/src/merge/merger.rs:482
-    wire leaves6_wr_not_3;                   // rtl-gen/src/merge/merger.rs:486
-    wire base6_above_m_and_1;                // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base6_above_m_mux;          // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base6_at_m_mux;             // rtl-gen/src/merge/merger.rs:486
-    wire base6_above_m_mux_1;                // rtl-gen/src/merge/merger.rs:487
-    wire base6_at_m_mux_1;                   // rtl-gen/src/merge/merger.rs:487
-    wire base6_end_sent_and_1;               // rtl-gen/src/merge/merger.rs:488
-    wire base6_end_sent_and_2;               // rtl-gen/src/merge/merger.rs:488
-    wire leaves6_wr_not_4;                   // rtl-gen/src/merge/merger.rs:488
-    wire base6_end_sent_and_3;               // rtl-gen/src/merge/merger.rs:488
-    wire leaves6_wr_not_5;                   // rtl-gen/src/merge/merger.rs:489
-    wire leaf_take_and_27;                   // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves6_wr_add;               // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves6_rd_add;               // rtl-gen/src/merge/merger.rs:490
-    wire base6_end_sent_and_4;               // rtl-gen/src/merge/merger.rs:500
-    wire base6_end_sent_and_5;               // rtl-gen/src/merge/merger.rs:501
-    wire base6_end_sent_not_1;               // rtl-gen/src/merge/merger.rs:502
-    wire u_builder_and_6;                    // rtl-gen/src/merge/merger.rs:502
-    wire base6_at_m_mux_2;                   // rtl-gen/src/merge/merger.rs:502
-    wire base6_at_m_mux_3;                   // rtl-gen/src/merge/merger.rs:503
+    reg [4:0] leaves6_wr;                    // rtl-gen/src/merge/merger.rs:910
+    reg [4:0] leaves6_rd;                    // rtl-gen/src/merge/merger.rs:911
+    wire leaves6_wr_eq;                      // rtl-gen/src/merge/merger.rs:912
+    wire leaves6_wr_eq_1;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves6_wr_eq_2;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves6_wr_not;                     // rtl-gen/src/merge/merger.rs:913
+    wire leaves6_wr_and;                     // rtl-gen/src/merge/merger.rs:913
+    wire leaf_best_data_eq_6;                // rtl-gen/src/merge/merger.rs:464
+    wire leaf_take_and_24;                   // rtl-gen/src/merge/merger.rs:464
+    wire leaves6_wr_not_1;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_25;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_26;                   // rtl-gen/src/merge/merger.rs:466
+    wire [177:0] leaves6_rd_1;               // rtl-gen/src/merge/merger.rs:934
+    wire merge_lod_lt_6;                     // rtl-gen/src/merge/merger.rs:468
+    wire base6_above_m;                      // rtl-gen/src/merge/merger.rs:468
+    wire [179:0] const_cat_7;                // rtl-gen/src/merge/merger.rs:469
+    wire leaves6_wr_and_1;                   // rtl-gen/src/merge/merger.rs:478
+    wire base6_end_sent_not;                 // rtl-gen/src/merge/merger.rs:479
+    wire base6_at_m_and;                     // rtl-gen/src/merge/merger.rs:480
+    wire out_is_ref_not_6;                   // rtl-gen/src/merge/merger.rs:480
+    wire base6_at_m_and_1;                   // rtl-gen/src/merge/merger.rs:480
+    wire leaves6_wr_not_2;                   // rtl-gen/src/merge/merger.rs:481
+    wire leaves6_wr_or;                      // rtl-gen/src/merge/merger.rs:481
+    wire base6_above_m_and;                  // rtl-gen/src/merge/merger.rs:481
+    wire base6_at_m_or;                      // rtl-gen/src/merge/merger.rs:480
+    wire base6_at_m_not;                     // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_12;                // rtl-gen/src/merge/merger.rs:482
+    wire base6_above_m_not;                  // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_13;                // rtl-gen/src/merge/merger.rs:482
+    wire base6_at_m_or_1;                    // rtl-gen/src/merge/merger.rs:480
+    wire base6_end_sent_and;                 // rtl-gen/src/merge/merger.rs:479
+    wire leaves6_wr_not_3;                   // rtl-gen/src/merge/merger.rs:483
+    wire base6_above_m_and_1;                // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base6_above_m_mux;          // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base6_at_m_mux;             // rtl-gen/src/merge/merger.rs:483
+    wire base6_above_m_mux_1;                // rtl-gen/src/merge/merger.rs:484
+    wire base6_at_m_mux_1;                   // rtl-gen/src/merge/merger.rs:484
+    wire base6_end_sent_and_1;               // rtl-gen/src/merge/merger.rs:485
+    wire base6_end_sent_and_2;               // rtl-gen/src/merge/merger.rs:485
+    wire leaves6_wr_not_4;                   // rtl-gen/src/merge/merger.rs:485
+    wire base6_end_sent_and_3;               // rtl-gen/src/merge/merger.rs:485
+    wire leaves6_wr_not_5;                   // rtl-gen/src/merge/merger.rs:941
+    wire leaf_take_and_27;                   // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves6_wr_add;               // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves6_rd_add;               // rtl-gen/src/merge/merger.rs:942
+    wire base6_end_sent_and_4;               // rtl-gen/src/merge/merger.rs:496
+    wire base6_end_sent_and_5;               // rtl-gen/src/merge/merger.rs:497
+    wire base6_end_sent_not_1;               // rtl-gen/src/merge/merger.rs:498
+    wire u_builder_and_6;                    // rtl-gen/src/merge/merger.rs:498
+    wire base6_at_m_mux_2;                   // rtl-gen/src/merge/merger.rs:498
+    wire base6_at_m_mux_3;                   // rtl-gen/src/merge/merger.rs:499
     reg base7_end_sent;                      // rtl-gen/src/merge/merger.rs:457
     wire merge_lod_eq_7;                     // rtl-gen/src/merge/merger.rs:459
     wire base7_at_m;                         // rtl-gen/src/merge/merger.rs:459
-    reg [4:0] leaves7_wr;                    // rtl-gen/src/merge/merger.rs:463
-    reg [4:0] leaves7_rd;                    // rtl-gen/src/merge/merger.rs:464
-    wire leaves7_wr_eq;                      // rtl-gen/src/merge/merger.rs:465
-    wire leaves7_wr_eq_1;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves7_wr_eq_2;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves7_wr_not;                     // rtl-gen/src/merge/merger.rs:466
-    wire leaves7_wr_and;                     // rtl-gen/src/merge/merger.rs:466
-    wire leaf_best_data_eq_7;                // rtl-gen/src/merge/merger.rs:467
-    wire leaf_take_and_28;                   // rtl-gen/src/merge/merger.rs:467
-    wire leaves7_wr_not_1;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_29;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_30;                   // rtl-gen/src/merge/merger.rs:469
-    wire [177:0] leaves7_rd_1;               // rtl-gen/src/merge/merger.rs:470
-    wire merge_lod_lt_7;                     // rtl-gen/src/merge/merger.rs:471
-    wire base7_above_m;                      // rtl-gen/src/merge/merger.rs:471
-    wire [179:0] const_cat_8;                // rtl-gen/src/merge/merger.rs:472
-    wire leaves7_wr_and_1;                   // rtl-gen/src/merge/merger.rs:481
-    wire base7_end_sent_not;                 // rtl-gen/src/merge/merger.rs:482
-    wire base7_at_m_and;                     // rtl-gen/src/merge/merger.rs:483
-    wire out_is_ref_not_7;                   // rtl-gen/src/merge/merger.rs:483
-    wire base7_at_m_and_1;                   // rtl-gen/src/merge/merger.rs:483
-    wire leaves7_wr_not_2;                   // rtl-gen/src/merge/merger.rs:484
-    wire leaves7_wr_or;                      // rtl-gen/src/merge/merger.rs:484
-    wire base7_above_m_and;                  // rtl-gen/src/merge/merger.rs:484
-    wire base7_at_m_or;                      // rtl-gen/src/merge/merger.rs:483
-    wire base7_at_m_not;                     // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_14;                // rtl-gen/src/merge/merger.rs:485
-    wire base7_above_m_not;                  // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_15;                // rtl-gen/src/merge/merger.rs:485
-    wire base7_at_m_or_1;                    // rtl-gen/src/merge/merger.rs:483
-    wire base7_end_sent_and;                 // rtl-gen/src/merge/merger.rs:482
-    wire leaves7_wr_not_3;                   // rtl-gen/src/merge/merger.rs:486
-    wire base7_above_m_and_1;                // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base7_above_m_mux;          // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base7_at_m_mux;             // rtl-gen/src/merge/merger.rs:486
-    wire base7_above_m_mux_1;                // rtl-gen/src/merge/merger.rs:487
-    wire base7_at_m_mux_1;                   // rtl-gen/src/merge/merger.rs:487
-    wire base7_end_sent_and_1;               // rtl-gen/src/merge/merger.rs:488
-    wire base7_end_sent_and_2;               // rtl-gen/src/merge/merger.rs:488
-    wire leaves7_wr_not_4;                   // rtl-gen/src/merge/merger.rs:488
-    wire base7_end_sent_and_3;               // rtl-gen/src/merge/merger.rs:488
-    wire leaves7_wr_not_5;                   // rtl-gen/src/merge/merger.rs:489
-    wire leaf_take_and_31;                   // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves7_wr_add;               // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves7_rd_add;               // rtl-gen/src/merge/merger.rs:490
-    wire base7_end_sent_and_4;               // rtl-gen/src/merge/merger.rs:500
-    wire base7_end_sent_and_5;               // rtl-gen/src/merge/merger.rs:501
-    wire base7_end_sent_not_1;               // rtl-gen/src/merge/merger.rs:502
-    wire u_builder_and_7;                    // rtl-gen/src/merge/merger.rs:502
-    wire base7_at_m_mux_2;                   // rtl-gen/src/merge/merger.rs:502
-    wire base7_at_m_mux_3;                   // rtl-gen/src/merge/merger.rs:503
+    reg [4:0] leaves7_wr;                    // rtl-gen/src/merge/merger.rs:910
+    reg [4:0] leaves7_rd;                    // rtl-gen/src/merge/merger.rs:911
+    wire leaves7_wr_eq;                      // rtl-gen/src/merge/merger.rs:912
+    wire leaves7_wr_eq_1;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves7_wr_eq_2;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves7_wr_not;                     // rtl-gen/src/merge/merger.rs:913
+    wire leaves7_wr_and;                     // rtl-gen/src/merge/merger.rs:913
+    wire leaf_best_data_eq_7;                // rtl-gen/src/merge/merger.rs:464
+    wire leaf_take_and_28;                   // rtl-gen/src/merge/merger.rs:464
+    wire leaves7_wr_not_1;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_29;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_30;                   // rtl-gen/src/merge/merger.rs:466
+    wire [177:0] leaves7_rd_1;               // rtl-gen/src/merge/merger.rs:934
+    wire merge_lod_lt_7;                     // rtl-gen/src/merge/merger.rs:468
+    wire base7_above_m;                      // rtl-gen/src/merge/merger.rs:468
+    wire [179:0] const_cat_8;                // rtl-gen/src/merge/merger.rs:469
+    wire leaves7_wr_and_1;                   // rtl-gen/src/merge/merger.rs:478
+    wire base7_end_sent_not;                 // rtl-gen/src/merge/merger.rs:479
+    wire base7_at_m_and;                     // rtl-gen/src/merge/merger.rs:480
+    wire out_is_ref_not_7;                   // rtl-gen/src/merge/merger.rs:480
+    wire base7_at_m_and_1;                   // rtl-gen/src/merge/merger.rs:480
+    wire leaves7_wr_not_2;                   // rtl-gen/src/merge/merger.rs:481
+    wire leaves7_wr_or;                      // rtl-gen/src/merge/merger.rs:481
+    wire base7_above_m_and;                  // rtl-gen/src/merge/merger.rs:481
+    wire base7_at_m_or;                      // rtl-gen/src/merge/merger.rs:480
+    wire base7_at_m_not;                     // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_14;                // rtl-gen/src/merge/merger.rs:482
+    wire base7_above_m_not;                  // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_15;                // rtl-gen/src/merge/merger.rs:482
+    wire base7_at_m_or_1;                    // rtl-gen/src/merge/merger.rs:480
+    wire base7_end_sent_and;                 // rtl-gen/src/merge/merger.rs:479
+    wire leaves7_wr_not_3;                   // rtl-gen/src/merge/merger.rs:483
+    wire base7_above_m_and_1;                // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base7_above_m_mux;          // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base7_at_m_mux;             // rtl-gen/src/merge/merger.rs:483
+    wire base7_above_m_mux_1;                // rtl-gen/src/merge/merger.rs:484
+    wire base7_at_m_mux_1;                   // rtl-gen/src/merge/merger.rs:484
+    wire base7_end_sent_and_1;               // rtl-gen/src/merge/merger.rs:485
+    wire base7_end_sent_and_2;               // rtl-gen/src/merge/merger.rs:485
+    wire leaves7_wr_not_4;                   // rtl-gen/src/merge/merger.rs:485
+    wire base7_end_sent_and_3;               // rtl-gen/src/merge/merger.rs:485
+    wire leaves7_wr_not_5;                   // rtl-gen/src/merge/merger.rs:941
+    wire leaf_take_and_31;                   // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves7_wr_add;               // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves7_rd_add;               // rtl-gen/src/merge/merger.rs:942
+    wire base7_end_sent_and_4;               // rtl-gen/src/merge/merger.rs:496
+    wire base7_end_sent_and_5;               // rtl-gen/src/merge/merger.rs:497
+    wire base7_end_sent_not_1;               // rtl-gen/src/merge/merger.rs:498
+    wire u_builder_and_7;                    // rtl-gen/src/merge/merger.rs:498
+    wire base7_at_m_mux_2;                   // rtl-gen/src/merge/merger.rs:498
+    wire base7_at_m_mux_3;                   // rtl-gen/src/merge/merger.rs:499
     reg base8_end_sent;                      // rtl-gen/src/merge/merger.rs:457
     wire merge_lod_eq_8;                     // rtl-gen/src/merge/merger.rs:459
     wire base8_at_m;                         // rtl-gen/src/merge/merger.rs:459
-    reg [4:0] leaves8_wr;                    // rtl-gen/src/merge/merger.rs:463
-    reg [4:0] leaves8_rd;                    // rtl-gen/src/merge/merger.rs:464
-    wire leaves8_wr_eq;                      // rtl-gen/src/merge/merger.rs:465
-    wire leaves8_wr_eq_1;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves8_wr_eq_2;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves8_wr_not;                     // rtl-gen/src/merge/merger.rs:466
-    wire leaves8_wr_and;                     // rtl-gen/src/merge/merger.rs:466
-    wire leaf_best_data_eq_8;                // rtl-gen/src/merge/merger.rs:467
-    wire leaf_take_and_32;                   // rtl-gen/src/merge/merger.rs:467
-    wire leaves8_wr_not_1;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_33;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_34;                   // rtl-gen/src/merge/merger.rs:469
-    wire [177:0] leaves8_rd_1;               // rtl-gen/src/merge/merger.rs:470
-    wire merge_lod_lt_8;                     // rtl-gen/src/merge/merger.rs:471
-    wire base8_above_m;                      // rtl-gen/src/merge/merger.rs:471
-    wire [179:0] const_cat_9;                // rtl-gen/src/merge/merger.rs:472
-    wire leaves8_wr_and_1;                   // rtl-gen/src/merge/merger.rs:481
-    wire base8_end_sent_not;                 // rtl-gen/src/merge/merger.rs:482
-    wire base8_at_m_and;                     // rtl-gen/src/merge/merger.rs:483
-    wire out_is_ref_not_8;                   // rtl-gen/src/merge/merger.rs:483
-    wire base8_at_m_and_1;                   // rtl-gen/src/merge/merger.rs:483
-    wire leaves8_wr_not_2;                   // rtl-gen/src/merge/merger.rs:484
-    wire leaves8_wr_or;                      // rtl-gen/src/merge/merger.rs:484
-    wire base8_above_m_and;                  // rtl-gen/src/merge/merger.rs:484
-    wire base8_at_m_or;                      // rtl-gen/src/merge/merger.rs:483
-    wire base8_at_m_not;                     // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_16;                // rtl-gen/src/merge/merger.rs:485
-    wire base8_above_m_not;                  // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_17;                // rtl-gen/src/merge/merger.rs:485
-    wire base8_at_m_or_1;                    // rtl-gen/src/merge/merger.rs:483
-    wire base8_end_sent_and;                 // rtl-gen/src/merge/merger.rs:482
-    wire leaves8_wr_not_3;                   // rtl-gen/src/merge/merger.rs:486
-    wire base8_above_m_and_1;                // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base8_above_m_mux;          // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base8_at_m_mux;             // rtl-gen/src/merge/merger.rs:486
-    wire base8_above_m_mux_1;                // rtl-gen/src/merge/merger.rs:487
-    wire base8_at_m_mux_1;                   // rtl-gen/src/merge/merger.rs:487
-    wire base8_end_sent_and_1;               // rtl-gen/src/merge/merger.rs:488
-    wire base8_end_sent_and_2;               // rtl-gen/src/merge/merger.rs:488
-    wire leaves8_wr_not_4;                   // rtl-gen/src/merge/merger.rs:488
-    wire base8_end_sent_and_3;               // rtl-gen/src/merge/merger.rs:488
-    wire leaves8_wr_not_5;                   // rtl-gen/src/merge/merger.rs:489
-    wire leaf_take_and_35;                   // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves8_wr_add;               // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves8_rd_add;               // rtl-gen/src/merge/merger.rs:490
-    wire base8_end_sent_and_4;               // rtl-gen/src/merge/merger.rs:500
-    wire base8_end_sent_and_5;               // rtl-gen/src/merge/merger.rs:501
-    wire base8_end_sent_not_1;               // rtl-gen/src/merge/merger.rs:502
-    wire u_builder_and_8;                    // rtl-gen/src/merge/merger.rs:502
-    wire base8_at_m_mux_2;                   // rtl-gen/src/merge/merger.rs:502
-    wire base8_at_m_mux_3;                   // rtl-gen/src/merge/merger.rs:503
+    reg [4:0] leaves8_wr;                    // rtl-gen/src/merge/merger.rs:910
+    reg [4:0] leaves8_rd;                    // rtl-gen/src/merge/merger.rs:911
+    wire leaves8_wr_eq;                      // rtl-gen/src/merge/merger.rs:912
+    wire leaves8_wr_eq_1;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves8_wr_eq_2;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves8_wr_not;                     // rtl-gen/src/merge/merger.rs:913
+    wire leaves8_wr_and;                     // rtl-gen/src/merge/merger.rs:913
+    wire leaf_best_data_eq_8;                // rtl-gen/src/merge/merger.rs:464
+    wire leaf_take_and_32;                   // rtl-gen/src/merge/merger.rs:464
+    wire leaves8_wr_not_1;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_33;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_34;                   // rtl-gen/src/merge/merger.rs:466
+    wire [177:0] leaves8_rd_1;               // rtl-gen/src/merge/merger.rs:934
+    wire merge_lod_lt_8;                     // rtl-gen/src/merge/merger.rs:468
+    wire base8_above_m;                      // rtl-gen/src/merge/merger.rs:468
+    wire [179:0] const_cat_9;                // rtl-gen/src/merge/merger.rs:469
+    wire leaves8_wr_and_1;                   // rtl-gen/src/merge/merger.rs:478
+    wire base8_end_sent_not;                 // rtl-gen/src/merge/merger.rs:479
+    wire base8_at_m_and;                     // rtl-gen/src/merge/merger.rs:480
+    wire out_is_ref_not_8;                   // rtl-gen/src/merge/merger.rs:480
+    wire base8_at_m_and_1;                   // rtl-gen/src/merge/merger.rs:480
+    wire leaves8_wr_not_2;                   // rtl-gen/src/merge/merger.rs:481
+    wire leaves8_wr_or;                      // rtl-gen/src/merge/merger.rs:481
+    wire base8_above_m_and;                  // rtl-gen/src/merge/merger.rs:481
+    wire base8_at_m_or;                      // rtl-gen/src/merge/merger.rs:480
+    wire base8_at_m_not;                     // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_16;                // rtl-gen/src/merge/merger.rs:482
+    wire base8_above_m_not;                  // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_17;                // rtl-gen/src/merge/merger.rs:482
+    wire base8_at_m_or_1;                    // rtl-gen/src/merge/merger.rs:480
+    wire base8_end_sent_and;                 // rtl-gen/src/merge/merger.rs:479
+    wire leaves8_wr_not_3;                   // rtl-gen/src/merge/merger.rs:483
+    wire base8_above_m_and_1;                // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base8_above_m_mux;          // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base8_at_m_mux;             // rtl-gen/src/merge/merger.rs:483
+    wire base8_above_m_mux_1;                // rtl-gen/src/merge/merger.rs:484
+    wire base8_at_m_mux_1;                   // rtl-gen/src/merge/merger.rs:484
+    wire base8_end_sent_and_1;               // rtl-gen/src/merge/merger.rs:485
+    wire base8_end_sent_and_2;               // rtl-gen/src/merge/merger.rs:485
+    wire leaves8_wr_not_4;                   // rtl-gen/src/merge/merger.rs:485
+    wire base8_end_sent_and_3;               // rtl-gen/src/merge/merger.rs:485
+    wire leaves8_wr_not_5;                   // rtl-gen/src/merge/merger.rs:941
+    wire leaf_take_and_35;                   // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves8_wr_add;               // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves8_rd_add;               // rtl-gen/src/merge/merger.rs:942
+    wire base8_end_sent_and_4;               // rtl-gen/src/merge/merger.rs:496
+    wire base8_end_sent_and_5;               // rtl-gen/src/merge/merger.rs:497
+    wire base8_end_sent_not_1;               // rtl-gen/src/merge/merger.rs:498
+    wire u_builder_and_8;                    // rtl-gen/src/merge/merger.rs:498
+    wire base8_at_m_mux_2;                   // rtl-gen/src/merge/merger.rs:498
+    wire base8_at_m_mux_3;                   // rtl-gen/src/merge/merger.rs:499
     reg base9_end_sent;                      // rtl-gen/src/merge/merger.rs:457
     wire merge_lod_eq_9;                     // rtl-gen/src/merge/merger.rs:459
     wire base9_at_m;                         // rtl-gen/src/merge/merger.rs:459
-    reg [4:0] leaves9_wr;                    // rtl-gen/src/merge/merger.rs:463
-    reg [4:0] leaves9_rd;                    // rtl-gen/src/merge/merger.rs:464
-    wire leaves9_wr_eq;                      // rtl-gen/src/merge/merger.rs:465
-    wire leaves9_wr_eq_1;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves9_wr_eq_2;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves9_wr_not;                     // rtl-gen/src/merge/merger.rs:466
-    wire leaves9_wr_and;                     // rtl-gen/src/merge/merger.rs:466
-    wire leaf_best_data_eq_9;                // rtl-gen/src/merge/merger.rs:467
-    wire leaf_take_and_36;                   // rtl-gen/src/merge/merger.rs:467
-    wire leaves9_wr_not_1;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_37;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_38;                   // rtl-gen/src/merge/merger.rs:469
-    wire [177:0] leaves9_rd_1;               // rtl-gen/src/merge/merger.rs:470
-    wire merge_lod_lt_9;                     // rtl-gen/src/merge/merger.rs:471
-    wire base9_above_m;                      // rtl-gen/src/merge/merger.rs:471
-    wire [179:0] const_cat_10;               // rtl-gen/src/merge/merger.rs:472
-    wire leaves9_wr_and_1;                   // rtl-gen/src/merge/merger.rs:481
-    wire base9_end_sent_not;                 // rtl-gen/src/merge/merger.rs:482
-    wire base9_at_m_and;                     // rtl-gen/src/merge/merger.rs:483
-    wire out_is_ref_not_9;                   // rtl-gen/src/merge/merger.rs:483
-    wire base9_at_m_and_1;                   // rtl-gen/src/merge/merger.rs:483
-    wire leaves9_wr_not_2;                   // rtl-gen/src/merge/merger.rs:484
-    wire leaves9_wr_or;                      // rtl-gen/src/merge/merger.rs:484
-    wire base9_above_m_and;                  // rtl-gen/src/merge/merger.rs:484
-    wire base9_at_m_or;                      // rtl-gen/src/merge/merger.rs:483
-    wire base9_at_m_not;                     // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_18;                // rtl-gen/src/merge/merger.rs:485
-    wire base9_above_m_not;                  // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_19;                // rtl-gen/src/merge/merger.rs:485
-    wire base9_at_m_or_1;                    // rtl-gen/src/merge/merger.rs:483
-    wire base9_end_sent_and;                 // rtl-gen/src/merge/merger.rs:482
-    wire leaves9_wr_not_3;                   // rtl-gen/src/merge/merger.rs:486
-    wire base9_above_m_and_1;                // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base9_above_m_mux;          // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base9_at_m_mux;             // rtl-gen/src/merge/merger.rs:486
-    wire base9_above_m_mux_1;                // rtl-gen/src/merge/merger.rs:487
-    wire base9_at_m_mux_1;                   // rtl-gen/src/merge/merger.rs:487
-    wire base9_end_sent_and_1;               // rtl-gen/src/merge/merger.rs:488
-    wire base9_end_sent_and_2;               // rtl-gen/src/merge/merger.rs:488
-    wire leaves9_wr_not_4;                   // rtl-gen/src/merge/merger.rs:488
-    wire base9_end_sent_and_3;               // rtl-gen/src/merge/merger.rs:488
-    wire leaves9_wr_not_5;                   // rtl-gen/src/merge/merger.rs:489
-    wire leaf_take_and_39;                   // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves9_wr_add;               // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves9_rd_add;               // rtl-gen/src/merge/merger.rs:490
-    wire base9_end_sent_and_4;               // rtl-gen/src/merge/merger.rs:500
-    wire base9_end_sent_and_5;               // rtl-gen/src/merge/merger.rs:501
-    wire base9_end_sent_not_1;               // rtl-gen/src/merge/merger.rs:502
-    wire u_builder_and_9;                    // rtl-gen/src/merge/merger.rs:502
-    wire base9_at_m_mux_2;                   // rtl-gen/src/merge/merger.rs:502
-    wire base9_at_m_mux_3;                   // rtl-gen/src/merge/merger.rs:503
+    reg [4:0] leaves9_wr;                    // rtl-gen/src/merge/merger.rs:910
+    reg [4:0] leaves9_rd;                    // rtl-gen/src/merge/merger.rs:911
+    wire leaves9_wr_eq;                      // rtl-gen/src/merge/merger.rs:912
+    wire leaves9_wr_eq_1;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves9_wr_eq_2;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves9_wr_not;                     // rtl-gen/src/merge/merger.rs:913
+    wire leaves9_wr_and;                     // rtl-gen/src/merge/merger.rs:913
+    wire leaf_best_data_eq_9;                // rtl-gen/src/merge/merger.rs:464
+    wire leaf_take_and_36;                   // rtl-gen/src/merge/merger.rs:464
+    wire leaves9_wr_not_1;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_37;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_38;                   // rtl-gen/src/merge/merger.rs:466
+    wire [177:0] leaves9_rd_1;               // rtl-gen/src/merge/merger.rs:934
+    wire merge_lod_lt_9;                     // rtl-gen/src/merge/merger.rs:468
+    wire base9_above_m;                      // rtl-gen/src/merge/merger.rs:468
+    wire [179:0] const_cat_10;               // rtl-gen/src/merge/merger.rs:469
+    wire leaves9_wr_and_1;                   // rtl-gen/src/merge/merger.rs:478
+    wire base9_end_sent_not;                 // rtl-gen/src/merge/merger.rs:479
+    wire base9_at_m_and;                     // rtl-gen/src/merge/merger.rs:480
+    wire out_is_ref_not_9;                   // rtl-gen/src/merge/merger.rs:480
+    wire base9_at_m_and_1;                   // rtl-gen/src/merge/merger.rs:480
+    wire leaves9_wr_not_2;                   // rtl-gen/src/merge/merger.rs:481
+    wire leaves9_wr_or;                      // rtl-gen/src/merge/merger.rs:481
+    wire base9_above_m_and;                  // rtl-gen/src/merge/merger.rs:481
+    wire base9_at_m_or;                      // rtl-gen/src/merge/merger.rs:480
+    wire base9_at_m_not;                     // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_18;                // rtl-gen/src/merge/merger.rs:482
+    wire base9_above_m_not;                  // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_19;                // rtl-gen/src/merge/merger.rs:482
+    wire base9_at_m_or_1;                    // rtl-gen/src/merge/merger.rs:480
+    wire base9_end_sent_and;                 // rtl-gen/src/merge/merger.rs:479
+    wire leaves9_wr_not_3;                   // rtl-gen/src/merge/merger.rs:483
+    wire base9_above_m_and_1;                // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base9_above_m_mux;          // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base9_at_m_mux;             // rtl-gen/src/merge/merger.rs:483
+    wire base9_above_m_mux_1;                // rtl-gen/src/merge/merger.rs:484
+    wire base9_at_m_mux_1;                   // rtl-gen/src/merge/merger.rs:484
+    wire base9_end_sent_and_1;               // rtl-gen/src/merge/merger.rs:485
+    wire base9_end_sent_and_2;               // rtl-gen/src/merge/merger.rs:485
+    wire leaves9_wr_not_4;                   // rtl-gen/src/merge/merger.rs:485
+    wire base9_end_sent_and_3;               // rtl-gen/src/merge/merger.rs:485
+    wire leaves9_wr_not_5;                   // rtl-gen/src/merge/merger.rs:941
+    wire leaf_take_and_39;                   // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves9_wr_add;               // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves9_rd_add;               // rtl-gen/src/merge/merger.rs:942
+    wire base9_end_sent_and_4;               // rtl-gen/src/merge/merger.rs:496
+    wire base9_end_sent_and_5;               // rtl-gen/src/merge/merger.rs:497
+    wire base9_end_sent_not_1;               // rtl-gen/src/merge/merger.rs:498
+    wire u_builder_and_9;                    // rtl-gen/src/merge/merger.rs:498
+    wire base9_at_m_mux_2;                   // rtl-gen/src/merge/merger.rs:498
+    wire base9_at_m_mux_3;                   // rtl-gen/src/merge/merger.rs:499
     reg base10_end_sent;                     // rtl-gen/src/merge/merger.rs:457
     wire merge_lod_eq_10;                    // rtl-gen/src/merge/merger.rs:459
     wire base10_at_m;                        // rtl-gen/src/merge/merger.rs:459
-    reg [4:0] leaves10_wr;                   // rtl-gen/src/merge/merger.rs:463
-    reg [4:0] leaves10_rd;                   // rtl-gen/src/merge/merger.rs:464
-    wire leaves10_wr_eq;                     // rtl-gen/src/merge/merger.rs:465
-    wire leaves10_wr_eq_1;                   // rtl-gen/src/merge/merger.rs:466
-    wire leaves10_wr_eq_2;                   // rtl-gen/src/merge/merger.rs:466
-    wire leaves10_wr_not;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves10_wr_and;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaf_best_data_eq_10;               // rtl-gen/src/merge/merger.rs:467
-    wire leaf_take_and_40;                   // rtl-gen/src/merge/merger.rs:467
-    wire leaves10_wr_not_1;                  // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_41;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_42;                   // rtl-gen/src/merge/merger.rs:469
-    wire [177:0] leaves10_rd_1;              // rtl-gen/src/merge/merger.rs:470
-    wire merge_lod_lt_10;                    // rtl-gen/src/merge/merger.rs:471
-    wire base10_above_m;                     // rtl-gen/src/merge/merger.rs:471
-    wire [179:0] const_cat_11;               // rtl-gen/src/merge/merger.rs:472
-    wire leaves10_wr_and_1;                  // rtl-gen/src/merge/merger.rs:481
-    wire base10_end_sent_not;                // rtl-gen/src/merge/merger.rs:482
-    wire base10_at_m_and;                    // rtl-gen/src/merge/merger.rs:483
-    wire out_is_ref_not_10;                  // rtl-gen/src/merge/merger.rs:483
-    wire base10_at_m_and_1;                  // rtl-gen/src/merge/merger.rs:483
-    wire leaves10_wr_not_2;                  // rtl-gen/src/merge/merger.rs:484
-    wire leaves10_wr_or;                     // rtl-gen/src/merge/merger.rs:484
-    wire base10_above_m_and;                 // rtl-gen/src/merge/merger.rs:484
-    wire base10_at_m_or;                     // rtl-gen/src/merge/merger.rs:483
-    wire base10_at_m_not;                    // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_20;                // rtl-gen/src/merge/merger.rs:485
-    wire base10_above_m_not;                 // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_21;                // rtl-gen/src/merge/merger.rs:485
-    wire base10_at_m_or_1;                   // rtl-gen/src/merge/merger.rs:483
-    wire base10_end_sent_and;                // rtl-gen/src/merge/merger.rs:482
-    wire leaves10_wr_not_3;                  // rtl-gen/src/merge/merger.rs:486
-    wire base10_above_m_and_1;               // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base10_above_m_mux;         // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base10_at_m_mux;            // rtl-gen/src/merge/merger.rs:486
-    wire base10_above_m_mux_1;               // rtl-gen/src/merge/merger.rs:487
-    wire base10_at_m_mux_1;                  // rtl-gen/src/merge/merger.rs:487
-    wire base10_end_sent_and_1;              // rtl-gen/src/merge/merger.rs:488
-    wire base10_end_sent_and_2;              // rtl-gen/src/merge/merger.rs:488
-    wire leaves10_wr_not_4;                  // rtl-gen/src/merge/merger.rs:488
-    wire base10_end_sent_and_3;              // rtl-gen/src/merge/merger.rs:488
-    wire leaves10_wr_not_5;                  // rtl-gen/src/merge/merger.rs:489
-    wire leaf_take_and_43;                   // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves10_wr_add;              // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves10_rd_add;              // rtl-gen/src/merge/merger.rs:490
-    wire base10_end_sent_and_4;              // rtl-gen/src/merge/merger.rs:500
-    wire base10_end_sent_and_5;              // rtl-gen/src/merge/merger.rs:501
-    wire base10_end_sent_not_1;              // rtl-gen/src/merge/merger.rs:502
-    wire u_builder_and_10;                   // rtl-gen/src/merge/merger.rs:502
-    wire base10_at_m_mux_2;                  // rtl-gen/src/merge/merger.rs:502
-    wire base10_at_m_mux_3;                  // rtl-gen/src/merge/merger.rs:503
+    reg [4:0] leaves10_wr;                   // rtl-gen/src/merge/merger.rs:910
+    reg [4:0] leaves10_rd;                   // rtl-gen/src/merge/merger.rs:911
+    wire leaves10_wr_eq;                     // rtl-gen/src/merge/merger.rs:912
+    wire leaves10_wr_eq_1;                   // rtl-gen/src/merge/merger.rs:913
+    wire leaves10_wr_eq_2;                   // rtl-gen/src/merge/merger.rs:913
+    wire leaves10_wr_not;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves10_wr_and;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaf_best_data_eq_10;               // rtl-gen/src/merge/merger.rs:464
+    wire leaf_take_and_40;                   // rtl-gen/src/merge/merger.rs:464
+    wire leaves10_wr_not_1;                  // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_41;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_42;                   // rtl-gen/src/merge/merger.rs:466
+    wire [177:0] leaves10_rd_1;              // rtl-gen/src/merge/merger.rs:934
+    wire merge_lod_lt_10;                    // rtl-gen/src/merge/merger.rs:468
+    wire base10_above_m;                     // rtl-gen/src/merge/merger.rs:468
+    wire [179:0] const_cat_11;               // rtl-gen/src/merge/merger.rs:469
+    wire leaves10_wr_and_1;                  // rtl-gen/src/merge/merger.rs:478
+    wire base10_end_sent_not;                // rtl-gen/src/merge/merger.rs:479
+    wire base10_at_m_and;                    // rtl-gen/src/merge/merger.rs:480
+    wire out_is_ref_not_10;                  // rtl-gen/src/merge/merger.rs:480
+    wire base10_at_m_and_1;                  // rtl-gen/src/merge/merger.rs:480
+    wire leaves10_wr_not_2;                  // rtl-gen/src/merge/merger.rs:481
+    wire leaves10_wr_or;                     // rtl-gen/src/merge/merger.rs:481
+    wire base10_above_m_and;                 // rtl-gen/src/merge/merger.rs:481
+    wire base10_at_m_or;                     // rtl-gen/src/merge/merger.rs:480
+    wire base10_at_m_not;                    // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_20;                // rtl-gen/src/merge/merger.rs:482
+    wire base10_above_m_not;                 // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_21;                // rtl-gen/src/merge/merger.rs:482
+    wire base10_at_m_or_1;                   // rtl-gen/src/merge/merger.rs:480
+    wire base10_end_sent_and;                // rtl-gen/src/merge/merger.rs:479
+    wire leaves10_wr_not_3;                  // rtl-gen/src/merge/merger.rs:483
+    wire base10_above_m_and_1;               // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base10_above_m_mux;         // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base10_at_m_mux;            // rtl-gen/src/merge/merger.rs:483
+    wire base10_above_m_mux_1;               // rtl-gen/src/merge/merger.rs:484
+    wire base10_at_m_mux_1;                  // rtl-gen/src/merge/merger.rs:484
+    wire base10_end_sent_and_1;              // rtl-gen/src/merge/merger.rs:485
+    wire base10_end_sent_and_2;              // rtl-gen/src/merge/merger.rs:485
+    wire leaves10_wr_not_4;                  // rtl-gen/src/merge/merger.rs:485
+    wire base10_end_sent_and_3;              // rtl-gen/src/merge/merger.rs:485
+    wire leaves10_wr_not_5;                  // rtl-gen/src/merge/merger.rs:941
+    wire leaf_take_and_43;                   // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves10_wr_add;              // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves10_rd_add;              // rtl-gen/src/merge/merger.rs:942
+    wire base10_end_sent_and_4;              // rtl-gen/src/merge/merger.rs:496
+    wire base10_end_sent_and_5;              // rtl-gen/src/merge/merger.rs:497
+    wire base10_end_sent_not_1;              // rtl-gen/src/merge/merger.rs:498
+    wire u_builder_and_10;                   // rtl-gen/src/merge/merger.rs:498
+    wire base10_at_m_mux_2;                  // rtl-gen/src/merge/merger.rs:498
+    wire base10_at_m_mux_3;                  // rtl-gen/src/merge/merger.rs:499
     reg base11_end_sent;                     // rtl-gen/src/merge/merger.rs:457
     wire merge_lod_eq_11;                    // rtl-gen/src/merge/merger.rs:459
     wire base11_at_m;                        // rtl-gen/src/merge/merger.rs:459
-    reg [4:0] leaves11_wr;                   // rtl-gen/src/merge/merger.rs:463
-    reg [4:0] leaves11_rd;                   // rtl-gen/src/merge/merger.rs:464
-    wire leaves11_wr_eq;                     // rtl-gen/src/merge/merger.rs:465
-    wire leaves11_wr_eq_1;                   // rtl-gen/src/merge/merger.rs:466
-    wire leaves11_wr_eq_2;                   // rtl-gen/src/merge/merger.rs:466
-    wire leaves11_wr_not;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves11_wr_and;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaf_best_data_eq_11;               // rtl-gen/src/merge/merger.rs:467
-    wire leaf_take_and_44;                   // rtl-gen/src/merge/merger.rs:467
-    wire leaves11_wr_not_1;                  // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_45;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_46;                   // rtl-gen/src/merge/merger.rs:469
-    wire [177:0] leaves11_rd_1;              // rtl-gen/src/merge/merger.rs:470
-    wire merge_lod_lt_11;                    // rtl-gen/src/merge/merger.rs:471
-    wire base11_above_m;                     // rtl-gen/src/merge/merger.rs:471
-    wire [179:0] const_cat_12;               // rtl-gen/src/merge/merger.rs:472
-    wire leaves11_wr_and_1;                  // rtl-gen/src/merge/merger.rs:481
-    wire base11_end_sent_not;                // rtl-gen/src/merge/merger.rs:482
-    wire base11_at_m_and;                    // rtl-gen/src/merge/merger.rs:483
-    wire out_is_ref_not_11;                  // rtl-gen/src/merge/merger.rs:483
-    wire base11_at_m_and_1;                  // rtl-gen/src/merge/merger.rs:483
-    wire leaves11_wr_not_2;                  // rtl-gen/src/merge/merger.rs:484
-    wire leaves11_wr_or;                     // rtl-gen/src/merge/merger.rs:484
-    wire base11_above_m_and;                 // rtl-gen/src/merge/merger.rs:484
-    wire base11_at_m_or;                     // rtl-gen/src/merge/merger.rs:483
-    wire base11_at_m_not;                    // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_22;                // rtl-gen/src/merge/merger.rs:485
-    wire base11_above_m_not;                 // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_23;                // rtl-gen/src/merge/merger.rs:485
-    wire base11_at_m_or_1;                   // rtl-gen/src/merge/merger.rs:483
-    wire base11_end_sent_and;                // rtl-gen/src/merge/merger.rs:482
-    wire leaves11_wr_not_3;                  // rtl-gen/src/merge/merger.rs:486
-    wire base11_above_m_and_1;               // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base11_above_m_mux;         // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base11_at_m_mux;            // rtl-gen/src/merge/merger.rs:486
-    wire base11_above_m_mux_1;               // rtl-gen/src/merge/merger.rs:487
-    wire base11_at_m_mux_1;                  // rtl-gen/src/merge/merger.rs:487
-    wire base11_end_sent_and_1;              // rtl-gen/src/merge/merger.rs:488
-    wire base11_end_sent_and_2;              // rtl-gen/src/merge/merger.rs:488
-    wire leaves11_wr_not_4;                  // rtl-gen/src/merge/merger.rs:488
-    wire base11_end_sent_and_3;              // rtl-gen/src/merge/merger.rs:488
-    wire leaves11_wr_not_5;                  // rtl-gen/src/merge/merger.rs:489
-    wire leaf_take_and_47;                   // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves11_wr_add;              // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves11_rd_add;              // rtl-gen/src/merge/merger.rs:490
-    wire base11_end_sent_and_4;              // rtl-gen/src/merge/merger.rs:500
-    wire base11_end_sent_and_5;              // rtl-gen/src/merge/merger.rs:501
-    wire base11_end_sent_not_1;              // rtl-gen/src/merge/merger.rs:502
-    wire u_builder_and_11;                   // rtl-gen/src/merge/merger.rs:502
-    wire base11_at_m_mux_2;                  // rtl-gen/src/merge/merger.rs:502
-    wire base11_at_m_mux_3;                  // rtl-gen/src/merge/merger.rs:503
+    reg [4:0] leaves11_wr;                   // rtl-gen/src/merge/merger.rs:910
+    reg [4:0] leaves11_rd;                   // rtl-gen/src/merge/merger.rs:911
+    wire leaves11_wr_eq;                     // rtl-gen/src/merge/merger.rs:912
+    wire leaves11_wr_eq_1;                   // rtl-gen/src/merge/merger.rs:913
+    wire leaves11_wr_eq_2;                   // rtl-gen/src/merge/merger.rs:913
+    wire leaves11_wr_not;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves11_wr_and;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaf_best_data_eq_11;               // rtl-gen/src/merge/merger.rs:464
+    wire leaf_take_and_44;                   // rtl-gen/src/merge/merger.rs:464
+    wire leaves11_wr_not_1;                  // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_45;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_46;                   // rtl-gen/src/merge/merger.rs:466
+    wire [177:0] leaves11_rd_1;              // rtl-gen/src/merge/merger.rs:934
+    wire merge_lod_lt_11;                    // rtl-gen/src/merge/merger.rs:468
+    wire base11_above_m;                     // rtl-gen/src/merge/merger.rs:468
+    wire [179:0] const_cat_12;               // rtl-gen/src/merge/merger.rs:469
+    wire leaves11_wr_and_1;                  // rtl-gen/src/merge/merger.rs:478
+    wire base11_end_sent_not;                // rtl-gen/src/merge/merger.rs:479
+    wire base11_at_m_and;                    // rtl-gen/src/merge/merger.rs:480
+    wire out_is_ref_not_11;                  // rtl-gen/src/merge/merger.rs:480
+    wire base11_at_m_and_1;                  // rtl-gen/src/merge/merger.rs:480
+    wire leaves11_wr_not_2;                  // rtl-gen/src/merge/merger.rs:481
+    wire leaves11_wr_or;                     // rtl-gen/src/merge/merger.rs:481
+    wire base11_above_m_and;                 // rtl-gen/src/merge/merger.rs:481
+    wire base11_at_m_or;                     // rtl-gen/src/merge/merger.rs:480
+    wire base11_at_m_not;                    // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_22;                // rtl-gen/src/merge/merger.rs:482
+    wire base11_above_m_not;                 // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_23;                // rtl-gen/src/merge/merger.rs:482
+    wire base11_at_m_or_1;                   // rtl-gen/src/merge/merger.rs:480
+    wire base11_end_sent_and;                // rtl-gen/src/merge/merger.rs:479
+    wire leaves11_wr_not_3;                  // rtl-gen/src/merge/merger.rs:483
+    wire base11_above_m_and_1;               // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base11_above_m_mux;         // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base11_at_m_mux;            // rtl-gen/src/merge/merger.rs:483
+    wire base11_above_m_mux_1;               // rtl-gen/src/merge/merger.rs:484
+    wire base11_at_m_mux_1;                  // rtl-gen/src/merge/merger.rs:484
+    wire base11_end_sent_and_1;              // rtl-gen/src/merge/merger.rs:485
+    wire base11_end_sent_and_2;              // rtl-gen/src/merge/merger.rs:485
+    wire leaves11_wr_not_4;                  // rtl-gen/src/merge/merger.rs:485
+    wire base11_end_sent_and_3;              // rtl-gen/src/merge/merger.rs:485
+    wire leaves11_wr_not_5;                  // rtl-gen/src/merge/merger.rs:941
+    wire leaf_take_and_47;                   // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves11_wr_add;              // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves11_rd_add;              // rtl-gen/src/merge/merger.rs:942
+    wire base11_end_sent_and_4;              // rtl-gen/src/merge/merger.rs:496
+    wire base11_end_sent_and_5;              // rtl-gen/src/merge/merger.rs:497
+    wire base11_end_sent_not_1;              // rtl-gen/src/merge/merger.rs:498
+    wire u_builder_and_11;                   // rtl-gen/src/merge/merger.rs:498
+    wire base11_at_m_mux_2;                  // rtl-gen/src/merge/merger.rs:498
+    wire base11_at_m_mux_3;                  // rtl-gen/src/merge/merger.rs:499
     reg base12_end_sent;                     // rtl-gen/src/merge/merger.rs:457
     wire merge_lod_eq_12;                    // rtl-gen/src/merge/merger.rs:459
     wire base12_at_m;                        // rtl-gen/src/merge/merger.rs:459
-    reg [4:0] leaves12_wr;                   // rtl-gen/src/merge/merger.rs:463
-    reg [4:0] leaves12_rd;                   // rtl-gen/src/merge/merger.rs:464
-    wire leaves12_wr_eq;                     // rtl-gen/src/merge/merger.rs:465
-    wire leaves12_wr_eq_1;                   // rtl-gen/src/merge/merger.rs:466
-    wire leaves12_wr_eq_2;                   // rtl-gen/src/merge/merger.rs:466
-    wire leaves12_wr_not;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves12_wr_and;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaf_best_data_eq_12;               // rtl-gen/src/merge/merger.rs:467
-    wire leaf_take_and_48;                   // rtl-gen/src/merge/merger.rs:467
-    wire leaves12_wr_not_1;                  // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_49;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_50;                   // rtl-gen/src/merge/merger.rs:469
-    wire [177:0] leaves12_rd_1;              // rtl-gen/src/merge/merger.rs:470
-    wire merge_lod_lt_12;                    // rtl-gen/src/merge/merger.rs:471
-    wire base12_above_m;                     // rtl-gen/src/merge/merger.rs:471
-    wire [179:0] const_cat_13;               // rtl-gen/src/merge/merger.rs:472
-    wire leaves12_wr_and_1;                  // rtl-gen/src/merge/merger.rs:481
-    wire base12_end_sent_not;                // rtl-gen/src/merge/merger.rs:482
-    wire base12_at_m_and;                    // rtl-gen/src/merge/merger.rs:483
-    wire out_is_ref_not_12;                  // rtl-gen/src/merge/merger.rs:483
-    wire base12_at_m_and_1;                  // rtl-gen/src/merge/merger.rs:483
-    wire leaves12_wr_not_2;                  // rtl-gen/src/merge/merger.rs:484
-    wire leaves12_wr_or;                     // rtl-gen/src/merge/merger.rs:484
-    wire base12_above_m_and;                 // rtl-gen/src/merge/merger.rs:484
-    wire base12_at_m_or;                     // rtl-gen/src/merge/merger.rs:483
-    wire base12_at_m_not;                    // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_24;                // rtl-gen/src/merge/merger.rs:485
-    wire base12_above_m_not;                 // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_25;                // rtl-gen/src/merge/merger.rs:485
-    wire base12_at_m_or_1;                   // rtl-gen/src/merge/merger.rs:483
-    wire base12_end_sent_and;                // rtl-gen/src/merge/merger.rs:482
-    wire leaves12_wr_not_3;                  // rtl-gen/src/merge/merger.rs:486
-    wire base12_above_m_and_1;               // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base12_above_m_mux;         // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base12_at_m_mux;            // rtl-gen/src/merge/merger.rs:486
-    wire base12_above_m_mux_1;               // rtl-gen/src/merge/merger.rs:487
-    wire base12_at_m_mux_1;                  // rtl-gen/src/merge/merger.rs:487
-    wire base12_end_sent_and_1;              // rtl-gen/src/merge/merger.rs:488
-    wire base12_end_sent_and_2;              // rtl-gen/src/merge/merger.rs:488
-    wire leaves12_wr_not_4;                  // rtl-gen/src/merge/merger.rs:488
-    wire base12_end_sent_and_3;              // rtl-gen/src/merge/merger.rs:488
-    wire leaves12_wr_not_5;                  // rtl-gen/src/merge/merger.rs:489
-    wire leaf_take_and_51;                   // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves12_wr_add;              // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves12_rd_add;              // rtl-gen/src/merge/merger.rs:490
-    wire base12_end_sent_and_4;              // rtl-gen/src/merge/merger.rs:500
-    wire base12_end_sent_and_5;              // rtl-gen/src/merge/merger.rs:501
-    wire base12_end_sent_not_1;              // rtl-gen/src/merge/merger.rs:502
-    wire u_builder_and_12;                   // rtl-gen/src/merge/merger.rs:502
-    wire base12_at_m_mux_2;                  // rtl-gen/src/merge/merger.rs:502
-    wire base12_at_m_mux_3;                  // rtl-gen/src/merge/merger.rs:503
+    reg [4:0] leaves12_wr;                   // rtl-gen/src/merge/merger.rs:910
+    reg [4:0] leaves12_rd;                   // rtl-gen/src/merge/merger.rs:911
+    wire leaves12_wr_eq;                     // rtl-gen/src/merge/merger.rs:912
+    wire leaves12_wr_eq_1;                   // rtl-gen/src/merge/merger.rs:913
+    wire leaves12_wr_eq_2;                   // rtl-gen/src/merge/merger.rs:913
+    wire leaves12_wr_not;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves12_wr_and;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaf_best_data_eq_12;               // rtl-gen/src/merge/merger.rs:464
+    wire leaf_take_and_48;                   // rtl-gen/src/merge/merger.rs:464
+    wire leaves12_wr_not_1;                  // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_49;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_50;                   // rtl-gen/src/merge/merger.rs:466
+    wire [177:0] leaves12_rd_1;              // rtl-gen/src/merge/merger.rs:934
+    wire merge_lod_lt_12;                    // rtl-gen/src/merge/merger.rs:468
+    wire base12_above_m;                     // rtl-gen/src/merge/merger.rs:468
+    wire [179:0] const_cat_13;               // rtl-gen/src/merge/merger.rs:469
+    wire leaves12_wr_and_1;                  // rtl-gen/src/merge/merger.rs:478
+    wire base12_end_sent_not;                // rtl-gen/src/merge/merger.rs:479
+    wire base12_at_m_and;                    // rtl-gen/src/merge/merger.rs:480
+    wire out_is_ref_not_12;                  // rtl-gen/src/merge/merger.rs:480
+    wire base12_at_m_and_1;                  // rtl-gen/src/merge/merger.rs:480
+    wire leaves12_wr_not_2;                  // rtl-gen/src/merge/merger.rs:481
+    wire leaves12_wr_or;                     // rtl-gen/src/merge/merger.rs:481
+    wire base12_above_m_and;                 // rtl-gen/src/merge/merger.rs:481
+    wire base12_at_m_or;                     // rtl-gen/src/merge/merger.rs:480
+    wire base12_at_m_not;                    // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_24;                // rtl-gen/src/merge/merger.rs:482
+    wire base12_above_m_not;                 // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_25;                // rtl-gen/src/merge/merger.rs:482
+    wire base12_at_m_or_1;                   // rtl-gen/src/merge/merger.rs:480
+    wire base12_end_sent_and;                // rtl-gen/src/merge/merger.rs:479
+    wire leaves12_wr_not_3;                  // rtl-gen/src/merge/merger.rs:483
+    wire base12_above_m_and_1;               // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base12_above_m_mux;         // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base12_at_m_mux;            // rtl-gen/src/merge/merger.rs:483
+    wire base12_above_m_mux_1;               // rtl-gen/src/merge/merger.rs:484
+    wire base12_at_m_mux_1;                  // rtl-gen/src/merge/merger.rs:484
+    wire base12_end_sent_and_1;              // rtl-gen/src/merge/merger.rs:485
+    wire base12_end_sent_and_2;              // rtl-gen/src/merge/merger.rs:485
+    wire leaves12_wr_not_4;                  // rtl-gen/src/merge/merger.rs:485
+    wire base12_end_sent_and_3;              // rtl-gen/src/merge/merger.rs:485
+    wire leaves12_wr_not_5;                  // rtl-gen/src/merge/merger.rs:941
+    wire leaf_take_and_51;                   // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves12_wr_add;              // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves12_rd_add;              // rtl-gen/src/merge/merger.rs:942
+    wire base12_end_sent_and_4;              // rtl-gen/src/merge/merger.rs:496
+    wire base12_end_sent_and_5;              // rtl-gen/src/merge/merger.rs:497
+    wire base12_end_sent_not_1;              // rtl-gen/src/merge/merger.rs:498
+    wire u_builder_and_12;                   // rtl-gen/src/merge/merger.rs:498
+    wire base12_at_m_mux_2;                  // rtl-gen/src/merge/merger.rs:498
+    wire base12_at_m_mux_3;                  // rtl-gen/src/merge/merger.rs:499
     reg base13_end_sent;                     // rtl-gen/src/merge/merger.rs:457
     wire merge_lod_eq_13;                    // rtl-gen/src/merge/merger.rs:459
     wire base13_at_m;                        // rtl-gen/src/merge/merger.rs:459
-    reg [4:0] leaves13_wr;                   // rtl-gen/src/merge/merger.rs:463
-    reg [4:0] leaves13_rd;                   // rtl-gen/src/merge/merger.rs:464
-    wire leaves13_wr_eq;                     // rtl-gen/src/merge/merger.rs:465
-    wire leaves13_wr_eq_1;                   // rtl-gen/src/merge/merger.rs:466
-    wire leaves13_wr_eq_2;                   // rtl-gen/src/merge/merger.rs:466
-    wire leaves13_wr_not;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves13_wr_and;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaf_best_data_eq_13;               // rtl-gen/src/merge/merger.rs:467
-    wire leaf_take_and_52;                   // rtl-gen/src/merge/merger.rs:467
-    wire leaves13_wr_not_1;                  // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_53;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_54;                   // rtl-gen/src/merge/merger.rs:469
-    wire [177:0] leaves13_rd_1;              // rtl-gen/src/merge/merger.rs:470
-    wire merge_lod_lt_13;                    // rtl-gen/src/merge/merger.rs:471
-    wire base13_above_m;                     // rtl-gen/src/merge/merger.rs:471
-    wire [179:0] const_cat_14;               // rtl-gen/src/merge/merger.rs:472
-    wire leaves13_wr_and_1;                  // rtl-gen/src/merge/merger.rs:481
-    wire base13_end_sent_not;                // rtl-gen/src/merge/merger.rs:482
-    wire base13_at_m_and;                    // rtl-gen/src/merge/merger.rs:483
-    wire out_is_ref_not_13;                  // rtl-gen/src/merge/merger.rs:483
-    wire base13_at_m_and_1;                  // rtl-gen/src/merge/merger.rs:483
-    wire leaves13_wr_not_2;                  // rtl-gen/src/merge/merger.rs:484
-    wire leaves13_wr_or;                     // rtl-gen/src/merge/merger.rs:484
-    wire base13_above_m_and;                 // rtl-gen/src/merge/merger.rs:484
-    wire base13_at_m_or;                     // rtl-gen/src/merge/merger.rs:483
-    wire base13_at_m_not;                    // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_26;                // rtl-gen/src/merge/merger.rs:485
-    wire base13_above_m_not;                 // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_27;                // rtl-gen/src/merge/merger.rs:485
-    wire base13_at_m_or_1;                   // rtl-gen/src/merge/merger.rs:483
-    wire base13_end_sent_and;                // rtl-gen/src/merge/merger.rs:482
-    wire leaves13_wr_not_3;                  // rtl-gen/src/merge/merger.rs:486
-    wire base13_above_m_and_1;               // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base13_above_m_mux;         // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base13_at_m_mux;            // rtl-gen/src/merge/merger.rs:486
-    wire base13_above_m_mux_1;               // rtl-gen/src/merge/merger.rs:487
-    wire base13_at_m_mux_1;                  // rtl-gen/src/merge/merger.rs:487
-    wire base13_end_sent_and_1;              // rtl-gen/src/merge/merger.rs:488
-    wire base13_end_sent_and_2;              // rtl-gen/src/merge/merger.rs:488
-    wire leaves13_wr_not_4;                  // rtl-gen/src/merge/merger.rs:488
-    wire base13_end_sent_and_3;              // rtl-gen/src/merge/merger.rs:488
-    wire leaves13_wr_not_5;                  // rtl-gen/src/merge/merger.rs:489
-    wire leaf_take_and_55;                   // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves13_wr_add;              // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves13_rd_add;              // rtl-gen/src/merge/merger.rs:490
-    wire base13_end_sent_and_4;              // rtl-gen/src/merge/merger.rs:500
-    wire base13_end_sent_and_5;              // rtl-gen/src/merge/merger.rs:501
-    wire base13_end_sent_not_1;              // rtl-gen/src/merge/merger.rs:502
-    wire u_builder_and_13;                   // rtl-gen/src/merge/merger.rs:502
-    wire base13_at_m_mux_2;                  // rtl-gen/src/merge/merger.rs:502
-    wire base13_at_m_mux_3;                  // rtl-gen/src/merge/merger.rs:503
+    reg [4:0] leaves13_wr;                   // rtl-gen/src/merge/merger.rs:910
+    reg [4:0] leaves13_rd;                   // rtl-gen/src/merge/merger.rs:911
+    wire leaves13_wr_eq;                     // rtl-gen/src/merge/merger.rs:912
+    wire leaves13_wr_eq_1;                   // rtl-gen/src/merge/merger.rs:913
+    wire leaves13_wr_eq_2;                   // rtl-gen/src/merge/merger.rs:913
+    wire leaves13_wr_not;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves13_wr_and;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaf_best_data_eq_13;               // rtl-gen/src/merge/merger.rs:464
+    wire leaf_take_and_52;                   // rtl-gen/src/merge/merger.rs:464
+    wire leaves13_wr_not_1;                  // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_53;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_54;                   // rtl-gen/src/merge/merger.rs:466
+    wire [177:0] leaves13_rd_1;              // rtl-gen/src/merge/merger.rs:934
+    wire merge_lod_lt_13;                    // rtl-gen/src/merge/merger.rs:468
+    wire base13_above_m;                     // rtl-gen/src/merge/merger.rs:468
+    wire [179:0] const_cat_14;               // rtl-gen/src/merge/merger.rs:469
+    wire leaves13_wr_and_1;                  // rtl-gen/src/merge/merger.rs:478
+    wire base13_end_sent_not;                // rtl-gen/src/merge/merger.rs:479
+    wire base13_at_m_and;                    // rtl-gen/src/merge/merger.rs:480
+    wire out_is_ref_not_13;                  // rtl-gen/src/merge/merger.rs:480
+    wire base13_at_m_and_1;                  // rtl-gen/src/merge/merger.rs:480
+    wire leaves13_wr_not_2;                  // rtl-gen/src/merge/merger.rs:481
+    wire leaves13_wr_or;                     // rtl-gen/src/merge/merger.rs:481
+    wire base13_above_m_and;                 // rtl-gen/src/merge/merger.rs:481
+    wire base13_at_m_or;                     // rtl-gen/src/merge/merger.rs:480
+    wire base13_at_m_not;                    // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_26;                // rtl-gen/src/merge/merger.rs:482
+    wire base13_above_m_not;                 // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_27;                // rtl-gen/src/merge/merger.rs:482
+    wire base13_at_m_or_1;                   // rtl-gen/src/merge/merger.rs:480
+    wire base13_end_sent_and;                // rtl-gen/src/merge/merger.rs:479
+    wire leaves13_wr_not_3;                  // rtl-gen/src/merge/merger.rs:483
+    wire base13_above_m_and_1;               // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base13_above_m_mux;         // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base13_at_m_mux;            // rtl-gen/src/merge/merger.rs:483
+    wire base13_above_m_mux_1;               // rtl-gen/src/merge/merger.rs:484
+    wire base13_at_m_mux_1;                  // rtl-gen/src/merge/merger.rs:484
+    wire base13_end_sent_and_1;              // rtl-gen/src/merge/merger.rs:485
+    wire base13_end_sent_and_2;              // rtl-gen/src/merge/merger.rs:485
+    wire leaves13_wr_not_4;                  // rtl-gen/src/merge/merger.rs:485
+    wire base13_end_sent_and_3;              // rtl-gen/src/merge/merger.rs:485
+    wire leaves13_wr_not_5;                  // rtl-gen/src/merge/merger.rs:941
+    wire leaf_take_and_55;                   // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves13_wr_add;              // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves13_rd_add;              // rtl-gen/src/merge/merger.rs:942
+    wire base13_end_sent_and_4;              // rtl-gen/src/merge/merger.rs:496
+    wire base13_end_sent_and_5;              // rtl-gen/src/merge/merger.rs:497
+    wire base13_end_sent_not_1;              // rtl-gen/src/merge/merger.rs:498
+    wire u_builder_and_13;                   // rtl-gen/src/merge/merger.rs:498
+    wire base13_at_m_mux_2;                  // rtl-gen/src/merge/merger.rs:498
+    wire base13_at_m_mux_3;                  // rtl-gen/src/merge/merger.rs:499
     reg base14_end_sent;                     // rtl-gen/src/merge/merger.rs:457
     wire merge_lod_eq_14;                    // rtl-gen/src/merge/merger.rs:459
     wire base14_at_m;                        // rtl-gen/src/merge/merger.rs:459
-    reg [4:0] leaves14_wr;                   // rtl-gen/src/merge/merger.rs:463
-    reg [4:0] leaves14_rd;                   // rtl-gen/src/merge/merger.rs:464
-    wire leaves14_wr_eq;                     // rtl-gen/src/merge/merger.rs:465
-    wire leaves14_wr_eq_1;                   // rtl-gen/src/merge/merger.rs:466
-    wire leaves14_wr_eq_2;                   // rtl-gen/src/merge/merger.rs:466
-    wire leaves14_wr_not;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves14_wr_and;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaf_best_data_eq_14;               // rtl-gen/src/merge/merger.rs:467
-    wire leaf_take_and_56;                   // rtl-gen/src/merge/merger.rs:467
-    wire leaves14_wr_not_1;                  // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_57;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_58;                   // rtl-gen/src/merge/merger.rs:469
-    wire [177:0] leaves14_rd_1;              // rtl-gen/src/merge/merger.rs:470
-    wire merge_lod_lt_14;                    // rtl-gen/src/merge/merger.rs:471
-    wire base14_above_m;                     // rtl-gen/src/merge/merger.rs:471
-    wire [179:0] const_cat_15;               // rtl-gen/src/merge/merger.rs:472
-    wire leaves14_wr_and_1;                  // rtl-gen/src/merge/merger.rs:481
-    wire base14_end_sent_not;                // rtl-gen/src/merge/merger.rs:482
-    wire base14_at_m_and;                    // rtl-gen/src/merge/merger.rs:483
-    wire out_is_ref_not_14;                  // rtl-gen/src/merge/merger.rs:483
-    wire base14_at_m_and_1;                  // rtl-gen/src/merge/merger.rs:483
-    wire leaves14_wr_not_2;                  // rtl-gen/src/merge/merger.rs:484
-    wire leaves14_wr_or;                     // rtl-gen/src/merge/merger.rs:484
-    wire base14_above_m_and;                 // rtl-gen/src/merge/merger.rs:484
-    wire base14_at_m_or;                     // rtl-gen/src/merge/merger.rs:483
-    wire base14_at_m_not;                    // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_28;                // rtl-gen/src/merge/merger.rs:485
-    wire base14_above_m_not;                 // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_29;                // rtl-gen/src/merge/merger.rs:485
-    wire base14_at_m_or_1;                   // rtl-gen/src/merge/merger.rs:483
-    wire base14_end_sent_and;                // rtl-gen/src/merge/merger.rs:482
-    wire leaves14_wr_not_3;                  // rtl-gen/src/merge/merger.rs:486
-    wire base14_above_m_and_1;               // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base14_above_m_mux;         // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base14_at_m_mux;            // rtl-gen/src/merge/merger.rs:486
-    wire base14_above_m_mux_1;               // rtl-gen/src/merge/merger.rs:487
-    wire base14_at_m_mux_1;                  // rtl-gen/src/merge/merger.rs:487
-    wire base14_end_sent_and_1;              // rtl-gen/src/merge/merger.rs:488
-    wire base14_end_sent_and_2;              // rtl-gen/src/merge/merger.rs:488
-    wire leaves14_wr_not_4;                  // rtl-gen/src/merge/merger.rs:488
-    wire base14_end_sent_and_3;              // rtl-gen/src/merge/merger.rs:488
-    wire leaves14_wr_not_5;                  // rtl-gen/src/merge/merger.rs:489
-    wire leaf_take_and_59;                   // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves14_wr_add;              // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves14_rd_add;              // rtl-gen/src/merge/merger.rs:490
-    wire base14_end_sent_and_4;              // rtl-gen/src/merge/merger.rs:500
-    wire base14_end_sent_and_5;              // rtl-gen/src/merge/merger.rs:501
-    wire base14_end_sent_not_1;              // rtl-gen/src/merge/merger.rs:502
-    wire u_builder_and_14;                   // rtl-gen/src/merge/merger.rs:502
-    wire base14_at_m_mux_2;                  // rtl-gen/src/merge/merger.rs:502
-    wire base14_at_m_mux_3;                  // rtl-gen/src/merge/merger.rs:503
+    reg [4:0] leaves14_wr;                   // rtl-gen/src/merge/merger.rs:910
+    reg [4:0] leaves14_rd;                   // rtl-gen/src/merge/merger.rs:911
+    wire leaves14_wr_eq;                     // rtl-gen/src/merge/merger.rs:912
+    wire leaves14_wr_eq_1;                   // rtl-gen/src/merge/merger.rs:913
+    wire leaves14_wr_eq_2;                   // rtl-gen/src/merge/merger.rs:913
+    wire leaves14_wr_not;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves14_wr_and;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaf_best_data_eq_14;               // rtl-gen/src/merge/merger.rs:464
+    wire leaf_take_and_56;                   // rtl-gen/src/merge/merger.rs:464
+    wire leaves14_wr_not_1;                  // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_57;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_58;                   // rtl-gen/src/merge/merger.rs:466
+    wire [177:0] leaves14_rd_1;              // rtl-gen/src/merge/merger.rs:934
+    wire merge_lod_lt_14;                    // rtl-gen/src/merge/merger.rs:468
+    wire base14_above_m;                     // rtl-gen/src/merge/merger.rs:468
+    wire [179:0] const_cat_15;               // rtl-gen/src/merge/merger.rs:469
+    wire leaves14_wr_and_1;                  // rtl-gen/src/merge/merger.rs:478
+    wire base14_end_sent_not;                // rtl-gen/src/merge/merger.rs:479
+    wire base14_at_m_and;                    // rtl-gen/src/merge/merger.rs:480
+    wire out_is_ref_not_14;                  // rtl-gen/src/merge/merger.rs:480
+    wire base14_at_m_and_1;                  // rtl-gen/src/merge/merger.rs:480
+    wire leaves14_wr_not_2;                  // rtl-gen/src/merge/merger.rs:481
+    wire leaves14_wr_or;                     // rtl-gen/src/merge/merger.rs:481
+    wire base14_above_m_and;                 // rtl-gen/src/merge/merger.rs:481
+    wire base14_at_m_or;                     // rtl-gen/src/merge/merger.rs:480
+    wire base14_at_m_not;                    // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_28;                // rtl-gen/src/merge/merger.rs:482
+    wire base14_above_m_not;                 // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_29;                // rtl-gen/src/merge/merger.rs:482
+    wire base14_at_m_or_1;                   // rtl-gen/src/merge/merger.rs:480
+    wire base14_end_sent_and;                // rtl-gen/src/merge/merger.rs:479
+    wire leaves14_wr_not_3;                  // rtl-gen/src/merge/merger.rs:483
+    wire base14_above_m_and_1;               // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base14_above_m_mux;         // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base14_at_m_mux;            // rtl-gen/src/merge/merger.rs:483
+    wire base14_above_m_mux_1;               // rtl-gen/src/merge/merger.rs:484
+    wire base14_at_m_mux_1;                  // rtl-gen/src/merge/merger.rs:484
+    wire base14_end_sent_and_1;              // rtl-gen/src/merge/merger.rs:485
+    wire base14_end_sent_and_2;              // rtl-gen/src/merge/merger.rs:485
+    wire leaves14_wr_not_4;                  // rtl-gen/src/merge/merger.rs:485
+    wire base14_end_sent_and_3;              // rtl-gen/src/merge/merger.rs:485
+    wire leaves14_wr_not_5;                  // rtl-gen/src/merge/merger.rs:941
+    wire leaf_take_and_59;                   // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves14_wr_add;              // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves14_rd_add;              // rtl-gen/src/merge/merger.rs:942
+    wire base14_end_sent_and_4;              // rtl-gen/src/merge/merger.rs:496
+    wire base14_end_sent_and_5;              // rtl-gen/src/merge/merger.rs:497
+    wire base14_end_sent_not_1;              // rtl-gen/src/merge/merger.rs:498
+    wire u_builder_and_14;                   // rtl-gen/src/merge/merger.rs:498
+    wire base14_at_m_mux_2;                  // rtl-gen/src/merge/merger.rs:498
+    wire base14_at_m_mux_3;                  // rtl-gen/src/merge/merger.rs:499
     reg base15_end_sent;                     // rtl-gen/src/merge/merger.rs:457
     wire merge_lod_eq_15;                    // rtl-gen/src/merge/merger.rs:459
     wire base15_at_m;                        // rtl-gen/src/merge/merger.rs:459
-    reg [4:0] leaves15_wr;                   // rtl-gen/src/merge/merger.rs:463
-    reg [4:0] leaves15_rd;                   // rtl-gen/src/merge/merger.rs:464
-    wire leaves15_wr_eq;                     // rtl-gen/src/merge/merger.rs:465
-    wire leaves15_wr_eq_1;                   // rtl-gen/src/merge/merger.rs:466
-    wire leaves15_wr_eq_2;                   // rtl-gen/src/merge/merger.rs:466
-    wire leaves15_wr_not;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaves15_wr_and;                    // rtl-gen/src/merge/merger.rs:466
-    wire leaf_best_data_eq_15;               // rtl-gen/src/merge/merger.rs:467
-    wire leaf_take_and_60;                   // rtl-gen/src/merge/merger.rs:467
-    wire leaves15_wr_not_1;                  // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_61;                   // rtl-gen/src/merge/merger.rs:468
-    wire leaf_take_and_62;                   // rtl-gen/src/merge/merger.rs:469
-    wire [177:0] leaves15_rd_1;              // rtl-gen/src/merge/merger.rs:470
-    wire merge_lod_lt_15;                    // rtl-gen/src/merge/merger.rs:471
-    wire base15_above_m;                     // rtl-gen/src/merge/merger.rs:471
-    wire [179:0] const_cat_16;               // rtl-gen/src/merge/merger.rs:472
-    wire leaves15_wr_and_1;                  // rtl-gen/src/merge/merger.rs:481
-    wire base15_end_sent_not;                // rtl-gen/src/merge/merger.rs:482
-    wire base15_at_m_and;                    // rtl-gen/src/merge/merger.rs:483
-    wire out_is_ref_not_15;                  // rtl-gen/src/merge/merger.rs:483
-    wire base15_at_m_and_1;                  // rtl-gen/src/merge/merger.rs:483
-    wire leaves15_wr_not_2;                  // rtl-gen/src/merge/merger.rs:484
-    wire leaves15_wr_or;                     // rtl-gen/src/merge/merger.rs:484
-    wire base15_above_m_and;                 // rtl-gen/src/merge/merger.rs:484
-    wire base15_at_m_or;                     // rtl-gen/src/merge/merger.rs:483
-    wire base15_at_m_not;                    // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_30;                // rtl-gen/src/merge/merger.rs:485
-    wire base15_above_m_not;                 // rtl-gen/src/merge/merger.rs:485
-    wire choice_known_and_31;                // rtl-gen/src/merge/merger.rs:485
-    wire base15_at_m_or_1;                   // rtl-gen/src/merge/merger.rs:483
-    wire base15_end_sent_and;                // rtl-gen/src/merge/merger.rs:482
-    wire leaves15_wr_not_3;                  // rtl-gen/src/merge/merger.rs:486
-    wire base15_above_m_and_1;               // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base15_above_m_mux;         // rtl-gen/src/merge/merger.rs:486
-    wire [179:0] base15_at_m_mux;            // rtl-gen/src/merge/merger.rs:486
-    wire base15_above_m_mux_1;               // rtl-gen/src/merge/merger.rs:487
-    wire base15_at_m_mux_1;                  // rtl-gen/src/merge/merger.rs:487
-    wire base15_end_sent_and_1;              // rtl-gen/src/merge/merger.rs:488
-    wire base15_end_sent_and_2;              // rtl-gen/src/merge/merger.rs:488
-    wire leaves15_wr_not_4;                  // rtl-gen/src/merge/merger.rs:488
-    wire base15_end_sent_and_3;              // rtl-gen/src/merge/merger.rs:488
-    wire leaves15_wr_not_5;                  // rtl-gen/src/merge/merger.rs:489
-    wire leaf_take_and_63;                   // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves15_wr_add;              // rtl-gen/src/merge/merger.rs:489
-    wire [4:0] leaves15_rd_add;              // rtl-gen/src/merge/merger.rs:490
-    wire base15_end_sent_and_4;              // rtl-gen/src/merge/merger.rs:500
-    wire base15_end_sent_and_5;              // rtl-gen/src/merge/merger.rs:501
-    wire base15_end_sent_not_1;              // rtl-gen/src/merge/merger.rs:502
-    wire u_builder_and_15;                   // rtl-gen/src/merge/merger.rs:502
-    wire base15_at_m_mux_2;                  // rtl-gen/src/merge/merger.rs:502
-    wire base15_at_m_mux_3;                  // rtl-gen/src/merge/merger.rs:503
+    reg [4:0] leaves15_wr;                   // rtl-gen/src/merge/merger.rs:910
+    reg [4:0] leaves15_rd;                   // rtl-gen/src/merge/merger.rs:911
+    wire leaves15_wr_eq;                     // rtl-gen/src/merge/merger.rs:912
+    wire leaves15_wr_eq_1;                   // rtl-gen/src/merge/merger.rs:913
+    wire leaves15_wr_eq_2;                   // rtl-gen/src/merge/merger.rs:913
+    wire leaves15_wr_not;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaves15_wr_and;                    // rtl-gen/src/merge/merger.rs:913
+    wire leaf_best_data_eq_15;               // rtl-gen/src/merge/merger.rs:464
+    wire leaf_take_and_60;                   // rtl-gen/src/merge/merger.rs:464
+    wire leaves15_wr_not_1;                  // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_61;                   // rtl-gen/src/merge/merger.rs:929
+    wire leaf_take_and_62;                   // rtl-gen/src/merge/merger.rs:466
+    wire [177:0] leaves15_rd_1;              // rtl-gen/src/merge/merger.rs:934
+    wire merge_lod_lt_15;                    // rtl-gen/src/merge/merger.rs:468
+    wire base15_above_m;                     // rtl-gen/src/merge/merger.rs:468
+    wire [179:0] const_cat_16;               // rtl-gen/src/merge/merger.rs:469
+    wire leaves15_wr_and_1;                  // rtl-gen/src/merge/merger.rs:478
+    wire base15_end_sent_not;                // rtl-gen/src/merge/merger.rs:479
+    wire base15_at_m_and;                    // rtl-gen/src/merge/merger.rs:480
+    wire out_is_ref_not_15;                  // rtl-gen/src/merge/merger.rs:480
+    wire base15_at_m_and_1;                  // rtl-gen/src/merge/merger.rs:480
+    wire leaves15_wr_not_2;                  // rtl-gen/src/merge/merger.rs:481
+    wire leaves15_wr_or;                     // rtl-gen/src/merge/merger.rs:481
+    wire base15_above_m_and;                 // rtl-gen/src/merge/merger.rs:481
+    wire base15_at_m_or;                     // rtl-gen/src/merge/merger.rs:480
+    wire base15_at_m_not;                    // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_30;                // rtl-gen/src/merge/merger.rs:482
+    wire base15_above_m_not;                 // rtl-gen/src/merge/merger.rs:482
+    wire choice_known_and_31;                // rtl-gen/src/merge/merger.rs:482
+    wire base15_at_m_or_1;                   // rtl-gen/src/merge/merger.rs:480
+    wire base15_end_sent_and;                // rtl-gen/src/merge/merger.rs:479
+    wire leaves15_wr_not_3;                  // rtl-gen/src/merge/merger.rs:483
+    wire base15_above_m_and_1;               // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base15_above_m_mux;         // rtl-gen/src/merge/merger.rs:483
+    wire [179:0] base15_at_m_mux;            // rtl-gen/src/merge/merger.rs:483
+    wire base15_above_m_mux_1;               // rtl-gen/src/merge/merger.rs:484
+    wire base15_at_m_mux_1;                  // rtl-gen/src/merge/merger.rs:484
+    wire base15_end_sent_and_1;              // rtl-gen/src/merge/merger.rs:485
+    wire base15_end_sent_and_2;              // rtl-gen/src/merge/merger.rs:485
+    wire leaves15_wr_not_4;                  // rtl-gen/src/merge/merger.rs:485
+    wire base15_end_sent_and_3;              // rtl-gen/src/merge/merger.rs:485
+    wire leaves15_wr_not_5;                  // rtl-gen/src/merge/merger.rs:941
+    wire leaf_take_and_63;                   // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves15_wr_add;              // rtl-gen/src/merge/merger.rs:941
+    wire [4:0] leaves15_rd_add;              // rtl-gen/src/merge/merger.rs:942
+    wire base15_end_sent_and_4;              // rtl-gen/src/merge/merger.rs:496
+    wire base15_end_sent_and_5;              // rtl-gen/src/merge/merger.rs:497
+    wire base15_end_sent_not_1;              // rtl-gen/src/merge/merger.rs:498
+    wire u_builder_and_15;                   // rtl-gen/src/merge/merger.rs:498
+    wire base15_at_m_mux_2;                  // rtl-gen/src/merge/merger.rs:498
+    wire base15_at_m_mux_3;                  // rtl-gen/src/merge/merger.rs:499
     reg base16_end_sent;                     // rtl-gen/src/merge/merger.rs:457
     wire merge_lod_eq_16;                    // rtl-gen/src/merge/merger.rs:459
     wire base16_at_m;                        // rtl-gen/src/merge/merger.rs:459
-    wire base16_end_sent_not;                // rtl-gen/src/merge/merger.rs:493
-    wire base16_at_m_and;                    // rtl-gen/src/merge/merger.rs:493
-    wire out_is_ref_not_16;                  // rtl-gen/src/merge/merger.rs:493
-    wire base16_at_m_and_1;                  // rtl-gen/src/merge/merger.rs:493
-    wire base16_at_m_not;                    // rtl-gen/src/merge/merger.rs:493
-    wire choice_known_and_32;                // rtl-gen/src/merge/merger.rs:493
-    wire base16_at_m_or;                     // rtl-gen/src/merge/merger.rs:493
-    wire base16_end_sent_and;                // rtl-gen/src/merge/merger.rs:493
-    wire [179:0] base16_at_m_mux;            // rtl-gen/src/merge/merger.rs:494
-    wire base16_at_m_mux_1;                  // rtl-gen/src/merge/merger.rs:495
-    wire base16_end_sent_and_1;              // rtl-gen/src/merge/merger.rs:500
-    wire base16_end_sent_and_2;              // rtl-gen/src/merge/merger.rs:501
-    wire base16_end_sent_not_1;              // rtl-gen/src/merge/merger.rs:502
-    wire u_builder_and_16;                   // rtl-gen/src/merge/merger.rs:502
-    wire base16_at_m_mux_2;                  // rtl-gen/src/merge/merger.rs:502
-    wire base16_at_m_mux_3;                  // rtl-gen/src/merge/merger.rs:503
-    wire base16_at_m_or_1;                   // rtl-gen/src/merge/merger.rs:511
-    wire crefs_end_sent_or;                  // rtl-gen/src/merge/merger.rs:511
-    wire base16_at_m_and_2;                  // rtl-gen/src/merge/merger.rs:511
-    wire out_is_end_mux;                     // rtl-gen/src/merge/merger.rs:510
-    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger.rs:508
-    wire merging_and;                        // rtl-gen/src/merge/merger.rs:507
-    reg count_overflow;                      // rtl-gen/src/merge/merger.rs:516
-    wire u_module_eq_2;                      // rtl-gen/src/merge/merger.rs:517
-    wire u_module_and_2;                     // rtl-gen/src/merge/merger.rs:519
-    wire u_module_and_3;                     // rtl-gen/src/merge/merger.rs:519
-    wire u_module_and_4;                     // rtl-gen/src/merge/merger.rs:519
+    wire base16_end_sent_not;                // rtl-gen/src/merge/merger.rs:489
+    wire base16_at_m_and;                    // rtl-gen/src/merge/merger.rs:489
+    wire out_is_ref_not_16;                  // rtl-gen/src/merge/merger.rs:489
+    wire base16_at_m_and_1;                  // rtl-gen/src/merge/merger.rs:489
+    wire base16_at_m_not;                    // rtl-gen/src/merge/merger.rs:489
+    wire choice_known_and_32;                // rtl-gen/src/merge/merger.rs:489
+    wire base16_at_m_or;                     // rtl-gen/src/merge/merger.rs:489
+    wire base16_end_sent_and;                // rtl-gen/src/merge/merger.rs:489
+    wire [179:0] base16_at_m_mux;            // rtl-gen/src/merge/merger.rs:490
+    wire base16_at_m_mux_1;                  // rtl-gen/src/merge/merger.rs:491
+    wire base16_end_sent_and_1;              // rtl-gen/src/merge/merger.rs:496
+    wire base16_end_sent_and_2;              // rtl-gen/src/merge/merger.rs:497
+    wire base16_end_sent_not_1;              // rtl-gen/src/merge/merger.rs:498
+    wire u_builder_and_16;                   // rtl-gen/src/merge/merger.rs:498
+    wire base16_at_m_mux_2;                  // rtl-gen/src/merge/merger.rs:498
+    wire base16_at_m_mux_3;                  // rtl-gen/src/merge/merger.rs:499
+    wire base16_at_m_or_1;                   // rtl-gen/src/merge/merger.rs:507
+    wire crefs_end_sent_or;                  // rtl-gen/src/merge/merger.rs:507
+    wire base16_at_m_and_2;                  // rtl-gen/src/merge/merger.rs:507
+    wire out_is_end_mux;                     // rtl-gen/src/merge/merger.rs:506
+    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger.rs:504
+    wire merging_and;                        // rtl-gen/src/merge/merger.rs:503
+    reg count_overflow;                      // rtl-gen/src/merge/merger.rs:512
+    wire u_module_eq_2;                      // rtl-gen/src/merge/merger.rs:513
+    wire u_module_and_2;                     // rtl-gen/src/merge/merger.rs:515
+    wire u_module_and_3;                     // rtl-gen/src/merge/merger.rs:515
+    wire u_module_and_4;                     // rtl-gen/src/merge/merger.rs:515
     wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger.rs:165
     wire nodes_ready_w;                      // rtl-gen/src/merge/merger.rs:165
     wire refs_ready_w;                       // rtl-gen/src/merge/merger.rs:165
-    reg done_pulse;                          // rtl-gen/src/merge/merger.rs:1072
-    wire busy_not_1;                         // rtl-gen/src/merge/merger.rs:1075
-    wire dropping0_not_2;                    // rtl-gen/src/merge/merger.rs:1075
-    wire dropping0_and;                      // rtl-gen/src/merge/merger.rs:1075
-    wire dropping1_not_2;                    // rtl-gen/src/merge/merger.rs:1075
-    wire dropping0_and_1;                    // rtl-gen/src/merge/merger.rs:1075
-    wire dropping2_not_2;                    // rtl-gen/src/merge/merger.rs:1075
-    wire dropping0_and_2;                    // rtl-gen/src/merge/merger.rs:1075
-    wire dropping3_not_2;                    // rtl-gen/src/merge/merger.rs:1075
-    wire dropping0_and_3;                    // rtl-gen/src/merge/merger.rs:1075
-    wire merger_idle;                        // rtl-gen/src/merge/merger.rs:1075
+    reg done_pulse;                          // rtl-gen/src/merge/merger.rs:1119
+    wire busy_not_1;                         // rtl-gen/src/merge/merger.rs:1122
+    wire dropping0_not_2;                    // rtl-gen/src/merge/merger.rs:1122
+    wire dropping0_and;                      // rtl-gen/src/merge/merger.rs:1122
+    wire dropping1_not_2;                    // rtl-gen/src/merge/merger.rs:1122
+    wire dropping0_and_1;                    // rtl-gen/src/merge/merger.rs:1122
+    wire dropping2_not_2;                    // rtl-gen/src/merge/merger.rs:1122
+    wire dropping0_and_2;                    // rtl-gen/src/merge/merger.rs:1122
+    wire dropping3_not_2;                    // rtl-gen/src/merge/merger.rs:1122
+    wire dropping0_and_3;                    // rtl-gen/src/merge/merger.rs:1122
+    wire merger_idle;                        // rtl-gen/src/merge/merger.rs:1122
 
     assign header_fire = u_writer_header_valid & header_ready;
     assign busy_not = ~busy;
@@ -3401,9 +3401,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 fetch_rank <= 2'd0;          // rtl-gen/src/merge/merger.rs:287
             end
             if (leaves_all_valid_and) begin
-                leaves_done <= 1'b1;         // rtl-gen/src/merge/merger.rs:976
+                leaves_done <= 1'b1;         // rtl-gen/src/merge/merger.rs:1023
             end else if (header_fire) begin
-                leaves_done <= 1'b0;         // rtl-gen/src/merge/merger.rs:976
+                leaves_done <= 1'b0;         // rtl-gen/src/merge/merger.rs:1023
             end
             if (crefs_end_sent_and_3) begin
                 crefs_end_sent <= 1'b1;      // rtl-gen/src/merge/merger.rs:445
@@ -3411,260 +3411,260 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 crefs_end_sent <= 1'b0;      // rtl-gen/src/merge/merger.rs:445
             end
             if (leaf_take_and_62) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:469
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:466
             end else if (leaf_take_and_58) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:469
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:466
             end else if (leaf_take_and_54) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:469
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:466
             end else if (leaf_take_and_50) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:469
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:466
             end else if (leaf_take_and_46) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:469
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:466
             end else if (leaf_take_and_42) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:469
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:466
             end else if (leaf_take_and_38) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:469
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:466
             end else if (leaf_take_and_34) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:469
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:466
             end else if (leaf_take_and_30) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:469
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:466
             end else if (leaf_take_and_26) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:469
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:466
             end else if (leaf_take_and_22) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:469
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:466
             end else if (leaf_take_and_18) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:469
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:466
             end else if (leaf_take_and_14) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:469
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:466
             end else if (leaf_take_and_10) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:469
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:466
             end else if (leaf_take_and_6) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:469
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:466
             end else if (leaf_take_and_2) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:469
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger.rs:466
             end else if (header_fire) begin
                 leaf_overflow_q <= 1'b0;     // rtl-gen/src/merge/merger.rs:453
             end
             if (base0_end_sent_and_5) begin
-                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger.rs:501
+                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger.rs:497
             end else if (header_fire) begin
-                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger.rs:501
+                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger.rs:497
             end
             if (header_fire) begin
-                leaves0_wr <= 5'd0;          // rtl-gen/src/merge/merger.rs:489
-                leaves0_rd <= 5'd0;          // rtl-gen/src/merge/merger.rs:490
-                leaves1_wr <= 5'd0;          // rtl-gen/src/merge/merger.rs:489
-                leaves1_rd <= 5'd0;          // rtl-gen/src/merge/merger.rs:490
-                leaves2_wr <= 5'd0;          // rtl-gen/src/merge/merger.rs:489
-                leaves2_rd <= 5'd0;          // rtl-gen/src/merge/merger.rs:490
-                leaves3_wr <= 5'd0;          // rtl-gen/src/merge/merger.rs:489
-                leaves3_rd <= 5'd0;          // rtl-gen/src/merge/merger.rs:490
-                leaves4_wr <= 5'd0;          // rtl-gen/src/merge/merger.rs:489
-                leaves4_rd <= 5'd0;          // rtl-gen/src/merge/merger.rs:490
-                leaves5_wr <= 5'd0;          // rtl-gen/src/merge/merger.rs:489
-                leaves5_rd <= 5'd0;          // rtl-gen/src/merge/merger.rs:490
-                leaves6_wr <= 5'd0;          // rtl-gen/src/merge/merger.rs:489
-                leaves6_rd <= 5'd0;          // rtl-gen/src/merge/merger.rs:490
-                leaves7_wr <= 5'd0;          // rtl-gen/src/merge/merger.rs:489
-                leaves7_rd <= 5'd0;          // rtl-gen/src/merge/merger.rs:490
-                leaves8_wr <= 5'd0;          // rtl-gen/src/merge/merger.rs:489
-                leaves8_rd <= 5'd0;          // rtl-gen/src/merge/merger.rs:490
-                leaves9_wr <= 5'd0;          // rtl-gen/src/merge/merger.rs:489
-                leaves9_rd <= 5'd0;          // rtl-gen/src/merge/merger.rs:490
-                leaves10_wr <= 5'd0;         // rtl-gen/src/merge/merger.rs:489
-                leaves10_rd <= 5'd0;         // rtl-gen/src/merge/merger.rs:490
-                leaves11_wr <= 5'd0;         // rtl-gen/src/merge/merger.rs:489
-                leaves11_rd <= 5'd0;         // rtl-gen/src/merge/merger.rs:490
-                leaves12_wr <= 5'd0;         // rtl-gen/src/merge/merger.rs:489
-                leaves12_rd <= 5'd0;         // rtl-gen/src/merge/merger.rs:490
-                leaves13_wr <= 5'd0;         // rtl-gen/src/merge/merger.rs:489
-                leaves13_rd <= 5'd0;         // rtl-gen/src/merge/merger.rs:490
-                leaves14_wr <= 5'd0;         // rtl-gen/src/merge/merger.rs:489
-                leaves14_rd <= 5'd0;         // rtl-gen/src/merge/merger.rs:490
-                leaves15_wr <= 5'd0;         // rtl-gen/src/merge/merger.rs:489
-                leaves15_rd <= 5'd0;         // rtl-gen/src/merge/merger.rs:490
+                leaves0_wr <= 5'd0;          // rtl-gen/src/merge/merger.rs:941
+                leaves0_rd <= 5'd0;          // rtl-gen/src/merge/merger.rs:942
+                leaves1_wr <= 5'd0;          // rtl-gen/src/merge/merger.rs:941
+                leaves1_rd <= 5'd0;          // rtl-gen/src/merge/merger.rs:942
+                leaves2_wr <= 5'd0;          // rtl-gen/src/merge/merger.rs:941
+                leaves2_rd <= 5'd0;          // rtl-gen/src/merge/merger.rs:942
+                leaves3_wr <= 5'd0;          // rtl-gen/src/merge/merger.rs:941
+                leaves3_rd <= 5'd0;          // rtl-gen/src/merge/merger.rs:942
+                leaves4_wr <= 5'd0;          // rtl-gen/src/merge/merger.rs:941
+                leaves4_rd <= 5'd0;          // rtl-gen/src/merge/merger.rs:942
+                leaves5_wr <= 5'd0;          // rtl-gen/src/merge/merger.rs:941
+                leaves5_rd <= 5'd0;          // rtl-gen/src/merge/merger.rs:942
+                leaves6_wr <= 5'd0;          // rtl-gen/src/merge/merger.rs:941
+                leaves6_rd <= 5'd0;          // rtl-gen/src/merge/merger.rs:942
+                leaves7_wr <= 5'd0;          // rtl-gen/src/merge/merger.rs:941
+                leaves7_rd <= 5'd0;          // rtl-gen/src/merge/merger.rs:942
+                leaves8_wr <= 5'd0;          // rtl-gen/src/merge/merger.rs:941
+                leaves8_rd <= 5'd0;          // rtl-gen/src/merge/merger.rs:942
+                leaves9_wr <= 5'd0;          // rtl-gen/src/merge/merger.rs:941
+                leaves9_rd <= 5'd0;          // rtl-gen/src/merge/merger.rs:942
+                leaves10_wr <= 5'd0;         // rtl-gen/src/merge/merger.rs:941
+                leaves10_rd <= 5'd0;         // rtl-gen/src/merge/merger.rs:942
+                leaves11_wr <= 5'd0;         // rtl-gen/src/merge/merger.rs:941
+                leaves11_rd <= 5'd0;         // rtl-gen/src/merge/merger.rs:942
+                leaves12_wr <= 5'd0;         // rtl-gen/src/merge/merger.rs:941
+                leaves12_rd <= 5'd0;         // rtl-gen/src/merge/merger.rs:942
+                leaves13_wr <= 5'd0;         // rtl-gen/src/merge/merger.rs:941
+                leaves13_rd <= 5'd0;         // rtl-gen/src/merge/merger.rs:942
+                leaves14_wr <= 5'd0;         // rtl-gen/src/merge/merger.rs:941
+                leaves14_rd <= 5'd0;         // rtl-gen/src/merge/merger.rs:942
+                leaves15_wr <= 5'd0;         // rtl-gen/src/merge/merger.rs:941
+                leaves15_rd <= 5'd0;         // rtl-gen/src/merge/merger.rs:942
             end else begin
                 if (leaf_take_and_3) begin
-                    leaves0_wr <= leaves0_wr_add; // rtl-gen/src/merge/merger.rs:489
+                    leaves0_wr <= leaves0_wr_add; // rtl-gen/src/merge/merger.rs:941
                 end
                 if (base0_end_sent_and_3) begin
-                    leaves0_rd <= leaves0_rd_add; // rtl-gen/src/merge/merger.rs:490
+                    leaves0_rd <= leaves0_rd_add; // rtl-gen/src/merge/merger.rs:942
                 end
                 if (leaf_take_and_7) begin
-                    leaves1_wr <= leaves1_wr_add; // rtl-gen/src/merge/merger.rs:489
+                    leaves1_wr <= leaves1_wr_add; // rtl-gen/src/merge/merger.rs:941
                 end
                 if (base1_end_sent_and_3) begin
-                    leaves1_rd <= leaves1_rd_add; // rtl-gen/src/merge/merger.rs:490
+                    leaves1_rd <= leaves1_rd_add; // rtl-gen/src/merge/merger.rs:942
                 end
                 if (leaf_take_and_11) begin
-                    leaves2_wr <= leaves2_wr_add; // rtl-gen/src/merge/merger.rs:489
+                    leaves2_wr <= leaves2_wr_add; // rtl-gen/src/merge/merger.rs:941
                 end
                 if (base2_end_sent_and_3) begin
-                    leaves2_rd <= leaves2_rd_add; // rtl-gen/src/merge/merger.rs:490
+                    leaves2_rd <= leaves2_rd_add; // rtl-gen/src/merge/merger.rs:942
                 end
                 if (leaf_take_and_15) begin
-                    leaves3_wr <= leaves3_wr_add; // rtl-gen/src/merge/merger.rs:489
+                    leaves3_wr <= leaves3_wr_add; // rtl-gen/src/merge/merger.rs:941
                 end
                 if (base3_end_sent_and_3) begin
-                    leaves3_rd <= leaves3_rd_add; // rtl-gen/src/merge/merger.rs:490
+                    leaves3_rd <= leaves3_rd_add; // rtl-gen/src/merge/merger.rs:942
                 end
                 if (leaf_take_and_19) begin
-                    leaves4_wr <= leaves4_wr_add; // rtl-gen/src/merge/merger.rs:489
+                    leaves4_wr <= leaves4_wr_add; // rtl-gen/src/merge/merger.rs:941
                 end
                 if (base4_end_sent_and_3) begin
-                    leaves4_rd <= leaves4_rd_add; // rtl-gen/src/merge/merger.rs:490
+                    leaves4_rd <= leaves4_rd_add; // rtl-gen/src/merge/merger.rs:942
                 end
                 if (leaf_take_and_23) begin
-                    leaves5_wr <= leaves5_wr_add; // rtl-gen/src/merge/merger.rs:489
+                    leaves5_wr <= leaves5_wr_add; // rtl-gen/src/merge/merger.rs:941
                 end
                 if (base5_end_sent_and_3) begin
-                    leaves5_rd <= leaves5_rd_add; // rtl-gen/src/merge/merger.rs:490
+                    leaves5_rd <= leaves5_rd_add; // rtl-gen/src/merge/merger.rs:942
                 end
                 if (leaf_take_and_27) begin
-                    leaves6_wr <= leaves6_wr_add; // rtl-gen/src/merge/merger.rs:489
+                    leaves6_wr <= leaves6_wr_add; // rtl-gen/src/merge/merger.rs:941
                 end
                 if (base6_end_sent_and_3) begin
-                    leaves6_rd <= leaves6_rd_add; // rtl-gen/src/merge/merger.rs:490
+                    leaves6_rd <= leaves6_rd_add; // rtl-gen/src/merge/merger.rs:942
                 end
                 if (leaf_take_and_31) begin
-                    leaves7_wr <= leaves7_wr_add; // rtl-gen/src/merge/merger.rs:489
+                    leaves7_wr <= leaves7_wr_add; // rtl-gen/src/merge/merger.rs:941
                 end
                 if (base7_end_sent_and_3) begin
-                    leaves7_rd <= leaves7_rd_add; // rtl-gen/src/merge/merger.rs:490
+                    leaves7_rd <= leaves7_rd_add; // rtl-gen/src/merge/merger.rs:942
                 end
                 if (leaf_take_and_35) begin
-                    leaves8_wr <= leaves8_wr_add; // rtl-gen/src/merge/merger.rs:489
+                    leaves8_wr <= leaves8_wr_add; // rtl-gen/src/merge/merger.rs:941
                 end
                 if (base8_end_sent_and_3) begin
-                    leaves8_rd <= leaves8_rd_add; // rtl-gen/src/merge/merger.rs:490
+                    leaves8_rd <= leaves8_rd_add; // rtl-gen/src/merge/merger.rs:942
                 end
                 if (leaf_take_and_39) begin
-                    leaves9_wr <= leaves9_wr_add; // rtl-gen/src/merge/merger.rs:489
+                    leaves9_wr <= leaves9_wr_add; // rtl-gen/src/merge/merger.rs:941
                 end
                 if (base9_end_sent_and_3) begin
-                    leaves9_rd <= leaves9_rd_add; // rtl-gen/src/merge/merger.rs:490
+                    leaves9_rd <= leaves9_rd_add; // rtl-gen/src/merge/merger.rs:942
                 end
                 if (leaf_take_and_43) begin
-                    leaves10_wr <= leaves10_wr_add; // rtl-gen/src/merge/merger.rs:489
+                    leaves10_wr <= leaves10_wr_add; // rtl-gen/src/merge/merger.rs:941
                 end
                 if (base10_end_sent_and_3) begin
-                    leaves10_rd <= leaves10_rd_add; // rtl-gen/src/merge/merger.rs:490
+                    leaves10_rd <= leaves10_rd_add; // rtl-gen/src/merge/merger.rs:942
                 end
                 if (leaf_take_and_47) begin
-                    leaves11_wr <= leaves11_wr_add; // rtl-gen/src/merge/merger.rs:489
+                    leaves11_wr <= leaves11_wr_add; // rtl-gen/src/merge/merger.rs:941
                 end
                 if (base11_end_sent_and_3) begin
-                    leaves11_rd <= leaves11_rd_add; // rtl-gen/src/merge/merger.rs:490
+                    leaves11_rd <= leaves11_rd_add; // rtl-gen/src/merge/merger.rs:942
                 end
                 if (leaf_take_and_51) begin
-                    leaves12_wr <= leaves12_wr_add; // rtl-gen/src/merge/merger.rs:489
+                    leaves12_wr <= leaves12_wr_add; // rtl-gen/src/merge/merger.rs:941
                 end
                 if (base12_end_sent_and_3) begin
-                    leaves12_rd <= leaves12_rd_add; // rtl-gen/src/merge/merger.rs:490
+                    leaves12_rd <= leaves12_rd_add; // rtl-gen/src/merge/merger.rs:942
                 end
                 if (leaf_take_and_55) begin
-                    leaves13_wr <= leaves13_wr_add; // rtl-gen/src/merge/merger.rs:489
+                    leaves13_wr <= leaves13_wr_add; // rtl-gen/src/merge/merger.rs:941
                 end
                 if (base13_end_sent_and_3) begin
-                    leaves13_rd <= leaves13_rd_add; // rtl-gen/src/merge/merger.rs:490
+                    leaves13_rd <= leaves13_rd_add; // rtl-gen/src/merge/merger.rs:942
                 end
                 if (leaf_take_and_59) begin
-                    leaves14_wr <= leaves14_wr_add; // rtl-gen/src/merge/merger.rs:489
+                    leaves14_wr <= leaves14_wr_add; // rtl-gen/src/merge/merger.rs:941
                 end
                 if (base14_end_sent_and_3) begin
-                    leaves14_rd <= leaves14_rd_add; // rtl-gen/src/merge/merger.rs:490
+                    leaves14_rd <= leaves14_rd_add; // rtl-gen/src/merge/merger.rs:942
                 end
                 if (leaf_take_and_63) begin
-                    leaves15_wr <= leaves15_wr_add; // rtl-gen/src/merge/merger.rs:489
+                    leaves15_wr <= leaves15_wr_add; // rtl-gen/src/merge/merger.rs:941
                 end
                 if (base15_end_sent_and_3) begin
-                    leaves15_rd <= leaves15_rd_add; // rtl-gen/src/merge/merger.rs:490
+                    leaves15_rd <= leaves15_rd_add; // rtl-gen/src/merge/merger.rs:942
                 end
             end
             if (base1_end_sent_and_5) begin
-                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger.rs:501
+                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger.rs:497
             end else if (header_fire) begin
-                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger.rs:501
+                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger.rs:497
             end
             if (base2_end_sent_and_5) begin
-                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger.rs:501
+                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger.rs:497
             end else if (header_fire) begin
-                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger.rs:501
+                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger.rs:497
             end
             if (base3_end_sent_and_5) begin
-                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger.rs:501
+                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger.rs:497
             end else if (header_fire) begin
-                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger.rs:501
+                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger.rs:497
             end
             if (base4_end_sent_and_5) begin
-                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger.rs:501
+                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger.rs:497
             end else if (header_fire) begin
-                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger.rs:501
+                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger.rs:497
             end
             if (base5_end_sent_and_5) begin
-                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger.rs:501
+                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger.rs:497
             end else if (header_fire) begin
-                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger.rs:501
+                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger.rs:497
             end
             if (base6_end_sent_and_5) begin
-                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger.rs:501
+                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger.rs:497
             end else if (header_fire) begin
-                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger.rs:501
+                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger.rs:497
             end
             if (base7_end_sent_and_5) begin
-                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger.rs:501
+                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger.rs:497
             end else if (header_fire) begin
-                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger.rs:501
+                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger.rs:497
             end
             if (base8_end_sent_and_5) begin
-                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger.rs:501
+                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger.rs:497
             end else if (header_fire) begin
-                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger.rs:501
+                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger.rs:497
             end
             if (base9_end_sent_and_5) begin
-                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger.rs:501
+                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger.rs:497
             end else if (header_fire) begin
-                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger.rs:501
+                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger.rs:497
             end
             if (base10_end_sent_and_5) begin
-                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger.rs:501
+                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger.rs:497
             end else if (header_fire) begin
-                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger.rs:501
+                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger.rs:497
             end
             if (base11_end_sent_and_5) begin
-                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger.rs:501
+                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger.rs:497
             end else if (header_fire) begin
-                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger.rs:501
+                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger.rs:497
             end
             if (base12_end_sent_and_5) begin
-                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger.rs:501
+                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger.rs:497
             end else if (header_fire) begin
-                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger.rs:501
+                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger.rs:497
             end
             if (base13_end_sent_and_5) begin
-                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger.rs:501
+                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger.rs:497
             end else if (header_fire) begin
-                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger.rs:501
+                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger.rs:497
             end
             if (base14_end_sent_and_5) begin
-                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger.rs:501
+                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger.rs:497
             end else if (header_fire) begin
-                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger.rs:501
+                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger.rs:497
             end
             if (base15_end_sent_and_5) begin
-                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger.rs:501
+                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger.rs:497
             end else if (header_fire) begin
-                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger.rs:501
+                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger.rs:497
             end
             if (base16_end_sent_and_2) begin
-                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger.rs:501
+                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger.rs:497
             end else if (header_fire) begin
-                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger.rs:501
+                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger.rs:497
             end
             if (u_module_and_4) begin
-                count_overflow <= 1'b1;      // rtl-gen/src/merge/merger.rs:519
+                count_overflow <= 1'b1;      // rtl-gen/src/merge/merger.rs:515
             end else if (header_fire) begin
-                count_overflow <= 1'b0;      // rtl-gen/src/merge/merger.rs:519
+                count_overflow <= 1'b0;      // rtl-gen/src/merge/merger.rs:515
             end
             done_pulse <= header_fire;
         end

@@ -459,15 +459,12 @@ pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
         let at_m = (merging & level.eq(dl)).name(&format!("base{d}_at_m"));
         let (valid, data, is_end) = if d < dmax {
             // The FIFO of LOD d.
-            let mem = m.memory(&format!("leaves{d}"), word_w, 1 << cb);
-            let wr = m.reg(&format!("leaves{d}_wr"), cb + 1);
-            let rd = m.reg(&format!("leaves{d}_rd"), cb + 1);
-            let empty = wr.eq(rd);
-            let full = wr.slice(cb - 1, 0).eq(rd.slice(cb - 1, 0)) & !wr.bit(cb).eq(rd.bit(cb));
+            let q = DropFifo::new(&m, &format!("leaves{d}"), &format!("leaves{d}"), word_w, cb);
+            let (empty, full) = (q.empty, q.full);
             let push = take_leaf & best_lod.eq(dl);
-            mem.write(wr.slice(cb - 1, 0), word, push & !full);
+            q.write(word, push);
             over_next = (push & full).mux(one, over_next);
-            let head = mem.read(rd.slice(cb - 1, 0));
+            let head = q.head();
             let above = (merging & dl.lt(level)).name(&format!("base{d}_above_m"));
             let leaf_beat = with_fields(
                 &m,
@@ -486,8 +483,7 @@ pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
             let data = at_m.mux(mo_beat, (above & !empty).mux(leaf_beat, end_beat));
             let is_end = at_m.mux(mo_end, above.mux(fifo_end, one));
             let pop = valid & ready & above & !empty;
-            wr.next(header_fire.mux(lit(0, cb + 1), (push & !full).mux(wr.add(1, cb + 1), wr)));
-            rd.next(header_fire.mux(lit(0, cb + 1), pop.mux(rd.add(1, cb + 1), rd)));
+            q.advance(push, pop, header_fire);
             (valid, data, is_end)
         } else {
             let valid = !bsent & (at_m & mo_valid & !mo_ref | known & !at_m);
@@ -848,22 +844,21 @@ fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
         let dl = lit(d as u64, lb);
         let bsent = m.reg(&format!("base{d}_end_sent"), 1);
         let ready = builder.output(&format!("base{d}_ready"));
-        let mem = m.memory(&format!("base{d}_fifo"), inb.width, 1 << cb);
-        let wr = m.reg(&format!("base{d}_wr"), cb + 1);
-        let rd = m.reg(&format!("base{d}_rd"), cb + 1);
-        let empty = wr.eq(rd);
-        let full = wr.slice(cb - 1, 0).eq(rd.slice(cb - 1, 0)) & !wr.bit(cb).eq(rd.bit(cb));
+        let q = DropFifo::new(
+            &m,
+            &format!("base{d}_fifo"),
+            &format!("base{d}"),
+            inb.width,
+            cb,
+        );
+        let (empty, full) = (q.empty, q.full);
         let above_lo = dl.lt(lo);
         let push_leaf = take_leaf & best_lod.eq(dl) & above_lo;
         let push_node = mo_node & mo_lod.eq(dl) & !above_lo;
         let push = (push_leaf | push_node).name(&format!("base{d}_push"));
-        mem.write(
-            wr.slice(cb - 1, 0),
-            push_node.mux(mo_beat, leaf_beat),
-            push & !full,
-        );
+        q.write(push_node.mux(mo_beat, leaf_beat), push);
         over_next = (push & full).mux(one, over_next);
-        let head = mem.read(rd.slice(cb - 1, 0));
+        let head = q.head();
         let shows = good & !empty;
         let valid = base_open & !bsent;
         let data = shows.mux(head, end_beat);
@@ -872,8 +867,7 @@ fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
         let fire = valid & ready;
         let pop = fire & shows;
         bsent.next((fire & !shows).mux(one, header_fire.mux(zero, bsent)));
-        wr.next(header_fire.mux(lit(0, cb + 1), (push & !full).mux(wr.add(1, cb + 1), wr)));
-        rd.next(header_fire.mux(lit(0, cb + 1), pop.mux(rd.add(1, cb + 1), rd)));
+        q.advance(push, pop, header_fire);
     }
     leaf_over.next(over_next);
     let leaf_over = leaf_over.name("leaf_overflow_q");
@@ -894,6 +888,59 @@ fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
         },
     );
     Ok(m)
+}
+
+/// A FIFO of `2^cb` words on a memory, whose pushes while full are
+/// dropped (the caller flags them): `{name}_wr` / `{name}_rd` pointers of
+/// `cb + 1` bits (the top bit tells full from empty), cleared at the end of
+/// a merge.
+struct DropFifo<'m> {
+    m: &'m Module,
+    mem: crate::Memory<'m>,
+    wr: Signal<'m>,
+    rd: Signal<'m>,
+    cb: u32,
+    empty: Signal<'m>,
+    full: Signal<'m>,
+}
+
+impl<'m> DropFifo<'m> {
+    fn new(m: &'m Module, mem_name: &str, name: &str, width: u32, cb: u32) -> Self {
+        let mem = m.memory(mem_name, width, 1 << cb);
+        let wr = m.reg(&format!("{name}_wr"), cb + 1);
+        let rd = m.reg(&format!("{name}_rd"), cb + 1);
+        let empty = wr.eq(rd);
+        let full = wr.slice(cb - 1, 0).eq(rd.slice(cb - 1, 0)) & !wr.bit(cb).eq(rd.bit(cb));
+        DropFifo {
+            m,
+            mem,
+            wr,
+            rd,
+            cb,
+            empty,
+            full,
+        }
+    }
+
+    /// Writes `data` when `push` and not full.
+    fn write(&self, data: Signal<'m>, push: Signal<'m>) {
+        let cb = self.cb;
+        self.mem
+            .write(self.wr.slice(cb - 1, 0), data, push & !self.full);
+    }
+
+    /// The oldest word (meaningful when not empty).
+    fn head(&self) -> Signal<'m> {
+        self.mem.read(self.rd.slice(self.cb - 1, 0))
+    }
+
+    /// Moves the pointers: a kept push, a pop; `clear` empties it.
+    fn advance(&self, push: Signal<'m>, pop: Signal<'m>, clear: Signal<'m>) {
+        let (wr, rd, w) = (self.wr, self.rd, self.cb + 1);
+        let zero = self.m.lit(0, w);
+        wr.next(clear.mux(zero, (push & !self.full).mux(wr.add(1, w), wr)));
+        rd.next(clear.mux(zero, pop.mux(rd.add(1, w), rd)));
+    }
 }
 
 /// What the leaves merge needs: the fetchers' `leaves` streams

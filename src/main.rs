@@ -37,6 +37,8 @@ enum Command {
     Run(cmd::run::Args),
     /// Co-simulate a unit (translate; merge: the merging module, --stage merge-level its S614 stage) against golden, cycle by cycle.
     Cosim(cmd::cosim::Args),
+    /// Check the long-run ledger (cosim --ledger) against today's code and sum what it proves.
+    Ledger(cmd::ledger::Args),
 }
 
 fn main() {
@@ -55,6 +57,7 @@ fn main() {
         Command::Run(a) => cmd::run::main(a),
         Command::Vectors(a) => cmd::vectors::main(a),
         Command::Cosim(a) => cmd::cosim::main(a),
+        Command::Ledger(a) => cmd::ledger::main(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");

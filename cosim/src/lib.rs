@@ -13,6 +13,7 @@ pub mod error;
 pub mod from_rtl;
 pub mod icarus;
 pub mod ir_engine;
+pub mod ledger;
 pub mod tb;
 pub mod tools;
 pub mod units;

@@ -133,6 +133,11 @@ pub struct Args {
     /// --unit merger only: log2 of each leaf FIFO's entries (default 4).
     #[arg(long = "leaf-bits")]
     leaf_bits: Option<u32>,
+    /// --unit merger only: also record the run, passed or failed, as an
+    /// entry of the long-run ledger in this folder (SPEC 10.2; `hiermerge
+    /// ledger` checks the entries against today's code).
+    #[arg(long)]
+    ledger: Option<PathBuf>,
     /// Print one JSON object on stdout.
     #[arg(long)]
     json: bool,
@@ -207,6 +212,11 @@ struct MergerReport {
     done_pulses: u64,
     /// Wall time of generating the golden stimulus (not in wall_seconds).
     golden_seconds: f64,
+    /// The simulated top module: the configuration, as the generator names it.
+    top: String,
+    /// Digests of the simulated netlist and of the stimulus (SPEC 10.2).
+    netlist_sha256: String,
+    stimulus_sha256: String,
 }
 
 fn flip_expected() -> Result<Option<usize>, String> {
@@ -294,6 +304,39 @@ fn reproduce(a: &Args, flip: Option<usize>) -> Result<String, String> {
     Ok(s)
 }
 
+/// Writes `report` (a `--unit merger` run) into the ledger folder `dir`.
+fn record(a: &Args, report: &Report, dir: &Path) -> Result<PathBuf, String> {
+    let m = report
+        .merger
+        .as_ref()
+        .ok_or("--ledger: the run has no merger report")?;
+    let line = reproduce(a, None)?;
+    // `reproduce` spells every value without blanks: split back into argv.
+    let args: Vec<String> = line
+        .split_whitespace()
+        .skip(2) // hiermerge cosim
+        .map(String::from)
+        .collect();
+    let entry = cosim::ledger::Entry {
+        format: cosim::ledger::FORMAT.into(),
+        unit: "merger".into(),
+        top: m.top.clone(),
+        engine: a.engine.name().into(),
+        args,
+        seed: a.seed,
+        // As asked: a failing run stops early, and says so by not passing.
+        count: a.count.unwrap_or(DEFAULT_COUNT),
+        passed: report.passed,
+        mismatches: report.counts.mismatches,
+        cycles: report.counts.cycles,
+        wall_seconds: report.counts.wall_seconds,
+        netlist_sha256: m.netlist_sha256.clone(),
+        stimulus_sha256: m.stimulus_sha256.clone(),
+        hiermerge_version: env!("CARGO_PKG_VERSION").into(),
+    };
+    entry.write_into(dir).map_err(|e| format!("--ledger: {e}"))
+}
+
 /// The merging module's stage to run: `--stage`, else merge-level with
 /// `--vectors` (its files hold merge_level records), else the module.
 fn merge_stage(a: &Args) -> Result<MergeStage, String> {
@@ -370,6 +413,16 @@ pub fn main(a: Args) -> CmdResult {
             "{PATCH_FROM_VAR} applies to --unit merge (the module) and --unit merger only"
         ));
     }
+    if a.ledger.is_some() {
+        if a.unit != Unit::Merger {
+            return Err("--ledger applies to --unit merger only".into());
+        }
+        if flip.is_some() || verilog_patch()?.is_some() {
+            return Err(format!(
+                "--ledger records real runs only: unset {FLIP_EXPECTED_VAR}, {PATCH_FROM_VAR} and {PATCH_TO_VAR}"
+            ));
+        }
+    }
     let dir = tempfile::tempdir().map_err(|e| format!("temporary directory: {e}"))?;
     let report = match a.unit {
         Unit::Translate => run_translate(&a, &a.design.translate_design()?, flip, dir.path())?,
@@ -381,6 +434,12 @@ pub fn main(a: Args) -> CmdResult {
         },
         Unit::Merger => run_merger(&a, &a.design.merge_design()?, flip, dir.path())?,
     };
+    if let Some(dir) = &a.ledger {
+        let path = record(&a, &report, dir)?;
+        if !a.json {
+            eprintln!("recorded in the ledger: {}", path.display());
+        }
+    }
     let passed = report.passed;
     let summary = report.first_mismatch.as_ref().map(|m| {
         format!(
@@ -747,6 +806,55 @@ fn run_merge_module(
     finish_report(a, stage, flip, counts, first, o.vcd.as_ref())
 }
 
+/// The hierarchy merger `a` asks for, validated.
+fn merger_config(a: &Args, design: &MergeDesign) -> Result<rtl_gen::merge::MergerConfig, String> {
+    let mut c = rtl_gen::merge::MergerConfig::new(*design);
+    if let Some(bits) = a.capacity_bits {
+        c.sizes.capacity_bits = bits;
+    }
+    if let Some(bits) = a.leaf_bits {
+        c.sizes.leaf_bits = bits;
+    }
+    c.validate()
+        .map_err(|e| format!("hierarchy merger configuration: {e}"))?;
+    Ok(c)
+}
+
+/// A `--unit merger` run as the ledger (SPEC 10.2) needs to regenerate it.
+pub struct MergerRun {
+    pub config: rtl_gen::merge::MergerConfig,
+    pub engine: &'static str,
+    pub seed: u64,
+    pub count: usize,
+    pub stall: f64,
+}
+
+/// What the `hiermerge cosim` arguments `args` (without the program and
+/// subcommand names) run, when they are a `--unit merger` run.
+pub fn merger_run(args: &[String]) -> Result<MergerRun, String> {
+    #[derive(clap::Parser)]
+    #[command(name = "hiermerge cosim", no_binary_name = true)]
+    struct Line {
+        #[command(flatten)]
+        args: Args,
+    }
+    let a = <Line as clap::Parser>::try_parse_from(args)
+        .map_err(|e| format!("`{}`: {}", args.join(" "), e.kind()))?
+        .args;
+    if a.unit != Unit::Merger {
+        return Err(format!("`{}`: expected --unit merger", args.join(" ")));
+    }
+    check_stall(a.stall).map_err(|e| format!("--stall: {e}"))?;
+    Ok(MergerRun {
+        config: merger_config(&a, &a.design.merge_design()?)?,
+        engine: a.engine.name(),
+        seed: a.seed,
+        count: usize::try_from(a.count.unwrap_or(DEFAULT_COUNT))
+            .map_err(|_| "--count is too large".to_string())?,
+        stall: a.stall,
+    })
+}
+
 /// `--unit merger`: seeded random merges through the hierarchy merger,
 /// every stream with its own stall pattern, 10,000 merges at a time.
 fn run_merger(
@@ -761,15 +869,7 @@ fn run_merger(
         return Err("--unit merger takes no --vectors: use --seed/--count".into());
     }
     let engine = module_engine(a.engine)?;
-    let mut c = rtl_gen::merge::MergerConfig::new(*design);
-    if let Some(bits) = a.capacity_bits {
-        c.sizes.capacity_bits = bits;
-    }
-    if let Some(bits) = a.leaf_bits {
-        c.sizes.leaf_bits = bits;
-    }
-    c.validate()
-        .map_err(|e| format!("hierarchy merger configuration: {e}"))?;
+    let c = merger_config(a, design)?;
     let config = merger::RunConfig {
         bench: bench_config(a, merger::STAGE)?,
         count,
@@ -824,6 +924,11 @@ fn run_merger(
         descents: s.descents,
         done_pulses: t.done_pulses,
         golden_seconds: t.golden_wall.as_secs_f64(),
+        top: rtl_gen::merge::hierarchy_merger_unit(&c)
+            .map_err(|e| e.to_string())?
+            .name(),
+        netlist_sha256: o.netlist_sha256.clone(),
+        stimulus_sha256: o.stimulus_sha256.clone(),
     });
     Ok(report)
 }

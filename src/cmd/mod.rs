@@ -4,6 +4,7 @@ pub mod build;
 pub mod common;
 pub mod cosim;
 pub mod gen;
+pub mod ledger;
 pub mod merge;
 pub mod run;
 pub mod trace;

@@ -28,6 +28,7 @@ use rtl_gen::merge::MergerConfig;
 use crate::bitvec::BitVec;
 use crate::design::Design;
 use crate::error::{CosimError, Result};
+use crate::ledger::StimulusDigest;
 use crate::tb::{FieldDecoder, StreamBeats, Transaction};
 
 use super::chunked::{ChunkStreams, ChunkedSim};
@@ -451,6 +452,12 @@ pub struct Outcome {
     pub totals: ChunkTotals,
     /// What the merges exercised.
     pub stats: MergeStats,
+    /// The simulated netlist's digest (10.2; after any patch).
+    pub netlist_sha256: String,
+    /// The stimulus digest of the chunks generated (10.2).
+    pub stimulus_sha256: String,
+    /// The run stopped after a failing chunk, before `count` merges.
+    pub stopped_early: bool,
 }
 
 impl Outcome {
@@ -476,6 +483,56 @@ fn flip_header(streams: &mut MergerStreams, merge: usize) -> Result<()> {
     }
 }
 
+/// The next chunk of `n` random merges drawn from `rng`, as the merger's
+/// streams; merge `flip` (counted in the chunk) gets its expected `header`
+/// beat's bit 0 flipped.
+fn next_chunk(
+    rng: &mut SplitMix64,
+    c: &MergerConfig,
+    n: usize,
+    flip: Option<usize>,
+) -> Result<MergerStreams> {
+    let txs = (0..n)
+        .map(|_| random_merge(rng, c))
+        .collect::<Result<Vec<_>>>()?;
+    let mut streams = merger_streams(c, &txs)?;
+    if let Some(f) = flip {
+        flip_header(&mut streams, f)?;
+    }
+    Ok(streams)
+}
+
+/// The chunk sizes of a run of `count` merges.
+fn chunk_sizes(count: usize) -> impl Iterator<Item = usize> {
+    (0..count.div_ceil(CHUNK)).map(move |i| CHUNK.min(count - i * CHUNK))
+}
+
+/// The merger `c`'s Verilog as the ledger digests it (10.2), written to
+/// `dir`: what [`run`] simulates without a patch.
+pub fn netlist_digest(c: &MergerConfig, dir: &Path) -> Result<String> {
+    let module = merger_module(c)?;
+    let design = crate::from_rtl::design_from_module(&module, dir)?;
+    crate::ledger::netlist_digest(&design)
+}
+
+/// The stimulus digest (10.2) of the run [`run`] makes of `count` merges
+/// from `seed` at stall `stall`, without simulating it.
+pub fn stimulus_digest(c: &MergerConfig, seed: u64, count: usize, stall: f64) -> Result<String> {
+    let mut rng = SplitMix64(seed);
+    let mut digest = StimulusDigest::new(seed, count as u64, stall);
+    for n in chunk_sizes(count) {
+        let streams = next_chunk(&mut rng, c, n, None)?;
+        digest.add_chunk(&streams.inputs, &streams.outputs);
+    }
+    Ok(digest.finish())
+}
+
+fn merger_module(c: &MergerConfig) -> Result<rtl_gen::Module> {
+    rtl_gen::merge::hierarchy_merger_unit(c).map_err(|what| CosimError::Design {
+        what: format!("hierarchy merger: {what}"),
+    })
+}
+
 /// Runs `config.count` random merges (seeded by `config.bench.seed`) through the
 /// merger `c` on `engine`, the Verilog written to `dir`, [`CHUNK`] merges
 /// at a time on one simulator ([`ChunkedSim`]); stops after the first chunk
@@ -488,13 +545,12 @@ pub fn run(
     dir: &Path,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Outcome> {
-    let module = rtl_gen::merge::hierarchy_merger_unit(c).map_err(|what| CosimError::Design {
-        what: format!("hierarchy merger: {what}"),
-    })?;
+    let module = merger_module(c)?;
     let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
     if let Some(patch) = &config.bench.verilog_patch {
         apply_patch(&design, patch, engine)?;
     }
+    let netlist_sha256 = crate::ledger::netlist_digest(&design)?;
     let ml = MergerLayout::new(&c.design.params, c.design.inputs, c.sizes.capacity_bits)
         .map_err(golden_err)?;
     let k = c.design.inputs;
@@ -511,21 +567,21 @@ pub fn run(
         decoded_pair(&*decoder_of(&ml, pn_layout.as_ref(), stream), e, g)
     };
     let mut rng = SplitMix64(config.bench.seed);
-    let mut out = Outcome::default();
-    while out.totals.merges < config.count {
+    let (seed, count) = (config.bench.seed, config.count as u64);
+    let mut digest = StimulusDigest::new(seed, count, config.bench.stall);
+    let mut out = Outcome {
+        netlist_sha256,
+        ..Outcome::default()
+    };
+    for n in chunk_sizes(config.count) {
         let first = out.totals.merges;
-        let n = CHUNK.min(config.count - first);
         let t = std::time::Instant::now();
-        let txs = (0..n)
-            .map(|_| random_merge(&mut rng, c))
-            .collect::<Result<Vec<_>>>()?;
-        let mut streams = merger_streams(c, &txs)?;
-        drop(txs);
-        if let Some(f) = config.flip_expected {
-            if (first..first + n).contains(&f) {
-                flip_header(&mut streams, f - first)?;
-            }
-        }
+        let flip = config
+            .flip_expected
+            .filter(|f| (first..first + n).contains(f))
+            .map(|f| f - first);
+        let streams = next_chunk(&mut rng, c, n, flip)?;
+        digest.add_chunk(&streams.inputs, &streams.outputs);
         out.totals.golden_wall += t.elapsed();
         out.stats.add(&streams.stats);
         let merge_of = |s: usize, beat: usize| streams.merge_of(s, beat);
@@ -535,9 +591,13 @@ pub fn run(
             merge_of: &merge_of,
         };
         if sim.run_chunk(&mut out.totals, n, &chunk, &config.bench, &decode, progress)? {
+            out.stopped_early = out.totals.merges < config.count;
             break;
         }
     }
+    // A run stopped after a failing chunk simulated only part of the
+    // stimulus: its digest says so by being of what ran.
+    out.stimulus_sha256 = digest.finish();
     Ok(out)
 }
 

@@ -1,0 +1,286 @@
+//! The long-run ledger (SPEC 10.2): one JSON entry per co-simulation run,
+//! kept in the repository (`longruns/`), so that a regression too long for
+//! one machine's session (100,000 merges of the merger top in Icarus take
+//! hours) is run in pieces, on any machine, and still adds up to evidence
+//! about *this* code.
+//!
+//! An entry is tied to the code by two SHA-256 digests: of the netlist
+//! (the design's Verilog, line comments and trailing blanks dropped, since
+//! they cannot change a simulation) and of the stimulus (every beat in and
+//! every expected beat out, with the seed, count and stall that drive the
+//! bench). Regenerating both from the entry's own command line and finding
+//! the same digests shows that rerunning it today would simulate the same
+//! netlist on the same beats against the same expectations; a different
+//! digest makes the entry stale, and `hiermerge ledger` says so.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::cache::CacheKey;
+use crate::design::Design;
+use crate::error::{io_err, Result};
+use crate::tb::StreamBeats;
+
+/// The `format` every entry carries; bumped when fields change meaning.
+pub const FORMAT: &str = "hiermerge-longrun-1";
+
+/// A Verilog source as the digest sees it: each line without its `//`
+/// comment and trailing blanks, blank lines dropped. The emitted Verilog
+/// has no string literals, so `//` always starts a comment.
+pub fn canonical_verilog(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for line in text.lines() {
+        let code = line.split("//").next().unwrap_or("").trim_end();
+        if !code.is_empty() {
+            out.push_str(code);
+            out.push('\n');
+        }
+    }
+    out
+}
+
+/// SHA-256 of `design`'s Verilog files (file name and canonical text, in
+/// file-name order), as 64 hex digits.
+pub fn netlist_digest(design: &Design) -> Result<String> {
+    let mut files = design.verilog_files.clone();
+    files.sort();
+    let mut key = CacheKey::new();
+    key.add("format", FORMAT.as_bytes());
+    for f in &files {
+        let text = std::fs::read_to_string(f).map_err(io_err(f))?;
+        let name = f.file_name().map_or_else(
+            || f.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        );
+        key.add("file", name.as_bytes());
+        key.add("text", canonical_verilog(&text).as_bytes());
+    }
+    Ok(key.finish())
+}
+
+/// SHA-256 over a run's stimulus, fed chunk by chunk.
+pub struct StimulusDigest {
+    key: CacheKey,
+}
+
+impl StimulusDigest {
+    /// Starts the digest of a run of `count` transactions from `seed` with
+    /// stall probability `stall` (every number that drives the bench).
+    pub fn new(seed: u64, count: u64, stall: f64) -> Self {
+        let mut key = CacheKey::new();
+        key.add("format", FORMAT.as_bytes());
+        key.add("seed", &seed.to_le_bytes());
+        key.add("count", &count.to_le_bytes());
+        key.add("stall", &stall.to_bits().to_le_bytes());
+        StimulusDigest { key }
+    }
+
+    /// Adds one chunk: its input streams and its expected output streams,
+    /// every beat's width and bits.
+    pub fn add_chunk(&mut self, inputs: &[StreamBeats], outputs: &[StreamBeats]) {
+        for (side, streams) in [("in", inputs), ("out", outputs)] {
+            for s in streams {
+                self.key.add(side, s.name.as_bytes());
+                self.key.add("beats", &(s.beats.len() as u64).to_le_bytes());
+                for beat in &s.beats {
+                    for v in beat {
+                        let mut bytes = Vec::with_capacity(8 + 8 * v.words().len());
+                        bytes.extend((v.width() as u64).to_le_bytes());
+                        for w in v.words() {
+                            bytes.extend(w.to_le_bytes());
+                        }
+                        self.key.add("v", &bytes);
+                    }
+                }
+            }
+        }
+    }
+
+    /// The digest as 64 hex digits.
+    pub fn finish(self) -> String {
+        self.key.finish()
+    }
+}
+
+/// One run, as the ledger keeps it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Entry {
+    /// [`FORMAT`].
+    pub format: String,
+    /// The unit (`merger`).
+    pub unit: String,
+    /// The top module's name: the configuration, spelled by the generator.
+    pub top: String,
+    /// The engine (`verilator`, `iverilog`, `ir`).
+    pub engine: String,
+    /// The `hiermerge cosim` arguments that reproduce the run.
+    pub args: Vec<String>,
+    /// Seed of the transactions and stalls.
+    pub seed: u64,
+    /// Transactions run.
+    pub count: u64,
+    /// Every beat matched, nothing missing or hung, status outputs right.
+    pub passed: bool,
+    /// Output beats that differed.
+    pub mismatches: u64,
+    /// Cycles simulated.
+    pub cycles: u64,
+    /// Bench wall seconds (build excluded), where the run was made.
+    pub wall_seconds: f64,
+    /// [`netlist_digest`] of the simulated design.
+    pub netlist_sha256: String,
+    /// [`StimulusDigest`] of the run.
+    pub stimulus_sha256: String,
+    /// The version of hiermerge that ran it.
+    pub hiermerge_version: String,
+}
+
+impl Entry {
+    /// Where the entry goes in a ledger folder:
+    /// `<top>/<engine>-seed<seed>-n<count>.json`.
+    pub fn relative_path(&self) -> std::path::PathBuf {
+        Path::new(&self.top).join(format!(
+            "{}-seed{}-n{}.json",
+            self.engine, self.seed, self.count
+        ))
+    }
+
+    /// Writes the entry under `dir` (folders created); refuses to replace
+    /// an entry already there, so that no run's record is lost.
+    pub fn write_into(&self, dir: &Path) -> Result<std::path::PathBuf> {
+        let path = dir.join(self.relative_path());
+        if let Some(parent) = path.parent() {
+            std::fs::create_dir_all(parent).map_err(io_err(parent))?;
+        }
+        let text = serde_json::to_string_pretty(self).map_err(|e| crate::CosimError::Design {
+            what: format!("ledger entry: {e}"),
+        })? + "\n";
+        let mut file = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&path)
+            .map_err(io_err(&path))?;
+        std::io::Write::write_all(&mut file, text.as_bytes()).map_err(io_err(&path))?;
+        Ok(path)
+    }
+}
+
+/// Reads every `*.json` entry under `dir` (recursively, in path order).
+/// A file that is no entry is an error naming the file and what was wrong.
+pub fn read_ledger(dir: &Path) -> Result<Vec<(std::path::PathBuf, Entry)>> {
+    let mut files = Vec::new();
+    collect_json(dir, &mut files)?;
+    files.sort();
+    files
+        .into_iter()
+        .map(|path| {
+            let text = std::fs::read_to_string(&path).map_err(io_err(&path))?;
+            let entry: Entry =
+                serde_json::from_str(&text).map_err(|e| crate::CosimError::Parse {
+                    text: path.display().to_string(),
+                    what: format!("not a ledger entry: {e}"),
+                })?;
+            if entry.format != FORMAT {
+                return Err(crate::CosimError::Parse {
+                    text: path.display().to_string(),
+                    what: format!("format `{}`, expected `{FORMAT}`", entry.format),
+                });
+            }
+            Ok((path, entry))
+        })
+        .collect()
+}
+
+fn collect_json(dir: &Path, out: &mut Vec<std::path::PathBuf>) -> Result<()> {
+    for item in std::fs::read_dir(dir).map_err(io_err(dir))? {
+        let path = item.map_err(io_err(dir))?.path();
+        if path.is_dir() {
+            collect_json(&path, out)?;
+        } else if path.extension().is_some_and(|x| x == "json") {
+            out.push(path);
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bitvec::BitVec;
+
+    #[test]
+    fn comments_and_blanks_do_not_change_the_canonical_text() {
+        let a = "module m; // the top\n  wire a;   \n\n// gone\nendmodule\n";
+        let b = "module m;\n  wire a;\nendmodule";
+        assert_eq!(canonical_verilog(a), canonical_verilog(b));
+        assert_ne!(
+            canonical_verilog(a),
+            canonical_verilog("module m;\n  wire b;\nendmodule")
+        );
+    }
+
+    fn streams(bit: bool) -> Vec<StreamBeats> {
+        let mut v = BitVec::zeros(70);
+        v.set_bit(65, bit).unwrap();
+        vec![StreamBeats {
+            name: "s".into(),
+            beats: vec![vec![v]],
+        }]
+    }
+
+    #[test]
+    fn the_stimulus_digest_sees_every_bit_and_every_knob() {
+        let digest = |seed, count, stall, bit| {
+            let mut d = StimulusDigest::new(seed, count, stall);
+            d.add_chunk(&streams(bit), &[]);
+            d.finish()
+        };
+        let base = digest(1, 10, 0.3, false);
+        assert_eq!(base, digest(1, 10, 0.3, false));
+        for other in [
+            digest(2, 10, 0.3, false),
+            digest(1, 11, 0.3, false),
+            digest(1, 10, 0.31, false),
+            digest(1, 10, 0.3, true),
+        ] {
+            assert_ne!(base, other);
+        }
+        // The same beats as an input or as an expected output differ too.
+        let mut d = StimulusDigest::new(1, 10, 0.3);
+        d.add_chunk(&[], &streams(false));
+        assert_ne!(base, d.finish());
+    }
+
+    #[test]
+    fn an_entry_is_never_overwritten() {
+        let dir = tempfile::tempdir().unwrap();
+        let e = Entry {
+            format: FORMAT.into(),
+            unit: "merger".into(),
+            top: "hierarchy_merger_x".into(),
+            engine: "ir".into(),
+            args: vec!["--unit".into(), "merger".into()],
+            seed: 3,
+            count: 5,
+            passed: true,
+            mismatches: 0,
+            cycles: 100,
+            wall_seconds: 0.5,
+            netlist_sha256: "a".repeat(64),
+            stimulus_sha256: "b".repeat(64),
+            hiermerge_version: "0.1.0".into(),
+        };
+        let path = e.write_into(dir.path()).unwrap();
+        assert!(path.ends_with("hierarchy_merger_x/ir-seed3-n5.json"));
+        assert!(e.write_into(dir.path()).is_err());
+        let read = read_ledger(dir.path()).unwrap();
+        assert_eq!(read, vec![(path.clone(), e)]);
+        std::fs::write(dir.path().join("hierarchy_merger_x/bad.json"), "{}").unwrap();
+        let err = read_ledger(dir.path()).unwrap_err().to_string();
+        assert!(
+            err.contains("bad.json") && err.contains("not a ledger entry"),
+            "{err}"
+        );
+    }
+}

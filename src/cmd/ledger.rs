@@ -1,0 +1,291 @@
+//! `hiermerge ledger`: checks the long-run ledger (SPEC 10.2) against
+//! today's code and adds up what it still proves. Each entry's command
+//! line is parsed again; its configuration's netlist is regenerated and
+//! digested, and (`--stimulus`) its stimulus too. An entry whose digests
+//! differ is stale: the code it ran is not this code. What is left is
+//! summed per configuration and engine, each seed counted once.
+
+use std::collections::{BTreeMap, HashMap};
+use std::path::PathBuf;
+
+use cosim::ledger::{read_ledger, Entry};
+use cosim::units::merger;
+use indicatif::ProgressBar;
+use serde::Serialize;
+
+use super::cosim::merger_run;
+use crate::report::{emit, CmdResult};
+
+/// Which entries get their stimulus regenerated (golden, no simulation;
+/// about 4-10 s per 10,000 merges).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum StimulusCheck {
+    /// None: netlists only.
+    None,
+    /// The first entry of each configuration.
+    First,
+    /// Every entry.
+    All,
+}
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The ledger folder.
+    #[arg(long, default_value = "longruns")]
+    dir: PathBuf,
+    /// Whose stimulus to regenerate and compare.
+    #[arg(long, value_enum, default_value = "first")]
+    stimulus: StimulusCheck,
+    /// Merges per configuration and engine the summary asks for.
+    #[arg(long, default_value_t = 100_000)]
+    need: u64,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    json: bool,
+}
+
+/// One entry's verdict.
+#[derive(Serialize)]
+struct Checked {
+    path: String,
+    top: String,
+    engine: String,
+    seed: u64,
+    count: u64,
+    passed: bool,
+    /// The netlist regenerated today has the entry's digest.
+    netlist_current: bool,
+    /// Some(whether the stimulus regenerated today has the entry's digest).
+    stimulus_current: Option<bool>,
+}
+
+/// What the current, passing entries of one configuration and engine add up to.
+#[derive(Serialize, Default, Clone)]
+struct Total {
+    top: String,
+    engine: String,
+    runs: u64,
+    /// Distinct merges: per seed the longest run.
+    merges: u64,
+    cycles: u64,
+    wall_seconds: f64,
+    /// `merges >= need`.
+    met: bool,
+}
+
+#[derive(Serialize)]
+struct Report {
+    dir: String,
+    need: u64,
+    entries: Vec<Checked>,
+    totals: Vec<Total>,
+    /// Failed, stale or inconsistent entries, one line each.
+    problems: Vec<String>,
+}
+
+/// Checks one entry; problems found go to `problems`.
+fn check(
+    path: &str,
+    e: &Entry,
+    digest_stimulus: bool,
+    netlists: &mut HashMap<String, Result<String, String>>,
+    problems: &mut Vec<String>,
+) -> Checked {
+    let mut out = Checked {
+        path: path.to_string(),
+        top: e.top.clone(),
+        engine: e.engine.clone(),
+        seed: e.seed,
+        count: e.count,
+        passed: e.passed,
+        netlist_current: false,
+        stimulus_current: None,
+    };
+    if !e.passed {
+        problems.push(format!(
+            "{path}: the run failed ({} mismatches): fix the design, then remove the entry and rerun",
+            e.mismatches
+        ));
+    }
+    if e.unit != "merger" {
+        problems.push(format!("{path}: unit `{}`: expected `merger`", e.unit));
+        return out;
+    }
+    let run = match merger_run(&e.args) {
+        Ok(r) => r,
+        Err(what) => {
+            problems.push(format!("{path}: field args: {what}"));
+            return out;
+        }
+    };
+    let (count, seed) = (run.count as u64, run.seed);
+    if (run.engine, seed, count) != (e.engine.as_str(), e.seed, e.count) {
+        problems.push(format!(
+            "{path}: fields engine/seed/count ({}, {}, {}) differ from args ({}, {seed}, {count})",
+            e.engine, e.seed, e.count, run.engine
+        ));
+        return out;
+    }
+    let top = match rtl_gen::merge::hierarchy_merger_unit(&run.config) {
+        Ok(m) => m.name(),
+        Err(what) => {
+            problems.push(format!(
+                "{path}: the generator refuses the configuration: {what}"
+            ));
+            return out;
+        }
+    };
+    if top != e.top {
+        problems.push(format!(
+            "{path}: field top `{}`, but its args generate `{top}`",
+            e.top
+        ));
+        return out;
+    }
+    let digest = netlists.entry(top).or_insert_with(|| {
+        let dir = tempfile::tempdir().map_err(|e| format!("temporary directory: {e}"))?;
+        merger::netlist_digest(&run.config, dir.path()).map_err(|e| e.to_string())
+    });
+    match digest {
+        Ok(d) if *d == e.netlist_sha256 => out.netlist_current = true,
+        Ok(d) => problems.push(format!(
+            "{path}: stale: the netlist changed since the run (netlist_sha256 {}, today {d}); rerun `hiermerge cosim {} --ledger DIR` and replace the entry",
+            short(&e.netlist_sha256),
+            e.args.join(" ")
+        )),
+        Err(what) => problems.push(format!("{path}: regenerating the netlist: {what}")),
+    }
+    if digest_stimulus {
+        match merger::stimulus_digest(&run.config, seed, run.count, run.stall) {
+            Ok(d) => {
+                let current = d == e.stimulus_sha256;
+                out.stimulus_current = Some(current);
+                if !current {
+                    problems.push(format!(
+                        "{path}: stale: the stimulus changed since the run (stimulus_sha256 {}, today {}): golden or the random merges changed; rerun and replace the entry",
+                        short(&e.stimulus_sha256),
+                        short(&d)
+                    ));
+                }
+            }
+            Err(what) => problems.push(format!("{path}: regenerating the stimulus: {what}")),
+        }
+    }
+    out
+}
+
+fn short(digest: &str) -> &str {
+    &digest[..digest.len().min(12)]
+}
+
+/// Of one (top, engine): the runs, and per seed the longest run's (count,
+/// cycles, wall seconds).
+type Seeds = (u64, BTreeMap<u64, (u64, u64, f64)>);
+
+/// The current, passing entries summed per (top, engine).
+fn totals(entries: &[(Entry, &Checked)], need: u64) -> Vec<Total> {
+    let mut by: BTreeMap<(String, String), Seeds> = BTreeMap::new();
+    for (e, c) in entries {
+        if !(c.passed && c.netlist_current && c.stimulus_current != Some(false)) {
+            continue;
+        }
+        let slot = by.entry((e.top.clone(), e.engine.clone())).or_default();
+        slot.0 += 1;
+        let longest = slot.1.entry(e.seed).or_insert((0, 0, 0.0));
+        if e.count > longest.0 {
+            *longest = (e.count, e.cycles, e.wall_seconds);
+        }
+    }
+    by.into_iter()
+        .map(|((top, engine), (runs, seeds))| {
+            let merges = seeds.values().map(|s| s.0).sum();
+            Total {
+                top,
+                engine,
+                runs,
+                merges,
+                cycles: seeds.values().map(|s| s.1).sum(),
+                wall_seconds: seeds.values().map(|s| s.2).sum(),
+                met: merges >= need,
+            }
+        })
+        .collect()
+}
+
+pub fn main(a: Args) -> CmdResult {
+    let ledger = read_ledger(&a.dir).map_err(|e| format!("ledger {}: {e}", a.dir.display()))?;
+    let pb = if a.json {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(ledger.len() as u64)
+    };
+    let mut netlists = HashMap::new();
+    let mut problems = Vec::new();
+    let mut first_seen = std::collections::HashSet::new();
+    let mut checked = Vec::new();
+    for (path, e) in &ledger {
+        let shown = path.display().to_string();
+        pb.set_message(shown.clone());
+        let first = first_seen.insert(e.top.clone());
+        let digest_stimulus = match a.stimulus {
+            StimulusCheck::None => false,
+            StimulusCheck::First => first,
+            StimulusCheck::All => true,
+        };
+        checked.push(check(
+            &shown,
+            e,
+            digest_stimulus,
+            &mut netlists,
+            &mut problems,
+        ));
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    let pairs: Vec<(Entry, &Checked)> = ledger
+        .iter()
+        .map(|(_, e)| e.clone())
+        .zip(checked.iter())
+        .collect();
+    let report = Report {
+        dir: a.dir.display().to_string(),
+        need: a.need,
+        totals: totals(&pairs, a.need),
+        entries: checked,
+        problems,
+    };
+    emit(a.json, &report, print_text)?;
+    match report.problems.len() {
+        0 => Ok(()),
+        n => Err(format!(
+            "{n} ledger entries failed or are stale (listed above)"
+        )),
+    }
+}
+
+fn print_text(r: &Report) {
+    println!(
+        "{} entries in {}; current and passing, per configuration and engine (each seed once):",
+        r.entries.len(),
+        r.dir
+    );
+    println!(
+        "{:<58} {:<10} {:>5} {:>9} {:>12} {:>9}  of {}",
+        "top", "engine", "runs", "merges", "cycles", "wall s", r.need
+    );
+    for t in &r.totals {
+        println!(
+            "{:<58} {:<10} {:>5} {:>9} {:>12} {:>9.0}  {}",
+            t.top,
+            t.engine,
+            t.runs,
+            t.merges,
+            t.cycles,
+            t.wall_seconds,
+            if t.met { "met" } else { "not yet" }
+        );
+    }
+    for p in &r.problems {
+        println!("problem: {p}");
+    }
+}

@@ -1,0 +1,223 @@
+//! The long-run ledger (SPEC 10.2) through the CLI: `hiermerge cosim --unit
+//! merger --ledger DIR` records a run; `hiermerge ledger` regenerates each
+//! entry's netlist and stimulus from its own command line and finds the
+//! entry current, or names the entry and the field that went stale,
+//! failed or disagrees. Runs on the IR simulator (a few merges): the
+//! ledger's logic, not a simulator, is under test.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use serde_json::Value;
+
+use common::{hiermerge, json_of};
+
+fn record(dir: &Path, seed: &str, count: &str, extra: &[&str]) -> PathBuf {
+    let d = dir.to_str().unwrap();
+    let mut args = vec![
+        "cosim", "--unit", "merger", "--engine", "ir", "--seed", seed, "--count", count,
+        "--ledger", d, "--json",
+    ];
+    args.extend(extra);
+    let o = hiermerge(&args, &[]);
+    assert!(
+        o.status.success(),
+        "stderr:\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let r = json_of(&o);
+    let top = r["merger"]["top"].as_str().unwrap();
+    assert!(top.starts_with("hierarchy_merger_"), "{r}");
+    let path = dir.join(top).join(format!("ir-seed{seed}-n{count}.json"));
+    assert!(path.is_file(), "no entry at {}", path.display());
+    let entry: Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    assert_eq!(entry["netlist_sha256"], r["merger"]["netlist_sha256"]);
+    assert_eq!(entry["stimulus_sha256"], r["merger"]["stimulus_sha256"]);
+    assert_eq!(entry["passed"], true);
+    path
+}
+
+/// `hiermerge ledger` on `dir`: (exit success, report).
+fn check(dir: &Path, stimulus: &str, need: &str) -> (bool, Value) {
+    let o = hiermerge(
+        &[
+            "ledger",
+            "--dir",
+            dir.to_str().unwrap(),
+            "--stimulus",
+            stimulus,
+            "--need",
+            need,
+            "--json",
+        ],
+        &[],
+    );
+    (o.status.success(), json_of(&o))
+}
+
+fn edit(path: &Path, f: impl FnOnce(&mut Value)) {
+    let mut v: Value = serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    f(&mut v);
+    std::fs::write(path, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+}
+
+fn problems(r: &Value) -> Vec<String> {
+    r["problems"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p.as_str().unwrap().to_string())
+        .collect()
+}
+
+#[test]
+fn recorded_runs_are_current_and_add_up_each_seed_once() {
+    let dir = tempfile::tempdir().unwrap();
+    record(dir.path(), "5", "3", &[]);
+    record(dir.path(), "5", "4", &[]);
+    record(dir.path(), "6", "2", &[]);
+    let (ok, r) = check(dir.path(), "all", "6");
+    assert!(ok, "{r}");
+    assert_eq!(problems(&r), Vec::<String>::new());
+    let totals = r["totals"].as_array().unwrap();
+    assert_eq!(totals.len(), 1, "{r}");
+    // Seed 5's runs share their first 3 merges: the longer one counts.
+    assert_eq!(totals[0]["merges"], 6, "{r}");
+    assert_eq!(totals[0]["runs"], 3, "{r}");
+    assert_eq!(totals[0]["met"], true, "{r}");
+    let (_, r) = check(dir.path(), "none", "7");
+    assert_eq!(r["totals"][0]["met"], false, "{r}");
+    // Another configuration is its own line.
+    record(dir.path(), "5", "2", &["--inputs", "2"]);
+    let (ok, r) = check(dir.path(), "first", "6");
+    assert!(ok, "{r}");
+    assert_eq!(r["totals"].as_array().unwrap().len(), 2, "{r}");
+}
+
+#[test]
+fn an_entry_is_never_replaced() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = record(dir.path(), "5", "2", &[]);
+    let before = std::fs::read_to_string(&path).unwrap();
+    let d = dir.path().to_str().unwrap();
+    let o = hiermerge(
+        &[
+            "cosim", "--unit", "merger", "--engine", "ir", "--seed", "5", "--count", "2",
+            "--ledger", d,
+        ],
+        &[],
+    );
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("--ledger") && err.contains("ir-seed5-n2.json"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), before);
+}
+
+#[test]
+fn stale_failed_and_inconsistent_entries_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = record(dir.path(), "5", "2", &[]);
+    let name = path.file_name().unwrap().to_str().unwrap().to_string();
+    let original = std::fs::read_to_string(&path).unwrap();
+    let restore = || std::fs::write(&path, &original).unwrap();
+
+    // A netlist other than today's.
+    edit(&path, |v| v["netlist_sha256"] = "0".repeat(64).into());
+    let (ok, r) = check(dir.path(), "none", "1");
+    assert!(!ok);
+    let p = problems(&r);
+    assert!(
+        p.len() == 1 && p[0].contains(&name) && p[0].contains("netlist changed"),
+        "{p:?}"
+    );
+    assert_eq!(r["totals"].as_array().unwrap().len(), 0, "{r}");
+    restore();
+
+    // Another seed in both places: the netlist is today's, the stimulus
+    // is not the recorded one (seen only when the stimulus is checked).
+    edit(&path, |v| {
+        v["seed"] = 6.into();
+        let args = v["args"].as_array_mut().unwrap();
+        let at = args.iter().position(|a| a == "--seed").unwrap();
+        args[at + 1] = "6".into();
+    });
+    assert!(check(dir.path(), "none", "1").0);
+    let (ok, r) = check(dir.path(), "all", "1");
+    assert!(!ok);
+    assert!(problems(&r)[0].contains("stimulus changed"), "{r}");
+    restore();
+
+    // The seed field disagreeing with the args.
+    edit(&path, |v| v["seed"] = 7.into());
+    let (ok, r) = check(dir.path(), "none", "1");
+    assert!(!ok && problems(&r)[0].contains("differ from args"), "{r}");
+    restore();
+
+    // Args that generate another top.
+    edit(&path, |v| {
+        let args = v["args"].as_array_mut().unwrap();
+        let at = args.iter().position(|a| a == "--inputs").unwrap();
+        args[at + 1] = "3".into();
+    });
+    let (ok, r) = check(dir.path(), "none", "1");
+    assert!(!ok && problems(&r)[0].contains("field top"), "{r}");
+    restore();
+
+    // A failed run stays a problem until it is removed.
+    edit(&path, |v| {
+        v["passed"] = false.into();
+        v["mismatches"] = 4.into();
+    });
+    let (ok, r) = check(dir.path(), "none", "1");
+    assert!(
+        !ok && problems(&r)[0].contains("run failed (4 mismatches)"),
+        "{r}"
+    );
+    restore();
+    assert!(check(dir.path(), "all", "1").0);
+
+    // A file that is no entry.
+    std::fs::write(path.with_file_name("notes.json"), "[]").unwrap();
+    let o = hiermerge(&["ledger", "--dir", dir.path().to_str().unwrap()], &[]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("notes.json") && err.contains("not a ledger entry"),
+        "{err}"
+    );
+}
+
+#[test]
+fn only_real_merger_runs_are_recorded() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path().to_str().unwrap();
+    let o = hiermerge(
+        &[
+            "cosim",
+            "--unit",
+            "translate",
+            "--engine",
+            "ir",
+            "--count",
+            "2",
+            "--ledger",
+            d,
+        ],
+        &[],
+    );
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--ledger applies to --unit merger"));
+    let o = hiermerge(
+        &[
+            "cosim", "--unit", "merger", "--engine", "ir", "--count", "2", "--ledger", d,
+        ],
+        &[("HIERMERGE_COSIM_FLIP_EXPECTED", "0")],
+    );
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("records real runs only"));
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+}

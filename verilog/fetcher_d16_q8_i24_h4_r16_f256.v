@@ -20,22 +20,22 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
     input  wire cref_resp_valid,        // rtl-gen/src/merge/fetcher.rs:383
     input  wire [27:0] cref_resp_data,  // rtl-gen/src/merge/fetcher.rs:383
     output wire cref_resp_ready,        // rtl-gen/src/merge/fetcher.rs:383
-    output wire node_req_valid,         // rtl-gen/src/merge/fetcher.rs:1214
-    output wire [23:0] node_req_data,   // rtl-gen/src/merge/fetcher.rs:1214
-    input  wire node_req_ready,         // rtl-gen/src/merge/fetcher.rs:1214
-    output wire ref_req_valid,          // rtl-gen/src/merge/fetcher.rs:1215
-    output wire [23:0] ref_req_data,    // rtl-gen/src/merge/fetcher.rs:1215
-    input  wire ref_req_ready,          // rtl-gen/src/merge/fetcher.rs:1215
-    output wire cref_req_valid,         // rtl-gen/src/merge/fetcher.rs:1216
-    output wire [23:0] cref_req_data,   // rtl-gen/src/merge/fetcher.rs:1216
-    input  wire cref_req_ready,         // rtl-gen/src/merge/fetcher.rs:1216
-    output wire out_valid,              // rtl-gen/src/merge/fetcher.rs:1217
-    output wire [183:0] out_data,       // rtl-gen/src/merge/fetcher.rs:1217
-    input  wire out_ready,              // rtl-gen/src/merge/fetcher.rs:1217
-    output wire leaves_valid,           // rtl-gen/src/merge/fetcher.rs:1218
-    output wire [183:0] leaves_data,    // rtl-gen/src/merge/fetcher.rs:1218
-    input  wire leaves_ready,           // rtl-gen/src/merge/fetcher.rs:1218
-    output wire idle                    // rtl-gen/src/merge/fetcher.rs:1222
+    output wire node_req_valid,         // rtl-gen/src/merge/fetcher.rs:1225
+    output wire [23:0] node_req_data,   // rtl-gen/src/merge/fetcher.rs:1225
+    input  wire node_req_ready,         // rtl-gen/src/merge/fetcher.rs:1225
+    output wire ref_req_valid,          // rtl-gen/src/merge/fetcher.rs:1226
+    output wire [23:0] ref_req_data,    // rtl-gen/src/merge/fetcher.rs:1226
+    input  wire ref_req_ready,          // rtl-gen/src/merge/fetcher.rs:1226
+    output wire cref_req_valid,         // rtl-gen/src/merge/fetcher.rs:1227
+    output wire [23:0] cref_req_data,   // rtl-gen/src/merge/fetcher.rs:1227
+    input  wire cref_req_ready,         // rtl-gen/src/merge/fetcher.rs:1227
+    output wire out_valid,              // rtl-gen/src/merge/fetcher.rs:1228
+    output wire [183:0] out_data,       // rtl-gen/src/merge/fetcher.rs:1228
+    input  wire out_ready,              // rtl-gen/src/merge/fetcher.rs:1228
+    output wire leaves_valid,           // rtl-gen/src/merge/fetcher.rs:1229
+    output wire [183:0] leaves_data,    // rtl-gen/src/merge/fetcher.rs:1229
+    input  wire leaves_ready,           // rtl-gen/src/merge/fetcher.rs:1229
+    output wire idle                    // rtl-gen/src/merge/fetcher.rs:1233
 );
     reg [72:0] frontier [0:1023];            // rtl-gen/src/merge/fetcher.rs:85
     reg [24:0] ref_ctx [0:7];                // rtl-gen/src/merge/fetcher.rs:85
@@ -192,9 +192,9 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
     wire root_outstanding_or;                // rtl-gen/src/merge/fetcher.rs:487
     wire [179:0] roots_all_taken_mux;        // rtl-gen/src/merge/fetcher.rs:489
     wire roots_all_taken_and;                // rtl-gen/src/merge/fetcher.rs:490
-    wire frontier_in_valid;                  // rtl-gen/src/merge/fetcher.rs:494
-    wire [72:0] frontier_in_data;            // rtl-gen/src/merge/fetcher.rs:494
-    wire frontier_in_ready;                  // rtl-gen/src/merge/fetcher.rs:494
+    wire frontier_in_valid;                  // rtl-gen/src/merge/fetcher.rs:497
+    wire [72:0] frontier_in_data;            // rtl-gen/src/merge/fetcher.rs:497
+    wire frontier_in_ready;                  // rtl-gen/src/merge/fetcher.rs:497
     reg [9:0] frontier_head;                 // rtl-gen/src/merge/fetcher.rs:86
     reg [9:0] frontier_tail;                 // rtl-gen/src/merge/fetcher.rs:87
     reg [10:0] frontier_count;               // rtl-gen/src/merge/fetcher.rs:88
@@ -209,13 +209,13 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
     wire [9:0] frontier_tail_add;            // rtl-gen/src/merge/fetcher.rs:105
     wire [10:0] frontier_count_add;          // rtl-gen/src/merge/fetcher.rs:111
     wire [10:0] frontier_count_sub;          // rtl-gen/src/merge/fetcher.rs:112
-    reg range_valid;                         // rtl-gen/src/merge/fetcher.rs:502
-    reg [23:0] range_idx;                    // rtl-gen/src/merge/fetcher.rs:503
-    reg [24:0] range_end;                    // rtl-gen/src/merge/fetcher.rs:504
-    reg [23:0] range_parent;                 // rtl-gen/src/merge/fetcher.rs:505
-    wire ref_ctx_in_valid;                   // rtl-gen/src/merge/fetcher.rs:506
-    wire [24:0] ref_ctx_in_data;             // rtl-gen/src/merge/fetcher.rs:506
-    wire ref_ctx_in_ready;                   // rtl-gen/src/merge/fetcher.rs:506
+    reg range_valid;                         // rtl-gen/src/merge/fetcher.rs:505
+    reg [23:0] range_idx;                    // rtl-gen/src/merge/fetcher.rs:506
+    reg [24:0] range_end;                    // rtl-gen/src/merge/fetcher.rs:507
+    reg [23:0] range_parent;                 // rtl-gen/src/merge/fetcher.rs:508
+    wire ref_ctx_in_valid;                   // rtl-gen/src/merge/fetcher.rs:509
+    wire [24:0] ref_ctx_in_data;             // rtl-gen/src/merge/fetcher.rs:509
+    wire ref_ctx_in_ready;                   // rtl-gen/src/merge/fetcher.rs:509
     reg [2:0] ref_ctx_head;                  // rtl-gen/src/merge/fetcher.rs:86
     reg [2:0] ref_ctx_tail;                  // rtl-gen/src/merge/fetcher.rs:87
     reg [3:0] ref_ctx_count;                 // rtl-gen/src/merge/fetcher.rs:88
@@ -230,28 +230,28 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
     wire [2:0] ref_ctx_tail_add;             // rtl-gen/src/merge/fetcher.rs:105
     wire [3:0] ref_ctx_count_add;            // rtl-gen/src/merge/fetcher.rs:111
     wire [3:0] ref_ctx_count_sub;            // rtl-gen/src/merge/fetcher.rs:112
-    wire walking_and;                        // rtl-gen/src/merge/fetcher.rs:508
-    wire ref_issue;                          // rtl-gen/src/merge/fetcher.rs:510
-    wire [23:0] range_idx_add;               // rtl-gen/src/merge/fetcher.rs:511
-    wire range_idx_eq;                       // rtl-gen/src/merge/fetcher.rs:512
-    wire walking_and_1;                      // rtl-gen/src/merge/fetcher.rs:514
-    wire frontier_out_data_not;              // rtl-gen/src/merge/fetcher.rs:514
-    wire walking_and_2;                      // rtl-gen/src/merge/fetcher.rs:514
-    wire range_valid_not;                    // rtl-gen/src/merge/fetcher.rs:514
-    wire ref_issue_and;                      // rtl-gen/src/merge/fetcher.rs:514
-    wire range_valid_or;                     // rtl-gen/src/merge/fetcher.rs:514
-    wire range_load;                         // rtl-gen/src/merge/fetcher.rs:514
-    wire walking_and_3;                      // rtl-gen/src/merge/fetcher.rs:516
-    wire walking_and_4;                      // rtl-gen/src/merge/fetcher.rs:516
-    wire range_valid_not_1;                  // rtl-gen/src/merge/fetcher.rs:516
-    wire walking_and_5;                      // rtl-gen/src/merge/fetcher.rs:516
-    wire marker_pop;                         // rtl-gen/src/merge/fetcher.rs:516
-    wire ref_issue_and_1;                    // rtl-gen/src/merge/fetcher.rs:520
-    wire [24:0] frontier_out_data_add;       // rtl-gen/src/merge/fetcher.rs:525
-    wire [23:0] marker_pop_mux;              // rtl-gen/src/merge/fetcher.rs:531
-    wire node_ctx_in_valid;                  // rtl-gen/src/merge/fetcher.rs:537
-    wire [33:0] node_ctx_in_data;            // rtl-gen/src/merge/fetcher.rs:537
-    wire node_ctx_in_ready;                  // rtl-gen/src/merge/fetcher.rs:537
+    wire walking_and;                        // rtl-gen/src/merge/fetcher.rs:511
+    wire ref_issue;                          // rtl-gen/src/merge/fetcher.rs:513
+    wire [23:0] range_idx_add;               // rtl-gen/src/merge/fetcher.rs:514
+    wire range_idx_eq;                       // rtl-gen/src/merge/fetcher.rs:515
+    wire walking_and_1;                      // rtl-gen/src/merge/fetcher.rs:517
+    wire frontier_out_data_not;              // rtl-gen/src/merge/fetcher.rs:517
+    wire walking_and_2;                      // rtl-gen/src/merge/fetcher.rs:517
+    wire range_valid_not;                    // rtl-gen/src/merge/fetcher.rs:517
+    wire ref_issue_and;                      // rtl-gen/src/merge/fetcher.rs:517
+    wire range_valid_or;                     // rtl-gen/src/merge/fetcher.rs:517
+    wire range_load;                         // rtl-gen/src/merge/fetcher.rs:517
+    wire walking_and_3;                      // rtl-gen/src/merge/fetcher.rs:519
+    wire walking_and_4;                      // rtl-gen/src/merge/fetcher.rs:519
+    wire range_valid_not_1;                  // rtl-gen/src/merge/fetcher.rs:519
+    wire walking_and_5;                      // rtl-gen/src/merge/fetcher.rs:519
+    wire marker_pop;                         // rtl-gen/src/merge/fetcher.rs:519
+    wire ref_issue_and_1;                    // rtl-gen/src/merge/fetcher.rs:523
+    wire [24:0] frontier_out_data_add;       // rtl-gen/src/merge/fetcher.rs:528
+    wire [23:0] marker_pop_mux;              // rtl-gen/src/merge/fetcher.rs:534
+    wire node_ctx_in_valid;                  // rtl-gen/src/merge/fetcher.rs:540
+    wire [33:0] node_ctx_in_data;            // rtl-gen/src/merge/fetcher.rs:540
+    wire node_ctx_in_ready;                  // rtl-gen/src/merge/fetcher.rs:540
     reg [2:0] node_ctx_head;                 // rtl-gen/src/merge/fetcher.rs:86
     reg [2:0] node_ctx_tail;                 // rtl-gen/src/merge/fetcher.rs:87
     reg [3:0] node_ctx_count;                // rtl-gen/src/merge/fetcher.rs:88
@@ -268,36 +268,36 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
     wire [3:0] node_ctx_count_sub;           // rtl-gen/src/merge/fetcher.rs:112
     wire [23:0] resp_ref_node;               // rtl-gen/src/merge/fields.rs:13
     wire [3:0] resp_ref_hier;                // rtl-gen/src/merge/fields.rs:13
-    wire resp_ref_hier_ne;                   // rtl-gen/src/merge/fetcher.rs:546
-    wire resp_ref_node_ge;                   // rtl-gen/src/merge/fetcher.rs:549
-    wire [3:0] resp_ref_node_mux;            // rtl-gen/src/merge/fetcher.rs:549
-    wire [3:0] ref_code;                     // rtl-gen/src/merge/fetcher.rs:547
-    wire walking_and_6;                      // rtl-gen/src/merge/fetcher.rs:552
-    wire ref_ctx_out_data_not;               // rtl-gen/src/merge/fetcher.rs:552
-    wire walking_and_7;                      // rtl-gen/src/merge/fetcher.rs:552
-    wire walking_and_8;                      // rtl-gen/src/merge/fetcher.rs:552
-    wire ref_wait;                           // rtl-gen/src/merge/fetcher.rs:552
-    wire ref_take;                           // rtl-gen/src/merge/fetcher.rs:554
-    wire walking_and_9;                      // rtl-gen/src/merge/fetcher.rs:555
-    wire walking_and_10;                     // rtl-gen/src/merge/fetcher.rs:555
-    wire ref_stage_end;                      // rtl-gen/src/merge/fetcher.rs:555
-    wire walking_and_11;                     // rtl-gen/src/merge/fetcher.rs:558
-    wire ref_ctx_out_data_not_1;             // rtl-gen/src/merge/fetcher.rs:558
-    wire walking_and_12;                     // rtl-gen/src/merge/fetcher.rs:558
-    wire walking_and_13;                     // rtl-gen/src/merge/fetcher.rs:558
-    wire walking_and_14;                     // rtl-gen/src/merge/fetcher.rs:558
-    wire ref_code_eq;                        // rtl-gen/src/merge/fetcher.rs:558
-    wire walk_node_req;                      // rtl-gen/src/merge/fetcher.rs:558
-    wire [33:0] const_cat_1;                 // rtl-gen/src/merge/fetcher.rs:564
-    wire ref_code_eq_1;                      // rtl-gen/src/merge/fetcher.rs:565
-    wire [33:0] const_cat_2;                 // rtl-gen/src/merge/fetcher.rs:566
+    wire resp_ref_hier_ne;                   // rtl-gen/src/merge/fetcher.rs:549
+    wire resp_ref_node_ge;                   // rtl-gen/src/merge/fetcher.rs:552
+    wire [3:0] resp_ref_node_mux;            // rtl-gen/src/merge/fetcher.rs:552
+    wire [3:0] ref_code;                     // rtl-gen/src/merge/fetcher.rs:550
+    wire walking_and_6;                      // rtl-gen/src/merge/fetcher.rs:555
+    wire ref_ctx_out_data_not;               // rtl-gen/src/merge/fetcher.rs:555
+    wire walking_and_7;                      // rtl-gen/src/merge/fetcher.rs:555
+    wire walking_and_8;                      // rtl-gen/src/merge/fetcher.rs:555
+    wire ref_wait;                           // rtl-gen/src/merge/fetcher.rs:555
+    wire ref_take;                           // rtl-gen/src/merge/fetcher.rs:557
+    wire walking_and_9;                      // rtl-gen/src/merge/fetcher.rs:558
+    wire walking_and_10;                     // rtl-gen/src/merge/fetcher.rs:558
+    wire ref_stage_end;                      // rtl-gen/src/merge/fetcher.rs:558
+    wire walking_and_11;                     // rtl-gen/src/merge/fetcher.rs:561
+    wire ref_ctx_out_data_not_1;             // rtl-gen/src/merge/fetcher.rs:561
+    wire walking_and_12;                     // rtl-gen/src/merge/fetcher.rs:561
+    wire walking_and_13;                     // rtl-gen/src/merge/fetcher.rs:561
+    wire walking_and_14;                     // rtl-gen/src/merge/fetcher.rs:561
+    wire ref_code_eq;                        // rtl-gen/src/merge/fetcher.rs:561
+    wire walk_node_req;                      // rtl-gen/src/merge/fetcher.rs:561
+    wire [33:0] const_cat_1;                 // rtl-gen/src/merge/fetcher.rs:567
+    wire ref_code_eq_1;                      // rtl-gen/src/merge/fetcher.rs:568
+    wire [33:0] const_cat_2;                 // rtl-gen/src/merge/fetcher.rs:569
     wire [27:0] cfg_hier_cat_1;              // rtl-gen/src/merge/fetcher.rs:231
-    wire [33:0] const_cat_3;                 // rtl-gen/src/merge/fetcher.rs:567
-    wire [33:0] ref_code_mux;                // rtl-gen/src/merge/fetcher.rs:565
-    wire node_ctx_out_data_eq;               // rtl-gen/src/merge/fetcher.rs:583
-    wire out_items_in_valid;                 // rtl-gen/src/merge/fetcher.rs:585
-    wire [183:0] out_items_in_data;          // rtl-gen/src/merge/fetcher.rs:585
-    wire out_items_in_ready;                 // rtl-gen/src/merge/fetcher.rs:585
+    wire [33:0] const_cat_3;                 // rtl-gen/src/merge/fetcher.rs:570
+    wire [33:0] ref_code_mux;                // rtl-gen/src/merge/fetcher.rs:568
+    wire node_ctx_out_data_eq;               // rtl-gen/src/merge/fetcher.rs:586
+    wire out_items_in_valid;                 // rtl-gen/src/merge/fetcher.rs:588
+    wire [183:0] out_items_in_data;          // rtl-gen/src/merge/fetcher.rs:588
+    wire out_items_in_ready;                 // rtl-gen/src/merge/fetcher.rs:588
     reg [1:0] out_items_head;                // rtl-gen/src/merge/fetcher.rs:86
     reg [1:0] out_items_tail;                // rtl-gen/src/merge/fetcher.rs:87
     reg [2:0] out_items_count;               // rtl-gen/src/merge/fetcher.rs:88
@@ -312,188 +312,188 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
     wire [1:0] out_items_tail_add;           // rtl-gen/src/merge/fetcher.rs:105
     wire [2:0] out_items_count_add;          // rtl-gen/src/merge/fetcher.rs:111
     wire [2:0] out_items_count_sub;          // rtl-gen/src/merge/fetcher.rs:112
-    wire walk_done_not;                      // rtl-gen/src/merge/fetcher.rs:587
-    wire visit_live;                         // rtl-gen/src/merge/fetcher.rs:587
-    wire above_level;                        // rtl-gen/src/merge/fetcher.rs:590
-    wire above_first;                        // rtl-gen/src/merge/fetcher.rs:591
-    wire above_first_not;                    // rtl-gen/src/merge/fetcher.rs:595
-    wire level_le;                           // rtl-gen/src/merge/fetcher.rs:595
-    wire sending_level;                      // rtl-gen/src/merge/fetcher.rs:595
-    reg leaves_end_sent;                     // rtl-gen/src/merge/fetcher.rs:610
-    wire visit_live_and;                     // rtl-gen/src/merge/fetcher.rs:611
-    wire leaves_end_sent_not;                // rtl-gen/src/merge/fetcher.rs:611
-    wire visit_live_and_1;                   // rtl-gen/src/merge/fetcher.rs:611
-    wire above_first_not_1;                  // rtl-gen/src/merge/fetcher.rs:611
-    wire leaves_end_due;                     // rtl-gen/src/merge/fetcher.rs:611
-    wire out_items_in_ready_and;             // rtl-gen/src/merge/fetcher.rs:613
-    wire cmd_send_leaves_not;                // rtl-gen/src/merge/fetcher.rs:613
-    wire cmd_send_leaves_or;                 // rtl-gen/src/merge/fetcher.rs:613
-    wire above_first_mux;                    // rtl-gen/src/merge/fetcher.rs:613
-    wire visit_room;                         // rtl-gen/src/merge/fetcher.rs:613
-    reg [4:0] end_next;                      // rtl-gen/src/merge/fetcher.rs:621
-    reg final_sent;                          // rtl-gen/src/merge/fetcher.rs:622
-    wire end_next_lt;                        // rtl-gen/src/merge/fetcher.rs:623
-    wire visit_live_and_2;                   // rtl-gen/src/merge/fetcher.rs:623
-    wire end_next_lt_1;                      // rtl-gen/src/merge/fetcher.rs:623
-    wire pre_ends;                           // rtl-gen/src/merge/fetcher.rs:623
-    wire walking_and_15;                     // rtl-gen/src/merge/fetcher.rs:624
-    wire final_sent_not;                     // rtl-gen/src/merge/fetcher.rs:624
-    wire ends_drain;                         // rtl-gen/src/merge/fetcher.rs:624
-    wire end_emit;                           // rtl-gen/src/merge/fetcher.rs:625
-    wire end_next_eq;                        // rtl-gen/src/merge/fetcher.rs:626
-    wire end_final;                          // rtl-gen/src/merge/fetcher.rs:626
-    wire end_fire;                           // rtl-gen/src/merge/fetcher.rs:627
-    wire at_top_and;                         // rtl-gen/src/merge/fetcher.rs:628
-    wire first_err_valid_not_2;              // rtl-gen/src/merge/fetcher.rs:629
-    wire at_top_and_1;                       // rtl-gen/src/merge/fetcher.rs:629
-    wire at_top_and_2;                       // rtl-gen/src/merge/fetcher.rs:629
-    wire first_err_valid_not_3;              // rtl-gen/src/merge/fetcher.rs:630
-    wire at_top_and_3;                       // rtl-gen/src/merge/fetcher.rs:630
-    wire header_err_not;                     // rtl-gen/src/merge/fetcher.rs:630
-    wire at_top_and_4;                       // rtl-gen/src/merge/fetcher.rs:630
-    wire at_top_not;                         // rtl-gen/src/merge/fetcher.rs:631
-    reg capacity_told;                       // rtl-gen/src/merge/fetcher.rs:635
-    wire at_top_and_5;                       // rtl-gen/src/merge/fetcher.rs:636
-    wire at_top_and_6;                       // rtl-gen/src/merge/fetcher.rs:636
-    wire at_top_and_7;                       // rtl-gen/src/merge/fetcher.rs:636
-    wire capacity_told_not;                  // rtl-gen/src/merge/fetcher.rs:636
-    wire sorter_dropped;                     // rtl-gen/src/merge/fetcher.rs:636
-    wire at_top_or;                          // rtl-gen/src/merge/fetcher.rs:638
-    wire at_top_and_8;                       // rtl-gen/src/merge/fetcher.rs:640
-    wire at_top_or_1;                        // rtl-gen/src/merge/fetcher.rs:638
-    wire at_top_and_9;                       // rtl-gen/src/merge/fetcher.rs:641
-    wire node_ctx_out_data_not;              // rtl-gen/src/merge/fetcher.rs:641
-    wire node_ctx_out_data_or;               // rtl-gen/src/merge/fetcher.rs:641
-    wire at_top_and_10;                      // rtl-gen/src/merge/fetcher.rs:641
-    wire at_top_or_2;                        // rtl-gen/src/merge/fetcher.rs:638
-    wire visit_avail;                        // rtl-gen/src/merge/fetcher.rs:637
-    wire pre_ends_not;                       // rtl-gen/src/merge/fetcher.rs:645
-    wire visit_free;                         // rtl-gen/src/merge/fetcher.rs:645
-    wire visit_go;                           // rtl-gen/src/merge/fetcher.rs:648
-    wire visit_live_and_3;                   // rtl-gen/src/merge/fetcher.rs:649
-    wire sorter_dropped_not;                 // rtl-gen/src/merge/fetcher.rs:649
-    wire visit_live_and_4;                   // rtl-gen/src/merge/fetcher.rs:649
-    wire visit_live_and_5;                   // rtl-gen/src/merge/fetcher.rs:649
-    wire visit_go_and;                       // rtl-gen/src/merge/fetcher.rs:650
-    wire visit_live_and_6;                   // rtl-gen/src/merge/fetcher.rs:652
-    wire node_ctx_out_data_not_1;            // rtl-gen/src/merge/fetcher.rs:652
-    wire node_ctx_out_data_or_1;             // rtl-gen/src/merge/fetcher.rs:652
-    wire visit_live_and_7;                   // rtl-gen/src/merge/fetcher.rs:652
-    wire root_outstanding_and_3;             // rtl-gen/src/merge/fetcher.rs:655
-    wire visit_live_and_8;                   // rtl-gen/src/merge/fetcher.rs:655
-    wire visit_live_and_9;                   // rtl-gen/src/merge/fetcher.rs:655
-    wire visit_live_and_10;                  // rtl-gen/src/merge/fetcher.rs:655
-    wire visit_live_and_11;                  // rtl-gen/src/merge/fetcher.rs:655
-    wire visit_go_and_1;                     // rtl-gen/src/merge/fetcher.rs:656
-    wire node_code_ne_1;                     // rtl-gen/src/merge/fetcher.rs:657
-    wire node_ctx_out_data_eq_1;             // rtl-gen/src/merge/fetcher.rs:657
-    wire node_ctx_out_data_mux;              // rtl-gen/src/merge/fetcher.rs:657
-    wire at_top_or_3;                        // rtl-gen/src/merge/fetcher.rs:658
-    wire at_top_and_11;                      // rtl-gen/src/merge/fetcher.rs:658
-    wire item_err;                           // rtl-gen/src/merge/fetcher.rs:658
-    wire at_top_and_12;                      // rtl-gen/src/merge/fetcher.rs:660
-    wire sorter_dropped_not_1;               // rtl-gen/src/merge/fetcher.rs:660
-    wire at_top_and_13;                      // rtl-gen/src/merge/fetcher.rs:660
-    wire at_top_or_4;                        // rtl-gen/src/merge/fetcher.rs:660
-    wire node_ctx_out_data_eq_2;             // rtl-gen/src/merge/fetcher.rs:660
-    wire at_top_and_14;                      // rtl-gen/src/merge/fetcher.rs:660
-    wire item_end;                           // rtl-gen/src/merge/fetcher.rs:660
-    wire item_err_not;                       // rtl-gen/src/merge/fetcher.rs:662
-    wire item_end_not;                       // rtl-gen/src/merge/fetcher.rs:662
-    wire item_node;                          // rtl-gen/src/merge/fetcher.rs:662
-    wire [3:0] node_ctx_out_data_mux_1;      // rtl-gen/src/merge/fetcher.rs:667
-    wire [3:0] sorter_dropped_mux;           // rtl-gen/src/merge/fetcher.rs:665
-    wire [3:0] at_top_mux;                   // rtl-gen/src/merge/fetcher.rs:663
-    wire [23:0] sorter_dropped_mux_1;        // rtl-gen/src/merge/fetcher.rs:671
-    wire [23:0] at_top_mux_1;                // rtl-gen/src/merge/fetcher.rs:671
-    wire [149:0] item_rec;                   // rtl-gen/src/merge/fetcher.rs:672
-    wire [27:0] item_ref;                    // rtl-gen/src/merge/fetcher.rs:673
+    wire walk_done_not;                      // rtl-gen/src/merge/fetcher.rs:590
+    wire visit_live;                         // rtl-gen/src/merge/fetcher.rs:590
+    wire above_level;                        // rtl-gen/src/merge/fetcher.rs:593
+    wire above_first;                        // rtl-gen/src/merge/fetcher.rs:594
+    wire above_first_not;                    // rtl-gen/src/merge/fetcher.rs:598
+    wire level_le;                           // rtl-gen/src/merge/fetcher.rs:598
+    wire sending_level;                      // rtl-gen/src/merge/fetcher.rs:598
+    reg leaves_end_sent;                     // rtl-gen/src/merge/fetcher.rs:622
+    wire visit_live_and;                     // rtl-gen/src/merge/fetcher.rs:623
+    wire leaves_end_sent_not;                // rtl-gen/src/merge/fetcher.rs:623
+    wire visit_live_and_1;                   // rtl-gen/src/merge/fetcher.rs:623
+    wire above_first_not_1;                  // rtl-gen/src/merge/fetcher.rs:623
+    wire leaves_end_due;                     // rtl-gen/src/merge/fetcher.rs:623
+    wire out_items_in_ready_and;             // rtl-gen/src/merge/fetcher.rs:625
+    wire cmd_send_leaves_not;                // rtl-gen/src/merge/fetcher.rs:625
+    wire cmd_send_leaves_or;                 // rtl-gen/src/merge/fetcher.rs:625
+    wire above_first_mux;                    // rtl-gen/src/merge/fetcher.rs:625
+    wire visit_room;                         // rtl-gen/src/merge/fetcher.rs:625
+    reg [4:0] end_next;                      // rtl-gen/src/merge/fetcher.rs:633
+    reg final_sent;                          // rtl-gen/src/merge/fetcher.rs:634
+    wire end_next_lt;                        // rtl-gen/src/merge/fetcher.rs:635
+    wire visit_live_and_2;                   // rtl-gen/src/merge/fetcher.rs:635
+    wire end_next_lt_1;                      // rtl-gen/src/merge/fetcher.rs:635
+    wire pre_ends;                           // rtl-gen/src/merge/fetcher.rs:635
+    wire walking_and_15;                     // rtl-gen/src/merge/fetcher.rs:636
+    wire final_sent_not;                     // rtl-gen/src/merge/fetcher.rs:636
+    wire ends_drain;                         // rtl-gen/src/merge/fetcher.rs:636
+    wire end_emit;                           // rtl-gen/src/merge/fetcher.rs:637
+    wire end_next_eq;                        // rtl-gen/src/merge/fetcher.rs:638
+    wire end_final;                          // rtl-gen/src/merge/fetcher.rs:638
+    wire end_fire;                           // rtl-gen/src/merge/fetcher.rs:639
+    wire at_top_and;                         // rtl-gen/src/merge/fetcher.rs:640
+    wire first_err_valid_not_2;              // rtl-gen/src/merge/fetcher.rs:641
+    wire at_top_and_1;                       // rtl-gen/src/merge/fetcher.rs:641
+    wire at_top_and_2;                       // rtl-gen/src/merge/fetcher.rs:641
+    wire first_err_valid_not_3;              // rtl-gen/src/merge/fetcher.rs:642
+    wire at_top_and_3;                       // rtl-gen/src/merge/fetcher.rs:642
+    wire header_err_not;                     // rtl-gen/src/merge/fetcher.rs:642
+    wire at_top_and_4;                       // rtl-gen/src/merge/fetcher.rs:642
+    wire at_top_not;                         // rtl-gen/src/merge/fetcher.rs:643
+    reg capacity_told;                       // rtl-gen/src/merge/fetcher.rs:647
+    wire at_top_and_5;                       // rtl-gen/src/merge/fetcher.rs:648
+    wire at_top_and_6;                       // rtl-gen/src/merge/fetcher.rs:648
+    wire at_top_and_7;                       // rtl-gen/src/merge/fetcher.rs:648
+    wire capacity_told_not;                  // rtl-gen/src/merge/fetcher.rs:648
+    wire sorter_dropped;                     // rtl-gen/src/merge/fetcher.rs:648
+    wire at_top_or;                          // rtl-gen/src/merge/fetcher.rs:650
+    wire at_top_and_8;                       // rtl-gen/src/merge/fetcher.rs:652
+    wire at_top_or_1;                        // rtl-gen/src/merge/fetcher.rs:650
+    wire at_top_and_9;                       // rtl-gen/src/merge/fetcher.rs:653
+    wire node_ctx_out_data_not;              // rtl-gen/src/merge/fetcher.rs:653
+    wire node_ctx_out_data_or;               // rtl-gen/src/merge/fetcher.rs:653
+    wire at_top_and_10;                      // rtl-gen/src/merge/fetcher.rs:653
+    wire at_top_or_2;                        // rtl-gen/src/merge/fetcher.rs:650
+    wire visit_avail;                        // rtl-gen/src/merge/fetcher.rs:649
+    wire pre_ends_not;                       // rtl-gen/src/merge/fetcher.rs:657
+    wire visit_free;                         // rtl-gen/src/merge/fetcher.rs:657
+    wire visit_go;                           // rtl-gen/src/merge/fetcher.rs:660
+    wire visit_live_and_3;                   // rtl-gen/src/merge/fetcher.rs:661
+    wire sorter_dropped_not;                 // rtl-gen/src/merge/fetcher.rs:661
+    wire visit_live_and_4;                   // rtl-gen/src/merge/fetcher.rs:661
+    wire visit_live_and_5;                   // rtl-gen/src/merge/fetcher.rs:661
+    wire visit_go_and;                       // rtl-gen/src/merge/fetcher.rs:662
+    wire visit_live_and_6;                   // rtl-gen/src/merge/fetcher.rs:664
+    wire node_ctx_out_data_not_1;            // rtl-gen/src/merge/fetcher.rs:664
+    wire node_ctx_out_data_or_1;             // rtl-gen/src/merge/fetcher.rs:664
+    wire visit_live_and_7;                   // rtl-gen/src/merge/fetcher.rs:664
+    wire root_outstanding_and_3;             // rtl-gen/src/merge/fetcher.rs:667
+    wire visit_live_and_8;                   // rtl-gen/src/merge/fetcher.rs:667
+    wire visit_live_and_9;                   // rtl-gen/src/merge/fetcher.rs:667
+    wire visit_live_and_10;                  // rtl-gen/src/merge/fetcher.rs:667
+    wire visit_live_and_11;                  // rtl-gen/src/merge/fetcher.rs:667
+    wire visit_go_and_1;                     // rtl-gen/src/merge/fetcher.rs:668
+    wire node_code_ne_1;                     // rtl-gen/src/merge/fetcher.rs:669
+    wire node_ctx_out_data_eq_1;             // rtl-gen/src/merge/fetcher.rs:669
+    wire node_ctx_out_data_mux;              // rtl-gen/src/merge/fetcher.rs:669
+    wire at_top_or_3;                        // rtl-gen/src/merge/fetcher.rs:670
+    wire at_top_and_11;                      // rtl-gen/src/merge/fetcher.rs:670
+    wire item_err;                           // rtl-gen/src/merge/fetcher.rs:670
+    wire at_top_and_12;                      // rtl-gen/src/merge/fetcher.rs:672
+    wire sorter_dropped_not_1;               // rtl-gen/src/merge/fetcher.rs:672
+    wire at_top_and_13;                      // rtl-gen/src/merge/fetcher.rs:672
+    wire at_top_or_4;                        // rtl-gen/src/merge/fetcher.rs:672
+    wire node_ctx_out_data_eq_2;             // rtl-gen/src/merge/fetcher.rs:672
+    wire at_top_and_14;                      // rtl-gen/src/merge/fetcher.rs:672
+    wire item_end;                           // rtl-gen/src/merge/fetcher.rs:672
+    wire item_err_not;                       // rtl-gen/src/merge/fetcher.rs:674
+    wire item_end_not;                       // rtl-gen/src/merge/fetcher.rs:674
+    wire item_node;                          // rtl-gen/src/merge/fetcher.rs:674
+    wire [3:0] node_ctx_out_data_mux_1;      // rtl-gen/src/merge/fetcher.rs:679
+    wire [3:0] sorter_dropped_mux;           // rtl-gen/src/merge/fetcher.rs:677
+    wire [3:0] at_top_mux;                   // rtl-gen/src/merge/fetcher.rs:675
+    wire [23:0] sorter_dropped_mux_1;        // rtl-gen/src/merge/fetcher.rs:683
+    wire [23:0] at_top_mux_1;                // rtl-gen/src/merge/fetcher.rs:683
+    wire [149:0] item_rec;                   // rtl-gen/src/merge/fetcher.rs:684
+    wire [27:0] item_ref;                    // rtl-gen/src/merge/fetcher.rs:685
     wire item_leaf;                          // rtl-gen/src/merge/fields.rs:13
-    wire item_leaf_not;                      // rtl-gen/src/merge/fetcher.rs:677
+    wire item_leaf_not;                      // rtl-gen/src/merge/fetcher.rs:689
     wire [47:0] item_rec_cat;                // rtl-gen/src/merge/network.rs:46
-    wire [48:0] item_key;                    // rtl-gen/src/merge/fetcher.rs:679
-    wire [24:0] item_range_end;              // rtl-gen/src/merge/fetcher.rs:691
-    wire at_level;                           // rtl-gen/src/merge/fetcher.rs:693
-    wire item_key_le;                        // rtl-gen/src/merge/fetcher.rs:694
-    wire order_bad;                          // rtl-gen/src/merge/fetcher.rs:694
-    wire at_level_and;                       // rtl-gen/src/merge/fetcher.rs:699
-    wire above_level_or;                     // rtl-gen/src/merge/fetcher.rs:699
-    wire item_leaf_and;                      // rtl-gen/src/merge/fetcher.rs:701
-    wire item_range_end_gt;                  // rtl-gen/src/merge/fetcher.rs:701
-    wire range_bad;                          // rtl-gen/src/merge/fetcher.rs:701
-    wire item_leaf_and_1;                    // rtl-gen/src/merge/fetcher.rs:702
-    wire pushed_ge;                          // rtl-gen/src/merge/fetcher.rs:702
-    wire frontier_bad;                       // rtl-gen/src/merge/fetcher.rs:702
-    wire [3:0] frontier_bad_mux;             // rtl-gen/src/merge/fetcher.rs:711
-    wire [3:0] range_bad_mux;                // rtl-gen/src/merge/fetcher.rs:709
-    wire [3:0] order_bad_mux;                // rtl-gen/src/merge/fetcher.rs:707
-    wire [3:0] item_end_mux;                 // rtl-gen/src/merge/fetcher.rs:705
-    wire [3:0] visit_code;                   // rtl-gen/src/merge/fetcher.rs:703
-    wire [23:0] item_err_mux;                // rtl-gen/src/merge/fetcher.rs:717
-    wire visit_code_ne;                      // rtl-gen/src/merge/fetcher.rs:718
-    wire visit_fails;                        // rtl-gen/src/merge/fetcher.rs:718
-    wire visit_go_and_2;                     // rtl-gen/src/merge/fetcher.rs:719
-    wire visit_code_eq;                      // rtl-gen/src/merge/fetcher.rs:719
-    wire visit_passes;                       // rtl-gen/src/merge/fetcher.rs:719
-    wire visit_passes_and;                   // rtl-gen/src/merge/fetcher.rs:720
-    wire frontier_push;                      // rtl-gen/src/merge/fetcher.rs:720
-    wire visit_passes_and_1;                 // rtl-gen/src/merge/fetcher.rs:721
-    wire visit_passes_and_2;                 // rtl-gen/src/merge/fetcher.rs:721
-    wire visit_passes_and_3;                 // rtl-gen/src/merge/fetcher.rs:721
-    wire visit_errored_not;                  // rtl-gen/src/merge/fetcher.rs:721
-    wire leaf_out;                           // rtl-gen/src/merge/fetcher.rs:721
-    wire to_out;                             // rtl-gen/src/merge/fetcher.rs:722
-    wire pushed_ne;                          // rtl-gen/src/merge/fetcher.rs:723
-    wire next_level;                         // rtl-gen/src/merge/fetcher.rs:723
-    wire level_end;                          // rtl-gen/src/merge/fetcher.rs:724
-    wire next_level_not;                     // rtl-gen/src/merge/fetcher.rs:735
-    wire walk_over;                          // rtl-gen/src/merge/fetcher.rs:735
-    wire marker_push;                        // rtl-gen/src/merge/fetcher.rs:739
-    wire end_next_eq_1;                      // rtl-gen/src/merge/fetcher.rs:754
-    wire level_end_push;                     // rtl-gen/src/merge/fetcher.rs:754
-    wire end_final_not;                      // rtl-gen/src/merge/fetcher.rs:757
-    wire end_fire_and;                       // rtl-gen/src/merge/fetcher.rs:757
-    wire end_fire_or;                        // rtl-gen/src/merge/fetcher.rs:757
-    wire [4:0] end_next_add;                 // rtl-gen/src/merge/fetcher.rs:757
-    wire end_fire_and_1;                     // rtl-gen/src/merge/fetcher.rs:759
-    wire visit_go_and_3;                     // rtl-gen/src/merge/fetcher.rs:763
-    wire visit_go_and_4;                     // rtl-gen/src/merge/fetcher.rs:765
-    wire [8:0] pushed_add;                   // rtl-gen/src/merge/fetcher.rs:772
-    wire [4:0] level_add;                    // rtl-gen/src/merge/fetcher.rs:774
-    wire [183:0] const_cat_4;                // rtl-gen/src/merge/fetcher.rs:839
-    wire [183:0] const_cat_5;                // rtl-gen/src/merge/fetcher.rs:848
-    wire walk_over_and;                      // rtl-gen/src/merge/fetcher.rs:856
-    wire walk_over_and_1;                    // rtl-gen/src/merge/fetcher.rs:856
-    wire leaves_end_due_and;                 // rtl-gen/src/merge/fetcher.rs:856
-    wire leaves_end_fire;                    // rtl-gen/src/merge/fetcher.rs:856
-    wire walk_over_and_2;                    // rtl-gen/src/merge/fetcher.rs:860
-    wire walk_over_and_3;                    // rtl-gen/src/merge/fetcher.rs:860
-    wire leaf_out_or;                        // rtl-gen/src/merge/fetcher.rs:860
-    wire visit_errored_not_1;                // rtl-gen/src/merge/fetcher.rs:871
-    wire visit_fails_and;                    // rtl-gen/src/merge/fetcher.rs:871
-    wire to_out_or;                          // rtl-gen/src/merge/fetcher.rs:871
-    wire to_out_or_1;                        // rtl-gen/src/merge/fetcher.rs:871
-    wire level_end_push_or;                  // rtl-gen/src/merge/fetcher.rs:881
-    wire [1:0] level_end_push_mux;           // rtl-gen/src/merge/fetcher.rs:883
-    wire [1:0] end_final_mux;                // rtl-gen/src/merge/fetcher.rs:877
-    wire [1:0] visit_fails_mux_1;            // rtl-gen/src/merge/fetcher.rs:875
+    wire [48:0] item_key;                    // rtl-gen/src/merge/fetcher.rs:691
+    wire [24:0] item_range_end;              // rtl-gen/src/merge/fetcher.rs:703
+    wire at_level;                           // rtl-gen/src/merge/fetcher.rs:705
+    wire item_key_le;                        // rtl-gen/src/merge/fetcher.rs:706
+    wire order_bad;                          // rtl-gen/src/merge/fetcher.rs:706
+    wire at_level_and;                       // rtl-gen/src/merge/fetcher.rs:711
+    wire above_level_or;                     // rtl-gen/src/merge/fetcher.rs:711
+    wire item_leaf_and;                      // rtl-gen/src/merge/fetcher.rs:713
+    wire item_range_end_gt;                  // rtl-gen/src/merge/fetcher.rs:713
+    wire range_bad;                          // rtl-gen/src/merge/fetcher.rs:713
+    wire item_leaf_and_1;                    // rtl-gen/src/merge/fetcher.rs:714
+    wire pushed_ge;                          // rtl-gen/src/merge/fetcher.rs:714
+    wire frontier_bad;                       // rtl-gen/src/merge/fetcher.rs:714
+    wire [3:0] frontier_bad_mux;             // rtl-gen/src/merge/fetcher.rs:723
+    wire [3:0] range_bad_mux;                // rtl-gen/src/merge/fetcher.rs:721
+    wire [3:0] order_bad_mux;                // rtl-gen/src/merge/fetcher.rs:719
+    wire [3:0] item_end_mux;                 // rtl-gen/src/merge/fetcher.rs:717
+    wire [3:0] visit_code;                   // rtl-gen/src/merge/fetcher.rs:715
+    wire [23:0] item_err_mux;                // rtl-gen/src/merge/fetcher.rs:729
+    wire visit_code_ne;                      // rtl-gen/src/merge/fetcher.rs:730
+    wire visit_fails;                        // rtl-gen/src/merge/fetcher.rs:730
+    wire visit_go_and_2;                     // rtl-gen/src/merge/fetcher.rs:731
+    wire visit_code_eq;                      // rtl-gen/src/merge/fetcher.rs:731
+    wire visit_passes;                       // rtl-gen/src/merge/fetcher.rs:731
+    wire visit_passes_and;                   // rtl-gen/src/merge/fetcher.rs:732
+    wire frontier_push;                      // rtl-gen/src/merge/fetcher.rs:732
+    wire visit_passes_and_1;                 // rtl-gen/src/merge/fetcher.rs:733
+    wire visit_passes_and_2;                 // rtl-gen/src/merge/fetcher.rs:733
+    wire visit_passes_and_3;                 // rtl-gen/src/merge/fetcher.rs:733
+    wire visit_errored_not;                  // rtl-gen/src/merge/fetcher.rs:733
+    wire leaf_out;                           // rtl-gen/src/merge/fetcher.rs:733
+    wire to_out;                             // rtl-gen/src/merge/fetcher.rs:734
+    wire pushed_ne;                          // rtl-gen/src/merge/fetcher.rs:735
+    wire next_level;                         // rtl-gen/src/merge/fetcher.rs:735
+    wire level_end;                          // rtl-gen/src/merge/fetcher.rs:736
+    wire next_level_not;                     // rtl-gen/src/merge/fetcher.rs:747
+    wire walk_over;                          // rtl-gen/src/merge/fetcher.rs:747
+    wire marker_push;                        // rtl-gen/src/merge/fetcher.rs:751
+    wire end_next_eq_1;                      // rtl-gen/src/merge/fetcher.rs:766
+    wire level_end_push;                     // rtl-gen/src/merge/fetcher.rs:766
+    wire end_final_not;                      // rtl-gen/src/merge/fetcher.rs:769
+    wire end_fire_and;                       // rtl-gen/src/merge/fetcher.rs:769
+    wire end_fire_or;                        // rtl-gen/src/merge/fetcher.rs:769
+    wire [4:0] end_next_add;                 // rtl-gen/src/merge/fetcher.rs:769
+    wire end_fire_and_1;                     // rtl-gen/src/merge/fetcher.rs:771
+    wire visit_go_and_3;                     // rtl-gen/src/merge/fetcher.rs:775
+    wire visit_go_and_4;                     // rtl-gen/src/merge/fetcher.rs:777
+    wire [8:0] pushed_add;                   // rtl-gen/src/merge/fetcher.rs:784
+    wire [4:0] level_add;                    // rtl-gen/src/merge/fetcher.rs:786
+    wire [183:0] const_cat_4;                // rtl-gen/src/merge/fetcher.rs:850
+    wire [183:0] const_cat_5;                // rtl-gen/src/merge/fetcher.rs:859
+    wire walk_over_and;                      // rtl-gen/src/merge/fetcher.rs:867
+    wire walk_over_and_1;                    // rtl-gen/src/merge/fetcher.rs:867
+    wire leaves_end_due_and;                 // rtl-gen/src/merge/fetcher.rs:867
+    wire leaves_end_fire;                    // rtl-gen/src/merge/fetcher.rs:867
+    wire walk_over_and_2;                    // rtl-gen/src/merge/fetcher.rs:871
+    wire walk_over_and_3;                    // rtl-gen/src/merge/fetcher.rs:871
+    wire leaf_out_or;                        // rtl-gen/src/merge/fetcher.rs:871
+    wire visit_errored_not_1;                // rtl-gen/src/merge/fetcher.rs:882
+    wire visit_fails_and;                    // rtl-gen/src/merge/fetcher.rs:882
+    wire to_out_or;                          // rtl-gen/src/merge/fetcher.rs:882
+    wire to_out_or_1;                        // rtl-gen/src/merge/fetcher.rs:882
+    wire level_end_push_or;                  // rtl-gen/src/merge/fetcher.rs:892
+    wire [1:0] level_end_push_mux;           // rtl-gen/src/merge/fetcher.rs:894
+    wire [1:0] end_final_mux;                // rtl-gen/src/merge/fetcher.rs:888
+    wire [1:0] visit_fails_mux_1;            // rtl-gen/src/merge/fetcher.rs:886
     wire [27:0] cfg_hier_cat_2;              // rtl-gen/src/merge/fetcher.rs:231
-    wire [27:0] visit_fails_mux_2;           // rtl-gen/src/merge/fetcher.rs:887
-    wire out_items_out_data_eq;              // rtl-gen/src/merge/fetcher.rs:901
-    wire [47:0] out_items_out_data_cat;      // rtl-gen/src/merge/fetcher.rs:903
-    wire [24:0] out_items_out_data_add;      // rtl-gen/src/merge/fetcher.rs:909
-    reg pend_valid;                          // rtl-gen/src/merge/fetcher.rs:913
-    reg [23:0] pend_first;                   // rtl-gen/src/merge/fetcher.rs:914
-    reg [24:0] pend_end;                     // rtl-gen/src/merge/fetcher.rs:915
-    reg [47:0] pend_voxel;                   // rtl-gen/src/merge/fetcher.rs:916
-    reg [23:0] pend_node;                    // rtl-gen/src/merge/fetcher.rs:917
-    reg cref_active;                         // rtl-gen/src/merge/fetcher.rs:918
-    reg [23:0] cref_idx;                     // rtl-gen/src/merge/fetcher.rs:919
-    reg [24:0] cref_end;                     // rtl-gen/src/merge/fetcher.rs:920
-    reg [23:0] cref_parent;                  // rtl-gen/src/merge/fetcher.rs:921
-    wire out_tokens_in_valid;                // rtl-gen/src/merge/fetcher.rs:923
-    wire [185:0] out_tokens_in_data;         // rtl-gen/src/merge/fetcher.rs:923
-    wire out_tokens_in_ready;                // rtl-gen/src/merge/fetcher.rs:923
+    wire [27:0] visit_fails_mux_2;           // rtl-gen/src/merge/fetcher.rs:898
+    wire out_items_out_data_eq;              // rtl-gen/src/merge/fetcher.rs:912
+    wire [47:0] out_items_out_data_cat;      // rtl-gen/src/merge/fetcher.rs:914
+    wire [24:0] out_items_out_data_add;      // rtl-gen/src/merge/fetcher.rs:920
+    reg pend_valid;                          // rtl-gen/src/merge/fetcher.rs:924
+    reg [23:0] pend_first;                   // rtl-gen/src/merge/fetcher.rs:925
+    reg [24:0] pend_end;                     // rtl-gen/src/merge/fetcher.rs:926
+    reg [47:0] pend_voxel;                   // rtl-gen/src/merge/fetcher.rs:927
+    reg [23:0] pend_node;                    // rtl-gen/src/merge/fetcher.rs:928
+    reg cref_active;                         // rtl-gen/src/merge/fetcher.rs:929
+    reg [23:0] cref_idx;                     // rtl-gen/src/merge/fetcher.rs:930
+    reg [24:0] cref_end;                     // rtl-gen/src/merge/fetcher.rs:931
+    reg [23:0] cref_parent;                  // rtl-gen/src/merge/fetcher.rs:932
+    wire out_tokens_in_valid;                // rtl-gen/src/merge/fetcher.rs:934
+    wire [185:0] out_tokens_in_data;         // rtl-gen/src/merge/fetcher.rs:934
+    wire out_tokens_in_ready;                // rtl-gen/src/merge/fetcher.rs:934
     reg [1:0] out_tokens_head;               // rtl-gen/src/merge/fetcher.rs:86
     reg [1:0] out_tokens_tail;               // rtl-gen/src/merge/fetcher.rs:87
     reg [2:0] out_tokens_count;              // rtl-gen/src/merge/fetcher.rs:88
@@ -508,186 +508,186 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
     wire [1:0] out_tokens_tail_add;          // rtl-gen/src/merge/fetcher.rs:105
     wire [2:0] out_tokens_count_add;         // rtl-gen/src/merge/fetcher.rs:111
     wire [2:0] out_tokens_count_sub;         // rtl-gen/src/merge/fetcher.rs:112
-    wire walking_and_16;                     // rtl-gen/src/merge/fetcher.rs:925
-    wire order_room;                         // rtl-gen/src/merge/fetcher.rs:925
-    wire pend_valid_and;                     // rtl-gen/src/merge/fetcher.rs:926
-    wire pend_valid_and_1;                   // rtl-gen/src/merge/fetcher.rs:926
-    wire out_items_out_data_eq_1;            // rtl-gen/src/merge/fetcher.rs:926
-    wire leaf_of_held;                       // rtl-gen/src/merge/fetcher.rs:926
-    wire cref_next;                          // rtl-gen/src/merge/fetcher.rs:927
-    wire cref_active_not;                    // rtl-gen/src/merge/fetcher.rs:928
-    wire order_room_and;                     // rtl-gen/src/merge/fetcher.rs:928
-    wire order_room_and_1;                   // rtl-gen/src/merge/fetcher.rs:928
-    wire held_leaf;                          // rtl-gen/src/merge/fetcher.rs:928
-    wire cref_active_not_1;                  // rtl-gen/src/merge/fetcher.rs:930
-    wire order_room_and_2;                   // rtl-gen/src/merge/fetcher.rs:930
-    wire order_room_and_3;                   // rtl-gen/src/merge/fetcher.rs:930
-    wire order_room_and_4;                   // rtl-gen/src/merge/fetcher.rs:930
-    wire leaf_of_held_not;                   // rtl-gen/src/merge/fetcher.rs:930
-    wire held_refs_first;                    // rtl-gen/src/merge/fetcher.rs:930
-    wire cref_active_not_2;                  // rtl-gen/src/merge/fetcher.rs:967
-    wire order_room_and_5;                   // rtl-gen/src/merge/fetcher.rs:967
-    wire order_room_and_6;                   // rtl-gen/src/merge/fetcher.rs:967
-    wire pend_valid_not;                     // rtl-gen/src/merge/fetcher.rs:967
-    wire item_out;                           // rtl-gen/src/merge/fetcher.rs:967
-    wire walking_and_17;                     // rtl-gen/src/merge/fetcher.rs:1010
-    wire cref_active_not_3;                  // rtl-gen/src/merge/fetcher.rs:1011
-    wire cref_active_and;                    // rtl-gen/src/merge/fetcher.rs:1011
-    wire cref_active_and_1;                  // rtl-gen/src/merge/fetcher.rs:1011
-    wire leaf_of_held_not_1;                 // rtl-gen/src/merge/fetcher.rs:1011
-    wire cref_active_and_2;                  // rtl-gen/src/merge/fetcher.rs:1011
-    wire cref_active_or;                     // rtl-gen/src/merge/fetcher.rs:1011
-    wire [23:0] cref_idx_add;                // rtl-gen/src/merge/fetcher.rs:1016
-    wire [23:0] pend_first_add;              // rtl-gen/src/merge/fetcher.rs:1017
-    wire cref_idx_ne;                        // rtl-gen/src/merge/fetcher.rs:1021
-    wire pend_first_ne;                      // rtl-gen/src/merge/fetcher.rs:1024
-    wire held_leaf_or;                       // rtl-gen/src/merge/fetcher.rs:1032
-    wire held_leaf_or_1;                     // rtl-gen/src/merge/fetcher.rs:1033
-    wire item_out_and;                       // rtl-gen/src/merge/fetcher.rs:1036
-    wire out_items_out_data_not;             // rtl-gen/src/merge/fetcher.rs:1036
-    wire item_out_and_1;                     // rtl-gen/src/merge/fetcher.rs:1036
-    wire hold_refs;                          // rtl-gen/src/merge/fetcher.rs:1036
-    wire held_leaf_or_2;                     // rtl-gen/src/merge/fetcher.rs:1041
-    wire [1:0] out_items_out_data_mux;       // rtl-gen/src/merge/fetcher.rs:1052
+    wire walking_and_16;                     // rtl-gen/src/merge/fetcher.rs:936
+    wire order_room;                         // rtl-gen/src/merge/fetcher.rs:936
+    wire pend_valid_and;                     // rtl-gen/src/merge/fetcher.rs:937
+    wire pend_valid_and_1;                   // rtl-gen/src/merge/fetcher.rs:937
+    wire out_items_out_data_eq_1;            // rtl-gen/src/merge/fetcher.rs:937
+    wire leaf_of_held;                       // rtl-gen/src/merge/fetcher.rs:937
+    wire cref_next;                          // rtl-gen/src/merge/fetcher.rs:938
+    wire cref_active_not;                    // rtl-gen/src/merge/fetcher.rs:939
+    wire order_room_and;                     // rtl-gen/src/merge/fetcher.rs:939
+    wire order_room_and_1;                   // rtl-gen/src/merge/fetcher.rs:939
+    wire held_leaf;                          // rtl-gen/src/merge/fetcher.rs:939
+    wire cref_active_not_1;                  // rtl-gen/src/merge/fetcher.rs:941
+    wire order_room_and_2;                   // rtl-gen/src/merge/fetcher.rs:941
+    wire order_room_and_3;                   // rtl-gen/src/merge/fetcher.rs:941
+    wire order_room_and_4;                   // rtl-gen/src/merge/fetcher.rs:941
+    wire leaf_of_held_not;                   // rtl-gen/src/merge/fetcher.rs:941
+    wire held_refs_first;                    // rtl-gen/src/merge/fetcher.rs:941
+    wire cref_active_not_2;                  // rtl-gen/src/merge/fetcher.rs:978
+    wire order_room_and_5;                   // rtl-gen/src/merge/fetcher.rs:978
+    wire order_room_and_6;                   // rtl-gen/src/merge/fetcher.rs:978
+    wire pend_valid_not;                     // rtl-gen/src/merge/fetcher.rs:978
+    wire item_out;                           // rtl-gen/src/merge/fetcher.rs:978
+    wire walking_and_17;                     // rtl-gen/src/merge/fetcher.rs:1021
+    wire cref_active_not_3;                  // rtl-gen/src/merge/fetcher.rs:1022
+    wire cref_active_and;                    // rtl-gen/src/merge/fetcher.rs:1022
+    wire cref_active_and_1;                  // rtl-gen/src/merge/fetcher.rs:1022
+    wire leaf_of_held_not_1;                 // rtl-gen/src/merge/fetcher.rs:1022
+    wire cref_active_and_2;                  // rtl-gen/src/merge/fetcher.rs:1022
+    wire cref_active_or;                     // rtl-gen/src/merge/fetcher.rs:1022
+    wire [23:0] cref_idx_add;                // rtl-gen/src/merge/fetcher.rs:1027
+    wire [23:0] pend_first_add;              // rtl-gen/src/merge/fetcher.rs:1028
+    wire cref_idx_ne;                        // rtl-gen/src/merge/fetcher.rs:1032
+    wire pend_first_ne;                      // rtl-gen/src/merge/fetcher.rs:1035
+    wire held_leaf_or;                       // rtl-gen/src/merge/fetcher.rs:1043
+    wire held_leaf_or_1;                     // rtl-gen/src/merge/fetcher.rs:1044
+    wire item_out_and;                       // rtl-gen/src/merge/fetcher.rs:1047
+    wire out_items_out_data_not;             // rtl-gen/src/merge/fetcher.rs:1047
+    wire item_out_and_1;                     // rtl-gen/src/merge/fetcher.rs:1047
+    wire hold_refs;                          // rtl-gen/src/merge/fetcher.rs:1047
+    wire held_leaf_or_2;                     // rtl-gen/src/merge/fetcher.rs:1052
+    wire [1:0] out_items_out_data_mux;       // rtl-gen/src/merge/fetcher.rs:1063
     wire [183:0] const_cat_6;                // rtl-gen/src/merge/fetcher.rs:254
     wire [183:0] out_items_out_data_cat_1;   // rtl-gen/src/merge/fetcher.rs:254
     wire [183:0] const_cat_7;                // rtl-gen/src/merge/fetcher.rs:254
-    wire [23:0] cref_active_mux;             // rtl-gen/src/merge/fetcher.rs:1077
-    wire [185:0] const_cat_8;                // rtl-gen/src/merge/fetcher.rs:1074
-    wire out_items_out_data_eq_2;            // rtl-gen/src/merge/fetcher.rs:1079
-    wire [185:0] const_cat_9;                // rtl-gen/src/merge/fetcher.rs:1080
-    wire out_items_out_data_eq_3;            // rtl-gen/src/merge/fetcher.rs:1081
-    wire [185:0] const_cat_10;               // rtl-gen/src/merge/fetcher.rs:1082
-    wire out_items_out_data_eq_4;            // rtl-gen/src/merge/fetcher.rs:1083
-    wire [185:0] const_cat_11;               // rtl-gen/src/merge/fetcher.rs:1084
-    wire [185:0] const_cat_12;               // rtl-gen/src/merge/fetcher.rs:1085
-    wire [185:0] out_items_out_data_mux_1;   // rtl-gen/src/merge/fetcher.rs:1083
-    wire [185:0] out_items_out_data_mux_2;   // rtl-gen/src/merge/fetcher.rs:1081
-    wire [185:0] out_items_out_data_mux_3;   // rtl-gen/src/merge/fetcher.rs:1079
-    wire cref_next_or;                       // rtl-gen/src/merge/fetcher.rs:1109
-    wire cref_next_or_1;                     // rtl-gen/src/merge/fetcher.rs:1109
-    wire cref_next_or_2;                     // rtl-gen/src/merge/fetcher.rs:1112
-    wire token_cref;                         // rtl-gen/src/merge/fetcher.rs:1124
-    wire cref_resp_data_ne;                  // rtl-gen/src/merge/fetcher.rs:1128
-    wire cref_resp_data_ge;                  // rtl-gen/src/merge/fetcher.rs:1131
-    wire [3:0] cref_resp_data_mux;           // rtl-gen/src/merge/fetcher.rs:1131
-    wire [3:0] cref_code;                    // rtl-gen/src/merge/fetcher.rs:1129
-    wire token_cref_not;                     // rtl-gen/src/merge/fetcher.rs:1134
-    wire token_answered;                     // rtl-gen/src/merge/fetcher.rs:1134
-    reg out_skip_end;                        // rtl-gen/src/merge/fetcher.rs:1135
-    wire out_tokens_out_data_eq;             // rtl-gen/src/merge/fetcher.rs:1136
-    wire out_tokens_out_data_eq_1;           // rtl-gen/src/merge/fetcher.rs:1137
-    wire out_tokens_out_data_eq_2;           // rtl-gen/src/merge/fetcher.rs:1138
-    wire out_tokens_out_data_and;            // rtl-gen/src/merge/fetcher.rs:1137
-    wire token_end;                          // rtl-gen/src/merge/fetcher.rs:1136
-    wire out_errored_not;                    // rtl-gen/src/merge/fetcher.rs:1140
-    wire out_skip_end_not;                   // rtl-gen/src/merge/fetcher.rs:1140
-    wire token_end_and;                      // rtl-gen/src/merge/fetcher.rs:1140
-    wire token_sent;                         // rtl-gen/src/merge/fetcher.rs:1140
-    wire walking_and_18;                     // rtl-gen/src/merge/fetcher.rs:1141
-    wire walking_and_19;                     // rtl-gen/src/merge/fetcher.rs:1141
-    wire token_sent_not;                     // rtl-gen/src/merge/fetcher.rs:1141
-    wire token_sent_or;                      // rtl-gen/src/merge/fetcher.rs:1141
-    wire token_fire;                         // rtl-gen/src/merge/fetcher.rs:1141
-    wire walking_and_20;                     // rtl-gen/src/merge/fetcher.rs:1145
-    wire walking_and_21;                     // rtl-gen/src/merge/fetcher.rs:1145
-    wire token_sent_not_1;                   // rtl-gen/src/merge/fetcher.rs:1145
-    wire token_sent_or_1;                    // rtl-gen/src/merge/fetcher.rs:1145
+    wire [23:0] cref_active_mux;             // rtl-gen/src/merge/fetcher.rs:1088
+    wire [185:0] const_cat_8;                // rtl-gen/src/merge/fetcher.rs:1085
+    wire out_items_out_data_eq_2;            // rtl-gen/src/merge/fetcher.rs:1090
+    wire [185:0] const_cat_9;                // rtl-gen/src/merge/fetcher.rs:1091
+    wire out_items_out_data_eq_3;            // rtl-gen/src/merge/fetcher.rs:1092
+    wire [185:0] const_cat_10;               // rtl-gen/src/merge/fetcher.rs:1093
+    wire out_items_out_data_eq_4;            // rtl-gen/src/merge/fetcher.rs:1094
+    wire [185:0] const_cat_11;               // rtl-gen/src/merge/fetcher.rs:1095
+    wire [185:0] const_cat_12;               // rtl-gen/src/merge/fetcher.rs:1096
+    wire [185:0] out_items_out_data_mux_1;   // rtl-gen/src/merge/fetcher.rs:1094
+    wire [185:0] out_items_out_data_mux_2;   // rtl-gen/src/merge/fetcher.rs:1092
+    wire [185:0] out_items_out_data_mux_3;   // rtl-gen/src/merge/fetcher.rs:1090
+    wire cref_next_or;                       // rtl-gen/src/merge/fetcher.rs:1120
+    wire cref_next_or_1;                     // rtl-gen/src/merge/fetcher.rs:1120
+    wire cref_next_or_2;                     // rtl-gen/src/merge/fetcher.rs:1123
+    wire token_cref;                         // rtl-gen/src/merge/fetcher.rs:1135
+    wire cref_resp_data_ne;                  // rtl-gen/src/merge/fetcher.rs:1139
+    wire cref_resp_data_ge;                  // rtl-gen/src/merge/fetcher.rs:1142
+    wire [3:0] cref_resp_data_mux;           // rtl-gen/src/merge/fetcher.rs:1142
+    wire [3:0] cref_code;                    // rtl-gen/src/merge/fetcher.rs:1140
+    wire token_cref_not;                     // rtl-gen/src/merge/fetcher.rs:1145
+    wire token_answered;                     // rtl-gen/src/merge/fetcher.rs:1145
+    reg out_skip_end;                        // rtl-gen/src/merge/fetcher.rs:1146
+    wire out_tokens_out_data_eq;             // rtl-gen/src/merge/fetcher.rs:1147
+    wire out_tokens_out_data_eq_1;           // rtl-gen/src/merge/fetcher.rs:1148
+    wire out_tokens_out_data_eq_2;           // rtl-gen/src/merge/fetcher.rs:1149
+    wire out_tokens_out_data_and;            // rtl-gen/src/merge/fetcher.rs:1148
+    wire token_end;                          // rtl-gen/src/merge/fetcher.rs:1147
+    wire out_errored_not;                    // rtl-gen/src/merge/fetcher.rs:1151
+    wire out_skip_end_not;                   // rtl-gen/src/merge/fetcher.rs:1151
+    wire token_end_and;                      // rtl-gen/src/merge/fetcher.rs:1151
+    wire token_sent;                         // rtl-gen/src/merge/fetcher.rs:1151
+    wire walking_and_18;                     // rtl-gen/src/merge/fetcher.rs:1152
+    wire walking_and_19;                     // rtl-gen/src/merge/fetcher.rs:1152
+    wire token_sent_not;                     // rtl-gen/src/merge/fetcher.rs:1152
+    wire token_sent_or;                      // rtl-gen/src/merge/fetcher.rs:1152
+    wire token_fire;                         // rtl-gen/src/merge/fetcher.rs:1152
+    wire walking_and_20;                     // rtl-gen/src/merge/fetcher.rs:1156
+    wire walking_and_21;                     // rtl-gen/src/merge/fetcher.rs:1156
+    wire token_sent_not_1;                   // rtl-gen/src/merge/fetcher.rs:1156
+    wire token_sent_or_1;                    // rtl-gen/src/merge/fetcher.rs:1156
     wire [183:0] const_cat_13;               // rtl-gen/src/merge/fetcher.rs:254
     wire [27:0] cfg_hier_cat_3;              // rtl-gen/src/merge/fetcher.rs:231
     wire [183:0] cref_code_cat;              // rtl-gen/src/merge/fetcher.rs:254
-    wire walking_and_22;                     // rtl-gen/src/merge/fetcher.rs:1162
-    wire walking_and_23;                     // rtl-gen/src/merge/fetcher.rs:1162
-    wire cref_code_eq;                       // rtl-gen/src/merge/fetcher.rs:1164
-    wire [183:0] cref_code_mux;              // rtl-gen/src/merge/fetcher.rs:1164
-    wire out_tokens_out_data_eq_3;           // rtl-gen/src/merge/fetcher.rs:1165
-    wire cref_code_ne;                       // rtl-gen/src/merge/fetcher.rs:1165
-    wire token_cref_and;                     // rtl-gen/src/merge/fetcher.rs:1165
-    wire out_tokens_out_data_or;             // rtl-gen/src/merge/fetcher.rs:1165
-    wire token_fire_and;                     // rtl-gen/src/merge/fetcher.rs:1166
-    wire out_errored_not_1;                  // rtl-gen/src/merge/fetcher.rs:1166
-    wire out_first_error;                    // rtl-gen/src/merge/fetcher.rs:1166
-    wire token_fire_and_1;                   // rtl-gen/src/merge/fetcher.rs:1172
-    wire token_fire_and_2;                   // rtl-gen/src/merge/fetcher.rs:1172
-    wire out_tokens_out_data_eq_4;           // rtl-gen/src/merge/fetcher.rs:1176
-    wire token_fire_and_3;                   // rtl-gen/src/merge/fetcher.rs:1176
+    wire walking_and_22;                     // rtl-gen/src/merge/fetcher.rs:1173
+    wire walking_and_23;                     // rtl-gen/src/merge/fetcher.rs:1173
+    wire cref_code_eq;                       // rtl-gen/src/merge/fetcher.rs:1175
+    wire [183:0] cref_code_mux;              // rtl-gen/src/merge/fetcher.rs:1175
+    wire out_tokens_out_data_eq_3;           // rtl-gen/src/merge/fetcher.rs:1176
+    wire cref_code_ne;                       // rtl-gen/src/merge/fetcher.rs:1176
+    wire token_cref_and;                     // rtl-gen/src/merge/fetcher.rs:1176
+    wire out_tokens_out_data_or;             // rtl-gen/src/merge/fetcher.rs:1176
+    wire token_fire_and;                     // rtl-gen/src/merge/fetcher.rs:1177
+    wire out_errored_not_1;                  // rtl-gen/src/merge/fetcher.rs:1177
+    wire out_first_error;                    // rtl-gen/src/merge/fetcher.rs:1177
+    wire token_fire_and_1;                   // rtl-gen/src/merge/fetcher.rs:1183
+    wire token_fire_and_2;                   // rtl-gen/src/merge/fetcher.rs:1183
+    wire out_tokens_out_data_eq_4;           // rtl-gen/src/merge/fetcher.rs:1187
+    wire token_fire_and_3;                   // rtl-gen/src/merge/fetcher.rs:1187
     wire phase_eq_2;                         // rtl-gen/src/merge/fetcher.rs:300
-    wire phase_and_1;                        // rtl-gen/src/merge/fetcher.rs:1211
-    reg node_req_q_valid;                    // rtl-gen/src/merge/fetcher.rs:1214
-    reg [23:0] node_req_q_data;              // rtl-gen/src/merge/fetcher.rs:1214
-    reg node_req_q_spare_valid;              // rtl-gen/src/merge/fetcher.rs:1214
-    reg [23:0] node_req_q_spare_data;        // rtl-gen/src/merge/fetcher.rs:1214
-    wire node_req_q_ready;                   // rtl-gen/src/merge/fetcher.rs:1214
-    wire node_req_q_valid_not;               // rtl-gen/src/merge/fetcher.rs:1214
-    wire node_req_q_ready_or;                // rtl-gen/src/merge/fetcher.rs:1214
-    wire node_req_q_spare_valid_not;         // rtl-gen/src/merge/fetcher.rs:1214
-    wire node_req_core_valid_and_1;          // rtl-gen/src/merge/fetcher.rs:1214
-    wire node_req_q_spare_valid_or;          // rtl-gen/src/merge/fetcher.rs:1214
-    wire [23:0] node_req_q_spare_valid_mux;  // rtl-gen/src/merge/fetcher.rs:1214
-    wire node_req_q_spare_valid_or_1;        // rtl-gen/src/merge/fetcher.rs:1214
-    wire node_req_q_spare_valid_next;        // rtl-gen/src/merge/fetcher.rs:1214
-    wire node_req_q_ready_not;               // rtl-gen/src/merge/fetcher.rs:1214
-    wire node_req_q_ready_and;               // rtl-gen/src/merge/fetcher.rs:1214
-    reg ref_req_q_valid;                     // rtl-gen/src/merge/fetcher.rs:1215
-    reg [23:0] ref_req_q_data;               // rtl-gen/src/merge/fetcher.rs:1215
-    reg ref_req_q_spare_valid;               // rtl-gen/src/merge/fetcher.rs:1215
-    reg [23:0] ref_req_q_spare_data;         // rtl-gen/src/merge/fetcher.rs:1215
-    wire ref_req_q_ready;                    // rtl-gen/src/merge/fetcher.rs:1215
-    wire ref_req_q_valid_not;                // rtl-gen/src/merge/fetcher.rs:1215
-    wire ref_req_q_ready_or;                 // rtl-gen/src/merge/fetcher.rs:1215
-    wire ref_req_q_spare_valid_not;          // rtl-gen/src/merge/fetcher.rs:1215
-    wire ref_req_core_valid_and;             // rtl-gen/src/merge/fetcher.rs:1215
-    wire ref_req_q_spare_valid_or;           // rtl-gen/src/merge/fetcher.rs:1215
-    wire [23:0] ref_req_q_spare_valid_mux;   // rtl-gen/src/merge/fetcher.rs:1215
-    wire ref_req_q_spare_valid_or_1;         // rtl-gen/src/merge/fetcher.rs:1215
-    wire ref_req_q_spare_valid_next;         // rtl-gen/src/merge/fetcher.rs:1215
-    wire ref_req_q_ready_not;                // rtl-gen/src/merge/fetcher.rs:1215
-    wire ref_req_q_ready_and;                // rtl-gen/src/merge/fetcher.rs:1215
-    reg cref_req_q_valid;                    // rtl-gen/src/merge/fetcher.rs:1216
-    reg [23:0] cref_req_q_data;              // rtl-gen/src/merge/fetcher.rs:1216
-    reg cref_req_q_spare_valid;              // rtl-gen/src/merge/fetcher.rs:1216
-    reg [23:0] cref_req_q_spare_data;        // rtl-gen/src/merge/fetcher.rs:1216
-    wire cref_req_q_ready;                   // rtl-gen/src/merge/fetcher.rs:1216
-    wire cref_req_q_valid_not;               // rtl-gen/src/merge/fetcher.rs:1216
-    wire cref_req_q_ready_or;                // rtl-gen/src/merge/fetcher.rs:1216
-    wire cref_req_q_spare_valid_not;         // rtl-gen/src/merge/fetcher.rs:1216
-    wire cref_req_core_valid_and;            // rtl-gen/src/merge/fetcher.rs:1216
-    wire cref_req_q_spare_valid_or;          // rtl-gen/src/merge/fetcher.rs:1216
-    wire [23:0] cref_req_q_spare_valid_mux;  // rtl-gen/src/merge/fetcher.rs:1216
-    wire cref_req_q_spare_valid_or_1;        // rtl-gen/src/merge/fetcher.rs:1216
-    wire cref_req_q_spare_valid_next;        // rtl-gen/src/merge/fetcher.rs:1216
-    wire cref_req_q_ready_not;               // rtl-gen/src/merge/fetcher.rs:1216
-    wire cref_req_q_ready_and;               // rtl-gen/src/merge/fetcher.rs:1216
-    reg out_q_valid;                         // rtl-gen/src/merge/fetcher.rs:1217
-    reg [183:0] out_q_data;                  // rtl-gen/src/merge/fetcher.rs:1217
-    reg out_q_spare_valid;                   // rtl-gen/src/merge/fetcher.rs:1217
-    reg [183:0] out_q_spare_data;            // rtl-gen/src/merge/fetcher.rs:1217
-    wire out_q_ready;                        // rtl-gen/src/merge/fetcher.rs:1217
-    wire out_q_valid_not;                    // rtl-gen/src/merge/fetcher.rs:1217
-    wire out_q_ready_or;                     // rtl-gen/src/merge/fetcher.rs:1217
-    wire out_q_spare_valid_not;              // rtl-gen/src/merge/fetcher.rs:1217
-    wire out_core_valid_and;                 // rtl-gen/src/merge/fetcher.rs:1217
-    wire out_q_spare_valid_or;               // rtl-gen/src/merge/fetcher.rs:1217
-    wire [183:0] out_q_spare_valid_mux;      // rtl-gen/src/merge/fetcher.rs:1217
-    wire out_q_spare_valid_or_1;             // rtl-gen/src/merge/fetcher.rs:1217
-    wire out_q_spare_valid_next;             // rtl-gen/src/merge/fetcher.rs:1217
-    wire out_q_ready_not;                    // rtl-gen/src/merge/fetcher.rs:1217
-    wire out_q_ready_and;                    // rtl-gen/src/merge/fetcher.rs:1217
-    reg leaves_q_valid;                      // rtl-gen/src/merge/fetcher.rs:1218
-    reg [183:0] leaves_q_data;               // rtl-gen/src/merge/fetcher.rs:1218
-    reg leaves_q_spare_valid;                // rtl-gen/src/merge/fetcher.rs:1218
-    reg [183:0] leaves_q_spare_data;         // rtl-gen/src/merge/fetcher.rs:1218
-    wire leaves_q_ready;                     // rtl-gen/src/merge/fetcher.rs:1218
-    wire leaves_q_valid_not;                 // rtl-gen/src/merge/fetcher.rs:1218
-    wire leaves_q_ready_or;                  // rtl-gen/src/merge/fetcher.rs:1218
-    wire leaves_q_spare_valid_not;           // rtl-gen/src/merge/fetcher.rs:1218
-    wire leaves_core_valid_and;              // rtl-gen/src/merge/fetcher.rs:1218
-    wire leaves_q_spare_valid_or;            // rtl-gen/src/merge/fetcher.rs:1218
-    wire [183:0] leaves_q_spare_valid_mux;   // rtl-gen/src/merge/fetcher.rs:1218
-    wire leaves_q_spare_valid_or_1;          // rtl-gen/src/merge/fetcher.rs:1218
-    wire leaves_q_spare_valid_next;          // rtl-gen/src/merge/fetcher.rs:1218
-    wire leaves_q_ready_not;                 // rtl-gen/src/merge/fetcher.rs:1218
-    wire leaves_q_ready_and;                 // rtl-gen/src/merge/fetcher.rs:1218
+    wire phase_and_1;                        // rtl-gen/src/merge/fetcher.rs:1222
+    reg node_req_q_valid;                    // rtl-gen/src/merge/fetcher.rs:1225
+    reg [23:0] node_req_q_data;              // rtl-gen/src/merge/fetcher.rs:1225
+    reg node_req_q_spare_valid;              // rtl-gen/src/merge/fetcher.rs:1225
+    reg [23:0] node_req_q_spare_data;        // rtl-gen/src/merge/fetcher.rs:1225
+    wire node_req_q_ready;                   // rtl-gen/src/merge/fetcher.rs:1225
+    wire node_req_q_valid_not;               // rtl-gen/src/merge/fetcher.rs:1225
+    wire node_req_q_ready_or;                // rtl-gen/src/merge/fetcher.rs:1225
+    wire node_req_q_spare_valid_not;         // rtl-gen/src/merge/fetcher.rs:1225
+    wire node_req_core_valid_and_1;          // rtl-gen/src/merge/fetcher.rs:1225
+    wire node_req_q_spare_valid_or;          // rtl-gen/src/merge/fetcher.rs:1225
+    wire [23:0] node_req_q_spare_valid_mux;  // rtl-gen/src/merge/fetcher.rs:1225
+    wire node_req_q_spare_valid_or_1;        // rtl-gen/src/merge/fetcher.rs:1225
+    wire node_req_q_spare_valid_next;        // rtl-gen/src/merge/fetcher.rs:1225
+    wire node_req_q_ready_not;               // rtl-gen/src/merge/fetcher.rs:1225
+    wire node_req_q_ready_and;               // rtl-gen/src/merge/fetcher.rs:1225
+    reg ref_req_q_valid;                     // rtl-gen/src/merge/fetcher.rs:1226
+    reg [23:0] ref_req_q_data;               // rtl-gen/src/merge/fetcher.rs:1226
+    reg ref_req_q_spare_valid;               // rtl-gen/src/merge/fetcher.rs:1226
+    reg [23:0] ref_req_q_spare_data;         // rtl-gen/src/merge/fetcher.rs:1226
+    wire ref_req_q_ready;                    // rtl-gen/src/merge/fetcher.rs:1226
+    wire ref_req_q_valid_not;                // rtl-gen/src/merge/fetcher.rs:1226
+    wire ref_req_q_ready_or;                 // rtl-gen/src/merge/fetcher.rs:1226
+    wire ref_req_q_spare_valid_not;          // rtl-gen/src/merge/fetcher.rs:1226
+    wire ref_req_core_valid_and;             // rtl-gen/src/merge/fetcher.rs:1226
+    wire ref_req_q_spare_valid_or;           // rtl-gen/src/merge/fetcher.rs:1226
+    wire [23:0] ref_req_q_spare_valid_mux;   // rtl-gen/src/merge/fetcher.rs:1226
+    wire ref_req_q_spare_valid_or_1;         // rtl-gen/src/merge/fetcher.rs:1226
+    wire ref_req_q_spare_valid_next;         // rtl-gen/src/merge/fetcher.rs:1226
+    wire ref_req_q_ready_not;                // rtl-gen/src/merge/fetcher.rs:1226
+    wire ref_req_q_ready_and;                // rtl-gen/src/merge/fetcher.rs:1226
+    reg cref_req_q_valid;                    // rtl-gen/src/merge/fetcher.rs:1227
+    reg [23:0] cref_req_q_data;              // rtl-gen/src/merge/fetcher.rs:1227
+    reg cref_req_q_spare_valid;              // rtl-gen/src/merge/fetcher.rs:1227
+    reg [23:0] cref_req_q_spare_data;        // rtl-gen/src/merge/fetcher.rs:1227
+    wire cref_req_q_ready;                   // rtl-gen/src/merge/fetcher.rs:1227
+    wire cref_req_q_valid_not;               // rtl-gen/src/merge/fetcher.rs:1227
+    wire cref_req_q_ready_or;                // rtl-gen/src/merge/fetcher.rs:1227
+    wire cref_req_q_spare_valid_not;         // rtl-gen/src/merge/fetcher.rs:1227
+    wire cref_req_core_valid_and;            // rtl-gen/src/merge/fetcher.rs:1227
+    wire cref_req_q_spare_valid_or;          // rtl-gen/src/merge/fetcher.rs:1227
+    wire [23:0] cref_req_q_spare_valid_mux;  // rtl-gen/src/merge/fetcher.rs:1227
+    wire cref_req_q_spare_valid_or_1;        // rtl-gen/src/merge/fetcher.rs:1227
+    wire cref_req_q_spare_valid_next;        // rtl-gen/src/merge/fetcher.rs:1227
+    wire cref_req_q_ready_not;               // rtl-gen/src/merge/fetcher.rs:1227
+    wire cref_req_q_ready_and;               // rtl-gen/src/merge/fetcher.rs:1227
+    reg out_q_valid;                         // rtl-gen/src/merge/fetcher.rs:1228
+    reg [183:0] out_q_data;                  // rtl-gen/src/merge/fetcher.rs:1228
+    reg out_q_spare_valid;                   // rtl-gen/src/merge/fetcher.rs:1228
+    reg [183:0] out_q_spare_data;            // rtl-gen/src/merge/fetcher.rs:1228
+    wire out_q_ready;                        // rtl-gen/src/merge/fetcher.rs:1228
+    wire out_q_valid_not;                    // rtl-gen/src/merge/fetcher.rs:1228
+    wire out_q_ready_or;                     // rtl-gen/src/merge/fetcher.rs:1228
+    wire out_q_spare_valid_not;              // rtl-gen/src/merge/fetcher.rs:1228
+    wire out_core_valid_and;                 // rtl-gen/src/merge/fetcher.rs:1228
+    wire out_q_spare_valid_or;               // rtl-gen/src/merge/fetcher.rs:1228
+    wire [183:0] out_q_spare_valid_mux;      // rtl-gen/src/merge/fetcher.rs:1228
+    wire out_q_spare_valid_or_1;             // rtl-gen/src/merge/fetcher.rs:1228
+    wire out_q_spare_valid_next;             // rtl-gen/src/merge/fetcher.rs:1228
+    wire out_q_ready_not;                    // rtl-gen/src/merge/fetcher.rs:1228
+    wire out_q_ready_and;                    // rtl-gen/src/merge/fetcher.rs:1228
+    reg leaves_q_valid;                      // rtl-gen/src/merge/fetcher.rs:1229
+    reg [183:0] leaves_q_data;               // rtl-gen/src/merge/fetcher.rs:1229
+    reg leaves_q_spare_valid;                // rtl-gen/src/merge/fetcher.rs:1229
+    reg [183:0] leaves_q_spare_data;         // rtl-gen/src/merge/fetcher.rs:1229
+    wire leaves_q_ready;                     // rtl-gen/src/merge/fetcher.rs:1229
+    wire leaves_q_valid_not;                 // rtl-gen/src/merge/fetcher.rs:1229
+    wire leaves_q_ready_or;                  // rtl-gen/src/merge/fetcher.rs:1229
+    wire leaves_q_spare_valid_not;           // rtl-gen/src/merge/fetcher.rs:1229
+    wire leaves_core_valid_and;              // rtl-gen/src/merge/fetcher.rs:1229
+    wire leaves_q_spare_valid_or;            // rtl-gen/src/merge/fetcher.rs:1229
+    wire [183:0] leaves_q_spare_valid_mux;   // rtl-gen/src/merge/fetcher.rs:1229
+    wire leaves_q_spare_valid_or_1;          // rtl-gen/src/merge/fetcher.rs:1229
+    wire leaves_q_spare_valid_next;          // rtl-gen/src/merge/fetcher.rs:1229
+    wire leaves_q_ready_not;                 // rtl-gen/src/merge/fetcher.rs:1229
+    wire leaves_q_ready_and;                 // rtl-gen/src/merge/fetcher.rs:1229
 
     assign cfg_ready = is_idle & cfg_have_not;
     assign cmd_ready = is_idle & cfg_have;
@@ -1380,7 +1380,7 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
                 phase <= 3'd0;               // rtl-gen/src/merge/fetcher.rs:139
             end
             if (cfg_fire) begin
-                cfg_have <= 1'b1;            // rtl-gen/src/merge/fetcher.rs:1211
+                cfg_have <= 1'b1;            // rtl-gen/src/merge/fetcher.rs:1222
                 cfg_hier <= cfg_data[3:0];   // rtl-gen/src/merge/fetcher.rs:316
                 cfg_roots <= cfg_data[27:4]; // rtl-gen/src/merge/fetcher.rs:316
                 cfg_top <= cfg_data[32:28];  // rtl-gen/src/merge/fetcher.rs:316
@@ -1392,7 +1392,7 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
                 cfg_entry_t1 <= cfg_data[120:104]; // rtl-gen/src/merge/fetcher.rs:316
                 cfg_entry_t2 <= cfg_data[137:121]; // rtl-gen/src/merge/fetcher.rs:316
             end else if (phase_and_1) begin
-                cfg_have <= 1'b0;            // rtl-gen/src/merge/fetcher.rs:1211
+                cfg_have <= 1'b0;            // rtl-gen/src/merge/fetcher.rs:1222
             end
             if (phase_eq) begin
                 first_err_valid <= header_code_ne; // rtl-gen/src/merge/fetcher.rs:139
@@ -1401,21 +1401,21 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
                 header_err <= header_code_ne; // rtl-gen/src/merge/fetcher.rs:418
                 roots_issued <= 24'd0;       // rtl-gen/src/merge/fetcher.rs:436
                 roots_taken <= 24'd0;        // rtl-gen/src/merge/fetcher.rs:460
-                level <= cfg_top;            // rtl-gen/src/merge/fetcher.rs:774
-                at_top <= 1'b1;              // rtl-gen/src/merge/fetcher.rs:775
-                walk_done <= 1'b0;           // rtl-gen/src/merge/fetcher.rs:776
-                prev_valid <= 1'b0;          // rtl-gen/src/merge/fetcher.rs:761
-                pushed <= 9'd0;              // rtl-gen/src/merge/fetcher.rs:770
-                visit_errored <= 1'b0;       // rtl-gen/src/merge/fetcher.rs:777
-                out_errored <= 1'b0;         // rtl-gen/src/merge/fetcher.rs:1167
-                range_valid <= 1'b0;         // rtl-gen/src/merge/fetcher.rs:518
-                leaves_end_sent <= 1'b0;     // rtl-gen/src/merge/fetcher.rs:857
-                end_next <= cmd_first;       // rtl-gen/src/merge/fetcher.rs:755
-                final_sent <= 1'b0;          // rtl-gen/src/merge/fetcher.rs:759
-                capacity_told <= 1'b0;       // rtl-gen/src/merge/fetcher.rs:650
-                pend_valid <= 1'b0;          // rtl-gen/src/merge/fetcher.rs:1039
-                cref_active <= 1'b0;         // rtl-gen/src/merge/fetcher.rs:1018
-                out_skip_end <= 1'b0;        // rtl-gen/src/merge/fetcher.rs:1168
+                level <= cfg_top;            // rtl-gen/src/merge/fetcher.rs:786
+                at_top <= 1'b1;              // rtl-gen/src/merge/fetcher.rs:787
+                walk_done <= 1'b0;           // rtl-gen/src/merge/fetcher.rs:788
+                prev_valid <= 1'b0;          // rtl-gen/src/merge/fetcher.rs:773
+                pushed <= 9'd0;              // rtl-gen/src/merge/fetcher.rs:782
+                visit_errored <= 1'b0;       // rtl-gen/src/merge/fetcher.rs:789
+                out_errored <= 1'b0;         // rtl-gen/src/merge/fetcher.rs:1178
+                range_valid <= 1'b0;         // rtl-gen/src/merge/fetcher.rs:521
+                leaves_end_sent <= 1'b0;     // rtl-gen/src/merge/fetcher.rs:868
+                end_next <= cmd_first;       // rtl-gen/src/merge/fetcher.rs:767
+                final_sent <= 1'b0;          // rtl-gen/src/merge/fetcher.rs:771
+                capacity_told <= 1'b0;       // rtl-gen/src/merge/fetcher.rs:662
+                pend_valid <= 1'b0;          // rtl-gen/src/merge/fetcher.rs:1050
+                cref_active <= 1'b0;         // rtl-gen/src/merge/fetcher.rs:1029
+                out_skip_end <= 1'b0;        // rtl-gen/src/merge/fetcher.rs:1179
             end else begin
                 if (root_fail) begin
                     first_err_valid <= 1'b1; // rtl-gen/src/merge/fetcher.rs:139
@@ -1435,64 +1435,64 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
                     roots_taken <= roots_taken_add; // rtl-gen/src/merge/fetcher.rs:460
                 end
                 if (marker_push) begin
-                    level <= level_add;      // rtl-gen/src/merge/fetcher.rs:774
-                    prev_valid <= 1'b0;      // rtl-gen/src/merge/fetcher.rs:763
-                    pushed <= 9'd0;          // rtl-gen/src/merge/fetcher.rs:772
+                    level <= level_add;      // rtl-gen/src/merge/fetcher.rs:786
+                    prev_valid <= 1'b0;      // rtl-gen/src/merge/fetcher.rs:775
+                    pushed <= 9'd0;          // rtl-gen/src/merge/fetcher.rs:784
                 end else begin
                     if (visit_go_and_3) begin
-                        prev_valid <= 1'b1;  // rtl-gen/src/merge/fetcher.rs:763
+                        prev_valid <= 1'b1;  // rtl-gen/src/merge/fetcher.rs:775
                     end
                     if (frontier_push) begin
-                        pushed <= pushed_add; // rtl-gen/src/merge/fetcher.rs:772
+                        pushed <= pushed_add; // rtl-gen/src/merge/fetcher.rs:784
                     end
                 end
                 if (level_end) begin
-                    at_top <= 1'b0;          // rtl-gen/src/merge/fetcher.rs:775
+                    at_top <= 1'b0;          // rtl-gen/src/merge/fetcher.rs:787
                 end
                 if (walk_over) begin
-                    walk_done <= 1'b1;       // rtl-gen/src/merge/fetcher.rs:776
+                    walk_done <= 1'b1;       // rtl-gen/src/merge/fetcher.rs:788
                 end
                 if (visit_fails) begin
-                    visit_errored <= 1'b1;   // rtl-gen/src/merge/fetcher.rs:777
+                    visit_errored <= 1'b1;   // rtl-gen/src/merge/fetcher.rs:789
                 end
                 if (out_first_error) begin
-                    out_errored <= 1'b1;     // rtl-gen/src/merge/fetcher.rs:1167
-                    out_skip_end <= 1'b1;    // rtl-gen/src/merge/fetcher.rs:1170
+                    out_errored <= 1'b1;     // rtl-gen/src/merge/fetcher.rs:1178
+                    out_skip_end <= 1'b1;    // rtl-gen/src/merge/fetcher.rs:1181
                 end else if (token_fire_and_2) begin
-                    out_skip_end <= 1'b0;    // rtl-gen/src/merge/fetcher.rs:1172
+                    out_skip_end <= 1'b0;    // rtl-gen/src/merge/fetcher.rs:1183
                 end
                 if (range_load) begin
-                    range_valid <= 1'b1;     // rtl-gen/src/merge/fetcher.rs:520
+                    range_valid <= 1'b1;     // rtl-gen/src/merge/fetcher.rs:523
                 end else if (ref_issue_and_1) begin
-                    range_valid <= 1'b0;     // rtl-gen/src/merge/fetcher.rs:520
+                    range_valid <= 1'b0;     // rtl-gen/src/merge/fetcher.rs:523
                 end
                 if (leaves_end_fire) begin
-                    leaves_end_sent <= 1'b1; // rtl-gen/src/merge/fetcher.rs:857
+                    leaves_end_sent <= 1'b1; // rtl-gen/src/merge/fetcher.rs:868
                 end
                 if (end_fire_or) begin
-                    end_next <= end_next_add; // rtl-gen/src/merge/fetcher.rs:757
+                    end_next <= end_next_add; // rtl-gen/src/merge/fetcher.rs:769
                 end
                 if (end_fire_and_1) begin
-                    final_sent <= 1'b1;      // rtl-gen/src/merge/fetcher.rs:759
+                    final_sent <= 1'b1;      // rtl-gen/src/merge/fetcher.rs:771
                 end
                 if (visit_go_and) begin
-                    capacity_told <= 1'b1;   // rtl-gen/src/merge/fetcher.rs:650
+                    capacity_told <= 1'b1;   // rtl-gen/src/merge/fetcher.rs:662
                 end
                 if (held_leaf_or_2) begin
-                    pend_valid <= 1'b0;      // rtl-gen/src/merge/fetcher.rs:1041
+                    pend_valid <= 1'b0;      // rtl-gen/src/merge/fetcher.rs:1052
                 end else if (hold_refs) begin
-                    pend_valid <= 1'b1;      // rtl-gen/src/merge/fetcher.rs:1041
+                    pend_valid <= 1'b1;      // rtl-gen/src/merge/fetcher.rs:1052
                 end
                 if (cref_next) begin
-                    cref_active <= cref_idx_ne; // rtl-gen/src/merge/fetcher.rs:1020
+                    cref_active <= cref_idx_ne; // rtl-gen/src/merge/fetcher.rs:1031
                 end else if (held_leaf) begin
-                    cref_active <= 1'b1;     // rtl-gen/src/merge/fetcher.rs:1022
+                    cref_active <= 1'b1;     // rtl-gen/src/merge/fetcher.rs:1033
                 end else if (held_refs_first) begin
-                    cref_active <= pend_first_ne; // rtl-gen/src/merge/fetcher.rs:1024
+                    cref_active <= pend_first_ne; // rtl-gen/src/merge/fetcher.rs:1035
                 end
             end
             if (visit_go_and_4) begin
-                prev_key <= item_key;        // rtl-gen/src/merge/fetcher.rs:765
+                prev_key <= item_key;        // rtl-gen/src/merge/fetcher.rs:777
             end
             if (frontier_out_valid_and) begin
                 frontier_head <= frontier_head_add; // rtl-gen/src/merge/fetcher.rs:108
@@ -1506,11 +1506,11 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
                 frontier_count <= frontier_count_sub; // rtl-gen/src/merge/fetcher.rs:112
             end
             if (range_load) begin
-                range_idx <= frontier_out_data[23:0]; // rtl-gen/src/merge/fetcher.rs:522
-                range_end <= frontier_out_data_add; // rtl-gen/src/merge/fetcher.rs:523
-                range_parent <= frontier_out_data[71:48]; // rtl-gen/src/merge/fetcher.rs:527
+                range_idx <= frontier_out_data[23:0]; // rtl-gen/src/merge/fetcher.rs:525
+                range_end <= frontier_out_data_add; // rtl-gen/src/merge/fetcher.rs:526
+                range_parent <= frontier_out_data[71:48]; // rtl-gen/src/merge/fetcher.rs:530
             end else if (ref_issue) begin
-                range_idx <= range_idx_add;  // rtl-gen/src/merge/fetcher.rs:522
+                range_idx <= range_idx_add;  // rtl-gen/src/merge/fetcher.rs:525
             end
             if (ref_ctx_out_valid_and) begin
                 ref_ctx_head <= ref_ctx_head_add; // rtl-gen/src/merge/fetcher.rs:108
@@ -1546,23 +1546,23 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
                 out_items_count <= out_items_count_sub; // rtl-gen/src/merge/fetcher.rs:112
             end
             if (hold_refs) begin
-                pend_first <= out_items_out_data[125:102]; // rtl-gen/src/merge/fetcher.rs:1043
-                pend_end <= out_items_out_data_add; // rtl-gen/src/merge/fetcher.rs:1044
-                pend_voxel <= out_items_out_data_cat; // rtl-gen/src/merge/fetcher.rs:1045
-                pend_node <= out_items_out_data[173:150]; // rtl-gen/src/merge/fetcher.rs:1046
+                pend_first <= out_items_out_data[125:102]; // rtl-gen/src/merge/fetcher.rs:1054
+                pend_end <= out_items_out_data_add; // rtl-gen/src/merge/fetcher.rs:1055
+                pend_voxel <= out_items_out_data_cat; // rtl-gen/src/merge/fetcher.rs:1056
+                pend_node <= out_items_out_data[173:150]; // rtl-gen/src/merge/fetcher.rs:1057
             end
             if (cref_next) begin
-                cref_idx <= cref_idx_add;    // rtl-gen/src/merge/fetcher.rs:1028
+                cref_idx <= cref_idx_add;    // rtl-gen/src/merge/fetcher.rs:1039
             end else if (held_leaf) begin
-                cref_idx <= pend_first;      // rtl-gen/src/merge/fetcher.rs:1030
+                cref_idx <= pend_first;      // rtl-gen/src/merge/fetcher.rs:1041
             end else if (held_refs_first) begin
-                cref_idx <= pend_first_add;  // rtl-gen/src/merge/fetcher.rs:1030
+                cref_idx <= pend_first_add;  // rtl-gen/src/merge/fetcher.rs:1041
             end
             if (held_leaf_or) begin
-                cref_end <= pend_end;        // rtl-gen/src/merge/fetcher.rs:1032
+                cref_end <= pend_end;        // rtl-gen/src/merge/fetcher.rs:1043
             end
             if (held_leaf_or_1) begin
-                cref_parent <= pend_node;    // rtl-gen/src/merge/fetcher.rs:1033
+                cref_parent <= pend_node;    // rtl-gen/src/merge/fetcher.rs:1044
             end
             if (out_tokens_out_valid_and) begin
                 out_tokens_head <= out_tokens_head_add; // rtl-gen/src/merge/fetcher.rs:108
@@ -1576,44 +1576,44 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
                 out_tokens_count <= out_tokens_count_sub; // rtl-gen/src/merge/fetcher.rs:112
             end
             if (node_req_q_ready_or) begin
-                node_req_q_valid <= node_req_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1214
-                node_req_q_data <= node_req_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1214
+                node_req_q_valid <= node_req_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1225
+                node_req_q_data <= node_req_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1225
             end
             node_req_q_spare_valid <= node_req_q_spare_valid_next;
             if (node_req_q_ready_and) begin
-                node_req_q_spare_data <= node_req_core_data; // rtl-gen/src/merge/fetcher.rs:1214
+                node_req_q_spare_data <= node_req_core_data; // rtl-gen/src/merge/fetcher.rs:1225
             end
             if (ref_req_q_ready_or) begin
-                ref_req_q_valid <= ref_req_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1215
-                ref_req_q_data <= ref_req_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1215
+                ref_req_q_valid <= ref_req_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1226
+                ref_req_q_data <= ref_req_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1226
             end
             ref_req_q_spare_valid <= ref_req_q_spare_valid_next;
             if (ref_req_q_ready_and) begin
-                ref_req_q_spare_data <= ref_req_core_data; // rtl-gen/src/merge/fetcher.rs:1215
+                ref_req_q_spare_data <= ref_req_core_data; // rtl-gen/src/merge/fetcher.rs:1226
             end
             if (cref_req_q_ready_or) begin
-                cref_req_q_valid <= cref_req_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1216
-                cref_req_q_data <= cref_req_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1216
+                cref_req_q_valid <= cref_req_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1227
+                cref_req_q_data <= cref_req_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1227
             end
             cref_req_q_spare_valid <= cref_req_q_spare_valid_next;
             if (cref_req_q_ready_and) begin
-                cref_req_q_spare_data <= cref_req_core_data; // rtl-gen/src/merge/fetcher.rs:1216
+                cref_req_q_spare_data <= cref_req_core_data; // rtl-gen/src/merge/fetcher.rs:1227
             end
             if (out_q_ready_or) begin
-                out_q_valid <= out_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1217
-                out_q_data <= out_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1217
+                out_q_valid <= out_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1228
+                out_q_data <= out_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1228
             end
             out_q_spare_valid <= out_q_spare_valid_next;
             if (out_q_ready_and) begin
-                out_q_spare_data <= out_core_data; // rtl-gen/src/merge/fetcher.rs:1217
+                out_q_spare_data <= out_core_data; // rtl-gen/src/merge/fetcher.rs:1228
             end
             if (leaves_q_ready_or) begin
-                leaves_q_valid <= leaves_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1218
-                leaves_q_data <= leaves_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1218
+                leaves_q_valid <= leaves_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1229
+                leaves_q_data <= leaves_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1229
             end
             leaves_q_spare_valid <= leaves_q_spare_valid_next;
             if (leaves_q_ready_and) begin
-                leaves_q_spare_data <= leaves_core_data; // rtl-gen/src/merge/fetcher.rs:1218
+                leaves_q_spare_data <= leaves_core_data; // rtl-gen/src/merge/fetcher.rs:1229
             end
         end
     end

@@ -20,31 +20,31 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     input  wire cref_resp_valid,         // rtl-gen/src/merge/fetcher.rs:383
     input  wire [27:0] cref_resp_data,   // rtl-gen/src/merge/fetcher.rs:383
     output wire cref_resp_ready,         // rtl-gen/src/merge/fetcher.rs:383
-    input  wire report_valid,            // rtl-gen/src/merge/fetcher.rs:788
-    input  wire [55:0] report_data,      // rtl-gen/src/merge/fetcher.rs:788
-    output wire report_ready,            // rtl-gen/src/merge/fetcher.rs:788
-    input  wire probe_resp_valid,        // rtl-gen/src/merge/fetcher.rs:1303
-    input  wire [149:0] probe_resp_data, // rtl-gen/src/merge/fetcher.rs:1303
-    output wire probe_resp_ready,        // rtl-gen/src/merge/fetcher.rs:1303
-    output wire node_req_valid,          // rtl-gen/src/merge/fetcher.rs:1214
-    output wire [23:0] node_req_data,    // rtl-gen/src/merge/fetcher.rs:1214
-    input  wire node_req_ready,          // rtl-gen/src/merge/fetcher.rs:1214
-    output wire ref_req_valid,           // rtl-gen/src/merge/fetcher.rs:1215
-    output wire [23:0] ref_req_data,     // rtl-gen/src/merge/fetcher.rs:1215
-    input  wire ref_req_ready,           // rtl-gen/src/merge/fetcher.rs:1215
-    output wire cref_req_valid,          // rtl-gen/src/merge/fetcher.rs:1216
-    output wire [23:0] cref_req_data,    // rtl-gen/src/merge/fetcher.rs:1216
-    input  wire cref_req_ready,          // rtl-gen/src/merge/fetcher.rs:1216
-    output wire out_valid,               // rtl-gen/src/merge/fetcher.rs:1217
-    output wire [184:0] out_data,        // rtl-gen/src/merge/fetcher.rs:1217
-    input  wire out_ready,               // rtl-gen/src/merge/fetcher.rs:1217
-    output wire leaves_valid,            // rtl-gen/src/merge/fetcher.rs:1218
-    output wire [183:0] leaves_data,     // rtl-gen/src/merge/fetcher.rs:1218
-    input  wire leaves_ready,            // rtl-gen/src/merge/fetcher.rs:1218
-    output wire probe_req_valid,         // rtl-gen/src/merge/fetcher.rs:1220
-    output wire [23:0] probe_req_data,   // rtl-gen/src/merge/fetcher.rs:1220
-    input  wire probe_req_ready,         // rtl-gen/src/merge/fetcher.rs:1220
-    output wire idle                     // rtl-gen/src/merge/fetcher.rs:1222
+    input  wire report_valid,            // rtl-gen/src/merge/fetcher.rs:800
+    input  wire [55:0] report_data,      // rtl-gen/src/merge/fetcher.rs:800
+    output wire report_ready,            // rtl-gen/src/merge/fetcher.rs:800
+    input  wire probe_resp_valid,        // rtl-gen/src/merge/fetcher.rs:1314
+    input  wire [149:0] probe_resp_data, // rtl-gen/src/merge/fetcher.rs:1314
+    output wire probe_resp_ready,        // rtl-gen/src/merge/fetcher.rs:1314
+    output wire node_req_valid,          // rtl-gen/src/merge/fetcher.rs:1225
+    output wire [23:0] node_req_data,    // rtl-gen/src/merge/fetcher.rs:1225
+    input  wire node_req_ready,          // rtl-gen/src/merge/fetcher.rs:1225
+    output wire ref_req_valid,           // rtl-gen/src/merge/fetcher.rs:1226
+    output wire [23:0] ref_req_data,     // rtl-gen/src/merge/fetcher.rs:1226
+    input  wire ref_req_ready,           // rtl-gen/src/merge/fetcher.rs:1226
+    output wire cref_req_valid,          // rtl-gen/src/merge/fetcher.rs:1227
+    output wire [23:0] cref_req_data,    // rtl-gen/src/merge/fetcher.rs:1227
+    input  wire cref_req_ready,          // rtl-gen/src/merge/fetcher.rs:1227
+    output wire out_valid,               // rtl-gen/src/merge/fetcher.rs:1228
+    output wire [184:0] out_data,        // rtl-gen/src/merge/fetcher.rs:1228
+    input  wire out_ready,               // rtl-gen/src/merge/fetcher.rs:1228
+    output wire leaves_valid,            // rtl-gen/src/merge/fetcher.rs:1229
+    output wire [183:0] leaves_data,     // rtl-gen/src/merge/fetcher.rs:1229
+    input  wire leaves_ready,            // rtl-gen/src/merge/fetcher.rs:1229
+    output wire probe_req_valid,         // rtl-gen/src/merge/fetcher.rs:1231
+    output wire [23:0] probe_req_data,   // rtl-gen/src/merge/fetcher.rs:1231
+    input  wire probe_req_ready,         // rtl-gen/src/merge/fetcher.rs:1231
+    output wire idle                     // rtl-gen/src/merge/fetcher.rs:1233
 );
     reg [72:0] frontier [0:1023];            // rtl-gen/src/merge/fetcher.rs:85
     reg [24:0] ref_ctx [0:7];                // rtl-gen/src/merge/fetcher.rs:85
@@ -205,9 +205,9 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire root_outstanding_or;                // rtl-gen/src/merge/fetcher.rs:487
     wire [179:0] roots_all_taken_mux;        // rtl-gen/src/merge/fetcher.rs:489
     wire roots_all_taken_and;                // rtl-gen/src/merge/fetcher.rs:490
-    wire frontier_in_valid;                  // rtl-gen/src/merge/fetcher.rs:494
-    wire [72:0] frontier_in_data;            // rtl-gen/src/merge/fetcher.rs:494
-    wire frontier_in_ready;                  // rtl-gen/src/merge/fetcher.rs:494
+    wire frontier_in_valid;                  // rtl-gen/src/merge/fetcher.rs:497
+    wire [72:0] frontier_in_data;            // rtl-gen/src/merge/fetcher.rs:497
+    wire frontier_in_ready;                  // rtl-gen/src/merge/fetcher.rs:497
     reg [9:0] frontier_head;                 // rtl-gen/src/merge/fetcher.rs:86
     reg [9:0] frontier_tail;                 // rtl-gen/src/merge/fetcher.rs:87
     reg [10:0] frontier_count;               // rtl-gen/src/merge/fetcher.rs:88
@@ -222,13 +222,13 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire [9:0] frontier_tail_add;            // rtl-gen/src/merge/fetcher.rs:105
     wire [10:0] frontier_count_add;          // rtl-gen/src/merge/fetcher.rs:111
     wire [10:0] frontier_count_sub;          // rtl-gen/src/merge/fetcher.rs:112
-    reg range_valid;                         // rtl-gen/src/merge/fetcher.rs:502
-    reg [23:0] range_idx;                    // rtl-gen/src/merge/fetcher.rs:503
-    reg [24:0] range_end;                    // rtl-gen/src/merge/fetcher.rs:504
-    reg [23:0] range_parent;                 // rtl-gen/src/merge/fetcher.rs:505
-    wire ref_ctx_in_valid;                   // rtl-gen/src/merge/fetcher.rs:506
-    wire [24:0] ref_ctx_in_data;             // rtl-gen/src/merge/fetcher.rs:506
-    wire ref_ctx_in_ready;                   // rtl-gen/src/merge/fetcher.rs:506
+    reg range_valid;                         // rtl-gen/src/merge/fetcher.rs:505
+    reg [23:0] range_idx;                    // rtl-gen/src/merge/fetcher.rs:506
+    reg [24:0] range_end;                    // rtl-gen/src/merge/fetcher.rs:507
+    reg [23:0] range_parent;                 // rtl-gen/src/merge/fetcher.rs:508
+    wire ref_ctx_in_valid;                   // rtl-gen/src/merge/fetcher.rs:509
+    wire [24:0] ref_ctx_in_data;             // rtl-gen/src/merge/fetcher.rs:509
+    wire ref_ctx_in_ready;                   // rtl-gen/src/merge/fetcher.rs:509
     reg [2:0] ref_ctx_head;                  // rtl-gen/src/merge/fetcher.rs:86
     reg [2:0] ref_ctx_tail;                  // rtl-gen/src/merge/fetcher.rs:87
     reg [3:0] ref_ctx_count;                 // rtl-gen/src/merge/fetcher.rs:88
@@ -243,28 +243,28 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire [2:0] ref_ctx_tail_add;             // rtl-gen/src/merge/fetcher.rs:105
     wire [3:0] ref_ctx_count_add;            // rtl-gen/src/merge/fetcher.rs:111
     wire [3:0] ref_ctx_count_sub;            // rtl-gen/src/merge/fetcher.rs:112
-    wire walking_and;                        // rtl-gen/src/merge/fetcher.rs:508
-    wire ref_issue;                          // rtl-gen/src/merge/fetcher.rs:510
-    wire [23:0] range_idx_add;               // rtl-gen/src/merge/fetcher.rs:511
-    wire range_idx_eq;                       // rtl-gen/src/merge/fetcher.rs:512
-    wire walking_and_1;                      // rtl-gen/src/merge/fetcher.rs:514
-    wire frontier_out_data_not;              // rtl-gen/src/merge/fetcher.rs:514
-    wire walking_and_2;                      // rtl-gen/src/merge/fetcher.rs:514
-    wire range_valid_not;                    // rtl-gen/src/merge/fetcher.rs:514
-    wire ref_issue_and;                      // rtl-gen/src/merge/fetcher.rs:514
-    wire range_valid_or;                     // rtl-gen/src/merge/fetcher.rs:514
-    wire range_load;                         // rtl-gen/src/merge/fetcher.rs:514
-    wire walking_and_3;                      // rtl-gen/src/merge/fetcher.rs:516
-    wire walking_and_4;                      // rtl-gen/src/merge/fetcher.rs:516
-    wire range_valid_not_1;                  // rtl-gen/src/merge/fetcher.rs:516
-    wire walking_and_5;                      // rtl-gen/src/merge/fetcher.rs:516
-    wire marker_pop;                         // rtl-gen/src/merge/fetcher.rs:516
-    wire ref_issue_and_1;                    // rtl-gen/src/merge/fetcher.rs:520
-    wire [24:0] frontier_out_data_add;       // rtl-gen/src/merge/fetcher.rs:525
-    wire [23:0] marker_pop_mux;              // rtl-gen/src/merge/fetcher.rs:531
-    wire node_ctx_in_valid;                  // rtl-gen/src/merge/fetcher.rs:537
-    wire [33:0] node_ctx_in_data;            // rtl-gen/src/merge/fetcher.rs:537
-    wire node_ctx_in_ready;                  // rtl-gen/src/merge/fetcher.rs:537
+    wire walking_and;                        // rtl-gen/src/merge/fetcher.rs:511
+    wire ref_issue;                          // rtl-gen/src/merge/fetcher.rs:513
+    wire [23:0] range_idx_add;               // rtl-gen/src/merge/fetcher.rs:514
+    wire range_idx_eq;                       // rtl-gen/src/merge/fetcher.rs:515
+    wire walking_and_1;                      // rtl-gen/src/merge/fetcher.rs:517
+    wire frontier_out_data_not;              // rtl-gen/src/merge/fetcher.rs:517
+    wire walking_and_2;                      // rtl-gen/src/merge/fetcher.rs:517
+    wire range_valid_not;                    // rtl-gen/src/merge/fetcher.rs:517
+    wire ref_issue_and;                      // rtl-gen/src/merge/fetcher.rs:517
+    wire range_valid_or;                     // rtl-gen/src/merge/fetcher.rs:517
+    wire range_load;                         // rtl-gen/src/merge/fetcher.rs:517
+    wire walking_and_3;                      // rtl-gen/src/merge/fetcher.rs:519
+    wire walking_and_4;                      // rtl-gen/src/merge/fetcher.rs:519
+    wire range_valid_not_1;                  // rtl-gen/src/merge/fetcher.rs:519
+    wire walking_and_5;                      // rtl-gen/src/merge/fetcher.rs:519
+    wire marker_pop;                         // rtl-gen/src/merge/fetcher.rs:519
+    wire ref_issue_and_1;                    // rtl-gen/src/merge/fetcher.rs:523
+    wire [24:0] frontier_out_data_add;       // rtl-gen/src/merge/fetcher.rs:528
+    wire [23:0] marker_pop_mux;              // rtl-gen/src/merge/fetcher.rs:534
+    wire node_ctx_in_valid;                  // rtl-gen/src/merge/fetcher.rs:540
+    wire [33:0] node_ctx_in_data;            // rtl-gen/src/merge/fetcher.rs:540
+    wire node_ctx_in_ready;                  // rtl-gen/src/merge/fetcher.rs:540
     reg [2:0] node_ctx_head;                 // rtl-gen/src/merge/fetcher.rs:86
     reg [2:0] node_ctx_tail;                 // rtl-gen/src/merge/fetcher.rs:87
     reg [3:0] node_ctx_count;                // rtl-gen/src/merge/fetcher.rs:88
@@ -281,36 +281,36 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire [3:0] node_ctx_count_sub;           // rtl-gen/src/merge/fetcher.rs:112
     wire [23:0] resp_ref_node;               // rtl-gen/src/merge/fields.rs:13
     wire [3:0] resp_ref_hier;                // rtl-gen/src/merge/fields.rs:13
-    wire resp_ref_hier_ne;                   // rtl-gen/src/merge/fetcher.rs:546
-    wire resp_ref_node_ge;                   // rtl-gen/src/merge/fetcher.rs:549
-    wire [3:0] resp_ref_node_mux;            // rtl-gen/src/merge/fetcher.rs:549
-    wire [3:0] ref_code;                     // rtl-gen/src/merge/fetcher.rs:547
-    wire walking_and_6;                      // rtl-gen/src/merge/fetcher.rs:552
-    wire ref_ctx_out_data_not;               // rtl-gen/src/merge/fetcher.rs:552
-    wire walking_and_7;                      // rtl-gen/src/merge/fetcher.rs:552
-    wire walking_and_8;                      // rtl-gen/src/merge/fetcher.rs:552
-    wire ref_wait;                           // rtl-gen/src/merge/fetcher.rs:552
-    wire ref_take;                           // rtl-gen/src/merge/fetcher.rs:554
-    wire walking_and_9;                      // rtl-gen/src/merge/fetcher.rs:555
-    wire walking_and_10;                     // rtl-gen/src/merge/fetcher.rs:555
-    wire ref_stage_end;                      // rtl-gen/src/merge/fetcher.rs:555
-    wire walking_and_11;                     // rtl-gen/src/merge/fetcher.rs:558
-    wire ref_ctx_out_data_not_1;             // rtl-gen/src/merge/fetcher.rs:558
-    wire walking_and_12;                     // rtl-gen/src/merge/fetcher.rs:558
-    wire walking_and_13;                     // rtl-gen/src/merge/fetcher.rs:558
-    wire walking_and_14;                     // rtl-gen/src/merge/fetcher.rs:558
-    wire ref_code_eq;                        // rtl-gen/src/merge/fetcher.rs:558
-    wire walk_node_req;                      // rtl-gen/src/merge/fetcher.rs:558
-    wire [33:0] const_cat_1;                 // rtl-gen/src/merge/fetcher.rs:564
-    wire ref_code_eq_1;                      // rtl-gen/src/merge/fetcher.rs:565
-    wire [33:0] const_cat_2;                 // rtl-gen/src/merge/fetcher.rs:566
+    wire resp_ref_hier_ne;                   // rtl-gen/src/merge/fetcher.rs:549
+    wire resp_ref_node_ge;                   // rtl-gen/src/merge/fetcher.rs:552
+    wire [3:0] resp_ref_node_mux;            // rtl-gen/src/merge/fetcher.rs:552
+    wire [3:0] ref_code;                     // rtl-gen/src/merge/fetcher.rs:550
+    wire walking_and_6;                      // rtl-gen/src/merge/fetcher.rs:555
+    wire ref_ctx_out_data_not;               // rtl-gen/src/merge/fetcher.rs:555
+    wire walking_and_7;                      // rtl-gen/src/merge/fetcher.rs:555
+    wire walking_and_8;                      // rtl-gen/src/merge/fetcher.rs:555
+    wire ref_wait;                           // rtl-gen/src/merge/fetcher.rs:555
+    wire ref_take;                           // rtl-gen/src/merge/fetcher.rs:557
+    wire walking_and_9;                      // rtl-gen/src/merge/fetcher.rs:558
+    wire walking_and_10;                     // rtl-gen/src/merge/fetcher.rs:558
+    wire ref_stage_end;                      // rtl-gen/src/merge/fetcher.rs:558
+    wire walking_and_11;                     // rtl-gen/src/merge/fetcher.rs:561
+    wire ref_ctx_out_data_not_1;             // rtl-gen/src/merge/fetcher.rs:561
+    wire walking_and_12;                     // rtl-gen/src/merge/fetcher.rs:561
+    wire walking_and_13;                     // rtl-gen/src/merge/fetcher.rs:561
+    wire walking_and_14;                     // rtl-gen/src/merge/fetcher.rs:561
+    wire ref_code_eq;                        // rtl-gen/src/merge/fetcher.rs:561
+    wire walk_node_req;                      // rtl-gen/src/merge/fetcher.rs:561
+    wire [33:0] const_cat_1;                 // rtl-gen/src/merge/fetcher.rs:567
+    wire ref_code_eq_1;                      // rtl-gen/src/merge/fetcher.rs:568
+    wire [33:0] const_cat_2;                 // rtl-gen/src/merge/fetcher.rs:569
     wire [27:0] cfg_hier_cat_1;              // rtl-gen/src/merge/fetcher.rs:231
-    wire [33:0] const_cat_3;                 // rtl-gen/src/merge/fetcher.rs:567
-    wire [33:0] ref_code_mux;                // rtl-gen/src/merge/fetcher.rs:565
-    wire node_ctx_out_data_eq;               // rtl-gen/src/merge/fetcher.rs:583
-    wire out_items_in_valid;                 // rtl-gen/src/merge/fetcher.rs:585
-    wire [183:0] out_items_in_data;          // rtl-gen/src/merge/fetcher.rs:585
-    wire out_items_in_ready;                 // rtl-gen/src/merge/fetcher.rs:585
+    wire [33:0] const_cat_3;                 // rtl-gen/src/merge/fetcher.rs:570
+    wire [33:0] ref_code_mux;                // rtl-gen/src/merge/fetcher.rs:568
+    wire node_ctx_out_data_eq;               // rtl-gen/src/merge/fetcher.rs:586
+    wire out_items_in_valid;                 // rtl-gen/src/merge/fetcher.rs:588
+    wire [183:0] out_items_in_data;          // rtl-gen/src/merge/fetcher.rs:588
+    wire out_items_in_ready;                 // rtl-gen/src/merge/fetcher.rs:588
     reg [1:0] out_items_head;                // rtl-gen/src/merge/fetcher.rs:86
     reg [1:0] out_items_tail;                // rtl-gen/src/merge/fetcher.rs:87
     reg [2:0] out_items_count;               // rtl-gen/src/merge/fetcher.rs:88
@@ -325,160 +325,160 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire [1:0] out_items_tail_add;           // rtl-gen/src/merge/fetcher.rs:105
     wire [2:0] out_items_count_add;          // rtl-gen/src/merge/fetcher.rs:111
     wire [2:0] out_items_count_sub;          // rtl-gen/src/merge/fetcher.rs:112
-    wire walk_done_not;                      // rtl-gen/src/merge/fetcher.rs:587
-    wire visit_live;                         // rtl-gen/src/merge/fetcher.rs:587
-    wire above_level;                        // rtl-gen/src/merge/fetcher.rs:590
-    wire above_first;                        // rtl-gen/src/merge/fetcher.rs:591
-    wire above_first_not;                    // rtl-gen/src/merge/fetcher.rs:594
-    wire level_le;                           // rtl-gen/src/merge/fetcher.rs:594
-    wire level_or;                           // rtl-gen/src/merge/fetcher.rs:594
-    wire sending_level;                      // rtl-gen/src/merge/fetcher.rs:594
-    wire above_level_not;                    // rtl-gen/src/merge/fetcher.rs:598
-    wire pn_pass;                            // rtl-gen/src/merge/fetcher.rs:598
-    reg pn_visited;                          // rtl-gen/src/merge/fetcher.rs:601
-    wire pass_in_valid;                      // rtl-gen/src/merge/fetcher.rs:603
-    wire [119:0] pass_in_data;               // rtl-gen/src/merge/fetcher.rs:603
-    wire pass_in_ready;                      // rtl-gen/src/merge/fetcher.rs:603
-    reg leaves_end_sent;                     // rtl-gen/src/merge/fetcher.rs:610
-    wire visit_live_and;                     // rtl-gen/src/merge/fetcher.rs:611
-    wire leaves_end_sent_not;                // rtl-gen/src/merge/fetcher.rs:611
-    wire visit_live_and_1;                   // rtl-gen/src/merge/fetcher.rs:611
-    wire above_first_not_1;                  // rtl-gen/src/merge/fetcher.rs:611
-    wire leaves_end_due;                     // rtl-gen/src/merge/fetcher.rs:611
-    wire out_items_in_ready_and;             // rtl-gen/src/merge/fetcher.rs:613
-    wire cmd_send_leaves_not;                // rtl-gen/src/merge/fetcher.rs:613
-    wire cmd_send_leaves_or;                 // rtl-gen/src/merge/fetcher.rs:613
-    wire above_first_mux;                    // rtl-gen/src/merge/fetcher.rs:613
-    wire visit_room;                         // rtl-gen/src/merge/fetcher.rs:613
-    reg [4:0] end_next;                      // rtl-gen/src/merge/fetcher.rs:621
-    reg final_sent;                          // rtl-gen/src/merge/fetcher.rs:622
-    wire end_next_lt;                        // rtl-gen/src/merge/fetcher.rs:623
-    wire visit_live_and_2;                   // rtl-gen/src/merge/fetcher.rs:623
-    wire end_next_lt_1;                      // rtl-gen/src/merge/fetcher.rs:623
-    wire pre_ends;                           // rtl-gen/src/merge/fetcher.rs:623
-    wire walking_and_15;                     // rtl-gen/src/merge/fetcher.rs:624
-    wire final_sent_not;                     // rtl-gen/src/merge/fetcher.rs:624
-    wire ends_drain;                         // rtl-gen/src/merge/fetcher.rs:624
-    wire end_emit;                           // rtl-gen/src/merge/fetcher.rs:625
-    wire end_next_eq;                        // rtl-gen/src/merge/fetcher.rs:626
-    wire end_final;                          // rtl-gen/src/merge/fetcher.rs:626
-    wire end_fire;                           // rtl-gen/src/merge/fetcher.rs:627
-    wire at_top_and;                         // rtl-gen/src/merge/fetcher.rs:628
-    wire first_err_valid_not_2;              // rtl-gen/src/merge/fetcher.rs:629
-    wire at_top_and_1;                       // rtl-gen/src/merge/fetcher.rs:629
-    wire at_top_and_2;                       // rtl-gen/src/merge/fetcher.rs:629
-    wire first_err_valid_not_3;              // rtl-gen/src/merge/fetcher.rs:630
-    wire at_top_and_3;                       // rtl-gen/src/merge/fetcher.rs:630
-    wire header_err_not;                     // rtl-gen/src/merge/fetcher.rs:630
-    wire at_top_and_4;                       // rtl-gen/src/merge/fetcher.rs:630
-    wire at_top_not;                         // rtl-gen/src/merge/fetcher.rs:631
-    reg capacity_told;                       // rtl-gen/src/merge/fetcher.rs:635
-    wire at_top_and_5;                       // rtl-gen/src/merge/fetcher.rs:636
-    wire at_top_and_6;                       // rtl-gen/src/merge/fetcher.rs:636
-    wire at_top_and_7;                       // rtl-gen/src/merge/fetcher.rs:636
-    wire capacity_told_not;                  // rtl-gen/src/merge/fetcher.rs:636
-    wire sorter_dropped;                     // rtl-gen/src/merge/fetcher.rs:636
-    wire at_top_or;                          // rtl-gen/src/merge/fetcher.rs:638
-    wire at_top_and_8;                       // rtl-gen/src/merge/fetcher.rs:640
-    wire at_top_or_1;                        // rtl-gen/src/merge/fetcher.rs:638
-    wire at_top_and_9;                       // rtl-gen/src/merge/fetcher.rs:641
-    wire node_ctx_out_data_not;              // rtl-gen/src/merge/fetcher.rs:641
-    wire node_ctx_out_data_or;               // rtl-gen/src/merge/fetcher.rs:641
-    wire at_top_and_10;                      // rtl-gen/src/merge/fetcher.rs:641
-    wire at_top_or_2;                        // rtl-gen/src/merge/fetcher.rs:638
-    wire visit_avail;                        // rtl-gen/src/merge/fetcher.rs:637
-    wire pre_ends_not;                       // rtl-gen/src/merge/fetcher.rs:644
-    wire visit_room_and;                     // rtl-gen/src/merge/fetcher.rs:644
-    wire pn_visited_not;                     // rtl-gen/src/merge/fetcher.rs:644
-    wire visit_room_and_1;                   // rtl-gen/src/merge/fetcher.rs:644
-    wire visit_free;                         // rtl-gen/src/merge/fetcher.rs:644
-    wire visit_go;                           // rtl-gen/src/merge/fetcher.rs:648
-    wire visit_live_and_3;                   // rtl-gen/src/merge/fetcher.rs:649
-    wire sorter_dropped_not;                 // rtl-gen/src/merge/fetcher.rs:649
-    wire visit_live_and_4;                   // rtl-gen/src/merge/fetcher.rs:649
-    wire visit_live_and_5;                   // rtl-gen/src/merge/fetcher.rs:649
-    wire visit_go_and;                       // rtl-gen/src/merge/fetcher.rs:650
-    wire visit_live_and_6;                   // rtl-gen/src/merge/fetcher.rs:652
-    wire node_ctx_out_data_not_1;            // rtl-gen/src/merge/fetcher.rs:652
-    wire node_ctx_out_data_or_1;             // rtl-gen/src/merge/fetcher.rs:652
-    wire visit_live_and_7;                   // rtl-gen/src/merge/fetcher.rs:652
-    wire root_outstanding_and_3;             // rtl-gen/src/merge/fetcher.rs:655
-    wire visit_live_and_8;                   // rtl-gen/src/merge/fetcher.rs:655
-    wire visit_live_and_9;                   // rtl-gen/src/merge/fetcher.rs:655
-    wire visit_live_and_10;                  // rtl-gen/src/merge/fetcher.rs:655
-    wire visit_live_and_11;                  // rtl-gen/src/merge/fetcher.rs:655
-    wire visit_go_and_1;                     // rtl-gen/src/merge/fetcher.rs:656
-    wire node_code_ne_1;                     // rtl-gen/src/merge/fetcher.rs:657
-    wire node_ctx_out_data_eq_1;             // rtl-gen/src/merge/fetcher.rs:657
-    wire node_ctx_out_data_mux;              // rtl-gen/src/merge/fetcher.rs:657
-    wire at_top_or_3;                        // rtl-gen/src/merge/fetcher.rs:658
-    wire at_top_and_11;                      // rtl-gen/src/merge/fetcher.rs:658
-    wire item_err;                           // rtl-gen/src/merge/fetcher.rs:658
-    wire at_top_and_12;                      // rtl-gen/src/merge/fetcher.rs:660
-    wire sorter_dropped_not_1;               // rtl-gen/src/merge/fetcher.rs:660
-    wire at_top_and_13;                      // rtl-gen/src/merge/fetcher.rs:660
-    wire at_top_or_4;                        // rtl-gen/src/merge/fetcher.rs:660
-    wire node_ctx_out_data_eq_2;             // rtl-gen/src/merge/fetcher.rs:660
-    wire at_top_and_14;                      // rtl-gen/src/merge/fetcher.rs:660
-    wire item_end;                           // rtl-gen/src/merge/fetcher.rs:660
-    wire item_err_not;                       // rtl-gen/src/merge/fetcher.rs:662
-    wire item_end_not;                       // rtl-gen/src/merge/fetcher.rs:662
-    wire item_node;                          // rtl-gen/src/merge/fetcher.rs:662
-    wire [3:0] node_ctx_out_data_mux_1;      // rtl-gen/src/merge/fetcher.rs:667
-    wire [3:0] sorter_dropped_mux;           // rtl-gen/src/merge/fetcher.rs:665
-    wire [3:0] at_top_mux;                   // rtl-gen/src/merge/fetcher.rs:663
-    wire [23:0] sorter_dropped_mux_1;        // rtl-gen/src/merge/fetcher.rs:671
-    wire [23:0] at_top_mux_1;                // rtl-gen/src/merge/fetcher.rs:671
-    wire [149:0] item_rec;                   // rtl-gen/src/merge/fetcher.rs:672
-    wire [27:0] item_ref;                    // rtl-gen/src/merge/fetcher.rs:673
+    wire walk_done_not;                      // rtl-gen/src/merge/fetcher.rs:590
+    wire visit_live;                         // rtl-gen/src/merge/fetcher.rs:590
+    wire above_level;                        // rtl-gen/src/merge/fetcher.rs:593
+    wire above_first;                        // rtl-gen/src/merge/fetcher.rs:594
+    wire above_first_not;                    // rtl-gen/src/merge/fetcher.rs:597
+    wire level_le;                           // rtl-gen/src/merge/fetcher.rs:597
+    wire level_or;                           // rtl-gen/src/merge/fetcher.rs:597
+    wire sending_level;                      // rtl-gen/src/merge/fetcher.rs:597
+    wire above_level_not;                    // rtl-gen/src/merge/fetcher.rs:601
+    wire pn_pass;                            // rtl-gen/src/merge/fetcher.rs:601
+    reg pn_visited;                          // rtl-gen/src/merge/fetcher.rs:604
+    wire pass_in_valid;                      // rtl-gen/src/merge/fetcher.rs:615
+    wire [119:0] pass_in_data;               // rtl-gen/src/merge/fetcher.rs:615
+    wire pass_in_ready;                      // rtl-gen/src/merge/fetcher.rs:615
+    reg leaves_end_sent;                     // rtl-gen/src/merge/fetcher.rs:622
+    wire visit_live_and;                     // rtl-gen/src/merge/fetcher.rs:623
+    wire leaves_end_sent_not;                // rtl-gen/src/merge/fetcher.rs:623
+    wire visit_live_and_1;                   // rtl-gen/src/merge/fetcher.rs:623
+    wire above_first_not_1;                  // rtl-gen/src/merge/fetcher.rs:623
+    wire leaves_end_due;                     // rtl-gen/src/merge/fetcher.rs:623
+    wire out_items_in_ready_and;             // rtl-gen/src/merge/fetcher.rs:625
+    wire cmd_send_leaves_not;                // rtl-gen/src/merge/fetcher.rs:625
+    wire cmd_send_leaves_or;                 // rtl-gen/src/merge/fetcher.rs:625
+    wire above_first_mux;                    // rtl-gen/src/merge/fetcher.rs:625
+    wire visit_room;                         // rtl-gen/src/merge/fetcher.rs:625
+    reg [4:0] end_next;                      // rtl-gen/src/merge/fetcher.rs:633
+    reg final_sent;                          // rtl-gen/src/merge/fetcher.rs:634
+    wire end_next_lt;                        // rtl-gen/src/merge/fetcher.rs:635
+    wire visit_live_and_2;                   // rtl-gen/src/merge/fetcher.rs:635
+    wire end_next_lt_1;                      // rtl-gen/src/merge/fetcher.rs:635
+    wire pre_ends;                           // rtl-gen/src/merge/fetcher.rs:635
+    wire walking_and_15;                     // rtl-gen/src/merge/fetcher.rs:636
+    wire final_sent_not;                     // rtl-gen/src/merge/fetcher.rs:636
+    wire ends_drain;                         // rtl-gen/src/merge/fetcher.rs:636
+    wire end_emit;                           // rtl-gen/src/merge/fetcher.rs:637
+    wire end_next_eq;                        // rtl-gen/src/merge/fetcher.rs:638
+    wire end_final;                          // rtl-gen/src/merge/fetcher.rs:638
+    wire end_fire;                           // rtl-gen/src/merge/fetcher.rs:639
+    wire at_top_and;                         // rtl-gen/src/merge/fetcher.rs:640
+    wire first_err_valid_not_2;              // rtl-gen/src/merge/fetcher.rs:641
+    wire at_top_and_1;                       // rtl-gen/src/merge/fetcher.rs:641
+    wire at_top_and_2;                       // rtl-gen/src/merge/fetcher.rs:641
+    wire first_err_valid_not_3;              // rtl-gen/src/merge/fetcher.rs:642
+    wire at_top_and_3;                       // rtl-gen/src/merge/fetcher.rs:642
+    wire header_err_not;                     // rtl-gen/src/merge/fetcher.rs:642
+    wire at_top_and_4;                       // rtl-gen/src/merge/fetcher.rs:642
+    wire at_top_not;                         // rtl-gen/src/merge/fetcher.rs:643
+    reg capacity_told;                       // rtl-gen/src/merge/fetcher.rs:647
+    wire at_top_and_5;                       // rtl-gen/src/merge/fetcher.rs:648
+    wire at_top_and_6;                       // rtl-gen/src/merge/fetcher.rs:648
+    wire at_top_and_7;                       // rtl-gen/src/merge/fetcher.rs:648
+    wire capacity_told_not;                  // rtl-gen/src/merge/fetcher.rs:648
+    wire sorter_dropped;                     // rtl-gen/src/merge/fetcher.rs:648
+    wire at_top_or;                          // rtl-gen/src/merge/fetcher.rs:650
+    wire at_top_and_8;                       // rtl-gen/src/merge/fetcher.rs:652
+    wire at_top_or_1;                        // rtl-gen/src/merge/fetcher.rs:650
+    wire at_top_and_9;                       // rtl-gen/src/merge/fetcher.rs:653
+    wire node_ctx_out_data_not;              // rtl-gen/src/merge/fetcher.rs:653
+    wire node_ctx_out_data_or;               // rtl-gen/src/merge/fetcher.rs:653
+    wire at_top_and_10;                      // rtl-gen/src/merge/fetcher.rs:653
+    wire at_top_or_2;                        // rtl-gen/src/merge/fetcher.rs:650
+    wire visit_avail;                        // rtl-gen/src/merge/fetcher.rs:649
+    wire pre_ends_not;                       // rtl-gen/src/merge/fetcher.rs:656
+    wire visit_room_and;                     // rtl-gen/src/merge/fetcher.rs:656
+    wire pn_visited_not;                     // rtl-gen/src/merge/fetcher.rs:656
+    wire visit_room_and_1;                   // rtl-gen/src/merge/fetcher.rs:656
+    wire visit_free;                         // rtl-gen/src/merge/fetcher.rs:656
+    wire visit_go;                           // rtl-gen/src/merge/fetcher.rs:660
+    wire visit_live_and_3;                   // rtl-gen/src/merge/fetcher.rs:661
+    wire sorter_dropped_not;                 // rtl-gen/src/merge/fetcher.rs:661
+    wire visit_live_and_4;                   // rtl-gen/src/merge/fetcher.rs:661
+    wire visit_live_and_5;                   // rtl-gen/src/merge/fetcher.rs:661
+    wire visit_go_and;                       // rtl-gen/src/merge/fetcher.rs:662
+    wire visit_live_and_6;                   // rtl-gen/src/merge/fetcher.rs:664
+    wire node_ctx_out_data_not_1;            // rtl-gen/src/merge/fetcher.rs:664
+    wire node_ctx_out_data_or_1;             // rtl-gen/src/merge/fetcher.rs:664
+    wire visit_live_and_7;                   // rtl-gen/src/merge/fetcher.rs:664
+    wire root_outstanding_and_3;             // rtl-gen/src/merge/fetcher.rs:667
+    wire visit_live_and_8;                   // rtl-gen/src/merge/fetcher.rs:667
+    wire visit_live_and_9;                   // rtl-gen/src/merge/fetcher.rs:667
+    wire visit_live_and_10;                  // rtl-gen/src/merge/fetcher.rs:667
+    wire visit_live_and_11;                  // rtl-gen/src/merge/fetcher.rs:667
+    wire visit_go_and_1;                     // rtl-gen/src/merge/fetcher.rs:668
+    wire node_code_ne_1;                     // rtl-gen/src/merge/fetcher.rs:669
+    wire node_ctx_out_data_eq_1;             // rtl-gen/src/merge/fetcher.rs:669
+    wire node_ctx_out_data_mux;              // rtl-gen/src/merge/fetcher.rs:669
+    wire at_top_or_3;                        // rtl-gen/src/merge/fetcher.rs:670
+    wire at_top_and_11;                      // rtl-gen/src/merge/fetcher.rs:670
+    wire item_err;                           // rtl-gen/src/merge/fetcher.rs:670
+    wire at_top_and_12;                      // rtl-gen/src/merge/fetcher.rs:672
+    wire sorter_dropped_not_1;               // rtl-gen/src/merge/fetcher.rs:672
+    wire at_top_and_13;                      // rtl-gen/src/merge/fetcher.rs:672
+    wire at_top_or_4;                        // rtl-gen/src/merge/fetcher.rs:672
+    wire node_ctx_out_data_eq_2;             // rtl-gen/src/merge/fetcher.rs:672
+    wire at_top_and_14;                      // rtl-gen/src/merge/fetcher.rs:672
+    wire item_end;                           // rtl-gen/src/merge/fetcher.rs:672
+    wire item_err_not;                       // rtl-gen/src/merge/fetcher.rs:674
+    wire item_end_not;                       // rtl-gen/src/merge/fetcher.rs:674
+    wire item_node;                          // rtl-gen/src/merge/fetcher.rs:674
+    wire [3:0] node_ctx_out_data_mux_1;      // rtl-gen/src/merge/fetcher.rs:679
+    wire [3:0] sorter_dropped_mux;           // rtl-gen/src/merge/fetcher.rs:677
+    wire [3:0] at_top_mux;                   // rtl-gen/src/merge/fetcher.rs:675
+    wire [23:0] sorter_dropped_mux_1;        // rtl-gen/src/merge/fetcher.rs:683
+    wire [23:0] at_top_mux_1;                // rtl-gen/src/merge/fetcher.rs:683
+    wire [149:0] item_rec;                   // rtl-gen/src/merge/fetcher.rs:684
+    wire [27:0] item_ref;                    // rtl-gen/src/merge/fetcher.rs:685
     wire item_leaf;                          // rtl-gen/src/merge/fields.rs:13
-    wire item_leaf_not;                      // rtl-gen/src/merge/fetcher.rs:677
+    wire item_leaf_not;                      // rtl-gen/src/merge/fetcher.rs:689
     wire [47:0] item_rec_cat;                // rtl-gen/src/merge/network.rs:46
-    wire [48:0] item_key;                    // rtl-gen/src/merge/fetcher.rs:679
-    wire [24:0] item_range_end;              // rtl-gen/src/merge/fetcher.rs:691
-    wire at_level;                           // rtl-gen/src/merge/fetcher.rs:693
-    wire item_key_le;                        // rtl-gen/src/merge/fetcher.rs:694
-    wire order_bad;                          // rtl-gen/src/merge/fetcher.rs:694
-    wire at_level_and;                       // rtl-gen/src/merge/fetcher.rs:698
-    wire above_level_or;                     // rtl-gen/src/merge/fetcher.rs:698
-    wire above_level_or_1;                   // rtl-gen/src/merge/fetcher.rs:698
-    wire above_level_or_2;                   // rtl-gen/src/merge/fetcher.rs:698
-    wire item_leaf_and;                      // rtl-gen/src/merge/fetcher.rs:701
-    wire item_range_end_gt;                  // rtl-gen/src/merge/fetcher.rs:701
-    wire range_bad;                          // rtl-gen/src/merge/fetcher.rs:701
-    wire item_leaf_and_1;                    // rtl-gen/src/merge/fetcher.rs:702
-    wire pushed_ge;                          // rtl-gen/src/merge/fetcher.rs:702
-    wire frontier_bad;                       // rtl-gen/src/merge/fetcher.rs:702
-    wire [3:0] frontier_bad_mux;             // rtl-gen/src/merge/fetcher.rs:711
-    wire [3:0] range_bad_mux;                // rtl-gen/src/merge/fetcher.rs:709
-    wire [3:0] order_bad_mux;                // rtl-gen/src/merge/fetcher.rs:707
-    wire [3:0] item_end_mux;                 // rtl-gen/src/merge/fetcher.rs:705
-    wire [3:0] visit_code;                   // rtl-gen/src/merge/fetcher.rs:703
-    wire [23:0] item_err_mux;                // rtl-gen/src/merge/fetcher.rs:717
-    wire visit_code_ne;                      // rtl-gen/src/merge/fetcher.rs:718
-    wire visit_fails;                        // rtl-gen/src/merge/fetcher.rs:718
-    wire visit_go_and_2;                     // rtl-gen/src/merge/fetcher.rs:719
-    wire visit_code_eq;                      // rtl-gen/src/merge/fetcher.rs:719
-    wire visit_passes;                       // rtl-gen/src/merge/fetcher.rs:719
-    wire visit_passes_and;                   // rtl-gen/src/merge/fetcher.rs:720
-    wire frontier_push;                      // rtl-gen/src/merge/fetcher.rs:720
-    wire visit_passes_and_1;                 // rtl-gen/src/merge/fetcher.rs:721
-    wire visit_passes_and_2;                 // rtl-gen/src/merge/fetcher.rs:721
-    wire visit_passes_and_3;                 // rtl-gen/src/merge/fetcher.rs:721
-    wire visit_errored_not;                  // rtl-gen/src/merge/fetcher.rs:721
-    wire leaf_out;                           // rtl-gen/src/merge/fetcher.rs:721
-    wire to_out;                             // rtl-gen/src/merge/fetcher.rs:722
-    wire pushed_ne;                          // rtl-gen/src/merge/fetcher.rs:723
-    wire next_level;                         // rtl-gen/src/merge/fetcher.rs:723
-    wire level_end;                          // rtl-gen/src/merge/fetcher.rs:724
-    wire next_level_not;                     // rtl-gen/src/merge/fetcher.rs:730
-    wire walk_ran_out;                       // rtl-gen/src/merge/fetcher.rs:730
-    wire pn_pass_end;                        // rtl-gen/src/merge/fetcher.rs:731
-    wire cmd_per_node_not;                   // rtl-gen/src/merge/fetcher.rs:732
-    wire walk_over;                          // rtl-gen/src/merge/fetcher.rs:732
-    wire marker_push;                        // rtl-gen/src/merge/fetcher.rs:739
-    wire visit_passes_and_4;                 // rtl-gen/src/merge/fetcher.rs:741
-    wire pass_push;                          // rtl-gen/src/merge/fetcher.rs:741
+    wire [48:0] item_key;                    // rtl-gen/src/merge/fetcher.rs:691
+    wire [24:0] item_range_end;              // rtl-gen/src/merge/fetcher.rs:703
+    wire at_level;                           // rtl-gen/src/merge/fetcher.rs:705
+    wire item_key_le;                        // rtl-gen/src/merge/fetcher.rs:706
+    wire order_bad;                          // rtl-gen/src/merge/fetcher.rs:706
+    wire at_level_and;                       // rtl-gen/src/merge/fetcher.rs:710
+    wire above_level_or;                     // rtl-gen/src/merge/fetcher.rs:710
+    wire above_level_or_1;                   // rtl-gen/src/merge/fetcher.rs:710
+    wire above_level_or_2;                   // rtl-gen/src/merge/fetcher.rs:710
+    wire item_leaf_and;                      // rtl-gen/src/merge/fetcher.rs:713
+    wire item_range_end_gt;                  // rtl-gen/src/merge/fetcher.rs:713
+    wire range_bad;                          // rtl-gen/src/merge/fetcher.rs:713
+    wire item_leaf_and_1;                    // rtl-gen/src/merge/fetcher.rs:714
+    wire pushed_ge;                          // rtl-gen/src/merge/fetcher.rs:714
+    wire frontier_bad;                       // rtl-gen/src/merge/fetcher.rs:714
+    wire [3:0] frontier_bad_mux;             // rtl-gen/src/merge/fetcher.rs:723
+    wire [3:0] range_bad_mux;                // rtl-gen/src/merge/fetcher.rs:721
+    wire [3:0] order_bad_mux;                // rtl-gen/src/merge/fetcher.rs:719
+    wire [3:0] item_end_mux;                 // rtl-gen/src/merge/fetcher.rs:717
+    wire [3:0] visit_code;                   // rtl-gen/src/merge/fetcher.rs:715
+    wire [23:0] item_err_mux;                // rtl-gen/src/merge/fetcher.rs:729
+    wire visit_code_ne;                      // rtl-gen/src/merge/fetcher.rs:730
+    wire visit_fails;                        // rtl-gen/src/merge/fetcher.rs:730
+    wire visit_go_and_2;                     // rtl-gen/src/merge/fetcher.rs:731
+    wire visit_code_eq;                      // rtl-gen/src/merge/fetcher.rs:731
+    wire visit_passes;                       // rtl-gen/src/merge/fetcher.rs:731
+    wire visit_passes_and;                   // rtl-gen/src/merge/fetcher.rs:732
+    wire frontier_push;                      // rtl-gen/src/merge/fetcher.rs:732
+    wire visit_passes_and_1;                 // rtl-gen/src/merge/fetcher.rs:733
+    wire visit_passes_and_2;                 // rtl-gen/src/merge/fetcher.rs:733
+    wire visit_passes_and_3;                 // rtl-gen/src/merge/fetcher.rs:733
+    wire visit_errored_not;                  // rtl-gen/src/merge/fetcher.rs:733
+    wire leaf_out;                           // rtl-gen/src/merge/fetcher.rs:733
+    wire to_out;                             // rtl-gen/src/merge/fetcher.rs:734
+    wire pushed_ne;                          // rtl-gen/src/merge/fetcher.rs:735
+    wire next_level;                         // rtl-gen/src/merge/fetcher.rs:735
+    wire level_end;                          // rtl-gen/src/merge/fetcher.rs:736
+    wire next_level_not;                     // rtl-gen/src/merge/fetcher.rs:742
+    wire walk_ran_out;                       // rtl-gen/src/merge/fetcher.rs:742
+    wire pn_pass_end;                        // rtl-gen/src/merge/fetcher.rs:743
+    wire cmd_per_node_not;                   // rtl-gen/src/merge/fetcher.rs:744
+    wire walk_over;                          // rtl-gen/src/merge/fetcher.rs:744
+    wire marker_push;                        // rtl-gen/src/merge/fetcher.rs:751
+    wire visit_passes_and_4;                 // rtl-gen/src/merge/fetcher.rs:753
+    wire pass_push;                          // rtl-gen/src/merge/fetcher.rs:753
     reg [7:0] pass_head;                     // rtl-gen/src/merge/fetcher.rs:86
     reg [7:0] pass_tail;                     // rtl-gen/src/merge/fetcher.rs:87
     reg [8:0] pass_count;                    // rtl-gen/src/merge/fetcher.rs:88
@@ -493,103 +493,103 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire [7:0] pass_tail_add;                // rtl-gen/src/merge/fetcher.rs:105
     wire [8:0] pass_count_add;               // rtl-gen/src/merge/fetcher.rs:111
     wire [8:0] pass_count_sub;               // rtl-gen/src/merge/fetcher.rs:112
-    wire marker_push_or;                     // rtl-gen/src/merge/fetcher.rs:751
-    wire end_next_eq_1;                      // rtl-gen/src/merge/fetcher.rs:754
-    wire level_end_push;                     // rtl-gen/src/merge/fetcher.rs:754
-    wire end_final_not;                      // rtl-gen/src/merge/fetcher.rs:757
-    wire end_fire_and;                       // rtl-gen/src/merge/fetcher.rs:757
-    wire end_fire_or;                        // rtl-gen/src/merge/fetcher.rs:757
-    wire [4:0] end_next_add;                 // rtl-gen/src/merge/fetcher.rs:757
-    wire end_fire_and_1;                     // rtl-gen/src/merge/fetcher.rs:759
-    wire visit_go_and_3;                     // rtl-gen/src/merge/fetcher.rs:763
-    wire visit_go_and_4;                     // rtl-gen/src/merge/fetcher.rs:765
-    wire frontier_push_or;                   // rtl-gen/src/merge/fetcher.rs:767
-    wire [8:0] pushed_add;                   // rtl-gen/src/merge/fetcher.rs:772
-    wire [4:0] level_add;                    // rtl-gen/src/merge/fetcher.rs:774
-    reg pn_end_left;                         // rtl-gen/src/merge/fetcher.rs:790
+    wire marker_push_or;                     // rtl-gen/src/merge/fetcher.rs:763
+    wire end_next_eq_1;                      // rtl-gen/src/merge/fetcher.rs:766
+    wire level_end_push;                     // rtl-gen/src/merge/fetcher.rs:766
+    wire end_final_not;                      // rtl-gen/src/merge/fetcher.rs:769
+    wire end_fire_and;                       // rtl-gen/src/merge/fetcher.rs:769
+    wire end_fire_or;                        // rtl-gen/src/merge/fetcher.rs:769
+    wire [4:0] end_next_add;                 // rtl-gen/src/merge/fetcher.rs:769
+    wire end_fire_and_1;                     // rtl-gen/src/merge/fetcher.rs:771
+    wire visit_go_and_3;                     // rtl-gen/src/merge/fetcher.rs:775
+    wire visit_go_and_4;                     // rtl-gen/src/merge/fetcher.rs:777
+    wire frontier_push_or;                   // rtl-gen/src/merge/fetcher.rs:779
+    wire [8:0] pushed_add;                   // rtl-gen/src/merge/fetcher.rs:784
+    wire [4:0] level_add;                    // rtl-gen/src/merge/fetcher.rs:786
+    reg pn_end_left;                         // rtl-gen/src/merge/fetcher.rs:802
     wire [47:0] report_key;                  // rtl-gen/src/merge/network.rs:46
-    wire report_data_lt;                     // rtl-gen/src/merge/fetcher.rs:798
-    wire report_data_and;                    // rtl-gen/src/merge/fetcher.rs:798
-    wire walking_and_16;                     // rtl-gen/src/merge/fetcher.rs:804
-    wire join_valid;                         // rtl-gen/src/merge/fetcher.rs:804
-    wire report_data_not;                    // rtl-gen/src/merge/fetcher.rs:805
-    wire join_decision;                      // rtl-gen/src/merge/fetcher.rs:805
-    wire pass_out_data_lt;                   // rtl-gen/src/merge/fetcher.rs:806
-    wire join_entry_before;                  // rtl-gen/src/merge/fetcher.rs:806
-    wire pass_out_data_eq;                   // rtl-gen/src/merge/fetcher.rs:807
-    wire join_entry_at;                      // rtl-gen/src/merge/fetcher.rs:807
-    wire join_decision_and;                  // rtl-gen/src/merge/fetcher.rs:808
-    wire join_valid_and;                     // rtl-gen/src/merge/fetcher.rs:808
-    wire join_valid_and_1;                   // rtl-gen/src/merge/fetcher.rs:808
-    wire join_entry_stays;                   // rtl-gen/src/merge/fetcher.rs:808
-    wire join_decision_and_1;                // rtl-gen/src/merge/fetcher.rs:809
-    wire report_data_not_1;                  // rtl-gen/src/merge/fetcher.rs:809
-    wire report_data_or;                     // rtl-gen/src/merge/fetcher.rs:809
-    wire join_match;                         // rtl-gen/src/merge/fetcher.rs:809
-    wire join_descend;                       // rtl-gen/src/merge/fetcher.rs:810
-    wire pass_out_valid_not;                 // rtl-gen/src/merge/fetcher.rs:811
-    wire pass_out_valid_and_1;               // rtl-gen/src/merge/fetcher.rs:811
-    wire join_entry_before_not;              // rtl-gen/src/merge/fetcher.rs:811
-    wire pass_out_valid_and_2;               // rtl-gen/src/merge/fetcher.rs:811
-    wire join_entry_at_not;                  // rtl-gen/src/merge/fetcher.rs:811
-    wire pass_out_valid_and_3;               // rtl-gen/src/merge/fetcher.rs:811
-    wire pass_out_valid_or;                  // rtl-gen/src/merge/fetcher.rs:811
-    wire join_other_voxel;                   // rtl-gen/src/merge/fetcher.rs:811
-    wire join_valid_and_2;                   // rtl-gen/src/merge/fetcher.rs:814
-    wire pass_out_valid_not_1;               // rtl-gen/src/merge/fetcher.rs:814
-    wire join_valid_and_3;                   // rtl-gen/src/merge/fetcher.rs:814
-    wire join_valid_and_4;                   // rtl-gen/src/merge/fetcher.rs:814
-    wire join_valid_and_5;                   // rtl-gen/src/merge/fetcher.rs:814
-    wire report_data_not_2;                  // rtl-gen/src/merge/fetcher.rs:814
-    wire report_data_or_1;                   // rtl-gen/src/merge/fetcher.rs:814
-    wire join_pass_end;                      // rtl-gen/src/merge/fetcher.rs:814
-    wire join_marker;                        // rtl-gen/src/merge/fetcher.rs:816
-    wire join_match_or;                      // rtl-gen/src/merge/fetcher.rs:818
-    wire frontier_push_or_1;                 // rtl-gen/src/merge/fetcher.rs:819
-    wire frontier_push_or_2;                 // rtl-gen/src/merge/fetcher.rs:819
-    wire join_descend_or;                    // rtl-gen/src/merge/fetcher.rs:820
-    wire [72:0] join_marker_cat;             // rtl-gen/src/merge/fetcher.rs:821
-    wire [72:0] marker_push_cat;             // rtl-gen/src/merge/fetcher.rs:822
-    wire report_data_not_3;                  // rtl-gen/src/merge/fetcher.rs:830
-    wire join_pass_end_and;                  // rtl-gen/src/merge/fetcher.rs:830
-    wire [183:0] const_cat_4;                // rtl-gen/src/merge/fetcher.rs:839
-    wire [183:0] const_cat_5;                // rtl-gen/src/merge/fetcher.rs:848
-    wire leaves_end_sent_not_1;              // rtl-gen/src/merge/fetcher.rs:852
-    wire walk_ran_out_and;                   // rtl-gen/src/merge/fetcher.rs:852
-    wire walk_ran_out_and_1;                 // rtl-gen/src/merge/fetcher.rs:856
-    wire walk_ran_out_and_2;                 // rtl-gen/src/merge/fetcher.rs:856
-    wire leaves_end_due_and;                 // rtl-gen/src/merge/fetcher.rs:856
-    wire leaves_end_fire;                    // rtl-gen/src/merge/fetcher.rs:856
-    wire walk_ran_out_and_3;                 // rtl-gen/src/merge/fetcher.rs:860
-    wire walk_ran_out_and_4;                 // rtl-gen/src/merge/fetcher.rs:860
-    wire leaf_out_or;                        // rtl-gen/src/merge/fetcher.rs:860
-    wire visit_errored_not_1;                // rtl-gen/src/merge/fetcher.rs:868
-    wire visit_fails_and;                    // rtl-gen/src/merge/fetcher.rs:868
-    wire to_out_or;                          // rtl-gen/src/merge/fetcher.rs:868
-    wire to_out_or_1;                        // rtl-gen/src/merge/fetcher.rs:868
-    wire to_out_or_2;                        // rtl-gen/src/merge/fetcher.rs:868
-    wire level_end_push_or;                  // rtl-gen/src/merge/fetcher.rs:880
-    wire level_end_push_or_1;                // rtl-gen/src/merge/fetcher.rs:880
-    wire [1:0] level_end_push_mux;           // rtl-gen/src/merge/fetcher.rs:883
-    wire [1:0] end_final_mux;                // rtl-gen/src/merge/fetcher.rs:877
-    wire [1:0] visit_fails_mux_1;            // rtl-gen/src/merge/fetcher.rs:875
+    wire report_data_lt;                     // rtl-gen/src/merge/fetcher.rs:810
+    wire report_data_and;                    // rtl-gen/src/merge/fetcher.rs:810
+    wire walking_and_16;                     // rtl-gen/src/merge/fetcher.rs:815
+    wire join_valid;                         // rtl-gen/src/merge/fetcher.rs:815
+    wire report_data_not;                    // rtl-gen/src/merge/fetcher.rs:816
+    wire join_decision;                      // rtl-gen/src/merge/fetcher.rs:816
+    wire pass_out_data_lt;                   // rtl-gen/src/merge/fetcher.rs:817
+    wire join_entry_before;                  // rtl-gen/src/merge/fetcher.rs:817
+    wire pass_out_data_eq;                   // rtl-gen/src/merge/fetcher.rs:818
+    wire join_entry_at;                      // rtl-gen/src/merge/fetcher.rs:818
+    wire join_decision_and;                  // rtl-gen/src/merge/fetcher.rs:819
+    wire join_valid_and;                     // rtl-gen/src/merge/fetcher.rs:819
+    wire join_valid_and_1;                   // rtl-gen/src/merge/fetcher.rs:819
+    wire join_entry_stays;                   // rtl-gen/src/merge/fetcher.rs:819
+    wire join_decision_and_1;                // rtl-gen/src/merge/fetcher.rs:820
+    wire report_data_not_1;                  // rtl-gen/src/merge/fetcher.rs:820
+    wire report_data_or;                     // rtl-gen/src/merge/fetcher.rs:820
+    wire join_match;                         // rtl-gen/src/merge/fetcher.rs:820
+    wire join_descend;                       // rtl-gen/src/merge/fetcher.rs:821
+    wire pass_out_valid_not;                 // rtl-gen/src/merge/fetcher.rs:822
+    wire pass_out_valid_and_1;               // rtl-gen/src/merge/fetcher.rs:822
+    wire join_entry_before_not;              // rtl-gen/src/merge/fetcher.rs:822
+    wire pass_out_valid_and_2;               // rtl-gen/src/merge/fetcher.rs:822
+    wire join_entry_at_not;                  // rtl-gen/src/merge/fetcher.rs:822
+    wire pass_out_valid_and_3;               // rtl-gen/src/merge/fetcher.rs:822
+    wire pass_out_valid_or;                  // rtl-gen/src/merge/fetcher.rs:822
+    wire join_other_voxel;                   // rtl-gen/src/merge/fetcher.rs:822
+    wire join_valid_and_2;                   // rtl-gen/src/merge/fetcher.rs:825
+    wire pass_out_valid_not_1;               // rtl-gen/src/merge/fetcher.rs:825
+    wire join_valid_and_3;                   // rtl-gen/src/merge/fetcher.rs:825
+    wire join_valid_and_4;                   // rtl-gen/src/merge/fetcher.rs:825
+    wire join_valid_and_5;                   // rtl-gen/src/merge/fetcher.rs:825
+    wire report_data_not_2;                  // rtl-gen/src/merge/fetcher.rs:825
+    wire report_data_or_1;                   // rtl-gen/src/merge/fetcher.rs:825
+    wire join_pass_end;                      // rtl-gen/src/merge/fetcher.rs:825
+    wire join_marker;                        // rtl-gen/src/merge/fetcher.rs:827
+    wire join_match_or;                      // rtl-gen/src/merge/fetcher.rs:829
+    wire frontier_push_or_1;                 // rtl-gen/src/merge/fetcher.rs:830
+    wire frontier_push_or_2;                 // rtl-gen/src/merge/fetcher.rs:830
+    wire join_descend_or;                    // rtl-gen/src/merge/fetcher.rs:831
+    wire [72:0] join_marker_cat;             // rtl-gen/src/merge/fetcher.rs:832
+    wire [72:0] marker_push_cat;             // rtl-gen/src/merge/fetcher.rs:833
+    wire report_data_not_3;                  // rtl-gen/src/merge/fetcher.rs:841
+    wire join_pass_end_and;                  // rtl-gen/src/merge/fetcher.rs:841
+    wire [183:0] const_cat_4;                // rtl-gen/src/merge/fetcher.rs:850
+    wire [183:0] const_cat_5;                // rtl-gen/src/merge/fetcher.rs:859
+    wire leaves_end_sent_not_1;              // rtl-gen/src/merge/fetcher.rs:863
+    wire walk_ran_out_and;                   // rtl-gen/src/merge/fetcher.rs:863
+    wire walk_ran_out_and_1;                 // rtl-gen/src/merge/fetcher.rs:867
+    wire walk_ran_out_and_2;                 // rtl-gen/src/merge/fetcher.rs:867
+    wire leaves_end_due_and;                 // rtl-gen/src/merge/fetcher.rs:867
+    wire leaves_end_fire;                    // rtl-gen/src/merge/fetcher.rs:867
+    wire walk_ran_out_and_3;                 // rtl-gen/src/merge/fetcher.rs:871
+    wire walk_ran_out_and_4;                 // rtl-gen/src/merge/fetcher.rs:871
+    wire leaf_out_or;                        // rtl-gen/src/merge/fetcher.rs:871
+    wire visit_errored_not_1;                // rtl-gen/src/merge/fetcher.rs:879
+    wire visit_fails_and;                    // rtl-gen/src/merge/fetcher.rs:879
+    wire to_out_or;                          // rtl-gen/src/merge/fetcher.rs:879
+    wire to_out_or_1;                        // rtl-gen/src/merge/fetcher.rs:879
+    wire to_out_or_2;                        // rtl-gen/src/merge/fetcher.rs:879
+    wire level_end_push_or;                  // rtl-gen/src/merge/fetcher.rs:891
+    wire level_end_push_or_1;                // rtl-gen/src/merge/fetcher.rs:891
+    wire [1:0] level_end_push_mux;           // rtl-gen/src/merge/fetcher.rs:894
+    wire [1:0] end_final_mux;                // rtl-gen/src/merge/fetcher.rs:888
+    wire [1:0] visit_fails_mux_1;            // rtl-gen/src/merge/fetcher.rs:886
     wire [27:0] cfg_hier_cat_2;              // rtl-gen/src/merge/fetcher.rs:231
-    wire [27:0] visit_fails_mux_2;           // rtl-gen/src/merge/fetcher.rs:887
-    wire out_items_out_data_eq;              // rtl-gen/src/merge/fetcher.rs:901
-    wire [47:0] out_items_out_data_cat;      // rtl-gen/src/merge/fetcher.rs:903
-    wire [24:0] out_items_out_data_add;      // rtl-gen/src/merge/fetcher.rs:909
-    reg pend_valid;                          // rtl-gen/src/merge/fetcher.rs:913
-    reg [23:0] pend_first;                   // rtl-gen/src/merge/fetcher.rs:914
-    reg [24:0] pend_end;                     // rtl-gen/src/merge/fetcher.rs:915
-    reg [47:0] pend_voxel;                   // rtl-gen/src/merge/fetcher.rs:916
-    reg [23:0] pend_node;                    // rtl-gen/src/merge/fetcher.rs:917
-    reg cref_active;                         // rtl-gen/src/merge/fetcher.rs:918
-    reg [23:0] cref_idx;                     // rtl-gen/src/merge/fetcher.rs:919
-    reg [24:0] cref_end;                     // rtl-gen/src/merge/fetcher.rs:920
-    reg [23:0] cref_parent;                  // rtl-gen/src/merge/fetcher.rs:921
-    wire out_tokens_in_valid;                // rtl-gen/src/merge/fetcher.rs:923
-    wire [186:0] out_tokens_in_data;         // rtl-gen/src/merge/fetcher.rs:923
-    wire out_tokens_in_ready;                // rtl-gen/src/merge/fetcher.rs:923
+    wire [27:0] visit_fails_mux_2;           // rtl-gen/src/merge/fetcher.rs:898
+    wire out_items_out_data_eq;              // rtl-gen/src/merge/fetcher.rs:912
+    wire [47:0] out_items_out_data_cat;      // rtl-gen/src/merge/fetcher.rs:914
+    wire [24:0] out_items_out_data_add;      // rtl-gen/src/merge/fetcher.rs:920
+    reg pend_valid;                          // rtl-gen/src/merge/fetcher.rs:924
+    reg [23:0] pend_first;                   // rtl-gen/src/merge/fetcher.rs:925
+    reg [24:0] pend_end;                     // rtl-gen/src/merge/fetcher.rs:926
+    reg [47:0] pend_voxel;                   // rtl-gen/src/merge/fetcher.rs:927
+    reg [23:0] pend_node;                    // rtl-gen/src/merge/fetcher.rs:928
+    reg cref_active;                         // rtl-gen/src/merge/fetcher.rs:929
+    reg [23:0] cref_idx;                     // rtl-gen/src/merge/fetcher.rs:930
+    reg [24:0] cref_end;                     // rtl-gen/src/merge/fetcher.rs:931
+    reg [23:0] cref_parent;                  // rtl-gen/src/merge/fetcher.rs:932
+    wire out_tokens_in_valid;                // rtl-gen/src/merge/fetcher.rs:934
+    wire [186:0] out_tokens_in_data;         // rtl-gen/src/merge/fetcher.rs:934
+    wire out_tokens_in_ready;                // rtl-gen/src/merge/fetcher.rs:934
     reg [1:0] out_tokens_head;               // rtl-gen/src/merge/fetcher.rs:86
     reg [1:0] out_tokens_tail;               // rtl-gen/src/merge/fetcher.rs:87
     reg [2:0] out_tokens_count;              // rtl-gen/src/merge/fetcher.rs:88
@@ -604,124 +604,124 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire [1:0] out_tokens_tail_add;          // rtl-gen/src/merge/fetcher.rs:105
     wire [2:0] out_tokens_count_add;         // rtl-gen/src/merge/fetcher.rs:111
     wire [2:0] out_tokens_count_sub;         // rtl-gen/src/merge/fetcher.rs:112
-    wire walking_and_17;                     // rtl-gen/src/merge/fetcher.rs:925
-    wire order_room;                         // rtl-gen/src/merge/fetcher.rs:925
-    wire pend_valid_and;                     // rtl-gen/src/merge/fetcher.rs:926
-    wire pend_valid_and_1;                   // rtl-gen/src/merge/fetcher.rs:926
-    wire out_items_out_data_eq_1;            // rtl-gen/src/merge/fetcher.rs:926
-    wire leaf_of_held;                       // rtl-gen/src/merge/fetcher.rs:926
-    wire cref_next;                          // rtl-gen/src/merge/fetcher.rs:927
-    wire cref_active_not;                    // rtl-gen/src/merge/fetcher.rs:928
-    wire order_room_and;                     // rtl-gen/src/merge/fetcher.rs:928
-    wire order_room_and_1;                   // rtl-gen/src/merge/fetcher.rs:928
-    wire held_leaf;                          // rtl-gen/src/merge/fetcher.rs:928
-    wire cref_active_not_1;                  // rtl-gen/src/merge/fetcher.rs:930
-    wire order_room_and_2;                   // rtl-gen/src/merge/fetcher.rs:930
-    wire order_room_and_3;                   // rtl-gen/src/merge/fetcher.rs:930
-    wire order_room_and_4;                   // rtl-gen/src/merge/fetcher.rs:930
-    wire leaf_of_held_not;                   // rtl-gen/src/merge/fetcher.rs:930
-    wire held_refs_first;                    // rtl-gen/src/merge/fetcher.rs:930
-    wire out_items_out_data_not;             // rtl-gen/src/merge/fetcher.rs:945
-    wire out_items_out_data_and;             // rtl-gen/src/merge/fetcher.rs:945
-    wire item_pass_inner;                    // rtl-gen/src/merge/fetcher.rs:945
-    reg probe_active;                        // rtl-gen/src/merge/fetcher.rs:947
-    reg probes_sent;                         // rtl-gen/src/merge/fetcher.rs:948
-    wire cref_active_not_2;                  // rtl-gen/src/merge/fetcher.rs:950
-    wire probe_active_not;                   // rtl-gen/src/merge/fetcher.rs:950
-    wire cref_active_and;                    // rtl-gen/src/merge/fetcher.rs:950
-    wire cref_active_and_1;                  // rtl-gen/src/merge/fetcher.rs:950
-    wire pend_valid_not;                     // rtl-gen/src/merge/fetcher.rs:950
-    wire cref_active_and_2;                  // rtl-gen/src/merge/fetcher.rs:950
-    wire cref_active_and_3;                  // rtl-gen/src/merge/fetcher.rs:950
-    wire probes_sent_not;                    // rtl-gen/src/merge/fetcher.rs:950
-    wire probe_first_ok;                     // rtl-gen/src/merge/fetcher.rs:950
-    reg [23:0] probe_idx;                    // rtl-gen/src/merge/fetcher.rs:954
-    reg [24:0] probe_end;                    // rtl-gen/src/merge/fetcher.rs:955
-    reg [23:0] probe_parent;                 // rtl-gen/src/merge/fetcher.rs:956
-    reg [4:0] probe_lod;                     // rtl-gen/src/merge/fetcher.rs:957
-    wire probe_first;                        // rtl-gen/src/merge/fetcher.rs:959
-    wire probe_next;                         // rtl-gen/src/merge/fetcher.rs:960
-    wire cref_active_not_3;                  // rtl-gen/src/merge/fetcher.rs:965
-    wire order_room_and_5;                   // rtl-gen/src/merge/fetcher.rs:965
-    wire order_room_and_6;                   // rtl-gen/src/merge/fetcher.rs:965
-    wire pend_valid_not_1;                   // rtl-gen/src/merge/fetcher.rs:965
-    wire order_room_and_7;                   // rtl-gen/src/merge/fetcher.rs:965
-    wire probe_active_not_1;                 // rtl-gen/src/merge/fetcher.rs:965
-    wire order_room_and_8;                   // rtl-gen/src/merge/fetcher.rs:965
-    wire item_pass_inner_not;                // rtl-gen/src/merge/fetcher.rs:965
-    wire item_pass_inner_or;                 // rtl-gen/src/merge/fetcher.rs:965
-    wire item_out;                           // rtl-gen/src/merge/fetcher.rs:965
-    wire walking_and_18;                     // rtl-gen/src/merge/fetcher.rs:974
-    wire cref_active_not_4;                  // rtl-gen/src/merge/fetcher.rs:976
-    wire cref_active_and_4;                  // rtl-gen/src/merge/fetcher.rs:976
-    wire cref_active_and_5;                  // rtl-gen/src/merge/fetcher.rs:976
-    wire leaf_of_held_not_1;                 // rtl-gen/src/merge/fetcher.rs:976
-    wire cref_active_and_6;                  // rtl-gen/src/merge/fetcher.rs:976
-    wire cref_active_or;                     // rtl-gen/src/merge/fetcher.rs:975
-    wire cref_active_or_1;                   // rtl-gen/src/merge/fetcher.rs:975
-    wire cref_active_or_2;                   // rtl-gen/src/merge/fetcher.rs:975
-    wire [23:0] cref_active_mux;             // rtl-gen/src/merge/fetcher.rs:982
-    wire [23:0] probe_first_ok_mux;          // rtl-gen/src/merge/fetcher.rs:982
-    wire [23:0] probe_idx_add;               // rtl-gen/src/merge/fetcher.rs:985
-    wire probe_idx_eq;                       // rtl-gen/src/merge/fetcher.rs:986
-    wire probe_idx_not;                      // rtl-gen/src/merge/fetcher.rs:989
-    wire out_items_out_data_ne;              // rtl-gen/src/merge/fetcher.rs:989
-    wire probe_next_and;                     // rtl-gen/src/merge/fetcher.rs:994
-    wire out_items_out_data_eq_2;            // rtl-gen/src/merge/fetcher.rs:994
-    wire probe_first_and;                    // rtl-gen/src/merge/fetcher.rs:994
-    wire probe_next_or;                      // rtl-gen/src/merge/fetcher.rs:994
-    wire [23:0] out_items_out_data_add_1;    // rtl-gen/src/merge/fetcher.rs:1000
-    wire [23:0] cref_idx_add;                // rtl-gen/src/merge/fetcher.rs:1016
-    wire [23:0] pend_first_add;              // rtl-gen/src/merge/fetcher.rs:1017
-    wire cref_idx_ne;                        // rtl-gen/src/merge/fetcher.rs:1021
-    wire pend_first_ne;                      // rtl-gen/src/merge/fetcher.rs:1024
-    wire held_leaf_or;                       // rtl-gen/src/merge/fetcher.rs:1032
-    wire held_leaf_or_1;                     // rtl-gen/src/merge/fetcher.rs:1033
-    wire item_out_and;                       // rtl-gen/src/merge/fetcher.rs:1035
-    wire out_items_out_data_not_1;           // rtl-gen/src/merge/fetcher.rs:1035
-    wire item_out_and_1;                     // rtl-gen/src/merge/fetcher.rs:1035
-    wire cmd_send_refs_or;                   // rtl-gen/src/merge/fetcher.rs:1035
-    wire hold_refs;                          // rtl-gen/src/merge/fetcher.rs:1035
-    wire held_leaf_or_2;                     // rtl-gen/src/merge/fetcher.rs:1041
-    wire [1:0] out_items_out_data_mux;       // rtl-gen/src/merge/fetcher.rs:1052
+    wire walking_and_17;                     // rtl-gen/src/merge/fetcher.rs:936
+    wire order_room;                         // rtl-gen/src/merge/fetcher.rs:936
+    wire pend_valid_and;                     // rtl-gen/src/merge/fetcher.rs:937
+    wire pend_valid_and_1;                   // rtl-gen/src/merge/fetcher.rs:937
+    wire out_items_out_data_eq_1;            // rtl-gen/src/merge/fetcher.rs:937
+    wire leaf_of_held;                       // rtl-gen/src/merge/fetcher.rs:937
+    wire cref_next;                          // rtl-gen/src/merge/fetcher.rs:938
+    wire cref_active_not;                    // rtl-gen/src/merge/fetcher.rs:939
+    wire order_room_and;                     // rtl-gen/src/merge/fetcher.rs:939
+    wire order_room_and_1;                   // rtl-gen/src/merge/fetcher.rs:939
+    wire held_leaf;                          // rtl-gen/src/merge/fetcher.rs:939
+    wire cref_active_not_1;                  // rtl-gen/src/merge/fetcher.rs:941
+    wire order_room_and_2;                   // rtl-gen/src/merge/fetcher.rs:941
+    wire order_room_and_3;                   // rtl-gen/src/merge/fetcher.rs:941
+    wire order_room_and_4;                   // rtl-gen/src/merge/fetcher.rs:941
+    wire leaf_of_held_not;                   // rtl-gen/src/merge/fetcher.rs:941
+    wire held_refs_first;                    // rtl-gen/src/merge/fetcher.rs:941
+    wire out_items_out_data_not;             // rtl-gen/src/merge/fetcher.rs:956
+    wire out_items_out_data_and;             // rtl-gen/src/merge/fetcher.rs:956
+    wire item_pass_inner;                    // rtl-gen/src/merge/fetcher.rs:956
+    reg probe_active;                        // rtl-gen/src/merge/fetcher.rs:958
+    reg probes_sent;                         // rtl-gen/src/merge/fetcher.rs:959
+    wire cref_active_not_2;                  // rtl-gen/src/merge/fetcher.rs:961
+    wire probe_active_not;                   // rtl-gen/src/merge/fetcher.rs:961
+    wire cref_active_and;                    // rtl-gen/src/merge/fetcher.rs:961
+    wire cref_active_and_1;                  // rtl-gen/src/merge/fetcher.rs:961
+    wire pend_valid_not;                     // rtl-gen/src/merge/fetcher.rs:961
+    wire cref_active_and_2;                  // rtl-gen/src/merge/fetcher.rs:961
+    wire cref_active_and_3;                  // rtl-gen/src/merge/fetcher.rs:961
+    wire probes_sent_not;                    // rtl-gen/src/merge/fetcher.rs:961
+    wire probe_first_ok;                     // rtl-gen/src/merge/fetcher.rs:961
+    reg [23:0] probe_idx;                    // rtl-gen/src/merge/fetcher.rs:965
+    reg [24:0] probe_end;                    // rtl-gen/src/merge/fetcher.rs:966
+    reg [23:0] probe_parent;                 // rtl-gen/src/merge/fetcher.rs:967
+    reg [4:0] probe_lod;                     // rtl-gen/src/merge/fetcher.rs:968
+    wire probe_first;                        // rtl-gen/src/merge/fetcher.rs:970
+    wire probe_next;                         // rtl-gen/src/merge/fetcher.rs:971
+    wire cref_active_not_3;                  // rtl-gen/src/merge/fetcher.rs:976
+    wire order_room_and_5;                   // rtl-gen/src/merge/fetcher.rs:976
+    wire order_room_and_6;                   // rtl-gen/src/merge/fetcher.rs:976
+    wire pend_valid_not_1;                   // rtl-gen/src/merge/fetcher.rs:976
+    wire order_room_and_7;                   // rtl-gen/src/merge/fetcher.rs:976
+    wire probe_active_not_1;                 // rtl-gen/src/merge/fetcher.rs:976
+    wire order_room_and_8;                   // rtl-gen/src/merge/fetcher.rs:976
+    wire item_pass_inner_not;                // rtl-gen/src/merge/fetcher.rs:976
+    wire item_pass_inner_or;                 // rtl-gen/src/merge/fetcher.rs:976
+    wire item_out;                           // rtl-gen/src/merge/fetcher.rs:976
+    wire walking_and_18;                     // rtl-gen/src/merge/fetcher.rs:985
+    wire cref_active_not_4;                  // rtl-gen/src/merge/fetcher.rs:987
+    wire cref_active_and_4;                  // rtl-gen/src/merge/fetcher.rs:987
+    wire cref_active_and_5;                  // rtl-gen/src/merge/fetcher.rs:987
+    wire leaf_of_held_not_1;                 // rtl-gen/src/merge/fetcher.rs:987
+    wire cref_active_and_6;                  // rtl-gen/src/merge/fetcher.rs:987
+    wire cref_active_or;                     // rtl-gen/src/merge/fetcher.rs:986
+    wire cref_active_or_1;                   // rtl-gen/src/merge/fetcher.rs:986
+    wire cref_active_or_2;                   // rtl-gen/src/merge/fetcher.rs:986
+    wire [23:0] cref_active_mux;             // rtl-gen/src/merge/fetcher.rs:993
+    wire [23:0] probe_first_ok_mux;          // rtl-gen/src/merge/fetcher.rs:993
+    wire [23:0] probe_idx_add;               // rtl-gen/src/merge/fetcher.rs:996
+    wire probe_idx_eq;                       // rtl-gen/src/merge/fetcher.rs:997
+    wire probe_idx_not;                      // rtl-gen/src/merge/fetcher.rs:1000
+    wire out_items_out_data_ne;              // rtl-gen/src/merge/fetcher.rs:1000
+    wire probe_next_and;                     // rtl-gen/src/merge/fetcher.rs:1005
+    wire out_items_out_data_eq_2;            // rtl-gen/src/merge/fetcher.rs:1005
+    wire probe_first_and;                    // rtl-gen/src/merge/fetcher.rs:1005
+    wire probe_next_or;                      // rtl-gen/src/merge/fetcher.rs:1005
+    wire [23:0] out_items_out_data_add_1;    // rtl-gen/src/merge/fetcher.rs:1011
+    wire [23:0] cref_idx_add;                // rtl-gen/src/merge/fetcher.rs:1027
+    wire [23:0] pend_first_add;              // rtl-gen/src/merge/fetcher.rs:1028
+    wire cref_idx_ne;                        // rtl-gen/src/merge/fetcher.rs:1032
+    wire pend_first_ne;                      // rtl-gen/src/merge/fetcher.rs:1035
+    wire held_leaf_or;                       // rtl-gen/src/merge/fetcher.rs:1043
+    wire held_leaf_or_1;                     // rtl-gen/src/merge/fetcher.rs:1044
+    wire item_out_and;                       // rtl-gen/src/merge/fetcher.rs:1046
+    wire out_items_out_data_not_1;           // rtl-gen/src/merge/fetcher.rs:1046
+    wire item_out_and_1;                     // rtl-gen/src/merge/fetcher.rs:1046
+    wire cmd_send_refs_or;                   // rtl-gen/src/merge/fetcher.rs:1046
+    wire hold_refs;                          // rtl-gen/src/merge/fetcher.rs:1046
+    wire held_leaf_or_2;                     // rtl-gen/src/merge/fetcher.rs:1052
+    wire [1:0] out_items_out_data_mux;       // rtl-gen/src/merge/fetcher.rs:1063
     wire [184:0] const_cat_6;                // rtl-gen/src/merge/fetcher.rs:254
     wire [184:0] const_cat_7;                // rtl-gen/src/merge/fetcher.rs:254
     wire [184:0] const_cat_8;                // rtl-gen/src/merge/fetcher.rs:254
-    wire [23:0] cref_active_mux_1;           // rtl-gen/src/merge/fetcher.rs:1077
-    wire [186:0] const_cat_9;                // rtl-gen/src/merge/fetcher.rs:1074
-    wire out_items_out_data_eq_3;            // rtl-gen/src/merge/fetcher.rs:1079
-    wire [186:0] const_cat_10;               // rtl-gen/src/merge/fetcher.rs:1080
-    wire out_items_out_data_eq_4;            // rtl-gen/src/merge/fetcher.rs:1081
-    wire [186:0] const_cat_11;               // rtl-gen/src/merge/fetcher.rs:1082
-    wire out_items_out_data_eq_5;            // rtl-gen/src/merge/fetcher.rs:1083
-    wire [186:0] const_cat_12;               // rtl-gen/src/merge/fetcher.rs:1084
-    wire [186:0] const_cat_13;               // rtl-gen/src/merge/fetcher.rs:1085
-    wire [186:0] out_items_out_data_mux_1;   // rtl-gen/src/merge/fetcher.rs:1083
-    wire [186:0] out_items_out_data_mux_2;   // rtl-gen/src/merge/fetcher.rs:1081
-    wire [186:0] out_items_out_data_mux_3;   // rtl-gen/src/merge/fetcher.rs:1079
-    wire [4:0] probe_first_mux_1;            // rtl-gen/src/merge/fetcher.rs:1096
-    wire [23:0] probe_first_mux_2;           // rtl-gen/src/merge/fetcher.rs:1099
-    wire [186:0] const_cat_14;               // rtl-gen/src/merge/fetcher.rs:1093
-    wire cref_next_or;                       // rtl-gen/src/merge/fetcher.rs:1103
-    wire cref_next_or_1;                     // rtl-gen/src/merge/fetcher.rs:1103
-    wire cref_next_or_2;                     // rtl-gen/src/merge/fetcher.rs:1103
-    wire cref_next_or_3;                     // rtl-gen/src/merge/fetcher.rs:1103
-    wire probe_first_or;                     // rtl-gen/src/merge/fetcher.rs:1105
-    wire cref_next_or_4;                     // rtl-gen/src/merge/fetcher.rs:1105
-    wire [186:0] cref_next_mux_1;            // rtl-gen/src/merge/fetcher.rs:1105
-    wire token_cref;                         // rtl-gen/src/merge/fetcher.rs:1289
-    wire token_probe;                        // rtl-gen/src/merge/fetcher.rs:1290
-    wire cref_resp_data_ne;                  // rtl-gen/src/merge/fetcher.rs:1295
-    wire cref_resp_data_ge;                  // rtl-gen/src/merge/fetcher.rs:1298
-    wire [3:0] cref_resp_data_mux;           // rtl-gen/src/merge/fetcher.rs:1298
-    wire [3:0] cref_code;                    // rtl-gen/src/merge/fetcher.rs:1296
-    wire cref_code_eq;                       // rtl-gen/src/merge/fetcher.rs:1301
-    wire probe_req_core_valid;               // rtl-gen/src/merge/fetcher.rs:1302
-    wire [23:0] probe_req_core_data;         // rtl-gen/src/merge/fetcher.rs:1302
-    wire probe_req_core_ready;               // rtl-gen/src/merge/fetcher.rs:1302
-    wire out_probes_in_valid;                // rtl-gen/src/merge/fetcher.rs:1304
-    wire [186:0] out_probes_in_data;         // rtl-gen/src/merge/fetcher.rs:1304
-    wire out_probes_in_ready;                // rtl-gen/src/merge/fetcher.rs:1304
+    wire [23:0] cref_active_mux_1;           // rtl-gen/src/merge/fetcher.rs:1088
+    wire [186:0] const_cat_9;                // rtl-gen/src/merge/fetcher.rs:1085
+    wire out_items_out_data_eq_3;            // rtl-gen/src/merge/fetcher.rs:1090
+    wire [186:0] const_cat_10;               // rtl-gen/src/merge/fetcher.rs:1091
+    wire out_items_out_data_eq_4;            // rtl-gen/src/merge/fetcher.rs:1092
+    wire [186:0] const_cat_11;               // rtl-gen/src/merge/fetcher.rs:1093
+    wire out_items_out_data_eq_5;            // rtl-gen/src/merge/fetcher.rs:1094
+    wire [186:0] const_cat_12;               // rtl-gen/src/merge/fetcher.rs:1095
+    wire [186:0] const_cat_13;               // rtl-gen/src/merge/fetcher.rs:1096
+    wire [186:0] out_items_out_data_mux_1;   // rtl-gen/src/merge/fetcher.rs:1094
+    wire [186:0] out_items_out_data_mux_2;   // rtl-gen/src/merge/fetcher.rs:1092
+    wire [186:0] out_items_out_data_mux_3;   // rtl-gen/src/merge/fetcher.rs:1090
+    wire [4:0] probe_first_mux_1;            // rtl-gen/src/merge/fetcher.rs:1107
+    wire [23:0] probe_first_mux_2;           // rtl-gen/src/merge/fetcher.rs:1110
+    wire [186:0] const_cat_14;               // rtl-gen/src/merge/fetcher.rs:1104
+    wire cref_next_or;                       // rtl-gen/src/merge/fetcher.rs:1114
+    wire cref_next_or_1;                     // rtl-gen/src/merge/fetcher.rs:1114
+    wire cref_next_or_2;                     // rtl-gen/src/merge/fetcher.rs:1114
+    wire cref_next_or_3;                     // rtl-gen/src/merge/fetcher.rs:1114
+    wire probe_first_or;                     // rtl-gen/src/merge/fetcher.rs:1116
+    wire cref_next_or_4;                     // rtl-gen/src/merge/fetcher.rs:1116
+    wire [186:0] cref_next_mux_1;            // rtl-gen/src/merge/fetcher.rs:1116
+    wire token_cref;                         // rtl-gen/src/merge/fetcher.rs:1300
+    wire token_probe;                        // rtl-gen/src/merge/fetcher.rs:1301
+    wire cref_resp_data_ne;                  // rtl-gen/src/merge/fetcher.rs:1306
+    wire cref_resp_data_ge;                  // rtl-gen/src/merge/fetcher.rs:1309
+    wire [3:0] cref_resp_data_mux;           // rtl-gen/src/merge/fetcher.rs:1309
+    wire [3:0] cref_code;                    // rtl-gen/src/merge/fetcher.rs:1307
+    wire cref_code_eq;                       // rtl-gen/src/merge/fetcher.rs:1312
+    wire probe_req_core_valid;               // rtl-gen/src/merge/fetcher.rs:1313
+    wire [23:0] probe_req_core_data;         // rtl-gen/src/merge/fetcher.rs:1313
+    wire probe_req_core_ready;               // rtl-gen/src/merge/fetcher.rs:1313
+    wire out_probes_in_valid;                // rtl-gen/src/merge/fetcher.rs:1315
+    wire [186:0] out_probes_in_data;         // rtl-gen/src/merge/fetcher.rs:1315
+    wire out_probes_in_ready;                // rtl-gen/src/merge/fetcher.rs:1315
     reg [2:0] out_probes_head;               // rtl-gen/src/merge/fetcher.rs:86
     reg [2:0] out_probes_tail;               // rtl-gen/src/merge/fetcher.rs:87
     reg [3:0] out_probes_count;              // rtl-gen/src/merge/fetcher.rs:88
@@ -736,30 +736,30 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire [2:0] out_probes_tail_add;          // rtl-gen/src/merge/fetcher.rs:105
     wire [3:0] out_probes_count_add;         // rtl-gen/src/merge/fetcher.rs:111
     wire [3:0] out_probes_count_sub;         // rtl-gen/src/merge/fetcher.rs:112
-    wire token_cref_not;                     // rtl-gen/src/merge/fetcher.rs:1306
-    wire token_answered;                     // rtl-gen/src/merge/fetcher.rs:1306
-    wire token_probe_not;                    // rtl-gen/src/merge/fetcher.rs:1307
-    wire token_probe_or;                     // rtl-gen/src/merge/fetcher.rs:1307
-    wire answer_room;                        // rtl-gen/src/merge/fetcher.rs:1307
-    wire walking_and_19;                     // rtl-gen/src/merge/fetcher.rs:1308
-    wire walking_and_20;                     // rtl-gen/src/merge/fetcher.rs:1308
-    wire token_fire;                         // rtl-gen/src/merge/fetcher.rs:1308
-    wire walking_and_21;                     // rtl-gen/src/merge/fetcher.rs:1310
-    wire walking_and_22;                     // rtl-gen/src/merge/fetcher.rs:1310
-    wire walking_and_23;                     // rtl-gen/src/merge/fetcher.rs:1313
-    wire walking_and_24;                     // rtl-gen/src/merge/fetcher.rs:1313
-    wire walking_and_25;                     // rtl-gen/src/merge/fetcher.rs:1313
-    wire walking_and_26;                     // rtl-gen/src/merge/fetcher.rs:1313
-    wire [5:0] out_tokens_out_data_add;      // rtl-gen/src/merge/fetcher.rs:1317
-    wire [186:0] const_cat_15;               // rtl-gen/src/merge/fetcher.rs:1318
+    wire token_cref_not;                     // rtl-gen/src/merge/fetcher.rs:1317
+    wire token_answered;                     // rtl-gen/src/merge/fetcher.rs:1317
+    wire token_probe_not;                    // rtl-gen/src/merge/fetcher.rs:1318
+    wire token_probe_or;                     // rtl-gen/src/merge/fetcher.rs:1318
+    wire answer_room;                        // rtl-gen/src/merge/fetcher.rs:1318
+    wire walking_and_19;                     // rtl-gen/src/merge/fetcher.rs:1319
+    wire walking_and_20;                     // rtl-gen/src/merge/fetcher.rs:1319
+    wire token_fire;                         // rtl-gen/src/merge/fetcher.rs:1319
+    wire walking_and_21;                     // rtl-gen/src/merge/fetcher.rs:1321
+    wire walking_and_22;                     // rtl-gen/src/merge/fetcher.rs:1321
+    wire walking_and_23;                     // rtl-gen/src/merge/fetcher.rs:1324
+    wire walking_and_24;                     // rtl-gen/src/merge/fetcher.rs:1324
+    wire walking_and_25;                     // rtl-gen/src/merge/fetcher.rs:1324
+    wire walking_and_26;                     // rtl-gen/src/merge/fetcher.rs:1324
+    wire [5:0] out_tokens_out_data_add;      // rtl-gen/src/merge/fetcher.rs:1328
+    wire [186:0] const_cat_15;               // rtl-gen/src/merge/fetcher.rs:1329
     wire [184:0] const_cat_16;               // rtl-gen/src/merge/fetcher.rs:254
     wire [27:0] cfg_hier_cat_3;              // rtl-gen/src/merge/fetcher.rs:231
     wire [184:0] const_cat_17;               // rtl-gen/src/merge/fetcher.rs:254
-    wire [186:0] const_cat_18;               // rtl-gen/src/merge/fetcher.rs:1343
-    wire [186:0] token_probe_mux;            // rtl-gen/src/merge/fetcher.rs:1343
-    wire [186:0] const_cat_19;               // rtl-gen/src/merge/fetcher.rs:1344
-    wire [186:0] cref_code_mux;              // rtl-gen/src/merge/fetcher.rs:1342
-    wire token_probe_wait;                   // rtl-gen/src/merge/fetcher.rs:1353
+    wire [186:0] const_cat_18;               // rtl-gen/src/merge/fetcher.rs:1354
+    wire [186:0] token_probe_mux;            // rtl-gen/src/merge/fetcher.rs:1354
+    wire [186:0] const_cat_19;               // rtl-gen/src/merge/fetcher.rs:1355
+    wire [186:0] cref_code_mux;              // rtl-gen/src/merge/fetcher.rs:1353
+    wire token_probe_wait;                   // rtl-gen/src/merge/fetcher.rs:1364
     wire [15:0] probe_resp_data_shr;         // rtl-gen/src/merge/fetcher.rs:177
     wire probe_resp_data_ne;                 // rtl-gen/src/merge/fetcher.rs:177
     wire [15:0] probe_resp_data_shr_1;       // rtl-gen/src/merge/fetcher.rs:177
@@ -803,139 +803,139 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire [3:0] probe_resp_data_mux_4;        // rtl-gen/src/merge/fetcher.rs:203
     wire [3:0] probe_resp_data_mux_5;        // rtl-gen/src/merge/fetcher.rs:201
     wire [149:0] probe_resp_data_cat;        // rtl-gen/src/merge/fetcher.rs:217
-    wire [3:0] probe_code;                   // rtl-gen/src/merge/fetcher.rs:1359
+    wire [3:0] probe_code;                   // rtl-gen/src/merge/fetcher.rs:1370
     wire [27:0] cfg_hier_cat_4;              // rtl-gen/src/merge/fetcher.rs:231
-    wire [184:0] const_cat_20;               // rtl-gen/src/merge/fetcher.rs:1362
+    wire [184:0] const_cat_20;               // rtl-gen/src/merge/fetcher.rs:1373
     wire [184:0] const_cat_21;               // rtl-gen/src/merge/fetcher.rs:254
-    wire token_probe_wait_not;               // rtl-gen/src/merge/fetcher.rs:1380
-    wire probe_answered;                     // rtl-gen/src/merge/fetcher.rs:1380
-    reg out_skip_end;                        // rtl-gen/src/merge/fetcher.rs:1381
-    wire out_probes_out_data_eq;             // rtl-gen/src/merge/fetcher.rs:1382
-    wire out_probes_out_data_eq_1;           // rtl-gen/src/merge/fetcher.rs:1383
-    wire out_probes_out_data_eq_2;           // rtl-gen/src/merge/fetcher.rs:1383
-    wire out_probes_out_data_and;            // rtl-gen/src/merge/fetcher.rs:1383
-    wire token_end;                          // rtl-gen/src/merge/fetcher.rs:1382
-    wire out_errored_not;                    // rtl-gen/src/merge/fetcher.rs:1385
-    wire out_skip_end_not;                   // rtl-gen/src/merge/fetcher.rs:1385
-    wire token_end_and;                      // rtl-gen/src/merge/fetcher.rs:1385
-    wire token_sent;                         // rtl-gen/src/merge/fetcher.rs:1385
-    wire walking_and_27;                     // rtl-gen/src/merge/fetcher.rs:1386
-    wire walking_and_28;                     // rtl-gen/src/merge/fetcher.rs:1386
-    wire token_sent_not;                     // rtl-gen/src/merge/fetcher.rs:1386
-    wire token_sent_or;                      // rtl-gen/src/merge/fetcher.rs:1386
-    wire send_fire;                          // rtl-gen/src/merge/fetcher.rs:1386
-    wire walking_and_29;                     // rtl-gen/src/merge/fetcher.rs:1390
-    wire walking_and_30;                     // rtl-gen/src/merge/fetcher.rs:1390
-    wire token_sent_not_1;                   // rtl-gen/src/merge/fetcher.rs:1390
-    wire token_sent_or_1;                    // rtl-gen/src/merge/fetcher.rs:1390
-    wire walking_and_31;                     // rtl-gen/src/merge/fetcher.rs:1391
-    wire walking_and_32;                     // rtl-gen/src/merge/fetcher.rs:1391
-    wire probe_code_eq;                      // rtl-gen/src/merge/fetcher.rs:1393
-    wire [184:0] probe_code_mux;             // rtl-gen/src/merge/fetcher.rs:1393
-    wire out_probes_out_data_eq_3;           // rtl-gen/src/merge/fetcher.rs:1394
-    wire probe_code_ne;                      // rtl-gen/src/merge/fetcher.rs:1394
-    wire token_probe_wait_and;               // rtl-gen/src/merge/fetcher.rs:1394
-    wire out_probes_out_data_or;             // rtl-gen/src/merge/fetcher.rs:1394
-    wire send_fire_and;                      // rtl-gen/src/merge/fetcher.rs:1395
-    wire out_errored_not_1;                  // rtl-gen/src/merge/fetcher.rs:1395
-    wire out_first_error;                    // rtl-gen/src/merge/fetcher.rs:1395
-    wire send_fire_and_1;                    // rtl-gen/src/merge/fetcher.rs:1401
-    wire send_fire_and_2;                    // rtl-gen/src/merge/fetcher.rs:1401
-    wire out_probes_out_data_eq_4;           // rtl-gen/src/merge/fetcher.rs:1404
-    wire send_fire_and_3;                    // rtl-gen/src/merge/fetcher.rs:1404
-    wire pass_end_left;                      // rtl-gen/src/merge/fetcher.rs:1407
+    wire token_probe_wait_not;               // rtl-gen/src/merge/fetcher.rs:1391
+    wire probe_answered;                     // rtl-gen/src/merge/fetcher.rs:1391
+    reg out_skip_end;                        // rtl-gen/src/merge/fetcher.rs:1392
+    wire out_probes_out_data_eq;             // rtl-gen/src/merge/fetcher.rs:1393
+    wire out_probes_out_data_eq_1;           // rtl-gen/src/merge/fetcher.rs:1394
+    wire out_probes_out_data_eq_2;           // rtl-gen/src/merge/fetcher.rs:1394
+    wire out_probes_out_data_and;            // rtl-gen/src/merge/fetcher.rs:1394
+    wire token_end;                          // rtl-gen/src/merge/fetcher.rs:1393
+    wire out_errored_not;                    // rtl-gen/src/merge/fetcher.rs:1396
+    wire out_skip_end_not;                   // rtl-gen/src/merge/fetcher.rs:1396
+    wire token_end_and;                      // rtl-gen/src/merge/fetcher.rs:1396
+    wire token_sent;                         // rtl-gen/src/merge/fetcher.rs:1396
+    wire walking_and_27;                     // rtl-gen/src/merge/fetcher.rs:1397
+    wire walking_and_28;                     // rtl-gen/src/merge/fetcher.rs:1397
+    wire token_sent_not;                     // rtl-gen/src/merge/fetcher.rs:1397
+    wire token_sent_or;                      // rtl-gen/src/merge/fetcher.rs:1397
+    wire send_fire;                          // rtl-gen/src/merge/fetcher.rs:1397
+    wire walking_and_29;                     // rtl-gen/src/merge/fetcher.rs:1401
+    wire walking_and_30;                     // rtl-gen/src/merge/fetcher.rs:1401
+    wire token_sent_not_1;                   // rtl-gen/src/merge/fetcher.rs:1401
+    wire token_sent_or_1;                    // rtl-gen/src/merge/fetcher.rs:1401
+    wire walking_and_31;                     // rtl-gen/src/merge/fetcher.rs:1402
+    wire walking_and_32;                     // rtl-gen/src/merge/fetcher.rs:1402
+    wire probe_code_eq;                      // rtl-gen/src/merge/fetcher.rs:1404
+    wire [184:0] probe_code_mux;             // rtl-gen/src/merge/fetcher.rs:1404
+    wire out_probes_out_data_eq_3;           // rtl-gen/src/merge/fetcher.rs:1405
+    wire probe_code_ne;                      // rtl-gen/src/merge/fetcher.rs:1405
+    wire token_probe_wait_and;               // rtl-gen/src/merge/fetcher.rs:1405
+    wire out_probes_out_data_or;             // rtl-gen/src/merge/fetcher.rs:1405
+    wire send_fire_and;                      // rtl-gen/src/merge/fetcher.rs:1406
+    wire out_errored_not_1;                  // rtl-gen/src/merge/fetcher.rs:1406
+    wire out_first_error;                    // rtl-gen/src/merge/fetcher.rs:1406
+    wire send_fire_and_1;                    // rtl-gen/src/merge/fetcher.rs:1412
+    wire send_fire_and_2;                    // rtl-gen/src/merge/fetcher.rs:1412
+    wire out_probes_out_data_eq_4;           // rtl-gen/src/merge/fetcher.rs:1415
+    wire send_fire_and_3;                    // rtl-gen/src/merge/fetcher.rs:1415
+    wire pass_end_left;                      // rtl-gen/src/merge/fetcher.rs:1418
     wire phase_eq_2;                         // rtl-gen/src/merge/fetcher.rs:300
-    wire phase_and_1;                        // rtl-gen/src/merge/fetcher.rs:1211
-    reg node_req_q_valid;                    // rtl-gen/src/merge/fetcher.rs:1214
-    reg [23:0] node_req_q_data;              // rtl-gen/src/merge/fetcher.rs:1214
-    reg node_req_q_spare_valid;              // rtl-gen/src/merge/fetcher.rs:1214
-    reg [23:0] node_req_q_spare_data;        // rtl-gen/src/merge/fetcher.rs:1214
-    wire node_req_q_ready;                   // rtl-gen/src/merge/fetcher.rs:1214
-    wire node_req_q_valid_not;               // rtl-gen/src/merge/fetcher.rs:1214
-    wire node_req_q_ready_or;                // rtl-gen/src/merge/fetcher.rs:1214
-    wire node_req_q_spare_valid_not;         // rtl-gen/src/merge/fetcher.rs:1214
-    wire node_req_core_valid_and_1;          // rtl-gen/src/merge/fetcher.rs:1214
-    wire node_req_q_spare_valid_or;          // rtl-gen/src/merge/fetcher.rs:1214
-    wire [23:0] node_req_q_spare_valid_mux;  // rtl-gen/src/merge/fetcher.rs:1214
-    wire node_req_q_spare_valid_or_1;        // rtl-gen/src/merge/fetcher.rs:1214
-    wire node_req_q_spare_valid_next;        // rtl-gen/src/merge/fetcher.rs:1214
-    wire node_req_q_ready_not;               // rtl-gen/src/merge/fetcher.rs:1214
-    wire node_req_q_ready_and;               // rtl-gen/src/merge/fetcher.rs:1214
-    reg ref_req_q_valid;                     // rtl-gen/src/merge/fetcher.rs:1215
-    reg [23:0] ref_req_q_data;               // rtl-gen/src/merge/fetcher.rs:1215
-    reg ref_req_q_spare_valid;               // rtl-gen/src/merge/fetcher.rs:1215
-    reg [23:0] ref_req_q_spare_data;         // rtl-gen/src/merge/fetcher.rs:1215
-    wire ref_req_q_ready;                    // rtl-gen/src/merge/fetcher.rs:1215
-    wire ref_req_q_valid_not;                // rtl-gen/src/merge/fetcher.rs:1215
-    wire ref_req_q_ready_or;                 // rtl-gen/src/merge/fetcher.rs:1215
-    wire ref_req_q_spare_valid_not;          // rtl-gen/src/merge/fetcher.rs:1215
-    wire ref_req_core_valid_and;             // rtl-gen/src/merge/fetcher.rs:1215
-    wire ref_req_q_spare_valid_or;           // rtl-gen/src/merge/fetcher.rs:1215
-    wire [23:0] ref_req_q_spare_valid_mux;   // rtl-gen/src/merge/fetcher.rs:1215
-    wire ref_req_q_spare_valid_or_1;         // rtl-gen/src/merge/fetcher.rs:1215
-    wire ref_req_q_spare_valid_next;         // rtl-gen/src/merge/fetcher.rs:1215
-    wire ref_req_q_ready_not;                // rtl-gen/src/merge/fetcher.rs:1215
-    wire ref_req_q_ready_and;                // rtl-gen/src/merge/fetcher.rs:1215
-    reg cref_req_q_valid;                    // rtl-gen/src/merge/fetcher.rs:1216
-    reg [23:0] cref_req_q_data;              // rtl-gen/src/merge/fetcher.rs:1216
-    reg cref_req_q_spare_valid;              // rtl-gen/src/merge/fetcher.rs:1216
-    reg [23:0] cref_req_q_spare_data;        // rtl-gen/src/merge/fetcher.rs:1216
-    wire cref_req_q_ready;                   // rtl-gen/src/merge/fetcher.rs:1216
-    wire cref_req_q_valid_not;               // rtl-gen/src/merge/fetcher.rs:1216
-    wire cref_req_q_ready_or;                // rtl-gen/src/merge/fetcher.rs:1216
-    wire cref_req_q_spare_valid_not;         // rtl-gen/src/merge/fetcher.rs:1216
-    wire cref_req_core_valid_and;            // rtl-gen/src/merge/fetcher.rs:1216
-    wire cref_req_q_spare_valid_or;          // rtl-gen/src/merge/fetcher.rs:1216
-    wire [23:0] cref_req_q_spare_valid_mux;  // rtl-gen/src/merge/fetcher.rs:1216
-    wire cref_req_q_spare_valid_or_1;        // rtl-gen/src/merge/fetcher.rs:1216
-    wire cref_req_q_spare_valid_next;        // rtl-gen/src/merge/fetcher.rs:1216
-    wire cref_req_q_ready_not;               // rtl-gen/src/merge/fetcher.rs:1216
-    wire cref_req_q_ready_and;               // rtl-gen/src/merge/fetcher.rs:1216
-    reg out_q_valid;                         // rtl-gen/src/merge/fetcher.rs:1217
-    reg [184:0] out_q_data;                  // rtl-gen/src/merge/fetcher.rs:1217
-    reg out_q_spare_valid;                   // rtl-gen/src/merge/fetcher.rs:1217
-    reg [184:0] out_q_spare_data;            // rtl-gen/src/merge/fetcher.rs:1217
-    wire out_q_ready;                        // rtl-gen/src/merge/fetcher.rs:1217
-    wire out_q_valid_not;                    // rtl-gen/src/merge/fetcher.rs:1217
-    wire out_q_ready_or;                     // rtl-gen/src/merge/fetcher.rs:1217
-    wire out_q_spare_valid_not;              // rtl-gen/src/merge/fetcher.rs:1217
-    wire out_core_valid_and;                 // rtl-gen/src/merge/fetcher.rs:1217
-    wire out_q_spare_valid_or;               // rtl-gen/src/merge/fetcher.rs:1217
-    wire [184:0] out_q_spare_valid_mux;      // rtl-gen/src/merge/fetcher.rs:1217
-    wire out_q_spare_valid_or_1;             // rtl-gen/src/merge/fetcher.rs:1217
-    wire out_q_spare_valid_next;             // rtl-gen/src/merge/fetcher.rs:1217
-    wire out_q_ready_not;                    // rtl-gen/src/merge/fetcher.rs:1217
-    wire out_q_ready_and;                    // rtl-gen/src/merge/fetcher.rs:1217
-    reg leaves_q_valid;                      // rtl-gen/src/merge/fetcher.rs:1218
-    reg [183:0] leaves_q_data;               // rtl-gen/src/merge/fetcher.rs:1218
-    reg leaves_q_spare_valid;                // rtl-gen/src/merge/fetcher.rs:1218
-    reg [183:0] leaves_q_spare_data;         // rtl-gen/src/merge/fetcher.rs:1218
-    wire leaves_q_ready;                     // rtl-gen/src/merge/fetcher.rs:1218
-    wire leaves_q_valid_not;                 // rtl-gen/src/merge/fetcher.rs:1218
-    wire leaves_q_ready_or;                  // rtl-gen/src/merge/fetcher.rs:1218
-    wire leaves_q_spare_valid_not;           // rtl-gen/src/merge/fetcher.rs:1218
-    wire leaves_core_valid_and;              // rtl-gen/src/merge/fetcher.rs:1218
-    wire leaves_q_spare_valid_or;            // rtl-gen/src/merge/fetcher.rs:1218
-    wire [183:0] leaves_q_spare_valid_mux;   // rtl-gen/src/merge/fetcher.rs:1218
-    wire leaves_q_spare_valid_or_1;          // rtl-gen/src/merge/fetcher.rs:1218
-    wire leaves_q_spare_valid_next;          // rtl-gen/src/merge/fetcher.rs:1218
-    wire leaves_q_ready_not;                 // rtl-gen/src/merge/fetcher.rs:1218
-    wire leaves_q_ready_and;                 // rtl-gen/src/merge/fetcher.rs:1218
-    reg probe_req_q_valid;                   // rtl-gen/src/merge/fetcher.rs:1220
-    reg [23:0] probe_req_q_data;             // rtl-gen/src/merge/fetcher.rs:1220
-    reg probe_req_q_spare_valid;             // rtl-gen/src/merge/fetcher.rs:1220
-    reg [23:0] probe_req_q_spare_data;       // rtl-gen/src/merge/fetcher.rs:1220
-    wire probe_req_q_ready;                  // rtl-gen/src/merge/fetcher.rs:1220
-    wire probe_req_q_valid_not;              // rtl-gen/src/merge/fetcher.rs:1220
-    wire probe_req_q_ready_or;               // rtl-gen/src/merge/fetcher.rs:1220
-    wire probe_req_q_spare_valid_not;        // rtl-gen/src/merge/fetcher.rs:1220
-    wire probe_req_core_valid_and;           // rtl-gen/src/merge/fetcher.rs:1220
-    wire probe_req_q_spare_valid_or;         // rtl-gen/src/merge/fetcher.rs:1220
-    wire [23:0] probe_req_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1220
-    wire probe_req_q_spare_valid_or_1;       // rtl-gen/src/merge/fetcher.rs:1220
-    wire probe_req_q_spare_valid_next;       // rtl-gen/src/merge/fetcher.rs:1220
-    wire probe_req_q_ready_not;              // rtl-gen/src/merge/fetcher.rs:1220
-    wire probe_req_q_ready_and;              // rtl-gen/src/merge/fetcher.rs:1220
+    wire phase_and_1;                        // rtl-gen/src/merge/fetcher.rs:1222
+    reg node_req_q_valid;                    // rtl-gen/src/merge/fetcher.rs:1225
+    reg [23:0] node_req_q_data;              // rtl-gen/src/merge/fetcher.rs:1225
+    reg node_req_q_spare_valid;              // rtl-gen/src/merge/fetcher.rs:1225
+    reg [23:0] node_req_q_spare_data;        // rtl-gen/src/merge/fetcher.rs:1225
+    wire node_req_q_ready;                   // rtl-gen/src/merge/fetcher.rs:1225
+    wire node_req_q_valid_not;               // rtl-gen/src/merge/fetcher.rs:1225
+    wire node_req_q_ready_or;                // rtl-gen/src/merge/fetcher.rs:1225
+    wire node_req_q_spare_valid_not;         // rtl-gen/src/merge/fetcher.rs:1225
+    wire node_req_core_valid_and_1;          // rtl-gen/src/merge/fetcher.rs:1225
+    wire node_req_q_spare_valid_or;          // rtl-gen/src/merge/fetcher.rs:1225
+    wire [23:0] node_req_q_spare_valid_mux;  // rtl-gen/src/merge/fetcher.rs:1225
+    wire node_req_q_spare_valid_or_1;        // rtl-gen/src/merge/fetcher.rs:1225
+    wire node_req_q_spare_valid_next;        // rtl-gen/src/merge/fetcher.rs:1225
+    wire node_req_q_ready_not;               // rtl-gen/src/merge/fetcher.rs:1225
+    wire node_req_q_ready_and;               // rtl-gen/src/merge/fetcher.rs:1225
+    reg ref_req_q_valid;                     // rtl-gen/src/merge/fetcher.rs:1226
+    reg [23:0] ref_req_q_data;               // rtl-gen/src/merge/fetcher.rs:1226
+    reg ref_req_q_spare_valid;               // rtl-gen/src/merge/fetcher.rs:1226
+    reg [23:0] ref_req_q_spare_data;         // rtl-gen/src/merge/fetcher.rs:1226
+    wire ref_req_q_ready;                    // rtl-gen/src/merge/fetcher.rs:1226
+    wire ref_req_q_valid_not;                // rtl-gen/src/merge/fetcher.rs:1226
+    wire ref_req_q_ready_or;                 // rtl-gen/src/merge/fetcher.rs:1226
+    wire ref_req_q_spare_valid_not;          // rtl-gen/src/merge/fetcher.rs:1226
+    wire ref_req_core_valid_and;             // rtl-gen/src/merge/fetcher.rs:1226
+    wire ref_req_q_spare_valid_or;           // rtl-gen/src/merge/fetcher.rs:1226
+    wire [23:0] ref_req_q_spare_valid_mux;   // rtl-gen/src/merge/fetcher.rs:1226
+    wire ref_req_q_spare_valid_or_1;         // rtl-gen/src/merge/fetcher.rs:1226
+    wire ref_req_q_spare_valid_next;         // rtl-gen/src/merge/fetcher.rs:1226
+    wire ref_req_q_ready_not;                // rtl-gen/src/merge/fetcher.rs:1226
+    wire ref_req_q_ready_and;                // rtl-gen/src/merge/fetcher.rs:1226
+    reg cref_req_q_valid;                    // rtl-gen/src/merge/fetcher.rs:1227
+    reg [23:0] cref_req_q_data;              // rtl-gen/src/merge/fetcher.rs:1227
+    reg cref_req_q_spare_valid;              // rtl-gen/src/merge/fetcher.rs:1227
+    reg [23:0] cref_req_q_spare_data;        // rtl-gen/src/merge/fetcher.rs:1227
+    wire cref_req_q_ready;                   // rtl-gen/src/merge/fetcher.rs:1227
+    wire cref_req_q_valid_not;               // rtl-gen/src/merge/fetcher.rs:1227
+    wire cref_req_q_ready_or;                // rtl-gen/src/merge/fetcher.rs:1227
+    wire cref_req_q_spare_valid_not;         // rtl-gen/src/merge/fetcher.rs:1227
+    wire cref_req_core_valid_and;            // rtl-gen/src/merge/fetcher.rs:1227
+    wire cref_req_q_spare_valid_or;          // rtl-gen/src/merge/fetcher.rs:1227
+    wire [23:0] cref_req_q_spare_valid_mux;  // rtl-gen/src/merge/fetcher.rs:1227
+    wire cref_req_q_spare_valid_or_1;        // rtl-gen/src/merge/fetcher.rs:1227
+    wire cref_req_q_spare_valid_next;        // rtl-gen/src/merge/fetcher.rs:1227
+    wire cref_req_q_ready_not;               // rtl-gen/src/merge/fetcher.rs:1227
+    wire cref_req_q_ready_and;               // rtl-gen/src/merge/fetcher.rs:1227
+    reg out_q_valid;                         // rtl-gen/src/merge/fetcher.rs:1228
+    reg [184:0] out_q_data;                  // rtl-gen/src/merge/fetcher.rs:1228
+    reg out_q_spare_valid;                   // rtl-gen/src/merge/fetcher.rs:1228
+    reg [184:0] out_q_spare_data;            // rtl-gen/src/merge/fetcher.rs:1228
+    wire out_q_ready;                        // rtl-gen/src/merge/fetcher.rs:1228
+    wire out_q_valid_not;                    // rtl-gen/src/merge/fetcher.rs:1228
+    wire out_q_ready_or;                     // rtl-gen/src/merge/fetcher.rs:1228
+    wire out_q_spare_valid_not;              // rtl-gen/src/merge/fetcher.rs:1228
+    wire out_core_valid_and;                 // rtl-gen/src/merge/fetcher.rs:1228
+    wire out_q_spare_valid_or;               // rtl-gen/src/merge/fetcher.rs:1228
+    wire [184:0] out_q_spare_valid_mux;      // rtl-gen/src/merge/fetcher.rs:1228
+    wire out_q_spare_valid_or_1;             // rtl-gen/src/merge/fetcher.rs:1228
+    wire out_q_spare_valid_next;             // rtl-gen/src/merge/fetcher.rs:1228
+    wire out_q_ready_not;                    // rtl-gen/src/merge/fetcher.rs:1228
+    wire out_q_ready_and;                    // rtl-gen/src/merge/fetcher.rs:1228
+    reg leaves_q_valid;                      // rtl-gen/src/merge/fetcher.rs:1229
+    reg [183:0] leaves_q_data;               // rtl-gen/src/merge/fetcher.rs:1229
+    reg leaves_q_spare_valid;                // rtl-gen/src/merge/fetcher.rs:1229
+    reg [183:0] leaves_q_spare_data;         // rtl-gen/src/merge/fetcher.rs:1229
+    wire leaves_q_ready;                     // rtl-gen/src/merge/fetcher.rs:1229
+    wire leaves_q_valid_not;                 // rtl-gen/src/merge/fetcher.rs:1229
+    wire leaves_q_ready_or;                  // rtl-gen/src/merge/fetcher.rs:1229
+    wire leaves_q_spare_valid_not;           // rtl-gen/src/merge/fetcher.rs:1229
+    wire leaves_core_valid_and;              // rtl-gen/src/merge/fetcher.rs:1229
+    wire leaves_q_spare_valid_or;            // rtl-gen/src/merge/fetcher.rs:1229
+    wire [183:0] leaves_q_spare_valid_mux;   // rtl-gen/src/merge/fetcher.rs:1229
+    wire leaves_q_spare_valid_or_1;          // rtl-gen/src/merge/fetcher.rs:1229
+    wire leaves_q_spare_valid_next;          // rtl-gen/src/merge/fetcher.rs:1229
+    wire leaves_q_ready_not;                 // rtl-gen/src/merge/fetcher.rs:1229
+    wire leaves_q_ready_and;                 // rtl-gen/src/merge/fetcher.rs:1229
+    reg probe_req_q_valid;                   // rtl-gen/src/merge/fetcher.rs:1231
+    reg [23:0] probe_req_q_data;             // rtl-gen/src/merge/fetcher.rs:1231
+    reg probe_req_q_spare_valid;             // rtl-gen/src/merge/fetcher.rs:1231
+    reg [23:0] probe_req_q_spare_data;       // rtl-gen/src/merge/fetcher.rs:1231
+    wire probe_req_q_ready;                  // rtl-gen/src/merge/fetcher.rs:1231
+    wire probe_req_q_valid_not;              // rtl-gen/src/merge/fetcher.rs:1231
+    wire probe_req_q_ready_or;               // rtl-gen/src/merge/fetcher.rs:1231
+    wire probe_req_q_spare_valid_not;        // rtl-gen/src/merge/fetcher.rs:1231
+    wire probe_req_core_valid_and;           // rtl-gen/src/merge/fetcher.rs:1231
+    wire probe_req_q_spare_valid_or;         // rtl-gen/src/merge/fetcher.rs:1231
+    wire [23:0] probe_req_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1231
+    wire probe_req_q_spare_valid_or_1;       // rtl-gen/src/merge/fetcher.rs:1231
+    wire probe_req_q_spare_valid_next;       // rtl-gen/src/merge/fetcher.rs:1231
+    wire probe_req_q_ready_not;              // rtl-gen/src/merge/fetcher.rs:1231
+    wire probe_req_q_ready_and;              // rtl-gen/src/merge/fetcher.rs:1231
 
     assign cfg_ready = is_idle & cfg_have_not;
     assign cmd_ready = is_idle & cfg_have;
@@ -1872,7 +1872,7 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                 phase <= 3'd0;               // rtl-gen/src/merge/fetcher.rs:139
             end
             if (cfg_fire) begin
-                cfg_have <= 1'b1;            // rtl-gen/src/merge/fetcher.rs:1211
+                cfg_have <= 1'b1;            // rtl-gen/src/merge/fetcher.rs:1222
                 cfg_hier <= cfg_data[3:0];   // rtl-gen/src/merge/fetcher.rs:316
                 cfg_roots <= cfg_data[27:4]; // rtl-gen/src/merge/fetcher.rs:316
                 cfg_top <= cfg_data[32:28];  // rtl-gen/src/merge/fetcher.rs:316
@@ -1884,7 +1884,7 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                 cfg_entry_t1 <= cfg_data[120:104]; // rtl-gen/src/merge/fetcher.rs:316
                 cfg_entry_t2 <= cfg_data[137:121]; // rtl-gen/src/merge/fetcher.rs:316
             end else if (phase_and_1) begin
-                cfg_have <= 1'b0;            // rtl-gen/src/merge/fetcher.rs:1211
+                cfg_have <= 1'b0;            // rtl-gen/src/merge/fetcher.rs:1222
             end
             if (phase_eq) begin
                 first_err_valid <= header_code_ne; // rtl-gen/src/merge/fetcher.rs:139
@@ -1893,25 +1893,25 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                 header_err <= header_code_ne; // rtl-gen/src/merge/fetcher.rs:418
                 roots_issued <= 24'd0;       // rtl-gen/src/merge/fetcher.rs:436
                 roots_taken <= 24'd0;        // rtl-gen/src/merge/fetcher.rs:460
-                level <= cfg_top;            // rtl-gen/src/merge/fetcher.rs:774
-                at_top <= 1'b1;              // rtl-gen/src/merge/fetcher.rs:775
-                walk_done <= 1'b0;           // rtl-gen/src/merge/fetcher.rs:776
-                prev_valid <= 1'b0;          // rtl-gen/src/merge/fetcher.rs:761
-                pushed <= 9'd0;              // rtl-gen/src/merge/fetcher.rs:770
-                visit_errored <= 1'b0;       // rtl-gen/src/merge/fetcher.rs:777
-                out_errored <= 1'b0;         // rtl-gen/src/merge/fetcher.rs:1396
-                range_valid <= 1'b0;         // rtl-gen/src/merge/fetcher.rs:518
-                pn_visited <= 1'b0;          // rtl-gen/src/merge/fetcher.rs:825
-                leaves_end_sent <= 1'b0;     // rtl-gen/src/merge/fetcher.rs:857
-                end_next <= cmd_first;       // rtl-gen/src/merge/fetcher.rs:755
-                final_sent <= 1'b0;          // rtl-gen/src/merge/fetcher.rs:759
-                capacity_told <= 1'b0;       // rtl-gen/src/merge/fetcher.rs:650
-                pn_end_left <= 1'b0;         // rtl-gen/src/merge/fetcher.rs:1203
-                pend_valid <= 1'b0;          // rtl-gen/src/merge/fetcher.rs:1039
-                cref_active <= 1'b0;         // rtl-gen/src/merge/fetcher.rs:1018
-                probe_active <= 1'b0;        // rtl-gen/src/merge/fetcher.rs:987
-                probes_sent <= 1'b0;         // rtl-gen/src/merge/fetcher.rs:992
-                out_skip_end <= 1'b0;        // rtl-gen/src/merge/fetcher.rs:1397
+                level <= cfg_top;            // rtl-gen/src/merge/fetcher.rs:786
+                at_top <= 1'b1;              // rtl-gen/src/merge/fetcher.rs:787
+                walk_done <= 1'b0;           // rtl-gen/src/merge/fetcher.rs:788
+                prev_valid <= 1'b0;          // rtl-gen/src/merge/fetcher.rs:773
+                pushed <= 9'd0;              // rtl-gen/src/merge/fetcher.rs:782
+                visit_errored <= 1'b0;       // rtl-gen/src/merge/fetcher.rs:789
+                out_errored <= 1'b0;         // rtl-gen/src/merge/fetcher.rs:1407
+                range_valid <= 1'b0;         // rtl-gen/src/merge/fetcher.rs:521
+                pn_visited <= 1'b0;          // rtl-gen/src/merge/fetcher.rs:836
+                leaves_end_sent <= 1'b0;     // rtl-gen/src/merge/fetcher.rs:868
+                end_next <= cmd_first;       // rtl-gen/src/merge/fetcher.rs:767
+                final_sent <= 1'b0;          // rtl-gen/src/merge/fetcher.rs:771
+                capacity_told <= 1'b0;       // rtl-gen/src/merge/fetcher.rs:662
+                pn_end_left <= 1'b0;         // rtl-gen/src/merge/fetcher.rs:1214
+                pend_valid <= 1'b0;          // rtl-gen/src/merge/fetcher.rs:1050
+                cref_active <= 1'b0;         // rtl-gen/src/merge/fetcher.rs:1029
+                probe_active <= 1'b0;        // rtl-gen/src/merge/fetcher.rs:998
+                probes_sent <= 1'b0;         // rtl-gen/src/merge/fetcher.rs:1003
+                out_skip_end <= 1'b0;        // rtl-gen/src/merge/fetcher.rs:1408
             end else begin
                 if (root_fail) begin
                     first_err_valid <= 1'b1; // rtl-gen/src/merge/fetcher.rs:139
@@ -1931,84 +1931,84 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                     roots_taken <= roots_taken_add; // rtl-gen/src/merge/fetcher.rs:460
                 end
                 if (marker_push_or) begin
-                    level <= level_add;      // rtl-gen/src/merge/fetcher.rs:774
-                    prev_valid <= 1'b0;      // rtl-gen/src/merge/fetcher.rs:763
-                    pushed <= 9'd0;          // rtl-gen/src/merge/fetcher.rs:772
+                    level <= level_add;      // rtl-gen/src/merge/fetcher.rs:786
+                    prev_valid <= 1'b0;      // rtl-gen/src/merge/fetcher.rs:775
+                    pushed <= 9'd0;          // rtl-gen/src/merge/fetcher.rs:784
                 end else begin
                     if (visit_go_and_3) begin
-                        prev_valid <= 1'b1;  // rtl-gen/src/merge/fetcher.rs:763
+                        prev_valid <= 1'b1;  // rtl-gen/src/merge/fetcher.rs:775
                     end
                     if (frontier_push_or) begin
-                        pushed <= pushed_add; // rtl-gen/src/merge/fetcher.rs:772
+                        pushed <= pushed_add; // rtl-gen/src/merge/fetcher.rs:784
                     end
                 end
                 if (level_end) begin
-                    at_top <= 1'b0;          // rtl-gen/src/merge/fetcher.rs:775
+                    at_top <= 1'b0;          // rtl-gen/src/merge/fetcher.rs:787
                 end
                 if (walk_over) begin
-                    walk_done <= 1'b1;       // rtl-gen/src/merge/fetcher.rs:776
+                    walk_done <= 1'b1;       // rtl-gen/src/merge/fetcher.rs:788
                 end
                 if (visit_fails) begin
-                    visit_errored <= 1'b1;   // rtl-gen/src/merge/fetcher.rs:777
+                    visit_errored <= 1'b1;   // rtl-gen/src/merge/fetcher.rs:789
                 end
                 if (out_first_error) begin
-                    out_errored <= 1'b1;     // rtl-gen/src/merge/fetcher.rs:1396
-                    out_skip_end <= 1'b1;    // rtl-gen/src/merge/fetcher.rs:1399
+                    out_errored <= 1'b1;     // rtl-gen/src/merge/fetcher.rs:1407
+                    out_skip_end <= 1'b1;    // rtl-gen/src/merge/fetcher.rs:1410
                 end else if (send_fire_and_2) begin
-                    out_skip_end <= 1'b0;    // rtl-gen/src/merge/fetcher.rs:1401
+                    out_skip_end <= 1'b0;    // rtl-gen/src/merge/fetcher.rs:1412
                 end
                 if (range_load) begin
-                    range_valid <= 1'b1;     // rtl-gen/src/merge/fetcher.rs:520
+                    range_valid <= 1'b1;     // rtl-gen/src/merge/fetcher.rs:523
                 end else if (ref_issue_and_1) begin
-                    range_valid <= 1'b0;     // rtl-gen/src/merge/fetcher.rs:520
+                    range_valid <= 1'b0;     // rtl-gen/src/merge/fetcher.rs:523
                 end
                 if (pn_pass_end) begin
-                    pn_visited <= 1'b1;      // rtl-gen/src/merge/fetcher.rs:827
+                    pn_visited <= 1'b1;      // rtl-gen/src/merge/fetcher.rs:838
                 end else if (join_pass_end) begin
-                    pn_visited <= 1'b0;      // rtl-gen/src/merge/fetcher.rs:827
+                    pn_visited <= 1'b0;      // rtl-gen/src/merge/fetcher.rs:838
                 end
                 if (leaves_end_fire) begin
-                    leaves_end_sent <= 1'b1; // rtl-gen/src/merge/fetcher.rs:857
+                    leaves_end_sent <= 1'b1; // rtl-gen/src/merge/fetcher.rs:868
                 end
                 if (end_fire_or) begin
-                    end_next <= end_next_add; // rtl-gen/src/merge/fetcher.rs:757
+                    end_next <= end_next_add; // rtl-gen/src/merge/fetcher.rs:769
                 end
                 if (end_fire_and_1) begin
-                    final_sent <= 1'b1;      // rtl-gen/src/merge/fetcher.rs:759
+                    final_sent <= 1'b1;      // rtl-gen/src/merge/fetcher.rs:771
                 end
                 if (visit_go_and) begin
-                    capacity_told <= 1'b1;   // rtl-gen/src/merge/fetcher.rs:650
+                    capacity_told <= 1'b1;   // rtl-gen/src/merge/fetcher.rs:662
                 end
                 if (join_pass_end) begin
-                    pn_end_left <= 1'b0;     // rtl-gen/src/merge/fetcher.rs:1205
+                    pn_end_left <= 1'b0;     // rtl-gen/src/merge/fetcher.rs:1216
                 end else if (pass_end_left) begin
-                    pn_end_left <= 1'b1;     // rtl-gen/src/merge/fetcher.rs:1205
+                    pn_end_left <= 1'b1;     // rtl-gen/src/merge/fetcher.rs:1216
                 end
                 if (held_leaf_or_2) begin
-                    pend_valid <= 1'b0;      // rtl-gen/src/merge/fetcher.rs:1041
+                    pend_valid <= 1'b0;      // rtl-gen/src/merge/fetcher.rs:1052
                 end else if (hold_refs) begin
-                    pend_valid <= 1'b1;      // rtl-gen/src/merge/fetcher.rs:1041
+                    pend_valid <= 1'b1;      // rtl-gen/src/merge/fetcher.rs:1052
                 end
                 if (cref_next) begin
-                    cref_active <= cref_idx_ne; // rtl-gen/src/merge/fetcher.rs:1020
+                    cref_active <= cref_idx_ne; // rtl-gen/src/merge/fetcher.rs:1031
                 end else if (held_leaf) begin
-                    cref_active <= 1'b1;     // rtl-gen/src/merge/fetcher.rs:1022
+                    cref_active <= 1'b1;     // rtl-gen/src/merge/fetcher.rs:1033
                 end else if (held_refs_first) begin
-                    cref_active <= pend_first_ne; // rtl-gen/src/merge/fetcher.rs:1024
+                    cref_active <= pend_first_ne; // rtl-gen/src/merge/fetcher.rs:1035
                 end
                 if (probe_next) begin
-                    probe_active <= probe_idx_not; // rtl-gen/src/merge/fetcher.rs:989
+                    probe_active <= probe_idx_not; // rtl-gen/src/merge/fetcher.rs:1000
                 end else if (probe_first) begin
-                    probe_active <= out_items_out_data_ne; // rtl-gen/src/merge/fetcher.rs:989
+                    probe_active <= out_items_out_data_ne; // rtl-gen/src/merge/fetcher.rs:1000
                 end
                 if (probe_next_or) begin
-                    probes_sent <= 1'b1;     // rtl-gen/src/merge/fetcher.rs:995
+                    probes_sent <= 1'b1;     // rtl-gen/src/merge/fetcher.rs:1006
                 end else if (item_out) begin
-                    probes_sent <= 1'b0;     // rtl-gen/src/merge/fetcher.rs:995
+                    probes_sent <= 1'b0;     // rtl-gen/src/merge/fetcher.rs:1006
                 end
             end
             if (visit_go_and_4) begin
-                prev_key <= item_key;        // rtl-gen/src/merge/fetcher.rs:765
+                prev_key <= item_key;        // rtl-gen/src/merge/fetcher.rs:777
             end
             if (frontier_out_valid_and) begin
                 frontier_head <= frontier_head_add; // rtl-gen/src/merge/fetcher.rs:108
@@ -2022,11 +2022,11 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                 frontier_count <= frontier_count_sub; // rtl-gen/src/merge/fetcher.rs:112
             end
             if (range_load) begin
-                range_idx <= frontier_out_data[23:0]; // rtl-gen/src/merge/fetcher.rs:522
-                range_end <= frontier_out_data_add; // rtl-gen/src/merge/fetcher.rs:523
-                range_parent <= frontier_out_data[71:48]; // rtl-gen/src/merge/fetcher.rs:527
+                range_idx <= frontier_out_data[23:0]; // rtl-gen/src/merge/fetcher.rs:525
+                range_end <= frontier_out_data_add; // rtl-gen/src/merge/fetcher.rs:526
+                range_parent <= frontier_out_data[71:48]; // rtl-gen/src/merge/fetcher.rs:530
             end else if (ref_issue) begin
-                range_idx <= range_idx_add;  // rtl-gen/src/merge/fetcher.rs:522
+                range_idx <= range_idx_add;  // rtl-gen/src/merge/fetcher.rs:525
             end
             if (ref_ctx_out_valid_and) begin
                 ref_ctx_head <= ref_ctx_head_add; // rtl-gen/src/merge/fetcher.rs:108
@@ -2073,23 +2073,23 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                 pass_count <= pass_count_sub; // rtl-gen/src/merge/fetcher.rs:112
             end
             if (hold_refs) begin
-                pend_first <= out_items_out_data[125:102]; // rtl-gen/src/merge/fetcher.rs:1043
-                pend_end <= out_items_out_data_add; // rtl-gen/src/merge/fetcher.rs:1044
-                pend_voxel <= out_items_out_data_cat; // rtl-gen/src/merge/fetcher.rs:1045
-                pend_node <= out_items_out_data[173:150]; // rtl-gen/src/merge/fetcher.rs:1046
+                pend_first <= out_items_out_data[125:102]; // rtl-gen/src/merge/fetcher.rs:1054
+                pend_end <= out_items_out_data_add; // rtl-gen/src/merge/fetcher.rs:1055
+                pend_voxel <= out_items_out_data_cat; // rtl-gen/src/merge/fetcher.rs:1056
+                pend_node <= out_items_out_data[173:150]; // rtl-gen/src/merge/fetcher.rs:1057
             end
             if (cref_next) begin
-                cref_idx <= cref_idx_add;    // rtl-gen/src/merge/fetcher.rs:1028
+                cref_idx <= cref_idx_add;    // rtl-gen/src/merge/fetcher.rs:1039
             end else if (held_leaf) begin
-                cref_idx <= pend_first;      // rtl-gen/src/merge/fetcher.rs:1030
+                cref_idx <= pend_first;      // rtl-gen/src/merge/fetcher.rs:1041
             end else if (held_refs_first) begin
-                cref_idx <= pend_first_add;  // rtl-gen/src/merge/fetcher.rs:1030
+                cref_idx <= pend_first_add;  // rtl-gen/src/merge/fetcher.rs:1041
             end
             if (held_leaf_or) begin
-                cref_end <= pend_end;        // rtl-gen/src/merge/fetcher.rs:1032
+                cref_end <= pend_end;        // rtl-gen/src/merge/fetcher.rs:1043
             end
             if (held_leaf_or_1) begin
-                cref_parent <= pend_node;    // rtl-gen/src/merge/fetcher.rs:1033
+                cref_parent <= pend_node;    // rtl-gen/src/merge/fetcher.rs:1044
             end
             if (out_tokens_out_valid_and) begin
                 out_tokens_head <= out_tokens_head_add; // rtl-gen/src/merge/fetcher.rs:108
@@ -2103,12 +2103,12 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                 out_tokens_count <= out_tokens_count_sub; // rtl-gen/src/merge/fetcher.rs:112
             end
             if (probe_first) begin
-                probe_idx <= out_items_out_data_add_1; // rtl-gen/src/merge/fetcher.rs:1000
-                probe_end <= out_items_out_data_add; // rtl-gen/src/merge/fetcher.rs:1002
-                probe_parent <= out_items_out_data[173:150]; // rtl-gen/src/merge/fetcher.rs:1004
-                probe_lod <= out_items_out_data[5:1]; // rtl-gen/src/merge/fetcher.rs:1006
+                probe_idx <= out_items_out_data_add_1; // rtl-gen/src/merge/fetcher.rs:1011
+                probe_end <= out_items_out_data_add; // rtl-gen/src/merge/fetcher.rs:1013
+                probe_parent <= out_items_out_data[173:150]; // rtl-gen/src/merge/fetcher.rs:1015
+                probe_lod <= out_items_out_data[5:1]; // rtl-gen/src/merge/fetcher.rs:1017
             end else if (probe_next) begin
-                probe_idx <= probe_idx_add;  // rtl-gen/src/merge/fetcher.rs:1000
+                probe_idx <= probe_idx_add;  // rtl-gen/src/merge/fetcher.rs:1011
             end
             if (out_probes_out_valid_and) begin
                 out_probes_head <= out_probes_head_add; // rtl-gen/src/merge/fetcher.rs:108
@@ -2122,52 +2122,52 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                 out_probes_count <= out_probes_count_sub; // rtl-gen/src/merge/fetcher.rs:112
             end
             if (node_req_q_ready_or) begin
-                node_req_q_valid <= node_req_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1214
-                node_req_q_data <= node_req_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1214
+                node_req_q_valid <= node_req_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1225
+                node_req_q_data <= node_req_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1225
             end
             node_req_q_spare_valid <= node_req_q_spare_valid_next;
             if (node_req_q_ready_and) begin
-                node_req_q_spare_data <= node_req_core_data; // rtl-gen/src/merge/fetcher.rs:1214
+                node_req_q_spare_data <= node_req_core_data; // rtl-gen/src/merge/fetcher.rs:1225
             end
             if (ref_req_q_ready_or) begin
-                ref_req_q_valid <= ref_req_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1215
-                ref_req_q_data <= ref_req_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1215
+                ref_req_q_valid <= ref_req_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1226
+                ref_req_q_data <= ref_req_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1226
             end
             ref_req_q_spare_valid <= ref_req_q_spare_valid_next;
             if (ref_req_q_ready_and) begin
-                ref_req_q_spare_data <= ref_req_core_data; // rtl-gen/src/merge/fetcher.rs:1215
+                ref_req_q_spare_data <= ref_req_core_data; // rtl-gen/src/merge/fetcher.rs:1226
             end
             if (cref_req_q_ready_or) begin
-                cref_req_q_valid <= cref_req_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1216
-                cref_req_q_data <= cref_req_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1216
+                cref_req_q_valid <= cref_req_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1227
+                cref_req_q_data <= cref_req_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1227
             end
             cref_req_q_spare_valid <= cref_req_q_spare_valid_next;
             if (cref_req_q_ready_and) begin
-                cref_req_q_spare_data <= cref_req_core_data; // rtl-gen/src/merge/fetcher.rs:1216
+                cref_req_q_spare_data <= cref_req_core_data; // rtl-gen/src/merge/fetcher.rs:1227
             end
             if (out_q_ready_or) begin
-                out_q_valid <= out_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1217
-                out_q_data <= out_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1217
+                out_q_valid <= out_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1228
+                out_q_data <= out_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1228
             end
             out_q_spare_valid <= out_q_spare_valid_next;
             if (out_q_ready_and) begin
-                out_q_spare_data <= out_core_data; // rtl-gen/src/merge/fetcher.rs:1217
+                out_q_spare_data <= out_core_data; // rtl-gen/src/merge/fetcher.rs:1228
             end
             if (leaves_q_ready_or) begin
-                leaves_q_valid <= leaves_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1218
-                leaves_q_data <= leaves_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1218
+                leaves_q_valid <= leaves_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1229
+                leaves_q_data <= leaves_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1229
             end
             leaves_q_spare_valid <= leaves_q_spare_valid_next;
             if (leaves_q_ready_and) begin
-                leaves_q_spare_data <= leaves_core_data; // rtl-gen/src/merge/fetcher.rs:1218
+                leaves_q_spare_data <= leaves_core_data; // rtl-gen/src/merge/fetcher.rs:1229
             end
             if (probe_req_q_ready_or) begin
-                probe_req_q_valid <= probe_req_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1220
-                probe_req_q_data <= probe_req_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1220
+                probe_req_q_valid <= probe_req_q_spare_valid_or; // rtl-gen/src/merge/fetcher.rs:1231
+                probe_req_q_data <= probe_req_q_spare_valid_mux; // rtl-gen/src/merge/fetcher.rs:1231
             end
             probe_req_q_spare_valid <= probe_req_q_spare_valid_next;
             if (probe_req_q_ready_and) begin
-                probe_req_q_spare_data <= probe_req_core_data; // rtl-gen/src/merge/fetcher.rs:1220
+                probe_req_q_spare_data <= probe_req_core_data; // rtl-gen/src/merge/fetcher.rs:1231
             end
         end
     end

@@ -21,7 +21,7 @@ use golden::merge::fetch_unit::{fetch_err, FetchLayout, FetchSizes};
 use golden::merge::unit::{level_kind, BeatLayout};
 use golden::params::{bits_to_hold, Params};
 
-use super::fields::{field, with_fields};
+use super::fields::{field, with_fields, Word};
 use super::network::morton_code;
 use super::sorter::root_sorter_unit;
 use crate::{Module, Signal, Stream};
@@ -491,12 +491,15 @@ fn fetcher_unit_with(p: &Params, sizes: &FetchSizes, pn: bool) -> Module {
 
     // ---- the frontier: ranges (first, count, parent) and level markers
     let f_words = (2 * fcap + 1).max(2).next_power_of_two() as u32;
-    let front_in = Stream::wires(&m, "frontier_in", 3 * ib + 1);
+    // A range of `count` references from `first`, read by inner node
+    // `parent`, or (`marker`) a level's end.
+    let front_word = Word::new(&[("first", ib), ("count", ib), ("parent", ib), ("marker", 1)]);
+    let front_in = Stream::wires(&m, "frontier_in", front_word.width());
     let front = fifo(&m, "frontier", front_in, f_words);
-    let fo_marker = front.data.bit(3 * ib);
-    let fo_first = front.data.slice(ib - 1, 0);
-    let fo_count = front.data.slice(2 * ib - 1, ib);
-    let fo_parent = front.data.slice(3 * ib - 1, 2 * ib);
+    let fo_marker = front_word.get(front.data, "marker");
+    let fo_first = front_word.get(front.data, "first");
+    let fo_count = front_word.get(front.data, "count");
+    let fo_parent = front_word.get(front.data, "parent");
 
     // ---- range stage: one `ref` read a clock
     let cur_valid = m.reg("range_valid", 1);
@@ -600,7 +603,16 @@ fn fetcher_unit_with(p: &Params, sizes: &FetchSizes, pn: bool) -> Module {
     // take the pass's `pass_end` (the next pass's nodes wait behind it).
     let pn_visited = c_pn.map(|_| m.reg("pn_visited", 1));
     // The pass's inner nodes (Morton code, range, node) for the join.
-    let pass_in = c_pn.map(|_| Stream::wires(&m, "pass_in", 3 * p.coord_bits() + 3 * ib));
+    // Per-node: an inner node of this pass, at Morton `key` (without the
+    // walk's leading bit), with its child range; joined with the module's
+    // decisions in key order.
+    let pass_word = Word::new(&[
+        ("key", key_bits - 1),
+        ("first", ib),
+        ("count", ib),
+        ("node", ib),
+    ]);
+    let pass_in = c_pn.map(|_| Stream::wires(&m, "pass_in", pass_word.width()));
     // The `leaves` end beat leaves as soon as the visit stage is at the
     // first sent level (every node above it visited), before any item of
     // a sent level may wait on `out`: the merger's leaf merge then never
@@ -743,7 +755,7 @@ fn fetcher_unit_with(p: &Params, sizes: &FetchSizes, pn: bool) -> Module {
         let morton_part = key.slice(key_bits - 1, 1);
         pass_in
             .data
-            .drive(m.concat(&[rec_idx, n_count, n_first, morton_part]));
+            .drive(pass_word.pack(&m, &[morton_part, n_first, n_count, rec_idx]));
         let depth = (fcap.max(2)).next_power_of_two() as u32;
         (e_push, fifo(&m, "pass", pass_in, depth))
     });
@@ -796,11 +808,10 @@ fn fetcher_unit_with(p: &Params, sizes: &FetchSizes, pn: bool) -> Module {
             let r_more = r(&f.report_more);
             // A voxel at D has no child voxels: never followed.
             let r_desc = r(&f.report_descend) & r(&f.report_lod).lt(lit(dmax, lb));
-            let kb = 3 * p.coord_bits();
-            let e_key = entries.data.slice(kb - 1, 0);
-            let e_first = entries.data.slice(kb + ib - 1, kb);
-            let e_count = entries.data.slice(kb + 2 * ib - 1, kb + ib);
-            let e_node = entries.data.slice(kb + 3 * ib - 1, kb + 2 * ib);
+            let e_key = pass_word.get(entries.data, "key");
+            let e_first = pass_word.get(entries.data, "first");
+            let e_count = pass_word.get(entries.data, "count");
+            let e_node = pass_word.get(entries.data, "node");
             let jv = (walk & c_pn.expect("per-node") & report.valid).name("join_valid");
             let dec = (jv & !r_pe).name("join_decision");
             let e_lt = (entries.valid & e_key.lt(r_key)).name("join_entry_before");
@@ -818,8 +829,8 @@ fn fetcher_unit_with(p: &Params, sizes: &FetchSizes, pn: bool) -> Module {
             report.ready.drive(matched | passed | pe_take);
             front_in.valid.drive(push | marker | j_push | j_marker);
             front_in.data.drive((j_push | j_marker).mux(
-                m.concat(&[j_marker, e_node, e_count, e_first]),
-                m.concat(&[marker, rec_idx, n_count, n_first]),
+                front_word.pack(&m, &[e_first, e_count, e_node, j_marker]),
+                front_word.pack(&m, &[n_first, n_count, rec_idx, marker]),
             ));
             let pn_end = pn_end.expect("per-node");
             visited.next(start.mux(
@@ -833,7 +844,7 @@ fn fetcher_unit_with(p: &Params, sizes: &FetchSizes, pn: bool) -> Module {
             front_in.valid.drive(push | marker);
             front_in
                 .data
-                .drive(m.concat(&[marker, rec_idx, n_count, n_first]));
+                .drive(front_word.pack(&m, &[n_first, n_count, rec_idx, marker]));
         }
     }
     let leaf_beat = with_fields(

@@ -49,3 +49,65 @@ pub fn with_fields<'m>(
     low_first.reverse();
     m.concat(&low_first)
 }
+
+/// An internal word of named fields packed from bit 0 upward, such as a
+/// FIFO's entry: one definition for the concatenation that packs it and
+/// the slices that unpack it, so the two cannot drift apart. Golden's
+/// layouts describe what crosses a port; this describes what never does.
+#[derive(Clone, Debug)]
+pub struct Word {
+    fields: Vec<Field>,
+}
+
+impl Word {
+    /// Fields `(name, width)` from bit 0 upward; every width at least 1.
+    pub fn new(parts: &[(&'static str, u32)]) -> Word {
+        let mut offset = 0;
+        let fields = parts
+            .iter()
+            .map(|&(name, width)| {
+                assert!(width > 0, "word field `{name}` has no bits");
+                let f = Field {
+                    name,
+                    offset,
+                    width,
+                };
+                offset += width;
+                f
+            })
+            .collect();
+        Word { fields }
+    }
+
+    /// Bits in all.
+    pub fn width(&self) -> u32 {
+        self.fields.last().map_or(0, Field::end)
+    }
+
+    /// The field named `name`.
+    #[track_caller]
+    pub fn field(&self, name: &str) -> &Field {
+        self.fields
+            .iter()
+            .find(|f| f.name == name)
+            .unwrap_or_else(|| panic!("word has no field `{name}`"))
+    }
+
+    /// The word of `values`, one per field from bit 0 upward (each as wide
+    /// as its field; the module's builder checks the widths).
+    #[track_caller]
+    pub fn pack<'m>(&self, m: &'m Module, values: &[Signal<'m>]) -> Signal<'m> {
+        assert_eq!(values.len(), self.fields.len(), "one value per word field");
+        let msb_first: Vec<Signal<'m>> = values.iter().rev().copied().collect();
+        m.concat(&msb_first)
+    }
+
+    /// Field `name` of `word`.
+    #[track_caller]
+    pub fn get<'m>(&self, word: Signal<'m>, name: &str) -> Signal<'m> {
+        match self.field(name) {
+            f if f.width == 1 => word.bit(f.offset),
+            f => word.slice(f.end() - 1, f.offset),
+        }
+    }
+}

@@ -221,3 +221,50 @@ fn only_real_merger_runs_are_recorded() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("records real runs only"));
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
 }
+
+#[test]
+fn a_plan_lists_the_runs_still_to_make() {
+    let dir = tempfile::tempdir().unwrap();
+    record(dir.path(), "5", "2", &[]);
+    let plan = dir.path().join("plan.txt");
+    let done = "--unit merger --engine ir --seed 5 --count 2";
+    let left = "--unit merger --engine ir --seed 6 --count 2 # not yet";
+    std::fs::write(&plan, format!("# a plan\n{done}\n\n{left}\n")).unwrap();
+    let d = dir.path().to_str().unwrap();
+    let p = plan.to_str().unwrap();
+    let o = hiermerge(&["ledger", "--dir", d, "--plan", p, "--missing"], &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(
+        String::from_utf8_lossy(&o.stdout),
+        "--unit merger --engine ir --seed 6 --count 2\n"
+    );
+    let o = hiermerge(&["ledger", "--dir", d, "--plan", p, "--json"], &[]);
+    let r = json_of(&o);
+    let lines = r["plan"].as_array().unwrap();
+    assert_eq!(lines.len(), 2, "{r}");
+    assert_eq!(
+        (lines[0]["line"].as_u64(), lines[0]["done"].as_bool()),
+        (Some(2), Some(true))
+    );
+    assert_eq!(
+        (lines[1]["line"].as_u64(), lines[1]["done"].as_bool()),
+        (Some(4), Some(false))
+    );
+    // A stale entry does not count as done.
+    let entry = dir
+        .path()
+        .join(lines[0]["top"].as_str().unwrap())
+        .join("ir-seed5-n2.json");
+    edit(&entry, |v| v["netlist_sha256"] = "1".repeat(64).into());
+    let o = hiermerge(&["ledger", "--dir", d, "--plan", p, "--missing"], &[]);
+    assert_eq!(String::from_utf8_lossy(&o.stdout).lines().count(), 2);
+    // A line that is no merger run is named by file and line.
+    std::fs::write(&plan, format!("{done}\n--unit translate --count 2\n")).unwrap();
+    let o = hiermerge(&["ledger", "--dir", d, "--plan", p], &[]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("plan.txt line 2") && err.contains("--unit merger"),
+        "{err}"
+    );
+}

@@ -39,9 +39,30 @@ pub struct Args {
     /// Merges per configuration and engine the summary asks for.
     #[arg(long, default_value_t = 100_000)]
     need: u64,
+    /// A plan: one `hiermerge cosim` argument line per run wanted (`#`
+    /// starts a comment); the report then lists the lines no current,
+    /// passing entry covers.
+    #[arg(long)]
+    plan: Option<PathBuf>,
+    /// With --plan: print only the lines still to run, one per line, and
+    /// exit 0 whatever the entries' problems (for scripts/longruns).
+    #[arg(long, requires = "plan")]
+    missing: bool,
     /// Print one JSON object on stdout.
     #[arg(long)]
     json: bool,
+}
+
+/// One line of a plan and whether a current, passing entry covers it.
+#[derive(Serialize)]
+struct PlanLine {
+    line: usize,
+    args: String,
+    top: String,
+    engine: String,
+    seed: u64,
+    count: u64,
+    done: bool,
 }
 
 /// One entry's verdict.
@@ -81,6 +102,53 @@ struct Report {
     totals: Vec<Total>,
     /// Failed, stale or inconsistent entries, one line each.
     problems: Vec<String>,
+    /// With --plan: its lines, each done or not.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    plan: Option<Vec<PlanLine>>,
+}
+
+/// Reads the plan `path`: each line's run, and whether one of `good`
+/// (current, passing entries: (top, engine, seed, count)) covers it. An
+/// unparsable line is an error naming the file and line.
+fn read_plan(
+    path: &std::path::Path,
+    good: &std::collections::HashSet<(String, String, u64, u64)>,
+) -> Result<Vec<PlanLine>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut tops: HashMap<String, String> = HashMap::new();
+    let mut out = Vec::new();
+    for (i, raw) in text.lines().enumerate() {
+        let line = raw.split('#').next().unwrap_or("").trim();
+        if line.is_empty() {
+            continue;
+        }
+        let at = |what: String| format!("{} line {}: {what}", path.display(), i + 1);
+        let args: Vec<String> = line.split_whitespace().map(String::from).collect();
+        let run = merger_run(&args).map_err(at)?;
+        let key = format!("{:?}", run.config);
+        let top = match tops.get(&key) {
+            Some(t) => t.clone(),
+            None => {
+                let t = rtl_gen::merge::hierarchy_merger_unit(&run.config)
+                    .map_err(|e| at(e.to_string()))?
+                    .name();
+                tops.insert(key, t.clone());
+                t
+            }
+        };
+        let (engine, seed, count) = (run.engine.to_string(), run.seed, run.count as u64);
+        let done = good.contains(&(top.clone(), engine.clone(), seed, count));
+        out.push(PlanLine {
+            line: i + 1,
+            args: line.to_string(),
+            top,
+            engine,
+            seed,
+            count,
+            done,
+        });
+    }
+    Ok(out)
 }
 
 /// Checks one entry; problems found go to `problems`.
@@ -247,12 +315,25 @@ pub fn main(a: Args) -> CmdResult {
         .map(|(_, e)| e.clone())
         .zip(checked.iter())
         .collect();
+    let good = pairs
+        .iter()
+        .filter(|(_, c)| c.passed && c.netlist_current && c.stimulus_current != Some(false))
+        .map(|(e, _)| (e.top.clone(), e.engine.clone(), e.seed, e.count))
+        .collect();
+    let plan = a.plan.as_deref().map(|p| read_plan(p, &good)).transpose()?;
+    if a.missing {
+        for l in plan.iter().flatten().filter(|l| !l.done) {
+            println!("{}", l.args);
+        }
+        return Ok(());
+    }
     let report = Report {
         dir: a.dir.display().to_string(),
         need: a.need,
         totals: totals(&pairs, a.need),
         entries: checked,
         problems,
+        plan,
     };
     emit(a.json, &report, print_text)?;
     match report.problems.len() {
@@ -262,6 +343,9 @@ pub fn main(a: Args) -> CmdResult {
         )),
     }
 }
+
+/// Plan lines still to run that the text report shows.
+const SHOWN: usize = 5;
 
 fn print_text(r: &Report) {
     println!(
@@ -284,6 +368,20 @@ fn print_text(r: &Report) {
             t.wall_seconds,
             if t.met { "met" } else { "not yet" }
         );
+    }
+    if let Some(plan) = &r.plan {
+        let done = plan.iter().filter(|l| l.done).count();
+        println!("plan: {done} of {} runs done", plan.len());
+        let left: Vec<&PlanLine> = plan.iter().filter(|l| !l.done).collect();
+        for l in left.iter().take(SHOWN) {
+            println!("  to run (line {}): {}", l.line, l.args);
+        }
+        if left.len() > SHOWN {
+            println!(
+                "  ... and {} more (--missing lists them all)",
+                left.len() - SHOWN
+            );
+        }
     }
     for p in &r.problems {
         println!("problem: {p}");

@@ -111,3 +111,32 @@ impl Word {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Sim;
+
+    #[test]
+    fn a_word_packs_from_bit_0_and_unpacks_what_it_packed() {
+        let w = Word::new(&[("first", 5), ("flag", 1), ("count", 6)]);
+        assert_eq!(w.width(), 12);
+        assert_eq!((w.field("flag").offset, w.field("count").offset), (5, 6));
+        let m = Module::new("word");
+        let (a, f, c) = (m.input("a", 5), m.input("f", 1), m.input("c", 6));
+        let packed = w.pack(&m, &[a, f, c]);
+        m.output("word_out", packed);
+        m.output("a_out", w.get(packed, "first"));
+        m.output("f_out", w.get(packed, "flag"));
+        m.output("c_out", w.get(packed, "count"));
+        let mut sim = Sim::new(&m).unwrap();
+        sim.poke("a", 0b10110u64).unwrap();
+        sim.poke("f", 1u64).unwrap();
+        sim.poke("c", 0b100011u64).unwrap();
+        let peek = |sim: &mut Sim, name| sim.peek(name).unwrap().to_u64().unwrap();
+        assert_eq!(peek(&mut sim, "word_out"), 0b100011_1_10110);
+        assert_eq!(peek(&mut sim, "a_out"), 0b10110);
+        assert_eq!(peek(&mut sim, "f_out"), 1);
+        assert_eq!(peek(&mut sim, "c_out"), 0b100011);
+    }
+}

@@ -134,7 +134,10 @@ mod tests {
         sim.poke("f", 1u64).unwrap();
         sim.poke("c", 0b100011u64).unwrap();
         let peek = |sim: &mut Sim, name| sim.peek(name).unwrap().to_u64().unwrap();
-        assert_eq!(peek(&mut sim, "word_out"), 0b100011_1_10110);
+        assert_eq!(
+            peek(&mut sim, "word_out"),
+            (0b100011 << 6) | (1 << 5) | 0b10110
+        );
         assert_eq!(peek(&mut sim, "a_out"), 0b10110);
         assert_eq!(peek(&mut sim, "f_out"), 1);
         assert_eq!(peek(&mut sim, "c_out"), 0b100011);

@@ -210,8 +210,8 @@ fn hierarchy_merger(dir: &Path) -> Res<()> {
     let txs = (0..MERGER_LONG)
         .map(|_| merger::random_merge(&mut rng, &c))
         .collect::<cosim::Result<Vec<_>>>()?;
-    let long = merger::merger_streams(&c, &txs)?;
-    let short = merger::merger_streams(&c, &txs[..MERGER_SHORT])?;
+    let long = merger::merger_streams(&c, &txs)?.streams;
+    let short = merger::merger_streams(&c, &txs[..MERGER_SHORT])?.streams;
     let ins: Vec<&str> = long.inputs.iter().map(|s| s.name.as_str()).collect();
     let outs: Vec<&str> = long.outputs.iter().map(|s| s.name.as_str()).collect();
     let c = config();

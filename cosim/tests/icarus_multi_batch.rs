@@ -11,7 +11,7 @@ use cosim::icarus::{IcarusEngine, IcarusMultiBatch};
 use cosim::tb::StreamBeats;
 use cosim::tb::{run_multi_stream_bench, BenchConfig, MultiReport};
 use cosim::tools::{ci_mode, tool_available, INSTALL_HINT};
-use cosim::units::merge_module::{generate_streams, input_names, MergeStreams, OUTPUT_NAMES};
+use cosim::units::merge_module::{generate_streams, input_names, UnitStreams, OUTPUT_NAMES};
 use cosim::verilator::{VerilatorEngine, VerilatorOptions};
 use cosim::{BitVec, CosimError, Design, PortSpec};
 use golden::merge::MergeMode;
@@ -63,12 +63,12 @@ fn config(seed: u64, stall: f64) -> BenchConfig {
     }
 }
 
-fn verilator(u: &Unit, s: &MergeStreams, c: &BenchConfig) -> MultiReport {
+fn verilator(u: &Unit, s: &UnitStreams, c: &BenchConfig) -> MultiReport {
     let mut e = VerilatorEngine::new(&u.design, &VerilatorOptions::default()).unwrap();
     run_multi_stream_bench(&mut e, &s.inputs, &s.outputs, c).unwrap()
 }
 
-fn batch(u: &Unit, s: &MergeStreams, c: &BenchConfig) -> MultiReport {
+fn batch(u: &Unit, s: &UnitStreams, c: &BenchConfig) -> MultiReport {
     u.batch.run(&s.inputs, &s.outputs, c).unwrap().report
 }
 

@@ -112,7 +112,7 @@ fn streams(
     txs: &[MergerTransaction],
 ) -> (Vec<StreamBeats>, Vec<StreamBeats>, MergeStats) {
     let s = merger_streams(c, txs).expect("the golden merges pack");
-    (s.inputs, s.outputs, s.stats)
+    (s.streams.inputs, s.streams.outputs, s.stats)
 }
 
 fn modes(c: &MergerConfig) -> Vec<MergeMode> {

@@ -23,15 +23,41 @@ use super::merge_module::{
 /// Merges of stimulus held at a time on one simulator.
 pub const CHUNK: usize = 10_000;
 
-/// One chunk's stimulus and expectations.
-pub struct ChunkStreams<'a> {
+/// Merges as a multi-stream unit's streams (the merging module's, the
+/// merger's), and where each merge's beats start.
+#[derive(Clone, Debug)]
+pub struct UnitStreams {
     /// Input streams; the first is `cfg` (one beat per merge).
-    pub inputs: &'a [StreamBeats],
+    pub inputs: Vec<StreamBeats>,
     /// Output streams.
-    pub outputs: &'a [StreamBeats],
-    /// The merge (in the chunk) that beat `beat` of output stream `stream`
-    /// belongs to.
-    pub merge_of: &'a dyn Fn(usize, usize) -> usize,
+    pub outputs: Vec<StreamBeats>,
+    /// Per output stream (same order), the index of each merge's first
+    /// expected beat: merge `n`'s beats are `starts[s][n]..starts[s][n + 1]`.
+    pub starts: Vec<Vec<usize>>,
+}
+
+impl UnitStreams {
+    /// Merges in the stimulus.
+    pub fn merges(&self) -> usize {
+        self.inputs.first().map_or(0, |cfg| cfg.beats.len())
+    }
+
+    /// Beats on the input streams after `cfg` (the merged data).
+    pub fn data_beats(&self) -> u64 {
+        self.inputs
+            .iter()
+            .skip(1)
+            .map(|s| s.beats.len() as u64)
+            .sum()
+    }
+
+    /// The merge (0-based, in these streams) that output beat `beat` of
+    /// output stream `stream` belongs to.
+    pub fn merge_of(&self, stream: usize, beat: usize) -> usize {
+        self.starts[stream]
+            .partition_point(|&s| s <= beat)
+            .saturating_sub(1)
+    }
 }
 
 /// Decodes an (expected, got) pair of output stream `name` field by field.
@@ -116,7 +142,7 @@ impl ChunkTotals {
     fn add(
         &mut self,
         n: usize,
-        chunk: &ChunkStreams,
+        chunk: &UnitStreams,
         report: &MultiReport,
         watch: &PulseWatch,
         decode: &PairDecoder,
@@ -140,7 +166,7 @@ impl ChunkTotals {
                 ModuleMismatch {
                     stream: stream.clone(),
                     beat: m.output_index,
-                    merge: self.merges + (chunk.merge_of)(s, m.output_index as usize),
+                    merge: self.merges + chunk.merge_of(s, m.output_index as usize),
                     cycle: m.cycle,
                     fields: decode(stream, &m.expected, &m.got),
                 }
@@ -210,7 +236,7 @@ impl ChunkedSim {
         &self,
         totals: &mut ChunkTotals,
         n: usize,
-        chunk: &ChunkStreams,
+        chunk: &UnitStreams,
         config: &RunConfig,
         decode: &PairDecoder,
         progress: &mut dyn FnMut(u64, u64),
@@ -240,15 +266,15 @@ impl ChunkedSim {
                 };
                 run_multi_with_vcd_on_failure(
                     &mut make,
-                    chunk.inputs,
-                    chunk.outputs,
+                    &chunk.inputs,
+                    &chunk.outputs,
                     &bench,
                     &super::merge_module::PULSES,
                     &mut on_progress,
                 )?
             }
             Sim::Batch(batch) => {
-                let r = batch.run(chunk.inputs, chunk.outputs, &bench)?;
+                let r = batch.run(&chunk.inputs, &chunk.outputs, &bench)?;
                 let watch = PulseWatch {
                     counts: r.pulses,
                     at_end: r.pulses_at_end,

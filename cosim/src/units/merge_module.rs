@@ -34,7 +34,8 @@ use crate::tb::{
     PulseWatch, StreamBeats, Transaction,
 };
 
-use super::chunked::{ChunkStreams, ChunkTotals, ChunkedSim};
+pub use super::chunked::UnitStreams;
+use super::chunked::{ChunkTotals, ChunkedSim};
 
 /// The stage name `hiermerge cosim --unit merge` reports for this unit.
 pub const STAGE: &str = "merge_module";
@@ -61,40 +62,6 @@ pub fn input_names(d: &MergeDesign) -> Vec<String> {
 
 /// Names of the unit's output streams.
 pub const OUTPUT_NAMES: [&str; 2] = ["report", "out"];
-
-/// `count` random merges as streams, and where each merge's beats start.
-#[derive(Clone, Debug)]
-pub struct MergeStreams {
-    /// `cfg`, `in0`.. in that order.
-    pub inputs: Vec<StreamBeats>,
-    /// `report`, `out`.
-    pub outputs: Vec<StreamBeats>,
-    /// Per output stream (same order), the index of each merge's first
-    /// expected beat: merge `n`'s beats are `starts[s][n]..starts[s][n + 1]`.
-    pub starts: Vec<Vec<usize>>,
-}
-
-impl MergeStreams {
-    /// Merges in the stimulus.
-    pub fn merges(&self) -> usize {
-        self.inputs.first().map_or(0, |cfg| cfg.beats.len())
-    }
-
-    /// Beats on the `in*` streams (the merged data, not `cfg`).
-    pub fn data_beats(&self) -> u64 {
-        self.inputs
-            .iter()
-            .skip(1)
-            .map(|s| s.beats.len() as u64)
-            .sum()
-    }
-
-    /// The merge that output beat `beat` of output stream `stream` belongs to.
-    pub fn merge_of(&self, stream: usize, beat: usize) -> usize {
-        let starts = &self.starts[stream];
-        starts.partition_point(|&s| s <= beat).saturating_sub(1)
-    }
-}
 
 fn bitvec(b: &Bits) -> Result<BitVec> {
     BitVec::from_words(b.width() as usize, b.words())
@@ -171,7 +138,7 @@ pub fn generate_streams(
     count: usize,
     most_voxels: usize,
     flip_expected: Option<usize>,
-) -> Result<MergeStreams> {
+) -> Result<UnitStreams> {
     generate_streams_from(&mut SplitMix64(seed), d, count, most_voxels, flip_expected)
 }
 
@@ -183,7 +150,7 @@ fn generate_streams_from(
     count: usize,
     most_voxels: usize,
     flip_expected: Option<usize>,
-) -> Result<MergeStreams> {
+) -> Result<UnitStreams> {
     d.validate().map_err(golden_err)?;
     let mut cfg = Vec::with_capacity(count);
     let mut ins: Vec<Vec<Transaction>> = vec![Vec::new(); d.inputs];
@@ -226,7 +193,7 @@ fn generate_streams_from(
             beats: out,
         },
     ];
-    Ok(MergeStreams {
+    Ok(UnitStreams {
         inputs,
         outputs,
         starts,
@@ -426,7 +393,7 @@ impl Outcome {
 /// Icarus batch reports only at its end).
 pub fn run(
     d: &MergeDesign,
-    streams: &MergeStreams,
+    streams: &UnitStreams,
     engine: ModuleEngine,
     config: &RunConfig,
     dir: &Path,
@@ -551,13 +518,7 @@ pub fn run_chunked(
             .filter(|&f| f < n);
         let streams = generate_streams_from(&mut rng, d, n, run.most_voxels, flip)?;
         totals.golden_wall += t.elapsed();
-        let merge_of = |s: usize, beat: usize| streams.merge_of(s, beat);
-        let chunk = ChunkStreams {
-            inputs: &streams.inputs,
-            outputs: &streams.outputs,
-            merge_of: &merge_of,
-        };
-        if sim.run_chunk(&mut totals, n, &chunk, &run.bench, &decode, progress)? {
+        if sim.run_chunk(&mut totals, n, &streams, &run.bench, &decode, progress)? {
             break;
         }
     }

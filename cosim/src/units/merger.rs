@@ -31,8 +31,8 @@ use crate::error::{CosimError, Result};
 use crate::ledger::StimulusDigest;
 use crate::tb::{FieldDecoder, StreamBeats, Transaction};
 
-use super::chunked::{ChunkStreams, ChunkedSim};
 pub use super::chunked::{ChunkTotals, CHUNK};
+use super::chunked::{ChunkedSim, UnitStreams};
 pub use super::merge_module::ModuleEngine as MergerEngine;
 pub use super::merge_module::ModuleMismatch as MergerMismatch;
 use super::merge_module::{
@@ -103,32 +103,18 @@ impl MergeStats {
     }
 }
 
-/// Merges as the merger's streams.
+/// Merges as the merger's streams, and what they exercise.
 #[derive(Clone, Debug)]
 pub struct MergerStreams {
-    /// `cfg`, then per fetcher `f{i}_node_resp`, `f{i}_ref_resp`,
+    /// Inputs: `cfg`, then per fetcher `f{i}_node_resp`, `f{i}_ref_resp`,
     /// `f{i}_cref_resp`, then (per-node mode) every `f{i}_probe_resp`,
-    /// then `w_ref_resp`.
-    pub inputs: Vec<StreamBeats>,
-    /// `report`, per fetcher `f{i}_node_req`, `f{i}_ref_req`,
-    /// `f{i}_cref_req`, then (per-node mode) every `f{i}_probe_req`, then
-    /// `w_ref_req`, `nodes`, `refs`, `header` (always last).
-    pub outputs: Vec<StreamBeats>,
-    /// Per output stream (same order), the index of each merge's first
-    /// expected beat, and one past the last.
-    pub starts: Vec<Vec<usize>>,
+    /// then `w_ref_resp`. Outputs: `report`, per fetcher `f{i}_node_req`,
+    /// `f{i}_ref_req`, `f{i}_cref_req`, then (per-node mode) every
+    /// `f{i}_probe_req`, then `w_ref_req`, `nodes`, `refs`, `header`
+    /// (always last).
+    pub streams: UnitStreams,
     /// What the merges exercised.
     pub stats: MergeStats,
-}
-
-impl MergerStreams {
-    /// The merge (0-based, in these streams) that output beat `beat` of
-    /// output stream `stream` belongs to.
-    pub fn merge_of(&self, stream: usize, beat: usize) -> usize {
-        self.starts[stream]
-            .partition_point(|&s| s <= beat)
-            .saturating_sub(1)
-    }
 }
 
 fn bitvec(b: &Bits) -> Result<BitVec> {
@@ -378,9 +364,11 @@ pub fn merger_streams(c: &MergerConfig, txs: &[MergerTransaction]) -> Result<Mer
         s.push(at.len());
     }
     Ok(MergerStreams {
-        inputs: ins.into_streams()?,
-        outputs: outs.into_streams()?,
-        starts,
+        streams: UnitStreams {
+            inputs: ins.into_streams()?,
+            outputs: outs.into_streams()?,
+            starts,
+        },
         stats,
     })
 }
@@ -474,7 +462,7 @@ impl Outcome {
 }
 
 /// Flips bit 0 of merge `merge`'s expected `header` beat (its `out_id`).
-fn flip_header(streams: &mut MergerStreams, merge: usize) -> Result<()> {
+fn flip_header(streams: &mut UnitStreams, merge: usize) -> Result<()> {
     let header = streams.outputs.len() - 1;
     let at = streams.starts[header][merge];
     match streams.outputs[header].beats.get_mut(at) {
@@ -497,7 +485,7 @@ fn next_chunk(
         .collect::<Result<Vec<_>>>()?;
     let mut streams = merger_streams(c, &txs)?;
     if let Some(f) = flip {
-        flip_header(&mut streams, f)?;
+        flip_header(&mut streams.streams, f)?;
     }
     Ok(streams)
 }
@@ -521,8 +509,8 @@ pub fn stimulus_digest(c: &MergerConfig, seed: u64, count: usize, stall: f64) ->
     let mut rng = SplitMix64(seed);
     let mut digest = StimulusDigest::new(seed, count as u64, stall);
     for n in chunk_sizes(count) {
-        let streams = next_chunk(&mut rng, c, n, None)?;
-        digest.add_chunk(&streams.inputs, &streams.outputs);
+        let s = next_chunk(&mut rng, c, n, None)?.streams;
+        digest.add_chunk(&s.inputs, &s.outputs);
     }
     Ok(digest.finish())
 }
@@ -580,17 +568,18 @@ pub fn run(
             .flip_expected
             .filter(|f| (first..first + n).contains(f))
             .map(|f| f - first);
-        let streams = next_chunk(&mut rng, c, n, flip)?;
+        let MergerStreams { streams, stats } = next_chunk(&mut rng, c, n, flip)?;
         digest.add_chunk(&streams.inputs, &streams.outputs);
         out.totals.golden_wall += t.elapsed();
-        out.stats.add(&streams.stats);
-        let merge_of = |s: usize, beat: usize| streams.merge_of(s, beat);
-        let chunk = ChunkStreams {
-            inputs: &streams.inputs,
-            outputs: &streams.outputs,
-            merge_of: &merge_of,
-        };
-        if sim.run_chunk(&mut out.totals, n, &chunk, &config.bench, &decode, progress)? {
+        out.stats.add(&stats);
+        if sim.run_chunk(
+            &mut out.totals,
+            n,
+            &streams,
+            &config.bench,
+            &decode,
+            progress,
+        )? {
             out.stopped_early = out.totals.merges < config.count;
             break;
         }
@@ -627,7 +616,7 @@ mod tests {
         let txs: Vec<_> = (0..30)
             .map(|_| random_merge(&mut rng, c).unwrap())
             .collect();
-        let streams = merger_streams(c, &txs).unwrap();
+        let streams = merger_streams(c, &txs).unwrap().streams;
         let mut checked = 0;
         for out in &streams.outputs {
             let fields = output_fields(&ml, pn, &out.name).unwrap();

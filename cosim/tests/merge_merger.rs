@@ -628,3 +628,87 @@ fn lint_only(design: &cosim::Design) {
         design.top
     );
 }
+
+/// Steady state with no back-pressure (SPEC 8.15, Throughput): one merge
+/// of k overlapping soups at a time, of growing size, on a fresh engine.
+/// While a stream moves beats it moves one a clock: the writer's `nodes` and
+/// `refs` from their first beat to their last, and the fetchers' store
+/// reads together, which share the merging module's one merged input (each
+/// fetcher gets about 1/k of the clocks). What the whole merge loses is
+/// between its phases (count pass, the choice and the walk to `m`, merge
+/// pass, write), which run one after the other; the printout gives the
+/// cycles of each.
+#[test]
+fn hierarchy_merger_steady_state() {
+    if !tools_present(&["verilator"]) {
+        return;
+    }
+    let mut c = MergerConfig::new(MergeDesign::default());
+    // Leaf FIFOs for the leaves above the merging level of large inputs.
+    c.sizes.leaf_bits = 9;
+    let p = c.design.params;
+    let k = c.design.inputs;
+    let dir = tempfile::tempdir().unwrap();
+    let m = rtl_gen::merge::hierarchy_merger_unit(&c).expect("a valid merger");
+    let design = design_of(&m, dir.path());
+    for tris in [80usize, 320] {
+        let mut store = HierarchyStore::new();
+        let mut table = TranslationTable::new(p.hier_capacity() as usize, &p).unwrap();
+        let ids: Vec<u8> = (1..=k as u8).collect();
+        for &id in &ids {
+            let h = soup(&p, id, tris, 0.3, 1000 + id as u64);
+            table.write(id as u32, place(&h, [0.5, 0.5, 0.5])).unwrap();
+            store.insert(h).unwrap();
+        }
+        let tx = merger_transaction(&store, &table, &ids, c.design.mode, 9, k, c.sizes)
+            .expect("the merge");
+        let h = &tx.header;
+        assert!(!h.leaf_overflow && h.writer.err == 0, "{tris}: {h:?}");
+        let (ins, outs, seen) = streams(&c, std::slice::from_ref(&tx));
+        let mut e = engine("verilator", &m, &design);
+        let r = bench(e.as_mut(), &ins, &outs, 3, 0.0, "merge_merger steady state");
+        let w = |name: &str| {
+            r.active(name)
+                .unwrap_or_else(|| panic!("`{name}` moved nothing"))
+        };
+        // The store reads of every fetcher together, first to last.
+        let reads: Vec<_> = (0..k).map(|i| w(&format!("f{i}_node_req"))).collect();
+        let (first, last) = (
+            reads.iter().map(|a| a.first).min().unwrap(),
+            reads.iter().map(|a| a.last).max().unwrap(),
+        );
+        let read_beats: u64 = reads.iter().map(|a| a.beats).sum();
+        let read_rate = read_beats as f64 / (last - first + 1) as f64;
+        let (nodes, refs) = (w("nodes"), w("refs"));
+        println!(
+            "steady state, {k} soups of {tris} triangles: {} cycles; {} beats into the module; store node reads {read_beats} in cycles {first}..{last} ({read_rate:.3} a clock, per fetcher {}); written: {} records in {}..{} ({:.3}), {} refs in {}..{} ({:.3})",
+            r.cycles,
+            seen.module_in,
+            reads
+                .iter()
+                .map(|a| format!("{:.3}", a.beats as f64 / (last - first + 1) as f64))
+                .collect::<Vec<_>>()
+                .join(" "),
+            nodes.beats,
+            nodes.first,
+            nodes.last,
+            nodes.rate(),
+            refs.beats,
+            refs.first,
+            refs.last,
+            refs.rate(),
+        );
+        assert!(
+            nodes.rate() >= 0.95 && refs.rate() >= 0.95,
+            "{tris}: the writer bubbles"
+        );
+        // Two walks (count pass, merge pass) with the choice between them:
+        // a fixed gap, small against the reads of the larger merge.
+        if tris == 320 {
+            assert!(
+                read_rate >= 0.9,
+                "the fetchers' reads bubble: {read_rate:.3}"
+            );
+        }
+    }
+}

@@ -449,6 +449,8 @@ impl IcarusMultiBatch {
             hang,
             vcd: None,
             wall: Duration::ZERO,
+            // The batch's records count beats, not when they moved.
+            active: Vec::new(),
         };
         let (counts, last) = match pulses {
             Some(p) => p,

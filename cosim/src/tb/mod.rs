@@ -20,7 +20,7 @@ pub use driver::StreamDriver;
 pub use monitor::StreamMonitor;
 pub use multi::{
     run_multi_stream_bench, run_multi_stream_bench_traced, run_multi_stream_bench_watching,
-    run_multi_with_vcd_on_failure, MultiReport, PulseCounts, PulseWatch, StreamBeats,
+    run_multi_with_vcd_on_failure, ActiveWindow, MultiReport, PulseCounts, PulseWatch, StreamBeats,
 };
 pub use prng::Prng;
 pub use scoreboard::{FieldDecoder, FieldDiff, Mismatch, Scoreboard};

@@ -48,6 +48,26 @@ pub struct MultiReport {
     /// VCD written around the first mismatch or hang.
     pub vcd: Option<PathBuf>,
     pub wall: Duration,
+    /// Per stream (inputs, then outputs): the cycles of its first and last
+    /// transfer (stepped engines; empty from the Icarus batch).
+    pub active: Vec<ActiveWindow>,
+}
+
+/// When a stream moved beats: its first and last transfer.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ActiveWindow {
+    pub name: String,
+    pub beats: u64,
+    pub first: u64,
+    pub last: u64,
+}
+
+impl ActiveWindow {
+    /// Beats per cycle from the first transfer to the last: 1.0 is a
+    /// stream with no bubble while it was busy.
+    pub fn rate(&self) -> f64 {
+        self.beats as f64 / (self.last - self.first + 1) as f64
+    }
 }
 
 /// Cycles each watched 1-bit output was high, by name.
@@ -66,6 +86,11 @@ impl MultiReport {
     /// Every beat matched, none missing, nothing hung.
     pub fn passed(&self) -> bool {
         self.mismatches == 0 && self.hang.is_none() && self.missing.iter().all(|m| m.1 == 0)
+    }
+
+    /// The active window of stream `name`, if it moved any beat.
+    pub fn active(&self, name: &str) -> Option<&ActiveWindow> {
+        self.active.iter().find(|w| w.name == name)
     }
 
     /// Beats accepted on input stream `name` per cycle.
@@ -188,6 +213,15 @@ pub fn run_multi_stream_bench_traced(
     let mut hang = None;
     let mut drain_left: Option<u64> = None;
     let mut next_progress = 0;
+    // Per stream (inputs, then outputs): beats, first and last transfer.
+    let mut windows: Vec<(u64, u64, u64)> = vec![(0, 0, 0); inputs.len() + outputs.len()];
+    let moved = |w: &mut (u64, u64, u64), cycle: u64| {
+        if w.0 == 0 {
+            w.1 = cycle;
+        }
+        w.0 += 1;
+        w.2 = cycle;
+    };
     loop {
         if let Some(w) = window.as_mut() {
             w.update(engine)?;
@@ -202,14 +236,16 @@ pub fn run_multi_stream_bench_traced(
         for (n, id) in pulse_counts.iter_mut().zip(&pulse_ids) {
             *n += engine.peek_bool(*id)? as u64;
         }
-        for d in drivers.iter_mut() {
+        for (j, d) in drivers.iter_mut().enumerate() {
             if d.observe(engine)?.is_some() {
                 watchdog.progress(engine.cycle());
+                moved(&mut windows[j], engine.cycle());
             }
         }
-        for (mon, board) in monitors.iter_mut() {
+        for (j, (mon, board)) in monitors.iter_mut().enumerate() {
             if let Some(txn) = mon.observe(engine)? {
                 watchdog.progress(engine.cycle());
+                moved(&mut windows[inputs.len() + j], engine.cycle());
                 board.check(txn, engine.cycle());
             }
         }
@@ -281,6 +317,18 @@ pub fn run_multi_stream_bench_traced(
         hang,
         vcd: window.map(|w| w.path),
         wall: start.elapsed(),
+        active: inputs
+            .iter()
+            .chain(outputs)
+            .zip(&windows)
+            .filter(|(_, w)| w.0 > 0)
+            .map(|(s, w)| ActiveWindow {
+                name: s.name.clone(),
+                beats: w.0,
+                first: w.1,
+                last: w.2,
+            })
+            .collect(),
     };
     let names = pulses.iter().map(|p| p.to_string());
     let watch = PulseWatch {

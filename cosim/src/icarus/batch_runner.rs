@@ -154,18 +154,18 @@ pub fn mask_line(words: impl Iterator<Item = u64>) -> String {
     line
 }
 
-/// The line that tells `MaskFifo::close` the writer has stopped (no mask
-/// line is `end`: hex words have no `n`).
-const MASKS_END: &str = "end\n";
-
 /// The named pipe `MASKS_FIFO` and the thread writing the stall masks into
-/// it ahead of vvp. Rust holds the pipe open for reading and writing, so a
-/// write never meets a closed pipe: no SIGPIPE when vvp has exited (a
+/// it ahead of vvp. The writer thread holds the only write end; Rust holds
+/// a read end (`drain`) for as long as the writer may write, so a write
+/// never meets a pipe without readers: no SIGPIPE when vvp has exited (a
 /// process that restores SIGPIPE's default, as the `hiermerge` CLI does,
-/// would otherwise end). `close` stops the writer and reads the pipe empty
-/// until the writer's end line, so a writer blocked on a full pipe finishes.
+/// would otherwise end). `close` stops the writer and reads the pipe until
+/// end of file, which comes when the writer has left and dropped its end:
+/// a writer blocked on a full pipe is unblocked by the reads, and nothing
+/// depends on the pipe's contents, so another reader of the pipe (a
+/// person's `cat masks.fifo`) cannot make it wait forever.
 struct MaskFifo {
-    pipe: fs::File,
+    drain: fs::File,
     path: PathBuf,
     stop: Arc<AtomicBool>,
     writer: std::thread::JoinHandle<()>,
@@ -192,46 +192,43 @@ impl MaskFifo {
                 log: String::from_utf8_lossy(&made.stderr).into_owned(),
             });
         }
-        let pipe = fs::OpenOptions::new()
-            .read(true)
-            .write(true)
-            .open(&path)
-            .map_err(io_err(&path))?;
-        let mut out = pipe.try_clone().map_err(io_err(&path))?;
+        let open = |read: bool, write: bool| {
+            fs::OpenOptions::new()
+                .read(read)
+                .write(write)
+                .open(&path)
+                .map_err(io_err(&path))
+        };
+        // Opening one end of a FIFO waits for the other; a read-write
+        // handle is both, so the two single ends open at once after it.
+        let both = open(true, true)?;
+        let drain = open(true, false)?;
+        let mut out = open(false, true)?;
+        drop(both);
         let stop = Arc::new(AtomicBool::new(false));
         let stopped = stop.clone();
-        let writer = std::thread::spawn(move || loop {
-            if stopped.load(Ordering::SeqCst) {
-                let _ = out.write_all(MASKS_END.as_bytes());
-                return;
-            }
-            let block: String = (0..MASK_LINES_PER_WRITE).map(|_| mask_line()).collect();
-            if out.write_all(block.as_bytes()).is_err() {
-                return;
+        let writer = std::thread::spawn(move || {
+            while !stopped.load(Ordering::SeqCst) {
+                let block: String = (0..MASK_LINES_PER_WRITE).map(|_| mask_line()).collect();
+                if out.write_all(block.as_bytes()).is_err() {
+                    return;
+                }
             }
         });
         Ok(MaskFifo {
-            pipe,
+            drain,
             path,
             stop,
             writer,
         })
     }
 
-    /// Stop the writer, read what is left up to its end line, join it.
+    /// Stop the writer, read the pipe to its end of file (the writer gone),
+    /// join it.
     fn close(mut self) -> Result<()> {
         self.stop.store(true, Ordering::SeqCst);
-        let mut tail = Vec::new();
         let mut buf = vec![0u8; 1 << 16];
-        while !tail.ends_with(MASKS_END.as_bytes()) {
-            let n = self.pipe.read(&mut buf).map_err(io_err(&self.path))?;
-            if n == 0 {
-                break;
-            }
-            tail.extend_from_slice(&buf[..n]);
-            let keep = tail.len().saturating_sub(MASKS_END.len());
-            tail.drain(..keep);
-        }
+        while self.drain.read(&mut buf).map_err(io_err(&self.path))? > 0 {}
         let _ = self.writer.join();
         Ok(())
     }
@@ -403,4 +400,43 @@ fn hang_of(design: &Design, l: &OutLine) -> Result<Hang> {
         idle_cycles,
         ports,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The closing does not depend on what is left in the pipe: with
+    /// another reader taking everything (as `cat masks.fifo` would) it
+    /// still returns.
+    #[test]
+    fn closing_the_mask_pipe_never_waits_on_another_reader() {
+        for _ in 0..40 {
+            one_round();
+        }
+    }
+
+    fn one_round() {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = MaskFifo::open(dir.path(), || "0 0\n".to_string()).unwrap();
+        let path = dir.path().join(MASKS_FIFO);
+        let thief = std::thread::spawn(move || {
+            let mut f = fs::File::open(path).unwrap();
+            let mut buf = vec![0u8; 4096];
+            let mut taken = 0usize;
+            while let Ok(n) = f.read(&mut buf) {
+                if n == 0 {
+                    break;
+                }
+                taken += n;
+            }
+            taken
+        });
+        std::thread::sleep(Duration::from_millis(5));
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || tx.send(fifo.close().is_ok()).unwrap());
+        assert_eq!(rx.recv_timeout(Duration::from_secs(20)), Ok(true));
+        // The other reader sees the end of file too, once the writer is gone.
+        assert!(thief.join().unwrap() > 0);
+    }
 }

@@ -924,9 +924,7 @@ fn run_merger(
         descents: s.descents,
         done_pulses: t.done_pulses,
         golden_seconds: t.golden_wall.as_secs_f64(),
-        top: rtl_gen::merge::hierarchy_merger_unit(&c)
-            .map_err(|e| e.to_string())?
-            .name(),
+        top: rtl_gen::merge::hierarchy_merger_name(&c),
         netlist_sha256: o.netlist_sha256.clone(),
         stimulus_sha256: o.stimulus_sha256.clone(),
     });

@@ -115,7 +115,6 @@ fn read_plan(
     good: &std::collections::HashSet<(String, String, u64, u64)>,
 ) -> Result<Vec<PlanLine>, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let mut tops: HashMap<String, String> = HashMap::new();
     let mut out = Vec::new();
     for (i, raw) in text.lines().enumerate() {
         let line = raw.split('#').next().unwrap_or("").trim();
@@ -125,17 +124,7 @@ fn read_plan(
         let at = |what: String| format!("{} line {}: {what}", path.display(), i + 1);
         let args: Vec<String> = line.split_whitespace().map(String::from).collect();
         let run = merger_run(&args).map_err(at)?;
-        let key = format!("{:?}", run.config);
-        let top = match tops.get(&key) {
-            Some(t) => t.clone(),
-            None => {
-                let t = rtl_gen::merge::hierarchy_merger_unit(&run.config)
-                    .map_err(|e| at(e.to_string()))?
-                    .name();
-                tops.insert(key, t.clone());
-                t
-            }
-        };
+        let top = rtl_gen::merge::hierarchy_merger_name(&run.config);
         let (engine, seed, count) = (run.engine.to_string(), run.seed, run.count as u64);
         let done = good.contains(&(top.clone(), engine.clone(), seed, count));
         out.push(PlanLine {
@@ -194,15 +183,8 @@ fn check(
         ));
         return out;
     }
-    let top = match rtl_gen::merge::hierarchy_merger_unit(&run.config) {
-        Ok(m) => m.name(),
-        Err(what) => {
-            problems.push(format!(
-                "{path}: the generator refuses the configuration: {what}"
-            ));
-            return out;
-        }
-    };
+    // `merger_run` validated the configuration.
+    let top = rtl_gen::merge::hierarchy_merger_name(&run.config);
     if top != e.top {
         problems.push(format!(
             "{path}: field top `{}`, but its args generate `{top}`",

@@ -35,7 +35,7 @@ enum Command {
     Vectors(cmd::vectors::Args),
     /// The main job: build, (merge,) and trace a scene; with no argument, the embedded default scene.
     Run(cmd::run::Args),
-    /// Co-simulate a unit (translate; merge: the merging module, --stage merge-level its S614 stage) against golden, cycle by cycle.
+    /// Co-simulate a unit (translate; merge: the merging module, --stage merge-level its S614 stage; merger: the hierarchy merger top) against golden, cycle by cycle.
     Cosim(cmd::cosim::Args),
     /// Check the long-run ledger (cosim --ledger) against today's code and sum what it proves.
     Ledger(cmd::ledger::Args),

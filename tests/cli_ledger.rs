@@ -88,8 +88,28 @@ fn recorded_runs_are_current_and_add_up_each_seed_once() {
     assert_eq!(totals[0]["met"], true, "{r}");
     let (_, r) = check(dir.path(), "none", "7");
     assert_eq!(r["totals"][0]["met"], false, "{r}");
-    // Another configuration is its own line.
-    record(dir.path(), "5", "2", &["--inputs", "2"]);
+    // Another configuration is its own line. A mode typed with a blank is
+    // recorded in its canonical spelling, one argument, so the entry's
+    // args parse again.
+    let entry = record(
+        dir.path(),
+        "5",
+        "2",
+        &["--inputs", "2", "--mode", "overlap: 1/2"],
+    );
+    let args = serde_json::from_str::<Value>(&std::fs::read_to_string(entry).unwrap()).unwrap()
+        ["args"]
+        .clone();
+    let args: Vec<&str> = args
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|a| a.as_str().unwrap())
+        .collect();
+    assert!(
+        args.windows(2).any(|w| w == ["--mode", "overlap:1/2"]),
+        "{args:?}"
+    );
     let (ok, r) = check(dir.path(), "first", "6");
     assert!(ok, "{r}");
     assert_eq!(r["totals"].as_array().unwrap().len(), 2, "{r}");
@@ -238,6 +258,14 @@ fn a_plan_lists_the_runs_still_to_make() {
         String::from_utf8_lossy(&o.stdout),
         "--unit merger --engine ir --seed 6 --count 2\n"
     );
+    let o = hiermerge(
+        &["ledger", "--dir", d, "--plan", p, "--missing", "--json"],
+        &[],
+    );
+    assert_eq!(
+        json_of(&o)["missing"],
+        serde_json::json!(["--unit merger --engine ir --seed 6 --count 2"])
+    );
     let o = hiermerge(&["ledger", "--dir", d, "--plan", p, "--json"], &[]);
     let r = json_of(&o);
     let lines = r["plan"].as_array().unwrap();
@@ -265,6 +293,14 @@ fn a_plan_lists_the_runs_still_to_make() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
         err.contains("plan.txt line 2") && err.contains("--unit merger"),
+        "{err}"
+    );
+    // A line clap refuses is named with clap's reason.
+    std::fs::write(&plan, format!("{done}\n{done} --sead 3\n")).unwrap();
+    let o = hiermerge(&["ledger", "--dir", d, "--plan", p], &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("plan.txt line 2") && err.contains("--sead"),
         "{err}"
     );
 }

@@ -147,21 +147,21 @@ impl Entry {
     }
 
     /// Writes the entry under `dir` (folders created); refuses to replace
-    /// an entry already there, so that no run's record is lost.
+    /// an entry already there, so that no run's record is lost. The entry
+    /// is written whole into a temporary file beside it and then linked
+    /// into place, so a run stopped while it writes leaves no half entry.
     pub fn write_into(&self, dir: &Path) -> Result<std::path::PathBuf> {
         let path = dir.join(self.relative_path());
-        if let Some(parent) = path.parent() {
-            std::fs::create_dir_all(parent).map_err(io_err(parent))?;
-        }
+        let parent = path.parent().unwrap_or(dir);
+        std::fs::create_dir_all(parent).map_err(io_err(parent))?;
         let text = serde_json::to_string_pretty(self).map_err(|e| crate::CosimError::Design {
             what: format!("ledger entry: {e}"),
         })? + "\n";
-        let mut file = std::fs::OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .open(&path)
-            .map_err(io_err(&path))?;
-        std::io::Write::write_all(&mut file, text.as_bytes()).map_err(io_err(&path))?;
+        let mut file = tempfile::NamedTempFile::new_in(parent).map_err(io_err(parent))?;
+        std::io::Write::write_all(&mut file, text.as_bytes()).map_err(io_err(file.path()))?;
+        file.as_file().sync_all().map_err(io_err(file.path()))?;
+        file.persist_noclobber(&path)
+            .map_err(|e| io_err(&path)(e.error))?;
         Ok(path)
     }
 }
@@ -187,9 +187,27 @@ pub fn read_ledger(dir: &Path) -> Result<Vec<(std::path::PathBuf, Entry)>> {
                     what: format!("format `{}`, expected `{FORMAT}`", entry.format),
                 });
             }
+            for (field, digest) in [
+                ("netlist_sha256", &entry.netlist_sha256),
+                ("stimulus_sha256", &entry.stimulus_sha256),
+            ] {
+                if !is_sha256_hex(digest) {
+                    return Err(crate::CosimError::Parse {
+                        text: path.display().to_string(),
+                        what: format!(
+                            "field {field}: `{digest}`, expected 64 lower-case hexadecimal digits"
+                        ),
+                    });
+                }
+            }
             Ok((path, entry))
         })
         .collect()
+}
+
+/// A SHA-256 digest as [`netlist_digest`] and [`StimulusDigest`] print it.
+fn is_sha256_hex(text: &str) -> bool {
+    text.len() == 64 && text.bytes().all(|b| matches!(b, b'0'..=b'9' | b'a'..=b'f'))
 }
 
 fn collect_json(dir: &Path, out: &mut Vec<std::path::PathBuf>) -> Result<()> {
@@ -252,10 +270,8 @@ mod tests {
         assert_ne!(base, d.finish());
     }
 
-    #[test]
-    fn an_entry_is_never_overwritten() {
-        let dir = tempfile::tempdir().unwrap();
-        let e = Entry {
+    fn entry() -> Entry {
+        Entry {
             format: FORMAT.into(),
             unit: "merger".into(),
             top: "hierarchy_merger_x".into(),
@@ -270,10 +286,23 @@ mod tests {
             netlist_sha256: "a".repeat(64),
             stimulus_sha256: "b".repeat(64),
             hiermerge_version: "0.1.0".into(),
-        };
+        }
+    }
+
+    #[test]
+    fn an_entry_is_never_overwritten() {
+        let dir = tempfile::tempdir().unwrap();
+        let e = entry();
         let path = e.write_into(dir.path()).unwrap();
         assert!(path.ends_with("hierarchy_merger_x/ir-seed3-n5.json"));
         assert!(e.write_into(dir.path()).is_err());
+        // The refused write leaves neither a changed entry nor its temporary file.
+        let folder = path.parent().unwrap();
+        let names: Vec<_> = std::fs::read_dir(folder)
+            .unwrap()
+            .map(|f| f.unwrap().file_name())
+            .collect();
+        assert_eq!(names, vec![std::ffi::OsString::from("ir-seed3-n5.json")]);
         let read = read_ledger(dir.path()).unwrap();
         assert_eq!(read, vec![(path.clone(), e)]);
         std::fs::write(dir.path().join("hierarchy_merger_x/bad.json"), "{}").unwrap();
@@ -282,5 +311,27 @@ mod tests {
             err.contains("bad.json") && err.contains("not a ledger entry"),
             "{err}"
         );
+    }
+
+    #[test]
+    fn a_digest_that_is_no_sha256_is_named() {
+        for (field, bad) in [
+            ("netlist_sha256", "é".repeat(32)),
+            ("stimulus_sha256", "A".repeat(64)),
+            ("netlist_sha256", "a".repeat(63)),
+        ] {
+            let dir = tempfile::tempdir().unwrap();
+            let mut e = entry();
+            match field {
+                "netlist_sha256" => e.netlist_sha256 = bad.clone(),
+                _ => e.stimulus_sha256 = bad.clone(),
+            }
+            e.write_into(dir.path()).unwrap();
+            let err = read_ledger(dir.path()).unwrap_err().to_string();
+            assert!(
+                err.contains("ir-seed3-n5.json") && err.contains(&format!("field {field}")),
+                "{err}"
+            );
+        }
     }
 }

@@ -124,7 +124,7 @@ pub struct UnitOpts {
     #[arg(long, default_value_t = golden::vectors::merge::MergeDesign::default().inputs)]
     pub inputs: usize,
     /// Merging module: how it chooses the merging level, the one mode it builds:
-    /// overlap[:N/D] (default 1/2), fixed:L, below-top:K or proportion:N/D.
+    /// overlap[:N/D] (default 1/2), fixed:L, below-top:K, proportion:N/D or per-node[:N/D].
     #[arg(long, default_value = "overlap:1/2")]
     pub mode: String,
 }

@@ -1,7 +1,7 @@
 //! `hiermerge cosim`: run a generated unit's Verilog (or its IR) against the
 //! golden model, transaction by transaction, with random back-pressure; print
 //! what it measured, or the first mismatch decoded field by field with the
-//! one command that reproduces it and a VCD of the cycles around it (SPEC 9).
+//! one command that reproduces it and a VCD of the cycles around it (SPEC 10.1).
 //!
 //! Test hook: the environment variable `HIERMERGE_COSIM_FLIP_EXPECTED=<n>`
 //! flips the lowest bit of transaction `n`'s expected output (translate: the
@@ -241,67 +241,95 @@ fn verilog_patch() -> Result<Option<merge_module::VerilogPatch>, String> {
     }
 }
 
-/// The one command line that runs this again, the same way.
+/// The one command line that runs this again, the same way: the test hooks'
+/// variables, then `hiermerge cosim` and [`run_args`], quoted for a shell.
 fn reproduce(a: &Args, flip: Option<usize>) -> Result<String, String> {
     let mut s = String::new();
     if let Some(n) = flip {
         s += &format!("{FLIP_EXPECTED_VAR}={n} ");
     }
     if let Some(p) = verilog_patch()? {
-        let quoted = |t: &str| format!("'{}'", t.replace('\'', "'\\''"));
         s += &format!(
             "{PATCH_FROM_VAR}={} {PATCH_TO_VAR}={} ",
-            quoted(&p.from),
-            quoted(&p.to)
+            shell_quoted(&p.from),
+            shell_quoted(&p.to)
         );
     }
+    s += "hiermerge cosim";
+    for arg in run_args(a)? {
+        s += " ";
+        s += &shell_quoted(&arg);
+    }
+    Ok(s)
+}
+
+/// `text` as one shell word: as it is when it holds only characters no shell
+/// treats specially, else in single quotes.
+fn shell_quoted(text: &str) -> String {
+    let plain = |c: char| c.is_ascii_alphanumeric() || "-_.,:/=+@%".contains(c);
+    if !text.is_empty() && text.chars().all(plain) {
+        text.to_string()
+    } else {
+        format!("'{}'", text.replace('\'', "'\\''"))
+    }
+}
+
+/// The arguments of `hiermerge cosim` that run this again, every value
+/// spelled out (defaults too) and the mode in its canonical form, so that a
+/// ledger entry's `args` name the run whatever the defaults become.
+fn run_args(a: &Args) -> Result<Vec<String>, String> {
+    let mut v: Vec<String> = Vec::new();
+    let mut push = |flag: &str, value: String| v.extend([flag.to_string(), value]);
     let unit = match a.unit {
         Unit::Translate => "translate",
         Unit::Merge => "merge",
         Unit::Merger => "merger",
     };
-    s += &format!("hiermerge cosim --unit {unit}");
+    push("--unit", unit.into());
     if a.unit == Unit::Merge && merge_stage(a)? == MergeStage::MergeLevel {
-        s += " --stage merge-level";
+        push("--stage", "merge-level".into());
     }
-    s += &format!(" --engine {}", a.engine.name());
+    push("--engine", a.engine.name().into());
     match &a.vectors {
-        Some(p) => s += &format!(" --vectors {} --seed {}", p.display(), a.seed),
+        Some(p) => {
+            push("--vectors", p.display().to_string());
+            push("--seed", a.seed.to_string());
+        }
         None => {
-            s += &format!(
-                " --seed {} --count {}",
-                a.seed,
-                a.count.unwrap_or(DEFAULT_COUNT)
-            )
+            push("--seed", a.seed.to_string());
+            push("--count", a.count.unwrap_or(DEFAULT_COUNT).to_string());
         }
     }
-    s += &format!(" --stall {}", a.stall);
+    push("--stall", a.stall.to_string());
     let g = &a.design.grid;
-    s += &format!(
-        " --max-lod {} --quant-bits {} --index-bits {} --hier-bits {}",
-        g.max_lod, g.quant_bits, g.index_bits, g.hier_bits
-    );
+    push("--max-lod", g.max_lod.to_string());
+    push("--quant-bits", g.quant_bits.to_string());
+    push("--index-bits", g.index_bits.to_string());
+    push("--hier-bits", g.hier_bits.to_string());
     match a.unit {
         Unit::Translate => {
             if let Some(t) = a.design.table_depth {
-                s += &format!(" --table-depth {t}");
+                push("--table-depth", t.to_string());
             }
             if a.design.binary64 {
-                s += " --binary64";
+                v.push("--binary64".into());
             }
         }
-        Unit::Merge => s += &format!(" --inputs {} --mode {}", a.design.inputs, a.design.mode),
-        Unit::Merger => {
-            s += &format!(" --inputs {} --mode {}", a.design.inputs, a.design.mode);
-            if let Some(c) = a.capacity_bits {
-                s += &format!(" --capacity-bits {c}");
-            }
-            if let Some(l) = a.leaf_bits {
-                s += &format!(" --leaf-bits {l}");
+        Unit::Merge | Unit::Merger => {
+            let mode = super::merge::parse_mode(&a.design.mode)?;
+            push("--inputs", a.design.inputs.to_string());
+            push("--mode", mode.to_string());
+            if a.unit == Unit::Merger {
+                if let Some(c) = a.capacity_bits {
+                    push("--capacity-bits", c.to_string());
+                }
+                if let Some(l) = a.leaf_bits {
+                    push("--leaf-bits", l.to_string());
+                }
             }
         }
     }
-    Ok(s)
+    Ok(v)
 }
 
 /// Writes `report` (a `--unit merger` run) into the ledger folder `dir`.
@@ -310,13 +338,7 @@ fn record(a: &Args, report: &Report, dir: &Path) -> Result<PathBuf, String> {
         .merger
         .as_ref()
         .ok_or("--ledger: the run has no merger report")?;
-    let line = reproduce(a, None)?;
-    // `reproduce` spells every value without blanks: split back into argv.
-    let args: Vec<String> = line
-        .split_whitespace()
-        .skip(2) // hiermerge cosim
-        .map(String::from)
-        .collect();
+    let args = run_args(a)?;
     let entry = cosim::ledger::Entry {
         format: cosim::ledger::FORMAT.into(),
         unit: "merger".into(),
@@ -839,7 +861,16 @@ pub fn merger_run(args: &[String]) -> Result<MergerRun, String> {
         args: Args,
     }
     let a = <Line as clap::Parser>::try_parse_from(args)
-        .map_err(|e| format!("`{}`: {}", args.join(" "), e.kind()))?
+        .map_err(|e| {
+            // clap's first line names the argument and what was wrong.
+            let text = e.to_string();
+            let what = text.lines().next().unwrap_or_default();
+            format!(
+                "`{}`: {}",
+                args.join(" "),
+                what.trim_start_matches("error: ")
+            )
+        })?
         .args;
     if a.unit != Unit::Merger {
         return Err(format!("`{}`: expected --unit merger", args.join(" ")));

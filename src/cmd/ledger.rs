@@ -44,8 +44,9 @@ pub struct Args {
     /// passing entry covers.
     #[arg(long)]
     plan: Option<PathBuf>,
-    /// With --plan: print only the lines still to run, one per line, and
-    /// exit 0 whatever the entries' problems (for scripts/longruns).
+    /// With --plan: print only the lines still to run, one per line (with
+    /// --json: `{"missing": [...]}`), and exit 0 whatever the entries'
+    /// problems (for scripts/longruns).
     #[arg(long, requires = "plan")]
     missing: bool,
     /// Print one JSON object on stdout.
@@ -224,8 +225,12 @@ fn check(
     out
 }
 
+/// The first 12 characters of a digest (all of it when shorter).
 fn short(digest: &str) -> &str {
-    &digest[..digest.len().min(12)]
+    digest
+        .char_indices()
+        .nth(12)
+        .map_or(digest, |(i, _)| &digest[..i])
 }
 
 /// Of one (top, engine): the runs, and per seed the longest run's (count,
@@ -304,10 +309,21 @@ pub fn main(a: Args) -> CmdResult {
         .collect();
     let plan = a.plan.as_deref().map(|p| read_plan(p, &good)).transpose()?;
     if a.missing {
-        for l in plan.iter().flatten().filter(|l| !l.done) {
-            println!("{}", l.args);
+        #[derive(Serialize)]
+        struct Missing {
+            missing: Vec<String>,
         }
-        return Ok(());
+        let missing = Missing {
+            missing: plan
+                .iter()
+                .flatten()
+                .filter(|l| !l.done)
+                .map(|l| l.args.clone())
+                .collect(),
+        };
+        return emit(a.json, &missing, |m| {
+            m.missing.iter().for_each(|l| println!("{l}"))
+        });
     }
     let report = Report {
         dir: a.dir.display().to_string(),

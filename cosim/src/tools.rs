@@ -51,20 +51,6 @@ pub fn verilator_root() -> Result<std::path::PathBuf> {
     Ok(tool_output("verilator", &["--getenv", "VERILATOR_ROOT"])?.into())
 }
 
-/// The first line of `iverilog -V`.
-pub fn iverilog_version() -> Result<String> {
-    // iverilog -V exits non-zero when given no source; read whatever it printed.
-    let out = Command::new("iverilog")
-        .arg("-V")
-        .output()
-        .map_err(|e| CosimError::ToolMissing {
-            tool: "iverilog".to_string(),
-            hint: format!("{e}; {INSTALL_HINT}"),
-        })?;
-    let text = String::from_utf8_lossy(&out.stdout);
-    Ok(text.lines().next().unwrap_or("").trim().to_string())
-}
-
 /// Whether `tool` can be started at all (`verilator`, `iverilog`, `vvp`).
 pub fn tool_available(tool: &str) -> bool {
     let arg = if tool == "iverilog" {

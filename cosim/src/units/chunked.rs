@@ -42,15 +42,6 @@ impl UnitStreams {
         self.inputs.first().map_or(0, |cfg| cfg.beats.len())
     }
 
-    /// Beats on the input streams after `cfg` (the merged data).
-    pub fn data_beats(&self) -> u64 {
-        self.inputs
-            .iter()
-            .skip(1)
-            .map(|s| s.beats.len() as u64)
-            .sum()
-    }
-
     /// The merge (0-based, in these streams) that output beat `beat` of
     /// output stream `stream` belongs to.
     pub fn merge_of(&self, stream: usize, beat: usize) -> usize {

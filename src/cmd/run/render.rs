@@ -97,7 +97,7 @@ fn sky(v: f32) -> Vec3 {
     Vec3::new(0.6, 0.75, 0.95) * (1.0 - 0.3 * v)
 }
 
-impl Tracer<'_> {
+impl<'a> Tracer<'a> {
     fn hit(&mut self, ray: &Ray) -> Option<Hit> {
         let mut s = TraceStats::default();
         let h = closest_hit(ray, self.trace, &mut s);
@@ -125,7 +125,10 @@ impl Tracer<'_> {
         if self.scene.lights.is_empty() {
             light += (1.0 - AMBIENT) * n.dot(Vec3::new(-0.4, 1.0, -0.3).normalize()).max(0.0);
         }
-        for l in self.scene.lights.clone() {
+        // The scene outlives the tracer: its lights need no copy while
+        // `self.hit` borrows the tracer mutably.
+        let scene: &'a Scene = self.scene;
+        for l in &scene.lights {
             let to = l.position - p;
             let facing = n.dot(to.normalize_or_zero());
             if facing <= 0.0 {

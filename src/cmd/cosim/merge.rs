@@ -1,0 +1,170 @@
+//! `--unit merge`: the merging module as one unit (seeded merges, every
+//! stream with its own stall pattern), or its S614 merge-level stage alone.
+
+use std::path::Path;
+
+use cosim::from_rtl::design_from_module;
+use cosim::units::{merge, merge_module};
+use golden::vectors::merge::MergeDesign;
+
+use super::command_line::reproduce;
+use super::report::{
+    finish_report, multi_stream_failure, Counts, FieldReport, MismatchReport, Report, RunEnd,
+};
+use super::{bar, bench_config, count, factory, module_engine, vcd_path, Args, VCD_RADIUS};
+
+/// `--stage merge-level`: levels through the S614 stage, generated or from
+/// a vectors file.
+pub(super) fn run_level(
+    a: &Args,
+    design: &MergeDesign,
+    flip: Option<usize>,
+    dir: &Path,
+) -> Result<Report, String> {
+    let levels = match &a.vectors {
+        Some(p) => merge::read_levels(p, design)?,
+        None => {
+            let count = count(a)?;
+            merge::generate_levels(design, a.seed, count).map_err(|e| e.to_string())?
+        }
+    };
+    let vectors = merge::bench_vectors(&levels, flip).map_err(|e| e.to_string())?;
+    let module = merge::merge_level_module(&design.params);
+    let cdesign = design_from_module(&module, dir).map_err(|e| e.to_string())?;
+    let mut make = factory(a.engine, &module, &cdesign)?;
+    let expected_outputs: u64 = levels.iter().map(|l| l.outputs.len() as u64).sum();
+    let config = merge::RunConfig {
+        seed: a.seed,
+        stall: a.stall,
+        reproduce: Some(reproduce(a, flip)?),
+    };
+    let pb = bar(expected_outputs, a.json);
+    let report = merge::run_with_vcd_on_mismatch(
+        &mut make,
+        &design.params,
+        &vectors,
+        &config,
+        Some(vcd_path(a, "merge")),
+        VCD_RADIUS,
+        &mut |outputs, cycle| {
+            pb.set_position(outputs);
+            pb.set_message(format!("cycle {cycle}"));
+        },
+    )
+    .map_err(|e| e.to_string())?;
+    pb.finish_and_clear();
+    // The level (transaction) of an input beat.
+    let level_of = |beat: u64| -> u64 {
+        let mut end = 0u64;
+        for (n, l) in levels.iter().enumerate() {
+            end += l.inputs.len() as u64;
+            if beat < end {
+                return n as u64;
+            }
+        }
+        levels.len() as u64
+    };
+    let passed = report.passed();
+    let mut first = report.first_mismatch.as_ref().map(|m| MismatchReport {
+        transaction: level_of(m.input_id),
+        stream: None,
+        beat: None,
+        kind: merge::STAGE.to_string(),
+        cycle: m.cycle,
+        seed: a.seed,
+        what: format!("output beat {} differs", m.output_index),
+        fields: m
+            .fields
+            .iter()
+            .map(|f| FieldReport {
+                name: f.name.clone(),
+                expected: f.expected.clone(),
+                got: f.got.clone(),
+                differs: f.differs(),
+            })
+            .collect(),
+    });
+    if first.is_none() && !passed {
+        first = Some(MismatchReport {
+            transaction: level_of(report.inputs_sent),
+            stream: None,
+            beat: None,
+            kind: merge::STAGE.to_string(),
+            cycle: report.hang.as_ref().map_or(report.cycles, |h| h.cycle),
+            seed: a.seed,
+            what: match &report.hang {
+                Some(h) => format!("no handshake for {} cycles", h.idle_cycles),
+                None => format!("outputs lost or duplicated: {}", report.accounting),
+            },
+            fields: Vec::new(),
+        });
+    }
+    let counts = Counts {
+        transactions: levels.len() as u64,
+        records: report.inputs_sent,
+        nodes: report.outputs_received,
+        mismatches: report.mismatches,
+        cycles: report.cycles,
+        wall_seconds: report.wall.as_secs_f64(),
+    };
+    finish_report(a, merge::STAGE, flip, counts, first, report.vcd.as_ref())
+}
+
+/// `--unit merge`: seeded merges through the merging module, every stream
+/// with its own stall pattern, 10,000 merges at a time.
+pub(super) fn run_module(
+    a: &Args,
+    design: &MergeDesign,
+    flip: Option<usize>,
+    dir: &Path,
+) -> Result<Report, String> {
+    let count = count(a)?;
+    let engine = module_engine(a.engine)?;
+    let run = merge_module::LongRun {
+        count,
+        seed: a.seed,
+        most_voxels: merge_module::DEFAULT_MOST_VOXELS,
+        flip_expected: flip,
+        chunk: cosim::units::chunked::CHUNK,
+        bench: bench_config(a, merge_module::STAGE)?,
+    };
+    if !a.json {
+        eprintln!(
+            "running {count} merges on {} in chunks of {}",
+            a.engine.name(),
+            cosim::units::chunked::CHUNK
+        );
+    }
+    let pb = bar(count as u64, a.json);
+    let o = merge_module::run_chunked(design, engine, &run, dir, &mut |merges, cycle| {
+        pb.set_position(merges);
+        pb.set_message(format!("cycle {cycle}"));
+    });
+    pb.finish_and_clear();
+    let o = o.map_err(|e| e.to_string())?;
+    let stage = merge_module::STAGE;
+    let end = RunEnd {
+        failed: !o.passed(),
+        started: o.cfg_accepted,
+        cycles: o.cycles,
+        hang: o.hang.as_ref(),
+        missing: &o.missing,
+        status: o.status_failure(),
+    };
+    let first = multi_stream_failure(
+        stage,
+        a.seed,
+        o.first_mismatch.as_ref(),
+        " of its chunk",
+        end,
+    );
+    let counts = Counts {
+        transactions: o.merges as u64,
+        records: o.data_beats_in,
+        nodes: o.beats_out,
+        mismatches: o.mismatches,
+        cycles: o.cycles,
+        wall_seconds: o.wall.as_secs_f64(),
+    };
+    finish_report(a, stage, flip, counts, first, o.vcd.as_ref())
+}

@@ -1,0 +1,170 @@
+//! `--unit merger`: seeded random merges through the hierarchy merger top,
+//! its run as the long-run ledger regenerates it, and its ledger entry.
+
+use std::path::{Path, PathBuf};
+
+use cosim::units::{check_stall, merger};
+use golden::vectors::merge::MergeDesign;
+
+use super::command_line::run_args;
+use super::report::{finish_report, multi_stream_failure, Counts, MergerReport, Report, RunEnd};
+use super::{bar, bench_config, count, module_engine, Args, Unit, DEFAULT_COUNT};
+
+/// The hierarchy merger `a` asks for, validated.
+fn merger_config(a: &Args, design: &MergeDesign) -> Result<rtl_gen::merge::MergerConfig, String> {
+    let mut c = rtl_gen::merge::MergerConfig::new(*design);
+    if let Some(bits) = a.capacity_bits {
+        c.sizes.capacity_bits = bits;
+    }
+    if let Some(bits) = a.leaf_bits {
+        c.sizes.leaf_bits = bits;
+    }
+    c.validate()
+        .map_err(|e| format!("hierarchy merger configuration: {e}"))?;
+    Ok(c)
+}
+
+/// A `--unit merger` run as the ledger (SPEC 10.2) needs to regenerate it.
+pub struct MergerRun {
+    pub config: rtl_gen::merge::MergerConfig,
+    pub engine: &'static str,
+    pub seed: u64,
+    pub count: usize,
+    pub stall: f64,
+}
+
+/// What the `hiermerge cosim` arguments `args` (without the program and
+/// subcommand names) run, when they are a `--unit merger` run.
+pub fn merger_run(args: &[String]) -> Result<MergerRun, String> {
+    #[derive(clap::Parser)]
+    #[command(name = "hiermerge cosim", no_binary_name = true)]
+    struct Line {
+        #[command(flatten)]
+        args: Args,
+    }
+    let a = <Line as clap::Parser>::try_parse_from(args)
+        .map_err(|e| {
+            // clap's first line names the argument and what was wrong.
+            let text = e.to_string();
+            let what = text.lines().next().unwrap_or_default();
+            format!(
+                "`{}`: {}",
+                args.join(" "),
+                what.trim_start_matches("error: ")
+            )
+        })?
+        .args;
+    if a.unit != Unit::Merger {
+        return Err(format!("`{}`: expected --unit merger", args.join(" ")));
+    }
+    check_stall(a.stall).map_err(|e| format!("--stall: {e}"))?;
+    Ok(MergerRun {
+        config: merger_config(&a, &a.design.merge_design()?)?,
+        engine: a.engine.name(),
+        seed: a.seed,
+        count: count(&a)?,
+        stall: a.stall,
+    })
+}
+
+/// `--unit merger`: seeded random merges through the hierarchy merger,
+/// every stream with its own stall pattern, 10,000 merges at a time.
+pub(super) fn run(
+    a: &Args,
+    design: &MergeDesign,
+    flip: Option<usize>,
+    dir: &Path,
+) -> Result<Report, String> {
+    let count = count(a)?;
+    if a.vectors.is_some() {
+        return Err("--unit merger takes no --vectors: use --seed/--count".into());
+    }
+    let engine = module_engine(a.engine)?;
+    let c = merger_config(a, design)?;
+    let config = merger::RunConfig {
+        bench: bench_config(a, merger::STAGE)?,
+        count,
+        flip_expected: flip,
+    };
+    if !a.json {
+        eprintln!(
+            "running {count} merges on {} in chunks of {}",
+            a.engine.name(),
+            merger::CHUNK
+        );
+    }
+    let pb = bar(count as u64, a.json);
+    let o = merger::run(&c, engine, &config, dir, &mut |merges, cycle| {
+        pb.set_position(merges);
+        pb.set_message(format!("cycle {cycle}"));
+    });
+    pb.finish_and_clear();
+    let o = o.map_err(|e| e.to_string())?;
+    let (t, s) = (&o.totals, &o.stats);
+    let stage = merger::STAGE;
+    let end = RunEnd {
+        failed: !o.passed(),
+        started: t.cfg_accepted,
+        cycles: t.cycles,
+        hang: t.hang.as_ref(),
+        missing: &t.missing,
+        status: t.status_failure(),
+    };
+    let mismatch = t.first_mismatch.as_ref();
+    let first = multi_stream_failure(stage, a.seed, mismatch, " of its chunk", end);
+    let counts = Counts {
+        transactions: t.merges as u64,
+        records: s.module_in,
+        nodes: s.records,
+        mismatches: t.mismatches,
+        cycles: t.cycles,
+        wall_seconds: t.wall.as_secs_f64(),
+    };
+    let mut report = finish_report(a, stage, flip, counts, first, t.vcd.as_ref())?;
+    report.merger = Some(MergerReport {
+        chunks: t.chunks as u64,
+        refused: s.refused as u64,
+        fetch_errors: s.fetch_errors as u64,
+        refs_written: s.refs,
+        beats_in: t.cfg_accepted + t.data_beats_in,
+        beats_out: t.beats_out,
+        leaves_above: s.leaves_above as u64,
+        materialized: s.materialized as u64,
+        several_roots: s.several_roots as u64,
+        multi_pass: s.multi_pass as u64,
+        descents: s.descents,
+        done_pulses: t.done_pulses,
+        golden_seconds: t.golden_wall.as_secs_f64(),
+        top: rtl_gen::merge::hierarchy_merger_name(&c),
+        netlist_sha256: o.netlist_sha256.clone(),
+        stimulus_sha256: o.stimulus_sha256.clone(),
+    });
+    Ok(report)
+}
+
+/// Writes `report` (a `--unit merger` run) into the ledger folder `dir`.
+pub(super) fn record(a: &Args, report: &Report, dir: &Path) -> Result<PathBuf, String> {
+    let m = report
+        .merger
+        .as_ref()
+        .ok_or("--ledger: the run has no merger report")?;
+    let args = run_args(a)?;
+    let entry = cosim::ledger::Entry {
+        format: cosim::ledger::FORMAT.into(),
+        unit: "merger".into(),
+        top: m.top.clone(),
+        engine: a.engine.name().into(),
+        args,
+        seed: a.seed,
+        // As asked: a failing run stops early, and says so by not passing.
+        count: a.count.unwrap_or(DEFAULT_COUNT),
+        passed: report.passed,
+        mismatches: report.counts.mismatches,
+        cycles: report.counts.cycles,
+        wall_seconds: report.counts.wall_seconds,
+        netlist_sha256: m.netlist_sha256.clone(),
+        stimulus_sha256: m.stimulus_sha256.clone(),
+        hiermerge_version: env!("CARGO_PKG_VERSION").into(),
+    };
+    entry.write_into(dir).map_err(|e| format!("--ledger: {e}"))
+}

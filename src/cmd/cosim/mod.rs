@@ -1,0 +1,329 @@
+//! `hiermerge cosim`: run a generated unit's Verilog (or its IR) against the
+//! golden model, transaction by transaction, with random back-pressure; print
+//! what it measured, or the first mismatch decoded field by field with the
+//! one command that reproduces it and a VCD of the cycles around it (SPEC 10.1).
+//!
+//! Test hook: the environment variable `HIERMERGE_COSIM_FLIP_EXPECTED=<n>`
+//! flips the lowest bit of transaction `n`'s expected output (translate: the
+//! n-th transaction; merge: the first `report` beat of the n-th merge;
+//! `--stage merge-level`: the first output beat of the n-th level; merger:
+//! the `header` beat of the n-th merge), so a test can check that a broken
+//! run is caught and reported. With `--unit merge` (the module) and `--unit
+//! merger`, `HIERMERGE_COSIM_PATCH_FROM=<text>` and
+//! `HIERMERGE_COSIM_PATCH_TO=<text>` replace the one occurrence of the first
+//! in the emitted Verilog by the second before Verilator or Icarus reads it:
+//! a deliberately broken unit.
+//!
+//! One file per part: the arguments and the hooks here, the runs per unit
+//! (`translate`, `merge`, `merger`), the report (`report`) and the command
+//! line that reproduces a run (`command_line`).
+
+mod command_line;
+mod merge;
+mod merger;
+mod report;
+mod translate;
+
+use std::path::PathBuf;
+
+use cosim::ir_engine::IrEngine;
+use cosim::units::check_stall;
+use cosim::units::merge_module::{self, ModuleEngine};
+use cosim::{open_engine, Design, Engine, EngineKind};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::Serialize;
+
+use super::common::UnitOpts;
+use crate::report::{emit, CmdResult};
+use report::print_text;
+
+pub use merger::merger_run;
+
+/// The environment variable of the test hook (see the module docs).
+pub const FLIP_EXPECTED_VAR: &str = "HIERMERGE_COSIM_FLIP_EXPECTED";
+
+/// The environment variables of the Verilog patch hook (see the module docs).
+pub const PATCH_FROM_VAR: &str = "HIERMERGE_COSIM_PATCH_FROM";
+pub const PATCH_TO_VAR: &str = "HIERMERGE_COSIM_PATCH_TO";
+
+/// Cycles either side of a mismatch written to its VCD.
+const VCD_RADIUS: u64 = 20;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum EngineChoice {
+    /// Verilator (2-state, compiled).
+    Verilator,
+    /// Icarus Verilog (4-state, X/Z checked; --unit merge: the whole bench
+    /// inside one vvp run, the multi-stream batch).
+    Iverilog,
+    /// rtl-gen's IR simulator (the model the Verilog was emitted from).
+    Ir,
+}
+
+impl EngineChoice {
+    fn name(self) -> &'static str {
+        match self {
+            EngineChoice::Verilator => "verilator",
+            EngineChoice::Iverilog => "iverilog",
+            EngineChoice::Ir => "ir",
+        }
+    }
+}
+
+/// The unit `hiermerge cosim` runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Unit {
+    /// The translation unit.
+    Translate,
+    /// The merging module (or, with `--stage merge-level`, its S614 stage).
+    Merge,
+    /// The hierarchy merger, S610-S618 as one top (SPEC 8.15).
+    Merger,
+}
+
+/// Which part of the merging module `--unit merge` runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum MergeStage {
+    /// The whole merging module (`merge_module_unit`): a transaction is one
+    /// merge, seeded random stimulus on every stream.
+    Module,
+    /// Only its S614 merge-level stage (`merge_level_unit`): a transaction
+    /// is one level; what `--vectors` files hold.
+    MergeLevel,
+}
+
+/// --unit translate: the whole translation unit (determine and apply
+/// streams). --unit merge: the merging module as one unit (streams cfg,
+/// in0.., report, out; a transaction is one merge; Icarus runs the
+/// multi-stream batch, the whole bench inside one vvp run); with
+/// `--stage merge-level` its S614 stage alone (unit 506; a transaction is
+/// one level). --unit merger: the hierarchy merger (S610-S618; a
+/// transaction is one merge, store responses precomputed from golden;
+/// run in chunks of 10,000 merges).
+#[derive(clap::Args)]
+pub struct Args {
+    /// translate: the translation unit; merge: the merging module; merger:
+    /// the hierarchy merger.
+    #[arg(long, value_enum)]
+    unit: Unit,
+    /// --unit merge only: `module` (default) or `merge-level`, the S614
+    /// stage alone (the default with --vectors, whose files hold its records).
+    #[arg(long, value_enum)]
+    stage: Option<MergeStage>,
+    #[arg(long, value_enum, default_value = "verilator")]
+    engine: EngineChoice,
+    /// Run the transactions of this vectors file (`hiermerge vectors`;
+    /// its header's parameters must equal the design's). Merge: its
+    /// merge_level records (implies --stage merge-level).
+    #[arg(long, conflicts_with = "count")]
+    vectors: Option<PathBuf>,
+    /// Seed of the generated transactions and of the stall patterns.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Transactions to generate (translate: determine/apply records;
+    /// merge: merges; --stage merge-level: levels).
+    #[arg(long)]
+    count: Option<u64>,
+    /// Probability that the driver holds valid low and the monitor ready low
+    /// (0 <= P < 1; merge: on every stream, each with its own pattern).
+    #[arg(long, default_value_t = 0.3)]
+    stall: f64,
+    /// Directory of the VCD written on a mismatch.
+    #[arg(long = "vcd-dir", default_value = "out/cosim")]
+    vcd_dir: PathBuf,
+    #[command(flatten)]
+    design: UnitOpts,
+    /// --unit merger only: log2 of the writer's entries per buffer
+    /// (default: the merger's default, min(10, index bits - 1)).
+    #[arg(long = "capacity-bits")]
+    capacity_bits: Option<u32>,
+    /// --unit merger only: log2 of each leaf FIFO's entries (default 4).
+    #[arg(long = "leaf-bits")]
+    leaf_bits: Option<u32>,
+    /// --unit merger only: also record the run, passed or failed, as an
+    /// entry of the long-run ledger in this folder (SPEC 10.2; `hiermerge
+    /// ledger` checks the entries against today's code).
+    #[arg(long)]
+    ledger: Option<PathBuf>,
+    /// Print one JSON object on stdout.
+    #[arg(long)]
+    json: bool,
+}
+
+const DEFAULT_COUNT: u64 = 10_000;
+
+/// `--count`, or the default, as a number of transactions.
+fn count(a: &Args) -> Result<usize, String> {
+    usize::try_from(a.count.unwrap_or(DEFAULT_COUNT))
+        .map_err(|_| "--count is too large".to_string())
+}
+
+fn flip_expected() -> Result<Option<usize>, String> {
+    match std::env::var(FLIP_EXPECTED_VAR) {
+        Ok(v) => v
+            .trim()
+            .parse()
+            .map(Some)
+            .map_err(|_| format!("{FLIP_EXPECTED_VAR}={v}: expected a transaction index")),
+        Err(_) => Ok(None),
+    }
+}
+
+/// The Verilog patch of the test hook, when both variables are set.
+fn verilog_patch() -> Result<Option<merge_module::VerilogPatch>, String> {
+    match (std::env::var(PATCH_FROM_VAR), std::env::var(PATCH_TO_VAR)) {
+        (Ok(from), Ok(to)) if !from.is_empty() => Ok(Some(merge_module::VerilogPatch { from, to })),
+        (Err(_), Err(_)) => Ok(None),
+        _ => Err(format!(
+            "{PATCH_FROM_VAR} (not empty) and {PATCH_TO_VAR} go together"
+        )),
+    }
+}
+
+/// The merging module's stage to run: `--stage`, else merge-level with
+/// `--vectors` (its files hold merge_level records), else the module.
+fn merge_stage(a: &Args) -> Result<MergeStage, String> {
+    match (a.stage, &a.vectors) {
+        (Some(MergeStage::Module), Some(_)) => Err(
+            "--stage module takes no --vectors (vectors files hold merge_level records): \
+             use --stage merge-level, or --seed/--count for the module"
+                .into(),
+        ),
+        (Some(s), _) => Ok(s),
+        (None, Some(_)) => Ok(MergeStage::MergeLevel),
+        (None, None) => Ok(MergeStage::Module),
+    }
+}
+
+/// An engine factory for `module` / `design` (`true`: able to trace).
+fn factory<'a>(
+    choice: EngineChoice,
+    module: &'a rtl_gen::Module,
+    design: &'a Design,
+) -> Result<impl FnMut(bool) -> cosim::Result<Box<dyn Engine>> + 'a, String> {
+    let kind = match choice {
+        EngineChoice::Verilator => Some(EngineKind::Verilator),
+        EngineChoice::Iverilog => Some(EngineKind::Icarus),
+        EngineChoice::Ir => None,
+    };
+    if let Some(k) = kind {
+        k.check_tools().map_err(|e| e.to_string())?;
+    }
+    Ok(move |trace: bool| -> cosim::Result<Box<dyn Engine>> {
+        match kind {
+            Some(k) => open_engine(k, design, trace),
+            None => Ok(Box::new(IrEngine::new(module, design)?)),
+        }
+    })
+}
+
+fn bar(len: u64, json: bool) -> ProgressBar {
+    if json {
+        return ProgressBar::hidden();
+    }
+    let pb = ProgressBar::new(len);
+    pb.set_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} {msg} [{elapsed_precise} / ~{eta}]")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    pb
+}
+
+fn vcd_path(a: &Args, unit: &str) -> PathBuf {
+    a.vcd_dir
+        .join(format!("{unit}-{}-seed{}.vcd", a.engine.name(), a.seed))
+}
+
+pub fn main(a: Args) -> CmdResult {
+    check_stall(a.stall).map_err(|e| format!("--stall: {e}"))?;
+    if a.count == Some(0) {
+        return Err("--count 0: expected at least one transaction".into());
+    }
+    let flip = flip_expected()?;
+    if a.stage.is_some() && a.unit != Unit::Merge {
+        return Err("--stage applies to --unit merge only".into());
+    }
+    if (a.capacity_bits.is_some() || a.leaf_bits.is_some()) && a.unit != Unit::Merger {
+        return Err("--capacity-bits and --leaf-bits apply to --unit merger only".into());
+    }
+    let patchable = match a.unit {
+        Unit::Translate => false,
+        Unit::Merge => merge_stage(&a)? == MergeStage::Module,
+        Unit::Merger => true,
+    };
+    if verilog_patch()?.is_some() && !patchable {
+        return Err(format!(
+            "{PATCH_FROM_VAR} applies to --unit merge (the module) and --unit merger only"
+        ));
+    }
+    if a.ledger.is_some() {
+        if a.unit != Unit::Merger {
+            return Err("--ledger applies to --unit merger only".into());
+        }
+        if flip.is_some() || verilog_patch()?.is_some() {
+            return Err(format!(
+                "--ledger records real runs only: unset {FLIP_EXPECTED_VAR}, {PATCH_FROM_VAR} and {PATCH_TO_VAR}"
+            ));
+        }
+    }
+    let dir = tempfile::tempdir().map_err(|e| format!("temporary directory: {e}"))?;
+    let report = match a.unit {
+        Unit::Translate => translate::run(&a, &a.design.translate_design()?, flip, dir.path())?,
+        Unit::Merge => match merge_stage(&a)? {
+            MergeStage::Module => {
+                merge::run_module(&a, &a.design.merge_design()?, flip, dir.path())?
+            }
+            MergeStage::MergeLevel => {
+                merge::run_level(&a, &a.design.merge_design()?, flip, dir.path())?
+            }
+        },
+        Unit::Merger => merger::run(&a, &a.design.merge_design()?, flip, dir.path())?,
+    };
+    if let Some(dir) = &a.ledger {
+        let path = merger::record(&a, &report, dir)?;
+        if !a.json {
+            eprintln!("recorded in the ledger: {}", path.display());
+        }
+    }
+    let passed = report.passed;
+    let summary = report.first_mismatch.as_ref().map(|m| {
+        format!(
+            "transaction {} at cycle {}: {}",
+            m.transaction, m.cycle, m.what
+        )
+    });
+    emit(a.json, &report, print_text)?;
+    if passed {
+        Ok(())
+    } else {
+        Err(format!(
+            "co-simulation failed: {}; reproduce: {}",
+            summary.unwrap_or_else(|| "see the report".into()),
+            report.reproduce.clone().unwrap_or_default()
+        ))
+    }
+}
+
+/// The multi-stream engine `choice` names, its tools checked.
+fn module_engine(choice: EngineChoice) -> Result<ModuleEngine, String> {
+    let (engine, kind) = match choice {
+        EngineChoice::Ir => return Ok(ModuleEngine::Ir),
+        EngineChoice::Verilator => (ModuleEngine::Verilator, EngineKind::Verilator),
+        EngineChoice::Iverilog => (ModuleEngine::Iverilog, EngineKind::Icarus),
+    };
+    kind.check_tools().map_err(|e| e.to_string())?;
+    Ok(engine)
+}
+
+/// How a multi-stream unit's run is driven: the flags' seed and stall, its
+/// VCD under `--vcd-dir`, the Verilog patch hook.
+fn bench_config(a: &Args, stage: &str) -> Result<merge_module::RunConfig, String> {
+    Ok(merge_module::RunConfig {
+        seed: a.seed,
+        stall: a.stall,
+        vcd_path: Some(vcd_path(a, stage)),
+        vcd_radius: VCD_RADIUS,
+        verilog_patch: verilog_patch()?,
+    })
+}

@@ -11,7 +11,7 @@ use std::process::{Command, Output};
 
 use serde_json::Value;
 
-/// The test hook's variables (`src/cmd/cosim.rs`).
+/// The test hook's variables (`src/cmd/cosim/mod.rs`).
 pub const FLIP: &str = "HIERMERGE_COSIM_FLIP_EXPECTED";
 pub const PATCH_FROM: &str = "HIERMERGE_COSIM_PATCH_FROM";
 pub const PATCH_TO: &str = "HIERMERGE_COSIM_PATCH_TO";

@@ -207,6 +207,15 @@ fn bad_input_is_one_clear_error() {
 
     let e = fails(&["trace", &scene("teapot.obj"), "--rays", "0"]);
     assert!(e.contains("--rays"), "{e}");
+
+    // The image-size limit is the scene file's own (SPEC 12.1).
+    let side = golden::scene::MAX_IMAGE_SIDE;
+    let too_wide = (side + 1).to_string();
+    let e = fails(&["run", "--width", &too_wide, "--no-rtl"]);
+    assert!(
+        e.contains(&format!("--width {too_wide}")) && e.contains(&format!("1..={side}")),
+        "{e}"
+    );
 }
 
 #[test]

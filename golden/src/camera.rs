@@ -8,8 +8,11 @@ use crate::geom::ray::Ray;
 /// A pinhole camera looking from `eye` at `target`, `up` roughly up.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Camera {
+    /// Eye position, world units.
     pub eye: Vec3,
+    /// Point the camera looks at, world units; must differ from `eye`.
     pub target: Vec3,
+    /// Up direction, any length; must not be parallel to the view direction.
     pub up: Vec3,
     /// Vertical field of view in degrees, in (0, 180).
     pub fov_y_degrees: f32,

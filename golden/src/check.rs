@@ -62,6 +62,7 @@ pub trait CheckView {
 
 /// The view for a built hierarchy alone: its triangles, nothing else.
 pub struct Standalone<'a> {
+    /// The hierarchy's triangles in grid units, indexed by primitive index.
     pub triangles: &'a [[DVec3; 3]],
 }
 
@@ -77,7 +78,10 @@ impl CheckView for Standalone<'_> {
 /// The view for a hierarchy whose references lead into a store, with each
 /// hierarchy's triangles by id; untranslated.
 pub struct StoreView<'a> {
+    /// The hierarchies the references may lead into.
     pub store: &'a HierarchyStore,
+    /// Each hierarchy's triangles in grid units, by hierarchy id; a hierarchy
+    /// missing here fails `MissingTriangles` at its first leaf.
     pub triangles: BTreeMap<u8, &'a [[DVec3; 3]]>,
 }
 
@@ -95,7 +99,9 @@ impl CheckView for StoreView<'_> {
 pub struct CheckReport {
     /// Nodes visited (each exactly once).
     pub nodes: usize,
+    /// Inner nodes visited.
     pub inner: usize,
+    /// Leaves visited.
     pub leaves: usize,
     /// Primitive slots of all visited leaves.
     pub leaf_prims: usize,
@@ -116,92 +122,174 @@ pub struct CheckError {
     pub hier: u8,
     /// The node at fault, when the fault is a node's.
     pub node: Option<u32>,
+    /// The property that failed, with the values that broke it.
     pub kind: CheckErrorKind,
 }
 
 /// The property that failed.
 #[derive(Clone, Debug, PartialEq)]
 pub enum CheckErrorKind {
+    /// Check 1: the header's `root_count` is 0. Names no node.
     NoRoots,
+    /// Check 1: `root_count` is above the number of node records. Names no node.
     RootCountExceedsNodes {
+        /// The header's root count.
         root_count: u32,
+        /// Length of the hierarchy's `nodes`.
         nodes: usize,
     },
+    /// Check 1: a root's placed LOD is not the header's `top_lod`.
     RootLod {
+        /// The root's placed LOD.
         lod: u8,
+        /// The header's `top_lod`.
         top_lod: u8,
     },
+    /// Check 3: the placed record fails [`NodeRecord::validate`] (SPEC 3); the
+    /// error names the field.
     BadRecord(RecordError),
+    /// [`CheckView::place`] refused the node; holds its message.
     PlaceFailed(String),
+    /// Check 5: a reference names a hierarchy the view does not give. Names the
+    /// referring node.
     UnknownHierarchy {
+        /// The reference, as stored in `refs`.
         target: Reference,
+        /// The referring node (the one the error names).
         parent: Reference,
     },
+    /// A hierarchy the walk reaches has parameters other than the checked
+    /// hierarchy's. Names that hierarchy and no node.
     ParamsMismatch {
+        /// The checked hierarchy's parameters.
         expected: Params,
+        /// The reached hierarchy's parameters.
         found: Params,
     },
+    /// Check 4: a child's placed LOD is not its parent's plus one. Names the child.
     ChildLod {
+        /// The parent node.
         parent: Reference,
+        /// The parent's placed LOD.
         parent_lod: u8,
+        /// The child's placed LOD.
         child_lod: u8,
     },
+    /// Check 4: a child's placed voxel is not a child of its parent's voxel.
+    /// Names the child.
     ChildOutsideParentVoxel {
+        /// The parent node.
         parent: Reference,
     },
+    /// Check 4: a child's box is not inside its parent's box, compared exactly
+    /// in fine units (SPEC 3). Names the child.
     ChildBoxOutsideParent {
+        /// The parent node.
         parent: Reference,
+        /// The first axis where it sticks out: 0 = x, 1 = y, 2 = z.
         axis: usize,
+        /// The child's box on that axis, `(min, max)` in fine units.
         child: (u64, u64),
+        /// The parent's box on that axis, `(min, max)` in fine units.
         parent_box: (u64, u64),
     },
+    /// Check 5: an inner node's `first + count` is above the length of its
+    /// hierarchy's `refs`.
     RefRangeOutOfBounds {
+        /// The node's `first`.
         first: u32,
+        /// The node's `count`.
         count: u32,
+        /// Length of the hierarchy's `refs`.
         refs: usize,
     },
+    /// Check 5: a reference names a node index past its target hierarchy's
+    /// `nodes`. Names the referring node.
     DanglingReference {
+        /// Index of the reference in the referring hierarchy's `refs`.
         ref_index: u64,
+        /// The reference, as stored.
         target: Reference,
     },
+    /// Check 2: a node is reached a second time, by two references or as a root
+    /// and a reference. Names that node.
     DoubleReference {
+        /// The second referrer; the node itself when the second visit is as a root.
         parent: Reference,
     },
+    /// Check 6: a leaf's `first + count` is above the length of its hierarchy's
+    /// `prims`.
     PrimRangeOutOfBounds {
+        /// The leaf's `first`.
         first: u32,
+        /// The leaf's `count`.
         count: u32,
+        /// Length of the hierarchy's `prims`.
         prims: usize,
     },
+    /// Check 6: the view gives no triangles for the leaf's hierarchy.
     MissingTriangles,
+    /// Check 6: a leaf's primitive index is not below its hierarchy's triangle count.
     PrimIndexOutOfBounds {
+        /// Index of the entry in `prims`.
         slot: u64,
+        /// The primitive index stored there.
         prim: u32,
+        /// Number of triangles the view gives for the hierarchy.
         triangles: usize,
     },
+    /// Check 7: the part of a triangle inside the leaf's voxel is not inside the
+    /// leaf's box, compared in binary64 grid units.
     PrimOutsideLeafBox {
+        /// The triangle's primitive index.
         prim: u32,
+        /// The first axis where it sticks out: 0 = x, 1 = y, 2 = z.
         axis: usize,
+        /// The clipped triangle's `(min, max)` on that axis, in grid units.
         clipped: (f64, f64),
+        /// The leaf box's `(min, max)` on that axis, in grid units.
         leaf_box: (f64, f64),
     },
+    /// Check 7: `clip_triangle_to_box` finds that a leaf's triangle certainly
+    /// misses the leaf's voxel.
     PrimMissesLeafVoxel {
+        /// The triangle's primitive index.
         prim: u32,
     },
+    /// Check 9 (with [`CheckView::exact_coverage`]): leaves holding one
+    /// primitive are at two LODs. Names no node.
     PrimLeavesAtMixedLods {
+        /// The triangle's primitive index.
         prim: u32,
+        /// The lowest LOD holding it, then the next one up.
         lods: (u8, u8),
     },
+    /// Check 9 (with [`CheckView::exact_coverage`]): a voxel at the primitive's
+    /// leaf LOD that both kernels say it meets holds it in no reached leaf.
+    /// Names no node.
     PrimNotCovered {
+        /// The triangle's primitive index.
         prim: u32,
+        /// The voxel that should hold it.
         voxel: VoxelAddr,
     },
+    /// Check 9 (with [`CheckView::exact_coverage`]): the primitive's AABB meets
+    /// more than [`MAX_COVERAGE_CANDIDATES`] voxels at its leaf LOD. Names no node.
     PrimSpansTooManyVoxels {
+        /// The triangle's primitive index.
         prim: u32,
+        /// The LOD of the leaves holding it.
         lod: u8,
+        /// How many LOD-`lod` voxels its AABB meets.
         voxels: u128,
     },
+    /// Check 8: a node of the checked hierarchy is not reached from its roots.
+    /// Names the first such node.
     UnreachableNode,
+    /// Check 8: a triangle of a hierarchy the walk entered is in no reached
+    /// leaf. Names no node.
     UnreachablePrim {
+        /// The lowest such primitive index.
         prim: u32,
     },
 }

@@ -32,8 +32,11 @@ pub enum Motion {
 /// in the same `Arc` as the last one has not changed the mesh.
 #[derive(Clone, Debug)]
 pub struct FrameObject {
+    /// Object id, also its hierarchy's id; below [`Frames::merged_id`], which is reserved.
     pub id: u8,
+    /// Whether the object may change between frames.
     pub motion: Motion,
+    /// Geometry in the object's local frame, world units, before `offset`.
     pub mesh: Arc<Mesh>,
     /// Placement of the local frame in the scene, world units.
     pub offset: DVec3,
@@ -55,6 +58,7 @@ pub enum ObjectAction {
 /// What one frame did.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct FrameReport {
+    /// Frame number, counted from 0 by each [`Frames`].
     pub frame: u64,
     /// Per object id, what was done.
     pub objects: BTreeMap<u8, ObjectAction>,
@@ -69,19 +73,23 @@ pub struct FrameReport {
 }
 
 impl FrameReport {
+    /// How many objects had `action` in this frame.
     pub fn count(&self, action: ObjectAction) -> usize {
         self.objects.values().filter(|&&a| a == action).count()
     }
 }
 
-/// A frame-to-frame errors: the object and what was wrong.
+/// A frame-to-frame error: the object and what was wrong.
 #[derive(Clone, Debug, PartialEq)]
 pub enum FrameError {
+    /// The world refused a build, a placement or the merge.
     World(WorldError),
     /// A static object was handed a different mesh or placement than in the
     /// frame it was built.
     StaticChanged {
+        /// The object's id.
         id: u8,
+        /// What changed: `"motion"`, `"mesh"` or `"placement"`.
         what: &'static str,
     },
     /// The same id twice in one frame.
@@ -115,7 +123,9 @@ impl From<WorldError> for FrameError {
 
 /// The state kept between frames.
 pub struct Frames {
+    /// The store, translation table and objects as of the last frame.
     pub world: World,
+    /// How the merge chooses its merging level (SPEC 8).
     pub mode: MergeMode,
     /// Id of the merged hierarchy: the largest id, `2^H - 1`.
     pub merged_id: u8,
@@ -126,6 +136,8 @@ pub struct Frames {
 }
 
 impl Frames {
+    /// An empty world with `params` and `grid`, merging in `mode`; the merged
+    /// hierarchy gets id `2^H - 1`. Fails only if the world cannot be made.
     pub fn new(params: Params, grid: GridMap, mode: MergeMode) -> Result<Frames, FrameError> {
         Ok(Frames {
             world: World::new(params, grid)?,
@@ -173,6 +185,9 @@ impl Frames {
         let mut sorted = ids.clone();
         sorted.sort_unstable();
         let (merged, merge_stats) = if sorted.len() < 2 {
+            // Nothing to merge: an earlier merge must not stay in the store,
+            // where it would still reference inputs that may be gone.
+            self.world.store.remove(self.merged_id);
             self.merged_inputs = None;
             self.last_level = None;
             (false, None)
@@ -356,5 +371,19 @@ mod tests {
         assert!(f.world.object(2).is_none());
         let report = f.world.check(f.merged_id).unwrap();
         assert_eq!(report.hierarchies, vec![0, 1, f.merged_id]);
+        // Down to one object: no merge, and the last one leaves the store.
+        let r = f.step(&[obj(0, Motion::Dynamic, &a, 0.0)]).unwrap();
+        assert_eq!((r.removed, r.merged, r.merge_level), (vec![1], false, None));
+        assert!(f.world.store.get(f.merged_id).is_none());
+        assert!(f.world.check(f.merged_id).is_err());
+        // Two again: merged anew.
+        let r = f
+            .step(&[
+                obj(0, Motion::Dynamic, &a, 0.0),
+                obj(1, Motion::Dynamic, &b, 0.0),
+            ])
+            .unwrap();
+        assert!(r.merged);
+        f.world.check(f.merged_id).unwrap();
     }
 }

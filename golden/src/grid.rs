@@ -13,13 +13,18 @@ use crate::params::Params;
 /// The address of a voxel of the octree.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 pub struct VoxelAddr {
+    /// Level of detail `d`, `0..=D`; 0 is the whole scene.
     pub lod: u8,
+    /// Voxel x coordinate, `< 2^lod`, in voxels of edge `2^(D - lod)` grid units.
     pub x: u32,
+    /// Voxel y coordinate, `< 2^lod`.
     pub y: u32,
+    /// Voxel z coordinate, `< 2^lod`.
     pub z: u32,
 }
 
 impl VoxelAddr {
+    /// The single LOD-0 voxel: the whole scene cube.
     pub const ROOT: VoxelAddr = VoxelAddr {
         lod: 0,
         x: 0,
@@ -27,6 +32,7 @@ impl VoxelAddr {
         z: 0,
     };
 
+    /// The voxel `(lod, x, y, z)`, unchecked; see [`VoxelAddr::is_valid`].
     pub fn new(lod: u8, x: u32, y: u32, z: u32) -> VoxelAddr {
         VoxelAddr { lod, x, y, z }
     }

@@ -51,20 +51,29 @@ impl Field {
 pub enum LayoutError {
     /// `value` needs more than the `width` bits of field `field`.
     DoesNotFit {
+        /// Name of the field written.
         field: &'static str,
+        /// The value refused.
         value: u64,
+        /// The field's width in bits.
         width: u32,
     },
     /// A field reaches past the end of the record it is read from or written to.
     OutOfRecord {
+        /// Name of the field.
         field: &'static str,
+        /// One past the field's most significant bit.
         end: u32,
+        /// The record's width in bits.
         record_width: u32,
     },
     /// A record of `found` bits was given where the layout has `expected` bits.
     WrongWidth {
+        /// What was read: `"node record"`, `"reference"`, or the `Bits::from_words` call.
         what: &'static str,
+        /// Width the layout expects, in bits.
         expected: u32,
+        /// Width given, in bits (64 per word for `Bits::from_words`).
         found: u32,
     },
 }
@@ -344,18 +353,23 @@ impl NodeLayout {
         self.fields.iter().find(|f| f.name == name)
     }
 
+    /// The `leaf` flag (1 bit): 1 for a leaf, 0 for an inner node.
     pub fn leaf(&self) -> &Field {
         &self.fields[LEAF]
     }
+    /// The node's LOD `d` (`lod_bits` wide).
     pub fn lod(&self) -> &Field {
         &self.fields[LOD]
     }
+    /// Voxel x coordinate (D bits).
     pub fn x(&self) -> &Field {
         &self.fields[COORD]
     }
+    /// Voxel y coordinate (D bits).
     pub fn y(&self) -> &Field {
         &self.fields[COORD + 1]
     }
+    /// Voxel z coordinate (D bits).
     pub fn z(&self) -> &Field {
         &self.fields[COORD + 2]
     }
@@ -374,9 +388,11 @@ impl NodeLayout {
         assert!(axis < 3, "axis {axis} is not 0, 1 or 2");
         &self.fields[HI + axis]
     }
+    /// First index into `refs` (inner node) or `prims` (leaf); I bits.
     pub fn first(&self) -> &Field {
         &self.fields[FIRST]
     }
+    /// Number of children or primitives, at least 1; I bits.
     pub fn count(&self) -> &Field {
         &self.fields[COUNT]
     }
@@ -417,9 +433,11 @@ impl RefLayout {
         self.fields.iter().find(|f| f.name == name)
     }
 
+    /// Node index into the named hierarchy's `nodes`, bits `[0, I)`.
     pub fn node(&self) -> &Field {
         &self.fields[0]
     }
+    /// Hierarchy id, bits `[I, I + H)`.
     pub fn hier(&self) -> &Field {
         &self.fields[1]
     }

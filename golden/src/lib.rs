@@ -3,6 +3,8 @@
 //!
 //! SPEC.md at the repository root is the specification these modules implement.
 
+#![warn(missing_docs)]
+
 pub mod build;
 pub mod camera;
 pub mod check;

@@ -7,7 +7,7 @@
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
-/// Deepest LOD the grid may have (DESIGN.md: `max_lod` in 1..=31).
+/// Deepest LOD the grid may have (SPEC 1: `max_lod` in 1..=31).
 pub const MAX_LOD_LIMIT: u8 = 31;
 /// Most bits per quantized box bound (`quant_bits` in 0..=16).
 pub const QUANT_BITS_LIMIT: u8 = 16;
@@ -44,8 +44,11 @@ impl Default for Params {
 /// A parameter outside its legal range.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct ParamError {
+    /// The parameter: `max_lod`, `quant_bits`, `index_bits` or `hier_bits`.
     pub field: &'static str,
+    /// The value given.
     pub value: u64,
+    /// The legal range, e.g. `1..=31`.
     pub expected: String,
 }
 

@@ -11,7 +11,6 @@ use std::path::PathBuf;
 
 use crate::mesh::Mesh;
 
-/// splitmix64 (Steele, Lea, Flood 2014): a tiny, well-mixed 64-bit PRNG.
 /// One step of SplitMix64 (Steele, Lea, Flood 2014): the one definition of
 /// the generator behind every seeded stream in the project (scenes, vectors,
 /// cosim stall patterns), so a seed means the same numbers everywhere.
@@ -23,16 +22,19 @@ pub fn splitmix64_next(state: &mut u64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// A SplitMix64 stream stepped by [`splitmix64_next`]; its seed fixes every number it gives.
 #[derive(Clone, Debug)]
 pub struct SplitMix64 {
     state: u64,
 }
 
 impl SplitMix64 {
+    /// A stream whose state starts at `seed`.
     pub fn new(seed: u64) -> SplitMix64 {
         SplitMix64 { state: seed }
     }
 
+    /// The next 64 random bits.
     pub fn next_u64(&mut self) -> u64 {
         splitmix64_next(&mut self.state)
     }

@@ -34,15 +34,20 @@ pub struct NodeRecord {
 /// A child reference: node `node` of hierarchy `hier`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct Reference {
+    /// Id of the hierarchy holding the child, below `2^H`.
     pub hier: u8,
+    /// Index of the child in that hierarchy's `nodes`.
     pub node: u32,
 }
 
 /// A node record that is well formed bit-wise but not as a node.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct RecordError {
+    /// The field at fault, as SPEC 3 names it (`lod`, `x`, `lo_y`, `count`, ...).
     pub field: &'static str,
+    /// The field's value.
     pub value: u64,
+    /// What the field must be, e.g. `0..=16` or `below 2^Q = 256`.
     pub expected: String,
 }
 
@@ -295,7 +300,12 @@ pub enum StoreError {
     /// The id is already taken.
     IdInUse(u8),
     /// The id does not fit in `H` bits.
-    IdOutOfRange { id: u8, hier_bits: u8 },
+    IdOutOfRange {
+        /// The refused id.
+        id: u8,
+        /// `H` of the hierarchy's parameters; ids must be below `2^H`.
+        hier_bits: u8,
+    },
 }
 
 impl fmt::Display for StoreError {

@@ -41,7 +41,9 @@ pub const BOX_SLACK_REL: f64 = 1.0 / (1u64 << 20) as f64;
 /// indices point into, and a translation in grid units.
 #[derive(Clone, Copy, Debug)]
 pub struct Instance<'a> {
+    /// The hierarchy; its `id` names the instance.
     pub hierarchy: &'a Hierarchy,
+    /// The triangles the leaves' primitive indices point into, untranslated, world units.
     pub mesh: &'a Mesh,
     /// Added to every node's grid position and, times the grid unit, to every
     /// triangle's world position. `[0; 3]` for an untranslated hierarchy.
@@ -62,10 +64,13 @@ impl<'a> Instance<'a> {
 /// A closest hit.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct Hit {
+    /// Ray parameter of the hit, within the ray's `[tmin, tmax]`.
     pub t: f32,
     /// Barycentric weights of the triangle's vertices 0, 1, 2.
     pub u: f32,
+    /// Weight of vertex 1.
     pub v: f32,
+    /// Weight of vertex 2.
     pub w: f32,
     /// The hierarchy whose leaf held the triangle.
     pub hier: u8,
@@ -110,10 +115,13 @@ impl std::ops::AddAssign for TraceStats {
 /// nowhere. Traversal itself never fails on a scene that passed these checks.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct TraceError {
+    /// The hierarchy at fault (0 for a bad grid map).
     pub hier: u8,
     /// What is wrong, e.g. `node 12 prims range`.
     pub field: String,
+    /// What it should have been.
     pub expected: String,
+    /// What was found instead.
     pub found: String,
 }
 
@@ -619,13 +627,19 @@ pub fn random_rays(lo: Vec3, hi: Vec3, n: usize, seed: u64) -> Vec<Ray> {
 /// What [`verify_rays`] found: the CLI's `hiermerge trace` prints it.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct TraceSummary {
+    /// Rays traced.
     pub rays: u64,
+    /// Rays the hierarchies hit.
     pub hits: u64,
     /// Rays whose hierarchy answer differs (in any bit) from brute force.
     pub mismatches: u64,
+    /// Mean ray/box tests per ray through the hierarchies.
     pub node_tests_per_ray: f64,
+    /// Mean ray/triangle tests per ray through the hierarchies.
     pub prim_tests_per_ray: f64,
+    /// Most ray/box tests one ray took.
     pub max_node_tests: u64,
+    /// Most ray/triangle tests one ray took.
     pub max_prim_tests: u64,
     /// Triangle tests brute force needs per ray (the scene's triangle count).
     pub brute_prim_tests_per_ray: f64,
@@ -821,15 +835,21 @@ mod tests {
 }
 
 /// Traversal speed and cost over seeded random rays (no brute force): what
-/// the CLI's bench subcommand and `cargo bench -p golden --bench trace`
+/// `hiermerge trace` and `cargo bench -p golden --bench trace`
 /// report. Numbers come from here, never from tests.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct TraceBench {
+    /// Rays traced.
     pub rays: u64,
+    /// Rays that hit something.
     pub hits: u64,
+    /// Wall-clock time of the traversal, seconds.
     pub seconds: f64,
+    /// `rays / seconds`.
     pub rays_per_second: f64,
+    /// Mean ray/box tests per ray.
     pub node_tests_per_ray: f64,
+    /// Mean ray/triangle tests per ray.
     pub prim_tests_per_ray: f64,
 }
 

@@ -35,36 +35,53 @@ use crate::translate::{
 /// the translation that places it.
 #[derive(Clone, Debug)]
 pub struct Object {
+    /// The mesh in its local frame, world units.
     pub mesh: Mesh,
     /// The mesh's triangles in local grid units (what the checker uses).
     pub local: Vec<[DVec3; 3]>,
     /// The requested placement (world units) and what determine made of it.
     pub offset: DVec3,
+    /// What determine (SPEC 7.2) made of `offset`: the translation at the
+    /// hierarchy's top LOD and the residual it leaves.
     pub determined: Determined,
 }
 
 /// Why a world operation failed, naming the object.
 #[derive(Clone, Debug, PartialEq)]
 pub enum WorldError {
+    /// Building object `id`'s hierarchy, or mapping its mesh to grid units, failed.
     Build {
+        /// The object's id.
         id: u8,
+        /// The builder's error.
         error: BuildError,
     },
+    /// Determining, writing or reading a translation failed (SPEC 7).
     Translate {
+        /// The object or hierarchy concerned; 0 when there is no single one
+        /// (`World::new`, `World::separate_instances`).
         id: u8,
+        /// The translation unit's error.
         error: TranslateError,
     },
+    /// The merge failed (SPEC 8.1), or storing a built hierarchy did (`MergeError::Store`).
     Merge(MergeError),
+    /// The checker (SPEC 5) rejected hierarchy `id`.
     Check {
+        /// The checked hierarchy's id.
         id: u8,
+        /// The first property it violates.
         error: CheckError,
     },
+    /// Making a trace scene of the instances failed.
     Trace(TraceError),
     /// No object (or no hierarchy) with this id.
     Unknown(u8),
     /// The placement is not finite in world units.
     BadOffset {
+        /// The object's id.
         id: u8,
+        /// The offset as given, world units (x, y, z).
         offset: [f64; 3],
     },
 }
@@ -91,9 +108,13 @@ impl std::error::Error for WorldError {}
 
 /// The store, the translation table and the objects of a scene.
 pub struct World {
+    /// The parameters every hierarchy is built with (SPEC 1).
     pub params: Params,
+    /// The map from world units to grid units, for the scene and every local frame.
     pub grid: GridMap,
+    /// The objects' hierarchies and the merged ones.
     pub store: HierarchyStore,
+    /// The translation table, one entry per hierarchy id (`2^H`).
     pub table: TranslationTable,
     objects: BTreeMap<u8, Object>,
 }
@@ -143,6 +164,10 @@ impl World {
 
     /// Moves object `id` rigidly to `offset`: a new translation, nothing rebuilt.
     pub fn place(&mut self, id: u8, offset: DVec3) -> Result<Determined, WorldError> {
+        // Only an object moves: a merged hierarchy's table entry stays as it is.
+        if !self.objects.contains_key(&id) {
+            return Err(WorldError::Unknown(id));
+        }
         let h = self.store.get(id).ok_or(WorldError::Unknown(id))?;
         let determined = self.determine(id, h, offset)?;
         self.table
@@ -183,10 +208,12 @@ impl World {
         self.objects.remove(&id)
     }
 
+    /// Object `id`, or `None` when there is none.
     pub fn object(&self, id: u8) -> Option<&Object> {
         self.objects.get(&id)
     }
 
+    /// The objects' ids, ascending.
     pub fn object_ids(&self) -> impl Iterator<Item = u8> + '_ {
         self.objects.keys().copied()
     }
@@ -337,6 +364,15 @@ mod tests {
         )
         .unwrap();
         w.merge(&[1, 2], MergeMode::default(), 9).unwrap();
+        w.check(9).unwrap();
+        // The merged hierarchy is no object: placing it is refused, and
+        // leaves its table entry (which the merge reads through) alone.
+        let before = w.table.get(9);
+        assert!(matches!(
+            w.place(9, DVec3::splat(edge)),
+            Err(WorldError::Unknown(9))
+        ));
+        assert_eq!(w.table.get(9), before);
         w.check(9).unwrap();
         let mi = w.merged_instances(9, &[1, 2]).unwrap();
         let si = w.separate_instances(&[1, 2]).unwrap();

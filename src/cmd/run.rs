@@ -19,7 +19,7 @@ mod table;
 
 use std::path::PathBuf;
 
-use golden::scene::Scene;
+use golden::scene::{Scene, MAX_IMAGE_SIDE};
 
 use crate::report::{emit, CmdResult};
 
@@ -62,8 +62,8 @@ pub fn main(a: Args) -> CmdResult {
     }
     for (what, v) in [("--width", a.width), ("--height", a.height)] {
         if let Some(v) = v {
-            if !(1..=8192).contains(&v) {
-                return Err(format!("{what} {v}: expected 1..=8192 pixels"));
+            if !(1..=MAX_IMAGE_SIDE).contains(&v) {
+                return Err(format!("{what} {v}: expected 1..={MAX_IMAGE_SIDE} pixels"));
             }
         }
     }

@@ -20,7 +20,9 @@ pub struct LeafEntry {
     pub key: u128,
     /// Triangle index.
     pub prim: u32,
+    /// Lowest cell per axis (x, y, z) of the primitive's box in this voxel, rounded outward (SPEC 3).
     pub lo: [u16; 3],
+    /// Highest cell per axis, inclusive, rounded outward; `lo <= hi < 2^Q`.
     pub hi: [u16; 3],
 }
 

@@ -144,38 +144,64 @@ pub fn check_grid_triangle(t: &[DVec3; 3], index: usize, p: &Params) -> Result<(
 /// Why a build failed. Every variant names the offending element.
 #[derive(Clone, Debug, PartialEq)]
 pub enum BuildError {
+    /// The parameters are out of range (SPEC 1).
     Params(ParamError),
+    /// The grid map's `origin` is not finite, or its `unit` not finite and > 0 (SPEC 4.1).
     BadGridMap {
+        /// The field at fault: `"origin"` or `"unit"`.
         field: &'static str,
+        /// What the field must be.
         expected: &'static str,
     },
+    /// The hierarchy id is `>= 2^H`.
     HierIdOutOfRange {
+        /// The id asked for.
         id: u8,
+        /// `H`: ids run `0..2^H`.
         hier_bits: u8,
     },
+    /// The mesh has no triangles.
     EmptyMesh,
+    /// A triangle's vertex index is not below the mesh's vertex count.
     BadVertexIndex {
+        /// Index of the triangle in the mesh.
         triangle: usize,
+        /// The triangle's corner, 0..=2.
         corner: usize,
+        /// The vertex index that corner holds.
         vertex: u32,
+        /// The mesh's vertex count.
         vertices: usize,
     },
+    /// A corner's grid coordinate is NaN or infinite.
     NonFinite {
+        /// Index of the triangle in the mesh.
         triangle: usize,
+        /// The triangle's corner, 0..=2.
         corner: usize,
+        /// The axis: 0 = x, 1 = y, 2 = z.
         axis: usize,
     },
+    /// A corner's grid coordinate is outside the closed scene cube `[0, 2^D]`.
     OutsideScene {
+        /// Index of the triangle in the mesh.
         triangle: usize,
+        /// The triangle's corner, 0..=2.
         corner: usize,
+        /// The axis: 0 = x, 1 = y, 2 = z.
         axis: usize,
+        /// The coordinate, in grid units.
         value: f64,
+        /// `2^D`, the cube's edge in grid units.
         scene_edge: u64,
     },
     /// An index, length or count does not fit the `I`-bit fields.
     IndexOverflow {
+        /// What overflowed, e.g. `"triangle index"`, `"node count - 1"` or `"count"`.
         what: &'static str,
+        /// Its value, at or above `2^I`.
         value: u64,
+        /// `I`, the width of index, length and count fields (SPEC 1).
         index_bits: u8,
     },
 }

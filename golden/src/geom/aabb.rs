@@ -33,6 +33,7 @@ pub struct SlabRay {
 }
 
 impl SlabRay {
+    /// Precomputes the reciprocal direction and which components are exactly zero (SPEC 6.3).
     pub fn new(ray: &Ray) -> SlabRay {
         SlabRay {
             origin: ray.origin,

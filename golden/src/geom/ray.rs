@@ -5,14 +5,18 @@ use glam::Vec3;
 /// A ray `origin + t dir` for `t` in `[tmin, tmax]` (both ends included).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ray {
+    /// Start point, world units; must be finite.
     pub origin: Vec3,
     /// Need not be normalized; must not be zero.
     pub dir: Vec3,
+    /// Nearest parameter accepted, `>= 0`.
     pub tmin: f32,
+    /// Farthest parameter accepted, `>= tmin`; may be `+inf`.
     pub tmax: f32,
 }
 
 impl Ray {
+    /// A ray over `[tmin, tmax]`; [`Ray::is_valid`] says whether the kernels accept it.
     pub fn new(origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Ray {
         Ray {
             origin,

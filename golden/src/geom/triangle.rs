@@ -18,9 +18,13 @@ use super::ray::Ray;
 /// rounding).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriangleHit {
+    /// Ray parameter of the hit, within the ray's `[tmin, tmax]`.
     pub t: f32,
+    /// Weight of `v0`.
     pub u: f32,
+    /// Weight of `v1`.
     pub v: f32,
+    /// Weight of `v2`.
     pub w: f32,
 }
 

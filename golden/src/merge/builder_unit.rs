@@ -69,23 +69,38 @@ fn field_at(name: &'static str, offset: u32, width: u32) -> Field {
 /// `InputLeafAtTop`).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct BuilderLayout {
+    /// Layout of the node record in `rec`.
     pub node: NodeLayout,
+    /// Layout of the reference in `ref`.
     pub reference: RefLayout,
     /// The `base{d}` in beat.
     pub base: BeatLayout,
+    /// `level{d}`: `rec` (W bits, from bit 0), the node's record; 0 on `End`.
     pub rec: Field,
+    /// `level{d}`: `ref` (I + H bits), where a reused node is stored; else 0.
     pub refer: Field,
+    /// `level{d}`: `kind` (2 bits), a [`level_out_kind`] code.
     pub kind: Field,
+    /// `level{d}`: `index` (I bits), the node's position in its level; on `End`
+    /// the level's node count.
     pub index: Field,
+    /// `level{d}`: `records` (I bits), the records before the node in its level;
+    /// on `End` the level's record count.
     pub records: Field,
+    /// `level{d}`: `err` (1 bit), an overflow or a child box with `lo > hi`.
     pub err: Field,
+    /// Width of a `level{d}` beat in bits.
     pub level_width: u32,
+    /// `done`: `top` (`lod_bits`, from bit 0), the LOD of the merged roots.
     pub top: Field,
+    /// `done`: `err` (1 bit), no top.
     pub done_err: Field,
+    /// Width of the `done` beat in bits.
     pub done_width: u32,
 }
 
 impl BuilderLayout {
+    /// The layouts for `p`.
     pub fn new(p: &Params) -> BuilderLayout {
         let node = NodeLayout::new(p);
         let reference = RefLayout::new(p);
@@ -123,22 +138,39 @@ pub enum LevelOut {
     /// where a reused node is stored (zero otherwise); `index` its position
     /// in the level and `records` the records before it, both modulo `2^I`.
     Node {
+        /// A [`level_out_kind`] code: `GROUPED`, `CREATED` or `REUSED`.
         kind: u64,
+        /// The record: a grouped node's parent voxel, box and `first`/`count` in
+        /// the level below (modulo `2^I`); a created or reused node's as it came.
         record: NodeRecord,
+        /// Where a reused node is stored; `(0, 0)` otherwise.
         at: Reference,
+        /// The node's position in its level, modulo `2^I`.
         index: u32,
+        /// The records (grouped and created nodes) before it in its level, modulo `2^I`.
         records: u32,
+        /// A grouped node's `first` or `count` reached `2^I`, a child of it had
+        /// `lo > hi`, or the position reached `2^I`.
         err: bool,
     },
     /// End of the level: its nodes and records, modulo `2^I`; `err` when
     /// the node count reached `2^I`.
-    End { nodes: u32, records: u32, err: bool },
+    End {
+        /// The level's node count, modulo `2^I` (the `index` field).
+        nodes: u32,
+        /// The level's record count, modulo `2^I` (the `records` field).
+        records: u32,
+        /// The node count reached `2^I`.
+        err: bool,
+    },
 }
 
 /// The `done` beat of a merge.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Done {
+    /// The top LOD: the LOD of the merged hierarchy's roots (0 with `err`).
     pub top: u8,
+    /// No top: the base was empty, or a reused leaf is at the LOD-0 top.
     pub err: bool,
 }
 
@@ -200,12 +232,16 @@ impl Done {
 /// expected `level{d}` and `done` out beats (index = LOD, `0..=D`).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct BuilderTransaction {
+    /// `base[d]`: the `base{d}` in beats, LOD `d`'s base nodes in level order, then `End`.
     pub base: Vec<Vec<BaseBeat>>,
+    /// `levels[d]`: the expected `level{d}` beats; empty above the top.
     pub levels: Vec<Vec<LevelOut>>,
+    /// The expected `done` beat.
     pub done: Done,
     /// Which rules decided the top (to check that stimulus reaches them):
     /// lifts of a reused leaf (8.6), and the half-scene cut of 4.7.
     pub lifted: usize,
+    /// The half-scene cut dropped a lone grouped LOD-0 node (the top is then 1).
     pub root_cut: bool,
 }
 

@@ -19,55 +19,104 @@ pub enum MergeError {
     /// The output id is already in the store (an input or another hierarchy).
     OutIdInUse(u8),
     /// The output id does not fit in `H` bits.
-    OutIdOutOfRange { id: u8, hier_bits: u8 },
+    OutIdOutOfRange {
+        /// The output id asked for.
+        id: u8,
+        /// `H`: ids run `0..2^H`.
+        hier_bits: u8,
+    },
     /// An input's parameters differ from the first input's.
     ParamsMismatch {
+        /// The input whose parameters differ.
         input: u8,
+        /// The first input's parameters.
         expected: Params,
+        /// This input's parameters.
         found: Params,
     },
     /// The translation table has no usable entry for an input.
-    Translation { input: u8, error: TranslateError },
+    Translation {
+        /// The input's id.
+        input: u8,
+        /// The table's error, e.g. `EmptyEntry` for an entry never written.
+        error: TranslateError,
+    },
     /// S612: moving a node of an input failed (outside the scene, or above
     /// the translation level `L`).
     TranslateNode {
+        /// The input's id.
         input: u8,
+        /// Index of the node in the input's `nodes`.
         node: u32,
+        /// The `translate_node` error, e.g. `NodeOutsideScene` or `AboveTranslationLevel`.
         error: TranslateError,
     },
     /// An input is not a well-formed, self-contained hierarchy.
     BadInput {
+        /// The input's id.
         input: u8,
+        /// The node at fault; `None` when the fault is not one node's (e.g. `root_count`).
         node: Option<u32>,
+        /// The field or property at fault, e.g. `"first/count"` or `"reference"`.
         field: &'static str,
+        /// What it had to be.
         expected: String,
+        /// What it was.
         found: String,
     },
     /// A ratio `num / den` outside `0 <= num <= den`, `den >= 1`.
     BadRatio {
+        /// The mode the ratio belongs to: `"Overlap"`, `"Proportion"` or `"PerNode"`.
         mode: &'static str,
+        /// The numerator given.
         num: u32,
+        /// The denominator given.
         den: u32,
     },
     /// `Fixed(level)` outside the candidate levels `[lo, hi]`.
-    LevelNotCandidate { level: u8, lo: u8, hi: u8 },
+    LevelNotCandidate {
+        /// The merging LOD asked for.
+        level: u8,
+        /// The shallowest candidate level, the deepest input top LOD (SPEC 8.2).
+        lo: u8,
+        /// The deepest candidate level (SPEC 8.2).
+        hi: u8,
+    },
     /// `BelowTop(k)`: `lo + k` is deeper than `hi`.
-    BelowTopTooDeep { k: u8, lo: u8, hi: u8 },
+    BelowTopTooDeep {
+        /// The levels below the top asked for.
+        k: u8,
+        /// The shallowest candidate level, the deepest input top LOD (SPEC 8.2).
+        lo: u8,
+        /// The deepest candidate level (SPEC 8.2).
+        hi: u8,
+    },
     /// The top of the merged hierarchy would be an input's leaf at LOD 0,
     /// which a merged record cannot stand for (its primitives index the
     /// input's triangles).
-    InputLeafAtTop { input: u8, node: u32 },
+    InputLeafAtTop {
+        /// The input holding the leaf.
+        input: u8,
+        /// Index of the leaf in that input's `nodes`.
+        node: u32,
+    },
     /// A node count, reference count or `count` field exceeds `I` bits.
     IndexOverflow {
+        /// What overflowed, e.g. `"node count - 1"` or `"count"`.
         what: &'static str,
+        /// Its value, at or above `2^index_bits`.
         value: u64,
+        /// The bits it had to fit: `I`, or 16 for the input count.
         index_bits: u8,
     },
     /// Storing the merged hierarchy failed (S618).
     Store(StoreError),
     /// Asked of the merging module's hardware, which does not build it
     /// (e.g. per-node merging).
-    Unsupported { what: &'static str },
+    Unsupported {
+        /// What was asked and why it cannot be done.
+        what: &'static str,
+    },
 }
 
 impl fmt::Display for MergeError {

@@ -56,9 +56,13 @@ pub mod fetch_err {
     pub const ABOVE: u64 = 9;
     /// `NodeOutsideScene` on x; y and z are the next two codes. The node.
     pub const OUTSIDE_X: u64 = 10;
+    /// `NodeOutsideScene` on y. The node.
     pub const OUTSIDE_Y: u64 = 11;
+    /// `NodeOutsideScene` on z. The node.
     pub const OUTSIDE_Z: u64 = 12;
-    /// The frontier FIFO was full when an inner node's range arrived. The node.
+    /// One level (or per-node pass) would push more inner-node ranges than
+    /// `FetchSizes::frontier` allows (the frontier FIFO holds `2 * frontier + 1`
+    /// words). The node.
     pub const FRONTIER: u64 = 13;
     /// A node not after the previous node of its level in (Morton code,
     /// inner before leaf) order: the walk would not be the stream's order
@@ -74,30 +78,45 @@ pub mod fetch_err {
 /// [`entry_bits`] only.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct FetchLayout {
+    /// Layout of a node record: `node_resp`, and `rec` of `out` and `leaves`.
     pub node: NodeLayout,
+    /// Layout of a reference: `ref_resp`, `cref_resp`, and `ref` of `out` and `leaves`.
     pub reference: RefLayout,
     /// `cfg`: `hier` (H), `roots` (I: root_count), `top` (lod_bits),
     /// `nodes`, `refs` (I each: the input's array lengths), `entry` (the
     /// translation table's packed entry, section 7.5).
     pub hier: Field,
+    /// `cfg`: `roots` (I bits), the input's `root_count`.
     pub roots: Field,
+    /// `cfg`: `top` (`lod_bits`), the LOD of the input's roots.
     pub top: Field,
+    /// `cfg`: `nodes` (I bits), the length of the input's `nodes` array.
     pub nodes: Field,
+    /// `cfg`: `refs` (I bits), the length of the input's `refs` array.
     pub refs: Field,
+    /// `cfg`: `entry` ([`entry_bits`] bits), the table's packed entry for `hier`.
     pub entry: Field,
     /// The entry's own fields inside `cfg` (section 7.5's packing: `valid`,
     /// `L`, `tx`, `ty`, `tz`), tested against [`pack_entry`](crate::translate::table::pack_entry).
     pub entry_valid: Field,
+    /// `cfg`: the entry's `L` (`lod_bits`), the translation level.
     pub entry_lod: Field,
+    /// `cfg`: the entry's `tx`, `ty`, `tz` (D + 1 bits each), the translation codes.
     pub entry_t: [Field; 3],
+    /// Width of the `cfg` beat in bits.
     pub cfg_width: u32,
     /// `cmd`: `lod` (lod_bits), `send_refs`, `send_leaves`, `last` (1
     /// each), `from` (lod_bits: the first level sent, [`FetchCmd::from`]).
     pub lod: Field,
+    /// `cmd`: `send_refs`, send the inner nodes' child references on the sent levels.
     pub send_refs: Field,
+    /// `cmd`: `send_leaves`, send the leaves above the first sent level on `leaves`.
     pub send_leaves: Field,
+    /// `cmd`: `last`, the input's last command; the next `cfg` beat follows.
     pub last: Field,
+    /// `cmd`: `from` (`lod_bits`); the first level sent is `min(from, lod)`.
     pub from: Field,
+    /// Width of the `cmd` beat in bits (`per_node` included when built with it).
     pub cmd_width: u32,
     /// `node_req` / `ref_req`: an index (I). `node_resp`: a record (W);
     /// `ref_resp`: a reference (I + H).
@@ -105,13 +124,20 @@ pub struct FetchLayout {
     /// `out`: an S614 input beat ([`BeatLayout::input`]) then `err`
     /// ([`fetch_err::BITS`]).
     pub beat: BeatLayout,
+    /// `out`: `err` ([`fetch_err::BITS`] bits), a [`fetch_err`] code; 0 but on an
+    /// error beat.
     pub err: Field,
+    /// Width of an `out` beat in bits (`probe` included when built with it).
     pub out_width: u32,
     /// `leaves`: `rec` (W), `ref` (I + H), `lod` (lod_bits), `end` (1).
     pub leaf_rec: Field,
+    /// `leaves`: `ref` (I + H bits), where the leaf is stored: `(hier, node index)`.
     pub leaf_ref: Field,
+    /// `leaves`: `lod` (`lod_bits`), the leaf record's LOD.
     pub leaf_lod: Field,
+    /// `leaves`: `end` (1 bit), set on the command's last `leaves` beat.
     pub leaf_end: Field,
+    /// Width of a `leaves` beat in bits.
     pub leaves_width: u32,
     /// The per-node command's fields, only in a fetcher built for
     /// per-node merging ([`FetchLayout::per_node`]); without them the
@@ -136,10 +162,15 @@ pub struct PerNodeFetchLayout {
     /// (`lod_bits`), `descend`, `pass_end`, `more` (1 each). A refusal beat
     /// is `pass_end` 1, `more` 0.
     pub report_coord: [Field; 3],
+    /// `report`: `lod`, the decision's voxel LOD or the ended pass's LOD.
     pub report_lod: Field,
+    /// `report`: `descend`, 1 when the voxel descends.
     pub report_descend: Field,
+    /// `report`: `pass_end`, 1 on the beat ending a pass (or a refusal).
     pub report_pass_end: Field,
+    /// `report`: `more`, with `pass_end`: another pass follows.
     pub report_more: Field,
+    /// Width of the fetcher's `report` beat in bits.
     pub report_width: u32,
 }
 
@@ -358,10 +389,15 @@ fn put_bits(dst: &mut Bits, offset: u32, src: &Bits) -> Result<(), LayoutError> 
 /// The header of one input as the `cfg` beat carries it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FetchCfg {
+    /// `hier`: the input's hierarchy id.
     pub hier: u8,
+    /// `roots`: the input's `root_count`.
     pub root_count: u32,
+    /// `top`: the LOD of the input's roots.
     pub top_lod: u8,
+    /// `nodes`: the length of the input's `nodes` array.
     pub nodes: u32,
+    /// `refs`: the length of the input's `refs` array.
     pub refs: u32,
     /// The translation table's packed entry for `hier` (section 7.5).
     pub entry: u128,
@@ -412,11 +448,18 @@ impl FetchCfg {
 /// references).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FetchCmd {
+    /// The deepest level walked and sent (`lo` for the per-node command).
     pub lod: u8,
+    /// Send each inner node's child references after its voxel's node beats.
     pub send_refs: bool,
+    /// Send the leaves above the first sent level on `leaves`, then the end beat.
     pub send_leaves: bool,
+    /// The input's last command: the next `cfg` beat starts another input.
     pub last: bool,
+    /// The first level sent when below `lod` ([`FetchCmd::first`]); at or
+    /// above `lod` only `lod` is sent.
     pub from: u8,
+    /// The per-node command (only in a layout from [`FetchLayout::per_node`]).
     pub per_node: bool,
 }
 
@@ -494,9 +537,22 @@ pub enum FetchOut {
     /// A per-node probe: a child (translated, where it is stored) of the
     /// inner node that follows; packed as an inner-node beat with `probe`
     /// 1 (the per-node module's input beat, 8.14).
-    Probe { record: NodeRecord, at: Reference },
+    Probe {
+        /// The child's stored record with its voxel translated.
+        record: NodeRecord,
+        /// Where the child is stored: `(hier, node index)`.
+        at: Reference,
+    },
     /// The walk stopped: `kind` END, `ref` = (hier, node), `err` = code.
-    Error { hier: u8, node: u32, code: u64 },
+    Error {
+        /// The input's hierarchy id.
+        hier: u8,
+        /// The node named: the record found wrong, the parent for `REF_HIER` and
+        /// `REF_NODE`, 0 for the header codes.
+        node: u32,
+        /// The [`fetch_err`] code.
+        code: u64,
+    },
 }
 
 impl FetchOut {
@@ -532,7 +588,14 @@ impl FetchOut {
 /// is stored; or the command's `End`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum LeafOut {
-    Leaf { record: NodeRecord, at: Reference },
+    /// A leaf above the first sent level.
+    Leaf {
+        /// The leaf's stored record with its voxel translated.
+        record: NodeRecord,
+        /// Where the leaf is stored: `(hier, node index)`.
+        at: Reference,
+    },
+    /// The command's last `leaves` beat (`end` = 1).
     End,
 }
 
@@ -556,7 +619,10 @@ impl LeafOut {
 /// FIFO's depth (generator parameters).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FetchSizes {
+    /// The root sorter's capacity: the most roots an input may have (else `ROOT_CAPACITY`).
     pub roots: usize,
+    /// The most inner-node ranges one level (or pass) may push (else `FRONTIER`);
+    /// the frontier FIFO holds `2 * frontier + 1` words.
     pub frontier: usize,
 }
 
@@ -574,25 +640,34 @@ impl Default for FetchSizes {
 /// every stream carries, in order, over all commands.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct FetchTransaction {
+    /// The input's `cfg` beat.
     pub cfg: FetchCfg,
+    /// The commands, in order.
     pub cmds: Vec<FetchCmd>,
     /// Node indices requested on `node_req`, and the records answered.
     pub node_reqs: Vec<u32>,
+    /// One per entry of `node_reqs`: the stored record.
     pub node_resps: Vec<NodeRecord>,
     /// Reference indices requested on `ref_req`, and the references answered.
     pub ref_reqs: Vec<u32>,
+    /// One per entry of `ref_reqs`: the stored reference.
     pub ref_resps: Vec<Reference>,
     /// Reference indices requested on `cref_req` (the child references of
     /// the nodes at the command's level, with `send_refs`), and the answers.
     pub cref_reqs: Vec<u32>,
+    /// One per entry of `cref_reqs`: the stored reference.
     pub cref_resps: Vec<Reference>,
     /// Node indices requested on `probe_req` (the probes of per-node
     /// commands: the children of each live inner node), and the records.
     pub probe_reqs: Vec<u32>,
+    /// One per entry of `probe_reqs`: the stored record.
     pub probe_resps: Vec<NodeRecord>,
     /// The `report` beats taken (per-node commands), in order.
     pub reports: Vec<PerNodeReport>,
+    /// The `out` beats of every command, in order.
     pub out: Vec<FetchOut>,
+    /// The `leaves` beats of every command, in order; each command with
+    /// `send_leaves` ends with one `End`.
     pub leaves: Vec<LeafOut>,
 }
 

@@ -20,6 +20,7 @@ use crate::store::Hierarchy;
 /// The overlap at one candidate level.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
 pub struct LevelOverlap {
+    /// The candidate level (LOD) the counts are for.
     pub lod: u8,
     /// Voxels occupied by two or more inputs.
     pub shared: u64,

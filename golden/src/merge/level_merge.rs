@@ -21,17 +21,28 @@ use crate::store::{node_box_fine, voxel_box_fine, Hierarchy, NodeRecord, Referen
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum BaseKind {
     /// A new record of the merged hierarchy with these references.
-    Created { refs: Vec<Reference> },
+    Created {
+        /// The children of the merged inner nodes in input rank order, each
+        /// `(input id, node index)` as stored in its input.
+        refs: Vec<Reference>,
+    },
     /// An input node referenced where it is stored.
-    Reused { at: Reference },
+    Reused {
+        /// Where the node is stored: `(input id, node index)`.
+        at: Reference,
+    },
 }
 
 /// A node the upper levels (S616) are built on: a record in the scene
 /// (translated voxel, box cells, leaf flag; `first`/`count` are the stored
-/// ones for a reused node and meaningless for a created one) and its kind.
+/// ones for a reused node; a created one has `first` 0 and `count` its
+/// number of references, which S614 and the writer use) and its kind.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct BaseNode {
+    /// The record with its voxel in the scene; a reused node's box, `first`
+    /// and `count` are the stored ones.
     pub record: NodeRecord,
+    /// A new record with its references, or an input node and where it is stored.
     pub kind: BaseKind,
 }
 
@@ -48,8 +59,12 @@ impl BaseNode {
 /// What S614 did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct LevelMergeCounts {
+    /// Created nodes: voxels where two or more inner nodes were merged into
+    /// one new record.
     pub created: u64,
+    /// Inner nodes alone at their voxel, referenced where they are stored.
     pub reused_inner: u64,
+    /// Leaves at the merging level(s), referenced where they are stored.
     pub reused_leaves: u64,
 }
 

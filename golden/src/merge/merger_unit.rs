@@ -62,8 +62,11 @@ use crate::translate::{Translation, TranslationTable};
 /// every LOD (`2^leaf_bits` leaves).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct MergerSizes {
+    /// Every fetcher's root sorter capacity and frontier depth.
     pub fetch: FetchSizes,
+    /// `C`: the writer's buffers hold `2^C` entries (`1..I`).
     pub capacity_bits: u32,
+    /// Each LOD's leaf FIFO holds `2^leaf_bits` entries (`1..=16`).
     pub leaf_bits: u32,
 }
 
@@ -83,6 +86,7 @@ impl MergerSizes {
 /// merger's glue saw.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct MergerHeader {
+    /// The record writer's `header` beat (the low bits).
     pub writer: Header,
     /// A leaf FIFO was full when a leaf of its LOD came: the leaf was not
     /// stored and the merged hierarchy is wrong (make `leaf_bits` larger).
@@ -92,6 +96,7 @@ pub struct MergerHeader {
     /// The first fetcher error code of the merge ([`fetch_err`]; 0 none) and
     /// the input rank that reported it.
     pub fetch_err: u64,
+    /// The rank of the input whose fetcher reported `fetch_err` (0 when none).
     pub fetch_rank: u16,
 }
 
@@ -117,21 +122,36 @@ impl MergerHeader {
 /// `fetch_err` ([`fetch_err::BITS`]), `fetch_rank` (`rank_bits(k)`).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct MergerLayout {
+    /// The number of inputs (fetchers) the merger is built with.
     pub k: usize,
+    /// Every fetcher's layouts; `input<i>` is a fetcher `cfg` beat.
     pub fetch: FetchLayout,
+    /// The merging module's layouts; `report` is its `report` beat.
     pub top: TopLayout,
+    /// The record writer's layouts; `header` starts with its header.
     pub writer: WriterLayout,
-    /// Offset of `input<i>`: `i * fetch.cfg_width`.
+    /// Width of each `input<i>` field of `cfg`, the fetcher's `cfg` beat
+    /// (`fetch.cfg_width`); `input<i>` starts at [`Self::input_offset`].
     pub input_width: u32,
+    /// `cfg`: `count` (`bits_to_hold(k)`), the inputs used, after `input{k-1}`.
     pub count: Field,
+    /// `cfg`: `lo` (`lod_bits`), the shallowest candidate level.
     pub lo: Field,
+    /// `cfg`: `hi` (`lod_bits`), the deepest candidate level.
     pub hi: Field,
+    /// `cfg`: `out_id` (H bits), the merged hierarchy's id.
     pub out_id: Field,
+    /// Width of the `cfg` beat in bits.
     pub cfg_width: u32,
+    /// `header`: `leaf_overflow` (1 bit), right after the writer's header.
     pub leaf_overflow: Field,
+    /// `header`: `count_overflow` (1 bit).
     pub count_overflow: Field,
+    /// `header`: `fetch_err` ([`fetch_err::BITS`] bits), the first fetcher error code.
     pub fetch_err: Field,
+    /// `header`: `fetch_rank` (`rank_bits(k)`), the rank that reported it.
     pub fetch_rank: Field,
+    /// Width of the `header` beat in bits.
     pub header_width: u32,
 }
 
@@ -188,8 +208,11 @@ impl MergerLayout {
 pub struct MergerCfg {
     /// The used inputs' fetcher configurations, in rank order.
     pub inputs: Vec<FetchCfg>,
+    /// The shallowest candidate level (8.2's `lo`, or any range software sends).
     pub lo: u8,
+    /// The deepest candidate level.
     pub hi: u8,
+    /// The merged hierarchy's id.
     pub out_id: u8,
 }
 
@@ -248,13 +271,17 @@ impl ModulePass {
 /// responses inside each unit's transaction) and every unit's streams.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct MergerTransaction {
+    /// The merging mode built into the merger.
     pub mode: MergeMode,
+    /// The `cfg` beat.
     pub cfg: MergerCfg,
     /// The commands the controller issues to every used fetcher.
     pub cmds: Vec<FetchCmd>,
     /// Per used input (rank order): the fetcher's run over `cmds`, with its
     /// memory requests and responses.
     pub fetch: Vec<FetchTransaction>,
+    /// The merging module's run: count pass, choice and merge pass, or the
+    /// per-node passes.
     pub module: ModulePass,
     /// The merging level (`None`: per-node mode or refused).
     pub chosen: Option<u8>,

@@ -54,16 +54,31 @@ pub enum MergeMode {
     /// The deepest candidate level whose overlap is above `num / den`
     /// (strictly: `shared * den > num * union`); the shallowest candidate
     /// when none is. Default 1/2 (53).
-    Overlap { num: u32, den: u32 },
+    Overlap {
+        /// Numerator of the threshold (`num <= den`).
+        num: u32,
+        /// Denominator of the threshold (`den >= 1`).
+        den: u32,
+    },
     /// A user-specified level (54); an error unless it is a candidate.
     Fixed(u8),
     /// `k` levels below the top: `lo + k` (54); an error beyond `hi`.
     BelowTop(u8),
     /// A proportion of the depth: `lo + floor((hi - lo) num / den)` (54).
-    Proportion { num: u32, den: u32 },
+    Proportion {
+        /// Numerator of the fraction of `hi - lo` (`num <= den`).
+        num: u32,
+        /// Denominator of the fraction (`den >= 1`).
+        den: u32,
+    },
     /// No single level: the merged sub-hierarchies' roots are chosen per
     /// node by the overlap of their children (55, [`per_node`]).
-    PerNode { num: u32, den: u32 },
+    PerNode {
+        /// Numerator of the descent threshold `S * den > num * U` (`num <= den`).
+        num: u32,
+        /// Denominator of the descent threshold (`den >= 1`).
+        den: u32,
+    },
 }
 
 impl std::fmt::Display for MergeMode {
@@ -132,8 +147,12 @@ impl MergeStats {
 /// what the merge did.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MergeResult {
+    /// The merged hierarchy `out_id`; its references name its own records
+    /// and the inputs' nodes.
     pub merged: Hierarchy,
+    /// The merging level `m`; `None` in per-node mode (the base spans several LODs).
     pub level: Option<u8>,
+    /// The counts of every stage.
     pub stats: MergeStats,
 }
 
@@ -168,13 +187,6 @@ fn resolve_inputs<'a>(
             .map_err(|error| MergeError::Translation { input: id, error })?;
         hs.push(h);
         ts.push(t);
-    }
-    if inputs.len() > u16::MAX as usize {
-        return Err(MergeError::IndexOverflow {
-            what: "input count",
-            value: inputs.len() as u64,
-            index_bits: 16,
-        });
     }
     if out_id as u64 >= params.hier_capacity() {
         return Err(MergeError::OutIdOutOfRange {

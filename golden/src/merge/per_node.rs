@@ -50,10 +50,15 @@ pub struct Contest {
 
 /// The decider's context.
 pub struct PerNode<'a> {
+    /// The input hierarchies, in rank order.
     pub inputs: &'a [&'a Hierarchy],
+    /// Each input's translation, by rank.
     pub translations: &'a [Translation],
+    /// The inputs' parameters (all equal).
     pub params: Params,
+    /// Numerator of the descent threshold `S * den > num * U`.
     pub num: u32,
+    /// Denominator of the descent threshold.
     pub den: u32,
 }
 

@@ -42,20 +42,30 @@ pub struct PerNodeLayout {
     /// An input beat: an S614 input beat ([`BeatLayout::input`]) then
     /// `probe` (1): a child's record and reference, for counting only.
     pub beat: BeatLayout,
+    /// Input beat: `probe` (1 bit) after the S614 beat, set on a probe.
     pub probe: Field,
+    /// Width of an input beat in bits.
     pub in_width: u32,
     /// `report`, from bit 0: `x`, `y`, `z` (D each, the voxel of a
     /// decision), `lod` (`lod_bits`), `shared`, `union`
     /// ([`CHILD_COUNT_BITS`] each), `descend`, `pass_end`, `more` (1 each),
     /// `err` (2, [`choice_err`]).
     pub coord: [Field; 3],
+    /// `report`: `lod` (`lod_bits`), the decision's voxel LOD or the ended pass's LOD.
     pub lod: Field,
+    /// `report`: `shared`, `S`: child voxels holding children of two or more inputs.
     pub shared: Field,
+    /// `report`: `union`, `U`: child voxels holding any child.
     pub union: Field,
+    /// `report`: `descend`, `S * den > num * U`: the voxel descends.
     pub descend: Field,
+    /// `report`: `pass_end`, set on the beat ending a pass or refusing the merge.
     pub pass_end: Field,
+    /// `report`: `more`, with `pass_end`: a pass at `lod + 1` follows.
     pub more: Field,
+    /// `report`: `err` (2 bits), [`choice_err::BAD_RANGE`] on a refusal, else 0.
     pub err: Field,
+    /// Width of a `report` beat in bits.
     pub report_width: u32,
 }
 
@@ -112,7 +122,12 @@ impl PerNodeLayout {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PerNodeBeat {
     /// A child (LOD `l + 1`, translated) of the inner node that follows.
-    Probe { record: NodeRecord, at: Reference },
+    Probe {
+        /// The child's stored record with its voxel translated (only the voxel is read).
+        record: NodeRecord,
+        /// Where the child is stored: `(input id, node index)`.
+        at: Reference,
+    },
     /// An S614 input beat.
     Level(LevelBeat),
 }
@@ -135,15 +150,27 @@ impl PerNodeBeat {
 pub enum PerNodeReport {
     /// A contested voxel (two or more inner nodes): `S`, `U`, the decision.
     Decision {
+        /// The contested voxel (translated).
         voxel: VoxelAddr,
+        /// `S`: child voxels holding children of two or more inputs.
         shared: u64,
+        /// `U`: child voxels holding any child.
         union: u64,
+        /// `S * den > num * U`: the children become groups of the next pass.
         descend: bool,
     },
     /// The end of pass `lod`; `more`: a pass at `lod + 1` follows.
-    PassEnd { lod: u8, more: bool },
+    PassEnd {
+        /// The LOD of the pass that ended.
+        lod: u8,
+        /// Some voxel descended and `lod < D`.
+        more: bool,
+    },
     /// The merge is refused (`cfg` with `lo > hi` or `hi > D`).
-    Refused { err: u64 },
+    Refused {
+        /// The [`choice_err`] code: [`choice_err::BAD_RANGE`].
+        err: u64,
+    },
 }
 
 impl PerNodeReport {
@@ -183,10 +210,16 @@ impl PerNodeReport {
 /// stream's beats (every pass), the expected `report` and `out` beats.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct PerNodeTransaction {
+    /// `cfg`: `lo`, the LOD of the first pass.
     pub lo: u8,
+    /// `cfg`: `hi`, only checked against `lo` and `D`.
     pub hi: u8,
+    /// `inputs[r]`: input `r`'s beats of every pass, each pass ending in `End`.
     pub inputs: Vec<Vec<PerNodeBeat>>,
+    /// The expected `report` beats: every pass's decisions and its `PassEnd`, or
+    /// one `Refused`.
     pub reports: Vec<PerNodeReport>,
+    /// The expected `out` beats: S614's beats of every pass, each pass ending in `End`.
     pub out: Vec<BaseBeat>,
     /// Passes made (0 when refused).
     pub passes: u32,
@@ -481,9 +514,13 @@ fn random_tree(
 /// that voxels are contested at every depth; `occupancy` varies per merge
 /// so that every ratio descends somewhere and stays somewhere.
 pub struct PerNodeCase {
+    /// The `k` octree inputs in rank order (distinct ids).
     pub hierarchies: Vec<Hierarchy>,
+    /// Each input's translation by rank, at its top LOD.
     pub translations: Vec<Translation>,
+    /// `cfg`: `lo`.
     pub lo: u8,
+    /// `cfg`: `hi`, the deepest LOD of the trees, or `lo - 1` (a bad range).
     pub hi: u8,
 }
 

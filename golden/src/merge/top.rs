@@ -55,17 +55,26 @@ pub mod choice_err {
 pub struct TopLayout {
     /// `cfg`, from bit 0: `lo`, `hi` (`lod_bits` each).
     pub lo: Field,
+    /// `cfg`: `hi` (`lod_bits`), the deepest candidate level.
     pub hi: Field,
+    /// Width of the `cfg` beat in bits.
     pub cfg_width: u32,
     /// `report`, from bit 0: `lod`, `shared`, `union` (I each), `above`,
     /// `overflow`, `chosen` (1 each), `err` (2).
     pub lod: Field,
+    /// `report`: `shared` (I bits), a counted level's shared voxels.
     pub shared: Field,
+    /// `report`: `union` (I bits), a counted level's occupied voxels.
     pub union: Field,
+    /// `report`: `above`, the counted level is above the threshold.
     pub above: Field,
+    /// `report`: `overflow`, the counted level's `union` reached `2^I`.
     pub overflow: Field,
+    /// `report`: `chosen`, set on the choice beat.
     pub chosen: Field,
+    /// `report`: `err` (2 bits), the choice's [`choice_err`] code.
     pub err: Field,
+    /// Width of a `report` beat in bits.
     pub report_width: u32,
 }
 
@@ -127,9 +136,19 @@ impl TopLayout {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Report {
     /// The overlap counter's result of one candidate level (count pass).
-    Counted { lod: u8, result: OverlapResult },
+    Counted {
+        /// The counted level.
+        lod: u8,
+        /// The overlap counter's out beat for that level.
+        result: OverlapResult,
+    },
     /// The merging level (`lod` 0 when `err` is not [`choice_err::NONE`]).
-    Chosen { lod: u8, err: u64 },
+    Chosen {
+        /// The merging level; 0 when refused.
+        lod: u8,
+        /// A [`choice_err`] code.
+        err: u64,
+    },
 }
 
 impl Report {
@@ -158,10 +177,16 @@ impl Report {
 /// (count pass, then merge pass), the expected `report` and `out` beats.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct TopTransaction {
+    /// `cfg`: `lo`, the shallowest candidate level.
     pub lo: u8,
+    /// `cfg`: `hi`, the deepest candidate level.
     pub hi: u8,
+    /// `inputs[r]`: input `r`'s beats, the count pass's levels (overlap mode)
+    /// then the chosen level's, each level ending in `End`.
     pub inputs: Vec<Vec<LevelBeat>>,
+    /// The expected `report` beats: one per counted level, then the choice.
     pub reports: Vec<Report>,
+    /// The expected `out` beats at the chosen level, `End` last; empty when refused.
     pub out: Vec<BaseBeat>,
 }
 

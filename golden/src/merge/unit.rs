@@ -65,9 +65,19 @@ pub mod base_kind {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum LevelBeat {
     /// A merging-level inner node, translated, and where it is stored.
-    Inner { record: NodeRecord, at: Reference },
+    Inner {
+        /// The stored record with its voxel translated.
+        record: NodeRecord,
+        /// Where the node is stored: `(input id, node index)`.
+        at: Reference,
+    },
     /// A merging-level leaf, translated, and where it is stored.
-    Leaf { record: NodeRecord, at: Reference },
+    Leaf {
+        /// The stored record with its voxel translated.
+        record: NodeRecord,
+        /// Where the node is stored: `(input id, node index)`.
+        at: Reference,
+    },
     /// A child reference (as stored in its input's `refs`).
     ChildRef(Reference),
     /// End of the level.
@@ -80,11 +90,19 @@ pub enum BaseBeat {
     /// A created node: `first` 0, `count` the number of its references
     /// modulo `2^I`; `count_overflow` when that number is `>= 2^I`.
     Created {
+        /// The created inner record: the voxel, the per-axis min/max of the merged
+        /// nodes' cells, `first` 0, `count` modulo `2^I`.
         record: NodeRecord,
+        /// The number of references is `2^I` or more (the `err` bit).
         count_overflow: bool,
     },
     /// A reused input node (translated record) and where it is stored.
-    Reused { record: NodeRecord, at: Reference },
+    Reused {
+        /// The input node's record as it came in (voxel translated).
+        record: NodeRecord,
+        /// Where the node is stored: `(input id, node index)`.
+        at: Reference,
+    },
     /// A reference of the preceding created node.
     Ref(Reference),
     /// End of the level.
@@ -95,13 +113,20 @@ pub enum BaseBeat {
 /// `ref` (a reference), `kind` (2 bits), and on output beats `err` (1 bit).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct BeatLayout {
+    /// Layout of the node record in `rec`.
     pub node: NodeLayout,
+    /// Layout of the reference in `ref`.
     pub reference: RefLayout,
+    /// `rec` (W bits, from bit 0): the node record; 0 on reference and `End` beats.
     pub rec: Field,
+    /// `ref` (I + H bits): where a node is stored, or a child reference; 0 on a
+    /// created node and on `End`.
     pub refer: Field,
+    /// `kind` (2 bits): a [`level_kind`] code in, a [`base_kind`] code out.
     pub kind: Field,
     /// Output beats only: the count-overflow flag.
     pub err: Option<Field>,
+    /// Width of the beat in bits.
     pub width: u32,
 }
 
@@ -220,7 +245,9 @@ impl BaseBeat {
 /// they produce (the final `End` is a group of its own).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct LevelGroup {
+    /// This group's beats in [`LevelTransaction::inputs`].
     pub inputs: Range<usize>,
+    /// The beats they produce in [`LevelTransaction::outputs`].
     pub outputs: Range<usize>,
 }
 
@@ -228,8 +255,12 @@ pub struct LevelGroup {
 /// per-voxel grouping of both.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct LevelTransaction {
+    /// The input beats in delivery order ([`level_stream`]), `End` last.
     pub inputs: Vec<LevelBeat>,
+    /// The expected output beats: per voxel the created or reused inner node,
+    /// the leaves, a created node's references; `End` last.
     pub outputs: Vec<BaseBeat>,
+    /// One group per voxel in stream order, then one for the final `End`.
     pub groups: Vec<LevelGroup>,
 }
 
@@ -356,14 +387,23 @@ fn base_beat(n: &BaseNode, p: &Params, refs_after: &mut Vec<BaseBeat>) -> BaseBe
 /// output beat: `shared`, `union` (I bits each), `above` (1), `overflow` (1).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct OverlapLayout {
+    /// In beat: `x`, `y`, `z` of the translated voxel (D bits each), from bit 0.
     pub coord: [Field; 3],
+    /// In beat: the rank of the input holding the voxel ([`rank_bits`]`(k)` bits).
     pub rank: Field,
+    /// In beat: 1 on the `End` beat closing the level.
     pub end: Field,
+    /// Width of an input beat in bits.
     pub in_width: u32,
+    /// Out beat: `shared` (I bits, from bit 0), voxels held by two or more inputs.
     pub shared: Field,
+    /// Out beat: `union` (I bits), voxels held by any input.
     pub union: Field,
+    /// Out beat: `above` (1 bit), `shared * den > num * union`.
     pub above: Field,
+    /// Out beat: `overflow` (1 bit), `union` reached `2^I`; the other fields are then 0.
     pub overflow: Field,
+    /// Width of the output beat in bits.
     pub out_width: u32,
 }
 
@@ -414,7 +454,14 @@ pub fn rank_bits(k: usize) -> u32 {
 /// the input occupying it, or the end of the level.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum OverlapBeat {
-    Voxel { voxel: VoxelAddr, rank: u16 },
+    /// A voxel of the level held by input `rank`.
+    Voxel {
+        /// The translated voxel.
+        voxel: VoxelAddr,
+        /// The input's rank, `0..k`.
+        rank: u16,
+    },
+    /// The end of the level (`end` = 1).
     End,
 }
 
@@ -423,8 +470,11 @@ pub enum OverlapBeat {
 pub struct OverlapResult {
     /// `shared`, `union` and `above` are 0 when `overflow` (a count reached `2^I`).
     pub shared: u64,
+    /// Voxels held by at least one input (`union(l)`).
     pub union: u64,
+    /// `shared * den > num * union` (strict, exact).
     pub above: bool,
+    /// `union` reached `2^I`, the width of the count fields.
     pub overflow: bool,
 }
 
@@ -519,7 +569,10 @@ pub fn overlap_transaction(
 /// placed nodes, ready for [`level_transaction`].
 #[derive(Clone, Debug)]
 pub struct LevelCase {
+    /// The `k` synthetic inputs in rank order (distinct random ids): the level's
+    /// nodes, padded with copies so that every child reference names a node.
     pub hierarchies: Vec<Hierarchy>,
+    /// The level's placed nodes of all inputs, shuffled (not in delivery order).
     pub at_level: Vec<PlacedNode>,
 }
 
@@ -829,17 +882,27 @@ mod tests {
 /// on some axis).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct UpperLayout {
+    /// Layout of the node record (`rec`, and the part `child` carries).
     pub node: NodeLayout,
+    /// In beat: `child` (from bit 0), record bits `[1, first.offset)`: `lod` through `hi_z`.
     pub child: Field,
+    /// In beat: `end` (1 bit), set on the `End` beat closing the level.
     pub in_end: Field,
+    /// Out beat: `rec` (W bits, from bit 0), the parent's inner record.
     pub rec: Field,
+    /// Out beat: `end` (1 bit), set on the `End` beat.
     pub end: Field,
+    /// Out beat: `err` (1 bit), the group's `first` or `count` reached `2^I`, or
+    /// a child had `lo > hi`.
     pub err: Field,
+    /// Width of an input beat in bits.
     pub in_width: u32,
+    /// Width of an output beat in bits.
     pub out_width: u32,
 }
 
 impl UpperLayout {
+    /// The layouts for `p`.
     pub fn new(p: &Params) -> UpperLayout {
         let node = NodeLayout::new(p);
         let child = field_at("child", 0, node.first().offset - 1);
@@ -872,7 +935,14 @@ impl UpperLayout {
 /// One beat of the upper-level unit: a node record, or the end of a level.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum UpperBeat {
-    Node { record: NodeRecord, err: bool },
+    /// A node: a child on the input, its parent on the output.
+    Node {
+        /// The record; an input beat carries only `lod` through `hi_z`.
+        record: NodeRecord,
+        /// Output only: the `err` flag ([`UpperLayout::err`]); ignored on input.
+        err: bool,
+    },
+    /// The end of the level.
     End,
 }
 

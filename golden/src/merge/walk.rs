@@ -62,9 +62,13 @@ pub fn morton(v: &crate::grid::VoxelAddr) -> u128 {
 /// One input walked from its top down to some LOD.
 #[derive(Clone, Debug)]
 pub struct WalkedInput {
+    /// The input's hierarchy id.
     pub id: u8,
+    /// The input's position in the merge's input list.
     pub rank: u16,
+    /// The input's translation `T_i` from the table, applied to every node walked.
     pub translation: Translation,
+    /// The LOD of the input's roots, where the walk starts.
     pub top_lod: u8,
     /// The deepest LOD walked.
     pub down_to: u8,

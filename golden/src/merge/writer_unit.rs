@@ -58,7 +58,9 @@ pub mod writer_err {
 /// A capacity the writer cannot be built with.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct CapacityError {
+    /// The capacity bits asked for (`C`).
     pub capacity_bits: u32,
+    /// `I`: `C` must be in `1..I`.
     pub index_bits: u8,
 }
 
@@ -94,22 +96,37 @@ fn field_at(name: &'static str, offset: u32, width: u32) -> Field {
 ///   (I + 1 each: a count up to `2^I`), `err` (3, [`writer_err`]).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct WriterLayout {
+    /// The `level{d}` and `done` in beats: the upper builder's layouts.
     pub builder: BuilderLayout,
+    /// Layout of a `nodes` beat (a node record).
     pub node: NodeLayout,
+    /// Layout of a reference: `crefs`' `ref`, `ref_req`, `ref_resp` and `refs`.
     pub reference: RefLayout,
     /// Each level's and the created references' buffer holds `2^C` entries.
     pub capacity_bits: u32,
+    /// `cfg`: `out_id` (H bits), the merged hierarchy's id.
     pub cfg_out_id: Field,
+    /// Width of the `cfg` beat in bits.
     pub cfg_width: u32,
+    /// `crefs`: `ref` (I + H bits, from bit 0), a created node's reference.
     pub cref: Field,
+    /// `crefs`: `end` (1 bit), set on the merge's last `crefs` beat.
     pub cref_end: Field,
+    /// Width of a `crefs` beat in bits.
     pub cref_width: u32,
+    /// `header`: `out_id` (H bits, from bit 0).
     pub h_out_id: Field,
+    /// `header`: `top` (`lod_bits`), the LOD of the merged roots.
     pub h_top: Field,
+    /// `header`: `roots` (I + 1 bits), the root count.
     pub h_roots: Field,
+    /// `header`: `nodes` (I + 1 bits), the records written.
     pub h_nodes: Field,
+    /// `header`: `refs` (I + 1 bits), the references written.
     pub h_refs: Field,
+    /// `header`: `err` (3 bits), a [`writer_err`] code.
     pub h_err: Field,
+    /// Width of the `header` beat in bits.
     pub header_width: u32,
 }
 
@@ -160,11 +177,14 @@ impl WriterLayout {
 /// One beat on `crefs`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum CrefBeat {
+    /// A created node's reference, in store order.
     Ref(Reference),
+    /// The end of the merge's created references (`end` = 1).
     End,
 }
 
 impl CrefBeat {
+    /// The packed beat.
     pub fn pack(&self, l: &WriterLayout) -> Result<Bits, LayoutError> {
         let mut b = Bits::zero(l.cref_width);
         match self {
@@ -178,16 +198,22 @@ impl CrefBeat {
 /// The `header` beat of a merge. On an error every count and `top` are 0.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Header {
+    /// The merged hierarchy's id.
     pub out_id: u8,
+    /// The LOD of the merged hierarchy's roots.
     pub top: u8,
+    /// The root count: the nodes of the top level.
     pub roots: u64,
+    /// The records written on `nodes`.
     pub nodes: u64,
+    /// The references written on `refs`.
     pub refs: u64,
     /// A [`writer_err`] code.
     pub err: u64,
 }
 
 impl Header {
+    /// The packed beat.
     pub fn pack(&self, l: &WriterLayout) -> Result<Bits, LayoutError> {
         let mut b = Bits::zero(l.header_width);
         b.set(&l.h_out_id, self.out_id as u64)?;
@@ -221,15 +247,23 @@ fn copy_into(dst: &mut Bits, offset: u32, src: &Bits) {
 /// responses) and its expected out beats.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct WriterTransaction {
+    /// The `cfg` beat's `out_id`.
     pub out_id: u8,
     /// The upper builder's transaction: its `levels` and `done` are the
     /// writer's `level{d}` and `done` in beats.
     pub builder: BuilderTransaction,
+    /// The `crefs` in beats: the created nodes' references in store order, then `End`.
     pub crefs: Vec<CrefBeat>,
+    /// The expected `ref_req` beats: `(input id, index into its refs)` for every
+    /// reference of every materialized root, in root order.
     pub ref_reqs: Vec<Reference>,
+    /// The store's `ref_resp` beats, one per request.
     pub ref_resps: Vec<Reference>,
+    /// The expected `nodes` beats: the merged records in store order (none on an error).
     pub nodes: Vec<NodeRecord>,
+    /// The expected `refs` beats: the merged references in order (none on an error).
     pub refs: Vec<Reference>,
+    /// The expected `header` beat.
     pub header: Header,
 }
 

@@ -10,7 +10,13 @@ pub enum MeshLocation {
     /// A 1-based line of a text file (OBJ, PLY header, ascii PLY body).
     Line(u64),
     /// A 0-based instance of a PLY element (binary body), or a mesh element.
-    Element { element: String, index: u64 },
+    Element {
+        /// The element's name: a PLY element (`vertex`, `face`, ...), or
+        /// `vertex` or `triangle` of an in-memory mesh.
+        element: String,
+        /// 0-based instance of that element.
+        index: u64,
+    },
 }
 
 /// A mesh that could not be imported, and why.
@@ -18,6 +24,7 @@ pub enum MeshLocation {
 pub struct MeshError {
     /// The file (or in-memory name) being read.
     pub file: String,
+    /// Where in the input: the whole file, a line, or an element instance.
     pub location: MeshLocation,
     /// The field that is wrong, e.g. `v coordinate y` or `face vertex_indices`.
     pub field: String,
@@ -28,6 +35,7 @@ pub struct MeshError {
 }
 
 impl MeshError {
+    /// An error in `file` at `location`: `field` should have been `expected` but was `found`.
     pub fn new(
         file: &str,
         location: MeshLocation,

@@ -23,7 +23,9 @@ use std::path::Path;
 /// An indexed triangle mesh in world units (f32, as a renderer holds it).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {
+    /// Vertex positions, world units (finite when imported).
     pub vertices: Vec<Vec3>,
+    /// Triangles as index triples into `vertices`; an imported polygon is a fan.
     pub triangles: Vec<[u32; 3]>,
 }
 

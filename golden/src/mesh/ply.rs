@@ -22,7 +22,9 @@ use super::{Mesh, MeshError, MeshLocation};
 /// The PLY body encodings this crate reads and writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PlyFormat {
+    /// `format ascii 1.0`: whitespace-separated text.
     Ascii,
+    /// `format binary_little_endian 1.0`.
     BinaryLittleEndian,
 }
 
@@ -484,7 +486,8 @@ fn read_body(
         for index in 0..e.count {
             let mut xyz = [0f32; 3];
             for (pi, p) in e.props.iter().enumerate() {
-                let field = format!("{} property {}", e.name, p.name);
+                // Named only when an error is reported: this loop runs per value.
+                let field = || format!("{} property {}", e.name, p.name);
                 let fail = |r: &dyn BodyReader, f: ReadFail, ty: Scalar| {
                     let (expected, found) = match f {
                         ReadFail::Truncated => {
@@ -493,13 +496,7 @@ fn read_body(
                         ReadFail::Malformed(t) => (format!("a {ty:?} number"), t),
                         ReadFail::OutOfRange(t) => (format!("a value in the range of {ty:?}"), t),
                     };
-                    MeshError::new(
-                        name,
-                        r.location(&e.name, index),
-                        field.clone(),
-                        expected,
-                        found,
-                    )
+                    MeshError::new(name, r.location(&e.name, index), field(), expected, found)
                 };
                 match p.kind {
                     PropKind::Scalar(ty) => {
@@ -511,7 +508,7 @@ fn read_body(
                                     return Err(MeshError::new(
                                         name,
                                         r.location(&e.name, index),
-                                        field,
+                                        field(),
                                         "a finite coordinate within f32 range",
                                         format!("{}", v.as_f64()),
                                     ));
@@ -527,7 +524,7 @@ fn read_body(
                                 return Err(MeshError::new(
                                     name,
                                     r.location(&e.name, index),
-                                    format!("{field} count"),
+                                    format!("{} count", field()),
                                     "a non-negative count",
                                     format!("{}", other.as_f64()),
                                 ))
@@ -547,7 +544,7 @@ fn read_body(
                                             MeshError::new(
                                                 name,
                                                 r.location(&e.name, index),
-                                                field.clone(),
+                                                field(),
                                                 format!(
                                                     "vertex indices in 0..{}",
                                                     mesh.vertices.len()
@@ -564,7 +561,7 @@ fn read_body(
                                 return Err(MeshError::new(
                                     name,
                                     r.location(&e.name, index),
-                                    field,
+                                    field(),
                                     "at least 3 vertex indices",
                                     corners.len().to_string(),
                                 ));

@@ -18,6 +18,7 @@ pub struct SceneError {
 }
 
 impl SceneError {
+    /// An error in `file` at JSON path `path`: expected `expected`, found `found`.
     pub fn new(
         file: &str,
         path: impl Into<String>,

@@ -26,6 +26,7 @@ use crate::params::Params;
 
 pub use error::SceneError;
 pub use file::SceneFile;
+pub use validate::{MAX_FRAMES, MAX_IMAGE_SIDE, MAX_REFLECTION_DEPTH};
 
 /// The JSON Schema (draft 2020-12) of the scene file.
 pub const SCHEMA: &str = include_str!("scene.schema.json");
@@ -33,20 +34,25 @@ pub const SCHEMA: &str = include_str!("scene.schema.json");
 /// A point light.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Light {
+    /// Position, world units; finite.
     pub position: Vec3,
+    /// Brightness, finite and `>= 0`; scales the light's diffuse term (SPEC 12.2).
     pub intensity: f32,
 }
 
 /// One object, checked: its local mesh and its offset in every frame.
 #[derive(Clone, Debug)]
 pub struct SceneObject {
+    /// Name from the file: non-empty and unique in the scene.
     pub name: String,
+    /// A [`Motion::Static`] object has the same offset in every frame.
     pub motion: Motion,
     /// The mesh in its local frame (world units), shared by every frame.
     pub mesh: Arc<Mesh>,
     /// Placement of the local frame in each frame (world units); one entry
     /// per frame.
     pub offsets: Vec<DVec3>,
+    /// Surface colour, RGB, each channel in [0, 1].
     pub color: Vec3,
     /// Mirror reflectance in [0, 1].
     pub mirror: f32,
@@ -58,10 +64,13 @@ pub struct Effects {
     /// Placement by the translation unit; else placements are baked into
     /// vertices and a moved object is rebuilt.
     pub translation: bool,
+    /// The scene's one merge mode (SPEC 8).
     pub merge: MergeMode,
     /// The merging module's upper-level stage (S616) is simulated in RTL.
     pub upper_build: bool,
+    /// One camera ray per pixel; true whenever `shadow` or reflections are on.
     pub primary: bool,
+    /// A shadow ray from each hit to each light that faces the surface.
     pub shadow: bool,
     /// Mirror bounces per primary ray; 0: no reflection rays.
     pub reflection_depth: u32,
@@ -72,15 +81,25 @@ pub struct Effects {
 /// A checked scene.
 #[derive(Clone, Debug)]
 pub struct Scene {
+    /// The file's `name`, or the file name when it has none.
     pub name: String,
+    /// Grid and record parameters (SPEC 1).
     pub params: Params,
+    /// Maps world units to grid units.
     pub grid: GridMap,
+    /// Number of frames, `1..=1000`.
     pub frames: u32,
+    /// Image width in pixels, `1..=8192`.
     pub width: u32,
+    /// Image height in pixels, `1..=8192`.
     pub height: u32,
+    /// The camera, the same in every frame; [`Camera::is_valid`] holds.
     pub camera: Camera,
+    /// Point lights; may be empty.
     pub lights: Vec<Light>,
+    /// Objects in file order, `1..=2^H - 1` of them; an object's index is its id ([`Scene::object_id`]).
     pub objects: Vec<SceneObject>,
+    /// Units and rays the scene calls for.
     pub effects: Effects,
 }
 

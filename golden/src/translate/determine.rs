@@ -21,7 +21,9 @@ use crate::params::Params;
 /// units. binary32 encodings sit in the low 32 bits of each `u64`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub struct Placement {
+    /// Format of all three encodings.
     pub format: Format,
+    /// Encodings x, y, z; binary32 in bits 31..0 with the bits above zero.
     pub bits: [u64; 3],
 }
 
@@ -66,6 +68,7 @@ impl Placement {
 /// What determine produces: the translation and the exact residual.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Determined {
+    /// The voxel-aligned translation `(L, t)` (SPEC 7.1).
     pub translation: Translation,
     /// `p - t 2^(D-L)` per axis, in the placement's format, exact; zero is +0.
     pub residual: Placement,
@@ -74,8 +77,11 @@ pub struct Determined {
 /// Why one axis of a placement cannot be rounded.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum AxisFault {
+    /// A NaN, of any payload or sign.
     NotANumber,
+    /// An infinity.
     Infinite {
+        /// True for `-inf`.
         negative: bool,
     },
     /// `|round(p / 2^k)|` exceeds the largest field magnitude.
@@ -85,7 +91,9 @@ pub enum AxisFault {
 /// One axis rounded: the signed translation and the residual's encoding.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct AxisRounding {
+    /// Signed translation in voxels of edge `2^k`; `|t| < 2^max_bits`.
     pub t: i64,
+    /// Encoding of the residual `p - t 2^k` in the placement's format; +0 when it is zero.
     pub residual_bits: u64,
 }
 
@@ -93,8 +101,11 @@ pub struct AxisRounding {
 /// round (first dropped) bit, and the sticky OR of the bits below it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Shifted {
+    /// `sig >> n`.
     pub kept: u64,
+    /// Bit `n - 1` of `sig`, the first bit dropped.
     pub round: bool,
+    /// True when any bit below the round bit is set.
     pub sticky: bool,
 }
 

@@ -8,8 +8,11 @@ use crate::params::ParamError;
 /// One of the three grid axes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Axis {
+    /// The x axis, index 0.
     X,
+    /// The y axis, index 1.
     Y,
+    /// The z axis, index 2.
     Z,
 }
 
@@ -37,37 +40,72 @@ impl fmt::Display for Axis {
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum TranslateError {
     /// The placement on `axis` is a NaN (`bits` is the raw encoding).
-    NotANumber { axis: Axis, bits: u64 },
+    NotANumber {
+        /// The first axis at fault (x, y, z order).
+        axis: Axis,
+        /// The placement's raw encoding on that axis.
+        bits: u64,
+    },
     /// The placement on `axis` is an infinity.
-    Infinite { axis: Axis, negative: bool },
+    Infinite {
+        /// The first axis at fault (x, y, z order).
+        axis: Axis,
+        /// True for negative infinity.
+        negative: bool,
+    },
     /// A binary32 placement given in a 64-bit field had bits set above bit 31.
-    PlacementTooWide { axis: Axis, bits: u64 },
+    PlacementTooWide {
+        /// The first axis at fault (x, y, z order).
+        axis: Axis,
+        /// The 64-bit placement field as given.
+        bits: u64,
+    },
     /// `round(p / 2^(D-L))` on `axis` does not fit the signed translation
     /// field (`field_bits` bits, magnitude at most `2^(field_bits-1) - 1`).
     /// `bits` is the placement's encoding: the rounded value may not even fit
     /// in 64 bits, so it is not restated.
     TranslationTooLarge {
+        /// The first axis at fault (x, y, z order).
         axis: Axis,
+        /// The placement's raw encoding on that axis.
         bits: u64,
+        /// Width of the signed translation field, `D + 1` (SPEC 7.3).
         field_bits: u32,
     },
     /// A translation component outside the signed field (for a translation
     /// built by hand, read from a record or written to the table).
     TranslationOutOfField {
+        /// The component's axis.
         axis: Axis,
+        /// The component; for a code with bits above the field, the raw code.
         value: i64,
+        /// Width of the signed translation field, `D + 1` (SPEC 7.3).
         field_bits: u32,
     },
     /// The translation level `L` is deeper than the grid (`L > D`).
-    LodAboveMax { lod: u8, max_lod: u8 },
+    LodAboveMax {
+        /// The LOD asked for: a translation level, or the LOD of extents.
+        lod: u8,
+        /// `D`, the deepest LOD of the grid.
+        max_lod: u8,
+    },
     /// The hierarchy extents are given at a LOD other than the translation level.
-    ExtentsLodMismatch { extents_lod: u8, lod: u8 },
+    ExtentsLodMismatch {
+        /// The LOD the extents are given at.
+        extents_lod: u8,
+        /// The translation level `L`.
+        lod: u8,
+    },
     /// Hierarchy extents that are not a voxel range at their LOD
     /// (`lo > hi`, or `hi >= 2^lod`).
     BadExtents {
+        /// The first axis at fault (x, y, z order).
         axis: Axis,
+        /// The lowest voxel of the extents on that axis.
         lo: u32,
+        /// The highest voxel of the extents on that axis (inclusive).
         hi: u32,
+        /// The LOD of the extents.
         lod: u8,
     },
     /// Extents asked of an empty node list.
@@ -75,41 +113,92 @@ pub enum TranslateError {
     /// The scene-extents rule: the translated voxel range `[lo, hi]` at LOD
     /// `lod` leaves `[0, 2^lod)` on `axis`.
     OutsideScene {
+        /// The first failing axis (x, y, z order).
         axis: Axis,
+        /// `lo + t`: the translated lowest voxel, at LOD `lod`.
         lo: i64,
+        /// `hi + t`: the translated highest voxel, at LOD `lod`.
         hi: i64,
+        /// The translation level `L`.
         lod: u8,
     },
     /// A node address that is not a voxel of the grid.
-    InvalidNode { lod: u8, x: u32, y: u32, z: u32 },
+    InvalidNode {
+        /// The node's LOD.
+        lod: u8,
+        /// The node's x coordinate, in LOD-`lod` voxels.
+        x: u32,
+        /// The node's y coordinate, in LOD-`lod` voxels.
+        y: u32,
+        /// The node's z coordinate, in LOD-`lod` voxels.
+        z: u32,
+    },
     /// A box cell bound outside `0..2^Q`, or `lo > hi`.
     InvalidBox {
+        /// The first axis at fault (x, y, z order).
         axis: Axis,
+        /// The lowest cell on that axis.
         lo: u32,
+        /// The highest cell on that axis (inclusive).
         hi: u32,
+        /// Q: cells run `0..2^Q`.
         quant_bits: u8,
     },
     /// The translated node coordinate `value` at LOD `lod` leaves `[0, 2^lod)`.
-    NodeOutsideScene { axis: Axis, value: i64, lod: u8 },
+    NodeOutsideScene {
+        /// The first failing axis (x, y, z order).
+        axis: Axis,
+        /// The translated coordinate, not wrapped.
+        value: i64,
+        /// The node's LOD `d`.
+        lod: u8,
+    },
     /// The translated box `[lo, hi]` (fine units, SPEC section 3) leaves the
     /// scene `[0, limit]` on `axis`.
     BoxOutsideScene {
+        /// The first failing axis (x, y, z order).
         axis: Axis,
+        /// `a'`, the moved box's minimum, in fine units.
         lo: i128,
+        /// `b'`, the moved box's maximum, in fine units.
         hi: i128,
+        /// `2^(D+Q)`, the scene's edge in fine units.
         limit: i128,
     },
     /// The aligned unit cannot move a node above the translation level
     /// (`d < L`) without splitting it: see the expanding variant.
-    AboveTranslationLevel { node_lod: u8, translation_lod: u8 },
+    AboveTranslationLevel {
+        /// The node's LOD `d`.
+        node_lod: u8,
+        /// The translation level `L`.
+        translation_lod: u8,
+    },
     /// A table depth outside `1..=2^H`.
-    BadTableDepth { depth: usize, max: u64 },
+    BadTableDepth {
+        /// The depth asked for.
+        depth: usize,
+        /// `2^H`, the number of hierarchy ids.
+        max: u64,
+    },
     /// A hierarchy id at or beyond the table depth.
-    IdOutOfRange { id: u32, depth: usize },
+    IdOutOfRange {
+        /// The hierarchy id.
+        id: u32,
+        /// The table's depth; ids run `0..depth`.
+        depth: usize,
+    },
     /// A table read of an entry that holds no translation.
-    EmptyEntry { id: u32 },
+    EmptyEntry {
+        /// The hierarchy id read.
+        id: u32,
+    },
     /// A packed value with bits set at or above its width.
-    PackedTooWide { what: &'static str, width: u32 },
+    PackedTooWide {
+        /// The value or port, e.g. `"read_id"` or `"translation table entry"`.
+        what: &'static str,
+        /// The width it had to fit, in bits (0 for a port the design lacks).
+        width: u32,
+    },
     /// The unit's parameters are out of range.
     BadParams(ParamError),
 }

@@ -26,8 +26,11 @@ use crate::params::Params;
 /// each below `2^Q` (the node record's `lo_*`, `hi_*` fields).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct NodeBox {
+    /// The node's voxel.
     pub addr: VoxelAddr,
+    /// Lowest cell per axis (x, y, z) inside the voxel.
     pub lo: [u32; 3],
+    /// Highest cell per axis, inclusive; `lo <= hi < 2^Q`.
     pub hi: [u32; 3],
 }
 
@@ -192,6 +195,7 @@ pub fn expand_voxel(
 /// The cost of the expanding variant at one LOD.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LodExpansion {
+    /// The LOD `d` these counts are for.
     pub lod: u8,
     /// Nodes given at this LOD.
     pub before: u64,
@@ -207,7 +211,9 @@ pub struct LodExpansion {
 pub struct ExpansionCost {
     /// One entry per LOD present, shallowest first.
     pub per_lod: Vec<LodExpansion>,
+    /// Nodes given, over all LODs.
     pub before: u64,
+    /// Nodes after expansion, over all LODs.
     pub after: u64,
     /// Nodes the expansion adds: `after - before`.
     pub added: u64,

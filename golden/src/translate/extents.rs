@@ -20,8 +20,11 @@ use crate::params::Params;
 /// An inclusive range of voxels at one LOD: `lo[a] ..= hi[a]` on axis `a`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub struct VoxelRange {
+    /// The LOD `L` whose voxels the range counts.
     pub lod: u8,
+    /// Lowest voxel coordinate per axis (x, y, z).
     pub lo: [u32; 3],
+    /// Highest voxel coordinate per axis, inclusive; valid when `lo <= hi < 2^lod`.
     pub hi: [u32; 3],
 }
 

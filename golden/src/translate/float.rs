@@ -11,7 +11,9 @@ use serde::{Deserialize, Serialize};
 /// from the top bit down, as in IEEE 754-2019 section 3.4.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct FloatFormat {
+    /// Width of the exponent field.
     pub exp_bits: u32,
+    /// Width of the fraction field (the significand without its hidden bit).
     pub frac_bits: u32,
 }
 
@@ -31,7 +33,9 @@ pub const BINARY64: FloatFormat = FloatFormat {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Format {
+    /// IEEE-754 binary32; format flag 0.
     Binary32,
+    /// IEEE-754 binary64; format flag 1.
     Binary64,
 }
 
@@ -97,16 +101,25 @@ impl FloatFormat {
 /// significand 0.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Unpacked {
+    /// The sign bit; true also for `-0`.
     pub negative: bool,
+    /// Integer significand, below `2^precision`; 0 for either zero.
     pub significand: u64,
+    /// Exponent of the significand's least significant bit.
     pub lsb_exponent: i32,
 }
 
 /// The classes of an encoding the translation unit tells apart.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Decoded {
+    /// A zero, subnormal or normal number.
     Finite(Unpacked),
-    Infinite { negative: bool },
+    /// Exponent field all ones, fraction 0: an infinity.
+    Infinite {
+        /// True for `-inf`.
+        negative: bool,
+    },
+    /// Exponent field all ones, fraction not 0: a NaN of any payload or sign.
     NaN,
 }
 

@@ -13,6 +13,7 @@ use crate::params::Params;
 pub struct SplitMix64(pub u64);
 
 impl SplitMix64 {
+    /// The next 64 bits of the stream ([`crate::scenes::splitmix64_next`]).
     pub fn next_u64(&mut self) -> u64 {
         crate::scenes::splitmix64_next(&mut self.0)
     }

@@ -24,6 +24,7 @@ use crate::params::Params;
 /// file header carries both).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct TranslateUnitConfig {
+    /// Grid parameters (SPEC 1); they fix every port width.
     pub params: Params,
     /// Table entries, `1..=2^H`.
     pub table_depth: u32,
@@ -40,9 +41,11 @@ pub struct TranslateInputs {
     pub lod: u8,
     /// Hierarchy extents at `L`, inclusive (`D` bits each).
     pub extents_lo: [u32; 3],
+    /// Highest voxel per axis of the extents at `L`, inclusive (`D` bits each).
     pub extents_hi: [u32; 3],
     /// Table write enable (1 bit) and hierarchy id (`H` bits).
     pub write_enable: u8,
+    /// Table entry to write when `write_enable` is 1 (`H` bits).
     pub write_id: u32,
     /// Table read id (`H` bits).
     pub read_id: u32,
@@ -83,13 +86,16 @@ pub struct TranslateOutputs {
     pub read_valid: u8,
     /// The read entry's `L` and component codes; 0 unless `read_valid`.
     pub read_lod: u8,
+    /// The read entry's `tx, ty, tz` as `D+1`-bit two's-complement codes; 0 unless `read_valid`.
     pub read_t: [u64; 3],
 }
 
 /// One vector record: a transaction's inputs and the expected outputs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct TranslateRecord {
+    /// The input ports.
     pub inputs: TranslateInputs,
+    /// The outputs the golden model expects.
     pub outputs: TranslateOutputs,
 }
 

@@ -31,6 +31,7 @@ pub const STAGES: [&str; 4] = [
 /// The merging module configuration the vectors are for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct MergeDesign {
+    /// Grid and record parameters (SPEC 1); they fix every beat's layout.
     pub params: Params,
     /// Inputs `k` of the overlap counter (and of the S614 stimulus).
     pub inputs: usize,
@@ -125,10 +126,15 @@ impl MergeDesign {
 /// One record: a stage and its beats in and out, as port words (LSB first).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct MergeVector {
+    /// One of [`STAGES`].
     pub stage: &'static str,
+    /// Width of the stage's `in_data` port, in bits.
     pub in_width: u32,
+    /// Width of the stage's `out_data` port, in bits.
     pub out_width: u32,
+    /// Input beats in stream order, each as 64-bit words, least significant first.
     pub inputs: Vec<Vec<u64>>,
+    /// Expected output beats in stream order, in the same form.
     pub outputs: Vec<Vec<u64>>,
 }
 

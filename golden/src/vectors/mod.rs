@@ -37,7 +37,9 @@ pub const FORMAT_VERSION: u64 = 1;
 /// Which unit a vector file exercises.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum UnitKind {
+    /// The translation unit (SPEC 7.8); records in [`translate`].
     Translate,
+    /// The merging module's stream stages (SPEC 8.9); records in [`merge`].
     Merge,
 }
 
@@ -65,6 +67,7 @@ pub type ParamMap = BTreeMap<String, Value>;
 /// The header line.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Header {
+    /// The unit the records are for.
     pub unit: UnitKind,
     /// Every parameter of the design the vectors were generated for.
     pub params: ParamMap,
@@ -97,8 +100,11 @@ impl Header {
 /// absent on that side).
 #[derive(Clone, Debug, PartialEq)]
 pub struct ParamDiff {
+    /// The parameter's name.
     pub name: String,
+    /// Its value in the file's header.
     pub in_file: Option<Value>,
+    /// Its value in the design under test.
     pub in_design: Option<Value>,
 }
 
@@ -107,26 +113,39 @@ pub struct ParamDiff {
 pub enum VectorError {
     /// The file system refused (`action`: create, write, rename, open, read).
     Io {
+        /// The file, or the directory the temporary file was to be created in.
         path: PathBuf,
+        /// What failed: `create`, `write`, `rename`, `open` or `read`.
         action: &'static str,
+        /// The underlying error's message.
         message: String,
     },
     /// Line `line` (1-based) has a bad `field` (a path like
     /// `in.placement[1]`); `expected` says what was wanted.
     Malformed {
+        /// The vector file.
         path: PathBuf,
+        /// 1-based line number; the header is line 1.
         line: usize,
+        /// Path of the bad field, e.g. `in.placement[1]`; `<line>` or `<header>` for the whole line.
         field: String,
+        /// What was wanted.
         expected: String,
     },
     /// The file was generated for a design with other parameters.
     ParamsDiffer {
+        /// The vector file.
         path: PathBuf,
+        /// Every parameter that differs, in name order.
         diffs: Vec<ParamDiff>,
     },
     /// The golden model refused a transaction while generating (a bug in
-    /// the generator, never in the caller's input).
-    Model { what: String },
+    /// the generator), or the records given to [`write_jsonl`] are not as
+    /// many as its header's `count`.
+    Model {
+        /// What the model refused, and why.
+        what: String,
+    },
 }
 
 impl fmt::Display for VectorError {
@@ -232,8 +251,11 @@ where
 /// its 1-based line number.
 #[derive(Clone, Debug)]
 pub struct RawVectors {
+    /// The file read.
     pub path: PathBuf,
+    /// Its header, already checked against the design's parameters.
     pub header: Header,
+    /// Each record line's 1-based number and its JSON object, in file order.
     pub records: Vec<(usize, Value)>,
 }
 

@@ -31,6 +31,7 @@ use crate::translate::{
 /// determine path takes binary64 placements as well as binary32.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct TranslateDesign {
+    /// The golden unit's configuration: grid parameters and table depth.
     pub unit: TranslateUnitConfig,
     /// With `false` there is no format port, placements are 32-bit binary32
     /// encodings and residuals 32 bits.
@@ -108,6 +109,7 @@ impl TranslateDesign {
 /// axes x, y, z (the first failing check is the code).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ApplyCode {
+    /// The node moved; the output record holds the translated voxel.
     Ok = 0,
     /// `hier >= table_depth`.
     BadId = 1,
@@ -117,8 +119,11 @@ pub enum ApplyCode {
     BadNode = 3,
     /// `d < L`: the aligned unit cannot move a node above the translation level.
     AboveLevel = 4,
+    /// The moved x coordinate falls outside `[0, 2^d)`.
     OutsideX = 5,
+    /// The moved y coordinate falls outside `[0, 2^d)` (x was inside).
     OutsideY = 6,
+    /// The moved z coordinate falls outside `[0, 2^d)` (x and y were inside).
     OutsideZ = 7,
 }
 
@@ -155,7 +160,9 @@ impl ApplyCode {
 /// packs it) and the id of the hierarchy whose table entry moves it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ApplyInputs {
+    /// Id of the hierarchy whose table entry moves the node (`H` bits).
     pub hier: u32,
+    /// The node record to move; every field must fit its width in the layout.
     pub node: NodeRecord,
 }
 
@@ -163,22 +170,29 @@ pub struct ApplyInputs {
 /// through) and the moved record, or the input record when `code != Ok`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ApplyOutputs {
+    /// The result; any code but `Ok` means `node` is the input record.
     pub code: ApplyCode,
+    /// The input's `hier`, passed through.
     pub hier: u32,
+    /// The moved record, or the input record when `code` is not `Ok`.
     pub node: NodeRecord,
 }
 
 /// One apply transaction and its expected outputs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ApplyRecord {
+    /// The transaction's inputs.
     pub inputs: ApplyInputs,
+    /// The outputs the golden model expects.
     pub outputs: ApplyOutputs,
 }
 
 /// One transaction of the translation unit, in file order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TranslateTxn {
+    /// A determine transaction, with its table write and read (SPEC 7.8).
     Determine(TranslateRecord),
+    /// An apply transaction on one node record (SPEC 7.9).
     Apply(ApplyRecord),
 }
 
@@ -275,7 +289,9 @@ impl TranslateModel {
 /// The inputs of either kind of transaction.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TxnInputs {
+    /// Inputs of a determine transaction.
     Determine(TranslateInputs),
+    /// Inputs of an apply transaction.
     Apply(ApplyInputs),
 }
 

@@ -139,12 +139,7 @@ pub(super) fn finish_report(
 /// The report of a multi-stream unit's first mismatched beat: its merge,
 /// stream and beat, each field of the stream's layout expected against got.
 /// `beat_is` says where the beat index counts from (`""`, ` of its chunk`).
-fn stream_mismatch(
-    kind: &str,
-    m: &ModuleMismatch,
-    seed: u64,
-    beat_is: &str,
-) -> MismatchReport {
+fn stream_mismatch(kind: &str, m: &ModuleMismatch, seed: u64, beat_is: &str) -> MismatchReport {
     MismatchReport {
         transaction: m.merge as u64,
         stream: Some(m.stream.clone()),

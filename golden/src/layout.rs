@@ -26,6 +26,15 @@ pub struct Field {
 }
 
 impl Field {
+    /// Field `name`, `width` bits from bit `offset` up.
+    pub const fn new(name: &'static str, offset: u32, width: u32) -> Field {
+        Field {
+            name,
+            offset,
+            width,
+        }
+    }
+
     /// Largest value the field holds: `2^width - 1` (0 for a zero-width field).
     pub fn max_value(&self) -> u64 {
         if self.width >= 64 {
@@ -242,6 +251,27 @@ impl Bits {
             });
         }
         self.write_raw(f.offset, f.width, value);
+        Ok(())
+    }
+
+    /// Writes all of `src` into these bits from bit `offset` up, 64 bits at a
+    /// time: how a record is packed into a wider beat. An error when it
+    /// would reach past the width.
+    pub fn put(&mut self, offset: u32, src: &Bits) -> Result<(), LayoutError> {
+        let end = offset.saturating_add(src.width);
+        if end > self.width {
+            return Err(LayoutError::OutOfRecord {
+                field: "bits",
+                end,
+                record_width: self.width,
+            });
+        }
+        let mut done = 0;
+        while done < src.width {
+            let n = (src.width - done).min(64);
+            self.write_raw(offset + done, n, src.read_raw(done, n));
+            done += n;
+        }
         Ok(())
     }
 
@@ -555,5 +585,45 @@ mod tests {
         assert_eq!(Bits::from_words(6, &[0x2d]).unwrap(), b);
         assert!(Bits::from_words(6, &[0x40]).is_err());
         assert!(Bits::from_words(6, &[0, 1]).is_err());
+    }
+
+    #[test]
+    fn put_writes_every_bit_of_a_record_at_any_offset() {
+        // A 140-bit pattern (three words, the last partial) at offsets that
+        // start inside, at and across word boundaries.
+        let mut src = Bits::zero(140);
+        for i in (0..140).filter(|i| (i * 7) % 3 == 0 || i % 64 == 63) {
+            src.set(&Field::new("bit", i, 1), 1).unwrap();
+        }
+        for offset in [0, 1, 63, 64, 65, 100, 127] {
+            let mut dst = Bits::zero(300);
+            // Bits around the target stay as they are; bits inside are replaced.
+            dst.set(
+                &Field::new("below", 0, offset.min(64)),
+                Field::new("", 0, offset.min(64)).max_value(),
+            )
+            .unwrap();
+            dst.set(&Field::new("inside", offset, 64), u64::MAX)
+                .unwrap();
+            dst.put(offset, &src).unwrap();
+            for i in 0..300 {
+                let expected = if (offset..offset + 140).contains(&i) {
+                    src.bit(i - offset)
+                } else {
+                    i < offset.min(64)
+                };
+                assert_eq!(dst.bit(i), expected, "offset {offset}, bit {i}");
+            }
+        }
+        let mut dst = Bits::zero(150);
+        assert!(matches!(
+            dst.put(11, &src),
+            Err(LayoutError::OutOfRecord {
+                end: 151,
+                record_width: 150,
+                ..
+            })
+        ));
+        assert_eq!(dst, Bits::zero(150), "nothing written on an error");
     }
 }

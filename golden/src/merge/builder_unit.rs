@@ -45,14 +45,6 @@ pub mod level_out_kind {
     pub const END: u64 = 3;
 }
 
-fn field_at(name: &'static str, offset: u32, width: u32) -> Field {
-    Field {
-        name,
-        offset,
-        width,
-    }
-}
-
 /// Bit layouts of the upper builder's beats.
 ///
 /// `level{d}` out beat, from bit 0: `rec` (a node record), `ref` (a
@@ -105,14 +97,14 @@ impl BuilderLayout {
         let node = NodeLayout::new(p);
         let reference = RefLayout::new(p);
         let i = p.index_bits as u32;
-        let rec = field_at("rec", 0, node.width());
-        let refer = field_at("ref", rec.end(), reference.width());
-        let kind = field_at("kind", refer.end(), 2);
-        let index = field_at("index", kind.end(), i);
-        let records = field_at("records", index.end(), i);
-        let err = field_at("err", records.end(), 1);
-        let top = field_at("top", 0, p.lod_bits());
-        let done_err = field_at("err", top.end(), 1);
+        let rec = Field::new("rec", 0, node.width());
+        let refer = Field::new("ref", rec.end(), reference.width());
+        let kind = Field::new("kind", refer.end(), 2);
+        let index = Field::new("index", kind.end(), i);
+        let records = Field::new("records", index.end(), i);
+        let err = Field::new("err", records.end(), 1);
+        let top = Field::new("top", 0, p.lod_bits());
+        let done_err = Field::new("err", top.end(), 1);
         BuilderLayout {
             base: BeatLayout::input(p),
             rec,
@@ -174,15 +166,6 @@ pub struct Done {
     pub err: bool,
 }
 
-fn copy_into(dst: &mut Bits, offset: u32, src: &Bits) {
-    for i in 0..src.width() {
-        if src.bit(i) {
-            dst.set(&field_at("bit", offset + i, 1), 1)
-                .expect("bit inside the beat");
-        }
-    }
-}
-
 impl LevelOut {
     /// The packed beat ([`BuilderLayout`]'s level layout).
     pub fn pack(&self, l: &BuilderLayout) -> Result<Bits, LayoutError> {
@@ -196,8 +179,8 @@ impl LevelOut {
                 records,
                 err,
             } => {
-                copy_into(&mut b, l.rec.offset, &record.pack(&l.node)?);
-                copy_into(&mut b, l.refer.offset, &at.pack(&l.reference)?);
+                b.put(l.rec.offset, &record.pack(&l.node)?)?;
+                b.put(l.refer.offset, &at.pack(&l.reference)?)?;
                 b.set(&l.kind, *kind)?;
                 b.set(&l.index, *index as u64)?;
                 b.set(&l.records, *records as u64)?;

@@ -369,23 +369,6 @@ fn set_wide(b: &mut Bits, f: &Field, v: u128) -> Result<(), LayoutError> {
     Ok(())
 }
 
-/// Copies `src` into `dst` at bit `offset`.
-fn put_bits(dst: &mut Bits, offset: u32, src: &Bits) -> Result<(), LayoutError> {
-    for i in 0..src.width() {
-        if src.bit(i) {
-            dst.set(
-                &Field {
-                    name: "bit",
-                    offset: offset + i,
-                    width: 1,
-                },
-                1,
-            )?;
-        }
-    }
-    Ok(())
-}
-
 /// The header of one input as the `cfg` beat carries it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FetchCfg {
@@ -560,13 +543,13 @@ impl FetchOut {
     pub fn pack(&self, l: &FetchLayout) -> Result<Bits, LayoutError> {
         let mut b = Bits::zero(l.out_width);
         match self {
-            FetchOut::Beat(beat) => put_bits(&mut b, 0, &beat.pack(&l.beat)?)?,
+            FetchOut::Beat(beat) => b.put(0, &beat.pack(&l.beat)?)?,
             FetchOut::Probe { record, at } => {
                 let inner = LevelBeat::Inner {
                     record: *record,
                     at: *at,
                 };
-                put_bits(&mut b, 0, &inner.pack(&l.beat)?)?;
+                b.put(0, &inner.pack(&l.beat)?)?;
                 let probe = l.pn.as_ref().ok_or(no_per_node_field("probe"))?.probe;
                 b.set(&probe, 1)?;
             }
@@ -575,8 +558,8 @@ impl FetchOut {
                     hier: *hier,
                     node: *node,
                 };
-                put_bits(&mut b, 0, &LevelBeat::End.pack(&l.beat)?)?;
-                put_bits(&mut b, l.beat.refer.offset, &r.pack(&l.reference)?)?;
+                b.put(0, &LevelBeat::End.pack(&l.beat)?)?;
+                b.put(l.beat.refer.offset, &r.pack(&l.reference)?)?;
                 b.set(&l.err, *code)?;
             }
         }
@@ -605,8 +588,8 @@ impl LeafOut {
         let mut b = Bits::zero(l.leaves_width);
         match self {
             LeafOut::Leaf { record, at } => {
-                put_bits(&mut b, l.leaf_rec.offset, &record.pack(&l.node)?)?;
-                put_bits(&mut b, l.leaf_ref.offset, &at.pack(&l.reference)?)?;
+                b.put(l.leaf_rec.offset, &record.pack(&l.node)?)?;
+                b.put(l.leaf_ref.offset, &at.pack(&l.reference)?)?;
                 b.set(&l.leaf_lod, record.voxel.lod as u64)?;
             }
             LeafOut::End => b.set(&l.leaf_end, 1)?,

@@ -104,7 +104,7 @@ impl MergerHeader {
     /// The packed beat.
     pub fn pack(&self, l: &MergerLayout) -> Result<Bits, LayoutError> {
         let mut b = Bits::zero(l.header_width);
-        copy_into(&mut b, 0, &self.writer.pack(&l.writer)?);
+        b.put(0, &self.writer.pack(&l.writer)?)?;
         b.set(&l.leaf_overflow, self.leaf_overflow as u64)?;
         b.set(&l.count_overflow, self.count_overflow as u64)?;
         b.set(&l.fetch_err, self.fetch_err)?;
@@ -155,29 +155,21 @@ pub struct MergerLayout {
     pub header_width: u32,
 }
 
-fn field_at(name: &'static str, offset: u32, width: u32) -> Field {
-    Field {
-        name,
-        offset,
-        width,
-    }
-}
-
 impl MergerLayout {
     /// The layout for `p`, `k` inputs and writer buffers of `2^capacity_bits`.
     pub fn new(p: &Params, k: usize, capacity_bits: u32) -> Result<MergerLayout, CapacityError> {
         let fetch = FetchLayout::new(p);
         let input_width = fetch.cfg_width;
         let lb = p.lod_bits();
-        let count = field_at("count", k as u32 * input_width, bits_to_hold(k as u64));
-        let lo = field_at("lo", count.end(), lb);
-        let hi = field_at("hi", lo.end(), lb);
-        let out_id = field_at("out_id", hi.end(), p.hier_bits as u32);
+        let count = Field::new("count", k as u32 * input_width, bits_to_hold(k as u64));
+        let lo = Field::new("lo", count.end(), lb);
+        let hi = Field::new("hi", lo.end(), lb);
+        let out_id = Field::new("out_id", hi.end(), p.hier_bits as u32);
         let writer = WriterLayout::new(p, capacity_bits)?;
-        let leaf_overflow = field_at("leaf_overflow", writer.header_width, 1);
-        let count_overflow = field_at("count_overflow", leaf_overflow.end(), 1);
-        let fetch_err = field_at("fetch_err", count_overflow.end(), fetch_err::BITS);
-        let fetch_rank = field_at("fetch_rank", fetch_err.end(), rank_bits(k));
+        let leaf_overflow = Field::new("leaf_overflow", writer.header_width, 1);
+        let count_overflow = Field::new("count_overflow", leaf_overflow.end(), 1);
+        let fetch_err = Field::new("fetch_err", count_overflow.end(), fetch_err::BITS);
+        let fetch_rank = Field::new("fetch_rank", fetch_err.end(), rank_bits(k));
         Ok(MergerLayout {
             k,
             top: TopLayout::new(p),
@@ -229,22 +221,13 @@ impl MergerCfg {
         }
         let mut b = Bits::zero(l.cfg_width);
         for (i, c) in self.inputs.iter().enumerate() {
-            copy_into(&mut b, l.input_offset(i), &c.pack(&l.fetch)?);
+            b.put(l.input_offset(i), &c.pack(&l.fetch)?)?;
         }
         b.set(&l.count, self.inputs.len() as u64)?;
         b.set(&l.lo, self.lo as u64)?;
         b.set(&l.hi, self.hi as u64)?;
         b.set(&l.out_id, self.out_id as u64)?;
         Ok(b)
-    }
-}
-
-fn copy_into(dst: &mut Bits, offset: u32, src: &Bits) {
-    for i in 0..src.width() {
-        if src.bit(i) {
-            dst.set(&field_at("bit", offset + i, 1), 1)
-                .expect("bit inside the beat");
-        }
     }
 }
 

@@ -184,27 +184,13 @@ impl BeatLayout {
     ) -> Result<Bits, LayoutError> {
         let mut b = Bits::zero(self.width);
         if let Some(n) = rec {
-            copy_into(&mut b, self.rec.offset, &n.pack(&self.node)?);
+            b.put(self.rec.offset, &n.pack(&self.node)?)?;
         }
         if let Some(r) = r {
-            copy_into(&mut b, self.refer.offset, &r.pack(&self.reference)?);
+            b.put(self.refer.offset, &r.pack(&self.reference)?)?;
         }
         b.set(&self.kind, kind)?;
         Ok(b)
-    }
-}
-
-/// Copies `src` into `dst` at bit `offset`.
-fn copy_into(dst: &mut Bits, offset: u32, src: &Bits) {
-    for i in 0..src.width() {
-        if src.bit(i) {
-            let f = Field {
-                name: "bit",
-                offset: offset + i,
-                width: 1,
-            };
-            dst.set(&f, 1).expect("bit inside the beat");
-        }
     }
 }
 
@@ -407,30 +393,22 @@ pub struct OverlapLayout {
     pub out_width: u32,
 }
 
-fn field_at(name: &'static str, offset: u32, width: u32) -> Field {
-    Field {
-        name,
-        offset,
-        width,
-    }
-}
-
 impl OverlapLayout {
     /// The layouts for `p` and `k` inputs (`k >= 1`).
     pub fn new(p: &Params, k: usize) -> OverlapLayout {
         let d = p.coord_bits();
         let i = p.index_bits as u32;
         let coord = [
-            field_at("x", 0, d),
-            field_at("y", d, d),
-            field_at("z", 2 * d, d),
+            Field::new("x", 0, d),
+            Field::new("y", d, d),
+            Field::new("z", 2 * d, d),
         ];
-        let rank = field_at("rank", 3 * d, rank_bits(k));
-        let end = field_at("end", rank.end(), 1);
-        let shared = field_at("shared", 0, i);
-        let union = field_at("union", i, i);
-        let above = field_at("above", 2 * i, 1);
-        let overflow = field_at("overflow", 2 * i + 1, 1);
+        let rank = Field::new("rank", 3 * d, rank_bits(k));
+        let end = Field::new("end", rank.end(), 1);
+        let shared = Field::new("shared", 0, i);
+        let union = Field::new("union", i, i);
+        let above = Field::new("above", 2 * i, 1);
+        let overflow = Field::new("overflow", 2 * i + 1, 1);
         OverlapLayout {
             coord,
             rank,
@@ -905,11 +883,11 @@ impl UpperLayout {
     /// The layouts for `p`.
     pub fn new(p: &Params) -> UpperLayout {
         let node = NodeLayout::new(p);
-        let child = field_at("child", 0, node.first().offset - 1);
-        let in_end = field_at("end", child.end(), 1);
-        let rec = field_at("rec", 0, node.width());
-        let end = field_at("end", rec.end(), 1);
-        let err = field_at("err", end.end(), 1);
+        let child = Field::new("child", 0, node.first().offset - 1);
+        let in_end = Field::new("end", child.end(), 1);
+        let rec = Field::new("rec", 0, node.width());
+        let end = Field::new("end", rec.end(), 1);
+        let err = Field::new("err", end.end(), 1);
         UpperLayout {
             child,
             in_end,
@@ -955,12 +933,12 @@ impl UpperBeat {
             UpperBeat::Node { record, err } => {
                 let r = record.pack(&l.node)?;
                 if output {
-                    copy_into(&mut b, l.rec.offset, &r);
+                    b.put(l.rec.offset, &r)?;
                     b.set(&l.err, *err as u64)?;
                 } else {
                     for i in 0..l.child.width {
                         if r.bit(i + 1) {
-                            b.set(&field_at("bit", i, 1), 1)?;
+                            b.set(&Field::new("bit", i, 1), 1)?;
                         }
                     }
                 }

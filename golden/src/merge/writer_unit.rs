@@ -77,14 +77,6 @@ impl std::fmt::Display for CapacityError {
 
 impl std::error::Error for CapacityError {}
 
-fn field_at(name: &'static str, offset: u32, width: u32) -> Field {
-    Field {
-        name,
-        offset,
-        width,
-    }
-}
-
 /// Bit layouts of the record writer's beats (fields from bit 0).
 ///
 /// - `cfg`: `out_id` (H).
@@ -144,15 +136,15 @@ impl WriterLayout {
         let node = NodeLayout::new(p);
         let reference = RefLayout::new(p);
         let h = p.hier_bits as u32;
-        let cfg_out_id = field_at("out_id", 0, h);
-        let cref = field_at("ref", 0, reference.width());
-        let cref_end = field_at("end", cref.end(), 1);
-        let h_out_id = field_at("out_id", 0, h);
-        let h_top = field_at("top", h_out_id.end(), p.lod_bits());
-        let h_roots = field_at("roots", h_top.end(), i + 1);
-        let h_nodes = field_at("nodes", h_roots.end(), i + 1);
-        let h_refs = field_at("refs", h_nodes.end(), i + 1);
-        let h_err = field_at("err", h_refs.end(), 3);
+        let cfg_out_id = Field::new("out_id", 0, h);
+        let cref = Field::new("ref", 0, reference.width());
+        let cref_end = Field::new("end", cref.end(), 1);
+        let h_out_id = Field::new("out_id", 0, h);
+        let h_top = Field::new("top", h_out_id.end(), p.lod_bits());
+        let h_roots = Field::new("roots", h_top.end(), i + 1);
+        let h_nodes = Field::new("nodes", h_roots.end(), i + 1);
+        let h_refs = Field::new("refs", h_nodes.end(), i + 1);
+        let h_err = Field::new("err", h_refs.end(), 3);
         Ok(WriterLayout {
             builder: BuilderLayout::new(p),
             capacity_bits,
@@ -188,7 +180,7 @@ impl CrefBeat {
     pub fn pack(&self, l: &WriterLayout) -> Result<Bits, LayoutError> {
         let mut b = Bits::zero(l.cref_width);
         match self {
-            CrefBeat::Ref(r) => copy_into(&mut b, l.cref.offset, &r.pack(&l.reference)?),
+            CrefBeat::Ref(r) => b.put(l.cref.offset, &r.pack(&l.reference)?)?,
             CrefBeat::End => b.set(&l.cref_end, 1)?,
         }
         Ok(b)
@@ -231,15 +223,6 @@ pub fn pack_cfg(out_id: u8, l: &WriterLayout) -> Result<Bits, LayoutError> {
     let mut b = Bits::zero(l.cfg_width);
     b.set(&l.cfg_out_id, out_id as u64)?;
     Ok(b)
-}
-
-fn copy_into(dst: &mut Bits, offset: u32, src: &Bits) {
-    for i in 0..src.width() {
-        if src.bit(i) {
-            dst.set(&field_at("bit", offset + i, 1), 1)
-                .expect("bit inside the beat");
-        }
-    }
 }
 
 /// One merge through the record writer: its in beats (the builder's

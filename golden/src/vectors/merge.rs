@@ -214,17 +214,7 @@ pub fn generate(
             let mut o = Vec::new();
             for (b, e) in outs {
                 let mut bits = Bits::zero(lo.width);
-                let packed = b.pack(&li).map_err(model)?;
-                for k in 0..packed.width() {
-                    if packed.bit(k) {
-                        let f = crate::layout::Field {
-                            name: "bit",
-                            offset: k,
-                            width: 1,
-                        };
-                        bits.set(&f, 1).map_err(model)?;
-                    }
-                }
+                bits.put(0, &b.pack(&li).map_err(model)?).map_err(model)?;
                 bits.set(&err, e as u64).map_err(model)?;
                 o.push(bits.words().to_vec());
             }

@@ -20,8 +20,8 @@ use golden::merge::merger_unit::{
     cmd_per_level, feeds_module, merger_transaction, merger_transaction_in_range, MergerSizes,
     MergerTransaction, ModulePass,
 };
+use golden::merge::stimulus::{place, real_cases, soup};
 use golden::merge::unit::LevelBeat;
-use golden::merge::writer_unit::{place, real_cases, soup};
 use golden::merge::MergeMode;
 use golden::params::Params;
 use golden::store::HierarchyStore;

@@ -6,7 +6,7 @@
 //! `header`), with independent random stalls on every stream
 //! (`cosim::tb::run_multi_stream_bench`; the store's responses are an
 //! ordinary input stream), on the IR simulator, Verilator and Icarus (pipe
-//! and multi-stream batch). Stimulus: random cases (`random_case`: every top
+//! and multi-stream batch). Stimulus: random cases (`stimulus::random_case`: every top
 //! rule, materialized roots, capacity and index overflows at small I) and
 //! real merges (golden-built soups at every fixed level and in per-node
 //! mode, created nodes at several LODs). Throughput with no back-pressure;
@@ -17,9 +17,9 @@ use cosim::tb::{MultiReport, StreamBeats};
 use golden::merge::builder_unit::fixed_level_base;
 use golden::merge::level::candidate_range;
 use golden::merge::level_merge::BaseNode;
+use golden::merge::stimulus::{per_node_base, random_case, real_cases};
 use golden::merge::writer_unit::{
-    pack_cfg, per_node_base, random_case, real_cases, writer_err, writer_transaction, WriterLayout,
-    WriterTransaction,
+    pack_cfg, writer_err, writer_transaction, WriterLayout, WriterTransaction,
 };
 use golden::params::Params;
 use golden::store::Hierarchy;

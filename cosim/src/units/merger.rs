@@ -18,7 +18,7 @@ use golden::layout::{Bits, Field};
 use golden::merge::fetch_unit::FetchLayout;
 use golden::merge::merger_unit::{merger_transaction, MergerLayout, MergerTransaction, ModulePass};
 use golden::merge::per_node_unit::{PerNodeLayout, PerNodeReport};
-use golden::merge::writer_unit::{place, soup};
+use golden::merge::stimulus::{place, soup};
 use golden::merge::MergeMode;
 use golden::store::{HierarchyStore, NodeRecord, Reference};
 use golden::translate::stimulus::SplitMix64;

@@ -685,7 +685,8 @@ pub fn created_count(base: &[BaseNode]) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::merge::writer_unit::{place, real_cases, soup, writer_err, CrefBeat};
+    use crate::merge::stimulus::{place, real_cases, soup};
+    use crate::merge::writer_unit::{writer_err, CrefBeat};
     use crate::merge::{merge, MergeMode};
 
     fn modes(lo: u8, hi: u8) -> Vec<MergeMode> {

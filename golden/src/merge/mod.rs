@@ -28,6 +28,7 @@ pub mod level_merge;
 pub mod merger_unit;
 pub mod per_node;
 pub mod per_node_unit;
+pub mod stimulus;
 pub mod top;
 pub mod unit;
 pub mod upper;

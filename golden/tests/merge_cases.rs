@@ -395,6 +395,9 @@ fn refusals_are_errors_naming_the_input() {
     assert_eq!(m(&s, &[], 3), MergeError::NoInputs);
     assert_eq!(m(&s, &[1, 1], 3), MergeError::DuplicateInput(1));
     assert_eq!(m(&s, &[1, 7], 3), MergeError::UnknownInput(7));
+    // Input by input (SPEC 8.1): the first input's error is the one reported.
+    assert_eq!(m(&s, &[7, 1, 1], 3), MergeError::UnknownInput(7));
+    assert_eq!(m(&s, &[1, 1, 7], 3), MergeError::DuplicateInput(1));
     assert_eq!(m(&s, &[1, 2], 2), MergeError::OutIdInUse(2));
     assert_eq!(
         m(&s, &[1, 2], 16),

@@ -274,6 +274,8 @@ pub fn read_merge_vectors(path: &Path, d: &MergeDesign) -> Result<Vec<MergeVecto
         expected: expected.to_string(),
     };
     let mut out = Vec::new();
+    // Per stage, (in width, out width), from one generated transaction.
+    let mut widths: Vec<Option<(u32, u32)>> = vec![None; d.stages().len()];
     for (line, v) in raw.records {
         let stage = v
             .get("stage")
@@ -294,7 +296,13 @@ pub fn read_merge_vectors(path: &Path, d: &MergeDesign) -> Result<Vec<MergeVecto
             )
         })?;
         // Widths come from the design, never from the file.
-        let template = generate(d, &mut SplitMix64(0), i)?;
+        let (in_width, out_width) = match widths[i] {
+            Some(w) => w,
+            None => {
+                let t = generate(d, &mut SplitMix64(0), i)?;
+                *widths[i].insert((t.in_width, t.out_width))
+            }
+        };
         let beats = |key: &str, width: u32| -> Result<Vec<Vec<u64>>, VectorError> {
             let arr = v
                 .get(key)
@@ -303,19 +311,20 @@ pub fn read_merge_vectors(path: &Path, d: &MergeDesign) -> Result<Vec<MergeVecto
             arr.iter()
                 .enumerate()
                 .map(|(k, b)| {
-                    let field = format!("{key}[{k}]");
+                    // Named only when an error is reported.
+                    let field = || format!("{key}[{k}]");
                     if width <= 64 {
                         b.as_u64()
                             .filter(|&n| width == 64 || n >> width == 0)
                             .map(|n| vec![n])
                             .ok_or_else(|| {
-                                bad(line, &field, &format!("an integer below 2^{width}"))
+                                bad(line, &field(), &format!("an integer below 2^{width}"))
                             })
                     } else {
                         b.as_str()
                             .and_then(|s| wide_from_hex(s, width))
                             .ok_or_else(|| {
-                                bad(line, &field, &format!("a {width}-bit 0x hex string"))
+                                bad(line, &field(), &format!("a {width}-bit 0x hex string"))
                             })
                     }
                 })
@@ -323,10 +332,10 @@ pub fn read_merge_vectors(path: &Path, d: &MergeDesign) -> Result<Vec<MergeVecto
         };
         out.push(MergeVector {
             stage,
-            in_width: template.in_width,
-            out_width: template.out_width,
-            inputs: beats("in", template.in_width)?,
-            outputs: beats("out", template.out_width)?,
+            in_width,
+            out_width,
+            inputs: beats("in", in_width)?,
+            outputs: beats("out", out_width)?,
         });
     }
     Ok(out)

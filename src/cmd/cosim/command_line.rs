@@ -43,12 +43,7 @@ fn shell_quoted(text: &str) -> String {
 pub(super) fn run_args(a: &Args) -> Result<Vec<String>, String> {
     let mut v: Vec<String> = Vec::new();
     let mut push = |flag: &str, value: String| v.extend([flag.to_string(), value]);
-    let unit = match a.unit {
-        Unit::Translate => "translate",
-        Unit::Merge => "merge",
-        Unit::Merger => "merger",
-    };
-    push("--unit", unit.into());
+    push("--unit", a.unit.name().into());
     if a.unit == Unit::Merge && merge_stage(a)? == MergeStage::MergeLevel {
         push("--stage", "merge-level".into());
     }

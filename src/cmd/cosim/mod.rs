@@ -82,6 +82,17 @@ pub enum Unit {
     Merger,
 }
 
+impl Unit {
+    /// The unit as `--unit` spells it.
+    fn name(self) -> &'static str {
+        match self {
+            Unit::Translate => "translate",
+            Unit::Merge => "merge",
+            Unit::Merger => "merger",
+        }
+    }
+}
+
 /// Which part of the merging module `--unit merge` runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum MergeStage {

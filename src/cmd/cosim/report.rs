@@ -167,7 +167,7 @@ fn stream_mismatch(kind: &str, m: &ModuleMismatch, seed: u64, beat_is: &str) -> 
 pub(super) fn print_text(r: &Report) {
     println!(
         "{} ({}) on {}: {} transactions, {} records in, {} out, {} cycles ({:.3} records/cycle, {:.3} nodes/cycle), {} mismatches, {:.2} s",
-        r.unit_name(),
+        r.unit.name(),
         r.stage,
         r.engine,
         r.counts.transactions,
@@ -199,16 +199,6 @@ pub(super) fn print_text(r: &Report) {
     }
     if let Some(c) = &r.reproduce {
         println!("reproduce: {c}");
-    }
-}
-
-impl Report {
-    fn unit_name(&self) -> &'static str {
-        match self.unit {
-            Unit::Translate => "translate",
-            Unit::Merge => "merge",
-            Unit::Merger => "merger",
-        }
     }
 }
 

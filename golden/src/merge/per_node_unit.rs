@@ -259,17 +259,7 @@ pub fn pass_stream(
             );
         }
         for n in group {
-            out.push(PerNodeBeat::Level(if n.record.leaf {
-                LevelBeat::Leaf {
-                    record: n.record,
-                    at: n.at,
-                }
-            } else {
-                LevelBeat::Inner {
-                    record: n.record,
-                    at: n.at,
-                }
-            }));
+            out.push(PerNodeBeat::Level(LevelBeat::of_node(n)));
         }
         out.extend(refs);
     }

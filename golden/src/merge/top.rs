@@ -212,17 +212,7 @@ pub fn input_stream(
         let j = i + mine[i..].iter().take_while(|n| n.record.voxel == v).count();
         let group = &mine[i..j];
         for n in group {
-            out.push(if n.record.leaf {
-                LevelBeat::Leaf {
-                    record: n.record,
-                    at: n.at,
-                }
-            } else {
-                LevelBeat::Inner {
-                    record: n.record,
-                    at: n.at,
-                }
-            });
+            out.push(LevelBeat::of_node(n));
         }
         if refs {
             for n in group.iter().filter(|n| !n.record.leaf) {

@@ -254,7 +254,7 @@ fn an_error_ends_its_level_and_later_levels_send_end() {
     // tiny: the root (inner, LOD 1), leaves 1 and 2 at LOD 2.
     let h = tiny(&p);
     let beat = |i: usize| {
-        FetchOut::Beat(beat_of(
+        FetchOut::Beat(LevelBeat::of_node(
             &place_node(&h, 0, &Translation::zero(1), i as u32).unwrap(),
         ))
     };
@@ -709,7 +709,7 @@ fn per_node_errors_end_their_pass_and_follow_the_report() {
         record: place(i).record,
         at: place(i).at,
     };
-    let beat = |i: u32| FetchOut::Beat(beat_of(&place(i)));
+    let beat = |i: u32| FetchOut::Beat(LevelBeat::of_node(&place(i)));
     let cref = |i: u32| FetchOut::Beat(LevelBeat::ChildRef(h.refs[i as usize]));
     let reports = [decide(v(1, 0), true), pass_end(1, true), pass_end(2, false)];
     let run = |h: &Hierarchy, entry, reports: &[PerNodeReport]| {

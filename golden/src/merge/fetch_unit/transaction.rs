@@ -312,12 +312,12 @@ impl Walk<'_> {
             if !leaf_of_p {
                 self.send_refs(tx, o, &p);
             }
-            o.emit(tx, FetchOut::Beat(beat_of(n)));
+            o.emit(tx, FetchOut::Beat(LevelBeat::of_node(n)));
             if leaf_of_p {
                 self.send_refs(tx, o, &p);
             }
         } else {
-            o.emit(tx, FetchOut::Beat(beat_of(n)));
+            o.emit(tx, FetchOut::Beat(LevelBeat::of_node(n)));
         }
         if inner && cmd.send_refs {
             o.pending = Some(*n);
@@ -479,7 +479,7 @@ impl Walk<'_> {
         }
         match o.pending.take() {
             Some(p) if n.record.leaf && n.record.voxel == p.record.voxel => {
-                o.emit(tx, FetchOut::Beat(beat_of(n)));
+                o.emit(tx, FetchOut::Beat(LevelBeat::of_node(n)));
                 self.send_refs(tx, o, &p);
             }
             held => {
@@ -489,7 +489,7 @@ impl Walk<'_> {
                 if inner {
                     self.send_probes(tx, o, n, d);
                 }
-                o.emit(tx, FetchOut::Beat(beat_of(n)));
+                o.emit(tx, FetchOut::Beat(LevelBeat::of_node(n)));
             }
         }
         if inner {
@@ -647,21 +647,6 @@ impl OutOrder {
     fn finish(&mut self, walk: &Walk, tx: &mut FetchTransaction) {
         while self.next_end <= walk.cmd.lod {
             self.level_end(walk, tx);
-        }
-    }
-}
-
-/// A placed node as an S614 input beat.
-pub(super) fn beat_of(n: &PlacedNode) -> LevelBeat {
-    if n.record.leaf {
-        LevelBeat::Leaf {
-            record: n.record,
-            at: n.at,
-        }
-    } else {
-        LevelBeat::Inner {
-            record: n.record,
-            at: n.at,
         }
     }
 }

@@ -173,6 +173,22 @@ impl BeatLayout {
 }
 
 impl LevelBeat {
+    /// A placed node's beat: [`LevelBeat::Leaf`] or [`LevelBeat::Inner`]
+    /// by its record's leaf flag.
+    pub fn of_node(n: &PlacedNode) -> LevelBeat {
+        if n.record.leaf {
+            LevelBeat::Leaf {
+                record: n.record,
+                at: n.at,
+            }
+        } else {
+            LevelBeat::Inner {
+                record: n.record,
+                at: n.at,
+            }
+        }
+    }
+
     /// The packed beat ([`BeatLayout::input`]).
     pub fn pack(&self, l: &BeatLayout) -> Result<Bits, LayoutError> {
         match self {
@@ -251,17 +267,7 @@ pub fn level_stream(
         let group = &sorted[i..j];
         let mut beats = Vec::new();
         for n in group {
-            beats.push(if n.record.leaf {
-                LevelBeat::Leaf {
-                    record: n.record,
-                    at: n.at,
-                }
-            } else {
-                LevelBeat::Inner {
-                    record: n.record,
-                    at: n.at,
-                }
-            });
+            beats.push(LevelBeat::of_node(n));
         }
         for n in group.iter().filter(|n| !n.record.leaf) {
             let h = inputs[n.rank as usize];

@@ -31,19 +31,7 @@ pub fn root_sort_transaction(
     roots: &[PlacedNode],
     capacity: usize,
 ) -> (Vec<LevelBeat>, Vec<(LevelBeat, bool)>) {
-    let beat = |n: &PlacedNode| {
-        if n.record.leaf {
-            LevelBeat::Leaf {
-                record: n.record,
-                at: n.at,
-            }
-        } else {
-            LevelBeat::Inner {
-                record: n.record,
-                at: n.at,
-            }
-        }
-    };
+    let beat = LevelBeat::of_node;
     let mut inputs: Vec<LevelBeat> = roots.iter().map(beat).collect();
     inputs.push(LevelBeat::End);
     let mut kept: Vec<PlacedNode> = roots.iter().take(capacity).copied().collect();

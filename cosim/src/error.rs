@@ -10,48 +10,99 @@ use std::path::PathBuf;
 #[derive(Debug)]
 pub enum CosimError {
     /// The design description itself is inconsistent (duplicate port, bad name, ...).
-    Design { what: String },
+    Design {
+        /// What is inconsistent.
+        what: String,
+    },
     /// A port name was looked up that the design does not have.
-    UnknownPort { name: String },
+    UnknownPort {
+        /// The name looked up.
+        name: String,
+    },
     /// A port index out of range for the design.
-    BadPortId { index: usize, count: usize },
+    BadPortId {
+        /// The index given.
+        index: usize,
+        /// The design's number of ports.
+        count: usize,
+    },
     /// A value does not fit the port it was poked into (never silently truncated).
     Width {
+        /// The port.
         port: String,
+        /// The port's width in bits.
         width: usize,
+        /// Bits the value needs.
         value_bits: usize,
     },
     /// Poke on an output port.
-    NotAnInput { port: String },
+    NotAnInput {
+        /// The port.
+        port: String,
+    },
     /// A required external tool is missing or failed to start.
-    ToolMissing { tool: String, hint: String },
+    ToolMissing {
+        /// The tool (`verilator`, `iverilog`, `vvp`, `g++`, ...).
+        tool: String,
+        /// Why it is not usable, and how to install it.
+        hint: String,
+    },
     /// An external tool ran and failed; `log` holds its output.
     ToolFailed {
+        /// The tool.
         tool: String,
+        /// The command line it ran with.
         command: String,
+        /// Its output (stdout and stderr).
         log: String,
     },
     /// The compiled model disagrees with the port description.
-    PortMismatch { port: String, what: String },
+    PortMismatch {
+        /// The port.
+        port: String,
+        /// How they disagree.
+        what: String,
+    },
     /// An I/O error with the path it concerns.
     Io {
+        /// The file or folder.
         path: PathBuf,
+        /// The operating system's error.
         source: std::io::Error,
     },
     /// Loading the shared library or a symbol failed.
-    Load { path: PathBuf, what: String },
+    Load {
+        /// The shared library.
+        path: PathBuf,
+        /// What failed (the loader's message, or the missing symbol).
+        what: String,
+    },
     /// The simulator process broke the pipe protocol or exited.
-    Protocol { what: String },
+    Protocol {
+        /// What it sent or did instead.
+        what: String,
+    },
     /// A 4-state simulator produced X or Z on an output after reset.
     UnknownOutput {
+        /// The output port.
         port: String,
+        /// The cycle it was seen in.
         cycle: u64,
+        /// The value as the simulator printed it (with `x`/`z` digits).
         value: String,
     },
     /// A text value could not be parsed as a bit vector.
-    Parse { text: String, what: String },
+    Parse {
+        /// The text (or the file it came from).
+        text: String,
+        /// What was expected.
+        what: String,
+    },
     /// The feature asked for is not available in this engine or build.
-    Unsupported { what: String },
+    Unsupported {
+        /// The feature.
+        what: String,
+    },
 }
 
 impl fmt::Display for CosimError {

@@ -4,6 +4,8 @@
 //! piped testbench, 4-state), and reusable testbench pieces generic over it.
 //! See `cosim/README.md`.
 
+#![warn(missing_docs)]
+
 pub mod bitvec;
 pub mod cache;
 pub mod design;

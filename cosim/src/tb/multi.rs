@@ -24,29 +24,38 @@ use std::time::{Duration, Instant};
 /// beats (to send, or expected in order).
 #[derive(Clone, Debug)]
 pub struct StreamBeats {
+    /// The stream's port prefix.
     pub name: String,
+    /// Its beats in order, each the values of its payload ports.
     pub beats: Vec<Transaction>,
 }
 
 /// What a multi-stream run found, per stream and in all.
 #[derive(Clone, Debug)]
 pub struct MultiReport {
+    /// The engine that ran the bench.
     pub engine: String,
+    /// The seed of the stall patterns.
     pub seed: u64,
+    /// Rising clock edges the engine has taken ([`Engine::cycle`], reset included).
     pub cycles: u64,
     /// Beats accepted per input stream, in the order given.
     pub sent: Vec<(String, u64)>,
     /// Beats received per output stream.
     pub received: Vec<(String, u64)>,
+    /// Output beats equal to the expected beat, all streams.
     pub matched: u64,
+    /// Output beats that differ from the expected beat, all streams.
     pub mismatches: u64,
     /// The first mismatch and the stream it was on.
     pub first_mismatch: Option<(String, Mismatch)>,
     /// Expected beats that never came, per output stream.
     pub missing: Vec<(String, usize)>,
+    /// The watchdog's report when no stream moved for too long.
     pub hang: Option<Hang>,
     /// VCD written around the first mismatch or hang.
     pub vcd: Option<PathBuf>,
+    /// Wall time of the bench (the build excluded).
     pub wall: Duration,
     /// Per stream (inputs, then outputs): the cycles of its first and last
     /// transfer (stepped engines; empty from the Icarus batch).
@@ -56,9 +65,13 @@ pub struct MultiReport {
 /// When a stream moved beats: its first and last transfer.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct ActiveWindow {
+    /// The stream.
     pub name: String,
+    /// Beats it moved.
     pub beats: u64,
+    /// The cycle of its first transfer.
     pub first: u64,
+    /// The cycle of its last transfer.
     pub last: u64,
 }
 

@@ -104,6 +104,18 @@ fn merger_flags_are_checked() {
         &patch,
         "HIERMERGE_COSIM_PATCH_FROM applies to",
     );
+    // A stall the drivers refuse is refused before anything is built.
+    assert_refused(
+        "cosim --unit merger --engine ir --count 1 --stall 0.95",
+        &[],
+        "expected 0 <= P <= 0.9",
+    );
+    // Inputs take ids 1..=k and the merge 2^H - 1: four inputs need H = 3.
+    assert_refused(
+        &format!("{ir_merger} --hier-bits 2 --inputs 4"),
+        &[],
+        "at most 2 inputs fit H = 2",
+    );
     // A writer of 2^40 entries per buffer does not fit the index width.
     assert_refused(
         &format!("{ir_merger} --capacity-bits 40"),

@@ -33,8 +33,9 @@ pub struct IrEngine {
 }
 
 impl IrEngine {
-    /// Simulates `module`; `design` must list exactly the module's ports
-    /// (name, width, direction, order), as `from_rtl::design_from_module` does.
+    /// Simulates `module`; `design` must list exactly the module's ports by
+    /// name, each with its width and direction, as
+    /// `from_rtl::design_from_module` does.
     pub fn new(module: &Module, design: &Design) -> Result<IrEngine> {
         design.validate()?;
         check_ports_agree(module, design)?;

@@ -1,7 +1,9 @@
 //! Co-simulation harness (issue 6): engines that step a Verilog design cycle by
 //! cycle from Rust behind one `Engine` trait (Verilator through a generated C
 //! ABI shim and a content-addressed build cache; Icarus Verilog through a
-//! piped testbench, 4-state), and reusable testbench pieces generic over it.
+//! piped testbench, 4-state, or a whole bench in one `vvp` run; rtl-gen's IR
+//! simulator), reusable testbench pieces generic over it, the units' complete
+//! benches (`units`) and the long-run ledger (`ledger`).
 //! See `cosim/README.md`.
 
 #![warn(missing_docs)]

@@ -11,7 +11,8 @@ pub fn ci_mode() -> bool {
 }
 
 /// The hint printed when a tool is missing.
-pub const INSTALL_HINT: &str = "install with `apt-get install verilator iverilog`";
+pub const INSTALL_HINT: &str =
+    "install with `apt-get install verilator iverilog yosys g++ make` (or run scripts/setup)";
 
 /// Run `tool args` and return stdout; a missing tool becomes `ToolMissing`.
 pub fn tool_output(tool: &str, args: &[&str]) -> Result<String> {

@@ -15,7 +15,7 @@
 //! beat its *gap* (stalled opportunities before it goes), and the testbench
 //! counts the gap down. Output stream `j`'s `ready` is one draw per cycle
 //! from `Prng::derived(seed_of(100 + j), 2)`, streamed to vvp through a
-//! named pipe (see `MaskPipe`).
+//! named pipe (see `batch_runner::MaskFifo`).
 //! `seed_of(j) = seed ^ (0x9e3779b97f4a7c15 * (j + 1))`. So cycles, counts
 //! and transfer cycles equal a pipe run's; only the garbage shown while
 //! `valid` is low differs (from a pool of random values per stream drawn

@@ -13,7 +13,7 @@
 //! - `pool_<s>_<k>.hex` (`$readmemh`): `GARBAGE_POOL` random values of
 //!   payload port `k` of input stream `s`, shown (beats accepted modulo
 //!   the pool) while its `valid` is low.
-//! - per input stream `s`, in chunks of `STIM_CHUNK` beats (read with
+//! - per input stream `s`, in chunks of [`MULTI_STIM_CHUNK`] beats (read with
 //!   `$readmemh` when the stream reaches the chunk's first beat):
 //!   `gap_<s>_<c>.hex`, per beat the number of cycles the driver lets pass
 //!   (stalls) before raising `valid` for it, and `in_<s>_<c>_<k>.hex`, per

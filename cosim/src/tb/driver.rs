@@ -95,10 +95,14 @@ pub(crate) fn bool_bits(b: bool) -> BitVec {
     }
 }
 
+/// The largest stall probability a driver or monitor takes: above it a
+/// stream moves so rarely that a run is all waiting.
+pub const MAX_STALL: f64 = 0.9;
+
 pub(crate) fn check_stall(stall: f64) -> Result<()> {
-    if !(0.0..=0.9).contains(&stall) {
+    if !(0.0..=MAX_STALL).contains(&stall) {
         return Err(CosimError::Design {
-            what: format!("stall probability {stall} outside 0..=0.9"),
+            what: format!("stall probability {stall} outside 0..={MAX_STALL}"),
         });
     }
     Ok(())

@@ -22,7 +22,8 @@ use crate::tb::{
     Transaction, Vector,
 };
 
-/// The stage `hiermerge cosim --unit merge` exercises.
+/// The stage `hiermerge cosim --unit merge --stage merge-level` exercises
+/// (`--unit merge` alone runs the whole module, [`super::merge_module::STAGE`]).
 pub const STAGE: &str = "merge_level";
 
 /// The unit under test.
@@ -55,7 +56,8 @@ fn port_value(words: &[u64], width: u32) -> Result<BitVec> {
     BitVec::from_words(width as usize, words)
 }
 
-/// Bench vectors of the levels; returns them and the number of input beats.
+/// Bench vectors of the levels: one per input beat, each level's expected
+/// outputs on its first beat; a level with no input beat is an error.
 pub fn bench_vectors(levels: &[MergeVector], flip_expected: Option<usize>) -> Result<Vec<Vector>> {
     let mut out = Vec::new();
     for (n, level) in levels.iter().enumerate() {
@@ -70,6 +72,13 @@ pub fn bench_vectors(levels: &[MergeVector], flip_expected: Option<usize>) -> Re
                 w[0] ^= 1;
                 first[0] = BitVec::from_words(level.out_width as usize, &w)?;
             }
+        }
+        if level.inputs.is_empty() {
+            // Its expected outputs ride on its first input beat: a level
+            // without one would check nothing and pass.
+            return Err(CosimError::Design {
+                what: format!("level {n} has no input beat (a level ends with an `End` beat)"),
+            });
         }
         for (j, beat) in level.inputs.iter().enumerate() {
             out.push(Vector {
@@ -202,4 +211,29 @@ pub fn run_with_vcd_on_mismatch(
         report.vcd = rerun.vcd;
     }
     Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_level_without_input_beats_is_refused_not_passed() {
+        let level = |inputs: Vec<Vec<u64>>| MergeVector {
+            stage: STAGE,
+            in_width: 8,
+            out_width: 8,
+            inputs,
+            outputs: vec![vec![3]],
+        };
+        let v = bench_vectors(&[level(vec![vec![1], vec![2]])], None).unwrap();
+        assert_eq!(v.len(), 2);
+        assert_eq!(
+            v[0].outputs.len(),
+            1,
+            "the level's outputs ride on its first beat"
+        );
+        let e = bench_vectors(&[level(vec![vec![1]]), level(vec![])], None).unwrap_err();
+        assert!(e.to_string().contains("level 1 has no input beat"), "{e}");
+    }
 }

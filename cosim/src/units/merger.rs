@@ -382,6 +382,16 @@ pub fn random_merge(rng: &mut SplitMix64, c: &MergerConfig) -> Result<MergerTran
     let p = &c.design.params;
     let k = c.design.inputs;
     let out_id = u8::try_from(p.hier_capacity() - 1).map_err(golden_err)?;
+    // Inputs take ids 1..=k and the merge the last id, 2^H - 1.
+    if k as u64 + 2 > p.hier_capacity() {
+        return Err(CosimError::Design {
+            what: format!(
+                "{k} inputs: random merges give them ids 1..={k} and the merge id {out_id}, so at most {} inputs fit H = {}",
+                p.hier_capacity() - 2,
+                p.hier_bits
+            ),
+        });
+    }
     for _ in 0..MOST_DRAWS {
         let n = 1 + rng.below(k as u64) as usize;
         // Per-node mode: half the merges place every soup where the first

@@ -1,7 +1,10 @@
 //! Complete testbenches of hiermerge's generated units, over any
 //! [`crate::Engine`], returning what they measured or the first mismatch
-//! (never panicking): the translation unit ([`translate`]) and the merging
-//! module's S614 merge-level stage ([`merge`]). `hiermerge cosim` runs them.
+//! (never panicking): the translation unit ([`translate`]), the merging
+//! module's S614 merge-level stage ([`merge`]), the merging module as one
+//! unit ([`merge_module`]) and the hierarchy merger top ([`merger`]), the
+//! last two run in chunks of a long run ([`chunked`]). `hiermerge cosim`
+//! runs them.
 
 pub mod chunked;
 pub mod merge;
@@ -18,12 +21,16 @@ pub type EngineFactory<'a> = dyn FnMut(bool) -> Result<Box<dyn Engine>> + 'a;
 /// Progress callback: (transactions whose outputs all arrived, cycle).
 pub type ProgressFn<'a> = dyn FnMut(u64, u64) + 'a;
 
-/// The stall probability a driver or monitor uses, checked: `0 <= p < 1`
-/// (at 1 nothing would ever move).
+/// The stall probability a driver or monitor uses, checked as they check it
+/// (`0 <= p <= `[`crate::tb::driver::MAX_STALL`]), so that a command refuses a
+/// bad value before it builds anything.
 pub fn check_stall(stall: f64) -> std::result::Result<f64, String> {
-    if (0.0..1.0).contains(&stall) {
+    let most = crate::tb::driver::MAX_STALL;
+    if (0.0..=most).contains(&stall) {
         Ok(stall)
     } else {
-        Err(format!("stall probability {stall}: expected 0 <= P < 1"))
+        Err(format!(
+            "stall probability {stall}: expected 0 <= P <= {most}"
+        ))
     }
 }

@@ -137,7 +137,7 @@ pub struct Args {
     #[arg(long)]
     count: Option<u64>,
     /// Probability that the driver holds valid low and the monitor ready low
-    /// (0 <= P < 1; merge: on every stream, each with its own pattern).
+    /// (0 <= P <= 0.9; merge: on every stream, each with its own pattern).
     #[arg(long, default_value_t = 0.3)]
     stall: f64,
     /// Directory of the VCD written on a mismatch.

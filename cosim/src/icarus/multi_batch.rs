@@ -63,11 +63,9 @@ pub const MULTI_BATCH_ENGINE_NAME: &str = BATCH_ENGINE_NAME;
 /// How long one `vvp` run may take before it is killed and reported hung.
 pub const MULTI_RUN_TIMEOUT: Duration = Duration::from_secs(6 * 3600);
 
-/// The per-stream seed of `tb::run_multi_stream_bench` (input `j`: `j`,
-/// output `j`: `100 + j`).
-pub fn stream_seed(seed: u64, j: usize) -> u64 {
-    seed ^ 0x9e37_79b9_7f4a_7c15u64.wrapping_mul(j as u64 + 1)
-}
+/// The per-stream seed of `tb::run_multi_stream_bench`, the same function,
+/// so that a batch run replays a stepped run's stalls.
+pub use crate::tb::multi::stream_seed;
 
 /// A design compiled once for multi-stream batch runs over fixed input and
 /// output stream names (ports `<name>_valid`, `<name>_ready`,

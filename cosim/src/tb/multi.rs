@@ -20,6 +20,13 @@ use std::fmt;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
+/// The seed of stream `j`'s stall pattern in a multi-stream bench run from
+/// `seed` (input `j`: `j`, output `j`: `100 + j`): distinct per stream, and
+/// the one definition the Icarus batch replays.
+pub fn stream_seed(seed: u64, j: usize) -> u64 {
+    seed ^ 0x9e37_79b9_7f4a_7c15u64.wrapping_mul(j as u64 + 1)
+}
+
 /// One stream: ports `<name>_valid`, `<name>_ready`, `<name>_data`, and its
 /// beats (to send, or expected in order).
 #[derive(Clone, Debug)]
@@ -189,7 +196,7 @@ pub fn run_multi_stream_bench_traced(
 ) -> Result<(MultiReport, PulseWatch)> {
     let start = Instant::now();
     // Distinct stall patterns per stream from one seed.
-    let seed_of = |j: usize| config.seed ^ (0x9e37_79b9_7f4a_7c15u64.wrapping_mul(j as u64 + 1));
+    let seed_of = |j: usize| stream_seed(config.seed, j);
     let mut drivers = Vec::new();
     for (j, s) in inputs.iter().enumerate() {
         let mut d = StreamDriver::new(ports(engine, &s.name)?, seed_of(j), config.in_stall)?;

@@ -2,7 +2,7 @@
 //! signedness, for checking the IR simulator, Verilator and Icarus Verilog
 //! against each other bit for bit.
 //!
-//! Every module has inputs `a` (and `b`, `s` or `sel` when the operator
+//! Every module has inputs `a` (and `b`, `c`, `s` or `sel` when the operator
 //! needs them) and output `y` (and `y2` for [`OpKind::Slice`]); a
 //! registered variant puts a register between the operator and `y`.
 

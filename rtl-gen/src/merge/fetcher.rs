@@ -255,8 +255,8 @@ fn out_beat<'m>(
 }
 
 /// The fetcher for `p` with a root sorter of `sizes.roots` entries and a
-/// frontier FIFO of `2 * sizes.frontier + 1` words (one level's ranges
-/// popped while the next level's are pushed, and the level marker).
+/// frontier FIFO of `2 * sizes.frontier + 1` words, rounded up to a power of
+/// two (a level's ranges popped while the next's are pushed, a marker).
 /// Streams (beats of `golden::merge::fetch_unit::FetchLayout`): `cfg`,
 /// `cmd`, `node_resp`, `ref_resp`, `cref_resp` in; `node_req`, `ref_req`,
 /// `cref_req`, `out`, `leaves` out. `idle` is high while no command is in

@@ -275,7 +275,7 @@ fn merge_level(dir: &Path) -> Res<()> {
     let design = cosim::from_rtl::design_from_module(&module, dir)?;
     let levels = merge::generate_levels(&d, 5, 1500)?;
     let vectors = merge::bench_vectors(&levels, None)?;
-    let names: StreamNames = merge::stream_names();
+    let names = StreamNames::single("data");
     let c = config();
     let batch = IcarusBatch::new(&design, &BatchSpec::single(&names))?;
     let lanes: Vec<LaneVector> = vectors

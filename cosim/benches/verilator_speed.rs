@@ -93,14 +93,7 @@ fn main() -> cosim::Result<()> {
             }
         })
         .collect();
-    let names = StreamNames {
-        in_valid: "in_valid".into(),
-        in_ready: "in_ready".into(),
-        in_payload: vec!["in_data".into()],
-        out_valid: "out_valid".into(),
-        out_ready: "out_ready".into(),
-        out_payload: vec!["out_data".into()],
-    };
+    let names = StreamNames::single("data");
     for stall in [0.0, 0.5] {
         let mut e = VerilatorEngine::new(&design, &options)?;
         let config = BenchConfig {

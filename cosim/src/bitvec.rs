@@ -89,6 +89,11 @@ impl BitVec {
         Ok(v)
     }
 
+    /// A record packed by one of golden's layouts.
+    pub fn from_layout(b: &golden::layout::Bits) -> Result<BitVec> {
+        BitVec::from_words(b.width() as usize, b.words())
+    }
+
     /// From hexadecimal text (optional `0x`, `_` separators allowed); an error
     /// on a non-hex digit or a value that does not fit `width`.
     pub fn from_hex(width: usize, text: &str) -> Result<BitVec> {

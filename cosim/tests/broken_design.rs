@@ -7,17 +7,6 @@ mod common;
 use cosim::tb::{run_with_vcd_on_failure, BenchConfig, FieldDecoder, StreamNames, Vector};
 use cosim::{BitVec, Design, PortSpec};
 
-fn names(data: &str) -> StreamNames {
-    StreamNames {
-        in_valid: "in_valid".into(),
-        in_ready: "in_ready".into(),
-        in_payload: vec![format!("in_{data}")],
-        out_valid: "out_valid".into(),
-        out_ready: "out_ready".into(),
-        out_payload: vec![format!("out_{data}")],
-    }
-}
-
 /// Splits the 16-bit payload into named bytes, as a record decoder would.
 fn decoder() -> Option<Box<FieldDecoder>> {
     Some(Box::new(|txn: &Vec<BitVec>| {
@@ -64,9 +53,15 @@ fn one_flipped_bit_is_reported_with_cycle_fields_and_vcd_on_every_engine() {
             ..BenchConfig::default()
         };
         let mut make = |trace: bool| common::make_engine(kind, &design, trace);
-        let report =
-            run_with_vcd_on_failure(&mut make, &names("data"), &vectors, &decoder, &config)
-                .unwrap();
+        let report = run_with_vcd_on_failure(
+            &mut make,
+            &StreamNames::single("data"),
+            &vectors,
+            &decoder,
+            &config,
+            &mut |_| {},
+        )
+        .unwrap();
         let text = report.to_string();
         eprintln!("{text}");
         assert!(!report.passed());
@@ -137,9 +132,15 @@ fn a_design_that_never_accepts_input_is_failed_by_the_watchdog() {
             ..BenchConfig::default()
         };
         let mut make = |trace: bool| common::make_engine(kind, &design, trace);
-        let report =
-            run_with_vcd_on_failure(&mut make, &names("data"), &vectors, &|| None, &config)
-                .unwrap();
+        let report = run_with_vcd_on_failure(
+            &mut make,
+            &StreamNames::single("data"),
+            &vectors,
+            &|| None,
+            &config,
+            &mut |_| {},
+        )
+        .unwrap();
         let hang = report.hang.as_ref().expect("watchdog fired");
         assert_eq!(hang.idle_cycles, 41, "{kind}");
         assert!(

@@ -65,17 +65,6 @@ fn emit_and_lint(module: &Module, dir: &Path) -> Design {
     design
 }
 
-fn stream_names() -> StreamNames {
-    StreamNames {
-        in_valid: "in_valid".into(),
-        in_ready: "in_ready".into(),
-        in_payload: vec!["in_data".into()],
-        out_valid: "out_valid".into(),
-        out_ready: "out_ready".into(),
-        out_payload: vec!["out_data".into()],
-    }
-}
-
 /// Runs `vectors` through `module` on every engine at every stall pair and
 /// asserts each run passes with every transaction accounted for.
 fn check_stream_example(module: &Module, vectors: &[Vector]) {
@@ -100,10 +89,11 @@ fn check_stream_example(module: &Module, vectors: &[Vector]) {
             };
             let report = run_with_vcd_on_failure(
                 &mut |trace| make_engine(kind, module, &design, trace),
-                &stream_names(),
+                &StreamNames::single("data"),
                 vectors,
                 &|| None,
                 &config,
+                &mut |_| {},
             )
             .unwrap_or_else(|e| panic!("{} on {kind}, seed {seed}: {e}", design.top));
             assert!(report.passed(), "{} on {kind}:\n{report}", design.top);

@@ -261,8 +261,15 @@ fn merge_level_bench_catches_a_flipped_bit() {
         stop_on_mismatch: false,
         ..cosim::tb::BenchConfig::default()
     };
-    let r =
-        cosim::tb::run_stream_bench(e.as_mut(), &stream_names(), &vs, None, &config, None).unwrap();
+    let r = cosim::tb::run_stream_bench(
+        e.as_mut(),
+        &cosim::tb::StreamNames::single("data"),
+        &vs,
+        None,
+        &config,
+        None,
+    )
+    .unwrap();
     assert!(!r.passed());
     assert_eq!(r.mismatches, 1, "{r}");
 }

@@ -8,17 +8,6 @@ use cosim::tb::{
 };
 use cosim::BitVec;
 
-fn names() -> StreamNames {
-    StreamNames {
-        in_valid: "in_valid".into(),
-        in_ready: "in_ready".into(),
-        in_payload: vec!["in_data".into()],
-        out_valid: "out_valid".into(),
-        out_ready: "out_ready".into(),
-        out_payload: vec!["out_data".into()],
-    }
-}
-
 /// Random payloads and what the skid stage must emit for each.
 pub fn vectors(seed: u64, count: usize) -> Vec<Vector> {
     let mut rng = Prng::new(seed);
@@ -51,7 +40,15 @@ fn skid_passes_under_random_back_pressure_on_every_engine() {
                 ..BenchConfig::default()
             };
             let mut e = common::make_engine(kind, &design, false).unwrap();
-            let report = run_stream_bench(e.as_mut(), &names(), &vs, None, &config, None).unwrap();
+            let report = run_stream_bench(
+                e.as_mut(),
+                &StreamNames::single("data"),
+                &vs,
+                None,
+                &config,
+                None,
+            )
+            .unwrap();
             eprint!("{report}");
             assert!(report.passed(), "{kind} stall {stall}:\n{report}");
             assert_eq!(report.inputs_sent, count as u64);
@@ -84,7 +81,15 @@ fn a_dropped_expectation_shows_up_as_a_duplicate_and_a_missing_one_as_lost() {
         watchdog_cycles: 50,
         ..BenchConfig::default()
     };
-    let r = run_stream_bench(e.as_mut(), &names(), &vs, None, &config, None).unwrap();
+    let r = run_stream_bench(
+        e.as_mut(),
+        &StreamNames::single("data"),
+        &vs,
+        None,
+        &config,
+        None,
+    )
+    .unwrap();
     assert!(!r.passed());
     assert_eq!(r.accounting.duplicated_outputs, 1, "{r}");
     // Claim input 20 produces two outputs: one of them never comes.
@@ -92,7 +97,15 @@ fn a_dropped_expectation_shows_up_as_a_duplicate_and_a_missing_one_as_lost() {
     let extra = vs[20].outputs[0].clone();
     vs[20].outputs.push(extra);
     let mut e = common::make_engine("verilator", &design, false).unwrap();
-    let r = run_stream_bench(e.as_mut(), &names(), &vs, None, &config, None).unwrap();
+    let r = run_stream_bench(
+        e.as_mut(),
+        &StreamNames::single("data"),
+        &vs,
+        None,
+        &config,
+        None,
+    )
+    .unwrap();
     assert!(!r.passed());
     assert!(r.hang.is_some(), "the missing output stalls the run: {r}");
     assert_eq!(r.accounting.inputs_with_lost_outputs, 1, "{r}");
@@ -112,11 +125,16 @@ fn progress_is_reported_and_the_json_report_counts_everything() {
         out_stall: 0.2,
         ..BenchConfig::default()
     };
-    let r =
-        run_stream_bench_with_progress(e.as_mut(), &names(), &vs, None, &config, None, &mut |p| {
-            calls.push(p)
-        })
-        .unwrap();
+    let r = run_stream_bench_with_progress(
+        e.as_mut(),
+        &StreamNames::single("data"),
+        &vs,
+        None,
+        &config,
+        None,
+        &mut |p| calls.push(p),
+    )
+    .unwrap();
     assert!(r.passed(), "{r}");
     assert!(
         calls.len() as u64 >= r.cycles / 4096 - 1,

@@ -38,10 +38,10 @@ use super::batch_runner::{
     failure_window, go_word, keep_window_vcd, mask_line, read_out, write_lines, write_params,
     BatchImage,
 };
-use super::batch_tb_frame::frame_params;
+use super::batch_tb_frame::{frame_params, pool_file};
 use super::batch_testbench::{
-    generate_batch_testbench, meta_file, payload_file, pool_file, BatchTbSpec, LanePorts,
-    BATCH_TB_MODULE, GARBAGE_POOL, STIM_CHUNK,
+    generate_batch_testbench, meta_file, payload_file, BatchTbSpec, LanePorts, BATCH_TB_MODULE,
+    GARBAGE_POOL, STIM_CHUNK,
 };
 use crate::bitvec::BitVec;
 use crate::design::{Design, PortId};
@@ -271,11 +271,7 @@ impl IcarusBatch {
         config: &BenchConfig,
     ) -> Result<BatchReport> {
         let mut report = self.run_once(vectors, decoders, config, None)?;
-        let failure = failure_window(
-            report.bench.first_mismatch.as_ref().map(|m| m.cycle),
-            report.bench.hang.as_ref().map(|h| h.cycle),
-            config,
-        );
+        let failure = failure_window(report.bench.failure_cycle(), config);
         if let Some(dump) = failure {
             let rerun = self.run_once(vectors, &mut |_| None, config, Some(dump))?;
             report.bench.vcd = rerun.bench.vcd;

@@ -27,9 +27,12 @@
 
 use crate::design::{Design, PortDir, PortId};
 
-/// The testbench signal of a design port.
-pub fn sig(id: PortId) -> String {
-    format!("hm_p{}", id.0)
+pub use super::testbench::sig;
+
+/// `$readmemh` file of the garbage pool of payload port `k` of lane or
+/// input stream `s` (what a stalled driver shows on its payload).
+pub fn pool_file(s: usize, k: usize) -> String {
+    format!("pool_{s}_{k}.hex")
 }
 
 /// What a batch testbench puts into the frame (Verilog text, indented as

@@ -35,7 +35,7 @@
 //! cost microseconds each, which made a SplitMix64 draw per decision the
 //! bottleneck.
 
-use super::batch_tb_frame::{self, sig, TbBody};
+use super::batch_tb_frame::{self, pool_file, sig, TbBody};
 use crate::design::{Design, PortId};
 
 /// Name of the generated module.
@@ -80,11 +80,6 @@ pub struct BatchTbSpec<'a> {
 
 fn lane_reg(kind: &str, lane: usize, k: usize) -> String {
     format!("hm_{kind}_{lane}_{k}")
-}
-
-/// `$readmemh` file of lane `lane`'s payload port `k` garbage pool.
-pub fn pool_file(lane: usize, k: usize) -> String {
-    format!("pool_{lane}_{k}.hex")
 }
 
 /// `$readmemh` file of chunk `chunk`'s beat lanes and waits.

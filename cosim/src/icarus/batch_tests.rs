@@ -53,17 +53,6 @@ fn stage(top: &str, file: PathBuf, width: usize) -> Design {
     .unwrap()
 }
 
-fn names() -> StreamNames {
-    StreamNames {
-        in_valid: "in_valid".into(),
-        in_ready: "in_ready".into(),
-        in_payload: vec!["in_data".into()],
-        out_valid: "out_valid".into(),
-        out_ready: "out_ready".into(),
-        out_payload: vec!["out_data".into()],
-    }
-}
-
 /// The skid stage's Rust model: payload + 1 mod 2^16.
 fn skid_vectors(seed: u64, count: usize) -> Vec<Vector> {
     let mut rng = Prng::new(seed);
@@ -115,12 +104,14 @@ fn a_batch_run_agrees_with_the_pipe_run() {
         return;
     }
     let design = stage("skid", fixture("skid.v"), 16);
-    let batch = IcarusBatch::new(&design, &BatchSpec::single(&names())).unwrap();
+    let batch =
+        IcarusBatch::new(&design, &BatchSpec::single(&StreamNames::single("data"))).unwrap();
     for (seed, stall, count) in [(3u64, 0.0, 300), (4, 0.3, 400), (5, 0.9, 150)] {
         let vs = skid_vectors(seed, count);
         let c = config(seed, stall);
         let mut pipe = IcarusEngine::new(&design).unwrap();
-        let p = run_stream_bench(&mut pipe, &names(), &vs, None, &c, None).unwrap();
+        let p =
+            run_stream_bench(&mut pipe, &StreamNames::single("data"), &vs, None, &c, None).unwrap();
         let b = batch.run_stream(&vs, None, &c).unwrap();
         eprint!("{p}{b}");
         assert!(p.passed() && b.passed(), "{p}\n{b}");
@@ -157,8 +148,9 @@ fn a_wrong_expected_bit_is_the_same_decoded_mismatch_as_in_a_pipe_run() {
     vs[77].outputs[0][0].flip_bit(3).unwrap();
     let c = config(11, 0.4);
     let mut pipe = IcarusEngine::new(&design).unwrap();
-    let p = run_stream_bench(&mut pipe, &names(), &vs, None, &c, None).unwrap();
-    let batch = IcarusBatch::new(&design, &BatchSpec::single(&names())).unwrap();
+    let p = run_stream_bench(&mut pipe, &StreamNames::single("data"), &vs, None, &c, None).unwrap();
+    let batch =
+        IcarusBatch::new(&design, &BatchSpec::single(&StreamNames::single("data"))).unwrap();
     let b = batch.run_stream(&vs, None, &c).unwrap();
     eprint!("{b}");
     assert!(!b.passed());
@@ -176,7 +168,8 @@ fn a_broken_design_fails_with_a_vcd_around_the_mismatch() {
         return;
     }
     let design = stage("skid", fixture("skid_broken.v"), 16);
-    let batch = IcarusBatch::new(&design, &BatchSpec::single(&names())).unwrap();
+    let batch =
+        IcarusBatch::new(&design, &BatchSpec::single(&StreamNames::single("data"))).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let vcd = dir.path().join("fail.vcd");
     let c = BenchConfig {
@@ -211,7 +204,8 @@ fn a_stuck_stage_is_a_hang_with_every_port() {
         return;
     }
     let design = stage("stuck", fixture("stuck.v"), 8);
-    let batch = IcarusBatch::new(&design, &BatchSpec::single(&names())).unwrap();
+    let batch =
+        IcarusBatch::new(&design, &BatchSpec::single(&StreamNames::single("data"))).unwrap();
     let vs = vec![Vector {
         input: vec![BitVec::from_u64(8, 5).unwrap()],
         outputs: vec![vec![BitVec::from_u64(8, 5).unwrap()]],
@@ -253,7 +247,8 @@ endmodule
     )
     .unwrap();
     let design = stage("xstage", file, 8);
-    let batch = IcarusBatch::new(&design, &BatchSpec::single(&names())).unwrap();
+    let batch =
+        IcarusBatch::new(&design, &BatchSpec::single(&StreamNames::single("data"))).unwrap();
     let vs: Vec<Vector> = [1u64, 2, 0x5a, 4]
         .iter()
         .map(|&x| Vector {
@@ -389,7 +384,8 @@ fn beats_across_stimulus_chunks_arrive_in_order() {
         return;
     }
     let design = stage("skid", fixture("skid.v"), 16);
-    let batch = IcarusBatch::new(&design, &BatchSpec::single(&names())).unwrap();
+    let batch =
+        IcarusBatch::new(&design, &BatchSpec::single(&StreamNames::single("data"))).unwrap();
     let count = 2 * super::batch_testbench::STIM_CHUNK + 5;
     let vs = skid_vectors(21, count);
     let r = batch.run_stream(&vs, None, &config(21, 0.1)).unwrap();

@@ -42,11 +42,10 @@ use super::batch_runner::{
     failure_window, go_word, keep_window_vcd, mask_line, read_out, write_lines, write_params,
     BatchImage, BATCH_ENGINE_NAME,
 };
-use super::batch_tb_frame::frame_params;
+use super::batch_tb_frame::{frame_params, pool_file};
 use super::batch_testbench::GARBAGE_POOL;
 use super::multi_batch_testbench::{
-    beat_file, gap_file, generate_multi_testbench, multi_pool_file, MultiTbSpec, MULTI_STIM_CHUNK,
-    MULTI_TB_MODULE,
+    beat_file, gap_file, generate_multi_testbench, MultiTbSpec, MULTI_STIM_CHUNK, MULTI_TB_MODULE,
 };
 use crate::design::{Design, PortDir, PortId};
 use crate::error::{io_err, CosimError, Result};
@@ -210,12 +209,7 @@ impl IcarusMultiBatch {
         config: &BenchConfig,
     ) -> Result<MultiBatchReport> {
         let mut run = self.run_once(inputs, outputs, config, None)?;
-        let r = &run.report;
-        let failure = failure_window(
-            r.first_mismatch.as_ref().map(|m| m.1.cycle),
-            r.hang.as_ref().map(|h| h.cycle),
-            config,
-        );
+        let failure = failure_window(run.report.failure_cycle(), config);
         if let Some(dump) = failure {
             run.report.vcd = self
                 .run_once(inputs, outputs, config, Some(dump))?
@@ -350,7 +344,7 @@ impl IcarusMultiBatch {
             let pool: Vec<String> = (0..GARBAGE_POOL)
                 .map(|_| rng.bits(width).to_hex())
                 .collect();
-            write_lines(&dir.join(multi_pool_file(s, k)), &pool)?;
+            write_lines(&dir.join(pool_file(s, k)), &pool)?;
         }
         Ok(())
     }

@@ -49,7 +49,7 @@
 //! drivers' flags change in the observe phase, before the clock's two
 //! delays; the first cycle follows a `#1` after the first heads are loaded).
 
-use super::batch_tb_frame::{self, sig, TbBody};
+use super::batch_tb_frame::{self, pool_file, sig, TbBody};
 use super::batch_testbench::GARBAGE_POOL;
 use crate::design::{Design, PortId};
 use crate::tb::StreamPorts;
@@ -70,11 +70,6 @@ pub struct MultiTbSpec<'a> {
     pub outputs: &'a [StreamPorts],
     /// 1-bit outputs whose high cycles are counted (`P` record).
     pub pulses: &'a [PortId],
-}
-
-/// `$readmemh` file of input stream `s`'s payload port `k` garbage pool.
-pub fn multi_pool_file(s: usize, k: usize) -> String {
-    format!("pool_{s}_{k}.hex")
 }
 
 /// `$readmemh` file of input stream `s`'s gaps in chunk `c`.
@@ -151,7 +146,7 @@ fn input_code(d: &Design, s: usize, ports: &StreamPorts) -> InputCode {
         ));
         load_pools.push_str(&format!(
             "        $readmemh(\"{}\", hm_pool_{s}_{k});\n",
-            multi_pool_file(s, k)
+            pool_file(s, k)
         ));
         load_chunk.push_str(&format!(
             "                    $sformat(hm_fname, \"in_{s}_%0d_{k}.hex\", hm_next_{s} / {MULTI_STIM_CHUNK});\n                    $readmemh(hm_fname, hm_stim_{s}_{k}, 0, hm_chunk_last);\n"

@@ -14,7 +14,7 @@
 //! flushed immediately. Lines not starting with `@HM` (the design's own
 //! `$display`s, vvp notices) are ignored by the reader.
 
-use crate::design::{Design, PortDir};
+use crate::design::{Design, PortDir, PortId};
 
 /// Prefix of every reply line.
 pub const REPLY_PREFIX: &str = "@HM";
@@ -22,8 +22,9 @@ pub const REPLY_PREFIX: &str = "@HM";
 /// Name of the generated testbench module.
 pub const TB_MODULE: &str = "hm_tb";
 
-fn signal_name(idx: usize) -> String {
-    format!("hm_p{idx}")
+/// The testbench signal of a design port (every Icarus testbench's).
+pub fn sig(id: PortId) -> String {
+    format!("hm_p{}", id.0)
 }
 
 /// The testbench source for `design`.
@@ -35,7 +36,7 @@ pub fn generate_testbench(design: &Design) -> String {
     let mut outs = Vec::new();
     let mut max_in = 1;
     for (i, p) in design.ports.iter().enumerate() {
-        let s = signal_name(i);
+        let s = sig(PortId(i));
         let w = p.width;
         match p.dir {
             PortDir::Input => {
@@ -53,7 +54,7 @@ pub fn generate_testbench(design: &Design) -> String {
     }
     let clock_edge = match design.clock.as_deref().and_then(|c| design.port_id(c).ok()) {
         Some(id) => {
-            let c = signal_name(id.0);
+            let c = sig(id);
             format!("{c} = 1'b0; #1; {c} = 1'b1; #1;")
         }
         None => "#2;".to_string(),

@@ -9,9 +9,10 @@ use super::accounting::AccountingReport;
 use super::driver::StreamDriver;
 use super::monitor::StreamMonitor;
 use super::scoreboard::{FieldDecoder, Mismatch, Scoreboard};
+use super::stop_rule::{StopRule, Verdict};
 use super::stream::{StreamPorts, Transaction};
 use super::trace_window::TraceWindow;
-use super::watchdog::{Hang, Watchdog};
+use super::watchdog::Hang;
 use crate::engine::Engine;
 use crate::error::Result;
 use std::fmt;
@@ -33,6 +34,21 @@ pub struct StreamNames {
     pub out_ready: String,
     /// Output stream payload ports.
     pub out_payload: Vec<String>,
+}
+
+impl StreamNames {
+    /// The common shape: `in_valid`/`in_ready` with one payload port
+    /// `in_<payload>`, and the same for `out`.
+    pub fn single(payload: &str) -> Self {
+        StreamNames {
+            in_valid: "in_valid".into(),
+            in_ready: "in_ready".into(),
+            in_payload: vec![format!("in_{payload}")],
+            out_valid: "out_valid".into(),
+            out_ready: "out_ready".into(),
+            out_payload: vec![format!("out_{payload}")],
+        }
+    }
 }
 
 /// One input record and the outputs it must produce, in order.
@@ -127,6 +143,12 @@ impl BenchReport {
     /// Input records per cycle.
     pub fn inputs_per_cycle(&self) -> f64 {
         self.inputs_sent as f64 / self.cycles.max(1) as f64
+    }
+
+    /// The cycle a VCD should show: the first mismatch's, else the hang's.
+    pub fn failure_cycle(&self) -> Option<u64> {
+        let mismatch = self.first_mismatch.as_ref().map(|m| m.cycle);
+        mismatch.or(self.hang.as_ref().map(|h| h.cycle))
     }
 }
 
@@ -272,11 +294,8 @@ pub fn run_stream_bench_with_progress(
     engine.poke_u64(design.port_id(&names.out_ready)?, 0)?;
     engine.reset(config.reset_cycles)?;
 
-    let mut watchdog = Watchdog::new(config.watchdog_cycles);
-    watchdog.progress(engine.cycle());
+    let mut stop = StopRule::new(config, engine.cycle());
     let mut hang = None;
-    let mut drain_left: Option<u64> = None;
-    let mut next_progress = 0;
     loop {
         if let Some(w) = window.as_mut() {
             w.update(engine)?;
@@ -285,29 +304,23 @@ pub fn run_stream_bench_with_progress(
         monitor.drive(engine)?;
         engine.eval()?;
         if driver.observe(engine)?.is_some() {
-            watchdog.progress(engine.cycle());
+            stop.progress(engine.cycle());
         }
         if let Some(txn) = monitor.observe(engine)? {
-            watchdog.progress(engine.cycle());
+            stop.progress(engine.cycle());
             scoreboard.check(txn, engine.cycle());
         }
         let mismatch_stop = config.stop_on_mismatch && scoreboard.mismatches() > 0;
         let finished = driver.pending() == 0 && scoreboard.outstanding() == 0;
-        if finished && drain_left.is_none() {
-            drain_left = Some(config.drain_cycles);
-            watchdog = Watchdog::new(config.drain_cycles + 1);
-            watchdog.progress(engine.cycle());
+        match stop.after_cycle(engine, finished, mismatch_stop) {
+            Verdict::Go => {}
+            Verdict::Stop => break,
+            Verdict::Hang(h) => {
+                hang = Some(h);
+                break;
+            }
         }
-        if mismatch_stop || drain_left == Some(0) {
-            break;
-        }
-        drain_left = drain_left.map(|d| d - 1);
-        if let Some(h) = watchdog.check(engine) {
-            hang = Some(h);
-            break;
-        }
-        if engine.cycle() >= next_progress {
-            next_progress = engine.cycle() + PROGRESS_EVERY;
+        if stop.progress_due(engine.cycle()) {
             progress(Progress {
                 cycle: engine.cycle(),
                 outputs: scoreboard.compared(),
@@ -342,30 +355,28 @@ pub fn run_stream_bench_with_progress(
 
 /// Run once untraced; on a mismatch or hang, when `config.vcd_path` is set,
 /// run again on a tracing engine (`make_engine(true)`) with the same seed and
-/// write the cycles around the failure to that VCD.
+/// write the cycles around the failure to that VCD. `progress` follows the
+/// first run.
 pub fn run_with_vcd_on_failure(
     make_engine: &mut dyn FnMut(bool) -> Result<Box<dyn Engine>>,
     names: &StreamNames,
     vectors: &[Vector],
     make_decoder: &dyn Fn() -> Option<Box<FieldDecoder>>,
     config: &BenchConfig,
+    progress: &mut dyn FnMut(Progress),
 ) -> Result<BenchReport> {
     let mut engine = make_engine(false)?;
-    let mut report = run_stream_bench(
+    let mut report = run_stream_bench_with_progress(
         engine.as_mut(),
         names,
         vectors,
         make_decoder(),
         config,
         None,
+        progress,
     )?;
     drop(engine);
-    let failure_cycle = report
-        .first_mismatch
-        .as_ref()
-        .map(|m| m.cycle)
-        .or(report.hang.as_ref().map(|h| h.cycle));
-    if let (Some(cycle), Some(path)) = (failure_cycle, config.vcd_path.clone()) {
+    if let (Some(cycle), Some(path)) = (report.failure_cycle(), config.vcd_path.clone()) {
         let mut traced = make_engine(true)?;
         let window = TraceWindow::around(cycle, config.vcd_radius, path);
         let rerun = run_stream_bench(

@@ -7,6 +7,7 @@ pub mod monitor;
 pub mod multi;
 pub mod prng;
 pub mod scoreboard;
+pub mod stop_rule;
 pub mod stream;
 pub mod trace_window;
 pub mod watchdog;
@@ -24,6 +25,7 @@ pub use multi::{
 };
 pub use prng::Prng;
 pub use scoreboard::{FieldDecoder, FieldDiff, Mismatch, Scoreboard};
+pub use stop_rule::{StopRule, Verdict};
 pub use stream::{StreamPorts, Transaction};
 pub use trace_window::TraceWindow;
 pub use watchdog::{dump_ports, Hang, Watchdog};

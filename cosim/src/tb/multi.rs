@@ -6,13 +6,14 @@
 //! the drivers present every stream's beats as soon as they may, so the
 //! design meets every interleaving the stall patterns produce.
 
-use super::bench::{Progress, PROGRESS_EVERY};
+use super::bench::Progress;
 use super::driver::StreamDriver;
 use super::monitor::StreamMonitor;
 use super::scoreboard::{Mismatch, Scoreboard};
+use super::stop_rule::{StopRule, Verdict};
 use super::stream::{StreamPorts, Transaction};
 use super::trace_window::TraceWindow;
-use super::watchdog::{Hang, Watchdog};
+use super::watchdog::Hang;
 use super::BenchConfig;
 use crate::engine::Engine;
 use crate::error::Result;
@@ -106,6 +107,13 @@ impl MultiReport {
     /// Every beat matched, none missing, nothing hung.
     pub fn passed(&self) -> bool {
         self.mismatches == 0 && self.hang.is_none() && self.missing.iter().all(|m| m.1 == 0)
+    }
+
+    /// The cycle a VCD should show: the earliest mismatch on any stream,
+    /// else the hang's.
+    pub fn failure_cycle(&self) -> Option<u64> {
+        let mismatch = self.first_mismatch.as_ref().map(|m| m.1.cycle);
+        mismatch.or(self.hang.as_ref().map(|h| h.cycle))
     }
 
     /// The active window of stream `name`, if it moved any beat.
@@ -228,11 +236,8 @@ pub fn run_multi_stream_bench_traced(
         .collect::<Result<Vec<_>>>()?;
     let mut pulse_counts = vec![0u64; pulses.len()];
 
-    let mut watchdog = Watchdog::new(config.watchdog_cycles);
-    watchdog.progress(engine.cycle());
+    let mut stop = StopRule::new(config, engine.cycle());
     let mut hang = None;
-    let mut drain_left: Option<u64> = None;
-    let mut next_progress = 0;
     // Per stream (inputs, then outputs): beats, first and last transfer.
     let mut windows: Vec<(u64, u64, u64)> = vec![(0, 0, 0); inputs.len() + outputs.len()];
     let moved = |w: &mut (u64, u64, u64), cycle: u64| {
@@ -258,13 +263,13 @@ pub fn run_multi_stream_bench_traced(
         }
         for (j, d) in drivers.iter_mut().enumerate() {
             if d.observe(engine)?.is_some() {
-                watchdog.progress(engine.cycle());
+                stop.progress(engine.cycle());
                 moved(&mut windows[j], engine.cycle());
             }
         }
         for (j, (mon, board)) in monitors.iter_mut().enumerate() {
             if let Some(txn) = mon.observe(engine)? {
-                watchdog.progress(engine.cycle());
+                stop.progress(engine.cycle());
                 moved(&mut windows[inputs.len() + j], engine.cycle());
                 board.check(txn, engine.cycle());
             }
@@ -272,21 +277,15 @@ pub fn run_multi_stream_bench_traced(
         let mismatched = monitors.iter().any(|(_, b)| b.mismatches() > 0);
         let finished = drivers.iter().all(|d| d.pending() == 0)
             && monitors.iter().all(|(_, b)| b.outstanding() == 0);
-        if finished && drain_left.is_none() {
-            drain_left = Some(config.drain_cycles);
-            watchdog = Watchdog::new(config.drain_cycles + 1);
-            watchdog.progress(engine.cycle());
+        match stop.after_cycle(engine, finished, config.stop_on_mismatch && mismatched) {
+            Verdict::Go => {}
+            Verdict::Stop => break,
+            Verdict::Hang(h) => {
+                hang = Some(h);
+                break;
+            }
         }
-        if (config.stop_on_mismatch && mismatched) || drain_left == Some(0) {
-            break;
-        }
-        drain_left = drain_left.map(|d| d - 1);
-        if let Some(h) = watchdog.check(engine) {
-            hang = Some(h);
-            break;
-        }
-        if engine.cycle() >= next_progress {
-            next_progress = engine.cycle() + PROGRESS_EVERY;
+        if stop.progress_due(engine.cycle()) {
             progress(Progress {
                 cycle: engine.cycle(),
                 outputs: monitors.iter().map(|(_, b)| b.compared()).sum(),
@@ -382,12 +381,7 @@ pub fn run_multi_with_vcd_on_failure(
         progress,
     )?;
     drop(engine);
-    let failure_cycle = report
-        .first_mismatch
-        .as_ref()
-        .map(|m| m.1.cycle)
-        .or(report.hang.as_ref().map(|h| h.cycle));
-    if let (Some(cycle), Some(path)) = (failure_cycle, config.vcd_path.clone()) {
+    if let (Some(cycle), Some(path)) = (report.failure_cycle(), config.vcd_path.clone()) {
         let mut traced = make_engine(true)?;
         let window = TraceWindow::around(cycle, config.vcd_radius, path);
         let (rerun, _) = run_multi_stream_bench_traced(

@@ -18,8 +18,7 @@ use super::{EngineFactory, ProgressFn};
 use crate::bitvec::BitVec;
 use crate::error::{CosimError, Result};
 use crate::tb::{
-    run_stream_bench_with_progress, BenchConfig, BenchReport, StreamNames, TraceWindow,
-    Transaction, Vector,
+    run_with_vcd_on_failure, BenchConfig, BenchReport, StreamNames, Transaction, Vector,
 };
 
 /// The stage `hiermerge cosim --unit merge --stage merge-level` exercises
@@ -94,18 +93,6 @@ pub fn bench_vectors(levels: &[MergeVector], flip_expected: Option<usize>) -> Re
     Ok(out)
 }
 
-/// The unit's stream ports: `in` -> `out`, one `_data` payload each.
-pub fn stream_names() -> StreamNames {
-    StreamNames {
-        in_valid: "in_valid".into(),
-        in_ready: "in_ready".into(),
-        in_payload: vec!["in_data".into()],
-        out_valid: "out_valid".into(),
-        out_ready: "out_ready".into(),
-        out_payload: vec!["out_data".into()],
-    }
-}
-
 /// Decodes an output beat by field name: the node record's fields, the
 /// reference's, `kind` and `err`.
 pub fn decoder(p: &Params) -> Box<crate::tb::FieldDecoder> {
@@ -177,40 +164,18 @@ pub fn run_with_vcd_on_mismatch(
         in_stall: config.stall,
         out_stall: config.stall,
         reproduce: config.reproduce.clone(),
+        vcd_path: vcd,
+        vcd_radius: radius,
         ..BenchConfig::default()
     };
-    let names = stream_names();
-    let mut engine = make_engine(false)?;
-    let mut report = run_stream_bench_with_progress(
-        engine.as_mut(),
-        &names,
+    run_with_vcd_on_failure(
+        make_engine,
+        &StreamNames::single("data"),
         vectors,
-        Some(decoder(p)),
+        &|| Some(decoder(p)),
         &bench,
-        None,
         &mut |pr| progress(pr.outputs, pr.cycle),
-    )?;
-    drop(engine);
-    let failure_cycle = report
-        .first_mismatch
-        .as_ref()
-        .map(|m| m.cycle)
-        .or(report.hang.as_ref().map(|h| h.cycle));
-    if let (Some(cycle), Some(path)) = (failure_cycle, vcd) {
-        let mut traced = make_engine(true)?;
-        let window = TraceWindow::around(cycle, radius, path);
-        let rerun = run_stream_bench_with_progress(
-            traced.as_mut(),
-            &names,
-            vectors,
-            Some(decoder(p)),
-            &bench,
-            Some(window),
-            &mut |_| {},
-        )?;
-        report.vcd = rerun.vcd;
-    }
-    Ok(report)
+    )
 }
 
 #[cfg(test)]

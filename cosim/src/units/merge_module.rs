@@ -63,10 +63,6 @@ pub fn input_names(d: &MergeDesign) -> Vec<String> {
 /// Names of the unit's output streams.
 pub const OUTPUT_NAMES: [&str; 2] = ["report", "out"];
 
-fn bitvec(b: &Bits) -> Result<BitVec> {
-    BitVec::from_words(b.width() as usize, b.words())
-}
-
 fn golden_err(what: impl std::fmt::Display) -> CosimError {
     CosimError::Design {
         what: format!("golden merging module: {what}"),
@@ -88,7 +84,7 @@ fn pack_all<T>(
 ) -> Result<Vec<BitVec>> {
     items
         .iter()
-        .map(|x| bitvec(&pack(x).map_err(golden_err)?))
+        .map(|x| BitVec::from_layout(&pack(x).map_err(golden_err)?))
         .collect()
 }
 
@@ -104,7 +100,7 @@ fn random_merge(rng: &mut SplitMix64, d: &MergeDesign, most_voxels: usize) -> Re
             .transaction(p, num, den)
             .map_err(golden_err)?;
         return Ok(PackedMerge {
-            cfg: bitvec(&tl.pack_cfg(tx.lo, tx.hi).map_err(golden_err)?)?,
+            cfg: BitVec::from_layout(&tl.pack_cfg(tx.lo, tx.hi).map_err(golden_err)?)?,
             inputs: tx
                 .inputs
                 .iter()
@@ -117,7 +113,7 @@ fn random_merge(rng: &mut SplitMix64, d: &MergeDesign, most_voxels: usize) -> Re
     let li = BeatLayout::input(p);
     let tx = random_top_transaction(rng, p, d.inputs, &d.mode, most_voxels).map_err(golden_err)?;
     Ok(PackedMerge {
-        cfg: bitvec(&tl.pack_cfg(tx.lo, tx.hi).map_err(golden_err)?)?,
+        cfg: BitVec::from_layout(&tl.pack_cfg(tx.lo, tx.hi).map_err(golden_err)?)?,
         inputs: tx
             .inputs
             .iter()

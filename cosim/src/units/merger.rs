@@ -117,10 +117,6 @@ pub struct MergerStreams {
     pub stats: MergeStats,
 }
 
-fn bitvec(b: &Bits) -> Result<BitVec> {
-    BitVec::from_words(b.width() as usize, b.words())
-}
-
 /// A store read request (`f{i}_node_req`, `_ref_req`, `_cref_req`): the
 /// whole beat is the index read.
 fn index_field(fl: &FetchLayout) -> Field {
@@ -227,7 +223,7 @@ impl Lanes {
                     name,
                     beats: v
                         .iter()
-                        .map(|b| Ok(vec![bitvec(b)?]))
+                        .map(|b| Ok(vec![BitVec::from_layout(b)?]))
                         .collect::<Result<_>>()?,
                 })
             })

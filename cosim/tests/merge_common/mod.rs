@@ -54,18 +54,6 @@ pub fn engine(kind: &str, m: &Module, design: &Design) -> Box<dyn Engine> {
     }
 }
 
-/// `in` -> `out` stream names with one `_data` payload port each.
-pub fn stream_names() -> StreamNames {
-    StreamNames {
-        in_valid: "in_valid".into(),
-        in_ready: "in_ready".into(),
-        in_payload: vec!["in_data".into()],
-        out_valid: "out_valid".into(),
-        out_ready: "out_ready".into(),
-        out_payload: vec!["out_data".into()],
-    }
-}
-
 /// A golden packed beat as a cosim value.
 pub fn bitvec(b: &golden::layout::Bits) -> BitVec {
     BitVec::from_words(b.width() as usize, b.words()).expect("same width")
@@ -86,8 +74,15 @@ pub fn run(
         reproduce: Some(format!("cargo test -p cosim --test {what}")),
         ..BenchConfig::default()
     };
-    let report = run_stream_bench(engine, &stream_names(), vectors, None, &config, None)
-        .expect("the bench runs");
+    let report = run_stream_bench(
+        engine,
+        &StreamNames::single("data"),
+        vectors,
+        None,
+        &config,
+        None,
+    )
+    .expect("the bench runs");
     eprint!("{what}: stall {stall:.2}: {report}");
     assert!(report.passed(), "{what} stall {stall}:\n{report}");
     report
@@ -168,8 +163,11 @@ pub fn level_prefix(ends: &[usize], max: usize) -> usize {
 /// whole bench inside one `vvp` run) of `design` for the `in` -> `out`
 /// stream; built once, used for every Icarus run of a configuration.
 pub fn icarus_batch(design: &Design) -> cosim::icarus::IcarusBatch {
-    cosim::icarus::IcarusBatch::new(design, &cosim::icarus::BatchSpec::single(&stream_names()))
-        .expect("iverilog batch build")
+    cosim::icarus::IcarusBatch::new(
+        design,
+        &cosim::icarus::BatchSpec::single(&StreamNames::single("data")),
+    )
+    .expect("iverilog batch build")
 }
 
 /// Where a bench run goes: an engine stepped from Rust, or the Icarus batch mode.
@@ -199,10 +197,15 @@ pub fn run_sim(
         ..BenchConfig::default()
     };
     let report = match sim {
-        Sim::Stepped(mut e) => {
-            run_stream_bench(e.as_mut(), &stream_names(), vectors, None, &config, None)
-                .expect("the bench runs")
-        }
+        Sim::Stepped(mut e) => run_stream_bench(
+            e.as_mut(),
+            &StreamNames::single("data"),
+            vectors,
+            None,
+            &config,
+            None,
+        )
+        .expect("the bench runs"),
         Sim::Batch(b) => b
             .run_stream(vectors, None, &config)
             .unwrap_or_else(|e| panic!("{what}: {e}")),

@@ -8,9 +8,7 @@ use cosim::units::{merge, merge_module};
 use golden::vectors::merge::MergeDesign;
 
 use super::command_line::reproduce;
-use super::report::{
-    finish_report, multi_stream_failure, Counts, FieldReport, MismatchReport, Report, RunEnd,
-};
+use super::report::{chunked_failure, finish_report, Counts, FieldReport, MismatchReport, Report};
 use super::{bar, bench_config, count, factory, module_engine, vcd_path, Args, VCD_RADIUS};
 
 /// `--stage merge-level`: levels through the S614 stage, generated or from
@@ -143,21 +141,7 @@ pub(super) fn run_module(
     pb.finish_and_clear();
     let o = o.map_err(|e| e.to_string())?;
     let stage = merge_module::STAGE;
-    let end = RunEnd {
-        failed: !o.passed(),
-        started: o.cfg_accepted,
-        cycles: o.cycles,
-        hang: o.hang.as_ref(),
-        missing: &o.missing,
-        status: o.status_failure(),
-    };
-    let first = multi_stream_failure(
-        stage,
-        a.seed,
-        o.first_mismatch.as_ref(),
-        " of its chunk",
-        end,
-    );
+    let first = chunked_failure(stage, a.seed, &o);
     let counts = Counts {
         transactions: o.merges as u64,
         records: o.data_beats_in,

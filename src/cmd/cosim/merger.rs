@@ -7,7 +7,7 @@ use cosim::units::{check_stall, merger};
 use golden::vectors::merge::MergeDesign;
 
 use super::command_line::run_args;
-use super::report::{finish_report, multi_stream_failure, Counts, MergerReport, Report, RunEnd};
+use super::report::{chunked_failure, finish_report, Counts, MergerReport, Report};
 use super::{bar, bench_config, count, module_engine, Args, Unit, DEFAULT_COUNT};
 
 /// The hierarchy merger `a` asks for, validated.
@@ -102,16 +102,7 @@ pub(super) fn run(
     let o = o.map_err(|e| e.to_string())?;
     let (t, s) = (&o.totals, &o.stats);
     let stage = merger::STAGE;
-    let end = RunEnd {
-        failed: !o.passed(),
-        started: t.cfg_accepted,
-        cycles: t.cycles,
-        hang: t.hang.as_ref(),
-        missing: &t.missing,
-        status: t.status_failure(),
-    };
-    let mismatch = t.first_mismatch.as_ref();
-    let first = multi_stream_failure(stage, a.seed, mismatch, " of its chunk", end);
+    let first = chunked_failure(stage, a.seed, t);
     let counts = Counts {
         transactions: t.merges as u64,
         records: s.module_in,

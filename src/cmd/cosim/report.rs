@@ -4,6 +4,7 @@
 
 use std::path::PathBuf;
 
+use cosim::units::chunked::ChunkTotals;
 use cosim::units::merge_module::ModuleMismatch;
 use serde::Serialize;
 
@@ -138,8 +139,8 @@ pub(super) fn finish_report(
 
 /// The report of a multi-stream unit's first mismatched beat: its merge,
 /// stream and beat, each field of the stream's layout expected against got.
-/// `beat_is` says where the beat index counts from (`""`, ` of its chunk`).
-fn stream_mismatch(kind: &str, m: &ModuleMismatch, seed: u64, beat_is: &str) -> MismatchReport {
+/// The beat index counts from the start of its chunk.
+fn stream_mismatch(kind: &str, m: &ModuleMismatch, seed: u64) -> MismatchReport {
     MismatchReport {
         transaction: m.merge as u64,
         stream: Some(m.stream.clone()),
@@ -148,7 +149,7 @@ fn stream_mismatch(kind: &str, m: &ModuleMismatch, seed: u64, beat_is: &str) -> 
         cycle: m.cycle,
         seed,
         what: format!(
-            "`{}` beat {}{beat_is} (merge {}) differs",
+            "`{}` beat {} of its chunk (merge {}) differs",
             m.stream, m.beat, m.merge
         ),
         fields: m
@@ -202,61 +203,42 @@ pub(super) fn print_text(r: &Report) {
     }
 }
 
-/// How a multi-stream run ended, for its failure report.
-pub(super) struct RunEnd<'a> {
-    /// Anything wrong: a mismatch, a hang, missing beats, a status rule.
-    pub(super) failed: bool,
-    /// Transactions started (`cfg` beats accepted).
-    pub(super) started: u64,
-    pub(super) cycles: u64,
-    pub(super) hang: Option<&'a cosim::tb::Hang>,
-    pub(super) missing: &'a [(String, usize)],
-    /// What the status outputs (`done`, `idle`) got wrong.
-    pub(super) status: Option<String>,
-}
-
-/// The first failure of a multi-stream run (merging module, hierarchy
-/// merger): its first mismatched beat ([`stream_mismatch`]), else, when it
-/// failed, [`no_mismatch_failure`]; None when it passed.
-pub(super) fn multi_stream_failure(
-    kind: &str,
-    seed: u64,
-    mismatch: Option<&ModuleMismatch>,
-    beat_is: &str,
-    end: RunEnd,
-) -> Option<MismatchReport> {
-    match mismatch {
-        Some(m) => Some(stream_mismatch(kind, m, seed, beat_is)),
-        None if end.failed => Some(no_mismatch_failure(kind, seed, end)),
+/// The first failure of a chunked multi-stream run (merging module,
+/// hierarchy merger): its first mismatched beat ([`stream_mismatch`]), else,
+/// when it failed, [`no_mismatch_failure`]; None when it passed.
+pub(super) fn chunked_failure(kind: &str, seed: u64, t: &ChunkTotals) -> Option<MismatchReport> {
+    match &t.first_mismatch {
+        Some(m) => Some(stream_mismatch(kind, m, seed)),
+        None if !t.passed() => Some(no_mismatch_failure(kind, seed, t)),
         None => None,
     }
 }
 
-/// The report of a multi-stream run that failed without a mismatched beat:
-/// a hang, expected beats that never came, or a status output (`done`,
+/// The report of a chunked run that failed without a mismatched beat: a
+/// hang, expected beats that never came, or a status output (`done`,
 /// `idle`) that broke its rule; its transaction is the last one started.
-fn no_mismatch_failure(kind: &str, seed: u64, end: RunEnd) -> MismatchReport {
-    let missing: Vec<String> = end
+fn no_mismatch_failure(kind: &str, seed: u64, t: &ChunkTotals) -> MismatchReport {
+    let missing: Vec<String> = t
         .missing
         .iter()
         .filter(|m| m.1 > 0)
         .map(|(s, n)| format!("{n} `{s}` beats"))
         .collect();
     MismatchReport {
-        transaction: end.started.saturating_sub(1),
+        transaction: t.cfg_accepted.saturating_sub(1),
         stream: None,
         beat: None,
         kind: kind.to_string(),
-        cycle: end.hang.map_or(end.cycles, |h| h.cycle),
+        cycle: t.hang.as_ref().map_or(t.cycles, |h| h.cycle),
         seed,
-        what: match (end.hang, missing.is_empty()) {
+        what: match (&t.hang, missing.is_empty()) {
             (Some(h), _) => format!(
                 "no handshake for {} cycles; missing {}",
                 h.idle_cycles,
                 missing.join(", ")
             ),
             (None, false) => format!("missing {}", missing.join(", ")),
-            (None, true) => end.status.unwrap_or_default(),
+            (None, true) => t.status_failure().unwrap_or_default(),
         },
         fields: Vec::new(),
     }

@@ -118,6 +118,18 @@ fn vectors(ins: Vec<BitVec>, outs: Vec<BitVec>) -> Vec<Vector> {
         .collect()
 }
 
+/// The stored hierarchies `ids` of `world`, the merge's inputs.
+fn stored_inputs<'w>(world: &'w World, ids: &[u8]) -> Result<Vec<&'w Hierarchy>, String> {
+    ids.iter()
+        .map(|&i| {
+            world
+                .store
+                .get(i)
+                .ok_or(format!("merge RTL: no hierarchy {i}"))
+        })
+        .collect()
+}
+
 impl MergeRtl {
     /// Runs the stages the scene uses on the merge of `ids` at `level`.
     pub fn run_frame(
@@ -130,15 +142,7 @@ impl MergeRtl {
     ) -> Result<MergeRtlFrame, String> {
         let start = std::time::Instant::now();
         let p: Params = world.params;
-        let hs: Vec<&Hierarchy> = ids
-            .iter()
-            .map(|&i| {
-                world
-                    .store
-                    .get(i)
-                    .ok_or(format!("merge RTL: no hierarchy {i}"))
-            })
-            .collect::<Result<_, _>>()?;
+        let hs = stored_inputs(world, ids)?;
         let (lo, hi) = candidate_range(&hs);
         let walked: Vec<WalkedInput> = hs
             .iter()
@@ -298,15 +302,7 @@ impl MergeRtl {
     ) -> Result<MergeRtlFrame, String> {
         let start = std::time::Instant::now();
         let p: Params = world.params;
-        let hs: Vec<&Hierarchy> = ids
-            .iter()
-            .map(|&i| {
-                world
-                    .store
-                    .get(i)
-                    .ok_or(format!("merge RTL: no hierarchy {i}"))
-            })
-            .collect::<Result<_, _>>()?;
+        let hs = stored_inputs(world, ids)?;
         let (lo, hi) = candidate_range(&hs);
         let case = PerNodeCase {
             hierarchies: hs.iter().map(|h| (*h).clone()).collect(),
@@ -429,7 +425,7 @@ fn bench(
     let before = engine.cycle();
     let r = run_stream_bench(
         &mut *engine,
-        &cosim::units::merge::stream_names(),
+        &cosim::tb::StreamNames::single("data"),
         v,
         None,
         &config,

@@ -384,7 +384,10 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
             let t = Instant::now();
             let b = bar(options, format!("frame {k} per-node merge RTL"));
             b.set_length(1);
-            let stats = rep.merge_stats.as_ref().expect("a redone merge has stats");
+            let stats = rep
+                .merge_stats
+                .as_ref()
+                .ok_or("per-node merge RTL: the frame's merge has no statistics")?;
             let r = merge_rtl.run_per_node_frame(&frames.world, &ids, (num, den), stats)?;
             b.finish_and_clear();
             if r.build_seconds > 0.0 {

@@ -563,7 +563,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves_active;                      // rtl-gen/src/merge/merger.rs:983
     wire used0_not_2;                        // rtl-gen/src/merge/merger.rs:993
     wire used0_or_2;                         // rtl-gen/src/merge/merger.rs:993
-    wire [47:0] u_fetch0_cat;                // rtl-gen/src/merge/network.rs:46
+    wire [47:0] u_fetch0_cat;                // rtl-gen/src/merge/network.rs:39
     wire [53:0] leaf_key0;                   // rtl-gen/src/merge/merger.rs:993
     wire used0_not_3;                        // rtl-gen/src/merge/merger.rs:995
     wire used0_or_3;                         // rtl-gen/src/merge/merger.rs:995
@@ -573,7 +573,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire used0_and_9;                        // rtl-gen/src/merge/merger.rs:996
     wire used1_not_2;                        // rtl-gen/src/merge/merger.rs:993
     wire used1_or_2;                         // rtl-gen/src/merge/merger.rs:993
-    wire [47:0] u_fetch1_cat;                // rtl-gen/src/merge/network.rs:46
+    wire [47:0] u_fetch1_cat;                // rtl-gen/src/merge/network.rs:39
     wire [53:0] leaf_key1;                   // rtl-gen/src/merge/merger.rs:993
     wire used1_not_3;                        // rtl-gen/src/merge/merger.rs:995
     wire used1_or_3;                         // rtl-gen/src/merge/merger.rs:995
@@ -583,7 +583,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire used0_and_10;                       // rtl-gen/src/merge/merger.rs:996
     wire used2_not_2;                        // rtl-gen/src/merge/merger.rs:993
     wire used2_or_2;                         // rtl-gen/src/merge/merger.rs:993
-    wire [47:0] u_fetch2_cat;                // rtl-gen/src/merge/network.rs:46
+    wire [47:0] u_fetch2_cat;                // rtl-gen/src/merge/network.rs:39
     wire [53:0] leaf_key2;                   // rtl-gen/src/merge/merger.rs:993
     wire used2_not_3;                        // rtl-gen/src/merge/merger.rs:995
     wire used2_or_3;                         // rtl-gen/src/merge/merger.rs:995
@@ -593,7 +593,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire used0_and_11;                       // rtl-gen/src/merge/merger.rs:996
     wire used3_not_2;                        // rtl-gen/src/merge/merger.rs:993
     wire used3_or_2;                         // rtl-gen/src/merge/merger.rs:993
-    wire [47:0] u_fetch3_cat;                // rtl-gen/src/merge/network.rs:46
+    wire [47:0] u_fetch3_cat;                // rtl-gen/src/merge/network.rs:39
     wire [53:0] leaf_key3;                   // rtl-gen/src/merge/merger.rs:993
     wire used3_not_3;                        // rtl-gen/src/merge/merger.rs:995
     wire used3_or_3;                         // rtl-gen/src/merge/merger.rs:995

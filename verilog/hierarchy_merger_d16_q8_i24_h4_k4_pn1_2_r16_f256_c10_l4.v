@@ -577,7 +577,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire leaves_active;                      // rtl-gen/src/merge/merger.rs:983
     wire used0_not_2;                        // rtl-gen/src/merge/merger.rs:993
     wire used0_or;                           // rtl-gen/src/merge/merger.rs:993
-    wire [47:0] u_fetch0_cat_1;              // rtl-gen/src/merge/network.rs:46
+    wire [47:0] u_fetch0_cat_1;              // rtl-gen/src/merge/network.rs:39
     wire [53:0] leaf_key0;                   // rtl-gen/src/merge/merger.rs:993
     wire used0_not_3;                        // rtl-gen/src/merge/merger.rs:995
     wire used0_or_1;                         // rtl-gen/src/merge/merger.rs:995
@@ -587,7 +587,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire used0_and_2;                        // rtl-gen/src/merge/merger.rs:996
     wire used1_not_2;                        // rtl-gen/src/merge/merger.rs:993
     wire used1_or;                           // rtl-gen/src/merge/merger.rs:993
-    wire [47:0] u_fetch1_cat_1;              // rtl-gen/src/merge/network.rs:46
+    wire [47:0] u_fetch1_cat_1;              // rtl-gen/src/merge/network.rs:39
     wire [53:0] leaf_key1;                   // rtl-gen/src/merge/merger.rs:993
     wire used1_not_3;                        // rtl-gen/src/merge/merger.rs:995
     wire used1_or_1;                         // rtl-gen/src/merge/merger.rs:995
@@ -597,7 +597,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire used0_and_3;                        // rtl-gen/src/merge/merger.rs:996
     wire used2_not_2;                        // rtl-gen/src/merge/merger.rs:993
     wire used2_or;                           // rtl-gen/src/merge/merger.rs:993
-    wire [47:0] u_fetch2_cat_1;              // rtl-gen/src/merge/network.rs:46
+    wire [47:0] u_fetch2_cat_1;              // rtl-gen/src/merge/network.rs:39
     wire [53:0] leaf_key2;                   // rtl-gen/src/merge/merger.rs:993
     wire used2_not_3;                        // rtl-gen/src/merge/merger.rs:995
     wire used2_or_1;                         // rtl-gen/src/merge/merger.rs:995
@@ -607,7 +607,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire used0_and_4;                        // rtl-gen/src/merge/merger.rs:996
     wire used3_not_2;                        // rtl-gen/src/merge/merger.rs:993
     wire used3_or;                           // rtl-gen/src/merge/merger.rs:993
-    wire [47:0] u_fetch3_cat_1;              // rtl-gen/src/merge/network.rs:46
+    wire [47:0] u_fetch3_cat_1;              // rtl-gen/src/merge/network.rs:39
     wire [53:0] leaf_key3;                   // rtl-gen/src/merge/merger.rs:993
     wire used3_not_3;                        // rtl-gen/src/merge/merger.rs:995
     wire used3_or_1;                         // rtl-gen/src/merge/merger.rs:995

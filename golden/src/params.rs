@@ -91,6 +91,15 @@ impl Params {
         Ok(())
     }
 
+    /// The parameters as a short name for modules and files:
+    /// `d16_q8_i24_h4` (`D`, `Q`, index bits, hierarchy-id bits).
+    pub fn tag(&self) -> String {
+        format!(
+            "d{}_q{}_i{}_h{}",
+            self.max_lod, self.quant_bits, self.index_bits, self.hier_bits
+        )
+    }
+
     /// Bits of a LOD field: enough to hold `0..=D`.
     pub fn lod_bits(&self) -> u32 {
         bits_to_hold(self.max_lod as u64)

@@ -92,11 +92,8 @@ impl TranslateDesign {
     pub fn tag(&self) -> String {
         let p = self.params();
         format!(
-            "d{}_q{}_i{}_h{}_t{}_{}",
-            p.max_lod,
-            p.quant_bits,
-            p.index_bits,
-            p.hier_bits,
+            "{}_t{}_{}",
+            p.tag(),
             self.unit.table_depth,
             if self.binary64 { "b64" } else { "b32" }
         )

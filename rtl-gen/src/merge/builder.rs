@@ -18,16 +18,13 @@ use golden::merge::builder_unit::{level_out_kind, BuilderLayout};
 use golden::merge::unit::{base_kind, UpperLayout};
 use golden::params::Params;
 
-use super::fields::field;
+use super::fields::{coords, field};
 use super::{morton_code, upper_level_unit};
 use crate::{Module, Signal, Stream};
 
 /// Module name of the upper builder for `p`.
 pub fn upper_builder_name(p: &Params) -> String {
-    format!(
-        "upper_builder_d{}_q{}_i{}_h{}",
-        p.max_lod, p.quant_bits, p.index_bits, p.hier_bits
-    )
+    format!("upper_builder_{}", p.tag())
 }
 
 /// The head of one level's stream: the beat stage `d` would pass now.
@@ -72,11 +69,6 @@ fn base_fields<'m>(m: &'m Module, bl: &BuilderLayout, data: Signal<'m>) -> BaseF
             ),
         ),
     }
-}
-
-/// The voxel coordinates of a record's `x`, `y`, `z` fields.
-fn coords<'m>(rec: Signal<'m>, nl: &golden::layout::NodeLayout) -> [Signal<'m>; 3] {
-    [0, 1, 2].map(|a| field(rec, nl.coord(a)).expect("coordinate bits"))
 }
 
 /// `a * b`, unsigned, `width` bits wide (enough for the product): shift

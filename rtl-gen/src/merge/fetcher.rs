@@ -21,17 +21,14 @@ use golden::merge::fetch_unit::{fetch_err, FetchLayout, FetchSizes};
 use golden::merge::unit::{level_kind, BeatLayout};
 use golden::params::{bits_to_hold, Params};
 
-use super::fields::{field, with_fields, Word};
+use super::fields::{coords, field, with_fields, Word};
 use super::network::morton_code;
 use super::sorter::root_sorter_unit;
 use crate::{Module, Signal, Stream};
 
 /// Module name of the fetcher.
 pub fn fetcher_name(p: &Params, sizes: &FetchSizes) -> String {
-    format!(
-        "fetcher_d{}_q{}_i{}_h{}_r{}_f{}",
-        p.max_lod, p.quant_bits, p.index_bits, p.hier_bits, sizes.roots, sizes.frontier
-    )
+    format!("fetcher_{}_r{}_f{}", p.tag(), sizes.roots, sizes.frontier)
 }
 
 /// Module name of the fetcher built with the per-node command.
@@ -171,7 +168,7 @@ fn check_and_move<'m>(
     let lb = p.lod_bits();
     let dmax = p.max_lod as u32;
     let lod = field(rec, nl.lod()).expect("lod");
-    let coords = [0, 1, 2].map(|a| field(rec, nl.coord(a)).expect("coordinate"));
+    let coords = coords(rec, nl);
     let mut bad = coords
         .iter()
         .map(|c| c.srl(lod).ne(0))
@@ -688,13 +685,7 @@ fn fetcher_unit_with(p: &Params, sizes: &FetchSizes, pn: bool) -> Module {
     let leaf = field(rec, nl.leaf()).expect("leaf").name("item_leaf");
     let inner = !leaf;
     let key = m
-        .concat(&[
-            morton_code(
-                &m,
-                [0, 1, 2].map(|a| field(rec, nl.coord(a)).expect("coord")),
-            ),
-            leaf,
-        ])
+        .concat(&[morton_code(&m, coords(rec, nl)), leaf])
         .name("item_key");
     let n_first = field(rec, nl.first()).expect("first");
     let n_count = field(rec, nl.count()).expect("count");

@@ -2,7 +2,7 @@
 //! layout's [`Field`]s: the one place the merge generators turn a field
 //! description into slices, so no offset is restated.
 
-use golden::layout::Field;
+use golden::layout::{Field, NodeLayout};
 
 use crate::{Module, Signal};
 
@@ -11,6 +11,12 @@ use crate::{Module, Signal};
 #[track_caller]
 pub fn field<'m>(record: Signal<'m>, f: &Field) -> Option<Signal<'m>> {
     (f.width > 0).then(|| record.slice(f.end() - 1, f.offset))
+}
+
+/// The voxel coordinates of a node record: its `x`, `y`, `z` fields.
+#[track_caller]
+pub fn coords<'m>(record: Signal<'m>, nl: &NodeLayout) -> [Signal<'m>; 3] {
+    [0, 1, 2].map(|a| field(record, nl.coord(a)).expect("coordinates are never zero-width"))
 }
 
 /// The contiguous bits from field `first` to field `last` inclusive (e.g.

@@ -26,10 +26,7 @@ use crate::{Module, Stream};
 
 /// Module name of the S614 unit for `p`.
 pub fn merge_level_name(p: &Params) -> String {
-    format!(
-        "merge_level_d{}_q{}_i{}_h{}",
-        p.max_lod, p.quant_bits, p.index_bits, p.hier_bits
-    )
+    format!("merge_level_{}", p.tag())
 }
 
 /// The S614 unit for `p`: stream `in` of [`BeatLayout::input`] beats,

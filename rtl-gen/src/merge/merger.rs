@@ -18,7 +18,7 @@ use golden::merge::top::TopLayout;
 use golden::merge::unit::{base_kind, level_kind, rank_bits, BeatLayout};
 use golden::merge::MergeMode;
 
-use super::fields::{field, with_fields};
+use super::fields::{coords, field, with_fields};
 use super::network::morton_code;
 use super::{
     fetcher_per_node_unit, fetcher_unit, merge_module_name, merge_module_unit, record_writer_unit,
@@ -988,7 +988,7 @@ fn merge_leaves<'m>(m: &'m Module, t: LeafInputs<'_, 'm>) -> MergedLeaves<'m> {
     for &(v, d, i) in leaves_in {
         let end = get(d, &fl.leaf_end);
         let rec = get(d, &fl.leaf_rec);
-        let xyz = [0, 1, 2].map(|a| field(rec, nl.coord(a)).expect("coordinate"));
+        let xyz = coords(rec, nl);
         let key = m
             .concat(&[!used[i] | end, get(d, &fl.leaf_lod), morton_code(m, xyz)])
             .name(&format!("leaf_key{i}"));

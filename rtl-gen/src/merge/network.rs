@@ -14,23 +14,16 @@
 //! back-pressure the skid buffers keep them all present and one beat leaves
 //! per clock. When every head is `End`, one `End` leaves and all are taken.
 
-use golden::layout::NodeLayout;
 use golden::merge::unit::{level_kind, rank_bits, BeatLayout};
 use golden::params::Params;
 
-use super::fields::field;
+use super::fields::{coords, field};
 use crate::{Module, Signal, Stream};
 
 /// Module name of the merge network for `p`, `k` inputs, rank tag or not.
 pub fn morton_merge_name(p: &Params, k: usize, tag_rank: bool) -> String {
-    format!(
-        "morton_merge_d{}_q{}_i{}_h{}_k{k}{}",
-        p.max_lod,
-        p.quant_bits,
-        p.index_bits,
-        p.hier_bits,
-        if tag_rank { "_ranked" } else { "" }
-    )
+    let rank = if tag_rank { "_ranked" } else { "" };
+    format!("morton_merge_{}_k{k}{rank}", p.tag())
 }
 
 /// The Morton code of a voxel's coordinates, bit `i` of `x`, `y`, `z` at
@@ -44,11 +37,6 @@ pub fn morton_code<'m>(m: &'m Module, xyz: [Signal<'m>; 3]) -> Signal<'m> {
         }
     }
     m.concat(&high_first)
-}
-
-/// The voxel coordinates of a record's `x`, `y`, `z` fields.
-fn coords<'m>(rec: Signal<'m>, nl: &NodeLayout) -> [Signal<'m>; 3] {
-    [0, 1, 2].map(|a| field(rec, nl.coord(a)).expect("coordinate bits"))
 }
 
 /// One input of a merge network as the shared choice sees it: its head

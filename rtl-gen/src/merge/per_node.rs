@@ -21,33 +21,21 @@ use golden::merge::top::{choice_err, TopLayout};
 use golden::merge::unit::{base_kind, level_kind, rank_bits, BeatLayout};
 use golden::params::Params;
 
-use super::fields::{field, with_fields};
+use super::fields::{coords, field, with_fields};
 use super::network::{morton_code, take_minimum_head, MergeHead};
 use super::overlap::times_constant;
 use super::top::merge_module_name;
 use super::{merge_level_unit, MergeConfig};
 use crate::{Module, Signal, Stream};
 
-fn widths_tag(p: &Params) -> String {
-    format!(
-        "d{}_q{}_i{}_h{}",
-        p.max_lod, p.quant_bits, p.index_bits, p.hier_bits
-    )
-}
-
 /// Module name of the per-node merge network for `p` and `k` inputs.
 pub fn per_node_network_name(p: &Params, k: usize) -> String {
-    format!("per_node_network_{}_k{k}", widths_tag(p))
+    format!("per_node_network_{}_k{k}", p.tag())
 }
 
 /// Module name of the per-node decider for `p`, `k` inputs, `num / den`.
 pub fn per_node_decider_name(p: &Params, k: usize, num: u32, den: u32) -> String {
-    format!("per_node_decider_{}_k{k}_t{num}_{den}", widths_tag(p))
-}
-
-/// The voxel coordinates of a record.
-fn coords<'m>(rec: Signal<'m>, bl: &BeatLayout) -> [Signal<'m>; 3] {
-    [0, 1, 2].map(|a| field(rec, bl.node.coord(a)).expect("coordinate bits"))
+    format!("per_node_decider_{}_k{k}_t{num}_{den}", p.tag())
 }
 
 /// The merge network of the per-node passes: streams `in0`..`in{k-1}` of
@@ -82,7 +70,7 @@ pub fn per_node_network_unit(p: &Params, k: usize) -> Module {
             .name(&format!("in{i}_kind"));
         let is_end = (!probe & kind.eq(level_kind::END)).name(&format!("in{i}_is_end"));
         let is_ref = !probe & kind.eq(level_kind::CHILD_REF);
-        let xyz = coords(field(beat, &bl.rec).expect("record bits"), bl);
+        let xyz = coords(field(beat, &bl.rec).expect("record bits"), &bl.node);
         let last: [Signal; 3] = [0, 1, 2].map(|a| {
             m.reg(
                 &format!("in{i}_parent_{}", ["x", "y", "z"][a]),
@@ -170,7 +158,7 @@ pub fn per_node_decider_unit(p: &Params, k: usize, num: u32, den: u32) -> Module
     let is_end = (!probe & kind.eq(level_kind::END)).name("in_is_end");
     let is_inner = !probe & kind.eq(level_kind::INNER);
     let is_ref = !probe & kind.eq(level_kind::CHILD_REF);
-    let xyz = coords(field(beat, &bl.rec).expect("record bits"), bl);
+    let xyz = coords(field(beat, &bl.rec).expect("record bits"), &bl.node);
 
     let run = m.reg("probe_run", 1);
     let g_any = m.reg("g_any", 8);

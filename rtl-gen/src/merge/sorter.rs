@@ -24,10 +24,7 @@ use crate::{Module, Signal, Stream};
 
 /// Module name of the root sorter.
 pub fn root_sorter_name(p: &Params, capacity: usize) -> String {
-    format!(
-        "root_sorter_d{}_q{}_i{}_h{}_n{}",
-        p.max_lod, p.quant_bits, p.index_bits, p.hier_bits, capacity
-    )
+    format!("root_sorter_{}_n{capacity}", p.tag())
 }
 
 /// The sort key of a beat: the Morton code of its voxel (bit `i` of x, y, z

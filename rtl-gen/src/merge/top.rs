@@ -43,13 +43,9 @@ fn mode_tag(mode: &MergeMode) -> String {
 
 /// Module name of the merging module for `c`.
 pub fn merge_module_name(c: &MergeConfig) -> String {
-    let p = &c.params;
     format!(
-        "merge_module_d{}_q{}_i{}_h{}_k{}_{}",
-        p.max_lod,
-        p.quant_bits,
-        p.index_bits,
-        p.hier_bits,
+        "merge_module_{}_k{}_{}",
+        c.params.tag(),
         c.inputs,
         mode_tag(&c.mode)
     )

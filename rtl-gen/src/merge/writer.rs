@@ -28,10 +28,7 @@ use crate::{Memory, Module, Signal, Stream};
 /// Module name of the record writer for `p` with `2^capacity_bits` entries
 /// per level.
 pub fn record_writer_name(p: &Params, capacity_bits: u32) -> String {
-    format!(
-        "record_writer_d{}_q{}_i{}_h{}_c{}",
-        p.max_lod, p.quant_bits, p.index_bits, p.hier_bits, capacity_bits
-    )
+    format!("record_writer_{}_c{capacity_bits}", p.tag())
 }
 
 /// One of the writer's buffers: a simple dual-port RAM of `depth` words of

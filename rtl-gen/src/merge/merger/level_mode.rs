@@ -1,0 +1,359 @@
+//! The merger of a level-choice configuration (`overlap`, `fixed`,
+//! `below-top`, `proportion`; SPEC 8.15): a count pass over `lo..=hi`,
+//! the merging module's choice, then one merge pass at the chosen level.
+
+use golden::merge::merger_unit::MergerLayout;
+use golden::merge::top::TopLayout;
+use golden::merge::unit::{base_kind, level_kind, rank_bits, BeatLayout};
+
+use super::drop_fifo::DropFifo;
+use super::leaf_merge::{merge_leaves, LeafInputs, MergedLeaves};
+use super::tail::{finish_merger, Tail};
+use super::{
+    get, hierarchy_merger_name, pass_stream, phase, range_good, shell, store_streams, MergerConfig,
+    Shell,
+};
+use crate::merge::fields::with_fields;
+use crate::merge::{fetcher_unit, record_writer_unit};
+use crate::{Module, Signal};
+
+/// The count pass runs in overlap mode on a good range (the merging
+/// module's own test, 8.10).
+fn counts_pass<'m>(m: &'m Module, c: &MergerConfig, lo: Signal<'m>, hi: Signal<'m>) -> Signal<'m> {
+    match c.design.threshold() {
+        None => m.lit(0, 1),
+        Some(_) => range_good(m, c, lo, hi),
+    }
+}
+
+/// The merger of a level-choice configuration: [`super::hierarchy_merger_unit`]
+/// once `c` is validated and its mode is not per-node.
+pub(super) fn level_merger_unit(c: &MergerConfig) -> Result<Module, String> {
+    let p = &c.design.params;
+    let k = c.design.inputs;
+    let ml = MergerLayout::new(p, k, c.sizes.capacity_bits).map_err(|e| e.to_string())?;
+    let fl = &ml.fetch;
+    let wl = &ml.writer;
+    let tl = TopLayout::new(p);
+    let inb = BeatLayout::input(p);
+    let outb = BeatLayout::output(p);
+    let lb = p.lod_bits();
+    let dmax = p.max_lod as usize;
+    let m = Module::new(&hierarchy_merger_name(c));
+    let lit = |v: u64, w: u32| m.lit(v as u128, w);
+    let fetch_mod = fetcher_unit(p, &c.fetch_sizes());
+    let writer_mod = record_writer_unit(p, c.sizes.capacity_bits).map_err(|e| e.to_string())?;
+    let Shell {
+        zero,
+        one,
+        fetchers,
+        module,
+        builder,
+        writer,
+        busy,
+        dropping,
+        header_fire,
+        cfg,
+        cfg_fire,
+        cfg_q,
+        count_in,
+        count_q,
+        lo,
+        hi,
+        out_id,
+    } = shell(&m, c, &ml, &fetch_mod, &writer_mod);
+    let counting_in =
+        counts_pass(&m, c, get(cfg.data, &ml.lo), get(cfg.data, &ml.hi)).name("count_pass");
+    let cw = ml.count.width;
+    let used_in: Vec<Signal> = (0..k).map(|i| count_in.gt(lit(i as u64, cw))).collect();
+    let used: Vec<Signal> = (0..k)
+        .map(|i| count_q.gt(lit(i as u64, cw)).name(&format!("used{i}")))
+        .collect();
+
+    // ---- the choice, read off the module's report on its way out.
+    let report_ready = m.input("report_ready", 1);
+    let report_valid = module.output("report_valid");
+    let report_data = module.output("report_data");
+    module.connect("report_ready", report_ready);
+    m.output("report_valid", report_valid);
+    m.output("report_data", report_data);
+    let chosen_beat =
+        (report_valid & report_ready & get(report_data, &tl.chosen).eq(1)).name("choice_seen");
+    let known = m.reg("choice_known", 1);
+    let ok = m.reg("choice_ok", 1);
+    let level = m.reg("merge_lod", lb);
+    known.next(chosen_beat.mux(one, header_fire.mux(zero, known)));
+    ok.next(chosen_beat.mux(get(report_data, &tl.err).eq(0), header_fire.mux(zero, ok)));
+    level.next_when(chosen_beat, get(report_data, &tl.lod));
+    let merging = (known & ok).name("merging");
+
+    // ---- cfg beats to the module, the fetchers and the writer.
+    let mcfg_pend = m.reg("module_cfg_pending", 1);
+    module.connect("cfg_valid", mcfg_pend);
+    module.connect(
+        "cfg_data",
+        with_fields(&m, lit(0, tl.cfg_width), &[(tl.lo, lo), (tl.hi, hi)]),
+    );
+    let mcfg_fire = mcfg_pend & module.output("cfg_ready");
+    mcfg_pend.next(cfg_fire.mux(one, mcfg_fire.mux(zero, mcfg_pend)));
+    let wcfg_pend = m.reg("writer_cfg_pending", 1);
+    writer.connect("cfg_valid", wcfg_pend);
+    writer.connect(
+        "cfg_data",
+        with_fields(&m, lit(0, wl.cfg_width), &[(wl.cfg_out_id, out_id)]),
+    );
+    let wcfg_fire = wcfg_pend & writer.output("cfg_ready");
+    wcfg_pend.next(cfg_fire.mux(one, wcfg_fire.mux(zero, wcfg_pend)));
+
+    // ---- per input: its cfg, its commands, its stream into the module.
+    let rb = rank_bits(k);
+    let ferr = m.reg("fetch_err", fl.err.width);
+    let ferr_rank = m.reg("fetch_rank", rb);
+    let mut ferr_next = header_fire.mux(lit(0, fl.err.width), ferr);
+    let mut ferr_rank_next = header_fire.mux(lit(0, rb), ferr_rank);
+    let end_beat = with_fields(
+        &m,
+        lit(0, inb.width),
+        &[(inb.kind, lit(level_kind::END, 2))],
+    );
+    let mut leaves_in = Vec::new();
+    for (i, f) in fetchers.iter().enumerate() {
+        let fcfg_pend = m.reg(&format!("fetch{i}_cfg_pending"), 1);
+        f.connect("cfg_valid", fcfg_pend);
+        let off = ml.input_offset(i);
+        f.connect("cfg_data", cfg_q.slice(off + fl.cfg_width - 1, off));
+        let fcfg_fire = fcfg_pend & f.output("cfg_ready");
+        fcfg_pend.next(cfg_fire.mux(used_in[i], fcfg_fire.mux(zero, fcfg_pend)));
+
+        let ph = m.reg(&format!("phase{i}"), phase::BITS);
+        let in_ph = |v: u64| ph.eq(lit(v, phase::BITS));
+        // The candidate level an unused input's next `End` stands for.
+        let cmd_lod = m.reg(&format!("cmd_lod{i}"), lb);
+        let count_ph = in_ph(phase::COUNT);
+        let final_ph = in_ph(phase::FINAL);
+        let lod = count_ph.mux(hi, merging.mux(level, lo));
+        let cmd_data = with_fields(
+            &m,
+            lit(0, fl.cmd_width),
+            &[
+                (fl.lod, lod),
+                (fl.send_refs, final_ph & merging),
+                // The leaves above m come with level m (SPEC 8.15: no
+                // deadlock, the fetcher ends `leaves` before level m).
+                (fl.send_leaves, final_ph & merging),
+                (fl.last, final_ph),
+                // The count pass sends lo..=hi from one walk; the other
+                // commands one level.
+                (fl.from, count_ph.mux(lo, lod)),
+            ],
+        );
+        let issuing = (count_ph | final_ph).name(&format!("issuing{i}"));
+        f.connect("cmd_valid", used[i] & issuing);
+        f.connect("cmd_data", cmd_data);
+        let cmd_fire = used[i] & issuing & f.output("cmd_ready");
+
+        // The module's in<i>: the fetcher's beats, or one End per pass for
+        // an unused input; the closing command's beats are dropped.
+        let in_ready = module.output(&format!("in{i}_ready"));
+        let fo_valid = f.output("out_valid");
+        let fo_data = f.output("out_data");
+        let fo_err = get(fo_data, &fl.err);
+        let fo_beat = fo_data.slice(fl.beat.width - 1, 0);
+        let fo_end = get(fo_beat, &inb.kind).eq(level_kind::END);
+        let virt = (!used[i] & (count_ph | (final_ph & merging))).name(&format!("virtual_end{i}"));
+        let drop = dropping[i];
+        module.connect(&format!("in{i}_valid"), used[i].mux(fo_valid & !drop, virt));
+        module.connect(&format!("in{i}_data"), used[i].mux(fo_beat, end_beat));
+        f.connect("out_ready", drop | (used[i] & in_ready));
+        let fo_fire = fo_valid & (drop | (used[i] & in_ready));
+        let virt_fire = virt & in_ready;
+        let first_err = fo_fire & fo_err.ne(0) & ferr_next.eq(0);
+        ferr_next = first_err.mux(fo_err, ferr_next);
+        ferr_rank_next = first_err.mux(lit(i as u64, rb), ferr_rank_next);
+        // An unused input has no closing command.
+        let skip = !used[i] & final_ph & !merging;
+        let step = (cmd_fire | virt_fire | skip).name(&format!("step{i}"));
+        let last_count = cmd_lod.eq(hi);
+        let after_step = count_ph.mux(
+            (used[i] | last_count).mux(lit(phase::WAIT, phase::BITS), ph),
+            lit(phase::DONE, phase::BITS),
+        );
+        let after_choice = lit(phase::FINAL, phase::BITS);
+        let ph_next = cfg_fire.mux(
+            counting_in.mux(
+                lit(phase::COUNT, phase::BITS),
+                lit(phase::WAIT, phase::BITS),
+            ),
+            header_fire.mux(
+                lit(phase::NONE, phase::BITS),
+                step.mux(
+                    after_step,
+                    (in_ph(phase::WAIT) & known).mux(after_choice, ph),
+                ),
+            ),
+        );
+        ph.next(ph_next);
+        cmd_lod.next(cfg_fire.mux(
+            get(cfg.data, &ml.lo),
+            (step & count_ph).mux(cmd_lod.add(1, lb), cmd_lod),
+        ));
+        let drop_issued = cmd_fire & final_ph & !merging;
+        dropping[i].next(drop_issued.mux(one, (fo_fire & fo_end).mux(zero, dropping[i])));
+
+        // The store ports (every `*_req` / `*_resp` stream), straight through.
+        for (port, dir, w) in store_streams(&fetch_mod) {
+            pass_stream(&m, *f, &port, &format!("f{i}_{port}"), dir, w);
+        }
+        leaves_in.push((f.output("leaves_valid"), f.output("leaves_data"), i));
+    }
+    ferr.next(ferr_next);
+    ferr_rank.next(ferr_rank_next);
+
+    // ---- the leaves above m: k-way merge by (LOD, Morton, rank).
+    let MergedLeaves {
+        done: leaves_done,
+        take: take_leaf,
+        data: best_data,
+        lod: best_lod,
+    } = merge_leaves(
+        &m,
+        LeafInputs {
+            fl,
+            busy,
+            header_fire,
+            used: &used,
+            leaves_in: &leaves_in,
+            fetchers: &fetchers,
+            rb,
+        },
+    );
+    // A FIFO word: the leaves beat's `rec` and `ref` (from bit 0).
+    let word_w = fl.leaf_ref.end().max(fl.leaf_rec.end());
+    let word = best_data.slice(word_w - 1, 0);
+
+    // ---- routing of the module's out.
+    let mo_valid = module.output("out_valid");
+    let mo_data = module.output("out_data");
+    let mo_kind = get(mo_data, &outb.kind);
+    let mo_ref = mo_kind.eq(base_kind::REF).name("out_is_ref");
+    let mo_end = mo_kind.eq(base_kind::END).name("out_is_end");
+    let mo_err = get(mo_data, outb.err.as_ref().expect("an output beat has err"));
+    let mo_refer = get(mo_data, &outb.refer);
+    let mo_beat = with_fields(
+        &m,
+        lit(0, inb.width),
+        &[
+            (inb.rec, get(mo_data, &outb.rec)),
+            (inb.refer, mo_refer),
+            (inb.kind, mo_kind),
+        ],
+    );
+
+    // crefs: the reference beats, then End (a refused merge: End alone).
+    let csent = m.reg("crefs_end_sent", 1);
+    let cref_ready = writer.output("crefs_ready");
+    let cref_valid = !csent & known & (!ok | (mo_valid & (mo_ref | mo_end)));
+    let cref_is_end = !ok | mo_end;
+    let cref_data = with_fields(
+        &m,
+        lit(0, wl.cref_width),
+        &[
+            (
+                wl.cref,
+                (ok & mo_ref).mux(mo_refer, lit(0, mo_refer.width())),
+            ),
+            (wl.cref_end, cref_is_end),
+        ],
+    );
+    writer.connect("crefs_valid", cref_valid);
+    writer.connect("crefs_data", cref_data);
+    let cref_fire = cref_valid & cref_ready;
+    csent.next((cref_fire & cref_is_end).mux(one, header_fire.mux(zero, csent)));
+
+    // base{d}: the module's nodes at m, a leaf FIFO above m, End below m or
+    // when refused.
+    let cb = c.sizes.leaf_bits;
+    let mut base_m_ready = zero;
+    let mut base_m_sent = zero;
+    let mut leaf_over = m.reg("leaf_overflow", 1);
+    let mut over_next = header_fire.mux(zero, leaf_over);
+    let reused_kind = lit(base_kind::REUSED, 2);
+    for d in 0..=dmax {
+        let dl = lit(d as u64, lb);
+        let bsent = m.reg(&format!("base{d}_end_sent"), 1);
+        let ready = builder.output(&format!("base{d}_ready"));
+        let at_m = (merging & level.eq(dl)).name(&format!("base{d}_at_m"));
+        let (valid, data, is_end) = if d < dmax {
+            // The FIFO of LOD d.
+            let q = DropFifo::new(&m, &format!("leaves{d}"), &format!("leaves{d}"), word_w, cb);
+            let (empty, full) = (q.empty, q.full);
+            let push = take_leaf & best_lod.eq(dl);
+            q.write(word, push);
+            over_next = (push & full).mux(one, over_next);
+            let head = q.head();
+            let above = (merging & dl.lt(level)).name(&format!("base{d}_above_m"));
+            let leaf_beat = with_fields(
+                &m,
+                lit(0, inb.width),
+                &[
+                    (inb.rec, get(head, &fl.leaf_rec)),
+                    (inb.refer, get(head, &fl.leaf_ref)),
+                    (inb.kind, reused_kind),
+                ],
+            );
+            let fifo_end = empty & leaves_done;
+            let valid = !bsent
+                & (at_m & mo_valid & !mo_ref
+                    | above & (!empty | leaves_done)
+                    | known & !at_m & !above);
+            let data = at_m.mux(mo_beat, (above & !empty).mux(leaf_beat, end_beat));
+            let is_end = at_m.mux(mo_end, above.mux(fifo_end, one));
+            let pop = valid & ready & above & !empty;
+            q.advance(push, pop, header_fire);
+            (valid, data, is_end)
+        } else {
+            let valid = !bsent & (at_m & mo_valid & !mo_ref | known & !at_m);
+            let data = at_m.mux(mo_beat, end_beat);
+            let is_end = at_m.mux(mo_end, one);
+            (valid, data, is_end)
+        };
+        builder.connect(&format!("base{d}_valid"), valid);
+        builder.connect(&format!("base{d}_data"), data);
+        let fire = valid & ready;
+        bsent.next((fire & is_end).mux(one, header_fire.mux(zero, bsent)));
+        base_m_ready = at_m.mux(ready & !bsent, base_m_ready);
+        base_m_sent = at_m.mux(bsent, base_m_sent);
+    }
+    leaf_over.next(over_next);
+    leaf_over = leaf_over.name("leaf_overflow_q");
+    let mo_ready = merging
+        & mo_ref.mux(
+            cref_ready,
+            mo_end.mux(
+                (base_m_sent | base_m_ready) & (csent | cref_ready),
+                base_m_ready,
+            ),
+        );
+    module.connect("out_ready", mo_ready);
+    let count_over = m.reg("count_overflow", 1);
+    let created = mo_kind.eq(base_kind::CREATED);
+    count_over
+        .next((mo_valid & mo_ready & created & mo_err).mux(one, header_fire.mux(zero, count_over)));
+
+    finish_merger(
+        &m,
+        Tail {
+            dmax,
+            module,
+            builder,
+            writer,
+            writer_mod: &writer_mod,
+            ml: &ml,
+            header_fire,
+            flags: [leaf_over, count_over, ferr, ferr_rank],
+            busy,
+            dropping: &dropping,
+        },
+    );
+    Ok(m)
+}

@@ -1,0 +1,286 @@
+//! The hierarchy merger as one top module (SPEC.md section 8.15): S610-S618
+//! end to end. `k` fetchers walk the inputs in the store, the merging module
+//! chooses the level and merges it, the upper builder builds every level
+//! above, the record writer lays out the merged hierarchy; the glue here is
+//! a controller (the fetchers' `cfg` and commands, pass by pass), the routing
+//! of the merging module's `out` (nodes to the builder's `base{m}`,
+//! references to the writer's `crefs`), and the leaves above `m`: a k-way
+//! merge by (LOD, Morton, rank) into one FIFO per LOD, because the builder
+//! takes `base{d}` at its own pace while level `m` streams.
+//!
+//! Golden: `golden::merge::merger_unit::merger_transaction`, the chain of the
+//! units' own transactions.
+
+use golden::merge::fetch_unit::FetchSizes;
+use golden::merge::merger_unit::{MergerLayout, MergerSizes};
+use golden::merge::unit::BeatLayout;
+use golden::merge::MergeMode;
+
+use super::fields::field;
+use super::{merge_module_name, merge_module_unit, upper_builder_unit, MergeConfig};
+use crate::{Direction, Module, Signal, Stream};
+
+mod drop_fifo;
+mod leaf_merge;
+mod level_mode;
+mod per_node_mode;
+mod tail;
+
+/// The merger's configuration: the merging module's design (grid
+/// parameters, `k` inputs, mode, root-sorter capacity) and the sizes of the
+/// fetchers' frontier FIFOs, the writer's buffers and the leaf FIFOs.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MergerConfig {
+    /// The merging module's design; its `roots` is every fetcher's root
+    /// sorter capacity.
+    pub design: MergeConfig,
+    /// Frontier FIFO (`fetch.frontier`; `fetch.roots` is not read), writer
+    /// capacity and leaf FIFO sizes.
+    pub sizes: MergerSizes,
+}
+
+impl MergerConfig {
+    /// The merging module's default with `sizes` from
+    /// [`MergerSizes::new`] (roots from the design).
+    pub fn new(design: MergeConfig) -> MergerConfig {
+        let mut sizes = MergerSizes::new(&design.params);
+        sizes.fetch.roots = design.roots;
+        MergerConfig { design, sizes }
+    }
+
+    /// The fetchers' sizes (the root sorter's capacity is the design's).
+    pub fn fetch_sizes(&self) -> FetchSizes {
+        FetchSizes {
+            roots: self.design.roots,
+            frontier: self.sizes.fetch.frontier,
+        }
+    }
+
+    /// Refuses what the merger cannot build: what the merging module
+    /// refuses, a writer capacity outside `1..I`,
+    /// leaf FIFOs outside `1..=16` bits, a frontier outside `1..=2^16`.
+    pub fn validate(&self) -> Result<(), String> {
+        self.design.validate()?;
+        let p = &self.design.params;
+        MergerLayout::new(p, self.design.inputs, self.sizes.capacity_bits)
+            .map_err(|e| e.to_string())?;
+        if !(1..=16).contains(&self.sizes.leaf_bits) {
+            return Err(format!(
+                "leaf_bits = {}: expected 1..=16 (a leaf FIFO of 2^leaf_bits per LOD)",
+                self.sizes.leaf_bits
+            ));
+        }
+        if !(1..=1 << 16).contains(&self.sizes.fetch.frontier) {
+            return Err(format!(
+                "frontier = {}: expected 1..=65536",
+                self.sizes.fetch.frontier
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Module name of the merger for `c`.
+pub fn hierarchy_merger_name(c: &MergerConfig) -> String {
+    let inner = merge_module_name(&c.design);
+    let rest = inner.strip_prefix("merge_module_").unwrap_or(&inner);
+    format!(
+        "hierarchy_merger_{rest}_r{}_f{}_c{}_l{}",
+        c.design.roots, c.sizes.fetch.frontier, c.sizes.capacity_bits, c.sizes.leaf_bits
+    )
+}
+
+/// Phases of one input's command issuer.
+pub(super) mod phase {
+    /// No merge.
+    pub const NONE: u64 = 0;
+    /// The count pass: one command walking to `hi` and sending `lo..=hi`
+    /// (an unused input: one `End` per candidate LOD from the glue).
+    pub const COUNT: u64 = 1;
+    /// Waiting for the merging module's choice.
+    pub const WAIT: u64 = 2;
+    /// Issuing the merge-pass (or closing) command.
+    pub const FINAL: u64 = 3;
+    /// Every command issued.
+    pub const DONE: u64 = 4;
+    pub const BITS: u32 = 3;
+}
+
+/// Field `f` of `s`.
+pub(super) fn get<'m>(s: Signal<'m>, f: &golden::layout::Field) -> Signal<'m> {
+    field(s, f).expect("a non-empty field")
+}
+
+/// The merging module's range check (8.10, 8.14): `lo <= hi` and `hi <= D`
+/// when the field can hold more.
+pub(super) fn range_good<'m>(
+    m: &'m Module,
+    c: &MergerConfig,
+    lo: Signal<'m>,
+    hi: Signal<'m>,
+) -> Signal<'m> {
+    let lb = c.design.params.lod_bits();
+    let dmax = c.design.params.max_lod as u128;
+    let beyond = if (1u128 << lb) - 1 > dmax {
+        hi.gt(m.lit(dmax, lb))
+    } else {
+        m.lit(0, 1)
+    };
+    !(lo.gt(hi) | beyond)
+}
+
+/// What both merger bodies start with: the instances (a fetcher per input,
+/// the merging module, the upper builder, the writer) and the `cfg`
+/// handshake. A merge is taken when none is in progress and every unit is
+/// idle, and held in `cfg_q` until its header leaves (`header_fire`).
+pub(super) struct Shell<'m> {
+    pub(super) zero: Signal<'m>,
+    pub(super) one: Signal<'m>,
+    pub(super) fetchers: Vec<crate::Instance<'m>>,
+    pub(super) module: crate::Instance<'m>,
+    pub(super) builder: crate::Instance<'m>,
+    pub(super) writer: crate::Instance<'m>,
+    pub(super) busy: Signal<'m>,
+    /// Set while a command whose `out` beats are dropped (the closing
+    /// command) has not sent its End.
+    pub(super) dropping: Vec<Signal<'m>>,
+    pub(super) header_fire: Signal<'m>,
+    pub(super) cfg: Stream<'m>,
+    pub(super) cfg_fire: Signal<'m>,
+    pub(super) cfg_q: Signal<'m>,
+    /// The input count of the `cfg` beat arriving, and of the merge held.
+    pub(super) count_in: Signal<'m>,
+    pub(super) count_q: Signal<'m>,
+    pub(super) lo: Signal<'m>,
+    pub(super) hi: Signal<'m>,
+    pub(super) out_id: Signal<'m>,
+}
+
+/// The [`Shell`] of a merger `m` of `c`, its fetchers instances of
+/// `fetch_mod` (level-mode or per-node) and its writer of `writer_mod`.
+pub(super) fn shell<'m>(
+    m: &'m Module,
+    c: &MergerConfig,
+    ml: &MergerLayout,
+    fetch_mod: &Module,
+    writer_mod: &Module,
+) -> Shell<'m> {
+    let p = &c.design.params;
+    let k = c.design.inputs;
+    let zero = m.lit(0, 1);
+    let one = m.lit(1, 1);
+    let fetchers: Vec<_> = (0..k)
+        .map(|i| m.instance(&format!("u_fetch{i}"), fetch_mod))
+        .collect();
+    let module = m.instance("u_module", &merge_module_unit(&c.design));
+    let builder = m.instance("u_builder", &upper_builder_unit(p));
+    let writer = m.instance("u_writer", writer_mod);
+
+    let busy = m.reg("busy", 1);
+    let dropping: Vec<Signal> = (0..k).map(|i| m.reg(&format!("dropping{i}"), 1)).collect();
+    let header_fire = m.wire("header_fire", 1);
+    let mut quiet = !busy & module.output("idle");
+    for (i, f) in fetchers.iter().enumerate() {
+        quiet = quiet & f.output("idle") & !dropping[i];
+    }
+    let quiet = quiet.name("quiet");
+    let cfg = Stream::input(m, "cfg", ml.cfg_width);
+    cfg.ready.drive(quiet);
+    let cfg_fire = cfg.fire().name("cfg_fire");
+    let cfg_q = m.reg("cfg_q", ml.cfg_width);
+    cfg_q.next_when(cfg_fire, cfg.data);
+    busy.next(cfg_fire.mux(one, header_fire.mux(zero, busy)));
+    Shell {
+        zero,
+        one,
+        fetchers,
+        module,
+        builder,
+        writer,
+        busy,
+        dropping,
+        header_fire,
+        cfg,
+        cfg_fire,
+        cfg_q,
+        count_in: get(cfg.data, &ml.count),
+        count_q: get(cfg_q, &ml.count),
+        lo: get(cfg_q, &ml.lo).name("lo"),
+        hi: get(cfg_q, &ml.hi).name("hi"),
+        out_id: get(cfg_q, &ml.out_id),
+    }
+}
+
+/// A child's store-port streams: `(name, direction, data width)` of every
+/// stream whose name ends in `_req` (out) or `_resp` (in).
+pub(super) fn store_streams(child: &Module) -> Vec<(String, Direction, u32)> {
+    let ports = child.ports();
+    ports
+        .iter()
+        .filter_map(|q| {
+            let name = q.name.strip_suffix("_valid")?;
+            (name.ends_with("_req") || name.ends_with("_resp")).then(|| {
+                let w = ports
+                    .iter()
+                    .find(|x| x.name == format!("{name}_data"))
+                    .map_or(0, |x| x.width);
+                (name.to_string(), q.direction, w)
+            })
+        })
+        .collect()
+}
+
+/// Stream `port` of instance `inst` as this module's stream `outer`: an
+/// output stream (`dir` Output) leaves, an input stream (`width` bits)
+/// comes in.
+pub(super) fn pass_stream<'m>(
+    m: &'m Module,
+    inst: crate::Instance<'m>,
+    port: &str,
+    outer: &str,
+    dir: Direction,
+    width: u32,
+) {
+    match dir {
+        Direction::Output => {
+            let s = Stream {
+                valid: inst.output(&format!("{port}_valid")),
+                data: inst.output(&format!("{port}_data")),
+                ready: m.wire(&format!("{outer}_ready_w"), 1),
+            };
+            inst.connect(&format!("{port}_ready"), s.ready);
+            s.output(outer);
+        }
+        Direction::Input => {
+            let s = Stream::input(m, outer, width);
+            inst.connect(&format!("{port}_valid"), s.valid);
+            inst.connect(&format!("{port}_data"), s.data);
+            s.ready.drive(inst.output(&format!("{port}_ready")));
+        }
+    }
+}
+/// The whole of a beat layout as one field from bit 0.
+pub(super) fn field_of(b: &BeatLayout) -> golden::layout::Field {
+    golden::layout::Field {
+        name: "beat",
+        offset: 0,
+        width: b.width,
+    }
+}
+
+/// The hierarchy merger for `c`; an error when `c.validate()` refuses it.
+///
+/// Ports: `clk`, `rst`; streams `cfg` (in, [`MergerLayout::cfg_width`]),
+/// `report` (out, the merging module's), `nodes`, `refs` (out, the
+/// writer's), `header` (out, [`MergerLayout::header_width`]); every store
+/// port stream (`*_req` out, `*_resp` in) of fetcher `i` as `f{i}_<name>`
+/// (`f{i}_node_req`, `f{i}_ref_req`, ...) and of the writer as `w_<name>`,
+/// not arbitrated; outputs `idle`, `done` (one clock after a header leaves),
+/// `module_done` and the writer's status outputs as `w_<name>`.
+pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
+    c.validate()?;
+    match c.design.mode {
+        MergeMode::PerNode { .. } => per_node_mode::per_node_merger_unit(c),
+        _ => level_mode::level_merger_unit(c),
+    }
+}

@@ -1,0 +1,352 @@
+//! The merger of a `per-node:N/D` configuration (SPEC 8.15, per-node mode).
+
+use golden::merge::fetch_unit::FetchLayout;
+use golden::merge::merger_unit::MergerLayout;
+use golden::merge::per_node_unit::PerNodeLayout;
+use golden::merge::top::TopLayout;
+use golden::merge::unit::{base_kind, level_kind, rank_bits, BeatLayout};
+
+use super::drop_fifo::DropFifo;
+use super::leaf_merge::{merge_leaves, LeafInputs, MergedLeaves};
+use super::tail::{finish_merger, Tail};
+use super::{
+    field_of, get, hierarchy_merger_name, pass_stream, range_good, shell, store_streams,
+    MergerConfig, Shell,
+};
+use crate::merge::fields::{field, with_fields};
+use crate::merge::{fetcher_per_node_unit, record_writer_unit};
+use crate::{Module, Signal};
+
+/// The merger of a `per-node:N/D` configuration (SPEC 8.15, per-node mode):
+/// every used fetcher gets one per-node command at `lo` (references, the
+/// leaves above `lo`, last) and the module's `report` (the narrow beat of
+/// [`golden::merge::fetch_unit::PerNodeFetchLayout`]); the module's `out`
+/// nodes of every pass go into the FIFO of their LOD (the leaves above `lo`
+/// into theirs), its reference beats to the writer's `crefs`. The builder
+/// sees the base only once the module is done: a shallower pass's nodes
+/// cannot pass the builder's stage before every deeper level is known.
+pub(super) fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
+    let p = &c.design.params;
+    let k = c.design.inputs;
+    let ml = MergerLayout::new(p, k, c.sizes.capacity_bits).map_err(|e| e.to_string())?;
+    let fl = FetchLayout::per_node(p);
+    let fpn = fl.pn.as_ref().expect("a per-node fetch layout");
+    let wl = &ml.writer;
+    let tl = TopLayout::new(p);
+    let pl = PerNodeLayout::new(p);
+    let inb = BeatLayout::input(p);
+    let outb = BeatLayout::output(p);
+    let lb = p.lod_bits();
+    let dmax = p.max_lod as usize;
+    let m = Module::new(&hierarchy_merger_name(c));
+    let lit = |v: u64, w: u32| m.lit(v as u128, w);
+    let fetch_mod = fetcher_per_node_unit(p, &c.fetch_sizes());
+    let writer_mod = record_writer_unit(p, c.sizes.capacity_bits).map_err(|e| e.to_string())?;
+    let Shell {
+        zero,
+        one,
+        fetchers,
+        module,
+        builder,
+        writer,
+        busy,
+        dropping,
+        header_fire,
+        cfg,
+        cfg_fire,
+        cfg_q,
+        count_in,
+        count_q,
+        lo,
+        hi,
+        out_id,
+    } = shell(&m, c, &ml, &fetch_mod, &writer_mod);
+    let good_in = range_good(&m, c, get(cfg.data, &ml.lo), get(cfg.data, &ml.hi)).name("good_in");
+    let good = range_good(&m, c, lo, hi).name("range_good");
+    let cw = ml.count.width;
+    let used_in: Vec<Signal> = (0..k).map(|i| count_in.gt(lit(i as u64, cw))).collect();
+    let used: Vec<Signal> = (0..k)
+        .map(|i| count_q.gt(lit(i as u64, cw)).name(&format!("used{i}")))
+        .collect();
+
+    // ---- the module's end: its `done` pulse (after the last pass's End
+    // left `out`, or after a refusal's report beat).
+    let finished = m.reg("module_finished", 1);
+    finished.next((busy & module.output("done")).mux(one, header_fire.mux(zero, finished)));
+
+    // ---- cfg beats to the module and the writer.
+    let mcfg_pend = m.reg("module_cfg_pending", 1);
+    module.connect("cfg_valid", mcfg_pend);
+    module.connect(
+        "cfg_data",
+        with_fields(&m, lit(0, tl.cfg_width), &[(tl.lo, lo), (tl.hi, hi)]),
+    );
+    let mcfg_fire = mcfg_pend & module.output("cfg_ready");
+    mcfg_pend.next(cfg_fire.mux(one, mcfg_fire.mux(zero, mcfg_pend)));
+    let wcfg_pend = m.reg("writer_cfg_pending", 1);
+    writer.connect("cfg_valid", wcfg_pend);
+    writer.connect(
+        "cfg_data",
+        with_fields(&m, lit(0, wl.cfg_width), &[(wl.cfg_out_id, out_id)]),
+    );
+    let wcfg_fire = wcfg_pend & writer.output("cfg_ready");
+    wcfg_pend.next(cfg_fire.mux(one, wcfg_fire.mux(zero, wcfg_pend)));
+
+    // ---- report: an eager fork to the top's `report` and, as the narrow
+    // beat, to every fetcher running the per-node command. Each side takes
+    // the beat once (`taken`); the module's beat leaves when all have.
+    let rep_v = module.output("report_valid");
+    let rep_d = module.output("report_data");
+    let narrow = with_fields(
+        &m,
+        lit(0, fpn.report_width),
+        &fpn.report_sources(&pl)
+            .map(|(to, from)| (to, get(rep_d, &from))),
+    )
+    .name("report_narrow");
+    let top_taken = m.reg("report_top_taken", 1);
+    let report_ready = m.input("report_ready", 1);
+    m.output("report_valid", rep_v & !top_taken);
+    m.output("report_data", rep_d);
+    let mut all_took = top_taken | report_ready;
+    let mut fork = vec![(top_taken, rep_v & !top_taken & report_ready)];
+    for (i, f) in fetchers.iter().enumerate() {
+        let taken = m.reg(&format!("report{i}_taken"), 1);
+        let feeds = (busy & used[i] & good).name(&format!("report{i}_feeds"));
+        let v = rep_v & feeds & !taken;
+        f.connect("report_valid", v);
+        f.connect("report_data", narrow);
+        let r = f.output("report_ready");
+        all_took = all_took & (!feeds | taken | r);
+        fork.push((taken, v & r));
+    }
+    let all_took = all_took.name("report_all_took");
+    module.connect("report_ready", all_took);
+    let rep_fire = (rep_v & all_took).name("report_fire");
+    for (taken, fire) in fork {
+        taken.next(rep_fire.mux(zero, fire.mux(one, taken)));
+    }
+    let next_pass = (rep_fire & get(rep_d, &pl.pass_end) & get(rep_d, &pl.more)).name("next_pass");
+
+    // ---- per input: its cfg, its command, its stream into the module.
+    let rb = rank_bits(k);
+    let ferr = m.reg("fetch_err", fl.err.width);
+    let ferr_rank = m.reg("fetch_rank", rb);
+    let mut ferr_next = header_fire.mux(lit(0, fl.err.width), ferr);
+    let mut ferr_rank_next = header_fire.mux(lit(0, rb), ferr_rank);
+    let end_beat = with_fields(
+        &m,
+        lit(0, inb.width),
+        &[(inb.kind, lit(level_kind::END, 2))],
+    );
+    let end_in = with_fields(&m, lit(0, pl.in_width), &[(field_of(&inb), end_beat)]);
+    let mut leaves_in = Vec::new();
+    for (i, f) in fetchers.iter().enumerate() {
+        let fcfg_pend = m.reg(&format!("fetch{i}_cfg_pending"), 1);
+        f.connect("cfg_valid", fcfg_pend);
+        let off = ml.input_offset(i);
+        f.connect("cfg_data", cfg_q.slice(off + fl.cfg_width - 1, off));
+        let fcfg_fire = fcfg_pend & f.output("cfg_ready");
+        fcfg_pend.next(cfg_fire.mux(used_in[i], fcfg_fire.mux(zero, fcfg_pend)));
+
+        // One command per merge: per-node at lo on a good range, else the
+        // closing command (its beats dropped).
+        let cmd_pend = m.reg(&format!("cmd{i}_pending"), 1);
+        let cmd_data = with_fields(
+            &m,
+            lit(0, fl.cmd_width),
+            &[
+                (fl.lod, lo),
+                (fl.send_refs, good),
+                (fl.send_leaves, good),
+                (fl.last, one),
+                (fl.from, lo),
+                (fpn.per_node, good),
+            ],
+        );
+        f.connect("cmd_valid", cmd_pend);
+        f.connect("cmd_data", cmd_data);
+        let cmd_fire = cmd_pend & f.output("cmd_ready");
+        cmd_pend.next(cfg_fire.mux(used_in[i], cmd_fire.mux(zero, cmd_pend)));
+
+        // The module's in<i>: the fetcher's beats (err dropped, probe
+        // kept), or for an unused input one End per pass: owed from the
+        // start and after every `pass_end` beat with `more`.
+        let in_ready = module.output(&format!("in{i}_ready"));
+        let fo_valid = f.output("out_valid");
+        let fo_data = f.output("out_data");
+        let fo_err = get(fo_data, &fl.err);
+        let fo_beat = fo_data.slice(fl.beat.width - 1, 0);
+        let fo_end = get(fo_beat, &inb.kind).eq(level_kind::END);
+        let fo_in = with_fields(
+            &m,
+            lit(0, pl.in_width),
+            &[
+                (field_of(&inb), fo_beat),
+                (pl.probe, get(fo_data, &fpn.probe)),
+            ],
+        );
+        let owed = m.reg(&format!("end_owed{i}"), 1);
+        let virt = (!used[i] & owed).name(&format!("virtual_end{i}"));
+        let drop = dropping[i];
+        module.connect(&format!("in{i}_valid"), used[i].mux(fo_valid & !drop, virt));
+        module.connect(&format!("in{i}_data"), used[i].mux(fo_in, end_in));
+        f.connect("out_ready", drop | (used[i] & in_ready));
+        let fo_fire = fo_valid & (drop | (used[i] & in_ready));
+        let virt_fire = virt & in_ready;
+        owed.next(cfg_fire.mux(
+            !used_in[i] & good_in,
+            header_fire.mux(
+                zero,
+                (next_pass & !used[i]).mux(one, virt_fire.mux(zero, owed)),
+            ),
+        ));
+        let first_err = fo_fire & fo_err.ne(0) & ferr_next.eq(0);
+        ferr_next = first_err.mux(fo_err, ferr_next);
+        ferr_rank_next = first_err.mux(lit(i as u64, rb), ferr_rank_next);
+        let drop_issued = cmd_fire & !good;
+        dropping[i].next(drop_issued.mux(one, (fo_fire & fo_end).mux(zero, dropping[i])));
+
+        // The store ports (every `*_req` / `*_resp` stream, the probe port
+        // included), straight through.
+        for (port, dir, w) in store_streams(&fetch_mod) {
+            pass_stream(&m, *f, &port, &format!("f{i}_{port}"), dir, w);
+        }
+        leaves_in.push((f.output("leaves_valid"), f.output("leaves_data"), i));
+    }
+    ferr.next(ferr_next);
+    ferr_rank.next(ferr_rank_next);
+
+    // ---- the leaves above lo: k-way merge by (LOD, Morton, rank).
+    let MergedLeaves {
+        done: leaves_done,
+        take: take_leaf,
+        data: best_data,
+        lod: best_lod,
+    } = merge_leaves(
+        &m,
+        LeafInputs {
+            fl: &fl,
+            busy,
+            header_fire,
+            used: &used,
+            leaves_in: &leaves_in,
+            fetchers: &fetchers,
+            rb,
+        },
+    );
+    let nl = &fl.node;
+    let leaf_beat = with_fields(
+        &m,
+        lit(0, inb.width),
+        &[
+            (inb.rec, get(best_data, &fl.leaf_rec)),
+            (inb.refer, get(best_data, &fl.leaf_ref)),
+            (inb.kind, lit(base_kind::REUSED, 2)),
+        ],
+    );
+
+    // ---- the module's out: reference beats to crefs, nodes into the FIFO
+    // of their LOD, each pass's End dropped (the builder's End comes from
+    // the FIFOs once the module is done).
+    let mo_valid = module.output("out_valid");
+    let mo_data = module.output("out_data");
+    let mo_kind = get(mo_data, &outb.kind);
+    let mo_ref = mo_kind.eq(base_kind::REF).name("out_is_ref");
+    let mo_end = mo_kind.eq(base_kind::END).name("out_is_end");
+    let mo_err = get(mo_data, outb.err.as_ref().expect("an output beat has err"));
+    let mo_refer = get(mo_data, &outb.refer);
+    let mo_rec = get(mo_data, &outb.rec);
+    let mo_lod = field(mo_rec, nl.lod()).expect("a record's lod");
+    let mo_beat = with_fields(
+        &m,
+        lit(0, inb.width),
+        &[
+            (inb.rec, mo_rec),
+            (inb.refer, mo_refer),
+            (inb.kind, mo_kind),
+        ],
+    );
+    let mo_node = (mo_valid & !mo_ref & !mo_end).name("out_is_node");
+
+    // crefs: the reference beats of every pass, then End once the module
+    // is done (a refused merge: End alone).
+    let csent = m.reg("crefs_end_sent", 1);
+    let cref_ready = writer.output("crefs_ready");
+    let cref_ref = (mo_valid & mo_ref).name("cref_is_ref");
+    let cref_valid = !csent & busy & (cref_ref | finished);
+    let cref_data = with_fields(
+        &m,
+        lit(0, wl.cref_width),
+        &[
+            (wl.cref, cref_ref.mux(mo_refer, lit(0, mo_refer.width()))),
+            (wl.cref_end, !cref_ref),
+        ],
+    );
+    writer.connect("crefs_valid", cref_valid);
+    writer.connect("crefs_data", cref_data);
+    let cref_fire = cref_valid & cref_ready;
+    csent.next((cref_fire & !cref_ref).mux(one, header_fire.mux(zero, csent)));
+    let mo_ready = mo_ref.mux(cref_ready & !csent, one);
+    module.connect("out_ready", mo_ready);
+    let count_over = m.reg("count_overflow", 1);
+    let created = mo_kind.eq(base_kind::CREATED);
+    count_over
+        .next((mo_valid & mo_ready & created & mo_err).mux(one, header_fire.mux(zero, count_over)));
+
+    // base{d}: the FIFO of LOD d (leaves for d < lo, the passes' nodes for
+    // d >= lo), shown once the module is done and the leaves complete,
+    // then End; End alone on a bad range.
+    let cb = c.sizes.leaf_bits;
+    let leaf_over = m.reg("leaf_overflow", 1);
+    let mut over_next = header_fire.mux(zero, leaf_over);
+    let base_open = (busy & finished & (!good | leaves_done)).name("base_open");
+    for d in 0..=dmax {
+        let dl = lit(d as u64, lb);
+        let bsent = m.reg(&format!("base{d}_end_sent"), 1);
+        let ready = builder.output(&format!("base{d}_ready"));
+        let q = DropFifo::new(
+            &m,
+            &format!("base{d}_fifo"),
+            &format!("base{d}"),
+            inb.width,
+            cb,
+        );
+        let (empty, full) = (q.empty, q.full);
+        let above_lo = dl.lt(lo);
+        let push_leaf = take_leaf & best_lod.eq(dl) & above_lo;
+        let push_node = mo_node & mo_lod.eq(dl) & !above_lo;
+        let push = (push_leaf | push_node).name(&format!("base{d}_push"));
+        q.write(push_node.mux(mo_beat, leaf_beat), push);
+        over_next = (push & full).mux(one, over_next);
+        let head = q.head();
+        let shows = good & !empty;
+        let valid = base_open & !bsent;
+        let data = shows.mux(head, end_beat);
+        builder.connect(&format!("base{d}_valid"), valid);
+        builder.connect(&format!("base{d}_data"), data);
+        let fire = valid & ready;
+        let pop = fire & shows;
+        bsent.next((fire & !shows).mux(one, header_fire.mux(zero, bsent)));
+        q.advance(push, pop, header_fire);
+    }
+    leaf_over.next(over_next);
+    let leaf_over = leaf_over.name("leaf_overflow_q");
+
+    finish_merger(
+        &m,
+        Tail {
+            dmax,
+            module,
+            builder,
+            writer,
+            writer_mod: &writer_mod,
+            ml: &ml,
+            header_fire,
+            flags: [leaf_over, count_over, ferr, ferr_rank],
+            busy,
+            dropping: &dropping,
+        },
+    );
+    Ok(m)
+}

@@ -1,0 +1,101 @@
+//! What every merger ends with, whichever mode chose its levels.
+
+use golden::merge::merger_unit::MergerLayout;
+
+use super::{pass_stream, store_streams};
+use crate::merge::fields::with_fields;
+use crate::{Direction, Module, Signal};
+
+/// What both merger bodies hand to [`finish_merger`]: the instances, the
+/// header's flags (`leaf_overflow`, `count_overflow`, `fetch_err`,
+/// `fetch_rank`) and the controller state `idle` is made of.
+pub(super) struct Tail<'a, 'm> {
+    pub(super) dmax: usize,
+    pub(super) module: crate::Instance<'m>,
+    pub(super) builder: crate::Instance<'m>,
+    pub(super) writer: crate::Instance<'m>,
+    pub(super) writer_mod: &'a Module,
+    pub(super) ml: &'a MergerLayout,
+    pub(super) header_fire: Signal<'m>,
+    pub(super) flags: [Signal<'m>; 4],
+    pub(super) busy: Signal<'m>,
+    pub(super) dropping: &'a [Signal<'m>],
+}
+
+/// The end of every merger (level modes and per-node alike): the builder's
+/// levels into the writer; the writer's store ports, `nodes` and `refs`
+/// straight through; its header with the merger's flags; `done`, `idle`.
+pub(super) fn finish_merger<'m>(m: &'m Module, t: Tail<'_, 'm>) {
+    let Tail {
+        dmax,
+        module,
+        builder,
+        writer,
+        writer_mod,
+        ml,
+        header_fire,
+        flags: [leaf_over, count_over, ferr, ferr_rank],
+        busy,
+        dropping,
+    } = t;
+    let wl = &ml.writer;
+    let lit = |v: u64, w: u32| m.lit(v as u128, w);
+    let one = lit(1, 1);
+    // ---- builder -> writer.
+    for d in 0..=dmax {
+        let s = format!("level{d}");
+        writer.connect(&format!("{s}_valid"), builder.output(&format!("{s}_valid")));
+        writer.connect(&format!("{s}_data"), builder.output(&format!("{s}_data")));
+        builder.connect(&format!("{s}_ready"), writer.output(&format!("{s}_ready")));
+    }
+    writer.connect("done_valid", builder.output("done_valid"));
+    writer.connect("done_data", builder.output("done_data"));
+    builder.connect("done_ready", writer.output("done_ready"));
+
+    // ---- the writer's ports: nodes, refs, store ports straight through;
+    // header with the merger's flags.
+    for (port, dir, w) in store_streams(writer_mod) {
+        pass_stream(m, writer, &port, &format!("w_{port}"), dir, w);
+    }
+    for port in ["nodes", "refs"] {
+        pass_stream(m, writer, port, port, Direction::Output, 0);
+    }
+    for q in writer_mod.ports() {
+        let is_stream = ["_valid", "_data", "_ready"]
+            .iter()
+            .any(|s| q.name.ends_with(s));
+        if q.direction == Direction::Output && !is_stream {
+            m.output(&format!("w_{}", q.name), writer.output(&q.name));
+        }
+    }
+    let h_valid = writer.output("header_valid");
+    let h_data = writer.output("header_data");
+    let header_ready = m.input("header_ready", 1);
+    writer.connect("header_ready", header_ready);
+    header_fire.drive(h_valid & header_ready);
+    let writer_header = golden::layout::Field {
+        name: "writer_header",
+        offset: 0,
+        width: wl.header_width,
+    };
+    let header = with_fields(
+        m,
+        lit(0, ml.header_width),
+        &[
+            (writer_header, h_data),
+            (ml.leaf_overflow, leaf_over),
+            (ml.count_overflow, count_over),
+            (ml.fetch_err, ferr),
+            (ml.fetch_rank, ferr_rank),
+        ],
+    );
+    m.output("header_valid", h_valid);
+    m.output("header_data", header);
+
+    let done = m.reg("done_pulse", 1);
+    done.next(header_fire);
+    m.output("done", done);
+    let idle = (!busy & dropping.iter().fold(one, |a, c| a & !*c)).name("merger_idle");
+    m.output("idle", idle);
+    m.output("module_done", module.output("done"));
+}

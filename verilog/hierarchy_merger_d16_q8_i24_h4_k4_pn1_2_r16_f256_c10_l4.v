@@ -5,120 +5,120 @@
 module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     input  wire clk,                        // clock (implicit)
     input  wire rst,                        // synchronous reset, active high (implicit)
-    input  wire cfg_valid,                  // rtl-gen/src/merge/merger/mod.rs:187
-    input  wire [568:0] cfg_data,           // rtl-gen/src/merge/merger/mod.rs:187
-    output wire cfg_ready,                  // rtl-gen/src/merge/merger/mod.rs:187
+    input  wire cfg_valid,                  // rtl-gen/src/merge/merger/mod.rs:182
+    input  wire [568:0] cfg_data,           // rtl-gen/src/merge/merger/mod.rs:182
+    output wire cfg_ready,                  // rtl-gen/src/merge/merger/mod.rs:182
     input  wire report_ready,               // rtl-gen/src/merge/merger/per_node_mode.rs:108
     output wire report_valid,               // rtl-gen/src/merge/merger/per_node_mode.rs:109
     output wire [65:0] report_data,         // rtl-gen/src/merge/merger/per_node_mode.rs:110
-    input  wire f0_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire [149:0] f0_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:255
-    output wire f0_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire f0_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire [27:0] f0_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:255
-    output wire f0_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire f0_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire [27:0] f0_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:255
-    output wire f0_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire f0_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire [149:0] f0_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:255
-    output wire f0_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:255
-    output wire f0_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:252
-    output wire [23:0] f0_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire f0_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:252
-    output wire f0_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:252
-    output wire [23:0] f0_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire f0_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:252
-    output wire f0_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:252
-    output wire [23:0] f0_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire f0_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:252
-    output wire f0_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:252
-    output wire [23:0] f0_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire f0_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire f1_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire [149:0] f1_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:255
-    output wire f1_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire f1_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire [27:0] f1_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:255
-    output wire f1_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire f1_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire [27:0] f1_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:255
-    output wire f1_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire f1_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire [149:0] f1_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:255
-    output wire f1_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:255
-    output wire f1_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:252
-    output wire [23:0] f1_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire f1_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:252
-    output wire f1_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:252
-    output wire [23:0] f1_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire f1_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:252
-    output wire f1_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:252
-    output wire [23:0] f1_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire f1_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:252
-    output wire f1_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:252
-    output wire [23:0] f1_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire f1_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire f2_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire [149:0] f2_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:255
-    output wire f2_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire f2_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire [27:0] f2_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:255
-    output wire f2_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire f2_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire [27:0] f2_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:255
-    output wire f2_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire f2_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire [149:0] f2_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:255
-    output wire f2_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:255
-    output wire f2_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:252
-    output wire [23:0] f2_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire f2_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:252
-    output wire f2_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:252
-    output wire [23:0] f2_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire f2_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:252
-    output wire f2_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:252
-    output wire [23:0] f2_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire f2_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:252
-    output wire f2_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:252
-    output wire [23:0] f2_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire f2_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire f3_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire [149:0] f3_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:255
-    output wire f3_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire f3_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire [27:0] f3_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:255
-    output wire f3_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire f3_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire [27:0] f3_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:255
-    output wire f3_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire f3_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire [149:0] f3_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:255
-    output wire f3_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:255
-    output wire f3_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:252
-    output wire [23:0] f3_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire f3_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:252
-    output wire f3_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:252
-    output wire [23:0] f3_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire f3_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:252
-    output wire f3_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:252
-    output wire [23:0] f3_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire f3_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:252
-    output wire f3_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:252
-    output wire [23:0] f3_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire f3_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire w_ref_resp_valid,           // rtl-gen/src/merge/merger/mod.rs:255
-    input  wire [27:0] w_ref_resp_data,     // rtl-gen/src/merge/merger/mod.rs:255
-    output wire w_ref_resp_ready,           // rtl-gen/src/merge/merger/mod.rs:255
-    output wire w_ref_req_valid,            // rtl-gen/src/merge/merger/mod.rs:252
-    output wire [27:0] w_ref_req_data,      // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire w_ref_req_ready,            // rtl-gen/src/merge/merger/mod.rs:252
-    output wire nodes_valid,                // rtl-gen/src/merge/merger/mod.rs:252
-    output wire [149:0] nodes_data,         // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire nodes_ready,                // rtl-gen/src/merge/merger/mod.rs:252
-    output wire refs_valid,                 // rtl-gen/src/merge/merger/mod.rs:252
-    output wire [27:0] refs_data,           // rtl-gen/src/merge/merger/mod.rs:252
-    input  wire refs_ready,                 // rtl-gen/src/merge/merger/mod.rs:252
+    input  wire f0_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire [149:0] f0_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:250
+    output wire f0_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire f0_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire [27:0] f0_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:250
+    output wire f0_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire f0_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire [27:0] f0_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:250
+    output wire f0_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire f0_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire [149:0] f0_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:250
+    output wire f0_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:250
+    output wire f0_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:247
+    output wire [23:0] f0_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire f0_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:247
+    output wire f0_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:247
+    output wire [23:0] f0_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire f0_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:247
+    output wire f0_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:247
+    output wire [23:0] f0_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire f0_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:247
+    output wire f0_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:247
+    output wire [23:0] f0_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire f0_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire f1_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire [149:0] f1_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:250
+    output wire f1_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire f1_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire [27:0] f1_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:250
+    output wire f1_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire f1_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire [27:0] f1_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:250
+    output wire f1_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire f1_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire [149:0] f1_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:250
+    output wire f1_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:250
+    output wire f1_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:247
+    output wire [23:0] f1_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire f1_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:247
+    output wire f1_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:247
+    output wire [23:0] f1_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire f1_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:247
+    output wire f1_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:247
+    output wire [23:0] f1_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire f1_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:247
+    output wire f1_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:247
+    output wire [23:0] f1_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire f1_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire f2_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire [149:0] f2_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:250
+    output wire f2_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire f2_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire [27:0] f2_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:250
+    output wire f2_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire f2_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire [27:0] f2_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:250
+    output wire f2_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire f2_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire [149:0] f2_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:250
+    output wire f2_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:250
+    output wire f2_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:247
+    output wire [23:0] f2_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire f2_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:247
+    output wire f2_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:247
+    output wire [23:0] f2_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire f2_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:247
+    output wire f2_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:247
+    output wire [23:0] f2_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire f2_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:247
+    output wire f2_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:247
+    output wire [23:0] f2_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire f2_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire f3_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire [149:0] f3_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:250
+    output wire f3_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire f3_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire [27:0] f3_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:250
+    output wire f3_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire f3_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire [27:0] f3_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:250
+    output wire f3_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire f3_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire [149:0] f3_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:250
+    output wire f3_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:250
+    output wire f3_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:247
+    output wire [23:0] f3_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire f3_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:247
+    output wire f3_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:247
+    output wire [23:0] f3_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire f3_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:247
+    output wire f3_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:247
+    output wire [23:0] f3_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire f3_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:247
+    output wire f3_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:247
+    output wire [23:0] f3_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire f3_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire w_ref_resp_valid,           // rtl-gen/src/merge/merger/mod.rs:250
+    input  wire [27:0] w_ref_resp_data,     // rtl-gen/src/merge/merger/mod.rs:250
+    output wire w_ref_resp_ready,           // rtl-gen/src/merge/merger/mod.rs:250
+    output wire w_ref_req_valid,            // rtl-gen/src/merge/merger/mod.rs:247
+    output wire [27:0] w_ref_req_data,      // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire w_ref_req_ready,            // rtl-gen/src/merge/merger/mod.rs:247
+    output wire nodes_valid,                // rtl-gen/src/merge/merger/mod.rs:247
+    output wire [149:0] nodes_data,         // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire nodes_ready,                // rtl-gen/src/merge/merger/mod.rs:247
+    output wire refs_valid,                 // rtl-gen/src/merge/merger/mod.rs:247
+    output wire [27:0] refs_data,           // rtl-gen/src/merge/merger/mod.rs:247
+    input  wire refs_ready,                 // rtl-gen/src/merge/merger/mod.rs:247
     output wire w_filling,                  // rtl-gen/src/merge/merger/tail.rs:68
     output wire w_drain_records,            // rtl-gen/src/merge/merger/tail.rs:68
     output wire w_drain_refs,               // rtl-gen/src/merge/merger/tail.rs:68
@@ -146,214 +146,214 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     reg [179:0] base14_fifo [0:15];          // rtl-gen/src/merge/merger/drop_fifo.rs:21
     reg [179:0] base15_fifo [0:15];          // rtl-gen/src/merge/merger/drop_fifo.rs:21
     reg [179:0] base16_fifo [0:15];          // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    wire u_fetch0_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch0_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch0_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch0_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch0_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch0_report_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch0_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch0_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [23:0] u_fetch0_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch0_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [23:0] u_fetch0_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch0_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [23:0] u_fetch0_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch0_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:173
-    wire [184:0] u_fetch0_out_data;          // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch0_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire [183:0] u_fetch0_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch0_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:173
-    wire [23:0] u_fetch0_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch0_idle;                      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch1_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch1_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch1_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch1_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch1_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch1_report_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch1_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch1_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [23:0] u_fetch1_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch1_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [23:0] u_fetch1_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch1_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [23:0] u_fetch1_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch1_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:173
-    wire [184:0] u_fetch1_out_data;          // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch1_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire [183:0] u_fetch1_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch1_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:173
-    wire [23:0] u_fetch1_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch1_idle;                      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch2_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch2_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch2_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch2_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch2_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch2_report_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch2_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch2_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [23:0] u_fetch2_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch2_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [23:0] u_fetch2_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch2_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [23:0] u_fetch2_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch2_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:173
-    wire [184:0] u_fetch2_out_data;          // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch2_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire [183:0] u_fetch2_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch2_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:173
-    wire [23:0] u_fetch2_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch2_idle;                      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch3_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch3_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch3_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch3_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch3_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch3_report_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch3_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch3_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [23:0] u_fetch3_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch3_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [23:0] u_fetch3_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch3_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [23:0] u_fetch3_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch3_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:173
-    wire [184:0] u_fetch3_out_data;          // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch3_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire [183:0] u_fetch3_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch3_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:173
-    wire [23:0] u_fetch3_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_fetch3_idle;                      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_module_in0_ready;                 // rtl-gen/src/merge/merger/mod.rs:175
-    wire u_module_in1_ready;                 // rtl-gen/src/merge/merger/mod.rs:175
-    wire u_module_in2_ready;                 // rtl-gen/src/merge/merger/mod.rs:175
-    wire u_module_in3_ready;                 // rtl-gen/src/merge/merger/mod.rs:175
-    wire u_module_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:175
-    wire u_module_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:175
-    wire [180:0] u_module_out_data;          // rtl-gen/src/merge/merger/mod.rs:175
-    wire u_module_report_valid;              // rtl-gen/src/merge/merger/mod.rs:175
-    wire [65:0] u_module_report_data;        // rtl-gen/src/merge/merger/mod.rs:175
-    wire u_module_idle;                      // rtl-gen/src/merge/merger/mod.rs:175
-    wire u_module_done;                      // rtl-gen/src/merge/merger/mod.rs:175
-    wire u_builder_base0_ready;              // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_base1_ready;              // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_base2_ready;              // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_base3_ready;              // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_base4_ready;              // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_base5_ready;              // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_base6_ready;              // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_base7_ready;              // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_base8_ready;              // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_base9_ready;              // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_base10_ready;             // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_base11_ready;             // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_base12_ready;             // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_base13_ready;             // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_base14_ready;             // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_base15_ready;             // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_base16_ready;             // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_level16_valid;            // rtl-gen/src/merge/merger/mod.rs:176
-    wire [228:0] u_builder_level16_data;     // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_level15_valid;            // rtl-gen/src/merge/merger/mod.rs:176
-    wire [228:0] u_builder_level15_data;     // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_level14_valid;            // rtl-gen/src/merge/merger/mod.rs:176
-    wire [228:0] u_builder_level14_data;     // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_level13_valid;            // rtl-gen/src/merge/merger/mod.rs:176
-    wire [228:0] u_builder_level13_data;     // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_level12_valid;            // rtl-gen/src/merge/merger/mod.rs:176
-    wire [228:0] u_builder_level12_data;     // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_level11_valid;            // rtl-gen/src/merge/merger/mod.rs:176
-    wire [228:0] u_builder_level11_data;     // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_level10_valid;            // rtl-gen/src/merge/merger/mod.rs:176
-    wire [228:0] u_builder_level10_data;     // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_level9_valid;             // rtl-gen/src/merge/merger/mod.rs:176
-    wire [228:0] u_builder_level9_data;      // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_level8_valid;             // rtl-gen/src/merge/merger/mod.rs:176
-    wire [228:0] u_builder_level8_data;      // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_level7_valid;             // rtl-gen/src/merge/merger/mod.rs:176
-    wire [228:0] u_builder_level7_data;      // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_level6_valid;             // rtl-gen/src/merge/merger/mod.rs:176
-    wire [228:0] u_builder_level6_data;      // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_level5_valid;             // rtl-gen/src/merge/merger/mod.rs:176
-    wire [228:0] u_builder_level5_data;      // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_level4_valid;             // rtl-gen/src/merge/merger/mod.rs:176
-    wire [228:0] u_builder_level4_data;      // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_level3_valid;             // rtl-gen/src/merge/merger/mod.rs:176
-    wire [228:0] u_builder_level3_data;      // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_level2_valid;             // rtl-gen/src/merge/merger/mod.rs:176
-    wire [228:0] u_builder_level2_data;      // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_level1_valid;             // rtl-gen/src/merge/merger/mod.rs:176
-    wire [228:0] u_builder_level1_data;      // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_level0_valid;             // rtl-gen/src/merge/merger/mod.rs:176
-    wire [228:0] u_builder_level0_data;      // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_builder_done_valid;               // rtl-gen/src/merge/merger/mod.rs:176
-    wire [5:0] u_builder_done_data;          // rtl-gen/src/merge/merger/mod.rs:176
-    wire u_writer_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_done_ready;                // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_crefs_ready;               // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_level0_ready;              // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_level1_ready;              // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_level2_ready;              // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_level3_ready;              // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_level4_ready;              // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_level5_ready;              // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_level6_ready;              // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_level7_ready;              // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_level8_ready;              // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_level9_ready;              // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_level10_ready;             // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_level11_ready;             // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_level12_ready;             // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_level13_ready;             // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_level14_ready;             // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_level15_ready;             // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_level16_ready;             // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_nodes_valid;               // rtl-gen/src/merge/merger/mod.rs:177
-    wire [149:0] u_writer_nodes_data;        // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_refs_valid;                // rtl-gen/src/merge/merger/mod.rs:177
-    wire [27:0] u_writer_refs_data;          // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:177
-    wire [27:0] u_writer_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_header_valid;              // rtl-gen/src/merge/merger/mod.rs:177
-    wire [86:0] u_writer_header_data;        // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_filling;                   // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_drain_records;             // rtl-gen/src/merge/merger/mod.rs:177
-    wire u_writer_drain_refs;                // rtl-gen/src/merge/merger/mod.rs:177
-    reg busy;                                // rtl-gen/src/merge/merger/mod.rs:179
-    reg dropping0;                           // rtl-gen/src/merge/merger/mod.rs:180
-    reg dropping1;                           // rtl-gen/src/merge/merger/mod.rs:180
-    reg dropping2;                           // rtl-gen/src/merge/merger/mod.rs:180
-    reg dropping3;                           // rtl-gen/src/merge/merger/mod.rs:180
-    wire header_fire;                        // rtl-gen/src/merge/merger/mod.rs:181
-    wire busy_not;                           // rtl-gen/src/merge/merger/mod.rs:182
-    wire busy_and;                           // rtl-gen/src/merge/merger/mod.rs:182
-    wire busy_and_1;                         // rtl-gen/src/merge/merger/mod.rs:184
-    wire dropping0_not;                      // rtl-gen/src/merge/merger/mod.rs:184
-    wire busy_and_2;                         // rtl-gen/src/merge/merger/mod.rs:184
-    wire busy_and_3;                         // rtl-gen/src/merge/merger/mod.rs:184
-    wire dropping1_not;                      // rtl-gen/src/merge/merger/mod.rs:184
-    wire busy_and_4;                         // rtl-gen/src/merge/merger/mod.rs:184
-    wire busy_and_5;                         // rtl-gen/src/merge/merger/mod.rs:184
-    wire dropping2_not;                      // rtl-gen/src/merge/merger/mod.rs:184
-    wire busy_and_6;                         // rtl-gen/src/merge/merger/mod.rs:184
-    wire busy_and_7;                         // rtl-gen/src/merge/merger/mod.rs:184
-    wire dropping3_not;                      // rtl-gen/src/merge/merger/mod.rs:184
-    wire quiet;                              // rtl-gen/src/merge/merger/mod.rs:184
-    wire cfg_fire;                           // rtl-gen/src/merge/merger/mod.rs:189
-    reg [568:0] cfg_q;                       // rtl-gen/src/merge/merger/mod.rs:190
+    wire u_fetch0_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch0_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch0_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch0_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch0_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch0_report_ready;              // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch0_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch0_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:168
+    wire [23:0] u_fetch0_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch0_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:168
+    wire [23:0] u_fetch0_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch0_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:168
+    wire [23:0] u_fetch0_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch0_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:168
+    wire [184:0] u_fetch0_out_data;          // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch0_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:168
+    wire [183:0] u_fetch0_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch0_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:168
+    wire [23:0] u_fetch0_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch0_idle;                      // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch1_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch1_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch1_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch1_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch1_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch1_report_ready;              // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch1_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch1_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:168
+    wire [23:0] u_fetch1_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch1_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:168
+    wire [23:0] u_fetch1_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch1_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:168
+    wire [23:0] u_fetch1_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch1_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:168
+    wire [184:0] u_fetch1_out_data;          // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch1_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:168
+    wire [183:0] u_fetch1_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch1_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:168
+    wire [23:0] u_fetch1_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch1_idle;                      // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch2_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch2_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch2_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch2_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch2_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch2_report_ready;              // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch2_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch2_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:168
+    wire [23:0] u_fetch2_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch2_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:168
+    wire [23:0] u_fetch2_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch2_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:168
+    wire [23:0] u_fetch2_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch2_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:168
+    wire [184:0] u_fetch2_out_data;          // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch2_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:168
+    wire [183:0] u_fetch2_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch2_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:168
+    wire [23:0] u_fetch2_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch2_idle;                      // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch3_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch3_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch3_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch3_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch3_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch3_report_ready;              // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch3_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch3_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:168
+    wire [23:0] u_fetch3_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch3_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:168
+    wire [23:0] u_fetch3_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch3_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:168
+    wire [23:0] u_fetch3_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch3_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:168
+    wire [184:0] u_fetch3_out_data;          // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch3_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:168
+    wire [183:0] u_fetch3_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch3_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:168
+    wire [23:0] u_fetch3_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_fetch3_idle;                      // rtl-gen/src/merge/merger/mod.rs:168
+    wire u_module_in0_ready;                 // rtl-gen/src/merge/merger/mod.rs:170
+    wire u_module_in1_ready;                 // rtl-gen/src/merge/merger/mod.rs:170
+    wire u_module_in2_ready;                 // rtl-gen/src/merge/merger/mod.rs:170
+    wire u_module_in3_ready;                 // rtl-gen/src/merge/merger/mod.rs:170
+    wire u_module_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:170
+    wire u_module_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:170
+    wire [180:0] u_module_out_data;          // rtl-gen/src/merge/merger/mod.rs:170
+    wire u_module_report_valid;              // rtl-gen/src/merge/merger/mod.rs:170
+    wire [65:0] u_module_report_data;        // rtl-gen/src/merge/merger/mod.rs:170
+    wire u_module_idle;                      // rtl-gen/src/merge/merger/mod.rs:170
+    wire u_module_done;                      // rtl-gen/src/merge/merger/mod.rs:170
+    wire u_builder_base0_ready;              // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_base1_ready;              // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_base2_ready;              // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_base3_ready;              // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_base4_ready;              // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_base5_ready;              // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_base6_ready;              // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_base7_ready;              // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_base8_ready;              // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_base9_ready;              // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_base10_ready;             // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_base11_ready;             // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_base12_ready;             // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_base13_ready;             // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_base14_ready;             // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_base15_ready;             // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_base16_ready;             // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_level16_valid;            // rtl-gen/src/merge/merger/mod.rs:171
+    wire [228:0] u_builder_level16_data;     // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_level15_valid;            // rtl-gen/src/merge/merger/mod.rs:171
+    wire [228:0] u_builder_level15_data;     // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_level14_valid;            // rtl-gen/src/merge/merger/mod.rs:171
+    wire [228:0] u_builder_level14_data;     // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_level13_valid;            // rtl-gen/src/merge/merger/mod.rs:171
+    wire [228:0] u_builder_level13_data;     // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_level12_valid;            // rtl-gen/src/merge/merger/mod.rs:171
+    wire [228:0] u_builder_level12_data;     // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_level11_valid;            // rtl-gen/src/merge/merger/mod.rs:171
+    wire [228:0] u_builder_level11_data;     // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_level10_valid;            // rtl-gen/src/merge/merger/mod.rs:171
+    wire [228:0] u_builder_level10_data;     // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_level9_valid;             // rtl-gen/src/merge/merger/mod.rs:171
+    wire [228:0] u_builder_level9_data;      // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_level8_valid;             // rtl-gen/src/merge/merger/mod.rs:171
+    wire [228:0] u_builder_level8_data;      // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_level7_valid;             // rtl-gen/src/merge/merger/mod.rs:171
+    wire [228:0] u_builder_level7_data;      // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_level6_valid;             // rtl-gen/src/merge/merger/mod.rs:171
+    wire [228:0] u_builder_level6_data;      // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_level5_valid;             // rtl-gen/src/merge/merger/mod.rs:171
+    wire [228:0] u_builder_level5_data;      // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_level4_valid;             // rtl-gen/src/merge/merger/mod.rs:171
+    wire [228:0] u_builder_level4_data;      // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_level3_valid;             // rtl-gen/src/merge/merger/mod.rs:171
+    wire [228:0] u_builder_level3_data;      // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_level2_valid;             // rtl-gen/src/merge/merger/mod.rs:171
+    wire [228:0] u_builder_level2_data;      // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_level1_valid;             // rtl-gen/src/merge/merger/mod.rs:171
+    wire [228:0] u_builder_level1_data;      // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_level0_valid;             // rtl-gen/src/merge/merger/mod.rs:171
+    wire [228:0] u_builder_level0_data;      // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_builder_done_valid;               // rtl-gen/src/merge/merger/mod.rs:171
+    wire [5:0] u_builder_done_data;          // rtl-gen/src/merge/merger/mod.rs:171
+    wire u_writer_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_done_ready;                // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_crefs_ready;               // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_level0_ready;              // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_level1_ready;              // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_level2_ready;              // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_level3_ready;              // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_level4_ready;              // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_level5_ready;              // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_level6_ready;              // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_level7_ready;              // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_level8_ready;              // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_level9_ready;              // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_level10_ready;             // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_level11_ready;             // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_level12_ready;             // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_level13_ready;             // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_level14_ready;             // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_level15_ready;             // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_level16_ready;             // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_nodes_valid;               // rtl-gen/src/merge/merger/mod.rs:172
+    wire [149:0] u_writer_nodes_data;        // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_refs_valid;                // rtl-gen/src/merge/merger/mod.rs:172
+    wire [27:0] u_writer_refs_data;          // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:172
+    wire [27:0] u_writer_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_header_valid;              // rtl-gen/src/merge/merger/mod.rs:172
+    wire [86:0] u_writer_header_data;        // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_filling;                   // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_drain_records;             // rtl-gen/src/merge/merger/mod.rs:172
+    wire u_writer_drain_refs;                // rtl-gen/src/merge/merger/mod.rs:172
+    reg busy;                                // rtl-gen/src/merge/merger/mod.rs:174
+    reg dropping0;                           // rtl-gen/src/merge/merger/mod.rs:175
+    reg dropping1;                           // rtl-gen/src/merge/merger/mod.rs:175
+    reg dropping2;                           // rtl-gen/src/merge/merger/mod.rs:175
+    reg dropping3;                           // rtl-gen/src/merge/merger/mod.rs:175
+    wire header_fire;                        // rtl-gen/src/merge/merger/mod.rs:176
+    wire busy_not;                           // rtl-gen/src/merge/merger/mod.rs:177
+    wire busy_and;                           // rtl-gen/src/merge/merger/mod.rs:177
+    wire busy_and_1;                         // rtl-gen/src/merge/merger/mod.rs:179
+    wire dropping0_not;                      // rtl-gen/src/merge/merger/mod.rs:179
+    wire busy_and_2;                         // rtl-gen/src/merge/merger/mod.rs:179
+    wire busy_and_3;                         // rtl-gen/src/merge/merger/mod.rs:179
+    wire dropping1_not;                      // rtl-gen/src/merge/merger/mod.rs:179
+    wire busy_and_4;                         // rtl-gen/src/merge/merger/mod.rs:179
+    wire busy_and_5;                         // rtl-gen/src/merge/merger/mod.rs:179
+    wire dropping2_not;                      // rtl-gen/src/merge/merger/mod.rs:179
+    wire busy_and_6;                         // rtl-gen/src/merge/merger/mod.rs:179
+    wire busy_and_7;                         // rtl-gen/src/merge/merger/mod.rs:179
+    wire dropping3_not;                      // rtl-gen/src/merge/merger/mod.rs:179
+    wire quiet;                              // rtl-gen/src/merge/merger/mod.rs:179
+    wire cfg_fire;                           // rtl-gen/src/merge/merger/mod.rs:184
+    reg [568:0] cfg_q;                       // rtl-gen/src/merge/merger/mod.rs:185
     wire [4:0] lo;                           // rtl-gen/src/merge/fields.rs:13
     wire [4:0] hi;                           // rtl-gen/src/merge/fields.rs:13
-    wire cfg_data_gt;                        // rtl-gen/src/merge/merger/mod.rs:125
-    wire cfg_data_gt_1;                      // rtl-gen/src/merge/merger/mod.rs:129
-    wire cfg_data_or;                        // rtl-gen/src/merge/merger/mod.rs:129
-    wire good_in;                            // rtl-gen/src/merge/merger/mod.rs:129
-    wire hi_gt;                              // rtl-gen/src/merge/merger/mod.rs:125
-    wire lo_gt;                              // rtl-gen/src/merge/merger/mod.rs:129
-    wire lo_or;                              // rtl-gen/src/merge/merger/mod.rs:129
-    wire range_good;                         // rtl-gen/src/merge/merger/mod.rs:129
+    wire cfg_data_gt;                        // rtl-gen/src/merge/merger/mod.rs:120
+    wire cfg_data_gt_1;                      // rtl-gen/src/merge/merger/mod.rs:124
+    wire cfg_data_or;                        // rtl-gen/src/merge/merger/mod.rs:124
+    wire good_in;                            // rtl-gen/src/merge/merger/mod.rs:124
+    wire hi_gt;                              // rtl-gen/src/merge/merger/mod.rs:120
+    wire lo_gt;                              // rtl-gen/src/merge/merger/mod.rs:124
+    wire lo_or;                              // rtl-gen/src/merge/merger/mod.rs:124
+    wire range_good;                         // rtl-gen/src/merge/merger/mod.rs:124
     wire cfg_data_gt_2;                      // rtl-gen/src/merge/merger/per_node_mode.rs:67
     wire cfg_data_gt_3;                      // rtl-gen/src/merge/merger/per_node_mode.rs:67
     wire cfg_data_gt_4;                      // rtl-gen/src/merge/merger/per_node_mode.rs:67
@@ -460,10 +460,10 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire range_good_not;                     // rtl-gen/src/merge/merger/per_node_mode.rs:207
     wire cmd0_pending_and_1;                 // rtl-gen/src/merge/merger/per_node_mode.rs:207
     wire u_fetch0_and_4;                     // rtl-gen/src/merge/merger/per_node_mode.rs:208
-    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:249
-    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:249
-    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:249
-    wire f0_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:249
+    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:244
+    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:244
+    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:244
+    wire f0_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:244
     reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:145
     wire fetch1_cfg_pending_and;             // rtl-gen/src/merge/merger/per_node_mode.rs:149
     reg cmd1_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:154
@@ -496,10 +496,10 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire range_good_not_1;                   // rtl-gen/src/merge/merger/per_node_mode.rs:207
     wire cmd1_pending_and_1;                 // rtl-gen/src/merge/merger/per_node_mode.rs:207
     wire u_fetch1_and_4;                     // rtl-gen/src/merge/merger/per_node_mode.rs:208
-    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:249
-    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:249
-    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:249
-    wire f1_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:249
+    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:244
+    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:244
+    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:244
+    wire f1_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:244
     reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:145
     wire fetch2_cfg_pending_and;             // rtl-gen/src/merge/merger/per_node_mode.rs:149
     reg cmd2_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:154
@@ -532,10 +532,10 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire range_good_not_2;                   // rtl-gen/src/merge/merger/per_node_mode.rs:207
     wire cmd2_pending_and_1;                 // rtl-gen/src/merge/merger/per_node_mode.rs:207
     wire u_fetch2_and_4;                     // rtl-gen/src/merge/merger/per_node_mode.rs:208
-    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:249
-    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:249
-    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:249
-    wire f2_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:249
+    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:244
+    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:244
+    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:244
+    wire f2_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:244
     reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:145
     wire fetch3_cfg_pending_and;             // rtl-gen/src/merge/merger/per_node_mode.rs:149
     reg cmd3_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:154
@@ -568,10 +568,10 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire range_good_not_3;                   // rtl-gen/src/merge/merger/per_node_mode.rs:207
     wire cmd3_pending_and_1;                 // rtl-gen/src/merge/merger/per_node_mode.rs:207
     wire u_fetch3_and_4;                     // rtl-gen/src/merge/merger/per_node_mode.rs:208
-    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:249
-    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:249
-    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:249
-    wire f3_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:249
+    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:244
+    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:244
+    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:244
+    wire f3_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:244
     reg leaves_done;                         // rtl-gen/src/merge/merger/leaf_merge.rs:46
     wire leaves_done_not;                    // rtl-gen/src/merge/merger/leaf_merge.rs:47
     wire leaves_active;                      // rtl-gen/src/merge/merger/leaf_merge.rs:47
@@ -1273,9 +1273,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire base16_push_and_2;                  // rtl-gen/src/merge/merger/drop_fifo.rs:53
     wire [4:0] base16_wr_add;                // rtl-gen/src/merge/merger/drop_fifo.rs:53
     wire [4:0] base16_rd_add;                // rtl-gen/src/merge/merger/drop_fifo.rs:54
-    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:249
-    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:249
-    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:249
+    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:244
+    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:244
+    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:244
     reg done_pulse;                          // rtl-gen/src/merge/merger/tail.rs:95
     wire busy_not_1;                         // rtl-gen/src/merge/merger/tail.rs:98
     wire dropping0_not_2;                    // rtl-gen/src/merge/merger/tail.rs:98
@@ -2236,7 +2236,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     assign idle = merger_idle;
     assign module_done = u_module_done;
 
-    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch0 ( // rtl-gen/src/merge/merger/mod.rs:173
+    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch0 ( // rtl-gen/src/merge/merger/mod.rs:168
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch0_cfg_pending),
@@ -2281,7 +2281,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .idle(u_fetch0_idle)
     );
 
-    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch1 ( // rtl-gen/src/merge/merger/mod.rs:173
+    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch1 ( // rtl-gen/src/merge/merger/mod.rs:168
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch1_cfg_pending),
@@ -2326,7 +2326,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .idle(u_fetch1_idle)
     );
 
-    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch2 ( // rtl-gen/src/merge/merger/mod.rs:173
+    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch2 ( // rtl-gen/src/merge/merger/mod.rs:168
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch2_cfg_pending),
@@ -2371,7 +2371,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .idle(u_fetch2_idle)
     );
 
-    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch3 ( // rtl-gen/src/merge/merger/mod.rs:173
+    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch3 ( // rtl-gen/src/merge/merger/mod.rs:168
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch3_cfg_pending),
@@ -2416,7 +2416,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .idle(u_fetch3_idle)
     );
 
-    merge_module_d16_q8_i24_h4_k4_pn1_2 u_module ( // rtl-gen/src/merge/merger/mod.rs:175
+    merge_module_d16_q8_i24_h4_k4_pn1_2 u_module ( // rtl-gen/src/merge/merger/mod.rs:170
         .clk(clk),
         .rst(rst),
         .in0_valid(used0_mux),
@@ -2444,7 +2444,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .done(u_module_done)
     );
 
-    upper_builder_d16_q8_i24_h4 u_builder ( // rtl-gen/src/merge/merger/mod.rs:176
+    upper_builder_d16_q8_i24_h4 u_builder ( // rtl-gen/src/merge/merger/mod.rs:171
         .clk(clk),
         .rst(rst),
         .base0_valid(base_open_and),
@@ -2554,7 +2554,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .done_ready(u_writer_done_ready)
     );
 
-    record_writer_d16_q8_i24_h4_c10 u_writer ( // rtl-gen/src/merge/merger/mod.rs:177
+    record_writer_d16_q8_i24_h4_c10 u_writer ( // rtl-gen/src/merge/merger/mod.rs:172
         .clk(clk),
         .rst(rst),
         .cfg_valid(writer_cfg_pending),
@@ -2725,8 +2725,8 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
             done_pulse <= 1'b0;
         end else begin
             if (cfg_fire) begin
-                busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:192
-                cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:191
+                busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:187
+                cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:186
                 module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/per_node_mode.rs:85
                 writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/per_node_mode.rs:93
                 fetch0_cfg_pending <= cfg_data_gt_2; // rtl-gen/src/merge/merger/per_node_mode.rs:150
@@ -2743,7 +2743,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
                 end_owed3 <= cfg_data_and_3; // rtl-gen/src/merge/merger/per_node_mode.rs:197
             end else begin
                 if (header_fire) begin
-                    busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:192
+                    busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:187
                     end_owed0 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:199
                     end_owed1 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:199
                     end_owed2 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:199

@@ -1,4 +1,4 @@
-//! The leaf FIFOs' building block.
+//! The FIFOs of the leaves above the merging level and (per-node) of nodes.
 
 use crate::{Module, Signal};
 

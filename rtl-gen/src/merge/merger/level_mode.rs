@@ -1,6 +1,6 @@
 //! The merger of a level-choice configuration (`overlap`, `fixed`,
-//! `below-top`, `proportion`; SPEC 8.15): a count pass over `lo..=hi`,
-//! the merging module's choice, then one merge pass at the chosen level.
+//! `below-top`, `proportion`; SPEC 8.15): in overlap mode a count pass over
+//! `lo..=hi` first, then the module's choice and one merge pass at that level.
 
 use golden::merge::merger_unit::MergerLayout;
 use golden::merge::top::TopLayout;

@@ -1,12 +1,12 @@
 //! The hierarchy merger as one top module (SPEC.md section 8.15): S610-S618
 //! end to end. `k` fetchers walk the inputs in the store, the merging module
 //! chooses the level and merges it, the upper builder builds every level
-//! above, the record writer lays out the merged hierarchy; the glue here is
-//! a controller (the fetchers' `cfg` and commands, pass by pass), the routing
-//! of the merging module's `out` (nodes to the builder's `base{m}`,
-//! references to the writer's `crefs`), and the leaves above `m`: a k-way
-//! merge by (LOD, Morton, rank) into one FIFO per LOD, because the builder
-//! takes `base{d}` at its own pace while level `m` streams.
+//! above, the record writer lays out the merged hierarchy. The glue, in this
+//! module's files: a controller (the fetchers' `cfg` and commands, pass by
+//! pass; `level_mode`, `per_node_mode`), the routing of the merging module's
+//! `out` (nodes to the builder, references to the writer's `crefs`), and the
+//! leaves above `m`: a k-way merge by (LOD, Morton, rank) (`leaf_merge`) into
+//! one FIFO per LOD (`drop_fifo`): the builder takes `base{d}` at its pace.
 //!
 //! Golden: `golden::merge::merger_unit::merger_transaction`, the chain of the
 //! units' own transactions.
@@ -91,7 +91,7 @@ pub fn hierarchy_merger_name(c: &MergerConfig) -> String {
 }
 
 /// Phases of one input's command issuer.
-pub(super) mod phase {
+mod phase {
     /// No merge.
     pub const NONE: u64 = 0;
     /// The count pass: one command walking to `hi` and sending `lo..=hi`
@@ -107,18 +107,13 @@ pub(super) mod phase {
 }
 
 /// Field `f` of `s`.
-pub(super) fn get<'m>(s: Signal<'m>, f: &golden::layout::Field) -> Signal<'m> {
+fn get<'m>(s: Signal<'m>, f: &golden::layout::Field) -> Signal<'m> {
     field(s, f).expect("a non-empty field")
 }
 
 /// The merging module's range check (8.10, 8.14): `lo <= hi` and `hi <= D`
 /// when the field can hold more.
-pub(super) fn range_good<'m>(
-    m: &'m Module,
-    c: &MergerConfig,
-    lo: Signal<'m>,
-    hi: Signal<'m>,
-) -> Signal<'m> {
+fn range_good<'m>(m: &'m Module, c: &MergerConfig, lo: Signal<'m>, hi: Signal<'m>) -> Signal<'m> {
     let lb = c.design.params.lod_bits();
     let dmax = c.design.params.max_lod as u128;
     let beyond = if (1u128 << lb) - 1 > dmax {
@@ -133,32 +128,32 @@ pub(super) fn range_good<'m>(
 /// the merging module, the upper builder, the writer) and the `cfg`
 /// handshake. A merge is taken when none is in progress and every unit is
 /// idle, and held in `cfg_q` until its header leaves (`header_fire`).
-pub(super) struct Shell<'m> {
-    pub(super) zero: Signal<'m>,
-    pub(super) one: Signal<'m>,
-    pub(super) fetchers: Vec<crate::Instance<'m>>,
-    pub(super) module: crate::Instance<'m>,
-    pub(super) builder: crate::Instance<'m>,
-    pub(super) writer: crate::Instance<'m>,
-    pub(super) busy: Signal<'m>,
+struct Shell<'m> {
+    zero: Signal<'m>,
+    one: Signal<'m>,
+    fetchers: Vec<crate::Instance<'m>>,
+    module: crate::Instance<'m>,
+    builder: crate::Instance<'m>,
+    writer: crate::Instance<'m>,
+    busy: Signal<'m>,
     /// Set while a command whose `out` beats are dropped (the closing
     /// command) has not sent its End.
-    pub(super) dropping: Vec<Signal<'m>>,
-    pub(super) header_fire: Signal<'m>,
-    pub(super) cfg: Stream<'m>,
-    pub(super) cfg_fire: Signal<'m>,
-    pub(super) cfg_q: Signal<'m>,
+    dropping: Vec<Signal<'m>>,
+    header_fire: Signal<'m>,
+    cfg: Stream<'m>,
+    cfg_fire: Signal<'m>,
+    cfg_q: Signal<'m>,
     /// The input count of the `cfg` beat arriving, and of the merge held.
-    pub(super) count_in: Signal<'m>,
-    pub(super) count_q: Signal<'m>,
-    pub(super) lo: Signal<'m>,
-    pub(super) hi: Signal<'m>,
-    pub(super) out_id: Signal<'m>,
+    count_in: Signal<'m>,
+    count_q: Signal<'m>,
+    lo: Signal<'m>,
+    hi: Signal<'m>,
+    out_id: Signal<'m>,
 }
 
 /// The [`Shell`] of a merger `m` of `c`, its fetchers instances of
 /// `fetch_mod` (level-mode or per-node) and its writer of `writer_mod`.
-pub(super) fn shell<'m>(
+fn shell<'m>(
     m: &'m Module,
     c: &MergerConfig,
     ml: &MergerLayout,
@@ -213,7 +208,7 @@ pub(super) fn shell<'m>(
 
 /// A child's store-port streams: `(name, direction, data width)` of every
 /// stream whose name ends in `_req` (out) or `_resp` (in).
-pub(super) fn store_streams(child: &Module) -> Vec<(String, Direction, u32)> {
+fn store_streams(child: &Module) -> Vec<(String, Direction, u32)> {
     let ports = child.ports();
     ports
         .iter()
@@ -233,7 +228,7 @@ pub(super) fn store_streams(child: &Module) -> Vec<(String, Direction, u32)> {
 /// Stream `port` of instance `inst` as this module's stream `outer`: an
 /// output stream (`dir` Output) leaves, an input stream (`width` bits)
 /// comes in.
-pub(super) fn pass_stream<'m>(
+fn pass_stream<'m>(
     m: &'m Module,
     inst: crate::Instance<'m>,
     port: &str,
@@ -259,8 +254,9 @@ pub(super) fn pass_stream<'m>(
         }
     }
 }
+
 /// The whole of a beat layout as one field from bit 0.
-pub(super) fn field_of(b: &BeatLayout) -> golden::layout::Field {
+fn field_of(b: &BeatLayout) -> golden::layout::Field {
     golden::layout::Field {
         name: "beat",
         offset: 0,

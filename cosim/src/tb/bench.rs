@@ -9,7 +9,7 @@ use super::accounting::AccountingReport;
 use super::driver::StreamDriver;
 use super::monitor::StreamMonitor;
 use super::scoreboard::{FieldDecoder, Mismatch, Scoreboard};
-use super::stop_rule::{StopRule, Verdict};
+use super::stop_rule::StopRule;
 use super::stream::{StreamPorts, Transaction};
 use super::trace_window::TraceWindow;
 use super::watchdog::Hang;
@@ -295,7 +295,6 @@ pub fn run_stream_bench_with_progress(
     engine.reset(config.reset_cycles)?;
 
     let mut stop = StopRule::new(config, engine.cycle());
-    let mut hang = None;
     loop {
         if let Some(w) = window.as_mut() {
             w.update(engine)?;
@@ -312,13 +311,8 @@ pub fn run_stream_bench_with_progress(
         }
         let mismatch_stop = config.stop_on_mismatch && scoreboard.mismatches() > 0;
         let finished = driver.pending() == 0 && scoreboard.outstanding() == 0;
-        match stop.after_cycle(engine, finished, mismatch_stop) {
-            Verdict::Go => {}
-            Verdict::Stop => break,
-            Verdict::Hang(h) => {
-                hang = Some(h);
-                break;
-            }
+        if stop.stops_after(engine, finished, mismatch_stop) {
+            break;
         }
         if stop.progress_due(engine.cycle()) {
             progress(Progress {
@@ -331,7 +325,7 @@ pub fn run_stream_bench_with_progress(
     }
     // Trace a few more cycles after a stop so the VCD shows what followed.
     if let Some(w) = window.as_mut() {
-        while engine.cycle() <= w.to && (scoreboard.mismatches() > 0 || hang.is_some()) {
+        while engine.cycle() <= w.to && (scoreboard.mismatches() > 0 || stop.hang().is_some()) {
             engine.step()?;
         }
         w.finish(engine)?;
@@ -346,7 +340,7 @@ pub fn run_stream_bench_with_progress(
         mismatches: scoreboard.mismatches(),
         first_mismatch: scoreboard.first_mismatch().cloned(),
         accounting: scoreboard.accounting().report(),
-        hang,
+        hang: stop.into_hang(),
         vcd: window.map(|w| w.path),
         wall: start.elapsed(),
         reproduce: config.reproduce.clone(),

@@ -25,7 +25,7 @@ pub use multi::{
 };
 pub use prng::Prng;
 pub use scoreboard::{FieldDecoder, FieldDiff, Mismatch, Scoreboard};
-pub use stop_rule::{StopRule, Verdict};
+pub use stop_rule::StopRule;
 pub use stream::{StreamPorts, Transaction};
 pub use trace_window::TraceWindow;
 pub use watchdog::{dump_ports, Hang, Watchdog};

@@ -10,7 +10,7 @@ use super::bench::Progress;
 use super::driver::StreamDriver;
 use super::monitor::StreamMonitor;
 use super::scoreboard::{Mismatch, Scoreboard};
-use super::stop_rule::{StopRule, Verdict};
+use super::stop_rule::StopRule;
 use super::stream::{StreamPorts, Transaction};
 use super::trace_window::TraceWindow;
 use super::watchdog::Hang;
@@ -237,7 +237,6 @@ pub fn run_multi_stream_bench_traced(
     let mut pulse_counts = vec![0u64; pulses.len()];
 
     let mut stop = StopRule::new(config, engine.cycle());
-    let mut hang = None;
     // Per stream (inputs, then outputs): beats, first and last transfer.
     let mut windows: Vec<(u64, u64, u64)> = vec![(0, 0, 0); inputs.len() + outputs.len()];
     let moved = |w: &mut (u64, u64, u64), cycle: u64| {
@@ -277,13 +276,8 @@ pub fn run_multi_stream_bench_traced(
         let mismatched = monitors.iter().any(|(_, b)| b.mismatches() > 0);
         let finished = drivers.iter().all(|d| d.pending() == 0)
             && monitors.iter().all(|(_, b)| b.outstanding() == 0);
-        match stop.after_cycle(engine, finished, config.stop_on_mismatch && mismatched) {
-            Verdict::Go => {}
-            Verdict::Stop => break,
-            Verdict::Hang(h) => {
-                hang = Some(h);
-                break;
-            }
+        if stop.stops_after(engine, finished, config.stop_on_mismatch && mismatched) {
+            break;
         }
         if stop.progress_due(engine.cycle()) {
             progress(Progress {
@@ -300,7 +294,7 @@ pub fn run_multi_stream_bench_traced(
         .collect::<Result<Vec<bool>>>()?;
     // Trace a few more cycles after a failure so the VCD shows what followed.
     if let Some(w) = window.as_mut() {
-        let failed = hang.is_some() || monitors.iter().any(|(_, b)| b.mismatches() > 0);
+        let failed = stop.hang().is_some() || monitors.iter().any(|(_, b)| b.mismatches() > 0);
         while failed && engine.cycle() <= w.to {
             engine.step()?;
         }
@@ -333,7 +327,7 @@ pub fn run_multi_stream_bench_traced(
             .zip(&monitors)
             .map(|(s, (_, b))| (s.name.clone(), b.outstanding()))
             .collect(),
-        hang,
+        hang: stop.into_hang(),
         vcd: window.map(|w| w.path),
         wall: start.elapsed(),
         active: inputs

@@ -7,17 +7,6 @@ use super::bench::{BenchConfig, PROGRESS_EVERY};
 use super::watchdog::{Hang, Watchdog};
 use crate::engine::Engine;
 
-/// What a bench does after a cycle's checks.
-#[derive(Debug)]
-pub enum Verdict {
-    /// Step the clock and go on.
-    Go,
-    /// Stop: the drain ran out, or a mismatch stops the run.
-    Stop,
-    /// Stop: no handshake for longer than the watchdog allows.
-    Hang(Hang),
-}
-
 /// The stop rule's state over a run.
 #[derive(Debug)]
 pub struct StopRule {
@@ -25,6 +14,7 @@ pub struct StopRule {
     drain_cycles: u64,
     drain_left: Option<u64>,
     next_progress: u64,
+    hang: Option<Hang>,
 }
 
 impl StopRule {
@@ -37,6 +27,7 @@ impl StopRule {
             drain_cycles: config.drain_cycles,
             drain_left: None,
             next_progress: 0,
+            hang: None,
         }
     }
 
@@ -45,29 +36,38 @@ impl StopRule {
         self.watchdog.progress(cycle);
     }
 
-    /// After a cycle's checks: `finished` when everything is sent and every
-    /// expected beat received, `mismatch_stop` when a mismatch ends the
-    /// run. Once finished, the drain of `drain_cycles` starts, watched by
-    /// a watchdog one cycle longer, so the drain ends the run, not a hang.
-    pub fn after_cycle<E: Engine + ?Sized>(
+    /// After a cycle's checks, whether the run stops here: `finished` when
+    /// everything is sent and every expected beat received, `mismatch_stop`
+    /// when a mismatch ends the run. Once finished, the drain of
+    /// `drain_cycles` starts, watched by a watchdog one cycle longer, so the
+    /// drain ends the run, not a hang. A hang stops it too ([`Self::hang`]).
+    pub fn stops_after<E: Engine + ?Sized>(
         &mut self,
         engine: &E,
         finished: bool,
         mismatch_stop: bool,
-    ) -> Verdict {
+    ) -> bool {
         if finished && self.drain_left.is_none() {
             self.drain_left = Some(self.drain_cycles);
             self.watchdog = Watchdog::new(self.drain_cycles + 1);
             self.watchdog.progress(engine.cycle());
         }
         if mismatch_stop || self.drain_left == Some(0) {
-            return Verdict::Stop;
+            return true;
         }
         self.drain_left = self.drain_left.map(|d| d - 1);
-        match self.watchdog.check(engine) {
-            Some(h) => Verdict::Hang(h),
-            None => Verdict::Go,
-        }
+        self.hang = self.watchdog.check(engine);
+        self.hang.is_some()
+    }
+
+    /// The watchdog's finding, when it stopped the run.
+    pub fn hang(&self) -> Option<&Hang> {
+        self.hang.as_ref()
+    }
+
+    /// [`Self::hang`], taken at the end of the run.
+    pub fn into_hang(self) -> Option<Hang> {
+        self.hang
     }
 
     /// Whether a progress callback is due at `cycle` (every

@@ -16,7 +16,7 @@ use crate::tb::{
     StreamBeats, Transaction,
 };
 
-use super::merge_module::{
+use super::multi_stream::{
     status_failure, stepped_engines, ModuleEngine, ModuleMismatch, RunConfig,
 };
 

@@ -25,10 +25,8 @@ use golden::vectors::merge::MergeDesign;
 
 use crate::bitvec::BitVec;
 use crate::design::Design;
-use crate::engines::{open_engine, EngineKind};
 use crate::error::{CosimError, Result};
 use crate::icarus::IcarusMultiBatch;
-use crate::ir_engine::IrEngine;
 use crate::tb::{
     run_multi_with_vcd_on_failure, BenchConfig, FieldDecoder, Hang, MultiReport, Progress,
     PulseWatch, StreamBeats, Transaction,
@@ -36,6 +34,11 @@ use crate::tb::{
 
 pub use super::chunked::UnitStreams;
 use super::chunked::{ChunkTotals, ChunkedSim};
+use super::multi_stream::{apply_patch, flip_bit0, stepped_engines};
+pub use super::multi_stream::{
+    beat_decoder, decode_fields, decoded_pair, named, status_failure, ModuleEngine, ModuleMismatch,
+    RunConfig, VerilogPatch, PULSES,
+};
 
 /// The stage name `hiermerge cosim --unit merge` reports for this unit.
 pub const STAGE: &str = "merge_module";
@@ -196,44 +199,11 @@ fn generate_streams_from(
     })
 }
 
-/// `bits` decoded field by field: `(name, value in hex)` per field, in
-/// the order given; a beat that is not a layout's width shows as one
-/// `data` field of raw bits.
-pub fn decode_fields(bits: &BitVec, fields: &[(String, Field)]) -> Vec<(String, String)> {
-    let Ok(b) = Bits::from_words(bits.width() as u32, bits.words()) else {
-        return vec![("data".into(), bits.to_string())];
-    };
-    fields
-        .iter()
-        .map(|(name, f)| {
-            let shown = match b.get(f) {
-                Ok(x) => format!("{x:#x}"),
-                Err(e) => format!("({e})"),
-            };
-            (name.clone(), shown)
-        })
-        .collect()
-}
-
-/// A layout's fields named by their own names.
-pub fn named(fields: impl IntoIterator<Item = Field>) -> Vec<(String, Field)> {
-    fields
-        .into_iter()
-        .map(|f| (f.name.to_string(), f))
-        .collect()
-}
-
 /// The merging module's `report` fields in bit order (`TopLayout`).
 pub fn top_report_fields(l: &TopLayout) -> Vec<Field> {
     vec![
         l.lod, l.shared, l.union, l.above, l.overflow, l.chosen, l.err,
     ]
-}
-
-/// Decodes a single-payload beat with `fields` (a beat without payload
-/// decodes to nothing).
-pub fn beat_decoder(fields: Vec<(String, Field)>) -> Box<FieldDecoder> {
-    Box::new(move |t: &Transaction| t.first().map_or(Vec::new(), |v| decode_fields(v, &fields)))
 }
 
 /// Decodes a `report` beat by field name (`TopLayout`; per-node
@@ -251,88 +221,12 @@ pub fn report_decoder(d: &MergeDesign) -> Box<FieldDecoder> {
     beat_decoder(named(fields))
 }
 
-/// `expected` and `got` decoded with `decoder`, side by side: `(field,
-/// expected, got)`, `(none)` where one side has fewer fields.
-pub fn decoded_pair(
-    decoder: &FieldDecoder,
-    expected: &Transaction,
-    got: &Transaction,
-) -> Vec<(String, String, String)> {
-    let (e, g) = (decoder(expected), decoder(got));
-    let shown = |v: &[(String, String)], i: usize| {
-        v.get(i)
-            .map_or_else(|| "(none)".to_string(), |f| f.1.clone())
-    };
-    (0..e.len().max(g.len()))
-        .map(|i| {
-            let name = e.get(i).or(g.get(i)).map(|f| f.0.clone());
-            (name.unwrap_or_default(), shown(&e, i), shown(&g, i))
-        })
-        .collect()
-}
-
 /// The decoder of output stream `name` (`report` or `out`).
 pub fn decoder_of(d: &MergeDesign, name: &str) -> Box<FieldDecoder> {
     match name {
         "report" => report_decoder(d),
         _ => super::merge::decoder(&d.params),
     }
-}
-
-/// Which simulator runs the unit.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum ModuleEngine {
-    /// rtl-gen's IR simulator (`run_multi_stream_bench`).
-    Ir,
-    /// Verilator (`run_multi_stream_bench`).
-    Verilator,
-    /// Icarus, the multi-stream batch (one `vvp` run).
-    Iverilog,
-}
-
-/// How one run is driven.
-#[derive(Clone, Debug, Default)]
-pub struct RunConfig {
-    /// Seed of the stall patterns.
-    pub seed: u64,
-    /// Stall probability of every driver and every monitor.
-    pub stall: f64,
-    /// Where the VCD around the first failure goes (None: no VCD).
-    pub vcd_path: Option<PathBuf>,
-    /// Cycles traced either side of the failure.
-    pub vcd_radius: u64,
-    /// A deliberate break of the emitted Verilog (the test hook): its one
-    /// occurrence of `from` replaced by `to` before simulation (Verilator
-    /// and Icarus only: the IR engine does not read the Verilog).
-    pub verilog_patch: Option<VerilogPatch>,
-}
-
-/// One text replacement in the emitted Verilog.
-#[derive(Clone, Debug)]
-pub struct VerilogPatch {
-    /// Text that must occur exactly once in the emitted files.
-    pub from: String,
-    /// What replaces it.
-    pub to: String,
-}
-
-/// The status outputs whose pulses a run counts.
-pub const PULSES: [&str; 2] = ["done", "idle"];
-
-/// The first failing output beat, decoded (also the hierarchy merger's,
-/// `merger::MergerMismatch`).
-#[derive(Clone, Debug)]
-pub struct ModuleMismatch {
-    /// Output stream (`report` or `out`; the merger's: any of its outputs).
-    pub stream: String,
-    /// 0-based index of the beat on its stream (the merger: in its chunk).
-    pub beat: u64,
-    /// The merge it belongs to (the merger: over the whole run).
-    pub merge: usize,
-    /// Cycle of the transfer (the merger: from the start of its chunk).
-    pub cycle: u64,
-    /// (field, expected, got), decoded per stream.
-    pub fields: Vec<(String, String, String)>,
 }
 
 /// What a run measured.
@@ -519,88 +413,6 @@ pub fn run_chunked(
         }
     }
     Ok(totals)
-}
-
-/// The engine factory of a stepped run (IR or Verilator) for
-/// `run_multi_with_vcd_on_failure`. A patched design is there to fail, so
-/// it gets the tracing Verilator build from the start: the VCD rerun then
-/// reuses that build instead of compiling the design a second time.
-pub(crate) fn stepped_engines<'a>(
-    module: &'a rtl_gen::Module,
-    design: &'a Design,
-    engine: ModuleEngine,
-    patched: bool,
-) -> impl FnMut(bool) -> Result<Box<dyn crate::Engine>> + 'a {
-    move |trace| match engine {
-        ModuleEngine::Ir => Ok(Box::new(IrEngine::new(module, design)?)),
-        _ => open_engine(EngineKind::Verilator, design, trace || patched),
-    }
-}
-
-/// What the status outputs of a multi-stream unit got wrong, if anything:
-/// `done` not high in exactly one cycle per merge, or `idle` low at the end
-/// of `scope` (`the run`, `a chunk`).
-pub fn status_failure(
-    done_pulses: u64,
-    merges: usize,
-    idle_at_end: bool,
-    scope: &str,
-) -> Option<String> {
-    let mut wrong = Vec::new();
-    if done_pulses != merges as u64 {
-        wrong.push(format!(
-            "`done` pulsed {done_pulses} times for {merges} merges"
-        ));
-    }
-    if !idle_at_end {
-        wrong.push(format!("`idle` low at the end of {scope}"));
-    }
-    (!wrong.is_empty()).then(|| wrong.join("; "))
-}
-
-/// Flips bit 0 of an expected beat (the `FLIP_EXPECTED` test hook).
-pub(crate) fn flip_bit0(beat: &mut BitVec) -> Result<()> {
-    let mut w = beat.words().to_vec();
-    if let Some(low) = w.first_mut() {
-        *low ^= 1;
-    }
-    *beat = BitVec::from_words(beat.width(), &w)?;
-    Ok(())
-}
-
-/// Replaces the one occurrence of `patch.from` in the design's Verilog;
-/// refused on the IR engine, which simulates the module, not its Verilog.
-pub(crate) fn apply_patch(
-    design: &Design,
-    patch: &VerilogPatch,
-    engine: ModuleEngine,
-) -> Result<()> {
-    if engine == ModuleEngine::Ir {
-        return Err(CosimError::Unsupported {
-            what: "a Verilog patch on the IR engine (it simulates the module, not its Verilog)"
-                .to_string(),
-        });
-    }
-    let mut found = Vec::new();
-    for file in &design.verilog_files {
-        let text = std::fs::read_to_string(file).map_err(crate::error::io_err(file))?;
-        let n = text.matches(patch.from.as_str()).count();
-        if n > 0 {
-            found.push((file, text, n));
-        }
-    }
-    let total: usize = found.iter().map(|f| f.2).sum();
-    if total != 1 {
-        return Err(CosimError::Design {
-            what: format!(
-                "Verilog patch: `{}` occurs {total} times in the emitted files of `{}`; expected exactly once",
-                patch.from, design.top
-            ),
-        });
-    }
-    let (file, text, _) = &found[0];
-    std::fs::write(file, text.replacen(patch.from.as_str(), &patch.to, 1))
-        .map_err(crate::error::io_err(file.as_path()))
 }
 
 #[cfg(test)]

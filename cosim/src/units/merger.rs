@@ -33,12 +33,11 @@ use crate::tb::{FieldDecoder, StreamBeats, Transaction};
 
 pub use super::chunked::{ChunkTotals, CHUNK};
 use super::chunked::{ChunkedSim, UnitStreams};
-pub use super::merge_module::ModuleEngine as MergerEngine;
-pub use super::merge_module::ModuleMismatch as MergerMismatch;
-use super::merge_module::{
-    apply_patch, beat_decoder, decoded_pair, flip_bit0, named, top_report_fields,
-};
-pub use super::merge_module::{RunConfig as ModuleRunConfig, VerilogPatch};
+use super::merge_module::top_report_fields;
+pub use super::multi_stream::ModuleEngine as MergerEngine;
+pub use super::multi_stream::ModuleMismatch as MergerMismatch;
+use super::multi_stream::{apply_patch, beat_decoder, decoded_pair, flip_bit0, named};
+pub use super::multi_stream::{RunConfig as ModuleRunConfig, VerilogPatch};
 
 /// The stage name `hiermerge cosim --unit merger` reports.
 pub const STAGE: &str = "hierarchy_merger";

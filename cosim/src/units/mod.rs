@@ -10,6 +10,7 @@ pub mod chunked;
 pub mod merge;
 pub mod merge_module;
 pub mod merger;
+pub mod multi_stream;
 pub mod translate;
 
 use crate::engine::Engine;

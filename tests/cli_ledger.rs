@@ -63,8 +63,11 @@ fn edit(path: &Path, f: impl FnOnce(&mut Value)) {
 }
 
 fn problems(r: &Value) -> Vec<String> {
-    r["problems"]
-        .as_array()
+    strings(&r["problems"])
+}
+
+fn strings(list: &Value) -> Vec<String> {
+    list.as_array()
         .unwrap()
         .iter()
         .map(|p| p.as_str().unwrap().to_string())
@@ -145,16 +148,36 @@ fn stale_failed_and_inconsistent_entries_are_named() {
     let original = std::fs::read_to_string(&path).unwrap();
     let restore = || std::fs::write(&path, &original).unwrap();
 
-    // A netlist other than today's.
+    // A netlist other than today's: reported as stale, its configuration
+    // as lacking evidence; an error only with --strict.
     edit(&path, |v| v["netlist_sha256"] = "0".repeat(64).into());
     let (ok, r) = check(dir.path(), "none", "1");
-    assert!(!ok);
-    let p = problems(&r);
+    assert!(ok, "{r}");
+    assert!(problems(&r).is_empty(), "{r}");
+    let stale = strings(&r["stale"]);
     assert!(
-        p.len() == 1 && p[0].contains(&name) && p[0].contains("netlist changed"),
-        "{p:?}"
+        stale.len() == 1 && stale[0].contains(&name) && stale[0].contains("netlist changed"),
+        "{stale:?}"
     );
     assert_eq!(r["totals"].as_array().unwrap().len(), 0, "{r}");
+    let lacking = r["lacking"].as_array().unwrap();
+    assert!(
+        lacking.len() == 1 && lacking[0]["engine"] == "ir" && lacking[0]["merges"] == 0,
+        "{r}"
+    );
+    let o = hiermerge(
+        &[
+            "ledger",
+            "--dir",
+            dir.path().to_str().unwrap(),
+            "--stimulus",
+            "none",
+            "--strict",
+        ],
+        &[],
+    );
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("1 ledger entries are stale"));
     restore();
 
     // Another seed in both places: the netlist is today's, the stimulus
@@ -165,10 +188,10 @@ fn stale_failed_and_inconsistent_entries_are_named() {
         let at = args.iter().position(|a| a == "--seed").unwrap();
         args[at + 1] = "6".into();
     });
-    assert!(check(dir.path(), "none", "1").0);
+    assert!(strings(&check(dir.path(), "none", "1").1["stale"]).is_empty());
     let (ok, r) = check(dir.path(), "all", "1");
-    assert!(!ok);
-    assert!(problems(&r)[0].contains("stimulus changed"), "{r}");
+    assert!(ok && problems(&r).is_empty(), "{r}");
+    assert!(strings(&r["stale"])[0].contains("stimulus changed"), "{r}");
     restore();
 
     // The seed field disagreeing with the args.

@@ -1,9 +1,10 @@
 //! The repository's long-run ledger (`longruns/`, SPEC 10.2) is evidence
-//! about this code: every entry passed, its netlist regenerated today has
-//! its digest, and the first entry of each configuration regenerates its
-//! stimulus. A generator or golden change that makes an entry stale fails
-//! here, naming the entry, until it is rerun or removed. The plan
-//! (`longruns/plan.txt`) parses, and every entry is one of its runs.
+//! about this code: every entry is well formed, passed, agrees with its own
+//! command line and is one of the plan's runs (`longruns/plan.txt`, which
+//! parses). Entries whose design or stimulus changed since their run are
+//! reported, with the configurations that then lack evidence: a change of
+//! behaviour asks for new runs, it does not fail CI. A refactor that keeps
+//! behaviour keeps every entry current (the netlist digest is structural).
 
 mod common;
 
@@ -30,21 +31,45 @@ fn the_ledger_in_the_repository_is_current() {
     assert!(o.status.success(), "{:#}", r["problems"]);
     let entries = r["entries"].as_array().unwrap();
     assert!(!entries.is_empty(), "no entry in {dir}");
-    // Every entry was checked against a regenerated netlist, and one per
-    // configuration against its regenerated stimulus.
-    assert!(entries.iter().all(|e| e["netlist_current"] == true), "{r}");
+    // One stimulus check per configuration.
     let tops: std::collections::BTreeSet<&str> =
         entries.iter().map(|e| e["top"].as_str().unwrap()).collect();
     let stimulus_checked = entries
         .iter()
-        .filter(|e| e["stimulus_current"] == true)
+        .filter(|e| !e["stimulus_current"].is_null())
         .count();
     assert_eq!(stimulus_checked, tops.len(), "{r}");
-    // The plan parses, and every entry is one of its lines.
+    // Every entry is one of the plan's lines: a plan line whose entry is
+    // current is done, and a stale entry's line is not.
     let planned = r["plan"].as_array().unwrap();
+    let key = |v: &serde_json::Value| {
+        (
+            v["top"].as_str().unwrap().to_string(),
+            v["engine"].as_str().unwrap().to_string(),
+            v["seed"].as_u64().unwrap(),
+            v["count"].as_u64().unwrap(),
+        )
+    };
+    let lines: std::collections::BTreeSet<_> = planned.iter().map(key).collect();
+    for e in entries {
+        assert!(lines.contains(&key(e)), "an entry outside the plan: {e}");
+    }
     let done = planned.iter().filter(|l| l["done"] == true).count();
-    assert_eq!(done, entries.len(), "an entry outside the plan: {r}");
+    let current = entries
+        .iter()
+        .filter(|e| e["netlist_current"] == true && e["stimulus_current"] != false)
+        .count();
+    assert_eq!(done, current, "{r}");
     println!("plan: {done} of {} runs done", planned.len());
+    for s in r["stale"].as_array().unwrap() {
+        println!("stale: {}", s.as_str().unwrap());
+    }
+    for t in r["lacking"].as_array().unwrap() {
+        println!(
+            "lacking evidence: {} {}: {} merges",
+            t["top"], t["engine"], t["merges"]
+        );
+    }
     for t in r["totals"].as_array().unwrap() {
         println!(
             "{} {}: {} merges in {} runs, {} cycles",

@@ -4,57 +4,45 @@
 //! hours) is run in pieces, on any machine, and still adds up to evidence
 //! about *this* code.
 //!
-//! An entry is tied to the code by two SHA-256 digests: of the netlist
-//! (the design's Verilog, line comments and trailing blanks dropped, since
-//! they cannot change a simulation) and of the stimulus (every beat in and
-//! every expected beat out, with the seed, count and stall that drive the
-//! bench). Regenerating both from the entry's own command line and finding
-//! the same digests shows that rerunning it today would simulate the same
-//! netlist on the same beats against the same expectations; a different
-//! digest makes the entry stale, and `hiermerge ledger` says so.
+//! An entry is tied to the code by two SHA-256 digests: of the netlist's
+//! structural identity ([`rtl_gen::identity`]: what each output port
+//! computes, every internal name, wire, hierarchy boundary and duplicate
+//! forgotten) and of the stimulus (every beat in and every expected beat
+//! out, with the seed, count and stall that drive the bench). Regenerating
+//! both from the entry's own command line and finding the same digests shows
+//! that rerunning it today would simulate a design that computes the same
+//! thing on the same beats against the same expectations. A refactor that
+//! renames nets, splits generator functions or moves logic between modules
+//! keeps every entry current; a change of behaviour makes the entry stale,
+//! and `hiermerge ledger` reports which configurations then lack evidence.
 
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
 use crate::cache::CacheKey;
-use crate::design::Design;
 use crate::error::{io_err, Result};
 use crate::tb::StreamBeats;
 
 /// The `format` every entry carries; bumped when fields change meaning.
-pub const FORMAT: &str = "hiermerge-longrun-1";
+pub const FORMAT: &str = "hiermerge-longrun-2";
 
-/// A Verilog source as the digest sees it: each line without its `//`
-/// comment and trailing blanks, blank lines dropped. The emitted Verilog
-/// has no string literals, so `//` always starts a comment.
-pub fn canonical_verilog(text: &str) -> String {
-    let mut out = String::with_capacity(text.len());
-    for line in text.lines() {
-        let code = line.split("//").next().unwrap_or("").trim_end();
-        if !code.is_empty() {
-            out.push_str(code);
-            out.push('\n');
-        }
-    }
-    out
-}
-
-/// SHA-256 of `design`'s Verilog files (file name and canonical text, in
-/// file-name order), as 64 hex digits.
-pub fn netlist_digest(design: &Design) -> Result<String> {
-    let mut files = design.verilog_files.clone();
-    files.sort();
+/// SHA-256 of `top`'s structural identity ([`rtl_gen::identity`]): the
+/// refinement's round count and class count and every port's name, width,
+/// direction and label, as 64 hex digits.
+pub fn netlist_digest(top: &rtl_gen::Module) -> Result<String> {
+    let id = rtl_gen::identity::identity(top).map_err(|d| crate::CosimError::Design {
+        what: format!("netlist identity of {}: {d}", top.name()),
+    })?;
     let mut key = CacheKey::new();
     key.add("format", FORMAT.as_bytes());
-    for f in &files {
-        let text = std::fs::read_to_string(f).map_err(io_err(f))?;
-        let name = f.file_name().map_or_else(
-            || f.display().to_string(),
-            |n| n.to_string_lossy().into_owned(),
-        );
-        key.add("file", name.as_bytes());
-        key.add("text", canonical_verilog(&text).as_bytes());
+    key.add("rounds", &id.rounds.to_le_bytes());
+    key.add("classes", &(id.classes as u64).to_le_bytes());
+    for (name, width, dir, label) in &id.ports {
+        key.add("port", name.as_bytes());
+        key.add("width", &width.to_le_bytes());
+        key.add("dir", &[*dir as u8]);
+        key.add("label", &label.to_le_bytes());
     }
     Ok(key.finish())
 }
@@ -184,7 +172,7 @@ pub fn read_ledger(dir: &Path) -> Result<Vec<(std::path::PathBuf, Entry)>> {
             if entry.format != FORMAT {
                 return Err(crate::CosimError::Parse {
                     text: path.display().to_string(),
-                    what: format!("format `{}`, expected `{FORMAT}`", entry.format),
+                    what: format!("format `{}`, expected `{FORMAT}` (entries of hiermerge-longrun-1 digest the Verilog text; rerun them)", entry.format),
                 });
             }
             for (field, digest) in [
@@ -226,17 +214,6 @@ fn collect_json(dir: &Path, out: &mut Vec<std::path::PathBuf>) -> Result<()> {
 mod tests {
     use super::*;
     use crate::bitvec::BitVec;
-
-    #[test]
-    fn comments_and_blanks_do_not_change_the_canonical_text() {
-        let a = "module m; // the top\n  wire a;   \n\n// gone\nendmodule\n";
-        let b = "module m;\n  wire a;\nendmodule";
-        assert_eq!(canonical_verilog(a), canonical_verilog(b));
-        assert_ne!(
-            canonical_verilog(a),
-            canonical_verilog("module m;\n  wire b;\nendmodule")
-        );
-    }
 
     fn streams(bit: bool) -> Vec<StreamBeats> {
         let mut v = BitVec::zeros(70);

@@ -30,6 +30,7 @@ mod bits;
 mod diagnostic;
 pub mod examples;
 mod graph;
+pub mod identity;
 mod instance;
 mod memory;
 pub mod merge;

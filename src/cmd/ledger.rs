@@ -2,8 +2,12 @@
 //! today's code and adds up what it still proves. Each entry's command
 //! line is parsed again; its configuration's netlist is regenerated and
 //! digested, and (`--stimulus`) its stimulus too. An entry whose digests
-//! differ is stale: the code it ran is not this code. What is left is
-//! summed per configuration and engine, each seed counted once.
+//! differ is stale: the design it ran no longer computes what today's does
+//! (a rename or a refactor keeps it current: the netlist digest is of the
+//! design's structural identity). What is left is summed per configuration
+//! and engine, each seed counted once, and the configurations short of
+//! `--need` are named. Stale entries are reported, not errors, unless
+//! `--strict`; failed and inconsistent entries are always errors.
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::PathBuf;
@@ -49,6 +53,10 @@ pub struct Args {
     /// problems (for scripts/longruns).
     #[arg(long, requires = "plan")]
     missing: bool,
+    /// Exit non-zero when an entry is stale, too (by default a stale entry
+    /// is reported and its configuration listed as lacking evidence).
+    #[arg(long)]
+    strict: bool,
     /// Print one JSON object on stdout.
     #[arg(long)]
     json: bool,
@@ -101,8 +109,14 @@ struct Report {
     need: u64,
     entries: Vec<Checked>,
     totals: Vec<Total>,
-    /// Failed, stale or inconsistent entries, one line each.
+    /// Failed or inconsistent entries, one line each: errors.
     problems: Vec<String>,
+    /// Entries whose netlist or stimulus changed since the run, one line
+    /// each: no longer evidence about this code.
+    stale: Vec<String>,
+    /// The configurations and engines (of the entries and the plan) whose
+    /// current, passing merges fall short of `need`.
+    lacking: Vec<Total>,
     /// With --plan: its lines, each done or not.
     #[serde(skip_serializing_if = "Option::is_none")]
     plan: Option<Vec<PlanLine>>,
@@ -148,6 +162,7 @@ fn check(
     digest_stimulus: bool,
     netlists: &mut HashMap<String, Result<String, String>>,
     problems: &mut Vec<String>,
+    stale: &mut Vec<String>,
 ) -> Checked {
     let mut out = Checked {
         path: path.to_string(),
@@ -193,15 +208,15 @@ fn check(
         ));
         return out;
     }
-    let digest = netlists.entry(top).or_insert_with(|| {
-        let dir = tempfile::tempdir().map_err(|e| format!("temporary directory: {e}"))?;
-        merger::netlist_digest(&run.config, dir.path()).map_err(|e| e.to_string())
-    });
+    let digest = netlists
+        .entry(top)
+        .or_insert_with(|| merger::netlist_digest(&run.config).map_err(|e| e.to_string()));
     match digest {
         Ok(d) if *d == e.netlist_sha256 => out.netlist_current = true,
-        Ok(d) => problems.push(format!(
-            "{path}: stale: the netlist changed since the run (netlist_sha256 {}, today {d}); rerun `hiermerge cosim {} --ledger DIR` and replace the entry",
+        Ok(d) => stale.push(format!(
+            "{path}: the netlist changed since the run (netlist_sha256 {}, today {}): remove the entry and rerun `hiermerge cosim {} --ledger DIR`",
             short(&e.netlist_sha256),
+            short(d),
             e.args.join(" ")
         )),
         Err(what) => problems.push(format!("{path}: regenerating the netlist: {what}")),
@@ -212,8 +227,8 @@ fn check(
                 let current = d == e.stimulus_sha256;
                 out.stimulus_current = Some(current);
                 if !current {
-                    problems.push(format!(
-                        "{path}: stale: the stimulus changed since the run (stimulus_sha256 {}, today {}): golden or the random merges changed; rerun and replace the entry",
+                    stale.push(format!(
+                        "{path}: the stimulus changed since the run (stimulus_sha256 {}, today {}): golden or the random merges changed; remove the entry and rerun it",
                         short(&e.stimulus_sha256),
                         short(&d)
                     ));
@@ -276,6 +291,7 @@ pub fn main(a: Args) -> CmdResult {
     };
     let mut netlists = HashMap::new();
     let mut problems = Vec::new();
+    let mut stale = Vec::new();
     let mut first_seen = std::collections::HashSet::new();
     let mut checked = Vec::new();
     for (path, e) in &ledger {
@@ -293,6 +309,7 @@ pub fn main(a: Args) -> CmdResult {
             digest_stimulus,
             &mut netlists,
             &mut problems,
+            &mut stale,
         ));
         pb.inc(1);
     }
@@ -325,21 +342,63 @@ pub fn main(a: Args) -> CmdResult {
             m.missing.iter().for_each(|l| println!("{l}"))
         });
     }
+    let totals = totals(&pairs, a.need);
+    let lacking = lacking(&ledger, plan.as_deref(), &totals, a.need);
     let report = Report {
         dir: a.dir.display().to_string(),
         need: a.need,
-        totals: totals(&pairs, a.need),
+        totals,
         entries: checked,
         problems,
+        stale,
+        lacking,
         plan,
     };
     emit(a.json, &report, print_text)?;
-    match report.problems.len() {
-        0 => Ok(()),
-        n => Err(format!(
-            "{n} ledger entries failed or are stale (listed above)"
+    let stale = if a.strict { report.stale.len() } else { 0 };
+    match (report.problems.len(), stale) {
+        (0, 0) => Ok(()),
+        (0, n) => Err(format!(
+            "{n} ledger entries are stale (--strict; listed above)"
+        )),
+        (n, _) => Err(format!(
+            "{n} ledger entries failed or are inconsistent (listed above)"
         )),
     }
+}
+
+/// Every (top, engine) of the entries and the plan whose current, passing
+/// merges fall short of `need`, with what it has.
+fn lacking(
+    ledger: &[(PathBuf, Entry)],
+    plan: Option<&[PlanLine]>,
+    totals: &[Total],
+    need: u64,
+) -> Vec<Total> {
+    let mut wanted: std::collections::BTreeSet<(String, String)> = ledger
+        .iter()
+        .map(|(_, e)| (e.top.clone(), e.engine.clone()))
+        .collect();
+    wanted.extend(
+        plan.into_iter()
+            .flatten()
+            .map(|l| (l.top.clone(), l.engine.clone())),
+    );
+    wanted
+        .into_iter()
+        .map(|(top, engine)| {
+            totals
+                .iter()
+                .find(|t| t.top == top && t.engine == engine)
+                .cloned()
+                .unwrap_or(Total {
+                    top,
+                    engine,
+                    ..Total::default()
+                })
+        })
+        .filter(|t| t.merges < need)
+        .collect()
 }
 
 /// Plan lines still to run that the text report shows.
@@ -380,6 +439,15 @@ fn print_text(r: &Report) {
                 left.len() - SHOWN
             );
         }
+    }
+    for t in &r.lacking {
+        println!(
+            "lacking evidence: {} on {}: {} current merges of {}",
+            t.top, t.engine, t.merges, r.need
+        );
+    }
+    for s in &r.stale {
+        println!("stale: {s}");
     }
     for p in &r.problems {
         println!("problem: {p}");

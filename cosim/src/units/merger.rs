@@ -500,12 +500,10 @@ fn chunk_sizes(count: usize) -> impl Iterator<Item = usize> {
     (0..count.div_ceil(CHUNK)).map(move |i| CHUNK.min(count - i * CHUNK))
 }
 
-/// The merger `c`'s Verilog as the ledger digests it (10.2), written to
-/// `dir`: what [`run`] simulates without a patch.
-pub fn netlist_digest(c: &MergerConfig, dir: &Path) -> Result<String> {
-    let module = merger_module(c)?;
-    let design = crate::from_rtl::design_from_module(&module, dir)?;
-    crate::ledger::netlist_digest(&design)
+/// The merger `c`'s netlist digest (10.2): of the design [`run`]
+/// simulates without a patch.
+pub fn netlist_digest(c: &MergerConfig) -> Result<String> {
+    crate::ledger::netlist_digest(&merger_module(c)?)
 }
 
 /// The stimulus digest (10.2) of the run [`run`] makes of `count` merges
@@ -539,11 +537,13 @@ pub fn run(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Outcome> {
     let module = merger_module(c)?;
+    // Of the design as generated: a patched run is a test of the bench and
+    // is never recorded in a ledger.
+    let netlist_sha256 = crate::ledger::netlist_digest(&module)?;
     let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
     if let Some(patch) = &config.bench.verilog_patch {
         apply_patch(&design, patch, engine)?;
     }
-    let netlist_sha256 = crate::ledger::netlist_digest(&design)?;
     let ml = MergerLayout::new(&c.design.params, c.design.inputs, c.sizes.capacity_bits)
         .map_err(golden_err)?;
     let k = c.design.inputs;

@@ -4,7 +4,7 @@
 //! values live in one word arena laid out so that every operand of a node
 //! sits before it; a step allocates nothing.
 
-mod flatten;
+pub(crate) mod flatten;
 mod vcd;
 
 use crate::graph::{BinOp, CmpOp, Direction, RedOp, ShiftKind};

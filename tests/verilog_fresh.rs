@@ -1,6 +1,7 @@
 //! `verilog/` holds exactly what the generators emit for the default
-//! configurations; each file lints clean and synthesizes with no latch,
-//! its memories mapped onto the RAM library of rtl-gen/yosys (SPEC.md 11);
+//! configurations; each file lints clean and synthesizes (to Yosys' coarse
+//! netlist) with no latch, its memories mapped onto the RAM library of
+//! rtl-gen/yosys (SPEC.md 11);
 //! the record writer's buffers all become RAM macros (SPEC.md 8.12).
 
 use std::collections::BTreeMap;
@@ -83,13 +84,15 @@ const DEEP_CELL: &str = "$__HIERMERGE_SDP_1024X32_";
 const DEEP_WORDS: u32 = 1024;
 const MACRO_BITS: u32 = 32;
 
-/// Yosys' generic `synth` of `top`, with the memories mapped onto the RAM
-/// library between the coarse and the fine steps (what SPEC.md 11 tells an
-/// RTL engineer to run).
+/// Yosys' generic `synth` of `top` up to its fine step, with the memories
+/// mapped onto the RAM library (SPEC.md 11's flow, which then runs
+/// `synth -run fine:`). Latches, memory inference and the RAM mapping are
+/// all decided by here; the fine step (gate mapping and ABC, most of the
+/// time on the large modules) is what `hiermerge synth` measures.
 fn synth_with_rams(top: &str) -> String {
     let lib = ram_library();
     format!(
-        "read_verilog {macros}; synth -top {top} -run begin:fine; memory_libmap -lib {rams}; techmap -map {map}; synth -top {top} -run fine:",
+        "read_verilog {macros}; synth -top {top} -run begin:fine; memory_libmap -lib {rams}; techmap -map {map}",
         macros = lib.join("sdp_rams_macros.v").display(),
         rams = lib.join("sdp_rams.txt").display(),
         map = lib.join("sdp_rams_map.v").display(),

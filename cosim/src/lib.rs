@@ -22,6 +22,7 @@ pub mod tb;
 pub mod tools;
 pub mod units;
 pub mod verilator;
+pub mod volume;
 
 pub use bitvec::BitVec;
 pub use design::{Design, PortDir, PortId, PortSpec, Reset};

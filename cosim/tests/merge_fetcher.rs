@@ -12,6 +12,7 @@
 mod merge_common;
 
 use cosim::tb::StreamBeats;
+use cosim::volume::volume;
 use cosim::BitVec;
 use golden::build::{build, GridMap};
 use golden::merge::fetch_unit::{
@@ -360,6 +361,11 @@ fn check(name: &str, runs: &[(&str, usize)], most: usize) {
     let m = rtl_gen::merge::fetcher_unit(&p, &sizes);
     let design = design_of(&m, dir.path());
     for &(kind, cmds) in runs {
+        let cmds = if kind == "verilator" {
+            volume(cmds)
+        } else {
+            cmds
+        };
         let mut codes = [0usize; 15];
         let (mut multi, mut multi_errors) = (0, 0);
         let (mut total, mut chunk) = (0, 0u64);

@@ -10,6 +10,7 @@
 mod merge_common;
 
 use cosim::tb::StreamBeats;
+use cosim::volume::volume;
 use golden::merge::top::TopLayout;
 use golden::merge::MergeMode;
 use golden::params::Params;
@@ -210,7 +211,7 @@ fn throughput(name: &str, d: &MergeDesign) -> f64 {
 fn runs(verilator: usize, batch: usize) -> Vec<(&'static str, usize)> {
     vec![
         ("ir", 200),
-        ("verilator", verilator),
+        ("verilator", volume(verilator)),
         ("iverilog", 20),
         ("iverilog-batch", batch),
     ]

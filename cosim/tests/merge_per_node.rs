@@ -12,6 +12,7 @@
 mod merge_common;
 
 use cosim::tb::StreamBeats;
+use cosim::volume::volume;
 use golden::build::{build, GridMap};
 use golden::merge::per_node_unit::{
     random_per_node_case, PerNodeCase, PerNodeLayout, PerNodeReport, PerNodeTransaction,
@@ -216,7 +217,7 @@ fn check(name: &str, d: &MergeDesign, depth: u8, runs: &[(&str, usize)], seed: u
 fn runs(ir: usize, verilator: usize, batch: usize) -> Vec<(&'static str, usize)> {
     vec![
         ("ir", ir),
-        ("verilator", verilator),
+        ("verilator", volume(verilator)),
         ("iverilog", ir / 10),
         ("iverilog-batch", batch),
     ]

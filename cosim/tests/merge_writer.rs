@@ -14,6 +14,7 @@
 mod merge_common;
 
 use cosim::tb::{MultiReport, StreamBeats};
+use cosim::volume::volume;
 use golden::merge::builder_unit::fixed_level_base;
 use golden::merge::level::candidate_range;
 use golden::merge::level_merge::BaseNode;
@@ -291,7 +292,7 @@ fn check(name: &str, runs: &[(&str, usize)], most: u64) {
 fn runs(ir: usize, verilator: usize, pipe: usize, batch: usize) -> Vec<(&'static str, usize)> {
     vec![
         ("ir", ir),
-        ("verilator", verilator),
+        ("verilator", volume(verilator)),
         ("iverilog", pipe),
         ("iverilog-batch", batch),
     ]

@@ -113,13 +113,15 @@ fn verilog_files(design: &Design) -> Vec<String> {
         .collect()
 }
 
-/// [`lint_only`], then Yosys `synth` with `check -assert` and no latch, on
-/// the Verilog files of `design`.
+/// [`lint_only`], then Yosys `synth` to its coarse netlist (`-run
+/// begin:fine`: elaboration, processes, memories; where a latch would be
+/// inferred) with `check -assert` and no latch, on the Verilog files of
+/// `design`. The fine step (gate mapping, ABC) is `hiermerge synth`'s.
 pub fn lint_and_synth(design: &Design) {
     lint_only(design);
     let files = verilog_files(design);
     let script = format!(
-        "read_verilog {}; synth -top {}; check -assert; select -assert-none t:$dlatch t:$_DLATCH_* t:$sr t:$_SR_*",
+        "read_verilog {}; synth -top {} -run begin:fine; check -assert; select -assert-none t:$dlatch t:$adlatch t:$dlatchsr t:$_DLATCH_* t:$sr t:$_SR_*",
         files.join(" "),
         design.top
     );

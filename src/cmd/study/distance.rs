@@ -1,0 +1,224 @@
+//! Hit error against distance from the origin (SPEC 13.3): a case placed
+//! at distances 1 to 1e9, traced in each number format of positions and
+//! compared ray by ray with the independent binary64 reference tracer on
+//! the triangles at their requested world positions.
+
+use glam::{DVec3, Vec3};
+use golden::build::build;
+use golden::geom::ray::Ray;
+use golden::geom::triangle::{intersect_triangle, ShearedRay};
+use golden::scenes::SplitMix64;
+use golden::study::reference::ReferenceTracer;
+use golden::trace::{closest_hit, Instance, TraceScene, TraceStats};
+use golden::translate::{determine, hierarchy_expansion_cost, Axis, Placement, VoxelRange};
+use golden::Params;
+use serde::Serialize;
+
+use super::compare::{compare, HitCounts};
+use super::inputs::Case;
+use crate::cmd::common::placement_grid;
+
+/// One format at one distance (and translation level, for translated formats).
+#[derive(Serialize, Clone, Debug)]
+pub struct DistanceRow {
+    pub distance: f64,
+    /// D of the grid the case is placed in.
+    pub max_lod: u8,
+    pub format: String,
+    /// The translation level L (translated formats only).
+    pub level: Option<u8>,
+    /// Which L it is: "top" (the hierarchy's top LOD), "middle", "D"; "-" untranslated.
+    pub level_role: String,
+    /// The hierarchy's top LOD at this distance.
+    pub top_lod: u8,
+    #[serde(flatten)]
+    pub hits: HitCounts,
+    /// Largest per-axis distance between where the geometry is and where it
+    /// was asked to be (world units).
+    pub position_error: f64,
+    /// The residual determine leaves (SPEC 7.1), largest axis, world units.
+    pub residual: Option<f64>,
+    /// Nodes the expanding variant adds to move the hierarchy at L (SPEC 7.7).
+    pub nodes_added: Option<u64>,
+}
+
+/// The distances swept: 1, 10, ..., 1e9.
+pub fn distances() -> Vec<f64> {
+    (0..=9).map(|e| 10f64.powi(e)).collect()
+}
+
+/// Rays in the case's own frame: (origin, target), binary64.
+fn local_rays(case: &Case, n: usize, seed: u64) -> Vec<(DVec3, DVec3)> {
+    let (lo, hi) = case.mesh.bounds();
+    let (c, r) = ((lo + hi) * 0.5, (hi - lo).length().max(1e-6));
+    let mut rng = SplitMix64::new(seed ^ 0xd15);
+    (0..n)
+        .map(|_| {
+            let o = c + rng.unit_vector() * r * 1.5;
+            (o.as_dvec3(), rng.point_in(lo, hi).as_dvec3())
+        })
+        .collect()
+}
+
+/// The rays as the API gives them when the case sits at `p`: binary32
+/// world coordinates. The origin is the binary32 point nearest `p + o`;
+/// the direction aims from there at `p + target` (so far from the origin,
+/// where binary32 moves the origin, the rays still meet the case).
+fn world_rays(p: DVec3, local: &[(DVec3, DVec3)]) -> Vec<Ray> {
+    local
+        .iter()
+        .map(|(o, target)| {
+            let org = (p + *o).as_vec3();
+            let dir = (*target - (org.as_dvec3() - p)).normalize().as_vec3();
+            Ray::unbounded(org, dir)
+        })
+        .collect()
+}
+
+/// Measures every format at distance `d`; translated ones at the top LOD,
+/// half-way to D, and D.
+pub fn at_distance(
+    case: &Case,
+    params: Params,
+    d: f64,
+    rays: usize,
+    seed: u64,
+) -> Result<Vec<DistanceRow>, String> {
+    let dir = DVec3::new(1.0, 0.618, 0.382).normalize();
+    let p = dir * d;
+    let mesh = &case.mesh;
+    let local = local_rays(case, rays, seed);
+    let rays32 = world_rays(p, &local);
+    let tris: Vec<[DVec3; 3]> = (0..mesh.triangles.len())
+        .map(|i| mesh.triangle_f64(i))
+        .collect();
+    let reference = ReferenceTracer::new(tris.clone());
+    let mut out = Vec::new();
+
+    // Untranslated: the vertices at their world positions in binary32 / binary64.
+    let w32: Vec<[Vec3; 3]> = tris.iter().map(|t| t.map(|v| (v + p).as_vec3())).collect();
+    let hits32: Vec<Option<(f64, u32)>> = rays32.iter().map(|r| brute_f32(r, &w32)).collect();
+    let err32 = tris
+        .iter()
+        .flatten()
+        .map(|v| {
+            ((*v + p).as_vec3().as_dvec3() - (*v + p))
+                .abs()
+                .max_element()
+        })
+        .fold(0.0, f64::max);
+    let w64 = ReferenceTracer::new(tris.iter().map(|t| t.map(|v| v + p)).collect());
+    let hits64: Vec<Option<(f64, u32)>> = rays32
+        .iter()
+        .map(|r| w64.closest(r.origin.as_dvec3(), r.dir.as_dvec3(), 0.0, f64::INFINITY))
+        .map(|h| h.map(|h| (h.t, h.prim)))
+        .collect();
+    let err64 = tris
+        .iter()
+        .flatten()
+        .flat_map(|v| Axis::ALL.map(|a| two_sum_error(v[a.index()], p[a.index()]).abs()))
+        .fold(0.0, f64::max);
+    for (name, hits, err) in [("b32-world", &hits32, err32), ("b64-world", &hits64, err64)] {
+        out.push(DistanceRow {
+            distance: d,
+            max_lod: params.max_lod,
+            format: name.into(),
+            level: None,
+            level_role: "-".into(),
+            top_lod: 0,
+            hits: compare(&reference, p, &rays32, hits),
+            position_error: err,
+            residual: None,
+            nodes_added: None,
+        });
+    }
+
+    // Translated: built in the local frame, placed by a translation at L.
+    let grid = placement_grid(std::slice::from_ref(mesh), &[p], &params)?;
+    let h = build(mesh, &grid, &params, 0).map_err(|e| format!("{}: {e}", case.source))?;
+    let tops: Vec<_> = h.roots().iter().map(|n| n.voxel).collect();
+    let top = h.top_lod;
+    let mut levels = vec![
+        (top, "top"),
+        (top + (params.max_lod - top) / 2, "middle"),
+        (params.max_lod, "D"),
+    ];
+    levels.dedup_by_key(|l| l.0);
+    let g = p / grid.unit;
+    for &(l, role) in &levels {
+        let extents = VoxelRange::of_nodes(&tops, l, &params).map_err(|e| e.to_string())?;
+        let b32 = Placement::binary32(g.as_vec3().to_array());
+        let b64 = Placement::binary64(g.to_array());
+        for (name, placement) in [
+            ("b32-local", b32),
+            ("b64-local", b64),
+            ("b64-local-aligned", b64),
+        ] {
+            let det = determine(&placement, l, &extents, &params)
+                .map_err(|e| format!("distance {d}: L = {l}: {e}"))?;
+            let off = Axis::ALL.map(|a| det.translation.grid_offset(a, &params));
+            // None when the expanding variant refuses the move (SPEC 7.7).
+            let added = hierarchy_expansion_cost(&h, &det.translation)
+                .ok()
+                .map(|c| c.added);
+            let applied = DVec3::from_array(off.map(|o| o as f64)) * grid.unit;
+            let aligned = name == "b64-local-aligned";
+            // Aligned: the object is asked to be exactly where the grid puts it.
+            let wanted = if aligned { applied } else { p };
+            let rays = if aligned {
+                world_rays(wanted, &local)
+            } else {
+                rays32.clone()
+            };
+            let inst = Instance {
+                offset: off,
+                ..Instance::new(&h, mesh)
+            };
+            let scene = TraceScene::new(grid, &[inst]).map_err(|e| e.to_string())?;
+            let hits: Vec<Option<(f64, u32)>> = rays
+                .iter()
+                .map(|r| closest_hit(r, &scene, &mut TraceStats::default()))
+                .map(|h| h.map(|h| (h.t as f64, h.prim)))
+                .collect();
+            let residual = Axis::ALL
+                .map(|a| (det.residual.value_f64(a) * grid.unit).abs())
+                .into_iter()
+                .fold(0.0, f64::max);
+            out.push(DistanceRow {
+                distance: d,
+                max_lod: params.max_lod,
+                format: name.into(),
+                level: Some(l),
+                level_role: role.into(),
+                top_lod: top,
+                hits: compare(&reference, wanted, &rays, &hits),
+                position_error: (wanted - applied).abs().max_element(),
+                residual: Some(if aligned { 0.0 } else { residual }),
+                nodes_added: added,
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// Closest hit over every triangle with golden's binary32 kernel (SPEC 6.2):
+/// what binary32 world coordinates give (traversal gives the same, 6.5).
+fn brute_f32(r: &Ray, tris: &[[Vec3; 3]]) -> Option<(f64, u32)> {
+    let s = ShearedRay::new(r);
+    let mut best: Option<(f32, u32)> = None;
+    for (i, t) in tris.iter().enumerate() {
+        if let Some(h) = intersect_triangle(&s, t) {
+            if best.is_none() || best.is_some_and(|b| (h.t, i as u32) < b) {
+                best = Some((h.t, i as u32));
+            }
+        }
+    }
+    best.map(|(t, i)| (t as f64, i))
+}
+
+/// The rounding error of `a + b` in binary64 (Knuth's TwoSum).
+fn two_sum_error(a: f64, b: f64) -> f64 {
+    let s = a + b;
+    let bb = s - a;
+    (a - (s - bb)) + (b - bb)
+}

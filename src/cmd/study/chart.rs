@@ -25,8 +25,8 @@ pub struct Chart {
     pub series: Vec<Series>,
     /// The default configuration: point and legend text.
     pub marked: Option<((f64, f64), String)>,
-    /// The legend in the upper left corner (else the upper right).
-    pub legend_left: bool,
+    /// Where the legend goes.
+    pub legend: SeriesLabelPosition,
 }
 
 fn axis(v: f64, log: bool) -> Option<f64> {
@@ -144,11 +144,7 @@ impl Chart {
             .label_font(("sans-serif", 14))
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK)
-            .position(if self.legend_left {
-                SeriesLabelPosition::UpperLeft
-            } else {
-                SeriesLabelPosition::UpperRight
-            })
+            .position(self.legend.clone())
             .draw()
             .map_err(e)?;
         root.present().map_err(e)?;

@@ -136,7 +136,7 @@ fn charts(s: &Study) -> Vec<Chart> {
             y_log: false,
             series: per_d(&|r| Some(r.node_tests_per_ray)),
             marked: mark(default.map(|r| r.node_tests_per_ray)),
-            legend_left: false,
+            legend: SeriesLabelPosition::UpperRight,
         },
         Chart {
             file: PLOTS[1].0,
@@ -147,7 +147,7 @@ fn charts(s: &Study) -> Vec<Chart> {
             y_log: false,
             series: per_d(&|r| Some(r.bytes_per_triangle)),
             marked: mark(default.map(|r| r.bytes_per_triangle)),
-            legend_left: true,
+            legend: SeriesLabelPosition::UpperLeft,
         },
         Chart {
             file: PLOTS[2].0,
@@ -167,7 +167,7 @@ fn charts(s: &Study) -> Vec<Chart> {
             y_log: false,
             series: per_d(&merge_y),
             marked: mark(default.and_then(|r| merge_y(r))),
-            legend_left: true,
+            legend: SeriesLabelPosition::UpperLeft,
         },
         distance_chart(s, true),
         distance_chart(s, false),
@@ -253,7 +253,11 @@ fn distance_chart(s: &Study, hits: bool) -> Chart {
         y_log,
         series,
         marked: None,
-        legend_left: true,
+        legend: if hits {
+            SeriesLabelPosition::UpperLeft
+        } else {
+            SeriesLabelPosition::LowerRight
+        },
     }
 }
 
@@ -299,6 +303,6 @@ fn pareto(s: &Study, case: &str) -> Chart {
                 format!("default D = {} Q = {}", r.max_lod, r.quant_bits),
             )
         }),
-        legend_left: false,
+        legend: SeriesLabelPosition::UpperRight,
     }
 }

@@ -27,6 +27,8 @@ pub struct Chart {
     pub marked: Option<((f64, f64), String)>,
     /// Where the legend goes.
     pub legend: SeriesLabelPosition,
+    /// Empty room below the data, as a fraction of its span (for the legend).
+    pub room_below: f64,
 }
 
 fn axis(v: f64, log: bool) -> Option<f64> {
@@ -77,9 +79,10 @@ impl Chart {
             let pad = ((hi - lo) * 0.06).max(if hi == lo { 0.5 } else { 0.0 });
             (lo - pad, hi + pad)
         };
+        let (y0, y1) = span(all.iter().map(|p| p.1).collect());
         (
             span(all.iter().map(|p| p.0).collect()),
-            span(all.iter().map(|p| p.1).collect()),
+            (y0 - (y1 - y0) * self.room_below, y1),
         )
     }
 
@@ -111,6 +114,10 @@ impl Chart {
         for (i, s) in self.series.iter().enumerate() {
             let color = Palette99::pick(i).to_rgba();
             let pts = self.mapped(&s.points);
+            let mut name = s.name.clone();
+            if let Some(twin) = self.series[..i].iter().find(|t| t.points == s.points) {
+                name += &format!(" (under {})", twin.name);
+            }
             if s.line {
                 chart
                     .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
@@ -126,7 +133,7 @@ impl Chart {
                 chart
                     .draw_series(pts.iter().map(|p| Circle::new(*p, 3, color.filled())))
                     .map_err(e)?
-                    .label(&s.name)
+                    .label(&name)
                     .legend(move |(x, y)| Circle::new((x + 10, y), 3, color.filled()));
             }
         }

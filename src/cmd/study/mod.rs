@@ -99,6 +99,12 @@ pub struct Machine {
 }
 
 impl Machine {
+    /// The load at the start, or "unknown".
+    pub fn load(&self) -> String {
+        self.load_at_start
+            .map_or("unknown".into(), |l| format!("{l:.2}"))
+    }
+
     pub fn here() -> Machine {
         let cpu = std::fs::read_to_string("/proc/cpuinfo")
             .ok()

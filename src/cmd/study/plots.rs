@@ -54,7 +54,7 @@ pub fn write_all(s: &Study, out: &Path, progress: &mut dyn FnMut()) -> Result<Ve
             let root = BitMapBackend::with_buffer(&mut rgb, SIZE).into_drawing_area();
             chart.draw(&root)?;
         }
-        crate::image::write_png(&png, SIZE.0, SIZE.1, &rgb)?;
+        crate::image::write_png_small(&png, SIZE.0, SIZE.1, &rgb)?;
         let mut svg = String::new();
         {
             let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
@@ -137,6 +137,7 @@ fn charts(s: &Study) -> Vec<Chart> {
             series: per_d(&|r| Some(r.node_tests_per_ray)),
             marked: mark(default.map(|r| r.node_tests_per_ray)),
             legend: SeriesLabelPosition::UpperRight,
+            room_below: 0.0,
         },
         Chart {
             file: PLOTS[1].0,
@@ -148,6 +149,7 @@ fn charts(s: &Study) -> Vec<Chart> {
             series: per_d(&|r| Some(r.bytes_per_triangle)),
             marked: mark(default.map(|r| r.bytes_per_triangle)),
             legend: SeriesLabelPosition::UpperLeft,
+            room_below: 0.0,
         },
         Chart {
             file: PLOTS[2].0,
@@ -168,6 +170,7 @@ fn charts(s: &Study) -> Vec<Chart> {
             series: per_d(&merge_y),
             marked: mark(default.and_then(|r| merge_y(r))),
             legend: SeriesLabelPosition::UpperLeft,
+            room_below: 0.0,
         },
         distance_chart(s, true),
         distance_chart(s, false),
@@ -181,8 +184,8 @@ fn charts(s: &Study) -> Vec<Chart> {
 const DISTANCE_SERIES: [(&str, &str, bool); 7] = [
     ("b32-world", "-", false),
     ("b64-world", "-", false),
-    ("b32-local", "top", false),
     ("b64-local", "top", false),
+    ("b32-local", "top", false),
     ("b64-local", "D", false),
     ("b64-local", "D", true),
     ("b64-local-aligned", "top", false),
@@ -258,6 +261,7 @@ fn distance_chart(s: &Study, hits: bool) -> Chart {
         } else {
             SeriesLabelPosition::LowerRight
         },
+        room_below: if hits { 0.0 } else { 0.5 },
     }
 }
 
@@ -304,5 +308,6 @@ fn pareto(s: &Study, case: &str) -> Chart {
             )
         }),
         legend: SeriesLabelPosition::UpperRight,
+        room_below: 0.0,
     }
 }

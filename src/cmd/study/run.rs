@@ -157,7 +157,10 @@ pub fn main(a: Args) -> CmdResult {
     attach_synth(&a, &mut rows, &mut notes);
 
     let mut study = Study {
-        command: std::env::args().collect::<Vec<_>>().join(" "),
+        command: std::iter::once("hiermerge".to_string())
+            .chain(std::env::args().skip(1))
+            .collect::<Vec<_>>()
+            .join(" "),
         seed: a.seed,
         full: a.full,
         machine,

@@ -166,8 +166,8 @@ pub fn render_distance(rows: &[DistanceRow], markdown: bool) -> String {
 /// The terminal report.
 pub fn print(s: &Study) {
     println!(
-        "hiermerge study: {} cases, D {:?}, Q {:?}, {} rays, median of {} (machine: {}, {} cores, load {:?})",
-        s.cases.len(), s.max_lod, s.quant_bits, s.rays, s.repeats, s.machine.cpu, s.machine.cores, s.machine.load_at_start
+        "hiermerge study: {} cases, D {:?}, Q {:?}, {} rays, median of {} (machine: {}, {} cores, load {})",
+        s.cases.len(), s.max_lod, s.quant_bits, s.rays, s.repeats, s.machine.cpu, s.machine.cores, s.machine.load()
     );
     print!("{}", render(&main_rows(s), false));
     println!(

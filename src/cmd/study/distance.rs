@@ -4,13 +4,16 @@
 //! the triangles at their requested world positions.
 
 use glam::{DVec3, Vec3};
-use golden::build::build;
+use golden::build::{build, GridMap};
 use golden::geom::ray::Ray;
 use golden::geom::triangle::{intersect_triangle, ShearedRay};
+use golden::merge::MergeMode;
+use golden::mesh::Mesh;
 use golden::scenes::SplitMix64;
 use golden::study::reference::ReferenceTracer;
 use golden::trace::{closest_hit, Instance, TraceScene, TraceStats};
 use golden::translate::{determine, hierarchy_expansion_cost, Axis, Placement, VoxelRange};
+use golden::world::World;
 use golden::Params;
 use serde::Serialize;
 
@@ -27,7 +30,9 @@ pub struct DistanceRow {
     pub format: String,
     /// The translation level L (translated formats only).
     pub level: Option<u8>,
-    /// Which L it is: "top" (the hierarchy's top LOD), "middle", "D"; "-" untranslated.
+    /// Which L it is: "top" (the hierarchy's top LOD), "merging" (the merging
+    /// level of the case and a copy moved by half its extent), "middle"
+    /// (half-way from the top to D), "D"; "-" untranslated.
     pub level_role: String,
     /// The hierarchy's top LOD at this distance.
     pub top_lod: u8,
@@ -40,6 +45,8 @@ pub struct DistanceRow {
     pub residual: Option<f64>,
     /// Nodes the expanding variant adds to move the hierarchy at L (SPEC 7.7).
     pub nodes_added: Option<u64>,
+    /// Why determine refused the move at L (then nothing was traced).
+    pub refused: Option<String>,
 }
 
 /// The distances swept: 1, 10, ..., 1e9.
@@ -130,20 +137,30 @@ pub fn at_distance(
             position_error: err,
             residual: None,
             nodes_added: None,
+            refused: None,
         });
     }
 
     // Translated: built in the local frame, placed by a translation at L.
-    let grid = placement_grid(std::slice::from_ref(mesh), &[p], &params)?;
+    // The grid also holds the copy the merging level is found with.
+    let shift = copy_shift(mesh);
+    let grid = placement_grid(&[mesh.clone(), mesh.clone()], &[p, p + shift], &params)?;
     let h = build(mesh, &grid, &params, 0).map_err(|e| format!("{}: {e}", case.source))?;
     let tops: Vec<_> = h.roots().iter().map(|n| n.voxel).collect();
     let top = h.top_lod;
-    let mut levels = vec![
-        (top, "top"),
-        (top + (params.max_lod - top) / 2, "middle"),
-        (params.max_lod, "D"),
-    ];
-    levels.dedup_by_key(|l| l.0);
+    let mut levels = vec![(top, "top")];
+    if let Some(ml) = merging_level(mesh, grid, params, p, shift) {
+        levels.push((ml, "merging"));
+    }
+    levels.push((top + (params.max_lod - top) / 2, "middle"));
+    levels.push((params.max_lod, "D"));
+    // One row per level; a level keeps its first role (top, merging, middle, D).
+    let mut seen = Vec::new();
+    levels.retain(|(l, _)| {
+        let new = !seen.contains(l);
+        seen.push(*l);
+        new
+    });
     let g = p / grid.unit;
     for &(l, role) in &levels {
         let extents = VoxelRange::of_nodes(&tops, l, &params).map_err(|e| e.to_string())?;
@@ -154,8 +171,26 @@ pub fn at_distance(
             ("b64-local", b64),
             ("b64-local-aligned", b64),
         ] {
-            let det = determine(&placement, l, &extents, &params)
-                .map_err(|e| format!("distance {d}: L = {l}: {e}"))?;
+            let det = match determine(&placement, l, &extents, &params) {
+                Ok(det) => det,
+                Err(e) => {
+                    // The scene-extents rule (7.4) refuses this move at L.
+                    out.push(DistanceRow {
+                        distance: d,
+                        max_lod: params.max_lod,
+                        format: name.into(),
+                        level: Some(l),
+                        level_role: role.into(),
+                        top_lod: top,
+                        hits: HitCounts::default(),
+                        position_error: f64::NAN,
+                        residual: None,
+                        nodes_added: None,
+                        refused: Some(e.to_string()),
+                    });
+                    continue;
+                }
+            };
             let off = Axis::ALL.map(|a| det.translation.grid_offset(a, &params));
             // None when the expanding variant refuses the move (SPEC 7.7).
             let added = hierarchy_expansion_cost(&h, &det.translation)
@@ -195,10 +230,28 @@ pub fn at_distance(
                 position_error: (wanted - applied).abs().max_element(),
                 residual: Some(if aligned { 0.0 } else { residual }),
                 nodes_added: added,
+                refused: None,
             });
         }
     }
     Ok(out)
+}
+
+/// The merging level (SPEC 8.2, the default mode) of the case at `p` merged
+/// with a copy of itself moved by half its extent along x, in `grid`;
+/// `None` when the copy does not fit or the merge refuses.
+fn merging_level(mesh: &Mesh, grid: GridMap, params: Params, p: DVec3, shift: DVec3) -> Option<u8> {
+    let mut world = World::new(params, grid).ok()?;
+    world.add(0, mesh.clone(), p).ok()?;
+    world.add(1, mesh.clone(), p + shift).ok()?;
+    let out = (params.hier_capacity() - 1) as u8;
+    world.merge(&[0, 1], MergeMode::default(), out).ok()?.level
+}
+
+/// Half the mesh's extent along x: where the merged copy goes.
+pub fn copy_shift(mesh: &Mesh) -> DVec3 {
+    let (lo, hi) = mesh.bounds();
+    DVec3::new((hi - lo).x as f64 * 0.5, 0.0, 0.0)
 }
 
 /// Closest hit over every triangle with golden's binary32 kernel (SPEC 6.2):

@@ -15,8 +15,7 @@ use crate::cmd::common::placement_grid;
 
 /// The world of the pair: the mesh at 0 (id 0) and its copy moved (id 1).
 fn pair_world(mesh: &Mesh, params: Params) -> Result<World, String> {
-    let (lo, hi) = mesh.bounds();
-    let shift = DVec3::new((hi - lo).x as f64 * 0.5, 0.0, 0.0);
+    let shift = super::distance::copy_shift(mesh);
     let meshes = [mesh.clone(), mesh.clone()];
     let offsets = [DVec3::ZERO, shift];
     let grid = placement_grid(&meshes, &offsets, &params)?;

@@ -204,6 +204,7 @@ fn distance_series(
                 .distance
                 .iter()
                 .filter(|d| d.format == format && d.level_role == role && d.max_lod == dd)
+                .filter(|d| d.refused.is_none())
                 .map(|d| (d.distance, f(d)))
                 .collect();
             let zeros = points.iter().filter(|p| p.1 <= 0.0).count();

@@ -145,11 +145,24 @@ pub fn render_distance(rows: &[DistanceRow], markdown: bool) -> String {
         );
     }
     for d in rows {
+        if let Some(why) = &d.refused {
+            let _ = writeln!(
+                s,
+                "{l}{:>14}{sep}{:>14}{sep}{:>14}{sep}{:>14}{sep}refused: {why}{r}",
+                format!("{:e}", d.distance),
+                d.max_lod,
+                d.format,
+                d.level
+                    .map_or("-".into(), |v| format!("{v} {}", d.level_role)),
+            );
+            continue;
+        }
         let cells = [
             format!("{:e}", d.distance),
             d.max_lod.to_string(),
             d.format.clone(),
-            d.level.map_or("-".into(), |v| v.to_string()),
+            d.level
+                .map_or("-".into(), |v| format!("{v} {}", d.level_role)),
             d.hits.wrong_triangle.to_string(),
             d.hits.missed.to_string(),
             d.hits.extra.to_string(),

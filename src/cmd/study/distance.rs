@@ -171,67 +171,38 @@ pub fn at_distance(
             ("b64-local", b64),
             ("b64-local-aligned", b64),
         ] {
-            let det = match determine(&placement, l, &extents, &params) {
-                Ok(det) => det,
-                Err(e) => {
-                    // The scene-extents rule (7.4) refuses this move at L.
-                    out.push(DistanceRow {
-                        distance: d,
-                        max_lod: params.max_lod,
-                        format: name.into(),
-                        level: Some(l),
-                        level_role: role.into(),
-                        top_lod: top,
-                        hits: HitCounts::default(),
-                        position_error: f64::NAN,
-                        residual: None,
-                        nodes_added: None,
-                        refused: Some(e.to_string()),
-                    });
-                    continue;
-                }
-            };
-            let off = Axis::ALL.map(|a| det.translation.grid_offset(a, &params));
-            // None when the expanding variant refuses the move (SPEC 7.7).
-            let added = hierarchy_expansion_cost(&h, &det.translation)
-                .ok()
-                .map(|c| c.added);
-            let applied = DVec3::from_array(off.map(|o| o as f64)) * grid.unit;
-            let aligned = name == "b64-local-aligned";
-            // Aligned: the object is asked to be exactly where the grid puts it.
-            let wanted = if aligned { applied } else { p };
-            let rays = if aligned {
-                world_rays(wanted, &local)
-            } else {
-                rays32.clone()
-            };
-            let inst = Instance {
-                offset: off,
-                ..Instance::new(&h, mesh)
-            };
-            let scene = TraceScene::new(grid, &[inst]).map_err(|e| e.to_string())?;
-            let hits: Vec<Option<(f64, u32)>> = rays
-                .iter()
-                .map(|r| closest_hit(r, &scene, &mut TraceStats::default()))
-                .map(|h| h.map(|h| (h.t as f64, h.prim)))
-                .collect();
-            let residual = Axis::ALL
-                .map(|a| (det.residual.value_f64(a) * grid.unit).abs())
-                .into_iter()
-                .fold(0.0, f64::max);
-            out.push(DistanceRow {
+            let base = DistanceRow {
                 distance: d,
                 max_lod: params.max_lod,
                 format: name.into(),
                 level: Some(l),
                 level_role: role.into(),
                 top_lod: top,
-                hits: compare(&reference, wanted, &rays, &hits),
-                position_error: (wanted - applied).abs().max_element(),
-                residual: Some(if aligned { 0.0 } else { residual }),
-                nodes_added: added,
+                hits: HitCounts::default(),
+                position_error: f64::NAN,
+                residual: None,
+                nodes_added: None,
                 refused: None,
-            });
+            };
+            let det = match determine(&placement, l, &extents, &params) {
+                Ok(det) => det,
+                Err(e) => {
+                    // The scene-extents rule (7.4) refuses this move at L.
+                    out.push(DistanceRow {
+                        refused: Some(e.to_string()),
+                        ..base
+                    });
+                    continue;
+                }
+            };
+            let aligned = name == "b64-local-aligned";
+            let t = Translated {
+                h: &h,
+                mesh,
+                grid,
+                params,
+            };
+            out.push(t.row(base, &det, p, aligned, &local, &rays32, &reference)?);
         }
     }
     Ok(out)
@@ -246,6 +217,65 @@ fn merging_level(mesh: &Mesh, grid: GridMap, params: Params, p: DVec3, shift: DV
     world.add(1, mesh.clone(), p + shift).ok()?;
     let out = (params.hier_capacity() - 1) as u8;
     world.merge(&[0, 1], MergeMode::default(), out).ok()?.level
+}
+
+/// A hierarchy built in its local frame, to be placed by translations.
+struct Translated<'a> {
+    h: &'a golden::store::Hierarchy,
+    mesh: &'a Mesh,
+    grid: GridMap,
+    params: Params,
+}
+
+impl Translated<'_> {
+    /// Traces the rays through the hierarchy moved by `det`'s translation and
+    /// compares with the reference; `aligned`: the case asked to be where the
+    /// translation puts it (residual 0), with rays to match.
+    #[allow(clippy::too_many_arguments)]
+    fn row(
+        &self,
+        base: DistanceRow,
+        det: &golden::translate::Determined,
+        p: DVec3,
+        aligned: bool,
+        local: &[(DVec3, DVec3)],
+        rays32: &[Ray],
+        reference: &ReferenceTracer,
+    ) -> Result<DistanceRow, String> {
+        let off = Axis::ALL.map(|a| det.translation.grid_offset(a, &self.params));
+        // None when the expanding variant refuses the move (SPEC 7.7).
+        let added = hierarchy_expansion_cost(self.h, &det.translation)
+            .ok()
+            .map(|c| c.added);
+        let applied = DVec3::from_array(off.map(|o| o as f64)) * self.grid.unit;
+        let wanted = if aligned { applied } else { p };
+        let rays = if aligned {
+            world_rays(wanted, local)
+        } else {
+            rays32.to_vec()
+        };
+        let inst = Instance {
+            offset: off,
+            ..Instance::new(self.h, self.mesh)
+        };
+        let scene = TraceScene::new(self.grid, &[inst]).map_err(|e| e.to_string())?;
+        let hits: Vec<Option<(f64, u32)>> = rays
+            .iter()
+            .map(|r| closest_hit(r, &scene, &mut TraceStats::default()))
+            .map(|h| h.map(|h| (h.t as f64, h.prim)))
+            .collect();
+        let residual = Axis::ALL
+            .map(|a| (det.residual.value_f64(a) * self.grid.unit).abs())
+            .into_iter()
+            .fold(0.0, f64::max);
+        Ok(DistanceRow {
+            hits: compare(reference, wanted, &rays, &hits),
+            position_error: (wanted - applied).abs().max_element(),
+            residual: Some(if aligned { 0.0 } else { residual }),
+            nodes_added: added,
+            ..base
+        })
+    }
 }
 
 /// Half the mesh's extent along x: where the merged copy goes.

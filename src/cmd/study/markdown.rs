@@ -136,6 +136,51 @@ fn published(s: &Study, r: &Row, md: &mut String) {
     );
 }
 
+/// What each translation level costs and buys, at one distance.
+fn levels(s: &Study, md: &mut String) {
+    let at = 1e3;
+    let rows: Vec<String> = s
+        .distance
+        .iter()
+        .filter(|d| d.distance == at && d.max_lod == s.default_max_lod && d.format == "b64-local")
+        .map(|d| match (&d.refused, d.level) {
+            (Some(_), Some(l)) => format!("L = {l} ({}): refused by the extents rule", d.level_role),
+            (None, Some(l)) => format!(
+                "L = {l} ({}): position error {:.3e}, hit error {:.3} per ray, {} nodes added by the expanding variant",
+                d.level_role,
+                d.position_error,
+                d.hits.error_rate(),
+                d.nodes_added.map_or("not computable".into(), |n| n.to_string())
+            ),
+            _ => String::new(),
+        })
+        .collect();
+    let _ = writeln!(
+        md,
+        "\nEach translation level at d = {at:e} (b64-local, D = {}): {}.",
+        s.default_max_lod,
+        rows.join("; ")
+    );
+}
+
+fn modes(s: &Study, md: &mut String) {
+    let _ = writeln!(md, "\n## Merging modes (D = {}, Q = {}; the pair: a case and its copy moved by half its extent)\n", s.default_max_lod, s.default_quant_bits);
+    let _ = writeln!(md, "| case | mode | merging level | nodes created | nodes reused | merge ms |\n| --: | --: | --: | --: | --: | --: |");
+    for m in &s.modes {
+        let _ = writeln!(
+            md,
+            "| {} | {}{} | {} | {} | {} | {:.3} |",
+            m.case,
+            m.mode,
+            if m.default_mode { " (default)" } else { "" },
+            m.merging_level.map_or("per node".into(), |l| l.to_string()),
+            m.nodes_created,
+            m.nodes_reused,
+            m.merge_ms
+        );
+    }
+}
+
 fn distance_summary(s: &Study, md: &mut String) {
     let _ = writeln!(md, "## Hit error against distance ({})\n", s.distance_case);
     for (f, what) in [
@@ -183,6 +228,7 @@ fn distance_summary(s: &Study, md: &mut String) {
         "- b64-local at L = D = 31 (the finest translation grid): {}",
         fine.join(", ")
     );
+    levels(s, md);
     let refused = s.distance.iter().filter(|d| d.refused.is_some()).count();
     let _ = writeln!(
         md,
@@ -225,6 +271,7 @@ pub fn write(s: &Study, out: &Path, _outputs: &[String]) -> Result<String, Strin
     }
     let _ = writeln!(md, "## Table (the Q sweep at the default D, the D sweep at the default Q; every row in study.csv)\n");
     md += &render(&main_rows(s), true);
+    modes(s, &mut md);
     let _ = writeln!(md, "\n## Hit error against distance\n");
     md += &render_distance(&s.distance, true);
     let _ = writeln!(md, "\n## Notes\n");

@@ -273,8 +273,10 @@ fn attach_synth(a: &Args, rows: &mut [Row], notes: &mut Vec<String>) {
     }
     let mut any = false;
     for r in rows.iter_mut() {
-        let p = params(r.max_lod, r.quant_bits).ok();
-        r.synth = p.as_ref().and_then(synth_figures);
+        let unit = params(r.max_lod, r.quant_bits)
+            .and_then(rtl::merger_config)
+            .ok();
+        r.synth = unit.as_ref().and_then(synth_figures);
         any |= r.synth.is_some();
         r.ns_per_merge = ns_per_merge(r.rtl.as_ref().map(|f| f.cycles_per_merge), r.synth.as_ref());
     }

@@ -3,7 +3,7 @@
 //! answers `None`, and the study prints "not measured" for area, Fmax and
 //! ns per merge, never a guess.
 
-use golden::Params;
+use rtl_gen::merge::MergerConfig;
 use serde::Serialize;
 
 /// What synthesis measured for one unit configuration.
@@ -20,9 +20,10 @@ pub struct SynthFigures {
 }
 
 /// The one lookup of synthesis figures: the cached `hiermerge synth`
-/// result for the hierarchy merger at `params` (default merging-module
-/// parameters), or `None` when nothing measured it. Today: always `None`.
-pub fn synth_figures(_params: &Params) -> Option<SynthFigures> {
+/// result for the hierarchy merger `unit` (the configuration whose cycles
+/// the study measures, `rtl::merger_config`), or `None` when nothing
+/// measured it. Today: always `None`.
+pub fn synth_figures(_unit: &MergerConfig) -> Option<SynthFigures> {
     None
 }
 

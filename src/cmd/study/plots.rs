@@ -258,7 +258,7 @@ fn distance_chart(s: &Study, hits: bool) -> Chart {
         series,
         marked: None,
         legend: if hits {
-            SeriesLabelPosition::UpperLeft
+            SeriesLabelPosition::MiddleLeft
         } else {
             SeriesLabelPosition::LowerRight
         },

@@ -249,3 +249,65 @@ pub fn nesting(finer: &Hierarchy, coarser: &Hierarchy) -> Nesting {
     }
     out
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::build::{build, GridMap};
+    use crate::scenes::random_soup;
+    use crate::Params;
+
+    #[test]
+    fn clip_keeps_the_part_inside() {
+        let t = [
+            DVec3::ZERO,
+            DVec3::new(2.0, 0.0, 0.0),
+            DVec3::new(0.0, 2.0, 0.0),
+        ];
+        let b = Box64 {
+            lo: DVec3::splat(-1.0),
+            hi: DVec3::splat(1.0),
+        };
+        let c = clip_box(&t, &b).expect("they meet");
+        assert_eq!(c.lo, DVec3::ZERO);
+        assert_eq!(c.hi, DVec3::new(1.0, 1.0, 0.0));
+        let far = Box64 {
+            lo: DVec3::splat(3.0),
+            hi: DVec3::splat(4.0),
+        };
+        assert_eq!(clip_box(&t, &far), None);
+    }
+
+    /// Stored boxes contain the exact ones; Q = 0 boxes are voxels; more Q nests.
+    #[test]
+    fn stored_boxes_bound_the_exact_ones_and_nest() {
+        let mesh = random_soup(200, 0.1, 11);
+        let (lo, hi) = mesh.bounds();
+        let mut prev: Option<Hierarchy> = None;
+        for q in [0, 2, 8] {
+            let p = Params::new(12, q, 24, 4).unwrap();
+            let grid = GridMap::fit(lo, hi, &p);
+            let h = build(&mesh, &grid, &p, 0).unwrap();
+            let tris = grid.mesh_to_grid(&mesh, &p).unwrap();
+            let exact = exact_boxes(&h, &tris);
+            for (n, e) in h.nodes.iter().zip(&exact) {
+                let (slo, shi) = node_box_grid(n, &p);
+                let e = e.expect("every node has content");
+                assert!(
+                    e.lo.cmpge(DVec3::from_array(slo)).all()
+                        && e.hi.cmple(DVec3::from_array(shi)).all()
+                );
+            }
+            let l = looseness(&h, &exact);
+            if q == 0 {
+                assert_eq!(l.boxes_equal_voxel, l.nodes);
+            }
+            if let Some(c) = &prev {
+                let n = nesting(&h, c);
+                assert_eq!(n.violations, 0);
+                assert!(n.matched + 2 >= h.nodes.len() as u64);
+            }
+            prev = Some(h);
+        }
+    }
+}

@@ -204,3 +204,44 @@ fn moller_trumbore(tri: &[DVec3; 3], org: DVec3, dir: DVec3, eps: f64) -> Option
     let t = e2.dot(q) * inv;
     t.is_finite().then_some((t, u.min(v).min(1.0 - u - v)))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenes::{random_soup, SplitMix64};
+
+    /// The BVH finds what testing every triangle finds.
+    #[test]
+    fn bvh_closest_equals_every_triangle() {
+        let mesh = random_soup(300, 0.2, 7);
+        let tris: Vec<[DVec3; 3]> = (0..mesh.triangles.len())
+            .map(|i| mesh.triangle_f64(i))
+            .collect();
+        let r = ReferenceTracer::new(tris.clone());
+        let mut rng = SplitMix64::new(3);
+        let mut hits = 0;
+        for _ in 0..500 {
+            let org = (rng.unit_vector() * 2.0).as_dvec3() + DVec3::splat(0.5);
+            let dir =
+                (rng.point_in(glam::Vec3::ZERO, glam::Vec3::ONE).as_dvec3() - org).normalize();
+            let mut best: Option<(f64, u32)> = None;
+            for (i, t) in tris.iter().enumerate() {
+                if let Some((t, _)) = moller_trumbore(t, org, dir, 0.0) {
+                    let better = match best {
+                        None => true,
+                        Some(b) => (t, i as u32) < b,
+                    };
+                    if t >= 0.0 && better {
+                        best = Some((t, i as u32));
+                    }
+                }
+            }
+            let got = r
+                .closest(org, dir, 0.0, f64::INFINITY)
+                .map(|h| (h.t, h.prim));
+            assert_eq!(got, best);
+            hits += got.is_some() as u32;
+        }
+        assert!(hits > 100, "the rays meet the soup: {hits}");
+    }
+}

@@ -283,4 +283,7 @@ fn bad_input_names_the_file() {
     let o = hiermerge(&["study", "--rtl-configs", "16", "--no-rtl"], &[]);
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("D:Q"));
+    let o = hiermerge(&["study", "--max-lod", "16", "--rtl-configs", "12:8"], &[]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--rtl-configs 12:8: not in the sweep"));
 }

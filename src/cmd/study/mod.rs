@@ -64,8 +64,8 @@ pub struct Args {
     /// Timed repeats; times are their median (default 3; --full 7).
     #[arg(long)]
     repeats: Option<usize>,
-    /// RTL configurations as D:Q, comma-separated (default: 16:0, 16:8,
-    /// 16:16, 24:8 where the sweep has them; --full: {8,16,24,31} x {0,4,8,16}).
+    /// RTL configurations as D:Q, comma-separated (default: 16:0, 16:8
+    /// and 24:8 where the sweep has them; --full: {8,16,24,31} x {0,4,8,16}).
     #[arg(long = "rtl-configs", value_delimiter = ',', value_parser = parse_config)]
     rtl_configs: Option<Vec<(u8, u8)>>,
     /// Merges per RTL configuration (default 100).

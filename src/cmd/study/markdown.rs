@@ -107,7 +107,8 @@ fn steps(s: &Study, case: &str, md: &mut String) {
         let _ = writeln!(
             md,
             "\nThe tree is the same at every D of the sweep: no triangle of {case} sits deeper than LOD {deepest}, so a larger D adds no node and no test; it buys a finer translation grid (the position error of the translated formats below) and range, for {} bits per record per level.",
-            at_q[1].record_bits as i64 - at_q[0].record_bits as i64
+            (at_q[1].record_bits as i64 - at_q[0].record_bits as i64)
+                / (at_q[1].max_lod as i64 - at_q[0].max_lod as i64).max(1)
         );
     }
     let _ = writeln!(md);

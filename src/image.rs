@@ -4,6 +4,22 @@ use std::path::Path;
 
 /// Writes an 8-bit RGB PNG, atomically (temporary file, then rename).
 pub fn write_png(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(), String> {
+    write_png_with(path, width, height, rgb, false)
+}
+
+/// [`write_png`] with the encoder's best compression and adaptive filters:
+/// for plots, whose flat colours and thin lines compress well.
+pub fn write_png_small(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(), String> {
+    write_png_with(path, width, height, rgb, true)
+}
+
+fn write_png_with(
+    path: &Path,
+    width: u32,
+    height: u32,
+    rgb: &[u8],
+    small: bool,
+) -> Result<(), String> {
     let dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
@@ -14,6 +30,10 @@ pub fn write_png(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(),
         let mut enc = png::Encoder::new(std::io::BufWriter::new(tmp.as_file()), width, height);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
+        if small {
+            enc.set_compression(png::Compression::Best);
+            enc.set_adaptive_filter(png::AdaptiveFilterType::Adaptive);
+        }
         let mut w = enc
             .write_header()
             .map_err(|e| format!("{}: {e}", path.display()))?;

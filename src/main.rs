@@ -37,6 +37,8 @@ enum Command {
     Run(cmd::run::Args),
     /// Co-simulate a unit (translate; merge: the merging module, --stage merge-level its S614 stage; merger: the hierarchy merger top) against golden, cycle by cycle.
     Cosim(cmd::cosim::Args),
+    /// Show what accuracy costs in time: sweep Q, D, translation level, number format and merging mode; table, JSON, CSV, plots, study.md.
+    Study(cmd::study::Args),
     /// Check the long-run ledger (cosim --ledger) against today's code and sum what it proves.
     Ledger(cmd::ledger::Args),
 }
@@ -58,6 +60,7 @@ fn main() {
         Command::Vectors(a) => cmd::vectors::main(a),
         Command::Cosim(a) => cmd::cosim::main(a),
         Command::Ledger(a) => cmd::ledger::main(a),
+        Command::Study(a) => cmd::study::main(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");

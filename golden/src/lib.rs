@@ -18,6 +18,7 @@ pub mod params;
 pub mod scene;
 pub mod scenes;
 pub mod store;
+pub mod study;
 pub mod trace;
 pub mod translate;
 pub mod vectors;

@@ -49,6 +49,38 @@ pub fn load_mesh(path: &Path) -> Result<Mesh, String> {
     Ok(mesh)
 }
 
+/// One grid for every local frame and the scene: it holds each mesh where
+/// it is and where `offsets` (world units) place it, with room to spare.
+pub fn placement_grid(
+    meshes: &[Mesh],
+    offsets: &[glam::DVec3],
+    params: &Params,
+) -> Result<GridMap, String> {
+    let (mut lo, mut hi) = (
+        glam::DVec3::splat(f64::INFINITY),
+        glam::DVec3::splat(f64::NEG_INFINITY),
+    );
+    for (m, off) in meshes.iter().zip(offsets) {
+        let (l, h) = m.bounds();
+        let (l, h) = (l.as_dvec3(), h.as_dvec3());
+        lo = lo.min(l).min(l + *off);
+        hi = hi.max(h).max(h + *off);
+    }
+    let (lo, hi) = (lo.as_vec3(), hi.as_vec3());
+    if !(lo.is_finite() && hi.is_finite() && (hi - lo).is_finite()) {
+        return Err(
+            "--translate: the placed meshes span more than binary32 world coordinates can hold"
+                .into(),
+        );
+    }
+    let fitted = GridMap::fit(lo, hi, params);
+    // Doubling the unit leaves room for voxel-aligned rounding of placements.
+    Ok(GridMap {
+        origin: fitted.origin - (hi - lo).as_dvec3() * 0.5,
+        unit: fitted.unit * 2.0,
+    })
+}
+
 /// A hierarchy built over one mesh, with the grid map that placed it.
 pub struct Built {
     pub mesh: Mesh,

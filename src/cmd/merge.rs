@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use glam::DVec3;
-use golden::build::{build, GridMap};
+use golden::build::build;
 use golden::merge::MergeMode;
 use golden::trace::{
     brute_force_closest, closest_hit, random_rays, Instance, TraceScene, TraceStats,
@@ -14,7 +14,7 @@ use golden::trace::{
 use golden::world::World;
 use serde::Serialize;
 
-use super::common::{load_mesh, GridOpts, Shape};
+use super::common::{load_mesh, placement_grid, GridOpts, Shape};
 use crate::report::{emit, CmdResult};
 
 #[derive(clap::Args)]
@@ -185,28 +185,7 @@ pub fn main(a: Args) -> CmdResult {
         .map(|i| a.translate.get(i).copied().unwrap_or(DVec3::ZERO))
         .collect();
 
-    // One grid for every local frame and the scene: it holds each mesh where
-    // it is and where it is placed.
-    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-    for (m, off) in meshes.iter().zip(&offsets) {
-        let (l, h) = m.bounds();
-        let (l, h) = (l.as_dvec3(), h.as_dvec3());
-        lo = lo.min(l).min(l + *off);
-        hi = hi.max(h).max(h + *off);
-    }
-    let (lo, hi) = (lo.as_vec3(), hi.as_vec3());
-    if !(lo.is_finite() && hi.is_finite() && (hi - lo).is_finite()) {
-        return Err(
-            "--translate: the placed meshes span more than binary32 world coordinates can hold"
-                .into(),
-        );
-    }
-    let fitted = GridMap::fit(lo, hi, &params);
-    // Doubling the unit leaves room for voxel-aligned rounding of placements.
-    let grid = GridMap {
-        origin: fitted.origin - (hi - lo).as_dvec3() * 0.5,
-        unit: fitted.unit * 2.0,
-    };
+    let grid = placement_grid(&meshes, &offsets, &params)?;
     let mut world = World::new(params, grid).map_err(|e| e.to_string())?;
     let mut inputs = Vec::new();
     for (i, ((mesh, off), path)) in meshes.into_iter().zip(&offsets).zip(&a.meshes).enumerate() {

@@ -1,0 +1,289 @@
+//! `hiermerge study` (issue 18, SPEC 13): a tiny sweep on the shared teapot,
+//! checked for properties that must hold, never for figures: more Q never
+//! loosens a box; at Q = 0 every box is its voxel; placed on the grid,
+//! translated binary32 hits agree with the binary64 reference at every
+//! distance; the cycles per merge and per translated record are what
+//! `hiermerge cosim` counts for the same configuration, seed and stall; and
+//! every output is written and well formed. Under CI=true a missing
+//! Verilator fails.
+
+mod common;
+
+use std::path::Path;
+
+use serde_json::Value;
+
+use common::{hiermerge, json_of, tool_present};
+
+const MERGES: &str = "12";
+const RECORDS: &str = "60";
+
+fn study(out: &Path, rtl: bool) -> Value {
+    let teapot = golden::scenes::shared_mesh_path("teapot.obj");
+    let teapot = teapot.to_str().expect("utf-8 path");
+    let out = out.to_str().expect("utf-8 path");
+    let mut args = vec![
+        "study",
+        teapot,
+        "--out",
+        out,
+        "--max-lod",
+        "8,16",
+        "--quant-bits",
+        "0,2,8",
+        "--rays",
+        "150",
+        "--distance-rays",
+        "30",
+        "--repeats",
+        "1",
+        "--seed",
+        "3",
+        "--rtl-merges",
+        MERGES,
+        "--rtl-records",
+        RECORDS,
+        "--json",
+    ];
+    if rtl {
+        args.extend(["--rtl-configs", "16:8"]);
+    } else {
+        args.push("--no-rtl");
+    }
+    let o = hiermerge(&args, &[]);
+    assert!(
+        o.status.success(),
+        "study failed:\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    json_of(&o)
+}
+
+fn rows(s: &Value) -> &Vec<Value> {
+    s["rows"].as_array().expect("rows")
+}
+
+fn f(v: &Value) -> f64 {
+    v.as_f64().unwrap_or_else(|| panic!("not a number: {v}"))
+}
+
+/// At every D, each node's box at a larger Q lies inside the box of the same
+/// voxel at the next smaller Q (the top rule may add or drop a root, so
+/// nodes are matched by voxel); no stored box is tighter than the exact
+/// box of its content; at Q = 0 every stored box is its voxel.
+fn check_boxes(s: &Value) {
+    for d in [8, 16] {
+        let mut at_d: Vec<&Value> = rows(s).iter().filter(|r| r["max_lod"] == d).collect();
+        at_d.sort_by_key(|r| r["quant_bits"].as_u64());
+        assert_eq!(at_d.len(), 3, "D = {d}: one row per Q");
+        assert!(
+            at_d[0]["nesting"].is_null(),
+            "the smallest Q has nothing to nest in"
+        );
+        for w in at_d.windows(2) {
+            let n = &w[1]["nesting"];
+            assert_eq!(n["lower_q"], w[0]["quant_bits"], "{n}");
+            assert!(
+                n["matched"].as_u64().unwrap() + 2 >= w[1]["nodes"].as_u64().unwrap(),
+                "nearly every node matched: {n}"
+            );
+            assert_eq!(n["violations"], 0, "D = {d}: more Q loosened a box: {n}");
+        }
+        for r in &at_d {
+            assert!(
+                f(&r["looseness"]["all"]["mean"]) >= 1.0 - 1e-9,
+                "a stored box is never tighter than the exact one"
+            );
+        }
+        let q0 = &at_d[0]["looseness"];
+        assert_eq!(at_d[0]["quant_bits"], 0);
+        assert_eq!(
+            q0["boxes_equal_voxel"], q0["nodes"],
+            "D = {d}, Q = 0: every box is its voxel"
+        );
+    }
+}
+
+/// Placed exactly on the translation grid (residual 0), translated binary32
+/// hits are the reference's at every distance and level.
+fn check_aligned(s: &Value) {
+    let aligned: Vec<&Value> = s["distance"]
+        .as_array()
+        .expect("distance")
+        .iter()
+        .filter(|d| d["format"] == "b64-local-aligned" && d["refused"].is_null())
+        .collect();
+    assert!(aligned.len() >= 20, "every distance at two D");
+    for d in aligned {
+        let bad = d["wrong_triangle"].as_u64().unwrap()
+            + d["missed"].as_u64().unwrap()
+            + d["extra"].as_u64().unwrap();
+        assert_eq!(
+            bad, 0,
+            "aligned placement disagrees with the reference: {d}"
+        );
+        assert_eq!(f(&d["position_error"]), 0.0, "{d}");
+    }
+}
+
+fn check_outputs(s: &Value, out: &Path) {
+    for name in ["study.json", "study.csv", "study.md"] {
+        assert!(out.join(name).is_file(), "{name} written");
+    }
+    let md = std::fs::read_to_string(out.join("study.md")).unwrap();
+    let csv = std::fs::read_to_string(out.join("study.csv")).unwrap();
+    assert_eq!(
+        csv.lines().count(),
+        rows(s).len() + 1,
+        "a header and one line per row"
+    );
+    let width = csv.lines().next().unwrap().split(',').count();
+    assert!(
+        csv.lines().all(|l| l.split(',').count() == width),
+        "every CSV line has every column"
+    );
+    let stems = [
+        "node_tests_vs_q",
+        "bytes_vs_q",
+        "merge_time_vs_q",
+        "hit_error_vs_distance",
+        "position_error_vs_distance",
+        "pareto",
+    ];
+    for stem in stems {
+        let png = std::fs::read(out.join(format!("{stem}.png"))).unwrap();
+        assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "{stem}.png is a PNG");
+        let svg = std::fs::read_to_string(out.join(format!("{stem}.svg"))).unwrap();
+        assert!(
+            svg.contains("<svg") && svg.trim_end().ends_with("</svg>"),
+            "{stem}.svg is an SVG"
+        );
+        assert!(svg.contains("<text"), "{stem}.svg has labels");
+        assert!(
+            md.contains(&format!("]({stem}.png)")),
+            "study.md embeds {stem}.png"
+        );
+    }
+    let listed: Vec<&str> = s["outputs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(Value::as_str)
+        .collect();
+    assert!(
+        listed.iter().all(|p| Path::new(p).is_file()),
+        "every listed output exists"
+    );
+    let default = rows(s)
+        .iter()
+        .find(|r| r["default_config"] == true)
+        .expect("the default row");
+    for k in ["synth", "ns_per_merge"] {
+        assert!(
+            default[k].is_null(),
+            "no synthesis yet: {k} is not measured, never a guess"
+        );
+    }
+}
+
+/// The RTL figures are the cosim's own counts for the same run.
+fn check_cycles(s: &Value) {
+    let row = rows(s)
+        .iter()
+        .find(|r| r["max_lod"] == 16 && r["quant_bits"] == 8)
+        .expect("D16 Q8");
+    let rtl = &row["rtl"];
+    let m = cosim("merger", MERGES);
+    assert_eq!(rtl["merges"], m["transactions"], "{m}");
+    assert_eq!(
+        rtl["merge_cycles"], m["cycles"],
+        "cycles per merge match the cosim's count"
+    );
+    let t = cosim("translate", RECORDS);
+    assert_eq!(rtl["translate_records"], t["transactions"], "{t}");
+    assert_eq!(
+        rtl["translate_cycles"], t["cycles"],
+        "cycles per translated record match the cosim's count"
+    );
+}
+
+/// `hiermerge cosim --unit UNIT` at D16 Q8, the study's seed, no stalls.
+fn cosim(unit: &str, count: &str) -> Value {
+    let args = [
+        "cosim",
+        "--unit",
+        unit,
+        "--seed",
+        "3",
+        "--count",
+        count,
+        "--stall",
+        "0",
+        "--max-lod",
+        "16",
+        "--quant-bits",
+        "8",
+        "--json",
+    ];
+    let o = hiermerge(&args, &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    json_of(&o)
+}
+
+#[test]
+fn tiny_sweep_holds_its_properties() {
+    let dir = tempfile::tempdir().unwrap();
+    let rtl = tool_present("verilator");
+    let s = study(dir.path(), rtl);
+    check_boxes(&s);
+    check_aligned(&s);
+    check_outputs(&s, dir.path());
+    if rtl {
+        check_cycles(&s);
+    }
+}
+
+/// Waits for issue 19 (the residual of a placement is dropped): translated
+/// binary32 hits at the requested position should equal the reference at
+/// every distance the grid reaches, at every translation level.
+#[test]
+#[ignore = "issue 19: the translation's residual is dropped, so translated objects land off their requested position"]
+fn translated_hits_equal_reference_where_the_grid_allows() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = study(dir.path(), false);
+    for d in s["distance"].as_array().unwrap() {
+        let translated = d["format"] == "b32-local" || d["format"] == "b64-local";
+        if translated && d["refused"].is_null() {
+            let bad = d["wrong_triangle"].as_u64().unwrap()
+                + d["missed"].as_u64().unwrap()
+                + d["extra"].as_u64().unwrap();
+            assert_eq!(bad, 0, "{d}");
+        }
+    }
+}
+
+#[test]
+fn bad_input_names_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("broken.obj");
+    std::fs::write(&bad, "v 0 0 0\nf 1 2 3\n").unwrap();
+    let o = hiermerge(
+        &[
+            "study",
+            bad.to_str().unwrap(),
+            "--out",
+            dir.path().to_str().unwrap(),
+            "--no-rtl",
+        ],
+        &[],
+    );
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("broken.obj"), "{err}");
+    let o = hiermerge(&["study", "--rtl-configs", "16", "--no-rtl"], &[]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("D:Q"));
+    let o = hiermerge(&["study", "--max-lod", "16", "--rtl-configs", "12:8"], &[]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--rtl-configs 12:8: not in the sweep"));
+}

@@ -7,5 +7,6 @@ pub mod gen;
 pub mod ledger;
 pub mod merge;
 pub mod run;
+pub mod synth;
 pub mod trace;
 pub mod vectors;

@@ -3,7 +3,7 @@
 
 use super::path::{critical_path, fmax_mhz, CriticalPath, SourceIndex};
 use super::sources::Netlist;
-use super::{stat, Flow, Spread};
+use super::{Flow, Spread};
 use crate::cache::CacheKey;
 use crate::error::{io_err, CosimError, Result};
 use serde::{Deserialize, Serialize};
@@ -119,11 +119,16 @@ pub(super) fn place_and_route(
     index: &SourceIndex,
     dir: &Path,
 ) -> Result<PnrRun> {
+    // YoWASP's nextpnr sees only its working folder: give it a copy there.
+    let local = dir.join("netlist.json");
+    if json != local {
+        std::fs::copy(json, &local).map_err(io_err(&local))?;
+    }
     let mut args: Vec<String> = device.iter().map(|s| s.to_string()).collect();
     args.extend(
         [
             "--json",
-            &json.display().to_string(),
+            "netlist.json",
             "--freq",
             &flow.freq_mhz.to_string(),
             "--timing-allow-fail",
@@ -144,6 +149,7 @@ pub(super) fn place_and_route(
             other => other,
         },
     )?;
+    let _ = std::fs::remove_file(&local);
     let path = dir.join("report.json");
     let text = std::fs::read_to_string(&path).map_err(io_err(&path))?;
     let report: serde_json::Value = serde_json::from_str(&text).map_err(|e| CosimError::Parse {

@@ -152,11 +152,9 @@ fn synth_build(flow: &Flow, netlist: &Netlist, top: &str, dir: &Path) -> Result<
     super::write_json(&dir.join("figures.json"), &figures)
 }
 
-fn pnr_build(flow: &Flow, netlist: &Netlist, top: &str, seed: u64, dir: &Path) -> Result<()> {
-    let tool = flow.tool_ice40()?;
-    (flow.progress)(&format!(
-        "{top}: ice40: synth_ice40 of the wrapper + nextpnr-ice40 seed {seed}"
-    ));
+/// Synthesizes the wrapper around `top` into `dir/netlist.json`.
+fn wrapper_build(flow: &Flow, netlist: &Netlist, top: &str, dir: &Path) -> Result<()> {
+    (flow.progress)(&format!("{top}: ice40: yosys synth_ice40 of the wrapper"));
     let wrap = dir.join("wrapper.v");
     std::fs::write(&wrap, wrapper(top, &netlist.modules[top].text)).map_err(io_err(&wrap))?;
     let mut files = netlist.files(top);
@@ -166,19 +164,7 @@ fn pnr_build(flow: &Flow, netlist: &Netlist, top: &str, seed: u64, dir: &Path) -
         super::generic::read_files(&files)
     );
     std::fs::write(dir.join("wrap.ys"), script).map_err(io_err(dir.join("wrap.ys")))?;
-    flow.yosys_script(dir, "wrap.ys", "yosys.log")?;
-    let index = SourceIndex::new(netlist, top).below(WRAPPER, "u_dut");
-    let run = super::ecp5::place_and_route(
-        flow,
-        tool,
-        DEVICE,
-        &dir.join("netlist.json"),
-        seed,
-        &index,
-        dir,
-    )?;
-    let _ = std::fs::remove_file(dir.join("netlist.json"));
-    super::write_json(&dir.join("run.json"), &run)
+    flow.yosys_script(dir, "wrap.ys", "yosys.log")
 }
 
 /// The iCE40 figures of `top`, cached; the list names what this call made.
@@ -216,10 +202,17 @@ pub fn ice40(
         return Ok((figures, made));
     }
     let tool = flow.tool_ice40()?;
+    let wrapped = crate::cache::get_or_build(root, "synth-ice40-wrap", top, &synth_key, |d| {
+        wrapper_build(flow, netlist, top, d)
+    })?;
+    let json = wrapped.dir.join("netlist.json");
+    let index = SourceIndex::new(netlist, top).below(WRAPPER, "u_dut");
     for seed in 1..=seeds {
         let key = flow.pnr_key(&synth_key, tool, DEVICE, seed);
         let run = crate::cache::get_or_build(root, "synth-ice40-pnr", top, &key, |d| {
-            pnr_build(flow, netlist, top, seed, d)
+            (flow.progress)(&format!("{top}: ice40: nextpnr-ice40 seed {seed}"));
+            let run = super::ecp5::place_and_route(flow, tool, DEVICE, &json, seed, &index, d)?;
+            super::write_json(&d.join("run.json"), &run)
         })?;
         if run.built {
             made.push(format!("ice40 seed {seed}"));

@@ -41,6 +41,8 @@ enum Command {
     Study(cmd::study::Args),
     /// Check the long-run ledger (cosim --ledger) against today's code and sum what it proves.
     Ledger(cmd::ledger::Args),
+    /// Area and timing of a unit's modules: generic gates, ECP5 and iCE40 place and route, the critical path by generator line.
+    Synth(cmd::synth::Args),
 }
 
 fn main() {
@@ -61,6 +63,7 @@ fn main() {
         Command::Cosim(a) => cmd::cosim::main(a),
         Command::Ledger(a) => cmd::ledger::main(a),
         Command::Study(a) => cmd::study::main(a),
+        Command::Synth(a) => cmd::synth::main(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");

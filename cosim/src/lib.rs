@@ -18,6 +18,7 @@ pub mod from_rtl;
 pub mod icarus;
 pub mod ir_engine;
 pub mod ledger;
+pub mod synth;
 pub mod tb;
 pub mod tools;
 pub mod units;

@@ -56,18 +56,21 @@ pub fn emit_defaults(dir: &Path) -> Result<Vec<PathBuf>, String> {
     Ok(files)
 }
 
+/// Writes the configuration of `unit` that `design` asks for into `dir`.
+pub fn emit_unit(unit: Unit, design: &UnitOpts, dir: &Path) -> Result<Vec<PathBuf>, String> {
+    match unit {
+        Unit::Translate => rtl_gen::translate::emit(&design.translate_design()?, dir),
+        Unit::Merge => emit_merge(&design.merge_design()?, dir).map_err(|e| e.to_string()),
+    }
+}
+
 pub fn main(a: Args) -> CmdResult {
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
     let files = if a.defaults {
         emit_defaults(&a.out)?
     } else {
         match a.unit {
-            Some(Unit::Translate) => {
-                rtl_gen::translate::emit(&a.design.translate_design()?, &a.out)?
-            }
-            Some(Unit::Merge) => {
-                emit_merge(&a.design.merge_design()?, &a.out).map_err(|e| e.to_string())?
-            }
+            Some(unit) => emit_unit(unit, &a.design, &a.out)?,
             None => return Err("expected --unit translate|merge, or --defaults".into()),
         }
     };

@@ -8,5 +8,6 @@ pub mod ledger;
 pub mod merge;
 pub mod run;
 pub mod study;
+pub mod synth;
 pub mod trace;
 pub mod vectors;

@@ -1,0 +1,228 @@
+//! iCE40 HX8K: Yosys `synth_ice40` decides whether a module fits (by its
+//! LUT count, before any place and route); a module that fits is placed
+//! and routed inside a thin registered wrapper (SPEC 14.3).
+
+use super::ecp5::PnrRun;
+use super::path::SourceIndex;
+use super::sources::{header_ports, Netlist};
+use super::{stat, Flow, Spread};
+use crate::cache::CacheKey;
+use crate::error::{io_err, Result};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// LUTs of an iCE40 HX8K.
+pub const HX8K_LUTS: u64 = 7680;
+/// Block RAMs of an iCE40 HX8K.
+pub const HX8K_BRAMS: u64 = 32;
+/// The device options given to nextpnr-ice40.
+pub const DEVICE: &[&str] = &["--hx8k", "--package", "ct256"];
+/// The wrapper's module name.
+pub const WRAPPER: &str = "hiermerge_synth_wrap";
+
+/// The iCE40 figures of one module.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Ice40Figures {
+    /// Cells by type of the module alone.
+    pub cells: BTreeMap<String, u64>,
+    /// LUT4s (`SB_LUT4`).
+    pub lut4: u64,
+    /// Flip-flops (`SB_DFF*`).
+    pub ff: u64,
+    /// Carry cells (`SB_CARRY`).
+    pub carry: u64,
+    /// Block RAMs (`SB_RAM40_4K`).
+    pub bram: u64,
+    /// True when LUTs and block RAMs fit an HX8K.
+    pub fits: bool,
+    /// "fits: N LUTs of 7,680", or "does not fit: N LUTs of 7,680".
+    pub verdict: String,
+    /// Flip-flops the wrapper adds (one per port bit).
+    pub wrapper_ff: u64,
+    /// Fmax over the seeds, when placed.
+    pub fmax_mhz: Option<Spread>,
+    /// Every seed's run (empty when it does not fit).
+    pub runs: Vec<PnrRun>,
+}
+
+/// `n` with thousands separators: 7,680.
+pub fn thousands(n: u64) -> String {
+    let s = n.to_string();
+    let mut out = String::new();
+    for (i, c) in s.chars().enumerate() {
+        if i > 0 && (s.len() - i).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}
+
+/// A wrapper with four pins (clk, si, load, so): the module's inputs come
+/// from a shift register fed by `si`, its outputs are loaded into a shift
+/// register read out at `so`, so every port is registered and the module's
+/// ports need no I/O pins.
+pub fn wrapper(top: &str, text: &str) -> String {
+    let ports = header_ports(text);
+    let n_in: u32 = ports
+        .iter()
+        .filter(|p| p.input && p.name != "clk")
+        .map(|p| p.width)
+        .sum();
+    let n_out: u32 = ports.iter().filter(|p| !p.input).map(|p| p.width).sum();
+    let (n_in, n_out) = (n_in.max(1), n_out.max(1));
+    let mut conns = Vec::new();
+    let (mut at_in, mut at_out) = (0, 0);
+    for p in &ports {
+        let (bus, at) = match (p.name.as_str(), p.input) {
+            ("clk", true) => {
+                conns.push(".clk(clk)".to_string());
+                continue;
+            }
+            (_, true) => ("sin", &mut at_in),
+            (_, false) => ("outs", &mut at_out),
+        };
+        conns.push(format!(".{}({bus}[{}:{}])", p.name, *at + p.width - 1, *at));
+        *at += p.width;
+    }
+    let shift = |reg: &str, n: u32, fill: &str| {
+        if n == 1 {
+            fill.to_string()
+        } else {
+            format!("{{{reg}[{}:0], {fill}}}", n - 2)
+        }
+    };
+    format!(
+        "module {WRAPPER} (input wire clk, input wire si, input wire load, output wire so);\n\
+         \x20   reg [{hi_in}:0] sin;\n\
+         \x20   reg [{hi_out}:0] sout;\n\
+         \x20   wire [{hi_out}:0] outs;\n\
+         \x20   always @(posedge clk) sin <= {shift_in};\n\
+         \x20   always @(posedge clk) sout <= load ? outs : {shift_out};\n\
+         \x20   assign so = sout[{hi_out}];\n\
+         \x20   {top} u_dut ({conns});\n\
+         endmodule\n",
+        hi_in = n_in - 1,
+        hi_out = n_out - 1,
+        shift_in = shift("sin", n_in, "si"),
+        shift_out = shift("sout", n_out, "1'b0"),
+        conns = conns.join(", "),
+    )
+}
+
+fn synth_build(flow: &Flow, netlist: &Netlist, top: &str, dir: &Path) -> Result<()> {
+    let cells = flow.synth_cells(
+        netlist,
+        top,
+        dir,
+        "ice40",
+        &format!("synth_ice40 -top {top}"),
+    )?;
+    let lut4 = cells.get("SB_LUT4").copied().unwrap_or(0);
+    let bram = cells.get("SB_RAM40_4K").copied().unwrap_or(0);
+    let fits = lut4 <= HX8K_LUTS && bram <= HX8K_BRAMS;
+    let verdict = format!(
+        "{}: {} LUTs of {}",
+        if fits { "fits" } else { "does not fit" },
+        thousands(lut4),
+        thousands(HX8K_LUTS)
+    ) + &if bram > HX8K_BRAMS {
+        format!(", {bram} block RAMs of {HX8K_BRAMS}")
+    } else {
+        String::new()
+    };
+    let ports = header_ports(&netlist.modules[top].text);
+    let figures = Ice40Figures {
+        lut4,
+        ff: stat::count_where(&cells, |k| k.starts_with("SB_DFF")),
+        carry: cells.get("SB_CARRY").copied().unwrap_or(0),
+        bram,
+        fits,
+        verdict,
+        wrapper_ff: ports
+            .iter()
+            .filter(|p| p.name != "clk")
+            .map(|p| p.width as u64)
+            .sum(),
+        fmax_mhz: None,
+        runs: Vec::new(),
+        cells,
+    };
+    super::write_json(&dir.join("figures.json"), &figures)
+}
+
+/// Synthesizes the wrapper around `top` into `dir/netlist.json`.
+fn wrapper_build(flow: &Flow, netlist: &Netlist, top: &str, dir: &Path) -> Result<()> {
+    (flow.progress)(&format!("{top}: ice40: yosys synth_ice40 of the wrapper"));
+    let wrap = dir.join("wrapper.v");
+    std::fs::write(&wrap, wrapper(top, &netlist.modules[top].text)).map_err(io_err(&wrap))?;
+    let mut files = netlist.files(top);
+    files.push(wrap);
+    let script = format!(
+        "{}synth_ice40 -top {WRAPPER} -json netlist.json\n",
+        super::generic::read_files(&files)
+    );
+    std::fs::write(dir.join("wrap.ys"), script).map_err(io_err(dir.join("wrap.ys")))?;
+    flow.yosys_script(dir, "wrap.ys", "yosys.log")
+}
+
+/// The iCE40 figures of `top`, cached; the list names what this call made.
+pub fn ice40(
+    flow: &Flow,
+    netlist: &Netlist,
+    top: &str,
+    digest: &str,
+    seeds: u64,
+) -> Result<(Ice40Figures, Vec<String>)> {
+    let mut key = CacheKey::new();
+    key.add("digest", digest.as_bytes())
+        .add("yosys", flow.yosys.version.as_bytes());
+    let synth_key = key.finish();
+    let root = &flow.cache_root;
+    let entry = crate::cache::get_or_build(root, "synth-ice40", top, &synth_key, |d| {
+        synth_build(flow, netlist, top, d)
+    })?;
+    let mut made = Vec::new();
+    if entry.built {
+        made.push("ice40 synth".to_string());
+    }
+    let mut figures: Ice40Figures = super::read_json(&entry.dir.join("figures.json"))?;
+    if !figures.fits {
+        return Ok((figures, made));
+    }
+    let out_bits: u64 = header_ports(&netlist.modules[top].text)
+        .iter()
+        .filter(|p| !p.input)
+        .map(|p| p.width as u64)
+        .sum();
+    if figures.lut4 + out_bits > HX8K_LUTS {
+        figures.verdict +=
+            &format!(" (not placed: with the wrapper's {out_bits} output LUTs it would not fit)");
+        return Ok((figures, made));
+    }
+    let tool = flow.tool_ice40()?;
+    let wrapped = crate::cache::get_or_build(root, "synth-ice40-wrap", top, &synth_key, |d| {
+        wrapper_build(flow, netlist, top, d)
+    })?;
+    let json = wrapped.dir.join("netlist.json");
+    let index = SourceIndex::new(netlist, top).below(WRAPPER, "u_dut");
+    for seed in 1..=seeds {
+        let key = flow.pnr_key(&synth_key, tool, DEVICE, seed);
+        let run = crate::cache::get_or_build(root, "synth-ice40-pnr", top, &key, |d| {
+            (flow.progress)(&format!("{top}: ice40: nextpnr-ice40 seed {seed}"));
+            let run = super::ecp5::place_and_route(flow, tool, DEVICE, &json, seed, &index, d)?;
+            super::write_json(&d.join("run.json"), &run)
+        })?;
+        if run.built {
+            made.push(format!("ice40 seed {seed}"));
+        }
+        figures
+            .runs
+            .push(super::read_json(&run.dir.join("run.json"))?);
+    }
+    figures.fmax_mhz = Some(Spread::of(
+        figures.runs.iter().map(|r| r.fmax_mhz).collect(),
+    ));
+    Ok((figures, made))
+}

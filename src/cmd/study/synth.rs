@@ -1,7 +1,9 @@
-//! Area and clock from synthesis (SPEC 13.4). `hiermerge synth` is being
-//! built on another branch; until it lands and is wired here, every lookup
-//! answers `None`, and the study prints "not measured" for area, Fmax and
-//! ns per merge, never a guess.
+//! Area and clock from synthesis (SPEC 13.4). `hiermerge synth` (SPEC 14,
+//! `cosim::synth`) measures them, but the study does not yet read its
+//! cache: every lookup answers `None`, and the study prints "not measured"
+//! for area, Fmax and ns per merge, never a guess. (The study must only
+//! read cached figures: one synthesis of a merger top takes 18-60 minutes
+//! per Yosys step on this project's 2-core machines.)
 
 use rtl_gen::merge::MergerConfig;
 use serde::Serialize;
@@ -22,7 +24,7 @@ pub struct SynthFigures {
 /// The one lookup of synthesis figures: the cached `hiermerge synth`
 /// result for the hierarchy merger `unit` (the configuration whose cycles
 /// the study measures, `rtl::merger_config`), or `None` when nothing
-/// measured it. Today: always `None`.
+/// measured it. Not wired to `cosim::synth`'s cache yet: always `None`.
 pub fn synth_figures(_unit: &MergerConfig) -> Option<SynthFigures> {
     None
 }

@@ -4,7 +4,6 @@
 use super::path::{critical_path, fmax_mhz, CriticalPath, SourceIndex};
 use super::sources::Netlist;
 use super::{Flow, Spread};
-use crate::cache::CacheKey;
 use crate::error::{io_err, CosimError, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -177,10 +176,7 @@ pub fn ecp5(
     seeds: u64,
 ) -> Result<(Ecp5Figures, Vec<String>)> {
     let tool = flow.tool_ecp5()?;
-    let mut key = CacheKey::new();
-    key.add("digest", digest.as_bytes())
-        .add("yosys", flow.yosys.version.as_bytes());
-    let synth_key = key.finish();
+    let synth_key = flow.synth_key(digest);
     let root = &flow.cache_root;
     let entry = crate::cache::get_or_build(root, "synth-ecp5", top, &synth_key, |d| {
         synth_build(flow, netlist, top, d)

@@ -6,7 +6,6 @@ use super::ecp5::PnrRun;
 use super::path::SourceIndex;
 use super::sources::{header_ports, Netlist};
 use super::{stat, Flow, Spread};
-use crate::cache::CacheKey;
 use crate::error::{io_err, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -175,10 +174,7 @@ pub fn ice40(
     digest: &str,
     seeds: u64,
 ) -> Result<(Ice40Figures, Vec<String>)> {
-    let mut key = CacheKey::new();
-    key.add("digest", digest.as_bytes())
-        .add("yosys", flow.yosys.version.as_bytes());
-    let synth_key = key.finish();
+    let synth_key = flow.synth_key(digest);
     let root = &flow.cache_root;
     let entry = crate::cache::get_or_build(root, "synth-ice40", top, &synth_key, |d| {
         synth_build(flow, netlist, top, d)

@@ -151,6 +151,15 @@ impl Flow {
         Ok(stat::cell_counts(&text))
     }
 
+    /// The cache key of an FPGA synthesis of the module tree `digest`: the
+    /// tree and the Yosys that synthesizes it.
+    fn synth_key(&self, digest: &str) -> String {
+        let mut key = crate::cache::CacheKey::new();
+        key.add("digest", digest.as_bytes())
+            .add("yosys", self.yosys.version.as_bytes());
+        key.finish()
+    }
+
     /// The cache key of one place-and-route run of the synthesis `synth_key`.
     fn pnr_key(&self, synth_key: &str, tool: &tools::Tool, device: &[&str], seed: u64) -> String {
         let mut key = crate::cache::CacheKey::new();

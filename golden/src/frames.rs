@@ -16,7 +16,7 @@ use crate::build::GridMap;
 use crate::merge::{MergeMode, MergeStats};
 use crate::mesh::Mesh;
 use crate::params::Params;
-use crate::world::{World, WorldError};
+use crate::world::{Placing, World, WorldError};
 
 /// Whether an object's geometry may change between frames.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -49,7 +49,10 @@ pub enum ObjectAction {
     Built,
     /// Its mesh changed: rebuilt and placed.
     Rebuilt,
-    /// Moved only: a new translation, the hierarchy reused.
+    /// Moved by a fraction of a voxel: the residual changed, so its local
+    /// geometry moved and was rebuilt (SPEC 7.10).
+    Moved,
+    /// Moved by whole voxels: a new translation, the hierarchy reused.
     Retranslated,
     /// Unchanged: hierarchy and translation reused.
     Reused,
@@ -244,8 +247,10 @@ impl Frames {
                     self.world.add(o.id, (*o.mesh).clone(), o.offset)?;
                     ObjectAction::Rebuilt
                 } else if !same_place {
-                    self.world.place(o.id, o.offset)?;
-                    ObjectAction::Retranslated
+                    match self.world.place(o.id, o.offset)? {
+                        Placing::Retranslated => ObjectAction::Retranslated,
+                        Placing::Rebuilt => ObjectAction::Moved,
+                    }
                 } else {
                     ObjectAction::Reused
                 }
@@ -309,12 +314,28 @@ mod tests {
         assert!(!r1.merged);
         assert_eq!(r1.merge_level, r0.merge_level);
 
-        // The ball moves: re-translated only, and the merge is redone.
+        // The ball moves by a fraction of a voxel: the residual changes, so
+        // its local geometry is rebuilt; the merge is redone.
         let r2 = step(&mut f, 0.25, &ring);
-        assert_eq!(r2.objects[&1], ObjectAction::Retranslated);
+        assert_eq!(r2.objects[&1], ObjectAction::Moved);
         assert_eq!(r2.objects[&0], ObjectAction::Reused);
         assert!(r2.merged);
         f.world.check(f.merged_id).unwrap();
+
+        // By whole voxels: re-translated only, the hierarchy reused.
+        let t = f.world.object(1).unwrap().determined.translation;
+        let edge = f.world.params.voxel_edge(t.lod) as f64 * f.world.grid.unit;
+        let before = f.world.store.get(1).unwrap().clone();
+        let r = step(&mut f, 0.25 + edge, &ring);
+        assert_eq!(r.objects[&1], ObjectAction::Retranslated);
+        assert_eq!(f.world.store.get(1).unwrap(), &before);
+        assert_eq!(
+            f.world.object(1).unwrap().determined.translation.t[0],
+            t.t[0] + 1
+        );
+        assert!(r.merged);
+        f.world.check(f.merged_id).unwrap();
+        step(&mut f, 0.25, &ring);
 
         // The ring deforms: rebuilt.
         let bigger = Arc::new(torus(Vec3::new(0.3, 0.7, 0.3), 0.12, 0.03, 16, 8));

@@ -14,6 +14,7 @@ pub mod grid;
 pub mod layout;
 pub mod merge;
 pub mod mesh;
+pub mod oracle;
 pub mod params;
 pub mod scene;
 pub mod scenes;

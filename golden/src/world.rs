@@ -13,11 +13,19 @@
 //! at that point plus the translation's grid offset. An object's local mesh
 //! must therefore lie inside the scene cube; its placement is the offset in
 //! world units that carries it to its scene position.
+//!
+//! Placements are honoured exactly (SPEC 7.10): the part of a placement the
+//! voxel grid cannot express, the residual, is added to the mesh in binary32
+//! local coordinates (the object's *local geometry*), and the hierarchy is
+//! built on that. A move reuses the hierarchy only while the residual stays
+//! bit-identical (a move by whole voxels at the translation's LOD); any
+//! other move rebuilds it.
 
 use std::collections::BTreeMap;
 use std::fmt;
 
 use glam::DVec3;
+use serde::Serialize;
 
 use crate::build::{build, BuildError, GridMap};
 use crate::check::{check, CheckError, CheckReport};
@@ -28,22 +36,72 @@ use crate::params::Params;
 use crate::store::{Hierarchy, HierarchyStore};
 use crate::trace::{Instance, TraceError, TraceScene};
 use crate::translate::{
-    determine, Determined, Placement, TranslateError, TranslationTable, VoxelRange,
+    determine, round_placement, Axis, Determined, Placement, TranslateError, TranslationTable,
+    VoxelRange,
 };
 
-/// One object: its local mesh (world units), the same in grid units, and
-/// the translation that places it.
+/// One object: its mesh as given, its local geometry (the mesh plus the
+/// residual), the same in grid units, and the translation that places it.
 #[derive(Clone, Debug)]
 pub struct Object {
-    /// The mesh in its local frame, world units.
+    /// The local geometry: the source mesh with the residual added, binary32
+    /// world units. The hierarchy is built on it and traversal tests its
+    /// triangles; it equals `source` when the residual is zero.
     pub mesh: Mesh,
-    /// The mesh's triangles in local grid units (what the checker uses).
+    /// The mesh as given, in its local frame, world units.
+    pub source: Mesh,
+    /// The local geometry's triangles in local grid units (what the checker uses).
     pub local: Vec<[DVec3; 3]>,
-    /// The requested placement (world units) and what determine made of it.
+    /// The requested placement, world units.
     pub offset: DVec3,
-    /// What determine (SPEC 7.2) made of `offset`: the translation at the
-    /// hierarchy's top LOD and the residual it leaves.
+    /// Whole voxels (grid units, per axis) the local frame holds the
+    /// geometry by, so that it stays inside the scene cube: `0`, or one
+    /// voxel edge of the translation's LOD up or down (SPEC 7.10).
+    pub frame: DVec3,
+    /// What determine is given: `offset / unit - frame`, grid units, binary64.
+    pub placement: Placement,
+    /// What determine (SPEC 7.2) made of `placement`: the translation, at a
+    /// LOD no finer than the hierarchy's top LOD, and the residual it leaves,
+    /// which `mesh` carries.
     pub determined: Determined,
+    /// The top LOD of the source mesh's own hierarchy: where determine starts (SPEC 7.10).
+    pub base_lod: u8,
+}
+
+/// What placing an object did to its hierarchy (SPEC 7.10).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Placing {
+    /// The residual is bit-identical to the hierarchy's: only the translation changed.
+    Retranslated,
+    /// The residual changed (a move by a fraction of a voxel): the local
+    /// geometry moved and its hierarchy was rebuilt.
+    Rebuilt,
+}
+
+/// Where settling a placement ended.
+enum Step {
+    /// The object's current hierarchy serves: the new translation.
+    Reuse(Split),
+    /// A new local geometry and hierarchy.
+    Settled(Settled),
+}
+
+/// A settled placement: the local geometry, its hierarchy and translation.
+struct Settled {
+    hierarchy: Hierarchy,
+    mesh: Mesh,
+    local: Vec<[DVec3; 3]>,
+    at: Split,
+}
+
+/// One split of a placement: the local frame's shift, what determine was
+/// given and what it returned.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Split {
+    frame: DVec3,
+    placement: Placement,
+    determined: Determined,
 }
 
 /// Why a world operation failed, naming the object.
@@ -136,69 +194,218 @@ impl World {
     /// Builds `mesh` (local frame) as hierarchy `id` and places it by
     /// `offset` world units; replaces an object of the same id.
     pub fn add(&mut self, id: u8, mesh: Mesh, offset: DVec3) -> Result<&Object, WorldError> {
-        let h = build(&mesh, &self.grid, &self.params, id)
+        let base = build(&mesh, &self.grid, &self.params, id)
             .map_err(|error| WorldError::Build { id, error })?;
-        let local = self
-            .grid
-            .mesh_to_grid(&mesh, &self.params)
-            .map_err(|error| WorldError::Build { id, error })?;
-        let determined = self.determine(id, &h, offset)?;
-        self.table
-            .write(id as u32, determined.translation)
-            .map_err(|error| WorldError::Translate { id, error })?;
-        self.store.remove(id);
-        self.store
-            .insert(h)
-            .map_err(|e| WorldError::Merge(MergeError::Store(e)))?;
+        let base_lod = base.top_lod;
+        let Step::Settled(s) = self.settle(id, &mesh, base_lod, offset, Some(base), None)? else {
+            unreachable!("settle reuses only a current hierarchy, and there is none")
+        };
+        self.install(id, &s)?;
         self.objects.insert(
             id,
             Object {
-                mesh,
-                local,
+                mesh: s.mesh,
+                source: mesh,
+                local: s.local,
                 offset,
-                determined,
+                frame: s.at.frame,
+                placement: s.at.placement,
+                determined: s.at.determined,
+                base_lod,
             },
         );
         Ok(&self.objects[&id])
     }
 
-    /// Moves object `id` rigidly to `offset`: a new translation, nothing rebuilt.
-    pub fn place(&mut self, id: u8, offset: DVec3) -> Result<Determined, WorldError> {
+    /// Moves object `id` rigidly to `offset`. The hierarchy is reused (a new
+    /// translation only) when the residual stays bit-identical, and rebuilt
+    /// on the moved local geometry otherwise (SPEC 7.10).
+    pub fn place(&mut self, id: u8, offset: DVec3) -> Result<Placing, WorldError> {
         // Only an object moves: a merged hierarchy's table entry stays as it is.
-        if !self.objects.contains_key(&id) {
-            return Err(WorldError::Unknown(id));
-        }
+        let o = self.objects.get(&id).ok_or(WorldError::Unknown(id))?;
         let h = self.store.get(id).ok_or(WorldError::Unknown(id))?;
-        let determined = self.determine(id, h, offset)?;
-        self.table
-            .write(id as u32, determined.translation)
-            .map_err(|error| WorldError::Translate { id, error })?;
+        let current = Split {
+            frame: o.frame,
+            placement: o.placement,
+            determined: o.determined,
+        };
+        let source = o.source.clone();
+        let step = self.settle(id, &source, o.base_lod, offset, None, Some((current, h)))?;
+        let (at, how) = match step {
+            Step::Reuse(at) => {
+                self.table
+                    .write(id as u32, at.determined.translation)
+                    .map_err(|error| WorldError::Translate { id, error })?;
+                (at, Placing::Retranslated)
+            }
+            Step::Settled(s) => {
+                self.install(id, &s)?;
+                let o = self.objects.get_mut(&id).ok_or(WorldError::Unknown(id))?;
+                o.mesh = s.mesh;
+                o.local = s.local;
+                (s.at, Placing::Rebuilt)
+            }
+        };
         let o = self.objects.get_mut(&id).ok_or(WorldError::Unknown(id))?;
         o.offset = offset;
-        o.determined = determined;
-        Ok(determined)
+        o.frame = at.frame;
+        o.placement = at.placement;
+        o.determined = at.determined;
+        Ok(how)
     }
 
-    /// Determine (SPEC 7): the offset in grid units, as binary64, rounded to
-    /// voxels of the hierarchy's top LOD, inside the scene extents.
-    fn determine(&self, id: u8, h: &Hierarchy, offset: DVec3) -> Result<Determined, WorldError> {
+    /// Writes a settled placement's translation and hierarchy.
+    fn install(&mut self, id: u8, s: &Settled) -> Result<(), WorldError> {
+        self.table
+            .write(id as u32, s.at.determined.translation)
+            .map_err(|error| WorldError::Translate { id, error })?;
+        self.store.remove(id);
+        self.store
+            .insert(s.hierarchy.clone())
+            .map_err(|e| WorldError::Merge(MergeError::Store(e)))
+    }
+
+    /// The placement `offset` (world units) in grid units, as binary64.
+    fn placement(&self, id: u8, offset: DVec3) -> Result<Placement, WorldError> {
         if !offset.is_finite() {
             return Err(WorldError::BadOffset {
                 id,
                 offset: offset.to_array(),
             });
         }
-        let grid_units = (offset / self.grid.unit).to_array();
+        Ok(Placement::binary64((offset / self.grid.unit).to_array()))
+    }
+
+    /// SPEC 7.10: split the placement at `lod` (first the source mesh's top
+    /// LOD), add the residual to the source mesh in binary32, build; while
+    /// the build's top LOD is coarser than `lod`, its voxels would not stay
+    /// aligned, so split again at that LOD. `lod` only decreases: at most `D`
+    /// steps, and the result is a function of (source, offset) alone. `base`
+    /// is the source mesh's own hierarchy when the caller has it; `current`
+    /// the object's split and hierarchy, reused when a step reaches the same
+    /// split (the build would give it again, bit for bit).
+    fn settle(
+        &self,
+        id: u8,
+        source: &Mesh,
+        base_lod: u8,
+        offset: DVec3,
+        mut base: Option<Hierarchy>,
+        current: Option<(Split, &Hierarchy)>,
+    ) -> Result<Step, WorldError> {
+        let requested = self.placement(id, offset)?;
+        let (lo, hi) = source.bounds();
+        let (lo, hi) = (self.grid.to_grid(lo), self.grid.to_grid(hi));
+        let mut lod = base_lod;
+        loop {
+            let at = self.split(id, &requested, lod, lo, hi)?;
+            if let Some((c, h)) = current {
+                if c.determined.translation.lod == lod
+                    && c.determined.residual == at.determined.residual
+                    && c.frame == at.frame
+                {
+                    let determined = self.check_extents(id, h, &at.placement, lod)?;
+                    return Ok(Step::Reuse(Split { determined, ..at }));
+                }
+            }
+            let moved = at.frame + residual_of(&at.determined);
+            let (mesh, hierarchy) = match base.take() {
+                Some(h) if moved == DVec3::ZERO => (source.clone(), h),
+                _ => {
+                    let mesh = if moved == DVec3::ZERO {
+                        source.clone()
+                    } else {
+                        moved_by(source, moved * self.grid.unit)
+                    };
+                    let h = build(&mesh, &self.grid, &self.params, id)
+                        .map_err(|error| WorldError::Build { id, error })?;
+                    (mesh, h)
+                }
+            };
+            if hierarchy.top_lod < lod {
+                lod = hierarchy.top_lod;
+                continue;
+            }
+            let determined = self.check_extents(id, &hierarchy, &at.placement, lod)?;
+            let local = self
+                .grid
+                .mesh_to_grid(&mesh, &self.params)
+                .map_err(|error| WorldError::Build { id, error })?;
+            return Ok(Step::Settled(Settled {
+                hierarchy,
+                mesh,
+                local,
+                at: Split { determined, ..at },
+            }));
+        }
+    }
+
+    /// Splits `requested` (grid units) at `lod` (SPEC 7.10). The local frame
+    /// may hold the geometry up or down by one voxel edge `E` of `lod` per
+    /// axis, which leaves its scene position alone. It does so where the
+    /// residual alone would push the source's grid bounds `[lo, hi]` out of
+    /// the scene cube, and where the moved geometry straddles two voxels of
+    /// `lod` in different parents: moved by `E`, the two share a parent, so
+    /// the next step settles one LOD coarser instead of wherever the common
+    /// ancestor of a large boundary is.
+    fn split(
+        &self,
+        id: u8,
+        requested: &Placement,
+        lod: u8,
+        lo: DVec3,
+        hi: DVec3,
+    ) -> Result<Split, WorldError> {
+        let edge = self.params.voxel_edge(lod) as f64;
+        let side = self.params.voxel_edge(0) as f64;
+        let round = |frame: DVec3| -> Result<Split, WorldError> {
+            let placement =
+                Placement::binary64(Axis::ALL.map(|a| requested.value_f64(a) - frame[a.index()]));
+            let determined = round_placement(&placement, lod, &self.params)
+                .map_err(|error| WorldError::Translate { id, error })?;
+            Ok(Split {
+                frame,
+                placement,
+                determined,
+            })
+        };
+        let first = round(DVec3::ZERO)?;
+        let r = residual_of(&first.determined);
+        let frame = DVec3::from_array(Axis::ALL.map(|a| {
+            let i = a.index();
+            let (a, b) = (lo[i] + r[i], hi[i] + r[i]);
+            let fits = |f: f64| a + f >= 0.0 && b + f <= side;
+            // The voxels of `lod` the moved bounds touch share a parent.
+            let shares_parent = |f: f64| {
+                let (va, vb) = (((a + f) / edge).floor(), ((b + f) / edge).ceil() - 1.0);
+                vb <= va || (vb == va + 1.0 && va.rem_euclid(2.0) == 0.0)
+            };
+            [0.0, edge, -edge]
+                .into_iter()
+                .find(|&f| fits(f) && shares_parent(f))
+                .or_else(|| [0.0, edge, -edge].into_iter().find(|&f| fits(f)))
+                .unwrap_or(0.0)
+        }));
+        if frame == DVec3::ZERO {
+            Ok(first)
+        } else {
+            round(frame)
+        }
+    }
+
+    /// Determine (SPEC 7.2) at `lod` with the extents rule (7.4) on `h`'s roots.
+    fn check_extents(
+        &self,
+        id: u8,
+        h: &Hierarchy,
+        placement: &Placement,
+        lod: u8,
+    ) -> Result<Determined, WorldError> {
         let tops: Vec<_> = h.roots().iter().map(|n| n.voxel).collect();
-        let extents = VoxelRange::of_nodes(&tops, h.top_lod, &self.params)
+        let extents = VoxelRange::of_nodes(&tops, lod, &self.params)
             .map_err(|error| WorldError::Translate { id, error })?;
-        determine(
-            &Placement::binary64(grid_units),
-            h.top_lod,
-            &extents,
-            &self.params,
-        )
-        .map_err(|error| WorldError::Translate { id, error })
+        determine(placement, lod, &extents, &self.params)
+            .map_err(|error| WorldError::Translate { id, error })
     }
 
     /// Removes object `id` (and its hierarchy and table entry).
@@ -281,28 +488,64 @@ impl World {
         TraceScene::with_roots(self.grid, instances, roots).map_err(WorldError::Trace)
     }
 
-    /// Every object's triangles moved to their scene positions, in world
-    /// units (f32): the input of a full rebuild, and of brute force in the
-    /// world frame.
+    /// Objects `ids` as the oracle of `--verify` sees them (SPEC 6.9): the
+    /// source mesh where it was asked to be, beside the local geometry and
+    /// translation golden traces.
+    pub fn oracle_parts(&self, ids: &[u8]) -> Result<Vec<crate::oracle::Part<'_>>, WorldError> {
+        ids.iter()
+            .map(|&id| {
+                let o = self.objects.get(&id).ok_or(WorldError::Unknown(id))?;
+                let t = o.determined.translation;
+                let shift =
+                    DVec3::from_array(Axis::ALL.map(|a| t.grid_offset(a, &self.params) as f64))
+                        * self.grid.unit;
+                Ok(crate::oracle::Part {
+                    hier: id,
+                    source: &o.source,
+                    offset: o.offset,
+                    traced: &o.mesh,
+                    shift,
+                })
+            })
+            .collect()
+    }
+
+    /// Every object's triangles at their requested scene positions (source
+    /// mesh plus placement, binary64, rounded once to f32), world units: the
+    /// input of a full rebuild, and of brute force in the world frame.
     pub fn placed_mesh(&self, ids: &[u8]) -> Result<Mesh, WorldError> {
         let mut out = Mesh::default();
         for &id in ids {
             let o = self.objects.get(&id).ok_or(WorldError::Unknown(id))?;
-            let t = o.determined.translation;
-            let shift = DVec3::from_array(
-                crate::translate::Axis::ALL.map(|a| t.grid_offset(a, &self.params) as f64),
-            ) * self.grid.unit;
             let base = out.vertices.len() as u32;
             out.vertices.extend(
-                o.mesh
+                o.source
                     .vertices
                     .iter()
-                    .map(|v| (v.as_dvec3() + shift).as_vec3()),
+                    .map(|v| (v.as_dvec3() + o.offset).as_vec3()),
             );
             out.triangles
-                .extend(o.mesh.triangles.iter().map(|tri| tri.map(|i| i + base)));
+                .extend(o.source.triangles.iter().map(|tri| tri.map(|i| i + base)));
         }
         Ok(out)
+    }
+}
+
+/// The residual of `d`, grid units.
+fn residual_of(d: &Determined) -> DVec3 {
+    DVec3::from_array(Axis::ALL.map(|a| d.residual.value_f64(a)))
+}
+
+/// The source mesh moved by `by` world units, each vertex rounded once to
+/// binary32: the object's local geometry.
+fn moved_by(source: &Mesh, by: DVec3) -> Mesh {
+    Mesh {
+        vertices: source
+            .vertices
+            .iter()
+            .map(|v| (v.as_dvec3() + by).as_vec3())
+            .collect(),
+        triangles: source.triangles.clone(),
     }
 }
 
@@ -326,20 +569,51 @@ mod tests {
     }
 
     #[test]
-    fn placing_moves_by_whole_voxels_and_reports_the_residual() {
+    fn placing_keeps_the_residual_in_the_local_geometry() {
         let mut w = world();
-        let o = w
-            .add(1, sphere(Vec3::splat(1.0), 0.5, 8, 16), DVec3::ZERO)
-            .unwrap();
+        let ball = sphere(Vec3::splat(1.0), 0.5, 8, 16);
+        let o = w.add(1, ball.clone(), DVec3::ZERO).unwrap();
         assert_eq!(o.determined.translation.t, [0, 0, 0]);
+        assert_eq!(o.mesh, o.source);
         let lod = o.determined.translation.lod;
         let edge = w.params.voxel_edge(lod) as f64 * w.grid.unit;
-        let d = w
-            .place(1, DVec3::new(edge * 2.0 + 0.001, -0.0, edge))
-            .unwrap();
-        assert_eq!(d.translation.t, [2, 0, 1]);
-        let r = d.residual.value_f64(crate::translate::Axis::X);
-        assert!((r * w.grid.unit - 0.001).abs() < 1e-9, "residual {r}");
+        // Whole voxels: the hierarchy is reused, only the translation moves.
+        let before = w.store.get(1).unwrap().clone();
+        assert_eq!(
+            w.place(1, DVec3::new(edge * 2.0, -0.0, edge)).unwrap(),
+            Placing::Retranslated
+        );
+        assert_eq!(w.store.get(1).unwrap(), &before);
+        assert_eq!(w.object(1).unwrap().determined.translation.t, [2, 0, 1]);
+        // A fraction of a voxel: the local geometry moves by the residual and
+        // is rebuilt; the translation still takes the whole voxels.
+        let off = DVec3::new(edge * 2.0 + 0.001, -0.0, edge);
+        assert_eq!(w.place(1, off).unwrap(), Placing::Rebuilt);
+        let o = w.object(1).unwrap();
+        assert_eq!(o.determined.translation.t, [2, 0, 1]);
+        let r = o.determined.residual.value_f64(Axis::X) * w.grid.unit;
+        assert!((r - 0.001).abs() < 1e-9, "residual {r}");
+        let shift = DVec3::new(edge * 2.0, 0.0, edge);
+        for (g, s) in o.mesh.vertices.iter().zip(&ball.vertices) {
+            let want = s.as_dvec3() + off;
+            let got = g.as_dvec3() + shift;
+            // binary32 local coordinates: half an ulp of the local magnitude.
+            assert!(
+                (got - want).abs().max_element() < 2.0 * 2f64.powi(-24),
+                "{got} vs {want}"
+            );
+        }
+        // The same move again reuses the rebuilt hierarchy; the same result
+        // as adding the object there afresh.
+        let moved = w.store.get(1).unwrap().clone();
+        assert_eq!(w.place(1, off).unwrap(), Placing::Retranslated);
+        let mut fresh = world();
+        fresh.add(1, ball, off).unwrap();
+        assert_eq!(fresh.store.get(1).unwrap(), &moved);
+        assert_eq!(
+            fresh.object(1).unwrap().determined,
+            w.object(1).unwrap().determined
+        );
         // Far outside the scene: an error, never a clamp.
         assert!(matches!(
             w.place(1, DVec3::new(1e9, 0.0, 0.0)),

@@ -8,8 +8,9 @@ use std::time::Instant;
 use glam::DVec3;
 use golden::build::build;
 use golden::merge::MergeMode;
+use golden::oracle::{Oracle, OracleSummary};
 use golden::trace::{
-    brute_force_closest, closest_hit, random_rays, Instance, TraceScene, TraceStats,
+    brute_force_closest, closest_hit, edge_rays, random_rays, Instance, TraceScene, TraceStats,
 };
 use golden::world::World;
 use serde::Serialize;
@@ -33,7 +34,9 @@ pub struct Args {
     rays: usize,
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Compare every closest hit through the merged hierarchy with brute force over all placed triangles.
+    /// Check every closest hit through the merged hierarchy: against brute force over the same
+    /// triangles (bit for bit), and against the independent binary64 oracle over the triangles
+    /// at their requested positions (SPEC 6.9); half as many rays again aim at edges and vertices.
     #[arg(long)]
     verify: bool,
     #[command(flatten)]
@@ -134,6 +137,9 @@ struct Report {
     node_tests_per_ray: PerRay,
     #[serde(skip_serializing_if = "Option::is_none")]
     mismatches: Option<u64>,
+    /// With --verify: the merged hierarchy's hits judged by the binary64 oracle.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    oracle: Option<OracleSummary>,
 }
 
 #[derive(Serialize)]
@@ -144,7 +150,8 @@ struct InputReport {
     /// Translation (L, t) determined from the placement.
     lod: u8,
     t: [i64; 3],
-    /// What the voxel grid could not express: requested minus applied, world units.
+    /// What the voxel grid could not express, requested minus the translation, world units:
+    /// carried by the input's local geometry (SPEC 7.10).
     residual: [f64; 3],
     #[serde(flatten)]
     shape: Shape,
@@ -236,22 +243,18 @@ pub fn main(a: Args) -> CmdResult {
         TraceStats::default(),
     );
     let mut hits = 0u64;
-    let mut mismatches = 0u64;
     for ray in &rays {
         let hit = closest_hit(ray, &ms, &mut m_stats);
         closest_hit(ray, &ss, &mut s_stats);
         closest_hit(ray, &rs, &mut r_stats);
         hits += hit.is_some() as u64;
-        if a.verify {
-            let brute = brute_force_closest(ray, &ss, &mut TraceStats::default());
-            let same = match (&hit, &brute) {
-                (None, None) => true,
-                (Some(x), Some(y)) => x.identical(y),
-                _ => false,
-            };
-            mismatches += !same as u64;
-        }
     }
+    let (mismatches, oracle) = if a.verify {
+        let (m, o) = verify(&world, &ids, &ms, &ss, &rays, a.seed)?;
+        (m, Some(o))
+    } else {
+        (0, None)
+    };
     let n = rays.len().max(1) as f64;
     let report = Report {
         params,
@@ -275,6 +278,7 @@ pub fn main(a: Args) -> CmdResult {
             rebuild: r_stats.node_tests as f64 / n,
         },
         mismatches: a.verify.then_some(mismatches),
+        oracle,
     };
     emit(a.json, &report, |r| {
         for i in &r.inputs {
@@ -307,9 +311,60 @@ pub fn main(a: Args) -> CmdResult {
         if let Some(m) = r.mismatches {
             println!("verify: {m} mismatches against brute force");
         }
+        if let Some(o) = &r.oracle {
+            println!("{}", oracle_line(o));
+        }
     })?;
     if mismatches > 0 {
         return Err(format!("{mismatches} rays disagree with brute force"));
     }
+    if let Some(o) = &report.oracle {
+        if o.faults() > 0 {
+            return Err(format!(
+                "{} rays disagree with the binary64 oracle; first: {}",
+                o.faults(),
+                o.first_fault.as_deref().unwrap_or("-")
+            ));
+        }
+    }
     Ok(())
+}
+
+/// `--verify`: the merged hierarchy's hit for every ray (the random ones and
+/// as many again at edges and vertices) against brute force over the same
+/// triangles, and against the oracle (SPEC 6.9).
+fn verify(
+    world: &World,
+    ids: &[u8],
+    merged: &TraceScene,
+    separate: &TraceScene,
+    random: &[golden::geom::Ray],
+    seed: u64,
+) -> Result<(u64, OracleSummary), String> {
+    let parts = world.oracle_parts(ids).map_err(|e| e.to_string())?;
+    let oracle = Oracle::new(&parts).map_err(|e| e.to_string())?;
+    let mut rays = random.to_vec();
+    rays.extend(edge_rays(separate, random.len(), seed ^ 0xED6E));
+    let mut mismatches = 0;
+    let mut summary = OracleSummary::default();
+    for ray in &rays {
+        let hit = closest_hit(ray, merged, &mut TraceStats::default());
+        let brute = brute_force_closest(ray, separate, &mut TraceStats::default());
+        let same = match (&hit, &brute) {
+            (None, None) => true,
+            (Some(x), Some(y)) => x.identical(y),
+            _ => false,
+        };
+        mismatches += !same as u64;
+        oracle.count(&mut summary, ray, hit.as_ref());
+    }
+    Ok((mismatches, summary))
+}
+
+/// One line of the oracle's counts.
+pub fn oracle_line(o: &OracleSummary) -> String {
+    format!(
+        "oracle (binary64, requested positions): {} rays, {} agree, {} grazing, {} ties; {} faults ({} wrong triangle, {} missed, {} extra, {} t error); max t error {:.3e}, bound up to {:.3e}",
+        o.rays, o.agree, o.grazing, o.ties, o.faults(), o.wrong_triangle, o.missed, o.extra, o.t_error, o.max_t_error, o.max_bound
+    )
 }

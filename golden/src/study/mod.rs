@@ -8,7 +8,6 @@
 //! not compute.
 
 pub mod looseness;
-pub mod reference;
 pub mod walk;
 
 use glam::DVec3;

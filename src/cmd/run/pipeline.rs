@@ -93,6 +93,8 @@ pub struct FrameOut {
     pub actions: BTreeMap<String, ObjectAction>,
     pub built: usize,
     pub rebuilt: usize,
+    /// Moved by a fraction of a voxel: the residual changed, the local geometry was rebuilt.
+    pub moved: usize,
     pub retranslated: usize,
     pub reused: usize,
     pub merged: bool,
@@ -100,7 +102,8 @@ pub struct FrameOut {
     pub nodes_created: u64,
     pub merged_nodes: u64,
     /// Largest placement residual this frame (world units) that the voxel
-    /// grid could not express, over re-translated objects.
+    /// grid could not express, over placed objects; their local geometry
+    /// carries it (SPEC 7.10), so objects sit where the scene puts them.
     pub max_residual: f64,
     pub rtl: Option<RtlFrame>,
     /// The merging module's stages on this frame's merge.
@@ -332,7 +335,7 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
                     Placed {
                         id,
                         hierarchy: frames.world.store.get(id).expect("in the store"),
-                        grid_units: (o.offset / scene.grid.unit).to_array(),
+                        grid_units: Axis::ALL.map(|a| o.placement.value_f64(a)),
                         translation: o.determined.translation,
                     }
                 })
@@ -499,6 +502,7 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
                 .collect(),
             built: rep.count(ObjectAction::Built),
             rebuilt: rep.count(ObjectAction::Rebuilt),
+            moved: rep.count(ObjectAction::Moved),
             retranslated: rep.count(ObjectAction::Retranslated),
             reused: rep.count(ObjectAction::Reused),
             merged: rep.merged,
@@ -595,8 +599,11 @@ fn describe_actions(
                     "moved, and the scene uses no translation"
                 }
             )),
+            ObjectAction::Moved => simulated.push(format!(
+                "{name}: moved by a fraction of a voxel, new residual: local geometry rebuilt, new translation determined"
+            )),
             ObjectAction::Retranslated => simulated.push(format!(
-                "{name}: moved, new translation determined (hierarchy reused, not rebuilt)"
+                "{name}: moved by whole voxels, residual unchanged: new translation determined (hierarchy reused, not rebuilt)"
             )),
             ObjectAction::Reused => skipped.push(format!(
                 "{name}: unchanged, hierarchy and translation reused"

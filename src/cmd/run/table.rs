@@ -44,10 +44,16 @@ pub fn closing_table(r: &RunReport) -> String {
     let _ = writeln!(
         s,
         "{:>5} {:>19} {:>6} {:>5} {:>7} {:>8} {:>5} {:>24} {:>33}",
-        "", "reused/rebuilt/moved", "", "", "", "", "", "(subsample)", ""
+        "", "reused/built/moved/retr", "", "", "", "", "", "(subsample)", ""
     );
     for f in &r.frames {
-        let hier = format!("{}/{}/{}", f.reused, f.built + f.rebuilt, f.retranslated);
+        let hier = format!(
+            "{}/{}/{}/{}",
+            f.reused,
+            f.built + f.rebuilt,
+            f.moved,
+            f.retranslated
+        );
         let tests = f.comparison.as_ref().map_or("-".to_string(), |c| {
             format!("{:.1}/{:.1}/{:.1}", c.merged, c.separate, c.full_rebuild)
         });

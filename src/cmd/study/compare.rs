@@ -3,7 +3,7 @@
 
 use glam::DVec3;
 use golden::geom::ray::Ray;
-use golden::study::reference::ReferenceTracer;
+use golden::oracle::reference::ReferenceTracer;
 use serde::Serialize;
 
 /// Barycentric margin within which a ray grazes an edge: there two tracers

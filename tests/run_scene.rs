@@ -101,9 +101,14 @@ fn default_scene_runs_with_zero_mismatches_and_writes_every_frame() {
     for way in ["merged", "separate", "full_rebuild"] {
         assert!(c[way].as_f64().unwrap() > 1.0, "{way}");
     }
-    // Frames 1 and 2 move the three dynamic objects only.
+    // Frames 1 and 2 move the three dynamic objects only: the ball and the
+    // ring by fractions of a voxel (new residuals, local geometry rebuilt),
+    // the satellite by whole voxels (re-translated, hierarchy reused).
     for f in &frames[1..3] {
-        assert_eq!(f["retranslated"], 3);
+        assert_eq!(f["moved"], 2);
+        assert_eq!(f["actions"]["ball"], "Moved");
+        assert_eq!(f["actions"]["far satellite"], "Retranslated");
+        assert_eq!(f["retranslated"], 1);
         assert_eq!(f["reused"], 3);
         assert_eq!(f["rebuilt"], 0);
     }
@@ -339,6 +344,33 @@ fn scene_without_translation_builds_no_translation_unit_and_says_so() {
     assert_eq!(frames[1]["retranslated"], 0);
     assert_eq!(v["effects"]["merge_mode"], "Proportion { num: 1, den: 2 }");
     assert_eq!(v["mismatches"], 0);
+}
+
+/// SPEC 7.10: an object moved by a fraction of a voxel moves in the image
+/// (its residual is in its local geometry, rebuilt), and the oracle of
+/// `--verify` agrees with every hit.
+#[test]
+fn a_move_by_a_fraction_of_a_voxel_shows_in_the_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = small_scene(true, json!([[2, 1, 2], [2.1, 1, 2], [2.1, 1, 2]]));
+    let path = write_scene(dir.path(), "fraction.json", &scene);
+    let out = dir.path().join("out");
+    let v = run_ok(
+        &[path.to_str().unwrap(), "--verify", "--no-rtl"],
+        &out,
+        None,
+    );
+    let frames = v["frames"].as_array().unwrap();
+    assert_eq!(frames[1]["actions"]["ball"], "Moved");
+    assert_eq!(frames[1]["moved"], 1);
+    let image = |k: usize| pixels(Path::new(frames[k]["image"].as_str().unwrap())).2;
+    assert_ne!(image(0), image(1), "the ball moved by 0.1");
+    assert_eq!(image(1), image(2), "nothing moved");
+    for f in frames {
+        let o = &f["comparison"]["oracle"];
+        assert!(o["rays"].as_u64().unwrap() > 100, "{o}");
+        assert_eq!(f["mismatches"], 0, "{o}");
+    }
 }
 
 #[test]

@@ -45,6 +45,11 @@ pub struct Args {
     /// Print one JSON object on stdout (no progress bars).
     #[arg(long)]
     json: bool,
+    /// Judge the merged hierarchy's hits on the compared rays by the independent binary64
+    /// oracle over the triangles at their requested positions (SPEC 6.9); faults count as
+    /// mismatches.
+    #[arg(long)]
+    verify: bool,
 }
 
 pub fn main(a: Args) -> CmdResult {
@@ -76,6 +81,7 @@ pub fn main(a: Args) -> CmdResult {
         rtl: !a.no_rtl,
         progress: !a.json && std::io::IsTerminal::is_terminal(&std::io::stderr()),
         narrate: !a.json,
+        verify: a.verify,
     };
     let report = pipeline::run(&scene, &options)?;
     let json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;

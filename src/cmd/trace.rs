@@ -1,9 +1,14 @@
 //! `hiermerge trace MESH`: random rays through a mesh's hierarchy; `--verify`
-//! compares every closest hit with brute force over all triangles.
+//! compares every closest hit with brute force over all triangles, bit for
+//! bit, and judges it by the independent binary64 oracle (SPEC 6.9).
 
 use std::path::PathBuf;
 
-use golden::trace::{bench_trace, verify_rays, Instance, TraceScene};
+use golden::oracle::{Oracle, OracleSummary, Part};
+use golden::trace::{
+    bench_trace, closest_hit, edge_rays, random_rays, verify_ray_list, Instance, TraceScene,
+    TraceStats,
+};
 use serde::Serialize;
 
 use super::common::{build_fitted, load_mesh, GridOpts};
@@ -20,7 +25,8 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Also trace every ray by brute force and count the rays whose closest
-    /// hit differs in any bit.
+    /// hit differs in any bit, and judge every hit by the binary64 oracle
+    /// (SPEC 6.9); half the rays aim at edges and vertices.
     #[arg(long)]
     verify: bool,
     #[command(flatten)]
@@ -46,6 +52,9 @@ struct Report {
     mismatches: Option<u64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     first_mismatch: Option<String>,
+    /// Present with --verify: the hits judged by the binary64 oracle.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    oracle: Option<OracleSummary>,
 }
 
 pub fn main(a: Args) -> CmdResult {
@@ -70,9 +79,27 @@ pub fn main(a: Args) -> CmdResult {
         rays_per_second: speed.rays_per_second,
         mismatches: None,
         first_mismatch: None,
+        oracle: None,
     };
     if a.verify {
-        let v = verify_rays(&scene, a.rays, a.seed);
+        let (lo, hi) = scene.bounds();
+        let mut rays = random_rays(lo, hi, a.rays - a.rays / 2, a.seed);
+        rays.extend(edge_rays(&scene, a.rays / 2, a.seed ^ 0xED6E));
+        let v = verify_ray_list(&scene, &rays);
+        let part = Part {
+            hier: 0,
+            source: &b.mesh,
+            offset: glam::DVec3::ZERO,
+            traced: &b.mesh,
+            shift: glam::DVec3::ZERO,
+        };
+        let oracle = Oracle::new(&[part]).map_err(|e| e.to_string())?;
+        let mut summary = OracleSummary::default();
+        for ray in &rays {
+            let hit = closest_hit(ray, &scene, &mut TraceStats::default());
+            oracle.count(&mut summary, ray, hit.as_ref());
+        }
+        report.oracle = Some(summary);
         report.rays = v.rays;
         report.hits = v.hits;
         report.node_tests_per_ray = v.node_tests_per_ray;
@@ -91,9 +118,19 @@ pub fn main(a: Args) -> CmdResult {
                 println!("first mismatch: {f}");
             }
         }
+        if let Some(o) = &r.oracle {
+            println!("{}", super::merge::oracle_line(o));
+        }
     })?;
-    match report.mismatches {
-        Some(m) if m > 0 => Err(format!("{m} rays disagree with brute force")),
+    if let Some(m) = report.mismatches.filter(|&m| m > 0) {
+        return Err(format!("{m} rays disagree with brute force"));
+    }
+    match &report.oracle {
+        Some(o) if o.faults() > 0 => Err(format!(
+            "{} rays disagree with the binary64 oracle; first: {}",
+            o.faults(),
+            o.first_fault.as_deref().unwrap_or("-")
+        )),
         _ => Ok(()),
     }
 }

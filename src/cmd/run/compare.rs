@@ -1,9 +1,12 @@
 //! Node tests per ray through the merged hierarchy against the separate
 //! hierarchies and a full rebuild of the placed scene, on a subsample of the
 //! primary rays (every [`SUBSAMPLE`]-th pixel on both axes) to keep it cheap.
-//! The merged and separate hierarchies must give identical closest hits.
+//! The merged and separate hierarchies must give identical closest hits;
+//! with `--verify` the merged hits are also judged by the binary64 oracle
+//! over the triangles at their requested positions (SPEC 6.9).
 
 use golden::build::build;
+use golden::oracle::{Oracle, OracleSummary};
 use golden::scene::Scene;
 use golden::trace::{closest_hit, Instance, TraceScene, TraceStats};
 use golden::world::World;
@@ -15,7 +18,7 @@ use super::render::clipped;
 pub const SUBSAMPLE: u32 = 4;
 
 /// Node tests per primary ray of the subsample, three ways.
-#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct Comparison {
     pub rays: u64,
     pub merged: f64,
@@ -25,6 +28,16 @@ pub struct Comparison {
     pub hit_mismatches: u64,
     pub full_rebuild_nodes: u64,
     pub seconds: f64,
+    /// With `--verify`: the merged hits judged by the oracle.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub oracle: Option<OracleSummary>,
+}
+
+impl Comparison {
+    /// Rays that fail: merged and separate differ, or the oracle finds a fault.
+    pub fn faults(&self) -> u64 {
+        self.hit_mismatches + self.oracle.as_ref().map_or(0, OracleSummary::faults)
+    }
 }
 
 /// Traces the subsample through `merged`, the separate hierarchies of
@@ -34,9 +47,17 @@ pub fn compare(
     world: &World,
     ids: &[u8],
     merged: &TraceScene,
+    verify: bool,
     bar: &ProgressBar,
 ) -> Result<Comparison, String> {
     let start = std::time::Instant::now();
+    let oracle = if verify {
+        let parts = world.oracle_parts(ids).map_err(|e| e.to_string())?;
+        Some(Oracle::new(&parts).map_err(|e| e.to_string())?)
+    } else {
+        None
+    };
+    let mut summary = OracleSummary::default();
     let separate_instances = world.separate_instances(ids).map_err(|e| e.to_string())?;
     let separate = world
         .trace_scene(&separate_instances, ids)
@@ -68,6 +89,9 @@ pub fn compare(
                 _ => false,
             };
             c.hit_mismatches += !same as u64;
+            if let Some(o) = &oracle {
+                o.count(&mut summary, &ray, a.as_ref());
+            }
             c.rays += 1;
         }
         bar.inc(1);
@@ -77,5 +101,6 @@ pub fn compare(
     c.separate = per(s);
     c.full_rebuild = per(f);
     c.seconds = start.elapsed().as_secs_f64();
+    c.oracle = oracle.map(|_| summary);
     Ok(c)
 }

@@ -29,6 +29,8 @@ pub struct Options {
     pub progress: bool,
     /// Print per-frame lines on stderr.
     pub narrate: bool,
+    /// Judge the compared rays' merged hits by the binary64 oracle (SPEC 6.9).
+    pub verify: bool,
 }
 
 /// The whole run.
@@ -450,7 +452,7 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
                 simulated.push(ray_line(scene, &traced.rays));
                 let comparison = if fx.primary {
                     let b = bar(options, format!("frame {k} compare"));
-                    let c = compare(scene, &frames.world, &ids, &ts, &b)
+                    let c = compare(scene, &frames.world, &ids, &ts, options.verify, &b)
                         .map_err(|e| format!("frame {k}: {e}"))?;
                     b.finish_and_clear();
                     secs.compare = c.seconds;
@@ -459,6 +461,9 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
                         SUBSAMPLE * SUBSAMPLE,
                         c.rays
                     ));
+                    if let Some(o) = &c.oracle {
+                        simulated.push(crate::cmd::merge::oracle_line(o));
+                    }
                     Some(c)
                 } else {
                     None
@@ -491,7 +496,7 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
         let rays = traced.rays.primary + traced.rays.shadow + traced.rays.reflection;
         let mismatches = rtl_frame.as_ref().map_or(0, |r| r.mismatches)
             + merge_rtl_frame.as_ref().map_or(0, |r| r.mismatches)
-            + comparison.as_ref().map_or(0, |c| c.hit_mismatches);
+            + comparison.as_ref().map_or(0, Comparison::faults);
         total_mismatches += mismatches;
         let out = FrameOut {
             frame: k as u32,
@@ -514,7 +519,7 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
             merge_rtl: merge_rtl_frame,
             rays: traced.rays,
             node_tests_per_ray: traced.stats.node_tests as f64 / rays.max(1) as f64,
-            comparison,
+            comparison: comparison.clone(),
             mismatches,
             simulated,
             skipped,

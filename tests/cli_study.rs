@@ -126,6 +126,45 @@ fn check_aligned(s: &Value) {
     }
 }
 
+/// Placed anywhere (SPEC 7.10: the residual in the local geometry), binary64
+/// translated hits are the reference's wherever binary32 local coordinates
+/// hold the geometry within 1e-6; and the position error is binary32
+/// rounding of the local coordinates (at most half an ulp of the largest
+/// traced coordinate), never the residual itself.
+fn check_translated(s: &Value) {
+    let rows: Vec<&Value> = s["distance"]
+        .as_array()
+        .expect("distance")
+        .iter()
+        .filter(|d| d["format"] == "b64-local" && d["refused"].is_null())
+        .collect();
+    assert!(rows.len() >= 20, "every distance at two D: {}", rows.len());
+    let mut with_residual = 0;
+    for d in rows {
+        let residual = f(&d["residual"]);
+        with_residual += (residual > 0.0) as u32;
+        let err = f(&d["position_error"]);
+        let half_ulp = f(&d["traced_magnitude"]) * 2f64.powi(-24);
+        assert!(
+            err <= half_ulp,
+            "position error {err} (residual {residual}): {d}"
+        );
+        if err <= 1e-6 {
+            let bad = d["wrong_triangle"].as_u64().unwrap()
+                + d["missed"].as_u64().unwrap()
+                + d["extra"].as_u64().unwrap();
+            assert_eq!(
+                bad, 0,
+                "translated placement disagrees with the reference: {d}"
+            );
+        }
+    }
+    assert!(
+        with_residual >= 10,
+        "the sweep places off the grid: {with_residual}"
+    );
+}
+
 fn check_outputs(s: &Value, out: &Path) {
     for name in ["study.json", "study.csv", "study.md"] {
         assert!(out.join(name).is_file(), "{name} written");
@@ -237,6 +276,7 @@ fn tiny_sweep_holds_its_properties() {
     let s = study(dir.path(), rtl);
     check_boxes(&s);
     check_aligned(&s);
+    check_translated(&s);
     check_outputs(&s, dir.path());
     if rtl {
         check_cycles(&s);

@@ -488,7 +488,7 @@ impl World {
         TraceScene::with_roots(self.grid, instances, roots).map_err(WorldError::Trace)
     }
 
-    /// Objects `ids` as the oracle of `--verify` sees them (SPEC 6.9): the
+    /// Objects `ids` as the oracle of `--verify` sees them (SPEC 6.10): the
     /// source mesh where it was asked to be, beside the local geometry and
     /// translation golden traces.
     pub fn oracle_parts(&self, ids: &[u8]) -> Result<Vec<crate::oracle::Part<'_>>, WorldError> {

@@ -1,5 +1,5 @@
 //! Placements honoured exactly (SPEC 7.10), judged by the independent
-//! binary64 oracle (SPEC 6.9): objects moved by fractions of a voxel, from 1
+//! binary64 oracle (SPEC 6.10): objects moved by fractions of a voxel, from 1
 //! to 1e9 world units from the origin, with seams (two triangles sharing an
 //! edge, two meshes touching), traced through the merged and the separate
 //! hierarchies. And the oracle is not blind: golden geometry that dropped the

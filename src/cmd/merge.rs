@@ -36,7 +36,7 @@ pub struct Args {
     seed: u64,
     /// Check every closest hit through the merged hierarchy: against brute force over the same
     /// triangles (bit for bit), and against the independent binary64 oracle over the triangles
-    /// at their requested positions (SPEC 6.9); half as many rays again aim at edges and vertices.
+    /// at their requested positions (SPEC 6.10); half as many rays again aim at edges and vertices.
     #[arg(long)]
     verify: bool,
     #[command(flatten)]
@@ -332,7 +332,7 @@ pub fn main(a: Args) -> CmdResult {
 
 /// `--verify`: the merged hierarchy's hit for every ray (the random ones and
 /// as many again at edges and vertices) against brute force over the same
-/// triangles, and against the oracle (SPEC 6.9).
+/// triangles, and against the oracle (SPEC 6.10).
 fn verify(
     world: &World,
     ids: &[u8],

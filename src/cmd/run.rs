@@ -46,7 +46,7 @@ pub struct Args {
     #[arg(long)]
     json: bool,
     /// Judge the merged hierarchy's hits on the compared rays by the independent binary64
-    /// oracle over the triangles at their requested positions (SPEC 6.9); faults count as
+    /// oracle over the triangles at their requested positions (SPEC 6.10); faults count as
     /// mismatches.
     #[arg(long)]
     verify: bool,

@@ -1,6 +1,6 @@
 //! `hiermerge trace MESH`: random rays through a mesh's hierarchy; `--verify`
 //! compares every closest hit with brute force over all triangles, bit for
-//! bit, and judges it by the independent binary64 oracle (SPEC 6.9).
+//! bit, and judges it by the independent binary64 oracle (SPEC 6.10).
 
 use std::path::PathBuf;
 
@@ -26,7 +26,7 @@ pub struct Args {
     seed: u64,
     /// Also trace every ray by brute force and count the rays whose closest
     /// hit differs in any bit, and judge every hit by the binary64 oracle
-    /// (SPEC 6.9); half the rays aim at edges and vertices.
+    /// (SPEC 6.10); half the rays aim at edges and vertices.
     #[arg(long)]
     verify: bool,
     #[command(flatten)]

@@ -1,4 +1,4 @@
-//! The independent oracle of `--verify` (SPEC 6.9): golden's closest hits
+//! The independent oracle of `--verify` (SPEC 6.10): golden's closest hits
 //! judged against the triangles at their **requested** world positions in
 //! binary64, traced by [`reference::ReferenceTracer`], with no translation,
 //! no voxel grid and no hierarchy of golden's. Brute force over golden's own

@@ -1,4 +1,4 @@
-//! An independent binary64 reference tracer (SPEC 6.9, 13.3): Möller–Trumbore
+//! An independent binary64 reference tracer (SPEC 6.10, 13.3): Möller–Trumbore
 //! (1997) in binary64 over a simple median-split BVH of its own, closest
 //! hit by `(t, triangle index)`. It shares no code with golden's traversal
 //! or kernels: what it answers is what the triangles at their requested

@@ -3,7 +3,7 @@
 //! primary rays (every [`SUBSAMPLE`]-th pixel on both axes) to keep it cheap.
 //! The merged and separate hierarchies must give identical closest hits;
 //! with `--verify` the merged hits are also judged by the binary64 oracle
-//! over the triangles at their requested positions (SPEC 6.9).
+//! over the triangles at their requested positions (SPEC 6.10).
 
 use golden::build::build;
 use golden::oracle::{Oracle, OracleSummary};

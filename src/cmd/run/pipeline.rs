@@ -29,7 +29,7 @@ pub struct Options {
     pub progress: bool,
     /// Print per-frame lines on stderr.
     pub narrate: bool,
-    /// Judge the compared rays' merged hits by the binary64 oracle (SPEC 6.9).
+    /// Judge the compared rays' merged hits by the binary64 oracle (SPEC 6.10).
     pub verify: bool,
 }
 

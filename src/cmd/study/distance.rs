@@ -41,6 +41,10 @@ pub struct DistanceRow {
     /// Largest per-axis distance between where the geometry is and where it
     /// was asked to be (world units).
     pub position_error: f64,
+    /// Largest absolute coordinate of the vertices as traced (binary32;
+    /// local for the translated formats, world for `b32-world`), world units:
+    /// what their rounding is relative to.
+    pub traced_magnitude: f64,
     /// The residual determine leaves (SPEC 7.1), largest axis, world units.
     pub residual: Option<f64>,
     /// Nodes the expanding variant adds to move the hierarchy at L (SPEC 7.7).
@@ -135,6 +139,14 @@ pub fn at_distance(
             top_lod: 0,
             hits: compare(&reference, p, &rays32, hits),
             position_error: err,
+            traced_magnitude: if name == "b32-world" {
+                w32.iter()
+                    .flatten()
+                    .map(|v| v.abs().max_element() as f64)
+                    .fold(0.0, f64::max)
+            } else {
+                f64::NAN
+            },
             residual: None,
             nodes_added: None,
             refused: None,
@@ -180,6 +192,7 @@ pub fn at_distance(
                 top_lod: top,
                 hits: HitCounts::default(),
                 position_error: f64::NAN,
+                traced_magnitude: f64::NAN,
                 residual: None,
                 nodes_added: None,
                 refused: None,
@@ -254,9 +267,48 @@ impl Translated<'_> {
         } else {
             rays32.to_vec()
         };
+        // SPEC 7.10: the residual lives in the local geometry (the mesh moved
+        // by it, rounded once to binary32), built anew; aligned, it is 0.
+        // The residual of the placement as given (a binary32 placement's own
+        // rounding then shows in the position error).
+        let moved = if aligned {
+            DVec3::ZERO
+        } else {
+            DVec3::from_array(Axis::ALL.map(|a| det.residual.value_f64(a))) * self.grid.unit
+        };
+        let geometry = if moved == DVec3::ZERO {
+            self.mesh.clone()
+        } else {
+            Mesh {
+                vertices: self
+                    .mesh
+                    .vertices
+                    .iter()
+                    .map(|v| (v.as_dvec3() + moved).as_vec3())
+                    .collect(),
+                triangles: self.mesh.triangles.clone(),
+            }
+        };
+        let rebuilt;
+        let h = if moved == DVec3::ZERO {
+            self.h
+        } else {
+            match build(&geometry, &self.grid, &self.params, 0) {
+                Ok(h) => {
+                    rebuilt = h;
+                    &rebuilt
+                }
+                Err(e) => {
+                    return Ok(DistanceRow {
+                        refused: Some(format!("the local geometry moved by the residual: {e}")),
+                        ..base
+                    })
+                }
+            }
+        };
         let inst = Instance {
             offset: off,
-            ..Instance::new(self.h, self.mesh)
+            ..Instance::new(h, &geometry)
         };
         let scene = TraceScene::new(self.grid, &[inst]).map_err(|e| e.to_string())?;
         let hits: Vec<Option<(f64, u32)>> = rays
@@ -268,9 +320,27 @@ impl Translated<'_> {
             .map(|a| (det.residual.value_f64(a) * self.grid.unit).abs())
             .into_iter()
             .fold(0.0, f64::max);
+        // Where each vertex is (geometry + translation) against where it was
+        // asked to be (mesh + p), per axis, in the local frame.
+        let position_error = geometry
+            .vertices
+            .iter()
+            .zip(&self.mesh.vertices)
+            .map(|(g, v)| {
+                ((g.as_dvec3() - v.as_dvec3()) - (wanted - applied))
+                    .abs()
+                    .max_element()
+            })
+            .fold(0.0, f64::max);
+        let traced_magnitude = geometry
+            .vertices
+            .iter()
+            .map(|v| v.abs().max_element() as f64)
+            .fold(0.0, f64::max);
         Ok(DistanceRow {
             hits: compare(reference, wanted, &rays, &hits),
-            position_error: (wanted - applied).abs().max_element(),
+            position_error,
+            traced_magnitude,
             residual: Some(if aligned { 0.0 } else { residual }),
             nodes_added: added,
             ..base

@@ -143,6 +143,11 @@ struct Placed<'a> {
     inst: Instance<'a>,
     /// The offset in world units, `offset * unit`, in binary64.
     shift: DVec3,
+    /// Where the instance's frame sits in the world (binary64): its boxes
+    /// are tested in it, with the ray origin moved by minus it (SPEC 6.4).
+    /// `shift` for an instance with triangles (its triangles' own frame);
+    /// the lower corner of its roots for one without (a merged hierarchy).
+    frame: DVec3,
     /// Largest absolute coordinate of the mesh's own (untranslated) vertices.
     local_magnitude: f64,
     /// Instances with triangles whose nodes can be reached from this one's
@@ -209,9 +214,15 @@ impl<'a> TraceScene<'a> {
                 let (lo, hi) = inst.mesh.bounds();
                 lo.as_dvec3().abs().max(hi.as_dvec3().abs()).max_element()
             };
+            let frame = if inst.mesh.is_empty() {
+                roots_corner(inst, &grid)
+            } else {
+                shift
+            };
             placed.push(Placed {
                 inst: *inst,
                 shift,
+                frame,
                 local_magnitude,
                 reach: Vec::new(),
             });
@@ -329,29 +340,34 @@ impl<'a> TraceScene<'a> {
         Ok(())
     }
 
-    /// The world box of node `n` of instance `p`, rounded outward to f32 and
-    /// grown by `slack` (world units).
-    fn world_box(&self, p: &Placed, n: &NodeRecord, slack: f64) -> (Vec3, Vec3) {
+    /// The box of node `n` of instance `p` in the instance's frame (world
+    /// box minus `p.frame`), rounded outward to f32 and grown by `slack`
+    /// (world units).
+    fn frame_box(&self, p: &Placed, n: &NodeRecord, slack: f64) -> (Vec3, Vec3) {
         let (lo, hi) = node_box_grid(n, &p.inst.hierarchy.params);
         let off = p.inst.offset;
         let to_world =
             |g: f64, axis: usize| self.grid.origin[axis] + (g + off[axis] as f64) * self.grid.unit;
-        let mut wlo = Vec3::ZERO;
-        let mut whi = Vec3::ZERO;
+        let mut flo = Vec3::ZERO;
+        let mut fhi = Vec3::ZERO;
         for axis in 0..3 {
+            let f = p.frame[axis];
             let a = to_world(lo[axis], axis);
             let b = to_world(hi[axis], axis);
-            // Binary64 rounding of the three operations above is below 2^-50
-            // of the value; subtract it before rounding to f32 outward.
-            wlo[axis] = f32_down(a - slack - a.abs() * F64_GUARD);
-            whi[axis] = f32_up(b + slack + b.abs() * F64_GUARD);
+            // Binary64 rounding of the operations above and of the move into
+            // the frame is below 2^-50 of the values involved; subtract it
+            // before rounding to f32 outward.
+            flo[axis] = f32_down(a - f - slack - (a.abs() + f.abs()) * F64_GUARD);
+            fhi[axis] = f32_up(b - f + slack + (b.abs() + f.abs()) * F64_GUARD);
         }
-        (wlo, whi)
+        (flo, fhi)
     }
 
     /// The slack of one ray for the boxes of each instance (world units):
     /// the largest, over the instances with triangles its nodes reach, of
-    /// `BOX_SLACK_REL * (max |local origin| + local magnitude)`.
+    /// `BOX_SLACK_REL * (max |local origin| + local magnitude)`; an instance
+    /// without triangles adds the rounding of the origin in its own frame,
+    /// `BOX_SLACK_REL * max |frame origin|`.
     fn slacks(&self, ray: &Ray) -> Vec<f64> {
         let own: Vec<f64> = self
             .placed
@@ -363,7 +379,15 @@ impl<'a> TraceScene<'a> {
             .collect();
         self.placed
             .iter()
-            .map(|p| p.reach.iter().map(|&j| own[j]).fold(0.0, f64::max))
+            .map(|p| {
+                let reach = p.reach.iter().map(|&j| own[j]).fold(0.0, f64::max);
+                if p.inst.mesh.is_empty() {
+                    let o = frame_ray(ray, p).origin.abs().max_element() as f64;
+                    reach + BOX_SLACK_REL * o
+                } else {
+                    reach
+                }
+            })
             .collect()
     }
 
@@ -434,6 +458,37 @@ fn next_toward_neg_inf(f: f32) -> f32 {
     f32::from_bits(if f > 0.0 { b - 1 } else { b + 1 })
 }
 
+/// The lower corner of an instance's roots in world units (binary64): the
+/// frame its boxes are tested in when it has no triangles of its own.
+fn roots_corner(inst: &Instance, grid: &GridMap) -> DVec3 {
+    let h = inst.hierarchy;
+    let mut lo = DVec3::splat(f64::INFINITY);
+    for n in h.roots() {
+        let (l, _) = node_box_grid(n, &h.params);
+        for axis in 0..3 {
+            let w = grid.origin[axis] + (l[axis] + inst.offset[axis] as f64) * grid.unit;
+            lo[axis] = lo[axis].min(w);
+        }
+    }
+    if lo.is_finite() {
+        lo
+    } else {
+        DVec3::ZERO
+    }
+}
+
+/// The ray as instance `p`'s boxes are tested: origin moved by minus its
+/// frame (exact when the frame is the origin).
+fn frame_ray(ray: &Ray, p: &Placed) -> Ray {
+    if p.frame == DVec3::ZERO {
+        return *ray;
+    }
+    Ray {
+        origin: (ray.origin.as_dvec3() - p.frame).as_vec3(),
+        ..*ray
+    }
+}
+
 /// The ray as instance `p` sees its own triangles: origin moved by minus its
 /// translation (exact when the translation is zero).
 fn local_ray(ray: &Ray, p: &Placed) -> Ray {
@@ -464,8 +519,9 @@ struct Pending {
 
 /// The closest hit of `ray` in `scene`, adding the tests it took to `stats`.
 pub fn closest_hit(ray: &Ray, scene: &TraceScene, stats: &mut TraceStats) -> Option<Hit> {
-    let slab = SlabRay::new(ray);
     let slacks = scene.slacks(ray);
+    // Slab rays per instance, in its frame, made on first use.
+    let mut slabs: Vec<Option<SlabRay>> = vec![None; scene.placed.len()];
     // Sheared rays per instance, made on first use.
     let mut sheared: Vec<Option<ShearedRay>> = vec![None; scene.placed.len()];
     let mut best: Option<Hit> = None;
@@ -474,18 +530,19 @@ pub fn closest_hit(ray: &Ray, scene: &TraceScene, stats: &mut TraceStats) -> Opt
 
     // Tests the boxes of `nodes` and pushes those hit, farthest first so the
     // nearest is popped first.
-    let visit = |placed: usize,
-                 nodes: &mut dyn Iterator<Item = u32>,
-                 best_t: f32,
-                 stack: &mut Vec<Pending>,
-                 children: &mut Vec<Pending>,
-                 stats: &mut TraceStats| {
+    let mut visit = |placed: usize,
+                     nodes: &mut dyn Iterator<Item = u32>,
+                     best_t: f32,
+                     stack: &mut Vec<Pending>,
+                     children: &mut Vec<Pending>,
+                     stats: &mut TraceStats| {
         let p = &scene.placed[placed];
+        let slab = *slabs[placed].get_or_insert_with(|| SlabRay::new(&frame_ray(ray, p)));
         children.clear();
         for node in nodes {
             let n = &p.inst.hierarchy.nodes[node as usize];
             stats.node_tests += 1;
-            let (lo, hi) = scene.world_box(p, n, slacks[placed]);
+            let (lo, hi) = scene.frame_box(p, n, slacks[placed]);
             if let Some((entry, _)) = ray_box(&slab, lo, hi, ray.tmin, best_t) {
                 children.push(Pending {
                     placed,

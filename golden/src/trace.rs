@@ -2,9 +2,11 @@
 //! hierarchies, with the node and primitive tests it took (SPEC.md section 6).
 //!
 //! Traversal is an iterative stack walk from the roots. Every node's exact
-//! box (SPEC.md section 3) is taken from grid units to world units and
-//! rounded outward to f32, grown by a slack that covers the triangle test's
-//! rounding, and tested with the robust slab test ([`crate::geom::aabb`]).
+//! box (SPEC.md section 3) is taken from grid units to world units, moved
+//! into its instance's frame (SPEC 6.4: near its geometry, so far from the
+//! origin boxes stay as tight as near it), rounded outward to f32, grown by
+//! a slack that covers the triangle test's rounding, and tested with the
+//! robust slab test ([`crate::geom::aabb`]) against the ray moved likewise.
 //! Leaves test their triangles with the watertight test
 //! ([`crate::geom::triangle`]) on the mesh's original f32 vertices. The
 //! closest hit is the smallest `t`, ties broken by the smallest
@@ -426,7 +428,7 @@ fn err(
     }
 }
 
-/// Relative bound on binary64 rounding in [`TraceScene::world_box`].
+/// Relative bound on binary64 rounding in [`TraceScene::frame_box`].
 const F64_GUARD: f64 = 1.0 / (1u64 << 50) as f64;
 
 /// The largest f32 not above `x`.

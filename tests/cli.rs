@@ -193,6 +193,55 @@ fn merge_translate_puts_the_object_where_it_was_asked_to_be() {
     }
 }
 
+/// Paragraph 67: several merged hierarchies from subsets of the inputs,
+/// traced together, give the hits of the separate hierarchies.
+#[test]
+fn merge_groups_are_traced_together() {
+    let (b, t) = (scene("bunny.obj"), scene("teapot.obj"));
+    let v = json(&[
+        "merge",
+        &b,
+        &t,
+        &b,
+        "--translate",
+        "0,0,0",
+        "--translate",
+        "3,1,2",
+        "--translate",
+        "-2,0.5,1",
+        "--group",
+        "0,1",
+        "--group",
+        "2",
+        "--rays",
+        "1000",
+        "--verify",
+        "--json",
+    ]);
+    let groups = v["groups"].as_array().unwrap();
+    assert_eq!(groups.len(), 2);
+    assert_eq!(groups[0]["inputs"], serde_json::json!([0, 1]));
+    assert_eq!(groups[1]["inputs"], serde_json::json!([2]));
+    assert_ne!(groups[0]["id"], groups[1]["id"]);
+    assert_eq!(v["mismatches"], 0);
+    assert_eq!(v["oracle"]["missed"], 0);
+    assert_eq!(v["oracle"]["wrong_triangle"], 0);
+    for (args, want) in [
+        (
+            vec!["--group", "0", "--group", "0,1"],
+            "is in group 0 and group 1",
+        ),
+        (vec!["--group", "0"], "mesh 1 is in no group"),
+        (vec!["--group", "0,5"], "mesh 5 does not exist"),
+        (vec!["--group", "0,x"], "expected mesh indices"),
+    ] {
+        let mut all = vec!["merge", b.as_str(), t.as_str()];
+        all.extend(args);
+        let e = fails(&all);
+        assert!(e.contains(want), "{e}");
+    }
+}
+
 #[test]
 fn run_writes_images_and_report() {
     let dir = tempfile::tempdir().unwrap();

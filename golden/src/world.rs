@@ -29,7 +29,7 @@ use serde::Serialize;
 
 use crate::build::{build, BuildError, GridMap};
 use crate::check::{check, CheckError, CheckReport};
-use crate::merge::instances::{input_instances, merged_instances};
+use crate::merge::instances::{group_instances, input_instances, merged_instances};
 use crate::merge::{merge_into, MergeError, MergeMode, MergeResult, MergedCheckView};
 use crate::mesh::Mesh;
 use crate::params::Params;
@@ -479,6 +479,24 @@ impl World {
             .map_err(|error| WorldError::Translate { id: merged, error })
     }
 
+    /// Traversal instances of several merged hierarchies `merged`, each over
+    /// a subset of objects `inputs` (paragraph 67), to be traced together
+    /// with the merged ids as roots.
+    pub fn group_instances(
+        &self,
+        merged: &[u8],
+        inputs: &[u8],
+    ) -> Result<Vec<Instance<'_>>, WorldError> {
+        let hs = merged
+            .iter()
+            .map(|&m| self.store.get(m).ok_or(WorldError::Unknown(m)))
+            .collect::<Result<Vec<_>, _>>()?;
+        let meshes = self.meshes(inputs)?;
+        let id = merged.first().copied().unwrap_or(0);
+        group_instances(&hs, &self.store, &self.table, &meshes)
+            .map_err(|error| WorldError::Translate { id, error })
+    }
+
     /// A trace scene starting at `roots`.
     pub fn trace_scene<'a>(
         &self,
@@ -623,6 +641,64 @@ mod tests {
             w.place(1, DVec3::new(f64::NAN, 0.0, 0.0)),
             Err(WorldError::BadOffset { .. })
         ));
+    }
+
+    /// Paragraph 67: merged hierarchies of subsets, traced together, give
+    /// the separate hierarchies' hits bit for bit; a single-input merge
+    /// traces at the cost of its input.
+    #[test]
+    fn subset_merges_trace_together() {
+        let mut w = world();
+        let edge = w.params.voxel_edge(3) as f64 * w.grid.unit;
+        w.add(1, sphere(Vec3::splat(1.0), 0.4, 12, 24), DVec3::ZERO)
+            .unwrap();
+        w.add(
+            2,
+            torus(Vec3::splat(1.0), 0.5, 0.1, 24, 12),
+            DVec3::new(edge, 0.0, 0.0),
+        )
+        .unwrap();
+        w.add(
+            3,
+            sphere(Vec3::splat(1.0), 0.3, 8, 16),
+            DVec3::new(0.3, edge, 0.1),
+        )
+        .unwrap();
+        w.merge(&[1, 2], MergeMode::default(), 9).unwrap();
+        w.merge(&[3], MergeMode::default(), 10).unwrap();
+        w.check(9).unwrap();
+        w.check(10).unwrap();
+        let gi = w.group_instances(&[9, 10], &[1, 2, 3]).unwrap();
+        let si = w.separate_instances(&[1, 2, 3]).unwrap();
+        let gs = w.trace_scene(&gi, &[9, 10]).unwrap();
+        let ss = w.trace_scene(&si, &[1, 2, 3]).unwrap();
+        let single_i = w.merged_instances(10, &[3]).unwrap();
+        let single = w.trace_scene(&single_i, &[10]).unwrap();
+        let alone_i = w.separate_instances(&[3]).unwrap();
+        let alone = w.trace_scene(&alone_i, &[3]).unwrap();
+        let (lo, hi) = ss.bounds();
+        let (mut hits, mut single_tests, mut alone_tests) =
+            (0, TraceStats::default(), TraceStats::default());
+        for ray in random_rays(lo, hi, 2000, 5) {
+            let a = closest_hit(&ray, &gs, &mut TraceStats::default());
+            let b = closest_hit(&ray, &ss, &mut TraceStats::default());
+            assert_eq!(
+                a.map(|h| (h.hier, h.prim, h.t.to_bits())),
+                b.map(|h| (h.hier, h.prim, h.t.to_bits()))
+            );
+            hits += a.is_some() as u32;
+            let c = closest_hit(&ray, &single, &mut single_tests);
+            let d = closest_hit(&ray, &alone, &mut alone_tests);
+            assert_eq!(
+                c.map(|h| (h.prim, h.t.to_bits())),
+                d.map(|h| (h.prim, h.t.to_bits()))
+            );
+        }
+        assert!(hits > 200, "{hits} hits");
+        assert!(
+            single_tests.node_tests <= alone_tests.node_tests + 2000,
+            "a single-input merge costs at most its root test more: {single_tests:?} vs {alone_tests:?}"
+        );
     }
 
     #[test]

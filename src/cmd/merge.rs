@@ -29,6 +29,11 @@ pub struct Args {
     /// Merging level mode: overlap[:N/D] (default overlap:1/2), fixed:L, below-top:K, proportion:N/D, per-node[:N/D].
     #[arg(long, default_value = "overlap:1/2", value_parser = parse_mode)]
     mode: MergeMode,
+    /// A subset of the meshes (0-based indices in command-line order, `0,1`) merged into its
+    /// own hierarchy (paragraph 67); the merged hierarchies are traced together. Repeat it;
+    /// every mesh in exactly one group. Without it, one group of all meshes.
+    #[arg(long = "group", value_parser = parse_group)]
+    groups: Vec<Vec<u8>>,
     /// Rays traced through the merged, separate and rebuilt hierarchies.
     #[arg(long, default_value_t = 10_000)]
     rays: usize,
@@ -69,6 +74,16 @@ fn parse_vec3(s: &str) -> Result<DVec3, String> {
         }
     }
     Ok(DVec3::from_array(v))
+}
+
+fn parse_group(s: &str) -> Result<Vec<u8>, String> {
+    s.split(',')
+        .map(|p| {
+            p.trim().parse::<u8>().map_err(|e| {
+                format!("`{s}`: `{p}`: {e}; expected mesh indices 0, 1, ... separated by commas")
+            })
+        })
+        .collect()
 }
 
 pub fn parse_ratio(s: &str) -> Result<(u32, u32), String> {
@@ -124,8 +139,11 @@ struct Report {
     params: golden::Params,
     mode: MergeMode,
     inputs: Vec<InputReport>,
+    /// One merged hierarchy per group (one group of every input without `--group`).
+    groups: Vec<GroupReport>,
+    /// The first group's merging level.
     merging_level: Option<u8>,
-    /// Records of the merged hierarchy per LOD, (lod, count), top first.
+    /// Records of the merged hierarchies per LOD, (lod, count), top first, summed over groups.
     nodes_per_level: Vec<(u8, u64)>,
     nodes_created: u64,
     nodes_reused: u64,
@@ -158,6 +176,17 @@ struct InputReport {
 }
 
 #[derive(Serialize)]
+struct GroupReport {
+    /// The merged hierarchy's id.
+    id: u8,
+    /// Its inputs' ids (= mesh indices).
+    inputs: Vec<u8>,
+    merging_level: Option<u8>,
+    nodes_created: u64,
+    nodes_reused: u64,
+}
+
+#[derive(Serialize)]
 struct PerRay {
     merged: f64,
     separate: f64,
@@ -173,10 +202,12 @@ pub fn main(a: Args) -> CmdResult {
             a.meshes.len()
         ));
     }
-    if a.meshes.len() as u64 + 1 > params.hier_capacity() {
+    let groups = groups_of(&a.groups, a.meshes.len())?;
+    if (a.meshes.len() + groups.len()) as u64 > params.hier_capacity() {
         return Err(format!(
-            "{} meshes and the merged hierarchy need more than --hier-bits {}",
+            "{} meshes and {} merged hierarchies need more than --hier-bits {}",
             a.meshes.len(),
+            groups.len(),
             params.hier_bits
         ));
     }
@@ -215,11 +246,44 @@ pub fn main(a: Args) -> CmdResult {
         });
     }
     let ids: Vec<u8> = (0..inputs.len() as u8).collect();
-    let out = (params.hier_capacity() - 1) as u8;
+    // Merged ids from the top: 2^H - 1, 2^H - 2, ...
+    let outs: Vec<u8> = (0..groups.len())
+        .map(|g| (params.hier_capacity() - 1 - g as u64) as u8)
+        .collect();
     let start = Instant::now();
-    let merged = world.merge(&ids, a.mode, out).map_err(|e| e.to_string())?;
+    let mut merges = Vec::new();
+    for (g, &out) in groups.iter().zip(&outs) {
+        let r = world
+            .merge(g, a.mode, out)
+            .map_err(|e| format!("group {g:?}: {e}"))?;
+        merges.push(r);
+    }
     let merge_seconds = start.elapsed().as_secs_f64();
-    let check = world.check(out).map_err(|e| e.to_string())?;
+    let mut check = golden::check::CheckReport::default();
+    for (g, &out) in groups.iter().zip(&outs) {
+        let c = world.check(out).map_err(|e| format!("group {g:?}: {e}"))?;
+        check.nodes += c.nodes;
+        check.leaves += c.leaves;
+        check.prims_reached += c.prims_reached;
+    }
+    let mut nodes_per_level: std::collections::BTreeMap<u8, u64> = Default::default();
+    for r in &merges {
+        for &(l, c) in &r.stats.nodes_per_level {
+            *nodes_per_level.entry(l).or_default() += c;
+        }
+    }
+    let group_reports: Vec<GroupReport> = groups
+        .iter()
+        .zip(&outs)
+        .zip(&merges)
+        .map(|((g, &id), r)| GroupReport {
+            id,
+            inputs: g.clone(),
+            merging_level: r.level,
+            nodes_created: r.stats.created(),
+            nodes_reused: r.stats.reused(),
+        })
+        .collect();
 
     // The full rebuild: every placed triangle in one hierarchy.
     let placed = world.placed_mesh(&ids).map_err(|e| e.to_string())?;
@@ -228,10 +292,10 @@ pub fn main(a: Args) -> CmdResult {
     let rebuild_seconds = start.elapsed().as_secs_f64();
 
     let mi = world
-        .merged_instances(out, &ids)
+        .group_instances(&outs, &ids)
         .map_err(|e| e.to_string())?;
     let si = world.separate_instances(&ids).map_err(|e| e.to_string())?;
-    let ms = world.trace_scene(&mi, &[out]).map_err(|e| e.to_string())?;
+    let ms = world.trace_scene(&mi, &outs).map_err(|e| e.to_string())?;
     let ss = world.trace_scene(&si, &ids).map_err(|e| e.to_string())?;
     let rs =
         TraceScene::new(grid, &[Instance::new(&rebuilt, &placed)]).map_err(|e| e.to_string())?;
@@ -260,10 +324,11 @@ pub fn main(a: Args) -> CmdResult {
         params,
         mode: a.mode,
         inputs,
-        merging_level: merged.level,
-        nodes_per_level: merged.stats.nodes_per_level.clone(),
-        nodes_created: merged.stats.created(),
-        nodes_reused: merged.stats.reused(),
+        merging_level: group_reports[0].merging_level,
+        nodes_per_level: nodes_per_level.into_iter().rev().collect(),
+        nodes_created: group_reports.iter().map(|g| g.nodes_created).sum(),
+        nodes_reused: group_reports.iter().map(|g| g.nodes_reused).sum(),
+        groups: group_reports,
         merge_seconds,
         rebuild_seconds,
         checker: format!(
@@ -287,7 +352,12 @@ pub fn main(a: Args) -> CmdResult {
                 i.id, i.file, i.triangles, i.shape.nodes, i.shape.top_lod, i.lod, i.t
             );
         }
-        println!("mode {:?}: merging level {:?}", r.mode, r.merging_level);
+        for g in &r.groups {
+            println!(
+                "mode {:?}: group {:?} merged into hierarchy {}: merging level {:?}",
+                r.mode, g.inputs, g.id, g.merging_level
+            );
+        }
         let per: Vec<String> = r
             .nodes_per_level
             .iter()
@@ -359,6 +429,33 @@ fn verify(
         oracle.count(&mut summary, ray, hit.as_ref());
     }
     Ok((mismatches, summary))
+}
+
+/// The groups of `--group` (indices checked, every mesh in exactly one), or
+/// one group of all `n` meshes.
+fn groups_of(given: &[Vec<u8>], n: usize) -> Result<Vec<Vec<u8>>, String> {
+    if given.is_empty() {
+        return Ok(vec![(0..n as u8).collect()]);
+    }
+    let mut owner = vec![None; n];
+    for (k, g) in given.iter().enumerate() {
+        for &i in g {
+            let slot = owner.get_mut(i as usize).ok_or_else(|| {
+                format!("--group {g:?}: mesh {i} does not exist; expected an index below {n}")
+            })?;
+            if let Some(j) = slot.replace(k) {
+                return Err(format!(
+                    "--group: mesh {i} is in group {j} and group {k}; each mesh belongs to one group"
+                ));
+            }
+        }
+    }
+    if let Some(i) = owner.iter().position(Option::is_none) {
+        return Err(format!(
+            "--group: mesh {i} is in no group; list every mesh in one group"
+        ));
+    }
+    Ok(given.to_vec())
 }
 
 /// One line of the oracle's counts.

@@ -29,7 +29,23 @@ pub fn merged_instances<'a>(
     table: &TranslationTable,
     meshes: &BTreeMap<u8, &'a Mesh>,
 ) -> Result<Vec<Instance<'a>>, TranslateError> {
-    let mut out = vec![Instance::new(merged, &NO_TRIANGLES)];
+    group_instances(&[merged], store, table, meshes)
+}
+
+/// Traversal instances for several merged hierarchies, each over a subset
+/// of the inputs (paragraph 67), traced together: every merged hierarchy
+/// (no triangles, no offset) and every input in `meshes`, once. Trace with
+/// the merged hierarchies' ids as roots.
+pub fn group_instances<'a>(
+    merged: &[&'a Hierarchy],
+    store: &'a HierarchyStore,
+    table: &TranslationTable,
+    meshes: &BTreeMap<u8, &'a Mesh>,
+) -> Result<Vec<Instance<'a>>, TranslateError> {
+    let mut out: Vec<Instance<'a>> = merged
+        .iter()
+        .map(|&m| Instance::new(m, &NO_TRIANGLES))
+        .collect();
     out.extend(input_instances(store, table, meshes)?);
     Ok(out)
 }

@@ -11,6 +11,8 @@ pub mod check;
 pub mod frames;
 pub mod geom;
 pub mod grid;
+pub mod input;
+pub mod json;
 pub mod layout;
 pub mod merge;
 pub mod mesh;

@@ -173,9 +173,7 @@ pub fn main(a: Args) -> CmdResult {
             params.hier_bits
         ));
     }
-    if a.rays == 0 {
-        return Err("--rays must be at least 1".into());
-    }
+    golden::trace::check_ray_count(a.rays)?;
     let meshes = a
         .meshes
         .iter()
@@ -229,6 +227,7 @@ pub fn main(a: Args) -> CmdResult {
     let rs =
         TraceScene::new(grid, &[Instance::new(&rebuilt, &placed)]).map_err(|e| e.to_string())?;
     let (blo, bhi) = ss.bounds();
+    golden::trace::check_ray_bounds(blo, bhi)?;
     let rays = random_rays(blo, bhi, a.rays, a.seed);
     let (mut m_stats, mut s_stats, mut r_stats) = (
         TraceStats::default(),

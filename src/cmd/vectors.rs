@@ -41,6 +41,7 @@ struct Report {
 }
 
 pub fn main(a: Args) -> CmdResult {
+    golden::vectors::check_count("--count", a.count)?;
     match a.unit {
         Unit::Translate => {
             let design = a.design.translate_design()?;

@@ -24,7 +24,7 @@ mod file_tests;
 
 use std::collections::BTreeMap;
 use std::fmt;
-use std::io::{BufRead, BufReader, BufWriter, Write};
+use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use serde_json::{Map, Value};
@@ -33,6 +33,68 @@ use serde_json::{Map, Value};
 pub const FORMAT_NAME: &str = "hiermerge-vectors";
 /// The `version` of the format this module writes and reads.
 pub const FORMAT_VERSION: u64 = 1;
+
+/// The most transactions a vector file, `hiermerge vectors --count` or
+/// `hiermerge cosim --count` may ask for (SPEC.md section 15): a million,
+/// ten times the longest regression run, so that a typo cannot exhaust
+/// memory or fill the disk.
+pub const MAX_COUNT: u64 = 1_000_000;
+
+/// The most bytes a vector file may have (SPEC.md section 15): 2 GiB, above
+/// [`MAX_COUNT`] records of either unit.
+pub const MAX_FILE_BYTES: u64 = 2 << 30;
+
+/// Refuses a `count` above [`MAX_COUNT`], naming `what` asked for it.
+pub fn check_count(what: &str, count: u64) -> Result<(), String> {
+    match count > MAX_COUNT {
+        true => Err(format!(
+            "{what} {count}: expected at most {MAX_COUNT} transactions (SPEC.md section 15)"
+        )),
+        false => Ok(()),
+    }
+}
+
+/// The first key of `read` (a record line as read) that `written` (the
+/// record decoded and written again, or a value with the format's keys) does
+/// not have, as a field path: an unknown field. Objects are compared key by
+/// key at every depth; arrays element by element.
+pub fn unknown_field(read: &Value, written: &Value) -> Option<String> {
+    fn walk(read: &Value, written: &Value, at: &str) -> Option<String> {
+        match (read, written) {
+            (Value::Object(r), Value::Object(w)) => r.iter().find_map(|(k, v)| {
+                let here = if at.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{at}.{k}")
+                };
+                match w.get(k) {
+                    None => Some(here),
+                    Some(wv) => walk(v, wv, &here),
+                }
+            }),
+            (Value::Array(r), Value::Array(w)) => r
+                .iter()
+                .zip(w)
+                .enumerate()
+                .find_map(|(i, (rv, wv))| walk(rv, wv, &format!("{at}[{i}]"))),
+            _ => None,
+        }
+    }
+    walk(read, written, "")
+}
+
+/// [`unknown_field`] as the error of line `line` of `path`.
+pub fn refuse_unknown(
+    path: &Path,
+    line: usize,
+    read: &Value,
+    written: &Value,
+) -> Result<(), VectorError> {
+    match unknown_field(read, written) {
+        Some(field) => Err(malformed(path, line, &field, "no such field (unknown)")),
+        None => Ok(()),
+    }
+}
 
 /// Which unit a vector file exercises.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -268,10 +330,14 @@ pub fn read_jsonl(
     unit: UnitKind,
     design_params: &ParamMap,
 ) -> Result<RawVectors, VectorError> {
-    let file = std::fs::File::open(path).map_err(|e| io_error(path, "open", e))?;
-    let mut lines = BufReader::new(file).lines();
-    let first = match lines.next() {
-        Some(l) => l.map_err(|e| io_error(path, "read", e))?,
+    let input = |e: crate::input::InputError| VectorError::Io {
+        path: path.to_path_buf(),
+        action: "read",
+        message: format!("expected {}, found {}", e.expected, e.found),
+    };
+    let mut lines = crate::input::open_lines(path, MAX_FILE_BYTES).map_err(input)?;
+    let first = match lines.next_line() {
+        Some(l) => l.map_err(input)?.1,
         None => {
             return Err(malformed(
                 path,
@@ -282,6 +348,17 @@ pub fn read_jsonl(
         }
     };
     let header = parse_header(path, &first, unit)?;
+    if header.count > MAX_COUNT {
+        return Err(malformed(
+            path,
+            1,
+            "count",
+            &format!(
+                "at most {MAX_COUNT} records (SPEC.md section 15), found {}",
+                header.count
+            ),
+        ));
+    }
     let diffs = param_diffs(&header.params, design_params);
     if !diffs.is_empty() {
         return Err(VectorError::ParamsDiffer {
@@ -290,9 +367,20 @@ pub fn read_jsonl(
         });
     }
     let mut records = Vec::new();
-    for (i, l) in lines.enumerate() {
-        let n = i + 2;
-        let text = l.map_err(|e| io_error(path, "read", e))?;
+    while let Some(l) = lines.next_line() {
+        let (n, text) = l.map_err(input)?;
+        let n = n as usize;
+        if records.len() as u64 == header.count {
+            return Err(malformed(
+                path,
+                n,
+                "<line>",
+                &format!(
+                    "the end of the file after the {} records the header counts",
+                    header.count
+                ),
+            ));
+        }
         let v: Value = serde_json::from_str(&text).map_err(|e| {
             malformed(
                 path,

@@ -146,7 +146,10 @@ impl Entry {
         let text = serde_json::to_string_pretty(self).map_err(|e| crate::CosimError::Design {
             what: format!("ledger entry: {e}"),
         })? + "\n";
-        let mut file = tempfile::NamedTempFile::new_in(parent).map_err(io_err(parent))?;
+        let mut file = tempfile::Builder::new()
+            .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666))
+            .tempfile_in(parent)
+            .map_err(io_err(parent))?;
         std::io::Write::write_all(&mut file, text.as_bytes()).map_err(io_err(file.path()))?;
         file.as_file().sync_all().map_err(io_err(file.path()))?;
         file.persist_noclobber(&path)
@@ -178,7 +181,7 @@ pub fn read_ledger(
 /// Reads the entry at `path` inside the ledger folder `dir` (a regular
 /// file of at most [`golden::input::MAX_JSON_BYTES`], one JSON object and
 /// nothing after it, no unknown field) and checks it against itself
-/// ([`Entry::inconsistencies`]) and its place (`dir/<top>/<engine>-seed<S>-n<N>.json`).
+/// ([`Entry::inconsistencies`]) and its place (the folder `dir/<top>`).
 pub fn read_entry(dir: &Path, path: &Path) -> std::result::Result<Entry, String> {
     let shown = path.display();
     let text =
@@ -191,11 +194,12 @@ pub fn read_entry(dir: &Path, path: &Path) -> std::result::Result<Entry, String>
         return Err(format!("{shown}: field format `{}`: expected `{FORMAT}` (entries of hiermerge-longrun-1 digest the Verilog text; rerun them)", entry.format));
     }
     let mut bad = entry.inconsistencies();
-    let place = dir.join(entry.relative_path());
-    if path != place {
+    let folder = dir.join(&entry.top);
+    if path.parent() != Some(folder.as_path()) {
         bad.push(format!(
-            "fields top/engine/seed/count: the entry belongs at `{}`",
-            place.display()
+            "field top `{}`: the entry is filed under another configuration's folder (it belongs in `{}`)",
+            entry.top,
+            folder.display()
         ));
     }
     match bad.is_empty() {
@@ -416,7 +420,7 @@ mod tests {
             "ir-seed11-n5.json: field cycles",
             "ir-seed12-n5.json: field wall_seconds",
             "ir-seed13-n0.json: field count",
-            "hierarchy_merger_y/ir-seed3-n5.json: fields top/engine/seed/count",
+            "hierarchy_merger_y/ir-seed3-n5.json: field top `hierarchy_merger_x`: the entry is filed under another",
             "ir-seed4-n5.json: not a ledger entry: trust_me: unknown field `trust_me`",
             "ir-seed5-n5.json: expected a regular file, found a FIFO",
         ] {

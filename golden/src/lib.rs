@@ -16,6 +16,7 @@ pub mod json;
 pub mod layout;
 pub mod merge;
 pub mod mesh;
+pub mod output;
 pub mod params;
 pub mod scene;
 pub mod scenes;

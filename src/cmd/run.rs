@@ -69,10 +69,12 @@ pub fn main(a: Args) -> CmdResult {
     }
     scene.width = a.width.unwrap_or(scene.width);
     scene.height = a.height.unwrap_or(scene.height);
-    std::fs::create_dir_all(&a.out)
-        .map_err(|e| format!("{}: cannot create the output folder: {e}", a.out.display()))?;
+    // A fresh folder, put in place of --out only when the run is complete
+    // (SPEC.md section 15): an interrupted run leaves the previous output.
+    let staging = golden::output::AtomicDir::create(&a.out)?;
     let options = pipeline::Options {
         out: a.out.clone(),
+        write_to: staging.path().to_path_buf(),
         rtl: !a.no_rtl,
         progress: !a.json && std::io::IsTerminal::is_terminal(&std::io::stderr()),
         narrate: !a.json,
@@ -80,7 +82,8 @@ pub fn main(a: Args) -> CmdResult {
     let report = pipeline::run(&scene, &options)?;
     let json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
     let report_path = a.out.join("report.json");
-    std::fs::write(&report_path, json).map_err(|e| format!("{}: {e}", report_path.display()))?;
+    golden::output::write_atomic(&staging.path().join("report.json"), json.as_bytes())?;
+    staging.commit()?;
     let mismatches = report.mismatches;
     emit(a.json, &report, |r| {
         println!();

@@ -273,13 +273,16 @@ pub fn write_jsonl<I>(path: &Path, header: &Header, records: I) -> Result<(), Ve
 where
     I: IntoIterator<Item = Result<Value, VectorError>>,
 {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
+    let fail = |action: &'static str| {
+        move |message: String| VectorError::Io {
+            path: path.to_path_buf(),
+            action,
+            message,
+        }
     };
-    let tmp = tempfile::NamedTempFile::new_in(&dir).map_err(|e| io_error(&dir, "create", e))?;
-    let mut w = BufWriter::new(tmp);
-    let line = |v: &Value, w: &mut BufWriter<tempfile::NamedTempFile>| {
+    let mut out = crate::output::AtomicFile::create(path).map_err(fail("create"))?;
+    let mut w = BufWriter::new(out.file());
+    let line = |v: &Value, w: &mut BufWriter<&mut std::fs::File>| {
         serde_json::to_writer(&mut *w, v)
             .map_err(|e| io_error(path, "write", e))
             .and_then(|_| w.write_all(b"\n").map_err(|e| io_error(path, "write", e)))
@@ -298,15 +301,9 @@ where
             ),
         });
     }
-    let tmp = w
-        .into_inner()
-        .map_err(|e| io_error(path, "write", e.error()))?;
-    tmp.as_file()
-        .sync_all()
-        .map_err(|e| io_error(path, "write", e))?;
-    tmp.persist(path)
-        .map_err(|e| io_error(path, "rename", e.error))?;
-    Ok(())
+    w.flush().map_err(|e| io_error(path, "write", e))?;
+    drop(w);
+    out.commit().map_err(fail("rename"))
 }
 
 /// A vector file read back: the header and every record line as JSON, with

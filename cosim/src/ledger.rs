@@ -377,16 +377,16 @@ mod tests {
     fn false_evidence_is_named_entry_by_entry() {
         let dir = tempfile::tempdir().unwrap();
         entry().write_into(dir.path()).unwrap();
-        let cases: [(&str, fn(&mut Entry)); 4] = [
-            ("field passed", |e| e.mismatches = 5),
-            ("field cycles", |e| e.cycles = 1),
-            ("field wall_seconds", |e| e.wall_seconds = -5.0),
-            ("field count", |e| {
+        let cases: [fn(&mut Entry); 4] = [
+            |e| e.mismatches = 5,
+            |e| e.cycles = 1,
+            |e| e.wall_seconds = -5.0,
+            |e| {
                 e.count = 0;
                 e.cycles = 0
-            }),
+            },
         ];
-        for (i, (field, spoil)) in cases.iter().enumerate() {
+        for (i, spoil) in cases.iter().enumerate() {
             let mut e = entry();
             e.seed = 10 + i as u64;
             spoil(&mut e);

@@ -223,7 +223,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let f = dir.path().join("v.jsonl");
         let mut text = b"{}\n".to_vec();
-        text.extend(std::iter::repeat(b'x').take(MAX_LINE_BYTES as usize + 5));
+        text.extend(std::iter::repeat_n(b'x', MAX_LINE_BYTES as usize + 5));
         std::fs::write(&f, text).unwrap();
         let mut lines = open_lines(&f, u64::MAX).unwrap();
         assert_eq!(lines.next_line().unwrap().unwrap(), (1, "{}".into()));

@@ -190,3 +190,27 @@ fn misread_structure_is_refused_at_its_path() {
     let e = Scene::parse(&text, "t.json", Path::new(".")).unwrap_err();
     assert!(e.found.contains("`frames` twice"), "{e}");
 }
+
+/// Issue 21: scenes that failed only at frame 0 (or after seconds and
+/// gigabytes) are refused while the file is read, at their JSON path.
+#[test]
+fn scenes_failing_late_are_refused_up_front() {
+    let mut v = small();
+    v["effects"]["units"]["merge"] = json!({"mode": "below_top", "levels": 99});
+    assert_eq!(parse(&v).unwrap_err().path, "effects.units.merge.levels");
+    let mut v = small();
+    v["objects"][0]["shape"] = json!({"terrain": {"cells": 2048, "seed": 1}});
+    let t = std::time::Instant::now();
+    let e = parse(&v).unwrap_err();
+    assert_eq!(e.path, "objects[0].shape.terrain", "{e}");
+    assert!(t.elapsed().as_secs() < 2);
+    let mut v = small();
+    v["objects"][0]["shape"]["sphere"]["stacks"] = json!(2048);
+    v["objects"][0]["shape"]["sphere"]["slices"] = json!(2048);
+    assert_eq!(parse(&v).unwrap_err().path, "objects[0].shape.sphere");
+    let mut v = small();
+    v["grid"]["index_bits"] = json!(8);
+    let e = parse(&v).unwrap_err();
+    assert_eq!(e.path, "objects[0].shape", "{e}");
+    assert!(e.expected.contains("index_bits"), "{e}");
+}

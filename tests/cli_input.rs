@@ -341,3 +341,41 @@ fn scene_structure_errors_name_the_file_and_path() {
         assert!(err.contains("trailing characters"), "{err}");
     }
 }
+
+/// Scenes the golden model refuses only while running (a merging mode the
+/// hierarchies cannot meet, here; a leaf at LOD 0, voxel rounding leaving the
+/// scene, an index past `I` likewise) are refused before frame 0 is
+/// simulated or written, naming the file and the JSON path.
+#[test]
+fn scenes_failing_at_frame_0_name_their_json_path() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let text =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/default.json"))
+            .unwrap();
+    for (name, mode, path) in [
+        (
+            "deep.json",
+            r#"{"mode": "below_top", "levels": 8}"#,
+            "effects.units.merge",
+        ),
+        (
+            "far.json",
+            r#"{"mode": "below_top", "levels": 99}"#,
+            "effects.units.merge.levels",
+        ),
+        (
+            "fixed.json",
+            r#"{"mode": "fixed", "level": 0}"#,
+            "effects.units.merge",
+        ),
+    ] {
+        let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        v["effects"]["units"]["merge"] = serde_json::from_str(mode).unwrap();
+        std::fs::write(d.join(name), v.to_string()).unwrap();
+        let err = fails_in(d, &["run", name, "--no-rtl", "--out", "out"]);
+        assert!(err.contains(&format!("{name}: {path}: expected")), "{err}");
+        assert!(!d.join("out").exists());
+    }
+    no_temporaries(d);
+}

@@ -13,6 +13,7 @@
 mod compare;
 mod merge_rtl;
 mod pipeline;
+mod preflight;
 mod render;
 mod rtl;
 mod table;
@@ -67,6 +68,13 @@ pub fn main(a: Args) -> CmdResult {
             }
         }
     }
+    let file = a
+        .scene
+        .as_ref()
+        .map_or("default scene (embedded)".to_string(), |p| {
+            p.display().to_string()
+        });
+    preflight::check(&scene, &file).map_err(|e| e.to_string())?;
     scene.width = a.width.unwrap_or(scene.width);
     scene.height = a.height.unwrap_or(scene.height);
     // A fresh folder, put in place of --out only when the run is complete

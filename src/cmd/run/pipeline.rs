@@ -151,7 +151,7 @@ fn bar(options: &Options, what: String) -> ProgressBar {
 /// The objects of frame `k`. Without translation a placement is baked into
 /// the vertices (a new mesh whenever the offset changes, so Frames rebuilds
 /// the object) and the offset handed on is zero.
-fn frame_objects(
+pub(super) fn frame_objects(
     scene: &Scene,
     k: usize,
     baked: &mut [Option<(DVec3, Arc<Mesh>)>],

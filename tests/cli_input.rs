@@ -303,6 +303,13 @@ fn outputs_are_never_written_over_links_or_special_files() {
     std::os::unix::fs::symlink("folder", d.join("linked")).unwrap();
     let err = fails_in(d, &["run", "--no-rtl", "--out", "linked"]);
     assert!(err.contains("linked: refusing"), "{err}");
+    std::fs::write(d.join("folder/notes.txt"), "mine").unwrap();
+    let err = fails_in(d, &["run", "--no-rtl", "--out", "folder"]);
+    assert!(
+        err.contains("folder: the folder holds files but no report.json"),
+        "{err}"
+    );
+    assert!(d.join("folder/notes.txt").exists());
     assert_eq!(std::fs::read_to_string(d.join("kept")).unwrap(), "kept");
     // A file replaced keeps ordinary permissions (not the temporary's 0600).
     let out = start(

@@ -79,6 +79,7 @@ pub fn main(a: Args) -> CmdResult {
     scene.height = a.height.unwrap_or(scene.height);
     // A fresh folder, put in place of --out only when the run is complete
     // (SPEC.md section 15): an interrupted run leaves the previous output.
+    refuse_foreign_folder(&a.out)?;
     let staging = golden::output::AtomicDir::create(&a.out)?;
     let options = pipeline::Options {
         out: a.out.clone(),
@@ -110,4 +111,21 @@ pub fn main(a: Args) -> CmdResult {
         ));
     }
     Ok(())
+}
+
+/// The whole `--out` folder is replaced, so it must be empty or an earlier
+/// run's output (it holds `report.json`): a folder of other files is never
+/// deleted by mistake.
+fn refuse_foreign_folder(out: &std::path::Path) -> Result<(), String> {
+    let Ok(mut items) = std::fs::read_dir(out) else {
+        return Ok(());
+    };
+    if items.next().is_none() || out.join("report.json").is_file() {
+        return Ok(());
+    }
+    Err(format!(
+        "{}: the folder holds files but no report.json of an earlier run; \
+         refusing to replace it (run replaces --out whole): choose an empty or new folder",
+        out.display()
+    ))
 }

@@ -35,10 +35,20 @@ fn unregister(p: &Path) {
 /// Removes every registered temporary file and folder (for a handler of
 /// SIGINT/SIGTERM, just before the process ends).
 pub fn remove_temporaries() {
+    remove_registered(|_| true)
+}
+
+/// Removes the registered temporaries `which` selects.
+fn remove_registered(which: impl Fn(&Path) -> bool) {
     let list = match TEMPORARIES.lock() {
-        Ok(mut t) => std::mem::take(&mut *t),
+        Ok(mut t) => {
+            let (gone, kept) = t.drain(..).partition(|p| which(p));
+            *t = kept;
+            gone
+        }
         Err(_) => return,
     };
+    let list: Vec<PathBuf> = list;
     for p in list {
         match std::fs::symlink_metadata(&p) {
             Ok(m) if m.is_dir() => {
@@ -305,7 +315,8 @@ mod tests {
         let mut f = AtomicFile::create(&dir.path().join("v.jsonl")).unwrap();
         f.file().write_all(b"partial").unwrap();
         let d = AtomicDir::create(&dir.path().join("run")).unwrap();
-        remove_temporaries();
+        // Only this test's: tests of one process run side by side.
+        remove_registered(|p| p.starts_with(dir.path()));
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
         drop((f, d));
     }

@@ -146,7 +146,7 @@ fn counts_past_the_limits_are_refused_before_allocating() {
     ] {
         let err = fails_in(d, &args);
         assert!(
-            err.contains("--count 1000000000000: expected at most 1000000"),
+            err.contains("--count 1000000000000: expected at most"),
             "{err}"
         );
     }
@@ -238,7 +238,7 @@ fn an_interrupted_vectors_run_leaves_no_file() {
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();
         let args = [
-            "vectors", "--unit", "merge", "--count", "1000000", "--out", "v.jsonl",
+            "vectors", "--unit", "merge", "--count", "100000", "--out", "v.jsonl",
         ];
         interrupt(d, d, &args, signal);
         assert!(!d.join("v.jsonl").exists());

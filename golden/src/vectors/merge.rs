@@ -245,7 +245,8 @@ pub fn write_merge_vectors(
     seed: u64,
     count: u64,
 ) -> Result<(), VectorError> {
-    super::check_count("--count", count).map_err(|what| VectorError::Model { what })?;
+    super::check_count("--count", count, super::MAX_MERGE_COUNT)
+        .map_err(|what| VectorError::Model { what })?;
     let header = Header {
         unit: UnitKind::Merge,
         params: d.param_map(),

@@ -34,21 +34,35 @@ pub const FORMAT_NAME: &str = "hiermerge-vectors";
 /// The `version` of the format this module writes and reads.
 pub const FORMAT_VERSION: u64 = 1;
 
-/// The most transactions a vector file, `hiermerge vectors --count` or
-/// `hiermerge cosim --count` may ask for (SPEC.md section 15): a million,
-/// ten times the longest regression run, so that a typo cannot exhaust
-/// memory or fill the disk.
+/// The most transactions `hiermerge cosim --count` may ask for, and a
+/// translate vector file may hold (SPEC.md section 15): a million, ten
+/// times the longest regression run, so that a typo cannot exhaust memory
+/// or fill the disk (a million translate records are about 380 MB).
 pub const MAX_COUNT: u64 = 1_000_000;
 
+/// The most records a merge vector file may hold (SPEC.md section 15):
+/// its records are ten to twenty times larger (100,000 are 0.4 to 0.7 GB).
+pub const MAX_MERGE_COUNT: u64 = 100_000;
+
 /// The most bytes a vector file may have (SPEC.md section 15): 2 GiB, above
-/// [`MAX_COUNT`] records of either unit.
+/// the largest file either limit allows.
 pub const MAX_FILE_BYTES: u64 = 2 << 30;
 
-/// Refuses a `count` above [`MAX_COUNT`], naming `what` asked for it.
-pub fn check_count(what: &str, count: u64) -> Result<(), String> {
-    match count > MAX_COUNT {
+impl UnitKind {
+    /// The most records a vector file of this unit may hold.
+    pub fn max_count(self) -> u64 {
+        match self {
+            UnitKind::Translate => MAX_COUNT,
+            UnitKind::Merge => MAX_MERGE_COUNT,
+        }
+    }
+}
+
+/// Refuses a `count` above `limit`, naming `what` asked for it.
+pub fn check_count(what: &str, count: u64, limit: u64) -> Result<(), String> {
+    match count > limit {
         true => Err(format!(
-            "{what} {count}: expected at most {MAX_COUNT} transactions (SPEC.md section 15)"
+            "{what} {count}: expected at most {limit} transactions (SPEC.md section 15)"
         )),
         false => Ok(()),
     }
@@ -345,13 +359,14 @@ pub fn read_jsonl(
         }
     };
     let header = parse_header(path, &first, unit)?;
-    if header.count > MAX_COUNT {
+    if header.count > unit.max_count() {
         return Err(malformed(
             path,
             1,
             "count",
             &format!(
-                "at most {MAX_COUNT} records (SPEC.md section 15), found {}",
+                "at most {} records (SPEC.md section 15), found {}",
+                unit.max_count(),
                 header.count
             ),
         ));

@@ -374,7 +374,8 @@ pub fn generate(
         design: *design,
         rng: SplitMix64(seed),
     };
-    super::check_count("--count", count as u64).map_err(|what| VectorError::Model { what })?;
+    super::check_count("--count", count as u64, super::MAX_COUNT)
+        .map_err(|what| VectorError::Model { what })?;
     let mut out = Vec::with_capacity(count);
     let hard: Vec<TranslateInputs> = hard_cases(&design.unit)
         .into_iter()

@@ -20,14 +20,9 @@ fn write_png_with(
     rgb: &[u8],
     small: bool,
 ) -> Result<(), String> {
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let tmp =
-        tempfile::NamedTempFile::new_in(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    let mut tmp = golden::output::AtomicFile::create(path)?;
     {
-        let mut enc = png::Encoder::new(std::io::BufWriter::new(tmp.as_file()), width, height);
+        let mut enc = png::Encoder::new(std::io::BufWriter::new(tmp.file()), width, height);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
         if small {
@@ -40,9 +35,7 @@ fn write_png_with(
         w.write_image_data(rgb)
             .map_err(|e| format!("{}: {e}", path.display()))?;
     }
-    tmp.persist(path)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    Ok(())
+    tmp.commit()
 }
 
 /// Maps counts to a black-blue-red-yellow-white ramp, scaled to the largest count.

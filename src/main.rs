@@ -7,8 +7,9 @@
 mod cmd;
 mod image;
 mod report;
+mod signals;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 #[derive(Parser)]
 #[command(
@@ -52,7 +53,12 @@ fn main() {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
-    let cli = Cli::parse();
+    // A value may be negative (`--seed -1` is then refused as no u64, by
+    // its flag, not taken for an unknown flag `-1`).
+    let mut command = Cli::command().mut_subcommands(|s| s.allow_negative_numbers(true));
+    let cli = Cli::from_arg_matches(&command.clone().get_matches())
+        .unwrap_or_else(|e| e.format(&mut command).exit());
+    signals::install();
     let result = match cli.command {
         Command::Build(a) => cmd::build::main(a),
         Command::Trace(a) => cmd::trace::main(a),

@@ -223,11 +223,12 @@ fn stale_failed_and_inconsistent_entries_are_named() {
     restore();
     assert!(check(dir.path(), "all", "1").0);
 
-    // A file that is no entry.
+    // A file that is no entry: named among the problems, the good entry
+    // beside it still checked.
     std::fs::write(path.with_file_name("notes.json"), "[]").unwrap();
     let o = hiermerge(&["ledger", "--dir", dir.path().to_str().unwrap()], &[]);
     assert!(!o.status.success());
-    let err = String::from_utf8_lossy(&o.stderr);
+    let err = String::from_utf8_lossy(&o.stdout);
     assert!(
         err.contains("notes.json") && err.contains("not a ledger entry"),
         "{err}"

@@ -91,8 +91,9 @@ impl StimulusDigest {
     }
 }
 
-/// One run, as the ledger keeps it.
+/// One run, as the ledger keeps it. Unknown fields are refused.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Entry {
     /// [`FORMAT`].
     pub format: String,
@@ -145,7 +146,10 @@ impl Entry {
         let text = serde_json::to_string_pretty(self).map_err(|e| crate::CosimError::Design {
             what: format!("ledger entry: {e}"),
         })? + "\n";
-        let mut file = tempfile::NamedTempFile::new_in(parent).map_err(io_err(parent))?;
+        let mut file = tempfile::Builder::new()
+            .permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666))
+            .tempfile_in(parent)
+            .map_err(io_err(parent))?;
         std::io::Write::write_all(&mut file, text.as_bytes()).map_err(io_err(file.path()))?;
         file.as_file().sync_all().map_err(io_err(file.path()))?;
         file.persist_noclobber(&path)
@@ -154,43 +158,98 @@ impl Entry {
     }
 }
 
-/// Reads every `*.json` entry under `dir` (recursively, in path order).
-/// A file that is no entry is an error naming the file and what was wrong.
-pub fn read_ledger(dir: &Path) -> Result<Vec<(std::path::PathBuf, Entry)>> {
+/// Reads every `*.json` entry under `dir` (recursively, in path order),
+/// each through [`read_entry`]: a file that is no entry, or an entry that
+/// contradicts itself or its place, comes back as the reason, naming the
+/// file and the field, so that every bad entry is named. Only a folder that
+/// cannot be listed is an error.
+pub fn read_ledger(
+    dir: &Path,
+) -> Result<Vec<(std::path::PathBuf, std::result::Result<Entry, String>)>> {
     let mut files = Vec::new();
     collect_json(dir, &mut files)?;
     files.sort();
-    files
+    Ok(files
         .into_iter()
         .map(|path| {
-            let text = std::fs::read_to_string(&path).map_err(io_err(&path))?;
-            let entry: Entry =
-                serde_json::from_str(&text).map_err(|e| crate::CosimError::Parse {
-                    text: path.display().to_string(),
-                    what: format!("not a ledger entry: {e}"),
-                })?;
-            if entry.format != FORMAT {
-                return Err(crate::CosimError::Parse {
-                    text: path.display().to_string(),
-                    what: format!("format `{}`, expected `{FORMAT}` (entries of hiermerge-longrun-1 digest the Verilog text; rerun them)", entry.format),
-                });
-            }
-            for (field, digest) in [
-                ("netlist_sha256", &entry.netlist_sha256),
-                ("stimulus_sha256", &entry.stimulus_sha256),
-            ] {
-                if !is_sha256_hex(digest) {
-                    return Err(crate::CosimError::Parse {
-                        text: path.display().to_string(),
-                        what: format!(
-                            "field {field}: `{digest}`, expected 64 lower-case hexadecimal digits"
-                        ),
-                    });
-                }
-            }
-            Ok((path, entry))
+            let entry = read_entry(dir, &path);
+            (path, entry)
         })
-        .collect()
+        .collect())
+}
+
+/// Reads the entry at `path` inside the ledger folder `dir` (a regular
+/// file of at most [`golden::input::MAX_JSON_BYTES`], one JSON object and
+/// nothing after it, no unknown field) and checks it against itself
+/// ([`Entry::inconsistencies`]) and its place (the folder `dir/<top>`).
+pub fn read_entry(dir: &Path, path: &Path) -> std::result::Result<Entry, String> {
+    let shown = path.display();
+    let text =
+        golden::input::read_text(path, golden::input::MAX_JSON_BYTES).map_err(|e| e.to_string())?;
+    let doc =
+        golden::json::parse(&text).map_err(|e| format!("{shown}: not a ledger entry: {e}"))?;
+    let entry: Entry = golden::json::from_value(&doc)
+        .map_err(|(at, e)| format!("{shown}: not a ledger entry: {at}: {e}"))?;
+    if entry.format != FORMAT {
+        return Err(format!("{shown}: field format `{}`: expected `{FORMAT}` (entries of hiermerge-longrun-1 digest the Verilog text; rerun them)", entry.format));
+    }
+    let mut bad = entry.inconsistencies();
+    let folder = dir.join(&entry.top);
+    if path.parent() != Some(folder.as_path()) {
+        bad.push(format!(
+            "field top `{}`: the entry is filed under another configuration's folder (it belongs in `{}`)",
+            entry.top,
+            folder.display()
+        ));
+    }
+    match bad.is_empty() {
+        true => Ok(entry),
+        false => Err(format!("{shown}: {}", bad.join("; "))),
+    }
+}
+
+impl Entry {
+    /// What in the entry contradicts itself, one message per field: a
+    /// digest that is not 64 lower-case hexadecimal digits, `passed` that
+    /// disagrees with `mismatches` (a run passes exactly when nothing
+    /// differed), a `count` of 0, fewer `cycles` than merges (a merge takes
+    /// at least one cycle), or `wall_seconds` that is not a finite number
+    /// above 0.
+    pub fn inconsistencies(&self) -> Vec<String> {
+        let mut bad = Vec::new();
+        for (field, digest) in [
+            ("netlist_sha256", &self.netlist_sha256),
+            ("stimulus_sha256", &self.stimulus_sha256),
+        ] {
+            if !is_sha256_hex(digest) {
+                bad.push(format!(
+                    "field {field}: `{digest}`, expected 64 lower-case hexadecimal digits"
+                ));
+            }
+        }
+        if self.passed && self.mismatches != 0 {
+            bad.push(format!(
+                "field passed: true with {} mismatches: a run passes only when none differed",
+                self.mismatches
+            ));
+        }
+        if self.count == 0 {
+            bad.push("field count: 0, expected at least one merge".into());
+        }
+        if self.cycles < self.count {
+            bad.push(format!(
+                "field cycles: {} for {} merges, expected at least one cycle per merge",
+                self.cycles, self.count
+            ));
+        }
+        if !(self.wall_seconds.is_finite() && self.wall_seconds > 0.0) {
+            bad.push(format!(
+                "field wall_seconds: {}, expected a finite number of seconds above 0",
+                self.wall_seconds
+            ));
+        }
+        bad
+    }
 }
 
 /// A SHA-256 digest as [`netlist_digest`] and [`StimulusDigest`] print it.
@@ -281,9 +340,9 @@ mod tests {
             .collect();
         assert_eq!(names, vec![std::ffi::OsString::from("ir-seed3-n5.json")]);
         let read = read_ledger(dir.path()).unwrap();
-        assert_eq!(read, vec![(path.clone(), e)]);
+        assert_eq!(read, vec![(path.clone(), Ok(e))]);
         std::fs::write(dir.path().join("hierarchy_merger_x/bad.json"), "{}").unwrap();
-        let err = read_ledger(dir.path()).unwrap_err().to_string();
+        let err = read_ledger(dir.path()).unwrap()[0].1.clone().unwrap_err();
         assert!(
             err.contains("bad.json") && err.contains("not a ledger entry"),
             "{err}"
@@ -304,11 +363,68 @@ mod tests {
                 _ => e.stimulus_sha256 = bad.clone(),
             }
             e.write_into(dir.path()).unwrap();
-            let err = read_ledger(dir.path()).unwrap_err().to_string();
+            let err = read_ledger(dir.path()).unwrap()[0].1.clone().unwrap_err();
             assert!(
                 err.contains("ir-seed3-n5.json") && err.contains(&format!("field {field}")),
                 "{err}"
             );
+        }
+    }
+
+    /// Each piece of false evidence of issue 21 is named by file and field,
+    /// and the good entry beside it still reads.
+    #[test]
+    fn false_evidence_is_named_entry_by_entry() {
+        let dir = tempfile::tempdir().unwrap();
+        entry().write_into(dir.path()).unwrap();
+        let cases: [fn(&mut Entry); 4] = [
+            |e| e.mismatches = 5,
+            |e| e.cycles = 1,
+            |e| e.wall_seconds = -5.0,
+            |e| {
+                e.count = 0;
+                e.cycles = 0
+            },
+        ];
+        for (i, spoil) in cases.iter().enumerate() {
+            let mut e = entry();
+            e.seed = 10 + i as u64;
+            spoil(&mut e);
+            e.write_into(dir.path()).unwrap();
+        }
+        let folder = dir.path().join("hierarchy_merger_x");
+        // Filed under another configuration's folder.
+        let other = dir.path().join("hierarchy_merger_y");
+        std::fs::create_dir(&other).unwrap();
+        std::fs::copy(
+            folder.join("ir-seed3-n5.json"),
+            other.join("ir-seed3-n5.json"),
+        )
+        .unwrap();
+        // An unknown field.
+        let mut v = serde_json::to_value(entry()).unwrap();
+        v["trust_me"] = true.into();
+        std::fs::write(folder.join("ir-seed4-n5.json"), v.to_string()).unwrap();
+        // A FIFO named like an entry does not block.
+        let fifo = folder.join("ir-seed5-n5.json");
+        assert!(std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success());
+        let read = read_ledger(dir.path()).unwrap();
+        let bad: Vec<String> = read.iter().filter_map(|r| r.1.clone().err()).collect();
+        assert_eq!(read.len() - bad.len(), 1, "{bad:#?}");
+        for want in [
+            "ir-seed10-n5.json: field passed",
+            "ir-seed11-n5.json: field cycles",
+            "ir-seed12-n5.json: field wall_seconds",
+            "ir-seed13-n0.json: field count",
+            "hierarchy_merger_y/ir-seed3-n5.json: field top `hierarchy_merger_x`: the entry is filed under another",
+            "ir-seed4-n5.json: not a ledger entry: trust_me: unknown field `trust_me`",
+            "ir-seed5-n5.json: expected a regular file, found a FIFO",
+        ] {
+            assert!(bad.iter().any(|b| b.contains(want)), "{want}: {bad:#?}");
         }
     }
 }

@@ -645,16 +645,53 @@ pub fn brute_force_closest(ray: &Ray, scene: &TraceScene, stats: &mut TraceStats
     best
 }
 
+/// The most rays `hiermerge trace` and `hiermerge merge` trace
+/// (`--rays`; SPEC.md section 15).
+pub const MAX_RAYS: usize = 10_000_000;
+
+/// Tries per ray the ray generators make before they give up: a valid box
+/// gives a valid ray nearly every try, so the bound only ends a loop that
+/// could never fill (a box whose size does not fit binary32).
+const TRIES_PER_RAY: usize = 64;
+
+/// Refuses `--rays n` above [`MAX_RAYS`] (or 0), before anything is built.
+pub fn check_ray_count(n: usize) -> Result<(), String> {
+    match n {
+        0 => Err("--rays must be at least 1".into()),
+        n if n > MAX_RAYS => Err(format!(
+            "--rays {n}: expected at most {MAX_RAYS} rays (SPEC.md section 15)"
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// Refuses a box the ray generators cannot aim at: not finite, or whose
+/// diagonal, times the 1.5 the generators reach out, overflows binary32
+/// (an extent above about 1.3e19 per axis): every ray would be invalid.
+pub fn check_ray_bounds(lo: Vec3, hi: Vec3) -> Result<(), String> {
+    let reach = (hi - lo).length() * 1.5 + lo.abs().max(hi.abs()).max_element();
+    if !(lo.is_finite() && hi.is_finite() && reach.is_finite()) {
+        return Err(format!(
+            "the scene's bounds {lo}..{hi}: expected a box whose diagonal fits binary32 \
+             (rays are generated in binary32; extents below about 1e19 per axis)"
+        ));
+    }
+    Ok(())
+}
+
 /// `n` seeded rays aimed at the box `[lo, hi]`: 70% from outside (a sphere
 /// around the box) at a point inside it, 15% from inside in a random
 /// direction, 15% from outside with one or two direction components exactly
-/// zero (axis-parallel rays, infinite reciprocals).
+/// zero (axis-parallel rays, infinite reciprocals). Fewer than `n` only
+/// for a box [`check_ray_bounds`] refuses (the tries are bounded).
 pub fn random_rays(lo: Vec3, hi: Vec3, n: usize, seed: u64) -> Vec<Ray> {
     let mut rng = SplitMix64::new(seed);
     let center = (lo + hi) * 0.5;
     let radius = (hi - lo).length().max(1e-6);
-    let mut rays = Vec::with_capacity(n);
-    while rays.len() < n {
+    let mut rays = Vec::with_capacity(n.min(MAX_RAYS));
+    let mut tries = n.saturating_mul(TRIES_PER_RAY);
+    while rays.len() < n && tries > 0 {
+        tries -= 1;
         let kind = rng.below(20);
         let ray = if kind < 14 {
             let origin = center + rng.unit_vector() * radius * rng.range_f32(0.6, 1.5);
@@ -719,11 +756,13 @@ pub fn edge_rays(scene: &TraceScene, n: usize, seed: u64) -> Vec<Ray> {
         .iter()
         .filter(|p| !p.inst.mesh.is_empty())
         .collect();
-    let mut rays = Vec::with_capacity(n);
+    let mut rays = Vec::with_capacity(n.min(MAX_RAYS));
     if with_tris.is_empty() {
         return rays;
     }
-    while rays.len() < n {
+    let mut tries = n.saturating_mul(TRIES_PER_RAY);
+    while rays.len() < n && tries > 0 {
+        tries -= 1;
         let p = with_tris[rng.below(with_tris.len() as u64) as usize];
         let tri = p
             .inst

@@ -149,7 +149,7 @@ impl fmt::Display for WorldError {
         match self {
             WorldError::Build { id, error } => write!(f, "object {id}: build: {error}"),
             WorldError::Translate { id, error } => write!(f, "object {id}: translation: {error}"),
-            WorldError::Merge(e) => write!(f, "merge: {e}"),
+            WorldError::Merge(e) => write!(f, "{e}"),
             WorldError::Check { id, error } => {
                 write!(f, "hierarchy {id} fails the checker: {error}")
             }

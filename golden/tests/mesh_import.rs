@@ -58,7 +58,7 @@ fn load_refuses_unknown_extension_and_missing_file() {
     );
     assert!(e
         .to_string()
-        .starts_with("/nonexistent/x.obj: file: expected a readable file"));
+        .starts_with("/nonexistent/x.obj: file: expected a readable regular file"));
 }
 
 fn small_mesh() -> Mesh {

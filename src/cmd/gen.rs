@@ -65,6 +65,7 @@ pub fn emit_unit(unit: Unit, design: &UnitOpts, dir: &Path) -> Result<Vec<PathBu
 }
 
 pub fn main(a: Args) -> CmdResult {
+    golden::output::check_destination(&a.out, true)?;
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
     let files = if a.defaults {
         emit_defaults(&a.out)?

@@ -129,7 +129,8 @@ fn read_plan(
     path: &std::path::Path,
     good: &std::collections::HashSet<(String, String, u64, u64)>,
 ) -> Result<Vec<PlanLine>, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let text =
+        golden::input::read_text(path, golden::input::MAX_JSON_BYTES).map_err(|e| e.to_string())?;
     let mut out = Vec::new();
     for (i, raw) in text.lines().enumerate() {
         let line = raw.split('#').next().unwrap_or("").trim();
@@ -283,14 +284,21 @@ fn totals(entries: &[(Entry, &Checked)], need: u64) -> Vec<Total> {
 }
 
 pub fn main(a: Args) -> CmdResult {
-    let ledger = read_ledger(&a.dir).map_err(|e| format!("ledger {}: {e}", a.dir.display()))?;
+    let read = read_ledger(&a.dir).map_err(|e| format!("ledger {}: {e}", a.dir.display()))?;
+    let mut problems = Vec::new();
+    let mut ledger = Vec::new();
+    for (path, entry) in read {
+        match entry {
+            Ok(e) => ledger.push((path, e)),
+            Err(what) => problems.push(what),
+        }
+    }
     let pb = if a.json {
         ProgressBar::hidden()
     } else {
         ProgressBar::new(ledger.len() as u64)
     };
     let mut netlists = HashMap::new();
-    let mut problems = Vec::new();
     let mut stale = Vec::new();
     let mut first_seen = std::collections::HashSet::new();
     let mut checked = Vec::new();

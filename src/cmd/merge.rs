@@ -16,6 +16,7 @@ use golden::world::World;
 use serde::Serialize;
 
 use super::common::{load_mesh, placement_grid, GridOpts, Shape};
+pub use super::merge_args::{parse_mode, parse_vec3};
 use crate::report::{emit, CmdResult};
 
 #[derive(clap::Args)]
@@ -51,31 +52,6 @@ pub struct Args {
     json: bool,
 }
 
-fn parse_vec3(s: &str) -> Result<DVec3, String> {
-    let parts: Vec<&str> = s.split(',').collect();
-    if parts.len() != 3 {
-        return Err(format!(
-            "`{s}`: expected x,y,z (three numbers separated by commas)"
-        ));
-    }
-    let mut v = [0.0; 3];
-    for (i, p) in parts.iter().enumerate() {
-        v[i] = p.trim().parse::<f64>().map_err(|e| {
-            format!(
-                "`{s}`: component {} `{p}`: {e}",
-                "xyz".as_bytes()[i] as char
-            )
-        })?;
-        if !v[i].is_finite() {
-            return Err(format!(
-                "`{s}`: component {} is not finite",
-                "xyz".as_bytes()[i] as char
-            ));
-        }
-    }
-    Ok(DVec3::from_array(v))
-}
-
 fn parse_group(s: &str) -> Result<Vec<u8>, String> {
     s.split(',')
         .map(|p| {
@@ -84,54 +60,6 @@ fn parse_group(s: &str) -> Result<Vec<u8>, String> {
             })
         })
         .collect()
-}
-
-pub fn parse_ratio(s: &str) -> Result<(u32, u32), String> {
-    let (n, d) = s
-        .split_once('/')
-        .ok_or_else(|| format!("`{s}`: expected a ratio N/D"))?;
-    let n: u32 = n
-        .trim()
-        .parse()
-        .map_err(|e| format!("`{s}`: numerator: {e}"))?;
-    let d: u32 = d
-        .trim()
-        .parse()
-        .map_err(|e| format!("`{s}`: denominator: {e}"))?;
-    if d == 0 {
-        return Err(format!("`{s}`: the denominator must not be 0"));
-    }
-    Ok((n, d))
-}
-
-/// Parses a merging mode (paragraphs 53-55).
-pub fn parse_mode(s: &str) -> Result<MergeMode, String> {
-    let (name, arg) = match s.split_once(':') {
-        Some((n, a)) => (n, Some(a)),
-        None => (s, None),
-    };
-    let level = |a: Option<&str>| -> Result<u8, String> {
-        a.ok_or_else(|| format!("`{s}`: expected {name}:LEVEL"))?
-            .parse::<u8>()
-            .map_err(|e| format!("`{s}`: {e}"))
-    };
-    match name {
-        "overlap" => {
-            let (num, den) = arg.map(parse_ratio).transpose()?.unwrap_or((1, 2));
-            Ok(MergeMode::Overlap { num, den })
-        }
-        "per-node" => {
-            let (num, den) = arg.map(parse_ratio).transpose()?.unwrap_or((1, 2));
-            Ok(MergeMode::PerNode { num, den })
-        }
-        "fixed" => Ok(MergeMode::Fixed(level(arg)?)),
-        "below-top" => Ok(MergeMode::BelowTop(level(arg)?)),
-        "proportion" => {
-            let (num, den) = parse_ratio(arg.ok_or_else(|| format!("`{s}`: expected proportion:N/D"))?)?;
-            Ok(MergeMode::Proportion { num, den })
-        }
-        _ => Err(format!("`{s}`: unknown mode; expected overlap[:N/D], fixed:L, below-top:K, proportion:N/D or per-node[:N/D]")),
-    }
 }
 
 #[derive(Serialize)]
@@ -211,9 +139,7 @@ pub fn main(a: Args) -> CmdResult {
             params.hier_bits
         ));
     }
-    if a.rays == 0 {
-        return Err("--rays must be at least 1".into());
-    }
+    golden::trace::check_ray_count(a.rays)?;
     let meshes = a
         .meshes
         .iter()
@@ -300,6 +226,7 @@ pub fn main(a: Args) -> CmdResult {
     let rs =
         TraceScene::new(grid, &[Instance::new(&rebuilt, &placed)]).map_err(|e| e.to_string())?;
     let (blo, bhi) = ss.bounds();
+    golden::trace::check_ray_bounds(blo, bhi)?;
     let rays = random_rays(blo, bhi, a.rays, a.seed);
     let (mut m_stats, mut s_stats, mut r_stats) = (
         TraceStats::default(),

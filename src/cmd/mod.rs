@@ -6,6 +6,7 @@ pub mod cosim;
 pub mod gen;
 pub mod ledger;
 pub mod merge;
+pub mod merge_args;
 pub mod run;
 pub mod study;
 pub mod synth;

@@ -13,6 +13,7 @@
 mod compare;
 mod merge_rtl;
 mod pipeline;
+mod preflight;
 mod render;
 mod rtl;
 mod table;
@@ -72,12 +73,22 @@ pub fn main(a: Args) -> CmdResult {
             }
         }
     }
+    let file = a
+        .scene
+        .as_ref()
+        .map_or("default scene (embedded)".to_string(), |p| {
+            p.display().to_string()
+        });
+    preflight::check(&scene, &file).map_err(|e| e.to_string())?;
     scene.width = a.width.unwrap_or(scene.width);
     scene.height = a.height.unwrap_or(scene.height);
-    std::fs::create_dir_all(&a.out)
-        .map_err(|e| format!("{}: cannot create the output folder: {e}", a.out.display()))?;
+    // A fresh folder, put in place of --out only when the run is complete
+    // (SPEC.md section 15): an interrupted run leaves the previous output.
+    refuse_foreign_folder(&a.out)?;
+    let staging = golden::output::AtomicDir::create(&a.out)?;
     let options = pipeline::Options {
         out: a.out.clone(),
+        write_to: staging.path().to_path_buf(),
         rtl: !a.no_rtl,
         progress: !a.json && std::io::IsTerminal::is_terminal(&std::io::stderr()),
         narrate: !a.json,
@@ -86,7 +97,8 @@ pub fn main(a: Args) -> CmdResult {
     let report = pipeline::run(&scene, &options)?;
     let json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
     let report_path = a.out.join("report.json");
-    std::fs::write(&report_path, json).map_err(|e| format!("{}: {e}", report_path.display()))?;
+    golden::output::write_atomic(&staging.path().join("report.json"), json.as_bytes())?;
+    staging.commit()?;
     let mismatches = report.mismatches;
     emit(a.json, &report, |r| {
         println!();
@@ -105,4 +117,21 @@ pub fn main(a: Args) -> CmdResult {
         ));
     }
     Ok(())
+}
+
+/// The whole `--out` folder is replaced, so it must be empty or an earlier
+/// run's output (it holds `report.json`): a folder of other files is never
+/// deleted by mistake.
+fn refuse_foreign_folder(out: &std::path::Path) -> Result<(), String> {
+    let Ok(mut items) = std::fs::read_dir(out) else {
+        return Ok(());
+    };
+    if items.next().is_none() || out.join("report.json").is_file() {
+        return Ok(());
+    }
+    Err(format!(
+        "{}: the folder holds files but no report.json of an earlier run; \
+         refusing to replace it (run replaces --out whole): choose an empty or new folder",
+        out.display()
+    ))
 }

@@ -58,14 +58,14 @@ struct Report {
 }
 
 pub fn main(a: Args) -> CmdResult {
-    if a.rays == 0 {
-        return Err("--rays must be at least 1".into());
-    }
+    golden::trace::check_ray_count(a.rays)?;
     let params = a.grid.params()?;
     let mesh = load_mesh(&a.mesh)?;
     let b = build_fitted(a.mesh.clone(), mesh, &params, 0)?;
     let scene = TraceScene::new(b.grid, &[Instance::new(&b.hierarchy, &b.mesh)])
         .map_err(|e| e.to_string())?;
+    let (lo, hi) = scene.bounds();
+    golden::trace::check_ray_bounds(lo, hi).map_err(|e| format!("{}: {e}", a.mesh.display()))?;
     let speed = bench_trace(&scene, a.rays, a.seed);
     let mut report = Report {
         file: a.mesh.display().to_string(),

@@ -41,6 +41,11 @@ struct Report {
 }
 
 pub fn main(a: Args) -> CmdResult {
+    let unit = match a.unit {
+        Unit::Translate => golden::vectors::UnitKind::Translate,
+        Unit::Merge => golden::vectors::UnitKind::Merge,
+    };
+    golden::vectors::check_count("--count", a.count, unit.max_count())?;
     match a.unit {
         Unit::Translate => {
             let design = a.design.translate_design()?;

@@ -51,15 +51,8 @@ impl Mesh {
                 ))
             }
         };
-        let bytes = std::fs::read(path).map_err(|e| {
-            MeshError::new(
-                &name,
-                MeshLocation::File,
-                "file",
-                "a readable file",
-                e.to_string(),
-            )
-        })?;
+        let bytes = crate::input::read_bytes(path, crate::input::MAX_MESH_BYTES)
+            .map_err(|e| MeshError::new(&name, MeshLocation::File, "file", e.expected, e.found))?;
         parse(&bytes, &name)
     }
 

@@ -10,8 +10,11 @@
 //! items, and must come after `vertex`. Every other property and element is
 //! read by its type and skipped. A face of `n >= 3` indices becomes the fan
 //! `(a b c) (a c d) ...`; each index must be in `0..vertex count`. Ascii
-//! element instances may span or share lines (the body is a token stream);
-//! errors in ascii name the line, in binary the element and its instance.
+//! element instances are rows: one instance per line, all its values on it
+//! (blank lines between rows are skipped); a short or long row is an error
+//! at its line. Nothing may follow the declared elements (ascii: only
+//! whitespace; binary: no byte). Errors in ascii name the line, in binary
+//! the element and its instance.
 
 use glam::Vec3;
 
@@ -375,6 +378,15 @@ trait BodyReader {
     /// list counts before looping over them.
     fn can_hold(&self, n: u64, ty: Scalar) -> bool;
     fn location(&self, element: &str, index: u64) -> MeshLocation;
+    /// Before an instance: ascii skips blank lines.
+    fn begin_instance(&mut self) {}
+    /// After an instance: ascii wants the end of its line (one instance per
+    /// line), `Err` with what follows instead.
+    fn end_instance(&mut self) -> Result<(), String> {
+        Ok(())
+    }
+    /// After the last element: `Err` with what follows the declared data.
+    fn finish(&mut self) -> Result<(), String>;
 }
 
 struct AsciiReader<'a> {
@@ -382,16 +394,35 @@ struct AsciiReader<'a> {
     line: u64,
 }
 
-impl BodyReader for AsciiReader<'_> {
-    fn read(&mut self, ty: Scalar) -> Result<Num, ReadFail> {
+impl AsciiReader<'_> {
+    /// Skips blanks within the line (not its end).
+    fn skip_blanks(&mut self) {
         while let Some((&b, tail)) = self.rest.split_first() {
-            if !b.is_ascii_whitespace() {
+            if b == b'\n' || !b.is_ascii_whitespace() {
                 break;
             }
-            if b == b'\n' {
-                self.line += 1;
-            }
             self.rest = tail;
+        }
+    }
+
+    /// The next token of this line, quoted, for an error.
+    fn next_token(&self) -> String {
+        let len = self
+            .rest
+            .iter()
+            .position(|b| b.is_ascii_whitespace())
+            .unwrap_or(self.rest.len());
+        quote(&self.rest[..len])
+    }
+}
+
+impl BodyReader for AsciiReader<'_> {
+    fn read(&mut self, ty: Scalar) -> Result<Num, ReadFail> {
+        self.skip_blanks();
+        match self.rest.first() {
+            None => return Err(ReadFail::Truncated),
+            Some(b'\n') => return Err(ReadFail::Malformed("the end of the line".into())),
+            Some(_) => {}
         }
         let len = self
             .rest
@@ -428,6 +459,40 @@ impl BodyReader for AsciiReader<'_> {
 
     fn location(&self, _element: &str, _index: u64) -> MeshLocation {
         MeshLocation::Line(self.line)
+    }
+
+    fn begin_instance(&mut self) {
+        loop {
+            self.skip_blanks();
+            match self.rest.split_first() {
+                Some((b'\n', tail)) => {
+                    self.rest = tail;
+                    self.line += 1;
+                }
+                _ => return,
+            }
+        }
+    }
+
+    fn end_instance(&mut self) -> Result<(), String> {
+        self.skip_blanks();
+        match self.rest.split_first() {
+            None => Ok(()),
+            Some((b'\n', tail)) => {
+                self.rest = tail;
+                self.line += 1;
+                Ok(())
+            }
+            Some(_) => Err(self.next_token()),
+        }
+    }
+
+    fn finish(&mut self) -> Result<(), String> {
+        self.begin_instance();
+        match self.rest.is_empty() {
+            true => Ok(()),
+            false => Err(self.next_token()),
+        }
     }
 }
 
@@ -468,6 +533,13 @@ impl BodyReader for BinaryReader<'_> {
             index,
         }
     }
+
+    fn finish(&mut self) -> Result<(), String> {
+        match self.rest.len() {
+            0 => Ok(()),
+            n => Err(format!("{n} more bytes")),
+        }
+    }
 }
 
 fn read_body(
@@ -484,6 +556,7 @@ fn read_body(
             continue;
         }
         for index in 0..e.count {
+            r.begin_instance();
             let mut xyz = [0f32; 3];
             for (pi, p) in e.props.iter().enumerate() {
                 // Named only when an error is reported: this loop runs per value.
@@ -571,10 +644,29 @@ fn read_body(
                     }
                 }
             }
+            r.end_instance().map_err(|found| {
+                MeshError::new(
+                    name,
+                    r.location(&e.name, index),
+                    format!("{} instance", e.name),
+                    format!("the end of the line after its {} properties", e.props.len()),
+                    found,
+                )
+            })?;
             if ei == layout.vertex_element {
                 mesh.vertices.push(Vec3::from(xyz));
             }
         }
+    }
+    if let Err(found) = r.finish() {
+        let last = h.elements.last().map_or("header", |e| e.name.as_str());
+        return Err(MeshError::new(
+            name,
+            r.location(last, h.elements.last().map_or(0, |e| e.count)),
+            "body",
+            "the end of the file after the declared elements",
+            found,
+        ));
     }
     Ok(mesh)
 }
@@ -668,6 +760,54 @@ mod tests {
         let text = format!("{QUAD_HEADER}0 0 0 255\n1 0 0 1\n");
         let e = parse_ply(text.as_bytes(), "q.ply").unwrap_err();
         assert_eq!(e.found, "end of data");
+    }
+
+    /// Issue 21: a short row shifted every later value by one and was blamed
+    /// on a later line; extra rows and bytes after the elements were
+    /// ignored, in ascii and binary.
+    #[test]
+    fn rows_are_strict_and_nothing_follows_the_elements() {
+        let good =
+            format!("{QUAD_HEADER}0 0 0 255\n1 0 0 1\n1 1 0 2\n0 1 0.5 3\n0 1\n7 4 0 1 2 3\n");
+        parse_ply(good.as_bytes(), "q.ply").unwrap();
+        let short =
+            format!("{QUAD_HEADER}0 0 0 255\n1 0 0\n1 1 0 2\n0 1 0.5 3\n0 1\n7 4 0 1 2 3\n");
+        let e = parse_ply(short.as_bytes(), "q.ply").unwrap_err();
+        assert_eq!(
+            (e.location.clone(), e.field.as_str(), e.found.as_str()),
+            (
+                MeshLocation::Line(17),
+                "vertex property red",
+                "the end of the line"
+            )
+        );
+        let long =
+            format!("{QUAD_HEADER}0 0 0 255 9\n1 0 0 1\n1 1 0 2\n0 1 0.5 3\n0 1\n7 4 0 1 2 3\n");
+        let e = parse_ply(long.as_bytes(), "q.ply").unwrap_err();
+        assert_eq!(
+            (e.location.clone(), e.field.as_str(), e.found.as_str()),
+            (MeshLocation::Line(16), "vertex instance", "\"9\"")
+        );
+        for tail in ["7 3 0 1 2\n", "garbage"] {
+            let extra = format!("{good}\n{tail}");
+            let e = parse_ply(extra.as_bytes(), "q.ply").unwrap_err();
+            assert_eq!(
+                (e.location.clone(), e.field.as_str()),
+                (MeshLocation::Line(23), "body"),
+                "{e}"
+            );
+        }
+        let m = Mesh {
+            vertices: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            triangles: vec![[0, 1, 2]],
+        };
+        let mut bytes = write_ply(&m, PlyFormat::BinaryLittleEndian);
+        bytes.push(0);
+        let e = parse_ply(&bytes, "t.ply").unwrap_err();
+        assert_eq!(
+            (e.field.as_str(), e.found.as_str()),
+            ("body", "1 more bytes")
+        );
     }
 
     #[test]

@@ -108,8 +108,8 @@ impl Scene {
     /// to its folder.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
         let name = path.display().to_string();
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| SceneError::new(&name, ".", "a readable scene file", e.to_string()))?;
+        let text = crate::input::read_text(path, crate::input::MAX_JSON_BYTES)
+            .map_err(|e| SceneError::new(&name, ".", e.expected, e.found))?;
         let base = path.parent().unwrap_or(Path::new("."));
         Scene::parse(&text, &name, base)
     }
@@ -130,18 +130,16 @@ impl Scene {
 /// Parses the JSON into the file types, naming the JSON path of the first
 /// element that does not fit.
 pub fn parse_file(text: &str, file: &str) -> Result<SceneFile, SceneError> {
-    let de = &mut serde_json::Deserializer::from_str(text);
-    let raw: SceneFile = serde_path_to_error::deserialize(de).map_err(|e| {
-        let path = e.path().to_string();
-        let inner = e.into_inner();
-        let expected = if inner.is_syntax() || inner.is_eof() {
-            "well-formed JSON"
-        } else {
-            "the scene format (SPEC.md section 12)"
-        };
-        SceneError::new(file, path, expected, inner.to_string())
-    })?;
-    Ok(raw)
+    let doc = crate::json::parse(text)
+        .map_err(|e| SceneError::new(file, ".", "well-formed JSON", e.to_string()))?;
+    crate::json::from_value(&doc).map_err(|(path, e)| {
+        SceneError::new(
+            file,
+            path,
+            "the scene format (SPEC.md section 12)",
+            e.to_string(),
+        )
+    })
 }
 
 #[cfg(test)]

@@ -13,6 +13,10 @@ use crate::scenes::{box_mesh, sphere, terrain, torus};
 /// Largest tessellation count accepted per parameter (stacks, slices, cells).
 const MAX_TESSELLATION: u32 = 2048;
 
+/// Most triangles a procedural shape may have (SPEC.md section 15): it is
+/// refused before it is generated, not after seconds and gigabytes.
+pub const MAX_SHAPE_TRIANGLES: u64 = 1 << 21;
+
 /// The mesh of `shape`; `path` is the shape's JSON path for errors.
 pub fn shape_mesh(
     shape: &ShapeSpec,
@@ -48,6 +52,25 @@ pub fn shape_mesh(
             ))
         }
     };
+    let budget = |field: &str, triangles: u64| {
+        if triangles <= MAX_SHAPE_TRIANGLES {
+            Ok(())
+        } else {
+            Err(err(
+                field,
+                &format!("a shape of at most {MAX_SHAPE_TRIANGLES} triangles (SPEC.md section 15)"),
+                format!("{triangles} triangles"),
+            ))
+        }
+    };
+    match *shape {
+        ShapeSpec::Sphere { stacks, slices, .. } => {
+            budget("sphere", 2 * stacks as u64 * slices as u64)?
+        }
+        ShapeSpec::Torus { rings, sides, .. } => budget("torus", 2 * rings as u64 * sides as u64)?,
+        ShapeSpec::Terrain { cells, .. } => budget("terrain", 2 * cells as u64 * cells as u64)?,
+        _ => {}
+    }
     Ok(match shape {
         ShapeSpec::Mesh {
             file: mesh_file,

@@ -159,3 +159,58 @@ fn schema_declares_every_key_the_shipped_scenes_use() {
         v[*key] = removed;
     }
 }
+
+/// Issue 21: a scene with trailing garbage, two documents, the scene or its
+/// `grid` written as an array of field values, or a key given twice was read
+/// in silence; each is now one error at its JSON path.
+#[test]
+fn misread_structure_is_refused_at_its_path() {
+    let ok = small().to_string();
+    for text in [format!("{ok} garbage"), format!("{ok}\n{ok}")] {
+        let e = Scene::parse(&text, "t.json", Path::new(".")).unwrap_err();
+        assert_eq!(e.path, ".", "{e}");
+        assert!(e.found.contains("trailing characters"), "{e}");
+    }
+    let s = small();
+    let fields: Vec<Value> = [
+        "name", "grid", "frames", "image", "camera", "lights", "objects", "effects",
+    ]
+    .iter()
+    .map(|k| s.get(*k).cloned().unwrap_or(Value::Null))
+    .collect();
+    let e = parse(&Value::Array(fields)).unwrap_err();
+    assert_eq!(e.path, ".", "{e}");
+    assert!(e.found.contains("invalid type: sequence"), "{e}");
+    let mut v = small();
+    v["grid"] = json!([12, 6, 24, 4, 0.001953125, [0, 0, 0]]);
+    let e = parse(&v).unwrap_err();
+    assert_eq!(e.path, "grid", "{e}");
+    let text = ok.replacen("\"frames\":5", "\"frames\":5,\"frames\":2", 1);
+    assert_ne!(text, ok);
+    let e = Scene::parse(&text, "t.json", Path::new(".")).unwrap_err();
+    assert!(e.found.contains("`frames` twice"), "{e}");
+}
+
+/// Issue 21: scenes that failed only at frame 0 (or after seconds and
+/// gigabytes) are refused while the file is read, at their JSON path.
+#[test]
+fn scenes_failing_late_are_refused_up_front() {
+    let mut v = small();
+    v["effects"]["units"]["merge"] = json!({"mode": "below_top", "levels": 99});
+    assert_eq!(parse(&v).unwrap_err().path, "effects.units.merge.levels");
+    let mut v = small();
+    v["objects"][0]["shape"] = json!({"terrain": {"cells": 2048, "seed": 1}});
+    let t = std::time::Instant::now();
+    let e = parse(&v).unwrap_err();
+    assert_eq!(e.path, "objects[0].shape.terrain", "{e}");
+    assert!(t.elapsed().as_secs() < 2);
+    let mut v = small();
+    v["objects"][0]["shape"]["sphere"]["stacks"] = json!(2048);
+    v["objects"][0]["shape"]["sphere"]["slices"] = json!(2048);
+    assert_eq!(parse(&v).unwrap_err().path, "objects[0].shape.sphere");
+    let mut v = small();
+    v["grid"]["index_bits"] = json!(8);
+    let e = parse(&v).unwrap_err();
+    assert_eq!(e.path, "objects[0].shape", "{e}");
+    assert!(e.expected.contains("index_bits"), "{e}");
+}

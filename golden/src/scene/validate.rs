@@ -180,7 +180,19 @@ fn effects(raw: &SceneFile, params: &Params, file: &str) -> Result<Effects, Scen
             }
             MergeMode::Fixed(level)
         }
-        MergeSpec::BelowTop { levels } => MergeMode::BelowTop(levels),
+        MergeSpec::BelowTop { levels } => {
+            if levels > params.max_lod {
+                return Err(e(
+                    "effects.units.merge.levels",
+                    &format!(
+                        "a number of levels in 0..={} (no level lies deeper than max_lod)",
+                        params.max_lod
+                    ),
+                    levels.to_string(),
+                ));
+            }
+            MergeMode::BelowTop(levels)
+        }
     };
     let RaysSpec {
         primary,
@@ -228,6 +240,17 @@ fn object(
 ) -> Result<SceneObject, SceneError> {
     let e = |p: String, expected: &str, found: String| SceneError::new(file, p, expected, found);
     let mesh = shape_mesh(&o.shape, file, &format!("{path}.shape"), base)?;
+    let index_limit = 1u64 << params.index_bits;
+    if mesh.len() as u64 >= index_limit {
+        return Err(e(
+            format!("{path}.shape"),
+            &format!(
+                "fewer than 2^{} = {index_limit} triangles (a triangle index has grid.index_bits bits)",
+                params.index_bits
+            ),
+            format!("{} triangles", mesh.len()),
+        ));
+    }
     for (i, c) in o.color.iter().enumerate() {
         if !(0.0..=1.0).contains(c) {
             return Err(e(

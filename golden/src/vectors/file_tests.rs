@@ -220,6 +220,57 @@ fn malformed_lines_name_file_line_and_field() {
     );
 }
 
+/// Issue 21: an unknown field, an `err_width` a binary32 port cannot carry,
+/// a record past the header's count, a count past the limit and a device as
+/// the file are each one error naming file, line and field.
+#[test]
+fn strict_records_and_bounded_reads() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = TranslateDesign::default();
+    let fresh = |name: &str| {
+        let p = dir.path().join(name);
+        write_translate_vectors(&p, &d, 9, 40).unwrap();
+        p
+    };
+    let p = fresh("unknown.jsonl");
+    edit_line(&p, 3, |v| v["in"]["extra"] = json!(1));
+    assert_eq!(
+        malformed_at(read_translate_vectors(&p, &d).unwrap_err()),
+        (3, "in.extra".into())
+    );
+    let p = fresh("top.jsonl");
+    edit_line(&p, 2, |v| v["note"] = json!("x"));
+    assert_eq!(
+        malformed_at(read_translate_vectors(&p, &d).unwrap_err()),
+        (2, "note".into())
+    );
+    let p = fresh("width.jsonl");
+    edit_line(&p, 2, |v| v["out"]["err_width"] = json!(5));
+    assert_eq!(
+        malformed_at(read_translate_vectors(&p, &d).unwrap_err()),
+        (2, "out.err_width".into())
+    );
+    let p = fresh("extra.jsonl");
+    let mut text = std::fs::read_to_string(&p).unwrap();
+    let last = text.lines().last().unwrap().to_string();
+    text.push_str(&(last + "\n"));
+    std::fs::write(&p, text).unwrap();
+    assert_eq!(
+        malformed_at(read_translate_vectors(&p, &d).unwrap_err()),
+        (42, "<line>".into())
+    );
+    let p = fresh("count.jsonl");
+    edit_line(&p, 1, |v| v["count"] = json!(1_000_000_000_000u64));
+    assert_eq!(
+        malformed_at(read_translate_vectors(&p, &d).unwrap_err()),
+        (1, "count".into())
+    );
+    let e = read_translate_vectors(Path::new("/dev/zero"), &d).unwrap_err();
+    assert!(e.to_string().contains("character device"), "{e}");
+    let e = write_translate_vectors(&dir.path().join("big.jsonl"), &d, 1, 1 << 40).unwrap_err();
+    assert!(e.to_string().contains("at most 1000000"), "{e}");
+}
+
 #[test]
 fn writes_are_atomic() {
     let dir = tempfile::tempdir().unwrap();

@@ -245,6 +245,8 @@ pub fn write_merge_vectors(
     seed: u64,
     count: u64,
 ) -> Result<(), VectorError> {
+    super::check_count("--count", count, super::MAX_MERGE_COUNT)
+        .map_err(|what| VectorError::Model { what })?;
     let header = Header {
         unit: UnitKind::Merge,
         params: d.param_map(),
@@ -277,6 +279,8 @@ pub fn read_merge_vectors(path: &Path, d: &MergeDesign) -> Result<Vec<MergeVecto
     // Per stage, (in width, out width), from one generated transaction.
     let mut widths: Vec<Option<(u32, u32)>> = vec![None; d.stages().len()];
     for (line, v) in raw.records {
+        let keys = json!({"stage": null, "in": null, "out": null});
+        super::refuse_unknown(path, line, &v, &keys)?;
         let stage = v
             .get("stage")
             .and_then(Value::as_str)

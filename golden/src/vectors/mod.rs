@@ -24,7 +24,7 @@ mod file_tests;
 
 use std::collections::BTreeMap;
 use std::fmt;
-use std::io::{BufRead, BufReader, BufWriter, Write};
+use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use serde_json::{Map, Value};
@@ -33,6 +33,82 @@ use serde_json::{Map, Value};
 pub const FORMAT_NAME: &str = "hiermerge-vectors";
 /// The `version` of the format this module writes and reads.
 pub const FORMAT_VERSION: u64 = 1;
+
+/// The most transactions `hiermerge cosim --count` may ask for, and a
+/// translate vector file may hold (SPEC.md section 15): a million, ten
+/// times the longest regression run, so that a typo cannot exhaust memory
+/// or fill the disk (a million translate records are about 380 MB).
+pub const MAX_COUNT: u64 = 1_000_000;
+
+/// The most records a merge vector file may hold (SPEC.md section 15):
+/// its records are ten to twenty times larger (100,000 are 0.4 to 0.7 GB).
+pub const MAX_MERGE_COUNT: u64 = 100_000;
+
+/// The most bytes a vector file may have (SPEC.md section 15): 2 GiB, above
+/// the largest file either limit allows.
+pub const MAX_FILE_BYTES: u64 = 2 << 30;
+
+impl UnitKind {
+    /// The most records a vector file of this unit may hold.
+    pub fn max_count(self) -> u64 {
+        match self {
+            UnitKind::Translate => MAX_COUNT,
+            UnitKind::Merge => MAX_MERGE_COUNT,
+        }
+    }
+}
+
+/// Refuses a `count` above `limit`, naming `what` asked for it.
+pub fn check_count(what: &str, count: u64, limit: u64) -> Result<(), String> {
+    match count > limit {
+        true => Err(format!(
+            "{what} {count}: expected at most {limit} transactions (SPEC.md section 15)"
+        )),
+        false => Ok(()),
+    }
+}
+
+/// The first key of `read` (a record line as read) that `written` (the
+/// record decoded and written again, or a value with the format's keys) does
+/// not have, as a field path: an unknown field. Objects are compared key by
+/// key at every depth; arrays element by element.
+pub fn unknown_field(read: &Value, written: &Value) -> Option<String> {
+    fn walk(read: &Value, written: &Value, at: &str) -> Option<String> {
+        match (read, written) {
+            (Value::Object(r), Value::Object(w)) => r.iter().find_map(|(k, v)| {
+                let here = if at.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{at}.{k}")
+                };
+                match w.get(k) {
+                    None => Some(here),
+                    Some(wv) => walk(v, wv, &here),
+                }
+            }),
+            (Value::Array(r), Value::Array(w)) => r
+                .iter()
+                .zip(w)
+                .enumerate()
+                .find_map(|(i, (rv, wv))| walk(rv, wv, &format!("{at}[{i}]"))),
+            _ => None,
+        }
+    }
+    walk(read, written, "")
+}
+
+/// [`unknown_field`] as the error of line `line` of `path`.
+pub fn refuse_unknown(
+    path: &Path,
+    line: usize,
+    read: &Value,
+    written: &Value,
+) -> Result<(), VectorError> {
+    match unknown_field(read, written) {
+        Some(field) => Err(malformed(path, line, &field, "no such field (unknown)")),
+        None => Ok(()),
+    }
+}
 
 /// Which unit a vector file exercises.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -211,13 +287,16 @@ pub fn write_jsonl<I>(path: &Path, header: &Header, records: I) -> Result<(), Ve
 where
     I: IntoIterator<Item = Result<Value, VectorError>>,
 {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
+    let fail = |action: &'static str| {
+        move |message: String| VectorError::Io {
+            path: path.to_path_buf(),
+            action,
+            message,
+        }
     };
-    let tmp = tempfile::NamedTempFile::new_in(&dir).map_err(|e| io_error(&dir, "create", e))?;
-    let mut w = BufWriter::new(tmp);
-    let line = |v: &Value, w: &mut BufWriter<tempfile::NamedTempFile>| {
+    let mut out = crate::output::AtomicFile::create(path).map_err(fail("create"))?;
+    let mut w = BufWriter::new(out.file());
+    let line = |v: &Value, w: &mut BufWriter<&mut std::fs::File>| {
         serde_json::to_writer(&mut *w, v)
             .map_err(|e| io_error(path, "write", e))
             .and_then(|_| w.write_all(b"\n").map_err(|e| io_error(path, "write", e)))
@@ -236,15 +315,9 @@ where
             ),
         });
     }
-    let tmp = w
-        .into_inner()
-        .map_err(|e| io_error(path, "write", e.error()))?;
-    tmp.as_file()
-        .sync_all()
-        .map_err(|e| io_error(path, "write", e))?;
-    tmp.persist(path)
-        .map_err(|e| io_error(path, "rename", e.error))?;
-    Ok(())
+    w.flush().map_err(|e| io_error(path, "write", e))?;
+    drop(w);
+    out.commit().map_err(fail("rename"))
 }
 
 /// A vector file read back: the header and every record line as JSON, with
@@ -268,10 +341,14 @@ pub fn read_jsonl(
     unit: UnitKind,
     design_params: &ParamMap,
 ) -> Result<RawVectors, VectorError> {
-    let file = std::fs::File::open(path).map_err(|e| io_error(path, "open", e))?;
-    let mut lines = BufReader::new(file).lines();
-    let first = match lines.next() {
-        Some(l) => l.map_err(|e| io_error(path, "read", e))?,
+    let input = |e: crate::input::InputError| VectorError::Io {
+        path: path.to_path_buf(),
+        action: "read",
+        message: format!("expected {}, found {}", e.expected, e.found),
+    };
+    let mut lines = crate::input::open_lines(path, MAX_FILE_BYTES).map_err(input)?;
+    let first = match lines.next_line() {
+        Some(l) => l.map_err(input)?.1,
         None => {
             return Err(malformed(
                 path,
@@ -282,6 +359,18 @@ pub fn read_jsonl(
         }
     };
     let header = parse_header(path, &first, unit)?;
+    if header.count > unit.max_count() {
+        return Err(malformed(
+            path,
+            1,
+            "count",
+            &format!(
+                "at most {} records (SPEC.md section 15), found {}",
+                unit.max_count(),
+                header.count
+            ),
+        ));
+    }
     let diffs = param_diffs(&header.params, design_params);
     if !diffs.is_empty() {
         return Err(VectorError::ParamsDiffer {
@@ -290,9 +379,20 @@ pub fn read_jsonl(
         });
     }
     let mut records = Vec::new();
-    for (i, l) in lines.enumerate() {
-        let n = i + 2;
-        let text = l.map_err(|e| io_error(path, "read", e))?;
+    while let Some(l) = lines.next_line() {
+        let (n, text) = l.map_err(input)?;
+        let n = n as usize;
+        if records.len() as u64 == header.count {
+            return Err(malformed(
+                path,
+                n,
+                "<line>",
+                &format!(
+                    "the end of the file after the {} records the header counts",
+                    header.count
+                ),
+            ));
+        }
         let v: Value = serde_json::from_str(&text).map_err(|e| {
             malformed(
                 path,

@@ -374,6 +374,8 @@ pub fn generate(
         design: *design,
         rng: SplitMix64(seed),
     };
+    super::check_count("--count", count as u64, super::MAX_COUNT)
+        .map_err(|what| VectorError::Model { what })?;
     let mut out = Vec::with_capacity(count);
     let hard: Vec<TranslateInputs> = hard_cases(&design.unit)
         .into_iter()
@@ -868,6 +870,9 @@ pub fn txn_from_json(f: &Fields, design: &TranslateDesign) -> Result<TranslateTx
                 write_id: i.uint("write_id", h)? as u32,
                 read_id: i.uint("read_id", h)? as u32,
             };
+            if !design.binary64 && o.uint("err_width", 3)? != 0 {
+                return Err(o.bad("err_width", "0 (this design has no binary64)"));
+            }
             let outputs = TranslateOutputs {
                 ok: o.uint("ok", 1)? as u8,
                 t: o.uints("t", tb)?,
@@ -947,7 +952,9 @@ pub fn read_translate_vectors(
     let mut txns = Vec::with_capacity(raw.records.len());
     for (line, v) in &raw.records {
         let f = Fields::root(&raw.path, *line, v)?;
-        txns.push(txn_from_json(&f, design)?);
+        let txn = txn_from_json(&f, design)?;
+        super::refuse_unknown(&raw.path, *line, v, &txn_to_json(&txn))?;
+        txns.push(txn);
     }
     Ok((raw.header, txns))
 }

@@ -166,8 +166,9 @@ const DEFAULT_COUNT: u64 = 10_000;
 
 /// `--count`, or the default, as a number of transactions.
 fn count(a: &Args) -> Result<usize, String> {
-    usize::try_from(a.count.unwrap_or(DEFAULT_COUNT))
-        .map_err(|_| "--count is too large".to_string())
+    let n = a.count.unwrap_or(DEFAULT_COUNT);
+    golden::vectors::check_count("--count", n, golden::vectors::MAX_COUNT)?;
+    usize::try_from(n).map_err(|_| "--count is too large".to_string())
 }
 
 fn flip_expected() -> Result<Option<usize>, String> {

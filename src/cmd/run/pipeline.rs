@@ -22,7 +22,11 @@ use crate::image::{heat_rgb, write_png};
 
 /// How to run.
 pub struct Options {
+    /// The output folder the report names.
     pub out: PathBuf,
+    /// Where the files are written meanwhile (the fresh folder that
+    /// replaces `out` when the run is complete).
+    pub write_to: PathBuf,
     /// Build and simulate RTL for the units the scene uses.
     pub rtl: bool,
     /// Draw progress bars on stderr.
@@ -152,7 +156,7 @@ fn bar(options: &Options, what: String) -> ProgressBar {
 /// The objects of frame `k`. Without translation a placement is baked into
 /// the vertices (a new mesh whenever the offset changes, so Frames rebuilds
 /// the object) and the offset handed on is zero.
-fn frame_objects(
+pub(super) fn frame_objects(
     scene: &Scene,
     k: usize,
     baked: &mut [Option<(DVec3, Arc<Mesh>)>],
@@ -484,9 +488,10 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
         let t = Instant::now();
         let image = options.out.join(format!("frame_{k:03}.png"));
         let heat = options.out.join(format!("heat_{k:03}.png"));
-        write_png(&image, scene.width, scene.height, &traced.rgb)?;
+        let at = |p: &PathBuf| options.write_to.join(p.file_name().expect("a file name"));
+        write_png(&at(&image), scene.width, scene.height, &traced.rgb)?;
         write_png(
-            &heat,
+            &at(&heat),
             scene.width,
             scene.height,
             &heat_rgb(&traced.node_tests),
@@ -540,9 +545,14 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
     let (traced, _) = last_traced.expect("at least one frame");
     let image = options.out.join("image.png");
     let heat = options.out.join("heat.png");
-    write_png(&image, scene.width, scene.height, &traced.rgb)?;
     write_png(
-        &heat,
+        &options.write_to.join("image.png"),
+        scene.width,
+        scene.height,
+        &traced.rgb,
+    )?;
+    write_png(
+        &options.write_to.join("heat.png"),
         scene.width,
         scene.height,
         &heat_rgb(&traced.node_tests),

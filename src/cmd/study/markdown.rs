@@ -8,7 +8,8 @@ use std::path::Path;
 use super::plots::PLOTS;
 use super::run::Study;
 use super::sweep::Row;
-use super::table::{main_rows, render, render_distance, write_atomic, NOT_MEASURED};
+use super::table::{main_rows, render, render_distance, NOT_MEASURED};
+use golden::output::write_atomic;
 
 fn pct(a: f64, b: f64) -> String {
     if b == 0.0 {

@@ -7,7 +7,7 @@ use plotters::prelude::*;
 
 use super::chart::{Chart, Series};
 use super::run::Study;
-use super::table::write_atomic;
+use golden::output::write_atomic;
 
 /// Number of plots [`write_all`] draws.
 pub const COUNT: usize = 6;

@@ -196,6 +196,7 @@ pub fn main(a: Args) -> CmdResult {
         outputs: Vec::new(),
         wall_seconds: 0.0,
     };
+    golden::output::check_destination(&a.out, true)?;
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
     let pb = bar(plots::COUNT as u64, quiet, "plots");
     let mut outputs = plots::write_all(&study, &a.out, &mut || pb.inc(1))?;

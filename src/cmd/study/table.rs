@@ -1,6 +1,7 @@
 //! The study for people and programs: the terminal table, `study.csv`
 //! (one line per case and configuration) and `study.json`.
 
+use golden::output::write_atomic;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -242,20 +243,4 @@ pub fn write_files(s: &Study, out: &Path) -> Result<Vec<String>, String> {
 pub fn write_json(s: &Study, out: &Path) -> Result<(), String> {
     let text = serde_json::to_string_pretty(s).map_err(|e| format!("study.json: {e}"))?;
     write_atomic(&out.join("study.json"), text.as_bytes())
-}
-
-/// Writes `bytes` to `path` atomically (temporary file, then rename).
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
-    use std::io::Write;
-    let dir = path
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let mut tmp =
-        tempfile::NamedTempFile::new_in(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
-    tmp.write_all(bytes)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    tmp.persist(path)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
-    Ok(())
 }

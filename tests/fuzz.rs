@@ -1,0 +1,303 @@
+//! Fuzz targets, one per parser (issue 21): OBJ, PLY, scene files, vector
+//! files, ledger entries, and the values of `merge --translate`/`--mode`.
+//!
+//! Each target replays its seeds (real files: the shared meshes, the
+//! repository's scenes and ledger entries, generated vector files) and every
+//! input kept under `tests/fuzz/<target>/` (crashes found earlier, each a
+//! test from then on), then mutates seeds (bytes set, inserted, removed,
+//! duplicated, spliced from another seed, truncated) for a time budget:
+//! `HIERMERGE_FUZZ_SECONDS` per target, 0.5 s by default (CI). A target
+//! passes when no input panics and every error names the file it is about.
+//! An input that fails is written to `out/fuzz/<target>/` and named; copy it
+//! to `tests/fuzz/<target>/` with the fix. README.md gives the long command.
+
+#[path = "../src/cmd/merge_args.rs"]
+#[allow(dead_code)]
+mod merge_args;
+
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use golden::scenes::SplitMix64;
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A shared mesh, with a clear message when the checkout has no `../shared`.
+fn shared(name: &str) -> Vec<u8> {
+    let p = golden::scenes::shared_mesh_path(name);
+    std::fs::read(&p).unwrap_or_else(|e| {
+        panic!(
+            "{}: {e}: the fuzz seeds need the project's shared/ folder beside the checkout",
+            p.display()
+        )
+    })
+}
+
+fn budget() -> Duration {
+    let s = std::env::var("HIERMERGE_FUZZ_SECONDS")
+        .ok()
+        .and_then(|v| v.parse::<f64>().ok())
+        .unwrap_or(0.5);
+    Duration::from_secs_f64(s.max(0.0))
+}
+
+/// Bytes worth inserting: separators, digits, signs, and each format's
+/// structure characters.
+const INTERESTING: &[u8] = b" \n\t/-+0123456789.eE#vf{}[]:,\"\\xnulaiply";
+
+fn mutate(rng: &mut SplitMix64, seeds: &[Vec<u8>], bytes: &mut Vec<u8>) {
+    for _ in 0..1 + rng.below(6) {
+        let n = bytes.len().max(1) as u64;
+        let at = rng.below(n) as usize;
+        match rng.below(7) {
+            0 if !bytes.is_empty() => bytes[at] = rng.below(256) as u8,
+            1 => bytes.insert(
+                at.min(bytes.len()),
+                INTERESTING[rng.below(INTERESTING.len() as u64) as usize],
+            ),
+            2 if !bytes.is_empty() => {
+                bytes.remove(at);
+            }
+            3 => {
+                let len = (rng.below(16) as usize).min(bytes.len() - at.min(bytes.len()));
+                let chunk: Vec<u8> = bytes[at.min(bytes.len())..at.min(bytes.len()) + len].to_vec();
+                let to = rng.below(bytes.len() as u64 + 1) as usize;
+                bytes.splice(to..to, chunk);
+            }
+            4 => {
+                let other = &seeds[rng.below(seeds.len() as u64) as usize];
+                if !other.is_empty() {
+                    let from = rng.below(other.len() as u64) as usize;
+                    let len = (rng.below(64) as usize).min(other.len() - from);
+                    let to = at.min(bytes.len());
+                    bytes.splice(to..to, other[from..from + len].iter().copied());
+                }
+            }
+            5 if !bytes.is_empty() && rng.below(4) == 0 => bytes.truncate(at),
+            _ => {
+                // A digit run: numbers at the edges of their types.
+                let to = at.min(bytes.len());
+                let digits = [
+                    "0",
+                    "-1",
+                    "255",
+                    "65536",
+                    "4294967296",
+                    "1e39",
+                    "nan",
+                    "99999999999999999999",
+                ];
+                let d = digits[rng.below(digits.len() as u64) as usize];
+                bytes.splice(to..to, d.bytes());
+            }
+        }
+    }
+}
+
+/// Runs `target` on its seeds, its kept inputs, then mutations for the
+/// budget. `check` returns `Err` for a wrong answer; a panic is caught.
+fn fuzz(name: &str, seeds: Vec<Vec<u8>>, check: impl Fn(&[u8]) -> Result<(), String>) {
+    let kept = repo().join("tests/fuzz").join(name);
+    let mut replay = seeds.clone();
+    if let Ok(dir) = std::fs::read_dir(&kept) {
+        for f in dir {
+            replay.push(std::fs::read(f.unwrap().path()).unwrap());
+        }
+    }
+    let run = |input: &[u8]| -> Result<(), String> {
+        match catch_unwind(AssertUnwindSafe(|| check(input))) {
+            Ok(r) => r,
+            Err(p) => Err(format!(
+                "panicked: {}",
+                p.downcast_ref::<String>()
+                    .cloned()
+                    .or_else(|| p.downcast_ref::<&str>().map(|s| s.to_string()))
+                    .unwrap_or_default()
+            )),
+        }
+    };
+    let fail = |input: &[u8], why: String| -> ! {
+        let dir = repo().join("out/fuzz").join(name);
+        std::fs::create_dir_all(&dir).unwrap();
+        let digest: u64 = input.iter().fold(0xcbf29ce484222325, |h, &b| {
+            (h ^ b as u64).wrapping_mul(0x100000001b3)
+        });
+        let path = dir.join(format!("crash-{digest:016x}"));
+        std::fs::write(&path, input).unwrap();
+        panic!("{name}: {why}\ninput kept in {}", path.display());
+    };
+    for input in &replay {
+        if let Err(why) = run(input) {
+            fail(input, why);
+        }
+    }
+    let seed = std::env::var("HIERMERGE_FUZZ_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1);
+    let mut rng = SplitMix64::new(seed);
+    let (start, budget) = (Instant::now(), budget());
+    let mut cases = 0u64;
+    while start.elapsed() < budget {
+        let mut bytes = seeds[rng.below(seeds.len() as u64) as usize].clone();
+        mutate(&mut rng, &seeds, &mut bytes);
+        if let Err(why) = run(&bytes) {
+            fail(&bytes, why);
+        }
+        cases += 1;
+    }
+    eprintln!(
+        "{name}: {} seeds and kept inputs, {cases} mutations in {:.1} s (seed {seed})",
+        replay.len(),
+        start.elapsed().as_secs_f64()
+    );
+}
+
+/// An error must start with the name of the file it is about.
+fn names(file: &str, r: Result<(), String>) -> Result<(), String> {
+    match r {
+        Err(e) if !e.starts_with(file) => Err(format!("an error without the file: {e}")),
+        _ => Ok(()),
+    }
+}
+
+fn mesh_check(
+    parse: fn(&[u8], &str) -> Result<golden::mesh::Mesh, golden::mesh::MeshError>,
+) -> impl Fn(&[u8]) -> Result<(), String> {
+    move |bytes| match parse(bytes, "fuzz") {
+        Ok(m) => m
+            .validate("fuzz")
+            .map_err(|e| format!("accepted, invalid: {e}")),
+        Err(e) => names("fuzz", Err(e.to_string())),
+    }
+}
+
+#[test]
+fn fuzz_obj() {
+    let seeds = vec![
+        shared("teapot.obj"),
+        shared("bunny.obj"),
+        b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 1\nf 1/1/1 2//2 3/3 -1\nf -4 -3 -2\n".to_vec(),
+    ];
+    fuzz("obj", seeds, mesh_check(golden::mesh::parse_obj));
+}
+
+#[test]
+fn fuzz_ply() {
+    use golden::mesh::{parse_obj, write_ply, PlyFormat};
+    let teapot = parse_obj(&shared("teapot.obj"), "teapot.obj").unwrap();
+    let tiny = parse_obj(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "t").unwrap();
+    let seeds = vec![
+        write_ply(&teapot, PlyFormat::Ascii),
+        write_ply(&teapot, PlyFormat::BinaryLittleEndian),
+        write_ply(&tiny, PlyFormat::Ascii),
+        write_ply(&tiny, PlyFormat::BinaryLittleEndian),
+    ];
+    fuzz("ply", seeds, mesh_check(golden::mesh::parse_ply));
+}
+
+#[test]
+fn fuzz_scene() {
+    let dir = repo().join("scenes");
+    let mut seeds = Vec::new();
+    for f in std::fs::read_dir(&dir).unwrap() {
+        let p = f.unwrap().path();
+        if p.extension().is_some_and(|x| x == "json") {
+            seeds.push(std::fs::read(&p).unwrap());
+        }
+    }
+    assert!(!seeds.is_empty(), "no scene in {}", dir.display());
+    fuzz("scene", seeds, |bytes| {
+        let text = String::from_utf8_lossy(bytes);
+        let r = golden::scene::Scene::parse(&text, "fuzz.json", &dir).map(|_| ());
+        names("fuzz.json", r.map_err(|e| e.to_string()))
+    });
+}
+
+#[test]
+fn fuzz_vectors() {
+    use golden::vectors::merge::{read_merge_vectors, write_merge_vectors, MergeDesign};
+    use golden::vectors::translate::{
+        read_translate_vectors, write_translate_vectors, TranslateDesign,
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let (td, md) = (TranslateDesign::default(), MergeDesign::default());
+    let t = dir.path().join("t.jsonl");
+    let m = dir.path().join("m.jsonl");
+    write_translate_vectors(&t, &td, 3, 40).unwrap();
+    write_merge_vectors(&m, &md, 3, 4).unwrap();
+    let seeds = vec![std::fs::read(&t).unwrap(), std::fs::read(&m).unwrap()];
+    let case = dir.path().join("fuzz.jsonl");
+    let shown = case.display().to_string();
+    fuzz("vectors", seeds, |bytes| {
+        std::fs::write(&case, bytes).unwrap();
+        let a = read_translate_vectors(&case, &td).map(|_| ());
+        names(&shown, a.map_err(|e| e.to_string()))?;
+        let b = read_merge_vectors(&case, &md).map(|_| ());
+        names(&shown, b.map_err(|e| e.to_string()))
+    });
+}
+
+#[test]
+fn fuzz_ledger_entry() {
+    let ledger = repo().join("longruns");
+    let mut seeds = Vec::new();
+    for top in std::fs::read_dir(&ledger).unwrap() {
+        let top = top.unwrap().path();
+        if top.is_dir() {
+            let first = std::fs::read_dir(&top)
+                .unwrap()
+                .next()
+                .unwrap()
+                .unwrap()
+                .path();
+            seeds.push(std::fs::read(first).unwrap());
+        }
+    }
+    assert!(!seeds.is_empty(), "no entry in {}", ledger.display());
+    let dir = tempfile::tempdir().unwrap();
+    let folder = dir
+        .path()
+        .join("hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4");
+    std::fs::create_dir(&folder).unwrap();
+    let case = folder.join("iverilog-seed1000-n10000.json");
+    let shown = case.display().to_string();
+    fuzz("ledger_entry", seeds, |bytes| {
+        std::fs::write(&case, bytes).unwrap();
+        let r = cosim::ledger::read_entry(dir.path(), &case).map(|_| ());
+        names(&shown, r)
+    });
+}
+
+#[test]
+fn fuzz_merge_args() {
+    let seeds: Vec<Vec<u8>> = [
+        "overlap:1/2",
+        "overlap",
+        "fixed:4",
+        "below-top:2",
+        "proportion:1/3",
+        "per-node:1/2",
+        "1.5,-2,3e3",
+        "-1e19,0,0",
+    ]
+    .iter()
+    .map(|s| s.as_bytes().to_vec())
+    .collect();
+    fuzz("merge_args", seeds, |bytes| {
+        let text = String::from_utf8_lossy(bytes);
+        if let Ok(golden::merge::MergeMode::Overlap { den: 0, .. }) = merge_args::parse_mode(&text)
+        {
+            return Err("a ratio with denominator 0 accepted".into());
+        }
+        if let Ok(v) = merge_args::parse_vec3(&text) {
+            if !v.is_finite() {
+                return Err(format!("a translation that is not finite accepted: {v}"));
+            }
+        }
+        Ok(())
+    });
+}

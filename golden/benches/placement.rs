@@ -17,7 +17,7 @@ use golden::geom::Ray;
 use golden::merge::MergeMode;
 use golden::mesh::Mesh;
 use golden::oracle::{Oracle, OracleSummary};
-use golden::scenes::{shared_mesh_path, SplitMix64};
+use golden::scenes::shared_mesh_path;
 use golden::trace::{closest_hit, Hit, Instance, TraceScene, TraceStats};
 use golden::world::World;
 use golden::Params;
@@ -30,32 +30,6 @@ fn fitted(mesh: &Mesh, size: f32, at: Vec3) -> Mesh {
         vertices: mesh.vertices.iter().map(|&v| (v - lo) * s + at).collect(),
         triangles: mesh.triangles.clone(),
     }
-}
-
-/// Rays from points of a 64-unit lattice around `base` (a multiple of 64,
-/// so exact in binary32 to 2^30) at points of the objects' triangles.
-fn rays(w: &World, ids: &[u8], base: DVec3, n: usize) -> Vec<Ray> {
-    let mut rng = SplitMix64::new(7);
-    (0..n)
-        .map(|_| {
-            let o = w.object(ids[rng.below(ids.len() as u64) as usize]).unwrap();
-            let tri = o
-                .source
-                .triangle_f64(rng.below(o.source.len() as u64) as usize);
-            let (mut a, mut b) = (rng.next_f64(), rng.next_f64());
-            if a + b > 1.0 {
-                (a, b) = (1.0 - a, 1.0 - b);
-            }
-            let target = tri[0] + (tri[1] - tri[0]) * a + (tri[2] - tri[0]) * b + o.offset;
-            let lattice = DVec3::new(
-                rng.below(3) as f64 - 1.0,
-                rng.below(3) as f64 - 1.0,
-                1.0 + rng.below(2) as f64,
-            ) * 64.0;
-            let origin = (base + lattice).as_vec3();
-            Ray::unbounded(origin, (target - origin.as_dvec3()).as_vec3())
-        })
-        .collect()
 }
 
 struct Row {
@@ -123,7 +97,7 @@ fn main() {
             w.add(1, a.clone(), at).expect("bunny placed");
             w.add(2, b.clone(), at).expect("teapot placed");
             w.merge(&[1, 2], MergeMode::default(), 9).expect("merge");
-            let r = rays(&w, &[1, 2], base + DVec3::splat(5.0), 20_000);
+            let r = w.lattice_rays(&[1, 2], base, 20_000, 7, false).unwrap();
             let oracle = Oracle::new(&w.oracle_parts(&[1, 2]).unwrap()).unwrap();
             let mi = w.merged_instances(9, &[1, 2]).unwrap();
             let si = w.separate_instances(&[1, 2]).unwrap();

@@ -528,6 +528,57 @@ impl World {
             .collect()
     }
 
+    /// `n` seeded rays at objects `ids` as they were asked to be placed: from
+    /// points of a 64-unit lattice around `base` (a multiple of 64: exact in
+    /// binary32 up to 2^30, so the same relative rays at any distance) at
+    /// random points of random triangles; with `edges`, half of those points
+    /// on an edge or at a vertex (the seams).
+    pub fn lattice_rays(
+        &self,
+        ids: &[u8],
+        base: DVec3,
+        n: usize,
+        seed: u64,
+        edges: bool,
+    ) -> Result<Vec<crate::geom::Ray>, WorldError> {
+        let objects = ids
+            .iter()
+            .map(|&id| self.objects.get(&id).ok_or(WorldError::Unknown(id)))
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut rng = crate::scenes::SplitMix64::new(seed);
+        let mut out = Vec::with_capacity(n);
+        while out.len() < n && !objects.is_empty() {
+            let o = objects[rng.below(objects.len() as u64) as usize];
+            if o.source.is_empty() {
+                break;
+            }
+            let tri = o
+                .source
+                .triangle_f64(rng.below(o.source.len() as u64) as usize);
+            let (mut a, mut b) = (rng.next_f64(), rng.next_f64());
+            match (edges, rng.below(4)) {
+                (true, 0) => b = 0.0,
+                (true, 1) => (a, b) = (1.0, 0.0),
+                _ => {}
+            }
+            if a + b > 1.0 {
+                (a, b) = (1.0 - a, 1.0 - b);
+            }
+            let target = tri[0] + (tri[1] - tri[0]) * a + (tri[2] - tri[0]) * b + o.offset;
+            let lattice = DVec3::new(
+                rng.below(3) as f64 - 1.0,
+                rng.below(3) as f64 - 1.0,
+                1.0 + rng.below(2) as f64,
+            ) * 64.0;
+            let origin = (base + lattice).as_vec3();
+            out.push(crate::geom::Ray::unbounded(
+                origin,
+                (target - origin.as_dvec3()).as_vec3(),
+            ));
+        }
+        Ok(out)
+    }
+
     /// Every object's triangles at their requested scene positions (source
     /// mesh plus placement, binary64, rounded once to f32), world units: the
     /// input of a full rebuild, and of brute force in the world frame.

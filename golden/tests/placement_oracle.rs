@@ -14,7 +14,7 @@ use golden::geom::Ray;
 use golden::merge::MergeMode;
 use golden::mesh::Mesh;
 use golden::oracle::{Oracle, OracleSummary};
-use golden::scenes::{sphere, SplitMix64};
+use golden::scenes::sphere;
 use golden::trace::{closest_hit, Hit, TraceScene, TraceStats};
 use golden::world::World;
 use golden::Params;
@@ -41,42 +41,19 @@ fn ball() -> Mesh {
     sphere(Vec3::new(8.5, 8.5, 8.3), 0.3, 8, 16)
 }
 
-/// Rays from points of a 64-unit lattice near `at` (exact in binary32 up to
-/// 2^30) at points of the objects' triangles, edges and vertices.
+/// Rays from a 64-unit lattice near `at` at the objects' triangles, edges
+/// and vertices (exact origins in binary32 up to 2^30).
 fn rays(w: &World, ids: &[u8], at: DVec3, n: usize, seed: u64) -> Vec<Ray> {
-    let mut rng = SplitMix64::new(seed);
     let base = (at / 64.0).round() * 64.0;
-    let mut out = Vec::with_capacity(n);
-    while out.len() < n {
-        let o = w.object(ids[rng.below(ids.len() as u64) as usize]).unwrap();
-        let tri = o
-            .source
-            .triangle_f64(rng.below(o.source.len() as u64) as usize);
-        let (mut a, mut b) = (rng.next_f64(), rng.next_f64());
-        match rng.below(4) {
-            0 => b = 0.0,             // on an edge
-            1 => (a, b) = (1.0, 0.0), // a vertex
-            _ => {}
-        }
-        if a + b > 1.0 {
-            (a, b) = (1.0 - a, 1.0 - b);
-        }
-        let target = tri[0] + (tri[1] - tri[0]) * a + (tri[2] - tri[0]) * b + o.offset;
-        let lattice = DVec3::new(
-            rng.below(3) as f64 - 1.0,
-            rng.below(3) as f64 - 1.0,
-            1.0 + rng.below(2) as f64,
-        ) * 64.0;
-        let origin = (base + lattice).as_vec3();
+    let r = w.lattice_rays(ids, base, n, seed, true).unwrap();
+    for ray in &r {
         assert_eq!(
-            origin.as_dvec3(),
-            base + lattice,
+            ray.origin.as_dvec3(),
+            ray.origin.as_dvec3().round(),
             "lattice origins are exact"
         );
-        let dir = (target - origin.as_dvec3()).as_vec3();
-        out.push(Ray::unbounded(origin, dir));
     }
-    out
+    r
 }
 
 fn judge(oracle: &Oracle, scene: &TraceScene, rays: &[Ray]) -> OracleSummary {

@@ -112,10 +112,15 @@ pub fn generic(
     digest: &str,
 ) -> Result<(GenericFigures, Vec<String>)> {
     let mut made = Vec::new();
-    let key = glue_key(flow, digest, "generic");
+    // "-2": its depth counts its own gates only (black boxes deleted first).
+    let key = glue_key(flow, digest, "generic-2");
     let entry =
         crate::cache::get_or_build(&flow.cache_root, "synth-generic-glue", top, &key, |d| {
-            generic::build(flow, &glue_reads(netlist, top), top, d)?;
+            let cut: String = parts(netlist, top)
+                .iter()
+                .map(|p| format!("delete t:{}\n", p.module))
+                .collect();
+            generic::build(flow, &glue_reads(netlist, top), top, d, &cut)?;
             super::write_meta(d, top, digest, &flow.yosys.version)
         })?;
     if entry.built {

@@ -70,7 +70,7 @@ pub(super) fn read_files(files: &[std::path::PathBuf]) -> String {
         .collect()
 }
 
-fn script(reads: &str, top: &str) -> String {
+fn script(reads: &str, top: &str, cut: &str) -> String {
     format!(
         "{reads}hierarchy -check -top {top}\n\
          synth -flatten -top {top} -run begin:fine\n\
@@ -83,17 +83,20 @@ fn script(reads: &str, top: &str) -> String {
          tee -q -o stat.txt stat\n\
          tee -q -o mem.txt dump t:$mem_v2\n\
          delete t:$mem_v2\n\
+         {cut}\
          tee -q -o ltp.txt ltp -noff\n",
     )
 }
 
 /// Runs the generic flow on `top` read by the Yosys commands `reads`
 /// (its whole tree, or its own file with its parts as black boxes) and
-/// writes `figures.json` into `dir`.
-pub(super) fn build(flow: &Flow, reads: &str, top: &str, dir: &Path) -> Result<()> {
+/// writes `figures.json` into `dir`; `cut` (Yosys commands) runs just
+/// before `ltp` (a composed top deletes its black boxes there, so that its
+/// depth counts its own gates only).
+pub(super) fn build(flow: &Flow, reads: &str, top: &str, dir: &Path, cut: &str) -> Result<()> {
     (flow.progress)(&format!("{top}: generic: yosys synth + abc"));
     let ys = dir.join("generic.ys");
-    std::fs::write(&ys, script(reads, top)).map_err(io_err(&ys))?;
+    std::fs::write(&ys, script(reads, top, cut)).map_err(io_err(&ys))?;
     flow.yosys_script(dir, "generic.ys", "yosys.log")?;
     let read = |f: &str| std::fs::read_to_string(dir.join(f)).map_err(io_err(dir.join(f)));
     let cells = stat::cell_counts(&read("stat.txt")?);
@@ -122,7 +125,7 @@ pub fn generic(
         .add("yosys", flow.yosys.version.as_bytes())
         .add("gates", GATES.as_bytes());
     let entry = crate::cache::get_or_build(&flow.cache_root, KIND, top, &key.finish(), |d| {
-        build(flow, &read_files(&netlist.files(top)), top, d)?;
+        build(flow, &read_files(&netlist.files(top)), top, d, "")?;
         super::write_meta(d, top, digest, &flow.yosys.version)
     })?;
     Ok((

@@ -221,6 +221,36 @@ pub fn synthesis(
     flow.synthesized(KIND, top, digest, |d| synth_build(flow, netlist, top, d))
 }
 
+/// Where a timed-out iCE40 place and route of `top` (run key `key`) is remembered.
+fn timeout_file(root: &Path, top: &str, key: &str) -> std::path::PathBuf {
+    root.join("synth-ice40-pnr-timeout")
+        .join(format!("{top}-{}.txt", &key[..24]))
+}
+
+/// The longest time limit a place and route `key` of `top` ran out of, if any.
+fn timed_out(root: &Path, top: &str, key: &str) -> Option<u64> {
+    let text = std::fs::read_to_string(timeout_file(root, top, key)).ok()?;
+    text.trim().parse().ok()
+}
+
+/// Remembers that place and route `key` of `top` ran out of `secs` seconds,
+/// so that a rerun with that limit or a shorter one does not wait again.
+fn remember_timeout(root: &Path, top: &str, key: &str, secs: u64) -> Result<()> {
+    let path = timeout_file(root, top, key);
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir).map_err(io_err(dir))?;
+    }
+    let secs = secs.max(timed_out(root, top, key).unwrap_or(0));
+    std::fs::write(&path, secs.to_string()).map_err(io_err(&path))
+}
+
+fn stall_note(seed: u64, secs: u64) -> String {
+    format!(
+        " (not placed: nextpnr-ice40 seed {seed} did not finish within {secs} s; \
+         a run with a longer --timeout tries again)"
+    )
+}
+
 /// The iCE40 figures of `top`, cached; the list names what this call made.
 /// With `ecp5` (the module's ECP5 synthesis, when that target runs) a module
 /// that `rules_out` is not synthesized for iCE40 at all.
@@ -266,6 +296,12 @@ pub fn ice40(
     let index = SourceIndex::new(netlist, top).below(WRAPPER, "u_dut");
     for seed in 1..=seeds {
         let key = flow.pnr_key(&synth_key, tool, DEVICE, seed);
+        let stalled = timed_out(root, top, &key);
+        if let Some(secs) = stalled.filter(|s| *s >= flow.timeout.as_secs()) {
+            figures.verdict += &stall_note(seed, secs);
+            figures.runs.clear();
+            return Ok((figures, made));
+        }
         let run = crate::cache::get_or_build(root, "synth-ice40-pnr", top, &key, |d| {
             (flow.progress)(&format!("{top}: ice40: nextpnr-ice40 seed {seed}"));
             let run = super::ecp5::place_and_route(flow, tool, DEVICE, &json, seed, &index, d)?;
@@ -283,10 +319,10 @@ pub fn ice40(
             Err(crate::error::CosimError::ToolFailed { log, .. })
                 if log.starts_with("timed out") =>
             {
-                figures.verdict += &format!(
-                    " (not placed: nextpnr-ice40 seed {seed} did not finish within {} s, --timeout)",
-                    flow.timeout.as_secs()
-                );
+                let secs = flow.timeout.as_secs();
+                remember_timeout(root, top, &key, secs)?;
+                made.push(format!("ice40 seed {seed} (timed out)"));
+                figures.verdict += &stall_note(seed, secs);
                 figures.runs.clear();
                 return Ok((figures, made));
             }

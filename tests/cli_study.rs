@@ -19,6 +19,10 @@ const MERGES: &str = "12";
 const RECORDS: &str = "60";
 
 fn study(out: &Path, rtl: bool) -> Value {
+    study_with(out, rtl, &[])
+}
+
+fn study_with(out: &Path, rtl: bool, env: &[(&str, &str)]) -> Value {
     let teapot = golden::scenes::shared_mesh_path("teapot.obj");
     let teapot = teapot.to_str().expect("utf-8 path");
     let out = out.to_str().expect("utf-8 path");
@@ -50,7 +54,7 @@ fn study(out: &Path, rtl: bool) -> Value {
     } else {
         args.push("--no-rtl");
     }
-    let o = hiermerge(&args, &[]);
+    let o = hiermerge(&args, env);
     assert!(
         o.status.success(),
         "study failed:\n{}",
@@ -217,11 +221,18 @@ fn check_outputs(s: &Value, out: &Path) {
         .iter()
         .find(|r| r["default_config"] == true)
         .expect("the default row");
-    for k in ["synth", "ns_per_merge"] {
-        assert!(
-            default[k].is_null(),
-            "no synthesis yet: {k} is not measured, never a guess"
-        );
+    // Synthesis figures come only from `hiermerge synth`'s records in the
+    // cache this run reads (none in a fresh one): never a guess, and ns per
+    // merge is cycles over that Fmax.
+    let synth = &default["synth"];
+    if synth.is_null() {
+        assert!(default["ns_per_merge"].is_null(), "{default}");
+    } else if let (Some(fmax), Some(cycles)) = (
+        synth["fmax_mhz"].as_f64(),
+        default["rtl"]["cycles_per_merge"].as_f64(),
+    ) {
+        let ns = default["ns_per_merge"].as_f64().unwrap();
+        assert!((ns - cycles * 1e3 / fmax).abs() < 1e-6, "{default}");
     }
 }
 
@@ -307,4 +318,99 @@ fn bad_input_names_the_file() {
     let o = hiermerge(&["study", "--max-lod", "16", "--rtl-configs", "12:8"], &[]);
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("--rtl-configs 12:8: not in the sweep"));
+}
+
+/// Plants synthesis records (SPEC 14.5) for the D16 Q8 merger and two of
+/// its parts in a cache of its own; the figures are test data, not
+/// measurements.
+fn plant_records(cache: &Path) {
+    use cosim::synth::record::{store, Recorded};
+    use cosim::synth::{ecp5, generic, sources::Netlist, Spread, Target};
+    let p = golden::Params::default();
+    let design = golden::vectors::merge::MergeDesign {
+        params: golden::Params::new(16, 8, p.index_bits, p.hier_bits).unwrap(),
+        ..Default::default()
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let files = rtl_gen::merge::emit_merge(&design, dir.path()).unwrap();
+    let n = Netlist::read(&files).unwrap();
+    let module = |prefix: &str| {
+        n.modules
+            .keys()
+            .find(|m| m.starts_with(prefix))
+            .unwrap()
+            .clone()
+    };
+    fn rec<T>(n: &Netlist, m: &str, figures: T) -> Recorded<T> {
+        Recorded {
+            module: m.to_string(),
+            digest: n.digest(m),
+            tools: "planted".into(),
+            seeds: 1,
+            goal_mhz: 100.0,
+            figures,
+        }
+    }
+    let synth = |lut4| ecp5::Ecp5Synth {
+        cells: Default::default(),
+        lut4,
+        ff: 1,
+        ccu2c: 0,
+        ebr: 300,
+        lutram: 0,
+        dsp: 0,
+    };
+    let top = module("hierarchy_merger_");
+    let g = generic::GenericFigures {
+        cells: Default::default(),
+        nand2_eq: 12345.0,
+        flip_flops: 1,
+        memories: 0,
+        memory_bits: 0,
+        depth: 1,
+    };
+    store(cache, Target::Generic, &rec(&n, &top, g)).unwrap();
+    let unplaced =
+        ecp5::Ecp5Figures::unplaced(synth(777), false, "does not fit: 300 EBR of 208".into());
+    store(cache, Target::Ecp5, &rec(&n, &top, unplaced)).unwrap();
+    for (part, fmax) in [("upper_builder_", 40.0), ("upper_level_", 150.0)] {
+        let mut placed = ecp5::Ecp5Figures::unplaced(synth(10), true, "fits".into());
+        placed.fmax_mhz = Some(Spread::of(vec![fmax]));
+        store(cache, Target::Ecp5, &rec(&n, &module(part), placed)).unwrap();
+    }
+}
+
+/// The study reads what `hiermerge synth` recorded: area and the clock
+/// bound (the slowest placed part, the top not being placed) at the
+/// configuration recorded, "not measured" with the command elsewhere.
+#[test]
+fn study_reads_synthesis_records_from_the_cache() {
+    let cache = tempfile::tempdir().unwrap();
+    plant_records(cache.path());
+    let out = tempfile::tempdir().unwrap();
+    let c = cache.path().display().to_string();
+    let s = study_with(out.path(), false, &[("HIERMERGE_CACHE", &c)]);
+    for r in rows(&s) {
+        let synth = &r["synth"];
+        if r["max_lod"] == 16 && r["quant_bits"] == 8 {
+            assert_eq!(synth["nand2_eq"], 12345.0, "{r}");
+            assert_eq!(synth["ecp5_lut4"], 777, "{r}");
+            assert_eq!(synth["fmax_mhz"], 40.0, "the slowest placed part: {r}");
+            assert_eq!(synth["fmax_bound"], true, "{r}");
+            assert!(synth["fmax_of"]
+                .as_str()
+                .unwrap()
+                .starts_with("upper_builder_"));
+        } else {
+            assert!(
+                synth.is_null(),
+                "nothing recorded at this configuration: {r}"
+            );
+        }
+    }
+    let notes = s["notes"].to_string();
+    assert!(
+        notes.contains("hiermerge synth --unit merge --max-lod 8 --quant-bits 0"),
+        "{notes}"
+    );
 }

@@ -130,7 +130,24 @@ fn synth_small_configuration_on_every_target() {
         .unwrap()
         .starts_with("merge_level_d6_q4_"));
     check_figures(&modules[0]);
-    assert!(u(&r1["computed"]) > 0);
+    // Every entry this run made is listed, the iCE40 wrapper's synthesis too.
+    let made: Vec<&str> = modules[0]["computed"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_str().unwrap())
+        .collect();
+    for want in [
+        "generic",
+        "ecp5 synth",
+        "ecp5 seed 1",
+        "ice40 synth",
+        "ice40 wrapper synth",
+        "ice40 seed 1",
+    ] {
+        assert!(made.contains(&want), "{want} not in {made:?}");
+    }
+    assert_eq!(u(&r1["computed"]), made.len() as u64);
 
     // Unchanged configuration: everything from the cache, the same figures.
     let second = run(cache.path(), SMALL, &[]);

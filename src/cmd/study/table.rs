@@ -12,6 +12,16 @@ use super::sweep::Row;
 /// What an absent measurement prints.
 pub const NOT_MEASURED: &str = "not measured";
 
+/// `v` to one decimal, prefixed with `sign` when the row's Fmax is a bound
+/// (the top not placed, SPEC 13.4).
+fn bounded(r: &Row, v: Option<f64>, sign: &str) -> String {
+    match v {
+        None => NOT_MEASURED.to_string(),
+        Some(v) if r.synth.as_ref().is_some_and(|s| s.fmax_bound) => format!("{sign}{v:.1}"),
+        Some(v) => format!("{v:.1}"),
+    }
+}
+
 /// The columns of a row: header and value.
 pub fn columns(r: &Row) -> Vec<(&'static str, String)> {
     let opt = |v: Option<f64>, digits: usize| {
@@ -52,9 +62,22 @@ pub fn columns(r: &Row) -> Vec<(&'static str, String)> {
             "cycles/tr record",
             opt(r.rtl.as_ref().map(|f| f.cycles_per_translated_record), 2),
         ),
-        ("area", opt(r.synth.as_ref().map(|s| s.area), 0)),
-        ("Fmax MHz", opt(r.synth.as_ref().map(|s| s.fmax_mhz), 1)),
-        ("ns/merge", opt(r.ns_per_merge, 1)),
+        (
+            "NAND2-eq",
+            opt(r.synth.as_ref().and_then(|s| s.nand2_eq), 0),
+        ),
+        (
+            "ECP5 LUT4",
+            opt(
+                r.synth.as_ref().and_then(|s| s.ecp5_lut4.map(|n| n as f64)),
+                0,
+            ),
+        ),
+        (
+            "Fmax MHz",
+            bounded(r, r.synth.as_ref().and_then(|s| s.fmax_mhz), "≤"),
+        ),
+        ("ns/merge", bounded(r, r.ns_per_merge, "≥")),
     ]
 }
 

@@ -47,7 +47,11 @@ pub fn print(r: &Report) {
             or_dash(g, |g| format!("{:.0}", g.nand2_eq)),
             or_dash(g, |g| g.flip_flops.to_string()),
             or_dash(g, |g| g.memory_bits.to_string()),
-            or_dash(g, |g| g.depth.to_string()),
+            or_dash(g, |g| if m.composed_of.is_empty() {
+                g.depth.to_string()
+            } else {
+                format!("≥{}", g.depth)
+            }),
             or_dash(e, |e| e.synth.lut4.to_string()),
             or_dash(e, |e| e.synth.ff.to_string()),
             or_dash(e, |e| e.synth.ccu2c.to_string()),
@@ -58,6 +62,19 @@ pub fn print(r: &Report) {
                 None => e.verdict.clone(),
             }),
             ice,
+        );
+    }
+    for m in r.modules.iter().filter(|m| !m.composed_of.is_empty()) {
+        let parts: Vec<String> = m
+            .composed_of
+            .iter()
+            .map(|p| format!("{} x {}", p.count, p.module))
+            .collect();
+        println!();
+        println!(
+            "{}: composed (SPEC 14.6): its own logic plus {}; depth: the deepest part",
+            m.module,
+            parts.join(", ")
         );
     }
     for m in &r.modules {

@@ -193,7 +193,10 @@ pub fn write_design_with_style(
     let mut out = Vec::new();
     for (name, text) in files {
         let p = dir.join(name);
-        std::fs::write(&p, text).map_err(|e| DesignError::Io(p.clone(), e))?;
+        // Atomic, so an interrupted `gen` never leaves half a module behind
+        // (SPEC 15.3).
+        golden::output::write_atomic(&p, text.as_bytes())
+            .map_err(|e| DesignError::Io(p.clone(), std::io::Error::other(e)))?;
         out.push(p);
     }
     Ok(out)

@@ -790,10 +790,16 @@ pub fn edge_rays(scene: &TraceScene, n: usize, seed: u64) -> Vec<Ray> {
 /// compares the answers bit for bit: [`random_rays`] aimed at the scene's
 /// bounds for the first half, [`edge_rays`] for the rest.
 pub fn verify_rays(scene: &TraceScene, n: usize, seed: u64) -> TraceSummary {
+    verify_ray_list(scene, &verify_ray_set(scene, n, seed))
+}
+
+/// The rays [`verify_rays`] traces: `n - n/2` random rays over the scene's
+/// bounds and `n/2` edge rays.
+pub fn verify_ray_set(scene: &TraceScene, n: usize, seed: u64) -> Vec<Ray> {
     let (lo, hi) = scene.bounds();
     let mut rays = random_rays(lo, hi, n - n / 2, seed);
     rays.extend(edge_rays(scene, n / 2, seed ^ 0xED6E));
-    verify_ray_list(scene, &rays)
+    rays
 }
 
 /// [`verify_rays`] over given rays.

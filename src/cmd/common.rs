@@ -193,3 +193,11 @@ impl UnitOpts {
         Ok(design)
     }
 }
+
+/// One line of the oracle's counts.
+pub fn oracle_line(o: &golden::oracle::OracleSummary) -> String {
+    format!(
+        "oracle (binary64, requested positions): {} rays, {} agree, {} grazing, {} ties; {} faults ({} wrong triangle, {} missed, {} extra, {} t error); max t error {:.3e}, bound up to {:.3e}",
+        o.rays, o.agree, o.grazing, o.ties, o.faults(), o.wrong_triangle, o.missed, o.extra, o.t_error, o.max_t_error, o.max_bound
+    )
+}

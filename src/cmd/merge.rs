@@ -309,7 +309,7 @@ pub fn main(a: Args) -> CmdResult {
             println!("verify: {m} mismatches against brute force");
         }
         if let Some(o) = &r.oracle {
-            println!("{}", oracle_line(o));
+            println!("{}", super::common::oracle_line(o));
         }
     })?;
     if mismatches > 0 {
@@ -383,12 +383,4 @@ fn groups_of(given: &[Vec<u8>], n: usize) -> Result<Vec<Vec<u8>>, String> {
         ));
     }
     Ok(given.to_vec())
-}
-
-/// One line of the oracle's counts.
-pub fn oracle_line(o: &OracleSummary) -> String {
-    format!(
-        "oracle (binary64, requested positions): {} rays, {} agree, {} grazing, {} ties; {} faults ({} wrong triangle, {} missed, {} extra, {} t error); max t error {:.3e}, bound up to {:.3e}",
-        o.rays, o.agree, o.grazing, o.ties, o.faults(), o.wrong_triangle, o.missed, o.extra, o.t_error, o.max_t_error, o.max_bound
-    )
 }

@@ -6,8 +6,7 @@ use std::path::PathBuf;
 
 use golden::oracle::{Oracle, OracleSummary, Part};
 use golden::trace::{
-    bench_trace, closest_hit, edge_rays, random_rays, verify_ray_list, Instance, TraceScene,
-    TraceStats,
+    bench_trace, closest_hit, verify_ray_list, verify_ray_set, Instance, TraceScene, TraceStats,
 };
 use serde::Serialize;
 
@@ -82,9 +81,7 @@ pub fn main(a: Args) -> CmdResult {
         oracle: None,
     };
     if a.verify {
-        let (lo, hi) = scene.bounds();
-        let mut rays = random_rays(lo, hi, a.rays - a.rays / 2, a.seed);
-        rays.extend(edge_rays(&scene, a.rays / 2, a.seed ^ 0xED6E));
+        let rays = verify_ray_set(&scene, a.rays, a.seed);
         let v = verify_ray_list(&scene, &rays);
         let part = Part {
             hier: 0,
@@ -119,7 +116,7 @@ pub fn main(a: Args) -> CmdResult {
             }
         }
         if let Some(o) = &r.oracle {
-            println!("{}", super::merge::oracle_line(o));
+            println!("{}", super::common::oracle_line(o));
         }
     })?;
     if let Some(m) = report.mismatches.filter(|&m| m > 0) {

@@ -466,7 +466,7 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
                         c.rays
                     ));
                     if let Some(o) = &c.oracle {
-                        simulated.push(crate::cmd::merge::oracle_line(o));
+                        simulated.push(crate::cmd::common::oracle_line(o));
                     }
                     Some(c)
                 } else {

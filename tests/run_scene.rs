@@ -117,19 +117,28 @@ fn default_scene_runs_with_zero_mismatches_and_writes_every_frame() {
         assert_eq!(frames[1]["rtl"]["determine"], 3);
         assert!(frames[1]["rtl"]["cycles"].as_u64().unwrap() > 0);
         assert_eq!(frames[1]["rtl"]["mismatches"], 0);
-        for f in &frames[..3] {
-            let m = &f["merge_rtl"];
-            assert_eq!(
-                strings(&m["stages"]),
-                vec![
-                    "merging module (S608 count pass, choice, S614)",
-                    "S616 upper level"
-                ]
-            );
-            assert!(m["cycles"].as_u64().unwrap() > 100);
-            assert_eq!(m["mismatches"], 0);
+        // Two merge groups (paragraph 67): the static one is merged in
+        // frame 0 only, the dynamic one whenever its objects move.
+        for (k, f) in frames.iter().enumerate() {
+            for (g, group) in f["groups"].as_array().unwrap().iter().enumerate() {
+                let m = &group["merge_rtl"];
+                if (g == 0 && k > 0) || k == 3 {
+                    assert_eq!(group["merged"], false, "frame {k} group {g}");
+                    assert!(m.is_null(), "frame {k} group {g}: {m}");
+                    continue;
+                }
+                assert_eq!(group["merged"], true, "frame {k} group {g}");
+                assert_eq!(
+                    strings(&m["stages"]),
+                    vec![
+                        "merging module (S608 count pass, choice, S614)",
+                        "S616 upper level"
+                    ]
+                );
+                assert!(m["cycles"].as_u64().unwrap() > 100);
+                assert_eq!(m["mismatches"], 0);
+            }
         }
-        assert!(frames[3]["merge_rtl"].is_null());
     }
     // Shadows and reflections were traced.
     let rays = &frames[0]["rays"];
@@ -185,7 +194,7 @@ fn bunny_and_teapot_scene_file_runs() {
 /// (SPEC 8.14): one stage, 0 mismatches, beats and cycles counted, said so
 /// in `simulated`, and no "not built" left in `skipped`.
 fn assert_per_node_simulated(f: &Value) {
-    let m = &f["merge_rtl"];
+    let m = &f["groups"][0]["merge_rtl"];
     let stages = strings(&m["stages"]);
     assert_eq!(stages.len(), 1, "{m}");
     assert!(stages[0].starts_with("per-node merging module ("), "{m}");
@@ -228,7 +237,7 @@ fn per_node_frames_run_through_the_per_node_merging_module() {
     if verilator() {
         for f in frames {
             assert_per_node_simulated(f);
-            let m = &f["merge_rtl"];
+            let m = &f["groups"][0]["merge_rtl"];
             assert!(m["passes"].as_u64().unwrap() > 1, "{m}");
             assert!(m["descents"].as_u64().unwrap() > 0, "{m}");
         }
@@ -313,7 +322,7 @@ fn scene_without_translation_builds_no_translation_unit_and_says_so() {
                 .all(|n| !n.starts_with("overlap") && !n.starts_with("upper")),
             "{built:?}"
         );
-        let m = &v["frames"][0]["merge_rtl"];
+        let m = &v["frames"][0]["groups"][0]["merge_rtl"];
         assert_eq!(strings(&m["stages"]), vec!["merging module (choice, S614)"]);
         assert_eq!(m["mismatches"], 0);
         let skipped = strings(&v["frames"][0]["skipped"]);
@@ -389,7 +398,7 @@ fn a_frame_where_nothing_moved_resimulates_nothing() {
     assert_eq!(still["merged"], false);
     assert_eq!(still["nodes_created"], 0);
     assert!(still["rtl"].is_null());
-    assert!(still["merge_rtl"].is_null());
+    assert!(still["groups"][0]["merge_rtl"].is_null());
     let skipped = strings(&still["skipped"]);
     for what in [
         "merge: no input changed",

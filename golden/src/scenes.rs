@@ -299,6 +299,63 @@ pub fn box_mesh(lo: Vec3, hi: Vec3) -> Mesh {
     }
 }
 
+/// A generated building: `storeys` floors, each a slab with long thin walls
+/// on the boundaries of a `rooms` by `rooms` grid of 4-unit rooms, a column
+/// at every wall crossing and a straight stair to the next storey (storeys
+/// 3 units high). The large flat triangles of slabs and the long thin ones
+/// of walls are what real architectural scenes are made of and what a
+/// sparse octree handles worst (issue 19: merging must pay on them too).
+pub fn architecture(storeys: u32, rooms: u32) -> Mesh {
+    let (room, storey, wall, slab) = (4.0f32, 3.0f32, 0.1f32, 0.2f32);
+    let side = room * rooms as f32;
+    let mut m = Mesh::default();
+    for s in 0..storeys {
+        let y = s as f32 * storey;
+        append(
+            &mut m,
+            &box_mesh(Vec3::new(0.0, y, 0.0), Vec3::new(side, y + slab, side)),
+        );
+        for k in 0..=rooms {
+            let c = (k as f32 * room).clamp(wall, side - wall);
+            let (lo, hi) = (y + slab, y + storey);
+            append(
+                &mut m,
+                &box_mesh(Vec3::new(0.0, lo, c - wall), Vec3::new(side, hi, c)),
+            );
+            append(
+                &mut m,
+                &box_mesh(Vec3::new(c - wall, lo, 0.0), Vec3::new(c, hi, side)),
+            );
+            let cx = (k as f32 * room).clamp(0.3, side - 0.3);
+            for j in 0..=rooms {
+                let cz = (j as f32 * room).clamp(0.3, side - 0.3);
+                append(
+                    &mut m,
+                    &box_mesh(
+                        Vec3::new(cx - 0.3, lo, cz - 0.3),
+                        Vec3::new(cx + 0.3, hi, cz + 0.3),
+                    ),
+                );
+            }
+        }
+        if s + 1 < storeys {
+            let steps = 10;
+            for i in 0..steps {
+                let t = i as f32 / steps as f32;
+                let x = 0.5 + t * (room - 1.0);
+                append(
+                    &mut m,
+                    &box_mesh(
+                        Vec3::new(x, y + slab + t * storey, 0.5),
+                        Vec3::new(x + 0.3, y + slab + (t + 0.1) * storey, 1.5),
+                    ),
+                );
+            }
+        }
+    }
+    m
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

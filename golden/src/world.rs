@@ -637,6 +637,28 @@ mod tests {
         .unwrap()
     }
 
+    /// Merged hierarchy `merged` of `ids` hits what the separate
+    /// hierarchies hit, bit for bit, on `rays` random rays, more than
+    /// `min_hits` of which hit.
+    fn traces_like_separate(w: &World, merged: u8, ids: &[u8], rays: usize, min_hits: u32) {
+        let mi = w.merged_instances(merged, ids).unwrap();
+        let si = w.separate_instances(ids).unwrap();
+        let ms = w.trace_scene(&mi, &[merged]).unwrap();
+        let ss = w.trace_scene(&si, ids).unwrap();
+        let (lo, hi) = ss.bounds();
+        let mut hits = 0;
+        for ray in random_rays(lo, hi, rays, 3) {
+            let a = closest_hit(&ray, &ms, &mut TraceStats::default());
+            let b = closest_hit(&ray, &ss, &mut TraceStats::default());
+            assert_eq!(
+                a.map(|h| (h.hier, h.prim, h.t.to_bits())),
+                b.map(|h| (h.hier, h.prim, h.t.to_bits()))
+            );
+            hits += a.is_some() as u32;
+        }
+        assert!(hits > min_hits, "{hits} hits");
+    }
+
     #[test]
     fn placing_keeps_the_residual_in_the_local_geometry() {
         let mut w = world();
@@ -752,6 +774,29 @@ mod tests {
         );
     }
 
+    /// Issue 19 item 5: a floor as large as the scene (its triangles'
+    /// base LOD is 0) merges with a small object and traces like the two
+    /// apart; before SPEC 4.2's LOD-1 floor it was refused as a leaf at the
+    /// LOD-0 top.
+    #[test]
+    fn a_floor_as_large_as_the_scene_merges() {
+        let mut w = world();
+        let side = w.params.voxel_edge(0) as f32 * w.grid.unit as f32;
+        let floor = crate::scenes::box_mesh(Vec3::ZERO, Vec3::new(side, side / 64.0, side));
+        w.add(1, floor, DVec3::ZERO).unwrap();
+        let h = w.store.get(1).unwrap();
+        assert!(h.nodes.iter().all(|n| !n.leaf || n.voxel.lod >= 1));
+        w.add(
+            2,
+            sphere(Vec3::splat(1.0), 0.4, 12, 24),
+            DVec3::new(3.0, 1.0, 2.0),
+        )
+        .unwrap();
+        w.merge(&[1, 2], MergeMode::default(), 9).unwrap();
+        w.check(9).unwrap();
+        traces_like_separate(&w, 9, &[1, 2], 1000, 100);
+    }
+
     #[test]
     fn merged_world_traces_like_its_parts() {
         let mut w = world();
@@ -775,22 +820,7 @@ mod tests {
         ));
         assert_eq!(w.table.get(9), before);
         w.check(9).unwrap();
-        let mi = w.merged_instances(9, &[1, 2]).unwrap();
-        let si = w.separate_instances(&[1, 2]).unwrap();
-        let ms = w.trace_scene(&mi, &[9]).unwrap();
-        let ss = w.trace_scene(&si, &[1, 2]).unwrap();
-        let (lo, hi) = ss.bounds();
-        let mut hits = 0;
-        for ray in random_rays(lo, hi, 2000, 3) {
-            let a = closest_hit(&ray, &ms, &mut TraceStats::default());
-            let b = closest_hit(&ray, &ss, &mut TraceStats::default());
-            assert_eq!(
-                a.map(|h| (h.hier, h.prim, h.t.to_bits())),
-                b.map(|h| (h.hier, h.prim, h.t.to_bits()))
-            );
-            hits += a.is_some() as u32;
-        }
-        assert!(hits > 200, "{hits} hits");
+        traces_like_separate(&w, 9, &[1, 2], 2000, 200);
         // The merged output id cannot be an object's.
         assert!(w.merge(&[1, 2], MergeMode::default(), 1).is_err());
         // Placed mesh: every triangle, translated.

@@ -9,7 +9,8 @@ use golden::store::Hierarchy;
 use golden::{Params, VoxelAddr};
 
 /// SPEC 4.2 written with floating logarithms: base = D - ceil(log2(ext)),
-/// sliver = clamp(floor(log2(r)) - 1, 0, 3) with r = L^2 / (2A).
+/// sliver = clamp(floor(log2(r)) - 1, 0, 3) with r = L^2 / (2A), the sum
+/// clamped to 1..=D.
 fn spec_lod(t: &[DVec3; 3], d: u8) -> u8 {
     let lo = t[0].min(t[1]).min(t[2]);
     let hi = t[0].max(t[1]).max(t[2]);
@@ -31,7 +32,7 @@ fn spec_lod(t: &[DVec3; 3], d: u8) -> u8 {
     } else {
         ((l * l / area2).log2().floor() as i32 - 1).clamp(0, 3)
     };
-    (base + sliver).min(d as i32) as u8
+    (base + sliver).clamp(1, d as i32) as u8
 }
 
 /// The LOD and voxels of the leaves holding each primitive.

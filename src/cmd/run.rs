@@ -12,6 +12,7 @@
 
 mod compare;
 mod merge_rtl;
+mod merges;
 mod pipeline;
 mod preflight;
 mod render;

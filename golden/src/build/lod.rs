@@ -61,11 +61,18 @@ pub fn sliver_levels(tri: &[DVec3; 3]) -> u32 {
     0
 }
 
-/// The primitive's LOD: `min(D, base_lod + sliver_levels)`.
+/// Shallowest LOD a primitive is placed at. A leaf at LOD 0 would be a
+/// root that no merged hierarchy can hold (its primitives index its own
+/// input's triangles, SPEC 8.6), so a floor as large as the scene could
+/// never be merged; at LOD 1 it lands in the (at most 8) voxels it touches.
+pub const MIN_PRIMITIVE_LOD: u32 = 1;
+
+/// The primitive's LOD: `base_lod + sliver_levels`, clamped to
+/// `MIN_PRIMITIVE_LOD..=D`.
 pub fn primitive_lod(tri: &[DVec3; 3], lo: DVec3, hi: DVec3, max_lod: u8) -> u8 {
     let extent = (hi - lo).max_element();
     let base = base_lod(extent, max_lod) as u32;
-    (base + sliver_levels(tri)).min(max_lod as u32) as u8
+    (base + sliver_levels(tri)).clamp(MIN_PRIMITIVE_LOD, max_lod as u32) as u8
 }
 
 #[cfg(test)]
@@ -156,5 +163,20 @@ mod tests {
             primitive_lod(&tiny, DVec3::ZERO, DVec3::new(0.01, 0.0001, 0.0), 8),
             8
         );
+    }
+
+    #[test]
+    fn a_triangle_spanning_the_scene_sits_at_lod_1() {
+        // An equilateral-ish triangle across the whole cube of D = 4: its
+        // base LOD is 0, and nothing may be placed there.
+        let big = [
+            DVec3::ZERO,
+            DVec3::new(16.0, 0.0, 0.0),
+            DVec3::new(8.0, 0.0, 14.0),
+        ];
+        let (lo, hi) = (DVec3::ZERO, DVec3::new(16.0, 0.0, 14.0));
+        assert_eq!(base_lod(16.0, 4), 0);
+        assert_eq!(primitive_lod(&big, lo, hi, 4), 1);
+        assert_eq!(primitive_lod(&big, lo, hi, 1), 1);
     }
 }

@@ -252,6 +252,11 @@ pub struct UnitsSpec {
     pub merge: MergeSpec,
     /// The merging module's upper-level stage (S616) is simulated in RTL.
     pub upper_build: bool,
+    /// Merge groups (paragraph 67): lists of object names, every object in
+    /// exactly one; each group is merged into a hierarchy of its own and the
+    /// groups are traced together. Absent: one group of every object.
+    #[serde(default)]
+    pub groups: Option<Vec<Vec<String>>>,
 }
 
 /// A merge mode, as `golden::merge::MergeMode`.

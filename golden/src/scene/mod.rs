@@ -101,6 +101,10 @@ pub struct Scene {
     pub objects: Vec<SceneObject>,
     /// Units and rays the scene calls for.
     pub effects: Effects,
+    /// Merge groups as object ids (paragraph 67), every object in exactly
+    /// one, in the file's order; one group of every object when the file
+    /// names none.
+    pub groups: Vec<Vec<u8>>,
 }
 
 impl Scene {

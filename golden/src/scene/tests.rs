@@ -68,6 +68,44 @@ fn keyframes_hold_outside_and_interpolate_between() {
     assert_eq!(s.effects.merge, MergeMode::Fixed(3));
 }
 
+fn two_objects() -> Value {
+    let mut v = small();
+    let mut other = v["objects"][0].clone();
+    other["name"] = json!("post");
+    v["objects"].as_array_mut().unwrap().push(other);
+    v
+}
+
+#[test]
+fn groups_name_objects_and_cover_each_once() {
+    let s = parse(&small()).unwrap();
+    assert_eq!(s.groups, vec![vec![0]]);
+    let mut v = two_objects();
+    v["effects"]["units"]["groups"] = json!([["post"], ["ball"]]);
+    assert_eq!(parse(&v).unwrap().groups, vec![vec![1], vec![0]]);
+    let err = |groups: Value| {
+        let mut v = two_objects();
+        v["effects"]["units"]["groups"] = groups;
+        let e = parse(&v).unwrap_err();
+        (e.path.clone(), e.to_string())
+    };
+    let (path, msg) = err(json!([["ball"], ["bal"]]));
+    assert_eq!(path, "effects.units.groups[1][0]");
+    assert!(msg.contains("\"bal\""), "{msg}");
+    let (path, msg) = err(json!([["ball", "post"], ["ball"]]));
+    assert_eq!(path, "effects.units.groups[1][0]");
+    assert!(msg.contains("already in group 0"), "{msg}");
+    let (path, msg) = err(json!([["ball"]]));
+    assert_eq!(path, "effects.units.groups");
+    assert!(msg.contains("\"post\" (objects[1]) in none"), "{msg}");
+    assert_eq!(
+        err(json!([["ball", "post"], []])).0,
+        "effects.units.groups[1]"
+    );
+    assert_eq!(err(json!([])).0, "effects.units.groups");
+    assert_eq!(err(json!({"a": 1})).0, "effects.units.groups");
+}
+
 #[test]
 fn errors_name_the_json_path() {
     let path_of = |v: &Value| parse(v).unwrap_err().path;

@@ -97,12 +97,13 @@ pub fn validate(raw: &SceneFile, file: &str, base: &Path) -> Result<Scene, Scene
         });
     }
     let effects = effects(raw, &params, file)?;
-    let capacity = params.hier_capacity() - 1;
+    let group_count = raw.effects.units.groups.as_ref().map_or(1, Vec::len).max(1);
+    let capacity = params.hier_capacity().saturating_sub(group_count as u64);
     if raw.objects.is_empty() || raw.objects.len() as u64 > capacity {
         return Err(e(
             "objects",
             &format!(
-                "1..={capacity} objects (hier_bits {}; the last id is the merged hierarchy's)",
+                "1..={capacity} objects (hier_bits {}; the last {group_count} ids are the merged hierarchies')",
                 params.hier_bits
             ),
             format!("{} objects", raw.objects.len()),
@@ -128,6 +129,7 @@ pub fn validate(raw: &SceneFile, file: &str, base: &Path) -> Result<Scene, Scene
             "false".into(),
         ));
     }
+    let groups = groups(raw, file)?;
     Ok(Scene {
         name: raw.name.clone().unwrap_or_else(|| file.to_string()),
         params,
@@ -139,7 +141,65 @@ pub fn validate(raw: &SceneFile, file: &str, base: &Path) -> Result<Scene, Scene
         lights,
         objects,
         effects,
+        groups,
     })
+}
+
+/// `effects.units.groups` as object ids: every name an object's, every
+/// object in exactly one group.
+fn groups(raw: &SceneFile, file: &str) -> Result<Vec<Vec<u8>>, SceneError> {
+    let all = || (0..raw.objects.len()).map(Scene::object_id).collect();
+    let Some(named) = &raw.effects.units.groups else {
+        return Ok(vec![all()]);
+    };
+    let e =
+        |path: String, expected: &str, found: String| SceneError::new(file, path, expected, found);
+    if named.is_empty() {
+        return Err(e(
+            "effects.units.groups".into(),
+            "at least one group (or no `groups`: one group of every object)",
+            "[]".into(),
+        ));
+    }
+    let mut group_of = vec![None; raw.objects.len()];
+    let mut out = Vec::with_capacity(named.len());
+    for (k, g) in named.iter().enumerate() {
+        if g.is_empty() {
+            return Err(e(
+                format!("effects.units.groups[{k}]"),
+                "a group of one or more object names",
+                "[]".into(),
+            ));
+        }
+        let mut ids = Vec::with_capacity(g.len());
+        for (j, name) in g.iter().enumerate() {
+            let path = format!("effects.units.groups[{k}][{j}]");
+            let Some(i) = raw.objects.iter().position(|o| &o.name == name) else {
+                return Err(e(
+                    path,
+                    "the name of an object of the scene",
+                    format!("{name:?}"),
+                ));
+            };
+            if let Some(other) = group_of[i].replace(k) {
+                return Err(e(
+                    path,
+                    "every object in exactly one group",
+                    format!("{name:?}, already in group {other}"),
+                ));
+            }
+            ids.push(Scene::object_id(i));
+        }
+        out.push(ids);
+    }
+    if let Some(i) = group_of.iter().position(Option::is_none) {
+        return Err(e(
+            "effects.units.groups".into(),
+            "every object in exactly one group",
+            format!("object {:?} (objects[{i}]) in none", raw.objects[i].name),
+        ));
+    }
+    Ok(out)
 }
 
 fn effects(raw: &SceneFile, params: &Params, file: &str) -> Result<Effects, SceneError> {

@@ -240,11 +240,13 @@ pub mod lod {
         0
     }
 
-    /// The primitive's LOD: `min(D, base_lod + sliver_levels)`.
+    /// The primitive's LOD: `base_lod + sliver_levels` in `1..=D`. The one
+    /// change since the freeze is SPEC 4.2's rule that no primitive sits at
+    /// LOD 0 (`golden::build::lod::MIN_PRIMITIVE_LOD`): a rule, not speed.
     pub fn primitive_lod(tri: &[DVec3; 3], lo: DVec3, hi: DVec3, max_lod: u8) -> u8 {
         let extent = (hi - lo).max_element();
         let base = base_lod(extent, max_lod) as u32;
-        (base + sliver_levels(tri)).min(max_lod as u32) as u8
+        (base + sliver_levels(tri)).clamp(1, max_lod as u32) as u8
     }
 }
 pub mod quantize {

@@ -48,7 +48,9 @@ pub struct MergeRtlFrame {
 /// and mode.
 #[derive(Default)]
 pub struct MergeRtl {
-    module: Option<(usize, MergeMode, Box<dyn Engine>)>,
+    /// One per (input count, mode): merge groups of different sizes each
+    /// keep theirs.
+    modules: Vec<(usize, MergeMode, Box<dyn Engine>)>,
     upper: Option<Box<dyn Engine>>,
 }
 
@@ -232,8 +234,8 @@ impl MergeRtl {
         Ok(out)
     }
     /// Runs one merge's streams (`cfg`, `in*`; `report`, `out`) through the
-    /// merging module of `k` inputs in `mode` (built on first use, rebuilt
-    /// when `k` or the mode changes), adding its counts to `out`.
+    /// merging module of `k` inputs in `mode` (built on first use for each
+    /// `k` and mode), adding its counts to `out`.
     #[allow(clippy::too_many_arguments)]
     fn run_module(
         &mut self,
@@ -245,11 +247,10 @@ impl MergeRtl {
         stage: &str,
         out: &mut MergeRtlFrame,
     ) -> Result<(), String> {
-        if self
-            .module
-            .as_ref()
-            .is_none_or(|(n, m, _)| *n != k || *m != mode)
-        {
+        let cached = |ms: &[(usize, MergeMode, Box<dyn Engine>)]| {
+            ms.iter().position(|(n, m, _)| *n == k && *m == mode)
+        };
+        if cached(&self.modules).is_none() {
             let t = std::time::Instant::now();
             let design = golden::vectors::merge::MergeDesign {
                 params: *p,
@@ -262,9 +263,10 @@ impl MergeRtl {
                 .map_err(|e| format!("merge RTL merging module: {e}"))?;
             let e = build(&rtl_gen::merge::merge_module_unit(&design))?;
             out.build_seconds += t.elapsed().as_secs_f64();
-            self.module = Some((k, mode, e));
+            self.modules.push((k, mode, e));
         }
-        let engine = &mut self.module.as_mut().expect("built").2;
+        let at = cached(&self.modules).expect("built above");
+        let engine = &mut self.modules[at].2;
         let config = BenchConfig {
             stop_on_mismatch: false,
             watchdog_cycles: 10_000,

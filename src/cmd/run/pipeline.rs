@@ -15,7 +15,8 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
 
 use super::compare::{compare, Comparison, SUBSAMPLE};
-use super::merge_rtl::{MergeRtl, MergeRtlFrame};
+use super::merge_rtl::MergeRtl;
+use super::merges::{GroupOut, Lines, MergeStage};
 use super::render::{trace_frame, RayCounts, Traced};
 use super::rtl::{Placed, RtlFrame, TranslateRtl};
 use crate::image::{heat_rgb, write_png};
@@ -103,17 +104,19 @@ pub struct FrameOut {
     pub moved: usize,
     pub retranslated: usize,
     pub reused: usize,
+    /// Some group's merge was redone this frame.
     pub merged: bool,
-    pub merge_level: Option<u8>,
+    /// Over the groups.
     pub nodes_created: u64,
+    /// Over the groups.
     pub merged_nodes: u64,
+    /// Per merge group (paragraph 67; one unless the scene names groups).
+    pub groups: Vec<GroupOut>,
     /// Largest placement residual this frame (world units) that the voxel
     /// grid could not express, over placed objects; their local geometry
     /// carries it (SPEC 7.10), so objects sit where the scene puts them.
     pub max_residual: f64,
     pub rtl: Option<RtlFrame>,
-    /// The merging module's stages on this frame's merge.
-    pub merge_rtl: Option<MergeRtlFrame>,
     pub rays: RayCounts,
     pub node_tests_per_ray: f64,
     /// Node tests per primary ray on the subsample: merged, separate, full rebuild.
@@ -138,7 +141,7 @@ pub struct StageSeconds {
     pub write: f64,
 }
 
-fn bar(options: &Options, what: String) -> ProgressBar {
+pub(super) fn bar(options: &Options, what: String) -> ProgressBar {
     let b = ProgressBar::new(0);
     if options.progress {
         b.set_style(
@@ -205,7 +208,8 @@ pub(super) fn frame_objects(
 pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
     let run_start = Instant::now();
     let fx = &scene.effects;
-    let mut frames = Frames::new(scene.params, scene.grid, fx.merge).map_err(|e| e.to_string())?;
+    let mut frames = Frames::with_groups(scene.params, scene.grid, fx.merge, scene.groups.clone())
+        .map_err(|e| e.to_string())?;
     let ids: Vec<u8> = (0..scene.objects.len()).map(Scene::object_id).collect();
     let mut baked = vec![None; scene.objects.len()];
     let mut translate_rtl: Option<TranslateRtl> = None;
@@ -224,7 +228,11 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
             "disabled (--no-rtl)".into()
         },
     };
-    let mut merge_rtl = MergeRtl::default();
+    let mut merges = MergeStage {
+        scene,
+        options,
+        rtl: MergeRtl::default(),
+    };
     let mut outs: Vec<FrameOut> = Vec::new();
     let mut last_traced: Option<(Traced, Option<Comparison>)> = None;
     let mut total_mismatches = 0;
@@ -256,42 +264,19 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
         step_bar.finish_and_clear();
         secs.step = t.elapsed().as_secs_f64();
         describe_actions(scene, &rep, &mut simulated, &mut skipped);
-        let changed = rep.merged || rep.objects.values().any(|&a| a != ObjectAction::Reused);
+        let changed = rep.merged() || rep.objects.values().any(|&a| a != ObjectAction::Reused);
 
-        let merged_id = frames.merged_id;
-        let is_merged = ids.len() >= 2;
-        let mut nodes_created = 0;
-        if rep.merged {
-            let s = rep.merge_stats.as_ref().expect("a redone merge has stats");
-            nodes_created = s.created();
-            simulated.push(format!(
-                "merge ({:?}): level {:?}, {} nodes created, {} input nodes reused",
-                fx.merge,
-                rep.merge_level,
-                s.created(),
-                s.reused()
-            ));
-            let t = Instant::now();
-            frames
-                .world
-                .check(merged_id)
-                .map_err(|e| format!("frame {k}: merged hierarchy: {e}"))?;
-            secs.check = t.elapsed().as_secs_f64();
-            simulated.push("checker on the merged hierarchy: passed".into());
-        } else if is_merged {
-            skipped.push("merge: no input changed, last frame's merged hierarchy reused".into());
-        } else {
-            skipped.push("merge: a single object, nothing to merge".into());
-        }
-        let merged_nodes = if is_merged {
-            frames
-                .world
-                .store
-                .get(merged_id)
-                .map_or(0, |h| h.nodes.len() as u64)
-        } else {
-            0
-        };
+        let groups = merges.run(
+            k,
+            &frames,
+            &rep,
+            &mut Lines {
+                simulated: &mut simulated,
+                skipped: &mut skipped,
+            },
+            &mut secs,
+            &mut rtl_info,
+        )?;
 
         // The translation unit: the placements determined this frame.
         let moved: Vec<u8> = rep
@@ -357,73 +342,6 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
             rtl_frame = Some(r);
             secs.rtl += t.elapsed().as_secs_f64();
         }
-        let mut merge_rtl_frame = None;
-        if !rep.merged {
-            skipped.push("merging module RTL: no merge redone this frame".into());
-        } else if !options.rtl {
-            skipped.push("merging module RTL: --no-rtl".into());
-        } else if let Some(level) = rep.merge_level {
-            let t = Instant::now();
-            let b = bar(options, format!("frame {k} merge RTL"));
-            b.set_length(1);
-            let r = merge_rtl.run_frame(&frames.world, &ids, level, fx.merge, fx.upper_build)?;
-            b.finish_and_clear();
-            if r.build_seconds > 0.0 {
-                rtl_info.merge = format!("built (Verilator): {}", r.stages.join(", "));
-            }
-            simulated.push(format!(
-                "merging module RTL at level {level}: {} ({} beats in, {} cycles, {} mismatches)",
-                r.stages.join(", "),
-                r.beats_in,
-                r.cycles,
-                r.mismatches
-            ));
-            if !fx.upper_build {
-                skipped.push(
-                    "S616 upper-level RTL: the scene does not ask for the upper-level build".into(),
-                );
-            }
-            if !matches!(fx.merge, golden::merge::MergeMode::Overlap { .. }) {
-                skipped
-                    .push("S608 overlap counter RTL: the merge mode does not count overlap (the merging module is built without it)".into());
-            }
-            secs.rtl += t.elapsed().as_secs_f64();
-            merge_rtl_frame = Some(r);
-        } else if let golden::merge::MergeMode::PerNode { num, den } = fx.merge {
-            let t = Instant::now();
-            let b = bar(options, format!("frame {k} per-node merge RTL"));
-            b.set_length(1);
-            let stats = rep
-                .merge_stats
-                .as_ref()
-                .ok_or("per-node merge RTL: the frame's merge has no statistics")?;
-            let r = merge_rtl.run_per_node_frame(&frames.world, &ids, (num, den), stats)?;
-            b.finish_and_clear();
-            if r.build_seconds > 0.0 {
-                rtl_info.merge = format!("built (Verilator): {}", r.stages.join(", "));
-            }
-            simulated.push(format!(
-                "merging module RTL, per-node:{num}/{den}: {} ({} beats in, {} cycles, {} mismatches; base per LOD = golden per-node merge)",
-                r.stages.join(", "),
-                r.beats_in,
-                r.cycles,
-                r.mismatches
-            ));
-            skipped.push(if fx.upper_build {
-                "S616 upper-level RTL: per-node merges have base nodes at several LODs (S616 is built for one level)".into()
-            } else {
-                "S616 upper-level RTL: the scene does not ask for the upper-level build".into()
-            });
-            skipped.push("S608 overlap counter RTL: the per-node module decides per voxel (no overlap counter)".into());
-            secs.rtl += t.elapsed().as_secs_f64();
-            merge_rtl_frame = Some(r);
-        } else {
-            skipped.push(format!(
-                "merging module RTL: mode {} has no merging level",
-                fx.merge
-            ));
-        }
-
         // Rays.
         let (traced, comparison) = match (&last_traced, changed) {
             (Some(last), false) => {
@@ -434,20 +352,13 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
                 last.clone()
             }
             _ => {
-                let instances = if is_merged {
-                    frames.world.merged_instances(merged_id, &ids)
-                } else {
-                    frames.world.separate_instances(&ids)
-                }
-                .map_err(|e| format!("frame {k}: {e}"))?;
-                let roots = if is_merged {
-                    vec![merged_id]
-                } else {
-                    ids.clone()
-                };
+                let instances = frames
+                    .world
+                    .group_instances(&rep.merged_ids(), &ids)
+                    .map_err(|e| format!("frame {k}: {e}"))?;
                 let ts = frames
                     .world
-                    .trace_scene(&instances, &roots)
+                    .trace_scene(&instances, &rep.roots())
                     .map_err(|e| format!("frame {k}: {e}"))?;
                 let b = bar(options, format!("frame {k} trace"));
                 let traced = trace_frame(scene, &ts, &b);
@@ -500,7 +411,11 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
 
         let rays = traced.rays.primary + traced.rays.shadow + traced.rays.reflection;
         let mismatches = rtl_frame.as_ref().map_or(0, |r| r.mismatches)
-            + merge_rtl_frame.as_ref().map_or(0, |r| r.mismatches)
+            + groups
+                .iter()
+                .filter_map(|g| g.merge_rtl.as_ref())
+                .map(|r| r.mismatches)
+                .sum::<u64>()
             + comparison.as_ref().map_or(0, Comparison::faults);
         total_mismatches += mismatches;
         let out = FrameOut {
@@ -515,13 +430,12 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
             moved: rep.count(ObjectAction::Moved),
             retranslated: rep.count(ObjectAction::Retranslated),
             reused: rep.count(ObjectAction::Reused),
-            merged: rep.merged,
-            merge_level: rep.merge_level,
-            nodes_created,
-            merged_nodes,
+            merged: rep.merged(),
+            nodes_created: groups.iter().map(|g| g.nodes_created).sum(),
+            merged_nodes: groups.iter().map(|g| g.merged_nodes).sum(),
+            groups,
             max_residual,
             rtl: rtl_frame,
-            merge_rtl: merge_rtl_frame,
             rays: traced.rays,
             node_tests_per_ray: traced.stats.node_tests as f64 / rays.max(1) as f64,
             comparison: comparison.clone(),

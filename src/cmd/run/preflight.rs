@@ -2,9 +2,9 @@
 //! merges; no RTL, no rays) before anything is simulated or written, so
 //! that a scene the model refuses is refused with the file and the JSON
 //! path of what is at fault (SPEC.md section 12), not at frame N with the
-//! model's own wording: a leaf that would be a root at LOD 0, a placement
-//! whose voxel rounding leaves the scene, an index that does not fit `I`,
-//! a merging mode the hierarchies cannot meet.
+//! model's own wording: a placement whose voxel rounding leaves the scene,
+//! an index that does not fit `I`, a merging mode the hierarchies cannot
+//! meet.
 
 use golden::frames::{FrameError, Frames};
 use golden::merge::MergeError;
@@ -43,8 +43,8 @@ pub fn check(scene: &Scene, file: &str) -> Result<(), SceneError> {
             e.to_string(),
         )
     };
-    let mut frames =
-        Frames::new(scene.params, scene.grid, fx.merge).map_err(|e| at(path_of(&e), 0, &e))?;
+    let mut frames = Frames::with_groups(scene.params, scene.grid, fx.merge, scene.groups.clone())
+        .map_err(|e| at(path_of(&e), 0, &e))?;
     let mut baked = vec![None; scene.objects.len()];
     for k in 0..scene.frames as usize {
         let objs = super::pipeline::frame_objects(scene, k, &mut baked);

@@ -7,11 +7,37 @@ use super::pipeline::RunReport;
 /// Translation unit plus merging-module cycles, `-` when no RTL ran.
 fn rtl_cycles(f: &super::pipeline::FrameOut) -> String {
     let t = f.rtl.as_ref().map(|r| r.cycles);
-    let m = f.merge_rtl.as_ref().map(|r| r.cycles);
+    let mut m = f
+        .groups
+        .iter()
+        .filter_map(|g| g.merge_rtl.as_ref())
+        .map(|r| r.cycles)
+        .peekable();
+    let m = m.peek().is_some().then(|| m.sum::<u64>());
     match (t, m) {
         (None, None) => "-".into(),
         (t, m) => (t.unwrap_or(0) + m.unwrap_or(0)).to_string(),
     }
+}
+
+/// `redone` or `reused` for one merge group (`-` with nothing to merge);
+/// with several, how many of the merged groups were redone, `2/3`.
+fn merge_column(f: &super::pipeline::FrameOut) -> String {
+    let merged: Vec<_> = f.groups.iter().filter(|g| g.merged_nodes > 0).collect();
+    match merged.as_slice() {
+        [] => "-".into(),
+        [g] if f.groups.len() == 1 => if g.merged { "redone" } else { "reused" }.into(),
+        gs => format!("{}/{}", gs.iter().filter(|g| g.merged).count(), gs.len()),
+    }
+}
+
+/// The merging level of each group, `/`-separated; `-` for none.
+fn level_column(f: &super::pipeline::FrameOut) -> String {
+    f.groups
+        .iter()
+        .map(|g| g.merge_level.map_or("-".into(), |l| l.to_string()))
+        .collect::<Vec<_>>()
+        .join("/")
 }
 
 /// The per-frame table printed at the end of a run.
@@ -67,8 +93,8 @@ pub fn closing_table(r: &RunReport) -> String {
             "{:>5} {:>19} {:>6} {:>5} {:>7} {:>8} {:>5} {:>24} {:>33}",
             f.frame,
             hier,
-            if f.merged { "redone" } else { "reused" },
-            f.merge_level.map_or("-".into(), |l| l.to_string()),
+            merge_column(f),
+            level_column(f),
             f.nodes_created,
             rtl_cycles(f),
             f.mismatches,

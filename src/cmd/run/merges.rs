@@ -1,0 +1,227 @@
+//! A frame's merges, one per merge group (paragraph 67, SPEC 12.2): the
+//! checker on every merged hierarchy redone this frame, the merging
+//! module's RTL on it, and what the report says of each group.
+
+use golden::frames::{FrameReport, Frames, GroupReport};
+use golden::merge::MergeMode;
+use golden::scene::Scene;
+use serde::Serialize;
+
+use super::merge_rtl::{MergeRtl, MergeRtlFrame};
+use super::pipeline::{bar, Options, RtlInfo, StageSeconds};
+
+/// One merge group in one frame.
+#[derive(Serialize, Clone)]
+pub struct GroupOut {
+    /// The group's objects present this frame, by name.
+    pub objects: Vec<String>,
+    /// The hierarchy traced for the group: its merged hierarchy's id, or
+    /// the object's own when it is alone.
+    pub root: Option<u8>,
+    /// The merge was redone this frame.
+    pub merged: bool,
+    pub merge_level: Option<u8>,
+    pub nodes_created: u64,
+    /// Records of the group's merged hierarchy (0 when it has none).
+    pub merged_nodes: u64,
+    /// The merging module's stages on this frame's merge of the group.
+    pub merge_rtl: Option<MergeRtlFrame>,
+}
+
+/// What the run keeps across frames for the merges.
+pub struct MergeStage<'a> {
+    pub scene: &'a Scene,
+    pub options: &'a Options,
+    pub rtl: MergeRtl,
+}
+
+/// The lines a frame prints: what was simulated and what was skipped.
+pub struct Lines<'a> {
+    pub simulated: &'a mut Vec<String>,
+    pub skipped: &'a mut Vec<String>,
+}
+
+impl MergeStage<'_> {
+    /// Every group of frame `k`'s report `rep`: checked when its merge was
+    /// redone, then through the merging module's RTL.
+    pub fn run(
+        &mut self,
+        k: usize,
+        frames: &Frames,
+        rep: &FrameReport,
+        lines: &mut Lines,
+        secs: &mut StageSeconds,
+        rtl_info: &mut RtlInfo,
+    ) -> Result<Vec<GroupOut>, String> {
+        let many = rep.groups.len() > 1;
+        let mut out = Vec::with_capacity(rep.groups.len());
+        for (n, g) in rep.groups.iter().enumerate() {
+            let names: Vec<String> = g
+                .inputs
+                .iter()
+                .map(|&id| self.scene.objects[id as usize].name.clone())
+                .collect();
+            let label = if many {
+                format!(" of group {n} ({})", names.join(", "))
+            } else {
+                String::new()
+            };
+            let nodes_created = self.check(k, frames, g, &label, lines, secs)?;
+            let merged_nodes = match (g.is_merged(), g.root) {
+                (true, Some(root)) => frames
+                    .world
+                    .store
+                    .get(root)
+                    .map_or(0, |h| h.nodes.len() as u64),
+                _ => 0,
+            };
+            let merge_rtl = self.rtl(k, frames, g, &label, lines, secs, rtl_info)?;
+            out.push(GroupOut {
+                objects: names,
+                root: g.root,
+                merged: g.merged,
+                merge_level: g.merge_level,
+                nodes_created,
+                merged_nodes,
+                merge_rtl,
+            });
+        }
+        Ok(out)
+    }
+
+    /// The merge's lines and, when it was redone, the checker on it; the
+    /// nodes it created.
+    fn check(
+        &self,
+        k: usize,
+        frames: &Frames,
+        g: &GroupReport,
+        label: &str,
+        lines: &mut Lines,
+        secs: &mut StageSeconds,
+    ) -> Result<u64, String> {
+        let fx = &self.scene.effects;
+        let (Some(s), Some(root)) = (g.merge_stats.as_ref().filter(|_| g.merged), g.root) else {
+            lines.skipped.push(if g.is_merged() {
+                format!("merge{label}: no input changed, last frame's merged hierarchy reused")
+            } else {
+                format!("merge{label}: a single object, nothing to merge")
+            });
+            return Ok(0);
+        };
+        lines.simulated.push(format!(
+            "merge{label} ({:?}): level {:?}, {} nodes created, {} input nodes reused",
+            fx.merge,
+            g.merge_level,
+            s.created(),
+            s.reused()
+        ));
+        let t = std::time::Instant::now();
+        frames
+            .world
+            .check(root)
+            .map_err(|e| format!("frame {k}: merged hierarchy{label}: {e}"))?;
+        secs.check += t.elapsed().as_secs_f64();
+        lines
+            .simulated
+            .push(format!("checker on the merged hierarchy{label}: passed"));
+        Ok(s.created())
+    }
+
+    /// The merging module's RTL on the group's merge, when it was redone
+    /// and the run simulates RTL.
+    #[allow(clippy::too_many_arguments)]
+    fn rtl(
+        &mut self,
+        k: usize,
+        frames: &Frames,
+        g: &GroupReport,
+        label: &str,
+        lines: &mut Lines,
+        secs: &mut StageSeconds,
+        rtl_info: &mut RtlInfo,
+    ) -> Result<Option<MergeRtlFrame>, String> {
+        let fx = &self.scene.effects;
+        if !g.merged {
+            if g.is_merged() {
+                lines.skipped.push(format!(
+                    "merging module RTL{label}: no merge redone this frame"
+                ));
+            }
+            return Ok(None);
+        }
+        if !self.options.rtl {
+            lines
+                .skipped
+                .push(format!("merging module RTL{label}: --no-rtl"));
+            return Ok(None);
+        }
+        let t = std::time::Instant::now();
+        let b = bar(self.options, format!("frame {k} merge RTL"));
+        b.set_length(1);
+        let r = match (g.merge_level, fx.merge) {
+            (Some(level), _) => {
+                let r = self.rtl.run_frame(
+                    &frames.world,
+                    &g.inputs,
+                    level,
+                    fx.merge,
+                    fx.upper_build,
+                )?;
+                lines.simulated.push(format!(
+                    "merging module RTL{label} at level {level}: {} ({} beats in, {} cycles, {} mismatches)",
+                    r.stages.join(", "),
+                    r.beats_in,
+                    r.cycles,
+                    r.mismatches
+                ));
+                if !fx.upper_build {
+                    lines.skipped.push(
+                        "S616 upper-level RTL: the scene does not ask for the upper-level build"
+                            .into(),
+                    );
+                }
+                if !matches!(fx.merge, MergeMode::Overlap { .. }) {
+                    lines.skipped.push("S608 overlap counter RTL: the merge mode does not count overlap (the merging module is built without it)".into());
+                }
+                r
+            }
+            (None, MergeMode::PerNode { num, den }) => {
+                let stats = g
+                    .merge_stats
+                    .as_ref()
+                    .ok_or("per-node merge RTL: the frame's merge has no statistics")?;
+                let r = self
+                    .rtl
+                    .run_per_node_frame(&frames.world, &g.inputs, (num, den), stats)?;
+                lines.simulated.push(format!(
+                    "merging module RTL{label}, per-node:{num}/{den}: {} ({} beats in, {} cycles, {} mismatches; base per LOD = golden per-node merge)",
+                    r.stages.join(", "),
+                    r.beats_in,
+                    r.cycles,
+                    r.mismatches
+                ));
+                lines.skipped.push(if fx.upper_build {
+                    "S616 upper-level RTL: per-node merges have base nodes at several LODs (S616 is built for one level)".into()
+                } else {
+                    "S616 upper-level RTL: the scene does not ask for the upper-level build".into()
+                });
+                lines.skipped.push("S608 overlap counter RTL: the per-node module decides per voxel (no overlap counter)".into());
+                r
+            }
+            (None, mode) => {
+                b.finish_and_clear();
+                lines.skipped.push(format!(
+                    "merging module RTL{label}: mode {mode} has no merging level"
+                ));
+                return Ok(None);
+            }
+        };
+        b.finish_and_clear();
+        if r.build_seconds > 0.0 {
+            rtl_info.merge = format!("built (Verilator): {}", r.stages.join(", "));
+        }
+        secs.rtl += t.elapsed().as_secs_f64();
+        Ok(Some(r))
+    }
+}

@@ -1,0 +1,64 @@
+//! Scenes that validate also run (issue 19, item 5): every placement that
+//! keeps an object's geometry inside the scene cube — the scene file's rule
+//! (SPEC 12.1) — is placed, merged and checked by the world, however the
+//! voxel rounding of its translation falls: objects touching the cube's
+//! faces, spanning most of it, or straddling its large voxel boundaries.
+
+use glam::{DVec3, Vec3};
+use golden::build::GridMap;
+use golden::merge::MergeMode;
+use golden::scenes::{box_mesh, sphere, SplitMix64};
+use golden::world::World;
+use golden::Params;
+
+#[test]
+fn every_placement_inside_the_cube_is_placed_merged_and_checked() {
+    let p = Params::new(10, 6, 24, 4).unwrap();
+    let grid = GridMap {
+        origin: DVec3::ZERO,
+        unit: 1.0 / 64.0,
+    };
+    let side = p.scene_edge() as f64 * grid.unit; // 16 world units
+    let mut rng = SplitMix64::new(19);
+    let mut placed = 0;
+    for case in 0..120 {
+        let mut w = World::new(p, grid).unwrap();
+        // A floor as large as the scene, always.
+        w.add(
+            0,
+            box_mesh(Vec3::ZERO, Vec3::new(16.0, 0.25, 16.0)),
+            DVec3::ZERO,
+        )
+        .unwrap();
+        for id in 1..4u8 {
+            let size = side * 0.9f64.powi(rng.below(40) as i32);
+            let mesh = if id == 1 {
+                box_mesh(Vec3::ZERO, Vec3::splat(size as f32))
+            } else {
+                let r = size as f32 / 2.0;
+                sphere(Vec3::splat(r), r, 6, 12)
+            };
+            let (lo, hi) = mesh.bounds();
+            let (lo, hi) = (lo.as_dvec3(), hi.as_dvec3());
+            // Anywhere the whole mesh stays in [0, side], often touching a
+            // face or sitting on a multiple of a large voxel.
+            let offset = DVec3::from_array([0, 1, 2].map(|a| {
+                let (min, max) = (-lo[a], side - hi[a]);
+                match rng.below(4) {
+                    0 => min,
+                    1 => max,
+                    2 => (min + (max - min) * rng.next_f64()).clamp(min, max),
+                    _ => (side / 2.0 - (hi[a] - lo[a]) / 2.0).clamp(min, max),
+                }
+            }));
+            w.add(id, mesh, offset)
+                .unwrap_or_else(|e| panic!("case {case} object {id} at {offset}: {e}"));
+            placed += 1;
+        }
+        w.merge(&[0, 1, 2, 3], MergeMode::default(), 15)
+            .unwrap_or_else(|e| panic!("case {case}: merge: {e}"));
+        w.check(15)
+            .unwrap_or_else(|e| panic!("case {case}: check: {e}"));
+    }
+    assert_eq!(placed, 360);
+}

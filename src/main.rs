@@ -6,6 +6,7 @@
 
 mod cmd;
 mod image;
+mod progress;
 mod report;
 mod signals;
 

@@ -2,9 +2,9 @@
 
 use std::time::Instant;
 
+use crate::progress::Progress;
 use golden::merge::MergeMode;
 use golden::Params;
-use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
 use super::distance::{at_distance, distances, DistanceRow};
@@ -49,19 +49,8 @@ pub struct CaseInfo {
 
 const QS: [u8; 10] = [0, 1, 2, 3, 4, 6, 8, 10, 12, 16];
 
-fn bar(len: u64, quiet: bool, stage: &str) -> ProgressBar {
-    if quiet {
-        return ProgressBar::hidden();
-    }
-    let pb = ProgressBar::new(len);
-    pb.set_style(
-        ProgressStyle::with_template(
-            "{prefix:>9} {bar:36} {pos}/{len} {msg} [{elapsed_precise} / ~{eta}]",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    pb.set_prefix(stage.to_string());
-    pb
+fn bar(len: u64, quiet: bool, stage: &str) -> Progress {
+    Progress::new(len, quiet, stage)
 }
 
 fn params(d: u8, q: u8) -> Result<Params, String> {
@@ -110,7 +99,7 @@ pub fn main(a: Args) -> CmdResult {
     let mode = MergeMode::default();
 
     // Stage 1: Q x D over every case.
-    let pb = bar((cases.len() * configs.len()) as u64, quiet, "sweep");
+    let mut pb = bar((cases.len() * configs.len()) as u64, quiet, "sweep");
     let mut rows = Vec::new();
     for case in &cases {
         let prep = Prepared::new(case, rays, a.seed);
@@ -131,7 +120,7 @@ pub fn main(a: Args) -> CmdResult {
 
     // Stage 2: merging modes at the default configuration.
     let ms = modes(a.full);
-    let pb = bar((cases.len() * ms.len()) as u64, quiet, "modes");
+    let mut pb = bar((cases.len() * ms.len()) as u64, quiet, "modes");
     let mut mode_rows = Vec::new();
     for case in &cases {
         mode_rows.extend(sweep_modes(
@@ -150,7 +139,7 @@ pub fn main(a: Args) -> CmdResult {
     let dcase: &Case = &cases[0];
     let dlist = distances();
     let dparams = [default, params(31, default.quant_bits)?];
-    let pb = bar((dlist.len() * dparams.len()) as u64, quiet, "distance");
+    let mut pb = bar((dlist.len() * dparams.len()) as u64, quiet, "distance");
     let mut drows = Vec::new();
     for p in dparams {
         for &d in &dlist {
@@ -198,7 +187,7 @@ pub fn main(a: Args) -> CmdResult {
     };
     golden::output::check_destination(&a.out, true)?;
     std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
-    let pb = bar(plots::COUNT as u64, quiet, "plots");
+    let mut pb = bar(plots::COUNT as u64, quiet, "plots");
     let mut outputs = plots::write_all(&study, &a.out, &mut || pb.inc(1))?;
     pb.finish_and_clear();
     study.wall_seconds = started.elapsed().as_secs_f64();
@@ -251,7 +240,7 @@ fn run_rtl(
         None => rtl_configs(a.full, ds, qs),
     };
 
-    let pb = bar(configs.len() as u64, quiet, "rtl");
+    let mut pb = bar(configs.len() as u64, quiet, "rtl");
     let dir = tempfile::tempdir().map_err(|e| format!("temporary directory: {e}"))?;
     for (d, q) in configs {
         pb.set_message(format!("D{d} Q{q}: Verilator"));

@@ -11,12 +11,12 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     output wire det_out_valid,          // rtl-gen/src/translate/determine.rs:213
     output wire [221:0] det_out_data,   // rtl-gen/src/translate/determine.rs:213
     input  wire det_out_ready,          // rtl-gen/src/translate/determine.rs:213
-    input  wire apply_in_valid,         // rtl-gen/src/translate/apply.rs:30
-    input  wire [153:0] apply_in_data,  // rtl-gen/src/translate/apply.rs:30
-    output wire apply_in_ready,         // rtl-gen/src/translate/apply.rs:30
-    output wire apply_out_valid,        // rtl-gen/src/translate/apply.rs:109
-    output wire [156:0] apply_out_data, // rtl-gen/src/translate/apply.rs:109
-    input  wire apply_out_ready,        // rtl-gen/src/translate/apply.rs:109
+    input  wire apply_in_valid,         // rtl-gen/src/translate/apply.rs:32
+    input  wire [153:0] apply_in_data,  // rtl-gen/src/translate/apply.rs:32
+    output wire apply_in_ready,         // rtl-gen/src/translate/apply.rs:32
+    output wire apply_out_valid,        // rtl-gen/src/translate/apply.rs:129
+    output wire [156:0] apply_out_data, // rtl-gen/src/translate/apply.rs:129
+    input  wire apply_out_ready,        // rtl-gen/src/translate/apply.rs:129
     output wire idle,                   // rtl-gen/src/translate/unit.rs:35
     output wire done,                   // rtl-gen/src/translate/unit.rs:36
     output wire det_error_seen,         // rtl-gen/src/translate/unit.rs:41
@@ -324,7 +324,7 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire [15:0] table_valid_or;              // rtl-gen/src/translate/table.rs:109
     wire det_out_q_valid_and;                // rtl-gen/src/translate/determine.rs:214
     wire det_out_q_data_not;                 // rtl-gen/src/translate/determine.rs:215
-    wire [149:0] apply_record;               // rtl-gen/src/translate/apply.rs:31
+    wire [149:0] apply_record;               // rtl-gen/src/translate/apply.rs:33
     wire apply_in_data_mux;                  // rtl-gen/src/translate/table.rs:78
     wire apply_in_data_mux_1;                // rtl-gen/src/translate/table.rs:78
     wire apply_in_data_mux_2;                // rtl-gen/src/translate/table.rs:78
@@ -342,22 +342,22 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire apply_read_valid;                   // rtl-gen/src/translate/table.rs:78
     wire [55:0] table_rd_1;                  // rtl-gen/src/translate/table.rs:79
     wire [55:0] apply_read_entry;            // rtl-gen/src/translate/table.rs:81
-    wire [15:0] apply_record_shr;            // rtl-gen/src/translate/apply.rs:41
-    wire apply_record_ne;                    // rtl-gen/src/translate/apply.rs:41
-    wire [15:0] apply_record_shr_1;          // rtl-gen/src/translate/apply.rs:41
-    wire apply_record_ne_1;                  // rtl-gen/src/translate/apply.rs:41
-    wire apply_record_or;                    // rtl-gen/src/translate/apply.rs:41
-    wire [15:0] apply_record_shr_2;          // rtl-gen/src/translate/apply.rs:41
-    wire apply_record_ne_2;                  // rtl-gen/src/translate/apply.rs:41
-    wire apply_record_or_1;                  // rtl-gen/src/translate/apply.rs:41
-    wire apply_record_gt;                    // rtl-gen/src/translate/apply.rs:43
-    wire apply_record_or_2;                  // rtl-gen/src/translate/apply.rs:43
-    wire apply_record_lt;                    // rtl-gen/src/translate/apply.rs:45
-    wire [2:0] apply_record_mux;             // rtl-gen/src/translate/apply.rs:49
-    wire [2:0] apply_record_mux_1;           // rtl-gen/src/translate/apply.rs:47
-    wire apply_read_valid_not;               // rtl-gen/src/translate/apply.rs:51
-    wire [2:0] apply_early_code;             // rtl-gen/src/translate/apply.rs:51
-    wire [4:0] apply_shift;                  // rtl-gen/src/translate/apply.rs:60
+    wire [15:0] apply_record_shr;            // rtl-gen/src/translate/apply.rs:43
+    wire apply_record_ne;                    // rtl-gen/src/translate/apply.rs:43
+    wire [15:0] apply_record_shr_1;          // rtl-gen/src/translate/apply.rs:43
+    wire apply_record_ne_1;                  // rtl-gen/src/translate/apply.rs:43
+    wire apply_record_or;                    // rtl-gen/src/translate/apply.rs:43
+    wire [15:0] apply_record_shr_2;          // rtl-gen/src/translate/apply.rs:43
+    wire apply_record_ne_2;                  // rtl-gen/src/translate/apply.rs:43
+    wire apply_record_or_1;                  // rtl-gen/src/translate/apply.rs:43
+    wire apply_record_gt;                    // rtl-gen/src/translate/apply.rs:45
+    wire apply_record_or_2;                  // rtl-gen/src/translate/apply.rs:45
+    wire apply_record_lt;                    // rtl-gen/src/translate/apply.rs:47
+    wire [2:0] apply_record_mux;             // rtl-gen/src/translate/apply.rs:51
+    wire [2:0] apply_record_mux_1;           // rtl-gen/src/translate/apply.rs:49
+    wire apply_read_valid_not;               // rtl-gen/src/translate/apply.rs:53
+    wire [2:0] apply_early_code;             // rtl-gen/src/translate/apply.rs:53
+    wire [4:0] apply_shift;                  // rtl-gen/src/translate/apply.rs:62
     wire [212:0] apply_read_entry_cat;       // rtl-gen/src/translate/bundle.rs:45
     reg apply_s1_valid;                      // rtl-gen/src/translate/bundle.rs:83
     reg [212:0] apply_s1_data;               // rtl-gen/src/translate/bundle.rs:83
@@ -365,32 +365,42 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire apply_s1_valid_not;                 // rtl-gen/src/translate/bundle.rs:83
     wire apply_s1_valid_or;                  // rtl-gen/src/translate/bundle.rs:83
     wire apply_s1_valid_and;                 // rtl-gen/src/translate/bundle.rs:83
-    wire [33:0] apply_s1_data_shl;           // rtl-gen/src/translate/apply.rs:76
-    wire [33:0] apply_sum_x;                 // rtl-gen/src/translate/apply.rs:78
-    wire apply_sum_x_lt;                     // rtl-gen/src/translate/apply.rs:80
-    wire [33:0] apply_sum_x_shr;             // rtl-gen/src/translate/apply.rs:80
-    wire apply_sum_x_ne;                     // rtl-gen/src/translate/apply.rs:80
-    wire apply_sum_x_or;                     // rtl-gen/src/translate/apply.rs:80
-    wire [33:0] apply_s1_data_shl_1;         // rtl-gen/src/translate/apply.rs:76
-    wire [33:0] apply_sum_y;                 // rtl-gen/src/translate/apply.rs:78
-    wire apply_sum_y_lt;                     // rtl-gen/src/translate/apply.rs:80
-    wire [33:0] apply_sum_y_shr;             // rtl-gen/src/translate/apply.rs:80
-    wire apply_sum_y_ne;                     // rtl-gen/src/translate/apply.rs:80
-    wire apply_sum_y_or;                     // rtl-gen/src/translate/apply.rs:80
-    wire [33:0] apply_s1_data_shl_2;         // rtl-gen/src/translate/apply.rs:76
-    wire [33:0] apply_sum_z;                 // rtl-gen/src/translate/apply.rs:78
-    wire apply_sum_z_lt;                     // rtl-gen/src/translate/apply.rs:80
-    wire [33:0] apply_sum_z_shr;             // rtl-gen/src/translate/apply.rs:80
-    wire apply_sum_z_ne;                     // rtl-gen/src/translate/apply.rs:80
-    wire apply_sum_z_or;                     // rtl-gen/src/translate/apply.rs:80
-    wire [2:0] apply_sum_z_mux;              // rtl-gen/src/translate/apply.rs:88
-    wire [2:0] apply_sum_y_mux;              // rtl-gen/src/translate/apply.rs:86
-    wire [2:0] apply_sum_x_mux;              // rtl-gen/src/translate/apply.rs:84
-    wire apply_s1_data_ne;                   // rtl-gen/src/translate/apply.rs:91
-    wire [2:0] apply_code;                   // rtl-gen/src/translate/apply.rs:91
-    wire [149:0] apply_s1_data_cat;          // rtl-gen/src/translate/apply.rs:99
-    wire apply_code_eq;                      // rtl-gen/src/translate/apply.rs:100
-    wire [149:0] apply_code_mux;             // rtl-gen/src/translate/apply.rs:100
+    wire [33:0] apply_s1_data_shl;           // rtl-gen/src/translate/apply.rs:78
+    wire [33:0] apply_sum_x;                 // rtl-gen/src/translate/apply.rs:80
+    wire apply_sum_x_lt;                     // rtl-gen/src/translate/apply.rs:82
+    wire [33:0] apply_sum_x_shr;             // rtl-gen/src/translate/apply.rs:82
+    wire apply_sum_x_ne;                     // rtl-gen/src/translate/apply.rs:82
+    wire apply_sum_x_or;                     // rtl-gen/src/translate/apply.rs:82
+    wire [33:0] apply_s1_data_shl_1;         // rtl-gen/src/translate/apply.rs:78
+    wire [33:0] apply_sum_y;                 // rtl-gen/src/translate/apply.rs:80
+    wire apply_sum_y_lt;                     // rtl-gen/src/translate/apply.rs:82
+    wire [33:0] apply_sum_y_shr;             // rtl-gen/src/translate/apply.rs:82
+    wire apply_sum_y_ne;                     // rtl-gen/src/translate/apply.rs:82
+    wire apply_sum_y_or;                     // rtl-gen/src/translate/apply.rs:82
+    wire [33:0] apply_s1_data_shl_2;         // rtl-gen/src/translate/apply.rs:78
+    wire [33:0] apply_sum_z;                 // rtl-gen/src/translate/apply.rs:80
+    wire apply_sum_z_lt;                     // rtl-gen/src/translate/apply.rs:82
+    wire [33:0] apply_sum_z_shr;             // rtl-gen/src/translate/apply.rs:82
+    wire apply_sum_z_ne;                     // rtl-gen/src/translate/apply.rs:82
+    wire apply_sum_z_or;                     // rtl-gen/src/translate/apply.rs:82
+    wire [207:0] apply_sum_z_cat;            // rtl-gen/src/translate/bundle.rs:45
+    reg apply_s2_valid;                      // rtl-gen/src/translate/bundle.rs:83
+    reg [207:0] apply_s2_data;               // rtl-gen/src/translate/bundle.rs:83
+    wire apply_s2_ready;                     // rtl-gen/src/translate/bundle.rs:83
+    wire apply_s2_valid_not;                 // rtl-gen/src/translate/bundle.rs:83
+    wire apply_s2_valid_or;                  // rtl-gen/src/translate/bundle.rs:83
+    wire apply_s2_valid_and;                 // rtl-gen/src/translate/bundle.rs:83
+    wire apply_outside_x;                    // rtl-gen/src/translate/bundle.rs:58
+    wire apply_outside_y;                    // rtl-gen/src/translate/bundle.rs:58
+    wire apply_outside_z;                    // rtl-gen/src/translate/bundle.rs:58
+    wire [2:0] apply_outside_z_mux;          // rtl-gen/src/translate/apply.rs:108
+    wire [2:0] apply_outside_y_mux;          // rtl-gen/src/translate/apply.rs:106
+    wire [2:0] apply_outside_x_mux;          // rtl-gen/src/translate/apply.rs:104
+    wire apply_s2_data_ne;                   // rtl-gen/src/translate/apply.rs:111
+    wire [2:0] apply_code;                   // rtl-gen/src/translate/apply.rs:111
+    wire [149:0] apply_s2_data_cat;          // rtl-gen/src/translate/apply.rs:119
+    wire apply_code_eq;                      // rtl-gen/src/translate/apply.rs:120
+    wire [149:0] apply_code_mux;             // rtl-gen/src/translate/apply.rs:120
     wire [156:0] apply_code_cat;             // rtl-gen/src/translate/bundle.rs:45
     reg apply_out_q_valid;                   // rtl-gen/src/translate/bundle.rs:100
     reg [156:0] apply_out_q_data;            // rtl-gen/src/translate/bundle.rs:100
@@ -400,18 +410,19 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire apply_out_q_valid_not;              // rtl-gen/src/translate/bundle.rs:100
     wire apply_out_q_ready_or;               // rtl-gen/src/translate/bundle.rs:100
     wire apply_out_q_spare_valid_not;        // rtl-gen/src/translate/bundle.rs:100
-    wire apply_s1_valid_and_1;               // rtl-gen/src/translate/bundle.rs:100
+    wire apply_s2_valid_and_1;               // rtl-gen/src/translate/bundle.rs:100
     wire apply_out_q_spare_valid_or;         // rtl-gen/src/translate/bundle.rs:100
     wire [156:0] apply_out_q_spare_valid_mux; // rtl-gen/src/translate/bundle.rs:100
     wire apply_out_q_spare_valid_or_1;       // rtl-gen/src/translate/bundle.rs:100
     wire apply_out_q_spare_valid_next;       // rtl-gen/src/translate/bundle.rs:100
     wire apply_out_q_ready_not;              // rtl-gen/src/translate/bundle.rs:100
     wire apply_out_q_ready_and;              // rtl-gen/src/translate/bundle.rs:100
-    wire apply_out_q_data_ne;                // rtl-gen/src/translate/apply.rs:107
-    wire apply_out_q_valid_and;              // rtl-gen/src/translate/apply.rs:110
+    wire apply_out_q_data_ne;                // rtl-gen/src/translate/apply.rs:127
+    wire apply_out_q_valid_and;              // rtl-gen/src/translate/apply.rs:132
     wire det_s1_valid_or_1;                  // rtl-gen/src/translate/unit.rs:30
     wire det_s1_valid_or_2;                  // rtl-gen/src/translate/unit.rs:30
     wire det_s1_valid_or_3;                  // rtl-gen/src/translate/unit.rs:30
+    wire det_s1_valid_or_4;                  // rtl-gen/src/translate/unit.rs:30
     wire was_busy_next;                      // rtl-gen/src/translate/unit.rs:30
     wire idle_now;                           // rtl-gen/src/translate/unit.rs:32
     reg was_busy;                            // rtl-gen/src/translate/unit.rs:33
@@ -753,7 +764,7 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     assign apply_early_code = apply_read_valid_not ? 3'd2 : apply_record_mux_1;
     assign apply_shift = apply_in_data[5:1] - apply_read_entry[4:0];
     assign apply_read_entry_cat = {apply_read_entry[55:39], apply_read_entry[38:22], apply_read_entry[21:5], apply_shift, apply_early_code, apply_in_data[153:150], apply_record};
-    assign apply_s1_ready = ~apply_out_q_spare_valid;
+    assign apply_s1_ready = apply_s2_valid_or;
     assign apply_s1_valid_not = ~apply_s1_valid;
     assign apply_s1_valid_or = apply_s1_valid_not | apply_s1_ready;
     assign apply_s1_valid_and = apply_s1_valid_or & apply_in_valid;
@@ -775,26 +786,34 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     assign apply_sum_z_shr = apply_sum_z >> apply_s1_data[5:1];
     assign apply_sum_z_ne = apply_sum_z_shr != 34'd0;
     assign apply_sum_z_or = apply_sum_z_lt | apply_sum_z_ne;
-    assign apply_sum_z_mux = apply_sum_z_or ? 3'd7 : 3'd0;
-    assign apply_sum_y_mux = apply_sum_y_or ? 3'd6 : apply_sum_z_mux;
-    assign apply_sum_x_mux = apply_sum_x_or ? 3'd5 : apply_sum_y_mux;
-    assign apply_s1_data_ne = apply_s1_data[156:154] != 3'd0;
-    assign apply_code = apply_s1_data_ne ? apply_s1_data[156:154] : apply_sum_x_mux;
-    assign apply_s1_data_cat = {apply_s1_data[149:54], apply_sum_z[15:0], apply_sum_y[15:0], apply_sum_x[15:0], apply_s1_data[5:0]};
+    assign apply_sum_z_cat = {apply_sum_z_or, apply_sum_z[15:0], apply_sum_y_or, apply_sum_y[15:0], apply_sum_x_or, apply_sum_x[15:0], apply_s1_data[156:154], apply_s1_data[153:150], apply_s1_data[149:0]};
+    assign apply_s2_ready = ~apply_out_q_spare_valid;
+    assign apply_s2_valid_not = ~apply_s2_valid;
+    assign apply_s2_valid_or = apply_s2_valid_not | apply_s2_ready;
+    assign apply_s2_valid_and = apply_s2_valid_or & apply_s1_valid;
+    assign apply_outside_x = apply_s2_data[173];
+    assign apply_outside_y = apply_s2_data[190];
+    assign apply_outside_z = apply_s2_data[207];
+    assign apply_outside_z_mux = apply_outside_z ? 3'd7 : 3'd0;
+    assign apply_outside_y_mux = apply_outside_y ? 3'd6 : apply_outside_z_mux;
+    assign apply_outside_x_mux = apply_outside_x ? 3'd5 : apply_outside_y_mux;
+    assign apply_s2_data_ne = apply_s2_data[156:154] != 3'd0;
+    assign apply_code = apply_s2_data_ne ? apply_s2_data[156:154] : apply_outside_x_mux;
+    assign apply_s2_data_cat = {apply_s2_data[149:54], apply_s2_data[206:191], apply_s2_data[189:174], apply_s2_data[172:157], apply_s2_data[5:0]};
     assign apply_code_eq = apply_code == 3'd0;
-    assign apply_code_mux = apply_code_eq ? apply_s1_data_cat : apply_s1_data[149:0];
-    assign apply_code_cat = {apply_code, apply_s1_data[153:150], apply_code_mux};
+    assign apply_code_mux = apply_code_eq ? apply_s2_data_cat : apply_s2_data[149:0];
+    assign apply_code_cat = {apply_code, apply_s2_data[153:150], apply_code_mux};
     assign apply_out_q_ready = apply_out_ready;
     assign apply_out_q_valid_not = ~apply_out_q_valid;
     assign apply_out_q_ready_or = apply_out_q_ready | apply_out_q_valid_not;
     assign apply_out_q_spare_valid_not = ~apply_out_q_spare_valid;
-    assign apply_s1_valid_and_1 = apply_s1_valid & apply_out_q_spare_valid_not;
-    assign apply_out_q_spare_valid_or = apply_out_q_spare_valid | apply_s1_valid;
+    assign apply_s2_valid_and_1 = apply_s2_valid & apply_out_q_spare_valid_not;
+    assign apply_out_q_spare_valid_or = apply_out_q_spare_valid | apply_s2_valid;
     assign apply_out_q_spare_valid_mux = apply_out_q_spare_valid ? apply_out_q_spare_data : apply_code_cat;
-    assign apply_out_q_spare_valid_or_1 = apply_out_q_spare_valid | apply_s1_valid_and_1;
+    assign apply_out_q_spare_valid_or_1 = apply_out_q_spare_valid | apply_s2_valid_and_1;
     assign apply_out_q_spare_valid_next = apply_out_q_ready_or ? 1'b0 : apply_out_q_spare_valid_or_1;
     assign apply_out_q_ready_not = ~apply_out_q_ready_or;
-    assign apply_out_q_ready_and = apply_out_q_ready_not & apply_s1_valid_and_1;
+    assign apply_out_q_ready_and = apply_out_q_ready_not & apply_s2_valid_and_1;
     assign apply_out_q_data_ne = apply_out_q_data[156:154] != 3'd0;
     assign apply_out_valid = apply_out_q_valid;
     assign apply_out_data = apply_out_q_data;
@@ -802,7 +821,8 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     assign det_s1_valid_or_1 = det_s1_valid | det_s2_valid;
     assign det_s1_valid_or_2 = det_s1_valid_or_1 | det_out_q_valid;
     assign det_s1_valid_or_3 = det_s1_valid_or_2 | apply_s1_valid;
-    assign was_busy_next = det_s1_valid_or_3 | apply_out_q_valid;
+    assign det_s1_valid_or_4 = det_s1_valid_or_3 | apply_s2_valid;
+    assign was_busy_next = det_s1_valid_or_4 | apply_out_q_valid;
     assign idle_now = ~was_busy_next;
     assign idle = idle_now;
     assign done = idle_now & was_busy;
@@ -826,6 +846,8 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
             det_out_q_spare_data <= 222'h00000000000000000000000000000000000000000000000000000000;
             apply_s1_valid <= 1'b0;
             apply_s1_data <= 213'h000000000000000000000000000000000000000000000000000000;
+            apply_s2_valid <= 1'b0;
+            apply_s2_data <= 208'h0000000000000000000000000000000000000000000000000000;
             apply_out_q_valid <= 1'b0;
             apply_out_q_data <= 157'h0000000000000000000000000000000000000000;
             apply_out_q_spare_valid <= 1'b0;
@@ -862,6 +884,12 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
             end
             if (apply_s1_valid_and) begin
                 apply_s1_data <= apply_read_entry_cat; // rtl-gen/src/translate/bundle.rs:83
+            end
+            if (apply_s2_valid_or) begin
+                apply_s2_valid <= apply_s1_valid; // rtl-gen/src/translate/bundle.rs:83
+            end
+            if (apply_s2_valid_and) begin
+                apply_s2_data <= apply_sum_z_cat; // rtl-gen/src/translate/bundle.rs:83
             end
             if (apply_out_q_ready_or) begin
                 apply_out_q_valid <= apply_out_q_spare_valid_or; // rtl-gen/src/translate/bundle.rs:100

@@ -13,8 +13,8 @@ use golden::vectors::translate::{generate, TranslateDesign};
 
 /// The apply path's code for "outside the scene on x" is 5 (SPEC 7.9); the
 /// broken design says 1 (bit 2 of the constant flipped).
-const GOOD: &str = "apply_sum_x_or ? 3'd5";
-const BROKEN: &str = "apply_sum_x_or ? 3'd1";
+const GOOD: &str = "apply_outside_x ? 3'd5";
+const BROKEN: &str = "apply_outside_x ? 3'd1";
 
 fn verilator_present() -> bool {
     match EngineKind::Verilator.check_tools() {

@@ -1,9 +1,11 @@
 //! The apply path (SPEC.md 7.6, 7.9): node records in, moved records out,
 //! one per clock. Step 1 reads the table entry of the record's hierarchy
 //! and checks id, entry, node and level; step 2 moves each coordinate by
-//! shift-and-add, `x' = x + (t << (d - L))`, checks `0 <= x' < 2^d` and
-//! picks the code. A record with a nonzero code leaves unchanged, with the
-//! code: nothing is dropped.
+//! shift-and-add, `x' = x + (t << (d - L))`, and checks `0 <= x' < 2^d`;
+//! step 3 picks the code and the record. A record with a nonzero code
+//! leaves unchanged, with the code: nothing is dropped. Steps 2 and 3 are
+//! apart because the shift, the add and the select in one clock were the
+//! unit's critical path (docs/hardware.md 14.7).
 
 use golden::layout::NodeLayout;
 use golden::vectors::translate::{ApplyCode, TranslateDesign};
@@ -80,7 +82,25 @@ pub(crate) fn apply_path<'m>(
         outside.push(sum.as_signed().lt(0) | sum.srl(lod).ne(0));
         moved.push(sum.slice(dmax - 1, 0));
     }
-    let early = b1.get("code");
+    let mut s2 = Bundle::new();
+    s2.put("record", record);
+    s2.put("hier", b1.get("hier"));
+    s2.put("code", b1.get("code"));
+    for a in 0..3 {
+        s2.put(&format!("moved{a}"), moved[a]);
+        s2.put(&format!("outside{a}"), outside[a]);
+    }
+    let (st2, b2) = s2.pipeline_reg(st1.valid, st1.ready, "apply_s2");
+
+    // Step 3: the final code and the record that leaves.
+    let record = b2.get("record");
+    let axis = ["x", "y", "z"];
+    let moved = [0, 1, 2].map(|a| b2.get(&format!("moved{a}")));
+    let outside = [0, 1, 2].map(|a| {
+        b2.get(&format!("outside{a}"))
+            .name(&format!("apply_outside_{}", axis[a]))
+    });
+    let early = b2.get("code");
     let late = outside[0].mux(
         code(ApplyCode::OutsideX),
         outside[1].mux(
@@ -100,12 +120,16 @@ pub(crate) fn apply_path<'m>(
     let out_record = final_code.eq(0).mux(moved_record, record);
     let mut out = Bundle::new();
     out.put("record", out_record);
-    out.put("hier", b1.get("hier"));
+    out.put("hier", b2.get("hier"));
     out.put("code", final_code);
     debug_assert_eq!(out.width(), apply_out_layout(d).width());
-    let (st2, b2) = out.skid_buffer(st1.valid, st1.ready, "apply_out_q");
-    let error = b2.get("code").ne(0);
-    let valid = st2.valid;
-    st2.output("apply_out");
-    (vec![st1.valid, st2.valid], valid & st2.ready, error)
+    let (st3, b3) = out.skid_buffer(st2.valid, st2.ready, "apply_out_q");
+    let error = b3.get("code").ne(0);
+    let valid = st3.valid;
+    st3.output("apply_out");
+    (
+        vec![st1.valid, st2.valid, st3.valid],
+        valid & st3.ready,
+        error,
+    )
 }

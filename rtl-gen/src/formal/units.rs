@@ -2,6 +2,10 @@
 //! primitives of [`crate::Stream`] and the library FIFO, each in a small
 //! module of its own, and the generated units small enough to prove in
 //! seconds, at their default configuration.
+//!
+//! Depths: at least a flow's capacity plus three, so that the base case
+//! (BMC from reset) reaches a full buffer and one beat more: a fault is then
+//! a counterexample from reset, not only a failed induction step.
 
 use golden::merge::unit::{base_kind, level_kind, BeatLayout, OverlapLayout};
 use golden::vectors::merge::MergeDesign;
@@ -29,7 +33,7 @@ pub fn pipeline_reg(width: u32) -> Proof {
     Stream::input(&m, "in", width)
         .pipeline_reg("pipe")
         .output("out");
-    Proof::new(m, &["in"], &["out"], 4)
+    Proof::new(m, &["in"], &["out"], 6)
         .flow(Flow::Fifo {
             input: "in".into(),
             output: "out".into(),
@@ -44,7 +48,7 @@ pub fn pipeline_reg(width: u32) -> Proof {
 
 /// [`Stream::skid_buffer`] ([`crate::examples::skid_buffer`]).
 pub fn skid_buffer(width: u32) -> Proof {
-    Proof::new(crate::examples::skid_buffer(width), &["in"], &["out"], 4)
+    Proof::new(crate::examples::skid_buffer(width), &["in"], &["out"], 8)
         .flow(Flow::Fifo {
             input: "in".into(),
             output: "out".into(),
@@ -52,7 +56,10 @@ pub fn skid_buffer(width: u32) -> Proof {
             occupancy: Some("dut.skid_valid + dut.skid_spare_valid".into()),
             slots: vec!["dut.skid_data".into(), "dut.skid_spare_data".into()],
         })
-        .invariant("spare_only_behind_out", "!dut.skid_spare_valid || dut.skid_valid")
+        .invariant(
+            "spare_only_behind_out",
+            "!dut.skid_spare_valid || dut.skid_valid",
+        )
         .check(Handshake, Induction)
         .check(FlowCheck, Induction)
         .check(Determined, Induction)
@@ -65,21 +72,26 @@ pub fn skid_buffer(width: u32) -> Proof {
 pub fn fifo(width: u32, addr_bits: u32) -> Proof {
     let depth = 1u32 << addr_bits;
     let pw = addr_bits + 1;
-    Proof::new(crate::examples::fifo(width, addr_bits), &["in"], &["out"], 2 * depth + 2)
-        .flow(Flow::Fifo {
-            input: "in".into(),
-            output: "out".into(),
-            capacity: depth,
-            occupancy: Some("dut.wr_ptr - dut.rd_ptr".into()),
-            slots: vec![],
-        })
-        .invariant(
-            "pointers_within_depth",
-            &format!("dut.wr_ptr - dut.rd_ptr <= {pw}'d{depth}"),
-        )
-        .check(Handshake, Induction)
-        .check(FlowCheck, Bmc)
-        .check(Determined, Bmc)
+    Proof::new(
+        crate::examples::fifo(width, addr_bits),
+        &["in"],
+        &["out"],
+        2 * depth + 2,
+    )
+    .flow(Flow::Fifo {
+        input: "in".into(),
+        output: "out".into(),
+        capacity: depth,
+        occupancy: Some("dut.wr_ptr - dut.rd_ptr".into()),
+        slots: vec![],
+    })
+    .invariant(
+        "pointers_within_depth",
+        &format!("dut.wr_ptr - dut.rd_ptr <= {pw}'d{depth}"),
+    )
+    .check(Handshake, Induction)
+    .check(FlowCheck, Bmc)
+    .check(Determined, Bmc)
 }
 
 /// [`Stream::merge_priority`] of `n` streams of `width` bits.
@@ -90,16 +102,22 @@ pub fn merge_priority(width: u32, n: usize) -> Proof {
     Stream::merge_priority(&m, "arb", &ins).output("out");
     let refs: Vec<&str> = names.iter().map(String::as_str).collect();
     let valids: Vec<String> = names.iter().rev().map(|s| format!("{s}_valid")).collect();
-    Proof::new(m, &refs, &["out"], 4)
+    Proof::new(m, &refs, &["out"], 6)
         .flow(Flow::Priority {
             inputs: names.clone(),
             output: "out".into(),
         })
-        .invariant("held_one_hot", &format!("(dut.arb_held & (dut.arb_held - {n}'d1)) == {n}'d0"))
+        .invariant(
+            "held_one_hot",
+            &format!("(dut.arb_held & (dut.arb_held - {n}'d1)) == {n}'d0"),
+        )
         .invariant("stalled_as_seen", "dut.arb_stalled == f0_stalled")
         .invariant(
             "held_input_valid",
-            &format!("!dut.arb_stalled || (dut.arb_held & {{{}}}) != {n}'d0", valids.join(", ")),
+            &format!(
+                "!dut.arb_stalled || (dut.arb_held & {{{}}}) != {n}'d0",
+                valids.join(", ")
+            ),
         )
         .check(Handshake, Induction)
         .check(FlowCheck, Induction)
@@ -167,9 +185,14 @@ pub fn morton_merge() -> Proof {
     let c = MergeDesign::default();
     let ins: Vec<String> = (0..c.inputs).map(|i| format!("in{i}")).collect();
     let refs: Vec<&str> = ins.iter().map(String::as_str).collect();
-    Proof::new(crate::merge::morton_merge_unit(&c.params, c.inputs, true), &refs, &["out"], 4)
-        .check(Handshake, Induction)
-        .check(Determined, Induction)
+    Proof::new(
+        crate::merge::morton_merge_unit(&c.params, c.inputs, true),
+        &refs,
+        &["out"],
+        4,
+    )
+    .check(Handshake, Induction)
+    .check(Determined, Induction)
 }
 
 /// The per-node decider at the default per-node configuration (k = 4, 1/2).

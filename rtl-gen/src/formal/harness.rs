@@ -321,7 +321,8 @@ fn flow(
         } => {
             let w = bits_for(capacity + 1);
             writeln!(b, "    // Flow {j} ({name}): each `{input}` answered once by `{output}`, in order, at most {capacity} outstanding.").unwrap();
-            counter(b, *capacity, input, output);
+            let (input, output) = (resolve(input, nets, used)?, resolve(output, nets, used)?);
+            counter(b, *capacity, &input, &output);
             writeln!(b, "`ifdef CHECK_FLOW\n    always @* if (!f_init) begin\n        p_{name}_bounded: assert(f{j}_occ <= {w}'d{capacity});\n        p_{name}_none_invented: assert(!(f{j}_out && f{j}_occ == {w}'d0));").unwrap();
             if let Some(occ) = occupancy {
                 writeln!(

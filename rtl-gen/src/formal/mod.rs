@@ -267,3 +267,66 @@ impl Proof {
         s
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{units, Check, Flow, Mode, Proof};
+
+    #[test]
+    fn every_proof_has_a_harness_and_a_task_per_check() {
+        for name in units::NAMES {
+            let p = units::by_name(name).unwrap();
+            let sv = p.harness().unwrap_or_else(|e| panic!("{name}: {e}"));
+            let sby = p.sby(&[format!("{}.v", p.name())], None, 60);
+            for (c, m, d) in &p.checks {
+                let define = format!("CHECK_{}", c.name().to_uppercase());
+                assert!(sv.contains(&format!("`ifdef {define}")), "{name}: {define}");
+                assert!(
+                    sby.contains(&format!(
+                        "{0}: mode {1}\n{0}: depth {d}\n",
+                        c.name(),
+                        m.sby_mode()
+                    )),
+                    "{name}"
+                );
+            }
+            // The design is instantiated, never copied into the harness.
+            assert!(sv.contains(&format!("    {} dut (", p.name())), "{name}");
+            assert!(!sv.contains(&format!("module {} (", p.name())), "{name}");
+        }
+    }
+
+    #[test]
+    fn a_depth_given_overrides_every_check() {
+        let sby = units::skid_buffer(8).sby(&["skid_buffer_w8.v".into()], Some(3), 60);
+        assert_eq!(sby.matches(": depth 3\n").count(), 3, "{sby}");
+        assert!(sby.contains("timeout 60\n"));
+    }
+
+    #[test]
+    fn a_net_or_stream_the_module_lacks_is_refused() {
+        let p = units::skid_buffer(8).invariant("bad", "dut.no_such_net == 1'b0");
+        let e = p.harness().unwrap_err();
+        assert!(
+            e.contains("`dut.no_such_net`") && e.contains("no net `no_such_net`"),
+            "{e}"
+        );
+        let p = Proof::new(crate::examples::skid_buffer(8), &["in"], &["result"], 4)
+            .check(Check::Handshake, Mode::Bmc);
+        let e = p.harness().unwrap_err();
+        assert!(
+            e.contains("stream `result`: the module has no port `result_valid`"),
+            "{e}"
+        );
+        let mut p = units::skid_buffer(8);
+        p.flows.push(Flow::Counted {
+            name: "x".into(),
+            input: "1'b1".into(),
+            output: "dut.skid_nothing".into(),
+            capacity: 1,
+            occupancy: None,
+        });
+        let e = p.harness().unwrap_err();
+        assert!(e.contains("no net `skid_nothing`"), "{e}");
+    }
+}

@@ -164,6 +164,8 @@ pub fn merge_level() -> Proof {
                 bits(lo.kind.offset, 2),
                 base_kind::END
             ),
+            // The holding register and the skid buffer's two (a bound one
+            // lower fails).
             capacity: 3,
             occupancy: None,
         })
@@ -209,12 +211,13 @@ pub fn per_node_decider() -> Proof {
 pub fn translate_unit() -> Proof {
     let m = crate::translate::translate_unit(&TranslateDesign::default());
     let mut p = Proof::new(m, &["det_in", "apply_in"], &["det_out", "apply_out"], 4);
-    for path in ["det", "apply"] {
+    // The most inside each path holds (a bound one lower fails).
+    for (path, capacity) in [("det", 4), ("apply", 3)] {
         p = p.flow(Flow::Counted {
             name: format!("{path}_answered"),
             input: fire(&format!("{path}_in")),
             output: fire(&format!("{path}_out")),
-            capacity: 8,
+            capacity,
             occupancy: None,
         });
     }

@@ -53,8 +53,20 @@ fn missing(tool: &str, why: String) -> CosimError {
 /// Finds the tools: `$HIERMERGE_SBY` or `yowasp-sby`, the YoWASP Yosys
 /// programs beside it, and `boolector` in `solvers/` beside its folder.
 pub fn formal_tools() -> Result<FormalTools> {
-    let mut sby = find_tool("HIERMERGE_SBY", &["yowasp-sby"], "--version")
-        .map_err(|e| missing("yowasp-sby", e.to_string()))?;
+    let mut sby = find_tool("HIERMERGE_SBY", &["yowasp-sby"], "--version").map_err(|e| {
+        let why = match e {
+            // Its hint names the synthesis tools; this one names these.
+            CosimError::ToolMissing { tool, hint } => {
+                let why = hint
+                    .strip_suffix(crate::synth::tools::SYNTH_INSTALL_HINT)
+                    .map(|h| h.trim_end_matches("; ").to_string())
+                    .unwrap_or(hint);
+                format!("`{tool}`: {why}")
+            }
+            e => e.to_string(),
+        };
+        missing("yowasp-sby", why)
+    })?;
     if let Ok(p) = std::fs::canonicalize(&sby.program) {
         sby.program = p;
     }

@@ -45,6 +45,8 @@ enum Command {
     Ledger(cmd::ledger::Args),
     /// Area and timing of a unit's modules: generic gates, ECP5 and iCE40 place and route, the critical path by generator line.
     Synth(cmd::synth::Args),
+    /// Formal proofs (SymbiYosys) of the stream primitives and the small units: handshakes, beat flow, determined outputs, idle/done.
+    Formal(cmd::formal::Args),
 }
 
 fn main() {
@@ -71,6 +73,7 @@ fn main() {
         Command::Ledger(a) => cmd::ledger::main(a),
         Command::Study(a) => cmd::study::main(a),
         Command::Synth(a) => cmd::synth::main(a),
+        Command::Formal(a) => cmd::formal::main(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");

@@ -29,6 +29,7 @@
 mod bits;
 mod diagnostic;
 pub mod examples;
+pub mod formal;
 mod graph;
 pub mod identity;
 mod instance;

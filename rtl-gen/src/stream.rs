@@ -141,9 +141,12 @@ impl<'m> Stream<'m> {
         }
     }
 
-    /// Merges streams of equal width into one, combinationally, by fixed
-    /// priority: the lowest-numbered valid input wins and is the only one
-    /// told `ready`.
+    /// Merges streams of equal width into one by fixed priority: the
+    /// lowest-numbered valid input wins and is the only one told `ready`.
+    /// While the output is stalled (valid, not ready) the grant is held to
+    /// the next clock, so the output keeps its beat as a producer must (a
+    /// lower-numbered input that becomes valid meanwhile waits); otherwise
+    /// the choice is combinational.
     ///
     /// ```
     /// # use rtl_gen::{Module, Stream};
@@ -164,26 +167,35 @@ impl<'m> Stream<'m> {
                 data: none,
             };
         };
-        let mut valid = last.valid;
-        let mut data = last.data;
-        // Build from the lowest priority up so input 0 ends outermost.
-        for s in inputs.iter().rev().skip(1) {
-            data = s.valid.mux(s.data, data);
-            valid = s.valid | valid;
-        }
+        // The one-hot choice by priority, then the choice held under a stall.
+        let mut free = Vec::with_capacity(inputs.len());
         let mut earlier_valid: Option<Signal<'m>> = None;
+        for s in inputs {
+            free.push(match earlier_valid {
+                None => s.valid,
+                Some(e) => s.valid & !e,
+            });
+            earlier_valid = Some(match earlier_valid {
+                None => s.valid,
+                Some(e) => e | s.valid,
+            });
+        }
+        let free_vec = m
+            .concat(&free.iter().rev().copied().collect::<Vec<_>>())
+            .name(&format!("{name}_free"));
+        let n = inputs.len() as u32;
+        let stalled = m.reg(&format!("{name}_stalled"), 1);
+        let held = m.reg(&format!("{name}_held"), n);
+        let grant = stalled.mux(held, free_vec).name(&format!("{name}_grant"));
+        let valid = earlier_valid.unwrap_or(last.valid);
+        stalled.next(valid & !ready);
+        held.next(grant);
+        let mut data = last.data;
+        for (i, s) in inputs.iter().enumerate().rev().skip(1) {
+            data = grant.bit(i as u32).mux(s.data, data);
+        }
         for (i, s) in inputs.iter().enumerate() {
-            let granted = match earlier_valid {
-                None => ready,
-                Some(e) => ready & !e,
-            };
-            s.ready.drive(granted);
-            if i + 1 < inputs.len() {
-                earlier_valid = Some(match earlier_valid {
-                    None => s.valid,
-                    Some(e) => e | s.valid,
-                });
-            }
+            s.ready.drive(ready & grant.bit(i as u32));
         }
         Stream {
             valid: valid.name(&format!("{name}_valid")),

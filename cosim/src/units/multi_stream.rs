@@ -183,8 +183,18 @@ pub(crate) fn apply_patch(
                 .to_string(),
         });
     }
+    patch_files(&design.verilog_files, patch, &design.top)
+}
+
+/// Replaces the one occurrence of `patch.from` in `files`, the emitted
+/// Verilog of `top`; refused when it occurs other than once.
+pub(crate) fn patch_files(
+    files: &[std::path::PathBuf],
+    patch: &VerilogPatch,
+    top: &str,
+) -> Result<()> {
     let mut found = Vec::new();
-    for file in &design.verilog_files {
+    for file in files {
         let text = std::fs::read_to_string(file).map_err(crate::error::io_err(file))?;
         let n = text.matches(patch.from.as_str()).count();
         if n > 0 {
@@ -195,8 +205,8 @@ pub(crate) fn apply_patch(
     if total != 1 {
         return Err(CosimError::Design {
             what: format!(
-                "Verilog patch: `{}` occurs {total} times in the emitted files of `{}`; expected exactly once",
-                patch.from, design.top
+                "Verilog patch: `{}` occurs {total} times in the emitted files of `{top}`; expected exactly once",
+                patch.from
             ),
         });
     }

@@ -82,6 +82,21 @@ pub(crate) fn design_modules(top: &Module) -> Vec<GraphRef> {
     seen
 }
 
+/// The syntax tree of every module of the design, children first, each
+/// once (the property harnesses of [`crate::formal`] read the names and
+/// widths of the nets they observe from it).
+pub(crate) fn design_asts(top: &Module) -> Result<Vec<ast::VModule>, Diagnostics> {
+    top.validate_design()?;
+    let mut out: Vec<ast::VModule> = Vec::new();
+    for g in design_modules(top) {
+        let v = lower::lower(&g.borrow(), RegisterStyle::Enables);
+        if !out.iter().any(|m| m.name == v.name) {
+            out.push(v);
+        }
+    }
+    Ok(out)
+}
+
 /// Why a design could not be written.
 #[derive(Debug)]
 pub enum DesignError {

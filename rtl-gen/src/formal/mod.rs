@@ -1,0 +1,332 @@
+//! Formal proofs (SPEC.md section 11.1): the properties of a module written
+//! once, as a [`Proof`], and emitted as a separate SystemVerilog property
+//! harness (`<module>_formal.sv`) that instantiates the module's unchanged
+//! Verilog-2005, plus a SymbiYosys job (`<module>.sby`) with one task per
+//! [`Check`].
+//!
+//! The harness sees only the module's ports, except where a proof names an
+//! internal net as `dut.<net>` (an induction invariant or a slot of a
+//! buffer): those are connected by Yosys' `flatten` through `hierconn` wires,
+//! so the design file stays exactly what `gen` emits.
+//!
+//! ```
+//! use rtl_gen::formal::{units, Check};
+//! let p = units::skid_buffer(8);
+//! let sv = p.harness().unwrap();
+//! assert!(sv.contains("module skid_buffer_w8_formal"));
+//! assert!(p.sby(&["skid_buffer_w8.v".into()], None, 60).contains("[tasks]"));
+//! assert!(p.checks.iter().any(|(c, _, _)| *c == Check::Flow));
+//! ```
+
+mod harness;
+pub mod units;
+
+use crate::Module;
+
+/// One group of properties; each is one SymbiYosys task.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Check {
+    /// Output streams hold `valid` and `data` until `ready` (input streams
+    /// assumed to do the same).
+    Handshake,
+    /// The proof's [`Flow`]s: no beat lost, duplicated, invented or reordered.
+    Flow,
+    /// Outputs are determined after reset: two copies of the module from
+    /// independent arbitrary states, one reset cycle, the same inputs, agree
+    /// on every control output, and on every stream's data while it is valid.
+    Determined,
+    /// `idle` and `done` mean what SPEC.md says ([`Status`]).
+    Status,
+}
+
+impl Check {
+    /// Every check, in report order.
+    pub const ALL: [Check; 4] = [
+        Check::Handshake,
+        Check::Flow,
+        Check::Determined,
+        Check::Status,
+    ];
+
+    /// The task name (also the `CHECK_<NAME>` define of the harness).
+    pub fn name(self) -> &'static str {
+        match self {
+            Check::Handshake => "handshake",
+            Check::Flow => "flow",
+            Check::Determined => "determined",
+            Check::Status => "status",
+        }
+    }
+}
+
+/// How a check is run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// Bounded model checking from reset to the proof's depth: no trace of
+    /// that many cycles violates a property.
+    Bmc,
+    /// k-induction with k = the proof's depth (the base case is the BMC of
+    /// the same depth): a proof for traces of every length.
+    Induction,
+}
+
+impl Mode {
+    /// `bmc` or `prove` (SymbiYosys' mode names).
+    pub fn sby_mode(self) -> &'static str {
+        match self {
+            Mode::Bmc => "bmc",
+            Mode::Induction => "prove",
+        }
+    }
+
+    /// How the report names it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Bmc => "bmc",
+            Mode::Induction => "k-induction",
+        }
+    }
+}
+
+/// Where beats go. Expressions are SystemVerilog over the module's ports
+/// and `dut.<net>` internal nets.
+#[derive(Clone, Debug)]
+pub enum Flow {
+    /// Every beat taken on `input` leaves on `output` unchanged, once, in
+    /// order, with at most `capacity` inside; while any is inside, `output`
+    /// is valid. Checked on one beat the solver chooses (any beat). For
+    /// induction, `occupancy` is the design's count of beats inside and
+    /// `slots[i]` the data of the `i`-th oldest.
+    Fifo {
+        /// Input stream name.
+        input: String,
+        /// Output stream name.
+        output: String,
+        /// Most beats inside.
+        capacity: u32,
+        /// The design's own count of beats inside (an invariant).
+        occupancy: Option<String>,
+        /// The data of the `i`-th oldest beat inside, oldest first.
+        slots: Vec<String>,
+    },
+    /// A merge without buffering: in every cycle, a beat leaves on `output`
+    /// exactly when one input transfers, it is that input's beat, and that
+    /// input is the lowest-numbered valid one unless `output` stalled the
+    /// cycle before (then the handshake check says it is the beat offered).
+    Priority {
+        /// Input streams, highest priority first.
+        inputs: Vec<String>,
+        /// Output stream.
+        output: String,
+    },
+    /// Events counted: each `input` event (e.g. an `End` beat taken) is
+    /// answered by one `output` event (e.g. a result beat leaving), in
+    /// order, never an answer without its event, at most `capacity`
+    /// outstanding. `name` labels its properties.
+    Counted {
+        /// Label of the properties (an identifier).
+        name: String,
+        /// The event asked (a one-bit expression).
+        input: String,
+        /// The event answering it.
+        output: String,
+        /// Most outstanding.
+        capacity: u32,
+        /// The design's own count outstanding (an invariant).
+        occupancy: Option<String>,
+    },
+}
+
+/// The status outputs' meaning.
+#[derive(Clone, Debug)]
+pub struct Status {
+    /// The `idle` port: high exactly when every flow of `busy` has nothing
+    /// outstanding (counted from the transfers of earlier cycles).
+    pub idle: String,
+    /// The `done` port: `idle` now and not idle the cycle before.
+    pub done: String,
+    /// Indices into [`Proof::flows`] whose occupancy is "a transaction
+    /// inside".
+    pub busy: Vec<usize>,
+    /// Input streams taken only while idle.
+    pub only_when_idle: Vec<String>,
+}
+
+/// The properties of one module and how each check is run.
+pub struct Proof {
+    /// The module, as `gen` emits it.
+    pub module: Module,
+    /// Input streams (`<name>_valid`, `_ready`, `_data`), assumed to hold
+    /// `valid` and `data` until `ready`.
+    pub inputs: Vec<String>,
+    /// Output streams, proven to.
+    pub outputs: Vec<String>,
+    /// What the flow check proves.
+    pub flows: Vec<Flow>,
+    /// What the status check proves.
+    pub status: Option<Status>,
+    /// Invariants over internal nets, asserted in every check (so they are
+    /// proven too) to make induction converge.
+    pub invariants: Vec<(String, String)>,
+    /// The checks run: how, and to what depth (BMC depth, or k of
+    /// k-induction).
+    pub checks: Vec<(Check, Mode, u32)>,
+    /// The depth of a check added by [`Proof::check`].
+    pub depth: u32,
+}
+
+impl Proof {
+    /// A proof of `module` with no checks yet.
+    pub fn new(module: Module, inputs: &[&str], outputs: &[&str], depth: u32) -> Proof {
+        Proof {
+            module,
+            inputs: inputs.iter().map(|s| s.to_string()).collect(),
+            outputs: outputs.iter().map(|s| s.to_string()).collect(),
+            flows: Vec::new(),
+            status: None,
+            invariants: Vec::new(),
+            checks: Vec::new(),
+            depth,
+        }
+    }
+
+    /// Adds `check`, run in `mode` to the proof's depth.
+    pub fn check(self, check: Check, mode: Mode) -> Proof {
+        let depth = self.depth;
+        self.check_to(check, mode, depth)
+    }
+
+    /// Adds `check`, run in `mode` to `depth`.
+    pub fn check_to(mut self, check: Check, mode: Mode, depth: u32) -> Proof {
+        self.checks.push((check, mode, depth));
+        self
+    }
+
+    /// Adds a flow.
+    pub fn flow(mut self, flow: Flow) -> Proof {
+        self.flows.push(flow);
+        self
+    }
+
+    /// Adds an invariant named `label` (an identifier).
+    pub fn invariant(mut self, label: &str, expr: &str) -> Proof {
+        self.invariants.push((label.to_string(), expr.to_string()));
+        self
+    }
+
+    /// The module's name.
+    pub fn name(&self) -> String {
+        self.module.name()
+    }
+
+    /// The harness module's name.
+    pub fn harness_name(&self) -> String {
+        format!("{}_formal", self.module.name())
+    }
+
+    /// The SystemVerilog property harness; refuses a proof that names a
+    /// port or internal net the module does not have.
+    pub fn harness(&self) -> Result<String, String> {
+        harness::emit(self)
+    }
+
+    /// The SymbiYosys job: `design` are the module's Verilog files (children
+    /// first), the harness is `<harness_name>.sv` beside them; `depth`
+    /// overrides every check's; `timeout` (seconds) ends a task as TIMEOUT.
+    pub fn sby(&self, design: &[String], depth: Option<u32>, timeout: u32) -> String {
+        let mut s =
+            String::from("# generated by rtl-gen (rtl-gen/src/formal); do not edit\n[tasks]\n");
+        for (c, _, _) in &self.checks {
+            s += &format!("{}\n", c.name());
+        }
+        s += "\n[options]\n";
+        for (c, m, d) in &self.checks {
+            let d = depth.unwrap_or(*d);
+            s += &format!("{0}: mode {1}\n{0}: depth {d}\n", c.name(), m.sby_mode());
+        }
+        s += &format!(
+            "multiclock off\ntimeout {timeout}\n\n[engines]\nsmtbmc boolector\n\n[script]\n"
+        );
+        for f in design {
+            s += &format!("read_verilog {f}\n");
+        }
+        let top = self.harness_name();
+        for (c, _, _) in &self.checks {
+            s += &format!(
+                "{}: read_verilog -formal -DCHECK_{} {top}.sv\n",
+                c.name(),
+                c.name().to_uppercase()
+            );
+        }
+        // `flatten` before `prep` connects the harness' `dut.<net>` wires.
+        s += &format!("hierarchy -top {top}\nproc\nflatten\nprep -top {top}\n\n[files]\n");
+        for f in design {
+            s += &format!("{f}\n");
+        }
+        s += &format!("{top}.sv\n");
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{units, Check, Flow, Mode, Proof};
+
+    #[test]
+    fn every_proof_has_a_harness_and_a_task_per_check() {
+        for name in units::NAMES {
+            let p = units::by_name(name).unwrap();
+            let sv = p.harness().unwrap_or_else(|e| panic!("{name}: {e}"));
+            let sby = p.sby(&[format!("{}.v", p.name())], None, 60);
+            for (c, m, d) in &p.checks {
+                let define = format!("CHECK_{}", c.name().to_uppercase());
+                assert!(sv.contains(&format!("`ifdef {define}")), "{name}: {define}");
+                assert!(
+                    sby.contains(&format!(
+                        "{0}: mode {1}\n{0}: depth {d}\n",
+                        c.name(),
+                        m.sby_mode()
+                    )),
+                    "{name}"
+                );
+            }
+            // The design is instantiated, never copied into the harness.
+            assert!(sv.contains(&format!("    {} dut (", p.name())), "{name}");
+            assert!(!sv.contains(&format!("module {} (", p.name())), "{name}");
+        }
+    }
+
+    #[test]
+    fn a_depth_given_overrides_every_check() {
+        let sby = units::skid_buffer(8).sby(&["skid_buffer_w8.v".into()], Some(3), 60);
+        assert_eq!(sby.matches(": depth 3\n").count(), 3, "{sby}");
+        assert!(sby.contains("timeout 60\n"));
+    }
+
+    #[test]
+    fn a_net_or_stream_the_module_lacks_is_refused() {
+        let p = units::skid_buffer(8).invariant("bad", "dut.no_such_net == 1'b0");
+        let e = p.harness().unwrap_err();
+        assert!(
+            e.contains("`dut.no_such_net`") && e.contains("no net `no_such_net`"),
+            "{e}"
+        );
+        let p = Proof::new(crate::examples::skid_buffer(8), &["in"], &["result"], 4)
+            .check(Check::Handshake, Mode::Bmc);
+        let e = p.harness().unwrap_err();
+        assert!(
+            e.contains("stream `result`: the module has no port `result_valid`"),
+            "{e}"
+        );
+        let mut p = units::skid_buffer(8);
+        p.flows.push(Flow::Counted {
+            name: "x".into(),
+            input: "1'b1".into(),
+            output: "dut.skid_nothing".into(),
+            capacity: 1,
+            occupancy: None,
+        });
+        let e = p.harness().unwrap_err();
+        assert!(e.contains("no net `skid_nothing`"), "{e}");
+    }
+}

@@ -1,0 +1,266 @@
+//! The proofs the project runs (`hiermerge formal`, SPEC 11.1): the stream
+//! primitives of [`crate::Stream`] and the library FIFO, each in a small
+//! module of its own, and the generated units small enough to prove in
+//! seconds, at their default configuration.
+//!
+//! Depths: at least a flow's capacity plus three, so that the base case
+//! (BMC from reset) reaches a full buffer and one beat more: a fault is then
+//! a counterexample from reset, not only a failed induction step.
+
+use golden::merge::unit::{base_kind, level_kind, BeatLayout, OverlapLayout};
+use golden::vectors::merge::MergeDesign;
+use golden::vectors::translate::TranslateDesign;
+
+use super::{Check, Flow, Mode, Proof, Status};
+use crate::{Module, Stream};
+
+use Check::{Determined, Flow as FlowCheck, Handshake};
+use Mode::{Bmc, Induction};
+
+/// `<s>_valid && <s>_ready`.
+fn fire(s: &str) -> String {
+    format!("{s}_valid && {s}_ready")
+}
+
+/// `[hi:lo]` of a field at `offset`, `width` bits.
+fn bits(offset: u32, width: u32) -> String {
+    format!("[{}:{}]", offset + width - 1, offset)
+}
+
+/// [`Stream::pipeline_reg`] alone: `in` -> `out`, `width` bits.
+pub fn pipeline_reg(width: u32) -> Proof {
+    let m = Module::new(&format!("pipeline_reg_w{width}"));
+    Stream::input(&m, "in", width)
+        .pipeline_reg("pipe")
+        .output("out");
+    Proof::new(m, &["in"], &["out"], 6)
+        .flow(Flow::Fifo {
+            input: "in".into(),
+            output: "out".into(),
+            capacity: 1,
+            occupancy: Some("dut.pipe_valid".into()),
+            slots: vec!["dut.pipe_data".into()],
+        })
+        .check(Handshake, Induction)
+        .check(FlowCheck, Induction)
+        .check(Determined, Induction)
+}
+
+/// [`Stream::skid_buffer`] ([`crate::examples::skid_buffer`]).
+pub fn skid_buffer(width: u32) -> Proof {
+    Proof::new(crate::examples::skid_buffer(width), &["in"], &["out"], 8)
+        .flow(Flow::Fifo {
+            input: "in".into(),
+            output: "out".into(),
+            capacity: 2,
+            occupancy: Some("dut.skid_valid + dut.skid_spare_valid".into()),
+            slots: vec!["dut.skid_data".into(), "dut.skid_spare_data".into()],
+        })
+        .invariant(
+            "spare_only_behind_out",
+            "!dut.skid_spare_valid || dut.skid_valid",
+        )
+        .check(Handshake, Induction)
+        .check(FlowCheck, Induction)
+        .check(Determined, Induction)
+}
+
+/// The library FIFO ([`crate::examples::fifo`]) of `2^addr_bits` words:
+/// its words are a memory, which the harness cannot name, so the flow and
+/// determinism are proven by BMC, to a depth in which its pointers wrap
+/// (`2^(addr_bits + 1)` beats in) and it fills and drains.
+pub fn fifo(width: u32, addr_bits: u32) -> Proof {
+    let depth = 1u32 << addr_bits;
+    let pw = addr_bits + 1;
+    Proof::new(
+        crate::examples::fifo(width, addr_bits),
+        &["in"],
+        &["out"],
+        2 * depth + 2,
+    )
+    .flow(Flow::Fifo {
+        input: "in".into(),
+        output: "out".into(),
+        capacity: depth,
+        occupancy: Some("dut.wr_ptr - dut.rd_ptr".into()),
+        slots: vec![],
+    })
+    .invariant(
+        "pointers_within_depth",
+        &format!("dut.wr_ptr - dut.rd_ptr <= {pw}'d{depth}"),
+    )
+    .check(Handshake, Induction)
+    .check(FlowCheck, Bmc)
+    .check(Determined, Bmc)
+}
+
+/// [`Stream::merge_priority`] of `n` streams of `width` bits.
+pub fn merge_priority(width: u32, n: usize) -> Proof {
+    let m = Module::new(&format!("merge_priority_w{width}_n{n}"));
+    let names: Vec<String> = (0..n).map(|i| format!("in{i}")).collect();
+    let ins: Vec<Stream> = names.iter().map(|s| Stream::input(&m, s, width)).collect();
+    Stream::merge_priority(&m, "arb", &ins).output("out");
+    let refs: Vec<&str> = names.iter().map(String::as_str).collect();
+    let valids: Vec<String> = names.iter().rev().map(|s| format!("{s}_valid")).collect();
+    Proof::new(m, &refs, &["out"], 6)
+        .flow(Flow::Priority {
+            inputs: names.clone(),
+            output: "out".into(),
+        })
+        .invariant(
+            "held_one_hot",
+            &format!("(dut.arb_held & (dut.arb_held - {n}'d1)) == {n}'d0"),
+        )
+        .invariant("stalled_as_seen", "dut.arb_stalled == f0_stalled")
+        .invariant(
+            "held_input_valid",
+            &format!(
+                "!dut.arb_stalled || (dut.arb_held & {{{}}}) != {n}'d0",
+                valids.join(", ")
+            ),
+        )
+        .check(Handshake, Induction)
+        .check(FlowCheck, Induction)
+        .check(Determined, Induction)
+}
+
+/// S608's overlap counter at the default merging module (k = 4, 1/2): one
+/// result beat per level's `End`.
+pub fn overlap_counter() -> Proof {
+    let c = MergeDesign::default();
+    let (num, den) = c.threshold().unwrap_or((1, 2));
+    let m = crate::merge::overlap_counter_unit(&c.params, c.inputs, num, den);
+    let l = OverlapLayout::new(&c.params, c.inputs);
+    Proof::new(m, &["in"], &["out"], 4)
+        .flow(Flow::Counted {
+            name: "level_result".into(),
+            input: format!("{} && in_data[{}]", fire("in"), l.end.offset),
+            output: fire("out"),
+            capacity: 1,
+            occupancy: Some("dut.out_valid_q".into()),
+        })
+        .check(Handshake, Induction)
+        .check(FlowCheck, Induction)
+        .check(Determined, Induction)
+}
+
+/// S614 (merge level) at the default parameters: every level's `End`
+/// leaves once, in order.
+pub fn merge_level() -> Proof {
+    let p = MergeDesign::default().params;
+    let (li, lo) = (BeatLayout::input(&p), BeatLayout::output(&p));
+    Proof::new(crate::merge::merge_level_unit(&p), &["in"], &["out"], 6)
+        .flow(Flow::Counted {
+            name: "level_end".into(),
+            input: format!(
+                "{} && in_data{} == 2'd{}",
+                fire("in"),
+                bits(li.kind.offset, 2),
+                level_kind::END
+            ),
+            output: format!(
+                "{} && out_data{} == 2'd{}",
+                fire("out"),
+                bits(lo.kind.offset, 2),
+                base_kind::END
+            ),
+            // The holding register and the skid buffer's two (a bound one
+            // lower fails).
+            capacity: 3,
+            occupancy: None,
+        })
+        .check(Handshake, Induction)
+        .check_to(FlowCheck, Bmc, 12)
+        .check(Determined, Induction)
+}
+
+/// S616 one level up at the default parameters.
+pub fn upper_level() -> Proof {
+    let p = MergeDesign::default().params;
+    Proof::new(crate::merge::upper_level_unit(&p), &["in"], &["out"], 6)
+        .check(Handshake, Induction)
+        .check(Determined, Induction)
+}
+
+/// The merge network (k = 4, ranks tagged) at the default parameters.
+pub fn morton_merge() -> Proof {
+    let c = MergeDesign::default();
+    let ins: Vec<String> = (0..c.inputs).map(|i| format!("in{i}")).collect();
+    let refs: Vec<&str> = ins.iter().map(String::as_str).collect();
+    Proof::new(
+        crate::merge::morton_merge_unit(&c.params, c.inputs, true),
+        &refs,
+        &["out"],
+        4,
+    )
+    .check(Handshake, Induction)
+    .check(Determined, Induction)
+}
+
+/// The per-node decider at the default per-node configuration (k = 4, 1/2).
+pub fn per_node_decider() -> Proof {
+    let c = MergeDesign::default();
+    let m = crate::merge::per_node_decider_unit(&c.params, c.inputs, 1, 2);
+    Proof::new(m, &["in"], &["out", "report"], 4)
+        .check(Handshake, Induction)
+        .check(Determined, Induction)
+}
+
+/// The translation unit at its default design: each path answers every
+/// transaction once; `idle` and `done` as SPEC 7.9's table says.
+pub fn translate_unit() -> Proof {
+    let m = crate::translate::translate_unit(&TranslateDesign::default());
+    let mut p = Proof::new(m, &["det_in", "apply_in"], &["det_out", "apply_out"], 4);
+    // The most inside each path holds (a bound one lower fails).
+    for (path, capacity) in [("det", 4), ("apply", 3)] {
+        p = p.flow(Flow::Counted {
+            name: format!("{path}_answered"),
+            input: fire(&format!("{path}_in")),
+            output: fire(&format!("{path}_out")),
+            capacity,
+            occupancy: None,
+        });
+    }
+    p.status = Some(Status {
+        idle: "idle".into(),
+        done: "done".into(),
+        busy: vec![0, 1],
+        only_when_idle: vec![],
+    });
+    // The two-copy check holds the table memory twice: BMC to 4 only.
+    p.check(Handshake, Induction)
+        .check_to(FlowCheck, Bmc, 12)
+        .check(Determined, Bmc)
+        .check_to(Check::Status, Bmc, 12)
+}
+
+/// The names `hiermerge formal --unit` takes, in report order.
+pub const NAMES: [&str; 10] = [
+    "pipeline_reg",
+    "skid_buffer",
+    "fifo",
+    "merge_priority",
+    "overlap_counter",
+    "merge_level",
+    "upper_level",
+    "morton_merge",
+    "per_node_decider",
+    "translate",
+];
+
+/// The proof named `name` (one of [`NAMES`]).
+pub fn by_name(name: &str) -> Option<Proof> {
+    Some(match name {
+        "pipeline_reg" => pipeline_reg(8),
+        "skid_buffer" => skid_buffer(8),
+        "fifo" => fifo(8, 2),
+        "merge_priority" => merge_priority(8, 3),
+        "overlap_counter" => overlap_counter(),
+        "merge_level" => merge_level(),
+        "upper_level" => upper_level(),
+        "morton_merge" => morton_merge(),
+        "per_node_decider" => per_node_decider(),
+        "translate" => translate_unit(),
+        _ => return None,
+    })
+}

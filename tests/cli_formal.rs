@@ -1,0 +1,253 @@
+//! `hiermerge formal` (SPEC 11.1): every proof passes, split over a few
+//! tests so nextest runs them side by side; a skid buffer that drops a beat
+//! and a priority merge whose grant is not held (the emitted Verilog patched
+//! through `HIERMERGE_FORMAL_PATCH_FROM`/`_TO`) fail the check that should
+//! catch them, naming the property and the step. Under CI=true missing
+//! formal tools fail.
+
+mod common;
+
+use std::process::Output;
+
+use serde_json::Value;
+
+const PATCH_FROM: &str = "HIERMERGE_FORMAL_PATCH_FROM";
+const PATCH_TO: &str = "HIERMERGE_FORMAL_PATCH_TO";
+
+/// True when scripts/setup's formal tools are there; under CI=true their
+/// absence fails the test.
+fn tools_present() -> bool {
+    match cosim::formal::formal_tools() {
+        Ok(_) => true,
+        Err(e) if cosim::tools::ci_mode() => {
+            panic!("CI=true and the formal tools are missing: {e}")
+        }
+        Err(e) => {
+            eprintln!("SKIPPING: {e}");
+            false
+        }
+    }
+}
+
+/// `hiermerge formal --json` on `units` (and `extra` arguments), with
+/// `env`, its files in `out`.
+fn formal(
+    out: &tempfile::TempDir,
+    units: &[&str],
+    extra: &[&str],
+    env: &[(&str, &str)],
+) -> (Output, Value) {
+    let mut args = vec!["formal", "--json", "--out", out.path().to_str().unwrap()];
+    for u in units {
+        args.extend(["--unit", u]);
+    }
+    args.extend(extra);
+    let o = common::hiermerge(&args, env);
+    let r = common::json_of(&o);
+    eprintln!("{r}");
+    (o, r)
+}
+
+/// Every check of `units` proven, each in the mode and to the depth its
+/// proof states, and nothing else in the report.
+fn assert_all_proven(units: &[&str], expected: &[(&str, &str, &str, u64)]) {
+    if !tools_present() {
+        return;
+    }
+    let out = tempfile::tempdir().unwrap();
+    let (o, r) = formal(&out, units, &[], &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let results = r["results"].as_array().unwrap();
+    assert_eq!(results.len(), expected.len(), "{r}");
+    for (got, (unit, check, mode, depth)) in results.iter().zip(expected) {
+        assert_eq!(got["unit"], *unit, "{got}");
+        assert_eq!(got["check"], *check, "{got}");
+        assert_eq!(got["status"], "PASS", "{got}");
+        assert_eq!(got["mode"], *mode, "{got}");
+        assert_eq!(got["depth"], *depth, "{got}");
+        assert!(got["failed"].as_array().unwrap().is_empty(), "{got}");
+        assert!(got["seconds"].as_f64().unwrap() > 0.0, "{got}");
+    }
+    assert_eq!(r["failed"], 0, "{r}");
+}
+
+const K: &str = "k-induction";
+
+#[test]
+fn the_stream_primitives_are_proven() {
+    assert_all_proven(
+        &["pipeline_reg", "skid_buffer", "fifo", "merge_priority"],
+        &[
+            ("pipeline_reg", "handshake", K, 6),
+            ("pipeline_reg", "flow", K, 6),
+            ("pipeline_reg", "determined", K, 6),
+            ("skid_buffer", "handshake", K, 8),
+            ("skid_buffer", "flow", K, 8),
+            ("skid_buffer", "determined", K, 8),
+            ("fifo", "handshake", K, 10),
+            ("fifo", "flow", "bmc", 10),
+            ("fifo", "determined", "bmc", 10),
+            ("merge_priority", "handshake", K, 6),
+            ("merge_priority", "flow", K, 6),
+            ("merge_priority", "determined", K, 6),
+        ],
+    );
+}
+
+#[test]
+fn the_merge_stages_are_proven() {
+    assert_all_proven(
+        &[
+            "overlap_counter",
+            "merge_level",
+            "upper_level",
+            "per_node_decider",
+        ],
+        &[
+            ("overlap_counter", "handshake", K, 4),
+            ("overlap_counter", "flow", K, 4),
+            ("overlap_counter", "determined", K, 4),
+            ("merge_level", "handshake", K, 6),
+            ("merge_level", "flow", "bmc", 12),
+            ("merge_level", "determined", K, 6),
+            ("upper_level", "handshake", K, 6),
+            ("upper_level", "determined", K, 6),
+            ("per_node_decider", "handshake", K, 4),
+            ("per_node_decider", "determined", K, 4),
+        ],
+    );
+}
+
+#[test]
+fn the_merge_network_is_proven() {
+    assert_all_proven(
+        &["morton_merge"],
+        &[
+            ("morton_merge", "handshake", K, 4),
+            ("morton_merge", "determined", K, 4),
+        ],
+    );
+}
+
+#[test]
+fn the_translation_unit_is_proven() {
+    assert_all_proven(
+        &["translate"],
+        &[
+            ("translate", "handshake", K, 4),
+            ("translate", "flow", "bmc", 12),
+            ("translate", "determined", "bmc", 4),
+            ("translate", "status", "bmc", 12),
+        ],
+    );
+}
+
+/// `unit`'s `check` with the emitted line `assign <port> = ...;` replaced
+/// by `to`: it must fail from reset (a counterexample at a step), naming
+/// only properties or invariants whose label contains `part`.
+fn assert_broken_fails(
+    unit: &str,
+    module: rtl_gen::Module,
+    port: &str,
+    to: &str,
+    check: &str,
+    part: &str,
+) {
+    if !tools_present() {
+        return;
+    }
+    let (line, _) = common::emitted_assign(&module, port);
+    let out = tempfile::tempdir().unwrap();
+    let (o, r) = formal(
+        &out,
+        &[unit],
+        &["--check", check],
+        &[(PATCH_FROM, &line), (PATCH_TO, to)],
+    );
+    assert!(!o.status.success(), "a broken {unit} passed: {r}");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("1 of 1 checks not proven"), "{err}");
+    let res = &r["results"][0];
+    assert_eq!(res["check"], check, "{res}");
+    assert_eq!(res["status"], "FAIL", "{res}");
+    let failed: Vec<&str> = res["failed"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f.as_str().unwrap())
+        .collect();
+    assert!(
+        !failed.is_empty() && failed.iter().all(|f| f.contains(part)),
+        "{res}"
+    );
+    assert!(
+        res["step"].as_u64().is_some(),
+        "a counterexample from reset: {res}"
+    );
+    assert!(
+        std::path::Path::new(res["log"].as_str().unwrap()).is_file(),
+        "{res}"
+    );
+}
+
+#[test]
+fn a_skid_buffer_that_drops_a_beat_fails_its_flow_proof() {
+    // Ready while the spare register is full: the beat taken then is lost.
+    assert_broken_fails(
+        "skid_buffer",
+        rtl_gen::formal::units::skid_buffer(8).module,
+        "in_ready",
+        "assign in_ready = 1'b1;",
+        "flow",
+        "_f0_",
+    );
+}
+
+#[test]
+fn a_priority_merge_that_drops_its_grant_under_a_stall_fails_its_handshake_proof() {
+    // The grant recomputed every cycle (no hold): a higher-priority input
+    // arriving under a stall changes the beat offered.
+    let module = rtl_gen::formal::units::merge_priority(8, 3).module;
+    let (_, rhs) = common::emitted_assign(&module, "arb_grant");
+    let free = rhs.rsplit(" : ").next().unwrap();
+    assert_broken_fails(
+        "merge_priority",
+        module,
+        "arb_grant",
+        &format!("assign arb_grant = {free};"),
+        "handshake",
+        "p_out_data_held",
+    );
+}
+
+#[test]
+fn bad_arguments_and_a_patch_that_does_not_match_once_are_refused() {
+    let o = common::hiermerge(&["formal", "--unit", "no_such_unit"], &[]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("--unit no_such_unit: expected one of pipeline_reg"),
+        "{err}"
+    );
+    let o = common::hiermerge(&["formal", "--check", "liveness"], &[]);
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("--check liveness: expected one of handshake")
+    );
+    if !tools_present() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let o = common::hiermerge(
+        &[
+            "formal",
+            "--unit",
+            "skid_buffer",
+            "--out",
+            dir.path().to_str().unwrap(),
+        ],
+        &[(PATCH_FROM, "no such text"), (PATCH_TO, "x")],
+    );
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("occurs 0 times"), "{err}");
+}

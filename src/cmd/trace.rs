@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use golden::oracle::{Oracle, OracleSummary, Part};
 use golden::trace::{
-    bench_trace, closest_hit, verify_ray_list, verify_ray_set, Instance, TraceScene, TraceStats,
+    bench_trace, verify_ray_list, verify_ray_set, Instance, TraceContext, TraceScene, TraceStats,
 };
 use serde::Serialize;
 
@@ -92,8 +92,9 @@ pub fn main(a: Args) -> CmdResult {
         };
         let oracle = Oracle::new(&[part]).map_err(|e| e.to_string())?;
         let mut summary = OracleSummary::default();
+        let mut ctx = TraceContext::new();
         for ray in &rays {
-            let hit = closest_hit(ray, &scene, &mut TraceStats::default());
+            let hit = ctx.closest_hit(ray, &scene, &mut TraceStats::default());
             oracle.count(&mut summary, ray, hit.as_ref());
         }
         report.oracle = Some(summary);

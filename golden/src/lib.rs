@@ -19,6 +19,7 @@ pub mod mesh;
 pub mod oracle;
 pub mod output;
 pub mod params;
+pub mod saved;
 pub mod scene;
 pub mod scenes;
 pub mod store;

@@ -16,6 +16,7 @@ use crate::build::GridMap;
 use crate::merge::{MergeMode, MergeStats};
 use crate::mesh::Mesh;
 use crate::params::Params;
+use crate::store::Hierarchy;
 use crate::world::{Placing, World, WorldError};
 
 /// Whether an object's geometry may change between frames.
@@ -136,6 +137,8 @@ pub struct Frames {
     merged_inputs: Option<Vec<u8>>,
     last_level: Option<u8>,
     frame: u64,
+    /// Hierarchies given for objects' first build ([`Frames::provide`]).
+    provided: BTreeMap<u8, Hierarchy>,
 }
 
 impl Frames {
@@ -150,7 +153,16 @@ impl Frames {
             merged_inputs: None,
             last_level: None,
             frame: 0,
+            provided: BTreeMap::new(),
         })
+    }
+
+    /// Gives object `id`'s hierarchy (a saved one, SPEC 16) for the frame
+    /// it first appears in, which then does not build it
+    /// ([`World::add_built`]); it must be the hierarchy of that frame's mesh,
+    /// built as hierarchy `id` in this world's grid.
+    pub fn provide(&mut self, id: u8, hierarchy: Hierarchy) {
+        self.provided.insert(id, hierarchy);
     }
 
     /// Brings the world to this frame's scene, redoing only what changed,
@@ -217,7 +229,11 @@ impl Frames {
     fn update_object(&mut self, o: &FrameObject) -> Result<ObjectAction, FrameError> {
         let action = match self.last.get(&o.id) {
             None => {
-                self.world.add(o.id, (*o.mesh).clone(), o.offset)?;
+                let mesh = (*o.mesh).clone();
+                match self.provided.remove(&o.id) {
+                    Some(h) => self.world.add_built(o.id, mesh, o.offset, h)?,
+                    None => self.world.add(o.id, mesh, o.offset)?,
+                };
                 ObjectAction::Built
             }
             Some((motion, mesh, offset)) => {

@@ -263,6 +263,38 @@ pub fn load(path: &Path, mesh: &Mesh) -> Result<SavedHierarchy, LoadError> {
     Ok(s)
 }
 
+/// Where [`load_or_build`]'s hierarchy came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Provenance {
+    /// Read from the file and checked.
+    Loaded,
+    /// The file did not exist: built, then saved there.
+    Saved,
+}
+
+/// Hierarchy `id` of `mesh` built with `params` in `grid`: loaded from
+/// `path` when it exists (and refused unless it was saved over `mesh` with
+/// these parameters, grid and id), else built and saved to `path`, so that
+/// later runs load it.
+pub fn load_or_build(
+    path: &Path,
+    mesh: &Mesh,
+    grid: &GridMap,
+    params: &Params,
+    id: u8,
+) -> Result<(Hierarchy, Provenance), String> {
+    if std::fs::symlink_metadata(path).is_ok() {
+        let s = load(path, mesh).map_err(|e| e.to_string())?;
+        s.require(&path.display().to_string(), params, grid, id)
+            .map_err(|e| e.to_string())?;
+        return Ok((s.hierarchy, Provenance::Loaded));
+    }
+    let h = crate::build::build(mesh, grid, params, id)
+        .map_err(|e| format!("{}: building the hierarchy to save: {e}", path.display()))?;
+    save(path, &h, grid, mesh)?;
+    Ok((h, Provenance::Saved))
+}
+
 impl SavedHierarchy {
     fn require_mesh(&self, file: &str, mesh: &Mesh) -> Result<(), LoadError> {
         let n = mesh.triangles.len() as u64;

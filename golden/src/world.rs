@@ -196,6 +196,19 @@ impl World {
     pub fn add(&mut self, id: u8, mesh: Mesh, offset: DVec3) -> Result<&Object, WorldError> {
         let base = build(&mesh, &self.grid, &self.params, id)
             .map_err(|error| WorldError::Build { id, error })?;
+        self.add_built(id, mesh, offset, base)
+    }
+
+    /// [`World::add`] with `base`, the hierarchy of `mesh` built as hierarchy
+    /// `id` in this world's grid, given (a saved hierarchy, SPEC 16) instead
+    /// of built; it serves as is when the placement leaves no residual.
+    pub fn add_built(
+        &mut self,
+        id: u8,
+        mesh: Mesh,
+        offset: DVec3,
+        base: Hierarchy,
+    ) -> Result<&Object, WorldError> {
         let base_lod = base.top_lod;
         let Step::Settled(s) = self.settle(id, &mesh, base_lod, offset, Some(base), None)? else {
             unreachable!("settle reuses only a current hierarchy, and there is none")

@@ -96,6 +96,56 @@ fn trace_verify_finds_no_mismatch() {
     assert!(v["node_tests_per_ray"].as_f64().unwrap() > 1.0);
 }
 
+/// SPEC 16: a hierarchy saved by `build --save` is traced by `trace --load`
+/// with the same answers and costs as one built on the spot; a corrupt
+/// file is refused naming the file and the field.
+#[test]
+fn build_save_then_trace_load_traces_the_same() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("bunny.hmh");
+    let file = file.to_str().unwrap();
+    let bunny = scene("bunny.obj");
+    let grid = ["--max-lod", "12", "--quant-bits", "6"];
+    let mut args = vec!["build", &bunny, "--save", file, "--json"];
+    args.extend(grid);
+    let v = json(&args);
+    assert_eq!(v["hierarchies"][0]["saved"], file);
+    let mut args = vec!["trace", &bunny, "--rays", "3000", "--verify", "--json"];
+    args.extend(grid);
+    let built = json(&args);
+    let loaded = json(&[
+        "trace", &bunny, "--rays", "3000", "--verify", "--load", file, "--json",
+    ]);
+    assert_eq!(loaded["loaded"], file);
+    for k in [
+        "params",
+        "hits",
+        "mismatches",
+        "node_tests_per_ray",
+        "prim_tests_per_ray",
+    ] {
+        assert_eq!(loaded[k], built[k], "{k}");
+    }
+    assert_eq!(loaded["mismatches"], 0);
+    assert!(loaded["hits"].as_u64().unwrap() > 500);
+    // The grid options belong to the file.
+    let e = fails(&["trace", &bunny, "--load", file, "--max-lod", "16"]);
+    assert!(e.contains("--max-lod"), "{e}");
+    // Another mesh, a corrupt byte, one --save for two meshes.
+    let e = fails(&["trace", &scene("teapot.obj"), "--load", file]);
+    assert!(e.contains(file) && e.contains("(triangles)"), "{e}");
+    let mut bytes = std::fs::read(file).unwrap();
+    bytes[200] ^= 1;
+    std::fs::write(file, bytes).unwrap();
+    let e = fails(&["trace", &bunny, "--load", file]);
+    assert!(
+        e.contains(file) && e.contains("(checksum)") && e.contains("corrupt"),
+        "{e}"
+    );
+    let e = fails(&["build", &bunny, &bunny, "--save", file]);
+    assert!(e.contains("one file per mesh"), "{e}");
+}
+
 #[test]
 fn merge_verify_reports_level_and_costs() {
     let v = json(&[

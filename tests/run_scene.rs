@@ -525,3 +525,77 @@ fn malformed_scenes_give_one_clear_error_each() {
         &["objects[0].placement", "static"],
     );
 }
+
+/// SPEC 16, 12.1: a static object naming a saved hierarchy builds and saves
+/// it in the first run and loads it in the next, and both render the image
+/// of the same scene without the field; a corrupt file is refused naming
+/// it, and a dynamic object may not name one.
+#[test]
+fn a_saved_hierarchy_renders_the_image_of_the_built_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let plain = small_scene(true, json!([[2, 1, 2], [3, 1, 2]]));
+    let mut with = plain.clone();
+    with["objects"][0]["hierarchy"] = json!("slab.hmh");
+    let plain_path = write_scene(dir.path(), "plain.json", &plain);
+    let with_path = write_scene(dir.path(), "saved.json", &with);
+    let saved = dir.path().join("slab.hmh");
+    let run = |scene: &Path, out: &str| {
+        let v = run_ok(
+            &[scene.to_str().unwrap(), "--no-rtl"],
+            &dir.path().join(out),
+            None,
+        );
+        let frames = v["frames"].as_array().unwrap().clone();
+        let images: Vec<_> = frames
+            .iter()
+            .map(|f| pixels(Path::new(f["image"].as_str().unwrap())).2)
+            .collect();
+        (strings(&frames[0]["simulated"]), images)
+    };
+    let (_, built) = run(&plain_path, "plain");
+    assert!(!saved.exists());
+    let (first, saving) = run(&with_path, "first");
+    assert!(
+        first
+            .iter()
+            .any(|s| s.starts_with("slab: hierarchy built and saved to")),
+        "{first:?}"
+    );
+    let bytes = std::fs::read(&saved).unwrap();
+    assert_eq!(&bytes[..8], b"HIERMRGH");
+    let (second, loading) = run(&with_path, "second");
+    assert!(
+        second
+            .iter()
+            .any(|s| s.starts_with("slab: hierarchy loaded from")),
+        "{second:?}"
+    );
+    assert_eq!(
+        std::fs::read(&saved).unwrap(),
+        bytes,
+        "loading does not rewrite the file"
+    );
+    assert_eq!(saving, built, "the saving run's images");
+    assert_eq!(loading, built, "the loading run's images");
+    // A flipped byte: refused before any frame, naming the file.
+    let mut bad = bytes.clone();
+    bad[150] ^= 4;
+    std::fs::write(&saved, &bad).unwrap();
+    let text = serde_json::to_string(&with).unwrap();
+    fails(
+        dir.path(),
+        "saved.json",
+        &text,
+        &["objects[0].hierarchy", "slab.hmh", "checksum"],
+    );
+    // Only a static object may name one.
+    let mut dynamic = plain.clone();
+    dynamic["objects"][1]["hierarchy"] = json!("ball.hmh");
+    let text = serde_json::to_string(&dynamic).unwrap();
+    fails(
+        dir.path(),
+        "dynamic.json",
+        &text,
+        &["objects[1].hierarchy", "only on a static object"],
+    );
+}

@@ -11,11 +11,15 @@
 //! `BUILD_BENCH=<substring>` runs only the scenes whose name contains it;
 //! `BUILD_BENCH_NEW_ONLY=1` skips the reference (for profiling the new path).
 
+#[path = "support/cpu_time.rs"]
+mod cpu_time;
 #[path = "../tests/support/reference_builder.rs"]
 mod reference_builder;
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
+
+use cpu_time::thread_cpu_time;
 
 use glam::DVec3;
 use golden::build::{build, GridMap};
@@ -23,34 +27,6 @@ use golden::mesh::Mesh;
 use golden::scenes;
 use golden::store::Hierarchy;
 use golden::Params;
-
-/// CPU time of this thread so far, from `clock_gettime(CLOCK_THREAD_CPUTIME_ID)`
-/// (nanosecond resolution; `/proc`'s tick counts are too coarse for a
-/// few-millisecond build); None off Linux.
-#[cfg(target_os = "linux")]
-fn thread_cpu_time() -> Option<Duration> {
-    #[repr(C)]
-    struct Timespec {
-        tv_sec: i64,
-        tv_nsec: i64,
-    }
-    extern "C" {
-        fn clock_gettime(clock: i32, tp: *mut Timespec) -> i32;
-    }
-    const CLOCK_THREAD_CPUTIME_ID: i32 = 3;
-    let mut ts = Timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid, writable timespec (64-bit Linux layout).
-    let rc = unsafe { clock_gettime(CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    (rc == 0).then(|| Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32))
-}
-
-#[cfg(not(target_os = "linux"))]
-fn thread_cpu_time() -> Option<Duration> {
-    None
-}
 
 /// Accumulated CPU and best wall time of one builder over several runs.
 #[derive(Default)]

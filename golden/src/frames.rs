@@ -18,6 +18,7 @@ use crate::build::GridMap;
 use crate::merge::{MergeMode, MergeStats};
 use crate::mesh::Mesh;
 use crate::params::Params;
+use crate::store::Hierarchy;
 use crate::world::{Placing, World, WorldError};
 
 /// Whether an object's geometry may change between frames.
@@ -194,6 +195,8 @@ pub struct Frames {
     groups: Vec<Group>,
     last: BTreeMap<u8, (Motion, Arc<Mesh>, DVec3)>,
     frame: u64,
+    /// Hierarchies given for objects' first build ([`Frames::provide`]).
+    provided: BTreeMap<u8, Hierarchy>,
 }
 
 impl Frames {
@@ -263,6 +266,7 @@ impl Frames {
                 .collect(),
             last: BTreeMap::new(),
             frame: 0,
+            provided: BTreeMap::new(),
         })
     }
 
@@ -278,6 +282,14 @@ impl Frames {
             None => true,
             Some(m) => m.contains(&id),
         })
+    }
+
+    /// Gives object `id`'s hierarchy (a saved one, SPEC 16) for the frame
+    /// it first appears in, which then does not build it
+    /// ([`World::add_built`]); it must be the hierarchy of that frame's mesh,
+    /// built as hierarchy `id` in this world's grid.
+    pub fn provide(&mut self, id: u8, hierarchy: Hierarchy) {
+        self.provided.insert(id, hierarchy);
     }
 
     /// Brings the world to this frame's scene, redoing only what changed,
@@ -373,7 +385,11 @@ impl Frames {
     fn update_object(&mut self, o: &FrameObject) -> Result<ObjectAction, FrameError> {
         let action = match self.last.get(&o.id) {
             None => {
-                self.world.add(o.id, (*o.mesh).clone(), o.offset)?;
+                let mesh = (*o.mesh).clone();
+                match self.provided.remove(&o.id) {
+                    Some(h) => self.world.add_built(o.id, mesh, o.offset, h)?,
+                    None => self.world.add(o.id, mesh, o.offset)?,
+                };
                 ObjectAction::Built
             }
             Some((motion, mesh, offset)) => {

@@ -365,32 +365,28 @@ impl<'a> TraceScene<'a> {
         (flo, fhi)
     }
 
-    /// The slack of one ray for the boxes of each instance (world units):
-    /// the largest, over the instances with triangles its nodes reach, of
+    /// The slack of one ray for the boxes of each instance (world units),
+    /// into `slacks` (`own` is scratch): the largest, over the instances
+    /// with triangles its nodes reach, of
     /// `BOX_SLACK_REL * (max |local origin| + local magnitude)`; an instance
     /// without triangles adds the rounding of the origin in its own frame,
     /// `BOX_SLACK_REL * max |frame origin|`.
-    fn slacks(&self, ray: &Ray) -> Vec<f64> {
-        let own: Vec<f64> = self
-            .placed
-            .iter()
-            .map(|p| {
-                let o = local_ray(ray, p).origin.abs().max_element() as f64;
-                BOX_SLACK_REL * (o + p.local_magnitude)
-            })
-            .collect();
-        self.placed
-            .iter()
-            .map(|p| {
-                let reach = p.reach.iter().map(|&j| own[j]).fold(0.0, f64::max);
-                if p.inst.mesh.is_empty() {
-                    let o = frame_ray(ray, p).origin.abs().max_element() as f64;
-                    reach + BOX_SLACK_REL * o
-                } else {
-                    reach
-                }
-            })
-            .collect()
+    fn slacks_into(&self, ray: &Ray, own: &mut Vec<f64>, slacks: &mut Vec<f64>) {
+        own.clear();
+        own.extend(self.placed.iter().map(|p| {
+            let o = local_ray(ray, p).origin.abs().max_element() as f64;
+            BOX_SLACK_REL * (o + p.local_magnitude)
+        }));
+        slacks.clear();
+        slacks.extend(self.placed.iter().map(|p| {
+            let reach = p.reach.iter().map(|&j| own[j]).fold(0.0, f64::max);
+            if p.inst.mesh.is_empty() {
+                let o = frame_ray(ray, p).origin.abs().max_element() as f64;
+                reach + BOX_SLACK_REL * o
+            } else {
+                reach
+            }
+        }));
     }
 
     /// Every instance, for brute force and bounds.
@@ -512,111 +508,214 @@ fn improves(best: &Option<Hit>, hit: &Hit) -> bool {
 }
 
 /// A node waiting on the traversal stack, with the ray's entry into its box.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Debug)]
 struct Pending {
     placed: usize,
     node: u32,
     entry: f32,
 }
 
-/// The closest hit of `ray` in `scene`, adding the tests it took to `stats`.
-pub fn closest_hit(ray: &Ray, scene: &TraceScene, stats: &mut TraceStats) -> Option<Hit> {
-    let slacks = scene.slacks(ray);
-    // Slab rays per instance, in its frame, made on first use.
-    let mut slabs: Vec<Option<SlabRay>> = vec![None; scene.placed.len()];
-    // Sheared rays per instance, made on first use.
-    let mut sheared: Vec<Option<ShearedRay>> = vec![None; scene.placed.len()];
-    let mut best: Option<Hit> = None;
-    let mut stack: Vec<Pending> = Vec::with_capacity(64);
-    let mut children: Vec<Pending> = Vec::with_capacity(8);
+/// The scratch space of traversal, owned by the caller and reused from ray
+/// to ray (and from scene to scene): per instance the ray's box slack and
+/// its prepared slab and sheared rays, the stack, and the children of the
+/// node being expanded. Once its buffers have grown to a scene's size,
+/// tracing a ray allocates nothing. What a context traced before never
+/// changes an answer: [`TraceContext::closest_hit`] returns what
+/// [`closest_hit`] does, with the same tests counted.
+///
+/// ```
+/// use glam::Vec3;
+/// use golden::build::{build, GridMap};
+/// use golden::geom::Ray;
+/// use golden::scenes::sphere;
+/// use golden::trace::{Instance, TraceContext, TraceScene, TraceStats};
+/// use golden::Params;
+///
+/// let mesh = sphere(Vec3::ZERO, 1.0, 16, 32);
+/// let params = Params::default();
+/// let (lo, hi) = mesh.bounds();
+/// let grid = GridMap::fit(lo, hi, &params);
+/// let hierarchy = build(&mesh, &grid, &params, 0).unwrap();
+/// let scene = TraceScene::new(grid, &[Instance::new(&hierarchy, &mesh)]).unwrap();
+///
+/// let mut ctx = TraceContext::new();
+/// let mut stats = TraceStats::default();
+/// let ray = Ray::unbounded(Vec3::new(0.0, 0.0, -5.0), Vec3::Z);
+/// let hit = ctx.closest_hit(&ray, &scene, &mut stats).unwrap();
+/// assert!((hit.t - 4.0).abs() < 0.01);
+/// // A shadow ray that stops short of the sphere is not occluded.
+/// let short = Ray::new(ray.origin, ray.dir, 0.0, 3.0);
+/// assert!(!ctx.occluded(&short, &scene, &mut stats));
+/// assert!(ctx.occluded(&ray, &scene, &mut stats));
+/// assert!(stats.node_tests > 0 && stats.prim_tests > 0);
+/// ```
+#[derive(Clone, Debug, Default)]
+pub struct TraceContext {
+    own: Vec<f64>,
+    slacks: Vec<f64>,
+    slabs: Vec<Option<SlabRay>>,
+    sheared: Vec<Option<ShearedRay>>,
+    stack: Vec<Pending>,
+    children: Vec<Pending>,
+}
 
-    // Tests the boxes of `nodes` and pushes those hit, farthest first so the
-    // nearest is popped first.
-    let mut visit = |placed: usize,
-                     nodes: &mut dyn Iterator<Item = u32>,
-                     best_t: f32,
-                     stack: &mut Vec<Pending>,
-                     children: &mut Vec<Pending>,
-                     stats: &mut TraceStats| {
+impl TraceContext {
+    /// An empty context; its buffers grow on first use.
+    pub fn new() -> TraceContext {
+        TraceContext::default()
+    }
+
+    /// The closest hit of `ray` in `scene`, adding the tests it took to
+    /// `stats`: the same hit, bit for bit, and the same counts as [`closest_hit`].
+    pub fn closest_hit(
+        &mut self,
+        ray: &Ray,
+        scene: &TraceScene,
+        stats: &mut TraceStats,
+    ) -> Option<Hit> {
+        self.walk::<false>(ray, scene, stats)
+    }
+
+    /// True when `ray` hits some triangle of `scene` within its
+    /// `[tmin, tmax]`: exactly when [`TraceContext::closest_hit`] returns a
+    /// hit (SPEC 6.11). The walk is the closest-hit walk up to its first
+    /// triangle hit, where it stops, so it never makes more tests.
+    pub fn occluded(&mut self, ray: &Ray, scene: &TraceScene, stats: &mut TraceStats) -> bool {
+        self.walk::<true>(ray, scene, stats).is_some()
+    }
+
+    /// The stack walk from the roots; `ANY` returns the first hit found.
+    fn walk<const ANY: bool>(
+        &mut self,
+        ray: &Ray,
+        scene: &TraceScene,
+        stats: &mut TraceStats,
+    ) -> Option<Hit> {
+        scene.slacks_into(ray, &mut self.own, &mut self.slacks);
+        let n = scene.placed.len();
+        self.slabs.clear();
+        self.slabs.resize(n, None);
+        self.sheared.clear();
+        self.sheared.resize(n, None);
+        self.stack.clear();
+        let mut best: Option<Hit> = None;
+        for &id in scene.roots.iter().rev() {
+            let k = scene.by_id[id as usize].expect("checked in TraceScene::with_roots");
+            let roots = scene.placed[k].inst.hierarchy.root_count;
+            self.visit(scene, ray, k, 0..roots, ray.tmax, stats);
+        }
+        while let Some(top) = self.stack.pop() {
+            let best_t = best.map_or(ray.tmax, |h| h.t);
+            if top.entry > best_t {
+                continue;
+            }
+            let p = &scene.placed[top.placed];
+            let h = p.inst.hierarchy;
+            let n = &h.nodes[top.node as usize];
+            if n.leaf {
+                let s = *self.sheared[top.placed]
+                    .get_or_insert_with(|| ShearedRay::new(&local_ray(ray, p)));
+                for &prim in h.prims_of(n) {
+                    stats.prim_tests += 1;
+                    let best_t = best.map_or(ray.tmax, |h| h.t);
+                    let tri = p.inst.mesh.triangle(prim as usize);
+                    if let Some(th) = intersect_triangle(&s.with_range(ray.tmin, best_t), &tri) {
+                        let hit = Hit {
+                            t: th.t,
+                            u: th.u,
+                            v: th.v,
+                            w: th.w,
+                            hier: h.id,
+                            prim,
+                        };
+                        if ANY {
+                            return Some(hit);
+                        }
+                        if improves(&best, &hit) {
+                            best = Some(hit);
+                        }
+                    }
+                }
+            } else {
+                // Children may live in other instances (a merged hierarchy).
+                let refs = h.children_of(n);
+                let mut i = 0;
+                while i < refs.len() {
+                    // Group consecutive references to the same hierarchy.
+                    let hier = refs[i].hier;
+                    let j = refs[i..]
+                        .iter()
+                        .position(|r| r.hier != hier)
+                        .map_or(refs.len(), |d| i + d);
+                    let k = scene.by_id[hier as usize].expect("checked in TraceScene::with_roots");
+                    let best_t = best.map_or(ray.tmax, |h| h.t);
+                    self.visit(
+                        scene,
+                        ray,
+                        k,
+                        refs[i..j].iter().map(|r| r.node),
+                        best_t,
+                        stats,
+                    );
+                    i = j;
+                }
+            }
+        }
+        best
+    }
+
+    /// Tests the boxes of `nodes` of instance `placed` and pushes those hit,
+    /// farthest first so the nearest is popped first.
+    fn visit(
+        &mut self,
+        scene: &TraceScene,
+        ray: &Ray,
+        placed: usize,
+        nodes: impl Iterator<Item = u32>,
+        best_t: f32,
+        stats: &mut TraceStats,
+    ) {
         let p = &scene.placed[placed];
-        let slab = *slabs[placed].get_or_insert_with(|| SlabRay::new(&frame_ray(ray, p)));
-        children.clear();
+        let slab = *self.slabs[placed].get_or_insert_with(|| SlabRay::new(&frame_ray(ray, p)));
+        let slack = self.slacks[placed];
+        self.children.clear();
         for node in nodes {
             let n = &p.inst.hierarchy.nodes[node as usize];
             stats.node_tests += 1;
-            let (lo, hi) = scene.frame_box(p, n, slacks[placed]);
+            let (lo, hi) = scene.frame_box(p, n, slack);
             if let Some((entry, _)) = ray_box(&slab, lo, hi, ray.tmin, best_t) {
-                children.push(Pending {
+                self.children.push(Pending {
                     placed,
                     node,
                     entry,
                 });
             }
         }
-        children.sort_by(|a, b| b.entry.total_cmp(&a.entry));
-        stack.extend_from_slice(children);
-    };
+        sort_farthest_first(&mut self.children);
+        self.stack.extend_from_slice(&self.children);
+    }
+}
 
-    for &id in scene.roots.iter().rev() {
-        let k = scene.by_id[id as usize].expect("checked in TraceScene::with_roots");
-        let roots = scene.placed[k].inst.hierarchy.root_count;
-        visit(
-            k,
-            &mut (0..roots),
-            ray.tmax,
-            &mut stack,
-            &mut children,
-            stats,
-        );
-    }
-    while let Some(top) = stack.pop() {
-        let best_t = best.map_or(ray.tmax, |h| h.t);
-        if top.entry > best_t {
-            continue;
+/// Orders pending nodes by decreasing entry, equal entries kept in the
+/// order their references have: a stable insertion sort, which a node's
+/// few children need and which never allocates.
+fn sort_farthest_first(v: &mut [Pending]) {
+    for i in 1..v.len() {
+        let x = v[i];
+        let mut j = i;
+        while j > 0 && x.entry.total_cmp(&v[j - 1].entry) == std::cmp::Ordering::Greater {
+            v[j] = v[j - 1];
+            j -= 1;
         }
-        let p = &scene.placed[top.placed];
-        let h = p.inst.hierarchy;
-        let n = &h.nodes[top.node as usize];
-        if n.leaf {
-            let s = sheared[top.placed].get_or_insert_with(|| ShearedRay::new(&local_ray(ray, p)));
-            for &prim in h.prims_of(n) {
-                stats.prim_tests += 1;
-                let best_t = best.map_or(ray.tmax, |h| h.t);
-                let tri = p.inst.mesh.triangle(prim as usize);
-                if let Some(th) = intersect_triangle(&s.with_range(ray.tmin, best_t), &tri) {
-                    let hit = Hit {
-                        t: th.t,
-                        u: th.u,
-                        v: th.v,
-                        w: th.w,
-                        hier: h.id,
-                        prim,
-                    };
-                    if improves(&best, &hit) {
-                        best = Some(hit);
-                    }
-                }
-            }
-        } else {
-            // Children may live in other instances (a merged hierarchy).
-            let refs = h.children_of(n);
-            let mut i = 0;
-            while i < refs.len() {
-                // Group consecutive references to the same hierarchy.
-                let hier = refs[i].hier;
-                let j = refs[i..]
-                    .iter()
-                    .position(|r| r.hier != hier)
-                    .map_or(refs.len(), |d| i + d);
-                let k = scene.by_id[hier as usize].expect("checked in TraceScene::with_roots");
-                let mut nodes = refs[i..j].iter().map(|r| r.node);
-                let best_t = best.map_or(ray.tmax, |h| h.t);
-                visit(k, &mut nodes, best_t, &mut stack, &mut children, stats);
-                i = j;
-            }
-        }
+        v[j] = x;
     }
-    best
+}
+
+/// The closest hit of `ray` in `scene`, adding the tests it took to `stats`.
+/// It makes a fresh [`TraceContext`]; to trace many rays, keep one and call
+/// [`TraceContext::closest_hit`].
+pub fn closest_hit(ray: &Ray, scene: &TraceScene, stats: &mut TraceStats) -> Option<Hit> {
+    TraceContext::new().closest_hit(ray, scene, stats)
 }
 
 /// The closest hit by testing every triangle of every instance, in the same
@@ -817,9 +916,10 @@ pub fn verify_ray_list(scene: &TraceScene, rays: &[Ray]) -> TraceSummary {
         brute_prim_tests_per_ray: 0.0,
         first_mismatch: None,
     };
+    let mut ctx = TraceContext::new();
     for ray in rays {
         let mut st = TraceStats::default();
-        let got = closest_hit(ray, scene, &mut st);
+        let got = ctx.closest_hit(ray, scene, &mut st);
         let want = brute_force_closest(ray, scene, &mut brute);
         total += st;
         s.max_node_tests = s.max_node_tests.max(st.node_tests);
@@ -964,9 +1064,10 @@ pub fn bench_trace(scene: &TraceScene, n: usize, seed: u64) -> TraceBench {
     let rays = random_rays(lo, hi, n, seed);
     let mut stats = TraceStats::default();
     let mut hits = 0u64;
+    let mut ctx = TraceContext::new();
     let start = std::time::Instant::now();
     for ray in &rays {
-        hits += closest_hit(ray, scene, &mut stats).is_some() as u64;
+        hits += ctx.closest_hit(ray, scene, &mut stats).is_some() as u64;
     }
     let seconds = start.elapsed().as_secs_f64();
     let n = rays.len().max(1) as f64;

@@ -165,6 +165,31 @@ impl fmt::Display for WorldError {
 impl std::error::Error for WorldError {}
 
 /// The store, the translation table and the objects of a scene.
+///
+/// ```
+/// use glam::{DVec3, Vec3};
+/// use golden::build::GridMap;
+/// use golden::merge::MergeMode;
+/// use golden::scenes::sphere;
+/// use golden::world::{Placing, World};
+/// use golden::Params;
+///
+/// let params = Params::new(12, 6, 24, 4).unwrap();
+/// let grid = GridMap { origin: DVec3::ZERO, unit: 1.0 / 256.0 };
+/// let mut world = World::new(params, grid).unwrap();
+/// world.add(1, sphere(Vec3::splat(1.0), 0.5, 12, 24), DVec3::ZERO).unwrap();
+/// world.add(2, sphere(Vec3::splat(1.0), 0.3, 12, 24), DVec3::new(0.5, 0.0, 0.0)).unwrap();
+/// // A move by whole voxels of the translation's LOD reuses the hierarchy.
+/// let lod = world.object(1).unwrap().determined.translation.lod;
+/// let step = params.voxel_edge(lod) as f64 * grid.unit;
+/// assert_eq!(world.place(1, DVec3::new(step, 0.0, 0.0)).unwrap(), Placing::Retranslated);
+/// // Merged into hierarchy 9; the inputs stay in the store for the next frame.
+/// world.merge(&[1, 2], MergeMode::default(), 9).unwrap();
+/// world.check(9).unwrap();
+/// let instances = world.merged_instances(9, &[1, 2]).unwrap();
+/// let scene = world.trace_scene(&instances, &[9]).unwrap();
+/// assert!(scene.bounds().0.x < scene.bounds().1.x);
+/// ```
 pub struct World {
     /// The parameters every hierarchy is built with (SPEC 1).
     pub params: Params,
@@ -196,6 +221,19 @@ impl World {
     pub fn add(&mut self, id: u8, mesh: Mesh, offset: DVec3) -> Result<&Object, WorldError> {
         let base = build(&mesh, &self.grid, &self.params, id)
             .map_err(|error| WorldError::Build { id, error })?;
+        self.add_built(id, mesh, offset, base)
+    }
+
+    /// [`World::add`] with `base`, the hierarchy of `mesh` built as hierarchy
+    /// `id` in this world's grid, given (a saved hierarchy, SPEC 16) instead
+    /// of built; it serves as is when the placement leaves no residual.
+    pub fn add_built(
+        &mut self,
+        id: u8,
+        mesh: Mesh,
+        offset: DVec3,
+        base: Hierarchy,
+    ) -> Result<&Object, WorldError> {
         let base_lod = base.top_lod;
         let Step::Settled(s) = self.settle(id, &mesh, base_lod, offset, Some(base), None)? else {
             unreachable!("settle reuses only a current hierarchy, and there is none")

@@ -14,6 +14,10 @@ pub struct Args {
     meshes: Vec<PathBuf>,
     #[command(flatten)]
     grid: GridOpts,
+    /// Save each checked hierarchy to a file (SPEC section 16), written
+    /// atomically: one `--save` per mesh, in the order of the meshes.
+    #[arg(long, value_name = "FILE")]
+    save: Vec<PathBuf>,
     /// Print one JSON object on stdout.
     #[arg(long)]
     json: bool,
@@ -35,10 +39,20 @@ struct MeshReport {
     triangles_per_second: f64,
     /// The checker proved the hierarchy valid (SPEC section 5).
     checked: bool,
+    /// The saved hierarchy's file (`--save`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    saved: Option<String>,
 }
 
 pub fn main(a: Args) -> CmdResult {
     let params = a.grid.params()?;
+    if !a.save.is_empty() && a.save.len() != a.meshes.len() {
+        return Err(format!(
+            "--save: expected one file per mesh ({} meshes), found {} files",
+            a.meshes.len(),
+            a.save.len()
+        ));
+    }
     let mut hierarchies = Vec::new();
     for (i, path) in a.meshes.iter().enumerate() {
         let mesh = load_mesh(path)?;
@@ -63,6 +77,13 @@ pub fn main(a: Args) -> CmdResult {
                 path.display()
             )
         })?;
+        let saved = match a.save.get(i) {
+            Some(file) => {
+                golden::saved::save(file, &b.hierarchy, &b.grid, &b.mesh)?;
+                Some(file.display().to_string())
+            }
+            None => None,
+        };
         let n = b.mesh.triangles.len() as u64;
         hierarchies.push(MeshReport {
             file: path.display().to_string(),
@@ -71,6 +92,7 @@ pub fn main(a: Args) -> CmdResult {
             build_seconds: b.seconds,
             triangles_per_second: per_second(n as f64, b.seconds),
             checked: true,
+            saved,
         });
     }
     let report = Report {
@@ -98,6 +120,9 @@ pub fn main(a: Args) -> CmdResult {
                 .map(|(l, c)| format!("{l}:{c}"))
                 .collect();
             println!("  nodes per LOD: {}", per_lod.join(" "));
+            if let Some(f) = &h.saved {
+                println!("  saved to {f}");
+            }
         }
     })
 }

@@ -6,11 +6,11 @@ use std::path::PathBuf;
 
 use golden::oracle::{Oracle, OracleSummary, Part};
 use golden::trace::{
-    bench_trace, closest_hit, verify_ray_list, verify_ray_set, Instance, TraceScene, TraceStats,
+    bench_trace, verify_ray_list, verify_ray_set, Instance, TraceContext, TraceScene, TraceStats,
 };
 use serde::Serialize;
 
-use super::common::{build_fitted, load_mesh, GridOpts};
+use super::common::{build_fitted, load_mesh, Built, GridOpts};
 use crate::report::{emit, CmdResult};
 
 #[derive(clap::Args)]
@@ -28,6 +28,12 @@ pub struct Args {
     /// (SPEC 6.10); half the rays aim at edges and vertices.
     #[arg(long)]
     verify: bool,
+    /// Trace the hierarchy saved in FILE (`hiermerge build --save`, SPEC
+    /// section 16) instead of building one: its parameters and grid map come
+    /// from the file, which must have been saved over MESH; it is checked
+    /// (SPEC section 5) before any ray.
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["max_lod", "quant_bits", "index_bits", "hier_bits"])]
+    load: Option<PathBuf>,
     #[command(flatten)]
     grid: GridOpts,
     /// Print one JSON object on stdout.
@@ -46,6 +52,9 @@ struct Report {
     node_tests_per_ray: f64,
     prim_tests_per_ray: f64,
     rays_per_second: f64,
+    /// Present with --load: the saved hierarchy's file.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    loaded: Option<String>,
     /// Present with --verify: rays whose hit differs from brute force.
     #[serde(skip_serializing_if = "Option::is_none")]
     mismatches: Option<u64>,
@@ -58,9 +67,20 @@ struct Report {
 
 pub fn main(a: Args) -> CmdResult {
     golden::trace::check_ray_count(a.rays)?;
-    let params = a.grid.params()?;
     let mesh = load_mesh(&a.mesh)?;
-    let b = build_fitted(a.mesh.clone(), mesh, &params, 0)?;
+    let b = match &a.load {
+        Some(file) => {
+            let s = golden::saved::load(file, &mesh).map_err(|e| e.to_string())?;
+            Built {
+                mesh,
+                grid: s.grid,
+                hierarchy: s.hierarchy,
+                seconds: 0.0,
+            }
+        }
+        None => build_fitted(a.mesh.clone(), mesh, &a.grid.params()?, 0)?,
+    };
+    let params = b.hierarchy.params;
     let scene = TraceScene::new(b.grid, &[Instance::new(&b.hierarchy, &b.mesh)])
         .map_err(|e| e.to_string())?;
     let (lo, hi) = scene.bounds();
@@ -76,6 +96,7 @@ pub fn main(a: Args) -> CmdResult {
         node_tests_per_ray: speed.node_tests_per_ray,
         prim_tests_per_ray: speed.prim_tests_per_ray,
         rays_per_second: speed.rays_per_second,
+        loaded: a.load.as_ref().map(|f| f.display().to_string()),
         mismatches: None,
         first_mismatch: None,
         oracle: None,
@@ -92,8 +113,9 @@ pub fn main(a: Args) -> CmdResult {
         };
         let oracle = Oracle::new(&[part]).map_err(|e| e.to_string())?;
         let mut summary = OracleSummary::default();
+        let mut ctx = TraceContext::new();
         for ray in &rays {
-            let hit = closest_hit(ray, &scene, &mut TraceStats::default());
+            let hit = ctx.closest_hit(ray, &scene, &mut TraceStats::default());
             oracle.count(&mut summary, ray, hit.as_ref());
         }
         report.oracle = Some(summary);
@@ -105,6 +127,9 @@ pub fn main(a: Args) -> CmdResult {
         report.first_mismatch = v.first_mismatch;
     }
     emit(a.json, &report, |r| {
+        if let Some(f) = &r.loaded {
+            println!("hierarchy loaded from {f} (checked)");
+        }
         println!(
             "{}: {} triangles, {} rays (seed {}), {} hits, {:.1} node tests/ray, {:.1} triangle tests/ray, {:.0} rays/s",
             r.file, r.triangles, r.rays, r.seed, r.hits, r.node_tests_per_ray, r.prim_tests_per_ray, r.rays_per_second

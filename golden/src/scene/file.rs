@@ -130,6 +130,11 @@ pub struct ObjectSpec {
     /// Mirror reflectance in [0, 1] (0: not a mirror).
     #[serde(default)]
     pub mirror: f32,
+    /// A saved hierarchy (SPEC 16) of this static object, relative to the
+    /// scene file's folder: loaded instead of built, or built and saved
+    /// there when the file does not exist yet.
+    #[serde(default)]
+    pub hierarchy: Option<String>,
 }
 
 fn grey() -> [f32; 3] {

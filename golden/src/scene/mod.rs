@@ -56,6 +56,9 @@ pub struct SceneObject {
     pub color: Vec3,
     /// Mirror reflectance in [0, 1].
     pub mirror: f32,
+    /// The saved hierarchy of a static object (SPEC 16), resolved against
+    /// the scene file's folder; `hiermerge run` loads it, or builds and saves it.
+    pub hierarchy: Option<std::path::PathBuf>,
 }
 
 /// What the scene calls for, checked.

@@ -339,6 +339,13 @@ fn object(
             "offsets that change".into(),
         ));
     }
+    if o.hierarchy.is_some() && motion != Motion::Static {
+        return Err(e(
+            format!("{path}.hierarchy"),
+            "a saved hierarchy only on a static object (a dynamic one is rebuilt as it moves)",
+            "a dynamic object".into(),
+        ));
+    }
     let (lo, hi) = mesh.bounds();
     let (glo, ghi) = (grid.to_grid(lo), grid.to_grid(hi));
     let edge = params.scene_edge() as f64;
@@ -382,6 +389,7 @@ fn object(
         offsets,
         color: Vec3::from_array(o.color),
         mirror: o.mirror,
+        hierarchy: o.hierarchy.as_ref().map(|f| base.join(f)),
     })
 }
 

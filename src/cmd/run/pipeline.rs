@@ -9,6 +9,7 @@ use std::time::Instant;
 use glam::DVec3;
 use golden::frames::{FrameObject, FrameReport, Frames, Motion, ObjectAction};
 use golden::mesh::Mesh;
+use golden::saved::Provenance;
 use golden::scene::Scene;
 use golden::translate::Axis;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -204,6 +205,43 @@ pub(super) fn frame_objects(
         .collect()
 }
 
+/// The objects of frame 0 `objs` whose scene object names a saved
+/// hierarchy (SPEC 16): each file is loaded and checked and given to
+/// `frames` for the object's first build; with `save`, a missing file is
+/// built and saved, else the object is built as usual. Returns a line per
+/// object saying which.
+pub(super) fn provide_saved(
+    scene: &Scene,
+    frames: &mut Frames,
+    objs: &[FrameObject],
+    save: bool,
+) -> Result<Vec<String>, String> {
+    let mut lines = Vec::new();
+    for (i, (o, fo)) in scene.objects.iter().zip(objs).enumerate() {
+        let Some(file) = &o.hierarchy else { continue };
+        if !save && std::fs::symlink_metadata(file).is_err() {
+            continue;
+        }
+        let (g, p) = (&scene.grid, &scene.params);
+        let (h, how) = golden::saved::load_or_build(file, &fo.mesh, g, p, fo.id)
+            .map_err(|e| format!("objects[{i}].hierarchy ({}): {e}", o.name))?;
+        lines.push(match how {
+            Provenance::Loaded => format!(
+                "{}: hierarchy loaded from {} (checked), not built",
+                o.name,
+                file.display()
+            ),
+            Provenance::Saved => format!(
+                "{}: hierarchy built and saved to {}",
+                o.name,
+                file.display()
+            ),
+        });
+        frames.provide(fo.id, h);
+    }
+    Ok(lines)
+}
+
 /// Runs every frame of `scene`.
 pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
     let run_start = Instant::now();
@@ -256,6 +294,9 @@ pub fn run(scene: &Scene, options: &Options) -> Result<RunReport, String> {
         let mut simulated = Vec::new();
         let mut skipped = Vec::new();
         let objs = frame_objects(scene, k, &mut baked);
+        if k == 0 {
+            simulated.extend(provide_saved(scene, &mut frames, &objs, true)?);
+        }
 
         let t = Instant::now();
         let step_bar = bar(options, format!("frame {k} hierarchies"));

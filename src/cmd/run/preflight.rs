@@ -48,6 +48,11 @@ pub fn check(scene: &Scene, file: &str) -> Result<(), SceneError> {
     let mut baked = vec![None; scene.objects.len()];
     for k in 0..scene.frames as usize {
         let objs = super::pipeline::frame_objects(scene, k, &mut baked);
+        if k == 0 {
+            // Saved hierarchies that exist serve here too; none is written yet.
+            super::pipeline::provide_saved(scene, &mut frames, &objs, false)
+                .map_err(|e| SceneError::new(file, "objects", "saved hierarchies that load", e))?;
+        }
         frames.step(&objs).map_err(|e| at(path_of(&e), k, &e))?;
     }
     Ok(())

@@ -6,7 +6,7 @@
 use glam::Vec3;
 use golden::geom::Ray;
 use golden::scene::Scene;
-use golden::trace::{closest_hit, Hit, TraceScene, TraceStats};
+use golden::trace::{Hit, TraceContext, TraceScene, TraceStats};
 use indicatif::ProgressBar;
 
 /// Fraction of the scene cube's edge by which secondary rays start off the
@@ -42,6 +42,8 @@ struct Tracer<'a> {
     eps: f32,
     rays: RayCounts,
     stats: TraceStats,
+    /// Reused by every ray of the frame: tracing allocates nothing.
+    ctx: TraceContext,
 }
 
 /// Traces one image of `scene` through `trace`.
@@ -55,6 +57,7 @@ pub fn trace_frame(scene: &Scene, trace: &TraceScene, bar: &ProgressBar) -> Trac
         eps: (edge * SURFACE_OFFSET as f64) as f32,
         rays: RayCounts::default(),
         stats: TraceStats::default(),
+        ctx: TraceContext::new(),
     };
     let mut rgb = Vec::with_capacity((w * h * 3) as usize);
     let mut node_tests = Vec::with_capacity((w * h) as usize);
@@ -100,7 +103,7 @@ fn sky(v: f32) -> Vec3 {
 impl<'a> Tracer<'a> {
     fn hit(&mut self, ray: &Ray) -> Option<Hit> {
         let mut s = TraceStats::default();
-        let h = closest_hit(ray, self.trace, &mut s);
+        let h = self.ctx.closest_hit(ray, self.trace, &mut s);
         self.stats += s;
         h
     }
@@ -137,7 +140,8 @@ impl<'a> Tracer<'a> {
             let lit = if self.scene.effects.shadow {
                 self.rays.shadow += 1;
                 let shadow = Ray::new(p, to, 0.0, 1.0);
-                let blocked = self.hit(&shadow).is_some();
+                // Any hit before the light will do (SPEC 6.11).
+                let blocked = self.ctx.occluded(&shadow, self.trace, &mut self.stats);
                 self.rays.shadowed += blocked as u64;
                 !blocked
             } else {

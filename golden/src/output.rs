@@ -131,6 +131,12 @@ impl AtomicFile {
         })
     }
 
+    /// The temporary file's path, for a writer that opens the file itself
+    /// (a simulator writing a waveform); it is written in place, not replaced.
+    pub fn path(&self) -> &Path {
+        self.tmp.as_ref().expect("not committed").path()
+    }
+
     /// The temporary file, to write into.
     pub fn file(&mut self) -> &mut std::fs::File {
         self.tmp.as_mut().expect("not committed").as_file_mut()

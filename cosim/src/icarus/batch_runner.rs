@@ -267,7 +267,8 @@ pub fn failure_window(
     Some((window, path))
 }
 
-/// Copies the run's window VCD (if the testbench wrote one) to `path`.
+/// Copies the run's window VCD (if the testbench wrote one) to `path`,
+/// atomically.
 pub fn keep_window_vcd(dir: &Path, path: &Path) -> Result<Option<PathBuf>> {
     let vcd = dir.join(WINDOW_VCD);
     if !vcd.exists() {
@@ -276,7 +277,15 @@ pub fn keep_window_vcd(dir: &Path, path: &Path) -> Result<Option<PathBuf>> {
     if let Some(parent) = path.parent() {
         fs::create_dir_all(parent).map_err(io_err(parent))?;
     }
-    fs::copy(&vcd, path).map_err(io_err(path))?;
+    // Atomically (SPEC 15.3): no half-copied VCD, none left by a signal.
+    let failed = |e: String| crate::error::CosimError::Io {
+        path: path.to_path_buf(),
+        source: std::io::Error::other(e),
+    };
+    let mut out = golden::output::AtomicFile::create(path).map_err(failed)?;
+    let mut from = fs::File::open(&vcd).map_err(io_err(&vcd))?;
+    std::io::copy(&mut from, out.file()).map_err(io_err(path))?;
+    out.commit().map_err(failed)?;
     Ok(Some(path.to_path_buf()))
 }
 

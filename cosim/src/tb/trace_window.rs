@@ -1,11 +1,16 @@
 //! Tracing only a window of cycles, so a VCD of a long run stays small.
+//!
+//! The simulator writes into a temporary file beside the destination
+//! (`golden::output::AtomicFile`), renamed over it when the window is
+//! finished: an interrupted or failed run leaves no half-written VCD, and
+//! SIGINT/SIGTERM remove the temporary (SPEC 15.3).
 
 use crate::engine::Engine;
-use crate::error::Result;
+use crate::error::{CosimError, Result};
+use golden::output::AtomicFile;
 use std::path::PathBuf;
 
 /// Trace cycles `from..=to` into `path`.
-#[derive(Clone, Debug)]
 pub struct TraceWindow {
     /// First cycle traced.
     pub from: u64,
@@ -13,8 +18,26 @@ pub struct TraceWindow {
     pub to: u64,
     /// VCD file written.
     pub path: PathBuf,
-    active: bool,
+    out: Option<AtomicFile>,
     done: bool,
+}
+
+impl std::fmt::Debug for TraceWindow {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("TraceWindow")
+            .field("from", &self.from)
+            .field("to", &self.to)
+            .field("path", &self.path)
+            .field("active", &self.out.is_some())
+            .finish()
+    }
+}
+
+fn output_error(path: &std::path::Path, what: String) -> CosimError {
+    CosimError::Io {
+        path: path.to_path_buf(),
+        source: std::io::Error::other(what),
+    }
 }
 
 impl TraceWindow {
@@ -24,7 +47,7 @@ impl TraceWindow {
             from: center.saturating_sub(radius),
             to: center.saturating_add(radius),
             path,
-            active: false,
+            out: None,
             done: false,
         }
     }
@@ -32,24 +55,26 @@ impl TraceWindow {
     /// Call once per cycle before driving inputs: starts or stops the trace.
     pub fn update<E: Engine + ?Sized>(&mut self, engine: &mut E) -> Result<()> {
         let c = engine.cycle();
-        if !self.active && !self.done && c >= self.from && c <= self.to {
+        if self.out.is_none() && !self.done && c >= self.from && c <= self.to {
             if let Some(dir) = self.path.parent() {
                 std::fs::create_dir_all(dir).map_err(crate::error::io_err(dir))?;
             }
-            engine.trace_start(&self.path)?;
-            self.active = true;
-        } else if self.active && c > self.to {
+            let out = AtomicFile::create(&self.path).map_err(|e| output_error(&self.path, e))?;
+            engine.trace_start(out.path())?;
+            self.out = Some(out);
+        } else if self.out.is_some() && c > self.to {
             self.finish(engine)?;
         }
         Ok(())
     }
 
-    /// Stop tracing (end of run); harmless when not tracing.
+    /// Stop tracing (end of run) and put the file in place; harmless when
+    /// not tracing.
     pub fn finish<E: Engine + ?Sized>(&mut self, engine: &mut E) -> Result<()> {
-        if self.active {
+        if let Some(out) = self.out.take() {
             engine.trace_stop()?;
-            self.active = false;
             self.done = true;
+            out.commit().map_err(|e| output_error(&self.path, e))?;
         }
         Ok(())
     }

@@ -130,11 +130,11 @@ pub struct Args {
     #[arg(long, conflicts_with = "count")]
     vectors: Option<PathBuf>,
     /// Seed of the generated transactions and of the stall patterns.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = super::common::unsigned::<u64>)]
     seed: u64,
     /// Transactions to generate (translate: determine/apply records;
     /// merge: merges; --stage merge-level: levels).
-    #[arg(long)]
+    #[arg(long, value_parser = super::common::unsigned::<u64>)]
     count: Option<u64>,
     /// Probability that the driver holds valid low and the monitor ready low
     /// (0 <= P <= 0.9; merge: on every stream, each with its own pattern).

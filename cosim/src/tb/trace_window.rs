@@ -1,4 +1,7 @@
-//! Tracing only a window of cycles, so a VCD of a long run stays small.
+//! Tracing only a window of cycles, so a waveform of a long run stays
+//! small, and optionally only one scope of the design (VCD: filtered here,
+//! `waves::filter_vcd_scope`, whatever the engine dumped; FST: by the engine,
+//! Verilator's `dumpvars`). The format is the file name's (`waves::WaveFormat`).
 //!
 //! The simulator writes into a temporary file beside the destination
 //! (`golden::output::AtomicFile`), renamed over it when the window is
@@ -7,6 +10,7 @@
 
 use crate::engine::Engine;
 use crate::error::{CosimError, Result};
+use crate::waves::{filter_vcd_scope, read_fst_header, WaveFormat};
 use golden::output::AtomicFile;
 use std::path::PathBuf;
 
@@ -16,8 +20,10 @@ pub struct TraceWindow {
     pub from: u64,
     /// Last cycle traced.
     pub to: u64,
-    /// VCD file written.
+    /// Waveform file written (`.fst`: FST, else VCD).
     pub path: PathBuf,
+    /// Only this instance path (`u_a.u_b`) and below, when given.
+    pub scope: Option<String>,
     out: Option<AtomicFile>,
     done: bool,
 }
@@ -47,9 +53,39 @@ impl TraceWindow {
             from: center.saturating_sub(radius),
             to: center.saturating_add(radius),
             path,
+            scope: None,
             out: None,
             done: false,
         }
+    }
+
+    /// Cycles `from..=to`, asked for whatever the run's outcome.
+    pub fn cycles(from: u64, to: u64, path: PathBuf) -> TraceWindow {
+        TraceWindow {
+            from,
+            to,
+            ..TraceWindow::around(0, 0, path)
+        }
+    }
+
+    /// The window of `config`'s radius around the failure at `cycle`, of
+    /// `config`'s scope.
+    pub fn around_failure(config: &super::BenchConfig, cycle: u64, path: PathBuf) -> TraceWindow {
+        TraceWindow::around(cycle, config.vcd_radius, path).with_scope(config.wave_scope.clone())
+    }
+
+    /// The window `config` asks of every run (`wave_window` into
+    /// `vcd_path`), if any.
+    pub fn asked(config: &super::BenchConfig) -> Option<TraceWindow> {
+        let (from, to) = config.wave_window?;
+        let path = config.vcd_path.clone()?;
+        Some(TraceWindow::cycles(from, to, path).with_scope(config.wave_scope.clone()))
+    }
+
+    /// The same window, tracing only `scope` (None: everything).
+    pub fn with_scope(mut self, scope: Option<String>) -> TraceWindow {
+        self.scope = scope;
+        self
     }
 
     /// Call once per cycle before driving inputs: starts or stops the trace.
@@ -74,8 +110,35 @@ impl TraceWindow {
         if let Some(out) = self.out.take() {
             engine.trace_stop()?;
             self.done = true;
+            if let Some(scope) = &self.scope {
+                narrow_to_scope(out.path(), scope).map_err(|e| output_error(&self.path, e))?;
+            }
             out.commit().map_err(|e| output_error(&self.path, e))?;
         }
         Ok(())
+    }
+}
+
+/// Applies the scope filter to the waveform the engine wrote at `path`: a
+/// VCD is cut to the scope's signals; an FST (already cut by the engine)
+/// must hold some.
+pub(crate) fn narrow_to_scope(
+    path: &std::path::Path,
+    scope: &str,
+) -> std::result::Result<(), String> {
+    let at = |e: std::io::Error| format!("{}: {e}", path.display());
+    match WaveFormat::of(path) {
+        WaveFormat::Vcd => {
+            let text = std::fs::read_to_string(path).map_err(at)?;
+            std::fs::write(path, filter_vcd_scope(&text, scope)?).map_err(at)
+        }
+        WaveFormat::Fst => {
+            let bytes = std::fs::read(path).map_err(at)?;
+            let h = read_fst_header(&bytes)?;
+            if h.vars == 0 {
+                return Err(format!("no signal under scope `{scope}` in the waveform"));
+            }
+            Ok(())
+        }
     }
 }

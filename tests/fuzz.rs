@@ -1,5 +1,6 @@
 //! Fuzz targets, one per parser (issue 21): OBJ, PLY, scene files, vector
-//! files, ledger entries, and the values of `merge --translate`/`--mode`.
+//! files, ledger entries, and the values of `merge --translate`/`--mode`
+//! (and of `cosim --stalls`).
 //!
 //! Each target replays its seeds (real files: the shared meshes, the
 //! repository's scenes and ledger entries, generated vector files) and every
@@ -318,6 +319,9 @@ fn fuzz_merge_args() {
         "per-node:1/2",
         "1.5,-2,3e3",
         "-1e19,0,0",
+        "bursty:16,16",
+        "periodic:1/3",
+        "coin:0.3",
     ]
     .iter()
     .map(|s| s.as_bytes().to_vec())
@@ -331,6 +335,13 @@ fn fuzz_merge_args() {
         if let Ok(v) = merge_args::parse_vec3(&text) {
             if !v.is_finite() {
                 return Err(format!("a translation that is not finite accepted: {v}"));
+            }
+        }
+        // `cosim --stalls`: what is accepted is in range and reads back.
+        if let Ok(s) = cosim::tb::Stalls::parse(&text, 0.3) {
+            s.check()?;
+            if cosim::tb::Stalls::parse(&s.to_string(), 0.3) != Ok(s) {
+                return Err(format!("`{text}` read as {s}, which does not read back"));
             }
         }
         Ok(())

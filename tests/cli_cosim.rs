@@ -213,6 +213,17 @@ fn check_broken(unit: &[&str], flip: &str, count: &str) {
     let text = std::fs::read_to_string(&vcd).unwrap();
     assert!(text.contains("$enddefinitions"), "a VCD: {}", vcd.display());
     assert!(text.contains('#'), "with time steps");
+    // Written atomically (SPEC 15.3): the VCD and nothing else, no temporary.
+    let files: Vec<_> = std::fs::read_dir(&vcd_dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert_eq!(
+        files,
+        std::slice::from_ref(&vcd),
+        "only the VCD in {}",
+        vcd_dir.display()
+    );
     // The reproduce command, run as printed, fails the same way.
     let words: Vec<&str> = rep.split_whitespace().collect();
     assert_eq!(words[1], "hiermerge");

@@ -173,34 +173,82 @@ fn a_mesh_binary32_rays_cannot_span_is_refused() {
     assert!(err.contains("huge.obj: the scene's bounds"), "{err}");
 }
 
+/// A negative number is taken as the value of the flag before it: a
+/// translation may be negative; a seed, count or ray count is refused as a
+/// negative number, by its flag (clap once said "unexpected argument '-1'",
+/// then "invalid digit found in string").
 #[test]
 fn negative_numbers_are_refused_by_their_flag() {
     let dir = tempfile::tempdir().unwrap();
-    let err = fails_in(
-        dir.path(),
+    let d = dir.path();
+    std::fs::write(d.join("t.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let moved = start(
         &[
-            "vectors",
-            "--unit",
-            "translate",
-            "--seed",
-            "-1",
-            "--out",
-            "x.jsonl",
+            "merge",
+            "t.obj",
+            "t.obj",
+            "--translate",
+            "-1,0,0",
+            "--translate",
+            "2.5,-0,3",
+            "--rays",
+            "10",
+            "--json",
         ],
+        d,
+    )
+    .wait_with_output()
+    .unwrap();
+    assert!(
+        moved.status.success(),
+        "{}",
+        String::from_utf8_lossy(&moved.stderr)
     );
-    assert!(err.contains("invalid value '-1' for '--seed"), "{err}");
+    let negative = "a negative number: expected an unsigned integer";
+    for (args, flag) in [
+        ("vectors --unit translate --seed -1 --out x.jsonl", "--seed"),
+        ("trace t.obj --seed -1", "--seed"),
+        ("trace t.obj --rays -5", "--rays"),
+        ("merge t.obj t.obj --seed -7", "--seed"),
+        ("cosim --unit translate --engine ir --count -3", "--count"),
+        ("cosim --unit merge --engine ir --seed -1", "--seed"),
+        ("cosim --unit translate --engine ir --stall -0.5", "--stall"),
+    ] {
+        let args: Vec<&str> = args.split_whitespace().collect();
+        let err = fails_in(d, &args);
+        if flag == "--stall" {
+            // A probability may be negative to clap; its range is checked.
+            assert!(
+                err.contains("--stall: stall probability -0.5: expected 0 <= P <= 0.9"),
+                "{err}"
+            );
+            continue;
+        }
+        assert!(err.contains(&format!("for '{flag} <")), "{args:?}: {err}");
+        assert!(err.contains(negative), "{args:?}: {err}");
+    }
+    let err = fails_in(d, &["merge", "t.obj", "--translate", "-1,0"]);
+    assert!(
+        err.contains("`-1,0`: expected x,y,z (three numbers separated by commas)"),
+        "{err}"
+    );
+    assert!(!d.join("x.jsonl").exists());
 }
 
+/// Every refusal of the golden merge starts "merge:"; no caller says it
+/// again (the issue saw "merge: merge:").
 #[test]
 fn a_merge_error_says_merge_once() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     std::fs::write(d.join("t.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
-    let err = fails_in(d, &["merge", "t.obj", "--mode", "below-top:99"]);
-    assert!(
-        err.contains("merge:") && !err.contains("merge: merge:"),
-        "{err}"
-    );
+    for mode in ["below-top:99", "below-top:16", "fixed:16"] {
+        let err = fails_in(d, &["merge", "t.obj", "t.obj", "--mode", mode]);
+        assert!(
+            err.contains("merge:") && !err.contains("merge: merge:"),
+            "{mode}: {err}"
+        );
+    }
 }
 
 /// Starts `args` in `dir`, waits until a temporary appears (or `wait`
@@ -350,8 +398,8 @@ fn scene_structure_errors_name_the_file_and_path() {
 }
 
 /// Scenes the golden model refuses only while running (a merging mode the
-/// hierarchies cannot meet, here; a leaf at LOD 0, voxel rounding leaving the
-/// scene, an index past `I` likewise) are refused before frame 0 is
+/// hierarchies cannot meet, here; voxel rounding leaving the scene, an index
+/// past `I` likewise) are refused before frame 0 is
 /// simulated or written, naming the file and the JSON path.
 #[test]
 fn scenes_failing_at_frame_0_name_their_json_path() {
@@ -384,5 +432,163 @@ fn scenes_failing_at_frame_0_name_their_json_path() {
         assert!(err.contains(&format!("{name}: {path}: expected")), "{err}");
         assert!(!d.join("out").exists());
     }
+    // An object as large as the scene cube (16 world units here) was
+    // refused at `objects[1].shape` as a leaf that would be a root at LOD 0;
+    // no primitive sits at LOD 0 now (SPEC 4.2), so the scene runs.
+    let mut v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    v["objects"][1]["shape"] = serde_json::json!({"box": {"lo": [0, 0, 0], "hi": [16, 16, 16]}});
+    v["image"] = serde_json::json!({"width": 16, "height": 12});
+    std::fs::write(d.join("whole.json"), v.to_string()).unwrap();
+    let out = start(&["run", "whole.json", "--no-rtl", "--out", "out"], d)
+        .wait_with_output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(d.join("out/report.json").exists());
     no_temporaries(d);
+}
+
+/// Every integer leaf of `v` with its JSON path (`in.placement[1]`,
+/// `in.node.x`).
+fn int_leaves(v: &serde_json::Value, path: String, out: &mut Vec<String>) {
+    match v {
+        serde_json::Value::Object(m) => {
+            for (k, x) in m {
+                let p = if path.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{path}.{k}")
+                };
+                int_leaves(x, p, out);
+            }
+        }
+        serde_json::Value::Array(a) => {
+            for (i, x) in a.iter().enumerate() {
+                int_leaves(x, format!("{path}[{i}]"), out);
+            }
+        }
+        serde_json::Value::Number(_) => out.push(path),
+        _ => {}
+    }
+}
+
+/// The port field a record's JSON path is carried in (SPEC 7.9:
+/// `in.placement[1]` is `placement_y` of `det_in_data`, `in.node.x` is `x`
+/// of `apply_in_data`).
+fn port_field(path: &str) -> String {
+    let leaf = path.rsplit('.').next().unwrap();
+    match leaf.split_once('[') {
+        Some((name, i)) => format!(
+            "{name}_{}",
+            ["x", "y", "z"][i[..1].parse::<usize>().unwrap()]
+        ),
+        None => leaf.to_string(),
+    }
+}
+
+fn set_path(v: &mut serde_json::Value, path: &str, x: u64) {
+    let mut at = v;
+    for part in path.split('.') {
+        at = match part.split_once('[') {
+            Some((k, i)) => &mut at[k][i.trim_end_matches(']').parse::<usize>().unwrap()],
+            None => &mut at[part],
+        };
+    }
+    *at = x.into();
+}
+
+/// Issue 21: "transaction N does not fit the design's ports" (cosim) is not
+/// reachable from a vectors file: for every integer field of a determine and
+/// an apply record, in a binary32 and a binary64 design, a value one past its
+/// port field's width (taken from the port layouts, not from the reader) is
+/// refused while the file is read, naming the file, line, field and width.
+#[test]
+fn a_vector_field_wider_than_its_port_is_refused_where_it_is() {
+    use golden::vectors::translate::{read_translate_vectors, write_translate_vectors};
+    use rtl_gen::translate::ports::{
+        apply_in_layout, apply_out_layout, det_in_layout, det_out_layout,
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let mut tried = 0;
+    for binary64 in [false, true] {
+        let d = golden::vectors::translate::TranslateDesign {
+            binary64,
+            ..Default::default()
+        };
+        let p = dir.path().join("v.jsonl");
+        write_translate_vectors(&p, &d, 5, 200).unwrap();
+        let text = std::fs::read_to_string(&p).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        for op in ["determine", "apply"] {
+            let n = lines
+                .iter()
+                .position(|l| l.contains(&format!("\"op\":\"{op}\"")))
+                .unwrap();
+            let record: serde_json::Value = serde_json::from_str(lines[n]).unwrap();
+            let mut paths = Vec::new();
+            int_leaves(&record, String::new(), &mut paths);
+            for path in paths {
+                let layout = match (op, &path[..3]) {
+                    ("determine", "in.") => det_in_layout(&d),
+                    ("determine", _) => det_out_layout(&d),
+                    (_, "in.") => apply_in_layout(&d),
+                    _ => apply_out_layout(&d),
+                };
+                let name = port_field(&path);
+                // `err_width` and `format` of a binary32 design have no port
+                // field: every value but 0 is refused (file_tests.rs).
+                // A 64-bit field (binary64 placements) cannot be exceeded by
+                // a JSON integer the reader takes (u64).
+                let Some(f) = layout
+                    .fields
+                    .iter()
+                    .find(|f| f.name == name && f.width < 64)
+                else {
+                    continue;
+                };
+                let mut wide = record.clone();
+                set_path(&mut wide, &path, 1u64 << f.width);
+                let mut spoiled: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
+                spoiled[n] = wide.to_string();
+                std::fs::write(&p, spoiled.join("\n") + "\n").unwrap();
+                let e = match read_translate_vectors(&p, &d) {
+                    Ok(_) => panic!("{path} = 2^{} on line {} accepted", f.width, n + 1),
+                    Err(e) => e.to_string(),
+                };
+                let want = format!(
+                    "v.jsonl:{}: field `{path}`: expected an unsigned integer of {} bits",
+                    n + 1,
+                    f.width
+                );
+                assert!(e.contains(&want), "{want}\n{e}");
+                tried += 1;
+            }
+        }
+        // And through the CLI: one error at the field, not the engine's.
+        let mut spoiled: Vec<String> = lines.iter().map(|l| l.to_string()).collect();
+        let n = lines
+            .iter()
+            .position(|l| l.contains("\"op\":\"apply\""))
+            .unwrap();
+        let mut v: serde_json::Value = serde_json::from_str(lines[n]).unwrap();
+        v["in"]["node"]["lod"] = 1u64.wrapping_shl(31).into();
+        spoiled[n] = v.to_string();
+        std::fs::write(&p, spoiled.join("\n") + "\n").unwrap();
+        let mut args: Vec<&str> = "cosim --unit translate --engine ir --vectors v.jsonl"
+            .split_whitespace()
+            .collect();
+        if binary64 {
+            args.push("--binary64");
+        }
+        let err = fails_in(dir.path(), &args);
+        assert!(
+            err.contains(&format!("v.jsonl:{}: field `in.node.lod`: expected", n + 1)),
+            "{err}"
+        );
+        assert!(!err.contains("does not fit the design's ports"), "{err}");
+    }
+    assert!(tried > 60, "{tried} fields tried");
 }

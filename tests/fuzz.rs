@@ -1,6 +1,6 @@
 //! Fuzz targets, one per parser (issue 21): OBJ, PLY, scene files, vector
 //! files, ledger entries, saved hierarchies, and the values of
-//! `merge --translate`/`--mode`.
+//! `merge --translate`/`--mode` (and of `cosim --stalls`).
 //!
 //! Each target replays its seeds (real files: the shared meshes, the
 //! repository's scenes and ledger entries, generated vector files) and every
@@ -190,10 +190,12 @@ fn fuzz_obj() {
 fn fuzz_ply() {
     use golden::mesh::{parse_obj, write_ply, PlyFormat};
     let teapot = parse_obj(&shared("teapot.obj"), "teapot.obj").unwrap();
+    let bunny = parse_obj(&shared("bunny.obj"), "bunny.obj").unwrap();
     let tiny = parse_obj(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "t").unwrap();
     let seeds = vec![
         write_ply(&teapot, PlyFormat::Ascii),
         write_ply(&teapot, PlyFormat::BinaryLittleEndian),
+        write_ply(&bunny, PlyFormat::BinaryLittleEndian),
         write_ply(&tiny, PlyFormat::Ascii),
         write_ply(&tiny, PlyFormat::BinaryLittleEndian),
     ];
@@ -218,6 +220,27 @@ fn fuzz_scene() {
     });
 }
 
+/// Packs every record of `txns` into its ports, as cosim does.
+fn pack_all(
+    d: &golden::vectors::translate::TranslateDesign,
+    txns: &[golden::vectors::translate::TranslateTxn],
+) -> Result<(), String> {
+    use golden::vectors::translate::TranslateTxn;
+    use rtl_gen::translate::ports::{pack_apply_in, pack_apply_out, pack_det_in, pack_det_out};
+    for (i, t) in txns.iter().enumerate() {
+        let r = match t {
+            TranslateTxn::Determine(r) => {
+                pack_det_in(d, &r.inputs).and_then(|_| pack_det_out(d, &r.outputs))
+            }
+            TranslateTxn::Apply(r) => {
+                pack_apply_in(d, &r.inputs).and_then(|_| pack_apply_out(d, &r.outputs))
+            }
+        };
+        r.map_err(|e| format!("transaction {i}: {e}"))?;
+    }
+    Ok(())
+}
+
 #[test]
 fn fuzz_vectors() {
     use golden::vectors::merge::{read_merge_vectors, write_merge_vectors, MergeDesign};
@@ -235,8 +258,20 @@ fn fuzz_vectors() {
     let shown = case.display().to_string();
     fuzz("vectors", seeds, |bytes| {
         std::fs::write(&case, bytes).unwrap();
-        let a = read_translate_vectors(&case, &td).map(|_| ());
-        names(&shown, a.map_err(|e| e.to_string()))?;
+        // What the reader accepts fits the ports: packing it cannot fail
+        // (cosim's "does not fit the design's ports" is unreachable).
+        let a = match read_translate_vectors(&case, &td) {
+            Ok((_, txns)) => {
+                pack_all(&td, &txns).map_err(|w| format!("accepted, does not fit the ports: {w}"))
+            }
+            Err(e) => Err(e.to_string()),
+        };
+        if let Err(w) = &a {
+            if w.starts_with("accepted") {
+                return a;
+            }
+        }
+        names(&shown, a)?;
         let b = read_merge_vectors(&case, &md).map(|_| ());
         names(&shown, b.map_err(|e| e.to_string()))
     });
@@ -319,6 +354,9 @@ fn fuzz_merge_args() {
         "per-node:1/2",
         "1.5,-2,3e3",
         "-1e19,0,0",
+        "bursty:16,16",
+        "periodic:1/3",
+        "coin:0.3",
     ]
     .iter()
     .map(|s| s.as_bytes().to_vec())
@@ -332,6 +370,13 @@ fn fuzz_merge_args() {
         if let Ok(v) = merge_args::parse_vec3(&text) {
             if !v.is_finite() {
                 return Err(format!("a translation that is not finite accepted: {v}"));
+            }
+        }
+        // `cosim --stalls`: what is accepted is in range and reads back.
+        if let Ok(s) = cosim::tb::Stalls::parse(&text, 0.3) {
+            s.check()?;
+            if cosim::tb::Stalls::parse(&s.to_string(), 0.3) != Ok(s) {
+                return Err(format!("`{text}` read as {s}, which does not read back"));
             }
         }
         Ok(())

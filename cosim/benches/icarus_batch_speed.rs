@@ -37,8 +37,8 @@ type Res<T> = Result<T, Box<dyn std::error::Error>>;
 fn config() -> BenchConfig {
     BenchConfig {
         seed: 5,
-        in_stall: 0.3,
-        out_stall: 0.3,
+        in_stall: cosim::tb::Stalls::Coin(0.3),
+        out_stall: cosim::tb::Stalls::Coin(0.3),
         stop_on_mismatch: false,
         watchdog_cycles: 100_000,
         ..BenchConfig::default()

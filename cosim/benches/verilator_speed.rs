@@ -97,8 +97,8 @@ fn main() -> cosim::Result<()> {
     for stall in [0.0, 0.5] {
         let mut e = VerilatorEngine::new(&design, &options)?;
         let config = BenchConfig {
-            in_stall: stall,
-            out_stall: stall,
+            in_stall: cosim::tb::Stalls::Coin(stall),
+            out_stall: cosim::tb::Stalls::Coin(stall),
             ..BenchConfig::default()
         };
         let r = run_stream_bench(&mut e, &names, &vectors, None, &config, None)?;
@@ -115,8 +115,8 @@ fn main() -> cosim::Result<()> {
     // Icarus for comparison: every eval/step is a pipe round trip.
     let mut e = cosim::icarus::IcarusEngine::new(&design)?;
     let config = BenchConfig {
-        in_stall: 0.5,
-        out_stall: 0.5,
+        in_stall: cosim::tb::Stalls::Coin(0.5),
+        out_stall: cosim::tb::Stalls::Coin(0.5),
         ..BenchConfig::default()
     };
     let r = run_stream_bench(&mut e, &names, &vectors[..5000], None, &config, None)?;

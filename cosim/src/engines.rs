@@ -6,6 +6,7 @@ use crate::error::{CosimError, Result};
 use crate::icarus::IcarusEngine;
 use crate::tools::{tool_available, INSTALL_HINT};
 use crate::verilator::{VerilatorEngine, VerilatorOptions};
+use crate::waves::WaveFormat;
 use std::str::FromStr;
 
 /// The external-simulator engines this crate provides.
@@ -74,6 +75,40 @@ pub fn open_engine(kind: EngineKind, design: &Design, trace: bool) -> Result<Box
             };
             Ok(Box::new(VerilatorEngine::new(design, &options)?))
         }
+        EngineKind::Icarus => Ok(Box::new(IcarusEngine::new(design)?)),
+    }
+}
+
+/// A fresh engine of `kind` for `design` able to write `format`
+/// waveforms, tracing only the instance `scope` of the top when given
+/// (Verilator: `--trace` or `--trace-fst` and `dumpvars`; Icarus through its
+/// pipe: VCD only, since its FST is complete only when `vvp` ends, and the
+/// scope left to [`crate::tb::TraceWindow`]'s filter).
+pub fn open_tracing_engine(
+    kind: EngineKind,
+    design: &Design,
+    format: WaveFormat,
+    scope: Option<&str>,
+) -> Result<Box<dyn Engine>> {
+    match kind {
+        EngineKind::Verilator => {
+            let options = VerilatorOptions {
+                trace: true,
+                fst: format == WaveFormat::Fst,
+                ..VerilatorOptions::default()
+            };
+            let mut e = VerilatorEngine::new(design, &options)?;
+            if let Some(s) = scope {
+                e.set_trace_scope(s)?;
+            }
+            Ok(Box::new(e))
+        }
+        EngineKind::Icarus if format == WaveFormat::Fst => Err(CosimError::Unsupported {
+            what: "FST from Icarus comes from its batch runs (--unit merge, --unit merger): \
+                   the pipe engine's vvp runs on after the window, and its FST is complete \
+                   only when vvp ends; use VCD, or Verilator"
+                .into(),
+        }),
         EngineKind::Icarus => Ok(Box::new(IcarusEngine::new(design)?)),
     }
 }

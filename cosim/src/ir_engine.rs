@@ -188,6 +188,11 @@ impl Engine for IrEngine {
     }
 
     fn trace_start(&mut self, path: &Path) -> Result<()> {
+        crate::waves::check_engine_writes(
+            Some(crate::waves::WaveFormat::Vcd),
+            path,
+            "the IR simulator",
+        )?;
         self.trace_stop()?;
         let file = std::fs::File::create(path).map_err(io_err(path))?;
         let shared = SharedVcdFile::new(path, file);

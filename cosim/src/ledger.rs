@@ -22,7 +22,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::cache::CacheKey;
 use crate::error::{io_err, Result};
-use crate::tb::StreamBeats;
+use crate::tb::{Stalls, StreamBeats};
 
 /// The `format` every entry carries; bumped when fields change meaning.
 pub const FORMAT: &str = "hiermerge-longrun-2";
@@ -54,13 +54,18 @@ pub struct StimulusDigest {
 
 impl StimulusDigest {
     /// Starts the digest of a run of `count` transactions from `seed` with
-    /// stall probability `stall` (every number that drives the bench).
-    pub fn new(seed: u64, count: u64, stall: f64) -> Self {
+    /// the stall pattern `stalls` (every number that drives the bench). A
+    /// coin is keyed by its probability alone, as before there were other
+    /// patterns, so the entries of coin runs stay current.
+    pub fn new(seed: u64, count: u64, stalls: Stalls) -> Self {
         let mut key = CacheKey::new();
         key.add("format", FORMAT.as_bytes());
         key.add("seed", &seed.to_le_bytes());
         key.add("count", &count.to_le_bytes());
-        key.add("stall", &stall.to_bits().to_le_bytes());
+        match stalls {
+            Stalls::Coin(p) => key.add("stall", &p.to_bits().to_le_bytes()),
+            other => key.add("stalls", other.to_string().as_bytes()),
+        };
         StimulusDigest { key }
     }
 
@@ -290,18 +295,23 @@ mod tests {
             d.add_chunk(&streams(bit), &[]);
             d.finish()
         };
-        let base = digest(1, 10, 0.3, false);
-        assert_eq!(base, digest(1, 10, 0.3, false));
+        let coin = Stalls::Coin(0.3);
+        let base = digest(1, 10, coin, false);
+        assert_eq!(base, digest(1, 10, coin, false));
         for other in [
-            digest(2, 10, 0.3, false),
-            digest(1, 11, 0.3, false),
-            digest(1, 10, 0.31, false),
-            digest(1, 10, 0.3, true),
+            digest(2, 10, coin, false),
+            digest(1, 11, coin, false),
+            digest(1, 10, Stalls::Coin(0.31), false),
+            digest(1, 10, Stalls::BURSTY, false),
+            digest(1, 10, Stalls::Bursty { stall: 16, go: 17 }, false),
+            digest(1, 10, Stalls::PERIODIC, false),
+            digest(1, 10, Stalls::None, false),
+            digest(1, 10, coin, true),
         ] {
             assert_ne!(base, other);
         }
         // The same beats as an input or as an expected output differ too.
-        let mut d = StimulusDigest::new(1, 10, 0.3);
+        let mut d = StimulusDigest::new(1, 10, coin);
         d.add_chunk(&[], &streams(false));
         assert_ne!(base, d.finish());
     }

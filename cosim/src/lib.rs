@@ -25,9 +25,10 @@ pub mod tools;
 pub mod units;
 pub mod verilator;
 pub mod volume;
+pub mod waves;
 
 pub use bitvec::BitVec;
 pub use design::{Design, PortDir, PortId, PortSpec, Reset};
 pub use engine::Engine;
-pub use engines::{open_engine, EngineKind};
+pub use engines::{open_engine, open_tracing_engine, EngineKind};
 pub use error::{CosimError, Result};

@@ -43,8 +43,8 @@ fn one_flipped_bit_is_reported_with_cycle_fields_and_vcd_on_every_engine() {
         let vcd = out_dir.path().join(format!("{kind}-mismatch.vcd"));
         let config = BenchConfig {
             seed: 77,
-            in_stall: 0.4,
-            out_stall: 0.4,
+            in_stall: cosim::tb::Stalls::Coin(0.4),
+            out_stall: cosim::tb::Stalls::Coin(0.4),
             vcd_path: Some(vcd.clone()),
             vcd_radius: 8,
             reproduce: Some(format!(

@@ -35,8 +35,9 @@ fn run_on(
     let txns = generate(d, 17, 3000).unwrap();
     let config = RunConfig {
         seed: 17,
-        stall: 0.3,
+        stall: cosim::tb::Stalls::Coin(0.3),
         flip_expected: None,
+        ..Default::default()
     };
     let mut make = |trace: bool| -> cosim::Result<Box<dyn Engine>> {
         open_engine(EngineKind::Verilator, design, trace)

@@ -78,8 +78,8 @@ fn check_stream_example(module: &Module, vectors: &[Vector]) {
             let vcd = vcd_path(&design.top, kind, seed);
             let config = BenchConfig {
                 seed,
-                in_stall,
-                out_stall,
+                in_stall: cosim::tb::Stalls::Coin(in_stall),
+                out_stall: cosim::tb::Stalls::Coin(out_stall),
                 vcd_path: Some(vcd),
                 reproduce: Some(format!(
                     "cargo test -p cosim --test examples_three_engines  # {} on {kind}, seed {seed}",

@@ -56,8 +56,8 @@ fn unit(d: &MergeDesign) -> Unit {
 fn config(seed: u64, stall: f64) -> BenchConfig {
     BenchConfig {
         seed,
-        in_stall: stall,
-        out_stall: stall,
+        in_stall: cosim::tb::Stalls::Coin(stall),
+        out_stall: cosim::tb::Stalls::Coin(stall),
         stop_on_mismatch: false,
         ..BenchConfig::default()
     }

@@ -275,8 +275,8 @@ fn bench(
 ) -> MultiReport {
     let config = BenchConfig {
         seed,
-        in_stall: stall,
-        out_stall: stall,
+        in_stall: cosim::tb::Stalls::Coin(stall),
+        out_stall: cosim::tb::Stalls::Coin(stall),
         ..BenchConfig::default()
     };
     let (r, counts) = run_multi_stream_bench_watching(engine, ins, outs, &config, &["done"])
@@ -308,8 +308,8 @@ fn batch_bench(
     let batch = cosim::icarus::IcarusMultiBatch::new(design, &i, &o).expect("iverilog build");
     let config = BenchConfig {
         seed,
-        in_stall: stall,
-        out_stall: stall,
+        in_stall: cosim::tb::Stalls::Coin(stall),
+        out_stall: cosim::tb::Stalls::Coin(stall),
         ..BenchConfig::default()
     };
     let r = batch

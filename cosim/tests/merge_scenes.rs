@@ -491,8 +491,8 @@ fn hard_case_merges_through_the_merging_module() {
                 let mut e = engine(kind, &m, &design);
                 let config = BenchConfig {
                     seed: 5,
-                    in_stall: 0.3,
-                    out_stall: 0.3,
+                    in_stall: cosim::tb::Stalls::Coin(0.3),
+                    out_stall: cosim::tb::Stalls::Coin(0.3),
                     ..BenchConfig::default()
                 };
                 let r = run_multi_stream_bench(e.as_mut(), &ins, &outs, &config).unwrap();

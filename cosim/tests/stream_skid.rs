@@ -35,8 +35,8 @@ fn skid_passes_under_random_back_pressure_on_every_engine() {
             let vs = vectors(seed, count);
             let config = BenchConfig {
                 seed,
-                in_stall: stall,
-                out_stall: stall,
+                in_stall: cosim::tb::Stalls::Coin(stall),
+                out_stall: cosim::tb::Stalls::Coin(stall),
                 ..BenchConfig::default()
             };
             let mut e = common::make_engine(kind, &design, false).unwrap();
@@ -121,8 +121,8 @@ fn progress_is_reported_and_the_json_report_counts_everything() {
     let mut e = common::make_engine("verilator", &design, false).unwrap();
     let mut calls = Vec::new();
     let config = BenchConfig {
-        in_stall: 0.2,
-        out_stall: 0.2,
+        in_stall: cosim::tb::Stalls::Coin(0.2),
+        out_stall: cosim::tb::Stalls::Coin(0.2),
         ..BenchConfig::default()
     };
     let r = run_stream_bench_with_progress(

@@ -43,8 +43,9 @@ fn check(kind: EngineKind, d: &TranslateDesign, count: usize, seed: u64, stall: 
     let start = std::time::Instant::now();
     let config = RunConfig {
         seed,
-        stall,
+        stall: cosim::tb::Stalls::Coin(stall),
         flip_expected: None,
+        ..Default::default()
     };
     let o = run(engine.as_mut(), d, &txns, &config, None, &mut |_, _| {})
         .unwrap_or_else(|f| panic!("{f}"));
@@ -154,8 +155,8 @@ fn check_batch(batch: &IcarusBatch, d: &TranslateDesign, count: usize, seed: u64
     let (vs, (det_err, app_err)) = lane_vectors(d, &txns);
     let config = BenchConfig {
         seed,
-        in_stall: stall,
-        out_stall: stall,
+        in_stall: cosim::tb::Stalls::Coin(stall),
+        out_stall: cosim::tb::Stalls::Coin(stall),
         reproduce: Some("cargo test -p cosim --release --test translate_engines".into()),
         ..BenchConfig::default()
     };

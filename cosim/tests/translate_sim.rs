@@ -20,8 +20,9 @@ fn run_ir(d: &TranslateDesign, txns: &[TranslateTxn], stall: f64, seed: u64) -> 
     let mut engine = IrEngine::new(&m, &design).unwrap();
     let config = RunConfig {
         seed,
-        stall,
+        stall: cosim::tb::Stalls::Coin(stall),
         flip_expected: None,
+        ..Default::default()
     };
     run(&mut engine, d, txns, &config, None, &mut |_, _| {}).unwrap_or_else(|f| panic!("{f}"))
 }

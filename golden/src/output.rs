@@ -119,8 +119,15 @@ impl AtomicFile {
     pub fn create(dest: &Path) -> Result<AtomicFile, String> {
         check_destination(dest, false)?;
         let dir = parent_of(dest);
+        // The destination's extension too, for a writer that picks its
+        // format by the file name (a simulator's waveform).
+        let suffix = dest
+            .extension()
+            .map(|e| format!(".{}", e.to_string_lossy()))
+            .unwrap_or_default();
         let tmp = tempfile::Builder::new()
             .prefix(".hiermerge-")
+            .suffix(&suffix)
             .permissions(Permissions::from_mode(0o666))
             .tempfile_in(dir)
             .map_err(|e| format!("{}: cannot create a temporary file: {e}", dir.display()))?;
@@ -129,6 +136,12 @@ impl AtomicFile {
             tmp: Some(tmp),
             dest: dest.to_path_buf(),
         })
+    }
+
+    /// The temporary file's path, for a writer that opens the file itself
+    /// (a simulator writing a waveform); it is written in place, not replaced.
+    pub fn path(&self) -> &Path {
+        self.tmp.as_ref().expect("not committed").path()
     }
 
     /// The temporary file, to write into.

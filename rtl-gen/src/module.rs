@@ -63,6 +63,23 @@ impl Module {
         self.graph().name.clone()
     }
 
+    /// True when `path` (instance names from this module down, `u_a.u_b`)
+    /// names an instance in its hierarchy: what a waveform's scope filter
+    /// may ask for.
+    pub fn has_instance_path(&self, path: &str) -> bool {
+        fn walk(g: &Graph, parts: &[&str]) -> bool {
+            match parts.split_first() {
+                None => true,
+                Some((first, rest)) => g
+                    .insts
+                    .iter()
+                    .any(|i| i.name == *first && walk(&i.child.borrow(), rest)),
+            }
+        }
+        let parts: Vec<&str> = path.split('.').collect();
+        walk(&self.graph(), &parts)
+    }
+
     pub(crate) fn graph(&self) -> Ref<'_, Graph> {
         self.g.borrow()
     }

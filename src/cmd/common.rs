@@ -201,3 +201,15 @@ pub fn oracle_line(o: &golden::oracle::OracleSummary) -> String {
         o.rays, o.agree, o.grazing, o.ties, o.faults(), o.wrong_triangle, o.missed, o.extra, o.t_error, o.max_t_error, o.max_bound
     )
 }
+
+/// The value of a seed or count flag: an unsigned integer. A negative
+/// number is said to be one (the standard parser's "invalid digit found in
+/// string" does not say what was wrong with `--seed -1`).
+pub fn unsigned<T: TryFrom<u64>>(s: &str) -> Result<T, String> {
+    let expected = "expected an unsigned integer (0, 1, 2, ...)";
+    if s.trim_start().starts_with('-') {
+        return Err(format!("a negative number: {expected}"));
+    }
+    let v: u64 = s.trim().parse().map_err(|_| expected.to_string())?;
+    T::try_from(v).map_err(|_| format!("{v} is too large for this flag"))
+}

@@ -36,9 +36,9 @@ pub struct Args {
     #[arg(long = "group", value_parser = parse_group)]
     groups: Vec<Vec<u8>>,
     /// Rays traced through the merged, separate and rebuilt hierarchies.
-    #[arg(long, default_value_t = 10_000)]
+    #[arg(long, default_value_t = 10_000, value_parser = super::common::unsigned::<usize>)]
     rays: usize,
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = super::common::unsigned::<u64>)]
     seed: u64,
     /// Check every closest hit through the merged hierarchy: against brute force over the same
     /// triangles (bit for bit), and against the independent binary64 oracle over the triangles

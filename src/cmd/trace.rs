@@ -18,10 +18,10 @@ pub struct Args {
     /// Mesh file (OBJ or PLY).
     mesh: PathBuf,
     /// Number of random rays.
-    #[arg(long, default_value_t = 100_000)]
+    #[arg(long, default_value_t = 100_000, value_parser = super::common::unsigned::<usize>)]
     rays: usize,
     /// Seed of the ray generator.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = super::common::unsigned::<u64>)]
     seed: u64,
     /// Also trace every ray by brute force and count the rays whose closest
     /// hit differs in any bit, and judge every hit by the binary64 oracle

@@ -16,10 +16,10 @@ use crate::report::{emit, CmdResult};
 pub struct Args {
     #[arg(long, value_enum)]
     unit: Unit,
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = super::common::unsigned::<u64>)]
     seed: u64,
     /// Number of transactions (records after the header).
-    #[arg(long, default_value_t = 10_000)]
+    #[arg(long, default_value_t = 10_000, value_parser = super::common::unsigned::<u64>)]
     count: u64,
     /// The file to write (atomically: a temporary file, then a rename).
     #[arg(long)]

@@ -29,6 +29,17 @@ pub fn hiermerge(args: &[&str], env: &[(&str, &str)]) -> Output {
     c.output().expect("hiermerge runs")
 }
 
+/// The JSON report of a run that must have succeeded (its stderr shown
+/// when it did not).
+pub fn succeeded(o: &Output) -> Value {
+    assert!(
+        o.status.success(),
+        "stderr:\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    json_of(o)
+}
+
 /// The one JSON object a `--json` run prints on stdout.
 pub fn json_of(o: &Output) -> Value {
     let text = String::from_utf8_lossy(&o.stdout);

@@ -7,7 +7,7 @@
 //! draws from the seeded `tb::Prng` (the driver's and the monitor's streams,
 //! `Prng::derived(seed, 1 + 2 * lane)` and `(seed, 2 + 2 * lane)`, a bit
 //! per cycle: go with probability `1 - stall`) and streams through a named
-//! pipe ahead of vvp; while `valid` is low the payload shows a random value (from
+//! pipe ahead of vvp (the bits of `tb::StallGen`, any pattern); while `valid` is low the payload shows a random value (from
 //! a pool drawn from `Prng::derived(seed, 1000 + lane)`, a new one after
 //! each beat the lane delivers: held, not redrawn every cycle, because a
 //! changing input makes vvp re-evaluate the design's whole input cone).
@@ -35,8 +35,8 @@
 //! know): it runs to the end and counts every mismatch.
 
 use super::batch_runner::{
-    failure_window, go_word, keep_window_vcd, mask_line, read_out, write_lines, write_params,
-    BatchImage,
+    asked_window, dump_is_fst, failure_window, keep_window_vcd, mask_line, read_out, write_lines,
+    write_params, BatchImage,
 };
 use super::batch_tb_frame::{frame_params, pool_file};
 use super::batch_testbench::{
@@ -48,7 +48,7 @@ use crate::design::{Design, PortId};
 use crate::error::{io_err, CosimError, Result};
 use crate::tb::{
     AccountingReport, BenchConfig, BenchReport, FieldDecoder, Hang, Mismatch, Prng, Scoreboard,
-    StreamNames, Vector,
+    StallGen, StreamNames, Vector,
 };
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -270,7 +270,10 @@ impl IcarusBatch {
         decoders: &mut dyn FnMut(usize) -> Option<Box<FieldDecoder>>,
         config: &BenchConfig,
     ) -> Result<BatchReport> {
-        let mut report = self.run_once(vectors, decoders, config, None)?;
+        let mut report = self.run_once(vectors, decoders, config, asked_window(config))?;
+        if config.wave_window.is_some() {
+            return Ok(report);
+        }
         let failure = failure_window(report.bench.failure_cycle(), config);
         if let Some(dump) = failure {
             let rerun = self.run_once(vectors, &mut |_| None, config, Some(dump))?;
@@ -287,8 +290,8 @@ impl IcarusBatch {
         dump: Option<((u64, u64), PathBuf)>,
     ) -> Result<BatchReport> {
         let start = Instant::now();
-        crate::tb::driver::check_stall(config.in_stall)?;
-        crate::tb::driver::check_stall(config.out_stall)?;
+        crate::tb::driver::check_stalls(&config.in_stall)?;
+        crate::tb::driver::check_stalls(&config.out_stall)?;
         let dir = self.image.run_dir()?;
         let total_out = self.write_stimulus(dir.path(), vectors)?;
         let mut params = frame_params(config, total_out, dump.as_ref().map(|d| d.0));
@@ -296,14 +299,15 @@ impl IcarusBatch {
         write_params(dir.path(), &params)?;
         self.write_pools(dir.path(), config.seed)?;
         let mut masks = StallMasks::new(config, self.lanes.len());
-        let sim_wall = self.image.run_vvp(dir.path(), move || {
+        let fst = dump_is_fst(dump.as_ref().map(|d| d.1.as_path()), config)?;
+        let sim_wall = self.image.run_vvp(dir.path(), fst, move || {
             mask_line(masks.next_block().into_iter())
         })?;
         let text = fs::read_to_string(dir.path().join("out.txt"))
             .map_err(io_err(dir.path().join("out.txt")))?;
         let mut report = self.compare(&text, vectors, decoders, config)?;
         if let Some((_, path)) = dump {
-            report.bench.vcd = keep_window_vcd(dir.path(), &path)?;
+            report.bench.vcd = keep_window_vcd(dir.path(), &path, config.wave_scope.as_deref())?;
         }
         report.sim_wall = sim_wall;
         report.bench.wall = start.elapsed();
@@ -575,9 +579,9 @@ fn lane_ports(design: &Design, n: &StreamNames) -> Result<LanePorts> {
 }
 
 /// The per-cycle stall masks of a run: per lane the driver's and the
-/// monitor's generator, a bit per cycle, 1 (go) with probability `1 - stall`.
+/// monitor's generator and pattern, a bit per cycle, 1 = go.
 pub struct StallMasks {
-    streams: Vec<(Prng, f64)>,
+    streams: Vec<(Prng, StallGen)>,
 }
 
 impl StallMasks {
@@ -586,8 +590,14 @@ impl StallMasks {
         let streams = (0..lanes as u64)
             .flat_map(|l| {
                 [
-                    (Prng::derived(config.seed, 1 + 2 * l), config.in_stall),
-                    (Prng::derived(config.seed, 2 + 2 * l), config.out_stall),
+                    (
+                        Prng::derived(config.seed, 1 + 2 * l),
+                        StallGen::new(config.in_stall),
+                    ),
+                    (
+                        Prng::derived(config.seed, 2 + 2 * l),
+                        StallGen::new(config.out_stall),
+                    ),
                 ]
             })
             .collect();
@@ -599,7 +609,7 @@ impl StallMasks {
     pub fn next_block(&mut self) -> Vec<u64> {
         self.streams
             .iter_mut()
-            .map(|(rng, stall)| go_word(rng, *stall))
+            .map(|(rng, stalls)| stalls.go_word(rng))
             .collect()
     }
 }

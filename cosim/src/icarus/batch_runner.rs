@@ -8,8 +8,9 @@
 use crate::bitvec::BitVec;
 use crate::design::{Design, PortId};
 use crate::error::{io_err, CosimError, Result};
-use crate::tb::{BenchConfig, Hang, Prng, Transaction};
+use crate::tb::{BenchConfig, Hang, Transaction};
 use crate::tools::INSTALL_HINT;
+use crate::waves::WaveFormat;
 use std::fs;
 use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
@@ -84,6 +85,7 @@ impl BatchImage {
     pub fn run_vvp(
         &self,
         dir: &Path,
+        fst: bool,
         mask_lines: impl FnMut() -> String + Send + 'static,
     ) -> Result<Duration> {
         let start = Instant::now();
@@ -91,9 +93,13 @@ impl BatchImage {
         let log = fs::File::create(&log_path).map_err(io_err(&log_path))?;
         let log_err = log.try_clone().map_err(io_err(&log_path))?;
         let masks = MaskFifo::open(dir, mask_lines)?;
-        let child = Command::new("vvp")
-            .arg("-n")
-            .arg(&self.image)
+        let mut vvp = Command::new("vvp");
+        vvp.arg("-n").arg(&self.image);
+        if fst {
+            // The window dump as FST (complete when vvp ends, as here).
+            vvp.arg("-fst");
+        }
+        let child = vvp
             .current_dir(dir)
             .stdin(Stdio::null())
             .stdout(log)
@@ -136,12 +142,6 @@ impl BatchImage {
             std::thread::sleep(Duration::from_millis(5));
         }
     }
-}
-
-/// 64 cycles of one seeded stream: bit `k` is 1 (go: the driver may raise
-/// `valid`, the monitor raises `ready`) with probability `1 - stall`.
-pub fn go_word(rng: &mut Prng, stall: f64) -> u64 {
-    (0..64).fold(0u64, |w, k| w | (u64::from(!rng.chance(stall)) << k))
 }
 
 /// One mask line: the words in `%h`, space separated.
@@ -267,8 +267,29 @@ pub fn failure_window(
     Some((window, path))
 }
 
-/// Copies the run's window VCD (if the testbench wrote one) to `path`.
-pub fn keep_window_vcd(dir: &Path, path: &Path) -> Result<Option<PathBuf>> {
+/// The cycles `config` asks to be dumped in every run, and where.
+pub fn asked_window(config: &BenchConfig) -> Option<((u64, u64), PathBuf)> {
+    Some((config.wave_window?, config.vcd_path.clone()?))
+}
+
+/// True when the window dump of a run whose failure waveform goes to
+/// `dump` is FST (its file name's format); an FST of one scope is refused:
+/// the batch testbench dumps every signal, and only a VCD is cut here.
+pub fn dump_is_fst(dump: Option<&Path>, config: &BenchConfig) -> Result<bool> {
+    let fst = dump.is_some_and(|p| WaveFormat::of(p) == WaveFormat::Fst);
+    if fst && config.wave_scope.is_some() {
+        return Err(CosimError::Unsupported {
+            what: "an FST of one scope comes from Verilator; the Icarus batch's FST holds \
+                   every signal: give VCD with the scope, or no scope"
+                .into(),
+        });
+    }
+    Ok(fst)
+}
+
+/// Copies the run's window VCD (if the testbench wrote one) to `path`,
+/// atomically, cut to `scope` when given.
+pub fn keep_window_vcd(dir: &Path, path: &Path, scope: Option<&str>) -> Result<Option<PathBuf>> {
     let vcd = dir.join(WINDOW_VCD);
     if !vcd.exists() {
         return Ok(None);
@@ -276,7 +297,18 @@ pub fn keep_window_vcd(dir: &Path, path: &Path) -> Result<Option<PathBuf>> {
     if let Some(parent) = path.parent() {
         fs::create_dir_all(parent).map_err(io_err(parent))?;
     }
-    fs::copy(&vcd, path).map_err(io_err(path))?;
+    // Atomically (SPEC 15.3): no half-copied VCD, none left by a signal.
+    let failed = |e: String| crate::error::CosimError::Io {
+        path: path.to_path_buf(),
+        source: std::io::Error::other(e),
+    };
+    let mut out = golden::output::AtomicFile::create(path).map_err(failed)?;
+    let mut from = fs::File::open(&vcd).map_err(io_err(&vcd))?;
+    std::io::copy(&mut from, out.file()).map_err(io_err(path))?;
+    if let Some(s) = scope {
+        crate::tb::trace_window::narrow_to_scope(out.path(), s).map_err(failed)?;
+    }
+    out.commit().map_err(failed)?;
     Ok(Some(path.to_path_buf()))
 }
 

@@ -70,8 +70,8 @@ fn skid_vectors(seed: u64, count: usize) -> Vec<Vector> {
 fn config(seed: u64, stall: f64) -> BenchConfig {
     BenchConfig {
         seed,
-        in_stall: stall,
-        out_stall: stall,
+        in_stall: crate::tb::Stalls::Coin(stall),
+        out_stall: crate::tb::Stalls::Coin(stall),
         ..BenchConfig::default()
     }
 }

@@ -322,6 +322,11 @@ impl Engine for IcarusEngine {
     }
 
     fn trace_start(&mut self, path: &Path) -> Result<()> {
+        crate::waves::check_engine_writes(
+            Some(crate::waves::WaveFormat::Vcd),
+            path,
+            "Icarus through its pipe",
+        )?;
         let text = path.to_string_lossy().into_owned();
         if text.chars().any(char::is_whitespace) || text.is_empty() {
             return Err(CosimError::Io {

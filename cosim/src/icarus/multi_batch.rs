@@ -39,8 +39,8 @@
 //! the end reported.
 
 use super::batch_runner::{
-    failure_window, go_word, keep_window_vcd, mask_line, read_out, write_lines, write_params,
-    BatchImage, BATCH_ENGINE_NAME,
+    asked_window, dump_is_fst, failure_window, keep_window_vcd, mask_line, read_out, write_lines,
+    write_params, BatchImage, BATCH_ENGINE_NAME,
 };
 use super::batch_tb_frame::{frame_params, pool_file};
 use super::batch_testbench::GARBAGE_POOL;
@@ -50,7 +50,8 @@ use super::multi_batch_testbench::{
 use crate::design::{Design, PortDir, PortId};
 use crate::error::{io_err, CosimError, Result};
 use crate::tb::{
-    BenchConfig, MultiReport, Prng, PulseCounts, Scoreboard, StreamBeats, StreamPorts,
+    BenchConfig, MultiReport, Prng, PulseCounts, Scoreboard, StallGen, Stalls, StreamBeats,
+    StreamPorts,
 };
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -208,7 +209,10 @@ impl IcarusMultiBatch {
         outputs: &[StreamBeats],
         config: &BenchConfig,
     ) -> Result<MultiBatchReport> {
-        let mut run = self.run_once(inputs, outputs, config, None)?;
+        let mut run = self.run_once(inputs, outputs, config, asked_window(config))?;
+        if config.wave_window.is_some() {
+            return Ok(run);
+        }
         let failure = failure_window(run.report.failure_cycle(), config);
         if let Some(dump) = failure {
             run.report.vcd = self
@@ -227,8 +231,8 @@ impl IcarusMultiBatch {
         dump: Option<((u64, u64), PathBuf)>,
     ) -> Result<MultiBatchReport> {
         let start = Instant::now();
-        crate::tb::driver::check_stall(config.in_stall)?;
-        crate::tb::driver::check_stall(config.out_stall)?;
+        crate::tb::driver::check_stalls(&config.in_stall)?;
+        crate::tb::driver::check_stalls(&config.out_stall)?;
         self.check_streams(inputs, &self.inputs, "input")?;
         self.check_streams(outputs, &self.outputs, "output")?;
         let dir = self.image.run_dir()?;
@@ -239,16 +243,16 @@ impl IcarusMultiBatch {
         for (s, beats) in inputs.iter().enumerate() {
             self.write_input(dir.path(), s, beats, config)?;
         }
-        let mut masks = ready_masks(config.seed, self.outputs.len());
-        let stall = config.out_stall;
-        let sim_wall = self.image.run_vvp(dir.path(), move || {
-            mask_line(masks.iter_mut().map(|rng| go_word(rng, stall)))
+        let mut masks = ready_masks(config.seed, self.outputs.len(), config.out_stall);
+        let fst = dump_is_fst(dump.as_ref().map(|d| d.1.as_path()), config)?;
+        let sim_wall = self.image.run_vvp(dir.path(), fst, move || {
+            mask_line(masks.iter_mut().map(|(rng, stalls)| stalls.go_word(rng)))
         })?;
         let out = dir.path().join("out.txt");
         let text = fs::read_to_string(&out).map_err(io_err(&out))?;
         let mut run = self.compare(&text, inputs, outputs, config)?;
         if let Some((_, path)) = dump {
-            run.report.vcd = keep_window_vcd(dir.path(), &path)?;
+            run.report.vcd = keep_window_vcd(dir.path(), &path, config.wave_scope.as_deref())?;
         }
         run.sim_wall = sim_wall;
         run.report.wall = start.elapsed();
@@ -465,15 +469,16 @@ impl IcarusMultiBatch {
 
 /// Per beat, the stalled opportunities before the driver of
 /// `tb::StreamDriver` (seeded `seed`, payload widths `widths`) raises
-/// `valid` for it: each opportunity draws one chance, and a stall then
-/// draws the garbage payload (`ceil(width / 64)` words per port).
-pub fn driver_gaps(seed: u64, stall: f64, widths: &[usize], beats: usize) -> Result<Vec<u32>> {
+/// `valid` for it: each opportunity takes one decision of `stalls`, and a
+/// stall then draws the garbage payload (`ceil(width / 64)` words per port).
+pub fn driver_gaps(seed: u64, stalls: Stalls, widths: &[usize], beats: usize) -> Result<Vec<u32>> {
     let mut rng = Prng::derived(seed, 1);
+    let mut stalls = StallGen::new(stalls);
     let garbage_words: usize = widths.iter().map(|w| w.div_ceil(64)).sum();
     (0..beats)
         .map(|i| {
             let mut gap = 0u32;
-            while rng.chance(stall) {
+            while !stalls.go(&mut rng) {
                 gap = gap.checked_add(1).ok_or_else(|| CosimError::Unsupported {
                     what: format!("beat {i}: a gap of 2^32 stalled cycles"),
                 })?;
@@ -486,12 +491,17 @@ pub fn driver_gaps(seed: u64, stall: f64, widths: &[usize], beats: usize) -> Res
         .collect()
 }
 
-/// The ready generators of `outputs` output streams: output `j` draws
-/// `Prng::derived(stream_seed(seed, 100 + j), 2)` once per cycle, ready
-/// with probability `1 - out_stall` (as `tb::StreamMonitor`).
-fn ready_masks(seed: u64, outputs: usize) -> Vec<Prng> {
+/// The ready generators of `outputs` output streams: output `j` takes one
+/// decision of `stalls` per cycle from `Prng::derived(stream_seed(seed,
+/// 100 + j), 2)` (as `tb::StreamMonitor`).
+fn ready_masks(seed: u64, outputs: usize, stalls: Stalls) -> Vec<(Prng, StallGen)> {
     (0..outputs)
-        .map(|j| Prng::derived(stream_seed(seed, 100 + j), 2))
+        .map(|j| {
+            (
+                Prng::derived(stream_seed(seed, 100 + j), 2),
+                StallGen::new(stalls),
+            )
+        })
         .collect()
 }
 

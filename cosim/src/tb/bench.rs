@@ -9,6 +9,7 @@ use super::accounting::AccountingReport;
 use super::driver::StreamDriver;
 use super::monitor::StreamMonitor;
 use super::scoreboard::{FieldDecoder, Mismatch, Scoreboard};
+use super::stalls::Stalls;
 use super::stop_rule::StopRule;
 use super::stream::{StreamPorts, Transaction};
 use super::trace_window::TraceWindow;
@@ -65,10 +66,10 @@ pub struct Vector {
 pub struct BenchConfig {
     /// Seed of the stall patterns (and garbage payloads).
     pub seed: u64,
-    /// Probability the driver leaves valid low (0..=0.9).
-    pub in_stall: f64,
-    /// Probability the monitor holds ready low (0..=0.9).
-    pub out_stall: f64,
+    /// When the driver leaves valid low.
+    pub in_stall: Stalls,
+    /// When the monitor holds ready low.
+    pub out_stall: Stalls,
     /// Rising edges with reset held.
     pub reset_cycles: u32,
     /// Watchdog limit: cycles without any handshake.
@@ -79,6 +80,11 @@ pub struct BenchConfig {
     pub vcd_path: Option<PathBuf>,
     /// Cycles traced either side of the mismatch.
     pub vcd_radius: u64,
+    /// Trace only this instance path of the design (`u_a.u_b`), when given.
+    pub wave_scope: Option<String>,
+    /// Trace these cycles (first, last) into `vcd_path` in every run, passed
+    /// or failed, instead of the cycles around a failure.
+    pub wave_window: Option<(u64, u64)>,
     /// Command that reproduces this run, copied into the report.
     pub reproduce: Option<String>,
     /// Cycles run after the last expected output, so a duplicate that comes
@@ -90,13 +96,15 @@ impl Default for BenchConfig {
     fn default() -> Self {
         BenchConfig {
             seed: 1,
-            in_stall: 0.0,
-            out_stall: 0.0,
+            in_stall: Stalls::None,
+            out_stall: Stalls::None,
             reset_cycles: 2,
             watchdog_cycles: 1000,
             stop_on_mismatch: true,
             vcd_path: None,
             vcd_radius: 20,
+            wave_scope: None,
+            wave_window: None,
             reproduce: None,
             drain_cycles: 16,
         }
@@ -359,20 +367,26 @@ pub fn run_with_vcd_on_failure(
     config: &BenchConfig,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<BenchReport> {
-    let mut engine = make_engine(false)?;
+    // Asked for a window: one traced run, whatever its outcome.
+    let window = TraceWindow::asked(config);
+    let asked = window.is_some();
+    let mut engine = make_engine(asked)?;
     let mut report = run_stream_bench_with_progress(
         engine.as_mut(),
         names,
         vectors,
         make_decoder(),
         config,
-        None,
+        window,
         progress,
     )?;
     drop(engine);
+    if asked {
+        return Ok(report);
+    }
     if let (Some(cycle), Some(path)) = (report.failure_cycle(), config.vcd_path.clone()) {
         let mut traced = make_engine(true)?;
-        let window = TraceWindow::around(cycle, config.vcd_radius, path);
+        let window = TraceWindow::around_failure(config, cycle, path);
         let rerun = run_stream_bench(
             traced.as_mut(),
             names,

@@ -1,5 +1,5 @@
 //! Stream driver: feeds queued transactions into a valid/ready input with
-//! seeded random gaps.
+//! seeded gaps of a stall pattern ([`Stalls`]).
 //!
 //! Protocol kept: once `valid` is raised its payload is held until the design
 //! accepts it (`valid && ready` at a rising edge); gaps are only inserted
@@ -7,6 +7,7 @@
 //! garbage so a design that samples data without `valid` is caught.
 
 use super::prng::Prng;
+use super::stalls::{StallGen, Stalls};
 use super::stream::{StreamPorts, Transaction};
 use crate::bitvec::BitVec;
 use crate::engine::Engine;
@@ -18,21 +19,21 @@ pub struct StreamDriver {
     ports: StreamPorts,
     queue: VecDeque<Transaction>,
     rng: Prng,
-    stall: f64,
+    stalls: StallGen,
     presenting: bool,
     sent: u64,
 }
 
 impl StreamDriver {
-    /// A driver that leaves `valid` low with probability `stall` (0..=0.9)
+    /// A driver that leaves `valid` low when `stalls` says so, one decision
     /// each cycle it could present a new transaction.
-    pub fn new(ports: StreamPorts, seed: u64, stall: f64) -> Result<StreamDriver> {
-        check_stall(stall)?;
+    pub fn new(ports: StreamPorts, seed: u64, stalls: Stalls) -> Result<StreamDriver> {
+        check_stalls(&stalls)?;
         Ok(StreamDriver {
             ports,
             queue: VecDeque::new(),
             rng: Prng::derived(seed, 1),
-            stall,
+            stalls: StallGen::new(stalls),
             presenting: false,
             sent: 0,
         })
@@ -55,7 +56,7 @@ impl StreamDriver {
 
     /// Drive `valid` and the payload for this cycle (call before `eval`).
     pub fn drive<E: Engine + ?Sized>(&mut self, engine: &mut E) -> Result<()> {
-        if !self.presenting && !self.queue.is_empty() && !self.rng.chance(self.stall) {
+        if !self.presenting && !self.queue.is_empty() && self.stalls.go(&mut self.rng) {
             self.presenting = true;
         }
         engine.poke(self.ports.valid, &bool_bits(self.presenting))?;
@@ -95,15 +96,6 @@ pub(crate) fn bool_bits(b: bool) -> BitVec {
     }
 }
 
-/// The largest stall probability a driver or monitor takes: above it a
-/// stream moves so rarely that a run is all waiting.
-pub const MAX_STALL: f64 = 0.9;
-
-pub(crate) fn check_stall(stall: f64) -> Result<()> {
-    if !(0.0..=MAX_STALL).contains(&stall) {
-        return Err(CosimError::Design {
-            what: format!("stall probability {stall} outside 0..={MAX_STALL}"),
-        });
-    }
-    Ok(())
+pub(crate) fn check_stalls(stalls: &Stalls) -> Result<()> {
+    stalls.check().map_err(|what| CosimError::Design { what })
 }

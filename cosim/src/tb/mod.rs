@@ -7,6 +7,7 @@ pub mod monitor;
 pub mod multi;
 pub mod prng;
 pub mod scoreboard;
+pub mod stalls;
 pub mod stop_rule;
 pub mod stream;
 pub mod trace_window;
@@ -25,6 +26,7 @@ pub use multi::{
 };
 pub use prng::Prng;
 pub use scoreboard::{FieldDecoder, FieldDiff, Mismatch, Scoreboard};
+pub use stalls::{StallGen, Stalls};
 pub use stop_rule::StopRule;
 pub use stream::{StreamPorts, Transaction};
 pub use trace_window::TraceWindow;

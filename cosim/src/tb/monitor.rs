@@ -1,8 +1,10 @@
-//! Stream monitor: applies seeded random back-pressure on a valid/ready
-//! output and collects the transactions that leave the design.
+//! Stream monitor: applies seeded back-pressure of a stall pattern
+//! ([`Stalls`]) on a valid/ready output and collects the transactions that
+//! leave the design.
 
-use super::driver::{bool_bits, check_stall};
+use super::driver::{bool_bits, check_stalls};
 use super::prng::Prng;
+use super::stalls::{StallGen, Stalls};
 use super::stream::{StreamPorts, Transaction};
 use crate::engine::Engine;
 use crate::error::Result;
@@ -11,19 +13,20 @@ use crate::error::Result;
 pub struct StreamMonitor {
     ports: StreamPorts,
     rng: Prng,
-    stall: f64,
+    stalls: StallGen,
     ready: bool,
     received: u64,
 }
 
 impl StreamMonitor {
-    /// A monitor that holds `ready` low with probability `stall` (0..=0.9) each cycle.
-    pub fn new(ports: StreamPorts, seed: u64, stall: f64) -> Result<StreamMonitor> {
-        check_stall(stall)?;
+    /// A monitor that holds `ready` low when `stalls` says so, one decision
+    /// each cycle.
+    pub fn new(ports: StreamPorts, seed: u64, stalls: Stalls) -> Result<StreamMonitor> {
+        check_stalls(&stalls)?;
         Ok(StreamMonitor {
             ports,
             rng: Prng::derived(seed, 2),
-            stall,
+            stalls: StallGen::new(stalls),
             ready: false,
             received: 0,
         })
@@ -36,7 +39,7 @@ impl StreamMonitor {
 
     /// Drive `ready` for this cycle (call before `eval`).
     pub fn drive<E: Engine + ?Sized>(&mut self, engine: &mut E) -> Result<()> {
-        self.ready = !self.rng.chance(self.stall);
+        self.ready = self.stalls.go(&mut self.rng);
         engine.poke(self.ports.ready, &bool_bits(self.ready))
     }
 

@@ -364,20 +364,26 @@ pub fn run_multi_with_vcd_on_failure(
     pulses: &[&str],
     progress: &mut dyn FnMut(Progress),
 ) -> Result<(MultiReport, PulseWatch)> {
-    let mut engine = make_engine(false)?;
+    // Asked for a window: one traced run, whatever its outcome.
+    let window = TraceWindow::asked(config);
+    let asked = window.is_some();
+    let mut engine = make_engine(asked)?;
     let (mut report, watch) = run_multi_stream_bench_traced(
         engine.as_mut(),
         inputs,
         outputs,
         config,
         pulses,
-        None,
+        window,
         progress,
     )?;
     drop(engine);
+    if asked {
+        return Ok((report, watch));
+    }
     if let (Some(cycle), Some(path)) = (report.failure_cycle(), config.vcd_path.clone()) {
         let mut traced = make_engine(true)?;
-        let window = TraceWindow::around(cycle, config.vcd_radius, path);
+        let window = TraceWindow::around_failure(config, cycle, path);
         let (rerun, _) = run_multi_stream_bench_traced(
             traced.as_mut(),
             inputs,

@@ -169,7 +169,10 @@ impl ChunkTotals {
         if failed {
             self.missing = report.missing.clone();
             self.hang = report.hang.clone();
-            self.vcd = report.vcd.clone();
+        }
+        // A failure's waveform, or the window asked of the first chunk.
+        if failed || self.vcd.is_none() {
+            self.vcd = report.vcd.clone().or(self.vcd.take());
         }
         failed
     }
@@ -239,6 +242,9 @@ impl ChunkedSim {
             stop_on_mismatch: false,
             vcd_path: config.vcd_path.clone(),
             vcd_radius: config.vcd_radius,
+            wave_scope: config.wave_scope.clone(),
+            // Cycles count from a chunk's start: the window is the first chunk's.
+            wave_window: config.wave_window.filter(|_| totals.chunks == 0),
             ..BenchConfig::default()
         };
         let (before, cycles_before) = (totals.merges as u64, totals.cycles);
@@ -248,7 +254,7 @@ impl ChunkedSim {
                 design,
                 kind,
             } => {
-                let mut make = stepped_engines(module, design, *kind, self.patched);
+                let mut make = stepped_engines(module, design, *kind, self.patched, config.waves());
                 let mut on_progress = |p: Progress| {
                     // Merges by the share of expected beats arrived.
                     let total = p.expected_outputs.max(1);

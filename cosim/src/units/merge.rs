@@ -141,10 +141,14 @@ fn shifted(f: &Field, by: u32) -> Field {
 pub struct RunConfig {
     /// Seed of the stall patterns.
     pub seed: u64,
-    /// Stall probability of the driver and of the monitor.
-    pub stall: f64,
+    /// The stall pattern of the driver and of the monitor.
+    pub stall: crate::tb::Stalls,
     /// Copied into the report.
     pub reproduce: Option<String>,
+    /// Trace only this instance path of the design, when given.
+    pub wave_scope: Option<String>,
+    /// Trace these cycles whatever the outcome (not only around a failure).
+    pub wave_window: Option<(u64, u64)>,
 }
 
 /// Runs `vectors` on `make_engine(false)`; on a mismatch or hang, when `vcd`
@@ -166,6 +170,8 @@ pub fn run_with_vcd_on_mismatch(
         reproduce: config.reproduce.clone(),
         vcd_path: vcd,
         vcd_radius: radius,
+        wave_scope: config.wave_scope.clone(),
+        wave_window: config.wave_window,
         ..BenchConfig::default()
     };
     run_with_vcd_on_failure(

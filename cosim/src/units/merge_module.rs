@@ -290,6 +290,7 @@ pub fn run(
     progress: &mut dyn FnMut(Progress),
 ) -> Result<Outcome> {
     let module = merge_module(d);
+    crate::waves::check_scope(&module, config.wave_scope.as_deref())?;
     let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
     if let Some(patch) = &config.verilog_patch {
         apply_patch(&design, patch, engine)?;
@@ -301,12 +302,14 @@ pub fn run(
         stop_on_mismatch: false,
         vcd_path: config.vcd_path.clone(),
         vcd_radius: config.vcd_radius,
+        wave_scope: config.wave_scope.clone(),
+        wave_window: config.wave_window,
         ..BenchConfig::default()
     };
     let (report, watch) = match engine {
         ModuleEngine::Ir | ModuleEngine::Verilator => {
             let patched = config.verilog_patch.is_some();
-            let mut make = stepped_engines(&module, &design, engine, patched);
+            let mut make = stepped_engines(&module, &design, engine, patched, config.waves());
             run_multi_with_vcd_on_failure(
                 &mut make,
                 &streams.inputs,
@@ -386,6 +389,7 @@ pub fn run_chunked(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<ChunkTotals> {
     let module = merge_module(d);
+    crate::waves::check_scope(&module, run.bench.wave_scope.as_deref())?;
     let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
     if let Some(patch) = &run.bench.verilog_patch {
         apply_patch(&design, patch, engine)?;
@@ -438,7 +442,7 @@ mod tests {
             chunk,
             bench: RunConfig {
                 seed: 9,
-                stall: 0.2,
+                stall: crate::tb::Stalls::Coin(0.2),
                 ..RunConfig::default()
             },
         }

@@ -507,8 +507,13 @@ pub fn netlist_digest(c: &MergerConfig) -> Result<String> {
 }
 
 /// The stimulus digest (10.2) of the run [`run`] makes of `count` merges
-/// from `seed` at stall `stall`, without simulating it.
-pub fn stimulus_digest(c: &MergerConfig, seed: u64, count: usize, stall: f64) -> Result<String> {
+/// from `seed` with the stall pattern `stall`, without simulating it.
+pub fn stimulus_digest(
+    c: &MergerConfig,
+    seed: u64,
+    count: usize,
+    stall: crate::tb::Stalls,
+) -> Result<String> {
     let mut rng = SplitMix64(seed);
     let mut digest = StimulusDigest::new(seed, count as u64, stall);
     for n in chunk_sizes(count) {
@@ -537,6 +542,7 @@ pub fn run(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Outcome> {
     let module = merger_module(c)?;
+    crate::waves::check_scope(&module, config.bench.wave_scope.as_deref())?;
     // Of the design as generated: a patched run is a test of the bench and
     // is never recorded in a ledger.
     let netlist_sha256 = crate::ledger::netlist_digest(&module)?;

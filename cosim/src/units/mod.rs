@@ -22,16 +22,9 @@ pub type EngineFactory<'a> = dyn FnMut(bool) -> Result<Box<dyn Engine>> + 'a;
 /// Progress callback: (transactions whose outputs all arrived, cycle).
 pub type ProgressFn<'a> = dyn FnMut(u64, u64) + 'a;
 
-/// The stall probability a driver or monitor uses, checked as they check it
-/// (`0 <= p <= `[`crate::tb::driver::MAX_STALL`]), so that a command refuses a
-/// bad value before it builds anything.
-pub fn check_stall(stall: f64) -> std::result::Result<f64, String> {
-    let most = crate::tb::driver::MAX_STALL;
-    if (0.0..=most).contains(&stall) {
-        Ok(stall)
-    } else {
-        Err(format!(
-            "stall probability {stall}: expected 0 <= P <= {most}"
-        ))
-    }
+/// The stall pattern a driver or monitor uses, checked as they check it
+/// ([`crate::tb::Stalls::check`]), so that a command refuses a bad value
+/// before it builds anything.
+pub fn check_stalls(stalls: crate::tb::Stalls) -> std::result::Result<crate::tb::Stalls, String> {
+    stalls.check().map(|_| stalls)
 }

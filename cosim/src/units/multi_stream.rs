@@ -9,10 +9,11 @@ use golden::layout::{Bits, Field};
 
 use crate::bitvec::BitVec;
 use crate::design::Design;
-use crate::engines::{open_engine, EngineKind};
+use crate::engines::{open_engine, open_tracing_engine, EngineKind};
 use crate::error::{CosimError, Result};
 use crate::ir_engine::IrEngine;
 use crate::tb::{FieldDecoder, Transaction};
+use crate::waves::WaveFormat;
 
 /// `bits` decoded field by field: `(name, value in hex)` per field, in
 /// the order given; a beat that is not a layout's width shows as one
@@ -83,16 +84,33 @@ pub enum ModuleEngine {
 pub struct RunConfig {
     /// Seed of the stall patterns.
     pub seed: u64,
-    /// Stall probability of every driver and every monitor.
-    pub stall: f64,
+    /// The stall pattern of every driver and every monitor (each stream
+    /// its own seed).
+    pub stall: crate::tb::Stalls,
     /// Where the VCD around the first failure goes (None: no VCD).
     pub vcd_path: Option<PathBuf>,
     /// Cycles traced either side of the failure.
     pub vcd_radius: u64,
+    /// Trace only this instance path of the design (`u_a.u_b`), when given.
+    pub wave_scope: Option<String>,
+    /// Trace these cycles (of the first chunk) whatever the outcome.
+    pub wave_window: Option<(u64, u64)>,
     /// A deliberate break of the emitted Verilog (the test hook): its one
     /// occurrence of `from` replaced by `to` before simulation (Verilator
     /// and Icarus only: the IR engine does not read the Verilog).
     pub verilog_patch: Option<VerilogPatch>,
+}
+
+impl RunConfig {
+    /// The format of the failure's waveform (its file name's) and the scope
+    /// traced, for [`stepped_engines`].
+    pub(crate) fn waves(&self) -> (WaveFormat, Option<String>) {
+        let format = self
+            .vcd_path
+            .as_deref()
+            .map_or(WaveFormat::Vcd, WaveFormat::of);
+        (format, self.wave_scope.clone())
+    }
 }
 
 /// One text replacement in the emitted Verilog.
@@ -132,10 +150,14 @@ pub(crate) fn stepped_engines<'a>(
     design: &'a Design,
     engine: ModuleEngine,
     patched: bool,
+    waves: (WaveFormat, Option<String>),
 ) -> impl FnMut(bool) -> Result<Box<dyn crate::Engine>> + 'a {
-    move |trace| match engine {
-        ModuleEngine::Ir => Ok(Box::new(IrEngine::new(module, design)?)),
-        _ => open_engine(EngineKind::Verilator, design, trace || patched),
+    move |trace| match (engine, trace || patched) {
+        (ModuleEngine::Ir, _) => Ok(Box::new(IrEngine::new(module, design)?)),
+        (_, true) => {
+            open_tracing_engine(EngineKind::Verilator, design, waves.0, waves.1.as_deref())
+        }
+        (_, false) => open_engine(EngineKind::Verilator, design, false),
     }
 }
 

@@ -2,10 +2,10 @@
 //! ([`crate::ir_engine::IrEngine`]), Verilator and Icarus Verilog.
 //!
 //! A transaction list (golden vectors) is cut into runs of one kind
-//! (determine or apply). Each run goes through its stream with random
-//! back-pressure: the driver raises `valid` with probability `1 - stall`
-//! and holds the payload until accepted; the monitor raises `ready` with
-//! probability `1 - stall`. Outputs are compared in order, bit for bit,
+//! (determine or apply). Each run goes through its stream with the
+//! back-pressure of a stall pattern (`tb::Stalls`): the driver raises
+//! `valid` when it says go and holds the payload until accepted; the
+//! monitor raises `ready` when it says go. Outputs are compared in order, bit for bit,
 //! with the golden expected outputs; a run ends when all its outputs
 //! arrived (then nothing of it is in flight, so the next run's table
 //! reads see every earlier write). Every cycle `done == idle && !idle
@@ -16,7 +16,6 @@ use std::fmt;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use golden::translate::stimulus::SplitMix64;
 use golden::vectors::translate::{ApplyCode, TranslateDesign, TranslateTxn};
 use rtl_gen::translate::ports::{
     apply_out_layout, det_out_layout, pack_apply_in, pack_apply_out, pack_det_in, pack_det_out,
@@ -29,7 +28,7 @@ use crate::bitvec::BitVec;
 use crate::design::PortId;
 use crate::engine::Engine;
 use crate::error::CosimError;
-use crate::tb::TraceWindow;
+use crate::tb::{Prng, StallGen, TraceWindow};
 
 /// Cycles without any handshake before the watchdog fails a run.
 pub const WATCHDOG_CYCLES: u64 = 1000;
@@ -38,12 +37,17 @@ pub const WATCHDOG_CYCLES: u64 = 1000;
 pub const PROGRESS_EVERY: u64 = 4096;
 
 /// How one run is driven.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct RunConfig {
     /// Seed of the driver's and the monitor's stall patterns.
     pub seed: u64,
-    /// Probability that the driver holds `valid` low / the monitor `ready` low.
-    pub stall: f64,
+    /// When the driver holds `valid` low / the monitor `ready` low.
+    pub stall: crate::tb::Stalls,
+    /// Trace only this instance path of the design (`u_a.u_b`), when given.
+    pub wave_scope: Option<String>,
+    /// Trace these cycles (first, last) whatever the outcome, instead of the
+    /// cycles around a mismatch.
+    pub wave_window: Option<(u64, u64)>,
     /// Test hook: the expected output of this transaction gets its lowest
     /// bit flipped, so a run that must fail can be made (`hiermerge cosim`
     /// reads it from `HIERMERGE_COSIM_FLIP_EXPECTED`).
@@ -108,7 +112,7 @@ pub struct Mismatch {
     /// Seed of the stall patterns.
     pub seed: u64,
     /// Stall probability.
-    pub stall: f64,
+    pub stall: crate::tb::Stalls,
     /// Every output field, expected against got (empty for a protocol failure).
     pub fields: Vec<FieldDiff>,
     /// What went wrong, in words.
@@ -275,12 +279,7 @@ fn pack_run(
     Ok((ins, exps))
 }
 
-/// A uniform draw: true ("go") with probability `1 - stall`.
-fn go(rng: &mut SplitMix64, stall: f64) -> bool {
-    (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64 >= stall
-}
-
-/// Runs `txns` through `engine` (reset first) with stall probability
+/// Runs `txns` through `engine` (reset first) with the stall pattern
 /// `config.stall` on both sides of every stream; returns what it measured,
 /// or the first mismatch with every field decoded. `window` traces some
 /// cycles to a VCD; `progress` is called every [`PROGRESS_EVERY`] cycles.
@@ -295,8 +294,10 @@ pub fn run(
     let started = Instant::now();
     let ports = Ports::of(engine, d)?;
     let (seed, stall) = (config.seed, config.stall);
-    let mut drv_rng = SplitMix64(seed ^ 0x5eed_d41e);
-    let mut mon_rng = SplitMix64(seed ^ 0x0b5e_77e5);
+    let mut drv_rng = Prng::new(seed ^ 0x5eed_d41e);
+    let mut mon_rng = Prng::new(seed ^ 0x0b5e_77e5);
+    crate::tb::driver::check_stalls(&stall)?;
+    let (mut drv_stalls, mut mon_stalls) = (StallGen::new(stall), StallGen::new(stall));
     let fail = |engine: &dyn Engine, i: usize, kind: &'static str, what: String| {
         Failure::Mismatch(Box::new(Mismatch {
             engine: engine.name().to_string(),
@@ -347,12 +348,12 @@ pub fn run(
             if let Some(w) = window.as_deref_mut() {
                 w.update(engine)?;
             }
-            if !presenting && sent < ins.len() && go(&mut drv_rng, stall) {
+            if !presenting && sent < ins.len() && drv_stalls.go(&mut drv_rng) {
                 presenting = true;
                 engine.poke(side.in_data, &ins[sent])?;
             }
             engine.poke_u64(side.in_valid, presenting as u64)?;
-            let ready = go(&mut mon_rng, stall);
+            let ready = mon_stalls.go(&mut mon_rng);
             engine.poke_u64(side.out_ready, ready as u64)?;
             engine.eval()?;
             let mut moved = false;
@@ -482,6 +483,26 @@ pub fn run_with_vcd_on_mismatch(
     radius: u64,
     progress: &mut ProgressFn,
 ) -> Result<Outcome, Failure> {
+    if let (Some((from, to)), Some(path)) = (config.wave_window, vcd.clone()) {
+        // Asked for a window: one traced run, whatever its outcome.
+        let mut traced = make_engine(true)?;
+        let mut window = TraceWindow::cycles(from, to, path).with_scope(config.wave_scope.clone());
+        let result = run(
+            traced.as_mut(),
+            d,
+            txns,
+            config,
+            Some(&mut window),
+            progress,
+        );
+        return match result {
+            Err(Failure::Mismatch(mut m)) => {
+                m.vcd = Some(window.path);
+                Err(Failure::Mismatch(m))
+            }
+            other => other,
+        };
+    }
     let mut engine = make_engine(false)?;
     let first = run(engine.as_mut(), d, txns, config, None, progress);
     drop(engine);
@@ -490,7 +511,8 @@ pub fn run_with_vcd_on_mismatch(
         (other, _) => return other,
     };
     let mut traced = make_engine(true)?;
-    let mut window = TraceWindow::around(m.cycle, radius, path);
+    let mut window =
+        TraceWindow::around(m.cycle, radius, path).with_scope(config.wave_scope.clone());
     // The re-run fails again at the same cycle (same seed, same vectors);
     // only its VCD is wanted.
     let _ = run(

@@ -24,6 +24,8 @@ pub const LIBRARY_NAME: &str = "libhm_model.so";
 pub struct VerilatorOptions {
     /// Build with `--trace` so the engine can write VCDs (a separate cache entry).
     pub trace: bool,
+    /// With `trace`: `--trace-fst`, the engine writes FST instead of VCD.
+    pub fst: bool,
     /// Extra Verilator flags (e.g. `-Wno-WIDTH`), part of the cache key.
     pub verilator_flags: Vec<String>,
     /// C++ optimization flag, e.g. `-O1`.
@@ -36,6 +38,7 @@ impl Default for VerilatorOptions {
     fn default() -> Self {
         VerilatorOptions {
             trace: false,
+            fst: false,
             verilator_flags: Vec::new(),
             cxx_opt: "-O1".to_string(),
             jobs: default_jobs(),
@@ -71,6 +74,7 @@ pub fn build_model(
         .add("verilator_root", facts.root.to_string_lossy().as_bytes())
         .add("cxx", facts.cxx_version.as_bytes())
         .add("trace", &[options.trace as u8])
+        .add("fst", &[options.fst as u8])
         .add("cxx_opt", options.cxx_opt.as_bytes())
         .add("top", design.top.as_bytes())
         .add("ports", format!("{:?}", design.ports).as_bytes());
@@ -84,10 +88,10 @@ pub fn build_model(
             .unwrap_or_default();
         key.add("file_name", name.as_bytes()).add("file", bytes);
     }
-    let label = if options.trace {
-        format!("{}-trace", design.top)
-    } else {
-        design.top.clone()
+    let label = match (options.trace, options.fst) {
+        (true, true) => format!("{}-trace-fst", design.top),
+        (true, false) => format!("{}-trace", design.top),
+        _ => design.top.clone(),
     };
     get_or_build(cache_root, "verilator", &label, &key.finish(), |dir| {
         build_into(dir, design, options, &facts, cache_root)
@@ -162,8 +166,14 @@ fn run_verilator(
         .arg(MODEL_PREFIX)
         .arg("--top-module")
         .arg(&design.top);
-    if options.trace {
-        cmd.arg("--trace");
+    match (options.trace, options.fst) {
+        (true, true) => {
+            cmd.arg("--trace-fst");
+        }
+        (true, false) => {
+            cmd.arg("--trace");
+        }
+        _ => {}
     }
     cmd.args(&options.verilator_flags);
     cmd.args(&design.verilog_files);
@@ -273,10 +283,14 @@ impl CxxFlags {
                     .unwrap_or_default(),
             );
         }
-        let link_libs = mk
+        let mut link_libs = mk
             .get("CFG_LDLIBS_THREADS")
             .cloned()
             .unwrap_or_else(|| vec!["-pthread".to_string()]);
+        // The FST writer compresses with zlib.
+        if var(classes, "VM_TRACE_FST", "0") == "1" {
+            link_libs.push("-lz".to_string());
+        }
         CxxFlags { common, link_libs }
     }
 

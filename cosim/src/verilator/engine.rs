@@ -16,7 +16,7 @@ type DestroyFn = unsafe extern "C" fn(*mut c_void);
 type SetFn = unsafe extern "C" fn(*mut c_void, u32, *const u64, u32) -> c_int;
 type GetFn = unsafe extern "C" fn(*mut c_void, u32, *mut u64, u32) -> c_int;
 type EvalFn = unsafe extern "C" fn(*mut c_void);
-type TraceOpenFn = unsafe extern "C" fn(*mut c_void, *const c_char) -> c_int;
+type TraceOpenFn = unsafe extern "C" fn(*mut c_void, *const c_char, *const c_char) -> c_int;
 type U32Fn = unsafe extern "C" fn() -> u32;
 type U32ArgFn = unsafe extern "C" fn(u32) -> u32;
 
@@ -46,6 +46,10 @@ pub struct VerilatorEngine {
     clock: Option<PortId>,
     cycle: u64,
     info: BuildInfo,
+    /// What the trace build writes (None: not a trace build).
+    waves: Option<crate::waves::WaveFormat>,
+    /// The Verilator scope traced (empty: all).
+    scope: CString,
     // Declared last so it is dropped after `instance` is destroyed.
     _library: libloading::Library,
 }
@@ -165,8 +169,25 @@ impl VerilatorEngine {
             clock,
             cycle: 0,
             info,
+            waves: options.trace.then_some(if options.fst {
+                crate::waves::WaveFormat::Fst
+            } else {
+                crate::waves::WaveFormat::Vcd
+            }),
+            scope: CString::default(),
             _library: library,
         })
+    }
+
+    /// Traces only the instance `scope` of the design's top (a path of
+    /// instance names, `u_a.u_b`) and everything below it; set before the
+    /// first trace.
+    pub fn set_trace_scope(&mut self, scope: &str) -> Result<()> {
+        let full = format!("TOP.{}.{scope}", self.design.top);
+        self.scope = CString::new(full).map_err(|_| CosimError::Unsupported {
+            what: format!("trace scope `{scope}`: NUL in the name"),
+        })?;
+        Ok(())
     }
 
     /// Where the model came from and what it cost.
@@ -257,13 +278,14 @@ impl Engine for VerilatorEngine {
     }
 
     fn trace_start(&mut self, path: &Path) -> Result<()> {
+        crate::waves::check_engine_writes(self.waves, path, "this Verilator model")?;
         let c_path =
             CString::new(path.to_string_lossy().as_bytes()).map_err(|_| CosimError::Io {
                 path: path.to_path_buf(),
                 source: std::io::Error::new(std::io::ErrorKind::InvalidInput, "NUL in path"),
             })?;
         // SAFETY: `instance` is live and `c_path` outlives the call.
-        match unsafe { (self.trace_open)(self.instance, c_path.as_ptr()) } {
+        match unsafe { (self.trace_open)(self.instance, c_path.as_ptr(), self.scope.as_ptr()) } {
             0 => Ok(()),
             -1 => Err(CosimError::Unsupported {
                 what: "VCD tracing needs a Verilator model built with VerilatorOptions { trace: true }"

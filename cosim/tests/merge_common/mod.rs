@@ -69,8 +69,8 @@ pub fn run(
 ) -> BenchReport {
     let config = BenchConfig {
         seed,
-        in_stall: stall,
-        out_stall: stall,
+        in_stall: cosim::tb::Stalls::Coin(stall),
+        out_stall: cosim::tb::Stalls::Coin(stall),
         reproduce: Some(format!("cargo test -p cosim --test {what}")),
         ..BenchConfig::default()
     };
@@ -193,8 +193,8 @@ pub fn run_sim(
 ) -> BenchReport {
     let config = BenchConfig {
         seed,
-        in_stall: stall,
-        out_stall: stall,
+        in_stall: cosim::tb::Stalls::Coin(stall),
+        out_stall: cosim::tb::Stalls::Coin(stall),
         reproduce: Some(format!("cargo test -p cosim --release --test {what}")),
         ..BenchConfig::default()
     };

@@ -9,8 +9,8 @@ use cosim::tb::{run_multi_stream_bench_watching, BenchConfig, MultiReport, Strea
 pub fn stalled(seed: u64, stall: f64) -> BenchConfig {
     BenchConfig {
         seed,
-        in_stall: stall,
-        out_stall: stall,
+        in_stall: cosim::tb::Stalls::Coin(stall),
+        out_stall: cosim::tb::Stalls::Coin(stall),
         ..BenchConfig::default()
     }
 }

@@ -58,7 +58,12 @@ pub(super) fn run_args(a: &Args) -> Result<Vec<String>, String> {
             push("--count", a.count.unwrap_or(DEFAULT_COUNT).to_string());
         }
     }
-    push("--stall", a.stall.to_string());
+    // A coin is written as it always was, so a ledger entry's args keep
+    // their form; another pattern by its canonical name.
+    match super::stalls(a)? {
+        cosim::tb::Stalls::Coin(p) => push("--stall", p.to_string()),
+        other => push("--stalls", other.to_string()),
+    }
     let g = &a.design.grid;
     push("--max-lod", g.max_lod.to_string());
     push("--quant-bits", g.quant_bits.to_string());

@@ -28,13 +28,16 @@ pub(super) fn run_level(
     };
     let vectors = merge::bench_vectors(&levels, flip).map_err(|e| e.to_string())?;
     let module = merge::merge_level_module(&design.params);
+    cosim::waves::check_scope(&module, a.wave_scope.as_deref()).map_err(|e| e.to_string())?;
     let cdesign = design_from_module(&module, dir).map_err(|e| e.to_string())?;
-    let mut make = factory(a.engine, &module, &cdesign)?;
+    let mut make = factory(a, &module, &cdesign)?;
     let expected_outputs: u64 = levels.iter().map(|l| l.outputs.len() as u64).sum();
     let config = merge::RunConfig {
         seed: a.seed,
-        stall: a.stall,
+        stall: super::stalls(a)?,
         reproduce: Some(reproduce(a, flip)?),
+        wave_scope: a.wave_scope.clone(),
+        wave_window: a.wave_window,
     };
     let pb = bar(expected_outputs, a.json);
     let report = merge::run_with_vcd_on_mismatch(

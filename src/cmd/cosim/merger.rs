@@ -3,7 +3,8 @@
 
 use std::path::{Path, PathBuf};
 
-use cosim::units::{check_stall, merger};
+use cosim::tb::Stalls;
+use cosim::units::merger;
 use golden::vectors::merge::MergeDesign;
 
 use super::command_line::run_args;
@@ -30,7 +31,7 @@ pub struct MergerRun {
     pub engine: &'static str,
     pub seed: u64,
     pub count: usize,
-    pub stall: f64,
+    pub stall: Stalls,
 }
 
 /// What the `hiermerge cosim` arguments `args` (without the program and
@@ -57,13 +58,13 @@ pub fn merger_run(args: &[String]) -> Result<MergerRun, String> {
     if a.unit != Unit::Merger {
         return Err(format!("`{}`: expected --unit merger", args.join(" ")));
     }
-    check_stall(a.stall).map_err(|e| format!("--stall: {e}"))?;
+    let stall = super::stalls(&a)?;
     Ok(MergerRun {
         config: merger_config(&a, &a.design.merge_design()?)?,
         engine: a.engine.name(),
         seed: a.seed,
         count: count(&a)?,
-        stall: a.stall,
+        stall,
     })
 }
 

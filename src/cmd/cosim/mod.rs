@@ -27,9 +27,10 @@ mod translate;
 use std::path::PathBuf;
 
 use cosim::ir_engine::IrEngine;
-use cosim::units::check_stall;
+use cosim::tb::Stalls;
 use cosim::units::merge_module::{self, ModuleEngine};
-use cosim::{open_engine, Design, Engine, EngineKind};
+use cosim::waves::WaveFormat;
+use cosim::{open_engine, open_tracing_engine, Design, Engine, EngineKind};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 
@@ -67,6 +68,53 @@ impl EngineChoice {
             EngineChoice::Iverilog => "iverilog",
             EngineChoice::Ir => "ir",
         }
+    }
+}
+
+/// The waveform format `--waves` asks for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum WavesChoice {
+    /// Value change dump (text).
+    Vcd,
+    /// Fast Signal Trace (GTKWave's compressed format).
+    Fst,
+}
+
+/// `FROM:TO`, two cycles, `FROM <= TO`.
+fn parse_window(s: &str) -> Result<(u64, u64), String> {
+    let (a, b) = s
+        .split_once(':')
+        .ok_or_else(|| format!("`{s}`: expected FROM:TO (two cycles)"))?;
+    let cycle =
+        |x: &str| super::common::unsigned::<u64>(x).map_err(|e| format!("`{s}`: `{x}`: {e}"));
+    let (from, to) = (cycle(a)?, cycle(b)?);
+    if from > to {
+        return Err(format!("`{s}`: the first cycle is after the last"));
+    }
+    Ok((from, to))
+}
+
+/// Refuses a waveform request the engine and unit cannot meet, before
+/// anything is built.
+fn check_waves(a: &Args) -> Result<(), String> {
+    if a.waves == WavesChoice::Vcd {
+        return Ok(());
+    }
+    let batch =
+        a.unit == Unit::Merger || (a.unit == Unit::Merge && merge_stage(a)? == MergeStage::Module);
+    match a.engine {
+        EngineChoice::Ir => Err("--waves fst: the IR simulator writes VCD only".into()),
+        EngineChoice::Iverilog if !batch => Err(
+            "--waves fst: Icarus writes FST in its batch runs (--unit merge, --unit merger), \
+             whose vvp ends with the run; here it runs through a pipe: use VCD, or Verilator"
+                .into(),
+        ),
+        EngineChoice::Iverilog if a.wave_scope.is_some() => Err(
+            "--waves fst --wave-scope: the Icarus batch's FST holds every signal; an FST of \
+             one scope comes from Verilator (or give VCD with the scope)"
+                .into(),
+        ),
+        _ => Ok(()),
     }
 }
 
@@ -130,19 +178,41 @@ pub struct Args {
     #[arg(long, conflicts_with = "count")]
     vectors: Option<PathBuf>,
     /// Seed of the generated transactions and of the stall patterns.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = super::common::unsigned::<u64>)]
     seed: u64,
     /// Transactions to generate (translate: determine/apply records;
     /// merge: merges; --stage merge-level: levels).
-    #[arg(long)]
+    #[arg(long, value_parser = super::common::unsigned::<u64>)]
     count: Option<u64>,
-    /// Probability that the driver holds valid low and the monitor ready low
-    /// (0 <= P <= 0.9; merge: on every stream, each with its own pattern).
-    #[arg(long, default_value_t = 0.3)]
-    stall: f64,
-    /// Directory of the VCD written on a mismatch.
+    /// With `--stalls coin`: the probability that the driver holds valid
+    /// low and the monitor ready low, per decision (0 <= P <= 0.9; default
+    /// 0.3).
+    #[arg(long)]
+    stall: Option<f64>,
+    /// The stall pattern of every driver (valid) and monitor (ready), each
+    /// stream with its own seed: `coin` (a draw per decision, probability
+    /// --stall), `bursty[:S,G]` (alternating runs of 1..=S stalls and 1..=G
+    /// go, lengths drawn from the seed; default 16,16), `periodic[:K/N]` (K
+    /// stalls of every N decisions at a seeded phase; default 1/3), `none`.
+    #[arg(long, default_value = "coin")]
+    stalls: String,
+    /// Directory of the waveform written on a mismatch (or asked by
+    /// --wave-window).
     #[arg(long = "vcd-dir", default_value = "out/cosim")]
     vcd_dir: PathBuf,
+    /// Waveform format: `vcd` (every engine) or `fst` (Verilator; Icarus
+    /// with --unit merge and merger, whose batch vvp ends with the run).
+    #[arg(long, value_enum, default_value = "vcd")]
+    waves: WavesChoice,
+    /// Trace only this instance of the design and everything below it
+    /// (instance names from the top down, `u_a.u_b`).
+    #[arg(long = "wave-scope")]
+    wave_scope: Option<String>,
+    /// Trace cycles FROM:TO whatever the outcome (merge, merger: of the
+    /// first chunk of 10,000 merges), instead of 20 cycles either side of
+    /// the first mismatch.
+    #[arg(long = "wave-window", value_parser = parse_window)]
+    wave_window: Option<(u64, u64)>,
     #[command(flatten)]
     design: UnitOpts,
     /// --unit merger only: log2 of the writer's entries per buffer
@@ -163,6 +233,25 @@ pub struct Args {
 }
 
 const DEFAULT_COUNT: u64 = 10_000;
+
+/// `--stall` when not given.
+const DEFAULT_STALL: f64 = 0.3;
+
+/// The stall pattern `--stalls` and `--stall` ask for, checked.
+fn stalls(a: &Args) -> Result<Stalls, String> {
+    let coin = a.stall.unwrap_or(DEFAULT_STALL);
+    let s = Stalls::parse(&a.stalls, coin).map_err(|e| match a.stall {
+        Some(_) if a.stalls == "coin" => format!("--stall: {e}"),
+        _ => format!("--stalls: {e}"),
+    })?;
+    if a.stall.is_some() && a.stalls != "coin" {
+        return Err(format!(
+            "--stall {coin} is the probability of --stalls coin; --stalls {} takes its parameters after a colon",
+            a.stalls
+        ));
+    }
+    Ok(s)
+}
 
 /// `--count`, or the default, as a number of transactions.
 fn count(a: &Args) -> Result<usize, String> {
@@ -210,11 +299,16 @@ fn merge_stage(a: &Args) -> Result<MergeStage, String> {
 
 /// An engine factory for `module` / `design` (`true`: able to trace).
 fn factory<'a>(
-    choice: EngineChoice,
+    a: &Args,
     module: &'a rtl_gen::Module,
     design: &'a Design,
 ) -> Result<impl FnMut(bool) -> cosim::Result<Box<dyn Engine>> + 'a, String> {
-    let kind = match choice {
+    let format = match a.waves {
+        WavesChoice::Vcd => WaveFormat::Vcd,
+        WavesChoice::Fst => WaveFormat::Fst,
+    };
+    let scope = a.wave_scope.clone();
+    let kind = match a.engine {
         EngineChoice::Verilator => Some(EngineKind::Verilator),
         EngineChoice::Iverilog => Some(EngineKind::Icarus),
         EngineChoice::Ir => None,
@@ -224,7 +318,8 @@ fn factory<'a>(
     }
     Ok(move |trace: bool| -> cosim::Result<Box<dyn Engine>> {
         match kind {
-            Some(k) => open_engine(k, design, trace),
+            Some(k) if trace => open_tracing_engine(k, design, format, scope.as_deref()),
+            Some(k) => open_engine(k, design, false),
             None => Ok(Box::new(IrEngine::new(module, design)?)),
         }
     })
@@ -243,12 +338,17 @@ fn bar(len: u64, json: bool) -> ProgressBar {
 }
 
 fn vcd_path(a: &Args, unit: &str) -> PathBuf {
+    let ext = match a.waves {
+        WavesChoice::Vcd => "vcd",
+        WavesChoice::Fst => "fst",
+    };
     a.vcd_dir
-        .join(format!("{unit}-{}-seed{}.vcd", a.engine.name(), a.seed))
+        .join(format!("{unit}-{}-seed{}.{ext}", a.engine.name(), a.seed))
 }
 
 pub fn main(a: Args) -> CmdResult {
-    check_stall(a.stall).map_err(|e| format!("--stall: {e}"))?;
+    stalls(&a)?;
+    check_waves(&a)?;
     if a.count == Some(0) {
         return Err("--count 0: expected at least one transaction".into());
     }
@@ -333,9 +433,11 @@ fn module_engine(choice: EngineChoice) -> Result<ModuleEngine, String> {
 fn bench_config(a: &Args, stage: &str) -> Result<merge_module::RunConfig, String> {
     Ok(merge_module::RunConfig {
         seed: a.seed,
-        stall: a.stall,
+        stall: stalls(a)?,
         vcd_path: Some(vcd_path(a, stage)),
         vcd_radius: VCD_RADIUS,
+        wave_scope: a.wave_scope.clone(),
+        wave_window: a.wave_window,
         verilog_patch: verilog_patch()?,
     })
 }

@@ -39,7 +39,10 @@ pub(super) struct Report {
     pub(super) stage: &'static str,
     pub(super) engine: &'static str,
     pub(super) seed: u64,
-    pub(super) stall: f64,
+    /// The coin's probability (null with another pattern).
+    pub(super) stall: Option<f64>,
+    /// The stall pattern (`coin:0.3`, `bursty:16,16`, `periodic:1/3`, `none`).
+    pub(super) stalls: String,
     pub(super) vectors: Option<String>,
     pub(super) passed: bool,
     #[serde(flatten)]
@@ -119,7 +122,11 @@ pub(super) fn finish_report(
         stage,
         engine: a.engine.name(),
         seed: a.seed,
-        stall: a.stall,
+        stall: match super::stalls(a)? {
+            cosim::tb::Stalls::Coin(p) => Some(p),
+            _ => None,
+        },
+        stalls: super::stalls(a)?.to_string(),
         vectors: a.vectors.as_ref().map(|p| p.display().to_string()),
         passed,
         records_per_cycle: per_cycle(counts.records),
@@ -167,10 +174,11 @@ fn stream_mismatch(kind: &str, m: &ModuleMismatch, seed: u64) -> MismatchReport 
 
 pub(super) fn print_text(r: &Report) {
     println!(
-        "{} ({}) on {}: {} transactions, {} records in, {} out, {} cycles ({:.3} records/cycle, {:.3} nodes/cycle), {} mismatches, {:.2} s",
+        "{} ({}) on {}, stalls {}: {} transactions, {} records in, {} out, {} cycles ({:.3} records/cycle, {:.3} nodes/cycle), {} mismatches, {:.2} s",
         r.unit.name(),
         r.stage,
         r.engine,
+        r.stalls,
         r.counts.transactions,
         r.counts.records,
         r.counts.nodes,

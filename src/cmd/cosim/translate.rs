@@ -29,11 +29,14 @@ pub(super) fn run(
         }
     };
     let module = rtl_gen::translate::translate_unit(design);
+    cosim::waves::check_scope(&module, a.wave_scope.as_deref()).map_err(|e| e.to_string())?;
     let cdesign = design_from_module(&module, dir).map_err(|e| e.to_string())?;
-    let mut make = factory(a.engine, &module, &cdesign)?;
+    let mut make = factory(a, &module, &cdesign)?;
     let config = RunConfig {
         seed: a.seed,
-        stall: a.stall,
+        stall: super::stalls(a)?,
+        wave_scope: a.wave_scope.clone(),
+        wave_window: a.wave_window,
         flip_expected: flip,
     };
     let pb = bar(txns.len() as u64, a.json);
@@ -95,5 +98,10 @@ pub(super) fn run(
             (counts, Some(first), m.vcd.clone())
         }
     };
+    // A window asked of a passing run is written too.
+    let vcd = vcd.or_else(|| {
+        let p = vcd_path(a, "translate");
+        (a.wave_window.is_some() && p.exists()).then_some(p)
+    });
     finish_report(a, "translate_unit", flip, counts, first, vcd.as_ref())
 }

@@ -38,7 +38,7 @@ pub struct Args {
     /// Folder of study.json, study.csv, study.md and the plots.
     #[arg(long, default_value = "out/study")]
     out: PathBuf,
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = super::common::unsigned::<u64>)]
     seed: u64,
     /// Sweep everything: D = 8..=31, more modes, rays, repeats and RTL configurations.
     #[arg(long)]

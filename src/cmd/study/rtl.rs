@@ -60,10 +60,11 @@ pub fn measure(
     let config = merger::RunConfig {
         bench: BenchConfig {
             seed,
-            stall: STALL,
+            stall: cosim::tb::Stalls::Coin(STALL),
             vcd_path: None,
             vcd_radius: 0,
             verilog_patch: None,
+            ..BenchConfig::default()
         },
         count: merges,
         flip_expected: None,
@@ -114,8 +115,9 @@ fn translate_cycles(
         open_engine(EngineKind::Verilator, &cdesign, false).map_err(|e| e.to_string())?;
     let config = translate::RunConfig {
         seed,
-        stall: STALL,
+        stall: cosim::tb::Stalls::Coin(STALL),
         flip_expected: None,
+        ..Default::default()
     };
     let o = translate::run(
         engine.as_mut(),

@@ -1,0 +1,126 @@
+//! Stall patterns beyond a coin per cycle (issue 23 item 3, SPEC 10):
+//! `hiermerge cosim --stalls none|coin|bursty[:S,G]|periodic[:K/N]` on the
+//! translation unit and the merging module, on all three engines. Each
+//! engine takes its stall decisions from `tb::StallGen`, so one seed and
+//! pattern give the same cycles and transfers on IR, Verilator and Icarus;
+//! the pattern is in the report and in the command that reproduces a
+//! mismatch. The shapes themselves (run lengths, k of every n) are tested
+//! on the masks in `cosim/src/tb/stalls.rs`.
+
+mod common;
+
+use common::{hiermerge, json_of, succeeded, tool_present};
+use serde_json::Value;
+
+const ENGINES: [&str; 3] = ["ir", "verilator", "iverilog"];
+
+/// One passing `--json` run of `args` with `--stalls stalls`.
+fn passes(args: &str, engine: &str, stalls: &str) -> Value {
+    let mut a: Vec<&str> = args.split_whitespace().collect();
+    a.extend(["--engine", engine, "--stalls", stalls, "--json"]);
+    let r = succeeded(&hiermerge(&a, &[]));
+    assert_eq!(r["passed"], true, "{r}");
+    assert_eq!(r["mismatches"], 0, "{r}");
+    r
+}
+
+/// Per pattern: every engine passes with the same cycles and beats, and
+/// the report names the pattern. Returns records per cycle per pattern.
+fn same_on_every_engine(args: &str, patterns: &[(&str, &str)]) -> Vec<f64> {
+    let engines: Vec<&str> = ENGINES
+        .iter()
+        .copied()
+        .filter(|e| match *e {
+            "ir" => true,
+            "verilator" => tool_present("verilator"),
+            _ => tool_present("iverilog"),
+        })
+        .collect();
+    let mut rates = Vec::new();
+    for (asked, canonical) in patterns {
+        let runs: Vec<Value> = engines.iter().map(|e| passes(args, e, asked)).collect();
+        for r in &runs {
+            assert_eq!(r["stalls"], *canonical, "{r}");
+            for key in ["cycles", "records", "nodes", "transactions"] {
+                assert_eq!(r[key], runs[0][key], "{asked} {key}: {r} / {}", runs[0]);
+            }
+        }
+        rates.push(runs[0]["records_per_cycle"].as_f64().unwrap());
+    }
+    rates
+}
+
+const PATTERNS: [(&str, &str); 5] = [
+    ("none", "none"),
+    ("coin:0.2", "coin:0.2"),
+    ("periodic", "periodic:1/3"),
+    ("bursty", "bursty:16,16"),
+    ("bursty:60,3", "bursty:60,3"),
+];
+
+/// The throughput follows each pattern's share of stalls on every side:
+/// none, a 0.2 coin, 1 of 3, runs of stalls as long as the go runs (half),
+/// then long stall runs with short go runs (about 0.94).
+fn slower_in_pattern_order(rates: &[f64]) {
+    for w in rates.windows(2) {
+        assert!(w[0] > w[1], "{rates:?}");
+    }
+}
+
+#[test]
+fn translate_runs_each_pattern_alike_on_three_engines() {
+    let rates = same_on_every_engine("cosim --unit translate --seed 5 --count 200", &PATTERNS);
+    slower_in_pattern_order(&rates);
+}
+
+#[test]
+fn merge_module_runs_each_pattern_alike_on_three_engines() {
+    let rates = same_on_every_engine("cosim --unit merge --seed 3 --count 30", &PATTERNS);
+    slower_in_pattern_order(&rates);
+}
+
+/// A mismatch under a pattern is reproduced by the printed command, which
+/// names the pattern; `--stall` with another pattern is refused.
+#[test]
+fn a_mismatch_under_a_pattern_reproduces_with_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let vcd = dir.path().to_str().unwrap();
+    let mut args: Vec<&str> =
+        "cosim --unit translate --engine ir --count 200 --stalls periodic:2/7 --json"
+            .split_whitespace()
+            .collect();
+    args.extend(["--vcd-dir", vcd]);
+    let env = [("HIERMERGE_COSIM_FLIP_EXPECTED", "50")];
+    let o = hiermerge(&args, &env);
+    assert!(!o.status.success());
+    let r = json_of(&o);
+    assert_eq!(r["stalls"], "periodic:2/7");
+    assert_eq!(r["stall"], Value::Null);
+    let rep = r["reproduce"].as_str().unwrap();
+    assert!(rep.contains("--stalls periodic:2/7"), "{rep}");
+    assert!(!rep.contains("--stall "), "{rep}");
+    let words: Vec<&str> = rep.split_whitespace().collect();
+    let mut again: Vec<&str> = words[2..].to_vec();
+    again.extend(["--vcd-dir", vcd, "--json"]);
+    let o2 = hiermerge(&again, &env);
+    assert_eq!(json_of(&o2)["first_mismatch"], r["first_mismatch"]);
+    let o3 = hiermerge(
+        &[
+            "cosim",
+            "--unit",
+            "translate",
+            "--engine",
+            "ir",
+            "--stalls",
+            "bursty",
+            "--stall",
+            "0.2",
+        ],
+        &[],
+    );
+    let err = String::from_utf8_lossy(&o3.stderr);
+    assert!(
+        err.contains("--stall 0.2 is the probability of --stalls coin"),
+        "{err}"
+    );
+}

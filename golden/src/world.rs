@@ -407,22 +407,36 @@ impl World {
                 determined,
             })
         };
+        // Each axis's candidate frame is judged by the residual its own
+        // rounding leaves: at a placement half a voxel off the grid the
+        // rounding may fall the other way once the frame has moved, so the
+        // residual of frame 0 cannot stand for the others'.
+        let candidates = [0.0, edge, -edge];
         let first = round(DVec3::ZERO)?;
-        let r = residual_of(&first.determined);
+        // A candidate whose placement cannot be rounded is no candidate.
+        let splits: Vec<Option<Split>> = std::iter::once(Some(first))
+            .chain(candidates[1..].iter().map(|&f| round(DVec3::splat(f)).ok()))
+            .collect();
         let frame = DVec3::from_array(Axis::ALL.map(|a| {
             let i = a.index();
-            let (a, b) = (lo[i] + r[i], hi[i] + r[i]);
-            let fits = |f: f64| a + f >= 0.0 && b + f <= side;
+            let moved = |k: usize| {
+                let s = splits[k].as_ref()?;
+                let r = residual_of(&s.determined)[i] + candidates[k];
+                Some((lo[i] + r, hi[i] + r))
+            };
+            let fits = |k: usize| moved(k).is_some_and(|(a, b)| a >= 0.0 && b <= side);
             // The voxels of `lod` the moved bounds touch share a parent.
-            let shares_parent = |f: f64| {
-                let (va, vb) = (((a + f) / edge).floor(), ((b + f) / edge).ceil() - 1.0);
+            let shares_parent = |k: usize| {
+                let Some((a, b)) = moved(k) else {
+                    return false;
+                };
+                let (va, vb) = ((a / edge).floor(), (b / edge).ceil() - 1.0);
                 vb <= va || (vb == va + 1.0 && va.rem_euclid(2.0) == 0.0)
             };
-            [0.0, edge, -edge]
-                .into_iter()
-                .find(|&f| fits(f) && shares_parent(f))
-                .or_else(|| [0.0, edge, -edge].into_iter().find(|&f| fits(f)))
-                .unwrap_or(0.0)
+            (0..candidates.len())
+                .find(|&k| fits(k) && shares_parent(k))
+                .or_else(|| (0..candidates.len()).find(|&k| fits(k)))
+                .map_or(0.0, |k| candidates[k])
         }));
         if frame == DVec3::ZERO {
             Ok(first)

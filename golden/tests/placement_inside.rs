@@ -62,3 +62,29 @@ fn every_placement_inside_the_cube_is_placed_merged_and_checked() {
     }
     assert_eq!(placed, 360);
 }
+
+/// A placement exactly half a voxel off the grid rounds one way with the
+/// local frame at 0 and the other way once the frame is moved by a voxel;
+/// the frame must be judged by its own residual (found by
+/// `hiermerge merge t.obj t.obj --translate -1,0,0 --translate -2.5,0,0`,
+/// whose grid this is).
+#[test]
+fn a_placement_at_a_rounding_tie_stays_in_the_cube() {
+    let p = Params::default();
+    let (lo, hi) = (DVec3::new(-2.5, 0.0, 0.0), DVec3::new(1.0, 1.0, 0.0));
+    let fitted = GridMap::fit(lo.as_vec3(), hi.as_vec3(), &p);
+    let grid = GridMap {
+        origin: fitted.origin - (hi - lo) * 0.5,
+        unit: fitted.unit * 2.0,
+    };
+    let tri = golden::mesh::Mesh {
+        vertices: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+        triangles: vec![[0, 1, 2]],
+    };
+    for x in [-1.0, -2.5, -0.5, 0.5, 1.0] {
+        let mut w = World::new(p, grid).unwrap();
+        w.add(0, tri.clone(), DVec3::new(x, 0.0, 0.0))
+            .unwrap_or_else(|e| panic!("placed at {x}: {e}"));
+        w.check(0).unwrap();
+    }
+}

@@ -24,6 +24,10 @@ use golden::trace::{closest_hit, random_rays, Instance, TraceScene, TraceStats};
 use golden::world::World;
 use golden::Params;
 
+#[path = "support/fitted.rs"]
+mod fitted;
+use fitted::fitted;
+
 fn per_ray(scene: &TraceScene, rays: &[Ray]) -> f64 {
     let mut s = TraceStats::default();
     for r in rays {
@@ -53,15 +57,6 @@ fn scene_parts(file: &str) -> (Params, GridMap, Vec<Part>) {
         })
         .collect();
     (s.params, s.grid, parts)
-}
-
-fn fitted(mesh: &Mesh, size: f32, at: Vec3) -> Mesh {
-    let (lo, hi) = mesh.bounds();
-    let s = size / (hi - lo).max_element();
-    Mesh {
-        vertices: mesh.vertices.iter().map(|&v| (v - lo) * s + at).collect(),
-        triangles: mesh.triangles.clone(),
-    }
 }
 
 fn generated() -> Vec<(String, Params, GridMap, Vec<Part>)> {

@@ -22,15 +22,9 @@ use golden::trace::{closest_hit, Hit, Instance, TraceScene, TraceStats};
 use golden::world::World;
 use golden::Params;
 
-/// `mesh` scaled to `size` units, its lower corner at `at`.
-fn fitted(mesh: &Mesh, size: f32, at: Vec3) -> Mesh {
-    let (lo, hi) = mesh.bounds();
-    let s = size / (hi - lo).max_element();
-    Mesh {
-        vertices: mesh.vertices.iter().map(|&v| (v - lo) * s + at).collect(),
-        triangles: mesh.triangles.clone(),
-    }
-}
+#[path = "support/fitted.rs"]
+mod fitted;
+use fitted::fitted;
 
 struct Row {
     node: f64,

@@ -35,6 +35,15 @@ pub struct MergeStage<'a> {
     pub rtl: MergeRtl,
 }
 
+/// One group in frame `k`: what the checks and the RTL are about.
+struct At<'a> {
+    k: usize,
+    frames: &'a Frames,
+    g: &'a GroupReport,
+    /// ` of group n (names)` when the scene has several groups, else empty.
+    label: &'a str,
+}
+
 /// The lines a frame prints: what was simulated and what was skipped.
 pub struct Lines<'a> {
     pub simulated: &'a mut Vec<String>,
@@ -66,7 +75,13 @@ impl MergeStage<'_> {
             } else {
                 String::new()
             };
-            let nodes_created = self.check(k, frames, g, &label, lines, secs)?;
+            let at = At {
+                k,
+                frames,
+                g,
+                label: &label,
+            };
+            let nodes_created = self.check(&at, lines, secs)?;
             let merged_nodes = match (g.is_merged(), g.root) {
                 (true, Some(root)) => frames
                     .world
@@ -75,7 +90,7 @@ impl MergeStage<'_> {
                     .map_or(0, |h| h.nodes.len() as u64),
                 _ => 0,
             };
-            let merge_rtl = self.rtl(k, frames, g, &label, lines, secs, rtl_info)?;
+            let merge_rtl = self.rtl(&at, lines, secs, rtl_info)?;
             out.push(GroupOut {
                 objects: names,
                 root: g.root,
@@ -91,15 +106,13 @@ impl MergeStage<'_> {
 
     /// The merge's lines and, when it was redone, the checker on it; the
     /// nodes it created.
-    fn check(
-        &self,
-        k: usize,
-        frames: &Frames,
-        g: &GroupReport,
-        label: &str,
-        lines: &mut Lines,
-        secs: &mut StageSeconds,
-    ) -> Result<u64, String> {
+    fn check(&self, at: &At, lines: &mut Lines, secs: &mut StageSeconds) -> Result<u64, String> {
+        let At {
+            k,
+            frames,
+            g,
+            label,
+        } = *at;
         let fx = &self.scene.effects;
         let (Some(s), Some(root)) = (g.merge_stats.as_ref().filter(|_| g.merged), g.root) else {
             lines.skipped.push(if g.is_merged() {
@@ -130,17 +143,19 @@ impl MergeStage<'_> {
 
     /// The merging module's RTL on the group's merge, when it was redone
     /// and the run simulates RTL.
-    #[allow(clippy::too_many_arguments)]
     fn rtl(
         &mut self,
-        k: usize,
-        frames: &Frames,
-        g: &GroupReport,
-        label: &str,
+        at: &At,
         lines: &mut Lines,
         secs: &mut StageSeconds,
         rtl_info: &mut RtlInfo,
     ) -> Result<Option<MergeRtlFrame>, String> {
+        let At {
+            k,
+            frames,
+            g,
+            label,
+        } = *at;
         let fx = &self.scene.effects;
         if !g.merged {
             if g.is_merged() {

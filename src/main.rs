@@ -5,7 +5,6 @@
 //! Errors go to stderr with a non-zero exit status, never a panic.
 
 mod cmd;
-mod image;
 mod progress;
 mod report;
 mod signals;

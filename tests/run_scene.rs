@@ -599,3 +599,66 @@ fn a_saved_hierarchy_renders_the_image_of_the_built_one() {
         &["objects[1].hierarchy", "only on a static object"],
     );
 }
+
+/// Drops what differs between two runs of the same scene: wall times and
+/// the output paths.
+fn without_times_and_paths(v: &mut Value) {
+    match v {
+        Value::Object(m) => {
+            for k in ["seconds", "image", "heat_map", "translation_build_seconds"] {
+                m.remove(k);
+            }
+            m.values_mut().for_each(without_times_and_paths);
+        }
+        Value::Array(a) => a.iter_mut().for_each(without_times_and_paths),
+        _ => {}
+    }
+}
+
+#[test]
+fn the_library_runs_a_scene_frame_by_frame_as_the_command_does() {
+    use hiermerge::run::{Options, Run};
+    let dir = tempfile::tempdir().unwrap();
+    let scene_json = small_scene(true, json!([[2, 1, 2], [2.5, 1, 2], [4, 1, 4]]));
+    let path = write_scene(dir.path(), "lib.json", &scene_json);
+    let mut cli = exe()
+        .arg("run")
+        .arg(&path)
+        .args(["--no-rtl", "--json", "--out"])
+        .arg(dir.path().join("cli"))
+        .output()
+        .unwrap();
+    assert!(
+        cli.status.success(),
+        "{}",
+        String::from_utf8_lossy(&cli.stderr)
+    );
+    let mut from_cli: Value = serde_json::from_slice(&std::mem::take(&mut cli.stdout)).unwrap();
+
+    let scene = golden::scene::Scene::load(&path).unwrap();
+    let out = dir.path().join("lib");
+    std::fs::create_dir_all(&out).unwrap();
+    let options = Options {
+        out: out.clone(),
+        write_to: out.clone(),
+        rtl: false,
+        progress: false,
+        narrate: false,
+        verify: false,
+    };
+    let run = Run::new(&scene, &options).unwrap();
+    let err = run.finish().err().expect("no frame run yet");
+    assert!(err.contains("no frame"), "{err}");
+    let mut run = Run::new(&scene, &options).unwrap();
+    for k in 0..scene.frames as usize {
+        let f = run.frame(k).unwrap();
+        assert_eq!(f.frame as usize, k);
+        assert!(out.join(format!("frame_{k:03}.png")).is_file());
+    }
+    let report = run.finish().unwrap();
+    assert!(out.join("image.png").is_file() && out.join("heat.png").is_file());
+    let mut from_lib = serde_json::to_value(&report).unwrap();
+    without_times_and_paths(&mut from_cli);
+    without_times_and_paths(&mut from_lib);
+    assert_eq!(from_lib, from_cli);
+}

@@ -194,14 +194,6 @@ impl UnitOpts {
     }
 }
 
-/// One line of the oracle's counts.
-pub fn oracle_line(o: &golden::oracle::OracleSummary) -> String {
-    format!(
-        "oracle (binary64, requested positions): {} rays, {} agree, {} grazing, {} ties; {} faults ({} wrong triangle, {} missed, {} extra, {} t error); max t error {:.3e}, bound up to {:.3e}",
-        o.rays, o.agree, o.grazing, o.ties, o.faults(), o.wrong_triangle, o.missed, o.extra, o.t_error, o.max_t_error, o.max_bound
-    )
-}
-
 /// The value of a seed or count flag: an unsigned integer. A negative
 /// number is said to be one (the standard parser's "invalid digit found in
 /// string" does not say what was wrong with `--seed -1`).

@@ -309,7 +309,7 @@ pub fn main(a: Args) -> CmdResult {
             println!("verify: {m} mismatches against brute force");
         }
         if let Some(o) = &r.oracle {
-            println!("{}", super::common::oracle_line(o));
+            println!("{o}");
         }
     })?;
     if mismatches > 0 {

@@ -1,27 +1,11 @@
-//! `hiermerge run [SCENE]`: the main job (SPEC.md section 12).
-//!
-//! Per frame: bring the world to the frame (`golden::frames::Frames::step`:
-//! static hierarchies reused, dynamic ones rebuilt or re-translated, the
-//! merge redone only when an input changed), check the merged hierarchy,
-//! run the translation unit's RTL on the placements that changed (when the
-//! scene uses translation), trace the ray kinds the scene asks for through
-//! the merged hierarchy, compare node tests per ray with the separate
-//! hierarchies and a full rebuild on a subsample, and write the image, the
-//! heat map and the report. A frame where nothing changed reuses the last
-//! frame's results and says so.
-
-mod compare;
-mod merge_rtl;
-mod merges;
-mod pipeline;
-mod preflight;
-mod render;
-mod rtl;
-mod table;
+//! `hiermerge run [SCENE]`: the main job (SPEC.md section 12), a thin
+//! command over the library's [`hiermerge::run`]: the arguments, the output
+//! folder swapped in whole when the run is complete, and the report.
 
 use std::path::PathBuf;
 
 use golden::scene::{Scene, MAX_IMAGE_SIDE};
+use hiermerge::run::{closing_table, preflight, run, Options};
 
 use crate::report::{emit, CmdResult};
 
@@ -87,7 +71,7 @@ pub fn main(a: Args) -> CmdResult {
     // (SPEC.md section 15): an interrupted run leaves the previous output.
     refuse_foreign_folder(&a.out)?;
     let staging = golden::output::AtomicDir::create(&a.out)?;
-    let options = pipeline::Options {
+    let options = Options {
         out: a.out.clone(),
         write_to: staging.path().to_path_buf(),
         rtl: !a.no_rtl,
@@ -95,7 +79,7 @@ pub fn main(a: Args) -> CmdResult {
         narrate: !a.json,
         verify: a.verify,
     };
-    let report = pipeline::run(&scene, &options)?;
+    let report = run(&scene, &options)?;
     let json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
     let report_path = a.out.join("report.json");
     golden::output::write_atomic(&staging.path().join("report.json"), json.as_bytes())?;
@@ -103,7 +87,7 @@ pub fn main(a: Args) -> CmdResult {
     let mismatches = report.mismatches;
     emit(a.json, &report, |r| {
         println!();
-        print!("{}", table::closing_table(r));
+        print!("{}", closing_table(r));
         println!(
             "wrote {} frames, {} and {}",
             r.frames.len(),

@@ -141,7 +141,7 @@ pub fn main(a: Args) -> CmdResult {
             }
         }
         if let Some(o) = &r.oracle {
-            println!("{}", super::common::oracle_line(o));
+            println!("{o}");
         }
     })?;
     if let Some(m) = report.mismatches.filter(|&m| m > 0) {

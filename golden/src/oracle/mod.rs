@@ -124,6 +124,18 @@ pub struct OracleSummary {
     pub first_fault: Option<String>,
 }
 
+/// One line for people: the counts per verdict, the largest `t` error and
+/// the largest bound (what `--verify` prints).
+impl std::fmt::Display for OracleSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "oracle (binary64, requested positions): {} rays, {} agree, {} grazing, {} ties; {} faults ({} wrong triangle, {} missed, {} extra, {} t error); max t error {:.3e}, bound up to {:.3e}",
+            self.rays, self.agree, self.grazing, self.ties, self.faults(), self.wrong_triangle, self.missed, self.extra, self.t_error, self.max_t_error, self.max_bound
+        )
+    }
+}
+
 impl OracleSummary {
     /// Rays that fail: wrong triangle, missed, extra or `t` error.
     pub fn faults(&self) -> u64 {

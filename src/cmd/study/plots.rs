@@ -54,7 +54,7 @@ pub fn write_all(s: &Study, out: &Path, progress: &mut dyn FnMut()) -> Result<Ve
             let root = BitMapBackend::with_buffer(&mut rgb, SIZE).into_drawing_area();
             chart.draw(&root)?;
         }
-        crate::image::write_png_small(&png, SIZE.0, SIZE.1, &rgb)?;
+        hiermerge::image::write_png_small(&png, SIZE.0, SIZE.1, &rgb)?;
         let mut svg = String::new();
         {
             let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();

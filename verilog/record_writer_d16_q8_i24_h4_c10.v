@@ -5,1072 +5,1072 @@
 module record_writer_d16_q8_i24_h4_c10 (
     input  wire clk,                  // clock (implicit)
     input  wire rst,                  // synchronous reset, active high (implicit)
-    input  wire cfg_valid,            // rtl-gen/src/merge/writer.rs:271
-    input  wire [3:0] cfg_data,       // rtl-gen/src/merge/writer.rs:271
-    output wire cfg_ready,            // rtl-gen/src/merge/writer.rs:271
-    input  wire done_valid,           // rtl-gen/src/merge/writer.rs:280
-    input  wire [5:0] done_data,      // rtl-gen/src/merge/writer.rs:280
-    output wire done_ready,           // rtl-gen/src/merge/writer.rs:280
-    input  wire crefs_valid,          // rtl-gen/src/merge/writer.rs:292
-    input  wire [28:0] crefs_data,    // rtl-gen/src/merge/writer.rs:292
-    output wire crefs_ready,          // rtl-gen/src/merge/writer.rs:292
-    input  wire level0_valid,         // rtl-gen/src/merge/writer.rs:359
-    input  wire [228:0] level0_data,  // rtl-gen/src/merge/writer.rs:359
-    output wire level0_ready,         // rtl-gen/src/merge/writer.rs:359
-    input  wire level1_valid,         // rtl-gen/src/merge/writer.rs:359
-    input  wire [228:0] level1_data,  // rtl-gen/src/merge/writer.rs:359
-    output wire level1_ready,         // rtl-gen/src/merge/writer.rs:359
-    input  wire level2_valid,         // rtl-gen/src/merge/writer.rs:359
-    input  wire [228:0] level2_data,  // rtl-gen/src/merge/writer.rs:359
-    output wire level2_ready,         // rtl-gen/src/merge/writer.rs:359
-    input  wire level3_valid,         // rtl-gen/src/merge/writer.rs:359
-    input  wire [228:0] level3_data,  // rtl-gen/src/merge/writer.rs:359
-    output wire level3_ready,         // rtl-gen/src/merge/writer.rs:359
-    input  wire level4_valid,         // rtl-gen/src/merge/writer.rs:359
-    input  wire [228:0] level4_data,  // rtl-gen/src/merge/writer.rs:359
-    output wire level4_ready,         // rtl-gen/src/merge/writer.rs:359
-    input  wire level5_valid,         // rtl-gen/src/merge/writer.rs:359
-    input  wire [228:0] level5_data,  // rtl-gen/src/merge/writer.rs:359
-    output wire level5_ready,         // rtl-gen/src/merge/writer.rs:359
-    input  wire level6_valid,         // rtl-gen/src/merge/writer.rs:359
-    input  wire [228:0] level6_data,  // rtl-gen/src/merge/writer.rs:359
-    output wire level6_ready,         // rtl-gen/src/merge/writer.rs:359
-    input  wire level7_valid,         // rtl-gen/src/merge/writer.rs:359
-    input  wire [228:0] level7_data,  // rtl-gen/src/merge/writer.rs:359
-    output wire level7_ready,         // rtl-gen/src/merge/writer.rs:359
-    input  wire level8_valid,         // rtl-gen/src/merge/writer.rs:359
-    input  wire [228:0] level8_data,  // rtl-gen/src/merge/writer.rs:359
-    output wire level8_ready,         // rtl-gen/src/merge/writer.rs:359
-    input  wire level9_valid,         // rtl-gen/src/merge/writer.rs:359
-    input  wire [228:0] level9_data,  // rtl-gen/src/merge/writer.rs:359
-    output wire level9_ready,         // rtl-gen/src/merge/writer.rs:359
-    input  wire level10_valid,        // rtl-gen/src/merge/writer.rs:359
-    input  wire [228:0] level10_data, // rtl-gen/src/merge/writer.rs:359
-    output wire level10_ready,        // rtl-gen/src/merge/writer.rs:359
-    input  wire level11_valid,        // rtl-gen/src/merge/writer.rs:359
-    input  wire [228:0] level11_data, // rtl-gen/src/merge/writer.rs:359
-    output wire level11_ready,        // rtl-gen/src/merge/writer.rs:359
-    input  wire level12_valid,        // rtl-gen/src/merge/writer.rs:359
-    input  wire [228:0] level12_data, // rtl-gen/src/merge/writer.rs:359
-    output wire level12_ready,        // rtl-gen/src/merge/writer.rs:359
-    input  wire level13_valid,        // rtl-gen/src/merge/writer.rs:359
-    input  wire [228:0] level13_data, // rtl-gen/src/merge/writer.rs:359
-    output wire level13_ready,        // rtl-gen/src/merge/writer.rs:359
-    input  wire level14_valid,        // rtl-gen/src/merge/writer.rs:359
-    input  wire [228:0] level14_data, // rtl-gen/src/merge/writer.rs:359
-    output wire level14_ready,        // rtl-gen/src/merge/writer.rs:359
-    input  wire level15_valid,        // rtl-gen/src/merge/writer.rs:359
-    input  wire [228:0] level15_data, // rtl-gen/src/merge/writer.rs:359
-    output wire level15_ready,        // rtl-gen/src/merge/writer.rs:359
-    input  wire level16_valid,        // rtl-gen/src/merge/writer.rs:359
-    input  wire [228:0] level16_data, // rtl-gen/src/merge/writer.rs:359
-    output wire level16_ready,        // rtl-gen/src/merge/writer.rs:359
-    output wire nodes_valid,          // rtl-gen/src/merge/writer.rs:515
-    output wire [149:0] nodes_data,   // rtl-gen/src/merge/writer.rs:515
-    input  wire nodes_ready,          // rtl-gen/src/merge/writer.rs:515
-    input  wire ref_resp_valid,       // rtl-gen/src/merge/writer.rs:575
-    input  wire [27:0] ref_resp_data, // rtl-gen/src/merge/writer.rs:575
-    output wire ref_resp_ready,       // rtl-gen/src/merge/writer.rs:575
-    output wire refs_valid,           // rtl-gen/src/merge/writer.rs:592
-    output wire [27:0] refs_data,     // rtl-gen/src/merge/writer.rs:592
-    input  wire refs_ready,           // rtl-gen/src/merge/writer.rs:592
-    output wire ref_req_valid,        // rtl-gen/src/merge/writer.rs:604
-    output wire [27:0] ref_req_data,  // rtl-gen/src/merge/writer.rs:604
-    input  wire ref_req_ready,        // rtl-gen/src/merge/writer.rs:604
-    output wire header_valid,         // rtl-gen/src/merge/writer.rs:652
-    output wire [86:0] header_data,   // rtl-gen/src/merge/writer.rs:652
-    input  wire header_ready,         // rtl-gen/src/merge/writer.rs:652
-    output wire filling,              // rtl-gen/src/merge/writer.rs:666
-    output wire drain_records,        // rtl-gen/src/merge/writer.rs:667
-    output wire drain_refs            // rtl-gen/src/merge/writer.rs:668
+    input  wire cfg_valid,            // rtl-gen/src/merge/writer.rs:364
+    input  wire [3:0] cfg_data,       // rtl-gen/src/merge/writer.rs:364
+    output wire cfg_ready,            // rtl-gen/src/merge/writer.rs:364
+    input  wire done_valid,           // rtl-gen/src/merge/writer.rs:373
+    input  wire [5:0] done_data,      // rtl-gen/src/merge/writer.rs:373
+    output wire done_ready,           // rtl-gen/src/merge/writer.rs:373
+    input  wire crefs_valid,          // rtl-gen/src/merge/writer.rs:385
+    input  wire [28:0] crefs_data,    // rtl-gen/src/merge/writer.rs:385
+    output wire crefs_ready,          // rtl-gen/src/merge/writer.rs:385
+    input  wire level0_valid,         // rtl-gen/src/merge/writer.rs:517
+    input  wire [228:0] level0_data,  // rtl-gen/src/merge/writer.rs:517
+    output wire level0_ready,         // rtl-gen/src/merge/writer.rs:517
+    input  wire level1_valid,         // rtl-gen/src/merge/writer.rs:517
+    input  wire [228:0] level1_data,  // rtl-gen/src/merge/writer.rs:517
+    output wire level1_ready,         // rtl-gen/src/merge/writer.rs:517
+    input  wire level2_valid,         // rtl-gen/src/merge/writer.rs:517
+    input  wire [228:0] level2_data,  // rtl-gen/src/merge/writer.rs:517
+    output wire level2_ready,         // rtl-gen/src/merge/writer.rs:517
+    input  wire level3_valid,         // rtl-gen/src/merge/writer.rs:517
+    input  wire [228:0] level3_data,  // rtl-gen/src/merge/writer.rs:517
+    output wire level3_ready,         // rtl-gen/src/merge/writer.rs:517
+    input  wire level4_valid,         // rtl-gen/src/merge/writer.rs:517
+    input  wire [228:0] level4_data,  // rtl-gen/src/merge/writer.rs:517
+    output wire level4_ready,         // rtl-gen/src/merge/writer.rs:517
+    input  wire level5_valid,         // rtl-gen/src/merge/writer.rs:517
+    input  wire [228:0] level5_data,  // rtl-gen/src/merge/writer.rs:517
+    output wire level5_ready,         // rtl-gen/src/merge/writer.rs:517
+    input  wire level6_valid,         // rtl-gen/src/merge/writer.rs:517
+    input  wire [228:0] level6_data,  // rtl-gen/src/merge/writer.rs:517
+    output wire level6_ready,         // rtl-gen/src/merge/writer.rs:517
+    input  wire level7_valid,         // rtl-gen/src/merge/writer.rs:517
+    input  wire [228:0] level7_data,  // rtl-gen/src/merge/writer.rs:517
+    output wire level7_ready,         // rtl-gen/src/merge/writer.rs:517
+    input  wire level8_valid,         // rtl-gen/src/merge/writer.rs:517
+    input  wire [228:0] level8_data,  // rtl-gen/src/merge/writer.rs:517
+    output wire level8_ready,         // rtl-gen/src/merge/writer.rs:517
+    input  wire level9_valid,         // rtl-gen/src/merge/writer.rs:517
+    input  wire [228:0] level9_data,  // rtl-gen/src/merge/writer.rs:517
+    output wire level9_ready,         // rtl-gen/src/merge/writer.rs:517
+    input  wire level10_valid,        // rtl-gen/src/merge/writer.rs:517
+    input  wire [228:0] level10_data, // rtl-gen/src/merge/writer.rs:517
+    output wire level10_ready,        // rtl-gen/src/merge/writer.rs:517
+    input  wire level11_valid,        // rtl-gen/src/merge/writer.rs:517
+    input  wire [228:0] level11_data, // rtl-gen/src/merge/writer.rs:517
+    output wire level11_ready,        // rtl-gen/src/merge/writer.rs:517
+    input  wire level12_valid,        // rtl-gen/src/merge/writer.rs:517
+    input  wire [228:0] level12_data, // rtl-gen/src/merge/writer.rs:517
+    output wire level12_ready,        // rtl-gen/src/merge/writer.rs:517
+    input  wire level13_valid,        // rtl-gen/src/merge/writer.rs:517
+    input  wire [228:0] level13_data, // rtl-gen/src/merge/writer.rs:517
+    output wire level13_ready,        // rtl-gen/src/merge/writer.rs:517
+    input  wire level14_valid,        // rtl-gen/src/merge/writer.rs:517
+    input  wire [228:0] level14_data, // rtl-gen/src/merge/writer.rs:517
+    output wire level14_ready,        // rtl-gen/src/merge/writer.rs:517
+    input  wire level15_valid,        // rtl-gen/src/merge/writer.rs:517
+    input  wire [228:0] level15_data, // rtl-gen/src/merge/writer.rs:517
+    output wire level15_ready,        // rtl-gen/src/merge/writer.rs:517
+    input  wire level16_valid,        // rtl-gen/src/merge/writer.rs:517
+    input  wire [228:0] level16_data, // rtl-gen/src/merge/writer.rs:517
+    output wire level16_ready,        // rtl-gen/src/merge/writer.rs:517
+    output wire nodes_valid,          // rtl-gen/src/merge/writer.rs:770
+    output wire [149:0] nodes_data,   // rtl-gen/src/merge/writer.rs:770
+    input  wire nodes_ready,          // rtl-gen/src/merge/writer.rs:770
+    input  wire ref_resp_valid,       // rtl-gen/src/merge/writer.rs:855
+    input  wire [27:0] ref_resp_data, // rtl-gen/src/merge/writer.rs:855
+    output wire ref_resp_ready,       // rtl-gen/src/merge/writer.rs:855
+    output wire refs_valid,           // rtl-gen/src/merge/writer.rs:872
+    output wire [27:0] refs_data,     // rtl-gen/src/merge/writer.rs:872
+    input  wire refs_ready,           // rtl-gen/src/merge/writer.rs:872
+    output wire ref_req_valid,        // rtl-gen/src/merge/writer.rs:884
+    output wire [27:0] ref_req_data,  // rtl-gen/src/merge/writer.rs:884
+    input  wire ref_req_ready,        // rtl-gen/src/merge/writer.rs:884
+    output wire header_valid,         // rtl-gen/src/merge/writer.rs:300
+    output wire [86:0] header_data,   // rtl-gen/src/merge/writer.rs:300
+    input  wire header_ready,         // rtl-gen/src/merge/writer.rs:300
+    output wire filling,              // rtl-gen/src/merge/writer.rs:314
+    output wire drain_records,        // rtl-gen/src/merge/writer.rs:315
+    output wire drain_refs            // rtl-gen/src/merge/writer.rs:316
 );
-    reg [27:0] crefs_mem [0:1023];           // rtl-gen/src/merge/writer.rs:293
-    reg [125:0] rbody1_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] rbody2_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] rbody3_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] rbody4_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] rbody5_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] rbody6_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] rbody7_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] rbody8_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] rbody9_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] rbody10_mem [0:1023];        // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] rbody11_mem [0:1023];        // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] rbody12_mem [0:1023];        // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] rbody13_mem [0:1023];        // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] rbody14_mem [0:1023];        // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] rbody15_mem [0:1023];        // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] rbody16_mem [0:1023];        // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] rpar1_mem [0:1023];           // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] rpar2_mem [0:1023];           // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] rpar3_mem [0:1023];           // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] rpar4_mem [0:1023];           // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] rpar5_mem [0:1023];           // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] rpar6_mem [0:1023];           // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] rpar7_mem [0:1023];           // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] rpar8_mem [0:1023];           // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] rpar9_mem [0:1023];           // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] rpar10_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] rpar11_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] rpar12_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] rpar13_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] rpar14_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] rpar15_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] rpar16_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] nbody0_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] nbody1_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] nbody2_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] nbody3_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] nbody4_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] nbody5_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] nbody6_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] nbody7_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] nbody8_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] nbody9_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] nbody10_mem [0:1023];        // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] nbody11_mem [0:1023];        // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] nbody12_mem [0:1023];        // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] nbody13_mem [0:1023];        // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] nbody14_mem [0:1023];        // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] nbody15_mem [0:1023];        // rtl-gen/src/merge/writer.rs:323
-    reg [125:0] nbody16_mem [0:1023];        // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] npar0_mem [0:1023];           // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] npar1_mem [0:1023];           // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] npar2_mem [0:1023];           // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] npar3_mem [0:1023];           // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] npar4_mem [0:1023];           // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] npar5_mem [0:1023];           // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] npar6_mem [0:1023];           // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] npar7_mem [0:1023];           // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] npar8_mem [0:1023];           // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] npar9_mem [0:1023];           // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] npar10_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] npar11_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] npar12_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] npar13_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] npar14_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] npar15_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [53:0] npar16_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [52:0] child0_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [52:0] child1_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [52:0] child2_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [52:0] child3_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [52:0] child4_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [52:0] child5_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [52:0] child6_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [52:0] child7_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [52:0] child8_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [52:0] child9_mem [0:1023];          // rtl-gen/src/merge/writer.rs:323
-    reg [52:0] child10_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [52:0] child11_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [52:0] child12_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [52:0] child13_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [52:0] child14_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [52:0] child15_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [52:0] child16_mem [0:1023];         // rtl-gen/src/merge/writer.rs:323
-    reg [1:0] state;                         // rtl-gen/src/merge/writer.rs:263
-    wire in_fill;                            // rtl-gen/src/merge/writer.rs:264
-    wire in_drain;                           // rtl-gen/src/merge/writer.rs:265
-    wire in_header;                          // rtl-gen/src/merge/writer.rs:266
-    wire header_in_ready;                    // rtl-gen/src/merge/writer.rs:267
-    wire merge_clear;                        // rtl-gen/src/merge/writer.rs:268
-    reg have_cfg;                            // rtl-gen/src/merge/writer.rs:272
-    reg [3:0] out_id;                        // rtl-gen/src/merge/writer.rs:273
-    wire have_cfg_not;                       // rtl-gen/src/merge/writer.rs:275
-    wire cfg_valid_and;                      // rtl-gen/src/merge/writer.rs:275
-    wire have_cfg_or;                        // rtl-gen/src/merge/writer.rs:276
-    wire have_cfg_next;                      // rtl-gen/src/merge/writer.rs:276
-    reg have_done;                           // rtl-gen/src/merge/writer.rs:281
-    reg [4:0] top;                           // rtl-gen/src/merge/writer.rs:282
-    reg done_err;                            // rtl-gen/src/merge/writer.rs:283
-    wire have_done_not;                      // rtl-gen/src/merge/writer.rs:284
-    wire in_fill_and;                        // rtl-gen/src/merge/writer.rs:284
-    wire done_valid_and;                     // rtl-gen/src/merge/writer.rs:286
-    wire have_done_or;                       // rtl-gen/src/merge/writer.rs:287
-    wire have_done_next;                     // rtl-gen/src/merge/writer.rs:287
-    reg cref_end;                            // rtl-gen/src/merge/writer.rs:294
-    reg [10:0] cref_wptr;                    // rtl-gen/src/merge/writer.rs:295
-    reg cref_cap_err;                        // rtl-gen/src/merge/writer.rs:296
-    wire cref_end_not;                       // rtl-gen/src/merge/writer.rs:297
-    wire in_fill_and_1;                      // rtl-gen/src/merge/writer.rs:297
-    wire crefs_valid_and;                    // rtl-gen/src/merge/writer.rs:299
-    wire crefs_data_not;                     // rtl-gen/src/merge/writer.rs:301
-    wire crefs_valid_and_1;                  // rtl-gen/src/merge/writer.rs:301
-    wire cref_wptr_not;                      // rtl-gen/src/merge/writer.rs:306
-    wire crefs_valid_and_2;                  // rtl-gen/src/merge/writer.rs:306
-    wire crefs_valid_and_3;                  // rtl-gen/src/merge/writer.rs:308
-    wire cref_end_or;                        // rtl-gen/src/merge/writer.rs:308
-    wire cref_end_next;                      // rtl-gen/src/merge/writer.rs:308
-    wire [10:0] cref_wptr_add;               // rtl-gen/src/merge/writer.rs:309
-    wire crefs_valid_and_4;                  // rtl-gen/src/merge/writer.rs:311
-    wire cref_cap_err_or;                    // rtl-gen/src/merge/writer.rs:311
-    wire cref_cap_err_next;                  // rtl-gen/src/merge/writer.rs:311
-    wire l0_in_merge;                        // rtl-gen/src/merge/writer.rs:342
-    wire l1_in_merge;                        // rtl-gen/src/merge/writer.rs:342
-    wire l2_in_merge;                        // rtl-gen/src/merge/writer.rs:342
-    wire l3_in_merge;                        // rtl-gen/src/merge/writer.rs:342
-    wire l4_in_merge;                        // rtl-gen/src/merge/writer.rs:342
-    wire l5_in_merge;                        // rtl-gen/src/merge/writer.rs:342
-    wire l6_in_merge;                        // rtl-gen/src/merge/writer.rs:342
-    wire l7_in_merge;                        // rtl-gen/src/merge/writer.rs:342
-    wire l8_in_merge;                        // rtl-gen/src/merge/writer.rs:342
-    wire l9_in_merge;                        // rtl-gen/src/merge/writer.rs:342
-    wire l10_in_merge;                       // rtl-gen/src/merge/writer.rs:342
-    wire l11_in_merge;                       // rtl-gen/src/merge/writer.rs:342
-    wire l12_in_merge;                       // rtl-gen/src/merge/writer.rs:342
-    wire l13_in_merge;                       // rtl-gen/src/merge/writer.rs:342
-    wire l14_in_merge;                       // rtl-gen/src/merge/writer.rs:342
-    wire l15_in_merge;                       // rtl-gen/src/merge/writer.rs:342
-    wire l16_in_merge;                       // rtl-gen/src/merge/writer.rs:342
-    wire top_gt;                             // rtl-gen/src/merge/writer.rs:348
-    wire top_gt_1;                           // rtl-gen/src/merge/writer.rs:348
-    wire top_gt_2;                           // rtl-gen/src/merge/writer.rs:348
-    wire top_gt_3;                           // rtl-gen/src/merge/writer.rs:348
-    wire top_gt_4;                           // rtl-gen/src/merge/writer.rs:348
-    wire top_gt_5;                           // rtl-gen/src/merge/writer.rs:348
-    wire top_gt_6;                           // rtl-gen/src/merge/writer.rs:348
-    wire top_gt_7;                           // rtl-gen/src/merge/writer.rs:348
-    wire top_gt_8;                           // rtl-gen/src/merge/writer.rs:348
-    wire top_gt_9;                           // rtl-gen/src/merge/writer.rs:348
-    wire top_gt_10;                          // rtl-gen/src/merge/writer.rs:348
-    wire top_gt_11;                          // rtl-gen/src/merge/writer.rs:348
-    wire top_gt_12;                          // rtl-gen/src/merge/writer.rs:348
-    wire top_gt_13;                          // rtl-gen/src/merge/writer.rs:348
-    wire top_gt_14;                          // rtl-gen/src/merge/writer.rs:348
-    wire top_gt_15;                          // rtl-gen/src/merge/writer.rs:348
-    reg l0_end_seen;                         // rtl-gen/src/merge/writer.rs:360
-    reg [10:0] l0_nodes;                     // rtl-gen/src/merge/writer.rs:361
-    reg [10:0] l0_records;                   // rtl-gen/src/merge/writer.rs:362
-    reg [34:0] l0_record_counts;             // rtl-gen/src/merge/writer.rs:363
-    reg [34:0] l0_reused_counts;             // rtl-gen/src/merge/writer.rs:364
-    reg l0_cap_err;                          // rtl-gen/src/merge/writer.rs:365
-    reg l0_err;                              // rtl-gen/src/merge/writer.rs:366
-    wire l0_end_seen_not;                    // rtl-gen/src/merge/writer.rs:367
-    wire in_fill_and_2;                      // rtl-gen/src/merge/writer.rs:367
-    wire level0_valid_and;                   // rtl-gen/src/merge/writer.rs:369
+    reg [27:0] crefs_mem [0:1023];           // rtl-gen/src/merge/writer.rs:386
+    reg [125:0] rbody1_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] rbody2_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] rbody3_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] rbody4_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] rbody5_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] rbody6_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] rbody7_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] rbody8_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] rbody9_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] rbody10_mem [0:1023];        // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] rbody11_mem [0:1023];        // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] rbody12_mem [0:1023];        // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] rbody13_mem [0:1023];        // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] rbody14_mem [0:1023];        // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] rbody15_mem [0:1023];        // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] rbody16_mem [0:1023];        // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] rpar1_mem [0:1023];           // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] rpar2_mem [0:1023];           // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] rpar3_mem [0:1023];           // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] rpar4_mem [0:1023];           // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] rpar5_mem [0:1023];           // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] rpar6_mem [0:1023];           // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] rpar7_mem [0:1023];           // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] rpar8_mem [0:1023];           // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] rpar9_mem [0:1023];           // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] rpar10_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] rpar11_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] rpar12_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] rpar13_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] rpar14_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] rpar15_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] rpar16_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] nbody0_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] nbody1_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] nbody2_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] nbody3_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] nbody4_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] nbody5_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] nbody6_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] nbody7_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] nbody8_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] nbody9_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] nbody10_mem [0:1023];        // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] nbody11_mem [0:1023];        // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] nbody12_mem [0:1023];        // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] nbody13_mem [0:1023];        // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] nbody14_mem [0:1023];        // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] nbody15_mem [0:1023];        // rtl-gen/src/merge/writer.rs:445
+    reg [125:0] nbody16_mem [0:1023];        // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] npar0_mem [0:1023];           // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] npar1_mem [0:1023];           // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] npar2_mem [0:1023];           // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] npar3_mem [0:1023];           // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] npar4_mem [0:1023];           // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] npar5_mem [0:1023];           // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] npar6_mem [0:1023];           // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] npar7_mem [0:1023];           // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] npar8_mem [0:1023];           // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] npar9_mem [0:1023];           // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] npar10_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] npar11_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] npar12_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] npar13_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] npar14_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] npar15_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [53:0] npar16_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [52:0] child0_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [52:0] child1_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [52:0] child2_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [52:0] child3_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [52:0] child4_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [52:0] child5_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [52:0] child6_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [52:0] child7_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [52:0] child8_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [52:0] child9_mem [0:1023];          // rtl-gen/src/merge/writer.rs:445
+    reg [52:0] child10_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [52:0] child11_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [52:0] child12_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [52:0] child13_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [52:0] child14_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [52:0] child15_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [52:0] child16_mem [0:1023];         // rtl-gen/src/merge/writer.rs:445
+    reg [1:0] state;                         // rtl-gen/src/merge/writer.rs:259
+    wire in_fill;                            // rtl-gen/src/merge/writer.rs:260
+    wire in_drain;                           // rtl-gen/src/merge/writer.rs:261
+    wire in_header;                          // rtl-gen/src/merge/writer.rs:262
+    wire header_in_ready;                    // rtl-gen/src/merge/writer.rs:263
+    wire merge_clear;                        // rtl-gen/src/merge/writer.rs:264
+    reg have_cfg;                            // rtl-gen/src/merge/writer.rs:365
+    reg [3:0] out_id;                        // rtl-gen/src/merge/writer.rs:366
+    wire have_cfg_not;                       // rtl-gen/src/merge/writer.rs:368
+    wire cfg_valid_and;                      // rtl-gen/src/merge/writer.rs:368
+    wire have_cfg_or;                        // rtl-gen/src/merge/writer.rs:369
+    wire have_cfg_next;                      // rtl-gen/src/merge/writer.rs:369
+    reg have_done;                           // rtl-gen/src/merge/writer.rs:374
+    reg [4:0] top;                           // rtl-gen/src/merge/writer.rs:375
+    reg done_err;                            // rtl-gen/src/merge/writer.rs:376
+    wire have_done_not;                      // rtl-gen/src/merge/writer.rs:377
+    wire in_fill_and;                        // rtl-gen/src/merge/writer.rs:377
+    wire done_valid_and;                     // rtl-gen/src/merge/writer.rs:379
+    wire have_done_or;                       // rtl-gen/src/merge/writer.rs:380
+    wire have_done_next;                     // rtl-gen/src/merge/writer.rs:380
+    reg cref_end;                            // rtl-gen/src/merge/writer.rs:387
+    reg [10:0] cref_wptr;                    // rtl-gen/src/merge/writer.rs:388
+    reg cref_cap_err;                        // rtl-gen/src/merge/writer.rs:389
+    wire cref_end_not;                       // rtl-gen/src/merge/writer.rs:390
+    wire in_fill_and_1;                      // rtl-gen/src/merge/writer.rs:390
+    wire crefs_valid_and;                    // rtl-gen/src/merge/writer.rs:392
+    wire crefs_data_not;                     // rtl-gen/src/merge/writer.rs:394
+    wire crefs_valid_and_1;                  // rtl-gen/src/merge/writer.rs:394
+    wire cref_wptr_not;                      // rtl-gen/src/merge/writer.rs:399
+    wire crefs_valid_and_2;                  // rtl-gen/src/merge/writer.rs:399
+    wire crefs_valid_and_3;                  // rtl-gen/src/merge/writer.rs:401
+    wire cref_end_or;                        // rtl-gen/src/merge/writer.rs:401
+    wire cref_end_next;                      // rtl-gen/src/merge/writer.rs:401
+    wire [10:0] cref_wptr_add;               // rtl-gen/src/merge/writer.rs:402
+    wire crefs_valid_and_4;                  // rtl-gen/src/merge/writer.rs:404
+    wire cref_cap_err_or;                    // rtl-gen/src/merge/writer.rs:404
+    wire cref_cap_err_next;                  // rtl-gen/src/merge/writer.rs:404
+    wire l0_in_merge;                        // rtl-gen/src/merge/writer.rs:464
+    wire l1_in_merge;                        // rtl-gen/src/merge/writer.rs:464
+    wire l2_in_merge;                        // rtl-gen/src/merge/writer.rs:464
+    wire l3_in_merge;                        // rtl-gen/src/merge/writer.rs:464
+    wire l4_in_merge;                        // rtl-gen/src/merge/writer.rs:464
+    wire l5_in_merge;                        // rtl-gen/src/merge/writer.rs:464
+    wire l6_in_merge;                        // rtl-gen/src/merge/writer.rs:464
+    wire l7_in_merge;                        // rtl-gen/src/merge/writer.rs:464
+    wire l8_in_merge;                        // rtl-gen/src/merge/writer.rs:464
+    wire l9_in_merge;                        // rtl-gen/src/merge/writer.rs:464
+    wire l10_in_merge;                       // rtl-gen/src/merge/writer.rs:464
+    wire l11_in_merge;                       // rtl-gen/src/merge/writer.rs:464
+    wire l12_in_merge;                       // rtl-gen/src/merge/writer.rs:464
+    wire l13_in_merge;                       // rtl-gen/src/merge/writer.rs:464
+    wire l14_in_merge;                       // rtl-gen/src/merge/writer.rs:464
+    wire l15_in_merge;                       // rtl-gen/src/merge/writer.rs:464
+    wire l16_in_merge;                       // rtl-gen/src/merge/writer.rs:464
+    wire top_gt;                             // rtl-gen/src/merge/writer.rs:470
+    wire top_gt_1;                           // rtl-gen/src/merge/writer.rs:470
+    wire top_gt_2;                           // rtl-gen/src/merge/writer.rs:470
+    wire top_gt_3;                           // rtl-gen/src/merge/writer.rs:470
+    wire top_gt_4;                           // rtl-gen/src/merge/writer.rs:470
+    wire top_gt_5;                           // rtl-gen/src/merge/writer.rs:470
+    wire top_gt_6;                           // rtl-gen/src/merge/writer.rs:470
+    wire top_gt_7;                           // rtl-gen/src/merge/writer.rs:470
+    wire top_gt_8;                           // rtl-gen/src/merge/writer.rs:470
+    wire top_gt_9;                           // rtl-gen/src/merge/writer.rs:470
+    wire top_gt_10;                          // rtl-gen/src/merge/writer.rs:470
+    wire top_gt_11;                          // rtl-gen/src/merge/writer.rs:470
+    wire top_gt_12;                          // rtl-gen/src/merge/writer.rs:470
+    wire top_gt_13;                          // rtl-gen/src/merge/writer.rs:470
+    wire top_gt_14;                          // rtl-gen/src/merge/writer.rs:470
+    wire top_gt_15;                          // rtl-gen/src/merge/writer.rs:470
+    reg l0_end_seen;                         // rtl-gen/src/merge/writer.rs:518
+    reg [10:0] l0_nodes;                     // rtl-gen/src/merge/writer.rs:519
+    reg [10:0] l0_records;                   // rtl-gen/src/merge/writer.rs:520
+    reg [34:0] l0_record_counts;             // rtl-gen/src/merge/writer.rs:521
+    reg [34:0] l0_reused_counts;             // rtl-gen/src/merge/writer.rs:522
+    reg l0_cap_err;                          // rtl-gen/src/merge/writer.rs:523
+    reg l0_err;                              // rtl-gen/src/merge/writer.rs:524
+    wire l0_end_seen_not;                    // rtl-gen/src/merge/writer.rs:525
+    wire in_fill_and_2;                      // rtl-gen/src/merge/writer.rs:525
+    wire level0_valid_and;                   // rtl-gen/src/merge/writer.rs:527
     wire level0_data_eq;                     // rtl-gen/src/merge/writer.rs:120
     wire level0_data_eq_1;                   // rtl-gen/src/merge/writer.rs:120
-    wire level0_data_not;                    // rtl-gen/src/merge/writer.rs:381
-    wire level0_valid_and_1;                 // rtl-gen/src/merge/writer.rs:381
-    wire level0_data_eq_2;                   // rtl-gen/src/merge/writer.rs:382
-    wire [125:0] level0_data_cat;            // rtl-gen/src/merge/writer.rs:383
-    wire [53:0] level0_data_cat_1;           // rtl-gen/src/merge/writer.rs:384
-    wire level0_valid_and_2;                 // rtl-gen/src/merge/writer.rs:387
-    wire [52:0] level0_data_cat_2;           // rtl-gen/src/merge/writer.rs:391
-    wire merge_clear_and;                    // rtl-gen/src/merge/writer.rs:398
-    wire level0_valid_and_3;                 // rtl-gen/src/merge/writer.rs:399
-    wire l0_end_seen_or;                     // rtl-gen/src/merge/writer.rs:400
-    wire l0_end_seen_next;                   // rtl-gen/src/merge/writer.rs:400
-    wire level0_data_not_1;                  // rtl-gen/src/merge/writer.rs:407
-    wire level0_valid_and_4;                 // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] level0_valid_mux_2;          // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l0_record_counts_add;        // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l0_record_counts_next;       // rtl-gen/src/merge/writer.rs:405
-    wire level0_valid_and_5;                 // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] level0_valid_mux_3;          // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l0_reused_counts_add;        // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l0_reused_counts_next;       // rtl-gen/src/merge/writer.rs:409
-    wire level0_data_not_2;                  // rtl-gen/src/merge/writer.rs:413
-    wire level0_valid_and_6;                 // rtl-gen/src/merge/writer.rs:413
-    wire l0_cap_err_or;                      // rtl-gen/src/merge/writer.rs:413
-    wire l0_cap_err_next;                    // rtl-gen/src/merge/writer.rs:413
-    wire level0_data_eq_3;                   // rtl-gen/src/merge/writer.rs:415
-    wire level0_valid_and_7;                 // rtl-gen/src/merge/writer.rs:415
-    wire level0_valid_and_8;                 // rtl-gen/src/merge/writer.rs:416
-    wire l0_err_or;                          // rtl-gen/src/merge/writer.rs:416
-    wire l0_err_or_1;                        // rtl-gen/src/merge/writer.rs:416
-    wire l0_err_next;                        // rtl-gen/src/merge/writer.rs:416
-    reg l1_end_seen;                         // rtl-gen/src/merge/writer.rs:360
-    reg [10:0] l1_nodes;                     // rtl-gen/src/merge/writer.rs:361
-    reg [10:0] l1_records;                   // rtl-gen/src/merge/writer.rs:362
-    reg [34:0] l1_record_counts;             // rtl-gen/src/merge/writer.rs:363
-    reg [34:0] l1_reused_counts;             // rtl-gen/src/merge/writer.rs:364
-    reg l1_cap_err;                          // rtl-gen/src/merge/writer.rs:365
-    reg l1_err;                              // rtl-gen/src/merge/writer.rs:366
-    wire l1_end_seen_not;                    // rtl-gen/src/merge/writer.rs:367
-    wire in_fill_and_3;                      // rtl-gen/src/merge/writer.rs:367
-    wire level1_valid_and;                   // rtl-gen/src/merge/writer.rs:369
+    wire level0_data_not;                    // rtl-gen/src/merge/writer.rs:539
+    wire level0_valid_and_1;                 // rtl-gen/src/merge/writer.rs:539
+    wire level0_data_eq_2;                   // rtl-gen/src/merge/writer.rs:540
+    wire [125:0] level0_data_cat;            // rtl-gen/src/merge/writer.rs:541
+    wire [53:0] level0_data_cat_1;           // rtl-gen/src/merge/writer.rs:542
+    wire level0_valid_and_2;                 // rtl-gen/src/merge/writer.rs:545
+    wire [52:0] level0_data_cat_2;           // rtl-gen/src/merge/writer.rs:549
+    wire merge_clear_and;                    // rtl-gen/src/merge/writer.rs:556
+    wire level0_valid_and_3;                 // rtl-gen/src/merge/writer.rs:557
+    wire l0_end_seen_or;                     // rtl-gen/src/merge/writer.rs:558
+    wire l0_end_seen_next;                   // rtl-gen/src/merge/writer.rs:558
+    wire level0_data_not_1;                  // rtl-gen/src/merge/writer.rs:565
+    wire level0_valid_and_4;                 // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] level0_valid_mux_2;          // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l0_record_counts_add;        // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l0_record_counts_next;       // rtl-gen/src/merge/writer.rs:563
+    wire level0_valid_and_5;                 // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] level0_valid_mux_3;          // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l0_reused_counts_add;        // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l0_reused_counts_next;       // rtl-gen/src/merge/writer.rs:567
+    wire level0_data_not_2;                  // rtl-gen/src/merge/writer.rs:571
+    wire level0_valid_and_6;                 // rtl-gen/src/merge/writer.rs:571
+    wire l0_cap_err_or;                      // rtl-gen/src/merge/writer.rs:571
+    wire l0_cap_err_next;                    // rtl-gen/src/merge/writer.rs:571
+    wire level0_data_eq_3;                   // rtl-gen/src/merge/writer.rs:573
+    wire level0_valid_and_7;                 // rtl-gen/src/merge/writer.rs:573
+    wire level0_valid_and_8;                 // rtl-gen/src/merge/writer.rs:574
+    wire l0_err_or;                          // rtl-gen/src/merge/writer.rs:574
+    wire l0_err_or_1;                        // rtl-gen/src/merge/writer.rs:574
+    wire l0_err_next;                        // rtl-gen/src/merge/writer.rs:574
+    reg l1_end_seen;                         // rtl-gen/src/merge/writer.rs:518
+    reg [10:0] l1_nodes;                     // rtl-gen/src/merge/writer.rs:519
+    reg [10:0] l1_records;                   // rtl-gen/src/merge/writer.rs:520
+    reg [34:0] l1_record_counts;             // rtl-gen/src/merge/writer.rs:521
+    reg [34:0] l1_reused_counts;             // rtl-gen/src/merge/writer.rs:522
+    reg l1_cap_err;                          // rtl-gen/src/merge/writer.rs:523
+    reg l1_err;                              // rtl-gen/src/merge/writer.rs:524
+    wire l1_end_seen_not;                    // rtl-gen/src/merge/writer.rs:525
+    wire in_fill_and_3;                      // rtl-gen/src/merge/writer.rs:525
+    wire level1_valid_and;                   // rtl-gen/src/merge/writer.rs:527
     wire level1_data_eq;                     // rtl-gen/src/merge/writer.rs:120
     wire level1_data_eq_1;                   // rtl-gen/src/merge/writer.rs:120
-    wire level1_data_not;                    // rtl-gen/src/merge/writer.rs:381
-    wire level1_valid_and_1;                 // rtl-gen/src/merge/writer.rs:381
-    wire level1_data_eq_2;                   // rtl-gen/src/merge/writer.rs:382
-    wire [125:0] level1_data_cat;            // rtl-gen/src/merge/writer.rs:383
-    wire [53:0] level1_data_cat_1;           // rtl-gen/src/merge/writer.rs:384
-    wire level1_valid_and_2;                 // rtl-gen/src/merge/writer.rs:387
-    wire [52:0] level1_data_cat_2;           // rtl-gen/src/merge/writer.rs:391
-    wire level1_data_not_1;                  // rtl-gen/src/merge/writer.rs:394
-    wire level1_valid_and_3;                 // rtl-gen/src/merge/writer.rs:394
-    wire level1_data_not_2;                  // rtl-gen/src/merge/writer.rs:395
-    wire level1_valid_and_4;                 // rtl-gen/src/merge/writer.rs:395
-    wire merge_clear_and_1;                  // rtl-gen/src/merge/writer.rs:398
-    wire level1_valid_and_5;                 // rtl-gen/src/merge/writer.rs:399
-    wire l1_end_seen_or;                     // rtl-gen/src/merge/writer.rs:400
-    wire l1_end_seen_next;                   // rtl-gen/src/merge/writer.rs:400
-    wire level1_data_not_3;                  // rtl-gen/src/merge/writer.rs:407
-    wire level1_valid_and_6;                 // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] level1_valid_mux_2;          // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l1_record_counts_add;        // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l1_record_counts_next;       // rtl-gen/src/merge/writer.rs:405
-    wire level1_valid_and_7;                 // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] level1_valid_mux_3;          // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l1_reused_counts_add;        // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l1_reused_counts_next;       // rtl-gen/src/merge/writer.rs:409
-    wire level1_data_not_4;                  // rtl-gen/src/merge/writer.rs:413
-    wire level1_valid_and_8;                 // rtl-gen/src/merge/writer.rs:413
-    wire l1_cap_err_or;                      // rtl-gen/src/merge/writer.rs:413
-    wire l1_cap_err_next;                    // rtl-gen/src/merge/writer.rs:413
-    wire level1_data_eq_3;                   // rtl-gen/src/merge/writer.rs:415
-    wire level1_valid_and_9;                 // rtl-gen/src/merge/writer.rs:415
-    wire level1_valid_and_10;                // rtl-gen/src/merge/writer.rs:416
-    wire l1_err_or;                          // rtl-gen/src/merge/writer.rs:416
-    wire l1_err_or_1;                        // rtl-gen/src/merge/writer.rs:416
-    wire l1_err_next;                        // rtl-gen/src/merge/writer.rs:416
-    reg l2_end_seen;                         // rtl-gen/src/merge/writer.rs:360
-    reg [10:0] l2_nodes;                     // rtl-gen/src/merge/writer.rs:361
-    reg [10:0] l2_records;                   // rtl-gen/src/merge/writer.rs:362
-    reg [34:0] l2_record_counts;             // rtl-gen/src/merge/writer.rs:363
-    reg [34:0] l2_reused_counts;             // rtl-gen/src/merge/writer.rs:364
-    reg l2_cap_err;                          // rtl-gen/src/merge/writer.rs:365
-    reg l2_err;                              // rtl-gen/src/merge/writer.rs:366
-    wire l2_end_seen_not;                    // rtl-gen/src/merge/writer.rs:367
-    wire in_fill_and_4;                      // rtl-gen/src/merge/writer.rs:367
-    wire level2_valid_and;                   // rtl-gen/src/merge/writer.rs:369
+    wire level1_data_not;                    // rtl-gen/src/merge/writer.rs:539
+    wire level1_valid_and_1;                 // rtl-gen/src/merge/writer.rs:539
+    wire level1_data_eq_2;                   // rtl-gen/src/merge/writer.rs:540
+    wire [125:0] level1_data_cat;            // rtl-gen/src/merge/writer.rs:541
+    wire [53:0] level1_data_cat_1;           // rtl-gen/src/merge/writer.rs:542
+    wire level1_valid_and_2;                 // rtl-gen/src/merge/writer.rs:545
+    wire [52:0] level1_data_cat_2;           // rtl-gen/src/merge/writer.rs:549
+    wire level1_data_not_1;                  // rtl-gen/src/merge/writer.rs:552
+    wire level1_valid_and_3;                 // rtl-gen/src/merge/writer.rs:552
+    wire level1_data_not_2;                  // rtl-gen/src/merge/writer.rs:553
+    wire level1_valid_and_4;                 // rtl-gen/src/merge/writer.rs:553
+    wire merge_clear_and_1;                  // rtl-gen/src/merge/writer.rs:556
+    wire level1_valid_and_5;                 // rtl-gen/src/merge/writer.rs:557
+    wire l1_end_seen_or;                     // rtl-gen/src/merge/writer.rs:558
+    wire l1_end_seen_next;                   // rtl-gen/src/merge/writer.rs:558
+    wire level1_data_not_3;                  // rtl-gen/src/merge/writer.rs:565
+    wire level1_valid_and_6;                 // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] level1_valid_mux_2;          // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l1_record_counts_add;        // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l1_record_counts_next;       // rtl-gen/src/merge/writer.rs:563
+    wire level1_valid_and_7;                 // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] level1_valid_mux_3;          // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l1_reused_counts_add;        // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l1_reused_counts_next;       // rtl-gen/src/merge/writer.rs:567
+    wire level1_data_not_4;                  // rtl-gen/src/merge/writer.rs:571
+    wire level1_valid_and_8;                 // rtl-gen/src/merge/writer.rs:571
+    wire l1_cap_err_or;                      // rtl-gen/src/merge/writer.rs:571
+    wire l1_cap_err_next;                    // rtl-gen/src/merge/writer.rs:571
+    wire level1_data_eq_3;                   // rtl-gen/src/merge/writer.rs:573
+    wire level1_valid_and_9;                 // rtl-gen/src/merge/writer.rs:573
+    wire level1_valid_and_10;                // rtl-gen/src/merge/writer.rs:574
+    wire l1_err_or;                          // rtl-gen/src/merge/writer.rs:574
+    wire l1_err_or_1;                        // rtl-gen/src/merge/writer.rs:574
+    wire l1_err_next;                        // rtl-gen/src/merge/writer.rs:574
+    reg l2_end_seen;                         // rtl-gen/src/merge/writer.rs:518
+    reg [10:0] l2_nodes;                     // rtl-gen/src/merge/writer.rs:519
+    reg [10:0] l2_records;                   // rtl-gen/src/merge/writer.rs:520
+    reg [34:0] l2_record_counts;             // rtl-gen/src/merge/writer.rs:521
+    reg [34:0] l2_reused_counts;             // rtl-gen/src/merge/writer.rs:522
+    reg l2_cap_err;                          // rtl-gen/src/merge/writer.rs:523
+    reg l2_err;                              // rtl-gen/src/merge/writer.rs:524
+    wire l2_end_seen_not;                    // rtl-gen/src/merge/writer.rs:525
+    wire in_fill_and_4;                      // rtl-gen/src/merge/writer.rs:525
+    wire level2_valid_and;                   // rtl-gen/src/merge/writer.rs:527
     wire level2_data_eq;                     // rtl-gen/src/merge/writer.rs:120
     wire level2_data_eq_1;                   // rtl-gen/src/merge/writer.rs:120
-    wire level2_data_not;                    // rtl-gen/src/merge/writer.rs:381
-    wire level2_valid_and_1;                 // rtl-gen/src/merge/writer.rs:381
-    wire level2_data_eq_2;                   // rtl-gen/src/merge/writer.rs:382
-    wire [125:0] level2_data_cat;            // rtl-gen/src/merge/writer.rs:383
-    wire [53:0] level2_data_cat_1;           // rtl-gen/src/merge/writer.rs:384
-    wire level2_valid_and_2;                 // rtl-gen/src/merge/writer.rs:387
-    wire [52:0] level2_data_cat_2;           // rtl-gen/src/merge/writer.rs:391
-    wire level2_data_not_1;                  // rtl-gen/src/merge/writer.rs:394
-    wire level2_valid_and_3;                 // rtl-gen/src/merge/writer.rs:394
-    wire level2_data_not_2;                  // rtl-gen/src/merge/writer.rs:395
-    wire level2_valid_and_4;                 // rtl-gen/src/merge/writer.rs:395
-    wire merge_clear_and_2;                  // rtl-gen/src/merge/writer.rs:398
-    wire level2_valid_and_5;                 // rtl-gen/src/merge/writer.rs:399
-    wire l2_end_seen_or;                     // rtl-gen/src/merge/writer.rs:400
-    wire l2_end_seen_next;                   // rtl-gen/src/merge/writer.rs:400
-    wire level2_data_not_3;                  // rtl-gen/src/merge/writer.rs:407
-    wire level2_valid_and_6;                 // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] level2_valid_mux_2;          // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l2_record_counts_add;        // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l2_record_counts_next;       // rtl-gen/src/merge/writer.rs:405
-    wire level2_valid_and_7;                 // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] level2_valid_mux_3;          // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l2_reused_counts_add;        // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l2_reused_counts_next;       // rtl-gen/src/merge/writer.rs:409
-    wire level2_data_not_4;                  // rtl-gen/src/merge/writer.rs:413
-    wire level2_valid_and_8;                 // rtl-gen/src/merge/writer.rs:413
-    wire l2_cap_err_or;                      // rtl-gen/src/merge/writer.rs:413
-    wire l2_cap_err_next;                    // rtl-gen/src/merge/writer.rs:413
-    wire level2_data_eq_3;                   // rtl-gen/src/merge/writer.rs:415
-    wire level2_valid_and_9;                 // rtl-gen/src/merge/writer.rs:415
-    wire level2_valid_and_10;                // rtl-gen/src/merge/writer.rs:416
-    wire l2_err_or;                          // rtl-gen/src/merge/writer.rs:416
-    wire l2_err_or_1;                        // rtl-gen/src/merge/writer.rs:416
-    wire l2_err_next;                        // rtl-gen/src/merge/writer.rs:416
-    reg l3_end_seen;                         // rtl-gen/src/merge/writer.rs:360
-    reg [10:0] l3_nodes;                     // rtl-gen/src/merge/writer.rs:361
-    reg [10:0] l3_records;                   // rtl-gen/src/merge/writer.rs:362
-    reg [34:0] l3_record_counts;             // rtl-gen/src/merge/writer.rs:363
-    reg [34:0] l3_reused_counts;             // rtl-gen/src/merge/writer.rs:364
-    reg l3_cap_err;                          // rtl-gen/src/merge/writer.rs:365
-    reg l3_err;                              // rtl-gen/src/merge/writer.rs:366
-    wire l3_end_seen_not;                    // rtl-gen/src/merge/writer.rs:367
-    wire in_fill_and_5;                      // rtl-gen/src/merge/writer.rs:367
-    wire level3_valid_and;                   // rtl-gen/src/merge/writer.rs:369
+    wire level2_data_not;                    // rtl-gen/src/merge/writer.rs:539
+    wire level2_valid_and_1;                 // rtl-gen/src/merge/writer.rs:539
+    wire level2_data_eq_2;                   // rtl-gen/src/merge/writer.rs:540
+    wire [125:0] level2_data_cat;            // rtl-gen/src/merge/writer.rs:541
+    wire [53:0] level2_data_cat_1;           // rtl-gen/src/merge/writer.rs:542
+    wire level2_valid_and_2;                 // rtl-gen/src/merge/writer.rs:545
+    wire [52:0] level2_data_cat_2;           // rtl-gen/src/merge/writer.rs:549
+    wire level2_data_not_1;                  // rtl-gen/src/merge/writer.rs:552
+    wire level2_valid_and_3;                 // rtl-gen/src/merge/writer.rs:552
+    wire level2_data_not_2;                  // rtl-gen/src/merge/writer.rs:553
+    wire level2_valid_and_4;                 // rtl-gen/src/merge/writer.rs:553
+    wire merge_clear_and_2;                  // rtl-gen/src/merge/writer.rs:556
+    wire level2_valid_and_5;                 // rtl-gen/src/merge/writer.rs:557
+    wire l2_end_seen_or;                     // rtl-gen/src/merge/writer.rs:558
+    wire l2_end_seen_next;                   // rtl-gen/src/merge/writer.rs:558
+    wire level2_data_not_3;                  // rtl-gen/src/merge/writer.rs:565
+    wire level2_valid_and_6;                 // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] level2_valid_mux_2;          // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l2_record_counts_add;        // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l2_record_counts_next;       // rtl-gen/src/merge/writer.rs:563
+    wire level2_valid_and_7;                 // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] level2_valid_mux_3;          // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l2_reused_counts_add;        // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l2_reused_counts_next;       // rtl-gen/src/merge/writer.rs:567
+    wire level2_data_not_4;                  // rtl-gen/src/merge/writer.rs:571
+    wire level2_valid_and_8;                 // rtl-gen/src/merge/writer.rs:571
+    wire l2_cap_err_or;                      // rtl-gen/src/merge/writer.rs:571
+    wire l2_cap_err_next;                    // rtl-gen/src/merge/writer.rs:571
+    wire level2_data_eq_3;                   // rtl-gen/src/merge/writer.rs:573
+    wire level2_valid_and_9;                 // rtl-gen/src/merge/writer.rs:573
+    wire level2_valid_and_10;                // rtl-gen/src/merge/writer.rs:574
+    wire l2_err_or;                          // rtl-gen/src/merge/writer.rs:574
+    wire l2_err_or_1;                        // rtl-gen/src/merge/writer.rs:574
+    wire l2_err_next;                        // rtl-gen/src/merge/writer.rs:574
+    reg l3_end_seen;                         // rtl-gen/src/merge/writer.rs:518
+    reg [10:0] l3_nodes;                     // rtl-gen/src/merge/writer.rs:519
+    reg [10:0] l3_records;                   // rtl-gen/src/merge/writer.rs:520
+    reg [34:0] l3_record_counts;             // rtl-gen/src/merge/writer.rs:521
+    reg [34:0] l3_reused_counts;             // rtl-gen/src/merge/writer.rs:522
+    reg l3_cap_err;                          // rtl-gen/src/merge/writer.rs:523
+    reg l3_err;                              // rtl-gen/src/merge/writer.rs:524
+    wire l3_end_seen_not;                    // rtl-gen/src/merge/writer.rs:525
+    wire in_fill_and_5;                      // rtl-gen/src/merge/writer.rs:525
+    wire level3_valid_and;                   // rtl-gen/src/merge/writer.rs:527
     wire level3_data_eq;                     // rtl-gen/src/merge/writer.rs:120
     wire level3_data_eq_1;                   // rtl-gen/src/merge/writer.rs:120
-    wire level3_data_not;                    // rtl-gen/src/merge/writer.rs:381
-    wire level3_valid_and_1;                 // rtl-gen/src/merge/writer.rs:381
-    wire level3_data_eq_2;                   // rtl-gen/src/merge/writer.rs:382
-    wire [125:0] level3_data_cat;            // rtl-gen/src/merge/writer.rs:383
-    wire [53:0] level3_data_cat_1;           // rtl-gen/src/merge/writer.rs:384
-    wire level3_valid_and_2;                 // rtl-gen/src/merge/writer.rs:387
-    wire [52:0] level3_data_cat_2;           // rtl-gen/src/merge/writer.rs:391
-    wire level3_data_not_1;                  // rtl-gen/src/merge/writer.rs:394
-    wire level3_valid_and_3;                 // rtl-gen/src/merge/writer.rs:394
-    wire level3_data_not_2;                  // rtl-gen/src/merge/writer.rs:395
-    wire level3_valid_and_4;                 // rtl-gen/src/merge/writer.rs:395
-    wire merge_clear_and_3;                  // rtl-gen/src/merge/writer.rs:398
-    wire level3_valid_and_5;                 // rtl-gen/src/merge/writer.rs:399
-    wire l3_end_seen_or;                     // rtl-gen/src/merge/writer.rs:400
-    wire l3_end_seen_next;                   // rtl-gen/src/merge/writer.rs:400
-    wire level3_data_not_3;                  // rtl-gen/src/merge/writer.rs:407
-    wire level3_valid_and_6;                 // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] level3_valid_mux_2;          // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l3_record_counts_add;        // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l3_record_counts_next;       // rtl-gen/src/merge/writer.rs:405
-    wire level3_valid_and_7;                 // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] level3_valid_mux_3;          // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l3_reused_counts_add;        // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l3_reused_counts_next;       // rtl-gen/src/merge/writer.rs:409
-    wire level3_data_not_4;                  // rtl-gen/src/merge/writer.rs:413
-    wire level3_valid_and_8;                 // rtl-gen/src/merge/writer.rs:413
-    wire l3_cap_err_or;                      // rtl-gen/src/merge/writer.rs:413
-    wire l3_cap_err_next;                    // rtl-gen/src/merge/writer.rs:413
-    wire level3_data_eq_3;                   // rtl-gen/src/merge/writer.rs:415
-    wire level3_valid_and_9;                 // rtl-gen/src/merge/writer.rs:415
-    wire level3_valid_and_10;                // rtl-gen/src/merge/writer.rs:416
-    wire l3_err_or;                          // rtl-gen/src/merge/writer.rs:416
-    wire l3_err_or_1;                        // rtl-gen/src/merge/writer.rs:416
-    wire l3_err_next;                        // rtl-gen/src/merge/writer.rs:416
-    reg l4_end_seen;                         // rtl-gen/src/merge/writer.rs:360
-    reg [10:0] l4_nodes;                     // rtl-gen/src/merge/writer.rs:361
-    reg [10:0] l4_records;                   // rtl-gen/src/merge/writer.rs:362
-    reg [34:0] l4_record_counts;             // rtl-gen/src/merge/writer.rs:363
-    reg [34:0] l4_reused_counts;             // rtl-gen/src/merge/writer.rs:364
-    reg l4_cap_err;                          // rtl-gen/src/merge/writer.rs:365
-    reg l4_err;                              // rtl-gen/src/merge/writer.rs:366
-    wire l4_end_seen_not;                    // rtl-gen/src/merge/writer.rs:367
-    wire in_fill_and_6;                      // rtl-gen/src/merge/writer.rs:367
-    wire level4_valid_and;                   // rtl-gen/src/merge/writer.rs:369
+    wire level3_data_not;                    // rtl-gen/src/merge/writer.rs:539
+    wire level3_valid_and_1;                 // rtl-gen/src/merge/writer.rs:539
+    wire level3_data_eq_2;                   // rtl-gen/src/merge/writer.rs:540
+    wire [125:0] level3_data_cat;            // rtl-gen/src/merge/writer.rs:541
+    wire [53:0] level3_data_cat_1;           // rtl-gen/src/merge/writer.rs:542
+    wire level3_valid_and_2;                 // rtl-gen/src/merge/writer.rs:545
+    wire [52:0] level3_data_cat_2;           // rtl-gen/src/merge/writer.rs:549
+    wire level3_data_not_1;                  // rtl-gen/src/merge/writer.rs:552
+    wire level3_valid_and_3;                 // rtl-gen/src/merge/writer.rs:552
+    wire level3_data_not_2;                  // rtl-gen/src/merge/writer.rs:553
+    wire level3_valid_and_4;                 // rtl-gen/src/merge/writer.rs:553
+    wire merge_clear_and_3;                  // rtl-gen/src/merge/writer.rs:556
+    wire level3_valid_and_5;                 // rtl-gen/src/merge/writer.rs:557
+    wire l3_end_seen_or;                     // rtl-gen/src/merge/writer.rs:558
+    wire l3_end_seen_next;                   // rtl-gen/src/merge/writer.rs:558
+    wire level3_data_not_3;                  // rtl-gen/src/merge/writer.rs:565
+    wire level3_valid_and_6;                 // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] level3_valid_mux_2;          // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l3_record_counts_add;        // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l3_record_counts_next;       // rtl-gen/src/merge/writer.rs:563
+    wire level3_valid_and_7;                 // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] level3_valid_mux_3;          // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l3_reused_counts_add;        // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l3_reused_counts_next;       // rtl-gen/src/merge/writer.rs:567
+    wire level3_data_not_4;                  // rtl-gen/src/merge/writer.rs:571
+    wire level3_valid_and_8;                 // rtl-gen/src/merge/writer.rs:571
+    wire l3_cap_err_or;                      // rtl-gen/src/merge/writer.rs:571
+    wire l3_cap_err_next;                    // rtl-gen/src/merge/writer.rs:571
+    wire level3_data_eq_3;                   // rtl-gen/src/merge/writer.rs:573
+    wire level3_valid_and_9;                 // rtl-gen/src/merge/writer.rs:573
+    wire level3_valid_and_10;                // rtl-gen/src/merge/writer.rs:574
+    wire l3_err_or;                          // rtl-gen/src/merge/writer.rs:574
+    wire l3_err_or_1;                        // rtl-gen/src/merge/writer.rs:574
+    wire l3_err_next;                        // rtl-gen/src/merge/writer.rs:574
+    reg l4_end_seen;                         // rtl-gen/src/merge/writer.rs:518
+    reg [10:0] l4_nodes;                     // rtl-gen/src/merge/writer.rs:519
+    reg [10:0] l4_records;                   // rtl-gen/src/merge/writer.rs:520
+    reg [34:0] l4_record_counts;             // rtl-gen/src/merge/writer.rs:521
+    reg [34:0] l4_reused_counts;             // rtl-gen/src/merge/writer.rs:522
+    reg l4_cap_err;                          // rtl-gen/src/merge/writer.rs:523
+    reg l4_err;                              // rtl-gen/src/merge/writer.rs:524
+    wire l4_end_seen_not;                    // rtl-gen/src/merge/writer.rs:525
+    wire in_fill_and_6;                      // rtl-gen/src/merge/writer.rs:525
+    wire level4_valid_and;                   // rtl-gen/src/merge/writer.rs:527
     wire level4_data_eq;                     // rtl-gen/src/merge/writer.rs:120
     wire level4_data_eq_1;                   // rtl-gen/src/merge/writer.rs:120
-    wire level4_data_not;                    // rtl-gen/src/merge/writer.rs:381
-    wire level4_valid_and_1;                 // rtl-gen/src/merge/writer.rs:381
-    wire level4_data_eq_2;                   // rtl-gen/src/merge/writer.rs:382
-    wire [125:0] level4_data_cat;            // rtl-gen/src/merge/writer.rs:383
-    wire [53:0] level4_data_cat_1;           // rtl-gen/src/merge/writer.rs:384
-    wire level4_valid_and_2;                 // rtl-gen/src/merge/writer.rs:387
-    wire [52:0] level4_data_cat_2;           // rtl-gen/src/merge/writer.rs:391
-    wire level4_data_not_1;                  // rtl-gen/src/merge/writer.rs:394
-    wire level4_valid_and_3;                 // rtl-gen/src/merge/writer.rs:394
-    wire level4_data_not_2;                  // rtl-gen/src/merge/writer.rs:395
-    wire level4_valid_and_4;                 // rtl-gen/src/merge/writer.rs:395
-    wire merge_clear_and_4;                  // rtl-gen/src/merge/writer.rs:398
-    wire level4_valid_and_5;                 // rtl-gen/src/merge/writer.rs:399
-    wire l4_end_seen_or;                     // rtl-gen/src/merge/writer.rs:400
-    wire l4_end_seen_next;                   // rtl-gen/src/merge/writer.rs:400
-    wire level4_data_not_3;                  // rtl-gen/src/merge/writer.rs:407
-    wire level4_valid_and_6;                 // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] level4_valid_mux_2;          // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l4_record_counts_add;        // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l4_record_counts_next;       // rtl-gen/src/merge/writer.rs:405
-    wire level4_valid_and_7;                 // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] level4_valid_mux_3;          // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l4_reused_counts_add;        // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l4_reused_counts_next;       // rtl-gen/src/merge/writer.rs:409
-    wire level4_data_not_4;                  // rtl-gen/src/merge/writer.rs:413
-    wire level4_valid_and_8;                 // rtl-gen/src/merge/writer.rs:413
-    wire l4_cap_err_or;                      // rtl-gen/src/merge/writer.rs:413
-    wire l4_cap_err_next;                    // rtl-gen/src/merge/writer.rs:413
-    wire level4_data_eq_3;                   // rtl-gen/src/merge/writer.rs:415
-    wire level4_valid_and_9;                 // rtl-gen/src/merge/writer.rs:415
-    wire level4_valid_and_10;                // rtl-gen/src/merge/writer.rs:416
-    wire l4_err_or;                          // rtl-gen/src/merge/writer.rs:416
-    wire l4_err_or_1;                        // rtl-gen/src/merge/writer.rs:416
-    wire l4_err_next;                        // rtl-gen/src/merge/writer.rs:416
-    reg l5_end_seen;                         // rtl-gen/src/merge/writer.rs:360
-    reg [10:0] l5_nodes;                     // rtl-gen/src/merge/writer.rs:361
-    reg [10:0] l5_records;                   // rtl-gen/src/merge/writer.rs:362
-    reg [34:0] l5_record_counts;             // rtl-gen/src/merge/writer.rs:363
-    reg [34:0] l5_reused_counts;             // rtl-gen/src/merge/writer.rs:364
-    reg l5_cap_err;                          // rtl-gen/src/merge/writer.rs:365
-    reg l5_err;                              // rtl-gen/src/merge/writer.rs:366
-    wire l5_end_seen_not;                    // rtl-gen/src/merge/writer.rs:367
-    wire in_fill_and_7;                      // rtl-gen/src/merge/writer.rs:367
-    wire level5_valid_and;                   // rtl-gen/src/merge/writer.rs:369
+    wire level4_data_not;                    // rtl-gen/src/merge/writer.rs:539
+    wire level4_valid_and_1;                 // rtl-gen/src/merge/writer.rs:539
+    wire level4_data_eq_2;                   // rtl-gen/src/merge/writer.rs:540
+    wire [125:0] level4_data_cat;            // rtl-gen/src/merge/writer.rs:541
+    wire [53:0] level4_data_cat_1;           // rtl-gen/src/merge/writer.rs:542
+    wire level4_valid_and_2;                 // rtl-gen/src/merge/writer.rs:545
+    wire [52:0] level4_data_cat_2;           // rtl-gen/src/merge/writer.rs:549
+    wire level4_data_not_1;                  // rtl-gen/src/merge/writer.rs:552
+    wire level4_valid_and_3;                 // rtl-gen/src/merge/writer.rs:552
+    wire level4_data_not_2;                  // rtl-gen/src/merge/writer.rs:553
+    wire level4_valid_and_4;                 // rtl-gen/src/merge/writer.rs:553
+    wire merge_clear_and_4;                  // rtl-gen/src/merge/writer.rs:556
+    wire level4_valid_and_5;                 // rtl-gen/src/merge/writer.rs:557
+    wire l4_end_seen_or;                     // rtl-gen/src/merge/writer.rs:558
+    wire l4_end_seen_next;                   // rtl-gen/src/merge/writer.rs:558
+    wire level4_data_not_3;                  // rtl-gen/src/merge/writer.rs:565
+    wire level4_valid_and_6;                 // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] level4_valid_mux_2;          // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l4_record_counts_add;        // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l4_record_counts_next;       // rtl-gen/src/merge/writer.rs:563
+    wire level4_valid_and_7;                 // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] level4_valid_mux_3;          // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l4_reused_counts_add;        // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l4_reused_counts_next;       // rtl-gen/src/merge/writer.rs:567
+    wire level4_data_not_4;                  // rtl-gen/src/merge/writer.rs:571
+    wire level4_valid_and_8;                 // rtl-gen/src/merge/writer.rs:571
+    wire l4_cap_err_or;                      // rtl-gen/src/merge/writer.rs:571
+    wire l4_cap_err_next;                    // rtl-gen/src/merge/writer.rs:571
+    wire level4_data_eq_3;                   // rtl-gen/src/merge/writer.rs:573
+    wire level4_valid_and_9;                 // rtl-gen/src/merge/writer.rs:573
+    wire level4_valid_and_10;                // rtl-gen/src/merge/writer.rs:574
+    wire l4_err_or;                          // rtl-gen/src/merge/writer.rs:574
+    wire l4_err_or_1;                        // rtl-gen/src/merge/writer.rs:574
+    wire l4_err_next;                        // rtl-gen/src/merge/writer.rs:574
+    reg l5_end_seen;                         // rtl-gen/src/merge/writer.rs:518
+    reg [10:0] l5_nodes;                     // rtl-gen/src/merge/writer.rs:519
+    reg [10:0] l5_records;                   // rtl-gen/src/merge/writer.rs:520
+    reg [34:0] l5_record_counts;             // rtl-gen/src/merge/writer.rs:521
+    reg [34:0] l5_reused_counts;             // rtl-gen/src/merge/writer.rs:522
+    reg l5_cap_err;                          // rtl-gen/src/merge/writer.rs:523
+    reg l5_err;                              // rtl-gen/src/merge/writer.rs:524
+    wire l5_end_seen_not;                    // rtl-gen/src/merge/writer.rs:525
+    wire in_fill_and_7;                      // rtl-gen/src/merge/writer.rs:525
+    wire level5_valid_and;                   // rtl-gen/src/merge/writer.rs:527
     wire level5_data_eq;                     // rtl-gen/src/merge/writer.rs:120
     wire level5_data_eq_1;                   // rtl-gen/src/merge/writer.rs:120
-    wire level5_data_not;                    // rtl-gen/src/merge/writer.rs:381
-    wire level5_valid_and_1;                 // rtl-gen/src/merge/writer.rs:381
-    wire level5_data_eq_2;                   // rtl-gen/src/merge/writer.rs:382
-    wire [125:0] level5_data_cat;            // rtl-gen/src/merge/writer.rs:383
-    wire [53:0] level5_data_cat_1;           // rtl-gen/src/merge/writer.rs:384
-    wire level5_valid_and_2;                 // rtl-gen/src/merge/writer.rs:387
-    wire [52:0] level5_data_cat_2;           // rtl-gen/src/merge/writer.rs:391
-    wire level5_data_not_1;                  // rtl-gen/src/merge/writer.rs:394
-    wire level5_valid_and_3;                 // rtl-gen/src/merge/writer.rs:394
-    wire level5_data_not_2;                  // rtl-gen/src/merge/writer.rs:395
-    wire level5_valid_and_4;                 // rtl-gen/src/merge/writer.rs:395
-    wire merge_clear_and_5;                  // rtl-gen/src/merge/writer.rs:398
-    wire level5_valid_and_5;                 // rtl-gen/src/merge/writer.rs:399
-    wire l5_end_seen_or;                     // rtl-gen/src/merge/writer.rs:400
-    wire l5_end_seen_next;                   // rtl-gen/src/merge/writer.rs:400
-    wire level5_data_not_3;                  // rtl-gen/src/merge/writer.rs:407
-    wire level5_valid_and_6;                 // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] level5_valid_mux_2;          // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l5_record_counts_add;        // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l5_record_counts_next;       // rtl-gen/src/merge/writer.rs:405
-    wire level5_valid_and_7;                 // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] level5_valid_mux_3;          // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l5_reused_counts_add;        // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l5_reused_counts_next;       // rtl-gen/src/merge/writer.rs:409
-    wire level5_data_not_4;                  // rtl-gen/src/merge/writer.rs:413
-    wire level5_valid_and_8;                 // rtl-gen/src/merge/writer.rs:413
-    wire l5_cap_err_or;                      // rtl-gen/src/merge/writer.rs:413
-    wire l5_cap_err_next;                    // rtl-gen/src/merge/writer.rs:413
-    wire level5_data_eq_3;                   // rtl-gen/src/merge/writer.rs:415
-    wire level5_valid_and_9;                 // rtl-gen/src/merge/writer.rs:415
-    wire level5_valid_and_10;                // rtl-gen/src/merge/writer.rs:416
-    wire l5_err_or;                          // rtl-gen/src/merge/writer.rs:416
-    wire l5_err_or_1;                        // rtl-gen/src/merge/writer.rs:416
-    wire l5_err_next;                        // rtl-gen/src/merge/writer.rs:416
-    reg l6_end_seen;                         // rtl-gen/src/merge/writer.rs:360
-    reg [10:0] l6_nodes;                     // rtl-gen/src/merge/writer.rs:361
-    reg [10:0] l6_records;                   // rtl-gen/src/merge/writer.rs:362
-    reg [34:0] l6_record_counts;             // rtl-gen/src/merge/writer.rs:363
-    reg [34:0] l6_reused_counts;             // rtl-gen/src/merge/writer.rs:364
-    reg l6_cap_err;                          // rtl-gen/src/merge/writer.rs:365
-    reg l6_err;                              // rtl-gen/src/merge/writer.rs:366
-    wire l6_end_seen_not;                    // rtl-gen/src/merge/writer.rs:367
-    wire in_fill_and_8;                      // rtl-gen/src/merge/writer.rs:367
-    wire level6_valid_and;                   // rtl-gen/src/merge/writer.rs:369
+    wire level5_data_not;                    // rtl-gen/src/merge/writer.rs:539
+    wire level5_valid_and_1;                 // rtl-gen/src/merge/writer.rs:539
+    wire level5_data_eq_2;                   // rtl-gen/src/merge/writer.rs:540
+    wire [125:0] level5_data_cat;            // rtl-gen/src/merge/writer.rs:541
+    wire [53:0] level5_data_cat_1;           // rtl-gen/src/merge/writer.rs:542
+    wire level5_valid_and_2;                 // rtl-gen/src/merge/writer.rs:545
+    wire [52:0] level5_data_cat_2;           // rtl-gen/src/merge/writer.rs:549
+    wire level5_data_not_1;                  // rtl-gen/src/merge/writer.rs:552
+    wire level5_valid_and_3;                 // rtl-gen/src/merge/writer.rs:552
+    wire level5_data_not_2;                  // rtl-gen/src/merge/writer.rs:553
+    wire level5_valid_and_4;                 // rtl-gen/src/merge/writer.rs:553
+    wire merge_clear_and_5;                  // rtl-gen/src/merge/writer.rs:556
+    wire level5_valid_and_5;                 // rtl-gen/src/merge/writer.rs:557
+    wire l5_end_seen_or;                     // rtl-gen/src/merge/writer.rs:558
+    wire l5_end_seen_next;                   // rtl-gen/src/merge/writer.rs:558
+    wire level5_data_not_3;                  // rtl-gen/src/merge/writer.rs:565
+    wire level5_valid_and_6;                 // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] level5_valid_mux_2;          // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l5_record_counts_add;        // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l5_record_counts_next;       // rtl-gen/src/merge/writer.rs:563
+    wire level5_valid_and_7;                 // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] level5_valid_mux_3;          // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l5_reused_counts_add;        // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l5_reused_counts_next;       // rtl-gen/src/merge/writer.rs:567
+    wire level5_data_not_4;                  // rtl-gen/src/merge/writer.rs:571
+    wire level5_valid_and_8;                 // rtl-gen/src/merge/writer.rs:571
+    wire l5_cap_err_or;                      // rtl-gen/src/merge/writer.rs:571
+    wire l5_cap_err_next;                    // rtl-gen/src/merge/writer.rs:571
+    wire level5_data_eq_3;                   // rtl-gen/src/merge/writer.rs:573
+    wire level5_valid_and_9;                 // rtl-gen/src/merge/writer.rs:573
+    wire level5_valid_and_10;                // rtl-gen/src/merge/writer.rs:574
+    wire l5_err_or;                          // rtl-gen/src/merge/writer.rs:574
+    wire l5_err_or_1;                        // rtl-gen/src/merge/writer.rs:574
+    wire l5_err_next;                        // rtl-gen/src/merge/writer.rs:574
+    reg l6_end_seen;                         // rtl-gen/src/merge/writer.rs:518
+    reg [10:0] l6_nodes;                     // rtl-gen/src/merge/writer.rs:519
+    reg [10:0] l6_records;                   // rtl-gen/src/merge/writer.rs:520
+    reg [34:0] l6_record_counts;             // rtl-gen/src/merge/writer.rs:521
+    reg [34:0] l6_reused_counts;             // rtl-gen/src/merge/writer.rs:522
+    reg l6_cap_err;                          // rtl-gen/src/merge/writer.rs:523
+    reg l6_err;                              // rtl-gen/src/merge/writer.rs:524
+    wire l6_end_seen_not;                    // rtl-gen/src/merge/writer.rs:525
+    wire in_fill_and_8;                      // rtl-gen/src/merge/writer.rs:525
+    wire level6_valid_and;                   // rtl-gen/src/merge/writer.rs:527
     wire level6_data_eq;                     // rtl-gen/src/merge/writer.rs:120
     wire level6_data_eq_1;                   // rtl-gen/src/merge/writer.rs:120
-    wire level6_data_not;                    // rtl-gen/src/merge/writer.rs:381
-    wire level6_valid_and_1;                 // rtl-gen/src/merge/writer.rs:381
-    wire level6_data_eq_2;                   // rtl-gen/src/merge/writer.rs:382
-    wire [125:0] level6_data_cat;            // rtl-gen/src/merge/writer.rs:383
-    wire [53:0] level6_data_cat_1;           // rtl-gen/src/merge/writer.rs:384
-    wire level6_valid_and_2;                 // rtl-gen/src/merge/writer.rs:387
-    wire [52:0] level6_data_cat_2;           // rtl-gen/src/merge/writer.rs:391
-    wire level6_data_not_1;                  // rtl-gen/src/merge/writer.rs:394
-    wire level6_valid_and_3;                 // rtl-gen/src/merge/writer.rs:394
-    wire level6_data_not_2;                  // rtl-gen/src/merge/writer.rs:395
-    wire level6_valid_and_4;                 // rtl-gen/src/merge/writer.rs:395
-    wire merge_clear_and_6;                  // rtl-gen/src/merge/writer.rs:398
-    wire level6_valid_and_5;                 // rtl-gen/src/merge/writer.rs:399
-    wire l6_end_seen_or;                     // rtl-gen/src/merge/writer.rs:400
-    wire l6_end_seen_next;                   // rtl-gen/src/merge/writer.rs:400
-    wire level6_data_not_3;                  // rtl-gen/src/merge/writer.rs:407
-    wire level6_valid_and_6;                 // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] level6_valid_mux_2;          // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l6_record_counts_add;        // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l6_record_counts_next;       // rtl-gen/src/merge/writer.rs:405
-    wire level6_valid_and_7;                 // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] level6_valid_mux_3;          // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l6_reused_counts_add;        // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l6_reused_counts_next;       // rtl-gen/src/merge/writer.rs:409
-    wire level6_data_not_4;                  // rtl-gen/src/merge/writer.rs:413
-    wire level6_valid_and_8;                 // rtl-gen/src/merge/writer.rs:413
-    wire l6_cap_err_or;                      // rtl-gen/src/merge/writer.rs:413
-    wire l6_cap_err_next;                    // rtl-gen/src/merge/writer.rs:413
-    wire level6_data_eq_3;                   // rtl-gen/src/merge/writer.rs:415
-    wire level6_valid_and_9;                 // rtl-gen/src/merge/writer.rs:415
-    wire level6_valid_and_10;                // rtl-gen/src/merge/writer.rs:416
-    wire l6_err_or;                          // rtl-gen/src/merge/writer.rs:416
-    wire l6_err_or_1;                        // rtl-gen/src/merge/writer.rs:416
-    wire l6_err_next;                        // rtl-gen/src/merge/writer.rs:416
-    reg l7_end_seen;                         // rtl-gen/src/merge/writer.rs:360
-    reg [10:0] l7_nodes;                     // rtl-gen/src/merge/writer.rs:361
-    reg [10:0] l7_records;                   // rtl-gen/src/merge/writer.rs:362
-    reg [34:0] l7_record_counts;             // rtl-gen/src/merge/writer.rs:363
-    reg [34:0] l7_reused_counts;             // rtl-gen/src/merge/writer.rs:364
-    reg l7_cap_err;                          // rtl-gen/src/merge/writer.rs:365
-    reg l7_err;                              // rtl-gen/src/merge/writer.rs:366
-    wire l7_end_seen_not;                    // rtl-gen/src/merge/writer.rs:367
-    wire in_fill_and_9;                      // rtl-gen/src/merge/writer.rs:367
-    wire level7_valid_and;                   // rtl-gen/src/merge/writer.rs:369
+    wire level6_data_not;                    // rtl-gen/src/merge/writer.rs:539
+    wire level6_valid_and_1;                 // rtl-gen/src/merge/writer.rs:539
+    wire level6_data_eq_2;                   // rtl-gen/src/merge/writer.rs:540
+    wire [125:0] level6_data_cat;            // rtl-gen/src/merge/writer.rs:541
+    wire [53:0] level6_data_cat_1;           // rtl-gen/src/merge/writer.rs:542
+    wire level6_valid_and_2;                 // rtl-gen/src/merge/writer.rs:545
+    wire [52:0] level6_data_cat_2;           // rtl-gen/src/merge/writer.rs:549
+    wire level6_data_not_1;                  // rtl-gen/src/merge/writer.rs:552
+    wire level6_valid_and_3;                 // rtl-gen/src/merge/writer.rs:552
+    wire level6_data_not_2;                  // rtl-gen/src/merge/writer.rs:553
+    wire level6_valid_and_4;                 // rtl-gen/src/merge/writer.rs:553
+    wire merge_clear_and_6;                  // rtl-gen/src/merge/writer.rs:556
+    wire level6_valid_and_5;                 // rtl-gen/src/merge/writer.rs:557
+    wire l6_end_seen_or;                     // rtl-gen/src/merge/writer.rs:558
+    wire l6_end_seen_next;                   // rtl-gen/src/merge/writer.rs:558
+    wire level6_data_not_3;                  // rtl-gen/src/merge/writer.rs:565
+    wire level6_valid_and_6;                 // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] level6_valid_mux_2;          // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l6_record_counts_add;        // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l6_record_counts_next;       // rtl-gen/src/merge/writer.rs:563
+    wire level6_valid_and_7;                 // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] level6_valid_mux_3;          // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l6_reused_counts_add;        // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l6_reused_counts_next;       // rtl-gen/src/merge/writer.rs:567
+    wire level6_data_not_4;                  // rtl-gen/src/merge/writer.rs:571
+    wire level6_valid_and_8;                 // rtl-gen/src/merge/writer.rs:571
+    wire l6_cap_err_or;                      // rtl-gen/src/merge/writer.rs:571
+    wire l6_cap_err_next;                    // rtl-gen/src/merge/writer.rs:571
+    wire level6_data_eq_3;                   // rtl-gen/src/merge/writer.rs:573
+    wire level6_valid_and_9;                 // rtl-gen/src/merge/writer.rs:573
+    wire level6_valid_and_10;                // rtl-gen/src/merge/writer.rs:574
+    wire l6_err_or;                          // rtl-gen/src/merge/writer.rs:574
+    wire l6_err_or_1;                        // rtl-gen/src/merge/writer.rs:574
+    wire l6_err_next;                        // rtl-gen/src/merge/writer.rs:574
+    reg l7_end_seen;                         // rtl-gen/src/merge/writer.rs:518
+    reg [10:0] l7_nodes;                     // rtl-gen/src/merge/writer.rs:519
+    reg [10:0] l7_records;                   // rtl-gen/src/merge/writer.rs:520
+    reg [34:0] l7_record_counts;             // rtl-gen/src/merge/writer.rs:521
+    reg [34:0] l7_reused_counts;             // rtl-gen/src/merge/writer.rs:522
+    reg l7_cap_err;                          // rtl-gen/src/merge/writer.rs:523
+    reg l7_err;                              // rtl-gen/src/merge/writer.rs:524
+    wire l7_end_seen_not;                    // rtl-gen/src/merge/writer.rs:525
+    wire in_fill_and_9;                      // rtl-gen/src/merge/writer.rs:525
+    wire level7_valid_and;                   // rtl-gen/src/merge/writer.rs:527
     wire level7_data_eq;                     // rtl-gen/src/merge/writer.rs:120
     wire level7_data_eq_1;                   // rtl-gen/src/merge/writer.rs:120
-    wire level7_data_not;                    // rtl-gen/src/merge/writer.rs:381
-    wire level7_valid_and_1;                 // rtl-gen/src/merge/writer.rs:381
-    wire level7_data_eq_2;                   // rtl-gen/src/merge/writer.rs:382
-    wire [125:0] level7_data_cat;            // rtl-gen/src/merge/writer.rs:383
-    wire [53:0] level7_data_cat_1;           // rtl-gen/src/merge/writer.rs:384
-    wire level7_valid_and_2;                 // rtl-gen/src/merge/writer.rs:387
-    wire [52:0] level7_data_cat_2;           // rtl-gen/src/merge/writer.rs:391
-    wire level7_data_not_1;                  // rtl-gen/src/merge/writer.rs:394
-    wire level7_valid_and_3;                 // rtl-gen/src/merge/writer.rs:394
-    wire level7_data_not_2;                  // rtl-gen/src/merge/writer.rs:395
-    wire level7_valid_and_4;                 // rtl-gen/src/merge/writer.rs:395
-    wire merge_clear_and_7;                  // rtl-gen/src/merge/writer.rs:398
-    wire level7_valid_and_5;                 // rtl-gen/src/merge/writer.rs:399
-    wire l7_end_seen_or;                     // rtl-gen/src/merge/writer.rs:400
-    wire l7_end_seen_next;                   // rtl-gen/src/merge/writer.rs:400
-    wire level7_data_not_3;                  // rtl-gen/src/merge/writer.rs:407
-    wire level7_valid_and_6;                 // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] level7_valid_mux_2;          // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l7_record_counts_add;        // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l7_record_counts_next;       // rtl-gen/src/merge/writer.rs:405
-    wire level7_valid_and_7;                 // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] level7_valid_mux_3;          // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l7_reused_counts_add;        // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l7_reused_counts_next;       // rtl-gen/src/merge/writer.rs:409
-    wire level7_data_not_4;                  // rtl-gen/src/merge/writer.rs:413
-    wire level7_valid_and_8;                 // rtl-gen/src/merge/writer.rs:413
-    wire l7_cap_err_or;                      // rtl-gen/src/merge/writer.rs:413
-    wire l7_cap_err_next;                    // rtl-gen/src/merge/writer.rs:413
-    wire level7_data_eq_3;                   // rtl-gen/src/merge/writer.rs:415
-    wire level7_valid_and_9;                 // rtl-gen/src/merge/writer.rs:415
-    wire level7_valid_and_10;                // rtl-gen/src/merge/writer.rs:416
-    wire l7_err_or;                          // rtl-gen/src/merge/writer.rs:416
-    wire l7_err_or_1;                        // rtl-gen/src/merge/writer.rs:416
-    wire l7_err_next;                        // rtl-gen/src/merge/writer.rs:416
-    reg l8_end_seen;                         // rtl-gen/src/merge/writer.rs:360
-    reg [10:0] l8_nodes;                     // rtl-gen/src/merge/writer.rs:361
-    reg [10:0] l8_records;                   // rtl-gen/src/merge/writer.rs:362
-    reg [34:0] l8_record_counts;             // rtl-gen/src/merge/writer.rs:363
-    reg [34:0] l8_reused_counts;             // rtl-gen/src/merge/writer.rs:364
-    reg l8_cap_err;                          // rtl-gen/src/merge/writer.rs:365
-    reg l8_err;                              // rtl-gen/src/merge/writer.rs:366
-    wire l8_end_seen_not;                    // rtl-gen/src/merge/writer.rs:367
-    wire in_fill_and_10;                     // rtl-gen/src/merge/writer.rs:367
-    wire level8_valid_and;                   // rtl-gen/src/merge/writer.rs:369
+    wire level7_data_not;                    // rtl-gen/src/merge/writer.rs:539
+    wire level7_valid_and_1;                 // rtl-gen/src/merge/writer.rs:539
+    wire level7_data_eq_2;                   // rtl-gen/src/merge/writer.rs:540
+    wire [125:0] level7_data_cat;            // rtl-gen/src/merge/writer.rs:541
+    wire [53:0] level7_data_cat_1;           // rtl-gen/src/merge/writer.rs:542
+    wire level7_valid_and_2;                 // rtl-gen/src/merge/writer.rs:545
+    wire [52:0] level7_data_cat_2;           // rtl-gen/src/merge/writer.rs:549
+    wire level7_data_not_1;                  // rtl-gen/src/merge/writer.rs:552
+    wire level7_valid_and_3;                 // rtl-gen/src/merge/writer.rs:552
+    wire level7_data_not_2;                  // rtl-gen/src/merge/writer.rs:553
+    wire level7_valid_and_4;                 // rtl-gen/src/merge/writer.rs:553
+    wire merge_clear_and_7;                  // rtl-gen/src/merge/writer.rs:556
+    wire level7_valid_and_5;                 // rtl-gen/src/merge/writer.rs:557
+    wire l7_end_seen_or;                     // rtl-gen/src/merge/writer.rs:558
+    wire l7_end_seen_next;                   // rtl-gen/src/merge/writer.rs:558
+    wire level7_data_not_3;                  // rtl-gen/src/merge/writer.rs:565
+    wire level7_valid_and_6;                 // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] level7_valid_mux_2;          // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l7_record_counts_add;        // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l7_record_counts_next;       // rtl-gen/src/merge/writer.rs:563
+    wire level7_valid_and_7;                 // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] level7_valid_mux_3;          // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l7_reused_counts_add;        // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l7_reused_counts_next;       // rtl-gen/src/merge/writer.rs:567
+    wire level7_data_not_4;                  // rtl-gen/src/merge/writer.rs:571
+    wire level7_valid_and_8;                 // rtl-gen/src/merge/writer.rs:571
+    wire l7_cap_err_or;                      // rtl-gen/src/merge/writer.rs:571
+    wire l7_cap_err_next;                    // rtl-gen/src/merge/writer.rs:571
+    wire level7_data_eq_3;                   // rtl-gen/src/merge/writer.rs:573
+    wire level7_valid_and_9;                 // rtl-gen/src/merge/writer.rs:573
+    wire level7_valid_and_10;                // rtl-gen/src/merge/writer.rs:574
+    wire l7_err_or;                          // rtl-gen/src/merge/writer.rs:574
+    wire l7_err_or_1;                        // rtl-gen/src/merge/writer.rs:574
+    wire l7_err_next;                        // rtl-gen/src/merge/writer.rs:574
+    reg l8_end_seen;                         // rtl-gen/src/merge/writer.rs:518
+    reg [10:0] l8_nodes;                     // rtl-gen/src/merge/writer.rs:519
+    reg [10:0] l8_records;                   // rtl-gen/src/merge/writer.rs:520
+    reg [34:0] l8_record_counts;             // rtl-gen/src/merge/writer.rs:521
+    reg [34:0] l8_reused_counts;             // rtl-gen/src/merge/writer.rs:522
+    reg l8_cap_err;                          // rtl-gen/src/merge/writer.rs:523
+    reg l8_err;                              // rtl-gen/src/merge/writer.rs:524
+    wire l8_end_seen_not;                    // rtl-gen/src/merge/writer.rs:525
+    wire in_fill_and_10;                     // rtl-gen/src/merge/writer.rs:525
+    wire level8_valid_and;                   // rtl-gen/src/merge/writer.rs:527
     wire level8_data_eq;                     // rtl-gen/src/merge/writer.rs:120
     wire level8_data_eq_1;                   // rtl-gen/src/merge/writer.rs:120
-    wire level8_data_not;                    // rtl-gen/src/merge/writer.rs:381
-    wire level8_valid_and_1;                 // rtl-gen/src/merge/writer.rs:381
-    wire level8_data_eq_2;                   // rtl-gen/src/merge/writer.rs:382
-    wire [125:0] level8_data_cat;            // rtl-gen/src/merge/writer.rs:383
-    wire [53:0] level8_data_cat_1;           // rtl-gen/src/merge/writer.rs:384
-    wire level8_valid_and_2;                 // rtl-gen/src/merge/writer.rs:387
-    wire [52:0] level8_data_cat_2;           // rtl-gen/src/merge/writer.rs:391
-    wire level8_data_not_1;                  // rtl-gen/src/merge/writer.rs:394
-    wire level8_valid_and_3;                 // rtl-gen/src/merge/writer.rs:394
-    wire level8_data_not_2;                  // rtl-gen/src/merge/writer.rs:395
-    wire level8_valid_and_4;                 // rtl-gen/src/merge/writer.rs:395
-    wire merge_clear_and_8;                  // rtl-gen/src/merge/writer.rs:398
-    wire level8_valid_and_5;                 // rtl-gen/src/merge/writer.rs:399
-    wire l8_end_seen_or;                     // rtl-gen/src/merge/writer.rs:400
-    wire l8_end_seen_next;                   // rtl-gen/src/merge/writer.rs:400
-    wire level8_data_not_3;                  // rtl-gen/src/merge/writer.rs:407
-    wire level8_valid_and_6;                 // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] level8_valid_mux_2;          // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l8_record_counts_add;        // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l8_record_counts_next;       // rtl-gen/src/merge/writer.rs:405
-    wire level8_valid_and_7;                 // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] level8_valid_mux_3;          // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l8_reused_counts_add;        // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l8_reused_counts_next;       // rtl-gen/src/merge/writer.rs:409
-    wire level8_data_not_4;                  // rtl-gen/src/merge/writer.rs:413
-    wire level8_valid_and_8;                 // rtl-gen/src/merge/writer.rs:413
-    wire l8_cap_err_or;                      // rtl-gen/src/merge/writer.rs:413
-    wire l8_cap_err_next;                    // rtl-gen/src/merge/writer.rs:413
-    wire level8_data_eq_3;                   // rtl-gen/src/merge/writer.rs:415
-    wire level8_valid_and_9;                 // rtl-gen/src/merge/writer.rs:415
-    wire level8_valid_and_10;                // rtl-gen/src/merge/writer.rs:416
-    wire l8_err_or;                          // rtl-gen/src/merge/writer.rs:416
-    wire l8_err_or_1;                        // rtl-gen/src/merge/writer.rs:416
-    wire l8_err_next;                        // rtl-gen/src/merge/writer.rs:416
-    reg l9_end_seen;                         // rtl-gen/src/merge/writer.rs:360
-    reg [10:0] l9_nodes;                     // rtl-gen/src/merge/writer.rs:361
-    reg [10:0] l9_records;                   // rtl-gen/src/merge/writer.rs:362
-    reg [34:0] l9_record_counts;             // rtl-gen/src/merge/writer.rs:363
-    reg [34:0] l9_reused_counts;             // rtl-gen/src/merge/writer.rs:364
-    reg l9_cap_err;                          // rtl-gen/src/merge/writer.rs:365
-    reg l9_err;                              // rtl-gen/src/merge/writer.rs:366
-    wire l9_end_seen_not;                    // rtl-gen/src/merge/writer.rs:367
-    wire in_fill_and_11;                     // rtl-gen/src/merge/writer.rs:367
-    wire level9_valid_and;                   // rtl-gen/src/merge/writer.rs:369
+    wire level8_data_not;                    // rtl-gen/src/merge/writer.rs:539
+    wire level8_valid_and_1;                 // rtl-gen/src/merge/writer.rs:539
+    wire level8_data_eq_2;                   // rtl-gen/src/merge/writer.rs:540
+    wire [125:0] level8_data_cat;            // rtl-gen/src/merge/writer.rs:541
+    wire [53:0] level8_data_cat_1;           // rtl-gen/src/merge/writer.rs:542
+    wire level8_valid_and_2;                 // rtl-gen/src/merge/writer.rs:545
+    wire [52:0] level8_data_cat_2;           // rtl-gen/src/merge/writer.rs:549
+    wire level8_data_not_1;                  // rtl-gen/src/merge/writer.rs:552
+    wire level8_valid_and_3;                 // rtl-gen/src/merge/writer.rs:552
+    wire level8_data_not_2;                  // rtl-gen/src/merge/writer.rs:553
+    wire level8_valid_and_4;                 // rtl-gen/src/merge/writer.rs:553
+    wire merge_clear_and_8;                  // rtl-gen/src/merge/writer.rs:556
+    wire level8_valid_and_5;                 // rtl-gen/src/merge/writer.rs:557
+    wire l8_end_seen_or;                     // rtl-gen/src/merge/writer.rs:558
+    wire l8_end_seen_next;                   // rtl-gen/src/merge/writer.rs:558
+    wire level8_data_not_3;                  // rtl-gen/src/merge/writer.rs:565
+    wire level8_valid_and_6;                 // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] level8_valid_mux_2;          // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l8_record_counts_add;        // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l8_record_counts_next;       // rtl-gen/src/merge/writer.rs:563
+    wire level8_valid_and_7;                 // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] level8_valid_mux_3;          // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l8_reused_counts_add;        // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l8_reused_counts_next;       // rtl-gen/src/merge/writer.rs:567
+    wire level8_data_not_4;                  // rtl-gen/src/merge/writer.rs:571
+    wire level8_valid_and_8;                 // rtl-gen/src/merge/writer.rs:571
+    wire l8_cap_err_or;                      // rtl-gen/src/merge/writer.rs:571
+    wire l8_cap_err_next;                    // rtl-gen/src/merge/writer.rs:571
+    wire level8_data_eq_3;                   // rtl-gen/src/merge/writer.rs:573
+    wire level8_valid_and_9;                 // rtl-gen/src/merge/writer.rs:573
+    wire level8_valid_and_10;                // rtl-gen/src/merge/writer.rs:574
+    wire l8_err_or;                          // rtl-gen/src/merge/writer.rs:574
+    wire l8_err_or_1;                        // rtl-gen/src/merge/writer.rs:574
+    wire l8_err_next;                        // rtl-gen/src/merge/writer.rs:574
+    reg l9_end_seen;                         // rtl-gen/src/merge/writer.rs:518
+    reg [10:0] l9_nodes;                     // rtl-gen/src/merge/writer.rs:519
+    reg [10:0] l9_records;                   // rtl-gen/src/merge/writer.rs:520
+    reg [34:0] l9_record_counts;             // rtl-gen/src/merge/writer.rs:521
+    reg [34:0] l9_reused_counts;             // rtl-gen/src/merge/writer.rs:522
+    reg l9_cap_err;                          // rtl-gen/src/merge/writer.rs:523
+    reg l9_err;                              // rtl-gen/src/merge/writer.rs:524
+    wire l9_end_seen_not;                    // rtl-gen/src/merge/writer.rs:525
+    wire in_fill_and_11;                     // rtl-gen/src/merge/writer.rs:525
+    wire level9_valid_and;                   // rtl-gen/src/merge/writer.rs:527
     wire level9_data_eq;                     // rtl-gen/src/merge/writer.rs:120
     wire level9_data_eq_1;                   // rtl-gen/src/merge/writer.rs:120
-    wire level9_data_not;                    // rtl-gen/src/merge/writer.rs:381
-    wire level9_valid_and_1;                 // rtl-gen/src/merge/writer.rs:381
-    wire level9_data_eq_2;                   // rtl-gen/src/merge/writer.rs:382
-    wire [125:0] level9_data_cat;            // rtl-gen/src/merge/writer.rs:383
-    wire [53:0] level9_data_cat_1;           // rtl-gen/src/merge/writer.rs:384
-    wire level9_valid_and_2;                 // rtl-gen/src/merge/writer.rs:387
-    wire [52:0] level9_data_cat_2;           // rtl-gen/src/merge/writer.rs:391
-    wire level9_data_not_1;                  // rtl-gen/src/merge/writer.rs:394
-    wire level9_valid_and_3;                 // rtl-gen/src/merge/writer.rs:394
-    wire level9_data_not_2;                  // rtl-gen/src/merge/writer.rs:395
-    wire level9_valid_and_4;                 // rtl-gen/src/merge/writer.rs:395
-    wire merge_clear_and_9;                  // rtl-gen/src/merge/writer.rs:398
-    wire level9_valid_and_5;                 // rtl-gen/src/merge/writer.rs:399
-    wire l9_end_seen_or;                     // rtl-gen/src/merge/writer.rs:400
-    wire l9_end_seen_next;                   // rtl-gen/src/merge/writer.rs:400
-    wire level9_data_not_3;                  // rtl-gen/src/merge/writer.rs:407
-    wire level9_valid_and_6;                 // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] level9_valid_mux_2;          // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l9_record_counts_add;        // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l9_record_counts_next;       // rtl-gen/src/merge/writer.rs:405
-    wire level9_valid_and_7;                 // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] level9_valid_mux_3;          // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l9_reused_counts_add;        // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l9_reused_counts_next;       // rtl-gen/src/merge/writer.rs:409
-    wire level9_data_not_4;                  // rtl-gen/src/merge/writer.rs:413
-    wire level9_valid_and_8;                 // rtl-gen/src/merge/writer.rs:413
-    wire l9_cap_err_or;                      // rtl-gen/src/merge/writer.rs:413
-    wire l9_cap_err_next;                    // rtl-gen/src/merge/writer.rs:413
-    wire level9_data_eq_3;                   // rtl-gen/src/merge/writer.rs:415
-    wire level9_valid_and_9;                 // rtl-gen/src/merge/writer.rs:415
-    wire level9_valid_and_10;                // rtl-gen/src/merge/writer.rs:416
-    wire l9_err_or;                          // rtl-gen/src/merge/writer.rs:416
-    wire l9_err_or_1;                        // rtl-gen/src/merge/writer.rs:416
-    wire l9_err_next;                        // rtl-gen/src/merge/writer.rs:416
-    reg l10_end_seen;                        // rtl-gen/src/merge/writer.rs:360
-    reg [10:0] l10_nodes;                    // rtl-gen/src/merge/writer.rs:361
-    reg [10:0] l10_records;                  // rtl-gen/src/merge/writer.rs:362
-    reg [34:0] l10_record_counts;            // rtl-gen/src/merge/writer.rs:363
-    reg [34:0] l10_reused_counts;            // rtl-gen/src/merge/writer.rs:364
-    reg l10_cap_err;                         // rtl-gen/src/merge/writer.rs:365
-    reg l10_err;                             // rtl-gen/src/merge/writer.rs:366
-    wire l10_end_seen_not;                   // rtl-gen/src/merge/writer.rs:367
-    wire in_fill_and_12;                     // rtl-gen/src/merge/writer.rs:367
-    wire level10_valid_and;                  // rtl-gen/src/merge/writer.rs:369
+    wire level9_data_not;                    // rtl-gen/src/merge/writer.rs:539
+    wire level9_valid_and_1;                 // rtl-gen/src/merge/writer.rs:539
+    wire level9_data_eq_2;                   // rtl-gen/src/merge/writer.rs:540
+    wire [125:0] level9_data_cat;            // rtl-gen/src/merge/writer.rs:541
+    wire [53:0] level9_data_cat_1;           // rtl-gen/src/merge/writer.rs:542
+    wire level9_valid_and_2;                 // rtl-gen/src/merge/writer.rs:545
+    wire [52:0] level9_data_cat_2;           // rtl-gen/src/merge/writer.rs:549
+    wire level9_data_not_1;                  // rtl-gen/src/merge/writer.rs:552
+    wire level9_valid_and_3;                 // rtl-gen/src/merge/writer.rs:552
+    wire level9_data_not_2;                  // rtl-gen/src/merge/writer.rs:553
+    wire level9_valid_and_4;                 // rtl-gen/src/merge/writer.rs:553
+    wire merge_clear_and_9;                  // rtl-gen/src/merge/writer.rs:556
+    wire level9_valid_and_5;                 // rtl-gen/src/merge/writer.rs:557
+    wire l9_end_seen_or;                     // rtl-gen/src/merge/writer.rs:558
+    wire l9_end_seen_next;                   // rtl-gen/src/merge/writer.rs:558
+    wire level9_data_not_3;                  // rtl-gen/src/merge/writer.rs:565
+    wire level9_valid_and_6;                 // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] level9_valid_mux_2;          // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l9_record_counts_add;        // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l9_record_counts_next;       // rtl-gen/src/merge/writer.rs:563
+    wire level9_valid_and_7;                 // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] level9_valid_mux_3;          // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l9_reused_counts_add;        // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l9_reused_counts_next;       // rtl-gen/src/merge/writer.rs:567
+    wire level9_data_not_4;                  // rtl-gen/src/merge/writer.rs:571
+    wire level9_valid_and_8;                 // rtl-gen/src/merge/writer.rs:571
+    wire l9_cap_err_or;                      // rtl-gen/src/merge/writer.rs:571
+    wire l9_cap_err_next;                    // rtl-gen/src/merge/writer.rs:571
+    wire level9_data_eq_3;                   // rtl-gen/src/merge/writer.rs:573
+    wire level9_valid_and_9;                 // rtl-gen/src/merge/writer.rs:573
+    wire level9_valid_and_10;                // rtl-gen/src/merge/writer.rs:574
+    wire l9_err_or;                          // rtl-gen/src/merge/writer.rs:574
+    wire l9_err_or_1;                        // rtl-gen/src/merge/writer.rs:574
+    wire l9_err_next;                        // rtl-gen/src/merge/writer.rs:574
+    reg l10_end_seen;                        // rtl-gen/src/merge/writer.rs:518
+    reg [10:0] l10_nodes;                    // rtl-gen/src/merge/writer.rs:519
+    reg [10:0] l10_records;                  // rtl-gen/src/merge/writer.rs:520
+    reg [34:0] l10_record_counts;            // rtl-gen/src/merge/writer.rs:521
+    reg [34:0] l10_reused_counts;            // rtl-gen/src/merge/writer.rs:522
+    reg l10_cap_err;                         // rtl-gen/src/merge/writer.rs:523
+    reg l10_err;                             // rtl-gen/src/merge/writer.rs:524
+    wire l10_end_seen_not;                   // rtl-gen/src/merge/writer.rs:525
+    wire in_fill_and_12;                     // rtl-gen/src/merge/writer.rs:525
+    wire level10_valid_and;                  // rtl-gen/src/merge/writer.rs:527
     wire level10_data_eq;                    // rtl-gen/src/merge/writer.rs:120
     wire level10_data_eq_1;                  // rtl-gen/src/merge/writer.rs:120
-    wire level10_data_not;                   // rtl-gen/src/merge/writer.rs:381
-    wire level10_valid_and_1;                // rtl-gen/src/merge/writer.rs:381
-    wire level10_data_eq_2;                  // rtl-gen/src/merge/writer.rs:382
-    wire [125:0] level10_data_cat;           // rtl-gen/src/merge/writer.rs:383
-    wire [53:0] level10_data_cat_1;          // rtl-gen/src/merge/writer.rs:384
-    wire level10_valid_and_2;                // rtl-gen/src/merge/writer.rs:387
-    wire [52:0] level10_data_cat_2;          // rtl-gen/src/merge/writer.rs:391
-    wire level10_data_not_1;                 // rtl-gen/src/merge/writer.rs:394
-    wire level10_valid_and_3;                // rtl-gen/src/merge/writer.rs:394
-    wire level10_data_not_2;                 // rtl-gen/src/merge/writer.rs:395
-    wire level10_valid_and_4;                // rtl-gen/src/merge/writer.rs:395
-    wire merge_clear_and_10;                 // rtl-gen/src/merge/writer.rs:398
-    wire level10_valid_and_5;                // rtl-gen/src/merge/writer.rs:399
-    wire l10_end_seen_or;                    // rtl-gen/src/merge/writer.rs:400
-    wire l10_end_seen_next;                  // rtl-gen/src/merge/writer.rs:400
-    wire level10_data_not_3;                 // rtl-gen/src/merge/writer.rs:407
-    wire level10_valid_and_6;                // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] level10_valid_mux_2;         // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l10_record_counts_add;       // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l10_record_counts_next;      // rtl-gen/src/merge/writer.rs:405
-    wire level10_valid_and_7;                // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] level10_valid_mux_3;         // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l10_reused_counts_add;       // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l10_reused_counts_next;      // rtl-gen/src/merge/writer.rs:409
-    wire level10_data_not_4;                 // rtl-gen/src/merge/writer.rs:413
-    wire level10_valid_and_8;                // rtl-gen/src/merge/writer.rs:413
-    wire l10_cap_err_or;                     // rtl-gen/src/merge/writer.rs:413
-    wire l10_cap_err_next;                   // rtl-gen/src/merge/writer.rs:413
-    wire level10_data_eq_3;                  // rtl-gen/src/merge/writer.rs:415
-    wire level10_valid_and_9;                // rtl-gen/src/merge/writer.rs:415
-    wire level10_valid_and_10;               // rtl-gen/src/merge/writer.rs:416
-    wire l10_err_or;                         // rtl-gen/src/merge/writer.rs:416
-    wire l10_err_or_1;                       // rtl-gen/src/merge/writer.rs:416
-    wire l10_err_next;                       // rtl-gen/src/merge/writer.rs:416
-    reg l11_end_seen;                        // rtl-gen/src/merge/writer.rs:360
-    reg [10:0] l11_nodes;                    // rtl-gen/src/merge/writer.rs:361
-    reg [10:0] l11_records;                  // rtl-gen/src/merge/writer.rs:362
-    reg [34:0] l11_record_counts;            // rtl-gen/src/merge/writer.rs:363
-    reg [34:0] l11_reused_counts;            // rtl-gen/src/merge/writer.rs:364
-    reg l11_cap_err;                         // rtl-gen/src/merge/writer.rs:365
-    reg l11_err;                             // rtl-gen/src/merge/writer.rs:366
-    wire l11_end_seen_not;                   // rtl-gen/src/merge/writer.rs:367
-    wire in_fill_and_13;                     // rtl-gen/src/merge/writer.rs:367
-    wire level11_valid_and;                  // rtl-gen/src/merge/writer.rs:369
+    wire level10_data_not;                   // rtl-gen/src/merge/writer.rs:539
+    wire level10_valid_and_1;                // rtl-gen/src/merge/writer.rs:539
+    wire level10_data_eq_2;                  // rtl-gen/src/merge/writer.rs:540
+    wire [125:0] level10_data_cat;           // rtl-gen/src/merge/writer.rs:541
+    wire [53:0] level10_data_cat_1;          // rtl-gen/src/merge/writer.rs:542
+    wire level10_valid_and_2;                // rtl-gen/src/merge/writer.rs:545
+    wire [52:0] level10_data_cat_2;          // rtl-gen/src/merge/writer.rs:549
+    wire level10_data_not_1;                 // rtl-gen/src/merge/writer.rs:552
+    wire level10_valid_and_3;                // rtl-gen/src/merge/writer.rs:552
+    wire level10_data_not_2;                 // rtl-gen/src/merge/writer.rs:553
+    wire level10_valid_and_4;                // rtl-gen/src/merge/writer.rs:553
+    wire merge_clear_and_10;                 // rtl-gen/src/merge/writer.rs:556
+    wire level10_valid_and_5;                // rtl-gen/src/merge/writer.rs:557
+    wire l10_end_seen_or;                    // rtl-gen/src/merge/writer.rs:558
+    wire l10_end_seen_next;                  // rtl-gen/src/merge/writer.rs:558
+    wire level10_data_not_3;                 // rtl-gen/src/merge/writer.rs:565
+    wire level10_valid_and_6;                // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] level10_valid_mux_2;         // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l10_record_counts_add;       // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l10_record_counts_next;      // rtl-gen/src/merge/writer.rs:563
+    wire level10_valid_and_7;                // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] level10_valid_mux_3;         // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l10_reused_counts_add;       // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l10_reused_counts_next;      // rtl-gen/src/merge/writer.rs:567
+    wire level10_data_not_4;                 // rtl-gen/src/merge/writer.rs:571
+    wire level10_valid_and_8;                // rtl-gen/src/merge/writer.rs:571
+    wire l10_cap_err_or;                     // rtl-gen/src/merge/writer.rs:571
+    wire l10_cap_err_next;                   // rtl-gen/src/merge/writer.rs:571
+    wire level10_data_eq_3;                  // rtl-gen/src/merge/writer.rs:573
+    wire level10_valid_and_9;                // rtl-gen/src/merge/writer.rs:573
+    wire level10_valid_and_10;               // rtl-gen/src/merge/writer.rs:574
+    wire l10_err_or;                         // rtl-gen/src/merge/writer.rs:574
+    wire l10_err_or_1;                       // rtl-gen/src/merge/writer.rs:574
+    wire l10_err_next;                       // rtl-gen/src/merge/writer.rs:574
+    reg l11_end_seen;                        // rtl-gen/src/merge/writer.rs:518
+    reg [10:0] l11_nodes;                    // rtl-gen/src/merge/writer.rs:519
+    reg [10:0] l11_records;                  // rtl-gen/src/merge/writer.rs:520
+    reg [34:0] l11_record_counts;            // rtl-gen/src/merge/writer.rs:521
+    reg [34:0] l11_reused_counts;            // rtl-gen/src/merge/writer.rs:522
+    reg l11_cap_err;                         // rtl-gen/src/merge/writer.rs:523
+    reg l11_err;                             // rtl-gen/src/merge/writer.rs:524
+    wire l11_end_seen_not;                   // rtl-gen/src/merge/writer.rs:525
+    wire in_fill_and_13;                     // rtl-gen/src/merge/writer.rs:525
+    wire level11_valid_and;                  // rtl-gen/src/merge/writer.rs:527
     wire level11_data_eq;                    // rtl-gen/src/merge/writer.rs:120
     wire level11_data_eq_1;                  // rtl-gen/src/merge/writer.rs:120
-    wire level11_data_not;                   // rtl-gen/src/merge/writer.rs:381
-    wire level11_valid_and_1;                // rtl-gen/src/merge/writer.rs:381
-    wire level11_data_eq_2;                  // rtl-gen/src/merge/writer.rs:382
-    wire [125:0] level11_data_cat;           // rtl-gen/src/merge/writer.rs:383
-    wire [53:0] level11_data_cat_1;          // rtl-gen/src/merge/writer.rs:384
-    wire level11_valid_and_2;                // rtl-gen/src/merge/writer.rs:387
-    wire [52:0] level11_data_cat_2;          // rtl-gen/src/merge/writer.rs:391
-    wire level11_data_not_1;                 // rtl-gen/src/merge/writer.rs:394
-    wire level11_valid_and_3;                // rtl-gen/src/merge/writer.rs:394
-    wire level11_data_not_2;                 // rtl-gen/src/merge/writer.rs:395
-    wire level11_valid_and_4;                // rtl-gen/src/merge/writer.rs:395
-    wire merge_clear_and_11;                 // rtl-gen/src/merge/writer.rs:398
-    wire level11_valid_and_5;                // rtl-gen/src/merge/writer.rs:399
-    wire l11_end_seen_or;                    // rtl-gen/src/merge/writer.rs:400
-    wire l11_end_seen_next;                  // rtl-gen/src/merge/writer.rs:400
-    wire level11_data_not_3;                 // rtl-gen/src/merge/writer.rs:407
-    wire level11_valid_and_6;                // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] level11_valid_mux_2;         // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l11_record_counts_add;       // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l11_record_counts_next;      // rtl-gen/src/merge/writer.rs:405
-    wire level11_valid_and_7;                // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] level11_valid_mux_3;         // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l11_reused_counts_add;       // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l11_reused_counts_next;      // rtl-gen/src/merge/writer.rs:409
-    wire level11_data_not_4;                 // rtl-gen/src/merge/writer.rs:413
-    wire level11_valid_and_8;                // rtl-gen/src/merge/writer.rs:413
-    wire l11_cap_err_or;                     // rtl-gen/src/merge/writer.rs:413
-    wire l11_cap_err_next;                   // rtl-gen/src/merge/writer.rs:413
-    wire level11_data_eq_3;                  // rtl-gen/src/merge/writer.rs:415
-    wire level11_valid_and_9;                // rtl-gen/src/merge/writer.rs:415
-    wire level11_valid_and_10;               // rtl-gen/src/merge/writer.rs:416
-    wire l11_err_or;                         // rtl-gen/src/merge/writer.rs:416
-    wire l11_err_or_1;                       // rtl-gen/src/merge/writer.rs:416
-    wire l11_err_next;                       // rtl-gen/src/merge/writer.rs:416
-    reg l12_end_seen;                        // rtl-gen/src/merge/writer.rs:360
-    reg [10:0] l12_nodes;                    // rtl-gen/src/merge/writer.rs:361
-    reg [10:0] l12_records;                  // rtl-gen/src/merge/writer.rs:362
-    reg [34:0] l12_record_counts;            // rtl-gen/src/merge/writer.rs:363
-    reg [34:0] l12_reused_counts;            // rtl-gen/src/merge/writer.rs:364
-    reg l12_cap_err;                         // rtl-gen/src/merge/writer.rs:365
-    reg l12_err;                             // rtl-gen/src/merge/writer.rs:366
-    wire l12_end_seen_not;                   // rtl-gen/src/merge/writer.rs:367
-    wire in_fill_and_14;                     // rtl-gen/src/merge/writer.rs:367
-    wire level12_valid_and;                  // rtl-gen/src/merge/writer.rs:369
+    wire level11_data_not;                   // rtl-gen/src/merge/writer.rs:539
+    wire level11_valid_and_1;                // rtl-gen/src/merge/writer.rs:539
+    wire level11_data_eq_2;                  // rtl-gen/src/merge/writer.rs:540
+    wire [125:0] level11_data_cat;           // rtl-gen/src/merge/writer.rs:541
+    wire [53:0] level11_data_cat_1;          // rtl-gen/src/merge/writer.rs:542
+    wire level11_valid_and_2;                // rtl-gen/src/merge/writer.rs:545
+    wire [52:0] level11_data_cat_2;          // rtl-gen/src/merge/writer.rs:549
+    wire level11_data_not_1;                 // rtl-gen/src/merge/writer.rs:552
+    wire level11_valid_and_3;                // rtl-gen/src/merge/writer.rs:552
+    wire level11_data_not_2;                 // rtl-gen/src/merge/writer.rs:553
+    wire level11_valid_and_4;                // rtl-gen/src/merge/writer.rs:553
+    wire merge_clear_and_11;                 // rtl-gen/src/merge/writer.rs:556
+    wire level11_valid_and_5;                // rtl-gen/src/merge/writer.rs:557
+    wire l11_end_seen_or;                    // rtl-gen/src/merge/writer.rs:558
+    wire l11_end_seen_next;                  // rtl-gen/src/merge/writer.rs:558
+    wire level11_data_not_3;                 // rtl-gen/src/merge/writer.rs:565
+    wire level11_valid_and_6;                // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] level11_valid_mux_2;         // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l11_record_counts_add;       // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l11_record_counts_next;      // rtl-gen/src/merge/writer.rs:563
+    wire level11_valid_and_7;                // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] level11_valid_mux_3;         // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l11_reused_counts_add;       // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l11_reused_counts_next;      // rtl-gen/src/merge/writer.rs:567
+    wire level11_data_not_4;                 // rtl-gen/src/merge/writer.rs:571
+    wire level11_valid_and_8;                // rtl-gen/src/merge/writer.rs:571
+    wire l11_cap_err_or;                     // rtl-gen/src/merge/writer.rs:571
+    wire l11_cap_err_next;                   // rtl-gen/src/merge/writer.rs:571
+    wire level11_data_eq_3;                  // rtl-gen/src/merge/writer.rs:573
+    wire level11_valid_and_9;                // rtl-gen/src/merge/writer.rs:573
+    wire level11_valid_and_10;               // rtl-gen/src/merge/writer.rs:574
+    wire l11_err_or;                         // rtl-gen/src/merge/writer.rs:574
+    wire l11_err_or_1;                       // rtl-gen/src/merge/writer.rs:574
+    wire l11_err_next;                       // rtl-gen/src/merge/writer.rs:574
+    reg l12_end_seen;                        // rtl-gen/src/merge/writer.rs:518
+    reg [10:0] l12_nodes;                    // rtl-gen/src/merge/writer.rs:519
+    reg [10:0] l12_records;                  // rtl-gen/src/merge/writer.rs:520
+    reg [34:0] l12_record_counts;            // rtl-gen/src/merge/writer.rs:521
+    reg [34:0] l12_reused_counts;            // rtl-gen/src/merge/writer.rs:522
+    reg l12_cap_err;                         // rtl-gen/src/merge/writer.rs:523
+    reg l12_err;                             // rtl-gen/src/merge/writer.rs:524
+    wire l12_end_seen_not;                   // rtl-gen/src/merge/writer.rs:525
+    wire in_fill_and_14;                     // rtl-gen/src/merge/writer.rs:525
+    wire level12_valid_and;                  // rtl-gen/src/merge/writer.rs:527
     wire level12_data_eq;                    // rtl-gen/src/merge/writer.rs:120
     wire level12_data_eq_1;                  // rtl-gen/src/merge/writer.rs:120
-    wire level12_data_not;                   // rtl-gen/src/merge/writer.rs:381
-    wire level12_valid_and_1;                // rtl-gen/src/merge/writer.rs:381
-    wire level12_data_eq_2;                  // rtl-gen/src/merge/writer.rs:382
-    wire [125:0] level12_data_cat;           // rtl-gen/src/merge/writer.rs:383
-    wire [53:0] level12_data_cat_1;          // rtl-gen/src/merge/writer.rs:384
-    wire level12_valid_and_2;                // rtl-gen/src/merge/writer.rs:387
-    wire [52:0] level12_data_cat_2;          // rtl-gen/src/merge/writer.rs:391
-    wire level12_data_not_1;                 // rtl-gen/src/merge/writer.rs:394
-    wire level12_valid_and_3;                // rtl-gen/src/merge/writer.rs:394
-    wire level12_data_not_2;                 // rtl-gen/src/merge/writer.rs:395
-    wire level12_valid_and_4;                // rtl-gen/src/merge/writer.rs:395
-    wire merge_clear_and_12;                 // rtl-gen/src/merge/writer.rs:398
-    wire level12_valid_and_5;                // rtl-gen/src/merge/writer.rs:399
-    wire l12_end_seen_or;                    // rtl-gen/src/merge/writer.rs:400
-    wire l12_end_seen_next;                  // rtl-gen/src/merge/writer.rs:400
-    wire level12_data_not_3;                 // rtl-gen/src/merge/writer.rs:407
-    wire level12_valid_and_6;                // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] level12_valid_mux_2;         // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l12_record_counts_add;       // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l12_record_counts_next;      // rtl-gen/src/merge/writer.rs:405
-    wire level12_valid_and_7;                // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] level12_valid_mux_3;         // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l12_reused_counts_add;       // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l12_reused_counts_next;      // rtl-gen/src/merge/writer.rs:409
-    wire level12_data_not_4;                 // rtl-gen/src/merge/writer.rs:413
-    wire level12_valid_and_8;                // rtl-gen/src/merge/writer.rs:413
-    wire l12_cap_err_or;                     // rtl-gen/src/merge/writer.rs:413
-    wire l12_cap_err_next;                   // rtl-gen/src/merge/writer.rs:413
-    wire level12_data_eq_3;                  // rtl-gen/src/merge/writer.rs:415
-    wire level12_valid_and_9;                // rtl-gen/src/merge/writer.rs:415
-    wire level12_valid_and_10;               // rtl-gen/src/merge/writer.rs:416
-    wire l12_err_or;                         // rtl-gen/src/merge/writer.rs:416
-    wire l12_err_or_1;                       // rtl-gen/src/merge/writer.rs:416
-    wire l12_err_next;                       // rtl-gen/src/merge/writer.rs:416
-    reg l13_end_seen;                        // rtl-gen/src/merge/writer.rs:360
-    reg [10:0] l13_nodes;                    // rtl-gen/src/merge/writer.rs:361
-    reg [10:0] l13_records;                  // rtl-gen/src/merge/writer.rs:362
-    reg [34:0] l13_record_counts;            // rtl-gen/src/merge/writer.rs:363
-    reg [34:0] l13_reused_counts;            // rtl-gen/src/merge/writer.rs:364
-    reg l13_cap_err;                         // rtl-gen/src/merge/writer.rs:365
-    reg l13_err;                             // rtl-gen/src/merge/writer.rs:366
-    wire l13_end_seen_not;                   // rtl-gen/src/merge/writer.rs:367
-    wire in_fill_and_15;                     // rtl-gen/src/merge/writer.rs:367
-    wire level13_valid_and;                  // rtl-gen/src/merge/writer.rs:369
+    wire level12_data_not;                   // rtl-gen/src/merge/writer.rs:539
+    wire level12_valid_and_1;                // rtl-gen/src/merge/writer.rs:539
+    wire level12_data_eq_2;                  // rtl-gen/src/merge/writer.rs:540
+    wire [125:0] level12_data_cat;           // rtl-gen/src/merge/writer.rs:541
+    wire [53:0] level12_data_cat_1;          // rtl-gen/src/merge/writer.rs:542
+    wire level12_valid_and_2;                // rtl-gen/src/merge/writer.rs:545
+    wire [52:0] level12_data_cat_2;          // rtl-gen/src/merge/writer.rs:549
+    wire level12_data_not_1;                 // rtl-gen/src/merge/writer.rs:552
+    wire level12_valid_and_3;                // rtl-gen/src/merge/writer.rs:552
+    wire level12_data_not_2;                 // rtl-gen/src/merge/writer.rs:553
+    wire level12_valid_and_4;                // rtl-gen/src/merge/writer.rs:553
+    wire merge_clear_and_12;                 // rtl-gen/src/merge/writer.rs:556
+    wire level12_valid_and_5;                // rtl-gen/src/merge/writer.rs:557
+    wire l12_end_seen_or;                    // rtl-gen/src/merge/writer.rs:558
+    wire l12_end_seen_next;                  // rtl-gen/src/merge/writer.rs:558
+    wire level12_data_not_3;                 // rtl-gen/src/merge/writer.rs:565
+    wire level12_valid_and_6;                // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] level12_valid_mux_2;         // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l12_record_counts_add;       // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l12_record_counts_next;      // rtl-gen/src/merge/writer.rs:563
+    wire level12_valid_and_7;                // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] level12_valid_mux_3;         // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l12_reused_counts_add;       // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l12_reused_counts_next;      // rtl-gen/src/merge/writer.rs:567
+    wire level12_data_not_4;                 // rtl-gen/src/merge/writer.rs:571
+    wire level12_valid_and_8;                // rtl-gen/src/merge/writer.rs:571
+    wire l12_cap_err_or;                     // rtl-gen/src/merge/writer.rs:571
+    wire l12_cap_err_next;                   // rtl-gen/src/merge/writer.rs:571
+    wire level12_data_eq_3;                  // rtl-gen/src/merge/writer.rs:573
+    wire level12_valid_and_9;                // rtl-gen/src/merge/writer.rs:573
+    wire level12_valid_and_10;               // rtl-gen/src/merge/writer.rs:574
+    wire l12_err_or;                         // rtl-gen/src/merge/writer.rs:574
+    wire l12_err_or_1;                       // rtl-gen/src/merge/writer.rs:574
+    wire l12_err_next;                       // rtl-gen/src/merge/writer.rs:574
+    reg l13_end_seen;                        // rtl-gen/src/merge/writer.rs:518
+    reg [10:0] l13_nodes;                    // rtl-gen/src/merge/writer.rs:519
+    reg [10:0] l13_records;                  // rtl-gen/src/merge/writer.rs:520
+    reg [34:0] l13_record_counts;            // rtl-gen/src/merge/writer.rs:521
+    reg [34:0] l13_reused_counts;            // rtl-gen/src/merge/writer.rs:522
+    reg l13_cap_err;                         // rtl-gen/src/merge/writer.rs:523
+    reg l13_err;                             // rtl-gen/src/merge/writer.rs:524
+    wire l13_end_seen_not;                   // rtl-gen/src/merge/writer.rs:525
+    wire in_fill_and_15;                     // rtl-gen/src/merge/writer.rs:525
+    wire level13_valid_and;                  // rtl-gen/src/merge/writer.rs:527
     wire level13_data_eq;                    // rtl-gen/src/merge/writer.rs:120
     wire level13_data_eq_1;                  // rtl-gen/src/merge/writer.rs:120
-    wire level13_data_not;                   // rtl-gen/src/merge/writer.rs:381
-    wire level13_valid_and_1;                // rtl-gen/src/merge/writer.rs:381
-    wire level13_data_eq_2;                  // rtl-gen/src/merge/writer.rs:382
-    wire [125:0] level13_data_cat;           // rtl-gen/src/merge/writer.rs:383
-    wire [53:0] level13_data_cat_1;          // rtl-gen/src/merge/writer.rs:384
-    wire level13_valid_and_2;                // rtl-gen/src/merge/writer.rs:387
-    wire [52:0] level13_data_cat_2;          // rtl-gen/src/merge/writer.rs:391
-    wire level13_data_not_1;                 // rtl-gen/src/merge/writer.rs:394
-    wire level13_valid_and_3;                // rtl-gen/src/merge/writer.rs:394
-    wire level13_data_not_2;                 // rtl-gen/src/merge/writer.rs:395
-    wire level13_valid_and_4;                // rtl-gen/src/merge/writer.rs:395
-    wire merge_clear_and_13;                 // rtl-gen/src/merge/writer.rs:398
-    wire level13_valid_and_5;                // rtl-gen/src/merge/writer.rs:399
-    wire l13_end_seen_or;                    // rtl-gen/src/merge/writer.rs:400
-    wire l13_end_seen_next;                  // rtl-gen/src/merge/writer.rs:400
-    wire level13_data_not_3;                 // rtl-gen/src/merge/writer.rs:407
-    wire level13_valid_and_6;                // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] level13_valid_mux_2;         // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l13_record_counts_add;       // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l13_record_counts_next;      // rtl-gen/src/merge/writer.rs:405
-    wire level13_valid_and_7;                // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] level13_valid_mux_3;         // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l13_reused_counts_add;       // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l13_reused_counts_next;      // rtl-gen/src/merge/writer.rs:409
-    wire level13_data_not_4;                 // rtl-gen/src/merge/writer.rs:413
-    wire level13_valid_and_8;                // rtl-gen/src/merge/writer.rs:413
-    wire l13_cap_err_or;                     // rtl-gen/src/merge/writer.rs:413
-    wire l13_cap_err_next;                   // rtl-gen/src/merge/writer.rs:413
-    wire level13_data_eq_3;                  // rtl-gen/src/merge/writer.rs:415
-    wire level13_valid_and_9;                // rtl-gen/src/merge/writer.rs:415
-    wire level13_valid_and_10;               // rtl-gen/src/merge/writer.rs:416
-    wire l13_err_or;                         // rtl-gen/src/merge/writer.rs:416
-    wire l13_err_or_1;                       // rtl-gen/src/merge/writer.rs:416
-    wire l13_err_next;                       // rtl-gen/src/merge/writer.rs:416
-    reg l14_end_seen;                        // rtl-gen/src/merge/writer.rs:360
-    reg [10:0] l14_nodes;                    // rtl-gen/src/merge/writer.rs:361
-    reg [10:0] l14_records;                  // rtl-gen/src/merge/writer.rs:362
-    reg [34:0] l14_record_counts;            // rtl-gen/src/merge/writer.rs:363
-    reg [34:0] l14_reused_counts;            // rtl-gen/src/merge/writer.rs:364
-    reg l14_cap_err;                         // rtl-gen/src/merge/writer.rs:365
-    reg l14_err;                             // rtl-gen/src/merge/writer.rs:366
-    wire l14_end_seen_not;                   // rtl-gen/src/merge/writer.rs:367
-    wire in_fill_and_16;                     // rtl-gen/src/merge/writer.rs:367
-    wire level14_valid_and;                  // rtl-gen/src/merge/writer.rs:369
+    wire level13_data_not;                   // rtl-gen/src/merge/writer.rs:539
+    wire level13_valid_and_1;                // rtl-gen/src/merge/writer.rs:539
+    wire level13_data_eq_2;                  // rtl-gen/src/merge/writer.rs:540
+    wire [125:0] level13_data_cat;           // rtl-gen/src/merge/writer.rs:541
+    wire [53:0] level13_data_cat_1;          // rtl-gen/src/merge/writer.rs:542
+    wire level13_valid_and_2;                // rtl-gen/src/merge/writer.rs:545
+    wire [52:0] level13_data_cat_2;          // rtl-gen/src/merge/writer.rs:549
+    wire level13_data_not_1;                 // rtl-gen/src/merge/writer.rs:552
+    wire level13_valid_and_3;                // rtl-gen/src/merge/writer.rs:552
+    wire level13_data_not_2;                 // rtl-gen/src/merge/writer.rs:553
+    wire level13_valid_and_4;                // rtl-gen/src/merge/writer.rs:553
+    wire merge_clear_and_13;                 // rtl-gen/src/merge/writer.rs:556
+    wire level13_valid_and_5;                // rtl-gen/src/merge/writer.rs:557
+    wire l13_end_seen_or;                    // rtl-gen/src/merge/writer.rs:558
+    wire l13_end_seen_next;                  // rtl-gen/src/merge/writer.rs:558
+    wire level13_data_not_3;                 // rtl-gen/src/merge/writer.rs:565
+    wire level13_valid_and_6;                // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] level13_valid_mux_2;         // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l13_record_counts_add;       // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l13_record_counts_next;      // rtl-gen/src/merge/writer.rs:563
+    wire level13_valid_and_7;                // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] level13_valid_mux_3;         // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l13_reused_counts_add;       // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l13_reused_counts_next;      // rtl-gen/src/merge/writer.rs:567
+    wire level13_data_not_4;                 // rtl-gen/src/merge/writer.rs:571
+    wire level13_valid_and_8;                // rtl-gen/src/merge/writer.rs:571
+    wire l13_cap_err_or;                     // rtl-gen/src/merge/writer.rs:571
+    wire l13_cap_err_next;                   // rtl-gen/src/merge/writer.rs:571
+    wire level13_data_eq_3;                  // rtl-gen/src/merge/writer.rs:573
+    wire level13_valid_and_9;                // rtl-gen/src/merge/writer.rs:573
+    wire level13_valid_and_10;               // rtl-gen/src/merge/writer.rs:574
+    wire l13_err_or;                         // rtl-gen/src/merge/writer.rs:574
+    wire l13_err_or_1;                       // rtl-gen/src/merge/writer.rs:574
+    wire l13_err_next;                       // rtl-gen/src/merge/writer.rs:574
+    reg l14_end_seen;                        // rtl-gen/src/merge/writer.rs:518
+    reg [10:0] l14_nodes;                    // rtl-gen/src/merge/writer.rs:519
+    reg [10:0] l14_records;                  // rtl-gen/src/merge/writer.rs:520
+    reg [34:0] l14_record_counts;            // rtl-gen/src/merge/writer.rs:521
+    reg [34:0] l14_reused_counts;            // rtl-gen/src/merge/writer.rs:522
+    reg l14_cap_err;                         // rtl-gen/src/merge/writer.rs:523
+    reg l14_err;                             // rtl-gen/src/merge/writer.rs:524
+    wire l14_end_seen_not;                   // rtl-gen/src/merge/writer.rs:525
+    wire in_fill_and_16;                     // rtl-gen/src/merge/writer.rs:525
+    wire level14_valid_and;                  // rtl-gen/src/merge/writer.rs:527
     wire level14_data_eq;                    // rtl-gen/src/merge/writer.rs:120
     wire level14_data_eq_1;                  // rtl-gen/src/merge/writer.rs:120
-    wire level14_data_not;                   // rtl-gen/src/merge/writer.rs:381
-    wire level14_valid_and_1;                // rtl-gen/src/merge/writer.rs:381
-    wire level14_data_eq_2;                  // rtl-gen/src/merge/writer.rs:382
-    wire [125:0] level14_data_cat;           // rtl-gen/src/merge/writer.rs:383
-    wire [53:0] level14_data_cat_1;          // rtl-gen/src/merge/writer.rs:384
-    wire level14_valid_and_2;                // rtl-gen/src/merge/writer.rs:387
-    wire [52:0] level14_data_cat_2;          // rtl-gen/src/merge/writer.rs:391
-    wire level14_data_not_1;                 // rtl-gen/src/merge/writer.rs:394
-    wire level14_valid_and_3;                // rtl-gen/src/merge/writer.rs:394
-    wire level14_data_not_2;                 // rtl-gen/src/merge/writer.rs:395
-    wire level14_valid_and_4;                // rtl-gen/src/merge/writer.rs:395
-    wire merge_clear_and_14;                 // rtl-gen/src/merge/writer.rs:398
-    wire level14_valid_and_5;                // rtl-gen/src/merge/writer.rs:399
-    wire l14_end_seen_or;                    // rtl-gen/src/merge/writer.rs:400
-    wire l14_end_seen_next;                  // rtl-gen/src/merge/writer.rs:400
-    wire level14_data_not_3;                 // rtl-gen/src/merge/writer.rs:407
-    wire level14_valid_and_6;                // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] level14_valid_mux_2;         // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l14_record_counts_add;       // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l14_record_counts_next;      // rtl-gen/src/merge/writer.rs:405
-    wire level14_valid_and_7;                // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] level14_valid_mux_3;         // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l14_reused_counts_add;       // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l14_reused_counts_next;      // rtl-gen/src/merge/writer.rs:409
-    wire level14_data_not_4;                 // rtl-gen/src/merge/writer.rs:413
-    wire level14_valid_and_8;                // rtl-gen/src/merge/writer.rs:413
-    wire l14_cap_err_or;                     // rtl-gen/src/merge/writer.rs:413
-    wire l14_cap_err_next;                   // rtl-gen/src/merge/writer.rs:413
-    wire level14_data_eq_3;                  // rtl-gen/src/merge/writer.rs:415
-    wire level14_valid_and_9;                // rtl-gen/src/merge/writer.rs:415
-    wire level14_valid_and_10;               // rtl-gen/src/merge/writer.rs:416
-    wire l14_err_or;                         // rtl-gen/src/merge/writer.rs:416
-    wire l14_err_or_1;                       // rtl-gen/src/merge/writer.rs:416
-    wire l14_err_next;                       // rtl-gen/src/merge/writer.rs:416
-    reg l15_end_seen;                        // rtl-gen/src/merge/writer.rs:360
-    reg [10:0] l15_nodes;                    // rtl-gen/src/merge/writer.rs:361
-    reg [10:0] l15_records;                  // rtl-gen/src/merge/writer.rs:362
-    reg [34:0] l15_record_counts;            // rtl-gen/src/merge/writer.rs:363
-    reg [34:0] l15_reused_counts;            // rtl-gen/src/merge/writer.rs:364
-    reg l15_cap_err;                         // rtl-gen/src/merge/writer.rs:365
-    reg l15_err;                             // rtl-gen/src/merge/writer.rs:366
-    wire l15_end_seen_not;                   // rtl-gen/src/merge/writer.rs:367
-    wire in_fill_and_17;                     // rtl-gen/src/merge/writer.rs:367
-    wire level15_valid_and;                  // rtl-gen/src/merge/writer.rs:369
+    wire level14_data_not;                   // rtl-gen/src/merge/writer.rs:539
+    wire level14_valid_and_1;                // rtl-gen/src/merge/writer.rs:539
+    wire level14_data_eq_2;                  // rtl-gen/src/merge/writer.rs:540
+    wire [125:0] level14_data_cat;           // rtl-gen/src/merge/writer.rs:541
+    wire [53:0] level14_data_cat_1;          // rtl-gen/src/merge/writer.rs:542
+    wire level14_valid_and_2;                // rtl-gen/src/merge/writer.rs:545
+    wire [52:0] level14_data_cat_2;          // rtl-gen/src/merge/writer.rs:549
+    wire level14_data_not_1;                 // rtl-gen/src/merge/writer.rs:552
+    wire level14_valid_and_3;                // rtl-gen/src/merge/writer.rs:552
+    wire level14_data_not_2;                 // rtl-gen/src/merge/writer.rs:553
+    wire level14_valid_and_4;                // rtl-gen/src/merge/writer.rs:553
+    wire merge_clear_and_14;                 // rtl-gen/src/merge/writer.rs:556
+    wire level14_valid_and_5;                // rtl-gen/src/merge/writer.rs:557
+    wire l14_end_seen_or;                    // rtl-gen/src/merge/writer.rs:558
+    wire l14_end_seen_next;                  // rtl-gen/src/merge/writer.rs:558
+    wire level14_data_not_3;                 // rtl-gen/src/merge/writer.rs:565
+    wire level14_valid_and_6;                // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] level14_valid_mux_2;         // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l14_record_counts_add;       // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l14_record_counts_next;      // rtl-gen/src/merge/writer.rs:563
+    wire level14_valid_and_7;                // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] level14_valid_mux_3;         // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l14_reused_counts_add;       // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l14_reused_counts_next;      // rtl-gen/src/merge/writer.rs:567
+    wire level14_data_not_4;                 // rtl-gen/src/merge/writer.rs:571
+    wire level14_valid_and_8;                // rtl-gen/src/merge/writer.rs:571
+    wire l14_cap_err_or;                     // rtl-gen/src/merge/writer.rs:571
+    wire l14_cap_err_next;                   // rtl-gen/src/merge/writer.rs:571
+    wire level14_data_eq_3;                  // rtl-gen/src/merge/writer.rs:573
+    wire level14_valid_and_9;                // rtl-gen/src/merge/writer.rs:573
+    wire level14_valid_and_10;               // rtl-gen/src/merge/writer.rs:574
+    wire l14_err_or;                         // rtl-gen/src/merge/writer.rs:574
+    wire l14_err_or_1;                       // rtl-gen/src/merge/writer.rs:574
+    wire l14_err_next;                       // rtl-gen/src/merge/writer.rs:574
+    reg l15_end_seen;                        // rtl-gen/src/merge/writer.rs:518
+    reg [10:0] l15_nodes;                    // rtl-gen/src/merge/writer.rs:519
+    reg [10:0] l15_records;                  // rtl-gen/src/merge/writer.rs:520
+    reg [34:0] l15_record_counts;            // rtl-gen/src/merge/writer.rs:521
+    reg [34:0] l15_reused_counts;            // rtl-gen/src/merge/writer.rs:522
+    reg l15_cap_err;                         // rtl-gen/src/merge/writer.rs:523
+    reg l15_err;                             // rtl-gen/src/merge/writer.rs:524
+    wire l15_end_seen_not;                   // rtl-gen/src/merge/writer.rs:525
+    wire in_fill_and_17;                     // rtl-gen/src/merge/writer.rs:525
+    wire level15_valid_and;                  // rtl-gen/src/merge/writer.rs:527
     wire level15_data_eq;                    // rtl-gen/src/merge/writer.rs:120
     wire level15_data_eq_1;                  // rtl-gen/src/merge/writer.rs:120
-    wire level15_data_not;                   // rtl-gen/src/merge/writer.rs:381
-    wire level15_valid_and_1;                // rtl-gen/src/merge/writer.rs:381
-    wire level15_data_eq_2;                  // rtl-gen/src/merge/writer.rs:382
-    wire [125:0] level15_data_cat;           // rtl-gen/src/merge/writer.rs:383
-    wire [53:0] level15_data_cat_1;          // rtl-gen/src/merge/writer.rs:384
-    wire level15_valid_and_2;                // rtl-gen/src/merge/writer.rs:387
-    wire [52:0] level15_data_cat_2;          // rtl-gen/src/merge/writer.rs:391
-    wire level15_data_not_1;                 // rtl-gen/src/merge/writer.rs:394
-    wire level15_valid_and_3;                // rtl-gen/src/merge/writer.rs:394
-    wire level15_data_not_2;                 // rtl-gen/src/merge/writer.rs:395
-    wire level15_valid_and_4;                // rtl-gen/src/merge/writer.rs:395
-    wire merge_clear_and_15;                 // rtl-gen/src/merge/writer.rs:398
-    wire level15_valid_and_5;                // rtl-gen/src/merge/writer.rs:399
-    wire l15_end_seen_or;                    // rtl-gen/src/merge/writer.rs:400
-    wire l15_end_seen_next;                  // rtl-gen/src/merge/writer.rs:400
-    wire level15_data_not_3;                 // rtl-gen/src/merge/writer.rs:407
-    wire level15_valid_and_6;                // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] level15_valid_mux_2;         // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l15_record_counts_add;       // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l15_record_counts_next;      // rtl-gen/src/merge/writer.rs:405
-    wire level15_valid_and_7;                // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] level15_valid_mux_3;         // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l15_reused_counts_add;       // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l15_reused_counts_next;      // rtl-gen/src/merge/writer.rs:409
-    wire level15_data_not_4;                 // rtl-gen/src/merge/writer.rs:413
-    wire level15_valid_and_8;                // rtl-gen/src/merge/writer.rs:413
-    wire l15_cap_err_or;                     // rtl-gen/src/merge/writer.rs:413
-    wire l15_cap_err_next;                   // rtl-gen/src/merge/writer.rs:413
-    wire level15_data_eq_3;                  // rtl-gen/src/merge/writer.rs:415
-    wire level15_valid_and_9;                // rtl-gen/src/merge/writer.rs:415
-    wire level15_valid_and_10;               // rtl-gen/src/merge/writer.rs:416
-    wire l15_err_or;                         // rtl-gen/src/merge/writer.rs:416
-    wire l15_err_or_1;                       // rtl-gen/src/merge/writer.rs:416
-    wire l15_err_next;                       // rtl-gen/src/merge/writer.rs:416
-    reg l16_end_seen;                        // rtl-gen/src/merge/writer.rs:360
-    reg [10:0] l16_nodes;                    // rtl-gen/src/merge/writer.rs:361
-    reg [10:0] l16_records;                  // rtl-gen/src/merge/writer.rs:362
-    reg [34:0] l16_record_counts;            // rtl-gen/src/merge/writer.rs:363
-    reg [34:0] l16_reused_counts;            // rtl-gen/src/merge/writer.rs:364
-    reg l16_cap_err;                         // rtl-gen/src/merge/writer.rs:365
-    reg l16_err;                             // rtl-gen/src/merge/writer.rs:366
-    wire l16_end_seen_not;                   // rtl-gen/src/merge/writer.rs:367
-    wire in_fill_and_18;                     // rtl-gen/src/merge/writer.rs:367
-    wire level16_valid_and;                  // rtl-gen/src/merge/writer.rs:369
+    wire level15_data_not;                   // rtl-gen/src/merge/writer.rs:539
+    wire level15_valid_and_1;                // rtl-gen/src/merge/writer.rs:539
+    wire level15_data_eq_2;                  // rtl-gen/src/merge/writer.rs:540
+    wire [125:0] level15_data_cat;           // rtl-gen/src/merge/writer.rs:541
+    wire [53:0] level15_data_cat_1;          // rtl-gen/src/merge/writer.rs:542
+    wire level15_valid_and_2;                // rtl-gen/src/merge/writer.rs:545
+    wire [52:0] level15_data_cat_2;          // rtl-gen/src/merge/writer.rs:549
+    wire level15_data_not_1;                 // rtl-gen/src/merge/writer.rs:552
+    wire level15_valid_and_3;                // rtl-gen/src/merge/writer.rs:552
+    wire level15_data_not_2;                 // rtl-gen/src/merge/writer.rs:553
+    wire level15_valid_and_4;                // rtl-gen/src/merge/writer.rs:553
+    wire merge_clear_and_15;                 // rtl-gen/src/merge/writer.rs:556
+    wire level15_valid_and_5;                // rtl-gen/src/merge/writer.rs:557
+    wire l15_end_seen_or;                    // rtl-gen/src/merge/writer.rs:558
+    wire l15_end_seen_next;                  // rtl-gen/src/merge/writer.rs:558
+    wire level15_data_not_3;                 // rtl-gen/src/merge/writer.rs:565
+    wire level15_valid_and_6;                // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] level15_valid_mux_2;         // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l15_record_counts_add;       // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l15_record_counts_next;      // rtl-gen/src/merge/writer.rs:563
+    wire level15_valid_and_7;                // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] level15_valid_mux_3;         // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l15_reused_counts_add;       // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l15_reused_counts_next;      // rtl-gen/src/merge/writer.rs:567
+    wire level15_data_not_4;                 // rtl-gen/src/merge/writer.rs:571
+    wire level15_valid_and_8;                // rtl-gen/src/merge/writer.rs:571
+    wire l15_cap_err_or;                     // rtl-gen/src/merge/writer.rs:571
+    wire l15_cap_err_next;                   // rtl-gen/src/merge/writer.rs:571
+    wire level15_data_eq_3;                  // rtl-gen/src/merge/writer.rs:573
+    wire level15_valid_and_9;                // rtl-gen/src/merge/writer.rs:573
+    wire level15_valid_and_10;               // rtl-gen/src/merge/writer.rs:574
+    wire l15_err_or;                         // rtl-gen/src/merge/writer.rs:574
+    wire l15_err_or_1;                       // rtl-gen/src/merge/writer.rs:574
+    wire l15_err_next;                       // rtl-gen/src/merge/writer.rs:574
+    reg l16_end_seen;                        // rtl-gen/src/merge/writer.rs:518
+    reg [10:0] l16_nodes;                    // rtl-gen/src/merge/writer.rs:519
+    reg [10:0] l16_records;                  // rtl-gen/src/merge/writer.rs:520
+    reg [34:0] l16_record_counts;            // rtl-gen/src/merge/writer.rs:521
+    reg [34:0] l16_reused_counts;            // rtl-gen/src/merge/writer.rs:522
+    reg l16_cap_err;                         // rtl-gen/src/merge/writer.rs:523
+    reg l16_err;                             // rtl-gen/src/merge/writer.rs:524
+    wire l16_end_seen_not;                   // rtl-gen/src/merge/writer.rs:525
+    wire in_fill_and_18;                     // rtl-gen/src/merge/writer.rs:525
+    wire level16_valid_and;                  // rtl-gen/src/merge/writer.rs:527
     wire level16_data_eq;                    // rtl-gen/src/merge/writer.rs:120
     wire level16_data_eq_1;                  // rtl-gen/src/merge/writer.rs:120
-    wire level16_data_not;                   // rtl-gen/src/merge/writer.rs:381
-    wire level16_valid_and_1;                // rtl-gen/src/merge/writer.rs:381
-    wire level16_data_eq_2;                  // rtl-gen/src/merge/writer.rs:382
-    wire [125:0] level16_data_cat;           // rtl-gen/src/merge/writer.rs:383
-    wire [53:0] level16_data_cat_1;          // rtl-gen/src/merge/writer.rs:384
-    wire level16_valid_and_2;                // rtl-gen/src/merge/writer.rs:387
-    wire [52:0] level16_data_cat_2;          // rtl-gen/src/merge/writer.rs:391
-    wire level16_data_not_1;                 // rtl-gen/src/merge/writer.rs:394
-    wire level16_valid_and_3;                // rtl-gen/src/merge/writer.rs:394
-    wire level16_data_not_2;                 // rtl-gen/src/merge/writer.rs:395
-    wire level16_valid_and_4;                // rtl-gen/src/merge/writer.rs:395
-    wire merge_clear_and_16;                 // rtl-gen/src/merge/writer.rs:398
-    wire level16_valid_and_5;                // rtl-gen/src/merge/writer.rs:399
-    wire l16_end_seen_or;                    // rtl-gen/src/merge/writer.rs:400
-    wire l16_end_seen_next;                  // rtl-gen/src/merge/writer.rs:400
-    wire level16_data_not_3;                 // rtl-gen/src/merge/writer.rs:407
-    wire level16_valid_and_6;                // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] level16_valid_mux_2;         // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l16_record_counts_add;       // rtl-gen/src/merge/writer.rs:407
-    wire [34:0] l16_record_counts_next;      // rtl-gen/src/merge/writer.rs:405
-    wire level16_valid_and_7;                // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] level16_valid_mux_3;         // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l16_reused_counts_add;       // rtl-gen/src/merge/writer.rs:411
-    wire [34:0] l16_reused_counts_next;      // rtl-gen/src/merge/writer.rs:409
-    wire level16_data_not_4;                 // rtl-gen/src/merge/writer.rs:413
-    wire level16_valid_and_8;                // rtl-gen/src/merge/writer.rs:413
-    wire l16_cap_err_or;                     // rtl-gen/src/merge/writer.rs:413
-    wire l16_cap_err_next;                   // rtl-gen/src/merge/writer.rs:413
-    wire level16_data_eq_3;                  // rtl-gen/src/merge/writer.rs:415
-    wire level16_valid_and_9;                // rtl-gen/src/merge/writer.rs:415
-    wire level16_valid_and_10;               // rtl-gen/src/merge/writer.rs:416
-    wire l16_err_or;                         // rtl-gen/src/merge/writer.rs:416
-    wire l16_err_or_1;                       // rtl-gen/src/merge/writer.rs:416
-    wire l16_err_next;                       // rtl-gen/src/merge/writer.rs:416
-    wire l0_in_merge_not;                    // rtl-gen/src/merge/writer.rs:428
-    wire l0_end_seen_or_1;                   // rtl-gen/src/merge/writer.rs:428
-    wire l0_end_seen_and;                    // rtl-gen/src/merge/writer.rs:428
-    wire l1_in_merge_not;                    // rtl-gen/src/merge/writer.rs:428
-    wire l1_end_seen_or_1;                   // rtl-gen/src/merge/writer.rs:428
-    wire l0_end_seen_and_1;                  // rtl-gen/src/merge/writer.rs:428
-    wire l2_in_merge_not;                    // rtl-gen/src/merge/writer.rs:428
-    wire l2_end_seen_or_1;                   // rtl-gen/src/merge/writer.rs:428
-    wire l0_end_seen_and_2;                  // rtl-gen/src/merge/writer.rs:428
-    wire l3_in_merge_not;                    // rtl-gen/src/merge/writer.rs:428
-    wire l3_end_seen_or_1;                   // rtl-gen/src/merge/writer.rs:428
-    wire l0_end_seen_and_3;                  // rtl-gen/src/merge/writer.rs:428
-    wire l4_in_merge_not;                    // rtl-gen/src/merge/writer.rs:428
-    wire l4_end_seen_or_1;                   // rtl-gen/src/merge/writer.rs:428
-    wire l0_end_seen_and_4;                  // rtl-gen/src/merge/writer.rs:428
-    wire l5_in_merge_not;                    // rtl-gen/src/merge/writer.rs:428
-    wire l5_end_seen_or_1;                   // rtl-gen/src/merge/writer.rs:428
-    wire l0_end_seen_and_5;                  // rtl-gen/src/merge/writer.rs:428
-    wire l6_in_merge_not;                    // rtl-gen/src/merge/writer.rs:428
-    wire l6_end_seen_or_1;                   // rtl-gen/src/merge/writer.rs:428
-    wire l0_end_seen_and_6;                  // rtl-gen/src/merge/writer.rs:428
-    wire l7_in_merge_not;                    // rtl-gen/src/merge/writer.rs:428
-    wire l7_end_seen_or_1;                   // rtl-gen/src/merge/writer.rs:428
-    wire l0_end_seen_and_7;                  // rtl-gen/src/merge/writer.rs:428
-    wire l8_in_merge_not;                    // rtl-gen/src/merge/writer.rs:428
-    wire l8_end_seen_or_1;                   // rtl-gen/src/merge/writer.rs:428
-    wire l0_end_seen_and_8;                  // rtl-gen/src/merge/writer.rs:428
-    wire l9_in_merge_not;                    // rtl-gen/src/merge/writer.rs:428
-    wire l9_end_seen_or_1;                   // rtl-gen/src/merge/writer.rs:428
-    wire l0_end_seen_and_9;                  // rtl-gen/src/merge/writer.rs:428
-    wire l10_in_merge_not;                   // rtl-gen/src/merge/writer.rs:428
-    wire l10_end_seen_or_1;                  // rtl-gen/src/merge/writer.rs:428
-    wire l0_end_seen_and_10;                 // rtl-gen/src/merge/writer.rs:428
-    wire l11_in_merge_not;                   // rtl-gen/src/merge/writer.rs:428
-    wire l11_end_seen_or_1;                  // rtl-gen/src/merge/writer.rs:428
-    wire l0_end_seen_and_11;                 // rtl-gen/src/merge/writer.rs:428
-    wire l12_in_merge_not;                   // rtl-gen/src/merge/writer.rs:428
-    wire l12_end_seen_or_1;                  // rtl-gen/src/merge/writer.rs:428
-    wire l0_end_seen_and_12;                 // rtl-gen/src/merge/writer.rs:428
-    wire l13_in_merge_not;                   // rtl-gen/src/merge/writer.rs:428
-    wire l13_end_seen_or_1;                  // rtl-gen/src/merge/writer.rs:428
-    wire l0_end_seen_and_13;                 // rtl-gen/src/merge/writer.rs:428
-    wire l14_in_merge_not;                   // rtl-gen/src/merge/writer.rs:428
-    wire l14_end_seen_or_1;                  // rtl-gen/src/merge/writer.rs:428
-    wire l0_end_seen_and_14;                 // rtl-gen/src/merge/writer.rs:428
-    wire l15_in_merge_not;                   // rtl-gen/src/merge/writer.rs:428
-    wire l15_end_seen_or_1;                  // rtl-gen/src/merge/writer.rs:428
-    wire l0_end_seen_and_15;                 // rtl-gen/src/merge/writer.rs:428
-    wire l16_in_merge_not;                   // rtl-gen/src/merge/writer.rs:428
-    wire l16_end_seen_or_1;                  // rtl-gen/src/merge/writer.rs:428
-    wire l0_end_seen_and_16;                 // rtl-gen/src/merge/writer.rs:428
-    wire in_fill_and_19;                     // rtl-gen/src/merge/writer.rs:429
-    wire in_fill_and_20;                     // rtl-gen/src/merge/writer.rs:429
-    wire in_fill_and_21;                     // rtl-gen/src/merge/writer.rs:429
-    wire fill_done;                          // rtl-gen/src/merge/writer.rs:429
+    wire level16_data_not;                   // rtl-gen/src/merge/writer.rs:539
+    wire level16_valid_and_1;                // rtl-gen/src/merge/writer.rs:539
+    wire level16_data_eq_2;                  // rtl-gen/src/merge/writer.rs:540
+    wire [125:0] level16_data_cat;           // rtl-gen/src/merge/writer.rs:541
+    wire [53:0] level16_data_cat_1;          // rtl-gen/src/merge/writer.rs:542
+    wire level16_valid_and_2;                // rtl-gen/src/merge/writer.rs:545
+    wire [52:0] level16_data_cat_2;          // rtl-gen/src/merge/writer.rs:549
+    wire level16_data_not_1;                 // rtl-gen/src/merge/writer.rs:552
+    wire level16_valid_and_3;                // rtl-gen/src/merge/writer.rs:552
+    wire level16_data_not_2;                 // rtl-gen/src/merge/writer.rs:553
+    wire level16_valid_and_4;                // rtl-gen/src/merge/writer.rs:553
+    wire merge_clear_and_16;                 // rtl-gen/src/merge/writer.rs:556
+    wire level16_valid_and_5;                // rtl-gen/src/merge/writer.rs:557
+    wire l16_end_seen_or;                    // rtl-gen/src/merge/writer.rs:558
+    wire l16_end_seen_next;                  // rtl-gen/src/merge/writer.rs:558
+    wire level16_data_not_3;                 // rtl-gen/src/merge/writer.rs:565
+    wire level16_valid_and_6;                // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] level16_valid_mux_2;         // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l16_record_counts_add;       // rtl-gen/src/merge/writer.rs:565
+    wire [34:0] l16_record_counts_next;      // rtl-gen/src/merge/writer.rs:563
+    wire level16_valid_and_7;                // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] level16_valid_mux_3;         // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l16_reused_counts_add;       // rtl-gen/src/merge/writer.rs:569
+    wire [34:0] l16_reused_counts_next;      // rtl-gen/src/merge/writer.rs:567
+    wire level16_data_not_4;                 // rtl-gen/src/merge/writer.rs:571
+    wire level16_valid_and_8;                // rtl-gen/src/merge/writer.rs:571
+    wire l16_cap_err_or;                     // rtl-gen/src/merge/writer.rs:571
+    wire l16_cap_err_next;                   // rtl-gen/src/merge/writer.rs:571
+    wire level16_data_eq_3;                  // rtl-gen/src/merge/writer.rs:573
+    wire level16_valid_and_9;                // rtl-gen/src/merge/writer.rs:573
+    wire level16_valid_and_10;               // rtl-gen/src/merge/writer.rs:574
+    wire l16_err_or;                         // rtl-gen/src/merge/writer.rs:574
+    wire l16_err_or_1;                       // rtl-gen/src/merge/writer.rs:574
+    wire l16_err_next;                       // rtl-gen/src/merge/writer.rs:574
+    wire l0_in_merge_not;                    // rtl-gen/src/merge/writer.rs:641
+    wire l0_end_seen_or_1;                   // rtl-gen/src/merge/writer.rs:641
+    wire l0_end_seen_and;                    // rtl-gen/src/merge/writer.rs:641
+    wire l1_in_merge_not;                    // rtl-gen/src/merge/writer.rs:641
+    wire l1_end_seen_or_1;                   // rtl-gen/src/merge/writer.rs:641
+    wire l0_end_seen_and_1;                  // rtl-gen/src/merge/writer.rs:641
+    wire l2_in_merge_not;                    // rtl-gen/src/merge/writer.rs:641
+    wire l2_end_seen_or_1;                   // rtl-gen/src/merge/writer.rs:641
+    wire l0_end_seen_and_2;                  // rtl-gen/src/merge/writer.rs:641
+    wire l3_in_merge_not;                    // rtl-gen/src/merge/writer.rs:641
+    wire l3_end_seen_or_1;                   // rtl-gen/src/merge/writer.rs:641
+    wire l0_end_seen_and_3;                  // rtl-gen/src/merge/writer.rs:641
+    wire l4_in_merge_not;                    // rtl-gen/src/merge/writer.rs:641
+    wire l4_end_seen_or_1;                   // rtl-gen/src/merge/writer.rs:641
+    wire l0_end_seen_and_4;                  // rtl-gen/src/merge/writer.rs:641
+    wire l5_in_merge_not;                    // rtl-gen/src/merge/writer.rs:641
+    wire l5_end_seen_or_1;                   // rtl-gen/src/merge/writer.rs:641
+    wire l0_end_seen_and_5;                  // rtl-gen/src/merge/writer.rs:641
+    wire l6_in_merge_not;                    // rtl-gen/src/merge/writer.rs:641
+    wire l6_end_seen_or_1;                   // rtl-gen/src/merge/writer.rs:641
+    wire l0_end_seen_and_6;                  // rtl-gen/src/merge/writer.rs:641
+    wire l7_in_merge_not;                    // rtl-gen/src/merge/writer.rs:641
+    wire l7_end_seen_or_1;                   // rtl-gen/src/merge/writer.rs:641
+    wire l0_end_seen_and_7;                  // rtl-gen/src/merge/writer.rs:641
+    wire l8_in_merge_not;                    // rtl-gen/src/merge/writer.rs:641
+    wire l8_end_seen_or_1;                   // rtl-gen/src/merge/writer.rs:641
+    wire l0_end_seen_and_8;                  // rtl-gen/src/merge/writer.rs:641
+    wire l9_in_merge_not;                    // rtl-gen/src/merge/writer.rs:641
+    wire l9_end_seen_or_1;                   // rtl-gen/src/merge/writer.rs:641
+    wire l0_end_seen_and_9;                  // rtl-gen/src/merge/writer.rs:641
+    wire l10_in_merge_not;                   // rtl-gen/src/merge/writer.rs:641
+    wire l10_end_seen_or_1;                  // rtl-gen/src/merge/writer.rs:641
+    wire l0_end_seen_and_10;                 // rtl-gen/src/merge/writer.rs:641
+    wire l11_in_merge_not;                   // rtl-gen/src/merge/writer.rs:641
+    wire l11_end_seen_or_1;                  // rtl-gen/src/merge/writer.rs:641
+    wire l0_end_seen_and_11;                 // rtl-gen/src/merge/writer.rs:641
+    wire l12_in_merge_not;                   // rtl-gen/src/merge/writer.rs:641
+    wire l12_end_seen_or_1;                  // rtl-gen/src/merge/writer.rs:641
+    wire l0_end_seen_and_12;                 // rtl-gen/src/merge/writer.rs:641
+    wire l13_in_merge_not;                   // rtl-gen/src/merge/writer.rs:641
+    wire l13_end_seen_or_1;                  // rtl-gen/src/merge/writer.rs:641
+    wire l0_end_seen_and_13;                 // rtl-gen/src/merge/writer.rs:641
+    wire l14_in_merge_not;                   // rtl-gen/src/merge/writer.rs:641
+    wire l14_end_seen_or_1;                  // rtl-gen/src/merge/writer.rs:641
+    wire l0_end_seen_and_14;                 // rtl-gen/src/merge/writer.rs:641
+    wire l15_in_merge_not;                   // rtl-gen/src/merge/writer.rs:641
+    wire l15_end_seen_or_1;                  // rtl-gen/src/merge/writer.rs:641
+    wire l0_end_seen_and_15;                 // rtl-gen/src/merge/writer.rs:641
+    wire l16_in_merge_not;                   // rtl-gen/src/merge/writer.rs:641
+    wire l16_end_seen_or_1;                  // rtl-gen/src/merge/writer.rs:641
+    wire l0_end_seen_and_16;                 // rtl-gen/src/merge/writer.rs:641
+    wire in_fill_and_19;                     // rtl-gen/src/merge/writer.rs:642
+    wire in_fill_and_20;                     // rtl-gen/src/merge/writer.rs:642
+    wire in_fill_and_21;                     // rtl-gen/src/merge/writer.rs:642
+    wire fill_done;                          // rtl-gen/src/merge/writer.rs:642
     wire [10:0] top_mux;                     // rtl-gen/src/merge/writer.rs:115
     wire [10:0] top_mux_1;                   // rtl-gen/src/merge/writer.rs:115
     wire [10:0] top_mux_2;                   // rtl-gen/src/merge/writer.rs:115
@@ -1136,7 +1136,7 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire [30:0] const_add_15;                // rtl-gen/src/merge/writer.rs:139
     wire [30:0] top_mux_45;                  // rtl-gen/src/merge/writer.rs:139
     wire [30:0] const_add_16;                // rtl-gen/src/merge/writer.rs:139
-    wire [30:0] nodes_total;                 // rtl-gen/src/merge/writer.rs:433
+    wire [30:0] nodes_total;                 // rtl-gen/src/merge/writer.rs:646
     wire [34:0] top_mux_46;                  // rtl-gen/src/merge/writer.rs:115
     wire [34:0] top_mux_47;                  // rtl-gen/src/merge/writer.rs:115
     wire [34:0] top_mux_48;                  // rtl-gen/src/merge/writer.rs:115
@@ -1202,10 +1202,10 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire [40:0] l0_in_merge_add_15;          // rtl-gen/src/merge/writer.rs:139
     wire [40:0] l16_in_merge_mux;            // rtl-gen/src/merge/writer.rs:139
     wire [40:0] l0_in_merge_add_16;          // rtl-gen/src/merge/writer.rs:139
-    wire [40:0] refs_total;                  // rtl-gen/src/merge/writer.rs:437
-    wire nodes_total_gt;                     // rtl-gen/src/merge/writer.rs:440
-    wire refs_total_gt;                      // rtl-gen/src/merge/writer.rs:440
-    wire nodes_total_or;                     // rtl-gen/src/merge/writer.rs:440
+    wire [40:0] refs_total;                  // rtl-gen/src/merge/writer.rs:650
+    wire nodes_total_gt;                     // rtl-gen/src/merge/writer.rs:653
+    wire refs_total_gt;                      // rtl-gen/src/merge/writer.rs:653
+    wire nodes_total_or;                     // rtl-gen/src/merge/writer.rs:653
     wire l0_cap_err_and;                     // rtl-gen/src/merge/writer.rs:128
     wire l0_cap_err_or_1;                    // rtl-gen/src/merge/writer.rs:128
     wire l1_cap_err_and;                     // rtl-gen/src/merge/writer.rs:128
@@ -1240,7 +1240,7 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire l0_cap_err_or_16;                   // rtl-gen/src/merge/writer.rs:128
     wire l16_cap_err_and;                    // rtl-gen/src/merge/writer.rs:128
     wire l0_cap_err_or_17;                   // rtl-gen/src/merge/writer.rs:128
-    wire l0_cap_err_or_18;                   // rtl-gen/src/merge/writer.rs:441
+    wire l0_cap_err_or_18;                   // rtl-gen/src/merge/writer.rs:654
     wire l0_err_and;                         // rtl-gen/src/merge/writer.rs:128
     wire l0_err_or_2;                        // rtl-gen/src/merge/writer.rs:128
     wire l1_err_and;                         // rtl-gen/src/merge/writer.rs:128
@@ -1275,21 +1275,21 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire l0_err_or_17;                       // rtl-gen/src/merge/writer.rs:128
     wire l16_err_and;                        // rtl-gen/src/merge/writer.rs:128
     wire l0_err_or_18;                       // rtl-gen/src/merge/writer.rs:128
-    wire [2:0] nodes_total_mux;              // rtl-gen/src/merge/writer.rs:450
-    wire [2:0] l0_err_mux;                   // rtl-gen/src/merge/writer.rs:448
-    wire [2:0] l0_cap_err_mux;               // rtl-gen/src/merge/writer.rs:446
-    wire [2:0] done_err_mux;                 // rtl-gen/src/merge/writer.rs:444
-    wire fill_ok;                            // rtl-gen/src/merge/writer.rs:454
-    reg [2:0] err_code;                      // rtl-gen/src/merge/writer.rs:455
-    reg [24:0] h_roots;                      // rtl-gen/src/merge/writer.rs:456
-    reg [24:0] h_nodes;                      // rtl-gen/src/merge/writer.rs:457
-    reg [24:0] h_refs;                       // rtl-gen/src/merge/writer.rs:458
-    wire drain_start;                        // rtl-gen/src/merge/writer.rs:463
-    reg [4:0] rs_lod;                        // rtl-gen/src/merge/writer.rs:470
-    reg [10:0] rs_ptr;                       // rtl-gen/src/merge/writer.rs:471
-    reg [24:0] rs_first;                     // rtl-gen/src/merge/writer.rs:472
-    reg rs_done;                             // rtl-gen/src/merge/writer.rs:473
-    wire rs_lod_eq;                          // rtl-gen/src/merge/writer.rs:474
+    wire [2:0] nodes_total_mux;              // rtl-gen/src/merge/writer.rs:663
+    wire [2:0] l0_err_mux;                   // rtl-gen/src/merge/writer.rs:661
+    wire [2:0] l0_cap_err_mux;               // rtl-gen/src/merge/writer.rs:659
+    wire [2:0] done_err_mux;                 // rtl-gen/src/merge/writer.rs:657
+    wire fill_ok;                            // rtl-gen/src/merge/writer.rs:667
+    reg [2:0] err_code;                      // rtl-gen/src/merge/writer.rs:668
+    reg [24:0] h_roots;                      // rtl-gen/src/merge/writer.rs:669
+    reg [24:0] h_nodes;                      // rtl-gen/src/merge/writer.rs:670
+    reg [24:0] h_refs;                       // rtl-gen/src/merge/writer.rs:671
+    wire drain_start;                        // rtl-gen/src/merge/writer.rs:676
+    reg [4:0] rs_lod;                        // rtl-gen/src/merge/writer.rs:725
+    reg [10:0] rs_ptr;                       // rtl-gen/src/merge/writer.rs:726
+    reg [24:0] rs_first;                     // rtl-gen/src/merge/writer.rs:727
+    reg rs_done;                             // rtl-gen/src/merge/writer.rs:728
+    wire rs_lod_eq;                          // rtl-gen/src/merge/writer.rs:729
     wire [10:0] rs_lod_mux;                  // rtl-gen/src/merge/writer.rs:115
     wire [10:0] rs_lod_mux_1;                // rtl-gen/src/merge/writer.rs:115
     wire [10:0] rs_lod_mux_2;                // rtl-gen/src/merge/writer.rs:115
@@ -1321,13 +1321,13 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire [10:0] rs_lod_mux_28;               // rtl-gen/src/merge/writer.rs:115
     wire [10:0] rs_lod_mux_29;               // rtl-gen/src/merge/writer.rs:115
     wire [10:0] rs_lod_mux_30;               // rtl-gen/src/merge/writer.rs:115
-    wire [10:0] rs_lod_mux_31;               // rtl-gen/src/merge/writer.rs:475
-    wire [10:0] rs_ptr_add;                  // rtl-gen/src/merge/writer.rs:476
-    wire rs_ptr_eq;                          // rtl-gen/src/merge/writer.rs:476
-    wire rs_done_not;                        // rtl-gen/src/merge/writer.rs:477
-    wire nodes_in_valid;                     // rtl-gen/src/merge/writer.rs:477
-    wire nodes_in_ready;                     // rtl-gen/src/merge/writer.rs:479
-    wire nodes_in_valid_and;                 // rtl-gen/src/merge/writer.rs:480
+    wire [10:0] rs_lod_mux_31;               // rtl-gen/src/merge/writer.rs:730
+    wire [10:0] rs_ptr_add;                  // rtl-gen/src/merge/writer.rs:731
+    wire rs_ptr_eq;                          // rtl-gen/src/merge/writer.rs:731
+    wire rs_done_not;                        // rtl-gen/src/merge/writer.rs:732
+    wire nodes_in_valid;                     // rtl-gen/src/merge/writer.rs:732
+    wire nodes_in_ready;                     // rtl-gen/src/merge/writer.rs:734
+    wire nodes_in_valid_and;                 // rtl-gen/src/merge/writer.rs:735
     wire rs_lod_gt;                          // rtl-gen/src/merge/writer.rs:156
     wire l16_records_ne;                     // rtl-gen/src/merge/writer.rs:156
     wire rs_lod_and;                         // rtl-gen/src/merge/writer.rs:156
@@ -1408,18 +1408,18 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire rs_lod_and_15;                      // rtl-gen/src/merge/writer.rs:156
     wire rs_lod_or_15;                       // rtl-gen/src/merge/writer.rs:157
     wire [4:0] rs_lod_mux_47;                // rtl-gen/src/merge/writer.rs:158
-    wire nodes_in_valid_and_1;               // rtl-gen/src/merge/writer.rs:483
-    wire nodes_in_valid_and_2;               // rtl-gen/src/merge/writer.rs:484
-    wire rs_lod_not;                         // rtl-gen/src/merge/writer.rs:485
-    wire nodes_in_valid_and_3;               // rtl-gen/src/merge/writer.rs:485
-    wire [4:0] nodes_in_valid_mux;           // rtl-gen/src/merge/writer.rs:487
-    wire [4:0] rs_lod_next;                  // rtl-gen/src/merge/writer.rs:487
-    wire drain_start_or;                     // rtl-gen/src/merge/writer.rs:489
-    wire [10:0] rs_ptr_add_1;                // rtl-gen/src/merge/writer.rs:490
-    wire [10:0] nodes_in_valid_mux_1;        // rtl-gen/src/merge/writer.rs:490
-    wire [10:0] rs_ptr_next;                 // rtl-gen/src/merge/writer.rs:490
-    wire drain_start_or_1;                   // rtl-gen/src/merge/writer.rs:494
-    wire rs_lod_next_eq;                     // rtl-gen/src/merge/writer.rs:495
+    wire nodes_in_valid_and_1;               // rtl-gen/src/merge/writer.rs:738
+    wire nodes_in_valid_and_2;               // rtl-gen/src/merge/writer.rs:739
+    wire rs_lod_not;                         // rtl-gen/src/merge/writer.rs:740
+    wire nodes_in_valid_and_3;               // rtl-gen/src/merge/writer.rs:740
+    wire [4:0] nodes_in_valid_mux;           // rtl-gen/src/merge/writer.rs:742
+    wire [4:0] rs_lod_next;                  // rtl-gen/src/merge/writer.rs:742
+    wire drain_start_or;                     // rtl-gen/src/merge/writer.rs:744
+    wire [10:0] rs_ptr_add_1;                // rtl-gen/src/merge/writer.rs:745
+    wire [10:0] nodes_in_valid_mux_1;        // rtl-gen/src/merge/writer.rs:745
+    wire [10:0] rs_ptr_next;                 // rtl-gen/src/merge/writer.rs:745
+    wire drain_start_or_1;                   // rtl-gen/src/merge/writer.rs:749
+    wire rs_lod_next_eq;                     // rtl-gen/src/merge/writer.rs:750
     wire rs_lod_next_eq_1;                   // rtl-gen/src/merge/writer.rs:175
     wire drain_start_and;                    // rtl-gen/src/merge/writer.rs:175
     wire drain_start_and_1;                  // rtl-gen/src/merge/writer.rs:177
@@ -1630,40 +1630,40 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire [125:0] rs_lod_mux_107;             // rtl-gen/src/merge/writer.rs:115
     wire [125:0] rs_lod_mux_108;             // rtl-gen/src/merge/writer.rs:115
     wire [125:0] rs_lod_mux_109;             // rtl-gen/src/merge/writer.rs:115
-    wire [125:0] rs_lod_mux_110;             // rtl-gen/src/merge/writer.rs:501
-    wire [149:0] rs_lod_cat;                 // rtl-gen/src/merge/writer.rs:503
-    wire [149:0] nodes_in_valid_mux_2;       // rtl-gen/src/merge/writer.rs:513
-    reg nodes_skid_valid;                    // rtl-gen/src/merge/writer.rs:515
-    reg [149:0] nodes_skid_data;             // rtl-gen/src/merge/writer.rs:515
-    reg nodes_skid_spare_valid;              // rtl-gen/src/merge/writer.rs:515
-    reg [149:0] nodes_skid_spare_data;       // rtl-gen/src/merge/writer.rs:515
-    wire nodes_skid_ready;                   // rtl-gen/src/merge/writer.rs:515
-    wire nodes_skid_valid_not;               // rtl-gen/src/merge/writer.rs:515
-    wire nodes_skid_ready_or;                // rtl-gen/src/merge/writer.rs:515
-    wire nodes_skid_spare_valid_not;         // rtl-gen/src/merge/writer.rs:515
-    wire nodes_in_valid_and_4;               // rtl-gen/src/merge/writer.rs:515
-    wire nodes_skid_spare_valid_or;          // rtl-gen/src/merge/writer.rs:515
-    wire [149:0] nodes_skid_spare_valid_mux; // rtl-gen/src/merge/writer.rs:515
-    wire nodes_skid_spare_valid_or_1;        // rtl-gen/src/merge/writer.rs:515
-    wire nodes_skid_spare_valid_next;        // rtl-gen/src/merge/writer.rs:515
-    wire nodes_skid_ready_not;               // rtl-gen/src/merge/writer.rs:515
-    wire nodes_skid_ready_and;               // rtl-gen/src/merge/writer.rs:515
-    wire [24:0] rs_first_add;                // rtl-gen/src/merge/writer.rs:518
-    wire rs_done_or;                         // rtl-gen/src/merge/writer.rs:520
-    wire rs_done_next;                       // rtl-gen/src/merge/writer.rs:520
-    reg [4:0] fs_lod;                        // rtl-gen/src/merge/writer.rs:528
-    reg [10:0] fs_ptr;                       // rtl-gen/src/merge/writer.rs:529
-    reg [23:0] fs_j;                         // rtl-gen/src/merge/writer.rs:530
-    reg [23:0] fs_req;                       // rtl-gen/src/merge/writer.rs:531
-    reg [10:0] fs_child;                     // rtl-gen/src/merge/writer.rs:532
-    reg [10:0] fs_cref;                      // rtl-gen/src/merge/writer.rs:533
-    reg [24:0] fs_child_offset;              // rtl-gen/src/merge/writer.rs:534
-    reg fs_done;                             // rtl-gen/src/merge/writer.rs:535
-    wire [4:0] fs_lod_next;                  // rtl-gen/src/merge/writer.rs:536
-    wire [10:0] fs_ptr_next;                 // rtl-gen/src/merge/writer.rs:537
-    wire [10:0] fs_child_next;               // rtl-gen/src/merge/writer.rs:538
-    wire [10:0] fs_cref_next;                // rtl-gen/src/merge/writer.rs:539
-    wire fs_lod_eq;                          // rtl-gen/src/merge/writer.rs:540
+    wire [125:0] rs_lod_mux_110;             // rtl-gen/src/merge/writer.rs:756
+    wire [149:0] rs_lod_cat;                 // rtl-gen/src/merge/writer.rs:758
+    wire [149:0] nodes_in_valid_mux_2;       // rtl-gen/src/merge/writer.rs:768
+    reg nodes_skid_valid;                    // rtl-gen/src/merge/writer.rs:770
+    reg [149:0] nodes_skid_data;             // rtl-gen/src/merge/writer.rs:770
+    reg nodes_skid_spare_valid;              // rtl-gen/src/merge/writer.rs:770
+    reg [149:0] nodes_skid_spare_data;       // rtl-gen/src/merge/writer.rs:770
+    wire nodes_skid_ready;                   // rtl-gen/src/merge/writer.rs:770
+    wire nodes_skid_valid_not;               // rtl-gen/src/merge/writer.rs:770
+    wire nodes_skid_ready_or;                // rtl-gen/src/merge/writer.rs:770
+    wire nodes_skid_spare_valid_not;         // rtl-gen/src/merge/writer.rs:770
+    wire nodes_in_valid_and_4;               // rtl-gen/src/merge/writer.rs:770
+    wire nodes_skid_spare_valid_or;          // rtl-gen/src/merge/writer.rs:770
+    wire [149:0] nodes_skid_spare_valid_mux; // rtl-gen/src/merge/writer.rs:770
+    wire nodes_skid_spare_valid_or_1;        // rtl-gen/src/merge/writer.rs:770
+    wire nodes_skid_spare_valid_next;        // rtl-gen/src/merge/writer.rs:770
+    wire nodes_skid_ready_not;               // rtl-gen/src/merge/writer.rs:770
+    wire nodes_skid_ready_and;               // rtl-gen/src/merge/writer.rs:770
+    wire [24:0] rs_first_add;                // rtl-gen/src/merge/writer.rs:773
+    wire rs_done_or;                         // rtl-gen/src/merge/writer.rs:775
+    wire rs_done_next;                       // rtl-gen/src/merge/writer.rs:775
+    reg [4:0] fs_lod;                        // rtl-gen/src/merge/writer.rs:808
+    reg [10:0] fs_ptr;                       // rtl-gen/src/merge/writer.rs:809
+    reg [23:0] fs_j;                         // rtl-gen/src/merge/writer.rs:810
+    reg [23:0] fs_req;                       // rtl-gen/src/merge/writer.rs:811
+    reg [10:0] fs_child;                     // rtl-gen/src/merge/writer.rs:812
+    reg [10:0] fs_cref;                      // rtl-gen/src/merge/writer.rs:813
+    reg [24:0] fs_child_offset;              // rtl-gen/src/merge/writer.rs:814
+    reg fs_done;                             // rtl-gen/src/merge/writer.rs:815
+    wire [4:0] fs_lod_next;                  // rtl-gen/src/merge/writer.rs:816
+    wire [10:0] fs_ptr_next;                 // rtl-gen/src/merge/writer.rs:817
+    wire [10:0] fs_child_next;               // rtl-gen/src/merge/writer.rs:818
+    wire [10:0] fs_cref_next;                // rtl-gen/src/merge/writer.rs:819
+    wire fs_lod_eq;                          // rtl-gen/src/merge/writer.rs:820
     wire [10:0] fs_lod_mux;                  // rtl-gen/src/merge/writer.rs:115
     wire [10:0] fs_lod_mux_1;                // rtl-gen/src/merge/writer.rs:115
     wire [10:0] fs_lod_mux_2;                // rtl-gen/src/merge/writer.rs:115
@@ -1695,13 +1695,13 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire [10:0] fs_lod_mux_28;               // rtl-gen/src/merge/writer.rs:115
     wire [10:0] fs_lod_mux_29;               // rtl-gen/src/merge/writer.rs:115
     wire [10:0] fs_lod_mux_30;               // rtl-gen/src/merge/writer.rs:115
-    wire [10:0] fs_lod_mux_31;               // rtl-gen/src/merge/writer.rs:541
-    wire [10:0] fs_ptr_add;                  // rtl-gen/src/merge/writer.rs:542
-    wire fs_ptr_eq;                          // rtl-gen/src/merge/writer.rs:542
-    wire fs_done_not;                        // rtl-gen/src/merge/writer.rs:543
-    wire fs_busy;                            // rtl-gen/src/merge/writer.rs:543
-    wire drain_start_or_2;                   // rtl-gen/src/merge/writer.rs:544
-    wire fs_lod_next_eq;                     // rtl-gen/src/merge/writer.rs:545
+    wire [10:0] fs_lod_mux_31;               // rtl-gen/src/merge/writer.rs:821
+    wire [10:0] fs_ptr_add;                  // rtl-gen/src/merge/writer.rs:822
+    wire fs_ptr_eq;                          // rtl-gen/src/merge/writer.rs:822
+    wire fs_done_not;                        // rtl-gen/src/merge/writer.rs:823
+    wire fs_busy;                            // rtl-gen/src/merge/writer.rs:823
+    wire drain_start_or_2;                   // rtl-gen/src/merge/writer.rs:824
+    wire fs_lod_next_eq;                     // rtl-gen/src/merge/writer.rs:825
     wire fs_lod_next_eq_1;                   // rtl-gen/src/merge/writer.rs:175
     wire drain_start_and_66;                 // rtl-gen/src/merge/writer.rs:175
     wire drain_start_and_67;                 // rtl-gen/src/merge/writer.rs:177
@@ -1912,63 +1912,63 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire [53:0] fs_lod_mux_91;               // rtl-gen/src/merge/writer.rs:115
     wire [53:0] fs_lod_mux_92;               // rtl-gen/src/merge/writer.rs:115
     wire [53:0] fs_lod_mux_93;               // rtl-gen/src/merge/writer.rs:115
-    wire [53:0] fs_lod_mux_94;               // rtl-gen/src/merge/writer.rs:552
+    wire [53:0] fs_lod_mux_94;               // rtl-gen/src/merge/writer.rs:832
     wire fs_lod_eq_1;                        // rtl-gen/src/merge/writer.rs:120
     wire fs_lod_eq_2;                        // rtl-gen/src/merge/writer.rs:120
     wire fs_lod_eq_3;                        // rtl-gen/src/merge/writer.rs:120
-    wire [4:0] fs_lod_next_add;              // rtl-gen/src/merge/writer.rs:561
-    wire fs_lod_next_eq_34;                  // rtl-gen/src/merge/writer.rs:562
-    wire drain_start_and_132;                // rtl-gen/src/merge/writer.rs:562
+    wire [4:0] fs_lod_next_add;              // rtl-gen/src/merge/writer.rs:841
+    wire fs_lod_next_eq_34;                  // rtl-gen/src/merge/writer.rs:842
+    wire drain_start_and_132;                // rtl-gen/src/merge/writer.rs:842
     reg [52:0] child0_mem_rdata;             // rtl-gen/src/merge/writer.rs:196
-    wire fs_lod_next_eq_35;                  // rtl-gen/src/merge/writer.rs:562
-    wire drain_start_and_133;                // rtl-gen/src/merge/writer.rs:562
+    wire fs_lod_next_eq_35;                  // rtl-gen/src/merge/writer.rs:842
+    wire drain_start_and_133;                // rtl-gen/src/merge/writer.rs:842
     reg [52:0] child1_mem_rdata;             // rtl-gen/src/merge/writer.rs:196
-    wire fs_lod_next_eq_36;                  // rtl-gen/src/merge/writer.rs:562
-    wire drain_start_and_134;                // rtl-gen/src/merge/writer.rs:562
+    wire fs_lod_next_eq_36;                  // rtl-gen/src/merge/writer.rs:842
+    wire drain_start_and_134;                // rtl-gen/src/merge/writer.rs:842
     reg [52:0] child2_mem_rdata;             // rtl-gen/src/merge/writer.rs:196
-    wire fs_lod_next_eq_37;                  // rtl-gen/src/merge/writer.rs:562
-    wire drain_start_and_135;                // rtl-gen/src/merge/writer.rs:562
+    wire fs_lod_next_eq_37;                  // rtl-gen/src/merge/writer.rs:842
+    wire drain_start_and_135;                // rtl-gen/src/merge/writer.rs:842
     reg [52:0] child3_mem_rdata;             // rtl-gen/src/merge/writer.rs:196
-    wire fs_lod_next_eq_38;                  // rtl-gen/src/merge/writer.rs:562
-    wire drain_start_and_136;                // rtl-gen/src/merge/writer.rs:562
+    wire fs_lod_next_eq_38;                  // rtl-gen/src/merge/writer.rs:842
+    wire drain_start_and_136;                // rtl-gen/src/merge/writer.rs:842
     reg [52:0] child4_mem_rdata;             // rtl-gen/src/merge/writer.rs:196
-    wire fs_lod_next_eq_39;                  // rtl-gen/src/merge/writer.rs:562
-    wire drain_start_and_137;                // rtl-gen/src/merge/writer.rs:562
+    wire fs_lod_next_eq_39;                  // rtl-gen/src/merge/writer.rs:842
+    wire drain_start_and_137;                // rtl-gen/src/merge/writer.rs:842
     reg [52:0] child5_mem_rdata;             // rtl-gen/src/merge/writer.rs:196
-    wire fs_lod_next_eq_40;                  // rtl-gen/src/merge/writer.rs:562
-    wire drain_start_and_138;                // rtl-gen/src/merge/writer.rs:562
+    wire fs_lod_next_eq_40;                  // rtl-gen/src/merge/writer.rs:842
+    wire drain_start_and_138;                // rtl-gen/src/merge/writer.rs:842
     reg [52:0] child6_mem_rdata;             // rtl-gen/src/merge/writer.rs:196
-    wire fs_lod_next_eq_41;                  // rtl-gen/src/merge/writer.rs:562
-    wire drain_start_and_139;                // rtl-gen/src/merge/writer.rs:562
+    wire fs_lod_next_eq_41;                  // rtl-gen/src/merge/writer.rs:842
+    wire drain_start_and_139;                // rtl-gen/src/merge/writer.rs:842
     reg [52:0] child7_mem_rdata;             // rtl-gen/src/merge/writer.rs:196
-    wire fs_lod_next_eq_42;                  // rtl-gen/src/merge/writer.rs:562
-    wire drain_start_and_140;                // rtl-gen/src/merge/writer.rs:562
+    wire fs_lod_next_eq_42;                  // rtl-gen/src/merge/writer.rs:842
+    wire drain_start_and_140;                // rtl-gen/src/merge/writer.rs:842
     reg [52:0] child8_mem_rdata;             // rtl-gen/src/merge/writer.rs:196
-    wire fs_lod_next_eq_43;                  // rtl-gen/src/merge/writer.rs:562
-    wire drain_start_and_141;                // rtl-gen/src/merge/writer.rs:562
+    wire fs_lod_next_eq_43;                  // rtl-gen/src/merge/writer.rs:842
+    wire drain_start_and_141;                // rtl-gen/src/merge/writer.rs:842
     reg [52:0] child9_mem_rdata;             // rtl-gen/src/merge/writer.rs:196
-    wire fs_lod_next_eq_44;                  // rtl-gen/src/merge/writer.rs:562
-    wire drain_start_and_142;                // rtl-gen/src/merge/writer.rs:562
+    wire fs_lod_next_eq_44;                  // rtl-gen/src/merge/writer.rs:842
+    wire drain_start_and_142;                // rtl-gen/src/merge/writer.rs:842
     reg [52:0] child10_mem_rdata;            // rtl-gen/src/merge/writer.rs:196
-    wire fs_lod_next_eq_45;                  // rtl-gen/src/merge/writer.rs:562
-    wire drain_start_and_143;                // rtl-gen/src/merge/writer.rs:562
+    wire fs_lod_next_eq_45;                  // rtl-gen/src/merge/writer.rs:842
+    wire drain_start_and_143;                // rtl-gen/src/merge/writer.rs:842
     reg [52:0] child11_mem_rdata;            // rtl-gen/src/merge/writer.rs:196
-    wire fs_lod_next_eq_46;                  // rtl-gen/src/merge/writer.rs:562
-    wire drain_start_and_144;                // rtl-gen/src/merge/writer.rs:562
+    wire fs_lod_next_eq_46;                  // rtl-gen/src/merge/writer.rs:842
+    wire drain_start_and_144;                // rtl-gen/src/merge/writer.rs:842
     reg [52:0] child12_mem_rdata;            // rtl-gen/src/merge/writer.rs:196
-    wire fs_lod_next_eq_47;                  // rtl-gen/src/merge/writer.rs:562
-    wire drain_start_and_145;                // rtl-gen/src/merge/writer.rs:562
+    wire fs_lod_next_eq_47;                  // rtl-gen/src/merge/writer.rs:842
+    wire drain_start_and_145;                // rtl-gen/src/merge/writer.rs:842
     reg [52:0] child13_mem_rdata;            // rtl-gen/src/merge/writer.rs:196
-    wire fs_lod_next_eq_48;                  // rtl-gen/src/merge/writer.rs:562
-    wire drain_start_and_146;                // rtl-gen/src/merge/writer.rs:562
+    wire fs_lod_next_eq_48;                  // rtl-gen/src/merge/writer.rs:842
+    wire drain_start_and_146;                // rtl-gen/src/merge/writer.rs:842
     reg [52:0] child14_mem_rdata;            // rtl-gen/src/merge/writer.rs:196
-    wire fs_lod_next_eq_49;                  // rtl-gen/src/merge/writer.rs:562
-    wire drain_start_and_147;                // rtl-gen/src/merge/writer.rs:562
+    wire fs_lod_next_eq_49;                  // rtl-gen/src/merge/writer.rs:842
+    wire drain_start_and_147;                // rtl-gen/src/merge/writer.rs:842
     reg [52:0] child15_mem_rdata;            // rtl-gen/src/merge/writer.rs:196
-    wire fs_lod_next_eq_50;                  // rtl-gen/src/merge/writer.rs:562
-    wire drain_start_and_148;                // rtl-gen/src/merge/writer.rs:562
+    wire fs_lod_next_eq_50;                  // rtl-gen/src/merge/writer.rs:842
+    wire drain_start_and_148;                // rtl-gen/src/merge/writer.rs:842
     reg [52:0] child16_mem_rdata;            // rtl-gen/src/merge/writer.rs:196
-    wire [4:0] fs_lod_add;                   // rtl-gen/src/merge/writer.rs:570
+    wire [4:0] fs_lod_add;                   // rtl-gen/src/merge/writer.rs:850
     wire [52:0] fs_lod_mux_95;               // rtl-gen/src/merge/writer.rs:115
     wire [52:0] fs_lod_mux_96;               // rtl-gen/src/merge/writer.rs:115
     wire [52:0] fs_lod_mux_97;               // rtl-gen/src/merge/writer.rs:115
@@ -2000,62 +2000,62 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire [52:0] fs_lod_mux_123;              // rtl-gen/src/merge/writer.rs:115
     wire [52:0] fs_lod_mux_124;              // rtl-gen/src/merge/writer.rs:115
     wire [52:0] fs_lod_mux_125;              // rtl-gen/src/merge/writer.rs:115
-    wire [23:0] fs_child_offset_add;         // rtl-gen/src/merge/writer.rs:571
-    wire [27:0] out_id_cat;                  // rtl-gen/src/merge/writer.rs:572
-    wire [27:0] fs_lod_mux_126;              // rtl-gen/src/merge/writer.rs:572
-    wire fs_req_ne;                          // rtl-gen/src/merge/writer.rs:574
-    wire refs_in_ready;                      // rtl-gen/src/merge/writer.rs:576
-    wire ref_resp_valid_and;                 // rtl-gen/src/merge/writer.rs:577
-    wire fs_lod_mux_127;                     // rtl-gen/src/merge/writer.rs:577
-    wire refs_in_valid;                      // rtl-gen/src/merge/writer.rs:578
-    reg [27:0] crefs_mem_rdata;              // rtl-gen/src/merge/writer.rs:582
-    wire [27:0] fs_lod_mux_128;              // rtl-gen/src/merge/writer.rs:581
-    wire [27:0] fs_lod_mux_129;              // rtl-gen/src/merge/writer.rs:579
-    wire [27:0] refs_in_valid_mux;           // rtl-gen/src/merge/writer.rs:589
-    wire refs_fire;                          // rtl-gen/src/merge/writer.rs:591
-    reg refs_skid_valid;                     // rtl-gen/src/merge/writer.rs:592
-    reg [27:0] refs_skid_data;               // rtl-gen/src/merge/writer.rs:592
-    reg refs_skid_spare_valid;               // rtl-gen/src/merge/writer.rs:592
-    reg [27:0] refs_skid_spare_data;         // rtl-gen/src/merge/writer.rs:592
-    wire refs_skid_ready;                    // rtl-gen/src/merge/writer.rs:592
-    wire refs_skid_valid_not;                // rtl-gen/src/merge/writer.rs:592
-    wire refs_skid_ready_or;                 // rtl-gen/src/merge/writer.rs:592
-    wire refs_skid_spare_valid_not;          // rtl-gen/src/merge/writer.rs:592
-    wire refs_in_valid_and;                  // rtl-gen/src/merge/writer.rs:592
-    wire refs_skid_spare_valid_or;           // rtl-gen/src/merge/writer.rs:592
-    wire [27:0] refs_skid_spare_valid_mux;   // rtl-gen/src/merge/writer.rs:592
-    wire refs_skid_spare_valid_or_1;         // rtl-gen/src/merge/writer.rs:592
-    wire refs_skid_spare_valid_next;         // rtl-gen/src/merge/writer.rs:592
-    wire refs_skid_ready_not;                // rtl-gen/src/merge/writer.rs:592
-    wire refs_skid_ready_and;                // rtl-gen/src/merge/writer.rs:592
-    wire fs_busy_and;                        // rtl-gen/src/merge/writer.rs:595
-    wire fs_busy_and_1;                      // rtl-gen/src/merge/writer.rs:595
-    wire fs_busy_and_2;                      // rtl-gen/src/merge/writer.rs:596
-    wire fs_req_ne_1;                        // rtl-gen/src/merge/writer.rs:596
-    wire ref_req_in_valid;                   // rtl-gen/src/merge/writer.rs:596
-    wire [23:0] fs_lod_add_1;                // rtl-gen/src/merge/writer.rs:597
-    wire ref_req_in_ready;                   // rtl-gen/src/merge/writer.rs:600
-    wire [27:0] fs_lod_cat;                  // rtl-gen/src/merge/writer.rs:601
-    wire [27:0] ref_req_in_valid_mux;        // rtl-gen/src/merge/writer.rs:601
-    wire ref_req_in_valid_and;               // rtl-gen/src/merge/writer.rs:603
-    reg ref_req_skid_valid;                  // rtl-gen/src/merge/writer.rs:604
-    reg [27:0] ref_req_skid_data;            // rtl-gen/src/merge/writer.rs:604
-    reg ref_req_skid_spare_valid;            // rtl-gen/src/merge/writer.rs:604
-    reg [27:0] ref_req_skid_spare_data;      // rtl-gen/src/merge/writer.rs:604
-    wire ref_req_skid_ready;                 // rtl-gen/src/merge/writer.rs:604
-    wire ref_req_skid_valid_not;             // rtl-gen/src/merge/writer.rs:604
-    wire ref_req_skid_ready_or;              // rtl-gen/src/merge/writer.rs:604
-    wire ref_req_skid_spare_valid_not;       // rtl-gen/src/merge/writer.rs:604
-    wire ref_req_in_valid_and_1;             // rtl-gen/src/merge/writer.rs:604
-    wire ref_req_skid_spare_valid_or;        // rtl-gen/src/merge/writer.rs:604
-    wire [27:0] ref_req_skid_spare_valid_mux; // rtl-gen/src/merge/writer.rs:604
-    wire ref_req_skid_spare_valid_or_1;      // rtl-gen/src/merge/writer.rs:604
-    wire ref_req_skid_spare_valid_next;      // rtl-gen/src/merge/writer.rs:604
-    wire ref_req_skid_ready_not;             // rtl-gen/src/merge/writer.rs:604
-    wire ref_req_skid_ready_and;             // rtl-gen/src/merge/writer.rs:604
-    wire [23:0] fs_j_add;                    // rtl-gen/src/merge/writer.rs:605
-    wire fs_j_eq;                            // rtl-gen/src/merge/writer.rs:605
-    wire refs_fire_and;                      // rtl-gen/src/merge/writer.rs:605
+    wire [23:0] fs_child_offset_add;         // rtl-gen/src/merge/writer.rs:851
+    wire [27:0] out_id_cat;                  // rtl-gen/src/merge/writer.rs:852
+    wire [27:0] fs_lod_mux_126;              // rtl-gen/src/merge/writer.rs:852
+    wire fs_req_ne;                          // rtl-gen/src/merge/writer.rs:854
+    wire refs_in_ready;                      // rtl-gen/src/merge/writer.rs:856
+    wire ref_resp_valid_and;                 // rtl-gen/src/merge/writer.rs:857
+    wire fs_lod_mux_127;                     // rtl-gen/src/merge/writer.rs:857
+    wire refs_in_valid;                      // rtl-gen/src/merge/writer.rs:858
+    reg [27:0] crefs_mem_rdata;              // rtl-gen/src/merge/writer.rs:862
+    wire [27:0] fs_lod_mux_128;              // rtl-gen/src/merge/writer.rs:861
+    wire [27:0] fs_lod_mux_129;              // rtl-gen/src/merge/writer.rs:859
+    wire [27:0] refs_in_valid_mux;           // rtl-gen/src/merge/writer.rs:869
+    wire refs_fire;                          // rtl-gen/src/merge/writer.rs:871
+    reg refs_skid_valid;                     // rtl-gen/src/merge/writer.rs:872
+    reg [27:0] refs_skid_data;               // rtl-gen/src/merge/writer.rs:872
+    reg refs_skid_spare_valid;               // rtl-gen/src/merge/writer.rs:872
+    reg [27:0] refs_skid_spare_data;         // rtl-gen/src/merge/writer.rs:872
+    wire refs_skid_ready;                    // rtl-gen/src/merge/writer.rs:872
+    wire refs_skid_valid_not;                // rtl-gen/src/merge/writer.rs:872
+    wire refs_skid_ready_or;                 // rtl-gen/src/merge/writer.rs:872
+    wire refs_skid_spare_valid_not;          // rtl-gen/src/merge/writer.rs:872
+    wire refs_in_valid_and;                  // rtl-gen/src/merge/writer.rs:872
+    wire refs_skid_spare_valid_or;           // rtl-gen/src/merge/writer.rs:872
+    wire [27:0] refs_skid_spare_valid_mux;   // rtl-gen/src/merge/writer.rs:872
+    wire refs_skid_spare_valid_or_1;         // rtl-gen/src/merge/writer.rs:872
+    wire refs_skid_spare_valid_next;         // rtl-gen/src/merge/writer.rs:872
+    wire refs_skid_ready_not;                // rtl-gen/src/merge/writer.rs:872
+    wire refs_skid_ready_and;                // rtl-gen/src/merge/writer.rs:872
+    wire fs_busy_and;                        // rtl-gen/src/merge/writer.rs:875
+    wire fs_busy_and_1;                      // rtl-gen/src/merge/writer.rs:875
+    wire fs_busy_and_2;                      // rtl-gen/src/merge/writer.rs:876
+    wire fs_req_ne_1;                        // rtl-gen/src/merge/writer.rs:876
+    wire ref_req_in_valid;                   // rtl-gen/src/merge/writer.rs:876
+    wire [23:0] fs_lod_add_1;                // rtl-gen/src/merge/writer.rs:877
+    wire ref_req_in_ready;                   // rtl-gen/src/merge/writer.rs:880
+    wire [27:0] fs_lod_cat;                  // rtl-gen/src/merge/writer.rs:881
+    wire [27:0] ref_req_in_valid_mux;        // rtl-gen/src/merge/writer.rs:881
+    wire ref_req_in_valid_and;               // rtl-gen/src/merge/writer.rs:883
+    reg ref_req_skid_valid;                  // rtl-gen/src/merge/writer.rs:884
+    reg [27:0] ref_req_skid_data;            // rtl-gen/src/merge/writer.rs:884
+    reg ref_req_skid_spare_valid;            // rtl-gen/src/merge/writer.rs:884
+    reg [27:0] ref_req_skid_spare_data;      // rtl-gen/src/merge/writer.rs:884
+    wire ref_req_skid_ready;                 // rtl-gen/src/merge/writer.rs:884
+    wire ref_req_skid_valid_not;             // rtl-gen/src/merge/writer.rs:884
+    wire ref_req_skid_ready_or;              // rtl-gen/src/merge/writer.rs:884
+    wire ref_req_skid_spare_valid_not;       // rtl-gen/src/merge/writer.rs:884
+    wire ref_req_in_valid_and_1;             // rtl-gen/src/merge/writer.rs:884
+    wire ref_req_skid_spare_valid_or;        // rtl-gen/src/merge/writer.rs:884
+    wire [27:0] ref_req_skid_spare_valid_mux; // rtl-gen/src/merge/writer.rs:884
+    wire ref_req_skid_spare_valid_or_1;      // rtl-gen/src/merge/writer.rs:884
+    wire ref_req_skid_spare_valid_next;      // rtl-gen/src/merge/writer.rs:884
+    wire ref_req_skid_ready_not;             // rtl-gen/src/merge/writer.rs:884
+    wire ref_req_skid_ready_and;             // rtl-gen/src/merge/writer.rs:884
+    wire [23:0] fs_j_add;                    // rtl-gen/src/merge/writer.rs:885
+    wire fs_j_eq;                            // rtl-gen/src/merge/writer.rs:885
+    wire refs_fire_and;                      // rtl-gen/src/merge/writer.rs:885
     wire fs_lod_gt;                          // rtl-gen/src/merge/writer.rs:156
     wire l16_records_ne_1;                   // rtl-gen/src/merge/writer.rs:156
     wire fs_lod_and;                         // rtl-gen/src/merge/writer.rs:156
@@ -2136,25 +2136,25 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire fs_lod_and_15;                      // rtl-gen/src/merge/writer.rs:156
     wire fs_lod_or_15;                       // rtl-gen/src/merge/writer.rs:157
     wire [4:0] fs_lod_mux_145;               // rtl-gen/src/merge/writer.rs:158
-    wire refs_fire_and_1;                    // rtl-gen/src/merge/writer.rs:608
-    wire refs_fire_and_2;                    // rtl-gen/src/merge/writer.rs:609
-    wire fs_lod_not;                         // rtl-gen/src/merge/writer.rs:610
-    wire refs_fire_and_3;                    // rtl-gen/src/merge/writer.rs:610
-    wire [4:0] refs_fire_mux;                // rtl-gen/src/merge/writer.rs:613
-    wire drain_start_or_3;                   // rtl-gen/src/merge/writer.rs:615
-    wire [10:0] fs_ptr_add_1;                // rtl-gen/src/merge/writer.rs:615
-    wire [10:0] refs_fire_mux_1;             // rtl-gen/src/merge/writer.rs:615
-    wire drain_start_or_4;                   // rtl-gen/src/merge/writer.rs:619
-    wire [23:0] fs_j_add_1;                  // rtl-gen/src/merge/writer.rs:619
-    wire drain_start_or_5;                   // rtl-gen/src/merge/writer.rs:620
-    wire [23:0] fs_req_add;                  // rtl-gen/src/merge/writer.rs:620
-    wire drain_start_or_6;                   // rtl-gen/src/merge/writer.rs:621
-    wire refs_fire_and_4;                    // rtl-gen/src/merge/writer.rs:623
-    wire [10:0] fs_child_add;                // rtl-gen/src/merge/writer.rs:623
-    wire [10:0] refs_fire_mux_3;             // rtl-gen/src/merge/writer.rs:623
-    wire refs_fire_and_5;                    // rtl-gen/src/merge/writer.rs:628
-    wire [10:0] fs_cref_add;                 // rtl-gen/src/merge/writer.rs:628
-    wire [10:0] refs_fire_mux_4;             // rtl-gen/src/merge/writer.rs:628
+    wire refs_fire_and_1;                    // rtl-gen/src/merge/writer.rs:888
+    wire refs_fire_and_2;                    // rtl-gen/src/merge/writer.rs:889
+    wire fs_lod_not;                         // rtl-gen/src/merge/writer.rs:890
+    wire refs_fire_and_3;                    // rtl-gen/src/merge/writer.rs:890
+    wire [4:0] refs_fire_mux;                // rtl-gen/src/merge/writer.rs:893
+    wire drain_start_or_3;                   // rtl-gen/src/merge/writer.rs:895
+    wire [10:0] fs_ptr_add_1;                // rtl-gen/src/merge/writer.rs:895
+    wire [10:0] refs_fire_mux_1;             // rtl-gen/src/merge/writer.rs:895
+    wire drain_start_or_4;                   // rtl-gen/src/merge/writer.rs:899
+    wire [23:0] fs_j_add_1;                  // rtl-gen/src/merge/writer.rs:899
+    wire drain_start_or_5;                   // rtl-gen/src/merge/writer.rs:900
+    wire [23:0] fs_req_add;                  // rtl-gen/src/merge/writer.rs:900
+    wire drain_start_or_6;                   // rtl-gen/src/merge/writer.rs:901
+    wire refs_fire_and_4;                    // rtl-gen/src/merge/writer.rs:903
+    wire [10:0] fs_child_add;                // rtl-gen/src/merge/writer.rs:903
+    wire [10:0] refs_fire_mux_3;             // rtl-gen/src/merge/writer.rs:903
+    wire refs_fire_and_5;                    // rtl-gen/src/merge/writer.rs:908
+    wire [10:0] fs_cref_add;                 // rtl-gen/src/merge/writer.rs:908
+    wire [10:0] refs_fire_mux_4;             // rtl-gen/src/merge/writer.rs:908
     wire [10:0] fs_lod_mux_146;              // rtl-gen/src/merge/writer.rs:115
     wire [10:0] fs_lod_mux_147;              // rtl-gen/src/merge/writer.rs:115
     wire [10:0] fs_lod_mux_148;              // rtl-gen/src/merge/writer.rs:115
@@ -2186,31 +2186,31 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire [10:0] fs_lod_mux_174;              // rtl-gen/src/merge/writer.rs:115
     wire [10:0] fs_lod_mux_175;              // rtl-gen/src/merge/writer.rs:115
     wire [10:0] fs_lod_mux_176;              // rtl-gen/src/merge/writer.rs:115
-    wire [24:0] fs_child_offset_add_1;       // rtl-gen/src/merge/writer.rs:637
-    wire fs_done_or;                         // rtl-gen/src/merge/writer.rs:639
-    wire fs_done_next;                       // rtl-gen/src/merge/writer.rs:639
-    wire [86:0] err_code_cat;                // rtl-gen/src/merge/writer.rs:642
-    wire err_code_eq;                        // rtl-gen/src/merge/writer.rs:644
-    wire [86:0] err_code_cat_1;              // rtl-gen/src/merge/writer.rs:645
-    wire [86:0] err_code_mux;                // rtl-gen/src/merge/writer.rs:649
-    reg header_skid_valid;                   // rtl-gen/src/merge/writer.rs:651
-    reg [86:0] header_skid_data;             // rtl-gen/src/merge/writer.rs:651
-    reg header_skid_spare_valid;             // rtl-gen/src/merge/writer.rs:651
-    reg [86:0] header_skid_spare_data;       // rtl-gen/src/merge/writer.rs:651
-    wire header_skid_ready;                  // rtl-gen/src/merge/writer.rs:651
-    wire header_skid_valid_not;              // rtl-gen/src/merge/writer.rs:651
-    wire header_skid_ready_or;               // rtl-gen/src/merge/writer.rs:651
-    wire header_skid_spare_valid_not;        // rtl-gen/src/merge/writer.rs:651
-    wire in_header_and;                      // rtl-gen/src/merge/writer.rs:651
-    wire header_skid_spare_valid_or;         // rtl-gen/src/merge/writer.rs:651
-    wire [86:0] header_skid_spare_valid_mux; // rtl-gen/src/merge/writer.rs:651
-    wire header_skid_spare_valid_or_1;       // rtl-gen/src/merge/writer.rs:651
-    wire header_skid_spare_valid_next;       // rtl-gen/src/merge/writer.rs:651
-    wire header_skid_ready_not;              // rtl-gen/src/merge/writer.rs:651
-    wire header_skid_ready_and;              // rtl-gen/src/merge/writer.rs:651
-    wire in_drain_and;                       // rtl-gen/src/merge/writer.rs:655
-    wire in_drain_and_1;                     // rtl-gen/src/merge/writer.rs:655
-    wire [1:0] fill_ok_mux;                  // rtl-gen/src/merge/writer.rs:659
+    wire [24:0] fs_child_offset_add_1;       // rtl-gen/src/merge/writer.rs:917
+    wire fs_done_or;                         // rtl-gen/src/merge/writer.rs:919
+    wire fs_done_next;                       // rtl-gen/src/merge/writer.rs:919
+    wire [86:0] err_code_cat;                // rtl-gen/src/merge/writer.rs:283
+    wire err_code_eq;                        // rtl-gen/src/merge/writer.rs:292
+    wire [86:0] err_code_cat_1;              // rtl-gen/src/merge/writer.rs:293
+    wire [86:0] err_code_mux;                // rtl-gen/src/merge/writer.rs:297
+    reg header_skid_valid;                   // rtl-gen/src/merge/writer.rs:299
+    reg [86:0] header_skid_data;             // rtl-gen/src/merge/writer.rs:299
+    reg header_skid_spare_valid;             // rtl-gen/src/merge/writer.rs:299
+    reg [86:0] header_skid_spare_data;       // rtl-gen/src/merge/writer.rs:299
+    wire header_skid_ready;                  // rtl-gen/src/merge/writer.rs:299
+    wire header_skid_valid_not;              // rtl-gen/src/merge/writer.rs:299
+    wire header_skid_ready_or;               // rtl-gen/src/merge/writer.rs:299
+    wire header_skid_spare_valid_not;        // rtl-gen/src/merge/writer.rs:299
+    wire in_header_and;                      // rtl-gen/src/merge/writer.rs:299
+    wire header_skid_spare_valid_or;         // rtl-gen/src/merge/writer.rs:299
+    wire [86:0] header_skid_spare_valid_mux; // rtl-gen/src/merge/writer.rs:299
+    wire header_skid_spare_valid_or_1;       // rtl-gen/src/merge/writer.rs:299
+    wire header_skid_spare_valid_next;       // rtl-gen/src/merge/writer.rs:299
+    wire header_skid_ready_not;              // rtl-gen/src/merge/writer.rs:299
+    wire header_skid_ready_and;              // rtl-gen/src/merge/writer.rs:299
+    wire in_drain_and;                       // rtl-gen/src/merge/writer.rs:303
+    wire in_drain_and_1;                     // rtl-gen/src/merge/writer.rs:303
+    wire [1:0] fill_ok_mux;                  // rtl-gen/src/merge/writer.rs:307
 
     assign in_fill = state == 2'd0;
     assign in_drain = state == 2'd1;
@@ -4208,40 +4208,40 @@ module record_writer_d16_q8_i24_h4_c10 (
             header_skid_spare_data <= 87'h0000000000000000000000;
         end else begin
             if (merge_clear) begin
-                state <= 2'd0;               // rtl-gen/src/merge/writer.rs:656
-                cref_wptr <= 11'd0;          // rtl-gen/src/merge/writer.rs:310
-                err_code <= 3'd0;            // rtl-gen/src/merge/writer.rs:459
+                state <= 2'd0;               // rtl-gen/src/merge/writer.rs:304
+                cref_wptr <= 11'd0;          // rtl-gen/src/merge/writer.rs:403
+                err_code <= 3'd0;            // rtl-gen/src/merge/writer.rs:672
             end else begin
                 if (fill_done) begin
-                    state <= fill_ok_mux;    // rtl-gen/src/merge/writer.rs:658
-                    err_code <= done_err_mux; // rtl-gen/src/merge/writer.rs:459
+                    state <= fill_ok_mux;    // rtl-gen/src/merge/writer.rs:306
+                    err_code <= done_err_mux; // rtl-gen/src/merge/writer.rs:672
                 end else if (in_drain_and_1) begin
-                    state <= 2'd2;           // rtl-gen/src/merge/writer.rs:660
+                    state <= 2'd2;           // rtl-gen/src/merge/writer.rs:308
                 end
                 if (crefs_valid_and_1) begin
                     if (!cref_wptr[10]) begin
-                        cref_wptr <= cref_wptr_add; // rtl-gen/src/merge/writer.rs:309
+                        cref_wptr <= cref_wptr_add; // rtl-gen/src/merge/writer.rs:402
                     end
                 end
             end
             have_cfg <= have_cfg_next;
             if (cfg_valid_and) begin
-                out_id <= cfg_data;          // rtl-gen/src/merge/writer.rs:277
+                out_id <= cfg_data;          // rtl-gen/src/merge/writer.rs:370
             end
             have_done <= have_done_next;
             if (done_valid_and) begin
-                top <= done_data[4:0];       // rtl-gen/src/merge/writer.rs:288
-                done_err <= done_data[5];    // rtl-gen/src/merge/writer.rs:289
+                top <= done_data[4:0];       // rtl-gen/src/merge/writer.rs:381
+                done_err <= done_data[5];    // rtl-gen/src/merge/writer.rs:382
             end
             cref_end <= cref_end_next;
             cref_cap_err <= cref_cap_err_next;
             l0_end_seen <= l0_end_seen_next;
             if (merge_clear_and) begin
-                l0_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:401
-                l0_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:402
+                l0_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:559
+                l0_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:560
             end else if (level0_valid_and_3) begin
-                l0_nodes <= level0_data[190:180]; // rtl-gen/src/merge/writer.rs:401
-                l0_records <= level0_data[214:204]; // rtl-gen/src/merge/writer.rs:402
+                l0_nodes <= level0_data[190:180]; // rtl-gen/src/merge/writer.rs:559
+                l0_records <= level0_data[214:204]; // rtl-gen/src/merge/writer.rs:560
             end
             l0_record_counts <= l0_record_counts_next;
             l0_reused_counts <= l0_reused_counts_next;
@@ -4249,11 +4249,11 @@ module record_writer_d16_q8_i24_h4_c10 (
             l0_err <= l0_err_next;
             l1_end_seen <= l1_end_seen_next;
             if (merge_clear_and_1) begin
-                l1_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:401
-                l1_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:402
+                l1_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:559
+                l1_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:560
             end else if (level1_valid_and_5) begin
-                l1_nodes <= level1_data[190:180]; // rtl-gen/src/merge/writer.rs:401
-                l1_records <= level1_data[214:204]; // rtl-gen/src/merge/writer.rs:402
+                l1_nodes <= level1_data[190:180]; // rtl-gen/src/merge/writer.rs:559
+                l1_records <= level1_data[214:204]; // rtl-gen/src/merge/writer.rs:560
             end
             l1_record_counts <= l1_record_counts_next;
             l1_reused_counts <= l1_reused_counts_next;
@@ -4261,11 +4261,11 @@ module record_writer_d16_q8_i24_h4_c10 (
             l1_err <= l1_err_next;
             l2_end_seen <= l2_end_seen_next;
             if (merge_clear_and_2) begin
-                l2_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:401
-                l2_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:402
+                l2_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:559
+                l2_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:560
             end else if (level2_valid_and_5) begin
-                l2_nodes <= level2_data[190:180]; // rtl-gen/src/merge/writer.rs:401
-                l2_records <= level2_data[214:204]; // rtl-gen/src/merge/writer.rs:402
+                l2_nodes <= level2_data[190:180]; // rtl-gen/src/merge/writer.rs:559
+                l2_records <= level2_data[214:204]; // rtl-gen/src/merge/writer.rs:560
             end
             l2_record_counts <= l2_record_counts_next;
             l2_reused_counts <= l2_reused_counts_next;
@@ -4273,11 +4273,11 @@ module record_writer_d16_q8_i24_h4_c10 (
             l2_err <= l2_err_next;
             l3_end_seen <= l3_end_seen_next;
             if (merge_clear_and_3) begin
-                l3_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:401
-                l3_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:402
+                l3_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:559
+                l3_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:560
             end else if (level3_valid_and_5) begin
-                l3_nodes <= level3_data[190:180]; // rtl-gen/src/merge/writer.rs:401
-                l3_records <= level3_data[214:204]; // rtl-gen/src/merge/writer.rs:402
+                l3_nodes <= level3_data[190:180]; // rtl-gen/src/merge/writer.rs:559
+                l3_records <= level3_data[214:204]; // rtl-gen/src/merge/writer.rs:560
             end
             l3_record_counts <= l3_record_counts_next;
             l3_reused_counts <= l3_reused_counts_next;
@@ -4285,11 +4285,11 @@ module record_writer_d16_q8_i24_h4_c10 (
             l3_err <= l3_err_next;
             l4_end_seen <= l4_end_seen_next;
             if (merge_clear_and_4) begin
-                l4_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:401
-                l4_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:402
+                l4_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:559
+                l4_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:560
             end else if (level4_valid_and_5) begin
-                l4_nodes <= level4_data[190:180]; // rtl-gen/src/merge/writer.rs:401
-                l4_records <= level4_data[214:204]; // rtl-gen/src/merge/writer.rs:402
+                l4_nodes <= level4_data[190:180]; // rtl-gen/src/merge/writer.rs:559
+                l4_records <= level4_data[214:204]; // rtl-gen/src/merge/writer.rs:560
             end
             l4_record_counts <= l4_record_counts_next;
             l4_reused_counts <= l4_reused_counts_next;
@@ -4297,11 +4297,11 @@ module record_writer_d16_q8_i24_h4_c10 (
             l4_err <= l4_err_next;
             l5_end_seen <= l5_end_seen_next;
             if (merge_clear_and_5) begin
-                l5_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:401
-                l5_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:402
+                l5_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:559
+                l5_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:560
             end else if (level5_valid_and_5) begin
-                l5_nodes <= level5_data[190:180]; // rtl-gen/src/merge/writer.rs:401
-                l5_records <= level5_data[214:204]; // rtl-gen/src/merge/writer.rs:402
+                l5_nodes <= level5_data[190:180]; // rtl-gen/src/merge/writer.rs:559
+                l5_records <= level5_data[214:204]; // rtl-gen/src/merge/writer.rs:560
             end
             l5_record_counts <= l5_record_counts_next;
             l5_reused_counts <= l5_reused_counts_next;
@@ -4309,11 +4309,11 @@ module record_writer_d16_q8_i24_h4_c10 (
             l5_err <= l5_err_next;
             l6_end_seen <= l6_end_seen_next;
             if (merge_clear_and_6) begin
-                l6_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:401
-                l6_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:402
+                l6_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:559
+                l6_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:560
             end else if (level6_valid_and_5) begin
-                l6_nodes <= level6_data[190:180]; // rtl-gen/src/merge/writer.rs:401
-                l6_records <= level6_data[214:204]; // rtl-gen/src/merge/writer.rs:402
+                l6_nodes <= level6_data[190:180]; // rtl-gen/src/merge/writer.rs:559
+                l6_records <= level6_data[214:204]; // rtl-gen/src/merge/writer.rs:560
             end
             l6_record_counts <= l6_record_counts_next;
             l6_reused_counts <= l6_reused_counts_next;
@@ -4321,11 +4321,11 @@ module record_writer_d16_q8_i24_h4_c10 (
             l6_err <= l6_err_next;
             l7_end_seen <= l7_end_seen_next;
             if (merge_clear_and_7) begin
-                l7_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:401
-                l7_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:402
+                l7_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:559
+                l7_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:560
             end else if (level7_valid_and_5) begin
-                l7_nodes <= level7_data[190:180]; // rtl-gen/src/merge/writer.rs:401
-                l7_records <= level7_data[214:204]; // rtl-gen/src/merge/writer.rs:402
+                l7_nodes <= level7_data[190:180]; // rtl-gen/src/merge/writer.rs:559
+                l7_records <= level7_data[214:204]; // rtl-gen/src/merge/writer.rs:560
             end
             l7_record_counts <= l7_record_counts_next;
             l7_reused_counts <= l7_reused_counts_next;
@@ -4333,11 +4333,11 @@ module record_writer_d16_q8_i24_h4_c10 (
             l7_err <= l7_err_next;
             l8_end_seen <= l8_end_seen_next;
             if (merge_clear_and_8) begin
-                l8_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:401
-                l8_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:402
+                l8_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:559
+                l8_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:560
             end else if (level8_valid_and_5) begin
-                l8_nodes <= level8_data[190:180]; // rtl-gen/src/merge/writer.rs:401
-                l8_records <= level8_data[214:204]; // rtl-gen/src/merge/writer.rs:402
+                l8_nodes <= level8_data[190:180]; // rtl-gen/src/merge/writer.rs:559
+                l8_records <= level8_data[214:204]; // rtl-gen/src/merge/writer.rs:560
             end
             l8_record_counts <= l8_record_counts_next;
             l8_reused_counts <= l8_reused_counts_next;
@@ -4345,11 +4345,11 @@ module record_writer_d16_q8_i24_h4_c10 (
             l8_err <= l8_err_next;
             l9_end_seen <= l9_end_seen_next;
             if (merge_clear_and_9) begin
-                l9_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:401
-                l9_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:402
+                l9_nodes <= 11'd0;           // rtl-gen/src/merge/writer.rs:559
+                l9_records <= 11'd0;         // rtl-gen/src/merge/writer.rs:560
             end else if (level9_valid_and_5) begin
-                l9_nodes <= level9_data[190:180]; // rtl-gen/src/merge/writer.rs:401
-                l9_records <= level9_data[214:204]; // rtl-gen/src/merge/writer.rs:402
+                l9_nodes <= level9_data[190:180]; // rtl-gen/src/merge/writer.rs:559
+                l9_records <= level9_data[214:204]; // rtl-gen/src/merge/writer.rs:560
             end
             l9_record_counts <= l9_record_counts_next;
             l9_reused_counts <= l9_reused_counts_next;
@@ -4357,11 +4357,11 @@ module record_writer_d16_q8_i24_h4_c10 (
             l9_err <= l9_err_next;
             l10_end_seen <= l10_end_seen_next;
             if (merge_clear_and_10) begin
-                l10_nodes <= 11'd0;          // rtl-gen/src/merge/writer.rs:401
-                l10_records <= 11'd0;        // rtl-gen/src/merge/writer.rs:402
+                l10_nodes <= 11'd0;          // rtl-gen/src/merge/writer.rs:559
+                l10_records <= 11'd0;        // rtl-gen/src/merge/writer.rs:560
             end else if (level10_valid_and_5) begin
-                l10_nodes <= level10_data[190:180]; // rtl-gen/src/merge/writer.rs:401
-                l10_records <= level10_data[214:204]; // rtl-gen/src/merge/writer.rs:402
+                l10_nodes <= level10_data[190:180]; // rtl-gen/src/merge/writer.rs:559
+                l10_records <= level10_data[214:204]; // rtl-gen/src/merge/writer.rs:560
             end
             l10_record_counts <= l10_record_counts_next;
             l10_reused_counts <= l10_reused_counts_next;
@@ -4369,11 +4369,11 @@ module record_writer_d16_q8_i24_h4_c10 (
             l10_err <= l10_err_next;
             l11_end_seen <= l11_end_seen_next;
             if (merge_clear_and_11) begin
-                l11_nodes <= 11'd0;          // rtl-gen/src/merge/writer.rs:401
-                l11_records <= 11'd0;        // rtl-gen/src/merge/writer.rs:402
+                l11_nodes <= 11'd0;          // rtl-gen/src/merge/writer.rs:559
+                l11_records <= 11'd0;        // rtl-gen/src/merge/writer.rs:560
             end else if (level11_valid_and_5) begin
-                l11_nodes <= level11_data[190:180]; // rtl-gen/src/merge/writer.rs:401
-                l11_records <= level11_data[214:204]; // rtl-gen/src/merge/writer.rs:402
+                l11_nodes <= level11_data[190:180]; // rtl-gen/src/merge/writer.rs:559
+                l11_records <= level11_data[214:204]; // rtl-gen/src/merge/writer.rs:560
             end
             l11_record_counts <= l11_record_counts_next;
             l11_reused_counts <= l11_reused_counts_next;
@@ -4381,11 +4381,11 @@ module record_writer_d16_q8_i24_h4_c10 (
             l11_err <= l11_err_next;
             l12_end_seen <= l12_end_seen_next;
             if (merge_clear_and_12) begin
-                l12_nodes <= 11'd0;          // rtl-gen/src/merge/writer.rs:401
-                l12_records <= 11'd0;        // rtl-gen/src/merge/writer.rs:402
+                l12_nodes <= 11'd0;          // rtl-gen/src/merge/writer.rs:559
+                l12_records <= 11'd0;        // rtl-gen/src/merge/writer.rs:560
             end else if (level12_valid_and_5) begin
-                l12_nodes <= level12_data[190:180]; // rtl-gen/src/merge/writer.rs:401
-                l12_records <= level12_data[214:204]; // rtl-gen/src/merge/writer.rs:402
+                l12_nodes <= level12_data[190:180]; // rtl-gen/src/merge/writer.rs:559
+                l12_records <= level12_data[214:204]; // rtl-gen/src/merge/writer.rs:560
             end
             l12_record_counts <= l12_record_counts_next;
             l12_reused_counts <= l12_reused_counts_next;
@@ -4393,11 +4393,11 @@ module record_writer_d16_q8_i24_h4_c10 (
             l12_err <= l12_err_next;
             l13_end_seen <= l13_end_seen_next;
             if (merge_clear_and_13) begin
-                l13_nodes <= 11'd0;          // rtl-gen/src/merge/writer.rs:401
-                l13_records <= 11'd0;        // rtl-gen/src/merge/writer.rs:402
+                l13_nodes <= 11'd0;          // rtl-gen/src/merge/writer.rs:559
+                l13_records <= 11'd0;        // rtl-gen/src/merge/writer.rs:560
             end else if (level13_valid_and_5) begin
-                l13_nodes <= level13_data[190:180]; // rtl-gen/src/merge/writer.rs:401
-                l13_records <= level13_data[214:204]; // rtl-gen/src/merge/writer.rs:402
+                l13_nodes <= level13_data[190:180]; // rtl-gen/src/merge/writer.rs:559
+                l13_records <= level13_data[214:204]; // rtl-gen/src/merge/writer.rs:560
             end
             l13_record_counts <= l13_record_counts_next;
             l13_reused_counts <= l13_reused_counts_next;
@@ -4405,11 +4405,11 @@ module record_writer_d16_q8_i24_h4_c10 (
             l13_err <= l13_err_next;
             l14_end_seen <= l14_end_seen_next;
             if (merge_clear_and_14) begin
-                l14_nodes <= 11'd0;          // rtl-gen/src/merge/writer.rs:401
-                l14_records <= 11'd0;        // rtl-gen/src/merge/writer.rs:402
+                l14_nodes <= 11'd0;          // rtl-gen/src/merge/writer.rs:559
+                l14_records <= 11'd0;        // rtl-gen/src/merge/writer.rs:560
             end else if (level14_valid_and_5) begin
-                l14_nodes <= level14_data[190:180]; // rtl-gen/src/merge/writer.rs:401
-                l14_records <= level14_data[214:204]; // rtl-gen/src/merge/writer.rs:402
+                l14_nodes <= level14_data[190:180]; // rtl-gen/src/merge/writer.rs:559
+                l14_records <= level14_data[214:204]; // rtl-gen/src/merge/writer.rs:560
             end
             l14_record_counts <= l14_record_counts_next;
             l14_reused_counts <= l14_reused_counts_next;
@@ -4417,11 +4417,11 @@ module record_writer_d16_q8_i24_h4_c10 (
             l14_err <= l14_err_next;
             l15_end_seen <= l15_end_seen_next;
             if (merge_clear_and_15) begin
-                l15_nodes <= 11'd0;          // rtl-gen/src/merge/writer.rs:401
-                l15_records <= 11'd0;        // rtl-gen/src/merge/writer.rs:402
+                l15_nodes <= 11'd0;          // rtl-gen/src/merge/writer.rs:559
+                l15_records <= 11'd0;        // rtl-gen/src/merge/writer.rs:560
             end else if (level15_valid_and_5) begin
-                l15_nodes <= level15_data[190:180]; // rtl-gen/src/merge/writer.rs:401
-                l15_records <= level15_data[214:204]; // rtl-gen/src/merge/writer.rs:402
+                l15_nodes <= level15_data[190:180]; // rtl-gen/src/merge/writer.rs:559
+                l15_records <= level15_data[214:204]; // rtl-gen/src/merge/writer.rs:560
             end
             l15_record_counts <= l15_record_counts_next;
             l15_reused_counts <= l15_reused_counts_next;
@@ -4429,81 +4429,81 @@ module record_writer_d16_q8_i24_h4_c10 (
             l15_err <= l15_err_next;
             l16_end_seen <= l16_end_seen_next;
             if (merge_clear_and_16) begin
-                l16_nodes <= 11'd0;          // rtl-gen/src/merge/writer.rs:401
-                l16_records <= 11'd0;        // rtl-gen/src/merge/writer.rs:402
+                l16_nodes <= 11'd0;          // rtl-gen/src/merge/writer.rs:559
+                l16_records <= 11'd0;        // rtl-gen/src/merge/writer.rs:560
             end else if (level16_valid_and_5) begin
-                l16_nodes <= level16_data[190:180]; // rtl-gen/src/merge/writer.rs:401
-                l16_records <= level16_data[214:204]; // rtl-gen/src/merge/writer.rs:402
+                l16_nodes <= level16_data[190:180]; // rtl-gen/src/merge/writer.rs:559
+                l16_records <= level16_data[214:204]; // rtl-gen/src/merge/writer.rs:560
             end
             l16_record_counts <= l16_record_counts_next;
             l16_reused_counts <= l16_reused_counts_next;
             l16_cap_err <= l16_cap_err_next;
             l16_err <= l16_err_next;
             if (fill_done) begin
-                h_roots <= {14'd0, top_nodes}; // rtl-gen/src/merge/writer.rs:460
-                h_nodes <= nodes_total[24:0]; // rtl-gen/src/merge/writer.rs:461
-                h_refs <= refs_total[24:0];  // rtl-gen/src/merge/writer.rs:462
+                h_roots <= {14'd0, top_nodes}; // rtl-gen/src/merge/writer.rs:673
+                h_nodes <= nodes_total[24:0]; // rtl-gen/src/merge/writer.rs:674
+                h_refs <= refs_total[24:0];  // rtl-gen/src/merge/writer.rs:675
             end
             rs_lod <= rs_lod_next;
             rs_ptr <= rs_ptr_next;
             if (drain_start) begin
-                rs_first <= 25'd0;           // rtl-gen/src/merge/writer.rs:516
-                fs_child_offset <= {14'd0, top_nodes}; // rtl-gen/src/merge/writer.rs:635
+                rs_first <= 25'd0;           // rtl-gen/src/merge/writer.rs:771
+                fs_child_offset <= {14'd0, top_nodes}; // rtl-gen/src/merge/writer.rs:915
             end else begin
                 if (nodes_in_valid_and) begin
-                    rs_first <= rs_first_add; // rtl-gen/src/merge/writer.rs:518
+                    rs_first <= rs_first_add; // rtl-gen/src/merge/writer.rs:773
                 end
                 if (refs_fire_and_2) begin
-                    fs_child_offset <= fs_child_offset_add_1; // rtl-gen/src/merge/writer.rs:637
+                    fs_child_offset <= fs_child_offset_add_1; // rtl-gen/src/merge/writer.rs:917
                 end
             end
             rs_done <= rs_done_next;
             if (nodes_skid_ready_or) begin
-                nodes_skid_valid <= nodes_skid_spare_valid_or; // rtl-gen/src/merge/writer.rs:515
-                nodes_skid_data <= nodes_skid_spare_valid_mux; // rtl-gen/src/merge/writer.rs:515
+                nodes_skid_valid <= nodes_skid_spare_valid_or; // rtl-gen/src/merge/writer.rs:770
+                nodes_skid_data <= nodes_skid_spare_valid_mux; // rtl-gen/src/merge/writer.rs:770
             end
             nodes_skid_spare_valid <= nodes_skid_spare_valid_next;
             if (nodes_skid_ready_and) begin
-                nodes_skid_spare_data <= nodes_in_valid_mux_2; // rtl-gen/src/merge/writer.rs:515
+                nodes_skid_spare_data <= nodes_in_valid_mux_2; // rtl-gen/src/merge/writer.rs:770
             end
             fs_lod <= fs_lod_next;
             fs_ptr <= fs_ptr_next;
             if (drain_start_or_4) begin
-                fs_j <= 24'd0;               // rtl-gen/src/merge/writer.rs:619
+                fs_j <= 24'd0;               // rtl-gen/src/merge/writer.rs:899
             end else if (refs_fire) begin
-                fs_j <= fs_j_add_1;          // rtl-gen/src/merge/writer.rs:619
+                fs_j <= fs_j_add_1;          // rtl-gen/src/merge/writer.rs:899
             end
             if (drain_start_or_5) begin
-                fs_req <= 24'd0;             // rtl-gen/src/merge/writer.rs:620
+                fs_req <= 24'd0;             // rtl-gen/src/merge/writer.rs:900
             end else if (ref_req_in_valid_and) begin
-                fs_req <= fs_req_add;        // rtl-gen/src/merge/writer.rs:620
+                fs_req <= fs_req_add;        // rtl-gen/src/merge/writer.rs:900
             end
             fs_child <= fs_child_next;
             fs_cref <= fs_cref_next;
             fs_done <= fs_done_next;
             if (refs_skid_ready_or) begin
-                refs_skid_valid <= refs_skid_spare_valid_or; // rtl-gen/src/merge/writer.rs:592
-                refs_skid_data <= refs_skid_spare_valid_mux; // rtl-gen/src/merge/writer.rs:592
+                refs_skid_valid <= refs_skid_spare_valid_or; // rtl-gen/src/merge/writer.rs:872
+                refs_skid_data <= refs_skid_spare_valid_mux; // rtl-gen/src/merge/writer.rs:872
             end
             refs_skid_spare_valid <= refs_skid_spare_valid_next;
             if (refs_skid_ready_and) begin
-                refs_skid_spare_data <= refs_in_valid_mux; // rtl-gen/src/merge/writer.rs:592
+                refs_skid_spare_data <= refs_in_valid_mux; // rtl-gen/src/merge/writer.rs:872
             end
             if (ref_req_skid_ready_or) begin
-                ref_req_skid_valid <= ref_req_skid_spare_valid_or; // rtl-gen/src/merge/writer.rs:604
-                ref_req_skid_data <= ref_req_skid_spare_valid_mux; // rtl-gen/src/merge/writer.rs:604
+                ref_req_skid_valid <= ref_req_skid_spare_valid_or; // rtl-gen/src/merge/writer.rs:884
+                ref_req_skid_data <= ref_req_skid_spare_valid_mux; // rtl-gen/src/merge/writer.rs:884
             end
             ref_req_skid_spare_valid <= ref_req_skid_spare_valid_next;
             if (ref_req_skid_ready_and) begin
-                ref_req_skid_spare_data <= ref_req_in_valid_mux; // rtl-gen/src/merge/writer.rs:604
+                ref_req_skid_spare_data <= ref_req_in_valid_mux; // rtl-gen/src/merge/writer.rs:884
             end
             if (header_skid_ready_or) begin
-                header_skid_valid <= header_skid_spare_valid_or; // rtl-gen/src/merge/writer.rs:651
-                header_skid_data <= header_skid_spare_valid_mux; // rtl-gen/src/merge/writer.rs:651
+                header_skid_valid <= header_skid_spare_valid_or; // rtl-gen/src/merge/writer.rs:299
+                header_skid_data <= header_skid_spare_valid_mux; // rtl-gen/src/merge/writer.rs:299
             end
             header_skid_spare_valid <= header_skid_spare_valid_next;
             if (header_skid_ready_and) begin
-                header_skid_spare_data <= err_code_mux; // rtl-gen/src/merge/writer.rs:651
+                header_skid_spare_data <= err_code_mux; // rtl-gen/src/merge/writer.rs:299
             end
         end
     end

@@ -240,25 +240,21 @@ fn child<'m>(word: Signal<'m>, ref_w: u32) -> Child<'m> {
 pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, CapacityError> {
     let wl = WriterLayout::new(p, capacity_bits)?;
     let m = Module::new(&record_writer_name(p, capacity_bits));
-    let bl = &wl.builder;
-    let nl = &wl.node;
-    let rl = &wl.reference;
-    let dmax = p.max_lod as usize;
-    let c = capacity_bits;
     let i = p.index_bits as u32;
-    let h = p.hier_bits as u32;
-    let lb = p.lod_bits();
-    let lit = |v: u64, w: u32| m.lit(v as u128, w);
-    let zero = lit(0, 1);
-    let one = lit(1, 1);
-    let ref_w = rl.width();
-    // A record without `first` and `count`: leaf .. hi_z.
-    let body_w = nl.first().offset;
-    let widths = BufferWidths::of(&wl);
-    // Wide enough for every sum the header checks against 2^I.
-    let nodes_w = i + 7;
-    let refs_w = i + c + 7;
-    let sum_w = i + c + 1;
+    let w = Ctx {
+        m: &m,
+        wl: &wl,
+        dmax: p.max_lod as usize,
+        c: capacity_bits,
+        i,
+        h: p.hier_bits as u32,
+        lb: p.lod_bits(),
+        widths: BufferWidths::of(&wl),
+        // A record without `first` and `count`: leaf .. hi_z.
+        body_w: wl.node.first().offset,
+        sum_w: i + capacity_bits + 1,
+    };
+    let lit = |v: u64, width: u32| w.lit(v, width);
 
     let st = m.reg("state", 2);
     let in_fill = st.eq(lit(state::FILL, 2)).name("in_fill");
@@ -266,9 +262,106 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let in_header = st.eq(lit(state::HEADER, 2)).name("in_header");
     let header_ready = m.wire("header_in_ready", 1);
     let clear = (in_header & header_ready).name("merge_clear");
+    let f = fill_inputs(&w, in_fill, clear);
+    let b = level_buffers(&w, f.top);
+    let levels = fill_levels(&w, &b, in_fill, clear);
+    let chk = header_checks(&w, &f, &b, &levels, in_fill, clear);
+    let seq = Drain {
+        in_drain,
+        clear,
+        drain_start: chk.drain_start,
+        top: f.top,
+        n_top: chk.n_top,
+        n_records: &levels.n_records,
+    };
+    let (rs_active, rs_done) = record_sequencer(&w, &b, &seq);
+    let (fs_busy, fs_done) = reference_sequencer(&w, &b, &seq, &f);
 
+    // The header; on an error every count and the top are 0.
+    let (err_code, out_id) = (chk.err_code, f.out_id);
+    let code = |v: u64| lit(v, 3);
+    let header_data = m.concat(&[
+        err_code,
+        chk.h_refs,
+        chk.h_nodes,
+        chk.h_roots,
+        f.top,
+        out_id,
+    ]);
+    debug_assert_eq!(header_data.width(), wl.header_width);
+    let header_ok = err_code.eq(code(writer_err::NONE));
+    let failed = m.concat(&[err_code, lit(0, 3 * (i + 1) + w.lb), out_id]);
+    Stream {
+        valid: in_header,
+        ready: header_ready,
+        data: header_ok.mux(header_data, failed),
+    }
+    .skid_buffer("header_skid")
+    .output("header");
+
+    // State changes.
+    let drain_done = in_drain & rs_done & fs_done;
+    let next_state = clear.mux(
+        lit(state::FILL, 2),
+        chk.fill_done.mux(
+            chk.fill_ok.mux(lit(state::DRAIN, 2), lit(state::HEADER, 2)),
+            drain_done.mux(lit(state::HEADER, 2), st),
+        ),
+    );
+    st.next(next_state);
+
+    // Status, for throughput counts.
+    m.output("filling", in_fill);
+    m.output("drain_records", rs_active);
+    m.output("drain_refs", fs_busy);
+    Ok(m)
+}
+
+/// What every part of the writer is built from.
+struct Ctx<'a, 'm> {
+    m: &'m Module,
+    wl: &'a WriterLayout,
+    dmax: usize,
+    /// Bits of a level buffer's address (`2^c` entries).
+    c: u32,
+    /// Bits of a node index, of a hierarchy id, of a LOD.
+    i: u32,
+    h: u32,
+    lb: u32,
+    widths: BufferWidths,
+    /// Bits of a record below `first`.
+    body_w: u32,
+    /// Bits of a level's sum of counts.
+    sum_w: u32,
+}
+
+impl<'m> Ctx<'_, 'm> {
+    fn lit(&self, v: u64, w: u32) -> Signal<'m> {
+        self.m.lit(v as u128, w)
+    }
+}
+
+/// The merge-wide inputs: `cfg` (the output id), `done` (the top) and
+/// `crefs` (the created nodes' references, buffered in arrival order).
+struct Inputs<'m> {
+    have_cfg: Signal<'m>,
+    out_id: Signal<'m>,
+    have_done: Signal<'m>,
+    top: Signal<'m>,
+    done_err: Signal<'m>,
+    crefs_mem: Memory<'m>,
+    cref_end: Signal<'m>,
+    cref_cap_err: Signal<'m>,
+}
+
+fn fill_inputs<'m>(w: &Ctx<'_, 'm>, in_fill: Signal<'m>, clear: Signal<'m>) -> Inputs<'m> {
+    let (m, wl, c, h, lb) = (w.m, w.wl, w.c, w.h, w.lb);
+    let bl = &wl.builder;
+    let widths = &w.widths;
+    let zero = w.lit(0, 1);
+    let lit = |v: u64, width: u32| w.lit(v, width);
     // cfg: the output id, one beat per merge.
-    let cfg = Stream::input(&m, "cfg", wl.cfg_width);
+    let cfg = Stream::input(m, "cfg", wl.cfg_width);
     let have_cfg = m.reg("have_cfg", 1);
     let out_id = m.reg("out_id", h);
     cfg.ready.drive(!have_cfg);
@@ -277,7 +370,7 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     out_id.next(cfg_fire.mux(field(cfg.data, &wl.cfg_out_id).expect("out_id"), out_id));
 
     // done: the top.
-    let done = Stream::input(&m, "done", bl.done_width);
+    let done = Stream::input(m, "done", bl.done_width);
     let have_done = m.reg("have_done", 1);
     let top = m.reg("top", lb);
     let done_err = m.reg("done_err", 1);
@@ -289,7 +382,7 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     done_err.next(done_fire.mux(field(done.data, &bl.done_err).expect("err"), done_err));
 
     // crefs: the created nodes' references, buffered in arrival order.
-    let crefs = Stream::input(&m, "crefs", wl.cref_width);
+    let crefs = Stream::input(m, "crefs", wl.cref_width);
     let crefs_mem = m.memory("crefs_mem", widths.cref, 1 << c);
     let cref_end = m.reg("cref_end", 1);
     let cref_wptr = m.reg("cref_wptr", c + 1);
@@ -310,6 +403,35 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     cref_wptr.next(clear.mux(lit(0, c + 1), cref_ref_fire.mux(wptr_next, cref_wptr)));
     cref_cap_err.next(clear.mux(zero, cref_cap_err | (cref_ref_fire & cref_full)));
 
+    Inputs {
+        have_cfg,
+        out_id,
+        have_done,
+        top,
+        done_err,
+        crefs_mem,
+        cref_end,
+        cref_cap_err,
+    }
+}
+
+/// The level buffers and which levels a merge with top `top` holds.
+struct Buffers<'m> {
+    rbody: Vec<Option<Memory<'m>>>,
+    rpar: Vec<Option<Memory<'m>>>,
+    nbody: Vec<Option<Memory<'m>>>,
+    npar: Vec<Option<Memory<'m>>>,
+    childm: Vec<Option<Memory<'m>>>,
+    /// Level `d` is at or below the top (`d >= top`).
+    in_merge: Vec<Signal<'m>>,
+    /// Level `d` is below the top (`d > top`).
+    below_top: Vec<Signal<'m>>,
+}
+
+fn level_buffers<'m>(w: &Ctx<'_, 'm>, top: Signal<'m>) -> Buffers<'m> {
+    let (m, c, dmax, lb, widths) = (w.m, w.c, w.dmax, w.lb, &w.widths);
+    let lit = |v: u64, width: u32| w.lit(v, width);
+    let (zero, one) = (lit(0, 1), lit(1, 1));
     // Per level: up to five buffers (`record_writer_buffers`), each holding
     // exactly what one reader takes. By record slot (`records`), for the
     // levels below the top: a record's body and count (the record
@@ -348,6 +470,42 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
             _ => lit(d as u64, lb).gt(top),
         })
         .collect();
+    Buffers {
+        rbody,
+        rpar,
+        nbody,
+        npar,
+        childm,
+        in_merge,
+        below_top,
+    }
+}
+
+/// Per level: what its stream has brought this merge.
+struct Levels<'m> {
+    end_seen: Vec<Signal<'m>>,
+    n_nodes: Vec<Signal<'m>>,
+    n_records: Vec<Signal<'m>>,
+    rec_sum: Vec<Signal<'m>>,
+    reused_sum: Vec<Signal<'m>>,
+    level_cap_err: Vec<Signal<'m>>,
+    level_err: Vec<Signal<'m>>,
+}
+
+/// The level streams into their buffers, with each level's counts and
+/// errors.
+fn fill_levels<'m>(
+    w: &Ctx<'_, 'm>,
+    b: &Buffers<'m>,
+    in_fill: Signal<'m>,
+    clear: Signal<'m>,
+) -> Levels<'m> {
+    let (m, wl, c, i, dmax, sum_w, body_w) = (w.m, w.wl, w.c, w.i, w.dmax, w.sum_w, w.body_w);
+    let (bl, nl, rl) = (&wl.builder, &wl.node, &wl.reference);
+    let lit = |v: u64, width: u32| w.lit(v, width);
+    let zero = lit(0, 1);
+    let (rbody, rpar, nbody, npar, childm, in_merge) =
+        (&b.rbody, &b.rpar, &b.nbody, &b.npar, &b.childm, &b.in_merge);
     let mut end_seen = Vec::new();
     let mut n_nodes = Vec::new();
     let mut n_records = Vec::new();
@@ -356,7 +514,7 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let mut level_cap_err = Vec::new();
     let mut level_err = Vec::new();
     for d in 0..=dmax {
-        let s = Stream::input(&m, &format!("level{d}"), bl.level_width);
+        let s = Stream::input(m, &format!("level{d}"), bl.level_width);
         let seen = m.reg(&format!("l{d}_end_seen"), 1);
         let n = m.reg(&format!("l{d}_nodes"), c + 1);
         let r = m.reg(&format!("l{d}_records"), c + 1);
@@ -376,8 +534,8 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
         let count = field(rec, nl.count()).expect("count");
         let first = field(rec, nl.first()).expect("first");
         let hier = field(refer, rl.hier()).expect("hier");
-        let is_end = kind_is(&m, kind, level_out_kind::END);
-        let reused = kind_is(&m, kind, level_out_kind::REUSED);
+        let is_end = kind_is(m, kind, level_out_kind::END);
+        let reused = kind_is(m, kind, level_out_kind::REUSED);
         let node_fire = fire & !is_end;
         let fits = index.slice(i - 1, c).eq(lit(0, i - c));
         let body_word = m.concat(&[count, rec.slice(body_w - 1, 0)]);
@@ -423,23 +581,78 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
         level_err.push(lerr);
     }
 
+    Levels {
+        end_seen,
+        n_nodes,
+        n_records,
+        rec_sum,
+        reused_sum,
+        level_cap_err,
+        level_err,
+    }
+}
+
+/// The fill's end and the header's checks.
+struct Checks<'m> {
+    fill_done: Signal<'m>,
+    fill_ok: Signal<'m>,
+    drain_start: Signal<'m>,
+    n_top: Signal<'m>,
+    err_code: Signal<'m>,
+    h_roots: Signal<'m>,
+    h_nodes: Signal<'m>,
+    h_refs: Signal<'m>,
+}
+
+fn header_checks<'m>(
+    w: &Ctx<'_, 'm>,
+    f: &Inputs<'m>,
+    b: &Buffers<'m>,
+    l: &Levels<'m>,
+    in_fill: Signal<'m>,
+    clear: Signal<'m>,
+) -> Checks<'m> {
+    let (m, i, c, dmax) = (w.m, w.i, w.c, w.dmax);
+    let lit = |v: u64, width: u32| w.lit(v, width);
+    let one = lit(1, 1);
+    // Wide enough for every sum the header checks against 2^I.
+    let nodes_w = i + 7;
+    let refs_w = i + c + 7;
+    let (have_cfg, have_done, cref_end, top, done_err, cref_cap_err) = (
+        f.have_cfg,
+        f.have_done,
+        f.cref_end,
+        f.top,
+        f.done_err,
+        f.cref_cap_err,
+    );
+    let (in_merge, below_top) = (&b.in_merge, &b.below_top);
+    let (end_seen, n_nodes, n_records, rec_sum, reused_sum, level_cap_err, level_err) = (
+        &l.end_seen,
+        &l.n_nodes,
+        &l.n_records,
+        &l.rec_sum,
+        &l.reused_sum,
+        &l.level_cap_err,
+        &l.level_err,
+    );
     // The fill is complete when every level of the merge has ended; then
     // every count is known and the header's checks are made.
     let levels_ended = (0..=dmax).fold(one, |acc, d| acc & (end_seen[d] | !in_merge[d]));
     let fill_done = (in_fill & have_cfg & have_done & cref_end & levels_ended).name("fill_done");
-    let n_top = by_level(&m, top, &n_nodes).name("top_nodes");
+    let n_top = by_level(m, top, n_nodes).name("top_nodes");
     let nodes_total = n_top
         .zext(nodes_w)
-        .add(sum_where(&m, &n_records, &below_top, nodes_w), nodes_w)
+        .add(sum_where(m, n_records, below_top, nodes_w), nodes_w)
         .name("nodes_total");
-    let refs_total = by_level(&m, top, &reused_sum)
+    let refs_total = by_level(m, top, reused_sum)
         .zext(refs_w)
-        .add(sum_where(&m, &rec_sum, &in_merge, refs_w), refs_w)
+        .add(sum_where(m, rec_sum, in_merge, refs_w), refs_w)
         .name("refs_total");
     let limit = |w: u32| m.lit(1u128 << i, w);
     let overflow = nodes_total.gt(limit(nodes_w)) | refs_total.gt(limit(refs_w));
-    let cap_err = any_where(&m, &level_cap_err, &in_merge) | cref_cap_err;
-    let lev_err = any_where(&m, &level_err, &in_merge);
+    let cap_err = any_where(m, level_cap_err, in_merge) | cref_cap_err;
+    let lev_err = any_where(m, level_err, in_merge);
     let code = |v: u64| lit(v, 3);
     let fill_code = done_err.mux(
         code(writer_err::NO_TOP),
@@ -462,6 +675,48 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     h_refs.next(fill_done.mux(refs_total.slice(i, 0), h_refs));
     let drain_start = (fill_done & fill_ok).name("drain_start");
 
+    Checks {
+        fill_done,
+        fill_ok,
+        drain_start,
+        n_top,
+        err_code,
+        h_roots,
+        h_nodes,
+        h_refs,
+    }
+}
+
+/// What both drain sequencers start from.
+struct Drain<'a, 'm> {
+    in_drain: Signal<'m>,
+    clear: Signal<'m>,
+    drain_start: Signal<'m>,
+    top: Signal<'m>,
+    n_top: Signal<'m>,
+    n_records: &'a [Signal<'m>],
+}
+
+/// The record sequencer; returns whether it is active and whether it is
+/// done.
+fn record_sequencer<'m>(
+    w: &Ctx<'_, 'm>,
+    b: &Buffers<'m>,
+    s: &Drain<'_, 'm>,
+) -> (Signal<'m>, Signal<'m>) {
+    let (m, c, i, lb, body_w, widths) = (w.m, w.c, w.i, w.lb, w.body_w, &w.widths);
+    let nl = &w.wl.node;
+    let lit = |v: u64, width: u32| w.lit(v, width);
+    let zero = lit(0, 1);
+    let (in_drain, clear, drain_start, top, n_top, n_records) = (
+        s.in_drain,
+        s.clear,
+        s.drain_start,
+        s.top,
+        s.n_top,
+        s.n_records,
+    );
+    let (nbody, rbody) = (&b.nbody, &b.rbody);
     // Record sequencer: one record per clock in store order; a record's
     // `first` is the running sum of the counts before it. The buffers read
     // a clock ahead: each clock reads the word (rs_lod, rs_ptr) names in the
@@ -472,14 +727,14 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let rs_first = m.reg("rs_first", i + 1);
     let rs_done = m.reg("rs_done", 1);
     let rs_top = rs_d.eq(top);
-    let rs_len = rs_top.mux(n_top, by_level(&m, rs_d, &n_records));
+    let rs_len = rs_top.mux(n_top, by_level(m, rs_d, n_records));
     let rs_level_last = rs_ptr.add(1, c + 1).eq(rs_len);
     let rs_active = (in_drain & !rs_done).name("rs_active");
     let nodes_valid = rs_active.name("nodes_in_valid");
     let nodes_ready = m.wire("nodes_in_ready", 1);
     let rs_fire = nodes_valid & nodes_ready;
     // (rs_lod, rs_ptr) always names a record to write (the top has one).
-    let (rs_more, rs_next_lod) = next_level_with_records(&m, rs_d, &n_records);
+    let (rs_more, rs_next_lod) = next_level_with_records(m, rs_d, n_records);
     let rs_level_done = rs_fire & rs_level_last;
     let rs_step_level = rs_level_done & rs_more;
     let rs_finish = rs_level_done & !rs_more;
@@ -496,9 +751,9 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let rs_addr_next = rs_ptr_next.slice(c - 1, 0);
     let rs_reads =
         |at_top: bool| move |d| reads_level(rs_reading, rs_d_next, rs_next_top, d, at_top);
-    let at_top = read_ahead(&m, &nbody, rs_addr_next, rs_reads(true), widths.body);
-    let below = read_ahead(&m, &rbody, rs_addr_next, rs_reads(false), widths.body);
-    let body_word = rs_top.mux(by_level(&m, rs_d, &at_top), by_level(&m, rs_d, &below));
+    let at_top = read_ahead(m, nbody, rs_addr_next, rs_reads(true), widths.body);
+    let below = read_ahead(m, rbody, rs_addr_next, rs_reads(false), widths.body);
+    let body_word = rs_top.mux(by_level(m, rs_d, &at_top), by_level(m, rs_d, &below));
     let rs_count = body_word.slice(widths.body - 1, body_w);
     let record = m.concat(&[
         rs_count,
@@ -519,6 +774,31 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     ));
     rs_done.next(clear.mux(zero, rs_done | rs_finish));
 
+    (rs_active, rs_done)
+}
+
+/// The reference sequencer; returns whether it is busy and whether it is
+/// done.
+fn reference_sequencer<'m>(
+    w: &Ctx<'_, 'm>,
+    b: &Buffers<'m>,
+    s: &Drain<'_, 'm>,
+    f: &Inputs<'m>,
+) -> (Signal<'m>, Signal<'m>) {
+    let (m, c, i, lb, widths) = (w.m, w.c, w.i, w.lb, &w.widths);
+    let ref_w = w.wl.reference.width();
+    let lit = |v: u64, width: u32| w.lit(v, width);
+    let (zero, one) = (lit(0, 1), lit(1, 1));
+    let (in_drain, clear, drain_start, top, n_top, n_records) = (
+        s.in_drain,
+        s.clear,
+        s.drain_start,
+        s.top,
+        s.n_top,
+        s.n_records,
+    );
+    let (npar, rpar, childm) = (&b.npar, &b.rpar, &b.childm);
+    let (out_id, crefs_mem) = (f.out_id, f.crefs_mem);
     // Reference sequencer: one reference per clock in store order, walking
     // the parents (the records) and, for a grouped one, the next nodes of
     // the level below; a created one's come from `crefs`, a materialized
@@ -538,7 +818,7 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let fs_child_next = m.wire("fs_child_next", c + 1);
     let fs_cref_next = m.wire("fs_cref_next", c + 1);
     let fs_top = fs_d.eq(top);
-    let fs_len = fs_top.mux(n_top, by_level(&m, fs_d, &n_records));
+    let fs_len = fs_top.mux(n_top, by_level(m, fs_d, n_records));
     let fs_level_last = fs_ptr.add(1, c + 1).eq(fs_len);
     let fs_busy = (in_drain & !fs_done).name("fs_busy");
     let fs_reading = drain_start | fs_busy;
@@ -546,33 +826,33 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let fs_reads =
         |at_top: bool| move |d| reads_level(fs_reading, fs_d_next, fs_next_top, d, at_top);
     let par_addr = fs_ptr_next.slice(c - 1, 0);
-    let par_top = read_ahead(&m, &npar, par_addr, fs_reads(true), widths.parent);
-    let par_below = read_ahead(&m, &rpar, par_addr, fs_reads(false), widths.parent);
+    let par_top = read_ahead(m, npar, par_addr, fs_reads(true), widths.parent);
+    let par_below = read_ahead(m, rpar, par_addr, fs_reads(false), widths.parent);
     let par = parent(
-        fs_top.mux(by_level(&m, fs_d, &par_top), by_level(&m, fs_d, &par_below)),
+        fs_top.mux(by_level(m, fs_d, &par_top), by_level(m, fs_d, &par_below)),
         i,
     );
-    let p_grouped = kind_is(&m, par.kind, level_out_kind::GROUPED);
-    let p_created = kind_is(&m, par.kind, level_out_kind::CREATED);
-    let p_mat = kind_is(&m, par.kind, level_out_kind::REUSED);
+    let p_grouped = kind_is(m, par.kind, level_out_kind::GROUPED);
+    let p_created = kind_is(m, par.kind, level_out_kind::CREATED);
+    let p_mat = kind_is(m, par.kind, level_out_kind::REUSED);
     // The children of level d's parents are in level d + 1, modulo 2^lod_bits
     // as the selection below reads them (level 0 only past the widest LOD,
     // whose nodes have no children).
     let child_level = fs_d_next.add(1, lb);
     let want_child = |e: usize| fs_reading & child_level.eq(lit(e as u64, lb));
     let children = read_ahead(
-        &m,
-        &childm,
+        m,
+        childm,
         fs_child_next.slice(c - 1, 0),
         want_child,
         widths.child,
     );
-    let ch = child(by_level(&m, fs_d.add(1, lb), &children), ref_w);
+    let ch = child(by_level(m, fs_d.add(1, lb), &children), ref_w);
     let ch_index = fs_off.slice(i - 1, 0).add(ch.records, i);
     let ch_ref = ch.reused.mux(ch.refer, m.concat(&[out_id, ch_index]));
     let fs_active = fs_busy;
     let outstanding = fs_req.ne(fs_j);
-    let ref_resp = Stream::input(&m, "ref_resp", ref_w);
+    let ref_resp = Stream::input(m, "ref_resp", ref_w);
     let refs_ready = m.wire("refs_in_ready", 1);
     let source_valid = p_mat.mux(ref_resp.valid & outstanding, one);
     let refs_valid = (fs_active & source_valid).name("refs_in_valid");
@@ -604,7 +884,7 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     ref_req.skid_buffer("ref_req_skid").output("ref_req");
     let parent_last = fs_fire & fs_j.add(1, i).eq(par.count);
     // (fs_lod, fs_ptr) always names a parent with references left.
-    let (fs_more, fs_next_lod) = next_level_with_records(&m, fs_d, &n_records);
+    let (fs_more, fs_next_lod) = next_level_with_records(m, fs_d, n_records);
     let fs_level_done = parent_last & fs_level_last;
     let fs_step_level = fs_level_done & fs_more;
     let fs_finish = fs_level_done & !fs_more;
@@ -631,42 +911,14 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     // off(t + 1) = the top's node count; stepping from level d to the next
     // level e with records (those between have none), off(e + 1) = off(d +
     // 1) + level e's records.
-    let next_len = by_level(&m, fs_next_lod, &n_records).zext(i + 1);
+    let next_len = by_level(m, fs_next_lod, n_records).zext(i + 1);
     fs_off.next(drain_start.mux(
         n_top.zext(i + 1),
         fs_step_level.mux(fs_off.add(next_len, i + 1), fs_off),
     ));
     fs_done.next(clear.mux(zero, fs_done | fs_finish));
 
-    // The header; on an error every count and the top are 0.
-    let header_data = m.concat(&[err_code, h_refs, h_nodes, h_roots, top, out_id]);
-    debug_assert_eq!(header_data.width(), wl.header_width);
-    let header_ok = err_code.eq(code(writer_err::NONE));
-    let failed = m.concat(&[err_code, lit(0, 3 * (i + 1) + lb), out_id]);
-    Stream {
-        valid: in_header,
-        ready: header_ready,
-        data: header_ok.mux(header_data, failed),
-    }
-    .skid_buffer("header_skid")
-    .output("header");
-
-    // State changes.
-    let drain_done = in_drain & rs_done & fs_done;
-    let next_state = clear.mux(
-        lit(state::FILL, 2),
-        fill_done.mux(
-            fill_ok.mux(lit(state::DRAIN, 2), lit(state::HEADER, 2)),
-            drain_done.mux(lit(state::HEADER, 2), st),
-        ),
-    );
-    st.next(next_state);
-
-    // Status, for throughput counts.
-    m.output("filling", in_fill);
-    m.output("drain_records", rs_active);
-    m.output("drain_refs", fs_busy);
-    Ok(m)
+    (fs_busy, fs_done)
 }
 
 #[cfg(test)]

@@ -1,0 +1,211 @@
+//! The command stage: `cfg` (the input's header and translation entry,
+//! kept until the last command) and `cmd` (one walk), the phase register,
+//! and START's header checks.
+
+use golden::merge::fetch_unit::fetch_err;
+
+use super::super::fields::field;
+use super::parts::{Move, Next};
+use super::{ph, Ctx};
+use crate::{Signal, Stream};
+
+/// What `cfg` and `cmd` set up, read by every later stage.
+pub(super) struct Command<'m> {
+    pub(super) phase: Signal<'m>,
+    /// The phase's next value, set by the stages in priority order.
+    pub(super) n_phase: Next<'m>,
+    pub(super) cfg_have: Signal<'m>,
+    pub(super) cfg_fire: Signal<'m>,
+    pub(super) idle: Signal<'m>,
+    pub(super) start: Signal<'m>,
+    pub(super) roots_ph: Signal<'m>,
+    pub(super) walk: Signal<'m>,
+    // From `cfg`.
+    pub(super) hier: Signal<'m>,
+    pub(super) roots: Signal<'m>,
+    pub(super) top: Signal<'m>,
+    pub(super) nodes: Signal<'m>,
+    pub(super) refs: Signal<'m>,
+    pub(super) entry_ok: Signal<'m>,
+    pub(super) mv: Move<'m>,
+    // From `cmd`.
+    pub(super) lod: Signal<'m>,
+    pub(super) send_refs: Signal<'m>,
+    pub(super) send_leaves: Signal<'m>,
+    pub(super) last: Signal<'m>,
+    /// The first level sent.
+    pub(super) first: Signal<'m>,
+    /// The per-node command's bit (per-node fetchers only).
+    pub(super) per_node: Option<Signal<'m>>,
+}
+
+impl<'m> Command<'m> {
+    /// High in phase `s`.
+    pub(super) fn is(&self, cx: &Ctx<'_, 'm>, s: u64) -> Signal<'m> {
+        self.phase.eq(cx.lit(s, ph::BITS))
+    }
+}
+
+/// The phase code of `s`.
+pub(super) fn goto<'m>(cx: &Ctx<'_, 'm>, s: u64) -> Signal<'m> {
+    cx.lit(s, ph::BITS)
+}
+
+/// The `cfg` and `cmd` streams and the registers they set.
+pub(super) fn command<'m>(cx: &Ctx<'_, 'm>) -> Command<'m> {
+    let (m, l, lb) = (cx.m, cx.l, cx.lb);
+    let phase = m.reg("phase", ph::BITS);
+    let is = |s: u64| phase.eq(cx.lit(s, ph::BITS));
+    let mut n_phase = Next::new(phase);
+
+    let cfg = Stream::input(m, "cfg", l.cfg_width);
+    let cmd = Stream::input(m, "cmd", l.cmd_width);
+    let cfg_have = m.reg("cfg_have", 1);
+    let idle = is(ph::IDLE).name("is_idle");
+    cfg.ready.drive(idle & !cfg_have);
+    cmd.ready.drive(idle & cfg_have);
+    let cfg_fire = cfg.fire().name("cfg_fire");
+    let cmd_fire = cmd.fire().name("cmd_fire");
+    let cfg_data = cfg.data;
+    let keep = |name: &str, f: &golden::layout::Field| {
+        let r = m.reg(name, f.width);
+        r.next_when(cfg_fire, field(cfg_data, f).expect("a cfg field"));
+        r
+    };
+    let hier = keep("cfg_hier", &l.hier);
+    let roots = keep("cfg_roots", &l.roots);
+    let top = keep("cfg_top", &l.top);
+    let nodes = keep("cfg_nodes", &l.nodes);
+    let refs = keep("cfg_refs", &l.refs);
+    let entry_valid = keep("cfg_entry_valid", &l.entry_valid);
+    let mv = Move {
+        lod: keep("cfg_entry_lod", &l.entry_lod),
+        t: [0, 1, 2].map(|a| keep(&format!("cfg_entry_t{a}"), &l.entry_t[a])),
+    };
+    let dmax = cx.p.max_lod as u64;
+    let mut entry_ok = entry_valid;
+    if (1u64 << lb) - 1 > dmax {
+        entry_ok = entry_ok & mv.lod.le(cx.lit(dmax, lb));
+    }
+    for t in &mv.t {
+        // The code -2^D is never produced and is refused when read (7.3).
+        entry_ok = entry_ok & t.ne(m.lit(1u128 << dmax, t.width()));
+    }
+    let entry_ok = entry_ok.name("entry_ok");
+
+    let c_lod = m.reg("cmd_lod", lb);
+    let c_refs = m.reg("cmd_send_refs", 1);
+    let c_leaves = m.reg("cmd_send_leaves", 1);
+    let c_last = m.reg("cmd_last", 1);
+    c_lod.next_when(cmd_fire, field(cmd.data, &l.lod).expect("lod"));
+    c_refs.next_when(cmd_fire, field(cmd.data, &l.send_refs).expect("send_refs"));
+    c_leaves.next_when(
+        cmd_fire,
+        field(cmd.data, &l.send_leaves).expect("send_leaves"),
+    );
+    c_last.next_when(cmd_fire, field(cmd.data, &l.last).expect("last"));
+    // The first level sent: `min(from, lod)` (`from >= lod`: one level).
+    let c_first = m.reg("cmd_first", lb);
+    let cmd_from = field(cmd.data, &l.from).expect("from");
+    let cmd_lod = field(cmd.data, &l.lod).expect("lod");
+    let first = cmd_from.gt(cmd_lod).mux(cmd_lod, cmd_from);
+    // The per-node command's passes start at `lod` (`from` not read).
+    let c_pn = l.pn.as_ref().map(|f| {
+        let r = m.reg("cmd_per_node", 1);
+        r.next_when(cmd_fire, field(cmd.data, &f.per_node).expect("per_node"));
+        r
+    });
+    let first = match &l.pn {
+        Some(f) => field(cmd.data, &f.per_node)
+            .expect("per_node")
+            .mux(cmd_lod, first),
+        None => first,
+    };
+    c_first.next_when(cmd_fire, first);
+    n_phase.when(cmd_fire, goto(cx, ph::START));
+
+    let walk = is(ph::WALK).name("walking");
+    let start = is(ph::START);
+    let roots_ph = is(ph::ROOTS);
+    Command {
+        phase,
+        n_phase,
+        cfg_have,
+        cfg_fire,
+        idle,
+        start,
+        roots_ph,
+        walk,
+        hier,
+        roots,
+        top,
+        nodes,
+        refs,
+        entry_ok,
+        mv,
+        lod: c_lod,
+        send_refs: c_refs,
+        send_leaves: c_leaves,
+        last: c_last,
+        first: c_first,
+        per_node: c_pn,
+    }
+}
+
+/// The first error before the walk (header or root), reported by the visit
+/// stage ahead of the top level; its next values are set by START and the
+/// roots stage, then cleared by the visit stage.
+pub(super) struct FirstErr<'m> {
+    pub(super) valid: Signal<'m>,
+    pub(super) code: Signal<'m>,
+    pub(super) node: Signal<'m>,
+    /// START found the header bad: the walk reports it and ends.
+    pub(super) header: Signal<'m>,
+    pub(super) n_valid: Next<'m>,
+    pub(super) n_code: Next<'m>,
+    pub(super) n_node: Next<'m>,
+}
+
+/// START: the header checks. A failure is reported as the command's first
+/// error, before a walk with no roots.
+pub(super) fn header_checks<'m>(cx: &Ctx<'_, 'm>, c: &mut Command<'m>) -> FirstErr<'m> {
+    let (m, ib) = (cx.m, cx.ib);
+    let (roots, nodes, start) = (c.roots, c.nodes, c.start);
+    let roots_bad = (roots.eq(0) | roots.gt(nodes)).name("roots_bad");
+    let roots_over = if (cx.sizes.roots as u64) >> ib != 0 {
+        cx.lit(0, 1)
+    } else {
+        roots.gt(cx.lit(cx.sizes.roots as u64, ib))
+    }
+    .name("roots_over");
+    let hdr_code = (!c.entry_ok)
+        .mux(
+            cx.code4(fetch_err::ENTRY),
+            roots_bad.mux(
+                cx.code4(fetch_err::ROOT_COUNT),
+                roots_over.mux(cx.code4(fetch_err::ROOT_CAPACITY), cx.code4(0)),
+            ),
+        )
+        .name("header_code");
+    let hdr_bad = hdr_code.ne(0);
+    c.n_phase
+        .when(start, hdr_bad.mux(goto(cx, ph::WALK), goto(cx, ph::ROOTS)));
+    let valid = m.reg("first_err_valid", 1);
+    let code = m.reg("first_err_code", fetch_err::BITS);
+    let node = m.reg("first_err_node", ib);
+    let header = m.reg("header_err", 1);
+    let mut e = FirstErr {
+        valid,
+        code,
+        node,
+        header,
+        n_valid: Next::new(valid),
+        n_code: Next::new(code),
+        n_node: Next::new(node),
+    };
+    e.n_valid.when(start, hdr_bad);
+    e.n_code.when(start, hdr_code);
+    e.n_node.when(start, cx.lit(0, ib));
+    header.next_when(start, hdr_bad);
+    e
+}

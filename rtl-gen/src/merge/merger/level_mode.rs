@@ -5,13 +5,14 @@
 use golden::merge::merger_unit::MergerLayout;
 use golden::merge::top::TopLayout;
 use golden::merge::unit::{base_kind, level_kind, rank_bits, BeatLayout};
+use golden::params::Params;
 
 use super::drop_fifo::DropFifo;
 use super::leaf_merge::{merge_leaves, LeafInputs, MergedLeaves};
 use super::tail::{finish_merger, Tail};
 use super::{
-    get, hierarchy_merger_name, pass_stream, phase, range_good, shell, store_streams, MergerConfig,
-    Shell,
+    cfg_beats, get, hierarchy_merger_name, pass_stream, phase, range_good, shell, store_streams,
+    MergerConfig, Shell,
 };
 use crate::merge::fields::with_fields;
 use crate::merge::{fetcher_unit, record_writer_unit};
@@ -32,45 +33,75 @@ pub(super) fn level_merger_unit(c: &MergerConfig) -> Result<Module, String> {
     let p = &c.design.params;
     let k = c.design.inputs;
     let ml = MergerLayout::new(p, k, c.sizes.capacity_bits).map_err(|e| e.to_string())?;
-    let fl = &ml.fetch;
-    let wl = &ml.writer;
-    let tl = TopLayout::new(p);
-    let inb = BeatLayout::input(p);
-    let outb = BeatLayout::output(p);
-    let lb = p.lod_bits();
-    let dmax = p.max_lod as usize;
     let m = Module::new(&hierarchy_merger_name(c));
     let lit = |v: u64, w: u32| m.lit(v as u128, w);
     let fetch_mod = fetcher_unit(p, &c.fetch_sizes());
     let writer_mod = record_writer_unit(p, c.sizes.capacity_bits).map_err(|e| e.to_string())?;
-    let Shell {
-        zero,
-        one,
-        fetchers,
-        module,
-        builder,
-        writer,
-        busy,
-        dropping,
-        header_fire,
-        cfg,
-        cfg_fire,
-        cfg_q,
-        count_in,
-        count_q,
-        lo,
-        hi,
-        out_id,
-    } = shell(&m, c, &ml, &fetch_mod, &writer_mod);
+    let s = shell(&m, c, &ml, &fetch_mod, &writer_mod);
     let counting_in =
-        counts_pass(&m, c, get(cfg.data, &ml.lo), get(cfg.data, &ml.hi)).name("count_pass");
+        counts_pass(&m, c, get(s.cfg.data, &ml.lo), get(s.cfg.data, &ml.hi)).name("count_pass");
     let cw = ml.count.width;
-    let used_in: Vec<Signal> = (0..k).map(|i| count_in.gt(lit(i as u64, cw))).collect();
+    let used_in: Vec<Signal> = (0..k).map(|i| s.count_in.gt(lit(i as u64, cw))).collect();
     let used: Vec<Signal> = (0..k)
-        .map(|i| count_q.gt(lit(i as u64, cw)).name(&format!("used{i}")))
+        .map(|i| s.count_q.gt(lit(i as u64, cw)).name(&format!("used{i}")))
         .collect();
+    let ch = choice(&m, p, &s);
+    cfg_beats(&m, p, &ml, &s);
+    let u = Used {
+        used_in: &used_in,
+        used: &used,
+        counting_in,
+    };
+    let (ferr, ferr_rank, leaves_in) = inputs(&m, c, &ml, &s, &ch, &u, &fetch_mod);
 
-    // ---- the choice, read off the module's report on its way out.
+    // ---- the leaves above m: k-way merge by (LOD, Morton, rank).
+    let merged = merge_leaves(
+        &m,
+        LeafInputs {
+            fl: &ml.fetch,
+            busy: s.busy,
+            header_fire: s.header_fire,
+            used: &used,
+            leaves_in: &leaves_in,
+            fetchers: &s.fetchers,
+            rb: rank_bits(k),
+        },
+    );
+    let (leaf_over, count_over) = route_out(&m, c, &ml, &s, &ch, &merged);
+    finish_merger(
+        &m,
+        Tail {
+            dmax: p.max_lod as usize,
+            module: s.module,
+            builder: s.builder,
+            writer: s.writer,
+            writer_mod: &writer_mod,
+            ml: &ml,
+            header_fire: s.header_fire,
+            flags: [leaf_over, count_over, ferr, ferr_rank],
+            busy: s.busy,
+            dropping: &s.dropping,
+        },
+    );
+    Ok(m)
+}
+
+/// The merging level the module chose, read off its report on its way out.
+struct Choice<'m> {
+    /// The report's choice beat has passed.
+    known: Signal<'m>,
+    /// The choice is not an error.
+    ok: Signal<'m>,
+    /// The merging level `m`.
+    level: Signal<'m>,
+    /// `known & ok`: the merge goes on at `level`.
+    merging: Signal<'m>,
+}
+
+fn choice<'m>(m: &'m Module, p: &Params, s: &Shell<'m>) -> Choice<'m> {
+    let tl = TopLayout::new(p);
+    let lb = p.lod_bits();
+    let (zero, one, module, header_fire) = (s.zero, s.one, s.module, s.header_fire);
     let report_ready = m.input("report_ready", 1);
     let report_valid = module.output("report_valid");
     let report_data = module.output("report_data");
@@ -87,35 +118,52 @@ pub(super) fn level_merger_unit(c: &MergerConfig) -> Result<Module, String> {
     level.next_when(chosen_beat, get(report_data, &tl.lod));
     let merging = (known & ok).name("merging");
 
-    // ---- cfg beats to the module, the fetchers and the writer.
-    let mcfg_pend = m.reg("module_cfg_pending", 1);
-    module.connect("cfg_valid", mcfg_pend);
-    module.connect(
-        "cfg_data",
-        with_fields(&m, lit(0, tl.cfg_width), &[(tl.lo, lo), (tl.hi, hi)]),
-    );
-    let mcfg_fire = mcfg_pend & module.output("cfg_ready");
-    mcfg_pend.next(cfg_fire.mux(one, mcfg_fire.mux(zero, mcfg_pend)));
-    let wcfg_pend = m.reg("writer_cfg_pending", 1);
-    writer.connect("cfg_valid", wcfg_pend);
-    writer.connect(
-        "cfg_data",
-        with_fields(&m, lit(0, wl.cfg_width), &[(wl.cfg_out_id, out_id)]),
-    );
-    let wcfg_fire = wcfg_pend & writer.output("cfg_ready");
-    wcfg_pend.next(cfg_fire.mux(one, wcfg_fire.mux(zero, wcfg_pend)));
+    Choice {
+        known,
+        ok,
+        level,
+        merging,
+    }
+}
 
-    // ---- per input: its cfg, its commands, its stream into the module.
+/// Which inputs the merge uses (of the `cfg` beat arriving, and of the
+/// merge held), and whether it starts with a count pass.
+struct Used<'a, 'm> {
+    used_in: &'a [Signal<'m>],
+    used: &'a [Signal<'m>],
+    counting_in: Signal<'m>,
+}
+
+/// Per input: its cfg, its commands, its stream into the module and its
+/// store ports; returns the first fetch error, its input's rank, and each
+/// fetcher's `leaves` stream.
+#[allow(clippy::type_complexity)]
+fn inputs<'m>(
+    m: &'m Module,
+    c: &MergerConfig,
+    ml: &MergerLayout,
+    s: &Shell<'m>,
+    ch: &Choice<'m>,
+    u: &Used<'_, 'm>,
+    fetch_mod: &Module,
+) -> (Signal<'m>, Signal<'m>, Vec<(Signal<'m>, Signal<'m>, usize)>) {
+    let p = &c.design.params;
+    let k = c.design.inputs;
+    let fl = &ml.fetch;
+    let inb = BeatLayout::input(p);
+    let lb = p.lod_bits();
+    let lit = |v: u64, w: u32| m.lit(v as u128, w);
+    let (zero, one, module, header_fire) = (s.zero, s.one, s.module, s.header_fire);
+    let (cfg, cfg_fire, cfg_q, lo, hi) = (s.cfg, s.cfg_fire, s.cfg_q, s.lo, s.hi);
+    let (fetchers, dropping) = (&s.fetchers, &s.dropping);
+    let (known, merging, level) = (ch.known, ch.merging, ch.level);
+    let (used_in, used, counting_in) = (u.used_in, u.used, u.counting_in);
     let rb = rank_bits(k);
     let ferr = m.reg("fetch_err", fl.err.width);
     let ferr_rank = m.reg("fetch_rank", rb);
     let mut ferr_next = header_fire.mux(lit(0, fl.err.width), ferr);
     let mut ferr_rank_next = header_fire.mux(lit(0, rb), ferr_rank);
-    let end_beat = with_fields(
-        &m,
-        lit(0, inb.width),
-        &[(inb.kind, lit(level_kind::END, 2))],
-    );
+    let end_beat = with_fields(m, lit(0, inb.width), &[(inb.kind, lit(level_kind::END, 2))]);
     let mut leaves_in = Vec::new();
     for (i, f) in fetchers.iter().enumerate() {
         let fcfg_pend = m.reg(&format!("fetch{i}_cfg_pending"), 1);
@@ -133,7 +181,7 @@ pub(super) fn level_merger_unit(c: &MergerConfig) -> Result<Module, String> {
         let final_ph = in_ph(phase::FINAL);
         let lod = count_ph.mux(hi, merging.mux(level, lo));
         let cmd_data = with_fields(
-            &m,
+            m,
             lit(0, fl.cmd_width),
             &[
                 (fl.lod, lod),
@@ -201,37 +249,49 @@ pub(super) fn level_merger_unit(c: &MergerConfig) -> Result<Module, String> {
         dropping[i].next(drop_issued.mux(one, (fo_fire & fo_end).mux(zero, dropping[i])));
 
         // The store ports (every `*_req` / `*_resp` stream), straight through.
-        for (port, dir, w) in store_streams(&fetch_mod) {
-            pass_stream(&m, *f, &port, &format!("f{i}_{port}"), dir, w);
+        for (port, dir, w) in store_streams(fetch_mod) {
+            pass_stream(m, *f, &port, &format!("f{i}_{port}"), dir, w);
         }
         leaves_in.push((f.output("leaves_valid"), f.output("leaves_data"), i));
     }
     ferr.next(ferr_next);
     ferr_rank.next(ferr_rank_next);
 
-    // ---- the leaves above m: k-way merge by (LOD, Morton, rank).
+    (ferr, ferr_rank, leaves_in)
+}
+
+/// The routing of the module's `out`: reference beats to the writer's
+/// `crefs`, nodes at `m` to the builder's base of that LOD, the leaves
+/// above `m` through a FIFO per LOD, `End` below `m` or when refused;
+/// returns the leaf FIFOs' and the module's count overflow flags.
+fn route_out<'m>(
+    m: &'m Module,
+    c: &MergerConfig,
+    ml: &MergerLayout,
+    s: &Shell<'m>,
+    ch: &Choice<'m>,
+    merged: &MergedLeaves<'m>,
+) -> (Signal<'m>, Signal<'m>) {
+    let p = &c.design.params;
+    let (fl, wl) = (&ml.fetch, &ml.writer);
+    let inb = BeatLayout::input(p);
+    let outb = BeatLayout::output(p);
+    let lb = p.lod_bits();
+    let dmax = p.max_lod as usize;
+    let lit = |v: u64, w: u32| m.lit(v as u128, w);
+    let (zero, one, module, builder, writer, header_fire) =
+        (s.zero, s.one, s.module, s.builder, s.writer, s.header_fire);
+    let (known, ok, level, merging) = (ch.known, ch.ok, ch.level, ch.merging);
     let MergedLeaves {
         done: leaves_done,
         take: take_leaf,
         data: best_data,
         lod: best_lod,
-    } = merge_leaves(
-        &m,
-        LeafInputs {
-            fl,
-            busy,
-            header_fire,
-            used: &used,
-            leaves_in: &leaves_in,
-            fetchers: &fetchers,
-            rb,
-        },
-    );
+    } = *merged;
     // A FIFO word: the leaves beat's `rec` and `ref` (from bit 0).
     let word_w = fl.leaf_ref.end().max(fl.leaf_rec.end());
     let word = best_data.slice(word_w - 1, 0);
-
-    // ---- routing of the module's out.
+    let end_beat = with_fields(m, lit(0, inb.width), &[(inb.kind, lit(level_kind::END, 2))]);
     let mo_valid = module.output("out_valid");
     let mo_data = module.output("out_data");
     let mo_kind = get(mo_data, &outb.kind);
@@ -240,7 +300,7 @@ pub(super) fn level_merger_unit(c: &MergerConfig) -> Result<Module, String> {
     let mo_err = get(mo_data, outb.err.as_ref().expect("an output beat has err"));
     let mo_refer = get(mo_data, &outb.refer);
     let mo_beat = with_fields(
-        &m,
+        m,
         lit(0, inb.width),
         &[
             (inb.rec, get(mo_data, &outb.rec)),
@@ -255,7 +315,7 @@ pub(super) fn level_merger_unit(c: &MergerConfig) -> Result<Module, String> {
     let cref_valid = !csent & known & (!ok | (mo_valid & (mo_ref | mo_end)));
     let cref_is_end = !ok | mo_end;
     let cref_data = with_fields(
-        &m,
+        m,
         lit(0, wl.cref_width),
         &[
             (
@@ -285,7 +345,7 @@ pub(super) fn level_merger_unit(c: &MergerConfig) -> Result<Module, String> {
         let at_m = (merging & level.eq(dl)).name(&format!("base{d}_at_m"));
         let (valid, data, is_end) = if d < dmax {
             // The FIFO of LOD d.
-            let q = DropFifo::new(&m, &format!("leaves{d}"), &format!("leaves{d}"), word_w, cb);
+            let q = DropFifo::new(m, &format!("leaves{d}"), &format!("leaves{d}"), word_w, cb);
             let (empty, full) = (q.empty, q.full);
             let push = take_leaf & best_lod.eq(dl);
             q.write(word, push);
@@ -293,7 +353,7 @@ pub(super) fn level_merger_unit(c: &MergerConfig) -> Result<Module, String> {
             let head = q.head();
             let above = (merging & dl.lt(level)).name(&format!("base{d}_above_m"));
             let leaf_beat = with_fields(
-                &m,
+                m,
                 lit(0, inb.width),
                 &[
                     (inb.rec, get(head, &fl.leaf_rec)),
@@ -340,20 +400,5 @@ pub(super) fn level_merger_unit(c: &MergerConfig) -> Result<Module, String> {
     count_over
         .next((mo_valid & mo_ready & created & mo_err).mux(one, header_fire.mux(zero, count_over)));
 
-    finish_merger(
-        &m,
-        Tail {
-            dmax,
-            module,
-            builder,
-            writer,
-            writer_mod: &writer_mod,
-            ml: &ml,
-            header_fire,
-            flags: [leaf_over, count_over, ferr, ferr_rank],
-            busy,
-            dropping: &dropping,
-        },
-    );
-    Ok(m)
+    (leaf_over, count_over)
 }

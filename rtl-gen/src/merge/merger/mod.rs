@@ -13,10 +13,12 @@
 
 use golden::merge::fetch_unit::FetchSizes;
 use golden::merge::merger_unit::{MergerLayout, MergerSizes};
+use golden::merge::top::TopLayout;
 use golden::merge::unit::BeatLayout;
 use golden::merge::MergeMode;
+use golden::params::Params;
 
-use super::fields::field;
+use super::fields::{field, with_fields};
 use super::{merge_module_name, merge_module_unit, upper_builder_unit, MergeConfig};
 use crate::{Direction, Module, Signal, Stream};
 
@@ -204,6 +206,32 @@ fn shell<'m>(
         hi: get(cfg_q, &ml.hi).name("hi"),
         out_id: get(cfg_q, &ml.out_id),
     }
+}
+
+/// The `cfg` beats to the module (its candidate range) and the writer (the
+/// output id); the fetchers' go with their commands.
+fn cfg_beats<'m>(m: &'m Module, p: &Params, ml: &MergerLayout, s: &Shell<'m>) {
+    let tl = TopLayout::new(p);
+    let wl = &ml.writer;
+    let lit = |v: u64, w: u32| m.lit(v as u128, w);
+    let (zero, one, module, writer) = (s.zero, s.one, s.module, s.writer);
+    let (cfg_fire, lo, hi, out_id) = (s.cfg_fire, s.lo, s.hi, s.out_id);
+    let mcfg_pend = m.reg("module_cfg_pending", 1);
+    module.connect("cfg_valid", mcfg_pend);
+    module.connect(
+        "cfg_data",
+        with_fields(m, lit(0, tl.cfg_width), &[(tl.lo, lo), (tl.hi, hi)]),
+    );
+    let mcfg_fire = mcfg_pend & module.output("cfg_ready");
+    mcfg_pend.next(cfg_fire.mux(one, mcfg_fire.mux(zero, mcfg_pend)));
+    let wcfg_pend = m.reg("writer_cfg_pending", 1);
+    writer.connect("cfg_valid", wcfg_pend);
+    writer.connect(
+        "cfg_data",
+        with_fields(m, lit(0, wl.cfg_width), &[(wl.cfg_out_id, out_id)]),
+    );
+    let wcfg_fire = wcfg_pend & writer.output("cfg_ready");
+    wcfg_pend.next(cfg_fire.mux(one, wcfg_fire.mux(zero, wcfg_pend)));
 }
 
 /// A child's store-port streams: `(name, direction, data width)` of every

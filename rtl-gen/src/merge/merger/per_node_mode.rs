@@ -3,14 +3,14 @@
 use golden::merge::fetch_unit::FetchLayout;
 use golden::merge::merger_unit::MergerLayout;
 use golden::merge::per_node_unit::PerNodeLayout;
-use golden::merge::top::TopLayout;
 use golden::merge::unit::{base_kind, level_kind, rank_bits, BeatLayout};
+use golden::params::Params;
 
 use super::drop_fifo::DropFifo;
 use super::leaf_merge::{merge_leaves, LeafInputs, MergedLeaves};
 use super::tail::{finish_merger, Tail};
 use super::{
-    field_of, get, hierarchy_merger_name, pass_stream, range_good, shell, store_streams,
+    cfg_beats, field_of, get, hierarchy_merger_name, pass_stream, range_good, shell, store_streams,
     MergerConfig, Shell,
 };
 use crate::merge::fields::{field, with_fields};
@@ -30,75 +30,99 @@ pub(super) fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
     let k = c.design.inputs;
     let ml = MergerLayout::new(p, k, c.sizes.capacity_bits).map_err(|e| e.to_string())?;
     let fl = FetchLayout::per_node(p);
-    let fpn = fl.pn.as_ref().expect("a per-node fetch layout");
-    let wl = &ml.writer;
-    let tl = TopLayout::new(p);
-    let pl = PerNodeLayout::new(p);
-    let inb = BeatLayout::input(p);
-    let outb = BeatLayout::output(p);
-    let lb = p.lod_bits();
-    let dmax = p.max_lod as usize;
     let m = Module::new(&hierarchy_merger_name(c));
     let lit = |v: u64, w: u32| m.lit(v as u128, w);
     let fetch_mod = fetcher_per_node_unit(p, &c.fetch_sizes());
     let writer_mod = record_writer_unit(p, c.sizes.capacity_bits).map_err(|e| e.to_string())?;
-    let Shell {
-        zero,
-        one,
-        fetchers,
-        module,
-        builder,
-        writer,
-        busy,
-        dropping,
-        header_fire,
-        cfg,
-        cfg_fire,
-        cfg_q,
-        count_in,
-        count_q,
-        lo,
-        hi,
-        out_id,
-    } = shell(&m, c, &ml, &fetch_mod, &writer_mod);
-    let good_in = range_good(&m, c, get(cfg.data, &ml.lo), get(cfg.data, &ml.hi)).name("good_in");
-    let good = range_good(&m, c, lo, hi).name("range_good");
+    let s = shell(&m, c, &ml, &fetch_mod, &writer_mod);
+    let good_in =
+        range_good(&m, c, get(s.cfg.data, &ml.lo), get(s.cfg.data, &ml.hi)).name("good_in");
+    let good = range_good(&m, c, s.lo, s.hi).name("range_good");
     let cw = ml.count.width;
-    let used_in: Vec<Signal> = (0..k).map(|i| count_in.gt(lit(i as u64, cw))).collect();
+    let used_in: Vec<Signal> = (0..k).map(|i| s.count_in.gt(lit(i as u64, cw))).collect();
     let used: Vec<Signal> = (0..k)
-        .map(|i| count_q.gt(lit(i as u64, cw)).name(&format!("used{i}")))
+        .map(|i| s.count_q.gt(lit(i as u64, cw)).name(&format!("used{i}")))
         .collect();
 
     // ---- the module's end: its `done` pulse (after the last pass's End
     // left `out`, or after a refusal's report beat).
     let finished = m.reg("module_finished", 1);
-    finished.next((busy & module.output("done")).mux(one, header_fire.mux(zero, finished)));
+    finished
+        .next((s.busy & s.module.output("done")).mux(s.one, s.header_fire.mux(s.zero, finished)));
+    cfg_beats(&m, p, &ml, &s);
+    let g = Merge {
+        used_in: &used_in,
+        used: &used,
+        good_in,
+        good,
+        finished,
+    };
+    let next_pass = report_fork(&m, p, &fl, &s, &g);
+    let (ferr, ferr_rank, leaves_in) = inputs(&m, c, &ml, &fl, &s, &g, next_pass, &fetch_mod);
 
-    // ---- cfg beats to the module and the writer.
-    let mcfg_pend = m.reg("module_cfg_pending", 1);
-    module.connect("cfg_valid", mcfg_pend);
-    module.connect(
-        "cfg_data",
-        with_fields(&m, lit(0, tl.cfg_width), &[(tl.lo, lo), (tl.hi, hi)]),
+    // ---- the leaves above lo: k-way merge by (LOD, Morton, rank).
+    let merged = merge_leaves(
+        &m,
+        LeafInputs {
+            fl: &fl,
+            busy: s.busy,
+            header_fire: s.header_fire,
+            used: &used,
+            leaves_in: &leaves_in,
+            fetchers: &s.fetchers,
+            rb: rank_bits(k),
+        },
     );
-    let mcfg_fire = mcfg_pend & module.output("cfg_ready");
-    mcfg_pend.next(cfg_fire.mux(one, mcfg_fire.mux(zero, mcfg_pend)));
-    let wcfg_pend = m.reg("writer_cfg_pending", 1);
-    writer.connect("cfg_valid", wcfg_pend);
-    writer.connect(
-        "cfg_data",
-        with_fields(&m, lit(0, wl.cfg_width), &[(wl.cfg_out_id, out_id)]),
+    let (leaf_over, count_over) = route_out(&m, c, &ml, &fl, &s, &g, &merged);
+    finish_merger(
+        &m,
+        Tail {
+            dmax: p.max_lod as usize,
+            module: s.module,
+            builder: s.builder,
+            writer: s.writer,
+            writer_mod: &writer_mod,
+            ml: &ml,
+            header_fire: s.header_fire,
+            flags: [leaf_over, count_over, ferr, ferr_rank],
+            busy: s.busy,
+            dropping: &s.dropping,
+        },
     );
-    let wcfg_fire = wcfg_pend & writer.output("cfg_ready");
-    wcfg_pend.next(cfg_fire.mux(one, wcfg_fire.mux(zero, wcfg_pend)));
+    Ok(m)
+}
 
-    // ---- report: an eager fork to the top's `report` and, as the narrow
-    // beat, to every fetcher running the per-node command. Each side takes
-    // the beat once (`taken`); the module's beat leaves when all have.
+/// What the merge held is: the inputs it uses (of the `cfg` beat arriving,
+/// and of the merge held), whether its candidate range is good, and whether
+/// the module is done.
+struct Merge<'a, 'm> {
+    used_in: &'a [Signal<'m>],
+    used: &'a [Signal<'m>],
+    good_in: Signal<'m>,
+    good: Signal<'m>,
+    finished: Signal<'m>,
+}
+
+/// The module's `report`: an eager fork to the top's `report` and, as the
+/// narrow beat, to every fetcher running the per-node command. Each side
+/// takes the beat once (`taken`); the module's beat leaves when all have.
+/// Returns the clock a `pass_end` beat with `more` leaves.
+fn report_fork<'m>(
+    m: &'m Module,
+    p: &Params,
+    fl: &FetchLayout,
+    s: &Shell<'m>,
+    g: &Merge<'_, 'm>,
+) -> Signal<'m> {
+    let fpn = fl.pn.as_ref().expect("a per-node fetch layout");
+    let pl = PerNodeLayout::new(p);
+    let lit = |v: u64, w: u32| m.lit(v as u128, w);
+    let (zero, one, module, busy, fetchers) = (s.zero, s.one, s.module, s.busy, &s.fetchers);
+    let (used, good) = (g.used, g.good);
     let rep_v = module.output("report_valid");
     let rep_d = module.output("report_data");
     let narrow = with_fields(
-        &m,
+        m,
         lit(0, fpn.report_width),
         &fpn.report_sources(&pl)
             .map(|(to, from)| (to, get(rep_d, &from))),
@@ -128,18 +152,40 @@ pub(super) fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
     }
     let next_pass = (rep_fire & get(rep_d, &pl.pass_end) & get(rep_d, &pl.more)).name("next_pass");
 
-    // ---- per input: its cfg, its command, its stream into the module.
+    next_pass
+}
+
+/// Per input: its cfg, its one command, its stream into the module and its
+/// store ports; returns the first fetch error, its input's rank, and each
+/// fetcher's `leaves` stream.
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+fn inputs<'m>(
+    m: &'m Module,
+    c: &MergerConfig,
+    ml: &MergerLayout,
+    fl: &FetchLayout,
+    s: &Shell<'m>,
+    g: &Merge<'_, 'm>,
+    next_pass: Signal<'m>,
+    fetch_mod: &Module,
+) -> (Signal<'m>, Signal<'m>, Vec<(Signal<'m>, Signal<'m>, usize)>) {
+    let p = &c.design.params;
+    let k = c.design.inputs;
+    let fpn = fl.pn.as_ref().expect("a per-node fetch layout");
+    let pl = PerNodeLayout::new(p);
+    let inb = BeatLayout::input(p);
+    let lit = |v: u64, w: u32| m.lit(v as u128, w);
+    let (zero, one, module, header_fire) = (s.zero, s.one, s.module, s.header_fire);
+    let (cfg_fire, cfg_q, lo) = (s.cfg_fire, s.cfg_q, s.lo);
+    let (fetchers, dropping) = (&s.fetchers, &s.dropping);
+    let (used_in, used, good_in, good) = (g.used_in, g.used, g.good_in, g.good);
     let rb = rank_bits(k);
     let ferr = m.reg("fetch_err", fl.err.width);
     let ferr_rank = m.reg("fetch_rank", rb);
     let mut ferr_next = header_fire.mux(lit(0, fl.err.width), ferr);
     let mut ferr_rank_next = header_fire.mux(lit(0, rb), ferr_rank);
-    let end_beat = with_fields(
-        &m,
-        lit(0, inb.width),
-        &[(inb.kind, lit(level_kind::END, 2))],
-    );
-    let end_in = with_fields(&m, lit(0, pl.in_width), &[(field_of(&inb), end_beat)]);
+    let end_beat = with_fields(m, lit(0, inb.width), &[(inb.kind, lit(level_kind::END, 2))]);
+    let end_in = with_fields(m, lit(0, pl.in_width), &[(field_of(&inb), end_beat)]);
     let mut leaves_in = Vec::new();
     for (i, f) in fetchers.iter().enumerate() {
         let fcfg_pend = m.reg(&format!("fetch{i}_cfg_pending"), 1);
@@ -153,7 +199,7 @@ pub(super) fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
         // closing command (its beats dropped).
         let cmd_pend = m.reg(&format!("cmd{i}_pending"), 1);
         let cmd_data = with_fields(
-            &m,
+            m,
             lit(0, fl.cmd_width),
             &[
                 (fl.lod, lo),
@@ -179,7 +225,7 @@ pub(super) fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
         let fo_beat = fo_data.slice(fl.beat.width - 1, 0);
         let fo_end = get(fo_beat, &inb.kind).eq(level_kind::END);
         let fo_in = with_fields(
-            &m,
+            m,
             lit(0, pl.in_width),
             &[
                 (field_of(&inb), fo_beat),
@@ -209,35 +255,58 @@ pub(super) fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
 
         // The store ports (every `*_req` / `*_resp` stream, the probe port
         // included), straight through.
-        for (port, dir, w) in store_streams(&fetch_mod) {
-            pass_stream(&m, *f, &port, &format!("f{i}_{port}"), dir, w);
+        for (port, dir, w) in store_streams(fetch_mod) {
+            pass_stream(m, *f, &port, &format!("f{i}_{port}"), dir, w);
         }
         leaves_in.push((f.output("leaves_valid"), f.output("leaves_data"), i));
     }
     ferr.next(ferr_next);
     ferr_rank.next(ferr_rank_next);
 
-    // ---- the leaves above lo: k-way merge by (LOD, Morton, rank).
+    (ferr, ferr_rank, leaves_in)
+}
+
+/// The module's out: reference beats to crefs, nodes into the FIFO of their
+/// LOD, each pass's End dropped (the builder's End comes from the FIFOs
+/// once the module is done); the leaves above `lo` into theirs. Returns the
+/// leaf FIFOs' and the module's count overflow flags.
+fn route_out<'m>(
+    m: &'m Module,
+    c: &MergerConfig,
+    ml: &MergerLayout,
+    fl: &FetchLayout,
+    s: &Shell<'m>,
+    g: &Merge<'_, 'm>,
+    merged: &MergedLeaves<'m>,
+) -> (Signal<'m>, Signal<'m>) {
+    let p = &c.design.params;
+    let wl = &ml.writer;
+    let inb = BeatLayout::input(p);
+    let outb = BeatLayout::output(p);
+    let lb = p.lod_bits();
+    let dmax = p.max_lod as usize;
+    let lit = |v: u64, w: u32| m.lit(v as u128, w);
+    let (zero, one, module, builder, writer, header_fire, busy, lo) = (
+        s.zero,
+        s.one,
+        s.module,
+        s.builder,
+        s.writer,
+        s.header_fire,
+        s.busy,
+        s.lo,
+    );
+    let (good, finished) = (g.good, g.finished);
     let MergedLeaves {
         done: leaves_done,
         take: take_leaf,
         data: best_data,
         lod: best_lod,
-    } = merge_leaves(
-        &m,
-        LeafInputs {
-            fl: &fl,
-            busy,
-            header_fire,
-            used: &used,
-            leaves_in: &leaves_in,
-            fetchers: &fetchers,
-            rb,
-        },
-    );
+    } = *merged;
+    let end_beat = with_fields(m, lit(0, inb.width), &[(inb.kind, lit(level_kind::END, 2))]);
     let nl = &fl.node;
     let leaf_beat = with_fields(
-        &m,
+        m,
         lit(0, inb.width),
         &[
             (inb.rec, get(best_data, &fl.leaf_rec)),
@@ -246,9 +315,6 @@ pub(super) fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
         ],
     );
 
-    // ---- the module's out: reference beats to crefs, nodes into the FIFO
-    // of their LOD, each pass's End dropped (the builder's End comes from
-    // the FIFOs once the module is done).
     let mo_valid = module.output("out_valid");
     let mo_data = module.output("out_data");
     let mo_kind = get(mo_data, &outb.kind);
@@ -259,7 +325,7 @@ pub(super) fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
     let mo_rec = get(mo_data, &outb.rec);
     let mo_lod = field(mo_rec, nl.lod()).expect("a record's lod");
     let mo_beat = with_fields(
-        &m,
+        m,
         lit(0, inb.width),
         &[
             (inb.rec, mo_rec),
@@ -276,7 +342,7 @@ pub(super) fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
     let cref_ref = (mo_valid & mo_ref).name("cref_is_ref");
     let cref_valid = !csent & busy & (cref_ref | finished);
     let cref_data = with_fields(
-        &m,
+        m,
         lit(0, wl.cref_width),
         &[
             (wl.cref, cref_ref.mux(mo_refer, lit(0, mo_refer.width()))),
@@ -306,7 +372,7 @@ pub(super) fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
         let bsent = m.reg(&format!("base{d}_end_sent"), 1);
         let ready = builder.output(&format!("base{d}_ready"));
         let q = DropFifo::new(
-            &m,
+            m,
             &format!("base{d}_fifo"),
             &format!("base{d}"),
             inb.width,
@@ -333,20 +399,5 @@ pub(super) fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
     leaf_over.next(over_next);
     let leaf_over = leaf_over.name("leaf_overflow_q");
 
-    finish_merger(
-        &m,
-        Tail {
-            dmax,
-            module,
-            builder,
-            writer,
-            writer_mod: &writer_mod,
-            ml: &ml,
-            header_fire,
-            flags: [leaf_over, count_over, ferr, ferr_rank],
-            busy,
-            dropping: &dropping,
-        },
-    );
-    Ok(m)
+    (leaf_over, count_over)
 }

@@ -22,6 +22,7 @@ use glam::{DVec3, Vec3};
 use crate::mesh::Mesh;
 use crate::params::{ParamError, Params};
 use crate::store::Hierarchy;
+use leaves::LeafEntry;
 
 /// How world coordinates map to grid units: `g = (p - origin) / unit`,
 /// computed in binary64 from the f32 position widened exactly.
@@ -294,12 +295,73 @@ pub fn build_grid_triangles(
     })
 }
 
-fn build_with(
-    n: usize,
+/// [`build`] on the threads of the current rayon pool: the same
+/// hierarchy, bit for bit, or the same error. Triangles are placed in
+/// chunks, each chunk on one thread, and the chunks' entries are kept in
+/// triangle order, so the sort sees exactly the sequence [`build`] makes.
+pub fn build_parallel(
+    mesh: &Mesh,
+    grid: &GridMap,
     params: &Params,
     id: u8,
-    triangle: impl Fn(usize) -> Result<[DVec3; 3], BuildError>,
 ) -> Result<Hierarchy, BuildError> {
+    grid.validate()?;
+    check_build(mesh.triangles.len(), params, id)?;
+    let entries = place_parallel(mesh.triangles.len(), params, &|i| {
+        grid.triangle(mesh, i, params)
+    })?;
+    finish(entries, params, id)
+}
+
+/// Triangles per chunk of the parallel placement: large enough that a
+/// chunk's setup and its vector are negligible, small enough that the
+/// threads finish together on uneven meshes.
+const PLACE_CHUNK: usize = 1 << 13;
+
+/// The entries of triangles `0..n` in triangle order, placed in chunks on
+/// the current rayon pool; the error of the lowest failing triangle.
+fn place_parallel(
+    n: usize,
+    params: &Params,
+    triangle: &(dyn Fn(usize) -> Result<[DVec3; 3], BuildError> + Sync),
+) -> Result<Vec<LeafEntry>, BuildError> {
+    use rayon::prelude::*;
+    let chunks: Vec<Result<Vec<LeafEntry>, BuildError>> = (0..n.div_ceil(PLACE_CHUNK))
+        .into_par_iter()
+        .map(|c| {
+            let range = c * PLACE_CHUNK..((c + 1) * PLACE_CHUNK).min(n);
+            place_range(range, params, triangle)
+        })
+        .collect();
+    let mut parts = Vec::with_capacity(chunks.len());
+    for c in chunks {
+        parts.push(c?);
+    }
+    let total = parts.iter().map(Vec::len).sum();
+    let mut entries = Vec::with_capacity(total);
+    for p in parts {
+        entries.extend_from_slice(&p);
+    }
+    Ok(entries)
+}
+
+/// The entries of triangles `range`, in order.
+fn place_range(
+    range: std::ops::Range<usize>,
+    params: &Params,
+    triangle: &dyn Fn(usize) -> Result<[DVec3; 3], BuildError>,
+) -> Result<Vec<LeafEntry>, BuildError> {
+    let mut entries = Vec::with_capacity(range.len() * 4);
+    let mut clip_scratch = crate::geom::clip::ClipScratch::new();
+    for i in range {
+        let tri = triangle(i)?;
+        leaves::place_triangle_with(&tri, i as u32, params, &mut entries, &mut clip_scratch);
+    }
+    Ok(entries)
+}
+
+/// The checks every build makes before placing a triangle.
+fn check_build(n: usize, params: &Params, id: u8) -> Result<(), BuildError> {
     params.validate()?;
     if id as u64 >= params.hier_capacity() {
         return Err(BuildError::HierIdOutOfRange {
@@ -317,12 +379,22 @@ fn build_with(
             index_bits: params.index_bits,
         });
     }
-    let mut entries = Vec::with_capacity(n * 4);
-    let mut clip_scratch = crate::geom::clip::ClipScratch::new();
-    for i in 0..n {
-        let tri = triangle(i)?;
-        leaves::place_triangle_with(&tri, i as u32, params, &mut entries, &mut clip_scratch);
-    }
+    Ok(())
+}
+
+fn build_with(
+    n: usize,
+    params: &Params,
+    id: u8,
+    triangle: impl Fn(usize) -> Result<[DVec3; 3], BuildError>,
+) -> Result<Hierarchy, BuildError> {
+    check_build(n, params, id)?;
+    let entries = place_range(0..n, params, &triangle)?;
+    finish(entries, params, id)
+}
+
+/// Sorts the entries by key and assembles the hierarchy.
+fn finish(mut entries: Vec<LeafEntry>, params: &Params, id: u8) -> Result<Hierarchy, BuildError> {
     let mut scratch = Vec::new();
     radix::radix_sort(
         &mut entries,

@@ -154,6 +154,11 @@ fn main() {
             3,
         );
     }
+    if selected("architecture") {
+        let house = scenes::architecture(6, 12);
+        let (lo, hi) = house.bounds();
+        bench("architecture", &house, &GridMap::fit(lo, hi, &p), &p, 3);
+    }
     if selected("slivers 100k") {
         let slivers = scenes::slivers(100_000, 4);
         bench("slivers 100k", &slivers, &unit_cube_grid(&p), &p, 3);

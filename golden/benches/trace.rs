@@ -18,12 +18,13 @@
 mod cpu_time;
 #[path = "../tests/support/reference_trace.rs"]
 mod reference_trace;
+#[path = "support/shadow.rs"]
+mod shadow;
 
 use std::hint::black_box;
 use std::time::Instant;
 
 use cpu_time::thread_cpu_time;
-use glam::Vec3;
 use golden::build::{build, GridMap};
 use golden::geom::Ray;
 use golden::mesh::Mesh;
@@ -31,6 +32,7 @@ use golden::scenes::{self, shared_mesh_path};
 use golden::trace::{random_rays, Instance, TraceContext, TraceScene, TraceStats};
 use golden::Params;
 use reference_trace::RefScene;
+use shadow::shadow_rays;
 
 /// Rounds of each measurement, alternating between the ways.
 const ROUNDS: u32 = 3;
@@ -69,23 +71,6 @@ impl Way {
             self.per_ray(self.stats.prim_tests),
         )
     }
-}
-
-/// Shadow rays from the hit points of `rays` (moved back off the surface)
-/// to a light above the scene: `tmax = 1` ends them at the light.
-fn shadow_rays(scene: &TraceScene, rays: &[Ray]) -> Vec<Ray> {
-    let (lo, hi) = scene.bounds();
-    let size = (hi - lo).length();
-    let light = (lo + hi) * 0.5 + Vec3::new(0.3, 1.5, 0.2) * size;
-    let mut ctx = TraceContext::new();
-    rays.iter()
-        .filter_map(|r| {
-            let h = ctx.closest_hit(r, scene, &mut TraceStats::default())?;
-            let p = r.at(h.t) - r.dir.normalize() * (size * 1e-4);
-            let s = Ray::new(p, light - p, 0.0, 1.0);
-            s.is_valid().then_some(s)
-        })
-        .collect()
 }
 
 /// Every ray's answers agree with the reference (not timed).

@@ -8,7 +8,7 @@
 mod reference_builder;
 
 use glam::{DVec3, Vec3};
-use golden::build::{build, build_grid_triangles, GridMap};
+use golden::build::{build, build_grid_triangles, build_parallel, BuildError, GridMap};
 use golden::geom::{clip_triangle_to_box, triangle_overlaps_box};
 use golden::mesh::Mesh;
 use golden::scenes::{self, SplitMix64};
@@ -74,6 +74,52 @@ fn generated_scenes_match_the_reference() {
     scenes::append(&mut mix, &scenes::torus(Vec3::splat(0.5), 0.3, 0.05, 16, 8));
     scenes::append(&mut mix, &scenes::box_mesh(Vec3::ZERO, Vec3::ONE));
     same_on_mesh("sphere+torus+box", &mix, &DQ);
+}
+
+/// The parallel build on 2 and 3 threads gives the reference's hierarchy on
+/// meshes of several placement chunks, and the error of the lowest bad
+/// triangle when two chunks hold one.
+#[test]
+fn parallel_build_matches_the_reference() {
+    let mut mesh = scenes::terrain(110, 8); // 24,200 triangles: 3 chunks
+    scenes::append(&mut mesh, &scenes::architecture(1, 2));
+    scenes::append(&mut mesh, &scenes::slivers(3000, 9));
+    let (lo, hi) = mesh.bounds();
+    for threads in [2, 3] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        for (d, q) in [(8, 0), (16, 8), (24, 5)] {
+            let p = Params::new(d, q, 24, 4).unwrap();
+            let grid = GridMap::fit(lo, hi, &p);
+            let par = pool
+                .install(|| build_parallel(&mesh, &grid, &p, 2))
+                .unwrap();
+            let old = reference_builder::build(&mesh, &grid, &p, 2).unwrap();
+            assert_same(&par, &old, &format!("{threads} threads D={d} Q={q}"));
+        }
+        let mut bad = mesh.clone();
+        bad.triangles[20_000][1] = u32::MAX;
+        bad.triangles[9_000][2] = u32::MAX;
+        let p = Params::default();
+        let grid = GridMap::fit(lo, hi, &p);
+        let err = pool
+            .install(|| build_parallel(&bad, &grid, &p, 0))
+            .unwrap_err();
+        assert_eq!(err, build(&bad, &grid, &p, 0).unwrap_err());
+        assert!(
+            matches!(
+                err,
+                BuildError::BadVertexIndex {
+                    triangle: 9_000,
+                    corner: 2,
+                    ..
+                }
+            ),
+            "{err:?}"
+        );
+    }
 }
 
 /// Grid-space soups of awkward triangles: on voxel planes, long and thin,

@@ -22,6 +22,7 @@ use glam::{DVec3, Vec3};
 use crate::mesh::Mesh;
 use crate::params::{ParamError, Params};
 use crate::store::Hierarchy;
+use leaves::{LeafEntry, LeafKey};
 
 /// How world coordinates map to grid units: `g = (p - origin) / unit`,
 /// computed in binary64 from the f32 position widened exactly.
@@ -294,12 +295,114 @@ pub fn build_grid_triangles(
     })
 }
 
-fn build_with(
+/// [`build`] on the threads of the current rayon pool: the same
+/// hierarchy, bit for bit, or the same error. Triangles are placed in
+/// chunks, each chunk on one thread, and the chunks' entries are kept in
+/// triangle order, so the sort sees exactly the sequence [`build`] makes.
+pub fn build_parallel(
+    mesh: &Mesh,
+    grid: &GridMap,
+    params: &Params,
+    id: u8,
+) -> Result<Hierarchy, BuildError> {
+    grid.validate()?;
+    let n = mesh.triangles.len();
+    check_build(n, params, id)?;
+    let triangle = |i| grid.triangle(mesh, i, params);
+    if leaves::leaf_key_bits(params) <= 64 {
+        build_parallel_keyed::<u64>(n, params, id, &triangle)
+    } else {
+        build_parallel_keyed::<u128>(n, params, id, &triangle)
+    }
+}
+
+/// [`build_parallel`] with keys held in `K`.
+fn build_parallel_keyed<K: LeafKey>(
     n: usize,
     params: &Params,
     id: u8,
-    triangle: impl Fn(usize) -> Result<[DVec3; 3], BuildError>,
+    triangle: &(dyn Fn(usize) -> Result<[DVec3; 3], BuildError> + Sync),
 ) -> Result<Hierarchy, BuildError> {
+    let mut entries = place_parallel::<K>(n, params, triangle)?;
+    radix::radix_sort_parallel(
+        &mut entries,
+        &mut Vec::new(),
+        leaves::leaf_key_bits(params),
+        |e| e.key.to_u128(),
+    );
+    upper::assemble(&entries, params, id)
+}
+
+/// Most triangles per chunk of the parallel placement: large enough that a
+/// chunk's setup and its vector are negligible. A small mesh is cut into
+/// smaller chunks, eight per thread, so that the threads finish together.
+const PLACE_CHUNK: usize = 1 << 13;
+
+/// Fewest triangles per chunk (below it a chunk's setup is no longer small).
+const PLACE_CHUNK_MIN: usize = 256;
+
+/// The entries of triangles `0..n` in triangle order, placed in chunks on
+/// the current rayon pool; the error of the lowest failing triangle.
+fn place_parallel<K: LeafKey>(
+    n: usize,
+    params: &Params,
+    triangle: &(dyn Fn(usize) -> Result<[DVec3; 3], BuildError> + Sync),
+) -> Result<Vec<LeafEntry<K>>, BuildError> {
+    use rayon::prelude::*;
+    let chunk = n
+        .div_ceil(8 * rayon::current_num_threads())
+        .clamp(PLACE_CHUNK_MIN, PLACE_CHUNK);
+    let chunks: Vec<Result<Vec<LeafEntry<K>>, BuildError>> = (0..n.div_ceil(chunk))
+        .into_par_iter()
+        .map(|c| {
+            let range = c * chunk..((c + 1) * chunk).min(n);
+            place_range(range, params, triangle)
+        })
+        .collect();
+    let mut parts = Vec::with_capacity(chunks.len());
+    for c in chunks {
+        parts.push(c?);
+    }
+    // The copy into one vector is parallel too: each part into its own slice.
+    let total = parts.iter().map(Vec::len).sum();
+    let mut entries = Vec::with_capacity(total);
+    let mut slices = Vec::with_capacity(parts.len());
+    let mut rest = &mut entries.spare_capacity_mut()[..total];
+    for p in &parts {
+        let (head, tail) = rest.split_at_mut(p.len());
+        slices.push(head);
+        rest = tail;
+    }
+    slices
+        .into_par_iter()
+        .zip(parts.par_iter())
+        .for_each(|(dst, src)| {
+            for (d, s) in dst.iter_mut().zip(src) {
+                d.write(*s);
+            }
+        });
+    // SAFETY: the slices cover the first `total` slots, each written above.
+    unsafe { entries.set_len(total) };
+    Ok(entries)
+}
+
+/// The entries of triangles `range`, in order.
+fn place_range<K: LeafKey>(
+    range: std::ops::Range<usize>,
+    params: &Params,
+    triangle: &dyn Fn(usize) -> Result<[DVec3; 3], BuildError>,
+) -> Result<Vec<LeafEntry<K>>, BuildError> {
+    let mut entries = Vec::with_capacity(range.len() * 4);
+    let mut clip_scratch = crate::geom::clip::ClipScratch::new();
+    for i in range {
+        let tri = triangle(i)?;
+        leaves::place_triangle_with(&tri, i as u32, params, &mut entries, &mut clip_scratch);
+    }
+    Ok(entries)
+}
+
+/// The checks every build makes before placing a triangle.
+fn check_build(n: usize, params: &Params, id: u8) -> Result<(), BuildError> {
     params.validate()?;
     if id as u64 >= params.hier_capacity() {
         return Err(BuildError::HierIdOutOfRange {
@@ -317,19 +420,36 @@ fn build_with(
             index_bits: params.index_bits,
         });
     }
-    let mut entries = Vec::with_capacity(n * 4);
-    let mut clip_scratch = crate::geom::clip::ClipScratch::new();
-    for i in 0..n {
-        let tri = triangle(i)?;
-        leaves::place_triangle_with(&tri, i as u32, params, &mut entries, &mut clip_scratch);
+    Ok(())
+}
+
+fn build_with(
+    n: usize,
+    params: &Params,
+    id: u8,
+    triangle: impl Fn(usize) -> Result<[DVec3; 3], BuildError>,
+) -> Result<Hierarchy, BuildError> {
+    check_build(n, params, id)?;
+    if leaves::leaf_key_bits(params) <= 64 {
+        build_keyed::<u64>(n, params, id, &triangle)
+    } else {
+        build_keyed::<u128>(n, params, id, &triangle)
     }
-    let mut scratch = Vec::new();
+}
+
+/// The one-thread build with keys held in `K`.
+fn build_keyed<K: LeafKey>(
+    n: usize,
+    params: &Params,
+    id: u8,
+    triangle: &dyn Fn(usize) -> Result<[DVec3; 3], BuildError>,
+) -> Result<Hierarchy, BuildError> {
+    let mut entries = place_range::<K>(0..n, params, triangle)?;
     radix::radix_sort(
         &mut entries,
-        &mut scratch,
+        &mut Vec::new(),
         leaves::leaf_key_bits(params),
-        |e| e.key,
+        |e| e.key.to_u128(),
     );
-    drop(scratch);
     upper::assemble(&entries, params, id)
 }

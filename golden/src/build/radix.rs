@@ -51,6 +51,101 @@ pub fn radix_sort<T: Copy>(
     }
 }
 
+/// Below this many items the parallel sort runs [`radix_sort`]: splitting
+/// would cost more than it saves.
+const PARALLEL_MIN: usize = 1 << 15;
+
+/// A raw pointer the scatter threads share; each writes a disjoint set of
+/// slots (its own block's items at offsets no other block is given).
+#[derive(Clone, Copy)]
+struct Slots<T>(*mut T);
+// SAFETY: only used to write disjoint slots of one live buffer, below.
+unsafe impl<T: Send> Send for Slots<T> {}
+unsafe impl<T: Send> Sync for Slots<T> {}
+
+/// [`radix_sort`] on the threads of the current rayon pool: the same order
+/// (stable, by the same digits). The items are cut into one block per
+/// thread; per pass, each block's histogram is taken in parallel, each
+/// (block, digit) gets the offset where its run goes (digits in order, and
+/// within a digit the blocks in order, which keeps the sort stable), and the
+/// blocks scatter in parallel.
+pub fn radix_sort_parallel<T: Copy + Send + Sync>(
+    items: &mut Vec<T>,
+    scratch: &mut Vec<T>,
+    key_bits: u32,
+    key: impl Fn(&T) -> u128 + Sync,
+) {
+    use rayon::prelude::*;
+    let n = items.len();
+    let threads = rayon::current_num_threads();
+    if n < PARALLEL_MIN || threads < 2 || key_bits == 0 {
+        return radix_sort(items, scratch, key_bits, key);
+    }
+    let passes = key_bits.div_ceil(DIGIT_BITS) as usize;
+    let block = n.div_ceil(threads);
+    let hist_of = |part: &[T], passes: std::ops::Range<usize>| {
+        let mut hist = vec![[0u32; BUCKETS]; passes.len()];
+        for it in part {
+            let k = key(it);
+            for (h, p) in hist.iter_mut().zip(passes.clone()) {
+                h[digit(k, p)] += 1;
+            }
+        }
+        hist
+    };
+    // A pass whose digit is the same for every item moves nothing.
+    let total = items
+        .par_chunks(block)
+        .map(|part| hist_of(part, 0..passes))
+        .reduce_with(|mut a, b| {
+            for (ha, hb) in a.iter_mut().zip(&b) {
+                for (x, y) in ha.iter_mut().zip(hb) {
+                    *x += y;
+                }
+            }
+            a
+        })
+        .expect("n > 0");
+    for (p, h) in total.iter().enumerate() {
+        if h.iter().any(|&c| c as usize == n) {
+            continue;
+        }
+        let hists: Vec<[u32; BUCKETS]> = items
+            .par_chunks(block)
+            .map(|part| hist_of(part, p..p + 1)[0])
+            .collect();
+        let mut offsets = vec![[0u32; BUCKETS]; hists.len()];
+        let mut sum = 0u32;
+        for d in 0..BUCKETS {
+            for (o, h) in offsets.iter_mut().zip(&hists) {
+                o[d] = sum;
+                sum += h[d];
+            }
+        }
+        scratch.clear();
+        scratch.reserve(n);
+        let out = Slots(scratch.as_mut_ptr());
+        items
+            .par_chunks(block)
+            .zip(offsets.par_iter_mut())
+            .for_each(|(part, off)| {
+                let out = out;
+                for it in part {
+                    let d = digit(key(it), p);
+                    // SAFETY: the offsets of (block, d) run over slots no
+                    // other (block, digit) pair is given, all below n, within
+                    // scratch's capacity; each block writes only its own.
+                    unsafe { out.0.add(off[d] as usize).write(*it) };
+                    off[d] += 1;
+                }
+            });
+        // SAFETY: the scatter wrote each of the n slots once (the offsets
+        // of all (block, digit) pairs partition 0..n).
+        unsafe { scratch.set_len(n) };
+        std::mem::swap(items, scratch);
+    }
+}
+
 #[inline(always)]
 fn digit(k: u128, pass: usize) -> usize {
     ((k >> (pass as u32 * DIGIT_BITS)) as usize) & (BUCKETS - 1)
@@ -112,5 +207,29 @@ mod tests {
         let mut scratch = Vec::new();
         radix_sort(&mut v, &mut scratch, 92, |e| e.0);
         assert_eq!(v, expect);
+    }
+
+    #[test]
+    fn parallel_sort_is_the_sequential_sort() {
+        let mut s = 99u64;
+        let v: Vec<(u128, usize)> = (0..3 * PARALLEL_MIN + 17)
+            .map(|i| {
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                ((((s >> 20) as u128) % 5000) | ((s as u128 & 3) << 60), i)
+            })
+            .collect();
+        let mut expect = v.clone();
+        expect.sort_by_key(|e| e.0);
+        for threads in [2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut got = v.clone();
+            pool.install(|| radix_sort_parallel(&mut got, &mut Vec::new(), 62, |e| e.0));
+            assert_eq!(got, expect, "{threads} threads");
+        }
     }
 }

@@ -1,7 +1,7 @@
 //! S406-S408: leaves from sorted entries, the upper levels by grouping on the
 //! parent voxel, the top rule, and the store layout (SPEC.md sections 4.5-4.7).
 
-use super::leaves::LeafEntry;
+use super::leaves::{LeafEntry, LeafKey};
 use super::quantize::child_cells_in_parent;
 use super::BuildError;
 use crate::grid::VoxelAddr;
@@ -46,12 +46,15 @@ fn morton_coord(m: u128, axis: u32) -> u32 {
 
 /// The entries of each LOD (index = LOD) as a range of the sorted entries:
 /// the key's high bits are the LOD, so each LOD's entries are contiguous.
-fn entry_ranges_by_lod(entries: &[LeafEntry], p: &Params) -> Vec<std::ops::Range<usize>> {
+fn entry_ranges_by_lod<K: LeafKey>(
+    entries: &[LeafEntry<K>],
+    p: &Params,
+) -> Vec<std::ops::Range<usize>> {
     let shift = 3 * p.max_lod as u32;
     (0..=p.max_lod as u128)
         .map(|lod| {
-            let start = entries.partition_point(|e| e.key >> shift < lod);
-            let end = entries.partition_point(|e| e.key >> shift <= lod);
+            let start = entries.partition_point(|e| e.key.to_u128() >> shift < lod);
+            let end = entries.partition_point(|e| e.key.to_u128() >> shift <= lod);
             start..end
         })
         .collect()
@@ -61,8 +64,8 @@ fn entry_ranges_by_lod(entries: &[LeafEntry], p: &Params) -> Vec<std::ops::Range
 /// per voxel, in Morton order, into `out` (cleared first). A leaf's `first`
 /// indexes the whole entry array.
 #[allow(clippy::needless_range_loop)] // per-axis loops over parallel arrays
-fn leaves_of_lod_into(
-    entries: &[LeafEntry],
+fn leaves_of_lod_into<K: LeafKey>(
+    entries: &[LeafEntry<K>],
     range: std::ops::Range<usize>,
     p: &Params,
     out: &mut Vec<LevelNode>,
@@ -82,7 +85,7 @@ fn leaves_of_lod_into(
             }
             j += 1;
         }
-        let morton = key & ((1u128 << shift) - 1);
+        let morton = key.to_u128() & ((1u128 << shift) - 1);
         out.push(LevelNode {
             morton,
             x: morton_coord(morton, 0),
@@ -247,7 +250,11 @@ pub(crate) fn build_levels(
 /// have as children every node of the next level exactly once, in order, so
 /// in store order `refs[k]` names node `root_count + k`, and an inner node's
 /// `first` is its first child's store index minus `root_count`.
-pub(super) fn assemble(entries: &[LeafEntry], p: &Params, id: u8) -> Result<Hierarchy, BuildError> {
+pub(super) fn assemble<K: LeafKey>(
+    entries: &[LeafEntry<K>],
+    p: &Params,
+    id: u8,
+) -> Result<Hierarchy, BuildError> {
     // Leaves are made one LOD at a time, when the build reaches it.
     let ranges = entry_ranges_by_lod(entries, p);
     let deepest = ranges

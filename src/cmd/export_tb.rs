@@ -113,6 +113,14 @@ pub fn main(a: Args) -> CmdResult {
     };
     golden::vectors::check_count("--count", a.count, limit)?;
     let count = usize::try_from(a.count).map_err(|_| "--count is too large".to_string())?;
+    // Refuse a bad configuration before anything is written.
+    match a.unit {
+        Unit::Translate => a.design.translate_design().map(|_| ())?,
+        Unit::Merge => a.design.merge_design().map(|_| ())?,
+        Unit::Merger => {
+            merger_config(&a.design.merge_design()?, a.capacity_bits, a.leaf_bits).map(|_| ())?
+        }
+    }
     golden::output::check_destination(&a.out, true)?;
     let rtl = a.out.join(RTL_DIR);
     std::fs::create_dir_all(&rtl).map_err(|e| format!("{}: {e}", rtl.display()))?;

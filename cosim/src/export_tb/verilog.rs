@@ -258,10 +258,13 @@ fn observe_outputs(spec: &ExportSpec) -> String {
     for o in &spec.outputs {
         let st = &o.stream;
         let (name, n) = (&st.name, st.beats.len());
-        let compare = match n {
-            0 => String::new(),
+        let extra = format!(
+            "$display(\"FAIL: output `{name}` beat %0d at cycle %0d: golden expects only {n} beats\", tb_{name}_got, tb_cycle);\n                    tb_failed = 1'b1;"
+        );
+        let check = match n {
+            0 => format!("begin\n                    {extra}\n                end"),
             _ => format!(
-                " else if ({} !== tb_{name}_expected[{}]) begin\n                    show_{name};\n                    tb_failed = 1'b1;\n                end",
+                "if (tb_{name}_got >= tb_{name}_beats) begin\n                    {extra}\n                end else if ({} !== tb_{name}_expected[{}]) begin\n                    show_{name};\n                    tb_failed = 1'b1;\n                end",
                 st.data,
                 index(&format!("tb_{name}_got"), n)
             ),
@@ -270,10 +273,7 @@ fn observe_outputs(spec: &ExportSpec) -> String {
             s,
             r#"            if ({valid} && {ready}) begin
                 tb_moved = 1'b1;
-                if (tb_{name}_got >= tb_{name}_beats) begin
-                    $display("FAIL: output `{name}` beat %0d at cycle %0d: golden expects only %0d beats", tb_{name}_got, tb_cycle, tb_{name}_beats);
-                    tb_failed = 1'b1;
-                end{compare}
+                {check}
                 tb_{name}_got = tb_{name}_got + 32'd1;
                 tb_received = tb_received + 32'd1;
             end

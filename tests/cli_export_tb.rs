@@ -1,4 +1,4 @@
-//! `hiermerge export-tb` (issue 23 item 6, SPEC 9.3): a unit's portable
+//! `hiermerge export-tb` (issue 23 item 6, SPEC 9.1): a unit's portable
 //! self-checking testbench. Each exported folder is run the way an ASIC
 //! team would run it: its own `run.sh`, a plain shell command with a PATH
 //! of system folders only (no cargo, no workspace), on Icarus and on

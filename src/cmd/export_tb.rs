@@ -1,5 +1,5 @@
 //! `hiermerge export-tb`: a unit's portable self-checking testbench
-//! (SPEC 9.3): the unit's Verilog, a plain Verilog-2005 testbench, the
+//! (SPEC 9.1): the unit's Verilog, a plain Verilog-2005 testbench, the
 //! stimulus, stall masks and golden's expected outputs as `$readmemh`
 //! files, and `run.sh` for Icarus and Verilator, none of which needs this
 //! workspace to run.

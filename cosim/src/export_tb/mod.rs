@@ -1,4 +1,4 @@
-//! A portable self-checking testbench (`hiermerge export-tb`, SPEC 9.3):
+//! A portable self-checking testbench (`hiermerge export-tb`, SPEC 9.1):
 //! a unit's streams, their stimulus, stall masks and golden expected
 //! outputs written as `$readmemh` files beside a plain Verilog-2005
 //! testbench, the unit's Verilog and a run script, so that any simulator

@@ -414,7 +414,7 @@ pub(super) fn testbench(spec: &ExportSpec, mask_words: usize) -> String {
         r#"// Self-checking testbench of `{top}`, written by
 //   {command}
 // Plain Verilog-2005; the stimulus, the stall masks and golden's expected
-// outputs are read from {vectors}/ (SPEC.md 9.3). Run: ./run.sh icarus, or
+// outputs are read from {vectors}/ (SPEC.md 9.1). Run: ./run.sh icarus, or
 // ./run.sh verilator. Prints PASS, or FAIL and the first mismatch with its
 // {what}, cycle and fields.
 module tb;

@@ -34,6 +34,9 @@ enum Command {
     Gen(cmd::gen::Args),
     /// Write a unit's test vectors (JSON Lines) for the RTL.
     Vectors(cmd::vectors::Args),
+    /// Write a portable self-checking testbench of a unit: Verilog-2005,
+    /// $readmemh vectors from golden, a run script for Icarus and Verilator.
+    ExportTb(cmd::export_tb::Args),
     /// The main job: build, (merge,) and trace a scene; with no argument, the embedded default scene.
     Run(cmd::run::Args),
     /// Co-simulate a unit (translate; merge: the merging module, --stage merge-level its S614 stage; merger: the hierarchy merger top) against golden, cycle by cycle.
@@ -68,6 +71,7 @@ fn main() {
         Command::Gen(a) => cmd::gen::main(a),
         Command::Run(a) => cmd::run::main(a),
         Command::Vectors(a) => cmd::vectors::main(a),
+        Command::ExportTb(a) => cmd::export_tb::main(a),
         Command::Cosim(a) => cmd::cosim::main(a),
         Command::Ledger(a) => cmd::ledger::main(a),
         Command::Study(a) => cmd::study::main(a),

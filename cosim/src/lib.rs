@@ -14,6 +14,7 @@ pub mod design;
 pub mod engine;
 pub mod engines;
 pub mod error;
+pub mod export_tb;
 pub mod formal;
 pub mod from_rtl;
 pub mod icarus;

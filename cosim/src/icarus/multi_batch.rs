@@ -494,7 +494,7 @@ pub fn driver_gaps(seed: u64, stalls: Stalls, widths: &[usize], beats: usize) ->
 /// The ready generators of `outputs` output streams: output `j` takes one
 /// decision of `stalls` per cycle from `Prng::derived(stream_seed(seed,
 /// 100 + j), 2)` (as `tb::StreamMonitor`).
-fn ready_masks(seed: u64, outputs: usize, stalls: Stalls) -> Vec<(Prng, StallGen)> {
+pub fn ready_masks(seed: u64, outputs: usize, stalls: Stalls) -> Vec<(Prng, StallGen)> {
     (0..outputs)
         .map(|j| {
             (

@@ -17,6 +17,7 @@ use golden::vectors::merge::{generate, read_merge_vectors, MergeDesign, MergeVec
 use super::{EngineFactory, ProgressFn};
 use crate::bitvec::BitVec;
 use crate::error::{CosimError, Result};
+use crate::export_tb::{ExportSpec, InputSpec, NamedField, OutputSpec, StreamSpec};
 use crate::tb::{
     run_with_vcd_on_failure, BenchConfig, BenchReport, StreamNames, Transaction, Vector,
 };
@@ -93,10 +94,28 @@ pub fn bench_vectors(levels: &[MergeVector], flip_expected: Option<usize>) -> Re
     Ok(out)
 }
 
-/// Decodes an output beat by field name: the node record's fields, the
-/// reference's, `kind` and `err`.
-pub fn decoder(p: &Params) -> Box<crate::tb::FieldDecoder> {
+/// An output beat's fields by name: the node record's (`rec.*`), the
+/// reference's (`ref.*`), `kind` and `err` (golden's `BeatLayout::output`).
+pub fn output_fields(p: &Params) -> Vec<(String, Field)> {
     let lo = BeatLayout::output(p);
+    let mut fields: Vec<(String, Field)> = lo
+        .node
+        .fields()
+        .map(|f| (format!("rec.{}", f.name), shifted(f, lo.rec.offset)))
+        .collect();
+    fields.extend(
+        lo.reference
+            .fields()
+            .map(|f| (format!("ref.{}", f.name), shifted(f, lo.refer.offset))),
+    );
+    fields.push(("kind".into(), lo.kind));
+    fields.extend(lo.err.map(|f| ("err".to_string(), f)));
+    fields
+}
+
+/// Decodes an output beat by field name ([`output_fields`]).
+pub fn decoder(p: &Params) -> Box<crate::tb::FieldDecoder> {
+    let fields = output_fields(p);
     Box::new(move |t: &Transaction| {
         let Some(v) = t.first() else {
             return Vec::new();
@@ -104,26 +123,14 @@ pub fn decoder(p: &Params) -> Box<crate::tb::FieldDecoder> {
         let Ok(bits) = Bits::from_words(v.width() as u32, v.words()) else {
             return vec![("out_data".into(), v.to_string())];
         };
-        let mut fields: Vec<(String, Field)> = lo
-            .node
-            .fields()
-            .map(|f| (format!("rec.{}", f.name), shifted(f, lo.rec.offset)))
-            .collect();
-        fields.extend(
-            lo.reference
-                .fields()
-                .map(|f| (format!("ref.{}", f.name), shifted(f, lo.refer.offset))),
-        );
-        fields.push(("kind".into(), lo.kind));
-        fields.extend(lo.err.map(|f| ("err".to_string(), f)));
         fields
-            .into_iter()
+            .iter()
             .map(|(name, f)| {
-                let shown = match bits.get(&f) {
+                let shown = match bits.get(f) {
                     Ok(x) => format!("{x:#x}"),
                     Err(e) => format!("({e})"),
                 };
-                (name, shown)
+                (name.clone(), shown)
             })
             .collect()
     })
@@ -134,6 +141,53 @@ fn shifted(f: &Field, by: u32) -> Field {
         offset: f.offset + by,
         ..*f
     }
+}
+
+/// The exported testbench of the S614 stage (`hiermerge export-tb --unit
+/// merge --stage merge-level`): `count` levels from `seed`
+/// ([`generate_levels`]) on streams `in` and `out`, the Verilog written to
+/// `rtl`.
+pub fn export_spec(
+    d: &MergeDesign,
+    seed: u64,
+    count: usize,
+    stalls: crate::tb::Stalls,
+    rtl: &Path,
+) -> Result<ExportSpec> {
+    let levels = generate_levels(d, seed, count)?;
+    let design = crate::from_rtl::design_from_module(&merge_level_module(&d.params), rtl)?;
+    let (mut ins, mut outs, mut txn) = (Vec::new(), Vec::new(), Vec::new());
+    for (n, level) in levels.iter().enumerate() {
+        for beat in &level.inputs {
+            ins.push(port_value(beat, level.in_width)?);
+        }
+        for beat in &level.outputs {
+            outs.push(port_value(beat, level.out_width)?);
+            txn.push(n as u64);
+        }
+    }
+    let fields = output_fields(&d.params);
+    Ok(ExportSpec {
+        design,
+        transaction: "level".into(),
+        transactions: count as u64,
+        inputs: vec![InputSpec {
+            stream: StreamSpec::prefixed("in", ins),
+            after: Vec::new(),
+        }],
+        outputs: vec![OutputSpec {
+            stream: StreamSpec::prefixed("out", outs),
+            transaction: txn,
+            fields: fields
+                .iter()
+                .map(|(n, f)| NamedField::of(n.as_str(), f))
+                .collect(),
+        }],
+        checks: Vec::new(),
+        seed,
+        stalls,
+        command: String::new(),
+    })
 }
 
 /// How one merge-level run is driven.

@@ -34,11 +34,12 @@ use crate::tb::{
 
 pub use super::chunked::UnitStreams;
 use super::chunked::{ChunkTotals, ChunkedSim};
-use super::multi_stream::{apply_patch, flip_bit0, stepped_engines};
+use super::multi_stream::{apply_patch, export_checks, export_streams, flip_bit0, stepped_engines};
 pub use super::multi_stream::{
     beat_decoder, decode_fields, decoded_pair, named, status_failure, ModuleEngine, ModuleMismatch,
     RunConfig, VerilogPatch, PULSES,
 };
+use crate::export_tb::{named_fields, ExportSpec, NamedField};
 
 /// The stage name `hiermerge cosim --unit merge` reports for this unit.
 pub const STAGE: &str = "merge_module";
@@ -206,10 +207,10 @@ pub fn top_report_fields(l: &TopLayout) -> Vec<Field> {
     ]
 }
 
-/// Decodes a `report` beat by field name (`TopLayout`; per-node
+/// The `report` beat's fields in bit order (`TopLayout`; per-node
 /// configurations: `PerNodeLayout`).
-pub fn report_decoder(d: &MergeDesign) -> Box<FieldDecoder> {
-    let fields: Vec<Field> = if matches!(d.mode, MergeMode::PerNode { .. }) {
+pub fn report_fields(d: &MergeDesign) -> Vec<Field> {
+    if matches!(d.mode, MergeMode::PerNode { .. }) {
         let l = PerNodeLayout::new(&d.params);
         let [x, y, z] = l.coord;
         vec![
@@ -217,8 +218,45 @@ pub fn report_decoder(d: &MergeDesign) -> Box<FieldDecoder> {
         ]
     } else {
         top_report_fields(&TopLayout::new(&d.params))
-    };
-    beat_decoder(named(fields))
+    }
+}
+
+/// Decodes a `report` beat by field name ([`report_fields`]).
+pub fn report_decoder(d: &MergeDesign) -> Box<FieldDecoder> {
+    beat_decoder(named(report_fields(d)))
+}
+
+/// The exported testbench of `d` (`hiermerge export-tb --unit merge`):
+/// `count` random merges from `seed` as [`run`] drives them (levels of at
+/// most [`DEFAULT_MOST_VOXELS`] voxels), the Verilog written to `rtl`.
+pub fn export_spec(
+    d: &MergeDesign,
+    seed: u64,
+    count: usize,
+    stalls: crate::tb::Stalls,
+    rtl: &Path,
+) -> Result<ExportSpec> {
+    let streams = generate_streams(d, seed, count, DEFAULT_MOST_VOXELS, None)?;
+    let design = crate::from_rtl::design_from_module(&merge_module(d), rtl)?;
+    let (report, out) = (report_fields(d), super::merge::output_fields(&d.params));
+    let (inputs, outputs) = export_streams(&streams, |name| match name {
+        "report" => named_fields(report.iter().copied()),
+        _ => out
+            .iter()
+            .map(|(n, f)| NamedField::of(n.as_str(), f))
+            .collect(),
+    });
+    Ok(ExportSpec {
+        design,
+        transaction: "merge".into(),
+        transactions: count as u64,
+        inputs,
+        outputs,
+        checks: export_checks(count),
+        seed,
+        stalls,
+        command: String::new(),
+    })
 }
 
 /// The decoder of output stream `name` (`report` or `out`).

@@ -36,8 +36,11 @@ use super::chunked::{ChunkedSim, UnitStreams};
 use super::merge_module::top_report_fields;
 pub use super::multi_stream::ModuleEngine as MergerEngine;
 pub use super::multi_stream::ModuleMismatch as MergerMismatch;
-use super::multi_stream::{apply_patch, beat_decoder, decoded_pair, flip_bit0, named};
+use super::multi_stream::{
+    apply_patch, beat_decoder, decoded_pair, export_checks, export_streams, flip_bit0, named,
+};
 pub use super::multi_stream::{RunConfig as ModuleRunConfig, VerilogPatch};
+use crate::export_tb::{named_fields, ExportSpec};
 
 /// The stage name `hiermerge cosim --unit merger` reports.
 pub const STAGE: &str = "hierarchy_merger";
@@ -493,6 +496,37 @@ fn next_chunk(
         flip_header(&mut streams.streams, f)?;
     }
     Ok(streams)
+}
+
+/// The exported testbench of `c` (`hiermerge export-tb --unit merger`):
+/// `count` random merges from `seed` as [`run`] draws them (one chunk),
+/// the Verilog written to `rtl`.
+pub fn export_spec(
+    c: &MergerConfig,
+    seed: u64,
+    count: usize,
+    stalls: crate::tb::Stalls,
+    rtl: &Path,
+) -> Result<ExportSpec> {
+    let streams = next_chunk(&mut SplitMix64(seed), c, count, None)?.streams;
+    let design = crate::from_rtl::design_from_module(&merger_module(c)?, rtl)?;
+    let ml = MergerLayout::new(&c.design.params, c.design.inputs, c.sizes.capacity_bits)
+        .map_err(golden_err)?;
+    let pl = is_per_node(c).then(|| PerNodeLayout::new(&c.design.params));
+    let (inputs, outputs) = export_streams(&streams, |name| {
+        named_fields(output_fields(&ml, pl.as_ref(), name).unwrap_or_default())
+    });
+    Ok(ExportSpec {
+        design,
+        transaction: "merge".into(),
+        transactions: count as u64,
+        inputs,
+        outputs,
+        checks: export_checks(count),
+        seed,
+        stalls,
+        command: String::new(),
+    })
 }
 
 /// The chunk sizes of a run of `count` merges.

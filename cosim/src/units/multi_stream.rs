@@ -11,6 +11,7 @@ use crate::bitvec::BitVec;
 use crate::design::Design;
 use crate::engines::{open_engine, open_tracing_engine, EngineKind};
 use crate::error::{CosimError, Result};
+use crate::export_tb::{InputSpec, NamedField, OutputSpec, StatusCheck, StreamSpec};
 use crate::ir_engine::IrEngine;
 use crate::tb::{FieldDecoder, Transaction};
 use crate::waves::WaveFormat;
@@ -180,6 +181,55 @@ pub fn status_failure(
         wrong.push(format!("`idle` low at the end of {scope}"));
     }
     (!wrong.is_empty()).then(|| wrong.join("; "))
+}
+
+/// A multi-stream unit's streams for its exported testbench
+/// ([`crate::export_tb`]): ports `<name>_valid`, `_ready`, `_data`, each
+/// output beat under its merge, decoded with `fields(stream)`.
+pub fn export_streams(
+    streams: &super::chunked::UnitStreams,
+    fields: impl Fn(&str) -> Vec<NamedField>,
+) -> (Vec<InputSpec>, Vec<OutputSpec>) {
+    let payload = |s: &crate::tb::StreamBeats| -> Vec<BitVec> {
+        s.beats.iter().filter_map(|t| t.first().cloned()).collect()
+    };
+    let inputs = streams
+        .inputs
+        .iter()
+        .map(|s| InputSpec {
+            stream: StreamSpec::prefixed(&s.name, payload(s)),
+            after: Vec::new(),
+        })
+        .collect();
+    let outputs = streams
+        .outputs
+        .iter()
+        .enumerate()
+        .map(|(o, s)| OutputSpec {
+            stream: StreamSpec::prefixed(&s.name, payload(s)),
+            transaction: (0..s.beats.len())
+                .map(|b| streams.merge_of(o, b) as u64)
+                .collect(),
+            fields: fields(&s.name),
+        })
+        .collect();
+    (inputs, outputs)
+}
+
+/// The status rules of [`status_failure`] for an exported testbench of
+/// `merges` merges: `done` high once per merge, `idle` high at the end.
+pub fn export_checks(merges: usize) -> Vec<StatusCheck> {
+    vec![
+        StatusCheck::Pulses {
+            port: "done".into(),
+            cycles: merges as u64,
+            why: "one per merge".into(),
+        },
+        StatusCheck::AtEnd {
+            port: "idle".into(),
+            value: 1,
+        },
+    ]
 }
 
 /// Flips bit 0 of an expected beat (the `FLIP_EXPECTED` test hook).

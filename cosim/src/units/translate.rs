@@ -28,6 +28,7 @@ use crate::bitvec::BitVec;
 use crate::design::PortId;
 use crate::engine::Engine;
 use crate::error::CosimError;
+use crate::export_tb::{ExportSpec, InputSpec, OutputSpec, StatusCheck, StreamSpec};
 use crate::tb::{Prng, StallGen, TraceWindow};
 
 /// Cycles without any handshake before the watchdog fails a run.
@@ -469,6 +470,92 @@ fn diff(layout: &PortLayout, expected: &Bits, got: &Bits) -> Vec<FieldDiff> {
             got: g,
         })
         .collect()
+}
+
+/// The exported testbench of `d` (`hiermerge export-tb --unit
+/// translate`): `txns` on streams `det_in`/`det_out` and
+/// `apply_in`/`apply_out`, each run of one kind after the previous run's
+/// outputs (as [`run`] drives them), `done` checked against `idle` every
+/// cycle and the sticky error bits at the end; the Verilog written to `rtl`.
+pub fn export_spec(
+    d: &TranslateDesign,
+    txns: &[TranslateTxn],
+    seed: u64,
+    stalls: crate::tb::Stalls,
+    rtl: &std::path::Path,
+) -> Result<ExportSpec, CosimError> {
+    let module = rtl_gen::translate::translate_unit(d);
+    let design = crate::from_rtl::design_from_module(&module, rtl)?;
+    let mut counts = Outcome::default();
+    let mut errs = (false, false);
+    // Per side (determine, apply): inputs, `after` counts, expected, transactions.
+    let mut sides: [(Vec<BitVec>, Vec<u64>, Vec<BitVec>, Vec<u64>); 2] = Default::default();
+    let mut i = 0;
+    while i < txns.len() {
+        let is_det = matches!(txns[i], TranslateTxn::Determine(_));
+        let mut j = i;
+        while j < txns.len() && matches!(txns[j], TranslateTxn::Determine(_)) == is_det {
+            j += 1;
+        }
+        let (ins, exps) = pack_run(d, &txns[i..j], i, None, &mut counts, &mut errs)?;
+        let side = &mut sides[usize::from(!is_det)];
+        for (k, (input, expected)) in ins.into_iter().zip(exps).enumerate() {
+            side.0.push(input);
+            side.1.push(i as u64);
+            side.2.push(to_bitvec(&expected)?);
+            side.3.push((i + k) as u64);
+        }
+        i = j;
+    }
+    let [det, app] = sides;
+    let fields = |l: PortLayout| {
+        l.fields
+            .iter()
+            .map(|f| crate::export_tb::NamedField {
+                name: f.name.clone(),
+                offset: f.offset,
+                width: f.width,
+            })
+            .collect()
+    };
+    let side = |p: &str, s: (Vec<BitVec>, Vec<u64>, Vec<BitVec>, Vec<u64>), l: PortLayout| {
+        (
+            InputSpec {
+                stream: StreamSpec::prefixed(&format!("{p}_in"), s.0),
+                after: s.1,
+            },
+            OutputSpec {
+                stream: StreamSpec::prefixed(&format!("{p}_out"), s.2),
+                transaction: s.3,
+                fields: fields(l),
+            },
+        )
+    };
+    let (det_in, det_out) = side("det", det, det_out_layout(d));
+    let (app_in, app_out) = side("apply", app, apply_out_layout(d));
+    let at_end = |port: &str, value: bool| StatusCheck::AtEnd {
+        port: port.into(),
+        value: value.into(),
+    };
+    Ok(ExportSpec {
+        design,
+        transaction: "transaction".into(),
+        transactions: txns.len() as u64,
+        inputs: vec![det_in, app_in],
+        outputs: vec![det_out, app_out],
+        checks: vec![
+            StatusCheck::DoneWhenIdleRises {
+                done: "done".into(),
+                idle: "idle".into(),
+            },
+            at_end("idle", true),
+            at_end("det_error_seen", errs.0),
+            at_end("apply_error_seen", errs.1),
+        ],
+        seed,
+        stalls,
+        command: String::new(),
+    })
 }
 
 /// Runs once on `make_engine(false)`; on a mismatch, when `vcd` is given,

@@ -11,18 +11,31 @@ use super::command_line::run_args;
 use super::report::{chunked_failure, finish_report, Counts, MergerReport, Report};
 use super::{bar, bench_config, count, module_engine, Args, Unit, DEFAULT_COUNT};
 
-/// The hierarchy merger `a` asks for, validated.
-fn merger_config(a: &Args, design: &MergeDesign) -> Result<rtl_gen::merge::MergerConfig, String> {
+/// The hierarchy merger of `design` with the flags `--capacity-bits`
+/// and `--leaf-bits`, validated.
+pub fn merger_config(
+    design: &MergeDesign,
+    capacity_bits: Option<u32>,
+    leaf_bits: Option<u32>,
+) -> Result<rtl_gen::merge::MergerConfig, String> {
     let mut c = rtl_gen::merge::MergerConfig::new(*design);
-    if let Some(bits) = a.capacity_bits {
+    if let Some(bits) = capacity_bits {
         c.sizes.capacity_bits = bits;
     }
-    if let Some(bits) = a.leaf_bits {
+    if let Some(bits) = leaf_bits {
         c.sizes.leaf_bits = bits;
     }
     c.validate()
         .map_err(|e| format!("hierarchy merger configuration: {e}"))?;
     Ok(c)
+}
+
+/// The hierarchy merger `a` asks for, validated.
+fn merger_config_of(
+    a: &Args,
+    design: &MergeDesign,
+) -> Result<rtl_gen::merge::MergerConfig, String> {
+    merger_config(design, a.capacity_bits, a.leaf_bits)
 }
 
 /// A `--unit merger` run as the ledger (SPEC 10.2) needs to regenerate it.
@@ -60,7 +73,7 @@ pub fn merger_run(args: &[String]) -> Result<MergerRun, String> {
     }
     let stall = super::stalls(&a)?;
     Ok(MergerRun {
-        config: merger_config(&a, &a.design.merge_design()?)?,
+        config: merger_config_of(&a, &a.design.merge_design()?)?,
         engine: a.engine.name(),
         seed: a.seed,
         count: count(&a)?,
@@ -81,7 +94,7 @@ pub(super) fn run(
         return Err("--unit merger takes no --vectors: use --seed/--count".into());
     }
     let engine = module_engine(a.engine)?;
-    let c = merger_config(a, design)?;
+    let c = merger_config_of(a, design)?;
     let config = merger::RunConfig {
         bench: bench_config(a, merger::STAGE)?,
         count,

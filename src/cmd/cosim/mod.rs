@@ -38,7 +38,7 @@ use super::common::UnitOpts;
 use crate::report::{emit, CmdResult};
 use report::print_text;
 
-pub use merger::merger_run;
+pub use merger::{merger_config, merger_run};
 
 /// The environment variable of the test hook (see the module docs).
 pub const FLIP_EXPECTED_VAR: &str = "HIERMERGE_COSIM_FLIP_EXPECTED";
@@ -239,15 +239,20 @@ const DEFAULT_STALL: f64 = 0.3;
 
 /// The stall pattern `--stalls` and `--stall` ask for, checked.
 fn stalls(a: &Args) -> Result<Stalls, String> {
-    let coin = a.stall.unwrap_or(DEFAULT_STALL);
-    let s = Stalls::parse(&a.stalls, coin).map_err(|e| match a.stall {
-        Some(_) if a.stalls == "coin" => format!("--stall: {e}"),
+    parse_stalls(&a.stalls, a.stall)
+}
+
+/// The stall pattern of the flags `--stalls` (`stalls`) and `--stall`
+/// (`stall`), checked (also `hiermerge export-tb`'s).
+pub fn parse_stalls(stalls: &str, stall: Option<f64>) -> Result<Stalls, String> {
+    let coin = stall.unwrap_or(DEFAULT_STALL);
+    let s = Stalls::parse(stalls, coin).map_err(|e| match stall {
+        Some(_) if stalls == "coin" => format!("--stall: {e}"),
         _ => format!("--stalls: {e}"),
     })?;
-    if a.stall.is_some() && a.stalls != "coin" {
+    if stall.is_some() && stalls != "coin" {
         return Err(format!(
-            "--stall {coin} is the probability of --stalls coin; --stalls {} takes its parameters after a colon",
-            a.stalls
+            "--stall {coin} is the probability of --stalls coin; --stalls {stalls} takes its parameters after a colon"
         ));
     }
     Ok(s)

@@ -63,6 +63,17 @@ struct Slots<T>(*mut T);
 unsafe impl<T: Send> Send for Slots<T> {}
 unsafe impl<T: Send> Sync for Slots<T> {}
 
+impl<T> Slots<T> {
+    /// Writes slot `i`.
+    ///
+    /// # Safety
+    /// `i` is within the buffer's capacity and no other thread writes it.
+    #[inline(always)]
+    unsafe fn write(&self, i: usize, v: T) {
+        self.0.add(i).write(v)
+    }
+}
+
 /// [`radix_sort`] on the threads of the current rayon pool: the same order
 /// (stable, by the same digits). The items are cut into one block per
 /// thread; per pass, each block's histogram is taken in parallel, each
@@ -129,13 +140,12 @@ pub fn radix_sort_parallel<T: Copy + Send + Sync>(
             .par_chunks(block)
             .zip(offsets.par_iter_mut())
             .for_each(|(part, off)| {
-                let out = out;
                 for it in part {
                     let d = digit(key(it), p);
                     // SAFETY: the offsets of (block, d) run over slots no
                     // other (block, digit) pair is given, all below n, within
                     // scratch's capacity; each block writes only its own.
-                    unsafe { out.0.add(off[d] as usize).write(*it) };
+                    unsafe { out.write(off[d] as usize, *it) };
                     off[d] += 1;
                 }
             });

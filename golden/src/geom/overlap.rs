@@ -147,9 +147,9 @@ fn gap_exceeds(p: [f64; 3], radius: f64, margin: f64) -> bool {
 /// the bound" is "every projection is beyond it", so no `min`/`max` is taken.
 /// `f64::min` and `max` cost about eight instructions each on baseline
 /// x86-64 (they must pass NaN through), and this test runs for every
-/// candidate voxel. The same answer: for values that are not NaN, `min(a, b)
-/// > t` exactly when `a > t` and `b > t` (a signed zero compares equal to the
-/// other zero either way).
+/// candidate voxel. The same answer: for values that are not NaN,
+/// `min(a, b) > t` exactly when `a > t` and `b > t` (a signed zero compares
+/// equal to the other zero either way).
 #[inline(always)]
 fn gap_exceeds_finite(p: [f64; 3], radius: f64, margin: f64) -> bool {
     let above = radius + margin;

@@ -207,7 +207,7 @@ fn check(spec: &ExportSpec) -> Result<()> {
     }
     let port = |name: &str, dir: PortDir, width: Option<usize>, stream: &str| -> Result<usize> {
         let p = d.port(d.port_id(name)?)?;
-        let ok_width = width.map_or(true, |w| p.width == w);
+        let ok_width = !matches!(width, Some(w) if p.width != w);
         if p.dir != dir || !ok_width {
             return Err(CosimError::PortMismatch {
                 port: name.to_string(),

@@ -7,7 +7,7 @@
 //! One exporter serves every unit: a unit describes itself as an
 //! [`ExportSpec`] (its design, its input and output streams by port name
 //! with their beats, each output's field map from golden's layouts, and
-//! the status rules its cosim bench checks); [`write`] does the rest. The
+//! the status rules its cosim bench checks); [`write()`] does the rest. The
 //! stalls are the cosim benches': each input stream's gaps come from
 //! [`crate::icarus::multi_batch::driver_gaps`] and each output stream's
 //! `ready` from [`crate::icarus::multi_batch::ready_masks`], the same
@@ -174,7 +174,7 @@ pub struct ExportSpec {
     pub command: String,
 }
 
-/// What [`write`] wrote.
+/// What [`write()`] wrote.
 #[derive(Clone, Debug)]
 pub struct Exported {
     /// Every file written, relative to the output folder.

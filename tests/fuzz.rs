@@ -135,10 +135,7 @@ fn fuzz(name: &str, seeds: Vec<Vec<u8>>, check: impl Fn(&[u8]) -> Result<(), Str
             fail(input, why);
         }
     }
-    let seed = std::env::var("HIERMERGE_FUZZ_SEED")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(1);
+    let seed = golden::seed::seeded(1);
     let mut rng = SplitMix64::new(seed);
     let (start, budget) = (Instant::now(), budget());
     let mut cases = 0u64;

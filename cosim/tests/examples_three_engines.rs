@@ -18,6 +18,7 @@ use cosim::from_rtl::design_from_module;
 use cosim::ir_engine::IrEngine;
 use cosim::tb::{run_with_vcd_on_failure, BenchConfig, Prng, StreamNames, Vector};
 use cosim::{open_engine, BitVec, Design, Engine, EngineKind};
+use golden::seed::seeded;
 use rtl_gen::{examples, Direction, Module};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -74,7 +75,7 @@ fn check_stream_example(module: &Module, vectors: &[Vector]) {
         let start = Instant::now();
         let mut cycles = 0;
         for (k, &(in_stall, out_stall)) in STALLS.iter().enumerate() {
-            let seed = 100 + k as u64;
+            let seed = seeded(100 + k as u64);
             let vcd = vcd_path(&design.top, kind, seed);
             let config = BenchConfig {
                 seed,

@@ -16,6 +16,7 @@ use cosim::verilator::{VerilatorEngine, VerilatorOptions};
 use cosim::{BitVec, CosimError, Design, PortSpec};
 use golden::merge::MergeMode;
 use golden::params::Params;
+use golden::seed::seeded;
 use golden::vectors::merge::MergeDesign;
 
 fn tools_present() -> bool {
@@ -121,6 +122,7 @@ fn batch_equals_the_pipe_bench_cycle_for_cycle() {
         let u = unit(&d);
         let s = generate_streams(&d, 0xba7c, 150, 12, None).unwrap();
         for (seed, stall) in [(1, 0.0), (2, 0.3), (3, 0.8)] {
+            let seed = seeded(seed);
             let c = config(seed, stall);
             let (p, b) = (verilator(&u, &s, &c), batch(&u, &s, &c));
             eprintln!("{name} stall {stall}: pipe {p}batch {b}");

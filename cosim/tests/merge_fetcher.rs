@@ -22,6 +22,7 @@ use golden::merge::fetch_unit::{
 use golden::merge::per_node_unit::{random_per_node_case, PerNodeReport};
 use golden::params::Params;
 use golden::scenes::random_soup;
+use golden::seed::seeded;
 use golden::store::{Hierarchy, Reference};
 use golden::translate::stimulus::SplitMix64;
 use golden::translate::table::pack_entry;
@@ -373,7 +374,7 @@ fn check(name: &str, runs: &[(&str, usize)], most: usize) {
         let mut e = (kind != "iverilog").then(|| engine(kind, &m, &design));
         while total < cmds {
             let n = CHUNK.min(cmds - total);
-            let seed = 0xfe7c + 0x100 * i as u64 + chunk;
+            let seed = seeded(0xfe7c + 0x100 * i as u64 + chunk);
             let stall = stall_of(seed ^ kind.len() as u64).max(0.05);
             let txs = random_fetches(&p, sizes, seed, n, most);
             let (ins, outs, seen) = streams(&p, &txs);
@@ -837,7 +838,7 @@ fn check_per_node(name: &str, runs: &[(&str, usize)]) {
         let mut e = (kind != "iverilog").then(|| engine(kind, &m, &design));
         while total < merges {
             let n = 2_000.min(merges - total);
-            let seed = 0x9e7c + 0x100 * i as u64 + chunk;
+            let seed = seeded(0x9e7c + 0x100 * i as u64 + chunk);
             let stall = stall_of(seed ^ kind.len() as u64).max(0.05);
             let (txs, seen) = random_per_node_fetches(&p, sizes, seed, n);
             let (ins, outs, s) = streams_of(&l, &txs);

@@ -14,6 +14,7 @@ use cosim::tb::Vector;
 use cosim::volume::volume;
 use golden::merge::unit::{random_level_case, BeatLayout, LevelTransaction};
 use golden::params::Params;
+use golden::seed::seeded;
 use golden::translate::stimulus::SplitMix64;
 use merge_common::*;
 
@@ -99,6 +100,7 @@ impl LevelStats {
 /// then without back-pressure on the first 100k beats (at least 0.95 input
 /// beats per cycle). Icarus runs in batch mode (`IcarusBatch`, 4-state).
 fn check_config(name: &str, p: &Params, groups: usize, ir_groups: usize, seed: u64) {
+    let seed = seeded(seed);
     let dir = tempfile::tempdir().unwrap();
     let m = rtl_gen::merge::merge_level_unit(p);
     let design = design_of(&m, dir.path());

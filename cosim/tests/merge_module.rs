@@ -14,6 +14,7 @@ use cosim::volume::volume;
 use golden::merge::top::TopLayout;
 use golden::merge::MergeMode;
 use golden::params::Params;
+use golden::seed::seeded;
 use golden::vectors::merge::MergeDesign;
 use merge_common::*;
 
@@ -120,6 +121,7 @@ fn streams(
 const CHUNK: usize = 10_000;
 
 fn check(name: &str, d: &MergeDesign, most_voxels: usize, runs: &[(&str, usize)], seed: u64) {
+    let seed = seeded(seed);
     d.validate().unwrap();
     let dir = tempfile::tempdir().unwrap();
     let m = rtl_gen::merge::merge_module_unit(d);

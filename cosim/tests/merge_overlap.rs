@@ -13,6 +13,7 @@ use cosim::tb::Vector;
 use cosim::volume::volume;
 use golden::merge::unit::{overlap_transaction, random_overlap_case, OverlapLayout};
 use golden::params::Params;
+use golden::seed::seeded;
 use golden::translate::stimulus::SplitMix64;
 use merge_common::*;
 
@@ -78,7 +79,7 @@ fn check(name: &str, levels: usize, ir_levels: usize) {
     let all = configs();
     let i = all.iter().position(|c| c.0 == name).unwrap();
     let (_, p, k, num, den) = all[i];
-    let seed = 0x5608 + i as u64;
+    let seed = seeded(0x5608 + i as u64);
     let dir = tempfile::tempdir().unwrap();
     let m = rtl_gen::merge::overlap_counter_unit(&p, k, num, den);
     let design = design_of(&m, dir.path());

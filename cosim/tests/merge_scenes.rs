@@ -16,6 +16,7 @@ use golden::merge::unit::*;
 use golden::merge::walk::{collect, walk_input, PlacedNode, WalkedInput};
 use golden::params::Params;
 use golden::scenes::random_soup;
+use golden::seed::seeded;
 use golden::store::{Hierarchy, NodeRecord, Reference};
 use golden::translate::Translation;
 use merge_common::*;
@@ -59,7 +60,7 @@ fn soup_at(
     shrink: u32,
     offset: f64,
 ) -> Hierarchy {
-    let mesh = random_soup(n, size, seed);
+    let mesh = random_soup(n, size, seeded(seed));
     let (lo, hi) = mesh.bounds();
     let fitted = GridMap::fit(lo, hi, p);
     let grid = GridMap {

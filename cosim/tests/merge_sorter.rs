@@ -17,6 +17,7 @@ use cosim::volume::volume;
 use cosim::BitVec;
 use golden::merge::unit::{random_roots, root_sort_transaction, BeatLayout, LevelBeat};
 use golden::params::Params;
+use golden::seed::seeded;
 use golden::translate::stimulus::SplitMix64;
 use merge_common::*;
 
@@ -180,6 +181,7 @@ const PIPE_SETS: usize = 1_000;
 /// none, then `ir_sets` sets on the IR simulator.
 fn verilator_and_ir(config: usize, ir_sets: usize) {
     let (name, p, n, seed) = configs()[config];
+    let seed = seeded(seed);
     let stall = stall_of(seed).max(0.05);
     matches_golden(name, &p, n, seed, "verilator", volume(SETS), stall);
     rate_without_back_pressure(name, &p, n, seed + 1, "verilator");
@@ -190,6 +192,7 @@ fn verilator_and_ir(config: usize, ir_sets: usize) {
 /// [`PIPE_SETS`] with random back-pressure.
 fn icarus(config: usize) {
     let (name, p, n, seed) = configs()[config];
+    let seed = seeded(seed);
     matches_golden(
         name,
         &p,

@@ -13,6 +13,7 @@ use cosim::tb::Vector;
 use cosim::volume::volume;
 use golden::merge::unit::{random_upper_level, upper_transaction, UpperBeat, UpperLayout};
 use golden::params::Params;
+use golden::seed::seeded;
 use golden::translate::stimulus::SplitMix64;
 use merge_common::*;
 
@@ -70,7 +71,7 @@ fn check(name: &str, groups: usize, ir_groups: usize) {
     let all = configs();
     let i = all.iter().position(|c| c.0 == name).unwrap();
     let p = all[i].1;
-    let seed = 0x5616 + i as u64;
+    let seed = seeded(0x5616 + i as u64);
     let dir = tempfile::tempdir().unwrap();
     let m = rtl_gen::merge::upper_level_unit(&p);
     let design = design_of(&m, dir.path());

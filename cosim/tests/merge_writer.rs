@@ -23,6 +23,7 @@ use golden::merge::writer_unit::{
     pack_cfg, writer_err, writer_transaction, WriterLayout, WriterTransaction,
 };
 use golden::params::Params;
+use golden::seed::seeded;
 use golden::store::Hierarchy;
 use golden::translate::stimulus::SplitMix64;
 use golden::translate::Translation;
@@ -193,7 +194,7 @@ fn check(name: &str, runs: &[(&str, usize)], most: u64) {
     let all = configs();
     let k = all.iter().position(|c| c.0 == name).unwrap();
     let (_, p, cap) = all[k];
-    let seed = 0x5618 + k as u64;
+    let seed = seeded(0x5618 + k as u64);
     let dir = tempfile::tempdir().unwrap();
     let m = rtl_gen::merge::record_writer_unit(&p, cap).expect("a valid capacity");
     let design = design_of(&m, dir.path());

@@ -7,6 +7,7 @@ use cosim::tb::{
     run_stream_bench, run_stream_bench_with_progress, BenchConfig, Prng, StreamNames, Vector,
 };
 use cosim::BitVec;
+use golden::seed::seeded;
 
 /// Random payloads and what the skid stage must emit for each.
 pub fn vectors(seed: u64, count: usize) -> Vec<Vector> {
@@ -31,6 +32,7 @@ fn skid_passes_under_random_back_pressure_on_every_engine() {
     let design = common::skid();
     for kind in common::ENGINES {
         for (seed, stall) in [(1u64, 0.0), (2, 0.3), (3, 0.6), (4, 0.9)] {
+            let seed = seeded(seed);
             let count = if kind == "verilator" { 3000 } else { 400 };
             let vs = vectors(seed, count);
             let config = BenchConfig {

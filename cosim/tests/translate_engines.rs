@@ -14,6 +14,7 @@ use cosim::tb::{BenchConfig, FieldDecoder, StreamNames, Vector};
 use cosim::units::translate::{run, RunConfig};
 use cosim::volume::volume;
 use cosim::{open_engine, BitVec, EngineKind};
+use golden::seed::seeded;
 use golden::vectors::translate::{generate, ApplyCode, TranslateDesign, TranslateTxn};
 use rtl_gen::translate::ports::{
     apply_out_layout, det_out_layout, pack_apply_in, pack_apply_out, pack_det_in, pack_det_out,
@@ -36,6 +37,7 @@ fn tools_present(kind: EngineKind) -> bool {
 }
 
 fn check(kind: EngineKind, d: &TranslateDesign, count: usize, seed: u64, stall: f64) {
+    let seed = seeded(seed);
     let txns = generate(d, seed, count).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let design = design_from_module(&translate_unit(d), dir.path()).unwrap();
@@ -151,6 +153,7 @@ fn lane_vectors(d: &TranslateDesign, txns: &[TranslateTxn]) -> (Vec<LaneVector>,
 /// empty), and at the end (after the drain) `idle` and the sticky error
 /// bits golden implies.
 fn check_batch(batch: &IcarusBatch, d: &TranslateDesign, count: usize, seed: u64, stall: f64) {
+    let seed = seeded(seed);
     let txns = generate(d, seed, count).unwrap();
     let (vs, (det_err, app_err)) = lane_vectors(d, &txns);
     let config = BenchConfig {

@@ -8,6 +8,7 @@
 use cosim::from_rtl::design_from_module;
 use cosim::ir_engine::IrEngine;
 use cosim::units::translate::{run, Outcome, RunConfig};
+use golden::seed::seeded;
 use golden::vectors::translate::{generate, TranslateDesign, TranslateTxn};
 use rtl_gen::translate::{reference_designs, translate_unit};
 
@@ -28,6 +29,7 @@ fn run_ir(d: &TranslateDesign, txns: &[TranslateTxn], stall: f64, seed: u64) -> 
 }
 
 fn check(d: &TranslateDesign, count: usize, seed: u64, stall: f64) {
+    let seed = seeded(seed);
     let txns = generate(d, seed, count).unwrap();
     let o = run_ir(d, &txns, stall, seed);
     println!(

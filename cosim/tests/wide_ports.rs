@@ -4,6 +4,7 @@ mod common;
 
 use cosim::tb::Prng;
 use cosim::BitVec;
+use golden::seed::seeded;
 
 /// (a + b) mod 2^width, word by word with carries.
 fn add(a: &BitVec, b: &BitVec) -> BitVec {
@@ -61,7 +62,7 @@ fn three_hundred_bit_ports_round_trip_exactly_on_every_engine() {
             .map(|n| e.port_id(n).unwrap())
             .collect();
         e.reset(0).unwrap();
-        let mut rng = Prng::new(300);
+        let mut rng = Prng::new(seeded(300));
         for (k, (a, b)) in operands(&mut rng).into_iter().enumerate() {
             e.poke(ids[0], &a).unwrap();
             e.poke(ids[1], &b).unwrap();

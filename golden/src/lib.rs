@@ -55,6 +55,7 @@ pub mod params;
 pub mod saved;
 pub mod scene;
 pub mod scenes;
+pub mod seed;
 pub mod store;
 pub mod study;
 pub mod trace;

@@ -1,6 +1,7 @@
 //! The checker rejects corrupted hierarchies with the right error, follows
 //! references into other hierarchies, and honours the placement hook.
 
+use golden::seed::seeded;
 use std::collections::BTreeMap;
 
 use glam::DVec3;
@@ -15,7 +16,7 @@ fn params() -> Params {
 
 /// A few hundred small triangles spread over the scene, in grid units.
 fn triangles(seed: u64, n: usize, spread: f64) -> Vec<[DVec3; 3]> {
-    let mut rng = golden::scenes::SplitMix64::new(seed);
+    let mut rng = golden::scenes::SplitMix64::new(seeded(seed));
     (0..n)
         .map(|_| {
             let c = DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * spread

@@ -7,6 +7,7 @@ use golden::build::{build, build_grid_triangles, BuildError, GridMap};
 use golden::check::check_built;
 use golden::mesh::Mesh;
 use golden::scenes::{self, shared_mesh_path};
+use golden::seed::seeded;
 use golden::store::{node_box_fine, Hierarchy};
 use golden::Params;
 
@@ -65,7 +66,7 @@ fn bunny_and_teapot_pass_the_checker_at_every_q_and_d() {
 #[test]
 fn generated_scenes_pass_the_checker() {
     let meshes = [
-        scenes::random_soup(3000, 0.02, 1),
+        scenes::random_soup(3000, 0.02, seeded(1)),
         scenes::slivers(500, 2),
         scenes::axis_aligned(500, 3),
         scenes::hard_cases(200, 4),
@@ -268,7 +269,7 @@ fn grid_fit_keeps_every_vertex_inside_the_scene() {
     for (d, q) in [(1, 0), (16, 8), (31, 16)] {
         let p = params(d, q);
         for (lo, hi) in awkward {
-            let mut rng = scenes::SplitMix64::new(d as u64);
+            let mut rng = scenes::SplitMix64::new(seeded(d as u64));
             let mut vertices = vec![lo, hi, glam::Vec3::new(lo.x, hi.y, lo.z)];
             for _ in 0..30 {
                 let t = glam::Vec3::new(

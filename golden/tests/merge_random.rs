@@ -14,6 +14,7 @@ use golden::merge::{merge, MergeError, MergeMode};
 use golden::mesh::Mesh;
 use golden::params::Params;
 use golden::scenes::{random_soup, sphere, torus, SplitMix64};
+use golden::seed::seeded;
 use golden::store::Hierarchy;
 use golden::translate::{TranslateError, Translation};
 use merge_support::{normalized, Scene};
@@ -91,7 +92,7 @@ fn pruned_overlaps_equal_streamed(s: &Scene, inputs: &[u8]) {
 
 #[test]
 fn random_merges_check_and_trace_or_are_refused() {
-    let mut r = SplitMix64::new(2024);
+    let mut r = SplitMix64::new(seeded(2024));
     let (mut merged, mut refused) = (0, 0);
     for case in 0..400 {
         let d = [8u8, 12, 16][r.below(3) as usize];

@@ -15,6 +15,7 @@ use golden::merge::MergeMode;
 use golden::mesh::Mesh;
 use golden::oracle::{Oracle, OracleSummary};
 use golden::scenes::sphere;
+use golden::seed::seeded;
 use golden::trace::{closest_hit, Hit, TraceScene, TraceStats};
 use golden::world::World;
 use golden::Params;
@@ -45,7 +46,7 @@ fn ball() -> Mesh {
 /// and vertices (exact origins in binary32 up to 2^30).
 fn rays(w: &World, ids: &[u8], at: DVec3, n: usize, seed: u64) -> Vec<Ray> {
     let base = (at / 64.0).round() * 64.0;
-    let r = w.lattice_rays(ids, base, n, seed, true).unwrap();
+    let r = w.lattice_rays(ids, base, n, seeded(seed), true).unwrap();
     for ray in &r {
         assert_eq!(
             ray.origin.as_dvec3(),

@@ -10,6 +10,7 @@
 #[path = "support/reference_trace.rs"]
 mod reference_trace;
 
+use golden::seed::seeded;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 
@@ -70,6 +71,7 @@ fn bits(h: &Option<Hit>) -> Option<(u8, u32, [u32; 4])> {
 /// exactly at it: the shadow rays' finite `tmax`.
 fn rays(scene: &TraceScene, n: usize, seed: u64) -> Vec<Ray> {
     let (lo, hi) = scene.bounds();
+    let seed = seeded(seed);
     let mut rays = random_rays(lo, hi, n - n / 2, seed);
     rays.extend(edge_rays(scene, n / 2, seed ^ 0x5EED));
     let mut rng = SplitMix64::new(seed);
@@ -186,7 +188,7 @@ fn a_warmed_context_traces_without_allocating() {
     let (grid, h) = fitted(&bunny, &p);
     let scene = TraceScene::new(grid, &[Instance::new(&h, &bunny)]).unwrap();
     let (lo, hi) = scene.bounds();
-    let rays = random_rays(lo, hi, 2000, 3);
+    let rays = random_rays(lo, hi, 2000, seeded(3));
     let mut ctx = TraceContext::new();
     let mut stats = TraceStats::default();
     // Warm: the buffers grow to what the deepest ray needs.

@@ -5,6 +5,7 @@ use golden::build::{build, GridMap};
 use golden::mesh::Mesh;
 use golden::params::Params;
 use golden::scenes::{self, shared_mesh_path};
+use golden::seed::seeded;
 use golden::trace::{verify_rays, Instance, TraceScene, TraceSummary};
 
 fn load(name: &str) -> Mesh {
@@ -26,7 +27,7 @@ fn check_configs(name: &str, mesh: &Mesh, rays_each: usize) -> u64 {
             let grid = GridMap::fit(lo, hi, &p);
             let h = build(mesh, &grid, &p, 1).unwrap_or_else(|e| panic!("{name} D={d} Q={q}: {e}"));
             let scene = TraceScene::new(grid, &[Instance::new(&h, mesh)]).unwrap();
-            let s = verify_rays(&scene, rays_each, 1000 + d as u64 * 31 + q as u64);
+            let s = verify_rays(&scene, rays_each, seeded(1000 + d as u64 * 31 + q as u64));
             report(name, d, q, &s);
             assert_eq!(
                 s.mismatches, 0,
@@ -88,7 +89,7 @@ fn two_hierarchies_match_brute_force() {
             &[Instance::new(&hb, &bunny), Instance::new(&ht, &teapot)],
         )
         .unwrap();
-        let s = verify_rays(&scene, 10_000, 7);
+        let s = verify_rays(&scene, 10_000, seeded(7));
         report("bunny+teapot", d, q, &s);
         assert_eq!(s.mismatches, 0, "{:?}", s.first_mismatch);
         assert!(s.prim_tests_per_ray < s.brute_prim_tests_per_ray / 4.0);
@@ -116,7 +117,7 @@ fn translated_instance_matches_brute_force() {
     let scene = TraceScene::new(grid, &[Instance::new(&h, &teapot), moved]).unwrap();
     let (slo, shi) = scene.bounds();
     assert!(shi.x - slo.x > 1.5 * (hi.x - lo.x), "the copy did not move");
-    let s = verify_rays(&scene, 10_000, 9);
+    let s = verify_rays(&scene, 10_000, seeded(9));
     report("teapot x2 translated", 12, 8, &s);
     assert_eq!(s.mismatches, 0, "{:?}", s.first_mismatch);
 }
@@ -137,7 +138,7 @@ fn a_damaged_hierarchy_is_caught() {
         }
     }
     let scene = TraceScene::new(grid, &[Instance::new(&h, &bunny)]).unwrap();
-    let s = verify_rays(&scene, 5_000, 5);
+    let s = verify_rays(&scene, 5_000, seeded(5));
     assert!(s.mismatches > 0, "{s:?}");
     assert!(s.first_mismatch.is_some());
 }
@@ -171,7 +172,7 @@ fn far_translated_copy_matches_brute_force() {
     .unwrap();
     let (_, shi) = scene.bounds();
     assert!(shi.x > 1.0e6);
-    let s = verify_rays(&scene, 10_000, 13);
+    let s = verify_rays(&scene, 10_000, seeded(13));
     report("teapot near + 1e6 away", 24, 8, &s);
     assert_eq!(s.mismatches, 0, "{:?}", s.first_mismatch);
     assert!(s.hits > 1000, "{s:?}");

@@ -35,7 +35,7 @@ pub struct Args {
     #[arg(long)]
     stall: Option<f64>,
     /// The stall pattern of every driver and monitor, as `hiermerge cosim
-    /// --stalls`: coin, bursty[:S,G], periodic[:K/N], none.
+    /// --stalls`: `coin`, `bursty[:S,G]`, `periodic[:K/N]`, `none`.
     #[arg(long, default_value = "coin")]
     stalls: String,
     /// Output folder (created; files in it are replaced).

@@ -7,7 +7,7 @@
 //! One exporter serves every unit: a unit describes itself as an
 //! [`ExportSpec`] (its design, its input and output streams by port name
 //! with their beats, each output's field map from golden's layouts, and
-//! the status rules its cosim bench checks); [`write`] does the rest. The
+//! the status rules its cosim bench checks); [`write()`] does the rest. The
 //! stalls are the cosim benches': each input stream's gaps come from
 //! [`crate::icarus::multi_batch::driver_gaps`] and each output stream's
 //! `ready` from [`crate::icarus::multi_batch::ready_masks`], the same
@@ -174,7 +174,7 @@ pub struct ExportSpec {
     pub command: String,
 }
 
-/// What [`write`] wrote.
+/// What [`write()`] wrote.
 #[derive(Clone, Debug)]
 pub struct Exported {
     /// Every file written, relative to the output folder.
@@ -207,7 +207,7 @@ fn check(spec: &ExportSpec) -> Result<()> {
     }
     let port = |name: &str, dir: PortDir, width: Option<usize>, stream: &str| -> Result<usize> {
         let p = d.port(d.port_id(name)?)?;
-        let ok_width = width.map_or(true, |w| p.width == w);
+        let ok_width = !matches!(width, Some(w) if p.width != w);
         if p.dir != dir || !ok_width {
             return Err(CosimError::PortMismatch {
                 port: name.to_string(),

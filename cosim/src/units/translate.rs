@@ -472,6 +472,16 @@ fn diff(layout: &PortLayout, expected: &Bits, got: &Bits) -> Vec<FieldDiff> {
         .collect()
 }
 
+/// One side's streams of the exported testbench: inputs, their `after`
+/// counts, expected outputs, their transactions.
+#[derive(Default)]
+struct ExportSide {
+    ins: Vec<BitVec>,
+    after: Vec<u64>,
+    expected: Vec<BitVec>,
+    transaction: Vec<u64>,
+}
+
 /// The exported testbench of `d` (`hiermerge export-tb --unit
 /// translate`): `txns` on streams `det_in`/`det_out` and
 /// `apply_in`/`apply_out`, each run of one kind after the previous run's
@@ -488,8 +498,7 @@ pub fn export_spec(
     let design = crate::from_rtl::design_from_module(&module, rtl)?;
     let mut counts = Outcome::default();
     let mut errs = (false, false);
-    // Per side (determine, apply): inputs, `after` counts, expected, transactions.
-    let mut sides: [(Vec<BitVec>, Vec<u64>, Vec<BitVec>, Vec<u64>); 2] = Default::default();
+    let mut sides: [ExportSide; 2] = Default::default();
     let mut i = 0;
     while i < txns.len() {
         let is_det = matches!(txns[i], TranslateTxn::Determine(_));
@@ -500,10 +509,10 @@ pub fn export_spec(
         let (ins, exps) = pack_run(d, &txns[i..j], i, None, &mut counts, &mut errs)?;
         let side = &mut sides[usize::from(!is_det)];
         for (k, (input, expected)) in ins.into_iter().zip(exps).enumerate() {
-            side.0.push(input);
-            side.1.push(i as u64);
-            side.2.push(to_bitvec(&expected)?);
-            side.3.push((i + k) as u64);
+            side.ins.push(input);
+            side.after.push(i as u64);
+            side.expected.push(to_bitvec(&expected)?);
+            side.transaction.push((i + k) as u64);
         }
         i = j;
     }
@@ -518,15 +527,15 @@ pub fn export_spec(
             })
             .collect()
     };
-    let side = |p: &str, s: (Vec<BitVec>, Vec<u64>, Vec<BitVec>, Vec<u64>), l: PortLayout| {
+    let side = |p: &str, s: ExportSide, l: PortLayout| {
         (
             InputSpec {
-                stream: StreamSpec::prefixed(&format!("{p}_in"), s.0),
-                after: s.1,
+                stream: StreamSpec::prefixed(&format!("{p}_in"), s.ins),
+                after: s.after,
             },
             OutputSpec {
-                stream: StreamSpec::prefixed(&format!("{p}_out"), s.2),
-                transaction: s.3,
+                stream: StreamSpec::prefixed(&format!("{p}_out"), s.expected),
+                transaction: s.transaction,
                 fields: fields(l),
             },
         )

@@ -2,6 +2,7 @@
 //! placed by translations, merged, checked and traced.
 #![allow(dead_code)]
 
+use golden::seed::seeded;
 use std::collections::{BTreeMap, BTreeSet};
 
 use glam::{DVec3, Vec3};
@@ -131,7 +132,7 @@ impl Scene {
         for (k, inst) in si.iter().enumerate() {
             let (lo, hi) = TraceScene::new(self.grid, &[*inst]).unwrap().bounds();
             let share = n / si.len() + (k < n % si.len()) as usize;
-            rays.extend(random_rays(lo, hi, share, seed + k as u64));
+            rays.extend(random_rays(lo, hi, share, seeded(seed + k as u64)));
         }
         let mut r = RayReport::default();
         for (k, ray) in rays.iter().enumerate() {

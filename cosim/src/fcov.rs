@@ -9,12 +9,12 @@
 //! [`crate::tb::StreamMonitor`]). A declared bin never hit is named by
 //! [`Bins::unhit`].
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::sync::Mutex;
 
 /// Every bin declared or hit, with its count.
-#[derive(Clone, Debug, Default, Serialize, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq, Eq)]
 pub struct Bins {
     /// Bin name to hits; a declared bin starts at 0.
     pub counts: BTreeMap<String, u64>,

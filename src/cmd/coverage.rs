@@ -40,6 +40,11 @@ pub struct Args {
     waivers: Option<PathBuf>,
     #[arg(long, value_enum, default_value = "ci")]
     volume: Volume,
+    /// Run nothing: report again on what the last run collected in --out
+    /// (its raw counts and its bins, `coverage.json`), e.g. after editing
+    /// the waivers.
+    #[arg(long)]
+    report_only: bool,
 }
 
 /// The regression: `hiermerge cosim` argument lines, `{n}` scaled by the
@@ -122,6 +127,10 @@ pub fn main(a: Args) -> CmdResult {
         .map(|l| parse_cosim(l))
         .collect::<Result<_, _>>()?;
     let waivers = a.waivers.clone().unwrap_or_else(|| WAIVERS.into());
+    if a.report_only {
+        let bins = earlier_bins(&a.out)?;
+        return summarize(&a.out, &waivers, true, bins);
+    }
     collected(&a.out, &waivers, true, || {
         for (n, (run, line)) in runs.into_iter().zip(&lines).enumerate() {
             eprintln!(
@@ -154,7 +163,7 @@ pub(crate) fn collected(
     strict: bool,
     body: impl FnOnce() -> CmdResult,
 ) -> CmdResult {
-    let waivers = Waivers::read(waivers).map_err(|e| format!("waivers: {e}"))?;
+    Waivers::read(waivers).map_err(|e| format!("waivers: {e}"))?;
     prepare(dir)?;
     cosim::coverage::collect_into(dir).map_err(|e| e.to_string())?;
     cosim::fcov::collect();
@@ -166,6 +175,23 @@ pub(crate) fn collected(
     if written == 0 {
         return Err("--coverage: no Verilator model ran, so no counts were written".into());
     }
+    summarize(dir, waivers, strict, bins)
+}
+
+/// The bins of the run that wrote `dir/coverage.json`.
+fn earlier_bins(dir: &Path) -> Result<Bins, String> {
+    let p = dir.join("coverage.json");
+    let text = std::fs::read_to_string(&p)
+        .map_err(|e| format!("{}: {e} (run `hiermerge coverage` first)", p.display()))?;
+    let v: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", p.display()))?;
+    serde_json::from_value(v["functional"].clone())
+        .map_err(|e| format!("{}: `functional`: {e}", p.display()))
+}
+
+/// Writes and prints the code coverage collected under `dir` and `bins`.
+fn summarize(dir: &Path, waivers: &Path, strict: bool, bins: Bins) -> CmdResult {
+    let waivers = Waivers::read(waivers).map_err(|e| format!("waivers: {e}"))?;
     let code =
         cosim::coverage::report(dir, Aims::default(), &waivers).map_err(|e| e.to_string())?;
     let unhit = bins.unhit();

@@ -9,8 +9,6 @@ use super::classes::{classes, expected_classes};
 use super::translate::*;
 use super::*;
 use crate::params::Params;
-use crate::translate::determine::shift_right_round_sticky;
-use crate::translate::float::{unpack, Decoded, BINARY32, BINARY64};
 use crate::translate::TranslateUnitConfig;
 
 fn design(d: u8, q: u8, i: u8, h: u8, depth: u32, binary64: bool) -> TranslateDesign {

@@ -41,6 +41,8 @@ enum Command {
     Run(cmd::run::Args),
     /// Co-simulate a unit (translate; merge: the merging module, --stage merge-level its S614 stage; merger: the hierarchy merger top) against golden, cycle by cycle.
     Cosim(cmd::cosim::Args),
+    /// The coverage regression: every unit on Verilator with line/branch and toggle coverage; code coverage per unit and functional-coverage bins; fails on an unhit bin or a point below the aims without a waiver.
+    Coverage(cmd::coverage::Args),
     /// Show what accuracy costs in time: sweep Q, D, translation level, number format and merging mode; table, JSON, CSV, plots, study.md.
     Study(cmd::study::Args),
     /// Check the long-run ledger (cosim --ledger) against today's code and sum what it proves.
@@ -73,6 +75,7 @@ fn main() {
         Command::Vectors(a) => cmd::vectors::main(a),
         Command::ExportTb(a) => cmd::export_tb::main(a),
         Command::Cosim(a) => cmd::cosim::main(a),
+        Command::Coverage(a) => cmd::coverage::main(a),
         Command::Ledger(a) => cmd::ledger::main(a),
         Command::Study(a) => cmd::study::main(a),
         Command::Synth(a) => cmd::synth::main(a),

@@ -65,14 +65,16 @@ impl FromStr for EngineKind {
 }
 
 /// A fresh engine of `kind` for `design`; `trace` asks for a VCD-capable
-/// build (Verilator `--trace`; Icarus can always trace).
+/// build (Verilator `--trace`; Icarus can always trace). While the process
+/// collects code coverage ([`crate::coverage::collect_into`]) a Verilator
+/// engine is a coverage build that writes its counts when dropped.
 pub fn open_engine(kind: EngineKind, design: &Design, trace: bool) -> Result<Box<dyn Engine>> {
     match kind {
         EngineKind::Verilator => {
-            let options = VerilatorOptions {
+            let options = crate::coverage::options(VerilatorOptions {
                 trace,
                 ..VerilatorOptions::default()
-            };
+            });
             Ok(Box::new(VerilatorEngine::new(design, &options)?))
         }
         EngineKind::Icarus => Ok(Box::new(IcarusEngine::new(design)?)),
@@ -92,11 +94,11 @@ pub fn open_tracing_engine(
 ) -> Result<Box<dyn Engine>> {
     match kind {
         EngineKind::Verilator => {
-            let options = VerilatorOptions {
+            let options = crate::coverage::options(VerilatorOptions {
                 trace: true,
                 fst: format == WaveFormat::Fst,
                 ..VerilatorOptions::default()
-            };
+            });
             let mut e = VerilatorEngine::new(design, &options)?;
             if let Some(s) = scope {
                 e.set_trace_scope(s)?;

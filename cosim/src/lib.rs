@@ -10,11 +10,13 @@
 
 pub mod bitvec;
 pub mod cache;
+pub mod coverage;
 pub mod design;
 pub mod engine;
 pub mod engines;
 pub mod error;
 pub mod export_tb;
+pub mod fcov;
 pub mod formal;
 pub mod from_rtl;
 pub mod icarus;

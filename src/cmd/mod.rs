@@ -3,6 +3,7 @@
 pub mod build;
 pub mod common;
 pub mod cosim;
+pub mod coverage;
 pub mod export_tb;
 pub mod formal;
 pub mod gen;

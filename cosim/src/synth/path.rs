@@ -50,7 +50,7 @@ pub struct SourceIndex {
 }
 
 /// `// path.rs:N` at the end of a line, if any.
-fn comment_location(line: &str) -> Option<String> {
+pub fn comment_location(line: &str) -> Option<String> {
     let comment = line.split_once("//")?.1.trim();
     let loc = comment.split_whitespace().find(|w| w.contains(".rs:"))?;
     Some(loc.trim_end_matches([',', ';', ')']).to_string())
@@ -108,6 +108,13 @@ impl SourceIndex {
         self.modules.insert(wrapper.to_string(), m);
         self.top = wrapper.to_string();
         self
+    }
+
+    /// The generator line of net `net` declared in module `module` (the
+    /// name as emitted, a bit or word select allowed: `h_rec[3]`).
+    pub fn declared_in(&self, module: &str, net: &str) -> Option<&str> {
+        let bare = net.split('[').next().unwrap_or(net);
+        self.modules.get(module)?.nets.get(bare).map(String::as_str)
     }
 
     /// (emitted net, generator line) for a synthesized net name such as

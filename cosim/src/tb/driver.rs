@@ -10,6 +10,7 @@ use super::prng::Prng;
 use super::stalls::{StallGen, Stalls};
 use super::stream::{StreamPorts, Transaction};
 use crate::bitvec::BitVec;
+use crate::design::PortId;
 use crate::engine::Engine;
 use crate::error::{CosimError, Result};
 use std::collections::VecDeque;
@@ -22,6 +23,9 @@ pub struct StreamDriver {
     stalls: StallGen,
     presenting: bool,
     sent: u64,
+    /// Cycles the design held `ready` low on a presented beat (its input
+    /// buffer full), and the functional-coverage bin they count in.
+    full: (u64, Option<String>),
 }
 
 impl StreamDriver {
@@ -36,6 +40,7 @@ impl StreamDriver {
             stalls: StallGen::new(stalls),
             presenting: false,
             sent: 0,
+            full: (0, None),
         })
     }
 
@@ -56,6 +61,9 @@ impl StreamDriver {
 
     /// Drive `valid` and the payload for this cycle (call before `eval`).
     pub fn drive<E: Engine + ?Sized>(&mut self, engine: &mut E) -> Result<()> {
+        if self.full.1.is_none() {
+            self.full.1 = Some(stream_bin(&*engine, self.ports.valid, "full")?);
+        }
         if !self.presenting && !self.queue.is_empty() && self.stalls.go(&mut self.rng) {
             self.presenting = true;
         }
@@ -79,13 +87,38 @@ impl StreamDriver {
     /// After `eval`: if the design accepts this cycle, the transaction leaves
     /// the queue and is returned.
     pub fn observe<E: Engine + ?Sized>(&mut self, engine: &E) -> Result<Option<Transaction>> {
-        if self.presenting && engine.peek_bool(self.ports.ready)? {
-            self.presenting = false;
-            self.sent += 1;
-            return Ok(self.queue.pop_front());
+        if self.presenting {
+            if engine.peek_bool(self.ports.ready)? {
+                self.presenting = false;
+                self.sent += 1;
+                return Ok(self.queue.pop_front());
+            }
+            self.full.0 += 1;
         }
         Ok(None)
     }
+}
+
+impl Drop for StreamDriver {
+    fn drop(&mut self) {
+        // Counted when seen; required only where a runner declares it.
+        if let (Some(bin), n @ 1..) = (&self.full.1, self.full.0) {
+            crate::fcov::hit(bin, n);
+        }
+    }
+}
+
+/// The functional-coverage bin `<top>.<stream>.<what>` of the stream whose
+/// valid port is `valid` (`in0_valid`: stream `in0`).
+pub(crate) fn stream_bin<E: Engine + ?Sized>(
+    engine: &E,
+    valid: PortId,
+    what: &str,
+) -> Result<String> {
+    let d = engine.design();
+    let name = &d.port(valid)?.name;
+    let stream = name.strip_suffix("_valid").unwrap_or(name);
+    Ok(format!("{}.{stream}.{what}", d.top))
 }
 
 pub(crate) fn bool_bits(b: bool) -> BitVec {

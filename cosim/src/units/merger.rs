@@ -86,6 +86,8 @@ pub struct MergeStats {
     pub multi_pass: usize,
     /// Per-node decisions that descended.
     pub descents: u64,
+    /// Merges per number of inputs merged (1..=k).
+    pub by_inputs: std::collections::BTreeMap<usize, usize>,
 }
 
 impl MergeStats {
@@ -102,6 +104,9 @@ impl MergeStats {
         self.module_in += other.module_in;
         self.multi_pass += other.multi_pass;
         self.descents += other.descents;
+        for (n, m) in &other.by_inputs {
+            *self.by_inputs.entry(*n).or_default() += m;
+        }
     }
 }
 
@@ -288,6 +293,7 @@ pub fn merger_streams(c: &MergerConfig, txs: &[MergerTransaction]) -> Result<Mer
         for (s, at) in starts.iter_mut().zip(&outs.beats) {
             s.push(at.len());
         }
+        *stats.by_inputs.entry(tx.fetch.len()).or_default() += 1;
         ins.beats[0].push(tx.cfg.pack(&ml).map_err(golden_err)?);
         for r in tx.reports() {
             outs.beats[report].push(r.pack(&ml.top).map_err(golden_err)?);

@@ -26,6 +26,9 @@ pub struct VerilatorOptions {
     pub trace: bool,
     /// With `trace`: `--trace-fst`, the engine writes FST instead of VCD.
     pub fst: bool,
+    /// Build with `--coverage-line --coverage-toggle` (a separate cache
+    /// entry): the engine writes Verilator's `coverage.dat` (SPEC 10.5).
+    pub coverage: bool,
     /// Extra Verilator flags (e.g. `-Wno-WIDTH`), part of the cache key.
     pub verilator_flags: Vec<String>,
     /// C++ optimization flag, e.g. `-O1`.
@@ -39,6 +42,7 @@ impl Default for VerilatorOptions {
         VerilatorOptions {
             trace: false,
             fst: false,
+            coverage: false,
             verilator_flags: Vec::new(),
             cxx_opt: "-O1".to_string(),
             jobs: default_jobs(),
@@ -75,6 +79,7 @@ pub fn build_model(
         .add("cxx", facts.cxx_version.as_bytes())
         .add("trace", &[options.trace as u8])
         .add("fst", &[options.fst as u8])
+        .add("coverage", &[options.coverage as u8])
         .add("cxx_opt", options.cxx_opt.as_bytes())
         .add("top", design.top.as_bytes())
         .add("ports", format!("{:?}", design.ports).as_bytes());
@@ -88,11 +93,14 @@ pub fn build_model(
             .unwrap_or_default();
         key.add("file_name", name.as_bytes()).add("file", bytes);
     }
-    let label = match (options.trace, options.fst) {
+    let mut label = match (options.trace, options.fst) {
         (true, true) => format!("{}-trace-fst", design.top),
         (true, false) => format!("{}-trace", design.top),
         _ => design.top.clone(),
     };
+    if options.coverage {
+        label.push_str("-cov");
+    }
     get_or_build(cache_root, "verilator", &label, &key.finish(), |dir| {
         build_into(dir, design, options, &facts, cache_root)
     })
@@ -174,6 +182,9 @@ fn run_verilator(
             cmd.arg("--trace");
         }
         _ => {}
+    }
+    if options.coverage {
+        cmd.args(crate::coverage::VERILATOR_FLAGS);
     }
     cmd.args(&options.verilator_flags);
     cmd.args(&design.verilog_files);

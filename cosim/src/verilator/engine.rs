@@ -17,6 +17,7 @@ type SetFn = unsafe extern "C" fn(*mut c_void, u32, *const u64, u32) -> c_int;
 type GetFn = unsafe extern "C" fn(*mut c_void, u32, *mut u64, u32) -> c_int;
 type EvalFn = unsafe extern "C" fn(*mut c_void);
 type TraceOpenFn = unsafe extern "C" fn(*mut c_void, *const c_char, *const c_char) -> c_int;
+type CoverageWriteFn = unsafe extern "C" fn(*mut c_void, *const c_char) -> c_int;
 type U32Fn = unsafe extern "C" fn() -> u32;
 type U32ArgFn = unsafe extern "C" fn(u32) -> u32;
 
@@ -50,6 +51,10 @@ pub struct VerilatorEngine {
     waves: Option<crate::waves::WaveFormat>,
     /// The Verilator scope traced (empty: all).
     scope: CString,
+    coverage_write: CoverageWriteFn,
+    /// Where this engine writes its coverage counts when dropped (a
+    /// coverage build while [`crate::coverage::collect_into`] is in force).
+    coverage_out: Option<PathBuf>,
     // Declared last so it is dropped after `instance` is destroyed.
     _library: libloading::Library,
 }
@@ -101,6 +106,7 @@ impl VerilatorEngine {
             eval_fn,
             trace_open,
             trace_close,
+            coverage_write,
         ) = unsafe {
             (
                 std::mem::transmute::<*mut c_void, U32Fn>(sym("hm_shim_version")?),
@@ -114,6 +120,7 @@ impl VerilatorEngine {
                 std::mem::transmute::<*mut c_void, EvalFn>(sym("hm_eval")?),
                 std::mem::transmute::<*mut c_void, TraceOpenFn>(sym("hm_trace_open")?),
                 std::mem::transmute::<*mut c_void, DestroyFn>(sym("hm_trace_close")?),
+                std::mem::transmute::<*mut c_void, CoverageWriteFn>(sym("hm_coverage_write")?),
             )
         };
         // SAFETY: argument-free / index-taking pure functions of the shim.
@@ -144,6 +151,10 @@ impl VerilatorEngine {
                 }
             }
         }
+        let coverage_out = match options.coverage {
+            true => crate::coverage::raw_path_for(design)?,
+            false => None,
+        };
         // SAFETY: hm_create allocates a fresh model; it is destroyed in Drop.
         let instance = unsafe { create() };
         let clock = design
@@ -175,6 +186,8 @@ impl VerilatorEngine {
                 crate::waves::WaveFormat::Vcd
             }),
             scope: CString::default(),
+            coverage_write,
+            coverage_out,
             _library: library,
         })
     }
@@ -307,6 +320,19 @@ impl Engine for VerilatorEngine {
 
 impl Drop for VerilatorEngine {
     fn drop(&mut self) {
+        if let Some(path) = self.coverage_out.take() {
+            let written = CString::new(path.to_string_lossy().as_bytes())
+                .ok()
+                // SAFETY: `instance` is live and the path outlives the call.
+                .map(|c| unsafe { (self.coverage_write)(self.instance, c.as_ptr()) });
+            if written != Some(0) || !path.is_file() {
+                crate::coverage::record_error(format!(
+                    "{}: the Verilator model of {} wrote no coverage counts",
+                    path.display(),
+                    self.design.top
+                ));
+            }
+        }
         // SAFETY: created by hm_create, destroyed exactly once, before the library unloads.
         unsafe { (self.destroy)(self.instance) };
     }

@@ -11,6 +11,9 @@
 //! - `void hm_eval(void* inst)`: `eval()`, then one VCD sample if tracing
 //! - `int hm_trace_open(void* inst, const char* path)` (-1 when built without
 //!   `--trace`, -2 when the file cannot be opened) / `void hm_trace_close(void* inst)`
+//! - `int hm_coverage_write(void* inst, const char* path)`: the model's
+//!   coverage counts as Verilator's `coverage.dat` (-1 when built without
+//!   coverage)
 //!
 //! Port `idx` is the index in `Design::ports`. Values cross as 64-bit words and
 //! are split into Verilator's storage class: CData (<= 8 bits), SData (<= 16),
@@ -19,7 +22,7 @@
 use crate::design::{Design, PortDir};
 
 /// Bump when the generated code changes; part of the cache key.
-pub const SHIM_VERSION: u32 = 4;
+pub const SHIM_VERSION: u32 = 5;
 
 /// The Verilator model class prefix used for every design (`--prefix`).
 pub const MODEL_PREFIX: &str = "Vhm";
@@ -103,6 +106,9 @@ typedef VerilatedFstC HmTrace;
 #elif VM_TRACE
 #include "verilated_vcd_c.h"
 typedef VerilatedVcdC HmTrace;
+#endif
+#if VM_COVERAGE
+#include "verilated_cov.h"
 #endif
 #include <cstdint>
 #include <cstring>
@@ -205,6 +211,17 @@ HM_EXPORT int hm_trace_open(void* handle, const char* path, const char* scope) {
     return 0;
 #else
     (void)handle; (void)path; (void)scope;
+    return -1;
+#endif
+}}
+
+HM_EXPORT int hm_coverage_write(void* handle, const char* path) {{
+#if VM_COVERAGE
+    Instance* inst = static_cast<Instance*>(handle);
+    inst->ctx->coveragep()->write(path);
+    return 0;
+#else
+    (void)handle; (void)path;
     return -1;
 #endif
 }}

@@ -16,6 +16,7 @@
 //! parameters and names every parameter that differs, and every malformed
 //! line is an error naming the file, the line and the field.
 
+pub mod classes;
 pub mod merge;
 pub mod translate;
 

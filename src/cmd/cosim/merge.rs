@@ -66,6 +66,9 @@ pub(super) fn run_level(
         levels.len() as u64
     };
     let passed = report.passed();
+    if passed {
+        super::bins::merge_level(&cdesign.top);
+    }
     let mut first = report.first_mismatch.as_ref().map(|m| MismatchReport {
         transaction: level_of(m.input_id),
         stream: None,
@@ -145,6 +148,10 @@ pub(super) fn run_module(
     let o = o.map_err(|e| e.to_string())?;
     let stage = merge_module::STAGE;
     let first = chunked_failure(stage, a.seed, &o);
+    if o.passed() {
+        let top = merge_module::merge_module(design).name();
+        super::bins::merge_module(&design.mode, &top, design.inputs, o.merges as u64);
+    }
     let counts = Counts {
         transactions: o.merges as u64,
         records: o.data_beats_in,

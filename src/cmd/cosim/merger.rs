@@ -117,6 +117,9 @@ pub(super) fn run(
     let (t, s) = (&o.totals, &o.stats);
     let stage = merger::STAGE;
     let first = chunked_failure(stage, a.seed, t);
+    if t.passed() {
+        super::bins::merger(c.design.inputs, &s.by_inputs);
+    }
     let counts = Counts {
         transactions: t.merges as u64,
         records: s.module_in,

@@ -18,6 +18,7 @@
 //! (`translate`, `merge`, `merger`), the report (`report`) and the command
 //! line that reproduces a run (`command_line`).
 
+mod bins;
 mod command_line;
 mod merge;
 mod merger;
@@ -160,7 +161,7 @@ pub enum MergeStage {
 /// one level). --unit merger: the hierarchy merger (S610-S618; a
 /// transaction is one merge, store responses precomputed from golden;
 /// run in chunks of 10,000 merges).
-#[derive(clap::Args)]
+#[derive(clap::Args, Clone)]
 pub struct Args {
     /// translate: the translation unit; merge: the merging module; merger:
     /// the hierarchy merger.
@@ -227,6 +228,13 @@ pub struct Args {
     /// ledger` checks the entries against today's code).
     #[arg(long)]
     ledger: Option<PathBuf>,
+    /// Build Verilator with line/branch and toggle coverage and write the
+    /// code coverage of this run (raw `coverage.dat`, summary, annotated
+    /// source, uncovered points by generator line) and its functional
+    /// coverage bins into DIR (SPEC 10.5; `hiermerge coverage` runs the
+    /// whole regression).
+    #[arg(long, value_name = "DIR", num_args = 0..=1, default_missing_value = "out/coverage")]
+    pub(crate) coverage: Option<PathBuf>,
     /// Print one JSON object on stdout.
     #[arg(long)]
     json: bool,
@@ -352,6 +360,19 @@ fn vcd_path(a: &Args, unit: &str) -> PathBuf {
 }
 
 pub fn main(a: Args) -> CmdResult {
+    let Some(dir) = a.coverage.clone() else {
+        return run(a);
+    };
+    if a.engine != EngineChoice::Verilator {
+        return Err("--coverage: code coverage comes from Verilator (--engine verilator)".into());
+    }
+    crate::cmd::coverage::collected(&dir, crate::cmd::coverage::WAIVERS.as_ref(), false, || {
+        run(a)
+    })
+}
+
+/// One run: its report printed, an error when it failed.
+pub(crate) fn run(a: Args) -> CmdResult {
     stalls(&a)?;
     check_waves(&a)?;
     if a.count == Some(0) {
@@ -404,6 +425,9 @@ pub fn main(a: Args) -> CmdResult {
         }
     }
     let passed = report.passed;
+    if passed {
+        bins::stalls(&stalls(&a)?);
+    }
     let summary = report.first_mismatch.as_ref().map(|m| {
         format!(
             "transaction {} at cycle {}: {}",

@@ -56,6 +56,7 @@ pub(super) fn run(
     let n = txns.len() as u64;
     let (counts, first, vcd) = match result {
         Ok(o) => {
+            super::bins::translate(design, &txns);
             let counts = Counts {
                 transactions: n,
                 records: n,

@@ -1,0 +1,317 @@
+//! `hiermerge coverage`: the coverage regression (SPEC 10.5). Runs every
+//! unit on Verilator built with line/branch and toggle coverage, then
+//! writes and prints the code coverage per unit (merged `coverage.dat`,
+//! annotated source, uncovered points by generator line, waivers applied)
+//! and the functional-coverage bins. It fails on a bin never hit, on a
+//! unit below an aim with a point not waived, and on a stale waiver.
+//! `hiermerge cosim --coverage` writes the same for one run, failing only
+//! when the run does.
+
+use std::path::{Path, PathBuf};
+
+use cosim::coverage::{Aims, CoverageReport, Waivers};
+use cosim::fcov::Bins;
+use serde::Serialize;
+
+use crate::report::CmdResult;
+
+/// The checked-in waivers.
+pub const WAIVERS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/cosim/coverage-waivers.txt");
+
+/// How much the regression runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Volume {
+    /// The CI volume: small counts, every unit, mode and stall pattern.
+    Ci,
+    /// Ten times the CI counts.
+    Full,
+}
+
+/// Runs the coverage regression and reports code and functional coverage.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Folder of the raw counts, merged `coverage.dat` and annotated source
+    /// per unit, `summary.md`, `uncovered.txt`, `functional.txt`,
+    /// `coverage.json` (emptied first).
+    #[arg(long, default_value = "out/coverage")]
+    out: PathBuf,
+    /// The waivers file (default: the checked-in `cosim/coverage-waivers.txt`).
+    #[arg(long)]
+    waivers: Option<PathBuf>,
+    #[arg(long, value_enum, default_value = "ci")]
+    volume: Volume,
+    /// Run nothing: report again on what the last run collected in --out
+    /// (its raw counts and its bins, `coverage.json`), e.g. after editing
+    /// the waivers.
+    #[arg(long)]
+    report_only: bool,
+}
+
+/// The regression: `hiermerge cosim` argument lines, `{n}` scaled by the
+/// volume, and whether the CI volume runs the line on a Verilator coverage
+/// build (else on the IR simulator, for its functional bins: coverage
+/// builds of every mode's merging module and of the merger tops cost more
+/// than CI's budget; `full` runs every line on Verilator).
+const RUNS: [(&str, bool); 12] = [
+    ("--unit translate --count {4}000 --stalls coin", true),
+    (
+        "--unit translate --count {1}000 --stalls bursty:4,4 --seed 2",
+        true,
+    ),
+    (
+        "--unit merge --stage merge-level --count {2}00 --stalls bursty",
+        false,
+    ),
+    (
+        "--unit merge --mode overlap:1/2 --count {1}00 --stalls periodic",
+        true,
+    ),
+    (
+        "--unit merge --mode overlap:1/2 --count {1}00 --stalls bursty:4,4 --seed 2",
+        true,
+    ),
+    ("--unit merge --mode per-node:1/2 --count {1}00", true),
+    (
+        "--unit merge --mode fixed:10 --count {1}00 --stalls none",
+        false,
+    ),
+    ("--unit merge --mode below-top:1 --count {1}00", false),
+    (
+        "--unit merge --mode proportion:1/2 --count {1}00 --stalls bursty:4,4",
+        false,
+    ),
+    ("--unit merger --count {1}0 --stalls periodic", false),
+    ("--unit merger --count {1}0 --stalls none --seed 2", false),
+    ("--unit merger --mode per-node:1/2 --count {1}0", false),
+];
+
+fn run_lines(volume: Volume) -> Vec<Vec<String>> {
+    let scale = match volume {
+        Volume::Ci => 1,
+        Volume::Full => 10,
+    };
+    RUNS.iter()
+        .map(|(line, ci_verilator)| {
+            let mut s = line.to_string();
+            for n in 1..=4 {
+                s = s.replace(&format!("{{{n}}}"), &(n * scale).to_string());
+            }
+            let engine = match volume == Volume::Full || *ci_verilator {
+                true => "verilator",
+                false => "ir",
+            };
+            let mut v: Vec<String> = s.split_whitespace().map(str::to_string).collect();
+            v.extend(["--engine", engine].map(str::to_string));
+            v
+        })
+        .collect()
+}
+
+fn parse_cosim(line: &[String]) -> Result<crate::cmd::cosim::Args, String> {
+    #[derive(clap::Parser)]
+    #[command(name = "hiermerge cosim", no_binary_name = true)]
+    struct Line {
+        #[command(flatten)]
+        args: crate::cmd::cosim::Args,
+    }
+    <Line as clap::Parser>::try_parse_from(line)
+        .map(|l| l.args)
+        .map_err(|e| format!("`{}`: {e}", line.join(" ")))
+}
+
+pub fn main(a: Args) -> CmdResult {
+    let lines = run_lines(a.volume);
+    // Every line is checked before anything runs.
+    let runs: Vec<_> = lines
+        .iter()
+        .map(|l| parse_cosim(l))
+        .collect::<Result<_, _>>()?;
+    let waivers = a.waivers.clone().unwrap_or_else(|| WAIVERS.into());
+    if a.report_only {
+        let bins = earlier_bins(&a.out)?;
+        return summarize(&a.out, &waivers, true, bins);
+    }
+    collected(&a.out, &waivers, true, || {
+        for (n, (run, line)) in runs.into_iter().zip(&lines).enumerate() {
+            eprintln!(
+                "coverage run {}/{}: hiermerge cosim {}",
+                n + 1,
+                lines.len(),
+                line.join(" ")
+            );
+            crate::cmd::cosim::run(run)?;
+        }
+        Ok(())
+    })
+}
+
+/// What `coverage.json` holds.
+#[derive(Serialize)]
+struct Written<'a> {
+    code: &'a CoverageReport,
+    functional: &'a Bins,
+    unhit: Vec<&'a str>,
+}
+
+/// Runs `body` collecting code and functional coverage into `dir`, then
+/// writes and prints both. `strict`: the regression, which fails on an
+/// unhit bin or a point below the aims without a waiver; else only `body`
+/// failing fails.
+pub(crate) fn collected(
+    dir: &Path,
+    waivers: &Path,
+    strict: bool,
+    body: impl FnOnce() -> CmdResult,
+) -> CmdResult {
+    Waivers::read(waivers).map_err(|e| format!("waivers: {e}"))?;
+    prepare(dir)?;
+    cosim::coverage::collect_into(dir).map_err(|e| e.to_string())?;
+    cosim::fcov::collect();
+    let ran = body();
+    let written = cosim::coverage::stop_collecting();
+    let bins = cosim::fcov::take();
+    ran?;
+    let written = written.map_err(|e| e.to_string())?;
+    if written == 0 {
+        return Err("--coverage: no Verilator model ran, so no counts were written".into());
+    }
+    summarize(dir, waivers, strict, bins)
+}
+
+/// The bins of the run that wrote `dir/coverage.json`.
+fn earlier_bins(dir: &Path) -> Result<Bins, String> {
+    let p = dir.join("coverage.json");
+    let text = std::fs::read_to_string(&p)
+        .map_err(|e| format!("{}: {e} (run `hiermerge coverage` first)", p.display()))?;
+    let v: serde_json::Value =
+        serde_json::from_str(&text).map_err(|e| format!("{}: {e}", p.display()))?;
+    serde_json::from_value(v["functional"].clone())
+        .map_err(|e| format!("{}: `functional`: {e}", p.display()))
+}
+
+/// Writes and prints the code coverage collected under `dir` and `bins`.
+fn summarize(dir: &Path, waivers: &Path, strict: bool, bins: Bins) -> CmdResult {
+    let waivers = Waivers::read(waivers).map_err(|e| format!("waivers: {e}"))?;
+    let code =
+        cosim::coverage::report(dir, Aims::default(), &waivers).map_err(|e| e.to_string())?;
+    let unhit = bins.unhit();
+    let table = code.table();
+    let uncovered = uncovered_text(&code);
+    let write = |name: &str, text: &str| {
+        let p = dir.join(name);
+        std::fs::write(&p, text).map_err(|e| format!("{}: {e}", p.display()))
+    };
+    write("summary.md", &table)?;
+    write("uncovered.txt", &uncovered)?;
+    write("functional.txt", &bins.table())?;
+    let json = serde_json::to_string_pretty(&Written {
+        code: &code,
+        functional: &bins,
+        unhit: unhit.clone(),
+    })
+    .map_err(|e| e.to_string())?;
+    write("coverage.json", &json)?;
+    println!(
+        "code coverage (Verilator; line/branch: its line coverage, `if`/`else` arms included):"
+    );
+    print!("{table}");
+    let below: Vec<String> = code
+        .units
+        .iter()
+        .flat_map(|u| {
+            u.below_aim(&code.aims).into_iter().map(move |p| {
+                format!(
+                    "  {} {} {} {} -> {}",
+                    u.unit,
+                    p.kind,
+                    p.instance,
+                    p.point,
+                    p.source.as_deref().unwrap_or("(no generator line)")
+                )
+            })
+        })
+        .collect();
+    if !below.is_empty() {
+        println!("below the aims, not waived ({}):", below.len());
+        for l in &below {
+            println!("{l}");
+        }
+    }
+    for s in &code.stale_waivers {
+        println!("stale waiver (waives nothing, or a point that was reached): {s}");
+    }
+    println!(
+        "functional coverage: {} bins, {} hit (every bin: {}/functional.txt)",
+        bins.counts.len(),
+        bins.counts.len() - unhit.len(),
+        dir.display()
+    );
+    for b in &unhit {
+        println!("  NOT HIT: {b}");
+    }
+    println!(
+        "written: {} (uncovered points by generator line: uncovered.txt; annotated source: <unit>/annotated/)",
+        dir.display()
+    );
+    if !strict {
+        return Ok(());
+    }
+    let mut fails = Vec::new();
+    if !unhit.is_empty() {
+        fails.push(format!("functional bins never hit: {}", unhit.join(", ")));
+    }
+    if !below.is_empty() {
+        fails.push(format!(
+            "{} points below the aims without a waiver",
+            below.len()
+        ));
+    }
+    if !code.stale_waivers.is_empty() {
+        fails.push(format!("{} stale waivers", code.stale_waivers.len()));
+    }
+    match fails.is_empty() {
+        true => Ok(()),
+        false => Err(format!("coverage: {}", fails.join("; "))),
+    }
+}
+
+/// Every uncovered point, unit by unit, with its generator line and waiver.
+fn uncovered_text(code: &CoverageReport) -> String {
+    let mut s = String::new();
+    for u in &code.units {
+        s += &format!("# {} ({} uncovered)\n", u.unit, u.uncovered.len());
+        for p in &u.uncovered {
+            s += &format!(
+                "{} {} {} count={} -> {}{}\n",
+                p.kind,
+                p.instance,
+                p.point,
+                p.count,
+                p.source.as_deref().unwrap_or("(no generator line)"),
+                p.waived
+                    .as_ref()
+                    .map(|w| format!("  WAIVED {w}"))
+                    .unwrap_or_default()
+            );
+        }
+    }
+    s
+}
+
+/// Empties `dir` for a fresh collection; refuses a non-empty folder that
+/// is not an earlier coverage output.
+fn prepare(dir: &Path) -> CmdResult {
+    let used = std::fs::read_dir(dir)
+        .map(|mut d| d.next().is_some())
+        .unwrap_or(false);
+    if used && !dir.join("raw").is_dir() {
+        return Err(format!(
+            "{}: not empty and not an earlier coverage output (no raw/): give another --out",
+            dir.display()
+        ));
+    }
+    if used {
+        std::fs::remove_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    }
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))
+}

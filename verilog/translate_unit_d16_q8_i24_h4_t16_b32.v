@@ -5,18 +5,18 @@
 module translate_unit_d16_q8_i24_h4_t16_b32 (
     input  wire clk,                    // clock (implicit)
     input  wire rst,                    // synchronous reset, active high (implicit)
-    input  wire det_in_valid,           // rtl-gen/src/translate/determine.rs:46
-    input  wire [205:0] det_in_data,    // rtl-gen/src/translate/determine.rs:46
-    output wire det_in_ready,           // rtl-gen/src/translate/determine.rs:46
-    output wire det_out_valid,          // rtl-gen/src/translate/determine.rs:213
-    output wire [221:0] det_out_data,   // rtl-gen/src/translate/determine.rs:213
-    input  wire det_out_ready,          // rtl-gen/src/translate/determine.rs:213
+    input  wire det_in_valid,           // rtl-gen/src/translate/determine.rs:50
+    input  wire [205:0] det_in_data,    // rtl-gen/src/translate/determine.rs:50
+    output wire det_in_ready,           // rtl-gen/src/translate/determine.rs:50
+    output wire det_out_valid,          // rtl-gen/src/translate/determine.rs:250
+    output wire [221:0] det_out_data,   // rtl-gen/src/translate/determine.rs:250
+    input  wire det_out_ready,          // rtl-gen/src/translate/determine.rs:250
     input  wire apply_in_valid,         // rtl-gen/src/translate/apply.rs:32
     input  wire [153:0] apply_in_data,  // rtl-gen/src/translate/apply.rs:32
     output wire apply_in_ready,         // rtl-gen/src/translate/apply.rs:32
-    output wire apply_out_valid,        // rtl-gen/src/translate/apply.rs:129
-    output wire [156:0] apply_out_data, // rtl-gen/src/translate/apply.rs:129
-    input  wire apply_out_ready,        // rtl-gen/src/translate/apply.rs:129
+    output wire apply_out_valid,        // rtl-gen/src/translate/apply.rs:143
+    output wire [156:0] apply_out_data, // rtl-gen/src/translate/apply.rs:143
+    input  wire apply_out_ready,        // rtl-gen/src/translate/apply.rs:143
     output wire idle,                   // rtl-gen/src/translate/unit.rs:35
     output wire done,                   // rtl-gen/src/translate/unit.rs:36
     output wire det_error_seen,         // rtl-gen/src/translate/unit.rs:41
@@ -24,8 +24,8 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
 );
     reg [55:0] table_ [0:15];                // rtl-gen/src/translate/table.rs:44
     reg [15:0] table_valid;                  // rtl-gen/src/translate/table.rs:43
-    wire err_lod;                            // rtl-gen/src/translate/determine.rs:53
-    wire [4:0] k;                            // rtl-gen/src/translate/determine.rs:54
+    wire err_lod;                            // rtl-gen/src/translate/determine.rs:57
+    wire [4:0] k;                            // rtl-gen/src/translate/determine.rs:58
     wire det_in_data_eq;                     // rtl-gen/src/translate/float.rs:78
     wire det_in_data_not;                    // rtl-gen/src/translate/float.rs:79
     wire [7:0] det_in_data_mux;              // rtl-gen/src/translate/float.rs:81
@@ -71,259 +71,275 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire det_in_data_and_4;                  // rtl-gen/src/translate/float.rs:138
     wire det_in_data_not_5;                  // rtl-gen/src/translate/float.rs:139
     wire det_in_data_and_5;                  // rtl-gen/src/translate/float.rs:139
-    wire det_in_data_gt_3;                   // rtl-gen/src/translate/determine.rs:71
-    wire [15:0] det_in_data_shr;             // rtl-gen/src/translate/determine.rs:71
-    wire det_in_data_ne;                     // rtl-gen/src/translate/determine.rs:71
-    wire det_in_data_or;                     // rtl-gen/src/translate/determine.rs:71
-    wire det_in_data_gt_4;                   // rtl-gen/src/translate/determine.rs:71
-    wire [15:0] det_in_data_shr_1;           // rtl-gen/src/translate/determine.rs:71
-    wire det_in_data_ne_1;                   // rtl-gen/src/translate/determine.rs:71
-    wire det_in_data_or_1;                   // rtl-gen/src/translate/determine.rs:71
-    wire det_in_data_gt_5;                   // rtl-gen/src/translate/determine.rs:71
-    wire [15:0] det_in_data_shr_2;           // rtl-gen/src/translate/determine.rs:71
-    wire det_in_data_ne_2;                   // rtl-gen/src/translate/determine.rs:71
-    wire det_in_data_or_2;                   // rtl-gen/src/translate/determine.rs:71
-    wire det_in_data_or_3;                   // rtl-gen/src/translate/determine.rs:75
-    wire det_in_data_or_4;                   // rtl-gen/src/translate/determine.rs:75
-    wire [311:0] k_cat;                      // rtl-gen/src/translate/bundle.rs:45
-    reg det_s1_valid;                        // rtl-gen/src/translate/bundle.rs:83
-    reg [311:0] det_s1_data;                 // rtl-gen/src/translate/bundle.rs:83
-    wire det_s1_ready;                       // rtl-gen/src/translate/bundle.rs:83
-    wire det_s1_valid_not;                   // rtl-gen/src/translate/bundle.rs:83
-    wire det_s1_valid_or;                    // rtl-gen/src/translate/bundle.rs:83
-    wire det_s1_valid_and;                   // rtl-gen/src/translate/bundle.rs:83
-    wire [64:0] x_aligned;                   // rtl-gen/src/translate/float.rs:152
-    wire x_aligned_any;                      // rtl-gen/src/translate/float.rs:156
-    wire x_aligned_or;                       // rtl-gen/src/translate/float.rs:157
-    wire x_inc;                              // rtl-gen/src/translate/float.rs:157
-    wire [40:0] x_mag;                       // rtl-gen/src/translate/float.rs:158
-    wire x_mag_any;                          // rtl-gen/src/translate/float.rs:159
-    wire [16:0] x_mag_sub;                   // rtl-gen/src/translate/float.rs:161
-    wire [16:0] x_t;                         // rtl-gen/src/translate/float.rs:161
-    wire [24:0] x_aligned_sub;               // rtl-gen/src/translate/float.rs:163
-    wire [24:0] x_r;                         // rtl-gen/src/translate/float.rs:163
-    wire det_s1_data_xor;                    // rtl-gen/src/translate/float.rs:168
-    wire x_mag_eq;                           // rtl-gen/src/translate/float.rs:169
-    wire det_s1_data_ne;                     // rtl-gen/src/translate/float.rs:170
-    wire [64:0] y_aligned;                   // rtl-gen/src/translate/float.rs:152
-    wire y_aligned_any;                      // rtl-gen/src/translate/float.rs:156
-    wire y_aligned_or;                       // rtl-gen/src/translate/float.rs:157
-    wire y_inc;                              // rtl-gen/src/translate/float.rs:157
-    wire [40:0] y_mag;                       // rtl-gen/src/translate/float.rs:158
-    wire y_mag_any;                          // rtl-gen/src/translate/float.rs:159
-    wire [16:0] y_mag_sub;                   // rtl-gen/src/translate/float.rs:161
-    wire [16:0] y_t;                         // rtl-gen/src/translate/float.rs:161
-    wire [24:0] y_aligned_sub;               // rtl-gen/src/translate/float.rs:163
-    wire [24:0] y_r;                         // rtl-gen/src/translate/float.rs:163
-    wire det_s1_data_xor_1;                  // rtl-gen/src/translate/float.rs:168
-    wire y_mag_eq;                           // rtl-gen/src/translate/float.rs:169
-    wire det_s1_data_ne_1;                   // rtl-gen/src/translate/float.rs:170
-    wire [64:0] z_aligned;                   // rtl-gen/src/translate/float.rs:152
-    wire z_aligned_any;                      // rtl-gen/src/translate/float.rs:156
-    wire z_aligned_or;                       // rtl-gen/src/translate/float.rs:157
-    wire z_inc;                              // rtl-gen/src/translate/float.rs:157
-    wire [40:0] z_mag;                       // rtl-gen/src/translate/float.rs:158
-    wire z_mag_any;                          // rtl-gen/src/translate/float.rs:159
-    wire [16:0] z_mag_sub;                   // rtl-gen/src/translate/float.rs:161
-    wire [16:0] z_t;                         // rtl-gen/src/translate/float.rs:161
-    wire [24:0] z_aligned_sub;               // rtl-gen/src/translate/float.rs:163
-    wire [24:0] z_r;                         // rtl-gen/src/translate/float.rs:163
-    wire det_s1_data_xor_2;                  // rtl-gen/src/translate/float.rs:168
-    wire z_mag_eq;                           // rtl-gen/src/translate/float.rs:169
-    wire det_s1_data_ne_2;                   // rtl-gen/src/translate/float.rs:170
-    wire [356:0] det_s1_data_cat;            // rtl-gen/src/translate/bundle.rs:45
-    reg det_s2_valid;                        // rtl-gen/src/translate/bundle.rs:83
-    reg [356:0] det_s2_data;                 // rtl-gen/src/translate/bundle.rs:83
-    wire det_s2_ready;                       // rtl-gen/src/translate/bundle.rs:83
-    wire det_s2_valid_not;                   // rtl-gen/src/translate/bundle.rs:83
-    wire det_s2_valid_or;                    // rtl-gen/src/translate/bundle.rs:83
-    wire det_s2_valid_and;                   // rtl-gen/src/translate/bundle.rs:83
-    wire det_s2_data_not;                    // rtl-gen/src/translate/determine.rs:123
-    wire [17:0] const_shl;                   // rtl-gen/src/translate/determine.rs:128
-    wire det_s2_data_eq;                     // rtl-gen/src/translate/float.rs:188
-    wire [24:0] det_s2_data_shl;             // rtl-gen/src/translate/float.rs:189
-    wire [24:0] det_s2_data_mux;             // rtl-gen/src/translate/float.rs:189
-    wire det_s2_data_eq_1;                   // rtl-gen/src/translate/float.rs:188
-    wire [24:0] det_s2_data_shl_1;           // rtl-gen/src/translate/float.rs:189
-    wire [24:0] det_s2_data_mux_1;           // rtl-gen/src/translate/float.rs:189
-    wire det_s2_data_eq_2;                   // rtl-gen/src/translate/float.rs:188
-    wire [24:0] det_s2_data_shl_2;           // rtl-gen/src/translate/float.rs:189
-    wire [24:0] det_s2_data_mux_2;           // rtl-gen/src/translate/float.rs:189
-    wire det_s2_data_eq_3;                   // rtl-gen/src/translate/float.rs:188
-    wire [24:0] det_s2_data_shl_3;           // rtl-gen/src/translate/float.rs:189
-    wire [24:0] det_s2_data_mux_3;           // rtl-gen/src/translate/float.rs:189
-    wire det_s2_data_eq_4;                   // rtl-gen/src/translate/float.rs:193
-    wire [23:0] det_s2_data_mux_4;           // rtl-gen/src/translate/float.rs:195
-    wire [4:0] det_s2_data_cat;              // rtl-gen/src/translate/float.rs:197
-    wire [7:0] det_s2_data_add;              // rtl-gen/src/translate/float.rs:228
-    wire [7:0] det_s2_data_sub;              // rtl-gen/src/translate/float.rs:229
-    wire [8:0] det_s2_data_cat_1;            // rtl-gen/src/translate/float.rs:232
-    wire [31:0] det_s2_data_cat_2;           // rtl-gen/src/translate/float.rs:232
-    wire [31:0] det_s2_data_mux_5;           // rtl-gen/src/translate/float.rs:244
-    wire [31:0] det_s2_data_mux_6;           // rtl-gen/src/translate/float.rs:244
-    wire [31:0] x_residual;                  // rtl-gen/src/translate/float.rs:244
-    wire det_s2_data_or;                     // rtl-gen/src/translate/float.rs:246
-    wire det_s2_data_not_1;                  // rtl-gen/src/translate/float.rs:246
-    wire det_s2_data_and;                    // rtl-gen/src/translate/float.rs:246
-    wire [17:0] det_s2_data_add_1;           // rtl-gen/src/translate/determine.rs:136
-    wire det_s2_data_lt;                     // rtl-gen/src/translate/determine.rs:136
-    wire [17:0] det_s2_data_add_2;           // rtl-gen/src/translate/determine.rs:137
-    wire det_s2_data_ge;                     // rtl-gen/src/translate/determine.rs:137
-    wire det_s2_data_or_1;                   // rtl-gen/src/translate/determine.rs:140
-    wire det_s2_data_or_2;                   // rtl-gen/src/translate/determine.rs:140
-    wire det_s2_data_not_2;                  // rtl-gen/src/translate/determine.rs:142
-    wire det_s2_data_not_3;                  // rtl-gen/src/translate/determine.rs:142
-    wire det_s2_data_and_1;                  // rtl-gen/src/translate/determine.rs:142
-    wire det_s2_data_or_3;                   // rtl-gen/src/translate/determine.rs:142
-    wire det_s2_data_and_2;                  // rtl-gen/src/translate/determine.rs:142
-    wire det_s2_data_and_3;                  // rtl-gen/src/translate/determine.rs:125
-    wire det_s2_data_and_4;                  // rtl-gen/src/translate/determine.rs:125
-    wire det_s2_data_and_5;                  // rtl-gen/src/translate/determine.rs:125
-    wire det_s2_data_and_6;                  // rtl-gen/src/translate/determine.rs:125
-    wire det_s2_data_eq_5;                   // rtl-gen/src/translate/float.rs:188
-    wire [24:0] det_s2_data_shl_4;           // rtl-gen/src/translate/float.rs:189
-    wire [24:0] det_s2_data_mux_7;           // rtl-gen/src/translate/float.rs:189
-    wire det_s2_data_eq_6;                   // rtl-gen/src/translate/float.rs:188
-    wire [24:0] det_s2_data_shl_5;           // rtl-gen/src/translate/float.rs:189
-    wire [24:0] det_s2_data_mux_8;           // rtl-gen/src/translate/float.rs:189
-    wire det_s2_data_eq_7;                   // rtl-gen/src/translate/float.rs:188
-    wire [24:0] det_s2_data_shl_6;           // rtl-gen/src/translate/float.rs:189
-    wire [24:0] det_s2_data_mux_9;           // rtl-gen/src/translate/float.rs:189
-    wire det_s2_data_eq_8;                   // rtl-gen/src/translate/float.rs:188
-    wire [24:0] det_s2_data_shl_7;           // rtl-gen/src/translate/float.rs:189
-    wire [24:0] det_s2_data_mux_10;          // rtl-gen/src/translate/float.rs:189
-    wire det_s2_data_eq_9;                   // rtl-gen/src/translate/float.rs:193
-    wire [23:0] det_s2_data_mux_11;          // rtl-gen/src/translate/float.rs:195
-    wire [4:0] det_s2_data_cat_3;            // rtl-gen/src/translate/float.rs:197
-    wire [7:0] det_s2_data_add_3;            // rtl-gen/src/translate/float.rs:228
-    wire [7:0] det_s2_data_sub_1;            // rtl-gen/src/translate/float.rs:229
-    wire [8:0] det_s2_data_cat_4;            // rtl-gen/src/translate/float.rs:232
-    wire [31:0] det_s2_data_cat_5;           // rtl-gen/src/translate/float.rs:232
-    wire [31:0] det_s2_data_mux_12;          // rtl-gen/src/translate/float.rs:244
-    wire [31:0] det_s2_data_mux_13;          // rtl-gen/src/translate/float.rs:244
-    wire [31:0] y_residual;                  // rtl-gen/src/translate/float.rs:244
-    wire det_s2_data_or_4;                   // rtl-gen/src/translate/float.rs:246
-    wire det_s2_data_not_4;                  // rtl-gen/src/translate/float.rs:246
-    wire det_s2_data_and_7;                  // rtl-gen/src/translate/float.rs:246
-    wire [17:0] det_s2_data_add_4;           // rtl-gen/src/translate/determine.rs:136
-    wire det_s2_data_lt_1;                   // rtl-gen/src/translate/determine.rs:136
-    wire [17:0] det_s2_data_add_5;           // rtl-gen/src/translate/determine.rs:137
-    wire det_s2_data_ge_1;                   // rtl-gen/src/translate/determine.rs:137
-    wire det_s2_data_or_5;                   // rtl-gen/src/translate/determine.rs:140
-    wire det_s2_data_or_6;                   // rtl-gen/src/translate/determine.rs:140
-    wire det_s2_data_not_5;                  // rtl-gen/src/translate/determine.rs:142
-    wire det_s2_data_not_6;                  // rtl-gen/src/translate/determine.rs:142
-    wire det_s2_data_and_8;                  // rtl-gen/src/translate/determine.rs:142
-    wire det_s2_data_or_7;                   // rtl-gen/src/translate/determine.rs:142
-    wire det_s2_data_and_9;                  // rtl-gen/src/translate/determine.rs:142
-    wire det_s2_data_and_10;                 // rtl-gen/src/translate/determine.rs:125
-    wire det_s2_data_and_11;                 // rtl-gen/src/translate/determine.rs:125
-    wire det_s2_data_and_12;                 // rtl-gen/src/translate/determine.rs:125
-    wire det_s2_data_and_13;                 // rtl-gen/src/translate/determine.rs:125
-    wire det_s2_data_eq_10;                  // rtl-gen/src/translate/float.rs:188
-    wire [24:0] det_s2_data_shl_8;           // rtl-gen/src/translate/float.rs:189
-    wire [24:0] det_s2_data_mux_14;          // rtl-gen/src/translate/float.rs:189
-    wire det_s2_data_eq_11;                  // rtl-gen/src/translate/float.rs:188
-    wire [24:0] det_s2_data_shl_9;           // rtl-gen/src/translate/float.rs:189
-    wire [24:0] det_s2_data_mux_15;          // rtl-gen/src/translate/float.rs:189
-    wire det_s2_data_eq_12;                  // rtl-gen/src/translate/float.rs:188
-    wire [24:0] det_s2_data_shl_10;          // rtl-gen/src/translate/float.rs:189
-    wire [24:0] det_s2_data_mux_16;          // rtl-gen/src/translate/float.rs:189
-    wire det_s2_data_eq_13;                  // rtl-gen/src/translate/float.rs:188
-    wire [24:0] det_s2_data_shl_11;          // rtl-gen/src/translate/float.rs:189
-    wire [24:0] det_s2_data_mux_17;          // rtl-gen/src/translate/float.rs:189
-    wire det_s2_data_eq_14;                  // rtl-gen/src/translate/float.rs:193
-    wire [23:0] det_s2_data_mux_18;          // rtl-gen/src/translate/float.rs:195
-    wire [4:0] det_s2_data_cat_6;            // rtl-gen/src/translate/float.rs:197
-    wire [7:0] det_s2_data_add_6;            // rtl-gen/src/translate/float.rs:228
-    wire [7:0] det_s2_data_sub_2;            // rtl-gen/src/translate/float.rs:229
-    wire [8:0] det_s2_data_cat_7;            // rtl-gen/src/translate/float.rs:232
-    wire [31:0] det_s2_data_cat_8;           // rtl-gen/src/translate/float.rs:232
-    wire [31:0] det_s2_data_mux_19;          // rtl-gen/src/translate/float.rs:244
-    wire [31:0] det_s2_data_mux_20;          // rtl-gen/src/translate/float.rs:244
-    wire [31:0] z_residual;                  // rtl-gen/src/translate/float.rs:244
-    wire det_s2_data_or_8;                   // rtl-gen/src/translate/float.rs:246
-    wire det_s2_data_not_7;                  // rtl-gen/src/translate/float.rs:246
-    wire det_s2_data_and_14;                 // rtl-gen/src/translate/float.rs:246
-    wire [17:0] det_s2_data_add_7;           // rtl-gen/src/translate/determine.rs:136
-    wire det_s2_data_lt_2;                   // rtl-gen/src/translate/determine.rs:136
-    wire [17:0] det_s2_data_add_8;           // rtl-gen/src/translate/determine.rs:137
-    wire det_s2_data_ge_2;                   // rtl-gen/src/translate/determine.rs:137
-    wire det_s2_data_or_9;                   // rtl-gen/src/translate/determine.rs:140
-    wire det_s2_data_or_10;                  // rtl-gen/src/translate/determine.rs:140
-    wire det_s2_data_not_8;                  // rtl-gen/src/translate/determine.rs:142
-    wire det_s2_data_not_9;                  // rtl-gen/src/translate/determine.rs:142
-    wire det_s2_data_and_15;                 // rtl-gen/src/translate/determine.rs:142
-    wire det_s2_data_or_11;                  // rtl-gen/src/translate/determine.rs:142
-    wire det_s2_data_and_16;                 // rtl-gen/src/translate/determine.rs:142
-    wire det_s2_data_and_17;                 // rtl-gen/src/translate/determine.rs:125
-    wire det_s2_data_and_18;                 // rtl-gen/src/translate/determine.rs:125
-    wire det_s2_data_and_19;                 // rtl-gen/src/translate/determine.rs:125
-    wire det_s2_data_and_20;                 // rtl-gen/src/translate/determine.rs:125
-    wire [2:0] det_s2_data_cat_9;            // rtl-gen/src/translate/determine.rs:151
-    wire [2:0] det_s2_data_cat_10;           // rtl-gen/src/translate/determine.rs:151
-    wire [2:0] det_s2_data_cat_11;           // rtl-gen/src/translate/determine.rs:151
-    wire [2:0] det_s2_data_cat_12;           // rtl-gen/src/translate/determine.rs:151
-    wire det_s2_data_and_21;                 // rtl-gen/src/translate/determine.rs:125
-    wire det_s2_data_any;                    // rtl-gen/src/translate/determine.rs:156
-    wire det_s2_data_or_12;                  // rtl-gen/src/translate/determine.rs:156
-    wire det_s2_data_any_1;                  // rtl-gen/src/translate/determine.rs:156
-    wire det_s2_data_or_13;                  // rtl-gen/src/translate/determine.rs:156
-    wire det_s2_data_any_2;                  // rtl-gen/src/translate/determine.rs:156
-    wire det_s2_data_or_14;                  // rtl-gen/src/translate/determine.rs:156
-    wire det_s2_data_any_3;                  // rtl-gen/src/translate/determine.rs:156
-    wire det_s2_data_or_15;                  // rtl-gen/src/translate/determine.rs:156
-    wire det_s2_data_or_16;                  // rtl-gen/src/translate/determine.rs:161
-    wire det_ok;                             // rtl-gen/src/translate/determine.rs:163
-    wire det_s2_data_and_22;                 // rtl-gen/src/translate/determine.rs:172
-    wire const_not;                          // rtl-gen/src/translate/determine.rs:172
-    wire det_written;                        // rtl-gen/src/translate/determine.rs:172
-    wire det_s2_data_mux_21;                 // rtl-gen/src/translate/table.rs:78
-    wire det_s2_data_mux_22;                 // rtl-gen/src/translate/table.rs:78
-    wire det_s2_data_mux_23;                 // rtl-gen/src/translate/table.rs:78
-    wire det_s2_data_mux_24;                 // rtl-gen/src/translate/table.rs:78
-    wire det_s2_data_mux_25;                 // rtl-gen/src/translate/table.rs:78
-    wire det_s2_data_mux_26;                 // rtl-gen/src/translate/table.rs:78
-    wire det_s2_data_mux_27;                 // rtl-gen/src/translate/table.rs:78
-    wire det_s2_data_mux_28;                 // rtl-gen/src/translate/table.rs:78
-    wire det_s2_data_mux_29;                 // rtl-gen/src/translate/table.rs:78
-    wire det_s2_data_mux_30;                 // rtl-gen/src/translate/table.rs:78
-    wire det_s2_data_mux_31;                 // rtl-gen/src/translate/table.rs:78
-    wire det_s2_data_mux_32;                 // rtl-gen/src/translate/table.rs:78
-    wire det_s2_data_mux_33;                 // rtl-gen/src/translate/table.rs:78
-    wire det_s2_data_mux_34;                 // rtl-gen/src/translate/table.rs:78
+    wire det_in_data_gt_3;                   // rtl-gen/src/translate/determine.rs:75
+    wire [15:0] det_in_data_shr;             // rtl-gen/src/translate/determine.rs:75
+    wire det_in_data_ne;                     // rtl-gen/src/translate/determine.rs:75
+    wire det_in_data_or;                     // rtl-gen/src/translate/determine.rs:75
+    wire [17:0] const_shl;                   // rtl-gen/src/translate/determine.rs:81
+    wire [17:0] det_in_data_sub_6;           // rtl-gen/src/translate/determine.rs:82
+    wire [17:0] const_sub;                   // rtl-gen/src/translate/determine.rs:83
+    wire det_in_data_gt_4;                   // rtl-gen/src/translate/determine.rs:75
+    wire [15:0] det_in_data_shr_1;           // rtl-gen/src/translate/determine.rs:75
+    wire det_in_data_ne_1;                   // rtl-gen/src/translate/determine.rs:75
+    wire det_in_data_or_1;                   // rtl-gen/src/translate/determine.rs:75
+    wire [17:0] const_shl_1;                 // rtl-gen/src/translate/determine.rs:81
+    wire [17:0] det_in_data_sub_7;           // rtl-gen/src/translate/determine.rs:82
+    wire [17:0] const_sub_1;                 // rtl-gen/src/translate/determine.rs:83
+    wire det_in_data_gt_5;                   // rtl-gen/src/translate/determine.rs:75
+    wire [15:0] det_in_data_shr_2;           // rtl-gen/src/translate/determine.rs:75
+    wire det_in_data_ne_2;                   // rtl-gen/src/translate/determine.rs:75
+    wire det_in_data_or_2;                   // rtl-gen/src/translate/determine.rs:75
+    wire [17:0] const_shl_2;                 // rtl-gen/src/translate/determine.rs:81
+    wire [17:0] det_in_data_sub_8;           // rtl-gen/src/translate/determine.rs:82
+    wire [17:0] const_sub_2;                 // rtl-gen/src/translate/determine.rs:83
+    wire det_in_data_or_3;                   // rtl-gen/src/translate/determine.rs:85
+    wire det_in_data_or_4;                   // rtl-gen/src/translate/determine.rs:85
+    wire [323:0] k_cat;                      // rtl-gen/src/translate/bundle.rs:50
+    reg det_s1_valid;                        // rtl-gen/src/translate/bundle.rs:88
+    reg [323:0] det_s1_data;                 // rtl-gen/src/translate/bundle.rs:88
+    wire det_s1_ready;                       // rtl-gen/src/translate/bundle.rs:88
+    wire det_s1_valid_not;                   // rtl-gen/src/translate/bundle.rs:88
+    wire det_s1_valid_or;                    // rtl-gen/src/translate/bundle.rs:88
+    wire det_s1_valid_and;                   // rtl-gen/src/translate/bundle.rs:88
+    wire [64:0] x_aligned;                   // rtl-gen/src/translate/float.rs:150
+    wire det_s1_data_ne;                     // rtl-gen/src/translate/float.rs:153
+    wire [64:0] y_aligned;                   // rtl-gen/src/translate/float.rs:150
+    wire det_s1_data_ne_1;                   // rtl-gen/src/translate/float.rs:153
+    wire [64:0] z_aligned;                   // rtl-gen/src/translate/float.rs:150
+    wire det_s1_data_ne_2;                   // rtl-gen/src/translate/float.rs:153
+    wire [431:0] det_s1_data_cat;            // rtl-gen/src/translate/bundle.rs:50
+    reg det_align_valid;                     // rtl-gen/src/translate/bundle.rs:88
+    reg [431:0] det_align_data;              // rtl-gen/src/translate/bundle.rs:88
+    wire det_align_ready;                    // rtl-gen/src/translate/bundle.rs:88
+    wire det_align_valid_not;                // rtl-gen/src/translate/bundle.rs:88
+    wire det_align_valid_or;                 // rtl-gen/src/translate/bundle.rs:88
+    wire det_align_valid_and;                // rtl-gen/src/translate/bundle.rs:88
+    wire det_align_data_any;                 // rtl-gen/src/translate/float.rs:174
+    wire det_align_data_or;                  // rtl-gen/src/translate/float.rs:175
+    wire x_inc;                              // rtl-gen/src/translate/float.rs:175
+    wire [40:0] x_mag;                       // rtl-gen/src/translate/float.rs:176
+    wire x_mag_any;                          // rtl-gen/src/translate/float.rs:177
+    wire [16:0] x_mag_sub;                   // rtl-gen/src/translate/float.rs:179
+    wire [16:0] x_t;                         // rtl-gen/src/translate/float.rs:179
+    wire [24:0] det_align_data_sub;          // rtl-gen/src/translate/float.rs:181
+    wire [24:0] x_r;                         // rtl-gen/src/translate/float.rs:181
+    wire det_align_data_xor;                 // rtl-gen/src/translate/float.rs:186
+    wire x_mag_eq;                           // rtl-gen/src/translate/float.rs:187
+    wire det_align_data_any_1;               // rtl-gen/src/translate/float.rs:174
+    wire det_align_data_or_1;                // rtl-gen/src/translate/float.rs:175
+    wire y_inc;                              // rtl-gen/src/translate/float.rs:175
+    wire [40:0] y_mag;                       // rtl-gen/src/translate/float.rs:176
+    wire y_mag_any;                          // rtl-gen/src/translate/float.rs:177
+    wire [16:0] y_mag_sub;                   // rtl-gen/src/translate/float.rs:179
+    wire [16:0] y_t;                         // rtl-gen/src/translate/float.rs:179
+    wire [24:0] det_align_data_sub_1;        // rtl-gen/src/translate/float.rs:181
+    wire [24:0] y_r;                         // rtl-gen/src/translate/float.rs:181
+    wire det_align_data_xor_1;               // rtl-gen/src/translate/float.rs:186
+    wire y_mag_eq;                           // rtl-gen/src/translate/float.rs:187
+    wire det_align_data_any_2;               // rtl-gen/src/translate/float.rs:174
+    wire det_align_data_or_2;                // rtl-gen/src/translate/float.rs:175
+    wire z_inc;                              // rtl-gen/src/translate/float.rs:175
+    wire [40:0] z_mag;                       // rtl-gen/src/translate/float.rs:176
+    wire z_mag_any;                          // rtl-gen/src/translate/float.rs:177
+    wire [16:0] z_mag_sub;                   // rtl-gen/src/translate/float.rs:179
+    wire [16:0] z_t;                         // rtl-gen/src/translate/float.rs:179
+    wire [24:0] det_align_data_sub_2;        // rtl-gen/src/translate/float.rs:181
+    wire [24:0] z_r;                         // rtl-gen/src/translate/float.rs:181
+    wire det_align_data_xor_2;               // rtl-gen/src/translate/float.rs:186
+    wire z_mag_eq;                           // rtl-gen/src/translate/float.rs:187
+    wire [368:0] det_align_data_cat;         // rtl-gen/src/translate/bundle.rs:50
+    reg det_s2_valid;                        // rtl-gen/src/translate/bundle.rs:88
+    reg [368:0] det_s2_data;                 // rtl-gen/src/translate/bundle.rs:88
+    wire det_s2_ready;                       // rtl-gen/src/translate/bundle.rs:88
+    wire det_s2_valid_not;                   // rtl-gen/src/translate/bundle.rs:88
+    wire det_s2_valid_or;                    // rtl-gen/src/translate/bundle.rs:88
+    wire det_s2_valid_and;                   // rtl-gen/src/translate/bundle.rs:88
+    wire det_s2_data_not;                    // rtl-gen/src/translate/determine.rs:144
+    wire det_s2_data_eq;                     // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_shl;             // rtl-gen/src/translate/float.rs:206
+    wire [24:0] det_s2_data_mux;             // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_eq_1;                   // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_shl_1;           // rtl-gen/src/translate/float.rs:206
+    wire [24:0] det_s2_data_mux_1;           // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_eq_2;                   // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_shl_2;           // rtl-gen/src/translate/float.rs:206
+    wire [24:0] det_s2_data_mux_2;           // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_eq_3;                   // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_shl_3;           // rtl-gen/src/translate/float.rs:206
+    wire [24:0] det_s2_data_mux_3;           // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_eq_4;                   // rtl-gen/src/translate/float.rs:210
+    wire [23:0] det_s2_data_mux_4;           // rtl-gen/src/translate/float.rs:212
+    wire [4:0] det_s2_data_cat;              // rtl-gen/src/translate/float.rs:214
+    wire [7:0] det_s2_data_add;              // rtl-gen/src/translate/float.rs:245
+    wire [7:0] det_s2_data_sub;              // rtl-gen/src/translate/float.rs:246
+    wire [8:0] det_s2_data_cat_1;            // rtl-gen/src/translate/float.rs:249
+    wire [31:0] det_s2_data_cat_2;           // rtl-gen/src/translate/float.rs:249
+    wire [31:0] det_s2_data_mux_5;           // rtl-gen/src/translate/float.rs:261
+    wire [31:0] det_s2_data_mux_6;           // rtl-gen/src/translate/float.rs:261
+    wire [31:0] x_residual;                  // rtl-gen/src/translate/float.rs:261
+    wire det_s2_data_or;                     // rtl-gen/src/translate/float.rs:263
+    wire det_s2_data_not_1;                  // rtl-gen/src/translate/float.rs:263
+    wire det_s2_data_and;                    // rtl-gen/src/translate/float.rs:263
+    wire det_s2_data_lt;                     // rtl-gen/src/translate/determine.rs:155
+    wire det_s2_data_ge;                     // rtl-gen/src/translate/determine.rs:156
+    wire det_s2_data_or_1;                   // rtl-gen/src/translate/determine.rs:159
+    wire det_s2_data_or_2;                   // rtl-gen/src/translate/determine.rs:159
+    wire det_s2_data_not_2;                  // rtl-gen/src/translate/determine.rs:161
+    wire det_s2_data_not_3;                  // rtl-gen/src/translate/determine.rs:161
+    wire det_s2_data_and_1;                  // rtl-gen/src/translate/determine.rs:161
+    wire det_s2_data_or_3;                   // rtl-gen/src/translate/determine.rs:161
+    wire det_s2_data_and_2;                  // rtl-gen/src/translate/determine.rs:161
+    wire det_s2_data_and_3;                  // rtl-gen/src/translate/determine.rs:146
+    wire det_s2_data_and_4;                  // rtl-gen/src/translate/determine.rs:146
+    wire det_s2_data_and_5;                  // rtl-gen/src/translate/determine.rs:146
+    wire det_s2_data_and_6;                  // rtl-gen/src/translate/determine.rs:146
+    wire det_s2_data_eq_5;                   // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_shl_4;           // rtl-gen/src/translate/float.rs:206
+    wire [24:0] det_s2_data_mux_7;           // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_eq_6;                   // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_shl_5;           // rtl-gen/src/translate/float.rs:206
+    wire [24:0] det_s2_data_mux_8;           // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_eq_7;                   // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_shl_6;           // rtl-gen/src/translate/float.rs:206
+    wire [24:0] det_s2_data_mux_9;           // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_eq_8;                   // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_shl_7;           // rtl-gen/src/translate/float.rs:206
+    wire [24:0] det_s2_data_mux_10;          // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_eq_9;                   // rtl-gen/src/translate/float.rs:210
+    wire [23:0] det_s2_data_mux_11;          // rtl-gen/src/translate/float.rs:212
+    wire [4:0] det_s2_data_cat_3;            // rtl-gen/src/translate/float.rs:214
+    wire [7:0] det_s2_data_add_1;            // rtl-gen/src/translate/float.rs:245
+    wire [7:0] det_s2_data_sub_1;            // rtl-gen/src/translate/float.rs:246
+    wire [8:0] det_s2_data_cat_4;            // rtl-gen/src/translate/float.rs:249
+    wire [31:0] det_s2_data_cat_5;           // rtl-gen/src/translate/float.rs:249
+    wire [31:0] det_s2_data_mux_12;          // rtl-gen/src/translate/float.rs:261
+    wire [31:0] det_s2_data_mux_13;          // rtl-gen/src/translate/float.rs:261
+    wire [31:0] y_residual;                  // rtl-gen/src/translate/float.rs:261
+    wire det_s2_data_or_4;                   // rtl-gen/src/translate/float.rs:263
+    wire det_s2_data_not_4;                  // rtl-gen/src/translate/float.rs:263
+    wire det_s2_data_and_7;                  // rtl-gen/src/translate/float.rs:263
+    wire det_s2_data_lt_1;                   // rtl-gen/src/translate/determine.rs:155
+    wire det_s2_data_ge_1;                   // rtl-gen/src/translate/determine.rs:156
+    wire det_s2_data_or_5;                   // rtl-gen/src/translate/determine.rs:159
+    wire det_s2_data_or_6;                   // rtl-gen/src/translate/determine.rs:159
+    wire det_s2_data_not_5;                  // rtl-gen/src/translate/determine.rs:161
+    wire det_s2_data_not_6;                  // rtl-gen/src/translate/determine.rs:161
+    wire det_s2_data_and_8;                  // rtl-gen/src/translate/determine.rs:161
+    wire det_s2_data_or_7;                   // rtl-gen/src/translate/determine.rs:161
+    wire det_s2_data_and_9;                  // rtl-gen/src/translate/determine.rs:161
+    wire det_s2_data_and_10;                 // rtl-gen/src/translate/determine.rs:146
+    wire det_s2_data_and_11;                 // rtl-gen/src/translate/determine.rs:146
+    wire det_s2_data_and_12;                 // rtl-gen/src/translate/determine.rs:146
+    wire det_s2_data_and_13;                 // rtl-gen/src/translate/determine.rs:146
+    wire det_s2_data_eq_10;                  // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_shl_8;           // rtl-gen/src/translate/float.rs:206
+    wire [24:0] det_s2_data_mux_14;          // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_eq_11;                  // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_shl_9;           // rtl-gen/src/translate/float.rs:206
+    wire [24:0] det_s2_data_mux_15;          // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_eq_12;                  // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_shl_10;          // rtl-gen/src/translate/float.rs:206
+    wire [24:0] det_s2_data_mux_16;          // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_eq_13;                  // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_shl_11;          // rtl-gen/src/translate/float.rs:206
+    wire [24:0] det_s2_data_mux_17;          // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_eq_14;                  // rtl-gen/src/translate/float.rs:210
+    wire [23:0] det_s2_data_mux_18;          // rtl-gen/src/translate/float.rs:212
+    wire [4:0] det_s2_data_cat_6;            // rtl-gen/src/translate/float.rs:214
+    wire [7:0] det_s2_data_add_2;            // rtl-gen/src/translate/float.rs:245
+    wire [7:0] det_s2_data_sub_2;            // rtl-gen/src/translate/float.rs:246
+    wire [8:0] det_s2_data_cat_7;            // rtl-gen/src/translate/float.rs:249
+    wire [31:0] det_s2_data_cat_8;           // rtl-gen/src/translate/float.rs:249
+    wire [31:0] det_s2_data_mux_19;          // rtl-gen/src/translate/float.rs:261
+    wire [31:0] det_s2_data_mux_20;          // rtl-gen/src/translate/float.rs:261
+    wire [31:0] z_residual;                  // rtl-gen/src/translate/float.rs:261
+    wire det_s2_data_or_8;                   // rtl-gen/src/translate/float.rs:263
+    wire det_s2_data_not_7;                  // rtl-gen/src/translate/float.rs:263
+    wire det_s2_data_and_14;                 // rtl-gen/src/translate/float.rs:263
+    wire det_s2_data_lt_2;                   // rtl-gen/src/translate/determine.rs:155
+    wire det_s2_data_ge_2;                   // rtl-gen/src/translate/determine.rs:156
+    wire det_s2_data_or_9;                   // rtl-gen/src/translate/determine.rs:159
+    wire det_s2_data_or_10;                  // rtl-gen/src/translate/determine.rs:159
+    wire det_s2_data_not_8;                  // rtl-gen/src/translate/determine.rs:161
+    wire det_s2_data_not_9;                  // rtl-gen/src/translate/determine.rs:161
+    wire det_s2_data_and_15;                 // rtl-gen/src/translate/determine.rs:161
+    wire det_s2_data_or_11;                  // rtl-gen/src/translate/determine.rs:161
+    wire det_s2_data_and_16;                 // rtl-gen/src/translate/determine.rs:161
+    wire det_s2_data_and_17;                 // rtl-gen/src/translate/determine.rs:146
+    wire det_s2_data_and_18;                 // rtl-gen/src/translate/determine.rs:146
+    wire det_s2_data_and_19;                 // rtl-gen/src/translate/determine.rs:146
+    wire det_s2_data_and_20;                 // rtl-gen/src/translate/determine.rs:146
+    wire [2:0] det_s2_data_cat_9;            // rtl-gen/src/translate/determine.rs:170
+    wire [2:0] det_s2_data_cat_10;           // rtl-gen/src/translate/determine.rs:170
+    wire [2:0] det_s2_data_cat_11;           // rtl-gen/src/translate/determine.rs:170
+    wire [2:0] det_s2_data_cat_12;           // rtl-gen/src/translate/determine.rs:170
+    wire det_s2_data_and_21;                 // rtl-gen/src/translate/determine.rs:146
+    wire det_s2_data_any;                    // rtl-gen/src/translate/determine.rs:175
+    wire det_s2_data_or_12;                  // rtl-gen/src/translate/determine.rs:175
+    wire det_s2_data_any_1;                  // rtl-gen/src/translate/determine.rs:175
+    wire det_s2_data_or_13;                  // rtl-gen/src/translate/determine.rs:175
+    wire det_s2_data_any_2;                  // rtl-gen/src/translate/determine.rs:175
+    wire det_s2_data_or_14;                  // rtl-gen/src/translate/determine.rs:175
+    wire det_s2_data_any_3;                  // rtl-gen/src/translate/determine.rs:175
+    wire det_s2_data_or_15;                  // rtl-gen/src/translate/determine.rs:175
+    wire det_s2_data_or_16;                  // rtl-gen/src/translate/determine.rs:180
+    wire det_ok;                             // rtl-gen/src/translate/determine.rs:182
+    wire det_s2_data_and_22;                 // rtl-gen/src/translate/determine.rs:191
+    wire const_not;                          // rtl-gen/src/translate/determine.rs:191
+    wire det_written;                        // rtl-gen/src/translate/determine.rs:191
+    wire [177:0] det_s2_data_cat_13;         // rtl-gen/src/translate/bundle.rs:50
+    reg det_s3_valid;                        // rtl-gen/src/translate/bundle.rs:88
+    reg [177:0] det_s3_data;                 // rtl-gen/src/translate/bundle.rs:88
+    wire det_s3_ready;                       // rtl-gen/src/translate/bundle.rs:88
+    wire det_s3_valid_not;                   // rtl-gen/src/translate/bundle.rs:88
+    wire det_s3_valid_or;                    // rtl-gen/src/translate/bundle.rs:88
+    wire det_s3_valid_and;                   // rtl-gen/src/translate/bundle.rs:88
+    wire det_s3_data_mux;                    // rtl-gen/src/translate/table.rs:78
+    wire det_s3_data_mux_1;                  // rtl-gen/src/translate/table.rs:78
+    wire det_s3_data_mux_2;                  // rtl-gen/src/translate/table.rs:78
+    wire det_s3_data_mux_3;                  // rtl-gen/src/translate/table.rs:78
+    wire det_s3_data_mux_4;                  // rtl-gen/src/translate/table.rs:78
+    wire det_s3_data_mux_5;                  // rtl-gen/src/translate/table.rs:78
+    wire det_s3_data_mux_6;                  // rtl-gen/src/translate/table.rs:78
+    wire det_s3_data_mux_7;                  // rtl-gen/src/translate/table.rs:78
+    wire det_s3_data_mux_8;                  // rtl-gen/src/translate/table.rs:78
+    wire det_s3_data_mux_9;                  // rtl-gen/src/translate/table.rs:78
+    wire det_s3_data_mux_10;                 // rtl-gen/src/translate/table.rs:78
+    wire det_s3_data_mux_11;                 // rtl-gen/src/translate/table.rs:78
+    wire det_s3_data_mux_12;                 // rtl-gen/src/translate/table.rs:78
+    wire det_s3_data_mux_13;                 // rtl-gen/src/translate/table.rs:78
     wire det_read_valid;                     // rtl-gen/src/translate/table.rs:78
     wire [55:0] table_rd;                    // rtl-gen/src/translate/table.rs:79
     wire [55:0] det_read_entry;              // rtl-gen/src/translate/table.rs:81
-    wire [16:0] det_ok_mux;                  // rtl-gen/src/translate/determine.rs:181
-    wire [16:0] det_ok_mux_1;                // rtl-gen/src/translate/determine.rs:181
-    wire [16:0] det_ok_mux_2;                // rtl-gen/src/translate/determine.rs:181
-    wire [31:0] det_ok_mux_3;                // rtl-gen/src/translate/determine.rs:186
-    wire [31:0] det_ok_mux_4;                // rtl-gen/src/translate/determine.rs:186
-    wire [31:0] det_ok_mux_5;                // rtl-gen/src/translate/determine.rs:186
-    wire [221:0] det_read_entry_cat;         // rtl-gen/src/translate/bundle.rs:45
-    reg det_out_q_valid;                     // rtl-gen/src/translate/bundle.rs:100
-    reg [221:0] det_out_q_data;              // rtl-gen/src/translate/bundle.rs:100
-    reg det_out_q_spare_valid;               // rtl-gen/src/translate/bundle.rs:100
-    reg [221:0] det_out_q_spare_data;        // rtl-gen/src/translate/bundle.rs:100
-    wire det_out_q_ready;                    // rtl-gen/src/translate/bundle.rs:100
-    wire det_out_q_valid_not;                // rtl-gen/src/translate/bundle.rs:100
-    wire det_out_q_ready_or;                 // rtl-gen/src/translate/bundle.rs:100
-    wire det_out_q_spare_valid_not;          // rtl-gen/src/translate/bundle.rs:100
-    wire det_s2_valid_and_1;                 // rtl-gen/src/translate/bundle.rs:100
-    wire det_out_q_spare_valid_or;           // rtl-gen/src/translate/bundle.rs:100
-    wire [221:0] det_out_q_spare_valid_mux;  // rtl-gen/src/translate/bundle.rs:100
-    wire det_out_q_spare_valid_or_1;         // rtl-gen/src/translate/bundle.rs:100
-    wire det_out_q_spare_valid_next;         // rtl-gen/src/translate/bundle.rs:100
-    wire det_out_q_ready_not;                // rtl-gen/src/translate/bundle.rs:100
-    wire det_out_q_ready_and;                // rtl-gen/src/translate/bundle.rs:100
-    wire det_s2_valid_and_2;                 // rtl-gen/src/translate/determine.rs:210
-    wire det_s2_valid_and_3;                 // rtl-gen/src/translate/determine.rs:210
-    wire [55:0] det_s2_data_cat_13;          // rtl-gen/src/translate/table.rs:101
-    wire [15:0] const_shl_1;                 // rtl-gen/src/translate/table.rs:108
+    wire [16:0] det_s3_data_mux_14;          // rtl-gen/src/translate/determine.rs:231
+    wire [16:0] det_s3_data_mux_15;          // rtl-gen/src/translate/determine.rs:231
+    wire [16:0] det_s3_data_mux_16;          // rtl-gen/src/translate/determine.rs:231
+    wire [31:0] det_s3_data_mux_17;          // rtl-gen/src/translate/determine.rs:231
+    wire [31:0] det_s3_data_mux_18;          // rtl-gen/src/translate/determine.rs:231
+    wire [31:0] det_s3_data_mux_19;          // rtl-gen/src/translate/determine.rs:231
+    wire [221:0] det_read_entry_cat;         // rtl-gen/src/translate/bundle.rs:50
+    reg det_out_q_valid;                     // rtl-gen/src/translate/bundle.rs:105
+    reg [221:0] det_out_q_data;              // rtl-gen/src/translate/bundle.rs:105
+    reg det_out_q_spare_valid;               // rtl-gen/src/translate/bundle.rs:105
+    reg [221:0] det_out_q_spare_data;        // rtl-gen/src/translate/bundle.rs:105
+    wire det_out_q_ready;                    // rtl-gen/src/translate/bundle.rs:105
+    wire det_out_q_valid_not;                // rtl-gen/src/translate/bundle.rs:105
+    wire det_out_q_ready_or;                 // rtl-gen/src/translate/bundle.rs:105
+    wire det_out_q_spare_valid_not;          // rtl-gen/src/translate/bundle.rs:105
+    wire det_s3_valid_and_1;                 // rtl-gen/src/translate/bundle.rs:105
+    wire det_out_q_spare_valid_or;           // rtl-gen/src/translate/bundle.rs:105
+    wire [221:0] det_out_q_spare_valid_mux;  // rtl-gen/src/translate/bundle.rs:105
+    wire det_out_q_spare_valid_or_1;         // rtl-gen/src/translate/bundle.rs:105
+    wire det_out_q_spare_valid_next;         // rtl-gen/src/translate/bundle.rs:105
+    wire det_out_q_ready_not;                // rtl-gen/src/translate/bundle.rs:105
+    wire det_out_q_ready_and;                // rtl-gen/src/translate/bundle.rs:105
+    wire det_s3_valid_and_2;                 // rtl-gen/src/translate/determine.rs:247
+    wire det_s3_valid_and_3;                 // rtl-gen/src/translate/determine.rs:247
+    wire [55:0] det_s3_data_cat;             // rtl-gen/src/translate/table.rs:101
+    wire [15:0] const_shl_3;                 // rtl-gen/src/translate/table.rs:108
     wire [15:0] table_valid_or;              // rtl-gen/src/translate/table.rs:109
-    wire det_out_q_valid_and;                // rtl-gen/src/translate/determine.rs:214
-    wire det_out_q_data_not;                 // rtl-gen/src/translate/determine.rs:215
+    wire det_out_q_valid_and;                // rtl-gen/src/translate/determine.rs:251
+    wire det_out_q_data_not;                 // rtl-gen/src/translate/determine.rs:255
     wire [149:0] apply_record;               // rtl-gen/src/translate/apply.rs:33
     wire apply_in_data_mux;                  // rtl-gen/src/translate/table.rs:78
     wire apply_in_data_mux_1;                // rtl-gen/src/translate/table.rs:78
@@ -358,71 +374,82 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire apply_read_valid_not;               // rtl-gen/src/translate/apply.rs:53
     wire [2:0] apply_early_code;             // rtl-gen/src/translate/apply.rs:53
     wire [4:0] apply_shift;                  // rtl-gen/src/translate/apply.rs:62
-    wire [212:0] apply_read_entry_cat;       // rtl-gen/src/translate/bundle.rs:45
-    reg apply_s1_valid;                      // rtl-gen/src/translate/bundle.rs:83
-    reg [212:0] apply_s1_data;               // rtl-gen/src/translate/bundle.rs:83
-    wire apply_s1_ready;                     // rtl-gen/src/translate/bundle.rs:83
-    wire apply_s1_valid_not;                 // rtl-gen/src/translate/bundle.rs:83
-    wire apply_s1_valid_or;                  // rtl-gen/src/translate/bundle.rs:83
-    wire apply_s1_valid_and;                 // rtl-gen/src/translate/bundle.rs:83
-    wire [33:0] apply_s1_data_shl;           // rtl-gen/src/translate/apply.rs:78
-    wire [33:0] apply_sum_x;                 // rtl-gen/src/translate/apply.rs:80
-    wire apply_sum_x_lt;                     // rtl-gen/src/translate/apply.rs:82
-    wire [33:0] apply_sum_x_shr;             // rtl-gen/src/translate/apply.rs:82
-    wire apply_sum_x_ne;                     // rtl-gen/src/translate/apply.rs:82
-    wire apply_sum_x_or;                     // rtl-gen/src/translate/apply.rs:82
-    wire [33:0] apply_s1_data_shl_1;         // rtl-gen/src/translate/apply.rs:78
-    wire [33:0] apply_sum_y;                 // rtl-gen/src/translate/apply.rs:80
-    wire apply_sum_y_lt;                     // rtl-gen/src/translate/apply.rs:82
-    wire [33:0] apply_sum_y_shr;             // rtl-gen/src/translate/apply.rs:82
-    wire apply_sum_y_ne;                     // rtl-gen/src/translate/apply.rs:82
-    wire apply_sum_y_or;                     // rtl-gen/src/translate/apply.rs:82
-    wire [33:0] apply_s1_data_shl_2;         // rtl-gen/src/translate/apply.rs:78
-    wire [33:0] apply_sum_z;                 // rtl-gen/src/translate/apply.rs:80
-    wire apply_sum_z_lt;                     // rtl-gen/src/translate/apply.rs:82
-    wire [33:0] apply_sum_z_shr;             // rtl-gen/src/translate/apply.rs:82
-    wire apply_sum_z_ne;                     // rtl-gen/src/translate/apply.rs:82
-    wire apply_sum_z_or;                     // rtl-gen/src/translate/apply.rs:82
-    wire [207:0] apply_sum_z_cat;            // rtl-gen/src/translate/bundle.rs:45
-    reg apply_s2_valid;                      // rtl-gen/src/translate/bundle.rs:83
-    reg [207:0] apply_s2_data;               // rtl-gen/src/translate/bundle.rs:83
-    wire apply_s2_ready;                     // rtl-gen/src/translate/bundle.rs:83
-    wire apply_s2_valid_not;                 // rtl-gen/src/translate/bundle.rs:83
-    wire apply_s2_valid_or;                  // rtl-gen/src/translate/bundle.rs:83
-    wire apply_s2_valid_and;                 // rtl-gen/src/translate/bundle.rs:83
-    wire apply_outside_x;                    // rtl-gen/src/translate/bundle.rs:58
-    wire apply_outside_y;                    // rtl-gen/src/translate/bundle.rs:58
-    wire apply_outside_z;                    // rtl-gen/src/translate/bundle.rs:58
-    wire [2:0] apply_outside_z_mux;          // rtl-gen/src/translate/apply.rs:108
-    wire [2:0] apply_outside_y_mux;          // rtl-gen/src/translate/apply.rs:106
-    wire [2:0] apply_outside_x_mux;          // rtl-gen/src/translate/apply.rs:104
-    wire apply_s2_data_ne;                   // rtl-gen/src/translate/apply.rs:111
-    wire [2:0] apply_code;                   // rtl-gen/src/translate/apply.rs:111
-    wire [149:0] apply_s2_data_cat;          // rtl-gen/src/translate/apply.rs:119
-    wire apply_code_eq;                      // rtl-gen/src/translate/apply.rs:120
-    wire [149:0] apply_code_mux;             // rtl-gen/src/translate/apply.rs:120
-    wire [156:0] apply_code_cat;             // rtl-gen/src/translate/bundle.rs:45
-    reg apply_out_q_valid;                   // rtl-gen/src/translate/bundle.rs:100
-    reg [156:0] apply_out_q_data;            // rtl-gen/src/translate/bundle.rs:100
-    reg apply_out_q_spare_valid;             // rtl-gen/src/translate/bundle.rs:100
-    reg [156:0] apply_out_q_spare_data;      // rtl-gen/src/translate/bundle.rs:100
-    wire apply_out_q_ready;                  // rtl-gen/src/translate/bundle.rs:100
-    wire apply_out_q_valid_not;              // rtl-gen/src/translate/bundle.rs:100
-    wire apply_out_q_ready_or;               // rtl-gen/src/translate/bundle.rs:100
-    wire apply_out_q_spare_valid_not;        // rtl-gen/src/translate/bundle.rs:100
-    wire apply_s2_valid_and_1;               // rtl-gen/src/translate/bundle.rs:100
-    wire apply_out_q_spare_valid_or;         // rtl-gen/src/translate/bundle.rs:100
-    wire [156:0] apply_out_q_spare_valid_mux; // rtl-gen/src/translate/bundle.rs:100
-    wire apply_out_q_spare_valid_or_1;       // rtl-gen/src/translate/bundle.rs:100
-    wire apply_out_q_spare_valid_next;       // rtl-gen/src/translate/bundle.rs:100
-    wire apply_out_q_ready_not;              // rtl-gen/src/translate/bundle.rs:100
-    wire apply_out_q_ready_and;              // rtl-gen/src/translate/bundle.rs:100
-    wire apply_out_q_data_ne;                // rtl-gen/src/translate/apply.rs:127
-    wire apply_out_q_valid_and;              // rtl-gen/src/translate/apply.rs:132
+    wire [212:0] apply_read_entry_cat;       // rtl-gen/src/translate/bundle.rs:50
+    reg apply_s1_valid;                      // rtl-gen/src/translate/bundle.rs:88
+    reg [212:0] apply_s1_data;               // rtl-gen/src/translate/bundle.rs:88
+    wire apply_s1_ready;                     // rtl-gen/src/translate/bundle.rs:88
+    wire apply_s1_valid_not;                 // rtl-gen/src/translate/bundle.rs:88
+    wire apply_s1_valid_or;                  // rtl-gen/src/translate/bundle.rs:88
+    wire apply_s1_valid_and;                 // rtl-gen/src/translate/bundle.rs:88
+    wire [33:0] apply_high;                  // rtl-gen/src/translate/apply.rs:79
+    wire [33:0] apply_s1_data_shl;           // rtl-gen/src/translate/apply.rs:82
+    wire [33:0] apply_s1_data_shl_1;         // rtl-gen/src/translate/apply.rs:82
+    wire [33:0] apply_s1_data_shl_2;         // rtl-gen/src/translate/apply.rs:82
+    wire [292:0] apply_s1_data_cat;          // rtl-gen/src/translate/bundle.rs:50
+    reg apply_s2_valid;                      // rtl-gen/src/translate/bundle.rs:88
+    reg [292:0] apply_s2_data;               // rtl-gen/src/translate/bundle.rs:88
+    wire apply_s2_ready;                     // rtl-gen/src/translate/bundle.rs:88
+    wire apply_s2_valid_not;                 // rtl-gen/src/translate/bundle.rs:88
+    wire apply_s2_valid_or;                  // rtl-gen/src/translate/bundle.rs:88
+    wire apply_s2_valid_and;                 // rtl-gen/src/translate/bundle.rs:88
+    wire [33:0] apply_sum_x;                 // rtl-gen/src/translate/apply.rs:94
+    wire apply_sum_x_lt;                     // rtl-gen/src/translate/apply.rs:96
+    wire [33:0] apply_sum_x_and;             // rtl-gen/src/translate/apply.rs:96
+    wire apply_sum_x_ne;                     // rtl-gen/src/translate/apply.rs:96
+    wire apply_sum_x_or;                     // rtl-gen/src/translate/apply.rs:96
+    wire [33:0] apply_sum_y;                 // rtl-gen/src/translate/apply.rs:94
+    wire apply_sum_y_lt;                     // rtl-gen/src/translate/apply.rs:96
+    wire [33:0] apply_sum_y_and;             // rtl-gen/src/translate/apply.rs:96
+    wire apply_sum_y_ne;                     // rtl-gen/src/translate/apply.rs:96
+    wire apply_sum_y_or;                     // rtl-gen/src/translate/apply.rs:96
+    wire [33:0] apply_sum_z;                 // rtl-gen/src/translate/apply.rs:94
+    wire apply_sum_z_lt;                     // rtl-gen/src/translate/apply.rs:96
+    wire [33:0] apply_sum_z_and;             // rtl-gen/src/translate/apply.rs:96
+    wire apply_sum_z_ne;                     // rtl-gen/src/translate/apply.rs:96
+    wire apply_sum_z_or;                     // rtl-gen/src/translate/apply.rs:96
+    wire [207:0] apply_sum_z_cat;            // rtl-gen/src/translate/bundle.rs:50
+    reg apply_s3_valid;                      // rtl-gen/src/translate/bundle.rs:88
+    reg [207:0] apply_s3_data;               // rtl-gen/src/translate/bundle.rs:88
+    wire apply_s3_ready;                     // rtl-gen/src/translate/bundle.rs:88
+    wire apply_s3_valid_not;                 // rtl-gen/src/translate/bundle.rs:88
+    wire apply_s3_valid_or;                  // rtl-gen/src/translate/bundle.rs:88
+    wire apply_s3_valid_and;                 // rtl-gen/src/translate/bundle.rs:88
+    wire apply_outside_x;                    // rtl-gen/src/translate/bundle.rs:63
+    wire apply_outside_y;                    // rtl-gen/src/translate/bundle.rs:63
+    wire apply_outside_z;                    // rtl-gen/src/translate/bundle.rs:63
+    wire [2:0] apply_outside_z_mux;          // rtl-gen/src/translate/apply.rs:122
+    wire [2:0] apply_outside_y_mux;          // rtl-gen/src/translate/apply.rs:120
+    wire [2:0] apply_outside_x_mux;          // rtl-gen/src/translate/apply.rs:118
+    wire apply_s3_data_ne;                   // rtl-gen/src/translate/apply.rs:125
+    wire [2:0] apply_code;                   // rtl-gen/src/translate/apply.rs:125
+    wire [149:0] apply_s3_data_cat;          // rtl-gen/src/translate/apply.rs:133
+    wire apply_code_eq;                      // rtl-gen/src/translate/apply.rs:134
+    wire [149:0] apply_code_mux;             // rtl-gen/src/translate/apply.rs:134
+    wire [156:0] apply_code_cat;             // rtl-gen/src/translate/bundle.rs:50
+    reg apply_out_q_valid;                   // rtl-gen/src/translate/bundle.rs:105
+    reg [156:0] apply_out_q_data;            // rtl-gen/src/translate/bundle.rs:105
+    reg apply_out_q_spare_valid;             // rtl-gen/src/translate/bundle.rs:105
+    reg [156:0] apply_out_q_spare_data;      // rtl-gen/src/translate/bundle.rs:105
+    wire apply_out_q_ready;                  // rtl-gen/src/translate/bundle.rs:105
+    wire apply_out_q_valid_not;              // rtl-gen/src/translate/bundle.rs:105
+    wire apply_out_q_ready_or;               // rtl-gen/src/translate/bundle.rs:105
+    wire apply_out_q_spare_valid_not;        // rtl-gen/src/translate/bundle.rs:105
+    wire apply_s3_valid_and_1;               // rtl-gen/src/translate/bundle.rs:105
+    wire apply_out_q_spare_valid_or;         // rtl-gen/src/translate/bundle.rs:105
+    wire [156:0] apply_out_q_spare_valid_mux; // rtl-gen/src/translate/bundle.rs:105
+    wire apply_out_q_spare_valid_or_1;       // rtl-gen/src/translate/bundle.rs:105
+    wire apply_out_q_spare_valid_next;       // rtl-gen/src/translate/bundle.rs:105
+    wire apply_out_q_ready_not;              // rtl-gen/src/translate/bundle.rs:105
+    wire apply_out_q_ready_and;              // rtl-gen/src/translate/bundle.rs:105
+    wire apply_out_q_data_ne;                // rtl-gen/src/translate/apply.rs:141
+    wire apply_out_q_valid_and;              // rtl-gen/src/translate/apply.rs:146
     wire det_s1_valid_or_1;                  // rtl-gen/src/translate/unit.rs:30
     wire det_s1_valid_or_2;                  // rtl-gen/src/translate/unit.rs:30
     wire det_s1_valid_or_3;                  // rtl-gen/src/translate/unit.rs:30
     wire det_s1_valid_or_4;                  // rtl-gen/src/translate/unit.rs:30
+    wire det_s1_valid_or_5;                  // rtl-gen/src/translate/unit.rs:30
+    wire det_s1_valid_or_6;                  // rtl-gen/src/translate/unit.rs:30
+    wire det_s1_valid_or_7;                  // rtl-gen/src/translate/unit.rs:30
     wire was_busy_next;                      // rtl-gen/src/translate/unit.rs:30
     wire idle_now;                           // rtl-gen/src/translate/unit.rs:32
     reg was_busy;                            // rtl-gen/src/translate/unit.rs:33
@@ -485,67 +512,80 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     assign det_in_data_shr = det_in_data[164:149] >> det_in_data[100:96];
     assign det_in_data_ne = det_in_data_shr != 16'd0;
     assign det_in_data_or = det_in_data_gt_3 | det_in_data_ne;
+    assign const_shl = 18'd1 << det_in_data[100:96];
+    assign det_in_data_sub_6 = 18'd0 - {2'd0, det_in_data[116:101]};
+    assign const_sub = const_shl - {2'd0, det_in_data[164:149]};
     assign det_in_data_gt_4 = det_in_data[132:117] > det_in_data[180:165];
     assign det_in_data_shr_1 = det_in_data[180:165] >> det_in_data[100:96];
     assign det_in_data_ne_1 = det_in_data_shr_1 != 16'd0;
     assign det_in_data_or_1 = det_in_data_gt_4 | det_in_data_ne_1;
+    assign const_shl_1 = 18'd1 << det_in_data[100:96];
+    assign det_in_data_sub_7 = 18'd0 - {2'd0, det_in_data[132:117]};
+    assign const_sub_1 = const_shl_1 - {2'd0, det_in_data[180:165]};
     assign det_in_data_gt_5 = det_in_data[148:133] > det_in_data[196:181];
     assign det_in_data_shr_2 = det_in_data[196:181] >> det_in_data[100:96];
     assign det_in_data_ne_2 = det_in_data_shr_2 != 16'd0;
     assign det_in_data_or_2 = det_in_data_gt_5 | det_in_data_ne_2;
+    assign const_shl_2 = 18'd1 << det_in_data[100:96];
+    assign det_in_data_sub_8 = 18'd0 - {2'd0, det_in_data[148:133]};
+    assign const_sub_2 = const_shl_2 - {2'd0, det_in_data[196:181]};
     assign det_in_data_or_3 = det_in_data_or | det_in_data_or_1;
     assign det_in_data_or_4 = det_in_data_or_3 | det_in_data_or_2;
-    assign k_cat = {k, det_in_data[205:202], det_in_data[201:198], det_in_data[197], det_in_data[100:96], err_lod, det_in_data_or_4, det_in_data[196:181], det_in_data[148:133], det_in_data[180:165], det_in_data[132:117], det_in_data[164:149], det_in_data[116:101], det_in_data[95:64], det_in_data_and_5, det_in_data_and_4, z_a, z_m, det_in_data[95], det_in_data[63:32], det_in_data_and_3, det_in_data_and_2, y_a, y_m, det_in_data[63], det_in_data[31:0], det_in_data_and_1, det_in_data_and, x_a, x_m, det_in_data[31]};
-    assign det_s1_ready = det_s2_valid_or;
+    assign k_cat = {k, det_in_data[205:202], det_in_data[201:198], det_in_data[197], det_in_data[100:96], err_lod, det_in_data_or_4, const_sub_2, det_in_data_sub_8, const_sub_1, det_in_data_sub_7, const_sub, det_in_data_sub_6, det_in_data[95:64], det_in_data_and_5, det_in_data_and_4, z_a, z_m, det_in_data[95], det_in_data[63:32], det_in_data_and_3, det_in_data_and_2, y_a, y_m, det_in_data[63], det_in_data[31:0], det_in_data_and_1, det_in_data_and, x_a, x_m, det_in_data[31]};
+    assign det_s1_ready = det_align_valid_or;
     assign det_s1_valid_not = ~det_s1_valid;
     assign det_s1_valid_or = det_s1_valid_not | det_s1_ready;
     assign det_s1_valid_and = det_s1_valid_or & det_in_valid;
     assign x_aligned = {41'd0, det_s1_data[24:1]} << det_s1_data[30:25];
-    assign x_aligned_any = |x_aligned[23:0];
-    assign x_aligned_or = x_aligned_any | x_aligned[25];
-    assign x_inc = x_aligned[24] & x_aligned_or;
-    assign x_mag = {1'b0, x_aligned[64:25]} + {40'd0, x_inc};
-    assign x_mag_any = |x_mag[40:16];
-    assign x_mag_sub = 17'd0 - {1'b0, x_mag[15:0]};
-    assign x_t = det_s1_data[0] ? x_mag_sub : {1'b0, x_mag[15:0]};
-    assign x_aligned_sub = 25'd0 - x_aligned[24:0];
-    assign x_r = x_inc ? x_aligned_sub : x_aligned[24:0];
-    assign det_s1_data_xor = det_s1_data[0] ^ x_inc;
-    assign x_mag_eq = x_mag == 41'd0;
     assign det_s1_data_ne = det_s1_data[24:1] != 24'd0;
     assign y_aligned = {41'd0, det_s1_data[89:66]} << det_s1_data[95:90];
-    assign y_aligned_any = |y_aligned[23:0];
-    assign y_aligned_or = y_aligned_any | y_aligned[25];
-    assign y_inc = y_aligned[24] & y_aligned_or;
-    assign y_mag = {1'b0, y_aligned[64:25]} + {40'd0, y_inc};
-    assign y_mag_any = |y_mag[40:16];
-    assign y_mag_sub = 17'd0 - {1'b0, y_mag[15:0]};
-    assign y_t = det_s1_data[65] ? y_mag_sub : {1'b0, y_mag[15:0]};
-    assign y_aligned_sub = 25'd0 - y_aligned[24:0];
-    assign y_r = y_inc ? y_aligned_sub : y_aligned[24:0];
-    assign det_s1_data_xor_1 = det_s1_data[65] ^ y_inc;
-    assign y_mag_eq = y_mag == 41'd0;
     assign det_s1_data_ne_1 = det_s1_data[89:66] != 24'd0;
     assign z_aligned = {41'd0, det_s1_data[154:131]} << det_s1_data[160:155];
-    assign z_aligned_any = |z_aligned[23:0];
-    assign z_aligned_or = z_aligned_any | z_aligned[25];
-    assign z_inc = z_aligned[24] & z_aligned_or;
-    assign z_mag = {1'b0, z_aligned[64:25]} + {40'd0, z_inc};
+    assign det_s1_data_ne_2 = det_s1_data[154:131] != 24'd0;
+    assign det_s1_data_cat = {det_s1_data[323:319], det_s1_data[318:315], det_s1_data[314:311], det_s1_data[310], det_s1_data[309:305], det_s1_data[304], det_s1_data[303], det_s1_data[302:285], det_s1_data[284:267], det_s1_data[266:249], det_s1_data[248:231], det_s1_data[230:213], det_s1_data[212:195], det_s1_data[162], det_s1_data[161], det_s1_data[194:163], det_s1_data[130], det_s1_data_ne_2, z_aligned, det_s1_data[97], det_s1_data[96], det_s1_data[129:98], det_s1_data[65], det_s1_data_ne_1, y_aligned, det_s1_data[32], det_s1_data[31], det_s1_data[64:33], det_s1_data[0], det_s1_data_ne, x_aligned};
+    assign det_align_ready = det_s2_valid_or;
+    assign det_align_valid_not = ~det_align_valid;
+    assign det_align_valid_or = det_align_valid_not | det_align_ready;
+    assign det_align_valid_and = det_align_valid_or & det_s1_valid;
+    assign det_align_data_any = |det_align_data[23:0];
+    assign det_align_data_or = det_align_data_any | det_align_data[25];
+    assign x_inc = det_align_data[24] & det_align_data_or;
+    assign x_mag = {1'b0, det_align_data[64:25]} + {40'd0, x_inc};
+    assign x_mag_any = |x_mag[40:16];
+    assign x_mag_sub = 17'd0 - {1'b0, x_mag[15:0]};
+    assign x_t = det_align_data[66] ? x_mag_sub : {1'b0, x_mag[15:0]};
+    assign det_align_data_sub = 25'd0 - det_align_data[24:0];
+    assign x_r = x_inc ? det_align_data_sub : det_align_data[24:0];
+    assign det_align_data_xor = det_align_data[66] ^ x_inc;
+    assign x_mag_eq = x_mag == 41'd0;
+    assign det_align_data_any_1 = |det_align_data[124:101];
+    assign det_align_data_or_1 = det_align_data_any_1 | det_align_data[126];
+    assign y_inc = det_align_data[125] & det_align_data_or_1;
+    assign y_mag = {1'b0, det_align_data[165:126]} + {40'd0, y_inc};
+    assign y_mag_any = |y_mag[40:16];
+    assign y_mag_sub = 17'd0 - {1'b0, y_mag[15:0]};
+    assign y_t = det_align_data[167] ? y_mag_sub : {1'b0, y_mag[15:0]};
+    assign det_align_data_sub_1 = 25'd0 - det_align_data[125:101];
+    assign y_r = y_inc ? det_align_data_sub_1 : det_align_data[125:101];
+    assign det_align_data_xor_1 = det_align_data[167] ^ y_inc;
+    assign y_mag_eq = y_mag == 41'd0;
+    assign det_align_data_any_2 = |det_align_data[225:202];
+    assign det_align_data_or_2 = det_align_data_any_2 | det_align_data[227];
+    assign z_inc = det_align_data[226] & det_align_data_or_2;
+    assign z_mag = {1'b0, det_align_data[266:227]} + {40'd0, z_inc};
     assign z_mag_any = |z_mag[40:16];
     assign z_mag_sub = 17'd0 - {1'b0, z_mag[15:0]};
-    assign z_t = det_s1_data[130] ? z_mag_sub : {1'b0, z_mag[15:0]};
-    assign z_aligned_sub = 25'd0 - z_aligned[24:0];
-    assign z_r = z_inc ? z_aligned_sub : z_aligned[24:0];
-    assign det_s1_data_xor_2 = det_s1_data[130] ^ z_inc;
+    assign z_t = det_align_data[268] ? z_mag_sub : {1'b0, z_mag[15:0]};
+    assign det_align_data_sub_2 = 25'd0 - det_align_data[226:202];
+    assign z_r = z_inc ? det_align_data_sub_2 : det_align_data[226:202];
+    assign det_align_data_xor_2 = det_align_data[268] ^ z_inc;
     assign z_mag_eq = z_mag == 41'd0;
-    assign det_s1_data_ne_2 = det_s1_data[154:131] != 24'd0;
-    assign det_s1_data_cat = {det_s1_data[292], det_s1_data[290:275], det_s1_data[258:243], det_s1_data[226:211], det_s1_data[274:259], det_s1_data[242:227], det_s1_data[210:195], det_s1_data[311:307], det_s1_data[306:303], det_s1_data[302:299], det_s1_data[298], det_s1_data[297:293], det_s1_data[291], det_s1_data[162], det_s1_data[161], det_s1_data[194:163], det_s1_data_ne_2, z_mag_eq, det_s1_data_xor_2, z_r, z_mag_any, z_t, det_s1_data[97], det_s1_data[96], det_s1_data[129:98], det_s1_data_ne_1, y_mag_eq, det_s1_data_xor_1, y_r, y_mag_any, y_t, det_s1_data[32], det_s1_data[31], det_s1_data[64:33], det_s1_data_ne, x_mag_eq, det_s1_data_xor, x_r, x_mag_any, x_t};
-    assign det_s2_ready = ~det_out_q_spare_valid;
+    assign det_align_data_cat = {det_align_data[412], det_align_data[410:393], det_align_data[374:357], det_align_data[338:321], det_align_data[392:375], det_align_data[356:339], det_align_data[320:303], det_align_data[431:427], det_align_data[426:423], det_align_data[422:419], det_align_data[418], det_align_data[417:413], det_align_data[411], det_align_data[302], det_align_data[301], det_align_data[300:269], det_align_data[267], z_mag_eq, det_align_data_xor_2, z_r, z_mag_any, z_t, det_align_data[201], det_align_data[200], det_align_data[199:168], det_align_data[166], y_mag_eq, det_align_data_xor_1, y_r, y_mag_any, y_t, det_align_data[100], det_align_data[99], det_align_data[98:67], det_align_data[65], x_mag_eq, det_align_data_xor, x_r, x_mag_any, x_t};
+    assign det_s2_ready = det_s3_valid_or;
     assign det_s2_valid_not = ~det_s2_valid;
     assign det_s2_valid_or = det_s2_valid_not | det_s2_ready;
-    assign det_s2_valid_and = det_s2_valid_or & det_s1_valid;
-    assign det_s2_data_not = ~det_s2_data[356];
-    assign const_shl = 18'd1 << det_s2_data[245:241];
+    assign det_s2_valid_and = det_s2_valid_or & det_align_valid;
+    assign det_s2_data_not = ~det_s2_data[368];
     assign det_s2_data_eq = det_s2_data[42:27] == 16'd0;
     assign det_s2_data_shl = det_s2_data[42:18] << 5'd16;
     assign det_s2_data_mux = det_s2_data_eq ? det_s2_data_shl : det_s2_data[42:18];
@@ -571,10 +611,8 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     assign det_s2_data_or = det_s2_data[78] | det_s2_data[79];
     assign det_s2_data_not_1 = ~det_s2_data_or;
     assign det_s2_data_and = det_s2_data_not_1 & det_s2_data[17];
-    assign det_s2_data_add_1 = {2'd0, det_s2_data[275:260]} + {det_s2_data[16], det_s2_data[16:0]};
-    assign det_s2_data_lt = $signed(det_s2_data_add_1) < $signed(18'd0);
-    assign det_s2_data_add_2 = {2'd0, det_s2_data[323:308]} + {det_s2_data[16], det_s2_data[16:0]};
-    assign det_s2_data_ge = $signed(det_s2_data_add_2) >= $signed(const_shl);
+    assign det_s2_data_lt = $signed({det_s2_data[16], det_s2_data[16:0]}) < $signed(det_s2_data[277:260]);
+    assign det_s2_data_ge = $signed({det_s2_data[16], det_s2_data[16:0]}) >= $signed(det_s2_data[331:314]);
     assign det_s2_data_or_1 = det_s2_data[78] | det_s2_data[79];
     assign det_s2_data_or_2 = det_s2_data_or_1 | det_s2_data_and;
     assign det_s2_data_not_2 = ~det_s2_data[240];
@@ -601,8 +639,8 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     assign det_s2_data_eq_9 = det_s2_data_mux_10[24] == 1'b0;
     assign det_s2_data_mux_11 = det_s2_data_eq_9 ? det_s2_data_mux_10[23:0] : det_s2_data_mux_10[24:1];
     assign det_s2_data_cat_3 = {det_s2_data_eq_5, det_s2_data_eq_6, det_s2_data_eq_7, det_s2_data_eq_8, det_s2_data_eq_9};
-    assign det_s2_data_add_3 = {3'd0, det_s2_data[259:255]} + 8'd126;
-    assign det_s2_data_sub_1 = det_s2_data_add_3 - {3'd0, det_s2_data_cat_3};
+    assign det_s2_data_add_1 = {3'd0, det_s2_data[259:255]} + 8'd126;
+    assign det_s2_data_sub_1 = det_s2_data_add_1 - {3'd0, det_s2_data_cat_3};
     assign det_s2_data_cat_4 = {det_s2_data[123], det_s2_data_sub_1};
     assign det_s2_data_cat_5 = {det_s2_data_cat_4, det_s2_data_mux_11[22:0]};
     assign det_s2_data_mux_12 = det_s2_data[125] ? det_s2_data[157:126] : 32'd0;
@@ -611,10 +649,8 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     assign det_s2_data_or_4 = det_s2_data[158] | det_s2_data[159];
     assign det_s2_data_not_4 = ~det_s2_data_or_4;
     assign det_s2_data_and_7 = det_s2_data_not_4 & det_s2_data[97];
-    assign det_s2_data_add_4 = {2'd0, det_s2_data[291:276]} + {det_s2_data[96], det_s2_data[96:80]};
-    assign det_s2_data_lt_1 = $signed(det_s2_data_add_4) < $signed(18'd0);
-    assign det_s2_data_add_5 = {2'd0, det_s2_data[339:324]} + {det_s2_data[96], det_s2_data[96:80]};
-    assign det_s2_data_ge_1 = $signed(det_s2_data_add_5) >= $signed(const_shl);
+    assign det_s2_data_lt_1 = $signed({det_s2_data[96], det_s2_data[96:80]}) < $signed(det_s2_data[295:278]);
+    assign det_s2_data_ge_1 = $signed({det_s2_data[96], det_s2_data[96:80]}) >= $signed(det_s2_data[349:332]);
     assign det_s2_data_or_5 = det_s2_data[158] | det_s2_data[159];
     assign det_s2_data_or_6 = det_s2_data_or_5 | det_s2_data_and_7;
     assign det_s2_data_not_5 = ~det_s2_data[240];
@@ -641,8 +677,8 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     assign det_s2_data_eq_14 = det_s2_data_mux_17[24] == 1'b0;
     assign det_s2_data_mux_18 = det_s2_data_eq_14 ? det_s2_data_mux_17[23:0] : det_s2_data_mux_17[24:1];
     assign det_s2_data_cat_6 = {det_s2_data_eq_10, det_s2_data_eq_11, det_s2_data_eq_12, det_s2_data_eq_13, det_s2_data_eq_14};
-    assign det_s2_data_add_6 = {3'd0, det_s2_data[259:255]} + 8'd126;
-    assign det_s2_data_sub_2 = det_s2_data_add_6 - {3'd0, det_s2_data_cat_6};
+    assign det_s2_data_add_2 = {3'd0, det_s2_data[259:255]} + 8'd126;
+    assign det_s2_data_sub_2 = det_s2_data_add_2 - {3'd0, det_s2_data_cat_6};
     assign det_s2_data_cat_7 = {det_s2_data[203], det_s2_data_sub_2};
     assign det_s2_data_cat_8 = {det_s2_data_cat_7, det_s2_data_mux_18[22:0]};
     assign det_s2_data_mux_19 = det_s2_data[205] ? det_s2_data[237:206] : 32'd0;
@@ -651,10 +687,8 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     assign det_s2_data_or_8 = det_s2_data[238] | det_s2_data[239];
     assign det_s2_data_not_7 = ~det_s2_data_or_8;
     assign det_s2_data_and_14 = det_s2_data_not_7 & det_s2_data[177];
-    assign det_s2_data_add_7 = {2'd0, det_s2_data[307:292]} + {det_s2_data[176], det_s2_data[176:160]};
-    assign det_s2_data_lt_2 = $signed(det_s2_data_add_7) < $signed(18'd0);
-    assign det_s2_data_add_8 = {2'd0, det_s2_data[355:340]} + {det_s2_data[176], det_s2_data[176:160]};
-    assign det_s2_data_ge_2 = $signed(det_s2_data_add_8) >= $signed(const_shl);
+    assign det_s2_data_lt_2 = $signed({det_s2_data[176], det_s2_data[176:160]}) < $signed(det_s2_data[313:296]);
+    assign det_s2_data_ge_2 = $signed({det_s2_data[176], det_s2_data[176:160]}) >= $signed(det_s2_data[367:350]);
     assign det_s2_data_or_9 = det_s2_data[238] | det_s2_data[239];
     assign det_s2_data_or_10 = det_s2_data_or_9 | det_s2_data_and_14;
     assign det_s2_data_not_8 = ~det_s2_data[240];
@@ -679,51 +713,56 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     assign det_s2_data_or_14 = det_s2_data_or_13 | det_s2_data_any_2;
     assign det_s2_data_any_3 = |det_s2_data_cat_12;
     assign det_s2_data_or_15 = det_s2_data_or_14 | det_s2_data_any_3;
-    assign det_s2_data_or_16 = det_s2_data_or_15 | det_s2_data[356];
+    assign det_s2_data_or_16 = det_s2_data_or_15 | det_s2_data[368];
     assign det_ok = ~det_s2_data_or_16;
     assign det_s2_data_and_22 = det_s2_data[246] & det_ok;
     assign const_not = ~1'b0;
     assign det_written = det_s2_data_and_22 & const_not;
-    assign det_s2_data_mux_21 = det_s2_data[251] ? table_valid[1] : table_valid[0];
-    assign det_s2_data_mux_22 = det_s2_data[251] ? table_valid[3] : table_valid[2];
-    assign det_s2_data_mux_23 = det_s2_data[252] ? det_s2_data_mux_22 : det_s2_data_mux_21;
-    assign det_s2_data_mux_24 = det_s2_data[251] ? table_valid[5] : table_valid[4];
-    assign det_s2_data_mux_25 = det_s2_data[251] ? table_valid[7] : table_valid[6];
-    assign det_s2_data_mux_26 = det_s2_data[252] ? det_s2_data_mux_25 : det_s2_data_mux_24;
-    assign det_s2_data_mux_27 = det_s2_data[253] ? det_s2_data_mux_26 : det_s2_data_mux_23;
-    assign det_s2_data_mux_28 = det_s2_data[251] ? table_valid[9] : table_valid[8];
-    assign det_s2_data_mux_29 = det_s2_data[251] ? table_valid[11] : table_valid[10];
-    assign det_s2_data_mux_30 = det_s2_data[252] ? det_s2_data_mux_29 : det_s2_data_mux_28;
-    assign det_s2_data_mux_31 = det_s2_data[251] ? table_valid[13] : table_valid[12];
-    assign det_s2_data_mux_32 = det_s2_data[251] ? table_valid[15] : table_valid[14];
-    assign det_s2_data_mux_33 = det_s2_data[252] ? det_s2_data_mux_32 : det_s2_data_mux_31;
-    assign det_s2_data_mux_34 = det_s2_data[253] ? det_s2_data_mux_33 : det_s2_data_mux_30;
-    assign det_read_valid = det_s2_data[254] ? det_s2_data_mux_34 : det_s2_data_mux_27;
-    assign table_rd = table_[det_s2_data[254:251]];
+    assign det_s2_data_cat_13 = {det_s2_data[254:251], det_s2_data[250:247], det_s2_data[245:241], 1'b0, det_written, 1'b0, det_s2_data_cat_12, det_s2_data_cat_11, det_s2_data_cat_10, det_s2_data_cat_9, det_s2_data_and_21, det_s2_data[368], z_residual, y_residual, x_residual, det_s2_data[176:160], det_s2_data[96:80], det_s2_data[16:0], det_ok};
+    assign det_s3_ready = ~det_out_q_spare_valid;
+    assign det_s3_valid_not = ~det_s3_valid;
+    assign det_s3_valid_or = det_s3_valid_not | det_s3_ready;
+    assign det_s3_valid_and = det_s3_valid_or & det_s2_valid;
+    assign det_s3_data_mux = det_s3_data[174] ? table_valid[1] : table_valid[0];
+    assign det_s3_data_mux_1 = det_s3_data[174] ? table_valid[3] : table_valid[2];
+    assign det_s3_data_mux_2 = det_s3_data[175] ? det_s3_data_mux_1 : det_s3_data_mux;
+    assign det_s3_data_mux_3 = det_s3_data[174] ? table_valid[5] : table_valid[4];
+    assign det_s3_data_mux_4 = det_s3_data[174] ? table_valid[7] : table_valid[6];
+    assign det_s3_data_mux_5 = det_s3_data[175] ? det_s3_data_mux_4 : det_s3_data_mux_3;
+    assign det_s3_data_mux_6 = det_s3_data[176] ? det_s3_data_mux_5 : det_s3_data_mux_2;
+    assign det_s3_data_mux_7 = det_s3_data[174] ? table_valid[9] : table_valid[8];
+    assign det_s3_data_mux_8 = det_s3_data[174] ? table_valid[11] : table_valid[10];
+    assign det_s3_data_mux_9 = det_s3_data[175] ? det_s3_data_mux_8 : det_s3_data_mux_7;
+    assign det_s3_data_mux_10 = det_s3_data[174] ? table_valid[13] : table_valid[12];
+    assign det_s3_data_mux_11 = det_s3_data[174] ? table_valid[15] : table_valid[14];
+    assign det_s3_data_mux_12 = det_s3_data[175] ? det_s3_data_mux_11 : det_s3_data_mux_10;
+    assign det_s3_data_mux_13 = det_s3_data[176] ? det_s3_data_mux_12 : det_s3_data_mux_9;
+    assign det_read_valid = det_s3_data[177] ? det_s3_data_mux_13 : det_s3_data_mux_6;
+    assign table_rd = table_[det_s3_data[177:174]];
     assign det_read_entry = det_read_valid ? table_rd : 56'd0;
-    assign det_ok_mux = det_ok ? det_s2_data[16:0] : 17'd0;
-    assign det_ok_mux_1 = det_ok ? det_s2_data[96:80] : 17'd0;
-    assign det_ok_mux_2 = det_ok ? det_s2_data[176:160] : 17'd0;
-    assign det_ok_mux_3 = det_ok ? x_residual : 32'd0;
-    assign det_ok_mux_4 = det_ok ? y_residual : 32'd0;
-    assign det_ok_mux_5 = det_ok ? z_residual : 32'd0;
-    assign det_read_entry_cat = {det_read_entry[55:39], det_read_entry[38:22], det_read_entry[21:5], det_read_entry[4:0], det_read_valid, 1'b0, det_written, 1'b0, det_s2_data_cat_12, det_s2_data_cat_11, det_s2_data_cat_10, det_s2_data_cat_9, det_s2_data_and_21, det_s2_data[356], det_ok_mux_5, det_ok_mux_4, det_ok_mux_3, det_ok_mux_2, det_ok_mux_1, det_ok_mux, det_ok};
+    assign det_s3_data_mux_14 = det_s3_data[0] ? det_s3_data[17:1] : 17'd0;
+    assign det_s3_data_mux_15 = det_s3_data[0] ? det_s3_data[34:18] : 17'd0;
+    assign det_s3_data_mux_16 = det_s3_data[0] ? det_s3_data[51:35] : 17'd0;
+    assign det_s3_data_mux_17 = det_s3_data[0] ? det_s3_data[83:52] : 32'd0;
+    assign det_s3_data_mux_18 = det_s3_data[0] ? det_s3_data[115:84] : 32'd0;
+    assign det_s3_data_mux_19 = det_s3_data[0] ? det_s3_data[147:116] : 32'd0;
+    assign det_read_entry_cat = {det_read_entry[55:39], det_read_entry[38:22], det_read_entry[21:5], det_read_entry[4:0], det_read_valid, det_s3_data[164], det_s3_data[163], det_s3_data[162], det_s3_data[161:159], det_s3_data[158:156], det_s3_data[155:153], det_s3_data[152:150], det_s3_data[149], det_s3_data[148], det_s3_data_mux_19, det_s3_data_mux_18, det_s3_data_mux_17, det_s3_data_mux_16, det_s3_data_mux_15, det_s3_data_mux_14, det_s3_data[0]};
     assign det_out_q_ready = det_out_ready;
     assign det_out_q_valid_not = ~det_out_q_valid;
     assign det_out_q_ready_or = det_out_q_ready | det_out_q_valid_not;
     assign det_out_q_spare_valid_not = ~det_out_q_spare_valid;
-    assign det_s2_valid_and_1 = det_s2_valid & det_out_q_spare_valid_not;
-    assign det_out_q_spare_valid_or = det_out_q_spare_valid | det_s2_valid;
+    assign det_s3_valid_and_1 = det_s3_valid & det_out_q_spare_valid_not;
+    assign det_out_q_spare_valid_or = det_out_q_spare_valid | det_s3_valid;
     assign det_out_q_spare_valid_mux = det_out_q_spare_valid ? det_out_q_spare_data : det_read_entry_cat;
-    assign det_out_q_spare_valid_or_1 = det_out_q_spare_valid | det_s2_valid_and_1;
+    assign det_out_q_spare_valid_or_1 = det_out_q_spare_valid | det_s3_valid_and_1;
     assign det_out_q_spare_valid_next = det_out_q_ready_or ? 1'b0 : det_out_q_spare_valid_or_1;
     assign det_out_q_ready_not = ~det_out_q_ready_or;
-    assign det_out_q_ready_and = det_out_q_ready_not & det_s2_valid_and_1;
-    assign det_s2_valid_and_2 = det_s2_valid & det_s2_ready;
-    assign det_s2_valid_and_3 = det_s2_valid_and_2 & det_written;
-    assign det_s2_data_cat_13 = {det_s2_data[176:160], det_s2_data[96:80], det_s2_data[16:0], det_s2_data[245:241]};
-    assign const_shl_1 = 16'd1 << det_s2_data[250:247];
-    assign table_valid_or = table_valid | const_shl_1;
+    assign det_out_q_ready_and = det_out_q_ready_not & det_s3_valid_and_1;
+    assign det_s3_valid_and_2 = det_s3_valid & det_s3_ready;
+    assign det_s3_valid_and_3 = det_s3_valid_and_2 & det_s3_data[163];
+    assign det_s3_data_cat = {det_s3_data[51:35], det_s3_data[34:18], det_s3_data[17:1], det_s3_data[169:165]};
+    assign const_shl_3 = 16'd1 << det_s3_data[173:170];
+    assign table_valid_or = table_valid | const_shl_3;
     assign det_out_valid = det_out_q_valid;
     assign det_out_data = det_out_q_data;
     assign det_out_q_valid_and = det_out_q_valid & det_out_q_ready;
@@ -768,61 +807,70 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     assign apply_s1_valid_not = ~apply_s1_valid;
     assign apply_s1_valid_or = apply_s1_valid_not | apply_s1_ready;
     assign apply_s1_valid_and = apply_s1_valid_or & apply_in_valid;
+    assign apply_high = 34'd17179869183 << apply_s1_data[5:1];
     assign apply_s1_data_shl = {{17{apply_s1_data[178]}}, apply_s1_data[178:162]} << apply_s1_data[161:157];
-    assign apply_sum_x = {18'd0, apply_s1_data[21:6]} + apply_s1_data_shl;
-    assign apply_sum_x_lt = $signed(apply_sum_x) < $signed(34'd0);
-    assign apply_sum_x_shr = apply_sum_x >> apply_s1_data[5:1];
-    assign apply_sum_x_ne = apply_sum_x_shr != 34'd0;
-    assign apply_sum_x_or = apply_sum_x_lt | apply_sum_x_ne;
     assign apply_s1_data_shl_1 = {{17{apply_s1_data[195]}}, apply_s1_data[195:179]} << apply_s1_data[161:157];
-    assign apply_sum_y = {18'd0, apply_s1_data[37:22]} + apply_s1_data_shl_1;
-    assign apply_sum_y_lt = $signed(apply_sum_y) < $signed(34'd0);
-    assign apply_sum_y_shr = apply_sum_y >> apply_s1_data[5:1];
-    assign apply_sum_y_ne = apply_sum_y_shr != 34'd0;
-    assign apply_sum_y_or = apply_sum_y_lt | apply_sum_y_ne;
     assign apply_s1_data_shl_2 = {{17{apply_s1_data[212]}}, apply_s1_data[212:196]} << apply_s1_data[161:157];
-    assign apply_sum_z = {18'd0, apply_s1_data[53:38]} + apply_s1_data_shl_2;
-    assign apply_sum_z_lt = $signed(apply_sum_z) < $signed(34'd0);
-    assign apply_sum_z_shr = apply_sum_z >> apply_s1_data[5:1];
-    assign apply_sum_z_ne = apply_sum_z_shr != 34'd0;
-    assign apply_sum_z_or = apply_sum_z_lt | apply_sum_z_ne;
-    assign apply_sum_z_cat = {apply_sum_z_or, apply_sum_z[15:0], apply_sum_y_or, apply_sum_y[15:0], apply_sum_x_or, apply_sum_x[15:0], apply_s1_data[156:154], apply_s1_data[153:150], apply_s1_data[149:0]};
-    assign apply_s2_ready = ~apply_out_q_spare_valid;
+    assign apply_s1_data_cat = {apply_s1_data_shl_2, apply_s1_data_shl_1, apply_s1_data_shl, apply_high, apply_s1_data[156:154], apply_s1_data[153:150], apply_s1_data[149:0]};
+    assign apply_s2_ready = apply_s3_valid_or;
     assign apply_s2_valid_not = ~apply_s2_valid;
     assign apply_s2_valid_or = apply_s2_valid_not | apply_s2_ready;
     assign apply_s2_valid_and = apply_s2_valid_or & apply_s1_valid;
-    assign apply_outside_x = apply_s2_data[173];
-    assign apply_outside_y = apply_s2_data[190];
-    assign apply_outside_z = apply_s2_data[207];
+    assign apply_sum_x = {18'd0, apply_s2_data[21:6]} + apply_s2_data[224:191];
+    assign apply_sum_x_lt = $signed(apply_sum_x) < $signed(34'd0);
+    assign apply_sum_x_and = apply_sum_x & apply_s2_data[190:157];
+    assign apply_sum_x_ne = apply_sum_x_and != 34'd0;
+    assign apply_sum_x_or = apply_sum_x_lt | apply_sum_x_ne;
+    assign apply_sum_y = {18'd0, apply_s2_data[37:22]} + apply_s2_data[258:225];
+    assign apply_sum_y_lt = $signed(apply_sum_y) < $signed(34'd0);
+    assign apply_sum_y_and = apply_sum_y & apply_s2_data[190:157];
+    assign apply_sum_y_ne = apply_sum_y_and != 34'd0;
+    assign apply_sum_y_or = apply_sum_y_lt | apply_sum_y_ne;
+    assign apply_sum_z = {18'd0, apply_s2_data[53:38]} + apply_s2_data[292:259];
+    assign apply_sum_z_lt = $signed(apply_sum_z) < $signed(34'd0);
+    assign apply_sum_z_and = apply_sum_z & apply_s2_data[190:157];
+    assign apply_sum_z_ne = apply_sum_z_and != 34'd0;
+    assign apply_sum_z_or = apply_sum_z_lt | apply_sum_z_ne;
+    assign apply_sum_z_cat = {apply_sum_z_or, apply_sum_z[15:0], apply_sum_y_or, apply_sum_y[15:0], apply_sum_x_or, apply_sum_x[15:0], apply_s2_data[156:154], apply_s2_data[153:150], apply_s2_data[149:0]};
+    assign apply_s3_ready = ~apply_out_q_spare_valid;
+    assign apply_s3_valid_not = ~apply_s3_valid;
+    assign apply_s3_valid_or = apply_s3_valid_not | apply_s3_ready;
+    assign apply_s3_valid_and = apply_s3_valid_or & apply_s2_valid;
+    assign apply_outside_x = apply_s3_data[173];
+    assign apply_outside_y = apply_s3_data[190];
+    assign apply_outside_z = apply_s3_data[207];
     assign apply_outside_z_mux = apply_outside_z ? 3'd7 : 3'd0;
     assign apply_outside_y_mux = apply_outside_y ? 3'd6 : apply_outside_z_mux;
     assign apply_outside_x_mux = apply_outside_x ? 3'd5 : apply_outside_y_mux;
-    assign apply_s2_data_ne = apply_s2_data[156:154] != 3'd0;
-    assign apply_code = apply_s2_data_ne ? apply_s2_data[156:154] : apply_outside_x_mux;
-    assign apply_s2_data_cat = {apply_s2_data[149:54], apply_s2_data[206:191], apply_s2_data[189:174], apply_s2_data[172:157], apply_s2_data[5:0]};
+    assign apply_s3_data_ne = apply_s3_data[156:154] != 3'd0;
+    assign apply_code = apply_s3_data_ne ? apply_s3_data[156:154] : apply_outside_x_mux;
+    assign apply_s3_data_cat = {apply_s3_data[149:54], apply_s3_data[206:191], apply_s3_data[189:174], apply_s3_data[172:157], apply_s3_data[5:0]};
     assign apply_code_eq = apply_code == 3'd0;
-    assign apply_code_mux = apply_code_eq ? apply_s2_data_cat : apply_s2_data[149:0];
-    assign apply_code_cat = {apply_code, apply_s2_data[153:150], apply_code_mux};
+    assign apply_code_mux = apply_code_eq ? apply_s3_data_cat : apply_s3_data[149:0];
+    assign apply_code_cat = {apply_code, apply_s3_data[153:150], apply_code_mux};
     assign apply_out_q_ready = apply_out_ready;
     assign apply_out_q_valid_not = ~apply_out_q_valid;
     assign apply_out_q_ready_or = apply_out_q_ready | apply_out_q_valid_not;
     assign apply_out_q_spare_valid_not = ~apply_out_q_spare_valid;
-    assign apply_s2_valid_and_1 = apply_s2_valid & apply_out_q_spare_valid_not;
-    assign apply_out_q_spare_valid_or = apply_out_q_spare_valid | apply_s2_valid;
+    assign apply_s3_valid_and_1 = apply_s3_valid & apply_out_q_spare_valid_not;
+    assign apply_out_q_spare_valid_or = apply_out_q_spare_valid | apply_s3_valid;
     assign apply_out_q_spare_valid_mux = apply_out_q_spare_valid ? apply_out_q_spare_data : apply_code_cat;
-    assign apply_out_q_spare_valid_or_1 = apply_out_q_spare_valid | apply_s2_valid_and_1;
+    assign apply_out_q_spare_valid_or_1 = apply_out_q_spare_valid | apply_s3_valid_and_1;
     assign apply_out_q_spare_valid_next = apply_out_q_ready_or ? 1'b0 : apply_out_q_spare_valid_or_1;
     assign apply_out_q_ready_not = ~apply_out_q_ready_or;
-    assign apply_out_q_ready_and = apply_out_q_ready_not & apply_s2_valid_and_1;
+    assign apply_out_q_ready_and = apply_out_q_ready_not & apply_s3_valid_and_1;
     assign apply_out_q_data_ne = apply_out_q_data[156:154] != 3'd0;
     assign apply_out_valid = apply_out_q_valid;
     assign apply_out_data = apply_out_q_data;
     assign apply_out_q_valid_and = apply_out_q_valid & apply_out_q_ready;
-    assign det_s1_valid_or_1 = det_s1_valid | det_s2_valid;
-    assign det_s1_valid_or_2 = det_s1_valid_or_1 | det_out_q_valid;
-    assign det_s1_valid_or_3 = det_s1_valid_or_2 | apply_s1_valid;
-    assign det_s1_valid_or_4 = det_s1_valid_or_3 | apply_s2_valid;
-    assign was_busy_next = det_s1_valid_or_4 | apply_out_q_valid;
+    assign det_s1_valid_or_1 = det_s1_valid | det_align_valid;
+    assign det_s1_valid_or_2 = det_s1_valid_or_1 | det_s2_valid;
+    assign det_s1_valid_or_3 = det_s1_valid_or_2 | det_s3_valid;
+    assign det_s1_valid_or_4 = det_s1_valid_or_3 | det_out_q_valid;
+    assign det_s1_valid_or_5 = det_s1_valid_or_4 | apply_s1_valid;
+    assign det_s1_valid_or_6 = det_s1_valid_or_5 | apply_s2_valid;
+    assign det_s1_valid_or_7 = det_s1_valid_or_6 | apply_s3_valid;
+    assign was_busy_next = det_s1_valid_or_7 | apply_out_q_valid;
     assign idle_now = ~was_busy_next;
     assign idle = idle_now;
     assign done = idle_now & was_busy;
@@ -837,9 +885,13 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
         if (rst) begin
             table_valid <= 16'd0;
             det_s1_valid <= 1'b0;
-            det_s1_data <= 312'h000000000000000000000000000000000000000000000000000000000000000000000000000000;
+            det_s1_data <= 324'h000000000000000000000000000000000000000000000000000000000000000000000000000000000;
+            det_align_valid <= 1'b0;
+            det_align_data <= 432'h000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000;
             det_s2_valid <= 1'b0;
-            det_s2_data <= 357'h000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000;
+            det_s2_data <= 369'h000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000;
+            det_s3_valid <= 1'b0;
+            det_s3_data <= 178'h000000000000000000000000000000000000000000000;
             det_out_q_valid <= 1'b0;
             det_out_q_data <= 222'h00000000000000000000000000000000000000000000000000000000;
             det_out_q_spare_valid <= 1'b0;
@@ -847,7 +899,9 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
             apply_s1_valid <= 1'b0;
             apply_s1_data <= 213'h000000000000000000000000000000000000000000000000000000;
             apply_s2_valid <= 1'b0;
-            apply_s2_data <= 208'h0000000000000000000000000000000000000000000000000000;
+            apply_s2_data <= 293'h00000000000000000000000000000000000000000000000000000000000000000000000000;
+            apply_s3_valid <= 1'b0;
+            apply_s3_data <= 208'h0000000000000000000000000000000000000000000000000000;
             apply_out_q_valid <= 1'b0;
             apply_out_q_data <= 157'h0000000000000000000000000000000000000000;
             apply_out_q_spare_valid <= 1'b0;
@@ -856,48 +910,66 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
             det_error_seen_q <= 1'b0;
             apply_error_seen_q <= 1'b0;
         end else begin
-            if (det_s2_valid_and_3) begin
+            if (det_s3_valid_and_3) begin
                 table_valid <= table_valid_or; // rtl-gen/src/translate/table.rs:109
             end
             if (det_s1_valid_or) begin
-                det_s1_valid <= det_in_valid; // rtl-gen/src/translate/bundle.rs:83
+                det_s1_valid <= det_in_valid; // rtl-gen/src/translate/bundle.rs:88
             end
             if (det_s1_valid_and) begin
-                det_s1_data <= k_cat;        // rtl-gen/src/translate/bundle.rs:83
+                det_s1_data <= k_cat;        // rtl-gen/src/translate/bundle.rs:88
+            end
+            if (det_align_valid_or) begin
+                det_align_valid <= det_s1_valid; // rtl-gen/src/translate/bundle.rs:88
+            end
+            if (det_align_valid_and) begin
+                det_align_data <= det_s1_data_cat; // rtl-gen/src/translate/bundle.rs:88
             end
             if (det_s2_valid_or) begin
-                det_s2_valid <= det_s1_valid; // rtl-gen/src/translate/bundle.rs:83
+                det_s2_valid <= det_align_valid; // rtl-gen/src/translate/bundle.rs:88
             end
             if (det_s2_valid_and) begin
-                det_s2_data <= det_s1_data_cat; // rtl-gen/src/translate/bundle.rs:83
+                det_s2_data <= det_align_data_cat; // rtl-gen/src/translate/bundle.rs:88
+            end
+            if (det_s3_valid_or) begin
+                det_s3_valid <= det_s2_valid; // rtl-gen/src/translate/bundle.rs:88
+            end
+            if (det_s3_valid_and) begin
+                det_s3_data <= det_s2_data_cat_13; // rtl-gen/src/translate/bundle.rs:88
             end
             if (det_out_q_ready_or) begin
-                det_out_q_valid <= det_out_q_spare_valid_or; // rtl-gen/src/translate/bundle.rs:100
-                det_out_q_data <= det_out_q_spare_valid_mux; // rtl-gen/src/translate/bundle.rs:100
+                det_out_q_valid <= det_out_q_spare_valid_or; // rtl-gen/src/translate/bundle.rs:105
+                det_out_q_data <= det_out_q_spare_valid_mux; // rtl-gen/src/translate/bundle.rs:105
             end
             det_out_q_spare_valid <= det_out_q_spare_valid_next;
             if (det_out_q_ready_and) begin
-                det_out_q_spare_data <= det_read_entry_cat; // rtl-gen/src/translate/bundle.rs:100
+                det_out_q_spare_data <= det_read_entry_cat; // rtl-gen/src/translate/bundle.rs:105
             end
             if (apply_s1_valid_or) begin
-                apply_s1_valid <= apply_in_valid; // rtl-gen/src/translate/bundle.rs:83
+                apply_s1_valid <= apply_in_valid; // rtl-gen/src/translate/bundle.rs:88
             end
             if (apply_s1_valid_and) begin
-                apply_s1_data <= apply_read_entry_cat; // rtl-gen/src/translate/bundle.rs:83
+                apply_s1_data <= apply_read_entry_cat; // rtl-gen/src/translate/bundle.rs:88
             end
             if (apply_s2_valid_or) begin
-                apply_s2_valid <= apply_s1_valid; // rtl-gen/src/translate/bundle.rs:83
+                apply_s2_valid <= apply_s1_valid; // rtl-gen/src/translate/bundle.rs:88
             end
             if (apply_s2_valid_and) begin
-                apply_s2_data <= apply_sum_z_cat; // rtl-gen/src/translate/bundle.rs:83
+                apply_s2_data <= apply_s1_data_cat; // rtl-gen/src/translate/bundle.rs:88
+            end
+            if (apply_s3_valid_or) begin
+                apply_s3_valid <= apply_s2_valid; // rtl-gen/src/translate/bundle.rs:88
+            end
+            if (apply_s3_valid_and) begin
+                apply_s3_data <= apply_sum_z_cat; // rtl-gen/src/translate/bundle.rs:88
             end
             if (apply_out_q_ready_or) begin
-                apply_out_q_valid <= apply_out_q_spare_valid_or; // rtl-gen/src/translate/bundle.rs:100
-                apply_out_q_data <= apply_out_q_spare_valid_mux; // rtl-gen/src/translate/bundle.rs:100
+                apply_out_q_valid <= apply_out_q_spare_valid_or; // rtl-gen/src/translate/bundle.rs:105
+                apply_out_q_data <= apply_out_q_spare_valid_mux; // rtl-gen/src/translate/bundle.rs:105
             end
             apply_out_q_spare_valid <= apply_out_q_spare_valid_next;
             if (apply_out_q_ready_and) begin
-                apply_out_q_spare_data <= apply_code_cat; // rtl-gen/src/translate/bundle.rs:100
+                apply_out_q_spare_data <= apply_code_cat; // rtl-gen/src/translate/bundle.rs:105
             end
             was_busy <= was_busy_next;
             det_error_seen_q <= det_error_seen_next;
@@ -907,8 +979,8 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
 
     // memory table_: 16 x 56 bits
     always @(posedge clk) begin
-        if (det_s2_valid_and_3) begin
-            table_[det_s2_data[250:247]] <= det_s2_data_cat_13;
+        if (det_s3_valid_and_3) begin
+            table_[det_s3_data[173:170]] <= det_s3_data_cat;
         end
     end
 endmodule

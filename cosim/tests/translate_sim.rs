@@ -99,6 +99,6 @@ fn one_record_per_clock_without_back_pressure() {
             o.cycles,
             (nd + na) as f64 / o.cycles as f64
         );
-        assert_eq!(o.cycles, (nd + 3) + (na + 3), "{}", d.tag());
+        assert_eq!(o.cycles, (nd + 5) + (na + 4), "{}", d.tag());
     }
 }

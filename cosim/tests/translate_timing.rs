@@ -1,5 +1,5 @@
 //! The timing of the translation unit's interfaces (SPEC.md 7.9), in the
-//! IR simulator: latency 3 (determine) and 3 (apply) cycles, one transfer
+//! IR simulator: latency 5 (determine) and 4 (apply) cycles, one transfer
 //! per clock, capacity under back-pressure, the table write visible to the
 //! next transaction, `idle`/`done`, and the sticky error bits. Prints the
 //! waveforms the SPEC's diagrams show (`-- --nocapture`).
@@ -85,12 +85,25 @@ fn show(rows: &[(bool, bool, bool, Option<usize>)], ready: &[bool]) {
 }
 
 #[test]
-fn determine_latency_is_three_cycles_one_per_clock() {
-    let ready = vec![true; 7];
+fn determine_latency_is_five_cycles_one_per_clock() {
+    let ready = vec![true; 9];
     let rows = run_det(&ready, 3);
     show(&rows, &ready);
     let outs: Vec<Option<usize>> = rows.iter().map(|r| r.3).collect();
-    assert_eq!(outs, [None, None, None, Some(0), Some(1), Some(2), None]);
+    assert_eq!(
+        outs,
+        [
+            None,
+            None,
+            None,
+            None,
+            None,
+            Some(0),
+            Some(1),
+            Some(2),
+            None
+        ]
+    );
     assert!(
         rows.iter().all(|r| r.1),
         "ready stays high without back-pressure"
@@ -98,20 +111,20 @@ fn determine_latency_is_three_cycles_one_per_clock() {
 }
 
 #[test]
-fn determine_back_pressure_holds_four_and_loses_nothing() {
-    let mut ready = vec![true; 3];
+fn determine_back_pressure_holds_six_and_loses_nothing() {
+    let mut ready = vec![true; 5];
     ready.extend([false; 4]);
     ready.extend([true; 8]);
-    let rows = run_det(&ready, 8);
+    let rows = run_det(&ready, 11);
     show(&rows, &ready);
-    // Accepted while the output stalls: two pipeline registers, the output
-    // register and the skid's spare hold four transactions in all.
+    // Accepted while the output stalls: four pipeline registers, the
+    // output register and the skid's spare hold six transactions in all.
     let accepted = |from: usize, to: usize| (from..to).filter(|&i| rows[i].0 && rows[i].1).count();
-    assert_eq!(accepted(0, 4), 4);
-    // The output stalls in cycles 3..=6; `ready` is registered in the skid
+    assert_eq!(accepted(0, 6), 6);
+    // The output stalls in cycles 5..=8; `ready` is registered in the skid
     // buffer, so input resumes the cycle after the output moves again.
-    assert_eq!(accepted(4, 8), 0);
-    assert_eq!(accepted(8, 12), 4);
+    assert_eq!(accepted(6, 10), 0);
+    assert_eq!(accepted(10, 14), 4);
     let shown: Vec<usize> = rows
         .iter()
         .zip(&ready)
@@ -126,7 +139,7 @@ fn determine_back_pressure_holds_four_and_loses_nothing() {
 }
 
 #[test]
-fn apply_latency_is_three_cycles_and_status_follows() {
+fn apply_latency_is_four_cycles_and_status_follows() {
     let d = TranslateDesign::default();
     let all = generate(&d, 5, 4_000).unwrap();
     let apps: Vec<_> = all
@@ -141,7 +154,7 @@ fn apply_latency_is_three_cycles_and_status_follows() {
     sim.reset();
     sim.poke("apply_out_ready", 1u64).unwrap();
     let mut trace = Vec::new();
-    for c in 0..8 {
+    for c in 0..9 {
         let valid = c < 3;
         sim.poke("apply_in_valid", valid as u64).unwrap();
         sim.poke(
@@ -160,9 +173,9 @@ fn apply_latency_is_three_cycles_and_status_follows() {
     }
     println!("apply_out_valid/idle/done/apply_error_seen per cycle: {trace:?}");
     let out_valid: Vec<u64> = trace.iter().map(|t| t.0).collect();
-    assert_eq!(out_valid, [0, 0, 0, 1, 1, 1, 0, 0]);
+    assert_eq!(out_valid, [0, 0, 0, 0, 1, 1, 1, 0, 0]);
     let idle: Vec<u64> = trace.iter().map(|t| t.1).collect();
-    assert_eq!(idle, [1, 0, 0, 0, 0, 0, 1, 1]);
+    assert_eq!(idle, [1, 0, 0, 0, 0, 0, 0, 1, 1]);
     let done: Vec<u64> = trace.iter().map(|t| t.2).collect();
-    assert_eq!(done, [0, 0, 0, 0, 0, 0, 1, 0]);
+    assert_eq!(done, [0, 0, 0, 0, 0, 0, 0, 1, 0]);
 }

@@ -212,7 +212,7 @@ pub fn translate_unit() -> Proof {
     let m = crate::translate::translate_unit(&TranslateDesign::default());
     let mut p = Proof::new(m, &["det_in", "apply_in"], &["det_out", "apply_out"], 4);
     // The most inside each path holds (a bound one lower fails).
-    for (path, capacity) in [("det", 4), ("apply", 4)] {
+    for (path, capacity) in [("det", 6), ("apply", 5)] {
         p = p.flow(Flow::Counted {
             name: format!("{path}_answered"),
             input: fire(&format!("{path}_in")),

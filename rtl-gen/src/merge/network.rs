@@ -40,82 +40,122 @@ pub fn morton_code<'m>(m: &'m Module, xyz: [Signal<'m>; 3]) -> Signal<'m> {
 }
 
 /// One input of a merge network as the shared choice sees it: its head
-/// (skid-buffered) stream, the registers holding the voxel of the last node
-/// taken from it, that head's voxel, and whether taking it is a node (which
-/// moves the parent voxel a later child reference keys on).
+/// (skid-buffered) stream of `{key, beat}` and the key's width.
+///
+/// The key is made as a beat enters its head and held in the skid buffer
+/// beside it, and the minimum compares every pair of heads at once (one
+/// comparator deep, not a tournament): the key logic and a second round of
+/// comparators in the clock that takes a head were the network's critical
+/// path (docs/hardware.md 14.7). An input's beats enter in the order they
+/// leave, so the last node to enter before a child reference is the last
+/// node taken before it.
 pub(super) struct MergeHead<'m> {
     /// The skid-buffered head; its `ready` is driven by [`take_minimum_head`].
     pub stream: Stream<'m>,
-    /// The voxel of the last node taken from this input.
-    pub parent: [Signal<'m>; 3],
-    /// The head record's voxel.
-    pub xyz: [Signal<'m>; 3],
-    /// High when the head is a node (not `End`, not a child reference).
-    pub takes_node: Signal<'m>,
+    /// Bits of the key above the beat.
+    pub key_bits: u32,
+}
+
+impl<'m> MergeHead<'m> {
+    /// Input `in{i}` of `width`-bit beats, each entering its skid buffer
+    /// with `key(beat, voxel of the last node that entered)`; `node(beat)`
+    /// says whether the beat is a node with the voxel `xyz(beat)`.
+    pub(super) fn new(
+        m: &'m Module,
+        i: usize,
+        width: u32,
+        key: impl FnOnce(Signal<'m>, [Signal<'m>; 3]) -> Signal<'m>,
+        node: impl FnOnce(Signal<'m>) -> Signal<'m>,
+        xyz: impl FnOnce(Signal<'m>) -> [Signal<'m>; 3],
+    ) -> MergeHead<'m> {
+        let input = Stream::input(m, &format!("in{i}"), width);
+        let xyz = xyz(input.data);
+        let parent: [Signal; 3] = [0, 1, 2].map(|a| {
+            m.reg(
+                &format!("in{i}_parent_{}", ["x", "y", "z"][a]),
+                xyz[a].width(),
+            )
+        });
+        let key = key(input.data, parent).name(&format!("in{i}_key"));
+        let entered_node = input.valid & input.ready & node(input.data);
+        let key_bits = key.width();
+        let stream = input
+            .map(|d| key.concat(d))
+            .skid_buffer(&format!("in{i}_head"));
+        for a in 0..3 {
+            parent[a].next_when(entered_node, xyz[a]);
+        }
+        MergeHead { stream, key_bits }
+    }
+
+    /// The head's beat.
+    pub(super) fn beat(&self) -> Signal<'m> {
+        let w = self.stream.data.width() - self.key_bits;
+        self.stream.data.slice(w - 1, 0)
+    }
+
+    /// The head's key.
+    pub(super) fn key(&self) -> Signal<'m> {
+        let w = self.stream.data.width();
+        self.stream.data.slice(w - 1, w - self.key_bits)
+    }
 }
 
 /// The choice shared by both merge networks: with every head present, the
-/// head of least `key` (the lower rank on a tie) leaves when `out_ready`;
-/// when all are `End` all leave together. Returns the winner's rank and its
-/// head's data; drives every head's `ready` and updates the parent voxels.
+/// head of least key (the lower rank on a tie) leaves when `out_ready`;
+/// when all are `End` all leave together. Returns the winner (one bit per
+/// head) and its head's beat; drives every head's `ready`.
 pub(super) fn take_minimum_head<'m>(
     m: &'m Module,
     heads: &[MergeHead<'m>],
-    keys: &[Signal<'m>],
     all_valid: Signal<'m>,
     all_end: Signal<'m>,
     out_ready: Signal<'m>,
-) -> (Signal<'m>, Signal<'m>) {
+) -> (Vec<Signal<'m>>, Signal<'m>) {
     let k = heads.len();
-    let rb = rank_bits(k);
-    // A tournament of pairwise minima over (key, rank); on equal keys the
-    // lower rank (the left one) wins. The final round needs only the rank.
-    let mut round: Vec<(Signal, Signal)> = keys
-        .iter()
-        .enumerate()
-        .map(|(i, key)| (*key, m.lit(i as u128, rb)))
-        .collect();
-    let mut depth = 0;
-    while round.len() > 1 {
-        let last_round = round.len() == 2;
-        round = round
-            .chunks(2)
-            .enumerate()
-            .map(|(j, pair)| match pair {
-                [(ka, ra), (kb, rb_)] => {
-                    let take_b = kb.lt(*ka).name(&format!("take_r{depth}_{j}"));
-                    let key = if last_round {
-                        *ka
-                    } else {
-                        take_b.mux(*kb, *ka).name(&format!("min_r{depth}_{j}"))
-                    };
-                    (key, take_b.mux(*rb_, *ra))
-                }
-                [one] => *one,
-                _ => unreachable!("chunks of two"),
-            })
-            .collect();
-        depth += 1;
-    }
-    let winner = round[0].1.name("winner_rank");
-    let winner_end = all_end.name("winner_is_end");
-
-    let mut options: Vec<Signal> = heads.iter().map(|h| h.stream.data).collect();
-    while options.len() < 1usize << rb {
-        options.push(heads[k - 1].stream.data);
-    }
-    let beat = winner.select(&options).name("winner_beat");
-    let fire = (all_valid & out_ready).name("net_fire");
-    for (i, head) in heads.iter().enumerate() {
-        let chosen = winner.eq(m.lit(i as u128, rb));
-        // Every head is End when the winner is: all leave together.
-        head.stream.ready.drive(fire & (winner_end | chosen));
-        let took_node = fire & chosen & !winner_end & head.takes_node;
-        for a in 0..3 {
-            head.parent[a].next_when(took_node, head.xyz[a]);
+    let keys: Vec<Signal> = heads.iter().map(MergeHead::key).collect();
+    // Head i wins when it is below every later head and not above any
+    // earlier one (the lower rank wins a tie): one comparator per pair.
+    let mut wins = vec![m.lit(1, 1); k];
+    for i in 0..k {
+        for j in i + 1..k {
+            let j_below = keys[j].lt(keys[i]).name(&format!("below_{j}_{i}"));
+            wins[i] = wins[i] & !j_below;
+            wins[j] = wins[j] & j_below;
         }
     }
-    (winner, beat)
+    let wins: Vec<Signal> = wins
+        .iter()
+        .enumerate()
+        .map(|(i, w)| w.name(&format!("wins_{i}")))
+        .collect();
+    let winner_end = all_end.name("winner_is_end");
+    let width = heads[0].beat().width();
+    let beat = heads
+        .iter()
+        .zip(&wins)
+        .fold(m.lit(0, width), |acc, (h, w)| {
+            acc | w.mux(h.beat(), m.lit(0, width))
+        })
+        .name("winner_beat");
+    let fire = (all_valid & out_ready).name("net_fire");
+    for (head, win) in heads.iter().zip(&wins) {
+        // Every head is End when the winner is: all leave together.
+        head.stream.ready.drive(fire & (winner_end | *win));
+    }
+    (wins, beat)
+}
+
+/// The rank of the one head whose bit of `wins` is set.
+pub(super) fn winner_rank<'m>(m: &'m Module, wins: &[Signal<'m>]) -> Signal<'m> {
+    let rank_bit = |b: u32| {
+        (0..wins.len())
+            .filter(|i| i >> b & 1 == 1)
+            .map(|i| wins[i])
+            .fold(m.lit(0, 1), |acc, w| acc | w)
+    };
+    let high_first: Vec<Signal> = (0..rank_bits(wins.len())).rev().map(rank_bit).collect();
+    m.concat(&high_first).name("winner_rank")
 }
 
 /// The merge network for `p` and `k >= 2` inputs: streams `in0`..`in{k-1}`
@@ -128,46 +168,40 @@ pub fn morton_merge_unit(p: &Params, k: usize, tag_rank: bool) -> Module {
 
     let out_ready = m.wire("net_out_ready", 1);
     let mut heads = Vec::with_capacity(k);
-    let mut keys = Vec::with_capacity(k);
     let mut all_valid = m.lit(1, 1);
     let mut all_end = m.lit(1, 1);
+    let kind_of = |d| field(d, &l.kind).expect("kind bits");
     for i in 0..k {
-        let head =
-            Stream::input(&m, &format!("in{i}"), l.width).skid_buffer(&format!("in{i}_head"));
-        let kind = field(head.data, &l.kind)
-            .expect("kind bits")
-            .name(&format!("in{i}_kind"));
-        let is_end = kind.eq(level_kind::END).name(&format!("in{i}_is_end"));
-        let is_ref = kind.eq(level_kind::CHILD_REF);
-        let xyz = coords(field(head.data, &l.rec).expect("record bits"), nl);
-        let last: [Signal; 3] = [0, 1, 2].map(|a| {
-            m.reg(
-                &format!("in{i}_parent_{}", ["x", "y", "z"][a]),
-                xyz[a].width(),
-            )
-        });
-        let key_xyz = [0, 1, 2].map(|a| is_ref.mux(last[a], xyz[a]));
-        let key = m
-            .concat(&[is_end, morton_code(&m, key_xyz), kind])
-            .name(&format!("in{i}_key"));
-        all_valid = all_valid & head.valid;
+        let head = MergeHead::new(
+            &m,
+            i,
+            l.width,
+            |d, parent| {
+                let kind = kind_of(d).name(&format!("in{i}_kind"));
+                let is_end = kind.eq(level_kind::END);
+                let is_ref = kind.eq(level_kind::CHILD_REF);
+                let xyz = coords(field(d, &l.rec).expect("record bits"), nl);
+                let key_xyz = [0, 1, 2].map(|a| is_ref.mux(parent[a], xyz[a]));
+                m.concat(&[is_end, morton_code(&m, key_xyz), kind])
+            },
+            |d| !kind_of(d).bit(1),
+            |d| coords(field(d, &l.rec).expect("record bits"), nl),
+        );
+        let is_end = head
+            .key()
+            .bit(head.key_bits - 1)
+            .name(&format!("in{i}_is_end"));
+        all_valid = all_valid & head.stream.valid;
         all_end = all_end & is_end;
-        let takes_node = !kind.bit(1);
-        heads.push(MergeHead {
-            stream: head,
-            parent: last,
-            xyz,
-            takes_node,
-        });
-        keys.push(key);
+        heads.push(head);
     }
     let all_valid = all_valid.name("all_heads");
-    let (winner, beat) = take_minimum_head(&m, &heads, &keys, all_valid, all_end, out_ready);
+    let (wins, beat) = take_minimum_head(&m, &heads, all_valid, all_end, out_ready);
     Stream {
         valid: all_valid,
         ready: out_ready,
         data: if tag_rank {
-            m.concat(&[winner, beat]).name("net_beat")
+            m.concat(&[winner_rank(&m, &wins), beat]).name("net_beat")
         } else {
             beat
         },

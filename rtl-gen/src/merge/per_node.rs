@@ -22,7 +22,7 @@ use golden::merge::unit::{base_kind, level_kind, rank_bits, BeatLayout};
 use golden::params::Params;
 
 use super::fields::{coords, field, with_fields};
-use super::network::{morton_code, take_minimum_head, MergeHead};
+use super::network::{morton_code, take_minimum_head, winner_rank, MergeHead};
 use super::overlap::times_constant;
 use super::top::merge_module_name;
 use super::{merge_level_unit, MergeConfig};
@@ -47,7 +47,8 @@ pub fn per_node_decider_name(p: &Params, k: usize, num: u32, den: u32) -> String
 /// lies in its parent's voxel), a child reference's the last node taken
 /// from its stream; so a voxel's probes (rank by rank), inner nodes, leaves
 /// and references leave in that order. Like [`super::morton_merge_unit`], a
-/// beat leaves only when every head is present, one per clock.
+/// beat leaves only when every head is present, one per clock, and the key
+/// is made as a beat enters its head.
 pub fn per_node_network_unit(p: &Params, k: usize) -> Module {
     let m = Module::new(&per_node_network_name(p, k));
     let pl = PerNodeLayout::new(p);
@@ -55,54 +56,58 @@ pub fn per_node_network_unit(p: &Params, k: usize) -> Module {
 
     let out_ready = m.wire("net_out_ready", 1);
     let mut heads = Vec::with_capacity(k);
-    let mut keys = Vec::with_capacity(k);
     let mut all_valid = m.lit(1, 1);
     let mut all_end = m.lit(1, 1);
     for i in 0..k {
-        let head =
-            Stream::input(&m, &format!("in{i}"), pl.in_width).skid_buffer(&format!("in{i}_head"));
-        let beat = head.data.slice(bl.width - 1, 0);
-        let probe = field(head.data, &pl.probe)
-            .expect("probe bit")
-            .name(&format!("in{i}_probe"));
-        let kind = field(beat, &bl.kind)
-            .expect("kind bits")
-            .name(&format!("in{i}_kind"));
-        let is_end = (!probe & kind.eq(level_kind::END)).name(&format!("in{i}_is_end"));
-        let is_ref = !probe & kind.eq(level_kind::CHILD_REF);
-        let xyz = coords(field(beat, &bl.rec).expect("record bits"), &bl.node);
-        let last: [Signal; 3] = [0, 1, 2].map(|a| {
-            m.reg(
-                &format!("in{i}_parent_{}", ["x", "y", "z"][a]),
-                xyz[a].width(),
-            )
-        });
-        let key_xyz = [0, 1, 2].map(|a| probe.mux(xyz[a].srl(1), is_ref.mux(last[a], xyz[a])));
-        let phase = probe.mux(m.lit(0, 2), kind.add(1, 2));
-        let key = m
-            .concat(&[is_end, morton_code(&m, key_xyz), phase])
-            .name(&format!("in{i}_key"));
-        all_valid = all_valid & head.valid;
+        let head = MergeHead::new(
+            &m,
+            i,
+            pl.in_width,
+            |d, parent| {
+                let probe = field(d, &pl.probe)
+                    .expect("probe bit")
+                    .name(&format!("in{i}_probe"));
+                let kind = beat_kind(d, bl).name(&format!("in{i}_kind"));
+                let is_end = !probe & kind.eq(level_kind::END);
+                let is_ref = !probe & kind.eq(level_kind::CHILD_REF);
+                let xyz = beat_xyz(d, bl);
+                let key_xyz =
+                    [0, 1, 2].map(|a| probe.mux(xyz[a].srl(1), is_ref.mux(parent[a], xyz[a])));
+                let phase = probe.mux(m.lit(0, 2), kind.add(1, 2));
+                m.concat(&[is_end, morton_code(&m, key_xyz), phase])
+            },
+            |d| !field(d, &pl.probe).expect("probe bit") & !beat_kind(d, bl).bit(1),
+            |d| beat_xyz(d, bl),
+        );
+        let is_end = head
+            .key()
+            .bit(head.key_bits - 1)
+            .name(&format!("in{i}_is_end"));
+        all_valid = all_valid & head.stream.valid;
         all_end = all_end & is_end;
-        let takes_node = !probe & !kind.bit(1);
-        heads.push(MergeHead {
-            stream: head,
-            parent: last,
-            xyz,
-            takes_node,
-        });
-        keys.push(key);
+        heads.push(head);
     }
     let all_valid = all_valid.name("all_heads");
-    let (winner, beat) = take_minimum_head(&m, &heads, &keys, all_valid, all_end, out_ready);
+    let (wins, beat) = take_minimum_head(&m, &heads, all_valid, all_end, out_ready);
     Stream {
         valid: all_valid,
         ready: out_ready,
-        data: m.concat(&[winner, beat]).name("net_beat"),
+        data: m.concat(&[winner_rank(&m, &wins), beat]).name("net_beat"),
     }
     .skid_buffer("out_skid")
     .output("out");
     m
+}
+
+/// The kind of the beat in a head's `{probe, beat}`.
+fn beat_kind<'m>(d: Signal<'m>, bl: &BeatLayout) -> Signal<'m> {
+    field(d.slice(bl.width - 1, 0), &bl.kind).expect("kind bits")
+}
+
+/// The voxel of the record in a head's `{probe, beat}`.
+fn beat_xyz<'m>(d: Signal<'m>, bl: &BeatLayout) -> [Signal<'m>; 3] {
+    let beat = d.slice(bl.width - 1, 0);
+    coords(field(beat, &bl.rec).expect("record bits"), &bl.node)
 }
 
 /// The number of set bits of an 8-bit mask, [`CHILD_COUNT_BITS`] wide.

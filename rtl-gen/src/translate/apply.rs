@@ -1,11 +1,11 @@
 //! The apply path (SPEC.md 7.6, 7.9): node records in, moved records out,
 //! one per clock. Step 1 reads the table entry of the record's hierarchy
-//! and checks id, entry, node and level; step 2 moves each coordinate by
-//! shift-and-add, `x' = x + (t << (d - L))`, and checks `0 <= x' < 2^d`;
-//! step 3 picks the code and the record. A record with a nonzero code
-//! leaves unchanged, with the code: nothing is dropped. Steps 2 and 3 are
-//! apart because the shift, the add and the select in one clock were the
-//! unit's critical path (docs/hardware.md 14.7).
+//! and checks id, entry, node and level; step 2 shifts each translation,
+//! `t << (d - L)`; step 3 adds it, `x' = x + (t << (d - L))`, and checks
+//! `0 <= x' < 2^d`; step 4 picks the code and the record. A record with a
+//! nonzero code leaves unchanged, with the code: nothing is dropped. The
+//! shift, the add and the select each have a step because any two of them
+//! in one clock were the unit's critical path (docs/hardware.md 14.7).
 
 use golden::layout::NodeLayout;
 use golden::vectors::translate::{ApplyCode, TranslateDesign};
@@ -65,42 +65,56 @@ pub(crate) fn apply_path<'m>(
     }
     let (st1, b1) = s1.pipeline_reg(input.valid, input.ready, "apply_s1");
 
-    // Step 2: shift-and-add per axis, range check, final code.
+    // Step 2: the shifted translations, and the bits of a sum at or above
+    // the record's level (`x' >> d != 0` is a nonzero masked sum).
     let record = b1.get("record");
     let lod = node_field(record, nl.lod());
     let shift = b1.get("shift");
     let sum_bits = 2 * dmax + 2;
-    let mut moved = Vec::new();
-    let mut outside = Vec::new();
-    for a in 0..3 {
-        let x = node_field(record, nl.coord(a));
-        let t = b1.get(&format!("t{a}")).as_signed();
-        let offset = t.sext(sum_bits) << shift;
-        let sum = x
-            .add(offset, sum_bits)
-            .name(&format!("apply_sum_{}", ["x", "y", "z"][a]));
-        outside.push(sum.as_signed().lt(0) | sum.srl(lod).ne(0));
-        moved.push(sum.slice(dmax - 1, 0));
-    }
     let mut s2 = Bundle::new();
     s2.put("record", record);
     s2.put("hier", b1.get("hier"));
     s2.put("code", b1.get("code"));
+    let ones = m.lit((1u128 << sum_bits) - 1, sum_bits);
+    s2.put("high", (ones << lod).name("apply_high"));
     for a in 0..3 {
-        s2.put(&format!("moved{a}"), moved[a]);
-        s2.put(&format!("outside{a}"), outside[a]);
+        let t = b1.get(&format!("t{a}")).as_signed();
+        s2.put(&format!("offset{a}"), t.sext(sum_bits) << shift);
     }
     let (st2, b2) = s2.pipeline_reg(st1.valid, st1.ready, "apply_s2");
 
-    // Step 3: the final code and the record that leaves.
+    // Step 3: add per axis, range check.
     let record = b2.get("record");
+    let high = b2.get("high");
+    let mut moved = Vec::new();
+    let mut outside = Vec::new();
+    for a in 0..3 {
+        let x = node_field(record, nl.coord(a));
+        let sum = x
+            .add(b2.get(&format!("offset{a}")), sum_bits)
+            .name(&format!("apply_sum_{}", ["x", "y", "z"][a]));
+        outside.push(sum.as_signed().lt(0) | (sum & high).ne(0));
+        moved.push(sum.slice(dmax - 1, 0));
+    }
+    let mut s3 = Bundle::new();
+    s3.put("record", record);
+    s3.put("hier", b2.get("hier"));
+    s3.put("code", b2.get("code"));
+    for a in 0..3 {
+        s3.put(&format!("moved{a}"), moved[a]);
+        s3.put(&format!("outside{a}"), outside[a]);
+    }
+    let (st3, b3) = s3.pipeline_reg(st2.valid, st2.ready, "apply_s3");
+
+    // Step 4: the final code and the record that leaves.
+    let record = b3.get("record");
     let axis = ["x", "y", "z"];
-    let moved = [0, 1, 2].map(|a| b2.get(&format!("moved{a}")));
+    let moved = [0, 1, 2].map(|a| b3.get(&format!("moved{a}")));
     let outside = [0, 1, 2].map(|a| {
-        b2.get(&format!("outside{a}"))
+        b3.get(&format!("outside{a}"))
             .name(&format!("apply_outside_{}", axis[a]))
     });
-    let early = b2.get("code");
+    let early = b3.get("code");
     let late = outside[0].mux(
         code(ApplyCode::OutsideX),
         outside[1].mux(
@@ -120,16 +134,16 @@ pub(crate) fn apply_path<'m>(
     let out_record = final_code.eq(0).mux(moved_record, record);
     let mut out = Bundle::new();
     out.put("record", out_record);
-    out.put("hier", b2.get("hier"));
+    out.put("hier", b3.get("hier"));
     out.put("code", final_code);
     debug_assert_eq!(out.width(), apply_out_layout(d).width());
-    let (st3, b3) = out.skid_buffer(st2.valid, st2.ready, "apply_out_q");
-    let error = b3.get("code").ne(0);
-    let valid = st3.valid;
-    st3.output("apply_out");
+    let (st4, b4) = out.skid_buffer(st3.valid, st3.ready, "apply_out_q");
+    let error = b4.get("code").ne(0);
+    let valid = st4.valid;
+    st4.output("apply_out");
     (
-        vec![st1.valid, st2.valid, st3.valid],
-        valid & st3.ready,
+        vec![st1.valid, st2.valid, st3.valid, st4.valid],
+        valid & st4.ready,
         error,
     )
 }

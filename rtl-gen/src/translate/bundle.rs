@@ -30,6 +30,11 @@ impl<'m> Bundle<'m> {
             .unwrap_or_else(|| panic!("bundle has no signal `{name}`"))
     }
 
+    /// The names, in insertion order.
+    pub(crate) fn names(&self) -> Vec<String> {
+        self.parts.iter().map(|(n, _)| n.clone()).collect()
+    }
+
     /// Total width of the parts.
     pub(crate) fn width(&self) -> u32 {
         self.parts.iter().map(|(_, s)| s.width()).sum()

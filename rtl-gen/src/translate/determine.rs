@@ -1,18 +1,22 @@
 //! The determine path (SPEC.md 7.2-7.5, 7.9): a stream of placement
 //! transactions in, a stream of results out, the table written on the way.
 //!
-//! Three steps, one pipeline register after each, the last a skid buffer:
+//! Five steps, one pipeline register after each, the last a skid buffer:
 //! 1. unpack the encodings; level, `k = D - L`, extents validity;
-//! 2. align, round half to even, field range;
-//! 3. residual normalization, extents rule, flags; read entry `read_id`
-//!    and, on the edge the result leaves, write entry `write_id`. Reading
-//!    in the same step as the write, before it, is golden's read-first
-//!    order, and transactions reach this step in order.
+//! 2. align (`m << a`);
+//! 3. round half to even, field range;
+//! 4. residual normalization, extents rule, flags, `ok` and `written`;
+//! 5. read entry `read_id` and, on the edge the result leaves, write entry
+//!    `write_id`. Reading in the same step as the write, before it, is
+//!    golden's read-first order, and transactions reach this step in
+//!    order. The alignment, the rounding, the extents rule and the table's
+//!    write enable each have a step: any two in one clock were the unit's
+//!    critical path (docs/hardware.md 14.7).
 
 use golden::vectors::translate::TranslateDesign;
 
 use super::bundle::Bundle;
-use super::float::{pack_residual, round, unpack, FloatPath};
+use super::float::{align, pack_residual, round, unpack, FloatPath};
 use super::ports::{det_in_layout, det_out_layout, PortLayout};
 use super::table::Table;
 use crate::{Module, Signal, Stream};
@@ -69,8 +73,14 @@ pub(crate) fn determine_path<'m>(
             get(&format!("extents_hi_{a}")),
         );
         bad_extents.push(lo.gt(hi) | hi.srl(lod).ne(0));
-        s1.put(&format!("lo_{a}"), lo);
-        s1.put(&format!("hi_{a}"), hi);
+        // The extents rule's bounds on t, so that step 4 compares without
+        // adding: `lo + t < 0` is `t < -lo`, `hi + t >= 2^L` is
+        // `t >= 2^L - hi` (signed D + 2 bits hold every operand; past D,
+        // `err_lod` masks the rule).
+        let wide = dmax + 2;
+        let limit = m.lit(1, wide) << lod;
+        s1.put(&format!("t_min_{a}"), m.lit(0, wide).sub(lo, wide));
+        s1.put(&format!("t_max_{a}"), limit.sub(hi, wide));
     }
     let err_extents = bad_extents[0] | bad_extents[1] | bad_extents[2];
     s1.put("err_extents", err_extents);
@@ -87,9 +97,21 @@ pub(crate) fn determine_path<'m>(
     let (st1, b1) = s1.pipeline_reg(input.valid, input.ready, "det_s1");
 
     // Step 2.
+    let mut sa = Bundle::new();
+    for a in AXES {
+        align(&fp, &b1, &format!("{a}_"), &mut sa);
+    }
+    for n in b1.names() {
+        if !AXES.iter().any(|a| n.starts_with(&format!("{a}_"))) {
+            sa.put(&n, b1.get(&n));
+        }
+    }
+    let (sta, ba) = sa.pipeline_reg(st1.valid, st1.ready, "det_align");
+
+    // Step 3.
     let mut s2 = Bundle::new();
     for a in AXES {
-        round(&fp, &b1, &format!("{a}_"), &mut s2);
+        round(&fp, &ba, &format!("{a}_"), &mut s2);
     }
     let mut common = vec![
         "err_extents",
@@ -99,7 +121,9 @@ pub(crate) fn determine_path<'m>(
         "read_id",
         "k",
     ];
-    for a in ["lo_x", "lo_y", "lo_z", "hi_x", "hi_y", "hi_z"] {
+    for a in [
+        "t_min_x", "t_min_y", "t_min_z", "t_max_x", "t_max_y", "t_max_z",
+    ] {
         common.push(a);
     }
     if err_lod.is_some() {
@@ -109,12 +133,11 @@ pub(crate) fn determine_path<'m>(
         common.push("format");
     }
     for n in common {
-        s2.put(n, b1.get(n));
+        s2.put(n, ba.get(n));
     }
-    let (st2, b2) = s2.pipeline_reg(st1.valid, st1.ready, "det_s2");
+    let (st2, b2) = s2.pipeline_reg(sta.valid, sta.ready, "det_s2");
 
-    // Step 3.
-    let lod = b2.get("lod");
+    // Step 4.
     let k = b2.get("k");
     let format = format.map(|_| b2.get("format"));
     let err_lod = err_lod.map(|_| b2.get("err_lod"));
@@ -125,16 +148,14 @@ pub(crate) fn determine_path<'m>(
         Some(l) => l & s,
         None => s,
     };
-    let limit = m.lit(1, dmax + 2) << lod;
     let mut axes = Vec::new();
     let (mut nan, mut inf, mut range, mut wide, mut outside) =
         (vec![], vec![], vec![], vec![], vec![]);
     for a in AXES {
         let r = pack_residual(&fp, &b2, format, k, &format!("{a}_"));
-        let lo = b2.get(&format!("lo_{a}"));
-        let hi = b2.get(&format!("hi_{a}"));
-        let low = lo.add(r.t, dmax + 2).as_signed().lt(0);
-        let high = hi.add(r.t, dmax + 2).as_signed().ge(limit.as_signed());
+        let t = r.t.sext(dmax + 2);
+        let low = t.lt(b2.get(&format!("t_min_{a}")).as_signed());
+        let high = t.ge(b2.get(&format!("t_max_{a}")).as_signed());
         let fault = match r.wide {
             Some(w) => w | r.nan | r.inf | r.range,
             None => r.nan | r.inf | r.range,
@@ -171,32 +192,49 @@ pub(crate) fn determine_path<'m>(
     };
     let written = (we & ok & !err_write_id).name("det_written");
     let err_read_id = table.id_out_of_range(read_id).unwrap_or(zero);
-    let entry = table.read(read_id, "det_read");
 
-    let mut out = Bundle::new();
-    out.put("ok", ok);
+    // Step 4's register holds the output payload but the entry read in
+    // step 5 (with `t` and the residual not yet zeroed when not `ok`), then
+    // what step 5 writes.
+    let mut s3 = Bundle::new();
+    s3.put("ok", ok);
     for (a, r) in AXES.iter().zip(&axes) {
-        out.put(
-            &format!("t_{a}"),
-            ok.mux(r.t.as_unsigned(), m.lit(0, r.t.width())),
-        );
+        s3.put(&format!("t_{a}"), r.t.as_unsigned());
     }
     for (a, r) in AXES.iter().zip(&axes) {
-        let w = r.residual.width();
-        out.put(&format!("residual_{a}"), ok.mux(r.residual, m.lit(0, w)));
+        s3.put(&format!("residual_{a}"), r.residual);
     }
-    out.put("err_lod", err_lod.unwrap_or(zero));
-    out.put("err_extents", err_extents);
+    s3.put("err_lod", err_lod.unwrap_or(zero));
+    s3.put("err_extents", err_extents);
     if let Some(w) = wide {
-        out.put("err_width", w);
+        s3.put("err_width", w);
     }
-    out.put("err_nan", nan);
-    out.put("err_inf", inf);
-    out.put("err_range", range);
-    out.put("err_outside", outside);
-    out.put("err_write_id", err_write_id);
-    out.put("written", written);
-    out.put("err_read_id", err_read_id);
+    s3.put("err_nan", nan);
+    s3.put("err_inf", inf);
+    s3.put("err_range", range);
+    s3.put("err_outside", outside);
+    s3.put("err_write_id", err_write_id);
+    s3.put("written", written);
+    s3.put("err_read_id", err_read_id);
+    let payload = s3.names();
+    for n in ["lod", "write_id", "read_id"] {
+        s3.put(n, b2.get(n));
+    }
+    let (st3, b3) = s3.pipeline_reg(st2.valid, st2.ready, "det_s3");
+
+    // Step 5.
+    let read_id = b3.get("read_id");
+    let entry = table.read(read_id, "det_read");
+    let ok = b3.get("ok");
+    let mut out = Bundle::new();
+    for n in &payload {
+        let v = b3.get(n);
+        if n.starts_with("t_") || n.starts_with("residual_") {
+            out.put(n, ok.mux(v, m.lit(0, v.width())));
+        } else {
+            out.put(n, v);
+        }
+    }
     out.put("read_valid", entry.valid);
     out.put("read_lod", entry.lod);
     for (a, t) in AXES.iter().zip(entry.t) {
@@ -204,13 +242,18 @@ pub(crate) fn determine_path<'m>(
     }
     // The bundle is built in the payload's field order (ports.rs).
     debug_assert_eq!(out.width(), det_out_layout(d).width());
-    let (st3, _) = out.skid_buffer(st2.valid, st2.ready, "det_out_q");
-    // The entry is written on the edge the result leaves step 3.
-    let t = [axes[0].t, axes[1].t, axes[2].t];
-    table.write(write_id, lod, t, st2.fire() & written);
-    let out_fire_valid = st3.valid;
-    let ok_out = st3.data.bit(0);
-    st3.output("det_out");
-    let out_fire = out_fire_valid & st3.ready;
-    (vec![st1.valid, st2.valid, st3.valid], out_fire, !ok_out)
+    let (st4, _) = out.skid_buffer(st3.valid, st3.ready, "det_out_q");
+    // The entry is written on the edge the result leaves step 5.
+    let t = AXES.map(|a| b3.get(&format!("t_{a}")).as_signed());
+    let written = b3.get("written");
+    table.write(b3.get("write_id"), b3.get("lod"), t, st3.fire() & written);
+    let out_fire_valid = st4.valid;
+    let ok_out = st4.data.bit(0);
+    st4.output("det_out");
+    let out_fire = out_fire_valid & st4.ready;
+    (
+        vec![st1.valid, sta.valid, st2.valid, st3.valid, st4.valid],
+        out_fire,
+        !ok_out,
+    )
 }

@@ -140,16 +140,34 @@ pub(crate) fn unpack<'m>(
     out.put(&format!("{pre}enc"), enc);
 }
 
-/// Step 2. Reads `s, m, a` of `inp`, puts `t` (signed `D+1`), `too_large`,
-/// `r` (`P+1` bits), `r_sign`, `t_zero`, `m_nz`, and passes `enc`, `nan`,
-/// `inf`, `wide` on.
-pub(crate) fn round<'m>(fp: &FloatPath, inp: &Bundle<'m>, pre: &str, out: &mut Bundle<'m>) {
+/// Step 2. Reads `s, m, a` of `inp`, puts `aligned` (`m << a`), `m_nz`,
+/// and passes `s`, `enc`, `nan`, `inf`, `wide` on.
+pub(crate) fn align<'m>(fp: &FloatPath, inp: &Bundle<'m>, pre: &str, out: &mut Bundle<'m>) {
     let get = |n: &str| inp.get(&format!("{pre}{n}"));
-    let (s, sig, a) = (get("s"), get("m"), get("a"));
-    let m = s.module();
+    let (sig, a) = (get("m"), get("a"));
     let p = fp.precision();
     let d = fp.max_lod;
     let v = (sig.zext(2 * p + 1 + d) << a.as_unsigned()).name(&format!("{pre}aligned"));
+    let put = |out: &mut Bundle<'m>, n: &str, v: Signal<'m>| out.put(&format!("{pre}{n}"), v);
+    put(out, "aligned", v);
+    put(out, "m_nz", sig.ne(0));
+    for n in ["s", "enc", "nan", "inf"] {
+        put(out, n, get(n));
+    }
+    if fp.binary64 {
+        put(out, "wide", get("wide"));
+    }
+}
+
+/// Step 3. Reads `s, aligned` of `inp`, puts `t` (signed `D+1`),
+/// `too_large`, `r` (`P+1` bits), `r_sign`, `t_zero`, and passes `m_nz`,
+/// `enc`, `nan`, `inf`, `wide` on.
+pub(crate) fn round<'m>(fp: &FloatPath, inp: &Bundle<'m>, pre: &str, out: &mut Bundle<'m>) {
+    let get = |n: &str| inp.get(&format!("{pre}{n}"));
+    let (s, v) = (get("s"), get("aligned"));
+    let m = s.module();
+    let p = fp.precision();
+    let d = fp.max_lod;
     let int = v.slice(2 * p + d, p + 1);
     let frac = v.slice(p, 0);
     let round_bit = frac.bit(p);
@@ -167,8 +185,7 @@ pub(crate) fn round<'m>(fp: &FloatPath, inp: &Bundle<'m>, pre: &str, out: &mut B
     put(out, "r", r.name(&format!("{pre}r")));
     put(out, "r_sign", s ^ inc);
     put(out, "t_zero", mag.eq(0));
-    put(out, "m_nz", sig.ne(0));
-    for n in ["enc", "nan", "inf"] {
+    for n in ["m_nz", "enc", "nan", "inf"] {
         put(out, n, get(n));
     }
     if fp.binary64 {
@@ -197,7 +214,7 @@ fn normalize<'m>(r: Signal<'m>) -> (Signal<'m>, Signal<'m>) {
     (norm, m.concat(&clz_bits))
 }
 
-/// Step 3's result for one axis: the signed translation, the fault bits
+/// Step 4's result for one axis: the signed translation, the fault bits
 /// (exclusive: a wide encoding is not decoded, a special is not rounded)
 /// and the residual encoding (`placement_bits` wide).
 pub(crate) struct AxisResult<'m> {
@@ -209,7 +226,7 @@ pub(crate) struct AxisResult<'m> {
     pub residual: Signal<'m>,
 }
 
-/// Step 3. Reads step 2's outputs (prefix `pre`) and `k`.
+/// Step 4. Reads step 3's outputs (prefix `pre`) and `k`.
 pub(crate) fn pack_residual<'m>(
     fp: &FloatPath,
     inp: &Bundle<'m>,

@@ -17,9 +17,9 @@ module morton_merge_d16_q8_i24_h4_k4_ranked (
     input  wire in3_valid,        // rtl-gen/src/merge/network.rs:71
     input  wire [179:0] in3_data, // rtl-gen/src/merge/network.rs:71
     output wire in3_ready,        // rtl-gen/src/merge/network.rs:71
-    output wire out_valid,        // rtl-gen/src/merge/network.rs:207
-    output wire [181:0] out_data, // rtl-gen/src/merge/network.rs:207
-    input  wire out_ready         // rtl-gen/src/merge/network.rs:207
+    output wire out_valid,        // rtl-gen/src/merge/network.rs:210
+    output wire [181:0] out_data, // rtl-gen/src/merge/network.rs:210
+    input  wire out_ready         // rtl-gen/src/merge/network.rs:210
 );
     wire net_out_ready;                      // rtl-gen/src/merge/network.rs:169
     reg [15:0] in0_parent_x;                 // rtl-gen/src/merge/network.rs:74
@@ -52,9 +52,9 @@ module morton_merge_d16_q8_i24_h4_k4_ranked (
     wire in0_head_spare_valid_next;          // rtl-gen/src/merge/network.rs:84
     wire in0_head_ready_not;                 // rtl-gen/src/merge/network.rs:84
     wire in0_head_ready_and;                 // rtl-gen/src/merge/network.rs:84
-    wire in0_is_end;                         // rtl-gen/src/merge/network.rs:190
-    wire in0_head_valid_and;                 // rtl-gen/src/merge/network.rs:191
-    wire in0_is_end_and;                     // rtl-gen/src/merge/network.rs:192
+    wire in0_is_end;                         // rtl-gen/src/merge/network.rs:192
+    wire in0_head_valid_and;                 // rtl-gen/src/merge/network.rs:194
+    wire in0_is_end_and;                     // rtl-gen/src/merge/network.rs:195
     reg [15:0] in1_parent_x;                 // rtl-gen/src/merge/network.rs:74
     reg [15:0] in1_parent_y;                 // rtl-gen/src/merge/network.rs:74
     reg [15:0] in1_parent_z;                 // rtl-gen/src/merge/network.rs:74
@@ -85,9 +85,9 @@ module morton_merge_d16_q8_i24_h4_k4_ranked (
     wire in1_head_spare_valid_next;          // rtl-gen/src/merge/network.rs:84
     wire in1_head_ready_not;                 // rtl-gen/src/merge/network.rs:84
     wire in1_head_ready_and;                 // rtl-gen/src/merge/network.rs:84
-    wire in1_is_end;                         // rtl-gen/src/merge/network.rs:190
-    wire in0_head_valid_and_1;               // rtl-gen/src/merge/network.rs:191
-    wire in0_is_end_and_1;                   // rtl-gen/src/merge/network.rs:192
+    wire in1_is_end;                         // rtl-gen/src/merge/network.rs:192
+    wire in0_head_valid_and_1;               // rtl-gen/src/merge/network.rs:194
+    wire in0_is_end_and_1;                   // rtl-gen/src/merge/network.rs:195
     reg [15:0] in2_parent_x;                 // rtl-gen/src/merge/network.rs:74
     reg [15:0] in2_parent_y;                 // rtl-gen/src/merge/network.rs:74
     reg [15:0] in2_parent_z;                 // rtl-gen/src/merge/network.rs:74
@@ -118,9 +118,9 @@ module morton_merge_d16_q8_i24_h4_k4_ranked (
     wire in2_head_spare_valid_next;          // rtl-gen/src/merge/network.rs:84
     wire in2_head_ready_not;                 // rtl-gen/src/merge/network.rs:84
     wire in2_head_ready_and;                 // rtl-gen/src/merge/network.rs:84
-    wire in2_is_end;                         // rtl-gen/src/merge/network.rs:190
-    wire in0_head_valid_and_2;               // rtl-gen/src/merge/network.rs:191
-    wire in0_is_end_and_2;                   // rtl-gen/src/merge/network.rs:192
+    wire in2_is_end;                         // rtl-gen/src/merge/network.rs:192
+    wire in0_head_valid_and_2;               // rtl-gen/src/merge/network.rs:194
+    wire in0_is_end_and_2;                   // rtl-gen/src/merge/network.rs:195
     reg [15:0] in3_parent_x;                 // rtl-gen/src/merge/network.rs:74
     reg [15:0] in3_parent_y;                 // rtl-gen/src/merge/network.rs:74
     reg [15:0] in3_parent_z;                 // rtl-gen/src/merge/network.rs:74
@@ -151,9 +151,9 @@ module morton_merge_d16_q8_i24_h4_k4_ranked (
     wire in3_head_spare_valid_next;          // rtl-gen/src/merge/network.rs:84
     wire in3_head_ready_not;                 // rtl-gen/src/merge/network.rs:84
     wire in3_head_ready_and;                 // rtl-gen/src/merge/network.rs:84
-    wire in3_is_end;                         // rtl-gen/src/merge/network.rs:190
-    wire all_heads;                          // rtl-gen/src/merge/network.rs:191
-    wire winner_is_end;                      // rtl-gen/src/merge/network.rs:192
+    wire in3_is_end;                         // rtl-gen/src/merge/network.rs:192
+    wire all_heads;                          // rtl-gen/src/merge/network.rs:194
+    wire winner_is_end;                      // rtl-gen/src/merge/network.rs:195
     wire below_1_0;                          // rtl-gen/src/merge/network.rs:122
     wire below_1_0_not;                      // rtl-gen/src/merge/network.rs:123
     wire below_1_0_and;                      // rtl-gen/src/merge/network.rs:123
@@ -196,22 +196,22 @@ module morton_merge_d16_q8_i24_h4_k4_ranked (
     wire wins_1_or;                          // rtl-gen/src/merge/network.rs:155
     wire wins_1_or_1;                        // rtl-gen/src/merge/network.rs:155
     wire [1:0] winner_rank;                  // rtl-gen/src/merge/network.rs:158
-    wire [181:0] net_beat;                   // rtl-gen/src/merge/network.rs:201
-    reg out_skid_valid;                      // rtl-gen/src/merge/network.rs:206
-    reg [181:0] out_skid_data;               // rtl-gen/src/merge/network.rs:206
-    reg out_skid_spare_valid;                // rtl-gen/src/merge/network.rs:206
-    reg [181:0] out_skid_spare_data;         // rtl-gen/src/merge/network.rs:206
-    wire out_skid_ready;                     // rtl-gen/src/merge/network.rs:206
-    wire out_skid_valid_not;                 // rtl-gen/src/merge/network.rs:206
-    wire out_skid_ready_or;                  // rtl-gen/src/merge/network.rs:206
-    wire out_skid_spare_valid_not;           // rtl-gen/src/merge/network.rs:206
-    wire all_heads_and;                      // rtl-gen/src/merge/network.rs:206
-    wire out_skid_spare_valid_or;            // rtl-gen/src/merge/network.rs:206
-    wire [181:0] out_skid_spare_valid_mux;   // rtl-gen/src/merge/network.rs:206
-    wire out_skid_spare_valid_or_1;          // rtl-gen/src/merge/network.rs:206
-    wire out_skid_spare_valid_next;          // rtl-gen/src/merge/network.rs:206
-    wire out_skid_ready_not;                 // rtl-gen/src/merge/network.rs:206
-    wire out_skid_ready_and;                 // rtl-gen/src/merge/network.rs:206
+    wire [181:0] net_beat;                   // rtl-gen/src/merge/network.rs:204
+    reg out_skid_valid;                      // rtl-gen/src/merge/network.rs:209
+    reg [181:0] out_skid_data;               // rtl-gen/src/merge/network.rs:209
+    reg out_skid_spare_valid;                // rtl-gen/src/merge/network.rs:209
+    reg [181:0] out_skid_spare_data;         // rtl-gen/src/merge/network.rs:209
+    wire out_skid_ready;                     // rtl-gen/src/merge/network.rs:209
+    wire out_skid_valid_not;                 // rtl-gen/src/merge/network.rs:209
+    wire out_skid_ready_or;                  // rtl-gen/src/merge/network.rs:209
+    wire out_skid_spare_valid_not;           // rtl-gen/src/merge/network.rs:209
+    wire all_heads_and;                      // rtl-gen/src/merge/network.rs:209
+    wire out_skid_spare_valid_or;            // rtl-gen/src/merge/network.rs:209
+    wire [181:0] out_skid_spare_valid_mux;   // rtl-gen/src/merge/network.rs:209
+    wire out_skid_spare_valid_or_1;          // rtl-gen/src/merge/network.rs:209
+    wire out_skid_spare_valid_next;          // rtl-gen/src/merge/network.rs:209
+    wire out_skid_ready_not;                 // rtl-gen/src/merge/network.rs:209
+    wire out_skid_ready_and;                 // rtl-gen/src/merge/network.rs:209
 
     assign net_out_ready = ~out_skid_spare_valid;
     assign in0_ready = ~in0_head_spare_valid;
@@ -467,12 +467,12 @@ module morton_merge_d16_q8_i24_h4_k4_ranked (
                 in3_head_spare_data <= in3_key_cat; // rtl-gen/src/merge/network.rs:84
             end
             if (out_skid_ready_or) begin
-                out_skid_valid <= out_skid_spare_valid_or; // rtl-gen/src/merge/network.rs:206
-                out_skid_data <= out_skid_spare_valid_mux; // rtl-gen/src/merge/network.rs:206
+                out_skid_valid <= out_skid_spare_valid_or; // rtl-gen/src/merge/network.rs:209
+                out_skid_data <= out_skid_spare_valid_mux; // rtl-gen/src/merge/network.rs:209
             end
             out_skid_spare_valid <= out_skid_spare_valid_next;
             if (out_skid_ready_and) begin
-                out_skid_spare_data <= net_beat; // rtl-gen/src/merge/network.rs:206
+                out_skid_spare_data <= net_beat; // rtl-gen/src/merge/network.rs:209
             end
         end
     end

@@ -17,9 +17,9 @@ module per_node_network_d16_q8_i24_h4_k4 (
     input  wire in3_valid,        // rtl-gen/src/merge/network.rs:71
     input  wire [180:0] in3_data, // rtl-gen/src/merge/network.rs:71
     output wire in3_ready,        // rtl-gen/src/merge/network.rs:71
-    output wire out_valid,        // rtl-gen/src/merge/per_node.rs:95
-    output wire [182:0] out_data, // rtl-gen/src/merge/per_node.rs:95
-    input  wire out_ready         // rtl-gen/src/merge/per_node.rs:95
+    output wire out_valid,        // rtl-gen/src/merge/per_node.rs:98
+    output wire [182:0] out_data, // rtl-gen/src/merge/per_node.rs:98
+    input  wire out_ready         // rtl-gen/src/merge/per_node.rs:98
 );
     wire net_out_ready;                      // rtl-gen/src/merge/per_node.rs:57
     reg [15:0] in0_parent_x;                 // rtl-gen/src/merge/network.rs:74
@@ -67,9 +67,9 @@ module per_node_network_d16_q8_i24_h4_k4 (
     wire in0_head_spare_valid_next;          // rtl-gen/src/merge/network.rs:84
     wire in0_head_ready_not;                 // rtl-gen/src/merge/network.rs:84
     wire in0_head_ready_and;                 // rtl-gen/src/merge/network.rs:84
-    wire in0_is_end;                         // rtl-gen/src/merge/per_node.rs:82
-    wire in0_head_valid_and;                 // rtl-gen/src/merge/per_node.rs:83
-    wire in0_is_end_and;                     // rtl-gen/src/merge/per_node.rs:84
+    wire in0_is_end;                         // rtl-gen/src/merge/per_node.rs:84
+    wire in0_head_valid_and;                 // rtl-gen/src/merge/per_node.rs:86
+    wire in0_is_end_and;                     // rtl-gen/src/merge/per_node.rs:87
     reg [15:0] in1_parent_x;                 // rtl-gen/src/merge/network.rs:74
     reg [15:0] in1_parent_y;                 // rtl-gen/src/merge/network.rs:74
     reg [15:0] in1_parent_z;                 // rtl-gen/src/merge/network.rs:74
@@ -115,9 +115,9 @@ module per_node_network_d16_q8_i24_h4_k4 (
     wire in1_head_spare_valid_next;          // rtl-gen/src/merge/network.rs:84
     wire in1_head_ready_not;                 // rtl-gen/src/merge/network.rs:84
     wire in1_head_ready_and;                 // rtl-gen/src/merge/network.rs:84
-    wire in1_is_end;                         // rtl-gen/src/merge/per_node.rs:82
-    wire in0_head_valid_and_1;               // rtl-gen/src/merge/per_node.rs:83
-    wire in0_is_end_and_1;                   // rtl-gen/src/merge/per_node.rs:84
+    wire in1_is_end;                         // rtl-gen/src/merge/per_node.rs:84
+    wire in0_head_valid_and_1;               // rtl-gen/src/merge/per_node.rs:86
+    wire in0_is_end_and_1;                   // rtl-gen/src/merge/per_node.rs:87
     reg [15:0] in2_parent_x;                 // rtl-gen/src/merge/network.rs:74
     reg [15:0] in2_parent_y;                 // rtl-gen/src/merge/network.rs:74
     reg [15:0] in2_parent_z;                 // rtl-gen/src/merge/network.rs:74
@@ -163,9 +163,9 @@ module per_node_network_d16_q8_i24_h4_k4 (
     wire in2_head_spare_valid_next;          // rtl-gen/src/merge/network.rs:84
     wire in2_head_ready_not;                 // rtl-gen/src/merge/network.rs:84
     wire in2_head_ready_and;                 // rtl-gen/src/merge/network.rs:84
-    wire in2_is_end;                         // rtl-gen/src/merge/per_node.rs:82
-    wire in0_head_valid_and_2;               // rtl-gen/src/merge/per_node.rs:83
-    wire in0_is_end_and_2;                   // rtl-gen/src/merge/per_node.rs:84
+    wire in2_is_end;                         // rtl-gen/src/merge/per_node.rs:84
+    wire in0_head_valid_and_2;               // rtl-gen/src/merge/per_node.rs:86
+    wire in0_is_end_and_2;                   // rtl-gen/src/merge/per_node.rs:87
     reg [15:0] in3_parent_x;                 // rtl-gen/src/merge/network.rs:74
     reg [15:0] in3_parent_y;                 // rtl-gen/src/merge/network.rs:74
     reg [15:0] in3_parent_z;                 // rtl-gen/src/merge/network.rs:74
@@ -211,9 +211,9 @@ module per_node_network_d16_q8_i24_h4_k4 (
     wire in3_head_spare_valid_next;          // rtl-gen/src/merge/network.rs:84
     wire in3_head_ready_not;                 // rtl-gen/src/merge/network.rs:84
     wire in3_head_ready_and;                 // rtl-gen/src/merge/network.rs:84
-    wire in3_is_end;                         // rtl-gen/src/merge/per_node.rs:82
-    wire all_heads;                          // rtl-gen/src/merge/per_node.rs:83
-    wire winner_is_end;                      // rtl-gen/src/merge/per_node.rs:84
+    wire in3_is_end;                         // rtl-gen/src/merge/per_node.rs:84
+    wire all_heads;                          // rtl-gen/src/merge/per_node.rs:86
+    wire winner_is_end;                      // rtl-gen/src/merge/per_node.rs:87
     wire below_1_0;                          // rtl-gen/src/merge/network.rs:122
     wire below_1_0_not;                      // rtl-gen/src/merge/network.rs:123
     wire below_1_0_and;                      // rtl-gen/src/merge/network.rs:123
@@ -256,22 +256,22 @@ module per_node_network_d16_q8_i24_h4_k4 (
     wire wins_1_or;                          // rtl-gen/src/merge/network.rs:155
     wire wins_1_or_1;                        // rtl-gen/src/merge/network.rs:155
     wire [1:0] winner_rank;                  // rtl-gen/src/merge/network.rs:158
-    wire [182:0] net_beat;                   // rtl-gen/src/merge/per_node.rs:92
-    reg out_skid_valid;                      // rtl-gen/src/merge/per_node.rs:94
-    reg [182:0] out_skid_data;               // rtl-gen/src/merge/per_node.rs:94
-    reg out_skid_spare_valid;                // rtl-gen/src/merge/per_node.rs:94
-    reg [182:0] out_skid_spare_data;         // rtl-gen/src/merge/per_node.rs:94
-    wire out_skid_ready;                     // rtl-gen/src/merge/per_node.rs:94
-    wire out_skid_valid_not;                 // rtl-gen/src/merge/per_node.rs:94
-    wire out_skid_ready_or;                  // rtl-gen/src/merge/per_node.rs:94
-    wire out_skid_spare_valid_not;           // rtl-gen/src/merge/per_node.rs:94
-    wire all_heads_and;                      // rtl-gen/src/merge/per_node.rs:94
-    wire out_skid_spare_valid_or;            // rtl-gen/src/merge/per_node.rs:94
-    wire [182:0] out_skid_spare_valid_mux;   // rtl-gen/src/merge/per_node.rs:94
-    wire out_skid_spare_valid_or_1;          // rtl-gen/src/merge/per_node.rs:94
-    wire out_skid_spare_valid_next;          // rtl-gen/src/merge/per_node.rs:94
-    wire out_skid_ready_not;                 // rtl-gen/src/merge/per_node.rs:94
-    wire out_skid_ready_and;                 // rtl-gen/src/merge/per_node.rs:94
+    wire [182:0] net_beat;                   // rtl-gen/src/merge/per_node.rs:95
+    reg out_skid_valid;                      // rtl-gen/src/merge/per_node.rs:97
+    reg [182:0] out_skid_data;               // rtl-gen/src/merge/per_node.rs:97
+    reg out_skid_spare_valid;                // rtl-gen/src/merge/per_node.rs:97
+    reg [182:0] out_skid_spare_data;         // rtl-gen/src/merge/per_node.rs:97
+    wire out_skid_ready;                     // rtl-gen/src/merge/per_node.rs:97
+    wire out_skid_valid_not;                 // rtl-gen/src/merge/per_node.rs:97
+    wire out_skid_ready_or;                  // rtl-gen/src/merge/per_node.rs:97
+    wire out_skid_spare_valid_not;           // rtl-gen/src/merge/per_node.rs:97
+    wire all_heads_and;                      // rtl-gen/src/merge/per_node.rs:97
+    wire out_skid_spare_valid_or;            // rtl-gen/src/merge/per_node.rs:97
+    wire [182:0] out_skid_spare_valid_mux;   // rtl-gen/src/merge/per_node.rs:97
+    wire out_skid_spare_valid_or_1;          // rtl-gen/src/merge/per_node.rs:97
+    wire out_skid_spare_valid_next;          // rtl-gen/src/merge/per_node.rs:97
+    wire out_skid_ready_not;                 // rtl-gen/src/merge/per_node.rs:97
+    wire out_skid_ready_and;                 // rtl-gen/src/merge/per_node.rs:97
 
     assign net_out_ready = ~out_skid_spare_valid;
     assign in0_ready = ~in0_head_spare_valid;
@@ -587,12 +587,12 @@ module per_node_network_d16_q8_i24_h4_k4 (
                 in3_head_spare_data <= in3_key_cat; // rtl-gen/src/merge/network.rs:84
             end
             if (out_skid_ready_or) begin
-                out_skid_valid <= out_skid_spare_valid_or; // rtl-gen/src/merge/per_node.rs:94
-                out_skid_data <= out_skid_spare_valid_mux; // rtl-gen/src/merge/per_node.rs:94
+                out_skid_valid <= out_skid_spare_valid_or; // rtl-gen/src/merge/per_node.rs:97
+                out_skid_data <= out_skid_spare_valid_mux; // rtl-gen/src/merge/per_node.rs:97
             end
             out_skid_spare_valid <= out_skid_spare_valid_next;
             if (out_skid_ready_and) begin
-                out_skid_spare_data <= net_beat; // rtl-gen/src/merge/per_node.rs:94
+                out_skid_spare_data <= net_beat; // rtl-gen/src/merge/per_node.rs:97
             end
         end
     end

@@ -8,9 +8,9 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     input  wire det_in_valid,           // rtl-gen/src/translate/determine.rs:50
     input  wire [205:0] det_in_data,    // rtl-gen/src/translate/determine.rs:50
     output wire det_in_ready,           // rtl-gen/src/translate/determine.rs:50
-    output wire det_out_valid,          // rtl-gen/src/translate/determine.rs:250
-    output wire [221:0] det_out_data,   // rtl-gen/src/translate/determine.rs:250
-    input  wire det_out_ready,          // rtl-gen/src/translate/determine.rs:250
+    output wire det_out_valid,          // rtl-gen/src/translate/determine.rs:252
+    output wire [221:0] det_out_data,   // rtl-gen/src/translate/determine.rs:252
+    input  wire det_out_ready,          // rtl-gen/src/translate/determine.rs:252
     input  wire apply_in_valid,         // rtl-gen/src/translate/apply.rs:32
     input  wire [153:0] apply_in_data,  // rtl-gen/src/translate/apply.rs:32
     output wire apply_in_ready,         // rtl-gen/src/translate/apply.rs:32
@@ -154,7 +154,7 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire det_s2_valid_not;                   // rtl-gen/src/translate/bundle.rs:88
     wire det_s2_valid_or;                    // rtl-gen/src/translate/bundle.rs:88
     wire det_s2_valid_and;                   // rtl-gen/src/translate/bundle.rs:88
-    wire det_s2_data_not;                    // rtl-gen/src/translate/determine.rs:144
+    wire det_s2_data_not;                    // rtl-gen/src/translate/determine.rs:146
     wire det_s2_data_eq;                     // rtl-gen/src/translate/float.rs:205
     wire [24:0] det_s2_data_shl;             // rtl-gen/src/translate/float.rs:206
     wire [24:0] det_s2_data_mux;             // rtl-gen/src/translate/float.rs:206
@@ -180,19 +180,19 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire det_s2_data_or;                     // rtl-gen/src/translate/float.rs:263
     wire det_s2_data_not_1;                  // rtl-gen/src/translate/float.rs:263
     wire det_s2_data_and;                    // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_lt;                     // rtl-gen/src/translate/determine.rs:155
-    wire det_s2_data_ge;                     // rtl-gen/src/translate/determine.rs:156
-    wire det_s2_data_or_1;                   // rtl-gen/src/translate/determine.rs:159
-    wire det_s2_data_or_2;                   // rtl-gen/src/translate/determine.rs:159
-    wire det_s2_data_not_2;                  // rtl-gen/src/translate/determine.rs:161
-    wire det_s2_data_not_3;                  // rtl-gen/src/translate/determine.rs:161
-    wire det_s2_data_and_1;                  // rtl-gen/src/translate/determine.rs:161
-    wire det_s2_data_or_3;                   // rtl-gen/src/translate/determine.rs:161
-    wire det_s2_data_and_2;                  // rtl-gen/src/translate/determine.rs:161
-    wire det_s2_data_and_3;                  // rtl-gen/src/translate/determine.rs:146
-    wire det_s2_data_and_4;                  // rtl-gen/src/translate/determine.rs:146
-    wire det_s2_data_and_5;                  // rtl-gen/src/translate/determine.rs:146
-    wire det_s2_data_and_6;                  // rtl-gen/src/translate/determine.rs:146
+    wire det_s2_data_lt;                     // rtl-gen/src/translate/determine.rs:157
+    wire det_s2_data_ge;                     // rtl-gen/src/translate/determine.rs:158
+    wire det_s2_data_or_1;                   // rtl-gen/src/translate/determine.rs:161
+    wire det_s2_data_or_2;                   // rtl-gen/src/translate/determine.rs:161
+    wire det_s2_data_not_2;                  // rtl-gen/src/translate/determine.rs:163
+    wire det_s2_data_not_3;                  // rtl-gen/src/translate/determine.rs:163
+    wire det_s2_data_and_1;                  // rtl-gen/src/translate/determine.rs:163
+    wire det_s2_data_or_3;                   // rtl-gen/src/translate/determine.rs:163
+    wire det_s2_data_and_2;                  // rtl-gen/src/translate/determine.rs:163
+    wire det_s2_data_and_3;                  // rtl-gen/src/translate/determine.rs:148
+    wire det_s2_data_and_4;                  // rtl-gen/src/translate/determine.rs:148
+    wire det_s2_data_and_5;                  // rtl-gen/src/translate/determine.rs:148
+    wire det_s2_data_and_6;                  // rtl-gen/src/translate/determine.rs:148
     wire det_s2_data_eq_5;                   // rtl-gen/src/translate/float.rs:205
     wire [24:0] det_s2_data_shl_4;           // rtl-gen/src/translate/float.rs:206
     wire [24:0] det_s2_data_mux_7;           // rtl-gen/src/translate/float.rs:206
@@ -218,19 +218,19 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire det_s2_data_or_4;                   // rtl-gen/src/translate/float.rs:263
     wire det_s2_data_not_4;                  // rtl-gen/src/translate/float.rs:263
     wire det_s2_data_and_7;                  // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_lt_1;                   // rtl-gen/src/translate/determine.rs:155
-    wire det_s2_data_ge_1;                   // rtl-gen/src/translate/determine.rs:156
-    wire det_s2_data_or_5;                   // rtl-gen/src/translate/determine.rs:159
-    wire det_s2_data_or_6;                   // rtl-gen/src/translate/determine.rs:159
-    wire det_s2_data_not_5;                  // rtl-gen/src/translate/determine.rs:161
-    wire det_s2_data_not_6;                  // rtl-gen/src/translate/determine.rs:161
-    wire det_s2_data_and_8;                  // rtl-gen/src/translate/determine.rs:161
-    wire det_s2_data_or_7;                   // rtl-gen/src/translate/determine.rs:161
-    wire det_s2_data_and_9;                  // rtl-gen/src/translate/determine.rs:161
-    wire det_s2_data_and_10;                 // rtl-gen/src/translate/determine.rs:146
-    wire det_s2_data_and_11;                 // rtl-gen/src/translate/determine.rs:146
-    wire det_s2_data_and_12;                 // rtl-gen/src/translate/determine.rs:146
-    wire det_s2_data_and_13;                 // rtl-gen/src/translate/determine.rs:146
+    wire det_s2_data_lt_1;                   // rtl-gen/src/translate/determine.rs:157
+    wire det_s2_data_ge_1;                   // rtl-gen/src/translate/determine.rs:158
+    wire det_s2_data_or_5;                   // rtl-gen/src/translate/determine.rs:161
+    wire det_s2_data_or_6;                   // rtl-gen/src/translate/determine.rs:161
+    wire det_s2_data_not_5;                  // rtl-gen/src/translate/determine.rs:163
+    wire det_s2_data_not_6;                  // rtl-gen/src/translate/determine.rs:163
+    wire det_s2_data_and_8;                  // rtl-gen/src/translate/determine.rs:163
+    wire det_s2_data_or_7;                   // rtl-gen/src/translate/determine.rs:163
+    wire det_s2_data_and_9;                  // rtl-gen/src/translate/determine.rs:163
+    wire det_s2_data_and_10;                 // rtl-gen/src/translate/determine.rs:148
+    wire det_s2_data_and_11;                 // rtl-gen/src/translate/determine.rs:148
+    wire det_s2_data_and_12;                 // rtl-gen/src/translate/determine.rs:148
+    wire det_s2_data_and_13;                 // rtl-gen/src/translate/determine.rs:148
     wire det_s2_data_eq_10;                  // rtl-gen/src/translate/float.rs:205
     wire [24:0] det_s2_data_shl_8;           // rtl-gen/src/translate/float.rs:206
     wire [24:0] det_s2_data_mux_14;          // rtl-gen/src/translate/float.rs:206
@@ -256,37 +256,37 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire det_s2_data_or_8;                   // rtl-gen/src/translate/float.rs:263
     wire det_s2_data_not_7;                  // rtl-gen/src/translate/float.rs:263
     wire det_s2_data_and_14;                 // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_lt_2;                   // rtl-gen/src/translate/determine.rs:155
-    wire det_s2_data_ge_2;                   // rtl-gen/src/translate/determine.rs:156
-    wire det_s2_data_or_9;                   // rtl-gen/src/translate/determine.rs:159
-    wire det_s2_data_or_10;                  // rtl-gen/src/translate/determine.rs:159
-    wire det_s2_data_not_8;                  // rtl-gen/src/translate/determine.rs:161
-    wire det_s2_data_not_9;                  // rtl-gen/src/translate/determine.rs:161
-    wire det_s2_data_and_15;                 // rtl-gen/src/translate/determine.rs:161
-    wire det_s2_data_or_11;                  // rtl-gen/src/translate/determine.rs:161
-    wire det_s2_data_and_16;                 // rtl-gen/src/translate/determine.rs:161
-    wire det_s2_data_and_17;                 // rtl-gen/src/translate/determine.rs:146
-    wire det_s2_data_and_18;                 // rtl-gen/src/translate/determine.rs:146
-    wire det_s2_data_and_19;                 // rtl-gen/src/translate/determine.rs:146
-    wire det_s2_data_and_20;                 // rtl-gen/src/translate/determine.rs:146
-    wire [2:0] det_s2_data_cat_9;            // rtl-gen/src/translate/determine.rs:170
-    wire [2:0] det_s2_data_cat_10;           // rtl-gen/src/translate/determine.rs:170
-    wire [2:0] det_s2_data_cat_11;           // rtl-gen/src/translate/determine.rs:170
-    wire [2:0] det_s2_data_cat_12;           // rtl-gen/src/translate/determine.rs:170
-    wire det_s2_data_and_21;                 // rtl-gen/src/translate/determine.rs:146
-    wire det_s2_data_any;                    // rtl-gen/src/translate/determine.rs:175
-    wire det_s2_data_or_12;                  // rtl-gen/src/translate/determine.rs:175
-    wire det_s2_data_any_1;                  // rtl-gen/src/translate/determine.rs:175
-    wire det_s2_data_or_13;                  // rtl-gen/src/translate/determine.rs:175
-    wire det_s2_data_any_2;                  // rtl-gen/src/translate/determine.rs:175
-    wire det_s2_data_or_14;                  // rtl-gen/src/translate/determine.rs:175
-    wire det_s2_data_any_3;                  // rtl-gen/src/translate/determine.rs:175
-    wire det_s2_data_or_15;                  // rtl-gen/src/translate/determine.rs:175
-    wire det_s2_data_or_16;                  // rtl-gen/src/translate/determine.rs:180
-    wire det_ok;                             // rtl-gen/src/translate/determine.rs:182
-    wire det_s2_data_and_22;                 // rtl-gen/src/translate/determine.rs:191
-    wire const_not;                          // rtl-gen/src/translate/determine.rs:191
-    wire det_written;                        // rtl-gen/src/translate/determine.rs:191
+    wire det_s2_data_lt_2;                   // rtl-gen/src/translate/determine.rs:157
+    wire det_s2_data_ge_2;                   // rtl-gen/src/translate/determine.rs:158
+    wire det_s2_data_or_9;                   // rtl-gen/src/translate/determine.rs:161
+    wire det_s2_data_or_10;                  // rtl-gen/src/translate/determine.rs:161
+    wire det_s2_data_not_8;                  // rtl-gen/src/translate/determine.rs:163
+    wire det_s2_data_not_9;                  // rtl-gen/src/translate/determine.rs:163
+    wire det_s2_data_and_15;                 // rtl-gen/src/translate/determine.rs:163
+    wire det_s2_data_or_11;                  // rtl-gen/src/translate/determine.rs:163
+    wire det_s2_data_and_16;                 // rtl-gen/src/translate/determine.rs:163
+    wire det_s2_data_and_17;                 // rtl-gen/src/translate/determine.rs:148
+    wire det_s2_data_and_18;                 // rtl-gen/src/translate/determine.rs:148
+    wire det_s2_data_and_19;                 // rtl-gen/src/translate/determine.rs:148
+    wire det_s2_data_and_20;                 // rtl-gen/src/translate/determine.rs:148
+    wire [2:0] det_s2_data_cat_9;            // rtl-gen/src/translate/determine.rs:172
+    wire [2:0] det_s2_data_cat_10;           // rtl-gen/src/translate/determine.rs:172
+    wire [2:0] det_s2_data_cat_11;           // rtl-gen/src/translate/determine.rs:172
+    wire [2:0] det_s2_data_cat_12;           // rtl-gen/src/translate/determine.rs:172
+    wire det_s2_data_and_21;                 // rtl-gen/src/translate/determine.rs:148
+    wire det_s2_data_any;                    // rtl-gen/src/translate/determine.rs:177
+    wire det_s2_data_or_12;                  // rtl-gen/src/translate/determine.rs:177
+    wire det_s2_data_any_1;                  // rtl-gen/src/translate/determine.rs:177
+    wire det_s2_data_or_13;                  // rtl-gen/src/translate/determine.rs:177
+    wire det_s2_data_any_2;                  // rtl-gen/src/translate/determine.rs:177
+    wire det_s2_data_or_14;                  // rtl-gen/src/translate/determine.rs:177
+    wire det_s2_data_any_3;                  // rtl-gen/src/translate/determine.rs:177
+    wire det_s2_data_or_15;                  // rtl-gen/src/translate/determine.rs:177
+    wire det_s2_data_or_16;                  // rtl-gen/src/translate/determine.rs:182
+    wire det_ok;                             // rtl-gen/src/translate/determine.rs:184
+    wire det_s2_data_and_22;                 // rtl-gen/src/translate/determine.rs:193
+    wire const_not;                          // rtl-gen/src/translate/determine.rs:193
+    wire det_written;                        // rtl-gen/src/translate/determine.rs:193
     wire [177:0] det_s2_data_cat_13;         // rtl-gen/src/translate/bundle.rs:50
     reg det_s3_valid;                        // rtl-gen/src/translate/bundle.rs:88
     reg [177:0] det_s3_data;                 // rtl-gen/src/translate/bundle.rs:88
@@ -311,12 +311,12 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire det_read_valid;                     // rtl-gen/src/translate/table.rs:78
     wire [55:0] table_rd;                    // rtl-gen/src/translate/table.rs:79
     wire [55:0] det_read_entry;              // rtl-gen/src/translate/table.rs:81
-    wire [16:0] det_s3_data_mux_14;          // rtl-gen/src/translate/determine.rs:231
-    wire [16:0] det_s3_data_mux_15;          // rtl-gen/src/translate/determine.rs:231
-    wire [16:0] det_s3_data_mux_16;          // rtl-gen/src/translate/determine.rs:231
-    wire [31:0] det_s3_data_mux_17;          // rtl-gen/src/translate/determine.rs:231
-    wire [31:0] det_s3_data_mux_18;          // rtl-gen/src/translate/determine.rs:231
-    wire [31:0] det_s3_data_mux_19;          // rtl-gen/src/translate/determine.rs:231
+    wire [16:0] det_s3_data_mux_14;          // rtl-gen/src/translate/determine.rs:233
+    wire [16:0] det_s3_data_mux_15;          // rtl-gen/src/translate/determine.rs:233
+    wire [16:0] det_s3_data_mux_16;          // rtl-gen/src/translate/determine.rs:233
+    wire [31:0] det_s3_data_mux_17;          // rtl-gen/src/translate/determine.rs:233
+    wire [31:0] det_s3_data_mux_18;          // rtl-gen/src/translate/determine.rs:233
+    wire [31:0] det_s3_data_mux_19;          // rtl-gen/src/translate/determine.rs:233
     wire [221:0] det_read_entry_cat;         // rtl-gen/src/translate/bundle.rs:50
     reg det_out_q_valid;                     // rtl-gen/src/translate/bundle.rs:105
     reg [221:0] det_out_q_data;              // rtl-gen/src/translate/bundle.rs:105
@@ -333,13 +333,13 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire det_out_q_spare_valid_next;         // rtl-gen/src/translate/bundle.rs:105
     wire det_out_q_ready_not;                // rtl-gen/src/translate/bundle.rs:105
     wire det_out_q_ready_and;                // rtl-gen/src/translate/bundle.rs:105
-    wire det_s3_valid_and_2;                 // rtl-gen/src/translate/determine.rs:247
-    wire det_s3_valid_and_3;                 // rtl-gen/src/translate/determine.rs:247
+    wire det_s3_valid_and_2;                 // rtl-gen/src/translate/determine.rs:249
+    wire det_s3_valid_and_3;                 // rtl-gen/src/translate/determine.rs:249
     wire [55:0] det_s3_data_cat;             // rtl-gen/src/translate/table.rs:101
     wire [15:0] const_shl_3;                 // rtl-gen/src/translate/table.rs:108
     wire [15:0] table_valid_or;              // rtl-gen/src/translate/table.rs:109
-    wire det_out_q_valid_and;                // rtl-gen/src/translate/determine.rs:251
-    wire det_out_q_data_not;                 // rtl-gen/src/translate/determine.rs:255
+    wire det_out_q_valid_and;                // rtl-gen/src/translate/determine.rs:253
+    wire det_out_q_data_not;                 // rtl-gen/src/translate/determine.rs:257
     wire [149:0] apply_record;               // rtl-gen/src/translate/apply.rs:33
     wire apply_in_data_mux;                  // rtl-gen/src/translate/table.rs:78
     wire apply_in_data_mux_1;                // rtl-gen/src/translate/table.rs:78

@@ -13,3 +13,4 @@ pub mod study;
 pub mod synth;
 pub mod trace;
 pub mod vectors;
+pub mod verilog_stats;

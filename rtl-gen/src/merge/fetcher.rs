@@ -44,6 +44,14 @@ mod ph {
     pub const WALK: u64 = 3;
     pub const DONE: u64 = 4;
     pub const BITS: u32 = 3;
+    /// Every phase by name (the Verilog's `localparam`s).
+    pub const STATES: &[(&str, u64)] = &[
+        ("IDLE", IDLE),
+        ("START", START),
+        ("ROOTS", ROOTS),
+        ("WALK", WALK),
+        ("DONE", DONE),
+    ];
 }
 
 /// Kinds of the reference stage's in-flight words (`node_ctx`).
@@ -294,8 +302,9 @@ fn fetcher_unit_with(p: &Params, sizes: &FetchSizes, pn: bool) -> Module {
     const IN_FLIGHT: u32 = 8;
 
     let phase = m.reg("phase", ph::BITS);
-    let is = |s: u64| phase.eq(lit(s, ph::BITS));
-    let goto = |s: u64| lit(s, ph::BITS);
+    let phases = m.states(ph::BITS, ph::STATES);
+    let is = |s: u64| phases.is(phase, s);
+    let goto = |s: u64| phases.code(s);
     let mut n_phase = Next::new(phase);
 
     // ---- cfg and cmd
@@ -1412,5 +1421,5 @@ fn per_node_out_stages<'m>(
 
 /// The `DONE` phase's code.
 fn goto_done(m: &Module) -> Signal<'_> {
-    m.lit(ph::DONE as u128, ph::BITS)
+    m.states(ph::BITS, ph::STATES).code(ph::DONE)
 }

@@ -146,9 +146,19 @@ pub(crate) fn lower(original: &Graph, style: RegisterStyle) -> VModule {
     }
     let absorbed = absorbed_temporaries(g, &inline, &readers);
     let regs = register_plans(g, &inline, &readers, style == RegisterStyle::Enables);
-    let kept: Vec<bool> = (0..g.nodes.len())
+    let mut kept: Vec<bool> = (0..g.nodes.len())
         .map(|i| inline[i] || absorbed[i] || regs.folded[i] || dead[i])
         .collect();
+    // The style before the enable idiom writes `r <= r_next;`, `r_next` a wire.
+    if style == RegisterStyle::NextWires {
+        for n in &g.nodes {
+            if let Op::Reg { next, .. } = &n.op {
+                for (d, _) in next {
+                    kept[*d as usize] = true;
+                }
+            }
+        }
+    }
     let nested = nested_nodes(g, &kept, &readers);
     // A named constant nothing reads (its readers shared away) is not declared.
     let dead: Vec<bool> = (0..g.nodes.len())

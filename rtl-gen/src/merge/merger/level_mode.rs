@@ -307,7 +307,7 @@ pub(super) fn level_merger_unit(c: &MergerConfig) -> Result<Module, String> {
                     | known & !at_m & !above);
             let data = at_m.mux(mo_beat, from_fifo.mux(leaf_beat, end_beat));
             let is_end = at_m.mux(mo_end, above.mux(fifo_end, one));
-            let pop = (valid & ready & from_fifo).name(&format!("leaves{d}_pop"));
+            let pop = (valid & ready & above & !empty).name(&format!("leaves{d}_pop"));
             q.advance(push, pop, header_fire);
             (valid, data, is_end)
         } else {

@@ -1008,7 +1008,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign base0_at_m_or = (((base0_at_m & u_module_out_valid) & out_is_ref_not) | (base0_above_m & (leaves0_empty_not | leaves_done))) | ((choice_known & (~base0_at_m)) & (~base0_above_m));
     assign base0_end_sent_and = base0_end_sent_not & base0_at_m_or;
     assign base0_end_sent_and_1 = base0_end_sent_and & u_builder_base0_ready;
-    assign leaves0_pop = base0_end_sent_and_1 & leaves0_head_out;
+    assign leaves0_pop = (base0_end_sent_and_1 & base0_above_m) & leaves0_empty_not;
     assign base1_at_m = merging & (merge_lod == 5'd1);
     assign leaves1_empty = leaves1_wr == leaves1_rd;
     assign leaves1_full = (leaves1_wr[3:0] == leaves1_rd[3:0]) & (~(leaves1_wr[4] == leaves1_rd[4]));
@@ -1025,7 +1025,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign base1_at_m_or = (((base1_at_m & u_module_out_valid) & out_is_ref_not) | (base1_above_m & (leaves1_empty_not | leaves_done))) | ((choice_known & (~base1_at_m)) & (~base1_above_m));
     assign base1_end_sent_and = base1_end_sent_not & base1_at_m_or;
     assign base1_end_sent_and_1 = base1_end_sent_and & u_builder_base1_ready;
-    assign leaves1_pop = base1_end_sent_and_1 & leaves1_head_out;
+    assign leaves1_pop = (base1_end_sent_and_1 & base1_above_m) & leaves1_empty_not;
     assign base2_at_m = merging & (merge_lod == 5'd2);
     assign leaves2_empty = leaves2_wr == leaves2_rd;
     assign leaves2_full = (leaves2_wr[3:0] == leaves2_rd[3:0]) & (~(leaves2_wr[4] == leaves2_rd[4]));
@@ -1042,7 +1042,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign base2_at_m_or = (((base2_at_m & u_module_out_valid) & out_is_ref_not) | (base2_above_m & (leaves2_empty_not | leaves_done))) | ((choice_known & (~base2_at_m)) & (~base2_above_m));
     assign base2_end_sent_and = base2_end_sent_not & base2_at_m_or;
     assign base2_end_sent_and_1 = base2_end_sent_and & u_builder_base2_ready;
-    assign leaves2_pop = base2_end_sent_and_1 & leaves2_head_out;
+    assign leaves2_pop = (base2_end_sent_and_1 & base2_above_m) & leaves2_empty_not;
     assign base2_at_m_mux = base2_at_m ? (u_builder_base2_ready & base2_end_sent_not) : (base1_at_m ? (u_builder_base1_ready & base1_end_sent_not) : (base0_at_m ? (u_builder_base0_ready & base0_end_sent_not) : 1'b0));
     assign base3_at_m = merging & (merge_lod == 5'd3);
     assign leaves3_empty = leaves3_wr == leaves3_rd;
@@ -1060,7 +1060,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign base3_at_m_or = (((base3_at_m & u_module_out_valid) & out_is_ref_not) | (base3_above_m & (leaves3_empty_not | leaves_done))) | ((choice_known & (~base3_at_m)) & (~base3_above_m));
     assign base3_end_sent_and = base3_end_sent_not & base3_at_m_or;
     assign base3_end_sent_and_1 = base3_end_sent_and & u_builder_base3_ready;
-    assign leaves3_pop = base3_end_sent_and_1 & leaves3_head_out;
+    assign leaves3_pop = (base3_end_sent_and_1 & base3_above_m) & leaves3_empty_not;
     assign base3_at_m_mux = base3_at_m ? base3_end_sent : (base2_at_m ? base2_end_sent : (base1_at_m ? base1_end_sent : (base0_at_m ? base0_end_sent : 1'b0)));
     assign base4_at_m = merging & (merge_lod == 5'd4);
     assign leaves4_empty = leaves4_wr == leaves4_rd;
@@ -1078,7 +1078,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign base4_at_m_or = (((base4_at_m & u_module_out_valid) & out_is_ref_not) | (base4_above_m & (leaves4_empty_not | leaves_done))) | ((choice_known & (~base4_at_m)) & (~base4_above_m));
     assign base4_end_sent_and = base4_end_sent_not & base4_at_m_or;
     assign base4_end_sent_and_1 = base4_end_sent_and & u_builder_base4_ready;
-    assign leaves4_pop = base4_end_sent_and_1 & leaves4_head_out;
+    assign leaves4_pop = (base4_end_sent_and_1 & base4_above_m) & leaves4_empty_not;
     assign base5_at_m = merging & (merge_lod == 5'd5);
     assign leaves5_empty = leaves5_wr == leaves5_rd;
     assign leaves5_full = (leaves5_wr[3:0] == leaves5_rd[3:0]) & (~(leaves5_wr[4] == leaves5_rd[4]));
@@ -1095,7 +1095,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign base5_at_m_or = (((base5_at_m & u_module_out_valid) & out_is_ref_not) | (base5_above_m & (leaves5_empty_not | leaves_done))) | ((choice_known & (~base5_at_m)) & (~base5_above_m));
     assign base5_end_sent_and = base5_end_sent_not & base5_at_m_or;
     assign base5_end_sent_and_1 = base5_end_sent_and & u_builder_base5_ready;
-    assign leaves5_pop = base5_end_sent_and_1 & leaves5_head_out;
+    assign leaves5_pop = (base5_end_sent_and_1 & base5_above_m) & leaves5_empty_not;
     assign base5_at_m_mux = base5_at_m ? (u_builder_base5_ready & base5_end_sent_not) : (base4_at_m ? (u_builder_base4_ready & base4_end_sent_not) : (base3_at_m ? (u_builder_base3_ready & base3_end_sent_not) : base2_at_m_mux));
     assign base6_at_m = merging & (merge_lod == 5'd6);
     assign leaves6_empty = leaves6_wr == leaves6_rd;
@@ -1113,7 +1113,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign base6_at_m_or = (((base6_at_m & u_module_out_valid) & out_is_ref_not) | (base6_above_m & (leaves6_empty_not | leaves_done))) | ((choice_known & (~base6_at_m)) & (~base6_above_m));
     assign base6_end_sent_and = base6_end_sent_not & base6_at_m_or;
     assign base6_end_sent_and_1 = base6_end_sent_and & u_builder_base6_ready;
-    assign leaves6_pop = base6_end_sent_and_1 & leaves6_head_out;
+    assign leaves6_pop = (base6_end_sent_and_1 & base6_above_m) & leaves6_empty_not;
     assign base7_at_m = merging & (merge_lod == 5'd7);
     assign leaves7_empty = leaves7_wr == leaves7_rd;
     assign leaves7_full = (leaves7_wr[3:0] == leaves7_rd[3:0]) & (~(leaves7_wr[4] == leaves7_rd[4]));
@@ -1130,7 +1130,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign base7_at_m_or = (((base7_at_m & u_module_out_valid) & out_is_ref_not) | (base7_above_m & (leaves7_empty_not | leaves_done))) | ((choice_known & (~base7_at_m)) & (~base7_above_m));
     assign base7_end_sent_and = base7_end_sent_not & base7_at_m_or;
     assign base7_end_sent_and_1 = base7_end_sent_and & u_builder_base7_ready;
-    assign leaves7_pop = base7_end_sent_and_1 & leaves7_head_out;
+    assign leaves7_pop = (base7_end_sent_and_1 & base7_above_m) & leaves7_empty_not;
     assign base7_at_m_mux = base7_at_m ? base7_end_sent : (base6_at_m ? base6_end_sent : (base5_at_m ? base5_end_sent : (base4_at_m ? base4_end_sent : base3_at_m_mux)));
     assign base8_at_m = merging & (merge_lod == 5'd8);
     assign leaves8_empty = leaves8_wr == leaves8_rd;
@@ -1148,7 +1148,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign base8_at_m_or = (((base8_at_m & u_module_out_valid) & out_is_ref_not) | (base8_above_m & (leaves8_empty_not | leaves_done))) | ((choice_known & (~base8_at_m)) & (~base8_above_m));
     assign base8_end_sent_and = base8_end_sent_not & base8_at_m_or;
     assign base8_end_sent_and_1 = base8_end_sent_and & u_builder_base8_ready;
-    assign leaves8_pop = base8_end_sent_and_1 & leaves8_head_out;
+    assign leaves8_pop = (base8_end_sent_and_1 & base8_above_m) & leaves8_empty_not;
     assign base8_at_m_mux = base8_at_m ? (u_builder_base8_ready & base8_end_sent_not) : (base7_at_m ? (u_builder_base7_ready & base7_end_sent_not) : (base6_at_m ? (u_builder_base6_ready & base6_end_sent_not) : base5_at_m_mux));
     assign base9_at_m = merging & (merge_lod == 5'd9);
     assign leaves9_empty = leaves9_wr == leaves9_rd;
@@ -1166,7 +1166,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign base9_at_m_or = (((base9_at_m & u_module_out_valid) & out_is_ref_not) | (base9_above_m & (leaves9_empty_not | leaves_done))) | ((choice_known & (~base9_at_m)) & (~base9_above_m));
     assign base9_end_sent_and = base9_end_sent_not & base9_at_m_or;
     assign base9_end_sent_and_1 = base9_end_sent_and & u_builder_base9_ready;
-    assign leaves9_pop = base9_end_sent_and_1 & leaves9_head_out;
+    assign leaves9_pop = (base9_end_sent_and_1 & base9_above_m) & leaves9_empty_not;
     assign base10_at_m = merging & (merge_lod == 5'd10);
     assign leaves10_empty = leaves10_wr == leaves10_rd;
     assign leaves10_full = (leaves10_wr[3:0] == leaves10_rd[3:0]) & (~(leaves10_wr[4] == leaves10_rd[4]));
@@ -1183,7 +1183,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign base10_at_m_or = (((base10_at_m & u_module_out_valid) & out_is_ref_not) | (base10_above_m & (leaves10_empty_not | leaves_done))) | ((choice_known & (~base10_at_m)) & (~base10_above_m));
     assign base10_end_sent_and = base10_end_sent_not & base10_at_m_or;
     assign base10_end_sent_and_1 = base10_end_sent_and & u_builder_base10_ready;
-    assign leaves10_pop = base10_end_sent_and_1 & leaves10_head_out;
+    assign leaves10_pop = (base10_end_sent_and_1 & base10_above_m) & leaves10_empty_not;
     assign base11_at_m = merging & (merge_lod == 5'd11);
     assign leaves11_empty = leaves11_wr == leaves11_rd;
     assign leaves11_full = (leaves11_wr[3:0] == leaves11_rd[3:0]) & (~(leaves11_wr[4] == leaves11_rd[4]));
@@ -1200,7 +1200,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign base11_at_m_or = (((base11_at_m & u_module_out_valid) & out_is_ref_not) | (base11_above_m & (leaves11_empty_not | leaves_done))) | ((choice_known & (~base11_at_m)) & (~base11_above_m));
     assign base11_end_sent_and = base11_end_sent_not & base11_at_m_or;
     assign base11_end_sent_and_1 = base11_end_sent_and & u_builder_base11_ready;
-    assign leaves11_pop = base11_end_sent_and_1 & leaves11_head_out;
+    assign leaves11_pop = (base11_end_sent_and_1 & base11_above_m) & leaves11_empty_not;
     assign base11_at_m_mux = base11_at_m ? (u_builder_base11_ready & base11_end_sent_not) : (base10_at_m ? (u_builder_base10_ready & base10_end_sent_not) : (base9_at_m ? (u_builder_base9_ready & base9_end_sent_not) : base8_at_m_mux));
     assign base11_at_m_mux_1 = base11_at_m ? base11_end_sent : (base10_at_m ? base10_end_sent : (base9_at_m ? base9_end_sent : (base8_at_m ? base8_end_sent : base7_at_m_mux)));
     assign base12_at_m = merging & (merge_lod == 5'd12);
@@ -1219,7 +1219,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign base12_at_m_or = (((base12_at_m & u_module_out_valid) & out_is_ref_not) | (base12_above_m & (leaves12_empty_not | leaves_done))) | ((choice_known & (~base12_at_m)) & (~base12_above_m));
     assign base12_end_sent_and = base12_end_sent_not & base12_at_m_or;
     assign base12_end_sent_and_1 = base12_end_sent_and & u_builder_base12_ready;
-    assign leaves12_pop = base12_end_sent_and_1 & leaves12_head_out;
+    assign leaves12_pop = (base12_end_sent_and_1 & base12_above_m) & leaves12_empty_not;
     assign base13_at_m = merging & (merge_lod == 5'd13);
     assign leaves13_empty = leaves13_wr == leaves13_rd;
     assign leaves13_full = (leaves13_wr[3:0] == leaves13_rd[3:0]) & (~(leaves13_wr[4] == leaves13_rd[4]));
@@ -1236,7 +1236,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign base13_at_m_or = (((base13_at_m & u_module_out_valid) & out_is_ref_not) | (base13_above_m & (leaves13_empty_not | leaves_done))) | ((choice_known & (~base13_at_m)) & (~base13_above_m));
     assign base13_end_sent_and = base13_end_sent_not & base13_at_m_or;
     assign base13_end_sent_and_1 = base13_end_sent_and & u_builder_base13_ready;
-    assign leaves13_pop = base13_end_sent_and_1 & leaves13_head_out;
+    assign leaves13_pop = (base13_end_sent_and_1 & base13_above_m) & leaves13_empty_not;
     assign base14_at_m = merging & (merge_lod == 5'd14);
     assign leaves14_empty = leaves14_wr == leaves14_rd;
     assign leaves14_full = (leaves14_wr[3:0] == leaves14_rd[3:0]) & (~(leaves14_wr[4] == leaves14_rd[4]));
@@ -1253,7 +1253,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign base14_at_m_or = (((base14_at_m & u_module_out_valid) & out_is_ref_not) | (base14_above_m & (leaves14_empty_not | leaves_done))) | ((choice_known & (~base14_at_m)) & (~base14_above_m));
     assign base14_end_sent_and = base14_end_sent_not & base14_at_m_or;
     assign base14_end_sent_and_1 = base14_end_sent_and & u_builder_base14_ready;
-    assign leaves14_pop = base14_end_sent_and_1 & leaves14_head_out;
+    assign leaves14_pop = (base14_end_sent_and_1 & base14_above_m) & leaves14_empty_not;
     assign base14_at_m_mux = base14_at_m ? (u_builder_base14_ready & base14_end_sent_not) : (base13_at_m ? (u_builder_base13_ready & base13_end_sent_not) : (base12_at_m ? (u_builder_base12_ready & base12_end_sent_not) : base11_at_m_mux));
     assign base15_at_m = merging & (merge_lod == 5'd15);
     assign leaves15_empty = leaves15_wr == leaves15_rd;
@@ -1271,7 +1271,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign base15_at_m_or = (((base15_at_m & u_module_out_valid) & out_is_ref_not) | (base15_above_m & (leaves15_empty_not | leaves_done))) | ((choice_known & (~base15_at_m)) & (~base15_above_m));
     assign base15_end_sent_and = base15_end_sent_not & base15_at_m_or;
     assign base15_end_sent_and_1 = base15_end_sent_and & u_builder_base15_ready;
-    assign leaves15_pop = base15_end_sent_and_1 & leaves15_head_out;
+    assign leaves15_pop = (base15_end_sent_and_1 & base15_above_m) & leaves15_empty_not;
     assign base15_at_m_mux = base15_at_m ? base15_end_sent : (base14_at_m ? base14_end_sent : (base13_at_m ? base13_end_sent : (base12_at_m ? base12_end_sent : base11_at_m_mux_1)));
     assign base16_at_m = merging & (merge_lod == 5'd16);
     assign base16_end_sent_not = ~base16_end_sent;

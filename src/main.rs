@@ -49,6 +49,8 @@ enum Command {
     Ledger(cmd::ledger::Args),
     /// Area and timing of a unit's modules: generic gates, ECP5 and iCE40 place and route, the critical path by generator line.
     Synth(cmd::synth::Args),
+    /// How the emitted Verilog reads: per file and in total its size, declarations, the share of auto-named ones and (--yosys) Yosys cell counts, beside --before DIR.
+    VerilogStats(cmd::verilog_stats::Args),
     /// Formal proofs (SymbiYosys) of the stream primitives and the small units: handshakes, beat flow, determined outputs, idle/done.
     Formal(cmd::formal::Args),
 }
@@ -80,6 +82,7 @@ fn main() {
         Command::Study(a) => cmd::study::main(a),
         Command::Synth(a) => cmd::synth::main(a),
         Command::Formal(a) => cmd::formal::main(a),
+        Command::VerilogStats(a) => cmd::verilog_stats::main(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e}");

@@ -5,96 +5,96 @@
 module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     input  wire clk,                       // clock (implicit)
     input  wire rst,                       // synchronous reset, active high (implicit)
-    input  wire cfg_valid,                 // rtl-gen/src/merge/merger/mod.rs:184
-    input  wire [568:0] cfg_data,          // rtl-gen/src/merge/merger/mod.rs:184
-    output wire cfg_ready,                 // rtl-gen/src/merge/merger/mod.rs:184
+    input  wire cfg_valid,                 // rtl-gen/src/merge/merger/mod.rs:192
+    input  wire [568:0] cfg_data,          // rtl-gen/src/merge/merger/mod.rs:192
+    output wire cfg_ready,                 // rtl-gen/src/merge/merger/mod.rs:192
     input  wire report_ready,              // rtl-gen/src/merge/merger/level_mode.rs:105
     output wire report_valid,              // rtl-gen/src/merge/merger/level_mode.rs:109
     output wire [57:0] report_data,        // rtl-gen/src/merge/merger/level_mode.rs:110
-    input  wire f0_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [149:0] f0_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f0_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire f0_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [27:0] f0_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f0_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire f0_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [27:0] f0_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f0_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f0_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f0_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f0_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:275
-    output wire f0_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f0_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f0_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire f0_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f0_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f0_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f1_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [149:0] f1_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f1_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire f1_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [27:0] f1_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f1_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire f1_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [27:0] f1_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f1_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f1_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f1_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f1_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:275
-    output wire f1_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f1_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f1_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire f1_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f1_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f1_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f2_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [149:0] f2_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f2_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire f2_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [27:0] f2_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f2_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire f2_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [27:0] f2_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f2_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f2_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f2_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f2_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:275
-    output wire f2_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f2_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f2_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire f2_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f2_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f2_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f3_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [149:0] f3_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f3_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire f3_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [27:0] f3_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f3_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire f3_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [27:0] f3_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f3_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f3_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f3_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f3_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:275
-    output wire f3_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f3_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f3_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire f3_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f3_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f3_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire w_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [27:0] w_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:278
-    output wire w_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:278
-    output wire w_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [27:0] w_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire w_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:275
-    output wire nodes_valid,               // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [149:0] nodes_data,        // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire nodes_ready,               // rtl-gen/src/merge/merger/mod.rs:275
-    output wire refs_valid,                // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [27:0] refs_data,          // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire refs_ready,                // rtl-gen/src/merge/merger/mod.rs:275
+    input  wire f0_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [149:0] f0_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f0_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire f0_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [27:0] f0_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f0_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire f0_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [27:0] f0_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f0_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f0_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f0_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f0_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:283
+    output wire f0_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f0_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f0_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire f0_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f0_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f0_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f1_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [149:0] f1_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f1_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire f1_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [27:0] f1_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f1_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire f1_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [27:0] f1_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f1_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f1_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f1_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f1_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:283
+    output wire f1_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f1_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f1_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire f1_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f1_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f1_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f2_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [149:0] f2_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f2_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire f2_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [27:0] f2_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f2_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire f2_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [27:0] f2_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f2_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f2_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f2_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f2_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:283
+    output wire f2_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f2_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f2_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire f2_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f2_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f2_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f3_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [149:0] f3_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f3_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire f3_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [27:0] f3_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f3_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire f3_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [27:0] f3_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f3_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f3_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f3_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f3_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:283
+    output wire f3_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f3_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f3_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire f3_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f3_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f3_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire w_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [27:0] w_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:286
+    output wire w_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:286
+    output wire w_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [27:0] w_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire w_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:283
+    output wire nodes_valid,               // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [149:0] nodes_data,        // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire nodes_ready,               // rtl-gen/src/merge/merger/mod.rs:283
+    output wire refs_valid,                // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [27:0] refs_data,          // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire refs_ready,                // rtl-gen/src/merge/merger/mod.rs:283
     output wire w_filling,                 // rtl-gen/src/merge/merger/tail.rs:68
     output wire w_drain_records,           // rtl-gen/src/merge/merger/tail.rs:68
     output wire w_drain_refs,              // rtl-gen/src/merge/merger/tail.rs:68
@@ -105,6 +105,11 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     output wire idle,                      // rtl-gen/src/merge/merger/tail.rs:99
     output wire module_done                // rtl-gen/src/merge/merger/tail.rs:100
 );
+    localparam [2:0] NONE = 3'd0;            // rtl-gen/src/merge/merger/level_mode.rs:234
+    localparam [2:0] COUNT = 3'd1;           // rtl-gen/src/merge/merger/level_mode.rs:178
+    localparam [2:0] WAIT = 3'd2;            // rtl-gen/src/merge/merger/level_mode.rs:227
+    localparam [2:0] FINAL = 3'd3;           // rtl-gen/src/merge/merger/level_mode.rs:178
+    localparam [2:0] DONE = 3'd4;            // rtl-gen/src/merge/merger/level_mode.rs:228
     reg [177:0] leaves0 [0:15];              // rtl-gen/src/merge/merger/drop_fifo.rs:21
     reg [177:0] leaves1 [0:15];              // rtl-gen/src/merge/merger/drop_fifo.rs:21
     reg [177:0] leaves2 [0:15];              // rtl-gen/src/merge/merger/drop_fifo.rs:21
@@ -121,1538 +126,735 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     reg [177:0] leaves13 [0:15];             // rtl-gen/src/merge/merger/drop_fifo.rs:21
     reg [177:0] leaves14 [0:15];             // rtl-gen/src/merge/merger/drop_fifo.rs:21
     reg [177:0] leaves15 [0:15];             // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    wire u_fetch0_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch0_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch0_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch0_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire [183:0] u_fetch0_out_data;          // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:170
-    wire [183:0] u_fetch0_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_idle;                      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch1_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch1_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch1_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire [183:0] u_fetch1_out_data;          // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:170
-    wire [183:0] u_fetch1_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_idle;                      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch2_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch2_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch2_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire [183:0] u_fetch2_out_data;          // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:170
-    wire [183:0] u_fetch2_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_idle;                      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch3_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch3_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch3_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire [183:0] u_fetch3_out_data;          // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:170
-    wire [183:0] u_fetch3_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_idle;                      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_module_in0_ready;                 // rtl-gen/src/merge/merger/mod.rs:172
-    wire u_module_in1_ready;                 // rtl-gen/src/merge/merger/mod.rs:172
-    wire u_module_in2_ready;                 // rtl-gen/src/merge/merger/mod.rs:172
-    wire u_module_in3_ready;                 // rtl-gen/src/merge/merger/mod.rs:172
-    wire u_module_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:172
-    wire u_module_report_valid;              // rtl-gen/src/merge/merger/mod.rs:172
-    wire [57:0] u_module_report_data;        // rtl-gen/src/merge/merger/mod.rs:172
-    wire u_module_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:172
-    wire [180:0] u_module_out_data;          // rtl-gen/src/merge/merger/mod.rs:172
-    wire u_module_idle;                      // rtl-gen/src/merge/merger/mod.rs:172
-    wire u_module_done;                      // rtl-gen/src/merge/merger/mod.rs:172
-    wire u_builder_base0_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base1_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base2_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base3_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base4_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base5_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base6_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base7_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base8_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base9_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base10_ready;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base11_ready;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base12_ready;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base13_ready;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base14_ready;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base15_ready;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base16_ready;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level16_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level16_data;     // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level15_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level15_data;     // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level14_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level14_data;     // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level13_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level13_data;     // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level12_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level12_data;     // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level11_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level11_data;     // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level10_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level10_data;     // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level9_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level9_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level8_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level8_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level7_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level7_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level6_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level6_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level5_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level5_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level4_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level4_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level3_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level3_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level2_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level2_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level1_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level1_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level0_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level0_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_done_valid;               // rtl-gen/src/merge/merger/mod.rs:173
-    wire [5:0] u_builder_done_data;          // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_writer_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_done_ready;                // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_crefs_ready;               // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level0_ready;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level1_ready;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level2_ready;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level3_ready;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level4_ready;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level5_ready;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level6_ready;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level7_ready;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level8_ready;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level9_ready;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level10_ready;             // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level11_ready;             // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level12_ready;             // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level13_ready;             // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level14_ready;             // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level15_ready;             // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level16_ready;             // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_nodes_valid;               // rtl-gen/src/merge/merger/mod.rs:174
-    wire [149:0] u_writer_nodes_data;        // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_refs_valid;                // rtl-gen/src/merge/merger/mod.rs:174
-    wire [27:0] u_writer_refs_data;          // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:174
-    wire [27:0] u_writer_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_header_valid;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire [86:0] u_writer_header_data;        // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_filling;                   // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_drain_records;             // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_drain_refs;                // rtl-gen/src/merge/merger/mod.rs:174
-    reg busy;                                // rtl-gen/src/merge/merger/mod.rs:176
-    reg dropping0;                           // rtl-gen/src/merge/merger/mod.rs:177
-    reg dropping1;                           // rtl-gen/src/merge/merger/mod.rs:177
-    reg dropping2;                           // rtl-gen/src/merge/merger/mod.rs:177
-    reg dropping3;                           // rtl-gen/src/merge/merger/mod.rs:177
-    wire header_fire;                        // rtl-gen/src/merge/merger/mod.rs:178
-    wire busy_not;                           // rtl-gen/src/merge/merger/mod.rs:179
-    wire busy_and;                           // rtl-gen/src/merge/merger/mod.rs:179
-    wire busy_and_1;                         // rtl-gen/src/merge/merger/mod.rs:181
-    wire dropping0_not;                      // rtl-gen/src/merge/merger/mod.rs:181
-    wire busy_and_2;                         // rtl-gen/src/merge/merger/mod.rs:181
-    wire busy_and_3;                         // rtl-gen/src/merge/merger/mod.rs:181
-    wire dropping1_not;                      // rtl-gen/src/merge/merger/mod.rs:181
-    wire busy_and_4;                         // rtl-gen/src/merge/merger/mod.rs:181
-    wire busy_and_5;                         // rtl-gen/src/merge/merger/mod.rs:181
-    wire dropping2_not;                      // rtl-gen/src/merge/merger/mod.rs:181
-    wire busy_and_6;                         // rtl-gen/src/merge/merger/mod.rs:181
-    wire busy_and_7;                         // rtl-gen/src/merge/merger/mod.rs:181
-    wire dropping3_not;                      // rtl-gen/src/merge/merger/mod.rs:181
-    wire quiet;                              // rtl-gen/src/merge/merger/mod.rs:181
-    wire cfg_fire;                           // rtl-gen/src/merge/merger/mod.rs:186
-    reg [568:0] cfg_q;                       // rtl-gen/src/merge/merger/mod.rs:187
-    wire [4:0] lo;                           // rtl-gen/src/merge/fields.rs:13
-    wire [4:0] hi;                           // rtl-gen/src/merge/fields.rs:13
-    wire cfg_data_gt;                        // rtl-gen/src/merge/merger/mod.rs:122
-    wire cfg_data_gt_1;                      // rtl-gen/src/merge/merger/mod.rs:126
-    wire cfg_data_or;                        // rtl-gen/src/merge/merger/mod.rs:126
-    wire count_pass;                         // rtl-gen/src/merge/merger/mod.rs:126
-    wire cfg_data_gt_2;                      // rtl-gen/src/merge/merger/level_mode.rs:44
-    wire cfg_data_gt_3;                      // rtl-gen/src/merge/merger/level_mode.rs:44
-    wire cfg_data_gt_4;                      // rtl-gen/src/merge/merger/level_mode.rs:44
-    wire cfg_data_gt_5;                      // rtl-gen/src/merge/merger/level_mode.rs:44
+    wire u_fetch0_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch0_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch0_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch0_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire [183:0] u_fetch0_out_data;          // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:178
+    wire [183:0] u_fetch0_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_idle;                      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch1_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch1_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch1_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire [183:0] u_fetch1_out_data;          // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:178
+    wire [183:0] u_fetch1_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_idle;                      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch2_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch2_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch2_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire [183:0] u_fetch2_out_data;          // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:178
+    wire [183:0] u_fetch2_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_idle;                      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch3_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch3_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch3_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire [183:0] u_fetch3_out_data;          // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:178
+    wire [183:0] u_fetch3_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_idle;                      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_module_in0_ready;                 // rtl-gen/src/merge/merger/mod.rs:180
+    wire u_module_in1_ready;                 // rtl-gen/src/merge/merger/mod.rs:180
+    wire u_module_in2_ready;                 // rtl-gen/src/merge/merger/mod.rs:180
+    wire u_module_in3_ready;                 // rtl-gen/src/merge/merger/mod.rs:180
+    wire u_module_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:180
+    wire u_module_report_valid;              // rtl-gen/src/merge/merger/mod.rs:180
+    wire [57:0] u_module_report_data;        // rtl-gen/src/merge/merger/mod.rs:180
+    wire u_module_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:180
+    wire [180:0] u_module_out_data;          // rtl-gen/src/merge/merger/mod.rs:180
+    wire u_module_idle;                      // rtl-gen/src/merge/merger/mod.rs:180
+    wire u_module_done;                      // rtl-gen/src/merge/merger/mod.rs:180
+    wire u_builder_base0_ready;              // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base1_ready;              // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base2_ready;              // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base3_ready;              // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base4_ready;              // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base5_ready;              // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base6_ready;              // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base7_ready;              // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base8_ready;              // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base9_ready;              // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base10_ready;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base11_ready;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base12_ready;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base13_ready;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base14_ready;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base15_ready;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base16_ready;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level16_valid;            // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level16_data;     // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level15_valid;            // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level15_data;     // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level14_valid;            // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level14_data;     // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level13_valid;            // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level13_data;     // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level12_valid;            // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level12_data;     // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level11_valid;            // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level11_data;     // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level10_valid;            // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level10_data;     // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level9_valid;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level9_data;      // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level8_valid;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level8_data;      // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level7_valid;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level7_data;      // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level6_valid;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level6_data;      // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level5_valid;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level5_data;      // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level4_valid;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level4_data;      // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level3_valid;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level3_data;      // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level2_valid;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level2_data;      // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level1_valid;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level1_data;      // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level0_valid;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level0_data;      // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_done_valid;               // rtl-gen/src/merge/merger/mod.rs:181
+    wire [5:0] u_builder_done_data;          // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_writer_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_done_ready;                // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_crefs_ready;               // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level0_ready;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level1_ready;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level2_ready;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level3_ready;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level4_ready;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level5_ready;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level6_ready;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level7_ready;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level8_ready;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level9_ready;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level10_ready;             // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level11_ready;             // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level12_ready;             // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level13_ready;             // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level14_ready;             // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level15_ready;             // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level16_ready;             // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_nodes_valid;               // rtl-gen/src/merge/merger/mod.rs:182
+    wire [149:0] u_writer_nodes_data;        // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_refs_valid;                // rtl-gen/src/merge/merger/mod.rs:182
+    wire [27:0] u_writer_refs_data;          // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:182
+    wire [27:0] u_writer_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_header_valid;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire [86:0] u_writer_header_data;        // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_filling;                   // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_drain_records;             // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_drain_refs;                // rtl-gen/src/merge/merger/mod.rs:182
+    reg busy;                                // rtl-gen/src/merge/merger/mod.rs:184
+    reg dropping0;                           // rtl-gen/src/merge/merger/mod.rs:185
+    reg dropping1;                           // rtl-gen/src/merge/merger/mod.rs:185
+    reg dropping2;                           // rtl-gen/src/merge/merger/mod.rs:185
+    reg dropping3;                           // rtl-gen/src/merge/merger/mod.rs:185
+    wire header_fire;                        // rtl-gen/src/merge/merger/mod.rs:186
+    wire busy_not;                           // rtl-gen/src/merge/merger/mod.rs:187
+    wire dropping0_not;                      // rtl-gen/src/merge/merger/mod.rs:189
+    wire dropping1_not;                      // rtl-gen/src/merge/merger/mod.rs:189
+    wire dropping2_not;                      // rtl-gen/src/merge/merger/mod.rs:189
+    wire busy_and;                           // rtl-gen/src/merge/merger/mod.rs:189
+    wire dropping3_not;                      // rtl-gen/src/merge/merger/mod.rs:189
+    wire quiet;                              // rtl-gen/src/merge/merger/mod.rs:189
+    wire cfg_fire;                           // rtl-gen/src/merge/merger/mod.rs:194
+    reg [568:0] cfg_q;                       // rtl-gen/src/merge/merger/mod.rs:195
+    wire [2:0] cfg_data_count;               // rtl-gen/src/merge/merger/mod.rs:121
+    wire [2:0] cfg_q_count;                  // rtl-gen/src/merge/merger/mod.rs:121
+    wire [4:0] lo;                           // rtl-gen/src/merge/merger/mod.rs:121
+    wire [4:0] hi;                           // rtl-gen/src/merge/merger/mod.rs:121
+    wire [3:0] cfg_q_out_id;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire [4:0] cfg_data_lo;                  // rtl-gen/src/merge/merger/mod.rs:121
+    wire [4:0] cfg_data_hi;                  // rtl-gen/src/merge/merger/mod.rs:121
+    wire count_pass;                         // rtl-gen/src/merge/merger/mod.rs:134
     wire used0;                              // rtl-gen/src/merge/merger/level_mode.rs:46
     wire used1;                              // rtl-gen/src/merge/merger/level_mode.rs:46
     wire used2;                              // rtl-gen/src/merge/merger/level_mode.rs:46
     wire used3;                              // rtl-gen/src/merge/merger/level_mode.rs:46
-    wire u_module_and;                       // rtl-gen/src/merge/merger/level_mode.rs:112
-    wire u_module_eq;                        // rtl-gen/src/merge/merger/level_mode.rs:112
+    wire u_module_chosen;                    // rtl-gen/src/merge/merger/mod.rs:121
     wire choice_seen;                        // rtl-gen/src/merge/merger/level_mode.rs:112
     reg choice_known;                        // rtl-gen/src/merge/merger/level_mode.rs:113
     reg choice_ok;                           // rtl-gen/src/merge/merger/level_mode.rs:114
     reg [4:0] merge_lod;                     // rtl-gen/src/merge/merger/level_mode.rs:115
-    wire u_module_eq_1;                      // rtl-gen/src/merge/merger/level_mode.rs:117
+    wire [1:0] u_module_err;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire [4:0] u_module_lod;                 // rtl-gen/src/merge/merger/mod.rs:121
     wire merging;                            // rtl-gen/src/merge/merger/level_mode.rs:119
-    reg module_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:219
-    wire [9:0] hi_cat;                       // rtl-gen/src/merge/merger/mod.rs:223
-    wire module_cfg_pending_and;             // rtl-gen/src/merge/merger/mod.rs:225
-    reg writer_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:227
-    wire writer_cfg_pending_and;             // rtl-gen/src/merge/merger/mod.rs:233
+    reg module_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:227
+    reg writer_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:235
     reg [3:0] fetch_err;                     // rtl-gen/src/merge/merger/level_mode.rs:162
     reg [1:0] fetch_rank;                    // rtl-gen/src/merge/merger/level_mode.rs:163
     wire [3:0] header_fire_mux_3;            // rtl-gen/src/merge/merger/level_mode.rs:164
     wire [179:0] const_cat;                  // rtl-gen/src/merge/merger/level_mode.rs:166
     reg fetch0_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:169
-    wire fetch0_cfg_pending_and;             // rtl-gen/src/merge/merger/level_mode.rs:173
     reg [2:0] phase0;                        // rtl-gen/src/merge/merger/level_mode.rs:176
-    reg [4:0] cmd_lod0;                      // rtl-gen/src/merge/merger/level_mode.rs:179
-    wire phase0_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:177
-    wire phase0_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:177
-    wire [4:0] merging_mux;                  // rtl-gen/src/merge/merger/level_mode.rs:182
-    wire [4:0] phase0_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:182
-    wire phase0_and;                         // rtl-gen/src/merge/merger/level_mode.rs:188
-    wire phase0_and_1;                       // rtl-gen/src/merge/merger/level_mode.rs:191
-    wire [4:0] phase0_mux_1;                 // rtl-gen/src/merge/merger/level_mode.rs:195
-    wire [12:0] phase0_cat;                  // rtl-gen/src/merge/merger/level_mode.rs:183
-    wire issuing0;                           // rtl-gen/src/merge/merger/level_mode.rs:198
-    wire used0_and;                          // rtl-gen/src/merge/merger/level_mode.rs:199
-    wire used0_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:201
-    wire used0_and_2;                        // rtl-gen/src/merge/merger/level_mode.rs:201
-    wire u_fetch0_eq;                        // rtl-gen/src/merge/merger/level_mode.rs:210
-    wire used0_not;                          // rtl-gen/src/merge/merger/level_mode.rs:211
-    wire phase0_and_2;                       // rtl-gen/src/merge/merger/level_mode.rs:211
-    wire phase0_or;                          // rtl-gen/src/merge/merger/level_mode.rs:211
-    wire virtual_end0;                       // rtl-gen/src/merge/merger/level_mode.rs:211
-    wire dropping0_not_1;                    // rtl-gen/src/merge/merger/level_mode.rs:213
-    wire u_fetch0_and;                       // rtl-gen/src/merge/merger/level_mode.rs:213
-    wire used0_mux;                          // rtl-gen/src/merge/merger/level_mode.rs:213
-    wire [179:0] used0_mux_1;                // rtl-gen/src/merge/merger/level_mode.rs:214
-    wire used0_and_3;                        // rtl-gen/src/merge/merger/level_mode.rs:215
-    wire dropping0_or;                       // rtl-gen/src/merge/merger/level_mode.rs:215
-    wire used0_and_4;                        // rtl-gen/src/merge/merger/level_mode.rs:216
-    wire dropping0_or_1;                     // rtl-gen/src/merge/merger/level_mode.rs:216
-    wire u_fetch0_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:216
-    wire virtual_end0_and;                   // rtl-gen/src/merge/merger/level_mode.rs:217
-    wire u_fetch0_ne;                        // rtl-gen/src/merge/merger/level_mode.rs:218
-    wire u_fetch0_and_2;                     // rtl-gen/src/merge/merger/level_mode.rs:218
-    wire header_fire_eq;                     // rtl-gen/src/merge/merger/level_mode.rs:218
-    wire u_fetch0_and_3;                     // rtl-gen/src/merge/merger/level_mode.rs:218
-    wire [3:0] u_fetch0_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:219
-    wire used0_not_1;                        // rtl-gen/src/merge/merger/level_mode.rs:222
-    wire used0_and_5;                        // rtl-gen/src/merge/merger/level_mode.rs:222
-    wire merging_not;                        // rtl-gen/src/merge/merger/level_mode.rs:222
-    wire used0_and_6;                        // rtl-gen/src/merge/merger/level_mode.rs:222
-    wire used0_or;                           // rtl-gen/src/merge/merger/level_mode.rs:223
-    wire step0;                              // rtl-gen/src/merge/merger/level_mode.rs:223
-    wire cmd_lod0_eq;                        // rtl-gen/src/merge/merger/level_mode.rs:224
-    wire used0_or_1;                         // rtl-gen/src/merge/merger/level_mode.rs:226
-    wire [2:0] count_pass_mux;               // rtl-gen/src/merge/merger/level_mode.rs:231
-    wire phase0_eq_2;                        // rtl-gen/src/merge/merger/level_mode.rs:177
-    wire phase0_and_3;                       // rtl-gen/src/merge/merger/level_mode.rs:239
-    wire step0_and;                          // rtl-gen/src/merge/merger/level_mode.rs:246
-    wire [4:0] cmd_lod0_add;                 // rtl-gen/src/merge/merger/level_mode.rs:246
-    wire used0_and_7;                        // rtl-gen/src/merge/merger/level_mode.rs:248
-    wire merging_not_1;                      // rtl-gen/src/merge/merger/level_mode.rs:248
-    wire used0_and_8;                        // rtl-gen/src/merge/merger/level_mode.rs:248
-    wire u_fetch0_and_4;                     // rtl-gen/src/merge/merger/level_mode.rs:249
-    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:272
-    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:272
-    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:272
+    reg [4:0] cmd_lod0;                      // rtl-gen/src/merge/merger/level_mode.rs:180
+    wire phase0_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:178
+    wire phase0_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:178
+    wire [4:0] merging_mux;                  // rtl-gen/src/merge/merger/level_mode.rs:183
+    wire [4:0] phase0_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:183
+    wire phase0_and;                         // rtl-gen/src/merge/merger/level_mode.rs:189
+    wire issuing0;                           // rtl-gen/src/merge/merger/level_mode.rs:199
+    wire used0_and;                          // rtl-gen/src/merge/merger/level_mode.rs:200
+    wire used0_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:202
+    wire [3:0] u_fetch0_err;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire [1:0] u_fetch0_kind;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire used0_not;                          // rtl-gen/src/merge/merger/level_mode.rs:212
+    wire virtual_end0;                       // rtl-gen/src/merge/merger/level_mode.rs:212
+    wire dropping0_or;                       // rtl-gen/src/merge/merger/level_mode.rs:216
+    wire u_fetch0_and;                       // rtl-gen/src/merge/merger/level_mode.rs:217
+    wire u_fetch0_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:219
+    wire [3:0] u_fetch0_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:220
+    wire merging_not;                        // rtl-gen/src/merge/merger/level_mode.rs:223
+    wire step0;                              // rtl-gen/src/merge/merger/level_mode.rs:224
+    wire [2:0] count_pass_mux;               // rtl-gen/src/merge/merger/level_mode.rs:232
+    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
+    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:280
+    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
     reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:169
-    wire fetch1_cfg_pending_and;             // rtl-gen/src/merge/merger/level_mode.rs:173
     reg [2:0] phase1;                        // rtl-gen/src/merge/merger/level_mode.rs:176
-    reg [4:0] cmd_lod1;                      // rtl-gen/src/merge/merger/level_mode.rs:179
-    wire phase1_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:177
-    wire phase1_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:177
-    wire [4:0] merging_mux_1;                // rtl-gen/src/merge/merger/level_mode.rs:182
-    wire [4:0] phase1_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:182
-    wire phase1_and;                         // rtl-gen/src/merge/merger/level_mode.rs:188
-    wire phase1_and_1;                       // rtl-gen/src/merge/merger/level_mode.rs:191
-    wire [4:0] phase1_mux_1;                 // rtl-gen/src/merge/merger/level_mode.rs:195
-    wire [12:0] phase1_cat;                  // rtl-gen/src/merge/merger/level_mode.rs:183
-    wire issuing1;                           // rtl-gen/src/merge/merger/level_mode.rs:198
-    wire used1_and;                          // rtl-gen/src/merge/merger/level_mode.rs:199
-    wire used1_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:201
-    wire used1_and_2;                        // rtl-gen/src/merge/merger/level_mode.rs:201
-    wire u_fetch1_eq;                        // rtl-gen/src/merge/merger/level_mode.rs:210
-    wire used1_not;                          // rtl-gen/src/merge/merger/level_mode.rs:211
-    wire phase1_and_2;                       // rtl-gen/src/merge/merger/level_mode.rs:211
-    wire phase1_or;                          // rtl-gen/src/merge/merger/level_mode.rs:211
-    wire virtual_end1;                       // rtl-gen/src/merge/merger/level_mode.rs:211
-    wire dropping1_not_1;                    // rtl-gen/src/merge/merger/level_mode.rs:213
-    wire u_fetch1_and;                       // rtl-gen/src/merge/merger/level_mode.rs:213
-    wire used1_mux;                          // rtl-gen/src/merge/merger/level_mode.rs:213
-    wire [179:0] used1_mux_1;                // rtl-gen/src/merge/merger/level_mode.rs:214
-    wire used1_and_3;                        // rtl-gen/src/merge/merger/level_mode.rs:215
-    wire dropping1_or;                       // rtl-gen/src/merge/merger/level_mode.rs:215
-    wire used1_and_4;                        // rtl-gen/src/merge/merger/level_mode.rs:216
-    wire dropping1_or_1;                     // rtl-gen/src/merge/merger/level_mode.rs:216
-    wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:216
-    wire virtual_end1_and;                   // rtl-gen/src/merge/merger/level_mode.rs:217
-    wire u_fetch1_ne;                        // rtl-gen/src/merge/merger/level_mode.rs:218
-    wire u_fetch1_and_2;                     // rtl-gen/src/merge/merger/level_mode.rs:218
-    wire u_fetch0_eq_1;                      // rtl-gen/src/merge/merger/level_mode.rs:218
-    wire u_fetch1_and_3;                     // rtl-gen/src/merge/merger/level_mode.rs:218
-    wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:219
-    wire used1_not_1;                        // rtl-gen/src/merge/merger/level_mode.rs:222
-    wire used1_and_5;                        // rtl-gen/src/merge/merger/level_mode.rs:222
-    wire merging_not_2;                      // rtl-gen/src/merge/merger/level_mode.rs:222
-    wire used1_and_6;                        // rtl-gen/src/merge/merger/level_mode.rs:222
-    wire used1_or;                           // rtl-gen/src/merge/merger/level_mode.rs:223
-    wire step1;                              // rtl-gen/src/merge/merger/level_mode.rs:223
-    wire cmd_lod1_eq;                        // rtl-gen/src/merge/merger/level_mode.rs:224
-    wire used1_or_1;                         // rtl-gen/src/merge/merger/level_mode.rs:226
-    wire [2:0] count_pass_mux_1;             // rtl-gen/src/merge/merger/level_mode.rs:231
-    wire phase1_eq_2;                        // rtl-gen/src/merge/merger/level_mode.rs:177
-    wire phase1_and_3;                       // rtl-gen/src/merge/merger/level_mode.rs:239
-    wire step1_and;                          // rtl-gen/src/merge/merger/level_mode.rs:246
-    wire [4:0] cmd_lod1_add;                 // rtl-gen/src/merge/merger/level_mode.rs:246
-    wire used1_and_7;                        // rtl-gen/src/merge/merger/level_mode.rs:248
-    wire merging_not_3;                      // rtl-gen/src/merge/merger/level_mode.rs:248
-    wire used1_and_8;                        // rtl-gen/src/merge/merger/level_mode.rs:248
-    wire u_fetch1_and_4;                     // rtl-gen/src/merge/merger/level_mode.rs:249
-    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:272
-    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:272
-    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:272
+    reg [4:0] cmd_lod1;                      // rtl-gen/src/merge/merger/level_mode.rs:180
+    wire phase1_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:178
+    wire phase1_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:178
+    wire [4:0] phase1_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:183
+    wire phase1_and;                         // rtl-gen/src/merge/merger/level_mode.rs:189
+    wire issuing1;                           // rtl-gen/src/merge/merger/level_mode.rs:199
+    wire used1_and;                          // rtl-gen/src/merge/merger/level_mode.rs:200
+    wire used1_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:202
+    wire [3:0] u_fetch1_err;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire [1:0] u_fetch1_kind;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire used1_not;                          // rtl-gen/src/merge/merger/level_mode.rs:212
+    wire virtual_end1;                       // rtl-gen/src/merge/merger/level_mode.rs:212
+    wire dropping1_or;                       // rtl-gen/src/merge/merger/level_mode.rs:216
+    wire u_fetch1_and;                       // rtl-gen/src/merge/merger/level_mode.rs:217
+    wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:219
+    wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:220
+    wire step1;                              // rtl-gen/src/merge/merger/level_mode.rs:224
+    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
+    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:280
+    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
     reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:169
-    wire fetch2_cfg_pending_and;             // rtl-gen/src/merge/merger/level_mode.rs:173
     reg [2:0] phase2;                        // rtl-gen/src/merge/merger/level_mode.rs:176
-    reg [4:0] cmd_lod2;                      // rtl-gen/src/merge/merger/level_mode.rs:179
-    wire phase2_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:177
-    wire phase2_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:177
-    wire [4:0] merging_mux_2;                // rtl-gen/src/merge/merger/level_mode.rs:182
-    wire [4:0] phase2_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:182
-    wire phase2_and;                         // rtl-gen/src/merge/merger/level_mode.rs:188
-    wire phase2_and_1;                       // rtl-gen/src/merge/merger/level_mode.rs:191
-    wire [4:0] phase2_mux_1;                 // rtl-gen/src/merge/merger/level_mode.rs:195
-    wire [12:0] phase2_cat;                  // rtl-gen/src/merge/merger/level_mode.rs:183
-    wire issuing2;                           // rtl-gen/src/merge/merger/level_mode.rs:198
-    wire used2_and;                          // rtl-gen/src/merge/merger/level_mode.rs:199
-    wire used2_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:201
-    wire used2_and_2;                        // rtl-gen/src/merge/merger/level_mode.rs:201
-    wire u_fetch2_eq;                        // rtl-gen/src/merge/merger/level_mode.rs:210
-    wire used2_not;                          // rtl-gen/src/merge/merger/level_mode.rs:211
-    wire phase2_and_2;                       // rtl-gen/src/merge/merger/level_mode.rs:211
-    wire phase2_or;                          // rtl-gen/src/merge/merger/level_mode.rs:211
-    wire virtual_end2;                       // rtl-gen/src/merge/merger/level_mode.rs:211
-    wire dropping2_not_1;                    // rtl-gen/src/merge/merger/level_mode.rs:213
-    wire u_fetch2_and;                       // rtl-gen/src/merge/merger/level_mode.rs:213
-    wire used2_mux;                          // rtl-gen/src/merge/merger/level_mode.rs:213
-    wire [179:0] used2_mux_1;                // rtl-gen/src/merge/merger/level_mode.rs:214
-    wire used2_and_3;                        // rtl-gen/src/merge/merger/level_mode.rs:215
-    wire dropping2_or;                       // rtl-gen/src/merge/merger/level_mode.rs:215
-    wire used2_and_4;                        // rtl-gen/src/merge/merger/level_mode.rs:216
-    wire dropping2_or_1;                     // rtl-gen/src/merge/merger/level_mode.rs:216
-    wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:216
-    wire virtual_end2_and;                   // rtl-gen/src/merge/merger/level_mode.rs:217
-    wire u_fetch2_ne;                        // rtl-gen/src/merge/merger/level_mode.rs:218
-    wire u_fetch2_and_2;                     // rtl-gen/src/merge/merger/level_mode.rs:218
-    wire u_fetch1_eq_1;                      // rtl-gen/src/merge/merger/level_mode.rs:218
-    wire u_fetch2_and_3;                     // rtl-gen/src/merge/merger/level_mode.rs:218
-    wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:219
-    wire used2_not_1;                        // rtl-gen/src/merge/merger/level_mode.rs:222
-    wire used2_and_5;                        // rtl-gen/src/merge/merger/level_mode.rs:222
-    wire merging_not_4;                      // rtl-gen/src/merge/merger/level_mode.rs:222
-    wire used2_and_6;                        // rtl-gen/src/merge/merger/level_mode.rs:222
-    wire used2_or;                           // rtl-gen/src/merge/merger/level_mode.rs:223
-    wire step2;                              // rtl-gen/src/merge/merger/level_mode.rs:223
-    wire cmd_lod2_eq;                        // rtl-gen/src/merge/merger/level_mode.rs:224
-    wire used2_or_1;                         // rtl-gen/src/merge/merger/level_mode.rs:226
-    wire [2:0] count_pass_mux_2;             // rtl-gen/src/merge/merger/level_mode.rs:231
-    wire phase2_eq_2;                        // rtl-gen/src/merge/merger/level_mode.rs:177
-    wire phase2_and_3;                       // rtl-gen/src/merge/merger/level_mode.rs:239
-    wire step2_and;                          // rtl-gen/src/merge/merger/level_mode.rs:246
-    wire [4:0] cmd_lod2_add;                 // rtl-gen/src/merge/merger/level_mode.rs:246
-    wire used2_and_7;                        // rtl-gen/src/merge/merger/level_mode.rs:248
-    wire merging_not_5;                      // rtl-gen/src/merge/merger/level_mode.rs:248
-    wire used2_and_8;                        // rtl-gen/src/merge/merger/level_mode.rs:248
-    wire u_fetch2_and_4;                     // rtl-gen/src/merge/merger/level_mode.rs:249
-    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:272
-    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:272
-    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:272
+    reg [4:0] cmd_lod2;                      // rtl-gen/src/merge/merger/level_mode.rs:180
+    wire phase2_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:178
+    wire phase2_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:178
+    wire [4:0] phase2_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:183
+    wire phase2_and;                         // rtl-gen/src/merge/merger/level_mode.rs:189
+    wire issuing2;                           // rtl-gen/src/merge/merger/level_mode.rs:199
+    wire used2_and;                          // rtl-gen/src/merge/merger/level_mode.rs:200
+    wire used2_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:202
+    wire [3:0] u_fetch2_err;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire [1:0] u_fetch2_kind;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire used2_not;                          // rtl-gen/src/merge/merger/level_mode.rs:212
+    wire virtual_end2;                       // rtl-gen/src/merge/merger/level_mode.rs:212
+    wire dropping2_or;                       // rtl-gen/src/merge/merger/level_mode.rs:216
+    wire u_fetch2_and;                       // rtl-gen/src/merge/merger/level_mode.rs:217
+    wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:219
+    wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:220
+    wire step2;                              // rtl-gen/src/merge/merger/level_mode.rs:224
+    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
+    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:280
+    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
     reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:169
-    wire fetch3_cfg_pending_and;             // rtl-gen/src/merge/merger/level_mode.rs:173
     reg [2:0] phase3;                        // rtl-gen/src/merge/merger/level_mode.rs:176
-    reg [4:0] cmd_lod3;                      // rtl-gen/src/merge/merger/level_mode.rs:179
-    wire phase3_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:177
-    wire phase3_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:177
-    wire [4:0] merging_mux_3;                // rtl-gen/src/merge/merger/level_mode.rs:182
-    wire [4:0] phase3_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:182
-    wire phase3_and;                         // rtl-gen/src/merge/merger/level_mode.rs:188
-    wire phase3_and_1;                       // rtl-gen/src/merge/merger/level_mode.rs:191
-    wire [4:0] phase3_mux_1;                 // rtl-gen/src/merge/merger/level_mode.rs:195
-    wire [12:0] phase3_cat;                  // rtl-gen/src/merge/merger/level_mode.rs:183
-    wire issuing3;                           // rtl-gen/src/merge/merger/level_mode.rs:198
-    wire used3_and;                          // rtl-gen/src/merge/merger/level_mode.rs:199
-    wire used3_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:201
-    wire used3_and_2;                        // rtl-gen/src/merge/merger/level_mode.rs:201
-    wire u_fetch3_eq;                        // rtl-gen/src/merge/merger/level_mode.rs:210
-    wire used3_not;                          // rtl-gen/src/merge/merger/level_mode.rs:211
-    wire phase3_and_2;                       // rtl-gen/src/merge/merger/level_mode.rs:211
-    wire phase3_or;                          // rtl-gen/src/merge/merger/level_mode.rs:211
-    wire virtual_end3;                       // rtl-gen/src/merge/merger/level_mode.rs:211
-    wire dropping3_not_1;                    // rtl-gen/src/merge/merger/level_mode.rs:213
-    wire u_fetch3_and;                       // rtl-gen/src/merge/merger/level_mode.rs:213
-    wire used3_mux;                          // rtl-gen/src/merge/merger/level_mode.rs:213
-    wire [179:0] used3_mux_1;                // rtl-gen/src/merge/merger/level_mode.rs:214
-    wire used3_and_3;                        // rtl-gen/src/merge/merger/level_mode.rs:215
-    wire dropping3_or;                       // rtl-gen/src/merge/merger/level_mode.rs:215
-    wire used3_and_4;                        // rtl-gen/src/merge/merger/level_mode.rs:216
-    wire dropping3_or_1;                     // rtl-gen/src/merge/merger/level_mode.rs:216
-    wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:216
-    wire virtual_end3_and;                   // rtl-gen/src/merge/merger/level_mode.rs:217
-    wire u_fetch3_ne;                        // rtl-gen/src/merge/merger/level_mode.rs:218
-    wire u_fetch3_and_2;                     // rtl-gen/src/merge/merger/level_mode.rs:218
-    wire u_fetch2_eq_1;                      // rtl-gen/src/merge/merger/level_mode.rs:218
-    wire u_fetch3_and_3;                     // rtl-gen/src/merge/merger/level_mode.rs:218
-    wire [3:0] fetch_err_next;               // rtl-gen/src/merge/merger/level_mode.rs:219
-    wire used3_not_1;                        // rtl-gen/src/merge/merger/level_mode.rs:222
-    wire used3_and_5;                        // rtl-gen/src/merge/merger/level_mode.rs:222
-    wire merging_not_6;                      // rtl-gen/src/merge/merger/level_mode.rs:222
-    wire used3_and_6;                        // rtl-gen/src/merge/merger/level_mode.rs:222
-    wire used3_or;                           // rtl-gen/src/merge/merger/level_mode.rs:223
-    wire step3;                              // rtl-gen/src/merge/merger/level_mode.rs:223
-    wire cmd_lod3_eq;                        // rtl-gen/src/merge/merger/level_mode.rs:224
-    wire used3_or_1;                         // rtl-gen/src/merge/merger/level_mode.rs:226
-    wire [2:0] count_pass_mux_3;             // rtl-gen/src/merge/merger/level_mode.rs:231
-    wire phase3_eq_2;                        // rtl-gen/src/merge/merger/level_mode.rs:177
-    wire phase3_and_3;                       // rtl-gen/src/merge/merger/level_mode.rs:239
-    wire step3_and;                          // rtl-gen/src/merge/merger/level_mode.rs:246
-    wire [4:0] cmd_lod3_add;                 // rtl-gen/src/merge/merger/level_mode.rs:246
-    wire used3_and_7;                        // rtl-gen/src/merge/merger/level_mode.rs:248
-    wire merging_not_7;                      // rtl-gen/src/merge/merger/level_mode.rs:248
-    wire used3_and_8;                        // rtl-gen/src/merge/merger/level_mode.rs:248
-    wire u_fetch3_and_4;                     // rtl-gen/src/merge/merger/level_mode.rs:249
-    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:272
-    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:272
-    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:272
+    reg [4:0] cmd_lod3;                      // rtl-gen/src/merge/merger/level_mode.rs:180
+    wire phase3_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:178
+    wire phase3_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:178
+    wire [4:0] phase3_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:183
+    wire phase3_and;                         // rtl-gen/src/merge/merger/level_mode.rs:189
+    wire issuing3;                           // rtl-gen/src/merge/merger/level_mode.rs:199
+    wire used3_and;                          // rtl-gen/src/merge/merger/level_mode.rs:200
+    wire used3_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:202
+    wire [3:0] u_fetch3_err;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire [1:0] u_fetch3_kind;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire used3_not;                          // rtl-gen/src/merge/merger/level_mode.rs:212
+    wire virtual_end3;                       // rtl-gen/src/merge/merger/level_mode.rs:212
+    wire dropping3_or;                       // rtl-gen/src/merge/merger/level_mode.rs:216
+    wire u_fetch3_and;                       // rtl-gen/src/merge/merger/level_mode.rs:217
+    wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:219
+    wire step3;                              // rtl-gen/src/merge/merger/level_mode.rs:224
+    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
+    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:280
+    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
     reg leaves_done;                         // rtl-gen/src/merge/merger/leaf_merge.rs:46
-    wire leaves_done_not;                    // rtl-gen/src/merge/merger/leaf_merge.rs:47
     wire leaves_active;                      // rtl-gen/src/merge/merger/leaf_merge.rs:47
-    wire used0_not_2;                        // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire used0_or_2;                         // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire [47:0] u_fetch0_cat;                // rtl-gen/src/merge/network.rs:39
+    wire u_fetch0_end;                       // rtl-gen/src/merge/merger/mod.rs:121
+    wire used0_or;                           // rtl-gen/src/merge/merger/leaf_merge.rs:57
+    wire [4:0] u_fetch0_lod;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire [47:0] u_fetch0_rec_x_morton;       // rtl-gen/src/merge/network.rs:39
     wire [53:0] leaf_key0;                   // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire used0_not_3;                        // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire used0_or_3;                         // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire leaves_active_and;                  // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire used0_not_4;                        // rtl-gen/src/merge/merger/leaf_merge.rs:60
-    wire used0_or_4;                         // rtl-gen/src/merge/merger/leaf_merge.rs:60
-    wire used0_and_9;                        // rtl-gen/src/merge/merger/leaf_merge.rs:60
-    wire used1_not_2;                        // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire used1_or_2;                         // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire [47:0] u_fetch1_cat;                // rtl-gen/src/merge/network.rs:39
+    wire u_fetch1_end;                       // rtl-gen/src/merge/merger/mod.rs:121
+    wire used1_or;                           // rtl-gen/src/merge/merger/leaf_merge.rs:57
+    wire [4:0] u_fetch1_lod;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire [47:0] u_fetch1_rec_x_morton;       // rtl-gen/src/merge/network.rs:39
     wire [53:0] leaf_key1;                   // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire used1_not_3;                        // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire used1_or_3;                         // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire leaves_active_and_1;                // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire used1_not_4;                        // rtl-gen/src/merge/merger/leaf_merge.rs:60
-    wire used1_or_4;                         // rtl-gen/src/merge/merger/leaf_merge.rs:60
-    wire used0_and_10;                       // rtl-gen/src/merge/merger/leaf_merge.rs:60
-    wire used2_not_2;                        // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire used2_or_2;                         // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire [47:0] u_fetch2_cat;                // rtl-gen/src/merge/network.rs:39
+    wire u_fetch2_end;                       // rtl-gen/src/merge/merger/mod.rs:121
+    wire used2_or;                           // rtl-gen/src/merge/merger/leaf_merge.rs:57
+    wire [4:0] u_fetch2_lod;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire [47:0] u_fetch2_rec_x_morton;       // rtl-gen/src/merge/network.rs:39
     wire [53:0] leaf_key2;                   // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire used2_not_3;                        // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire used2_or_3;                         // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire leaves_active_and_2;                // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire used2_not_4;                        // rtl-gen/src/merge/merger/leaf_merge.rs:60
-    wire used2_or_4;                         // rtl-gen/src/merge/merger/leaf_merge.rs:60
-    wire used0_and_11;                       // rtl-gen/src/merge/merger/leaf_merge.rs:60
-    wire used3_not_2;                        // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire used3_or_2;                         // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire [47:0] u_fetch3_cat;                // rtl-gen/src/merge/network.rs:39
+    wire u_fetch3_end;                       // rtl-gen/src/merge/merger/mod.rs:121
+    wire used3_or;                           // rtl-gen/src/merge/merger/leaf_merge.rs:57
+    wire [4:0] u_fetch3_lod;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire [47:0] u_fetch3_rec_x_morton;       // rtl-gen/src/merge/network.rs:39
     wire [53:0] leaf_key3;                   // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire used3_not_3;                        // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire used3_or_3;                         // rtl-gen/src/merge/merger/leaf_merge.rs:59
     wire leaves_all_valid;                   // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire used3_not_4;                        // rtl-gen/src/merge/merger/leaf_merge.rs:60
-    wire used3_or_4;                         // rtl-gen/src/merge/merger/leaf_merge.rs:60
     wire leaves_all_end;                     // rtl-gen/src/merge/merger/leaf_merge.rs:60
     wire leaf_key1_lt;                       // rtl-gen/src/merge/merger/leaf_merge.rs:71
     wire [53:0] leaf_key1_mux;               // rtl-gen/src/merge/merger/leaf_merge.rs:73
-    wire [182:0] leaf_key1_mux_1;            // rtl-gen/src/merge/merger/leaf_merge.rs:75
-    wire [1:0] leaf_key1_mux_2;              // rtl-gen/src/merge/merger/leaf_merge.rs:76
     wire leaf_key2_lt;                       // rtl-gen/src/merge/merger/leaf_merge.rs:71
-    wire [53:0] leaf_key2_mux;               // rtl-gen/src/merge/merger/leaf_merge.rs:73
-    wire [182:0] leaf_key2_mux_1;            // rtl-gen/src/merge/merger/leaf_merge.rs:75
-    wire [1:0] leaf_key2_mux_2;              // rtl-gen/src/merge/merger/leaf_merge.rs:76
     wire leaf_key3_lt;                       // rtl-gen/src/merge/merger/leaf_merge.rs:71
     wire [182:0] leaf_best_data;             // rtl-gen/src/merge/merger/leaf_merge.rs:75
     wire [1:0] leaf_best;                    // rtl-gen/src/merge/merger/leaf_merge.rs:76
-    wire leaves_all_end_not;                 // rtl-gen/src/merge/merger/leaf_merge.rs:80
     wire leaf_take;                          // rtl-gen/src/merge/merger/leaf_merge.rs:80
-    wire used0_and_12;                       // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire leaf_best_eq;                       // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire leaves_all_end_or;                  // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire used0_and_13;                       // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire used1_and_9;                        // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire leaf_best_eq_1;                     // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire leaves_all_end_or_1;                // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire used1_and_10;                       // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire used2_and_9;                        // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire leaf_best_eq_2;                     // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire leaves_all_end_or_2;                // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire used2_and_10;                       // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire used3_and_9;                        // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire leaf_best_eq_3;                     // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire leaves_all_end_or_3;                // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire used3_and_10;                       // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire leaves_all_valid_and;               // rtl-gen/src/merge/merger/leaf_merge.rs:87
-    wire [179:0] const_cat_1;                // rtl-gen/src/merge/merger/level_mode.rs:294
-    wire out_is_ref;                         // rtl-gen/src/merge/merger/level_mode.rs:298
-    wire out_is_end;                         // rtl-gen/src/merge/merger/level_mode.rs:299
-    wire [179:0] u_module_cat;               // rtl-gen/src/merge/merger/level_mode.rs:302
-    reg crefs_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:313
-    wire crefs_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:315
-    wire crefs_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:315
-    wire choice_ok_not;                      // rtl-gen/src/merge/merger/level_mode.rs:315
-    wire out_is_ref_or;                      // rtl-gen/src/merge/merger/level_mode.rs:315
-    wire u_module_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:315
-    wire choice_ok_or;                       // rtl-gen/src/merge/merger/level_mode.rs:315
-    wire crefs_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:315
-    wire choice_ok_not_1;                    // rtl-gen/src/merge/merger/level_mode.rs:316
-    wire choice_ok_or_1;                     // rtl-gen/src/merge/merger/level_mode.rs:316
-    wire choice_ok_and;                      // rtl-gen/src/merge/merger/level_mode.rs:323
-    wire [27:0] choice_ok_mux;               // rtl-gen/src/merge/merger/level_mode.rs:323
-    wire [28:0] choice_ok_cat;               // rtl-gen/src/merge/merger/level_mode.rs:317
-    wire crefs_end_sent_and_2;               // rtl-gen/src/merge/merger/level_mode.rs:330
-    wire crefs_end_sent_and_3;               // rtl-gen/src/merge/merger/level_mode.rs:331
-    reg leaf_overflow_q;                     // rtl-gen/src/merge/merger/level_mode.rs:338
-    reg base0_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:343
-    wire merge_lod_eq;                       // rtl-gen/src/merge/merger/level_mode.rs:345
-    wire base0_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:345
+    wire [4:0] leaf_best_data_lod;           // rtl-gen/src/merge/merger/mod.rs:121
+    wire [1:0] u_module_kind;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire out_is_ref;                         // rtl-gen/src/merge/merger/level_mode.rs:296
+    wire out_is_end;                         // rtl-gen/src/merge/merger/level_mode.rs:297
+    wire u_module_err_1;                     // rtl-gen/src/merge/merger/mod.rs:121
+    wire [27:0] u_module_ref;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire [149:0] u_module_rec;               // rtl-gen/src/merge/merger/mod.rs:121
+    wire [179:0] u_module_kind_cat;          // rtl-gen/src/merge/merger/level_mode.rs:300
+    reg crefs_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:311
+    wire choice_ok_not;                      // rtl-gen/src/merge/merger/level_mode.rs:313
+    wire crefs_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:313
+    wire choice_ok_or;                       // rtl-gen/src/merge/merger/level_mode.rs:314
+    reg leaf_overflow_q;                     // rtl-gen/src/merge/merger/level_mode.rs:336
+    reg base0_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:341
+    wire base0_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:343
     reg [4:0] leaves0_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves0_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves0_wr_eq;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves0_wr_eq_1;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves0_wr_eq_2;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves0_wr_not;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves0_wr_and;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaf_best_data_eq;                  // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaf_take_and;                      // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaves0_wr_not_1;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_1;                    // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_2;                    // rtl-gen/src/merge/merger/level_mode.rs:352
-    wire [177:0] leaves0_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire merge_lod_lt;                       // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire base0_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire [179:0] const_cat_2;                // rtl-gen/src/merge/merger/level_mode.rs:355
-    wire leaves0_wr_and_1;                   // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base0_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base0_at_m_and;                     // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire out_is_ref_not;                     // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base0_at_m_and_1;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire leaves0_wr_not_2;                   // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire leaves0_wr_or;                      // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base0_above_m_and;                  // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base0_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base0_at_m_not;                     // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and;                   // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base0_above_m_not;                  // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_1;                 // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base0_at_m_or_1;                    // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base0_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire leaves0_wr_not_3;                   // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base0_above_m_and_1;                // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base0_above_m_mux;          // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base0_at_m_mux;             // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base0_above_m_mux_1;                // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base0_at_m_mux_1;                   // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base0_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base0_end_sent_and_2;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves0_wr_not_4;                   // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base0_end_sent_and_3;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves0_wr_not_5;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire leaf_take_and_3;                    // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves0_wr_add;               // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves0_rd_add;               // rtl-gen/src/merge/merger/drop_fifo.rs:54
-    wire base0_end_sent_and_4;               // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base0_end_sent_and_5;               // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base0_end_sent_not_1;               // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire u_builder_and;                      // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base0_at_m_mux_2;                   // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base0_at_m_mux_3;                   // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base1_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:343
-    wire merge_lod_eq_1;                     // rtl-gen/src/merge/merger/level_mode.rs:345
-    wire base1_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:345
+    wire leaves0_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire leaves0_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire leaves0_push;                       // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves0_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire [177:0] leaves0_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire base0_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire [149:0] leaves0_rec;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire [27:0] leaves0_ref;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire leaves0_end;                        // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire leaves0_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves0_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire base0_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire out_is_ref_not;                     // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base0_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base0_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base0_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire leaves0_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:370
+    reg base1_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:341
+    wire base1_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:343
     reg [4:0] leaves1_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves1_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves1_wr_eq;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves1_wr_eq_1;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves1_wr_eq_2;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves1_wr_not;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves1_wr_and;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaf_best_data_eq_1;                // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaf_take_and_4;                    // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaves1_wr_not_1;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_5;                    // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_6;                    // rtl-gen/src/merge/merger/level_mode.rs:352
-    wire [177:0] leaves1_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire merge_lod_lt_1;                     // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire base1_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire [179:0] const_cat_3;                // rtl-gen/src/merge/merger/level_mode.rs:355
-    wire leaves1_wr_and_1;                   // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base1_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base1_at_m_and;                     // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire out_is_ref_not_1;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base1_at_m_and_1;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire leaves1_wr_not_2;                   // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire leaves1_wr_or;                      // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base1_above_m_and;                  // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base1_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base1_at_m_not;                     // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_2;                 // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base1_above_m_not;                  // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_3;                 // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base1_at_m_or_1;                    // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base1_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire leaves1_wr_not_3;                   // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base1_above_m_and_1;                // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base1_above_m_mux;          // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base1_at_m_mux;             // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base1_above_m_mux_1;                // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base1_at_m_mux_1;                   // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base1_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base1_end_sent_and_2;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves1_wr_not_4;                   // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base1_end_sent_and_3;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves1_wr_not_5;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire leaf_take_and_7;                    // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves1_wr_add;               // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves1_rd_add;               // rtl-gen/src/merge/merger/drop_fifo.rs:54
-    wire base1_end_sent_and_4;               // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base1_end_sent_and_5;               // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base1_end_sent_not_1;               // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire u_builder_and_1;                    // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base1_at_m_mux_2;                   // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base1_at_m_mux_3;                   // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base2_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:343
-    wire merge_lod_eq_2;                     // rtl-gen/src/merge/merger/level_mode.rs:345
-    wire base2_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:345
+    wire leaves1_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire leaves1_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire leaves1_push;                       // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves1_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire [177:0] leaves1_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire base1_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire [149:0] leaves1_rec;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire [27:0] leaves1_ref;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire leaves1_end;                        // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire leaves1_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves1_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire base1_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base1_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base1_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base1_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire leaves1_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:370
+    reg base2_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:341
+    wire base2_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:343
     reg [4:0] leaves2_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves2_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves2_wr_eq;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves2_wr_eq_1;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves2_wr_eq_2;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves2_wr_not;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves2_wr_and;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaf_best_data_eq_2;                // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaf_take_and_8;                    // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaves2_wr_not_1;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_9;                    // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_10;                   // rtl-gen/src/merge/merger/level_mode.rs:352
-    wire [177:0] leaves2_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire merge_lod_lt_2;                     // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire base2_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire [179:0] const_cat_4;                // rtl-gen/src/merge/merger/level_mode.rs:355
-    wire leaves2_wr_and_1;                   // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base2_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base2_at_m_and;                     // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire out_is_ref_not_2;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base2_at_m_and_1;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire leaves2_wr_not_2;                   // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire leaves2_wr_or;                      // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base2_above_m_and;                  // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base2_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base2_at_m_not;                     // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_4;                 // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base2_above_m_not;                  // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_5;                 // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base2_at_m_or_1;                    // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base2_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire leaves2_wr_not_3;                   // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base2_above_m_and_1;                // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base2_above_m_mux;          // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base2_at_m_mux;             // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base2_above_m_mux_1;                // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base2_at_m_mux_1;                   // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base2_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base2_end_sent_and_2;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves2_wr_not_4;                   // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base2_end_sent_and_3;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves2_wr_not_5;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire leaf_take_and_11;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves2_wr_add;               // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves2_rd_add;               // rtl-gen/src/merge/merger/drop_fifo.rs:54
-    wire base2_end_sent_and_4;               // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base2_end_sent_and_5;               // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base2_end_sent_not_1;               // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire u_builder_and_2;                    // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base2_at_m_mux_2;                   // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base2_at_m_mux_3;                   // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base3_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:343
-    wire merge_lod_eq_3;                     // rtl-gen/src/merge/merger/level_mode.rs:345
-    wire base3_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:345
+    wire leaves2_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire leaves2_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire leaves2_push;                       // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves2_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire [177:0] leaves2_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire base2_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire [149:0] leaves2_rec;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire [27:0] leaves2_ref;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire leaves2_end;                        // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire leaves2_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves2_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire base2_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base2_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base2_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base2_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire leaves2_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base2_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:383
+    reg base3_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:341
+    wire base3_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:343
     reg [4:0] leaves3_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves3_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves3_wr_eq;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves3_wr_eq_1;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves3_wr_eq_2;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves3_wr_not;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves3_wr_and;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaf_best_data_eq_3;                // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaf_take_and_12;                   // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaves3_wr_not_1;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_13;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_14;                   // rtl-gen/src/merge/merger/level_mode.rs:352
-    wire [177:0] leaves3_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire merge_lod_lt_3;                     // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire base3_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire [179:0] const_cat_5;                // rtl-gen/src/merge/merger/level_mode.rs:355
-    wire leaves3_wr_and_1;                   // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base3_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base3_at_m_and;                     // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire out_is_ref_not_3;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base3_at_m_and_1;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire leaves3_wr_not_2;                   // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire leaves3_wr_or;                      // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base3_above_m_and;                  // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base3_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base3_at_m_not;                     // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_6;                 // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base3_above_m_not;                  // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_7;                 // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base3_at_m_or_1;                    // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base3_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire leaves3_wr_not_3;                   // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base3_above_m_and_1;                // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base3_above_m_mux;          // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base3_at_m_mux;             // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base3_above_m_mux_1;                // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base3_at_m_mux_1;                   // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base3_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base3_end_sent_and_2;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves3_wr_not_4;                   // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base3_end_sent_and_3;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves3_wr_not_5;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire leaf_take_and_15;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves3_wr_add;               // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves3_rd_add;               // rtl-gen/src/merge/merger/drop_fifo.rs:54
-    wire base3_end_sent_and_4;               // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base3_end_sent_and_5;               // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base3_end_sent_not_1;               // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire u_builder_and_3;                    // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base3_at_m_mux_2;                   // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base3_at_m_mux_3;                   // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base4_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:343
-    wire merge_lod_eq_4;                     // rtl-gen/src/merge/merger/level_mode.rs:345
-    wire base4_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:345
+    wire leaves3_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire leaves3_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire leaves3_push;                       // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves3_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire [177:0] leaves3_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire base3_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire [149:0] leaves3_rec;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire [27:0] leaves3_ref;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire leaves3_end;                        // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire leaves3_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves3_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire base3_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base3_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base3_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base3_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire leaves3_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base3_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:384
+    reg base4_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:341
+    wire base4_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:343
     reg [4:0] leaves4_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves4_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves4_wr_eq;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves4_wr_eq_1;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves4_wr_eq_2;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves4_wr_not;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves4_wr_and;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaf_best_data_eq_4;                // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaf_take_and_16;                   // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaves4_wr_not_1;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_17;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_18;                   // rtl-gen/src/merge/merger/level_mode.rs:352
-    wire [177:0] leaves4_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire merge_lod_lt_4;                     // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire base4_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire [179:0] const_cat_6;                // rtl-gen/src/merge/merger/level_mode.rs:355
-    wire leaves4_wr_and_1;                   // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base4_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base4_at_m_and;                     // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire out_is_ref_not_4;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base4_at_m_and_1;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire leaves4_wr_not_2;                   // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire leaves4_wr_or;                      // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base4_above_m_and;                  // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base4_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base4_at_m_not;                     // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_8;                 // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base4_above_m_not;                  // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_9;                 // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base4_at_m_or_1;                    // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base4_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire leaves4_wr_not_3;                   // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base4_above_m_and_1;                // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base4_above_m_mux;          // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base4_at_m_mux;             // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base4_above_m_mux_1;                // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base4_at_m_mux_1;                   // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base4_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base4_end_sent_and_2;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves4_wr_not_4;                   // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base4_end_sent_and_3;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves4_wr_not_5;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire leaf_take_and_19;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves4_wr_add;               // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves4_rd_add;               // rtl-gen/src/merge/merger/drop_fifo.rs:54
-    wire base4_end_sent_and_4;               // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base4_end_sent_and_5;               // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base4_end_sent_not_1;               // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire u_builder_and_4;                    // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base4_at_m_mux_2;                   // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base4_at_m_mux_3;                   // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base5_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:343
-    wire merge_lod_eq_5;                     // rtl-gen/src/merge/merger/level_mode.rs:345
-    wire base5_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:345
+    wire leaves4_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire leaves4_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire leaves4_push;                       // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves4_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire [177:0] leaves4_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire base4_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire [149:0] leaves4_rec;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire [27:0] leaves4_ref;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire leaves4_end;                        // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire leaves4_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves4_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire base4_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base4_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base4_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base4_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire leaves4_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:370
+    reg base5_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:341
+    wire base5_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:343
     reg [4:0] leaves5_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves5_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves5_wr_eq;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves5_wr_eq_1;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves5_wr_eq_2;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves5_wr_not;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves5_wr_and;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaf_best_data_eq_5;                // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaf_take_and_20;                   // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaves5_wr_not_1;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_21;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_22;                   // rtl-gen/src/merge/merger/level_mode.rs:352
-    wire [177:0] leaves5_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire merge_lod_lt_5;                     // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire base5_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire [179:0] const_cat_7;                // rtl-gen/src/merge/merger/level_mode.rs:355
-    wire leaves5_wr_and_1;                   // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base5_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base5_at_m_and;                     // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire out_is_ref_not_5;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base5_at_m_and_1;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire leaves5_wr_not_2;                   // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire leaves5_wr_or;                      // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base5_above_m_and;                  // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base5_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base5_at_m_not;                     // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_10;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base5_above_m_not;                  // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_11;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base5_at_m_or_1;                    // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base5_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire leaves5_wr_not_3;                   // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base5_above_m_and_1;                // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base5_above_m_mux;          // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base5_at_m_mux;             // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base5_above_m_mux_1;                // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base5_at_m_mux_1;                   // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base5_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base5_end_sent_and_2;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves5_wr_not_4;                   // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base5_end_sent_and_3;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves5_wr_not_5;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire leaf_take_and_23;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves5_wr_add;               // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves5_rd_add;               // rtl-gen/src/merge/merger/drop_fifo.rs:54
-    wire base5_end_sent_and_4;               // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base5_end_sent_and_5;               // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base5_end_sent_not_1;               // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire u_builder_and_5;                    // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base5_at_m_mux_2;                   // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base5_at_m_mux_3;                   // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base6_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:343
-    wire merge_lod_eq_6;                     // rtl-gen/src/merge/merger/level_mode.rs:345
-    wire base6_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:345
+    wire leaves5_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire leaves5_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire leaves5_push;                       // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves5_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire [177:0] leaves5_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire base5_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire [149:0] leaves5_rec;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire [27:0] leaves5_ref;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire leaves5_end;                        // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire leaves5_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves5_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire base5_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base5_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base5_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base5_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire leaves5_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base5_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:383
+    reg base6_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:341
+    wire base6_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:343
     reg [4:0] leaves6_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves6_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves6_wr_eq;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves6_wr_eq_1;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves6_wr_eq_2;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves6_wr_not;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves6_wr_and;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaf_best_data_eq_6;                // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaf_take_and_24;                   // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaves6_wr_not_1;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_25;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_26;                   // rtl-gen/src/merge/merger/level_mode.rs:352
-    wire [177:0] leaves6_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire merge_lod_lt_6;                     // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire base6_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire [179:0] const_cat_8;                // rtl-gen/src/merge/merger/level_mode.rs:355
-    wire leaves6_wr_and_1;                   // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base6_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base6_at_m_and;                     // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire out_is_ref_not_6;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base6_at_m_and_1;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire leaves6_wr_not_2;                   // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire leaves6_wr_or;                      // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base6_above_m_and;                  // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base6_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base6_at_m_not;                     // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_12;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base6_above_m_not;                  // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_13;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base6_at_m_or_1;                    // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base6_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire leaves6_wr_not_3;                   // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base6_above_m_and_1;                // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base6_above_m_mux;          // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base6_at_m_mux;             // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base6_above_m_mux_1;                // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base6_at_m_mux_1;                   // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base6_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base6_end_sent_and_2;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves6_wr_not_4;                   // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base6_end_sent_and_3;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves6_wr_not_5;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire leaf_take_and_27;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves6_wr_add;               // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves6_rd_add;               // rtl-gen/src/merge/merger/drop_fifo.rs:54
-    wire base6_end_sent_and_4;               // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base6_end_sent_and_5;               // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base6_end_sent_not_1;               // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire u_builder_and_6;                    // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base6_at_m_mux_2;                   // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base6_at_m_mux_3;                   // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base7_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:343
-    wire merge_lod_eq_7;                     // rtl-gen/src/merge/merger/level_mode.rs:345
-    wire base7_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:345
+    wire leaves6_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire leaves6_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire leaves6_push;                       // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves6_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire [177:0] leaves6_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire base6_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire [149:0] leaves6_rec;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire [27:0] leaves6_ref;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire leaves6_end;                        // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire leaves6_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves6_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire base6_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base6_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base6_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base6_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire leaves6_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:370
+    reg base7_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:341
+    wire base7_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:343
     reg [4:0] leaves7_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves7_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves7_wr_eq;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves7_wr_eq_1;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves7_wr_eq_2;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves7_wr_not;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves7_wr_and;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaf_best_data_eq_7;                // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaf_take_and_28;                   // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaves7_wr_not_1;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_29;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_30;                   // rtl-gen/src/merge/merger/level_mode.rs:352
-    wire [177:0] leaves7_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire merge_lod_lt_7;                     // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire base7_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire [179:0] const_cat_9;                // rtl-gen/src/merge/merger/level_mode.rs:355
-    wire leaves7_wr_and_1;                   // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base7_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base7_at_m_and;                     // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire out_is_ref_not_7;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base7_at_m_and_1;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire leaves7_wr_not_2;                   // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire leaves7_wr_or;                      // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base7_above_m_and;                  // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base7_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base7_at_m_not;                     // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_14;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base7_above_m_not;                  // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_15;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base7_at_m_or_1;                    // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base7_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire leaves7_wr_not_3;                   // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base7_above_m_and_1;                // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base7_above_m_mux;          // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base7_at_m_mux;             // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base7_above_m_mux_1;                // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base7_at_m_mux_1;                   // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base7_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base7_end_sent_and_2;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves7_wr_not_4;                   // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base7_end_sent_and_3;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves7_wr_not_5;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire leaf_take_and_31;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves7_wr_add;               // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves7_rd_add;               // rtl-gen/src/merge/merger/drop_fifo.rs:54
-    wire base7_end_sent_and_4;               // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base7_end_sent_and_5;               // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base7_end_sent_not_1;               // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire u_builder_and_7;                    // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base7_at_m_mux_2;                   // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base7_at_m_mux_3;                   // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base8_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:343
-    wire merge_lod_eq_8;                     // rtl-gen/src/merge/merger/level_mode.rs:345
-    wire base8_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:345
+    wire leaves7_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire leaves7_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire leaves7_push;                       // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves7_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire [177:0] leaves7_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire base7_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire [149:0] leaves7_rec;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire [27:0] leaves7_ref;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire leaves7_end;                        // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire leaves7_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves7_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire base7_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base7_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base7_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base7_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire leaves7_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base7_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:384
+    reg base8_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:341
+    wire base8_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:343
     reg [4:0] leaves8_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves8_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves8_wr_eq;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves8_wr_eq_1;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves8_wr_eq_2;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves8_wr_not;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves8_wr_and;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaf_best_data_eq_8;                // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaf_take_and_32;                   // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaves8_wr_not_1;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_33;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_34;                   // rtl-gen/src/merge/merger/level_mode.rs:352
-    wire [177:0] leaves8_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire merge_lod_lt_8;                     // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire base8_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire [179:0] const_cat_10;               // rtl-gen/src/merge/merger/level_mode.rs:355
-    wire leaves8_wr_and_1;                   // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base8_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base8_at_m_and;                     // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire out_is_ref_not_8;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base8_at_m_and_1;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire leaves8_wr_not_2;                   // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire leaves8_wr_or;                      // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base8_above_m_and;                  // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base8_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base8_at_m_not;                     // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_16;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base8_above_m_not;                  // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_17;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base8_at_m_or_1;                    // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base8_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire leaves8_wr_not_3;                   // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base8_above_m_and_1;                // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base8_above_m_mux;          // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base8_at_m_mux;             // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base8_above_m_mux_1;                // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base8_at_m_mux_1;                   // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base8_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base8_end_sent_and_2;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves8_wr_not_4;                   // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base8_end_sent_and_3;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves8_wr_not_5;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire leaf_take_and_35;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves8_wr_add;               // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves8_rd_add;               // rtl-gen/src/merge/merger/drop_fifo.rs:54
-    wire base8_end_sent_and_4;               // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base8_end_sent_and_5;               // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base8_end_sent_not_1;               // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire u_builder_and_8;                    // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base8_at_m_mux_2;                   // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base8_at_m_mux_3;                   // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base9_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:343
-    wire merge_lod_eq_9;                     // rtl-gen/src/merge/merger/level_mode.rs:345
-    wire base9_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:345
+    wire leaves8_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire leaves8_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire leaves8_push;                       // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves8_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire [177:0] leaves8_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire base8_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire [149:0] leaves8_rec;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire [27:0] leaves8_ref;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire leaves8_end;                        // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire leaves8_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves8_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire base8_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base8_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base8_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base8_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire leaves8_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base8_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:383
+    reg base9_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:341
+    wire base9_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:343
     reg [4:0] leaves9_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves9_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves9_wr_eq;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves9_wr_eq_1;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves9_wr_eq_2;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves9_wr_not;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves9_wr_and;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaf_best_data_eq_9;                // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaf_take_and_36;                   // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaves9_wr_not_1;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_37;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_38;                   // rtl-gen/src/merge/merger/level_mode.rs:352
-    wire [177:0] leaves9_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire merge_lod_lt_9;                     // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire base9_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire [179:0] const_cat_11;               // rtl-gen/src/merge/merger/level_mode.rs:355
-    wire leaves9_wr_and_1;                   // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base9_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base9_at_m_and;                     // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire out_is_ref_not_9;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base9_at_m_and_1;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire leaves9_wr_not_2;                   // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire leaves9_wr_or;                      // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base9_above_m_and;                  // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base9_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base9_at_m_not;                     // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_18;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base9_above_m_not;                  // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_19;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base9_at_m_or_1;                    // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base9_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire leaves9_wr_not_3;                   // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base9_above_m_and_1;                // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base9_above_m_mux;          // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base9_at_m_mux;             // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base9_above_m_mux_1;                // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base9_at_m_mux_1;                   // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base9_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base9_end_sent_and_2;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves9_wr_not_4;                   // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base9_end_sent_and_3;               // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves9_wr_not_5;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire leaf_take_and_39;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves9_wr_add;               // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves9_rd_add;               // rtl-gen/src/merge/merger/drop_fifo.rs:54
-    wire base9_end_sent_and_4;               // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base9_end_sent_and_5;               // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base9_end_sent_not_1;               // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire u_builder_and_9;                    // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base9_at_m_mux_2;                   // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base9_at_m_mux_3;                   // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base10_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:343
-    wire merge_lod_eq_10;                    // rtl-gen/src/merge/merger/level_mode.rs:345
-    wire base10_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:345
+    wire leaves9_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire leaves9_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire leaves9_push;                       // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves9_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire [177:0] leaves9_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire base9_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire [149:0] leaves9_rec;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire [27:0] leaves9_ref;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire leaves9_end;                        // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire leaves9_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves9_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire base9_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base9_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base9_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base9_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire leaves9_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:370
+    reg base10_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:341
+    wire base10_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:343
     reg [4:0] leaves10_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves10_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves10_wr_eq;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves10_wr_eq_1;                   // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves10_wr_eq_2;                   // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves10_wr_not;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves10_wr_and;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaf_best_data_eq_10;               // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaf_take_and_40;                   // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaves10_wr_not_1;                  // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_41;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_42;                   // rtl-gen/src/merge/merger/level_mode.rs:352
-    wire [177:0] leaves10_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire merge_lod_lt_10;                    // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire base10_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire [179:0] const_cat_12;               // rtl-gen/src/merge/merger/level_mode.rs:355
-    wire leaves10_wr_and_1;                  // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base10_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base10_at_m_and;                    // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire out_is_ref_not_10;                  // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base10_at_m_and_1;                  // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire leaves10_wr_not_2;                  // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire leaves10_wr_or;                     // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base10_above_m_and;                 // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base10_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base10_at_m_not;                    // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_20;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base10_above_m_not;                 // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_21;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base10_at_m_or_1;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base10_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire leaves10_wr_not_3;                  // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base10_above_m_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base10_above_m_mux;         // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base10_at_m_mux;            // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base10_above_m_mux_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base10_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base10_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base10_end_sent_and_2;              // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves10_wr_not_4;                  // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base10_end_sent_and_3;              // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves10_wr_not_5;                  // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire leaf_take_and_43;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves10_wr_add;              // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves10_rd_add;              // rtl-gen/src/merge/merger/drop_fifo.rs:54
-    wire base10_end_sent_and_4;              // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base10_end_sent_and_5;              // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base10_end_sent_not_1;              // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire u_builder_and_10;                   // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base10_at_m_mux_2;                  // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base10_at_m_mux_3;                  // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base11_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:343
-    wire merge_lod_eq_11;                    // rtl-gen/src/merge/merger/level_mode.rs:345
-    wire base11_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:345
+    wire leaves10_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire leaves10_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire leaves10_push;                      // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves10_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire [177:0] leaves10_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire base10_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire [149:0] leaves10_rec;               // rtl-gen/src/merge/merger/mod.rs:121
+    wire [27:0] leaves10_ref;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire leaves10_end;                       // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire leaves10_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves10_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire base10_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base10_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base10_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base10_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire leaves10_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:370
+    reg base11_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:341
+    wire base11_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:343
     reg [4:0] leaves11_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves11_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves11_wr_eq;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves11_wr_eq_1;                   // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves11_wr_eq_2;                   // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves11_wr_not;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves11_wr_and;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaf_best_data_eq_11;               // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaf_take_and_44;                   // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaves11_wr_not_1;                  // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_45;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_46;                   // rtl-gen/src/merge/merger/level_mode.rs:352
-    wire [177:0] leaves11_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire merge_lod_lt_11;                    // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire base11_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire [179:0] const_cat_13;               // rtl-gen/src/merge/merger/level_mode.rs:355
-    wire leaves11_wr_and_1;                  // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base11_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base11_at_m_and;                    // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire out_is_ref_not_11;                  // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base11_at_m_and_1;                  // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire leaves11_wr_not_2;                  // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire leaves11_wr_or;                     // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base11_above_m_and;                 // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base11_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base11_at_m_not;                    // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_22;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base11_above_m_not;                 // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_23;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base11_at_m_or_1;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base11_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire leaves11_wr_not_3;                  // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base11_above_m_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base11_above_m_mux;         // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base11_at_m_mux;            // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base11_above_m_mux_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base11_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base11_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base11_end_sent_and_2;              // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves11_wr_not_4;                  // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base11_end_sent_and_3;              // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves11_wr_not_5;                  // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire leaf_take_and_47;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves11_wr_add;              // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves11_rd_add;              // rtl-gen/src/merge/merger/drop_fifo.rs:54
-    wire base11_end_sent_and_4;              // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base11_end_sent_and_5;              // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base11_end_sent_not_1;              // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire u_builder_and_11;                   // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base11_at_m_mux_2;                  // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base11_at_m_mux_3;                  // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base12_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:343
-    wire merge_lod_eq_12;                    // rtl-gen/src/merge/merger/level_mode.rs:345
-    wire base12_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:345
+    wire leaves11_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire leaves11_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire leaves11_push;                      // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves11_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire [177:0] leaves11_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire base11_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire [149:0] leaves11_rec;               // rtl-gen/src/merge/merger/mod.rs:121
+    wire [27:0] leaves11_ref;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire leaves11_end;                       // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire leaves11_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves11_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire base11_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base11_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base11_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base11_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire leaves11_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base11_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base11_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:384
+    reg base12_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:341
+    wire base12_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:343
     reg [4:0] leaves12_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves12_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves12_wr_eq;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves12_wr_eq_1;                   // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves12_wr_eq_2;                   // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves12_wr_not;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves12_wr_and;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaf_best_data_eq_12;               // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaf_take_and_48;                   // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaves12_wr_not_1;                  // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_49;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_50;                   // rtl-gen/src/merge/merger/level_mode.rs:352
-    wire [177:0] leaves12_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire merge_lod_lt_12;                    // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire base12_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire [179:0] const_cat_14;               // rtl-gen/src/merge/merger/level_mode.rs:355
-    wire leaves12_wr_and_1;                  // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base12_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base12_at_m_and;                    // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire out_is_ref_not_12;                  // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base12_at_m_and_1;                  // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire leaves12_wr_not_2;                  // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire leaves12_wr_or;                     // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base12_above_m_and;                 // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base12_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base12_at_m_not;                    // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_24;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base12_above_m_not;                 // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_25;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base12_at_m_or_1;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base12_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire leaves12_wr_not_3;                  // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base12_above_m_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base12_above_m_mux;         // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base12_at_m_mux;            // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base12_above_m_mux_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base12_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base12_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base12_end_sent_and_2;              // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves12_wr_not_4;                  // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base12_end_sent_and_3;              // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves12_wr_not_5;                  // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire leaf_take_and_51;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves12_wr_add;              // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves12_rd_add;              // rtl-gen/src/merge/merger/drop_fifo.rs:54
-    wire base12_end_sent_and_4;              // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base12_end_sent_and_5;              // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base12_end_sent_not_1;              // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire u_builder_and_12;                   // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base12_at_m_mux_2;                  // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base12_at_m_mux_3;                  // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base13_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:343
-    wire merge_lod_eq_13;                    // rtl-gen/src/merge/merger/level_mode.rs:345
-    wire base13_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:345
+    wire leaves12_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire leaves12_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire leaves12_push;                      // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves12_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire [177:0] leaves12_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire base12_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire [149:0] leaves12_rec;               // rtl-gen/src/merge/merger/mod.rs:121
+    wire [27:0] leaves12_ref;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire leaves12_end;                       // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire leaves12_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves12_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire base12_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base12_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base12_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base12_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire leaves12_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:370
+    reg base13_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:341
+    wire base13_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:343
     reg [4:0] leaves13_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves13_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves13_wr_eq;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves13_wr_eq_1;                   // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves13_wr_eq_2;                   // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves13_wr_not;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves13_wr_and;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaf_best_data_eq_13;               // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaf_take_and_52;                   // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaves13_wr_not_1;                  // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_53;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_54;                   // rtl-gen/src/merge/merger/level_mode.rs:352
-    wire [177:0] leaves13_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire merge_lod_lt_13;                    // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire base13_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire [179:0] const_cat_15;               // rtl-gen/src/merge/merger/level_mode.rs:355
-    wire leaves13_wr_and_1;                  // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base13_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base13_at_m_and;                    // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire out_is_ref_not_13;                  // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base13_at_m_and_1;                  // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire leaves13_wr_not_2;                  // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire leaves13_wr_or;                     // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base13_above_m_and;                 // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base13_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base13_at_m_not;                    // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_26;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base13_above_m_not;                 // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_27;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base13_at_m_or_1;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base13_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire leaves13_wr_not_3;                  // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base13_above_m_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base13_above_m_mux;         // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base13_at_m_mux;            // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base13_above_m_mux_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base13_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base13_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base13_end_sent_and_2;              // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves13_wr_not_4;                  // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base13_end_sent_and_3;              // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves13_wr_not_5;                  // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire leaf_take_and_55;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves13_wr_add;              // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves13_rd_add;              // rtl-gen/src/merge/merger/drop_fifo.rs:54
-    wire base13_end_sent_and_4;              // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base13_end_sent_and_5;              // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base13_end_sent_not_1;              // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire u_builder_and_13;                   // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base13_at_m_mux_2;                  // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base13_at_m_mux_3;                  // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base14_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:343
-    wire merge_lod_eq_14;                    // rtl-gen/src/merge/merger/level_mode.rs:345
-    wire base14_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:345
+    wire leaves13_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire leaves13_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire leaves13_push;                      // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves13_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire [177:0] leaves13_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire base13_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire [149:0] leaves13_rec;               // rtl-gen/src/merge/merger/mod.rs:121
+    wire [27:0] leaves13_ref;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire leaves13_end;                       // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire leaves13_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves13_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire base13_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base13_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base13_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base13_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire leaves13_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:370
+    reg base14_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:341
+    wire base14_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:343
     reg [4:0] leaves14_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves14_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves14_wr_eq;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves14_wr_eq_1;                   // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves14_wr_eq_2;                   // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves14_wr_not;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves14_wr_and;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaf_best_data_eq_14;               // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaf_take_and_56;                   // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaves14_wr_not_1;                  // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_57;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_58;                   // rtl-gen/src/merge/merger/level_mode.rs:352
-    wire [177:0] leaves14_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire merge_lod_lt_14;                    // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire base14_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire [179:0] const_cat_16;               // rtl-gen/src/merge/merger/level_mode.rs:355
-    wire leaves14_wr_and_1;                  // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base14_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base14_at_m_and;                    // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire out_is_ref_not_14;                  // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base14_at_m_and_1;                  // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire leaves14_wr_not_2;                  // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire leaves14_wr_or;                     // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base14_above_m_and;                 // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base14_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base14_at_m_not;                    // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_28;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base14_above_m_not;                 // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_29;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base14_at_m_or_1;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base14_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire leaves14_wr_not_3;                  // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base14_above_m_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base14_above_m_mux;         // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base14_at_m_mux;            // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base14_above_m_mux_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base14_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base14_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base14_end_sent_and_2;              // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves14_wr_not_4;                  // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base14_end_sent_and_3;              // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves14_wr_not_5;                  // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire leaf_take_and_59;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves14_wr_add;              // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves14_rd_add;              // rtl-gen/src/merge/merger/drop_fifo.rs:54
-    wire base14_end_sent_and_4;              // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base14_end_sent_and_5;              // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base14_end_sent_not_1;              // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire u_builder_and_14;                   // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base14_at_m_mux_2;                  // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base14_at_m_mux_3;                  // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base15_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:343
-    wire merge_lod_eq_15;                    // rtl-gen/src/merge/merger/level_mode.rs:345
-    wire base15_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:345
+    wire leaves14_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire leaves14_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire leaves14_push;                      // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves14_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire [177:0] leaves14_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire base14_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire [149:0] leaves14_rec;               // rtl-gen/src/merge/merger/mod.rs:121
+    wire [27:0] leaves14_ref;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire leaves14_end;                       // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire leaves14_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves14_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire base14_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base14_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base14_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base14_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire leaves14_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base14_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:383
+    reg base15_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:341
+    wire base15_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:343
     reg [4:0] leaves15_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves15_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves15_wr_eq;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves15_wr_eq_1;                   // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves15_wr_eq_2;                   // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves15_wr_not;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves15_wr_and;                    // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaf_best_data_eq_15;               // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaf_take_and_60;                   // rtl-gen/src/merge/merger/level_mode.rs:350
-    wire leaves15_wr_not_1;                  // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_61;                   // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire leaf_take_and_62;                   // rtl-gen/src/merge/merger/level_mode.rs:352
-    wire [177:0] leaves15_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire merge_lod_lt_15;                    // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire base15_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:354
-    wire [179:0] const_cat_17;               // rtl-gen/src/merge/merger/level_mode.rs:355
-    wire leaves15_wr_and_1;                  // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base15_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base15_at_m_and;                    // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire out_is_ref_not_15;                  // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base15_at_m_and_1;                  // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire leaves15_wr_not_2;                  // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire leaves15_wr_or;                     // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base15_above_m_and;                 // rtl-gen/src/merge/merger/level_mode.rs:367
-    wire base15_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base15_at_m_not;                    // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_30;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base15_above_m_not;                 // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire choice_known_and_31;                // rtl-gen/src/merge/merger/level_mode.rs:368
-    wire base15_at_m_or_1;                   // rtl-gen/src/merge/merger/level_mode.rs:366
-    wire base15_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire leaves15_wr_not_3;                  // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base15_above_m_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base15_above_m_mux;         // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire [179:0] base15_at_m_mux;            // rtl-gen/src/merge/merger/level_mode.rs:369
-    wire base15_above_m_mux_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base15_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base15_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base15_end_sent_and_2;              // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves15_wr_not_4;                  // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire base15_end_sent_and_3;              // rtl-gen/src/merge/merger/level_mode.rs:371
-    wire leaves15_wr_not_5;                  // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire leaf_take_and_63;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves15_wr_add;              // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] leaves15_rd_add;              // rtl-gen/src/merge/merger/drop_fifo.rs:54
-    wire base15_end_sent_and_4;              // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base15_end_sent_and_5;              // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base15_end_sent_not_1;              // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire u_builder_and_15;                   // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base15_at_m_mux_2;                  // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base15_at_m_mux_3;                  // rtl-gen/src/merge/merger/level_mode.rs:385
-    reg base16_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:343
-    wire merge_lod_eq_16;                    // rtl-gen/src/merge/merger/level_mode.rs:345
-    wire base16_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:345
-    wire base16_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:375
-    wire base16_at_m_and;                    // rtl-gen/src/merge/merger/level_mode.rs:375
-    wire out_is_ref_not_16;                  // rtl-gen/src/merge/merger/level_mode.rs:375
-    wire base16_at_m_and_1;                  // rtl-gen/src/merge/merger/level_mode.rs:375
-    wire base16_at_m_not;                    // rtl-gen/src/merge/merger/level_mode.rs:375
-    wire choice_known_and_32;                // rtl-gen/src/merge/merger/level_mode.rs:375
-    wire base16_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:375
-    wire base16_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:375
-    wire [179:0] base16_at_m_mux;            // rtl-gen/src/merge/merger/level_mode.rs:376
-    wire base16_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:377
-    wire base16_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:382
-    wire base16_end_sent_and_2;              // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base16_end_sent_not_1;              // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire u_builder_and_16;                   // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base16_at_m_mux_2;                  // rtl-gen/src/merge/merger/level_mode.rs:384
-    wire base16_at_m_mux_3;                  // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire base16_at_m_or_1;                   // rtl-gen/src/merge/merger/level_mode.rs:393
-    wire crefs_end_sent_or;                  // rtl-gen/src/merge/merger/level_mode.rs:393
-    wire base16_at_m_and_2;                  // rtl-gen/src/merge/merger/level_mode.rs:393
-    wire out_is_end_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:392
-    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:390
-    wire merging_and;                        // rtl-gen/src/merge/merger/level_mode.rs:389
-    reg count_overflow;                      // rtl-gen/src/merge/merger/level_mode.rs:398
-    wire u_module_eq_2;                      // rtl-gen/src/merge/merger/level_mode.rs:399
-    wire u_module_and_2;                     // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire u_module_and_3;                     // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire u_module_and_4;                     // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:272
-    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:272
-    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:272
+    wire leaves15_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire leaves15_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire leaves15_push;                      // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves15_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire [177:0] leaves15_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire base15_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire [149:0] leaves15_rec;               // rtl-gen/src/merge/merger/mod.rs:121
+    wire [27:0] leaves15_ref;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire leaves15_end;                       // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire leaves15_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves15_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire base15_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base15_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:365
+    wire base15_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base15_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire leaves15_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base15_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:384
+    reg base16_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:341
+    wire base16_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:343
+    wire base16_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:374
+    wire base16_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:374
+    wire base16_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:389
+    wire merging_and;                        // rtl-gen/src/merge/merger/level_mode.rs:388
+    reg count_overflow;                      // rtl-gen/src/merge/merger/level_mode.rs:397
+    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:280
+    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:280
+    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:280
     reg done_pulse;                          // rtl-gen/src/merge/merger/tail.rs:95
-    wire busy_not_1;                         // rtl-gen/src/merge/merger/tail.rs:98
-    wire dropping0_not_2;                    // rtl-gen/src/merge/merger/tail.rs:98
-    wire dropping0_and;                      // rtl-gen/src/merge/merger/tail.rs:98
-    wire dropping1_not_2;                    // rtl-gen/src/merge/merger/tail.rs:98
-    wire dropping0_and_1;                    // rtl-gen/src/merge/merger/tail.rs:98
-    wire dropping2_not_2;                    // rtl-gen/src/merge/merger/tail.rs:98
-    wire dropping0_and_2;                    // rtl-gen/src/merge/merger/tail.rs:98
-    wire dropping3_not_2;                    // rtl-gen/src/merge/merger/tail.rs:98
-    wire dropping0_and_3;                    // rtl-gen/src/merge/merger/tail.rs:98
     wire merger_idle;                        // rtl-gen/src/merge/merger/tail.rs:98
 
     assign header_fire = u_writer_header_valid & header_ready;
     assign busy_not = ~busy;
-    assign busy_and = busy_not & u_module_idle;
-    assign busy_and_1 = busy_and & u_fetch0_idle;
     assign dropping0_not = ~dropping0;
-    assign busy_and_2 = busy_and_1 & dropping0_not;
-    assign busy_and_3 = busy_and_2 & u_fetch1_idle;
     assign dropping1_not = ~dropping1;
-    assign busy_and_4 = busy_and_3 & dropping1_not;
-    assign busy_and_5 = busy_and_4 & u_fetch2_idle;
     assign dropping2_not = ~dropping2;
-    assign busy_and_6 = busy_and_5 & dropping2_not;
-    assign busy_and_7 = busy_and_6 & u_fetch3_idle;
+    assign busy_and = ((((((busy_not & u_module_idle) & u_fetch0_idle) & dropping0_not) & u_fetch1_idle) & dropping1_not) & u_fetch2_idle) & dropping2_not;
     assign dropping3_not = ~dropping3;
-    assign quiet = busy_and_7 & dropping3_not;
+    assign quiet = (busy_and & u_fetch3_idle) & dropping3_not;
     assign cfg_ready = quiet;
     assign cfg_fire = cfg_valid & cfg_ready;
+    assign cfg_data_count = cfg_data[554:552];
+    assign cfg_q_count = cfg_q[554:552];
     assign lo = cfg_q[559:555];
     assign hi = cfg_q[564:560];
-    assign cfg_data_gt = cfg_data[564:560] > 5'd16;
-    assign cfg_data_gt_1 = cfg_data[559:555] > cfg_data[564:560];
-    assign cfg_data_or = cfg_data_gt_1 | cfg_data_gt;
-    assign count_pass = ~cfg_data_or;
-    assign cfg_data_gt_2 = cfg_data[554:552] > 3'd0;
-    assign cfg_data_gt_3 = cfg_data[554:552] > 3'd1;
-    assign cfg_data_gt_4 = cfg_data[554:552] > 3'd2;
-    assign cfg_data_gt_5 = cfg_data[554:552] > 3'd3;
-    assign used0 = cfg_q[554:552] > 3'd0;
-    assign used1 = cfg_q[554:552] > 3'd1;
-    assign used2 = cfg_q[554:552] > 3'd2;
-    assign used3 = cfg_q[554:552] > 3'd3;
+    assign cfg_q_out_id = cfg_q[568:565];
+    assign cfg_data_lo = cfg_data[559:555];
+    assign cfg_data_hi = cfg_data[564:560];
+    assign count_pass = ~((cfg_data_lo > cfg_data_hi) | (cfg_data_hi > 5'd16));
+    assign used0 = cfg_q_count > 3'd0;
+    assign used1 = cfg_q_count > 3'd1;
+    assign used2 = cfg_q_count > 3'd2;
+    assign used3 = cfg_q_count > 3'd3;
     assign report_valid = u_module_report_valid;
     assign report_data = u_module_report_data;
-    assign u_module_and = u_module_report_valid & report_ready;
-    assign u_module_eq = u_module_report_data[55] == 1'b1;
-    assign choice_seen = u_module_and & u_module_eq;
-    assign u_module_eq_1 = u_module_report_data[57:56] == 2'd0;
+    assign u_module_chosen = u_module_report_data[55];
+    assign choice_seen = (u_module_report_valid & report_ready) & (u_module_chosen == 1'b1);
+    assign u_module_err = u_module_report_data[57:56];
+    assign u_module_lod = u_module_report_data[4:0];
     assign merging = choice_known & choice_ok;
-    assign hi_cat = {hi, lo};
-    assign module_cfg_pending_and = module_cfg_pending & u_module_cfg_ready;
-    assign writer_cfg_pending_and = writer_cfg_pending & u_writer_cfg_ready;
     assign header_fire_mux_3 = header_fire ? 4'd0 : fetch_err;
     assign const_cat = {2'd3, 178'h000000000000000000000000000000000000000000000};
-    assign fetch0_cfg_pending_and = fetch0_cfg_pending & u_fetch0_cfg_ready;
-    assign phase0_eq = phase0 == 3'd1;
-    assign phase0_eq_1 = phase0 == 3'd3;
+    assign phase0_eq = phase0 == COUNT;
+    assign phase0_eq_1 = phase0 == FINAL;
     assign merging_mux = merging ? merge_lod : lo;
     assign phase0_mux = phase0_eq ? hi : merging_mux;
     assign phase0_and = phase0_eq_1 & merging;
-    assign phase0_and_1 = phase0_eq_1 & merging;
-    assign phase0_mux_1 = phase0_eq ? lo : phase0_mux;
-    assign phase0_cat = {phase0_mux_1, phase0_eq_1, phase0_and_1, phase0_and, phase0_mux};
     assign issuing0 = phase0_eq | phase0_eq_1;
     assign used0_and = used0 & issuing0;
-    assign used0_and_1 = used0 & issuing0;
-    assign used0_and_2 = used0_and_1 & u_fetch0_cmd_ready;
-    assign u_fetch0_eq = u_fetch0_out_data[179:178] == 2'd3;
+    assign used0_and_1 = used0_and & u_fetch0_cmd_ready;
+    assign u_fetch0_err = u_fetch0_out_data[183:180];
+    assign u_fetch0_kind = u_fetch0_out_data[179:178];
     assign used0_not = ~used0;
-    assign phase0_and_2 = phase0_eq_1 & merging;
-    assign phase0_or = phase0_eq | phase0_and_2;
-    assign virtual_end0 = used0_not & phase0_or;
-    assign dropping0_not_1 = ~dropping0;
-    assign u_fetch0_and = u_fetch0_out_valid & dropping0_not_1;
-    assign used0_mux = used0 ? u_fetch0_and : virtual_end0;
-    assign used0_mux_1 = used0 ? u_fetch0_out_data[179:0] : const_cat;
-    assign used0_and_3 = used0 & u_module_in0_ready;
-    assign dropping0_or = dropping0 | used0_and_3;
-    assign used0_and_4 = used0 & u_module_in0_ready;
-    assign dropping0_or_1 = dropping0 | used0_and_4;
-    assign u_fetch0_and_1 = u_fetch0_out_valid & dropping0_or_1;
-    assign virtual_end0_and = virtual_end0 & u_module_in0_ready;
-    assign u_fetch0_ne = u_fetch0_out_data[183:180] != 4'd0;
-    assign u_fetch0_and_2 = u_fetch0_and_1 & u_fetch0_ne;
-    assign header_fire_eq = header_fire_mux_3 == 4'd0;
-    assign u_fetch0_and_3 = u_fetch0_and_2 & header_fire_eq;
-    assign u_fetch0_mux = u_fetch0_and_3 ? u_fetch0_out_data[183:180] : header_fire_mux_3;
-    assign used0_not_1 = ~used0;
-    assign used0_and_5 = used0_not_1 & phase0_eq_1;
+    assign virtual_end0 = used0_not & (phase0_eq | phase0_and);
+    assign dropping0_or = dropping0 | (used0 & u_module_in0_ready);
+    assign u_fetch0_and = u_fetch0_out_valid & dropping0_or;
+    assign u_fetch0_and_1 = (u_fetch0_and & (u_fetch0_err != 4'd0)) & (header_fire_mux_3 == 4'd0);
+    assign u_fetch0_mux = u_fetch0_and_1 ? u_fetch0_err : header_fire_mux_3;
     assign merging_not = ~merging;
-    assign used0_and_6 = used0_and_5 & merging_not;
-    assign used0_or = used0_and_2 | virtual_end0_and;
-    assign step0 = used0_or | used0_and_6;
-    assign cmd_lod0_eq = cmd_lod0 == hi;
-    assign used0_or_1 = used0 | cmd_lod0_eq;
-    assign count_pass_mux = count_pass ? 3'd1 : 3'd2;
-    assign phase0_eq_2 = phase0 == 3'd2;
-    assign phase0_and_3 = phase0_eq_2 & choice_known;
-    assign step0_and = step0 & phase0_eq;
-    assign cmd_lod0_add = cmd_lod0 + 5'd1;
-    assign used0_and_7 = used0_and_2 & phase0_eq_1;
-    assign merging_not_1 = ~merging;
-    assign used0_and_8 = used0_and_7 & merging_not_1;
-    assign u_fetch0_and_4 = u_fetch0_and_1 & u_fetch0_eq;
+    assign step0 = (used0_and_1 | (virtual_end0 & u_module_in0_ready)) | ((used0_not & phase0_eq_1) & merging_not);
+    assign count_pass_mux = count_pass ? COUNT : WAIT;
     assign f0_node_resp_ready = u_fetch0_node_resp_ready;
     assign f0_ref_resp_ready = u_fetch0_ref_resp_ready;
     assign f0_cref_resp_ready = u_fetch0_cref_resp_ready;
@@ -1665,56 +867,22 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign f0_cref_req_ready_w = f0_cref_req_ready;
     assign f0_cref_req_valid = u_fetch0_cref_req_valid;
     assign f0_cref_req_data = u_fetch0_cref_req_data;
-    assign fetch1_cfg_pending_and = fetch1_cfg_pending & u_fetch1_cfg_ready;
-    assign phase1_eq = phase1 == 3'd1;
-    assign phase1_eq_1 = phase1 == 3'd3;
-    assign merging_mux_1 = merging ? merge_lod : lo;
-    assign phase1_mux = phase1_eq ? hi : merging_mux_1;
+    assign phase1_eq = phase1 == COUNT;
+    assign phase1_eq_1 = phase1 == FINAL;
+    assign phase1_mux = phase1_eq ? hi : merging_mux;
     assign phase1_and = phase1_eq_1 & merging;
-    assign phase1_and_1 = phase1_eq_1 & merging;
-    assign phase1_mux_1 = phase1_eq ? lo : phase1_mux;
-    assign phase1_cat = {phase1_mux_1, phase1_eq_1, phase1_and_1, phase1_and, phase1_mux};
     assign issuing1 = phase1_eq | phase1_eq_1;
     assign used1_and = used1 & issuing1;
-    assign used1_and_1 = used1 & issuing1;
-    assign used1_and_2 = used1_and_1 & u_fetch1_cmd_ready;
-    assign u_fetch1_eq = u_fetch1_out_data[179:178] == 2'd3;
+    assign used1_and_1 = used1_and & u_fetch1_cmd_ready;
+    assign u_fetch1_err = u_fetch1_out_data[183:180];
+    assign u_fetch1_kind = u_fetch1_out_data[179:178];
     assign used1_not = ~used1;
-    assign phase1_and_2 = phase1_eq_1 & merging;
-    assign phase1_or = phase1_eq | phase1_and_2;
-    assign virtual_end1 = used1_not & phase1_or;
-    assign dropping1_not_1 = ~dropping1;
-    assign u_fetch1_and = u_fetch1_out_valid & dropping1_not_1;
-    assign used1_mux = used1 ? u_fetch1_and : virtual_end1;
-    assign used1_mux_1 = used1 ? u_fetch1_out_data[179:0] : const_cat;
-    assign used1_and_3 = used1 & u_module_in1_ready;
-    assign dropping1_or = dropping1 | used1_and_3;
-    assign used1_and_4 = used1 & u_module_in1_ready;
-    assign dropping1_or_1 = dropping1 | used1_and_4;
-    assign u_fetch1_and_1 = u_fetch1_out_valid & dropping1_or_1;
-    assign virtual_end1_and = virtual_end1 & u_module_in1_ready;
-    assign u_fetch1_ne = u_fetch1_out_data[183:180] != 4'd0;
-    assign u_fetch1_and_2 = u_fetch1_and_1 & u_fetch1_ne;
-    assign u_fetch0_eq_1 = u_fetch0_mux == 4'd0;
-    assign u_fetch1_and_3 = u_fetch1_and_2 & u_fetch0_eq_1;
-    assign u_fetch1_mux = u_fetch1_and_3 ? u_fetch1_out_data[183:180] : u_fetch0_mux;
-    assign used1_not_1 = ~used1;
-    assign used1_and_5 = used1_not_1 & phase1_eq_1;
-    assign merging_not_2 = ~merging;
-    assign used1_and_6 = used1_and_5 & merging_not_2;
-    assign used1_or = used1_and_2 | virtual_end1_and;
-    assign step1 = used1_or | used1_and_6;
-    assign cmd_lod1_eq = cmd_lod1 == hi;
-    assign used1_or_1 = used1 | cmd_lod1_eq;
-    assign count_pass_mux_1 = count_pass ? 3'd1 : 3'd2;
-    assign phase1_eq_2 = phase1 == 3'd2;
-    assign phase1_and_3 = phase1_eq_2 & choice_known;
-    assign step1_and = step1 & phase1_eq;
-    assign cmd_lod1_add = cmd_lod1 + 5'd1;
-    assign used1_and_7 = used1_and_2 & phase1_eq_1;
-    assign merging_not_3 = ~merging;
-    assign used1_and_8 = used1_and_7 & merging_not_3;
-    assign u_fetch1_and_4 = u_fetch1_and_1 & u_fetch1_eq;
+    assign virtual_end1 = used1_not & (phase1_eq | phase1_and);
+    assign dropping1_or = dropping1 | (used1 & u_module_in1_ready);
+    assign u_fetch1_and = u_fetch1_out_valid & dropping1_or;
+    assign u_fetch1_and_1 = (u_fetch1_and & (u_fetch1_err != 4'd0)) & (u_fetch0_mux == 4'd0);
+    assign u_fetch1_mux = u_fetch1_and_1 ? u_fetch1_err : u_fetch0_mux;
+    assign step1 = (used1_and_1 | (virtual_end1 & u_module_in1_ready)) | ((used1_not & phase1_eq_1) & merging_not);
     assign f1_node_resp_ready = u_fetch1_node_resp_ready;
     assign f1_ref_resp_ready = u_fetch1_ref_resp_ready;
     assign f1_cref_resp_ready = u_fetch1_cref_resp_ready;
@@ -1727,56 +895,22 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign f1_cref_req_ready_w = f1_cref_req_ready;
     assign f1_cref_req_valid = u_fetch1_cref_req_valid;
     assign f1_cref_req_data = u_fetch1_cref_req_data;
-    assign fetch2_cfg_pending_and = fetch2_cfg_pending & u_fetch2_cfg_ready;
-    assign phase2_eq = phase2 == 3'd1;
-    assign phase2_eq_1 = phase2 == 3'd3;
-    assign merging_mux_2 = merging ? merge_lod : lo;
-    assign phase2_mux = phase2_eq ? hi : merging_mux_2;
+    assign phase2_eq = phase2 == COUNT;
+    assign phase2_eq_1 = phase2 == FINAL;
+    assign phase2_mux = phase2_eq ? hi : merging_mux;
     assign phase2_and = phase2_eq_1 & merging;
-    assign phase2_and_1 = phase2_eq_1 & merging;
-    assign phase2_mux_1 = phase2_eq ? lo : phase2_mux;
-    assign phase2_cat = {phase2_mux_1, phase2_eq_1, phase2_and_1, phase2_and, phase2_mux};
     assign issuing2 = phase2_eq | phase2_eq_1;
     assign used2_and = used2 & issuing2;
-    assign used2_and_1 = used2 & issuing2;
-    assign used2_and_2 = used2_and_1 & u_fetch2_cmd_ready;
-    assign u_fetch2_eq = u_fetch2_out_data[179:178] == 2'd3;
+    assign used2_and_1 = used2_and & u_fetch2_cmd_ready;
+    assign u_fetch2_err = u_fetch2_out_data[183:180];
+    assign u_fetch2_kind = u_fetch2_out_data[179:178];
     assign used2_not = ~used2;
-    assign phase2_and_2 = phase2_eq_1 & merging;
-    assign phase2_or = phase2_eq | phase2_and_2;
-    assign virtual_end2 = used2_not & phase2_or;
-    assign dropping2_not_1 = ~dropping2;
-    assign u_fetch2_and = u_fetch2_out_valid & dropping2_not_1;
-    assign used2_mux = used2 ? u_fetch2_and : virtual_end2;
-    assign used2_mux_1 = used2 ? u_fetch2_out_data[179:0] : const_cat;
-    assign used2_and_3 = used2 & u_module_in2_ready;
-    assign dropping2_or = dropping2 | used2_and_3;
-    assign used2_and_4 = used2 & u_module_in2_ready;
-    assign dropping2_or_1 = dropping2 | used2_and_4;
-    assign u_fetch2_and_1 = u_fetch2_out_valid & dropping2_or_1;
-    assign virtual_end2_and = virtual_end2 & u_module_in2_ready;
-    assign u_fetch2_ne = u_fetch2_out_data[183:180] != 4'd0;
-    assign u_fetch2_and_2 = u_fetch2_and_1 & u_fetch2_ne;
-    assign u_fetch1_eq_1 = u_fetch1_mux == 4'd0;
-    assign u_fetch2_and_3 = u_fetch2_and_2 & u_fetch1_eq_1;
-    assign u_fetch2_mux = u_fetch2_and_3 ? u_fetch2_out_data[183:180] : u_fetch1_mux;
-    assign used2_not_1 = ~used2;
-    assign used2_and_5 = used2_not_1 & phase2_eq_1;
-    assign merging_not_4 = ~merging;
-    assign used2_and_6 = used2_and_5 & merging_not_4;
-    assign used2_or = used2_and_2 | virtual_end2_and;
-    assign step2 = used2_or | used2_and_6;
-    assign cmd_lod2_eq = cmd_lod2 == hi;
-    assign used2_or_1 = used2 | cmd_lod2_eq;
-    assign count_pass_mux_2 = count_pass ? 3'd1 : 3'd2;
-    assign phase2_eq_2 = phase2 == 3'd2;
-    assign phase2_and_3 = phase2_eq_2 & choice_known;
-    assign step2_and = step2 & phase2_eq;
-    assign cmd_lod2_add = cmd_lod2 + 5'd1;
-    assign used2_and_7 = used2_and_2 & phase2_eq_1;
-    assign merging_not_5 = ~merging;
-    assign used2_and_8 = used2_and_7 & merging_not_5;
-    assign u_fetch2_and_4 = u_fetch2_and_1 & u_fetch2_eq;
+    assign virtual_end2 = used2_not & (phase2_eq | phase2_and);
+    assign dropping2_or = dropping2 | (used2 & u_module_in2_ready);
+    assign u_fetch2_and = u_fetch2_out_valid & dropping2_or;
+    assign u_fetch2_and_1 = (u_fetch2_and & (u_fetch2_err != 4'd0)) & (u_fetch1_mux == 4'd0);
+    assign u_fetch2_mux = u_fetch2_and_1 ? u_fetch2_err : u_fetch1_mux;
+    assign step2 = (used2_and_1 | (virtual_end2 & u_module_in2_ready)) | ((used2_not & phase2_eq_1) & merging_not);
     assign f2_node_resp_ready = u_fetch2_node_resp_ready;
     assign f2_ref_resp_ready = u_fetch2_ref_resp_ready;
     assign f2_cref_resp_ready = u_fetch2_cref_resp_ready;
@@ -1789,56 +923,21 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign f2_cref_req_ready_w = f2_cref_req_ready;
     assign f2_cref_req_valid = u_fetch2_cref_req_valid;
     assign f2_cref_req_data = u_fetch2_cref_req_data;
-    assign fetch3_cfg_pending_and = fetch3_cfg_pending & u_fetch3_cfg_ready;
-    assign phase3_eq = phase3 == 3'd1;
-    assign phase3_eq_1 = phase3 == 3'd3;
-    assign merging_mux_3 = merging ? merge_lod : lo;
-    assign phase3_mux = phase3_eq ? hi : merging_mux_3;
+    assign phase3_eq = phase3 == COUNT;
+    assign phase3_eq_1 = phase3 == FINAL;
+    assign phase3_mux = phase3_eq ? hi : merging_mux;
     assign phase3_and = phase3_eq_1 & merging;
-    assign phase3_and_1 = phase3_eq_1 & merging;
-    assign phase3_mux_1 = phase3_eq ? lo : phase3_mux;
-    assign phase3_cat = {phase3_mux_1, phase3_eq_1, phase3_and_1, phase3_and, phase3_mux};
     assign issuing3 = phase3_eq | phase3_eq_1;
     assign used3_and = used3 & issuing3;
-    assign used3_and_1 = used3 & issuing3;
-    assign used3_and_2 = used3_and_1 & u_fetch3_cmd_ready;
-    assign u_fetch3_eq = u_fetch3_out_data[179:178] == 2'd3;
+    assign used3_and_1 = used3_and & u_fetch3_cmd_ready;
+    assign u_fetch3_err = u_fetch3_out_data[183:180];
+    assign u_fetch3_kind = u_fetch3_out_data[179:178];
     assign used3_not = ~used3;
-    assign phase3_and_2 = phase3_eq_1 & merging;
-    assign phase3_or = phase3_eq | phase3_and_2;
-    assign virtual_end3 = used3_not & phase3_or;
-    assign dropping3_not_1 = ~dropping3;
-    assign u_fetch3_and = u_fetch3_out_valid & dropping3_not_1;
-    assign used3_mux = used3 ? u_fetch3_and : virtual_end3;
-    assign used3_mux_1 = used3 ? u_fetch3_out_data[179:0] : const_cat;
-    assign used3_and_3 = used3 & u_module_in3_ready;
-    assign dropping3_or = dropping3 | used3_and_3;
-    assign used3_and_4 = used3 & u_module_in3_ready;
-    assign dropping3_or_1 = dropping3 | used3_and_4;
-    assign u_fetch3_and_1 = u_fetch3_out_valid & dropping3_or_1;
-    assign virtual_end3_and = virtual_end3 & u_module_in3_ready;
-    assign u_fetch3_ne = u_fetch3_out_data[183:180] != 4'd0;
-    assign u_fetch3_and_2 = u_fetch3_and_1 & u_fetch3_ne;
-    assign u_fetch2_eq_1 = u_fetch2_mux == 4'd0;
-    assign u_fetch3_and_3 = u_fetch3_and_2 & u_fetch2_eq_1;
-    assign fetch_err_next = u_fetch3_and_3 ? u_fetch3_out_data[183:180] : u_fetch2_mux;
-    assign used3_not_1 = ~used3;
-    assign used3_and_5 = used3_not_1 & phase3_eq_1;
-    assign merging_not_6 = ~merging;
-    assign used3_and_6 = used3_and_5 & merging_not_6;
-    assign used3_or = used3_and_2 | virtual_end3_and;
-    assign step3 = used3_or | used3_and_6;
-    assign cmd_lod3_eq = cmd_lod3 == hi;
-    assign used3_or_1 = used3 | cmd_lod3_eq;
-    assign count_pass_mux_3 = count_pass ? 3'd1 : 3'd2;
-    assign phase3_eq_2 = phase3 == 3'd2;
-    assign phase3_and_3 = phase3_eq_2 & choice_known;
-    assign step3_and = step3 & phase3_eq;
-    assign cmd_lod3_add = cmd_lod3 + 5'd1;
-    assign used3_and_7 = used3_and_2 & phase3_eq_1;
-    assign merging_not_7 = ~merging;
-    assign used3_and_8 = used3_and_7 & merging_not_7;
-    assign u_fetch3_and_4 = u_fetch3_and_1 & u_fetch3_eq;
+    assign virtual_end3 = used3_not & (phase3_eq | phase3_and);
+    assign dropping3_or = dropping3 | (used3 & u_module_in3_ready);
+    assign u_fetch3_and = u_fetch3_out_valid & dropping3_or;
+    assign u_fetch3_and_1 = (u_fetch3_and & (u_fetch3_err != 4'd0)) & (u_fetch2_mux == 4'd0);
+    assign step3 = (used3_and_1 | (virtual_end3 & u_module_in3_ready)) | ((used3_not & phase3_eq_1) & merging_not);
     assign f3_node_resp_ready = u_fetch3_node_resp_ready;
     assign f3_ref_resp_ready = u_fetch3_ref_resp_ready;
     assign f3_cref_resp_ready = u_fetch3_cref_resp_ready;
@@ -1851,940 +950,335 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign f3_cref_req_ready_w = f3_cref_req_ready;
     assign f3_cref_req_valid = u_fetch3_cref_req_valid;
     assign f3_cref_req_data = u_fetch3_cref_req_data;
-    assign leaves_done_not = ~leaves_done;
-    assign leaves_active = busy & leaves_done_not;
-    assign used0_not_2 = ~used0;
-    assign used0_or_2 = used0_not_2 | u_fetch0_leaves_data[183];
-    assign u_fetch0_cat = {u_fetch0_leaves_data[53], u_fetch0_leaves_data[37], u_fetch0_leaves_data[21], u_fetch0_leaves_data[52], u_fetch0_leaves_data[36], u_fetch0_leaves_data[20], u_fetch0_leaves_data[51], u_fetch0_leaves_data[35], u_fetch0_leaves_data[19], u_fetch0_leaves_data[50], u_fetch0_leaves_data[34], u_fetch0_leaves_data[18], u_fetch0_leaves_data[49], u_fetch0_leaves_data[33], u_fetch0_leaves_data[17], u_fetch0_leaves_data[48], u_fetch0_leaves_data[32], u_fetch0_leaves_data[16], u_fetch0_leaves_data[47], u_fetch0_leaves_data[31], u_fetch0_leaves_data[15], u_fetch0_leaves_data[46], u_fetch0_leaves_data[30], u_fetch0_leaves_data[14], u_fetch0_leaves_data[45], u_fetch0_leaves_data[29], u_fetch0_leaves_data[13], u_fetch0_leaves_data[44], u_fetch0_leaves_data[28], u_fetch0_leaves_data[12], u_fetch0_leaves_data[43], u_fetch0_leaves_data[27], u_fetch0_leaves_data[11], u_fetch0_leaves_data[42], u_fetch0_leaves_data[26], u_fetch0_leaves_data[10], u_fetch0_leaves_data[41], u_fetch0_leaves_data[25], u_fetch0_leaves_data[9], u_fetch0_leaves_data[40], u_fetch0_leaves_data[24], u_fetch0_leaves_data[8], u_fetch0_leaves_data[39], u_fetch0_leaves_data[23], u_fetch0_leaves_data[7], u_fetch0_leaves_data[38], u_fetch0_leaves_data[22], u_fetch0_leaves_data[6]};
-    assign leaf_key0 = {used0_or_2, u_fetch0_leaves_data[182:178], u_fetch0_cat};
-    assign used0_not_3 = ~used0;
-    assign used0_or_3 = used0_not_3 | u_fetch0_leaves_valid;
-    assign leaves_active_and = leaves_active & used0_or_3;
-    assign used0_not_4 = ~used0;
-    assign used0_or_4 = used0_not_4 | u_fetch0_leaves_data[183];
-    assign used0_and_9 = 1'b1 & used0_or_4;
-    assign used1_not_2 = ~used1;
-    assign used1_or_2 = used1_not_2 | u_fetch1_leaves_data[183];
-    assign u_fetch1_cat = {u_fetch1_leaves_data[53], u_fetch1_leaves_data[37], u_fetch1_leaves_data[21], u_fetch1_leaves_data[52], u_fetch1_leaves_data[36], u_fetch1_leaves_data[20], u_fetch1_leaves_data[51], u_fetch1_leaves_data[35], u_fetch1_leaves_data[19], u_fetch1_leaves_data[50], u_fetch1_leaves_data[34], u_fetch1_leaves_data[18], u_fetch1_leaves_data[49], u_fetch1_leaves_data[33], u_fetch1_leaves_data[17], u_fetch1_leaves_data[48], u_fetch1_leaves_data[32], u_fetch1_leaves_data[16], u_fetch1_leaves_data[47], u_fetch1_leaves_data[31], u_fetch1_leaves_data[15], u_fetch1_leaves_data[46], u_fetch1_leaves_data[30], u_fetch1_leaves_data[14], u_fetch1_leaves_data[45], u_fetch1_leaves_data[29], u_fetch1_leaves_data[13], u_fetch1_leaves_data[44], u_fetch1_leaves_data[28], u_fetch1_leaves_data[12], u_fetch1_leaves_data[43], u_fetch1_leaves_data[27], u_fetch1_leaves_data[11], u_fetch1_leaves_data[42], u_fetch1_leaves_data[26], u_fetch1_leaves_data[10], u_fetch1_leaves_data[41], u_fetch1_leaves_data[25], u_fetch1_leaves_data[9], u_fetch1_leaves_data[40], u_fetch1_leaves_data[24], u_fetch1_leaves_data[8], u_fetch1_leaves_data[39], u_fetch1_leaves_data[23], u_fetch1_leaves_data[7], u_fetch1_leaves_data[38], u_fetch1_leaves_data[22], u_fetch1_leaves_data[6]};
-    assign leaf_key1 = {used1_or_2, u_fetch1_leaves_data[182:178], u_fetch1_cat};
-    assign used1_not_3 = ~used1;
-    assign used1_or_3 = used1_not_3 | u_fetch1_leaves_valid;
-    assign leaves_active_and_1 = leaves_active_and & used1_or_3;
-    assign used1_not_4 = ~used1;
-    assign used1_or_4 = used1_not_4 | u_fetch1_leaves_data[183];
-    assign used0_and_10 = used0_and_9 & used1_or_4;
-    assign used2_not_2 = ~used2;
-    assign used2_or_2 = used2_not_2 | u_fetch2_leaves_data[183];
-    assign u_fetch2_cat = {u_fetch2_leaves_data[53], u_fetch2_leaves_data[37], u_fetch2_leaves_data[21], u_fetch2_leaves_data[52], u_fetch2_leaves_data[36], u_fetch2_leaves_data[20], u_fetch2_leaves_data[51], u_fetch2_leaves_data[35], u_fetch2_leaves_data[19], u_fetch2_leaves_data[50], u_fetch2_leaves_data[34], u_fetch2_leaves_data[18], u_fetch2_leaves_data[49], u_fetch2_leaves_data[33], u_fetch2_leaves_data[17], u_fetch2_leaves_data[48], u_fetch2_leaves_data[32], u_fetch2_leaves_data[16], u_fetch2_leaves_data[47], u_fetch2_leaves_data[31], u_fetch2_leaves_data[15], u_fetch2_leaves_data[46], u_fetch2_leaves_data[30], u_fetch2_leaves_data[14], u_fetch2_leaves_data[45], u_fetch2_leaves_data[29], u_fetch2_leaves_data[13], u_fetch2_leaves_data[44], u_fetch2_leaves_data[28], u_fetch2_leaves_data[12], u_fetch2_leaves_data[43], u_fetch2_leaves_data[27], u_fetch2_leaves_data[11], u_fetch2_leaves_data[42], u_fetch2_leaves_data[26], u_fetch2_leaves_data[10], u_fetch2_leaves_data[41], u_fetch2_leaves_data[25], u_fetch2_leaves_data[9], u_fetch2_leaves_data[40], u_fetch2_leaves_data[24], u_fetch2_leaves_data[8], u_fetch2_leaves_data[39], u_fetch2_leaves_data[23], u_fetch2_leaves_data[7], u_fetch2_leaves_data[38], u_fetch2_leaves_data[22], u_fetch2_leaves_data[6]};
-    assign leaf_key2 = {used2_or_2, u_fetch2_leaves_data[182:178], u_fetch2_cat};
-    assign used2_not_3 = ~used2;
-    assign used2_or_3 = used2_not_3 | u_fetch2_leaves_valid;
-    assign leaves_active_and_2 = leaves_active_and_1 & used2_or_3;
-    assign used2_not_4 = ~used2;
-    assign used2_or_4 = used2_not_4 | u_fetch2_leaves_data[183];
-    assign used0_and_11 = used0_and_10 & used2_or_4;
-    assign used3_not_2 = ~used3;
-    assign used3_or_2 = used3_not_2 | u_fetch3_leaves_data[183];
-    assign u_fetch3_cat = {u_fetch3_leaves_data[53], u_fetch3_leaves_data[37], u_fetch3_leaves_data[21], u_fetch3_leaves_data[52], u_fetch3_leaves_data[36], u_fetch3_leaves_data[20], u_fetch3_leaves_data[51], u_fetch3_leaves_data[35], u_fetch3_leaves_data[19], u_fetch3_leaves_data[50], u_fetch3_leaves_data[34], u_fetch3_leaves_data[18], u_fetch3_leaves_data[49], u_fetch3_leaves_data[33], u_fetch3_leaves_data[17], u_fetch3_leaves_data[48], u_fetch3_leaves_data[32], u_fetch3_leaves_data[16], u_fetch3_leaves_data[47], u_fetch3_leaves_data[31], u_fetch3_leaves_data[15], u_fetch3_leaves_data[46], u_fetch3_leaves_data[30], u_fetch3_leaves_data[14], u_fetch3_leaves_data[45], u_fetch3_leaves_data[29], u_fetch3_leaves_data[13], u_fetch3_leaves_data[44], u_fetch3_leaves_data[28], u_fetch3_leaves_data[12], u_fetch3_leaves_data[43], u_fetch3_leaves_data[27], u_fetch3_leaves_data[11], u_fetch3_leaves_data[42], u_fetch3_leaves_data[26], u_fetch3_leaves_data[10], u_fetch3_leaves_data[41], u_fetch3_leaves_data[25], u_fetch3_leaves_data[9], u_fetch3_leaves_data[40], u_fetch3_leaves_data[24], u_fetch3_leaves_data[8], u_fetch3_leaves_data[39], u_fetch3_leaves_data[23], u_fetch3_leaves_data[7], u_fetch3_leaves_data[38], u_fetch3_leaves_data[22], u_fetch3_leaves_data[6]};
-    assign leaf_key3 = {used3_or_2, u_fetch3_leaves_data[182:178], u_fetch3_cat};
-    assign used3_not_3 = ~used3;
-    assign used3_or_3 = used3_not_3 | u_fetch3_leaves_valid;
-    assign leaves_all_valid = leaves_active_and_2 & used3_or_3;
-    assign used3_not_4 = ~used3;
-    assign used3_or_4 = used3_not_4 | u_fetch3_leaves_data[183];
-    assign leaves_all_end = used0_and_11 & used3_or_4;
+    assign leaves_active = busy & (~leaves_done);
+    assign u_fetch0_end = u_fetch0_leaves_data[183];
+    assign used0_or = used0_not | u_fetch0_end;
+    assign u_fetch0_lod = u_fetch0_leaves_data[182:178];
+    assign u_fetch0_rec_x_morton = {u_fetch0_leaves_data[53], u_fetch0_leaves_data[37], u_fetch0_leaves_data[21], u_fetch0_leaves_data[52], u_fetch0_leaves_data[36], u_fetch0_leaves_data[20], u_fetch0_leaves_data[51], u_fetch0_leaves_data[35], u_fetch0_leaves_data[19], u_fetch0_leaves_data[50], u_fetch0_leaves_data[34], u_fetch0_leaves_data[18], u_fetch0_leaves_data[49], u_fetch0_leaves_data[33], u_fetch0_leaves_data[17], u_fetch0_leaves_data[48], u_fetch0_leaves_data[32], u_fetch0_leaves_data[16], u_fetch0_leaves_data[47], u_fetch0_leaves_data[31], u_fetch0_leaves_data[15], u_fetch0_leaves_data[46], u_fetch0_leaves_data[30], u_fetch0_leaves_data[14], u_fetch0_leaves_data[45], u_fetch0_leaves_data[29], u_fetch0_leaves_data[13], u_fetch0_leaves_data[44], u_fetch0_leaves_data[28], u_fetch0_leaves_data[12], u_fetch0_leaves_data[43], u_fetch0_leaves_data[27], u_fetch0_leaves_data[11], u_fetch0_leaves_data[42], u_fetch0_leaves_data[26], u_fetch0_leaves_data[10], u_fetch0_leaves_data[41], u_fetch0_leaves_data[25], u_fetch0_leaves_data[9], u_fetch0_leaves_data[40], u_fetch0_leaves_data[24], u_fetch0_leaves_data[8], u_fetch0_leaves_data[39], u_fetch0_leaves_data[23], u_fetch0_leaves_data[7], u_fetch0_leaves_data[38], u_fetch0_leaves_data[22], u_fetch0_leaves_data[6]};
+    assign leaf_key0 = {used0_or, u_fetch0_lod, u_fetch0_rec_x_morton};
+    assign u_fetch1_end = u_fetch1_leaves_data[183];
+    assign used1_or = used1_not | u_fetch1_end;
+    assign u_fetch1_lod = u_fetch1_leaves_data[182:178];
+    assign u_fetch1_rec_x_morton = {u_fetch1_leaves_data[53], u_fetch1_leaves_data[37], u_fetch1_leaves_data[21], u_fetch1_leaves_data[52], u_fetch1_leaves_data[36], u_fetch1_leaves_data[20], u_fetch1_leaves_data[51], u_fetch1_leaves_data[35], u_fetch1_leaves_data[19], u_fetch1_leaves_data[50], u_fetch1_leaves_data[34], u_fetch1_leaves_data[18], u_fetch1_leaves_data[49], u_fetch1_leaves_data[33], u_fetch1_leaves_data[17], u_fetch1_leaves_data[48], u_fetch1_leaves_data[32], u_fetch1_leaves_data[16], u_fetch1_leaves_data[47], u_fetch1_leaves_data[31], u_fetch1_leaves_data[15], u_fetch1_leaves_data[46], u_fetch1_leaves_data[30], u_fetch1_leaves_data[14], u_fetch1_leaves_data[45], u_fetch1_leaves_data[29], u_fetch1_leaves_data[13], u_fetch1_leaves_data[44], u_fetch1_leaves_data[28], u_fetch1_leaves_data[12], u_fetch1_leaves_data[43], u_fetch1_leaves_data[27], u_fetch1_leaves_data[11], u_fetch1_leaves_data[42], u_fetch1_leaves_data[26], u_fetch1_leaves_data[10], u_fetch1_leaves_data[41], u_fetch1_leaves_data[25], u_fetch1_leaves_data[9], u_fetch1_leaves_data[40], u_fetch1_leaves_data[24], u_fetch1_leaves_data[8], u_fetch1_leaves_data[39], u_fetch1_leaves_data[23], u_fetch1_leaves_data[7], u_fetch1_leaves_data[38], u_fetch1_leaves_data[22], u_fetch1_leaves_data[6]};
+    assign leaf_key1 = {used1_or, u_fetch1_lod, u_fetch1_rec_x_morton};
+    assign u_fetch2_end = u_fetch2_leaves_data[183];
+    assign used2_or = used2_not | u_fetch2_end;
+    assign u_fetch2_lod = u_fetch2_leaves_data[182:178];
+    assign u_fetch2_rec_x_morton = {u_fetch2_leaves_data[53], u_fetch2_leaves_data[37], u_fetch2_leaves_data[21], u_fetch2_leaves_data[52], u_fetch2_leaves_data[36], u_fetch2_leaves_data[20], u_fetch2_leaves_data[51], u_fetch2_leaves_data[35], u_fetch2_leaves_data[19], u_fetch2_leaves_data[50], u_fetch2_leaves_data[34], u_fetch2_leaves_data[18], u_fetch2_leaves_data[49], u_fetch2_leaves_data[33], u_fetch2_leaves_data[17], u_fetch2_leaves_data[48], u_fetch2_leaves_data[32], u_fetch2_leaves_data[16], u_fetch2_leaves_data[47], u_fetch2_leaves_data[31], u_fetch2_leaves_data[15], u_fetch2_leaves_data[46], u_fetch2_leaves_data[30], u_fetch2_leaves_data[14], u_fetch2_leaves_data[45], u_fetch2_leaves_data[29], u_fetch2_leaves_data[13], u_fetch2_leaves_data[44], u_fetch2_leaves_data[28], u_fetch2_leaves_data[12], u_fetch2_leaves_data[43], u_fetch2_leaves_data[27], u_fetch2_leaves_data[11], u_fetch2_leaves_data[42], u_fetch2_leaves_data[26], u_fetch2_leaves_data[10], u_fetch2_leaves_data[41], u_fetch2_leaves_data[25], u_fetch2_leaves_data[9], u_fetch2_leaves_data[40], u_fetch2_leaves_data[24], u_fetch2_leaves_data[8], u_fetch2_leaves_data[39], u_fetch2_leaves_data[23], u_fetch2_leaves_data[7], u_fetch2_leaves_data[38], u_fetch2_leaves_data[22], u_fetch2_leaves_data[6]};
+    assign leaf_key2 = {used2_or, u_fetch2_lod, u_fetch2_rec_x_morton};
+    assign u_fetch3_end = u_fetch3_leaves_data[183];
+    assign used3_or = used3_not | u_fetch3_end;
+    assign u_fetch3_lod = u_fetch3_leaves_data[182:178];
+    assign u_fetch3_rec_x_morton = {u_fetch3_leaves_data[53], u_fetch3_leaves_data[37], u_fetch3_leaves_data[21], u_fetch3_leaves_data[52], u_fetch3_leaves_data[36], u_fetch3_leaves_data[20], u_fetch3_leaves_data[51], u_fetch3_leaves_data[35], u_fetch3_leaves_data[19], u_fetch3_leaves_data[50], u_fetch3_leaves_data[34], u_fetch3_leaves_data[18], u_fetch3_leaves_data[49], u_fetch3_leaves_data[33], u_fetch3_leaves_data[17], u_fetch3_leaves_data[48], u_fetch3_leaves_data[32], u_fetch3_leaves_data[16], u_fetch3_leaves_data[47], u_fetch3_leaves_data[31], u_fetch3_leaves_data[15], u_fetch3_leaves_data[46], u_fetch3_leaves_data[30], u_fetch3_leaves_data[14], u_fetch3_leaves_data[45], u_fetch3_leaves_data[29], u_fetch3_leaves_data[13], u_fetch3_leaves_data[44], u_fetch3_leaves_data[28], u_fetch3_leaves_data[12], u_fetch3_leaves_data[43], u_fetch3_leaves_data[27], u_fetch3_leaves_data[11], u_fetch3_leaves_data[42], u_fetch3_leaves_data[26], u_fetch3_leaves_data[10], u_fetch3_leaves_data[41], u_fetch3_leaves_data[25], u_fetch3_leaves_data[9], u_fetch3_leaves_data[40], u_fetch3_leaves_data[24], u_fetch3_leaves_data[8], u_fetch3_leaves_data[39], u_fetch3_leaves_data[23], u_fetch3_leaves_data[7], u_fetch3_leaves_data[38], u_fetch3_leaves_data[22], u_fetch3_leaves_data[6]};
+    assign leaf_key3 = {used3_or, u_fetch3_lod, u_fetch3_rec_x_morton};
+    assign leaves_all_valid = (((leaves_active & (used0_not | u_fetch0_leaves_valid)) & (used1_not | u_fetch1_leaves_valid)) & (used2_not | u_fetch2_leaves_valid)) & (used3_not | u_fetch3_leaves_valid);
+    assign leaves_all_end = (((1'b1 & used0_or) & used1_or) & used2_or) & used3_or;
     assign leaf_key1_lt = leaf_key1 < leaf_key0;
     assign leaf_key1_mux = leaf_key1_lt ? leaf_key1 : leaf_key0;
-    assign leaf_key1_mux_1 = leaf_key1_lt ? u_fetch1_leaves_data[182:0] : u_fetch0_leaves_data[182:0];
-    assign leaf_key1_mux_2 = leaf_key1_lt ? 2'd1 : 2'd0;
     assign leaf_key2_lt = leaf_key2 < leaf_key1_mux;
-    assign leaf_key2_mux = leaf_key2_lt ? leaf_key2 : leaf_key1_mux;
-    assign leaf_key2_mux_1 = leaf_key2_lt ? u_fetch2_leaves_data[182:0] : leaf_key1_mux_1;
-    assign leaf_key2_mux_2 = leaf_key2_lt ? 2'd2 : leaf_key1_mux_2;
-    assign leaf_key3_lt = leaf_key3 < leaf_key2_mux;
-    assign leaf_best_data = leaf_key3_lt ? u_fetch3_leaves_data[182:0] : leaf_key2_mux_1;
-    assign leaf_best = leaf_key3_lt ? 2'd3 : leaf_key2_mux_2;
-    assign leaves_all_end_not = ~leaves_all_end;
-    assign leaf_take = leaves_all_valid & leaves_all_end_not;
-    assign used0_and_12 = used0 & leaves_all_valid;
-    assign leaf_best_eq = leaf_best == 2'd0;
-    assign leaves_all_end_or = leaves_all_end | leaf_best_eq;
-    assign used0_and_13 = used0_and_12 & leaves_all_end_or;
-    assign used1_and_9 = used1 & leaves_all_valid;
-    assign leaf_best_eq_1 = leaf_best == 2'd1;
-    assign leaves_all_end_or_1 = leaves_all_end | leaf_best_eq_1;
-    assign used1_and_10 = used1_and_9 & leaves_all_end_or_1;
-    assign used2_and_9 = used2 & leaves_all_valid;
-    assign leaf_best_eq_2 = leaf_best == 2'd2;
-    assign leaves_all_end_or_2 = leaves_all_end | leaf_best_eq_2;
-    assign used2_and_10 = used2_and_9 & leaves_all_end_or_2;
-    assign used3_and_9 = used3 & leaves_all_valid;
-    assign leaf_best_eq_3 = leaf_best == 2'd3;
-    assign leaves_all_end_or_3 = leaves_all_end | leaf_best_eq_3;
-    assign used3_and_10 = used3_and_9 & leaves_all_end_or_3;
-    assign leaves_all_valid_and = leaves_all_valid & leaves_all_end;
-    assign const_cat_1 = {2'd3, 178'h000000000000000000000000000000000000000000000};
-    assign out_is_ref = u_module_out_data[179:178] == 2'd2;
-    assign out_is_end = u_module_out_data[179:178] == 2'd3;
-    assign u_module_cat = {u_module_out_data[179:178], u_module_out_data[177:150], u_module_out_data[149:0]};
-    assign crefs_end_sent_not = ~crefs_end_sent;
-    assign crefs_end_sent_and = crefs_end_sent_not & choice_known;
+    assign leaf_key3_lt = leaf_key3 < (leaf_key2_lt ? leaf_key2 : leaf_key1_mux);
+    assign leaf_best_data = leaf_key3_lt ? u_fetch3_leaves_data[182:0] : (leaf_key2_lt ? u_fetch2_leaves_data[182:0] : (leaf_key1_lt ? u_fetch1_leaves_data[182:0] : u_fetch0_leaves_data[182:0]));
+    assign leaf_best = leaf_key3_lt ? 2'd3 : (leaf_key2_lt ? 2'd2 : (leaf_key1_lt ? 2'd1 : 2'd0));
+    assign leaf_take = leaves_all_valid & (~leaves_all_end);
+    assign leaf_best_data_lod = leaf_best_data[182:178];
+    assign u_module_kind = u_module_out_data[179:178];
+    assign out_is_ref = u_module_kind == 2'd2;
+    assign out_is_end = u_module_kind == 2'd3;
+    assign u_module_err_1 = u_module_out_data[180];
+    assign u_module_ref = u_module_out_data[177:150];
+    assign u_module_rec = u_module_out_data[149:0];
+    assign u_module_kind_cat = {u_module_kind, u_module_ref, u_module_rec};
     assign choice_ok_not = ~choice_ok;
-    assign out_is_ref_or = out_is_ref | out_is_end;
-    assign u_module_and_1 = u_module_out_valid & out_is_ref_or;
-    assign choice_ok_or = choice_ok_not | u_module_and_1;
-    assign crefs_end_sent_and_1 = crefs_end_sent_and & choice_ok_or;
-    assign choice_ok_not_1 = ~choice_ok;
-    assign choice_ok_or_1 = choice_ok_not_1 | out_is_end;
-    assign choice_ok_and = choice_ok & out_is_ref;
-    assign choice_ok_mux = choice_ok_and ? u_module_out_data[177:150] : 28'd0;
-    assign choice_ok_cat = {choice_ok_or_1, choice_ok_mux};
-    assign crefs_end_sent_and_2 = crefs_end_sent_and_1 & u_writer_crefs_ready;
-    assign crefs_end_sent_and_3 = crefs_end_sent_and_2 & choice_ok_or_1;
-    assign merge_lod_eq = merge_lod == 5'd0;
-    assign base0_at_m = merging & merge_lod_eq;
-    assign leaves0_wr_eq = leaves0_wr == leaves0_rd;
-    assign leaves0_wr_eq_1 = leaves0_wr[3:0] == leaves0_rd[3:0];
-    assign leaves0_wr_eq_2 = leaves0_wr[4] == leaves0_rd[4];
-    assign leaves0_wr_not = ~leaves0_wr_eq_2;
-    assign leaves0_wr_and = leaves0_wr_eq_1 & leaves0_wr_not;
-    assign leaf_best_data_eq = leaf_best_data[182:178] == 5'd0;
-    assign leaf_take_and = leaf_take & leaf_best_data_eq;
-    assign leaves0_wr_not_1 = ~leaves0_wr_and;
-    assign leaf_take_and_1 = leaf_take_and & leaves0_wr_not_1;
-    assign leaf_take_and_2 = leaf_take_and & leaves0_wr_and;
+    assign crefs_end_sent_and = ((~crefs_end_sent) & choice_known) & (choice_ok_not | (u_module_out_valid & (out_is_ref | out_is_end)));
+    assign choice_ok_or = choice_ok_not | out_is_end;
+    assign base0_at_m = merging & (merge_lod == 5'd0);
+    assign leaves0_empty = leaves0_wr == leaves0_rd;
+    assign leaves0_full = (leaves0_wr[3:0] == leaves0_rd[3:0]) & (~(leaves0_wr[4] == leaves0_rd[4]));
+    assign leaves0_push = leaf_take & (leaf_best_data_lod == 5'd0);
+    assign leaves0_wr_put = leaves0_push & (~leaves0_full);
     assign leaves0_rd_1 = leaves0[leaves0_rd[3:0]];
-    assign merge_lod_lt = 5'd0 < merge_lod;
-    assign base0_above_m = merging & merge_lod_lt;
-    assign const_cat_2 = {2'd1, leaves0_rd_1[177:150], leaves0_rd_1[149:0]};
-    assign leaves0_wr_and_1 = leaves0_wr_eq & leaves_done;
+    assign base0_above_m = merging & (5'd0 < merge_lod);
+    assign leaves0_rec = leaves0_rd_1[149:0];
+    assign leaves0_ref = leaves0_rd_1[177:150];
+    assign leaves0_end = leaves0_empty & leaves_done;
+    assign leaves0_empty_not = ~leaves0_empty;
+    assign leaves0_head_out = base0_above_m & leaves0_empty_not;
     assign base0_end_sent_not = ~base0_end_sent;
-    assign base0_at_m_and = base0_at_m & u_module_out_valid;
     assign out_is_ref_not = ~out_is_ref;
-    assign base0_at_m_and_1 = base0_at_m_and & out_is_ref_not;
-    assign leaves0_wr_not_2 = ~leaves0_wr_eq;
-    assign leaves0_wr_or = leaves0_wr_not_2 | leaves_done;
-    assign base0_above_m_and = base0_above_m & leaves0_wr_or;
-    assign base0_at_m_or = base0_at_m_and_1 | base0_above_m_and;
-    assign base0_at_m_not = ~base0_at_m;
-    assign choice_known_and = choice_known & base0_at_m_not;
-    assign base0_above_m_not = ~base0_above_m;
-    assign choice_known_and_1 = choice_known_and & base0_above_m_not;
-    assign base0_at_m_or_1 = base0_at_m_or | choice_known_and_1;
-    assign base0_end_sent_and = base0_end_sent_not & base0_at_m_or_1;
-    assign leaves0_wr_not_3 = ~leaves0_wr_eq;
-    assign base0_above_m_and_1 = base0_above_m & leaves0_wr_not_3;
-    assign base0_above_m_mux = base0_above_m_and_1 ? const_cat_2 : const_cat_1;
-    assign base0_at_m_mux = base0_at_m ? u_module_cat : base0_above_m_mux;
-    assign base0_above_m_mux_1 = base0_above_m ? leaves0_wr_and_1 : 1'b1;
-    assign base0_at_m_mux_1 = base0_at_m ? out_is_end : base0_above_m_mux_1;
+    assign base0_at_m_or = (((base0_at_m & u_module_out_valid) & out_is_ref_not) | (base0_above_m & (leaves0_empty_not | leaves_done))) | ((choice_known & (~base0_at_m)) & (~base0_above_m));
+    assign base0_end_sent_and = base0_end_sent_not & base0_at_m_or;
     assign base0_end_sent_and_1 = base0_end_sent_and & u_builder_base0_ready;
-    assign base0_end_sent_and_2 = base0_end_sent_and_1 & base0_above_m;
-    assign leaves0_wr_not_4 = ~leaves0_wr_eq;
-    assign base0_end_sent_and_3 = base0_end_sent_and_2 & leaves0_wr_not_4;
-    assign leaves0_wr_not_5 = ~leaves0_wr_and;
-    assign leaf_take_and_3 = leaf_take_and & leaves0_wr_not_5;
-    assign leaves0_wr_add = leaves0_wr + 5'd1;
-    assign leaves0_rd_add = leaves0_rd + 5'd1;
-    assign base0_end_sent_and_4 = base0_end_sent_and & u_builder_base0_ready;
-    assign base0_end_sent_and_5 = base0_end_sent_and_4 & base0_at_m_mux_1;
-    assign base0_end_sent_not_1 = ~base0_end_sent;
-    assign u_builder_and = u_builder_base0_ready & base0_end_sent_not_1;
-    assign base0_at_m_mux_2 = base0_at_m ? u_builder_and : 1'b0;
-    assign base0_at_m_mux_3 = base0_at_m ? base0_end_sent : 1'b0;
-    assign merge_lod_eq_1 = merge_lod == 5'd1;
-    assign base1_at_m = merging & merge_lod_eq_1;
-    assign leaves1_wr_eq = leaves1_wr == leaves1_rd;
-    assign leaves1_wr_eq_1 = leaves1_wr[3:0] == leaves1_rd[3:0];
-    assign leaves1_wr_eq_2 = leaves1_wr[4] == leaves1_rd[4];
-    assign leaves1_wr_not = ~leaves1_wr_eq_2;
-    assign leaves1_wr_and = leaves1_wr_eq_1 & leaves1_wr_not;
-    assign leaf_best_data_eq_1 = leaf_best_data[182:178] == 5'd1;
-    assign leaf_take_and_4 = leaf_take & leaf_best_data_eq_1;
-    assign leaves1_wr_not_1 = ~leaves1_wr_and;
-    assign leaf_take_and_5 = leaf_take_and_4 & leaves1_wr_not_1;
-    assign leaf_take_and_6 = leaf_take_and_4 & leaves1_wr_and;
+    assign leaves0_pop = (base0_end_sent_and_1 & base0_above_m) & leaves0_empty_not;
+    assign base1_at_m = merging & (merge_lod == 5'd1);
+    assign leaves1_empty = leaves1_wr == leaves1_rd;
+    assign leaves1_full = (leaves1_wr[3:0] == leaves1_rd[3:0]) & (~(leaves1_wr[4] == leaves1_rd[4]));
+    assign leaves1_push = leaf_take & (leaf_best_data_lod == 5'd1);
+    assign leaves1_wr_put = leaves1_push & (~leaves1_full);
     assign leaves1_rd_1 = leaves1[leaves1_rd[3:0]];
-    assign merge_lod_lt_1 = 5'd1 < merge_lod;
-    assign base1_above_m = merging & merge_lod_lt_1;
-    assign const_cat_3 = {2'd1, leaves1_rd_1[177:150], leaves1_rd_1[149:0]};
-    assign leaves1_wr_and_1 = leaves1_wr_eq & leaves_done;
+    assign base1_above_m = merging & (5'd1 < merge_lod);
+    assign leaves1_rec = leaves1_rd_1[149:0];
+    assign leaves1_ref = leaves1_rd_1[177:150];
+    assign leaves1_end = leaves1_empty & leaves_done;
+    assign leaves1_empty_not = ~leaves1_empty;
+    assign leaves1_head_out = base1_above_m & leaves1_empty_not;
     assign base1_end_sent_not = ~base1_end_sent;
-    assign base1_at_m_and = base1_at_m & u_module_out_valid;
-    assign out_is_ref_not_1 = ~out_is_ref;
-    assign base1_at_m_and_1 = base1_at_m_and & out_is_ref_not_1;
-    assign leaves1_wr_not_2 = ~leaves1_wr_eq;
-    assign leaves1_wr_or = leaves1_wr_not_2 | leaves_done;
-    assign base1_above_m_and = base1_above_m & leaves1_wr_or;
-    assign base1_at_m_or = base1_at_m_and_1 | base1_above_m_and;
-    assign base1_at_m_not = ~base1_at_m;
-    assign choice_known_and_2 = choice_known & base1_at_m_not;
-    assign base1_above_m_not = ~base1_above_m;
-    assign choice_known_and_3 = choice_known_and_2 & base1_above_m_not;
-    assign base1_at_m_or_1 = base1_at_m_or | choice_known_and_3;
-    assign base1_end_sent_and = base1_end_sent_not & base1_at_m_or_1;
-    assign leaves1_wr_not_3 = ~leaves1_wr_eq;
-    assign base1_above_m_and_1 = base1_above_m & leaves1_wr_not_3;
-    assign base1_above_m_mux = base1_above_m_and_1 ? const_cat_3 : const_cat_1;
-    assign base1_at_m_mux = base1_at_m ? u_module_cat : base1_above_m_mux;
-    assign base1_above_m_mux_1 = base1_above_m ? leaves1_wr_and_1 : 1'b1;
-    assign base1_at_m_mux_1 = base1_at_m ? out_is_end : base1_above_m_mux_1;
+    assign base1_at_m_or = (((base1_at_m & u_module_out_valid) & out_is_ref_not) | (base1_above_m & (leaves1_empty_not | leaves_done))) | ((choice_known & (~base1_at_m)) & (~base1_above_m));
+    assign base1_end_sent_and = base1_end_sent_not & base1_at_m_or;
     assign base1_end_sent_and_1 = base1_end_sent_and & u_builder_base1_ready;
-    assign base1_end_sent_and_2 = base1_end_sent_and_1 & base1_above_m;
-    assign leaves1_wr_not_4 = ~leaves1_wr_eq;
-    assign base1_end_sent_and_3 = base1_end_sent_and_2 & leaves1_wr_not_4;
-    assign leaves1_wr_not_5 = ~leaves1_wr_and;
-    assign leaf_take_and_7 = leaf_take_and_4 & leaves1_wr_not_5;
-    assign leaves1_wr_add = leaves1_wr + 5'd1;
-    assign leaves1_rd_add = leaves1_rd + 5'd1;
-    assign base1_end_sent_and_4 = base1_end_sent_and & u_builder_base1_ready;
-    assign base1_end_sent_and_5 = base1_end_sent_and_4 & base1_at_m_mux_1;
-    assign base1_end_sent_not_1 = ~base1_end_sent;
-    assign u_builder_and_1 = u_builder_base1_ready & base1_end_sent_not_1;
-    assign base1_at_m_mux_2 = base1_at_m ? u_builder_and_1 : base0_at_m_mux_2;
-    assign base1_at_m_mux_3 = base1_at_m ? base1_end_sent : base0_at_m_mux_3;
-    assign merge_lod_eq_2 = merge_lod == 5'd2;
-    assign base2_at_m = merging & merge_lod_eq_2;
-    assign leaves2_wr_eq = leaves2_wr == leaves2_rd;
-    assign leaves2_wr_eq_1 = leaves2_wr[3:0] == leaves2_rd[3:0];
-    assign leaves2_wr_eq_2 = leaves2_wr[4] == leaves2_rd[4];
-    assign leaves2_wr_not = ~leaves2_wr_eq_2;
-    assign leaves2_wr_and = leaves2_wr_eq_1 & leaves2_wr_not;
-    assign leaf_best_data_eq_2 = leaf_best_data[182:178] == 5'd2;
-    assign leaf_take_and_8 = leaf_take & leaf_best_data_eq_2;
-    assign leaves2_wr_not_1 = ~leaves2_wr_and;
-    assign leaf_take_and_9 = leaf_take_and_8 & leaves2_wr_not_1;
-    assign leaf_take_and_10 = leaf_take_and_8 & leaves2_wr_and;
+    assign leaves1_pop = (base1_end_sent_and_1 & base1_above_m) & leaves1_empty_not;
+    assign base2_at_m = merging & (merge_lod == 5'd2);
+    assign leaves2_empty = leaves2_wr == leaves2_rd;
+    assign leaves2_full = (leaves2_wr[3:0] == leaves2_rd[3:0]) & (~(leaves2_wr[4] == leaves2_rd[4]));
+    assign leaves2_push = leaf_take & (leaf_best_data_lod == 5'd2);
+    assign leaves2_wr_put = leaves2_push & (~leaves2_full);
     assign leaves2_rd_1 = leaves2[leaves2_rd[3:0]];
-    assign merge_lod_lt_2 = 5'd2 < merge_lod;
-    assign base2_above_m = merging & merge_lod_lt_2;
-    assign const_cat_4 = {2'd1, leaves2_rd_1[177:150], leaves2_rd_1[149:0]};
-    assign leaves2_wr_and_1 = leaves2_wr_eq & leaves_done;
+    assign base2_above_m = merging & (5'd2 < merge_lod);
+    assign leaves2_rec = leaves2_rd_1[149:0];
+    assign leaves2_ref = leaves2_rd_1[177:150];
+    assign leaves2_end = leaves2_empty & leaves_done;
+    assign leaves2_empty_not = ~leaves2_empty;
+    assign leaves2_head_out = base2_above_m & leaves2_empty_not;
     assign base2_end_sent_not = ~base2_end_sent;
-    assign base2_at_m_and = base2_at_m & u_module_out_valid;
-    assign out_is_ref_not_2 = ~out_is_ref;
-    assign base2_at_m_and_1 = base2_at_m_and & out_is_ref_not_2;
-    assign leaves2_wr_not_2 = ~leaves2_wr_eq;
-    assign leaves2_wr_or = leaves2_wr_not_2 | leaves_done;
-    assign base2_above_m_and = base2_above_m & leaves2_wr_or;
-    assign base2_at_m_or = base2_at_m_and_1 | base2_above_m_and;
-    assign base2_at_m_not = ~base2_at_m;
-    assign choice_known_and_4 = choice_known & base2_at_m_not;
-    assign base2_above_m_not = ~base2_above_m;
-    assign choice_known_and_5 = choice_known_and_4 & base2_above_m_not;
-    assign base2_at_m_or_1 = base2_at_m_or | choice_known_and_5;
-    assign base2_end_sent_and = base2_end_sent_not & base2_at_m_or_1;
-    assign leaves2_wr_not_3 = ~leaves2_wr_eq;
-    assign base2_above_m_and_1 = base2_above_m & leaves2_wr_not_3;
-    assign base2_above_m_mux = base2_above_m_and_1 ? const_cat_4 : const_cat_1;
-    assign base2_at_m_mux = base2_at_m ? u_module_cat : base2_above_m_mux;
-    assign base2_above_m_mux_1 = base2_above_m ? leaves2_wr_and_1 : 1'b1;
-    assign base2_at_m_mux_1 = base2_at_m ? out_is_end : base2_above_m_mux_1;
+    assign base2_at_m_or = (((base2_at_m & u_module_out_valid) & out_is_ref_not) | (base2_above_m & (leaves2_empty_not | leaves_done))) | ((choice_known & (~base2_at_m)) & (~base2_above_m));
+    assign base2_end_sent_and = base2_end_sent_not & base2_at_m_or;
     assign base2_end_sent_and_1 = base2_end_sent_and & u_builder_base2_ready;
-    assign base2_end_sent_and_2 = base2_end_sent_and_1 & base2_above_m;
-    assign leaves2_wr_not_4 = ~leaves2_wr_eq;
-    assign base2_end_sent_and_3 = base2_end_sent_and_2 & leaves2_wr_not_4;
-    assign leaves2_wr_not_5 = ~leaves2_wr_and;
-    assign leaf_take_and_11 = leaf_take_and_8 & leaves2_wr_not_5;
-    assign leaves2_wr_add = leaves2_wr + 5'd1;
-    assign leaves2_rd_add = leaves2_rd + 5'd1;
-    assign base2_end_sent_and_4 = base2_end_sent_and & u_builder_base2_ready;
-    assign base2_end_sent_and_5 = base2_end_sent_and_4 & base2_at_m_mux_1;
-    assign base2_end_sent_not_1 = ~base2_end_sent;
-    assign u_builder_and_2 = u_builder_base2_ready & base2_end_sent_not_1;
-    assign base2_at_m_mux_2 = base2_at_m ? u_builder_and_2 : base1_at_m_mux_2;
-    assign base2_at_m_mux_3 = base2_at_m ? base2_end_sent : base1_at_m_mux_3;
-    assign merge_lod_eq_3 = merge_lod == 5'd3;
-    assign base3_at_m = merging & merge_lod_eq_3;
-    assign leaves3_wr_eq = leaves3_wr == leaves3_rd;
-    assign leaves3_wr_eq_1 = leaves3_wr[3:0] == leaves3_rd[3:0];
-    assign leaves3_wr_eq_2 = leaves3_wr[4] == leaves3_rd[4];
-    assign leaves3_wr_not = ~leaves3_wr_eq_2;
-    assign leaves3_wr_and = leaves3_wr_eq_1 & leaves3_wr_not;
-    assign leaf_best_data_eq_3 = leaf_best_data[182:178] == 5'd3;
-    assign leaf_take_and_12 = leaf_take & leaf_best_data_eq_3;
-    assign leaves3_wr_not_1 = ~leaves3_wr_and;
-    assign leaf_take_and_13 = leaf_take_and_12 & leaves3_wr_not_1;
-    assign leaf_take_and_14 = leaf_take_and_12 & leaves3_wr_and;
+    assign leaves2_pop = (base2_end_sent_and_1 & base2_above_m) & leaves2_empty_not;
+    assign base2_at_m_mux = base2_at_m ? (u_builder_base2_ready & base2_end_sent_not) : (base1_at_m ? (u_builder_base1_ready & base1_end_sent_not) : (base0_at_m ? (u_builder_base0_ready & base0_end_sent_not) : 1'b0));
+    assign base3_at_m = merging & (merge_lod == 5'd3);
+    assign leaves3_empty = leaves3_wr == leaves3_rd;
+    assign leaves3_full = (leaves3_wr[3:0] == leaves3_rd[3:0]) & (~(leaves3_wr[4] == leaves3_rd[4]));
+    assign leaves3_push = leaf_take & (leaf_best_data_lod == 5'd3);
+    assign leaves3_wr_put = leaves3_push & (~leaves3_full);
     assign leaves3_rd_1 = leaves3[leaves3_rd[3:0]];
-    assign merge_lod_lt_3 = 5'd3 < merge_lod;
-    assign base3_above_m = merging & merge_lod_lt_3;
-    assign const_cat_5 = {2'd1, leaves3_rd_1[177:150], leaves3_rd_1[149:0]};
-    assign leaves3_wr_and_1 = leaves3_wr_eq & leaves_done;
+    assign base3_above_m = merging & (5'd3 < merge_lod);
+    assign leaves3_rec = leaves3_rd_1[149:0];
+    assign leaves3_ref = leaves3_rd_1[177:150];
+    assign leaves3_end = leaves3_empty & leaves_done;
+    assign leaves3_empty_not = ~leaves3_empty;
+    assign leaves3_head_out = base3_above_m & leaves3_empty_not;
     assign base3_end_sent_not = ~base3_end_sent;
-    assign base3_at_m_and = base3_at_m & u_module_out_valid;
-    assign out_is_ref_not_3 = ~out_is_ref;
-    assign base3_at_m_and_1 = base3_at_m_and & out_is_ref_not_3;
-    assign leaves3_wr_not_2 = ~leaves3_wr_eq;
-    assign leaves3_wr_or = leaves3_wr_not_2 | leaves_done;
-    assign base3_above_m_and = base3_above_m & leaves3_wr_or;
-    assign base3_at_m_or = base3_at_m_and_1 | base3_above_m_and;
-    assign base3_at_m_not = ~base3_at_m;
-    assign choice_known_and_6 = choice_known & base3_at_m_not;
-    assign base3_above_m_not = ~base3_above_m;
-    assign choice_known_and_7 = choice_known_and_6 & base3_above_m_not;
-    assign base3_at_m_or_1 = base3_at_m_or | choice_known_and_7;
-    assign base3_end_sent_and = base3_end_sent_not & base3_at_m_or_1;
-    assign leaves3_wr_not_3 = ~leaves3_wr_eq;
-    assign base3_above_m_and_1 = base3_above_m & leaves3_wr_not_3;
-    assign base3_above_m_mux = base3_above_m_and_1 ? const_cat_5 : const_cat_1;
-    assign base3_at_m_mux = base3_at_m ? u_module_cat : base3_above_m_mux;
-    assign base3_above_m_mux_1 = base3_above_m ? leaves3_wr_and_1 : 1'b1;
-    assign base3_at_m_mux_1 = base3_at_m ? out_is_end : base3_above_m_mux_1;
+    assign base3_at_m_or = (((base3_at_m & u_module_out_valid) & out_is_ref_not) | (base3_above_m & (leaves3_empty_not | leaves_done))) | ((choice_known & (~base3_at_m)) & (~base3_above_m));
+    assign base3_end_sent_and = base3_end_sent_not & base3_at_m_or;
     assign base3_end_sent_and_1 = base3_end_sent_and & u_builder_base3_ready;
-    assign base3_end_sent_and_2 = base3_end_sent_and_1 & base3_above_m;
-    assign leaves3_wr_not_4 = ~leaves3_wr_eq;
-    assign base3_end_sent_and_3 = base3_end_sent_and_2 & leaves3_wr_not_4;
-    assign leaves3_wr_not_5 = ~leaves3_wr_and;
-    assign leaf_take_and_15 = leaf_take_and_12 & leaves3_wr_not_5;
-    assign leaves3_wr_add = leaves3_wr + 5'd1;
-    assign leaves3_rd_add = leaves3_rd + 5'd1;
-    assign base3_end_sent_and_4 = base3_end_sent_and & u_builder_base3_ready;
-    assign base3_end_sent_and_5 = base3_end_sent_and_4 & base3_at_m_mux_1;
-    assign base3_end_sent_not_1 = ~base3_end_sent;
-    assign u_builder_and_3 = u_builder_base3_ready & base3_end_sent_not_1;
-    assign base3_at_m_mux_2 = base3_at_m ? u_builder_and_3 : base2_at_m_mux_2;
-    assign base3_at_m_mux_3 = base3_at_m ? base3_end_sent : base2_at_m_mux_3;
-    assign merge_lod_eq_4 = merge_lod == 5'd4;
-    assign base4_at_m = merging & merge_lod_eq_4;
-    assign leaves4_wr_eq = leaves4_wr == leaves4_rd;
-    assign leaves4_wr_eq_1 = leaves4_wr[3:0] == leaves4_rd[3:0];
-    assign leaves4_wr_eq_2 = leaves4_wr[4] == leaves4_rd[4];
-    assign leaves4_wr_not = ~leaves4_wr_eq_2;
-    assign leaves4_wr_and = leaves4_wr_eq_1 & leaves4_wr_not;
-    assign leaf_best_data_eq_4 = leaf_best_data[182:178] == 5'd4;
-    assign leaf_take_and_16 = leaf_take & leaf_best_data_eq_4;
-    assign leaves4_wr_not_1 = ~leaves4_wr_and;
-    assign leaf_take_and_17 = leaf_take_and_16 & leaves4_wr_not_1;
-    assign leaf_take_and_18 = leaf_take_and_16 & leaves4_wr_and;
+    assign leaves3_pop = (base3_end_sent_and_1 & base3_above_m) & leaves3_empty_not;
+    assign base3_at_m_mux = base3_at_m ? base3_end_sent : (base2_at_m ? base2_end_sent : (base1_at_m ? base1_end_sent : (base0_at_m ? base0_end_sent : 1'b0)));
+    assign base4_at_m = merging & (merge_lod == 5'd4);
+    assign leaves4_empty = leaves4_wr == leaves4_rd;
+    assign leaves4_full = (leaves4_wr[3:0] == leaves4_rd[3:0]) & (~(leaves4_wr[4] == leaves4_rd[4]));
+    assign leaves4_push = leaf_take & (leaf_best_data_lod == 5'd4);
+    assign leaves4_wr_put = leaves4_push & (~leaves4_full);
     assign leaves4_rd_1 = leaves4[leaves4_rd[3:0]];
-    assign merge_lod_lt_4 = 5'd4 < merge_lod;
-    assign base4_above_m = merging & merge_lod_lt_4;
-    assign const_cat_6 = {2'd1, leaves4_rd_1[177:150], leaves4_rd_1[149:0]};
-    assign leaves4_wr_and_1 = leaves4_wr_eq & leaves_done;
+    assign base4_above_m = merging & (5'd4 < merge_lod);
+    assign leaves4_rec = leaves4_rd_1[149:0];
+    assign leaves4_ref = leaves4_rd_1[177:150];
+    assign leaves4_end = leaves4_empty & leaves_done;
+    assign leaves4_empty_not = ~leaves4_empty;
+    assign leaves4_head_out = base4_above_m & leaves4_empty_not;
     assign base4_end_sent_not = ~base4_end_sent;
-    assign base4_at_m_and = base4_at_m & u_module_out_valid;
-    assign out_is_ref_not_4 = ~out_is_ref;
-    assign base4_at_m_and_1 = base4_at_m_and & out_is_ref_not_4;
-    assign leaves4_wr_not_2 = ~leaves4_wr_eq;
-    assign leaves4_wr_or = leaves4_wr_not_2 | leaves_done;
-    assign base4_above_m_and = base4_above_m & leaves4_wr_or;
-    assign base4_at_m_or = base4_at_m_and_1 | base4_above_m_and;
-    assign base4_at_m_not = ~base4_at_m;
-    assign choice_known_and_8 = choice_known & base4_at_m_not;
-    assign base4_above_m_not = ~base4_above_m;
-    assign choice_known_and_9 = choice_known_and_8 & base4_above_m_not;
-    assign base4_at_m_or_1 = base4_at_m_or | choice_known_and_9;
-    assign base4_end_sent_and = base4_end_sent_not & base4_at_m_or_1;
-    assign leaves4_wr_not_3 = ~leaves4_wr_eq;
-    assign base4_above_m_and_1 = base4_above_m & leaves4_wr_not_3;
-    assign base4_above_m_mux = base4_above_m_and_1 ? const_cat_6 : const_cat_1;
-    assign base4_at_m_mux = base4_at_m ? u_module_cat : base4_above_m_mux;
-    assign base4_above_m_mux_1 = base4_above_m ? leaves4_wr_and_1 : 1'b1;
-    assign base4_at_m_mux_1 = base4_at_m ? out_is_end : base4_above_m_mux_1;
+    assign base4_at_m_or = (((base4_at_m & u_module_out_valid) & out_is_ref_not) | (base4_above_m & (leaves4_empty_not | leaves_done))) | ((choice_known & (~base4_at_m)) & (~base4_above_m));
+    assign base4_end_sent_and = base4_end_sent_not & base4_at_m_or;
     assign base4_end_sent_and_1 = base4_end_sent_and & u_builder_base4_ready;
-    assign base4_end_sent_and_2 = base4_end_sent_and_1 & base4_above_m;
-    assign leaves4_wr_not_4 = ~leaves4_wr_eq;
-    assign base4_end_sent_and_3 = base4_end_sent_and_2 & leaves4_wr_not_4;
-    assign leaves4_wr_not_5 = ~leaves4_wr_and;
-    assign leaf_take_and_19 = leaf_take_and_16 & leaves4_wr_not_5;
-    assign leaves4_wr_add = leaves4_wr + 5'd1;
-    assign leaves4_rd_add = leaves4_rd + 5'd1;
-    assign base4_end_sent_and_4 = base4_end_sent_and & u_builder_base4_ready;
-    assign base4_end_sent_and_5 = base4_end_sent_and_4 & base4_at_m_mux_1;
-    assign base4_end_sent_not_1 = ~base4_end_sent;
-    assign u_builder_and_4 = u_builder_base4_ready & base4_end_sent_not_1;
-    assign base4_at_m_mux_2 = base4_at_m ? u_builder_and_4 : base3_at_m_mux_2;
-    assign base4_at_m_mux_3 = base4_at_m ? base4_end_sent : base3_at_m_mux_3;
-    assign merge_lod_eq_5 = merge_lod == 5'd5;
-    assign base5_at_m = merging & merge_lod_eq_5;
-    assign leaves5_wr_eq = leaves5_wr == leaves5_rd;
-    assign leaves5_wr_eq_1 = leaves5_wr[3:0] == leaves5_rd[3:0];
-    assign leaves5_wr_eq_2 = leaves5_wr[4] == leaves5_rd[4];
-    assign leaves5_wr_not = ~leaves5_wr_eq_2;
-    assign leaves5_wr_and = leaves5_wr_eq_1 & leaves5_wr_not;
-    assign leaf_best_data_eq_5 = leaf_best_data[182:178] == 5'd5;
-    assign leaf_take_and_20 = leaf_take & leaf_best_data_eq_5;
-    assign leaves5_wr_not_1 = ~leaves5_wr_and;
-    assign leaf_take_and_21 = leaf_take_and_20 & leaves5_wr_not_1;
-    assign leaf_take_and_22 = leaf_take_and_20 & leaves5_wr_and;
+    assign leaves4_pop = (base4_end_sent_and_1 & base4_above_m) & leaves4_empty_not;
+    assign base5_at_m = merging & (merge_lod == 5'd5);
+    assign leaves5_empty = leaves5_wr == leaves5_rd;
+    assign leaves5_full = (leaves5_wr[3:0] == leaves5_rd[3:0]) & (~(leaves5_wr[4] == leaves5_rd[4]));
+    assign leaves5_push = leaf_take & (leaf_best_data_lod == 5'd5);
+    assign leaves5_wr_put = leaves5_push & (~leaves5_full);
     assign leaves5_rd_1 = leaves5[leaves5_rd[3:0]];
-    assign merge_lod_lt_5 = 5'd5 < merge_lod;
-    assign base5_above_m = merging & merge_lod_lt_5;
-    assign const_cat_7 = {2'd1, leaves5_rd_1[177:150], leaves5_rd_1[149:0]};
-    assign leaves5_wr_and_1 = leaves5_wr_eq & leaves_done;
+    assign base5_above_m = merging & (5'd5 < merge_lod);
+    assign leaves5_rec = leaves5_rd_1[149:0];
+    assign leaves5_ref = leaves5_rd_1[177:150];
+    assign leaves5_end = leaves5_empty & leaves_done;
+    assign leaves5_empty_not = ~leaves5_empty;
+    assign leaves5_head_out = base5_above_m & leaves5_empty_not;
     assign base5_end_sent_not = ~base5_end_sent;
-    assign base5_at_m_and = base5_at_m & u_module_out_valid;
-    assign out_is_ref_not_5 = ~out_is_ref;
-    assign base5_at_m_and_1 = base5_at_m_and & out_is_ref_not_5;
-    assign leaves5_wr_not_2 = ~leaves5_wr_eq;
-    assign leaves5_wr_or = leaves5_wr_not_2 | leaves_done;
-    assign base5_above_m_and = base5_above_m & leaves5_wr_or;
-    assign base5_at_m_or = base5_at_m_and_1 | base5_above_m_and;
-    assign base5_at_m_not = ~base5_at_m;
-    assign choice_known_and_10 = choice_known & base5_at_m_not;
-    assign base5_above_m_not = ~base5_above_m;
-    assign choice_known_and_11 = choice_known_and_10 & base5_above_m_not;
-    assign base5_at_m_or_1 = base5_at_m_or | choice_known_and_11;
-    assign base5_end_sent_and = base5_end_sent_not & base5_at_m_or_1;
-    assign leaves5_wr_not_3 = ~leaves5_wr_eq;
-    assign base5_above_m_and_1 = base5_above_m & leaves5_wr_not_3;
-    assign base5_above_m_mux = base5_above_m_and_1 ? const_cat_7 : const_cat_1;
-    assign base5_at_m_mux = base5_at_m ? u_module_cat : base5_above_m_mux;
-    assign base5_above_m_mux_1 = base5_above_m ? leaves5_wr_and_1 : 1'b1;
-    assign base5_at_m_mux_1 = base5_at_m ? out_is_end : base5_above_m_mux_1;
+    assign base5_at_m_or = (((base5_at_m & u_module_out_valid) & out_is_ref_not) | (base5_above_m & (leaves5_empty_not | leaves_done))) | ((choice_known & (~base5_at_m)) & (~base5_above_m));
+    assign base5_end_sent_and = base5_end_sent_not & base5_at_m_or;
     assign base5_end_sent_and_1 = base5_end_sent_and & u_builder_base5_ready;
-    assign base5_end_sent_and_2 = base5_end_sent_and_1 & base5_above_m;
-    assign leaves5_wr_not_4 = ~leaves5_wr_eq;
-    assign base5_end_sent_and_3 = base5_end_sent_and_2 & leaves5_wr_not_4;
-    assign leaves5_wr_not_5 = ~leaves5_wr_and;
-    assign leaf_take_and_23 = leaf_take_and_20 & leaves5_wr_not_5;
-    assign leaves5_wr_add = leaves5_wr + 5'd1;
-    assign leaves5_rd_add = leaves5_rd + 5'd1;
-    assign base5_end_sent_and_4 = base5_end_sent_and & u_builder_base5_ready;
-    assign base5_end_sent_and_5 = base5_end_sent_and_4 & base5_at_m_mux_1;
-    assign base5_end_sent_not_1 = ~base5_end_sent;
-    assign u_builder_and_5 = u_builder_base5_ready & base5_end_sent_not_1;
-    assign base5_at_m_mux_2 = base5_at_m ? u_builder_and_5 : base4_at_m_mux_2;
-    assign base5_at_m_mux_3 = base5_at_m ? base5_end_sent : base4_at_m_mux_3;
-    assign merge_lod_eq_6 = merge_lod == 5'd6;
-    assign base6_at_m = merging & merge_lod_eq_6;
-    assign leaves6_wr_eq = leaves6_wr == leaves6_rd;
-    assign leaves6_wr_eq_1 = leaves6_wr[3:0] == leaves6_rd[3:0];
-    assign leaves6_wr_eq_2 = leaves6_wr[4] == leaves6_rd[4];
-    assign leaves6_wr_not = ~leaves6_wr_eq_2;
-    assign leaves6_wr_and = leaves6_wr_eq_1 & leaves6_wr_not;
-    assign leaf_best_data_eq_6 = leaf_best_data[182:178] == 5'd6;
-    assign leaf_take_and_24 = leaf_take & leaf_best_data_eq_6;
-    assign leaves6_wr_not_1 = ~leaves6_wr_and;
-    assign leaf_take_and_25 = leaf_take_and_24 & leaves6_wr_not_1;
-    assign leaf_take_and_26 = leaf_take_and_24 & leaves6_wr_and;
+    assign leaves5_pop = (base5_end_sent_and_1 & base5_above_m) & leaves5_empty_not;
+    assign base5_at_m_mux = base5_at_m ? (u_builder_base5_ready & base5_end_sent_not) : (base4_at_m ? (u_builder_base4_ready & base4_end_sent_not) : (base3_at_m ? (u_builder_base3_ready & base3_end_sent_not) : base2_at_m_mux));
+    assign base6_at_m = merging & (merge_lod == 5'd6);
+    assign leaves6_empty = leaves6_wr == leaves6_rd;
+    assign leaves6_full = (leaves6_wr[3:0] == leaves6_rd[3:0]) & (~(leaves6_wr[4] == leaves6_rd[4]));
+    assign leaves6_push = leaf_take & (leaf_best_data_lod == 5'd6);
+    assign leaves6_wr_put = leaves6_push & (~leaves6_full);
     assign leaves6_rd_1 = leaves6[leaves6_rd[3:0]];
-    assign merge_lod_lt_6 = 5'd6 < merge_lod;
-    assign base6_above_m = merging & merge_lod_lt_6;
-    assign const_cat_8 = {2'd1, leaves6_rd_1[177:150], leaves6_rd_1[149:0]};
-    assign leaves6_wr_and_1 = leaves6_wr_eq & leaves_done;
+    assign base6_above_m = merging & (5'd6 < merge_lod);
+    assign leaves6_rec = leaves6_rd_1[149:0];
+    assign leaves6_ref = leaves6_rd_1[177:150];
+    assign leaves6_end = leaves6_empty & leaves_done;
+    assign leaves6_empty_not = ~leaves6_empty;
+    assign leaves6_head_out = base6_above_m & leaves6_empty_not;
     assign base6_end_sent_not = ~base6_end_sent;
-    assign base6_at_m_and = base6_at_m & u_module_out_valid;
-    assign out_is_ref_not_6 = ~out_is_ref;
-    assign base6_at_m_and_1 = base6_at_m_and & out_is_ref_not_6;
-    assign leaves6_wr_not_2 = ~leaves6_wr_eq;
-    assign leaves6_wr_or = leaves6_wr_not_2 | leaves_done;
-    assign base6_above_m_and = base6_above_m & leaves6_wr_or;
-    assign base6_at_m_or = base6_at_m_and_1 | base6_above_m_and;
-    assign base6_at_m_not = ~base6_at_m;
-    assign choice_known_and_12 = choice_known & base6_at_m_not;
-    assign base6_above_m_not = ~base6_above_m;
-    assign choice_known_and_13 = choice_known_and_12 & base6_above_m_not;
-    assign base6_at_m_or_1 = base6_at_m_or | choice_known_and_13;
-    assign base6_end_sent_and = base6_end_sent_not & base6_at_m_or_1;
-    assign leaves6_wr_not_3 = ~leaves6_wr_eq;
-    assign base6_above_m_and_1 = base6_above_m & leaves6_wr_not_3;
-    assign base6_above_m_mux = base6_above_m_and_1 ? const_cat_8 : const_cat_1;
-    assign base6_at_m_mux = base6_at_m ? u_module_cat : base6_above_m_mux;
-    assign base6_above_m_mux_1 = base6_above_m ? leaves6_wr_and_1 : 1'b1;
-    assign base6_at_m_mux_1 = base6_at_m ? out_is_end : base6_above_m_mux_1;
+    assign base6_at_m_or = (((base6_at_m & u_module_out_valid) & out_is_ref_not) | (base6_above_m & (leaves6_empty_not | leaves_done))) | ((choice_known & (~base6_at_m)) & (~base6_above_m));
+    assign base6_end_sent_and = base6_end_sent_not & base6_at_m_or;
     assign base6_end_sent_and_1 = base6_end_sent_and & u_builder_base6_ready;
-    assign base6_end_sent_and_2 = base6_end_sent_and_1 & base6_above_m;
-    assign leaves6_wr_not_4 = ~leaves6_wr_eq;
-    assign base6_end_sent_and_3 = base6_end_sent_and_2 & leaves6_wr_not_4;
-    assign leaves6_wr_not_5 = ~leaves6_wr_and;
-    assign leaf_take_and_27 = leaf_take_and_24 & leaves6_wr_not_5;
-    assign leaves6_wr_add = leaves6_wr + 5'd1;
-    assign leaves6_rd_add = leaves6_rd + 5'd1;
-    assign base6_end_sent_and_4 = base6_end_sent_and & u_builder_base6_ready;
-    assign base6_end_sent_and_5 = base6_end_sent_and_4 & base6_at_m_mux_1;
-    assign base6_end_sent_not_1 = ~base6_end_sent;
-    assign u_builder_and_6 = u_builder_base6_ready & base6_end_sent_not_1;
-    assign base6_at_m_mux_2 = base6_at_m ? u_builder_and_6 : base5_at_m_mux_2;
-    assign base6_at_m_mux_3 = base6_at_m ? base6_end_sent : base5_at_m_mux_3;
-    assign merge_lod_eq_7 = merge_lod == 5'd7;
-    assign base7_at_m = merging & merge_lod_eq_7;
-    assign leaves7_wr_eq = leaves7_wr == leaves7_rd;
-    assign leaves7_wr_eq_1 = leaves7_wr[3:0] == leaves7_rd[3:0];
-    assign leaves7_wr_eq_2 = leaves7_wr[4] == leaves7_rd[4];
-    assign leaves7_wr_not = ~leaves7_wr_eq_2;
-    assign leaves7_wr_and = leaves7_wr_eq_1 & leaves7_wr_not;
-    assign leaf_best_data_eq_7 = leaf_best_data[182:178] == 5'd7;
-    assign leaf_take_and_28 = leaf_take & leaf_best_data_eq_7;
-    assign leaves7_wr_not_1 = ~leaves7_wr_and;
-    assign leaf_take_and_29 = leaf_take_and_28 & leaves7_wr_not_1;
-    assign leaf_take_and_30 = leaf_take_and_28 & leaves7_wr_and;
+    assign leaves6_pop = (base6_end_sent_and_1 & base6_above_m) & leaves6_empty_not;
+    assign base7_at_m = merging & (merge_lod == 5'd7);
+    assign leaves7_empty = leaves7_wr == leaves7_rd;
+    assign leaves7_full = (leaves7_wr[3:0] == leaves7_rd[3:0]) & (~(leaves7_wr[4] == leaves7_rd[4]));
+    assign leaves7_push = leaf_take & (leaf_best_data_lod == 5'd7);
+    assign leaves7_wr_put = leaves7_push & (~leaves7_full);
     assign leaves7_rd_1 = leaves7[leaves7_rd[3:0]];
-    assign merge_lod_lt_7 = 5'd7 < merge_lod;
-    assign base7_above_m = merging & merge_lod_lt_7;
-    assign const_cat_9 = {2'd1, leaves7_rd_1[177:150], leaves7_rd_1[149:0]};
-    assign leaves7_wr_and_1 = leaves7_wr_eq & leaves_done;
+    assign base7_above_m = merging & (5'd7 < merge_lod);
+    assign leaves7_rec = leaves7_rd_1[149:0];
+    assign leaves7_ref = leaves7_rd_1[177:150];
+    assign leaves7_end = leaves7_empty & leaves_done;
+    assign leaves7_empty_not = ~leaves7_empty;
+    assign leaves7_head_out = base7_above_m & leaves7_empty_not;
     assign base7_end_sent_not = ~base7_end_sent;
-    assign base7_at_m_and = base7_at_m & u_module_out_valid;
-    assign out_is_ref_not_7 = ~out_is_ref;
-    assign base7_at_m_and_1 = base7_at_m_and & out_is_ref_not_7;
-    assign leaves7_wr_not_2 = ~leaves7_wr_eq;
-    assign leaves7_wr_or = leaves7_wr_not_2 | leaves_done;
-    assign base7_above_m_and = base7_above_m & leaves7_wr_or;
-    assign base7_at_m_or = base7_at_m_and_1 | base7_above_m_and;
-    assign base7_at_m_not = ~base7_at_m;
-    assign choice_known_and_14 = choice_known & base7_at_m_not;
-    assign base7_above_m_not = ~base7_above_m;
-    assign choice_known_and_15 = choice_known_and_14 & base7_above_m_not;
-    assign base7_at_m_or_1 = base7_at_m_or | choice_known_and_15;
-    assign base7_end_sent_and = base7_end_sent_not & base7_at_m_or_1;
-    assign leaves7_wr_not_3 = ~leaves7_wr_eq;
-    assign base7_above_m_and_1 = base7_above_m & leaves7_wr_not_3;
-    assign base7_above_m_mux = base7_above_m_and_1 ? const_cat_9 : const_cat_1;
-    assign base7_at_m_mux = base7_at_m ? u_module_cat : base7_above_m_mux;
-    assign base7_above_m_mux_1 = base7_above_m ? leaves7_wr_and_1 : 1'b1;
-    assign base7_at_m_mux_1 = base7_at_m ? out_is_end : base7_above_m_mux_1;
+    assign base7_at_m_or = (((base7_at_m & u_module_out_valid) & out_is_ref_not) | (base7_above_m & (leaves7_empty_not | leaves_done))) | ((choice_known & (~base7_at_m)) & (~base7_above_m));
+    assign base7_end_sent_and = base7_end_sent_not & base7_at_m_or;
     assign base7_end_sent_and_1 = base7_end_sent_and & u_builder_base7_ready;
-    assign base7_end_sent_and_2 = base7_end_sent_and_1 & base7_above_m;
-    assign leaves7_wr_not_4 = ~leaves7_wr_eq;
-    assign base7_end_sent_and_3 = base7_end_sent_and_2 & leaves7_wr_not_4;
-    assign leaves7_wr_not_5 = ~leaves7_wr_and;
-    assign leaf_take_and_31 = leaf_take_and_28 & leaves7_wr_not_5;
-    assign leaves7_wr_add = leaves7_wr + 5'd1;
-    assign leaves7_rd_add = leaves7_rd + 5'd1;
-    assign base7_end_sent_and_4 = base7_end_sent_and & u_builder_base7_ready;
-    assign base7_end_sent_and_5 = base7_end_sent_and_4 & base7_at_m_mux_1;
-    assign base7_end_sent_not_1 = ~base7_end_sent;
-    assign u_builder_and_7 = u_builder_base7_ready & base7_end_sent_not_1;
-    assign base7_at_m_mux_2 = base7_at_m ? u_builder_and_7 : base6_at_m_mux_2;
-    assign base7_at_m_mux_3 = base7_at_m ? base7_end_sent : base6_at_m_mux_3;
-    assign merge_lod_eq_8 = merge_lod == 5'd8;
-    assign base8_at_m = merging & merge_lod_eq_8;
-    assign leaves8_wr_eq = leaves8_wr == leaves8_rd;
-    assign leaves8_wr_eq_1 = leaves8_wr[3:0] == leaves8_rd[3:0];
-    assign leaves8_wr_eq_2 = leaves8_wr[4] == leaves8_rd[4];
-    assign leaves8_wr_not = ~leaves8_wr_eq_2;
-    assign leaves8_wr_and = leaves8_wr_eq_1 & leaves8_wr_not;
-    assign leaf_best_data_eq_8 = leaf_best_data[182:178] == 5'd8;
-    assign leaf_take_and_32 = leaf_take & leaf_best_data_eq_8;
-    assign leaves8_wr_not_1 = ~leaves8_wr_and;
-    assign leaf_take_and_33 = leaf_take_and_32 & leaves8_wr_not_1;
-    assign leaf_take_and_34 = leaf_take_and_32 & leaves8_wr_and;
+    assign leaves7_pop = (base7_end_sent_and_1 & base7_above_m) & leaves7_empty_not;
+    assign base7_at_m_mux = base7_at_m ? base7_end_sent : (base6_at_m ? base6_end_sent : (base5_at_m ? base5_end_sent : (base4_at_m ? base4_end_sent : base3_at_m_mux)));
+    assign base8_at_m = merging & (merge_lod == 5'd8);
+    assign leaves8_empty = leaves8_wr == leaves8_rd;
+    assign leaves8_full = (leaves8_wr[3:0] == leaves8_rd[3:0]) & (~(leaves8_wr[4] == leaves8_rd[4]));
+    assign leaves8_push = leaf_take & (leaf_best_data_lod == 5'd8);
+    assign leaves8_wr_put = leaves8_push & (~leaves8_full);
     assign leaves8_rd_1 = leaves8[leaves8_rd[3:0]];
-    assign merge_lod_lt_8 = 5'd8 < merge_lod;
-    assign base8_above_m = merging & merge_lod_lt_8;
-    assign const_cat_10 = {2'd1, leaves8_rd_1[177:150], leaves8_rd_1[149:0]};
-    assign leaves8_wr_and_1 = leaves8_wr_eq & leaves_done;
+    assign base8_above_m = merging & (5'd8 < merge_lod);
+    assign leaves8_rec = leaves8_rd_1[149:0];
+    assign leaves8_ref = leaves8_rd_1[177:150];
+    assign leaves8_end = leaves8_empty & leaves_done;
+    assign leaves8_empty_not = ~leaves8_empty;
+    assign leaves8_head_out = base8_above_m & leaves8_empty_not;
     assign base8_end_sent_not = ~base8_end_sent;
-    assign base8_at_m_and = base8_at_m & u_module_out_valid;
-    assign out_is_ref_not_8 = ~out_is_ref;
-    assign base8_at_m_and_1 = base8_at_m_and & out_is_ref_not_8;
-    assign leaves8_wr_not_2 = ~leaves8_wr_eq;
-    assign leaves8_wr_or = leaves8_wr_not_2 | leaves_done;
-    assign base8_above_m_and = base8_above_m & leaves8_wr_or;
-    assign base8_at_m_or = base8_at_m_and_1 | base8_above_m_and;
-    assign base8_at_m_not = ~base8_at_m;
-    assign choice_known_and_16 = choice_known & base8_at_m_not;
-    assign base8_above_m_not = ~base8_above_m;
-    assign choice_known_and_17 = choice_known_and_16 & base8_above_m_not;
-    assign base8_at_m_or_1 = base8_at_m_or | choice_known_and_17;
-    assign base8_end_sent_and = base8_end_sent_not & base8_at_m_or_1;
-    assign leaves8_wr_not_3 = ~leaves8_wr_eq;
-    assign base8_above_m_and_1 = base8_above_m & leaves8_wr_not_3;
-    assign base8_above_m_mux = base8_above_m_and_1 ? const_cat_10 : const_cat_1;
-    assign base8_at_m_mux = base8_at_m ? u_module_cat : base8_above_m_mux;
-    assign base8_above_m_mux_1 = base8_above_m ? leaves8_wr_and_1 : 1'b1;
-    assign base8_at_m_mux_1 = base8_at_m ? out_is_end : base8_above_m_mux_1;
+    assign base8_at_m_or = (((base8_at_m & u_module_out_valid) & out_is_ref_not) | (base8_above_m & (leaves8_empty_not | leaves_done))) | ((choice_known & (~base8_at_m)) & (~base8_above_m));
+    assign base8_end_sent_and = base8_end_sent_not & base8_at_m_or;
     assign base8_end_sent_and_1 = base8_end_sent_and & u_builder_base8_ready;
-    assign base8_end_sent_and_2 = base8_end_sent_and_1 & base8_above_m;
-    assign leaves8_wr_not_4 = ~leaves8_wr_eq;
-    assign base8_end_sent_and_3 = base8_end_sent_and_2 & leaves8_wr_not_4;
-    assign leaves8_wr_not_5 = ~leaves8_wr_and;
-    assign leaf_take_and_35 = leaf_take_and_32 & leaves8_wr_not_5;
-    assign leaves8_wr_add = leaves8_wr + 5'd1;
-    assign leaves8_rd_add = leaves8_rd + 5'd1;
-    assign base8_end_sent_and_4 = base8_end_sent_and & u_builder_base8_ready;
-    assign base8_end_sent_and_5 = base8_end_sent_and_4 & base8_at_m_mux_1;
-    assign base8_end_sent_not_1 = ~base8_end_sent;
-    assign u_builder_and_8 = u_builder_base8_ready & base8_end_sent_not_1;
-    assign base8_at_m_mux_2 = base8_at_m ? u_builder_and_8 : base7_at_m_mux_2;
-    assign base8_at_m_mux_3 = base8_at_m ? base8_end_sent : base7_at_m_mux_3;
-    assign merge_lod_eq_9 = merge_lod == 5'd9;
-    assign base9_at_m = merging & merge_lod_eq_9;
-    assign leaves9_wr_eq = leaves9_wr == leaves9_rd;
-    assign leaves9_wr_eq_1 = leaves9_wr[3:0] == leaves9_rd[3:0];
-    assign leaves9_wr_eq_2 = leaves9_wr[4] == leaves9_rd[4];
-    assign leaves9_wr_not = ~leaves9_wr_eq_2;
-    assign leaves9_wr_and = leaves9_wr_eq_1 & leaves9_wr_not;
-    assign leaf_best_data_eq_9 = leaf_best_data[182:178] == 5'd9;
-    assign leaf_take_and_36 = leaf_take & leaf_best_data_eq_9;
-    assign leaves9_wr_not_1 = ~leaves9_wr_and;
-    assign leaf_take_and_37 = leaf_take_and_36 & leaves9_wr_not_1;
-    assign leaf_take_and_38 = leaf_take_and_36 & leaves9_wr_and;
+    assign leaves8_pop = (base8_end_sent_and_1 & base8_above_m) & leaves8_empty_not;
+    assign base8_at_m_mux = base8_at_m ? (u_builder_base8_ready & base8_end_sent_not) : (base7_at_m ? (u_builder_base7_ready & base7_end_sent_not) : (base6_at_m ? (u_builder_base6_ready & base6_end_sent_not) : base5_at_m_mux));
+    assign base9_at_m = merging & (merge_lod == 5'd9);
+    assign leaves9_empty = leaves9_wr == leaves9_rd;
+    assign leaves9_full = (leaves9_wr[3:0] == leaves9_rd[3:0]) & (~(leaves9_wr[4] == leaves9_rd[4]));
+    assign leaves9_push = leaf_take & (leaf_best_data_lod == 5'd9);
+    assign leaves9_wr_put = leaves9_push & (~leaves9_full);
     assign leaves9_rd_1 = leaves9[leaves9_rd[3:0]];
-    assign merge_lod_lt_9 = 5'd9 < merge_lod;
-    assign base9_above_m = merging & merge_lod_lt_9;
-    assign const_cat_11 = {2'd1, leaves9_rd_1[177:150], leaves9_rd_1[149:0]};
-    assign leaves9_wr_and_1 = leaves9_wr_eq & leaves_done;
+    assign base9_above_m = merging & (5'd9 < merge_lod);
+    assign leaves9_rec = leaves9_rd_1[149:0];
+    assign leaves9_ref = leaves9_rd_1[177:150];
+    assign leaves9_end = leaves9_empty & leaves_done;
+    assign leaves9_empty_not = ~leaves9_empty;
+    assign leaves9_head_out = base9_above_m & leaves9_empty_not;
     assign base9_end_sent_not = ~base9_end_sent;
-    assign base9_at_m_and = base9_at_m & u_module_out_valid;
-    assign out_is_ref_not_9 = ~out_is_ref;
-    assign base9_at_m_and_1 = base9_at_m_and & out_is_ref_not_9;
-    assign leaves9_wr_not_2 = ~leaves9_wr_eq;
-    assign leaves9_wr_or = leaves9_wr_not_2 | leaves_done;
-    assign base9_above_m_and = base9_above_m & leaves9_wr_or;
-    assign base9_at_m_or = base9_at_m_and_1 | base9_above_m_and;
-    assign base9_at_m_not = ~base9_at_m;
-    assign choice_known_and_18 = choice_known & base9_at_m_not;
-    assign base9_above_m_not = ~base9_above_m;
-    assign choice_known_and_19 = choice_known_and_18 & base9_above_m_not;
-    assign base9_at_m_or_1 = base9_at_m_or | choice_known_and_19;
-    assign base9_end_sent_and = base9_end_sent_not & base9_at_m_or_1;
-    assign leaves9_wr_not_3 = ~leaves9_wr_eq;
-    assign base9_above_m_and_1 = base9_above_m & leaves9_wr_not_3;
-    assign base9_above_m_mux = base9_above_m_and_1 ? const_cat_11 : const_cat_1;
-    assign base9_at_m_mux = base9_at_m ? u_module_cat : base9_above_m_mux;
-    assign base9_above_m_mux_1 = base9_above_m ? leaves9_wr_and_1 : 1'b1;
-    assign base9_at_m_mux_1 = base9_at_m ? out_is_end : base9_above_m_mux_1;
+    assign base9_at_m_or = (((base9_at_m & u_module_out_valid) & out_is_ref_not) | (base9_above_m & (leaves9_empty_not | leaves_done))) | ((choice_known & (~base9_at_m)) & (~base9_above_m));
+    assign base9_end_sent_and = base9_end_sent_not & base9_at_m_or;
     assign base9_end_sent_and_1 = base9_end_sent_and & u_builder_base9_ready;
-    assign base9_end_sent_and_2 = base9_end_sent_and_1 & base9_above_m;
-    assign leaves9_wr_not_4 = ~leaves9_wr_eq;
-    assign base9_end_sent_and_3 = base9_end_sent_and_2 & leaves9_wr_not_4;
-    assign leaves9_wr_not_5 = ~leaves9_wr_and;
-    assign leaf_take_and_39 = leaf_take_and_36 & leaves9_wr_not_5;
-    assign leaves9_wr_add = leaves9_wr + 5'd1;
-    assign leaves9_rd_add = leaves9_rd + 5'd1;
-    assign base9_end_sent_and_4 = base9_end_sent_and & u_builder_base9_ready;
-    assign base9_end_sent_and_5 = base9_end_sent_and_4 & base9_at_m_mux_1;
-    assign base9_end_sent_not_1 = ~base9_end_sent;
-    assign u_builder_and_9 = u_builder_base9_ready & base9_end_sent_not_1;
-    assign base9_at_m_mux_2 = base9_at_m ? u_builder_and_9 : base8_at_m_mux_2;
-    assign base9_at_m_mux_3 = base9_at_m ? base9_end_sent : base8_at_m_mux_3;
-    assign merge_lod_eq_10 = merge_lod == 5'd10;
-    assign base10_at_m = merging & merge_lod_eq_10;
-    assign leaves10_wr_eq = leaves10_wr == leaves10_rd;
-    assign leaves10_wr_eq_1 = leaves10_wr[3:0] == leaves10_rd[3:0];
-    assign leaves10_wr_eq_2 = leaves10_wr[4] == leaves10_rd[4];
-    assign leaves10_wr_not = ~leaves10_wr_eq_2;
-    assign leaves10_wr_and = leaves10_wr_eq_1 & leaves10_wr_not;
-    assign leaf_best_data_eq_10 = leaf_best_data[182:178] == 5'd10;
-    assign leaf_take_and_40 = leaf_take & leaf_best_data_eq_10;
-    assign leaves10_wr_not_1 = ~leaves10_wr_and;
-    assign leaf_take_and_41 = leaf_take_and_40 & leaves10_wr_not_1;
-    assign leaf_take_and_42 = leaf_take_and_40 & leaves10_wr_and;
+    assign leaves9_pop = (base9_end_sent_and_1 & base9_above_m) & leaves9_empty_not;
+    assign base10_at_m = merging & (merge_lod == 5'd10);
+    assign leaves10_empty = leaves10_wr == leaves10_rd;
+    assign leaves10_full = (leaves10_wr[3:0] == leaves10_rd[3:0]) & (~(leaves10_wr[4] == leaves10_rd[4]));
+    assign leaves10_push = leaf_take & (leaf_best_data_lod == 5'd10);
+    assign leaves10_wr_put = leaves10_push & (~leaves10_full);
     assign leaves10_rd_1 = leaves10[leaves10_rd[3:0]];
-    assign merge_lod_lt_10 = 5'd10 < merge_lod;
-    assign base10_above_m = merging & merge_lod_lt_10;
-    assign const_cat_12 = {2'd1, leaves10_rd_1[177:150], leaves10_rd_1[149:0]};
-    assign leaves10_wr_and_1 = leaves10_wr_eq & leaves_done;
+    assign base10_above_m = merging & (5'd10 < merge_lod);
+    assign leaves10_rec = leaves10_rd_1[149:0];
+    assign leaves10_ref = leaves10_rd_1[177:150];
+    assign leaves10_end = leaves10_empty & leaves_done;
+    assign leaves10_empty_not = ~leaves10_empty;
+    assign leaves10_head_out = base10_above_m & leaves10_empty_not;
     assign base10_end_sent_not = ~base10_end_sent;
-    assign base10_at_m_and = base10_at_m & u_module_out_valid;
-    assign out_is_ref_not_10 = ~out_is_ref;
-    assign base10_at_m_and_1 = base10_at_m_and & out_is_ref_not_10;
-    assign leaves10_wr_not_2 = ~leaves10_wr_eq;
-    assign leaves10_wr_or = leaves10_wr_not_2 | leaves_done;
-    assign base10_above_m_and = base10_above_m & leaves10_wr_or;
-    assign base10_at_m_or = base10_at_m_and_1 | base10_above_m_and;
-    assign base10_at_m_not = ~base10_at_m;
-    assign choice_known_and_20 = choice_known & base10_at_m_not;
-    assign base10_above_m_not = ~base10_above_m;
-    assign choice_known_and_21 = choice_known_and_20 & base10_above_m_not;
-    assign base10_at_m_or_1 = base10_at_m_or | choice_known_and_21;
-    assign base10_end_sent_and = base10_end_sent_not & base10_at_m_or_1;
-    assign leaves10_wr_not_3 = ~leaves10_wr_eq;
-    assign base10_above_m_and_1 = base10_above_m & leaves10_wr_not_3;
-    assign base10_above_m_mux = base10_above_m_and_1 ? const_cat_12 : const_cat_1;
-    assign base10_at_m_mux = base10_at_m ? u_module_cat : base10_above_m_mux;
-    assign base10_above_m_mux_1 = base10_above_m ? leaves10_wr_and_1 : 1'b1;
-    assign base10_at_m_mux_1 = base10_at_m ? out_is_end : base10_above_m_mux_1;
+    assign base10_at_m_or = (((base10_at_m & u_module_out_valid) & out_is_ref_not) | (base10_above_m & (leaves10_empty_not | leaves_done))) | ((choice_known & (~base10_at_m)) & (~base10_above_m));
+    assign base10_end_sent_and = base10_end_sent_not & base10_at_m_or;
     assign base10_end_sent_and_1 = base10_end_sent_and & u_builder_base10_ready;
-    assign base10_end_sent_and_2 = base10_end_sent_and_1 & base10_above_m;
-    assign leaves10_wr_not_4 = ~leaves10_wr_eq;
-    assign base10_end_sent_and_3 = base10_end_sent_and_2 & leaves10_wr_not_4;
-    assign leaves10_wr_not_5 = ~leaves10_wr_and;
-    assign leaf_take_and_43 = leaf_take_and_40 & leaves10_wr_not_5;
-    assign leaves10_wr_add = leaves10_wr + 5'd1;
-    assign leaves10_rd_add = leaves10_rd + 5'd1;
-    assign base10_end_sent_and_4 = base10_end_sent_and & u_builder_base10_ready;
-    assign base10_end_sent_and_5 = base10_end_sent_and_4 & base10_at_m_mux_1;
-    assign base10_end_sent_not_1 = ~base10_end_sent;
-    assign u_builder_and_10 = u_builder_base10_ready & base10_end_sent_not_1;
-    assign base10_at_m_mux_2 = base10_at_m ? u_builder_and_10 : base9_at_m_mux_2;
-    assign base10_at_m_mux_3 = base10_at_m ? base10_end_sent : base9_at_m_mux_3;
-    assign merge_lod_eq_11 = merge_lod == 5'd11;
-    assign base11_at_m = merging & merge_lod_eq_11;
-    assign leaves11_wr_eq = leaves11_wr == leaves11_rd;
-    assign leaves11_wr_eq_1 = leaves11_wr[3:0] == leaves11_rd[3:0];
-    assign leaves11_wr_eq_2 = leaves11_wr[4] == leaves11_rd[4];
-    assign leaves11_wr_not = ~leaves11_wr_eq_2;
-    assign leaves11_wr_and = leaves11_wr_eq_1 & leaves11_wr_not;
-    assign leaf_best_data_eq_11 = leaf_best_data[182:178] == 5'd11;
-    assign leaf_take_and_44 = leaf_take & leaf_best_data_eq_11;
-    assign leaves11_wr_not_1 = ~leaves11_wr_and;
-    assign leaf_take_and_45 = leaf_take_and_44 & leaves11_wr_not_1;
-    assign leaf_take_and_46 = leaf_take_and_44 & leaves11_wr_and;
+    assign leaves10_pop = (base10_end_sent_and_1 & base10_above_m) & leaves10_empty_not;
+    assign base11_at_m = merging & (merge_lod == 5'd11);
+    assign leaves11_empty = leaves11_wr == leaves11_rd;
+    assign leaves11_full = (leaves11_wr[3:0] == leaves11_rd[3:0]) & (~(leaves11_wr[4] == leaves11_rd[4]));
+    assign leaves11_push = leaf_take & (leaf_best_data_lod == 5'd11);
+    assign leaves11_wr_put = leaves11_push & (~leaves11_full);
     assign leaves11_rd_1 = leaves11[leaves11_rd[3:0]];
-    assign merge_lod_lt_11 = 5'd11 < merge_lod;
-    assign base11_above_m = merging & merge_lod_lt_11;
-    assign const_cat_13 = {2'd1, leaves11_rd_1[177:150], leaves11_rd_1[149:0]};
-    assign leaves11_wr_and_1 = leaves11_wr_eq & leaves_done;
+    assign base11_above_m = merging & (5'd11 < merge_lod);
+    assign leaves11_rec = leaves11_rd_1[149:0];
+    assign leaves11_ref = leaves11_rd_1[177:150];
+    assign leaves11_end = leaves11_empty & leaves_done;
+    assign leaves11_empty_not = ~leaves11_empty;
+    assign leaves11_head_out = base11_above_m & leaves11_empty_not;
     assign base11_end_sent_not = ~base11_end_sent;
-    assign base11_at_m_and = base11_at_m & u_module_out_valid;
-    assign out_is_ref_not_11 = ~out_is_ref;
-    assign base11_at_m_and_1 = base11_at_m_and & out_is_ref_not_11;
-    assign leaves11_wr_not_2 = ~leaves11_wr_eq;
-    assign leaves11_wr_or = leaves11_wr_not_2 | leaves_done;
-    assign base11_above_m_and = base11_above_m & leaves11_wr_or;
-    assign base11_at_m_or = base11_at_m_and_1 | base11_above_m_and;
-    assign base11_at_m_not = ~base11_at_m;
-    assign choice_known_and_22 = choice_known & base11_at_m_not;
-    assign base11_above_m_not = ~base11_above_m;
-    assign choice_known_and_23 = choice_known_and_22 & base11_above_m_not;
-    assign base11_at_m_or_1 = base11_at_m_or | choice_known_and_23;
-    assign base11_end_sent_and = base11_end_sent_not & base11_at_m_or_1;
-    assign leaves11_wr_not_3 = ~leaves11_wr_eq;
-    assign base11_above_m_and_1 = base11_above_m & leaves11_wr_not_3;
-    assign base11_above_m_mux = base11_above_m_and_1 ? const_cat_13 : const_cat_1;
-    assign base11_at_m_mux = base11_at_m ? u_module_cat : base11_above_m_mux;
-    assign base11_above_m_mux_1 = base11_above_m ? leaves11_wr_and_1 : 1'b1;
-    assign base11_at_m_mux_1 = base11_at_m ? out_is_end : base11_above_m_mux_1;
+    assign base11_at_m_or = (((base11_at_m & u_module_out_valid) & out_is_ref_not) | (base11_above_m & (leaves11_empty_not | leaves_done))) | ((choice_known & (~base11_at_m)) & (~base11_above_m));
+    assign base11_end_sent_and = base11_end_sent_not & base11_at_m_or;
     assign base11_end_sent_and_1 = base11_end_sent_and & u_builder_base11_ready;
-    assign base11_end_sent_and_2 = base11_end_sent_and_1 & base11_above_m;
-    assign leaves11_wr_not_4 = ~leaves11_wr_eq;
-    assign base11_end_sent_and_3 = base11_end_sent_and_2 & leaves11_wr_not_4;
-    assign leaves11_wr_not_5 = ~leaves11_wr_and;
-    assign leaf_take_and_47 = leaf_take_and_44 & leaves11_wr_not_5;
-    assign leaves11_wr_add = leaves11_wr + 5'd1;
-    assign leaves11_rd_add = leaves11_rd + 5'd1;
-    assign base11_end_sent_and_4 = base11_end_sent_and & u_builder_base11_ready;
-    assign base11_end_sent_and_5 = base11_end_sent_and_4 & base11_at_m_mux_1;
-    assign base11_end_sent_not_1 = ~base11_end_sent;
-    assign u_builder_and_11 = u_builder_base11_ready & base11_end_sent_not_1;
-    assign base11_at_m_mux_2 = base11_at_m ? u_builder_and_11 : base10_at_m_mux_2;
-    assign base11_at_m_mux_3 = base11_at_m ? base11_end_sent : base10_at_m_mux_3;
-    assign merge_lod_eq_12 = merge_lod == 5'd12;
-    assign base12_at_m = merging & merge_lod_eq_12;
-    assign leaves12_wr_eq = leaves12_wr == leaves12_rd;
-    assign leaves12_wr_eq_1 = leaves12_wr[3:0] == leaves12_rd[3:0];
-    assign leaves12_wr_eq_2 = leaves12_wr[4] == leaves12_rd[4];
-    assign leaves12_wr_not = ~leaves12_wr_eq_2;
-    assign leaves12_wr_and = leaves12_wr_eq_1 & leaves12_wr_not;
-    assign leaf_best_data_eq_12 = leaf_best_data[182:178] == 5'd12;
-    assign leaf_take_and_48 = leaf_take & leaf_best_data_eq_12;
-    assign leaves12_wr_not_1 = ~leaves12_wr_and;
-    assign leaf_take_and_49 = leaf_take_and_48 & leaves12_wr_not_1;
-    assign leaf_take_and_50 = leaf_take_and_48 & leaves12_wr_and;
+    assign leaves11_pop = (base11_end_sent_and_1 & base11_above_m) & leaves11_empty_not;
+    assign base11_at_m_mux = base11_at_m ? (u_builder_base11_ready & base11_end_sent_not) : (base10_at_m ? (u_builder_base10_ready & base10_end_sent_not) : (base9_at_m ? (u_builder_base9_ready & base9_end_sent_not) : base8_at_m_mux));
+    assign base11_at_m_mux_1 = base11_at_m ? base11_end_sent : (base10_at_m ? base10_end_sent : (base9_at_m ? base9_end_sent : (base8_at_m ? base8_end_sent : base7_at_m_mux)));
+    assign base12_at_m = merging & (merge_lod == 5'd12);
+    assign leaves12_empty = leaves12_wr == leaves12_rd;
+    assign leaves12_full = (leaves12_wr[3:0] == leaves12_rd[3:0]) & (~(leaves12_wr[4] == leaves12_rd[4]));
+    assign leaves12_push = leaf_take & (leaf_best_data_lod == 5'd12);
+    assign leaves12_wr_put = leaves12_push & (~leaves12_full);
     assign leaves12_rd_1 = leaves12[leaves12_rd[3:0]];
-    assign merge_lod_lt_12 = 5'd12 < merge_lod;
-    assign base12_above_m = merging & merge_lod_lt_12;
-    assign const_cat_14 = {2'd1, leaves12_rd_1[177:150], leaves12_rd_1[149:0]};
-    assign leaves12_wr_and_1 = leaves12_wr_eq & leaves_done;
+    assign base12_above_m = merging & (5'd12 < merge_lod);
+    assign leaves12_rec = leaves12_rd_1[149:0];
+    assign leaves12_ref = leaves12_rd_1[177:150];
+    assign leaves12_end = leaves12_empty & leaves_done;
+    assign leaves12_empty_not = ~leaves12_empty;
+    assign leaves12_head_out = base12_above_m & leaves12_empty_not;
     assign base12_end_sent_not = ~base12_end_sent;
-    assign base12_at_m_and = base12_at_m & u_module_out_valid;
-    assign out_is_ref_not_12 = ~out_is_ref;
-    assign base12_at_m_and_1 = base12_at_m_and & out_is_ref_not_12;
-    assign leaves12_wr_not_2 = ~leaves12_wr_eq;
-    assign leaves12_wr_or = leaves12_wr_not_2 | leaves_done;
-    assign base12_above_m_and = base12_above_m & leaves12_wr_or;
-    assign base12_at_m_or = base12_at_m_and_1 | base12_above_m_and;
-    assign base12_at_m_not = ~base12_at_m;
-    assign choice_known_and_24 = choice_known & base12_at_m_not;
-    assign base12_above_m_not = ~base12_above_m;
-    assign choice_known_and_25 = choice_known_and_24 & base12_above_m_not;
-    assign base12_at_m_or_1 = base12_at_m_or | choice_known_and_25;
-    assign base12_end_sent_and = base12_end_sent_not & base12_at_m_or_1;
-    assign leaves12_wr_not_3 = ~leaves12_wr_eq;
-    assign base12_above_m_and_1 = base12_above_m & leaves12_wr_not_3;
-    assign base12_above_m_mux = base12_above_m_and_1 ? const_cat_14 : const_cat_1;
-    assign base12_at_m_mux = base12_at_m ? u_module_cat : base12_above_m_mux;
-    assign base12_above_m_mux_1 = base12_above_m ? leaves12_wr_and_1 : 1'b1;
-    assign base12_at_m_mux_1 = base12_at_m ? out_is_end : base12_above_m_mux_1;
+    assign base12_at_m_or = (((base12_at_m & u_module_out_valid) & out_is_ref_not) | (base12_above_m & (leaves12_empty_not | leaves_done))) | ((choice_known & (~base12_at_m)) & (~base12_above_m));
+    assign base12_end_sent_and = base12_end_sent_not & base12_at_m_or;
     assign base12_end_sent_and_1 = base12_end_sent_and & u_builder_base12_ready;
-    assign base12_end_sent_and_2 = base12_end_sent_and_1 & base12_above_m;
-    assign leaves12_wr_not_4 = ~leaves12_wr_eq;
-    assign base12_end_sent_and_3 = base12_end_sent_and_2 & leaves12_wr_not_4;
-    assign leaves12_wr_not_5 = ~leaves12_wr_and;
-    assign leaf_take_and_51 = leaf_take_and_48 & leaves12_wr_not_5;
-    assign leaves12_wr_add = leaves12_wr + 5'd1;
-    assign leaves12_rd_add = leaves12_rd + 5'd1;
-    assign base12_end_sent_and_4 = base12_end_sent_and & u_builder_base12_ready;
-    assign base12_end_sent_and_5 = base12_end_sent_and_4 & base12_at_m_mux_1;
-    assign base12_end_sent_not_1 = ~base12_end_sent;
-    assign u_builder_and_12 = u_builder_base12_ready & base12_end_sent_not_1;
-    assign base12_at_m_mux_2 = base12_at_m ? u_builder_and_12 : base11_at_m_mux_2;
-    assign base12_at_m_mux_3 = base12_at_m ? base12_end_sent : base11_at_m_mux_3;
-    assign merge_lod_eq_13 = merge_lod == 5'd13;
-    assign base13_at_m = merging & merge_lod_eq_13;
-    assign leaves13_wr_eq = leaves13_wr == leaves13_rd;
-    assign leaves13_wr_eq_1 = leaves13_wr[3:0] == leaves13_rd[3:0];
-    assign leaves13_wr_eq_2 = leaves13_wr[4] == leaves13_rd[4];
-    assign leaves13_wr_not = ~leaves13_wr_eq_2;
-    assign leaves13_wr_and = leaves13_wr_eq_1 & leaves13_wr_not;
-    assign leaf_best_data_eq_13 = leaf_best_data[182:178] == 5'd13;
-    assign leaf_take_and_52 = leaf_take & leaf_best_data_eq_13;
-    assign leaves13_wr_not_1 = ~leaves13_wr_and;
-    assign leaf_take_and_53 = leaf_take_and_52 & leaves13_wr_not_1;
-    assign leaf_take_and_54 = leaf_take_and_52 & leaves13_wr_and;
+    assign leaves12_pop = (base12_end_sent_and_1 & base12_above_m) & leaves12_empty_not;
+    assign base13_at_m = merging & (merge_lod == 5'd13);
+    assign leaves13_empty = leaves13_wr == leaves13_rd;
+    assign leaves13_full = (leaves13_wr[3:0] == leaves13_rd[3:0]) & (~(leaves13_wr[4] == leaves13_rd[4]));
+    assign leaves13_push = leaf_take & (leaf_best_data_lod == 5'd13);
+    assign leaves13_wr_put = leaves13_push & (~leaves13_full);
     assign leaves13_rd_1 = leaves13[leaves13_rd[3:0]];
-    assign merge_lod_lt_13 = 5'd13 < merge_lod;
-    assign base13_above_m = merging & merge_lod_lt_13;
-    assign const_cat_15 = {2'd1, leaves13_rd_1[177:150], leaves13_rd_1[149:0]};
-    assign leaves13_wr_and_1 = leaves13_wr_eq & leaves_done;
+    assign base13_above_m = merging & (5'd13 < merge_lod);
+    assign leaves13_rec = leaves13_rd_1[149:0];
+    assign leaves13_ref = leaves13_rd_1[177:150];
+    assign leaves13_end = leaves13_empty & leaves_done;
+    assign leaves13_empty_not = ~leaves13_empty;
+    assign leaves13_head_out = base13_above_m & leaves13_empty_not;
     assign base13_end_sent_not = ~base13_end_sent;
-    assign base13_at_m_and = base13_at_m & u_module_out_valid;
-    assign out_is_ref_not_13 = ~out_is_ref;
-    assign base13_at_m_and_1 = base13_at_m_and & out_is_ref_not_13;
-    assign leaves13_wr_not_2 = ~leaves13_wr_eq;
-    assign leaves13_wr_or = leaves13_wr_not_2 | leaves_done;
-    assign base13_above_m_and = base13_above_m & leaves13_wr_or;
-    assign base13_at_m_or = base13_at_m_and_1 | base13_above_m_and;
-    assign base13_at_m_not = ~base13_at_m;
-    assign choice_known_and_26 = choice_known & base13_at_m_not;
-    assign base13_above_m_not = ~base13_above_m;
-    assign choice_known_and_27 = choice_known_and_26 & base13_above_m_not;
-    assign base13_at_m_or_1 = base13_at_m_or | choice_known_and_27;
-    assign base13_end_sent_and = base13_end_sent_not & base13_at_m_or_1;
-    assign leaves13_wr_not_3 = ~leaves13_wr_eq;
-    assign base13_above_m_and_1 = base13_above_m & leaves13_wr_not_3;
-    assign base13_above_m_mux = base13_above_m_and_1 ? const_cat_15 : const_cat_1;
-    assign base13_at_m_mux = base13_at_m ? u_module_cat : base13_above_m_mux;
-    assign base13_above_m_mux_1 = base13_above_m ? leaves13_wr_and_1 : 1'b1;
-    assign base13_at_m_mux_1 = base13_at_m ? out_is_end : base13_above_m_mux_1;
+    assign base13_at_m_or = (((base13_at_m & u_module_out_valid) & out_is_ref_not) | (base13_above_m & (leaves13_empty_not | leaves_done))) | ((choice_known & (~base13_at_m)) & (~base13_above_m));
+    assign base13_end_sent_and = base13_end_sent_not & base13_at_m_or;
     assign base13_end_sent_and_1 = base13_end_sent_and & u_builder_base13_ready;
-    assign base13_end_sent_and_2 = base13_end_sent_and_1 & base13_above_m;
-    assign leaves13_wr_not_4 = ~leaves13_wr_eq;
-    assign base13_end_sent_and_3 = base13_end_sent_and_2 & leaves13_wr_not_4;
-    assign leaves13_wr_not_5 = ~leaves13_wr_and;
-    assign leaf_take_and_55 = leaf_take_and_52 & leaves13_wr_not_5;
-    assign leaves13_wr_add = leaves13_wr + 5'd1;
-    assign leaves13_rd_add = leaves13_rd + 5'd1;
-    assign base13_end_sent_and_4 = base13_end_sent_and & u_builder_base13_ready;
-    assign base13_end_sent_and_5 = base13_end_sent_and_4 & base13_at_m_mux_1;
-    assign base13_end_sent_not_1 = ~base13_end_sent;
-    assign u_builder_and_13 = u_builder_base13_ready & base13_end_sent_not_1;
-    assign base13_at_m_mux_2 = base13_at_m ? u_builder_and_13 : base12_at_m_mux_2;
-    assign base13_at_m_mux_3 = base13_at_m ? base13_end_sent : base12_at_m_mux_3;
-    assign merge_lod_eq_14 = merge_lod == 5'd14;
-    assign base14_at_m = merging & merge_lod_eq_14;
-    assign leaves14_wr_eq = leaves14_wr == leaves14_rd;
-    assign leaves14_wr_eq_1 = leaves14_wr[3:0] == leaves14_rd[3:0];
-    assign leaves14_wr_eq_2 = leaves14_wr[4] == leaves14_rd[4];
-    assign leaves14_wr_not = ~leaves14_wr_eq_2;
-    assign leaves14_wr_and = leaves14_wr_eq_1 & leaves14_wr_not;
-    assign leaf_best_data_eq_14 = leaf_best_data[182:178] == 5'd14;
-    assign leaf_take_and_56 = leaf_take & leaf_best_data_eq_14;
-    assign leaves14_wr_not_1 = ~leaves14_wr_and;
-    assign leaf_take_and_57 = leaf_take_and_56 & leaves14_wr_not_1;
-    assign leaf_take_and_58 = leaf_take_and_56 & leaves14_wr_and;
+    assign leaves13_pop = (base13_end_sent_and_1 & base13_above_m) & leaves13_empty_not;
+    assign base14_at_m = merging & (merge_lod == 5'd14);
+    assign leaves14_empty = leaves14_wr == leaves14_rd;
+    assign leaves14_full = (leaves14_wr[3:0] == leaves14_rd[3:0]) & (~(leaves14_wr[4] == leaves14_rd[4]));
+    assign leaves14_push = leaf_take & (leaf_best_data_lod == 5'd14);
+    assign leaves14_wr_put = leaves14_push & (~leaves14_full);
     assign leaves14_rd_1 = leaves14[leaves14_rd[3:0]];
-    assign merge_lod_lt_14 = 5'd14 < merge_lod;
-    assign base14_above_m = merging & merge_lod_lt_14;
-    assign const_cat_16 = {2'd1, leaves14_rd_1[177:150], leaves14_rd_1[149:0]};
-    assign leaves14_wr_and_1 = leaves14_wr_eq & leaves_done;
+    assign base14_above_m = merging & (5'd14 < merge_lod);
+    assign leaves14_rec = leaves14_rd_1[149:0];
+    assign leaves14_ref = leaves14_rd_1[177:150];
+    assign leaves14_end = leaves14_empty & leaves_done;
+    assign leaves14_empty_not = ~leaves14_empty;
+    assign leaves14_head_out = base14_above_m & leaves14_empty_not;
     assign base14_end_sent_not = ~base14_end_sent;
-    assign base14_at_m_and = base14_at_m & u_module_out_valid;
-    assign out_is_ref_not_14 = ~out_is_ref;
-    assign base14_at_m_and_1 = base14_at_m_and & out_is_ref_not_14;
-    assign leaves14_wr_not_2 = ~leaves14_wr_eq;
-    assign leaves14_wr_or = leaves14_wr_not_2 | leaves_done;
-    assign base14_above_m_and = base14_above_m & leaves14_wr_or;
-    assign base14_at_m_or = base14_at_m_and_1 | base14_above_m_and;
-    assign base14_at_m_not = ~base14_at_m;
-    assign choice_known_and_28 = choice_known & base14_at_m_not;
-    assign base14_above_m_not = ~base14_above_m;
-    assign choice_known_and_29 = choice_known_and_28 & base14_above_m_not;
-    assign base14_at_m_or_1 = base14_at_m_or | choice_known_and_29;
-    assign base14_end_sent_and = base14_end_sent_not & base14_at_m_or_1;
-    assign leaves14_wr_not_3 = ~leaves14_wr_eq;
-    assign base14_above_m_and_1 = base14_above_m & leaves14_wr_not_3;
-    assign base14_above_m_mux = base14_above_m_and_1 ? const_cat_16 : const_cat_1;
-    assign base14_at_m_mux = base14_at_m ? u_module_cat : base14_above_m_mux;
-    assign base14_above_m_mux_1 = base14_above_m ? leaves14_wr_and_1 : 1'b1;
-    assign base14_at_m_mux_1 = base14_at_m ? out_is_end : base14_above_m_mux_1;
+    assign base14_at_m_or = (((base14_at_m & u_module_out_valid) & out_is_ref_not) | (base14_above_m & (leaves14_empty_not | leaves_done))) | ((choice_known & (~base14_at_m)) & (~base14_above_m));
+    assign base14_end_sent_and = base14_end_sent_not & base14_at_m_or;
     assign base14_end_sent_and_1 = base14_end_sent_and & u_builder_base14_ready;
-    assign base14_end_sent_and_2 = base14_end_sent_and_1 & base14_above_m;
-    assign leaves14_wr_not_4 = ~leaves14_wr_eq;
-    assign base14_end_sent_and_3 = base14_end_sent_and_2 & leaves14_wr_not_4;
-    assign leaves14_wr_not_5 = ~leaves14_wr_and;
-    assign leaf_take_and_59 = leaf_take_and_56 & leaves14_wr_not_5;
-    assign leaves14_wr_add = leaves14_wr + 5'd1;
-    assign leaves14_rd_add = leaves14_rd + 5'd1;
-    assign base14_end_sent_and_4 = base14_end_sent_and & u_builder_base14_ready;
-    assign base14_end_sent_and_5 = base14_end_sent_and_4 & base14_at_m_mux_1;
-    assign base14_end_sent_not_1 = ~base14_end_sent;
-    assign u_builder_and_14 = u_builder_base14_ready & base14_end_sent_not_1;
-    assign base14_at_m_mux_2 = base14_at_m ? u_builder_and_14 : base13_at_m_mux_2;
-    assign base14_at_m_mux_3 = base14_at_m ? base14_end_sent : base13_at_m_mux_3;
-    assign merge_lod_eq_15 = merge_lod == 5'd15;
-    assign base15_at_m = merging & merge_lod_eq_15;
-    assign leaves15_wr_eq = leaves15_wr == leaves15_rd;
-    assign leaves15_wr_eq_1 = leaves15_wr[3:0] == leaves15_rd[3:0];
-    assign leaves15_wr_eq_2 = leaves15_wr[4] == leaves15_rd[4];
-    assign leaves15_wr_not = ~leaves15_wr_eq_2;
-    assign leaves15_wr_and = leaves15_wr_eq_1 & leaves15_wr_not;
-    assign leaf_best_data_eq_15 = leaf_best_data[182:178] == 5'd15;
-    assign leaf_take_and_60 = leaf_take & leaf_best_data_eq_15;
-    assign leaves15_wr_not_1 = ~leaves15_wr_and;
-    assign leaf_take_and_61 = leaf_take_and_60 & leaves15_wr_not_1;
-    assign leaf_take_and_62 = leaf_take_and_60 & leaves15_wr_and;
+    assign leaves14_pop = (base14_end_sent_and_1 & base14_above_m) & leaves14_empty_not;
+    assign base14_at_m_mux = base14_at_m ? (u_builder_base14_ready & base14_end_sent_not) : (base13_at_m ? (u_builder_base13_ready & base13_end_sent_not) : (base12_at_m ? (u_builder_base12_ready & base12_end_sent_not) : base11_at_m_mux));
+    assign base15_at_m = merging & (merge_lod == 5'd15);
+    assign leaves15_empty = leaves15_wr == leaves15_rd;
+    assign leaves15_full = (leaves15_wr[3:0] == leaves15_rd[3:0]) & (~(leaves15_wr[4] == leaves15_rd[4]));
+    assign leaves15_push = leaf_take & (leaf_best_data_lod == 5'd15);
+    assign leaves15_wr_put = leaves15_push & (~leaves15_full);
     assign leaves15_rd_1 = leaves15[leaves15_rd[3:0]];
-    assign merge_lod_lt_15 = 5'd15 < merge_lod;
-    assign base15_above_m = merging & merge_lod_lt_15;
-    assign const_cat_17 = {2'd1, leaves15_rd_1[177:150], leaves15_rd_1[149:0]};
-    assign leaves15_wr_and_1 = leaves15_wr_eq & leaves_done;
+    assign base15_above_m = merging & (5'd15 < merge_lod);
+    assign leaves15_rec = leaves15_rd_1[149:0];
+    assign leaves15_ref = leaves15_rd_1[177:150];
+    assign leaves15_end = leaves15_empty & leaves_done;
+    assign leaves15_empty_not = ~leaves15_empty;
+    assign leaves15_head_out = base15_above_m & leaves15_empty_not;
     assign base15_end_sent_not = ~base15_end_sent;
-    assign base15_at_m_and = base15_at_m & u_module_out_valid;
-    assign out_is_ref_not_15 = ~out_is_ref;
-    assign base15_at_m_and_1 = base15_at_m_and & out_is_ref_not_15;
-    assign leaves15_wr_not_2 = ~leaves15_wr_eq;
-    assign leaves15_wr_or = leaves15_wr_not_2 | leaves_done;
-    assign base15_above_m_and = base15_above_m & leaves15_wr_or;
-    assign base15_at_m_or = base15_at_m_and_1 | base15_above_m_and;
-    assign base15_at_m_not = ~base15_at_m;
-    assign choice_known_and_30 = choice_known & base15_at_m_not;
-    assign base15_above_m_not = ~base15_above_m;
-    assign choice_known_and_31 = choice_known_and_30 & base15_above_m_not;
-    assign base15_at_m_or_1 = base15_at_m_or | choice_known_and_31;
-    assign base15_end_sent_and = base15_end_sent_not & base15_at_m_or_1;
-    assign leaves15_wr_not_3 = ~leaves15_wr_eq;
-    assign base15_above_m_and_1 = base15_above_m & leaves15_wr_not_3;
-    assign base15_above_m_mux = base15_above_m_and_1 ? const_cat_17 : const_cat_1;
-    assign base15_at_m_mux = base15_at_m ? u_module_cat : base15_above_m_mux;
-    assign base15_above_m_mux_1 = base15_above_m ? leaves15_wr_and_1 : 1'b1;
-    assign base15_at_m_mux_1 = base15_at_m ? out_is_end : base15_above_m_mux_1;
+    assign base15_at_m_or = (((base15_at_m & u_module_out_valid) & out_is_ref_not) | (base15_above_m & (leaves15_empty_not | leaves_done))) | ((choice_known & (~base15_at_m)) & (~base15_above_m));
+    assign base15_end_sent_and = base15_end_sent_not & base15_at_m_or;
     assign base15_end_sent_and_1 = base15_end_sent_and & u_builder_base15_ready;
-    assign base15_end_sent_and_2 = base15_end_sent_and_1 & base15_above_m;
-    assign leaves15_wr_not_4 = ~leaves15_wr_eq;
-    assign base15_end_sent_and_3 = base15_end_sent_and_2 & leaves15_wr_not_4;
-    assign leaves15_wr_not_5 = ~leaves15_wr_and;
-    assign leaf_take_and_63 = leaf_take_and_60 & leaves15_wr_not_5;
-    assign leaves15_wr_add = leaves15_wr + 5'd1;
-    assign leaves15_rd_add = leaves15_rd + 5'd1;
-    assign base15_end_sent_and_4 = base15_end_sent_and & u_builder_base15_ready;
-    assign base15_end_sent_and_5 = base15_end_sent_and_4 & base15_at_m_mux_1;
-    assign base15_end_sent_not_1 = ~base15_end_sent;
-    assign u_builder_and_15 = u_builder_base15_ready & base15_end_sent_not_1;
-    assign base15_at_m_mux_2 = base15_at_m ? u_builder_and_15 : base14_at_m_mux_2;
-    assign base15_at_m_mux_3 = base15_at_m ? base15_end_sent : base14_at_m_mux_3;
-    assign merge_lod_eq_16 = merge_lod == 5'd16;
-    assign base16_at_m = merging & merge_lod_eq_16;
+    assign leaves15_pop = (base15_end_sent_and_1 & base15_above_m) & leaves15_empty_not;
+    assign base15_at_m_mux = base15_at_m ? base15_end_sent : (base14_at_m ? base14_end_sent : (base13_at_m ? base13_end_sent : (base12_at_m ? base12_end_sent : base11_at_m_mux_1)));
+    assign base16_at_m = merging & (merge_lod == 5'd16);
     assign base16_end_sent_not = ~base16_end_sent;
-    assign base16_at_m_and = base16_at_m & u_module_out_valid;
-    assign out_is_ref_not_16 = ~out_is_ref;
-    assign base16_at_m_and_1 = base16_at_m_and & out_is_ref_not_16;
-    assign base16_at_m_not = ~base16_at_m;
-    assign choice_known_and_32 = choice_known & base16_at_m_not;
-    assign base16_at_m_or = base16_at_m_and_1 | choice_known_and_32;
-    assign base16_end_sent_and = base16_end_sent_not & base16_at_m_or;
-    assign base16_at_m_mux = base16_at_m ? u_module_cat : const_cat_1;
-    assign base16_at_m_mux_1 = base16_at_m ? out_is_end : 1'b1;
-    assign base16_end_sent_and_1 = base16_end_sent_and & u_builder_base16_ready;
-    assign base16_end_sent_and_2 = base16_end_sent_and_1 & base16_at_m_mux_1;
-    assign base16_end_sent_not_1 = ~base16_end_sent;
-    assign u_builder_and_16 = u_builder_base16_ready & base16_end_sent_not_1;
-    assign base16_at_m_mux_2 = base16_at_m ? u_builder_and_16 : base15_at_m_mux_2;
-    assign base16_at_m_mux_3 = base16_at_m ? base16_end_sent : base15_at_m_mux_3;
-    assign base16_at_m_or_1 = base16_at_m_mux_3 | base16_at_m_mux_2;
-    assign crefs_end_sent_or = crefs_end_sent | u_writer_crefs_ready;
-    assign base16_at_m_and_2 = base16_at_m_or_1 & crefs_end_sent_or;
-    assign out_is_end_mux = out_is_end ? base16_at_m_and_2 : base16_at_m_mux_2;
-    assign out_is_ref_mux = out_is_ref ? u_writer_crefs_ready : out_is_end_mux;
+    assign base16_end_sent_and = base16_end_sent_not & (((base16_at_m & u_module_out_valid) & out_is_ref_not) | (choice_known & (~base16_at_m)));
+    assign base16_at_m_mux = base16_at_m ? (u_builder_base16_ready & base16_end_sent_not) : (base15_at_m ? (u_builder_base15_ready & base15_end_sent_not) : base14_at_m_mux);
+    assign out_is_ref_mux = out_is_ref ? u_writer_crefs_ready : (out_is_end ? (((base16_at_m ? base16_end_sent : base15_at_m_mux) | base16_at_m_mux) & (crefs_end_sent | u_writer_crefs_ready)) : base16_at_m_mux);
     assign merging_and = merging & out_is_ref_mux;
-    assign u_module_eq_2 = u_module_out_data[179:178] == 2'd0;
-    assign u_module_and_2 = u_module_out_valid & merging_and;
-    assign u_module_and_3 = u_module_and_2 & u_module_eq_2;
-    assign u_module_and_4 = u_module_and_3 & u_module_out_data[180];
     assign w_ref_resp_ready = u_writer_ref_resp_ready;
     assign w_ref_req_ready_w = w_ref_req_ready;
     assign w_ref_req_valid = u_writer_ref_req_valid;
@@ -2801,27 +1295,18 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign header_valid = u_writer_header_valid;
     assign header_data = {fetch_rank, fetch_err, count_overflow, leaf_overflow_q, u_writer_header_data};
     assign done = done_pulse;
-    assign busy_not_1 = ~busy;
-    assign dropping0_not_2 = ~dropping0;
-    assign dropping0_and = 1'b1 & dropping0_not_2;
-    assign dropping1_not_2 = ~dropping1;
-    assign dropping0_and_1 = dropping0_and & dropping1_not_2;
-    assign dropping2_not_2 = ~dropping2;
-    assign dropping0_and_2 = dropping0_and_1 & dropping2_not_2;
-    assign dropping3_not_2 = ~dropping3;
-    assign dropping0_and_3 = dropping0_and_2 & dropping3_not_2;
-    assign merger_idle = busy_not_1 & dropping0_and_3;
+    assign merger_idle = busy_not & ((((1'b1 & dropping0_not) & dropping1_not) & dropping2_not) & dropping3_not);
     assign idle = merger_idle;
     assign module_done = u_module_done;
 
-    fetcher_d16_q8_i24_h4_r16_f256 u_fetch0 ( // rtl-gen/src/merge/merger/mod.rs:170
+    fetcher_d16_q8_i24_h4_r16_f256 u_fetch0 ( // rtl-gen/src/merge/merger/mod.rs:178
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch0_cfg_pending),
         .cfg_data(cfg_q[137:0]),
         .cfg_ready(u_fetch0_cfg_ready),
         .cmd_valid(used0_and),
-        .cmd_data(phase0_cat),
+        .cmd_data({phase0_eq ? lo : phase0_mux, phase0_eq_1, phase0_and, phase0_and, phase0_mux}),
         .cmd_ready(u_fetch0_cmd_ready),
         .node_resp_valid(f0_node_resp_valid),
         .node_resp_data(f0_node_resp_data),
@@ -2846,18 +1331,18 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
         .out_ready(dropping0_or),
         .leaves_valid(u_fetch0_leaves_valid),
         .leaves_data(u_fetch0_leaves_data),
-        .leaves_ready(used0_and_13),
+        .leaves_ready((used0 & leaves_all_valid) & (leaves_all_end | (leaf_best == 2'd0))),
         .idle(u_fetch0_idle)
     );
 
-    fetcher_d16_q8_i24_h4_r16_f256 u_fetch1 ( // rtl-gen/src/merge/merger/mod.rs:170
+    fetcher_d16_q8_i24_h4_r16_f256 u_fetch1 ( // rtl-gen/src/merge/merger/mod.rs:178
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch1_cfg_pending),
         .cfg_data(cfg_q[275:138]),
         .cfg_ready(u_fetch1_cfg_ready),
         .cmd_valid(used1_and),
-        .cmd_data(phase1_cat),
+        .cmd_data({phase1_eq ? lo : phase1_mux, phase1_eq_1, phase1_and, phase1_and, phase1_mux}),
         .cmd_ready(u_fetch1_cmd_ready),
         .node_resp_valid(f1_node_resp_valid),
         .node_resp_data(f1_node_resp_data),
@@ -2882,18 +1367,18 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
         .out_ready(dropping1_or),
         .leaves_valid(u_fetch1_leaves_valid),
         .leaves_data(u_fetch1_leaves_data),
-        .leaves_ready(used1_and_10),
+        .leaves_ready((used1 & leaves_all_valid) & (leaves_all_end | (leaf_best == 2'd1))),
         .idle(u_fetch1_idle)
     );
 
-    fetcher_d16_q8_i24_h4_r16_f256 u_fetch2 ( // rtl-gen/src/merge/merger/mod.rs:170
+    fetcher_d16_q8_i24_h4_r16_f256 u_fetch2 ( // rtl-gen/src/merge/merger/mod.rs:178
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch2_cfg_pending),
         .cfg_data(cfg_q[413:276]),
         .cfg_ready(u_fetch2_cfg_ready),
         .cmd_valid(used2_and),
-        .cmd_data(phase2_cat),
+        .cmd_data({phase2_eq ? lo : phase2_mux, phase2_eq_1, phase2_and, phase2_and, phase2_mux}),
         .cmd_ready(u_fetch2_cmd_ready),
         .node_resp_valid(f2_node_resp_valid),
         .node_resp_data(f2_node_resp_data),
@@ -2918,18 +1403,18 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
         .out_ready(dropping2_or),
         .leaves_valid(u_fetch2_leaves_valid),
         .leaves_data(u_fetch2_leaves_data),
-        .leaves_ready(used2_and_10),
+        .leaves_ready((used2 & leaves_all_valid) & (leaves_all_end | (leaf_best == 2'd2))),
         .idle(u_fetch2_idle)
     );
 
-    fetcher_d16_q8_i24_h4_r16_f256 u_fetch3 ( // rtl-gen/src/merge/merger/mod.rs:170
+    fetcher_d16_q8_i24_h4_r16_f256 u_fetch3 ( // rtl-gen/src/merge/merger/mod.rs:178
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch3_cfg_pending),
         .cfg_data(cfg_q[551:414]),
         .cfg_ready(u_fetch3_cfg_ready),
         .cmd_valid(used3_and),
-        .cmd_data(phase3_cat),
+        .cmd_data({phase3_eq ? lo : phase3_mux, phase3_eq_1, phase3_and, phase3_and, phase3_mux}),
         .cmd_ready(u_fetch3_cmd_ready),
         .node_resp_valid(f3_node_resp_valid),
         .node_resp_data(f3_node_resp_data),
@@ -2954,27 +1439,27 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
         .out_ready(dropping3_or),
         .leaves_valid(u_fetch3_leaves_valid),
         .leaves_data(u_fetch3_leaves_data),
-        .leaves_ready(used3_and_10),
+        .leaves_ready((used3 & leaves_all_valid) & (leaves_all_end | (leaf_best == 2'd3))),
         .idle(u_fetch3_idle)
     );
 
-    merge_module_d16_q8_i24_h4_k4_ov1_2 u_module ( // rtl-gen/src/merge/merger/mod.rs:172
+    merge_module_d16_q8_i24_h4_k4_ov1_2 u_module ( // rtl-gen/src/merge/merger/mod.rs:180
         .clk(clk),
         .rst(rst),
-        .in0_valid(used0_mux),
-        .in0_data(used0_mux_1),
+        .in0_valid(used0 ? (u_fetch0_out_valid & dropping0_not) : virtual_end0),
+        .in0_data(used0 ? u_fetch0_out_data[179:0] : const_cat),
         .in0_ready(u_module_in0_ready),
-        .in1_valid(used1_mux),
-        .in1_data(used1_mux_1),
+        .in1_valid(used1 ? (u_fetch1_out_valid & dropping1_not) : virtual_end1),
+        .in1_data(used1 ? u_fetch1_out_data[179:0] : const_cat),
         .in1_ready(u_module_in1_ready),
-        .in2_valid(used2_mux),
-        .in2_data(used2_mux_1),
+        .in2_valid(used2 ? (u_fetch2_out_valid & dropping2_not) : virtual_end2),
+        .in2_data(used2 ? u_fetch2_out_data[179:0] : const_cat),
         .in2_ready(u_module_in2_ready),
-        .in3_valid(used3_mux),
-        .in3_data(used3_mux_1),
+        .in3_valid(used3 ? (u_fetch3_out_valid & dropping3_not) : virtual_end3),
+        .in3_data(used3 ? u_fetch3_out_data[179:0] : const_cat),
         .in3_ready(u_module_in3_ready),
         .cfg_valid(module_cfg_pending),
-        .cfg_data(hi_cat),
+        .cfg_data({hi, lo}),
         .cfg_ready(u_module_cfg_ready),
         .report_valid(u_module_report_valid),
         .report_data(u_module_report_data),
@@ -2986,59 +1471,59 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
         .done(u_module_done)
     );
 
-    upper_builder_d16_q8_i24_h4 u_builder ( // rtl-gen/src/merge/merger/mod.rs:173
+    upper_builder_d16_q8_i24_h4 u_builder ( // rtl-gen/src/merge/merger/mod.rs:181
         .clk(clk),
         .rst(rst),
         .base0_valid(base0_end_sent_and),
-        .base0_data(base0_at_m_mux),
+        .base0_data(base0_at_m ? u_module_kind_cat : (leaves0_head_out ? {2'd1, leaves0_ref, leaves0_rec} : const_cat)),
         .base0_ready(u_builder_base0_ready),
         .base1_valid(base1_end_sent_and),
-        .base1_data(base1_at_m_mux),
+        .base1_data(base1_at_m ? u_module_kind_cat : (leaves1_head_out ? {2'd1, leaves1_ref, leaves1_rec} : const_cat)),
         .base1_ready(u_builder_base1_ready),
         .base2_valid(base2_end_sent_and),
-        .base2_data(base2_at_m_mux),
+        .base2_data(base2_at_m ? u_module_kind_cat : (leaves2_head_out ? {2'd1, leaves2_ref, leaves2_rec} : const_cat)),
         .base2_ready(u_builder_base2_ready),
         .base3_valid(base3_end_sent_and),
-        .base3_data(base3_at_m_mux),
+        .base3_data(base3_at_m ? u_module_kind_cat : (leaves3_head_out ? {2'd1, leaves3_ref, leaves3_rec} : const_cat)),
         .base3_ready(u_builder_base3_ready),
         .base4_valid(base4_end_sent_and),
-        .base4_data(base4_at_m_mux),
+        .base4_data(base4_at_m ? u_module_kind_cat : (leaves4_head_out ? {2'd1, leaves4_ref, leaves4_rec} : const_cat)),
         .base4_ready(u_builder_base4_ready),
         .base5_valid(base5_end_sent_and),
-        .base5_data(base5_at_m_mux),
+        .base5_data(base5_at_m ? u_module_kind_cat : (leaves5_head_out ? {2'd1, leaves5_ref, leaves5_rec} : const_cat)),
         .base5_ready(u_builder_base5_ready),
         .base6_valid(base6_end_sent_and),
-        .base6_data(base6_at_m_mux),
+        .base6_data(base6_at_m ? u_module_kind_cat : (leaves6_head_out ? {2'd1, leaves6_ref, leaves6_rec} : const_cat)),
         .base6_ready(u_builder_base6_ready),
         .base7_valid(base7_end_sent_and),
-        .base7_data(base7_at_m_mux),
+        .base7_data(base7_at_m ? u_module_kind_cat : (leaves7_head_out ? {2'd1, leaves7_ref, leaves7_rec} : const_cat)),
         .base7_ready(u_builder_base7_ready),
         .base8_valid(base8_end_sent_and),
-        .base8_data(base8_at_m_mux),
+        .base8_data(base8_at_m ? u_module_kind_cat : (leaves8_head_out ? {2'd1, leaves8_ref, leaves8_rec} : const_cat)),
         .base8_ready(u_builder_base8_ready),
         .base9_valid(base9_end_sent_and),
-        .base9_data(base9_at_m_mux),
+        .base9_data(base9_at_m ? u_module_kind_cat : (leaves9_head_out ? {2'd1, leaves9_ref, leaves9_rec} : const_cat)),
         .base9_ready(u_builder_base9_ready),
         .base10_valid(base10_end_sent_and),
-        .base10_data(base10_at_m_mux),
+        .base10_data(base10_at_m ? u_module_kind_cat : (leaves10_head_out ? {2'd1, leaves10_ref, leaves10_rec} : const_cat)),
         .base10_ready(u_builder_base10_ready),
         .base11_valid(base11_end_sent_and),
-        .base11_data(base11_at_m_mux),
+        .base11_data(base11_at_m ? u_module_kind_cat : (leaves11_head_out ? {2'd1, leaves11_ref, leaves11_rec} : const_cat)),
         .base11_ready(u_builder_base11_ready),
         .base12_valid(base12_end_sent_and),
-        .base12_data(base12_at_m_mux),
+        .base12_data(base12_at_m ? u_module_kind_cat : (leaves12_head_out ? {2'd1, leaves12_ref, leaves12_rec} : const_cat)),
         .base12_ready(u_builder_base12_ready),
         .base13_valid(base13_end_sent_and),
-        .base13_data(base13_at_m_mux),
+        .base13_data(base13_at_m ? u_module_kind_cat : (leaves13_head_out ? {2'd1, leaves13_ref, leaves13_rec} : const_cat)),
         .base13_ready(u_builder_base13_ready),
         .base14_valid(base14_end_sent_and),
-        .base14_data(base14_at_m_mux),
+        .base14_data(base14_at_m ? u_module_kind_cat : (leaves14_head_out ? {2'd1, leaves14_ref, leaves14_rec} : const_cat)),
         .base14_ready(u_builder_base14_ready),
         .base15_valid(base15_end_sent_and),
-        .base15_data(base15_at_m_mux),
+        .base15_data(base15_at_m ? u_module_kind_cat : (leaves15_head_out ? {2'd1, leaves15_ref, leaves15_rec} : const_cat)),
         .base15_ready(u_builder_base15_ready),
         .base16_valid(base16_end_sent_and),
-        .base16_data(base16_at_m_mux),
+        .base16_data(base16_at_m ? u_module_kind_cat : const_cat),
         .base16_ready(u_builder_base16_ready),
         .level16_valid(u_builder_level16_valid),
         .level16_data(u_builder_level16_data),
@@ -3096,17 +1581,17 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
         .done_ready(u_writer_done_ready)
     );
 
-    record_writer_d16_q8_i24_h4_c10 u_writer ( // rtl-gen/src/merge/merger/mod.rs:174
+    record_writer_d16_q8_i24_h4_c10 u_writer ( // rtl-gen/src/merge/merger/mod.rs:182
         .clk(clk),
         .rst(rst),
         .cfg_valid(writer_cfg_pending),
-        .cfg_data(cfg_q[568:565]),
+        .cfg_data(cfg_q_out_id),
         .cfg_ready(u_writer_cfg_ready),
         .done_valid(u_builder_done_valid),
         .done_data(u_builder_done_data),
         .done_ready(u_writer_done_ready),
-        .crefs_valid(crefs_end_sent_and_1),
-        .crefs_data(choice_ok_cat),
+        .crefs_valid(crefs_end_sent_and),
+        .crefs_data({choice_ok_or, (choice_ok & out_is_ref) ? u_module_ref : 28'd0}),
         .crefs_ready(u_writer_crefs_ready),
         .level0_valid(u_builder_level0_valid),
         .level0_data(u_builder_level0_data),
@@ -3262,411 +1747,411 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
             done_pulse <= 1'b0;
         end else begin
             if (cfg_fire) begin
-                busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:189
-                cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:188
-                module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:226
-                writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:234
-                fetch0_cfg_pending <= cfg_data_gt_2; // rtl-gen/src/merge/merger/level_mode.rs:174
-                phase0 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:230
-                cmd_lod0 <= cfg_data[559:555]; // rtl-gen/src/merge/merger/level_mode.rs:244
-                fetch1_cfg_pending <= cfg_data_gt_3; // rtl-gen/src/merge/merger/level_mode.rs:174
-                phase1 <= count_pass_mux_1;  // rtl-gen/src/merge/merger/level_mode.rs:230
-                cmd_lod1 <= cfg_data[559:555]; // rtl-gen/src/merge/merger/level_mode.rs:244
-                fetch2_cfg_pending <= cfg_data_gt_4; // rtl-gen/src/merge/merger/level_mode.rs:174
-                phase2 <= count_pass_mux_2;  // rtl-gen/src/merge/merger/level_mode.rs:230
-                cmd_lod2 <= cfg_data[559:555]; // rtl-gen/src/merge/merger/level_mode.rs:244
-                fetch3_cfg_pending <= cfg_data_gt_5; // rtl-gen/src/merge/merger/level_mode.rs:174
-                phase3 <= count_pass_mux_3;  // rtl-gen/src/merge/merger/level_mode.rs:230
-                cmd_lod3 <= cfg_data[559:555]; // rtl-gen/src/merge/merger/level_mode.rs:244
+                busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:197
+                cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:196
+                module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:234
+                writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:242
+                fetch0_cfg_pending <= cfg_data_count > 3'd0; // rtl-gen/src/merge/merger/level_mode.rs:174
+                phase0 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:231
+                cmd_lod0 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:242
+                fetch1_cfg_pending <= cfg_data_count > 3'd1; // rtl-gen/src/merge/merger/level_mode.rs:174
+                phase1 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:231
+                cmd_lod1 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:242
+                fetch2_cfg_pending <= cfg_data_count > 3'd2; // rtl-gen/src/merge/merger/level_mode.rs:174
+                phase2 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:231
+                cmd_lod2 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:242
+                fetch3_cfg_pending <= cfg_data_count > 3'd3; // rtl-gen/src/merge/merger/level_mode.rs:174
+                phase3 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:231
+                cmd_lod3 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:242
             end else begin
                 if (header_fire) begin
-                    busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:189
-                    phase0 <= 3'd0;          // rtl-gen/src/merge/merger/level_mode.rs:235
-                    phase1 <= 3'd0;          // rtl-gen/src/merge/merger/level_mode.rs:235
-                    phase2 <= 3'd0;          // rtl-gen/src/merge/merger/level_mode.rs:235
-                    phase3 <= 3'd0;          // rtl-gen/src/merge/merger/level_mode.rs:235
+                    busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:197
+                    phase0 <= NONE;          // rtl-gen/src/merge/merger/level_mode.rs:233
+                    phase1 <= NONE;          // rtl-gen/src/merge/merger/level_mode.rs:233
+                    phase2 <= NONE;          // rtl-gen/src/merge/merger/level_mode.rs:233
+                    phase3 <= NONE;          // rtl-gen/src/merge/merger/level_mode.rs:233
                 end else begin
                     if (step0) begin
                         if (phase0_eq) begin
-                            if (used0_or_1) begin
-                                phase0 <= 3'd2; // rtl-gen/src/merge/merger/level_mode.rs:226
+                            if (used0 | (cmd_lod0 == hi)) begin
+                                phase0 <= WAIT; // rtl-gen/src/merge/merger/level_mode.rs:227
                             end
                         end else begin
-                            phase0 <= 3'd4;  // rtl-gen/src/merge/merger/level_mode.rs:225
+                            phase0 <= DONE;  // rtl-gen/src/merge/merger/level_mode.rs:226
                         end
-                    end else if (phase0_and_3) begin
-                        phase0 <= 3'd3;      // rtl-gen/src/merge/merger/level_mode.rs:239
+                    end else if ((phase0 == WAIT) & choice_known) begin
+                        phase0 <= FINAL;     // rtl-gen/src/merge/merger/level_mode.rs:237
                     end
                     if (step1) begin
                         if (phase1_eq) begin
-                            if (used1_or_1) begin
-                                phase1 <= 3'd2; // rtl-gen/src/merge/merger/level_mode.rs:226
+                            if (used1 | (cmd_lod1 == hi)) begin
+                                phase1 <= WAIT; // rtl-gen/src/merge/merger/level_mode.rs:227
                             end
                         end else begin
-                            phase1 <= 3'd4;  // rtl-gen/src/merge/merger/level_mode.rs:225
+                            phase1 <= DONE;  // rtl-gen/src/merge/merger/level_mode.rs:226
                         end
-                    end else if (phase1_and_3) begin
-                        phase1 <= 3'd3;      // rtl-gen/src/merge/merger/level_mode.rs:239
+                    end else if ((phase1 == WAIT) & choice_known) begin
+                        phase1 <= FINAL;     // rtl-gen/src/merge/merger/level_mode.rs:237
                     end
                     if (step2) begin
                         if (phase2_eq) begin
-                            if (used2_or_1) begin
-                                phase2 <= 3'd2; // rtl-gen/src/merge/merger/level_mode.rs:226
+                            if (used2 | (cmd_lod2 == hi)) begin
+                                phase2 <= WAIT; // rtl-gen/src/merge/merger/level_mode.rs:227
                             end
                         end else begin
-                            phase2 <= 3'd4;  // rtl-gen/src/merge/merger/level_mode.rs:225
+                            phase2 <= DONE;  // rtl-gen/src/merge/merger/level_mode.rs:226
                         end
-                    end else if (phase2_and_3) begin
-                        phase2 <= 3'd3;      // rtl-gen/src/merge/merger/level_mode.rs:239
+                    end else if ((phase2 == WAIT) & choice_known) begin
+                        phase2 <= FINAL;     // rtl-gen/src/merge/merger/level_mode.rs:237
                     end
                     if (step3) begin
                         if (phase3_eq) begin
-                            if (used3_or_1) begin
-                                phase3 <= 3'd2; // rtl-gen/src/merge/merger/level_mode.rs:226
+                            if (used3 | (cmd_lod3 == hi)) begin
+                                phase3 <= WAIT; // rtl-gen/src/merge/merger/level_mode.rs:227
                             end
                         end else begin
-                            phase3 <= 3'd4;  // rtl-gen/src/merge/merger/level_mode.rs:225
+                            phase3 <= DONE;  // rtl-gen/src/merge/merger/level_mode.rs:226
                         end
-                    end else if (phase3_and_3) begin
-                        phase3 <= 3'd3;      // rtl-gen/src/merge/merger/level_mode.rs:239
+                    end else if ((phase3 == WAIT) & choice_known) begin
+                        phase3 <= FINAL;     // rtl-gen/src/merge/merger/level_mode.rs:237
                     end
                 end
-                if (module_cfg_pending_and) begin
-                    module_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:226
+                if (module_cfg_pending & u_module_cfg_ready) begin
+                    module_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:234
                 end
-                if (writer_cfg_pending_and) begin
-                    writer_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:234
+                if (writer_cfg_pending & u_writer_cfg_ready) begin
+                    writer_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:242
                 end
-                if (fetch0_cfg_pending_and) begin
+                if (fetch0_cfg_pending & u_fetch0_cfg_ready) begin
                     fetch0_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:174
                 end
-                if (step0_and) begin
-                    cmd_lod0 <= cmd_lod0_add; // rtl-gen/src/merge/merger/level_mode.rs:246
+                if (step0 & phase0_eq) begin
+                    cmd_lod0 <= cmd_lod0 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:244
                 end
-                if (fetch1_cfg_pending_and) begin
+                if (fetch1_cfg_pending & u_fetch1_cfg_ready) begin
                     fetch1_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:174
                 end
-                if (step1_and) begin
-                    cmd_lod1 <= cmd_lod1_add; // rtl-gen/src/merge/merger/level_mode.rs:246
+                if (step1 & phase1_eq) begin
+                    cmd_lod1 <= cmd_lod1 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:244
                 end
-                if (fetch2_cfg_pending_and) begin
+                if (fetch2_cfg_pending & u_fetch2_cfg_ready) begin
                     fetch2_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:174
                 end
-                if (step2_and) begin
-                    cmd_lod2 <= cmd_lod2_add; // rtl-gen/src/merge/merger/level_mode.rs:246
+                if (step2 & phase2_eq) begin
+                    cmd_lod2 <= cmd_lod2 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:244
                 end
-                if (fetch3_cfg_pending_and) begin
+                if (fetch3_cfg_pending & u_fetch3_cfg_ready) begin
                     fetch3_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:174
                 end
-                if (step3_and) begin
-                    cmd_lod3 <= cmd_lod3_add; // rtl-gen/src/merge/merger/level_mode.rs:246
+                if (step3 & phase3_eq) begin
+                    cmd_lod3 <= cmd_lod3 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:244
                 end
             end
-            if (used0_and_8) begin
-                dropping0 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:249
-            end else if (u_fetch0_and_4) begin
-                dropping0 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:249
+            if ((used0_and_1 & phase0_eq_1) & merging_not) begin
+                dropping0 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:247
+            end else if (u_fetch0_and & (u_fetch0_kind == 2'd3)) begin
+                dropping0 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:247
             end
-            if (used1_and_8) begin
-                dropping1 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:249
-            end else if (u_fetch1_and_4) begin
-                dropping1 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:249
+            if ((used1_and_1 & phase1_eq_1) & merging_not) begin
+                dropping1 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:247
+            end else if (u_fetch1_and & (u_fetch1_kind == 2'd3)) begin
+                dropping1 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:247
             end
-            if (used2_and_8) begin
-                dropping2 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:249
-            end else if (u_fetch2_and_4) begin
-                dropping2 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:249
+            if ((used2_and_1 & phase2_eq_1) & merging_not) begin
+                dropping2 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:247
+            end else if (u_fetch2_and & (u_fetch2_kind == 2'd3)) begin
+                dropping2 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:247
             end
-            if (used3_and_8) begin
-                dropping3 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:249
-            end else if (u_fetch3_and_4) begin
-                dropping3 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:249
+            if ((used3_and_1 & phase3_eq_1) & merging_not) begin
+                dropping3 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:247
+            end else if (u_fetch3_and & (u_fetch3_kind == 2'd3)) begin
+                dropping3 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:247
             end
             if (choice_seen) begin
                 choice_known <= 1'b1;        // rtl-gen/src/merge/merger/level_mode.rs:116
-                choice_ok <= u_module_eq_1;  // rtl-gen/src/merge/merger/level_mode.rs:117
-                merge_lod <= u_module_report_data[4:0]; // rtl-gen/src/merge/merger/level_mode.rs:118
+                choice_ok <= u_module_err == 2'd0; // rtl-gen/src/merge/merger/level_mode.rs:117
+                merge_lod <= u_module_lod;   // rtl-gen/src/merge/merger/level_mode.rs:118
             end else if (header_fire) begin
                 choice_known <= 1'b0;        // rtl-gen/src/merge/merger/level_mode.rs:116
                 choice_ok <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:117
             end
-            fetch_err <= fetch_err_next;
-            if (u_fetch3_and_3) begin
-                fetch_rank <= 2'd3;          // rtl-gen/src/merge/merger/level_mode.rs:220
-            end else if (u_fetch2_and_3) begin
-                fetch_rank <= 2'd2;          // rtl-gen/src/merge/merger/level_mode.rs:220
-            end else if (u_fetch1_and_3) begin
-                fetch_rank <= 2'd1;          // rtl-gen/src/merge/merger/level_mode.rs:220
-            end else if (u_fetch0_and_3) begin
-                fetch_rank <= 2'd0;          // rtl-gen/src/merge/merger/level_mode.rs:220
+            fetch_err <= u_fetch3_and_1 ? u_fetch3_err : u_fetch2_mux;
+            if (u_fetch3_and_1) begin
+                fetch_rank <= 2'd3;          // rtl-gen/src/merge/merger/level_mode.rs:221
+            end else if (u_fetch2_and_1) begin
+                fetch_rank <= 2'd2;          // rtl-gen/src/merge/merger/level_mode.rs:221
+            end else if (u_fetch1_and_1) begin
+                fetch_rank <= 2'd1;          // rtl-gen/src/merge/merger/level_mode.rs:221
+            end else if (u_fetch0_and_1) begin
+                fetch_rank <= 2'd0;          // rtl-gen/src/merge/merger/level_mode.rs:221
             end else if (header_fire) begin
                 fetch_rank <= 2'd0;          // rtl-gen/src/merge/merger/level_mode.rs:165
             end
-            if (leaves_all_valid_and) begin
+            if (leaves_all_valid & leaves_all_end) begin
                 leaves_done <= 1'b1;         // rtl-gen/src/merge/merger/leaf_merge.rs:87
             end else if (header_fire) begin
                 leaves_done <= 1'b0;         // rtl-gen/src/merge/merger/leaf_merge.rs:87
             end
-            if (crefs_end_sent_and_3) begin
-                crefs_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:331
+            if ((crefs_end_sent_and & u_writer_crefs_ready) & choice_ok_or) begin
+                crefs_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:329
             end else if (header_fire) begin
-                crefs_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:331
+                crefs_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:329
             end
-            if (leaf_take_and_62) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:352
-            end else if (leaf_take_and_58) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:352
-            end else if (leaf_take_and_54) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:352
-            end else if (leaf_take_and_50) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:352
-            end else if (leaf_take_and_46) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:352
-            end else if (leaf_take_and_42) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:352
-            end else if (leaf_take_and_38) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:352
-            end else if (leaf_take_and_34) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:352
-            end else if (leaf_take_and_30) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:352
-            end else if (leaf_take_and_26) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:352
-            end else if (leaf_take_and_22) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:352
-            end else if (leaf_take_and_18) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:352
-            end else if (leaf_take_and_14) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:352
-            end else if (leaf_take_and_10) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:352
-            end else if (leaf_take_and_6) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:352
-            end else if (leaf_take_and_2) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:352
+            if (leaves15_push & leaves15_full) begin
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+            end else if (leaves14_push & leaves14_full) begin
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+            end else if (leaves13_push & leaves13_full) begin
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+            end else if (leaves12_push & leaves12_full) begin
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+            end else if (leaves11_push & leaves11_full) begin
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+            end else if (leaves10_push & leaves10_full) begin
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+            end else if (leaves9_push & leaves9_full) begin
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+            end else if (leaves8_push & leaves8_full) begin
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+            end else if (leaves7_push & leaves7_full) begin
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+            end else if (leaves6_push & leaves6_full) begin
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+            end else if (leaves5_push & leaves5_full) begin
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+            end else if (leaves4_push & leaves4_full) begin
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+            end else if (leaves3_push & leaves3_full) begin
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+            end else if (leaves2_push & leaves2_full) begin
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+            end else if (leaves1_push & leaves1_full) begin
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+            end else if (leaves0_push & leaves0_full) begin
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
             end else if (header_fire) begin
-                leaf_overflow_q <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:339
+                leaf_overflow_q <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:337
             end
-            if (base0_end_sent_and_5) begin
-                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:383
+            if (base0_end_sent_and_1 & (base0_at_m ? out_is_end : (base0_above_m ? leaves0_end : 1'b1))) begin
+                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:382
             end else if (header_fire) begin
-                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:383
+                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:382
             end
             if (header_fire) begin
-                leaves0_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                leaves0_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                leaves1_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                leaves1_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                leaves2_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                leaves2_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                leaves3_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                leaves3_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                leaves4_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                leaves4_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                leaves5_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                leaves5_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                leaves6_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                leaves6_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                leaves7_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                leaves7_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                leaves8_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                leaves8_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                leaves9_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                leaves9_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                leaves10_wr <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                leaves10_rd <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                leaves11_wr <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                leaves11_rd <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                leaves12_wr <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                leaves12_rd <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                leaves13_wr <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                leaves13_rd <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                leaves14_wr <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                leaves14_rd <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                leaves15_wr <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                leaves15_rd <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                leaves0_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                leaves0_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                leaves1_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                leaves1_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                leaves2_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                leaves2_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                leaves3_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                leaves3_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                leaves4_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                leaves4_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                leaves5_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                leaves5_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                leaves6_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                leaves6_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                leaves7_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                leaves7_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                leaves8_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                leaves8_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                leaves9_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                leaves9_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                leaves10_wr <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                leaves10_rd <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                leaves11_wr <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                leaves11_rd <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                leaves12_wr <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                leaves12_rd <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                leaves13_wr <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                leaves13_rd <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                leaves14_wr <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                leaves14_rd <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                leaves15_wr <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                leaves15_rd <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:58
             end else begin
-                if (leaf_take_and_3) begin
-                    leaves0_wr <= leaves0_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (leaves0_wr_put) begin
+                    leaves0_wr <= leaves0_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base0_end_sent_and_3) begin
-                    leaves0_rd <= leaves0_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (leaves0_pop) begin
+                    leaves0_rd <= leaves0_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (leaf_take_and_7) begin
-                    leaves1_wr <= leaves1_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (leaves1_wr_put) begin
+                    leaves1_wr <= leaves1_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base1_end_sent_and_3) begin
-                    leaves1_rd <= leaves1_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (leaves1_pop) begin
+                    leaves1_rd <= leaves1_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (leaf_take_and_11) begin
-                    leaves2_wr <= leaves2_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (leaves2_wr_put) begin
+                    leaves2_wr <= leaves2_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base2_end_sent_and_3) begin
-                    leaves2_rd <= leaves2_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (leaves2_pop) begin
+                    leaves2_rd <= leaves2_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (leaf_take_and_15) begin
-                    leaves3_wr <= leaves3_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (leaves3_wr_put) begin
+                    leaves3_wr <= leaves3_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base3_end_sent_and_3) begin
-                    leaves3_rd <= leaves3_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (leaves3_pop) begin
+                    leaves3_rd <= leaves3_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (leaf_take_and_19) begin
-                    leaves4_wr <= leaves4_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (leaves4_wr_put) begin
+                    leaves4_wr <= leaves4_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base4_end_sent_and_3) begin
-                    leaves4_rd <= leaves4_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (leaves4_pop) begin
+                    leaves4_rd <= leaves4_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (leaf_take_and_23) begin
-                    leaves5_wr <= leaves5_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (leaves5_wr_put) begin
+                    leaves5_wr <= leaves5_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base5_end_sent_and_3) begin
-                    leaves5_rd <= leaves5_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (leaves5_pop) begin
+                    leaves5_rd <= leaves5_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (leaf_take_and_27) begin
-                    leaves6_wr <= leaves6_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (leaves6_wr_put) begin
+                    leaves6_wr <= leaves6_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base6_end_sent_and_3) begin
-                    leaves6_rd <= leaves6_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (leaves6_pop) begin
+                    leaves6_rd <= leaves6_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (leaf_take_and_31) begin
-                    leaves7_wr <= leaves7_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (leaves7_wr_put) begin
+                    leaves7_wr <= leaves7_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base7_end_sent_and_3) begin
-                    leaves7_rd <= leaves7_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (leaves7_pop) begin
+                    leaves7_rd <= leaves7_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (leaf_take_and_35) begin
-                    leaves8_wr <= leaves8_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (leaves8_wr_put) begin
+                    leaves8_wr <= leaves8_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base8_end_sent_and_3) begin
-                    leaves8_rd <= leaves8_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (leaves8_pop) begin
+                    leaves8_rd <= leaves8_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (leaf_take_and_39) begin
-                    leaves9_wr <= leaves9_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (leaves9_wr_put) begin
+                    leaves9_wr <= leaves9_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base9_end_sent_and_3) begin
-                    leaves9_rd <= leaves9_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (leaves9_pop) begin
+                    leaves9_rd <= leaves9_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (leaf_take_and_43) begin
-                    leaves10_wr <= leaves10_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (leaves10_wr_put) begin
+                    leaves10_wr <= leaves10_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base10_end_sent_and_3) begin
-                    leaves10_rd <= leaves10_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (leaves10_pop) begin
+                    leaves10_rd <= leaves10_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (leaf_take_and_47) begin
-                    leaves11_wr <= leaves11_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (leaves11_wr_put) begin
+                    leaves11_wr <= leaves11_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base11_end_sent_and_3) begin
-                    leaves11_rd <= leaves11_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (leaves11_pop) begin
+                    leaves11_rd <= leaves11_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (leaf_take_and_51) begin
-                    leaves12_wr <= leaves12_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (leaves12_wr_put) begin
+                    leaves12_wr <= leaves12_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base12_end_sent_and_3) begin
-                    leaves12_rd <= leaves12_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (leaves12_pop) begin
+                    leaves12_rd <= leaves12_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (leaf_take_and_55) begin
-                    leaves13_wr <= leaves13_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (leaves13_wr_put) begin
+                    leaves13_wr <= leaves13_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base13_end_sent_and_3) begin
-                    leaves13_rd <= leaves13_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (leaves13_pop) begin
+                    leaves13_rd <= leaves13_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (leaf_take_and_59) begin
-                    leaves14_wr <= leaves14_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (leaves14_wr_put) begin
+                    leaves14_wr <= leaves14_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base14_end_sent_and_3) begin
-                    leaves14_rd <= leaves14_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (leaves14_pop) begin
+                    leaves14_rd <= leaves14_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (leaf_take_and_63) begin
-                    leaves15_wr <= leaves15_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (leaves15_wr_put) begin
+                    leaves15_wr <= leaves15_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base15_end_sent_and_3) begin
-                    leaves15_rd <= leaves15_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (leaves15_pop) begin
+                    leaves15_rd <= leaves15_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
             end
-            if (base1_end_sent_and_5) begin
-                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:383
+            if (base1_end_sent_and_1 & (base1_at_m ? out_is_end : (base1_above_m ? leaves1_end : 1'b1))) begin
+                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:382
             end else if (header_fire) begin
-                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:383
+                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:382
             end
-            if (base2_end_sent_and_5) begin
-                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:383
+            if (base2_end_sent_and_1 & (base2_at_m ? out_is_end : (base2_above_m ? leaves2_end : 1'b1))) begin
+                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:382
             end else if (header_fire) begin
-                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:383
+                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:382
             end
-            if (base3_end_sent_and_5) begin
-                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:383
+            if (base3_end_sent_and_1 & (base3_at_m ? out_is_end : (base3_above_m ? leaves3_end : 1'b1))) begin
+                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:382
             end else if (header_fire) begin
-                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:383
+                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:382
             end
-            if (base4_end_sent_and_5) begin
-                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:383
+            if (base4_end_sent_and_1 & (base4_at_m ? out_is_end : (base4_above_m ? leaves4_end : 1'b1))) begin
+                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:382
             end else if (header_fire) begin
-                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:383
+                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:382
             end
-            if (base5_end_sent_and_5) begin
-                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:383
+            if (base5_end_sent_and_1 & (base5_at_m ? out_is_end : (base5_above_m ? leaves5_end : 1'b1))) begin
+                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:382
             end else if (header_fire) begin
-                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:383
+                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:382
             end
-            if (base6_end_sent_and_5) begin
-                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:383
+            if (base6_end_sent_and_1 & (base6_at_m ? out_is_end : (base6_above_m ? leaves6_end : 1'b1))) begin
+                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:382
             end else if (header_fire) begin
-                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:383
+                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:382
             end
-            if (base7_end_sent_and_5) begin
-                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:383
+            if (base7_end_sent_and_1 & (base7_at_m ? out_is_end : (base7_above_m ? leaves7_end : 1'b1))) begin
+                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:382
             end else if (header_fire) begin
-                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:383
+                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:382
             end
-            if (base8_end_sent_and_5) begin
-                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:383
+            if (base8_end_sent_and_1 & (base8_at_m ? out_is_end : (base8_above_m ? leaves8_end : 1'b1))) begin
+                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:382
             end else if (header_fire) begin
-                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:383
+                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:382
             end
-            if (base9_end_sent_and_5) begin
-                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:383
+            if (base9_end_sent_and_1 & (base9_at_m ? out_is_end : (base9_above_m ? leaves9_end : 1'b1))) begin
+                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:382
             end else if (header_fire) begin
-                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:383
+                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:382
             end
-            if (base10_end_sent_and_5) begin
-                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:383
+            if (base10_end_sent_and_1 & (base10_at_m ? out_is_end : (base10_above_m ? leaves10_end : 1'b1))) begin
+                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:382
             end else if (header_fire) begin
-                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:383
+                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:382
             end
-            if (base11_end_sent_and_5) begin
-                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:383
+            if (base11_end_sent_and_1 & (base11_at_m ? out_is_end : (base11_above_m ? leaves11_end : 1'b1))) begin
+                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:382
             end else if (header_fire) begin
-                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:383
+                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:382
             end
-            if (base12_end_sent_and_5) begin
-                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:383
+            if (base12_end_sent_and_1 & (base12_at_m ? out_is_end : (base12_above_m ? leaves12_end : 1'b1))) begin
+                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:382
             end else if (header_fire) begin
-                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:383
+                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:382
             end
-            if (base13_end_sent_and_5) begin
-                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:383
+            if (base13_end_sent_and_1 & (base13_at_m ? out_is_end : (base13_above_m ? leaves13_end : 1'b1))) begin
+                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:382
             end else if (header_fire) begin
-                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:383
+                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:382
             end
-            if (base14_end_sent_and_5) begin
-                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:383
+            if (base14_end_sent_and_1 & (base14_at_m ? out_is_end : (base14_above_m ? leaves14_end : 1'b1))) begin
+                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:382
             end else if (header_fire) begin
-                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:383
+                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:382
             end
-            if (base15_end_sent_and_5) begin
-                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:383
+            if (base15_end_sent_and_1 & (base15_at_m ? out_is_end : (base15_above_m ? leaves15_end : 1'b1))) begin
+                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:382
             end else if (header_fire) begin
-                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:383
+                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:382
             end
-            if (base16_end_sent_and_2) begin
-                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:383
+            if ((base16_end_sent_and & u_builder_base16_ready) & (base16_at_m ? out_is_end : 1'b1)) begin
+                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:382
             end else if (header_fire) begin
-                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:383
+                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:382
             end
-            if (u_module_and_4) begin
-                count_overflow <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:401
+            if (((u_module_out_valid & merging_and) & (u_module_kind == 2'd0)) & u_module_err_1) begin
+                count_overflow <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end else if (header_fire) begin
-                count_overflow <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:401
+                count_overflow <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
             end
             done_pulse <= header_fire;
         end
@@ -3674,112 +2159,112 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
 
     // memory leaves0: 16 x 178 bits
     always @(posedge clk) begin
-        if (leaf_take_and_1) begin
+        if (leaves0_wr_put) begin
             leaves0[leaves0_wr[3:0]] <= leaf_best_data[177:0];
         end
     end
 
     // memory leaves1: 16 x 178 bits
     always @(posedge clk) begin
-        if (leaf_take_and_5) begin
+        if (leaves1_wr_put) begin
             leaves1[leaves1_wr[3:0]] <= leaf_best_data[177:0];
         end
     end
 
     // memory leaves2: 16 x 178 bits
     always @(posedge clk) begin
-        if (leaf_take_and_9) begin
+        if (leaves2_wr_put) begin
             leaves2[leaves2_wr[3:0]] <= leaf_best_data[177:0];
         end
     end
 
     // memory leaves3: 16 x 178 bits
     always @(posedge clk) begin
-        if (leaf_take_and_13) begin
+        if (leaves3_wr_put) begin
             leaves3[leaves3_wr[3:0]] <= leaf_best_data[177:0];
         end
     end
 
     // memory leaves4: 16 x 178 bits
     always @(posedge clk) begin
-        if (leaf_take_and_17) begin
+        if (leaves4_wr_put) begin
             leaves4[leaves4_wr[3:0]] <= leaf_best_data[177:0];
         end
     end
 
     // memory leaves5: 16 x 178 bits
     always @(posedge clk) begin
-        if (leaf_take_and_21) begin
+        if (leaves5_wr_put) begin
             leaves5[leaves5_wr[3:0]] <= leaf_best_data[177:0];
         end
     end
 
     // memory leaves6: 16 x 178 bits
     always @(posedge clk) begin
-        if (leaf_take_and_25) begin
+        if (leaves6_wr_put) begin
             leaves6[leaves6_wr[3:0]] <= leaf_best_data[177:0];
         end
     end
 
     // memory leaves7: 16 x 178 bits
     always @(posedge clk) begin
-        if (leaf_take_and_29) begin
+        if (leaves7_wr_put) begin
             leaves7[leaves7_wr[3:0]] <= leaf_best_data[177:0];
         end
     end
 
     // memory leaves8: 16 x 178 bits
     always @(posedge clk) begin
-        if (leaf_take_and_33) begin
+        if (leaves8_wr_put) begin
             leaves8[leaves8_wr[3:0]] <= leaf_best_data[177:0];
         end
     end
 
     // memory leaves9: 16 x 178 bits
     always @(posedge clk) begin
-        if (leaf_take_and_37) begin
+        if (leaves9_wr_put) begin
             leaves9[leaves9_wr[3:0]] <= leaf_best_data[177:0];
         end
     end
 
     // memory leaves10: 16 x 178 bits
     always @(posedge clk) begin
-        if (leaf_take_and_41) begin
+        if (leaves10_wr_put) begin
             leaves10[leaves10_wr[3:0]] <= leaf_best_data[177:0];
         end
     end
 
     // memory leaves11: 16 x 178 bits
     always @(posedge clk) begin
-        if (leaf_take_and_45) begin
+        if (leaves11_wr_put) begin
             leaves11[leaves11_wr[3:0]] <= leaf_best_data[177:0];
         end
     end
 
     // memory leaves12: 16 x 178 bits
     always @(posedge clk) begin
-        if (leaf_take_and_49) begin
+        if (leaves12_wr_put) begin
             leaves12[leaves12_wr[3:0]] <= leaf_best_data[177:0];
         end
     end
 
     // memory leaves13: 16 x 178 bits
     always @(posedge clk) begin
-        if (leaf_take_and_53) begin
+        if (leaves13_wr_put) begin
             leaves13[leaves13_wr[3:0]] <= leaf_best_data[177:0];
         end
     end
 
     // memory leaves14: 16 x 178 bits
     always @(posedge clk) begin
-        if (leaf_take_and_57) begin
+        if (leaves14_wr_put) begin
             leaves14[leaves14_wr[3:0]] <= leaf_best_data[177:0];
         end
     end
 
     // memory leaves15: 16 x 178 bits
     always @(posedge clk) begin
-        if (leaf_take_and_61) begin
+        if (leaves15_wr_put) begin
             leaves15[leaves15_wr[3:0]] <= leaf_best_data[177:0];
         end
     end

@@ -5,120 +5,120 @@
 module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     input  wire clk,                        // clock (implicit)
     input  wire rst,                        // synchronous reset, active high (implicit)
-    input  wire cfg_valid,                  // rtl-gen/src/merge/merger/mod.rs:184
-    input  wire [568:0] cfg_data,           // rtl-gen/src/merge/merger/mod.rs:184
-    output wire cfg_ready,                  // rtl-gen/src/merge/merger/mod.rs:184
+    input  wire cfg_valid,                  // rtl-gen/src/merge/merger/mod.rs:192
+    input  wire [568:0] cfg_data,           // rtl-gen/src/merge/merger/mod.rs:192
+    output wire cfg_ready,                  // rtl-gen/src/merge/merger/mod.rs:192
     input  wire report_ready,               // rtl-gen/src/merge/merger/per_node_mode.rs:132
     output wire report_valid,               // rtl-gen/src/merge/merger/per_node_mode.rs:133
     output wire [65:0] report_data,         // rtl-gen/src/merge/merger/per_node_mode.rs:134
-    input  wire f0_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [149:0] f0_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f0_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire f0_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [27:0] f0_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f0_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire f0_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [27:0] f0_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f0_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire f0_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [149:0] f0_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f0_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f0_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f0_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f0_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire f0_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f0_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f0_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:275
-    output wire f0_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f0_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f0_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire f0_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f0_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f0_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f1_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [149:0] f1_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f1_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire f1_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [27:0] f1_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f1_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire f1_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [27:0] f1_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f1_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire f1_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [149:0] f1_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f1_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f1_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f1_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f1_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire f1_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f1_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f1_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:275
-    output wire f1_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f1_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f1_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire f1_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f1_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f1_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f2_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [149:0] f2_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f2_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire f2_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [27:0] f2_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f2_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire f2_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [27:0] f2_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f2_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire f2_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [149:0] f2_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f2_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f2_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f2_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f2_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire f2_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f2_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f2_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:275
-    output wire f2_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f2_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f2_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire f2_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f2_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f2_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f3_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [149:0] f3_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f3_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire f3_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [27:0] f3_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f3_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire f3_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [27:0] f3_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f3_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire f3_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [149:0] f3_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f3_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:278
-    output wire f3_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f3_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f3_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire f3_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f3_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f3_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:275
-    output wire f3_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f3_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f3_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:275
-    output wire f3_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [23:0] f3_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire f3_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire w_ref_resp_valid,           // rtl-gen/src/merge/merger/mod.rs:278
-    input  wire [27:0] w_ref_resp_data,     // rtl-gen/src/merge/merger/mod.rs:278
-    output wire w_ref_resp_ready,           // rtl-gen/src/merge/merger/mod.rs:278
-    output wire w_ref_req_valid,            // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [27:0] w_ref_req_data,      // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire w_ref_req_ready,            // rtl-gen/src/merge/merger/mod.rs:275
-    output wire nodes_valid,                // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [149:0] nodes_data,         // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire nodes_ready,                // rtl-gen/src/merge/merger/mod.rs:275
-    output wire refs_valid,                 // rtl-gen/src/merge/merger/mod.rs:275
-    output wire [27:0] refs_data,           // rtl-gen/src/merge/merger/mod.rs:275
-    input  wire refs_ready,                 // rtl-gen/src/merge/merger/mod.rs:275
+    input  wire f0_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [149:0] f0_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f0_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire f0_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [27:0] f0_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f0_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire f0_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [27:0] f0_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f0_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire f0_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [149:0] f0_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f0_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f0_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f0_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f0_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire f0_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f0_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f0_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:283
+    output wire f0_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f0_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f0_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire f0_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f0_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f0_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f1_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [149:0] f1_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f1_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire f1_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [27:0] f1_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f1_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire f1_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [27:0] f1_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f1_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire f1_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [149:0] f1_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f1_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f1_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f1_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f1_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire f1_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f1_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f1_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:283
+    output wire f1_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f1_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f1_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire f1_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f1_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f1_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f2_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [149:0] f2_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f2_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire f2_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [27:0] f2_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f2_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire f2_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [27:0] f2_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f2_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire f2_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [149:0] f2_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f2_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f2_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f2_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f2_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire f2_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f2_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f2_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:283
+    output wire f2_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f2_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f2_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire f2_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f2_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f2_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f3_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [149:0] f3_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f3_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire f3_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [27:0] f3_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f3_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire f3_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [27:0] f3_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f3_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire f3_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [149:0] f3_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f3_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:286
+    output wire f3_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f3_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f3_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire f3_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f3_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f3_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:283
+    output wire f3_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f3_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f3_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:283
+    output wire f3_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [23:0] f3_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire f3_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire w_ref_resp_valid,           // rtl-gen/src/merge/merger/mod.rs:286
+    input  wire [27:0] w_ref_resp_data,     // rtl-gen/src/merge/merger/mod.rs:286
+    output wire w_ref_resp_ready,           // rtl-gen/src/merge/merger/mod.rs:286
+    output wire w_ref_req_valid,            // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [27:0] w_ref_req_data,      // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire w_ref_req_ready,            // rtl-gen/src/merge/merger/mod.rs:283
+    output wire nodes_valid,                // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [149:0] nodes_data,         // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire nodes_ready,                // rtl-gen/src/merge/merger/mod.rs:283
+    output wire refs_valid,                 // rtl-gen/src/merge/merger/mod.rs:283
+    output wire [27:0] refs_data,           // rtl-gen/src/merge/merger/mod.rs:283
+    input  wire refs_ready,                 // rtl-gen/src/merge/merger/mod.rs:283
     output wire w_filling,                  // rtl-gen/src/merge/merger/tail.rs:68
     output wire w_drain_records,            // rtl-gen/src/merge/merger/tail.rs:68
     output wire w_drain_refs,               // rtl-gen/src/merge/merger/tail.rs:68
@@ -146,282 +146,242 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     reg [179:0] base14_fifo [0:15];          // rtl-gen/src/merge/merger/drop_fifo.rs:21
     reg [179:0] base15_fifo [0:15];          // rtl-gen/src/merge/merger/drop_fifo.rs:21
     reg [179:0] base16_fifo [0:15];          // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    wire u_fetch0_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_report_ready;              // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch0_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch0_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch0_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire [184:0] u_fetch0_out_data;          // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:170
-    wire [183:0] u_fetch0_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch0_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch0_idle;                      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_report_ready;              // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch1_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch1_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch1_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire [184:0] u_fetch1_out_data;          // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:170
-    wire [183:0] u_fetch1_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch1_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch1_idle;                      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_report_ready;              // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch2_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch2_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch2_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire [184:0] u_fetch2_out_data;          // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:170
-    wire [183:0] u_fetch2_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch2_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch2_idle;                      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_report_ready;              // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch3_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch3_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch3_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:170
-    wire [184:0] u_fetch3_out_data;          // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:170
-    wire [183:0] u_fetch3_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:170
-    wire [23:0] u_fetch3_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_fetch3_idle;                      // rtl-gen/src/merge/merger/mod.rs:170
-    wire u_module_in0_ready;                 // rtl-gen/src/merge/merger/mod.rs:172
-    wire u_module_in1_ready;                 // rtl-gen/src/merge/merger/mod.rs:172
-    wire u_module_in2_ready;                 // rtl-gen/src/merge/merger/mod.rs:172
-    wire u_module_in3_ready;                 // rtl-gen/src/merge/merger/mod.rs:172
-    wire u_module_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:172
-    wire u_module_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:172
-    wire [180:0] u_module_out_data;          // rtl-gen/src/merge/merger/mod.rs:172
-    wire u_module_report_valid;              // rtl-gen/src/merge/merger/mod.rs:172
-    wire [65:0] u_module_report_data;        // rtl-gen/src/merge/merger/mod.rs:172
-    wire u_module_idle;                      // rtl-gen/src/merge/merger/mod.rs:172
-    wire u_module_done;                      // rtl-gen/src/merge/merger/mod.rs:172
-    wire u_builder_base0_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base1_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base2_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base3_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base4_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base5_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base6_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base7_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base8_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base9_ready;              // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base10_ready;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base11_ready;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base12_ready;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base13_ready;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base14_ready;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base15_ready;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_base16_ready;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level16_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level16_data;     // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level15_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level15_data;     // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level14_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level14_data;     // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level13_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level13_data;     // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level12_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level12_data;     // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level11_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level11_data;     // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level10_valid;            // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level10_data;     // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level9_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level9_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level8_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level8_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level7_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level7_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level6_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level6_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level5_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level5_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level4_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level4_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level3_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level3_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level2_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level2_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level1_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level1_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_level0_valid;             // rtl-gen/src/merge/merger/mod.rs:173
-    wire [228:0] u_builder_level0_data;      // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_builder_done_valid;               // rtl-gen/src/merge/merger/mod.rs:173
-    wire [5:0] u_builder_done_data;          // rtl-gen/src/merge/merger/mod.rs:173
-    wire u_writer_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_done_ready;                // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_crefs_ready;               // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level0_ready;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level1_ready;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level2_ready;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level3_ready;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level4_ready;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level5_ready;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level6_ready;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level7_ready;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level8_ready;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level9_ready;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level10_ready;             // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level11_ready;             // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level12_ready;             // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level13_ready;             // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level14_ready;             // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level15_ready;             // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_level16_ready;             // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_nodes_valid;               // rtl-gen/src/merge/merger/mod.rs:174
-    wire [149:0] u_writer_nodes_data;        // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_refs_valid;                // rtl-gen/src/merge/merger/mod.rs:174
-    wire [27:0] u_writer_refs_data;          // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:174
-    wire [27:0] u_writer_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_header_valid;              // rtl-gen/src/merge/merger/mod.rs:174
-    wire [86:0] u_writer_header_data;        // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_filling;                   // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_drain_records;             // rtl-gen/src/merge/merger/mod.rs:174
-    wire u_writer_drain_refs;                // rtl-gen/src/merge/merger/mod.rs:174
-    reg busy;                                // rtl-gen/src/merge/merger/mod.rs:176
-    reg dropping0;                           // rtl-gen/src/merge/merger/mod.rs:177
-    reg dropping1;                           // rtl-gen/src/merge/merger/mod.rs:177
-    reg dropping2;                           // rtl-gen/src/merge/merger/mod.rs:177
-    reg dropping3;                           // rtl-gen/src/merge/merger/mod.rs:177
-    wire header_fire;                        // rtl-gen/src/merge/merger/mod.rs:178
-    wire busy_not;                           // rtl-gen/src/merge/merger/mod.rs:179
-    wire busy_and;                           // rtl-gen/src/merge/merger/mod.rs:179
-    wire busy_and_1;                         // rtl-gen/src/merge/merger/mod.rs:181
-    wire dropping0_not;                      // rtl-gen/src/merge/merger/mod.rs:181
-    wire busy_and_2;                         // rtl-gen/src/merge/merger/mod.rs:181
-    wire busy_and_3;                         // rtl-gen/src/merge/merger/mod.rs:181
-    wire dropping1_not;                      // rtl-gen/src/merge/merger/mod.rs:181
-    wire busy_and_4;                         // rtl-gen/src/merge/merger/mod.rs:181
-    wire busy_and_5;                         // rtl-gen/src/merge/merger/mod.rs:181
-    wire dropping2_not;                      // rtl-gen/src/merge/merger/mod.rs:181
-    wire busy_and_6;                         // rtl-gen/src/merge/merger/mod.rs:181
-    wire busy_and_7;                         // rtl-gen/src/merge/merger/mod.rs:181
-    wire dropping3_not;                      // rtl-gen/src/merge/merger/mod.rs:181
-    wire quiet;                              // rtl-gen/src/merge/merger/mod.rs:181
-    wire cfg_fire;                           // rtl-gen/src/merge/merger/mod.rs:186
-    reg [568:0] cfg_q;                       // rtl-gen/src/merge/merger/mod.rs:187
-    wire [4:0] lo;                           // rtl-gen/src/merge/fields.rs:13
-    wire [4:0] hi;                           // rtl-gen/src/merge/fields.rs:13
-    wire cfg_data_gt;                        // rtl-gen/src/merge/merger/mod.rs:122
-    wire cfg_data_gt_1;                      // rtl-gen/src/merge/merger/mod.rs:126
-    wire cfg_data_or;                        // rtl-gen/src/merge/merger/mod.rs:126
-    wire good_in;                            // rtl-gen/src/merge/merger/mod.rs:126
-    wire hi_gt;                              // rtl-gen/src/merge/merger/mod.rs:122
-    wire lo_gt;                              // rtl-gen/src/merge/merger/mod.rs:126
-    wire lo_or;                              // rtl-gen/src/merge/merger/mod.rs:126
-    wire range_good;                         // rtl-gen/src/merge/merger/mod.rs:126
-    wire cfg_data_gt_2;                      // rtl-gen/src/merge/merger/per_node_mode.rs:42
-    wire cfg_data_gt_3;                      // rtl-gen/src/merge/merger/per_node_mode.rs:42
-    wire cfg_data_gt_4;                      // rtl-gen/src/merge/merger/per_node_mode.rs:42
-    wire cfg_data_gt_5;                      // rtl-gen/src/merge/merger/per_node_mode.rs:42
+    wire u_fetch0_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_report_ready;              // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch0_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch0_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch0_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire [184:0] u_fetch0_out_data;          // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:178
+    wire [183:0] u_fetch0_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch0_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch0_idle;                      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_report_ready;              // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch1_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch1_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch1_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire [184:0] u_fetch1_out_data;          // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:178
+    wire [183:0] u_fetch1_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch1_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch1_idle;                      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_report_ready;              // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch2_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch2_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch2_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire [184:0] u_fetch2_out_data;          // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:178
+    wire [183:0] u_fetch2_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch2_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch2_idle;                      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_report_ready;              // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch3_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch3_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch3_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:178
+    wire [184:0] u_fetch3_out_data;          // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:178
+    wire [183:0] u_fetch3_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:178
+    wire [23:0] u_fetch3_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_fetch3_idle;                      // rtl-gen/src/merge/merger/mod.rs:178
+    wire u_module_in0_ready;                 // rtl-gen/src/merge/merger/mod.rs:180
+    wire u_module_in1_ready;                 // rtl-gen/src/merge/merger/mod.rs:180
+    wire u_module_in2_ready;                 // rtl-gen/src/merge/merger/mod.rs:180
+    wire u_module_in3_ready;                 // rtl-gen/src/merge/merger/mod.rs:180
+    wire u_module_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:180
+    wire u_module_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:180
+    wire [180:0] u_module_out_data;          // rtl-gen/src/merge/merger/mod.rs:180
+    wire u_module_report_valid;              // rtl-gen/src/merge/merger/mod.rs:180
+    wire [65:0] u_module_report_data;        // rtl-gen/src/merge/merger/mod.rs:180
+    wire u_module_idle;                      // rtl-gen/src/merge/merger/mod.rs:180
+    wire u_module_done;                      // rtl-gen/src/merge/merger/mod.rs:180
+    wire u_builder_base0_ready;              // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base1_ready;              // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base2_ready;              // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base3_ready;              // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base4_ready;              // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base5_ready;              // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base6_ready;              // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base7_ready;              // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base8_ready;              // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base9_ready;              // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base10_ready;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base11_ready;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base12_ready;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base13_ready;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base14_ready;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base15_ready;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_base16_ready;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level16_valid;            // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level16_data;     // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level15_valid;            // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level15_data;     // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level14_valid;            // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level14_data;     // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level13_valid;            // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level13_data;     // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level12_valid;            // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level12_data;     // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level11_valid;            // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level11_data;     // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level10_valid;            // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level10_data;     // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level9_valid;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level9_data;      // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level8_valid;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level8_data;      // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level7_valid;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level7_data;      // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level6_valid;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level6_data;      // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level5_valid;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level5_data;      // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level4_valid;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level4_data;      // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level3_valid;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level3_data;      // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level2_valid;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level2_data;      // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level1_valid;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level1_data;      // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_level0_valid;             // rtl-gen/src/merge/merger/mod.rs:181
+    wire [228:0] u_builder_level0_data;      // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_builder_done_valid;               // rtl-gen/src/merge/merger/mod.rs:181
+    wire [5:0] u_builder_done_data;          // rtl-gen/src/merge/merger/mod.rs:181
+    wire u_writer_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_done_ready;                // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_crefs_ready;               // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level0_ready;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level1_ready;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level2_ready;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level3_ready;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level4_ready;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level5_ready;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level6_ready;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level7_ready;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level8_ready;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level9_ready;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level10_ready;             // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level11_ready;             // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level12_ready;             // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level13_ready;             // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level14_ready;             // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level15_ready;             // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_level16_ready;             // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_nodes_valid;               // rtl-gen/src/merge/merger/mod.rs:182
+    wire [149:0] u_writer_nodes_data;        // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_refs_valid;                // rtl-gen/src/merge/merger/mod.rs:182
+    wire [27:0] u_writer_refs_data;          // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:182
+    wire [27:0] u_writer_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_header_valid;              // rtl-gen/src/merge/merger/mod.rs:182
+    wire [86:0] u_writer_header_data;        // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_filling;                   // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_drain_records;             // rtl-gen/src/merge/merger/mod.rs:182
+    wire u_writer_drain_refs;                // rtl-gen/src/merge/merger/mod.rs:182
+    reg busy;                                // rtl-gen/src/merge/merger/mod.rs:184
+    reg dropping0;                           // rtl-gen/src/merge/merger/mod.rs:185
+    reg dropping1;                           // rtl-gen/src/merge/merger/mod.rs:185
+    reg dropping2;                           // rtl-gen/src/merge/merger/mod.rs:185
+    reg dropping3;                           // rtl-gen/src/merge/merger/mod.rs:185
+    wire header_fire;                        // rtl-gen/src/merge/merger/mod.rs:186
+    wire busy_not;                           // rtl-gen/src/merge/merger/mod.rs:187
+    wire dropping0_not;                      // rtl-gen/src/merge/merger/mod.rs:189
+    wire dropping1_not;                      // rtl-gen/src/merge/merger/mod.rs:189
+    wire dropping2_not;                      // rtl-gen/src/merge/merger/mod.rs:189
+    wire busy_and;                           // rtl-gen/src/merge/merger/mod.rs:189
+    wire dropping3_not;                      // rtl-gen/src/merge/merger/mod.rs:189
+    wire quiet;                              // rtl-gen/src/merge/merger/mod.rs:189
+    wire cfg_fire;                           // rtl-gen/src/merge/merger/mod.rs:194
+    reg [568:0] cfg_q;                       // rtl-gen/src/merge/merger/mod.rs:195
+    wire [2:0] cfg_data_count;               // rtl-gen/src/merge/merger/mod.rs:121
+    wire [2:0] cfg_q_count;                  // rtl-gen/src/merge/merger/mod.rs:121
+    wire [4:0] lo;                           // rtl-gen/src/merge/merger/mod.rs:121
+    wire [4:0] hi;                           // rtl-gen/src/merge/merger/mod.rs:121
+    wire [3:0] cfg_q_out_id;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire [4:0] cfg_data_lo;                  // rtl-gen/src/merge/merger/mod.rs:121
+    wire [4:0] cfg_data_hi;                  // rtl-gen/src/merge/merger/mod.rs:121
+    wire good_in;                            // rtl-gen/src/merge/merger/mod.rs:134
+    wire range_good;                         // rtl-gen/src/merge/merger/mod.rs:134
+    wire cfg_data_count_gt;                  // rtl-gen/src/merge/merger/per_node_mode.rs:42
+    wire cfg_data_count_gt_1;                // rtl-gen/src/merge/merger/per_node_mode.rs:42
+    wire cfg_data_count_gt_2;                // rtl-gen/src/merge/merger/per_node_mode.rs:42
+    wire cfg_data_count_gt_3;                // rtl-gen/src/merge/merger/per_node_mode.rs:42
     wire used0;                              // rtl-gen/src/merge/merger/per_node_mode.rs:44
     wire used1;                              // rtl-gen/src/merge/merger/per_node_mode.rs:44
     wire used2;                              // rtl-gen/src/merge/merger/per_node_mode.rs:44
     wire used3;                              // rtl-gen/src/merge/merger/per_node_mode.rs:44
     reg module_finished;                     // rtl-gen/src/merge/merger/per_node_mode.rs:49
-    wire busy_and_8;                         // rtl-gen/src/merge/merger/per_node_mode.rs:51
-    reg module_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:219
-    wire [9:0] hi_cat;                       // rtl-gen/src/merge/merger/mod.rs:223
-    wire module_cfg_pending_and;             // rtl-gen/src/merge/merger/mod.rs:225
-    reg writer_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:227
-    wire writer_cfg_pending_and;             // rtl-gen/src/merge/merger/mod.rs:233
+    reg module_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:227
+    reg writer_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:235
+    wire [15:0] u_module_x;                  // rtl-gen/src/merge/merger/mod.rs:121
+    wire [15:0] u_module_y;                  // rtl-gen/src/merge/merger/mod.rs:121
+    wire [15:0] u_module_z;                  // rtl-gen/src/merge/merger/mod.rs:121
+    wire [4:0] u_module_lod;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire u_module_descend;                   // rtl-gen/src/merge/merger/mod.rs:121
+    wire u_module_pass_end;                  // rtl-gen/src/merge/merger/mod.rs:121
+    wire u_module_more;                      // rtl-gen/src/merge/merger/mod.rs:121
     wire [55:0] report_narrow;               // rtl-gen/src/merge/merger/per_node_mode.rs:124
     reg report_top_taken;                    // rtl-gen/src/merge/merger/per_node_mode.rs:131
-    wire report_top_taken_not;               // rtl-gen/src/merge/merger/per_node_mode.rs:133
-    wire report_top_taken_or;                // rtl-gen/src/merge/merger/per_node_mode.rs:135
-    wire report_top_taken_not_1;             // rtl-gen/src/merge/merger/per_node_mode.rs:136
-    wire u_module_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:136
-    wire u_module_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:136
+    wire u_module_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:133
     reg report0_taken;                       // rtl-gen/src/merge/merger/per_node_mode.rs:138
-    wire busy_and_9;                         // rtl-gen/src/merge/merger/per_node_mode.rs:139
     wire report0_feeds;                      // rtl-gen/src/merge/merger/per_node_mode.rs:139
-    wire u_module_and_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:140
-    wire report0_taken_not;                  // rtl-gen/src/merge/merger/per_node_mode.rs:140
-    wire u_module_and_3;                     // rtl-gen/src/merge/merger/per_node_mode.rs:140
-    wire report0_feeds_not;                  // rtl-gen/src/merge/merger/per_node_mode.rs:144
-    wire report0_feeds_or;                   // rtl-gen/src/merge/merger/per_node_mode.rs:144
-    wire report0_feeds_or_1;                 // rtl-gen/src/merge/merger/per_node_mode.rs:144
-    wire report_top_taken_and;               // rtl-gen/src/merge/merger/per_node_mode.rs:144
-    wire u_module_and_4;                     // rtl-gen/src/merge/merger/per_node_mode.rs:145
+    wire u_module_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:140
     reg report1_taken;                       // rtl-gen/src/merge/merger/per_node_mode.rs:138
-    wire busy_and_10;                        // rtl-gen/src/merge/merger/per_node_mode.rs:139
     wire report1_feeds;                      // rtl-gen/src/merge/merger/per_node_mode.rs:139
-    wire u_module_and_5;                     // rtl-gen/src/merge/merger/per_node_mode.rs:140
-    wire report1_taken_not;                  // rtl-gen/src/merge/merger/per_node_mode.rs:140
-    wire u_module_and_6;                     // rtl-gen/src/merge/merger/per_node_mode.rs:140
-    wire report1_feeds_not;                  // rtl-gen/src/merge/merger/per_node_mode.rs:144
-    wire report1_feeds_or;                   // rtl-gen/src/merge/merger/per_node_mode.rs:144
-    wire report1_feeds_or_1;                 // rtl-gen/src/merge/merger/per_node_mode.rs:144
-    wire report_top_taken_and_1;             // rtl-gen/src/merge/merger/per_node_mode.rs:144
-    wire u_module_and_7;                     // rtl-gen/src/merge/merger/per_node_mode.rs:145
+    wire u_module_and_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:140
+    wire report_top_taken_and;               // rtl-gen/src/merge/merger/per_node_mode.rs:144
     reg report2_taken;                       // rtl-gen/src/merge/merger/per_node_mode.rs:138
-    wire busy_and_11;                        // rtl-gen/src/merge/merger/per_node_mode.rs:139
     wire report2_feeds;                      // rtl-gen/src/merge/merger/per_node_mode.rs:139
-    wire u_module_and_8;                     // rtl-gen/src/merge/merger/per_node_mode.rs:140
-    wire report2_taken_not;                  // rtl-gen/src/merge/merger/per_node_mode.rs:140
-    wire u_module_and_9;                     // rtl-gen/src/merge/merger/per_node_mode.rs:140
-    wire report2_feeds_not;                  // rtl-gen/src/merge/merger/per_node_mode.rs:144
-    wire report2_feeds_or;                   // rtl-gen/src/merge/merger/per_node_mode.rs:144
-    wire report2_feeds_or_1;                 // rtl-gen/src/merge/merger/per_node_mode.rs:144
-    wire report_top_taken_and_2;             // rtl-gen/src/merge/merger/per_node_mode.rs:144
-    wire u_module_and_10;                    // rtl-gen/src/merge/merger/per_node_mode.rs:145
+    wire u_module_and_3;                     // rtl-gen/src/merge/merger/per_node_mode.rs:140
     reg report3_taken;                       // rtl-gen/src/merge/merger/per_node_mode.rs:138
-    wire busy_and_12;                        // rtl-gen/src/merge/merger/per_node_mode.rs:139
     wire report3_feeds;                      // rtl-gen/src/merge/merger/per_node_mode.rs:139
-    wire u_module_and_11;                    // rtl-gen/src/merge/merger/per_node_mode.rs:140
-    wire report3_taken_not;                  // rtl-gen/src/merge/merger/per_node_mode.rs:140
-    wire u_module_and_12;                    // rtl-gen/src/merge/merger/per_node_mode.rs:140
-    wire report3_feeds_not;                  // rtl-gen/src/merge/merger/per_node_mode.rs:144
-    wire report3_feeds_or;                   // rtl-gen/src/merge/merger/per_node_mode.rs:144
-    wire report3_feeds_or_1;                 // rtl-gen/src/merge/merger/per_node_mode.rs:144
+    wire u_module_and_4;                     // rtl-gen/src/merge/merger/per_node_mode.rs:140
     wire report_all_took;                    // rtl-gen/src/merge/merger/per_node_mode.rs:144
-    wire u_module_and_13;                    // rtl-gen/src/merge/merger/per_node_mode.rs:145
     wire report_fire;                        // rtl-gen/src/merge/merger/per_node_mode.rs:149
-    wire report_fire_and;                    // rtl-gen/src/merge/merger/per_node_mode.rs:153
     wire next_pass;                          // rtl-gen/src/merge/merger/per_node_mode.rs:153
     reg [3:0] fetch_err;                     // rtl-gen/src/merge/merger/per_node_mode.rs:183
     reg [1:0] fetch_rank;                    // rtl-gen/src/merge/merger/per_node_mode.rs:184
@@ -429,988 +389,402 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire [179:0] const_cat;                  // rtl-gen/src/merge/merger/per_node_mode.rs:187
     wire [180:0] const_cat_1;                // rtl-gen/src/merge/merger/per_node_mode.rs:188
     reg fetch0_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:191
-    wire fetch0_cfg_pending_and;             // rtl-gen/src/merge/merger/per_node_mode.rs:195
     reg cmd0_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:200
     wire [13:0] range_good_cat;              // rtl-gen/src/merge/merger/per_node_mode.rs:201
     wire cmd0_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:215
-    wire u_fetch0_eq;                        // rtl-gen/src/merge/merger/per_node_mode.rs:226
-    wire [180:0] u_fetch0_cat;               // rtl-gen/src/merge/merger/per_node_mode.rs:227
+    wire [3:0] u_fetch0_err;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire [1:0] u_fetch0_kind;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire u_fetch0_probe;                     // rtl-gen/src/merge/merger/mod.rs:121
     reg end_owed0;                           // rtl-gen/src/merge/merger/per_node_mode.rs:235
     wire used0_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:236
     wire virtual_end0;                       // rtl-gen/src/merge/merger/per_node_mode.rs:236
-    wire dropping0_not_1;                    // rtl-gen/src/merge/merger/per_node_mode.rs:238
-    wire u_fetch0_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:238
-    wire used0_mux;                          // rtl-gen/src/merge/merger/per_node_mode.rs:238
-    wire [180:0] used0_mux_1;                // rtl-gen/src/merge/merger/per_node_mode.rs:239
-    wire used0_and;                          // rtl-gen/src/merge/merger/per_node_mode.rs:240
     wire dropping0_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:240
-    wire used0_and_1;                        // rtl-gen/src/merge/merger/per_node_mode.rs:241
-    wire dropping0_or_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:241
-    wire u_fetch0_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:241
-    wire virtual_end0_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:242
-    wire cfg_data_not;                       // rtl-gen/src/merge/merger/per_node_mode.rs:244
-    wire cfg_data_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:244
-    wire used0_not_1;                        // rtl-gen/src/merge/merger/per_node_mode.rs:247
-    wire next_pass_and;                      // rtl-gen/src/merge/merger/per_node_mode.rs:247
-    wire u_fetch0_ne;                        // rtl-gen/src/merge/merger/per_node_mode.rs:250
-    wire u_fetch0_and_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:250
-    wire header_fire_eq;                     // rtl-gen/src/merge/merger/per_node_mode.rs:250
-    wire u_fetch0_and_3;                     // rtl-gen/src/merge/merger/per_node_mode.rs:250
+    wire u_fetch0_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:241
+    wire u_fetch0_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:250
     wire [3:0] u_fetch0_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:251
     wire range_good_not;                     // rtl-gen/src/merge/merger/per_node_mode.rs:253
-    wire cmd0_pending_and_1;                 // rtl-gen/src/merge/merger/per_node_mode.rs:253
-    wire u_fetch0_and_4;                     // rtl-gen/src/merge/merger/per_node_mode.rs:254
-    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:272
-    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:272
-    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:272
-    wire f0_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:272
+    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
+    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:280
+    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
+    wire f0_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:280
     reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:191
-    wire fetch1_cfg_pending_and;             // rtl-gen/src/merge/merger/per_node_mode.rs:195
     reg cmd1_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:200
-    wire [13:0] range_good_cat_1;            // rtl-gen/src/merge/merger/per_node_mode.rs:201
     wire cmd1_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:215
-    wire u_fetch1_eq;                        // rtl-gen/src/merge/merger/per_node_mode.rs:226
-    wire [180:0] u_fetch1_cat;               // rtl-gen/src/merge/merger/per_node_mode.rs:227
+    wire [3:0] u_fetch1_err;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire [1:0] u_fetch1_kind;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire u_fetch1_probe;                     // rtl-gen/src/merge/merger/mod.rs:121
     reg end_owed1;                           // rtl-gen/src/merge/merger/per_node_mode.rs:235
     wire used1_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:236
     wire virtual_end1;                       // rtl-gen/src/merge/merger/per_node_mode.rs:236
-    wire dropping1_not_1;                    // rtl-gen/src/merge/merger/per_node_mode.rs:238
-    wire u_fetch1_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:238
-    wire used1_mux;                          // rtl-gen/src/merge/merger/per_node_mode.rs:238
-    wire [180:0] used1_mux_1;                // rtl-gen/src/merge/merger/per_node_mode.rs:239
-    wire used1_and;                          // rtl-gen/src/merge/merger/per_node_mode.rs:240
     wire dropping1_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:240
-    wire used1_and_1;                        // rtl-gen/src/merge/merger/per_node_mode.rs:241
-    wire dropping1_or_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:241
-    wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:241
-    wire virtual_end1_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:242
-    wire cfg_data_not_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:244
-    wire cfg_data_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:244
-    wire used1_not_1;                        // rtl-gen/src/merge/merger/per_node_mode.rs:247
-    wire next_pass_and_1;                    // rtl-gen/src/merge/merger/per_node_mode.rs:247
-    wire u_fetch1_ne;                        // rtl-gen/src/merge/merger/per_node_mode.rs:250
-    wire u_fetch1_and_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:250
-    wire u_fetch0_eq_1;                      // rtl-gen/src/merge/merger/per_node_mode.rs:250
-    wire u_fetch1_and_3;                     // rtl-gen/src/merge/merger/per_node_mode.rs:250
+    wire u_fetch1_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:241
+    wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:250
     wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:251
-    wire range_good_not_1;                   // rtl-gen/src/merge/merger/per_node_mode.rs:253
-    wire cmd1_pending_and_1;                 // rtl-gen/src/merge/merger/per_node_mode.rs:253
-    wire u_fetch1_and_4;                     // rtl-gen/src/merge/merger/per_node_mode.rs:254
-    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:272
-    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:272
-    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:272
-    wire f1_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:272
+    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
+    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:280
+    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
+    wire f1_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:280
     reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:191
-    wire fetch2_cfg_pending_and;             // rtl-gen/src/merge/merger/per_node_mode.rs:195
     reg cmd2_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:200
-    wire [13:0] range_good_cat_2;            // rtl-gen/src/merge/merger/per_node_mode.rs:201
     wire cmd2_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:215
-    wire u_fetch2_eq;                        // rtl-gen/src/merge/merger/per_node_mode.rs:226
-    wire [180:0] u_fetch2_cat;               // rtl-gen/src/merge/merger/per_node_mode.rs:227
+    wire [3:0] u_fetch2_err;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire [1:0] u_fetch2_kind;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire u_fetch2_probe;                     // rtl-gen/src/merge/merger/mod.rs:121
     reg end_owed2;                           // rtl-gen/src/merge/merger/per_node_mode.rs:235
     wire used2_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:236
     wire virtual_end2;                       // rtl-gen/src/merge/merger/per_node_mode.rs:236
-    wire dropping2_not_1;                    // rtl-gen/src/merge/merger/per_node_mode.rs:238
-    wire u_fetch2_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:238
-    wire used2_mux;                          // rtl-gen/src/merge/merger/per_node_mode.rs:238
-    wire [180:0] used2_mux_1;                // rtl-gen/src/merge/merger/per_node_mode.rs:239
-    wire used2_and;                          // rtl-gen/src/merge/merger/per_node_mode.rs:240
     wire dropping2_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:240
-    wire used2_and_1;                        // rtl-gen/src/merge/merger/per_node_mode.rs:241
-    wire dropping2_or_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:241
-    wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:241
-    wire virtual_end2_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:242
-    wire cfg_data_not_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:244
-    wire cfg_data_and_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:244
-    wire used2_not_1;                        // rtl-gen/src/merge/merger/per_node_mode.rs:247
-    wire next_pass_and_2;                    // rtl-gen/src/merge/merger/per_node_mode.rs:247
-    wire u_fetch2_ne;                        // rtl-gen/src/merge/merger/per_node_mode.rs:250
-    wire u_fetch2_and_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:250
-    wire u_fetch1_eq_1;                      // rtl-gen/src/merge/merger/per_node_mode.rs:250
-    wire u_fetch2_and_3;                     // rtl-gen/src/merge/merger/per_node_mode.rs:250
+    wire u_fetch2_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:241
+    wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:250
     wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:251
-    wire range_good_not_2;                   // rtl-gen/src/merge/merger/per_node_mode.rs:253
-    wire cmd2_pending_and_1;                 // rtl-gen/src/merge/merger/per_node_mode.rs:253
-    wire u_fetch2_and_4;                     // rtl-gen/src/merge/merger/per_node_mode.rs:254
-    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:272
-    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:272
-    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:272
-    wire f2_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:272
+    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
+    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:280
+    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
+    wire f2_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:280
     reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:191
-    wire fetch3_cfg_pending_and;             // rtl-gen/src/merge/merger/per_node_mode.rs:195
     reg cmd3_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:200
-    wire [13:0] range_good_cat_3;            // rtl-gen/src/merge/merger/per_node_mode.rs:201
     wire cmd3_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:215
-    wire u_fetch3_eq;                        // rtl-gen/src/merge/merger/per_node_mode.rs:226
-    wire [180:0] u_fetch3_cat;               // rtl-gen/src/merge/merger/per_node_mode.rs:227
+    wire [3:0] u_fetch3_err;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire [1:0] u_fetch3_kind;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire u_fetch3_probe;                     // rtl-gen/src/merge/merger/mod.rs:121
     reg end_owed3;                           // rtl-gen/src/merge/merger/per_node_mode.rs:235
     wire used3_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:236
     wire virtual_end3;                       // rtl-gen/src/merge/merger/per_node_mode.rs:236
-    wire dropping3_not_1;                    // rtl-gen/src/merge/merger/per_node_mode.rs:238
-    wire u_fetch3_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:238
-    wire used3_mux;                          // rtl-gen/src/merge/merger/per_node_mode.rs:238
-    wire [180:0] used3_mux_1;                // rtl-gen/src/merge/merger/per_node_mode.rs:239
-    wire used3_and;                          // rtl-gen/src/merge/merger/per_node_mode.rs:240
     wire dropping3_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:240
-    wire used3_and_1;                        // rtl-gen/src/merge/merger/per_node_mode.rs:241
-    wire dropping3_or_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:241
-    wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:241
-    wire virtual_end3_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:242
-    wire cfg_data_not_3;                     // rtl-gen/src/merge/merger/per_node_mode.rs:244
-    wire cfg_data_and_3;                     // rtl-gen/src/merge/merger/per_node_mode.rs:244
-    wire used3_not_1;                        // rtl-gen/src/merge/merger/per_node_mode.rs:247
-    wire next_pass_and_3;                    // rtl-gen/src/merge/merger/per_node_mode.rs:247
-    wire u_fetch3_ne;                        // rtl-gen/src/merge/merger/per_node_mode.rs:250
-    wire u_fetch3_and_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:250
-    wire u_fetch2_eq_1;                      // rtl-gen/src/merge/merger/per_node_mode.rs:250
-    wire u_fetch3_and_3;                     // rtl-gen/src/merge/merger/per_node_mode.rs:250
-    wire [3:0] fetch_err_next;               // rtl-gen/src/merge/merger/per_node_mode.rs:251
-    wire range_good_not_3;                   // rtl-gen/src/merge/merger/per_node_mode.rs:253
-    wire cmd3_pending_and_1;                 // rtl-gen/src/merge/merger/per_node_mode.rs:253
-    wire u_fetch3_and_4;                     // rtl-gen/src/merge/merger/per_node_mode.rs:254
-    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:272
-    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:272
-    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:272
-    wire f3_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:272
+    wire u_fetch3_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:241
+    wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:250
+    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
+    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:280
+    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
+    wire f3_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:280
     reg leaves_done;                         // rtl-gen/src/merge/merger/leaf_merge.rs:46
-    wire leaves_done_not;                    // rtl-gen/src/merge/merger/leaf_merge.rs:47
     wire leaves_active;                      // rtl-gen/src/merge/merger/leaf_merge.rs:47
-    wire used0_not_2;                        // rtl-gen/src/merge/merger/leaf_merge.rs:57
+    wire u_fetch0_end;                       // rtl-gen/src/merge/merger/mod.rs:121
     wire used0_or;                           // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire [47:0] u_fetch0_cat_1;              // rtl-gen/src/merge/network.rs:39
+    wire [4:0] u_fetch0_lod;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire [47:0] u_fetch0_rec_x_morton;       // rtl-gen/src/merge/network.rs:39
     wire [53:0] leaf_key0;                   // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire used0_not_3;                        // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire used0_or_1;                         // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire leaves_active_and;                  // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire used0_not_4;                        // rtl-gen/src/merge/merger/leaf_merge.rs:60
-    wire used0_or_2;                         // rtl-gen/src/merge/merger/leaf_merge.rs:60
-    wire used0_and_2;                        // rtl-gen/src/merge/merger/leaf_merge.rs:60
-    wire used1_not_2;                        // rtl-gen/src/merge/merger/leaf_merge.rs:57
+    wire u_fetch1_end;                       // rtl-gen/src/merge/merger/mod.rs:121
     wire used1_or;                           // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire [47:0] u_fetch1_cat_1;              // rtl-gen/src/merge/network.rs:39
+    wire [4:0] u_fetch1_lod;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire [47:0] u_fetch1_rec_x_morton;       // rtl-gen/src/merge/network.rs:39
     wire [53:0] leaf_key1;                   // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire used1_not_3;                        // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire used1_or_1;                         // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire leaves_active_and_1;                // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire used1_not_4;                        // rtl-gen/src/merge/merger/leaf_merge.rs:60
-    wire used1_or_2;                         // rtl-gen/src/merge/merger/leaf_merge.rs:60
-    wire used0_and_3;                        // rtl-gen/src/merge/merger/leaf_merge.rs:60
-    wire used2_not_2;                        // rtl-gen/src/merge/merger/leaf_merge.rs:57
+    wire u_fetch2_end;                       // rtl-gen/src/merge/merger/mod.rs:121
     wire used2_or;                           // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire [47:0] u_fetch2_cat_1;              // rtl-gen/src/merge/network.rs:39
+    wire [4:0] u_fetch2_lod;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire [47:0] u_fetch2_rec_x_morton;       // rtl-gen/src/merge/network.rs:39
     wire [53:0] leaf_key2;                   // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire used2_not_3;                        // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire used2_or_1;                         // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire leaves_active_and_2;                // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire used2_not_4;                        // rtl-gen/src/merge/merger/leaf_merge.rs:60
-    wire used2_or_2;                         // rtl-gen/src/merge/merger/leaf_merge.rs:60
-    wire used0_and_4;                        // rtl-gen/src/merge/merger/leaf_merge.rs:60
-    wire used3_not_2;                        // rtl-gen/src/merge/merger/leaf_merge.rs:57
+    wire u_fetch3_end;                       // rtl-gen/src/merge/merger/mod.rs:121
     wire used3_or;                           // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire [47:0] u_fetch3_cat_1;              // rtl-gen/src/merge/network.rs:39
+    wire [4:0] u_fetch3_lod;                 // rtl-gen/src/merge/merger/mod.rs:121
+    wire [47:0] u_fetch3_rec_x_morton;       // rtl-gen/src/merge/network.rs:39
     wire [53:0] leaf_key3;                   // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire used3_not_3;                        // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire used3_or_1;                         // rtl-gen/src/merge/merger/leaf_merge.rs:59
     wire leaves_all_valid;                   // rtl-gen/src/merge/merger/leaf_merge.rs:59
-    wire used3_not_4;                        // rtl-gen/src/merge/merger/leaf_merge.rs:60
-    wire used3_or_2;                         // rtl-gen/src/merge/merger/leaf_merge.rs:60
     wire leaves_all_end;                     // rtl-gen/src/merge/merger/leaf_merge.rs:60
     wire leaf_key1_lt;                       // rtl-gen/src/merge/merger/leaf_merge.rs:71
     wire [53:0] leaf_key1_mux;               // rtl-gen/src/merge/merger/leaf_merge.rs:73
-    wire [182:0] leaf_key1_mux_1;            // rtl-gen/src/merge/merger/leaf_merge.rs:75
-    wire [1:0] leaf_key1_mux_2;              // rtl-gen/src/merge/merger/leaf_merge.rs:76
     wire leaf_key2_lt;                       // rtl-gen/src/merge/merger/leaf_merge.rs:71
-    wire [53:0] leaf_key2_mux;               // rtl-gen/src/merge/merger/leaf_merge.rs:73
-    wire [182:0] leaf_key2_mux_1;            // rtl-gen/src/merge/merger/leaf_merge.rs:75
-    wire [1:0] leaf_key2_mux_2;              // rtl-gen/src/merge/merger/leaf_merge.rs:76
     wire leaf_key3_lt;                       // rtl-gen/src/merge/merger/leaf_merge.rs:71
     wire [182:0] leaf_best_data;             // rtl-gen/src/merge/merger/leaf_merge.rs:75
     wire [1:0] leaf_best;                    // rtl-gen/src/merge/merger/leaf_merge.rs:76
-    wire leaves_all_end_not;                 // rtl-gen/src/merge/merger/leaf_merge.rs:80
     wire leaf_take;                          // rtl-gen/src/merge/merger/leaf_merge.rs:80
-    wire used0_and_5;                        // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire leaf_best_eq;                       // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire leaves_all_end_or;                  // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire used0_and_6;                        // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire used1_and_2;                        // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire leaf_best_eq_1;                     // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire leaves_all_end_or_1;                // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire used1_and_3;                        // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire used2_and_2;                        // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire leaf_best_eq_2;                     // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire leaves_all_end_or_2;                // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire used2_and_3;                        // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire used3_and_2;                        // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire leaf_best_eq_3;                     // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire leaves_all_end_or_3;                // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire used3_and_3;                        // rtl-gen/src/merge/merger/leaf_merge.rs:84
-    wire leaves_all_valid_and;               // rtl-gen/src/merge/merger/leaf_merge.rs:87
-    wire [179:0] const_cat_2;                // rtl-gen/src/merge/merger/per_node_mode.rs:306
-    wire [179:0] const_cat_3;                // rtl-gen/src/merge/merger/per_node_mode.rs:308
+    wire [4:0] leaf_best_data_lod;           // rtl-gen/src/merge/merger/mod.rs:121
+    wire [149:0] leaf_best_data_rec;         // rtl-gen/src/merge/merger/mod.rs:121
+    wire [27:0] leaf_best_data_ref;          // rtl-gen/src/merge/merger/mod.rs:121
+    wire [179:0] const_cat_2;                // rtl-gen/src/merge/merger/per_node_mode.rs:308
+    wire [1:0] u_module_kind;                // rtl-gen/src/merge/merger/mod.rs:121
     wire out_is_ref;                         // rtl-gen/src/merge/merger/per_node_mode.rs:321
     wire out_is_end;                         // rtl-gen/src/merge/merger/per_node_mode.rs:322
-    wire [179:0] u_module_cat;               // rtl-gen/src/merge/merger/per_node_mode.rs:327
-    wire out_is_ref_not;                     // rtl-gen/src/merge/merger/per_node_mode.rs:336
-    wire u_module_and_14;                    // rtl-gen/src/merge/merger/per_node_mode.rs:336
-    wire out_is_end_not;                     // rtl-gen/src/merge/merger/per_node_mode.rs:336
+    wire u_module_err;                       // rtl-gen/src/merge/merger/mod.rs:121
+    wire [27:0] u_module_ref;                // rtl-gen/src/merge/merger/mod.rs:121
+    wire [149:0] u_module_rec;               // rtl-gen/src/merge/merger/mod.rs:121
+    wire [4:0] u_module_rec_lod;             // rtl-gen/src/merge/merger/per_node_mode.rs:326
+    wire [179:0] u_module_kind_cat;          // rtl-gen/src/merge/merger/per_node_mode.rs:327
     wire out_is_node;                        // rtl-gen/src/merge/merger/per_node_mode.rs:336
     reg crefs_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:340
     wire cref_is_ref;                        // rtl-gen/src/merge/merger/per_node_mode.rs:342
     wire crefs_end_sent_not;                 // rtl-gen/src/merge/merger/per_node_mode.rs:343
     wire crefs_end_sent_and;                 // rtl-gen/src/merge/merger/per_node_mode.rs:343
-    wire cref_is_ref_or;                     // rtl-gen/src/merge/merger/per_node_mode.rs:343
-    wire crefs_end_sent_and_1;               // rtl-gen/src/merge/merger/per_node_mode.rs:343
-    wire [27:0] cref_is_ref_mux;             // rtl-gen/src/merge/merger/per_node_mode.rs:348
     wire cref_is_ref_not;                    // rtl-gen/src/merge/merger/per_node_mode.rs:349
-    wire [28:0] cref_is_ref_cat;             // rtl-gen/src/merge/merger/per_node_mode.rs:344
-    wire crefs_end_sent_and_2;               // rtl-gen/src/merge/merger/per_node_mode.rs:354
-    wire cref_is_ref_not_1;                  // rtl-gen/src/merge/merger/per_node_mode.rs:355
-    wire crefs_end_sent_and_3;               // rtl-gen/src/merge/merger/per_node_mode.rs:355
-    wire crefs_end_sent_not_1;               // rtl-gen/src/merge/merger/per_node_mode.rs:356
-    wire u_writer_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:356
     wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/per_node_mode.rs:356
     reg count_overflow;                      // rtl-gen/src/merge/merger/per_node_mode.rs:358
-    wire u_module_eq;                        // rtl-gen/src/merge/merger/per_node_mode.rs:359
-    wire u_module_and_15;                    // rtl-gen/src/merge/merger/per_node_mode.rs:361
-    wire u_module_and_16;                    // rtl-gen/src/merge/merger/per_node_mode.rs:361
-    wire u_module_and_17;                    // rtl-gen/src/merge/merger/per_node_mode.rs:361
     reg leaf_overflow_q;                     // rtl-gen/src/merge/merger/per_node_mode.rs:367
-    wire busy_and_13;                        // rtl-gen/src/merge/merger/per_node_mode.rs:369
-    wire range_good_not_4;                   // rtl-gen/src/merge/merger/per_node_mode.rs:369
-    wire range_good_or;                      // rtl-gen/src/merge/merger/per_node_mode.rs:369
     wire base_open;                          // rtl-gen/src/merge/merger/per_node_mode.rs:369
     reg base0_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:372
     reg [4:0] base0_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base0_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base0_wr_eq;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base0_wr_eq_1;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base0_wr_eq_2;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base0_wr_not;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base0_wr_and;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire base0_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire base0_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
     wire lo_lt;                              // rtl-gen/src/merge/merger/per_node_mode.rs:382
-    wire leaf_best_data_eq;                  // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and;                      // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_1;                    // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire u_module_eq_1;                      // rtl-gen/src/merge/merger/per_node_mode.rs:384
     wire out_is_node_and;                    // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire lo_not;                             // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_1;                  // rtl-gen/src/merge/merger/per_node_mode.rs:384
     wire base0_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:385
-    wire [179:0] out_is_node_mux;            // rtl-gen/src/merge/merger/per_node_mode.rs:386
-    wire base0_wr_not_1;                     // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base0_push_and;                     // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base0_push_and_1;                   // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire [179:0] base0_fifo_rd;              // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire base0_wr_not_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:389
+    wire base0_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire range_good_and;                     // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base0_end_sent_not;                 // rtl-gen/src/merge/merger/per_node_mode.rs:390
     wire base_open_and;                      // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire [179:0] range_good_mux;             // rtl-gen/src/merge/merger/per_node_mode.rs:391
     wire base_open_and_1;                    // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_2;                    // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire range_good_not_5;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base_open_and_3;                    // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base0_wr_not_3;                     // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire base0_push_and_2;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base0_wr_add;                 // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base0_rd_add;                 // rtl-gen/src/merge/merger/drop_fifo.rs:54
     reg base1_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:372
     reg [4:0] base1_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base1_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base1_wr_eq;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base1_wr_eq_1;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base1_wr_eq_2;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base1_wr_not;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base1_wr_and;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire base1_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire base1_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
     wire lo_lt_1;                            // rtl-gen/src/merge/merger/per_node_mode.rs:382
-    wire leaf_best_data_eq_1;                // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_2;                    // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_3;                    // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire u_module_eq_2;                      // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_2;                  // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire lo_not_1;                           // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_3;                  // rtl-gen/src/merge/merger/per_node_mode.rs:384
+    wire out_is_node_and_1;                  // rtl-gen/src/merge/merger/per_node_mode.rs:384
     wire base1_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:385
-    wire [179:0] out_is_node_mux_1;          // rtl-gen/src/merge/merger/per_node_mode.rs:386
-    wire base1_wr_not_1;                     // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base1_push_and;                     // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base1_push_and_1;                   // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire [179:0] base1_fifo_rd;              // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire base1_wr_not_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:389
+    wire base1_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire range_good_and_1;                   // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base1_end_sent_not;                 // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire base_open_and_4;                    // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire [179:0] range_good_mux_1;           // rtl-gen/src/merge/merger/per_node_mode.rs:391
-    wire base_open_and_5;                    // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_6;                    // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire range_good_not_6;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base_open_and_7;                    // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base1_wr_not_3;                     // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire base1_push_and_2;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base1_wr_add;                 // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base1_rd_add;                 // rtl-gen/src/merge/merger/drop_fifo.rs:54
+    wire base_open_and_2;                    // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base_open_and_3;                    // rtl-gen/src/merge/merger/per_node_mode.rs:394
     reg base2_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:372
     reg [4:0] base2_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base2_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base2_wr_eq;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base2_wr_eq_1;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base2_wr_eq_2;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base2_wr_not;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base2_wr_and;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire base2_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire base2_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
     wire lo_lt_2;                            // rtl-gen/src/merge/merger/per_node_mode.rs:382
-    wire leaf_best_data_eq_2;                // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_4;                    // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_5;                    // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire u_module_eq_3;                      // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_4;                  // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire lo_not_2;                           // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_5;                  // rtl-gen/src/merge/merger/per_node_mode.rs:384
+    wire out_is_node_and_2;                  // rtl-gen/src/merge/merger/per_node_mode.rs:384
     wire base2_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:385
-    wire [179:0] out_is_node_mux_2;          // rtl-gen/src/merge/merger/per_node_mode.rs:386
-    wire base2_wr_not_1;                     // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base2_push_and;                     // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base2_push_and_1;                   // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire [179:0] base2_fifo_rd;              // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire base2_wr_not_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:389
+    wire base2_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire range_good_and_2;                   // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base2_end_sent_not;                 // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire base_open_and_8;                    // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire [179:0] range_good_mux_2;           // rtl-gen/src/merge/merger/per_node_mode.rs:391
-    wire base_open_and_9;                    // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_10;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire range_good_not_7;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base_open_and_11;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base2_wr_not_3;                     // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire base2_push_and_2;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base2_wr_add;                 // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base2_rd_add;                 // rtl-gen/src/merge/merger/drop_fifo.rs:54
+    wire base_open_and_4;                    // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base_open_and_5;                    // rtl-gen/src/merge/merger/per_node_mode.rs:394
     reg base3_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:372
     reg [4:0] base3_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base3_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base3_wr_eq;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base3_wr_eq_1;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base3_wr_eq_2;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base3_wr_not;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base3_wr_and;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire base3_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire base3_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
     wire lo_lt_3;                            // rtl-gen/src/merge/merger/per_node_mode.rs:382
-    wire leaf_best_data_eq_3;                // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_6;                    // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_7;                    // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire u_module_eq_4;                      // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_6;                  // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire lo_not_3;                           // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_7;                  // rtl-gen/src/merge/merger/per_node_mode.rs:384
+    wire out_is_node_and_3;                  // rtl-gen/src/merge/merger/per_node_mode.rs:384
     wire base3_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:385
-    wire [179:0] out_is_node_mux_3;          // rtl-gen/src/merge/merger/per_node_mode.rs:386
-    wire base3_wr_not_1;                     // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base3_push_and;                     // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base3_push_and_1;                   // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire [179:0] base3_fifo_rd;              // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire base3_wr_not_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:389
+    wire base3_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire range_good_and_3;                   // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base3_end_sent_not;                 // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire base_open_and_12;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire [179:0] range_good_mux_3;           // rtl-gen/src/merge/merger/per_node_mode.rs:391
-    wire base_open_and_13;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_14;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire range_good_not_8;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base_open_and_15;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base3_wr_not_3;                     // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire base3_push_and_2;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base3_wr_add;                 // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base3_rd_add;                 // rtl-gen/src/merge/merger/drop_fifo.rs:54
+    wire base_open_and_6;                    // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base_open_and_7;                    // rtl-gen/src/merge/merger/per_node_mode.rs:394
     reg base4_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:372
     reg [4:0] base4_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base4_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base4_wr_eq;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base4_wr_eq_1;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base4_wr_eq_2;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base4_wr_not;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base4_wr_and;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire base4_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire base4_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
     wire lo_lt_4;                            // rtl-gen/src/merge/merger/per_node_mode.rs:382
-    wire leaf_best_data_eq_4;                // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_8;                    // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_9;                    // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire u_module_eq_5;                      // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_8;                  // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire lo_not_4;                           // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_9;                  // rtl-gen/src/merge/merger/per_node_mode.rs:384
+    wire out_is_node_and_4;                  // rtl-gen/src/merge/merger/per_node_mode.rs:384
     wire base4_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:385
-    wire [179:0] out_is_node_mux_4;          // rtl-gen/src/merge/merger/per_node_mode.rs:386
-    wire base4_wr_not_1;                     // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base4_push_and;                     // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base4_push_and_1;                   // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire [179:0] base4_fifo_rd;              // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire base4_wr_not_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:389
+    wire base4_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire range_good_and_4;                   // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base4_end_sent_not;                 // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire base_open_and_16;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire [179:0] range_good_mux_4;           // rtl-gen/src/merge/merger/per_node_mode.rs:391
-    wire base_open_and_17;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_18;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire range_good_not_9;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base_open_and_19;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base4_wr_not_3;                     // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire base4_push_and_2;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base4_wr_add;                 // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base4_rd_add;                 // rtl-gen/src/merge/merger/drop_fifo.rs:54
+    wire base_open_and_8;                    // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base_open_and_9;                    // rtl-gen/src/merge/merger/per_node_mode.rs:394
     reg base5_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:372
     reg [4:0] base5_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base5_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base5_wr_eq;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base5_wr_eq_1;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base5_wr_eq_2;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base5_wr_not;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base5_wr_and;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire base5_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire base5_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
     wire lo_lt_5;                            // rtl-gen/src/merge/merger/per_node_mode.rs:382
-    wire leaf_best_data_eq_5;                // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_10;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_11;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire u_module_eq_6;                      // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_10;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire lo_not_5;                           // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_11;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
+    wire out_is_node_and_5;                  // rtl-gen/src/merge/merger/per_node_mode.rs:384
     wire base5_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:385
-    wire [179:0] out_is_node_mux_5;          // rtl-gen/src/merge/merger/per_node_mode.rs:386
-    wire base5_wr_not_1;                     // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base5_push_and;                     // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base5_push_and_1;                   // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire [179:0] base5_fifo_rd;              // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire base5_wr_not_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:389
+    wire base5_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire range_good_and_5;                   // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base5_end_sent_not;                 // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire base_open_and_20;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire [179:0] range_good_mux_5;           // rtl-gen/src/merge/merger/per_node_mode.rs:391
-    wire base_open_and_21;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_22;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire range_good_not_10;                  // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base_open_and_23;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base5_wr_not_3;                     // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire base5_push_and_2;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base5_wr_add;                 // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base5_rd_add;                 // rtl-gen/src/merge/merger/drop_fifo.rs:54
+    wire base_open_and_10;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base_open_and_11;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
     reg base6_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:372
     reg [4:0] base6_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base6_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base6_wr_eq;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base6_wr_eq_1;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base6_wr_eq_2;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base6_wr_not;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base6_wr_and;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire base6_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire base6_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
     wire lo_lt_6;                            // rtl-gen/src/merge/merger/per_node_mode.rs:382
-    wire leaf_best_data_eq_6;                // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_12;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_13;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire u_module_eq_7;                      // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_12;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire lo_not_6;                           // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_13;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
+    wire out_is_node_and_6;                  // rtl-gen/src/merge/merger/per_node_mode.rs:384
     wire base6_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:385
-    wire [179:0] out_is_node_mux_6;          // rtl-gen/src/merge/merger/per_node_mode.rs:386
-    wire base6_wr_not_1;                     // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base6_push_and;                     // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base6_push_and_1;                   // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire [179:0] base6_fifo_rd;              // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire base6_wr_not_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:389
+    wire base6_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire range_good_and_6;                   // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base6_end_sent_not;                 // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire base_open_and_24;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire [179:0] range_good_mux_6;           // rtl-gen/src/merge/merger/per_node_mode.rs:391
-    wire base_open_and_25;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_26;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire range_good_not_11;                  // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base_open_and_27;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base6_wr_not_3;                     // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire base6_push_and_2;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base6_wr_add;                 // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base6_rd_add;                 // rtl-gen/src/merge/merger/drop_fifo.rs:54
+    wire base_open_and_12;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base_open_and_13;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
     reg base7_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:372
     reg [4:0] base7_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base7_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base7_wr_eq;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base7_wr_eq_1;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base7_wr_eq_2;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base7_wr_not;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base7_wr_and;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire base7_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire base7_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
     wire lo_lt_7;                            // rtl-gen/src/merge/merger/per_node_mode.rs:382
-    wire leaf_best_data_eq_7;                // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_14;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_15;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire u_module_eq_8;                      // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_14;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire lo_not_7;                           // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_15;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
+    wire out_is_node_and_7;                  // rtl-gen/src/merge/merger/per_node_mode.rs:384
     wire base7_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:385
-    wire [179:0] out_is_node_mux_7;          // rtl-gen/src/merge/merger/per_node_mode.rs:386
-    wire base7_wr_not_1;                     // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base7_push_and;                     // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base7_push_and_1;                   // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire [179:0] base7_fifo_rd;              // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire base7_wr_not_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:389
+    wire base7_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire range_good_and_7;                   // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base7_end_sent_not;                 // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire base_open_and_28;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire [179:0] range_good_mux_7;           // rtl-gen/src/merge/merger/per_node_mode.rs:391
-    wire base_open_and_29;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_30;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire range_good_not_12;                  // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base_open_and_31;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base7_wr_not_3;                     // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire base7_push_and_2;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base7_wr_add;                 // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base7_rd_add;                 // rtl-gen/src/merge/merger/drop_fifo.rs:54
+    wire base_open_and_14;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base_open_and_15;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
     reg base8_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:372
     reg [4:0] base8_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base8_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base8_wr_eq;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base8_wr_eq_1;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base8_wr_eq_2;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base8_wr_not;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base8_wr_and;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire base8_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire base8_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
     wire lo_lt_8;                            // rtl-gen/src/merge/merger/per_node_mode.rs:382
-    wire leaf_best_data_eq_8;                // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_16;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_17;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire u_module_eq_9;                      // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_16;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire lo_not_8;                           // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_17;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
+    wire out_is_node_and_8;                  // rtl-gen/src/merge/merger/per_node_mode.rs:384
     wire base8_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:385
-    wire [179:0] out_is_node_mux_8;          // rtl-gen/src/merge/merger/per_node_mode.rs:386
-    wire base8_wr_not_1;                     // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base8_push_and;                     // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base8_push_and_1;                   // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire [179:0] base8_fifo_rd;              // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire base8_wr_not_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:389
+    wire base8_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire range_good_and_8;                   // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base8_end_sent_not;                 // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire base_open_and_32;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire [179:0] range_good_mux_8;           // rtl-gen/src/merge/merger/per_node_mode.rs:391
-    wire base_open_and_33;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_34;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire range_good_not_13;                  // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base_open_and_35;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base8_wr_not_3;                     // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire base8_push_and_2;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base8_wr_add;                 // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base8_rd_add;                 // rtl-gen/src/merge/merger/drop_fifo.rs:54
+    wire base_open_and_16;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base_open_and_17;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
     reg base9_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:372
     reg [4:0] base9_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base9_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base9_wr_eq;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base9_wr_eq_1;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base9_wr_eq_2;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base9_wr_not;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base9_wr_and;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire base9_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire base9_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
     wire lo_lt_9;                            // rtl-gen/src/merge/merger/per_node_mode.rs:382
-    wire leaf_best_data_eq_9;                // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_18;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_19;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire u_module_eq_10;                     // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_18;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire lo_not_9;                           // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_19;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
+    wire out_is_node_and_9;                  // rtl-gen/src/merge/merger/per_node_mode.rs:384
     wire base9_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:385
-    wire [179:0] out_is_node_mux_9;          // rtl-gen/src/merge/merger/per_node_mode.rs:386
-    wire base9_wr_not_1;                     // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base9_push_and;                     // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base9_push_and_1;                   // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire [179:0] base9_fifo_rd;              // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire base9_wr_not_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:389
+    wire base9_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire range_good_and_9;                   // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base9_end_sent_not;                 // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire base_open_and_36;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire [179:0] range_good_mux_9;           // rtl-gen/src/merge/merger/per_node_mode.rs:391
-    wire base_open_and_37;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_38;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire range_good_not_14;                  // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base_open_and_39;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base9_wr_not_3;                     // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire base9_push_and_2;                   // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base9_wr_add;                 // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base9_rd_add;                 // rtl-gen/src/merge/merger/drop_fifo.rs:54
+    wire base_open_and_18;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base_open_and_19;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
     reg base10_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:372
     reg [4:0] base10_wr;                     // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base10_rd;                     // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base10_wr_eq;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base10_wr_eq_1;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base10_wr_eq_2;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base10_wr_not;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base10_wr_and;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire base10_empty;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire base10_full;                        // rtl-gen/src/merge/merger/drop_fifo.rs:25
     wire lo_lt_10;                           // rtl-gen/src/merge/merger/per_node_mode.rs:382
-    wire leaf_best_data_eq_10;               // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_20;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_21;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire u_module_eq_11;                     // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_20;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire lo_not_10;                          // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_21;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
+    wire out_is_node_and_10;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
     wire base10_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:385
-    wire [179:0] out_is_node_mux_10;         // rtl-gen/src/merge/merger/per_node_mode.rs:386
-    wire base10_wr_not_1;                    // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base10_push_and;                    // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base10_push_and_1;                  // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire [179:0] base10_fifo_rd;             // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire base10_wr_not_2;                    // rtl-gen/src/merge/merger/per_node_mode.rs:389
+    wire base10_wr_put;                      // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire range_good_and_10;                  // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base10_end_sent_not;                // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire base_open_and_40;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire [179:0] range_good_mux_10;          // rtl-gen/src/merge/merger/per_node_mode.rs:391
-    wire base_open_and_41;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_42;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire range_good_not_15;                  // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base_open_and_43;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base10_wr_not_3;                    // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire base10_push_and_2;                  // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base10_wr_add;                // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base10_rd_add;                // rtl-gen/src/merge/merger/drop_fifo.rs:54
+    wire base_open_and_20;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base_open_and_21;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
     reg base11_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:372
     reg [4:0] base11_wr;                     // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base11_rd;                     // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base11_wr_eq;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base11_wr_eq_1;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base11_wr_eq_2;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base11_wr_not;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base11_wr_and;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire base11_empty;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire base11_full;                        // rtl-gen/src/merge/merger/drop_fifo.rs:25
     wire lo_lt_11;                           // rtl-gen/src/merge/merger/per_node_mode.rs:382
-    wire leaf_best_data_eq_11;               // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_22;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_23;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire u_module_eq_12;                     // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_22;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire lo_not_11;                          // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_23;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
+    wire out_is_node_and_11;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
     wire base11_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:385
-    wire [179:0] out_is_node_mux_11;         // rtl-gen/src/merge/merger/per_node_mode.rs:386
-    wire base11_wr_not_1;                    // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base11_push_and;                    // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base11_push_and_1;                  // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire [179:0] base11_fifo_rd;             // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire base11_wr_not_2;                    // rtl-gen/src/merge/merger/per_node_mode.rs:389
+    wire base11_wr_put;                      // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire range_good_and_11;                  // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base11_end_sent_not;                // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire base_open_and_44;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire [179:0] range_good_mux_11;          // rtl-gen/src/merge/merger/per_node_mode.rs:391
-    wire base_open_and_45;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_46;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire range_good_not_16;                  // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base_open_and_47;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base11_wr_not_3;                    // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire base11_push_and_2;                  // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base11_wr_add;                // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base11_rd_add;                // rtl-gen/src/merge/merger/drop_fifo.rs:54
+    wire base_open_and_22;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base_open_and_23;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
     reg base12_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:372
     reg [4:0] base12_wr;                     // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base12_rd;                     // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base12_wr_eq;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base12_wr_eq_1;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base12_wr_eq_2;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base12_wr_not;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base12_wr_and;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire base12_empty;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire base12_full;                        // rtl-gen/src/merge/merger/drop_fifo.rs:25
     wire lo_lt_12;                           // rtl-gen/src/merge/merger/per_node_mode.rs:382
-    wire leaf_best_data_eq_12;               // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_24;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_25;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire u_module_eq_13;                     // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_24;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire lo_not_12;                          // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_25;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
+    wire out_is_node_and_12;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
     wire base12_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:385
-    wire [179:0] out_is_node_mux_12;         // rtl-gen/src/merge/merger/per_node_mode.rs:386
-    wire base12_wr_not_1;                    // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base12_push_and;                    // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base12_push_and_1;                  // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire [179:0] base12_fifo_rd;             // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire base12_wr_not_2;                    // rtl-gen/src/merge/merger/per_node_mode.rs:389
+    wire base12_wr_put;                      // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire range_good_and_12;                  // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base12_end_sent_not;                // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire base_open_and_48;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire [179:0] range_good_mux_12;          // rtl-gen/src/merge/merger/per_node_mode.rs:391
-    wire base_open_and_49;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_50;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire range_good_not_17;                  // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base_open_and_51;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base12_wr_not_3;                    // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire base12_push_and_2;                  // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base12_wr_add;                // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base12_rd_add;                // rtl-gen/src/merge/merger/drop_fifo.rs:54
+    wire base_open_and_24;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base_open_and_25;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
     reg base13_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:372
     reg [4:0] base13_wr;                     // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base13_rd;                     // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base13_wr_eq;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base13_wr_eq_1;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base13_wr_eq_2;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base13_wr_not;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base13_wr_and;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire base13_empty;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire base13_full;                        // rtl-gen/src/merge/merger/drop_fifo.rs:25
     wire lo_lt_13;                           // rtl-gen/src/merge/merger/per_node_mode.rs:382
-    wire leaf_best_data_eq_13;               // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_26;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_27;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire u_module_eq_14;                     // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_26;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire lo_not_13;                          // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_27;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
+    wire out_is_node_and_13;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
     wire base13_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:385
-    wire [179:0] out_is_node_mux_13;         // rtl-gen/src/merge/merger/per_node_mode.rs:386
-    wire base13_wr_not_1;                    // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base13_push_and;                    // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base13_push_and_1;                  // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire [179:0] base13_fifo_rd;             // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire base13_wr_not_2;                    // rtl-gen/src/merge/merger/per_node_mode.rs:389
+    wire base13_wr_put;                      // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire range_good_and_13;                  // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base13_end_sent_not;                // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire base_open_and_52;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire [179:0] range_good_mux_13;          // rtl-gen/src/merge/merger/per_node_mode.rs:391
-    wire base_open_and_53;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_54;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire range_good_not_18;                  // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base_open_and_55;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base13_wr_not_3;                    // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire base13_push_and_2;                  // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base13_wr_add;                // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base13_rd_add;                // rtl-gen/src/merge/merger/drop_fifo.rs:54
+    wire base_open_and_26;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base_open_and_27;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
     reg base14_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:372
     reg [4:0] base14_wr;                     // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base14_rd;                     // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base14_wr_eq;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base14_wr_eq_1;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base14_wr_eq_2;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base14_wr_not;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base14_wr_and;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire base14_empty;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire base14_full;                        // rtl-gen/src/merge/merger/drop_fifo.rs:25
     wire lo_lt_14;                           // rtl-gen/src/merge/merger/per_node_mode.rs:382
-    wire leaf_best_data_eq_14;               // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_28;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_29;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire u_module_eq_15;                     // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_28;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire lo_not_14;                          // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_29;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
+    wire out_is_node_and_14;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
     wire base14_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:385
-    wire [179:0] out_is_node_mux_14;         // rtl-gen/src/merge/merger/per_node_mode.rs:386
-    wire base14_wr_not_1;                    // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base14_push_and;                    // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base14_push_and_1;                  // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire [179:0] base14_fifo_rd;             // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire base14_wr_not_2;                    // rtl-gen/src/merge/merger/per_node_mode.rs:389
+    wire base14_wr_put;                      // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire range_good_and_14;                  // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base14_end_sent_not;                // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire base_open_and_56;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire [179:0] range_good_mux_14;          // rtl-gen/src/merge/merger/per_node_mode.rs:391
-    wire base_open_and_57;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_58;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire range_good_not_19;                  // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base_open_and_59;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base14_wr_not_3;                    // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire base14_push_and_2;                  // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base14_wr_add;                // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base14_rd_add;                // rtl-gen/src/merge/merger/drop_fifo.rs:54
+    wire base_open_and_28;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base_open_and_29;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
     reg base15_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:372
     reg [4:0] base15_wr;                     // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base15_rd;                     // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base15_wr_eq;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base15_wr_eq_1;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base15_wr_eq_2;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base15_wr_not;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base15_wr_and;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire base15_empty;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire base15_full;                        // rtl-gen/src/merge/merger/drop_fifo.rs:25
     wire lo_lt_15;                           // rtl-gen/src/merge/merger/per_node_mode.rs:382
-    wire leaf_best_data_eq_15;               // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_30;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_31;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire u_module_eq_16;                     // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_30;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire lo_not_15;                          // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_31;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
+    wire out_is_node_and_15;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
     wire base15_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:385
-    wire [179:0] out_is_node_mux_15;         // rtl-gen/src/merge/merger/per_node_mode.rs:386
-    wire base15_wr_not_1;                    // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base15_push_and;                    // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base15_push_and_1;                  // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire [179:0] base15_fifo_rd;             // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire base15_wr_not_2;                    // rtl-gen/src/merge/merger/per_node_mode.rs:389
+    wire base15_wr_put;                      // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire range_good_and_15;                  // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base15_end_sent_not;                // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire base_open_and_60;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire [179:0] range_good_mux_15;          // rtl-gen/src/merge/merger/per_node_mode.rs:391
-    wire base_open_and_61;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_62;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire range_good_not_20;                  // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base_open_and_63;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base15_wr_not_3;                    // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire base15_push_and_2;                  // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base15_wr_add;                // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base15_rd_add;                // rtl-gen/src/merge/merger/drop_fifo.rs:54
+    wire base_open_and_30;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base_open_and_31;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
     reg base16_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:372
     reg [4:0] base16_wr;                     // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base16_rd;                     // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base16_wr_eq;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base16_wr_eq_1;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base16_wr_eq_2;                     // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base16_wr_not;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire base16_wr_and;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    wire base16_empty;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
+    wire base16_full;                        // rtl-gen/src/merge/merger/drop_fifo.rs:25
     wire lo_lt_16;                           // rtl-gen/src/merge/merger/per_node_mode.rs:382
-    wire leaf_best_data_eq_16;               // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_32;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire leaf_take_and_33;                   // rtl-gen/src/merge/merger/per_node_mode.rs:383
-    wire u_module_eq_17;                     // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_32;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire lo_not_16;                          // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    wire out_is_node_and_33;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
+    wire out_is_node_and_16;                 // rtl-gen/src/merge/merger/per_node_mode.rs:384
     wire base16_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:385
-    wire [179:0] out_is_node_mux_16;         // rtl-gen/src/merge/merger/per_node_mode.rs:386
-    wire base16_wr_not_1;                    // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base16_push_and;                    // rtl-gen/src/merge/merger/drop_fifo.rs:41
-    wire base16_push_and_1;                  // rtl-gen/src/merge/merger/per_node_mode.rs:387
-    wire [179:0] base16_fifo_rd;             // rtl-gen/src/merge/merger/drop_fifo.rs:46
-    wire base16_wr_not_2;                    // rtl-gen/src/merge/merger/per_node_mode.rs:389
+    wire base16_wr_put;                      // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire range_good_and_16;                  // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    wire base16_end_sent_not;                // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire base_open_and_64;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
-    wire [179:0] range_good_mux_16;          // rtl-gen/src/merge/merger/per_node_mode.rs:391
-    wire base_open_and_65;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
-    wire base_open_and_66;                   // rtl-gen/src/merge/merger/per_node_mode.rs:395
-    wire range_good_not_21;                  // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base_open_and_67;                   // rtl-gen/src/merge/merger/per_node_mode.rs:396
-    wire base16_wr_not_3;                    // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire base16_push_and_2;                  // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base16_wr_add;                // rtl-gen/src/merge/merger/drop_fifo.rs:53
-    wire [4:0] base16_rd_add;                // rtl-gen/src/merge/merger/drop_fifo.rs:54
-    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:272
-    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:272
-    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:272
+    wire base_open_and_32;                   // rtl-gen/src/merge/merger/per_node_mode.rs:390
+    wire base_open_and_33;                   // rtl-gen/src/merge/merger/per_node_mode.rs:394
+    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:280
+    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:280
+    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:280
     reg done_pulse;                          // rtl-gen/src/merge/merger/tail.rs:95
-    wire busy_not_1;                         // rtl-gen/src/merge/merger/tail.rs:98
-    wire dropping0_not_2;                    // rtl-gen/src/merge/merger/tail.rs:98
-    wire dropping0_and;                      // rtl-gen/src/merge/merger/tail.rs:98
-    wire dropping1_not_2;                    // rtl-gen/src/merge/merger/tail.rs:98
-    wire dropping0_and_1;                    // rtl-gen/src/merge/merger/tail.rs:98
-    wire dropping2_not_2;                    // rtl-gen/src/merge/merger/tail.rs:98
-    wire dropping0_and_2;                    // rtl-gen/src/merge/merger/tail.rs:98
-    wire dropping3_not_2;                    // rtl-gen/src/merge/merger/tail.rs:98
-    wire dropping0_and_3;                    // rtl-gen/src/merge/merger/tail.rs:98
     wire merger_idle;                        // rtl-gen/src/merge/merger/tail.rs:98
 
     assign header_fire = u_writer_header_valid & header_ready;
     assign busy_not = ~busy;
-    assign busy_and = busy_not & u_module_idle;
-    assign busy_and_1 = busy_and & u_fetch0_idle;
     assign dropping0_not = ~dropping0;
-    assign busy_and_2 = busy_and_1 & dropping0_not;
-    assign busy_and_3 = busy_and_2 & u_fetch1_idle;
     assign dropping1_not = ~dropping1;
-    assign busy_and_4 = busy_and_3 & dropping1_not;
-    assign busy_and_5 = busy_and_4 & u_fetch2_idle;
     assign dropping2_not = ~dropping2;
-    assign busy_and_6 = busy_and_5 & dropping2_not;
-    assign busy_and_7 = busy_and_6 & u_fetch3_idle;
+    assign busy_and = ((((((busy_not & u_module_idle) & u_fetch0_idle) & dropping0_not) & u_fetch1_idle) & dropping1_not) & u_fetch2_idle) & dropping2_not;
     assign dropping3_not = ~dropping3;
-    assign quiet = busy_and_7 & dropping3_not;
+    assign quiet = (busy_and & u_fetch3_idle) & dropping3_not;
     assign cfg_ready = quiet;
     assign cfg_fire = cfg_valid & cfg_ready;
+    assign cfg_data_count = cfg_data[554:552];
+    assign cfg_q_count = cfg_q[554:552];
     assign lo = cfg_q[559:555];
     assign hi = cfg_q[564:560];
-    assign cfg_data_gt = cfg_data[564:560] > 5'd16;
-    assign cfg_data_gt_1 = cfg_data[559:555] > cfg_data[564:560];
-    assign cfg_data_or = cfg_data_gt_1 | cfg_data_gt;
-    assign good_in = ~cfg_data_or;
-    assign hi_gt = hi > 5'd16;
-    assign lo_gt = lo > hi;
-    assign lo_or = lo_gt | hi_gt;
-    assign range_good = ~lo_or;
-    assign cfg_data_gt_2 = cfg_data[554:552] > 3'd0;
-    assign cfg_data_gt_3 = cfg_data[554:552] > 3'd1;
-    assign cfg_data_gt_4 = cfg_data[554:552] > 3'd2;
-    assign cfg_data_gt_5 = cfg_data[554:552] > 3'd3;
-    assign used0 = cfg_q[554:552] > 3'd0;
-    assign used1 = cfg_q[554:552] > 3'd1;
-    assign used2 = cfg_q[554:552] > 3'd2;
-    assign used3 = cfg_q[554:552] > 3'd3;
-    assign busy_and_8 = busy & u_module_done;
-    assign hi_cat = {hi, lo};
-    assign module_cfg_pending_and = module_cfg_pending & u_module_cfg_ready;
-    assign writer_cfg_pending_and = writer_cfg_pending & u_writer_cfg_ready;
-    assign report_narrow = {u_module_report_data[63], u_module_report_data[62], u_module_report_data[61], u_module_report_data[52:48], u_module_report_data[47:32], u_module_report_data[31:16], u_module_report_data[15:0]};
-    assign report_top_taken_not = ~report_top_taken;
-    assign report_valid = u_module_report_valid & report_top_taken_not;
+    assign cfg_q_out_id = cfg_q[568:565];
+    assign cfg_data_lo = cfg_data[559:555];
+    assign cfg_data_hi = cfg_data[564:560];
+    assign good_in = ~((cfg_data_lo > cfg_data_hi) | (cfg_data_hi > 5'd16));
+    assign range_good = ~((lo > hi) | (hi > 5'd16));
+    assign cfg_data_count_gt = cfg_data_count > 3'd0;
+    assign cfg_data_count_gt_1 = cfg_data_count > 3'd1;
+    assign cfg_data_count_gt_2 = cfg_data_count > 3'd2;
+    assign cfg_data_count_gt_3 = cfg_data_count > 3'd3;
+    assign used0 = cfg_q_count > 3'd0;
+    assign used1 = cfg_q_count > 3'd1;
+    assign used2 = cfg_q_count > 3'd2;
+    assign used3 = cfg_q_count > 3'd3;
+    assign u_module_x = u_module_report_data[15:0];
+    assign u_module_y = u_module_report_data[31:16];
+    assign u_module_z = u_module_report_data[47:32];
+    assign u_module_lod = u_module_report_data[52:48];
+    assign u_module_descend = u_module_report_data[61];
+    assign u_module_pass_end = u_module_report_data[62];
+    assign u_module_more = u_module_report_data[63];
+    assign report_narrow = {u_module_more, u_module_pass_end, u_module_descend, u_module_lod, u_module_z, u_module_y, u_module_x};
+    assign u_module_and = u_module_report_valid & (~report_top_taken);
+    assign report_valid = u_module_and;
     assign report_data = u_module_report_data;
-    assign report_top_taken_or = report_top_taken | report_ready;
-    assign report_top_taken_not_1 = ~report_top_taken;
-    assign u_module_and = u_module_report_valid & report_top_taken_not_1;
-    assign u_module_and_1 = u_module_and & report_ready;
-    assign busy_and_9 = busy & used0;
-    assign report0_feeds = busy_and_9 & range_good;
-    assign u_module_and_2 = u_module_report_valid & report0_feeds;
-    assign report0_taken_not = ~report0_taken;
-    assign u_module_and_3 = u_module_and_2 & report0_taken_not;
-    assign report0_feeds_not = ~report0_feeds;
-    assign report0_feeds_or = report0_feeds_not | report0_taken;
-    assign report0_feeds_or_1 = report0_feeds_or | u_fetch0_report_ready;
-    assign report_top_taken_and = report_top_taken_or & report0_feeds_or_1;
-    assign u_module_and_4 = u_module_and_3 & u_fetch0_report_ready;
-    assign busy_and_10 = busy & used1;
-    assign report1_feeds = busy_and_10 & range_good;
-    assign u_module_and_5 = u_module_report_valid & report1_feeds;
-    assign report1_taken_not = ~report1_taken;
-    assign u_module_and_6 = u_module_and_5 & report1_taken_not;
-    assign report1_feeds_not = ~report1_feeds;
-    assign report1_feeds_or = report1_feeds_not | report1_taken;
-    assign report1_feeds_or_1 = report1_feeds_or | u_fetch1_report_ready;
-    assign report_top_taken_and_1 = report_top_taken_and & report1_feeds_or_1;
-    assign u_module_and_7 = u_module_and_6 & u_fetch1_report_ready;
-    assign busy_and_11 = busy & used2;
-    assign report2_feeds = busy_and_11 & range_good;
-    assign u_module_and_8 = u_module_report_valid & report2_feeds;
-    assign report2_taken_not = ~report2_taken;
-    assign u_module_and_9 = u_module_and_8 & report2_taken_not;
-    assign report2_feeds_not = ~report2_feeds;
-    assign report2_feeds_or = report2_feeds_not | report2_taken;
-    assign report2_feeds_or_1 = report2_feeds_or | u_fetch2_report_ready;
-    assign report_top_taken_and_2 = report_top_taken_and_1 & report2_feeds_or_1;
-    assign u_module_and_10 = u_module_and_9 & u_fetch2_report_ready;
-    assign busy_and_12 = busy & used3;
-    assign report3_feeds = busy_and_12 & range_good;
-    assign u_module_and_11 = u_module_report_valid & report3_feeds;
-    assign report3_taken_not = ~report3_taken;
-    assign u_module_and_12 = u_module_and_11 & report3_taken_not;
-    assign report3_feeds_not = ~report3_feeds;
-    assign report3_feeds_or = report3_feeds_not | report3_taken;
-    assign report3_feeds_or_1 = report3_feeds_or | u_fetch3_report_ready;
-    assign report_all_took = report_top_taken_and_2 & report3_feeds_or_1;
-    assign u_module_and_13 = u_module_and_12 & u_fetch3_report_ready;
+    assign report0_feeds = (busy & used0) & range_good;
+    assign u_module_and_1 = (u_module_report_valid & report0_feeds) & (~report0_taken);
+    assign report1_feeds = (busy & used1) & range_good;
+    assign u_module_and_2 = (u_module_report_valid & report1_feeds) & (~report1_taken);
+    assign report_top_taken_and = ((report_top_taken | report_ready) & (((~report0_feeds) | report0_taken) | u_fetch0_report_ready)) & (((~report1_feeds) | report1_taken) | u_fetch1_report_ready);
+    assign report2_feeds = (busy & used2) & range_good;
+    assign u_module_and_3 = (u_module_report_valid & report2_feeds) & (~report2_taken);
+    assign report3_feeds = (busy & used3) & range_good;
+    assign u_module_and_4 = (u_module_report_valid & report3_feeds) & (~report3_taken);
+    assign report_all_took = (report_top_taken_and & (((~report2_feeds) | report2_taken) | u_fetch2_report_ready)) & (((~report3_feeds) | report3_taken) | u_fetch3_report_ready);
     assign report_fire = u_module_report_valid & report_all_took;
-    assign report_fire_and = report_fire & u_module_report_data[62];
-    assign next_pass = report_fire_and & u_module_report_data[63];
+    assign next_pass = (report_fire & u_module_pass_end) & u_module_more;
     assign header_fire_mux_2 = header_fire ? 4'd0 : fetch_err;
     assign const_cat = {2'd3, 178'h000000000000000000000000000000000000000000000};
     assign const_cat_1 = {1'b0, const_cat};
-    assign fetch0_cfg_pending_and = fetch0_cfg_pending & u_fetch0_cfg_ready;
     assign range_good_cat = {range_good, lo, 1'b1, range_good, range_good, lo};
     assign cmd0_pending_and = cmd0_pending & u_fetch0_cmd_ready;
-    assign u_fetch0_eq = u_fetch0_out_data[179:178] == 2'd3;
-    assign u_fetch0_cat = {u_fetch0_out_data[184], u_fetch0_out_data[179:0]};
+    assign u_fetch0_err = u_fetch0_out_data[183:180];
+    assign u_fetch0_kind = u_fetch0_out_data[179:178];
+    assign u_fetch0_probe = u_fetch0_out_data[184];
     assign used0_not = ~used0;
     assign virtual_end0 = used0_not & end_owed0;
-    assign dropping0_not_1 = ~dropping0;
-    assign u_fetch0_and = u_fetch0_out_valid & dropping0_not_1;
-    assign used0_mux = used0 ? u_fetch0_and : virtual_end0;
-    assign used0_mux_1 = used0 ? u_fetch0_cat : const_cat_1;
-    assign used0_and = used0 & u_module_in0_ready;
-    assign dropping0_or = dropping0 | used0_and;
-    assign used0_and_1 = used0 & u_module_in0_ready;
-    assign dropping0_or_1 = dropping0 | used0_and_1;
-    assign u_fetch0_and_1 = u_fetch0_out_valid & dropping0_or_1;
-    assign virtual_end0_and = virtual_end0 & u_module_in0_ready;
-    assign cfg_data_not = ~cfg_data_gt_2;
-    assign cfg_data_and = cfg_data_not & good_in;
-    assign used0_not_1 = ~used0;
-    assign next_pass_and = next_pass & used0_not_1;
-    assign u_fetch0_ne = u_fetch0_out_data[183:180] != 4'd0;
-    assign u_fetch0_and_2 = u_fetch0_and_1 & u_fetch0_ne;
-    assign header_fire_eq = header_fire_mux_2 == 4'd0;
-    assign u_fetch0_and_3 = u_fetch0_and_2 & header_fire_eq;
-    assign u_fetch0_mux = u_fetch0_and_3 ? u_fetch0_out_data[183:180] : header_fire_mux_2;
+    assign dropping0_or = dropping0 | (used0 & u_module_in0_ready);
+    assign u_fetch0_and = u_fetch0_out_valid & dropping0_or;
+    assign u_fetch0_and_1 = (u_fetch0_and & (u_fetch0_err != 4'd0)) & (header_fire_mux_2 == 4'd0);
+    assign u_fetch0_mux = u_fetch0_and_1 ? u_fetch0_err : header_fire_mux_2;
     assign range_good_not = ~range_good;
-    assign cmd0_pending_and_1 = cmd0_pending_and & range_good_not;
-    assign u_fetch0_and_4 = u_fetch0_and_1 & u_fetch0_eq;
     assign f0_node_resp_ready = u_fetch0_node_resp_ready;
     assign f0_ref_resp_ready = u_fetch0_ref_resp_ready;
     assign f0_cref_resp_ready = u_fetch0_cref_resp_ready;
@@ -1427,35 +801,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     assign f0_probe_req_ready_w = f0_probe_req_ready;
     assign f0_probe_req_valid = u_fetch0_probe_req_valid;
     assign f0_probe_req_data = u_fetch0_probe_req_data;
-    assign fetch1_cfg_pending_and = fetch1_cfg_pending & u_fetch1_cfg_ready;
-    assign range_good_cat_1 = {range_good, lo, 1'b1, range_good, range_good, lo};
     assign cmd1_pending_and = cmd1_pending & u_fetch1_cmd_ready;
-    assign u_fetch1_eq = u_fetch1_out_data[179:178] == 2'd3;
-    assign u_fetch1_cat = {u_fetch1_out_data[184], u_fetch1_out_data[179:0]};
+    assign u_fetch1_err = u_fetch1_out_data[183:180];
+    assign u_fetch1_kind = u_fetch1_out_data[179:178];
+    assign u_fetch1_probe = u_fetch1_out_data[184];
     assign used1_not = ~used1;
     assign virtual_end1 = used1_not & end_owed1;
-    assign dropping1_not_1 = ~dropping1;
-    assign u_fetch1_and = u_fetch1_out_valid & dropping1_not_1;
-    assign used1_mux = used1 ? u_fetch1_and : virtual_end1;
-    assign used1_mux_1 = used1 ? u_fetch1_cat : const_cat_1;
-    assign used1_and = used1 & u_module_in1_ready;
-    assign dropping1_or = dropping1 | used1_and;
-    assign used1_and_1 = used1 & u_module_in1_ready;
-    assign dropping1_or_1 = dropping1 | used1_and_1;
-    assign u_fetch1_and_1 = u_fetch1_out_valid & dropping1_or_1;
-    assign virtual_end1_and = virtual_end1 & u_module_in1_ready;
-    assign cfg_data_not_1 = ~cfg_data_gt_3;
-    assign cfg_data_and_1 = cfg_data_not_1 & good_in;
-    assign used1_not_1 = ~used1;
-    assign next_pass_and_1 = next_pass & used1_not_1;
-    assign u_fetch1_ne = u_fetch1_out_data[183:180] != 4'd0;
-    assign u_fetch1_and_2 = u_fetch1_and_1 & u_fetch1_ne;
-    assign u_fetch0_eq_1 = u_fetch0_mux == 4'd0;
-    assign u_fetch1_and_3 = u_fetch1_and_2 & u_fetch0_eq_1;
-    assign u_fetch1_mux = u_fetch1_and_3 ? u_fetch1_out_data[183:180] : u_fetch0_mux;
-    assign range_good_not_1 = ~range_good;
-    assign cmd1_pending_and_1 = cmd1_pending_and & range_good_not_1;
-    assign u_fetch1_and_4 = u_fetch1_and_1 & u_fetch1_eq;
+    assign dropping1_or = dropping1 | (used1 & u_module_in1_ready);
+    assign u_fetch1_and = u_fetch1_out_valid & dropping1_or;
+    assign u_fetch1_and_1 = (u_fetch1_and & (u_fetch1_err != 4'd0)) & (u_fetch0_mux == 4'd0);
+    assign u_fetch1_mux = u_fetch1_and_1 ? u_fetch1_err : u_fetch0_mux;
     assign f1_node_resp_ready = u_fetch1_node_resp_ready;
     assign f1_ref_resp_ready = u_fetch1_ref_resp_ready;
     assign f1_cref_resp_ready = u_fetch1_cref_resp_ready;
@@ -1472,35 +827,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     assign f1_probe_req_ready_w = f1_probe_req_ready;
     assign f1_probe_req_valid = u_fetch1_probe_req_valid;
     assign f1_probe_req_data = u_fetch1_probe_req_data;
-    assign fetch2_cfg_pending_and = fetch2_cfg_pending & u_fetch2_cfg_ready;
-    assign range_good_cat_2 = {range_good, lo, 1'b1, range_good, range_good, lo};
     assign cmd2_pending_and = cmd2_pending & u_fetch2_cmd_ready;
-    assign u_fetch2_eq = u_fetch2_out_data[179:178] == 2'd3;
-    assign u_fetch2_cat = {u_fetch2_out_data[184], u_fetch2_out_data[179:0]};
+    assign u_fetch2_err = u_fetch2_out_data[183:180];
+    assign u_fetch2_kind = u_fetch2_out_data[179:178];
+    assign u_fetch2_probe = u_fetch2_out_data[184];
     assign used2_not = ~used2;
     assign virtual_end2 = used2_not & end_owed2;
-    assign dropping2_not_1 = ~dropping2;
-    assign u_fetch2_and = u_fetch2_out_valid & dropping2_not_1;
-    assign used2_mux = used2 ? u_fetch2_and : virtual_end2;
-    assign used2_mux_1 = used2 ? u_fetch2_cat : const_cat_1;
-    assign used2_and = used2 & u_module_in2_ready;
-    assign dropping2_or = dropping2 | used2_and;
-    assign used2_and_1 = used2 & u_module_in2_ready;
-    assign dropping2_or_1 = dropping2 | used2_and_1;
-    assign u_fetch2_and_1 = u_fetch2_out_valid & dropping2_or_1;
-    assign virtual_end2_and = virtual_end2 & u_module_in2_ready;
-    assign cfg_data_not_2 = ~cfg_data_gt_4;
-    assign cfg_data_and_2 = cfg_data_not_2 & good_in;
-    assign used2_not_1 = ~used2;
-    assign next_pass_and_2 = next_pass & used2_not_1;
-    assign u_fetch2_ne = u_fetch2_out_data[183:180] != 4'd0;
-    assign u_fetch2_and_2 = u_fetch2_and_1 & u_fetch2_ne;
-    assign u_fetch1_eq_1 = u_fetch1_mux == 4'd0;
-    assign u_fetch2_and_3 = u_fetch2_and_2 & u_fetch1_eq_1;
-    assign u_fetch2_mux = u_fetch2_and_3 ? u_fetch2_out_data[183:180] : u_fetch1_mux;
-    assign range_good_not_2 = ~range_good;
-    assign cmd2_pending_and_1 = cmd2_pending_and & range_good_not_2;
-    assign u_fetch2_and_4 = u_fetch2_and_1 & u_fetch2_eq;
+    assign dropping2_or = dropping2 | (used2 & u_module_in2_ready);
+    assign u_fetch2_and = u_fetch2_out_valid & dropping2_or;
+    assign u_fetch2_and_1 = (u_fetch2_and & (u_fetch2_err != 4'd0)) & (u_fetch1_mux == 4'd0);
+    assign u_fetch2_mux = u_fetch2_and_1 ? u_fetch2_err : u_fetch1_mux;
     assign f2_node_resp_ready = u_fetch2_node_resp_ready;
     assign f2_ref_resp_ready = u_fetch2_ref_resp_ready;
     assign f2_cref_resp_ready = u_fetch2_cref_resp_ready;
@@ -1517,35 +853,15 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     assign f2_probe_req_ready_w = f2_probe_req_ready;
     assign f2_probe_req_valid = u_fetch2_probe_req_valid;
     assign f2_probe_req_data = u_fetch2_probe_req_data;
-    assign fetch3_cfg_pending_and = fetch3_cfg_pending & u_fetch3_cfg_ready;
-    assign range_good_cat_3 = {range_good, lo, 1'b1, range_good, range_good, lo};
     assign cmd3_pending_and = cmd3_pending & u_fetch3_cmd_ready;
-    assign u_fetch3_eq = u_fetch3_out_data[179:178] == 2'd3;
-    assign u_fetch3_cat = {u_fetch3_out_data[184], u_fetch3_out_data[179:0]};
+    assign u_fetch3_err = u_fetch3_out_data[183:180];
+    assign u_fetch3_kind = u_fetch3_out_data[179:178];
+    assign u_fetch3_probe = u_fetch3_out_data[184];
     assign used3_not = ~used3;
     assign virtual_end3 = used3_not & end_owed3;
-    assign dropping3_not_1 = ~dropping3;
-    assign u_fetch3_and = u_fetch3_out_valid & dropping3_not_1;
-    assign used3_mux = used3 ? u_fetch3_and : virtual_end3;
-    assign used3_mux_1 = used3 ? u_fetch3_cat : const_cat_1;
-    assign used3_and = used3 & u_module_in3_ready;
-    assign dropping3_or = dropping3 | used3_and;
-    assign used3_and_1 = used3 & u_module_in3_ready;
-    assign dropping3_or_1 = dropping3 | used3_and_1;
-    assign u_fetch3_and_1 = u_fetch3_out_valid & dropping3_or_1;
-    assign virtual_end3_and = virtual_end3 & u_module_in3_ready;
-    assign cfg_data_not_3 = ~cfg_data_gt_5;
-    assign cfg_data_and_3 = cfg_data_not_3 & good_in;
-    assign used3_not_1 = ~used3;
-    assign next_pass_and_3 = next_pass & used3_not_1;
-    assign u_fetch3_ne = u_fetch3_out_data[183:180] != 4'd0;
-    assign u_fetch3_and_2 = u_fetch3_and_1 & u_fetch3_ne;
-    assign u_fetch2_eq_1 = u_fetch2_mux == 4'd0;
-    assign u_fetch3_and_3 = u_fetch3_and_2 & u_fetch2_eq_1;
-    assign fetch_err_next = u_fetch3_and_3 ? u_fetch3_out_data[183:180] : u_fetch2_mux;
-    assign range_good_not_3 = ~range_good;
-    assign cmd3_pending_and_1 = cmd3_pending_and & range_good_not_3;
-    assign u_fetch3_and_4 = u_fetch3_and_1 & u_fetch3_eq;
+    assign dropping3_or = dropping3 | (used3 & u_module_in3_ready);
+    assign u_fetch3_and = u_fetch3_out_valid & dropping3_or;
+    assign u_fetch3_and_1 = (u_fetch3_and & (u_fetch3_err != 4'd0)) & (u_fetch2_mux == 4'd0);
     assign f3_node_resp_ready = u_fetch3_node_resp_ready;
     assign f3_ref_resp_ready = u_fetch3_ref_resp_ready;
     assign f3_cref_resp_ready = u_fetch3_cref_resp_ready;
@@ -1562,653 +878,208 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     assign f3_probe_req_ready_w = f3_probe_req_ready;
     assign f3_probe_req_valid = u_fetch3_probe_req_valid;
     assign f3_probe_req_data = u_fetch3_probe_req_data;
-    assign leaves_done_not = ~leaves_done;
-    assign leaves_active = busy & leaves_done_not;
-    assign used0_not_2 = ~used0;
-    assign used0_or = used0_not_2 | u_fetch0_leaves_data[183];
-    assign u_fetch0_cat_1 = {u_fetch0_leaves_data[53], u_fetch0_leaves_data[37], u_fetch0_leaves_data[21], u_fetch0_leaves_data[52], u_fetch0_leaves_data[36], u_fetch0_leaves_data[20], u_fetch0_leaves_data[51], u_fetch0_leaves_data[35], u_fetch0_leaves_data[19], u_fetch0_leaves_data[50], u_fetch0_leaves_data[34], u_fetch0_leaves_data[18], u_fetch0_leaves_data[49], u_fetch0_leaves_data[33], u_fetch0_leaves_data[17], u_fetch0_leaves_data[48], u_fetch0_leaves_data[32], u_fetch0_leaves_data[16], u_fetch0_leaves_data[47], u_fetch0_leaves_data[31], u_fetch0_leaves_data[15], u_fetch0_leaves_data[46], u_fetch0_leaves_data[30], u_fetch0_leaves_data[14], u_fetch0_leaves_data[45], u_fetch0_leaves_data[29], u_fetch0_leaves_data[13], u_fetch0_leaves_data[44], u_fetch0_leaves_data[28], u_fetch0_leaves_data[12], u_fetch0_leaves_data[43], u_fetch0_leaves_data[27], u_fetch0_leaves_data[11], u_fetch0_leaves_data[42], u_fetch0_leaves_data[26], u_fetch0_leaves_data[10], u_fetch0_leaves_data[41], u_fetch0_leaves_data[25], u_fetch0_leaves_data[9], u_fetch0_leaves_data[40], u_fetch0_leaves_data[24], u_fetch0_leaves_data[8], u_fetch0_leaves_data[39], u_fetch0_leaves_data[23], u_fetch0_leaves_data[7], u_fetch0_leaves_data[38], u_fetch0_leaves_data[22], u_fetch0_leaves_data[6]};
-    assign leaf_key0 = {used0_or, u_fetch0_leaves_data[182:178], u_fetch0_cat_1};
-    assign used0_not_3 = ~used0;
-    assign used0_or_1 = used0_not_3 | u_fetch0_leaves_valid;
-    assign leaves_active_and = leaves_active & used0_or_1;
-    assign used0_not_4 = ~used0;
-    assign used0_or_2 = used0_not_4 | u_fetch0_leaves_data[183];
-    assign used0_and_2 = 1'b1 & used0_or_2;
-    assign used1_not_2 = ~used1;
-    assign used1_or = used1_not_2 | u_fetch1_leaves_data[183];
-    assign u_fetch1_cat_1 = {u_fetch1_leaves_data[53], u_fetch1_leaves_data[37], u_fetch1_leaves_data[21], u_fetch1_leaves_data[52], u_fetch1_leaves_data[36], u_fetch1_leaves_data[20], u_fetch1_leaves_data[51], u_fetch1_leaves_data[35], u_fetch1_leaves_data[19], u_fetch1_leaves_data[50], u_fetch1_leaves_data[34], u_fetch1_leaves_data[18], u_fetch1_leaves_data[49], u_fetch1_leaves_data[33], u_fetch1_leaves_data[17], u_fetch1_leaves_data[48], u_fetch1_leaves_data[32], u_fetch1_leaves_data[16], u_fetch1_leaves_data[47], u_fetch1_leaves_data[31], u_fetch1_leaves_data[15], u_fetch1_leaves_data[46], u_fetch1_leaves_data[30], u_fetch1_leaves_data[14], u_fetch1_leaves_data[45], u_fetch1_leaves_data[29], u_fetch1_leaves_data[13], u_fetch1_leaves_data[44], u_fetch1_leaves_data[28], u_fetch1_leaves_data[12], u_fetch1_leaves_data[43], u_fetch1_leaves_data[27], u_fetch1_leaves_data[11], u_fetch1_leaves_data[42], u_fetch1_leaves_data[26], u_fetch1_leaves_data[10], u_fetch1_leaves_data[41], u_fetch1_leaves_data[25], u_fetch1_leaves_data[9], u_fetch1_leaves_data[40], u_fetch1_leaves_data[24], u_fetch1_leaves_data[8], u_fetch1_leaves_data[39], u_fetch1_leaves_data[23], u_fetch1_leaves_data[7], u_fetch1_leaves_data[38], u_fetch1_leaves_data[22], u_fetch1_leaves_data[6]};
-    assign leaf_key1 = {used1_or, u_fetch1_leaves_data[182:178], u_fetch1_cat_1};
-    assign used1_not_3 = ~used1;
-    assign used1_or_1 = used1_not_3 | u_fetch1_leaves_valid;
-    assign leaves_active_and_1 = leaves_active_and & used1_or_1;
-    assign used1_not_4 = ~used1;
-    assign used1_or_2 = used1_not_4 | u_fetch1_leaves_data[183];
-    assign used0_and_3 = used0_and_2 & used1_or_2;
-    assign used2_not_2 = ~used2;
-    assign used2_or = used2_not_2 | u_fetch2_leaves_data[183];
-    assign u_fetch2_cat_1 = {u_fetch2_leaves_data[53], u_fetch2_leaves_data[37], u_fetch2_leaves_data[21], u_fetch2_leaves_data[52], u_fetch2_leaves_data[36], u_fetch2_leaves_data[20], u_fetch2_leaves_data[51], u_fetch2_leaves_data[35], u_fetch2_leaves_data[19], u_fetch2_leaves_data[50], u_fetch2_leaves_data[34], u_fetch2_leaves_data[18], u_fetch2_leaves_data[49], u_fetch2_leaves_data[33], u_fetch2_leaves_data[17], u_fetch2_leaves_data[48], u_fetch2_leaves_data[32], u_fetch2_leaves_data[16], u_fetch2_leaves_data[47], u_fetch2_leaves_data[31], u_fetch2_leaves_data[15], u_fetch2_leaves_data[46], u_fetch2_leaves_data[30], u_fetch2_leaves_data[14], u_fetch2_leaves_data[45], u_fetch2_leaves_data[29], u_fetch2_leaves_data[13], u_fetch2_leaves_data[44], u_fetch2_leaves_data[28], u_fetch2_leaves_data[12], u_fetch2_leaves_data[43], u_fetch2_leaves_data[27], u_fetch2_leaves_data[11], u_fetch2_leaves_data[42], u_fetch2_leaves_data[26], u_fetch2_leaves_data[10], u_fetch2_leaves_data[41], u_fetch2_leaves_data[25], u_fetch2_leaves_data[9], u_fetch2_leaves_data[40], u_fetch2_leaves_data[24], u_fetch2_leaves_data[8], u_fetch2_leaves_data[39], u_fetch2_leaves_data[23], u_fetch2_leaves_data[7], u_fetch2_leaves_data[38], u_fetch2_leaves_data[22], u_fetch2_leaves_data[6]};
-    assign leaf_key2 = {used2_or, u_fetch2_leaves_data[182:178], u_fetch2_cat_1};
-    assign used2_not_3 = ~used2;
-    assign used2_or_1 = used2_not_3 | u_fetch2_leaves_valid;
-    assign leaves_active_and_2 = leaves_active_and_1 & used2_or_1;
-    assign used2_not_4 = ~used2;
-    assign used2_or_2 = used2_not_4 | u_fetch2_leaves_data[183];
-    assign used0_and_4 = used0_and_3 & used2_or_2;
-    assign used3_not_2 = ~used3;
-    assign used3_or = used3_not_2 | u_fetch3_leaves_data[183];
-    assign u_fetch3_cat_1 = {u_fetch3_leaves_data[53], u_fetch3_leaves_data[37], u_fetch3_leaves_data[21], u_fetch3_leaves_data[52], u_fetch3_leaves_data[36], u_fetch3_leaves_data[20], u_fetch3_leaves_data[51], u_fetch3_leaves_data[35], u_fetch3_leaves_data[19], u_fetch3_leaves_data[50], u_fetch3_leaves_data[34], u_fetch3_leaves_data[18], u_fetch3_leaves_data[49], u_fetch3_leaves_data[33], u_fetch3_leaves_data[17], u_fetch3_leaves_data[48], u_fetch3_leaves_data[32], u_fetch3_leaves_data[16], u_fetch3_leaves_data[47], u_fetch3_leaves_data[31], u_fetch3_leaves_data[15], u_fetch3_leaves_data[46], u_fetch3_leaves_data[30], u_fetch3_leaves_data[14], u_fetch3_leaves_data[45], u_fetch3_leaves_data[29], u_fetch3_leaves_data[13], u_fetch3_leaves_data[44], u_fetch3_leaves_data[28], u_fetch3_leaves_data[12], u_fetch3_leaves_data[43], u_fetch3_leaves_data[27], u_fetch3_leaves_data[11], u_fetch3_leaves_data[42], u_fetch3_leaves_data[26], u_fetch3_leaves_data[10], u_fetch3_leaves_data[41], u_fetch3_leaves_data[25], u_fetch3_leaves_data[9], u_fetch3_leaves_data[40], u_fetch3_leaves_data[24], u_fetch3_leaves_data[8], u_fetch3_leaves_data[39], u_fetch3_leaves_data[23], u_fetch3_leaves_data[7], u_fetch3_leaves_data[38], u_fetch3_leaves_data[22], u_fetch3_leaves_data[6]};
-    assign leaf_key3 = {used3_or, u_fetch3_leaves_data[182:178], u_fetch3_cat_1};
-    assign used3_not_3 = ~used3;
-    assign used3_or_1 = used3_not_3 | u_fetch3_leaves_valid;
-    assign leaves_all_valid = leaves_active_and_2 & used3_or_1;
-    assign used3_not_4 = ~used3;
-    assign used3_or_2 = used3_not_4 | u_fetch3_leaves_data[183];
-    assign leaves_all_end = used0_and_4 & used3_or_2;
+    assign leaves_active = busy & (~leaves_done);
+    assign u_fetch0_end = u_fetch0_leaves_data[183];
+    assign used0_or = used0_not | u_fetch0_end;
+    assign u_fetch0_lod = u_fetch0_leaves_data[182:178];
+    assign u_fetch0_rec_x_morton = {u_fetch0_leaves_data[53], u_fetch0_leaves_data[37], u_fetch0_leaves_data[21], u_fetch0_leaves_data[52], u_fetch0_leaves_data[36], u_fetch0_leaves_data[20], u_fetch0_leaves_data[51], u_fetch0_leaves_data[35], u_fetch0_leaves_data[19], u_fetch0_leaves_data[50], u_fetch0_leaves_data[34], u_fetch0_leaves_data[18], u_fetch0_leaves_data[49], u_fetch0_leaves_data[33], u_fetch0_leaves_data[17], u_fetch0_leaves_data[48], u_fetch0_leaves_data[32], u_fetch0_leaves_data[16], u_fetch0_leaves_data[47], u_fetch0_leaves_data[31], u_fetch0_leaves_data[15], u_fetch0_leaves_data[46], u_fetch0_leaves_data[30], u_fetch0_leaves_data[14], u_fetch0_leaves_data[45], u_fetch0_leaves_data[29], u_fetch0_leaves_data[13], u_fetch0_leaves_data[44], u_fetch0_leaves_data[28], u_fetch0_leaves_data[12], u_fetch0_leaves_data[43], u_fetch0_leaves_data[27], u_fetch0_leaves_data[11], u_fetch0_leaves_data[42], u_fetch0_leaves_data[26], u_fetch0_leaves_data[10], u_fetch0_leaves_data[41], u_fetch0_leaves_data[25], u_fetch0_leaves_data[9], u_fetch0_leaves_data[40], u_fetch0_leaves_data[24], u_fetch0_leaves_data[8], u_fetch0_leaves_data[39], u_fetch0_leaves_data[23], u_fetch0_leaves_data[7], u_fetch0_leaves_data[38], u_fetch0_leaves_data[22], u_fetch0_leaves_data[6]};
+    assign leaf_key0 = {used0_or, u_fetch0_lod, u_fetch0_rec_x_morton};
+    assign u_fetch1_end = u_fetch1_leaves_data[183];
+    assign used1_or = used1_not | u_fetch1_end;
+    assign u_fetch1_lod = u_fetch1_leaves_data[182:178];
+    assign u_fetch1_rec_x_morton = {u_fetch1_leaves_data[53], u_fetch1_leaves_data[37], u_fetch1_leaves_data[21], u_fetch1_leaves_data[52], u_fetch1_leaves_data[36], u_fetch1_leaves_data[20], u_fetch1_leaves_data[51], u_fetch1_leaves_data[35], u_fetch1_leaves_data[19], u_fetch1_leaves_data[50], u_fetch1_leaves_data[34], u_fetch1_leaves_data[18], u_fetch1_leaves_data[49], u_fetch1_leaves_data[33], u_fetch1_leaves_data[17], u_fetch1_leaves_data[48], u_fetch1_leaves_data[32], u_fetch1_leaves_data[16], u_fetch1_leaves_data[47], u_fetch1_leaves_data[31], u_fetch1_leaves_data[15], u_fetch1_leaves_data[46], u_fetch1_leaves_data[30], u_fetch1_leaves_data[14], u_fetch1_leaves_data[45], u_fetch1_leaves_data[29], u_fetch1_leaves_data[13], u_fetch1_leaves_data[44], u_fetch1_leaves_data[28], u_fetch1_leaves_data[12], u_fetch1_leaves_data[43], u_fetch1_leaves_data[27], u_fetch1_leaves_data[11], u_fetch1_leaves_data[42], u_fetch1_leaves_data[26], u_fetch1_leaves_data[10], u_fetch1_leaves_data[41], u_fetch1_leaves_data[25], u_fetch1_leaves_data[9], u_fetch1_leaves_data[40], u_fetch1_leaves_data[24], u_fetch1_leaves_data[8], u_fetch1_leaves_data[39], u_fetch1_leaves_data[23], u_fetch1_leaves_data[7], u_fetch1_leaves_data[38], u_fetch1_leaves_data[22], u_fetch1_leaves_data[6]};
+    assign leaf_key1 = {used1_or, u_fetch1_lod, u_fetch1_rec_x_morton};
+    assign u_fetch2_end = u_fetch2_leaves_data[183];
+    assign used2_or = used2_not | u_fetch2_end;
+    assign u_fetch2_lod = u_fetch2_leaves_data[182:178];
+    assign u_fetch2_rec_x_morton = {u_fetch2_leaves_data[53], u_fetch2_leaves_data[37], u_fetch2_leaves_data[21], u_fetch2_leaves_data[52], u_fetch2_leaves_data[36], u_fetch2_leaves_data[20], u_fetch2_leaves_data[51], u_fetch2_leaves_data[35], u_fetch2_leaves_data[19], u_fetch2_leaves_data[50], u_fetch2_leaves_data[34], u_fetch2_leaves_data[18], u_fetch2_leaves_data[49], u_fetch2_leaves_data[33], u_fetch2_leaves_data[17], u_fetch2_leaves_data[48], u_fetch2_leaves_data[32], u_fetch2_leaves_data[16], u_fetch2_leaves_data[47], u_fetch2_leaves_data[31], u_fetch2_leaves_data[15], u_fetch2_leaves_data[46], u_fetch2_leaves_data[30], u_fetch2_leaves_data[14], u_fetch2_leaves_data[45], u_fetch2_leaves_data[29], u_fetch2_leaves_data[13], u_fetch2_leaves_data[44], u_fetch2_leaves_data[28], u_fetch2_leaves_data[12], u_fetch2_leaves_data[43], u_fetch2_leaves_data[27], u_fetch2_leaves_data[11], u_fetch2_leaves_data[42], u_fetch2_leaves_data[26], u_fetch2_leaves_data[10], u_fetch2_leaves_data[41], u_fetch2_leaves_data[25], u_fetch2_leaves_data[9], u_fetch2_leaves_data[40], u_fetch2_leaves_data[24], u_fetch2_leaves_data[8], u_fetch2_leaves_data[39], u_fetch2_leaves_data[23], u_fetch2_leaves_data[7], u_fetch2_leaves_data[38], u_fetch2_leaves_data[22], u_fetch2_leaves_data[6]};
+    assign leaf_key2 = {used2_or, u_fetch2_lod, u_fetch2_rec_x_morton};
+    assign u_fetch3_end = u_fetch3_leaves_data[183];
+    assign used3_or = used3_not | u_fetch3_end;
+    assign u_fetch3_lod = u_fetch3_leaves_data[182:178];
+    assign u_fetch3_rec_x_morton = {u_fetch3_leaves_data[53], u_fetch3_leaves_data[37], u_fetch3_leaves_data[21], u_fetch3_leaves_data[52], u_fetch3_leaves_data[36], u_fetch3_leaves_data[20], u_fetch3_leaves_data[51], u_fetch3_leaves_data[35], u_fetch3_leaves_data[19], u_fetch3_leaves_data[50], u_fetch3_leaves_data[34], u_fetch3_leaves_data[18], u_fetch3_leaves_data[49], u_fetch3_leaves_data[33], u_fetch3_leaves_data[17], u_fetch3_leaves_data[48], u_fetch3_leaves_data[32], u_fetch3_leaves_data[16], u_fetch3_leaves_data[47], u_fetch3_leaves_data[31], u_fetch3_leaves_data[15], u_fetch3_leaves_data[46], u_fetch3_leaves_data[30], u_fetch3_leaves_data[14], u_fetch3_leaves_data[45], u_fetch3_leaves_data[29], u_fetch3_leaves_data[13], u_fetch3_leaves_data[44], u_fetch3_leaves_data[28], u_fetch3_leaves_data[12], u_fetch3_leaves_data[43], u_fetch3_leaves_data[27], u_fetch3_leaves_data[11], u_fetch3_leaves_data[42], u_fetch3_leaves_data[26], u_fetch3_leaves_data[10], u_fetch3_leaves_data[41], u_fetch3_leaves_data[25], u_fetch3_leaves_data[9], u_fetch3_leaves_data[40], u_fetch3_leaves_data[24], u_fetch3_leaves_data[8], u_fetch3_leaves_data[39], u_fetch3_leaves_data[23], u_fetch3_leaves_data[7], u_fetch3_leaves_data[38], u_fetch3_leaves_data[22], u_fetch3_leaves_data[6]};
+    assign leaf_key3 = {used3_or, u_fetch3_lod, u_fetch3_rec_x_morton};
+    assign leaves_all_valid = (((leaves_active & (used0_not | u_fetch0_leaves_valid)) & (used1_not | u_fetch1_leaves_valid)) & (used2_not | u_fetch2_leaves_valid)) & (used3_not | u_fetch3_leaves_valid);
+    assign leaves_all_end = (((1'b1 & used0_or) & used1_or) & used2_or) & used3_or;
     assign leaf_key1_lt = leaf_key1 < leaf_key0;
     assign leaf_key1_mux = leaf_key1_lt ? leaf_key1 : leaf_key0;
-    assign leaf_key1_mux_1 = leaf_key1_lt ? u_fetch1_leaves_data[182:0] : u_fetch0_leaves_data[182:0];
-    assign leaf_key1_mux_2 = leaf_key1_lt ? 2'd1 : 2'd0;
     assign leaf_key2_lt = leaf_key2 < leaf_key1_mux;
-    assign leaf_key2_mux = leaf_key2_lt ? leaf_key2 : leaf_key1_mux;
-    assign leaf_key2_mux_1 = leaf_key2_lt ? u_fetch2_leaves_data[182:0] : leaf_key1_mux_1;
-    assign leaf_key2_mux_2 = leaf_key2_lt ? 2'd2 : leaf_key1_mux_2;
-    assign leaf_key3_lt = leaf_key3 < leaf_key2_mux;
-    assign leaf_best_data = leaf_key3_lt ? u_fetch3_leaves_data[182:0] : leaf_key2_mux_1;
-    assign leaf_best = leaf_key3_lt ? 2'd3 : leaf_key2_mux_2;
-    assign leaves_all_end_not = ~leaves_all_end;
-    assign leaf_take = leaves_all_valid & leaves_all_end_not;
-    assign used0_and_5 = used0 & leaves_all_valid;
-    assign leaf_best_eq = leaf_best == 2'd0;
-    assign leaves_all_end_or = leaves_all_end | leaf_best_eq;
-    assign used0_and_6 = used0_and_5 & leaves_all_end_or;
-    assign used1_and_2 = used1 & leaves_all_valid;
-    assign leaf_best_eq_1 = leaf_best == 2'd1;
-    assign leaves_all_end_or_1 = leaves_all_end | leaf_best_eq_1;
-    assign used1_and_3 = used1_and_2 & leaves_all_end_or_1;
-    assign used2_and_2 = used2 & leaves_all_valid;
-    assign leaf_best_eq_2 = leaf_best == 2'd2;
-    assign leaves_all_end_or_2 = leaves_all_end | leaf_best_eq_2;
-    assign used2_and_3 = used2_and_2 & leaves_all_end_or_2;
-    assign used3_and_2 = used3 & leaves_all_valid;
-    assign leaf_best_eq_3 = leaf_best == 2'd3;
-    assign leaves_all_end_or_3 = leaves_all_end | leaf_best_eq_3;
-    assign used3_and_3 = used3_and_2 & leaves_all_end_or_3;
-    assign leaves_all_valid_and = leaves_all_valid & leaves_all_end;
-    assign const_cat_2 = {2'd3, 178'h000000000000000000000000000000000000000000000};
-    assign const_cat_3 = {2'd1, leaf_best_data[177:150], leaf_best_data[149:0]};
-    assign out_is_ref = u_module_out_data[179:178] == 2'd2;
-    assign out_is_end = u_module_out_data[179:178] == 2'd3;
-    assign u_module_cat = {u_module_out_data[179:178], u_module_out_data[177:150], u_module_out_data[149:0]};
-    assign out_is_ref_not = ~out_is_ref;
-    assign u_module_and_14 = u_module_out_valid & out_is_ref_not;
-    assign out_is_end_not = ~out_is_end;
-    assign out_is_node = u_module_and_14 & out_is_end_not;
+    assign leaf_key3_lt = leaf_key3 < (leaf_key2_lt ? leaf_key2 : leaf_key1_mux);
+    assign leaf_best_data = leaf_key3_lt ? u_fetch3_leaves_data[182:0] : (leaf_key2_lt ? u_fetch2_leaves_data[182:0] : (leaf_key1_lt ? u_fetch1_leaves_data[182:0] : u_fetch0_leaves_data[182:0]));
+    assign leaf_best = leaf_key3_lt ? 2'd3 : (leaf_key2_lt ? 2'd2 : (leaf_key1_lt ? 2'd1 : 2'd0));
+    assign leaf_take = leaves_all_valid & (~leaves_all_end);
+    assign leaf_best_data_lod = leaf_best_data[182:178];
+    assign leaf_best_data_rec = leaf_best_data[149:0];
+    assign leaf_best_data_ref = leaf_best_data[177:150];
+    assign const_cat_2 = {2'd1, leaf_best_data_ref, leaf_best_data_rec};
+    assign u_module_kind = u_module_out_data[179:178];
+    assign out_is_ref = u_module_kind == 2'd2;
+    assign out_is_end = u_module_kind == 2'd3;
+    assign u_module_err = u_module_out_data[180];
+    assign u_module_ref = u_module_out_data[177:150];
+    assign u_module_rec = u_module_out_data[149:0];
+    assign u_module_rec_lod = u_module_out_data[5:1];
+    assign u_module_kind_cat = {u_module_kind, u_module_ref, u_module_rec};
+    assign out_is_node = (u_module_out_valid & (~out_is_ref)) & (~out_is_end);
     assign cref_is_ref = u_module_out_valid & out_is_ref;
     assign crefs_end_sent_not = ~crefs_end_sent;
-    assign crefs_end_sent_and = crefs_end_sent_not & busy;
-    assign cref_is_ref_or = cref_is_ref | module_finished;
-    assign crefs_end_sent_and_1 = crefs_end_sent_and & cref_is_ref_or;
-    assign cref_is_ref_mux = cref_is_ref ? u_module_out_data[177:150] : 28'd0;
+    assign crefs_end_sent_and = (crefs_end_sent_not & busy) & (cref_is_ref | module_finished);
     assign cref_is_ref_not = ~cref_is_ref;
-    assign cref_is_ref_cat = {cref_is_ref_not, cref_is_ref_mux};
-    assign crefs_end_sent_and_2 = crefs_end_sent_and_1 & u_writer_crefs_ready;
-    assign cref_is_ref_not_1 = ~cref_is_ref;
-    assign crefs_end_sent_and_3 = crefs_end_sent_and_2 & cref_is_ref_not_1;
-    assign crefs_end_sent_not_1 = ~crefs_end_sent;
-    assign u_writer_and = u_writer_crefs_ready & crefs_end_sent_not_1;
-    assign out_is_ref_mux = out_is_ref ? u_writer_and : 1'b1;
-    assign u_module_eq = u_module_out_data[179:178] == 2'd0;
-    assign u_module_and_15 = u_module_out_valid & out_is_ref_mux;
-    assign u_module_and_16 = u_module_and_15 & u_module_eq;
-    assign u_module_and_17 = u_module_and_16 & u_module_out_data[180];
-    assign busy_and_13 = busy & module_finished;
-    assign range_good_not_4 = ~range_good;
-    assign range_good_or = range_good_not_4 | leaves_done;
-    assign base_open = busy_and_13 & range_good_or;
-    assign base0_wr_eq = base0_wr == base0_rd;
-    assign base0_wr_eq_1 = base0_wr[3:0] == base0_rd[3:0];
-    assign base0_wr_eq_2 = base0_wr[4] == base0_rd[4];
-    assign base0_wr_not = ~base0_wr_eq_2;
-    assign base0_wr_and = base0_wr_eq_1 & base0_wr_not;
+    assign out_is_ref_mux = out_is_ref ? (u_writer_crefs_ready & crefs_end_sent_not) : 1'b1;
+    assign base_open = (busy & module_finished) & (range_good_not | leaves_done);
+    assign base0_empty = base0_wr == base0_rd;
+    assign base0_full = (base0_wr[3:0] == base0_rd[3:0]) & (~(base0_wr[4] == base0_rd[4]));
     assign lo_lt = 5'd0 < lo;
-    assign leaf_best_data_eq = leaf_best_data[182:178] == 5'd0;
-    assign leaf_take_and = leaf_take & leaf_best_data_eq;
-    assign leaf_take_and_1 = leaf_take_and & lo_lt;
-    assign u_module_eq_1 = u_module_out_data[5:1] == 5'd0;
-    assign out_is_node_and = out_is_node & u_module_eq_1;
-    assign lo_not = ~lo_lt;
-    assign out_is_node_and_1 = out_is_node_and & lo_not;
-    assign base0_push = leaf_take_and_1 | out_is_node_and_1;
-    assign out_is_node_mux = out_is_node_and_1 ? u_module_cat : const_cat_3;
-    assign base0_wr_not_1 = ~base0_wr_and;
-    assign base0_push_and = base0_push & base0_wr_not_1;
-    assign base0_push_and_1 = base0_push & base0_wr_and;
-    assign base0_fifo_rd = base0_fifo[base0_rd[3:0]];
-    assign base0_wr_not_2 = ~base0_wr_eq;
-    assign range_good_and = range_good & base0_wr_not_2;
-    assign base0_end_sent_not = ~base0_end_sent;
-    assign base_open_and = base_open & base0_end_sent_not;
-    assign range_good_mux = range_good_and ? base0_fifo_rd : const_cat_2;
+    assign out_is_node_and = (out_is_node & (u_module_rec_lod == 5'd0)) & (~lo_lt);
+    assign base0_push = ((leaf_take & (leaf_best_data_lod == 5'd0)) & lo_lt) | out_is_node_and;
+    assign base0_wr_put = base0_push & (~base0_full);
+    assign range_good_and = range_good & (~base0_empty);
+    assign base_open_and = base_open & (~base0_end_sent);
     assign base_open_and_1 = base_open_and & u_builder_base0_ready;
-    assign base_open_and_2 = base_open_and_1 & range_good_and;
-    assign range_good_not_5 = ~range_good_and;
-    assign base_open_and_3 = base_open_and_1 & range_good_not_5;
-    assign base0_wr_not_3 = ~base0_wr_and;
-    assign base0_push_and_2 = base0_push & base0_wr_not_3;
-    assign base0_wr_add = base0_wr + 5'd1;
-    assign base0_rd_add = base0_rd + 5'd1;
-    assign base1_wr_eq = base1_wr == base1_rd;
-    assign base1_wr_eq_1 = base1_wr[3:0] == base1_rd[3:0];
-    assign base1_wr_eq_2 = base1_wr[4] == base1_rd[4];
-    assign base1_wr_not = ~base1_wr_eq_2;
-    assign base1_wr_and = base1_wr_eq_1 & base1_wr_not;
+    assign base1_empty = base1_wr == base1_rd;
+    assign base1_full = (base1_wr[3:0] == base1_rd[3:0]) & (~(base1_wr[4] == base1_rd[4]));
     assign lo_lt_1 = 5'd1 < lo;
-    assign leaf_best_data_eq_1 = leaf_best_data[182:178] == 5'd1;
-    assign leaf_take_and_2 = leaf_take & leaf_best_data_eq_1;
-    assign leaf_take_and_3 = leaf_take_and_2 & lo_lt_1;
-    assign u_module_eq_2 = u_module_out_data[5:1] == 5'd1;
-    assign out_is_node_and_2 = out_is_node & u_module_eq_2;
-    assign lo_not_1 = ~lo_lt_1;
-    assign out_is_node_and_3 = out_is_node_and_2 & lo_not_1;
-    assign base1_push = leaf_take_and_3 | out_is_node_and_3;
-    assign out_is_node_mux_1 = out_is_node_and_3 ? u_module_cat : const_cat_3;
-    assign base1_wr_not_1 = ~base1_wr_and;
-    assign base1_push_and = base1_push & base1_wr_not_1;
-    assign base1_push_and_1 = base1_push & base1_wr_and;
-    assign base1_fifo_rd = base1_fifo[base1_rd[3:0]];
-    assign base1_wr_not_2 = ~base1_wr_eq;
-    assign range_good_and_1 = range_good & base1_wr_not_2;
-    assign base1_end_sent_not = ~base1_end_sent;
-    assign base_open_and_4 = base_open & base1_end_sent_not;
-    assign range_good_mux_1 = range_good_and_1 ? base1_fifo_rd : const_cat_2;
-    assign base_open_and_5 = base_open_and_4 & u_builder_base1_ready;
-    assign base_open_and_6 = base_open_and_5 & range_good_and_1;
-    assign range_good_not_6 = ~range_good_and_1;
-    assign base_open_and_7 = base_open_and_5 & range_good_not_6;
-    assign base1_wr_not_3 = ~base1_wr_and;
-    assign base1_push_and_2 = base1_push & base1_wr_not_3;
-    assign base1_wr_add = base1_wr + 5'd1;
-    assign base1_rd_add = base1_rd + 5'd1;
-    assign base2_wr_eq = base2_wr == base2_rd;
-    assign base2_wr_eq_1 = base2_wr[3:0] == base2_rd[3:0];
-    assign base2_wr_eq_2 = base2_wr[4] == base2_rd[4];
-    assign base2_wr_not = ~base2_wr_eq_2;
-    assign base2_wr_and = base2_wr_eq_1 & base2_wr_not;
+    assign out_is_node_and_1 = (out_is_node & (u_module_rec_lod == 5'd1)) & (~lo_lt_1);
+    assign base1_push = ((leaf_take & (leaf_best_data_lod == 5'd1)) & lo_lt_1) | out_is_node_and_1;
+    assign base1_wr_put = base1_push & (~base1_full);
+    assign range_good_and_1 = range_good & (~base1_empty);
+    assign base_open_and_2 = base_open & (~base1_end_sent);
+    assign base_open_and_3 = base_open_and_2 & u_builder_base1_ready;
+    assign base2_empty = base2_wr == base2_rd;
+    assign base2_full = (base2_wr[3:0] == base2_rd[3:0]) & (~(base2_wr[4] == base2_rd[4]));
     assign lo_lt_2 = 5'd2 < lo;
-    assign leaf_best_data_eq_2 = leaf_best_data[182:178] == 5'd2;
-    assign leaf_take_and_4 = leaf_take & leaf_best_data_eq_2;
-    assign leaf_take_and_5 = leaf_take_and_4 & lo_lt_2;
-    assign u_module_eq_3 = u_module_out_data[5:1] == 5'd2;
-    assign out_is_node_and_4 = out_is_node & u_module_eq_3;
-    assign lo_not_2 = ~lo_lt_2;
-    assign out_is_node_and_5 = out_is_node_and_4 & lo_not_2;
-    assign base2_push = leaf_take_and_5 | out_is_node_and_5;
-    assign out_is_node_mux_2 = out_is_node_and_5 ? u_module_cat : const_cat_3;
-    assign base2_wr_not_1 = ~base2_wr_and;
-    assign base2_push_and = base2_push & base2_wr_not_1;
-    assign base2_push_and_1 = base2_push & base2_wr_and;
-    assign base2_fifo_rd = base2_fifo[base2_rd[3:0]];
-    assign base2_wr_not_2 = ~base2_wr_eq;
-    assign range_good_and_2 = range_good & base2_wr_not_2;
-    assign base2_end_sent_not = ~base2_end_sent;
-    assign base_open_and_8 = base_open & base2_end_sent_not;
-    assign range_good_mux_2 = range_good_and_2 ? base2_fifo_rd : const_cat_2;
-    assign base_open_and_9 = base_open_and_8 & u_builder_base2_ready;
-    assign base_open_and_10 = base_open_and_9 & range_good_and_2;
-    assign range_good_not_7 = ~range_good_and_2;
-    assign base_open_and_11 = base_open_and_9 & range_good_not_7;
-    assign base2_wr_not_3 = ~base2_wr_and;
-    assign base2_push_and_2 = base2_push & base2_wr_not_3;
-    assign base2_wr_add = base2_wr + 5'd1;
-    assign base2_rd_add = base2_rd + 5'd1;
-    assign base3_wr_eq = base3_wr == base3_rd;
-    assign base3_wr_eq_1 = base3_wr[3:0] == base3_rd[3:0];
-    assign base3_wr_eq_2 = base3_wr[4] == base3_rd[4];
-    assign base3_wr_not = ~base3_wr_eq_2;
-    assign base3_wr_and = base3_wr_eq_1 & base3_wr_not;
+    assign out_is_node_and_2 = (out_is_node & (u_module_rec_lod == 5'd2)) & (~lo_lt_2);
+    assign base2_push = ((leaf_take & (leaf_best_data_lod == 5'd2)) & lo_lt_2) | out_is_node_and_2;
+    assign base2_wr_put = base2_push & (~base2_full);
+    assign range_good_and_2 = range_good & (~base2_empty);
+    assign base_open_and_4 = base_open & (~base2_end_sent);
+    assign base_open_and_5 = base_open_and_4 & u_builder_base2_ready;
+    assign base3_empty = base3_wr == base3_rd;
+    assign base3_full = (base3_wr[3:0] == base3_rd[3:0]) & (~(base3_wr[4] == base3_rd[4]));
     assign lo_lt_3 = 5'd3 < lo;
-    assign leaf_best_data_eq_3 = leaf_best_data[182:178] == 5'd3;
-    assign leaf_take_and_6 = leaf_take & leaf_best_data_eq_3;
-    assign leaf_take_and_7 = leaf_take_and_6 & lo_lt_3;
-    assign u_module_eq_4 = u_module_out_data[5:1] == 5'd3;
-    assign out_is_node_and_6 = out_is_node & u_module_eq_4;
-    assign lo_not_3 = ~lo_lt_3;
-    assign out_is_node_and_7 = out_is_node_and_6 & lo_not_3;
-    assign base3_push = leaf_take_and_7 | out_is_node_and_7;
-    assign out_is_node_mux_3 = out_is_node_and_7 ? u_module_cat : const_cat_3;
-    assign base3_wr_not_1 = ~base3_wr_and;
-    assign base3_push_and = base3_push & base3_wr_not_1;
-    assign base3_push_and_1 = base3_push & base3_wr_and;
-    assign base3_fifo_rd = base3_fifo[base3_rd[3:0]];
-    assign base3_wr_not_2 = ~base3_wr_eq;
-    assign range_good_and_3 = range_good & base3_wr_not_2;
-    assign base3_end_sent_not = ~base3_end_sent;
-    assign base_open_and_12 = base_open & base3_end_sent_not;
-    assign range_good_mux_3 = range_good_and_3 ? base3_fifo_rd : const_cat_2;
-    assign base_open_and_13 = base_open_and_12 & u_builder_base3_ready;
-    assign base_open_and_14 = base_open_and_13 & range_good_and_3;
-    assign range_good_not_8 = ~range_good_and_3;
-    assign base_open_and_15 = base_open_and_13 & range_good_not_8;
-    assign base3_wr_not_3 = ~base3_wr_and;
-    assign base3_push_and_2 = base3_push & base3_wr_not_3;
-    assign base3_wr_add = base3_wr + 5'd1;
-    assign base3_rd_add = base3_rd + 5'd1;
-    assign base4_wr_eq = base4_wr == base4_rd;
-    assign base4_wr_eq_1 = base4_wr[3:0] == base4_rd[3:0];
-    assign base4_wr_eq_2 = base4_wr[4] == base4_rd[4];
-    assign base4_wr_not = ~base4_wr_eq_2;
-    assign base4_wr_and = base4_wr_eq_1 & base4_wr_not;
+    assign out_is_node_and_3 = (out_is_node & (u_module_rec_lod == 5'd3)) & (~lo_lt_3);
+    assign base3_push = ((leaf_take & (leaf_best_data_lod == 5'd3)) & lo_lt_3) | out_is_node_and_3;
+    assign base3_wr_put = base3_push & (~base3_full);
+    assign range_good_and_3 = range_good & (~base3_empty);
+    assign base_open_and_6 = base_open & (~base3_end_sent);
+    assign base_open_and_7 = base_open_and_6 & u_builder_base3_ready;
+    assign base4_empty = base4_wr == base4_rd;
+    assign base4_full = (base4_wr[3:0] == base4_rd[3:0]) & (~(base4_wr[4] == base4_rd[4]));
     assign lo_lt_4 = 5'd4 < lo;
-    assign leaf_best_data_eq_4 = leaf_best_data[182:178] == 5'd4;
-    assign leaf_take_and_8 = leaf_take & leaf_best_data_eq_4;
-    assign leaf_take_and_9 = leaf_take_and_8 & lo_lt_4;
-    assign u_module_eq_5 = u_module_out_data[5:1] == 5'd4;
-    assign out_is_node_and_8 = out_is_node & u_module_eq_5;
-    assign lo_not_4 = ~lo_lt_4;
-    assign out_is_node_and_9 = out_is_node_and_8 & lo_not_4;
-    assign base4_push = leaf_take_and_9 | out_is_node_and_9;
-    assign out_is_node_mux_4 = out_is_node_and_9 ? u_module_cat : const_cat_3;
-    assign base4_wr_not_1 = ~base4_wr_and;
-    assign base4_push_and = base4_push & base4_wr_not_1;
-    assign base4_push_and_1 = base4_push & base4_wr_and;
-    assign base4_fifo_rd = base4_fifo[base4_rd[3:0]];
-    assign base4_wr_not_2 = ~base4_wr_eq;
-    assign range_good_and_4 = range_good & base4_wr_not_2;
-    assign base4_end_sent_not = ~base4_end_sent;
-    assign base_open_and_16 = base_open & base4_end_sent_not;
-    assign range_good_mux_4 = range_good_and_4 ? base4_fifo_rd : const_cat_2;
-    assign base_open_and_17 = base_open_and_16 & u_builder_base4_ready;
-    assign base_open_and_18 = base_open_and_17 & range_good_and_4;
-    assign range_good_not_9 = ~range_good_and_4;
-    assign base_open_and_19 = base_open_and_17 & range_good_not_9;
-    assign base4_wr_not_3 = ~base4_wr_and;
-    assign base4_push_and_2 = base4_push & base4_wr_not_3;
-    assign base4_wr_add = base4_wr + 5'd1;
-    assign base4_rd_add = base4_rd + 5'd1;
-    assign base5_wr_eq = base5_wr == base5_rd;
-    assign base5_wr_eq_1 = base5_wr[3:0] == base5_rd[3:0];
-    assign base5_wr_eq_2 = base5_wr[4] == base5_rd[4];
-    assign base5_wr_not = ~base5_wr_eq_2;
-    assign base5_wr_and = base5_wr_eq_1 & base5_wr_not;
+    assign out_is_node_and_4 = (out_is_node & (u_module_rec_lod == 5'd4)) & (~lo_lt_4);
+    assign base4_push = ((leaf_take & (leaf_best_data_lod == 5'd4)) & lo_lt_4) | out_is_node_and_4;
+    assign base4_wr_put = base4_push & (~base4_full);
+    assign range_good_and_4 = range_good & (~base4_empty);
+    assign base_open_and_8 = base_open & (~base4_end_sent);
+    assign base_open_and_9 = base_open_and_8 & u_builder_base4_ready;
+    assign base5_empty = base5_wr == base5_rd;
+    assign base5_full = (base5_wr[3:0] == base5_rd[3:0]) & (~(base5_wr[4] == base5_rd[4]));
     assign lo_lt_5 = 5'd5 < lo;
-    assign leaf_best_data_eq_5 = leaf_best_data[182:178] == 5'd5;
-    assign leaf_take_and_10 = leaf_take & leaf_best_data_eq_5;
-    assign leaf_take_and_11 = leaf_take_and_10 & lo_lt_5;
-    assign u_module_eq_6 = u_module_out_data[5:1] == 5'd5;
-    assign out_is_node_and_10 = out_is_node & u_module_eq_6;
-    assign lo_not_5 = ~lo_lt_5;
-    assign out_is_node_and_11 = out_is_node_and_10 & lo_not_5;
-    assign base5_push = leaf_take_and_11 | out_is_node_and_11;
-    assign out_is_node_mux_5 = out_is_node_and_11 ? u_module_cat : const_cat_3;
-    assign base5_wr_not_1 = ~base5_wr_and;
-    assign base5_push_and = base5_push & base5_wr_not_1;
-    assign base5_push_and_1 = base5_push & base5_wr_and;
-    assign base5_fifo_rd = base5_fifo[base5_rd[3:0]];
-    assign base5_wr_not_2 = ~base5_wr_eq;
-    assign range_good_and_5 = range_good & base5_wr_not_2;
-    assign base5_end_sent_not = ~base5_end_sent;
-    assign base_open_and_20 = base_open & base5_end_sent_not;
-    assign range_good_mux_5 = range_good_and_5 ? base5_fifo_rd : const_cat_2;
-    assign base_open_and_21 = base_open_and_20 & u_builder_base5_ready;
-    assign base_open_and_22 = base_open_and_21 & range_good_and_5;
-    assign range_good_not_10 = ~range_good_and_5;
-    assign base_open_and_23 = base_open_and_21 & range_good_not_10;
-    assign base5_wr_not_3 = ~base5_wr_and;
-    assign base5_push_and_2 = base5_push & base5_wr_not_3;
-    assign base5_wr_add = base5_wr + 5'd1;
-    assign base5_rd_add = base5_rd + 5'd1;
-    assign base6_wr_eq = base6_wr == base6_rd;
-    assign base6_wr_eq_1 = base6_wr[3:0] == base6_rd[3:0];
-    assign base6_wr_eq_2 = base6_wr[4] == base6_rd[4];
-    assign base6_wr_not = ~base6_wr_eq_2;
-    assign base6_wr_and = base6_wr_eq_1 & base6_wr_not;
+    assign out_is_node_and_5 = (out_is_node & (u_module_rec_lod == 5'd5)) & (~lo_lt_5);
+    assign base5_push = ((leaf_take & (leaf_best_data_lod == 5'd5)) & lo_lt_5) | out_is_node_and_5;
+    assign base5_wr_put = base5_push & (~base5_full);
+    assign range_good_and_5 = range_good & (~base5_empty);
+    assign base_open_and_10 = base_open & (~base5_end_sent);
+    assign base_open_and_11 = base_open_and_10 & u_builder_base5_ready;
+    assign base6_empty = base6_wr == base6_rd;
+    assign base6_full = (base6_wr[3:0] == base6_rd[3:0]) & (~(base6_wr[4] == base6_rd[4]));
     assign lo_lt_6 = 5'd6 < lo;
-    assign leaf_best_data_eq_6 = leaf_best_data[182:178] == 5'd6;
-    assign leaf_take_and_12 = leaf_take & leaf_best_data_eq_6;
-    assign leaf_take_and_13 = leaf_take_and_12 & lo_lt_6;
-    assign u_module_eq_7 = u_module_out_data[5:1] == 5'd6;
-    assign out_is_node_and_12 = out_is_node & u_module_eq_7;
-    assign lo_not_6 = ~lo_lt_6;
-    assign out_is_node_and_13 = out_is_node_and_12 & lo_not_6;
-    assign base6_push = leaf_take_and_13 | out_is_node_and_13;
-    assign out_is_node_mux_6 = out_is_node_and_13 ? u_module_cat : const_cat_3;
-    assign base6_wr_not_1 = ~base6_wr_and;
-    assign base6_push_and = base6_push & base6_wr_not_1;
-    assign base6_push_and_1 = base6_push & base6_wr_and;
-    assign base6_fifo_rd = base6_fifo[base6_rd[3:0]];
-    assign base6_wr_not_2 = ~base6_wr_eq;
-    assign range_good_and_6 = range_good & base6_wr_not_2;
-    assign base6_end_sent_not = ~base6_end_sent;
-    assign base_open_and_24 = base_open & base6_end_sent_not;
-    assign range_good_mux_6 = range_good_and_6 ? base6_fifo_rd : const_cat_2;
-    assign base_open_and_25 = base_open_and_24 & u_builder_base6_ready;
-    assign base_open_and_26 = base_open_and_25 & range_good_and_6;
-    assign range_good_not_11 = ~range_good_and_6;
-    assign base_open_and_27 = base_open_and_25 & range_good_not_11;
-    assign base6_wr_not_3 = ~base6_wr_and;
-    assign base6_push_and_2 = base6_push & base6_wr_not_3;
-    assign base6_wr_add = base6_wr + 5'd1;
-    assign base6_rd_add = base6_rd + 5'd1;
-    assign base7_wr_eq = base7_wr == base7_rd;
-    assign base7_wr_eq_1 = base7_wr[3:0] == base7_rd[3:0];
-    assign base7_wr_eq_2 = base7_wr[4] == base7_rd[4];
-    assign base7_wr_not = ~base7_wr_eq_2;
-    assign base7_wr_and = base7_wr_eq_1 & base7_wr_not;
+    assign out_is_node_and_6 = (out_is_node & (u_module_rec_lod == 5'd6)) & (~lo_lt_6);
+    assign base6_push = ((leaf_take & (leaf_best_data_lod == 5'd6)) & lo_lt_6) | out_is_node_and_6;
+    assign base6_wr_put = base6_push & (~base6_full);
+    assign range_good_and_6 = range_good & (~base6_empty);
+    assign base_open_and_12 = base_open & (~base6_end_sent);
+    assign base_open_and_13 = base_open_and_12 & u_builder_base6_ready;
+    assign base7_empty = base7_wr == base7_rd;
+    assign base7_full = (base7_wr[3:0] == base7_rd[3:0]) & (~(base7_wr[4] == base7_rd[4]));
     assign lo_lt_7 = 5'd7 < lo;
-    assign leaf_best_data_eq_7 = leaf_best_data[182:178] == 5'd7;
-    assign leaf_take_and_14 = leaf_take & leaf_best_data_eq_7;
-    assign leaf_take_and_15 = leaf_take_and_14 & lo_lt_7;
-    assign u_module_eq_8 = u_module_out_data[5:1] == 5'd7;
-    assign out_is_node_and_14 = out_is_node & u_module_eq_8;
-    assign lo_not_7 = ~lo_lt_7;
-    assign out_is_node_and_15 = out_is_node_and_14 & lo_not_7;
-    assign base7_push = leaf_take_and_15 | out_is_node_and_15;
-    assign out_is_node_mux_7 = out_is_node_and_15 ? u_module_cat : const_cat_3;
-    assign base7_wr_not_1 = ~base7_wr_and;
-    assign base7_push_and = base7_push & base7_wr_not_1;
-    assign base7_push_and_1 = base7_push & base7_wr_and;
-    assign base7_fifo_rd = base7_fifo[base7_rd[3:0]];
-    assign base7_wr_not_2 = ~base7_wr_eq;
-    assign range_good_and_7 = range_good & base7_wr_not_2;
-    assign base7_end_sent_not = ~base7_end_sent;
-    assign base_open_and_28 = base_open & base7_end_sent_not;
-    assign range_good_mux_7 = range_good_and_7 ? base7_fifo_rd : const_cat_2;
-    assign base_open_and_29 = base_open_and_28 & u_builder_base7_ready;
-    assign base_open_and_30 = base_open_and_29 & range_good_and_7;
-    assign range_good_not_12 = ~range_good_and_7;
-    assign base_open_and_31 = base_open_and_29 & range_good_not_12;
-    assign base7_wr_not_3 = ~base7_wr_and;
-    assign base7_push_and_2 = base7_push & base7_wr_not_3;
-    assign base7_wr_add = base7_wr + 5'd1;
-    assign base7_rd_add = base7_rd + 5'd1;
-    assign base8_wr_eq = base8_wr == base8_rd;
-    assign base8_wr_eq_1 = base8_wr[3:0] == base8_rd[3:0];
-    assign base8_wr_eq_2 = base8_wr[4] == base8_rd[4];
-    assign base8_wr_not = ~base8_wr_eq_2;
-    assign base8_wr_and = base8_wr_eq_1 & base8_wr_not;
+    assign out_is_node_and_7 = (out_is_node & (u_module_rec_lod == 5'd7)) & (~lo_lt_7);
+    assign base7_push = ((leaf_take & (leaf_best_data_lod == 5'd7)) & lo_lt_7) | out_is_node_and_7;
+    assign base7_wr_put = base7_push & (~base7_full);
+    assign range_good_and_7 = range_good & (~base7_empty);
+    assign base_open_and_14 = base_open & (~base7_end_sent);
+    assign base_open_and_15 = base_open_and_14 & u_builder_base7_ready;
+    assign base8_empty = base8_wr == base8_rd;
+    assign base8_full = (base8_wr[3:0] == base8_rd[3:0]) & (~(base8_wr[4] == base8_rd[4]));
     assign lo_lt_8 = 5'd8 < lo;
-    assign leaf_best_data_eq_8 = leaf_best_data[182:178] == 5'd8;
-    assign leaf_take_and_16 = leaf_take & leaf_best_data_eq_8;
-    assign leaf_take_and_17 = leaf_take_and_16 & lo_lt_8;
-    assign u_module_eq_9 = u_module_out_data[5:1] == 5'd8;
-    assign out_is_node_and_16 = out_is_node & u_module_eq_9;
-    assign lo_not_8 = ~lo_lt_8;
-    assign out_is_node_and_17 = out_is_node_and_16 & lo_not_8;
-    assign base8_push = leaf_take_and_17 | out_is_node_and_17;
-    assign out_is_node_mux_8 = out_is_node_and_17 ? u_module_cat : const_cat_3;
-    assign base8_wr_not_1 = ~base8_wr_and;
-    assign base8_push_and = base8_push & base8_wr_not_1;
-    assign base8_push_and_1 = base8_push & base8_wr_and;
-    assign base8_fifo_rd = base8_fifo[base8_rd[3:0]];
-    assign base8_wr_not_2 = ~base8_wr_eq;
-    assign range_good_and_8 = range_good & base8_wr_not_2;
-    assign base8_end_sent_not = ~base8_end_sent;
-    assign base_open_and_32 = base_open & base8_end_sent_not;
-    assign range_good_mux_8 = range_good_and_8 ? base8_fifo_rd : const_cat_2;
-    assign base_open_and_33 = base_open_and_32 & u_builder_base8_ready;
-    assign base_open_and_34 = base_open_and_33 & range_good_and_8;
-    assign range_good_not_13 = ~range_good_and_8;
-    assign base_open_and_35 = base_open_and_33 & range_good_not_13;
-    assign base8_wr_not_3 = ~base8_wr_and;
-    assign base8_push_and_2 = base8_push & base8_wr_not_3;
-    assign base8_wr_add = base8_wr + 5'd1;
-    assign base8_rd_add = base8_rd + 5'd1;
-    assign base9_wr_eq = base9_wr == base9_rd;
-    assign base9_wr_eq_1 = base9_wr[3:0] == base9_rd[3:0];
-    assign base9_wr_eq_2 = base9_wr[4] == base9_rd[4];
-    assign base9_wr_not = ~base9_wr_eq_2;
-    assign base9_wr_and = base9_wr_eq_1 & base9_wr_not;
+    assign out_is_node_and_8 = (out_is_node & (u_module_rec_lod == 5'd8)) & (~lo_lt_8);
+    assign base8_push = ((leaf_take & (leaf_best_data_lod == 5'd8)) & lo_lt_8) | out_is_node_and_8;
+    assign base8_wr_put = base8_push & (~base8_full);
+    assign range_good_and_8 = range_good & (~base8_empty);
+    assign base_open_and_16 = base_open & (~base8_end_sent);
+    assign base_open_and_17 = base_open_and_16 & u_builder_base8_ready;
+    assign base9_empty = base9_wr == base9_rd;
+    assign base9_full = (base9_wr[3:0] == base9_rd[3:0]) & (~(base9_wr[4] == base9_rd[4]));
     assign lo_lt_9 = 5'd9 < lo;
-    assign leaf_best_data_eq_9 = leaf_best_data[182:178] == 5'd9;
-    assign leaf_take_and_18 = leaf_take & leaf_best_data_eq_9;
-    assign leaf_take_and_19 = leaf_take_and_18 & lo_lt_9;
-    assign u_module_eq_10 = u_module_out_data[5:1] == 5'd9;
-    assign out_is_node_and_18 = out_is_node & u_module_eq_10;
-    assign lo_not_9 = ~lo_lt_9;
-    assign out_is_node_and_19 = out_is_node_and_18 & lo_not_9;
-    assign base9_push = leaf_take_and_19 | out_is_node_and_19;
-    assign out_is_node_mux_9 = out_is_node_and_19 ? u_module_cat : const_cat_3;
-    assign base9_wr_not_1 = ~base9_wr_and;
-    assign base9_push_and = base9_push & base9_wr_not_1;
-    assign base9_push_and_1 = base9_push & base9_wr_and;
-    assign base9_fifo_rd = base9_fifo[base9_rd[3:0]];
-    assign base9_wr_not_2 = ~base9_wr_eq;
-    assign range_good_and_9 = range_good & base9_wr_not_2;
-    assign base9_end_sent_not = ~base9_end_sent;
-    assign base_open_and_36 = base_open & base9_end_sent_not;
-    assign range_good_mux_9 = range_good_and_9 ? base9_fifo_rd : const_cat_2;
-    assign base_open_and_37 = base_open_and_36 & u_builder_base9_ready;
-    assign base_open_and_38 = base_open_and_37 & range_good_and_9;
-    assign range_good_not_14 = ~range_good_and_9;
-    assign base_open_and_39 = base_open_and_37 & range_good_not_14;
-    assign base9_wr_not_3 = ~base9_wr_and;
-    assign base9_push_and_2 = base9_push & base9_wr_not_3;
-    assign base9_wr_add = base9_wr + 5'd1;
-    assign base9_rd_add = base9_rd + 5'd1;
-    assign base10_wr_eq = base10_wr == base10_rd;
-    assign base10_wr_eq_1 = base10_wr[3:0] == base10_rd[3:0];
-    assign base10_wr_eq_2 = base10_wr[4] == base10_rd[4];
-    assign base10_wr_not = ~base10_wr_eq_2;
-    assign base10_wr_and = base10_wr_eq_1 & base10_wr_not;
+    assign out_is_node_and_9 = (out_is_node & (u_module_rec_lod == 5'd9)) & (~lo_lt_9);
+    assign base9_push = ((leaf_take & (leaf_best_data_lod == 5'd9)) & lo_lt_9) | out_is_node_and_9;
+    assign base9_wr_put = base9_push & (~base9_full);
+    assign range_good_and_9 = range_good & (~base9_empty);
+    assign base_open_and_18 = base_open & (~base9_end_sent);
+    assign base_open_and_19 = base_open_and_18 & u_builder_base9_ready;
+    assign base10_empty = base10_wr == base10_rd;
+    assign base10_full = (base10_wr[3:0] == base10_rd[3:0]) & (~(base10_wr[4] == base10_rd[4]));
     assign lo_lt_10 = 5'd10 < lo;
-    assign leaf_best_data_eq_10 = leaf_best_data[182:178] == 5'd10;
-    assign leaf_take_and_20 = leaf_take & leaf_best_data_eq_10;
-    assign leaf_take_and_21 = leaf_take_and_20 & lo_lt_10;
-    assign u_module_eq_11 = u_module_out_data[5:1] == 5'd10;
-    assign out_is_node_and_20 = out_is_node & u_module_eq_11;
-    assign lo_not_10 = ~lo_lt_10;
-    assign out_is_node_and_21 = out_is_node_and_20 & lo_not_10;
-    assign base10_push = leaf_take_and_21 | out_is_node_and_21;
-    assign out_is_node_mux_10 = out_is_node_and_21 ? u_module_cat : const_cat_3;
-    assign base10_wr_not_1 = ~base10_wr_and;
-    assign base10_push_and = base10_push & base10_wr_not_1;
-    assign base10_push_and_1 = base10_push & base10_wr_and;
-    assign base10_fifo_rd = base10_fifo[base10_rd[3:0]];
-    assign base10_wr_not_2 = ~base10_wr_eq;
-    assign range_good_and_10 = range_good & base10_wr_not_2;
-    assign base10_end_sent_not = ~base10_end_sent;
-    assign base_open_and_40 = base_open & base10_end_sent_not;
-    assign range_good_mux_10 = range_good_and_10 ? base10_fifo_rd : const_cat_2;
-    assign base_open_and_41 = base_open_and_40 & u_builder_base10_ready;
-    assign base_open_and_42 = base_open_and_41 & range_good_and_10;
-    assign range_good_not_15 = ~range_good_and_10;
-    assign base_open_and_43 = base_open_and_41 & range_good_not_15;
-    assign base10_wr_not_3 = ~base10_wr_and;
-    assign base10_push_and_2 = base10_push & base10_wr_not_3;
-    assign base10_wr_add = base10_wr + 5'd1;
-    assign base10_rd_add = base10_rd + 5'd1;
-    assign base11_wr_eq = base11_wr == base11_rd;
-    assign base11_wr_eq_1 = base11_wr[3:0] == base11_rd[3:0];
-    assign base11_wr_eq_2 = base11_wr[4] == base11_rd[4];
-    assign base11_wr_not = ~base11_wr_eq_2;
-    assign base11_wr_and = base11_wr_eq_1 & base11_wr_not;
+    assign out_is_node_and_10 = (out_is_node & (u_module_rec_lod == 5'd10)) & (~lo_lt_10);
+    assign base10_push = ((leaf_take & (leaf_best_data_lod == 5'd10)) & lo_lt_10) | out_is_node_and_10;
+    assign base10_wr_put = base10_push & (~base10_full);
+    assign range_good_and_10 = range_good & (~base10_empty);
+    assign base_open_and_20 = base_open & (~base10_end_sent);
+    assign base_open_and_21 = base_open_and_20 & u_builder_base10_ready;
+    assign base11_empty = base11_wr == base11_rd;
+    assign base11_full = (base11_wr[3:0] == base11_rd[3:0]) & (~(base11_wr[4] == base11_rd[4]));
     assign lo_lt_11 = 5'd11 < lo;
-    assign leaf_best_data_eq_11 = leaf_best_data[182:178] == 5'd11;
-    assign leaf_take_and_22 = leaf_take & leaf_best_data_eq_11;
-    assign leaf_take_and_23 = leaf_take_and_22 & lo_lt_11;
-    assign u_module_eq_12 = u_module_out_data[5:1] == 5'd11;
-    assign out_is_node_and_22 = out_is_node & u_module_eq_12;
-    assign lo_not_11 = ~lo_lt_11;
-    assign out_is_node_and_23 = out_is_node_and_22 & lo_not_11;
-    assign base11_push = leaf_take_and_23 | out_is_node_and_23;
-    assign out_is_node_mux_11 = out_is_node_and_23 ? u_module_cat : const_cat_3;
-    assign base11_wr_not_1 = ~base11_wr_and;
-    assign base11_push_and = base11_push & base11_wr_not_1;
-    assign base11_push_and_1 = base11_push & base11_wr_and;
-    assign base11_fifo_rd = base11_fifo[base11_rd[3:0]];
-    assign base11_wr_not_2 = ~base11_wr_eq;
-    assign range_good_and_11 = range_good & base11_wr_not_2;
-    assign base11_end_sent_not = ~base11_end_sent;
-    assign base_open_and_44 = base_open & base11_end_sent_not;
-    assign range_good_mux_11 = range_good_and_11 ? base11_fifo_rd : const_cat_2;
-    assign base_open_and_45 = base_open_and_44 & u_builder_base11_ready;
-    assign base_open_and_46 = base_open_and_45 & range_good_and_11;
-    assign range_good_not_16 = ~range_good_and_11;
-    assign base_open_and_47 = base_open_and_45 & range_good_not_16;
-    assign base11_wr_not_3 = ~base11_wr_and;
-    assign base11_push_and_2 = base11_push & base11_wr_not_3;
-    assign base11_wr_add = base11_wr + 5'd1;
-    assign base11_rd_add = base11_rd + 5'd1;
-    assign base12_wr_eq = base12_wr == base12_rd;
-    assign base12_wr_eq_1 = base12_wr[3:0] == base12_rd[3:0];
-    assign base12_wr_eq_2 = base12_wr[4] == base12_rd[4];
-    assign base12_wr_not = ~base12_wr_eq_2;
-    assign base12_wr_and = base12_wr_eq_1 & base12_wr_not;
+    assign out_is_node_and_11 = (out_is_node & (u_module_rec_lod == 5'd11)) & (~lo_lt_11);
+    assign base11_push = ((leaf_take & (leaf_best_data_lod == 5'd11)) & lo_lt_11) | out_is_node_and_11;
+    assign base11_wr_put = base11_push & (~base11_full);
+    assign range_good_and_11 = range_good & (~base11_empty);
+    assign base_open_and_22 = base_open & (~base11_end_sent);
+    assign base_open_and_23 = base_open_and_22 & u_builder_base11_ready;
+    assign base12_empty = base12_wr == base12_rd;
+    assign base12_full = (base12_wr[3:0] == base12_rd[3:0]) & (~(base12_wr[4] == base12_rd[4]));
     assign lo_lt_12 = 5'd12 < lo;
-    assign leaf_best_data_eq_12 = leaf_best_data[182:178] == 5'd12;
-    assign leaf_take_and_24 = leaf_take & leaf_best_data_eq_12;
-    assign leaf_take_and_25 = leaf_take_and_24 & lo_lt_12;
-    assign u_module_eq_13 = u_module_out_data[5:1] == 5'd12;
-    assign out_is_node_and_24 = out_is_node & u_module_eq_13;
-    assign lo_not_12 = ~lo_lt_12;
-    assign out_is_node_and_25 = out_is_node_and_24 & lo_not_12;
-    assign base12_push = leaf_take_and_25 | out_is_node_and_25;
-    assign out_is_node_mux_12 = out_is_node_and_25 ? u_module_cat : const_cat_3;
-    assign base12_wr_not_1 = ~base12_wr_and;
-    assign base12_push_and = base12_push & base12_wr_not_1;
-    assign base12_push_and_1 = base12_push & base12_wr_and;
-    assign base12_fifo_rd = base12_fifo[base12_rd[3:0]];
-    assign base12_wr_not_2 = ~base12_wr_eq;
-    assign range_good_and_12 = range_good & base12_wr_not_2;
-    assign base12_end_sent_not = ~base12_end_sent;
-    assign base_open_and_48 = base_open & base12_end_sent_not;
-    assign range_good_mux_12 = range_good_and_12 ? base12_fifo_rd : const_cat_2;
-    assign base_open_and_49 = base_open_and_48 & u_builder_base12_ready;
-    assign base_open_and_50 = base_open_and_49 & range_good_and_12;
-    assign range_good_not_17 = ~range_good_and_12;
-    assign base_open_and_51 = base_open_and_49 & range_good_not_17;
-    assign base12_wr_not_3 = ~base12_wr_and;
-    assign base12_push_and_2 = base12_push & base12_wr_not_3;
-    assign base12_wr_add = base12_wr + 5'd1;
-    assign base12_rd_add = base12_rd + 5'd1;
-    assign base13_wr_eq = base13_wr == base13_rd;
-    assign base13_wr_eq_1 = base13_wr[3:0] == base13_rd[3:0];
-    assign base13_wr_eq_2 = base13_wr[4] == base13_rd[4];
-    assign base13_wr_not = ~base13_wr_eq_2;
-    assign base13_wr_and = base13_wr_eq_1 & base13_wr_not;
+    assign out_is_node_and_12 = (out_is_node & (u_module_rec_lod == 5'd12)) & (~lo_lt_12);
+    assign base12_push = ((leaf_take & (leaf_best_data_lod == 5'd12)) & lo_lt_12) | out_is_node_and_12;
+    assign base12_wr_put = base12_push & (~base12_full);
+    assign range_good_and_12 = range_good & (~base12_empty);
+    assign base_open_and_24 = base_open & (~base12_end_sent);
+    assign base_open_and_25 = base_open_and_24 & u_builder_base12_ready;
+    assign base13_empty = base13_wr == base13_rd;
+    assign base13_full = (base13_wr[3:0] == base13_rd[3:0]) & (~(base13_wr[4] == base13_rd[4]));
     assign lo_lt_13 = 5'd13 < lo;
-    assign leaf_best_data_eq_13 = leaf_best_data[182:178] == 5'd13;
-    assign leaf_take_and_26 = leaf_take & leaf_best_data_eq_13;
-    assign leaf_take_and_27 = leaf_take_and_26 & lo_lt_13;
-    assign u_module_eq_14 = u_module_out_data[5:1] == 5'd13;
-    assign out_is_node_and_26 = out_is_node & u_module_eq_14;
-    assign lo_not_13 = ~lo_lt_13;
-    assign out_is_node_and_27 = out_is_node_and_26 & lo_not_13;
-    assign base13_push = leaf_take_and_27 | out_is_node_and_27;
-    assign out_is_node_mux_13 = out_is_node_and_27 ? u_module_cat : const_cat_3;
-    assign base13_wr_not_1 = ~base13_wr_and;
-    assign base13_push_and = base13_push & base13_wr_not_1;
-    assign base13_push_and_1 = base13_push & base13_wr_and;
-    assign base13_fifo_rd = base13_fifo[base13_rd[3:0]];
-    assign base13_wr_not_2 = ~base13_wr_eq;
-    assign range_good_and_13 = range_good & base13_wr_not_2;
-    assign base13_end_sent_not = ~base13_end_sent;
-    assign base_open_and_52 = base_open & base13_end_sent_not;
-    assign range_good_mux_13 = range_good_and_13 ? base13_fifo_rd : const_cat_2;
-    assign base_open_and_53 = base_open_and_52 & u_builder_base13_ready;
-    assign base_open_and_54 = base_open_and_53 & range_good_and_13;
-    assign range_good_not_18 = ~range_good_and_13;
-    assign base_open_and_55 = base_open_and_53 & range_good_not_18;
-    assign base13_wr_not_3 = ~base13_wr_and;
-    assign base13_push_and_2 = base13_push & base13_wr_not_3;
-    assign base13_wr_add = base13_wr + 5'd1;
-    assign base13_rd_add = base13_rd + 5'd1;
-    assign base14_wr_eq = base14_wr == base14_rd;
-    assign base14_wr_eq_1 = base14_wr[3:0] == base14_rd[3:0];
-    assign base14_wr_eq_2 = base14_wr[4] == base14_rd[4];
-    assign base14_wr_not = ~base14_wr_eq_2;
-    assign base14_wr_and = base14_wr_eq_1 & base14_wr_not;
+    assign out_is_node_and_13 = (out_is_node & (u_module_rec_lod == 5'd13)) & (~lo_lt_13);
+    assign base13_push = ((leaf_take & (leaf_best_data_lod == 5'd13)) & lo_lt_13) | out_is_node_and_13;
+    assign base13_wr_put = base13_push & (~base13_full);
+    assign range_good_and_13 = range_good & (~base13_empty);
+    assign base_open_and_26 = base_open & (~base13_end_sent);
+    assign base_open_and_27 = base_open_and_26 & u_builder_base13_ready;
+    assign base14_empty = base14_wr == base14_rd;
+    assign base14_full = (base14_wr[3:0] == base14_rd[3:0]) & (~(base14_wr[4] == base14_rd[4]));
     assign lo_lt_14 = 5'd14 < lo;
-    assign leaf_best_data_eq_14 = leaf_best_data[182:178] == 5'd14;
-    assign leaf_take_and_28 = leaf_take & leaf_best_data_eq_14;
-    assign leaf_take_and_29 = leaf_take_and_28 & lo_lt_14;
-    assign u_module_eq_15 = u_module_out_data[5:1] == 5'd14;
-    assign out_is_node_and_28 = out_is_node & u_module_eq_15;
-    assign lo_not_14 = ~lo_lt_14;
-    assign out_is_node_and_29 = out_is_node_and_28 & lo_not_14;
-    assign base14_push = leaf_take_and_29 | out_is_node_and_29;
-    assign out_is_node_mux_14 = out_is_node_and_29 ? u_module_cat : const_cat_3;
-    assign base14_wr_not_1 = ~base14_wr_and;
-    assign base14_push_and = base14_push & base14_wr_not_1;
-    assign base14_push_and_1 = base14_push & base14_wr_and;
-    assign base14_fifo_rd = base14_fifo[base14_rd[3:0]];
-    assign base14_wr_not_2 = ~base14_wr_eq;
-    assign range_good_and_14 = range_good & base14_wr_not_2;
-    assign base14_end_sent_not = ~base14_end_sent;
-    assign base_open_and_56 = base_open & base14_end_sent_not;
-    assign range_good_mux_14 = range_good_and_14 ? base14_fifo_rd : const_cat_2;
-    assign base_open_and_57 = base_open_and_56 & u_builder_base14_ready;
-    assign base_open_and_58 = base_open_and_57 & range_good_and_14;
-    assign range_good_not_19 = ~range_good_and_14;
-    assign base_open_and_59 = base_open_and_57 & range_good_not_19;
-    assign base14_wr_not_3 = ~base14_wr_and;
-    assign base14_push_and_2 = base14_push & base14_wr_not_3;
-    assign base14_wr_add = base14_wr + 5'd1;
-    assign base14_rd_add = base14_rd + 5'd1;
-    assign base15_wr_eq = base15_wr == base15_rd;
-    assign base15_wr_eq_1 = base15_wr[3:0] == base15_rd[3:0];
-    assign base15_wr_eq_2 = base15_wr[4] == base15_rd[4];
-    assign base15_wr_not = ~base15_wr_eq_2;
-    assign base15_wr_and = base15_wr_eq_1 & base15_wr_not;
+    assign out_is_node_and_14 = (out_is_node & (u_module_rec_lod == 5'd14)) & (~lo_lt_14);
+    assign base14_push = ((leaf_take & (leaf_best_data_lod == 5'd14)) & lo_lt_14) | out_is_node_and_14;
+    assign base14_wr_put = base14_push & (~base14_full);
+    assign range_good_and_14 = range_good & (~base14_empty);
+    assign base_open_and_28 = base_open & (~base14_end_sent);
+    assign base_open_and_29 = base_open_and_28 & u_builder_base14_ready;
+    assign base15_empty = base15_wr == base15_rd;
+    assign base15_full = (base15_wr[3:0] == base15_rd[3:0]) & (~(base15_wr[4] == base15_rd[4]));
     assign lo_lt_15 = 5'd15 < lo;
-    assign leaf_best_data_eq_15 = leaf_best_data[182:178] == 5'd15;
-    assign leaf_take_and_30 = leaf_take & leaf_best_data_eq_15;
-    assign leaf_take_and_31 = leaf_take_and_30 & lo_lt_15;
-    assign u_module_eq_16 = u_module_out_data[5:1] == 5'd15;
-    assign out_is_node_and_30 = out_is_node & u_module_eq_16;
-    assign lo_not_15 = ~lo_lt_15;
-    assign out_is_node_and_31 = out_is_node_and_30 & lo_not_15;
-    assign base15_push = leaf_take_and_31 | out_is_node_and_31;
-    assign out_is_node_mux_15 = out_is_node_and_31 ? u_module_cat : const_cat_3;
-    assign base15_wr_not_1 = ~base15_wr_and;
-    assign base15_push_and = base15_push & base15_wr_not_1;
-    assign base15_push_and_1 = base15_push & base15_wr_and;
-    assign base15_fifo_rd = base15_fifo[base15_rd[3:0]];
-    assign base15_wr_not_2 = ~base15_wr_eq;
-    assign range_good_and_15 = range_good & base15_wr_not_2;
-    assign base15_end_sent_not = ~base15_end_sent;
-    assign base_open_and_60 = base_open & base15_end_sent_not;
-    assign range_good_mux_15 = range_good_and_15 ? base15_fifo_rd : const_cat_2;
-    assign base_open_and_61 = base_open_and_60 & u_builder_base15_ready;
-    assign base_open_and_62 = base_open_and_61 & range_good_and_15;
-    assign range_good_not_20 = ~range_good_and_15;
-    assign base_open_and_63 = base_open_and_61 & range_good_not_20;
-    assign base15_wr_not_3 = ~base15_wr_and;
-    assign base15_push_and_2 = base15_push & base15_wr_not_3;
-    assign base15_wr_add = base15_wr + 5'd1;
-    assign base15_rd_add = base15_rd + 5'd1;
-    assign base16_wr_eq = base16_wr == base16_rd;
-    assign base16_wr_eq_1 = base16_wr[3:0] == base16_rd[3:0];
-    assign base16_wr_eq_2 = base16_wr[4] == base16_rd[4];
-    assign base16_wr_not = ~base16_wr_eq_2;
-    assign base16_wr_and = base16_wr_eq_1 & base16_wr_not;
+    assign out_is_node_and_15 = (out_is_node & (u_module_rec_lod == 5'd15)) & (~lo_lt_15);
+    assign base15_push = ((leaf_take & (leaf_best_data_lod == 5'd15)) & lo_lt_15) | out_is_node_and_15;
+    assign base15_wr_put = base15_push & (~base15_full);
+    assign range_good_and_15 = range_good & (~base15_empty);
+    assign base_open_and_30 = base_open & (~base15_end_sent);
+    assign base_open_and_31 = base_open_and_30 & u_builder_base15_ready;
+    assign base16_empty = base16_wr == base16_rd;
+    assign base16_full = (base16_wr[3:0] == base16_rd[3:0]) & (~(base16_wr[4] == base16_rd[4]));
     assign lo_lt_16 = 5'd16 < lo;
-    assign leaf_best_data_eq_16 = leaf_best_data[182:178] == 5'd16;
-    assign leaf_take_and_32 = leaf_take & leaf_best_data_eq_16;
-    assign leaf_take_and_33 = leaf_take_and_32 & lo_lt_16;
-    assign u_module_eq_17 = u_module_out_data[5:1] == 5'd16;
-    assign out_is_node_and_32 = out_is_node & u_module_eq_17;
-    assign lo_not_16 = ~lo_lt_16;
-    assign out_is_node_and_33 = out_is_node_and_32 & lo_not_16;
-    assign base16_push = leaf_take_and_33 | out_is_node_and_33;
-    assign out_is_node_mux_16 = out_is_node_and_33 ? u_module_cat : const_cat_3;
-    assign base16_wr_not_1 = ~base16_wr_and;
-    assign base16_push_and = base16_push & base16_wr_not_1;
-    assign base16_push_and_1 = base16_push & base16_wr_and;
-    assign base16_fifo_rd = base16_fifo[base16_rd[3:0]];
-    assign base16_wr_not_2 = ~base16_wr_eq;
-    assign range_good_and_16 = range_good & base16_wr_not_2;
-    assign base16_end_sent_not = ~base16_end_sent;
-    assign base_open_and_64 = base_open & base16_end_sent_not;
-    assign range_good_mux_16 = range_good_and_16 ? base16_fifo_rd : const_cat_2;
-    assign base_open_and_65 = base_open_and_64 & u_builder_base16_ready;
-    assign base_open_and_66 = base_open_and_65 & range_good_and_16;
-    assign range_good_not_21 = ~range_good_and_16;
-    assign base_open_and_67 = base_open_and_65 & range_good_not_21;
-    assign base16_wr_not_3 = ~base16_wr_and;
-    assign base16_push_and_2 = base16_push & base16_wr_not_3;
-    assign base16_wr_add = base16_wr + 5'd1;
-    assign base16_rd_add = base16_rd + 5'd1;
+    assign out_is_node_and_16 = (out_is_node & (u_module_rec_lod == 5'd16)) & (~lo_lt_16);
+    assign base16_push = ((leaf_take & (leaf_best_data_lod == 5'd16)) & lo_lt_16) | out_is_node_and_16;
+    assign base16_wr_put = base16_push & (~base16_full);
+    assign range_good_and_16 = range_good & (~base16_empty);
+    assign base_open_and_32 = base_open & (~base16_end_sent);
+    assign base_open_and_33 = base_open_and_32 & u_builder_base16_ready;
     assign w_ref_resp_ready = u_writer_ref_resp_ready;
     assign w_ref_req_ready_w = w_ref_req_ready;
     assign w_ref_req_valid = u_writer_ref_req_valid;
@@ -2225,20 +1096,11 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     assign header_valid = u_writer_header_valid;
     assign header_data = {fetch_rank, fetch_err, count_overflow, leaf_overflow_q, u_writer_header_data};
     assign done = done_pulse;
-    assign busy_not_1 = ~busy;
-    assign dropping0_not_2 = ~dropping0;
-    assign dropping0_and = 1'b1 & dropping0_not_2;
-    assign dropping1_not_2 = ~dropping1;
-    assign dropping0_and_1 = dropping0_and & dropping1_not_2;
-    assign dropping2_not_2 = ~dropping2;
-    assign dropping0_and_2 = dropping0_and_1 & dropping2_not_2;
-    assign dropping3_not_2 = ~dropping3;
-    assign dropping0_and_3 = dropping0_and_2 & dropping3_not_2;
-    assign merger_idle = busy_not_1 & dropping0_and_3;
+    assign merger_idle = busy_not & ((((1'b1 & dropping0_not) & dropping1_not) & dropping2_not) & dropping3_not);
     assign idle = merger_idle;
     assign module_done = u_module_done;
 
-    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch0 ( // rtl-gen/src/merge/merger/mod.rs:170
+    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch0 ( // rtl-gen/src/merge/merger/mod.rs:178
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch0_cfg_pending),
@@ -2256,7 +1118,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .cref_resp_valid(f0_cref_resp_valid),
         .cref_resp_data(f0_cref_resp_data),
         .cref_resp_ready(u_fetch0_cref_resp_ready),
-        .report_valid(u_module_and_3),
+        .report_valid(u_module_and_1),
         .report_data(report_narrow),
         .report_ready(u_fetch0_report_ready),
         .probe_resp_valid(f0_probe_resp_valid),
@@ -2276,21 +1138,21 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .out_ready(dropping0_or),
         .leaves_valid(u_fetch0_leaves_valid),
         .leaves_data(u_fetch0_leaves_data),
-        .leaves_ready(used0_and_6),
+        .leaves_ready((used0 & leaves_all_valid) & (leaves_all_end | (leaf_best == 2'd0))),
         .probe_req_valid(u_fetch0_probe_req_valid),
         .probe_req_data(u_fetch0_probe_req_data),
         .probe_req_ready(f0_probe_req_ready_w),
         .idle(u_fetch0_idle)
     );
 
-    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch1 ( // rtl-gen/src/merge/merger/mod.rs:170
+    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch1 ( // rtl-gen/src/merge/merger/mod.rs:178
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch1_cfg_pending),
         .cfg_data(cfg_q[275:138]),
         .cfg_ready(u_fetch1_cfg_ready),
         .cmd_valid(cmd1_pending),
-        .cmd_data(range_good_cat_1),
+        .cmd_data(range_good_cat),
         .cmd_ready(u_fetch1_cmd_ready),
         .node_resp_valid(f1_node_resp_valid),
         .node_resp_data(f1_node_resp_data),
@@ -2301,7 +1163,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .cref_resp_valid(f1_cref_resp_valid),
         .cref_resp_data(f1_cref_resp_data),
         .cref_resp_ready(u_fetch1_cref_resp_ready),
-        .report_valid(u_module_and_6),
+        .report_valid(u_module_and_2),
         .report_data(report_narrow),
         .report_ready(u_fetch1_report_ready),
         .probe_resp_valid(f1_probe_resp_valid),
@@ -2321,21 +1183,21 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .out_ready(dropping1_or),
         .leaves_valid(u_fetch1_leaves_valid),
         .leaves_data(u_fetch1_leaves_data),
-        .leaves_ready(used1_and_3),
+        .leaves_ready((used1 & leaves_all_valid) & (leaves_all_end | (leaf_best == 2'd1))),
         .probe_req_valid(u_fetch1_probe_req_valid),
         .probe_req_data(u_fetch1_probe_req_data),
         .probe_req_ready(f1_probe_req_ready_w),
         .idle(u_fetch1_idle)
     );
 
-    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch2 ( // rtl-gen/src/merge/merger/mod.rs:170
+    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch2 ( // rtl-gen/src/merge/merger/mod.rs:178
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch2_cfg_pending),
         .cfg_data(cfg_q[413:276]),
         .cfg_ready(u_fetch2_cfg_ready),
         .cmd_valid(cmd2_pending),
-        .cmd_data(range_good_cat_2),
+        .cmd_data(range_good_cat),
         .cmd_ready(u_fetch2_cmd_ready),
         .node_resp_valid(f2_node_resp_valid),
         .node_resp_data(f2_node_resp_data),
@@ -2346,7 +1208,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .cref_resp_valid(f2_cref_resp_valid),
         .cref_resp_data(f2_cref_resp_data),
         .cref_resp_ready(u_fetch2_cref_resp_ready),
-        .report_valid(u_module_and_9),
+        .report_valid(u_module_and_3),
         .report_data(report_narrow),
         .report_ready(u_fetch2_report_ready),
         .probe_resp_valid(f2_probe_resp_valid),
@@ -2366,21 +1228,21 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .out_ready(dropping2_or),
         .leaves_valid(u_fetch2_leaves_valid),
         .leaves_data(u_fetch2_leaves_data),
-        .leaves_ready(used2_and_3),
+        .leaves_ready((used2 & leaves_all_valid) & (leaves_all_end | (leaf_best == 2'd2))),
         .probe_req_valid(u_fetch2_probe_req_valid),
         .probe_req_data(u_fetch2_probe_req_data),
         .probe_req_ready(f2_probe_req_ready_w),
         .idle(u_fetch2_idle)
     );
 
-    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch3 ( // rtl-gen/src/merge/merger/mod.rs:170
+    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch3 ( // rtl-gen/src/merge/merger/mod.rs:178
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch3_cfg_pending),
         .cfg_data(cfg_q[551:414]),
         .cfg_ready(u_fetch3_cfg_ready),
         .cmd_valid(cmd3_pending),
-        .cmd_data(range_good_cat_3),
+        .cmd_data(range_good_cat),
         .cmd_ready(u_fetch3_cmd_ready),
         .node_resp_valid(f3_node_resp_valid),
         .node_resp_data(f3_node_resp_data),
@@ -2391,7 +1253,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .cref_resp_valid(f3_cref_resp_valid),
         .cref_resp_data(f3_cref_resp_data),
         .cref_resp_ready(u_fetch3_cref_resp_ready),
-        .report_valid(u_module_and_12),
+        .report_valid(u_module_and_4),
         .report_data(report_narrow),
         .report_ready(u_fetch3_report_ready),
         .probe_resp_valid(f3_probe_resp_valid),
@@ -2411,30 +1273,30 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .out_ready(dropping3_or),
         .leaves_valid(u_fetch3_leaves_valid),
         .leaves_data(u_fetch3_leaves_data),
-        .leaves_ready(used3_and_3),
+        .leaves_ready((used3 & leaves_all_valid) & (leaves_all_end | (leaf_best == 2'd3))),
         .probe_req_valid(u_fetch3_probe_req_valid),
         .probe_req_data(u_fetch3_probe_req_data),
         .probe_req_ready(f3_probe_req_ready_w),
         .idle(u_fetch3_idle)
     );
 
-    merge_module_d16_q8_i24_h4_k4_pn1_2 u_module ( // rtl-gen/src/merge/merger/mod.rs:172
+    merge_module_d16_q8_i24_h4_k4_pn1_2 u_module ( // rtl-gen/src/merge/merger/mod.rs:180
         .clk(clk),
         .rst(rst),
-        .in0_valid(used0_mux),
-        .in0_data(used0_mux_1),
+        .in0_valid(used0 ? (u_fetch0_out_valid & dropping0_not) : virtual_end0),
+        .in0_data(used0 ? {u_fetch0_probe, u_fetch0_out_data[179:0]} : const_cat_1),
         .in0_ready(u_module_in0_ready),
-        .in1_valid(used1_mux),
-        .in1_data(used1_mux_1),
+        .in1_valid(used1 ? (u_fetch1_out_valid & dropping1_not) : virtual_end1),
+        .in1_data(used1 ? {u_fetch1_probe, u_fetch1_out_data[179:0]} : const_cat_1),
         .in1_ready(u_module_in1_ready),
-        .in2_valid(used2_mux),
-        .in2_data(used2_mux_1),
+        .in2_valid(used2 ? (u_fetch2_out_valid & dropping2_not) : virtual_end2),
+        .in2_data(used2 ? {u_fetch2_probe, u_fetch2_out_data[179:0]} : const_cat_1),
         .in2_ready(u_module_in2_ready),
-        .in3_valid(used3_mux),
-        .in3_data(used3_mux_1),
+        .in3_valid(used3 ? (u_fetch3_out_valid & dropping3_not) : virtual_end3),
+        .in3_data(used3 ? {u_fetch3_probe, u_fetch3_out_data[179:0]} : const_cat_1),
         .in3_ready(u_module_in3_ready),
         .cfg_valid(module_cfg_pending),
-        .cfg_data(hi_cat),
+        .cfg_data({hi, lo}),
         .cfg_ready(u_module_cfg_ready),
         .out_ready(out_is_ref_mux),
         .out_valid(u_module_out_valid),
@@ -2446,59 +1308,59 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .done(u_module_done)
     );
 
-    upper_builder_d16_q8_i24_h4 u_builder ( // rtl-gen/src/merge/merger/mod.rs:173
+    upper_builder_d16_q8_i24_h4 u_builder ( // rtl-gen/src/merge/merger/mod.rs:181
         .clk(clk),
         .rst(rst),
         .base0_valid(base_open_and),
-        .base0_data(range_good_mux),
+        .base0_data(range_good_and ? base0_fifo[base0_rd[3:0]] : const_cat),
         .base0_ready(u_builder_base0_ready),
-        .base1_valid(base_open_and_4),
-        .base1_data(range_good_mux_1),
+        .base1_valid(base_open_and_2),
+        .base1_data(range_good_and_1 ? base1_fifo[base1_rd[3:0]] : const_cat),
         .base1_ready(u_builder_base1_ready),
-        .base2_valid(base_open_and_8),
-        .base2_data(range_good_mux_2),
+        .base2_valid(base_open_and_4),
+        .base2_data(range_good_and_2 ? base2_fifo[base2_rd[3:0]] : const_cat),
         .base2_ready(u_builder_base2_ready),
-        .base3_valid(base_open_and_12),
-        .base3_data(range_good_mux_3),
+        .base3_valid(base_open_and_6),
+        .base3_data(range_good_and_3 ? base3_fifo[base3_rd[3:0]] : const_cat),
         .base3_ready(u_builder_base3_ready),
-        .base4_valid(base_open_and_16),
-        .base4_data(range_good_mux_4),
+        .base4_valid(base_open_and_8),
+        .base4_data(range_good_and_4 ? base4_fifo[base4_rd[3:0]] : const_cat),
         .base4_ready(u_builder_base4_ready),
-        .base5_valid(base_open_and_20),
-        .base5_data(range_good_mux_5),
+        .base5_valid(base_open_and_10),
+        .base5_data(range_good_and_5 ? base5_fifo[base5_rd[3:0]] : const_cat),
         .base5_ready(u_builder_base5_ready),
-        .base6_valid(base_open_and_24),
-        .base6_data(range_good_mux_6),
+        .base6_valid(base_open_and_12),
+        .base6_data(range_good_and_6 ? base6_fifo[base6_rd[3:0]] : const_cat),
         .base6_ready(u_builder_base6_ready),
-        .base7_valid(base_open_and_28),
-        .base7_data(range_good_mux_7),
+        .base7_valid(base_open_and_14),
+        .base7_data(range_good_and_7 ? base7_fifo[base7_rd[3:0]] : const_cat),
         .base7_ready(u_builder_base7_ready),
-        .base8_valid(base_open_and_32),
-        .base8_data(range_good_mux_8),
+        .base8_valid(base_open_and_16),
+        .base8_data(range_good_and_8 ? base8_fifo[base8_rd[3:0]] : const_cat),
         .base8_ready(u_builder_base8_ready),
-        .base9_valid(base_open_and_36),
-        .base9_data(range_good_mux_9),
+        .base9_valid(base_open_and_18),
+        .base9_data(range_good_and_9 ? base9_fifo[base9_rd[3:0]] : const_cat),
         .base9_ready(u_builder_base9_ready),
-        .base10_valid(base_open_and_40),
-        .base10_data(range_good_mux_10),
+        .base10_valid(base_open_and_20),
+        .base10_data(range_good_and_10 ? base10_fifo[base10_rd[3:0]] : const_cat),
         .base10_ready(u_builder_base10_ready),
-        .base11_valid(base_open_and_44),
-        .base11_data(range_good_mux_11),
+        .base11_valid(base_open_and_22),
+        .base11_data(range_good_and_11 ? base11_fifo[base11_rd[3:0]] : const_cat),
         .base11_ready(u_builder_base11_ready),
-        .base12_valid(base_open_and_48),
-        .base12_data(range_good_mux_12),
+        .base12_valid(base_open_and_24),
+        .base12_data(range_good_and_12 ? base12_fifo[base12_rd[3:0]] : const_cat),
         .base12_ready(u_builder_base12_ready),
-        .base13_valid(base_open_and_52),
-        .base13_data(range_good_mux_13),
+        .base13_valid(base_open_and_26),
+        .base13_data(range_good_and_13 ? base13_fifo[base13_rd[3:0]] : const_cat),
         .base13_ready(u_builder_base13_ready),
-        .base14_valid(base_open_and_56),
-        .base14_data(range_good_mux_14),
+        .base14_valid(base_open_and_28),
+        .base14_data(range_good_and_14 ? base14_fifo[base14_rd[3:0]] : const_cat),
         .base14_ready(u_builder_base14_ready),
-        .base15_valid(base_open_and_60),
-        .base15_data(range_good_mux_15),
+        .base15_valid(base_open_and_30),
+        .base15_data(range_good_and_15 ? base15_fifo[base15_rd[3:0]] : const_cat),
         .base15_ready(u_builder_base15_ready),
-        .base16_valid(base_open_and_64),
-        .base16_data(range_good_mux_16),
+        .base16_valid(base_open_and_32),
+        .base16_data(range_good_and_16 ? base16_fifo[base16_rd[3:0]] : const_cat),
         .base16_ready(u_builder_base16_ready),
         .level16_valid(u_builder_level16_valid),
         .level16_data(u_builder_level16_data),
@@ -2556,17 +1418,17 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .done_ready(u_writer_done_ready)
     );
 
-    record_writer_d16_q8_i24_h4_c10 u_writer ( // rtl-gen/src/merge/merger/mod.rs:174
+    record_writer_d16_q8_i24_h4_c10 u_writer ( // rtl-gen/src/merge/merger/mod.rs:182
         .clk(clk),
         .rst(rst),
         .cfg_valid(writer_cfg_pending),
-        .cfg_data(cfg_q[568:565]),
+        .cfg_data(cfg_q_out_id),
         .cfg_ready(u_writer_cfg_ready),
         .done_valid(u_builder_done_valid),
         .done_data(u_builder_done_data),
         .done_ready(u_writer_done_ready),
-        .crefs_valid(crefs_end_sent_and_1),
-        .crefs_data(cref_is_ref_cat),
+        .crefs_valid(crefs_end_sent_and),
+        .crefs_data({cref_is_ref_not, cref_is_ref ? u_module_ref : 28'd0}),
         .crefs_ready(u_writer_crefs_ready),
         .level0_valid(u_builder_level0_valid),
         .level0_data(u_builder_level0_data),
@@ -2727,103 +1589,103 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
             done_pulse <= 1'b0;
         end else begin
             if (cfg_fire) begin
-                busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:189
-                cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:188
-                module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:226
-                writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:234
-                fetch0_cfg_pending <= cfg_data_gt_2; // rtl-gen/src/merge/merger/per_node_mode.rs:196
-                cmd0_pending <= cfg_data_gt_2; // rtl-gen/src/merge/merger/per_node_mode.rs:216
-                end_owed0 <= cfg_data_and;   // rtl-gen/src/merge/merger/per_node_mode.rs:243
-                fetch1_cfg_pending <= cfg_data_gt_3; // rtl-gen/src/merge/merger/per_node_mode.rs:196
-                cmd1_pending <= cfg_data_gt_3; // rtl-gen/src/merge/merger/per_node_mode.rs:216
-                end_owed1 <= cfg_data_and_1; // rtl-gen/src/merge/merger/per_node_mode.rs:243
-                fetch2_cfg_pending <= cfg_data_gt_4; // rtl-gen/src/merge/merger/per_node_mode.rs:196
-                cmd2_pending <= cfg_data_gt_4; // rtl-gen/src/merge/merger/per_node_mode.rs:216
-                end_owed2 <= cfg_data_and_2; // rtl-gen/src/merge/merger/per_node_mode.rs:243
-                fetch3_cfg_pending <= cfg_data_gt_5; // rtl-gen/src/merge/merger/per_node_mode.rs:196
-                cmd3_pending <= cfg_data_gt_5; // rtl-gen/src/merge/merger/per_node_mode.rs:216
-                end_owed3 <= cfg_data_and_3; // rtl-gen/src/merge/merger/per_node_mode.rs:243
+                busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:197
+                cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:196
+                module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:234
+                writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:242
+                fetch0_cfg_pending <= cfg_data_count_gt; // rtl-gen/src/merge/merger/per_node_mode.rs:196
+                cmd0_pending <= cfg_data_count_gt; // rtl-gen/src/merge/merger/per_node_mode.rs:216
+                end_owed0 <= (~cfg_data_count_gt) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:243
+                fetch1_cfg_pending <= cfg_data_count_gt_1; // rtl-gen/src/merge/merger/per_node_mode.rs:196
+                cmd1_pending <= cfg_data_count_gt_1; // rtl-gen/src/merge/merger/per_node_mode.rs:216
+                end_owed1 <= (~cfg_data_count_gt_1) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:243
+                fetch2_cfg_pending <= cfg_data_count_gt_2; // rtl-gen/src/merge/merger/per_node_mode.rs:196
+                cmd2_pending <= cfg_data_count_gt_2; // rtl-gen/src/merge/merger/per_node_mode.rs:216
+                end_owed2 <= (~cfg_data_count_gt_2) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:243
+                fetch3_cfg_pending <= cfg_data_count_gt_3; // rtl-gen/src/merge/merger/per_node_mode.rs:196
+                cmd3_pending <= cfg_data_count_gt_3; // rtl-gen/src/merge/merger/per_node_mode.rs:216
+                end_owed3 <= (~cfg_data_count_gt_3) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:243
             end else begin
                 if (header_fire) begin
-                    busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:189
+                    busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:197
                     end_owed0 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:245
                     end_owed1 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:245
                     end_owed2 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:245
                     end_owed3 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:245
                 end else begin
-                    if (next_pass_and) begin
+                    if (next_pass & used0_not) begin
                         end_owed0 <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:247
-                    end else if (virtual_end0_and) begin
+                    end else if (virtual_end0 & u_module_in0_ready) begin
                         end_owed0 <= 1'b0;   // rtl-gen/src/merge/merger/per_node_mode.rs:247
                     end
-                    if (next_pass_and_1) begin
+                    if (next_pass & used1_not) begin
                         end_owed1 <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:247
-                    end else if (virtual_end1_and) begin
+                    end else if (virtual_end1 & u_module_in1_ready) begin
                         end_owed1 <= 1'b0;   // rtl-gen/src/merge/merger/per_node_mode.rs:247
                     end
-                    if (next_pass_and_2) begin
+                    if (next_pass & used2_not) begin
                         end_owed2 <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:247
-                    end else if (virtual_end2_and) begin
+                    end else if (virtual_end2 & u_module_in2_ready) begin
                         end_owed2 <= 1'b0;   // rtl-gen/src/merge/merger/per_node_mode.rs:247
                     end
-                    if (next_pass_and_3) begin
+                    if (next_pass & used3_not) begin
                         end_owed3 <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:247
-                    end else if (virtual_end3_and) begin
+                    end else if (virtual_end3 & u_module_in3_ready) begin
                         end_owed3 <= 1'b0;   // rtl-gen/src/merge/merger/per_node_mode.rs:247
                     end
                 end
-                if (module_cfg_pending_and) begin
-                    module_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:226
+                if (module_cfg_pending & u_module_cfg_ready) begin
+                    module_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:234
                 end
-                if (writer_cfg_pending_and) begin
-                    writer_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:234
+                if (writer_cfg_pending & u_writer_cfg_ready) begin
+                    writer_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:242
                 end
-                if (fetch0_cfg_pending_and) begin
+                if (fetch0_cfg_pending & u_fetch0_cfg_ready) begin
                     fetch0_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:196
                 end
                 if (cmd0_pending_and) begin
                     cmd0_pending <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:216
                 end
-                if (fetch1_cfg_pending_and) begin
+                if (fetch1_cfg_pending & u_fetch1_cfg_ready) begin
                     fetch1_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:196
                 end
                 if (cmd1_pending_and) begin
                     cmd1_pending <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:216
                 end
-                if (fetch2_cfg_pending_and) begin
+                if (fetch2_cfg_pending & u_fetch2_cfg_ready) begin
                     fetch2_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:196
                 end
                 if (cmd2_pending_and) begin
                     cmd2_pending <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:216
                 end
-                if (fetch3_cfg_pending_and) begin
+                if (fetch3_cfg_pending & u_fetch3_cfg_ready) begin
                     fetch3_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:196
                 end
                 if (cmd3_pending_and) begin
                     cmd3_pending <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:216
                 end
             end
-            if (cmd0_pending_and_1) begin
+            if (cmd0_pending_and & range_good_not) begin
                 dropping0 <= 1'b1;           // rtl-gen/src/merge/merger/per_node_mode.rs:254
-            end else if (u_fetch0_and_4) begin
+            end else if (u_fetch0_and & (u_fetch0_kind == 2'd3)) begin
                 dropping0 <= 1'b0;           // rtl-gen/src/merge/merger/per_node_mode.rs:254
             end
-            if (cmd1_pending_and_1) begin
+            if (cmd1_pending_and & range_good_not) begin
                 dropping1 <= 1'b1;           // rtl-gen/src/merge/merger/per_node_mode.rs:254
-            end else if (u_fetch1_and_4) begin
+            end else if (u_fetch1_and & (u_fetch1_kind == 2'd3)) begin
                 dropping1 <= 1'b0;           // rtl-gen/src/merge/merger/per_node_mode.rs:254
             end
-            if (cmd2_pending_and_1) begin
+            if (cmd2_pending_and & range_good_not) begin
                 dropping2 <= 1'b1;           // rtl-gen/src/merge/merger/per_node_mode.rs:254
-            end else if (u_fetch2_and_4) begin
+            end else if (u_fetch2_and & (u_fetch2_kind == 2'd3)) begin
                 dropping2 <= 1'b0;           // rtl-gen/src/merge/merger/per_node_mode.rs:254
             end
-            if (cmd3_pending_and_1) begin
+            if (cmd3_pending_and & range_good_not) begin
                 dropping3 <= 1'b1;           // rtl-gen/src/merge/merger/per_node_mode.rs:254
-            end else if (u_fetch3_and_4) begin
+            end else if (u_fetch3_and & (u_fetch3_kind == 2'd3)) begin
                 dropping3 <= 1'b0;           // rtl-gen/src/merge/merger/per_node_mode.rs:254
             end
-            if (busy_and_8) begin
+            if (busy & u_module_done) begin
                 module_finished <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:51
             end else if (header_fire) begin
                 module_finished <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:51
@@ -2835,306 +1697,306 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
                 report2_taken <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:151
                 report3_taken <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:151
             end else begin
-                if (u_module_and_1) begin
+                if (u_module_and & report_ready) begin
                     report_top_taken <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:151
                 end
-                if (u_module_and_4) begin
+                if (u_module_and_1 & u_fetch0_report_ready) begin
                     report0_taken <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:151
                 end
-                if (u_module_and_7) begin
+                if (u_module_and_2 & u_fetch1_report_ready) begin
                     report1_taken <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:151
                 end
-                if (u_module_and_10) begin
+                if (u_module_and_3 & u_fetch2_report_ready) begin
                     report2_taken <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:151
                 end
-                if (u_module_and_13) begin
+                if (u_module_and_4 & u_fetch3_report_ready) begin
                     report3_taken <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:151
                 end
             end
-            fetch_err <= fetch_err_next;
-            if (u_fetch3_and_3) begin
+            fetch_err <= u_fetch3_and_1 ? u_fetch3_err : u_fetch2_mux;
+            if (u_fetch3_and_1) begin
                 fetch_rank <= 2'd3;          // rtl-gen/src/merge/merger/per_node_mode.rs:252
-            end else if (u_fetch2_and_3) begin
+            end else if (u_fetch2_and_1) begin
                 fetch_rank <= 2'd2;          // rtl-gen/src/merge/merger/per_node_mode.rs:252
-            end else if (u_fetch1_and_3) begin
+            end else if (u_fetch1_and_1) begin
                 fetch_rank <= 2'd1;          // rtl-gen/src/merge/merger/per_node_mode.rs:252
-            end else if (u_fetch0_and_3) begin
+            end else if (u_fetch0_and_1) begin
                 fetch_rank <= 2'd0;          // rtl-gen/src/merge/merger/per_node_mode.rs:252
             end else if (header_fire) begin
                 fetch_rank <= 2'd0;          // rtl-gen/src/merge/merger/per_node_mode.rs:186
             end
-            if (leaves_all_valid_and) begin
+            if (leaves_all_valid & leaves_all_end) begin
                 leaves_done <= 1'b1;         // rtl-gen/src/merge/merger/leaf_merge.rs:87
             end else if (header_fire) begin
                 leaves_done <= 1'b0;         // rtl-gen/src/merge/merger/leaf_merge.rs:87
             end
-            if (crefs_end_sent_and_3) begin
+            if ((crefs_end_sent_and & u_writer_crefs_ready) & cref_is_ref_not) begin
                 crefs_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:355
             end else if (header_fire) begin
                 crefs_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:355
             end
-            if (u_module_and_17) begin
+            if (((u_module_out_valid & out_is_ref_mux) & (u_module_kind == 2'd0)) & u_module_err) begin
                 count_overflow <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:361
             end else if (header_fire) begin
                 count_overflow <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:361
             end
-            if (base16_push_and_1) begin
+            if (base16_push & base16_full) begin
                 leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:387
-            end else if (base15_push_and_1) begin
+            end else if (base15_push & base15_full) begin
                 leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:387
-            end else if (base14_push_and_1) begin
+            end else if (base14_push & base14_full) begin
                 leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:387
-            end else if (base13_push_and_1) begin
+            end else if (base13_push & base13_full) begin
                 leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:387
-            end else if (base12_push_and_1) begin
+            end else if (base12_push & base12_full) begin
                 leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:387
-            end else if (base11_push_and_1) begin
+            end else if (base11_push & base11_full) begin
                 leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:387
-            end else if (base10_push_and_1) begin
+            end else if (base10_push & base10_full) begin
                 leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:387
-            end else if (base9_push_and_1) begin
+            end else if (base9_push & base9_full) begin
                 leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:387
-            end else if (base8_push_and_1) begin
+            end else if (base8_push & base8_full) begin
                 leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:387
-            end else if (base7_push_and_1) begin
+            end else if (base7_push & base7_full) begin
                 leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:387
-            end else if (base6_push_and_1) begin
+            end else if (base6_push & base6_full) begin
                 leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:387
-            end else if (base5_push_and_1) begin
+            end else if (base5_push & base5_full) begin
                 leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:387
-            end else if (base4_push_and_1) begin
+            end else if (base4_push & base4_full) begin
                 leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:387
-            end else if (base3_push_and_1) begin
+            end else if (base3_push & base3_full) begin
                 leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:387
-            end else if (base2_push_and_1) begin
+            end else if (base2_push & base2_full) begin
                 leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:387
-            end else if (base1_push_and_1) begin
+            end else if (base1_push & base1_full) begin
                 leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:387
-            end else if (base0_push_and_1) begin
+            end else if (base0_push & base0_full) begin
                 leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:387
             end else if (header_fire) begin
                 leaf_overflow_q <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:368
             end
-            if (base_open_and_3) begin
+            if (base_open_and_1 & (~range_good_and)) begin
                 base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end else if (header_fire) begin
                 base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end
             if (header_fire) begin
-                base0_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                base0_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                base1_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                base1_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                base2_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                base2_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                base3_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                base3_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                base4_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                base4_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                base5_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                base5_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                base6_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                base6_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                base7_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                base7_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                base8_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                base8_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                base9_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                base9_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                base10_wr <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                base10_rd <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                base11_wr <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                base11_rd <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                base12_wr <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                base12_rd <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                base13_wr <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                base13_rd <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                base14_wr <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                base14_rd <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                base15_wr <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                base15_rd <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:54
-                base16_wr <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:53
-                base16_rd <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                base0_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                base0_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                base1_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                base1_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                base2_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                base2_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                base3_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                base3_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                base4_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                base4_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                base5_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                base5_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                base6_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                base6_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                base7_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                base7_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                base8_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                base8_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                base9_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                base9_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                base10_wr <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                base10_rd <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                base11_wr <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                base11_rd <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                base12_wr <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                base12_rd <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                base13_wr <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                base13_rd <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                base14_wr <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                base14_rd <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                base15_wr <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                base15_rd <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                base16_wr <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                base16_rd <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:58
             end else begin
-                if (base0_push_and_2) begin
-                    base0_wr <= base0_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (base0_wr_put) begin
+                    base0_wr <= base0_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base_open_and_2) begin
-                    base0_rd <= base0_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (base_open_and_1 & range_good_and) begin
+                    base0_rd <= base0_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (base1_push_and_2) begin
-                    base1_wr <= base1_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (base1_wr_put) begin
+                    base1_wr <= base1_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base_open_and_6) begin
-                    base1_rd <= base1_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (base_open_and_3 & range_good_and_1) begin
+                    base1_rd <= base1_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (base2_push_and_2) begin
-                    base2_wr <= base2_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (base2_wr_put) begin
+                    base2_wr <= base2_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base_open_and_10) begin
-                    base2_rd <= base2_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (base_open_and_5 & range_good_and_2) begin
+                    base2_rd <= base2_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (base3_push_and_2) begin
-                    base3_wr <= base3_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (base3_wr_put) begin
+                    base3_wr <= base3_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base_open_and_14) begin
-                    base3_rd <= base3_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (base_open_and_7 & range_good_and_3) begin
+                    base3_rd <= base3_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (base4_push_and_2) begin
-                    base4_wr <= base4_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (base4_wr_put) begin
+                    base4_wr <= base4_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base_open_and_18) begin
-                    base4_rd <= base4_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (base_open_and_9 & range_good_and_4) begin
+                    base4_rd <= base4_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (base5_push_and_2) begin
-                    base5_wr <= base5_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (base5_wr_put) begin
+                    base5_wr <= base5_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base_open_and_22) begin
-                    base5_rd <= base5_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (base_open_and_11 & range_good_and_5) begin
+                    base5_rd <= base5_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (base6_push_and_2) begin
-                    base6_wr <= base6_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (base6_wr_put) begin
+                    base6_wr <= base6_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base_open_and_26) begin
-                    base6_rd <= base6_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (base_open_and_13 & range_good_and_6) begin
+                    base6_rd <= base6_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (base7_push_and_2) begin
-                    base7_wr <= base7_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (base7_wr_put) begin
+                    base7_wr <= base7_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base_open_and_30) begin
-                    base7_rd <= base7_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (base_open_and_15 & range_good_and_7) begin
+                    base7_rd <= base7_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (base8_push_and_2) begin
-                    base8_wr <= base8_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (base8_wr_put) begin
+                    base8_wr <= base8_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base_open_and_34) begin
-                    base8_rd <= base8_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (base_open_and_17 & range_good_and_8) begin
+                    base8_rd <= base8_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (base9_push_and_2) begin
-                    base9_wr <= base9_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (base9_wr_put) begin
+                    base9_wr <= base9_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base_open_and_38) begin
-                    base9_rd <= base9_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (base_open_and_19 & range_good_and_9) begin
+                    base9_rd <= base9_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (base10_push_and_2) begin
-                    base10_wr <= base10_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (base10_wr_put) begin
+                    base10_wr <= base10_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base_open_and_42) begin
-                    base10_rd <= base10_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (base_open_and_21 & range_good_and_10) begin
+                    base10_rd <= base10_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (base11_push_and_2) begin
-                    base11_wr <= base11_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (base11_wr_put) begin
+                    base11_wr <= base11_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base_open_and_46) begin
-                    base11_rd <= base11_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (base_open_and_23 & range_good_and_11) begin
+                    base11_rd <= base11_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (base12_push_and_2) begin
-                    base12_wr <= base12_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (base12_wr_put) begin
+                    base12_wr <= base12_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base_open_and_50) begin
-                    base12_rd <= base12_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (base_open_and_25 & range_good_and_12) begin
+                    base12_rd <= base12_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (base13_push_and_2) begin
-                    base13_wr <= base13_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (base13_wr_put) begin
+                    base13_wr <= base13_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base_open_and_54) begin
-                    base13_rd <= base13_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (base_open_and_27 & range_good_and_13) begin
+                    base13_rd <= base13_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (base14_push_and_2) begin
-                    base14_wr <= base14_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (base14_wr_put) begin
+                    base14_wr <= base14_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base_open_and_58) begin
-                    base14_rd <= base14_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (base_open_and_29 & range_good_and_14) begin
+                    base14_rd <= base14_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (base15_push_and_2) begin
-                    base15_wr <= base15_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (base15_wr_put) begin
+                    base15_wr <= base15_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base_open_and_62) begin
-                    base15_rd <= base15_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (base_open_and_31 & range_good_and_15) begin
+                    base15_rd <= base15_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
-                if (base16_push_and_2) begin
-                    base16_wr <= base16_wr_add; // rtl-gen/src/merge/merger/drop_fifo.rs:53
+                if (base16_wr_put) begin
+                    base16_wr <= base16_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
                 end
-                if (base_open_and_66) begin
-                    base16_rd <= base16_rd_add; // rtl-gen/src/merge/merger/drop_fifo.rs:54
+                if (base_open_and_33 & range_good_and_16) begin
+                    base16_rd <= base16_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
                 end
             end
-            if (base_open_and_7) begin
+            if (base_open_and_3 & (~range_good_and_1)) begin
                 base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end else if (header_fire) begin
                 base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end
-            if (base_open_and_11) begin
+            if (base_open_and_5 & (~range_good_and_2)) begin
                 base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end else if (header_fire) begin
                 base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end
-            if (base_open_and_15) begin
+            if (base_open_and_7 & (~range_good_and_3)) begin
                 base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end else if (header_fire) begin
                 base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end
-            if (base_open_and_19) begin
+            if (base_open_and_9 & (~range_good_and_4)) begin
                 base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end else if (header_fire) begin
                 base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end
-            if (base_open_and_23) begin
+            if (base_open_and_11 & (~range_good_and_5)) begin
                 base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end else if (header_fire) begin
                 base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end
-            if (base_open_and_27) begin
+            if (base_open_and_13 & (~range_good_and_6)) begin
                 base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end else if (header_fire) begin
                 base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end
-            if (base_open_and_31) begin
+            if (base_open_and_15 & (~range_good_and_7)) begin
                 base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end else if (header_fire) begin
                 base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end
-            if (base_open_and_35) begin
+            if (base_open_and_17 & (~range_good_and_8)) begin
                 base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end else if (header_fire) begin
                 base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end
-            if (base_open_and_39) begin
+            if (base_open_and_19 & (~range_good_and_9)) begin
                 base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end else if (header_fire) begin
                 base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end
-            if (base_open_and_43) begin
+            if (base_open_and_21 & (~range_good_and_10)) begin
                 base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end else if (header_fire) begin
                 base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end
-            if (base_open_and_47) begin
+            if (base_open_and_23 & (~range_good_and_11)) begin
                 base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end else if (header_fire) begin
                 base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end
-            if (base_open_and_51) begin
+            if (base_open_and_25 & (~range_good_and_12)) begin
                 base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end else if (header_fire) begin
                 base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end
-            if (base_open_and_55) begin
+            if (base_open_and_27 & (~range_good_and_13)) begin
                 base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end else if (header_fire) begin
                 base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end
-            if (base_open_and_59) begin
+            if (base_open_and_29 & (~range_good_and_14)) begin
                 base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end else if (header_fire) begin
                 base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end
-            if (base_open_and_63) begin
+            if (base_open_and_31 & (~range_good_and_15)) begin
                 base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end else if (header_fire) begin
                 base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end
-            if (base_open_and_67) begin
+            if (base_open_and_33 & (~range_good_and_16)) begin
                 base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:396
             end else if (header_fire) begin
                 base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:396
@@ -3145,120 +2007,120 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
 
     // memory base0_fifo: 16 x 180 bits
     always @(posedge clk) begin
-        if (base0_push_and) begin
-            base0_fifo[base0_wr[3:0]] <= out_is_node_mux;
+        if (base0_wr_put) begin
+            base0_fifo[base0_wr[3:0]] <= out_is_node_and ? u_module_kind_cat : const_cat_2;
         end
     end
 
     // memory base1_fifo: 16 x 180 bits
     always @(posedge clk) begin
-        if (base1_push_and) begin
-            base1_fifo[base1_wr[3:0]] <= out_is_node_mux_1;
+        if (base1_wr_put) begin
+            base1_fifo[base1_wr[3:0]] <= out_is_node_and_1 ? u_module_kind_cat : const_cat_2;
         end
     end
 
     // memory base2_fifo: 16 x 180 bits
     always @(posedge clk) begin
-        if (base2_push_and) begin
-            base2_fifo[base2_wr[3:0]] <= out_is_node_mux_2;
+        if (base2_wr_put) begin
+            base2_fifo[base2_wr[3:0]] <= out_is_node_and_2 ? u_module_kind_cat : const_cat_2;
         end
     end
 
     // memory base3_fifo: 16 x 180 bits
     always @(posedge clk) begin
-        if (base3_push_and) begin
-            base3_fifo[base3_wr[3:0]] <= out_is_node_mux_3;
+        if (base3_wr_put) begin
+            base3_fifo[base3_wr[3:0]] <= out_is_node_and_3 ? u_module_kind_cat : const_cat_2;
         end
     end
 
     // memory base4_fifo: 16 x 180 bits
     always @(posedge clk) begin
-        if (base4_push_and) begin
-            base4_fifo[base4_wr[3:0]] <= out_is_node_mux_4;
+        if (base4_wr_put) begin
+            base4_fifo[base4_wr[3:0]] <= out_is_node_and_4 ? u_module_kind_cat : const_cat_2;
         end
     end
 
     // memory base5_fifo: 16 x 180 bits
     always @(posedge clk) begin
-        if (base5_push_and) begin
-            base5_fifo[base5_wr[3:0]] <= out_is_node_mux_5;
+        if (base5_wr_put) begin
+            base5_fifo[base5_wr[3:0]] <= out_is_node_and_5 ? u_module_kind_cat : const_cat_2;
         end
     end
 
     // memory base6_fifo: 16 x 180 bits
     always @(posedge clk) begin
-        if (base6_push_and) begin
-            base6_fifo[base6_wr[3:0]] <= out_is_node_mux_6;
+        if (base6_wr_put) begin
+            base6_fifo[base6_wr[3:0]] <= out_is_node_and_6 ? u_module_kind_cat : const_cat_2;
         end
     end
 
     // memory base7_fifo: 16 x 180 bits
     always @(posedge clk) begin
-        if (base7_push_and) begin
-            base7_fifo[base7_wr[3:0]] <= out_is_node_mux_7;
+        if (base7_wr_put) begin
+            base7_fifo[base7_wr[3:0]] <= out_is_node_and_7 ? u_module_kind_cat : const_cat_2;
         end
     end
 
     // memory base8_fifo: 16 x 180 bits
     always @(posedge clk) begin
-        if (base8_push_and) begin
-            base8_fifo[base8_wr[3:0]] <= out_is_node_mux_8;
+        if (base8_wr_put) begin
+            base8_fifo[base8_wr[3:0]] <= out_is_node_and_8 ? u_module_kind_cat : const_cat_2;
         end
     end
 
     // memory base9_fifo: 16 x 180 bits
     always @(posedge clk) begin
-        if (base9_push_and) begin
-            base9_fifo[base9_wr[3:0]] <= out_is_node_mux_9;
+        if (base9_wr_put) begin
+            base9_fifo[base9_wr[3:0]] <= out_is_node_and_9 ? u_module_kind_cat : const_cat_2;
         end
     end
 
     // memory base10_fifo: 16 x 180 bits
     always @(posedge clk) begin
-        if (base10_push_and) begin
-            base10_fifo[base10_wr[3:0]] <= out_is_node_mux_10;
+        if (base10_wr_put) begin
+            base10_fifo[base10_wr[3:0]] <= out_is_node_and_10 ? u_module_kind_cat : const_cat_2;
         end
     end
 
     // memory base11_fifo: 16 x 180 bits
     always @(posedge clk) begin
-        if (base11_push_and) begin
-            base11_fifo[base11_wr[3:0]] <= out_is_node_mux_11;
+        if (base11_wr_put) begin
+            base11_fifo[base11_wr[3:0]] <= out_is_node_and_11 ? u_module_kind_cat : const_cat_2;
         end
     end
 
     // memory base12_fifo: 16 x 180 bits
     always @(posedge clk) begin
-        if (base12_push_and) begin
-            base12_fifo[base12_wr[3:0]] <= out_is_node_mux_12;
+        if (base12_wr_put) begin
+            base12_fifo[base12_wr[3:0]] <= out_is_node_and_12 ? u_module_kind_cat : const_cat_2;
         end
     end
 
     // memory base13_fifo: 16 x 180 bits
     always @(posedge clk) begin
-        if (base13_push_and) begin
-            base13_fifo[base13_wr[3:0]] <= out_is_node_mux_13;
+        if (base13_wr_put) begin
+            base13_fifo[base13_wr[3:0]] <= out_is_node_and_13 ? u_module_kind_cat : const_cat_2;
         end
     end
 
     // memory base14_fifo: 16 x 180 bits
     always @(posedge clk) begin
-        if (base14_push_and) begin
-            base14_fifo[base14_wr[3:0]] <= out_is_node_mux_14;
+        if (base14_wr_put) begin
+            base14_fifo[base14_wr[3:0]] <= out_is_node_and_14 ? u_module_kind_cat : const_cat_2;
         end
     end
 
     // memory base15_fifo: 16 x 180 bits
     always @(posedge clk) begin
-        if (base15_push_and) begin
-            base15_fifo[base15_wr[3:0]] <= out_is_node_mux_15;
+        if (base15_wr_put) begin
+            base15_fifo[base15_wr[3:0]] <= out_is_node_and_15 ? u_module_kind_cat : const_cat_2;
         end
     end
 
     // memory base16_fifo: 16 x 180 bits
     always @(posedge clk) begin
-        if (base16_push_and) begin
-            base16_fifo[base16_wr[3:0]] <= out_is_node_mux_16;
+        if (base16_wr_put) begin
+            base16_fifo[base16_wr[3:0]] <= out_is_node_and_16 ? u_module_kind_cat : const_cat_2;
         end
     end
 endmodule

@@ -13,7 +13,9 @@ module merge_level_d16_q8_i24_h4 (
     input  wire out_ready         // rtl-gen/src/merge/level.rs:117
 );
     wire h_out_ready;                        // rtl-gen/src/merge/level.rs:40
-    wire [1:0] in_kind;                      // rtl-gen/src/merge/fields.rs:13
+    wire [149:0] in_data_rec;                // rtl-gen/src/merge/level.rs:42
+    wire [27:0] in_data_ref;                 // rtl-gen/src/merge/level.rs:43
+    wire [1:0] in_kind;                      // rtl-gen/src/merge/level.rs:44
     reg h_valid;                             // rtl-gen/src/merge/level.rs:48
     reg h_open;                              // rtl-gen/src/merge/level.rs:49
     reg h_multi;                             // rtl-gen/src/merge/level.rs:50
@@ -25,141 +27,77 @@ module merge_level_d16_q8_i24_h4 (
     wire in_is_inner;                        // rtl-gen/src/merge/level.rs:57
     wire in_is_ref;                          // rtl-gen/src/merge/level.rs:58
     wire same_voxel;                         // rtl-gen/src/merge/level.rs:60
-    wire in_valid_and;                       // rtl-gen/src/merge/level.rs:62
-    wire in_valid_and_1;                     // rtl-gen/src/merge/level.rs:62
-    wire in_valid_and_2;                     // rtl-gen/src/merge/level.rs:62
     wire absorb;                             // rtl-gen/src/merge/level.rs:62
-    wire h_open_not;                         // rtl-gen/src/merge/level.rs:63
-    wire absorb_not;                         // rtl-gen/src/merge/level.rs:63
-    wire in_valid_and_3;                     // rtl-gen/src/merge/level.rs:63
-    wire h_open_or;                          // rtl-gen/src/merge/level.rs:63
+    wire in_valid_and;                       // rtl-gen/src/merge/level.rs:63
     wire complete;                           // rtl-gen/src/merge/level.rs:63
-    wire h_valid_not;                        // rtl-gen/src/merge/level.rs:64
     wire complete_and;                       // rtl-gen/src/merge/level.rs:64
     wire free;                               // rtl-gen/src/merge/level.rs:64
-    wire absorb_not_1;                       // rtl-gen/src/merge/level.rs:65
-    wire in_valid_and_4;                     // rtl-gen/src/merge/level.rs:65
     wire load;                               // rtl-gen/src/merge/level.rs:65
-    wire h_valid_and;                        // rtl-gen/src/merge/level.rs:66
     wire created_now;                        // rtl-gen/src/merge/level.rs:67
-    wire created_now_not;                    // rtl-gen/src/merge/level.rs:69
-    wire in_is_ref_and;                      // rtl-gen/src/merge/level.rs:69
-    wire in_is_ref_not;                      // rtl-gen/src/merge/level.rs:69
+    wire [23:0] h_rec_count;                 // rtl-gen/src/merge/level.rs:74
+    wire [23:0] in_data_rec_count;           // rtl-gen/src/merge/level.rs:76
     wire [24:0] count_sum;                   // rtl-gen/src/merge/level.rs:76
-    wire h_rec_lt;                           // rtl-gen/src/merge/level.rs:81
-    wire [7:0] h_rec_mux;                    // rtl-gen/src/merge/level.rs:81
-    wire h_rec_gt;                           // rtl-gen/src/merge/level.rs:84
-    wire [7:0] h_rec_mux_1;                  // rtl-gen/src/merge/level.rs:84
-    wire h_rec_lt_1;                         // rtl-gen/src/merge/level.rs:81
-    wire [7:0] h_rec_mux_2;                  // rtl-gen/src/merge/level.rs:81
-    wire h_rec_gt_1;                         // rtl-gen/src/merge/level.rs:84
-    wire [7:0] h_rec_mux_3;                  // rtl-gen/src/merge/level.rs:84
-    wire h_rec_lt_2;                         // rtl-gen/src/merge/level.rs:81
-    wire [7:0] h_rec_mux_4;                  // rtl-gen/src/merge/level.rs:81
-    wire h_rec_gt_2;                         // rtl-gen/src/merge/level.rs:84
-    wire [7:0] h_rec_mux_5;                  // rtl-gen/src/merge/level.rs:84
+    wire [7:0] h_rec_lo_x;                   // rtl-gen/src/merge/level.rs:80
+    wire [7:0] in_data_rec_lo_x;             // rtl-gen/src/merge/level.rs:80
+    wire [7:0] h_rec_hi_x;                   // rtl-gen/src/merge/level.rs:83
+    wire [7:0] in_data_rec_hi_x;             // rtl-gen/src/merge/level.rs:83
+    wire [7:0] h_rec_lo_y;                   // rtl-gen/src/merge/level.rs:80
+    wire [7:0] in_data_rec_lo_y;             // rtl-gen/src/merge/level.rs:80
+    wire [7:0] h_rec_hi_y;                   // rtl-gen/src/merge/level.rs:83
+    wire [7:0] in_data_rec_hi_y;             // rtl-gen/src/merge/level.rs:83
+    wire [7:0] h_rec_lo_z;                   // rtl-gen/src/merge/level.rs:80
+    wire [7:0] in_data_rec_lo_z;             // rtl-gen/src/merge/level.rs:80
+    wire [7:0] h_rec_hi_z;                   // rtl-gen/src/merge/level.rs:83
+    wire [7:0] in_data_rec_hi_z;             // rtl-gen/src/merge/level.rs:83
     wire [149:0] merged_rec;                 // rtl-gen/src/merge/level.rs:87
-    wire complete_and_1;                     // rtl-gen/src/merge/level.rs:90
-    wire absorb_or;                          // rtl-gen/src/merge/level.rs:93
-    wire h_multi_next;                       // rtl-gen/src/merge/level.rs:93
-    wire absorb_and;                         // rtl-gen/src/merge/level.rs:94
-    wire absorb_or_1;                        // rtl-gen/src/merge/level.rs:94
-    wire h_ovf_next;                         // rtl-gen/src/merge/level.rs:94
-    wire [1:0] in_kind_mux;                  // rtl-gen/src/merge/level.rs:96
-    wire load_and;                           // rtl-gen/src/merge/level.rs:99
-    wire load_and_1;                         // rtl-gen/src/merge/level.rs:99
     wire h_created;                          // rtl-gen/src/merge/level.rs:102
-    wire [1:0] h_multi_mux;                  // rtl-gen/src/merge/level.rs:104
-    wire [1:0] h_open_mux;                   // rtl-gen/src/merge/level.rs:103
-    wire [149:0] h_rec_cat;                  // rtl-gen/src/merge/level.rs:107
-    wire [149:0] h_created_mux;              // rtl-gen/src/merge/level.rs:108
-    wire [27:0] h_created_mux_1;             // rtl-gen/src/merge/level.rs:109
-    wire h_created_and;                      // rtl-gen/src/merge/level.rs:110
     wire [180:0] h_beat;                     // rtl-gen/src/merge/level.rs:115
     reg out_skid_valid;                      // rtl-gen/src/merge/level.rs:117
     reg [180:0] out_skid_data;               // rtl-gen/src/merge/level.rs:117
     reg out_skid_spare_valid;                // rtl-gen/src/merge/level.rs:117
     reg [180:0] out_skid_spare_data;         // rtl-gen/src/merge/level.rs:117
     wire out_skid_ready;                     // rtl-gen/src/merge/level.rs:117
-    wire out_skid_valid_not;                 // rtl-gen/src/merge/level.rs:117
-    wire out_skid_ready_or;                  // rtl-gen/src/merge/level.rs:117
-    wire out_skid_spare_valid_not;           // rtl-gen/src/merge/level.rs:117
-    wire complete_and_2;                     // rtl-gen/src/merge/level.rs:117
-    wire out_skid_spare_valid_or;            // rtl-gen/src/merge/level.rs:117
-    wire [180:0] out_skid_spare_valid_mux;   // rtl-gen/src/merge/level.rs:117
-    wire out_skid_spare_valid_or_1;          // rtl-gen/src/merge/level.rs:117
-    wire out_skid_spare_valid_next;          // rtl-gen/src/merge/level.rs:117
-    wire out_skid_ready_not;                 // rtl-gen/src/merge/level.rs:117
-    wire out_skid_ready_and;                 // rtl-gen/src/merge/level.rs:117
+    wire out_skid_room;                      // rtl-gen/src/merge/level.rs:117
+    wire out_skid_drain;                     // rtl-gen/src/merge/level.rs:117
+    wire out_skid_take;                      // rtl-gen/src/merge/level.rs:117
 
     assign in_ready = absorb | free;
-    assign h_out_ready = ~out_skid_spare_valid;
+    assign h_out_ready = out_skid_room;
+    assign in_data_rec = in_data[149:0];
+    assign in_data_ref = in_data[177:150];
     assign in_kind = in_data[179:178];
     assign in_is_inner = in_kind == 2'd0;
     assign in_is_ref = in_kind == 2'd2;
     assign same_voxel = in_data[53:1] == h_rec[53:1];
-    assign in_valid_and = in_valid & in_is_inner;
-    assign in_valid_and_1 = in_valid_and & h_valid;
-    assign in_valid_and_2 = in_valid_and_1 & h_open;
-    assign absorb = in_valid_and_2 & same_voxel;
-    assign h_open_not = ~h_open;
-    assign absorb_not = ~absorb;
-    assign in_valid_and_3 = in_valid & absorb_not;
-    assign h_open_or = h_open_not | in_valid_and_3;
-    assign complete = h_valid & h_open_or;
-    assign h_valid_not = ~h_valid;
+    assign absorb = (((in_valid & in_is_inner) & h_valid) & h_open) & same_voxel;
+    assign in_valid_and = in_valid & (~absorb);
+    assign complete = h_valid & ((~h_open) | in_valid_and);
     assign complete_and = complete & h_out_ready;
-    assign free = h_valid_not | complete_and;
-    assign absorb_not_1 = ~absorb;
-    assign in_valid_and_4 = in_valid & absorb_not_1;
-    assign load = in_valid_and_4 & free;
-    assign h_valid_and = h_valid & h_open;
-    assign created_now = h_valid_and ? h_multi : grp_created;
-    assign created_now_not = ~created_now;
-    assign in_is_ref_and = in_is_ref & created_now_not;
-    assign in_is_ref_not = ~in_is_ref_and;
-    assign count_sum = {1'b0, h_rec[149:126]} + {1'b0, in_data[149:126]};
-    assign h_rec_lt = h_rec[61:54] < in_data[61:54];
-    assign h_rec_mux = h_rec_lt ? h_rec[61:54] : in_data[61:54];
-    assign h_rec_gt = h_rec[85:78] > in_data[85:78];
-    assign h_rec_mux_1 = h_rec_gt ? h_rec[85:78] : in_data[85:78];
-    assign h_rec_lt_1 = h_rec[69:62] < in_data[69:62];
-    assign h_rec_mux_2 = h_rec_lt_1 ? h_rec[69:62] : in_data[69:62];
-    assign h_rec_gt_1 = h_rec[93:86] > in_data[93:86];
-    assign h_rec_mux_3 = h_rec_gt_1 ? h_rec[93:86] : in_data[93:86];
-    assign h_rec_lt_2 = h_rec[77:70] < in_data[77:70];
-    assign h_rec_mux_4 = h_rec_lt_2 ? h_rec[77:70] : in_data[77:70];
-    assign h_rec_gt_2 = h_rec[101:94] > in_data[101:94];
-    assign h_rec_mux_5 = h_rec_gt_2 ? h_rec[101:94] : in_data[101:94];
-    assign merged_rec = {count_sum[23:0], h_rec[125:102], h_rec_mux_5, h_rec_mux_3, h_rec_mux_1, h_rec_mux_4, h_rec_mux_2, h_rec_mux, h_rec[53:0]};
-    assign complete_and_1 = complete & h_out_ready;
-    assign absorb_or = absorb | h_multi;
-    assign h_multi_next = load ? 1'b0 : absorb_or;
-    assign absorb_and = absorb & count_sum[24];
-    assign absorb_or_1 = absorb_and | h_ovf;
-    assign h_ovf_next = load ? 1'b0 : absorb_or_1;
-    assign in_kind_mux = in_data[179] ? in_kind : 2'd1;
-    assign load_and = load & h_valid;
-    assign load_and_1 = load_and & h_open;
+    assign free = (~h_valid) | complete_and;
+    assign load = in_valid_and & free;
+    assign created_now = (h_valid & h_open) ? h_multi : grp_created;
+    assign h_rec_count = h_rec[149:126];
+    assign in_data_rec_count = in_data[149:126];
+    assign count_sum = {1'b0, h_rec_count} + {1'b0, in_data_rec_count};
+    assign h_rec_lo_x = h_rec[61:54];
+    assign in_data_rec_lo_x = in_data[61:54];
+    assign h_rec_hi_x = h_rec[85:78];
+    assign in_data_rec_hi_x = in_data[85:78];
+    assign h_rec_lo_y = h_rec[69:62];
+    assign in_data_rec_lo_y = in_data[69:62];
+    assign h_rec_hi_y = h_rec[93:86];
+    assign in_data_rec_hi_y = in_data[93:86];
+    assign h_rec_lo_z = h_rec[77:70];
+    assign in_data_rec_lo_z = in_data[77:70];
+    assign h_rec_hi_z = h_rec[101:94];
+    assign in_data_rec_hi_z = in_data[101:94];
+    assign merged_rec = {count_sum[23:0], h_rec[125:102], (h_rec_hi_z > in_data_rec_hi_z) ? h_rec_hi_z : in_data_rec_hi_z, (h_rec_hi_y > in_data_rec_hi_y) ? h_rec_hi_y : in_data_rec_hi_y, (h_rec_hi_x > in_data_rec_hi_x) ? h_rec_hi_x : in_data_rec_hi_x, (h_rec_lo_z < in_data_rec_lo_z) ? h_rec_lo_z : in_data_rec_lo_z, (h_rec_lo_y < in_data_rec_lo_y) ? h_rec_lo_y : in_data_rec_lo_y, (h_rec_lo_x < in_data_rec_lo_x) ? h_rec_lo_x : in_data_rec_lo_x, h_rec[53:0]};
     assign h_created = h_open & h_multi;
-    assign h_multi_mux = h_multi ? 2'd0 : 2'd1;
-    assign h_open_mux = h_open ? h_multi_mux : h_kind;
-    assign h_rec_cat = {h_rec[149:126], 24'd0, h_rec[101:0]};
-    assign h_created_mux = h_created ? h_rec_cat : h_rec;
-    assign h_created_mux_1 = h_created ? 28'd0 : h_ref;
-    assign h_created_and = h_created & h_ovf;
-    assign h_beat = {h_created_and, h_open_mux, h_created_mux_1, h_created_mux};
+    assign h_beat = {h_created & h_ovf, h_open ? (h_multi ? 2'd0 : 2'd1) : h_kind, h_created ? 28'd0 : h_ref, h_created ? {h_rec[149:126], 24'd0, h_rec[101:0]} : h_rec};
     assign out_skid_ready = out_ready;
-    assign out_skid_valid_not = ~out_skid_valid;
-    assign out_skid_ready_or = out_skid_ready | out_skid_valid_not;
-    assign out_skid_spare_valid_not = ~out_skid_spare_valid;
-    assign complete_and_2 = complete & out_skid_spare_valid_not;
-    assign out_skid_spare_valid_or = out_skid_spare_valid | complete;
-    assign out_skid_spare_valid_mux = out_skid_spare_valid ? out_skid_spare_data : h_beat;
-    assign out_skid_spare_valid_or_1 = out_skid_spare_valid | complete_and_2;
-    assign out_skid_spare_valid_next = out_skid_ready_or ? 1'b0 : out_skid_spare_valid_or_1;
-    assign out_skid_ready_not = ~out_skid_ready_or;
-    assign out_skid_ready_and = out_skid_ready_not & complete_and_2;
+    assign out_skid_room = ~out_skid_spare_valid;
+    assign out_skid_drain = out_skid_ready | (~out_skid_valid);
+    assign out_skid_take = complete & out_skid_room;
     assign out_valid = out_skid_valid;
     assign out_data = out_skid_data;
 
@@ -179,30 +117,30 @@ module merge_level_d16_q8_i24_h4 (
             out_skid_spare_data <= 181'h0000000000000000000000000000000000000000000000;
         end else begin
             if (load) begin
-                h_valid <= in_is_ref_not;    // rtl-gen/src/merge/level.rs:91
+                h_valid <= ~(in_is_ref & (~created_now)); // rtl-gen/src/merge/level.rs:91
                 h_open <= in_is_inner;       // rtl-gen/src/merge/level.rs:92
-                h_kind <= in_kind_mux;       // rtl-gen/src/merge/level.rs:96
-                h_rec <= in_data[149:0];     // rtl-gen/src/merge/level.rs:97
-                h_ref <= in_data[177:150];   // rtl-gen/src/merge/level.rs:98
+                h_kind <= in_data[179] ? in_kind : 2'd1; // rtl-gen/src/merge/level.rs:96
+                h_rec <= in_data_rec;        // rtl-gen/src/merge/level.rs:97
+                h_ref <= in_data_ref;        // rtl-gen/src/merge/level.rs:98
             end else begin
-                if (complete_and_1) begin
+                if (complete_and) begin
                     h_valid <= 1'b0;         // rtl-gen/src/merge/level.rs:91
                 end
                 if (absorb) begin
                     h_rec <= merged_rec;     // rtl-gen/src/merge/level.rs:97
                 end
             end
-            h_multi <= h_multi_next;
-            h_ovf <= h_ovf_next;
-            if (load_and_1) begin
+            h_multi <= load ? 1'b0 : (absorb | h_multi);
+            h_ovf <= load ? 1'b0 : ((absorb & count_sum[24]) | h_ovf);
+            if ((load & h_valid) & h_open) begin
                 grp_created <= h_multi;      // rtl-gen/src/merge/level.rs:99
             end
-            if (out_skid_ready_or) begin
-                out_skid_valid <= out_skid_spare_valid_or; // rtl-gen/src/merge/level.rs:117
-                out_skid_data <= out_skid_spare_valid_mux; // rtl-gen/src/merge/level.rs:117
+            if (out_skid_drain) begin
+                out_skid_valid <= out_skid_spare_valid | complete; // rtl-gen/src/merge/level.rs:117
+                out_skid_data <= out_skid_spare_valid ? out_skid_spare_data : h_beat; // rtl-gen/src/merge/level.rs:117
             end
-            out_skid_spare_valid <= out_skid_spare_valid_next;
-            if (out_skid_ready_and) begin
+            out_skid_spare_valid <= out_skid_drain ? 1'b0 : (out_skid_spare_valid | out_skid_take);
+            if ((~out_skid_drain) & out_skid_take) begin
                 out_skid_spare_data <= h_beat; // rtl-gen/src/merge/level.rs:117
             end
         end

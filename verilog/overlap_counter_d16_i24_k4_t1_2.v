@@ -13,8 +13,8 @@ module overlap_counter_d16_i24_k4_t1_2 (
     output wire [49:0] out_data  // rtl-gen/src/merge/overlap.rs:115
 );
     wire [47:0] in_voxel;                    // rtl-gen/src/merge/overlap.rs:57
-    wire [1:0] in_rank;                      // rtl-gen/src/merge/fields.rs:13
-    wire in_end;                             // rtl-gen/src/merge/fields.rs:13
+    wire [1:0] in_rank;                      // rtl-gen/src/merge/overlap.rs:59
+    wire in_end;                             // rtl-gen/src/merge/overlap.rs:62
     reg g_valid;                             // rtl-gen/src/merge/overlap.rs:64
     reg [47:0] g_voxel;                      // rtl-gen/src/merge/overlap.rs:65
     reg [1:0] g_rank;                        // rtl-gen/src/merge/overlap.rs:66
@@ -23,41 +23,21 @@ module overlap_counter_d16_i24_k4_t1_2 (
     reg [23:0] union_count;                  // rtl-gen/src/merge/overlap.rs:69
     reg overflow;                            // rtl-gen/src/merge/overlap.rs:70
     reg out_valid_q;                         // rtl-gen/src/merge/overlap.rs:71
-    wire out_valid_not;                      // rtl-gen/src/merge/overlap.rs:76
     wire accept;                             // rtl-gen/src/merge/overlap.rs:76
     wire fire;                               // rtl-gen/src/merge/overlap.rs:78
-    wire in_voxel_eq;                        // rtl-gen/src/merge/overlap.rs:79
     wire same_voxel;                         // rtl-gen/src/merge/overlap.rs:79
-    wire fire_and;                           // rtl-gen/src/merge/overlap.rs:81
     wire same_voxel_not;                     // rtl-gen/src/merge/overlap.rs:81
-    wire in_end_or;                          // rtl-gen/src/merge/overlap.rs:81
     wire close;                              // rtl-gen/src/merge/overlap.rs:81
     wire [24:0] union_inc;                   // rtl-gen/src/merge/overlap.rs:82
     wire [23:0] shared_inc;                  // rtl-gen/src/merge/overlap.rs:84
-    wire close_and;                          // rtl-gen/src/merge/overlap.rs:85
-    wire close_and_1;                        // rtl-gen/src/merge/overlap.rs:88
     wire overflow_or;                        // rtl-gen/src/merge/overlap.rs:88
     wire [23:0] close_mux;                   // rtl-gen/src/merge/overlap.rs:89
     wire [23:0] close_mux_1;                 // rtl-gen/src/merge/overlap.rs:90
-    wire fire_and_1;                         // rtl-gen/src/merge/overlap.rs:91
-    wire overflow_next;                      // rtl-gen/src/merge/overlap.rs:94
-    wire [23:0] union_count_next;            // rtl-gen/src/merge/overlap.rs:95
-    wire [23:0] shared_count_next;           // rtl-gen/src/merge/overlap.rs:96
-    wire in_end_not;                         // rtl-gen/src/merge/overlap.rs:97
-    wire same_voxel_not_1;                   // rtl-gen/src/merge/overlap.rs:99
-    wire fire_and_2;                         // rtl-gen/src/merge/overlap.rs:99
-    wire in_rank_ne;                         // rtl-gen/src/merge/overlap.rs:100
-    wire g_shared_or;                        // rtl-gen/src/merge/overlap.rs:100
-    wire same_voxel_mux;                     // rtl-gen/src/merge/overlap.rs:100
+    wire fire_and;                           // rtl-gen/src/merge/overlap.rs:91
     reg [23:0] r_shared;                     // rtl-gen/src/merge/overlap.rs:102
     reg [23:0] r_union;                      // rtl-gen/src/merge/overlap.rs:103
     reg r_overflow;                          // rtl-gen/src/merge/overlap.rs:104
-    wire [23:0] overflow_mux;                // rtl-gen/src/merge/overlap.rs:105
-    wire [23:0] overflow_mux_1;              // rtl-gen/src/merge/overlap.rs:106
-    wire out_ready_not;                      // rtl-gen/src/merge/overlap.rs:108
     wire out_held;                           // rtl-gen/src/merge/overlap.rs:108
-    wire out_valid_next;                     // rtl-gen/src/merge/overlap.rs:108
-    wire [56:0] r_shared_shl;                // rtl-gen/src/merge/overlap.rs:40
     wire [56:0] shared_x_den;                // rtl-gen/src/merge/overlap.rs:40
     wire [56:0] num_x_union;                 // rtl-gen/src/merge/overlap.rs:40
     wire above;                              // rtl-gen/src/merge/overlap.rs:113
@@ -66,39 +46,19 @@ module overlap_counter_d16_i24_k4_t1_2 (
     assign in_voxel = in_data[47:0];
     assign in_rank = in_data[49:48];
     assign in_end = in_data[50];
-    assign out_valid_not = ~out_valid_q;
-    assign accept = out_valid_not | out_ready;
+    assign accept = (~out_valid_q) | out_ready;
     assign fire = in_valid & accept;
-    assign in_voxel_eq = in_voxel == g_voxel;
-    assign same_voxel = g_valid & in_voxel_eq;
-    assign fire_and = fire & g_valid;
+    assign same_voxel = g_valid & (in_voxel == g_voxel);
     assign same_voxel_not = ~same_voxel;
-    assign in_end_or = in_end | same_voxel_not;
-    assign close = fire_and & in_end_or;
+    assign close = (fire & g_valid) & (in_end | same_voxel_not);
     assign union_inc = {1'b0, union_count} + 25'd1;
     assign shared_inc = shared_count + 24'd1;
-    assign close_and = close & g_shared;
-    assign close_and_1 = close & union_inc[24];
-    assign overflow_or = overflow | close_and_1;
+    assign overflow_or = overflow | (close & union_inc[24]);
     assign close_mux = close ? union_inc[23:0] : union_count;
-    assign close_mux_1 = close_and ? shared_inc : shared_count;
-    assign fire_and_1 = fire & in_end;
-    assign overflow_next = fire_and_1 ? 1'b0 : overflow_or;
-    assign union_count_next = fire_and_1 ? 24'd0 : close_mux;
-    assign shared_count_next = fire_and_1 ? 24'd0 : close_mux_1;
-    assign in_end_not = ~in_end;
-    assign same_voxel_not_1 = ~same_voxel;
-    assign fire_and_2 = fire & same_voxel_not_1;
-    assign in_rank_ne = in_rank != g_rank;
-    assign g_shared_or = g_shared | in_rank_ne;
-    assign same_voxel_mux = same_voxel ? g_shared_or : 1'b0;
-    assign overflow_mux = overflow_or ? 24'd0 : close_mux_1;
-    assign overflow_mux_1 = overflow_or ? 24'd0 : close_mux;
-    assign out_ready_not = ~out_ready;
-    assign out_held = out_valid_q & out_ready_not;
-    assign out_valid_next = fire_and_1 ? 1'b1 : out_held;
-    assign r_shared_shl = {33'd0, r_shared} << 1'b1;
-    assign shared_x_den = 57'd0 + r_shared_shl;
+    assign close_mux_1 = (close & g_shared) ? shared_inc : shared_count;
+    assign fire_and = fire & in_end;
+    assign out_held = out_valid_q & (~out_ready);
+    assign shared_x_den = 57'd0 + ({33'd0, r_shared} << 1'b1);
     assign num_x_union = 57'd0 + {33'd0, r_union};
     assign above = shared_x_den > num_x_union;
     assign out_valid = out_valid_q;
@@ -119,20 +79,20 @@ module overlap_counter_d16_i24_k4_t1_2 (
             r_overflow <= 1'b0;
         end else begin
             if (fire) begin
-                g_valid <= in_end_not;       // rtl-gen/src/merge/overlap.rs:97
+                g_valid <= ~in_end;          // rtl-gen/src/merge/overlap.rs:97
                 g_voxel <= in_voxel;         // rtl-gen/src/merge/overlap.rs:98
-                g_shared <= same_voxel_mux;  // rtl-gen/src/merge/overlap.rs:100
+                g_shared <= same_voxel ? (g_shared | (in_rank != g_rank)) : 1'b0; // rtl-gen/src/merge/overlap.rs:100
             end
-            if (fire_and_2) begin
+            if (fire & same_voxel_not) begin
                 g_rank <= in_rank;           // rtl-gen/src/merge/overlap.rs:99
             end
-            shared_count <= shared_count_next;
-            union_count <= union_count_next;
-            overflow <= overflow_next;
-            out_valid_q <= out_valid_next;
-            if (fire_and_1) begin
-                r_shared <= overflow_mux;    // rtl-gen/src/merge/overlap.rs:105
-                r_union <= overflow_mux_1;   // rtl-gen/src/merge/overlap.rs:106
+            shared_count <= fire_and ? 24'd0 : close_mux_1;
+            union_count <= fire_and ? 24'd0 : close_mux;
+            overflow <= fire_and ? 1'b0 : overflow_or;
+            out_valid_q <= fire_and ? 1'b1 : out_held;
+            if (fire_and) begin
+                r_shared <= overflow_or ? 24'd0 : close_mux_1; // rtl-gen/src/merge/overlap.rs:105
+                r_union <= overflow_or ? 24'd0 : close_mux; // rtl-gen/src/merge/overlap.rs:106
                 r_overflow <= overflow_or;   // rtl-gen/src/merge/overlap.rs:107
             end
         end

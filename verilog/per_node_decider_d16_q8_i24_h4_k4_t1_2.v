@@ -20,18 +20,14 @@ module per_node_decider_d16_q8_i24_h4_k4_t1_2 (
     output wire last_taken          // rtl-gen/src/merge/per_node.rs:278
 );
     wire [179:0] in_beat;                    // rtl-gen/src/merge/per_node.rs:154
-    wire in_probe;                           // rtl-gen/src/merge/fields.rs:13
+    wire in_probe;                           // rtl-gen/src/merge/per_node.rs:155
     wire [1:0] in_rank;                      // rtl-gen/src/merge/per_node.rs:160
-    wire [1:0] in_kind;                      // rtl-gen/src/merge/fields.rs:13
+    wire [1:0] in_kind;                      // rtl-gen/src/merge/per_node.rs:162
     wire in_probe_not;                       // rtl-gen/src/merge/per_node.rs:163
-    wire in_kind_eq;                         // rtl-gen/src/merge/per_node.rs:163
     wire in_is_end;                          // rtl-gen/src/merge/per_node.rs:163
-    wire in_probe_not_1;                     // rtl-gen/src/merge/per_node.rs:164
-    wire in_kind_eq_1;                       // rtl-gen/src/merge/per_node.rs:164
-    wire in_probe_and;                       // rtl-gen/src/merge/per_node.rs:164
-    wire in_probe_not_2;                     // rtl-gen/src/merge/per_node.rs:165
-    wire in_kind_eq_2;                       // rtl-gen/src/merge/per_node.rs:165
-    wire in_probe_and_1;                     // rtl-gen/src/merge/per_node.rs:165
+    wire [15:0] in_beat_rec_x;               // rtl-gen/src/merge/fields.rs:24
+    wire [15:0] in_beat_rec_y;               // rtl-gen/src/merge/fields.rs:24
+    wire [15:0] in_beat_rec_z;               // rtl-gen/src/merge/fields.rs:24
     reg probe_run;                           // rtl-gen/src/merge/per_node.rs:168
     reg [7:0] g_any;                         // rtl-gen/src/merge/per_node.rs:169
     reg [7:0] g_cur;                         // rtl-gen/src/merge/per_node.rs:170
@@ -45,127 +41,53 @@ module per_node_decider_d16_q8_i24_h4_k4_t1_2 (
     reg pass_descended;                      // rtl-gen/src/merge/per_node.rs:177
     reg [4:0] pass_lod;                      // rtl-gen/src/merge/per_node.rs:178
     wire [3:0] g_multi_add;                  // rtl-gen/src/merge/per_node.rs:116
-    wire [3:0] g_multi_add_1;                // rtl-gen/src/merge/per_node.rs:116
-    wire [3:0] g_multi_add_2;                // rtl-gen/src/merge/per_node.rs:116
-    wire [3:0] g_multi_add_3;                // rtl-gen/src/merge/per_node.rs:116
-    wire [3:0] g_multi_add_4;                // rtl-gen/src/merge/per_node.rs:116
-    wire [3:0] g_multi_add_5;                // rtl-gen/src/merge/per_node.rs:116
-    wire [3:0] g_multi_add_6;                // rtl-gen/src/merge/per_node.rs:116
     wire [3:0] voxel_shared;                 // rtl-gen/src/merge/per_node.rs:116
     wire [7:0] g_any_or;                     // rtl-gen/src/merge/per_node.rs:182
     wire [3:0] g_any_add;                    // rtl-gen/src/merge/per_node.rs:116
-    wire [3:0] g_any_add_1;                  // rtl-gen/src/merge/per_node.rs:116
-    wire [3:0] g_any_add_2;                  // rtl-gen/src/merge/per_node.rs:116
-    wire [3:0] g_any_add_3;                  // rtl-gen/src/merge/per_node.rs:116
-    wire [3:0] g_any_add_4;                  // rtl-gen/src/merge/per_node.rs:116
-    wire [3:0] g_any_add_5;                  // rtl-gen/src/merge/per_node.rs:116
-    wire [3:0] g_any_add_6;                  // rtl-gen/src/merge/per_node.rs:116
     wire [3:0] voxel_union;                  // rtl-gen/src/merge/per_node.rs:116
-    wire [36:0] voxel_shared_shl;            // rtl-gen/src/merge/overlap.rs:40
-    wire [36:0] voxel_shared_add;            // rtl-gen/src/merge/overlap.rs:40
-    wire [36:0] voxel_union_add;             // rtl-gen/src/merge/overlap.rs:40
     wire voxel_above;                        // rtl-gen/src/merge/per_node.rs:185
     wire voxel_descends;                     // rtl-gen/src/merge/per_node.rs:187
-    wire in_probe_not_3;                     // rtl-gen/src/merge/per_node.rs:188
     wire after_probes;                       // rtl-gen/src/merge/per_node.rs:188
     wire decision;                           // rtl-gen/src/merge/per_node.rs:189
     wire after_probes_mux;                   // rtl-gen/src/merge/per_node.rs:190
-    wire in_probe_or;                        // rtl-gen/src/merge/per_node.rs:191
     wire dropped;                            // rtl-gen/src/merge/per_node.rs:191
-    wire in_probe_not_4;                     // rtl-gen/src/merge/per_node.rs:192
-    wire dropped_not;                        // rtl-gen/src/merge/per_node.rs:192
     wire to_out;                             // rtl-gen/src/merge/per_node.rs:192
     wire after_probes_and;                   // rtl-gen/src/merge/per_node.rs:194
-    wire pass_descended_or;                  // rtl-gen/src/merge/per_node.rs:194
-    wire pass_lod_ne;                        // rtl-gen/src/merge/per_node.rs:194
     wire more;                               // rtl-gen/src/merge/per_node.rs:194
     wire needs_report;                       // rtl-gen/src/merge/per_node.rs:195
     wire out_in_ready;                       // rtl-gen/src/merge/per_node.rs:197
     wire report_in_ready;                    // rtl-gen/src/merge/per_node.rs:198
-    wire to_out_not;                         // rtl-gen/src/merge/per_node.rs:199
     wire to_out_or;                          // rtl-gen/src/merge/per_node.rs:199
-    wire needs_report_not;                   // rtl-gen/src/merge/per_node.rs:200
     wire needs_report_or;                    // rtl-gen/src/merge/per_node.rs:200
-    wire in_valid_and;                       // rtl-gen/src/merge/per_node.rs:201
     wire fire;                               // rtl-gen/src/merge/per_node.rs:201
-    wire in_valid_and_1;                     // rtl-gen/src/merge/per_node.rs:205
     wire out_in_valid;                       // rtl-gen/src/merge/per_node.rs:205
     reg out_skid_valid;                      // rtl-gen/src/merge/per_node.rs:209
     reg [179:0] out_skid_data;               // rtl-gen/src/merge/per_node.rs:209
     reg out_skid_spare_valid;                // rtl-gen/src/merge/per_node.rs:209
     reg [179:0] out_skid_spare_data;         // rtl-gen/src/merge/per_node.rs:209
     wire out_skid_ready;                     // rtl-gen/src/merge/per_node.rs:209
-    wire out_skid_valid_not;                 // rtl-gen/src/merge/per_node.rs:209
-    wire out_skid_ready_or;                  // rtl-gen/src/merge/per_node.rs:209
-    wire out_skid_spare_valid_not;           // rtl-gen/src/merge/per_node.rs:209
-    wire out_in_valid_and;                   // rtl-gen/src/merge/per_node.rs:209
-    wire out_skid_spare_valid_or;            // rtl-gen/src/merge/per_node.rs:209
-    wire [179:0] out_skid_spare_valid_mux;   // rtl-gen/src/merge/per_node.rs:209
-    wire out_skid_spare_valid_or_1;          // rtl-gen/src/merge/per_node.rs:209
-    wire out_skid_spare_valid_next;          // rtl-gen/src/merge/per_node.rs:209
-    wire out_skid_ready_not;                 // rtl-gen/src/merge/per_node.rs:209
-    wire out_skid_ready_and;                 // rtl-gen/src/merge/per_node.rs:209
-    wire [3:0] in_is_end_mux;                // rtl-gen/src/merge/per_node.rs:220
-    wire [3:0] in_is_end_mux_1;              // rtl-gen/src/merge/per_node.rs:221
-    wire in_is_end_not;                      // rtl-gen/src/merge/per_node.rs:222
-    wire in_is_end_and;                      // rtl-gen/src/merge/per_node.rs:222
-    wire in_is_end_and_1;                    // rtl-gen/src/merge/per_node.rs:224
+    wire out_skid_room;                      // rtl-gen/src/merge/per_node.rs:209
+    wire out_skid_drain;                     // rtl-gen/src/merge/per_node.rs:209
+    wire out_skid_take;                      // rtl-gen/src/merge/per_node.rs:209
     wire [65:0] const_cat;                   // rtl-gen/src/merge/per_node.rs:212
-    wire [65:0] const_cat_1;                 // rtl-gen/src/merge/per_node.rs:231
     wire [65:0] report_beat;                 // rtl-gen/src/merge/per_node.rs:230
-    wire in_valid_and_2;                     // rtl-gen/src/merge/per_node.rs:239
     wire report_in_valid;                    // rtl-gen/src/merge/per_node.rs:239
     reg report_skid_valid;                   // rtl-gen/src/merge/per_node.rs:243
     reg [65:0] report_skid_data;             // rtl-gen/src/merge/per_node.rs:243
     reg report_skid_spare_valid;             // rtl-gen/src/merge/per_node.rs:243
     reg [65:0] report_skid_spare_data;       // rtl-gen/src/merge/per_node.rs:243
     wire report_skid_ready;                  // rtl-gen/src/merge/per_node.rs:243
-    wire report_skid_valid_not;              // rtl-gen/src/merge/per_node.rs:243
-    wire report_skid_ready_or;               // rtl-gen/src/merge/per_node.rs:243
-    wire report_skid_spare_valid_not;        // rtl-gen/src/merge/per_node.rs:243
-    wire report_in_valid_and;                // rtl-gen/src/merge/per_node.rs:243
-    wire report_skid_spare_valid_or;         // rtl-gen/src/merge/per_node.rs:243
-    wire [65:0] report_skid_spare_valid_mux; // rtl-gen/src/merge/per_node.rs:243
-    wire report_skid_spare_valid_or_1;       // rtl-gen/src/merge/per_node.rs:243
-    wire report_skid_spare_valid_next;       // rtl-gen/src/merge/per_node.rs:243
-    wire report_skid_ready_not;              // rtl-gen/src/merge/per_node.rs:243
-    wire report_skid_ready_and;              // rtl-gen/src/merge/per_node.rs:243
+    wire report_skid_room;                   // rtl-gen/src/merge/per_node.rs:243
+    wire report_skid_drain;                  // rtl-gen/src/merge/per_node.rs:243
+    wire report_skid_take;                   // rtl-gen/src/merge/per_node.rs:243
     wire take_probe;                         // rtl-gen/src/merge/per_node.rs:247
     wire probe_run_not;                      // rtl-gen/src/merge/per_node.rs:248
     wire g_rank_ne;                          // rtl-gen/src/merge/per_node.rs:249
-    wire [2:0] in_beat_cat;                  // rtl-gen/src/merge/per_node.rs:122
-    wire in_beat_eq;                         // rtl-gen/src/merge/per_node.rs:123
-    wire in_beat_eq_1;                       // rtl-gen/src/merge/per_node.rs:123
-    wire in_beat_eq_2;                       // rtl-gen/src/merge/per_node.rs:123
-    wire in_beat_eq_3;                       // rtl-gen/src/merge/per_node.rs:123
-    wire in_beat_eq_4;                       // rtl-gen/src/merge/per_node.rs:123
-    wire in_beat_eq_5;                       // rtl-gen/src/merge/per_node.rs:123
-    wire in_beat_eq_6;                       // rtl-gen/src/merge/per_node.rs:123
-    wire in_beat_eq_7;                       // rtl-gen/src/merge/per_node.rs:123
+    wire [2:0] in_beat_rec_z_cat;            // rtl-gen/src/merge/per_node.rs:122
     wire [7:0] probe_octant;                 // rtl-gen/src/merge/per_node.rs:124
-    wire [7:0] g_any_or_1;                   // rtl-gen/src/merge/per_node.rs:251
     wire [7:0] g_rank_mux;                   // rtl-gen/src/merge/per_node.rs:251
-    wire [7:0] probe_run_mux;                // rtl-gen/src/merge/per_node.rs:253
-    wire probe_run_or;                       // rtl-gen/src/merge/per_node.rs:254
-    wire [7:0] g_cur_or;                     // rtl-gen/src/merge/per_node.rs:254
-    wire [7:0] probe_run_mux_1;              // rtl-gen/src/merge/per_node.rs:254
-    wire [7:0] g_rank_and;                   // rtl-gen/src/merge/per_node.rs:255
-    wire [7:0] g_multi_or;                   // rtl-gen/src/merge/per_node.rs:255
-    wire [7:0] probe_run_mux_2;              // rtl-gen/src/merge/per_node.rs:255
-    wire probe_run_not_1;                    // rtl-gen/src/merge/per_node.rs:257
-    wire g_many_or;                          // rtl-gen/src/merge/per_node.rs:257
-    wire probe_run_and;                      // rtl-gen/src/merge/per_node.rs:257
     wire take_probe_and;                     // rtl-gen/src/merge/per_node.rs:259
-    wire [15:0] in_beat_shr;                 // rtl-gen/src/merge/per_node.rs:259
-    wire take_probe_and_1;                   // rtl-gen/src/merge/per_node.rs:259
-    wire [15:0] in_beat_shr_1;               // rtl-gen/src/merge/per_node.rs:259
-    wire take_probe_and_2;                   // rtl-gen/src/merge/per_node.rs:259
-    wire [15:0] in_beat_shr_2;               // rtl-gen/src/merge/per_node.rs:259
-    wire after_probes_and_1;                 // rtl-gen/src/merge/per_node.rs:271
     wire pass_taken_now;                     // rtl-gen/src/merge/per_node.rs:275
-    wire pass_taken_now_and;                 // rtl-gen/src/merge/per_node.rs:276
-    wire [4:0] pass_lod_add;                 // rtl-gen/src/merge/per_node.rs:276
-    wire more_not;                           // rtl-gen/src/merge/per_node.rs:278
     wire last_taken_now;                     // rtl-gen/src/merge/per_node.rs:278
 
     assign in_ready = to_out_or & needs_report_or;
@@ -174,134 +96,56 @@ module per_node_decider_d16_q8_i24_h4_k4_t1_2 (
     assign in_rank = in_data[182:181];
     assign in_kind = in_data[179:178];
     assign in_probe_not = ~in_probe;
-    assign in_kind_eq = in_kind == 2'd3;
-    assign in_is_end = in_probe_not & in_kind_eq;
-    assign in_probe_not_1 = ~in_probe;
-    assign in_kind_eq_1 = in_kind == 2'd0;
-    assign in_probe_and = in_probe_not_1 & in_kind_eq_1;
-    assign in_probe_not_2 = ~in_probe;
-    assign in_kind_eq_2 = in_kind == 2'd2;
-    assign in_probe_and_1 = in_probe_not_2 & in_kind_eq_2;
-    assign g_multi_add = 4'd0 + {3'd0, g_multi[0]};
-    assign g_multi_add_1 = g_multi_add + {3'd0, g_multi[1]};
-    assign g_multi_add_2 = g_multi_add_1 + {3'd0, g_multi[2]};
-    assign g_multi_add_3 = g_multi_add_2 + {3'd0, g_multi[3]};
-    assign g_multi_add_4 = g_multi_add_3 + {3'd0, g_multi[4]};
-    assign g_multi_add_5 = g_multi_add_4 + {3'd0, g_multi[5]};
-    assign g_multi_add_6 = g_multi_add_5 + {3'd0, g_multi[6]};
-    assign voxel_shared = g_multi_add_6 + {3'd0, g_multi[7]};
+    assign in_is_end = in_probe_not & (in_kind == 2'd3);
+    assign in_beat_rec_x = in_data[21:6];
+    assign in_beat_rec_y = in_data[37:22];
+    assign in_beat_rec_z = in_data[53:38];
+    assign g_multi_add = ((((((4'd0 + {3'd0, g_multi[0]}) + {3'd0, g_multi[1]}) + {3'd0, g_multi[2]}) + {3'd0, g_multi[3]}) + {3'd0, g_multi[4]}) + {3'd0, g_multi[5]}) + {3'd0, g_multi[6]};
+    assign voxel_shared = g_multi_add + {3'd0, g_multi[7]};
     assign g_any_or = g_any | g_cur;
-    assign g_any_add = 4'd0 + {3'd0, g_any_or[0]};
-    assign g_any_add_1 = g_any_add + {3'd0, g_any_or[1]};
-    assign g_any_add_2 = g_any_add_1 + {3'd0, g_any_or[2]};
-    assign g_any_add_3 = g_any_add_2 + {3'd0, g_any_or[3]};
-    assign g_any_add_4 = g_any_add_3 + {3'd0, g_any_or[4]};
-    assign g_any_add_5 = g_any_add_4 + {3'd0, g_any_or[5]};
-    assign g_any_add_6 = g_any_add_5 + {3'd0, g_any_or[6]};
-    assign voxel_union = g_any_add_6 + {3'd0, g_any_or[7]};
-    assign voxel_shared_shl = {33'd0, voxel_shared} << 1'b1;
-    assign voxel_shared_add = 37'd0 + voxel_shared_shl;
-    assign voxel_union_add = 37'd0 + {33'd0, voxel_union};
-    assign voxel_above = voxel_shared_add > voxel_union_add;
+    assign g_any_add = ((((((4'd0 + {3'd0, g_any_or[0]}) + {3'd0, g_any_or[1]}) + {3'd0, g_any_or[2]}) + {3'd0, g_any_or[3]}) + {3'd0, g_any_or[4]}) + {3'd0, g_any_or[5]}) + {3'd0, g_any_or[6]};
+    assign voxel_union = g_any_add + {3'd0, g_any_or[7]};
+    assign voxel_above = (37'd0 + ({33'd0, voxel_shared} << 1'b1)) > (37'd0 + {33'd0, voxel_union});
     assign voxel_descends = g_many & voxel_above;
-    assign in_probe_not_3 = ~in_probe;
-    assign after_probes = probe_run & in_probe_not_3;
+    assign after_probes = probe_run & in_probe_not;
     assign decision = after_probes & g_many;
     assign after_probes_mux = after_probes ? voxel_descends : dropping;
-    assign in_probe_or = in_probe_and | in_probe_and_1;
-    assign dropped = after_probes_mux & in_probe_or;
-    assign in_probe_not_4 = ~in_probe;
-    assign dropped_not = ~dropped;
-    assign to_out = in_probe_not_4 & dropped_not;
+    assign dropped = after_probes_mux & ((in_probe_not & (in_kind == 2'd0)) | (in_probe_not & (in_kind == 2'd2)));
+    assign to_out = in_probe_not & (~dropped);
     assign after_probes_and = after_probes & voxel_descends;
-    assign pass_descended_or = pass_descended | after_probes_and;
-    assign pass_lod_ne = pass_lod != 5'd16;
-    assign more = pass_descended_or & pass_lod_ne;
+    assign more = (pass_descended | after_probes_and) & (pass_lod != 5'd16);
     assign needs_report = decision | in_is_end;
-    assign out_in_ready = ~out_skid_spare_valid;
-    assign report_in_ready = ~report_skid_spare_valid;
-    assign to_out_not = ~to_out;
-    assign to_out_or = to_out_not | out_in_ready;
-    assign needs_report_not = ~needs_report;
-    assign needs_report_or = needs_report_not | report_in_ready;
-    assign in_valid_and = in_valid & to_out_or;
-    assign fire = in_valid_and & needs_report_or;
-    assign in_valid_and_1 = in_valid & to_out;
-    assign out_in_valid = in_valid_and_1 & needs_report_or;
+    assign out_in_ready = out_skid_room;
+    assign report_in_ready = report_skid_room;
+    assign to_out_or = (~to_out) | out_in_ready;
+    assign needs_report_or = (~needs_report) | report_in_ready;
+    assign fire = (in_valid & to_out_or) & needs_report_or;
+    assign out_in_valid = (in_valid & to_out) & needs_report_or;
     assign out_skid_ready = out_ready;
-    assign out_skid_valid_not = ~out_skid_valid;
-    assign out_skid_ready_or = out_skid_ready | out_skid_valid_not;
-    assign out_skid_spare_valid_not = ~out_skid_spare_valid;
-    assign out_in_valid_and = out_in_valid & out_skid_spare_valid_not;
-    assign out_skid_spare_valid_or = out_skid_spare_valid | out_in_valid;
-    assign out_skid_spare_valid_mux = out_skid_spare_valid ? out_skid_spare_data : in_beat;
-    assign out_skid_spare_valid_or_1 = out_skid_spare_valid | out_in_valid_and;
-    assign out_skid_spare_valid_next = out_skid_ready_or ? 1'b0 : out_skid_spare_valid_or_1;
-    assign out_skid_ready_not = ~out_skid_ready_or;
-    assign out_skid_ready_and = out_skid_ready_not & out_in_valid_and;
+    assign out_skid_room = ~out_skid_spare_valid;
+    assign out_skid_drain = out_skid_ready | (~out_skid_valid);
+    assign out_skid_take = out_in_valid & out_skid_room;
     assign out_valid = out_skid_valid;
     assign out_data = out_skid_data;
-    assign in_is_end_mux = in_is_end ? 4'd0 : voxel_shared;
-    assign in_is_end_mux_1 = in_is_end ? 4'd0 : voxel_union;
-    assign in_is_end_not = ~in_is_end;
-    assign in_is_end_and = in_is_end_not & voxel_descends;
-    assign in_is_end_and_1 = in_is_end & more;
-    assign const_cat = {2'd0, in_is_end_and_1, in_is_end, in_is_end_and, in_is_end_mux_1, in_is_end_mux, pass_lod, g_z, g_y, g_x};
-    assign const_cat_1 = {const_cat[65:48], 48'd0};
-    assign report_beat = in_is_end ? const_cat_1 : const_cat;
-    assign in_valid_and_2 = in_valid & needs_report;
-    assign report_in_valid = in_valid_and_2 & to_out_or;
+    assign const_cat = {2'd0, in_is_end & more, in_is_end, (~in_is_end) & voxel_descends, in_is_end ? 4'd0 : voxel_union, in_is_end ? 4'd0 : voxel_shared, pass_lod, g_z, g_y, g_x};
+    assign report_beat = in_is_end ? {const_cat[65:48], 48'd0} : const_cat;
+    assign report_in_valid = (in_valid & needs_report) & to_out_or;
     assign report_skid_ready = report_ready;
-    assign report_skid_valid_not = ~report_skid_valid;
-    assign report_skid_ready_or = report_skid_ready | report_skid_valid_not;
-    assign report_skid_spare_valid_not = ~report_skid_spare_valid;
-    assign report_in_valid_and = report_in_valid & report_skid_spare_valid_not;
-    assign report_skid_spare_valid_or = report_skid_spare_valid | report_in_valid;
-    assign report_skid_spare_valid_mux = report_skid_spare_valid ? report_skid_spare_data : report_beat;
-    assign report_skid_spare_valid_or_1 = report_skid_spare_valid | report_in_valid_and;
-    assign report_skid_spare_valid_next = report_skid_ready_or ? 1'b0 : report_skid_spare_valid_or_1;
-    assign report_skid_ready_not = ~report_skid_ready_or;
-    assign report_skid_ready_and = report_skid_ready_not & report_in_valid_and;
+    assign report_skid_room = ~report_skid_spare_valid;
+    assign report_skid_drain = report_skid_ready | (~report_skid_valid);
+    assign report_skid_take = report_in_valid & report_skid_room;
     assign report_valid = report_skid_valid;
     assign report_data = report_skid_data;
     assign take_probe = fire & in_probe;
     assign probe_run_not = ~probe_run;
     assign g_rank_ne = g_rank != in_rank;
-    assign in_beat_cat = {in_data[38], in_data[22], in_data[6]};
-    assign in_beat_eq = in_beat_cat == 3'd7;
-    assign in_beat_eq_1 = in_beat_cat == 3'd6;
-    assign in_beat_eq_2 = in_beat_cat == 3'd5;
-    assign in_beat_eq_3 = in_beat_cat == 3'd4;
-    assign in_beat_eq_4 = in_beat_cat == 3'd3;
-    assign in_beat_eq_5 = in_beat_cat == 3'd2;
-    assign in_beat_eq_6 = in_beat_cat == 3'd1;
-    assign in_beat_eq_7 = in_beat_cat == 3'd0;
-    assign probe_octant = {in_beat_eq, in_beat_eq_1, in_beat_eq_2, in_beat_eq_3, in_beat_eq_4, in_beat_eq_5, in_beat_eq_6, in_beat_eq_7};
-    assign g_any_or_1 = g_any | g_cur;
-    assign g_rank_mux = g_rank_ne ? g_any_or_1 : g_any;
-    assign probe_run_mux = probe_run_not ? 8'd0 : g_rank_mux;
-    assign probe_run_or = probe_run_not | g_rank_ne;
-    assign g_cur_or = g_cur | probe_octant;
-    assign probe_run_mux_1 = probe_run_or ? probe_octant : g_cur_or;
-    assign g_rank_and = g_rank_mux & probe_octant;
-    assign g_multi_or = g_multi | g_rank_and;
-    assign probe_run_mux_2 = probe_run_not ? 8'd0 : g_multi_or;
-    assign probe_run_not_1 = ~probe_run_not;
-    assign g_many_or = g_many | g_rank_ne;
-    assign probe_run_and = probe_run_not_1 & g_many_or;
+    assign in_beat_rec_z_cat = {in_data[38], in_data[22], in_data[6]};
+    assign probe_octant = {in_beat_rec_z_cat == 3'd7, in_beat_rec_z_cat == 3'd6, in_beat_rec_z_cat == 3'd5, in_beat_rec_z_cat == 3'd4, in_beat_rec_z_cat == 3'd3, in_beat_rec_z_cat == 3'd2, in_beat_rec_z_cat == 3'd1, in_beat_rec_z_cat == 3'd0};
+    assign g_rank_mux = g_rank_ne ? g_any_or : g_any;
     assign take_probe_and = take_probe & probe_run_not;
-    assign in_beat_shr = in_data[21:6] >> 1'b1;
-    assign take_probe_and_1 = take_probe & probe_run_not;
-    assign in_beat_shr_1 = in_data[37:22] >> 1'b1;
-    assign take_probe_and_2 = take_probe & probe_run_not;
-    assign in_beat_shr_2 = in_data[53:38] >> 1'b1;
-    assign after_probes_and_1 = after_probes & voxel_descends;
     assign pass_taken_now = fire & in_is_end;
-    assign pass_taken_now_and = pass_taken_now & more;
-    assign pass_lod_add = pass_lod + 5'd1;
     assign pass_taken = pass_taken_now;
-    assign more_not = ~more;
-    assign last_taken_now = pass_taken_now & more_not;
+    assign last_taken_now = pass_taken_now & (~more);
     assign last_taken = last_taken_now;
 
     always @(posedge clk) begin
@@ -331,20 +175,16 @@ module per_node_decider_d16_q8_i24_h4_k4_t1_2 (
                 probe_run <= in_probe;       // rtl-gen/src/merge/per_node.rs:261
             end
             if (take_probe) begin
-                g_any <= probe_run_mux;      // rtl-gen/src/merge/per_node.rs:253
-                g_cur <= probe_run_mux_1;    // rtl-gen/src/merge/per_node.rs:254
-                g_multi <= probe_run_mux_2;  // rtl-gen/src/merge/per_node.rs:255
+                g_any <= probe_run_not ? 8'd0 : g_rank_mux; // rtl-gen/src/merge/per_node.rs:253
+                g_cur <= (probe_run_not | g_rank_ne) ? probe_octant : (g_cur | probe_octant); // rtl-gen/src/merge/per_node.rs:254
+                g_multi <= probe_run_not ? 8'd0 : (g_multi | (g_rank_mux & probe_octant)); // rtl-gen/src/merge/per_node.rs:255
                 g_rank <= in_rank;           // rtl-gen/src/merge/per_node.rs:256
-                g_many <= probe_run_and;     // rtl-gen/src/merge/per_node.rs:257
+                g_many <= (~probe_run_not) & (g_many | g_rank_ne); // rtl-gen/src/merge/per_node.rs:257
             end
             if (take_probe_and) begin
-                g_x <= in_beat_shr;          // rtl-gen/src/merge/per_node.rs:259
-            end
-            if (take_probe_and_1) begin
-                g_y <= in_beat_shr_1;        // rtl-gen/src/merge/per_node.rs:259
-            end
-            if (take_probe_and_2) begin
-                g_z <= in_beat_shr_2;        // rtl-gen/src/merge/per_node.rs:259
+                g_x <= in_beat_rec_x >> 1'b1; // rtl-gen/src/merge/per_node.rs:259
+                g_y <= in_beat_rec_y >> 1'b1; // rtl-gen/src/merge/per_node.rs:259
+                g_z <= in_beat_rec_z >> 1'b1; // rtl-gen/src/merge/per_node.rs:259
             end
             if (start) begin
                 dropping <= 1'b0;            // rtl-gen/src/merge/per_node.rs:264
@@ -352,36 +192,31 @@ module per_node_decider_d16_q8_i24_h4_k4_t1_2 (
                 pass_lod <= start_lod;       // rtl-gen/src/merge/per_node.rs:276
             end else begin
                 if (fire) begin
+                    dropping <= in_is_end ? 1'b0 : after_probes_mux; // rtl-gen/src/merge/per_node.rs:266
                     if (in_is_end) begin
-                        dropping <= 1'b0;    // rtl-gen/src/merge/per_node.rs:266
                         pass_descended <= 1'b0; // rtl-gen/src/merge/per_node.rs:271
-                    end else begin
-                        if (after_probes) begin
-                            dropping <= voxel_descends; // rtl-gen/src/merge/per_node.rs:266
-                        end
-                        if (after_probes_and_1) begin
-                            pass_descended <= 1'b1; // rtl-gen/src/merge/per_node.rs:271
-                        end
+                    end else if (after_probes_and) begin
+                        pass_descended <= 1'b1; // rtl-gen/src/merge/per_node.rs:271
                     end
                 end
-                if (pass_taken_now_and) begin
-                    pass_lod <= pass_lod_add; // rtl-gen/src/merge/per_node.rs:276
+                if (pass_taken_now & more) begin
+                    pass_lod <= pass_lod + 5'd1; // rtl-gen/src/merge/per_node.rs:276
                 end
             end
-            if (out_skid_ready_or) begin
-                out_skid_valid <= out_skid_spare_valid_or; // rtl-gen/src/merge/per_node.rs:209
-                out_skid_data <= out_skid_spare_valid_mux; // rtl-gen/src/merge/per_node.rs:209
+            if (out_skid_drain) begin
+                out_skid_valid <= out_skid_spare_valid | out_in_valid; // rtl-gen/src/merge/per_node.rs:209
+                out_skid_data <= out_skid_spare_valid ? out_skid_spare_data : in_beat; // rtl-gen/src/merge/per_node.rs:209
             end
-            out_skid_spare_valid <= out_skid_spare_valid_next;
-            if (out_skid_ready_and) begin
+            out_skid_spare_valid <= out_skid_drain ? 1'b0 : (out_skid_spare_valid | out_skid_take);
+            if ((~out_skid_drain) & out_skid_take) begin
                 out_skid_spare_data <= in_beat; // rtl-gen/src/merge/per_node.rs:209
             end
-            if (report_skid_ready_or) begin
-                report_skid_valid <= report_skid_spare_valid_or; // rtl-gen/src/merge/per_node.rs:243
-                report_skid_data <= report_skid_spare_valid_mux; // rtl-gen/src/merge/per_node.rs:243
+            if (report_skid_drain) begin
+                report_skid_valid <= report_skid_spare_valid | report_in_valid; // rtl-gen/src/merge/per_node.rs:243
+                report_skid_data <= report_skid_spare_valid ? report_skid_spare_data : report_beat; // rtl-gen/src/merge/per_node.rs:243
             end
-            report_skid_spare_valid <= report_skid_spare_valid_next;
-            if (report_skid_ready_and) begin
+            report_skid_spare_valid <= report_skid_drain ? 1'b0 : (report_skid_spare_valid | report_skid_take);
+            if ((~report_skid_drain) & report_skid_take) begin
                 report_skid_spare_data <= report_beat; // rtl-gen/src/merge/per_node.rs:243
             end
         end

@@ -22,239 +22,129 @@ module per_node_network_d16_q8_i24_h4_k4 (
     input  wire out_ready         // rtl-gen/src/merge/per_node.rs:98
 );
     wire net_out_ready;                      // rtl-gen/src/merge/per_node.rs:57
+    wire [15:0] in0_data_rec_x;              // rtl-gen/src/merge/fields.rs:24
+    wire [15:0] in0_data_rec_y;              // rtl-gen/src/merge/fields.rs:24
+    wire [15:0] in0_data_rec_z;              // rtl-gen/src/merge/fields.rs:24
     reg [15:0] in0_parent_x;                 // rtl-gen/src/merge/network.rs:74
     reg [15:0] in0_parent_y;                 // rtl-gen/src/merge/network.rs:74
     reg [15:0] in0_parent_z;                 // rtl-gen/src/merge/network.rs:74
-    wire in0_probe;                          // rtl-gen/src/merge/fields.rs:13
-    wire [1:0] in0_kind;                     // rtl-gen/src/merge/fields.rs:13
+    wire in0_probe;                          // rtl-gen/src/merge/per_node.rs:67
+    wire [1:0] in0_kind;                     // rtl-gen/src/merge/per_node.rs:104
     wire in0_probe_not;                      // rtl-gen/src/merge/per_node.rs:71
-    wire in0_kind_eq;                        // rtl-gen/src/merge/per_node.rs:71
-    wire in0_probe_and;                      // rtl-gen/src/merge/per_node.rs:71
-    wire in0_probe_not_1;                    // rtl-gen/src/merge/per_node.rs:72
-    wire in0_kind_eq_1;                      // rtl-gen/src/merge/per_node.rs:72
-    wire in0_probe_and_1;                    // rtl-gen/src/merge/per_node.rs:72
-    wire [15:0] in0_data_shr;                // rtl-gen/src/merge/per_node.rs:75
+    wire in0_probe_and;                      // rtl-gen/src/merge/per_node.rs:72
     wire [15:0] in0_probe_mux;               // rtl-gen/src/merge/per_node.rs:75
     wire [15:0] in0_probe_mux_1;             // rtl-gen/src/merge/per_node.rs:75
-    wire [15:0] in0_data_shr_1;              // rtl-gen/src/merge/per_node.rs:75
     wire [15:0] in0_probe_mux_2;             // rtl-gen/src/merge/per_node.rs:75
-    wire [15:0] in0_probe_mux_3;             // rtl-gen/src/merge/per_node.rs:75
-    wire [15:0] in0_data_shr_2;              // rtl-gen/src/merge/per_node.rs:75
-    wire [15:0] in0_probe_mux_4;             // rtl-gen/src/merge/per_node.rs:75
-    wire [15:0] in0_probe_mux_5;             // rtl-gen/src/merge/per_node.rs:75
-    wire [1:0] in0_kind_add;                 // rtl-gen/src/merge/per_node.rs:76
-    wire [1:0] in0_probe_mux_6;              // rtl-gen/src/merge/per_node.rs:76
-    wire [47:0] in0_probe_cat;               // rtl-gen/src/merge/network.rs:39
+    wire [47:0] in0_probe_morton;            // rtl-gen/src/merge/network.rs:39
     wire [50:0] in0_key;                     // rtl-gen/src/merge/per_node.rs:77
+    wire in0_data_probe;                     // rtl-gen/src/merge/per_node.rs:79
     wire in0_valid_and;                      // rtl-gen/src/merge/network.rs:80
-    wire in0_data_not;                       // rtl-gen/src/merge/per_node.rs:79
-    wire in0_data_not_1;                     // rtl-gen/src/merge/per_node.rs:79
-    wire in0_data_and;                       // rtl-gen/src/merge/per_node.rs:79
-    wire in0_valid_and_1;                    // rtl-gen/src/merge/network.rs:80
     wire [231:0] in0_key_cat;                // rtl-gen/src/merge/network.rs:83
     reg in0_head_valid;                      // rtl-gen/src/merge/network.rs:84
     reg [231:0] in0_head_data;               // rtl-gen/src/merge/network.rs:84
     reg in0_head_spare_valid;                // rtl-gen/src/merge/network.rs:84
     reg [231:0] in0_head_spare_data;         // rtl-gen/src/merge/network.rs:84
     wire in0_head_ready;                     // rtl-gen/src/merge/network.rs:84
-    wire in0_head_valid_not;                 // rtl-gen/src/merge/network.rs:84
-    wire in0_head_ready_or;                  // rtl-gen/src/merge/network.rs:84
-    wire in0_head_spare_valid_not;           // rtl-gen/src/merge/network.rs:84
-    wire in0_valid_and_2;                    // rtl-gen/src/merge/network.rs:84
-    wire in0_head_spare_valid_or;            // rtl-gen/src/merge/network.rs:84
-    wire [231:0] in0_head_spare_valid_mux;   // rtl-gen/src/merge/network.rs:84
-    wire in0_head_spare_valid_or_1;          // rtl-gen/src/merge/network.rs:84
-    wire in0_head_spare_valid_next;          // rtl-gen/src/merge/network.rs:84
-    wire in0_head_ready_not;                 // rtl-gen/src/merge/network.rs:84
-    wire in0_head_ready_and;                 // rtl-gen/src/merge/network.rs:84
+    wire in0_head_room;                      // rtl-gen/src/merge/network.rs:84
+    wire in0_head_drain;                     // rtl-gen/src/merge/network.rs:84
+    wire in0_head_take;                      // rtl-gen/src/merge/network.rs:84
     wire in0_is_end;                         // rtl-gen/src/merge/per_node.rs:84
-    wire in0_head_valid_and;                 // rtl-gen/src/merge/per_node.rs:86
-    wire in0_is_end_and;                     // rtl-gen/src/merge/per_node.rs:87
+    wire [15:0] in1_data_rec_x;              // rtl-gen/src/merge/fields.rs:24
+    wire [15:0] in1_data_rec_y;              // rtl-gen/src/merge/fields.rs:24
+    wire [15:0] in1_data_rec_z;              // rtl-gen/src/merge/fields.rs:24
     reg [15:0] in1_parent_x;                 // rtl-gen/src/merge/network.rs:74
     reg [15:0] in1_parent_y;                 // rtl-gen/src/merge/network.rs:74
     reg [15:0] in1_parent_z;                 // rtl-gen/src/merge/network.rs:74
-    wire in1_probe;                          // rtl-gen/src/merge/fields.rs:13
-    wire [1:0] in1_kind;                     // rtl-gen/src/merge/fields.rs:13
+    wire in1_probe;                          // rtl-gen/src/merge/per_node.rs:67
+    wire [1:0] in1_kind;                     // rtl-gen/src/merge/per_node.rs:104
     wire in1_probe_not;                      // rtl-gen/src/merge/per_node.rs:71
-    wire in1_kind_eq;                        // rtl-gen/src/merge/per_node.rs:71
-    wire in1_probe_and;                      // rtl-gen/src/merge/per_node.rs:71
-    wire in1_probe_not_1;                    // rtl-gen/src/merge/per_node.rs:72
-    wire in1_kind_eq_1;                      // rtl-gen/src/merge/per_node.rs:72
-    wire in1_probe_and_1;                    // rtl-gen/src/merge/per_node.rs:72
-    wire [15:0] in1_data_shr;                // rtl-gen/src/merge/per_node.rs:75
+    wire in1_probe_and;                      // rtl-gen/src/merge/per_node.rs:72
     wire [15:0] in1_probe_mux;               // rtl-gen/src/merge/per_node.rs:75
     wire [15:0] in1_probe_mux_1;             // rtl-gen/src/merge/per_node.rs:75
-    wire [15:0] in1_data_shr_1;              // rtl-gen/src/merge/per_node.rs:75
     wire [15:0] in1_probe_mux_2;             // rtl-gen/src/merge/per_node.rs:75
-    wire [15:0] in1_probe_mux_3;             // rtl-gen/src/merge/per_node.rs:75
-    wire [15:0] in1_data_shr_2;              // rtl-gen/src/merge/per_node.rs:75
-    wire [15:0] in1_probe_mux_4;             // rtl-gen/src/merge/per_node.rs:75
-    wire [15:0] in1_probe_mux_5;             // rtl-gen/src/merge/per_node.rs:75
-    wire [1:0] in1_kind_add;                 // rtl-gen/src/merge/per_node.rs:76
-    wire [1:0] in1_probe_mux_6;              // rtl-gen/src/merge/per_node.rs:76
-    wire [47:0] in1_probe_cat;               // rtl-gen/src/merge/network.rs:39
+    wire [47:0] in1_probe_morton;            // rtl-gen/src/merge/network.rs:39
     wire [50:0] in1_key;                     // rtl-gen/src/merge/per_node.rs:77
+    wire in1_data_probe;                     // rtl-gen/src/merge/per_node.rs:79
     wire in1_valid_and;                      // rtl-gen/src/merge/network.rs:80
-    wire in1_data_not;                       // rtl-gen/src/merge/per_node.rs:79
-    wire in1_data_not_1;                     // rtl-gen/src/merge/per_node.rs:79
-    wire in1_data_and;                       // rtl-gen/src/merge/per_node.rs:79
-    wire in1_valid_and_1;                    // rtl-gen/src/merge/network.rs:80
     wire [231:0] in1_key_cat;                // rtl-gen/src/merge/network.rs:83
     reg in1_head_valid;                      // rtl-gen/src/merge/network.rs:84
     reg [231:0] in1_head_data;               // rtl-gen/src/merge/network.rs:84
     reg in1_head_spare_valid;                // rtl-gen/src/merge/network.rs:84
     reg [231:0] in1_head_spare_data;         // rtl-gen/src/merge/network.rs:84
     wire in1_head_ready;                     // rtl-gen/src/merge/network.rs:84
-    wire in1_head_valid_not;                 // rtl-gen/src/merge/network.rs:84
-    wire in1_head_ready_or;                  // rtl-gen/src/merge/network.rs:84
-    wire in1_head_spare_valid_not;           // rtl-gen/src/merge/network.rs:84
-    wire in1_valid_and_2;                    // rtl-gen/src/merge/network.rs:84
-    wire in1_head_spare_valid_or;            // rtl-gen/src/merge/network.rs:84
-    wire [231:0] in1_head_spare_valid_mux;   // rtl-gen/src/merge/network.rs:84
-    wire in1_head_spare_valid_or_1;          // rtl-gen/src/merge/network.rs:84
-    wire in1_head_spare_valid_next;          // rtl-gen/src/merge/network.rs:84
-    wire in1_head_ready_not;                 // rtl-gen/src/merge/network.rs:84
-    wire in1_head_ready_and;                 // rtl-gen/src/merge/network.rs:84
+    wire in1_head_room;                      // rtl-gen/src/merge/network.rs:84
+    wire in1_head_drain;                     // rtl-gen/src/merge/network.rs:84
+    wire in1_head_take;                      // rtl-gen/src/merge/network.rs:84
     wire in1_is_end;                         // rtl-gen/src/merge/per_node.rs:84
-    wire in0_head_valid_and_1;               // rtl-gen/src/merge/per_node.rs:86
-    wire in0_is_end_and_1;                   // rtl-gen/src/merge/per_node.rs:87
+    wire [15:0] in2_data_rec_x;              // rtl-gen/src/merge/fields.rs:24
+    wire [15:0] in2_data_rec_y;              // rtl-gen/src/merge/fields.rs:24
+    wire [15:0] in2_data_rec_z;              // rtl-gen/src/merge/fields.rs:24
     reg [15:0] in2_parent_x;                 // rtl-gen/src/merge/network.rs:74
     reg [15:0] in2_parent_y;                 // rtl-gen/src/merge/network.rs:74
     reg [15:0] in2_parent_z;                 // rtl-gen/src/merge/network.rs:74
-    wire in2_probe;                          // rtl-gen/src/merge/fields.rs:13
-    wire [1:0] in2_kind;                     // rtl-gen/src/merge/fields.rs:13
+    wire in2_probe;                          // rtl-gen/src/merge/per_node.rs:67
+    wire [1:0] in2_kind;                     // rtl-gen/src/merge/per_node.rs:104
     wire in2_probe_not;                      // rtl-gen/src/merge/per_node.rs:71
-    wire in2_kind_eq;                        // rtl-gen/src/merge/per_node.rs:71
-    wire in2_probe_and;                      // rtl-gen/src/merge/per_node.rs:71
-    wire in2_probe_not_1;                    // rtl-gen/src/merge/per_node.rs:72
-    wire in2_kind_eq_1;                      // rtl-gen/src/merge/per_node.rs:72
-    wire in2_probe_and_1;                    // rtl-gen/src/merge/per_node.rs:72
-    wire [15:0] in2_data_shr;                // rtl-gen/src/merge/per_node.rs:75
+    wire in2_probe_and;                      // rtl-gen/src/merge/per_node.rs:72
     wire [15:0] in2_probe_mux;               // rtl-gen/src/merge/per_node.rs:75
     wire [15:0] in2_probe_mux_1;             // rtl-gen/src/merge/per_node.rs:75
-    wire [15:0] in2_data_shr_1;              // rtl-gen/src/merge/per_node.rs:75
     wire [15:0] in2_probe_mux_2;             // rtl-gen/src/merge/per_node.rs:75
-    wire [15:0] in2_probe_mux_3;             // rtl-gen/src/merge/per_node.rs:75
-    wire [15:0] in2_data_shr_2;              // rtl-gen/src/merge/per_node.rs:75
-    wire [15:0] in2_probe_mux_4;             // rtl-gen/src/merge/per_node.rs:75
-    wire [15:0] in2_probe_mux_5;             // rtl-gen/src/merge/per_node.rs:75
-    wire [1:0] in2_kind_add;                 // rtl-gen/src/merge/per_node.rs:76
-    wire [1:0] in2_probe_mux_6;              // rtl-gen/src/merge/per_node.rs:76
-    wire [47:0] in2_probe_cat;               // rtl-gen/src/merge/network.rs:39
+    wire [47:0] in2_probe_morton;            // rtl-gen/src/merge/network.rs:39
     wire [50:0] in2_key;                     // rtl-gen/src/merge/per_node.rs:77
+    wire in2_data_probe;                     // rtl-gen/src/merge/per_node.rs:79
     wire in2_valid_and;                      // rtl-gen/src/merge/network.rs:80
-    wire in2_data_not;                       // rtl-gen/src/merge/per_node.rs:79
-    wire in2_data_not_1;                     // rtl-gen/src/merge/per_node.rs:79
-    wire in2_data_and;                       // rtl-gen/src/merge/per_node.rs:79
-    wire in2_valid_and_1;                    // rtl-gen/src/merge/network.rs:80
     wire [231:0] in2_key_cat;                // rtl-gen/src/merge/network.rs:83
     reg in2_head_valid;                      // rtl-gen/src/merge/network.rs:84
     reg [231:0] in2_head_data;               // rtl-gen/src/merge/network.rs:84
     reg in2_head_spare_valid;                // rtl-gen/src/merge/network.rs:84
     reg [231:0] in2_head_spare_data;         // rtl-gen/src/merge/network.rs:84
     wire in2_head_ready;                     // rtl-gen/src/merge/network.rs:84
-    wire in2_head_valid_not;                 // rtl-gen/src/merge/network.rs:84
-    wire in2_head_ready_or;                  // rtl-gen/src/merge/network.rs:84
-    wire in2_head_spare_valid_not;           // rtl-gen/src/merge/network.rs:84
-    wire in2_valid_and_2;                    // rtl-gen/src/merge/network.rs:84
-    wire in2_head_spare_valid_or;            // rtl-gen/src/merge/network.rs:84
-    wire [231:0] in2_head_spare_valid_mux;   // rtl-gen/src/merge/network.rs:84
-    wire in2_head_spare_valid_or_1;          // rtl-gen/src/merge/network.rs:84
-    wire in2_head_spare_valid_next;          // rtl-gen/src/merge/network.rs:84
-    wire in2_head_ready_not;                 // rtl-gen/src/merge/network.rs:84
-    wire in2_head_ready_and;                 // rtl-gen/src/merge/network.rs:84
+    wire in2_head_room;                      // rtl-gen/src/merge/network.rs:84
+    wire in2_head_drain;                     // rtl-gen/src/merge/network.rs:84
+    wire in2_head_take;                      // rtl-gen/src/merge/network.rs:84
     wire in2_is_end;                         // rtl-gen/src/merge/per_node.rs:84
-    wire in0_head_valid_and_2;               // rtl-gen/src/merge/per_node.rs:86
-    wire in0_is_end_and_2;                   // rtl-gen/src/merge/per_node.rs:87
+    wire [15:0] in3_data_rec_x;              // rtl-gen/src/merge/fields.rs:24
+    wire [15:0] in3_data_rec_y;              // rtl-gen/src/merge/fields.rs:24
+    wire [15:0] in3_data_rec_z;              // rtl-gen/src/merge/fields.rs:24
     reg [15:0] in3_parent_x;                 // rtl-gen/src/merge/network.rs:74
     reg [15:0] in3_parent_y;                 // rtl-gen/src/merge/network.rs:74
     reg [15:0] in3_parent_z;                 // rtl-gen/src/merge/network.rs:74
-    wire in3_probe;                          // rtl-gen/src/merge/fields.rs:13
-    wire [1:0] in3_kind;                     // rtl-gen/src/merge/fields.rs:13
+    wire in3_probe;                          // rtl-gen/src/merge/per_node.rs:67
+    wire [1:0] in3_kind;                     // rtl-gen/src/merge/per_node.rs:104
     wire in3_probe_not;                      // rtl-gen/src/merge/per_node.rs:71
-    wire in3_kind_eq;                        // rtl-gen/src/merge/per_node.rs:71
-    wire in3_probe_and;                      // rtl-gen/src/merge/per_node.rs:71
-    wire in3_probe_not_1;                    // rtl-gen/src/merge/per_node.rs:72
-    wire in3_kind_eq_1;                      // rtl-gen/src/merge/per_node.rs:72
-    wire in3_probe_and_1;                    // rtl-gen/src/merge/per_node.rs:72
-    wire [15:0] in3_data_shr;                // rtl-gen/src/merge/per_node.rs:75
+    wire in3_probe_and;                      // rtl-gen/src/merge/per_node.rs:72
     wire [15:0] in3_probe_mux;               // rtl-gen/src/merge/per_node.rs:75
     wire [15:0] in3_probe_mux_1;             // rtl-gen/src/merge/per_node.rs:75
-    wire [15:0] in3_data_shr_1;              // rtl-gen/src/merge/per_node.rs:75
     wire [15:0] in3_probe_mux_2;             // rtl-gen/src/merge/per_node.rs:75
-    wire [15:0] in3_probe_mux_3;             // rtl-gen/src/merge/per_node.rs:75
-    wire [15:0] in3_data_shr_2;              // rtl-gen/src/merge/per_node.rs:75
-    wire [15:0] in3_probe_mux_4;             // rtl-gen/src/merge/per_node.rs:75
-    wire [15:0] in3_probe_mux_5;             // rtl-gen/src/merge/per_node.rs:75
-    wire [1:0] in3_kind_add;                 // rtl-gen/src/merge/per_node.rs:76
-    wire [1:0] in3_probe_mux_6;              // rtl-gen/src/merge/per_node.rs:76
-    wire [47:0] in3_probe_cat;               // rtl-gen/src/merge/network.rs:39
+    wire [47:0] in3_probe_morton;            // rtl-gen/src/merge/network.rs:39
     wire [50:0] in3_key;                     // rtl-gen/src/merge/per_node.rs:77
+    wire in3_data_probe;                     // rtl-gen/src/merge/per_node.rs:79
     wire in3_valid_and;                      // rtl-gen/src/merge/network.rs:80
-    wire in3_data_not;                       // rtl-gen/src/merge/per_node.rs:79
-    wire in3_data_not_1;                     // rtl-gen/src/merge/per_node.rs:79
-    wire in3_data_and;                       // rtl-gen/src/merge/per_node.rs:79
-    wire in3_valid_and_1;                    // rtl-gen/src/merge/network.rs:80
     wire [231:0] in3_key_cat;                // rtl-gen/src/merge/network.rs:83
     reg in3_head_valid;                      // rtl-gen/src/merge/network.rs:84
     reg [231:0] in3_head_data;               // rtl-gen/src/merge/network.rs:84
     reg in3_head_spare_valid;                // rtl-gen/src/merge/network.rs:84
     reg [231:0] in3_head_spare_data;         // rtl-gen/src/merge/network.rs:84
     wire in3_head_ready;                     // rtl-gen/src/merge/network.rs:84
-    wire in3_head_valid_not;                 // rtl-gen/src/merge/network.rs:84
-    wire in3_head_ready_or;                  // rtl-gen/src/merge/network.rs:84
-    wire in3_head_spare_valid_not;           // rtl-gen/src/merge/network.rs:84
-    wire in3_valid_and_2;                    // rtl-gen/src/merge/network.rs:84
-    wire in3_head_spare_valid_or;            // rtl-gen/src/merge/network.rs:84
-    wire [231:0] in3_head_spare_valid_mux;   // rtl-gen/src/merge/network.rs:84
-    wire in3_head_spare_valid_or_1;          // rtl-gen/src/merge/network.rs:84
-    wire in3_head_spare_valid_next;          // rtl-gen/src/merge/network.rs:84
-    wire in3_head_ready_not;                 // rtl-gen/src/merge/network.rs:84
-    wire in3_head_ready_and;                 // rtl-gen/src/merge/network.rs:84
+    wire in3_head_room;                      // rtl-gen/src/merge/network.rs:84
+    wire in3_head_drain;                     // rtl-gen/src/merge/network.rs:84
+    wire in3_head_take;                      // rtl-gen/src/merge/network.rs:84
     wire in3_is_end;                         // rtl-gen/src/merge/per_node.rs:84
     wire all_heads;                          // rtl-gen/src/merge/per_node.rs:86
     wire winner_is_end;                      // rtl-gen/src/merge/per_node.rs:87
     wire below_1_0;                          // rtl-gen/src/merge/network.rs:122
-    wire below_1_0_not;                      // rtl-gen/src/merge/network.rs:123
-    wire below_1_0_and;                      // rtl-gen/src/merge/network.rs:123
-    wire below_1_0_and_1;                    // rtl-gen/src/merge/network.rs:124
     wire below_2_0;                          // rtl-gen/src/merge/network.rs:122
-    wire below_2_0_not;                      // rtl-gen/src/merge/network.rs:123
-    wire below_1_0_and_2;                    // rtl-gen/src/merge/network.rs:123
-    wire below_2_0_and;                      // rtl-gen/src/merge/network.rs:124
     wire below_3_0;                          // rtl-gen/src/merge/network.rs:122
-    wire below_3_0_not;                      // rtl-gen/src/merge/network.rs:123
     wire wins_0;                             // rtl-gen/src/merge/network.rs:123
-    wire below_3_0_and;                      // rtl-gen/src/merge/network.rs:124
     wire below_2_1;                          // rtl-gen/src/merge/network.rs:122
-    wire below_2_1_not;                      // rtl-gen/src/merge/network.rs:123
-    wire below_1_0_and_3;                    // rtl-gen/src/merge/network.rs:123
-    wire below_2_0_and_1;                    // rtl-gen/src/merge/network.rs:124
     wire below_3_1;                          // rtl-gen/src/merge/network.rs:122
-    wire below_3_1_not;                      // rtl-gen/src/merge/network.rs:123
     wire wins_1;                             // rtl-gen/src/merge/network.rs:123
-    wire below_3_0_and_1;                    // rtl-gen/src/merge/network.rs:124
     wire below_3_2;                          // rtl-gen/src/merge/network.rs:122
-    wire below_3_2_not;                      // rtl-gen/src/merge/network.rs:123
     wire wins_2;                             // rtl-gen/src/merge/network.rs:123
     wire wins_3;                             // rtl-gen/src/merge/network.rs:124
-    wire [180:0] wins_0_mux;                 // rtl-gen/src/merge/network.rs:138
     wire [180:0] wins_0_or;                  // rtl-gen/src/merge/network.rs:138
-    wire [180:0] wins_1_mux;                 // rtl-gen/src/merge/network.rs:138
-    wire [180:0] wins_0_or_1;                // rtl-gen/src/merge/network.rs:138
-    wire [180:0] wins_2_mux;                 // rtl-gen/src/merge/network.rs:138
-    wire [180:0] wins_0_or_2;                // rtl-gen/src/merge/network.rs:138
-    wire [180:0] wins_3_mux;                 // rtl-gen/src/merge/network.rs:138
     wire [180:0] winner_beat;                // rtl-gen/src/merge/network.rs:138
     wire net_fire;                           // rtl-gen/src/merge/network.rs:141
-    wire winner_is_end_or;                   // rtl-gen/src/merge/network.rs:144
-    wire winner_is_end_or_1;                 // rtl-gen/src/merge/network.rs:144
-    wire winner_is_end_or_2;                 // rtl-gen/src/merge/network.rs:144
-    wire winner_is_end_or_3;                 // rtl-gen/src/merge/network.rs:144
-    wire wins_2_or;                          // rtl-gen/src/merge/network.rs:155
-    wire wins_2_or_1;                        // rtl-gen/src/merge/network.rs:155
-    wire wins_1_or;                          // rtl-gen/src/merge/network.rs:155
-    wire wins_1_or_1;                        // rtl-gen/src/merge/network.rs:155
     wire [1:0] winner_rank;                  // rtl-gen/src/merge/network.rs:158
     wire [182:0] net_beat;                   // rtl-gen/src/merge/per_node.rs:95
     reg out_skid_valid;                      // rtl-gen/src/merge/per_node.rs:97
@@ -262,240 +152,116 @@ module per_node_network_d16_q8_i24_h4_k4 (
     reg out_skid_spare_valid;                // rtl-gen/src/merge/per_node.rs:97
     reg [182:0] out_skid_spare_data;         // rtl-gen/src/merge/per_node.rs:97
     wire out_skid_ready;                     // rtl-gen/src/merge/per_node.rs:97
-    wire out_skid_valid_not;                 // rtl-gen/src/merge/per_node.rs:97
-    wire out_skid_ready_or;                  // rtl-gen/src/merge/per_node.rs:97
-    wire out_skid_spare_valid_not;           // rtl-gen/src/merge/per_node.rs:97
-    wire all_heads_and;                      // rtl-gen/src/merge/per_node.rs:97
-    wire out_skid_spare_valid_or;            // rtl-gen/src/merge/per_node.rs:97
-    wire [182:0] out_skid_spare_valid_mux;   // rtl-gen/src/merge/per_node.rs:97
-    wire out_skid_spare_valid_or_1;          // rtl-gen/src/merge/per_node.rs:97
-    wire out_skid_spare_valid_next;          // rtl-gen/src/merge/per_node.rs:97
-    wire out_skid_ready_not;                 // rtl-gen/src/merge/per_node.rs:97
-    wire out_skid_ready_and;                 // rtl-gen/src/merge/per_node.rs:97
+    wire out_skid_room;                      // rtl-gen/src/merge/per_node.rs:97
+    wire out_skid_drain;                     // rtl-gen/src/merge/per_node.rs:97
+    wire out_skid_take;                      // rtl-gen/src/merge/per_node.rs:97
 
-    assign net_out_ready = ~out_skid_spare_valid;
-    assign in0_ready = ~in0_head_spare_valid;
+    assign net_out_ready = out_skid_room;
+    assign in0_ready = in0_head_room;
+    assign in0_data_rec_x = in0_data[21:6];
+    assign in0_data_rec_y = in0_data[37:22];
+    assign in0_data_rec_z = in0_data[53:38];
     assign in0_probe = in0_data[180];
     assign in0_kind = in0_data[179:178];
     assign in0_probe_not = ~in0_probe;
-    assign in0_kind_eq = in0_kind == 2'd3;
-    assign in0_probe_and = in0_probe_not & in0_kind_eq;
-    assign in0_probe_not_1 = ~in0_probe;
-    assign in0_kind_eq_1 = in0_kind == 2'd2;
-    assign in0_probe_and_1 = in0_probe_not_1 & in0_kind_eq_1;
-    assign in0_data_shr = in0_data[21:6] >> 1'b1;
-    assign in0_probe_mux = in0_probe_and_1 ? in0_parent_x : in0_data[21:6];
-    assign in0_probe_mux_1 = in0_probe ? in0_data_shr : in0_probe_mux;
-    assign in0_data_shr_1 = in0_data[37:22] >> 1'b1;
-    assign in0_probe_mux_2 = in0_probe_and_1 ? in0_parent_y : in0_data[37:22];
-    assign in0_probe_mux_3 = in0_probe ? in0_data_shr_1 : in0_probe_mux_2;
-    assign in0_data_shr_2 = in0_data[53:38] >> 1'b1;
-    assign in0_probe_mux_4 = in0_probe_and_1 ? in0_parent_z : in0_data[53:38];
-    assign in0_probe_mux_5 = in0_probe ? in0_data_shr_2 : in0_probe_mux_4;
-    assign in0_kind_add = in0_kind + 2'd1;
-    assign in0_probe_mux_6 = in0_probe ? 2'd0 : in0_kind_add;
-    assign in0_probe_cat = {in0_probe_mux_5[15], in0_probe_mux_3[15], in0_probe_mux_1[15], in0_probe_mux_5[14], in0_probe_mux_3[14], in0_probe_mux_1[14], in0_probe_mux_5[13], in0_probe_mux_3[13], in0_probe_mux_1[13], in0_probe_mux_5[12], in0_probe_mux_3[12], in0_probe_mux_1[12], in0_probe_mux_5[11], in0_probe_mux_3[11], in0_probe_mux_1[11], in0_probe_mux_5[10], in0_probe_mux_3[10], in0_probe_mux_1[10], in0_probe_mux_5[9], in0_probe_mux_3[9], in0_probe_mux_1[9], in0_probe_mux_5[8], in0_probe_mux_3[8], in0_probe_mux_1[8], in0_probe_mux_5[7], in0_probe_mux_3[7], in0_probe_mux_1[7], in0_probe_mux_5[6], in0_probe_mux_3[6], in0_probe_mux_1[6], in0_probe_mux_5[5], in0_probe_mux_3[5], in0_probe_mux_1[5], in0_probe_mux_5[4], in0_probe_mux_3[4], in0_probe_mux_1[4], in0_probe_mux_5[3], in0_probe_mux_3[3], in0_probe_mux_1[3], in0_probe_mux_5[2], in0_probe_mux_3[2], in0_probe_mux_1[2], in0_probe_mux_5[1], in0_probe_mux_3[1], in0_probe_mux_1[1], in0_probe_mux_5[0], in0_probe_mux_3[0], in0_probe_mux_1[0]};
-    assign in0_key = {in0_probe_and, in0_probe_cat, in0_probe_mux_6};
-    assign in0_valid_and = in0_valid & in0_ready;
-    assign in0_data_not = ~in0_data[180];
-    assign in0_data_not_1 = ~in0_data[179];
-    assign in0_data_and = in0_data_not & in0_data_not_1;
-    assign in0_valid_and_1 = in0_valid_and & in0_data_and;
+    assign in0_probe_and = in0_probe_not & (in0_kind == 2'd2);
+    assign in0_probe_mux = in0_probe ? (in0_data_rec_x >> 1'b1) : (in0_probe_and ? in0_parent_x : in0_data_rec_x);
+    assign in0_probe_mux_1 = in0_probe ? (in0_data_rec_y >> 1'b1) : (in0_probe_and ? in0_parent_y : in0_data_rec_y);
+    assign in0_probe_mux_2 = in0_probe ? (in0_data_rec_z >> 1'b1) : (in0_probe_and ? in0_parent_z : in0_data_rec_z);
+    assign in0_probe_morton = {in0_probe_mux_2[15], in0_probe_mux_1[15], in0_probe_mux[15], in0_probe_mux_2[14], in0_probe_mux_1[14], in0_probe_mux[14], in0_probe_mux_2[13], in0_probe_mux_1[13], in0_probe_mux[13], in0_probe_mux_2[12], in0_probe_mux_1[12], in0_probe_mux[12], in0_probe_mux_2[11], in0_probe_mux_1[11], in0_probe_mux[11], in0_probe_mux_2[10], in0_probe_mux_1[10], in0_probe_mux[10], in0_probe_mux_2[9], in0_probe_mux_1[9], in0_probe_mux[9], in0_probe_mux_2[8], in0_probe_mux_1[8], in0_probe_mux[8], in0_probe_mux_2[7], in0_probe_mux_1[7], in0_probe_mux[7], in0_probe_mux_2[6], in0_probe_mux_1[6], in0_probe_mux[6], in0_probe_mux_2[5], in0_probe_mux_1[5], in0_probe_mux[5], in0_probe_mux_2[4], in0_probe_mux_1[4], in0_probe_mux[4], in0_probe_mux_2[3], in0_probe_mux_1[3], in0_probe_mux[3], in0_probe_mux_2[2], in0_probe_mux_1[2], in0_probe_mux[2], in0_probe_mux_2[1], in0_probe_mux_1[1], in0_probe_mux[1], in0_probe_mux_2[0], in0_probe_mux_1[0], in0_probe_mux[0]};
+    assign in0_key = {in0_probe_not & (in0_kind == 2'd3), in0_probe_morton, in0_probe ? 2'd0 : (in0_kind + 2'd1)};
+    assign in0_data_probe = in0_data[180];
+    assign in0_valid_and = (in0_valid & in0_ready) & ((~in0_data_probe) & (~in0_data[179]));
     assign in0_key_cat = {in0_key, in0_data};
-    assign in0_head_ready = net_fire & winner_is_end_or;
-    assign in0_head_valid_not = ~in0_head_valid;
-    assign in0_head_ready_or = in0_head_ready | in0_head_valid_not;
-    assign in0_head_spare_valid_not = ~in0_head_spare_valid;
-    assign in0_valid_and_2 = in0_valid & in0_head_spare_valid_not;
-    assign in0_head_spare_valid_or = in0_head_spare_valid | in0_valid;
-    assign in0_head_spare_valid_mux = in0_head_spare_valid ? in0_head_spare_data : in0_key_cat;
-    assign in0_head_spare_valid_or_1 = in0_head_spare_valid | in0_valid_and_2;
-    assign in0_head_spare_valid_next = in0_head_ready_or ? 1'b0 : in0_head_spare_valid_or_1;
-    assign in0_head_ready_not = ~in0_head_ready_or;
-    assign in0_head_ready_and = in0_head_ready_not & in0_valid_and_2;
+    assign in0_head_ready = net_fire & (winner_is_end | wins_0);
+    assign in0_head_room = ~in0_head_spare_valid;
+    assign in0_head_drain = in0_head_ready | (~in0_head_valid);
+    assign in0_head_take = in0_valid & in0_head_room;
     assign in0_is_end = in0_head_data[231];
-    assign in0_head_valid_and = 1'b1 & in0_head_valid;
-    assign in0_is_end_and = 1'b1 & in0_is_end;
-    assign in1_ready = ~in1_head_spare_valid;
+    assign in1_ready = in1_head_room;
+    assign in1_data_rec_x = in1_data[21:6];
+    assign in1_data_rec_y = in1_data[37:22];
+    assign in1_data_rec_z = in1_data[53:38];
     assign in1_probe = in1_data[180];
     assign in1_kind = in1_data[179:178];
     assign in1_probe_not = ~in1_probe;
-    assign in1_kind_eq = in1_kind == 2'd3;
-    assign in1_probe_and = in1_probe_not & in1_kind_eq;
-    assign in1_probe_not_1 = ~in1_probe;
-    assign in1_kind_eq_1 = in1_kind == 2'd2;
-    assign in1_probe_and_1 = in1_probe_not_1 & in1_kind_eq_1;
-    assign in1_data_shr = in1_data[21:6] >> 1'b1;
-    assign in1_probe_mux = in1_probe_and_1 ? in1_parent_x : in1_data[21:6];
-    assign in1_probe_mux_1 = in1_probe ? in1_data_shr : in1_probe_mux;
-    assign in1_data_shr_1 = in1_data[37:22] >> 1'b1;
-    assign in1_probe_mux_2 = in1_probe_and_1 ? in1_parent_y : in1_data[37:22];
-    assign in1_probe_mux_3 = in1_probe ? in1_data_shr_1 : in1_probe_mux_2;
-    assign in1_data_shr_2 = in1_data[53:38] >> 1'b1;
-    assign in1_probe_mux_4 = in1_probe_and_1 ? in1_parent_z : in1_data[53:38];
-    assign in1_probe_mux_5 = in1_probe ? in1_data_shr_2 : in1_probe_mux_4;
-    assign in1_kind_add = in1_kind + 2'd1;
-    assign in1_probe_mux_6 = in1_probe ? 2'd0 : in1_kind_add;
-    assign in1_probe_cat = {in1_probe_mux_5[15], in1_probe_mux_3[15], in1_probe_mux_1[15], in1_probe_mux_5[14], in1_probe_mux_3[14], in1_probe_mux_1[14], in1_probe_mux_5[13], in1_probe_mux_3[13], in1_probe_mux_1[13], in1_probe_mux_5[12], in1_probe_mux_3[12], in1_probe_mux_1[12], in1_probe_mux_5[11], in1_probe_mux_3[11], in1_probe_mux_1[11], in1_probe_mux_5[10], in1_probe_mux_3[10], in1_probe_mux_1[10], in1_probe_mux_5[9], in1_probe_mux_3[9], in1_probe_mux_1[9], in1_probe_mux_5[8], in1_probe_mux_3[8], in1_probe_mux_1[8], in1_probe_mux_5[7], in1_probe_mux_3[7], in1_probe_mux_1[7], in1_probe_mux_5[6], in1_probe_mux_3[6], in1_probe_mux_1[6], in1_probe_mux_5[5], in1_probe_mux_3[5], in1_probe_mux_1[5], in1_probe_mux_5[4], in1_probe_mux_3[4], in1_probe_mux_1[4], in1_probe_mux_5[3], in1_probe_mux_3[3], in1_probe_mux_1[3], in1_probe_mux_5[2], in1_probe_mux_3[2], in1_probe_mux_1[2], in1_probe_mux_5[1], in1_probe_mux_3[1], in1_probe_mux_1[1], in1_probe_mux_5[0], in1_probe_mux_3[0], in1_probe_mux_1[0]};
-    assign in1_key = {in1_probe_and, in1_probe_cat, in1_probe_mux_6};
-    assign in1_valid_and = in1_valid & in1_ready;
-    assign in1_data_not = ~in1_data[180];
-    assign in1_data_not_1 = ~in1_data[179];
-    assign in1_data_and = in1_data_not & in1_data_not_1;
-    assign in1_valid_and_1 = in1_valid_and & in1_data_and;
+    assign in1_probe_and = in1_probe_not & (in1_kind == 2'd2);
+    assign in1_probe_mux = in1_probe ? (in1_data_rec_x >> 1'b1) : (in1_probe_and ? in1_parent_x : in1_data_rec_x);
+    assign in1_probe_mux_1 = in1_probe ? (in1_data_rec_y >> 1'b1) : (in1_probe_and ? in1_parent_y : in1_data_rec_y);
+    assign in1_probe_mux_2 = in1_probe ? (in1_data_rec_z >> 1'b1) : (in1_probe_and ? in1_parent_z : in1_data_rec_z);
+    assign in1_probe_morton = {in1_probe_mux_2[15], in1_probe_mux_1[15], in1_probe_mux[15], in1_probe_mux_2[14], in1_probe_mux_1[14], in1_probe_mux[14], in1_probe_mux_2[13], in1_probe_mux_1[13], in1_probe_mux[13], in1_probe_mux_2[12], in1_probe_mux_1[12], in1_probe_mux[12], in1_probe_mux_2[11], in1_probe_mux_1[11], in1_probe_mux[11], in1_probe_mux_2[10], in1_probe_mux_1[10], in1_probe_mux[10], in1_probe_mux_2[9], in1_probe_mux_1[9], in1_probe_mux[9], in1_probe_mux_2[8], in1_probe_mux_1[8], in1_probe_mux[8], in1_probe_mux_2[7], in1_probe_mux_1[7], in1_probe_mux[7], in1_probe_mux_2[6], in1_probe_mux_1[6], in1_probe_mux[6], in1_probe_mux_2[5], in1_probe_mux_1[5], in1_probe_mux[5], in1_probe_mux_2[4], in1_probe_mux_1[4], in1_probe_mux[4], in1_probe_mux_2[3], in1_probe_mux_1[3], in1_probe_mux[3], in1_probe_mux_2[2], in1_probe_mux_1[2], in1_probe_mux[2], in1_probe_mux_2[1], in1_probe_mux_1[1], in1_probe_mux[1], in1_probe_mux_2[0], in1_probe_mux_1[0], in1_probe_mux[0]};
+    assign in1_key = {in1_probe_not & (in1_kind == 2'd3), in1_probe_morton, in1_probe ? 2'd0 : (in1_kind + 2'd1)};
+    assign in1_data_probe = in1_data[180];
+    assign in1_valid_and = (in1_valid & in1_ready) & ((~in1_data_probe) & (~in1_data[179]));
     assign in1_key_cat = {in1_key, in1_data};
-    assign in1_head_ready = net_fire & winner_is_end_or_1;
-    assign in1_head_valid_not = ~in1_head_valid;
-    assign in1_head_ready_or = in1_head_ready | in1_head_valid_not;
-    assign in1_head_spare_valid_not = ~in1_head_spare_valid;
-    assign in1_valid_and_2 = in1_valid & in1_head_spare_valid_not;
-    assign in1_head_spare_valid_or = in1_head_spare_valid | in1_valid;
-    assign in1_head_spare_valid_mux = in1_head_spare_valid ? in1_head_spare_data : in1_key_cat;
-    assign in1_head_spare_valid_or_1 = in1_head_spare_valid | in1_valid_and_2;
-    assign in1_head_spare_valid_next = in1_head_ready_or ? 1'b0 : in1_head_spare_valid_or_1;
-    assign in1_head_ready_not = ~in1_head_ready_or;
-    assign in1_head_ready_and = in1_head_ready_not & in1_valid_and_2;
+    assign in1_head_ready = net_fire & (winner_is_end | wins_1);
+    assign in1_head_room = ~in1_head_spare_valid;
+    assign in1_head_drain = in1_head_ready | (~in1_head_valid);
+    assign in1_head_take = in1_valid & in1_head_room;
     assign in1_is_end = in1_head_data[231];
-    assign in0_head_valid_and_1 = in0_head_valid_and & in1_head_valid;
-    assign in0_is_end_and_1 = in0_is_end_and & in1_is_end;
-    assign in2_ready = ~in2_head_spare_valid;
+    assign in2_ready = in2_head_room;
+    assign in2_data_rec_x = in2_data[21:6];
+    assign in2_data_rec_y = in2_data[37:22];
+    assign in2_data_rec_z = in2_data[53:38];
     assign in2_probe = in2_data[180];
     assign in2_kind = in2_data[179:178];
     assign in2_probe_not = ~in2_probe;
-    assign in2_kind_eq = in2_kind == 2'd3;
-    assign in2_probe_and = in2_probe_not & in2_kind_eq;
-    assign in2_probe_not_1 = ~in2_probe;
-    assign in2_kind_eq_1 = in2_kind == 2'd2;
-    assign in2_probe_and_1 = in2_probe_not_1 & in2_kind_eq_1;
-    assign in2_data_shr = in2_data[21:6] >> 1'b1;
-    assign in2_probe_mux = in2_probe_and_1 ? in2_parent_x : in2_data[21:6];
-    assign in2_probe_mux_1 = in2_probe ? in2_data_shr : in2_probe_mux;
-    assign in2_data_shr_1 = in2_data[37:22] >> 1'b1;
-    assign in2_probe_mux_2 = in2_probe_and_1 ? in2_parent_y : in2_data[37:22];
-    assign in2_probe_mux_3 = in2_probe ? in2_data_shr_1 : in2_probe_mux_2;
-    assign in2_data_shr_2 = in2_data[53:38] >> 1'b1;
-    assign in2_probe_mux_4 = in2_probe_and_1 ? in2_parent_z : in2_data[53:38];
-    assign in2_probe_mux_5 = in2_probe ? in2_data_shr_2 : in2_probe_mux_4;
-    assign in2_kind_add = in2_kind + 2'd1;
-    assign in2_probe_mux_6 = in2_probe ? 2'd0 : in2_kind_add;
-    assign in2_probe_cat = {in2_probe_mux_5[15], in2_probe_mux_3[15], in2_probe_mux_1[15], in2_probe_mux_5[14], in2_probe_mux_3[14], in2_probe_mux_1[14], in2_probe_mux_5[13], in2_probe_mux_3[13], in2_probe_mux_1[13], in2_probe_mux_5[12], in2_probe_mux_3[12], in2_probe_mux_1[12], in2_probe_mux_5[11], in2_probe_mux_3[11], in2_probe_mux_1[11], in2_probe_mux_5[10], in2_probe_mux_3[10], in2_probe_mux_1[10], in2_probe_mux_5[9], in2_probe_mux_3[9], in2_probe_mux_1[9], in2_probe_mux_5[8], in2_probe_mux_3[8], in2_probe_mux_1[8], in2_probe_mux_5[7], in2_probe_mux_3[7], in2_probe_mux_1[7], in2_probe_mux_5[6], in2_probe_mux_3[6], in2_probe_mux_1[6], in2_probe_mux_5[5], in2_probe_mux_3[5], in2_probe_mux_1[5], in2_probe_mux_5[4], in2_probe_mux_3[4], in2_probe_mux_1[4], in2_probe_mux_5[3], in2_probe_mux_3[3], in2_probe_mux_1[3], in2_probe_mux_5[2], in2_probe_mux_3[2], in2_probe_mux_1[2], in2_probe_mux_5[1], in2_probe_mux_3[1], in2_probe_mux_1[1], in2_probe_mux_5[0], in2_probe_mux_3[0], in2_probe_mux_1[0]};
-    assign in2_key = {in2_probe_and, in2_probe_cat, in2_probe_mux_6};
-    assign in2_valid_and = in2_valid & in2_ready;
-    assign in2_data_not = ~in2_data[180];
-    assign in2_data_not_1 = ~in2_data[179];
-    assign in2_data_and = in2_data_not & in2_data_not_1;
-    assign in2_valid_and_1 = in2_valid_and & in2_data_and;
+    assign in2_probe_and = in2_probe_not & (in2_kind == 2'd2);
+    assign in2_probe_mux = in2_probe ? (in2_data_rec_x >> 1'b1) : (in2_probe_and ? in2_parent_x : in2_data_rec_x);
+    assign in2_probe_mux_1 = in2_probe ? (in2_data_rec_y >> 1'b1) : (in2_probe_and ? in2_parent_y : in2_data_rec_y);
+    assign in2_probe_mux_2 = in2_probe ? (in2_data_rec_z >> 1'b1) : (in2_probe_and ? in2_parent_z : in2_data_rec_z);
+    assign in2_probe_morton = {in2_probe_mux_2[15], in2_probe_mux_1[15], in2_probe_mux[15], in2_probe_mux_2[14], in2_probe_mux_1[14], in2_probe_mux[14], in2_probe_mux_2[13], in2_probe_mux_1[13], in2_probe_mux[13], in2_probe_mux_2[12], in2_probe_mux_1[12], in2_probe_mux[12], in2_probe_mux_2[11], in2_probe_mux_1[11], in2_probe_mux[11], in2_probe_mux_2[10], in2_probe_mux_1[10], in2_probe_mux[10], in2_probe_mux_2[9], in2_probe_mux_1[9], in2_probe_mux[9], in2_probe_mux_2[8], in2_probe_mux_1[8], in2_probe_mux[8], in2_probe_mux_2[7], in2_probe_mux_1[7], in2_probe_mux[7], in2_probe_mux_2[6], in2_probe_mux_1[6], in2_probe_mux[6], in2_probe_mux_2[5], in2_probe_mux_1[5], in2_probe_mux[5], in2_probe_mux_2[4], in2_probe_mux_1[4], in2_probe_mux[4], in2_probe_mux_2[3], in2_probe_mux_1[3], in2_probe_mux[3], in2_probe_mux_2[2], in2_probe_mux_1[2], in2_probe_mux[2], in2_probe_mux_2[1], in2_probe_mux_1[1], in2_probe_mux[1], in2_probe_mux_2[0], in2_probe_mux_1[0], in2_probe_mux[0]};
+    assign in2_key = {in2_probe_not & (in2_kind == 2'd3), in2_probe_morton, in2_probe ? 2'd0 : (in2_kind + 2'd1)};
+    assign in2_data_probe = in2_data[180];
+    assign in2_valid_and = (in2_valid & in2_ready) & ((~in2_data_probe) & (~in2_data[179]));
     assign in2_key_cat = {in2_key, in2_data};
-    assign in2_head_ready = net_fire & winner_is_end_or_2;
-    assign in2_head_valid_not = ~in2_head_valid;
-    assign in2_head_ready_or = in2_head_ready | in2_head_valid_not;
-    assign in2_head_spare_valid_not = ~in2_head_spare_valid;
-    assign in2_valid_and_2 = in2_valid & in2_head_spare_valid_not;
-    assign in2_head_spare_valid_or = in2_head_spare_valid | in2_valid;
-    assign in2_head_spare_valid_mux = in2_head_spare_valid ? in2_head_spare_data : in2_key_cat;
-    assign in2_head_spare_valid_or_1 = in2_head_spare_valid | in2_valid_and_2;
-    assign in2_head_spare_valid_next = in2_head_ready_or ? 1'b0 : in2_head_spare_valid_or_1;
-    assign in2_head_ready_not = ~in2_head_ready_or;
-    assign in2_head_ready_and = in2_head_ready_not & in2_valid_and_2;
+    assign in2_head_ready = net_fire & (winner_is_end | wins_2);
+    assign in2_head_room = ~in2_head_spare_valid;
+    assign in2_head_drain = in2_head_ready | (~in2_head_valid);
+    assign in2_head_take = in2_valid & in2_head_room;
     assign in2_is_end = in2_head_data[231];
-    assign in0_head_valid_and_2 = in0_head_valid_and_1 & in2_head_valid;
-    assign in0_is_end_and_2 = in0_is_end_and_1 & in2_is_end;
-    assign in3_ready = ~in3_head_spare_valid;
+    assign in3_ready = in3_head_room;
+    assign in3_data_rec_x = in3_data[21:6];
+    assign in3_data_rec_y = in3_data[37:22];
+    assign in3_data_rec_z = in3_data[53:38];
     assign in3_probe = in3_data[180];
     assign in3_kind = in3_data[179:178];
     assign in3_probe_not = ~in3_probe;
-    assign in3_kind_eq = in3_kind == 2'd3;
-    assign in3_probe_and = in3_probe_not & in3_kind_eq;
-    assign in3_probe_not_1 = ~in3_probe;
-    assign in3_kind_eq_1 = in3_kind == 2'd2;
-    assign in3_probe_and_1 = in3_probe_not_1 & in3_kind_eq_1;
-    assign in3_data_shr = in3_data[21:6] >> 1'b1;
-    assign in3_probe_mux = in3_probe_and_1 ? in3_parent_x : in3_data[21:6];
-    assign in3_probe_mux_1 = in3_probe ? in3_data_shr : in3_probe_mux;
-    assign in3_data_shr_1 = in3_data[37:22] >> 1'b1;
-    assign in3_probe_mux_2 = in3_probe_and_1 ? in3_parent_y : in3_data[37:22];
-    assign in3_probe_mux_3 = in3_probe ? in3_data_shr_1 : in3_probe_mux_2;
-    assign in3_data_shr_2 = in3_data[53:38] >> 1'b1;
-    assign in3_probe_mux_4 = in3_probe_and_1 ? in3_parent_z : in3_data[53:38];
-    assign in3_probe_mux_5 = in3_probe ? in3_data_shr_2 : in3_probe_mux_4;
-    assign in3_kind_add = in3_kind + 2'd1;
-    assign in3_probe_mux_6 = in3_probe ? 2'd0 : in3_kind_add;
-    assign in3_probe_cat = {in3_probe_mux_5[15], in3_probe_mux_3[15], in3_probe_mux_1[15], in3_probe_mux_5[14], in3_probe_mux_3[14], in3_probe_mux_1[14], in3_probe_mux_5[13], in3_probe_mux_3[13], in3_probe_mux_1[13], in3_probe_mux_5[12], in3_probe_mux_3[12], in3_probe_mux_1[12], in3_probe_mux_5[11], in3_probe_mux_3[11], in3_probe_mux_1[11], in3_probe_mux_5[10], in3_probe_mux_3[10], in3_probe_mux_1[10], in3_probe_mux_5[9], in3_probe_mux_3[9], in3_probe_mux_1[9], in3_probe_mux_5[8], in3_probe_mux_3[8], in3_probe_mux_1[8], in3_probe_mux_5[7], in3_probe_mux_3[7], in3_probe_mux_1[7], in3_probe_mux_5[6], in3_probe_mux_3[6], in3_probe_mux_1[6], in3_probe_mux_5[5], in3_probe_mux_3[5], in3_probe_mux_1[5], in3_probe_mux_5[4], in3_probe_mux_3[4], in3_probe_mux_1[4], in3_probe_mux_5[3], in3_probe_mux_3[3], in3_probe_mux_1[3], in3_probe_mux_5[2], in3_probe_mux_3[2], in3_probe_mux_1[2], in3_probe_mux_5[1], in3_probe_mux_3[1], in3_probe_mux_1[1], in3_probe_mux_5[0], in3_probe_mux_3[0], in3_probe_mux_1[0]};
-    assign in3_key = {in3_probe_and, in3_probe_cat, in3_probe_mux_6};
-    assign in3_valid_and = in3_valid & in3_ready;
-    assign in3_data_not = ~in3_data[180];
-    assign in3_data_not_1 = ~in3_data[179];
-    assign in3_data_and = in3_data_not & in3_data_not_1;
-    assign in3_valid_and_1 = in3_valid_and & in3_data_and;
+    assign in3_probe_and = in3_probe_not & (in3_kind == 2'd2);
+    assign in3_probe_mux = in3_probe ? (in3_data_rec_x >> 1'b1) : (in3_probe_and ? in3_parent_x : in3_data_rec_x);
+    assign in3_probe_mux_1 = in3_probe ? (in3_data_rec_y >> 1'b1) : (in3_probe_and ? in3_parent_y : in3_data_rec_y);
+    assign in3_probe_mux_2 = in3_probe ? (in3_data_rec_z >> 1'b1) : (in3_probe_and ? in3_parent_z : in3_data_rec_z);
+    assign in3_probe_morton = {in3_probe_mux_2[15], in3_probe_mux_1[15], in3_probe_mux[15], in3_probe_mux_2[14], in3_probe_mux_1[14], in3_probe_mux[14], in3_probe_mux_2[13], in3_probe_mux_1[13], in3_probe_mux[13], in3_probe_mux_2[12], in3_probe_mux_1[12], in3_probe_mux[12], in3_probe_mux_2[11], in3_probe_mux_1[11], in3_probe_mux[11], in3_probe_mux_2[10], in3_probe_mux_1[10], in3_probe_mux[10], in3_probe_mux_2[9], in3_probe_mux_1[9], in3_probe_mux[9], in3_probe_mux_2[8], in3_probe_mux_1[8], in3_probe_mux[8], in3_probe_mux_2[7], in3_probe_mux_1[7], in3_probe_mux[7], in3_probe_mux_2[6], in3_probe_mux_1[6], in3_probe_mux[6], in3_probe_mux_2[5], in3_probe_mux_1[5], in3_probe_mux[5], in3_probe_mux_2[4], in3_probe_mux_1[4], in3_probe_mux[4], in3_probe_mux_2[3], in3_probe_mux_1[3], in3_probe_mux[3], in3_probe_mux_2[2], in3_probe_mux_1[2], in3_probe_mux[2], in3_probe_mux_2[1], in3_probe_mux_1[1], in3_probe_mux[1], in3_probe_mux_2[0], in3_probe_mux_1[0], in3_probe_mux[0]};
+    assign in3_key = {in3_probe_not & (in3_kind == 2'd3), in3_probe_morton, in3_probe ? 2'd0 : (in3_kind + 2'd1)};
+    assign in3_data_probe = in3_data[180];
+    assign in3_valid_and = (in3_valid & in3_ready) & ((~in3_data_probe) & (~in3_data[179]));
     assign in3_key_cat = {in3_key, in3_data};
-    assign in3_head_ready = net_fire & winner_is_end_or_3;
-    assign in3_head_valid_not = ~in3_head_valid;
-    assign in3_head_ready_or = in3_head_ready | in3_head_valid_not;
-    assign in3_head_spare_valid_not = ~in3_head_spare_valid;
-    assign in3_valid_and_2 = in3_valid & in3_head_spare_valid_not;
-    assign in3_head_spare_valid_or = in3_head_spare_valid | in3_valid;
-    assign in3_head_spare_valid_mux = in3_head_spare_valid ? in3_head_spare_data : in3_key_cat;
-    assign in3_head_spare_valid_or_1 = in3_head_spare_valid | in3_valid_and_2;
-    assign in3_head_spare_valid_next = in3_head_ready_or ? 1'b0 : in3_head_spare_valid_or_1;
-    assign in3_head_ready_not = ~in3_head_ready_or;
-    assign in3_head_ready_and = in3_head_ready_not & in3_valid_and_2;
+    assign in3_head_ready = net_fire & (winner_is_end | wins_3);
+    assign in3_head_room = ~in3_head_spare_valid;
+    assign in3_head_drain = in3_head_ready | (~in3_head_valid);
+    assign in3_head_take = in3_valid & in3_head_room;
     assign in3_is_end = in3_head_data[231];
-    assign all_heads = in0_head_valid_and_2 & in3_head_valid;
-    assign winner_is_end = in0_is_end_and_2 & in3_is_end;
+    assign all_heads = (((1'b1 & in0_head_valid) & in1_head_valid) & in2_head_valid) & in3_head_valid;
+    assign winner_is_end = (((1'b1 & in0_is_end) & in1_is_end) & in2_is_end) & in3_is_end;
     assign below_1_0 = in1_head_data[231:181] < in0_head_data[231:181];
-    assign below_1_0_not = ~below_1_0;
-    assign below_1_0_and = 1'b1 & below_1_0_not;
-    assign below_1_0_and_1 = 1'b1 & below_1_0;
     assign below_2_0 = in2_head_data[231:181] < in0_head_data[231:181];
-    assign below_2_0_not = ~below_2_0;
-    assign below_1_0_and_2 = below_1_0_and & below_2_0_not;
-    assign below_2_0_and = 1'b1 & below_2_0;
     assign below_3_0 = in3_head_data[231:181] < in0_head_data[231:181];
-    assign below_3_0_not = ~below_3_0;
-    assign wins_0 = below_1_0_and_2 & below_3_0_not;
-    assign below_3_0_and = 1'b1 & below_3_0;
+    assign wins_0 = ((1'b1 & (~below_1_0)) & (~below_2_0)) & (~below_3_0);
     assign below_2_1 = in2_head_data[231:181] < in1_head_data[231:181];
-    assign below_2_1_not = ~below_2_1;
-    assign below_1_0_and_3 = below_1_0_and_1 & below_2_1_not;
-    assign below_2_0_and_1 = below_2_0_and & below_2_1;
     assign below_3_1 = in3_head_data[231:181] < in1_head_data[231:181];
-    assign below_3_1_not = ~below_3_1;
-    assign wins_1 = below_1_0_and_3 & below_3_1_not;
-    assign below_3_0_and_1 = below_3_0_and & below_3_1;
+    assign wins_1 = ((1'b1 & below_1_0) & (~below_2_1)) & (~below_3_1);
     assign below_3_2 = in3_head_data[231:181] < in2_head_data[231:181];
-    assign below_3_2_not = ~below_3_2;
-    assign wins_2 = below_2_0_and_1 & below_3_2_not;
-    assign wins_3 = below_3_0_and_1 & below_3_2;
-    assign wins_0_mux = wins_0 ? in0_head_data[180:0] : 181'h0000000000000000000000000000000000000000000000;
-    assign wins_0_or = 181'h0000000000000000000000000000000000000000000000 | wins_0_mux;
-    assign wins_1_mux = wins_1 ? in1_head_data[180:0] : 181'h0000000000000000000000000000000000000000000000;
-    assign wins_0_or_1 = wins_0_or | wins_1_mux;
-    assign wins_2_mux = wins_2 ? in2_head_data[180:0] : 181'h0000000000000000000000000000000000000000000000;
-    assign wins_0_or_2 = wins_0_or_1 | wins_2_mux;
-    assign wins_3_mux = wins_3 ? in3_head_data[180:0] : 181'h0000000000000000000000000000000000000000000000;
-    assign winner_beat = wins_0_or_2 | wins_3_mux;
+    assign wins_2 = ((1'b1 & below_2_0) & below_2_1) & (~below_3_2);
+    assign wins_3 = ((1'b1 & below_3_0) & below_3_1) & below_3_2;
+    assign wins_0_or = ((181'h0000000000000000000000000000000000000000000000 | (wins_0 ? in0_head_data[180:0] : 181'h0000000000000000000000000000000000000000000000)) | (wins_1 ? in1_head_data[180:0] : 181'h0000000000000000000000000000000000000000000000)) | (wins_2 ? in2_head_data[180:0] : 181'h0000000000000000000000000000000000000000000000);
+    assign winner_beat = wins_0_or | (wins_3 ? in3_head_data[180:0] : 181'h0000000000000000000000000000000000000000000000);
     assign net_fire = all_heads & net_out_ready;
-    assign winner_is_end_or = winner_is_end | wins_0;
-    assign winner_is_end_or_1 = winner_is_end | wins_1;
-    assign winner_is_end_or_2 = winner_is_end | wins_2;
-    assign winner_is_end_or_3 = winner_is_end | wins_3;
-    assign wins_2_or = 1'b0 | wins_2;
-    assign wins_2_or_1 = wins_2_or | wins_3;
-    assign wins_1_or = 1'b0 | wins_1;
-    assign wins_1_or_1 = wins_1_or | wins_3;
-    assign winner_rank = {wins_2_or_1, wins_1_or_1};
+    assign winner_rank = {(1'b0 | wins_2) | wins_3, (1'b0 | wins_1) | wins_3};
     assign net_beat = {winner_rank, winner_beat};
     assign out_skid_ready = out_ready;
-    assign out_skid_valid_not = ~out_skid_valid;
-    assign out_skid_ready_or = out_skid_ready | out_skid_valid_not;
-    assign out_skid_spare_valid_not = ~out_skid_spare_valid;
-    assign all_heads_and = all_heads & out_skid_spare_valid_not;
-    assign out_skid_spare_valid_or = out_skid_spare_valid | all_heads;
-    assign out_skid_spare_valid_mux = out_skid_spare_valid ? out_skid_spare_data : net_beat;
-    assign out_skid_spare_valid_or_1 = out_skid_spare_valid | all_heads_and;
-    assign out_skid_spare_valid_next = out_skid_ready_or ? 1'b0 : out_skid_spare_valid_or_1;
-    assign out_skid_ready_not = ~out_skid_ready_or;
-    assign out_skid_ready_and = out_skid_ready_not & all_heads_and;
+    assign out_skid_room = ~out_skid_spare_valid;
+    assign out_skid_drain = out_skid_ready | (~out_skid_valid);
+    assign out_skid_take = all_heads & out_skid_room;
     assign out_valid = out_skid_valid;
     assign out_data = out_skid_data;
 
@@ -534,64 +300,64 @@ module per_node_network_d16_q8_i24_h4_k4 (
             out_skid_spare_valid <= 1'b0;
             out_skid_spare_data <= 183'h0000000000000000000000000000000000000000000000;
         end else begin
-            if (in0_valid_and_1) begin
-                in0_parent_x <= in0_data[21:6]; // rtl-gen/src/merge/network.rs:86
-                in0_parent_y <= in0_data[37:22]; // rtl-gen/src/merge/network.rs:86
-                in0_parent_z <= in0_data[53:38]; // rtl-gen/src/merge/network.rs:86
+            if (in0_valid_and) begin
+                in0_parent_x <= in0_data_rec_x; // rtl-gen/src/merge/network.rs:86
+                in0_parent_y <= in0_data_rec_y; // rtl-gen/src/merge/network.rs:86
+                in0_parent_z <= in0_data_rec_z; // rtl-gen/src/merge/network.rs:86
             end
-            if (in0_head_ready_or) begin
-                in0_head_valid <= in0_head_spare_valid_or; // rtl-gen/src/merge/network.rs:84
-                in0_head_data <= in0_head_spare_valid_mux; // rtl-gen/src/merge/network.rs:84
+            if (in0_head_drain) begin
+                in0_head_valid <= in0_head_spare_valid | in0_valid; // rtl-gen/src/merge/network.rs:84
+                in0_head_data <= in0_head_spare_valid ? in0_head_spare_data : in0_key_cat; // rtl-gen/src/merge/network.rs:84
             end
-            in0_head_spare_valid <= in0_head_spare_valid_next;
-            if (in0_head_ready_and) begin
+            in0_head_spare_valid <= in0_head_drain ? 1'b0 : (in0_head_spare_valid | in0_head_take);
+            if ((~in0_head_drain) & in0_head_take) begin
                 in0_head_spare_data <= in0_key_cat; // rtl-gen/src/merge/network.rs:84
             end
-            if (in1_valid_and_1) begin
-                in1_parent_x <= in1_data[21:6]; // rtl-gen/src/merge/network.rs:86
-                in1_parent_y <= in1_data[37:22]; // rtl-gen/src/merge/network.rs:86
-                in1_parent_z <= in1_data[53:38]; // rtl-gen/src/merge/network.rs:86
+            if (in1_valid_and) begin
+                in1_parent_x <= in1_data_rec_x; // rtl-gen/src/merge/network.rs:86
+                in1_parent_y <= in1_data_rec_y; // rtl-gen/src/merge/network.rs:86
+                in1_parent_z <= in1_data_rec_z; // rtl-gen/src/merge/network.rs:86
             end
-            if (in1_head_ready_or) begin
-                in1_head_valid <= in1_head_spare_valid_or; // rtl-gen/src/merge/network.rs:84
-                in1_head_data <= in1_head_spare_valid_mux; // rtl-gen/src/merge/network.rs:84
+            if (in1_head_drain) begin
+                in1_head_valid <= in1_head_spare_valid | in1_valid; // rtl-gen/src/merge/network.rs:84
+                in1_head_data <= in1_head_spare_valid ? in1_head_spare_data : in1_key_cat; // rtl-gen/src/merge/network.rs:84
             end
-            in1_head_spare_valid <= in1_head_spare_valid_next;
-            if (in1_head_ready_and) begin
+            in1_head_spare_valid <= in1_head_drain ? 1'b0 : (in1_head_spare_valid | in1_head_take);
+            if ((~in1_head_drain) & in1_head_take) begin
                 in1_head_spare_data <= in1_key_cat; // rtl-gen/src/merge/network.rs:84
             end
-            if (in2_valid_and_1) begin
-                in2_parent_x <= in2_data[21:6]; // rtl-gen/src/merge/network.rs:86
-                in2_parent_y <= in2_data[37:22]; // rtl-gen/src/merge/network.rs:86
-                in2_parent_z <= in2_data[53:38]; // rtl-gen/src/merge/network.rs:86
+            if (in2_valid_and) begin
+                in2_parent_x <= in2_data_rec_x; // rtl-gen/src/merge/network.rs:86
+                in2_parent_y <= in2_data_rec_y; // rtl-gen/src/merge/network.rs:86
+                in2_parent_z <= in2_data_rec_z; // rtl-gen/src/merge/network.rs:86
             end
-            if (in2_head_ready_or) begin
-                in2_head_valid <= in2_head_spare_valid_or; // rtl-gen/src/merge/network.rs:84
-                in2_head_data <= in2_head_spare_valid_mux; // rtl-gen/src/merge/network.rs:84
+            if (in2_head_drain) begin
+                in2_head_valid <= in2_head_spare_valid | in2_valid; // rtl-gen/src/merge/network.rs:84
+                in2_head_data <= in2_head_spare_valid ? in2_head_spare_data : in2_key_cat; // rtl-gen/src/merge/network.rs:84
             end
-            in2_head_spare_valid <= in2_head_spare_valid_next;
-            if (in2_head_ready_and) begin
+            in2_head_spare_valid <= in2_head_drain ? 1'b0 : (in2_head_spare_valid | in2_head_take);
+            if ((~in2_head_drain) & in2_head_take) begin
                 in2_head_spare_data <= in2_key_cat; // rtl-gen/src/merge/network.rs:84
             end
-            if (in3_valid_and_1) begin
-                in3_parent_x <= in3_data[21:6]; // rtl-gen/src/merge/network.rs:86
-                in3_parent_y <= in3_data[37:22]; // rtl-gen/src/merge/network.rs:86
-                in3_parent_z <= in3_data[53:38]; // rtl-gen/src/merge/network.rs:86
+            if (in3_valid_and) begin
+                in3_parent_x <= in3_data_rec_x; // rtl-gen/src/merge/network.rs:86
+                in3_parent_y <= in3_data_rec_y; // rtl-gen/src/merge/network.rs:86
+                in3_parent_z <= in3_data_rec_z; // rtl-gen/src/merge/network.rs:86
             end
-            if (in3_head_ready_or) begin
-                in3_head_valid <= in3_head_spare_valid_or; // rtl-gen/src/merge/network.rs:84
-                in3_head_data <= in3_head_spare_valid_mux; // rtl-gen/src/merge/network.rs:84
+            if (in3_head_drain) begin
+                in3_head_valid <= in3_head_spare_valid | in3_valid; // rtl-gen/src/merge/network.rs:84
+                in3_head_data <= in3_head_spare_valid ? in3_head_spare_data : in3_key_cat; // rtl-gen/src/merge/network.rs:84
             end
-            in3_head_spare_valid <= in3_head_spare_valid_next;
-            if (in3_head_ready_and) begin
+            in3_head_spare_valid <= in3_head_drain ? 1'b0 : (in3_head_spare_valid | in3_head_take);
+            if ((~in3_head_drain) & in3_head_take) begin
                 in3_head_spare_data <= in3_key_cat; // rtl-gen/src/merge/network.rs:84
             end
-            if (out_skid_ready_or) begin
-                out_skid_valid <= out_skid_spare_valid_or; // rtl-gen/src/merge/per_node.rs:97
-                out_skid_data <= out_skid_spare_valid_mux; // rtl-gen/src/merge/per_node.rs:97
+            if (out_skid_drain) begin
+                out_skid_valid <= out_skid_spare_valid | all_heads; // rtl-gen/src/merge/per_node.rs:97
+                out_skid_data <= out_skid_spare_valid ? out_skid_spare_data : net_beat; // rtl-gen/src/merge/per_node.rs:97
             end
-            out_skid_spare_valid <= out_skid_spare_valid_next;
-            if (out_skid_ready_and) begin
+            out_skid_spare_valid <= out_skid_drain ? 1'b0 : (out_skid_spare_valid | out_skid_take);
+            if ((~out_skid_drain) & out_skid_take) begin
                 out_skid_spare_data <= net_beat; // rtl-gen/src/merge/per_node.rs:97
             end
         end

@@ -17,19 +17,13 @@ module root_sorter_d16_q8_i24_h4_n16 (
     reg in_skid_spare_valid;                 // rtl-gen/src/merge/sorter.rs:106
     reg [179:0] in_skid_spare_data;          // rtl-gen/src/merge/sorter.rs:106
     wire in_skid_ready;                      // rtl-gen/src/merge/sorter.rs:106
-    wire in_skid_valid_not;                  // rtl-gen/src/merge/sorter.rs:106
-    wire in_skid_ready_or;                   // rtl-gen/src/merge/sorter.rs:106
-    wire in_skid_spare_valid_not;            // rtl-gen/src/merge/sorter.rs:106
-    wire in_valid_and;                       // rtl-gen/src/merge/sorter.rs:106
-    wire in_skid_spare_valid_or;             // rtl-gen/src/merge/sorter.rs:106
-    wire [179:0] in_skid_spare_valid_mux;    // rtl-gen/src/merge/sorter.rs:106
-    wire in_skid_spare_valid_or_1;           // rtl-gen/src/merge/sorter.rs:106
-    wire in_skid_spare_valid_next;           // rtl-gen/src/merge/sorter.rs:106
-    wire in_skid_ready_not;                  // rtl-gen/src/merge/sorter.rs:106
-    wire in_skid_ready_and;                  // rtl-gen/src/merge/sorter.rs:106
+    wire in_skid_room;                       // rtl-gen/src/merge/sorter.rs:106
+    wire in_skid_drain;                      // rtl-gen/src/merge/sorter.rs:106
+    wire in_skid_take;                       // rtl-gen/src/merge/sorter.rs:106
     wire core_out_ready;                     // rtl-gen/src/merge/sorter.rs:107
-    wire [1:0] in_kind;                      // rtl-gen/src/merge/fields.rs:13
+    wire [1:0] in_kind;                      // rtl-gen/src/merge/sorter.rs:108
     wire in_is_end;                          // rtl-gen/src/merge/sorter.rs:109
+    wire in_skid_data_rec_leaf;              // rtl-gen/src/merge/sorter.rs:42
     wire [48:0] new_key;                     // rtl-gen/src/merge/sorter.rs:43
     reg [180:0] core_out_data;               // rtl-gen/src/merge/sorter.rs:58
     reg e0_valid;                            // rtl-gen/src/merge/sorter.rs:59
@@ -84,731 +78,259 @@ module root_sorter_d16_q8_i24_h4_n16 (
     reg e16_open;                            // rtl-gen/src/merge/sorter.rs:60
     reg [4:0] set_taken;                     // rtl-gen/src/merge/sorter.rs:116
     reg set_overflow;                        // rtl-gen/src/merge/sorter.rs:117
-    wire e0_open_not;                        // rtl-gen/src/merge/sorter.rs:120
     wire core_out_valid;                     // rtl-gen/src/merge/sorter.rs:120
     wire pop;                                // rtl-gen/src/merge/sorter.rs:121
     wire set_full;                           // rtl-gen/src/merge/sorter.rs:122
-    wire set_full_not;                       // rtl-gen/src/merge/sorter.rs:123
     wire needs_entry;                        // rtl-gen/src/merge/sorter.rs:123
     wire e16_valid_not;                      // rtl-gen/src/merge/sorter.rs:124
     wire has_room;                           // rtl-gen/src/merge/sorter.rs:124
     wire needs_entry_not;                    // rtl-gen/src/merge/sorter.rs:125
-    wire needs_entry_not_1;                  // rtl-gen/src/merge/sorter.rs:126
-    wire needs_entry_or;                     // rtl-gen/src/merge/sorter.rs:126
+    wire needs_entry_or;                     // rtl-gen/src/merge/sorter.rs:125
     wire in_fire;                            // rtl-gen/src/merge/sorter.rs:126
     wire insert;                             // rtl-gen/src/merge/sorter.rs:127
     wire close;                              // rtl-gen/src/merge/sorter.rs:128
     wire in_is_end_not;                      // rtl-gen/src/merge/sorter.rs:129
     wire take_root;                          // rtl-gen/src/merge/sorter.rs:129
-    wire needs_entry_not_2;                  // rtl-gen/src/merge/sorter.rs:130
     wire drop_root;                          // rtl-gen/src/merge/sorter.rs:130
-    wire in_is_end_not_1;                    // rtl-gen/src/merge/sorter.rs:138
-    wire e0_open_and;                        // rtl-gen/src/merge/sorter.rs:138
-    wire [48:0] e0_beat_cat;                 // rtl-gen/src/merge/sorter.rs:43
-    wire e0_beat_gt;                         // rtl-gen/src/merge/sorter.rs:138
-    wire e0_open_and_1;                      // rtl-gen/src/merge/sorter.rs:138
-    wire e0_valid_not;                       // rtl-gen/src/merge/sorter.rs:139
-    wire e0_valid_or;                        // rtl-gen/src/merge/sorter.rs:139
+    wire e0_beat_rec_leaf;                   // rtl-gen/src/merge/sorter.rs:42
+    wire [48:0] e0_beat_rec_z_cat;           // rtl-gen/src/merge/sorter.rs:43
     wire e0_moves_up;                        // rtl-gen/src/merge/sorter.rs:139
-    wire in_is_end_not_2;                    // rtl-gen/src/merge/sorter.rs:138
-    wire e1_open_and;                        // rtl-gen/src/merge/sorter.rs:138
-    wire [48:0] e1_beat_cat;                 // rtl-gen/src/merge/sorter.rs:43
-    wire e1_beat_gt;                         // rtl-gen/src/merge/sorter.rs:138
-    wire e1_open_and_1;                      // rtl-gen/src/merge/sorter.rs:138
-    wire e1_valid_not;                       // rtl-gen/src/merge/sorter.rs:139
-    wire e1_valid_or;                        // rtl-gen/src/merge/sorter.rs:139
+    wire e1_beat_rec_leaf;                   // rtl-gen/src/merge/sorter.rs:42
+    wire [48:0] e1_beat_rec_z_cat;           // rtl-gen/src/merge/sorter.rs:43
     wire e1_moves_up;                        // rtl-gen/src/merge/sorter.rs:139
-    wire in_is_end_not_3;                    // rtl-gen/src/merge/sorter.rs:138
-    wire e2_open_and;                        // rtl-gen/src/merge/sorter.rs:138
-    wire [48:0] e2_beat_cat;                 // rtl-gen/src/merge/sorter.rs:43
-    wire e2_beat_gt;                         // rtl-gen/src/merge/sorter.rs:138
-    wire e2_open_and_1;                      // rtl-gen/src/merge/sorter.rs:138
-    wire e2_valid_not;                       // rtl-gen/src/merge/sorter.rs:139
-    wire e2_valid_or;                        // rtl-gen/src/merge/sorter.rs:139
+    wire e2_beat_rec_leaf;                   // rtl-gen/src/merge/sorter.rs:42
+    wire [48:0] e2_beat_rec_z_cat;           // rtl-gen/src/merge/sorter.rs:43
     wire e2_moves_up;                        // rtl-gen/src/merge/sorter.rs:139
-    wire in_is_end_not_4;                    // rtl-gen/src/merge/sorter.rs:138
-    wire e3_open_and;                        // rtl-gen/src/merge/sorter.rs:138
-    wire [48:0] e3_beat_cat;                 // rtl-gen/src/merge/sorter.rs:43
-    wire e3_beat_gt;                         // rtl-gen/src/merge/sorter.rs:138
-    wire e3_open_and_1;                      // rtl-gen/src/merge/sorter.rs:138
-    wire e3_valid_not;                       // rtl-gen/src/merge/sorter.rs:139
-    wire e3_valid_or;                        // rtl-gen/src/merge/sorter.rs:139
+    wire e3_beat_rec_leaf;                   // rtl-gen/src/merge/sorter.rs:42
+    wire [48:0] e3_beat_rec_z_cat;           // rtl-gen/src/merge/sorter.rs:43
     wire e3_moves_up;                        // rtl-gen/src/merge/sorter.rs:139
-    wire in_is_end_not_5;                    // rtl-gen/src/merge/sorter.rs:138
-    wire e4_open_and;                        // rtl-gen/src/merge/sorter.rs:138
-    wire [48:0] e4_beat_cat;                 // rtl-gen/src/merge/sorter.rs:43
-    wire e4_beat_gt;                         // rtl-gen/src/merge/sorter.rs:138
-    wire e4_open_and_1;                      // rtl-gen/src/merge/sorter.rs:138
-    wire e4_valid_not;                       // rtl-gen/src/merge/sorter.rs:139
-    wire e4_valid_or;                        // rtl-gen/src/merge/sorter.rs:139
+    wire e4_beat_rec_leaf;                   // rtl-gen/src/merge/sorter.rs:42
+    wire [48:0] e4_beat_rec_z_cat;           // rtl-gen/src/merge/sorter.rs:43
     wire e4_moves_up;                        // rtl-gen/src/merge/sorter.rs:139
-    wire in_is_end_not_6;                    // rtl-gen/src/merge/sorter.rs:138
-    wire e5_open_and;                        // rtl-gen/src/merge/sorter.rs:138
-    wire [48:0] e5_beat_cat;                 // rtl-gen/src/merge/sorter.rs:43
-    wire e5_beat_gt;                         // rtl-gen/src/merge/sorter.rs:138
-    wire e5_open_and_1;                      // rtl-gen/src/merge/sorter.rs:138
-    wire e5_valid_not;                       // rtl-gen/src/merge/sorter.rs:139
-    wire e5_valid_or;                        // rtl-gen/src/merge/sorter.rs:139
+    wire e5_beat_rec_leaf;                   // rtl-gen/src/merge/sorter.rs:42
+    wire [48:0] e5_beat_rec_z_cat;           // rtl-gen/src/merge/sorter.rs:43
     wire e5_moves_up;                        // rtl-gen/src/merge/sorter.rs:139
-    wire in_is_end_not_7;                    // rtl-gen/src/merge/sorter.rs:138
-    wire e6_open_and;                        // rtl-gen/src/merge/sorter.rs:138
-    wire [48:0] e6_beat_cat;                 // rtl-gen/src/merge/sorter.rs:43
-    wire e6_beat_gt;                         // rtl-gen/src/merge/sorter.rs:138
-    wire e6_open_and_1;                      // rtl-gen/src/merge/sorter.rs:138
-    wire e6_valid_not;                       // rtl-gen/src/merge/sorter.rs:139
-    wire e6_valid_or;                        // rtl-gen/src/merge/sorter.rs:139
+    wire e6_beat_rec_leaf;                   // rtl-gen/src/merge/sorter.rs:42
+    wire [48:0] e6_beat_rec_z_cat;           // rtl-gen/src/merge/sorter.rs:43
     wire e6_moves_up;                        // rtl-gen/src/merge/sorter.rs:139
-    wire in_is_end_not_8;                    // rtl-gen/src/merge/sorter.rs:138
-    wire e7_open_and;                        // rtl-gen/src/merge/sorter.rs:138
-    wire [48:0] e7_beat_cat;                 // rtl-gen/src/merge/sorter.rs:43
-    wire e7_beat_gt;                         // rtl-gen/src/merge/sorter.rs:138
-    wire e7_open_and_1;                      // rtl-gen/src/merge/sorter.rs:138
-    wire e7_valid_not;                       // rtl-gen/src/merge/sorter.rs:139
-    wire e7_valid_or;                        // rtl-gen/src/merge/sorter.rs:139
+    wire e7_beat_rec_leaf;                   // rtl-gen/src/merge/sorter.rs:42
+    wire [48:0] e7_beat_rec_z_cat;           // rtl-gen/src/merge/sorter.rs:43
     wire e7_moves_up;                        // rtl-gen/src/merge/sorter.rs:139
-    wire in_is_end_not_9;                    // rtl-gen/src/merge/sorter.rs:138
-    wire e8_open_and;                        // rtl-gen/src/merge/sorter.rs:138
-    wire [48:0] e8_beat_cat;                 // rtl-gen/src/merge/sorter.rs:43
-    wire e8_beat_gt;                         // rtl-gen/src/merge/sorter.rs:138
-    wire e8_open_and_1;                      // rtl-gen/src/merge/sorter.rs:138
-    wire e8_valid_not;                       // rtl-gen/src/merge/sorter.rs:139
-    wire e8_valid_or;                        // rtl-gen/src/merge/sorter.rs:139
+    wire e8_beat_rec_leaf;                   // rtl-gen/src/merge/sorter.rs:42
+    wire [48:0] e8_beat_rec_z_cat;           // rtl-gen/src/merge/sorter.rs:43
     wire e8_moves_up;                        // rtl-gen/src/merge/sorter.rs:139
-    wire in_is_end_not_10;                   // rtl-gen/src/merge/sorter.rs:138
-    wire e9_open_and;                        // rtl-gen/src/merge/sorter.rs:138
-    wire [48:0] e9_beat_cat;                 // rtl-gen/src/merge/sorter.rs:43
-    wire e9_beat_gt;                         // rtl-gen/src/merge/sorter.rs:138
-    wire e9_open_and_1;                      // rtl-gen/src/merge/sorter.rs:138
-    wire e9_valid_not;                       // rtl-gen/src/merge/sorter.rs:139
-    wire e9_valid_or;                        // rtl-gen/src/merge/sorter.rs:139
+    wire e9_beat_rec_leaf;                   // rtl-gen/src/merge/sorter.rs:42
+    wire [48:0] e9_beat_rec_z_cat;           // rtl-gen/src/merge/sorter.rs:43
     wire e9_moves_up;                        // rtl-gen/src/merge/sorter.rs:139
-    wire in_is_end_not_11;                   // rtl-gen/src/merge/sorter.rs:138
-    wire e10_open_and;                       // rtl-gen/src/merge/sorter.rs:138
-    wire [48:0] e10_beat_cat;                // rtl-gen/src/merge/sorter.rs:43
-    wire e10_beat_gt;                        // rtl-gen/src/merge/sorter.rs:138
-    wire e10_open_and_1;                     // rtl-gen/src/merge/sorter.rs:138
-    wire e10_valid_not;                      // rtl-gen/src/merge/sorter.rs:139
-    wire e10_valid_or;                       // rtl-gen/src/merge/sorter.rs:139
+    wire e10_beat_rec_leaf;                  // rtl-gen/src/merge/sorter.rs:42
+    wire [48:0] e10_beat_rec_z_cat;          // rtl-gen/src/merge/sorter.rs:43
     wire e10_moves_up;                       // rtl-gen/src/merge/sorter.rs:139
-    wire in_is_end_not_12;                   // rtl-gen/src/merge/sorter.rs:138
-    wire e11_open_and;                       // rtl-gen/src/merge/sorter.rs:138
-    wire [48:0] e11_beat_cat;                // rtl-gen/src/merge/sorter.rs:43
-    wire e11_beat_gt;                        // rtl-gen/src/merge/sorter.rs:138
-    wire e11_open_and_1;                     // rtl-gen/src/merge/sorter.rs:138
-    wire e11_valid_not;                      // rtl-gen/src/merge/sorter.rs:139
-    wire e11_valid_or;                       // rtl-gen/src/merge/sorter.rs:139
+    wire e11_beat_rec_leaf;                  // rtl-gen/src/merge/sorter.rs:42
+    wire [48:0] e11_beat_rec_z_cat;          // rtl-gen/src/merge/sorter.rs:43
     wire e11_moves_up;                       // rtl-gen/src/merge/sorter.rs:139
-    wire in_is_end_not_13;                   // rtl-gen/src/merge/sorter.rs:138
-    wire e12_open_and;                       // rtl-gen/src/merge/sorter.rs:138
-    wire [48:0] e12_beat_cat;                // rtl-gen/src/merge/sorter.rs:43
-    wire e12_beat_gt;                        // rtl-gen/src/merge/sorter.rs:138
-    wire e12_open_and_1;                     // rtl-gen/src/merge/sorter.rs:138
-    wire e12_valid_not;                      // rtl-gen/src/merge/sorter.rs:139
-    wire e12_valid_or;                       // rtl-gen/src/merge/sorter.rs:139
+    wire e12_beat_rec_leaf;                  // rtl-gen/src/merge/sorter.rs:42
+    wire [48:0] e12_beat_rec_z_cat;          // rtl-gen/src/merge/sorter.rs:43
     wire e12_moves_up;                       // rtl-gen/src/merge/sorter.rs:139
-    wire in_is_end_not_14;                   // rtl-gen/src/merge/sorter.rs:138
-    wire e13_open_and;                       // rtl-gen/src/merge/sorter.rs:138
-    wire [48:0] e13_beat_cat;                // rtl-gen/src/merge/sorter.rs:43
-    wire e13_beat_gt;                        // rtl-gen/src/merge/sorter.rs:138
-    wire e13_open_and_1;                     // rtl-gen/src/merge/sorter.rs:138
-    wire e13_valid_not;                      // rtl-gen/src/merge/sorter.rs:139
-    wire e13_valid_or;                       // rtl-gen/src/merge/sorter.rs:139
+    wire e13_beat_rec_leaf;                  // rtl-gen/src/merge/sorter.rs:42
+    wire [48:0] e13_beat_rec_z_cat;          // rtl-gen/src/merge/sorter.rs:43
     wire e13_moves_up;                       // rtl-gen/src/merge/sorter.rs:139
-    wire in_is_end_not_15;                   // rtl-gen/src/merge/sorter.rs:138
-    wire e14_open_and;                       // rtl-gen/src/merge/sorter.rs:138
-    wire [48:0] e14_beat_cat;                // rtl-gen/src/merge/sorter.rs:43
-    wire e14_beat_gt;                        // rtl-gen/src/merge/sorter.rs:138
-    wire e14_open_and_1;                     // rtl-gen/src/merge/sorter.rs:138
-    wire e14_valid_not;                      // rtl-gen/src/merge/sorter.rs:139
-    wire e14_valid_or;                       // rtl-gen/src/merge/sorter.rs:139
+    wire e14_beat_rec_leaf;                  // rtl-gen/src/merge/sorter.rs:42
+    wire [48:0] e14_beat_rec_z_cat;          // rtl-gen/src/merge/sorter.rs:43
     wire e14_moves_up;                       // rtl-gen/src/merge/sorter.rs:139
-    wire in_is_end_not_16;                   // rtl-gen/src/merge/sorter.rs:138
-    wire e15_open_and;                       // rtl-gen/src/merge/sorter.rs:138
-    wire [48:0] e15_beat_cat;                // rtl-gen/src/merge/sorter.rs:43
-    wire e15_beat_gt;                        // rtl-gen/src/merge/sorter.rs:138
-    wire e15_open_and_1;                     // rtl-gen/src/merge/sorter.rs:138
-    wire e15_valid_not;                      // rtl-gen/src/merge/sorter.rs:139
-    wire e15_valid_or;                       // rtl-gen/src/merge/sorter.rs:139
+    wire e15_beat_rec_leaf;                  // rtl-gen/src/merge/sorter.rs:42
+    wire [48:0] e15_beat_rec_z_cat;          // rtl-gen/src/merge/sorter.rs:43
     wire e15_moves_up;                       // rtl-gen/src/merge/sorter.rs:139
-    wire in_is_end_not_17;                   // rtl-gen/src/merge/sorter.rs:138
-    wire e16_open_and;                       // rtl-gen/src/merge/sorter.rs:138
-    wire [48:0] e16_beat_cat;                // rtl-gen/src/merge/sorter.rs:43
-    wire e16_beat_gt;                        // rtl-gen/src/merge/sorter.rs:138
-    wire e16_open_and_1;                     // rtl-gen/src/merge/sorter.rs:138
-    wire e16_valid_not_1;                    // rtl-gen/src/merge/sorter.rs:139
-    wire e16_valid_or;                       // rtl-gen/src/merge/sorter.rs:139
+    wire e16_beat_rec_leaf;                  // rtl-gen/src/merge/sorter.rs:42
+    wire [48:0] e16_beat_rec_z_cat;          // rtl-gen/src/merge/sorter.rs:43
     wire e16_moves_up;                       // rtl-gen/src/merge/sorter.rs:139
-    wire [180:0] const_cat;                  // rtl-gen/src/merge/sorter.rs:84
-    wire [180:0] set_overflow_cat;           // rtl-gen/src/merge/sorter.rs:85
     wire [180:0] new_beat;                   // rtl-gen/src/merge/sorter.rs:93
-    wire in_is_end_not_18;                   // rtl-gen/src/merge/sorter.rs:145
-    wire e0_moves_up_mux_2;                  // rtl-gen/src/merge/sorter.rs:69
-    wire [180:0] e0_moves_up_mux_3;          // rtl-gen/src/merge/sorter.rs:67
-    wire e0_moves_up_mux_4;                  // rtl-gen/src/merge/sorter.rs:68
-    wire e0_moves_up_mux_5;                  // rtl-gen/src/merge/sorter.rs:69
     wire [180:0] e1_moves_up_mux;            // rtl-gen/src/merge/sorter.rs:67
     wire e1_moves_up_mux_1;                  // rtl-gen/src/merge/sorter.rs:68
     wire e1_moves_up_mux_2;                  // rtl-gen/src/merge/sorter.rs:69
-    wire [180:0] e1_moves_up_mux_3;          // rtl-gen/src/merge/sorter.rs:67
-    wire e1_moves_up_mux_4;                  // rtl-gen/src/merge/sorter.rs:68
-    wire e1_moves_up_mux_5;                  // rtl-gen/src/merge/sorter.rs:69
     wire [180:0] e2_moves_up_mux;            // rtl-gen/src/merge/sorter.rs:67
     wire e2_moves_up_mux_1;                  // rtl-gen/src/merge/sorter.rs:68
     wire e2_moves_up_mux_2;                  // rtl-gen/src/merge/sorter.rs:69
-    wire [180:0] e2_moves_up_mux_3;          // rtl-gen/src/merge/sorter.rs:67
-    wire e2_moves_up_mux_4;                  // rtl-gen/src/merge/sorter.rs:68
-    wire e2_moves_up_mux_5;                  // rtl-gen/src/merge/sorter.rs:69
     wire [180:0] e3_moves_up_mux;            // rtl-gen/src/merge/sorter.rs:67
     wire e3_moves_up_mux_1;                  // rtl-gen/src/merge/sorter.rs:68
     wire e3_moves_up_mux_2;                  // rtl-gen/src/merge/sorter.rs:69
-    wire [180:0] e3_moves_up_mux_3;          // rtl-gen/src/merge/sorter.rs:67
-    wire e3_moves_up_mux_4;                  // rtl-gen/src/merge/sorter.rs:68
-    wire e3_moves_up_mux_5;                  // rtl-gen/src/merge/sorter.rs:69
     wire [180:0] e4_moves_up_mux;            // rtl-gen/src/merge/sorter.rs:67
     wire e4_moves_up_mux_1;                  // rtl-gen/src/merge/sorter.rs:68
     wire e4_moves_up_mux_2;                  // rtl-gen/src/merge/sorter.rs:69
-    wire [180:0] e4_moves_up_mux_3;          // rtl-gen/src/merge/sorter.rs:67
-    wire e4_moves_up_mux_4;                  // rtl-gen/src/merge/sorter.rs:68
-    wire e4_moves_up_mux_5;                  // rtl-gen/src/merge/sorter.rs:69
     wire [180:0] e5_moves_up_mux;            // rtl-gen/src/merge/sorter.rs:67
     wire e5_moves_up_mux_1;                  // rtl-gen/src/merge/sorter.rs:68
     wire e5_moves_up_mux_2;                  // rtl-gen/src/merge/sorter.rs:69
-    wire [180:0] e5_moves_up_mux_3;          // rtl-gen/src/merge/sorter.rs:67
-    wire e5_moves_up_mux_4;                  // rtl-gen/src/merge/sorter.rs:68
-    wire e5_moves_up_mux_5;                  // rtl-gen/src/merge/sorter.rs:69
     wire [180:0] e6_moves_up_mux;            // rtl-gen/src/merge/sorter.rs:67
     wire e6_moves_up_mux_1;                  // rtl-gen/src/merge/sorter.rs:68
     wire e6_moves_up_mux_2;                  // rtl-gen/src/merge/sorter.rs:69
-    wire [180:0] e6_moves_up_mux_3;          // rtl-gen/src/merge/sorter.rs:67
-    wire e6_moves_up_mux_4;                  // rtl-gen/src/merge/sorter.rs:68
-    wire e6_moves_up_mux_5;                  // rtl-gen/src/merge/sorter.rs:69
     wire [180:0] e7_moves_up_mux;            // rtl-gen/src/merge/sorter.rs:67
     wire e7_moves_up_mux_1;                  // rtl-gen/src/merge/sorter.rs:68
     wire e7_moves_up_mux_2;                  // rtl-gen/src/merge/sorter.rs:69
-    wire [180:0] e7_moves_up_mux_3;          // rtl-gen/src/merge/sorter.rs:67
-    wire e7_moves_up_mux_4;                  // rtl-gen/src/merge/sorter.rs:68
-    wire e7_moves_up_mux_5;                  // rtl-gen/src/merge/sorter.rs:69
     wire [180:0] e8_moves_up_mux;            // rtl-gen/src/merge/sorter.rs:67
     wire e8_moves_up_mux_1;                  // rtl-gen/src/merge/sorter.rs:68
     wire e8_moves_up_mux_2;                  // rtl-gen/src/merge/sorter.rs:69
-    wire [180:0] e8_moves_up_mux_3;          // rtl-gen/src/merge/sorter.rs:67
-    wire e8_moves_up_mux_4;                  // rtl-gen/src/merge/sorter.rs:68
-    wire e8_moves_up_mux_5;                  // rtl-gen/src/merge/sorter.rs:69
     wire [180:0] e9_moves_up_mux;            // rtl-gen/src/merge/sorter.rs:67
     wire e9_moves_up_mux_1;                  // rtl-gen/src/merge/sorter.rs:68
     wire e9_moves_up_mux_2;                  // rtl-gen/src/merge/sorter.rs:69
-    wire [180:0] e9_moves_up_mux_3;          // rtl-gen/src/merge/sorter.rs:67
-    wire e9_moves_up_mux_4;                  // rtl-gen/src/merge/sorter.rs:68
-    wire e9_moves_up_mux_5;                  // rtl-gen/src/merge/sorter.rs:69
     wire [180:0] e10_moves_up_mux;           // rtl-gen/src/merge/sorter.rs:67
     wire e10_moves_up_mux_1;                 // rtl-gen/src/merge/sorter.rs:68
     wire e10_moves_up_mux_2;                 // rtl-gen/src/merge/sorter.rs:69
-    wire [180:0] e10_moves_up_mux_3;         // rtl-gen/src/merge/sorter.rs:67
-    wire e10_moves_up_mux_4;                 // rtl-gen/src/merge/sorter.rs:68
-    wire e10_moves_up_mux_5;                 // rtl-gen/src/merge/sorter.rs:69
     wire [180:0] e11_moves_up_mux;           // rtl-gen/src/merge/sorter.rs:67
     wire e11_moves_up_mux_1;                 // rtl-gen/src/merge/sorter.rs:68
     wire e11_moves_up_mux_2;                 // rtl-gen/src/merge/sorter.rs:69
-    wire [180:0] e11_moves_up_mux_3;         // rtl-gen/src/merge/sorter.rs:67
-    wire e11_moves_up_mux_4;                 // rtl-gen/src/merge/sorter.rs:68
-    wire e11_moves_up_mux_5;                 // rtl-gen/src/merge/sorter.rs:69
     wire [180:0] e12_moves_up_mux;           // rtl-gen/src/merge/sorter.rs:67
     wire e12_moves_up_mux_1;                 // rtl-gen/src/merge/sorter.rs:68
     wire e12_moves_up_mux_2;                 // rtl-gen/src/merge/sorter.rs:69
-    wire [180:0] e12_moves_up_mux_3;         // rtl-gen/src/merge/sorter.rs:67
-    wire e12_moves_up_mux_4;                 // rtl-gen/src/merge/sorter.rs:68
-    wire e12_moves_up_mux_5;                 // rtl-gen/src/merge/sorter.rs:69
     wire [180:0] e13_moves_up_mux;           // rtl-gen/src/merge/sorter.rs:67
     wire e13_moves_up_mux_1;                 // rtl-gen/src/merge/sorter.rs:68
     wire e13_moves_up_mux_2;                 // rtl-gen/src/merge/sorter.rs:69
-    wire [180:0] e13_moves_up_mux_3;         // rtl-gen/src/merge/sorter.rs:67
-    wire e13_moves_up_mux_4;                 // rtl-gen/src/merge/sorter.rs:68
-    wire e13_moves_up_mux_5;                 // rtl-gen/src/merge/sorter.rs:69
     wire [180:0] e14_moves_up_mux;           // rtl-gen/src/merge/sorter.rs:67
     wire e14_moves_up_mux_1;                 // rtl-gen/src/merge/sorter.rs:68
     wire e14_moves_up_mux_2;                 // rtl-gen/src/merge/sorter.rs:69
-    wire [180:0] e14_moves_up_mux_3;         // rtl-gen/src/merge/sorter.rs:67
-    wire e14_moves_up_mux_4;                 // rtl-gen/src/merge/sorter.rs:68
-    wire e14_moves_up_mux_5;                 // rtl-gen/src/merge/sorter.rs:69
     wire [180:0] e15_moves_up_mux;           // rtl-gen/src/merge/sorter.rs:67
     wire e15_moves_up_mux_1;                 // rtl-gen/src/merge/sorter.rs:68
     wire e15_moves_up_mux_2;                 // rtl-gen/src/merge/sorter.rs:69
-    wire [180:0] e15_moves_up_mux_3;         // rtl-gen/src/merge/sorter.rs:67
-    wire e15_moves_up_mux_4;                 // rtl-gen/src/merge/sorter.rs:68
-    wire e15_moves_up_mux_5;                 // rtl-gen/src/merge/sorter.rs:69
     wire [180:0] e16_moves_up_mux;           // rtl-gen/src/merge/sorter.rs:67
     wire e16_moves_up_mux_1;                 // rtl-gen/src/merge/sorter.rs:68
     wire e16_moves_up_mux_2;                 // rtl-gen/src/merge/sorter.rs:69
-    wire e16_moves_up_mux_5;                 // rtl-gen/src/merge/sorter.rs:69
-    wire insert_mux_2;                       // rtl-gen/src/merge/sorter.rs:69
-    wire pop_mux;                            // rtl-gen/src/merge/sorter.rs:69
     wire close_not;                          // rtl-gen/src/merge/sorter.rs:171
-    wire e0_open_next;                       // rtl-gen/src/merge/sorter.rs:171
-    wire [180:0] e1_beat_next;               // rtl-gen/src/merge/sorter.rs:67
-    wire e1_valid_next;                      // rtl-gen/src/merge/sorter.rs:68
-    wire pop_mux_1;                          // rtl-gen/src/merge/sorter.rs:69
-    wire close_not_1;                        // rtl-gen/src/merge/sorter.rs:171
-    wire e1_open_next;                       // rtl-gen/src/merge/sorter.rs:171
-    wire [180:0] e2_beat_next;               // rtl-gen/src/merge/sorter.rs:67
-    wire e2_valid_next;                      // rtl-gen/src/merge/sorter.rs:68
-    wire pop_mux_2;                          // rtl-gen/src/merge/sorter.rs:69
-    wire close_not_2;                        // rtl-gen/src/merge/sorter.rs:171
-    wire e2_open_next;                       // rtl-gen/src/merge/sorter.rs:171
-    wire [180:0] e3_beat_next;               // rtl-gen/src/merge/sorter.rs:67
-    wire e3_valid_next;                      // rtl-gen/src/merge/sorter.rs:68
-    wire pop_mux_3;                          // rtl-gen/src/merge/sorter.rs:69
-    wire close_not_3;                        // rtl-gen/src/merge/sorter.rs:171
-    wire e3_open_next;                       // rtl-gen/src/merge/sorter.rs:171
-    wire [180:0] e4_beat_next;               // rtl-gen/src/merge/sorter.rs:67
-    wire e4_valid_next;                      // rtl-gen/src/merge/sorter.rs:68
-    wire pop_mux_4;                          // rtl-gen/src/merge/sorter.rs:69
-    wire close_not_4;                        // rtl-gen/src/merge/sorter.rs:171
-    wire e4_open_next;                       // rtl-gen/src/merge/sorter.rs:171
-    wire [180:0] e5_beat_next;               // rtl-gen/src/merge/sorter.rs:67
-    wire e5_valid_next;                      // rtl-gen/src/merge/sorter.rs:68
-    wire pop_mux_5;                          // rtl-gen/src/merge/sorter.rs:69
-    wire close_not_5;                        // rtl-gen/src/merge/sorter.rs:171
-    wire e5_open_next;                       // rtl-gen/src/merge/sorter.rs:171
-    wire [180:0] e6_beat_next;               // rtl-gen/src/merge/sorter.rs:67
-    wire e6_valid_next;                      // rtl-gen/src/merge/sorter.rs:68
-    wire pop_mux_6;                          // rtl-gen/src/merge/sorter.rs:69
-    wire close_not_6;                        // rtl-gen/src/merge/sorter.rs:171
-    wire e6_open_next;                       // rtl-gen/src/merge/sorter.rs:171
-    wire [180:0] e7_beat_next;               // rtl-gen/src/merge/sorter.rs:67
-    wire e7_valid_next;                      // rtl-gen/src/merge/sorter.rs:68
-    wire pop_mux_7;                          // rtl-gen/src/merge/sorter.rs:69
-    wire close_not_7;                        // rtl-gen/src/merge/sorter.rs:171
-    wire e7_open_next;                       // rtl-gen/src/merge/sorter.rs:171
-    wire [180:0] e8_beat_next;               // rtl-gen/src/merge/sorter.rs:67
-    wire e8_valid_next;                      // rtl-gen/src/merge/sorter.rs:68
-    wire pop_mux_8;                          // rtl-gen/src/merge/sorter.rs:69
-    wire close_not_8;                        // rtl-gen/src/merge/sorter.rs:171
-    wire e8_open_next;                       // rtl-gen/src/merge/sorter.rs:171
-    wire [180:0] e9_beat_next;               // rtl-gen/src/merge/sorter.rs:67
-    wire e9_valid_next;                      // rtl-gen/src/merge/sorter.rs:68
-    wire pop_mux_9;                          // rtl-gen/src/merge/sorter.rs:69
-    wire close_not_9;                        // rtl-gen/src/merge/sorter.rs:171
-    wire e9_open_next;                       // rtl-gen/src/merge/sorter.rs:171
-    wire [180:0] e10_beat_next;              // rtl-gen/src/merge/sorter.rs:67
-    wire e10_valid_next;                     // rtl-gen/src/merge/sorter.rs:68
-    wire pop_mux_10;                         // rtl-gen/src/merge/sorter.rs:69
-    wire close_not_10;                       // rtl-gen/src/merge/sorter.rs:171
-    wire e10_open_next;                      // rtl-gen/src/merge/sorter.rs:171
-    wire [180:0] e11_beat_next;              // rtl-gen/src/merge/sorter.rs:67
-    wire e11_valid_next;                     // rtl-gen/src/merge/sorter.rs:68
-    wire pop_mux_11;                         // rtl-gen/src/merge/sorter.rs:69
-    wire close_not_11;                       // rtl-gen/src/merge/sorter.rs:171
-    wire e11_open_next;                      // rtl-gen/src/merge/sorter.rs:171
-    wire [180:0] e12_beat_next;              // rtl-gen/src/merge/sorter.rs:67
-    wire e12_valid_next;                     // rtl-gen/src/merge/sorter.rs:68
-    wire pop_mux_12;                         // rtl-gen/src/merge/sorter.rs:69
-    wire close_not_12;                       // rtl-gen/src/merge/sorter.rs:171
-    wire e12_open_next;                      // rtl-gen/src/merge/sorter.rs:171
-    wire [180:0] e13_beat_next;              // rtl-gen/src/merge/sorter.rs:67
-    wire e13_valid_next;                     // rtl-gen/src/merge/sorter.rs:68
-    wire pop_mux_13;                         // rtl-gen/src/merge/sorter.rs:69
-    wire close_not_13;                       // rtl-gen/src/merge/sorter.rs:171
-    wire e13_open_next;                      // rtl-gen/src/merge/sorter.rs:171
-    wire [180:0] e14_beat_next;              // rtl-gen/src/merge/sorter.rs:67
-    wire e14_valid_next;                     // rtl-gen/src/merge/sorter.rs:68
-    wire pop_mux_14;                         // rtl-gen/src/merge/sorter.rs:69
-    wire close_not_14;                       // rtl-gen/src/merge/sorter.rs:171
-    wire e14_open_next;                      // rtl-gen/src/merge/sorter.rs:171
-    wire [180:0] e15_beat_next;              // rtl-gen/src/merge/sorter.rs:67
-    wire e15_valid_next;                     // rtl-gen/src/merge/sorter.rs:68
-    wire pop_mux_15;                         // rtl-gen/src/merge/sorter.rs:69
-    wire close_not_15;                       // rtl-gen/src/merge/sorter.rs:171
-    wire e15_open_next;                      // rtl-gen/src/merge/sorter.rs:171
-    wire pop_mux_16;                         // rtl-gen/src/merge/sorter.rs:69
-    wire close_not_16;                       // rtl-gen/src/merge/sorter.rs:171
-    wire e16_open_next;                      // rtl-gen/src/merge/sorter.rs:171
-    wire [4:0] set_taken_add;                // rtl-gen/src/merge/sorter.rs:175
-    wire set_overflow_or;                    // rtl-gen/src/merge/sorter.rs:177
-    wire set_overflow_next;                  // rtl-gen/src/merge/sorter.rs:177
     reg out_skid_valid;                      // rtl-gen/src/merge/sorter.rs:184
     reg [180:0] out_skid_data;               // rtl-gen/src/merge/sorter.rs:184
     reg out_skid_spare_valid;                // rtl-gen/src/merge/sorter.rs:184
     reg [180:0] out_skid_spare_data;         // rtl-gen/src/merge/sorter.rs:184
     wire out_skid_ready;                     // rtl-gen/src/merge/sorter.rs:184
-    wire out_skid_valid_not;                 // rtl-gen/src/merge/sorter.rs:184
-    wire out_skid_ready_or;                  // rtl-gen/src/merge/sorter.rs:184
-    wire out_skid_spare_valid_not;           // rtl-gen/src/merge/sorter.rs:184
-    wire core_out_valid_and;                 // rtl-gen/src/merge/sorter.rs:184
-    wire out_skid_spare_valid_or;            // rtl-gen/src/merge/sorter.rs:184
-    wire [180:0] out_skid_spare_valid_mux;   // rtl-gen/src/merge/sorter.rs:184
-    wire out_skid_spare_valid_or_1;          // rtl-gen/src/merge/sorter.rs:184
-    wire out_skid_spare_valid_next;          // rtl-gen/src/merge/sorter.rs:184
-    wire out_skid_ready_not;                 // rtl-gen/src/merge/sorter.rs:184
-    wire out_skid_ready_and;                 // rtl-gen/src/merge/sorter.rs:184
+    wire out_skid_room;                      // rtl-gen/src/merge/sorter.rs:184
+    wire out_skid_drain;                     // rtl-gen/src/merge/sorter.rs:184
+    wire out_skid_take;                      // rtl-gen/src/merge/sorter.rs:184
 
-    assign in_ready = ~in_skid_spare_valid;
-    assign in_skid_ready = needs_entry_not | has_room;
-    assign in_skid_valid_not = ~in_skid_valid;
-    assign in_skid_ready_or = in_skid_ready | in_skid_valid_not;
-    assign in_skid_spare_valid_not = ~in_skid_spare_valid;
-    assign in_valid_and = in_valid & in_skid_spare_valid_not;
-    assign in_skid_spare_valid_or = in_skid_spare_valid | in_valid;
-    assign in_skid_spare_valid_mux = in_skid_spare_valid ? in_skid_spare_data : in_data;
-    assign in_skid_spare_valid_or_1 = in_skid_spare_valid | in_valid_and;
-    assign in_skid_spare_valid_next = in_skid_ready_or ? 1'b0 : in_skid_spare_valid_or_1;
-    assign in_skid_ready_not = ~in_skid_ready_or;
-    assign in_skid_ready_and = in_skid_ready_not & in_valid_and;
-    assign core_out_ready = ~out_skid_spare_valid;
+    assign in_ready = in_skid_room;
+    assign in_skid_ready = needs_entry_or;
+    assign in_skid_room = ~in_skid_spare_valid;
+    assign in_skid_drain = in_skid_ready | (~in_skid_valid);
+    assign in_skid_take = in_valid & in_skid_room;
+    assign core_out_ready = out_skid_room;
     assign in_kind = in_skid_data[179:178];
     assign in_is_end = in_kind == 2'd3;
-    assign new_key = {in_skid_data[53], in_skid_data[37], in_skid_data[21], in_skid_data[52], in_skid_data[36], in_skid_data[20], in_skid_data[51], in_skid_data[35], in_skid_data[19], in_skid_data[50], in_skid_data[34], in_skid_data[18], in_skid_data[49], in_skid_data[33], in_skid_data[17], in_skid_data[48], in_skid_data[32], in_skid_data[16], in_skid_data[47], in_skid_data[31], in_skid_data[15], in_skid_data[46], in_skid_data[30], in_skid_data[14], in_skid_data[45], in_skid_data[29], in_skid_data[13], in_skid_data[44], in_skid_data[28], in_skid_data[12], in_skid_data[43], in_skid_data[27], in_skid_data[11], in_skid_data[42], in_skid_data[26], in_skid_data[10], in_skid_data[41], in_skid_data[25], in_skid_data[9], in_skid_data[40], in_skid_data[24], in_skid_data[8], in_skid_data[39], in_skid_data[23], in_skid_data[7], in_skid_data[38], in_skid_data[22], in_skid_data[6], in_skid_data[0]};
-    assign e0_open_not = ~e0_open;
-    assign core_out_valid = e0_valid & e0_open_not;
+    assign in_skid_data_rec_leaf = in_skid_data[0];
+    assign new_key = {in_skid_data[53], in_skid_data[37], in_skid_data[21], in_skid_data[52], in_skid_data[36], in_skid_data[20], in_skid_data[51], in_skid_data[35], in_skid_data[19], in_skid_data[50], in_skid_data[34], in_skid_data[18], in_skid_data[49], in_skid_data[33], in_skid_data[17], in_skid_data[48], in_skid_data[32], in_skid_data[16], in_skid_data[47], in_skid_data[31], in_skid_data[15], in_skid_data[46], in_skid_data[30], in_skid_data[14], in_skid_data[45], in_skid_data[29], in_skid_data[13], in_skid_data[44], in_skid_data[28], in_skid_data[12], in_skid_data[43], in_skid_data[27], in_skid_data[11], in_skid_data[42], in_skid_data[26], in_skid_data[10], in_skid_data[41], in_skid_data[25], in_skid_data[9], in_skid_data[40], in_skid_data[24], in_skid_data[8], in_skid_data[39], in_skid_data[23], in_skid_data[7], in_skid_data[38], in_skid_data[22], in_skid_data[6], in_skid_data_rec_leaf};
+    assign core_out_valid = e0_valid & (~e0_open);
     assign pop = core_out_valid & core_out_ready;
     assign set_full = set_taken == 5'd16;
-    assign set_full_not = ~set_full;
-    assign needs_entry = in_is_end | set_full_not;
+    assign needs_entry = in_is_end | (~set_full);
     assign e16_valid_not = ~e16_valid;
     assign has_room = e16_valid_not | pop;
     assign needs_entry_not = ~needs_entry;
-    assign needs_entry_not_1 = ~needs_entry;
-    assign needs_entry_or = needs_entry_not_1 | has_room;
+    assign needs_entry_or = needs_entry_not | has_room;
     assign in_fire = in_skid_valid & needs_entry_or;
     assign insert = in_fire & needs_entry;
     assign close = in_fire & in_is_end;
     assign in_is_end_not = ~in_is_end;
     assign take_root = insert & in_is_end_not;
-    assign needs_entry_not_2 = ~needs_entry;
-    assign drop_root = in_fire & needs_entry_not_2;
-    assign in_is_end_not_1 = ~in_is_end;
-    assign e0_open_and = e0_open & in_is_end_not_1;
-    assign e0_beat_cat = {core_out_data[53], core_out_data[37], core_out_data[21], core_out_data[52], core_out_data[36], core_out_data[20], core_out_data[51], core_out_data[35], core_out_data[19], core_out_data[50], core_out_data[34], core_out_data[18], core_out_data[49], core_out_data[33], core_out_data[17], core_out_data[48], core_out_data[32], core_out_data[16], core_out_data[47], core_out_data[31], core_out_data[15], core_out_data[46], core_out_data[30], core_out_data[14], core_out_data[45], core_out_data[29], core_out_data[13], core_out_data[44], core_out_data[28], core_out_data[12], core_out_data[43], core_out_data[27], core_out_data[11], core_out_data[42], core_out_data[26], core_out_data[10], core_out_data[41], core_out_data[25], core_out_data[9], core_out_data[40], core_out_data[24], core_out_data[8], core_out_data[39], core_out_data[23], core_out_data[7], core_out_data[38], core_out_data[22], core_out_data[6], core_out_data[0]};
-    assign e0_beat_gt = e0_beat_cat > new_key;
-    assign e0_open_and_1 = e0_open_and & e0_beat_gt;
-    assign e0_valid_not = ~e0_valid;
-    assign e0_valid_or = e0_valid_not | e0_open_and_1;
-    assign e0_moves_up = insert & e0_valid_or;
-    assign in_is_end_not_2 = ~in_is_end;
-    assign e1_open_and = e1_open & in_is_end_not_2;
-    assign e1_beat_cat = {e1_beat[53], e1_beat[37], e1_beat[21], e1_beat[52], e1_beat[36], e1_beat[20], e1_beat[51], e1_beat[35], e1_beat[19], e1_beat[50], e1_beat[34], e1_beat[18], e1_beat[49], e1_beat[33], e1_beat[17], e1_beat[48], e1_beat[32], e1_beat[16], e1_beat[47], e1_beat[31], e1_beat[15], e1_beat[46], e1_beat[30], e1_beat[14], e1_beat[45], e1_beat[29], e1_beat[13], e1_beat[44], e1_beat[28], e1_beat[12], e1_beat[43], e1_beat[27], e1_beat[11], e1_beat[42], e1_beat[26], e1_beat[10], e1_beat[41], e1_beat[25], e1_beat[9], e1_beat[40], e1_beat[24], e1_beat[8], e1_beat[39], e1_beat[23], e1_beat[7], e1_beat[38], e1_beat[22], e1_beat[6], e1_beat[0]};
-    assign e1_beat_gt = e1_beat_cat > new_key;
-    assign e1_open_and_1 = e1_open_and & e1_beat_gt;
-    assign e1_valid_not = ~e1_valid;
-    assign e1_valid_or = e1_valid_not | e1_open_and_1;
-    assign e1_moves_up = insert & e1_valid_or;
-    assign in_is_end_not_3 = ~in_is_end;
-    assign e2_open_and = e2_open & in_is_end_not_3;
-    assign e2_beat_cat = {e2_beat[53], e2_beat[37], e2_beat[21], e2_beat[52], e2_beat[36], e2_beat[20], e2_beat[51], e2_beat[35], e2_beat[19], e2_beat[50], e2_beat[34], e2_beat[18], e2_beat[49], e2_beat[33], e2_beat[17], e2_beat[48], e2_beat[32], e2_beat[16], e2_beat[47], e2_beat[31], e2_beat[15], e2_beat[46], e2_beat[30], e2_beat[14], e2_beat[45], e2_beat[29], e2_beat[13], e2_beat[44], e2_beat[28], e2_beat[12], e2_beat[43], e2_beat[27], e2_beat[11], e2_beat[42], e2_beat[26], e2_beat[10], e2_beat[41], e2_beat[25], e2_beat[9], e2_beat[40], e2_beat[24], e2_beat[8], e2_beat[39], e2_beat[23], e2_beat[7], e2_beat[38], e2_beat[22], e2_beat[6], e2_beat[0]};
-    assign e2_beat_gt = e2_beat_cat > new_key;
-    assign e2_open_and_1 = e2_open_and & e2_beat_gt;
-    assign e2_valid_not = ~e2_valid;
-    assign e2_valid_or = e2_valid_not | e2_open_and_1;
-    assign e2_moves_up = insert & e2_valid_or;
-    assign in_is_end_not_4 = ~in_is_end;
-    assign e3_open_and = e3_open & in_is_end_not_4;
-    assign e3_beat_cat = {e3_beat[53], e3_beat[37], e3_beat[21], e3_beat[52], e3_beat[36], e3_beat[20], e3_beat[51], e3_beat[35], e3_beat[19], e3_beat[50], e3_beat[34], e3_beat[18], e3_beat[49], e3_beat[33], e3_beat[17], e3_beat[48], e3_beat[32], e3_beat[16], e3_beat[47], e3_beat[31], e3_beat[15], e3_beat[46], e3_beat[30], e3_beat[14], e3_beat[45], e3_beat[29], e3_beat[13], e3_beat[44], e3_beat[28], e3_beat[12], e3_beat[43], e3_beat[27], e3_beat[11], e3_beat[42], e3_beat[26], e3_beat[10], e3_beat[41], e3_beat[25], e3_beat[9], e3_beat[40], e3_beat[24], e3_beat[8], e3_beat[39], e3_beat[23], e3_beat[7], e3_beat[38], e3_beat[22], e3_beat[6], e3_beat[0]};
-    assign e3_beat_gt = e3_beat_cat > new_key;
-    assign e3_open_and_1 = e3_open_and & e3_beat_gt;
-    assign e3_valid_not = ~e3_valid;
-    assign e3_valid_or = e3_valid_not | e3_open_and_1;
-    assign e3_moves_up = insert & e3_valid_or;
-    assign in_is_end_not_5 = ~in_is_end;
-    assign e4_open_and = e4_open & in_is_end_not_5;
-    assign e4_beat_cat = {e4_beat[53], e4_beat[37], e4_beat[21], e4_beat[52], e4_beat[36], e4_beat[20], e4_beat[51], e4_beat[35], e4_beat[19], e4_beat[50], e4_beat[34], e4_beat[18], e4_beat[49], e4_beat[33], e4_beat[17], e4_beat[48], e4_beat[32], e4_beat[16], e4_beat[47], e4_beat[31], e4_beat[15], e4_beat[46], e4_beat[30], e4_beat[14], e4_beat[45], e4_beat[29], e4_beat[13], e4_beat[44], e4_beat[28], e4_beat[12], e4_beat[43], e4_beat[27], e4_beat[11], e4_beat[42], e4_beat[26], e4_beat[10], e4_beat[41], e4_beat[25], e4_beat[9], e4_beat[40], e4_beat[24], e4_beat[8], e4_beat[39], e4_beat[23], e4_beat[7], e4_beat[38], e4_beat[22], e4_beat[6], e4_beat[0]};
-    assign e4_beat_gt = e4_beat_cat > new_key;
-    assign e4_open_and_1 = e4_open_and & e4_beat_gt;
-    assign e4_valid_not = ~e4_valid;
-    assign e4_valid_or = e4_valid_not | e4_open_and_1;
-    assign e4_moves_up = insert & e4_valid_or;
-    assign in_is_end_not_6 = ~in_is_end;
-    assign e5_open_and = e5_open & in_is_end_not_6;
-    assign e5_beat_cat = {e5_beat[53], e5_beat[37], e5_beat[21], e5_beat[52], e5_beat[36], e5_beat[20], e5_beat[51], e5_beat[35], e5_beat[19], e5_beat[50], e5_beat[34], e5_beat[18], e5_beat[49], e5_beat[33], e5_beat[17], e5_beat[48], e5_beat[32], e5_beat[16], e5_beat[47], e5_beat[31], e5_beat[15], e5_beat[46], e5_beat[30], e5_beat[14], e5_beat[45], e5_beat[29], e5_beat[13], e5_beat[44], e5_beat[28], e5_beat[12], e5_beat[43], e5_beat[27], e5_beat[11], e5_beat[42], e5_beat[26], e5_beat[10], e5_beat[41], e5_beat[25], e5_beat[9], e5_beat[40], e5_beat[24], e5_beat[8], e5_beat[39], e5_beat[23], e5_beat[7], e5_beat[38], e5_beat[22], e5_beat[6], e5_beat[0]};
-    assign e5_beat_gt = e5_beat_cat > new_key;
-    assign e5_open_and_1 = e5_open_and & e5_beat_gt;
-    assign e5_valid_not = ~e5_valid;
-    assign e5_valid_or = e5_valid_not | e5_open_and_1;
-    assign e5_moves_up = insert & e5_valid_or;
-    assign in_is_end_not_7 = ~in_is_end;
-    assign e6_open_and = e6_open & in_is_end_not_7;
-    assign e6_beat_cat = {e6_beat[53], e6_beat[37], e6_beat[21], e6_beat[52], e6_beat[36], e6_beat[20], e6_beat[51], e6_beat[35], e6_beat[19], e6_beat[50], e6_beat[34], e6_beat[18], e6_beat[49], e6_beat[33], e6_beat[17], e6_beat[48], e6_beat[32], e6_beat[16], e6_beat[47], e6_beat[31], e6_beat[15], e6_beat[46], e6_beat[30], e6_beat[14], e6_beat[45], e6_beat[29], e6_beat[13], e6_beat[44], e6_beat[28], e6_beat[12], e6_beat[43], e6_beat[27], e6_beat[11], e6_beat[42], e6_beat[26], e6_beat[10], e6_beat[41], e6_beat[25], e6_beat[9], e6_beat[40], e6_beat[24], e6_beat[8], e6_beat[39], e6_beat[23], e6_beat[7], e6_beat[38], e6_beat[22], e6_beat[6], e6_beat[0]};
-    assign e6_beat_gt = e6_beat_cat > new_key;
-    assign e6_open_and_1 = e6_open_and & e6_beat_gt;
-    assign e6_valid_not = ~e6_valid;
-    assign e6_valid_or = e6_valid_not | e6_open_and_1;
-    assign e6_moves_up = insert & e6_valid_or;
-    assign in_is_end_not_8 = ~in_is_end;
-    assign e7_open_and = e7_open & in_is_end_not_8;
-    assign e7_beat_cat = {e7_beat[53], e7_beat[37], e7_beat[21], e7_beat[52], e7_beat[36], e7_beat[20], e7_beat[51], e7_beat[35], e7_beat[19], e7_beat[50], e7_beat[34], e7_beat[18], e7_beat[49], e7_beat[33], e7_beat[17], e7_beat[48], e7_beat[32], e7_beat[16], e7_beat[47], e7_beat[31], e7_beat[15], e7_beat[46], e7_beat[30], e7_beat[14], e7_beat[45], e7_beat[29], e7_beat[13], e7_beat[44], e7_beat[28], e7_beat[12], e7_beat[43], e7_beat[27], e7_beat[11], e7_beat[42], e7_beat[26], e7_beat[10], e7_beat[41], e7_beat[25], e7_beat[9], e7_beat[40], e7_beat[24], e7_beat[8], e7_beat[39], e7_beat[23], e7_beat[7], e7_beat[38], e7_beat[22], e7_beat[6], e7_beat[0]};
-    assign e7_beat_gt = e7_beat_cat > new_key;
-    assign e7_open_and_1 = e7_open_and & e7_beat_gt;
-    assign e7_valid_not = ~e7_valid;
-    assign e7_valid_or = e7_valid_not | e7_open_and_1;
-    assign e7_moves_up = insert & e7_valid_or;
-    assign in_is_end_not_9 = ~in_is_end;
-    assign e8_open_and = e8_open & in_is_end_not_9;
-    assign e8_beat_cat = {e8_beat[53], e8_beat[37], e8_beat[21], e8_beat[52], e8_beat[36], e8_beat[20], e8_beat[51], e8_beat[35], e8_beat[19], e8_beat[50], e8_beat[34], e8_beat[18], e8_beat[49], e8_beat[33], e8_beat[17], e8_beat[48], e8_beat[32], e8_beat[16], e8_beat[47], e8_beat[31], e8_beat[15], e8_beat[46], e8_beat[30], e8_beat[14], e8_beat[45], e8_beat[29], e8_beat[13], e8_beat[44], e8_beat[28], e8_beat[12], e8_beat[43], e8_beat[27], e8_beat[11], e8_beat[42], e8_beat[26], e8_beat[10], e8_beat[41], e8_beat[25], e8_beat[9], e8_beat[40], e8_beat[24], e8_beat[8], e8_beat[39], e8_beat[23], e8_beat[7], e8_beat[38], e8_beat[22], e8_beat[6], e8_beat[0]};
-    assign e8_beat_gt = e8_beat_cat > new_key;
-    assign e8_open_and_1 = e8_open_and & e8_beat_gt;
-    assign e8_valid_not = ~e8_valid;
-    assign e8_valid_or = e8_valid_not | e8_open_and_1;
-    assign e8_moves_up = insert & e8_valid_or;
-    assign in_is_end_not_10 = ~in_is_end;
-    assign e9_open_and = e9_open & in_is_end_not_10;
-    assign e9_beat_cat = {e9_beat[53], e9_beat[37], e9_beat[21], e9_beat[52], e9_beat[36], e9_beat[20], e9_beat[51], e9_beat[35], e9_beat[19], e9_beat[50], e9_beat[34], e9_beat[18], e9_beat[49], e9_beat[33], e9_beat[17], e9_beat[48], e9_beat[32], e9_beat[16], e9_beat[47], e9_beat[31], e9_beat[15], e9_beat[46], e9_beat[30], e9_beat[14], e9_beat[45], e9_beat[29], e9_beat[13], e9_beat[44], e9_beat[28], e9_beat[12], e9_beat[43], e9_beat[27], e9_beat[11], e9_beat[42], e9_beat[26], e9_beat[10], e9_beat[41], e9_beat[25], e9_beat[9], e9_beat[40], e9_beat[24], e9_beat[8], e9_beat[39], e9_beat[23], e9_beat[7], e9_beat[38], e9_beat[22], e9_beat[6], e9_beat[0]};
-    assign e9_beat_gt = e9_beat_cat > new_key;
-    assign e9_open_and_1 = e9_open_and & e9_beat_gt;
-    assign e9_valid_not = ~e9_valid;
-    assign e9_valid_or = e9_valid_not | e9_open_and_1;
-    assign e9_moves_up = insert & e9_valid_or;
-    assign in_is_end_not_11 = ~in_is_end;
-    assign e10_open_and = e10_open & in_is_end_not_11;
-    assign e10_beat_cat = {e10_beat[53], e10_beat[37], e10_beat[21], e10_beat[52], e10_beat[36], e10_beat[20], e10_beat[51], e10_beat[35], e10_beat[19], e10_beat[50], e10_beat[34], e10_beat[18], e10_beat[49], e10_beat[33], e10_beat[17], e10_beat[48], e10_beat[32], e10_beat[16], e10_beat[47], e10_beat[31], e10_beat[15], e10_beat[46], e10_beat[30], e10_beat[14], e10_beat[45], e10_beat[29], e10_beat[13], e10_beat[44], e10_beat[28], e10_beat[12], e10_beat[43], e10_beat[27], e10_beat[11], e10_beat[42], e10_beat[26], e10_beat[10], e10_beat[41], e10_beat[25], e10_beat[9], e10_beat[40], e10_beat[24], e10_beat[8], e10_beat[39], e10_beat[23], e10_beat[7], e10_beat[38], e10_beat[22], e10_beat[6], e10_beat[0]};
-    assign e10_beat_gt = e10_beat_cat > new_key;
-    assign e10_open_and_1 = e10_open_and & e10_beat_gt;
-    assign e10_valid_not = ~e10_valid;
-    assign e10_valid_or = e10_valid_not | e10_open_and_1;
-    assign e10_moves_up = insert & e10_valid_or;
-    assign in_is_end_not_12 = ~in_is_end;
-    assign e11_open_and = e11_open & in_is_end_not_12;
-    assign e11_beat_cat = {e11_beat[53], e11_beat[37], e11_beat[21], e11_beat[52], e11_beat[36], e11_beat[20], e11_beat[51], e11_beat[35], e11_beat[19], e11_beat[50], e11_beat[34], e11_beat[18], e11_beat[49], e11_beat[33], e11_beat[17], e11_beat[48], e11_beat[32], e11_beat[16], e11_beat[47], e11_beat[31], e11_beat[15], e11_beat[46], e11_beat[30], e11_beat[14], e11_beat[45], e11_beat[29], e11_beat[13], e11_beat[44], e11_beat[28], e11_beat[12], e11_beat[43], e11_beat[27], e11_beat[11], e11_beat[42], e11_beat[26], e11_beat[10], e11_beat[41], e11_beat[25], e11_beat[9], e11_beat[40], e11_beat[24], e11_beat[8], e11_beat[39], e11_beat[23], e11_beat[7], e11_beat[38], e11_beat[22], e11_beat[6], e11_beat[0]};
-    assign e11_beat_gt = e11_beat_cat > new_key;
-    assign e11_open_and_1 = e11_open_and & e11_beat_gt;
-    assign e11_valid_not = ~e11_valid;
-    assign e11_valid_or = e11_valid_not | e11_open_and_1;
-    assign e11_moves_up = insert & e11_valid_or;
-    assign in_is_end_not_13 = ~in_is_end;
-    assign e12_open_and = e12_open & in_is_end_not_13;
-    assign e12_beat_cat = {e12_beat[53], e12_beat[37], e12_beat[21], e12_beat[52], e12_beat[36], e12_beat[20], e12_beat[51], e12_beat[35], e12_beat[19], e12_beat[50], e12_beat[34], e12_beat[18], e12_beat[49], e12_beat[33], e12_beat[17], e12_beat[48], e12_beat[32], e12_beat[16], e12_beat[47], e12_beat[31], e12_beat[15], e12_beat[46], e12_beat[30], e12_beat[14], e12_beat[45], e12_beat[29], e12_beat[13], e12_beat[44], e12_beat[28], e12_beat[12], e12_beat[43], e12_beat[27], e12_beat[11], e12_beat[42], e12_beat[26], e12_beat[10], e12_beat[41], e12_beat[25], e12_beat[9], e12_beat[40], e12_beat[24], e12_beat[8], e12_beat[39], e12_beat[23], e12_beat[7], e12_beat[38], e12_beat[22], e12_beat[6], e12_beat[0]};
-    assign e12_beat_gt = e12_beat_cat > new_key;
-    assign e12_open_and_1 = e12_open_and & e12_beat_gt;
-    assign e12_valid_not = ~e12_valid;
-    assign e12_valid_or = e12_valid_not | e12_open_and_1;
-    assign e12_moves_up = insert & e12_valid_or;
-    assign in_is_end_not_14 = ~in_is_end;
-    assign e13_open_and = e13_open & in_is_end_not_14;
-    assign e13_beat_cat = {e13_beat[53], e13_beat[37], e13_beat[21], e13_beat[52], e13_beat[36], e13_beat[20], e13_beat[51], e13_beat[35], e13_beat[19], e13_beat[50], e13_beat[34], e13_beat[18], e13_beat[49], e13_beat[33], e13_beat[17], e13_beat[48], e13_beat[32], e13_beat[16], e13_beat[47], e13_beat[31], e13_beat[15], e13_beat[46], e13_beat[30], e13_beat[14], e13_beat[45], e13_beat[29], e13_beat[13], e13_beat[44], e13_beat[28], e13_beat[12], e13_beat[43], e13_beat[27], e13_beat[11], e13_beat[42], e13_beat[26], e13_beat[10], e13_beat[41], e13_beat[25], e13_beat[9], e13_beat[40], e13_beat[24], e13_beat[8], e13_beat[39], e13_beat[23], e13_beat[7], e13_beat[38], e13_beat[22], e13_beat[6], e13_beat[0]};
-    assign e13_beat_gt = e13_beat_cat > new_key;
-    assign e13_open_and_1 = e13_open_and & e13_beat_gt;
-    assign e13_valid_not = ~e13_valid;
-    assign e13_valid_or = e13_valid_not | e13_open_and_1;
-    assign e13_moves_up = insert & e13_valid_or;
-    assign in_is_end_not_15 = ~in_is_end;
-    assign e14_open_and = e14_open & in_is_end_not_15;
-    assign e14_beat_cat = {e14_beat[53], e14_beat[37], e14_beat[21], e14_beat[52], e14_beat[36], e14_beat[20], e14_beat[51], e14_beat[35], e14_beat[19], e14_beat[50], e14_beat[34], e14_beat[18], e14_beat[49], e14_beat[33], e14_beat[17], e14_beat[48], e14_beat[32], e14_beat[16], e14_beat[47], e14_beat[31], e14_beat[15], e14_beat[46], e14_beat[30], e14_beat[14], e14_beat[45], e14_beat[29], e14_beat[13], e14_beat[44], e14_beat[28], e14_beat[12], e14_beat[43], e14_beat[27], e14_beat[11], e14_beat[42], e14_beat[26], e14_beat[10], e14_beat[41], e14_beat[25], e14_beat[9], e14_beat[40], e14_beat[24], e14_beat[8], e14_beat[39], e14_beat[23], e14_beat[7], e14_beat[38], e14_beat[22], e14_beat[6], e14_beat[0]};
-    assign e14_beat_gt = e14_beat_cat > new_key;
-    assign e14_open_and_1 = e14_open_and & e14_beat_gt;
-    assign e14_valid_not = ~e14_valid;
-    assign e14_valid_or = e14_valid_not | e14_open_and_1;
-    assign e14_moves_up = insert & e14_valid_or;
-    assign in_is_end_not_16 = ~in_is_end;
-    assign e15_open_and = e15_open & in_is_end_not_16;
-    assign e15_beat_cat = {e15_beat[53], e15_beat[37], e15_beat[21], e15_beat[52], e15_beat[36], e15_beat[20], e15_beat[51], e15_beat[35], e15_beat[19], e15_beat[50], e15_beat[34], e15_beat[18], e15_beat[49], e15_beat[33], e15_beat[17], e15_beat[48], e15_beat[32], e15_beat[16], e15_beat[47], e15_beat[31], e15_beat[15], e15_beat[46], e15_beat[30], e15_beat[14], e15_beat[45], e15_beat[29], e15_beat[13], e15_beat[44], e15_beat[28], e15_beat[12], e15_beat[43], e15_beat[27], e15_beat[11], e15_beat[42], e15_beat[26], e15_beat[10], e15_beat[41], e15_beat[25], e15_beat[9], e15_beat[40], e15_beat[24], e15_beat[8], e15_beat[39], e15_beat[23], e15_beat[7], e15_beat[38], e15_beat[22], e15_beat[6], e15_beat[0]};
-    assign e15_beat_gt = e15_beat_cat > new_key;
-    assign e15_open_and_1 = e15_open_and & e15_beat_gt;
-    assign e15_valid_not = ~e15_valid;
-    assign e15_valid_or = e15_valid_not | e15_open_and_1;
-    assign e15_moves_up = insert & e15_valid_or;
-    assign in_is_end_not_17 = ~in_is_end;
-    assign e16_open_and = e16_open & in_is_end_not_17;
-    assign e16_beat_cat = {e16_beat[53], e16_beat[37], e16_beat[21], e16_beat[52], e16_beat[36], e16_beat[20], e16_beat[51], e16_beat[35], e16_beat[19], e16_beat[50], e16_beat[34], e16_beat[18], e16_beat[49], e16_beat[33], e16_beat[17], e16_beat[48], e16_beat[32], e16_beat[16], e16_beat[47], e16_beat[31], e16_beat[15], e16_beat[46], e16_beat[30], e16_beat[14], e16_beat[45], e16_beat[29], e16_beat[13], e16_beat[44], e16_beat[28], e16_beat[12], e16_beat[43], e16_beat[27], e16_beat[11], e16_beat[42], e16_beat[26], e16_beat[10], e16_beat[41], e16_beat[25], e16_beat[9], e16_beat[40], e16_beat[24], e16_beat[8], e16_beat[39], e16_beat[23], e16_beat[7], e16_beat[38], e16_beat[22], e16_beat[6], e16_beat[0]};
-    assign e16_beat_gt = e16_beat_cat > new_key;
-    assign e16_open_and_1 = e16_open_and & e16_beat_gt;
-    assign e16_valid_not_1 = ~e16_valid;
-    assign e16_valid_or = e16_valid_not_1 | e16_open_and_1;
-    assign e16_moves_up = insert & e16_valid_or;
-    assign const_cat = {1'b0, in_skid_data};
-    assign set_overflow_cat = {set_overflow, 2'd3, 178'h000000000000000000000000000000000000000000000};
-    assign new_beat = in_is_end ? set_overflow_cat : const_cat;
-    assign in_is_end_not_18 = ~in_is_end;
-    assign e0_moves_up_mux_2 = e0_moves_up ? in_is_end_not_18 : e0_open;
-    assign e0_moves_up_mux_3 = e0_moves_up ? core_out_data : new_beat;
-    assign e0_moves_up_mux_4 = e0_moves_up ? e0_valid : 1'b1;
-    assign e0_moves_up_mux_5 = e0_moves_up ? e0_open : in_is_end_not_18;
-    assign e1_moves_up_mux = e1_moves_up ? e0_moves_up_mux_3 : e1_beat;
-    assign e1_moves_up_mux_1 = e1_moves_up ? e0_moves_up_mux_4 : e1_valid;
-    assign e1_moves_up_mux_2 = e1_moves_up ? e0_moves_up_mux_5 : e1_open;
-    assign e1_moves_up_mux_3 = e1_moves_up ? e1_beat : new_beat;
-    assign e1_moves_up_mux_4 = e1_moves_up ? e1_valid : 1'b1;
-    assign e1_moves_up_mux_5 = e1_moves_up ? e1_open : in_is_end_not_18;
-    assign e2_moves_up_mux = e2_moves_up ? e1_moves_up_mux_3 : e2_beat;
-    assign e2_moves_up_mux_1 = e2_moves_up ? e1_moves_up_mux_4 : e2_valid;
-    assign e2_moves_up_mux_2 = e2_moves_up ? e1_moves_up_mux_5 : e2_open;
-    assign e2_moves_up_mux_3 = e2_moves_up ? e2_beat : new_beat;
-    assign e2_moves_up_mux_4 = e2_moves_up ? e2_valid : 1'b1;
-    assign e2_moves_up_mux_5 = e2_moves_up ? e2_open : in_is_end_not_18;
-    assign e3_moves_up_mux = e3_moves_up ? e2_moves_up_mux_3 : e3_beat;
-    assign e3_moves_up_mux_1 = e3_moves_up ? e2_moves_up_mux_4 : e3_valid;
-    assign e3_moves_up_mux_2 = e3_moves_up ? e2_moves_up_mux_5 : e3_open;
-    assign e3_moves_up_mux_3 = e3_moves_up ? e3_beat : new_beat;
-    assign e3_moves_up_mux_4 = e3_moves_up ? e3_valid : 1'b1;
-    assign e3_moves_up_mux_5 = e3_moves_up ? e3_open : in_is_end_not_18;
-    assign e4_moves_up_mux = e4_moves_up ? e3_moves_up_mux_3 : e4_beat;
-    assign e4_moves_up_mux_1 = e4_moves_up ? e3_moves_up_mux_4 : e4_valid;
-    assign e4_moves_up_mux_2 = e4_moves_up ? e3_moves_up_mux_5 : e4_open;
-    assign e4_moves_up_mux_3 = e4_moves_up ? e4_beat : new_beat;
-    assign e4_moves_up_mux_4 = e4_moves_up ? e4_valid : 1'b1;
-    assign e4_moves_up_mux_5 = e4_moves_up ? e4_open : in_is_end_not_18;
-    assign e5_moves_up_mux = e5_moves_up ? e4_moves_up_mux_3 : e5_beat;
-    assign e5_moves_up_mux_1 = e5_moves_up ? e4_moves_up_mux_4 : e5_valid;
-    assign e5_moves_up_mux_2 = e5_moves_up ? e4_moves_up_mux_5 : e5_open;
-    assign e5_moves_up_mux_3 = e5_moves_up ? e5_beat : new_beat;
-    assign e5_moves_up_mux_4 = e5_moves_up ? e5_valid : 1'b1;
-    assign e5_moves_up_mux_5 = e5_moves_up ? e5_open : in_is_end_not_18;
-    assign e6_moves_up_mux = e6_moves_up ? e5_moves_up_mux_3 : e6_beat;
-    assign e6_moves_up_mux_1 = e6_moves_up ? e5_moves_up_mux_4 : e6_valid;
-    assign e6_moves_up_mux_2 = e6_moves_up ? e5_moves_up_mux_5 : e6_open;
-    assign e6_moves_up_mux_3 = e6_moves_up ? e6_beat : new_beat;
-    assign e6_moves_up_mux_4 = e6_moves_up ? e6_valid : 1'b1;
-    assign e6_moves_up_mux_5 = e6_moves_up ? e6_open : in_is_end_not_18;
-    assign e7_moves_up_mux = e7_moves_up ? e6_moves_up_mux_3 : e7_beat;
-    assign e7_moves_up_mux_1 = e7_moves_up ? e6_moves_up_mux_4 : e7_valid;
-    assign e7_moves_up_mux_2 = e7_moves_up ? e6_moves_up_mux_5 : e7_open;
-    assign e7_moves_up_mux_3 = e7_moves_up ? e7_beat : new_beat;
-    assign e7_moves_up_mux_4 = e7_moves_up ? e7_valid : 1'b1;
-    assign e7_moves_up_mux_5 = e7_moves_up ? e7_open : in_is_end_not_18;
-    assign e8_moves_up_mux = e8_moves_up ? e7_moves_up_mux_3 : e8_beat;
-    assign e8_moves_up_mux_1 = e8_moves_up ? e7_moves_up_mux_4 : e8_valid;
-    assign e8_moves_up_mux_2 = e8_moves_up ? e7_moves_up_mux_5 : e8_open;
-    assign e8_moves_up_mux_3 = e8_moves_up ? e8_beat : new_beat;
-    assign e8_moves_up_mux_4 = e8_moves_up ? e8_valid : 1'b1;
-    assign e8_moves_up_mux_5 = e8_moves_up ? e8_open : in_is_end_not_18;
-    assign e9_moves_up_mux = e9_moves_up ? e8_moves_up_mux_3 : e9_beat;
-    assign e9_moves_up_mux_1 = e9_moves_up ? e8_moves_up_mux_4 : e9_valid;
-    assign e9_moves_up_mux_2 = e9_moves_up ? e8_moves_up_mux_5 : e9_open;
-    assign e9_moves_up_mux_3 = e9_moves_up ? e9_beat : new_beat;
-    assign e9_moves_up_mux_4 = e9_moves_up ? e9_valid : 1'b1;
-    assign e9_moves_up_mux_5 = e9_moves_up ? e9_open : in_is_end_not_18;
-    assign e10_moves_up_mux = e10_moves_up ? e9_moves_up_mux_3 : e10_beat;
-    assign e10_moves_up_mux_1 = e10_moves_up ? e9_moves_up_mux_4 : e10_valid;
-    assign e10_moves_up_mux_2 = e10_moves_up ? e9_moves_up_mux_5 : e10_open;
-    assign e10_moves_up_mux_3 = e10_moves_up ? e10_beat : new_beat;
-    assign e10_moves_up_mux_4 = e10_moves_up ? e10_valid : 1'b1;
-    assign e10_moves_up_mux_5 = e10_moves_up ? e10_open : in_is_end_not_18;
-    assign e11_moves_up_mux = e11_moves_up ? e10_moves_up_mux_3 : e11_beat;
-    assign e11_moves_up_mux_1 = e11_moves_up ? e10_moves_up_mux_4 : e11_valid;
-    assign e11_moves_up_mux_2 = e11_moves_up ? e10_moves_up_mux_5 : e11_open;
-    assign e11_moves_up_mux_3 = e11_moves_up ? e11_beat : new_beat;
-    assign e11_moves_up_mux_4 = e11_moves_up ? e11_valid : 1'b1;
-    assign e11_moves_up_mux_5 = e11_moves_up ? e11_open : in_is_end_not_18;
-    assign e12_moves_up_mux = e12_moves_up ? e11_moves_up_mux_3 : e12_beat;
-    assign e12_moves_up_mux_1 = e12_moves_up ? e11_moves_up_mux_4 : e12_valid;
-    assign e12_moves_up_mux_2 = e12_moves_up ? e11_moves_up_mux_5 : e12_open;
-    assign e12_moves_up_mux_3 = e12_moves_up ? e12_beat : new_beat;
-    assign e12_moves_up_mux_4 = e12_moves_up ? e12_valid : 1'b1;
-    assign e12_moves_up_mux_5 = e12_moves_up ? e12_open : in_is_end_not_18;
-    assign e13_moves_up_mux = e13_moves_up ? e12_moves_up_mux_3 : e13_beat;
-    assign e13_moves_up_mux_1 = e13_moves_up ? e12_moves_up_mux_4 : e13_valid;
-    assign e13_moves_up_mux_2 = e13_moves_up ? e12_moves_up_mux_5 : e13_open;
-    assign e13_moves_up_mux_3 = e13_moves_up ? e13_beat : new_beat;
-    assign e13_moves_up_mux_4 = e13_moves_up ? e13_valid : 1'b1;
-    assign e13_moves_up_mux_5 = e13_moves_up ? e13_open : in_is_end_not_18;
-    assign e14_moves_up_mux = e14_moves_up ? e13_moves_up_mux_3 : e14_beat;
-    assign e14_moves_up_mux_1 = e14_moves_up ? e13_moves_up_mux_4 : e14_valid;
-    assign e14_moves_up_mux_2 = e14_moves_up ? e13_moves_up_mux_5 : e14_open;
-    assign e14_moves_up_mux_3 = e14_moves_up ? e14_beat : new_beat;
-    assign e14_moves_up_mux_4 = e14_moves_up ? e14_valid : 1'b1;
-    assign e14_moves_up_mux_5 = e14_moves_up ? e14_open : in_is_end_not_18;
-    assign e15_moves_up_mux = e15_moves_up ? e14_moves_up_mux_3 : e15_beat;
-    assign e15_moves_up_mux_1 = e15_moves_up ? e14_moves_up_mux_4 : e15_valid;
-    assign e15_moves_up_mux_2 = e15_moves_up ? e14_moves_up_mux_5 : e15_open;
-    assign e15_moves_up_mux_3 = e15_moves_up ? e15_beat : new_beat;
-    assign e15_moves_up_mux_4 = e15_moves_up ? e15_valid : 1'b1;
-    assign e15_moves_up_mux_5 = e15_moves_up ? e15_open : in_is_end_not_18;
-    assign e16_moves_up_mux = e16_moves_up ? e15_moves_up_mux_3 : e16_beat;
-    assign e16_moves_up_mux_1 = e16_moves_up ? e15_moves_up_mux_4 : e16_valid;
-    assign e16_moves_up_mux_2 = e16_moves_up ? e15_moves_up_mux_5 : e16_open;
-    assign e16_moves_up_mux_5 = e16_moves_up ? e16_open : in_is_end_not_18;
-    assign insert_mux_2 = insert ? e16_moves_up_mux_5 : 1'b0;
-    assign pop_mux = pop ? e1_moves_up_mux_2 : e0_moves_up_mux_2;
+    assign drop_root = in_fire & needs_entry_not;
+    assign e0_beat_rec_leaf = core_out_data[0];
+    assign e0_beat_rec_z_cat = {core_out_data[53], core_out_data[37], core_out_data[21], core_out_data[52], core_out_data[36], core_out_data[20], core_out_data[51], core_out_data[35], core_out_data[19], core_out_data[50], core_out_data[34], core_out_data[18], core_out_data[49], core_out_data[33], core_out_data[17], core_out_data[48], core_out_data[32], core_out_data[16], core_out_data[47], core_out_data[31], core_out_data[15], core_out_data[46], core_out_data[30], core_out_data[14], core_out_data[45], core_out_data[29], core_out_data[13], core_out_data[44], core_out_data[28], core_out_data[12], core_out_data[43], core_out_data[27], core_out_data[11], core_out_data[42], core_out_data[26], core_out_data[10], core_out_data[41], core_out_data[25], core_out_data[9], core_out_data[40], core_out_data[24], core_out_data[8], core_out_data[39], core_out_data[23], core_out_data[7], core_out_data[38], core_out_data[22], core_out_data[6], e0_beat_rec_leaf};
+    assign e0_moves_up = insert & ((~e0_valid) | ((e0_open & in_is_end_not) & (e0_beat_rec_z_cat > new_key)));
+    assign e1_beat_rec_leaf = e1_beat[0];
+    assign e1_beat_rec_z_cat = {e1_beat[53], e1_beat[37], e1_beat[21], e1_beat[52], e1_beat[36], e1_beat[20], e1_beat[51], e1_beat[35], e1_beat[19], e1_beat[50], e1_beat[34], e1_beat[18], e1_beat[49], e1_beat[33], e1_beat[17], e1_beat[48], e1_beat[32], e1_beat[16], e1_beat[47], e1_beat[31], e1_beat[15], e1_beat[46], e1_beat[30], e1_beat[14], e1_beat[45], e1_beat[29], e1_beat[13], e1_beat[44], e1_beat[28], e1_beat[12], e1_beat[43], e1_beat[27], e1_beat[11], e1_beat[42], e1_beat[26], e1_beat[10], e1_beat[41], e1_beat[25], e1_beat[9], e1_beat[40], e1_beat[24], e1_beat[8], e1_beat[39], e1_beat[23], e1_beat[7], e1_beat[38], e1_beat[22], e1_beat[6], e1_beat_rec_leaf};
+    assign e1_moves_up = insert & ((~e1_valid) | ((e1_open & in_is_end_not) & (e1_beat_rec_z_cat > new_key)));
+    assign e2_beat_rec_leaf = e2_beat[0];
+    assign e2_beat_rec_z_cat = {e2_beat[53], e2_beat[37], e2_beat[21], e2_beat[52], e2_beat[36], e2_beat[20], e2_beat[51], e2_beat[35], e2_beat[19], e2_beat[50], e2_beat[34], e2_beat[18], e2_beat[49], e2_beat[33], e2_beat[17], e2_beat[48], e2_beat[32], e2_beat[16], e2_beat[47], e2_beat[31], e2_beat[15], e2_beat[46], e2_beat[30], e2_beat[14], e2_beat[45], e2_beat[29], e2_beat[13], e2_beat[44], e2_beat[28], e2_beat[12], e2_beat[43], e2_beat[27], e2_beat[11], e2_beat[42], e2_beat[26], e2_beat[10], e2_beat[41], e2_beat[25], e2_beat[9], e2_beat[40], e2_beat[24], e2_beat[8], e2_beat[39], e2_beat[23], e2_beat[7], e2_beat[38], e2_beat[22], e2_beat[6], e2_beat_rec_leaf};
+    assign e2_moves_up = insert & ((~e2_valid) | ((e2_open & in_is_end_not) & (e2_beat_rec_z_cat > new_key)));
+    assign e3_beat_rec_leaf = e3_beat[0];
+    assign e3_beat_rec_z_cat = {e3_beat[53], e3_beat[37], e3_beat[21], e3_beat[52], e3_beat[36], e3_beat[20], e3_beat[51], e3_beat[35], e3_beat[19], e3_beat[50], e3_beat[34], e3_beat[18], e3_beat[49], e3_beat[33], e3_beat[17], e3_beat[48], e3_beat[32], e3_beat[16], e3_beat[47], e3_beat[31], e3_beat[15], e3_beat[46], e3_beat[30], e3_beat[14], e3_beat[45], e3_beat[29], e3_beat[13], e3_beat[44], e3_beat[28], e3_beat[12], e3_beat[43], e3_beat[27], e3_beat[11], e3_beat[42], e3_beat[26], e3_beat[10], e3_beat[41], e3_beat[25], e3_beat[9], e3_beat[40], e3_beat[24], e3_beat[8], e3_beat[39], e3_beat[23], e3_beat[7], e3_beat[38], e3_beat[22], e3_beat[6], e3_beat_rec_leaf};
+    assign e3_moves_up = insert & ((~e3_valid) | ((e3_open & in_is_end_not) & (e3_beat_rec_z_cat > new_key)));
+    assign e4_beat_rec_leaf = e4_beat[0];
+    assign e4_beat_rec_z_cat = {e4_beat[53], e4_beat[37], e4_beat[21], e4_beat[52], e4_beat[36], e4_beat[20], e4_beat[51], e4_beat[35], e4_beat[19], e4_beat[50], e4_beat[34], e4_beat[18], e4_beat[49], e4_beat[33], e4_beat[17], e4_beat[48], e4_beat[32], e4_beat[16], e4_beat[47], e4_beat[31], e4_beat[15], e4_beat[46], e4_beat[30], e4_beat[14], e4_beat[45], e4_beat[29], e4_beat[13], e4_beat[44], e4_beat[28], e4_beat[12], e4_beat[43], e4_beat[27], e4_beat[11], e4_beat[42], e4_beat[26], e4_beat[10], e4_beat[41], e4_beat[25], e4_beat[9], e4_beat[40], e4_beat[24], e4_beat[8], e4_beat[39], e4_beat[23], e4_beat[7], e4_beat[38], e4_beat[22], e4_beat[6], e4_beat_rec_leaf};
+    assign e4_moves_up = insert & ((~e4_valid) | ((e4_open & in_is_end_not) & (e4_beat_rec_z_cat > new_key)));
+    assign e5_beat_rec_leaf = e5_beat[0];
+    assign e5_beat_rec_z_cat = {e5_beat[53], e5_beat[37], e5_beat[21], e5_beat[52], e5_beat[36], e5_beat[20], e5_beat[51], e5_beat[35], e5_beat[19], e5_beat[50], e5_beat[34], e5_beat[18], e5_beat[49], e5_beat[33], e5_beat[17], e5_beat[48], e5_beat[32], e5_beat[16], e5_beat[47], e5_beat[31], e5_beat[15], e5_beat[46], e5_beat[30], e5_beat[14], e5_beat[45], e5_beat[29], e5_beat[13], e5_beat[44], e5_beat[28], e5_beat[12], e5_beat[43], e5_beat[27], e5_beat[11], e5_beat[42], e5_beat[26], e5_beat[10], e5_beat[41], e5_beat[25], e5_beat[9], e5_beat[40], e5_beat[24], e5_beat[8], e5_beat[39], e5_beat[23], e5_beat[7], e5_beat[38], e5_beat[22], e5_beat[6], e5_beat_rec_leaf};
+    assign e5_moves_up = insert & ((~e5_valid) | ((e5_open & in_is_end_not) & (e5_beat_rec_z_cat > new_key)));
+    assign e6_beat_rec_leaf = e6_beat[0];
+    assign e6_beat_rec_z_cat = {e6_beat[53], e6_beat[37], e6_beat[21], e6_beat[52], e6_beat[36], e6_beat[20], e6_beat[51], e6_beat[35], e6_beat[19], e6_beat[50], e6_beat[34], e6_beat[18], e6_beat[49], e6_beat[33], e6_beat[17], e6_beat[48], e6_beat[32], e6_beat[16], e6_beat[47], e6_beat[31], e6_beat[15], e6_beat[46], e6_beat[30], e6_beat[14], e6_beat[45], e6_beat[29], e6_beat[13], e6_beat[44], e6_beat[28], e6_beat[12], e6_beat[43], e6_beat[27], e6_beat[11], e6_beat[42], e6_beat[26], e6_beat[10], e6_beat[41], e6_beat[25], e6_beat[9], e6_beat[40], e6_beat[24], e6_beat[8], e6_beat[39], e6_beat[23], e6_beat[7], e6_beat[38], e6_beat[22], e6_beat[6], e6_beat_rec_leaf};
+    assign e6_moves_up = insert & ((~e6_valid) | ((e6_open & in_is_end_not) & (e6_beat_rec_z_cat > new_key)));
+    assign e7_beat_rec_leaf = e7_beat[0];
+    assign e7_beat_rec_z_cat = {e7_beat[53], e7_beat[37], e7_beat[21], e7_beat[52], e7_beat[36], e7_beat[20], e7_beat[51], e7_beat[35], e7_beat[19], e7_beat[50], e7_beat[34], e7_beat[18], e7_beat[49], e7_beat[33], e7_beat[17], e7_beat[48], e7_beat[32], e7_beat[16], e7_beat[47], e7_beat[31], e7_beat[15], e7_beat[46], e7_beat[30], e7_beat[14], e7_beat[45], e7_beat[29], e7_beat[13], e7_beat[44], e7_beat[28], e7_beat[12], e7_beat[43], e7_beat[27], e7_beat[11], e7_beat[42], e7_beat[26], e7_beat[10], e7_beat[41], e7_beat[25], e7_beat[9], e7_beat[40], e7_beat[24], e7_beat[8], e7_beat[39], e7_beat[23], e7_beat[7], e7_beat[38], e7_beat[22], e7_beat[6], e7_beat_rec_leaf};
+    assign e7_moves_up = insert & ((~e7_valid) | ((e7_open & in_is_end_not) & (e7_beat_rec_z_cat > new_key)));
+    assign e8_beat_rec_leaf = e8_beat[0];
+    assign e8_beat_rec_z_cat = {e8_beat[53], e8_beat[37], e8_beat[21], e8_beat[52], e8_beat[36], e8_beat[20], e8_beat[51], e8_beat[35], e8_beat[19], e8_beat[50], e8_beat[34], e8_beat[18], e8_beat[49], e8_beat[33], e8_beat[17], e8_beat[48], e8_beat[32], e8_beat[16], e8_beat[47], e8_beat[31], e8_beat[15], e8_beat[46], e8_beat[30], e8_beat[14], e8_beat[45], e8_beat[29], e8_beat[13], e8_beat[44], e8_beat[28], e8_beat[12], e8_beat[43], e8_beat[27], e8_beat[11], e8_beat[42], e8_beat[26], e8_beat[10], e8_beat[41], e8_beat[25], e8_beat[9], e8_beat[40], e8_beat[24], e8_beat[8], e8_beat[39], e8_beat[23], e8_beat[7], e8_beat[38], e8_beat[22], e8_beat[6], e8_beat_rec_leaf};
+    assign e8_moves_up = insert & ((~e8_valid) | ((e8_open & in_is_end_not) & (e8_beat_rec_z_cat > new_key)));
+    assign e9_beat_rec_leaf = e9_beat[0];
+    assign e9_beat_rec_z_cat = {e9_beat[53], e9_beat[37], e9_beat[21], e9_beat[52], e9_beat[36], e9_beat[20], e9_beat[51], e9_beat[35], e9_beat[19], e9_beat[50], e9_beat[34], e9_beat[18], e9_beat[49], e9_beat[33], e9_beat[17], e9_beat[48], e9_beat[32], e9_beat[16], e9_beat[47], e9_beat[31], e9_beat[15], e9_beat[46], e9_beat[30], e9_beat[14], e9_beat[45], e9_beat[29], e9_beat[13], e9_beat[44], e9_beat[28], e9_beat[12], e9_beat[43], e9_beat[27], e9_beat[11], e9_beat[42], e9_beat[26], e9_beat[10], e9_beat[41], e9_beat[25], e9_beat[9], e9_beat[40], e9_beat[24], e9_beat[8], e9_beat[39], e9_beat[23], e9_beat[7], e9_beat[38], e9_beat[22], e9_beat[6], e9_beat_rec_leaf};
+    assign e9_moves_up = insert & ((~e9_valid) | ((e9_open & in_is_end_not) & (e9_beat_rec_z_cat > new_key)));
+    assign e10_beat_rec_leaf = e10_beat[0];
+    assign e10_beat_rec_z_cat = {e10_beat[53], e10_beat[37], e10_beat[21], e10_beat[52], e10_beat[36], e10_beat[20], e10_beat[51], e10_beat[35], e10_beat[19], e10_beat[50], e10_beat[34], e10_beat[18], e10_beat[49], e10_beat[33], e10_beat[17], e10_beat[48], e10_beat[32], e10_beat[16], e10_beat[47], e10_beat[31], e10_beat[15], e10_beat[46], e10_beat[30], e10_beat[14], e10_beat[45], e10_beat[29], e10_beat[13], e10_beat[44], e10_beat[28], e10_beat[12], e10_beat[43], e10_beat[27], e10_beat[11], e10_beat[42], e10_beat[26], e10_beat[10], e10_beat[41], e10_beat[25], e10_beat[9], e10_beat[40], e10_beat[24], e10_beat[8], e10_beat[39], e10_beat[23], e10_beat[7], e10_beat[38], e10_beat[22], e10_beat[6], e10_beat_rec_leaf};
+    assign e10_moves_up = insert & ((~e10_valid) | ((e10_open & in_is_end_not) & (e10_beat_rec_z_cat > new_key)));
+    assign e11_beat_rec_leaf = e11_beat[0];
+    assign e11_beat_rec_z_cat = {e11_beat[53], e11_beat[37], e11_beat[21], e11_beat[52], e11_beat[36], e11_beat[20], e11_beat[51], e11_beat[35], e11_beat[19], e11_beat[50], e11_beat[34], e11_beat[18], e11_beat[49], e11_beat[33], e11_beat[17], e11_beat[48], e11_beat[32], e11_beat[16], e11_beat[47], e11_beat[31], e11_beat[15], e11_beat[46], e11_beat[30], e11_beat[14], e11_beat[45], e11_beat[29], e11_beat[13], e11_beat[44], e11_beat[28], e11_beat[12], e11_beat[43], e11_beat[27], e11_beat[11], e11_beat[42], e11_beat[26], e11_beat[10], e11_beat[41], e11_beat[25], e11_beat[9], e11_beat[40], e11_beat[24], e11_beat[8], e11_beat[39], e11_beat[23], e11_beat[7], e11_beat[38], e11_beat[22], e11_beat[6], e11_beat_rec_leaf};
+    assign e11_moves_up = insert & ((~e11_valid) | ((e11_open & in_is_end_not) & (e11_beat_rec_z_cat > new_key)));
+    assign e12_beat_rec_leaf = e12_beat[0];
+    assign e12_beat_rec_z_cat = {e12_beat[53], e12_beat[37], e12_beat[21], e12_beat[52], e12_beat[36], e12_beat[20], e12_beat[51], e12_beat[35], e12_beat[19], e12_beat[50], e12_beat[34], e12_beat[18], e12_beat[49], e12_beat[33], e12_beat[17], e12_beat[48], e12_beat[32], e12_beat[16], e12_beat[47], e12_beat[31], e12_beat[15], e12_beat[46], e12_beat[30], e12_beat[14], e12_beat[45], e12_beat[29], e12_beat[13], e12_beat[44], e12_beat[28], e12_beat[12], e12_beat[43], e12_beat[27], e12_beat[11], e12_beat[42], e12_beat[26], e12_beat[10], e12_beat[41], e12_beat[25], e12_beat[9], e12_beat[40], e12_beat[24], e12_beat[8], e12_beat[39], e12_beat[23], e12_beat[7], e12_beat[38], e12_beat[22], e12_beat[6], e12_beat_rec_leaf};
+    assign e12_moves_up = insert & ((~e12_valid) | ((e12_open & in_is_end_not) & (e12_beat_rec_z_cat > new_key)));
+    assign e13_beat_rec_leaf = e13_beat[0];
+    assign e13_beat_rec_z_cat = {e13_beat[53], e13_beat[37], e13_beat[21], e13_beat[52], e13_beat[36], e13_beat[20], e13_beat[51], e13_beat[35], e13_beat[19], e13_beat[50], e13_beat[34], e13_beat[18], e13_beat[49], e13_beat[33], e13_beat[17], e13_beat[48], e13_beat[32], e13_beat[16], e13_beat[47], e13_beat[31], e13_beat[15], e13_beat[46], e13_beat[30], e13_beat[14], e13_beat[45], e13_beat[29], e13_beat[13], e13_beat[44], e13_beat[28], e13_beat[12], e13_beat[43], e13_beat[27], e13_beat[11], e13_beat[42], e13_beat[26], e13_beat[10], e13_beat[41], e13_beat[25], e13_beat[9], e13_beat[40], e13_beat[24], e13_beat[8], e13_beat[39], e13_beat[23], e13_beat[7], e13_beat[38], e13_beat[22], e13_beat[6], e13_beat_rec_leaf};
+    assign e13_moves_up = insert & ((~e13_valid) | ((e13_open & in_is_end_not) & (e13_beat_rec_z_cat > new_key)));
+    assign e14_beat_rec_leaf = e14_beat[0];
+    assign e14_beat_rec_z_cat = {e14_beat[53], e14_beat[37], e14_beat[21], e14_beat[52], e14_beat[36], e14_beat[20], e14_beat[51], e14_beat[35], e14_beat[19], e14_beat[50], e14_beat[34], e14_beat[18], e14_beat[49], e14_beat[33], e14_beat[17], e14_beat[48], e14_beat[32], e14_beat[16], e14_beat[47], e14_beat[31], e14_beat[15], e14_beat[46], e14_beat[30], e14_beat[14], e14_beat[45], e14_beat[29], e14_beat[13], e14_beat[44], e14_beat[28], e14_beat[12], e14_beat[43], e14_beat[27], e14_beat[11], e14_beat[42], e14_beat[26], e14_beat[10], e14_beat[41], e14_beat[25], e14_beat[9], e14_beat[40], e14_beat[24], e14_beat[8], e14_beat[39], e14_beat[23], e14_beat[7], e14_beat[38], e14_beat[22], e14_beat[6], e14_beat_rec_leaf};
+    assign e14_moves_up = insert & ((~e14_valid) | ((e14_open & in_is_end_not) & (e14_beat_rec_z_cat > new_key)));
+    assign e15_beat_rec_leaf = e15_beat[0];
+    assign e15_beat_rec_z_cat = {e15_beat[53], e15_beat[37], e15_beat[21], e15_beat[52], e15_beat[36], e15_beat[20], e15_beat[51], e15_beat[35], e15_beat[19], e15_beat[50], e15_beat[34], e15_beat[18], e15_beat[49], e15_beat[33], e15_beat[17], e15_beat[48], e15_beat[32], e15_beat[16], e15_beat[47], e15_beat[31], e15_beat[15], e15_beat[46], e15_beat[30], e15_beat[14], e15_beat[45], e15_beat[29], e15_beat[13], e15_beat[44], e15_beat[28], e15_beat[12], e15_beat[43], e15_beat[27], e15_beat[11], e15_beat[42], e15_beat[26], e15_beat[10], e15_beat[41], e15_beat[25], e15_beat[9], e15_beat[40], e15_beat[24], e15_beat[8], e15_beat[39], e15_beat[23], e15_beat[7], e15_beat[38], e15_beat[22], e15_beat[6], e15_beat_rec_leaf};
+    assign e15_moves_up = insert & ((~e15_valid) | ((e15_open & in_is_end_not) & (e15_beat_rec_z_cat > new_key)));
+    assign e16_beat_rec_leaf = e16_beat[0];
+    assign e16_beat_rec_z_cat = {e16_beat[53], e16_beat[37], e16_beat[21], e16_beat[52], e16_beat[36], e16_beat[20], e16_beat[51], e16_beat[35], e16_beat[19], e16_beat[50], e16_beat[34], e16_beat[18], e16_beat[49], e16_beat[33], e16_beat[17], e16_beat[48], e16_beat[32], e16_beat[16], e16_beat[47], e16_beat[31], e16_beat[15], e16_beat[46], e16_beat[30], e16_beat[14], e16_beat[45], e16_beat[29], e16_beat[13], e16_beat[44], e16_beat[28], e16_beat[12], e16_beat[43], e16_beat[27], e16_beat[11], e16_beat[42], e16_beat[26], e16_beat[10], e16_beat[41], e16_beat[25], e16_beat[9], e16_beat[40], e16_beat[24], e16_beat[8], e16_beat[39], e16_beat[23], e16_beat[7], e16_beat[38], e16_beat[22], e16_beat[6], e16_beat_rec_leaf};
+    assign e16_moves_up = insert & (e16_valid_not | ((e16_open & in_is_end_not) & (e16_beat_rec_z_cat > new_key)));
+    assign new_beat = in_is_end ? {set_overflow, 2'd3, 178'h000000000000000000000000000000000000000000000} : {1'b0, in_skid_data};
+    assign e1_moves_up_mux = e1_moves_up ? (e0_moves_up ? core_out_data : new_beat) : e1_beat;
+    assign e1_moves_up_mux_1 = e1_moves_up ? (e0_moves_up ? e0_valid : 1'b1) : e1_valid;
+    assign e1_moves_up_mux_2 = e1_moves_up ? (e0_moves_up ? e0_open : in_is_end_not) : e1_open;
+    assign e2_moves_up_mux = e2_moves_up ? (e1_moves_up ? e1_beat : new_beat) : e2_beat;
+    assign e2_moves_up_mux_1 = e2_moves_up ? (e1_moves_up ? e1_valid : 1'b1) : e2_valid;
+    assign e2_moves_up_mux_2 = e2_moves_up ? (e1_moves_up ? e1_open : in_is_end_not) : e2_open;
+    assign e3_moves_up_mux = e3_moves_up ? (e2_moves_up ? e2_beat : new_beat) : e3_beat;
+    assign e3_moves_up_mux_1 = e3_moves_up ? (e2_moves_up ? e2_valid : 1'b1) : e3_valid;
+    assign e3_moves_up_mux_2 = e3_moves_up ? (e2_moves_up ? e2_open : in_is_end_not) : e3_open;
+    assign e4_moves_up_mux = e4_moves_up ? (e3_moves_up ? e3_beat : new_beat) : e4_beat;
+    assign e4_moves_up_mux_1 = e4_moves_up ? (e3_moves_up ? e3_valid : 1'b1) : e4_valid;
+    assign e4_moves_up_mux_2 = e4_moves_up ? (e3_moves_up ? e3_open : in_is_end_not) : e4_open;
+    assign e5_moves_up_mux = e5_moves_up ? (e4_moves_up ? e4_beat : new_beat) : e5_beat;
+    assign e5_moves_up_mux_1 = e5_moves_up ? (e4_moves_up ? e4_valid : 1'b1) : e5_valid;
+    assign e5_moves_up_mux_2 = e5_moves_up ? (e4_moves_up ? e4_open : in_is_end_not) : e5_open;
+    assign e6_moves_up_mux = e6_moves_up ? (e5_moves_up ? e5_beat : new_beat) : e6_beat;
+    assign e6_moves_up_mux_1 = e6_moves_up ? (e5_moves_up ? e5_valid : 1'b1) : e6_valid;
+    assign e6_moves_up_mux_2 = e6_moves_up ? (e5_moves_up ? e5_open : in_is_end_not) : e6_open;
+    assign e7_moves_up_mux = e7_moves_up ? (e6_moves_up ? e6_beat : new_beat) : e7_beat;
+    assign e7_moves_up_mux_1 = e7_moves_up ? (e6_moves_up ? e6_valid : 1'b1) : e7_valid;
+    assign e7_moves_up_mux_2 = e7_moves_up ? (e6_moves_up ? e6_open : in_is_end_not) : e7_open;
+    assign e8_moves_up_mux = e8_moves_up ? (e7_moves_up ? e7_beat : new_beat) : e8_beat;
+    assign e8_moves_up_mux_1 = e8_moves_up ? (e7_moves_up ? e7_valid : 1'b1) : e8_valid;
+    assign e8_moves_up_mux_2 = e8_moves_up ? (e7_moves_up ? e7_open : in_is_end_not) : e8_open;
+    assign e9_moves_up_mux = e9_moves_up ? (e8_moves_up ? e8_beat : new_beat) : e9_beat;
+    assign e9_moves_up_mux_1 = e9_moves_up ? (e8_moves_up ? e8_valid : 1'b1) : e9_valid;
+    assign e9_moves_up_mux_2 = e9_moves_up ? (e8_moves_up ? e8_open : in_is_end_not) : e9_open;
+    assign e10_moves_up_mux = e10_moves_up ? (e9_moves_up ? e9_beat : new_beat) : e10_beat;
+    assign e10_moves_up_mux_1 = e10_moves_up ? (e9_moves_up ? e9_valid : 1'b1) : e10_valid;
+    assign e10_moves_up_mux_2 = e10_moves_up ? (e9_moves_up ? e9_open : in_is_end_not) : e10_open;
+    assign e11_moves_up_mux = e11_moves_up ? (e10_moves_up ? e10_beat : new_beat) : e11_beat;
+    assign e11_moves_up_mux_1 = e11_moves_up ? (e10_moves_up ? e10_valid : 1'b1) : e11_valid;
+    assign e11_moves_up_mux_2 = e11_moves_up ? (e10_moves_up ? e10_open : in_is_end_not) : e11_open;
+    assign e12_moves_up_mux = e12_moves_up ? (e11_moves_up ? e11_beat : new_beat) : e12_beat;
+    assign e12_moves_up_mux_1 = e12_moves_up ? (e11_moves_up ? e11_valid : 1'b1) : e12_valid;
+    assign e12_moves_up_mux_2 = e12_moves_up ? (e11_moves_up ? e11_open : in_is_end_not) : e12_open;
+    assign e13_moves_up_mux = e13_moves_up ? (e12_moves_up ? e12_beat : new_beat) : e13_beat;
+    assign e13_moves_up_mux_1 = e13_moves_up ? (e12_moves_up ? e12_valid : 1'b1) : e13_valid;
+    assign e13_moves_up_mux_2 = e13_moves_up ? (e12_moves_up ? e12_open : in_is_end_not) : e13_open;
+    assign e14_moves_up_mux = e14_moves_up ? (e13_moves_up ? e13_beat : new_beat) : e14_beat;
+    assign e14_moves_up_mux_1 = e14_moves_up ? (e13_moves_up ? e13_valid : 1'b1) : e14_valid;
+    assign e14_moves_up_mux_2 = e14_moves_up ? (e13_moves_up ? e13_open : in_is_end_not) : e14_open;
+    assign e15_moves_up_mux = e15_moves_up ? (e14_moves_up ? e14_beat : new_beat) : e15_beat;
+    assign e15_moves_up_mux_1 = e15_moves_up ? (e14_moves_up ? e14_valid : 1'b1) : e15_valid;
+    assign e15_moves_up_mux_2 = e15_moves_up ? (e14_moves_up ? e14_open : in_is_end_not) : e15_open;
+    assign e16_moves_up_mux = e16_moves_up ? (e15_moves_up ? e15_beat : new_beat) : e16_beat;
+    assign e16_moves_up_mux_1 = e16_moves_up ? (e15_moves_up ? e15_valid : 1'b1) : e16_valid;
+    assign e16_moves_up_mux_2 = e16_moves_up ? (e15_moves_up ? e15_open : in_is_end_not) : e16_open;
     assign close_not = ~close;
-    assign e0_open_next = close_not & pop_mux;
-    assign e1_beat_next = pop ? e2_moves_up_mux : e1_moves_up_mux;
-    assign e1_valid_next = pop ? e2_moves_up_mux_1 : e1_moves_up_mux_1;
-    assign pop_mux_1 = pop ? e2_moves_up_mux_2 : e1_moves_up_mux_2;
-    assign close_not_1 = ~close;
-    assign e1_open_next = close_not_1 & pop_mux_1;
-    assign e2_beat_next = pop ? e3_moves_up_mux : e2_moves_up_mux;
-    assign e2_valid_next = pop ? e3_moves_up_mux_1 : e2_moves_up_mux_1;
-    assign pop_mux_2 = pop ? e3_moves_up_mux_2 : e2_moves_up_mux_2;
-    assign close_not_2 = ~close;
-    assign e2_open_next = close_not_2 & pop_mux_2;
-    assign e3_beat_next = pop ? e4_moves_up_mux : e3_moves_up_mux;
-    assign e3_valid_next = pop ? e4_moves_up_mux_1 : e3_moves_up_mux_1;
-    assign pop_mux_3 = pop ? e4_moves_up_mux_2 : e3_moves_up_mux_2;
-    assign close_not_3 = ~close;
-    assign e3_open_next = close_not_3 & pop_mux_3;
-    assign e4_beat_next = pop ? e5_moves_up_mux : e4_moves_up_mux;
-    assign e4_valid_next = pop ? e5_moves_up_mux_1 : e4_moves_up_mux_1;
-    assign pop_mux_4 = pop ? e5_moves_up_mux_2 : e4_moves_up_mux_2;
-    assign close_not_4 = ~close;
-    assign e4_open_next = close_not_4 & pop_mux_4;
-    assign e5_beat_next = pop ? e6_moves_up_mux : e5_moves_up_mux;
-    assign e5_valid_next = pop ? e6_moves_up_mux_1 : e5_moves_up_mux_1;
-    assign pop_mux_5 = pop ? e6_moves_up_mux_2 : e5_moves_up_mux_2;
-    assign close_not_5 = ~close;
-    assign e5_open_next = close_not_5 & pop_mux_5;
-    assign e6_beat_next = pop ? e7_moves_up_mux : e6_moves_up_mux;
-    assign e6_valid_next = pop ? e7_moves_up_mux_1 : e6_moves_up_mux_1;
-    assign pop_mux_6 = pop ? e7_moves_up_mux_2 : e6_moves_up_mux_2;
-    assign close_not_6 = ~close;
-    assign e6_open_next = close_not_6 & pop_mux_6;
-    assign e7_beat_next = pop ? e8_moves_up_mux : e7_moves_up_mux;
-    assign e7_valid_next = pop ? e8_moves_up_mux_1 : e7_moves_up_mux_1;
-    assign pop_mux_7 = pop ? e8_moves_up_mux_2 : e7_moves_up_mux_2;
-    assign close_not_7 = ~close;
-    assign e7_open_next = close_not_7 & pop_mux_7;
-    assign e8_beat_next = pop ? e9_moves_up_mux : e8_moves_up_mux;
-    assign e8_valid_next = pop ? e9_moves_up_mux_1 : e8_moves_up_mux_1;
-    assign pop_mux_8 = pop ? e9_moves_up_mux_2 : e8_moves_up_mux_2;
-    assign close_not_8 = ~close;
-    assign e8_open_next = close_not_8 & pop_mux_8;
-    assign e9_beat_next = pop ? e10_moves_up_mux : e9_moves_up_mux;
-    assign e9_valid_next = pop ? e10_moves_up_mux_1 : e9_moves_up_mux_1;
-    assign pop_mux_9 = pop ? e10_moves_up_mux_2 : e9_moves_up_mux_2;
-    assign close_not_9 = ~close;
-    assign e9_open_next = close_not_9 & pop_mux_9;
-    assign e10_beat_next = pop ? e11_moves_up_mux : e10_moves_up_mux;
-    assign e10_valid_next = pop ? e11_moves_up_mux_1 : e10_moves_up_mux_1;
-    assign pop_mux_10 = pop ? e11_moves_up_mux_2 : e10_moves_up_mux_2;
-    assign close_not_10 = ~close;
-    assign e10_open_next = close_not_10 & pop_mux_10;
-    assign e11_beat_next = pop ? e12_moves_up_mux : e11_moves_up_mux;
-    assign e11_valid_next = pop ? e12_moves_up_mux_1 : e11_moves_up_mux_1;
-    assign pop_mux_11 = pop ? e12_moves_up_mux_2 : e11_moves_up_mux_2;
-    assign close_not_11 = ~close;
-    assign e11_open_next = close_not_11 & pop_mux_11;
-    assign e12_beat_next = pop ? e13_moves_up_mux : e12_moves_up_mux;
-    assign e12_valid_next = pop ? e13_moves_up_mux_1 : e12_moves_up_mux_1;
-    assign pop_mux_12 = pop ? e13_moves_up_mux_2 : e12_moves_up_mux_2;
-    assign close_not_12 = ~close;
-    assign e12_open_next = close_not_12 & pop_mux_12;
-    assign e13_beat_next = pop ? e14_moves_up_mux : e13_moves_up_mux;
-    assign e13_valid_next = pop ? e14_moves_up_mux_1 : e13_moves_up_mux_1;
-    assign pop_mux_13 = pop ? e14_moves_up_mux_2 : e13_moves_up_mux_2;
-    assign close_not_13 = ~close;
-    assign e13_open_next = close_not_13 & pop_mux_13;
-    assign e14_beat_next = pop ? e15_moves_up_mux : e14_moves_up_mux;
-    assign e14_valid_next = pop ? e15_moves_up_mux_1 : e14_moves_up_mux_1;
-    assign pop_mux_14 = pop ? e15_moves_up_mux_2 : e14_moves_up_mux_2;
-    assign close_not_14 = ~close;
-    assign e14_open_next = close_not_14 & pop_mux_14;
-    assign e15_beat_next = pop ? e16_moves_up_mux : e15_moves_up_mux;
-    assign e15_valid_next = pop ? e16_moves_up_mux_1 : e15_moves_up_mux_1;
-    assign pop_mux_15 = pop ? e16_moves_up_mux_2 : e15_moves_up_mux_2;
-    assign close_not_15 = ~close;
-    assign e15_open_next = close_not_15 & pop_mux_15;
-    assign pop_mux_16 = pop ? insert_mux_2 : e16_moves_up_mux_2;
-    assign close_not_16 = ~close;
-    assign e16_open_next = close_not_16 & pop_mux_16;
-    assign set_taken_add = set_taken + 5'd1;
-    assign set_overflow_or = set_overflow | drop_root;
-    assign set_overflow_next = close ? 1'b0 : set_overflow_or;
     assign out_skid_ready = out_ready;
-    assign out_skid_valid_not = ~out_skid_valid;
-    assign out_skid_ready_or = out_skid_ready | out_skid_valid_not;
-    assign out_skid_spare_valid_not = ~out_skid_spare_valid;
-    assign core_out_valid_and = core_out_valid & out_skid_spare_valid_not;
-    assign out_skid_spare_valid_or = out_skid_spare_valid | core_out_valid;
-    assign out_skid_spare_valid_mux = out_skid_spare_valid ? out_skid_spare_data : core_out_data;
-    assign out_skid_spare_valid_or_1 = out_skid_spare_valid | core_out_valid_and;
-    assign out_skid_spare_valid_next = out_skid_ready_or ? 1'b0 : out_skid_spare_valid_or_1;
-    assign out_skid_ready_not = ~out_skid_ready_or;
-    assign out_skid_ready_and = out_skid_ready_not & core_out_valid_and;
+    assign out_skid_room = ~out_skid_spare_valid;
+    assign out_skid_drain = out_skid_ready | (~out_skid_valid);
+    assign out_skid_take = core_out_valid & out_skid_room;
     assign out_valid = out_skid_valid;
     assign out_data = out_skid_data;
 
@@ -876,12 +398,12 @@ module root_sorter_d16_q8_i24_h4_n16 (
             out_skid_spare_valid <= 1'b0;
             out_skid_spare_data <= 181'h0000000000000000000000000000000000000000000000;
         end else begin
-            if (in_skid_ready_or) begin
-                in_skid_valid <= in_skid_spare_valid_or; // rtl-gen/src/merge/sorter.rs:106
-                in_skid_data <= in_skid_spare_valid_mux; // rtl-gen/src/merge/sorter.rs:106
+            if (in_skid_drain) begin
+                in_skid_valid <= in_skid_spare_valid | in_valid; // rtl-gen/src/merge/sorter.rs:106
+                in_skid_data <= in_skid_spare_valid ? in_skid_spare_data : in_data; // rtl-gen/src/merge/sorter.rs:106
             end
-            in_skid_spare_valid <= in_skid_spare_valid_next;
-            if (in_skid_ready_and) begin
+            in_skid_spare_valid <= in_skid_drain ? 1'b0 : (in_skid_spare_valid | in_skid_take);
+            if ((~in_skid_drain) & in_skid_take) begin
                 in_skid_spare_data <= in_data; // rtl-gen/src/merge/sorter.rs:106
             end
             if (pop) begin
@@ -904,65 +426,65 @@ module root_sorter_d16_q8_i24_h4_n16 (
                 e16_beat <= e16_moves_up_mux; // rtl-gen/src/merge/sorter.rs:67
                 e16_valid <= e16_moves_up_mux_1; // rtl-gen/src/merge/sorter.rs:68
             end
-            e0_open <= e0_open_next;
-            e1_beat <= e1_beat_next;
-            e1_valid <= e1_valid_next;
-            e1_open <= e1_open_next;
-            e2_beat <= e2_beat_next;
-            e2_valid <= e2_valid_next;
-            e2_open <= e2_open_next;
-            e3_beat <= e3_beat_next;
-            e3_valid <= e3_valid_next;
-            e3_open <= e3_open_next;
-            e4_beat <= e4_beat_next;
-            e4_valid <= e4_valid_next;
-            e4_open <= e4_open_next;
-            e5_beat <= e5_beat_next;
-            e5_valid <= e5_valid_next;
-            e5_open <= e5_open_next;
-            e6_beat <= e6_beat_next;
-            e6_valid <= e6_valid_next;
-            e6_open <= e6_open_next;
-            e7_beat <= e7_beat_next;
-            e7_valid <= e7_valid_next;
-            e7_open <= e7_open_next;
-            e8_beat <= e8_beat_next;
-            e8_valid <= e8_valid_next;
-            e8_open <= e8_open_next;
-            e9_beat <= e9_beat_next;
-            e9_valid <= e9_valid_next;
-            e9_open <= e9_open_next;
-            e10_beat <= e10_beat_next;
-            e10_valid <= e10_valid_next;
-            e10_open <= e10_open_next;
-            e11_beat <= e11_beat_next;
-            e11_valid <= e11_valid_next;
-            e11_open <= e11_open_next;
-            e12_beat <= e12_beat_next;
-            e12_valid <= e12_valid_next;
-            e12_open <= e12_open_next;
-            e13_beat <= e13_beat_next;
-            e13_valid <= e13_valid_next;
-            e13_open <= e13_open_next;
-            e14_beat <= e14_beat_next;
-            e14_valid <= e14_valid_next;
-            e14_open <= e14_open_next;
-            e15_beat <= e15_beat_next;
-            e15_valid <= e15_valid_next;
-            e15_open <= e15_open_next;
-            e16_open <= e16_open_next;
+            e0_open <= close_not & (pop ? e1_moves_up_mux_2 : (e0_moves_up ? in_is_end_not : e0_open));
+            e1_beat <= pop ? e2_moves_up_mux : e1_moves_up_mux;
+            e1_valid <= pop ? e2_moves_up_mux_1 : e1_moves_up_mux_1;
+            e1_open <= close_not & (pop ? e2_moves_up_mux_2 : e1_moves_up_mux_2);
+            e2_beat <= pop ? e3_moves_up_mux : e2_moves_up_mux;
+            e2_valid <= pop ? e3_moves_up_mux_1 : e2_moves_up_mux_1;
+            e2_open <= close_not & (pop ? e3_moves_up_mux_2 : e2_moves_up_mux_2);
+            e3_beat <= pop ? e4_moves_up_mux : e3_moves_up_mux;
+            e3_valid <= pop ? e4_moves_up_mux_1 : e3_moves_up_mux_1;
+            e3_open <= close_not & (pop ? e4_moves_up_mux_2 : e3_moves_up_mux_2);
+            e4_beat <= pop ? e5_moves_up_mux : e4_moves_up_mux;
+            e4_valid <= pop ? e5_moves_up_mux_1 : e4_moves_up_mux_1;
+            e4_open <= close_not & (pop ? e5_moves_up_mux_2 : e4_moves_up_mux_2);
+            e5_beat <= pop ? e6_moves_up_mux : e5_moves_up_mux;
+            e5_valid <= pop ? e6_moves_up_mux_1 : e5_moves_up_mux_1;
+            e5_open <= close_not & (pop ? e6_moves_up_mux_2 : e5_moves_up_mux_2);
+            e6_beat <= pop ? e7_moves_up_mux : e6_moves_up_mux;
+            e6_valid <= pop ? e7_moves_up_mux_1 : e6_moves_up_mux_1;
+            e6_open <= close_not & (pop ? e7_moves_up_mux_2 : e6_moves_up_mux_2);
+            e7_beat <= pop ? e8_moves_up_mux : e7_moves_up_mux;
+            e7_valid <= pop ? e8_moves_up_mux_1 : e7_moves_up_mux_1;
+            e7_open <= close_not & (pop ? e8_moves_up_mux_2 : e7_moves_up_mux_2);
+            e8_beat <= pop ? e9_moves_up_mux : e8_moves_up_mux;
+            e8_valid <= pop ? e9_moves_up_mux_1 : e8_moves_up_mux_1;
+            e8_open <= close_not & (pop ? e9_moves_up_mux_2 : e8_moves_up_mux_2);
+            e9_beat <= pop ? e10_moves_up_mux : e9_moves_up_mux;
+            e9_valid <= pop ? e10_moves_up_mux_1 : e9_moves_up_mux_1;
+            e9_open <= close_not & (pop ? e10_moves_up_mux_2 : e9_moves_up_mux_2);
+            e10_beat <= pop ? e11_moves_up_mux : e10_moves_up_mux;
+            e10_valid <= pop ? e11_moves_up_mux_1 : e10_moves_up_mux_1;
+            e10_open <= close_not & (pop ? e11_moves_up_mux_2 : e10_moves_up_mux_2);
+            e11_beat <= pop ? e12_moves_up_mux : e11_moves_up_mux;
+            e11_valid <= pop ? e12_moves_up_mux_1 : e11_moves_up_mux_1;
+            e11_open <= close_not & (pop ? e12_moves_up_mux_2 : e11_moves_up_mux_2);
+            e12_beat <= pop ? e13_moves_up_mux : e12_moves_up_mux;
+            e12_valid <= pop ? e13_moves_up_mux_1 : e12_moves_up_mux_1;
+            e12_open <= close_not & (pop ? e13_moves_up_mux_2 : e12_moves_up_mux_2);
+            e13_beat <= pop ? e14_moves_up_mux : e13_moves_up_mux;
+            e13_valid <= pop ? e14_moves_up_mux_1 : e13_moves_up_mux_1;
+            e13_open <= close_not & (pop ? e14_moves_up_mux_2 : e13_moves_up_mux_2);
+            e14_beat <= pop ? e15_moves_up_mux : e14_moves_up_mux;
+            e14_valid <= pop ? e15_moves_up_mux_1 : e14_moves_up_mux_1;
+            e14_open <= close_not & (pop ? e15_moves_up_mux_2 : e14_moves_up_mux_2);
+            e15_beat <= pop ? e16_moves_up_mux : e15_moves_up_mux;
+            e15_valid <= pop ? e16_moves_up_mux_1 : e15_moves_up_mux_1;
+            e15_open <= close_not & (pop ? e16_moves_up_mux_2 : e15_moves_up_mux_2);
+            e16_open <= close_not & (pop ? (insert ? (e16_moves_up ? e16_open : in_is_end_not) : 1'b0) : e16_moves_up_mux_2);
             if (close) begin
                 set_taken <= 5'd0;           // rtl-gen/src/merge/sorter.rs:173
             end else if (take_root) begin
-                set_taken <= set_taken_add;  // rtl-gen/src/merge/sorter.rs:175
+                set_taken <= set_taken + 5'd1; // rtl-gen/src/merge/sorter.rs:175
             end
-            set_overflow <= set_overflow_next;
-            if (out_skid_ready_or) begin
-                out_skid_valid <= out_skid_spare_valid_or; // rtl-gen/src/merge/sorter.rs:184
-                out_skid_data <= out_skid_spare_valid_mux; // rtl-gen/src/merge/sorter.rs:184
+            set_overflow <= close ? 1'b0 : (set_overflow | drop_root);
+            if (out_skid_drain) begin
+                out_skid_valid <= out_skid_spare_valid | core_out_valid; // rtl-gen/src/merge/sorter.rs:184
+                out_skid_data <= out_skid_spare_valid ? out_skid_spare_data : core_out_data; // rtl-gen/src/merge/sorter.rs:184
             end
-            out_skid_spare_valid <= out_skid_spare_valid_next;
-            if (out_skid_ready_and) begin
+            out_skid_spare_valid <= out_skid_drain ? 1'b0 : (out_skid_spare_valid | out_skid_take);
+            if ((~out_skid_drain) & out_skid_take) begin
                 out_skid_spare_data <= core_out_data; // rtl-gen/src/merge/sorter.rs:184
             end
         end

@@ -27,857 +27,603 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire err_lod;                            // rtl-gen/src/translate/determine.rs:57
     wire [4:0] k;                            // rtl-gen/src/translate/determine.rs:58
     wire det_in_data_eq;                     // rtl-gen/src/translate/float.rs:78
-    wire det_in_data_not;                    // rtl-gen/src/translate/float.rs:79
-    wire [7:0] det_in_data_mux;              // rtl-gen/src/translate/float.rs:81
-    wire [12:0] det_in_data_sub;             // rtl-gen/src/translate/float.rs:85
-    wire [12:0] det_in_data_sub_1;           // rtl-gen/src/translate/float.rs:86
+    wire [12:0] det_in_data_sub;             // rtl-gen/src/translate/float.rs:86
     wire det_in_data_all;                    // rtl-gen/src/translate/float.rs:90
     wire det_in_data_any;                    // rtl-gen/src/translate/float.rs:91
     wire [23:0] x_m;                         // rtl-gen/src/translate/float.rs:92
-    wire det_in_data_lt;                     // rtl-gen/src/translate/float.rs:129
-    wire det_in_data_gt;                     // rtl-gen/src/translate/float.rs:132
-    wire [5:0] det_in_data_mux_1;            // rtl-gen/src/translate/float.rs:133
     wire [5:0] x_a;                          // rtl-gen/src/translate/float.rs:129
-    wire det_in_data_and;                    // rtl-gen/src/translate/float.rs:138
-    wire det_in_data_not_1;                  // rtl-gen/src/translate/float.rs:139
-    wire det_in_data_and_1;                  // rtl-gen/src/translate/float.rs:139
     wire det_in_data_eq_1;                   // rtl-gen/src/translate/float.rs:78
-    wire det_in_data_not_2;                  // rtl-gen/src/translate/float.rs:79
-    wire [7:0] det_in_data_mux_2;            // rtl-gen/src/translate/float.rs:81
-    wire [12:0] det_in_data_sub_2;           // rtl-gen/src/translate/float.rs:85
-    wire [12:0] det_in_data_sub_3;           // rtl-gen/src/translate/float.rs:86
+    wire [12:0] det_in_data_sub_1;           // rtl-gen/src/translate/float.rs:86
     wire det_in_data_all_1;                  // rtl-gen/src/translate/float.rs:90
     wire det_in_data_any_1;                  // rtl-gen/src/translate/float.rs:91
     wire [23:0] y_m;                         // rtl-gen/src/translate/float.rs:92
-    wire det_in_data_lt_1;                   // rtl-gen/src/translate/float.rs:129
-    wire det_in_data_gt_1;                   // rtl-gen/src/translate/float.rs:132
-    wire [5:0] det_in_data_mux_3;            // rtl-gen/src/translate/float.rs:133
     wire [5:0] y_a;                          // rtl-gen/src/translate/float.rs:129
-    wire det_in_data_and_2;                  // rtl-gen/src/translate/float.rs:138
-    wire det_in_data_not_3;                  // rtl-gen/src/translate/float.rs:139
-    wire det_in_data_and_3;                  // rtl-gen/src/translate/float.rs:139
     wire det_in_data_eq_2;                   // rtl-gen/src/translate/float.rs:78
-    wire det_in_data_not_4;                  // rtl-gen/src/translate/float.rs:79
-    wire [7:0] det_in_data_mux_4;            // rtl-gen/src/translate/float.rs:81
-    wire [12:0] det_in_data_sub_4;           // rtl-gen/src/translate/float.rs:85
-    wire [12:0] det_in_data_sub_5;           // rtl-gen/src/translate/float.rs:86
+    wire [12:0] det_in_data_sub_2;           // rtl-gen/src/translate/float.rs:86
     wire det_in_data_all_2;                  // rtl-gen/src/translate/float.rs:90
     wire det_in_data_any_2;                  // rtl-gen/src/translate/float.rs:91
     wire [23:0] z_m;                         // rtl-gen/src/translate/float.rs:92
-    wire det_in_data_lt_2;                   // rtl-gen/src/translate/float.rs:129
-    wire det_in_data_gt_2;                   // rtl-gen/src/translate/float.rs:132
-    wire [5:0] det_in_data_mux_5;            // rtl-gen/src/translate/float.rs:133
     wire [5:0] z_a;                          // rtl-gen/src/translate/float.rs:129
-    wire det_in_data_and_4;                  // rtl-gen/src/translate/float.rs:138
-    wire det_in_data_not_5;                  // rtl-gen/src/translate/float.rs:139
-    wire det_in_data_and_5;                  // rtl-gen/src/translate/float.rs:139
-    wire det_in_data_gt_3;                   // rtl-gen/src/translate/determine.rs:75
-    wire [15:0] det_in_data_shr;             // rtl-gen/src/translate/determine.rs:75
-    wire det_in_data_ne;                     // rtl-gen/src/translate/determine.rs:75
-    wire det_in_data_or;                     // rtl-gen/src/translate/determine.rs:75
     wire [17:0] const_shl;                   // rtl-gen/src/translate/determine.rs:81
-    wire [17:0] det_in_data_sub_6;           // rtl-gen/src/translate/determine.rs:82
-    wire [17:0] const_sub;                   // rtl-gen/src/translate/determine.rs:83
-    wire det_in_data_gt_4;                   // rtl-gen/src/translate/determine.rs:75
-    wire [15:0] det_in_data_shr_1;           // rtl-gen/src/translate/determine.rs:75
-    wire det_in_data_ne_1;                   // rtl-gen/src/translate/determine.rs:75
-    wire det_in_data_or_1;                   // rtl-gen/src/translate/determine.rs:75
-    wire [17:0] const_shl_1;                 // rtl-gen/src/translate/determine.rs:81
-    wire [17:0] det_in_data_sub_7;           // rtl-gen/src/translate/determine.rs:82
-    wire [17:0] const_sub_1;                 // rtl-gen/src/translate/determine.rs:83
-    wire det_in_data_gt_5;                   // rtl-gen/src/translate/determine.rs:75
-    wire [15:0] det_in_data_shr_2;           // rtl-gen/src/translate/determine.rs:75
-    wire det_in_data_ne_2;                   // rtl-gen/src/translate/determine.rs:75
-    wire det_in_data_or_2;                   // rtl-gen/src/translate/determine.rs:75
-    wire [17:0] const_shl_2;                 // rtl-gen/src/translate/determine.rs:81
-    wire [17:0] det_in_data_sub_8;           // rtl-gen/src/translate/determine.rs:82
-    wire [17:0] const_sub_2;                 // rtl-gen/src/translate/determine.rs:83
-    wire det_in_data_or_3;                   // rtl-gen/src/translate/determine.rs:85
-    wire det_in_data_or_4;                   // rtl-gen/src/translate/determine.rs:85
+    wire det_in_data_or;                     // rtl-gen/src/translate/determine.rs:85
     wire [323:0] k_cat;                      // rtl-gen/src/translate/bundle.rs:50
     reg det_s1_valid;                        // rtl-gen/src/translate/bundle.rs:88
     reg [323:0] det_s1_data;                 // rtl-gen/src/translate/bundle.rs:88
     wire det_s1_ready;                       // rtl-gen/src/translate/bundle.rs:88
-    wire det_s1_valid_not;                   // rtl-gen/src/translate/bundle.rs:88
-    wire det_s1_valid_or;                    // rtl-gen/src/translate/bundle.rs:88
-    wire det_s1_valid_and;                   // rtl-gen/src/translate/bundle.rs:88
+    wire det_s1_take;                        // rtl-gen/src/translate/bundle.rs:88
+    wire det_s1_data_x_s;                    // rtl-gen/src/translate/bundle.rs:63
+    wire [23:0] det_s1_data_x_m;             // rtl-gen/src/translate/bundle.rs:63
+    wire [5:0] det_s1_data_x_a;              // rtl-gen/src/translate/bundle.rs:63
+    wire det_s1_data_x_nan;                  // rtl-gen/src/translate/bundle.rs:63
+    wire det_s1_data_x_inf;                  // rtl-gen/src/translate/bundle.rs:63
+    wire [31:0] det_s1_data_x_enc;           // rtl-gen/src/translate/bundle.rs:63
+    wire det_s1_data_y_s;                    // rtl-gen/src/translate/bundle.rs:63
+    wire [23:0] det_s1_data_y_m;             // rtl-gen/src/translate/bundle.rs:63
+    wire [5:0] det_s1_data_y_a;              // rtl-gen/src/translate/bundle.rs:63
+    wire det_s1_data_y_nan;                  // rtl-gen/src/translate/bundle.rs:63
+    wire det_s1_data_y_inf;                  // rtl-gen/src/translate/bundle.rs:63
+    wire [31:0] det_s1_data_y_enc;           // rtl-gen/src/translate/bundle.rs:63
+    wire det_s1_data_z_s;                    // rtl-gen/src/translate/bundle.rs:63
+    wire [23:0] det_s1_data_z_m;             // rtl-gen/src/translate/bundle.rs:63
+    wire [5:0] det_s1_data_z_a;              // rtl-gen/src/translate/bundle.rs:63
+    wire det_s1_data_z_nan;                  // rtl-gen/src/translate/bundle.rs:63
+    wire det_s1_data_z_inf;                  // rtl-gen/src/translate/bundle.rs:63
+    wire [31:0] det_s1_data_z_enc;           // rtl-gen/src/translate/bundle.rs:63
+    wire [17:0] det_s1_data_t_min_x;         // rtl-gen/src/translate/bundle.rs:63
+    wire [17:0] det_s1_data_t_max_x;         // rtl-gen/src/translate/bundle.rs:63
+    wire [17:0] det_s1_data_t_min_y;         // rtl-gen/src/translate/bundle.rs:63
+    wire [17:0] det_s1_data_t_max_y;         // rtl-gen/src/translate/bundle.rs:63
+    wire [17:0] det_s1_data_t_min_z;         // rtl-gen/src/translate/bundle.rs:63
+    wire [17:0] det_s1_data_t_max_z;         // rtl-gen/src/translate/bundle.rs:63
+    wire det_s1_data_err_extents;            // rtl-gen/src/translate/bundle.rs:63
+    wire det_s1_data_err_lod;                // rtl-gen/src/translate/bundle.rs:63
+    wire [4:0] det_s1_data_lod;              // rtl-gen/src/translate/bundle.rs:63
+    wire det_s1_data_write_enable;           // rtl-gen/src/translate/bundle.rs:63
+    wire [3:0] det_s1_data_write_id;         // rtl-gen/src/translate/bundle.rs:63
+    wire [3:0] det_s1_data_read_id;          // rtl-gen/src/translate/bundle.rs:63
+    wire [4:0] det_s1_data_k;                // rtl-gen/src/translate/bundle.rs:63
     wire [64:0] x_aligned;                   // rtl-gen/src/translate/float.rs:150
-    wire det_s1_data_ne;                     // rtl-gen/src/translate/float.rs:153
     wire [64:0] y_aligned;                   // rtl-gen/src/translate/float.rs:150
-    wire det_s1_data_ne_1;                   // rtl-gen/src/translate/float.rs:153
     wire [64:0] z_aligned;                   // rtl-gen/src/translate/float.rs:150
-    wire det_s1_data_ne_2;                   // rtl-gen/src/translate/float.rs:153
-    wire [431:0] det_s1_data_cat;            // rtl-gen/src/translate/bundle.rs:50
+    wire [431:0] det_s1_data_k_cat;          // rtl-gen/src/translate/bundle.rs:50
     reg det_align_valid;                     // rtl-gen/src/translate/bundle.rs:88
     reg [431:0] det_align_data;              // rtl-gen/src/translate/bundle.rs:88
     wire det_align_ready;                    // rtl-gen/src/translate/bundle.rs:88
-    wire det_align_valid_not;                // rtl-gen/src/translate/bundle.rs:88
-    wire det_align_valid_or;                 // rtl-gen/src/translate/bundle.rs:88
-    wire det_align_valid_and;                // rtl-gen/src/translate/bundle.rs:88
-    wire det_align_data_any;                 // rtl-gen/src/translate/float.rs:174
-    wire det_align_data_or;                  // rtl-gen/src/translate/float.rs:175
+    wire det_align_take;                     // rtl-gen/src/translate/bundle.rs:88
+    wire det_align_data_x_m_nz;              // rtl-gen/src/translate/bundle.rs:63
+    wire det_align_data_x_s;                 // rtl-gen/src/translate/bundle.rs:63
+    wire [31:0] det_align_data_x_enc;        // rtl-gen/src/translate/bundle.rs:63
+    wire det_align_data_x_nan;               // rtl-gen/src/translate/bundle.rs:63
+    wire det_align_data_x_inf;               // rtl-gen/src/translate/bundle.rs:63
+    wire det_align_data_y_m_nz;              // rtl-gen/src/translate/bundle.rs:63
+    wire det_align_data_y_s;                 // rtl-gen/src/translate/bundle.rs:63
+    wire [31:0] det_align_data_y_enc;        // rtl-gen/src/translate/bundle.rs:63
+    wire det_align_data_y_nan;               // rtl-gen/src/translate/bundle.rs:63
+    wire det_align_data_y_inf;               // rtl-gen/src/translate/bundle.rs:63
+    wire det_align_data_z_m_nz;              // rtl-gen/src/translate/bundle.rs:63
+    wire det_align_data_z_s;                 // rtl-gen/src/translate/bundle.rs:63
+    wire [31:0] det_align_data_z_enc;        // rtl-gen/src/translate/bundle.rs:63
+    wire det_align_data_z_nan;               // rtl-gen/src/translate/bundle.rs:63
+    wire det_align_data_z_inf;               // rtl-gen/src/translate/bundle.rs:63
+    wire [17:0] det_align_data_t_min_x;      // rtl-gen/src/translate/bundle.rs:63
+    wire [17:0] det_align_data_t_max_x;      // rtl-gen/src/translate/bundle.rs:63
+    wire [17:0] det_align_data_t_min_y;      // rtl-gen/src/translate/bundle.rs:63
+    wire [17:0] det_align_data_t_max_y;      // rtl-gen/src/translate/bundle.rs:63
+    wire [17:0] det_align_data_t_min_z;      // rtl-gen/src/translate/bundle.rs:63
+    wire [17:0] det_align_data_t_max_z;      // rtl-gen/src/translate/bundle.rs:63
+    wire det_align_data_err_extents;         // rtl-gen/src/translate/bundle.rs:63
+    wire det_align_data_err_lod;             // rtl-gen/src/translate/bundle.rs:63
+    wire [4:0] det_align_data_lod;           // rtl-gen/src/translate/bundle.rs:63
+    wire det_align_data_write_enable;        // rtl-gen/src/translate/bundle.rs:63
+    wire [3:0] det_align_data_write_id;      // rtl-gen/src/translate/bundle.rs:63
+    wire [3:0] det_align_data_read_id;       // rtl-gen/src/translate/bundle.rs:63
+    wire [4:0] det_align_data_k;             // rtl-gen/src/translate/bundle.rs:63
     wire x_inc;                              // rtl-gen/src/translate/float.rs:175
     wire [40:0] x_mag;                       // rtl-gen/src/translate/float.rs:176
-    wire x_mag_any;                          // rtl-gen/src/translate/float.rs:177
-    wire [16:0] x_mag_sub;                   // rtl-gen/src/translate/float.rs:179
     wire [16:0] x_t;                         // rtl-gen/src/translate/float.rs:179
-    wire [24:0] det_align_data_sub;          // rtl-gen/src/translate/float.rs:181
     wire [24:0] x_r;                         // rtl-gen/src/translate/float.rs:181
-    wire det_align_data_xor;                 // rtl-gen/src/translate/float.rs:186
-    wire x_mag_eq;                           // rtl-gen/src/translate/float.rs:187
-    wire det_align_data_any_1;               // rtl-gen/src/translate/float.rs:174
-    wire det_align_data_or_1;                // rtl-gen/src/translate/float.rs:175
     wire y_inc;                              // rtl-gen/src/translate/float.rs:175
     wire [40:0] y_mag;                       // rtl-gen/src/translate/float.rs:176
-    wire y_mag_any;                          // rtl-gen/src/translate/float.rs:177
-    wire [16:0] y_mag_sub;                   // rtl-gen/src/translate/float.rs:179
     wire [16:0] y_t;                         // rtl-gen/src/translate/float.rs:179
-    wire [24:0] det_align_data_sub_1;        // rtl-gen/src/translate/float.rs:181
     wire [24:0] y_r;                         // rtl-gen/src/translate/float.rs:181
-    wire det_align_data_xor_1;               // rtl-gen/src/translate/float.rs:186
-    wire y_mag_eq;                           // rtl-gen/src/translate/float.rs:187
-    wire det_align_data_any_2;               // rtl-gen/src/translate/float.rs:174
-    wire det_align_data_or_2;                // rtl-gen/src/translate/float.rs:175
     wire z_inc;                              // rtl-gen/src/translate/float.rs:175
     wire [40:0] z_mag;                       // rtl-gen/src/translate/float.rs:176
-    wire z_mag_any;                          // rtl-gen/src/translate/float.rs:177
-    wire [16:0] z_mag_sub;                   // rtl-gen/src/translate/float.rs:179
     wire [16:0] z_t;                         // rtl-gen/src/translate/float.rs:179
-    wire [24:0] det_align_data_sub_2;        // rtl-gen/src/translate/float.rs:181
     wire [24:0] z_r;                         // rtl-gen/src/translate/float.rs:181
-    wire det_align_data_xor_2;               // rtl-gen/src/translate/float.rs:186
-    wire z_mag_eq;                           // rtl-gen/src/translate/float.rs:187
-    wire [368:0] det_align_data_cat;         // rtl-gen/src/translate/bundle.rs:50
+    wire [368:0] det_align_data_err_lod_cat; // rtl-gen/src/translate/bundle.rs:50
     reg det_s2_valid;                        // rtl-gen/src/translate/bundle.rs:88
     reg [368:0] det_s2_data;                 // rtl-gen/src/translate/bundle.rs:88
     wire det_s2_ready;                       // rtl-gen/src/translate/bundle.rs:88
-    wire det_s2_valid_not;                   // rtl-gen/src/translate/bundle.rs:88
-    wire det_s2_valid_or;                    // rtl-gen/src/translate/bundle.rs:88
-    wire det_s2_valid_and;                   // rtl-gen/src/translate/bundle.rs:88
-    wire det_s2_data_not;                    // rtl-gen/src/translate/determine.rs:146
-    wire det_s2_data_eq;                     // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_shl;             // rtl-gen/src/translate/float.rs:206
-    wire [24:0] det_s2_data_mux;             // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_eq_1;                   // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_shl_1;           // rtl-gen/src/translate/float.rs:206
-    wire [24:0] det_s2_data_mux_1;           // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_eq_2;                   // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_shl_2;           // rtl-gen/src/translate/float.rs:206
-    wire [24:0] det_s2_data_mux_2;           // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_eq_3;                   // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_shl_3;           // rtl-gen/src/translate/float.rs:206
-    wire [24:0] det_s2_data_mux_3;           // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_eq_4;                   // rtl-gen/src/translate/float.rs:210
-    wire [23:0] det_s2_data_mux_4;           // rtl-gen/src/translate/float.rs:212
-    wire [4:0] det_s2_data_cat;              // rtl-gen/src/translate/float.rs:214
-    wire [7:0] det_s2_data_add;              // rtl-gen/src/translate/float.rs:245
-    wire [7:0] det_s2_data_sub;              // rtl-gen/src/translate/float.rs:246
-    wire [8:0] det_s2_data_cat_1;            // rtl-gen/src/translate/float.rs:249
-    wire [31:0] det_s2_data_cat_2;           // rtl-gen/src/translate/float.rs:249
-    wire [31:0] det_s2_data_mux_5;           // rtl-gen/src/translate/float.rs:261
-    wire [31:0] det_s2_data_mux_6;           // rtl-gen/src/translate/float.rs:261
+    wire det_s2_take;                        // rtl-gen/src/translate/bundle.rs:88
+    wire [16:0] det_s2_data_x_t;             // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_x_too_large;            // rtl-gen/src/translate/bundle.rs:63
+    wire [24:0] det_s2_data_x_r;             // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_x_r_sign;               // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_x_t_zero;               // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_x_m_nz;                 // rtl-gen/src/translate/bundle.rs:63
+    wire [31:0] det_s2_data_x_enc;           // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_x_nan;                  // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_x_inf;                  // rtl-gen/src/translate/bundle.rs:63
+    wire [16:0] det_s2_data_y_t;             // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_y_too_large;            // rtl-gen/src/translate/bundle.rs:63
+    wire [24:0] det_s2_data_y_r;             // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_y_r_sign;               // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_y_t_zero;               // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_y_m_nz;                 // rtl-gen/src/translate/bundle.rs:63
+    wire [31:0] det_s2_data_y_enc;           // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_y_nan;                  // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_y_inf;                  // rtl-gen/src/translate/bundle.rs:63
+    wire [16:0] det_s2_data_z_t;             // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_z_too_large;            // rtl-gen/src/translate/bundle.rs:63
+    wire [24:0] det_s2_data_z_r;             // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_z_r_sign;               // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_z_t_zero;               // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_z_m_nz;                 // rtl-gen/src/translate/bundle.rs:63
+    wire [31:0] det_s2_data_z_enc;           // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_z_nan;                  // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_z_inf;                  // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_err_extents;            // rtl-gen/src/translate/bundle.rs:63
+    wire [4:0] det_s2_data_lod;              // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_write_enable;           // rtl-gen/src/translate/bundle.rs:63
+    wire [3:0] det_s2_data_write_id;         // rtl-gen/src/translate/bundle.rs:63
+    wire [3:0] det_s2_data_read_id;          // rtl-gen/src/translate/bundle.rs:63
+    wire [4:0] det_s2_data_k;                // rtl-gen/src/translate/bundle.rs:63
+    wire [17:0] det_s2_data_t_min_x;         // rtl-gen/src/translate/bundle.rs:63
+    wire [17:0] det_s2_data_t_min_y;         // rtl-gen/src/translate/bundle.rs:63
+    wire [17:0] det_s2_data_t_min_z;         // rtl-gen/src/translate/bundle.rs:63
+    wire [17:0] det_s2_data_t_max_x;         // rtl-gen/src/translate/bundle.rs:63
+    wire [17:0] det_s2_data_t_max_y;         // rtl-gen/src/translate/bundle.rs:63
+    wire [17:0] det_s2_data_t_max_z;         // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_err_lod;                // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_err_lod_not;            // rtl-gen/src/translate/determine.rs:146
+    wire det_s2_data_x_r_eq;                 // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_x_r_mux;         // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_x_r_eq_1;               // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_x_r_mux_1;       // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_x_r_eq_2;               // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_x_r_mux_2;       // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_x_r_eq_3;               // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_x_r_mux_3;       // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_x_r_eq_4;               // rtl-gen/src/translate/float.rs:210
+    wire [23:0] det_s2_data_x_r_mux_4;       // rtl-gen/src/translate/float.rs:212
+    wire [7:0] det_s2_data_k_add;            // rtl-gen/src/translate/float.rs:245
     wire [31:0] x_residual;                  // rtl-gen/src/translate/float.rs:261
-    wire det_s2_data_or;                     // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_not_1;                  // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_and;                    // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_lt;                     // rtl-gen/src/translate/determine.rs:157
-    wire det_s2_data_ge;                     // rtl-gen/src/translate/determine.rs:158
-    wire det_s2_data_or_1;                   // rtl-gen/src/translate/determine.rs:161
-    wire det_s2_data_or_2;                   // rtl-gen/src/translate/determine.rs:161
-    wire det_s2_data_not_2;                  // rtl-gen/src/translate/determine.rs:163
-    wire det_s2_data_not_3;                  // rtl-gen/src/translate/determine.rs:163
-    wire det_s2_data_and_1;                  // rtl-gen/src/translate/determine.rs:163
-    wire det_s2_data_or_3;                   // rtl-gen/src/translate/determine.rs:163
-    wire det_s2_data_and_2;                  // rtl-gen/src/translate/determine.rs:163
-    wire det_s2_data_and_3;                  // rtl-gen/src/translate/determine.rs:148
-    wire det_s2_data_and_4;                  // rtl-gen/src/translate/determine.rs:148
-    wire det_s2_data_and_5;                  // rtl-gen/src/translate/determine.rs:148
-    wire det_s2_data_and_6;                  // rtl-gen/src/translate/determine.rs:148
-    wire det_s2_data_eq_5;                   // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_shl_4;           // rtl-gen/src/translate/float.rs:206
-    wire [24:0] det_s2_data_mux_7;           // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_eq_6;                   // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_shl_5;           // rtl-gen/src/translate/float.rs:206
-    wire [24:0] det_s2_data_mux_8;           // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_eq_7;                   // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_shl_6;           // rtl-gen/src/translate/float.rs:206
-    wire [24:0] det_s2_data_mux_9;           // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_eq_8;                   // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_shl_7;           // rtl-gen/src/translate/float.rs:206
-    wire [24:0] det_s2_data_mux_10;          // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_eq_9;                   // rtl-gen/src/translate/float.rs:210
-    wire [23:0] det_s2_data_mux_11;          // rtl-gen/src/translate/float.rs:212
-    wire [4:0] det_s2_data_cat_3;            // rtl-gen/src/translate/float.rs:214
-    wire [7:0] det_s2_data_add_1;            // rtl-gen/src/translate/float.rs:245
-    wire [7:0] det_s2_data_sub_1;            // rtl-gen/src/translate/float.rs:246
-    wire [8:0] det_s2_data_cat_4;            // rtl-gen/src/translate/float.rs:249
-    wire [31:0] det_s2_data_cat_5;           // rtl-gen/src/translate/float.rs:249
-    wire [31:0] det_s2_data_mux_12;          // rtl-gen/src/translate/float.rs:261
-    wire [31:0] det_s2_data_mux_13;          // rtl-gen/src/translate/float.rs:261
+    wire det_s2_data_x_nan_or;               // rtl-gen/src/translate/float.rs:263
+    wire det_s2_data_x_nan_and;              // rtl-gen/src/translate/float.rs:263
+    wire det_s2_data_err_extents_not;        // rtl-gen/src/translate/determine.rs:163
+    wire det_s2_data_err_extents_and;        // rtl-gen/src/translate/determine.rs:163
+    wire det_s2_data_y_r_eq;                 // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_y_r_mux;         // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_y_r_eq_1;               // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_y_r_mux_1;       // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_y_r_eq_2;               // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_y_r_mux_2;       // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_y_r_eq_3;               // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_y_r_mux_3;       // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_y_r_eq_4;               // rtl-gen/src/translate/float.rs:210
+    wire [23:0] det_s2_data_y_r_mux_4;       // rtl-gen/src/translate/float.rs:212
     wire [31:0] y_residual;                  // rtl-gen/src/translate/float.rs:261
-    wire det_s2_data_or_4;                   // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_not_4;                  // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_and_7;                  // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_lt_1;                   // rtl-gen/src/translate/determine.rs:157
-    wire det_s2_data_ge_1;                   // rtl-gen/src/translate/determine.rs:158
-    wire det_s2_data_or_5;                   // rtl-gen/src/translate/determine.rs:161
-    wire det_s2_data_or_6;                   // rtl-gen/src/translate/determine.rs:161
-    wire det_s2_data_not_5;                  // rtl-gen/src/translate/determine.rs:163
-    wire det_s2_data_not_6;                  // rtl-gen/src/translate/determine.rs:163
-    wire det_s2_data_and_8;                  // rtl-gen/src/translate/determine.rs:163
-    wire det_s2_data_or_7;                   // rtl-gen/src/translate/determine.rs:163
-    wire det_s2_data_and_9;                  // rtl-gen/src/translate/determine.rs:163
-    wire det_s2_data_and_10;                 // rtl-gen/src/translate/determine.rs:148
-    wire det_s2_data_and_11;                 // rtl-gen/src/translate/determine.rs:148
-    wire det_s2_data_and_12;                 // rtl-gen/src/translate/determine.rs:148
-    wire det_s2_data_and_13;                 // rtl-gen/src/translate/determine.rs:148
-    wire det_s2_data_eq_10;                  // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_shl_8;           // rtl-gen/src/translate/float.rs:206
-    wire [24:0] det_s2_data_mux_14;          // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_eq_11;                  // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_shl_9;           // rtl-gen/src/translate/float.rs:206
-    wire [24:0] det_s2_data_mux_15;          // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_eq_12;                  // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_shl_10;          // rtl-gen/src/translate/float.rs:206
-    wire [24:0] det_s2_data_mux_16;          // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_eq_13;                  // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_shl_11;          // rtl-gen/src/translate/float.rs:206
-    wire [24:0] det_s2_data_mux_17;          // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_eq_14;                  // rtl-gen/src/translate/float.rs:210
-    wire [23:0] det_s2_data_mux_18;          // rtl-gen/src/translate/float.rs:212
-    wire [4:0] det_s2_data_cat_6;            // rtl-gen/src/translate/float.rs:214
-    wire [7:0] det_s2_data_add_2;            // rtl-gen/src/translate/float.rs:245
-    wire [7:0] det_s2_data_sub_2;            // rtl-gen/src/translate/float.rs:246
-    wire [8:0] det_s2_data_cat_7;            // rtl-gen/src/translate/float.rs:249
-    wire [31:0] det_s2_data_cat_8;           // rtl-gen/src/translate/float.rs:249
-    wire [31:0] det_s2_data_mux_19;          // rtl-gen/src/translate/float.rs:261
-    wire [31:0] det_s2_data_mux_20;          // rtl-gen/src/translate/float.rs:261
+    wire det_s2_data_y_nan_or;               // rtl-gen/src/translate/float.rs:263
+    wire det_s2_data_y_nan_and;              // rtl-gen/src/translate/float.rs:263
+    wire det_s2_data_err_extents_and_1;      // rtl-gen/src/translate/determine.rs:163
+    wire det_s2_data_z_r_eq;                 // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_z_r_mux;         // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_z_r_eq_1;               // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_z_r_mux_1;       // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_z_r_eq_2;               // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_z_r_mux_2;       // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_z_r_eq_3;               // rtl-gen/src/translate/float.rs:205
+    wire [24:0] det_s2_data_z_r_mux_3;       // rtl-gen/src/translate/float.rs:206
+    wire det_s2_data_z_r_eq_4;               // rtl-gen/src/translate/float.rs:210
+    wire [23:0] det_s2_data_z_r_mux_4;       // rtl-gen/src/translate/float.rs:212
     wire [31:0] z_residual;                  // rtl-gen/src/translate/float.rs:261
-    wire det_s2_data_or_8;                   // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_not_7;                  // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_and_14;                 // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_lt_2;                   // rtl-gen/src/translate/determine.rs:157
-    wire det_s2_data_ge_2;                   // rtl-gen/src/translate/determine.rs:158
-    wire det_s2_data_or_9;                   // rtl-gen/src/translate/determine.rs:161
-    wire det_s2_data_or_10;                  // rtl-gen/src/translate/determine.rs:161
-    wire det_s2_data_not_8;                  // rtl-gen/src/translate/determine.rs:163
-    wire det_s2_data_not_9;                  // rtl-gen/src/translate/determine.rs:163
-    wire det_s2_data_and_15;                 // rtl-gen/src/translate/determine.rs:163
-    wire det_s2_data_or_11;                  // rtl-gen/src/translate/determine.rs:163
-    wire det_s2_data_and_16;                 // rtl-gen/src/translate/determine.rs:163
-    wire det_s2_data_and_17;                 // rtl-gen/src/translate/determine.rs:148
-    wire det_s2_data_and_18;                 // rtl-gen/src/translate/determine.rs:148
-    wire det_s2_data_and_19;                 // rtl-gen/src/translate/determine.rs:148
-    wire det_s2_data_and_20;                 // rtl-gen/src/translate/determine.rs:148
-    wire [2:0] det_s2_data_cat_9;            // rtl-gen/src/translate/determine.rs:172
-    wire [2:0] det_s2_data_cat_10;           // rtl-gen/src/translate/determine.rs:172
-    wire [2:0] det_s2_data_cat_11;           // rtl-gen/src/translate/determine.rs:172
-    wire [2:0] det_s2_data_cat_12;           // rtl-gen/src/translate/determine.rs:172
-    wire det_s2_data_and_21;                 // rtl-gen/src/translate/determine.rs:148
-    wire det_s2_data_any;                    // rtl-gen/src/translate/determine.rs:177
-    wire det_s2_data_or_12;                  // rtl-gen/src/translate/determine.rs:177
-    wire det_s2_data_any_1;                  // rtl-gen/src/translate/determine.rs:177
-    wire det_s2_data_or_13;                  // rtl-gen/src/translate/determine.rs:177
-    wire det_s2_data_any_2;                  // rtl-gen/src/translate/determine.rs:177
-    wire det_s2_data_or_14;                  // rtl-gen/src/translate/determine.rs:177
-    wire det_s2_data_any_3;                  // rtl-gen/src/translate/determine.rs:177
-    wire det_s2_data_or_15;                  // rtl-gen/src/translate/determine.rs:177
-    wire det_s2_data_or_16;                  // rtl-gen/src/translate/determine.rs:182
+    wire det_s2_data_z_nan_or;               // rtl-gen/src/translate/float.rs:263
+    wire det_s2_data_z_nan_and;              // rtl-gen/src/translate/float.rs:263
+    wire det_s2_data_err_extents_and_2;      // rtl-gen/src/translate/determine.rs:163
+    wire [2:0] det_s2_data_err_lod_cat;      // rtl-gen/src/translate/determine.rs:172
+    wire [2:0] det_s2_data_err_lod_cat_1;    // rtl-gen/src/translate/determine.rs:172
+    wire [2:0] det_s2_data_err_lod_cat_2;    // rtl-gen/src/translate/determine.rs:172
+    wire [2:0] det_s2_data_err_lod_cat_3;    // rtl-gen/src/translate/determine.rs:172
+    wire det_s2_data_err_lod_and;            // rtl-gen/src/translate/determine.rs:148
+    wire det_s2_data_err_lod_or;             // rtl-gen/src/translate/determine.rs:177
     wire det_ok;                             // rtl-gen/src/translate/determine.rs:184
-    wire det_s2_data_and_22;                 // rtl-gen/src/translate/determine.rs:193
-    wire const_not;                          // rtl-gen/src/translate/determine.rs:193
     wire det_written;                        // rtl-gen/src/translate/determine.rs:193
-    wire [177:0] det_s2_data_cat_13;         // rtl-gen/src/translate/bundle.rs:50
+    wire [177:0] det_s2_data_read_id_cat;    // rtl-gen/src/translate/bundle.rs:50
     reg det_s3_valid;                        // rtl-gen/src/translate/bundle.rs:88
     reg [177:0] det_s3_data;                 // rtl-gen/src/translate/bundle.rs:88
     wire det_s3_ready;                       // rtl-gen/src/translate/bundle.rs:88
-    wire det_s3_valid_not;                   // rtl-gen/src/translate/bundle.rs:88
-    wire det_s3_valid_or;                    // rtl-gen/src/translate/bundle.rs:88
-    wire det_s3_valid_and;                   // rtl-gen/src/translate/bundle.rs:88
-    wire det_s3_data_mux;                    // rtl-gen/src/translate/table.rs:78
-    wire det_s3_data_mux_1;                  // rtl-gen/src/translate/table.rs:78
-    wire det_s3_data_mux_2;                  // rtl-gen/src/translate/table.rs:78
-    wire det_s3_data_mux_3;                  // rtl-gen/src/translate/table.rs:78
-    wire det_s3_data_mux_4;                  // rtl-gen/src/translate/table.rs:78
-    wire det_s3_data_mux_5;                  // rtl-gen/src/translate/table.rs:78
-    wire det_s3_data_mux_6;                  // rtl-gen/src/translate/table.rs:78
-    wire det_s3_data_mux_7;                  // rtl-gen/src/translate/table.rs:78
-    wire det_s3_data_mux_8;                  // rtl-gen/src/translate/table.rs:78
-    wire det_s3_data_mux_9;                  // rtl-gen/src/translate/table.rs:78
-    wire det_s3_data_mux_10;                 // rtl-gen/src/translate/table.rs:78
-    wire det_s3_data_mux_11;                 // rtl-gen/src/translate/table.rs:78
-    wire det_s3_data_mux_12;                 // rtl-gen/src/translate/table.rs:78
-    wire det_s3_data_mux_13;                 // rtl-gen/src/translate/table.rs:78
+    wire det_s3_take;                        // rtl-gen/src/translate/bundle.rs:88
+    wire det_s3_data_ok;                     // rtl-gen/src/translate/bundle.rs:63
+    wire [16:0] det_s3_data_t_x;             // rtl-gen/src/translate/bundle.rs:63
+    wire [16:0] det_s3_data_t_y;             // rtl-gen/src/translate/bundle.rs:63
+    wire [16:0] det_s3_data_t_z;             // rtl-gen/src/translate/bundle.rs:63
+    wire [31:0] det_s3_data_residual_x;      // rtl-gen/src/translate/bundle.rs:63
+    wire [31:0] det_s3_data_residual_y;      // rtl-gen/src/translate/bundle.rs:63
+    wire [31:0] det_s3_data_residual_z;      // rtl-gen/src/translate/bundle.rs:63
+    wire det_s3_data_err_lod;                // rtl-gen/src/translate/bundle.rs:63
+    wire det_s3_data_err_extents;            // rtl-gen/src/translate/bundle.rs:63
+    wire [2:0] det_s3_data_err_nan;          // rtl-gen/src/translate/bundle.rs:63
+    wire [2:0] det_s3_data_err_inf;          // rtl-gen/src/translate/bundle.rs:63
+    wire [2:0] det_s3_data_err_range;        // rtl-gen/src/translate/bundle.rs:63
+    wire [2:0] det_s3_data_err_outside;      // rtl-gen/src/translate/bundle.rs:63
+    wire det_s3_data_err_write_id;           // rtl-gen/src/translate/bundle.rs:63
+    wire det_s3_data_written;                // rtl-gen/src/translate/bundle.rs:63
+    wire det_s3_data_err_read_id;            // rtl-gen/src/translate/bundle.rs:63
+    wire [4:0] det_s3_data_lod;              // rtl-gen/src/translate/bundle.rs:63
+    wire [3:0] det_s3_data_write_id;         // rtl-gen/src/translate/bundle.rs:63
+    wire [3:0] det_s3_data_read_id;          // rtl-gen/src/translate/bundle.rs:63
+    wire det_s3_data_read_id_mux;            // rtl-gen/src/translate/table.rs:78
+    wire det_s3_data_read_id_mux_1;          // rtl-gen/src/translate/table.rs:78
     wire det_read_valid;                     // rtl-gen/src/translate/table.rs:78
-    wire [55:0] table_rd;                    // rtl-gen/src/translate/table.rs:79
     wire [55:0] det_read_entry;              // rtl-gen/src/translate/table.rs:81
-    wire [16:0] det_s3_data_mux_14;          // rtl-gen/src/translate/determine.rs:233
-    wire [16:0] det_s3_data_mux_15;          // rtl-gen/src/translate/determine.rs:233
-    wire [16:0] det_s3_data_mux_16;          // rtl-gen/src/translate/determine.rs:233
-    wire [31:0] det_s3_data_mux_17;          // rtl-gen/src/translate/determine.rs:233
-    wire [31:0] det_s3_data_mux_18;          // rtl-gen/src/translate/determine.rs:233
-    wire [31:0] det_s3_data_mux_19;          // rtl-gen/src/translate/determine.rs:233
     wire [221:0] det_read_entry_cat;         // rtl-gen/src/translate/bundle.rs:50
     reg det_out_q_valid;                     // rtl-gen/src/translate/bundle.rs:105
     reg [221:0] det_out_q_data;              // rtl-gen/src/translate/bundle.rs:105
     reg det_out_q_spare_valid;               // rtl-gen/src/translate/bundle.rs:105
     reg [221:0] det_out_q_spare_data;        // rtl-gen/src/translate/bundle.rs:105
     wire det_out_q_ready;                    // rtl-gen/src/translate/bundle.rs:105
-    wire det_out_q_valid_not;                // rtl-gen/src/translate/bundle.rs:105
-    wire det_out_q_ready_or;                 // rtl-gen/src/translate/bundle.rs:105
-    wire det_out_q_spare_valid_not;          // rtl-gen/src/translate/bundle.rs:105
-    wire det_s3_valid_and_1;                 // rtl-gen/src/translate/bundle.rs:105
-    wire det_out_q_spare_valid_or;           // rtl-gen/src/translate/bundle.rs:105
-    wire [221:0] det_out_q_spare_valid_mux;  // rtl-gen/src/translate/bundle.rs:105
-    wire det_out_q_spare_valid_or_1;         // rtl-gen/src/translate/bundle.rs:105
-    wire det_out_q_spare_valid_next;         // rtl-gen/src/translate/bundle.rs:105
-    wire det_out_q_ready_not;                // rtl-gen/src/translate/bundle.rs:105
-    wire det_out_q_ready_and;                // rtl-gen/src/translate/bundle.rs:105
-    wire det_s3_valid_and_2;                 // rtl-gen/src/translate/determine.rs:249
-    wire det_s3_valid_and_3;                 // rtl-gen/src/translate/determine.rs:249
-    wire [55:0] det_s3_data_cat;             // rtl-gen/src/translate/table.rs:101
-    wire [15:0] const_shl_3;                 // rtl-gen/src/translate/table.rs:108
-    wire [15:0] table_valid_or;              // rtl-gen/src/translate/table.rs:109
-    wire det_out_q_valid_and;                // rtl-gen/src/translate/determine.rs:253
-    wire det_out_q_data_not;                 // rtl-gen/src/translate/determine.rs:257
+    wire det_out_q_room;                     // rtl-gen/src/translate/bundle.rs:105
+    wire det_out_q_drain;                    // rtl-gen/src/translate/bundle.rs:105
+    wire det_out_q_take;                     // rtl-gen/src/translate/bundle.rs:105
+    wire det_s3_valid_and;                   // rtl-gen/src/translate/determine.rs:249
     wire [149:0] apply_record;               // rtl-gen/src/translate/apply.rs:33
     wire apply_in_data_mux;                  // rtl-gen/src/translate/table.rs:78
     wire apply_in_data_mux_1;                // rtl-gen/src/translate/table.rs:78
-    wire apply_in_data_mux_2;                // rtl-gen/src/translate/table.rs:78
-    wire apply_in_data_mux_3;                // rtl-gen/src/translate/table.rs:78
-    wire apply_in_data_mux_4;                // rtl-gen/src/translate/table.rs:78
-    wire apply_in_data_mux_5;                // rtl-gen/src/translate/table.rs:78
-    wire apply_in_data_mux_6;                // rtl-gen/src/translate/table.rs:78
-    wire apply_in_data_mux_7;                // rtl-gen/src/translate/table.rs:78
-    wire apply_in_data_mux_8;                // rtl-gen/src/translate/table.rs:78
-    wire apply_in_data_mux_9;                // rtl-gen/src/translate/table.rs:78
-    wire apply_in_data_mux_10;               // rtl-gen/src/translate/table.rs:78
-    wire apply_in_data_mux_11;               // rtl-gen/src/translate/table.rs:78
-    wire apply_in_data_mux_12;               // rtl-gen/src/translate/table.rs:78
-    wire apply_in_data_mux_13;               // rtl-gen/src/translate/table.rs:78
     wire apply_read_valid;                   // rtl-gen/src/translate/table.rs:78
-    wire [55:0] table_rd_1;                  // rtl-gen/src/translate/table.rs:79
     wire [55:0] apply_read_entry;            // rtl-gen/src/translate/table.rs:81
-    wire [15:0] apply_record_shr;            // rtl-gen/src/translate/apply.rs:43
-    wire apply_record_ne;                    // rtl-gen/src/translate/apply.rs:43
-    wire [15:0] apply_record_shr_1;          // rtl-gen/src/translate/apply.rs:43
-    wire apply_record_ne_1;                  // rtl-gen/src/translate/apply.rs:43
     wire apply_record_or;                    // rtl-gen/src/translate/apply.rs:43
-    wire [15:0] apply_record_shr_2;          // rtl-gen/src/translate/apply.rs:43
-    wire apply_record_ne_2;                  // rtl-gen/src/translate/apply.rs:43
-    wire apply_record_or_1;                  // rtl-gen/src/translate/apply.rs:43
-    wire apply_record_gt;                    // rtl-gen/src/translate/apply.rs:45
-    wire apply_record_or_2;                  // rtl-gen/src/translate/apply.rs:45
-    wire apply_record_lt;                    // rtl-gen/src/translate/apply.rs:47
-    wire [2:0] apply_record_mux;             // rtl-gen/src/translate/apply.rs:51
-    wire [2:0] apply_record_mux_1;           // rtl-gen/src/translate/apply.rs:49
-    wire apply_read_valid_not;               // rtl-gen/src/translate/apply.rs:53
     wire [2:0] apply_early_code;             // rtl-gen/src/translate/apply.rs:53
     wire [4:0] apply_shift;                  // rtl-gen/src/translate/apply.rs:62
-    wire [212:0] apply_read_entry_cat;       // rtl-gen/src/translate/bundle.rs:50
     reg apply_s1_valid;                      // rtl-gen/src/translate/bundle.rs:88
     reg [212:0] apply_s1_data;               // rtl-gen/src/translate/bundle.rs:88
     wire apply_s1_ready;                     // rtl-gen/src/translate/bundle.rs:88
-    wire apply_s1_valid_not;                 // rtl-gen/src/translate/bundle.rs:88
-    wire apply_s1_valid_or;                  // rtl-gen/src/translate/bundle.rs:88
-    wire apply_s1_valid_and;                 // rtl-gen/src/translate/bundle.rs:88
+    wire apply_s1_take;                      // rtl-gen/src/translate/bundle.rs:88
+    wire [149:0] apply_s1_data_record;       // rtl-gen/src/translate/bundle.rs:63
+    wire [3:0] apply_s1_data_hier;           // rtl-gen/src/translate/bundle.rs:63
+    wire [2:0] apply_s1_data_code;           // rtl-gen/src/translate/bundle.rs:63
+    wire [4:0] apply_s1_data_shift;          // rtl-gen/src/translate/bundle.rs:63
+    wire [16:0] apply_s1_data_t0;            // rtl-gen/src/translate/bundle.rs:63
+    wire [16:0] apply_s1_data_t1;            // rtl-gen/src/translate/bundle.rs:63
+    wire [16:0] apply_s1_data_t2;            // rtl-gen/src/translate/bundle.rs:63
     wire [33:0] apply_high;                  // rtl-gen/src/translate/apply.rs:79
-    wire [33:0] apply_s1_data_shl;           // rtl-gen/src/translate/apply.rs:82
-    wire [33:0] apply_s1_data_shl_1;         // rtl-gen/src/translate/apply.rs:82
-    wire [33:0] apply_s1_data_shl_2;         // rtl-gen/src/translate/apply.rs:82
-    wire [292:0] apply_s1_data_cat;          // rtl-gen/src/translate/bundle.rs:50
+    wire [292:0] apply_s1_data_t2_cat;       // rtl-gen/src/translate/bundle.rs:50
     reg apply_s2_valid;                      // rtl-gen/src/translate/bundle.rs:88
     reg [292:0] apply_s2_data;               // rtl-gen/src/translate/bundle.rs:88
     wire apply_s2_ready;                     // rtl-gen/src/translate/bundle.rs:88
-    wire apply_s2_valid_not;                 // rtl-gen/src/translate/bundle.rs:88
-    wire apply_s2_valid_or;                  // rtl-gen/src/translate/bundle.rs:88
-    wire apply_s2_valid_and;                 // rtl-gen/src/translate/bundle.rs:88
+    wire apply_s2_take;                      // rtl-gen/src/translate/bundle.rs:88
+    wire [149:0] apply_s2_data_record;       // rtl-gen/src/translate/bundle.rs:63
+    wire [3:0] apply_s2_data_hier;           // rtl-gen/src/translate/bundle.rs:63
+    wire [2:0] apply_s2_data_code;           // rtl-gen/src/translate/bundle.rs:63
+    wire [33:0] apply_s2_data_high;          // rtl-gen/src/translate/bundle.rs:63
+    wire [33:0] apply_s2_data_offset0;       // rtl-gen/src/translate/bundle.rs:63
+    wire [33:0] apply_s2_data_offset1;       // rtl-gen/src/translate/bundle.rs:63
+    wire [33:0] apply_s2_data_offset2;       // rtl-gen/src/translate/bundle.rs:63
     wire [33:0] apply_sum_x;                 // rtl-gen/src/translate/apply.rs:94
-    wire apply_sum_x_lt;                     // rtl-gen/src/translate/apply.rs:96
-    wire [33:0] apply_sum_x_and;             // rtl-gen/src/translate/apply.rs:96
-    wire apply_sum_x_ne;                     // rtl-gen/src/translate/apply.rs:96
-    wire apply_sum_x_or;                     // rtl-gen/src/translate/apply.rs:96
     wire [33:0] apply_sum_y;                 // rtl-gen/src/translate/apply.rs:94
-    wire apply_sum_y_lt;                     // rtl-gen/src/translate/apply.rs:96
-    wire [33:0] apply_sum_y_and;             // rtl-gen/src/translate/apply.rs:96
-    wire apply_sum_y_ne;                     // rtl-gen/src/translate/apply.rs:96
-    wire apply_sum_y_or;                     // rtl-gen/src/translate/apply.rs:96
     wire [33:0] apply_sum_z;                 // rtl-gen/src/translate/apply.rs:94
-    wire apply_sum_z_lt;                     // rtl-gen/src/translate/apply.rs:96
-    wire [33:0] apply_sum_z_and;             // rtl-gen/src/translate/apply.rs:96
-    wire apply_sum_z_ne;                     // rtl-gen/src/translate/apply.rs:96
-    wire apply_sum_z_or;                     // rtl-gen/src/translate/apply.rs:96
     wire [207:0] apply_sum_z_cat;            // rtl-gen/src/translate/bundle.rs:50
     reg apply_s3_valid;                      // rtl-gen/src/translate/bundle.rs:88
     reg [207:0] apply_s3_data;               // rtl-gen/src/translate/bundle.rs:88
     wire apply_s3_ready;                     // rtl-gen/src/translate/bundle.rs:88
-    wire apply_s3_valid_not;                 // rtl-gen/src/translate/bundle.rs:88
-    wire apply_s3_valid_or;                  // rtl-gen/src/translate/bundle.rs:88
-    wire apply_s3_valid_and;                 // rtl-gen/src/translate/bundle.rs:88
+    wire apply_s3_take;                      // rtl-gen/src/translate/bundle.rs:88
+    wire [149:0] apply_s3_data_record;       // rtl-gen/src/translate/bundle.rs:63
+    wire [3:0] apply_s3_data_hier;           // rtl-gen/src/translate/bundle.rs:63
+    wire [2:0] apply_s3_data_code;           // rtl-gen/src/translate/bundle.rs:63
+    wire [15:0] apply_s3_data_moved0;        // rtl-gen/src/translate/bundle.rs:63
     wire apply_outside_x;                    // rtl-gen/src/translate/bundle.rs:63
+    wire [15:0] apply_s3_data_moved1;        // rtl-gen/src/translate/bundle.rs:63
     wire apply_outside_y;                    // rtl-gen/src/translate/bundle.rs:63
+    wire [15:0] apply_s3_data_moved2;        // rtl-gen/src/translate/bundle.rs:63
     wire apply_outside_z;                    // rtl-gen/src/translate/bundle.rs:63
-    wire [2:0] apply_outside_z_mux;          // rtl-gen/src/translate/apply.rs:122
-    wire [2:0] apply_outside_y_mux;          // rtl-gen/src/translate/apply.rs:120
-    wire [2:0] apply_outside_x_mux;          // rtl-gen/src/translate/apply.rs:118
-    wire apply_s3_data_ne;                   // rtl-gen/src/translate/apply.rs:125
     wire [2:0] apply_code;                   // rtl-gen/src/translate/apply.rs:125
-    wire [149:0] apply_s3_data_cat;          // rtl-gen/src/translate/apply.rs:133
-    wire apply_code_eq;                      // rtl-gen/src/translate/apply.rs:134
-    wire [149:0] apply_code_mux;             // rtl-gen/src/translate/apply.rs:134
     wire [156:0] apply_code_cat;             // rtl-gen/src/translate/bundle.rs:50
     reg apply_out_q_valid;                   // rtl-gen/src/translate/bundle.rs:105
     reg [156:0] apply_out_q_data;            // rtl-gen/src/translate/bundle.rs:105
     reg apply_out_q_spare_valid;             // rtl-gen/src/translate/bundle.rs:105
     reg [156:0] apply_out_q_spare_data;      // rtl-gen/src/translate/bundle.rs:105
     wire apply_out_q_ready;                  // rtl-gen/src/translate/bundle.rs:105
-    wire apply_out_q_valid_not;              // rtl-gen/src/translate/bundle.rs:105
-    wire apply_out_q_ready_or;               // rtl-gen/src/translate/bundle.rs:105
-    wire apply_out_q_spare_valid_not;        // rtl-gen/src/translate/bundle.rs:105
-    wire apply_s3_valid_and_1;               // rtl-gen/src/translate/bundle.rs:105
-    wire apply_out_q_spare_valid_or;         // rtl-gen/src/translate/bundle.rs:105
-    wire [156:0] apply_out_q_spare_valid_mux; // rtl-gen/src/translate/bundle.rs:105
-    wire apply_out_q_spare_valid_or_1;       // rtl-gen/src/translate/bundle.rs:105
-    wire apply_out_q_spare_valid_next;       // rtl-gen/src/translate/bundle.rs:105
-    wire apply_out_q_ready_not;              // rtl-gen/src/translate/bundle.rs:105
-    wire apply_out_q_ready_and;              // rtl-gen/src/translate/bundle.rs:105
-    wire apply_out_q_data_ne;                // rtl-gen/src/translate/apply.rs:141
-    wire apply_out_q_valid_and;              // rtl-gen/src/translate/apply.rs:146
-    wire det_s1_valid_or_1;                  // rtl-gen/src/translate/unit.rs:30
-    wire det_s1_valid_or_2;                  // rtl-gen/src/translate/unit.rs:30
-    wire det_s1_valid_or_3;                  // rtl-gen/src/translate/unit.rs:30
-    wire det_s1_valid_or_4;                  // rtl-gen/src/translate/unit.rs:30
-    wire det_s1_valid_or_5;                  // rtl-gen/src/translate/unit.rs:30
-    wire det_s1_valid_or_6;                  // rtl-gen/src/translate/unit.rs:30
-    wire det_s1_valid_or_7;                  // rtl-gen/src/translate/unit.rs:30
+    wire apply_out_q_room;                   // rtl-gen/src/translate/bundle.rs:105
+    wire apply_out_q_drain;                  // rtl-gen/src/translate/bundle.rs:105
+    wire apply_out_q_take;                   // rtl-gen/src/translate/bundle.rs:105
+    wire [2:0] apply_out_q_data_code;        // rtl-gen/src/translate/bundle.rs:63
+    wire det_s1_valid_or;                    // rtl-gen/src/translate/unit.rs:30
     wire was_busy_next;                      // rtl-gen/src/translate/unit.rs:30
     wire idle_now;                           // rtl-gen/src/translate/unit.rs:32
     reg was_busy;                            // rtl-gen/src/translate/unit.rs:33
     reg det_error_seen_q;                    // rtl-gen/src/translate/unit.rs:37
-    wire det_out_q_valid_and_1;              // rtl-gen/src/translate/unit.rs:38
-    wire det_error_seen_next;                // rtl-gen/src/translate/unit.rs:38
     reg apply_error_seen_q;                  // rtl-gen/src/translate/unit.rs:39
-    wire apply_out_q_valid_and_1;            // rtl-gen/src/translate/unit.rs:40
-    wire apply_error_seen_next;              // rtl-gen/src/translate/unit.rs:40
 
-    assign det_in_ready = det_s1_valid_or;
+    assign det_in_ready = det_s1_take;
     assign err_lod = det_in_data[100:96] > 5'd16;
     assign k = 5'd16 - det_in_data[100:96];
     assign det_in_data_eq = det_in_data[30:23] == 8'd0;
-    assign det_in_data_not = ~det_in_data_eq;
-    assign det_in_data_mux = det_in_data_eq ? 8'd1 : det_in_data[30:23];
-    assign det_in_data_sub = {5'd0, det_in_data_mux} - 13'd125;
-    assign det_in_data_sub_1 = det_in_data_sub - {8'd0, k};
+    assign det_in_data_sub = ({5'd0, det_in_data_eq ? 8'd1 : det_in_data[30:23]} - 13'd125) - {8'd0, k};
     assign det_in_data_all = &det_in_data[30:23];
     assign det_in_data_any = |det_in_data[22:0];
-    assign x_m = {det_in_data_not, det_in_data[22:0]};
-    assign det_in_data_lt = $signed(det_in_data_sub_1) < $signed(13'd0);
-    assign det_in_data_gt = $signed(det_in_data_sub_1) > $signed(13'd41);
-    assign det_in_data_mux_1 = det_in_data_gt ? 6'd41 : det_in_data_sub_1[5:0];
-    assign x_a = det_in_data_lt ? 6'd0 : det_in_data_mux_1;
-    assign det_in_data_and = det_in_data_all & det_in_data_any;
-    assign det_in_data_not_1 = ~det_in_data_any;
-    assign det_in_data_and_1 = det_in_data_all & det_in_data_not_1;
+    assign x_m = {~det_in_data_eq, det_in_data[22:0]};
+    assign x_a = ($signed(det_in_data_sub) < $signed(13'd0)) ? 6'd0 : (($signed(det_in_data_sub) > $signed(13'd41)) ? 6'd41 : det_in_data_sub[5:0]);
     assign det_in_data_eq_1 = det_in_data[62:55] == 8'd0;
-    assign det_in_data_not_2 = ~det_in_data_eq_1;
-    assign det_in_data_mux_2 = det_in_data_eq_1 ? 8'd1 : det_in_data[62:55];
-    assign det_in_data_sub_2 = {5'd0, det_in_data_mux_2} - 13'd125;
-    assign det_in_data_sub_3 = det_in_data_sub_2 - {8'd0, k};
+    assign det_in_data_sub_1 = ({5'd0, det_in_data_eq_1 ? 8'd1 : det_in_data[62:55]} - 13'd125) - {8'd0, k};
     assign det_in_data_all_1 = &det_in_data[62:55];
     assign det_in_data_any_1 = |det_in_data[54:32];
-    assign y_m = {det_in_data_not_2, det_in_data[54:32]};
-    assign det_in_data_lt_1 = $signed(det_in_data_sub_3) < $signed(13'd0);
-    assign det_in_data_gt_1 = $signed(det_in_data_sub_3) > $signed(13'd41);
-    assign det_in_data_mux_3 = det_in_data_gt_1 ? 6'd41 : det_in_data_sub_3[5:0];
-    assign y_a = det_in_data_lt_1 ? 6'd0 : det_in_data_mux_3;
-    assign det_in_data_and_2 = det_in_data_all_1 & det_in_data_any_1;
-    assign det_in_data_not_3 = ~det_in_data_any_1;
-    assign det_in_data_and_3 = det_in_data_all_1 & det_in_data_not_3;
+    assign y_m = {~det_in_data_eq_1, det_in_data[54:32]};
+    assign y_a = ($signed(det_in_data_sub_1) < $signed(13'd0)) ? 6'd0 : (($signed(det_in_data_sub_1) > $signed(13'd41)) ? 6'd41 : det_in_data_sub_1[5:0]);
     assign det_in_data_eq_2 = det_in_data[94:87] == 8'd0;
-    assign det_in_data_not_4 = ~det_in_data_eq_2;
-    assign det_in_data_mux_4 = det_in_data_eq_2 ? 8'd1 : det_in_data[94:87];
-    assign det_in_data_sub_4 = {5'd0, det_in_data_mux_4} - 13'd125;
-    assign det_in_data_sub_5 = det_in_data_sub_4 - {8'd0, k};
+    assign det_in_data_sub_2 = ({5'd0, det_in_data_eq_2 ? 8'd1 : det_in_data[94:87]} - 13'd125) - {8'd0, k};
     assign det_in_data_all_2 = &det_in_data[94:87];
     assign det_in_data_any_2 = |det_in_data[86:64];
-    assign z_m = {det_in_data_not_4, det_in_data[86:64]};
-    assign det_in_data_lt_2 = $signed(det_in_data_sub_5) < $signed(13'd0);
-    assign det_in_data_gt_2 = $signed(det_in_data_sub_5) > $signed(13'd41);
-    assign det_in_data_mux_5 = det_in_data_gt_2 ? 6'd41 : det_in_data_sub_5[5:0];
-    assign z_a = det_in_data_lt_2 ? 6'd0 : det_in_data_mux_5;
-    assign det_in_data_and_4 = det_in_data_all_2 & det_in_data_any_2;
-    assign det_in_data_not_5 = ~det_in_data_any_2;
-    assign det_in_data_and_5 = det_in_data_all_2 & det_in_data_not_5;
-    assign det_in_data_gt_3 = det_in_data[116:101] > det_in_data[164:149];
-    assign det_in_data_shr = det_in_data[164:149] >> det_in_data[100:96];
-    assign det_in_data_ne = det_in_data_shr != 16'd0;
-    assign det_in_data_or = det_in_data_gt_3 | det_in_data_ne;
+    assign z_m = {~det_in_data_eq_2, det_in_data[86:64]};
+    assign z_a = ($signed(det_in_data_sub_2) < $signed(13'd0)) ? 6'd0 : (($signed(det_in_data_sub_2) > $signed(13'd41)) ? 6'd41 : det_in_data_sub_2[5:0]);
     assign const_shl = 18'd1 << det_in_data[100:96];
-    assign det_in_data_sub_6 = 18'd0 - {2'd0, det_in_data[116:101]};
-    assign const_sub = const_shl - {2'd0, det_in_data[164:149]};
-    assign det_in_data_gt_4 = det_in_data[132:117] > det_in_data[180:165];
-    assign det_in_data_shr_1 = det_in_data[180:165] >> det_in_data[100:96];
-    assign det_in_data_ne_1 = det_in_data_shr_1 != 16'd0;
-    assign det_in_data_or_1 = det_in_data_gt_4 | det_in_data_ne_1;
-    assign const_shl_1 = 18'd1 << det_in_data[100:96];
-    assign det_in_data_sub_7 = 18'd0 - {2'd0, det_in_data[132:117]};
-    assign const_sub_1 = const_shl_1 - {2'd0, det_in_data[180:165]};
-    assign det_in_data_gt_5 = det_in_data[148:133] > det_in_data[196:181];
-    assign det_in_data_shr_2 = det_in_data[196:181] >> det_in_data[100:96];
-    assign det_in_data_ne_2 = det_in_data_shr_2 != 16'd0;
-    assign det_in_data_or_2 = det_in_data_gt_5 | det_in_data_ne_2;
-    assign const_shl_2 = 18'd1 << det_in_data[100:96];
-    assign det_in_data_sub_8 = 18'd0 - {2'd0, det_in_data[148:133]};
-    assign const_sub_2 = const_shl_2 - {2'd0, det_in_data[196:181]};
-    assign det_in_data_or_3 = det_in_data_or | det_in_data_or_1;
-    assign det_in_data_or_4 = det_in_data_or_3 | det_in_data_or_2;
-    assign k_cat = {k, det_in_data[205:202], det_in_data[201:198], det_in_data[197], det_in_data[100:96], err_lod, det_in_data_or_4, const_sub_2, det_in_data_sub_8, const_sub_1, det_in_data_sub_7, const_sub, det_in_data_sub_6, det_in_data[95:64], det_in_data_and_5, det_in_data_and_4, z_a, z_m, det_in_data[95], det_in_data[63:32], det_in_data_and_3, det_in_data_and_2, y_a, y_m, det_in_data[63], det_in_data[31:0], det_in_data_and_1, det_in_data_and, x_a, x_m, det_in_data[31]};
-    assign det_s1_ready = det_align_valid_or;
-    assign det_s1_valid_not = ~det_s1_valid;
-    assign det_s1_valid_or = det_s1_valid_not | det_s1_ready;
-    assign det_s1_valid_and = det_s1_valid_or & det_in_valid;
-    assign x_aligned = {41'd0, det_s1_data[24:1]} << det_s1_data[30:25];
-    assign det_s1_data_ne = det_s1_data[24:1] != 24'd0;
-    assign y_aligned = {41'd0, det_s1_data[89:66]} << det_s1_data[95:90];
-    assign det_s1_data_ne_1 = det_s1_data[89:66] != 24'd0;
-    assign z_aligned = {41'd0, det_s1_data[154:131]} << det_s1_data[160:155];
-    assign det_s1_data_ne_2 = det_s1_data[154:131] != 24'd0;
-    assign det_s1_data_cat = {det_s1_data[323:319], det_s1_data[318:315], det_s1_data[314:311], det_s1_data[310], det_s1_data[309:305], det_s1_data[304], det_s1_data[303], det_s1_data[302:285], det_s1_data[284:267], det_s1_data[266:249], det_s1_data[248:231], det_s1_data[230:213], det_s1_data[212:195], det_s1_data[162], det_s1_data[161], det_s1_data[194:163], det_s1_data[130], det_s1_data_ne_2, z_aligned, det_s1_data[97], det_s1_data[96], det_s1_data[129:98], det_s1_data[65], det_s1_data_ne_1, y_aligned, det_s1_data[32], det_s1_data[31], det_s1_data[64:33], det_s1_data[0], det_s1_data_ne, x_aligned};
-    assign det_align_ready = det_s2_valid_or;
-    assign det_align_valid_not = ~det_align_valid;
-    assign det_align_valid_or = det_align_valid_not | det_align_ready;
-    assign det_align_valid_and = det_align_valid_or & det_s1_valid;
-    assign det_align_data_any = |det_align_data[23:0];
-    assign det_align_data_or = det_align_data_any | det_align_data[25];
-    assign x_inc = det_align_data[24] & det_align_data_or;
+    assign det_in_data_or = ((det_in_data[116:101] > det_in_data[164:149]) | ((det_in_data[164:149] >> det_in_data[100:96]) != 16'd0)) | ((det_in_data[132:117] > det_in_data[180:165]) | ((det_in_data[180:165] >> det_in_data[100:96]) != 16'd0));
+    assign k_cat = {k, det_in_data[205:202], det_in_data[201:198], det_in_data[197], det_in_data[100:96], err_lod, det_in_data_or | ((det_in_data[148:133] > det_in_data[196:181]) | ((det_in_data[196:181] >> det_in_data[100:96]) != 16'd0)), const_shl - {2'd0, det_in_data[196:181]}, 18'd0 - {2'd0, det_in_data[148:133]}, const_shl - {2'd0, det_in_data[180:165]}, 18'd0 - {2'd0, det_in_data[132:117]}, const_shl - {2'd0, det_in_data[164:149]}, 18'd0 - {2'd0, det_in_data[116:101]}, det_in_data[95:64], det_in_data_all_2 & (~det_in_data_any_2), det_in_data_all_2 & det_in_data_any_2, z_a, z_m, det_in_data[95], det_in_data[63:32], det_in_data_all_1 & (~det_in_data_any_1), det_in_data_all_1 & det_in_data_any_1, y_a, y_m, det_in_data[63], det_in_data[31:0], det_in_data_all & (~det_in_data_any), det_in_data_all & det_in_data_any, x_a, x_m, det_in_data[31]};
+    assign det_s1_ready = det_align_take;
+    assign det_s1_take = (~det_s1_valid) | det_s1_ready;
+    assign det_s1_data_x_s = det_s1_data[0];
+    assign det_s1_data_x_m = det_s1_data[24:1];
+    assign det_s1_data_x_a = det_s1_data[30:25];
+    assign det_s1_data_x_nan = det_s1_data[31];
+    assign det_s1_data_x_inf = det_s1_data[32];
+    assign det_s1_data_x_enc = det_s1_data[64:33];
+    assign det_s1_data_y_s = det_s1_data[65];
+    assign det_s1_data_y_m = det_s1_data[89:66];
+    assign det_s1_data_y_a = det_s1_data[95:90];
+    assign det_s1_data_y_nan = det_s1_data[96];
+    assign det_s1_data_y_inf = det_s1_data[97];
+    assign det_s1_data_y_enc = det_s1_data[129:98];
+    assign det_s1_data_z_s = det_s1_data[130];
+    assign det_s1_data_z_m = det_s1_data[154:131];
+    assign det_s1_data_z_a = det_s1_data[160:155];
+    assign det_s1_data_z_nan = det_s1_data[161];
+    assign det_s1_data_z_inf = det_s1_data[162];
+    assign det_s1_data_z_enc = det_s1_data[194:163];
+    assign det_s1_data_t_min_x = det_s1_data[212:195];
+    assign det_s1_data_t_max_x = det_s1_data[230:213];
+    assign det_s1_data_t_min_y = det_s1_data[248:231];
+    assign det_s1_data_t_max_y = det_s1_data[266:249];
+    assign det_s1_data_t_min_z = det_s1_data[284:267];
+    assign det_s1_data_t_max_z = det_s1_data[302:285];
+    assign det_s1_data_err_extents = det_s1_data[303];
+    assign det_s1_data_err_lod = det_s1_data[304];
+    assign det_s1_data_lod = det_s1_data[309:305];
+    assign det_s1_data_write_enable = det_s1_data[310];
+    assign det_s1_data_write_id = det_s1_data[314:311];
+    assign det_s1_data_read_id = det_s1_data[318:315];
+    assign det_s1_data_k = det_s1_data[323:319];
+    assign x_aligned = {41'd0, det_s1_data_x_m} << det_s1_data_x_a;
+    assign y_aligned = {41'd0, det_s1_data_y_m} << det_s1_data_y_a;
+    assign z_aligned = {41'd0, det_s1_data_z_m} << det_s1_data_z_a;
+    assign det_s1_data_k_cat = {det_s1_data_k, det_s1_data_read_id, det_s1_data_write_id, det_s1_data_write_enable, det_s1_data_lod, det_s1_data_err_lod, det_s1_data_err_extents, det_s1_data_t_max_z, det_s1_data_t_min_z, det_s1_data_t_max_y, det_s1_data_t_min_y, det_s1_data_t_max_x, det_s1_data_t_min_x, det_s1_data_z_inf, det_s1_data_z_nan, det_s1_data_z_enc, det_s1_data_z_s, det_s1_data_z_m != 24'd0, z_aligned, det_s1_data_y_inf, det_s1_data_y_nan, det_s1_data_y_enc, det_s1_data_y_s, det_s1_data_y_m != 24'd0, y_aligned, det_s1_data_x_inf, det_s1_data_x_nan, det_s1_data_x_enc, det_s1_data_x_s, det_s1_data_x_m != 24'd0, x_aligned};
+    assign det_align_ready = det_s2_take;
+    assign det_align_take = (~det_align_valid) | det_align_ready;
+    assign det_align_data_x_m_nz = det_align_data[65];
+    assign det_align_data_x_s = det_align_data[66];
+    assign det_align_data_x_enc = det_align_data[98:67];
+    assign det_align_data_x_nan = det_align_data[99];
+    assign det_align_data_x_inf = det_align_data[100];
+    assign det_align_data_y_m_nz = det_align_data[166];
+    assign det_align_data_y_s = det_align_data[167];
+    assign det_align_data_y_enc = det_align_data[199:168];
+    assign det_align_data_y_nan = det_align_data[200];
+    assign det_align_data_y_inf = det_align_data[201];
+    assign det_align_data_z_m_nz = det_align_data[267];
+    assign det_align_data_z_s = det_align_data[268];
+    assign det_align_data_z_enc = det_align_data[300:269];
+    assign det_align_data_z_nan = det_align_data[301];
+    assign det_align_data_z_inf = det_align_data[302];
+    assign det_align_data_t_min_x = det_align_data[320:303];
+    assign det_align_data_t_max_x = det_align_data[338:321];
+    assign det_align_data_t_min_y = det_align_data[356:339];
+    assign det_align_data_t_max_y = det_align_data[374:357];
+    assign det_align_data_t_min_z = det_align_data[392:375];
+    assign det_align_data_t_max_z = det_align_data[410:393];
+    assign det_align_data_err_extents = det_align_data[411];
+    assign det_align_data_err_lod = det_align_data[412];
+    assign det_align_data_lod = det_align_data[417:413];
+    assign det_align_data_write_enable = det_align_data[418];
+    assign det_align_data_write_id = det_align_data[422:419];
+    assign det_align_data_read_id = det_align_data[426:423];
+    assign det_align_data_k = det_align_data[431:427];
+    assign x_inc = det_align_data[24] & ((|det_align_data[23:0]) | det_align_data[25]);
     assign x_mag = {1'b0, det_align_data[64:25]} + {40'd0, x_inc};
-    assign x_mag_any = |x_mag[40:16];
-    assign x_mag_sub = 17'd0 - {1'b0, x_mag[15:0]};
-    assign x_t = det_align_data[66] ? x_mag_sub : {1'b0, x_mag[15:0]};
-    assign det_align_data_sub = 25'd0 - det_align_data[24:0];
-    assign x_r = x_inc ? det_align_data_sub : det_align_data[24:0];
-    assign det_align_data_xor = det_align_data[66] ^ x_inc;
-    assign x_mag_eq = x_mag == 41'd0;
-    assign det_align_data_any_1 = |det_align_data[124:101];
-    assign det_align_data_or_1 = det_align_data_any_1 | det_align_data[126];
-    assign y_inc = det_align_data[125] & det_align_data_or_1;
+    assign x_t = det_align_data_x_s ? (17'd0 - {1'b0, x_mag[15:0]}) : {1'b0, x_mag[15:0]};
+    assign x_r = x_inc ? (25'd0 - det_align_data[24:0]) : det_align_data[24:0];
+    assign y_inc = det_align_data[125] & ((|det_align_data[124:101]) | det_align_data[126]);
     assign y_mag = {1'b0, det_align_data[165:126]} + {40'd0, y_inc};
-    assign y_mag_any = |y_mag[40:16];
-    assign y_mag_sub = 17'd0 - {1'b0, y_mag[15:0]};
-    assign y_t = det_align_data[167] ? y_mag_sub : {1'b0, y_mag[15:0]};
-    assign det_align_data_sub_1 = 25'd0 - det_align_data[125:101];
-    assign y_r = y_inc ? det_align_data_sub_1 : det_align_data[125:101];
-    assign det_align_data_xor_1 = det_align_data[167] ^ y_inc;
-    assign y_mag_eq = y_mag == 41'd0;
-    assign det_align_data_any_2 = |det_align_data[225:202];
-    assign det_align_data_or_2 = det_align_data_any_2 | det_align_data[227];
-    assign z_inc = det_align_data[226] & det_align_data_or_2;
+    assign y_t = det_align_data_y_s ? (17'd0 - {1'b0, y_mag[15:0]}) : {1'b0, y_mag[15:0]};
+    assign y_r = y_inc ? (25'd0 - det_align_data[125:101]) : det_align_data[125:101];
+    assign z_inc = det_align_data[226] & ((|det_align_data[225:202]) | det_align_data[227]);
     assign z_mag = {1'b0, det_align_data[266:227]} + {40'd0, z_inc};
-    assign z_mag_any = |z_mag[40:16];
-    assign z_mag_sub = 17'd0 - {1'b0, z_mag[15:0]};
-    assign z_t = det_align_data[268] ? z_mag_sub : {1'b0, z_mag[15:0]};
-    assign det_align_data_sub_2 = 25'd0 - det_align_data[226:202];
-    assign z_r = z_inc ? det_align_data_sub_2 : det_align_data[226:202];
-    assign det_align_data_xor_2 = det_align_data[268] ^ z_inc;
-    assign z_mag_eq = z_mag == 41'd0;
-    assign det_align_data_cat = {det_align_data[412], det_align_data[410:393], det_align_data[374:357], det_align_data[338:321], det_align_data[392:375], det_align_data[356:339], det_align_data[320:303], det_align_data[431:427], det_align_data[426:423], det_align_data[422:419], det_align_data[418], det_align_data[417:413], det_align_data[411], det_align_data[302], det_align_data[301], det_align_data[300:269], det_align_data[267], z_mag_eq, det_align_data_xor_2, z_r, z_mag_any, z_t, det_align_data[201], det_align_data[200], det_align_data[199:168], det_align_data[166], y_mag_eq, det_align_data_xor_1, y_r, y_mag_any, y_t, det_align_data[100], det_align_data[99], det_align_data[98:67], det_align_data[65], x_mag_eq, det_align_data_xor, x_r, x_mag_any, x_t};
-    assign det_s2_ready = det_s3_valid_or;
-    assign det_s2_valid_not = ~det_s2_valid;
-    assign det_s2_valid_or = det_s2_valid_not | det_s2_ready;
-    assign det_s2_valid_and = det_s2_valid_or & det_align_valid;
-    assign det_s2_data_not = ~det_s2_data[368];
-    assign det_s2_data_eq = det_s2_data[42:27] == 16'd0;
-    assign det_s2_data_shl = det_s2_data[42:18] << 5'd16;
-    assign det_s2_data_mux = det_s2_data_eq ? det_s2_data_shl : det_s2_data[42:18];
-    assign det_s2_data_eq_1 = det_s2_data_mux[24:17] == 8'd0;
-    assign det_s2_data_shl_1 = det_s2_data_mux << 4'd8;
-    assign det_s2_data_mux_1 = det_s2_data_eq_1 ? det_s2_data_shl_1 : det_s2_data_mux;
-    assign det_s2_data_eq_2 = det_s2_data_mux_1[24:21] == 4'd0;
-    assign det_s2_data_shl_2 = det_s2_data_mux_1 << 3'd4;
-    assign det_s2_data_mux_2 = det_s2_data_eq_2 ? det_s2_data_shl_2 : det_s2_data_mux_1;
-    assign det_s2_data_eq_3 = det_s2_data_mux_2[24:23] == 2'd0;
-    assign det_s2_data_shl_3 = det_s2_data_mux_2 << 2'd2;
-    assign det_s2_data_mux_3 = det_s2_data_eq_3 ? det_s2_data_shl_3 : det_s2_data_mux_2;
-    assign det_s2_data_eq_4 = det_s2_data_mux_3[24] == 1'b0;
-    assign det_s2_data_mux_4 = det_s2_data_eq_4 ? det_s2_data_mux_3[23:0] : det_s2_data_mux_3[24:1];
-    assign det_s2_data_cat = {det_s2_data_eq, det_s2_data_eq_1, det_s2_data_eq_2, det_s2_data_eq_3, det_s2_data_eq_4};
-    assign det_s2_data_add = {3'd0, det_s2_data[259:255]} + 8'd126;
-    assign det_s2_data_sub = det_s2_data_add - {3'd0, det_s2_data_cat};
-    assign det_s2_data_cat_1 = {det_s2_data[43], det_s2_data_sub};
-    assign det_s2_data_cat_2 = {det_s2_data_cat_1, det_s2_data_mux_4[22:0]};
-    assign det_s2_data_mux_5 = det_s2_data[45] ? det_s2_data[77:46] : 32'd0;
-    assign det_s2_data_mux_6 = det_s2_data_mux_4[23] ? det_s2_data_cat_2 : 32'd0;
-    assign x_residual = det_s2_data[44] ? det_s2_data_mux_5 : det_s2_data_mux_6;
-    assign det_s2_data_or = det_s2_data[78] | det_s2_data[79];
-    assign det_s2_data_not_1 = ~det_s2_data_or;
-    assign det_s2_data_and = det_s2_data_not_1 & det_s2_data[17];
-    assign det_s2_data_lt = $signed({det_s2_data[16], det_s2_data[16:0]}) < $signed(det_s2_data[277:260]);
-    assign det_s2_data_ge = $signed({det_s2_data[16], det_s2_data[16:0]}) >= $signed(det_s2_data[331:314]);
-    assign det_s2_data_or_1 = det_s2_data[78] | det_s2_data[79];
-    assign det_s2_data_or_2 = det_s2_data_or_1 | det_s2_data_and;
-    assign det_s2_data_not_2 = ~det_s2_data[240];
-    assign det_s2_data_not_3 = ~det_s2_data_or_2;
-    assign det_s2_data_and_1 = det_s2_data_not_2 & det_s2_data_not_3;
-    assign det_s2_data_or_3 = det_s2_data_lt | det_s2_data_ge;
-    assign det_s2_data_and_2 = det_s2_data_and_1 & det_s2_data_or_3;
-    assign det_s2_data_and_3 = det_s2_data_not & det_s2_data_and_2;
-    assign det_s2_data_and_4 = det_s2_data_not & det_s2_data[78];
-    assign det_s2_data_and_5 = det_s2_data_not & det_s2_data[79];
-    assign det_s2_data_and_6 = det_s2_data_not & det_s2_data_and;
-    assign det_s2_data_eq_5 = det_s2_data[122:107] == 16'd0;
-    assign det_s2_data_shl_4 = det_s2_data[122:98] << 5'd16;
-    assign det_s2_data_mux_7 = det_s2_data_eq_5 ? det_s2_data_shl_4 : det_s2_data[122:98];
-    assign det_s2_data_eq_6 = det_s2_data_mux_7[24:17] == 8'd0;
-    assign det_s2_data_shl_5 = det_s2_data_mux_7 << 4'd8;
-    assign det_s2_data_mux_8 = det_s2_data_eq_6 ? det_s2_data_shl_5 : det_s2_data_mux_7;
-    assign det_s2_data_eq_7 = det_s2_data_mux_8[24:21] == 4'd0;
-    assign det_s2_data_shl_6 = det_s2_data_mux_8 << 3'd4;
-    assign det_s2_data_mux_9 = det_s2_data_eq_7 ? det_s2_data_shl_6 : det_s2_data_mux_8;
-    assign det_s2_data_eq_8 = det_s2_data_mux_9[24:23] == 2'd0;
-    assign det_s2_data_shl_7 = det_s2_data_mux_9 << 2'd2;
-    assign det_s2_data_mux_10 = det_s2_data_eq_8 ? det_s2_data_shl_7 : det_s2_data_mux_9;
-    assign det_s2_data_eq_9 = det_s2_data_mux_10[24] == 1'b0;
-    assign det_s2_data_mux_11 = det_s2_data_eq_9 ? det_s2_data_mux_10[23:0] : det_s2_data_mux_10[24:1];
-    assign det_s2_data_cat_3 = {det_s2_data_eq_5, det_s2_data_eq_6, det_s2_data_eq_7, det_s2_data_eq_8, det_s2_data_eq_9};
-    assign det_s2_data_add_1 = {3'd0, det_s2_data[259:255]} + 8'd126;
-    assign det_s2_data_sub_1 = det_s2_data_add_1 - {3'd0, det_s2_data_cat_3};
-    assign det_s2_data_cat_4 = {det_s2_data[123], det_s2_data_sub_1};
-    assign det_s2_data_cat_5 = {det_s2_data_cat_4, det_s2_data_mux_11[22:0]};
-    assign det_s2_data_mux_12 = det_s2_data[125] ? det_s2_data[157:126] : 32'd0;
-    assign det_s2_data_mux_13 = det_s2_data_mux_11[23] ? det_s2_data_cat_5 : 32'd0;
-    assign y_residual = det_s2_data[124] ? det_s2_data_mux_12 : det_s2_data_mux_13;
-    assign det_s2_data_or_4 = det_s2_data[158] | det_s2_data[159];
-    assign det_s2_data_not_4 = ~det_s2_data_or_4;
-    assign det_s2_data_and_7 = det_s2_data_not_4 & det_s2_data[97];
-    assign det_s2_data_lt_1 = $signed({det_s2_data[96], det_s2_data[96:80]}) < $signed(det_s2_data[295:278]);
-    assign det_s2_data_ge_1 = $signed({det_s2_data[96], det_s2_data[96:80]}) >= $signed(det_s2_data[349:332]);
-    assign det_s2_data_or_5 = det_s2_data[158] | det_s2_data[159];
-    assign det_s2_data_or_6 = det_s2_data_or_5 | det_s2_data_and_7;
-    assign det_s2_data_not_5 = ~det_s2_data[240];
-    assign det_s2_data_not_6 = ~det_s2_data_or_6;
-    assign det_s2_data_and_8 = det_s2_data_not_5 & det_s2_data_not_6;
-    assign det_s2_data_or_7 = det_s2_data_lt_1 | det_s2_data_ge_1;
-    assign det_s2_data_and_9 = det_s2_data_and_8 & det_s2_data_or_7;
-    assign det_s2_data_and_10 = det_s2_data_not & det_s2_data_and_9;
-    assign det_s2_data_and_11 = det_s2_data_not & det_s2_data[158];
-    assign det_s2_data_and_12 = det_s2_data_not & det_s2_data[159];
-    assign det_s2_data_and_13 = det_s2_data_not & det_s2_data_and_7;
-    assign det_s2_data_eq_10 = det_s2_data[202:187] == 16'd0;
-    assign det_s2_data_shl_8 = det_s2_data[202:178] << 5'd16;
-    assign det_s2_data_mux_14 = det_s2_data_eq_10 ? det_s2_data_shl_8 : det_s2_data[202:178];
-    assign det_s2_data_eq_11 = det_s2_data_mux_14[24:17] == 8'd0;
-    assign det_s2_data_shl_9 = det_s2_data_mux_14 << 4'd8;
-    assign det_s2_data_mux_15 = det_s2_data_eq_11 ? det_s2_data_shl_9 : det_s2_data_mux_14;
-    assign det_s2_data_eq_12 = det_s2_data_mux_15[24:21] == 4'd0;
-    assign det_s2_data_shl_10 = det_s2_data_mux_15 << 3'd4;
-    assign det_s2_data_mux_16 = det_s2_data_eq_12 ? det_s2_data_shl_10 : det_s2_data_mux_15;
-    assign det_s2_data_eq_13 = det_s2_data_mux_16[24:23] == 2'd0;
-    assign det_s2_data_shl_11 = det_s2_data_mux_16 << 2'd2;
-    assign det_s2_data_mux_17 = det_s2_data_eq_13 ? det_s2_data_shl_11 : det_s2_data_mux_16;
-    assign det_s2_data_eq_14 = det_s2_data_mux_17[24] == 1'b0;
-    assign det_s2_data_mux_18 = det_s2_data_eq_14 ? det_s2_data_mux_17[23:0] : det_s2_data_mux_17[24:1];
-    assign det_s2_data_cat_6 = {det_s2_data_eq_10, det_s2_data_eq_11, det_s2_data_eq_12, det_s2_data_eq_13, det_s2_data_eq_14};
-    assign det_s2_data_add_2 = {3'd0, det_s2_data[259:255]} + 8'd126;
-    assign det_s2_data_sub_2 = det_s2_data_add_2 - {3'd0, det_s2_data_cat_6};
-    assign det_s2_data_cat_7 = {det_s2_data[203], det_s2_data_sub_2};
-    assign det_s2_data_cat_8 = {det_s2_data_cat_7, det_s2_data_mux_18[22:0]};
-    assign det_s2_data_mux_19 = det_s2_data[205] ? det_s2_data[237:206] : 32'd0;
-    assign det_s2_data_mux_20 = det_s2_data_mux_18[23] ? det_s2_data_cat_8 : 32'd0;
-    assign z_residual = det_s2_data[204] ? det_s2_data_mux_19 : det_s2_data_mux_20;
-    assign det_s2_data_or_8 = det_s2_data[238] | det_s2_data[239];
-    assign det_s2_data_not_7 = ~det_s2_data_or_8;
-    assign det_s2_data_and_14 = det_s2_data_not_7 & det_s2_data[177];
-    assign det_s2_data_lt_2 = $signed({det_s2_data[176], det_s2_data[176:160]}) < $signed(det_s2_data[313:296]);
-    assign det_s2_data_ge_2 = $signed({det_s2_data[176], det_s2_data[176:160]}) >= $signed(det_s2_data[367:350]);
-    assign det_s2_data_or_9 = det_s2_data[238] | det_s2_data[239];
-    assign det_s2_data_or_10 = det_s2_data_or_9 | det_s2_data_and_14;
-    assign det_s2_data_not_8 = ~det_s2_data[240];
-    assign det_s2_data_not_9 = ~det_s2_data_or_10;
-    assign det_s2_data_and_15 = det_s2_data_not_8 & det_s2_data_not_9;
-    assign det_s2_data_or_11 = det_s2_data_lt_2 | det_s2_data_ge_2;
-    assign det_s2_data_and_16 = det_s2_data_and_15 & det_s2_data_or_11;
-    assign det_s2_data_and_17 = det_s2_data_not & det_s2_data_and_16;
-    assign det_s2_data_and_18 = det_s2_data_not & det_s2_data[238];
-    assign det_s2_data_and_19 = det_s2_data_not & det_s2_data[239];
-    assign det_s2_data_and_20 = det_s2_data_not & det_s2_data_and_14;
-    assign det_s2_data_cat_9 = {det_s2_data_and_18, det_s2_data_and_11, det_s2_data_and_4};
-    assign det_s2_data_cat_10 = {det_s2_data_and_19, det_s2_data_and_12, det_s2_data_and_5};
-    assign det_s2_data_cat_11 = {det_s2_data_and_20, det_s2_data_and_13, det_s2_data_and_6};
-    assign det_s2_data_cat_12 = {det_s2_data_and_17, det_s2_data_and_10, det_s2_data_and_3};
-    assign det_s2_data_and_21 = det_s2_data_not & det_s2_data[240];
-    assign det_s2_data_any = |det_s2_data_cat_9;
-    assign det_s2_data_or_12 = det_s2_data_and_21 | det_s2_data_any;
-    assign det_s2_data_any_1 = |det_s2_data_cat_10;
-    assign det_s2_data_or_13 = det_s2_data_or_12 | det_s2_data_any_1;
-    assign det_s2_data_any_2 = |det_s2_data_cat_11;
-    assign det_s2_data_or_14 = det_s2_data_or_13 | det_s2_data_any_2;
-    assign det_s2_data_any_3 = |det_s2_data_cat_12;
-    assign det_s2_data_or_15 = det_s2_data_or_14 | det_s2_data_any_3;
-    assign det_s2_data_or_16 = det_s2_data_or_15 | det_s2_data[368];
-    assign det_ok = ~det_s2_data_or_16;
-    assign det_s2_data_and_22 = det_s2_data[246] & det_ok;
-    assign const_not = ~1'b0;
-    assign det_written = det_s2_data_and_22 & const_not;
-    assign det_s2_data_cat_13 = {det_s2_data[254:251], det_s2_data[250:247], det_s2_data[245:241], 1'b0, det_written, 1'b0, det_s2_data_cat_12, det_s2_data_cat_11, det_s2_data_cat_10, det_s2_data_cat_9, det_s2_data_and_21, det_s2_data[368], z_residual, y_residual, x_residual, det_s2_data[176:160], det_s2_data[96:80], det_s2_data[16:0], det_ok};
-    assign det_s3_ready = ~det_out_q_spare_valid;
-    assign det_s3_valid_not = ~det_s3_valid;
-    assign det_s3_valid_or = det_s3_valid_not | det_s3_ready;
-    assign det_s3_valid_and = det_s3_valid_or & det_s2_valid;
-    assign det_s3_data_mux = det_s3_data[174] ? table_valid[1] : table_valid[0];
-    assign det_s3_data_mux_1 = det_s3_data[174] ? table_valid[3] : table_valid[2];
-    assign det_s3_data_mux_2 = det_s3_data[175] ? det_s3_data_mux_1 : det_s3_data_mux;
-    assign det_s3_data_mux_3 = det_s3_data[174] ? table_valid[5] : table_valid[4];
-    assign det_s3_data_mux_4 = det_s3_data[174] ? table_valid[7] : table_valid[6];
-    assign det_s3_data_mux_5 = det_s3_data[175] ? det_s3_data_mux_4 : det_s3_data_mux_3;
-    assign det_s3_data_mux_6 = det_s3_data[176] ? det_s3_data_mux_5 : det_s3_data_mux_2;
-    assign det_s3_data_mux_7 = det_s3_data[174] ? table_valid[9] : table_valid[8];
-    assign det_s3_data_mux_8 = det_s3_data[174] ? table_valid[11] : table_valid[10];
-    assign det_s3_data_mux_9 = det_s3_data[175] ? det_s3_data_mux_8 : det_s3_data_mux_7;
-    assign det_s3_data_mux_10 = det_s3_data[174] ? table_valid[13] : table_valid[12];
-    assign det_s3_data_mux_11 = det_s3_data[174] ? table_valid[15] : table_valid[14];
-    assign det_s3_data_mux_12 = det_s3_data[175] ? det_s3_data_mux_11 : det_s3_data_mux_10;
-    assign det_s3_data_mux_13 = det_s3_data[176] ? det_s3_data_mux_12 : det_s3_data_mux_9;
-    assign det_read_valid = det_s3_data[177] ? det_s3_data_mux_13 : det_s3_data_mux_6;
-    assign table_rd = table_[det_s3_data[177:174]];
-    assign det_read_entry = det_read_valid ? table_rd : 56'd0;
-    assign det_s3_data_mux_14 = det_s3_data[0] ? det_s3_data[17:1] : 17'd0;
-    assign det_s3_data_mux_15 = det_s3_data[0] ? det_s3_data[34:18] : 17'd0;
-    assign det_s3_data_mux_16 = det_s3_data[0] ? det_s3_data[51:35] : 17'd0;
-    assign det_s3_data_mux_17 = det_s3_data[0] ? det_s3_data[83:52] : 32'd0;
-    assign det_s3_data_mux_18 = det_s3_data[0] ? det_s3_data[115:84] : 32'd0;
-    assign det_s3_data_mux_19 = det_s3_data[0] ? det_s3_data[147:116] : 32'd0;
-    assign det_read_entry_cat = {det_read_entry[55:39], det_read_entry[38:22], det_read_entry[21:5], det_read_entry[4:0], det_read_valid, det_s3_data[164], det_s3_data[163], det_s3_data[162], det_s3_data[161:159], det_s3_data[158:156], det_s3_data[155:153], det_s3_data[152:150], det_s3_data[149], det_s3_data[148], det_s3_data_mux_19, det_s3_data_mux_18, det_s3_data_mux_17, det_s3_data_mux_16, det_s3_data_mux_15, det_s3_data_mux_14, det_s3_data[0]};
+    assign z_t = det_align_data_z_s ? (17'd0 - {1'b0, z_mag[15:0]}) : {1'b0, z_mag[15:0]};
+    assign z_r = z_inc ? (25'd0 - det_align_data[226:202]) : det_align_data[226:202];
+    assign det_align_data_err_lod_cat = {det_align_data_err_lod, det_align_data_t_max_z, det_align_data_t_max_y, det_align_data_t_max_x, det_align_data_t_min_z, det_align_data_t_min_y, det_align_data_t_min_x, det_align_data_k, det_align_data_read_id, det_align_data_write_id, det_align_data_write_enable, det_align_data_lod, det_align_data_err_extents, det_align_data_z_inf, det_align_data_z_nan, det_align_data_z_enc, det_align_data_z_m_nz, z_mag == 41'd0, det_align_data_z_s ^ z_inc, z_r, |z_mag[40:16], z_t, det_align_data_y_inf, det_align_data_y_nan, det_align_data_y_enc, det_align_data_y_m_nz, y_mag == 41'd0, det_align_data_y_s ^ y_inc, y_r, |y_mag[40:16], y_t, det_align_data_x_inf, det_align_data_x_nan, det_align_data_x_enc, det_align_data_x_m_nz, x_mag == 41'd0, det_align_data_x_s ^ x_inc, x_r, |x_mag[40:16], x_t};
+    assign det_s2_ready = det_s3_take;
+    assign det_s2_take = (~det_s2_valid) | det_s2_ready;
+    assign det_s2_data_x_t = det_s2_data[16:0];
+    assign det_s2_data_x_too_large = det_s2_data[17];
+    assign det_s2_data_x_r = det_s2_data[42:18];
+    assign det_s2_data_x_r_sign = det_s2_data[43];
+    assign det_s2_data_x_t_zero = det_s2_data[44];
+    assign det_s2_data_x_m_nz = det_s2_data[45];
+    assign det_s2_data_x_enc = det_s2_data[77:46];
+    assign det_s2_data_x_nan = det_s2_data[78];
+    assign det_s2_data_x_inf = det_s2_data[79];
+    assign det_s2_data_y_t = det_s2_data[96:80];
+    assign det_s2_data_y_too_large = det_s2_data[97];
+    assign det_s2_data_y_r = det_s2_data[122:98];
+    assign det_s2_data_y_r_sign = det_s2_data[123];
+    assign det_s2_data_y_t_zero = det_s2_data[124];
+    assign det_s2_data_y_m_nz = det_s2_data[125];
+    assign det_s2_data_y_enc = det_s2_data[157:126];
+    assign det_s2_data_y_nan = det_s2_data[158];
+    assign det_s2_data_y_inf = det_s2_data[159];
+    assign det_s2_data_z_t = det_s2_data[176:160];
+    assign det_s2_data_z_too_large = det_s2_data[177];
+    assign det_s2_data_z_r = det_s2_data[202:178];
+    assign det_s2_data_z_r_sign = det_s2_data[203];
+    assign det_s2_data_z_t_zero = det_s2_data[204];
+    assign det_s2_data_z_m_nz = det_s2_data[205];
+    assign det_s2_data_z_enc = det_s2_data[237:206];
+    assign det_s2_data_z_nan = det_s2_data[238];
+    assign det_s2_data_z_inf = det_s2_data[239];
+    assign det_s2_data_err_extents = det_s2_data[240];
+    assign det_s2_data_lod = det_s2_data[245:241];
+    assign det_s2_data_write_enable = det_s2_data[246];
+    assign det_s2_data_write_id = det_s2_data[250:247];
+    assign det_s2_data_read_id = det_s2_data[254:251];
+    assign det_s2_data_k = det_s2_data[259:255];
+    assign det_s2_data_t_min_x = det_s2_data[277:260];
+    assign det_s2_data_t_min_y = det_s2_data[295:278];
+    assign det_s2_data_t_min_z = det_s2_data[313:296];
+    assign det_s2_data_t_max_x = det_s2_data[331:314];
+    assign det_s2_data_t_max_y = det_s2_data[349:332];
+    assign det_s2_data_t_max_z = det_s2_data[367:350];
+    assign det_s2_data_err_lod = det_s2_data[368];
+    assign det_s2_data_err_lod_not = ~det_s2_data_err_lod;
+    assign det_s2_data_x_r_eq = det_s2_data[42:27] == 16'd0;
+    assign det_s2_data_x_r_mux = det_s2_data_x_r_eq ? (det_s2_data_x_r << 5'd16) : det_s2_data_x_r;
+    assign det_s2_data_x_r_eq_1 = det_s2_data_x_r_mux[24:17] == 8'd0;
+    assign det_s2_data_x_r_mux_1 = det_s2_data_x_r_eq_1 ? (det_s2_data_x_r_mux << 4'd8) : det_s2_data_x_r_mux;
+    assign det_s2_data_x_r_eq_2 = det_s2_data_x_r_mux_1[24:21] == 4'd0;
+    assign det_s2_data_x_r_mux_2 = det_s2_data_x_r_eq_2 ? (det_s2_data_x_r_mux_1 << 3'd4) : det_s2_data_x_r_mux_1;
+    assign det_s2_data_x_r_eq_3 = det_s2_data_x_r_mux_2[24:23] == 2'd0;
+    assign det_s2_data_x_r_mux_3 = det_s2_data_x_r_eq_3 ? (det_s2_data_x_r_mux_2 << 2'd2) : det_s2_data_x_r_mux_2;
+    assign det_s2_data_x_r_eq_4 = det_s2_data_x_r_mux_3[24] == 1'b0;
+    assign det_s2_data_x_r_mux_4 = det_s2_data_x_r_eq_4 ? det_s2_data_x_r_mux_3[23:0] : det_s2_data_x_r_mux_3[24:1];
+    assign det_s2_data_k_add = {3'd0, det_s2_data_k} + 8'd126;
+    assign x_residual = det_s2_data_x_t_zero ? (det_s2_data_x_m_nz ? det_s2_data_x_enc : 32'd0) : (det_s2_data_x_r_mux_4[23] ? {{det_s2_data_x_r_sign, det_s2_data_k_add - {3'd0, {det_s2_data_x_r_eq, det_s2_data_x_r_eq_1, det_s2_data_x_r_eq_2, det_s2_data_x_r_eq_3, det_s2_data_x_r_eq_4}}}, det_s2_data_x_r_mux_4[22:0]} : 32'd0);
+    assign det_s2_data_x_nan_or = det_s2_data_x_nan | det_s2_data_x_inf;
+    assign det_s2_data_x_nan_and = (~det_s2_data_x_nan_or) & det_s2_data_x_too_large;
+    assign det_s2_data_err_extents_not = ~det_s2_data_err_extents;
+    assign det_s2_data_err_extents_and = (det_s2_data_err_extents_not & (~(det_s2_data_x_nan_or | det_s2_data_x_nan_and))) & (($signed({det_s2_data_x_t[16], det_s2_data_x_t}) < $signed(det_s2_data_t_min_x)) | ($signed({det_s2_data_x_t[16], det_s2_data_x_t}) >= $signed(det_s2_data_t_max_x)));
+    assign det_s2_data_y_r_eq = det_s2_data[122:107] == 16'd0;
+    assign det_s2_data_y_r_mux = det_s2_data_y_r_eq ? (det_s2_data_y_r << 5'd16) : det_s2_data_y_r;
+    assign det_s2_data_y_r_eq_1 = det_s2_data_y_r_mux[24:17] == 8'd0;
+    assign det_s2_data_y_r_mux_1 = det_s2_data_y_r_eq_1 ? (det_s2_data_y_r_mux << 4'd8) : det_s2_data_y_r_mux;
+    assign det_s2_data_y_r_eq_2 = det_s2_data_y_r_mux_1[24:21] == 4'd0;
+    assign det_s2_data_y_r_mux_2 = det_s2_data_y_r_eq_2 ? (det_s2_data_y_r_mux_1 << 3'd4) : det_s2_data_y_r_mux_1;
+    assign det_s2_data_y_r_eq_3 = det_s2_data_y_r_mux_2[24:23] == 2'd0;
+    assign det_s2_data_y_r_mux_3 = det_s2_data_y_r_eq_3 ? (det_s2_data_y_r_mux_2 << 2'd2) : det_s2_data_y_r_mux_2;
+    assign det_s2_data_y_r_eq_4 = det_s2_data_y_r_mux_3[24] == 1'b0;
+    assign det_s2_data_y_r_mux_4 = det_s2_data_y_r_eq_4 ? det_s2_data_y_r_mux_3[23:0] : det_s2_data_y_r_mux_3[24:1];
+    assign y_residual = det_s2_data_y_t_zero ? (det_s2_data_y_m_nz ? det_s2_data_y_enc : 32'd0) : (det_s2_data_y_r_mux_4[23] ? {{det_s2_data_y_r_sign, det_s2_data_k_add - {3'd0, {det_s2_data_y_r_eq, det_s2_data_y_r_eq_1, det_s2_data_y_r_eq_2, det_s2_data_y_r_eq_3, det_s2_data_y_r_eq_4}}}, det_s2_data_y_r_mux_4[22:0]} : 32'd0);
+    assign det_s2_data_y_nan_or = det_s2_data_y_nan | det_s2_data_y_inf;
+    assign det_s2_data_y_nan_and = (~det_s2_data_y_nan_or) & det_s2_data_y_too_large;
+    assign det_s2_data_err_extents_and_1 = (det_s2_data_err_extents_not & (~(det_s2_data_y_nan_or | det_s2_data_y_nan_and))) & (($signed({det_s2_data_y_t[16], det_s2_data_y_t}) < $signed(det_s2_data_t_min_y)) | ($signed({det_s2_data_y_t[16], det_s2_data_y_t}) >= $signed(det_s2_data_t_max_y)));
+    assign det_s2_data_z_r_eq = det_s2_data[202:187] == 16'd0;
+    assign det_s2_data_z_r_mux = det_s2_data_z_r_eq ? (det_s2_data_z_r << 5'd16) : det_s2_data_z_r;
+    assign det_s2_data_z_r_eq_1 = det_s2_data_z_r_mux[24:17] == 8'd0;
+    assign det_s2_data_z_r_mux_1 = det_s2_data_z_r_eq_1 ? (det_s2_data_z_r_mux << 4'd8) : det_s2_data_z_r_mux;
+    assign det_s2_data_z_r_eq_2 = det_s2_data_z_r_mux_1[24:21] == 4'd0;
+    assign det_s2_data_z_r_mux_2 = det_s2_data_z_r_eq_2 ? (det_s2_data_z_r_mux_1 << 3'd4) : det_s2_data_z_r_mux_1;
+    assign det_s2_data_z_r_eq_3 = det_s2_data_z_r_mux_2[24:23] == 2'd0;
+    assign det_s2_data_z_r_mux_3 = det_s2_data_z_r_eq_3 ? (det_s2_data_z_r_mux_2 << 2'd2) : det_s2_data_z_r_mux_2;
+    assign det_s2_data_z_r_eq_4 = det_s2_data_z_r_mux_3[24] == 1'b0;
+    assign det_s2_data_z_r_mux_4 = det_s2_data_z_r_eq_4 ? det_s2_data_z_r_mux_3[23:0] : det_s2_data_z_r_mux_3[24:1];
+    assign z_residual = det_s2_data_z_t_zero ? (det_s2_data_z_m_nz ? det_s2_data_z_enc : 32'd0) : (det_s2_data_z_r_mux_4[23] ? {{det_s2_data_z_r_sign, det_s2_data_k_add - {3'd0, {det_s2_data_z_r_eq, det_s2_data_z_r_eq_1, det_s2_data_z_r_eq_2, det_s2_data_z_r_eq_3, det_s2_data_z_r_eq_4}}}, det_s2_data_z_r_mux_4[22:0]} : 32'd0);
+    assign det_s2_data_z_nan_or = det_s2_data_z_nan | det_s2_data_z_inf;
+    assign det_s2_data_z_nan_and = (~det_s2_data_z_nan_or) & det_s2_data_z_too_large;
+    assign det_s2_data_err_extents_and_2 = (det_s2_data_err_extents_not & (~(det_s2_data_z_nan_or | det_s2_data_z_nan_and))) & (($signed({det_s2_data_z_t[16], det_s2_data_z_t}) < $signed(det_s2_data_t_min_z)) | ($signed({det_s2_data_z_t[16], det_s2_data_z_t}) >= $signed(det_s2_data_t_max_z)));
+    assign det_s2_data_err_lod_cat = {det_s2_data_err_lod_not & det_s2_data_z_nan, det_s2_data_err_lod_not & det_s2_data_y_nan, det_s2_data_err_lod_not & det_s2_data_x_nan};
+    assign det_s2_data_err_lod_cat_1 = {det_s2_data_err_lod_not & det_s2_data_z_inf, det_s2_data_err_lod_not & det_s2_data_y_inf, det_s2_data_err_lod_not & det_s2_data_x_inf};
+    assign det_s2_data_err_lod_cat_2 = {det_s2_data_err_lod_not & det_s2_data_z_nan_and, det_s2_data_err_lod_not & det_s2_data_y_nan_and, det_s2_data_err_lod_not & det_s2_data_x_nan_and};
+    assign det_s2_data_err_lod_cat_3 = {det_s2_data_err_lod_not & det_s2_data_err_extents_and_2, det_s2_data_err_lod_not & det_s2_data_err_extents_and_1, det_s2_data_err_lod_not & det_s2_data_err_extents_and};
+    assign det_s2_data_err_lod_and = det_s2_data_err_lod_not & det_s2_data_err_extents;
+    assign det_s2_data_err_lod_or = (((det_s2_data_err_lod_and | (|det_s2_data_err_lod_cat)) | (|det_s2_data_err_lod_cat_1)) | (|det_s2_data_err_lod_cat_2)) | (|det_s2_data_err_lod_cat_3);
+    assign det_ok = ~(det_s2_data_err_lod_or | det_s2_data_err_lod);
+    assign det_written = (det_s2_data_write_enable & det_ok) & (~1'b0);
+    assign det_s2_data_read_id_cat = {det_s2_data_read_id, det_s2_data_write_id, det_s2_data_lod, 1'b0, det_written, 1'b0, det_s2_data_err_lod_cat_3, det_s2_data_err_lod_cat_2, det_s2_data_err_lod_cat_1, det_s2_data_err_lod_cat, det_s2_data_err_lod_and, det_s2_data_err_lod, z_residual, y_residual, x_residual, det_s2_data_z_t, det_s2_data_y_t, det_s2_data_x_t, det_ok};
+    assign det_s3_ready = det_out_q_room;
+    assign det_s3_take = (~det_s3_valid) | det_s3_ready;
+    assign det_s3_data_ok = det_s3_data[0];
+    assign det_s3_data_t_x = det_s3_data[17:1];
+    assign det_s3_data_t_y = det_s3_data[34:18];
+    assign det_s3_data_t_z = det_s3_data[51:35];
+    assign det_s3_data_residual_x = det_s3_data[83:52];
+    assign det_s3_data_residual_y = det_s3_data[115:84];
+    assign det_s3_data_residual_z = det_s3_data[147:116];
+    assign det_s3_data_err_lod = det_s3_data[148];
+    assign det_s3_data_err_extents = det_s3_data[149];
+    assign det_s3_data_err_nan = det_s3_data[152:150];
+    assign det_s3_data_err_inf = det_s3_data[155:153];
+    assign det_s3_data_err_range = det_s3_data[158:156];
+    assign det_s3_data_err_outside = det_s3_data[161:159];
+    assign det_s3_data_err_write_id = det_s3_data[162];
+    assign det_s3_data_written = det_s3_data[163];
+    assign det_s3_data_err_read_id = det_s3_data[164];
+    assign det_s3_data_lod = det_s3_data[169:165];
+    assign det_s3_data_write_id = det_s3_data[173:170];
+    assign det_s3_data_read_id = det_s3_data[177:174];
+    assign det_s3_data_read_id_mux = det_s3_data[176] ? (det_s3_data[175] ? (det_s3_data[174] ? table_valid[7] : table_valid[6]) : (det_s3_data[174] ? table_valid[5] : table_valid[4])) : (det_s3_data[175] ? (det_s3_data[174] ? table_valid[3] : table_valid[2]) : (det_s3_data[174] ? table_valid[1] : table_valid[0]));
+    assign det_s3_data_read_id_mux_1 = det_s3_data[176] ? (det_s3_data[175] ? (det_s3_data[174] ? table_valid[15] : table_valid[14]) : (det_s3_data[174] ? table_valid[13] : table_valid[12])) : (det_s3_data[175] ? (det_s3_data[174] ? table_valid[11] : table_valid[10]) : (det_s3_data[174] ? table_valid[9] : table_valid[8]));
+    assign det_read_valid = det_s3_data[177] ? det_s3_data_read_id_mux_1 : det_s3_data_read_id_mux;
+    assign det_read_entry = det_read_valid ? table_[det_s3_data_read_id] : 56'd0;
+    assign det_read_entry_cat = {det_read_entry[55:39], det_read_entry[38:22], det_read_entry[21:5], det_read_entry[4:0], det_read_valid, det_s3_data_err_read_id, det_s3_data_written, det_s3_data_err_write_id, det_s3_data_err_outside, det_s3_data_err_range, det_s3_data_err_inf, det_s3_data_err_nan, det_s3_data_err_extents, det_s3_data_err_lod, det_s3_data_ok ? det_s3_data_residual_z : 32'd0, det_s3_data_ok ? det_s3_data_residual_y : 32'd0, det_s3_data_ok ? det_s3_data_residual_x : 32'd0, det_s3_data_ok ? det_s3_data_t_z : 17'd0, det_s3_data_ok ? det_s3_data_t_y : 17'd0, det_s3_data_ok ? det_s3_data_t_x : 17'd0, det_s3_data_ok};
     assign det_out_q_ready = det_out_ready;
-    assign det_out_q_valid_not = ~det_out_q_valid;
-    assign det_out_q_ready_or = det_out_q_ready | det_out_q_valid_not;
-    assign det_out_q_spare_valid_not = ~det_out_q_spare_valid;
-    assign det_s3_valid_and_1 = det_s3_valid & det_out_q_spare_valid_not;
-    assign det_out_q_spare_valid_or = det_out_q_spare_valid | det_s3_valid;
-    assign det_out_q_spare_valid_mux = det_out_q_spare_valid ? det_out_q_spare_data : det_read_entry_cat;
-    assign det_out_q_spare_valid_or_1 = det_out_q_spare_valid | det_s3_valid_and_1;
-    assign det_out_q_spare_valid_next = det_out_q_ready_or ? 1'b0 : det_out_q_spare_valid_or_1;
-    assign det_out_q_ready_not = ~det_out_q_ready_or;
-    assign det_out_q_ready_and = det_out_q_ready_not & det_s3_valid_and_1;
-    assign det_s3_valid_and_2 = det_s3_valid & det_s3_ready;
-    assign det_s3_valid_and_3 = det_s3_valid_and_2 & det_s3_data[163];
-    assign det_s3_data_cat = {det_s3_data[51:35], det_s3_data[34:18], det_s3_data[17:1], det_s3_data[169:165]};
-    assign const_shl_3 = 16'd1 << det_s3_data[173:170];
-    assign table_valid_or = table_valid | const_shl_3;
+    assign det_out_q_room = ~det_out_q_spare_valid;
+    assign det_out_q_drain = det_out_q_ready | (~det_out_q_valid);
+    assign det_out_q_take = det_s3_valid & det_out_q_room;
+    assign det_s3_valid_and = (det_s3_valid & det_s3_ready) & det_s3_data_written;
     assign det_out_valid = det_out_q_valid;
     assign det_out_data = det_out_q_data;
-    assign det_out_q_valid_and = det_out_q_valid & det_out_q_ready;
-    assign det_out_q_data_not = ~det_out_q_data[0];
-    assign apply_in_ready = apply_s1_valid_or;
+    assign apply_in_ready = apply_s1_take;
     assign apply_record = apply_in_data[149:0];
-    assign apply_in_data_mux = apply_in_data[150] ? table_valid[1] : table_valid[0];
-    assign apply_in_data_mux_1 = apply_in_data[150] ? table_valid[3] : table_valid[2];
-    assign apply_in_data_mux_2 = apply_in_data[151] ? apply_in_data_mux_1 : apply_in_data_mux;
-    assign apply_in_data_mux_3 = apply_in_data[150] ? table_valid[5] : table_valid[4];
-    assign apply_in_data_mux_4 = apply_in_data[150] ? table_valid[7] : table_valid[6];
-    assign apply_in_data_mux_5 = apply_in_data[151] ? apply_in_data_mux_4 : apply_in_data_mux_3;
-    assign apply_in_data_mux_6 = apply_in_data[152] ? apply_in_data_mux_5 : apply_in_data_mux_2;
-    assign apply_in_data_mux_7 = apply_in_data[150] ? table_valid[9] : table_valid[8];
-    assign apply_in_data_mux_8 = apply_in_data[150] ? table_valid[11] : table_valid[10];
-    assign apply_in_data_mux_9 = apply_in_data[151] ? apply_in_data_mux_8 : apply_in_data_mux_7;
-    assign apply_in_data_mux_10 = apply_in_data[150] ? table_valid[13] : table_valid[12];
-    assign apply_in_data_mux_11 = apply_in_data[150] ? table_valid[15] : table_valid[14];
-    assign apply_in_data_mux_12 = apply_in_data[151] ? apply_in_data_mux_11 : apply_in_data_mux_10;
-    assign apply_in_data_mux_13 = apply_in_data[152] ? apply_in_data_mux_12 : apply_in_data_mux_9;
-    assign apply_read_valid = apply_in_data[153] ? apply_in_data_mux_13 : apply_in_data_mux_6;
-    assign table_rd_1 = table_[apply_in_data[153:150]];
-    assign apply_read_entry = apply_read_valid ? table_rd_1 : 56'd0;
-    assign apply_record_shr = apply_in_data[21:6] >> apply_in_data[5:1];
-    assign apply_record_ne = apply_record_shr != 16'd0;
-    assign apply_record_shr_1 = apply_in_data[37:22] >> apply_in_data[5:1];
-    assign apply_record_ne_1 = apply_record_shr_1 != 16'd0;
-    assign apply_record_or = apply_record_ne | apply_record_ne_1;
-    assign apply_record_shr_2 = apply_in_data[53:38] >> apply_in_data[5:1];
-    assign apply_record_ne_2 = apply_record_shr_2 != 16'd0;
-    assign apply_record_or_1 = apply_record_or | apply_record_ne_2;
-    assign apply_record_gt = apply_in_data[5:1] > 5'd16;
-    assign apply_record_or_2 = apply_record_gt | apply_record_or_1;
-    assign apply_record_lt = apply_in_data[5:1] < apply_read_entry[4:0];
-    assign apply_record_mux = apply_record_lt ? 3'd4 : 3'd0;
-    assign apply_record_mux_1 = apply_record_or_2 ? 3'd3 : apply_record_mux;
-    assign apply_read_valid_not = ~apply_read_valid;
-    assign apply_early_code = apply_read_valid_not ? 3'd2 : apply_record_mux_1;
+    assign apply_in_data_mux = apply_in_data[152] ? (apply_in_data[151] ? (apply_in_data[150] ? table_valid[7] : table_valid[6]) : (apply_in_data[150] ? table_valid[5] : table_valid[4])) : (apply_in_data[151] ? (apply_in_data[150] ? table_valid[3] : table_valid[2]) : (apply_in_data[150] ? table_valid[1] : table_valid[0]));
+    assign apply_in_data_mux_1 = apply_in_data[152] ? (apply_in_data[151] ? (apply_in_data[150] ? table_valid[15] : table_valid[14]) : (apply_in_data[150] ? table_valid[13] : table_valid[12])) : (apply_in_data[151] ? (apply_in_data[150] ? table_valid[11] : table_valid[10]) : (apply_in_data[150] ? table_valid[9] : table_valid[8]));
+    assign apply_read_valid = apply_in_data[153] ? apply_in_data_mux_1 : apply_in_data_mux;
+    assign apply_read_entry = apply_read_valid ? table_[apply_in_data[153:150]] : 56'd0;
+    assign apply_record_or = (((apply_in_data[21:6] >> apply_in_data[5:1]) != 16'd0) | ((apply_in_data[37:22] >> apply_in_data[5:1]) != 16'd0)) | ((apply_in_data[53:38] >> apply_in_data[5:1]) != 16'd0);
+    assign apply_early_code = (~apply_read_valid) ? 3'd2 : (((apply_in_data[5:1] > 5'd16) | apply_record_or) ? 3'd3 : ((apply_in_data[5:1] < apply_read_entry[4:0]) ? 3'd4 : 3'd0));
     assign apply_shift = apply_in_data[5:1] - apply_read_entry[4:0];
-    assign apply_read_entry_cat = {apply_read_entry[55:39], apply_read_entry[38:22], apply_read_entry[21:5], apply_shift, apply_early_code, apply_in_data[153:150], apply_record};
-    assign apply_s1_ready = apply_s2_valid_or;
-    assign apply_s1_valid_not = ~apply_s1_valid;
-    assign apply_s1_valid_or = apply_s1_valid_not | apply_s1_ready;
-    assign apply_s1_valid_and = apply_s1_valid_or & apply_in_valid;
+    assign apply_s1_ready = apply_s2_take;
+    assign apply_s1_take = (~apply_s1_valid) | apply_s1_ready;
+    assign apply_s1_data_record = apply_s1_data[149:0];
+    assign apply_s1_data_hier = apply_s1_data[153:150];
+    assign apply_s1_data_code = apply_s1_data[156:154];
+    assign apply_s1_data_shift = apply_s1_data[161:157];
+    assign apply_s1_data_t0 = apply_s1_data[178:162];
+    assign apply_s1_data_t1 = apply_s1_data[195:179];
+    assign apply_s1_data_t2 = apply_s1_data[212:196];
     assign apply_high = 34'd17179869183 << apply_s1_data[5:1];
-    assign apply_s1_data_shl = {{17{apply_s1_data[178]}}, apply_s1_data[178:162]} << apply_s1_data[161:157];
-    assign apply_s1_data_shl_1 = {{17{apply_s1_data[195]}}, apply_s1_data[195:179]} << apply_s1_data[161:157];
-    assign apply_s1_data_shl_2 = {{17{apply_s1_data[212]}}, apply_s1_data[212:196]} << apply_s1_data[161:157];
-    assign apply_s1_data_cat = {apply_s1_data_shl_2, apply_s1_data_shl_1, apply_s1_data_shl, apply_high, apply_s1_data[156:154], apply_s1_data[153:150], apply_s1_data[149:0]};
-    assign apply_s2_ready = apply_s3_valid_or;
-    assign apply_s2_valid_not = ~apply_s2_valid;
-    assign apply_s2_valid_or = apply_s2_valid_not | apply_s2_ready;
-    assign apply_s2_valid_and = apply_s2_valid_or & apply_s1_valid;
-    assign apply_sum_x = {18'd0, apply_s2_data[21:6]} + apply_s2_data[224:191];
-    assign apply_sum_x_lt = $signed(apply_sum_x) < $signed(34'd0);
-    assign apply_sum_x_and = apply_sum_x & apply_s2_data[190:157];
-    assign apply_sum_x_ne = apply_sum_x_and != 34'd0;
-    assign apply_sum_x_or = apply_sum_x_lt | apply_sum_x_ne;
-    assign apply_sum_y = {18'd0, apply_s2_data[37:22]} + apply_s2_data[258:225];
-    assign apply_sum_y_lt = $signed(apply_sum_y) < $signed(34'd0);
-    assign apply_sum_y_and = apply_sum_y & apply_s2_data[190:157];
-    assign apply_sum_y_ne = apply_sum_y_and != 34'd0;
-    assign apply_sum_y_or = apply_sum_y_lt | apply_sum_y_ne;
-    assign apply_sum_z = {18'd0, apply_s2_data[53:38]} + apply_s2_data[292:259];
-    assign apply_sum_z_lt = $signed(apply_sum_z) < $signed(34'd0);
-    assign apply_sum_z_and = apply_sum_z & apply_s2_data[190:157];
-    assign apply_sum_z_ne = apply_sum_z_and != 34'd0;
-    assign apply_sum_z_or = apply_sum_z_lt | apply_sum_z_ne;
-    assign apply_sum_z_cat = {apply_sum_z_or, apply_sum_z[15:0], apply_sum_y_or, apply_sum_y[15:0], apply_sum_x_or, apply_sum_x[15:0], apply_s2_data[156:154], apply_s2_data[153:150], apply_s2_data[149:0]};
-    assign apply_s3_ready = ~apply_out_q_spare_valid;
-    assign apply_s3_valid_not = ~apply_s3_valid;
-    assign apply_s3_valid_or = apply_s3_valid_not | apply_s3_ready;
-    assign apply_s3_valid_and = apply_s3_valid_or & apply_s2_valid;
+    assign apply_s1_data_t2_cat = {{{17{apply_s1_data_t2[16]}}, apply_s1_data_t2} << apply_s1_data_shift, {{17{apply_s1_data_t1[16]}}, apply_s1_data_t1} << apply_s1_data_shift, {{17{apply_s1_data_t0[16]}}, apply_s1_data_t0} << apply_s1_data_shift, apply_high, apply_s1_data_code, apply_s1_data_hier, apply_s1_data_record};
+    assign apply_s2_ready = apply_s3_take;
+    assign apply_s2_take = (~apply_s2_valid) | apply_s2_ready;
+    assign apply_s2_data_record = apply_s2_data[149:0];
+    assign apply_s2_data_hier = apply_s2_data[153:150];
+    assign apply_s2_data_code = apply_s2_data[156:154];
+    assign apply_s2_data_high = apply_s2_data[190:157];
+    assign apply_s2_data_offset0 = apply_s2_data[224:191];
+    assign apply_s2_data_offset1 = apply_s2_data[258:225];
+    assign apply_s2_data_offset2 = apply_s2_data[292:259];
+    assign apply_sum_x = {18'd0, apply_s2_data[21:6]} + apply_s2_data_offset0;
+    assign apply_sum_y = {18'd0, apply_s2_data[37:22]} + apply_s2_data_offset1;
+    assign apply_sum_z = {18'd0, apply_s2_data[53:38]} + apply_s2_data_offset2;
+    assign apply_sum_z_cat = {($signed(apply_sum_z) < $signed(34'd0)) | ((apply_sum_z & apply_s2_data_high) != 34'd0), apply_sum_z[15:0], ($signed(apply_sum_y) < $signed(34'd0)) | ((apply_sum_y & apply_s2_data_high) != 34'd0), apply_sum_y[15:0], ($signed(apply_sum_x) < $signed(34'd0)) | ((apply_sum_x & apply_s2_data_high) != 34'd0), apply_sum_x[15:0], apply_s2_data_code, apply_s2_data_hier, apply_s2_data_record};
+    assign apply_s3_ready = apply_out_q_room;
+    assign apply_s3_take = (~apply_s3_valid) | apply_s3_ready;
+    assign apply_s3_data_record = apply_s3_data[149:0];
+    assign apply_s3_data_hier = apply_s3_data[153:150];
+    assign apply_s3_data_code = apply_s3_data[156:154];
+    assign apply_s3_data_moved0 = apply_s3_data[172:157];
     assign apply_outside_x = apply_s3_data[173];
+    assign apply_s3_data_moved1 = apply_s3_data[189:174];
     assign apply_outside_y = apply_s3_data[190];
+    assign apply_s3_data_moved2 = apply_s3_data[206:191];
     assign apply_outside_z = apply_s3_data[207];
-    assign apply_outside_z_mux = apply_outside_z ? 3'd7 : 3'd0;
-    assign apply_outside_y_mux = apply_outside_y ? 3'd6 : apply_outside_z_mux;
-    assign apply_outside_x_mux = apply_outside_x ? 3'd5 : apply_outside_y_mux;
-    assign apply_s3_data_ne = apply_s3_data[156:154] != 3'd0;
-    assign apply_code = apply_s3_data_ne ? apply_s3_data[156:154] : apply_outside_x_mux;
-    assign apply_s3_data_cat = {apply_s3_data[149:54], apply_s3_data[206:191], apply_s3_data[189:174], apply_s3_data[172:157], apply_s3_data[5:0]};
-    assign apply_code_eq = apply_code == 3'd0;
-    assign apply_code_mux = apply_code_eq ? apply_s3_data_cat : apply_s3_data[149:0];
-    assign apply_code_cat = {apply_code, apply_s3_data[153:150], apply_code_mux};
+    assign apply_code = (apply_s3_data_code != 3'd0) ? apply_s3_data_code : (apply_outside_x ? 3'd5 : (apply_outside_y ? 3'd6 : (apply_outside_z ? 3'd7 : 3'd0)));
+    assign apply_code_cat = {apply_code, apply_s3_data_hier, (apply_code == 3'd0) ? {apply_s3_data[149:54], apply_s3_data_moved2, apply_s3_data_moved1, apply_s3_data_moved0, apply_s3_data[5:0]} : apply_s3_data_record};
     assign apply_out_q_ready = apply_out_ready;
-    assign apply_out_q_valid_not = ~apply_out_q_valid;
-    assign apply_out_q_ready_or = apply_out_q_ready | apply_out_q_valid_not;
-    assign apply_out_q_spare_valid_not = ~apply_out_q_spare_valid;
-    assign apply_s3_valid_and_1 = apply_s3_valid & apply_out_q_spare_valid_not;
-    assign apply_out_q_spare_valid_or = apply_out_q_spare_valid | apply_s3_valid;
-    assign apply_out_q_spare_valid_mux = apply_out_q_spare_valid ? apply_out_q_spare_data : apply_code_cat;
-    assign apply_out_q_spare_valid_or_1 = apply_out_q_spare_valid | apply_s3_valid_and_1;
-    assign apply_out_q_spare_valid_next = apply_out_q_ready_or ? 1'b0 : apply_out_q_spare_valid_or_1;
-    assign apply_out_q_ready_not = ~apply_out_q_ready_or;
-    assign apply_out_q_ready_and = apply_out_q_ready_not & apply_s3_valid_and_1;
-    assign apply_out_q_data_ne = apply_out_q_data[156:154] != 3'd0;
+    assign apply_out_q_room = ~apply_out_q_spare_valid;
+    assign apply_out_q_drain = apply_out_q_ready | (~apply_out_q_valid);
+    assign apply_out_q_take = apply_s3_valid & apply_out_q_room;
+    assign apply_out_q_data_code = apply_out_q_data[156:154];
     assign apply_out_valid = apply_out_q_valid;
     assign apply_out_data = apply_out_q_data;
-    assign apply_out_q_valid_and = apply_out_q_valid & apply_out_q_ready;
-    assign det_s1_valid_or_1 = det_s1_valid | det_align_valid;
-    assign det_s1_valid_or_2 = det_s1_valid_or_1 | det_s2_valid;
-    assign det_s1_valid_or_3 = det_s1_valid_or_2 | det_s3_valid;
-    assign det_s1_valid_or_4 = det_s1_valid_or_3 | det_out_q_valid;
-    assign det_s1_valid_or_5 = det_s1_valid_or_4 | apply_s1_valid;
-    assign det_s1_valid_or_6 = det_s1_valid_or_5 | apply_s2_valid;
-    assign det_s1_valid_or_7 = det_s1_valid_or_6 | apply_s3_valid;
-    assign was_busy_next = det_s1_valid_or_7 | apply_out_q_valid;
+    assign det_s1_valid_or = ((((((det_s1_valid | det_align_valid) | det_s2_valid) | det_s3_valid) | det_out_q_valid) | apply_s1_valid) | apply_s2_valid) | apply_s3_valid;
+    assign was_busy_next = det_s1_valid_or | apply_out_q_valid;
     assign idle_now = ~was_busy_next;
     assign idle = idle_now;
     assign done = idle_now & was_busy;
-    assign det_out_q_valid_and_1 = det_out_q_valid_and & det_out_q_data_not;
-    assign det_error_seen_next = det_error_seen_q | det_out_q_valid_and_1;
-    assign apply_out_q_valid_and_1 = apply_out_q_valid_and & apply_out_q_data_ne;
-    assign apply_error_seen_next = apply_error_seen_q | apply_out_q_valid_and_1;
     assign det_error_seen = det_error_seen_q;
     assign apply_error_seen = apply_error_seen_q;
 
@@ -910,77 +656,77 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
             det_error_seen_q <= 1'b0;
             apply_error_seen_q <= 1'b0;
         end else begin
-            if (det_s3_valid_and_3) begin
-                table_valid <= table_valid_or; // rtl-gen/src/translate/table.rs:109
+            if (det_s3_valid_and) begin
+                table_valid <= table_valid | (16'd1 << det_s3_data_write_id); // rtl-gen/src/translate/table.rs:109
             end
-            if (det_s1_valid_or) begin
+            if (det_s1_take) begin
                 det_s1_valid <= det_in_valid; // rtl-gen/src/translate/bundle.rs:88
             end
-            if (det_s1_valid_and) begin
+            if (det_s1_take & det_in_valid) begin
                 det_s1_data <= k_cat;        // rtl-gen/src/translate/bundle.rs:88
             end
-            if (det_align_valid_or) begin
+            if (det_align_take) begin
                 det_align_valid <= det_s1_valid; // rtl-gen/src/translate/bundle.rs:88
             end
-            if (det_align_valid_and) begin
-                det_align_data <= det_s1_data_cat; // rtl-gen/src/translate/bundle.rs:88
+            if (det_align_take & det_s1_valid) begin
+                det_align_data <= det_s1_data_k_cat; // rtl-gen/src/translate/bundle.rs:88
             end
-            if (det_s2_valid_or) begin
+            if (det_s2_take) begin
                 det_s2_valid <= det_align_valid; // rtl-gen/src/translate/bundle.rs:88
             end
-            if (det_s2_valid_and) begin
-                det_s2_data <= det_align_data_cat; // rtl-gen/src/translate/bundle.rs:88
+            if (det_s2_take & det_align_valid) begin
+                det_s2_data <= det_align_data_err_lod_cat; // rtl-gen/src/translate/bundle.rs:88
             end
-            if (det_s3_valid_or) begin
+            if (det_s3_take) begin
                 det_s3_valid <= det_s2_valid; // rtl-gen/src/translate/bundle.rs:88
             end
-            if (det_s3_valid_and) begin
-                det_s3_data <= det_s2_data_cat_13; // rtl-gen/src/translate/bundle.rs:88
+            if (det_s3_take & det_s2_valid) begin
+                det_s3_data <= det_s2_data_read_id_cat; // rtl-gen/src/translate/bundle.rs:88
             end
-            if (det_out_q_ready_or) begin
-                det_out_q_valid <= det_out_q_spare_valid_or; // rtl-gen/src/translate/bundle.rs:105
-                det_out_q_data <= det_out_q_spare_valid_mux; // rtl-gen/src/translate/bundle.rs:105
+            if (det_out_q_drain) begin
+                det_out_q_valid <= det_out_q_spare_valid | det_s3_valid; // rtl-gen/src/translate/bundle.rs:105
+                det_out_q_data <= det_out_q_spare_valid ? det_out_q_spare_data : det_read_entry_cat; // rtl-gen/src/translate/bundle.rs:105
             end
-            det_out_q_spare_valid <= det_out_q_spare_valid_next;
-            if (det_out_q_ready_and) begin
+            det_out_q_spare_valid <= det_out_q_drain ? 1'b0 : (det_out_q_spare_valid | det_out_q_take);
+            if ((~det_out_q_drain) & det_out_q_take) begin
                 det_out_q_spare_data <= det_read_entry_cat; // rtl-gen/src/translate/bundle.rs:105
             end
-            if (apply_s1_valid_or) begin
+            if (apply_s1_take) begin
                 apply_s1_valid <= apply_in_valid; // rtl-gen/src/translate/bundle.rs:88
             end
-            if (apply_s1_valid_and) begin
-                apply_s1_data <= apply_read_entry_cat; // rtl-gen/src/translate/bundle.rs:88
+            if (apply_s1_take & apply_in_valid) begin
+                apply_s1_data <= {apply_read_entry[55:39], apply_read_entry[38:22], apply_read_entry[21:5], apply_shift, apply_early_code, apply_in_data[153:150], apply_record}; // rtl-gen/src/translate/bundle.rs:88
             end
-            if (apply_s2_valid_or) begin
+            if (apply_s2_take) begin
                 apply_s2_valid <= apply_s1_valid; // rtl-gen/src/translate/bundle.rs:88
             end
-            if (apply_s2_valid_and) begin
-                apply_s2_data <= apply_s1_data_cat; // rtl-gen/src/translate/bundle.rs:88
+            if (apply_s2_take & apply_s1_valid) begin
+                apply_s2_data <= apply_s1_data_t2_cat; // rtl-gen/src/translate/bundle.rs:88
             end
-            if (apply_s3_valid_or) begin
+            if (apply_s3_take) begin
                 apply_s3_valid <= apply_s2_valid; // rtl-gen/src/translate/bundle.rs:88
             end
-            if (apply_s3_valid_and) begin
+            if (apply_s3_take & apply_s2_valid) begin
                 apply_s3_data <= apply_sum_z_cat; // rtl-gen/src/translate/bundle.rs:88
             end
-            if (apply_out_q_ready_or) begin
-                apply_out_q_valid <= apply_out_q_spare_valid_or; // rtl-gen/src/translate/bundle.rs:105
-                apply_out_q_data <= apply_out_q_spare_valid_mux; // rtl-gen/src/translate/bundle.rs:105
+            if (apply_out_q_drain) begin
+                apply_out_q_valid <= apply_out_q_spare_valid | apply_s3_valid; // rtl-gen/src/translate/bundle.rs:105
+                apply_out_q_data <= apply_out_q_spare_valid ? apply_out_q_spare_data : apply_code_cat; // rtl-gen/src/translate/bundle.rs:105
             end
-            apply_out_q_spare_valid <= apply_out_q_spare_valid_next;
-            if (apply_out_q_ready_and) begin
+            apply_out_q_spare_valid <= apply_out_q_drain ? 1'b0 : (apply_out_q_spare_valid | apply_out_q_take);
+            if ((~apply_out_q_drain) & apply_out_q_take) begin
                 apply_out_q_spare_data <= apply_code_cat; // rtl-gen/src/translate/bundle.rs:105
             end
             was_busy <= was_busy_next;
-            det_error_seen_q <= det_error_seen_next;
-            apply_error_seen_q <= apply_error_seen_next;
+            det_error_seen_q <= det_error_seen_q | ((det_out_q_valid & det_out_q_ready) & (~det_out_q_data[0]));
+            apply_error_seen_q <= apply_error_seen_q | ((apply_out_q_valid & apply_out_q_ready) & (apply_out_q_data_code != 3'd0));
         end
     end
 
     // memory table_: 16 x 56 bits
     always @(posedge clk) begin
-        if (det_s3_valid_and_3) begin
-            table_[det_s3_data[173:170]] <= det_s3_data_cat;
+        if (det_s3_valid_and) begin
+            table_[det_s3_data_write_id] <= {det_s3_data_t_z, det_s3_data_t_y, det_s3_data_t_x, det_s3_data_lod};
         end
     end
 endmodule

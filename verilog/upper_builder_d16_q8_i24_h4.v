@@ -107,9 +107,9 @@ module upper_builder_d16_q8_i24_h4 (
     output wire level0_valid,         // rtl-gen/src/merge/builder.rs:266
     output wire [228:0] level0_data,  // rtl-gen/src/merge/builder.rs:266
     input  wire level0_ready,         // rtl-gen/src/merge/builder.rs:266
-    output wire done_valid,           // rtl-gen/src/merge/builder.rs:312
-    output wire [5:0] done_data,      // rtl-gen/src/merge/builder.rs:312
-    input  wire done_ready            // rtl-gen/src/merge/builder.rs:312
+    output wire done_valid,           // rtl-gen/src/merge/builder.rs:313
+    output wire [5:0] done_data,      // rtl-gen/src/merge/builder.rs:313
+    input  wire done_ready            // rtl-gen/src/merge/builder.rs:313
 );
     wire done_in_ready;                      // rtl-gen/src/merge/builder.rs:131
     reg top_found;                           // rtl-gen/src/merge/builder.rs:132
@@ -121,324 +121,206 @@ module upper_builder_d16_q8_i24_h4 (
     reg base0_skid_spare_valid;              // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base0_skid_spare_data;       // rtl-gen/src/merge/builder.rs:140
     wire base0_skid_ready;                   // rtl-gen/src/merge/builder.rs:140
-    wire base0_skid_valid_not;               // rtl-gen/src/merge/builder.rs:140
-    wire base0_skid_ready_or;                // rtl-gen/src/merge/builder.rs:140
-    wire base0_skid_spare_valid_not;         // rtl-gen/src/merge/builder.rs:140
-    wire base0_valid_and;                    // rtl-gen/src/merge/builder.rs:140
-    wire base0_skid_spare_valid_or;          // rtl-gen/src/merge/builder.rs:140
-    wire [179:0] base0_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
-    wire base0_skid_spare_valid_or_1;        // rtl-gen/src/merge/builder.rs:140
-    wire base0_skid_spare_valid_next;        // rtl-gen/src/merge/builder.rs:140
-    wire base0_skid_ready_not;               // rtl-gen/src/merge/builder.rs:140
-    wire base0_skid_ready_and;               // rtl-gen/src/merge/builder.rs:140
+    wire base0_skid_room;                    // rtl-gen/src/merge/builder.rs:140
+    wire base0_skid_drain;                   // rtl-gen/src/merge/builder.rs:140
+    wire base0_skid_take;                    // rtl-gen/src/merge/builder.rs:140
     reg base1_skid_valid;                    // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base1_skid_data;             // rtl-gen/src/merge/builder.rs:140
     reg base1_skid_spare_valid;              // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base1_skid_spare_data;       // rtl-gen/src/merge/builder.rs:140
     wire base1_skid_ready;                   // rtl-gen/src/merge/builder.rs:140
-    wire base1_skid_valid_not;               // rtl-gen/src/merge/builder.rs:140
-    wire base1_skid_ready_or;                // rtl-gen/src/merge/builder.rs:140
-    wire base1_skid_spare_valid_not;         // rtl-gen/src/merge/builder.rs:140
-    wire base1_valid_and;                    // rtl-gen/src/merge/builder.rs:140
-    wire base1_skid_spare_valid_or;          // rtl-gen/src/merge/builder.rs:140
-    wire [179:0] base1_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
-    wire base1_skid_spare_valid_or_1;        // rtl-gen/src/merge/builder.rs:140
-    wire base1_skid_spare_valid_next;        // rtl-gen/src/merge/builder.rs:140
-    wire base1_skid_ready_not;               // rtl-gen/src/merge/builder.rs:140
-    wire base1_skid_ready_and;               // rtl-gen/src/merge/builder.rs:140
+    wire base1_skid_room;                    // rtl-gen/src/merge/builder.rs:140
+    wire base1_skid_drain;                   // rtl-gen/src/merge/builder.rs:140
+    wire base1_skid_take;                    // rtl-gen/src/merge/builder.rs:140
     reg base2_skid_valid;                    // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base2_skid_data;             // rtl-gen/src/merge/builder.rs:140
     reg base2_skid_spare_valid;              // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base2_skid_spare_data;       // rtl-gen/src/merge/builder.rs:140
     wire base2_skid_ready;                   // rtl-gen/src/merge/builder.rs:140
-    wire base2_skid_valid_not;               // rtl-gen/src/merge/builder.rs:140
-    wire base2_skid_ready_or;                // rtl-gen/src/merge/builder.rs:140
-    wire base2_skid_spare_valid_not;         // rtl-gen/src/merge/builder.rs:140
-    wire base2_valid_and;                    // rtl-gen/src/merge/builder.rs:140
-    wire base2_skid_spare_valid_or;          // rtl-gen/src/merge/builder.rs:140
-    wire [179:0] base2_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
-    wire base2_skid_spare_valid_or_1;        // rtl-gen/src/merge/builder.rs:140
-    wire base2_skid_spare_valid_next;        // rtl-gen/src/merge/builder.rs:140
-    wire base2_skid_ready_not;               // rtl-gen/src/merge/builder.rs:140
-    wire base2_skid_ready_and;               // rtl-gen/src/merge/builder.rs:140
+    wire base2_skid_room;                    // rtl-gen/src/merge/builder.rs:140
+    wire base2_skid_drain;                   // rtl-gen/src/merge/builder.rs:140
+    wire base2_skid_take;                    // rtl-gen/src/merge/builder.rs:140
     reg base3_skid_valid;                    // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base3_skid_data;             // rtl-gen/src/merge/builder.rs:140
     reg base3_skid_spare_valid;              // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base3_skid_spare_data;       // rtl-gen/src/merge/builder.rs:140
     wire base3_skid_ready;                   // rtl-gen/src/merge/builder.rs:140
-    wire base3_skid_valid_not;               // rtl-gen/src/merge/builder.rs:140
-    wire base3_skid_ready_or;                // rtl-gen/src/merge/builder.rs:140
-    wire base3_skid_spare_valid_not;         // rtl-gen/src/merge/builder.rs:140
-    wire base3_valid_and;                    // rtl-gen/src/merge/builder.rs:140
-    wire base3_skid_spare_valid_or;          // rtl-gen/src/merge/builder.rs:140
-    wire [179:0] base3_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
-    wire base3_skid_spare_valid_or_1;        // rtl-gen/src/merge/builder.rs:140
-    wire base3_skid_spare_valid_next;        // rtl-gen/src/merge/builder.rs:140
-    wire base3_skid_ready_not;               // rtl-gen/src/merge/builder.rs:140
-    wire base3_skid_ready_and;               // rtl-gen/src/merge/builder.rs:140
+    wire base3_skid_room;                    // rtl-gen/src/merge/builder.rs:140
+    wire base3_skid_drain;                   // rtl-gen/src/merge/builder.rs:140
+    wire base3_skid_take;                    // rtl-gen/src/merge/builder.rs:140
     reg base4_skid_valid;                    // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base4_skid_data;             // rtl-gen/src/merge/builder.rs:140
     reg base4_skid_spare_valid;              // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base4_skid_spare_data;       // rtl-gen/src/merge/builder.rs:140
     wire base4_skid_ready;                   // rtl-gen/src/merge/builder.rs:140
-    wire base4_skid_valid_not;               // rtl-gen/src/merge/builder.rs:140
-    wire base4_skid_ready_or;                // rtl-gen/src/merge/builder.rs:140
-    wire base4_skid_spare_valid_not;         // rtl-gen/src/merge/builder.rs:140
-    wire base4_valid_and;                    // rtl-gen/src/merge/builder.rs:140
-    wire base4_skid_spare_valid_or;          // rtl-gen/src/merge/builder.rs:140
-    wire [179:0] base4_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
-    wire base4_skid_spare_valid_or_1;        // rtl-gen/src/merge/builder.rs:140
-    wire base4_skid_spare_valid_next;        // rtl-gen/src/merge/builder.rs:140
-    wire base4_skid_ready_not;               // rtl-gen/src/merge/builder.rs:140
-    wire base4_skid_ready_and;               // rtl-gen/src/merge/builder.rs:140
+    wire base4_skid_room;                    // rtl-gen/src/merge/builder.rs:140
+    wire base4_skid_drain;                   // rtl-gen/src/merge/builder.rs:140
+    wire base4_skid_take;                    // rtl-gen/src/merge/builder.rs:140
     reg base5_skid_valid;                    // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base5_skid_data;             // rtl-gen/src/merge/builder.rs:140
     reg base5_skid_spare_valid;              // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base5_skid_spare_data;       // rtl-gen/src/merge/builder.rs:140
     wire base5_skid_ready;                   // rtl-gen/src/merge/builder.rs:140
-    wire base5_skid_valid_not;               // rtl-gen/src/merge/builder.rs:140
-    wire base5_skid_ready_or;                // rtl-gen/src/merge/builder.rs:140
-    wire base5_skid_spare_valid_not;         // rtl-gen/src/merge/builder.rs:140
-    wire base5_valid_and;                    // rtl-gen/src/merge/builder.rs:140
-    wire base5_skid_spare_valid_or;          // rtl-gen/src/merge/builder.rs:140
-    wire [179:0] base5_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
-    wire base5_skid_spare_valid_or_1;        // rtl-gen/src/merge/builder.rs:140
-    wire base5_skid_spare_valid_next;        // rtl-gen/src/merge/builder.rs:140
-    wire base5_skid_ready_not;               // rtl-gen/src/merge/builder.rs:140
-    wire base5_skid_ready_and;               // rtl-gen/src/merge/builder.rs:140
+    wire base5_skid_room;                    // rtl-gen/src/merge/builder.rs:140
+    wire base5_skid_drain;                   // rtl-gen/src/merge/builder.rs:140
+    wire base5_skid_take;                    // rtl-gen/src/merge/builder.rs:140
     reg base6_skid_valid;                    // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base6_skid_data;             // rtl-gen/src/merge/builder.rs:140
     reg base6_skid_spare_valid;              // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base6_skid_spare_data;       // rtl-gen/src/merge/builder.rs:140
     wire base6_skid_ready;                   // rtl-gen/src/merge/builder.rs:140
-    wire base6_skid_valid_not;               // rtl-gen/src/merge/builder.rs:140
-    wire base6_skid_ready_or;                // rtl-gen/src/merge/builder.rs:140
-    wire base6_skid_spare_valid_not;         // rtl-gen/src/merge/builder.rs:140
-    wire base6_valid_and;                    // rtl-gen/src/merge/builder.rs:140
-    wire base6_skid_spare_valid_or;          // rtl-gen/src/merge/builder.rs:140
-    wire [179:0] base6_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
-    wire base6_skid_spare_valid_or_1;        // rtl-gen/src/merge/builder.rs:140
-    wire base6_skid_spare_valid_next;        // rtl-gen/src/merge/builder.rs:140
-    wire base6_skid_ready_not;               // rtl-gen/src/merge/builder.rs:140
-    wire base6_skid_ready_and;               // rtl-gen/src/merge/builder.rs:140
+    wire base6_skid_room;                    // rtl-gen/src/merge/builder.rs:140
+    wire base6_skid_drain;                   // rtl-gen/src/merge/builder.rs:140
+    wire base6_skid_take;                    // rtl-gen/src/merge/builder.rs:140
     reg base7_skid_valid;                    // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base7_skid_data;             // rtl-gen/src/merge/builder.rs:140
     reg base7_skid_spare_valid;              // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base7_skid_spare_data;       // rtl-gen/src/merge/builder.rs:140
     wire base7_skid_ready;                   // rtl-gen/src/merge/builder.rs:140
-    wire base7_skid_valid_not;               // rtl-gen/src/merge/builder.rs:140
-    wire base7_skid_ready_or;                // rtl-gen/src/merge/builder.rs:140
-    wire base7_skid_spare_valid_not;         // rtl-gen/src/merge/builder.rs:140
-    wire base7_valid_and;                    // rtl-gen/src/merge/builder.rs:140
-    wire base7_skid_spare_valid_or;          // rtl-gen/src/merge/builder.rs:140
-    wire [179:0] base7_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
-    wire base7_skid_spare_valid_or_1;        // rtl-gen/src/merge/builder.rs:140
-    wire base7_skid_spare_valid_next;        // rtl-gen/src/merge/builder.rs:140
-    wire base7_skid_ready_not;               // rtl-gen/src/merge/builder.rs:140
-    wire base7_skid_ready_and;               // rtl-gen/src/merge/builder.rs:140
+    wire base7_skid_room;                    // rtl-gen/src/merge/builder.rs:140
+    wire base7_skid_drain;                   // rtl-gen/src/merge/builder.rs:140
+    wire base7_skid_take;                    // rtl-gen/src/merge/builder.rs:140
     reg base8_skid_valid;                    // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base8_skid_data;             // rtl-gen/src/merge/builder.rs:140
     reg base8_skid_spare_valid;              // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base8_skid_spare_data;       // rtl-gen/src/merge/builder.rs:140
     wire base8_skid_ready;                   // rtl-gen/src/merge/builder.rs:140
-    wire base8_skid_valid_not;               // rtl-gen/src/merge/builder.rs:140
-    wire base8_skid_ready_or;                // rtl-gen/src/merge/builder.rs:140
-    wire base8_skid_spare_valid_not;         // rtl-gen/src/merge/builder.rs:140
-    wire base8_valid_and;                    // rtl-gen/src/merge/builder.rs:140
-    wire base8_skid_spare_valid_or;          // rtl-gen/src/merge/builder.rs:140
-    wire [179:0] base8_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
-    wire base8_skid_spare_valid_or_1;        // rtl-gen/src/merge/builder.rs:140
-    wire base8_skid_spare_valid_next;        // rtl-gen/src/merge/builder.rs:140
-    wire base8_skid_ready_not;               // rtl-gen/src/merge/builder.rs:140
-    wire base8_skid_ready_and;               // rtl-gen/src/merge/builder.rs:140
+    wire base8_skid_room;                    // rtl-gen/src/merge/builder.rs:140
+    wire base8_skid_drain;                   // rtl-gen/src/merge/builder.rs:140
+    wire base8_skid_take;                    // rtl-gen/src/merge/builder.rs:140
     reg base9_skid_valid;                    // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base9_skid_data;             // rtl-gen/src/merge/builder.rs:140
     reg base9_skid_spare_valid;              // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base9_skid_spare_data;       // rtl-gen/src/merge/builder.rs:140
     wire base9_skid_ready;                   // rtl-gen/src/merge/builder.rs:140
-    wire base9_skid_valid_not;               // rtl-gen/src/merge/builder.rs:140
-    wire base9_skid_ready_or;                // rtl-gen/src/merge/builder.rs:140
-    wire base9_skid_spare_valid_not;         // rtl-gen/src/merge/builder.rs:140
-    wire base9_valid_and;                    // rtl-gen/src/merge/builder.rs:140
-    wire base9_skid_spare_valid_or;          // rtl-gen/src/merge/builder.rs:140
-    wire [179:0] base9_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
-    wire base9_skid_spare_valid_or_1;        // rtl-gen/src/merge/builder.rs:140
-    wire base9_skid_spare_valid_next;        // rtl-gen/src/merge/builder.rs:140
-    wire base9_skid_ready_not;               // rtl-gen/src/merge/builder.rs:140
-    wire base9_skid_ready_and;               // rtl-gen/src/merge/builder.rs:140
+    wire base9_skid_room;                    // rtl-gen/src/merge/builder.rs:140
+    wire base9_skid_drain;                   // rtl-gen/src/merge/builder.rs:140
+    wire base9_skid_take;                    // rtl-gen/src/merge/builder.rs:140
     reg base10_skid_valid;                   // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base10_skid_data;            // rtl-gen/src/merge/builder.rs:140
     reg base10_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base10_skid_spare_data;      // rtl-gen/src/merge/builder.rs:140
     wire base10_skid_ready;                  // rtl-gen/src/merge/builder.rs:140
-    wire base10_skid_valid_not;              // rtl-gen/src/merge/builder.rs:140
-    wire base10_skid_ready_or;               // rtl-gen/src/merge/builder.rs:140
-    wire base10_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:140
-    wire base10_valid_and;                   // rtl-gen/src/merge/builder.rs:140
-    wire base10_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:140
-    wire [179:0] base10_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
-    wire base10_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:140
-    wire base10_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:140
-    wire base10_skid_ready_not;              // rtl-gen/src/merge/builder.rs:140
-    wire base10_skid_ready_and;              // rtl-gen/src/merge/builder.rs:140
+    wire base10_skid_room;                   // rtl-gen/src/merge/builder.rs:140
+    wire base10_skid_drain;                  // rtl-gen/src/merge/builder.rs:140
+    wire base10_skid_take;                   // rtl-gen/src/merge/builder.rs:140
     reg base11_skid_valid;                   // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base11_skid_data;            // rtl-gen/src/merge/builder.rs:140
     reg base11_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base11_skid_spare_data;      // rtl-gen/src/merge/builder.rs:140
     wire base11_skid_ready;                  // rtl-gen/src/merge/builder.rs:140
-    wire base11_skid_valid_not;              // rtl-gen/src/merge/builder.rs:140
-    wire base11_skid_ready_or;               // rtl-gen/src/merge/builder.rs:140
-    wire base11_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:140
-    wire base11_valid_and;                   // rtl-gen/src/merge/builder.rs:140
-    wire base11_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:140
-    wire [179:0] base11_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
-    wire base11_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:140
-    wire base11_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:140
-    wire base11_skid_ready_not;              // rtl-gen/src/merge/builder.rs:140
-    wire base11_skid_ready_and;              // rtl-gen/src/merge/builder.rs:140
+    wire base11_skid_room;                   // rtl-gen/src/merge/builder.rs:140
+    wire base11_skid_drain;                  // rtl-gen/src/merge/builder.rs:140
+    wire base11_skid_take;                   // rtl-gen/src/merge/builder.rs:140
     reg base12_skid_valid;                   // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base12_skid_data;            // rtl-gen/src/merge/builder.rs:140
     reg base12_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base12_skid_spare_data;      // rtl-gen/src/merge/builder.rs:140
     wire base12_skid_ready;                  // rtl-gen/src/merge/builder.rs:140
-    wire base12_skid_valid_not;              // rtl-gen/src/merge/builder.rs:140
-    wire base12_skid_ready_or;               // rtl-gen/src/merge/builder.rs:140
-    wire base12_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:140
-    wire base12_valid_and;                   // rtl-gen/src/merge/builder.rs:140
-    wire base12_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:140
-    wire [179:0] base12_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
-    wire base12_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:140
-    wire base12_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:140
-    wire base12_skid_ready_not;              // rtl-gen/src/merge/builder.rs:140
-    wire base12_skid_ready_and;              // rtl-gen/src/merge/builder.rs:140
+    wire base12_skid_room;                   // rtl-gen/src/merge/builder.rs:140
+    wire base12_skid_drain;                  // rtl-gen/src/merge/builder.rs:140
+    wire base12_skid_take;                   // rtl-gen/src/merge/builder.rs:140
     reg base13_skid_valid;                   // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base13_skid_data;            // rtl-gen/src/merge/builder.rs:140
     reg base13_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base13_skid_spare_data;      // rtl-gen/src/merge/builder.rs:140
     wire base13_skid_ready;                  // rtl-gen/src/merge/builder.rs:140
-    wire base13_skid_valid_not;              // rtl-gen/src/merge/builder.rs:140
-    wire base13_skid_ready_or;               // rtl-gen/src/merge/builder.rs:140
-    wire base13_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:140
-    wire base13_valid_and;                   // rtl-gen/src/merge/builder.rs:140
-    wire base13_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:140
-    wire [179:0] base13_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
-    wire base13_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:140
-    wire base13_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:140
-    wire base13_skid_ready_not;              // rtl-gen/src/merge/builder.rs:140
-    wire base13_skid_ready_and;              // rtl-gen/src/merge/builder.rs:140
+    wire base13_skid_room;                   // rtl-gen/src/merge/builder.rs:140
+    wire base13_skid_drain;                  // rtl-gen/src/merge/builder.rs:140
+    wire base13_skid_take;                   // rtl-gen/src/merge/builder.rs:140
     reg base14_skid_valid;                   // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base14_skid_data;            // rtl-gen/src/merge/builder.rs:140
     reg base14_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base14_skid_spare_data;      // rtl-gen/src/merge/builder.rs:140
     wire base14_skid_ready;                  // rtl-gen/src/merge/builder.rs:140
-    wire base14_skid_valid_not;              // rtl-gen/src/merge/builder.rs:140
-    wire base14_skid_ready_or;               // rtl-gen/src/merge/builder.rs:140
-    wire base14_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:140
-    wire base14_valid_and;                   // rtl-gen/src/merge/builder.rs:140
-    wire base14_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:140
-    wire [179:0] base14_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
-    wire base14_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:140
-    wire base14_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:140
-    wire base14_skid_ready_not;              // rtl-gen/src/merge/builder.rs:140
-    wire base14_skid_ready_and;              // rtl-gen/src/merge/builder.rs:140
+    wire base14_skid_room;                   // rtl-gen/src/merge/builder.rs:140
+    wire base14_skid_drain;                  // rtl-gen/src/merge/builder.rs:140
+    wire base14_skid_take;                   // rtl-gen/src/merge/builder.rs:140
     reg base15_skid_valid;                   // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base15_skid_data;            // rtl-gen/src/merge/builder.rs:140
     reg base15_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base15_skid_spare_data;      // rtl-gen/src/merge/builder.rs:140
     wire base15_skid_ready;                  // rtl-gen/src/merge/builder.rs:140
-    wire base15_skid_valid_not;              // rtl-gen/src/merge/builder.rs:140
-    wire base15_skid_ready_or;               // rtl-gen/src/merge/builder.rs:140
-    wire base15_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:140
-    wire base15_valid_and;                   // rtl-gen/src/merge/builder.rs:140
-    wire base15_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:140
-    wire [179:0] base15_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
-    wire base15_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:140
-    wire base15_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:140
-    wire base15_skid_ready_not;              // rtl-gen/src/merge/builder.rs:140
-    wire base15_skid_ready_and;              // rtl-gen/src/merge/builder.rs:140
+    wire base15_skid_room;                   // rtl-gen/src/merge/builder.rs:140
+    wire base15_skid_drain;                  // rtl-gen/src/merge/builder.rs:140
+    wire base15_skid_take;                   // rtl-gen/src/merge/builder.rs:140
     reg base16_skid_valid;                   // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base16_skid_data;            // rtl-gen/src/merge/builder.rs:140
     reg base16_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:140
     reg [179:0] base16_skid_spare_data;      // rtl-gen/src/merge/builder.rs:140
     wire base16_skid_ready;                  // rtl-gen/src/merge/builder.rs:140
-    wire base16_skid_valid_not;              // rtl-gen/src/merge/builder.rs:140
-    wire base16_skid_ready_or;               // rtl-gen/src/merge/builder.rs:140
-    wire base16_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:140
-    wire base16_valid_and;                   // rtl-gen/src/merge/builder.rs:140
-    wire base16_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:140
-    wire [179:0] base16_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
-    wire base16_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:140
-    wire base16_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:140
-    wire base16_skid_ready_not;              // rtl-gen/src/merge/builder.rs:140
-    wire base16_skid_ready_and;              // rtl-gen/src/merge/builder.rs:140
-    wire base0_skid_data_eq;                 // rtl-gen/src/merge/builder.rs:58
-    wire base0_skid_data_eq_1;               // rtl-gen/src/merge/builder.rs:59
-    wire [1:0] base0_skid_data_mux;          // rtl-gen/src/merge/builder.rs:66
-    wire [1:0] base0_skid_data_mux_1;        // rtl-gen/src/merge/builder.rs:64
-    wire base1_skid_data_eq;                 // rtl-gen/src/merge/builder.rs:58
-    wire base1_skid_data_eq_1;               // rtl-gen/src/merge/builder.rs:59
-    wire [1:0] base1_skid_data_mux;          // rtl-gen/src/merge/builder.rs:66
-    wire [1:0] base1_skid_data_mux_1;        // rtl-gen/src/merge/builder.rs:64
-    wire base2_skid_data_eq;                 // rtl-gen/src/merge/builder.rs:58
-    wire base2_skid_data_eq_1;               // rtl-gen/src/merge/builder.rs:59
-    wire [1:0] base2_skid_data_mux;          // rtl-gen/src/merge/builder.rs:66
-    wire [1:0] base2_skid_data_mux_1;        // rtl-gen/src/merge/builder.rs:64
-    wire base3_skid_data_eq;                 // rtl-gen/src/merge/builder.rs:58
-    wire base3_skid_data_eq_1;               // rtl-gen/src/merge/builder.rs:59
-    wire [1:0] base3_skid_data_mux;          // rtl-gen/src/merge/builder.rs:66
-    wire [1:0] base3_skid_data_mux_1;        // rtl-gen/src/merge/builder.rs:64
-    wire base4_skid_data_eq;                 // rtl-gen/src/merge/builder.rs:58
-    wire base4_skid_data_eq_1;               // rtl-gen/src/merge/builder.rs:59
-    wire [1:0] base4_skid_data_mux;          // rtl-gen/src/merge/builder.rs:66
-    wire [1:0] base4_skid_data_mux_1;        // rtl-gen/src/merge/builder.rs:64
-    wire base5_skid_data_eq;                 // rtl-gen/src/merge/builder.rs:58
-    wire base5_skid_data_eq_1;               // rtl-gen/src/merge/builder.rs:59
-    wire [1:0] base5_skid_data_mux;          // rtl-gen/src/merge/builder.rs:66
-    wire [1:0] base5_skid_data_mux_1;        // rtl-gen/src/merge/builder.rs:64
-    wire base6_skid_data_eq;                 // rtl-gen/src/merge/builder.rs:58
-    wire base6_skid_data_eq_1;               // rtl-gen/src/merge/builder.rs:59
-    wire [1:0] base6_skid_data_mux;          // rtl-gen/src/merge/builder.rs:66
-    wire [1:0] base6_skid_data_mux_1;        // rtl-gen/src/merge/builder.rs:64
-    wire base7_skid_data_eq;                 // rtl-gen/src/merge/builder.rs:58
-    wire base7_skid_data_eq_1;               // rtl-gen/src/merge/builder.rs:59
-    wire [1:0] base7_skid_data_mux;          // rtl-gen/src/merge/builder.rs:66
-    wire [1:0] base7_skid_data_mux_1;        // rtl-gen/src/merge/builder.rs:64
-    wire base8_skid_data_eq;                 // rtl-gen/src/merge/builder.rs:58
-    wire base8_skid_data_eq_1;               // rtl-gen/src/merge/builder.rs:59
-    wire [1:0] base8_skid_data_mux;          // rtl-gen/src/merge/builder.rs:66
-    wire [1:0] base8_skid_data_mux_1;        // rtl-gen/src/merge/builder.rs:64
-    wire base9_skid_data_eq;                 // rtl-gen/src/merge/builder.rs:58
-    wire base9_skid_data_eq_1;               // rtl-gen/src/merge/builder.rs:59
-    wire [1:0] base9_skid_data_mux;          // rtl-gen/src/merge/builder.rs:66
-    wire [1:0] base9_skid_data_mux_1;        // rtl-gen/src/merge/builder.rs:64
-    wire base10_skid_data_eq;                // rtl-gen/src/merge/builder.rs:58
-    wire base10_skid_data_eq_1;              // rtl-gen/src/merge/builder.rs:59
-    wire [1:0] base10_skid_data_mux;         // rtl-gen/src/merge/builder.rs:66
-    wire [1:0] base10_skid_data_mux_1;       // rtl-gen/src/merge/builder.rs:64
-    wire base11_skid_data_eq;                // rtl-gen/src/merge/builder.rs:58
-    wire base11_skid_data_eq_1;              // rtl-gen/src/merge/builder.rs:59
-    wire [1:0] base11_skid_data_mux;         // rtl-gen/src/merge/builder.rs:66
-    wire [1:0] base11_skid_data_mux_1;       // rtl-gen/src/merge/builder.rs:64
-    wire base12_skid_data_eq;                // rtl-gen/src/merge/builder.rs:58
-    wire base12_skid_data_eq_1;              // rtl-gen/src/merge/builder.rs:59
-    wire [1:0] base12_skid_data_mux;         // rtl-gen/src/merge/builder.rs:66
-    wire [1:0] base12_skid_data_mux_1;       // rtl-gen/src/merge/builder.rs:64
-    wire base13_skid_data_eq;                // rtl-gen/src/merge/builder.rs:58
-    wire base13_skid_data_eq_1;              // rtl-gen/src/merge/builder.rs:59
-    wire [1:0] base13_skid_data_mux;         // rtl-gen/src/merge/builder.rs:66
-    wire [1:0] base13_skid_data_mux_1;       // rtl-gen/src/merge/builder.rs:64
-    wire base14_skid_data_eq;                // rtl-gen/src/merge/builder.rs:58
-    wire base14_skid_data_eq_1;              // rtl-gen/src/merge/builder.rs:59
-    wire [1:0] base14_skid_data_mux;         // rtl-gen/src/merge/builder.rs:66
-    wire [1:0] base14_skid_data_mux_1;       // rtl-gen/src/merge/builder.rs:64
-    wire base15_skid_data_eq;                // rtl-gen/src/merge/builder.rs:58
-    wire base15_skid_data_eq_1;              // rtl-gen/src/merge/builder.rs:59
-    wire [1:0] base15_skid_data_mux;         // rtl-gen/src/merge/builder.rs:66
-    wire [1:0] base15_skid_data_mux_1;       // rtl-gen/src/merge/builder.rs:64
-    wire base16_skid_data_eq;                // rtl-gen/src/merge/builder.rs:58
-    wire base16_skid_data_eq_1;              // rtl-gen/src/merge/builder.rs:59
-    wire [1:0] base16_skid_data_mux;         // rtl-gen/src/merge/builder.rs:66
-    wire [1:0] base16_skid_data_mux_1;       // rtl-gen/src/merge/builder.rs:64
+    wire base16_skid_room;                   // rtl-gen/src/merge/builder.rs:140
+    wire base16_skid_drain;                  // rtl-gen/src/merge/builder.rs:140
+    wire base16_skid_take;                   // rtl-gen/src/merge/builder.rs:140
+    wire [1:0] base0_skid_data_kind;         // rtl-gen/src/merge/builder.rs:57
+    wire base0_skid_data_kind_eq;            // rtl-gen/src/merge/builder.rs:58
+    wire [149:0] base0_skid_data_rec;        // rtl-gen/src/merge/builder.rs:61
+    wire [27:0] base0_skid_data_ref;         // rtl-gen/src/merge/builder.rs:62
+    wire [1:0] base1_skid_data_kind;         // rtl-gen/src/merge/builder.rs:57
+    wire base1_skid_data_kind_eq;            // rtl-gen/src/merge/builder.rs:58
+    wire [149:0] base1_skid_data_rec;        // rtl-gen/src/merge/builder.rs:61
+    wire [27:0] base1_skid_data_ref;         // rtl-gen/src/merge/builder.rs:62
+    wire [1:0] base2_skid_data_kind;         // rtl-gen/src/merge/builder.rs:57
+    wire base2_skid_data_kind_eq;            // rtl-gen/src/merge/builder.rs:58
+    wire [149:0] base2_skid_data_rec;        // rtl-gen/src/merge/builder.rs:61
+    wire [27:0] base2_skid_data_ref;         // rtl-gen/src/merge/builder.rs:62
+    wire [1:0] base3_skid_data_kind;         // rtl-gen/src/merge/builder.rs:57
+    wire base3_skid_data_kind_eq;            // rtl-gen/src/merge/builder.rs:58
+    wire [149:0] base3_skid_data_rec;        // rtl-gen/src/merge/builder.rs:61
+    wire [27:0] base3_skid_data_ref;         // rtl-gen/src/merge/builder.rs:62
+    wire [1:0] base4_skid_data_kind;         // rtl-gen/src/merge/builder.rs:57
+    wire base4_skid_data_kind_eq;            // rtl-gen/src/merge/builder.rs:58
+    wire [149:0] base4_skid_data_rec;        // rtl-gen/src/merge/builder.rs:61
+    wire [27:0] base4_skid_data_ref;         // rtl-gen/src/merge/builder.rs:62
+    wire [1:0] base5_skid_data_kind;         // rtl-gen/src/merge/builder.rs:57
+    wire base5_skid_data_kind_eq;            // rtl-gen/src/merge/builder.rs:58
+    wire [149:0] base5_skid_data_rec;        // rtl-gen/src/merge/builder.rs:61
+    wire [27:0] base5_skid_data_ref;         // rtl-gen/src/merge/builder.rs:62
+    wire [1:0] base6_skid_data_kind;         // rtl-gen/src/merge/builder.rs:57
+    wire base6_skid_data_kind_eq;            // rtl-gen/src/merge/builder.rs:58
+    wire [149:0] base6_skid_data_rec;        // rtl-gen/src/merge/builder.rs:61
+    wire [27:0] base6_skid_data_ref;         // rtl-gen/src/merge/builder.rs:62
+    wire [1:0] base7_skid_data_kind;         // rtl-gen/src/merge/builder.rs:57
+    wire base7_skid_data_kind_eq;            // rtl-gen/src/merge/builder.rs:58
+    wire [149:0] base7_skid_data_rec;        // rtl-gen/src/merge/builder.rs:61
+    wire [27:0] base7_skid_data_ref;         // rtl-gen/src/merge/builder.rs:62
+    wire [1:0] base8_skid_data_kind;         // rtl-gen/src/merge/builder.rs:57
+    wire base8_skid_data_kind_eq;            // rtl-gen/src/merge/builder.rs:58
+    wire [149:0] base8_skid_data_rec;        // rtl-gen/src/merge/builder.rs:61
+    wire [27:0] base8_skid_data_ref;         // rtl-gen/src/merge/builder.rs:62
+    wire [1:0] base9_skid_data_kind;         // rtl-gen/src/merge/builder.rs:57
+    wire base9_skid_data_kind_eq;            // rtl-gen/src/merge/builder.rs:58
+    wire [149:0] base9_skid_data_rec;        // rtl-gen/src/merge/builder.rs:61
+    wire [27:0] base9_skid_data_ref;         // rtl-gen/src/merge/builder.rs:62
+    wire [1:0] base10_skid_data_kind;        // rtl-gen/src/merge/builder.rs:57
+    wire base10_skid_data_kind_eq;           // rtl-gen/src/merge/builder.rs:58
+    wire [149:0] base10_skid_data_rec;       // rtl-gen/src/merge/builder.rs:61
+    wire [27:0] base10_skid_data_ref;        // rtl-gen/src/merge/builder.rs:62
+    wire [1:0] base11_skid_data_kind;        // rtl-gen/src/merge/builder.rs:57
+    wire base11_skid_data_kind_eq;           // rtl-gen/src/merge/builder.rs:58
+    wire [149:0] base11_skid_data_rec;       // rtl-gen/src/merge/builder.rs:61
+    wire [27:0] base11_skid_data_ref;        // rtl-gen/src/merge/builder.rs:62
+    wire [1:0] base12_skid_data_kind;        // rtl-gen/src/merge/builder.rs:57
+    wire base12_skid_data_kind_eq;           // rtl-gen/src/merge/builder.rs:58
+    wire [149:0] base12_skid_data_rec;       // rtl-gen/src/merge/builder.rs:61
+    wire [27:0] base12_skid_data_ref;        // rtl-gen/src/merge/builder.rs:62
+    wire [1:0] base13_skid_data_kind;        // rtl-gen/src/merge/builder.rs:57
+    wire base13_skid_data_kind_eq;           // rtl-gen/src/merge/builder.rs:58
+    wire [149:0] base13_skid_data_rec;       // rtl-gen/src/merge/builder.rs:61
+    wire [27:0] base13_skid_data_ref;        // rtl-gen/src/merge/builder.rs:62
+    wire [1:0] base14_skid_data_kind;        // rtl-gen/src/merge/builder.rs:57
+    wire base14_skid_data_kind_eq;           // rtl-gen/src/merge/builder.rs:58
+    wire [149:0] base14_skid_data_rec;       // rtl-gen/src/merge/builder.rs:61
+    wire [27:0] base14_skid_data_ref;        // rtl-gen/src/merge/builder.rs:62
+    wire [1:0] base15_skid_data_kind;        // rtl-gen/src/merge/builder.rs:57
+    wire base15_skid_data_kind_eq;           // rtl-gen/src/merge/builder.rs:58
+    wire [149:0] base15_skid_data_rec;       // rtl-gen/src/merge/builder.rs:61
+    wire [27:0] base15_skid_data_ref;        // rtl-gen/src/merge/builder.rs:62
+    wire [1:0] base16_skid_data_kind;        // rtl-gen/src/merge/builder.rs:57
+    wire base16_skid_data_kind_eq;           // rtl-gen/src/merge/builder.rs:58
+    wire [149:0] base16_skid_data_rec;       // rtl-gen/src/merge/builder.rs:61
+    wire [27:0] base16_skid_data_ref;        // rtl-gen/src/merge/builder.rs:62
+    wire [1:0] base16_skid_data_kind_mux;    // rtl-gen/src/merge/builder.rs:64
     wire u_group0_in_ready;                  // rtl-gen/src/merge/builder.rs:147
     wire u_group0_out_valid;                 // rtl-gen/src/merge/builder.rs:147
     wire [151:0] u_group0_out_data;          // rtl-gen/src/merge/builder.rs:147
@@ -487,229 +369,182 @@ module upper_builder_d16_q8_i24_h4 (
     wire u_group15_in_ready;                 // rtl-gen/src/merge/builder.rs:147
     wire u_group15_out_valid;                // rtl-gen/src/merge/builder.rs:147
     wire [151:0] u_group15_out_data;         // rtl-gen/src/merge/builder.rs:147
-    wire [47:0] u_group0_cat;                // rtl-gen/src/merge/network.rs:39
-    wire [47:0] base0_skid_data_cat;         // rtl-gen/src/merge/network.rs:39
-    wire u_group0_le;                        // rtl-gen/src/merge/builder.rs:172
+    wire [149:0] u_group0_rec;               // rtl-gen/src/merge/builder.rs:169
+    wire u_group0_end;                       // rtl-gen/src/merge/builder.rs:170
+    wire u_group0_err;                       // rtl-gen/src/merge/builder.rs:171
+    wire [47:0] u_group0_rec_x_morton;       // rtl-gen/src/merge/network.rs:39
+    wire [47:0] base0_skid_data_rec_x_morton; // rtl-gen/src/merge/network.rs:39
     wire l0_end;                             // rtl-gen/src/merge/builder.rs:173
-    wire u_group0_not;                       // rtl-gen/src/merge/builder.rs:174
-    wire base0_skid_data_or;                 // rtl-gen/src/merge/builder.rs:174
     wire l0_take_group;                      // rtl-gen/src/merge/builder.rs:174
     wire l0_valid;                           // rtl-gen/src/merge/builder.rs:176
     wire [149:0] l0_take_group_mux;          // rtl-gen/src/merge/builder.rs:178
-    wire [27:0] l0_take_group_mux_1;         // rtl-gen/src/merge/builder.rs:179
-    wire [1:0] l0_take_group_mux_2;          // rtl-gen/src/merge/builder.rs:180
-    wire l0_take_group_and;                  // rtl-gen/src/merge/builder.rs:181
+    wire [1:0] l0_take_group_mux_1;          // rtl-gen/src/merge/builder.rs:180
     wire l0_take_group_or;                   // rtl-gen/src/merge/builder.rs:182
     wire l0_take_group_not;                  // rtl-gen/src/merge/builder.rs:183
-    wire [47:0] u_group1_cat;                // rtl-gen/src/merge/network.rs:39
-    wire [47:0] base1_skid_data_cat;         // rtl-gen/src/merge/network.rs:39
-    wire u_group1_le;                        // rtl-gen/src/merge/builder.rs:172
+    wire [149:0] u_group1_rec;               // rtl-gen/src/merge/builder.rs:169
+    wire u_group1_end;                       // rtl-gen/src/merge/builder.rs:170
+    wire u_group1_err;                       // rtl-gen/src/merge/builder.rs:171
+    wire [47:0] u_group1_rec_x_morton;       // rtl-gen/src/merge/network.rs:39
+    wire [47:0] base1_skid_data_rec_x_morton; // rtl-gen/src/merge/network.rs:39
     wire l1_end;                             // rtl-gen/src/merge/builder.rs:173
-    wire u_group1_not;                       // rtl-gen/src/merge/builder.rs:174
-    wire base1_skid_data_or;                 // rtl-gen/src/merge/builder.rs:174
     wire l1_take_group;                      // rtl-gen/src/merge/builder.rs:174
     wire l1_valid;                           // rtl-gen/src/merge/builder.rs:176
     wire [149:0] l1_take_group_mux;          // rtl-gen/src/merge/builder.rs:178
-    wire [27:0] l1_take_group_mux_1;         // rtl-gen/src/merge/builder.rs:179
-    wire [1:0] l1_take_group_mux_2;          // rtl-gen/src/merge/builder.rs:180
-    wire l1_take_group_and;                  // rtl-gen/src/merge/builder.rs:181
-    wire l1_take_group_or;                   // rtl-gen/src/merge/builder.rs:182
+    wire [1:0] l1_take_group_mux_1;          // rtl-gen/src/merge/builder.rs:180
     wire l1_take_group_not;                  // rtl-gen/src/merge/builder.rs:183
-    wire [47:0] u_group2_cat;                // rtl-gen/src/merge/network.rs:39
-    wire [47:0] base2_skid_data_cat;         // rtl-gen/src/merge/network.rs:39
-    wire u_group2_le;                        // rtl-gen/src/merge/builder.rs:172
+    wire [149:0] u_group2_rec;               // rtl-gen/src/merge/builder.rs:169
+    wire u_group2_end;                       // rtl-gen/src/merge/builder.rs:170
+    wire u_group2_err;                       // rtl-gen/src/merge/builder.rs:171
+    wire [47:0] u_group2_rec_x_morton;       // rtl-gen/src/merge/network.rs:39
+    wire [47:0] base2_skid_data_rec_x_morton; // rtl-gen/src/merge/network.rs:39
     wire l2_end;                             // rtl-gen/src/merge/builder.rs:173
-    wire u_group2_not;                       // rtl-gen/src/merge/builder.rs:174
-    wire base2_skid_data_or;                 // rtl-gen/src/merge/builder.rs:174
     wire l2_take_group;                      // rtl-gen/src/merge/builder.rs:174
     wire l2_valid;                           // rtl-gen/src/merge/builder.rs:176
     wire [149:0] l2_take_group_mux;          // rtl-gen/src/merge/builder.rs:178
-    wire [27:0] l2_take_group_mux_1;         // rtl-gen/src/merge/builder.rs:179
-    wire [1:0] l2_take_group_mux_2;          // rtl-gen/src/merge/builder.rs:180
-    wire l2_take_group_and;                  // rtl-gen/src/merge/builder.rs:181
-    wire l2_take_group_or;                   // rtl-gen/src/merge/builder.rs:182
+    wire [1:0] l2_take_group_mux_1;          // rtl-gen/src/merge/builder.rs:180
     wire l2_take_group_not;                  // rtl-gen/src/merge/builder.rs:183
-    wire [47:0] u_group3_cat;                // rtl-gen/src/merge/network.rs:39
-    wire [47:0] base3_skid_data_cat;         // rtl-gen/src/merge/network.rs:39
-    wire u_group3_le;                        // rtl-gen/src/merge/builder.rs:172
+    wire [149:0] u_group3_rec;               // rtl-gen/src/merge/builder.rs:169
+    wire u_group3_end;                       // rtl-gen/src/merge/builder.rs:170
+    wire u_group3_err;                       // rtl-gen/src/merge/builder.rs:171
+    wire [47:0] u_group3_rec_x_morton;       // rtl-gen/src/merge/network.rs:39
+    wire [47:0] base3_skid_data_rec_x_morton; // rtl-gen/src/merge/network.rs:39
     wire l3_end;                             // rtl-gen/src/merge/builder.rs:173
-    wire u_group3_not;                       // rtl-gen/src/merge/builder.rs:174
-    wire base3_skid_data_or;                 // rtl-gen/src/merge/builder.rs:174
     wire l3_take_group;                      // rtl-gen/src/merge/builder.rs:174
     wire l3_valid;                           // rtl-gen/src/merge/builder.rs:176
     wire [149:0] l3_take_group_mux;          // rtl-gen/src/merge/builder.rs:178
-    wire [27:0] l3_take_group_mux_1;         // rtl-gen/src/merge/builder.rs:179
-    wire [1:0] l3_take_group_mux_2;          // rtl-gen/src/merge/builder.rs:180
-    wire l3_take_group_and;                  // rtl-gen/src/merge/builder.rs:181
-    wire l3_take_group_or;                   // rtl-gen/src/merge/builder.rs:182
+    wire [1:0] l3_take_group_mux_1;          // rtl-gen/src/merge/builder.rs:180
     wire l3_take_group_not;                  // rtl-gen/src/merge/builder.rs:183
-    wire [47:0] u_group4_cat;                // rtl-gen/src/merge/network.rs:39
-    wire [47:0] base4_skid_data_cat;         // rtl-gen/src/merge/network.rs:39
-    wire u_group4_le;                        // rtl-gen/src/merge/builder.rs:172
+    wire [149:0] u_group4_rec;               // rtl-gen/src/merge/builder.rs:169
+    wire u_group4_end;                       // rtl-gen/src/merge/builder.rs:170
+    wire u_group4_err;                       // rtl-gen/src/merge/builder.rs:171
+    wire [47:0] u_group4_rec_x_morton;       // rtl-gen/src/merge/network.rs:39
+    wire [47:0] base4_skid_data_rec_x_morton; // rtl-gen/src/merge/network.rs:39
     wire l4_end;                             // rtl-gen/src/merge/builder.rs:173
-    wire u_group4_not;                       // rtl-gen/src/merge/builder.rs:174
-    wire base4_skid_data_or;                 // rtl-gen/src/merge/builder.rs:174
     wire l4_take_group;                      // rtl-gen/src/merge/builder.rs:174
     wire l4_valid;                           // rtl-gen/src/merge/builder.rs:176
     wire [149:0] l4_take_group_mux;          // rtl-gen/src/merge/builder.rs:178
-    wire [27:0] l4_take_group_mux_1;         // rtl-gen/src/merge/builder.rs:179
-    wire [1:0] l4_take_group_mux_2;          // rtl-gen/src/merge/builder.rs:180
-    wire l4_take_group_and;                  // rtl-gen/src/merge/builder.rs:181
-    wire l4_take_group_or;                   // rtl-gen/src/merge/builder.rs:182
+    wire [1:0] l4_take_group_mux_1;          // rtl-gen/src/merge/builder.rs:180
     wire l4_take_group_not;                  // rtl-gen/src/merge/builder.rs:183
-    wire [47:0] u_group5_cat;                // rtl-gen/src/merge/network.rs:39
-    wire [47:0] base5_skid_data_cat;         // rtl-gen/src/merge/network.rs:39
-    wire u_group5_le;                        // rtl-gen/src/merge/builder.rs:172
+    wire [149:0] u_group5_rec;               // rtl-gen/src/merge/builder.rs:169
+    wire u_group5_end;                       // rtl-gen/src/merge/builder.rs:170
+    wire u_group5_err;                       // rtl-gen/src/merge/builder.rs:171
+    wire [47:0] u_group5_rec_x_morton;       // rtl-gen/src/merge/network.rs:39
+    wire [47:0] base5_skid_data_rec_x_morton; // rtl-gen/src/merge/network.rs:39
     wire l5_end;                             // rtl-gen/src/merge/builder.rs:173
-    wire u_group5_not;                       // rtl-gen/src/merge/builder.rs:174
-    wire base5_skid_data_or;                 // rtl-gen/src/merge/builder.rs:174
     wire l5_take_group;                      // rtl-gen/src/merge/builder.rs:174
     wire l5_valid;                           // rtl-gen/src/merge/builder.rs:176
     wire [149:0] l5_take_group_mux;          // rtl-gen/src/merge/builder.rs:178
-    wire [27:0] l5_take_group_mux_1;         // rtl-gen/src/merge/builder.rs:179
-    wire [1:0] l5_take_group_mux_2;          // rtl-gen/src/merge/builder.rs:180
-    wire l5_take_group_and;                  // rtl-gen/src/merge/builder.rs:181
-    wire l5_take_group_or;                   // rtl-gen/src/merge/builder.rs:182
+    wire [1:0] l5_take_group_mux_1;          // rtl-gen/src/merge/builder.rs:180
     wire l5_take_group_not;                  // rtl-gen/src/merge/builder.rs:183
-    wire [47:0] u_group6_cat;                // rtl-gen/src/merge/network.rs:39
-    wire [47:0] base6_skid_data_cat;         // rtl-gen/src/merge/network.rs:39
-    wire u_group6_le;                        // rtl-gen/src/merge/builder.rs:172
+    wire [149:0] u_group6_rec;               // rtl-gen/src/merge/builder.rs:169
+    wire u_group6_end;                       // rtl-gen/src/merge/builder.rs:170
+    wire u_group6_err;                       // rtl-gen/src/merge/builder.rs:171
+    wire [47:0] u_group6_rec_x_morton;       // rtl-gen/src/merge/network.rs:39
+    wire [47:0] base6_skid_data_rec_x_morton; // rtl-gen/src/merge/network.rs:39
     wire l6_end;                             // rtl-gen/src/merge/builder.rs:173
-    wire u_group6_not;                       // rtl-gen/src/merge/builder.rs:174
-    wire base6_skid_data_or;                 // rtl-gen/src/merge/builder.rs:174
     wire l6_take_group;                      // rtl-gen/src/merge/builder.rs:174
     wire l6_valid;                           // rtl-gen/src/merge/builder.rs:176
     wire [149:0] l6_take_group_mux;          // rtl-gen/src/merge/builder.rs:178
-    wire [27:0] l6_take_group_mux_1;         // rtl-gen/src/merge/builder.rs:179
-    wire [1:0] l6_take_group_mux_2;          // rtl-gen/src/merge/builder.rs:180
-    wire l6_take_group_and;                  // rtl-gen/src/merge/builder.rs:181
-    wire l6_take_group_or;                   // rtl-gen/src/merge/builder.rs:182
+    wire [1:0] l6_take_group_mux_1;          // rtl-gen/src/merge/builder.rs:180
     wire l6_take_group_not;                  // rtl-gen/src/merge/builder.rs:183
-    wire [47:0] u_group7_cat;                // rtl-gen/src/merge/network.rs:39
-    wire [47:0] base7_skid_data_cat;         // rtl-gen/src/merge/network.rs:39
-    wire u_group7_le;                        // rtl-gen/src/merge/builder.rs:172
+    wire [149:0] u_group7_rec;               // rtl-gen/src/merge/builder.rs:169
+    wire u_group7_end;                       // rtl-gen/src/merge/builder.rs:170
+    wire u_group7_err;                       // rtl-gen/src/merge/builder.rs:171
+    wire [47:0] u_group7_rec_x_morton;       // rtl-gen/src/merge/network.rs:39
+    wire [47:0] base7_skid_data_rec_x_morton; // rtl-gen/src/merge/network.rs:39
     wire l7_end;                             // rtl-gen/src/merge/builder.rs:173
-    wire u_group7_not;                       // rtl-gen/src/merge/builder.rs:174
-    wire base7_skid_data_or;                 // rtl-gen/src/merge/builder.rs:174
     wire l7_take_group;                      // rtl-gen/src/merge/builder.rs:174
     wire l7_valid;                           // rtl-gen/src/merge/builder.rs:176
     wire [149:0] l7_take_group_mux;          // rtl-gen/src/merge/builder.rs:178
-    wire [27:0] l7_take_group_mux_1;         // rtl-gen/src/merge/builder.rs:179
-    wire [1:0] l7_take_group_mux_2;          // rtl-gen/src/merge/builder.rs:180
-    wire l7_take_group_and;                  // rtl-gen/src/merge/builder.rs:181
-    wire l7_take_group_or;                   // rtl-gen/src/merge/builder.rs:182
+    wire [1:0] l7_take_group_mux_1;          // rtl-gen/src/merge/builder.rs:180
     wire l7_take_group_not;                  // rtl-gen/src/merge/builder.rs:183
-    wire [47:0] u_group8_cat;                // rtl-gen/src/merge/network.rs:39
-    wire [47:0] base8_skid_data_cat;         // rtl-gen/src/merge/network.rs:39
-    wire u_group8_le;                        // rtl-gen/src/merge/builder.rs:172
+    wire [149:0] u_group8_rec;               // rtl-gen/src/merge/builder.rs:169
+    wire u_group8_end;                       // rtl-gen/src/merge/builder.rs:170
+    wire u_group8_err;                       // rtl-gen/src/merge/builder.rs:171
+    wire [47:0] u_group8_rec_x_morton;       // rtl-gen/src/merge/network.rs:39
+    wire [47:0] base8_skid_data_rec_x_morton; // rtl-gen/src/merge/network.rs:39
     wire l8_end;                             // rtl-gen/src/merge/builder.rs:173
-    wire u_group8_not;                       // rtl-gen/src/merge/builder.rs:174
-    wire base8_skid_data_or;                 // rtl-gen/src/merge/builder.rs:174
     wire l8_take_group;                      // rtl-gen/src/merge/builder.rs:174
     wire l8_valid;                           // rtl-gen/src/merge/builder.rs:176
     wire [149:0] l8_take_group_mux;          // rtl-gen/src/merge/builder.rs:178
-    wire [27:0] l8_take_group_mux_1;         // rtl-gen/src/merge/builder.rs:179
-    wire [1:0] l8_take_group_mux_2;          // rtl-gen/src/merge/builder.rs:180
-    wire l8_take_group_and;                  // rtl-gen/src/merge/builder.rs:181
-    wire l8_take_group_or;                   // rtl-gen/src/merge/builder.rs:182
+    wire [1:0] l8_take_group_mux_1;          // rtl-gen/src/merge/builder.rs:180
     wire l8_take_group_not;                  // rtl-gen/src/merge/builder.rs:183
-    wire [47:0] u_group9_cat;                // rtl-gen/src/merge/network.rs:39
-    wire [47:0] base9_skid_data_cat;         // rtl-gen/src/merge/network.rs:39
-    wire u_group9_le;                        // rtl-gen/src/merge/builder.rs:172
+    wire [149:0] u_group9_rec;               // rtl-gen/src/merge/builder.rs:169
+    wire u_group9_end;                       // rtl-gen/src/merge/builder.rs:170
+    wire u_group9_err;                       // rtl-gen/src/merge/builder.rs:171
+    wire [47:0] u_group9_rec_x_morton;       // rtl-gen/src/merge/network.rs:39
+    wire [47:0] base9_skid_data_rec_x_morton; // rtl-gen/src/merge/network.rs:39
     wire l9_end;                             // rtl-gen/src/merge/builder.rs:173
-    wire u_group9_not;                       // rtl-gen/src/merge/builder.rs:174
-    wire base9_skid_data_or;                 // rtl-gen/src/merge/builder.rs:174
     wire l9_take_group;                      // rtl-gen/src/merge/builder.rs:174
     wire l9_valid;                           // rtl-gen/src/merge/builder.rs:176
     wire [149:0] l9_take_group_mux;          // rtl-gen/src/merge/builder.rs:178
-    wire [27:0] l9_take_group_mux_1;         // rtl-gen/src/merge/builder.rs:179
-    wire [1:0] l9_take_group_mux_2;          // rtl-gen/src/merge/builder.rs:180
-    wire l9_take_group_and;                  // rtl-gen/src/merge/builder.rs:181
-    wire l9_take_group_or;                   // rtl-gen/src/merge/builder.rs:182
+    wire [1:0] l9_take_group_mux_1;          // rtl-gen/src/merge/builder.rs:180
     wire l9_take_group_not;                  // rtl-gen/src/merge/builder.rs:183
-    wire [47:0] u_group10_cat;               // rtl-gen/src/merge/network.rs:39
-    wire [47:0] base10_skid_data_cat;        // rtl-gen/src/merge/network.rs:39
-    wire u_group10_le;                       // rtl-gen/src/merge/builder.rs:172
+    wire [149:0] u_group10_rec;              // rtl-gen/src/merge/builder.rs:169
+    wire u_group10_end;                      // rtl-gen/src/merge/builder.rs:170
+    wire u_group10_err;                      // rtl-gen/src/merge/builder.rs:171
+    wire [47:0] u_group10_rec_x_morton;      // rtl-gen/src/merge/network.rs:39
+    wire [47:0] base10_skid_data_rec_x_morton; // rtl-gen/src/merge/network.rs:39
     wire l10_end;                            // rtl-gen/src/merge/builder.rs:173
-    wire u_group10_not;                      // rtl-gen/src/merge/builder.rs:174
-    wire base10_skid_data_or;                // rtl-gen/src/merge/builder.rs:174
     wire l10_take_group;                     // rtl-gen/src/merge/builder.rs:174
     wire l10_valid;                          // rtl-gen/src/merge/builder.rs:176
     wire [149:0] l10_take_group_mux;         // rtl-gen/src/merge/builder.rs:178
-    wire [27:0] l10_take_group_mux_1;        // rtl-gen/src/merge/builder.rs:179
-    wire [1:0] l10_take_group_mux_2;         // rtl-gen/src/merge/builder.rs:180
-    wire l10_take_group_and;                 // rtl-gen/src/merge/builder.rs:181
-    wire l10_take_group_or;                  // rtl-gen/src/merge/builder.rs:182
+    wire [1:0] l10_take_group_mux_1;         // rtl-gen/src/merge/builder.rs:180
     wire l10_take_group_not;                 // rtl-gen/src/merge/builder.rs:183
-    wire [47:0] u_group11_cat;               // rtl-gen/src/merge/network.rs:39
-    wire [47:0] base11_skid_data_cat;        // rtl-gen/src/merge/network.rs:39
-    wire u_group11_le;                       // rtl-gen/src/merge/builder.rs:172
+    wire [149:0] u_group11_rec;              // rtl-gen/src/merge/builder.rs:169
+    wire u_group11_end;                      // rtl-gen/src/merge/builder.rs:170
+    wire u_group11_err;                      // rtl-gen/src/merge/builder.rs:171
+    wire [47:0] u_group11_rec_x_morton;      // rtl-gen/src/merge/network.rs:39
+    wire [47:0] base11_skid_data_rec_x_morton; // rtl-gen/src/merge/network.rs:39
     wire l11_end;                            // rtl-gen/src/merge/builder.rs:173
-    wire u_group11_not;                      // rtl-gen/src/merge/builder.rs:174
-    wire base11_skid_data_or;                // rtl-gen/src/merge/builder.rs:174
     wire l11_take_group;                     // rtl-gen/src/merge/builder.rs:174
     wire l11_valid;                          // rtl-gen/src/merge/builder.rs:176
     wire [149:0] l11_take_group_mux;         // rtl-gen/src/merge/builder.rs:178
-    wire [27:0] l11_take_group_mux_1;        // rtl-gen/src/merge/builder.rs:179
-    wire [1:0] l11_take_group_mux_2;         // rtl-gen/src/merge/builder.rs:180
-    wire l11_take_group_and;                 // rtl-gen/src/merge/builder.rs:181
-    wire l11_take_group_or;                  // rtl-gen/src/merge/builder.rs:182
+    wire [1:0] l11_take_group_mux_1;         // rtl-gen/src/merge/builder.rs:180
     wire l11_take_group_not;                 // rtl-gen/src/merge/builder.rs:183
-    wire [47:0] u_group12_cat;               // rtl-gen/src/merge/network.rs:39
-    wire [47:0] base12_skid_data_cat;        // rtl-gen/src/merge/network.rs:39
-    wire u_group12_le;                       // rtl-gen/src/merge/builder.rs:172
+    wire [149:0] u_group12_rec;              // rtl-gen/src/merge/builder.rs:169
+    wire u_group12_end;                      // rtl-gen/src/merge/builder.rs:170
+    wire u_group12_err;                      // rtl-gen/src/merge/builder.rs:171
+    wire [47:0] u_group12_rec_x_morton;      // rtl-gen/src/merge/network.rs:39
+    wire [47:0] base12_skid_data_rec_x_morton; // rtl-gen/src/merge/network.rs:39
     wire l12_end;                            // rtl-gen/src/merge/builder.rs:173
-    wire u_group12_not;                      // rtl-gen/src/merge/builder.rs:174
-    wire base12_skid_data_or;                // rtl-gen/src/merge/builder.rs:174
     wire l12_take_group;                     // rtl-gen/src/merge/builder.rs:174
     wire l12_valid;                          // rtl-gen/src/merge/builder.rs:176
     wire [149:0] l12_take_group_mux;         // rtl-gen/src/merge/builder.rs:178
-    wire [27:0] l12_take_group_mux_1;        // rtl-gen/src/merge/builder.rs:179
-    wire [1:0] l12_take_group_mux_2;         // rtl-gen/src/merge/builder.rs:180
-    wire l12_take_group_and;                 // rtl-gen/src/merge/builder.rs:181
-    wire l12_take_group_or;                  // rtl-gen/src/merge/builder.rs:182
+    wire [1:0] l12_take_group_mux_1;         // rtl-gen/src/merge/builder.rs:180
     wire l12_take_group_not;                 // rtl-gen/src/merge/builder.rs:183
-    wire [47:0] u_group13_cat;               // rtl-gen/src/merge/network.rs:39
-    wire [47:0] base13_skid_data_cat;        // rtl-gen/src/merge/network.rs:39
-    wire u_group13_le;                       // rtl-gen/src/merge/builder.rs:172
+    wire [149:0] u_group13_rec;              // rtl-gen/src/merge/builder.rs:169
+    wire u_group13_end;                      // rtl-gen/src/merge/builder.rs:170
+    wire u_group13_err;                      // rtl-gen/src/merge/builder.rs:171
+    wire [47:0] u_group13_rec_x_morton;      // rtl-gen/src/merge/network.rs:39
+    wire [47:0] base13_skid_data_rec_x_morton; // rtl-gen/src/merge/network.rs:39
     wire l13_end;                            // rtl-gen/src/merge/builder.rs:173
-    wire u_group13_not;                      // rtl-gen/src/merge/builder.rs:174
-    wire base13_skid_data_or;                // rtl-gen/src/merge/builder.rs:174
     wire l13_take_group;                     // rtl-gen/src/merge/builder.rs:174
     wire l13_valid;                          // rtl-gen/src/merge/builder.rs:176
     wire [149:0] l13_take_group_mux;         // rtl-gen/src/merge/builder.rs:178
-    wire [27:0] l13_take_group_mux_1;        // rtl-gen/src/merge/builder.rs:179
-    wire [1:0] l13_take_group_mux_2;         // rtl-gen/src/merge/builder.rs:180
-    wire l13_take_group_and;                 // rtl-gen/src/merge/builder.rs:181
-    wire l13_take_group_or;                  // rtl-gen/src/merge/builder.rs:182
+    wire [1:0] l13_take_group_mux_1;         // rtl-gen/src/merge/builder.rs:180
     wire l13_take_group_not;                 // rtl-gen/src/merge/builder.rs:183
-    wire [47:0] u_group14_cat;               // rtl-gen/src/merge/network.rs:39
-    wire [47:0] base14_skid_data_cat;        // rtl-gen/src/merge/network.rs:39
-    wire u_group14_le;                       // rtl-gen/src/merge/builder.rs:172
+    wire [149:0] u_group14_rec;              // rtl-gen/src/merge/builder.rs:169
+    wire u_group14_end;                      // rtl-gen/src/merge/builder.rs:170
+    wire u_group14_err;                      // rtl-gen/src/merge/builder.rs:171
+    wire [47:0] u_group14_rec_x_morton;      // rtl-gen/src/merge/network.rs:39
+    wire [47:0] base14_skid_data_rec_x_morton; // rtl-gen/src/merge/network.rs:39
     wire l14_end;                            // rtl-gen/src/merge/builder.rs:173
-    wire u_group14_not;                      // rtl-gen/src/merge/builder.rs:174
-    wire base14_skid_data_or;                // rtl-gen/src/merge/builder.rs:174
     wire l14_take_group;                     // rtl-gen/src/merge/builder.rs:174
     wire l14_valid;                          // rtl-gen/src/merge/builder.rs:176
     wire [149:0] l14_take_group_mux;         // rtl-gen/src/merge/builder.rs:178
-    wire [27:0] l14_take_group_mux_1;        // rtl-gen/src/merge/builder.rs:179
-    wire [1:0] l14_take_group_mux_2;         // rtl-gen/src/merge/builder.rs:180
-    wire l14_take_group_and;                 // rtl-gen/src/merge/builder.rs:181
-    wire l14_take_group_or;                  // rtl-gen/src/merge/builder.rs:182
+    wire [1:0] l14_take_group_mux_1;         // rtl-gen/src/merge/builder.rs:180
     wire l14_take_group_not;                 // rtl-gen/src/merge/builder.rs:183
-    wire [47:0] u_group15_cat;               // rtl-gen/src/merge/network.rs:39
-    wire [47:0] base15_skid_data_cat;        // rtl-gen/src/merge/network.rs:39
-    wire u_group15_le;                       // rtl-gen/src/merge/builder.rs:172
+    wire [149:0] u_group15_rec;              // rtl-gen/src/merge/builder.rs:169
+    wire u_group15_end;                      // rtl-gen/src/merge/builder.rs:170
+    wire u_group15_err;                      // rtl-gen/src/merge/builder.rs:171
+    wire [47:0] u_group15_rec_x_morton;      // rtl-gen/src/merge/network.rs:39
+    wire [47:0] base15_skid_data_rec_x_morton; // rtl-gen/src/merge/network.rs:39
     wire l15_end;                            // rtl-gen/src/merge/builder.rs:173
-    wire u_group15_not;                      // rtl-gen/src/merge/builder.rs:174
-    wire base15_skid_data_or;                // rtl-gen/src/merge/builder.rs:174
     wire l15_take_group;                     // rtl-gen/src/merge/builder.rs:174
     wire l15_valid;                          // rtl-gen/src/merge/builder.rs:176
     wire [149:0] l15_take_group_mux;         // rtl-gen/src/merge/builder.rs:178
-    wire [27:0] l15_take_group_mux_1;        // rtl-gen/src/merge/builder.rs:179
-    wire [1:0] l15_take_group_mux_2;         // rtl-gen/src/merge/builder.rs:180
-    wire l15_take_group_and;                 // rtl-gen/src/merge/builder.rs:181
-    wire l15_take_group_or;                  // rtl-gen/src/merge/builder.rs:182
+    wire [1:0] l15_take_group_mux_1;         // rtl-gen/src/merge/builder.rs:180
     wire l15_take_group_not;                 // rtl-gen/src/merge/builder.rs:183
     reg l0_had_base;                         // rtl-gen/src/merge/builder.rs:191
     reg l1_had_base;                         // rtl-gen/src/merge/builder.rs:191
@@ -727,100 +562,36 @@ module upper_builder_d16_q8_i24_h4 (
     reg l13_had_base;                        // rtl-gen/src/merge/builder.rs:191
     reg l14_had_base;                        // rtl-gen/src/merge/builder.rs:191
     reg l15_had_base;                        // rtl-gen/src/merge/builder.rs:191
-    wire l0_had_base_or;                     // rtl-gen/src/merge/builder.rs:196
-    wire base0_skid_data_not;                // rtl-gen/src/merge/builder.rs:197
-    wire base0_skid_valid_and;               // rtl-gen/src/merge/builder.rs:197
-    wire l0_had_base_or_1;                   // rtl-gen/src/merge/builder.rs:197
     wire l1_above_known;                     // rtl-gen/src/merge/builder.rs:198
     wire l1_base_above;                      // rtl-gen/src/merge/builder.rs:199
-    wire l1_had_base_or;                     // rtl-gen/src/merge/builder.rs:196
-    wire base1_skid_data_not;                // rtl-gen/src/merge/builder.rs:197
-    wire base1_skid_valid_and;               // rtl-gen/src/merge/builder.rs:197
-    wire l1_had_base_or_1;                   // rtl-gen/src/merge/builder.rs:197
     wire l2_above_known;                     // rtl-gen/src/merge/builder.rs:198
     wire l2_base_above;                      // rtl-gen/src/merge/builder.rs:199
-    wire l2_had_base_or;                     // rtl-gen/src/merge/builder.rs:196
-    wire base2_skid_data_not;                // rtl-gen/src/merge/builder.rs:197
-    wire base2_skid_valid_and;               // rtl-gen/src/merge/builder.rs:197
-    wire l2_had_base_or_1;                   // rtl-gen/src/merge/builder.rs:197
     wire l3_above_known;                     // rtl-gen/src/merge/builder.rs:198
     wire l3_base_above;                      // rtl-gen/src/merge/builder.rs:199
-    wire l3_had_base_or;                     // rtl-gen/src/merge/builder.rs:196
-    wire base3_skid_data_not;                // rtl-gen/src/merge/builder.rs:197
-    wire base3_skid_valid_and;               // rtl-gen/src/merge/builder.rs:197
-    wire l3_had_base_or_1;                   // rtl-gen/src/merge/builder.rs:197
     wire l4_above_known;                     // rtl-gen/src/merge/builder.rs:198
     wire l4_base_above;                      // rtl-gen/src/merge/builder.rs:199
-    wire l4_had_base_or;                     // rtl-gen/src/merge/builder.rs:196
-    wire base4_skid_data_not;                // rtl-gen/src/merge/builder.rs:197
-    wire base4_skid_valid_and;               // rtl-gen/src/merge/builder.rs:197
-    wire l4_had_base_or_1;                   // rtl-gen/src/merge/builder.rs:197
     wire l5_above_known;                     // rtl-gen/src/merge/builder.rs:198
     wire l5_base_above;                      // rtl-gen/src/merge/builder.rs:199
-    wire l5_had_base_or;                     // rtl-gen/src/merge/builder.rs:196
-    wire base5_skid_data_not;                // rtl-gen/src/merge/builder.rs:197
-    wire base5_skid_valid_and;               // rtl-gen/src/merge/builder.rs:197
-    wire l5_had_base_or_1;                   // rtl-gen/src/merge/builder.rs:197
     wire l6_above_known;                     // rtl-gen/src/merge/builder.rs:198
     wire l6_base_above;                      // rtl-gen/src/merge/builder.rs:199
-    wire l6_had_base_or;                     // rtl-gen/src/merge/builder.rs:196
-    wire base6_skid_data_not;                // rtl-gen/src/merge/builder.rs:197
-    wire base6_skid_valid_and;               // rtl-gen/src/merge/builder.rs:197
-    wire l6_had_base_or_1;                   // rtl-gen/src/merge/builder.rs:197
     wire l7_above_known;                     // rtl-gen/src/merge/builder.rs:198
     wire l7_base_above;                      // rtl-gen/src/merge/builder.rs:199
-    wire l7_had_base_or;                     // rtl-gen/src/merge/builder.rs:196
-    wire base7_skid_data_not;                // rtl-gen/src/merge/builder.rs:197
-    wire base7_skid_valid_and;               // rtl-gen/src/merge/builder.rs:197
-    wire l7_had_base_or_1;                   // rtl-gen/src/merge/builder.rs:197
     wire l8_above_known;                     // rtl-gen/src/merge/builder.rs:198
     wire l8_base_above;                      // rtl-gen/src/merge/builder.rs:199
-    wire l8_had_base_or;                     // rtl-gen/src/merge/builder.rs:196
-    wire base8_skid_data_not;                // rtl-gen/src/merge/builder.rs:197
-    wire base8_skid_valid_and;               // rtl-gen/src/merge/builder.rs:197
-    wire l8_had_base_or_1;                   // rtl-gen/src/merge/builder.rs:197
     wire l9_above_known;                     // rtl-gen/src/merge/builder.rs:198
     wire l9_base_above;                      // rtl-gen/src/merge/builder.rs:199
-    wire l9_had_base_or;                     // rtl-gen/src/merge/builder.rs:196
-    wire base9_skid_data_not;                // rtl-gen/src/merge/builder.rs:197
-    wire base9_skid_valid_and;               // rtl-gen/src/merge/builder.rs:197
-    wire l9_had_base_or_1;                   // rtl-gen/src/merge/builder.rs:197
     wire l10_above_known;                    // rtl-gen/src/merge/builder.rs:198
     wire l10_base_above;                     // rtl-gen/src/merge/builder.rs:199
-    wire l10_had_base_or;                    // rtl-gen/src/merge/builder.rs:196
-    wire base10_skid_data_not;               // rtl-gen/src/merge/builder.rs:197
-    wire base10_skid_valid_and;              // rtl-gen/src/merge/builder.rs:197
-    wire l10_had_base_or_1;                  // rtl-gen/src/merge/builder.rs:197
     wire l11_above_known;                    // rtl-gen/src/merge/builder.rs:198
     wire l11_base_above;                     // rtl-gen/src/merge/builder.rs:199
-    wire l11_had_base_or;                    // rtl-gen/src/merge/builder.rs:196
-    wire base11_skid_data_not;               // rtl-gen/src/merge/builder.rs:197
-    wire base11_skid_valid_and;              // rtl-gen/src/merge/builder.rs:197
-    wire l11_had_base_or_1;                  // rtl-gen/src/merge/builder.rs:197
     wire l12_above_known;                    // rtl-gen/src/merge/builder.rs:198
     wire l12_base_above;                     // rtl-gen/src/merge/builder.rs:199
-    wire l12_had_base_or;                    // rtl-gen/src/merge/builder.rs:196
-    wire base12_skid_data_not;               // rtl-gen/src/merge/builder.rs:197
-    wire base12_skid_valid_and;              // rtl-gen/src/merge/builder.rs:197
-    wire l12_had_base_or_1;                  // rtl-gen/src/merge/builder.rs:197
     wire l13_above_known;                    // rtl-gen/src/merge/builder.rs:198
     wire l13_base_above;                     // rtl-gen/src/merge/builder.rs:199
-    wire l13_had_base_or;                    // rtl-gen/src/merge/builder.rs:196
-    wire base13_skid_data_not;               // rtl-gen/src/merge/builder.rs:197
-    wire base13_skid_valid_and;              // rtl-gen/src/merge/builder.rs:197
-    wire l13_had_base_or_1;                  // rtl-gen/src/merge/builder.rs:197
     wire l14_above_known;                    // rtl-gen/src/merge/builder.rs:198
     wire l14_base_above;                     // rtl-gen/src/merge/builder.rs:199
-    wire l14_had_base_or;                    // rtl-gen/src/merge/builder.rs:196
-    wire base14_skid_data_not;               // rtl-gen/src/merge/builder.rs:197
-    wire base14_skid_valid_and;              // rtl-gen/src/merge/builder.rs:197
-    wire l14_had_base_or_1;                  // rtl-gen/src/merge/builder.rs:197
     wire l15_above_known;                    // rtl-gen/src/merge/builder.rs:198
     wire l15_base_above;                     // rtl-gen/src/merge/builder.rs:199
-    wire l15_had_base_or;                    // rtl-gen/src/merge/builder.rs:196
-    wire base15_skid_data_not;               // rtl-gen/src/merge/builder.rs:197
-    wire base15_skid_valid_and;              // rtl-gen/src/merge/builder.rs:197
-    wire l15_had_base_or_1;                  // rtl-gen/src/merge/builder.rs:197
     wire l16_above_known;                    // rtl-gen/src/merge/builder.rs:198
     wire l16_base_above;                     // rtl-gen/src/merge/builder.rs:199
     reg done_valid_q;                        // rtl-gen/src/merge/builder.rs:202
@@ -847,3519 +618,1490 @@ module upper_builder_d16_q8_i24_h4 (
     reg l16_nodes_ovf;                       // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l16_records;                  // rtl-gen/src/merge/builder.rs:217
     wire level16_in_ready;                   // rtl-gen/src/merge/builder.rs:223
-    wire base16_skid_data_not;               // rtl-gen/src/merge/builder.rs:225
-    wire base16_skid_data_or;                // rtl-gen/src/merge/builder.rs:225
+    wire base16_skid_data_kind_not;          // rtl-gen/src/merge/builder.rs:225
+    wire l16_end_ok;                         // rtl-gen/src/merge/builder.rs:225
+    wire base16_skid_data_rec_leaf;          // rtl-gen/src/merge/builder.rs:226
     wire top_found_not;                      // rtl-gen/src/merge/builder.rs:235
-    wire const_not;                          // rtl-gen/src/merge/builder.rs:235
     wire top_found_and;                      // rtl-gen/src/merge/builder.rs:235
-    wire top_found_not_1;                    // rtl-gen/src/merge/builder.rs:236
-    wire const_not_1;                        // rtl-gen/src/merge/builder.rs:236
-    wire top_found_and_1;                    // rtl-gen/src/merge/builder.rs:236
-    wire base16_skid_data_mux_2;             // rtl-gen/src/merge/builder.rs:234
-    wire l16_done_not;                       // rtl-gen/src/merge/builder.rs:238
-    wire base16_skid_valid_and;              // rtl-gen/src/merge/builder.rs:238
-    wire base16_skid_valid_and_1;            // rtl-gen/src/merge/builder.rs:238
-    wire base16_skid_valid_and_2;            // rtl-gen/src/merge/builder.rs:239
-    wire base16_skid_data_not_1;             // rtl-gen/src/merge/builder.rs:239
-    wire base16_skid_data_or_1;              // rtl-gen/src/merge/builder.rs:239
+    wire l16_ready_all;                      // rtl-gen/src/merge/builder.rs:238
+    wire l16_ready_all_and;                  // rtl-gen/src/merge/builder.rs:239
+    wire base16_skid_data_kind_not_1;        // rtl-gen/src/merge/builder.rs:239
+    wire base16_skid_data_kind_or;           // rtl-gen/src/merge/builder.rs:239
     wire l16_fire;                           // rtl-gen/src/merge/builder.rs:239
-    wire base16_skid_data_not_2;             // rtl-gen/src/merge/builder.rs:240
     wire l16_fire_and;                       // rtl-gen/src/merge/builder.rs:240
     wire l16_end_fire;                       // rtl-gen/src/merge/builder.rs:241
-    wire base16_skid_data_not_3;             // rtl-gen/src/merge/builder.rs:245
-    wire base16_skid_data_or_2;              // rtl-gen/src/merge/builder.rs:245
-    wire base16_skid_valid_and_3;            // rtl-gen/src/merge/builder.rs:245
-    wire [101:0] base16_skid_data_cat;       // rtl-gen/src/merge/builder.rs:247
-    wire [24:0] l16_nodes_add;               // rtl-gen/src/merge/builder.rs:255
-    wire [149:0] base16_skid_data_mux_3;     // rtl-gen/src/merge/builder.rs:256
-    wire [27:0] base16_skid_data_mux_4;      // rtl-gen/src/merge/builder.rs:257
-    wire l16_nodes_ovf_or;                   // rtl-gen/src/merge/builder.rs:258
+    wire [24:0] l16_index_next;              // rtl-gen/src/merge/builder.rs:255
     wire [228:0] level16_beat;               // rtl-gen/src/merge/builder.rs:258
-    wire base16_skid_valid_and_4;            // rtl-gen/src/merge/builder.rs:261
     wire level16_in_valid;                   // rtl-gen/src/merge/builder.rs:261
     reg level16_skid_valid;                  // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level16_skid_data;           // rtl-gen/src/merge/builder.rs:265
     reg level16_skid_spare_valid;            // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level16_skid_spare_data;     // rtl-gen/src/merge/builder.rs:265
     wire level16_skid_ready;                 // rtl-gen/src/merge/builder.rs:265
-    wire level16_skid_valid_not;             // rtl-gen/src/merge/builder.rs:265
-    wire level16_skid_ready_or;              // rtl-gen/src/merge/builder.rs:265
-    wire level16_skid_spare_valid_not;       // rtl-gen/src/merge/builder.rs:265
-    wire level16_in_valid_and;               // rtl-gen/src/merge/builder.rs:265
-    wire level16_skid_spare_valid_or;        // rtl-gen/src/merge/builder.rs:265
-    wire [228:0] level16_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
-    wire level16_skid_spare_valid_or_1;      // rtl-gen/src/merge/builder.rs:265
-    wire level16_skid_spare_valid_next;      // rtl-gen/src/merge/builder.rs:265
-    wire level16_skid_ready_not;             // rtl-gen/src/merge/builder.rs:265
-    wire level16_skid_ready_and;             // rtl-gen/src/merge/builder.rs:265
-    wire l16_done_or;                        // rtl-gen/src/merge/builder.rs:269
-    wire l16_done_next;                      // rtl-gen/src/merge/builder.rs:269
-    wire l16_fire_and_1;                     // rtl-gen/src/merge/builder.rs:271
-    wire l16_nodes_ovf_or_1;                 // rtl-gen/src/merge/builder.rs:271
-    wire l16_nodes_ovf_next;                 // rtl-gen/src/merge/builder.rs:271
-    wire base16_skid_data_eq_2;              // rtl-gen/src/merge/builder.rs:272
-    wire base16_skid_data_not_4;             // rtl-gen/src/merge/builder.rs:272
-    wire l16_fire_and_2;                     // rtl-gen/src/merge/builder.rs:273
-    wire [23:0] l16_records_add;             // rtl-gen/src/merge/builder.rs:273
-    wire base16_skid_data_eq_3;              // rtl-gen/src/merge/builder.rs:277
-    wire base16_skid_data_and;               // rtl-gen/src/merge/builder.rs:277
-    wire l16_fire_and_3;                     // rtl-gen/src/merge/builder.rs:278
-    wire l16_has_leaf_or;                    // rtl-gen/src/merge/builder.rs:278
-    wire l16_has_leaf_next;                  // rtl-gen/src/merge/builder.rs:278
-    wire l16_nodes_eq;                       // rtl-gen/src/merge/builder.rs:282
-    wire l16_nodes_ovf_not;                  // rtl-gen/src/merge/builder.rs:282
-    wire l16_nodes_and;                      // rtl-gen/src/merge/builder.rs:282
-    wire l16_base_above_not;                 // rtl-gen/src/merge/builder.rs:282
-    wire l16_nodes_and_1;                    // rtl-gen/src/merge/builder.rs:282
-    wire l16_has_leaf_not;                   // rtl-gen/src/merge/builder.rs:282
-    wire l16_nodes_and_2;                    // rtl-gen/src/merge/builder.rs:282
-    wire top_found_not_2;                    // rtl-gen/src/merge/builder.rs:283
-    wire l16_end_fire_and;                   // rtl-gen/src/merge/builder.rs:283
-    wire l16_is_top;                         // rtl-gen/src/merge/builder.rs:283
-    wire l16_is_top_or;                      // rtl-gen/src/merge/builder.rs:285
+    wire level16_skid_room;                  // rtl-gen/src/merge/builder.rs:265
+    wire level16_skid_drain;                 // rtl-gen/src/merge/builder.rs:265
+    wire level16_skid_take;                  // rtl-gen/src/merge/builder.rs:265
+    wire base16_skid_data_kind_eq_1;         // rtl-gen/src/merge/builder.rs:273
+    wire l16_is_record;                      // rtl-gen/src/merge/builder.rs:273
+    wire l16_nodes_and;                      // rtl-gen/src/merge/builder.rs:283
+    wire l16_is_top;                         // rtl-gen/src/merge/builder.rs:284
     reg l15_done;                            // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l15_nodes;                    // rtl-gen/src/merge/builder.rs:215
     reg l15_nodes_ovf;                       // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l15_records;                  // rtl-gen/src/merge/builder.rs:217
     wire level15_in_ready;                   // rtl-gen/src/merge/builder.rs:223
     wire l15_end_not;                        // rtl-gen/src/merge/builder.rs:225
-    wire l15_end_or;                         // rtl-gen/src/merge/builder.rs:225
-    wire top_found_not_3;                    // rtl-gen/src/merge/builder.rs:235
-    wire const_not_2;                        // rtl-gen/src/merge/builder.rs:235
-    wire top_found_and_2;                    // rtl-gen/src/merge/builder.rs:235
-    wire top_found_not_4;                    // rtl-gen/src/merge/builder.rs:236
-    wire const_not_3;                        // rtl-gen/src/merge/builder.rs:236
-    wire top_found_and_3;                    // rtl-gen/src/merge/builder.rs:236
-    wire l15_end_mux;                        // rtl-gen/src/merge/builder.rs:234
-    wire l15_done_not;                       // rtl-gen/src/merge/builder.rs:238
-    wire l15_valid_and;                      // rtl-gen/src/merge/builder.rs:238
-    wire l15_valid_and_1;                    // rtl-gen/src/merge/builder.rs:238
-    wire l15_valid_and_2;                    // rtl-gen/src/merge/builder.rs:239
-    wire l15_end_not_1;                      // rtl-gen/src/merge/builder.rs:239
-    wire l15_end_or_1;                       // rtl-gen/src/merge/builder.rs:239
+    wire l15_end_ok;                         // rtl-gen/src/merge/builder.rs:225
+    wire l15_take_group_leaf;                // rtl-gen/src/merge/builder.rs:226
+    wire l15_ready_all;                      // rtl-gen/src/merge/builder.rs:238
+    wire l15_ready_all_and;                  // rtl-gen/src/merge/builder.rs:239
+    wire l15_end_or;                         // rtl-gen/src/merge/builder.rs:239
     wire l15_fire;                           // rtl-gen/src/merge/builder.rs:239
-    wire l15_end_not_2;                      // rtl-gen/src/merge/builder.rs:240
     wire l15_fire_and;                       // rtl-gen/src/merge/builder.rs:240
     wire l15_end_fire;                       // rtl-gen/src/merge/builder.rs:241
-    wire l15_end_not_3;                      // rtl-gen/src/merge/builder.rs:245
-    wire l15_end_or_2;                       // rtl-gen/src/merge/builder.rs:245
-    wire l15_valid_and_3;                    // rtl-gen/src/merge/builder.rs:245
-    wire [101:0] l15_end_cat;                // rtl-gen/src/merge/builder.rs:247
-    wire l15_fire_and_1;                     // rtl-gen/src/merge/builder.rs:250
-    wire [24:0] l15_nodes_add;               // rtl-gen/src/merge/builder.rs:255
-    wire [149:0] l15_end_mux_1;              // rtl-gen/src/merge/builder.rs:256
-    wire [27:0] l15_end_mux_2;               // rtl-gen/src/merge/builder.rs:257
-    wire l15_take_group_or_1;                // rtl-gen/src/merge/builder.rs:258
+    wire [24:0] l15_index_next;              // rtl-gen/src/merge/builder.rs:255
     wire [228:0] level15_beat;               // rtl-gen/src/merge/builder.rs:258
-    wire l15_valid_and_4;                    // rtl-gen/src/merge/builder.rs:261
     wire level15_in_valid;                   // rtl-gen/src/merge/builder.rs:261
     reg level15_skid_valid;                  // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level15_skid_data;           // rtl-gen/src/merge/builder.rs:265
     reg level15_skid_spare_valid;            // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level15_skid_spare_data;     // rtl-gen/src/merge/builder.rs:265
     wire level15_skid_ready;                 // rtl-gen/src/merge/builder.rs:265
-    wire level15_skid_valid_not;             // rtl-gen/src/merge/builder.rs:265
-    wire level15_skid_ready_or;              // rtl-gen/src/merge/builder.rs:265
-    wire level15_skid_spare_valid_not;       // rtl-gen/src/merge/builder.rs:265
-    wire level15_in_valid_and;               // rtl-gen/src/merge/builder.rs:265
-    wire level15_skid_spare_valid_or;        // rtl-gen/src/merge/builder.rs:265
-    wire [228:0] level15_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
-    wire level15_skid_spare_valid_or_1;      // rtl-gen/src/merge/builder.rs:265
-    wire level15_skid_spare_valid_next;      // rtl-gen/src/merge/builder.rs:265
-    wire level15_skid_ready_not;             // rtl-gen/src/merge/builder.rs:265
-    wire level15_skid_ready_and;             // rtl-gen/src/merge/builder.rs:265
-    wire l15_done_or;                        // rtl-gen/src/merge/builder.rs:269
-    wire l15_done_next;                      // rtl-gen/src/merge/builder.rs:269
-    wire l15_fire_and_2;                     // rtl-gen/src/merge/builder.rs:271
-    wire l15_nodes_ovf_or;                   // rtl-gen/src/merge/builder.rs:271
-    wire l15_nodes_ovf_next;                 // rtl-gen/src/merge/builder.rs:271
-    wire l15_take_group_eq;                  // rtl-gen/src/merge/builder.rs:272
-    wire l15_take_group_not_1;               // rtl-gen/src/merge/builder.rs:272
-    wire l15_fire_and_3;                     // rtl-gen/src/merge/builder.rs:273
-    wire [23:0] l15_records_add;             // rtl-gen/src/merge/builder.rs:273
-    wire l15_fire_and_4;                     // rtl-gen/src/merge/builder.rs:275
-    wire l15_had_base_or_2;                  // rtl-gen/src/merge/builder.rs:275
-    wire l15_had_base_next;                  // rtl-gen/src/merge/builder.rs:275
-    wire l15_take_group_eq_1;                // rtl-gen/src/merge/builder.rs:277
-    wire l15_take_group_and_1;               // rtl-gen/src/merge/builder.rs:277
-    wire l15_fire_and_5;                     // rtl-gen/src/merge/builder.rs:278
-    wire l15_has_leaf_or;                    // rtl-gen/src/merge/builder.rs:278
-    wire l15_has_leaf_next;                  // rtl-gen/src/merge/builder.rs:278
-    wire l15_nodes_eq;                       // rtl-gen/src/merge/builder.rs:282
-    wire l15_nodes_ovf_not;                  // rtl-gen/src/merge/builder.rs:282
-    wire l15_nodes_and;                      // rtl-gen/src/merge/builder.rs:282
-    wire l15_base_above_not;                 // rtl-gen/src/merge/builder.rs:282
-    wire l15_nodes_and_1;                    // rtl-gen/src/merge/builder.rs:282
-    wire l15_has_leaf_not;                   // rtl-gen/src/merge/builder.rs:282
-    wire l15_nodes_and_2;                    // rtl-gen/src/merge/builder.rs:282
-    wire top_found_not_5;                    // rtl-gen/src/merge/builder.rs:283
-    wire l15_end_fire_and;                   // rtl-gen/src/merge/builder.rs:283
-    wire l15_is_top;                         // rtl-gen/src/merge/builder.rs:283
-    wire l16_is_top_or_1;                    // rtl-gen/src/merge/builder.rs:285
+    wire level15_skid_room;                  // rtl-gen/src/merge/builder.rs:265
+    wire level15_skid_drain;                 // rtl-gen/src/merge/builder.rs:265
+    wire level15_skid_take;                  // rtl-gen/src/merge/builder.rs:265
+    wire l15_take_group_eq;                  // rtl-gen/src/merge/builder.rs:273
+    wire l15_is_record;                      // rtl-gen/src/merge/builder.rs:273
+    wire l15_nodes_and;                      // rtl-gen/src/merge/builder.rs:283
+    wire l15_is_top;                         // rtl-gen/src/merge/builder.rs:284
     reg l14_done;                            // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l14_nodes;                    // rtl-gen/src/merge/builder.rs:215
     reg l14_nodes_ovf;                       // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l14_records;                  // rtl-gen/src/merge/builder.rs:217
     wire level14_in_ready;                   // rtl-gen/src/merge/builder.rs:223
     wire l14_end_not;                        // rtl-gen/src/merge/builder.rs:225
-    wire l14_end_or;                         // rtl-gen/src/merge/builder.rs:225
-    wire top_found_not_6;                    // rtl-gen/src/merge/builder.rs:235
-    wire const_not_4;                        // rtl-gen/src/merge/builder.rs:235
-    wire top_found_and_4;                    // rtl-gen/src/merge/builder.rs:235
-    wire top_found_not_7;                    // rtl-gen/src/merge/builder.rs:236
-    wire const_not_5;                        // rtl-gen/src/merge/builder.rs:236
-    wire top_found_and_5;                    // rtl-gen/src/merge/builder.rs:236
-    wire l14_end_mux;                        // rtl-gen/src/merge/builder.rs:234
-    wire l14_done_not;                       // rtl-gen/src/merge/builder.rs:238
-    wire l14_valid_and;                      // rtl-gen/src/merge/builder.rs:238
-    wire l14_valid_and_1;                    // rtl-gen/src/merge/builder.rs:238
-    wire l14_valid_and_2;                    // rtl-gen/src/merge/builder.rs:239
-    wire l14_end_not_1;                      // rtl-gen/src/merge/builder.rs:239
-    wire l14_end_or_1;                       // rtl-gen/src/merge/builder.rs:239
+    wire l14_end_ok;                         // rtl-gen/src/merge/builder.rs:225
+    wire l14_take_group_leaf;                // rtl-gen/src/merge/builder.rs:226
+    wire l14_ready_all;                      // rtl-gen/src/merge/builder.rs:238
+    wire l14_ready_all_and;                  // rtl-gen/src/merge/builder.rs:239
+    wire l14_end_or;                         // rtl-gen/src/merge/builder.rs:239
     wire l14_fire;                           // rtl-gen/src/merge/builder.rs:239
-    wire l14_end_not_2;                      // rtl-gen/src/merge/builder.rs:240
     wire l14_fire_and;                       // rtl-gen/src/merge/builder.rs:240
     wire l14_end_fire;                       // rtl-gen/src/merge/builder.rs:241
-    wire l14_end_not_3;                      // rtl-gen/src/merge/builder.rs:245
-    wire l14_end_or_2;                       // rtl-gen/src/merge/builder.rs:245
-    wire l14_valid_and_3;                    // rtl-gen/src/merge/builder.rs:245
-    wire [101:0] l14_end_cat;                // rtl-gen/src/merge/builder.rs:247
-    wire l14_fire_and_1;                     // rtl-gen/src/merge/builder.rs:250
-    wire [24:0] l14_nodes_add;               // rtl-gen/src/merge/builder.rs:255
-    wire [149:0] l14_end_mux_1;              // rtl-gen/src/merge/builder.rs:256
-    wire [27:0] l14_end_mux_2;               // rtl-gen/src/merge/builder.rs:257
-    wire l14_take_group_or_1;                // rtl-gen/src/merge/builder.rs:258
+    wire [24:0] l14_index_next;              // rtl-gen/src/merge/builder.rs:255
     wire [228:0] level14_beat;               // rtl-gen/src/merge/builder.rs:258
-    wire l14_valid_and_4;                    // rtl-gen/src/merge/builder.rs:261
     wire level14_in_valid;                   // rtl-gen/src/merge/builder.rs:261
     reg level14_skid_valid;                  // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level14_skid_data;           // rtl-gen/src/merge/builder.rs:265
     reg level14_skid_spare_valid;            // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level14_skid_spare_data;     // rtl-gen/src/merge/builder.rs:265
     wire level14_skid_ready;                 // rtl-gen/src/merge/builder.rs:265
-    wire level14_skid_valid_not;             // rtl-gen/src/merge/builder.rs:265
-    wire level14_skid_ready_or;              // rtl-gen/src/merge/builder.rs:265
-    wire level14_skid_spare_valid_not;       // rtl-gen/src/merge/builder.rs:265
-    wire level14_in_valid_and;               // rtl-gen/src/merge/builder.rs:265
-    wire level14_skid_spare_valid_or;        // rtl-gen/src/merge/builder.rs:265
-    wire [228:0] level14_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
-    wire level14_skid_spare_valid_or_1;      // rtl-gen/src/merge/builder.rs:265
-    wire level14_skid_spare_valid_next;      // rtl-gen/src/merge/builder.rs:265
-    wire level14_skid_ready_not;             // rtl-gen/src/merge/builder.rs:265
-    wire level14_skid_ready_and;             // rtl-gen/src/merge/builder.rs:265
-    wire l14_done_or;                        // rtl-gen/src/merge/builder.rs:269
-    wire l14_done_next;                      // rtl-gen/src/merge/builder.rs:269
-    wire l14_fire_and_2;                     // rtl-gen/src/merge/builder.rs:271
-    wire l14_nodes_ovf_or;                   // rtl-gen/src/merge/builder.rs:271
-    wire l14_nodes_ovf_next;                 // rtl-gen/src/merge/builder.rs:271
-    wire l14_take_group_eq;                  // rtl-gen/src/merge/builder.rs:272
-    wire l14_take_group_not_1;               // rtl-gen/src/merge/builder.rs:272
-    wire l14_fire_and_3;                     // rtl-gen/src/merge/builder.rs:273
-    wire [23:0] l14_records_add;             // rtl-gen/src/merge/builder.rs:273
-    wire l14_fire_and_4;                     // rtl-gen/src/merge/builder.rs:275
-    wire l14_had_base_or_2;                  // rtl-gen/src/merge/builder.rs:275
-    wire l14_had_base_next;                  // rtl-gen/src/merge/builder.rs:275
-    wire l14_take_group_eq_1;                // rtl-gen/src/merge/builder.rs:277
-    wire l14_take_group_and_1;               // rtl-gen/src/merge/builder.rs:277
-    wire l14_fire_and_5;                     // rtl-gen/src/merge/builder.rs:278
-    wire l14_has_leaf_or;                    // rtl-gen/src/merge/builder.rs:278
-    wire l14_has_leaf_next;                  // rtl-gen/src/merge/builder.rs:278
-    wire l14_nodes_eq;                       // rtl-gen/src/merge/builder.rs:282
-    wire l14_nodes_ovf_not;                  // rtl-gen/src/merge/builder.rs:282
-    wire l14_nodes_and;                      // rtl-gen/src/merge/builder.rs:282
-    wire l14_base_above_not;                 // rtl-gen/src/merge/builder.rs:282
-    wire l14_nodes_and_1;                    // rtl-gen/src/merge/builder.rs:282
-    wire l14_has_leaf_not;                   // rtl-gen/src/merge/builder.rs:282
-    wire l14_nodes_and_2;                    // rtl-gen/src/merge/builder.rs:282
-    wire top_found_not_8;                    // rtl-gen/src/merge/builder.rs:283
-    wire l14_end_fire_and;                   // rtl-gen/src/merge/builder.rs:283
-    wire l14_is_top;                         // rtl-gen/src/merge/builder.rs:283
-    wire l16_is_top_or_2;                    // rtl-gen/src/merge/builder.rs:285
+    wire level14_skid_room;                  // rtl-gen/src/merge/builder.rs:265
+    wire level14_skid_drain;                 // rtl-gen/src/merge/builder.rs:265
+    wire level14_skid_take;                  // rtl-gen/src/merge/builder.rs:265
+    wire l14_take_group_eq;                  // rtl-gen/src/merge/builder.rs:273
+    wire l14_is_record;                      // rtl-gen/src/merge/builder.rs:273
+    wire l14_nodes_and;                      // rtl-gen/src/merge/builder.rs:283
+    wire l14_is_top;                         // rtl-gen/src/merge/builder.rs:284
     reg l13_done;                            // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l13_nodes;                    // rtl-gen/src/merge/builder.rs:215
     reg l13_nodes_ovf;                       // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l13_records;                  // rtl-gen/src/merge/builder.rs:217
     wire level13_in_ready;                   // rtl-gen/src/merge/builder.rs:223
     wire l13_end_not;                        // rtl-gen/src/merge/builder.rs:225
-    wire l13_end_or;                         // rtl-gen/src/merge/builder.rs:225
-    wire top_found_not_9;                    // rtl-gen/src/merge/builder.rs:235
-    wire const_not_6;                        // rtl-gen/src/merge/builder.rs:235
-    wire top_found_and_6;                    // rtl-gen/src/merge/builder.rs:235
-    wire top_found_not_10;                   // rtl-gen/src/merge/builder.rs:236
-    wire const_not_7;                        // rtl-gen/src/merge/builder.rs:236
-    wire top_found_and_7;                    // rtl-gen/src/merge/builder.rs:236
-    wire l13_end_mux;                        // rtl-gen/src/merge/builder.rs:234
-    wire l13_done_not;                       // rtl-gen/src/merge/builder.rs:238
-    wire l13_valid_and;                      // rtl-gen/src/merge/builder.rs:238
-    wire l13_valid_and_1;                    // rtl-gen/src/merge/builder.rs:238
-    wire l13_valid_and_2;                    // rtl-gen/src/merge/builder.rs:239
-    wire l13_end_not_1;                      // rtl-gen/src/merge/builder.rs:239
-    wire l13_end_or_1;                       // rtl-gen/src/merge/builder.rs:239
+    wire l13_end_ok;                         // rtl-gen/src/merge/builder.rs:225
+    wire l13_take_group_leaf;                // rtl-gen/src/merge/builder.rs:226
+    wire l13_ready_all;                      // rtl-gen/src/merge/builder.rs:238
+    wire l13_ready_all_and;                  // rtl-gen/src/merge/builder.rs:239
+    wire l13_end_or;                         // rtl-gen/src/merge/builder.rs:239
     wire l13_fire;                           // rtl-gen/src/merge/builder.rs:239
-    wire l13_end_not_2;                      // rtl-gen/src/merge/builder.rs:240
     wire l13_fire_and;                       // rtl-gen/src/merge/builder.rs:240
     wire l13_end_fire;                       // rtl-gen/src/merge/builder.rs:241
-    wire l13_end_not_3;                      // rtl-gen/src/merge/builder.rs:245
-    wire l13_end_or_2;                       // rtl-gen/src/merge/builder.rs:245
-    wire l13_valid_and_3;                    // rtl-gen/src/merge/builder.rs:245
-    wire [101:0] l13_end_cat;                // rtl-gen/src/merge/builder.rs:247
-    wire l13_fire_and_1;                     // rtl-gen/src/merge/builder.rs:250
-    wire [24:0] l13_nodes_add;               // rtl-gen/src/merge/builder.rs:255
-    wire [149:0] l13_end_mux_1;              // rtl-gen/src/merge/builder.rs:256
-    wire [27:0] l13_end_mux_2;               // rtl-gen/src/merge/builder.rs:257
-    wire l13_take_group_or_1;                // rtl-gen/src/merge/builder.rs:258
+    wire [24:0] l13_index_next;              // rtl-gen/src/merge/builder.rs:255
     wire [228:0] level13_beat;               // rtl-gen/src/merge/builder.rs:258
-    wire l13_valid_and_4;                    // rtl-gen/src/merge/builder.rs:261
     wire level13_in_valid;                   // rtl-gen/src/merge/builder.rs:261
     reg level13_skid_valid;                  // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level13_skid_data;           // rtl-gen/src/merge/builder.rs:265
     reg level13_skid_spare_valid;            // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level13_skid_spare_data;     // rtl-gen/src/merge/builder.rs:265
     wire level13_skid_ready;                 // rtl-gen/src/merge/builder.rs:265
-    wire level13_skid_valid_not;             // rtl-gen/src/merge/builder.rs:265
-    wire level13_skid_ready_or;              // rtl-gen/src/merge/builder.rs:265
-    wire level13_skid_spare_valid_not;       // rtl-gen/src/merge/builder.rs:265
-    wire level13_in_valid_and;               // rtl-gen/src/merge/builder.rs:265
-    wire level13_skid_spare_valid_or;        // rtl-gen/src/merge/builder.rs:265
-    wire [228:0] level13_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
-    wire level13_skid_spare_valid_or_1;      // rtl-gen/src/merge/builder.rs:265
-    wire level13_skid_spare_valid_next;      // rtl-gen/src/merge/builder.rs:265
-    wire level13_skid_ready_not;             // rtl-gen/src/merge/builder.rs:265
-    wire level13_skid_ready_and;             // rtl-gen/src/merge/builder.rs:265
-    wire l13_done_or;                        // rtl-gen/src/merge/builder.rs:269
-    wire l13_done_next;                      // rtl-gen/src/merge/builder.rs:269
-    wire l13_fire_and_2;                     // rtl-gen/src/merge/builder.rs:271
-    wire l13_nodes_ovf_or;                   // rtl-gen/src/merge/builder.rs:271
-    wire l13_nodes_ovf_next;                 // rtl-gen/src/merge/builder.rs:271
-    wire l13_take_group_eq;                  // rtl-gen/src/merge/builder.rs:272
-    wire l13_take_group_not_1;               // rtl-gen/src/merge/builder.rs:272
-    wire l13_fire_and_3;                     // rtl-gen/src/merge/builder.rs:273
-    wire [23:0] l13_records_add;             // rtl-gen/src/merge/builder.rs:273
-    wire l13_fire_and_4;                     // rtl-gen/src/merge/builder.rs:275
-    wire l13_had_base_or_2;                  // rtl-gen/src/merge/builder.rs:275
-    wire l13_had_base_next;                  // rtl-gen/src/merge/builder.rs:275
-    wire l13_take_group_eq_1;                // rtl-gen/src/merge/builder.rs:277
-    wire l13_take_group_and_1;               // rtl-gen/src/merge/builder.rs:277
-    wire l13_fire_and_5;                     // rtl-gen/src/merge/builder.rs:278
-    wire l13_has_leaf_or;                    // rtl-gen/src/merge/builder.rs:278
-    wire l13_has_leaf_next;                  // rtl-gen/src/merge/builder.rs:278
-    wire l13_nodes_eq;                       // rtl-gen/src/merge/builder.rs:282
-    wire l13_nodes_ovf_not;                  // rtl-gen/src/merge/builder.rs:282
-    wire l13_nodes_and;                      // rtl-gen/src/merge/builder.rs:282
-    wire l13_base_above_not;                 // rtl-gen/src/merge/builder.rs:282
-    wire l13_nodes_and_1;                    // rtl-gen/src/merge/builder.rs:282
-    wire l13_has_leaf_not;                   // rtl-gen/src/merge/builder.rs:282
-    wire l13_nodes_and_2;                    // rtl-gen/src/merge/builder.rs:282
-    wire top_found_not_11;                   // rtl-gen/src/merge/builder.rs:283
-    wire l13_end_fire_and;                   // rtl-gen/src/merge/builder.rs:283
-    wire l13_is_top;                         // rtl-gen/src/merge/builder.rs:283
-    wire l16_is_top_or_3;                    // rtl-gen/src/merge/builder.rs:285
+    wire level13_skid_room;                  // rtl-gen/src/merge/builder.rs:265
+    wire level13_skid_drain;                 // rtl-gen/src/merge/builder.rs:265
+    wire level13_skid_take;                  // rtl-gen/src/merge/builder.rs:265
+    wire l13_take_group_eq;                  // rtl-gen/src/merge/builder.rs:273
+    wire l13_is_record;                      // rtl-gen/src/merge/builder.rs:273
+    wire l13_nodes_and;                      // rtl-gen/src/merge/builder.rs:283
+    wire l13_is_top;                         // rtl-gen/src/merge/builder.rs:284
     reg l12_done;                            // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l12_nodes;                    // rtl-gen/src/merge/builder.rs:215
     reg l12_nodes_ovf;                       // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l12_records;                  // rtl-gen/src/merge/builder.rs:217
     wire level12_in_ready;                   // rtl-gen/src/merge/builder.rs:223
     wire l12_end_not;                        // rtl-gen/src/merge/builder.rs:225
-    wire l12_end_or;                         // rtl-gen/src/merge/builder.rs:225
-    wire top_found_not_12;                   // rtl-gen/src/merge/builder.rs:235
-    wire const_not_8;                        // rtl-gen/src/merge/builder.rs:235
-    wire top_found_and_8;                    // rtl-gen/src/merge/builder.rs:235
-    wire top_found_not_13;                   // rtl-gen/src/merge/builder.rs:236
-    wire const_not_9;                        // rtl-gen/src/merge/builder.rs:236
-    wire top_found_and_9;                    // rtl-gen/src/merge/builder.rs:236
-    wire l12_end_mux;                        // rtl-gen/src/merge/builder.rs:234
-    wire l12_done_not;                       // rtl-gen/src/merge/builder.rs:238
-    wire l12_valid_and;                      // rtl-gen/src/merge/builder.rs:238
-    wire l12_valid_and_1;                    // rtl-gen/src/merge/builder.rs:238
-    wire l12_valid_and_2;                    // rtl-gen/src/merge/builder.rs:239
-    wire l12_end_not_1;                      // rtl-gen/src/merge/builder.rs:239
-    wire l12_end_or_1;                       // rtl-gen/src/merge/builder.rs:239
+    wire l12_end_ok;                         // rtl-gen/src/merge/builder.rs:225
+    wire l12_take_group_leaf;                // rtl-gen/src/merge/builder.rs:226
+    wire l12_ready_all;                      // rtl-gen/src/merge/builder.rs:238
+    wire l12_ready_all_and;                  // rtl-gen/src/merge/builder.rs:239
+    wire l12_end_or;                         // rtl-gen/src/merge/builder.rs:239
     wire l12_fire;                           // rtl-gen/src/merge/builder.rs:239
-    wire l12_end_not_2;                      // rtl-gen/src/merge/builder.rs:240
     wire l12_fire_and;                       // rtl-gen/src/merge/builder.rs:240
     wire l12_end_fire;                       // rtl-gen/src/merge/builder.rs:241
-    wire l12_end_not_3;                      // rtl-gen/src/merge/builder.rs:245
-    wire l12_end_or_2;                       // rtl-gen/src/merge/builder.rs:245
-    wire l12_valid_and_3;                    // rtl-gen/src/merge/builder.rs:245
-    wire [101:0] l12_end_cat;                // rtl-gen/src/merge/builder.rs:247
-    wire l12_fire_and_1;                     // rtl-gen/src/merge/builder.rs:250
-    wire [24:0] l12_nodes_add;               // rtl-gen/src/merge/builder.rs:255
-    wire [149:0] l12_end_mux_1;              // rtl-gen/src/merge/builder.rs:256
-    wire [27:0] l12_end_mux_2;               // rtl-gen/src/merge/builder.rs:257
-    wire l12_take_group_or_1;                // rtl-gen/src/merge/builder.rs:258
+    wire [24:0] l12_index_next;              // rtl-gen/src/merge/builder.rs:255
     wire [228:0] level12_beat;               // rtl-gen/src/merge/builder.rs:258
-    wire l12_valid_and_4;                    // rtl-gen/src/merge/builder.rs:261
     wire level12_in_valid;                   // rtl-gen/src/merge/builder.rs:261
     reg level12_skid_valid;                  // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level12_skid_data;           // rtl-gen/src/merge/builder.rs:265
     reg level12_skid_spare_valid;            // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level12_skid_spare_data;     // rtl-gen/src/merge/builder.rs:265
     wire level12_skid_ready;                 // rtl-gen/src/merge/builder.rs:265
-    wire level12_skid_valid_not;             // rtl-gen/src/merge/builder.rs:265
-    wire level12_skid_ready_or;              // rtl-gen/src/merge/builder.rs:265
-    wire level12_skid_spare_valid_not;       // rtl-gen/src/merge/builder.rs:265
-    wire level12_in_valid_and;               // rtl-gen/src/merge/builder.rs:265
-    wire level12_skid_spare_valid_or;        // rtl-gen/src/merge/builder.rs:265
-    wire [228:0] level12_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
-    wire level12_skid_spare_valid_or_1;      // rtl-gen/src/merge/builder.rs:265
-    wire level12_skid_spare_valid_next;      // rtl-gen/src/merge/builder.rs:265
-    wire level12_skid_ready_not;             // rtl-gen/src/merge/builder.rs:265
-    wire level12_skid_ready_and;             // rtl-gen/src/merge/builder.rs:265
-    wire l12_done_or;                        // rtl-gen/src/merge/builder.rs:269
-    wire l12_done_next;                      // rtl-gen/src/merge/builder.rs:269
-    wire l12_fire_and_2;                     // rtl-gen/src/merge/builder.rs:271
-    wire l12_nodes_ovf_or;                   // rtl-gen/src/merge/builder.rs:271
-    wire l12_nodes_ovf_next;                 // rtl-gen/src/merge/builder.rs:271
-    wire l12_take_group_eq;                  // rtl-gen/src/merge/builder.rs:272
-    wire l12_take_group_not_1;               // rtl-gen/src/merge/builder.rs:272
-    wire l12_fire_and_3;                     // rtl-gen/src/merge/builder.rs:273
-    wire [23:0] l12_records_add;             // rtl-gen/src/merge/builder.rs:273
-    wire l12_fire_and_4;                     // rtl-gen/src/merge/builder.rs:275
-    wire l12_had_base_or_2;                  // rtl-gen/src/merge/builder.rs:275
-    wire l12_had_base_next;                  // rtl-gen/src/merge/builder.rs:275
-    wire l12_take_group_eq_1;                // rtl-gen/src/merge/builder.rs:277
-    wire l12_take_group_and_1;               // rtl-gen/src/merge/builder.rs:277
-    wire l12_fire_and_5;                     // rtl-gen/src/merge/builder.rs:278
-    wire l12_has_leaf_or;                    // rtl-gen/src/merge/builder.rs:278
-    wire l12_has_leaf_next;                  // rtl-gen/src/merge/builder.rs:278
-    wire l12_nodes_eq;                       // rtl-gen/src/merge/builder.rs:282
-    wire l12_nodes_ovf_not;                  // rtl-gen/src/merge/builder.rs:282
-    wire l12_nodes_and;                      // rtl-gen/src/merge/builder.rs:282
-    wire l12_base_above_not;                 // rtl-gen/src/merge/builder.rs:282
-    wire l12_nodes_and_1;                    // rtl-gen/src/merge/builder.rs:282
-    wire l12_has_leaf_not;                   // rtl-gen/src/merge/builder.rs:282
-    wire l12_nodes_and_2;                    // rtl-gen/src/merge/builder.rs:282
-    wire top_found_not_14;                   // rtl-gen/src/merge/builder.rs:283
-    wire l12_end_fire_and;                   // rtl-gen/src/merge/builder.rs:283
-    wire l12_is_top;                         // rtl-gen/src/merge/builder.rs:283
-    wire l16_is_top_or_4;                    // rtl-gen/src/merge/builder.rs:285
+    wire level12_skid_room;                  // rtl-gen/src/merge/builder.rs:265
+    wire level12_skid_drain;                 // rtl-gen/src/merge/builder.rs:265
+    wire level12_skid_take;                  // rtl-gen/src/merge/builder.rs:265
+    wire l12_take_group_eq;                  // rtl-gen/src/merge/builder.rs:273
+    wire l12_is_record;                      // rtl-gen/src/merge/builder.rs:273
+    wire l12_nodes_and;                      // rtl-gen/src/merge/builder.rs:283
+    wire l12_is_top;                         // rtl-gen/src/merge/builder.rs:284
     reg l11_done;                            // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l11_nodes;                    // rtl-gen/src/merge/builder.rs:215
     reg l11_nodes_ovf;                       // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l11_records;                  // rtl-gen/src/merge/builder.rs:217
     wire level11_in_ready;                   // rtl-gen/src/merge/builder.rs:223
     wire l11_end_not;                        // rtl-gen/src/merge/builder.rs:225
-    wire l11_end_or;                         // rtl-gen/src/merge/builder.rs:225
-    wire top_found_not_15;                   // rtl-gen/src/merge/builder.rs:235
-    wire const_not_10;                       // rtl-gen/src/merge/builder.rs:235
-    wire top_found_and_10;                   // rtl-gen/src/merge/builder.rs:235
-    wire top_found_not_16;                   // rtl-gen/src/merge/builder.rs:236
-    wire const_not_11;                       // rtl-gen/src/merge/builder.rs:236
-    wire top_found_and_11;                   // rtl-gen/src/merge/builder.rs:236
-    wire l11_end_mux;                        // rtl-gen/src/merge/builder.rs:234
-    wire l11_done_not;                       // rtl-gen/src/merge/builder.rs:238
-    wire l11_valid_and;                      // rtl-gen/src/merge/builder.rs:238
-    wire l11_valid_and_1;                    // rtl-gen/src/merge/builder.rs:238
-    wire l11_valid_and_2;                    // rtl-gen/src/merge/builder.rs:239
-    wire l11_end_not_1;                      // rtl-gen/src/merge/builder.rs:239
-    wire l11_end_or_1;                       // rtl-gen/src/merge/builder.rs:239
+    wire l11_end_ok;                         // rtl-gen/src/merge/builder.rs:225
+    wire l11_take_group_leaf;                // rtl-gen/src/merge/builder.rs:226
+    wire l11_ready_all;                      // rtl-gen/src/merge/builder.rs:238
+    wire l11_ready_all_and;                  // rtl-gen/src/merge/builder.rs:239
+    wire l11_end_or;                         // rtl-gen/src/merge/builder.rs:239
     wire l11_fire;                           // rtl-gen/src/merge/builder.rs:239
-    wire l11_end_not_2;                      // rtl-gen/src/merge/builder.rs:240
     wire l11_fire_and;                       // rtl-gen/src/merge/builder.rs:240
     wire l11_end_fire;                       // rtl-gen/src/merge/builder.rs:241
-    wire l11_end_not_3;                      // rtl-gen/src/merge/builder.rs:245
-    wire l11_end_or_2;                       // rtl-gen/src/merge/builder.rs:245
-    wire l11_valid_and_3;                    // rtl-gen/src/merge/builder.rs:245
-    wire [101:0] l11_end_cat;                // rtl-gen/src/merge/builder.rs:247
-    wire l11_fire_and_1;                     // rtl-gen/src/merge/builder.rs:250
-    wire [24:0] l11_nodes_add;               // rtl-gen/src/merge/builder.rs:255
-    wire [149:0] l11_end_mux_1;              // rtl-gen/src/merge/builder.rs:256
-    wire [27:0] l11_end_mux_2;               // rtl-gen/src/merge/builder.rs:257
-    wire l11_take_group_or_1;                // rtl-gen/src/merge/builder.rs:258
+    wire [24:0] l11_index_next;              // rtl-gen/src/merge/builder.rs:255
     wire [228:0] level11_beat;               // rtl-gen/src/merge/builder.rs:258
-    wire l11_valid_and_4;                    // rtl-gen/src/merge/builder.rs:261
     wire level11_in_valid;                   // rtl-gen/src/merge/builder.rs:261
     reg level11_skid_valid;                  // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level11_skid_data;           // rtl-gen/src/merge/builder.rs:265
     reg level11_skid_spare_valid;            // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level11_skid_spare_data;     // rtl-gen/src/merge/builder.rs:265
     wire level11_skid_ready;                 // rtl-gen/src/merge/builder.rs:265
-    wire level11_skid_valid_not;             // rtl-gen/src/merge/builder.rs:265
-    wire level11_skid_ready_or;              // rtl-gen/src/merge/builder.rs:265
-    wire level11_skid_spare_valid_not;       // rtl-gen/src/merge/builder.rs:265
-    wire level11_in_valid_and;               // rtl-gen/src/merge/builder.rs:265
-    wire level11_skid_spare_valid_or;        // rtl-gen/src/merge/builder.rs:265
-    wire [228:0] level11_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
-    wire level11_skid_spare_valid_or_1;      // rtl-gen/src/merge/builder.rs:265
-    wire level11_skid_spare_valid_next;      // rtl-gen/src/merge/builder.rs:265
-    wire level11_skid_ready_not;             // rtl-gen/src/merge/builder.rs:265
-    wire level11_skid_ready_and;             // rtl-gen/src/merge/builder.rs:265
-    wire l11_done_or;                        // rtl-gen/src/merge/builder.rs:269
-    wire l11_done_next;                      // rtl-gen/src/merge/builder.rs:269
-    wire l11_fire_and_2;                     // rtl-gen/src/merge/builder.rs:271
-    wire l11_nodes_ovf_or;                   // rtl-gen/src/merge/builder.rs:271
-    wire l11_nodes_ovf_next;                 // rtl-gen/src/merge/builder.rs:271
-    wire l11_take_group_eq;                  // rtl-gen/src/merge/builder.rs:272
-    wire l11_take_group_not_1;               // rtl-gen/src/merge/builder.rs:272
-    wire l11_fire_and_3;                     // rtl-gen/src/merge/builder.rs:273
-    wire [23:0] l11_records_add;             // rtl-gen/src/merge/builder.rs:273
-    wire l11_fire_and_4;                     // rtl-gen/src/merge/builder.rs:275
-    wire l11_had_base_or_2;                  // rtl-gen/src/merge/builder.rs:275
-    wire l11_had_base_next;                  // rtl-gen/src/merge/builder.rs:275
-    wire l11_take_group_eq_1;                // rtl-gen/src/merge/builder.rs:277
-    wire l11_take_group_and_1;               // rtl-gen/src/merge/builder.rs:277
-    wire l11_fire_and_5;                     // rtl-gen/src/merge/builder.rs:278
-    wire l11_has_leaf_or;                    // rtl-gen/src/merge/builder.rs:278
-    wire l11_has_leaf_next;                  // rtl-gen/src/merge/builder.rs:278
-    wire l11_nodes_eq;                       // rtl-gen/src/merge/builder.rs:282
-    wire l11_nodes_ovf_not;                  // rtl-gen/src/merge/builder.rs:282
-    wire l11_nodes_and;                      // rtl-gen/src/merge/builder.rs:282
-    wire l11_base_above_not;                 // rtl-gen/src/merge/builder.rs:282
-    wire l11_nodes_and_1;                    // rtl-gen/src/merge/builder.rs:282
-    wire l11_has_leaf_not;                   // rtl-gen/src/merge/builder.rs:282
-    wire l11_nodes_and_2;                    // rtl-gen/src/merge/builder.rs:282
-    wire top_found_not_17;                   // rtl-gen/src/merge/builder.rs:283
-    wire l11_end_fire_and;                   // rtl-gen/src/merge/builder.rs:283
-    wire l11_is_top;                         // rtl-gen/src/merge/builder.rs:283
-    wire l16_is_top_or_5;                    // rtl-gen/src/merge/builder.rs:285
+    wire level11_skid_room;                  // rtl-gen/src/merge/builder.rs:265
+    wire level11_skid_drain;                 // rtl-gen/src/merge/builder.rs:265
+    wire level11_skid_take;                  // rtl-gen/src/merge/builder.rs:265
+    wire l11_take_group_eq;                  // rtl-gen/src/merge/builder.rs:273
+    wire l11_is_record;                      // rtl-gen/src/merge/builder.rs:273
+    wire l11_nodes_and;                      // rtl-gen/src/merge/builder.rs:283
+    wire l11_is_top;                         // rtl-gen/src/merge/builder.rs:284
     reg l10_done;                            // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l10_nodes;                    // rtl-gen/src/merge/builder.rs:215
     reg l10_nodes_ovf;                       // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l10_records;                  // rtl-gen/src/merge/builder.rs:217
     wire level10_in_ready;                   // rtl-gen/src/merge/builder.rs:223
     wire l10_end_not;                        // rtl-gen/src/merge/builder.rs:225
-    wire l10_end_or;                         // rtl-gen/src/merge/builder.rs:225
-    wire top_found_not_18;                   // rtl-gen/src/merge/builder.rs:235
-    wire const_not_12;                       // rtl-gen/src/merge/builder.rs:235
-    wire top_found_and_12;                   // rtl-gen/src/merge/builder.rs:235
-    wire top_found_not_19;                   // rtl-gen/src/merge/builder.rs:236
-    wire const_not_13;                       // rtl-gen/src/merge/builder.rs:236
-    wire top_found_and_13;                   // rtl-gen/src/merge/builder.rs:236
-    wire l10_end_mux;                        // rtl-gen/src/merge/builder.rs:234
-    wire l10_done_not;                       // rtl-gen/src/merge/builder.rs:238
-    wire l10_valid_and;                      // rtl-gen/src/merge/builder.rs:238
-    wire l10_valid_and_1;                    // rtl-gen/src/merge/builder.rs:238
-    wire l10_valid_and_2;                    // rtl-gen/src/merge/builder.rs:239
-    wire l10_end_not_1;                      // rtl-gen/src/merge/builder.rs:239
-    wire l10_end_or_1;                       // rtl-gen/src/merge/builder.rs:239
+    wire l10_end_ok;                         // rtl-gen/src/merge/builder.rs:225
+    wire l10_take_group_leaf;                // rtl-gen/src/merge/builder.rs:226
+    wire l10_ready_all;                      // rtl-gen/src/merge/builder.rs:238
+    wire l10_ready_all_and;                  // rtl-gen/src/merge/builder.rs:239
+    wire l10_end_or;                         // rtl-gen/src/merge/builder.rs:239
     wire l10_fire;                           // rtl-gen/src/merge/builder.rs:239
-    wire l10_end_not_2;                      // rtl-gen/src/merge/builder.rs:240
     wire l10_fire_and;                       // rtl-gen/src/merge/builder.rs:240
     wire l10_end_fire;                       // rtl-gen/src/merge/builder.rs:241
-    wire l10_end_not_3;                      // rtl-gen/src/merge/builder.rs:245
-    wire l10_end_or_2;                       // rtl-gen/src/merge/builder.rs:245
-    wire l10_valid_and_3;                    // rtl-gen/src/merge/builder.rs:245
-    wire [101:0] l10_end_cat;                // rtl-gen/src/merge/builder.rs:247
-    wire l10_fire_and_1;                     // rtl-gen/src/merge/builder.rs:250
-    wire [24:0] l10_nodes_add;               // rtl-gen/src/merge/builder.rs:255
-    wire [149:0] l10_end_mux_1;              // rtl-gen/src/merge/builder.rs:256
-    wire [27:0] l10_end_mux_2;               // rtl-gen/src/merge/builder.rs:257
-    wire l10_take_group_or_1;                // rtl-gen/src/merge/builder.rs:258
+    wire [24:0] l10_index_next;              // rtl-gen/src/merge/builder.rs:255
     wire [228:0] level10_beat;               // rtl-gen/src/merge/builder.rs:258
-    wire l10_valid_and_4;                    // rtl-gen/src/merge/builder.rs:261
     wire level10_in_valid;                   // rtl-gen/src/merge/builder.rs:261
     reg level10_skid_valid;                  // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level10_skid_data;           // rtl-gen/src/merge/builder.rs:265
     reg level10_skid_spare_valid;            // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level10_skid_spare_data;     // rtl-gen/src/merge/builder.rs:265
     wire level10_skid_ready;                 // rtl-gen/src/merge/builder.rs:265
-    wire level10_skid_valid_not;             // rtl-gen/src/merge/builder.rs:265
-    wire level10_skid_ready_or;              // rtl-gen/src/merge/builder.rs:265
-    wire level10_skid_spare_valid_not;       // rtl-gen/src/merge/builder.rs:265
-    wire level10_in_valid_and;               // rtl-gen/src/merge/builder.rs:265
-    wire level10_skid_spare_valid_or;        // rtl-gen/src/merge/builder.rs:265
-    wire [228:0] level10_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
-    wire level10_skid_spare_valid_or_1;      // rtl-gen/src/merge/builder.rs:265
-    wire level10_skid_spare_valid_next;      // rtl-gen/src/merge/builder.rs:265
-    wire level10_skid_ready_not;             // rtl-gen/src/merge/builder.rs:265
-    wire level10_skid_ready_and;             // rtl-gen/src/merge/builder.rs:265
-    wire l10_done_or;                        // rtl-gen/src/merge/builder.rs:269
-    wire l10_done_next;                      // rtl-gen/src/merge/builder.rs:269
-    wire l10_fire_and_2;                     // rtl-gen/src/merge/builder.rs:271
-    wire l10_nodes_ovf_or;                   // rtl-gen/src/merge/builder.rs:271
-    wire l10_nodes_ovf_next;                 // rtl-gen/src/merge/builder.rs:271
-    wire l10_take_group_eq;                  // rtl-gen/src/merge/builder.rs:272
-    wire l10_take_group_not_1;               // rtl-gen/src/merge/builder.rs:272
-    wire l10_fire_and_3;                     // rtl-gen/src/merge/builder.rs:273
-    wire [23:0] l10_records_add;             // rtl-gen/src/merge/builder.rs:273
-    wire l10_fire_and_4;                     // rtl-gen/src/merge/builder.rs:275
-    wire l10_had_base_or_2;                  // rtl-gen/src/merge/builder.rs:275
-    wire l10_had_base_next;                  // rtl-gen/src/merge/builder.rs:275
-    wire l10_take_group_eq_1;                // rtl-gen/src/merge/builder.rs:277
-    wire l10_take_group_and_1;               // rtl-gen/src/merge/builder.rs:277
-    wire l10_fire_and_5;                     // rtl-gen/src/merge/builder.rs:278
-    wire l10_has_leaf_or;                    // rtl-gen/src/merge/builder.rs:278
-    wire l10_has_leaf_next;                  // rtl-gen/src/merge/builder.rs:278
-    wire l10_nodes_eq;                       // rtl-gen/src/merge/builder.rs:282
-    wire l10_nodes_ovf_not;                  // rtl-gen/src/merge/builder.rs:282
-    wire l10_nodes_and;                      // rtl-gen/src/merge/builder.rs:282
-    wire l10_base_above_not;                 // rtl-gen/src/merge/builder.rs:282
-    wire l10_nodes_and_1;                    // rtl-gen/src/merge/builder.rs:282
-    wire l10_has_leaf_not;                   // rtl-gen/src/merge/builder.rs:282
-    wire l10_nodes_and_2;                    // rtl-gen/src/merge/builder.rs:282
-    wire top_found_not_20;                   // rtl-gen/src/merge/builder.rs:283
-    wire l10_end_fire_and;                   // rtl-gen/src/merge/builder.rs:283
-    wire l10_is_top;                         // rtl-gen/src/merge/builder.rs:283
-    wire l16_is_top_or_6;                    // rtl-gen/src/merge/builder.rs:285
+    wire level10_skid_room;                  // rtl-gen/src/merge/builder.rs:265
+    wire level10_skid_drain;                 // rtl-gen/src/merge/builder.rs:265
+    wire level10_skid_take;                  // rtl-gen/src/merge/builder.rs:265
+    wire l10_take_group_eq;                  // rtl-gen/src/merge/builder.rs:273
+    wire l10_is_record;                      // rtl-gen/src/merge/builder.rs:273
+    wire l10_nodes_and;                      // rtl-gen/src/merge/builder.rs:283
+    wire l10_is_top;                         // rtl-gen/src/merge/builder.rs:284
+    wire l16_is_top_or;                      // rtl-gen/src/merge/builder.rs:286
     reg l9_done;                             // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l9_nodes;                     // rtl-gen/src/merge/builder.rs:215
     reg l9_nodes_ovf;                        // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l9_records;                   // rtl-gen/src/merge/builder.rs:217
     wire level9_in_ready;                    // rtl-gen/src/merge/builder.rs:223
     wire l9_end_not;                         // rtl-gen/src/merge/builder.rs:225
-    wire l9_end_or;                          // rtl-gen/src/merge/builder.rs:225
-    wire top_found_not_21;                   // rtl-gen/src/merge/builder.rs:235
-    wire const_not_14;                       // rtl-gen/src/merge/builder.rs:235
-    wire top_found_and_14;                   // rtl-gen/src/merge/builder.rs:235
-    wire top_found_not_22;                   // rtl-gen/src/merge/builder.rs:236
-    wire const_not_15;                       // rtl-gen/src/merge/builder.rs:236
-    wire top_found_and_15;                   // rtl-gen/src/merge/builder.rs:236
-    wire l9_end_mux;                         // rtl-gen/src/merge/builder.rs:234
-    wire l9_done_not;                        // rtl-gen/src/merge/builder.rs:238
-    wire l9_valid_and;                       // rtl-gen/src/merge/builder.rs:238
-    wire l9_valid_and_1;                     // rtl-gen/src/merge/builder.rs:238
-    wire l9_valid_and_2;                     // rtl-gen/src/merge/builder.rs:239
-    wire l9_end_not_1;                       // rtl-gen/src/merge/builder.rs:239
-    wire l9_end_or_1;                        // rtl-gen/src/merge/builder.rs:239
+    wire l9_end_ok;                          // rtl-gen/src/merge/builder.rs:225
+    wire l9_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:226
+    wire l9_ready_all;                       // rtl-gen/src/merge/builder.rs:238
+    wire l9_ready_all_and;                   // rtl-gen/src/merge/builder.rs:239
+    wire l9_end_or;                          // rtl-gen/src/merge/builder.rs:239
     wire l9_fire;                            // rtl-gen/src/merge/builder.rs:239
-    wire l9_end_not_2;                       // rtl-gen/src/merge/builder.rs:240
     wire l9_fire_and;                        // rtl-gen/src/merge/builder.rs:240
     wire l9_end_fire;                        // rtl-gen/src/merge/builder.rs:241
-    wire l9_end_not_3;                       // rtl-gen/src/merge/builder.rs:245
-    wire l9_end_or_2;                        // rtl-gen/src/merge/builder.rs:245
-    wire l9_valid_and_3;                     // rtl-gen/src/merge/builder.rs:245
-    wire [101:0] l9_end_cat;                 // rtl-gen/src/merge/builder.rs:247
-    wire l9_fire_and_1;                      // rtl-gen/src/merge/builder.rs:250
-    wire [24:0] l9_nodes_add;                // rtl-gen/src/merge/builder.rs:255
-    wire [149:0] l9_end_mux_1;               // rtl-gen/src/merge/builder.rs:256
-    wire [27:0] l9_end_mux_2;                // rtl-gen/src/merge/builder.rs:257
-    wire l9_take_group_or_1;                 // rtl-gen/src/merge/builder.rs:258
+    wire [24:0] l9_index_next;               // rtl-gen/src/merge/builder.rs:255
     wire [228:0] level9_beat;                // rtl-gen/src/merge/builder.rs:258
-    wire l9_valid_and_4;                     // rtl-gen/src/merge/builder.rs:261
     wire level9_in_valid;                    // rtl-gen/src/merge/builder.rs:261
     reg level9_skid_valid;                   // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level9_skid_data;            // rtl-gen/src/merge/builder.rs:265
     reg level9_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level9_skid_spare_data;      // rtl-gen/src/merge/builder.rs:265
     wire level9_skid_ready;                  // rtl-gen/src/merge/builder.rs:265
-    wire level9_skid_valid_not;              // rtl-gen/src/merge/builder.rs:265
-    wire level9_skid_ready_or;               // rtl-gen/src/merge/builder.rs:265
-    wire level9_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:265
-    wire level9_in_valid_and;                // rtl-gen/src/merge/builder.rs:265
-    wire level9_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:265
-    wire [228:0] level9_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
-    wire level9_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:265
-    wire level9_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:265
-    wire level9_skid_ready_not;              // rtl-gen/src/merge/builder.rs:265
-    wire level9_skid_ready_and;              // rtl-gen/src/merge/builder.rs:265
-    wire l9_done_or;                         // rtl-gen/src/merge/builder.rs:269
-    wire l9_done_next;                       // rtl-gen/src/merge/builder.rs:269
-    wire l9_fire_and_2;                      // rtl-gen/src/merge/builder.rs:271
-    wire l9_nodes_ovf_or;                    // rtl-gen/src/merge/builder.rs:271
-    wire l9_nodes_ovf_next;                  // rtl-gen/src/merge/builder.rs:271
-    wire l9_take_group_eq;                   // rtl-gen/src/merge/builder.rs:272
-    wire l9_take_group_not_1;                // rtl-gen/src/merge/builder.rs:272
-    wire l9_fire_and_3;                      // rtl-gen/src/merge/builder.rs:273
-    wire [23:0] l9_records_add;              // rtl-gen/src/merge/builder.rs:273
-    wire l9_fire_and_4;                      // rtl-gen/src/merge/builder.rs:275
-    wire l9_had_base_or_2;                   // rtl-gen/src/merge/builder.rs:275
-    wire l9_had_base_next;                   // rtl-gen/src/merge/builder.rs:275
-    wire l9_take_group_eq_1;                 // rtl-gen/src/merge/builder.rs:277
-    wire l9_take_group_and_1;                // rtl-gen/src/merge/builder.rs:277
-    wire l9_fire_and_5;                      // rtl-gen/src/merge/builder.rs:278
-    wire l9_has_leaf_or;                     // rtl-gen/src/merge/builder.rs:278
-    wire l9_has_leaf_next;                   // rtl-gen/src/merge/builder.rs:278
-    wire l9_nodes_eq;                        // rtl-gen/src/merge/builder.rs:282
-    wire l9_nodes_ovf_not;                   // rtl-gen/src/merge/builder.rs:282
-    wire l9_nodes_and;                       // rtl-gen/src/merge/builder.rs:282
-    wire l9_base_above_not;                  // rtl-gen/src/merge/builder.rs:282
-    wire l9_nodes_and_1;                     // rtl-gen/src/merge/builder.rs:282
-    wire l9_has_leaf_not;                    // rtl-gen/src/merge/builder.rs:282
-    wire l9_nodes_and_2;                     // rtl-gen/src/merge/builder.rs:282
-    wire top_found_not_23;                   // rtl-gen/src/merge/builder.rs:283
-    wire l9_end_fire_and;                    // rtl-gen/src/merge/builder.rs:283
-    wire l9_is_top;                          // rtl-gen/src/merge/builder.rs:283
-    wire l16_is_top_or_7;                    // rtl-gen/src/merge/builder.rs:285
+    wire level9_skid_room;                   // rtl-gen/src/merge/builder.rs:265
+    wire level9_skid_drain;                  // rtl-gen/src/merge/builder.rs:265
+    wire level9_skid_take;                   // rtl-gen/src/merge/builder.rs:265
+    wire l9_take_group_eq;                   // rtl-gen/src/merge/builder.rs:273
+    wire l9_is_record;                       // rtl-gen/src/merge/builder.rs:273
+    wire l9_nodes_and;                       // rtl-gen/src/merge/builder.rs:283
+    wire l9_is_top;                          // rtl-gen/src/merge/builder.rs:284
     reg l8_done;                             // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l8_nodes;                     // rtl-gen/src/merge/builder.rs:215
     reg l8_nodes_ovf;                        // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l8_records;                   // rtl-gen/src/merge/builder.rs:217
     wire level8_in_ready;                    // rtl-gen/src/merge/builder.rs:223
     wire l8_end_not;                         // rtl-gen/src/merge/builder.rs:225
-    wire l8_end_or;                          // rtl-gen/src/merge/builder.rs:225
-    wire top_found_not_24;                   // rtl-gen/src/merge/builder.rs:235
-    wire const_not_16;                       // rtl-gen/src/merge/builder.rs:235
-    wire top_found_and_16;                   // rtl-gen/src/merge/builder.rs:235
-    wire top_found_not_25;                   // rtl-gen/src/merge/builder.rs:236
-    wire const_not_17;                       // rtl-gen/src/merge/builder.rs:236
-    wire top_found_and_17;                   // rtl-gen/src/merge/builder.rs:236
-    wire l8_end_mux;                         // rtl-gen/src/merge/builder.rs:234
-    wire l8_done_not;                        // rtl-gen/src/merge/builder.rs:238
-    wire l8_valid_and;                       // rtl-gen/src/merge/builder.rs:238
-    wire l8_valid_and_1;                     // rtl-gen/src/merge/builder.rs:238
-    wire l8_valid_and_2;                     // rtl-gen/src/merge/builder.rs:239
-    wire l8_end_not_1;                       // rtl-gen/src/merge/builder.rs:239
-    wire l8_end_or_1;                        // rtl-gen/src/merge/builder.rs:239
+    wire l8_end_ok;                          // rtl-gen/src/merge/builder.rs:225
+    wire l8_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:226
+    wire l8_ready_all;                       // rtl-gen/src/merge/builder.rs:238
+    wire l8_ready_all_and;                   // rtl-gen/src/merge/builder.rs:239
+    wire l8_end_or;                          // rtl-gen/src/merge/builder.rs:239
     wire l8_fire;                            // rtl-gen/src/merge/builder.rs:239
-    wire l8_end_not_2;                       // rtl-gen/src/merge/builder.rs:240
     wire l8_fire_and;                        // rtl-gen/src/merge/builder.rs:240
     wire l8_end_fire;                        // rtl-gen/src/merge/builder.rs:241
-    wire l8_end_not_3;                       // rtl-gen/src/merge/builder.rs:245
-    wire l8_end_or_2;                        // rtl-gen/src/merge/builder.rs:245
-    wire l8_valid_and_3;                     // rtl-gen/src/merge/builder.rs:245
-    wire [101:0] l8_end_cat;                 // rtl-gen/src/merge/builder.rs:247
-    wire l8_fire_and_1;                      // rtl-gen/src/merge/builder.rs:250
-    wire [24:0] l8_nodes_add;                // rtl-gen/src/merge/builder.rs:255
-    wire [149:0] l8_end_mux_1;               // rtl-gen/src/merge/builder.rs:256
-    wire [27:0] l8_end_mux_2;                // rtl-gen/src/merge/builder.rs:257
-    wire l8_take_group_or_1;                 // rtl-gen/src/merge/builder.rs:258
+    wire [24:0] l8_index_next;               // rtl-gen/src/merge/builder.rs:255
     wire [228:0] level8_beat;                // rtl-gen/src/merge/builder.rs:258
-    wire l8_valid_and_4;                     // rtl-gen/src/merge/builder.rs:261
     wire level8_in_valid;                    // rtl-gen/src/merge/builder.rs:261
     reg level8_skid_valid;                   // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level8_skid_data;            // rtl-gen/src/merge/builder.rs:265
     reg level8_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level8_skid_spare_data;      // rtl-gen/src/merge/builder.rs:265
     wire level8_skid_ready;                  // rtl-gen/src/merge/builder.rs:265
-    wire level8_skid_valid_not;              // rtl-gen/src/merge/builder.rs:265
-    wire level8_skid_ready_or;               // rtl-gen/src/merge/builder.rs:265
-    wire level8_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:265
-    wire level8_in_valid_and;                // rtl-gen/src/merge/builder.rs:265
-    wire level8_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:265
-    wire [228:0] level8_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
-    wire level8_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:265
-    wire level8_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:265
-    wire level8_skid_ready_not;              // rtl-gen/src/merge/builder.rs:265
-    wire level8_skid_ready_and;              // rtl-gen/src/merge/builder.rs:265
-    wire l8_done_or;                         // rtl-gen/src/merge/builder.rs:269
-    wire l8_done_next;                       // rtl-gen/src/merge/builder.rs:269
-    wire l8_fire_and_2;                      // rtl-gen/src/merge/builder.rs:271
-    wire l8_nodes_ovf_or;                    // rtl-gen/src/merge/builder.rs:271
-    wire l8_nodes_ovf_next;                  // rtl-gen/src/merge/builder.rs:271
-    wire l8_take_group_eq;                   // rtl-gen/src/merge/builder.rs:272
-    wire l8_take_group_not_1;                // rtl-gen/src/merge/builder.rs:272
-    wire l8_fire_and_3;                      // rtl-gen/src/merge/builder.rs:273
-    wire [23:0] l8_records_add;              // rtl-gen/src/merge/builder.rs:273
-    wire l8_fire_and_4;                      // rtl-gen/src/merge/builder.rs:275
-    wire l8_had_base_or_2;                   // rtl-gen/src/merge/builder.rs:275
-    wire l8_had_base_next;                   // rtl-gen/src/merge/builder.rs:275
-    wire l8_take_group_eq_1;                 // rtl-gen/src/merge/builder.rs:277
-    wire l8_take_group_and_1;                // rtl-gen/src/merge/builder.rs:277
-    wire l8_fire_and_5;                      // rtl-gen/src/merge/builder.rs:278
-    wire l8_has_leaf_or;                     // rtl-gen/src/merge/builder.rs:278
-    wire l8_has_leaf_next;                   // rtl-gen/src/merge/builder.rs:278
-    wire l8_nodes_eq;                        // rtl-gen/src/merge/builder.rs:282
-    wire l8_nodes_ovf_not;                   // rtl-gen/src/merge/builder.rs:282
-    wire l8_nodes_and;                       // rtl-gen/src/merge/builder.rs:282
-    wire l8_base_above_not;                  // rtl-gen/src/merge/builder.rs:282
-    wire l8_nodes_and_1;                     // rtl-gen/src/merge/builder.rs:282
-    wire l8_has_leaf_not;                    // rtl-gen/src/merge/builder.rs:282
-    wire l8_nodes_and_2;                     // rtl-gen/src/merge/builder.rs:282
-    wire top_found_not_26;                   // rtl-gen/src/merge/builder.rs:283
-    wire l8_end_fire_and;                    // rtl-gen/src/merge/builder.rs:283
-    wire l8_is_top;                          // rtl-gen/src/merge/builder.rs:283
-    wire l16_is_top_or_8;                    // rtl-gen/src/merge/builder.rs:285
+    wire level8_skid_room;                   // rtl-gen/src/merge/builder.rs:265
+    wire level8_skid_drain;                  // rtl-gen/src/merge/builder.rs:265
+    wire level8_skid_take;                   // rtl-gen/src/merge/builder.rs:265
+    wire l8_take_group_eq;                   // rtl-gen/src/merge/builder.rs:273
+    wire l8_is_record;                       // rtl-gen/src/merge/builder.rs:273
+    wire l8_nodes_and;                       // rtl-gen/src/merge/builder.rs:283
+    wire l8_is_top;                          // rtl-gen/src/merge/builder.rs:284
     reg l7_done;                             // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l7_nodes;                     // rtl-gen/src/merge/builder.rs:215
     reg l7_nodes_ovf;                        // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l7_records;                   // rtl-gen/src/merge/builder.rs:217
     wire level7_in_ready;                    // rtl-gen/src/merge/builder.rs:223
     wire l7_end_not;                         // rtl-gen/src/merge/builder.rs:225
-    wire l7_end_or;                          // rtl-gen/src/merge/builder.rs:225
-    wire top_found_not_27;                   // rtl-gen/src/merge/builder.rs:235
-    wire const_not_18;                       // rtl-gen/src/merge/builder.rs:235
-    wire top_found_and_18;                   // rtl-gen/src/merge/builder.rs:235
-    wire top_found_not_28;                   // rtl-gen/src/merge/builder.rs:236
-    wire const_not_19;                       // rtl-gen/src/merge/builder.rs:236
-    wire top_found_and_19;                   // rtl-gen/src/merge/builder.rs:236
-    wire l7_end_mux;                         // rtl-gen/src/merge/builder.rs:234
-    wire l7_done_not;                        // rtl-gen/src/merge/builder.rs:238
-    wire l7_valid_and;                       // rtl-gen/src/merge/builder.rs:238
-    wire l7_valid_and_1;                     // rtl-gen/src/merge/builder.rs:238
-    wire l7_valid_and_2;                     // rtl-gen/src/merge/builder.rs:239
-    wire l7_end_not_1;                       // rtl-gen/src/merge/builder.rs:239
-    wire l7_end_or_1;                        // rtl-gen/src/merge/builder.rs:239
+    wire l7_end_ok;                          // rtl-gen/src/merge/builder.rs:225
+    wire l7_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:226
+    wire l7_ready_all;                       // rtl-gen/src/merge/builder.rs:238
+    wire l7_ready_all_and;                   // rtl-gen/src/merge/builder.rs:239
+    wire l7_end_or;                          // rtl-gen/src/merge/builder.rs:239
     wire l7_fire;                            // rtl-gen/src/merge/builder.rs:239
-    wire l7_end_not_2;                       // rtl-gen/src/merge/builder.rs:240
     wire l7_fire_and;                        // rtl-gen/src/merge/builder.rs:240
     wire l7_end_fire;                        // rtl-gen/src/merge/builder.rs:241
-    wire l7_end_not_3;                       // rtl-gen/src/merge/builder.rs:245
-    wire l7_end_or_2;                        // rtl-gen/src/merge/builder.rs:245
-    wire l7_valid_and_3;                     // rtl-gen/src/merge/builder.rs:245
-    wire [101:0] l7_end_cat;                 // rtl-gen/src/merge/builder.rs:247
-    wire l7_fire_and_1;                      // rtl-gen/src/merge/builder.rs:250
-    wire [24:0] l7_nodes_add;                // rtl-gen/src/merge/builder.rs:255
-    wire [149:0] l7_end_mux_1;               // rtl-gen/src/merge/builder.rs:256
-    wire [27:0] l7_end_mux_2;                // rtl-gen/src/merge/builder.rs:257
-    wire l7_take_group_or_1;                 // rtl-gen/src/merge/builder.rs:258
+    wire [24:0] l7_index_next;               // rtl-gen/src/merge/builder.rs:255
     wire [228:0] level7_beat;                // rtl-gen/src/merge/builder.rs:258
-    wire l7_valid_and_4;                     // rtl-gen/src/merge/builder.rs:261
     wire level7_in_valid;                    // rtl-gen/src/merge/builder.rs:261
     reg level7_skid_valid;                   // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level7_skid_data;            // rtl-gen/src/merge/builder.rs:265
     reg level7_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level7_skid_spare_data;      // rtl-gen/src/merge/builder.rs:265
     wire level7_skid_ready;                  // rtl-gen/src/merge/builder.rs:265
-    wire level7_skid_valid_not;              // rtl-gen/src/merge/builder.rs:265
-    wire level7_skid_ready_or;               // rtl-gen/src/merge/builder.rs:265
-    wire level7_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:265
-    wire level7_in_valid_and;                // rtl-gen/src/merge/builder.rs:265
-    wire level7_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:265
-    wire [228:0] level7_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
-    wire level7_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:265
-    wire level7_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:265
-    wire level7_skid_ready_not;              // rtl-gen/src/merge/builder.rs:265
-    wire level7_skid_ready_and;              // rtl-gen/src/merge/builder.rs:265
-    wire l7_done_or;                         // rtl-gen/src/merge/builder.rs:269
-    wire l7_done_next;                       // rtl-gen/src/merge/builder.rs:269
-    wire l7_fire_and_2;                      // rtl-gen/src/merge/builder.rs:271
-    wire l7_nodes_ovf_or;                    // rtl-gen/src/merge/builder.rs:271
-    wire l7_nodes_ovf_next;                  // rtl-gen/src/merge/builder.rs:271
-    wire l7_take_group_eq;                   // rtl-gen/src/merge/builder.rs:272
-    wire l7_take_group_not_1;                // rtl-gen/src/merge/builder.rs:272
-    wire l7_fire_and_3;                      // rtl-gen/src/merge/builder.rs:273
-    wire [23:0] l7_records_add;              // rtl-gen/src/merge/builder.rs:273
-    wire l7_fire_and_4;                      // rtl-gen/src/merge/builder.rs:275
-    wire l7_had_base_or_2;                   // rtl-gen/src/merge/builder.rs:275
-    wire l7_had_base_next;                   // rtl-gen/src/merge/builder.rs:275
-    wire l7_take_group_eq_1;                 // rtl-gen/src/merge/builder.rs:277
-    wire l7_take_group_and_1;                // rtl-gen/src/merge/builder.rs:277
-    wire l7_fire_and_5;                      // rtl-gen/src/merge/builder.rs:278
-    wire l7_has_leaf_or;                     // rtl-gen/src/merge/builder.rs:278
-    wire l7_has_leaf_next;                   // rtl-gen/src/merge/builder.rs:278
-    wire l7_nodes_eq;                        // rtl-gen/src/merge/builder.rs:282
-    wire l7_nodes_ovf_not;                   // rtl-gen/src/merge/builder.rs:282
-    wire l7_nodes_and;                       // rtl-gen/src/merge/builder.rs:282
-    wire l7_base_above_not;                  // rtl-gen/src/merge/builder.rs:282
-    wire l7_nodes_and_1;                     // rtl-gen/src/merge/builder.rs:282
-    wire l7_has_leaf_not;                    // rtl-gen/src/merge/builder.rs:282
-    wire l7_nodes_and_2;                     // rtl-gen/src/merge/builder.rs:282
-    wire top_found_not_29;                   // rtl-gen/src/merge/builder.rs:283
-    wire l7_end_fire_and;                    // rtl-gen/src/merge/builder.rs:283
-    wire l7_is_top;                          // rtl-gen/src/merge/builder.rs:283
-    wire l16_is_top_or_9;                    // rtl-gen/src/merge/builder.rs:285
+    wire level7_skid_room;                   // rtl-gen/src/merge/builder.rs:265
+    wire level7_skid_drain;                  // rtl-gen/src/merge/builder.rs:265
+    wire level7_skid_take;                   // rtl-gen/src/merge/builder.rs:265
+    wire l7_take_group_eq;                   // rtl-gen/src/merge/builder.rs:273
+    wire l7_is_record;                       // rtl-gen/src/merge/builder.rs:273
+    wire l7_nodes_and;                       // rtl-gen/src/merge/builder.rs:283
+    wire l7_is_top;                          // rtl-gen/src/merge/builder.rs:284
     reg l6_done;                             // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l6_nodes;                     // rtl-gen/src/merge/builder.rs:215
     reg l6_nodes_ovf;                        // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l6_records;                   // rtl-gen/src/merge/builder.rs:217
     wire level6_in_ready;                    // rtl-gen/src/merge/builder.rs:223
     wire l6_end_not;                         // rtl-gen/src/merge/builder.rs:225
-    wire l6_end_or;                          // rtl-gen/src/merge/builder.rs:225
-    wire top_found_not_30;                   // rtl-gen/src/merge/builder.rs:235
-    wire const_not_20;                       // rtl-gen/src/merge/builder.rs:235
-    wire top_found_and_20;                   // rtl-gen/src/merge/builder.rs:235
-    wire top_found_not_31;                   // rtl-gen/src/merge/builder.rs:236
-    wire const_not_21;                       // rtl-gen/src/merge/builder.rs:236
-    wire top_found_and_21;                   // rtl-gen/src/merge/builder.rs:236
-    wire l6_end_mux;                         // rtl-gen/src/merge/builder.rs:234
-    wire l6_done_not;                        // rtl-gen/src/merge/builder.rs:238
-    wire l6_valid_and;                       // rtl-gen/src/merge/builder.rs:238
-    wire l6_valid_and_1;                     // rtl-gen/src/merge/builder.rs:238
-    wire l6_valid_and_2;                     // rtl-gen/src/merge/builder.rs:239
-    wire l6_end_not_1;                       // rtl-gen/src/merge/builder.rs:239
-    wire l6_end_or_1;                        // rtl-gen/src/merge/builder.rs:239
+    wire l6_end_ok;                          // rtl-gen/src/merge/builder.rs:225
+    wire l6_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:226
+    wire l6_ready_all;                       // rtl-gen/src/merge/builder.rs:238
+    wire l6_ready_all_and;                   // rtl-gen/src/merge/builder.rs:239
+    wire l6_end_or;                          // rtl-gen/src/merge/builder.rs:239
     wire l6_fire;                            // rtl-gen/src/merge/builder.rs:239
-    wire l6_end_not_2;                       // rtl-gen/src/merge/builder.rs:240
     wire l6_fire_and;                        // rtl-gen/src/merge/builder.rs:240
     wire l6_end_fire;                        // rtl-gen/src/merge/builder.rs:241
-    wire l6_end_not_3;                       // rtl-gen/src/merge/builder.rs:245
-    wire l6_end_or_2;                        // rtl-gen/src/merge/builder.rs:245
-    wire l6_valid_and_3;                     // rtl-gen/src/merge/builder.rs:245
-    wire [101:0] l6_end_cat;                 // rtl-gen/src/merge/builder.rs:247
-    wire l6_fire_and_1;                      // rtl-gen/src/merge/builder.rs:250
-    wire [24:0] l6_nodes_add;                // rtl-gen/src/merge/builder.rs:255
-    wire [149:0] l6_end_mux_1;               // rtl-gen/src/merge/builder.rs:256
-    wire [27:0] l6_end_mux_2;                // rtl-gen/src/merge/builder.rs:257
-    wire l6_take_group_or_1;                 // rtl-gen/src/merge/builder.rs:258
+    wire [24:0] l6_index_next;               // rtl-gen/src/merge/builder.rs:255
     wire [228:0] level6_beat;                // rtl-gen/src/merge/builder.rs:258
-    wire l6_valid_and_4;                     // rtl-gen/src/merge/builder.rs:261
     wire level6_in_valid;                    // rtl-gen/src/merge/builder.rs:261
     reg level6_skid_valid;                   // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level6_skid_data;            // rtl-gen/src/merge/builder.rs:265
     reg level6_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level6_skid_spare_data;      // rtl-gen/src/merge/builder.rs:265
     wire level6_skid_ready;                  // rtl-gen/src/merge/builder.rs:265
-    wire level6_skid_valid_not;              // rtl-gen/src/merge/builder.rs:265
-    wire level6_skid_ready_or;               // rtl-gen/src/merge/builder.rs:265
-    wire level6_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:265
-    wire level6_in_valid_and;                // rtl-gen/src/merge/builder.rs:265
-    wire level6_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:265
-    wire [228:0] level6_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
-    wire level6_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:265
-    wire level6_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:265
-    wire level6_skid_ready_not;              // rtl-gen/src/merge/builder.rs:265
-    wire level6_skid_ready_and;              // rtl-gen/src/merge/builder.rs:265
-    wire l6_done_or;                         // rtl-gen/src/merge/builder.rs:269
-    wire l6_done_next;                       // rtl-gen/src/merge/builder.rs:269
-    wire l6_fire_and_2;                      // rtl-gen/src/merge/builder.rs:271
-    wire l6_nodes_ovf_or;                    // rtl-gen/src/merge/builder.rs:271
-    wire l6_nodes_ovf_next;                  // rtl-gen/src/merge/builder.rs:271
-    wire l6_take_group_eq;                   // rtl-gen/src/merge/builder.rs:272
-    wire l6_take_group_not_1;                // rtl-gen/src/merge/builder.rs:272
-    wire l6_fire_and_3;                      // rtl-gen/src/merge/builder.rs:273
-    wire [23:0] l6_records_add;              // rtl-gen/src/merge/builder.rs:273
-    wire l6_fire_and_4;                      // rtl-gen/src/merge/builder.rs:275
-    wire l6_had_base_or_2;                   // rtl-gen/src/merge/builder.rs:275
-    wire l6_had_base_next;                   // rtl-gen/src/merge/builder.rs:275
-    wire l6_take_group_eq_1;                 // rtl-gen/src/merge/builder.rs:277
-    wire l6_take_group_and_1;                // rtl-gen/src/merge/builder.rs:277
-    wire l6_fire_and_5;                      // rtl-gen/src/merge/builder.rs:278
-    wire l6_has_leaf_or;                     // rtl-gen/src/merge/builder.rs:278
-    wire l6_has_leaf_next;                   // rtl-gen/src/merge/builder.rs:278
-    wire l6_nodes_eq;                        // rtl-gen/src/merge/builder.rs:282
-    wire l6_nodes_ovf_not;                   // rtl-gen/src/merge/builder.rs:282
-    wire l6_nodes_and;                       // rtl-gen/src/merge/builder.rs:282
-    wire l6_base_above_not;                  // rtl-gen/src/merge/builder.rs:282
-    wire l6_nodes_and_1;                     // rtl-gen/src/merge/builder.rs:282
-    wire l6_has_leaf_not;                    // rtl-gen/src/merge/builder.rs:282
-    wire l6_nodes_and_2;                     // rtl-gen/src/merge/builder.rs:282
-    wire top_found_not_32;                   // rtl-gen/src/merge/builder.rs:283
-    wire l6_end_fire_and;                    // rtl-gen/src/merge/builder.rs:283
-    wire l6_is_top;                          // rtl-gen/src/merge/builder.rs:283
-    wire l16_is_top_or_10;                   // rtl-gen/src/merge/builder.rs:285
+    wire level6_skid_room;                   // rtl-gen/src/merge/builder.rs:265
+    wire level6_skid_drain;                  // rtl-gen/src/merge/builder.rs:265
+    wire level6_skid_take;                   // rtl-gen/src/merge/builder.rs:265
+    wire l6_take_group_eq;                   // rtl-gen/src/merge/builder.rs:273
+    wire l6_is_record;                       // rtl-gen/src/merge/builder.rs:273
+    wire l6_nodes_and;                       // rtl-gen/src/merge/builder.rs:283
+    wire l6_is_top;                          // rtl-gen/src/merge/builder.rs:284
     reg l5_done;                             // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l5_nodes;                     // rtl-gen/src/merge/builder.rs:215
     reg l5_nodes_ovf;                        // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l5_records;                   // rtl-gen/src/merge/builder.rs:217
     wire level5_in_ready;                    // rtl-gen/src/merge/builder.rs:223
     wire l5_end_not;                         // rtl-gen/src/merge/builder.rs:225
-    wire l5_end_or;                          // rtl-gen/src/merge/builder.rs:225
-    wire top_found_not_33;                   // rtl-gen/src/merge/builder.rs:235
-    wire const_not_22;                       // rtl-gen/src/merge/builder.rs:235
-    wire top_found_and_22;                   // rtl-gen/src/merge/builder.rs:235
-    wire top_found_not_34;                   // rtl-gen/src/merge/builder.rs:236
-    wire const_not_23;                       // rtl-gen/src/merge/builder.rs:236
-    wire top_found_and_23;                   // rtl-gen/src/merge/builder.rs:236
-    wire l5_end_mux;                         // rtl-gen/src/merge/builder.rs:234
-    wire l5_done_not;                        // rtl-gen/src/merge/builder.rs:238
-    wire l5_valid_and;                       // rtl-gen/src/merge/builder.rs:238
-    wire l5_valid_and_1;                     // rtl-gen/src/merge/builder.rs:238
-    wire l5_valid_and_2;                     // rtl-gen/src/merge/builder.rs:239
-    wire l5_end_not_1;                       // rtl-gen/src/merge/builder.rs:239
-    wire l5_end_or_1;                        // rtl-gen/src/merge/builder.rs:239
+    wire l5_end_ok;                          // rtl-gen/src/merge/builder.rs:225
+    wire l5_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:226
+    wire l5_ready_all;                       // rtl-gen/src/merge/builder.rs:238
+    wire l5_ready_all_and;                   // rtl-gen/src/merge/builder.rs:239
+    wire l5_end_or;                          // rtl-gen/src/merge/builder.rs:239
     wire l5_fire;                            // rtl-gen/src/merge/builder.rs:239
-    wire l5_end_not_2;                       // rtl-gen/src/merge/builder.rs:240
     wire l5_fire_and;                        // rtl-gen/src/merge/builder.rs:240
     wire l5_end_fire;                        // rtl-gen/src/merge/builder.rs:241
-    wire l5_end_not_3;                       // rtl-gen/src/merge/builder.rs:245
-    wire l5_end_or_2;                        // rtl-gen/src/merge/builder.rs:245
-    wire l5_valid_and_3;                     // rtl-gen/src/merge/builder.rs:245
-    wire [101:0] l5_end_cat;                 // rtl-gen/src/merge/builder.rs:247
-    wire l5_fire_and_1;                      // rtl-gen/src/merge/builder.rs:250
-    wire [24:0] l5_nodes_add;                // rtl-gen/src/merge/builder.rs:255
-    wire [149:0] l5_end_mux_1;               // rtl-gen/src/merge/builder.rs:256
-    wire [27:0] l5_end_mux_2;                // rtl-gen/src/merge/builder.rs:257
-    wire l5_take_group_or_1;                 // rtl-gen/src/merge/builder.rs:258
+    wire [24:0] l5_index_next;               // rtl-gen/src/merge/builder.rs:255
     wire [228:0] level5_beat;                // rtl-gen/src/merge/builder.rs:258
-    wire l5_valid_and_4;                     // rtl-gen/src/merge/builder.rs:261
     wire level5_in_valid;                    // rtl-gen/src/merge/builder.rs:261
     reg level5_skid_valid;                   // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level5_skid_data;            // rtl-gen/src/merge/builder.rs:265
     reg level5_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level5_skid_spare_data;      // rtl-gen/src/merge/builder.rs:265
     wire level5_skid_ready;                  // rtl-gen/src/merge/builder.rs:265
-    wire level5_skid_valid_not;              // rtl-gen/src/merge/builder.rs:265
-    wire level5_skid_ready_or;               // rtl-gen/src/merge/builder.rs:265
-    wire level5_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:265
-    wire level5_in_valid_and;                // rtl-gen/src/merge/builder.rs:265
-    wire level5_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:265
-    wire [228:0] level5_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
-    wire level5_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:265
-    wire level5_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:265
-    wire level5_skid_ready_not;              // rtl-gen/src/merge/builder.rs:265
-    wire level5_skid_ready_and;              // rtl-gen/src/merge/builder.rs:265
-    wire l5_done_or;                         // rtl-gen/src/merge/builder.rs:269
-    wire l5_done_next;                       // rtl-gen/src/merge/builder.rs:269
-    wire l5_fire_and_2;                      // rtl-gen/src/merge/builder.rs:271
-    wire l5_nodes_ovf_or;                    // rtl-gen/src/merge/builder.rs:271
-    wire l5_nodes_ovf_next;                  // rtl-gen/src/merge/builder.rs:271
-    wire l5_take_group_eq;                   // rtl-gen/src/merge/builder.rs:272
-    wire l5_take_group_not_1;                // rtl-gen/src/merge/builder.rs:272
-    wire l5_fire_and_3;                      // rtl-gen/src/merge/builder.rs:273
-    wire [23:0] l5_records_add;              // rtl-gen/src/merge/builder.rs:273
-    wire l5_fire_and_4;                      // rtl-gen/src/merge/builder.rs:275
-    wire l5_had_base_or_2;                   // rtl-gen/src/merge/builder.rs:275
-    wire l5_had_base_next;                   // rtl-gen/src/merge/builder.rs:275
-    wire l5_take_group_eq_1;                 // rtl-gen/src/merge/builder.rs:277
-    wire l5_take_group_and_1;                // rtl-gen/src/merge/builder.rs:277
-    wire l5_fire_and_5;                      // rtl-gen/src/merge/builder.rs:278
-    wire l5_has_leaf_or;                     // rtl-gen/src/merge/builder.rs:278
-    wire l5_has_leaf_next;                   // rtl-gen/src/merge/builder.rs:278
-    wire l5_nodes_eq;                        // rtl-gen/src/merge/builder.rs:282
-    wire l5_nodes_ovf_not;                   // rtl-gen/src/merge/builder.rs:282
-    wire l5_nodes_and;                       // rtl-gen/src/merge/builder.rs:282
-    wire l5_base_above_not;                  // rtl-gen/src/merge/builder.rs:282
-    wire l5_nodes_and_1;                     // rtl-gen/src/merge/builder.rs:282
-    wire l5_has_leaf_not;                    // rtl-gen/src/merge/builder.rs:282
-    wire l5_nodes_and_2;                     // rtl-gen/src/merge/builder.rs:282
-    wire top_found_not_35;                   // rtl-gen/src/merge/builder.rs:283
-    wire l5_end_fire_and;                    // rtl-gen/src/merge/builder.rs:283
-    wire l5_is_top;                          // rtl-gen/src/merge/builder.rs:283
-    wire l16_is_top_or_11;                   // rtl-gen/src/merge/builder.rs:285
+    wire level5_skid_room;                   // rtl-gen/src/merge/builder.rs:265
+    wire level5_skid_drain;                  // rtl-gen/src/merge/builder.rs:265
+    wire level5_skid_take;                   // rtl-gen/src/merge/builder.rs:265
+    wire l5_take_group_eq;                   // rtl-gen/src/merge/builder.rs:273
+    wire l5_is_record;                       // rtl-gen/src/merge/builder.rs:273
+    wire l5_nodes_and;                       // rtl-gen/src/merge/builder.rs:283
+    wire l5_is_top;                          // rtl-gen/src/merge/builder.rs:284
     reg l4_done;                             // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l4_nodes;                     // rtl-gen/src/merge/builder.rs:215
     reg l4_nodes_ovf;                        // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l4_records;                   // rtl-gen/src/merge/builder.rs:217
     wire level4_in_ready;                    // rtl-gen/src/merge/builder.rs:223
     wire l4_end_not;                         // rtl-gen/src/merge/builder.rs:225
-    wire l4_end_or;                          // rtl-gen/src/merge/builder.rs:225
-    wire top_found_not_36;                   // rtl-gen/src/merge/builder.rs:235
-    wire const_not_24;                       // rtl-gen/src/merge/builder.rs:235
-    wire top_found_and_24;                   // rtl-gen/src/merge/builder.rs:235
-    wire top_found_not_37;                   // rtl-gen/src/merge/builder.rs:236
-    wire const_not_25;                       // rtl-gen/src/merge/builder.rs:236
-    wire top_found_and_25;                   // rtl-gen/src/merge/builder.rs:236
-    wire l4_end_mux;                         // rtl-gen/src/merge/builder.rs:234
-    wire l4_done_not;                        // rtl-gen/src/merge/builder.rs:238
-    wire l4_valid_and;                       // rtl-gen/src/merge/builder.rs:238
-    wire l4_valid_and_1;                     // rtl-gen/src/merge/builder.rs:238
-    wire l4_valid_and_2;                     // rtl-gen/src/merge/builder.rs:239
-    wire l4_end_not_1;                       // rtl-gen/src/merge/builder.rs:239
-    wire l4_end_or_1;                        // rtl-gen/src/merge/builder.rs:239
+    wire l4_end_ok;                          // rtl-gen/src/merge/builder.rs:225
+    wire l4_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:226
+    wire l4_ready_all;                       // rtl-gen/src/merge/builder.rs:238
+    wire l4_ready_all_and;                   // rtl-gen/src/merge/builder.rs:239
+    wire l4_end_or;                          // rtl-gen/src/merge/builder.rs:239
     wire l4_fire;                            // rtl-gen/src/merge/builder.rs:239
-    wire l4_end_not_2;                       // rtl-gen/src/merge/builder.rs:240
     wire l4_fire_and;                        // rtl-gen/src/merge/builder.rs:240
     wire l4_end_fire;                        // rtl-gen/src/merge/builder.rs:241
-    wire l4_end_not_3;                       // rtl-gen/src/merge/builder.rs:245
-    wire l4_end_or_2;                        // rtl-gen/src/merge/builder.rs:245
-    wire l4_valid_and_3;                     // rtl-gen/src/merge/builder.rs:245
-    wire [101:0] l4_end_cat;                 // rtl-gen/src/merge/builder.rs:247
-    wire l4_fire_and_1;                      // rtl-gen/src/merge/builder.rs:250
-    wire [24:0] l4_nodes_add;                // rtl-gen/src/merge/builder.rs:255
-    wire [149:0] l4_end_mux_1;               // rtl-gen/src/merge/builder.rs:256
-    wire [27:0] l4_end_mux_2;                // rtl-gen/src/merge/builder.rs:257
-    wire l4_take_group_or_1;                 // rtl-gen/src/merge/builder.rs:258
+    wire [24:0] l4_index_next;               // rtl-gen/src/merge/builder.rs:255
     wire [228:0] level4_beat;                // rtl-gen/src/merge/builder.rs:258
-    wire l4_valid_and_4;                     // rtl-gen/src/merge/builder.rs:261
     wire level4_in_valid;                    // rtl-gen/src/merge/builder.rs:261
     reg level4_skid_valid;                   // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level4_skid_data;            // rtl-gen/src/merge/builder.rs:265
     reg level4_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level4_skid_spare_data;      // rtl-gen/src/merge/builder.rs:265
     wire level4_skid_ready;                  // rtl-gen/src/merge/builder.rs:265
-    wire level4_skid_valid_not;              // rtl-gen/src/merge/builder.rs:265
-    wire level4_skid_ready_or;               // rtl-gen/src/merge/builder.rs:265
-    wire level4_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:265
-    wire level4_in_valid_and;                // rtl-gen/src/merge/builder.rs:265
-    wire level4_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:265
-    wire [228:0] level4_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
-    wire level4_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:265
-    wire level4_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:265
-    wire level4_skid_ready_not;              // rtl-gen/src/merge/builder.rs:265
-    wire level4_skid_ready_and;              // rtl-gen/src/merge/builder.rs:265
-    wire l4_done_or;                         // rtl-gen/src/merge/builder.rs:269
-    wire l4_done_next;                       // rtl-gen/src/merge/builder.rs:269
-    wire l4_fire_and_2;                      // rtl-gen/src/merge/builder.rs:271
-    wire l4_nodes_ovf_or;                    // rtl-gen/src/merge/builder.rs:271
-    wire l4_nodes_ovf_next;                  // rtl-gen/src/merge/builder.rs:271
-    wire l4_take_group_eq;                   // rtl-gen/src/merge/builder.rs:272
-    wire l4_take_group_not_1;                // rtl-gen/src/merge/builder.rs:272
-    wire l4_fire_and_3;                      // rtl-gen/src/merge/builder.rs:273
-    wire [23:0] l4_records_add;              // rtl-gen/src/merge/builder.rs:273
-    wire l4_fire_and_4;                      // rtl-gen/src/merge/builder.rs:275
-    wire l4_had_base_or_2;                   // rtl-gen/src/merge/builder.rs:275
-    wire l4_had_base_next;                   // rtl-gen/src/merge/builder.rs:275
-    wire l4_take_group_eq_1;                 // rtl-gen/src/merge/builder.rs:277
-    wire l4_take_group_and_1;                // rtl-gen/src/merge/builder.rs:277
-    wire l4_fire_and_5;                      // rtl-gen/src/merge/builder.rs:278
-    wire l4_has_leaf_or;                     // rtl-gen/src/merge/builder.rs:278
-    wire l4_has_leaf_next;                   // rtl-gen/src/merge/builder.rs:278
-    wire l4_nodes_eq;                        // rtl-gen/src/merge/builder.rs:282
-    wire l4_nodes_ovf_not;                   // rtl-gen/src/merge/builder.rs:282
-    wire l4_nodes_and;                       // rtl-gen/src/merge/builder.rs:282
-    wire l4_base_above_not;                  // rtl-gen/src/merge/builder.rs:282
-    wire l4_nodes_and_1;                     // rtl-gen/src/merge/builder.rs:282
-    wire l4_has_leaf_not;                    // rtl-gen/src/merge/builder.rs:282
-    wire l4_nodes_and_2;                     // rtl-gen/src/merge/builder.rs:282
-    wire top_found_not_38;                   // rtl-gen/src/merge/builder.rs:283
-    wire l4_end_fire_and;                    // rtl-gen/src/merge/builder.rs:283
-    wire l4_is_top;                          // rtl-gen/src/merge/builder.rs:283
-    wire l16_is_top_or_12;                   // rtl-gen/src/merge/builder.rs:285
+    wire level4_skid_room;                   // rtl-gen/src/merge/builder.rs:265
+    wire level4_skid_drain;                  // rtl-gen/src/merge/builder.rs:265
+    wire level4_skid_take;                   // rtl-gen/src/merge/builder.rs:265
+    wire l4_take_group_eq;                   // rtl-gen/src/merge/builder.rs:273
+    wire l4_is_record;                       // rtl-gen/src/merge/builder.rs:273
+    wire l4_nodes_and;                       // rtl-gen/src/merge/builder.rs:283
+    wire l4_is_top;                          // rtl-gen/src/merge/builder.rs:284
     reg l3_done;                             // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l3_nodes;                     // rtl-gen/src/merge/builder.rs:215
     reg l3_nodes_ovf;                        // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l3_records;                   // rtl-gen/src/merge/builder.rs:217
     wire level3_in_ready;                    // rtl-gen/src/merge/builder.rs:223
     wire l3_end_not;                         // rtl-gen/src/merge/builder.rs:225
-    wire l3_end_or;                          // rtl-gen/src/merge/builder.rs:225
-    wire top_found_not_39;                   // rtl-gen/src/merge/builder.rs:235
-    wire const_not_26;                       // rtl-gen/src/merge/builder.rs:235
-    wire top_found_and_26;                   // rtl-gen/src/merge/builder.rs:235
-    wire top_found_not_40;                   // rtl-gen/src/merge/builder.rs:236
-    wire const_not_27;                       // rtl-gen/src/merge/builder.rs:236
-    wire top_found_and_27;                   // rtl-gen/src/merge/builder.rs:236
-    wire l3_end_mux;                         // rtl-gen/src/merge/builder.rs:234
-    wire l3_done_not;                        // rtl-gen/src/merge/builder.rs:238
-    wire l3_valid_and;                       // rtl-gen/src/merge/builder.rs:238
-    wire l3_valid_and_1;                     // rtl-gen/src/merge/builder.rs:238
-    wire l3_valid_and_2;                     // rtl-gen/src/merge/builder.rs:239
-    wire l3_end_not_1;                       // rtl-gen/src/merge/builder.rs:239
-    wire l3_end_or_1;                        // rtl-gen/src/merge/builder.rs:239
+    wire l3_end_ok;                          // rtl-gen/src/merge/builder.rs:225
+    wire l3_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:226
+    wire l3_ready_all;                       // rtl-gen/src/merge/builder.rs:238
+    wire l3_ready_all_and;                   // rtl-gen/src/merge/builder.rs:239
+    wire l3_end_or;                          // rtl-gen/src/merge/builder.rs:239
     wire l3_fire;                            // rtl-gen/src/merge/builder.rs:239
-    wire l3_end_not_2;                       // rtl-gen/src/merge/builder.rs:240
     wire l3_fire_and;                        // rtl-gen/src/merge/builder.rs:240
     wire l3_end_fire;                        // rtl-gen/src/merge/builder.rs:241
-    wire l3_end_not_3;                       // rtl-gen/src/merge/builder.rs:245
-    wire l3_end_or_2;                        // rtl-gen/src/merge/builder.rs:245
-    wire l3_valid_and_3;                     // rtl-gen/src/merge/builder.rs:245
-    wire [101:0] l3_end_cat;                 // rtl-gen/src/merge/builder.rs:247
-    wire l3_fire_and_1;                      // rtl-gen/src/merge/builder.rs:250
-    wire [24:0] l3_nodes_add;                // rtl-gen/src/merge/builder.rs:255
-    wire [149:0] l3_end_mux_1;               // rtl-gen/src/merge/builder.rs:256
-    wire [27:0] l3_end_mux_2;                // rtl-gen/src/merge/builder.rs:257
-    wire l3_take_group_or_1;                 // rtl-gen/src/merge/builder.rs:258
+    wire [24:0] l3_index_next;               // rtl-gen/src/merge/builder.rs:255
     wire [228:0] level3_beat;                // rtl-gen/src/merge/builder.rs:258
-    wire l3_valid_and_4;                     // rtl-gen/src/merge/builder.rs:261
     wire level3_in_valid;                    // rtl-gen/src/merge/builder.rs:261
     reg level3_skid_valid;                   // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level3_skid_data;            // rtl-gen/src/merge/builder.rs:265
     reg level3_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level3_skid_spare_data;      // rtl-gen/src/merge/builder.rs:265
     wire level3_skid_ready;                  // rtl-gen/src/merge/builder.rs:265
-    wire level3_skid_valid_not;              // rtl-gen/src/merge/builder.rs:265
-    wire level3_skid_ready_or;               // rtl-gen/src/merge/builder.rs:265
-    wire level3_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:265
-    wire level3_in_valid_and;                // rtl-gen/src/merge/builder.rs:265
-    wire level3_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:265
-    wire [228:0] level3_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
-    wire level3_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:265
-    wire level3_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:265
-    wire level3_skid_ready_not;              // rtl-gen/src/merge/builder.rs:265
-    wire level3_skid_ready_and;              // rtl-gen/src/merge/builder.rs:265
-    wire l3_done_or;                         // rtl-gen/src/merge/builder.rs:269
-    wire l3_done_next;                       // rtl-gen/src/merge/builder.rs:269
-    wire l3_fire_and_2;                      // rtl-gen/src/merge/builder.rs:271
-    wire l3_nodes_ovf_or;                    // rtl-gen/src/merge/builder.rs:271
-    wire l3_nodes_ovf_next;                  // rtl-gen/src/merge/builder.rs:271
-    wire l3_take_group_eq;                   // rtl-gen/src/merge/builder.rs:272
-    wire l3_take_group_not_1;                // rtl-gen/src/merge/builder.rs:272
-    wire l3_fire_and_3;                      // rtl-gen/src/merge/builder.rs:273
-    wire [23:0] l3_records_add;              // rtl-gen/src/merge/builder.rs:273
-    wire l3_fire_and_4;                      // rtl-gen/src/merge/builder.rs:275
-    wire l3_had_base_or_2;                   // rtl-gen/src/merge/builder.rs:275
-    wire l3_had_base_next;                   // rtl-gen/src/merge/builder.rs:275
-    wire l3_take_group_eq_1;                 // rtl-gen/src/merge/builder.rs:277
-    wire l3_take_group_and_1;                // rtl-gen/src/merge/builder.rs:277
-    wire l3_fire_and_5;                      // rtl-gen/src/merge/builder.rs:278
-    wire l3_has_leaf_or;                     // rtl-gen/src/merge/builder.rs:278
-    wire l3_has_leaf_next;                   // rtl-gen/src/merge/builder.rs:278
-    wire l3_nodes_eq;                        // rtl-gen/src/merge/builder.rs:282
-    wire l3_nodes_ovf_not;                   // rtl-gen/src/merge/builder.rs:282
-    wire l3_nodes_and;                       // rtl-gen/src/merge/builder.rs:282
-    wire l3_base_above_not;                  // rtl-gen/src/merge/builder.rs:282
-    wire l3_nodes_and_1;                     // rtl-gen/src/merge/builder.rs:282
-    wire l3_has_leaf_not;                    // rtl-gen/src/merge/builder.rs:282
-    wire l3_nodes_and_2;                     // rtl-gen/src/merge/builder.rs:282
-    wire top_found_not_41;                   // rtl-gen/src/merge/builder.rs:283
-    wire l3_end_fire_and;                    // rtl-gen/src/merge/builder.rs:283
-    wire l3_is_top;                          // rtl-gen/src/merge/builder.rs:283
-    wire l16_is_top_or_13;                   // rtl-gen/src/merge/builder.rs:285
+    wire level3_skid_room;                   // rtl-gen/src/merge/builder.rs:265
+    wire level3_skid_drain;                  // rtl-gen/src/merge/builder.rs:265
+    wire level3_skid_take;                   // rtl-gen/src/merge/builder.rs:265
+    wire l3_take_group_eq;                   // rtl-gen/src/merge/builder.rs:273
+    wire l3_is_record;                       // rtl-gen/src/merge/builder.rs:273
+    wire l3_nodes_and;                       // rtl-gen/src/merge/builder.rs:283
+    wire l3_is_top;                          // rtl-gen/src/merge/builder.rs:284
+    wire l16_is_top_or_1;                    // rtl-gen/src/merge/builder.rs:286
     reg l2_done;                             // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l2_nodes;                     // rtl-gen/src/merge/builder.rs:215
     reg l2_nodes_ovf;                        // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l2_records;                   // rtl-gen/src/merge/builder.rs:217
     wire level2_in_ready;                    // rtl-gen/src/merge/builder.rs:223
     wire l2_end_not;                         // rtl-gen/src/merge/builder.rs:225
-    wire l2_end_or;                          // rtl-gen/src/merge/builder.rs:225
-    wire top_found_not_42;                   // rtl-gen/src/merge/builder.rs:235
-    wire const_not_28;                       // rtl-gen/src/merge/builder.rs:235
-    wire top_found_and_28;                   // rtl-gen/src/merge/builder.rs:235
-    wire top_found_not_43;                   // rtl-gen/src/merge/builder.rs:236
-    wire const_not_29;                       // rtl-gen/src/merge/builder.rs:236
-    wire top_found_and_29;                   // rtl-gen/src/merge/builder.rs:236
-    wire l2_end_mux;                         // rtl-gen/src/merge/builder.rs:234
-    wire l2_done_not;                        // rtl-gen/src/merge/builder.rs:238
-    wire l2_valid_and;                       // rtl-gen/src/merge/builder.rs:238
-    wire l2_valid_and_1;                     // rtl-gen/src/merge/builder.rs:238
-    wire l2_valid_and_2;                     // rtl-gen/src/merge/builder.rs:239
-    wire l2_end_not_1;                       // rtl-gen/src/merge/builder.rs:239
-    wire l2_end_or_1;                        // rtl-gen/src/merge/builder.rs:239
+    wire l2_end_ok;                          // rtl-gen/src/merge/builder.rs:225
+    wire l2_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:226
+    wire l2_ready_all;                       // rtl-gen/src/merge/builder.rs:238
+    wire l2_ready_all_and;                   // rtl-gen/src/merge/builder.rs:239
+    wire l2_end_or;                          // rtl-gen/src/merge/builder.rs:239
     wire l2_fire;                            // rtl-gen/src/merge/builder.rs:239
-    wire l2_end_not_2;                       // rtl-gen/src/merge/builder.rs:240
     wire l2_fire_and;                        // rtl-gen/src/merge/builder.rs:240
     wire l2_end_fire;                        // rtl-gen/src/merge/builder.rs:241
-    wire l2_end_not_3;                       // rtl-gen/src/merge/builder.rs:245
-    wire l2_end_or_2;                        // rtl-gen/src/merge/builder.rs:245
-    wire l2_valid_and_3;                     // rtl-gen/src/merge/builder.rs:245
-    wire [101:0] l2_end_cat;                 // rtl-gen/src/merge/builder.rs:247
-    wire l2_fire_and_1;                      // rtl-gen/src/merge/builder.rs:250
-    wire [24:0] l2_nodes_add;                // rtl-gen/src/merge/builder.rs:255
-    wire [149:0] l2_end_mux_1;               // rtl-gen/src/merge/builder.rs:256
-    wire [27:0] l2_end_mux_2;                // rtl-gen/src/merge/builder.rs:257
-    wire l2_take_group_or_1;                 // rtl-gen/src/merge/builder.rs:258
+    wire [24:0] l2_index_next;               // rtl-gen/src/merge/builder.rs:255
     wire [228:0] level2_beat;                // rtl-gen/src/merge/builder.rs:258
-    wire l2_valid_and_4;                     // rtl-gen/src/merge/builder.rs:261
     wire level2_in_valid;                    // rtl-gen/src/merge/builder.rs:261
     reg level2_skid_valid;                   // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level2_skid_data;            // rtl-gen/src/merge/builder.rs:265
     reg level2_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level2_skid_spare_data;      // rtl-gen/src/merge/builder.rs:265
     wire level2_skid_ready;                  // rtl-gen/src/merge/builder.rs:265
-    wire level2_skid_valid_not;              // rtl-gen/src/merge/builder.rs:265
-    wire level2_skid_ready_or;               // rtl-gen/src/merge/builder.rs:265
-    wire level2_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:265
-    wire level2_in_valid_and;                // rtl-gen/src/merge/builder.rs:265
-    wire level2_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:265
-    wire [228:0] level2_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
-    wire level2_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:265
-    wire level2_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:265
-    wire level2_skid_ready_not;              // rtl-gen/src/merge/builder.rs:265
-    wire level2_skid_ready_and;              // rtl-gen/src/merge/builder.rs:265
-    wire l2_done_or;                         // rtl-gen/src/merge/builder.rs:269
-    wire l2_done_next;                       // rtl-gen/src/merge/builder.rs:269
-    wire l2_fire_and_2;                      // rtl-gen/src/merge/builder.rs:271
-    wire l2_nodes_ovf_or;                    // rtl-gen/src/merge/builder.rs:271
-    wire l2_nodes_ovf_next;                  // rtl-gen/src/merge/builder.rs:271
-    wire l2_take_group_eq;                   // rtl-gen/src/merge/builder.rs:272
-    wire l2_take_group_not_1;                // rtl-gen/src/merge/builder.rs:272
-    wire l2_fire_and_3;                      // rtl-gen/src/merge/builder.rs:273
-    wire [23:0] l2_records_add;              // rtl-gen/src/merge/builder.rs:273
-    wire l2_fire_and_4;                      // rtl-gen/src/merge/builder.rs:275
-    wire l2_had_base_or_2;                   // rtl-gen/src/merge/builder.rs:275
-    wire l2_had_base_next;                   // rtl-gen/src/merge/builder.rs:275
-    wire l2_take_group_eq_1;                 // rtl-gen/src/merge/builder.rs:277
-    wire l2_take_group_and_1;                // rtl-gen/src/merge/builder.rs:277
-    wire l2_fire_and_5;                      // rtl-gen/src/merge/builder.rs:278
-    wire l2_has_leaf_or;                     // rtl-gen/src/merge/builder.rs:278
-    wire l2_has_leaf_next;                   // rtl-gen/src/merge/builder.rs:278
-    wire l2_nodes_eq;                        // rtl-gen/src/merge/builder.rs:282
-    wire l2_nodes_ovf_not;                   // rtl-gen/src/merge/builder.rs:282
-    wire l2_nodes_and;                       // rtl-gen/src/merge/builder.rs:282
-    wire l2_base_above_not;                  // rtl-gen/src/merge/builder.rs:282
-    wire l2_nodes_and_1;                     // rtl-gen/src/merge/builder.rs:282
-    wire l2_has_leaf_not;                    // rtl-gen/src/merge/builder.rs:282
-    wire l2_nodes_and_2;                     // rtl-gen/src/merge/builder.rs:282
-    wire top_found_not_44;                   // rtl-gen/src/merge/builder.rs:283
-    wire l2_end_fire_and;                    // rtl-gen/src/merge/builder.rs:283
-    wire l2_is_top;                          // rtl-gen/src/merge/builder.rs:283
-    wire l16_is_top_or_14;                   // rtl-gen/src/merge/builder.rs:285
+    wire level2_skid_room;                   // rtl-gen/src/merge/builder.rs:265
+    wire level2_skid_drain;                  // rtl-gen/src/merge/builder.rs:265
+    wire level2_skid_take;                   // rtl-gen/src/merge/builder.rs:265
+    wire l2_take_group_eq;                   // rtl-gen/src/merge/builder.rs:273
+    wire l2_is_record;                       // rtl-gen/src/merge/builder.rs:273
+    wire l2_nodes_and;                       // rtl-gen/src/merge/builder.rs:283
+    wire l2_is_top;                          // rtl-gen/src/merge/builder.rs:284
     reg l1_done;                             // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l1_nodes;                     // rtl-gen/src/merge/builder.rs:215
     reg l1_nodes_ovf;                        // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l1_records;                   // rtl-gen/src/merge/builder.rs:217
     wire level1_in_ready;                    // rtl-gen/src/merge/builder.rs:223
     wire l1_end_not;                         // rtl-gen/src/merge/builder.rs:225
-    wire l1_end_or;                          // rtl-gen/src/merge/builder.rs:225
-    wire top_found_not_45;                   // rtl-gen/src/merge/builder.rs:235
-    wire const_not_30;                       // rtl-gen/src/merge/builder.rs:235
-    wire top_found_and_30;                   // rtl-gen/src/merge/builder.rs:235
-    wire top_found_not_46;                   // rtl-gen/src/merge/builder.rs:236
-    wire const_not_31;                       // rtl-gen/src/merge/builder.rs:236
-    wire top_found_and_31;                   // rtl-gen/src/merge/builder.rs:236
-    wire l1_end_mux;                         // rtl-gen/src/merge/builder.rs:234
-    wire l1_done_not;                        // rtl-gen/src/merge/builder.rs:238
-    wire l1_valid_and;                       // rtl-gen/src/merge/builder.rs:238
-    wire l1_valid_and_1;                     // rtl-gen/src/merge/builder.rs:238
-    wire l1_valid_and_2;                     // rtl-gen/src/merge/builder.rs:239
-    wire l1_end_not_1;                       // rtl-gen/src/merge/builder.rs:239
-    wire l1_end_or_1;                        // rtl-gen/src/merge/builder.rs:239
+    wire l1_end_ok;                          // rtl-gen/src/merge/builder.rs:225
+    wire l1_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:226
+    wire l1_ready_all;                       // rtl-gen/src/merge/builder.rs:238
+    wire l1_ready_all_and;                   // rtl-gen/src/merge/builder.rs:239
+    wire l1_end_or;                          // rtl-gen/src/merge/builder.rs:239
     wire l1_fire;                            // rtl-gen/src/merge/builder.rs:239
-    wire l1_end_not_2;                       // rtl-gen/src/merge/builder.rs:240
     wire l1_fire_and;                        // rtl-gen/src/merge/builder.rs:240
     wire l1_end_fire;                        // rtl-gen/src/merge/builder.rs:241
-    wire l1_end_not_3;                       // rtl-gen/src/merge/builder.rs:245
-    wire l1_end_or_2;                        // rtl-gen/src/merge/builder.rs:245
-    wire l1_valid_and_3;                     // rtl-gen/src/merge/builder.rs:245
-    wire [101:0] l1_end_cat;                 // rtl-gen/src/merge/builder.rs:247
-    wire l1_fire_and_1;                      // rtl-gen/src/merge/builder.rs:250
-    wire [24:0] l1_nodes_add;                // rtl-gen/src/merge/builder.rs:255
-    wire [149:0] l1_end_mux_1;               // rtl-gen/src/merge/builder.rs:256
-    wire [27:0] l1_end_mux_2;                // rtl-gen/src/merge/builder.rs:257
-    wire l1_take_group_or_1;                 // rtl-gen/src/merge/builder.rs:258
+    wire [24:0] l1_index_next;               // rtl-gen/src/merge/builder.rs:255
     wire [228:0] level1_beat;                // rtl-gen/src/merge/builder.rs:258
-    wire l1_valid_and_4;                     // rtl-gen/src/merge/builder.rs:261
     wire level1_in_valid;                    // rtl-gen/src/merge/builder.rs:261
     reg level1_skid_valid;                   // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level1_skid_data;            // rtl-gen/src/merge/builder.rs:265
     reg level1_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level1_skid_spare_data;      // rtl-gen/src/merge/builder.rs:265
     wire level1_skid_ready;                  // rtl-gen/src/merge/builder.rs:265
-    wire level1_skid_valid_not;              // rtl-gen/src/merge/builder.rs:265
-    wire level1_skid_ready_or;               // rtl-gen/src/merge/builder.rs:265
-    wire level1_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:265
-    wire level1_in_valid_and;                // rtl-gen/src/merge/builder.rs:265
-    wire level1_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:265
-    wire [228:0] level1_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
-    wire level1_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:265
-    wire level1_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:265
-    wire level1_skid_ready_not;              // rtl-gen/src/merge/builder.rs:265
-    wire level1_skid_ready_and;              // rtl-gen/src/merge/builder.rs:265
-    wire l1_done_or;                         // rtl-gen/src/merge/builder.rs:269
-    wire l1_done_next;                       // rtl-gen/src/merge/builder.rs:269
-    wire l1_fire_and_2;                      // rtl-gen/src/merge/builder.rs:271
-    wire l1_nodes_ovf_or;                    // rtl-gen/src/merge/builder.rs:271
-    wire l1_nodes_ovf_next;                  // rtl-gen/src/merge/builder.rs:271
-    wire l1_take_group_eq;                   // rtl-gen/src/merge/builder.rs:272
-    wire l1_take_group_not_1;                // rtl-gen/src/merge/builder.rs:272
-    wire l1_fire_and_3;                      // rtl-gen/src/merge/builder.rs:273
-    wire [23:0] l1_records_add;              // rtl-gen/src/merge/builder.rs:273
-    wire l1_fire_and_4;                      // rtl-gen/src/merge/builder.rs:275
-    wire l1_had_base_or_2;                   // rtl-gen/src/merge/builder.rs:275
-    wire l1_had_base_next;                   // rtl-gen/src/merge/builder.rs:275
-    wire l1_take_group_eq_1;                 // rtl-gen/src/merge/builder.rs:277
-    wire l1_take_group_and_1;                // rtl-gen/src/merge/builder.rs:277
-    wire l1_fire_and_5;                      // rtl-gen/src/merge/builder.rs:278
-    wire l1_has_leaf_or;                     // rtl-gen/src/merge/builder.rs:278
-    wire l1_has_leaf_next;                   // rtl-gen/src/merge/builder.rs:278
-    wire l1_nodes_eq;                        // rtl-gen/src/merge/builder.rs:282
-    wire l1_nodes_ovf_not;                   // rtl-gen/src/merge/builder.rs:282
-    wire l1_nodes_and;                       // rtl-gen/src/merge/builder.rs:282
-    wire l1_base_above_not;                  // rtl-gen/src/merge/builder.rs:282
-    wire l1_nodes_and_1;                     // rtl-gen/src/merge/builder.rs:282
-    wire l1_has_leaf_not;                    // rtl-gen/src/merge/builder.rs:282
-    wire l1_nodes_and_2;                     // rtl-gen/src/merge/builder.rs:282
-    wire top_found_not_47;                   // rtl-gen/src/merge/builder.rs:283
-    wire l1_end_fire_and;                    // rtl-gen/src/merge/builder.rs:283
-    wire l1_is_top;                          // rtl-gen/src/merge/builder.rs:283
-    wire l16_is_top_or_15;                   // rtl-gen/src/merge/builder.rs:285
+    wire level1_skid_room;                   // rtl-gen/src/merge/builder.rs:265
+    wire level1_skid_drain;                  // rtl-gen/src/merge/builder.rs:265
+    wire level1_skid_take;                   // rtl-gen/src/merge/builder.rs:265
+    wire l1_take_group_eq;                   // rtl-gen/src/merge/builder.rs:273
+    wire l1_is_record;                       // rtl-gen/src/merge/builder.rs:273
+    wire l1_has_leaf_not;                    // rtl-gen/src/merge/builder.rs:283
+    wire l1_is_top;                          // rtl-gen/src/merge/builder.rs:284
     reg l0_done;                             // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l0_nodes;                     // rtl-gen/src/merge/builder.rs:215
     reg l0_nodes_ovf;                        // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l0_records;                   // rtl-gen/src/merge/builder.rs:217
     wire level0_in_ready;                    // rtl-gen/src/merge/builder.rs:223
     wire l0_end_not;                         // rtl-gen/src/merge/builder.rs:225
-    wire l0_end_or;                          // rtl-gen/src/merge/builder.rs:225
-    wire [7:0] l0_take_group_sub;            // rtl-gen/src/merge/builder.rs:105
-    wire [8:0] l0_take_group_add;            // rtl-gen/src/merge/builder.rs:105
-    wire [7:0] l0_take_group_sub_1;          // rtl-gen/src/merge/builder.rs:105
-    wire [8:0] l0_take_group_add_1;          // rtl-gen/src/merge/builder.rs:105
-    wire [26:0] l0_take_group_zext;          // rtl-gen/src/merge/builder.rs:77
-    wire [26:0] l0_take_group_mux_3;         // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_add_2;         // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_cat;           // rtl-gen/src/merge/builder.rs:83
-    wire [26:0] l0_take_group_mux_4;         // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_add_3;         // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_cat_1;         // rtl-gen/src/merge/builder.rs:83
-    wire [26:0] l0_take_group_mux_5;         // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_add_4;         // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_cat_2;         // rtl-gen/src/merge/builder.rs:83
-    wire [26:0] l0_take_group_mux_6;         // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_add_5;         // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_cat_3;         // rtl-gen/src/merge/builder.rs:83
-    wire [26:0] l0_take_group_mux_7;         // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_add_6;         // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_cat_4;         // rtl-gen/src/merge/builder.rs:83
-    wire [26:0] l0_take_group_mux_8;         // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_add_7;         // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_cat_5;         // rtl-gen/src/merge/builder.rs:83
-    wire [26:0] l0_take_group_mux_9;         // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_add_8;         // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_cat_6;         // rtl-gen/src/merge/builder.rs:83
-    wire [26:0] l0_take_group_mux_10;        // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_add_9;         // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_cat_7;         // rtl-gen/src/merge/builder.rs:83
-    wire [26:0] l0_take_group_mux_11;        // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_add_10;        // rtl-gen/src/merge/builder.rs:85
-    wire [7:0] l0_take_group_sub_2;          // rtl-gen/src/merge/builder.rs:105
-    wire [8:0] l0_take_group_add_11;         // rtl-gen/src/merge/builder.rs:105
-    wire [26:0] l0_take_group_mux_12;        // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_add_12;        // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_cat_8;         // rtl-gen/src/merge/builder.rs:83
-    wire [26:0] l0_take_group_mux_13;        // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_add_13;        // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_cat_9;         // rtl-gen/src/merge/builder.rs:83
-    wire [26:0] l0_take_group_mux_14;        // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_add_14;        // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_cat_10;        // rtl-gen/src/merge/builder.rs:83
-    wire [26:0] l0_take_group_mux_15;        // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_add_15;        // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_cat_11;        // rtl-gen/src/merge/builder.rs:83
-    wire [26:0] l0_take_group_mux_16;        // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_add_16;        // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_cat_12;        // rtl-gen/src/merge/builder.rs:83
-    wire [26:0] l0_take_group_mux_17;        // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_add_17;        // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_cat_13;        // rtl-gen/src/merge/builder.rs:83
-    wire [26:0] l0_take_group_mux_18;        // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_add_18;        // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_cat_14;        // rtl-gen/src/merge/builder.rs:83
-    wire [26:0] l0_take_group_mux_19;        // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_add_19;        // rtl-gen/src/merge/builder.rs:85
-    wire [26:0] l0_take_group_cat_15;        // rtl-gen/src/merge/builder.rs:83
-    wire [26:0] l0_take_group_mux_20;        // rtl-gen/src/merge/builder.rs:85
+    wire l0_end_ok;                          // rtl-gen/src/merge/builder.rs:225
+    wire l0_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:226
+    wire [7:0] l0_take_group_lo_x;           // rtl-gen/src/merge/builder.rs:103
+    wire [7:0] l0_take_group_hi_x;           // rtl-gen/src/merge/builder.rs:104
+    wire [7:0] l0_take_group_lo_y;           // rtl-gen/src/merge/builder.rs:103
+    wire [7:0] l0_take_group_hi_y;           // rtl-gen/src/merge/builder.rs:104
+    wire [8:0] l0_take_group_hi_y_add;       // rtl-gen/src/merge/builder.rs:105
+    wire [26:0] l0_take_group_hi_x_zext;     // rtl-gen/src/merge/builder.rs:77
+    wire [26:0] l0_take_group_hi_y_add_1;    // rtl-gen/src/merge/builder.rs:85
+    wire [26:0] l0_take_group_hi_y_add_2;    // rtl-gen/src/merge/builder.rs:85
+    wire [26:0] l0_take_group_hi_y_add_3;    // rtl-gen/src/merge/builder.rs:85
+    wire [26:0] l0_take_group_hi_y_add_4;    // rtl-gen/src/merge/builder.rs:85
+    wire [7:0] l0_take_group_lo_z;           // rtl-gen/src/merge/builder.rs:103
+    wire [7:0] l0_take_group_hi_z;           // rtl-gen/src/merge/builder.rs:104
+    wire [8:0] l0_take_group_hi_z_add;       // rtl-gen/src/merge/builder.rs:105
+    wire [26:0] l0_take_group_hi_z_add_1;    // rtl-gen/src/merge/builder.rs:85
+    wire [26:0] l0_take_group_hi_z_add_2;    // rtl-gen/src/merge/builder.rs:85
+    wire [26:0] l0_take_group_hi_z_add_3;    // rtl-gen/src/merge/builder.rs:85
     wire [26:0] root_cells;                  // rtl-gen/src/merge/builder.rs:85
-    wire root_cells_gt;                      // rtl-gen/src/merge/builder.rs:111
-    wire l0_end_not_1;                       // rtl-gen/src/merge/builder.rs:230
-    wire l0_take_group_and_1;                // rtl-gen/src/merge/builder.rs:230
-    wire l0_take_group_and_2;                // rtl-gen/src/merge/builder.rs:230
-    wire l0_take_group_and_3;                // rtl-gen/src/merge/builder.rs:230
-    wire l1_has_leaf_not_1;                  // rtl-gen/src/merge/builder.rs:230
     wire root_suppress;                      // rtl-gen/src/merge/builder.rs:230
-    wire top_found_not_48;                   // rtl-gen/src/merge/builder.rs:235
     wire root_suppressed_not;                // rtl-gen/src/merge/builder.rs:235
-    wire top_found_and_32;                   // rtl-gen/src/merge/builder.rs:235
-    wire top_found_not_49;                   // rtl-gen/src/merge/builder.rs:236
-    wire root_suppress_not;                  // rtl-gen/src/merge/builder.rs:236
-    wire top_found_and_33;                   // rtl-gen/src/merge/builder.rs:236
     wire l0_end_mux;                         // rtl-gen/src/merge/builder.rs:234
-    wire l0_done_not;                        // rtl-gen/src/merge/builder.rs:238
-    wire l0_valid_and;                       // rtl-gen/src/merge/builder.rs:238
-    wire l0_valid_and_1;                     // rtl-gen/src/merge/builder.rs:238
-    wire l0_valid_and_2;                     // rtl-gen/src/merge/builder.rs:239
-    wire l0_end_not_2;                       // rtl-gen/src/merge/builder.rs:239
-    wire l0_end_or_1;                        // rtl-gen/src/merge/builder.rs:239
+    wire l0_ready_all;                       // rtl-gen/src/merge/builder.rs:238
+    wire l0_ready_all_and;                   // rtl-gen/src/merge/builder.rs:239
     wire l0_fire;                            // rtl-gen/src/merge/builder.rs:239
-    wire l0_end_not_3;                       // rtl-gen/src/merge/builder.rs:240
     wire l0_fire_and;                        // rtl-gen/src/merge/builder.rs:240
     wire l0_end_fire;                        // rtl-gen/src/merge/builder.rs:241
-    wire l0_fire_and_1;                      // rtl-gen/src/merge/builder.rs:250
-    wire [24:0] l0_nodes_add;                // rtl-gen/src/merge/builder.rs:255
-    wire [149:0] l0_end_mux_1;               // rtl-gen/src/merge/builder.rs:256
-    wire [27:0] l0_end_mux_2;                // rtl-gen/src/merge/builder.rs:257
-    wire l0_take_group_or_1;                 // rtl-gen/src/merge/builder.rs:258
+    wire [24:0] l0_index_next;               // rtl-gen/src/merge/builder.rs:255
     wire [228:0] level0_beat;                // rtl-gen/src/merge/builder.rs:258
-    wire l0_valid_and_3;                     // rtl-gen/src/merge/builder.rs:261
     wire level0_in_valid;                    // rtl-gen/src/merge/builder.rs:261
     reg level0_skid_valid;                   // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level0_skid_data;            // rtl-gen/src/merge/builder.rs:265
     reg level0_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:265
     reg [228:0] level0_skid_spare_data;      // rtl-gen/src/merge/builder.rs:265
     wire level0_skid_ready;                  // rtl-gen/src/merge/builder.rs:265
-    wire level0_skid_valid_not;              // rtl-gen/src/merge/builder.rs:265
-    wire level0_skid_ready_or;               // rtl-gen/src/merge/builder.rs:265
-    wire level0_skid_spare_valid_not;        // rtl-gen/src/merge/builder.rs:265
-    wire level0_in_valid_and;                // rtl-gen/src/merge/builder.rs:265
-    wire level0_skid_spare_valid_or;         // rtl-gen/src/merge/builder.rs:265
-    wire [228:0] level0_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
-    wire level0_skid_spare_valid_or_1;       // rtl-gen/src/merge/builder.rs:265
-    wire level0_skid_spare_valid_next;       // rtl-gen/src/merge/builder.rs:265
-    wire level0_skid_ready_not;              // rtl-gen/src/merge/builder.rs:265
-    wire level0_skid_ready_and;              // rtl-gen/src/merge/builder.rs:265
-    wire l0_done_or;                         // rtl-gen/src/merge/builder.rs:269
-    wire l0_done_next;                       // rtl-gen/src/merge/builder.rs:269
-    wire l0_fire_and_2;                      // rtl-gen/src/merge/builder.rs:271
-    wire l0_nodes_ovf_or;                    // rtl-gen/src/merge/builder.rs:271
-    wire l0_nodes_ovf_next;                  // rtl-gen/src/merge/builder.rs:271
-    wire l0_take_group_eq;                   // rtl-gen/src/merge/builder.rs:272
-    wire l0_take_group_not_1;                // rtl-gen/src/merge/builder.rs:272
-    wire l0_fire_and_3;                      // rtl-gen/src/merge/builder.rs:273
-    wire [23:0] l0_records_add;              // rtl-gen/src/merge/builder.rs:273
-    wire l0_fire_and_4;                      // rtl-gen/src/merge/builder.rs:275
-    wire l0_had_base_or_2;                   // rtl-gen/src/merge/builder.rs:275
-    wire l0_had_base_next;                   // rtl-gen/src/merge/builder.rs:275
-    wire l0_take_group_eq_1;                 // rtl-gen/src/merge/builder.rs:277
-    wire l0_take_group_and_4;                // rtl-gen/src/merge/builder.rs:277
-    wire l0_fire_and_5;                      // rtl-gen/src/merge/builder.rs:278
-    wire l0_has_leaf_or;                     // rtl-gen/src/merge/builder.rs:278
-    wire l0_has_leaf_next;                   // rtl-gen/src/merge/builder.rs:278
-    wire l0_fire_and_6;                      // rtl-gen/src/merge/builder.rs:287
-    wire top_found_not_50;                   // rtl-gen/src/merge/builder.rs:288
-    wire l0_end_fire_and;                    // rtl-gen/src/merge/builder.rs:288
-    wire l0_nodes_eq;                        // rtl-gen/src/merge/builder.rs:290
-    wire l0_nodes_ovf_not;                   // rtl-gen/src/merge/builder.rs:290
-    wire l0_nodes_and;                       // rtl-gen/src/merge/builder.rs:290
-    wire root_suppressed_not_1;              // rtl-gen/src/merge/builder.rs:291
-    wire l0_nodes_or;                        // rtl-gen/src/merge/builder.rs:291
-    wire root_suppressed_and;                // rtl-gen/src/merge/builder.rs:291
-    wire [4:0] root_suppressed_mux;          // rtl-gen/src/merge/builder.rs:292
-    wire l16_is_top_or_16;                   // rtl-gen/src/merge/builder.rs:293
-    wire done_valid_or;                      // rtl-gen/src/merge/builder.rs:295
-    wire done_valid_next;                    // rtl-gen/src/merge/builder.rs:295
-    wire top_found_or;                       // rtl-gen/src/merge/builder.rs:298
-    wire top_found_next;                     // rtl-gen/src/merge/builder.rs:298
-    wire l0_end_fire_and_1;                  // rtl-gen/src/merge/builder.rs:300
-    wire done_err_or;                        // rtl-gen/src/merge/builder.rs:300
-    wire done_err_next;                      // rtl-gen/src/merge/builder.rs:300
-    wire root_suppressed_or;                 // rtl-gen/src/merge/builder.rs:301
-    wire root_suppressed_next;               // rtl-gen/src/merge/builder.rs:301
-    wire [5:0] done_err_cat;                 // rtl-gen/src/merge/builder.rs:304
-    reg done_skid_valid;                     // rtl-gen/src/merge/builder.rs:311
-    reg [5:0] done_skid_data;                // rtl-gen/src/merge/builder.rs:311
-    reg done_skid_spare_valid;               // rtl-gen/src/merge/builder.rs:311
-    reg [5:0] done_skid_spare_data;          // rtl-gen/src/merge/builder.rs:311
-    wire done_skid_ready;                    // rtl-gen/src/merge/builder.rs:311
-    wire done_skid_valid_not;                // rtl-gen/src/merge/builder.rs:311
-    wire done_skid_ready_or;                 // rtl-gen/src/merge/builder.rs:311
-    wire done_skid_spare_valid_not;          // rtl-gen/src/merge/builder.rs:311
-    wire done_valid_and;                     // rtl-gen/src/merge/builder.rs:311
-    wire done_skid_spare_valid_or;           // rtl-gen/src/merge/builder.rs:311
-    wire [5:0] done_skid_spare_valid_mux;    // rtl-gen/src/merge/builder.rs:311
-    wire done_skid_spare_valid_or_1;         // rtl-gen/src/merge/builder.rs:311
-    wire done_skid_spare_valid_next;         // rtl-gen/src/merge/builder.rs:311
-    wire done_skid_ready_not;                // rtl-gen/src/merge/builder.rs:311
-    wire done_skid_ready_and;                // rtl-gen/src/merge/builder.rs:311
+    wire level0_skid_room;                   // rtl-gen/src/merge/builder.rs:265
+    wire level0_skid_drain;                  // rtl-gen/src/merge/builder.rs:265
+    wire level0_skid_take;                   // rtl-gen/src/merge/builder.rs:265
+    wire l0_take_group_eq;                   // rtl-gen/src/merge/builder.rs:273
+    wire l0_is_record;                       // rtl-gen/src/merge/builder.rs:273
+    wire l0_end_fire_and;                    // rtl-gen/src/merge/builder.rs:289
+    wire done_err_or;                        // rtl-gen/src/merge/builder.rs:301
+    wire [5:0] done_err_cat;                 // rtl-gen/src/merge/builder.rs:305
+    reg done_skid_valid;                     // rtl-gen/src/merge/builder.rs:312
+    reg [5:0] done_skid_data;                // rtl-gen/src/merge/builder.rs:312
+    reg done_skid_spare_valid;               // rtl-gen/src/merge/builder.rs:312
+    reg [5:0] done_skid_spare_data;          // rtl-gen/src/merge/builder.rs:312
+    wire done_skid_ready;                    // rtl-gen/src/merge/builder.rs:312
+    wire done_skid_room;                     // rtl-gen/src/merge/builder.rs:312
+    wire done_skid_drain;                    // rtl-gen/src/merge/builder.rs:312
+    wire done_skid_take;                     // rtl-gen/src/merge/builder.rs:312
 
-    assign done_in_ready = ~done_skid_spare_valid;
-    assign base0_ready = ~base0_skid_spare_valid;
+    assign done_in_ready = done_skid_room;
+    assign base0_ready = base0_skid_room;
     assign base0_skid_ready = l0_fire & l0_take_group_not;
-    assign base0_skid_valid_not = ~base0_skid_valid;
-    assign base0_skid_ready_or = base0_skid_ready | base0_skid_valid_not;
-    assign base0_skid_spare_valid_not = ~base0_skid_spare_valid;
-    assign base0_valid_and = base0_valid & base0_skid_spare_valid_not;
-    assign base0_skid_spare_valid_or = base0_skid_spare_valid | base0_valid;
-    assign base0_skid_spare_valid_mux = base0_skid_spare_valid ? base0_skid_spare_data : base0_data;
-    assign base0_skid_spare_valid_or_1 = base0_skid_spare_valid | base0_valid_and;
-    assign base0_skid_spare_valid_next = base0_skid_ready_or ? 1'b0 : base0_skid_spare_valid_or_1;
-    assign base0_skid_ready_not = ~base0_skid_ready_or;
-    assign base0_skid_ready_and = base0_skid_ready_not & base0_valid_and;
-    assign base1_ready = ~base1_skid_spare_valid;
+    assign base0_skid_room = ~base0_skid_spare_valid;
+    assign base0_skid_drain = base0_skid_ready | (~base0_skid_valid);
+    assign base0_skid_take = base0_valid & base0_skid_room;
+    assign base1_ready = base1_skid_room;
     assign base1_skid_ready = l1_fire & l1_take_group_not;
-    assign base1_skid_valid_not = ~base1_skid_valid;
-    assign base1_skid_ready_or = base1_skid_ready | base1_skid_valid_not;
-    assign base1_skid_spare_valid_not = ~base1_skid_spare_valid;
-    assign base1_valid_and = base1_valid & base1_skid_spare_valid_not;
-    assign base1_skid_spare_valid_or = base1_skid_spare_valid | base1_valid;
-    assign base1_skid_spare_valid_mux = base1_skid_spare_valid ? base1_skid_spare_data : base1_data;
-    assign base1_skid_spare_valid_or_1 = base1_skid_spare_valid | base1_valid_and;
-    assign base1_skid_spare_valid_next = base1_skid_ready_or ? 1'b0 : base1_skid_spare_valid_or_1;
-    assign base1_skid_ready_not = ~base1_skid_ready_or;
-    assign base1_skid_ready_and = base1_skid_ready_not & base1_valid_and;
-    assign base2_ready = ~base2_skid_spare_valid;
+    assign base1_skid_room = ~base1_skid_spare_valid;
+    assign base1_skid_drain = base1_skid_ready | (~base1_skid_valid);
+    assign base1_skid_take = base1_valid & base1_skid_room;
+    assign base2_ready = base2_skid_room;
     assign base2_skid_ready = l2_fire & l2_take_group_not;
-    assign base2_skid_valid_not = ~base2_skid_valid;
-    assign base2_skid_ready_or = base2_skid_ready | base2_skid_valid_not;
-    assign base2_skid_spare_valid_not = ~base2_skid_spare_valid;
-    assign base2_valid_and = base2_valid & base2_skid_spare_valid_not;
-    assign base2_skid_spare_valid_or = base2_skid_spare_valid | base2_valid;
-    assign base2_skid_spare_valid_mux = base2_skid_spare_valid ? base2_skid_spare_data : base2_data;
-    assign base2_skid_spare_valid_or_1 = base2_skid_spare_valid | base2_valid_and;
-    assign base2_skid_spare_valid_next = base2_skid_ready_or ? 1'b0 : base2_skid_spare_valid_or_1;
-    assign base2_skid_ready_not = ~base2_skid_ready_or;
-    assign base2_skid_ready_and = base2_skid_ready_not & base2_valid_and;
-    assign base3_ready = ~base3_skid_spare_valid;
+    assign base2_skid_room = ~base2_skid_spare_valid;
+    assign base2_skid_drain = base2_skid_ready | (~base2_skid_valid);
+    assign base2_skid_take = base2_valid & base2_skid_room;
+    assign base3_ready = base3_skid_room;
     assign base3_skid_ready = l3_fire & l3_take_group_not;
-    assign base3_skid_valid_not = ~base3_skid_valid;
-    assign base3_skid_ready_or = base3_skid_ready | base3_skid_valid_not;
-    assign base3_skid_spare_valid_not = ~base3_skid_spare_valid;
-    assign base3_valid_and = base3_valid & base3_skid_spare_valid_not;
-    assign base3_skid_spare_valid_or = base3_skid_spare_valid | base3_valid;
-    assign base3_skid_spare_valid_mux = base3_skid_spare_valid ? base3_skid_spare_data : base3_data;
-    assign base3_skid_spare_valid_or_1 = base3_skid_spare_valid | base3_valid_and;
-    assign base3_skid_spare_valid_next = base3_skid_ready_or ? 1'b0 : base3_skid_spare_valid_or_1;
-    assign base3_skid_ready_not = ~base3_skid_ready_or;
-    assign base3_skid_ready_and = base3_skid_ready_not & base3_valid_and;
-    assign base4_ready = ~base4_skid_spare_valid;
+    assign base3_skid_room = ~base3_skid_spare_valid;
+    assign base3_skid_drain = base3_skid_ready | (~base3_skid_valid);
+    assign base3_skid_take = base3_valid & base3_skid_room;
+    assign base4_ready = base4_skid_room;
     assign base4_skid_ready = l4_fire & l4_take_group_not;
-    assign base4_skid_valid_not = ~base4_skid_valid;
-    assign base4_skid_ready_or = base4_skid_ready | base4_skid_valid_not;
-    assign base4_skid_spare_valid_not = ~base4_skid_spare_valid;
-    assign base4_valid_and = base4_valid & base4_skid_spare_valid_not;
-    assign base4_skid_spare_valid_or = base4_skid_spare_valid | base4_valid;
-    assign base4_skid_spare_valid_mux = base4_skid_spare_valid ? base4_skid_spare_data : base4_data;
-    assign base4_skid_spare_valid_or_1 = base4_skid_spare_valid | base4_valid_and;
-    assign base4_skid_spare_valid_next = base4_skid_ready_or ? 1'b0 : base4_skid_spare_valid_or_1;
-    assign base4_skid_ready_not = ~base4_skid_ready_or;
-    assign base4_skid_ready_and = base4_skid_ready_not & base4_valid_and;
-    assign base5_ready = ~base5_skid_spare_valid;
+    assign base4_skid_room = ~base4_skid_spare_valid;
+    assign base4_skid_drain = base4_skid_ready | (~base4_skid_valid);
+    assign base4_skid_take = base4_valid & base4_skid_room;
+    assign base5_ready = base5_skid_room;
     assign base5_skid_ready = l5_fire & l5_take_group_not;
-    assign base5_skid_valid_not = ~base5_skid_valid;
-    assign base5_skid_ready_or = base5_skid_ready | base5_skid_valid_not;
-    assign base5_skid_spare_valid_not = ~base5_skid_spare_valid;
-    assign base5_valid_and = base5_valid & base5_skid_spare_valid_not;
-    assign base5_skid_spare_valid_or = base5_skid_spare_valid | base5_valid;
-    assign base5_skid_spare_valid_mux = base5_skid_spare_valid ? base5_skid_spare_data : base5_data;
-    assign base5_skid_spare_valid_or_1 = base5_skid_spare_valid | base5_valid_and;
-    assign base5_skid_spare_valid_next = base5_skid_ready_or ? 1'b0 : base5_skid_spare_valid_or_1;
-    assign base5_skid_ready_not = ~base5_skid_ready_or;
-    assign base5_skid_ready_and = base5_skid_ready_not & base5_valid_and;
-    assign base6_ready = ~base6_skid_spare_valid;
+    assign base5_skid_room = ~base5_skid_spare_valid;
+    assign base5_skid_drain = base5_skid_ready | (~base5_skid_valid);
+    assign base5_skid_take = base5_valid & base5_skid_room;
+    assign base6_ready = base6_skid_room;
     assign base6_skid_ready = l6_fire & l6_take_group_not;
-    assign base6_skid_valid_not = ~base6_skid_valid;
-    assign base6_skid_ready_or = base6_skid_ready | base6_skid_valid_not;
-    assign base6_skid_spare_valid_not = ~base6_skid_spare_valid;
-    assign base6_valid_and = base6_valid & base6_skid_spare_valid_not;
-    assign base6_skid_spare_valid_or = base6_skid_spare_valid | base6_valid;
-    assign base6_skid_spare_valid_mux = base6_skid_spare_valid ? base6_skid_spare_data : base6_data;
-    assign base6_skid_spare_valid_or_1 = base6_skid_spare_valid | base6_valid_and;
-    assign base6_skid_spare_valid_next = base6_skid_ready_or ? 1'b0 : base6_skid_spare_valid_or_1;
-    assign base6_skid_ready_not = ~base6_skid_ready_or;
-    assign base6_skid_ready_and = base6_skid_ready_not & base6_valid_and;
-    assign base7_ready = ~base7_skid_spare_valid;
+    assign base6_skid_room = ~base6_skid_spare_valid;
+    assign base6_skid_drain = base6_skid_ready | (~base6_skid_valid);
+    assign base6_skid_take = base6_valid & base6_skid_room;
+    assign base7_ready = base7_skid_room;
     assign base7_skid_ready = l7_fire & l7_take_group_not;
-    assign base7_skid_valid_not = ~base7_skid_valid;
-    assign base7_skid_ready_or = base7_skid_ready | base7_skid_valid_not;
-    assign base7_skid_spare_valid_not = ~base7_skid_spare_valid;
-    assign base7_valid_and = base7_valid & base7_skid_spare_valid_not;
-    assign base7_skid_spare_valid_or = base7_skid_spare_valid | base7_valid;
-    assign base7_skid_spare_valid_mux = base7_skid_spare_valid ? base7_skid_spare_data : base7_data;
-    assign base7_skid_spare_valid_or_1 = base7_skid_spare_valid | base7_valid_and;
-    assign base7_skid_spare_valid_next = base7_skid_ready_or ? 1'b0 : base7_skid_spare_valid_or_1;
-    assign base7_skid_ready_not = ~base7_skid_ready_or;
-    assign base7_skid_ready_and = base7_skid_ready_not & base7_valid_and;
-    assign base8_ready = ~base8_skid_spare_valid;
+    assign base7_skid_room = ~base7_skid_spare_valid;
+    assign base7_skid_drain = base7_skid_ready | (~base7_skid_valid);
+    assign base7_skid_take = base7_valid & base7_skid_room;
+    assign base8_ready = base8_skid_room;
     assign base8_skid_ready = l8_fire & l8_take_group_not;
-    assign base8_skid_valid_not = ~base8_skid_valid;
-    assign base8_skid_ready_or = base8_skid_ready | base8_skid_valid_not;
-    assign base8_skid_spare_valid_not = ~base8_skid_spare_valid;
-    assign base8_valid_and = base8_valid & base8_skid_spare_valid_not;
-    assign base8_skid_spare_valid_or = base8_skid_spare_valid | base8_valid;
-    assign base8_skid_spare_valid_mux = base8_skid_spare_valid ? base8_skid_spare_data : base8_data;
-    assign base8_skid_spare_valid_or_1 = base8_skid_spare_valid | base8_valid_and;
-    assign base8_skid_spare_valid_next = base8_skid_ready_or ? 1'b0 : base8_skid_spare_valid_or_1;
-    assign base8_skid_ready_not = ~base8_skid_ready_or;
-    assign base8_skid_ready_and = base8_skid_ready_not & base8_valid_and;
-    assign base9_ready = ~base9_skid_spare_valid;
+    assign base8_skid_room = ~base8_skid_spare_valid;
+    assign base8_skid_drain = base8_skid_ready | (~base8_skid_valid);
+    assign base8_skid_take = base8_valid & base8_skid_room;
+    assign base9_ready = base9_skid_room;
     assign base9_skid_ready = l9_fire & l9_take_group_not;
-    assign base9_skid_valid_not = ~base9_skid_valid;
-    assign base9_skid_ready_or = base9_skid_ready | base9_skid_valid_not;
-    assign base9_skid_spare_valid_not = ~base9_skid_spare_valid;
-    assign base9_valid_and = base9_valid & base9_skid_spare_valid_not;
-    assign base9_skid_spare_valid_or = base9_skid_spare_valid | base9_valid;
-    assign base9_skid_spare_valid_mux = base9_skid_spare_valid ? base9_skid_spare_data : base9_data;
-    assign base9_skid_spare_valid_or_1 = base9_skid_spare_valid | base9_valid_and;
-    assign base9_skid_spare_valid_next = base9_skid_ready_or ? 1'b0 : base9_skid_spare_valid_or_1;
-    assign base9_skid_ready_not = ~base9_skid_ready_or;
-    assign base9_skid_ready_and = base9_skid_ready_not & base9_valid_and;
-    assign base10_ready = ~base10_skid_spare_valid;
+    assign base9_skid_room = ~base9_skid_spare_valid;
+    assign base9_skid_drain = base9_skid_ready | (~base9_skid_valid);
+    assign base9_skid_take = base9_valid & base9_skid_room;
+    assign base10_ready = base10_skid_room;
     assign base10_skid_ready = l10_fire & l10_take_group_not;
-    assign base10_skid_valid_not = ~base10_skid_valid;
-    assign base10_skid_ready_or = base10_skid_ready | base10_skid_valid_not;
-    assign base10_skid_spare_valid_not = ~base10_skid_spare_valid;
-    assign base10_valid_and = base10_valid & base10_skid_spare_valid_not;
-    assign base10_skid_spare_valid_or = base10_skid_spare_valid | base10_valid;
-    assign base10_skid_spare_valid_mux = base10_skid_spare_valid ? base10_skid_spare_data : base10_data;
-    assign base10_skid_spare_valid_or_1 = base10_skid_spare_valid | base10_valid_and;
-    assign base10_skid_spare_valid_next = base10_skid_ready_or ? 1'b0 : base10_skid_spare_valid_or_1;
-    assign base10_skid_ready_not = ~base10_skid_ready_or;
-    assign base10_skid_ready_and = base10_skid_ready_not & base10_valid_and;
-    assign base11_ready = ~base11_skid_spare_valid;
+    assign base10_skid_room = ~base10_skid_spare_valid;
+    assign base10_skid_drain = base10_skid_ready | (~base10_skid_valid);
+    assign base10_skid_take = base10_valid & base10_skid_room;
+    assign base11_ready = base11_skid_room;
     assign base11_skid_ready = l11_fire & l11_take_group_not;
-    assign base11_skid_valid_not = ~base11_skid_valid;
-    assign base11_skid_ready_or = base11_skid_ready | base11_skid_valid_not;
-    assign base11_skid_spare_valid_not = ~base11_skid_spare_valid;
-    assign base11_valid_and = base11_valid & base11_skid_spare_valid_not;
-    assign base11_skid_spare_valid_or = base11_skid_spare_valid | base11_valid;
-    assign base11_skid_spare_valid_mux = base11_skid_spare_valid ? base11_skid_spare_data : base11_data;
-    assign base11_skid_spare_valid_or_1 = base11_skid_spare_valid | base11_valid_and;
-    assign base11_skid_spare_valid_next = base11_skid_ready_or ? 1'b0 : base11_skid_spare_valid_or_1;
-    assign base11_skid_ready_not = ~base11_skid_ready_or;
-    assign base11_skid_ready_and = base11_skid_ready_not & base11_valid_and;
-    assign base12_ready = ~base12_skid_spare_valid;
+    assign base11_skid_room = ~base11_skid_spare_valid;
+    assign base11_skid_drain = base11_skid_ready | (~base11_skid_valid);
+    assign base11_skid_take = base11_valid & base11_skid_room;
+    assign base12_ready = base12_skid_room;
     assign base12_skid_ready = l12_fire & l12_take_group_not;
-    assign base12_skid_valid_not = ~base12_skid_valid;
-    assign base12_skid_ready_or = base12_skid_ready | base12_skid_valid_not;
-    assign base12_skid_spare_valid_not = ~base12_skid_spare_valid;
-    assign base12_valid_and = base12_valid & base12_skid_spare_valid_not;
-    assign base12_skid_spare_valid_or = base12_skid_spare_valid | base12_valid;
-    assign base12_skid_spare_valid_mux = base12_skid_spare_valid ? base12_skid_spare_data : base12_data;
-    assign base12_skid_spare_valid_or_1 = base12_skid_spare_valid | base12_valid_and;
-    assign base12_skid_spare_valid_next = base12_skid_ready_or ? 1'b0 : base12_skid_spare_valid_or_1;
-    assign base12_skid_ready_not = ~base12_skid_ready_or;
-    assign base12_skid_ready_and = base12_skid_ready_not & base12_valid_and;
-    assign base13_ready = ~base13_skid_spare_valid;
+    assign base12_skid_room = ~base12_skid_spare_valid;
+    assign base12_skid_drain = base12_skid_ready | (~base12_skid_valid);
+    assign base12_skid_take = base12_valid & base12_skid_room;
+    assign base13_ready = base13_skid_room;
     assign base13_skid_ready = l13_fire & l13_take_group_not;
-    assign base13_skid_valid_not = ~base13_skid_valid;
-    assign base13_skid_ready_or = base13_skid_ready | base13_skid_valid_not;
-    assign base13_skid_spare_valid_not = ~base13_skid_spare_valid;
-    assign base13_valid_and = base13_valid & base13_skid_spare_valid_not;
-    assign base13_skid_spare_valid_or = base13_skid_spare_valid | base13_valid;
-    assign base13_skid_spare_valid_mux = base13_skid_spare_valid ? base13_skid_spare_data : base13_data;
-    assign base13_skid_spare_valid_or_1 = base13_skid_spare_valid | base13_valid_and;
-    assign base13_skid_spare_valid_next = base13_skid_ready_or ? 1'b0 : base13_skid_spare_valid_or_1;
-    assign base13_skid_ready_not = ~base13_skid_ready_or;
-    assign base13_skid_ready_and = base13_skid_ready_not & base13_valid_and;
-    assign base14_ready = ~base14_skid_spare_valid;
+    assign base13_skid_room = ~base13_skid_spare_valid;
+    assign base13_skid_drain = base13_skid_ready | (~base13_skid_valid);
+    assign base13_skid_take = base13_valid & base13_skid_room;
+    assign base14_ready = base14_skid_room;
     assign base14_skid_ready = l14_fire & l14_take_group_not;
-    assign base14_skid_valid_not = ~base14_skid_valid;
-    assign base14_skid_ready_or = base14_skid_ready | base14_skid_valid_not;
-    assign base14_skid_spare_valid_not = ~base14_skid_spare_valid;
-    assign base14_valid_and = base14_valid & base14_skid_spare_valid_not;
-    assign base14_skid_spare_valid_or = base14_skid_spare_valid | base14_valid;
-    assign base14_skid_spare_valid_mux = base14_skid_spare_valid ? base14_skid_spare_data : base14_data;
-    assign base14_skid_spare_valid_or_1 = base14_skid_spare_valid | base14_valid_and;
-    assign base14_skid_spare_valid_next = base14_skid_ready_or ? 1'b0 : base14_skid_spare_valid_or_1;
-    assign base14_skid_ready_not = ~base14_skid_ready_or;
-    assign base14_skid_ready_and = base14_skid_ready_not & base14_valid_and;
-    assign base15_ready = ~base15_skid_spare_valid;
+    assign base14_skid_room = ~base14_skid_spare_valid;
+    assign base14_skid_drain = base14_skid_ready | (~base14_skid_valid);
+    assign base14_skid_take = base14_valid & base14_skid_room;
+    assign base15_ready = base15_skid_room;
     assign base15_skid_ready = l15_fire & l15_take_group_not;
-    assign base15_skid_valid_not = ~base15_skid_valid;
-    assign base15_skid_ready_or = base15_skid_ready | base15_skid_valid_not;
-    assign base15_skid_spare_valid_not = ~base15_skid_spare_valid;
-    assign base15_valid_and = base15_valid & base15_skid_spare_valid_not;
-    assign base15_skid_spare_valid_or = base15_skid_spare_valid | base15_valid;
-    assign base15_skid_spare_valid_mux = base15_skid_spare_valid ? base15_skid_spare_data : base15_data;
-    assign base15_skid_spare_valid_or_1 = base15_skid_spare_valid | base15_valid_and;
-    assign base15_skid_spare_valid_next = base15_skid_ready_or ? 1'b0 : base15_skid_spare_valid_or_1;
-    assign base15_skid_ready_not = ~base15_skid_ready_or;
-    assign base15_skid_ready_and = base15_skid_ready_not & base15_valid_and;
-    assign base16_ready = ~base16_skid_spare_valid;
+    assign base15_skid_room = ~base15_skid_spare_valid;
+    assign base15_skid_drain = base15_skid_ready | (~base15_skid_valid);
+    assign base15_skid_take = base15_valid & base15_skid_room;
+    assign base16_ready = base16_skid_room;
     assign base16_skid_ready = l16_fire & 1'b1;
-    assign base16_skid_valid_not = ~base16_skid_valid;
-    assign base16_skid_ready_or = base16_skid_ready | base16_skid_valid_not;
-    assign base16_skid_spare_valid_not = ~base16_skid_spare_valid;
-    assign base16_valid_and = base16_valid & base16_skid_spare_valid_not;
-    assign base16_skid_spare_valid_or = base16_skid_spare_valid | base16_valid;
-    assign base16_skid_spare_valid_mux = base16_skid_spare_valid ? base16_skid_spare_data : base16_data;
-    assign base16_skid_spare_valid_or_1 = base16_skid_spare_valid | base16_valid_and;
-    assign base16_skid_spare_valid_next = base16_skid_ready_or ? 1'b0 : base16_skid_spare_valid_or_1;
-    assign base16_skid_ready_not = ~base16_skid_ready_or;
-    assign base16_skid_ready_and = base16_skid_ready_not & base16_valid_and;
-    assign base0_skid_data_eq = base0_skid_data[179:178] == 2'd3;
-    assign base0_skid_data_eq_1 = base0_skid_data[179:178] == 2'd0;
-    assign base0_skid_data_mux = base0_skid_data_eq_1 ? 2'd1 : 2'd2;
-    assign base0_skid_data_mux_1 = base0_skid_data_eq ? 2'd3 : base0_skid_data_mux;
-    assign base1_skid_data_eq = base1_skid_data[179:178] == 2'd3;
-    assign base1_skid_data_eq_1 = base1_skid_data[179:178] == 2'd0;
-    assign base1_skid_data_mux = base1_skid_data_eq_1 ? 2'd1 : 2'd2;
-    assign base1_skid_data_mux_1 = base1_skid_data_eq ? 2'd3 : base1_skid_data_mux;
-    assign base2_skid_data_eq = base2_skid_data[179:178] == 2'd3;
-    assign base2_skid_data_eq_1 = base2_skid_data[179:178] == 2'd0;
-    assign base2_skid_data_mux = base2_skid_data_eq_1 ? 2'd1 : 2'd2;
-    assign base2_skid_data_mux_1 = base2_skid_data_eq ? 2'd3 : base2_skid_data_mux;
-    assign base3_skid_data_eq = base3_skid_data[179:178] == 2'd3;
-    assign base3_skid_data_eq_1 = base3_skid_data[179:178] == 2'd0;
-    assign base3_skid_data_mux = base3_skid_data_eq_1 ? 2'd1 : 2'd2;
-    assign base3_skid_data_mux_1 = base3_skid_data_eq ? 2'd3 : base3_skid_data_mux;
-    assign base4_skid_data_eq = base4_skid_data[179:178] == 2'd3;
-    assign base4_skid_data_eq_1 = base4_skid_data[179:178] == 2'd0;
-    assign base4_skid_data_mux = base4_skid_data_eq_1 ? 2'd1 : 2'd2;
-    assign base4_skid_data_mux_1 = base4_skid_data_eq ? 2'd3 : base4_skid_data_mux;
-    assign base5_skid_data_eq = base5_skid_data[179:178] == 2'd3;
-    assign base5_skid_data_eq_1 = base5_skid_data[179:178] == 2'd0;
-    assign base5_skid_data_mux = base5_skid_data_eq_1 ? 2'd1 : 2'd2;
-    assign base5_skid_data_mux_1 = base5_skid_data_eq ? 2'd3 : base5_skid_data_mux;
-    assign base6_skid_data_eq = base6_skid_data[179:178] == 2'd3;
-    assign base6_skid_data_eq_1 = base6_skid_data[179:178] == 2'd0;
-    assign base6_skid_data_mux = base6_skid_data_eq_1 ? 2'd1 : 2'd2;
-    assign base6_skid_data_mux_1 = base6_skid_data_eq ? 2'd3 : base6_skid_data_mux;
-    assign base7_skid_data_eq = base7_skid_data[179:178] == 2'd3;
-    assign base7_skid_data_eq_1 = base7_skid_data[179:178] == 2'd0;
-    assign base7_skid_data_mux = base7_skid_data_eq_1 ? 2'd1 : 2'd2;
-    assign base7_skid_data_mux_1 = base7_skid_data_eq ? 2'd3 : base7_skid_data_mux;
-    assign base8_skid_data_eq = base8_skid_data[179:178] == 2'd3;
-    assign base8_skid_data_eq_1 = base8_skid_data[179:178] == 2'd0;
-    assign base8_skid_data_mux = base8_skid_data_eq_1 ? 2'd1 : 2'd2;
-    assign base8_skid_data_mux_1 = base8_skid_data_eq ? 2'd3 : base8_skid_data_mux;
-    assign base9_skid_data_eq = base9_skid_data[179:178] == 2'd3;
-    assign base9_skid_data_eq_1 = base9_skid_data[179:178] == 2'd0;
-    assign base9_skid_data_mux = base9_skid_data_eq_1 ? 2'd1 : 2'd2;
-    assign base9_skid_data_mux_1 = base9_skid_data_eq ? 2'd3 : base9_skid_data_mux;
-    assign base10_skid_data_eq = base10_skid_data[179:178] == 2'd3;
-    assign base10_skid_data_eq_1 = base10_skid_data[179:178] == 2'd0;
-    assign base10_skid_data_mux = base10_skid_data_eq_1 ? 2'd1 : 2'd2;
-    assign base10_skid_data_mux_1 = base10_skid_data_eq ? 2'd3 : base10_skid_data_mux;
-    assign base11_skid_data_eq = base11_skid_data[179:178] == 2'd3;
-    assign base11_skid_data_eq_1 = base11_skid_data[179:178] == 2'd0;
-    assign base11_skid_data_mux = base11_skid_data_eq_1 ? 2'd1 : 2'd2;
-    assign base11_skid_data_mux_1 = base11_skid_data_eq ? 2'd3 : base11_skid_data_mux;
-    assign base12_skid_data_eq = base12_skid_data[179:178] == 2'd3;
-    assign base12_skid_data_eq_1 = base12_skid_data[179:178] == 2'd0;
-    assign base12_skid_data_mux = base12_skid_data_eq_1 ? 2'd1 : 2'd2;
-    assign base12_skid_data_mux_1 = base12_skid_data_eq ? 2'd3 : base12_skid_data_mux;
-    assign base13_skid_data_eq = base13_skid_data[179:178] == 2'd3;
-    assign base13_skid_data_eq_1 = base13_skid_data[179:178] == 2'd0;
-    assign base13_skid_data_mux = base13_skid_data_eq_1 ? 2'd1 : 2'd2;
-    assign base13_skid_data_mux_1 = base13_skid_data_eq ? 2'd3 : base13_skid_data_mux;
-    assign base14_skid_data_eq = base14_skid_data[179:178] == 2'd3;
-    assign base14_skid_data_eq_1 = base14_skid_data[179:178] == 2'd0;
-    assign base14_skid_data_mux = base14_skid_data_eq_1 ? 2'd1 : 2'd2;
-    assign base14_skid_data_mux_1 = base14_skid_data_eq ? 2'd3 : base14_skid_data_mux;
-    assign base15_skid_data_eq = base15_skid_data[179:178] == 2'd3;
-    assign base15_skid_data_eq_1 = base15_skid_data[179:178] == 2'd0;
-    assign base15_skid_data_mux = base15_skid_data_eq_1 ? 2'd1 : 2'd2;
-    assign base15_skid_data_mux_1 = base15_skid_data_eq ? 2'd3 : base15_skid_data_mux;
-    assign base16_skid_data_eq = base16_skid_data[179:178] == 2'd3;
-    assign base16_skid_data_eq_1 = base16_skid_data[179:178] == 2'd0;
-    assign base16_skid_data_mux = base16_skid_data_eq_1 ? 2'd1 : 2'd2;
-    assign base16_skid_data_mux_1 = base16_skid_data_eq ? 2'd3 : base16_skid_data_mux;
-    assign u_group0_cat = {u_group0_out_data[53], u_group0_out_data[37], u_group0_out_data[21], u_group0_out_data[52], u_group0_out_data[36], u_group0_out_data[20], u_group0_out_data[51], u_group0_out_data[35], u_group0_out_data[19], u_group0_out_data[50], u_group0_out_data[34], u_group0_out_data[18], u_group0_out_data[49], u_group0_out_data[33], u_group0_out_data[17], u_group0_out_data[48], u_group0_out_data[32], u_group0_out_data[16], u_group0_out_data[47], u_group0_out_data[31], u_group0_out_data[15], u_group0_out_data[46], u_group0_out_data[30], u_group0_out_data[14], u_group0_out_data[45], u_group0_out_data[29], u_group0_out_data[13], u_group0_out_data[44], u_group0_out_data[28], u_group0_out_data[12], u_group0_out_data[43], u_group0_out_data[27], u_group0_out_data[11], u_group0_out_data[42], u_group0_out_data[26], u_group0_out_data[10], u_group0_out_data[41], u_group0_out_data[25], u_group0_out_data[9], u_group0_out_data[40], u_group0_out_data[24], u_group0_out_data[8], u_group0_out_data[39], u_group0_out_data[23], u_group0_out_data[7], u_group0_out_data[38], u_group0_out_data[22], u_group0_out_data[6]};
-    assign base0_skid_data_cat = {base0_skid_data[53], base0_skid_data[37], base0_skid_data[21], base0_skid_data[52], base0_skid_data[36], base0_skid_data[20], base0_skid_data[51], base0_skid_data[35], base0_skid_data[19], base0_skid_data[50], base0_skid_data[34], base0_skid_data[18], base0_skid_data[49], base0_skid_data[33], base0_skid_data[17], base0_skid_data[48], base0_skid_data[32], base0_skid_data[16], base0_skid_data[47], base0_skid_data[31], base0_skid_data[15], base0_skid_data[46], base0_skid_data[30], base0_skid_data[14], base0_skid_data[45], base0_skid_data[29], base0_skid_data[13], base0_skid_data[44], base0_skid_data[28], base0_skid_data[12], base0_skid_data[43], base0_skid_data[27], base0_skid_data[11], base0_skid_data[42], base0_skid_data[26], base0_skid_data[10], base0_skid_data[41], base0_skid_data[25], base0_skid_data[9], base0_skid_data[40], base0_skid_data[24], base0_skid_data[8], base0_skid_data[39], base0_skid_data[23], base0_skid_data[7], base0_skid_data[38], base0_skid_data[22], base0_skid_data[6]};
-    assign u_group0_le = u_group0_cat <= base0_skid_data_cat;
-    assign l0_end = u_group0_out_data[150] & base0_skid_data_eq;
-    assign u_group0_not = ~u_group0_out_data[150];
-    assign base0_skid_data_or = base0_skid_data_eq | u_group0_le;
-    assign l0_take_group = u_group0_not & base0_skid_data_or;
+    assign base16_skid_room = ~base16_skid_spare_valid;
+    assign base16_skid_drain = base16_skid_ready | (~base16_skid_valid);
+    assign base16_skid_take = base16_valid & base16_skid_room;
+    assign base0_skid_data_kind = base0_skid_data[179:178];
+    assign base0_skid_data_kind_eq = base0_skid_data_kind == 2'd3;
+    assign base0_skid_data_rec = base0_skid_data[149:0];
+    assign base0_skid_data_ref = base0_skid_data[177:150];
+    assign base1_skid_data_kind = base1_skid_data[179:178];
+    assign base1_skid_data_kind_eq = base1_skid_data_kind == 2'd3;
+    assign base1_skid_data_rec = base1_skid_data[149:0];
+    assign base1_skid_data_ref = base1_skid_data[177:150];
+    assign base2_skid_data_kind = base2_skid_data[179:178];
+    assign base2_skid_data_kind_eq = base2_skid_data_kind == 2'd3;
+    assign base2_skid_data_rec = base2_skid_data[149:0];
+    assign base2_skid_data_ref = base2_skid_data[177:150];
+    assign base3_skid_data_kind = base3_skid_data[179:178];
+    assign base3_skid_data_kind_eq = base3_skid_data_kind == 2'd3;
+    assign base3_skid_data_rec = base3_skid_data[149:0];
+    assign base3_skid_data_ref = base3_skid_data[177:150];
+    assign base4_skid_data_kind = base4_skid_data[179:178];
+    assign base4_skid_data_kind_eq = base4_skid_data_kind == 2'd3;
+    assign base4_skid_data_rec = base4_skid_data[149:0];
+    assign base4_skid_data_ref = base4_skid_data[177:150];
+    assign base5_skid_data_kind = base5_skid_data[179:178];
+    assign base5_skid_data_kind_eq = base5_skid_data_kind == 2'd3;
+    assign base5_skid_data_rec = base5_skid_data[149:0];
+    assign base5_skid_data_ref = base5_skid_data[177:150];
+    assign base6_skid_data_kind = base6_skid_data[179:178];
+    assign base6_skid_data_kind_eq = base6_skid_data_kind == 2'd3;
+    assign base6_skid_data_rec = base6_skid_data[149:0];
+    assign base6_skid_data_ref = base6_skid_data[177:150];
+    assign base7_skid_data_kind = base7_skid_data[179:178];
+    assign base7_skid_data_kind_eq = base7_skid_data_kind == 2'd3;
+    assign base7_skid_data_rec = base7_skid_data[149:0];
+    assign base7_skid_data_ref = base7_skid_data[177:150];
+    assign base8_skid_data_kind = base8_skid_data[179:178];
+    assign base8_skid_data_kind_eq = base8_skid_data_kind == 2'd3;
+    assign base8_skid_data_rec = base8_skid_data[149:0];
+    assign base8_skid_data_ref = base8_skid_data[177:150];
+    assign base9_skid_data_kind = base9_skid_data[179:178];
+    assign base9_skid_data_kind_eq = base9_skid_data_kind == 2'd3;
+    assign base9_skid_data_rec = base9_skid_data[149:0];
+    assign base9_skid_data_ref = base9_skid_data[177:150];
+    assign base10_skid_data_kind = base10_skid_data[179:178];
+    assign base10_skid_data_kind_eq = base10_skid_data_kind == 2'd3;
+    assign base10_skid_data_rec = base10_skid_data[149:0];
+    assign base10_skid_data_ref = base10_skid_data[177:150];
+    assign base11_skid_data_kind = base11_skid_data[179:178];
+    assign base11_skid_data_kind_eq = base11_skid_data_kind == 2'd3;
+    assign base11_skid_data_rec = base11_skid_data[149:0];
+    assign base11_skid_data_ref = base11_skid_data[177:150];
+    assign base12_skid_data_kind = base12_skid_data[179:178];
+    assign base12_skid_data_kind_eq = base12_skid_data_kind == 2'd3;
+    assign base12_skid_data_rec = base12_skid_data[149:0];
+    assign base12_skid_data_ref = base12_skid_data[177:150];
+    assign base13_skid_data_kind = base13_skid_data[179:178];
+    assign base13_skid_data_kind_eq = base13_skid_data_kind == 2'd3;
+    assign base13_skid_data_rec = base13_skid_data[149:0];
+    assign base13_skid_data_ref = base13_skid_data[177:150];
+    assign base14_skid_data_kind = base14_skid_data[179:178];
+    assign base14_skid_data_kind_eq = base14_skid_data_kind == 2'd3;
+    assign base14_skid_data_rec = base14_skid_data[149:0];
+    assign base14_skid_data_ref = base14_skid_data[177:150];
+    assign base15_skid_data_kind = base15_skid_data[179:178];
+    assign base15_skid_data_kind_eq = base15_skid_data_kind == 2'd3;
+    assign base15_skid_data_rec = base15_skid_data[149:0];
+    assign base15_skid_data_ref = base15_skid_data[177:150];
+    assign base16_skid_data_kind = base16_skid_data[179:178];
+    assign base16_skid_data_kind_eq = base16_skid_data_kind == 2'd3;
+    assign base16_skid_data_rec = base16_skid_data[149:0];
+    assign base16_skid_data_ref = base16_skid_data[177:150];
+    assign base16_skid_data_kind_mux = base16_skid_data_kind_eq ? 2'd3 : ((base16_skid_data_kind == 2'd0) ? 2'd1 : 2'd2);
+    assign u_group0_rec = u_group0_out_data[149:0];
+    assign u_group0_end = u_group0_out_data[150];
+    assign u_group0_err = u_group0_out_data[151];
+    assign u_group0_rec_x_morton = {u_group0_out_data[53], u_group0_out_data[37], u_group0_out_data[21], u_group0_out_data[52], u_group0_out_data[36], u_group0_out_data[20], u_group0_out_data[51], u_group0_out_data[35], u_group0_out_data[19], u_group0_out_data[50], u_group0_out_data[34], u_group0_out_data[18], u_group0_out_data[49], u_group0_out_data[33], u_group0_out_data[17], u_group0_out_data[48], u_group0_out_data[32], u_group0_out_data[16], u_group0_out_data[47], u_group0_out_data[31], u_group0_out_data[15], u_group0_out_data[46], u_group0_out_data[30], u_group0_out_data[14], u_group0_out_data[45], u_group0_out_data[29], u_group0_out_data[13], u_group0_out_data[44], u_group0_out_data[28], u_group0_out_data[12], u_group0_out_data[43], u_group0_out_data[27], u_group0_out_data[11], u_group0_out_data[42], u_group0_out_data[26], u_group0_out_data[10], u_group0_out_data[41], u_group0_out_data[25], u_group0_out_data[9], u_group0_out_data[40], u_group0_out_data[24], u_group0_out_data[8], u_group0_out_data[39], u_group0_out_data[23], u_group0_out_data[7], u_group0_out_data[38], u_group0_out_data[22], u_group0_out_data[6]};
+    assign base0_skid_data_rec_x_morton = {base0_skid_data[53], base0_skid_data[37], base0_skid_data[21], base0_skid_data[52], base0_skid_data[36], base0_skid_data[20], base0_skid_data[51], base0_skid_data[35], base0_skid_data[19], base0_skid_data[50], base0_skid_data[34], base0_skid_data[18], base0_skid_data[49], base0_skid_data[33], base0_skid_data[17], base0_skid_data[48], base0_skid_data[32], base0_skid_data[16], base0_skid_data[47], base0_skid_data[31], base0_skid_data[15], base0_skid_data[46], base0_skid_data[30], base0_skid_data[14], base0_skid_data[45], base0_skid_data[29], base0_skid_data[13], base0_skid_data[44], base0_skid_data[28], base0_skid_data[12], base0_skid_data[43], base0_skid_data[27], base0_skid_data[11], base0_skid_data[42], base0_skid_data[26], base0_skid_data[10], base0_skid_data[41], base0_skid_data[25], base0_skid_data[9], base0_skid_data[40], base0_skid_data[24], base0_skid_data[8], base0_skid_data[39], base0_skid_data[23], base0_skid_data[7], base0_skid_data[38], base0_skid_data[22], base0_skid_data[6]};
+    assign l0_end = u_group0_end & base0_skid_data_kind_eq;
+    assign l0_take_group = (~u_group0_end) & (base0_skid_data_kind_eq | (u_group0_rec_x_morton <= base0_skid_data_rec_x_morton));
     assign l0_valid = u_group0_out_valid & base0_skid_valid;
-    assign l0_take_group_mux = l0_take_group ? u_group0_out_data[149:0] : base0_skid_data[149:0];
-    assign l0_take_group_mux_1 = l0_take_group ? 28'd0 : base0_skid_data[177:150];
-    assign l0_take_group_mux_2 = l0_take_group ? 2'd0 : base0_skid_data_mux_1;
-    assign l0_take_group_and = l0_take_group & u_group0_out_data[151];
+    assign l0_take_group_mux = l0_take_group ? u_group0_rec : base0_skid_data_rec;
+    assign l0_take_group_mux_1 = l0_take_group ? 2'd0 : (base0_skid_data_kind_eq ? 2'd3 : ((base0_skid_data_kind == 2'd0) ? 2'd1 : 2'd2));
     assign l0_take_group_or = l0_take_group | l0_end;
     assign l0_take_group_not = ~l0_take_group;
-    assign u_group1_cat = {u_group1_out_data[53], u_group1_out_data[37], u_group1_out_data[21], u_group1_out_data[52], u_group1_out_data[36], u_group1_out_data[20], u_group1_out_data[51], u_group1_out_data[35], u_group1_out_data[19], u_group1_out_data[50], u_group1_out_data[34], u_group1_out_data[18], u_group1_out_data[49], u_group1_out_data[33], u_group1_out_data[17], u_group1_out_data[48], u_group1_out_data[32], u_group1_out_data[16], u_group1_out_data[47], u_group1_out_data[31], u_group1_out_data[15], u_group1_out_data[46], u_group1_out_data[30], u_group1_out_data[14], u_group1_out_data[45], u_group1_out_data[29], u_group1_out_data[13], u_group1_out_data[44], u_group1_out_data[28], u_group1_out_data[12], u_group1_out_data[43], u_group1_out_data[27], u_group1_out_data[11], u_group1_out_data[42], u_group1_out_data[26], u_group1_out_data[10], u_group1_out_data[41], u_group1_out_data[25], u_group1_out_data[9], u_group1_out_data[40], u_group1_out_data[24], u_group1_out_data[8], u_group1_out_data[39], u_group1_out_data[23], u_group1_out_data[7], u_group1_out_data[38], u_group1_out_data[22], u_group1_out_data[6]};
-    assign base1_skid_data_cat = {base1_skid_data[53], base1_skid_data[37], base1_skid_data[21], base1_skid_data[52], base1_skid_data[36], base1_skid_data[20], base1_skid_data[51], base1_skid_data[35], base1_skid_data[19], base1_skid_data[50], base1_skid_data[34], base1_skid_data[18], base1_skid_data[49], base1_skid_data[33], base1_skid_data[17], base1_skid_data[48], base1_skid_data[32], base1_skid_data[16], base1_skid_data[47], base1_skid_data[31], base1_skid_data[15], base1_skid_data[46], base1_skid_data[30], base1_skid_data[14], base1_skid_data[45], base1_skid_data[29], base1_skid_data[13], base1_skid_data[44], base1_skid_data[28], base1_skid_data[12], base1_skid_data[43], base1_skid_data[27], base1_skid_data[11], base1_skid_data[42], base1_skid_data[26], base1_skid_data[10], base1_skid_data[41], base1_skid_data[25], base1_skid_data[9], base1_skid_data[40], base1_skid_data[24], base1_skid_data[8], base1_skid_data[39], base1_skid_data[23], base1_skid_data[7], base1_skid_data[38], base1_skid_data[22], base1_skid_data[6]};
-    assign u_group1_le = u_group1_cat <= base1_skid_data_cat;
-    assign l1_end = u_group1_out_data[150] & base1_skid_data_eq;
-    assign u_group1_not = ~u_group1_out_data[150];
-    assign base1_skid_data_or = base1_skid_data_eq | u_group1_le;
-    assign l1_take_group = u_group1_not & base1_skid_data_or;
+    assign u_group1_rec = u_group1_out_data[149:0];
+    assign u_group1_end = u_group1_out_data[150];
+    assign u_group1_err = u_group1_out_data[151];
+    assign u_group1_rec_x_morton = {u_group1_out_data[53], u_group1_out_data[37], u_group1_out_data[21], u_group1_out_data[52], u_group1_out_data[36], u_group1_out_data[20], u_group1_out_data[51], u_group1_out_data[35], u_group1_out_data[19], u_group1_out_data[50], u_group1_out_data[34], u_group1_out_data[18], u_group1_out_data[49], u_group1_out_data[33], u_group1_out_data[17], u_group1_out_data[48], u_group1_out_data[32], u_group1_out_data[16], u_group1_out_data[47], u_group1_out_data[31], u_group1_out_data[15], u_group1_out_data[46], u_group1_out_data[30], u_group1_out_data[14], u_group1_out_data[45], u_group1_out_data[29], u_group1_out_data[13], u_group1_out_data[44], u_group1_out_data[28], u_group1_out_data[12], u_group1_out_data[43], u_group1_out_data[27], u_group1_out_data[11], u_group1_out_data[42], u_group1_out_data[26], u_group1_out_data[10], u_group1_out_data[41], u_group1_out_data[25], u_group1_out_data[9], u_group1_out_data[40], u_group1_out_data[24], u_group1_out_data[8], u_group1_out_data[39], u_group1_out_data[23], u_group1_out_data[7], u_group1_out_data[38], u_group1_out_data[22], u_group1_out_data[6]};
+    assign base1_skid_data_rec_x_morton = {base1_skid_data[53], base1_skid_data[37], base1_skid_data[21], base1_skid_data[52], base1_skid_data[36], base1_skid_data[20], base1_skid_data[51], base1_skid_data[35], base1_skid_data[19], base1_skid_data[50], base1_skid_data[34], base1_skid_data[18], base1_skid_data[49], base1_skid_data[33], base1_skid_data[17], base1_skid_data[48], base1_skid_data[32], base1_skid_data[16], base1_skid_data[47], base1_skid_data[31], base1_skid_data[15], base1_skid_data[46], base1_skid_data[30], base1_skid_data[14], base1_skid_data[45], base1_skid_data[29], base1_skid_data[13], base1_skid_data[44], base1_skid_data[28], base1_skid_data[12], base1_skid_data[43], base1_skid_data[27], base1_skid_data[11], base1_skid_data[42], base1_skid_data[26], base1_skid_data[10], base1_skid_data[41], base1_skid_data[25], base1_skid_data[9], base1_skid_data[40], base1_skid_data[24], base1_skid_data[8], base1_skid_data[39], base1_skid_data[23], base1_skid_data[7], base1_skid_data[38], base1_skid_data[22], base1_skid_data[6]};
+    assign l1_end = u_group1_end & base1_skid_data_kind_eq;
+    assign l1_take_group = (~u_group1_end) & (base1_skid_data_kind_eq | (u_group1_rec_x_morton <= base1_skid_data_rec_x_morton));
     assign l1_valid = u_group1_out_valid & base1_skid_valid;
-    assign l1_take_group_mux = l1_take_group ? u_group1_out_data[149:0] : base1_skid_data[149:0];
-    assign l1_take_group_mux_1 = l1_take_group ? 28'd0 : base1_skid_data[177:150];
-    assign l1_take_group_mux_2 = l1_take_group ? 2'd0 : base1_skid_data_mux_1;
-    assign l1_take_group_and = l1_take_group & u_group1_out_data[151];
-    assign l1_take_group_or = l1_take_group | l1_end;
+    assign l1_take_group_mux = l1_take_group ? u_group1_rec : base1_skid_data_rec;
+    assign l1_take_group_mux_1 = l1_take_group ? 2'd0 : (base1_skid_data_kind_eq ? 2'd3 : ((base1_skid_data_kind == 2'd0) ? 2'd1 : 2'd2));
     assign l1_take_group_not = ~l1_take_group;
-    assign u_group2_cat = {u_group2_out_data[53], u_group2_out_data[37], u_group2_out_data[21], u_group2_out_data[52], u_group2_out_data[36], u_group2_out_data[20], u_group2_out_data[51], u_group2_out_data[35], u_group2_out_data[19], u_group2_out_data[50], u_group2_out_data[34], u_group2_out_data[18], u_group2_out_data[49], u_group2_out_data[33], u_group2_out_data[17], u_group2_out_data[48], u_group2_out_data[32], u_group2_out_data[16], u_group2_out_data[47], u_group2_out_data[31], u_group2_out_data[15], u_group2_out_data[46], u_group2_out_data[30], u_group2_out_data[14], u_group2_out_data[45], u_group2_out_data[29], u_group2_out_data[13], u_group2_out_data[44], u_group2_out_data[28], u_group2_out_data[12], u_group2_out_data[43], u_group2_out_data[27], u_group2_out_data[11], u_group2_out_data[42], u_group2_out_data[26], u_group2_out_data[10], u_group2_out_data[41], u_group2_out_data[25], u_group2_out_data[9], u_group2_out_data[40], u_group2_out_data[24], u_group2_out_data[8], u_group2_out_data[39], u_group2_out_data[23], u_group2_out_data[7], u_group2_out_data[38], u_group2_out_data[22], u_group2_out_data[6]};
-    assign base2_skid_data_cat = {base2_skid_data[53], base2_skid_data[37], base2_skid_data[21], base2_skid_data[52], base2_skid_data[36], base2_skid_data[20], base2_skid_data[51], base2_skid_data[35], base2_skid_data[19], base2_skid_data[50], base2_skid_data[34], base2_skid_data[18], base2_skid_data[49], base2_skid_data[33], base2_skid_data[17], base2_skid_data[48], base2_skid_data[32], base2_skid_data[16], base2_skid_data[47], base2_skid_data[31], base2_skid_data[15], base2_skid_data[46], base2_skid_data[30], base2_skid_data[14], base2_skid_data[45], base2_skid_data[29], base2_skid_data[13], base2_skid_data[44], base2_skid_data[28], base2_skid_data[12], base2_skid_data[43], base2_skid_data[27], base2_skid_data[11], base2_skid_data[42], base2_skid_data[26], base2_skid_data[10], base2_skid_data[41], base2_skid_data[25], base2_skid_data[9], base2_skid_data[40], base2_skid_data[24], base2_skid_data[8], base2_skid_data[39], base2_skid_data[23], base2_skid_data[7], base2_skid_data[38], base2_skid_data[22], base2_skid_data[6]};
-    assign u_group2_le = u_group2_cat <= base2_skid_data_cat;
-    assign l2_end = u_group2_out_data[150] & base2_skid_data_eq;
-    assign u_group2_not = ~u_group2_out_data[150];
-    assign base2_skid_data_or = base2_skid_data_eq | u_group2_le;
-    assign l2_take_group = u_group2_not & base2_skid_data_or;
+    assign u_group2_rec = u_group2_out_data[149:0];
+    assign u_group2_end = u_group2_out_data[150];
+    assign u_group2_err = u_group2_out_data[151];
+    assign u_group2_rec_x_morton = {u_group2_out_data[53], u_group2_out_data[37], u_group2_out_data[21], u_group2_out_data[52], u_group2_out_data[36], u_group2_out_data[20], u_group2_out_data[51], u_group2_out_data[35], u_group2_out_data[19], u_group2_out_data[50], u_group2_out_data[34], u_group2_out_data[18], u_group2_out_data[49], u_group2_out_data[33], u_group2_out_data[17], u_group2_out_data[48], u_group2_out_data[32], u_group2_out_data[16], u_group2_out_data[47], u_group2_out_data[31], u_group2_out_data[15], u_group2_out_data[46], u_group2_out_data[30], u_group2_out_data[14], u_group2_out_data[45], u_group2_out_data[29], u_group2_out_data[13], u_group2_out_data[44], u_group2_out_data[28], u_group2_out_data[12], u_group2_out_data[43], u_group2_out_data[27], u_group2_out_data[11], u_group2_out_data[42], u_group2_out_data[26], u_group2_out_data[10], u_group2_out_data[41], u_group2_out_data[25], u_group2_out_data[9], u_group2_out_data[40], u_group2_out_data[24], u_group2_out_data[8], u_group2_out_data[39], u_group2_out_data[23], u_group2_out_data[7], u_group2_out_data[38], u_group2_out_data[22], u_group2_out_data[6]};
+    assign base2_skid_data_rec_x_morton = {base2_skid_data[53], base2_skid_data[37], base2_skid_data[21], base2_skid_data[52], base2_skid_data[36], base2_skid_data[20], base2_skid_data[51], base2_skid_data[35], base2_skid_data[19], base2_skid_data[50], base2_skid_data[34], base2_skid_data[18], base2_skid_data[49], base2_skid_data[33], base2_skid_data[17], base2_skid_data[48], base2_skid_data[32], base2_skid_data[16], base2_skid_data[47], base2_skid_data[31], base2_skid_data[15], base2_skid_data[46], base2_skid_data[30], base2_skid_data[14], base2_skid_data[45], base2_skid_data[29], base2_skid_data[13], base2_skid_data[44], base2_skid_data[28], base2_skid_data[12], base2_skid_data[43], base2_skid_data[27], base2_skid_data[11], base2_skid_data[42], base2_skid_data[26], base2_skid_data[10], base2_skid_data[41], base2_skid_data[25], base2_skid_data[9], base2_skid_data[40], base2_skid_data[24], base2_skid_data[8], base2_skid_data[39], base2_skid_data[23], base2_skid_data[7], base2_skid_data[38], base2_skid_data[22], base2_skid_data[6]};
+    assign l2_end = u_group2_end & base2_skid_data_kind_eq;
+    assign l2_take_group = (~u_group2_end) & (base2_skid_data_kind_eq | (u_group2_rec_x_morton <= base2_skid_data_rec_x_morton));
     assign l2_valid = u_group2_out_valid & base2_skid_valid;
-    assign l2_take_group_mux = l2_take_group ? u_group2_out_data[149:0] : base2_skid_data[149:0];
-    assign l2_take_group_mux_1 = l2_take_group ? 28'd0 : base2_skid_data[177:150];
-    assign l2_take_group_mux_2 = l2_take_group ? 2'd0 : base2_skid_data_mux_1;
-    assign l2_take_group_and = l2_take_group & u_group2_out_data[151];
-    assign l2_take_group_or = l2_take_group | l2_end;
+    assign l2_take_group_mux = l2_take_group ? u_group2_rec : base2_skid_data_rec;
+    assign l2_take_group_mux_1 = l2_take_group ? 2'd0 : (base2_skid_data_kind_eq ? 2'd3 : ((base2_skid_data_kind == 2'd0) ? 2'd1 : 2'd2));
     assign l2_take_group_not = ~l2_take_group;
-    assign u_group3_cat = {u_group3_out_data[53], u_group3_out_data[37], u_group3_out_data[21], u_group3_out_data[52], u_group3_out_data[36], u_group3_out_data[20], u_group3_out_data[51], u_group3_out_data[35], u_group3_out_data[19], u_group3_out_data[50], u_group3_out_data[34], u_group3_out_data[18], u_group3_out_data[49], u_group3_out_data[33], u_group3_out_data[17], u_group3_out_data[48], u_group3_out_data[32], u_group3_out_data[16], u_group3_out_data[47], u_group3_out_data[31], u_group3_out_data[15], u_group3_out_data[46], u_group3_out_data[30], u_group3_out_data[14], u_group3_out_data[45], u_group3_out_data[29], u_group3_out_data[13], u_group3_out_data[44], u_group3_out_data[28], u_group3_out_data[12], u_group3_out_data[43], u_group3_out_data[27], u_group3_out_data[11], u_group3_out_data[42], u_group3_out_data[26], u_group3_out_data[10], u_group3_out_data[41], u_group3_out_data[25], u_group3_out_data[9], u_group3_out_data[40], u_group3_out_data[24], u_group3_out_data[8], u_group3_out_data[39], u_group3_out_data[23], u_group3_out_data[7], u_group3_out_data[38], u_group3_out_data[22], u_group3_out_data[6]};
-    assign base3_skid_data_cat = {base3_skid_data[53], base3_skid_data[37], base3_skid_data[21], base3_skid_data[52], base3_skid_data[36], base3_skid_data[20], base3_skid_data[51], base3_skid_data[35], base3_skid_data[19], base3_skid_data[50], base3_skid_data[34], base3_skid_data[18], base3_skid_data[49], base3_skid_data[33], base3_skid_data[17], base3_skid_data[48], base3_skid_data[32], base3_skid_data[16], base3_skid_data[47], base3_skid_data[31], base3_skid_data[15], base3_skid_data[46], base3_skid_data[30], base3_skid_data[14], base3_skid_data[45], base3_skid_data[29], base3_skid_data[13], base3_skid_data[44], base3_skid_data[28], base3_skid_data[12], base3_skid_data[43], base3_skid_data[27], base3_skid_data[11], base3_skid_data[42], base3_skid_data[26], base3_skid_data[10], base3_skid_data[41], base3_skid_data[25], base3_skid_data[9], base3_skid_data[40], base3_skid_data[24], base3_skid_data[8], base3_skid_data[39], base3_skid_data[23], base3_skid_data[7], base3_skid_data[38], base3_skid_data[22], base3_skid_data[6]};
-    assign u_group3_le = u_group3_cat <= base3_skid_data_cat;
-    assign l3_end = u_group3_out_data[150] & base3_skid_data_eq;
-    assign u_group3_not = ~u_group3_out_data[150];
-    assign base3_skid_data_or = base3_skid_data_eq | u_group3_le;
-    assign l3_take_group = u_group3_not & base3_skid_data_or;
+    assign u_group3_rec = u_group3_out_data[149:0];
+    assign u_group3_end = u_group3_out_data[150];
+    assign u_group3_err = u_group3_out_data[151];
+    assign u_group3_rec_x_morton = {u_group3_out_data[53], u_group3_out_data[37], u_group3_out_data[21], u_group3_out_data[52], u_group3_out_data[36], u_group3_out_data[20], u_group3_out_data[51], u_group3_out_data[35], u_group3_out_data[19], u_group3_out_data[50], u_group3_out_data[34], u_group3_out_data[18], u_group3_out_data[49], u_group3_out_data[33], u_group3_out_data[17], u_group3_out_data[48], u_group3_out_data[32], u_group3_out_data[16], u_group3_out_data[47], u_group3_out_data[31], u_group3_out_data[15], u_group3_out_data[46], u_group3_out_data[30], u_group3_out_data[14], u_group3_out_data[45], u_group3_out_data[29], u_group3_out_data[13], u_group3_out_data[44], u_group3_out_data[28], u_group3_out_data[12], u_group3_out_data[43], u_group3_out_data[27], u_group3_out_data[11], u_group3_out_data[42], u_group3_out_data[26], u_group3_out_data[10], u_group3_out_data[41], u_group3_out_data[25], u_group3_out_data[9], u_group3_out_data[40], u_group3_out_data[24], u_group3_out_data[8], u_group3_out_data[39], u_group3_out_data[23], u_group3_out_data[7], u_group3_out_data[38], u_group3_out_data[22], u_group3_out_data[6]};
+    assign base3_skid_data_rec_x_morton = {base3_skid_data[53], base3_skid_data[37], base3_skid_data[21], base3_skid_data[52], base3_skid_data[36], base3_skid_data[20], base3_skid_data[51], base3_skid_data[35], base3_skid_data[19], base3_skid_data[50], base3_skid_data[34], base3_skid_data[18], base3_skid_data[49], base3_skid_data[33], base3_skid_data[17], base3_skid_data[48], base3_skid_data[32], base3_skid_data[16], base3_skid_data[47], base3_skid_data[31], base3_skid_data[15], base3_skid_data[46], base3_skid_data[30], base3_skid_data[14], base3_skid_data[45], base3_skid_data[29], base3_skid_data[13], base3_skid_data[44], base3_skid_data[28], base3_skid_data[12], base3_skid_data[43], base3_skid_data[27], base3_skid_data[11], base3_skid_data[42], base3_skid_data[26], base3_skid_data[10], base3_skid_data[41], base3_skid_data[25], base3_skid_data[9], base3_skid_data[40], base3_skid_data[24], base3_skid_data[8], base3_skid_data[39], base3_skid_data[23], base3_skid_data[7], base3_skid_data[38], base3_skid_data[22], base3_skid_data[6]};
+    assign l3_end = u_group3_end & base3_skid_data_kind_eq;
+    assign l3_take_group = (~u_group3_end) & (base3_skid_data_kind_eq | (u_group3_rec_x_morton <= base3_skid_data_rec_x_morton));
     assign l3_valid = u_group3_out_valid & base3_skid_valid;
-    assign l3_take_group_mux = l3_take_group ? u_group3_out_data[149:0] : base3_skid_data[149:0];
-    assign l3_take_group_mux_1 = l3_take_group ? 28'd0 : base3_skid_data[177:150];
-    assign l3_take_group_mux_2 = l3_take_group ? 2'd0 : base3_skid_data_mux_1;
-    assign l3_take_group_and = l3_take_group & u_group3_out_data[151];
-    assign l3_take_group_or = l3_take_group | l3_end;
+    assign l3_take_group_mux = l3_take_group ? u_group3_rec : base3_skid_data_rec;
+    assign l3_take_group_mux_1 = l3_take_group ? 2'd0 : (base3_skid_data_kind_eq ? 2'd3 : ((base3_skid_data_kind == 2'd0) ? 2'd1 : 2'd2));
     assign l3_take_group_not = ~l3_take_group;
-    assign u_group4_cat = {u_group4_out_data[53], u_group4_out_data[37], u_group4_out_data[21], u_group4_out_data[52], u_group4_out_data[36], u_group4_out_data[20], u_group4_out_data[51], u_group4_out_data[35], u_group4_out_data[19], u_group4_out_data[50], u_group4_out_data[34], u_group4_out_data[18], u_group4_out_data[49], u_group4_out_data[33], u_group4_out_data[17], u_group4_out_data[48], u_group4_out_data[32], u_group4_out_data[16], u_group4_out_data[47], u_group4_out_data[31], u_group4_out_data[15], u_group4_out_data[46], u_group4_out_data[30], u_group4_out_data[14], u_group4_out_data[45], u_group4_out_data[29], u_group4_out_data[13], u_group4_out_data[44], u_group4_out_data[28], u_group4_out_data[12], u_group4_out_data[43], u_group4_out_data[27], u_group4_out_data[11], u_group4_out_data[42], u_group4_out_data[26], u_group4_out_data[10], u_group4_out_data[41], u_group4_out_data[25], u_group4_out_data[9], u_group4_out_data[40], u_group4_out_data[24], u_group4_out_data[8], u_group4_out_data[39], u_group4_out_data[23], u_group4_out_data[7], u_group4_out_data[38], u_group4_out_data[22], u_group4_out_data[6]};
-    assign base4_skid_data_cat = {base4_skid_data[53], base4_skid_data[37], base4_skid_data[21], base4_skid_data[52], base4_skid_data[36], base4_skid_data[20], base4_skid_data[51], base4_skid_data[35], base4_skid_data[19], base4_skid_data[50], base4_skid_data[34], base4_skid_data[18], base4_skid_data[49], base4_skid_data[33], base4_skid_data[17], base4_skid_data[48], base4_skid_data[32], base4_skid_data[16], base4_skid_data[47], base4_skid_data[31], base4_skid_data[15], base4_skid_data[46], base4_skid_data[30], base4_skid_data[14], base4_skid_data[45], base4_skid_data[29], base4_skid_data[13], base4_skid_data[44], base4_skid_data[28], base4_skid_data[12], base4_skid_data[43], base4_skid_data[27], base4_skid_data[11], base4_skid_data[42], base4_skid_data[26], base4_skid_data[10], base4_skid_data[41], base4_skid_data[25], base4_skid_data[9], base4_skid_data[40], base4_skid_data[24], base4_skid_data[8], base4_skid_data[39], base4_skid_data[23], base4_skid_data[7], base4_skid_data[38], base4_skid_data[22], base4_skid_data[6]};
-    assign u_group4_le = u_group4_cat <= base4_skid_data_cat;
-    assign l4_end = u_group4_out_data[150] & base4_skid_data_eq;
-    assign u_group4_not = ~u_group4_out_data[150];
-    assign base4_skid_data_or = base4_skid_data_eq | u_group4_le;
-    assign l4_take_group = u_group4_not & base4_skid_data_or;
+    assign u_group4_rec = u_group4_out_data[149:0];
+    assign u_group4_end = u_group4_out_data[150];
+    assign u_group4_err = u_group4_out_data[151];
+    assign u_group4_rec_x_morton = {u_group4_out_data[53], u_group4_out_data[37], u_group4_out_data[21], u_group4_out_data[52], u_group4_out_data[36], u_group4_out_data[20], u_group4_out_data[51], u_group4_out_data[35], u_group4_out_data[19], u_group4_out_data[50], u_group4_out_data[34], u_group4_out_data[18], u_group4_out_data[49], u_group4_out_data[33], u_group4_out_data[17], u_group4_out_data[48], u_group4_out_data[32], u_group4_out_data[16], u_group4_out_data[47], u_group4_out_data[31], u_group4_out_data[15], u_group4_out_data[46], u_group4_out_data[30], u_group4_out_data[14], u_group4_out_data[45], u_group4_out_data[29], u_group4_out_data[13], u_group4_out_data[44], u_group4_out_data[28], u_group4_out_data[12], u_group4_out_data[43], u_group4_out_data[27], u_group4_out_data[11], u_group4_out_data[42], u_group4_out_data[26], u_group4_out_data[10], u_group4_out_data[41], u_group4_out_data[25], u_group4_out_data[9], u_group4_out_data[40], u_group4_out_data[24], u_group4_out_data[8], u_group4_out_data[39], u_group4_out_data[23], u_group4_out_data[7], u_group4_out_data[38], u_group4_out_data[22], u_group4_out_data[6]};
+    assign base4_skid_data_rec_x_morton = {base4_skid_data[53], base4_skid_data[37], base4_skid_data[21], base4_skid_data[52], base4_skid_data[36], base4_skid_data[20], base4_skid_data[51], base4_skid_data[35], base4_skid_data[19], base4_skid_data[50], base4_skid_data[34], base4_skid_data[18], base4_skid_data[49], base4_skid_data[33], base4_skid_data[17], base4_skid_data[48], base4_skid_data[32], base4_skid_data[16], base4_skid_data[47], base4_skid_data[31], base4_skid_data[15], base4_skid_data[46], base4_skid_data[30], base4_skid_data[14], base4_skid_data[45], base4_skid_data[29], base4_skid_data[13], base4_skid_data[44], base4_skid_data[28], base4_skid_data[12], base4_skid_data[43], base4_skid_data[27], base4_skid_data[11], base4_skid_data[42], base4_skid_data[26], base4_skid_data[10], base4_skid_data[41], base4_skid_data[25], base4_skid_data[9], base4_skid_data[40], base4_skid_data[24], base4_skid_data[8], base4_skid_data[39], base4_skid_data[23], base4_skid_data[7], base4_skid_data[38], base4_skid_data[22], base4_skid_data[6]};
+    assign l4_end = u_group4_end & base4_skid_data_kind_eq;
+    assign l4_take_group = (~u_group4_end) & (base4_skid_data_kind_eq | (u_group4_rec_x_morton <= base4_skid_data_rec_x_morton));
     assign l4_valid = u_group4_out_valid & base4_skid_valid;
-    assign l4_take_group_mux = l4_take_group ? u_group4_out_data[149:0] : base4_skid_data[149:0];
-    assign l4_take_group_mux_1 = l4_take_group ? 28'd0 : base4_skid_data[177:150];
-    assign l4_take_group_mux_2 = l4_take_group ? 2'd0 : base4_skid_data_mux_1;
-    assign l4_take_group_and = l4_take_group & u_group4_out_data[151];
-    assign l4_take_group_or = l4_take_group | l4_end;
+    assign l4_take_group_mux = l4_take_group ? u_group4_rec : base4_skid_data_rec;
+    assign l4_take_group_mux_1 = l4_take_group ? 2'd0 : (base4_skid_data_kind_eq ? 2'd3 : ((base4_skid_data_kind == 2'd0) ? 2'd1 : 2'd2));
     assign l4_take_group_not = ~l4_take_group;
-    assign u_group5_cat = {u_group5_out_data[53], u_group5_out_data[37], u_group5_out_data[21], u_group5_out_data[52], u_group5_out_data[36], u_group5_out_data[20], u_group5_out_data[51], u_group5_out_data[35], u_group5_out_data[19], u_group5_out_data[50], u_group5_out_data[34], u_group5_out_data[18], u_group5_out_data[49], u_group5_out_data[33], u_group5_out_data[17], u_group5_out_data[48], u_group5_out_data[32], u_group5_out_data[16], u_group5_out_data[47], u_group5_out_data[31], u_group5_out_data[15], u_group5_out_data[46], u_group5_out_data[30], u_group5_out_data[14], u_group5_out_data[45], u_group5_out_data[29], u_group5_out_data[13], u_group5_out_data[44], u_group5_out_data[28], u_group5_out_data[12], u_group5_out_data[43], u_group5_out_data[27], u_group5_out_data[11], u_group5_out_data[42], u_group5_out_data[26], u_group5_out_data[10], u_group5_out_data[41], u_group5_out_data[25], u_group5_out_data[9], u_group5_out_data[40], u_group5_out_data[24], u_group5_out_data[8], u_group5_out_data[39], u_group5_out_data[23], u_group5_out_data[7], u_group5_out_data[38], u_group5_out_data[22], u_group5_out_data[6]};
-    assign base5_skid_data_cat = {base5_skid_data[53], base5_skid_data[37], base5_skid_data[21], base5_skid_data[52], base5_skid_data[36], base5_skid_data[20], base5_skid_data[51], base5_skid_data[35], base5_skid_data[19], base5_skid_data[50], base5_skid_data[34], base5_skid_data[18], base5_skid_data[49], base5_skid_data[33], base5_skid_data[17], base5_skid_data[48], base5_skid_data[32], base5_skid_data[16], base5_skid_data[47], base5_skid_data[31], base5_skid_data[15], base5_skid_data[46], base5_skid_data[30], base5_skid_data[14], base5_skid_data[45], base5_skid_data[29], base5_skid_data[13], base5_skid_data[44], base5_skid_data[28], base5_skid_data[12], base5_skid_data[43], base5_skid_data[27], base5_skid_data[11], base5_skid_data[42], base5_skid_data[26], base5_skid_data[10], base5_skid_data[41], base5_skid_data[25], base5_skid_data[9], base5_skid_data[40], base5_skid_data[24], base5_skid_data[8], base5_skid_data[39], base5_skid_data[23], base5_skid_data[7], base5_skid_data[38], base5_skid_data[22], base5_skid_data[6]};
-    assign u_group5_le = u_group5_cat <= base5_skid_data_cat;
-    assign l5_end = u_group5_out_data[150] & base5_skid_data_eq;
-    assign u_group5_not = ~u_group5_out_data[150];
-    assign base5_skid_data_or = base5_skid_data_eq | u_group5_le;
-    assign l5_take_group = u_group5_not & base5_skid_data_or;
+    assign u_group5_rec = u_group5_out_data[149:0];
+    assign u_group5_end = u_group5_out_data[150];
+    assign u_group5_err = u_group5_out_data[151];
+    assign u_group5_rec_x_morton = {u_group5_out_data[53], u_group5_out_data[37], u_group5_out_data[21], u_group5_out_data[52], u_group5_out_data[36], u_group5_out_data[20], u_group5_out_data[51], u_group5_out_data[35], u_group5_out_data[19], u_group5_out_data[50], u_group5_out_data[34], u_group5_out_data[18], u_group5_out_data[49], u_group5_out_data[33], u_group5_out_data[17], u_group5_out_data[48], u_group5_out_data[32], u_group5_out_data[16], u_group5_out_data[47], u_group5_out_data[31], u_group5_out_data[15], u_group5_out_data[46], u_group5_out_data[30], u_group5_out_data[14], u_group5_out_data[45], u_group5_out_data[29], u_group5_out_data[13], u_group5_out_data[44], u_group5_out_data[28], u_group5_out_data[12], u_group5_out_data[43], u_group5_out_data[27], u_group5_out_data[11], u_group5_out_data[42], u_group5_out_data[26], u_group5_out_data[10], u_group5_out_data[41], u_group5_out_data[25], u_group5_out_data[9], u_group5_out_data[40], u_group5_out_data[24], u_group5_out_data[8], u_group5_out_data[39], u_group5_out_data[23], u_group5_out_data[7], u_group5_out_data[38], u_group5_out_data[22], u_group5_out_data[6]};
+    assign base5_skid_data_rec_x_morton = {base5_skid_data[53], base5_skid_data[37], base5_skid_data[21], base5_skid_data[52], base5_skid_data[36], base5_skid_data[20], base5_skid_data[51], base5_skid_data[35], base5_skid_data[19], base5_skid_data[50], base5_skid_data[34], base5_skid_data[18], base5_skid_data[49], base5_skid_data[33], base5_skid_data[17], base5_skid_data[48], base5_skid_data[32], base5_skid_data[16], base5_skid_data[47], base5_skid_data[31], base5_skid_data[15], base5_skid_data[46], base5_skid_data[30], base5_skid_data[14], base5_skid_data[45], base5_skid_data[29], base5_skid_data[13], base5_skid_data[44], base5_skid_data[28], base5_skid_data[12], base5_skid_data[43], base5_skid_data[27], base5_skid_data[11], base5_skid_data[42], base5_skid_data[26], base5_skid_data[10], base5_skid_data[41], base5_skid_data[25], base5_skid_data[9], base5_skid_data[40], base5_skid_data[24], base5_skid_data[8], base5_skid_data[39], base5_skid_data[23], base5_skid_data[7], base5_skid_data[38], base5_skid_data[22], base5_skid_data[6]};
+    assign l5_end = u_group5_end & base5_skid_data_kind_eq;
+    assign l5_take_group = (~u_group5_end) & (base5_skid_data_kind_eq | (u_group5_rec_x_morton <= base5_skid_data_rec_x_morton));
     assign l5_valid = u_group5_out_valid & base5_skid_valid;
-    assign l5_take_group_mux = l5_take_group ? u_group5_out_data[149:0] : base5_skid_data[149:0];
-    assign l5_take_group_mux_1 = l5_take_group ? 28'd0 : base5_skid_data[177:150];
-    assign l5_take_group_mux_2 = l5_take_group ? 2'd0 : base5_skid_data_mux_1;
-    assign l5_take_group_and = l5_take_group & u_group5_out_data[151];
-    assign l5_take_group_or = l5_take_group | l5_end;
+    assign l5_take_group_mux = l5_take_group ? u_group5_rec : base5_skid_data_rec;
+    assign l5_take_group_mux_1 = l5_take_group ? 2'd0 : (base5_skid_data_kind_eq ? 2'd3 : ((base5_skid_data_kind == 2'd0) ? 2'd1 : 2'd2));
     assign l5_take_group_not = ~l5_take_group;
-    assign u_group6_cat = {u_group6_out_data[53], u_group6_out_data[37], u_group6_out_data[21], u_group6_out_data[52], u_group6_out_data[36], u_group6_out_data[20], u_group6_out_data[51], u_group6_out_data[35], u_group6_out_data[19], u_group6_out_data[50], u_group6_out_data[34], u_group6_out_data[18], u_group6_out_data[49], u_group6_out_data[33], u_group6_out_data[17], u_group6_out_data[48], u_group6_out_data[32], u_group6_out_data[16], u_group6_out_data[47], u_group6_out_data[31], u_group6_out_data[15], u_group6_out_data[46], u_group6_out_data[30], u_group6_out_data[14], u_group6_out_data[45], u_group6_out_data[29], u_group6_out_data[13], u_group6_out_data[44], u_group6_out_data[28], u_group6_out_data[12], u_group6_out_data[43], u_group6_out_data[27], u_group6_out_data[11], u_group6_out_data[42], u_group6_out_data[26], u_group6_out_data[10], u_group6_out_data[41], u_group6_out_data[25], u_group6_out_data[9], u_group6_out_data[40], u_group6_out_data[24], u_group6_out_data[8], u_group6_out_data[39], u_group6_out_data[23], u_group6_out_data[7], u_group6_out_data[38], u_group6_out_data[22], u_group6_out_data[6]};
-    assign base6_skid_data_cat = {base6_skid_data[53], base6_skid_data[37], base6_skid_data[21], base6_skid_data[52], base6_skid_data[36], base6_skid_data[20], base6_skid_data[51], base6_skid_data[35], base6_skid_data[19], base6_skid_data[50], base6_skid_data[34], base6_skid_data[18], base6_skid_data[49], base6_skid_data[33], base6_skid_data[17], base6_skid_data[48], base6_skid_data[32], base6_skid_data[16], base6_skid_data[47], base6_skid_data[31], base6_skid_data[15], base6_skid_data[46], base6_skid_data[30], base6_skid_data[14], base6_skid_data[45], base6_skid_data[29], base6_skid_data[13], base6_skid_data[44], base6_skid_data[28], base6_skid_data[12], base6_skid_data[43], base6_skid_data[27], base6_skid_data[11], base6_skid_data[42], base6_skid_data[26], base6_skid_data[10], base6_skid_data[41], base6_skid_data[25], base6_skid_data[9], base6_skid_data[40], base6_skid_data[24], base6_skid_data[8], base6_skid_data[39], base6_skid_data[23], base6_skid_data[7], base6_skid_data[38], base6_skid_data[22], base6_skid_data[6]};
-    assign u_group6_le = u_group6_cat <= base6_skid_data_cat;
-    assign l6_end = u_group6_out_data[150] & base6_skid_data_eq;
-    assign u_group6_not = ~u_group6_out_data[150];
-    assign base6_skid_data_or = base6_skid_data_eq | u_group6_le;
-    assign l6_take_group = u_group6_not & base6_skid_data_or;
+    assign u_group6_rec = u_group6_out_data[149:0];
+    assign u_group6_end = u_group6_out_data[150];
+    assign u_group6_err = u_group6_out_data[151];
+    assign u_group6_rec_x_morton = {u_group6_out_data[53], u_group6_out_data[37], u_group6_out_data[21], u_group6_out_data[52], u_group6_out_data[36], u_group6_out_data[20], u_group6_out_data[51], u_group6_out_data[35], u_group6_out_data[19], u_group6_out_data[50], u_group6_out_data[34], u_group6_out_data[18], u_group6_out_data[49], u_group6_out_data[33], u_group6_out_data[17], u_group6_out_data[48], u_group6_out_data[32], u_group6_out_data[16], u_group6_out_data[47], u_group6_out_data[31], u_group6_out_data[15], u_group6_out_data[46], u_group6_out_data[30], u_group6_out_data[14], u_group6_out_data[45], u_group6_out_data[29], u_group6_out_data[13], u_group6_out_data[44], u_group6_out_data[28], u_group6_out_data[12], u_group6_out_data[43], u_group6_out_data[27], u_group6_out_data[11], u_group6_out_data[42], u_group6_out_data[26], u_group6_out_data[10], u_group6_out_data[41], u_group6_out_data[25], u_group6_out_data[9], u_group6_out_data[40], u_group6_out_data[24], u_group6_out_data[8], u_group6_out_data[39], u_group6_out_data[23], u_group6_out_data[7], u_group6_out_data[38], u_group6_out_data[22], u_group6_out_data[6]};
+    assign base6_skid_data_rec_x_morton = {base6_skid_data[53], base6_skid_data[37], base6_skid_data[21], base6_skid_data[52], base6_skid_data[36], base6_skid_data[20], base6_skid_data[51], base6_skid_data[35], base6_skid_data[19], base6_skid_data[50], base6_skid_data[34], base6_skid_data[18], base6_skid_data[49], base6_skid_data[33], base6_skid_data[17], base6_skid_data[48], base6_skid_data[32], base6_skid_data[16], base6_skid_data[47], base6_skid_data[31], base6_skid_data[15], base6_skid_data[46], base6_skid_data[30], base6_skid_data[14], base6_skid_data[45], base6_skid_data[29], base6_skid_data[13], base6_skid_data[44], base6_skid_data[28], base6_skid_data[12], base6_skid_data[43], base6_skid_data[27], base6_skid_data[11], base6_skid_data[42], base6_skid_data[26], base6_skid_data[10], base6_skid_data[41], base6_skid_data[25], base6_skid_data[9], base6_skid_data[40], base6_skid_data[24], base6_skid_data[8], base6_skid_data[39], base6_skid_data[23], base6_skid_data[7], base6_skid_data[38], base6_skid_data[22], base6_skid_data[6]};
+    assign l6_end = u_group6_end & base6_skid_data_kind_eq;
+    assign l6_take_group = (~u_group6_end) & (base6_skid_data_kind_eq | (u_group6_rec_x_morton <= base6_skid_data_rec_x_morton));
     assign l6_valid = u_group6_out_valid & base6_skid_valid;
-    assign l6_take_group_mux = l6_take_group ? u_group6_out_data[149:0] : base6_skid_data[149:0];
-    assign l6_take_group_mux_1 = l6_take_group ? 28'd0 : base6_skid_data[177:150];
-    assign l6_take_group_mux_2 = l6_take_group ? 2'd0 : base6_skid_data_mux_1;
-    assign l6_take_group_and = l6_take_group & u_group6_out_data[151];
-    assign l6_take_group_or = l6_take_group | l6_end;
+    assign l6_take_group_mux = l6_take_group ? u_group6_rec : base6_skid_data_rec;
+    assign l6_take_group_mux_1 = l6_take_group ? 2'd0 : (base6_skid_data_kind_eq ? 2'd3 : ((base6_skid_data_kind == 2'd0) ? 2'd1 : 2'd2));
     assign l6_take_group_not = ~l6_take_group;
-    assign u_group7_cat = {u_group7_out_data[53], u_group7_out_data[37], u_group7_out_data[21], u_group7_out_data[52], u_group7_out_data[36], u_group7_out_data[20], u_group7_out_data[51], u_group7_out_data[35], u_group7_out_data[19], u_group7_out_data[50], u_group7_out_data[34], u_group7_out_data[18], u_group7_out_data[49], u_group7_out_data[33], u_group7_out_data[17], u_group7_out_data[48], u_group7_out_data[32], u_group7_out_data[16], u_group7_out_data[47], u_group7_out_data[31], u_group7_out_data[15], u_group7_out_data[46], u_group7_out_data[30], u_group7_out_data[14], u_group7_out_data[45], u_group7_out_data[29], u_group7_out_data[13], u_group7_out_data[44], u_group7_out_data[28], u_group7_out_data[12], u_group7_out_data[43], u_group7_out_data[27], u_group7_out_data[11], u_group7_out_data[42], u_group7_out_data[26], u_group7_out_data[10], u_group7_out_data[41], u_group7_out_data[25], u_group7_out_data[9], u_group7_out_data[40], u_group7_out_data[24], u_group7_out_data[8], u_group7_out_data[39], u_group7_out_data[23], u_group7_out_data[7], u_group7_out_data[38], u_group7_out_data[22], u_group7_out_data[6]};
-    assign base7_skid_data_cat = {base7_skid_data[53], base7_skid_data[37], base7_skid_data[21], base7_skid_data[52], base7_skid_data[36], base7_skid_data[20], base7_skid_data[51], base7_skid_data[35], base7_skid_data[19], base7_skid_data[50], base7_skid_data[34], base7_skid_data[18], base7_skid_data[49], base7_skid_data[33], base7_skid_data[17], base7_skid_data[48], base7_skid_data[32], base7_skid_data[16], base7_skid_data[47], base7_skid_data[31], base7_skid_data[15], base7_skid_data[46], base7_skid_data[30], base7_skid_data[14], base7_skid_data[45], base7_skid_data[29], base7_skid_data[13], base7_skid_data[44], base7_skid_data[28], base7_skid_data[12], base7_skid_data[43], base7_skid_data[27], base7_skid_data[11], base7_skid_data[42], base7_skid_data[26], base7_skid_data[10], base7_skid_data[41], base7_skid_data[25], base7_skid_data[9], base7_skid_data[40], base7_skid_data[24], base7_skid_data[8], base7_skid_data[39], base7_skid_data[23], base7_skid_data[7], base7_skid_data[38], base7_skid_data[22], base7_skid_data[6]};
-    assign u_group7_le = u_group7_cat <= base7_skid_data_cat;
-    assign l7_end = u_group7_out_data[150] & base7_skid_data_eq;
-    assign u_group7_not = ~u_group7_out_data[150];
-    assign base7_skid_data_or = base7_skid_data_eq | u_group7_le;
-    assign l7_take_group = u_group7_not & base7_skid_data_or;
+    assign u_group7_rec = u_group7_out_data[149:0];
+    assign u_group7_end = u_group7_out_data[150];
+    assign u_group7_err = u_group7_out_data[151];
+    assign u_group7_rec_x_morton = {u_group7_out_data[53], u_group7_out_data[37], u_group7_out_data[21], u_group7_out_data[52], u_group7_out_data[36], u_group7_out_data[20], u_group7_out_data[51], u_group7_out_data[35], u_group7_out_data[19], u_group7_out_data[50], u_group7_out_data[34], u_group7_out_data[18], u_group7_out_data[49], u_group7_out_data[33], u_group7_out_data[17], u_group7_out_data[48], u_group7_out_data[32], u_group7_out_data[16], u_group7_out_data[47], u_group7_out_data[31], u_group7_out_data[15], u_group7_out_data[46], u_group7_out_data[30], u_group7_out_data[14], u_group7_out_data[45], u_group7_out_data[29], u_group7_out_data[13], u_group7_out_data[44], u_group7_out_data[28], u_group7_out_data[12], u_group7_out_data[43], u_group7_out_data[27], u_group7_out_data[11], u_group7_out_data[42], u_group7_out_data[26], u_group7_out_data[10], u_group7_out_data[41], u_group7_out_data[25], u_group7_out_data[9], u_group7_out_data[40], u_group7_out_data[24], u_group7_out_data[8], u_group7_out_data[39], u_group7_out_data[23], u_group7_out_data[7], u_group7_out_data[38], u_group7_out_data[22], u_group7_out_data[6]};
+    assign base7_skid_data_rec_x_morton = {base7_skid_data[53], base7_skid_data[37], base7_skid_data[21], base7_skid_data[52], base7_skid_data[36], base7_skid_data[20], base7_skid_data[51], base7_skid_data[35], base7_skid_data[19], base7_skid_data[50], base7_skid_data[34], base7_skid_data[18], base7_skid_data[49], base7_skid_data[33], base7_skid_data[17], base7_skid_data[48], base7_skid_data[32], base7_skid_data[16], base7_skid_data[47], base7_skid_data[31], base7_skid_data[15], base7_skid_data[46], base7_skid_data[30], base7_skid_data[14], base7_skid_data[45], base7_skid_data[29], base7_skid_data[13], base7_skid_data[44], base7_skid_data[28], base7_skid_data[12], base7_skid_data[43], base7_skid_data[27], base7_skid_data[11], base7_skid_data[42], base7_skid_data[26], base7_skid_data[10], base7_skid_data[41], base7_skid_data[25], base7_skid_data[9], base7_skid_data[40], base7_skid_data[24], base7_skid_data[8], base7_skid_data[39], base7_skid_data[23], base7_skid_data[7], base7_skid_data[38], base7_skid_data[22], base7_skid_data[6]};
+    assign l7_end = u_group7_end & base7_skid_data_kind_eq;
+    assign l7_take_group = (~u_group7_end) & (base7_skid_data_kind_eq | (u_group7_rec_x_morton <= base7_skid_data_rec_x_morton));
     assign l7_valid = u_group7_out_valid & base7_skid_valid;
-    assign l7_take_group_mux = l7_take_group ? u_group7_out_data[149:0] : base7_skid_data[149:0];
-    assign l7_take_group_mux_1 = l7_take_group ? 28'd0 : base7_skid_data[177:150];
-    assign l7_take_group_mux_2 = l7_take_group ? 2'd0 : base7_skid_data_mux_1;
-    assign l7_take_group_and = l7_take_group & u_group7_out_data[151];
-    assign l7_take_group_or = l7_take_group | l7_end;
+    assign l7_take_group_mux = l7_take_group ? u_group7_rec : base7_skid_data_rec;
+    assign l7_take_group_mux_1 = l7_take_group ? 2'd0 : (base7_skid_data_kind_eq ? 2'd3 : ((base7_skid_data_kind == 2'd0) ? 2'd1 : 2'd2));
     assign l7_take_group_not = ~l7_take_group;
-    assign u_group8_cat = {u_group8_out_data[53], u_group8_out_data[37], u_group8_out_data[21], u_group8_out_data[52], u_group8_out_data[36], u_group8_out_data[20], u_group8_out_data[51], u_group8_out_data[35], u_group8_out_data[19], u_group8_out_data[50], u_group8_out_data[34], u_group8_out_data[18], u_group8_out_data[49], u_group8_out_data[33], u_group8_out_data[17], u_group8_out_data[48], u_group8_out_data[32], u_group8_out_data[16], u_group8_out_data[47], u_group8_out_data[31], u_group8_out_data[15], u_group8_out_data[46], u_group8_out_data[30], u_group8_out_data[14], u_group8_out_data[45], u_group8_out_data[29], u_group8_out_data[13], u_group8_out_data[44], u_group8_out_data[28], u_group8_out_data[12], u_group8_out_data[43], u_group8_out_data[27], u_group8_out_data[11], u_group8_out_data[42], u_group8_out_data[26], u_group8_out_data[10], u_group8_out_data[41], u_group8_out_data[25], u_group8_out_data[9], u_group8_out_data[40], u_group8_out_data[24], u_group8_out_data[8], u_group8_out_data[39], u_group8_out_data[23], u_group8_out_data[7], u_group8_out_data[38], u_group8_out_data[22], u_group8_out_data[6]};
-    assign base8_skid_data_cat = {base8_skid_data[53], base8_skid_data[37], base8_skid_data[21], base8_skid_data[52], base8_skid_data[36], base8_skid_data[20], base8_skid_data[51], base8_skid_data[35], base8_skid_data[19], base8_skid_data[50], base8_skid_data[34], base8_skid_data[18], base8_skid_data[49], base8_skid_data[33], base8_skid_data[17], base8_skid_data[48], base8_skid_data[32], base8_skid_data[16], base8_skid_data[47], base8_skid_data[31], base8_skid_data[15], base8_skid_data[46], base8_skid_data[30], base8_skid_data[14], base8_skid_data[45], base8_skid_data[29], base8_skid_data[13], base8_skid_data[44], base8_skid_data[28], base8_skid_data[12], base8_skid_data[43], base8_skid_data[27], base8_skid_data[11], base8_skid_data[42], base8_skid_data[26], base8_skid_data[10], base8_skid_data[41], base8_skid_data[25], base8_skid_data[9], base8_skid_data[40], base8_skid_data[24], base8_skid_data[8], base8_skid_data[39], base8_skid_data[23], base8_skid_data[7], base8_skid_data[38], base8_skid_data[22], base8_skid_data[6]};
-    assign u_group8_le = u_group8_cat <= base8_skid_data_cat;
-    assign l8_end = u_group8_out_data[150] & base8_skid_data_eq;
-    assign u_group8_not = ~u_group8_out_data[150];
-    assign base8_skid_data_or = base8_skid_data_eq | u_group8_le;
-    assign l8_take_group = u_group8_not & base8_skid_data_or;
+    assign u_group8_rec = u_group8_out_data[149:0];
+    assign u_group8_end = u_group8_out_data[150];
+    assign u_group8_err = u_group8_out_data[151];
+    assign u_group8_rec_x_morton = {u_group8_out_data[53], u_group8_out_data[37], u_group8_out_data[21], u_group8_out_data[52], u_group8_out_data[36], u_group8_out_data[20], u_group8_out_data[51], u_group8_out_data[35], u_group8_out_data[19], u_group8_out_data[50], u_group8_out_data[34], u_group8_out_data[18], u_group8_out_data[49], u_group8_out_data[33], u_group8_out_data[17], u_group8_out_data[48], u_group8_out_data[32], u_group8_out_data[16], u_group8_out_data[47], u_group8_out_data[31], u_group8_out_data[15], u_group8_out_data[46], u_group8_out_data[30], u_group8_out_data[14], u_group8_out_data[45], u_group8_out_data[29], u_group8_out_data[13], u_group8_out_data[44], u_group8_out_data[28], u_group8_out_data[12], u_group8_out_data[43], u_group8_out_data[27], u_group8_out_data[11], u_group8_out_data[42], u_group8_out_data[26], u_group8_out_data[10], u_group8_out_data[41], u_group8_out_data[25], u_group8_out_data[9], u_group8_out_data[40], u_group8_out_data[24], u_group8_out_data[8], u_group8_out_data[39], u_group8_out_data[23], u_group8_out_data[7], u_group8_out_data[38], u_group8_out_data[22], u_group8_out_data[6]};
+    assign base8_skid_data_rec_x_morton = {base8_skid_data[53], base8_skid_data[37], base8_skid_data[21], base8_skid_data[52], base8_skid_data[36], base8_skid_data[20], base8_skid_data[51], base8_skid_data[35], base8_skid_data[19], base8_skid_data[50], base8_skid_data[34], base8_skid_data[18], base8_skid_data[49], base8_skid_data[33], base8_skid_data[17], base8_skid_data[48], base8_skid_data[32], base8_skid_data[16], base8_skid_data[47], base8_skid_data[31], base8_skid_data[15], base8_skid_data[46], base8_skid_data[30], base8_skid_data[14], base8_skid_data[45], base8_skid_data[29], base8_skid_data[13], base8_skid_data[44], base8_skid_data[28], base8_skid_data[12], base8_skid_data[43], base8_skid_data[27], base8_skid_data[11], base8_skid_data[42], base8_skid_data[26], base8_skid_data[10], base8_skid_data[41], base8_skid_data[25], base8_skid_data[9], base8_skid_data[40], base8_skid_data[24], base8_skid_data[8], base8_skid_data[39], base8_skid_data[23], base8_skid_data[7], base8_skid_data[38], base8_skid_data[22], base8_skid_data[6]};
+    assign l8_end = u_group8_end & base8_skid_data_kind_eq;
+    assign l8_take_group = (~u_group8_end) & (base8_skid_data_kind_eq | (u_group8_rec_x_morton <= base8_skid_data_rec_x_morton));
     assign l8_valid = u_group8_out_valid & base8_skid_valid;
-    assign l8_take_group_mux = l8_take_group ? u_group8_out_data[149:0] : base8_skid_data[149:0];
-    assign l8_take_group_mux_1 = l8_take_group ? 28'd0 : base8_skid_data[177:150];
-    assign l8_take_group_mux_2 = l8_take_group ? 2'd0 : base8_skid_data_mux_1;
-    assign l8_take_group_and = l8_take_group & u_group8_out_data[151];
-    assign l8_take_group_or = l8_take_group | l8_end;
+    assign l8_take_group_mux = l8_take_group ? u_group8_rec : base8_skid_data_rec;
+    assign l8_take_group_mux_1 = l8_take_group ? 2'd0 : (base8_skid_data_kind_eq ? 2'd3 : ((base8_skid_data_kind == 2'd0) ? 2'd1 : 2'd2));
     assign l8_take_group_not = ~l8_take_group;
-    assign u_group9_cat = {u_group9_out_data[53], u_group9_out_data[37], u_group9_out_data[21], u_group9_out_data[52], u_group9_out_data[36], u_group9_out_data[20], u_group9_out_data[51], u_group9_out_data[35], u_group9_out_data[19], u_group9_out_data[50], u_group9_out_data[34], u_group9_out_data[18], u_group9_out_data[49], u_group9_out_data[33], u_group9_out_data[17], u_group9_out_data[48], u_group9_out_data[32], u_group9_out_data[16], u_group9_out_data[47], u_group9_out_data[31], u_group9_out_data[15], u_group9_out_data[46], u_group9_out_data[30], u_group9_out_data[14], u_group9_out_data[45], u_group9_out_data[29], u_group9_out_data[13], u_group9_out_data[44], u_group9_out_data[28], u_group9_out_data[12], u_group9_out_data[43], u_group9_out_data[27], u_group9_out_data[11], u_group9_out_data[42], u_group9_out_data[26], u_group9_out_data[10], u_group9_out_data[41], u_group9_out_data[25], u_group9_out_data[9], u_group9_out_data[40], u_group9_out_data[24], u_group9_out_data[8], u_group9_out_data[39], u_group9_out_data[23], u_group9_out_data[7], u_group9_out_data[38], u_group9_out_data[22], u_group9_out_data[6]};
-    assign base9_skid_data_cat = {base9_skid_data[53], base9_skid_data[37], base9_skid_data[21], base9_skid_data[52], base9_skid_data[36], base9_skid_data[20], base9_skid_data[51], base9_skid_data[35], base9_skid_data[19], base9_skid_data[50], base9_skid_data[34], base9_skid_data[18], base9_skid_data[49], base9_skid_data[33], base9_skid_data[17], base9_skid_data[48], base9_skid_data[32], base9_skid_data[16], base9_skid_data[47], base9_skid_data[31], base9_skid_data[15], base9_skid_data[46], base9_skid_data[30], base9_skid_data[14], base9_skid_data[45], base9_skid_data[29], base9_skid_data[13], base9_skid_data[44], base9_skid_data[28], base9_skid_data[12], base9_skid_data[43], base9_skid_data[27], base9_skid_data[11], base9_skid_data[42], base9_skid_data[26], base9_skid_data[10], base9_skid_data[41], base9_skid_data[25], base9_skid_data[9], base9_skid_data[40], base9_skid_data[24], base9_skid_data[8], base9_skid_data[39], base9_skid_data[23], base9_skid_data[7], base9_skid_data[38], base9_skid_data[22], base9_skid_data[6]};
-    assign u_group9_le = u_group9_cat <= base9_skid_data_cat;
-    assign l9_end = u_group9_out_data[150] & base9_skid_data_eq;
-    assign u_group9_not = ~u_group9_out_data[150];
-    assign base9_skid_data_or = base9_skid_data_eq | u_group9_le;
-    assign l9_take_group = u_group9_not & base9_skid_data_or;
+    assign u_group9_rec = u_group9_out_data[149:0];
+    assign u_group9_end = u_group9_out_data[150];
+    assign u_group9_err = u_group9_out_data[151];
+    assign u_group9_rec_x_morton = {u_group9_out_data[53], u_group9_out_data[37], u_group9_out_data[21], u_group9_out_data[52], u_group9_out_data[36], u_group9_out_data[20], u_group9_out_data[51], u_group9_out_data[35], u_group9_out_data[19], u_group9_out_data[50], u_group9_out_data[34], u_group9_out_data[18], u_group9_out_data[49], u_group9_out_data[33], u_group9_out_data[17], u_group9_out_data[48], u_group9_out_data[32], u_group9_out_data[16], u_group9_out_data[47], u_group9_out_data[31], u_group9_out_data[15], u_group9_out_data[46], u_group9_out_data[30], u_group9_out_data[14], u_group9_out_data[45], u_group9_out_data[29], u_group9_out_data[13], u_group9_out_data[44], u_group9_out_data[28], u_group9_out_data[12], u_group9_out_data[43], u_group9_out_data[27], u_group9_out_data[11], u_group9_out_data[42], u_group9_out_data[26], u_group9_out_data[10], u_group9_out_data[41], u_group9_out_data[25], u_group9_out_data[9], u_group9_out_data[40], u_group9_out_data[24], u_group9_out_data[8], u_group9_out_data[39], u_group9_out_data[23], u_group9_out_data[7], u_group9_out_data[38], u_group9_out_data[22], u_group9_out_data[6]};
+    assign base9_skid_data_rec_x_morton = {base9_skid_data[53], base9_skid_data[37], base9_skid_data[21], base9_skid_data[52], base9_skid_data[36], base9_skid_data[20], base9_skid_data[51], base9_skid_data[35], base9_skid_data[19], base9_skid_data[50], base9_skid_data[34], base9_skid_data[18], base9_skid_data[49], base9_skid_data[33], base9_skid_data[17], base9_skid_data[48], base9_skid_data[32], base9_skid_data[16], base9_skid_data[47], base9_skid_data[31], base9_skid_data[15], base9_skid_data[46], base9_skid_data[30], base9_skid_data[14], base9_skid_data[45], base9_skid_data[29], base9_skid_data[13], base9_skid_data[44], base9_skid_data[28], base9_skid_data[12], base9_skid_data[43], base9_skid_data[27], base9_skid_data[11], base9_skid_data[42], base9_skid_data[26], base9_skid_data[10], base9_skid_data[41], base9_skid_data[25], base9_skid_data[9], base9_skid_data[40], base9_skid_data[24], base9_skid_data[8], base9_skid_data[39], base9_skid_data[23], base9_skid_data[7], base9_skid_data[38], base9_skid_data[22], base9_skid_data[6]};
+    assign l9_end = u_group9_end & base9_skid_data_kind_eq;
+    assign l9_take_group = (~u_group9_end) & (base9_skid_data_kind_eq | (u_group9_rec_x_morton <= base9_skid_data_rec_x_morton));
     assign l9_valid = u_group9_out_valid & base9_skid_valid;
-    assign l9_take_group_mux = l9_take_group ? u_group9_out_data[149:0] : base9_skid_data[149:0];
-    assign l9_take_group_mux_1 = l9_take_group ? 28'd0 : base9_skid_data[177:150];
-    assign l9_take_group_mux_2 = l9_take_group ? 2'd0 : base9_skid_data_mux_1;
-    assign l9_take_group_and = l9_take_group & u_group9_out_data[151];
-    assign l9_take_group_or = l9_take_group | l9_end;
+    assign l9_take_group_mux = l9_take_group ? u_group9_rec : base9_skid_data_rec;
+    assign l9_take_group_mux_1 = l9_take_group ? 2'd0 : (base9_skid_data_kind_eq ? 2'd3 : ((base9_skid_data_kind == 2'd0) ? 2'd1 : 2'd2));
     assign l9_take_group_not = ~l9_take_group;
-    assign u_group10_cat = {u_group10_out_data[53], u_group10_out_data[37], u_group10_out_data[21], u_group10_out_data[52], u_group10_out_data[36], u_group10_out_data[20], u_group10_out_data[51], u_group10_out_data[35], u_group10_out_data[19], u_group10_out_data[50], u_group10_out_data[34], u_group10_out_data[18], u_group10_out_data[49], u_group10_out_data[33], u_group10_out_data[17], u_group10_out_data[48], u_group10_out_data[32], u_group10_out_data[16], u_group10_out_data[47], u_group10_out_data[31], u_group10_out_data[15], u_group10_out_data[46], u_group10_out_data[30], u_group10_out_data[14], u_group10_out_data[45], u_group10_out_data[29], u_group10_out_data[13], u_group10_out_data[44], u_group10_out_data[28], u_group10_out_data[12], u_group10_out_data[43], u_group10_out_data[27], u_group10_out_data[11], u_group10_out_data[42], u_group10_out_data[26], u_group10_out_data[10], u_group10_out_data[41], u_group10_out_data[25], u_group10_out_data[9], u_group10_out_data[40], u_group10_out_data[24], u_group10_out_data[8], u_group10_out_data[39], u_group10_out_data[23], u_group10_out_data[7], u_group10_out_data[38], u_group10_out_data[22], u_group10_out_data[6]};
-    assign base10_skid_data_cat = {base10_skid_data[53], base10_skid_data[37], base10_skid_data[21], base10_skid_data[52], base10_skid_data[36], base10_skid_data[20], base10_skid_data[51], base10_skid_data[35], base10_skid_data[19], base10_skid_data[50], base10_skid_data[34], base10_skid_data[18], base10_skid_data[49], base10_skid_data[33], base10_skid_data[17], base10_skid_data[48], base10_skid_data[32], base10_skid_data[16], base10_skid_data[47], base10_skid_data[31], base10_skid_data[15], base10_skid_data[46], base10_skid_data[30], base10_skid_data[14], base10_skid_data[45], base10_skid_data[29], base10_skid_data[13], base10_skid_data[44], base10_skid_data[28], base10_skid_data[12], base10_skid_data[43], base10_skid_data[27], base10_skid_data[11], base10_skid_data[42], base10_skid_data[26], base10_skid_data[10], base10_skid_data[41], base10_skid_data[25], base10_skid_data[9], base10_skid_data[40], base10_skid_data[24], base10_skid_data[8], base10_skid_data[39], base10_skid_data[23], base10_skid_data[7], base10_skid_data[38], base10_skid_data[22], base10_skid_data[6]};
-    assign u_group10_le = u_group10_cat <= base10_skid_data_cat;
-    assign l10_end = u_group10_out_data[150] & base10_skid_data_eq;
-    assign u_group10_not = ~u_group10_out_data[150];
-    assign base10_skid_data_or = base10_skid_data_eq | u_group10_le;
-    assign l10_take_group = u_group10_not & base10_skid_data_or;
+    assign u_group10_rec = u_group10_out_data[149:0];
+    assign u_group10_end = u_group10_out_data[150];
+    assign u_group10_err = u_group10_out_data[151];
+    assign u_group10_rec_x_morton = {u_group10_out_data[53], u_group10_out_data[37], u_group10_out_data[21], u_group10_out_data[52], u_group10_out_data[36], u_group10_out_data[20], u_group10_out_data[51], u_group10_out_data[35], u_group10_out_data[19], u_group10_out_data[50], u_group10_out_data[34], u_group10_out_data[18], u_group10_out_data[49], u_group10_out_data[33], u_group10_out_data[17], u_group10_out_data[48], u_group10_out_data[32], u_group10_out_data[16], u_group10_out_data[47], u_group10_out_data[31], u_group10_out_data[15], u_group10_out_data[46], u_group10_out_data[30], u_group10_out_data[14], u_group10_out_data[45], u_group10_out_data[29], u_group10_out_data[13], u_group10_out_data[44], u_group10_out_data[28], u_group10_out_data[12], u_group10_out_data[43], u_group10_out_data[27], u_group10_out_data[11], u_group10_out_data[42], u_group10_out_data[26], u_group10_out_data[10], u_group10_out_data[41], u_group10_out_data[25], u_group10_out_data[9], u_group10_out_data[40], u_group10_out_data[24], u_group10_out_data[8], u_group10_out_data[39], u_group10_out_data[23], u_group10_out_data[7], u_group10_out_data[38], u_group10_out_data[22], u_group10_out_data[6]};
+    assign base10_skid_data_rec_x_morton = {base10_skid_data[53], base10_skid_data[37], base10_skid_data[21], base10_skid_data[52], base10_skid_data[36], base10_skid_data[20], base10_skid_data[51], base10_skid_data[35], base10_skid_data[19], base10_skid_data[50], base10_skid_data[34], base10_skid_data[18], base10_skid_data[49], base10_skid_data[33], base10_skid_data[17], base10_skid_data[48], base10_skid_data[32], base10_skid_data[16], base10_skid_data[47], base10_skid_data[31], base10_skid_data[15], base10_skid_data[46], base10_skid_data[30], base10_skid_data[14], base10_skid_data[45], base10_skid_data[29], base10_skid_data[13], base10_skid_data[44], base10_skid_data[28], base10_skid_data[12], base10_skid_data[43], base10_skid_data[27], base10_skid_data[11], base10_skid_data[42], base10_skid_data[26], base10_skid_data[10], base10_skid_data[41], base10_skid_data[25], base10_skid_data[9], base10_skid_data[40], base10_skid_data[24], base10_skid_data[8], base10_skid_data[39], base10_skid_data[23], base10_skid_data[7], base10_skid_data[38], base10_skid_data[22], base10_skid_data[6]};
+    assign l10_end = u_group10_end & base10_skid_data_kind_eq;
+    assign l10_take_group = (~u_group10_end) & (base10_skid_data_kind_eq | (u_group10_rec_x_morton <= base10_skid_data_rec_x_morton));
     assign l10_valid = u_group10_out_valid & base10_skid_valid;
-    assign l10_take_group_mux = l10_take_group ? u_group10_out_data[149:0] : base10_skid_data[149:0];
-    assign l10_take_group_mux_1 = l10_take_group ? 28'd0 : base10_skid_data[177:150];
-    assign l10_take_group_mux_2 = l10_take_group ? 2'd0 : base10_skid_data_mux_1;
-    assign l10_take_group_and = l10_take_group & u_group10_out_data[151];
-    assign l10_take_group_or = l10_take_group | l10_end;
+    assign l10_take_group_mux = l10_take_group ? u_group10_rec : base10_skid_data_rec;
+    assign l10_take_group_mux_1 = l10_take_group ? 2'd0 : (base10_skid_data_kind_eq ? 2'd3 : ((base10_skid_data_kind == 2'd0) ? 2'd1 : 2'd2));
     assign l10_take_group_not = ~l10_take_group;
-    assign u_group11_cat = {u_group11_out_data[53], u_group11_out_data[37], u_group11_out_data[21], u_group11_out_data[52], u_group11_out_data[36], u_group11_out_data[20], u_group11_out_data[51], u_group11_out_data[35], u_group11_out_data[19], u_group11_out_data[50], u_group11_out_data[34], u_group11_out_data[18], u_group11_out_data[49], u_group11_out_data[33], u_group11_out_data[17], u_group11_out_data[48], u_group11_out_data[32], u_group11_out_data[16], u_group11_out_data[47], u_group11_out_data[31], u_group11_out_data[15], u_group11_out_data[46], u_group11_out_data[30], u_group11_out_data[14], u_group11_out_data[45], u_group11_out_data[29], u_group11_out_data[13], u_group11_out_data[44], u_group11_out_data[28], u_group11_out_data[12], u_group11_out_data[43], u_group11_out_data[27], u_group11_out_data[11], u_group11_out_data[42], u_group11_out_data[26], u_group11_out_data[10], u_group11_out_data[41], u_group11_out_data[25], u_group11_out_data[9], u_group11_out_data[40], u_group11_out_data[24], u_group11_out_data[8], u_group11_out_data[39], u_group11_out_data[23], u_group11_out_data[7], u_group11_out_data[38], u_group11_out_data[22], u_group11_out_data[6]};
-    assign base11_skid_data_cat = {base11_skid_data[53], base11_skid_data[37], base11_skid_data[21], base11_skid_data[52], base11_skid_data[36], base11_skid_data[20], base11_skid_data[51], base11_skid_data[35], base11_skid_data[19], base11_skid_data[50], base11_skid_data[34], base11_skid_data[18], base11_skid_data[49], base11_skid_data[33], base11_skid_data[17], base11_skid_data[48], base11_skid_data[32], base11_skid_data[16], base11_skid_data[47], base11_skid_data[31], base11_skid_data[15], base11_skid_data[46], base11_skid_data[30], base11_skid_data[14], base11_skid_data[45], base11_skid_data[29], base11_skid_data[13], base11_skid_data[44], base11_skid_data[28], base11_skid_data[12], base11_skid_data[43], base11_skid_data[27], base11_skid_data[11], base11_skid_data[42], base11_skid_data[26], base11_skid_data[10], base11_skid_data[41], base11_skid_data[25], base11_skid_data[9], base11_skid_data[40], base11_skid_data[24], base11_skid_data[8], base11_skid_data[39], base11_skid_data[23], base11_skid_data[7], base11_skid_data[38], base11_skid_data[22], base11_skid_data[6]};
-    assign u_group11_le = u_group11_cat <= base11_skid_data_cat;
-    assign l11_end = u_group11_out_data[150] & base11_skid_data_eq;
-    assign u_group11_not = ~u_group11_out_data[150];
-    assign base11_skid_data_or = base11_skid_data_eq | u_group11_le;
-    assign l11_take_group = u_group11_not & base11_skid_data_or;
+    assign u_group11_rec = u_group11_out_data[149:0];
+    assign u_group11_end = u_group11_out_data[150];
+    assign u_group11_err = u_group11_out_data[151];
+    assign u_group11_rec_x_morton = {u_group11_out_data[53], u_group11_out_data[37], u_group11_out_data[21], u_group11_out_data[52], u_group11_out_data[36], u_group11_out_data[20], u_group11_out_data[51], u_group11_out_data[35], u_group11_out_data[19], u_group11_out_data[50], u_group11_out_data[34], u_group11_out_data[18], u_group11_out_data[49], u_group11_out_data[33], u_group11_out_data[17], u_group11_out_data[48], u_group11_out_data[32], u_group11_out_data[16], u_group11_out_data[47], u_group11_out_data[31], u_group11_out_data[15], u_group11_out_data[46], u_group11_out_data[30], u_group11_out_data[14], u_group11_out_data[45], u_group11_out_data[29], u_group11_out_data[13], u_group11_out_data[44], u_group11_out_data[28], u_group11_out_data[12], u_group11_out_data[43], u_group11_out_data[27], u_group11_out_data[11], u_group11_out_data[42], u_group11_out_data[26], u_group11_out_data[10], u_group11_out_data[41], u_group11_out_data[25], u_group11_out_data[9], u_group11_out_data[40], u_group11_out_data[24], u_group11_out_data[8], u_group11_out_data[39], u_group11_out_data[23], u_group11_out_data[7], u_group11_out_data[38], u_group11_out_data[22], u_group11_out_data[6]};
+    assign base11_skid_data_rec_x_morton = {base11_skid_data[53], base11_skid_data[37], base11_skid_data[21], base11_skid_data[52], base11_skid_data[36], base11_skid_data[20], base11_skid_data[51], base11_skid_data[35], base11_skid_data[19], base11_skid_data[50], base11_skid_data[34], base11_skid_data[18], base11_skid_data[49], base11_skid_data[33], base11_skid_data[17], base11_skid_data[48], base11_skid_data[32], base11_skid_data[16], base11_skid_data[47], base11_skid_data[31], base11_skid_data[15], base11_skid_data[46], base11_skid_data[30], base11_skid_data[14], base11_skid_data[45], base11_skid_data[29], base11_skid_data[13], base11_skid_data[44], base11_skid_data[28], base11_skid_data[12], base11_skid_data[43], base11_skid_data[27], base11_skid_data[11], base11_skid_data[42], base11_skid_data[26], base11_skid_data[10], base11_skid_data[41], base11_skid_data[25], base11_skid_data[9], base11_skid_data[40], base11_skid_data[24], base11_skid_data[8], base11_skid_data[39], base11_skid_data[23], base11_skid_data[7], base11_skid_data[38], base11_skid_data[22], base11_skid_data[6]};
+    assign l11_end = u_group11_end & base11_skid_data_kind_eq;
+    assign l11_take_group = (~u_group11_end) & (base11_skid_data_kind_eq | (u_group11_rec_x_morton <= base11_skid_data_rec_x_morton));
     assign l11_valid = u_group11_out_valid & base11_skid_valid;
-    assign l11_take_group_mux = l11_take_group ? u_group11_out_data[149:0] : base11_skid_data[149:0];
-    assign l11_take_group_mux_1 = l11_take_group ? 28'd0 : base11_skid_data[177:150];
-    assign l11_take_group_mux_2 = l11_take_group ? 2'd0 : base11_skid_data_mux_1;
-    assign l11_take_group_and = l11_take_group & u_group11_out_data[151];
-    assign l11_take_group_or = l11_take_group | l11_end;
+    assign l11_take_group_mux = l11_take_group ? u_group11_rec : base11_skid_data_rec;
+    assign l11_take_group_mux_1 = l11_take_group ? 2'd0 : (base11_skid_data_kind_eq ? 2'd3 : ((base11_skid_data_kind == 2'd0) ? 2'd1 : 2'd2));
     assign l11_take_group_not = ~l11_take_group;
-    assign u_group12_cat = {u_group12_out_data[53], u_group12_out_data[37], u_group12_out_data[21], u_group12_out_data[52], u_group12_out_data[36], u_group12_out_data[20], u_group12_out_data[51], u_group12_out_data[35], u_group12_out_data[19], u_group12_out_data[50], u_group12_out_data[34], u_group12_out_data[18], u_group12_out_data[49], u_group12_out_data[33], u_group12_out_data[17], u_group12_out_data[48], u_group12_out_data[32], u_group12_out_data[16], u_group12_out_data[47], u_group12_out_data[31], u_group12_out_data[15], u_group12_out_data[46], u_group12_out_data[30], u_group12_out_data[14], u_group12_out_data[45], u_group12_out_data[29], u_group12_out_data[13], u_group12_out_data[44], u_group12_out_data[28], u_group12_out_data[12], u_group12_out_data[43], u_group12_out_data[27], u_group12_out_data[11], u_group12_out_data[42], u_group12_out_data[26], u_group12_out_data[10], u_group12_out_data[41], u_group12_out_data[25], u_group12_out_data[9], u_group12_out_data[40], u_group12_out_data[24], u_group12_out_data[8], u_group12_out_data[39], u_group12_out_data[23], u_group12_out_data[7], u_group12_out_data[38], u_group12_out_data[22], u_group12_out_data[6]};
-    assign base12_skid_data_cat = {base12_skid_data[53], base12_skid_data[37], base12_skid_data[21], base12_skid_data[52], base12_skid_data[36], base12_skid_data[20], base12_skid_data[51], base12_skid_data[35], base12_skid_data[19], base12_skid_data[50], base12_skid_data[34], base12_skid_data[18], base12_skid_data[49], base12_skid_data[33], base12_skid_data[17], base12_skid_data[48], base12_skid_data[32], base12_skid_data[16], base12_skid_data[47], base12_skid_data[31], base12_skid_data[15], base12_skid_data[46], base12_skid_data[30], base12_skid_data[14], base12_skid_data[45], base12_skid_data[29], base12_skid_data[13], base12_skid_data[44], base12_skid_data[28], base12_skid_data[12], base12_skid_data[43], base12_skid_data[27], base12_skid_data[11], base12_skid_data[42], base12_skid_data[26], base12_skid_data[10], base12_skid_data[41], base12_skid_data[25], base12_skid_data[9], base12_skid_data[40], base12_skid_data[24], base12_skid_data[8], base12_skid_data[39], base12_skid_data[23], base12_skid_data[7], base12_skid_data[38], base12_skid_data[22], base12_skid_data[6]};
-    assign u_group12_le = u_group12_cat <= base12_skid_data_cat;
-    assign l12_end = u_group12_out_data[150] & base12_skid_data_eq;
-    assign u_group12_not = ~u_group12_out_data[150];
-    assign base12_skid_data_or = base12_skid_data_eq | u_group12_le;
-    assign l12_take_group = u_group12_not & base12_skid_data_or;
+    assign u_group12_rec = u_group12_out_data[149:0];
+    assign u_group12_end = u_group12_out_data[150];
+    assign u_group12_err = u_group12_out_data[151];
+    assign u_group12_rec_x_morton = {u_group12_out_data[53], u_group12_out_data[37], u_group12_out_data[21], u_group12_out_data[52], u_group12_out_data[36], u_group12_out_data[20], u_group12_out_data[51], u_group12_out_data[35], u_group12_out_data[19], u_group12_out_data[50], u_group12_out_data[34], u_group12_out_data[18], u_group12_out_data[49], u_group12_out_data[33], u_group12_out_data[17], u_group12_out_data[48], u_group12_out_data[32], u_group12_out_data[16], u_group12_out_data[47], u_group12_out_data[31], u_group12_out_data[15], u_group12_out_data[46], u_group12_out_data[30], u_group12_out_data[14], u_group12_out_data[45], u_group12_out_data[29], u_group12_out_data[13], u_group12_out_data[44], u_group12_out_data[28], u_group12_out_data[12], u_group12_out_data[43], u_group12_out_data[27], u_group12_out_data[11], u_group12_out_data[42], u_group12_out_data[26], u_group12_out_data[10], u_group12_out_data[41], u_group12_out_data[25], u_group12_out_data[9], u_group12_out_data[40], u_group12_out_data[24], u_group12_out_data[8], u_group12_out_data[39], u_group12_out_data[23], u_group12_out_data[7], u_group12_out_data[38], u_group12_out_data[22], u_group12_out_data[6]};
+    assign base12_skid_data_rec_x_morton = {base12_skid_data[53], base12_skid_data[37], base12_skid_data[21], base12_skid_data[52], base12_skid_data[36], base12_skid_data[20], base12_skid_data[51], base12_skid_data[35], base12_skid_data[19], base12_skid_data[50], base12_skid_data[34], base12_skid_data[18], base12_skid_data[49], base12_skid_data[33], base12_skid_data[17], base12_skid_data[48], base12_skid_data[32], base12_skid_data[16], base12_skid_data[47], base12_skid_data[31], base12_skid_data[15], base12_skid_data[46], base12_skid_data[30], base12_skid_data[14], base12_skid_data[45], base12_skid_data[29], base12_skid_data[13], base12_skid_data[44], base12_skid_data[28], base12_skid_data[12], base12_skid_data[43], base12_skid_data[27], base12_skid_data[11], base12_skid_data[42], base12_skid_data[26], base12_skid_data[10], base12_skid_data[41], base12_skid_data[25], base12_skid_data[9], base12_skid_data[40], base12_skid_data[24], base12_skid_data[8], base12_skid_data[39], base12_skid_data[23], base12_skid_data[7], base12_skid_data[38], base12_skid_data[22], base12_skid_data[6]};
+    assign l12_end = u_group12_end & base12_skid_data_kind_eq;
+    assign l12_take_group = (~u_group12_end) & (base12_skid_data_kind_eq | (u_group12_rec_x_morton <= base12_skid_data_rec_x_morton));
     assign l12_valid = u_group12_out_valid & base12_skid_valid;
-    assign l12_take_group_mux = l12_take_group ? u_group12_out_data[149:0] : base12_skid_data[149:0];
-    assign l12_take_group_mux_1 = l12_take_group ? 28'd0 : base12_skid_data[177:150];
-    assign l12_take_group_mux_2 = l12_take_group ? 2'd0 : base12_skid_data_mux_1;
-    assign l12_take_group_and = l12_take_group & u_group12_out_data[151];
-    assign l12_take_group_or = l12_take_group | l12_end;
+    assign l12_take_group_mux = l12_take_group ? u_group12_rec : base12_skid_data_rec;
+    assign l12_take_group_mux_1 = l12_take_group ? 2'd0 : (base12_skid_data_kind_eq ? 2'd3 : ((base12_skid_data_kind == 2'd0) ? 2'd1 : 2'd2));
     assign l12_take_group_not = ~l12_take_group;
-    assign u_group13_cat = {u_group13_out_data[53], u_group13_out_data[37], u_group13_out_data[21], u_group13_out_data[52], u_group13_out_data[36], u_group13_out_data[20], u_group13_out_data[51], u_group13_out_data[35], u_group13_out_data[19], u_group13_out_data[50], u_group13_out_data[34], u_group13_out_data[18], u_group13_out_data[49], u_group13_out_data[33], u_group13_out_data[17], u_group13_out_data[48], u_group13_out_data[32], u_group13_out_data[16], u_group13_out_data[47], u_group13_out_data[31], u_group13_out_data[15], u_group13_out_data[46], u_group13_out_data[30], u_group13_out_data[14], u_group13_out_data[45], u_group13_out_data[29], u_group13_out_data[13], u_group13_out_data[44], u_group13_out_data[28], u_group13_out_data[12], u_group13_out_data[43], u_group13_out_data[27], u_group13_out_data[11], u_group13_out_data[42], u_group13_out_data[26], u_group13_out_data[10], u_group13_out_data[41], u_group13_out_data[25], u_group13_out_data[9], u_group13_out_data[40], u_group13_out_data[24], u_group13_out_data[8], u_group13_out_data[39], u_group13_out_data[23], u_group13_out_data[7], u_group13_out_data[38], u_group13_out_data[22], u_group13_out_data[6]};
-    assign base13_skid_data_cat = {base13_skid_data[53], base13_skid_data[37], base13_skid_data[21], base13_skid_data[52], base13_skid_data[36], base13_skid_data[20], base13_skid_data[51], base13_skid_data[35], base13_skid_data[19], base13_skid_data[50], base13_skid_data[34], base13_skid_data[18], base13_skid_data[49], base13_skid_data[33], base13_skid_data[17], base13_skid_data[48], base13_skid_data[32], base13_skid_data[16], base13_skid_data[47], base13_skid_data[31], base13_skid_data[15], base13_skid_data[46], base13_skid_data[30], base13_skid_data[14], base13_skid_data[45], base13_skid_data[29], base13_skid_data[13], base13_skid_data[44], base13_skid_data[28], base13_skid_data[12], base13_skid_data[43], base13_skid_data[27], base13_skid_data[11], base13_skid_data[42], base13_skid_data[26], base13_skid_data[10], base13_skid_data[41], base13_skid_data[25], base13_skid_data[9], base13_skid_data[40], base13_skid_data[24], base13_skid_data[8], base13_skid_data[39], base13_skid_data[23], base13_skid_data[7], base13_skid_data[38], base13_skid_data[22], base13_skid_data[6]};
-    assign u_group13_le = u_group13_cat <= base13_skid_data_cat;
-    assign l13_end = u_group13_out_data[150] & base13_skid_data_eq;
-    assign u_group13_not = ~u_group13_out_data[150];
-    assign base13_skid_data_or = base13_skid_data_eq | u_group13_le;
-    assign l13_take_group = u_group13_not & base13_skid_data_or;
+    assign u_group13_rec = u_group13_out_data[149:0];
+    assign u_group13_end = u_group13_out_data[150];
+    assign u_group13_err = u_group13_out_data[151];
+    assign u_group13_rec_x_morton = {u_group13_out_data[53], u_group13_out_data[37], u_group13_out_data[21], u_group13_out_data[52], u_group13_out_data[36], u_group13_out_data[20], u_group13_out_data[51], u_group13_out_data[35], u_group13_out_data[19], u_group13_out_data[50], u_group13_out_data[34], u_group13_out_data[18], u_group13_out_data[49], u_group13_out_data[33], u_group13_out_data[17], u_group13_out_data[48], u_group13_out_data[32], u_group13_out_data[16], u_group13_out_data[47], u_group13_out_data[31], u_group13_out_data[15], u_group13_out_data[46], u_group13_out_data[30], u_group13_out_data[14], u_group13_out_data[45], u_group13_out_data[29], u_group13_out_data[13], u_group13_out_data[44], u_group13_out_data[28], u_group13_out_data[12], u_group13_out_data[43], u_group13_out_data[27], u_group13_out_data[11], u_group13_out_data[42], u_group13_out_data[26], u_group13_out_data[10], u_group13_out_data[41], u_group13_out_data[25], u_group13_out_data[9], u_group13_out_data[40], u_group13_out_data[24], u_group13_out_data[8], u_group13_out_data[39], u_group13_out_data[23], u_group13_out_data[7], u_group13_out_data[38], u_group13_out_data[22], u_group13_out_data[6]};
+    assign base13_skid_data_rec_x_morton = {base13_skid_data[53], base13_skid_data[37], base13_skid_data[21], base13_skid_data[52], base13_skid_data[36], base13_skid_data[20], base13_skid_data[51], base13_skid_data[35], base13_skid_data[19], base13_skid_data[50], base13_skid_data[34], base13_skid_data[18], base13_skid_data[49], base13_skid_data[33], base13_skid_data[17], base13_skid_data[48], base13_skid_data[32], base13_skid_data[16], base13_skid_data[47], base13_skid_data[31], base13_skid_data[15], base13_skid_data[46], base13_skid_data[30], base13_skid_data[14], base13_skid_data[45], base13_skid_data[29], base13_skid_data[13], base13_skid_data[44], base13_skid_data[28], base13_skid_data[12], base13_skid_data[43], base13_skid_data[27], base13_skid_data[11], base13_skid_data[42], base13_skid_data[26], base13_skid_data[10], base13_skid_data[41], base13_skid_data[25], base13_skid_data[9], base13_skid_data[40], base13_skid_data[24], base13_skid_data[8], base13_skid_data[39], base13_skid_data[23], base13_skid_data[7], base13_skid_data[38], base13_skid_data[22], base13_skid_data[6]};
+    assign l13_end = u_group13_end & base13_skid_data_kind_eq;
+    assign l13_take_group = (~u_group13_end) & (base13_skid_data_kind_eq | (u_group13_rec_x_morton <= base13_skid_data_rec_x_morton));
     assign l13_valid = u_group13_out_valid & base13_skid_valid;
-    assign l13_take_group_mux = l13_take_group ? u_group13_out_data[149:0] : base13_skid_data[149:0];
-    assign l13_take_group_mux_1 = l13_take_group ? 28'd0 : base13_skid_data[177:150];
-    assign l13_take_group_mux_2 = l13_take_group ? 2'd0 : base13_skid_data_mux_1;
-    assign l13_take_group_and = l13_take_group & u_group13_out_data[151];
-    assign l13_take_group_or = l13_take_group | l13_end;
+    assign l13_take_group_mux = l13_take_group ? u_group13_rec : base13_skid_data_rec;
+    assign l13_take_group_mux_1 = l13_take_group ? 2'd0 : (base13_skid_data_kind_eq ? 2'd3 : ((base13_skid_data_kind == 2'd0) ? 2'd1 : 2'd2));
     assign l13_take_group_not = ~l13_take_group;
-    assign u_group14_cat = {u_group14_out_data[53], u_group14_out_data[37], u_group14_out_data[21], u_group14_out_data[52], u_group14_out_data[36], u_group14_out_data[20], u_group14_out_data[51], u_group14_out_data[35], u_group14_out_data[19], u_group14_out_data[50], u_group14_out_data[34], u_group14_out_data[18], u_group14_out_data[49], u_group14_out_data[33], u_group14_out_data[17], u_group14_out_data[48], u_group14_out_data[32], u_group14_out_data[16], u_group14_out_data[47], u_group14_out_data[31], u_group14_out_data[15], u_group14_out_data[46], u_group14_out_data[30], u_group14_out_data[14], u_group14_out_data[45], u_group14_out_data[29], u_group14_out_data[13], u_group14_out_data[44], u_group14_out_data[28], u_group14_out_data[12], u_group14_out_data[43], u_group14_out_data[27], u_group14_out_data[11], u_group14_out_data[42], u_group14_out_data[26], u_group14_out_data[10], u_group14_out_data[41], u_group14_out_data[25], u_group14_out_data[9], u_group14_out_data[40], u_group14_out_data[24], u_group14_out_data[8], u_group14_out_data[39], u_group14_out_data[23], u_group14_out_data[7], u_group14_out_data[38], u_group14_out_data[22], u_group14_out_data[6]};
-    assign base14_skid_data_cat = {base14_skid_data[53], base14_skid_data[37], base14_skid_data[21], base14_skid_data[52], base14_skid_data[36], base14_skid_data[20], base14_skid_data[51], base14_skid_data[35], base14_skid_data[19], base14_skid_data[50], base14_skid_data[34], base14_skid_data[18], base14_skid_data[49], base14_skid_data[33], base14_skid_data[17], base14_skid_data[48], base14_skid_data[32], base14_skid_data[16], base14_skid_data[47], base14_skid_data[31], base14_skid_data[15], base14_skid_data[46], base14_skid_data[30], base14_skid_data[14], base14_skid_data[45], base14_skid_data[29], base14_skid_data[13], base14_skid_data[44], base14_skid_data[28], base14_skid_data[12], base14_skid_data[43], base14_skid_data[27], base14_skid_data[11], base14_skid_data[42], base14_skid_data[26], base14_skid_data[10], base14_skid_data[41], base14_skid_data[25], base14_skid_data[9], base14_skid_data[40], base14_skid_data[24], base14_skid_data[8], base14_skid_data[39], base14_skid_data[23], base14_skid_data[7], base14_skid_data[38], base14_skid_data[22], base14_skid_data[6]};
-    assign u_group14_le = u_group14_cat <= base14_skid_data_cat;
-    assign l14_end = u_group14_out_data[150] & base14_skid_data_eq;
-    assign u_group14_not = ~u_group14_out_data[150];
-    assign base14_skid_data_or = base14_skid_data_eq | u_group14_le;
-    assign l14_take_group = u_group14_not & base14_skid_data_or;
+    assign u_group14_rec = u_group14_out_data[149:0];
+    assign u_group14_end = u_group14_out_data[150];
+    assign u_group14_err = u_group14_out_data[151];
+    assign u_group14_rec_x_morton = {u_group14_out_data[53], u_group14_out_data[37], u_group14_out_data[21], u_group14_out_data[52], u_group14_out_data[36], u_group14_out_data[20], u_group14_out_data[51], u_group14_out_data[35], u_group14_out_data[19], u_group14_out_data[50], u_group14_out_data[34], u_group14_out_data[18], u_group14_out_data[49], u_group14_out_data[33], u_group14_out_data[17], u_group14_out_data[48], u_group14_out_data[32], u_group14_out_data[16], u_group14_out_data[47], u_group14_out_data[31], u_group14_out_data[15], u_group14_out_data[46], u_group14_out_data[30], u_group14_out_data[14], u_group14_out_data[45], u_group14_out_data[29], u_group14_out_data[13], u_group14_out_data[44], u_group14_out_data[28], u_group14_out_data[12], u_group14_out_data[43], u_group14_out_data[27], u_group14_out_data[11], u_group14_out_data[42], u_group14_out_data[26], u_group14_out_data[10], u_group14_out_data[41], u_group14_out_data[25], u_group14_out_data[9], u_group14_out_data[40], u_group14_out_data[24], u_group14_out_data[8], u_group14_out_data[39], u_group14_out_data[23], u_group14_out_data[7], u_group14_out_data[38], u_group14_out_data[22], u_group14_out_data[6]};
+    assign base14_skid_data_rec_x_morton = {base14_skid_data[53], base14_skid_data[37], base14_skid_data[21], base14_skid_data[52], base14_skid_data[36], base14_skid_data[20], base14_skid_data[51], base14_skid_data[35], base14_skid_data[19], base14_skid_data[50], base14_skid_data[34], base14_skid_data[18], base14_skid_data[49], base14_skid_data[33], base14_skid_data[17], base14_skid_data[48], base14_skid_data[32], base14_skid_data[16], base14_skid_data[47], base14_skid_data[31], base14_skid_data[15], base14_skid_data[46], base14_skid_data[30], base14_skid_data[14], base14_skid_data[45], base14_skid_data[29], base14_skid_data[13], base14_skid_data[44], base14_skid_data[28], base14_skid_data[12], base14_skid_data[43], base14_skid_data[27], base14_skid_data[11], base14_skid_data[42], base14_skid_data[26], base14_skid_data[10], base14_skid_data[41], base14_skid_data[25], base14_skid_data[9], base14_skid_data[40], base14_skid_data[24], base14_skid_data[8], base14_skid_data[39], base14_skid_data[23], base14_skid_data[7], base14_skid_data[38], base14_skid_data[22], base14_skid_data[6]};
+    assign l14_end = u_group14_end & base14_skid_data_kind_eq;
+    assign l14_take_group = (~u_group14_end) & (base14_skid_data_kind_eq | (u_group14_rec_x_morton <= base14_skid_data_rec_x_morton));
     assign l14_valid = u_group14_out_valid & base14_skid_valid;
-    assign l14_take_group_mux = l14_take_group ? u_group14_out_data[149:0] : base14_skid_data[149:0];
-    assign l14_take_group_mux_1 = l14_take_group ? 28'd0 : base14_skid_data[177:150];
-    assign l14_take_group_mux_2 = l14_take_group ? 2'd0 : base14_skid_data_mux_1;
-    assign l14_take_group_and = l14_take_group & u_group14_out_data[151];
-    assign l14_take_group_or = l14_take_group | l14_end;
+    assign l14_take_group_mux = l14_take_group ? u_group14_rec : base14_skid_data_rec;
+    assign l14_take_group_mux_1 = l14_take_group ? 2'd0 : (base14_skid_data_kind_eq ? 2'd3 : ((base14_skid_data_kind == 2'd0) ? 2'd1 : 2'd2));
     assign l14_take_group_not = ~l14_take_group;
-    assign u_group15_cat = {u_group15_out_data[53], u_group15_out_data[37], u_group15_out_data[21], u_group15_out_data[52], u_group15_out_data[36], u_group15_out_data[20], u_group15_out_data[51], u_group15_out_data[35], u_group15_out_data[19], u_group15_out_data[50], u_group15_out_data[34], u_group15_out_data[18], u_group15_out_data[49], u_group15_out_data[33], u_group15_out_data[17], u_group15_out_data[48], u_group15_out_data[32], u_group15_out_data[16], u_group15_out_data[47], u_group15_out_data[31], u_group15_out_data[15], u_group15_out_data[46], u_group15_out_data[30], u_group15_out_data[14], u_group15_out_data[45], u_group15_out_data[29], u_group15_out_data[13], u_group15_out_data[44], u_group15_out_data[28], u_group15_out_data[12], u_group15_out_data[43], u_group15_out_data[27], u_group15_out_data[11], u_group15_out_data[42], u_group15_out_data[26], u_group15_out_data[10], u_group15_out_data[41], u_group15_out_data[25], u_group15_out_data[9], u_group15_out_data[40], u_group15_out_data[24], u_group15_out_data[8], u_group15_out_data[39], u_group15_out_data[23], u_group15_out_data[7], u_group15_out_data[38], u_group15_out_data[22], u_group15_out_data[6]};
-    assign base15_skid_data_cat = {base15_skid_data[53], base15_skid_data[37], base15_skid_data[21], base15_skid_data[52], base15_skid_data[36], base15_skid_data[20], base15_skid_data[51], base15_skid_data[35], base15_skid_data[19], base15_skid_data[50], base15_skid_data[34], base15_skid_data[18], base15_skid_data[49], base15_skid_data[33], base15_skid_data[17], base15_skid_data[48], base15_skid_data[32], base15_skid_data[16], base15_skid_data[47], base15_skid_data[31], base15_skid_data[15], base15_skid_data[46], base15_skid_data[30], base15_skid_data[14], base15_skid_data[45], base15_skid_data[29], base15_skid_data[13], base15_skid_data[44], base15_skid_data[28], base15_skid_data[12], base15_skid_data[43], base15_skid_data[27], base15_skid_data[11], base15_skid_data[42], base15_skid_data[26], base15_skid_data[10], base15_skid_data[41], base15_skid_data[25], base15_skid_data[9], base15_skid_data[40], base15_skid_data[24], base15_skid_data[8], base15_skid_data[39], base15_skid_data[23], base15_skid_data[7], base15_skid_data[38], base15_skid_data[22], base15_skid_data[6]};
-    assign u_group15_le = u_group15_cat <= base15_skid_data_cat;
-    assign l15_end = u_group15_out_data[150] & base15_skid_data_eq;
-    assign u_group15_not = ~u_group15_out_data[150];
-    assign base15_skid_data_or = base15_skid_data_eq | u_group15_le;
-    assign l15_take_group = u_group15_not & base15_skid_data_or;
+    assign u_group15_rec = u_group15_out_data[149:0];
+    assign u_group15_end = u_group15_out_data[150];
+    assign u_group15_err = u_group15_out_data[151];
+    assign u_group15_rec_x_morton = {u_group15_out_data[53], u_group15_out_data[37], u_group15_out_data[21], u_group15_out_data[52], u_group15_out_data[36], u_group15_out_data[20], u_group15_out_data[51], u_group15_out_data[35], u_group15_out_data[19], u_group15_out_data[50], u_group15_out_data[34], u_group15_out_data[18], u_group15_out_data[49], u_group15_out_data[33], u_group15_out_data[17], u_group15_out_data[48], u_group15_out_data[32], u_group15_out_data[16], u_group15_out_data[47], u_group15_out_data[31], u_group15_out_data[15], u_group15_out_data[46], u_group15_out_data[30], u_group15_out_data[14], u_group15_out_data[45], u_group15_out_data[29], u_group15_out_data[13], u_group15_out_data[44], u_group15_out_data[28], u_group15_out_data[12], u_group15_out_data[43], u_group15_out_data[27], u_group15_out_data[11], u_group15_out_data[42], u_group15_out_data[26], u_group15_out_data[10], u_group15_out_data[41], u_group15_out_data[25], u_group15_out_data[9], u_group15_out_data[40], u_group15_out_data[24], u_group15_out_data[8], u_group15_out_data[39], u_group15_out_data[23], u_group15_out_data[7], u_group15_out_data[38], u_group15_out_data[22], u_group15_out_data[6]};
+    assign base15_skid_data_rec_x_morton = {base15_skid_data[53], base15_skid_data[37], base15_skid_data[21], base15_skid_data[52], base15_skid_data[36], base15_skid_data[20], base15_skid_data[51], base15_skid_data[35], base15_skid_data[19], base15_skid_data[50], base15_skid_data[34], base15_skid_data[18], base15_skid_data[49], base15_skid_data[33], base15_skid_data[17], base15_skid_data[48], base15_skid_data[32], base15_skid_data[16], base15_skid_data[47], base15_skid_data[31], base15_skid_data[15], base15_skid_data[46], base15_skid_data[30], base15_skid_data[14], base15_skid_data[45], base15_skid_data[29], base15_skid_data[13], base15_skid_data[44], base15_skid_data[28], base15_skid_data[12], base15_skid_data[43], base15_skid_data[27], base15_skid_data[11], base15_skid_data[42], base15_skid_data[26], base15_skid_data[10], base15_skid_data[41], base15_skid_data[25], base15_skid_data[9], base15_skid_data[40], base15_skid_data[24], base15_skid_data[8], base15_skid_data[39], base15_skid_data[23], base15_skid_data[7], base15_skid_data[38], base15_skid_data[22], base15_skid_data[6]};
+    assign l15_end = u_group15_end & base15_skid_data_kind_eq;
+    assign l15_take_group = (~u_group15_end) & (base15_skid_data_kind_eq | (u_group15_rec_x_morton <= base15_skid_data_rec_x_morton));
     assign l15_valid = u_group15_out_valid & base15_skid_valid;
-    assign l15_take_group_mux = l15_take_group ? u_group15_out_data[149:0] : base15_skid_data[149:0];
-    assign l15_take_group_mux_1 = l15_take_group ? 28'd0 : base15_skid_data[177:150];
-    assign l15_take_group_mux_2 = l15_take_group ? 2'd0 : base15_skid_data_mux_1;
-    assign l15_take_group_and = l15_take_group & u_group15_out_data[151];
-    assign l15_take_group_or = l15_take_group | l15_end;
+    assign l15_take_group_mux = l15_take_group ? u_group15_rec : base15_skid_data_rec;
+    assign l15_take_group_mux_1 = l15_take_group ? 2'd0 : (base15_skid_data_kind_eq ? 2'd3 : ((base15_skid_data_kind == 2'd0) ? 2'd1 : 2'd2));
     assign l15_take_group_not = ~l15_take_group;
-    assign l0_had_base_or = l0_had_base | base0_skid_valid;
-    assign base0_skid_data_not = ~base0_skid_data_eq;
-    assign base0_skid_valid_and = base0_skid_valid & base0_skid_data_not;
-    assign l0_had_base_or_1 = l0_had_base | base0_skid_valid_and;
-    assign l1_above_known = 1'b1 & l0_had_base_or;
-    assign l1_base_above = 1'b0 | l0_had_base_or_1;
-    assign l1_had_base_or = l1_had_base | base1_skid_valid;
-    assign base1_skid_data_not = ~base1_skid_data_eq;
-    assign base1_skid_valid_and = base1_skid_valid & base1_skid_data_not;
-    assign l1_had_base_or_1 = l1_had_base | base1_skid_valid_and;
-    assign l2_above_known = l1_above_known & l1_had_base_or;
-    assign l2_base_above = l1_base_above | l1_had_base_or_1;
-    assign l2_had_base_or = l2_had_base | base2_skid_valid;
-    assign base2_skid_data_not = ~base2_skid_data_eq;
-    assign base2_skid_valid_and = base2_skid_valid & base2_skid_data_not;
-    assign l2_had_base_or_1 = l2_had_base | base2_skid_valid_and;
-    assign l3_above_known = l2_above_known & l2_had_base_or;
-    assign l3_base_above = l2_base_above | l2_had_base_or_1;
-    assign l3_had_base_or = l3_had_base | base3_skid_valid;
-    assign base3_skid_data_not = ~base3_skid_data_eq;
-    assign base3_skid_valid_and = base3_skid_valid & base3_skid_data_not;
-    assign l3_had_base_or_1 = l3_had_base | base3_skid_valid_and;
-    assign l4_above_known = l3_above_known & l3_had_base_or;
-    assign l4_base_above = l3_base_above | l3_had_base_or_1;
-    assign l4_had_base_or = l4_had_base | base4_skid_valid;
-    assign base4_skid_data_not = ~base4_skid_data_eq;
-    assign base4_skid_valid_and = base4_skid_valid & base4_skid_data_not;
-    assign l4_had_base_or_1 = l4_had_base | base4_skid_valid_and;
-    assign l5_above_known = l4_above_known & l4_had_base_or;
-    assign l5_base_above = l4_base_above | l4_had_base_or_1;
-    assign l5_had_base_or = l5_had_base | base5_skid_valid;
-    assign base5_skid_data_not = ~base5_skid_data_eq;
-    assign base5_skid_valid_and = base5_skid_valid & base5_skid_data_not;
-    assign l5_had_base_or_1 = l5_had_base | base5_skid_valid_and;
-    assign l6_above_known = l5_above_known & l5_had_base_or;
-    assign l6_base_above = l5_base_above | l5_had_base_or_1;
-    assign l6_had_base_or = l6_had_base | base6_skid_valid;
-    assign base6_skid_data_not = ~base6_skid_data_eq;
-    assign base6_skid_valid_and = base6_skid_valid & base6_skid_data_not;
-    assign l6_had_base_or_1 = l6_had_base | base6_skid_valid_and;
-    assign l7_above_known = l6_above_known & l6_had_base_or;
-    assign l7_base_above = l6_base_above | l6_had_base_or_1;
-    assign l7_had_base_or = l7_had_base | base7_skid_valid;
-    assign base7_skid_data_not = ~base7_skid_data_eq;
-    assign base7_skid_valid_and = base7_skid_valid & base7_skid_data_not;
-    assign l7_had_base_or_1 = l7_had_base | base7_skid_valid_and;
-    assign l8_above_known = l7_above_known & l7_had_base_or;
-    assign l8_base_above = l7_base_above | l7_had_base_or_1;
-    assign l8_had_base_or = l8_had_base | base8_skid_valid;
-    assign base8_skid_data_not = ~base8_skid_data_eq;
-    assign base8_skid_valid_and = base8_skid_valid & base8_skid_data_not;
-    assign l8_had_base_or_1 = l8_had_base | base8_skid_valid_and;
-    assign l9_above_known = l8_above_known & l8_had_base_or;
-    assign l9_base_above = l8_base_above | l8_had_base_or_1;
-    assign l9_had_base_or = l9_had_base | base9_skid_valid;
-    assign base9_skid_data_not = ~base9_skid_data_eq;
-    assign base9_skid_valid_and = base9_skid_valid & base9_skid_data_not;
-    assign l9_had_base_or_1 = l9_had_base | base9_skid_valid_and;
-    assign l10_above_known = l9_above_known & l9_had_base_or;
-    assign l10_base_above = l9_base_above | l9_had_base_or_1;
-    assign l10_had_base_or = l10_had_base | base10_skid_valid;
-    assign base10_skid_data_not = ~base10_skid_data_eq;
-    assign base10_skid_valid_and = base10_skid_valid & base10_skid_data_not;
-    assign l10_had_base_or_1 = l10_had_base | base10_skid_valid_and;
-    assign l11_above_known = l10_above_known & l10_had_base_or;
-    assign l11_base_above = l10_base_above | l10_had_base_or_1;
-    assign l11_had_base_or = l11_had_base | base11_skid_valid;
-    assign base11_skid_data_not = ~base11_skid_data_eq;
-    assign base11_skid_valid_and = base11_skid_valid & base11_skid_data_not;
-    assign l11_had_base_or_1 = l11_had_base | base11_skid_valid_and;
-    assign l12_above_known = l11_above_known & l11_had_base_or;
-    assign l12_base_above = l11_base_above | l11_had_base_or_1;
-    assign l12_had_base_or = l12_had_base | base12_skid_valid;
-    assign base12_skid_data_not = ~base12_skid_data_eq;
-    assign base12_skid_valid_and = base12_skid_valid & base12_skid_data_not;
-    assign l12_had_base_or_1 = l12_had_base | base12_skid_valid_and;
-    assign l13_above_known = l12_above_known & l12_had_base_or;
-    assign l13_base_above = l12_base_above | l12_had_base_or_1;
-    assign l13_had_base_or = l13_had_base | base13_skid_valid;
-    assign base13_skid_data_not = ~base13_skid_data_eq;
-    assign base13_skid_valid_and = base13_skid_valid & base13_skid_data_not;
-    assign l13_had_base_or_1 = l13_had_base | base13_skid_valid_and;
-    assign l14_above_known = l13_above_known & l13_had_base_or;
-    assign l14_base_above = l13_base_above | l13_had_base_or_1;
-    assign l14_had_base_or = l14_had_base | base14_skid_valid;
-    assign base14_skid_data_not = ~base14_skid_data_eq;
-    assign base14_skid_valid_and = base14_skid_valid & base14_skid_data_not;
-    assign l14_had_base_or_1 = l14_had_base | base14_skid_valid_and;
-    assign l15_above_known = l14_above_known & l14_had_base_or;
-    assign l15_base_above = l14_base_above | l14_had_base_or_1;
-    assign l15_had_base_or = l15_had_base | base15_skid_valid;
-    assign base15_skid_data_not = ~base15_skid_data_eq;
-    assign base15_skid_valid_and = base15_skid_valid & base15_skid_data_not;
-    assign l15_had_base_or_1 = l15_had_base | base15_skid_valid_and;
-    assign l16_above_known = l15_above_known & l15_had_base_or;
-    assign l16_base_above = l15_base_above | l15_had_base_or_1;
+    assign l1_above_known = 1'b1 & (l0_had_base | base0_skid_valid);
+    assign l1_base_above = 1'b0 | (l0_had_base | (base0_skid_valid & (~base0_skid_data_kind_eq)));
+    assign l2_above_known = l1_above_known & (l1_had_base | base1_skid_valid);
+    assign l2_base_above = l1_base_above | (l1_had_base | (base1_skid_valid & (~base1_skid_data_kind_eq)));
+    assign l3_above_known = l2_above_known & (l2_had_base | base2_skid_valid);
+    assign l3_base_above = l2_base_above | (l2_had_base | (base2_skid_valid & (~base2_skid_data_kind_eq)));
+    assign l4_above_known = l3_above_known & (l3_had_base | base3_skid_valid);
+    assign l4_base_above = l3_base_above | (l3_had_base | (base3_skid_valid & (~base3_skid_data_kind_eq)));
+    assign l5_above_known = l4_above_known & (l4_had_base | base4_skid_valid);
+    assign l5_base_above = l4_base_above | (l4_had_base | (base4_skid_valid & (~base4_skid_data_kind_eq)));
+    assign l6_above_known = l5_above_known & (l5_had_base | base5_skid_valid);
+    assign l6_base_above = l5_base_above | (l5_had_base | (base5_skid_valid & (~base5_skid_data_kind_eq)));
+    assign l7_above_known = l6_above_known & (l6_had_base | base6_skid_valid);
+    assign l7_base_above = l6_base_above | (l6_had_base | (base6_skid_valid & (~base6_skid_data_kind_eq)));
+    assign l8_above_known = l7_above_known & (l7_had_base | base7_skid_valid);
+    assign l8_base_above = l7_base_above | (l7_had_base | (base7_skid_valid & (~base7_skid_data_kind_eq)));
+    assign l9_above_known = l8_above_known & (l8_had_base | base8_skid_valid);
+    assign l9_base_above = l8_base_above | (l8_had_base | (base8_skid_valid & (~base8_skid_data_kind_eq)));
+    assign l10_above_known = l9_above_known & (l9_had_base | base9_skid_valid);
+    assign l10_base_above = l9_base_above | (l9_had_base | (base9_skid_valid & (~base9_skid_data_kind_eq)));
+    assign l11_above_known = l10_above_known & (l10_had_base | base10_skid_valid);
+    assign l11_base_above = l10_base_above | (l10_had_base | (base10_skid_valid & (~base10_skid_data_kind_eq)));
+    assign l12_above_known = l11_above_known & (l11_had_base | base11_skid_valid);
+    assign l12_base_above = l11_base_above | (l11_had_base | (base11_skid_valid & (~base11_skid_data_kind_eq)));
+    assign l13_above_known = l12_above_known & (l12_had_base | base12_skid_valid);
+    assign l13_base_above = l12_base_above | (l12_had_base | (base12_skid_valid & (~base12_skid_data_kind_eq)));
+    assign l14_above_known = l13_above_known & (l13_had_base | base13_skid_valid);
+    assign l14_base_above = l13_base_above | (l13_had_base | (base13_skid_valid & (~base13_skid_data_kind_eq)));
+    assign l15_above_known = l14_above_known & (l14_had_base | base14_skid_valid);
+    assign l15_base_above = l14_base_above | (l14_had_base | (base14_skid_valid & (~base14_skid_data_kind_eq)));
+    assign l16_above_known = l15_above_known & (l15_had_base | base15_skid_valid);
+    assign l16_base_above = l15_base_above | (l15_had_base | (base15_skid_valid & (~base15_skid_data_kind_eq)));
     assign merge_clear = done_valid_q & done_in_ready;
-    assign level16_in_ready = ~level16_skid_spare_valid;
-    assign base16_skid_data_not = ~base16_skid_data_eq;
-    assign base16_skid_data_or = base16_skid_data_not | l16_above_known;
+    assign level16_in_ready = level16_skid_room;
+    assign base16_skid_data_kind_not = ~base16_skid_data_kind_eq;
+    assign l16_end_ok = base16_skid_data_kind_not | l16_above_known;
+    assign base16_skid_data_rec_leaf = base16_skid_data[0];
     assign top_found_not = ~top_found;
-    assign const_not = ~1'b0;
-    assign top_found_and = top_found_not & const_not;
-    assign top_found_not_1 = ~top_found;
-    assign const_not_1 = ~1'b0;
-    assign top_found_and_1 = top_found_not_1 & const_not_1;
-    assign base16_skid_data_mux_2 = base16_skid_data_eq ? top_found_and : top_found_and_1;
-    assign l16_done_not = ~l16_done;
-    assign base16_skid_valid_and = base16_skid_valid & l16_done_not;
-    assign base16_skid_valid_and_1 = base16_skid_valid_and & base16_skid_data_or;
-    assign base16_skid_valid_and_2 = base16_skid_valid_and_1 & u_group15_in_ready;
-    assign base16_skid_data_not_1 = ~base16_skid_data_mux_2;
-    assign base16_skid_data_or_1 = base16_skid_data_not_1 | level16_in_ready;
-    assign l16_fire = base16_skid_valid_and_2 & base16_skid_data_or_1;
-    assign base16_skid_data_not_2 = ~base16_skid_data_eq;
-    assign l16_fire_and = l16_fire & base16_skid_data_not_2;
-    assign l16_end_fire = l16_fire & base16_skid_data_eq;
-    assign base16_skid_data_not_3 = ~base16_skid_data_mux_2;
-    assign base16_skid_data_or_2 = base16_skid_data_not_3 | level16_in_ready;
-    assign base16_skid_valid_and_3 = base16_skid_valid_and_1 & base16_skid_data_or_2;
-    assign base16_skid_data_cat = {base16_skid_data_eq, base16_skid_data[101:1]};
-    assign l16_nodes_add = {1'b0, l16_nodes} + 25'd1;
-    assign base16_skid_data_mux_3 = base16_skid_data_eq ? 150'h00000000000000000000000000000000000000 : base16_skid_data[149:0];
-    assign base16_skid_data_mux_4 = base16_skid_data_eq ? 28'd0 : base16_skid_data[177:150];
-    assign l16_nodes_ovf_or = 1'b0 | l16_nodes_ovf;
-    assign level16_beat = {l16_nodes_ovf_or, l16_records, l16_nodes, base16_skid_data_mux_1, base16_skid_data_mux_4, base16_skid_data_mux_3};
-    assign base16_skid_valid_and_4 = base16_skid_valid_and_1 & u_group15_in_ready;
-    assign level16_in_valid = base16_skid_valid_and_4 & base16_skid_data_mux_2;
+    assign top_found_and = top_found_not & (~1'b0);
+    assign l16_ready_all = (base16_skid_valid & (~l16_done)) & l16_end_ok;
+    assign l16_ready_all_and = l16_ready_all & u_group15_in_ready;
+    assign base16_skid_data_kind_not_1 = ~top_found_and;
+    assign base16_skid_data_kind_or = base16_skid_data_kind_not_1 | level16_in_ready;
+    assign l16_fire = l16_ready_all_and & base16_skid_data_kind_or;
+    assign l16_fire_and = l16_fire & base16_skid_data_kind_not;
+    assign l16_end_fire = l16_fire & base16_skid_data_kind_eq;
+    assign l16_index_next = {1'b0, l16_nodes} + 25'd1;
+    assign level16_beat = {1'b0 | l16_nodes_ovf, l16_records, l16_nodes, base16_skid_data_kind_mux, base16_skid_data_kind_eq ? 28'd0 : base16_skid_data_ref, base16_skid_data_kind_eq ? 150'h00000000000000000000000000000000000000 : base16_skid_data_rec};
+    assign level16_in_valid = l16_ready_all_and & top_found_and;
     assign level16_skid_ready = level16_ready;
-    assign level16_skid_valid_not = ~level16_skid_valid;
-    assign level16_skid_ready_or = level16_skid_ready | level16_skid_valid_not;
-    assign level16_skid_spare_valid_not = ~level16_skid_spare_valid;
-    assign level16_in_valid_and = level16_in_valid & level16_skid_spare_valid_not;
-    assign level16_skid_spare_valid_or = level16_skid_spare_valid | level16_in_valid;
-    assign level16_skid_spare_valid_mux = level16_skid_spare_valid ? level16_skid_spare_data : level16_beat;
-    assign level16_skid_spare_valid_or_1 = level16_skid_spare_valid | level16_in_valid_and;
-    assign level16_skid_spare_valid_next = level16_skid_ready_or ? 1'b0 : level16_skid_spare_valid_or_1;
-    assign level16_skid_ready_not = ~level16_skid_ready_or;
-    assign level16_skid_ready_and = level16_skid_ready_not & level16_in_valid_and;
+    assign level16_skid_room = ~level16_skid_spare_valid;
+    assign level16_skid_drain = level16_skid_ready | (~level16_skid_valid);
+    assign level16_skid_take = level16_in_valid & level16_skid_room;
     assign level16_valid = level16_skid_valid;
     assign level16_data = level16_skid_data;
-    assign l16_done_or = l16_done | l16_end_fire;
-    assign l16_done_next = merge_clear ? 1'b0 : l16_done_or;
-    assign l16_fire_and_1 = l16_fire_and & l16_nodes_add[24];
-    assign l16_nodes_ovf_or_1 = l16_nodes_ovf | l16_fire_and_1;
-    assign l16_nodes_ovf_next = merge_clear ? 1'b0 : l16_nodes_ovf_or_1;
-    assign base16_skid_data_eq_2 = base16_skid_data_mux_1 == 2'd2;
-    assign base16_skid_data_not_4 = ~base16_skid_data_eq_2;
-    assign l16_fire_and_2 = l16_fire_and & base16_skid_data_not_4;
-    assign l16_records_add = l16_records + 24'd1;
-    assign base16_skid_data_eq_3 = base16_skid_data_mux_1 == 2'd2;
-    assign base16_skid_data_and = base16_skid_data_eq_3 & base16_skid_data[0];
-    assign l16_fire_and_3 = l16_fire_and & base16_skid_data_and;
-    assign l16_has_leaf_or = l16_has_leaf | l16_fire_and_3;
-    assign l16_has_leaf_next = merge_clear ? 1'b0 : l16_has_leaf_or;
-    assign l16_nodes_eq = l16_nodes == 24'd1;
-    assign l16_nodes_ovf_not = ~l16_nodes_ovf;
-    assign l16_nodes_and = l16_nodes_eq & l16_nodes_ovf_not;
-    assign l16_base_above_not = ~l16_base_above;
-    assign l16_nodes_and_1 = l16_nodes_and & l16_base_above_not;
-    assign l16_has_leaf_not = ~l16_has_leaf;
-    assign l16_nodes_and_2 = l16_nodes_and_1 & l16_has_leaf_not;
-    assign top_found_not_2 = ~top_found;
-    assign l16_end_fire_and = l16_end_fire & top_found_not_2;
-    assign l16_is_top = l16_end_fire_and & l16_nodes_and_2;
-    assign l16_is_top_or = 1'b0 | l16_is_top;
-    assign level15_in_ready = ~level15_skid_spare_valid;
+    assign base16_skid_data_kind_eq_1 = base16_skid_data_kind_mux == 2'd2;
+    assign l16_is_record = ~base16_skid_data_kind_eq_1;
+    assign l16_nodes_and = (((l16_nodes == 24'd1) & (~l16_nodes_ovf)) & (~l16_base_above)) & (~l16_has_leaf);
+    assign l16_is_top = (l16_end_fire & top_found_not) & l16_nodes_and;
+    assign level15_in_ready = level15_skid_room;
     assign l15_end_not = ~l15_end;
-    assign l15_end_or = l15_end_not | l15_above_known;
-    assign top_found_not_3 = ~top_found;
-    assign const_not_2 = ~1'b0;
-    assign top_found_and_2 = top_found_not_3 & const_not_2;
-    assign top_found_not_4 = ~top_found;
-    assign const_not_3 = ~1'b0;
-    assign top_found_and_3 = top_found_not_4 & const_not_3;
-    assign l15_end_mux = l15_end ? top_found_and_2 : top_found_and_3;
-    assign l15_done_not = ~l15_done;
-    assign l15_valid_and = l15_valid & l15_done_not;
-    assign l15_valid_and_1 = l15_valid_and & l15_end_or;
-    assign l15_valid_and_2 = l15_valid_and_1 & u_group14_in_ready;
-    assign l15_end_not_1 = ~l15_end_mux;
-    assign l15_end_or_1 = l15_end_not_1 | level15_in_ready;
-    assign l15_fire = l15_valid_and_2 & l15_end_or_1;
-    assign l15_end_not_2 = ~l15_end;
-    assign l15_fire_and = l15_fire & l15_end_not_2;
+    assign l15_end_ok = l15_end_not | l15_above_known;
+    assign l15_take_group_leaf = l15_take_group_mux[0];
+    assign l15_ready_all = (l15_valid & (~l15_done)) & l15_end_ok;
+    assign l15_ready_all_and = l15_ready_all & u_group14_in_ready;
+    assign l15_end_or = base16_skid_data_kind_not_1 | level15_in_ready;
+    assign l15_fire = l15_ready_all_and & l15_end_or;
+    assign l15_fire_and = l15_fire & l15_end_not;
     assign l15_end_fire = l15_fire & l15_end;
-    assign l15_end_not_3 = ~l15_end_mux;
-    assign l15_end_or_2 = l15_end_not_3 | level15_in_ready;
-    assign l15_valid_and_3 = l15_valid_and_1 & l15_end_or_2;
-    assign l15_end_cat = {l15_end, l15_take_group_mux[101:1]};
-    assign l15_fire_and_1 = l15_fire & l15_take_group_or;
-    assign l15_nodes_add = {1'b0, l15_nodes} + 25'd1;
-    assign l15_end_mux_1 = l15_end ? 150'h00000000000000000000000000000000000000 : l15_take_group_mux;
-    assign l15_end_mux_2 = l15_end ? 28'd0 : l15_take_group_mux_1;
-    assign l15_take_group_or_1 = l15_take_group_and | l15_nodes_ovf;
-    assign level15_beat = {l15_take_group_or_1, l15_records, l15_nodes, l15_take_group_mux_2, l15_end_mux_2, l15_end_mux_1};
-    assign l15_valid_and_4 = l15_valid_and_1 & u_group14_in_ready;
-    assign level15_in_valid = l15_valid_and_4 & l15_end_mux;
+    assign l15_index_next = {1'b0, l15_nodes} + 25'd1;
+    assign level15_beat = {(l15_take_group & u_group15_err) | l15_nodes_ovf, l15_records, l15_nodes, l15_take_group_mux_1, l15_end ? 28'd0 : (l15_take_group ? 28'd0 : base15_skid_data_ref), l15_end ? 150'h00000000000000000000000000000000000000 : l15_take_group_mux};
+    assign level15_in_valid = l15_ready_all_and & top_found_and;
     assign level15_skid_ready = level15_ready;
-    assign level15_skid_valid_not = ~level15_skid_valid;
-    assign level15_skid_ready_or = level15_skid_ready | level15_skid_valid_not;
-    assign level15_skid_spare_valid_not = ~level15_skid_spare_valid;
-    assign level15_in_valid_and = level15_in_valid & level15_skid_spare_valid_not;
-    assign level15_skid_spare_valid_or = level15_skid_spare_valid | level15_in_valid;
-    assign level15_skid_spare_valid_mux = level15_skid_spare_valid ? level15_skid_spare_data : level15_beat;
-    assign level15_skid_spare_valid_or_1 = level15_skid_spare_valid | level15_in_valid_and;
-    assign level15_skid_spare_valid_next = level15_skid_ready_or ? 1'b0 : level15_skid_spare_valid_or_1;
-    assign level15_skid_ready_not = ~level15_skid_ready_or;
-    assign level15_skid_ready_and = level15_skid_ready_not & level15_in_valid_and;
+    assign level15_skid_room = ~level15_skid_spare_valid;
+    assign level15_skid_drain = level15_skid_ready | (~level15_skid_valid);
+    assign level15_skid_take = level15_in_valid & level15_skid_room;
     assign level15_valid = level15_skid_valid;
     assign level15_data = level15_skid_data;
-    assign l15_done_or = l15_done | l15_end_fire;
-    assign l15_done_next = merge_clear ? 1'b0 : l15_done_or;
-    assign l15_fire_and_2 = l15_fire_and & l15_nodes_add[24];
-    assign l15_nodes_ovf_or = l15_nodes_ovf | l15_fire_and_2;
-    assign l15_nodes_ovf_next = merge_clear ? 1'b0 : l15_nodes_ovf_or;
-    assign l15_take_group_eq = l15_take_group_mux_2 == 2'd2;
-    assign l15_take_group_not_1 = ~l15_take_group_eq;
-    assign l15_fire_and_3 = l15_fire_and & l15_take_group_not_1;
-    assign l15_records_add = l15_records + 24'd1;
-    assign l15_fire_and_4 = l15_fire_and & l15_take_group_not;
-    assign l15_had_base_or_2 = l15_had_base | l15_fire_and_4;
-    assign l15_had_base_next = merge_clear ? 1'b0 : l15_had_base_or_2;
-    assign l15_take_group_eq_1 = l15_take_group_mux_2 == 2'd2;
-    assign l15_take_group_and_1 = l15_take_group_eq_1 & l15_take_group_mux[0];
-    assign l15_fire_and_5 = l15_fire_and & l15_take_group_and_1;
-    assign l15_has_leaf_or = l15_has_leaf | l15_fire_and_5;
-    assign l15_has_leaf_next = merge_clear ? 1'b0 : l15_has_leaf_or;
-    assign l15_nodes_eq = l15_nodes == 24'd1;
-    assign l15_nodes_ovf_not = ~l15_nodes_ovf;
-    assign l15_nodes_and = l15_nodes_eq & l15_nodes_ovf_not;
-    assign l15_base_above_not = ~l15_base_above;
-    assign l15_nodes_and_1 = l15_nodes_and & l15_base_above_not;
-    assign l15_has_leaf_not = ~l15_has_leaf;
-    assign l15_nodes_and_2 = l15_nodes_and_1 & l15_has_leaf_not;
-    assign top_found_not_5 = ~top_found;
-    assign l15_end_fire_and = l15_end_fire & top_found_not_5;
-    assign l15_is_top = l15_end_fire_and & l15_nodes_and_2;
-    assign l16_is_top_or_1 = l16_is_top_or | l15_is_top;
-    assign level14_in_ready = ~level14_skid_spare_valid;
+    assign l15_take_group_eq = l15_take_group_mux_1 == 2'd2;
+    assign l15_is_record = ~l15_take_group_eq;
+    assign l15_nodes_and = (((l15_nodes == 24'd1) & (~l15_nodes_ovf)) & (~l15_base_above)) & (~l15_has_leaf);
+    assign l15_is_top = (l15_end_fire & top_found_not) & l15_nodes_and;
+    assign level14_in_ready = level14_skid_room;
     assign l14_end_not = ~l14_end;
-    assign l14_end_or = l14_end_not | l14_above_known;
-    assign top_found_not_6 = ~top_found;
-    assign const_not_4 = ~1'b0;
-    assign top_found_and_4 = top_found_not_6 & const_not_4;
-    assign top_found_not_7 = ~top_found;
-    assign const_not_5 = ~1'b0;
-    assign top_found_and_5 = top_found_not_7 & const_not_5;
-    assign l14_end_mux = l14_end ? top_found_and_4 : top_found_and_5;
-    assign l14_done_not = ~l14_done;
-    assign l14_valid_and = l14_valid & l14_done_not;
-    assign l14_valid_and_1 = l14_valid_and & l14_end_or;
-    assign l14_valid_and_2 = l14_valid_and_1 & u_group13_in_ready;
-    assign l14_end_not_1 = ~l14_end_mux;
-    assign l14_end_or_1 = l14_end_not_1 | level14_in_ready;
-    assign l14_fire = l14_valid_and_2 & l14_end_or_1;
-    assign l14_end_not_2 = ~l14_end;
-    assign l14_fire_and = l14_fire & l14_end_not_2;
+    assign l14_end_ok = l14_end_not | l14_above_known;
+    assign l14_take_group_leaf = l14_take_group_mux[0];
+    assign l14_ready_all = (l14_valid & (~l14_done)) & l14_end_ok;
+    assign l14_ready_all_and = l14_ready_all & u_group13_in_ready;
+    assign l14_end_or = base16_skid_data_kind_not_1 | level14_in_ready;
+    assign l14_fire = l14_ready_all_and & l14_end_or;
+    assign l14_fire_and = l14_fire & l14_end_not;
     assign l14_end_fire = l14_fire & l14_end;
-    assign l14_end_not_3 = ~l14_end_mux;
-    assign l14_end_or_2 = l14_end_not_3 | level14_in_ready;
-    assign l14_valid_and_3 = l14_valid_and_1 & l14_end_or_2;
-    assign l14_end_cat = {l14_end, l14_take_group_mux[101:1]};
-    assign l14_fire_and_1 = l14_fire & l14_take_group_or;
-    assign l14_nodes_add = {1'b0, l14_nodes} + 25'd1;
-    assign l14_end_mux_1 = l14_end ? 150'h00000000000000000000000000000000000000 : l14_take_group_mux;
-    assign l14_end_mux_2 = l14_end ? 28'd0 : l14_take_group_mux_1;
-    assign l14_take_group_or_1 = l14_take_group_and | l14_nodes_ovf;
-    assign level14_beat = {l14_take_group_or_1, l14_records, l14_nodes, l14_take_group_mux_2, l14_end_mux_2, l14_end_mux_1};
-    assign l14_valid_and_4 = l14_valid_and_1 & u_group13_in_ready;
-    assign level14_in_valid = l14_valid_and_4 & l14_end_mux;
+    assign l14_index_next = {1'b0, l14_nodes} + 25'd1;
+    assign level14_beat = {(l14_take_group & u_group14_err) | l14_nodes_ovf, l14_records, l14_nodes, l14_take_group_mux_1, l14_end ? 28'd0 : (l14_take_group ? 28'd0 : base14_skid_data_ref), l14_end ? 150'h00000000000000000000000000000000000000 : l14_take_group_mux};
+    assign level14_in_valid = l14_ready_all_and & top_found_and;
     assign level14_skid_ready = level14_ready;
-    assign level14_skid_valid_not = ~level14_skid_valid;
-    assign level14_skid_ready_or = level14_skid_ready | level14_skid_valid_not;
-    assign level14_skid_spare_valid_not = ~level14_skid_spare_valid;
-    assign level14_in_valid_and = level14_in_valid & level14_skid_spare_valid_not;
-    assign level14_skid_spare_valid_or = level14_skid_spare_valid | level14_in_valid;
-    assign level14_skid_spare_valid_mux = level14_skid_spare_valid ? level14_skid_spare_data : level14_beat;
-    assign level14_skid_spare_valid_or_1 = level14_skid_spare_valid | level14_in_valid_and;
-    assign level14_skid_spare_valid_next = level14_skid_ready_or ? 1'b0 : level14_skid_spare_valid_or_1;
-    assign level14_skid_ready_not = ~level14_skid_ready_or;
-    assign level14_skid_ready_and = level14_skid_ready_not & level14_in_valid_and;
+    assign level14_skid_room = ~level14_skid_spare_valid;
+    assign level14_skid_drain = level14_skid_ready | (~level14_skid_valid);
+    assign level14_skid_take = level14_in_valid & level14_skid_room;
     assign level14_valid = level14_skid_valid;
     assign level14_data = level14_skid_data;
-    assign l14_done_or = l14_done | l14_end_fire;
-    assign l14_done_next = merge_clear ? 1'b0 : l14_done_or;
-    assign l14_fire_and_2 = l14_fire_and & l14_nodes_add[24];
-    assign l14_nodes_ovf_or = l14_nodes_ovf | l14_fire_and_2;
-    assign l14_nodes_ovf_next = merge_clear ? 1'b0 : l14_nodes_ovf_or;
-    assign l14_take_group_eq = l14_take_group_mux_2 == 2'd2;
-    assign l14_take_group_not_1 = ~l14_take_group_eq;
-    assign l14_fire_and_3 = l14_fire_and & l14_take_group_not_1;
-    assign l14_records_add = l14_records + 24'd1;
-    assign l14_fire_and_4 = l14_fire_and & l14_take_group_not;
-    assign l14_had_base_or_2 = l14_had_base | l14_fire_and_4;
-    assign l14_had_base_next = merge_clear ? 1'b0 : l14_had_base_or_2;
-    assign l14_take_group_eq_1 = l14_take_group_mux_2 == 2'd2;
-    assign l14_take_group_and_1 = l14_take_group_eq_1 & l14_take_group_mux[0];
-    assign l14_fire_and_5 = l14_fire_and & l14_take_group_and_1;
-    assign l14_has_leaf_or = l14_has_leaf | l14_fire_and_5;
-    assign l14_has_leaf_next = merge_clear ? 1'b0 : l14_has_leaf_or;
-    assign l14_nodes_eq = l14_nodes == 24'd1;
-    assign l14_nodes_ovf_not = ~l14_nodes_ovf;
-    assign l14_nodes_and = l14_nodes_eq & l14_nodes_ovf_not;
-    assign l14_base_above_not = ~l14_base_above;
-    assign l14_nodes_and_1 = l14_nodes_and & l14_base_above_not;
-    assign l14_has_leaf_not = ~l14_has_leaf;
-    assign l14_nodes_and_2 = l14_nodes_and_1 & l14_has_leaf_not;
-    assign top_found_not_8 = ~top_found;
-    assign l14_end_fire_and = l14_end_fire & top_found_not_8;
-    assign l14_is_top = l14_end_fire_and & l14_nodes_and_2;
-    assign l16_is_top_or_2 = l16_is_top_or_1 | l14_is_top;
-    assign level13_in_ready = ~level13_skid_spare_valid;
+    assign l14_take_group_eq = l14_take_group_mux_1 == 2'd2;
+    assign l14_is_record = ~l14_take_group_eq;
+    assign l14_nodes_and = (((l14_nodes == 24'd1) & (~l14_nodes_ovf)) & (~l14_base_above)) & (~l14_has_leaf);
+    assign l14_is_top = (l14_end_fire & top_found_not) & l14_nodes_and;
+    assign level13_in_ready = level13_skid_room;
     assign l13_end_not = ~l13_end;
-    assign l13_end_or = l13_end_not | l13_above_known;
-    assign top_found_not_9 = ~top_found;
-    assign const_not_6 = ~1'b0;
-    assign top_found_and_6 = top_found_not_9 & const_not_6;
-    assign top_found_not_10 = ~top_found;
-    assign const_not_7 = ~1'b0;
-    assign top_found_and_7 = top_found_not_10 & const_not_7;
-    assign l13_end_mux = l13_end ? top_found_and_6 : top_found_and_7;
-    assign l13_done_not = ~l13_done;
-    assign l13_valid_and = l13_valid & l13_done_not;
-    assign l13_valid_and_1 = l13_valid_and & l13_end_or;
-    assign l13_valid_and_2 = l13_valid_and_1 & u_group12_in_ready;
-    assign l13_end_not_1 = ~l13_end_mux;
-    assign l13_end_or_1 = l13_end_not_1 | level13_in_ready;
-    assign l13_fire = l13_valid_and_2 & l13_end_or_1;
-    assign l13_end_not_2 = ~l13_end;
-    assign l13_fire_and = l13_fire & l13_end_not_2;
+    assign l13_end_ok = l13_end_not | l13_above_known;
+    assign l13_take_group_leaf = l13_take_group_mux[0];
+    assign l13_ready_all = (l13_valid & (~l13_done)) & l13_end_ok;
+    assign l13_ready_all_and = l13_ready_all & u_group12_in_ready;
+    assign l13_end_or = base16_skid_data_kind_not_1 | level13_in_ready;
+    assign l13_fire = l13_ready_all_and & l13_end_or;
+    assign l13_fire_and = l13_fire & l13_end_not;
     assign l13_end_fire = l13_fire & l13_end;
-    assign l13_end_not_3 = ~l13_end_mux;
-    assign l13_end_or_2 = l13_end_not_3 | level13_in_ready;
-    assign l13_valid_and_3 = l13_valid_and_1 & l13_end_or_2;
-    assign l13_end_cat = {l13_end, l13_take_group_mux[101:1]};
-    assign l13_fire_and_1 = l13_fire & l13_take_group_or;
-    assign l13_nodes_add = {1'b0, l13_nodes} + 25'd1;
-    assign l13_end_mux_1 = l13_end ? 150'h00000000000000000000000000000000000000 : l13_take_group_mux;
-    assign l13_end_mux_2 = l13_end ? 28'd0 : l13_take_group_mux_1;
-    assign l13_take_group_or_1 = l13_take_group_and | l13_nodes_ovf;
-    assign level13_beat = {l13_take_group_or_1, l13_records, l13_nodes, l13_take_group_mux_2, l13_end_mux_2, l13_end_mux_1};
-    assign l13_valid_and_4 = l13_valid_and_1 & u_group12_in_ready;
-    assign level13_in_valid = l13_valid_and_4 & l13_end_mux;
+    assign l13_index_next = {1'b0, l13_nodes} + 25'd1;
+    assign level13_beat = {(l13_take_group & u_group13_err) | l13_nodes_ovf, l13_records, l13_nodes, l13_take_group_mux_1, l13_end ? 28'd0 : (l13_take_group ? 28'd0 : base13_skid_data_ref), l13_end ? 150'h00000000000000000000000000000000000000 : l13_take_group_mux};
+    assign level13_in_valid = l13_ready_all_and & top_found_and;
     assign level13_skid_ready = level13_ready;
-    assign level13_skid_valid_not = ~level13_skid_valid;
-    assign level13_skid_ready_or = level13_skid_ready | level13_skid_valid_not;
-    assign level13_skid_spare_valid_not = ~level13_skid_spare_valid;
-    assign level13_in_valid_and = level13_in_valid & level13_skid_spare_valid_not;
-    assign level13_skid_spare_valid_or = level13_skid_spare_valid | level13_in_valid;
-    assign level13_skid_spare_valid_mux = level13_skid_spare_valid ? level13_skid_spare_data : level13_beat;
-    assign level13_skid_spare_valid_or_1 = level13_skid_spare_valid | level13_in_valid_and;
-    assign level13_skid_spare_valid_next = level13_skid_ready_or ? 1'b0 : level13_skid_spare_valid_or_1;
-    assign level13_skid_ready_not = ~level13_skid_ready_or;
-    assign level13_skid_ready_and = level13_skid_ready_not & level13_in_valid_and;
+    assign level13_skid_room = ~level13_skid_spare_valid;
+    assign level13_skid_drain = level13_skid_ready | (~level13_skid_valid);
+    assign level13_skid_take = level13_in_valid & level13_skid_room;
     assign level13_valid = level13_skid_valid;
     assign level13_data = level13_skid_data;
-    assign l13_done_or = l13_done | l13_end_fire;
-    assign l13_done_next = merge_clear ? 1'b0 : l13_done_or;
-    assign l13_fire_and_2 = l13_fire_and & l13_nodes_add[24];
-    assign l13_nodes_ovf_or = l13_nodes_ovf | l13_fire_and_2;
-    assign l13_nodes_ovf_next = merge_clear ? 1'b0 : l13_nodes_ovf_or;
-    assign l13_take_group_eq = l13_take_group_mux_2 == 2'd2;
-    assign l13_take_group_not_1 = ~l13_take_group_eq;
-    assign l13_fire_and_3 = l13_fire_and & l13_take_group_not_1;
-    assign l13_records_add = l13_records + 24'd1;
-    assign l13_fire_and_4 = l13_fire_and & l13_take_group_not;
-    assign l13_had_base_or_2 = l13_had_base | l13_fire_and_4;
-    assign l13_had_base_next = merge_clear ? 1'b0 : l13_had_base_or_2;
-    assign l13_take_group_eq_1 = l13_take_group_mux_2 == 2'd2;
-    assign l13_take_group_and_1 = l13_take_group_eq_1 & l13_take_group_mux[0];
-    assign l13_fire_and_5 = l13_fire_and & l13_take_group_and_1;
-    assign l13_has_leaf_or = l13_has_leaf | l13_fire_and_5;
-    assign l13_has_leaf_next = merge_clear ? 1'b0 : l13_has_leaf_or;
-    assign l13_nodes_eq = l13_nodes == 24'd1;
-    assign l13_nodes_ovf_not = ~l13_nodes_ovf;
-    assign l13_nodes_and = l13_nodes_eq & l13_nodes_ovf_not;
-    assign l13_base_above_not = ~l13_base_above;
-    assign l13_nodes_and_1 = l13_nodes_and & l13_base_above_not;
-    assign l13_has_leaf_not = ~l13_has_leaf;
-    assign l13_nodes_and_2 = l13_nodes_and_1 & l13_has_leaf_not;
-    assign top_found_not_11 = ~top_found;
-    assign l13_end_fire_and = l13_end_fire & top_found_not_11;
-    assign l13_is_top = l13_end_fire_and & l13_nodes_and_2;
-    assign l16_is_top_or_3 = l16_is_top_or_2 | l13_is_top;
-    assign level12_in_ready = ~level12_skid_spare_valid;
+    assign l13_take_group_eq = l13_take_group_mux_1 == 2'd2;
+    assign l13_is_record = ~l13_take_group_eq;
+    assign l13_nodes_and = (((l13_nodes == 24'd1) & (~l13_nodes_ovf)) & (~l13_base_above)) & (~l13_has_leaf);
+    assign l13_is_top = (l13_end_fire & top_found_not) & l13_nodes_and;
+    assign level12_in_ready = level12_skid_room;
     assign l12_end_not = ~l12_end;
-    assign l12_end_or = l12_end_not | l12_above_known;
-    assign top_found_not_12 = ~top_found;
-    assign const_not_8 = ~1'b0;
-    assign top_found_and_8 = top_found_not_12 & const_not_8;
-    assign top_found_not_13 = ~top_found;
-    assign const_not_9 = ~1'b0;
-    assign top_found_and_9 = top_found_not_13 & const_not_9;
-    assign l12_end_mux = l12_end ? top_found_and_8 : top_found_and_9;
-    assign l12_done_not = ~l12_done;
-    assign l12_valid_and = l12_valid & l12_done_not;
-    assign l12_valid_and_1 = l12_valid_and & l12_end_or;
-    assign l12_valid_and_2 = l12_valid_and_1 & u_group11_in_ready;
-    assign l12_end_not_1 = ~l12_end_mux;
-    assign l12_end_or_1 = l12_end_not_1 | level12_in_ready;
-    assign l12_fire = l12_valid_and_2 & l12_end_or_1;
-    assign l12_end_not_2 = ~l12_end;
-    assign l12_fire_and = l12_fire & l12_end_not_2;
+    assign l12_end_ok = l12_end_not | l12_above_known;
+    assign l12_take_group_leaf = l12_take_group_mux[0];
+    assign l12_ready_all = (l12_valid & (~l12_done)) & l12_end_ok;
+    assign l12_ready_all_and = l12_ready_all & u_group11_in_ready;
+    assign l12_end_or = base16_skid_data_kind_not_1 | level12_in_ready;
+    assign l12_fire = l12_ready_all_and & l12_end_or;
+    assign l12_fire_and = l12_fire & l12_end_not;
     assign l12_end_fire = l12_fire & l12_end;
-    assign l12_end_not_3 = ~l12_end_mux;
-    assign l12_end_or_2 = l12_end_not_3 | level12_in_ready;
-    assign l12_valid_and_3 = l12_valid_and_1 & l12_end_or_2;
-    assign l12_end_cat = {l12_end, l12_take_group_mux[101:1]};
-    assign l12_fire_and_1 = l12_fire & l12_take_group_or;
-    assign l12_nodes_add = {1'b0, l12_nodes} + 25'd1;
-    assign l12_end_mux_1 = l12_end ? 150'h00000000000000000000000000000000000000 : l12_take_group_mux;
-    assign l12_end_mux_2 = l12_end ? 28'd0 : l12_take_group_mux_1;
-    assign l12_take_group_or_1 = l12_take_group_and | l12_nodes_ovf;
-    assign level12_beat = {l12_take_group_or_1, l12_records, l12_nodes, l12_take_group_mux_2, l12_end_mux_2, l12_end_mux_1};
-    assign l12_valid_and_4 = l12_valid_and_1 & u_group11_in_ready;
-    assign level12_in_valid = l12_valid_and_4 & l12_end_mux;
+    assign l12_index_next = {1'b0, l12_nodes} + 25'd1;
+    assign level12_beat = {(l12_take_group & u_group12_err) | l12_nodes_ovf, l12_records, l12_nodes, l12_take_group_mux_1, l12_end ? 28'd0 : (l12_take_group ? 28'd0 : base12_skid_data_ref), l12_end ? 150'h00000000000000000000000000000000000000 : l12_take_group_mux};
+    assign level12_in_valid = l12_ready_all_and & top_found_and;
     assign level12_skid_ready = level12_ready;
-    assign level12_skid_valid_not = ~level12_skid_valid;
-    assign level12_skid_ready_or = level12_skid_ready | level12_skid_valid_not;
-    assign level12_skid_spare_valid_not = ~level12_skid_spare_valid;
-    assign level12_in_valid_and = level12_in_valid & level12_skid_spare_valid_not;
-    assign level12_skid_spare_valid_or = level12_skid_spare_valid | level12_in_valid;
-    assign level12_skid_spare_valid_mux = level12_skid_spare_valid ? level12_skid_spare_data : level12_beat;
-    assign level12_skid_spare_valid_or_1 = level12_skid_spare_valid | level12_in_valid_and;
-    assign level12_skid_spare_valid_next = level12_skid_ready_or ? 1'b0 : level12_skid_spare_valid_or_1;
-    assign level12_skid_ready_not = ~level12_skid_ready_or;
-    assign level12_skid_ready_and = level12_skid_ready_not & level12_in_valid_and;
+    assign level12_skid_room = ~level12_skid_spare_valid;
+    assign level12_skid_drain = level12_skid_ready | (~level12_skid_valid);
+    assign level12_skid_take = level12_in_valid & level12_skid_room;
     assign level12_valid = level12_skid_valid;
     assign level12_data = level12_skid_data;
-    assign l12_done_or = l12_done | l12_end_fire;
-    assign l12_done_next = merge_clear ? 1'b0 : l12_done_or;
-    assign l12_fire_and_2 = l12_fire_and & l12_nodes_add[24];
-    assign l12_nodes_ovf_or = l12_nodes_ovf | l12_fire_and_2;
-    assign l12_nodes_ovf_next = merge_clear ? 1'b0 : l12_nodes_ovf_or;
-    assign l12_take_group_eq = l12_take_group_mux_2 == 2'd2;
-    assign l12_take_group_not_1 = ~l12_take_group_eq;
-    assign l12_fire_and_3 = l12_fire_and & l12_take_group_not_1;
-    assign l12_records_add = l12_records + 24'd1;
-    assign l12_fire_and_4 = l12_fire_and & l12_take_group_not;
-    assign l12_had_base_or_2 = l12_had_base | l12_fire_and_4;
-    assign l12_had_base_next = merge_clear ? 1'b0 : l12_had_base_or_2;
-    assign l12_take_group_eq_1 = l12_take_group_mux_2 == 2'd2;
-    assign l12_take_group_and_1 = l12_take_group_eq_1 & l12_take_group_mux[0];
-    assign l12_fire_and_5 = l12_fire_and & l12_take_group_and_1;
-    assign l12_has_leaf_or = l12_has_leaf | l12_fire_and_5;
-    assign l12_has_leaf_next = merge_clear ? 1'b0 : l12_has_leaf_or;
-    assign l12_nodes_eq = l12_nodes == 24'd1;
-    assign l12_nodes_ovf_not = ~l12_nodes_ovf;
-    assign l12_nodes_and = l12_nodes_eq & l12_nodes_ovf_not;
-    assign l12_base_above_not = ~l12_base_above;
-    assign l12_nodes_and_1 = l12_nodes_and & l12_base_above_not;
-    assign l12_has_leaf_not = ~l12_has_leaf;
-    assign l12_nodes_and_2 = l12_nodes_and_1 & l12_has_leaf_not;
-    assign top_found_not_14 = ~top_found;
-    assign l12_end_fire_and = l12_end_fire & top_found_not_14;
-    assign l12_is_top = l12_end_fire_and & l12_nodes_and_2;
-    assign l16_is_top_or_4 = l16_is_top_or_3 | l12_is_top;
-    assign level11_in_ready = ~level11_skid_spare_valid;
+    assign l12_take_group_eq = l12_take_group_mux_1 == 2'd2;
+    assign l12_is_record = ~l12_take_group_eq;
+    assign l12_nodes_and = (((l12_nodes == 24'd1) & (~l12_nodes_ovf)) & (~l12_base_above)) & (~l12_has_leaf);
+    assign l12_is_top = (l12_end_fire & top_found_not) & l12_nodes_and;
+    assign level11_in_ready = level11_skid_room;
     assign l11_end_not = ~l11_end;
-    assign l11_end_or = l11_end_not | l11_above_known;
-    assign top_found_not_15 = ~top_found;
-    assign const_not_10 = ~1'b0;
-    assign top_found_and_10 = top_found_not_15 & const_not_10;
-    assign top_found_not_16 = ~top_found;
-    assign const_not_11 = ~1'b0;
-    assign top_found_and_11 = top_found_not_16 & const_not_11;
-    assign l11_end_mux = l11_end ? top_found_and_10 : top_found_and_11;
-    assign l11_done_not = ~l11_done;
-    assign l11_valid_and = l11_valid & l11_done_not;
-    assign l11_valid_and_1 = l11_valid_and & l11_end_or;
-    assign l11_valid_and_2 = l11_valid_and_1 & u_group10_in_ready;
-    assign l11_end_not_1 = ~l11_end_mux;
-    assign l11_end_or_1 = l11_end_not_1 | level11_in_ready;
-    assign l11_fire = l11_valid_and_2 & l11_end_or_1;
-    assign l11_end_not_2 = ~l11_end;
-    assign l11_fire_and = l11_fire & l11_end_not_2;
+    assign l11_end_ok = l11_end_not | l11_above_known;
+    assign l11_take_group_leaf = l11_take_group_mux[0];
+    assign l11_ready_all = (l11_valid & (~l11_done)) & l11_end_ok;
+    assign l11_ready_all_and = l11_ready_all & u_group10_in_ready;
+    assign l11_end_or = base16_skid_data_kind_not_1 | level11_in_ready;
+    assign l11_fire = l11_ready_all_and & l11_end_or;
+    assign l11_fire_and = l11_fire & l11_end_not;
     assign l11_end_fire = l11_fire & l11_end;
-    assign l11_end_not_3 = ~l11_end_mux;
-    assign l11_end_or_2 = l11_end_not_3 | level11_in_ready;
-    assign l11_valid_and_3 = l11_valid_and_1 & l11_end_or_2;
-    assign l11_end_cat = {l11_end, l11_take_group_mux[101:1]};
-    assign l11_fire_and_1 = l11_fire & l11_take_group_or;
-    assign l11_nodes_add = {1'b0, l11_nodes} + 25'd1;
-    assign l11_end_mux_1 = l11_end ? 150'h00000000000000000000000000000000000000 : l11_take_group_mux;
-    assign l11_end_mux_2 = l11_end ? 28'd0 : l11_take_group_mux_1;
-    assign l11_take_group_or_1 = l11_take_group_and | l11_nodes_ovf;
-    assign level11_beat = {l11_take_group_or_1, l11_records, l11_nodes, l11_take_group_mux_2, l11_end_mux_2, l11_end_mux_1};
-    assign l11_valid_and_4 = l11_valid_and_1 & u_group10_in_ready;
-    assign level11_in_valid = l11_valid_and_4 & l11_end_mux;
+    assign l11_index_next = {1'b0, l11_nodes} + 25'd1;
+    assign level11_beat = {(l11_take_group & u_group11_err) | l11_nodes_ovf, l11_records, l11_nodes, l11_take_group_mux_1, l11_end ? 28'd0 : (l11_take_group ? 28'd0 : base11_skid_data_ref), l11_end ? 150'h00000000000000000000000000000000000000 : l11_take_group_mux};
+    assign level11_in_valid = l11_ready_all_and & top_found_and;
     assign level11_skid_ready = level11_ready;
-    assign level11_skid_valid_not = ~level11_skid_valid;
-    assign level11_skid_ready_or = level11_skid_ready | level11_skid_valid_not;
-    assign level11_skid_spare_valid_not = ~level11_skid_spare_valid;
-    assign level11_in_valid_and = level11_in_valid & level11_skid_spare_valid_not;
-    assign level11_skid_spare_valid_or = level11_skid_spare_valid | level11_in_valid;
-    assign level11_skid_spare_valid_mux = level11_skid_spare_valid ? level11_skid_spare_data : level11_beat;
-    assign level11_skid_spare_valid_or_1 = level11_skid_spare_valid | level11_in_valid_and;
-    assign level11_skid_spare_valid_next = level11_skid_ready_or ? 1'b0 : level11_skid_spare_valid_or_1;
-    assign level11_skid_ready_not = ~level11_skid_ready_or;
-    assign level11_skid_ready_and = level11_skid_ready_not & level11_in_valid_and;
+    assign level11_skid_room = ~level11_skid_spare_valid;
+    assign level11_skid_drain = level11_skid_ready | (~level11_skid_valid);
+    assign level11_skid_take = level11_in_valid & level11_skid_room;
     assign level11_valid = level11_skid_valid;
     assign level11_data = level11_skid_data;
-    assign l11_done_or = l11_done | l11_end_fire;
-    assign l11_done_next = merge_clear ? 1'b0 : l11_done_or;
-    assign l11_fire_and_2 = l11_fire_and & l11_nodes_add[24];
-    assign l11_nodes_ovf_or = l11_nodes_ovf | l11_fire_and_2;
-    assign l11_nodes_ovf_next = merge_clear ? 1'b0 : l11_nodes_ovf_or;
-    assign l11_take_group_eq = l11_take_group_mux_2 == 2'd2;
-    assign l11_take_group_not_1 = ~l11_take_group_eq;
-    assign l11_fire_and_3 = l11_fire_and & l11_take_group_not_1;
-    assign l11_records_add = l11_records + 24'd1;
-    assign l11_fire_and_4 = l11_fire_and & l11_take_group_not;
-    assign l11_had_base_or_2 = l11_had_base | l11_fire_and_4;
-    assign l11_had_base_next = merge_clear ? 1'b0 : l11_had_base_or_2;
-    assign l11_take_group_eq_1 = l11_take_group_mux_2 == 2'd2;
-    assign l11_take_group_and_1 = l11_take_group_eq_1 & l11_take_group_mux[0];
-    assign l11_fire_and_5 = l11_fire_and & l11_take_group_and_1;
-    assign l11_has_leaf_or = l11_has_leaf | l11_fire_and_5;
-    assign l11_has_leaf_next = merge_clear ? 1'b0 : l11_has_leaf_or;
-    assign l11_nodes_eq = l11_nodes == 24'd1;
-    assign l11_nodes_ovf_not = ~l11_nodes_ovf;
-    assign l11_nodes_and = l11_nodes_eq & l11_nodes_ovf_not;
-    assign l11_base_above_not = ~l11_base_above;
-    assign l11_nodes_and_1 = l11_nodes_and & l11_base_above_not;
-    assign l11_has_leaf_not = ~l11_has_leaf;
-    assign l11_nodes_and_2 = l11_nodes_and_1 & l11_has_leaf_not;
-    assign top_found_not_17 = ~top_found;
-    assign l11_end_fire_and = l11_end_fire & top_found_not_17;
-    assign l11_is_top = l11_end_fire_and & l11_nodes_and_2;
-    assign l16_is_top_or_5 = l16_is_top_or_4 | l11_is_top;
-    assign level10_in_ready = ~level10_skid_spare_valid;
+    assign l11_take_group_eq = l11_take_group_mux_1 == 2'd2;
+    assign l11_is_record = ~l11_take_group_eq;
+    assign l11_nodes_and = (((l11_nodes == 24'd1) & (~l11_nodes_ovf)) & (~l11_base_above)) & (~l11_has_leaf);
+    assign l11_is_top = (l11_end_fire & top_found_not) & l11_nodes_and;
+    assign level10_in_ready = level10_skid_room;
     assign l10_end_not = ~l10_end;
-    assign l10_end_or = l10_end_not | l10_above_known;
-    assign top_found_not_18 = ~top_found;
-    assign const_not_12 = ~1'b0;
-    assign top_found_and_12 = top_found_not_18 & const_not_12;
-    assign top_found_not_19 = ~top_found;
-    assign const_not_13 = ~1'b0;
-    assign top_found_and_13 = top_found_not_19 & const_not_13;
-    assign l10_end_mux = l10_end ? top_found_and_12 : top_found_and_13;
-    assign l10_done_not = ~l10_done;
-    assign l10_valid_and = l10_valid & l10_done_not;
-    assign l10_valid_and_1 = l10_valid_and & l10_end_or;
-    assign l10_valid_and_2 = l10_valid_and_1 & u_group9_in_ready;
-    assign l10_end_not_1 = ~l10_end_mux;
-    assign l10_end_or_1 = l10_end_not_1 | level10_in_ready;
-    assign l10_fire = l10_valid_and_2 & l10_end_or_1;
-    assign l10_end_not_2 = ~l10_end;
-    assign l10_fire_and = l10_fire & l10_end_not_2;
+    assign l10_end_ok = l10_end_not | l10_above_known;
+    assign l10_take_group_leaf = l10_take_group_mux[0];
+    assign l10_ready_all = (l10_valid & (~l10_done)) & l10_end_ok;
+    assign l10_ready_all_and = l10_ready_all & u_group9_in_ready;
+    assign l10_end_or = base16_skid_data_kind_not_1 | level10_in_ready;
+    assign l10_fire = l10_ready_all_and & l10_end_or;
+    assign l10_fire_and = l10_fire & l10_end_not;
     assign l10_end_fire = l10_fire & l10_end;
-    assign l10_end_not_3 = ~l10_end_mux;
-    assign l10_end_or_2 = l10_end_not_3 | level10_in_ready;
-    assign l10_valid_and_3 = l10_valid_and_1 & l10_end_or_2;
-    assign l10_end_cat = {l10_end, l10_take_group_mux[101:1]};
-    assign l10_fire_and_1 = l10_fire & l10_take_group_or;
-    assign l10_nodes_add = {1'b0, l10_nodes} + 25'd1;
-    assign l10_end_mux_1 = l10_end ? 150'h00000000000000000000000000000000000000 : l10_take_group_mux;
-    assign l10_end_mux_2 = l10_end ? 28'd0 : l10_take_group_mux_1;
-    assign l10_take_group_or_1 = l10_take_group_and | l10_nodes_ovf;
-    assign level10_beat = {l10_take_group_or_1, l10_records, l10_nodes, l10_take_group_mux_2, l10_end_mux_2, l10_end_mux_1};
-    assign l10_valid_and_4 = l10_valid_and_1 & u_group9_in_ready;
-    assign level10_in_valid = l10_valid_and_4 & l10_end_mux;
+    assign l10_index_next = {1'b0, l10_nodes} + 25'd1;
+    assign level10_beat = {(l10_take_group & u_group10_err) | l10_nodes_ovf, l10_records, l10_nodes, l10_take_group_mux_1, l10_end ? 28'd0 : (l10_take_group ? 28'd0 : base10_skid_data_ref), l10_end ? 150'h00000000000000000000000000000000000000 : l10_take_group_mux};
+    assign level10_in_valid = l10_ready_all_and & top_found_and;
     assign level10_skid_ready = level10_ready;
-    assign level10_skid_valid_not = ~level10_skid_valid;
-    assign level10_skid_ready_or = level10_skid_ready | level10_skid_valid_not;
-    assign level10_skid_spare_valid_not = ~level10_skid_spare_valid;
-    assign level10_in_valid_and = level10_in_valid & level10_skid_spare_valid_not;
-    assign level10_skid_spare_valid_or = level10_skid_spare_valid | level10_in_valid;
-    assign level10_skid_spare_valid_mux = level10_skid_spare_valid ? level10_skid_spare_data : level10_beat;
-    assign level10_skid_spare_valid_or_1 = level10_skid_spare_valid | level10_in_valid_and;
-    assign level10_skid_spare_valid_next = level10_skid_ready_or ? 1'b0 : level10_skid_spare_valid_or_1;
-    assign level10_skid_ready_not = ~level10_skid_ready_or;
-    assign level10_skid_ready_and = level10_skid_ready_not & level10_in_valid_and;
+    assign level10_skid_room = ~level10_skid_spare_valid;
+    assign level10_skid_drain = level10_skid_ready | (~level10_skid_valid);
+    assign level10_skid_take = level10_in_valid & level10_skid_room;
     assign level10_valid = level10_skid_valid;
     assign level10_data = level10_skid_data;
-    assign l10_done_or = l10_done | l10_end_fire;
-    assign l10_done_next = merge_clear ? 1'b0 : l10_done_or;
-    assign l10_fire_and_2 = l10_fire_and & l10_nodes_add[24];
-    assign l10_nodes_ovf_or = l10_nodes_ovf | l10_fire_and_2;
-    assign l10_nodes_ovf_next = merge_clear ? 1'b0 : l10_nodes_ovf_or;
-    assign l10_take_group_eq = l10_take_group_mux_2 == 2'd2;
-    assign l10_take_group_not_1 = ~l10_take_group_eq;
-    assign l10_fire_and_3 = l10_fire_and & l10_take_group_not_1;
-    assign l10_records_add = l10_records + 24'd1;
-    assign l10_fire_and_4 = l10_fire_and & l10_take_group_not;
-    assign l10_had_base_or_2 = l10_had_base | l10_fire_and_4;
-    assign l10_had_base_next = merge_clear ? 1'b0 : l10_had_base_or_2;
-    assign l10_take_group_eq_1 = l10_take_group_mux_2 == 2'd2;
-    assign l10_take_group_and_1 = l10_take_group_eq_1 & l10_take_group_mux[0];
-    assign l10_fire_and_5 = l10_fire_and & l10_take_group_and_1;
-    assign l10_has_leaf_or = l10_has_leaf | l10_fire_and_5;
-    assign l10_has_leaf_next = merge_clear ? 1'b0 : l10_has_leaf_or;
-    assign l10_nodes_eq = l10_nodes == 24'd1;
-    assign l10_nodes_ovf_not = ~l10_nodes_ovf;
-    assign l10_nodes_and = l10_nodes_eq & l10_nodes_ovf_not;
-    assign l10_base_above_not = ~l10_base_above;
-    assign l10_nodes_and_1 = l10_nodes_and & l10_base_above_not;
-    assign l10_has_leaf_not = ~l10_has_leaf;
-    assign l10_nodes_and_2 = l10_nodes_and_1 & l10_has_leaf_not;
-    assign top_found_not_20 = ~top_found;
-    assign l10_end_fire_and = l10_end_fire & top_found_not_20;
-    assign l10_is_top = l10_end_fire_and & l10_nodes_and_2;
-    assign l16_is_top_or_6 = l16_is_top_or_5 | l10_is_top;
-    assign level9_in_ready = ~level9_skid_spare_valid;
+    assign l10_take_group_eq = l10_take_group_mux_1 == 2'd2;
+    assign l10_is_record = ~l10_take_group_eq;
+    assign l10_nodes_and = (((l10_nodes == 24'd1) & (~l10_nodes_ovf)) & (~l10_base_above)) & (~l10_has_leaf);
+    assign l10_is_top = (l10_end_fire & top_found_not) & l10_nodes_and;
+    assign l16_is_top_or = ((((((1'b0 | l16_is_top) | l15_is_top) | l14_is_top) | l13_is_top) | l12_is_top) | l11_is_top) | l10_is_top;
+    assign level9_in_ready = level9_skid_room;
     assign l9_end_not = ~l9_end;
-    assign l9_end_or = l9_end_not | l9_above_known;
-    assign top_found_not_21 = ~top_found;
-    assign const_not_14 = ~1'b0;
-    assign top_found_and_14 = top_found_not_21 & const_not_14;
-    assign top_found_not_22 = ~top_found;
-    assign const_not_15 = ~1'b0;
-    assign top_found_and_15 = top_found_not_22 & const_not_15;
-    assign l9_end_mux = l9_end ? top_found_and_14 : top_found_and_15;
-    assign l9_done_not = ~l9_done;
-    assign l9_valid_and = l9_valid & l9_done_not;
-    assign l9_valid_and_1 = l9_valid_and & l9_end_or;
-    assign l9_valid_and_2 = l9_valid_and_1 & u_group8_in_ready;
-    assign l9_end_not_1 = ~l9_end_mux;
-    assign l9_end_or_1 = l9_end_not_1 | level9_in_ready;
-    assign l9_fire = l9_valid_and_2 & l9_end_or_1;
-    assign l9_end_not_2 = ~l9_end;
-    assign l9_fire_and = l9_fire & l9_end_not_2;
+    assign l9_end_ok = l9_end_not | l9_above_known;
+    assign l9_take_group_leaf = l9_take_group_mux[0];
+    assign l9_ready_all = (l9_valid & (~l9_done)) & l9_end_ok;
+    assign l9_ready_all_and = l9_ready_all & u_group8_in_ready;
+    assign l9_end_or = base16_skid_data_kind_not_1 | level9_in_ready;
+    assign l9_fire = l9_ready_all_and & l9_end_or;
+    assign l9_fire_and = l9_fire & l9_end_not;
     assign l9_end_fire = l9_fire & l9_end;
-    assign l9_end_not_3 = ~l9_end_mux;
-    assign l9_end_or_2 = l9_end_not_3 | level9_in_ready;
-    assign l9_valid_and_3 = l9_valid_and_1 & l9_end_or_2;
-    assign l9_end_cat = {l9_end, l9_take_group_mux[101:1]};
-    assign l9_fire_and_1 = l9_fire & l9_take_group_or;
-    assign l9_nodes_add = {1'b0, l9_nodes} + 25'd1;
-    assign l9_end_mux_1 = l9_end ? 150'h00000000000000000000000000000000000000 : l9_take_group_mux;
-    assign l9_end_mux_2 = l9_end ? 28'd0 : l9_take_group_mux_1;
-    assign l9_take_group_or_1 = l9_take_group_and | l9_nodes_ovf;
-    assign level9_beat = {l9_take_group_or_1, l9_records, l9_nodes, l9_take_group_mux_2, l9_end_mux_2, l9_end_mux_1};
-    assign l9_valid_and_4 = l9_valid_and_1 & u_group8_in_ready;
-    assign level9_in_valid = l9_valid_and_4 & l9_end_mux;
+    assign l9_index_next = {1'b0, l9_nodes} + 25'd1;
+    assign level9_beat = {(l9_take_group & u_group9_err) | l9_nodes_ovf, l9_records, l9_nodes, l9_take_group_mux_1, l9_end ? 28'd0 : (l9_take_group ? 28'd0 : base9_skid_data_ref), l9_end ? 150'h00000000000000000000000000000000000000 : l9_take_group_mux};
+    assign level9_in_valid = l9_ready_all_and & top_found_and;
     assign level9_skid_ready = level9_ready;
-    assign level9_skid_valid_not = ~level9_skid_valid;
-    assign level9_skid_ready_or = level9_skid_ready | level9_skid_valid_not;
-    assign level9_skid_spare_valid_not = ~level9_skid_spare_valid;
-    assign level9_in_valid_and = level9_in_valid & level9_skid_spare_valid_not;
-    assign level9_skid_spare_valid_or = level9_skid_spare_valid | level9_in_valid;
-    assign level9_skid_spare_valid_mux = level9_skid_spare_valid ? level9_skid_spare_data : level9_beat;
-    assign level9_skid_spare_valid_or_1 = level9_skid_spare_valid | level9_in_valid_and;
-    assign level9_skid_spare_valid_next = level9_skid_ready_or ? 1'b0 : level9_skid_spare_valid_or_1;
-    assign level9_skid_ready_not = ~level9_skid_ready_or;
-    assign level9_skid_ready_and = level9_skid_ready_not & level9_in_valid_and;
+    assign level9_skid_room = ~level9_skid_spare_valid;
+    assign level9_skid_drain = level9_skid_ready | (~level9_skid_valid);
+    assign level9_skid_take = level9_in_valid & level9_skid_room;
     assign level9_valid = level9_skid_valid;
     assign level9_data = level9_skid_data;
-    assign l9_done_or = l9_done | l9_end_fire;
-    assign l9_done_next = merge_clear ? 1'b0 : l9_done_or;
-    assign l9_fire_and_2 = l9_fire_and & l9_nodes_add[24];
-    assign l9_nodes_ovf_or = l9_nodes_ovf | l9_fire_and_2;
-    assign l9_nodes_ovf_next = merge_clear ? 1'b0 : l9_nodes_ovf_or;
-    assign l9_take_group_eq = l9_take_group_mux_2 == 2'd2;
-    assign l9_take_group_not_1 = ~l9_take_group_eq;
-    assign l9_fire_and_3 = l9_fire_and & l9_take_group_not_1;
-    assign l9_records_add = l9_records + 24'd1;
-    assign l9_fire_and_4 = l9_fire_and & l9_take_group_not;
-    assign l9_had_base_or_2 = l9_had_base | l9_fire_and_4;
-    assign l9_had_base_next = merge_clear ? 1'b0 : l9_had_base_or_2;
-    assign l9_take_group_eq_1 = l9_take_group_mux_2 == 2'd2;
-    assign l9_take_group_and_1 = l9_take_group_eq_1 & l9_take_group_mux[0];
-    assign l9_fire_and_5 = l9_fire_and & l9_take_group_and_1;
-    assign l9_has_leaf_or = l9_has_leaf | l9_fire_and_5;
-    assign l9_has_leaf_next = merge_clear ? 1'b0 : l9_has_leaf_or;
-    assign l9_nodes_eq = l9_nodes == 24'd1;
-    assign l9_nodes_ovf_not = ~l9_nodes_ovf;
-    assign l9_nodes_and = l9_nodes_eq & l9_nodes_ovf_not;
-    assign l9_base_above_not = ~l9_base_above;
-    assign l9_nodes_and_1 = l9_nodes_and & l9_base_above_not;
-    assign l9_has_leaf_not = ~l9_has_leaf;
-    assign l9_nodes_and_2 = l9_nodes_and_1 & l9_has_leaf_not;
-    assign top_found_not_23 = ~top_found;
-    assign l9_end_fire_and = l9_end_fire & top_found_not_23;
-    assign l9_is_top = l9_end_fire_and & l9_nodes_and_2;
-    assign l16_is_top_or_7 = l16_is_top_or_6 | l9_is_top;
-    assign level8_in_ready = ~level8_skid_spare_valid;
+    assign l9_take_group_eq = l9_take_group_mux_1 == 2'd2;
+    assign l9_is_record = ~l9_take_group_eq;
+    assign l9_nodes_and = (((l9_nodes == 24'd1) & (~l9_nodes_ovf)) & (~l9_base_above)) & (~l9_has_leaf);
+    assign l9_is_top = (l9_end_fire & top_found_not) & l9_nodes_and;
+    assign level8_in_ready = level8_skid_room;
     assign l8_end_not = ~l8_end;
-    assign l8_end_or = l8_end_not | l8_above_known;
-    assign top_found_not_24 = ~top_found;
-    assign const_not_16 = ~1'b0;
-    assign top_found_and_16 = top_found_not_24 & const_not_16;
-    assign top_found_not_25 = ~top_found;
-    assign const_not_17 = ~1'b0;
-    assign top_found_and_17 = top_found_not_25 & const_not_17;
-    assign l8_end_mux = l8_end ? top_found_and_16 : top_found_and_17;
-    assign l8_done_not = ~l8_done;
-    assign l8_valid_and = l8_valid & l8_done_not;
-    assign l8_valid_and_1 = l8_valid_and & l8_end_or;
-    assign l8_valid_and_2 = l8_valid_and_1 & u_group7_in_ready;
-    assign l8_end_not_1 = ~l8_end_mux;
-    assign l8_end_or_1 = l8_end_not_1 | level8_in_ready;
-    assign l8_fire = l8_valid_and_2 & l8_end_or_1;
-    assign l8_end_not_2 = ~l8_end;
-    assign l8_fire_and = l8_fire & l8_end_not_2;
+    assign l8_end_ok = l8_end_not | l8_above_known;
+    assign l8_take_group_leaf = l8_take_group_mux[0];
+    assign l8_ready_all = (l8_valid & (~l8_done)) & l8_end_ok;
+    assign l8_ready_all_and = l8_ready_all & u_group7_in_ready;
+    assign l8_end_or = base16_skid_data_kind_not_1 | level8_in_ready;
+    assign l8_fire = l8_ready_all_and & l8_end_or;
+    assign l8_fire_and = l8_fire & l8_end_not;
     assign l8_end_fire = l8_fire & l8_end;
-    assign l8_end_not_3 = ~l8_end_mux;
-    assign l8_end_or_2 = l8_end_not_3 | level8_in_ready;
-    assign l8_valid_and_3 = l8_valid_and_1 & l8_end_or_2;
-    assign l8_end_cat = {l8_end, l8_take_group_mux[101:1]};
-    assign l8_fire_and_1 = l8_fire & l8_take_group_or;
-    assign l8_nodes_add = {1'b0, l8_nodes} + 25'd1;
-    assign l8_end_mux_1 = l8_end ? 150'h00000000000000000000000000000000000000 : l8_take_group_mux;
-    assign l8_end_mux_2 = l8_end ? 28'd0 : l8_take_group_mux_1;
-    assign l8_take_group_or_1 = l8_take_group_and | l8_nodes_ovf;
-    assign level8_beat = {l8_take_group_or_1, l8_records, l8_nodes, l8_take_group_mux_2, l8_end_mux_2, l8_end_mux_1};
-    assign l8_valid_and_4 = l8_valid_and_1 & u_group7_in_ready;
-    assign level8_in_valid = l8_valid_and_4 & l8_end_mux;
+    assign l8_index_next = {1'b0, l8_nodes} + 25'd1;
+    assign level8_beat = {(l8_take_group & u_group8_err) | l8_nodes_ovf, l8_records, l8_nodes, l8_take_group_mux_1, l8_end ? 28'd0 : (l8_take_group ? 28'd0 : base8_skid_data_ref), l8_end ? 150'h00000000000000000000000000000000000000 : l8_take_group_mux};
+    assign level8_in_valid = l8_ready_all_and & top_found_and;
     assign level8_skid_ready = level8_ready;
-    assign level8_skid_valid_not = ~level8_skid_valid;
-    assign level8_skid_ready_or = level8_skid_ready | level8_skid_valid_not;
-    assign level8_skid_spare_valid_not = ~level8_skid_spare_valid;
-    assign level8_in_valid_and = level8_in_valid & level8_skid_spare_valid_not;
-    assign level8_skid_spare_valid_or = level8_skid_spare_valid | level8_in_valid;
-    assign level8_skid_spare_valid_mux = level8_skid_spare_valid ? level8_skid_spare_data : level8_beat;
-    assign level8_skid_spare_valid_or_1 = level8_skid_spare_valid | level8_in_valid_and;
-    assign level8_skid_spare_valid_next = level8_skid_ready_or ? 1'b0 : level8_skid_spare_valid_or_1;
-    assign level8_skid_ready_not = ~level8_skid_ready_or;
-    assign level8_skid_ready_and = level8_skid_ready_not & level8_in_valid_and;
+    assign level8_skid_room = ~level8_skid_spare_valid;
+    assign level8_skid_drain = level8_skid_ready | (~level8_skid_valid);
+    assign level8_skid_take = level8_in_valid & level8_skid_room;
     assign level8_valid = level8_skid_valid;
     assign level8_data = level8_skid_data;
-    assign l8_done_or = l8_done | l8_end_fire;
-    assign l8_done_next = merge_clear ? 1'b0 : l8_done_or;
-    assign l8_fire_and_2 = l8_fire_and & l8_nodes_add[24];
-    assign l8_nodes_ovf_or = l8_nodes_ovf | l8_fire_and_2;
-    assign l8_nodes_ovf_next = merge_clear ? 1'b0 : l8_nodes_ovf_or;
-    assign l8_take_group_eq = l8_take_group_mux_2 == 2'd2;
-    assign l8_take_group_not_1 = ~l8_take_group_eq;
-    assign l8_fire_and_3 = l8_fire_and & l8_take_group_not_1;
-    assign l8_records_add = l8_records + 24'd1;
-    assign l8_fire_and_4 = l8_fire_and & l8_take_group_not;
-    assign l8_had_base_or_2 = l8_had_base | l8_fire_and_4;
-    assign l8_had_base_next = merge_clear ? 1'b0 : l8_had_base_or_2;
-    assign l8_take_group_eq_1 = l8_take_group_mux_2 == 2'd2;
-    assign l8_take_group_and_1 = l8_take_group_eq_1 & l8_take_group_mux[0];
-    assign l8_fire_and_5 = l8_fire_and & l8_take_group_and_1;
-    assign l8_has_leaf_or = l8_has_leaf | l8_fire_and_5;
-    assign l8_has_leaf_next = merge_clear ? 1'b0 : l8_has_leaf_or;
-    assign l8_nodes_eq = l8_nodes == 24'd1;
-    assign l8_nodes_ovf_not = ~l8_nodes_ovf;
-    assign l8_nodes_and = l8_nodes_eq & l8_nodes_ovf_not;
-    assign l8_base_above_not = ~l8_base_above;
-    assign l8_nodes_and_1 = l8_nodes_and & l8_base_above_not;
-    assign l8_has_leaf_not = ~l8_has_leaf;
-    assign l8_nodes_and_2 = l8_nodes_and_1 & l8_has_leaf_not;
-    assign top_found_not_26 = ~top_found;
-    assign l8_end_fire_and = l8_end_fire & top_found_not_26;
-    assign l8_is_top = l8_end_fire_and & l8_nodes_and_2;
-    assign l16_is_top_or_8 = l16_is_top_or_7 | l8_is_top;
-    assign level7_in_ready = ~level7_skid_spare_valid;
+    assign l8_take_group_eq = l8_take_group_mux_1 == 2'd2;
+    assign l8_is_record = ~l8_take_group_eq;
+    assign l8_nodes_and = (((l8_nodes == 24'd1) & (~l8_nodes_ovf)) & (~l8_base_above)) & (~l8_has_leaf);
+    assign l8_is_top = (l8_end_fire & top_found_not) & l8_nodes_and;
+    assign level7_in_ready = level7_skid_room;
     assign l7_end_not = ~l7_end;
-    assign l7_end_or = l7_end_not | l7_above_known;
-    assign top_found_not_27 = ~top_found;
-    assign const_not_18 = ~1'b0;
-    assign top_found_and_18 = top_found_not_27 & const_not_18;
-    assign top_found_not_28 = ~top_found;
-    assign const_not_19 = ~1'b0;
-    assign top_found_and_19 = top_found_not_28 & const_not_19;
-    assign l7_end_mux = l7_end ? top_found_and_18 : top_found_and_19;
-    assign l7_done_not = ~l7_done;
-    assign l7_valid_and = l7_valid & l7_done_not;
-    assign l7_valid_and_1 = l7_valid_and & l7_end_or;
-    assign l7_valid_and_2 = l7_valid_and_1 & u_group6_in_ready;
-    assign l7_end_not_1 = ~l7_end_mux;
-    assign l7_end_or_1 = l7_end_not_1 | level7_in_ready;
-    assign l7_fire = l7_valid_and_2 & l7_end_or_1;
-    assign l7_end_not_2 = ~l7_end;
-    assign l7_fire_and = l7_fire & l7_end_not_2;
+    assign l7_end_ok = l7_end_not | l7_above_known;
+    assign l7_take_group_leaf = l7_take_group_mux[0];
+    assign l7_ready_all = (l7_valid & (~l7_done)) & l7_end_ok;
+    assign l7_ready_all_and = l7_ready_all & u_group6_in_ready;
+    assign l7_end_or = base16_skid_data_kind_not_1 | level7_in_ready;
+    assign l7_fire = l7_ready_all_and & l7_end_or;
+    assign l7_fire_and = l7_fire & l7_end_not;
     assign l7_end_fire = l7_fire & l7_end;
-    assign l7_end_not_3 = ~l7_end_mux;
-    assign l7_end_or_2 = l7_end_not_3 | level7_in_ready;
-    assign l7_valid_and_3 = l7_valid_and_1 & l7_end_or_2;
-    assign l7_end_cat = {l7_end, l7_take_group_mux[101:1]};
-    assign l7_fire_and_1 = l7_fire & l7_take_group_or;
-    assign l7_nodes_add = {1'b0, l7_nodes} + 25'd1;
-    assign l7_end_mux_1 = l7_end ? 150'h00000000000000000000000000000000000000 : l7_take_group_mux;
-    assign l7_end_mux_2 = l7_end ? 28'd0 : l7_take_group_mux_1;
-    assign l7_take_group_or_1 = l7_take_group_and | l7_nodes_ovf;
-    assign level7_beat = {l7_take_group_or_1, l7_records, l7_nodes, l7_take_group_mux_2, l7_end_mux_2, l7_end_mux_1};
-    assign l7_valid_and_4 = l7_valid_and_1 & u_group6_in_ready;
-    assign level7_in_valid = l7_valid_and_4 & l7_end_mux;
+    assign l7_index_next = {1'b0, l7_nodes} + 25'd1;
+    assign level7_beat = {(l7_take_group & u_group7_err) | l7_nodes_ovf, l7_records, l7_nodes, l7_take_group_mux_1, l7_end ? 28'd0 : (l7_take_group ? 28'd0 : base7_skid_data_ref), l7_end ? 150'h00000000000000000000000000000000000000 : l7_take_group_mux};
+    assign level7_in_valid = l7_ready_all_and & top_found_and;
     assign level7_skid_ready = level7_ready;
-    assign level7_skid_valid_not = ~level7_skid_valid;
-    assign level7_skid_ready_or = level7_skid_ready | level7_skid_valid_not;
-    assign level7_skid_spare_valid_not = ~level7_skid_spare_valid;
-    assign level7_in_valid_and = level7_in_valid & level7_skid_spare_valid_not;
-    assign level7_skid_spare_valid_or = level7_skid_spare_valid | level7_in_valid;
-    assign level7_skid_spare_valid_mux = level7_skid_spare_valid ? level7_skid_spare_data : level7_beat;
-    assign level7_skid_spare_valid_or_1 = level7_skid_spare_valid | level7_in_valid_and;
-    assign level7_skid_spare_valid_next = level7_skid_ready_or ? 1'b0 : level7_skid_spare_valid_or_1;
-    assign level7_skid_ready_not = ~level7_skid_ready_or;
-    assign level7_skid_ready_and = level7_skid_ready_not & level7_in_valid_and;
+    assign level7_skid_room = ~level7_skid_spare_valid;
+    assign level7_skid_drain = level7_skid_ready | (~level7_skid_valid);
+    assign level7_skid_take = level7_in_valid & level7_skid_room;
     assign level7_valid = level7_skid_valid;
     assign level7_data = level7_skid_data;
-    assign l7_done_or = l7_done | l7_end_fire;
-    assign l7_done_next = merge_clear ? 1'b0 : l7_done_or;
-    assign l7_fire_and_2 = l7_fire_and & l7_nodes_add[24];
-    assign l7_nodes_ovf_or = l7_nodes_ovf | l7_fire_and_2;
-    assign l7_nodes_ovf_next = merge_clear ? 1'b0 : l7_nodes_ovf_or;
-    assign l7_take_group_eq = l7_take_group_mux_2 == 2'd2;
-    assign l7_take_group_not_1 = ~l7_take_group_eq;
-    assign l7_fire_and_3 = l7_fire_and & l7_take_group_not_1;
-    assign l7_records_add = l7_records + 24'd1;
-    assign l7_fire_and_4 = l7_fire_and & l7_take_group_not;
-    assign l7_had_base_or_2 = l7_had_base | l7_fire_and_4;
-    assign l7_had_base_next = merge_clear ? 1'b0 : l7_had_base_or_2;
-    assign l7_take_group_eq_1 = l7_take_group_mux_2 == 2'd2;
-    assign l7_take_group_and_1 = l7_take_group_eq_1 & l7_take_group_mux[0];
-    assign l7_fire_and_5 = l7_fire_and & l7_take_group_and_1;
-    assign l7_has_leaf_or = l7_has_leaf | l7_fire_and_5;
-    assign l7_has_leaf_next = merge_clear ? 1'b0 : l7_has_leaf_or;
-    assign l7_nodes_eq = l7_nodes == 24'd1;
-    assign l7_nodes_ovf_not = ~l7_nodes_ovf;
-    assign l7_nodes_and = l7_nodes_eq & l7_nodes_ovf_not;
-    assign l7_base_above_not = ~l7_base_above;
-    assign l7_nodes_and_1 = l7_nodes_and & l7_base_above_not;
-    assign l7_has_leaf_not = ~l7_has_leaf;
-    assign l7_nodes_and_2 = l7_nodes_and_1 & l7_has_leaf_not;
-    assign top_found_not_29 = ~top_found;
-    assign l7_end_fire_and = l7_end_fire & top_found_not_29;
-    assign l7_is_top = l7_end_fire_and & l7_nodes_and_2;
-    assign l16_is_top_or_9 = l16_is_top_or_8 | l7_is_top;
-    assign level6_in_ready = ~level6_skid_spare_valid;
+    assign l7_take_group_eq = l7_take_group_mux_1 == 2'd2;
+    assign l7_is_record = ~l7_take_group_eq;
+    assign l7_nodes_and = (((l7_nodes == 24'd1) & (~l7_nodes_ovf)) & (~l7_base_above)) & (~l7_has_leaf);
+    assign l7_is_top = (l7_end_fire & top_found_not) & l7_nodes_and;
+    assign level6_in_ready = level6_skid_room;
     assign l6_end_not = ~l6_end;
-    assign l6_end_or = l6_end_not | l6_above_known;
-    assign top_found_not_30 = ~top_found;
-    assign const_not_20 = ~1'b0;
-    assign top_found_and_20 = top_found_not_30 & const_not_20;
-    assign top_found_not_31 = ~top_found;
-    assign const_not_21 = ~1'b0;
-    assign top_found_and_21 = top_found_not_31 & const_not_21;
-    assign l6_end_mux = l6_end ? top_found_and_20 : top_found_and_21;
-    assign l6_done_not = ~l6_done;
-    assign l6_valid_and = l6_valid & l6_done_not;
-    assign l6_valid_and_1 = l6_valid_and & l6_end_or;
-    assign l6_valid_and_2 = l6_valid_and_1 & u_group5_in_ready;
-    assign l6_end_not_1 = ~l6_end_mux;
-    assign l6_end_or_1 = l6_end_not_1 | level6_in_ready;
-    assign l6_fire = l6_valid_and_2 & l6_end_or_1;
-    assign l6_end_not_2 = ~l6_end;
-    assign l6_fire_and = l6_fire & l6_end_not_2;
+    assign l6_end_ok = l6_end_not | l6_above_known;
+    assign l6_take_group_leaf = l6_take_group_mux[0];
+    assign l6_ready_all = (l6_valid & (~l6_done)) & l6_end_ok;
+    assign l6_ready_all_and = l6_ready_all & u_group5_in_ready;
+    assign l6_end_or = base16_skid_data_kind_not_1 | level6_in_ready;
+    assign l6_fire = l6_ready_all_and & l6_end_or;
+    assign l6_fire_and = l6_fire & l6_end_not;
     assign l6_end_fire = l6_fire & l6_end;
-    assign l6_end_not_3 = ~l6_end_mux;
-    assign l6_end_or_2 = l6_end_not_3 | level6_in_ready;
-    assign l6_valid_and_3 = l6_valid_and_1 & l6_end_or_2;
-    assign l6_end_cat = {l6_end, l6_take_group_mux[101:1]};
-    assign l6_fire_and_1 = l6_fire & l6_take_group_or;
-    assign l6_nodes_add = {1'b0, l6_nodes} + 25'd1;
-    assign l6_end_mux_1 = l6_end ? 150'h00000000000000000000000000000000000000 : l6_take_group_mux;
-    assign l6_end_mux_2 = l6_end ? 28'd0 : l6_take_group_mux_1;
-    assign l6_take_group_or_1 = l6_take_group_and | l6_nodes_ovf;
-    assign level6_beat = {l6_take_group_or_1, l6_records, l6_nodes, l6_take_group_mux_2, l6_end_mux_2, l6_end_mux_1};
-    assign l6_valid_and_4 = l6_valid_and_1 & u_group5_in_ready;
-    assign level6_in_valid = l6_valid_and_4 & l6_end_mux;
+    assign l6_index_next = {1'b0, l6_nodes} + 25'd1;
+    assign level6_beat = {(l6_take_group & u_group6_err) | l6_nodes_ovf, l6_records, l6_nodes, l6_take_group_mux_1, l6_end ? 28'd0 : (l6_take_group ? 28'd0 : base6_skid_data_ref), l6_end ? 150'h00000000000000000000000000000000000000 : l6_take_group_mux};
+    assign level6_in_valid = l6_ready_all_and & top_found_and;
     assign level6_skid_ready = level6_ready;
-    assign level6_skid_valid_not = ~level6_skid_valid;
-    assign level6_skid_ready_or = level6_skid_ready | level6_skid_valid_not;
-    assign level6_skid_spare_valid_not = ~level6_skid_spare_valid;
-    assign level6_in_valid_and = level6_in_valid & level6_skid_spare_valid_not;
-    assign level6_skid_spare_valid_or = level6_skid_spare_valid | level6_in_valid;
-    assign level6_skid_spare_valid_mux = level6_skid_spare_valid ? level6_skid_spare_data : level6_beat;
-    assign level6_skid_spare_valid_or_1 = level6_skid_spare_valid | level6_in_valid_and;
-    assign level6_skid_spare_valid_next = level6_skid_ready_or ? 1'b0 : level6_skid_spare_valid_or_1;
-    assign level6_skid_ready_not = ~level6_skid_ready_or;
-    assign level6_skid_ready_and = level6_skid_ready_not & level6_in_valid_and;
+    assign level6_skid_room = ~level6_skid_spare_valid;
+    assign level6_skid_drain = level6_skid_ready | (~level6_skid_valid);
+    assign level6_skid_take = level6_in_valid & level6_skid_room;
     assign level6_valid = level6_skid_valid;
     assign level6_data = level6_skid_data;
-    assign l6_done_or = l6_done | l6_end_fire;
-    assign l6_done_next = merge_clear ? 1'b0 : l6_done_or;
-    assign l6_fire_and_2 = l6_fire_and & l6_nodes_add[24];
-    assign l6_nodes_ovf_or = l6_nodes_ovf | l6_fire_and_2;
-    assign l6_nodes_ovf_next = merge_clear ? 1'b0 : l6_nodes_ovf_or;
-    assign l6_take_group_eq = l6_take_group_mux_2 == 2'd2;
-    assign l6_take_group_not_1 = ~l6_take_group_eq;
-    assign l6_fire_and_3 = l6_fire_and & l6_take_group_not_1;
-    assign l6_records_add = l6_records + 24'd1;
-    assign l6_fire_and_4 = l6_fire_and & l6_take_group_not;
-    assign l6_had_base_or_2 = l6_had_base | l6_fire_and_4;
-    assign l6_had_base_next = merge_clear ? 1'b0 : l6_had_base_or_2;
-    assign l6_take_group_eq_1 = l6_take_group_mux_2 == 2'd2;
-    assign l6_take_group_and_1 = l6_take_group_eq_1 & l6_take_group_mux[0];
-    assign l6_fire_and_5 = l6_fire_and & l6_take_group_and_1;
-    assign l6_has_leaf_or = l6_has_leaf | l6_fire_and_5;
-    assign l6_has_leaf_next = merge_clear ? 1'b0 : l6_has_leaf_or;
-    assign l6_nodes_eq = l6_nodes == 24'd1;
-    assign l6_nodes_ovf_not = ~l6_nodes_ovf;
-    assign l6_nodes_and = l6_nodes_eq & l6_nodes_ovf_not;
-    assign l6_base_above_not = ~l6_base_above;
-    assign l6_nodes_and_1 = l6_nodes_and & l6_base_above_not;
-    assign l6_has_leaf_not = ~l6_has_leaf;
-    assign l6_nodes_and_2 = l6_nodes_and_1 & l6_has_leaf_not;
-    assign top_found_not_32 = ~top_found;
-    assign l6_end_fire_and = l6_end_fire & top_found_not_32;
-    assign l6_is_top = l6_end_fire_and & l6_nodes_and_2;
-    assign l16_is_top_or_10 = l16_is_top_or_9 | l6_is_top;
-    assign level5_in_ready = ~level5_skid_spare_valid;
+    assign l6_take_group_eq = l6_take_group_mux_1 == 2'd2;
+    assign l6_is_record = ~l6_take_group_eq;
+    assign l6_nodes_and = (((l6_nodes == 24'd1) & (~l6_nodes_ovf)) & (~l6_base_above)) & (~l6_has_leaf);
+    assign l6_is_top = (l6_end_fire & top_found_not) & l6_nodes_and;
+    assign level5_in_ready = level5_skid_room;
     assign l5_end_not = ~l5_end;
-    assign l5_end_or = l5_end_not | l5_above_known;
-    assign top_found_not_33 = ~top_found;
-    assign const_not_22 = ~1'b0;
-    assign top_found_and_22 = top_found_not_33 & const_not_22;
-    assign top_found_not_34 = ~top_found;
-    assign const_not_23 = ~1'b0;
-    assign top_found_and_23 = top_found_not_34 & const_not_23;
-    assign l5_end_mux = l5_end ? top_found_and_22 : top_found_and_23;
-    assign l5_done_not = ~l5_done;
-    assign l5_valid_and = l5_valid & l5_done_not;
-    assign l5_valid_and_1 = l5_valid_and & l5_end_or;
-    assign l5_valid_and_2 = l5_valid_and_1 & u_group4_in_ready;
-    assign l5_end_not_1 = ~l5_end_mux;
-    assign l5_end_or_1 = l5_end_not_1 | level5_in_ready;
-    assign l5_fire = l5_valid_and_2 & l5_end_or_1;
-    assign l5_end_not_2 = ~l5_end;
-    assign l5_fire_and = l5_fire & l5_end_not_2;
+    assign l5_end_ok = l5_end_not | l5_above_known;
+    assign l5_take_group_leaf = l5_take_group_mux[0];
+    assign l5_ready_all = (l5_valid & (~l5_done)) & l5_end_ok;
+    assign l5_ready_all_and = l5_ready_all & u_group4_in_ready;
+    assign l5_end_or = base16_skid_data_kind_not_1 | level5_in_ready;
+    assign l5_fire = l5_ready_all_and & l5_end_or;
+    assign l5_fire_and = l5_fire & l5_end_not;
     assign l5_end_fire = l5_fire & l5_end;
-    assign l5_end_not_3 = ~l5_end_mux;
-    assign l5_end_or_2 = l5_end_not_3 | level5_in_ready;
-    assign l5_valid_and_3 = l5_valid_and_1 & l5_end_or_2;
-    assign l5_end_cat = {l5_end, l5_take_group_mux[101:1]};
-    assign l5_fire_and_1 = l5_fire & l5_take_group_or;
-    assign l5_nodes_add = {1'b0, l5_nodes} + 25'd1;
-    assign l5_end_mux_1 = l5_end ? 150'h00000000000000000000000000000000000000 : l5_take_group_mux;
-    assign l5_end_mux_2 = l5_end ? 28'd0 : l5_take_group_mux_1;
-    assign l5_take_group_or_1 = l5_take_group_and | l5_nodes_ovf;
-    assign level5_beat = {l5_take_group_or_1, l5_records, l5_nodes, l5_take_group_mux_2, l5_end_mux_2, l5_end_mux_1};
-    assign l5_valid_and_4 = l5_valid_and_1 & u_group4_in_ready;
-    assign level5_in_valid = l5_valid_and_4 & l5_end_mux;
+    assign l5_index_next = {1'b0, l5_nodes} + 25'd1;
+    assign level5_beat = {(l5_take_group & u_group5_err) | l5_nodes_ovf, l5_records, l5_nodes, l5_take_group_mux_1, l5_end ? 28'd0 : (l5_take_group ? 28'd0 : base5_skid_data_ref), l5_end ? 150'h00000000000000000000000000000000000000 : l5_take_group_mux};
+    assign level5_in_valid = l5_ready_all_and & top_found_and;
     assign level5_skid_ready = level5_ready;
-    assign level5_skid_valid_not = ~level5_skid_valid;
-    assign level5_skid_ready_or = level5_skid_ready | level5_skid_valid_not;
-    assign level5_skid_spare_valid_not = ~level5_skid_spare_valid;
-    assign level5_in_valid_and = level5_in_valid & level5_skid_spare_valid_not;
-    assign level5_skid_spare_valid_or = level5_skid_spare_valid | level5_in_valid;
-    assign level5_skid_spare_valid_mux = level5_skid_spare_valid ? level5_skid_spare_data : level5_beat;
-    assign level5_skid_spare_valid_or_1 = level5_skid_spare_valid | level5_in_valid_and;
-    assign level5_skid_spare_valid_next = level5_skid_ready_or ? 1'b0 : level5_skid_spare_valid_or_1;
-    assign level5_skid_ready_not = ~level5_skid_ready_or;
-    assign level5_skid_ready_and = level5_skid_ready_not & level5_in_valid_and;
+    assign level5_skid_room = ~level5_skid_spare_valid;
+    assign level5_skid_drain = level5_skid_ready | (~level5_skid_valid);
+    assign level5_skid_take = level5_in_valid & level5_skid_room;
     assign level5_valid = level5_skid_valid;
     assign level5_data = level5_skid_data;
-    assign l5_done_or = l5_done | l5_end_fire;
-    assign l5_done_next = merge_clear ? 1'b0 : l5_done_or;
-    assign l5_fire_and_2 = l5_fire_and & l5_nodes_add[24];
-    assign l5_nodes_ovf_or = l5_nodes_ovf | l5_fire_and_2;
-    assign l5_nodes_ovf_next = merge_clear ? 1'b0 : l5_nodes_ovf_or;
-    assign l5_take_group_eq = l5_take_group_mux_2 == 2'd2;
-    assign l5_take_group_not_1 = ~l5_take_group_eq;
-    assign l5_fire_and_3 = l5_fire_and & l5_take_group_not_1;
-    assign l5_records_add = l5_records + 24'd1;
-    assign l5_fire_and_4 = l5_fire_and & l5_take_group_not;
-    assign l5_had_base_or_2 = l5_had_base | l5_fire_and_4;
-    assign l5_had_base_next = merge_clear ? 1'b0 : l5_had_base_or_2;
-    assign l5_take_group_eq_1 = l5_take_group_mux_2 == 2'd2;
-    assign l5_take_group_and_1 = l5_take_group_eq_1 & l5_take_group_mux[0];
-    assign l5_fire_and_5 = l5_fire_and & l5_take_group_and_1;
-    assign l5_has_leaf_or = l5_has_leaf | l5_fire_and_5;
-    assign l5_has_leaf_next = merge_clear ? 1'b0 : l5_has_leaf_or;
-    assign l5_nodes_eq = l5_nodes == 24'd1;
-    assign l5_nodes_ovf_not = ~l5_nodes_ovf;
-    assign l5_nodes_and = l5_nodes_eq & l5_nodes_ovf_not;
-    assign l5_base_above_not = ~l5_base_above;
-    assign l5_nodes_and_1 = l5_nodes_and & l5_base_above_not;
-    assign l5_has_leaf_not = ~l5_has_leaf;
-    assign l5_nodes_and_2 = l5_nodes_and_1 & l5_has_leaf_not;
-    assign top_found_not_35 = ~top_found;
-    assign l5_end_fire_and = l5_end_fire & top_found_not_35;
-    assign l5_is_top = l5_end_fire_and & l5_nodes_and_2;
-    assign l16_is_top_or_11 = l16_is_top_or_10 | l5_is_top;
-    assign level4_in_ready = ~level4_skid_spare_valid;
+    assign l5_take_group_eq = l5_take_group_mux_1 == 2'd2;
+    assign l5_is_record = ~l5_take_group_eq;
+    assign l5_nodes_and = (((l5_nodes == 24'd1) & (~l5_nodes_ovf)) & (~l5_base_above)) & (~l5_has_leaf);
+    assign l5_is_top = (l5_end_fire & top_found_not) & l5_nodes_and;
+    assign level4_in_ready = level4_skid_room;
     assign l4_end_not = ~l4_end;
-    assign l4_end_or = l4_end_not | l4_above_known;
-    assign top_found_not_36 = ~top_found;
-    assign const_not_24 = ~1'b0;
-    assign top_found_and_24 = top_found_not_36 & const_not_24;
-    assign top_found_not_37 = ~top_found;
-    assign const_not_25 = ~1'b0;
-    assign top_found_and_25 = top_found_not_37 & const_not_25;
-    assign l4_end_mux = l4_end ? top_found_and_24 : top_found_and_25;
-    assign l4_done_not = ~l4_done;
-    assign l4_valid_and = l4_valid & l4_done_not;
-    assign l4_valid_and_1 = l4_valid_and & l4_end_or;
-    assign l4_valid_and_2 = l4_valid_and_1 & u_group3_in_ready;
-    assign l4_end_not_1 = ~l4_end_mux;
-    assign l4_end_or_1 = l4_end_not_1 | level4_in_ready;
-    assign l4_fire = l4_valid_and_2 & l4_end_or_1;
-    assign l4_end_not_2 = ~l4_end;
-    assign l4_fire_and = l4_fire & l4_end_not_2;
+    assign l4_end_ok = l4_end_not | l4_above_known;
+    assign l4_take_group_leaf = l4_take_group_mux[0];
+    assign l4_ready_all = (l4_valid & (~l4_done)) & l4_end_ok;
+    assign l4_ready_all_and = l4_ready_all & u_group3_in_ready;
+    assign l4_end_or = base16_skid_data_kind_not_1 | level4_in_ready;
+    assign l4_fire = l4_ready_all_and & l4_end_or;
+    assign l4_fire_and = l4_fire & l4_end_not;
     assign l4_end_fire = l4_fire & l4_end;
-    assign l4_end_not_3 = ~l4_end_mux;
-    assign l4_end_or_2 = l4_end_not_3 | level4_in_ready;
-    assign l4_valid_and_3 = l4_valid_and_1 & l4_end_or_2;
-    assign l4_end_cat = {l4_end, l4_take_group_mux[101:1]};
-    assign l4_fire_and_1 = l4_fire & l4_take_group_or;
-    assign l4_nodes_add = {1'b0, l4_nodes} + 25'd1;
-    assign l4_end_mux_1 = l4_end ? 150'h00000000000000000000000000000000000000 : l4_take_group_mux;
-    assign l4_end_mux_2 = l4_end ? 28'd0 : l4_take_group_mux_1;
-    assign l4_take_group_or_1 = l4_take_group_and | l4_nodes_ovf;
-    assign level4_beat = {l4_take_group_or_1, l4_records, l4_nodes, l4_take_group_mux_2, l4_end_mux_2, l4_end_mux_1};
-    assign l4_valid_and_4 = l4_valid_and_1 & u_group3_in_ready;
-    assign level4_in_valid = l4_valid_and_4 & l4_end_mux;
+    assign l4_index_next = {1'b0, l4_nodes} + 25'd1;
+    assign level4_beat = {(l4_take_group & u_group4_err) | l4_nodes_ovf, l4_records, l4_nodes, l4_take_group_mux_1, l4_end ? 28'd0 : (l4_take_group ? 28'd0 : base4_skid_data_ref), l4_end ? 150'h00000000000000000000000000000000000000 : l4_take_group_mux};
+    assign level4_in_valid = l4_ready_all_and & top_found_and;
     assign level4_skid_ready = level4_ready;
-    assign level4_skid_valid_not = ~level4_skid_valid;
-    assign level4_skid_ready_or = level4_skid_ready | level4_skid_valid_not;
-    assign level4_skid_spare_valid_not = ~level4_skid_spare_valid;
-    assign level4_in_valid_and = level4_in_valid & level4_skid_spare_valid_not;
-    assign level4_skid_spare_valid_or = level4_skid_spare_valid | level4_in_valid;
-    assign level4_skid_spare_valid_mux = level4_skid_spare_valid ? level4_skid_spare_data : level4_beat;
-    assign level4_skid_spare_valid_or_1 = level4_skid_spare_valid | level4_in_valid_and;
-    assign level4_skid_spare_valid_next = level4_skid_ready_or ? 1'b0 : level4_skid_spare_valid_or_1;
-    assign level4_skid_ready_not = ~level4_skid_ready_or;
-    assign level4_skid_ready_and = level4_skid_ready_not & level4_in_valid_and;
+    assign level4_skid_room = ~level4_skid_spare_valid;
+    assign level4_skid_drain = level4_skid_ready | (~level4_skid_valid);
+    assign level4_skid_take = level4_in_valid & level4_skid_room;
     assign level4_valid = level4_skid_valid;
     assign level4_data = level4_skid_data;
-    assign l4_done_or = l4_done | l4_end_fire;
-    assign l4_done_next = merge_clear ? 1'b0 : l4_done_or;
-    assign l4_fire_and_2 = l4_fire_and & l4_nodes_add[24];
-    assign l4_nodes_ovf_or = l4_nodes_ovf | l4_fire_and_2;
-    assign l4_nodes_ovf_next = merge_clear ? 1'b0 : l4_nodes_ovf_or;
-    assign l4_take_group_eq = l4_take_group_mux_2 == 2'd2;
-    assign l4_take_group_not_1 = ~l4_take_group_eq;
-    assign l4_fire_and_3 = l4_fire_and & l4_take_group_not_1;
-    assign l4_records_add = l4_records + 24'd1;
-    assign l4_fire_and_4 = l4_fire_and & l4_take_group_not;
-    assign l4_had_base_or_2 = l4_had_base | l4_fire_and_4;
-    assign l4_had_base_next = merge_clear ? 1'b0 : l4_had_base_or_2;
-    assign l4_take_group_eq_1 = l4_take_group_mux_2 == 2'd2;
-    assign l4_take_group_and_1 = l4_take_group_eq_1 & l4_take_group_mux[0];
-    assign l4_fire_and_5 = l4_fire_and & l4_take_group_and_1;
-    assign l4_has_leaf_or = l4_has_leaf | l4_fire_and_5;
-    assign l4_has_leaf_next = merge_clear ? 1'b0 : l4_has_leaf_or;
-    assign l4_nodes_eq = l4_nodes == 24'd1;
-    assign l4_nodes_ovf_not = ~l4_nodes_ovf;
-    assign l4_nodes_and = l4_nodes_eq & l4_nodes_ovf_not;
-    assign l4_base_above_not = ~l4_base_above;
-    assign l4_nodes_and_1 = l4_nodes_and & l4_base_above_not;
-    assign l4_has_leaf_not = ~l4_has_leaf;
-    assign l4_nodes_and_2 = l4_nodes_and_1 & l4_has_leaf_not;
-    assign top_found_not_38 = ~top_found;
-    assign l4_end_fire_and = l4_end_fire & top_found_not_38;
-    assign l4_is_top = l4_end_fire_and & l4_nodes_and_2;
-    assign l16_is_top_or_12 = l16_is_top_or_11 | l4_is_top;
-    assign level3_in_ready = ~level3_skid_spare_valid;
+    assign l4_take_group_eq = l4_take_group_mux_1 == 2'd2;
+    assign l4_is_record = ~l4_take_group_eq;
+    assign l4_nodes_and = (((l4_nodes == 24'd1) & (~l4_nodes_ovf)) & (~l4_base_above)) & (~l4_has_leaf);
+    assign l4_is_top = (l4_end_fire & top_found_not) & l4_nodes_and;
+    assign level3_in_ready = level3_skid_room;
     assign l3_end_not = ~l3_end;
-    assign l3_end_or = l3_end_not | l3_above_known;
-    assign top_found_not_39 = ~top_found;
-    assign const_not_26 = ~1'b0;
-    assign top_found_and_26 = top_found_not_39 & const_not_26;
-    assign top_found_not_40 = ~top_found;
-    assign const_not_27 = ~1'b0;
-    assign top_found_and_27 = top_found_not_40 & const_not_27;
-    assign l3_end_mux = l3_end ? top_found_and_26 : top_found_and_27;
-    assign l3_done_not = ~l3_done;
-    assign l3_valid_and = l3_valid & l3_done_not;
-    assign l3_valid_and_1 = l3_valid_and & l3_end_or;
-    assign l3_valid_and_2 = l3_valid_and_1 & u_group2_in_ready;
-    assign l3_end_not_1 = ~l3_end_mux;
-    assign l3_end_or_1 = l3_end_not_1 | level3_in_ready;
-    assign l3_fire = l3_valid_and_2 & l3_end_or_1;
-    assign l3_end_not_2 = ~l3_end;
-    assign l3_fire_and = l3_fire & l3_end_not_2;
+    assign l3_end_ok = l3_end_not | l3_above_known;
+    assign l3_take_group_leaf = l3_take_group_mux[0];
+    assign l3_ready_all = (l3_valid & (~l3_done)) & l3_end_ok;
+    assign l3_ready_all_and = l3_ready_all & u_group2_in_ready;
+    assign l3_end_or = base16_skid_data_kind_not_1 | level3_in_ready;
+    assign l3_fire = l3_ready_all_and & l3_end_or;
+    assign l3_fire_and = l3_fire & l3_end_not;
     assign l3_end_fire = l3_fire & l3_end;
-    assign l3_end_not_3 = ~l3_end_mux;
-    assign l3_end_or_2 = l3_end_not_3 | level3_in_ready;
-    assign l3_valid_and_3 = l3_valid_and_1 & l3_end_or_2;
-    assign l3_end_cat = {l3_end, l3_take_group_mux[101:1]};
-    assign l3_fire_and_1 = l3_fire & l3_take_group_or;
-    assign l3_nodes_add = {1'b0, l3_nodes} + 25'd1;
-    assign l3_end_mux_1 = l3_end ? 150'h00000000000000000000000000000000000000 : l3_take_group_mux;
-    assign l3_end_mux_2 = l3_end ? 28'd0 : l3_take_group_mux_1;
-    assign l3_take_group_or_1 = l3_take_group_and | l3_nodes_ovf;
-    assign level3_beat = {l3_take_group_or_1, l3_records, l3_nodes, l3_take_group_mux_2, l3_end_mux_2, l3_end_mux_1};
-    assign l3_valid_and_4 = l3_valid_and_1 & u_group2_in_ready;
-    assign level3_in_valid = l3_valid_and_4 & l3_end_mux;
+    assign l3_index_next = {1'b0, l3_nodes} + 25'd1;
+    assign level3_beat = {(l3_take_group & u_group3_err) | l3_nodes_ovf, l3_records, l3_nodes, l3_take_group_mux_1, l3_end ? 28'd0 : (l3_take_group ? 28'd0 : base3_skid_data_ref), l3_end ? 150'h00000000000000000000000000000000000000 : l3_take_group_mux};
+    assign level3_in_valid = l3_ready_all_and & top_found_and;
     assign level3_skid_ready = level3_ready;
-    assign level3_skid_valid_not = ~level3_skid_valid;
-    assign level3_skid_ready_or = level3_skid_ready | level3_skid_valid_not;
-    assign level3_skid_spare_valid_not = ~level3_skid_spare_valid;
-    assign level3_in_valid_and = level3_in_valid & level3_skid_spare_valid_not;
-    assign level3_skid_spare_valid_or = level3_skid_spare_valid | level3_in_valid;
-    assign level3_skid_spare_valid_mux = level3_skid_spare_valid ? level3_skid_spare_data : level3_beat;
-    assign level3_skid_spare_valid_or_1 = level3_skid_spare_valid | level3_in_valid_and;
-    assign level3_skid_spare_valid_next = level3_skid_ready_or ? 1'b0 : level3_skid_spare_valid_or_1;
-    assign level3_skid_ready_not = ~level3_skid_ready_or;
-    assign level3_skid_ready_and = level3_skid_ready_not & level3_in_valid_and;
+    assign level3_skid_room = ~level3_skid_spare_valid;
+    assign level3_skid_drain = level3_skid_ready | (~level3_skid_valid);
+    assign level3_skid_take = level3_in_valid & level3_skid_room;
     assign level3_valid = level3_skid_valid;
     assign level3_data = level3_skid_data;
-    assign l3_done_or = l3_done | l3_end_fire;
-    assign l3_done_next = merge_clear ? 1'b0 : l3_done_or;
-    assign l3_fire_and_2 = l3_fire_and & l3_nodes_add[24];
-    assign l3_nodes_ovf_or = l3_nodes_ovf | l3_fire_and_2;
-    assign l3_nodes_ovf_next = merge_clear ? 1'b0 : l3_nodes_ovf_or;
-    assign l3_take_group_eq = l3_take_group_mux_2 == 2'd2;
-    assign l3_take_group_not_1 = ~l3_take_group_eq;
-    assign l3_fire_and_3 = l3_fire_and & l3_take_group_not_1;
-    assign l3_records_add = l3_records + 24'd1;
-    assign l3_fire_and_4 = l3_fire_and & l3_take_group_not;
-    assign l3_had_base_or_2 = l3_had_base | l3_fire_and_4;
-    assign l3_had_base_next = merge_clear ? 1'b0 : l3_had_base_or_2;
-    assign l3_take_group_eq_1 = l3_take_group_mux_2 == 2'd2;
-    assign l3_take_group_and_1 = l3_take_group_eq_1 & l3_take_group_mux[0];
-    assign l3_fire_and_5 = l3_fire_and & l3_take_group_and_1;
-    assign l3_has_leaf_or = l3_has_leaf | l3_fire_and_5;
-    assign l3_has_leaf_next = merge_clear ? 1'b0 : l3_has_leaf_or;
-    assign l3_nodes_eq = l3_nodes == 24'd1;
-    assign l3_nodes_ovf_not = ~l3_nodes_ovf;
-    assign l3_nodes_and = l3_nodes_eq & l3_nodes_ovf_not;
-    assign l3_base_above_not = ~l3_base_above;
-    assign l3_nodes_and_1 = l3_nodes_and & l3_base_above_not;
-    assign l3_has_leaf_not = ~l3_has_leaf;
-    assign l3_nodes_and_2 = l3_nodes_and_1 & l3_has_leaf_not;
-    assign top_found_not_41 = ~top_found;
-    assign l3_end_fire_and = l3_end_fire & top_found_not_41;
-    assign l3_is_top = l3_end_fire_and & l3_nodes_and_2;
-    assign l16_is_top_or_13 = l16_is_top_or_12 | l3_is_top;
-    assign level2_in_ready = ~level2_skid_spare_valid;
+    assign l3_take_group_eq = l3_take_group_mux_1 == 2'd2;
+    assign l3_is_record = ~l3_take_group_eq;
+    assign l3_nodes_and = (((l3_nodes == 24'd1) & (~l3_nodes_ovf)) & (~l3_base_above)) & (~l3_has_leaf);
+    assign l3_is_top = (l3_end_fire & top_found_not) & l3_nodes_and;
+    assign l16_is_top_or_1 = ((((((l16_is_top_or | l9_is_top) | l8_is_top) | l7_is_top) | l6_is_top) | l5_is_top) | l4_is_top) | l3_is_top;
+    assign level2_in_ready = level2_skid_room;
     assign l2_end_not = ~l2_end;
-    assign l2_end_or = l2_end_not | l2_above_known;
-    assign top_found_not_42 = ~top_found;
-    assign const_not_28 = ~1'b0;
-    assign top_found_and_28 = top_found_not_42 & const_not_28;
-    assign top_found_not_43 = ~top_found;
-    assign const_not_29 = ~1'b0;
-    assign top_found_and_29 = top_found_not_43 & const_not_29;
-    assign l2_end_mux = l2_end ? top_found_and_28 : top_found_and_29;
-    assign l2_done_not = ~l2_done;
-    assign l2_valid_and = l2_valid & l2_done_not;
-    assign l2_valid_and_1 = l2_valid_and & l2_end_or;
-    assign l2_valid_and_2 = l2_valid_and_1 & u_group1_in_ready;
-    assign l2_end_not_1 = ~l2_end_mux;
-    assign l2_end_or_1 = l2_end_not_1 | level2_in_ready;
-    assign l2_fire = l2_valid_and_2 & l2_end_or_1;
-    assign l2_end_not_2 = ~l2_end;
-    assign l2_fire_and = l2_fire & l2_end_not_2;
+    assign l2_end_ok = l2_end_not | l2_above_known;
+    assign l2_take_group_leaf = l2_take_group_mux[0];
+    assign l2_ready_all = (l2_valid & (~l2_done)) & l2_end_ok;
+    assign l2_ready_all_and = l2_ready_all & u_group1_in_ready;
+    assign l2_end_or = base16_skid_data_kind_not_1 | level2_in_ready;
+    assign l2_fire = l2_ready_all_and & l2_end_or;
+    assign l2_fire_and = l2_fire & l2_end_not;
     assign l2_end_fire = l2_fire & l2_end;
-    assign l2_end_not_3 = ~l2_end_mux;
-    assign l2_end_or_2 = l2_end_not_3 | level2_in_ready;
-    assign l2_valid_and_3 = l2_valid_and_1 & l2_end_or_2;
-    assign l2_end_cat = {l2_end, l2_take_group_mux[101:1]};
-    assign l2_fire_and_1 = l2_fire & l2_take_group_or;
-    assign l2_nodes_add = {1'b0, l2_nodes} + 25'd1;
-    assign l2_end_mux_1 = l2_end ? 150'h00000000000000000000000000000000000000 : l2_take_group_mux;
-    assign l2_end_mux_2 = l2_end ? 28'd0 : l2_take_group_mux_1;
-    assign l2_take_group_or_1 = l2_take_group_and | l2_nodes_ovf;
-    assign level2_beat = {l2_take_group_or_1, l2_records, l2_nodes, l2_take_group_mux_2, l2_end_mux_2, l2_end_mux_1};
-    assign l2_valid_and_4 = l2_valid_and_1 & u_group1_in_ready;
-    assign level2_in_valid = l2_valid_and_4 & l2_end_mux;
+    assign l2_index_next = {1'b0, l2_nodes} + 25'd1;
+    assign level2_beat = {(l2_take_group & u_group2_err) | l2_nodes_ovf, l2_records, l2_nodes, l2_take_group_mux_1, l2_end ? 28'd0 : (l2_take_group ? 28'd0 : base2_skid_data_ref), l2_end ? 150'h00000000000000000000000000000000000000 : l2_take_group_mux};
+    assign level2_in_valid = l2_ready_all_and & top_found_and;
     assign level2_skid_ready = level2_ready;
-    assign level2_skid_valid_not = ~level2_skid_valid;
-    assign level2_skid_ready_or = level2_skid_ready | level2_skid_valid_not;
-    assign level2_skid_spare_valid_not = ~level2_skid_spare_valid;
-    assign level2_in_valid_and = level2_in_valid & level2_skid_spare_valid_not;
-    assign level2_skid_spare_valid_or = level2_skid_spare_valid | level2_in_valid;
-    assign level2_skid_spare_valid_mux = level2_skid_spare_valid ? level2_skid_spare_data : level2_beat;
-    assign level2_skid_spare_valid_or_1 = level2_skid_spare_valid | level2_in_valid_and;
-    assign level2_skid_spare_valid_next = level2_skid_ready_or ? 1'b0 : level2_skid_spare_valid_or_1;
-    assign level2_skid_ready_not = ~level2_skid_ready_or;
-    assign level2_skid_ready_and = level2_skid_ready_not & level2_in_valid_and;
+    assign level2_skid_room = ~level2_skid_spare_valid;
+    assign level2_skid_drain = level2_skid_ready | (~level2_skid_valid);
+    assign level2_skid_take = level2_in_valid & level2_skid_room;
     assign level2_valid = level2_skid_valid;
     assign level2_data = level2_skid_data;
-    assign l2_done_or = l2_done | l2_end_fire;
-    assign l2_done_next = merge_clear ? 1'b0 : l2_done_or;
-    assign l2_fire_and_2 = l2_fire_and & l2_nodes_add[24];
-    assign l2_nodes_ovf_or = l2_nodes_ovf | l2_fire_and_2;
-    assign l2_nodes_ovf_next = merge_clear ? 1'b0 : l2_nodes_ovf_or;
-    assign l2_take_group_eq = l2_take_group_mux_2 == 2'd2;
-    assign l2_take_group_not_1 = ~l2_take_group_eq;
-    assign l2_fire_and_3 = l2_fire_and & l2_take_group_not_1;
-    assign l2_records_add = l2_records + 24'd1;
-    assign l2_fire_and_4 = l2_fire_and & l2_take_group_not;
-    assign l2_had_base_or_2 = l2_had_base | l2_fire_and_4;
-    assign l2_had_base_next = merge_clear ? 1'b0 : l2_had_base_or_2;
-    assign l2_take_group_eq_1 = l2_take_group_mux_2 == 2'd2;
-    assign l2_take_group_and_1 = l2_take_group_eq_1 & l2_take_group_mux[0];
-    assign l2_fire_and_5 = l2_fire_and & l2_take_group_and_1;
-    assign l2_has_leaf_or = l2_has_leaf | l2_fire_and_5;
-    assign l2_has_leaf_next = merge_clear ? 1'b0 : l2_has_leaf_or;
-    assign l2_nodes_eq = l2_nodes == 24'd1;
-    assign l2_nodes_ovf_not = ~l2_nodes_ovf;
-    assign l2_nodes_and = l2_nodes_eq & l2_nodes_ovf_not;
-    assign l2_base_above_not = ~l2_base_above;
-    assign l2_nodes_and_1 = l2_nodes_and & l2_base_above_not;
-    assign l2_has_leaf_not = ~l2_has_leaf;
-    assign l2_nodes_and_2 = l2_nodes_and_1 & l2_has_leaf_not;
-    assign top_found_not_44 = ~top_found;
-    assign l2_end_fire_and = l2_end_fire & top_found_not_44;
-    assign l2_is_top = l2_end_fire_and & l2_nodes_and_2;
-    assign l16_is_top_or_14 = l16_is_top_or_13 | l2_is_top;
-    assign level1_in_ready = ~level1_skid_spare_valid;
+    assign l2_take_group_eq = l2_take_group_mux_1 == 2'd2;
+    assign l2_is_record = ~l2_take_group_eq;
+    assign l2_nodes_and = (((l2_nodes == 24'd1) & (~l2_nodes_ovf)) & (~l2_base_above)) & (~l2_has_leaf);
+    assign l2_is_top = (l2_end_fire & top_found_not) & l2_nodes_and;
+    assign level1_in_ready = level1_skid_room;
     assign l1_end_not = ~l1_end;
-    assign l1_end_or = l1_end_not | l1_above_known;
-    assign top_found_not_45 = ~top_found;
-    assign const_not_30 = ~1'b0;
-    assign top_found_and_30 = top_found_not_45 & const_not_30;
-    assign top_found_not_46 = ~top_found;
-    assign const_not_31 = ~1'b0;
-    assign top_found_and_31 = top_found_not_46 & const_not_31;
-    assign l1_end_mux = l1_end ? top_found_and_30 : top_found_and_31;
-    assign l1_done_not = ~l1_done;
-    assign l1_valid_and = l1_valid & l1_done_not;
-    assign l1_valid_and_1 = l1_valid_and & l1_end_or;
-    assign l1_valid_and_2 = l1_valid_and_1 & u_group0_in_ready;
-    assign l1_end_not_1 = ~l1_end_mux;
-    assign l1_end_or_1 = l1_end_not_1 | level1_in_ready;
-    assign l1_fire = l1_valid_and_2 & l1_end_or_1;
-    assign l1_end_not_2 = ~l1_end;
-    assign l1_fire_and = l1_fire & l1_end_not_2;
+    assign l1_end_ok = l1_end_not | l1_above_known;
+    assign l1_take_group_leaf = l1_take_group_mux[0];
+    assign l1_ready_all = (l1_valid & (~l1_done)) & l1_end_ok;
+    assign l1_ready_all_and = l1_ready_all & u_group0_in_ready;
+    assign l1_end_or = base16_skid_data_kind_not_1 | level1_in_ready;
+    assign l1_fire = l1_ready_all_and & l1_end_or;
+    assign l1_fire_and = l1_fire & l1_end_not;
     assign l1_end_fire = l1_fire & l1_end;
-    assign l1_end_not_3 = ~l1_end_mux;
-    assign l1_end_or_2 = l1_end_not_3 | level1_in_ready;
-    assign l1_valid_and_3 = l1_valid_and_1 & l1_end_or_2;
-    assign l1_end_cat = {l1_end, l1_take_group_mux[101:1]};
-    assign l1_fire_and_1 = l1_fire & l1_take_group_or;
-    assign l1_nodes_add = {1'b0, l1_nodes} + 25'd1;
-    assign l1_end_mux_1 = l1_end ? 150'h00000000000000000000000000000000000000 : l1_take_group_mux;
-    assign l1_end_mux_2 = l1_end ? 28'd0 : l1_take_group_mux_1;
-    assign l1_take_group_or_1 = l1_take_group_and | l1_nodes_ovf;
-    assign level1_beat = {l1_take_group_or_1, l1_records, l1_nodes, l1_take_group_mux_2, l1_end_mux_2, l1_end_mux_1};
-    assign l1_valid_and_4 = l1_valid_and_1 & u_group0_in_ready;
-    assign level1_in_valid = l1_valid_and_4 & l1_end_mux;
+    assign l1_index_next = {1'b0, l1_nodes} + 25'd1;
+    assign level1_beat = {(l1_take_group & u_group1_err) | l1_nodes_ovf, l1_records, l1_nodes, l1_take_group_mux_1, l1_end ? 28'd0 : (l1_take_group ? 28'd0 : base1_skid_data_ref), l1_end ? 150'h00000000000000000000000000000000000000 : l1_take_group_mux};
+    assign level1_in_valid = l1_ready_all_and & top_found_and;
     assign level1_skid_ready = level1_ready;
-    assign level1_skid_valid_not = ~level1_skid_valid;
-    assign level1_skid_ready_or = level1_skid_ready | level1_skid_valid_not;
-    assign level1_skid_spare_valid_not = ~level1_skid_spare_valid;
-    assign level1_in_valid_and = level1_in_valid & level1_skid_spare_valid_not;
-    assign level1_skid_spare_valid_or = level1_skid_spare_valid | level1_in_valid;
-    assign level1_skid_spare_valid_mux = level1_skid_spare_valid ? level1_skid_spare_data : level1_beat;
-    assign level1_skid_spare_valid_or_1 = level1_skid_spare_valid | level1_in_valid_and;
-    assign level1_skid_spare_valid_next = level1_skid_ready_or ? 1'b0 : level1_skid_spare_valid_or_1;
-    assign level1_skid_ready_not = ~level1_skid_ready_or;
-    assign level1_skid_ready_and = level1_skid_ready_not & level1_in_valid_and;
+    assign level1_skid_room = ~level1_skid_spare_valid;
+    assign level1_skid_drain = level1_skid_ready | (~level1_skid_valid);
+    assign level1_skid_take = level1_in_valid & level1_skid_room;
     assign level1_valid = level1_skid_valid;
     assign level1_data = level1_skid_data;
-    assign l1_done_or = l1_done | l1_end_fire;
-    assign l1_done_next = merge_clear ? 1'b0 : l1_done_or;
-    assign l1_fire_and_2 = l1_fire_and & l1_nodes_add[24];
-    assign l1_nodes_ovf_or = l1_nodes_ovf | l1_fire_and_2;
-    assign l1_nodes_ovf_next = merge_clear ? 1'b0 : l1_nodes_ovf_or;
-    assign l1_take_group_eq = l1_take_group_mux_2 == 2'd2;
-    assign l1_take_group_not_1 = ~l1_take_group_eq;
-    assign l1_fire_and_3 = l1_fire_and & l1_take_group_not_1;
-    assign l1_records_add = l1_records + 24'd1;
-    assign l1_fire_and_4 = l1_fire_and & l1_take_group_not;
-    assign l1_had_base_or_2 = l1_had_base | l1_fire_and_4;
-    assign l1_had_base_next = merge_clear ? 1'b0 : l1_had_base_or_2;
-    assign l1_take_group_eq_1 = l1_take_group_mux_2 == 2'd2;
-    assign l1_take_group_and_1 = l1_take_group_eq_1 & l1_take_group_mux[0];
-    assign l1_fire_and_5 = l1_fire_and & l1_take_group_and_1;
-    assign l1_has_leaf_or = l1_has_leaf | l1_fire_and_5;
-    assign l1_has_leaf_next = merge_clear ? 1'b0 : l1_has_leaf_or;
-    assign l1_nodes_eq = l1_nodes == 24'd1;
-    assign l1_nodes_ovf_not = ~l1_nodes_ovf;
-    assign l1_nodes_and = l1_nodes_eq & l1_nodes_ovf_not;
-    assign l1_base_above_not = ~l1_base_above;
-    assign l1_nodes_and_1 = l1_nodes_and & l1_base_above_not;
+    assign l1_take_group_eq = l1_take_group_mux_1 == 2'd2;
+    assign l1_is_record = ~l1_take_group_eq;
     assign l1_has_leaf_not = ~l1_has_leaf;
-    assign l1_nodes_and_2 = l1_nodes_and_1 & l1_has_leaf_not;
-    assign top_found_not_47 = ~top_found;
-    assign l1_end_fire_and = l1_end_fire & top_found_not_47;
-    assign l1_is_top = l1_end_fire_and & l1_nodes_and_2;
-    assign l16_is_top_or_15 = l16_is_top_or_14 | l1_is_top;
-    assign level0_in_ready = ~level0_skid_spare_valid;
+    assign l1_is_top = (l1_end_fire & top_found_not) & ((((l1_nodes == 24'd1) & (~l1_nodes_ovf)) & (~l1_base_above)) & l1_has_leaf_not);
+    assign level0_in_ready = level0_skid_room;
     assign l0_end_not = ~l0_end;
-    assign l0_end_or = l0_end_not | 1'b1;
-    assign l0_take_group_sub = l0_take_group_mux[85:78] - l0_take_group_mux[61:54];
-    assign l0_take_group_add = {1'b0, l0_take_group_sub} + 9'd1;
-    assign l0_take_group_sub_1 = l0_take_group_mux[93:86] - l0_take_group_mux[69:62];
-    assign l0_take_group_add_1 = {1'b0, l0_take_group_sub_1} + 9'd1;
-    assign l0_take_group_zext = {18'd0, l0_take_group_add};
-    assign l0_take_group_mux_3 = l0_take_group_add_1[0] ? l0_take_group_zext : 27'd0;
-    assign l0_take_group_add_2 = 27'd0 + l0_take_group_mux_3;
-    assign l0_take_group_cat = {l0_take_group_zext[25:0], 1'b0};
-    assign l0_take_group_mux_4 = l0_take_group_add_1[1] ? l0_take_group_cat : 27'd0;
-    assign l0_take_group_add_3 = l0_take_group_add_2 + l0_take_group_mux_4;
-    assign l0_take_group_cat_1 = {l0_take_group_zext[24:0], 2'd0};
-    assign l0_take_group_mux_5 = l0_take_group_add_1[2] ? l0_take_group_cat_1 : 27'd0;
-    assign l0_take_group_add_4 = l0_take_group_add_3 + l0_take_group_mux_5;
-    assign l0_take_group_cat_2 = {l0_take_group_zext[23:0], 3'd0};
-    assign l0_take_group_mux_6 = l0_take_group_add_1[3] ? l0_take_group_cat_2 : 27'd0;
-    assign l0_take_group_add_5 = l0_take_group_add_4 + l0_take_group_mux_6;
-    assign l0_take_group_cat_3 = {l0_take_group_zext[22:0], 4'd0};
-    assign l0_take_group_mux_7 = l0_take_group_add_1[4] ? l0_take_group_cat_3 : 27'd0;
-    assign l0_take_group_add_6 = l0_take_group_add_5 + l0_take_group_mux_7;
-    assign l0_take_group_cat_4 = {l0_take_group_zext[21:0], 5'd0};
-    assign l0_take_group_mux_8 = l0_take_group_add_1[5] ? l0_take_group_cat_4 : 27'd0;
-    assign l0_take_group_add_7 = l0_take_group_add_6 + l0_take_group_mux_8;
-    assign l0_take_group_cat_5 = {l0_take_group_zext[20:0], 6'd0};
-    assign l0_take_group_mux_9 = l0_take_group_add_1[6] ? l0_take_group_cat_5 : 27'd0;
-    assign l0_take_group_add_8 = l0_take_group_add_7 + l0_take_group_mux_9;
-    assign l0_take_group_cat_6 = {l0_take_group_zext[19:0], 7'd0};
-    assign l0_take_group_mux_10 = l0_take_group_add_1[7] ? l0_take_group_cat_6 : 27'd0;
-    assign l0_take_group_add_9 = l0_take_group_add_8 + l0_take_group_mux_10;
-    assign l0_take_group_cat_7 = {l0_take_group_zext[18:0], 8'd0};
-    assign l0_take_group_mux_11 = l0_take_group_add_1[8] ? l0_take_group_cat_7 : 27'd0;
-    assign l0_take_group_add_10 = l0_take_group_add_9 + l0_take_group_mux_11;
-    assign l0_take_group_sub_2 = l0_take_group_mux[101:94] - l0_take_group_mux[77:70];
-    assign l0_take_group_add_11 = {1'b0, l0_take_group_sub_2} + 9'd1;
-    assign l0_take_group_mux_12 = l0_take_group_add_11[0] ? l0_take_group_add_10 : 27'd0;
-    assign l0_take_group_add_12 = 27'd0 + l0_take_group_mux_12;
-    assign l0_take_group_cat_8 = {l0_take_group_add_10[25:0], 1'b0};
-    assign l0_take_group_mux_13 = l0_take_group_add_11[1] ? l0_take_group_cat_8 : 27'd0;
-    assign l0_take_group_add_13 = l0_take_group_add_12 + l0_take_group_mux_13;
-    assign l0_take_group_cat_9 = {l0_take_group_add_10[24:0], 2'd0};
-    assign l0_take_group_mux_14 = l0_take_group_add_11[2] ? l0_take_group_cat_9 : 27'd0;
-    assign l0_take_group_add_14 = l0_take_group_add_13 + l0_take_group_mux_14;
-    assign l0_take_group_cat_10 = {l0_take_group_add_10[23:0], 3'd0};
-    assign l0_take_group_mux_15 = l0_take_group_add_11[3] ? l0_take_group_cat_10 : 27'd0;
-    assign l0_take_group_add_15 = l0_take_group_add_14 + l0_take_group_mux_15;
-    assign l0_take_group_cat_11 = {l0_take_group_add_10[22:0], 4'd0};
-    assign l0_take_group_mux_16 = l0_take_group_add_11[4] ? l0_take_group_cat_11 : 27'd0;
-    assign l0_take_group_add_16 = l0_take_group_add_15 + l0_take_group_mux_16;
-    assign l0_take_group_cat_12 = {l0_take_group_add_10[21:0], 5'd0};
-    assign l0_take_group_mux_17 = l0_take_group_add_11[5] ? l0_take_group_cat_12 : 27'd0;
-    assign l0_take_group_add_17 = l0_take_group_add_16 + l0_take_group_mux_17;
-    assign l0_take_group_cat_13 = {l0_take_group_add_10[20:0], 6'd0};
-    assign l0_take_group_mux_18 = l0_take_group_add_11[6] ? l0_take_group_cat_13 : 27'd0;
-    assign l0_take_group_add_18 = l0_take_group_add_17 + l0_take_group_mux_18;
-    assign l0_take_group_cat_14 = {l0_take_group_add_10[19:0], 7'd0};
-    assign l0_take_group_mux_19 = l0_take_group_add_11[7] ? l0_take_group_cat_14 : 27'd0;
-    assign l0_take_group_add_19 = l0_take_group_add_18 + l0_take_group_mux_19;
-    assign l0_take_group_cat_15 = {l0_take_group_add_10[18:0], 8'd0};
-    assign l0_take_group_mux_20 = l0_take_group_add_11[8] ? l0_take_group_cat_15 : 27'd0;
-    assign root_cells = l0_take_group_add_19 + l0_take_group_mux_20;
-    assign root_cells_gt = root_cells > 27'd8388608;
-    assign l0_end_not_1 = ~l0_end;
-    assign l0_take_group_and_1 = l0_take_group_or & l0_end_not_1;
-    assign l0_take_group_and_2 = l0_take_group_and_1 & base0_skid_data_eq;
-    assign l0_take_group_and_3 = l0_take_group_and_2 & root_cells_gt;
-    assign l1_has_leaf_not_1 = ~l1_has_leaf;
-    assign root_suppress = l0_take_group_and_3 & l1_has_leaf_not_1;
-    assign top_found_not_48 = ~top_found;
+    assign l0_end_ok = l0_end_not | 1'b1;
+    assign l0_take_group_leaf = l0_take_group_mux[0];
+    assign l0_take_group_lo_x = l0_take_group_mux[61:54];
+    assign l0_take_group_hi_x = l0_take_group_mux[85:78];
+    assign l0_take_group_lo_y = l0_take_group_mux[69:62];
+    assign l0_take_group_hi_y = l0_take_group_mux[93:86];
+    assign l0_take_group_hi_y_add = {1'b0, l0_take_group_hi_y - l0_take_group_lo_y} + 9'd1;
+    assign l0_take_group_hi_x_zext = {18'd0, {1'b0, l0_take_group_hi_x - l0_take_group_lo_x} + 9'd1};
+    assign l0_take_group_hi_y_add_1 = ((27'd0 + (l0_take_group_hi_y_add[0] ? l0_take_group_hi_x_zext : 27'd0)) + (l0_take_group_hi_y_add[1] ? {l0_take_group_hi_x_zext[25:0], 1'b0} : 27'd0)) + (l0_take_group_hi_y_add[2] ? {l0_take_group_hi_x_zext[24:0], 2'd0} : 27'd0);
+    assign l0_take_group_hi_y_add_2 = (l0_take_group_hi_y_add_1 + (l0_take_group_hi_y_add[3] ? {l0_take_group_hi_x_zext[23:0], 3'd0} : 27'd0)) + (l0_take_group_hi_y_add[4] ? {l0_take_group_hi_x_zext[22:0], 4'd0} : 27'd0);
+    assign l0_take_group_hi_y_add_3 = (l0_take_group_hi_y_add_2 + (l0_take_group_hi_y_add[5] ? {l0_take_group_hi_x_zext[21:0], 5'd0} : 27'd0)) + (l0_take_group_hi_y_add[6] ? {l0_take_group_hi_x_zext[20:0], 6'd0} : 27'd0);
+    assign l0_take_group_hi_y_add_4 = (l0_take_group_hi_y_add_3 + (l0_take_group_hi_y_add[7] ? {l0_take_group_hi_x_zext[19:0], 7'd0} : 27'd0)) + (l0_take_group_hi_y_add[8] ? {l0_take_group_hi_x_zext[18:0], 8'd0} : 27'd0);
+    assign l0_take_group_lo_z = l0_take_group_mux[77:70];
+    assign l0_take_group_hi_z = l0_take_group_mux[101:94];
+    assign l0_take_group_hi_z_add = {1'b0, l0_take_group_hi_z - l0_take_group_lo_z} + 9'd1;
+    assign l0_take_group_hi_z_add_1 = ((27'd0 + (l0_take_group_hi_z_add[0] ? l0_take_group_hi_y_add_4 : 27'd0)) + (l0_take_group_hi_z_add[1] ? {l0_take_group_hi_y_add_4[25:0], 1'b0} : 27'd0)) + (l0_take_group_hi_z_add[2] ? {l0_take_group_hi_y_add_4[24:0], 2'd0} : 27'd0);
+    assign l0_take_group_hi_z_add_2 = (l0_take_group_hi_z_add_1 + (l0_take_group_hi_z_add[3] ? {l0_take_group_hi_y_add_4[23:0], 3'd0} : 27'd0)) + (l0_take_group_hi_z_add[4] ? {l0_take_group_hi_y_add_4[22:0], 4'd0} : 27'd0);
+    assign l0_take_group_hi_z_add_3 = (l0_take_group_hi_z_add_2 + (l0_take_group_hi_z_add[5] ? {l0_take_group_hi_y_add_4[21:0], 5'd0} : 27'd0)) + (l0_take_group_hi_z_add[6] ? {l0_take_group_hi_y_add_4[20:0], 6'd0} : 27'd0);
+    assign root_cells = (l0_take_group_hi_z_add_3 + (l0_take_group_hi_z_add[7] ? {l0_take_group_hi_y_add_4[19:0], 7'd0} : 27'd0)) + (l0_take_group_hi_z_add[8] ? {l0_take_group_hi_y_add_4[18:0], 8'd0} : 27'd0);
+    assign root_suppress = (((l0_take_group_or & l0_end_not) & base0_skid_data_kind_eq) & (root_cells > 27'd8388608)) & l1_has_leaf_not;
     assign root_suppressed_not = ~root_suppressed;
-    assign top_found_and_32 = top_found_not_48 & root_suppressed_not;
-    assign top_found_not_49 = ~top_found;
-    assign root_suppress_not = ~root_suppress;
-    assign top_found_and_33 = top_found_not_49 & root_suppress_not;
-    assign l0_end_mux = l0_end ? top_found_and_32 : top_found_and_33;
-    assign l0_done_not = ~l0_done;
-    assign l0_valid_and = l0_valid & l0_done_not;
-    assign l0_valid_and_1 = l0_valid_and & l0_end_or;
-    assign l0_valid_and_2 = l0_valid_and_1 & 1'b1;
-    assign l0_end_not_2 = ~l0_end_mux;
-    assign l0_end_or_1 = l0_end_not_2 | level0_in_ready;
-    assign l0_fire = l0_valid_and_2 & l0_end_or_1;
-    assign l0_end_not_3 = ~l0_end;
-    assign l0_fire_and = l0_fire & l0_end_not_3;
+    assign l0_end_mux = l0_end ? (top_found_not & root_suppressed_not) : (top_found_not & (~root_suppress));
+    assign l0_ready_all = (l0_valid & (~l0_done)) & l0_end_ok;
+    assign l0_ready_all_and = l0_ready_all & 1'b1;
+    assign l0_fire = l0_ready_all_and & ((~l0_end_mux) | level0_in_ready);
+    assign l0_fire_and = l0_fire & l0_end_not;
     assign l0_end_fire = l0_fire & l0_end;
-    assign l0_fire_and_1 = l0_fire & l0_take_group_or;
-    assign l0_nodes_add = {1'b0, l0_nodes} + 25'd1;
-    assign l0_end_mux_1 = l0_end ? 150'h00000000000000000000000000000000000000 : l0_take_group_mux;
-    assign l0_end_mux_2 = l0_end ? 28'd0 : l0_take_group_mux_1;
-    assign l0_take_group_or_1 = l0_take_group_and | l0_nodes_ovf;
-    assign level0_beat = {l0_take_group_or_1, l0_records, l0_nodes, l0_take_group_mux_2, l0_end_mux_2, l0_end_mux_1};
-    assign l0_valid_and_3 = l0_valid_and_1 & 1'b1;
-    assign level0_in_valid = l0_valid_and_3 & l0_end_mux;
+    assign l0_index_next = {1'b0, l0_nodes} + 25'd1;
+    assign level0_beat = {(l0_take_group & u_group0_err) | l0_nodes_ovf, l0_records, l0_nodes, l0_take_group_mux_1, l0_end ? 28'd0 : (l0_take_group ? 28'd0 : base0_skid_data_ref), l0_end ? 150'h00000000000000000000000000000000000000 : l0_take_group_mux};
+    assign level0_in_valid = l0_ready_all_and & l0_end_mux;
     assign level0_skid_ready = level0_ready;
-    assign level0_skid_valid_not = ~level0_skid_valid;
-    assign level0_skid_ready_or = level0_skid_ready | level0_skid_valid_not;
-    assign level0_skid_spare_valid_not = ~level0_skid_spare_valid;
-    assign level0_in_valid_and = level0_in_valid & level0_skid_spare_valid_not;
-    assign level0_skid_spare_valid_or = level0_skid_spare_valid | level0_in_valid;
-    assign level0_skid_spare_valid_mux = level0_skid_spare_valid ? level0_skid_spare_data : level0_beat;
-    assign level0_skid_spare_valid_or_1 = level0_skid_spare_valid | level0_in_valid_and;
-    assign level0_skid_spare_valid_next = level0_skid_ready_or ? 1'b0 : level0_skid_spare_valid_or_1;
-    assign level0_skid_ready_not = ~level0_skid_ready_or;
-    assign level0_skid_ready_and = level0_skid_ready_not & level0_in_valid_and;
+    assign level0_skid_room = ~level0_skid_spare_valid;
+    assign level0_skid_drain = level0_skid_ready | (~level0_skid_valid);
+    assign level0_skid_take = level0_in_valid & level0_skid_room;
     assign level0_valid = level0_skid_valid;
     assign level0_data = level0_skid_data;
-    assign l0_done_or = l0_done | l0_end_fire;
-    assign l0_done_next = merge_clear ? 1'b0 : l0_done_or;
-    assign l0_fire_and_2 = l0_fire_and & l0_nodes_add[24];
-    assign l0_nodes_ovf_or = l0_nodes_ovf | l0_fire_and_2;
-    assign l0_nodes_ovf_next = merge_clear ? 1'b0 : l0_nodes_ovf_or;
-    assign l0_take_group_eq = l0_take_group_mux_2 == 2'd2;
-    assign l0_take_group_not_1 = ~l0_take_group_eq;
-    assign l0_fire_and_3 = l0_fire_and & l0_take_group_not_1;
-    assign l0_records_add = l0_records + 24'd1;
-    assign l0_fire_and_4 = l0_fire_and & l0_take_group_not;
-    assign l0_had_base_or_2 = l0_had_base | l0_fire_and_4;
-    assign l0_had_base_next = merge_clear ? 1'b0 : l0_had_base_or_2;
-    assign l0_take_group_eq_1 = l0_take_group_mux_2 == 2'd2;
-    assign l0_take_group_and_4 = l0_take_group_eq_1 & l0_take_group_mux[0];
-    assign l0_fire_and_5 = l0_fire_and & l0_take_group_and_4;
-    assign l0_has_leaf_or = l0_has_leaf | l0_fire_and_5;
-    assign l0_has_leaf_next = merge_clear ? 1'b0 : l0_has_leaf_or;
-    assign l0_fire_and_6 = l0_fire_and & root_suppress;
-    assign top_found_not_50 = ~top_found;
-    assign l0_end_fire_and = l0_end_fire & top_found_not_50;
-    assign l0_nodes_eq = l0_nodes == 24'd0;
-    assign l0_nodes_ovf_not = ~l0_nodes_ovf;
-    assign l0_nodes_and = l0_nodes_eq & l0_nodes_ovf_not;
-    assign root_suppressed_not_1 = ~root_suppressed;
-    assign l0_nodes_or = l0_nodes_and | l0_has_leaf;
-    assign root_suppressed_and = root_suppressed_not_1 & l0_nodes_or;
-    assign root_suppressed_mux = root_suppressed ? 5'd1 : 5'd0;
-    assign l16_is_top_or_16 = l16_is_top_or_15 | l0_end_fire_and;
-    assign done_valid_or = done_valid_q | l0_end_fire;
-    assign done_valid_next = merge_clear ? 1'b0 : done_valid_or;
-    assign top_found_or = top_found | l16_is_top_or_16;
-    assign top_found_next = merge_clear ? 1'b0 : top_found_or;
-    assign l0_end_fire_and_1 = l0_end_fire_and & root_suppressed_and;
-    assign done_err_or = done_err | l0_end_fire_and_1;
-    assign done_err_next = merge_clear ? 1'b0 : done_err_or;
-    assign root_suppressed_or = root_suppressed | l0_fire_and_6;
-    assign root_suppressed_next = merge_clear ? 1'b0 : root_suppressed_or;
+    assign l0_take_group_eq = l0_take_group_mux_1 == 2'd2;
+    assign l0_is_record = ~l0_take_group_eq;
+    assign l0_end_fire_and = l0_end_fire & top_found_not;
+    assign done_err_or = done_err | (l0_end_fire_and & (root_suppressed_not & (((l0_nodes == 24'd0) & (~l0_nodes_ovf)) | l0_has_leaf)));
     assign done_err_cat = {done_err, top_lod};
     assign done_skid_ready = done_ready;
-    assign done_skid_valid_not = ~done_skid_valid;
-    assign done_skid_ready_or = done_skid_ready | done_skid_valid_not;
-    assign done_skid_spare_valid_not = ~done_skid_spare_valid;
-    assign done_valid_and = done_valid_q & done_skid_spare_valid_not;
-    assign done_skid_spare_valid_or = done_skid_spare_valid | done_valid_q;
-    assign done_skid_spare_valid_mux = done_skid_spare_valid ? done_skid_spare_data : done_err_cat;
-    assign done_skid_spare_valid_or_1 = done_skid_spare_valid | done_valid_and;
-    assign done_skid_spare_valid_next = done_skid_ready_or ? 1'b0 : done_skid_spare_valid_or_1;
-    assign done_skid_ready_not = ~done_skid_ready_or;
-    assign done_skid_ready_and = done_skid_ready_not & done_valid_and;
+    assign done_skid_room = ~done_skid_spare_valid;
+    assign done_skid_drain = done_skid_ready | (~done_skid_valid);
+    assign done_skid_take = done_valid_q & done_skid_room;
     assign done_valid = done_skid_valid;
     assign done_data = done_skid_data;
 
     upper_level_d16_q8_i24 u_group0 ( // rtl-gen/src/merge/builder.rs:147
         .clk(clk),
         .rst(rst),
-        .in_valid(l1_valid_and_3),
-        .in_data(l1_end_cat),
+        .in_valid(l1_ready_all & l1_end_or),
+        .in_data({l1_end, l1_take_group_mux[101:1]}),
         .in_ready(u_group0_in_ready),
         .out_valid(u_group0_out_valid),
         .out_data(u_group0_out_data),
-        .out_ready(l0_fire_and_1)
+        .out_ready(l0_fire & l0_take_group_or)
     );
 
     upper_level_d16_q8_i24 u_group1 ( // rtl-gen/src/merge/builder.rs:147
         .clk(clk),
         .rst(rst),
-        .in_valid(l2_valid_and_3),
-        .in_data(l2_end_cat),
+        .in_valid(l2_ready_all & l2_end_or),
+        .in_data({l2_end, l2_take_group_mux[101:1]}),
         .in_ready(u_group1_in_ready),
         .out_valid(u_group1_out_valid),
         .out_data(u_group1_out_data),
-        .out_ready(l1_fire_and_1)
+        .out_ready(l1_fire & (l1_take_group | l1_end))
     );
 
     upper_level_d16_q8_i24 u_group2 ( // rtl-gen/src/merge/builder.rs:147
         .clk(clk),
         .rst(rst),
-        .in_valid(l3_valid_and_3),
-        .in_data(l3_end_cat),
+        .in_valid(l3_ready_all & l3_end_or),
+        .in_data({l3_end, l3_take_group_mux[101:1]}),
         .in_ready(u_group2_in_ready),
         .out_valid(u_group2_out_valid),
         .out_data(u_group2_out_data),
-        .out_ready(l2_fire_and_1)
+        .out_ready(l2_fire & (l2_take_group | l2_end))
     );
 
     upper_level_d16_q8_i24 u_group3 ( // rtl-gen/src/merge/builder.rs:147
         .clk(clk),
         .rst(rst),
-        .in_valid(l4_valid_and_3),
-        .in_data(l4_end_cat),
+        .in_valid(l4_ready_all & l4_end_or),
+        .in_data({l4_end, l4_take_group_mux[101:1]}),
         .in_ready(u_group3_in_ready),
         .out_valid(u_group3_out_valid),
         .out_data(u_group3_out_data),
-        .out_ready(l3_fire_and_1)
+        .out_ready(l3_fire & (l3_take_group | l3_end))
     );
 
     upper_level_d16_q8_i24 u_group4 ( // rtl-gen/src/merge/builder.rs:147
         .clk(clk),
         .rst(rst),
-        .in_valid(l5_valid_and_3),
-        .in_data(l5_end_cat),
+        .in_valid(l5_ready_all & l5_end_or),
+        .in_data({l5_end, l5_take_group_mux[101:1]}),
         .in_ready(u_group4_in_ready),
         .out_valid(u_group4_out_valid),
         .out_data(u_group4_out_data),
-        .out_ready(l4_fire_and_1)
+        .out_ready(l4_fire & (l4_take_group | l4_end))
     );
 
     upper_level_d16_q8_i24 u_group5 ( // rtl-gen/src/merge/builder.rs:147
         .clk(clk),
         .rst(rst),
-        .in_valid(l6_valid_and_3),
-        .in_data(l6_end_cat),
+        .in_valid(l6_ready_all & l6_end_or),
+        .in_data({l6_end, l6_take_group_mux[101:1]}),
         .in_ready(u_group5_in_ready),
         .out_valid(u_group5_out_valid),
         .out_data(u_group5_out_data),
-        .out_ready(l5_fire_and_1)
+        .out_ready(l5_fire & (l5_take_group | l5_end))
     );
 
     upper_level_d16_q8_i24 u_group6 ( // rtl-gen/src/merge/builder.rs:147
         .clk(clk),
         .rst(rst),
-        .in_valid(l7_valid_and_3),
-        .in_data(l7_end_cat),
+        .in_valid(l7_ready_all & l7_end_or),
+        .in_data({l7_end, l7_take_group_mux[101:1]}),
         .in_ready(u_group6_in_ready),
         .out_valid(u_group6_out_valid),
         .out_data(u_group6_out_data),
-        .out_ready(l6_fire_and_1)
+        .out_ready(l6_fire & (l6_take_group | l6_end))
     );
 
     upper_level_d16_q8_i24 u_group7 ( // rtl-gen/src/merge/builder.rs:147
         .clk(clk),
         .rst(rst),
-        .in_valid(l8_valid_and_3),
-        .in_data(l8_end_cat),
+        .in_valid(l8_ready_all & l8_end_or),
+        .in_data({l8_end, l8_take_group_mux[101:1]}),
         .in_ready(u_group7_in_ready),
         .out_valid(u_group7_out_valid),
         .out_data(u_group7_out_data),
-        .out_ready(l7_fire_and_1)
+        .out_ready(l7_fire & (l7_take_group | l7_end))
     );
 
     upper_level_d16_q8_i24 u_group8 ( // rtl-gen/src/merge/builder.rs:147
         .clk(clk),
         .rst(rst),
-        .in_valid(l9_valid_and_3),
-        .in_data(l9_end_cat),
+        .in_valid(l9_ready_all & l9_end_or),
+        .in_data({l9_end, l9_take_group_mux[101:1]}),
         .in_ready(u_group8_in_ready),
         .out_valid(u_group8_out_valid),
         .out_data(u_group8_out_data),
-        .out_ready(l8_fire_and_1)
+        .out_ready(l8_fire & (l8_take_group | l8_end))
     );
 
     upper_level_d16_q8_i24 u_group9 ( // rtl-gen/src/merge/builder.rs:147
         .clk(clk),
         .rst(rst),
-        .in_valid(l10_valid_and_3),
-        .in_data(l10_end_cat),
+        .in_valid(l10_ready_all & l10_end_or),
+        .in_data({l10_end, l10_take_group_mux[101:1]}),
         .in_ready(u_group9_in_ready),
         .out_valid(u_group9_out_valid),
         .out_data(u_group9_out_data),
-        .out_ready(l9_fire_and_1)
+        .out_ready(l9_fire & (l9_take_group | l9_end))
     );
 
     upper_level_d16_q8_i24 u_group10 ( // rtl-gen/src/merge/builder.rs:147
         .clk(clk),
         .rst(rst),
-        .in_valid(l11_valid_and_3),
-        .in_data(l11_end_cat),
+        .in_valid(l11_ready_all & l11_end_or),
+        .in_data({l11_end, l11_take_group_mux[101:1]}),
         .in_ready(u_group10_in_ready),
         .out_valid(u_group10_out_valid),
         .out_data(u_group10_out_data),
-        .out_ready(l10_fire_and_1)
+        .out_ready(l10_fire & (l10_take_group | l10_end))
     );
 
     upper_level_d16_q8_i24 u_group11 ( // rtl-gen/src/merge/builder.rs:147
         .clk(clk),
         .rst(rst),
-        .in_valid(l12_valid_and_3),
-        .in_data(l12_end_cat),
+        .in_valid(l12_ready_all & l12_end_or),
+        .in_data({l12_end, l12_take_group_mux[101:1]}),
         .in_ready(u_group11_in_ready),
         .out_valid(u_group11_out_valid),
         .out_data(u_group11_out_data),
-        .out_ready(l11_fire_and_1)
+        .out_ready(l11_fire & (l11_take_group | l11_end))
     );
 
     upper_level_d16_q8_i24 u_group12 ( // rtl-gen/src/merge/builder.rs:147
         .clk(clk),
         .rst(rst),
-        .in_valid(l13_valid_and_3),
-        .in_data(l13_end_cat),
+        .in_valid(l13_ready_all & l13_end_or),
+        .in_data({l13_end, l13_take_group_mux[101:1]}),
         .in_ready(u_group12_in_ready),
         .out_valid(u_group12_out_valid),
         .out_data(u_group12_out_data),
-        .out_ready(l12_fire_and_1)
+        .out_ready(l12_fire & (l12_take_group | l12_end))
     );
 
     upper_level_d16_q8_i24 u_group13 ( // rtl-gen/src/merge/builder.rs:147
         .clk(clk),
         .rst(rst),
-        .in_valid(l14_valid_and_3),
-        .in_data(l14_end_cat),
+        .in_valid(l14_ready_all & l14_end_or),
+        .in_data({l14_end, l14_take_group_mux[101:1]}),
         .in_ready(u_group13_in_ready),
         .out_valid(u_group13_out_valid),
         .out_data(u_group13_out_data),
-        .out_ready(l13_fire_and_1)
+        .out_ready(l13_fire & (l13_take_group | l13_end))
     );
 
     upper_level_d16_q8_i24 u_group14 ( // rtl-gen/src/merge/builder.rs:147
         .clk(clk),
         .rst(rst),
-        .in_valid(l15_valid_and_3),
-        .in_data(l15_end_cat),
+        .in_valid(l15_ready_all & l15_end_or),
+        .in_data({l15_end, l15_take_group_mux[101:1]}),
         .in_ready(u_group14_in_ready),
         .out_valid(u_group14_out_valid),
         .out_data(u_group14_out_data),
-        .out_ready(l14_fire_and_1)
+        .out_ready(l14_fire & (l14_take_group | l14_end))
     );
 
     upper_level_d16_q8_i24 u_group15 ( // rtl-gen/src/merge/builder.rs:147
         .clk(clk),
         .rst(rst),
-        .in_valid(base16_skid_valid_and_3),
-        .in_data(base16_skid_data_cat),
+        .in_valid(l16_ready_all & base16_skid_data_kind_or),
+        .in_data({base16_skid_data_kind_eq, base16_skid_data[101:1]}),
         .in_ready(u_group15_in_ready),
         .out_valid(u_group15_out_valid),
         .out_data(u_group15_out_data),
-        .out_ready(l15_fire_and_1)
+        .out_ready(l15_fire & (l15_take_group | l15_end))
     );
 
     always @(posedge clk) begin
@@ -4611,531 +2353,531 @@ module upper_builder_d16_q8_i24_h4 (
             done_skid_spare_valid <= 1'b0;
             done_skid_spare_data <= 6'd0;
         end else begin
-            top_found <= top_found_next;
+            top_found <= merge_clear ? 1'b0 : (top_found | (((l16_is_top_or_1 | l2_is_top) | l1_is_top) | l0_end_fire_and));
             if (merge_clear) begin
-                top_lod <= 5'd0;             // rtl-gen/src/merge/builder.rs:299
+                top_lod <= 5'd0;             // rtl-gen/src/merge/builder.rs:300
                 l16_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:270
-                l16_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:273
+                l16_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:274
                 l15_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:270
-                l15_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:273
+                l15_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:274
                 l14_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:270
-                l14_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:273
+                l14_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:274
                 l13_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:270
-                l13_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:273
+                l13_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:274
                 l12_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:270
-                l12_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:273
+                l12_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:274
                 l11_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:270
-                l11_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:273
+                l11_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:274
                 l10_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:270
-                l10_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:273
+                l10_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:274
                 l9_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:270
-                l9_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:273
+                l9_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:274
                 l8_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:270
-                l8_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:273
+                l8_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:274
                 l7_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:270
-                l7_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:273
+                l7_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:274
                 l6_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:270
-                l6_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:273
+                l6_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:274
                 l5_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:270
-                l5_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:273
+                l5_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:274
                 l4_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:270
-                l4_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:273
+                l4_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:274
                 l3_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:270
-                l3_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:273
+                l3_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:274
                 l2_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:270
-                l2_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:273
+                l2_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:274
                 l1_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:270
-                l1_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:273
+                l1_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:274
                 l0_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:270
-                l0_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:273
+                l0_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:274
             end else begin
                 if (l0_end_fire_and) begin
-                    top_lod <= root_suppressed_mux; // rtl-gen/src/merge/builder.rs:292
+                    top_lod <= root_suppressed ? 5'd1 : 5'd0; // rtl-gen/src/merge/builder.rs:293
                 end else if (l1_is_top) begin
-                    top_lod <= 5'd1;         // rtl-gen/src/merge/builder.rs:284
+                    top_lod <= 5'd1;         // rtl-gen/src/merge/builder.rs:285
                 end else if (l2_is_top) begin
-                    top_lod <= 5'd2;         // rtl-gen/src/merge/builder.rs:284
+                    top_lod <= 5'd2;         // rtl-gen/src/merge/builder.rs:285
                 end else if (l3_is_top) begin
-                    top_lod <= 5'd3;         // rtl-gen/src/merge/builder.rs:284
+                    top_lod <= 5'd3;         // rtl-gen/src/merge/builder.rs:285
                 end else if (l4_is_top) begin
-                    top_lod <= 5'd4;         // rtl-gen/src/merge/builder.rs:284
+                    top_lod <= 5'd4;         // rtl-gen/src/merge/builder.rs:285
                 end else if (l5_is_top) begin
-                    top_lod <= 5'd5;         // rtl-gen/src/merge/builder.rs:284
+                    top_lod <= 5'd5;         // rtl-gen/src/merge/builder.rs:285
                 end else if (l6_is_top) begin
-                    top_lod <= 5'd6;         // rtl-gen/src/merge/builder.rs:284
+                    top_lod <= 5'd6;         // rtl-gen/src/merge/builder.rs:285
                 end else if (l7_is_top) begin
-                    top_lod <= 5'd7;         // rtl-gen/src/merge/builder.rs:284
+                    top_lod <= 5'd7;         // rtl-gen/src/merge/builder.rs:285
                 end else if (l8_is_top) begin
-                    top_lod <= 5'd8;         // rtl-gen/src/merge/builder.rs:284
+                    top_lod <= 5'd8;         // rtl-gen/src/merge/builder.rs:285
                 end else if (l9_is_top) begin
-                    top_lod <= 5'd9;         // rtl-gen/src/merge/builder.rs:284
+                    top_lod <= 5'd9;         // rtl-gen/src/merge/builder.rs:285
                 end else if (l10_is_top) begin
-                    top_lod <= 5'd10;        // rtl-gen/src/merge/builder.rs:284
+                    top_lod <= 5'd10;        // rtl-gen/src/merge/builder.rs:285
                 end else if (l11_is_top) begin
-                    top_lod <= 5'd11;        // rtl-gen/src/merge/builder.rs:284
+                    top_lod <= 5'd11;        // rtl-gen/src/merge/builder.rs:285
                 end else if (l12_is_top) begin
-                    top_lod <= 5'd12;        // rtl-gen/src/merge/builder.rs:284
+                    top_lod <= 5'd12;        // rtl-gen/src/merge/builder.rs:285
                 end else if (l13_is_top) begin
-                    top_lod <= 5'd13;        // rtl-gen/src/merge/builder.rs:284
+                    top_lod <= 5'd13;        // rtl-gen/src/merge/builder.rs:285
                 end else if (l14_is_top) begin
-                    top_lod <= 5'd14;        // rtl-gen/src/merge/builder.rs:284
+                    top_lod <= 5'd14;        // rtl-gen/src/merge/builder.rs:285
                 end else if (l15_is_top) begin
-                    top_lod <= 5'd15;        // rtl-gen/src/merge/builder.rs:284
+                    top_lod <= 5'd15;        // rtl-gen/src/merge/builder.rs:285
                 end else if (l16_is_top) begin
-                    top_lod <= 5'd16;        // rtl-gen/src/merge/builder.rs:284
+                    top_lod <= 5'd16;        // rtl-gen/src/merge/builder.rs:285
                 end
                 if (l16_fire_and) begin
-                    l16_nodes <= l16_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l16_nodes <= l16_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
                 end
-                if (l16_fire_and_2) begin
-                    l16_records <= l16_records_add; // rtl-gen/src/merge/builder.rs:273
+                if (l16_fire_and & l16_is_record) begin
+                    l16_records <= l16_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
                 end
                 if (l15_fire_and) begin
-                    l15_nodes <= l15_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l15_nodes <= l15_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
                 end
-                if (l15_fire_and_3) begin
-                    l15_records <= l15_records_add; // rtl-gen/src/merge/builder.rs:273
+                if (l15_fire_and & l15_is_record) begin
+                    l15_records <= l15_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
                 end
                 if (l14_fire_and) begin
-                    l14_nodes <= l14_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l14_nodes <= l14_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
                 end
-                if (l14_fire_and_3) begin
-                    l14_records <= l14_records_add; // rtl-gen/src/merge/builder.rs:273
+                if (l14_fire_and & l14_is_record) begin
+                    l14_records <= l14_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
                 end
                 if (l13_fire_and) begin
-                    l13_nodes <= l13_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l13_nodes <= l13_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
                 end
-                if (l13_fire_and_3) begin
-                    l13_records <= l13_records_add; // rtl-gen/src/merge/builder.rs:273
+                if (l13_fire_and & l13_is_record) begin
+                    l13_records <= l13_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
                 end
                 if (l12_fire_and) begin
-                    l12_nodes <= l12_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l12_nodes <= l12_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
                 end
-                if (l12_fire_and_3) begin
-                    l12_records <= l12_records_add; // rtl-gen/src/merge/builder.rs:273
+                if (l12_fire_and & l12_is_record) begin
+                    l12_records <= l12_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
                 end
                 if (l11_fire_and) begin
-                    l11_nodes <= l11_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l11_nodes <= l11_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
                 end
-                if (l11_fire_and_3) begin
-                    l11_records <= l11_records_add; // rtl-gen/src/merge/builder.rs:273
+                if (l11_fire_and & l11_is_record) begin
+                    l11_records <= l11_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
                 end
                 if (l10_fire_and) begin
-                    l10_nodes <= l10_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l10_nodes <= l10_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
                 end
-                if (l10_fire_and_3) begin
-                    l10_records <= l10_records_add; // rtl-gen/src/merge/builder.rs:273
+                if (l10_fire_and & l10_is_record) begin
+                    l10_records <= l10_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
                 end
                 if (l9_fire_and) begin
-                    l9_nodes <= l9_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l9_nodes <= l9_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
                 end
-                if (l9_fire_and_3) begin
-                    l9_records <= l9_records_add; // rtl-gen/src/merge/builder.rs:273
+                if (l9_fire_and & l9_is_record) begin
+                    l9_records <= l9_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
                 end
                 if (l8_fire_and) begin
-                    l8_nodes <= l8_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l8_nodes <= l8_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
                 end
-                if (l8_fire_and_3) begin
-                    l8_records <= l8_records_add; // rtl-gen/src/merge/builder.rs:273
+                if (l8_fire_and & l8_is_record) begin
+                    l8_records <= l8_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
                 end
                 if (l7_fire_and) begin
-                    l7_nodes <= l7_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l7_nodes <= l7_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
                 end
-                if (l7_fire_and_3) begin
-                    l7_records <= l7_records_add; // rtl-gen/src/merge/builder.rs:273
+                if (l7_fire_and & l7_is_record) begin
+                    l7_records <= l7_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
                 end
                 if (l6_fire_and) begin
-                    l6_nodes <= l6_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l6_nodes <= l6_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
                 end
-                if (l6_fire_and_3) begin
-                    l6_records <= l6_records_add; // rtl-gen/src/merge/builder.rs:273
+                if (l6_fire_and & l6_is_record) begin
+                    l6_records <= l6_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
                 end
                 if (l5_fire_and) begin
-                    l5_nodes <= l5_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l5_nodes <= l5_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
                 end
-                if (l5_fire_and_3) begin
-                    l5_records <= l5_records_add; // rtl-gen/src/merge/builder.rs:273
+                if (l5_fire_and & l5_is_record) begin
+                    l5_records <= l5_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
                 end
                 if (l4_fire_and) begin
-                    l4_nodes <= l4_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l4_nodes <= l4_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
                 end
-                if (l4_fire_and_3) begin
-                    l4_records <= l4_records_add; // rtl-gen/src/merge/builder.rs:273
+                if (l4_fire_and & l4_is_record) begin
+                    l4_records <= l4_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
                 end
                 if (l3_fire_and) begin
-                    l3_nodes <= l3_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l3_nodes <= l3_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
                 end
-                if (l3_fire_and_3) begin
-                    l3_records <= l3_records_add; // rtl-gen/src/merge/builder.rs:273
+                if (l3_fire_and & l3_is_record) begin
+                    l3_records <= l3_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
                 end
                 if (l2_fire_and) begin
-                    l2_nodes <= l2_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l2_nodes <= l2_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
                 end
-                if (l2_fire_and_3) begin
-                    l2_records <= l2_records_add; // rtl-gen/src/merge/builder.rs:273
+                if (l2_fire_and & l2_is_record) begin
+                    l2_records <= l2_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
                 end
                 if (l1_fire_and) begin
-                    l1_nodes <= l1_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l1_nodes <= l1_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
                 end
-                if (l1_fire_and_3) begin
-                    l1_records <= l1_records_add; // rtl-gen/src/merge/builder.rs:273
+                if (l1_fire_and & l1_is_record) begin
+                    l1_records <= l1_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
                 end
                 if (l0_fire_and) begin
-                    l0_nodes <= l0_nodes_add[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l0_nodes <= l0_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
                 end
-                if (l0_fire_and_3) begin
-                    l0_records <= l0_records_add; // rtl-gen/src/merge/builder.rs:273
+                if (l0_fire_and & l0_is_record) begin
+                    l0_records <= l0_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
                 end
             end
-            done_err <= done_err_next;
-            root_suppressed <= root_suppressed_next;
-            if (base0_skid_ready_or) begin
-                base0_skid_valid <= base0_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:140
-                base0_skid_data <= base0_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
+            done_err <= merge_clear ? 1'b0 : done_err_or;
+            root_suppressed <= merge_clear ? 1'b0 : (root_suppressed | (l0_fire_and & root_suppress));
+            if (base0_skid_drain) begin
+                base0_skid_valid <= base0_skid_spare_valid | base0_valid; // rtl-gen/src/merge/builder.rs:140
+                base0_skid_data <= base0_skid_spare_valid ? base0_skid_spare_data : base0_data; // rtl-gen/src/merge/builder.rs:140
             end
-            base0_skid_spare_valid <= base0_skid_spare_valid_next;
-            if (base0_skid_ready_and) begin
+            base0_skid_spare_valid <= base0_skid_drain ? 1'b0 : (base0_skid_spare_valid | base0_skid_take);
+            if ((~base0_skid_drain) & base0_skid_take) begin
                 base0_skid_spare_data <= base0_data; // rtl-gen/src/merge/builder.rs:140
             end
-            if (base1_skid_ready_or) begin
-                base1_skid_valid <= base1_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:140
-                base1_skid_data <= base1_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
+            if (base1_skid_drain) begin
+                base1_skid_valid <= base1_skid_spare_valid | base1_valid; // rtl-gen/src/merge/builder.rs:140
+                base1_skid_data <= base1_skid_spare_valid ? base1_skid_spare_data : base1_data; // rtl-gen/src/merge/builder.rs:140
             end
-            base1_skid_spare_valid <= base1_skid_spare_valid_next;
-            if (base1_skid_ready_and) begin
+            base1_skid_spare_valid <= base1_skid_drain ? 1'b0 : (base1_skid_spare_valid | base1_skid_take);
+            if ((~base1_skid_drain) & base1_skid_take) begin
                 base1_skid_spare_data <= base1_data; // rtl-gen/src/merge/builder.rs:140
             end
-            if (base2_skid_ready_or) begin
-                base2_skid_valid <= base2_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:140
-                base2_skid_data <= base2_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
+            if (base2_skid_drain) begin
+                base2_skid_valid <= base2_skid_spare_valid | base2_valid; // rtl-gen/src/merge/builder.rs:140
+                base2_skid_data <= base2_skid_spare_valid ? base2_skid_spare_data : base2_data; // rtl-gen/src/merge/builder.rs:140
             end
-            base2_skid_spare_valid <= base2_skid_spare_valid_next;
-            if (base2_skid_ready_and) begin
+            base2_skid_spare_valid <= base2_skid_drain ? 1'b0 : (base2_skid_spare_valid | base2_skid_take);
+            if ((~base2_skid_drain) & base2_skid_take) begin
                 base2_skid_spare_data <= base2_data; // rtl-gen/src/merge/builder.rs:140
             end
-            if (base3_skid_ready_or) begin
-                base3_skid_valid <= base3_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:140
-                base3_skid_data <= base3_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
+            if (base3_skid_drain) begin
+                base3_skid_valid <= base3_skid_spare_valid | base3_valid; // rtl-gen/src/merge/builder.rs:140
+                base3_skid_data <= base3_skid_spare_valid ? base3_skid_spare_data : base3_data; // rtl-gen/src/merge/builder.rs:140
             end
-            base3_skid_spare_valid <= base3_skid_spare_valid_next;
-            if (base3_skid_ready_and) begin
+            base3_skid_spare_valid <= base3_skid_drain ? 1'b0 : (base3_skid_spare_valid | base3_skid_take);
+            if ((~base3_skid_drain) & base3_skid_take) begin
                 base3_skid_spare_data <= base3_data; // rtl-gen/src/merge/builder.rs:140
             end
-            if (base4_skid_ready_or) begin
-                base4_skid_valid <= base4_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:140
-                base4_skid_data <= base4_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
+            if (base4_skid_drain) begin
+                base4_skid_valid <= base4_skid_spare_valid | base4_valid; // rtl-gen/src/merge/builder.rs:140
+                base4_skid_data <= base4_skid_spare_valid ? base4_skid_spare_data : base4_data; // rtl-gen/src/merge/builder.rs:140
             end
-            base4_skid_spare_valid <= base4_skid_spare_valid_next;
-            if (base4_skid_ready_and) begin
+            base4_skid_spare_valid <= base4_skid_drain ? 1'b0 : (base4_skid_spare_valid | base4_skid_take);
+            if ((~base4_skid_drain) & base4_skid_take) begin
                 base4_skid_spare_data <= base4_data; // rtl-gen/src/merge/builder.rs:140
             end
-            if (base5_skid_ready_or) begin
-                base5_skid_valid <= base5_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:140
-                base5_skid_data <= base5_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
+            if (base5_skid_drain) begin
+                base5_skid_valid <= base5_skid_spare_valid | base5_valid; // rtl-gen/src/merge/builder.rs:140
+                base5_skid_data <= base5_skid_spare_valid ? base5_skid_spare_data : base5_data; // rtl-gen/src/merge/builder.rs:140
             end
-            base5_skid_spare_valid <= base5_skid_spare_valid_next;
-            if (base5_skid_ready_and) begin
+            base5_skid_spare_valid <= base5_skid_drain ? 1'b0 : (base5_skid_spare_valid | base5_skid_take);
+            if ((~base5_skid_drain) & base5_skid_take) begin
                 base5_skid_spare_data <= base5_data; // rtl-gen/src/merge/builder.rs:140
             end
-            if (base6_skid_ready_or) begin
-                base6_skid_valid <= base6_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:140
-                base6_skid_data <= base6_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
+            if (base6_skid_drain) begin
+                base6_skid_valid <= base6_skid_spare_valid | base6_valid; // rtl-gen/src/merge/builder.rs:140
+                base6_skid_data <= base6_skid_spare_valid ? base6_skid_spare_data : base6_data; // rtl-gen/src/merge/builder.rs:140
             end
-            base6_skid_spare_valid <= base6_skid_spare_valid_next;
-            if (base6_skid_ready_and) begin
+            base6_skid_spare_valid <= base6_skid_drain ? 1'b0 : (base6_skid_spare_valid | base6_skid_take);
+            if ((~base6_skid_drain) & base6_skid_take) begin
                 base6_skid_spare_data <= base6_data; // rtl-gen/src/merge/builder.rs:140
             end
-            if (base7_skid_ready_or) begin
-                base7_skid_valid <= base7_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:140
-                base7_skid_data <= base7_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
+            if (base7_skid_drain) begin
+                base7_skid_valid <= base7_skid_spare_valid | base7_valid; // rtl-gen/src/merge/builder.rs:140
+                base7_skid_data <= base7_skid_spare_valid ? base7_skid_spare_data : base7_data; // rtl-gen/src/merge/builder.rs:140
             end
-            base7_skid_spare_valid <= base7_skid_spare_valid_next;
-            if (base7_skid_ready_and) begin
+            base7_skid_spare_valid <= base7_skid_drain ? 1'b0 : (base7_skid_spare_valid | base7_skid_take);
+            if ((~base7_skid_drain) & base7_skid_take) begin
                 base7_skid_spare_data <= base7_data; // rtl-gen/src/merge/builder.rs:140
             end
-            if (base8_skid_ready_or) begin
-                base8_skid_valid <= base8_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:140
-                base8_skid_data <= base8_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
+            if (base8_skid_drain) begin
+                base8_skid_valid <= base8_skid_spare_valid | base8_valid; // rtl-gen/src/merge/builder.rs:140
+                base8_skid_data <= base8_skid_spare_valid ? base8_skid_spare_data : base8_data; // rtl-gen/src/merge/builder.rs:140
             end
-            base8_skid_spare_valid <= base8_skid_spare_valid_next;
-            if (base8_skid_ready_and) begin
+            base8_skid_spare_valid <= base8_skid_drain ? 1'b0 : (base8_skid_spare_valid | base8_skid_take);
+            if ((~base8_skid_drain) & base8_skid_take) begin
                 base8_skid_spare_data <= base8_data; // rtl-gen/src/merge/builder.rs:140
             end
-            if (base9_skid_ready_or) begin
-                base9_skid_valid <= base9_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:140
-                base9_skid_data <= base9_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
+            if (base9_skid_drain) begin
+                base9_skid_valid <= base9_skid_spare_valid | base9_valid; // rtl-gen/src/merge/builder.rs:140
+                base9_skid_data <= base9_skid_spare_valid ? base9_skid_spare_data : base9_data; // rtl-gen/src/merge/builder.rs:140
             end
-            base9_skid_spare_valid <= base9_skid_spare_valid_next;
-            if (base9_skid_ready_and) begin
+            base9_skid_spare_valid <= base9_skid_drain ? 1'b0 : (base9_skid_spare_valid | base9_skid_take);
+            if ((~base9_skid_drain) & base9_skid_take) begin
                 base9_skid_spare_data <= base9_data; // rtl-gen/src/merge/builder.rs:140
             end
-            if (base10_skid_ready_or) begin
-                base10_skid_valid <= base10_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:140
-                base10_skid_data <= base10_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
+            if (base10_skid_drain) begin
+                base10_skid_valid <= base10_skid_spare_valid | base10_valid; // rtl-gen/src/merge/builder.rs:140
+                base10_skid_data <= base10_skid_spare_valid ? base10_skid_spare_data : base10_data; // rtl-gen/src/merge/builder.rs:140
             end
-            base10_skid_spare_valid <= base10_skid_spare_valid_next;
-            if (base10_skid_ready_and) begin
+            base10_skid_spare_valid <= base10_skid_drain ? 1'b0 : (base10_skid_spare_valid | base10_skid_take);
+            if ((~base10_skid_drain) & base10_skid_take) begin
                 base10_skid_spare_data <= base10_data; // rtl-gen/src/merge/builder.rs:140
             end
-            if (base11_skid_ready_or) begin
-                base11_skid_valid <= base11_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:140
-                base11_skid_data <= base11_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
+            if (base11_skid_drain) begin
+                base11_skid_valid <= base11_skid_spare_valid | base11_valid; // rtl-gen/src/merge/builder.rs:140
+                base11_skid_data <= base11_skid_spare_valid ? base11_skid_spare_data : base11_data; // rtl-gen/src/merge/builder.rs:140
             end
-            base11_skid_spare_valid <= base11_skid_spare_valid_next;
-            if (base11_skid_ready_and) begin
+            base11_skid_spare_valid <= base11_skid_drain ? 1'b0 : (base11_skid_spare_valid | base11_skid_take);
+            if ((~base11_skid_drain) & base11_skid_take) begin
                 base11_skid_spare_data <= base11_data; // rtl-gen/src/merge/builder.rs:140
             end
-            if (base12_skid_ready_or) begin
-                base12_skid_valid <= base12_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:140
-                base12_skid_data <= base12_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
+            if (base12_skid_drain) begin
+                base12_skid_valid <= base12_skid_spare_valid | base12_valid; // rtl-gen/src/merge/builder.rs:140
+                base12_skid_data <= base12_skid_spare_valid ? base12_skid_spare_data : base12_data; // rtl-gen/src/merge/builder.rs:140
             end
-            base12_skid_spare_valid <= base12_skid_spare_valid_next;
-            if (base12_skid_ready_and) begin
+            base12_skid_spare_valid <= base12_skid_drain ? 1'b0 : (base12_skid_spare_valid | base12_skid_take);
+            if ((~base12_skid_drain) & base12_skid_take) begin
                 base12_skid_spare_data <= base12_data; // rtl-gen/src/merge/builder.rs:140
             end
-            if (base13_skid_ready_or) begin
-                base13_skid_valid <= base13_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:140
-                base13_skid_data <= base13_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
+            if (base13_skid_drain) begin
+                base13_skid_valid <= base13_skid_spare_valid | base13_valid; // rtl-gen/src/merge/builder.rs:140
+                base13_skid_data <= base13_skid_spare_valid ? base13_skid_spare_data : base13_data; // rtl-gen/src/merge/builder.rs:140
             end
-            base13_skid_spare_valid <= base13_skid_spare_valid_next;
-            if (base13_skid_ready_and) begin
+            base13_skid_spare_valid <= base13_skid_drain ? 1'b0 : (base13_skid_spare_valid | base13_skid_take);
+            if ((~base13_skid_drain) & base13_skid_take) begin
                 base13_skid_spare_data <= base13_data; // rtl-gen/src/merge/builder.rs:140
             end
-            if (base14_skid_ready_or) begin
-                base14_skid_valid <= base14_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:140
-                base14_skid_data <= base14_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
+            if (base14_skid_drain) begin
+                base14_skid_valid <= base14_skid_spare_valid | base14_valid; // rtl-gen/src/merge/builder.rs:140
+                base14_skid_data <= base14_skid_spare_valid ? base14_skid_spare_data : base14_data; // rtl-gen/src/merge/builder.rs:140
             end
-            base14_skid_spare_valid <= base14_skid_spare_valid_next;
-            if (base14_skid_ready_and) begin
+            base14_skid_spare_valid <= base14_skid_drain ? 1'b0 : (base14_skid_spare_valid | base14_skid_take);
+            if ((~base14_skid_drain) & base14_skid_take) begin
                 base14_skid_spare_data <= base14_data; // rtl-gen/src/merge/builder.rs:140
             end
-            if (base15_skid_ready_or) begin
-                base15_skid_valid <= base15_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:140
-                base15_skid_data <= base15_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
+            if (base15_skid_drain) begin
+                base15_skid_valid <= base15_skid_spare_valid | base15_valid; // rtl-gen/src/merge/builder.rs:140
+                base15_skid_data <= base15_skid_spare_valid ? base15_skid_spare_data : base15_data; // rtl-gen/src/merge/builder.rs:140
             end
-            base15_skid_spare_valid <= base15_skid_spare_valid_next;
-            if (base15_skid_ready_and) begin
+            base15_skid_spare_valid <= base15_skid_drain ? 1'b0 : (base15_skid_spare_valid | base15_skid_take);
+            if ((~base15_skid_drain) & base15_skid_take) begin
                 base15_skid_spare_data <= base15_data; // rtl-gen/src/merge/builder.rs:140
             end
-            if (base16_skid_ready_or) begin
-                base16_skid_valid <= base16_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:140
-                base16_skid_data <= base16_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:140
+            if (base16_skid_drain) begin
+                base16_skid_valid <= base16_skid_spare_valid | base16_valid; // rtl-gen/src/merge/builder.rs:140
+                base16_skid_data <= base16_skid_spare_valid ? base16_skid_spare_data : base16_data; // rtl-gen/src/merge/builder.rs:140
             end
-            base16_skid_spare_valid <= base16_skid_spare_valid_next;
-            if (base16_skid_ready_and) begin
+            base16_skid_spare_valid <= base16_skid_drain ? 1'b0 : (base16_skid_spare_valid | base16_skid_take);
+            if ((~base16_skid_drain) & base16_skid_take) begin
                 base16_skid_spare_data <= base16_data; // rtl-gen/src/merge/builder.rs:140
             end
-            l0_had_base <= l0_had_base_next;
-            l1_had_base <= l1_had_base_next;
-            l2_had_base <= l2_had_base_next;
-            l3_had_base <= l3_had_base_next;
-            l4_had_base <= l4_had_base_next;
-            l5_had_base <= l5_had_base_next;
-            l6_had_base <= l6_had_base_next;
-            l7_had_base <= l7_had_base_next;
-            l8_had_base <= l8_had_base_next;
-            l9_had_base <= l9_had_base_next;
-            l10_had_base <= l10_had_base_next;
-            l11_had_base <= l11_had_base_next;
-            l12_had_base <= l12_had_base_next;
-            l13_had_base <= l13_had_base_next;
-            l14_had_base <= l14_had_base_next;
-            l15_had_base <= l15_had_base_next;
-            done_valid_q <= done_valid_next;
-            l0_has_leaf <= l0_has_leaf_next;
-            l1_has_leaf <= l1_has_leaf_next;
-            l2_has_leaf <= l2_has_leaf_next;
-            l3_has_leaf <= l3_has_leaf_next;
-            l4_has_leaf <= l4_has_leaf_next;
-            l5_has_leaf <= l5_has_leaf_next;
-            l6_has_leaf <= l6_has_leaf_next;
-            l7_has_leaf <= l7_has_leaf_next;
-            l8_has_leaf <= l8_has_leaf_next;
-            l9_has_leaf <= l9_has_leaf_next;
-            l10_has_leaf <= l10_has_leaf_next;
-            l11_has_leaf <= l11_has_leaf_next;
-            l12_has_leaf <= l12_has_leaf_next;
-            l13_has_leaf <= l13_has_leaf_next;
-            l14_has_leaf <= l14_has_leaf_next;
-            l15_has_leaf <= l15_has_leaf_next;
-            l16_has_leaf <= l16_has_leaf_next;
-            l16_done <= l16_done_next;
-            l16_nodes_ovf <= l16_nodes_ovf_next;
-            if (level16_skid_ready_or) begin
-                level16_skid_valid <= level16_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:265
-                level16_skid_data <= level16_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
+            l0_had_base <= merge_clear ? 1'b0 : (l0_had_base | (l0_fire_and & l0_take_group_not));
+            l1_had_base <= merge_clear ? 1'b0 : (l1_had_base | (l1_fire_and & l1_take_group_not));
+            l2_had_base <= merge_clear ? 1'b0 : (l2_had_base | (l2_fire_and & l2_take_group_not));
+            l3_had_base <= merge_clear ? 1'b0 : (l3_had_base | (l3_fire_and & l3_take_group_not));
+            l4_had_base <= merge_clear ? 1'b0 : (l4_had_base | (l4_fire_and & l4_take_group_not));
+            l5_had_base <= merge_clear ? 1'b0 : (l5_had_base | (l5_fire_and & l5_take_group_not));
+            l6_had_base <= merge_clear ? 1'b0 : (l6_had_base | (l6_fire_and & l6_take_group_not));
+            l7_had_base <= merge_clear ? 1'b0 : (l7_had_base | (l7_fire_and & l7_take_group_not));
+            l8_had_base <= merge_clear ? 1'b0 : (l8_had_base | (l8_fire_and & l8_take_group_not));
+            l9_had_base <= merge_clear ? 1'b0 : (l9_had_base | (l9_fire_and & l9_take_group_not));
+            l10_had_base <= merge_clear ? 1'b0 : (l10_had_base | (l10_fire_and & l10_take_group_not));
+            l11_had_base <= merge_clear ? 1'b0 : (l11_had_base | (l11_fire_and & l11_take_group_not));
+            l12_had_base <= merge_clear ? 1'b0 : (l12_had_base | (l12_fire_and & l12_take_group_not));
+            l13_had_base <= merge_clear ? 1'b0 : (l13_had_base | (l13_fire_and & l13_take_group_not));
+            l14_had_base <= merge_clear ? 1'b0 : (l14_had_base | (l14_fire_and & l14_take_group_not));
+            l15_had_base <= merge_clear ? 1'b0 : (l15_had_base | (l15_fire_and & l15_take_group_not));
+            done_valid_q <= merge_clear ? 1'b0 : (done_valid_q | l0_end_fire);
+            l0_has_leaf <= merge_clear ? 1'b0 : (l0_has_leaf | (l0_fire_and & (l0_take_group_eq & l0_take_group_leaf)));
+            l1_has_leaf <= merge_clear ? 1'b0 : (l1_has_leaf | (l1_fire_and & (l1_take_group_eq & l1_take_group_leaf)));
+            l2_has_leaf <= merge_clear ? 1'b0 : (l2_has_leaf | (l2_fire_and & (l2_take_group_eq & l2_take_group_leaf)));
+            l3_has_leaf <= merge_clear ? 1'b0 : (l3_has_leaf | (l3_fire_and & (l3_take_group_eq & l3_take_group_leaf)));
+            l4_has_leaf <= merge_clear ? 1'b0 : (l4_has_leaf | (l4_fire_and & (l4_take_group_eq & l4_take_group_leaf)));
+            l5_has_leaf <= merge_clear ? 1'b0 : (l5_has_leaf | (l5_fire_and & (l5_take_group_eq & l5_take_group_leaf)));
+            l6_has_leaf <= merge_clear ? 1'b0 : (l6_has_leaf | (l6_fire_and & (l6_take_group_eq & l6_take_group_leaf)));
+            l7_has_leaf <= merge_clear ? 1'b0 : (l7_has_leaf | (l7_fire_and & (l7_take_group_eq & l7_take_group_leaf)));
+            l8_has_leaf <= merge_clear ? 1'b0 : (l8_has_leaf | (l8_fire_and & (l8_take_group_eq & l8_take_group_leaf)));
+            l9_has_leaf <= merge_clear ? 1'b0 : (l9_has_leaf | (l9_fire_and & (l9_take_group_eq & l9_take_group_leaf)));
+            l10_has_leaf <= merge_clear ? 1'b0 : (l10_has_leaf | (l10_fire_and & (l10_take_group_eq & l10_take_group_leaf)));
+            l11_has_leaf <= merge_clear ? 1'b0 : (l11_has_leaf | (l11_fire_and & (l11_take_group_eq & l11_take_group_leaf)));
+            l12_has_leaf <= merge_clear ? 1'b0 : (l12_has_leaf | (l12_fire_and & (l12_take_group_eq & l12_take_group_leaf)));
+            l13_has_leaf <= merge_clear ? 1'b0 : (l13_has_leaf | (l13_fire_and & (l13_take_group_eq & l13_take_group_leaf)));
+            l14_has_leaf <= merge_clear ? 1'b0 : (l14_has_leaf | (l14_fire_and & (l14_take_group_eq & l14_take_group_leaf)));
+            l15_has_leaf <= merge_clear ? 1'b0 : (l15_has_leaf | (l15_fire_and & (l15_take_group_eq & l15_take_group_leaf)));
+            l16_has_leaf <= merge_clear ? 1'b0 : (l16_has_leaf | (l16_fire_and & (base16_skid_data_kind_eq_1 & base16_skid_data_rec_leaf)));
+            l16_done <= merge_clear ? 1'b0 : (l16_done | l16_end_fire);
+            l16_nodes_ovf <= merge_clear ? 1'b0 : (l16_nodes_ovf | (l16_fire_and & l16_index_next[24]));
+            if (level16_skid_drain) begin
+                level16_skid_valid <= level16_skid_spare_valid | level16_in_valid; // rtl-gen/src/merge/builder.rs:265
+                level16_skid_data <= level16_skid_spare_valid ? level16_skid_spare_data : level16_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            level16_skid_spare_valid <= level16_skid_spare_valid_next;
-            if (level16_skid_ready_and) begin
+            level16_skid_spare_valid <= level16_skid_drain ? 1'b0 : (level16_skid_spare_valid | level16_skid_take);
+            if ((~level16_skid_drain) & level16_skid_take) begin
                 level16_skid_spare_data <= level16_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            l15_done <= l15_done_next;
-            l15_nodes_ovf <= l15_nodes_ovf_next;
-            if (level15_skid_ready_or) begin
-                level15_skid_valid <= level15_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:265
-                level15_skid_data <= level15_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
+            l15_done <= merge_clear ? 1'b0 : (l15_done | l15_end_fire);
+            l15_nodes_ovf <= merge_clear ? 1'b0 : (l15_nodes_ovf | (l15_fire_and & l15_index_next[24]));
+            if (level15_skid_drain) begin
+                level15_skid_valid <= level15_skid_spare_valid | level15_in_valid; // rtl-gen/src/merge/builder.rs:265
+                level15_skid_data <= level15_skid_spare_valid ? level15_skid_spare_data : level15_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            level15_skid_spare_valid <= level15_skid_spare_valid_next;
-            if (level15_skid_ready_and) begin
+            level15_skid_spare_valid <= level15_skid_drain ? 1'b0 : (level15_skid_spare_valid | level15_skid_take);
+            if ((~level15_skid_drain) & level15_skid_take) begin
                 level15_skid_spare_data <= level15_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            l14_done <= l14_done_next;
-            l14_nodes_ovf <= l14_nodes_ovf_next;
-            if (level14_skid_ready_or) begin
-                level14_skid_valid <= level14_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:265
-                level14_skid_data <= level14_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
+            l14_done <= merge_clear ? 1'b0 : (l14_done | l14_end_fire);
+            l14_nodes_ovf <= merge_clear ? 1'b0 : (l14_nodes_ovf | (l14_fire_and & l14_index_next[24]));
+            if (level14_skid_drain) begin
+                level14_skid_valid <= level14_skid_spare_valid | level14_in_valid; // rtl-gen/src/merge/builder.rs:265
+                level14_skid_data <= level14_skid_spare_valid ? level14_skid_spare_data : level14_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            level14_skid_spare_valid <= level14_skid_spare_valid_next;
-            if (level14_skid_ready_and) begin
+            level14_skid_spare_valid <= level14_skid_drain ? 1'b0 : (level14_skid_spare_valid | level14_skid_take);
+            if ((~level14_skid_drain) & level14_skid_take) begin
                 level14_skid_spare_data <= level14_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            l13_done <= l13_done_next;
-            l13_nodes_ovf <= l13_nodes_ovf_next;
-            if (level13_skid_ready_or) begin
-                level13_skid_valid <= level13_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:265
-                level13_skid_data <= level13_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
+            l13_done <= merge_clear ? 1'b0 : (l13_done | l13_end_fire);
+            l13_nodes_ovf <= merge_clear ? 1'b0 : (l13_nodes_ovf | (l13_fire_and & l13_index_next[24]));
+            if (level13_skid_drain) begin
+                level13_skid_valid <= level13_skid_spare_valid | level13_in_valid; // rtl-gen/src/merge/builder.rs:265
+                level13_skid_data <= level13_skid_spare_valid ? level13_skid_spare_data : level13_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            level13_skid_spare_valid <= level13_skid_spare_valid_next;
-            if (level13_skid_ready_and) begin
+            level13_skid_spare_valid <= level13_skid_drain ? 1'b0 : (level13_skid_spare_valid | level13_skid_take);
+            if ((~level13_skid_drain) & level13_skid_take) begin
                 level13_skid_spare_data <= level13_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            l12_done <= l12_done_next;
-            l12_nodes_ovf <= l12_nodes_ovf_next;
-            if (level12_skid_ready_or) begin
-                level12_skid_valid <= level12_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:265
-                level12_skid_data <= level12_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
+            l12_done <= merge_clear ? 1'b0 : (l12_done | l12_end_fire);
+            l12_nodes_ovf <= merge_clear ? 1'b0 : (l12_nodes_ovf | (l12_fire_and & l12_index_next[24]));
+            if (level12_skid_drain) begin
+                level12_skid_valid <= level12_skid_spare_valid | level12_in_valid; // rtl-gen/src/merge/builder.rs:265
+                level12_skid_data <= level12_skid_spare_valid ? level12_skid_spare_data : level12_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            level12_skid_spare_valid <= level12_skid_spare_valid_next;
-            if (level12_skid_ready_and) begin
+            level12_skid_spare_valid <= level12_skid_drain ? 1'b0 : (level12_skid_spare_valid | level12_skid_take);
+            if ((~level12_skid_drain) & level12_skid_take) begin
                 level12_skid_spare_data <= level12_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            l11_done <= l11_done_next;
-            l11_nodes_ovf <= l11_nodes_ovf_next;
-            if (level11_skid_ready_or) begin
-                level11_skid_valid <= level11_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:265
-                level11_skid_data <= level11_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
+            l11_done <= merge_clear ? 1'b0 : (l11_done | l11_end_fire);
+            l11_nodes_ovf <= merge_clear ? 1'b0 : (l11_nodes_ovf | (l11_fire_and & l11_index_next[24]));
+            if (level11_skid_drain) begin
+                level11_skid_valid <= level11_skid_spare_valid | level11_in_valid; // rtl-gen/src/merge/builder.rs:265
+                level11_skid_data <= level11_skid_spare_valid ? level11_skid_spare_data : level11_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            level11_skid_spare_valid <= level11_skid_spare_valid_next;
-            if (level11_skid_ready_and) begin
+            level11_skid_spare_valid <= level11_skid_drain ? 1'b0 : (level11_skid_spare_valid | level11_skid_take);
+            if ((~level11_skid_drain) & level11_skid_take) begin
                 level11_skid_spare_data <= level11_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            l10_done <= l10_done_next;
-            l10_nodes_ovf <= l10_nodes_ovf_next;
-            if (level10_skid_ready_or) begin
-                level10_skid_valid <= level10_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:265
-                level10_skid_data <= level10_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
+            l10_done <= merge_clear ? 1'b0 : (l10_done | l10_end_fire);
+            l10_nodes_ovf <= merge_clear ? 1'b0 : (l10_nodes_ovf | (l10_fire_and & l10_index_next[24]));
+            if (level10_skid_drain) begin
+                level10_skid_valid <= level10_skid_spare_valid | level10_in_valid; // rtl-gen/src/merge/builder.rs:265
+                level10_skid_data <= level10_skid_spare_valid ? level10_skid_spare_data : level10_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            level10_skid_spare_valid <= level10_skid_spare_valid_next;
-            if (level10_skid_ready_and) begin
+            level10_skid_spare_valid <= level10_skid_drain ? 1'b0 : (level10_skid_spare_valid | level10_skid_take);
+            if ((~level10_skid_drain) & level10_skid_take) begin
                 level10_skid_spare_data <= level10_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            l9_done <= l9_done_next;
-            l9_nodes_ovf <= l9_nodes_ovf_next;
-            if (level9_skid_ready_or) begin
-                level9_skid_valid <= level9_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:265
-                level9_skid_data <= level9_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
+            l9_done <= merge_clear ? 1'b0 : (l9_done | l9_end_fire);
+            l9_nodes_ovf <= merge_clear ? 1'b0 : (l9_nodes_ovf | (l9_fire_and & l9_index_next[24]));
+            if (level9_skid_drain) begin
+                level9_skid_valid <= level9_skid_spare_valid | level9_in_valid; // rtl-gen/src/merge/builder.rs:265
+                level9_skid_data <= level9_skid_spare_valid ? level9_skid_spare_data : level9_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            level9_skid_spare_valid <= level9_skid_spare_valid_next;
-            if (level9_skid_ready_and) begin
+            level9_skid_spare_valid <= level9_skid_drain ? 1'b0 : (level9_skid_spare_valid | level9_skid_take);
+            if ((~level9_skid_drain) & level9_skid_take) begin
                 level9_skid_spare_data <= level9_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            l8_done <= l8_done_next;
-            l8_nodes_ovf <= l8_nodes_ovf_next;
-            if (level8_skid_ready_or) begin
-                level8_skid_valid <= level8_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:265
-                level8_skid_data <= level8_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
+            l8_done <= merge_clear ? 1'b0 : (l8_done | l8_end_fire);
+            l8_nodes_ovf <= merge_clear ? 1'b0 : (l8_nodes_ovf | (l8_fire_and & l8_index_next[24]));
+            if (level8_skid_drain) begin
+                level8_skid_valid <= level8_skid_spare_valid | level8_in_valid; // rtl-gen/src/merge/builder.rs:265
+                level8_skid_data <= level8_skid_spare_valid ? level8_skid_spare_data : level8_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            level8_skid_spare_valid <= level8_skid_spare_valid_next;
-            if (level8_skid_ready_and) begin
+            level8_skid_spare_valid <= level8_skid_drain ? 1'b0 : (level8_skid_spare_valid | level8_skid_take);
+            if ((~level8_skid_drain) & level8_skid_take) begin
                 level8_skid_spare_data <= level8_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            l7_done <= l7_done_next;
-            l7_nodes_ovf <= l7_nodes_ovf_next;
-            if (level7_skid_ready_or) begin
-                level7_skid_valid <= level7_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:265
-                level7_skid_data <= level7_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
+            l7_done <= merge_clear ? 1'b0 : (l7_done | l7_end_fire);
+            l7_nodes_ovf <= merge_clear ? 1'b0 : (l7_nodes_ovf | (l7_fire_and & l7_index_next[24]));
+            if (level7_skid_drain) begin
+                level7_skid_valid <= level7_skid_spare_valid | level7_in_valid; // rtl-gen/src/merge/builder.rs:265
+                level7_skid_data <= level7_skid_spare_valid ? level7_skid_spare_data : level7_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            level7_skid_spare_valid <= level7_skid_spare_valid_next;
-            if (level7_skid_ready_and) begin
+            level7_skid_spare_valid <= level7_skid_drain ? 1'b0 : (level7_skid_spare_valid | level7_skid_take);
+            if ((~level7_skid_drain) & level7_skid_take) begin
                 level7_skid_spare_data <= level7_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            l6_done <= l6_done_next;
-            l6_nodes_ovf <= l6_nodes_ovf_next;
-            if (level6_skid_ready_or) begin
-                level6_skid_valid <= level6_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:265
-                level6_skid_data <= level6_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
+            l6_done <= merge_clear ? 1'b0 : (l6_done | l6_end_fire);
+            l6_nodes_ovf <= merge_clear ? 1'b0 : (l6_nodes_ovf | (l6_fire_and & l6_index_next[24]));
+            if (level6_skid_drain) begin
+                level6_skid_valid <= level6_skid_spare_valid | level6_in_valid; // rtl-gen/src/merge/builder.rs:265
+                level6_skid_data <= level6_skid_spare_valid ? level6_skid_spare_data : level6_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            level6_skid_spare_valid <= level6_skid_spare_valid_next;
-            if (level6_skid_ready_and) begin
+            level6_skid_spare_valid <= level6_skid_drain ? 1'b0 : (level6_skid_spare_valid | level6_skid_take);
+            if ((~level6_skid_drain) & level6_skid_take) begin
                 level6_skid_spare_data <= level6_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            l5_done <= l5_done_next;
-            l5_nodes_ovf <= l5_nodes_ovf_next;
-            if (level5_skid_ready_or) begin
-                level5_skid_valid <= level5_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:265
-                level5_skid_data <= level5_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
+            l5_done <= merge_clear ? 1'b0 : (l5_done | l5_end_fire);
+            l5_nodes_ovf <= merge_clear ? 1'b0 : (l5_nodes_ovf | (l5_fire_and & l5_index_next[24]));
+            if (level5_skid_drain) begin
+                level5_skid_valid <= level5_skid_spare_valid | level5_in_valid; // rtl-gen/src/merge/builder.rs:265
+                level5_skid_data <= level5_skid_spare_valid ? level5_skid_spare_data : level5_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            level5_skid_spare_valid <= level5_skid_spare_valid_next;
-            if (level5_skid_ready_and) begin
+            level5_skid_spare_valid <= level5_skid_drain ? 1'b0 : (level5_skid_spare_valid | level5_skid_take);
+            if ((~level5_skid_drain) & level5_skid_take) begin
                 level5_skid_spare_data <= level5_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            l4_done <= l4_done_next;
-            l4_nodes_ovf <= l4_nodes_ovf_next;
-            if (level4_skid_ready_or) begin
-                level4_skid_valid <= level4_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:265
-                level4_skid_data <= level4_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
+            l4_done <= merge_clear ? 1'b0 : (l4_done | l4_end_fire);
+            l4_nodes_ovf <= merge_clear ? 1'b0 : (l4_nodes_ovf | (l4_fire_and & l4_index_next[24]));
+            if (level4_skid_drain) begin
+                level4_skid_valid <= level4_skid_spare_valid | level4_in_valid; // rtl-gen/src/merge/builder.rs:265
+                level4_skid_data <= level4_skid_spare_valid ? level4_skid_spare_data : level4_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            level4_skid_spare_valid <= level4_skid_spare_valid_next;
-            if (level4_skid_ready_and) begin
+            level4_skid_spare_valid <= level4_skid_drain ? 1'b0 : (level4_skid_spare_valid | level4_skid_take);
+            if ((~level4_skid_drain) & level4_skid_take) begin
                 level4_skid_spare_data <= level4_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            l3_done <= l3_done_next;
-            l3_nodes_ovf <= l3_nodes_ovf_next;
-            if (level3_skid_ready_or) begin
-                level3_skid_valid <= level3_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:265
-                level3_skid_data <= level3_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
+            l3_done <= merge_clear ? 1'b0 : (l3_done | l3_end_fire);
+            l3_nodes_ovf <= merge_clear ? 1'b0 : (l3_nodes_ovf | (l3_fire_and & l3_index_next[24]));
+            if (level3_skid_drain) begin
+                level3_skid_valid <= level3_skid_spare_valid | level3_in_valid; // rtl-gen/src/merge/builder.rs:265
+                level3_skid_data <= level3_skid_spare_valid ? level3_skid_spare_data : level3_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            level3_skid_spare_valid <= level3_skid_spare_valid_next;
-            if (level3_skid_ready_and) begin
+            level3_skid_spare_valid <= level3_skid_drain ? 1'b0 : (level3_skid_spare_valid | level3_skid_take);
+            if ((~level3_skid_drain) & level3_skid_take) begin
                 level3_skid_spare_data <= level3_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            l2_done <= l2_done_next;
-            l2_nodes_ovf <= l2_nodes_ovf_next;
-            if (level2_skid_ready_or) begin
-                level2_skid_valid <= level2_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:265
-                level2_skid_data <= level2_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
+            l2_done <= merge_clear ? 1'b0 : (l2_done | l2_end_fire);
+            l2_nodes_ovf <= merge_clear ? 1'b0 : (l2_nodes_ovf | (l2_fire_and & l2_index_next[24]));
+            if (level2_skid_drain) begin
+                level2_skid_valid <= level2_skid_spare_valid | level2_in_valid; // rtl-gen/src/merge/builder.rs:265
+                level2_skid_data <= level2_skid_spare_valid ? level2_skid_spare_data : level2_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            level2_skid_spare_valid <= level2_skid_spare_valid_next;
-            if (level2_skid_ready_and) begin
+            level2_skid_spare_valid <= level2_skid_drain ? 1'b0 : (level2_skid_spare_valid | level2_skid_take);
+            if ((~level2_skid_drain) & level2_skid_take) begin
                 level2_skid_spare_data <= level2_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            l1_done <= l1_done_next;
-            l1_nodes_ovf <= l1_nodes_ovf_next;
-            if (level1_skid_ready_or) begin
-                level1_skid_valid <= level1_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:265
-                level1_skid_data <= level1_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
+            l1_done <= merge_clear ? 1'b0 : (l1_done | l1_end_fire);
+            l1_nodes_ovf <= merge_clear ? 1'b0 : (l1_nodes_ovf | (l1_fire_and & l1_index_next[24]));
+            if (level1_skid_drain) begin
+                level1_skid_valid <= level1_skid_spare_valid | level1_in_valid; // rtl-gen/src/merge/builder.rs:265
+                level1_skid_data <= level1_skid_spare_valid ? level1_skid_spare_data : level1_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            level1_skid_spare_valid <= level1_skid_spare_valid_next;
-            if (level1_skid_ready_and) begin
+            level1_skid_spare_valid <= level1_skid_drain ? 1'b0 : (level1_skid_spare_valid | level1_skid_take);
+            if ((~level1_skid_drain) & level1_skid_take) begin
                 level1_skid_spare_data <= level1_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            l0_done <= l0_done_next;
-            l0_nodes_ovf <= l0_nodes_ovf_next;
-            if (level0_skid_ready_or) begin
-                level0_skid_valid <= level0_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:265
-                level0_skid_data <= level0_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:265
+            l0_done <= merge_clear ? 1'b0 : (l0_done | l0_end_fire);
+            l0_nodes_ovf <= merge_clear ? 1'b0 : (l0_nodes_ovf | (l0_fire_and & l0_index_next[24]));
+            if (level0_skid_drain) begin
+                level0_skid_valid <= level0_skid_spare_valid | level0_in_valid; // rtl-gen/src/merge/builder.rs:265
+                level0_skid_data <= level0_skid_spare_valid ? level0_skid_spare_data : level0_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            level0_skid_spare_valid <= level0_skid_spare_valid_next;
-            if (level0_skid_ready_and) begin
+            level0_skid_spare_valid <= level0_skid_drain ? 1'b0 : (level0_skid_spare_valid | level0_skid_take);
+            if ((~level0_skid_drain) & level0_skid_take) begin
                 level0_skid_spare_data <= level0_beat; // rtl-gen/src/merge/builder.rs:265
             end
-            if (done_skid_ready_or) begin
-                done_skid_valid <= done_skid_spare_valid_or; // rtl-gen/src/merge/builder.rs:311
-                done_skid_data <= done_skid_spare_valid_mux; // rtl-gen/src/merge/builder.rs:311
+            if (done_skid_drain) begin
+                done_skid_valid <= done_skid_spare_valid | done_valid_q; // rtl-gen/src/merge/builder.rs:312
+                done_skid_data <= done_skid_spare_valid ? done_skid_spare_data : done_err_cat; // rtl-gen/src/merge/builder.rs:312
             end
-            done_skid_spare_valid <= done_skid_spare_valid_next;
-            if (done_skid_ready_and) begin
-                done_skid_spare_data <= done_err_cat; // rtl-gen/src/merge/builder.rs:311
+            done_skid_spare_valid <= done_skid_drain ? 1'b0 : (done_skid_spare_valid | done_skid_take);
+            if ((~done_skid_drain) & done_skid_take) begin
+                done_skid_spare_data <= done_err_cat; // rtl-gen/src/merge/builder.rs:312
             end
         end
     end

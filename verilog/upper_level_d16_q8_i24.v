@@ -13,23 +13,25 @@ module upper_level_d16_q8_i24 (
     input  wire out_ready         // rtl-gen/src/merge/upper.rs:144
 );
     wire h_out_ready;                        // rtl-gen/src/merge/upper.rs:49
-    wire in_end;                             // rtl-gen/src/merge/fields.rs:13
+    wire in_end;                             // rtl-gen/src/merge/upper.rs:51
+    wire [4:0] in_data_lod;                  // rtl-gen/src/merge/upper.rs:57
     wire [4:0] parent_lod;                   // rtl-gen/src/merge/upper.rs:58
-    wire [15:0] in_data_shr;                 // rtl-gen/src/merge/upper.rs:62
-    wire [15:0] in_data_shr_1;               // rtl-gen/src/merge/upper.rs:62
-    wire [15:0] in_data_shr_2;               // rtl-gen/src/merge/upper.rs:62
+    wire [15:0] in_data_x;                   // rtl-gen/src/merge/upper.rs:60
+    wire [15:0] in_data_y;                   // rtl-gen/src/merge/upper.rs:60
+    wire [15:0] in_data_z;                   // rtl-gen/src/merge/upper.rs:60
     wire [52:0] parent_voxel;                // rtl-gen/src/merge/upper.rs:64
-    wire [7:0] in_data_cat;                  // rtl-gen/src/merge/upper.rs:37
-    wire [7:0] in_data_cat_1;                // rtl-gen/src/merge/upper.rs:37
-    wire in_data_gt;                         // rtl-gen/src/merge/upper.rs:74
-    wire in_data_or;                         // rtl-gen/src/merge/upper.rs:74
-    wire [7:0] in_data_cat_2;                // rtl-gen/src/merge/upper.rs:37
-    wire [7:0] in_data_cat_3;                // rtl-gen/src/merge/upper.rs:37
-    wire in_data_gt_1;                       // rtl-gen/src/merge/upper.rs:74
-    wire in_data_or_1;                       // rtl-gen/src/merge/upper.rs:74
-    wire [7:0] in_data_cat_4;                // rtl-gen/src/merge/upper.rs:37
-    wire [7:0] in_data_cat_5;                // rtl-gen/src/merge/upper.rs:37
-    wire in_data_gt_2;                       // rtl-gen/src/merge/upper.rs:74
+    wire [7:0] in_data_lo_x;                 // rtl-gen/src/merge/upper.rs:70
+    wire [7:0] in_data_hi_x;                 // rtl-gen/src/merge/upper.rs:70
+    wire [7:0] in_data_x_cat;                // rtl-gen/src/merge/upper.rs:37
+    wire [7:0] in_data_x_cat_1;              // rtl-gen/src/merge/upper.rs:37
+    wire [7:0] in_data_lo_y;                 // rtl-gen/src/merge/upper.rs:70
+    wire [7:0] in_data_hi_y;                 // rtl-gen/src/merge/upper.rs:70
+    wire [7:0] in_data_y_cat;                // rtl-gen/src/merge/upper.rs:37
+    wire [7:0] in_data_y_cat_1;              // rtl-gen/src/merge/upper.rs:37
+    wire [7:0] in_data_lo_z;                 // rtl-gen/src/merge/upper.rs:70
+    wire [7:0] in_data_hi_z;                 // rtl-gen/src/merge/upper.rs:70
+    wire [7:0] in_data_z_cat;                // rtl-gen/src/merge/upper.rs:37
+    wire [7:0] in_data_z_cat_1;              // rtl-gen/src/merge/upper.rs:37
     wire bad_box;                            // rtl-gen/src/merge/upper.rs:74
     reg h_valid;                             // rtl-gen/src/merge/upper.rs:79
     reg h_end;                               // rtl-gen/src/merge/upper.rs:80
@@ -46,138 +48,66 @@ module upper_level_d16_q8_i24 (
     reg [23:0] index;                        // rtl-gen/src/merge/upper.rs:96
     reg index_ovf;                           // rtl-gen/src/merge/upper.rs:97
     wire in_end_not;                         // rtl-gen/src/merge/upper.rs:99
-    wire in_valid_and;                       // rtl-gen/src/merge/upper.rs:99
-    wire in_valid_and_1;                     // rtl-gen/src/merge/upper.rs:99
-    wire h_end_not;                          // rtl-gen/src/merge/upper.rs:99
-    wire in_valid_and_2;                     // rtl-gen/src/merge/upper.rs:99
-    wire parent_voxel_eq;                    // rtl-gen/src/merge/upper.rs:99
     wire absorb;                             // rtl-gen/src/merge/upper.rs:99
-    wire h_valid_and;                        // rtl-gen/src/merge/upper.rs:100
     wire absorb_not;                         // rtl-gen/src/merge/upper.rs:100
-    wire h_valid_and_1;                      // rtl-gen/src/merge/upper.rs:100
-    wire h_valid_and_2;                      // rtl-gen/src/merge/upper.rs:100
     wire complete;                           // rtl-gen/src/merge/upper.rs:100
-    wire h_valid_not;                        // rtl-gen/src/merge/upper.rs:101
     wire complete_and;                       // rtl-gen/src/merge/upper.rs:101
     wire free;                               // rtl-gen/src/merge/upper.rs:101
-    wire absorb_not_1;                       // rtl-gen/src/merge/upper.rs:102
-    wire in_valid_and_3;                     // rtl-gen/src/merge/upper.rs:102
     wire load;                               // rtl-gen/src/merge/upper.rs:102
-    wire absorb_or;                          // rtl-gen/src/merge/upper.rs:104
-    wire in_end_not_1;                       // rtl-gen/src/merge/upper.rs:104
     wire absorb_and;                         // rtl-gen/src/merge/upper.rs:104
     wire [24:0] index_inc;                   // rtl-gen/src/merge/upper.rs:106
     wire load_and;                           // rtl-gen/src/merge/upper.rs:107
-    wire absorb_and_1;                       // rtl-gen/src/merge/upper.rs:109
-    wire index_ovf_or;                       // rtl-gen/src/merge/upper.rs:109
-    wire index_ovf_next;                     // rtl-gen/src/merge/upper.rs:109
     wire [24:0] count_inc;                   // rtl-gen/src/merge/upper.rs:111
-    wire complete_and_1;                     // rtl-gen/src/merge/upper.rs:113
-    wire h_lo0_lt;                           // rtl-gen/src/merge/upper.rs:118
-    wire h_hi0_gt;                           // rtl-gen/src/merge/upper.rs:119
-    wire h_lo1_lt;                           // rtl-gen/src/merge/upper.rs:118
-    wire h_hi1_gt;                           // rtl-gen/src/merge/upper.rs:119
-    wire h_lo2_lt;                           // rtl-gen/src/merge/upper.rs:118
-    wire h_hi2_gt;                           // rtl-gen/src/merge/upper.rs:119
-    wire index_ovf_or_1;                     // rtl-gen/src/merge/upper.rs:125
-    wire count_inc_or;                       // rtl-gen/src/merge/upper.rs:126
-    wire absorb_and_2;                       // rtl-gen/src/merge/upper.rs:126
-    wire h_err_or;                           // rtl-gen/src/merge/upper.rs:126
-    wire h_err_next;                         // rtl-gen/src/merge/upper.rs:124
     wire [149:0] h_count_cat;                // rtl-gen/src/merge/upper.rs:136
-    wire [151:0] h_err_cat;                  // rtl-gen/src/merge/upper.rs:137
-    wire [151:0] const_cat;                  // rtl-gen/src/merge/upper.rs:138
     wire [151:0] h_beat;                     // rtl-gen/src/merge/upper.rs:142
     reg out_skid_valid;                      // rtl-gen/src/merge/upper.rs:144
     reg [151:0] out_skid_data;               // rtl-gen/src/merge/upper.rs:144
     reg out_skid_spare_valid;                // rtl-gen/src/merge/upper.rs:144
     reg [151:0] out_skid_spare_data;         // rtl-gen/src/merge/upper.rs:144
     wire out_skid_ready;                     // rtl-gen/src/merge/upper.rs:144
-    wire out_skid_valid_not;                 // rtl-gen/src/merge/upper.rs:144
-    wire out_skid_ready_or;                  // rtl-gen/src/merge/upper.rs:144
-    wire out_skid_spare_valid_not;           // rtl-gen/src/merge/upper.rs:144
-    wire complete_and_2;                     // rtl-gen/src/merge/upper.rs:144
-    wire out_skid_spare_valid_or;            // rtl-gen/src/merge/upper.rs:144
-    wire [151:0] out_skid_spare_valid_mux;   // rtl-gen/src/merge/upper.rs:144
-    wire out_skid_spare_valid_or_1;          // rtl-gen/src/merge/upper.rs:144
-    wire out_skid_spare_valid_next;          // rtl-gen/src/merge/upper.rs:144
-    wire out_skid_ready_not;                 // rtl-gen/src/merge/upper.rs:144
-    wire out_skid_ready_and;                 // rtl-gen/src/merge/upper.rs:144
+    wire out_skid_room;                      // rtl-gen/src/merge/upper.rs:144
+    wire out_skid_drain;                     // rtl-gen/src/merge/upper.rs:144
+    wire out_skid_take;                      // rtl-gen/src/merge/upper.rs:144
 
     assign in_ready = absorb | free;
-    assign h_out_ready = ~out_skid_spare_valid;
+    assign h_out_ready = out_skid_room;
     assign in_end = in_data[101];
-    assign parent_lod = in_data[4:0] - 5'd1;
-    assign in_data_shr = in_data[20:5] >> 1'b1;
-    assign in_data_shr_1 = in_data[36:21] >> 1'b1;
-    assign in_data_shr_2 = in_data[52:37] >> 1'b1;
-    assign parent_voxel = {in_data_shr_2, in_data_shr_1, in_data_shr, parent_lod};
-    assign in_data_cat = {in_data[5], in_data[60:54]};
-    assign in_data_cat_1 = {in_data[5], in_data[84:78]};
-    assign in_data_gt = in_data[60:53] > in_data[84:77];
-    assign in_data_or = 1'b0 | in_data_gt;
-    assign in_data_cat_2 = {in_data[21], in_data[68:62]};
-    assign in_data_cat_3 = {in_data[21], in_data[92:86]};
-    assign in_data_gt_1 = in_data[68:61] > in_data[92:85];
-    assign in_data_or_1 = in_data_or | in_data_gt_1;
-    assign in_data_cat_4 = {in_data[37], in_data[76:70]};
-    assign in_data_cat_5 = {in_data[37], in_data[100:94]};
-    assign in_data_gt_2 = in_data[76:69] > in_data[100:93];
-    assign bad_box = in_data_or_1 | in_data_gt_2;
+    assign in_data_lod = in_data[4:0];
+    assign parent_lod = in_data_lod - 5'd1;
+    assign in_data_x = in_data[20:5];
+    assign in_data_y = in_data[36:21];
+    assign in_data_z = in_data[52:37];
+    assign parent_voxel = {in_data_z >> 1'b1, in_data_y >> 1'b1, in_data_x >> 1'b1, parent_lod};
+    assign in_data_lo_x = in_data[60:53];
+    assign in_data_hi_x = in_data[84:77];
+    assign in_data_x_cat = {in_data[5], in_data[60:54]};
+    assign in_data_x_cat_1 = {in_data[5], in_data[84:78]};
+    assign in_data_lo_y = in_data[68:61];
+    assign in_data_hi_y = in_data[92:85];
+    assign in_data_y_cat = {in_data[21], in_data[68:62]};
+    assign in_data_y_cat_1 = {in_data[21], in_data[92:86]};
+    assign in_data_lo_z = in_data[76:69];
+    assign in_data_hi_z = in_data[100:93];
+    assign in_data_z_cat = {in_data[37], in_data[76:70]};
+    assign in_data_z_cat_1 = {in_data[37], in_data[100:94]};
+    assign bad_box = ((1'b0 | (in_data_lo_x > in_data_hi_x)) | (in_data_lo_y > in_data_hi_y)) | (in_data_lo_z > in_data_hi_z);
     assign in_end_not = ~in_end;
-    assign in_valid_and = in_valid & in_end_not;
-    assign in_valid_and_1 = in_valid_and & h_valid;
-    assign h_end_not = ~h_end;
-    assign in_valid_and_2 = in_valid_and_1 & h_end_not;
-    assign parent_voxel_eq = parent_voxel == h_voxel;
-    assign absorb = in_valid_and_2 & parent_voxel_eq;
-    assign h_valid_and = h_valid & in_valid;
+    assign absorb = (((in_valid & in_end_not) & h_valid) & (~h_end)) & (parent_voxel == h_voxel);
     assign absorb_not = ~absorb;
-    assign h_valid_and_1 = h_valid_and & absorb_not;
-    assign h_valid_and_2 = h_valid & h_end;
-    assign complete = h_valid_and_1 | h_valid_and_2;
-    assign h_valid_not = ~h_valid;
+    assign complete = ((h_valid & in_valid) & absorb_not) | (h_valid & h_end);
     assign complete_and = complete & h_out_ready;
-    assign free = h_valid_not | complete_and;
-    assign absorb_not_1 = ~absorb;
-    assign in_valid_and_3 = in_valid & absorb_not_1;
-    assign load = in_valid_and_3 & free;
-    assign absorb_or = absorb | load;
-    assign in_end_not_1 = ~in_end;
-    assign absorb_and = absorb_or & in_end_not_1;
+    assign free = (~h_valid) | complete_and;
+    assign load = (in_valid & absorb_not) & free;
+    assign absorb_and = (absorb | load) & in_end_not;
     assign index_inc = {1'b0, index} + 25'd1;
     assign load_and = load & in_end;
-    assign absorb_and_1 = absorb_and & index_inc[24];
-    assign index_ovf_or = index_ovf | absorb_and_1;
-    assign index_ovf_next = load_and ? 1'b0 : index_ovf_or;
     assign count_inc = {1'b0, h_count} + 25'd1;
-    assign complete_and_1 = complete & h_out_ready;
-    assign h_lo0_lt = h_lo0 < in_data_cat;
-    assign h_hi0_gt = h_hi0 > in_data_cat_1;
-    assign h_lo1_lt = h_lo1 < in_data_cat_2;
-    assign h_hi1_gt = h_hi1 > in_data_cat_3;
-    assign h_lo2_lt = h_lo2 < in_data_cat_4;
-    assign h_hi2_gt = h_hi2 > in_data_cat_5;
-    assign index_ovf_or_1 = index_ovf | bad_box;
-    assign count_inc_or = count_inc[24] | bad_box;
-    assign absorb_and_2 = absorb & count_inc_or;
-    assign h_err_or = h_err | absorb_and_2;
-    assign h_err_next = load ? index_ovf_or_1 : h_err_or;
     assign h_count_cat = {h_count, h_first, h_hi2, h_hi1, h_hi0, h_lo2, h_lo1, h_lo0, h_voxel, 1'b0};
-    assign h_err_cat = {h_err, 1'b0, h_count_cat};
-    assign const_cat = {2'd1, 150'h00000000000000000000000000000000000000};
-    assign h_beat = h_end ? const_cat : h_err_cat;
+    assign h_beat = h_end ? {2'd1, 150'h00000000000000000000000000000000000000} : {h_err, 1'b0, h_count_cat};
     assign out_skid_ready = out_ready;
-    assign out_skid_valid_not = ~out_skid_valid;
-    assign out_skid_ready_or = out_skid_ready | out_skid_valid_not;
-    assign out_skid_spare_valid_not = ~out_skid_spare_valid;
-    assign complete_and_2 = complete & out_skid_spare_valid_not;
-    assign out_skid_spare_valid_or = out_skid_spare_valid | complete;
-    assign out_skid_spare_valid_mux = out_skid_spare_valid ? out_skid_spare_data : h_beat;
-    assign out_skid_spare_valid_or_1 = out_skid_spare_valid | complete_and_2;
-    assign out_skid_spare_valid_next = out_skid_ready_or ? 1'b0 : out_skid_spare_valid_or_1;
-    assign out_skid_ready_not = ~out_skid_ready_or;
-    assign out_skid_ready_and = out_skid_ready_not & complete_and_2;
+    assign out_skid_room = ~out_skid_spare_valid;
+    assign out_skid_drain = out_skid_ready | (~out_skid_valid);
+    assign out_skid_take = complete & out_skid_room;
     assign out_valid = out_skid_valid;
     assign out_data = out_skid_data;
 
@@ -206,53 +136,53 @@ module upper_level_d16_q8_i24 (
                 h_valid <= 1'b1;             // rtl-gen/src/merge/upper.rs:113
                 h_end <= in_end;             // rtl-gen/src/merge/upper.rs:114
                 h_voxel <= parent_voxel;     // rtl-gen/src/merge/upper.rs:115
-                h_lo0 <= in_data_cat;        // rtl-gen/src/merge/upper.rs:118
-                h_lo1 <= in_data_cat_2;      // rtl-gen/src/merge/upper.rs:118
-                h_lo2 <= in_data_cat_4;      // rtl-gen/src/merge/upper.rs:118
-                h_hi0 <= in_data_cat_1;      // rtl-gen/src/merge/upper.rs:119
-                h_hi1 <= in_data_cat_3;      // rtl-gen/src/merge/upper.rs:119
-                h_hi2 <= in_data_cat_5;      // rtl-gen/src/merge/upper.rs:119
+                h_lo0 <= in_data_x_cat;      // rtl-gen/src/merge/upper.rs:118
+                h_lo1 <= in_data_y_cat;      // rtl-gen/src/merge/upper.rs:118
+                h_lo2 <= in_data_z_cat;      // rtl-gen/src/merge/upper.rs:118
+                h_hi0 <= in_data_x_cat_1;    // rtl-gen/src/merge/upper.rs:119
+                h_hi1 <= in_data_y_cat_1;    // rtl-gen/src/merge/upper.rs:119
+                h_hi2 <= in_data_z_cat_1;    // rtl-gen/src/merge/upper.rs:119
                 h_first <= index;            // rtl-gen/src/merge/upper.rs:121
                 h_count <= 24'd1;            // rtl-gen/src/merge/upper.rs:122
             end else begin
-                if (complete_and_1) begin
+                if (complete_and) begin
                     h_valid <= 1'b0;         // rtl-gen/src/merge/upper.rs:113
                 end
                 if (absorb) begin
-                    if (!h_lo0_lt) begin
-                        h_lo0 <= in_data_cat; // rtl-gen/src/merge/upper.rs:118
+                    if (!(h_lo0 < in_data_x_cat)) begin
+                        h_lo0 <= in_data_x_cat; // rtl-gen/src/merge/upper.rs:118
                     end
-                    if (!h_lo1_lt) begin
-                        h_lo1 <= in_data_cat_2; // rtl-gen/src/merge/upper.rs:118
+                    if (!(h_lo1 < in_data_y_cat)) begin
+                        h_lo1 <= in_data_y_cat; // rtl-gen/src/merge/upper.rs:118
                     end
-                    if (!h_lo2_lt) begin
-                        h_lo2 <= in_data_cat_4; // rtl-gen/src/merge/upper.rs:118
+                    if (!(h_lo2 < in_data_z_cat)) begin
+                        h_lo2 <= in_data_z_cat; // rtl-gen/src/merge/upper.rs:118
                     end
-                    if (!h_hi0_gt) begin
-                        h_hi0 <= in_data_cat_1; // rtl-gen/src/merge/upper.rs:119
+                    if (!(h_hi0 > in_data_x_cat_1)) begin
+                        h_hi0 <= in_data_x_cat_1; // rtl-gen/src/merge/upper.rs:119
                     end
-                    if (!h_hi1_gt) begin
-                        h_hi1 <= in_data_cat_3; // rtl-gen/src/merge/upper.rs:119
+                    if (!(h_hi1 > in_data_y_cat_1)) begin
+                        h_hi1 <= in_data_y_cat_1; // rtl-gen/src/merge/upper.rs:119
                     end
-                    if (!h_hi2_gt) begin
-                        h_hi2 <= in_data_cat_5; // rtl-gen/src/merge/upper.rs:119
+                    if (!(h_hi2 > in_data_z_cat_1)) begin
+                        h_hi2 <= in_data_z_cat_1; // rtl-gen/src/merge/upper.rs:119
                     end
                     h_count <= count_inc[23:0]; // rtl-gen/src/merge/upper.rs:122
                 end
             end
-            h_err <= h_err_next;
+            h_err <= load ? (index_ovf | bad_box) : (h_err | (absorb & (count_inc[24] | bad_box)));
             if (load_and) begin
                 index <= 24'd0;              // rtl-gen/src/merge/upper.rs:108
             end else if (absorb_and) begin
                 index <= index_inc[23:0];    // rtl-gen/src/merge/upper.rs:108
             end
-            index_ovf <= index_ovf_next;
-            if (out_skid_ready_or) begin
-                out_skid_valid <= out_skid_spare_valid_or; // rtl-gen/src/merge/upper.rs:144
-                out_skid_data <= out_skid_spare_valid_mux; // rtl-gen/src/merge/upper.rs:144
+            index_ovf <= load_and ? 1'b0 : (index_ovf | (absorb_and & index_inc[24]));
+            if (out_skid_drain) begin
+                out_skid_valid <= out_skid_spare_valid | complete; // rtl-gen/src/merge/upper.rs:144
+                out_skid_data <= out_skid_spare_valid ? out_skid_spare_data : h_beat; // rtl-gen/src/merge/upper.rs:144
             end
-            out_skid_spare_valid <= out_skid_spare_valid_next;
-            if (out_skid_ready_and) begin
+            out_skid_spare_valid <= out_skid_drain ? 1'b0 : (out_skid_spare_valid | out_skid_take);
+            if ((~out_skid_drain) & out_skid_take) begin
                 out_skid_spare_data <= h_beat; // rtl-gen/src/merge/upper.rs:144
             end
         end

@@ -199,6 +199,10 @@ pub(crate) struct Graph {
     pub errors: Vec<Diagnostic>,
 }
 
+/// The operator word of a field view ([`crate::Signal::field_view`]): an
+/// unnamed slice the emitter declares under its `base` where it is read.
+pub(crate) const FIELD_VIEW: &str = "field";
+
 /// Name of the implicit clock input.
 pub const CLOCK: &str = "clk";
 /// Name of the implicit synchronous, active-high reset input.

@@ -40,6 +40,7 @@ mod names;
 pub mod optest;
 mod signal;
 pub mod sim;
+mod states;
 pub mod stream;
 pub mod translate;
 mod validate;
@@ -57,8 +58,10 @@ pub use graph::{CmpOp, Direction, CLOCK, RESET};
 pub use instance::Instance;
 pub use memory::Memory;
 pub use module::{Module, PortInfo};
+pub use names::{is_auto_name, AUTO_NAME_WORDS};
 pub use signal::{IntoSignal, ShiftAmount, ShiftBy, Signal};
 pub use sim::{Sim, SimError};
+pub use states::States;
 pub use stream::Stream;
 pub use verilog::{emit_design, emit_verilog, write_design, DesignError};
 

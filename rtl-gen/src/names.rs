@@ -312,3 +312,32 @@ impl Namer {
         fresh
     }
 }
+
+/// The operator words of derived names (`<source>_<word>`, then `_<n>`
+/// when taken): a name ending so was made by the emitter, not given. A
+/// registered memory read, `<memory>_rdata`, is named after its memory and
+/// role as a designer would name it, so `rdata` is not one of them, nor
+/// is `rd` (an asynchronous read, `<memory>_rd`, and a read pointer).
+pub const AUTO_NAME_WORDS: &[&str] = &[
+    "add", "sub", "neg", "and", "or", "xor", "not", "mux", "cat", "eq", "ne", "lt", "le", "gt",
+    "ge", "shl", "shr", "srl", "sra", "slice", "sext", "zext", "all", "any", "parity", "k", "next",
+    "poison",
+];
+
+/// Whether `name` is a derived name: `<source>_<word>` or
+/// `<source>_<word>_<n>` for a word of [`AUTO_NAME_WORDS`].
+///
+/// ```
+/// use rtl_gen::is_auto_name;
+/// assert!(is_auto_name("in_fill_and_21") && is_auto_name("fs_lod_mux"));
+/// assert!(!is_auto_name("h_rec_lod") && !is_auto_name("absorb_1"));
+/// ```
+pub fn is_auto_name(name: &str) -> bool {
+    let trimmed = match name.rsplit_once('_') {
+        Some((head, n)) if !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()) => head,
+        _ => name,
+    };
+    trimmed
+        .rsplit_once('_')
+        .is_some_and(|(_, word)| AUTO_NAME_WORDS.contains(&word))
+}

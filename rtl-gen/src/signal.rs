@@ -519,6 +519,52 @@ impl<'m> Signal<'m> {
         self.slice_at(hi, lo, Location::caller())
     }
 
+    /// This signal named `<source>_<role>`, after the signal it describes
+    /// (what `.name()` does when the source's name is made elsewhere, as in
+    /// a helper called for several sources).
+    ///
+    /// ```
+    /// # use rtl_gen::{emit_verilog, Module};
+    /// let m = Module::new("m");
+    /// let lod = m.input("lod", 4);
+    /// let deep = lod.gt(9).named_after(lod, "deep");
+    /// m.output("y", deep & m.input("a", 1));
+    /// m.output("z", deep);
+    /// assert!(emit_verilog(&m).unwrap().contains("wire lod_deep;"));
+    /// ```
+    #[track_caller]
+    pub fn named_after(self, source: Signal<'m>, role: &str) -> Signal<'m> {
+        let name = format!("{}_{role}", source.base());
+        self.name(&name)
+    }
+
+    /// Bits `hi` down to `lo` as field `field` of this record: where
+    /// anything reads them, the Verilog declares them once, as a wire named
+    /// `<record>_<field>` (a layout's field read by name instead of as a
+    /// raw part-select).
+    ///
+    /// ```
+    /// # use rtl_gen::{emit_verilog, Module};
+    /// let m = Module::new("m");
+    /// let rec = m.input("rec", 8);
+    /// m.output("y", rec.field_view(6, 4, "lod").add(1, 3));
+    /// let v = emit_verilog(&m).unwrap();
+    /// assert!(v.contains("assign rec_lod = rec[6:4];"), "{v}");
+    /// ```
+    #[track_caller]
+    pub fn field_view(self, hi: u32, lo: u32, field: &str) -> Signal<'m> {
+        let s = self.slice_at(hi, lo, Location::caller());
+        let base = format!("{}_{field}", self.base());
+        let mut g = self.m.graph_mut();
+        let n = &mut g.nodes[s.id as usize];
+        if s.id != self.id && n.name.is_none() && matches!(n.op, Op::Slice(..)) {
+            n.base = base;
+            n.opname = crate::graph::FIELD_VIEW;
+        }
+        drop(g);
+        s
+    }
+
     pub(crate) fn slice_at(self, hi: u32, lo: u32, loc: Loc) -> Signal<'m> {
         let w = self.width();
         if hi < lo || hi >= w {

@@ -100,7 +100,7 @@ impl<'m> Stream<'m> {
         let valid = m.reg(&format!("{name}_valid"), 1);
         let data = m.reg(&format!("{name}_data"), self.data.width());
         let ready = m.wire(&format!("{name}_ready"), 1);
-        let take = !valid | ready;
+        let take = (!valid | ready).name(&format!("{name}_take"));
         self.ready.drive(take);
         valid.next_when(take, self.valid);
         data.next_when(take & self.valid, self.data);
@@ -126,10 +126,11 @@ impl<'m> Stream<'m> {
         let spare_valid = m.reg(&format!("{name}_spare_valid"), 1);
         let spare_data = m.reg(&format!("{name}_spare_data"), w);
         let ready = m.wire(&format!("{name}_ready"), 1);
-        self.ready.drive(!spare_valid);
+        let room = (!spare_valid).name(&format!("{name}_room"));
+        self.ready.drive(room);
         // The output register moves when it is empty or being taken.
-        let drain = ready | !out_valid;
-        let take = self.valid & !spare_valid;
+        let drain = (ready | !out_valid).name(&format!("{name}_drain"));
+        let take = (self.valid & room).name(&format!("{name}_take"));
         out_valid.next(drain.mux(spare_valid | self.valid, out_valid));
         out_data.next_when(drain, spare_valid.mux(spare_data, self.data));
         spare_valid.next(drain.mux(m.lit(0, 1), spare_valid | take));

@@ -15,3 +15,4 @@ pub mod study;
 pub mod synth;
 pub mod trace;
 pub mod vectors;
+pub mod verilog_stats;

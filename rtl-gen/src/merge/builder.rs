@@ -222,7 +222,7 @@ pub fn upper_builder_unit(p: &Params) -> Module {
         };
         let out_ready = m.wire(&format!("level{d}_in_ready"), 1);
         // An End waits until every base stream above is known to be empty or not.
-        let end_ok = !h.end | known_below[d];
+        let end_ok = (!h.end | known_below[d]).name(&format!("l{d}_end_ok"));
         let leaf = field(h.rec, nl.leaf()).expect("leaf");
         // The half-scene rule: a grouped LOD-0 node alone in its level.
         let suppress_root = if d == 0 {
@@ -235,7 +235,7 @@ pub fn upper_builder_unit(p: &Params) -> Module {
             !top_found & !(if d == 0 { root_suppressed } else { zero }),
             !top_found & !suppress_root,
         );
-        let ready_all = h.valid & !done & end_ok;
+        let ready_all = (h.valid & !done & end_ok).name(&format!("l{d}_ready_all"));
         let fire = (ready_all & up_ready & (!emit | out_ready)).name(&format!("l{d}_fire"));
         let node_fire = fire & !h.end;
         let end_fire = (fire & h.end).name(&format!("l{d}_end_fire"));
@@ -252,7 +252,7 @@ pub fn upper_builder_unit(p: &Params) -> Module {
         bases[d].ready.drive(fire & h.from_b);
 
         // The level's out beat.
-        let index_next = n.add(1, i + 1);
+        let index_next = n.add(1, i + 1).name(&format!("l{d}_index_next"));
         let rec_out = h.end.mux(lit(0, h.rec.width()), h.rec);
         let ref_out = h.end.mux(lit(0, h.refer.width()), h.refer);
         let data = m.concat(&[h.gerr | ovf, r, n, h.kind, ref_out, rec_out]);
@@ -269,7 +269,8 @@ pub fn upper_builder_unit(p: &Params) -> Module {
         done.next(clear.mux(zero, done | end_fire));
         n.next(clear.mux(lit(0, i), node_fire.mux(index_next.slice(i - 1, 0), n)));
         ovf.next(clear.mux(zero, ovf | (node_fire & index_next.bit(i))));
-        let is_record = !h.kind.eq(lit(level_out_kind::REUSED, 2));
+        let is_record =
+            (!h.kind.eq(lit(level_out_kind::REUSED, 2))).name(&format!("l{d}_is_record"));
         r.next(clear.mux(lit(0, i), (node_fire & is_record).mux(r.add(1, i), r)));
         if d < dmax {
             had_base[d].next(clear.mux(zero, had_base[d] | (node_fire & h.from_b)));

@@ -10,7 +10,12 @@ use crate::{Module, Signal};
 /// bounds when `Q = 0`).
 #[track_caller]
 pub fn field<'m>(record: Signal<'m>, f: &Field) -> Option<Signal<'m>> {
-    (f.width > 0).then(|| record.slice(f.end() - 1, f.offset))
+    // Not in a closure: the caller's line is the view's source comment.
+    if f.width > 0 {
+        Some(record.field_view(f.end() - 1, f.offset, f.name))
+    } else {
+        None
+    }
 }
 
 /// The voxel coordinates of a node record: its `x`, `y`, `z` fields.
@@ -111,10 +116,8 @@ impl Word {
     /// Field `name` of `word`.
     #[track_caller]
     pub fn get<'m>(&self, word: Signal<'m>, name: &str) -> Signal<'m> {
-        match self.field(name) {
-            f if f.width == 1 => word.bit(f.offset),
-            f => word.slice(f.end() - 1, f.offset),
-        }
+        let f = self.field(name);
+        word.field_view(f.end() - 1, f.offset, name)
     }
 }
 

@@ -36,7 +36,7 @@ pub fn morton_code<'m>(m: &'m Module, xyz: [Signal<'m>; 3]) -> Signal<'m> {
             high_first.push(c.bit(b));
         }
     }
-    m.concat(&high_first)
+    m.concat(&high_first).named_after(xyz[0], "morton")
 }
 
 /// One input of a merge network as the shared choice sees it: its head

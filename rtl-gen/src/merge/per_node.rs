@@ -284,6 +284,8 @@ mod state {
     pub const IDLE: u64 = 0;
     pub const RUN: u64 = 1;
     pub const REFUSE: u64 = 2;
+    /// Every state by name (the Verilog's `localparam`s).
+    pub const STATES: &[(&str, u64)] = &[("IDLE", IDLE), ("RUN", RUN), ("REFUSE", REFUSE)];
 }
 
 /// The merging module of a `per-node:num/den` configuration `c` (named
@@ -305,7 +307,8 @@ pub fn per_node_module_unit(c: &MergeConfig, num: u32, den: u32) -> Module {
     let lit = |v: u64, w: u32| m.lit(v as u128, w);
 
     let st = m.reg("state", 2);
-    let in_state = |s: u64| st.eq(lit(s, 2));
+    let states = m.states(2, state::STATES);
+    let in_state = |s: u64| states.is(st, s);
     let idle = in_state(state::IDLE).name("is_idle");
     let running = in_state(state::RUN).name("is_run");
     let refusing = in_state(state::REFUSE).name("is_refuse");
@@ -397,10 +400,10 @@ pub fn per_node_module_unit(c: &MergeConfig, num: u32, den: u32) -> Module {
 
     // IDLE -(cfg)-> RUN, or REFUSE on a bad range; REFUSE -(sent)-> IDLE;
     // RUN -(the last pass's End out)-> IDLE.
-    let after_cfg = bad_range.mux(lit(state::REFUSE, 2), lit(state::RUN, 2));
+    let after_cfg = bad_range.mux(states.code(state::REFUSE), states.code(state::RUN));
     st.next(cfg_fire.mux(
         after_cfg,
-        (refused | merge_done).mux(lit(state::IDLE, 2), st),
+        (refused | merge_done).mux(states.code(state::IDLE), st),
     ));
     m.output("idle", idle);
     let done = m.reg("done_pulse", 1);

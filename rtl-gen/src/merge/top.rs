@@ -28,6 +28,13 @@ mod state {
     pub const COUNT: u64 = 1;
     pub const CHOOSE: u64 = 2;
     pub const MERGE: u64 = 3;
+    /// Every state by name (the Verilog's `localparam`s).
+    pub const STATES: &[(&str, u64)] = &[
+        ("IDLE", IDLE),
+        ("COUNT", COUNT),
+        ("CHOOSE", CHOOSE),
+        ("MERGE", MERGE),
+    ];
 }
 
 /// The mode's part of a module name: `ov1_2`, `fix5`, `bt2`, `pr1_2`.
@@ -113,7 +120,8 @@ pub fn merge_module_unit(c: &MergeConfig) -> Module {
     let lit = |v: u64, w: u32| m.lit(v as u128, w);
 
     let st = m.reg("state", 2);
-    let in_state = |s: u64| st.eq(lit(s, 2));
+    let states = m.states(2, state::STATES);
+    let in_state = |s: u64| states.is(st, s);
     let idle = in_state(state::IDLE).name("is_idle");
     let choosing = in_state(state::CHOOSE).name("is_choose");
     let merging = in_state(state::MERGE).name("is_merge");
@@ -274,18 +282,18 @@ pub fn merge_module_unit(c: &MergeConfig) -> Module {
     // result)-> CHOOSE; CHOOSE -(reported)-> MERGE, or IDLE when refused;
     // MERGE -(End out)-> IDLE.
     let after_cfg = if counts {
-        bad_range.mux(lit(state::CHOOSE, 2), lit(state::COUNT, 2))
+        bad_range.mux(states.code(state::CHOOSE), states.code(state::COUNT))
     } else {
-        lit(state::CHOOSE, 2)
+        states.code(state::CHOOSE)
     };
     let after_choice = choice_err_r
         .eq(lit(choice_err::NONE, 2))
-        .mux(lit(state::MERGE, 2), lit(state::IDLE, 2));
+        .mux(states.code(state::MERGE), states.code(state::IDLE));
     let next = cfg_fire.mux(
         after_cfg,
         count_done.mux(
-            lit(state::CHOOSE, 2),
-            choice_fire.mux(after_choice, merge_done.mux(lit(state::IDLE, 2), st)),
+            states.code(state::CHOOSE),
+            choice_fire.mux(after_choice, merge_done.mux(states.code(state::IDLE), st)),
         ),
     );
     st.next(next);

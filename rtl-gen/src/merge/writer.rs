@@ -104,6 +104,8 @@ mod state {
     pub const DRAIN: u64 = 1;
     /// Sending the header.
     pub const HEADER: u64 = 2;
+    /// Every state by name (the Verilog's `localparam`s).
+    pub const STATES: &[(&str, u64)] = &[("FILL", FILL), ("DRAIN", DRAIN), ("HEADER", HEADER)];
 }
 
 /// `vals[d]` for the level index `d` (missing levels read as zero).
@@ -153,7 +155,8 @@ fn next_level_with_records<'m>(
     let mut lod = m.lit(0, w);
     // Level 0 is below no level.
     for (e, r) in records.iter().enumerate().skip(1).rev() {
-        let here = m.lit(e as u128, w).gt(d) & r.ne(m.lit(0, r.width()));
+        let here = (m.lit(e as u128, w).gt(d) & r.ne(m.lit(0, r.width())))
+            .named_after(d, &format!("has_l{e}"));
         found = found | here;
         lod = here.mux(m.lit(e as u128, w), lod);
     }
@@ -172,7 +175,8 @@ fn reads_level<'m>(
     at_top: bool,
 ) -> Signal<'m> {
     let m = reading.module();
-    let here = reading & next_lod.eq(m.lit(d as u128, next_lod.width()));
+    let here = (reading & next_lod.eq(m.lit(d as u128, next_lod.width())))
+        .named_after(next_lod, &format!("reads_l{d}"));
     match at_top {
         true => here & next_is_top,
         false => here & !next_is_top,
@@ -257,9 +261,10 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let lit = |v: u64, width: u32| w.lit(v, width);
 
     let st = m.reg("state", 2);
-    let in_fill = st.eq(lit(state::FILL, 2)).name("in_fill");
-    let in_drain = st.eq(lit(state::DRAIN, 2)).name("in_drain");
-    let in_header = st.eq(lit(state::HEADER, 2)).name("in_header");
+    let states = m.states(2, state::STATES);
+    let in_fill = st.eq(states.code(state::FILL)).name("in_fill");
+    let in_drain = st.eq(states.code(state::DRAIN)).name("in_drain");
+    let in_header = st.eq(states.code(state::HEADER)).name("in_header");
     let header_ready = m.wire("header_in_ready", 1);
     let clear = (in_header & header_ready).name("merge_clear");
     let f = fill_inputs(&w, in_fill, clear);
@@ -302,10 +307,11 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     // State changes.
     let drain_done = in_drain & rs_done & fs_done;
     let next_state = clear.mux(
-        lit(state::FILL, 2),
+        states.code(state::FILL),
         chk.fill_done.mux(
-            chk.fill_ok.mux(lit(state::DRAIN, 2), lit(state::HEADER, 2)),
-            drain_done.mux(lit(state::HEADER, 2), st),
+            chk.fill_ok
+                .mux(states.code(state::DRAIN), states.code(state::HEADER)),
+            drain_done.mux(states.code(state::HEADER), st),
         ),
     );
     st.next(next_state);
@@ -522,9 +528,9 @@ fn fill_levels<'m>(
         let usum = m.reg(&format!("l{d}_reused_counts"), sum_w);
         let cerr = m.reg(&format!("l{d}_cap_err"), 1);
         let lerr = m.reg(&format!("l{d}_err"), 1);
-        let ready = in_fill & !seen;
+        let ready = (in_fill & !seen).name(&format!("l{d}_ready"));
         s.ready.drive(ready);
-        let fire = s.valid & ready;
+        let fire = (s.valid & ready).name(&format!("l{d}_fire"));
         let kind = field(s.data, &bl.kind).expect("kind");
         let rec = field(s.data, &bl.rec).expect("rec");
         let refer = field(s.data, &bl.refer).expect("ref");
@@ -534,27 +540,31 @@ fn fill_levels<'m>(
         let count = field(rec, nl.count()).expect("count");
         let first = field(rec, nl.first()).expect("first");
         let hier = field(refer, rl.hier()).expect("hier");
-        let is_end = kind_is(m, kind, level_out_kind::END);
-        let reused = kind_is(m, kind, level_out_kind::REUSED);
+        let is_end = kind_is(m, kind, level_out_kind::END).name(&format!("l{d}_is_end"));
+        let reused = kind_is(m, kind, level_out_kind::REUSED).name(&format!("l{d}_reused"));
         let node_fire = fire & !is_end;
-        let fits = index.slice(i - 1, c).eq(lit(0, i - c));
+        let fits = index
+            .slice(i - 1, c)
+            .eq(lit(0, i - c))
+            .name(&format!("l{d}_fits"));
         let body_word = m.concat(&[count, rec.slice(body_w - 1, 0)]);
         let parent_word = m.concat(&[hier, first, count, kind]);
         let slot = records.slice(c - 1, 0);
         let pos = index.slice(c - 1, 0);
-        let put = node_fire & fits;
+        let put = (node_fire & fits).name(&format!("l{d}_put"));
         if let (Some(nb), Some(np), Some(ch)) = (nbody[d], npar[d], childm[d]) {
             nb.write(pos, body_word, put);
             np.write(pos, parent_word, put);
             ch.write(pos, m.concat(&[records, refer, reused]), put);
         }
         if let (Some(rb), Some(rp)) = (rbody[d], rpar[d]) {
-            rb.write(slot, body_word, put & !reused);
-            rp.write(slot, parent_word, put & !reused);
+            let put_slot = (put & !reused).name(&format!("l{d}_put_slot"));
+            rb.write(slot, body_word, put_slot);
+            rp.write(slot, parent_word, put_slot);
         }
         // A merge with its top at or above d consumes the level.
-        let clear_d = clear & in_merge[d];
-        let end_fire = fire & is_end;
+        let clear_d = (clear & in_merge[d]).name(&format!("l{d}_clear"));
+        let end_fire = (fire & is_end).name(&format!("l{d}_end_fire"));
         seen.next(clear_d.mux(zero, seen | end_fire));
         n.next(clear_d.mux(lit(0, c + 1), end_fire.mux(index.slice(c, 0), n)));
         r.next(clear_d.mux(lit(0, c + 1), end_fire.mux(records.slice(c, 0), r)));

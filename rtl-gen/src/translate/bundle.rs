@@ -60,7 +60,7 @@ impl<'m> Bundle<'m> {
             let mut part = if w == bus.width() {
                 bus
             } else {
-                bus.slice(at + w - 1, at)
+                bus.field_view(at + w - 1, at, name)
             };
             if s.is_signed() {
                 part = part.as_signed();

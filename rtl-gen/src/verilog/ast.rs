@@ -26,6 +26,9 @@ pub enum Expr {
     Ternary(Box<Expr>, Box<Expr>, Box<Expr>),
     /// `$signed(e)`.
     Signed(Box<Expr>),
+    /// `$unsigned(e)`: `e` evaluated on its own (an arithmetic shift nested
+    /// in an unsigned expression).
+    Unsigned(Box<Expr>),
     /// A memory word: `mem[addr]`.
     MemIndex(String, Box<Expr>),
 }
@@ -75,6 +78,15 @@ pub enum Item {
         width: u32,
         /// Memory depth, for arrays.
         depth: Option<u32>,
+        /// Trailing comment (the generator source line).
+        comment: String,
+    },
+    /// `localparam [w-1:0] name = value;` (a named constant, such as a state code).
+    Localparam {
+        /// Declared name.
+        name: String,
+        /// The value, its width the parameter's.
+        value: Bits,
         /// Trailing comment (the generator source line).
         comment: String,
     },

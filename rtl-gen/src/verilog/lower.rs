@@ -1,11 +1,19 @@
-//! IR to syntax tree. One operator per `assign`, every operand exactly the
-//! width of the operator, so no Verilog width rule can change a result.
+//! IR to syntax tree. Every operand is exactly the width of its operator,
+//! so no Verilog width rule can change a result: an unnamed result read
+//! once is written inside its reader's expression ([`nested_nodes`]), where
+//! every operator it can meet (`&`, `+`, `==`, `?:`, `{}`, a shift amount,
+//! an index) gives it its own width; the one operator whose meaning depends
+//! on its context's signedness, `$signed(a) >>> n`, is nested as
+//! `$unsigned(..)`, so it stays arithmetic inside an unsigned expression.
 
 use super::ast::{Expr, Item, LValue, NetKind, Port, PortDir, Stmt, VModule};
 use super::enables::{reader_counts, register_plans, statements, Entry, RegisterPlans};
+use super::share::share;
 use super::RegisterStyle;
 use crate::diagnostic::Loc;
-use crate::graph::{Amount, BinOp, CmpOp, Direction, Graph, NodeId, Op, RedOp, ShiftKind};
+use crate::graph::{
+    Amount, BinOp, CmpOp, Direction, Graph, NodeId, Op, RedOp, ShiftKind, FIELD_VIEW,
+};
 use crate::names::Namer;
 use crate::Bits;
 
@@ -42,9 +50,79 @@ fn absorbed_temporaries(g: &Graph, inline: &[bool], readers: &[u32]) -> Vec<bool
     absorbed
 }
 
+fn is_view(n: &crate::graph::Node) -> bool {
+    n.name.is_none() && n.opname == FIELD_VIEW && matches!(n.op, Op::Slice(..))
+}
+
+/// Most operators one nested expression holds: a reader keeps the
+/// intermediate names of longer ones.
+const MAX_NESTED_OPERATORS: u32 = 6;
+
+/// Most operands (names and literals) one nested expression holds, so a
+/// wide concatenation keeps its own line.
+const MAX_NESTED_LEAVES: u32 = 8;
+
+/// Unnamed operator results read exactly once, by an operator or statement
+/// that can take an expression there: written inside their reader instead
+/// of declared. A result whose bits are selected (a slice, the sign of a
+/// signed extension) keeps its name, as Verilog selects bits of names only;
+/// so does one whose expression would exceed [`MAX_NESTED_OPERATORS`].
+fn nested_nodes(g: &Graph, kept: &[bool], readers: &[u32]) -> Vec<bool> {
+    let mut selected = vec![false; g.nodes.len()];
+    for n in &g.nodes {
+        match n.op {
+            Op::Slice(a, _) => selected[a as usize] = true,
+            Op::Ext(a, true) if g.node(a).width > 1 => selected[a as usize] = true,
+            _ => {}
+        }
+    }
+    let mut nested = vec![false; g.nodes.len()];
+    let mut size = vec![0u32; g.nodes.len()];
+    let mut leaves = vec![0u32; g.nodes.len()];
+    // Operands come before their readers in the arena, so sizes are final
+    // when read.
+    for (id, n) in g.nodes.iter().enumerate() {
+        let operator = matches!(
+            n.op,
+            Op::Not(_)
+                | Op::Bin(..)
+                | Op::Shift(..)
+                | Op::Cmp(..)
+                | Op::Mux { .. }
+                | Op::Concat(_)
+                | Op::Reduce(..)
+                | Op::MemRead { .. }
+                | Op::Ext(..)
+        );
+        if !operator || kept[id] || n.name.is_some() || n.port.is_some() {
+            continue;
+        }
+        for x in g.comb_inputs(id as NodeId) {
+            let x = x as usize;
+            let (s, l) = if nested[x] {
+                (size[x], leaves[x])
+            } else {
+                (0, 1)
+            };
+            size[id] += s;
+            leaves[id] += l;
+        }
+        size[id] += u32::from(!matches!(n.op, Op::Ext(..)));
+        nested[id] = readers[id] == 1
+            && !selected[id]
+            && size[id] <= MAX_NESTED_OPERATORS
+            && leaves[id] <= MAX_NESTED_LEAVES;
+    }
+    nested
+}
+
 struct Lower<'g> {
     g: &'g Graph,
     inline: Vec<bool>,
+    /// Unnamed results written inside their one reader's expression.
+    nested: Vec<bool>,
+    /// Nodes another node computing the same thing replaced ([`share`]).
+    dead: Vec<bool>,
     /// Unnamed temporaries written straight into the one wire or port they drive.
     absorbed: Vec<bool>,
     /// How each register is written, and the muxes folded into those plans.
@@ -55,11 +133,37 @@ struct Lower<'g> {
 }
 
 /// The syntax tree of one module (validated beforehand).
-pub(crate) fn lower(g: &Graph, style: RegisterStyle) -> VModule {
-    let inline = g.inline_nodes();
+pub(crate) fn lower(original: &Graph, style: RegisterStyle) -> VModule {
+    let (shared, dead) = share(original);
+    let g = &shared;
+    let mut inline = g.inline_nodes();
     let readers = reader_counts(g);
+    // A field view is declared under its field's name where it is read.
+    for (id, n) in g.nodes.iter().enumerate() {
+        if is_view(n) && readers[id] > 0 {
+            inline[id] = false;
+        }
+    }
     let absorbed = absorbed_temporaries(g, &inline, &readers);
     let regs = register_plans(g, &inline, &readers, style == RegisterStyle::Enables);
+    let mut kept: Vec<bool> = (0..g.nodes.len())
+        .map(|i| inline[i] || absorbed[i] || regs.folded[i] || dead[i])
+        .collect();
+    // The style before the enable idiom writes `r <= r_next;`, `r_next` a wire.
+    if style == RegisterStyle::NextWires {
+        for n in &g.nodes {
+            if let Op::Reg { next, .. } = &n.op {
+                for (d, _) in next {
+                    kept[*d as usize] = true;
+                }
+            }
+        }
+    }
+    let nested = nested_nodes(g, &kept, &readers);
+    // A named constant nothing reads (its readers shared away) is not declared.
+    let dead: Vec<bool> = (0..g.nodes.len())
+        .map(|i| dead[i] || (matches!(g.nodes[i].op, Op::Const(_)) && readers[i] == 0))
+        .collect();
     let mut namer = Namer::default();
     let mut names = vec![String::new(); g.nodes.len()];
     for &p in &g.ports {
@@ -70,7 +174,7 @@ pub(crate) fn lower(g: &Graph, style: RegisterStyle) -> VModule {
     let inst_names: Vec<String> = g.insts.iter().map(|i| namer.fresh(&i.name)).collect();
     let mem_names: Vec<String> = g.mems.iter().map(|m| namer.fresh(&m.name)).collect();
     for (id, n) in g.nodes.iter().enumerate() {
-        if inline[id] || absorbed[id] || n.port.is_some() {
+        if inline[id] || absorbed[id] || nested[id] || dead[id] || n.port.is_some() {
             continue;
         }
         names[id] = match (&n.name, &n.op) {
@@ -80,6 +184,7 @@ pub(crate) fn lower(g: &Graph, style: RegisterStyle) -> VModule {
             }
             (Some(user), Op::Reg { .. }) => user.clone(),
             (Some(user), _) => namer.fresh(user),
+            (None, _) if is_view(n) => namer.fresh(&n.base),
             (None, Op::InstOut { port, .. }) => namer.fresh(&format!("{}_{}", n.base, port)),
             (None, _) => namer.fresh(&format!("{}_{}", n.base, n.opname)),
         };
@@ -87,6 +192,8 @@ pub(crate) fn lower(g: &Graph, style: RegisterStyle) -> VModule {
     let l = Lower {
         g,
         inline,
+        nested,
+        dead,
         absorbed,
         regs,
         names,
@@ -147,11 +254,30 @@ impl Lower<'_> {
         !self.inline[id]
             && !self.absorbed[id]
             && !self.regs.folded[id]
+            && !self.nested[id]
+            && !self.dead[id]
             && self.g.nodes[id].port.is_none()
     }
 
     fn declarations(&self, items: &mut Vec<Item>) {
         let mut any = false;
+        // Named constants (state codes) first, in the order of their values.
+        let mut params: Vec<Item> = Vec::new();
+        for (id, n) in self.g.nodes.iter().enumerate() {
+            if let (true, Op::Const(value)) = (self.declared(id), &n.op) {
+                params.push(Item::Localparam {
+                    name: self.names[id].clone(),
+                    value: value.clone(),
+                    comment: loc_comment(n.loc),
+                });
+            }
+        }
+        params.sort_by_key(|p| match p {
+            Item::Localparam { value, name, .. } => (value.to_hex(), name.clone()),
+            _ => Default::default(),
+        });
+        any |= !params.is_empty();
+        items.extend(params);
         for (i, m) in self.g.mems.iter().enumerate() {
             items.push(Item::Decl {
                 kind: NetKind::Reg,
@@ -167,6 +293,7 @@ impl Lower<'_> {
                 continue;
             }
             let kind = match n.op {
+                Op::Const(_) => continue,
                 Op::Reg { .. } | Op::MemReadSync { .. } => NetKind::Reg,
                 _ => NetKind::Wire,
             };
@@ -187,7 +314,10 @@ impl Lower<'_> {
     fn assigns(&self, items: &mut Vec<Item>) {
         let mut any = false;
         for id in 0..self.g.nodes.len() {
-            if self.inline[id] || self.absorbed[id] || self.regs.folded[id] {
+            if !self.declared(id) && self.g.nodes[id].port.is_none() {
+                continue;
+            }
+            if matches!(self.g.nodes[id].op, Op::Const(_)) {
                 continue;
             }
             if let Some(rhs) = self.rhs(id as NodeId) {
@@ -203,6 +333,13 @@ impl Lower<'_> {
     /// The reference to a node as an operand: its name, or its inline form.
     fn operand(&self, id: NodeId) -> Expr {
         let n = self.g.node(id);
+        if self.nested[id as usize] {
+            let e = self.expr(id);
+            return match n.op {
+                Op::Shift(ShiftKind::RightArith, ..) => Expr::Unsigned(Box::new(e)),
+                _ => e,
+            };
+        }
         if !self.inline[id as usize] {
             return Expr::Ident(self.names[id as usize].clone());
         }
@@ -253,21 +390,34 @@ impl Lower<'_> {
 
     /// The continuous-assignment right-hand side of a declared node, if it has one.
     fn rhs(&self, id: NodeId) -> Option<Expr> {
-        let o = |x: &NodeId| Box::new(self.operand(*x));
-        let n = self.g.node(id);
-        Some(match &n.op {
+        match &self.g.node(id).op {
             Op::Input
             | Op::Reg { .. }
             | Op::MemReadSync { .. }
             | Op::InstOut { .. }
-            | Op::Poison => return None,
+            | Op::Poison => None,
             Op::Wire { drivers } => {
                 let d = drivers.first()?.0;
                 if self.absorbed[d as usize] {
                     return self.rhs(d);
                 }
-                self.operand(d)
+                Some(self.operand(d))
             }
+            _ => Some(self.expr(id)),
+        }
+    }
+
+    /// The expression an operator node computes, its operands as operands.
+    fn expr(&self, id: NodeId) -> Expr {
+        let o = |x: &NodeId| Box::new(self.operand(*x));
+        let n = self.g.node(id);
+        match &n.op {
+            Op::Input
+            | Op::Reg { .. }
+            | Op::MemReadSync { .. }
+            | Op::InstOut { .. }
+            | Op::Poison
+            | Op::Wire { .. } => Expr::Ident(self.names[id as usize].clone()),
             Op::Const(b) => Expr::Literal(b.clone()),
             Op::Not(a) => Expr::Unary("~", o(a)),
             Op::Bin(op, a, b) => {
@@ -327,7 +477,7 @@ impl Lower<'_> {
                 Expr::Unary(sym, o(a))
             }
             Op::MemRead { mem, addr } => Expr::MemIndex(self.mem_names[*mem].clone(), o(addr)),
-        })
+        }
     }
 
     fn instances(&self, items: &mut Vec<Item>) {

@@ -4,6 +4,7 @@ pub mod ast;
 mod enables;
 mod lower;
 pub mod print;
+mod share;
 
 use crate::diagnostic::{DiagKind, Diagnostic, Diagnostics, Severity};
 use crate::graph::GraphRef;

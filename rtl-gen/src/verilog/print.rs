@@ -78,6 +78,18 @@ fn print_item(s: &mut String, item: &Item) {
                 let _ = writeln!(s, "    {decl:<w$} // {comment}", w = COMMENT_COLUMN - 4);
             }
         }
+        Item::Localparam {
+            name,
+            value,
+            comment,
+        } => {
+            let decl = format!(
+                "localparam {}{name} = {};",
+                range(value.width()),
+                literal(value)
+            );
+            let _ = writeln!(s, "    {decl:<w$} // {comment}", w = COMMENT_COLUMN - 4);
+        }
         Item::Assign(lhs, rhs) => {
             let _ = writeln!(s, "    assign {lhs} = {};", expr(rhs));
         }
@@ -199,6 +211,7 @@ pub fn expr(e: &Expr) -> String {
         Expr::Binary(op, a, b) => format!("{} {op} {}", operand(a), operand(b)),
         Expr::Ternary(c, t, f) => format!("{} ? {} : {}", operand(c), operand(t), operand(f)),
         Expr::Signed(x) => format!("$signed({})", expr(x)),
+        Expr::Unsigned(x) => format!("$unsigned({})", expr(x)),
         Expr::MemIndex(n, a) => format!("{n}[{}]", expr(a)),
     }
 }

@@ -16,46 +16,28 @@ module abs_diff_w8 (
     reg s1_valid;                            // rtl-gen/src/examples/datapath.rs:31
     reg [8:0] s1_data;                       // rtl-gen/src/examples/datapath.rs:31
     wire s1_ready;                           // rtl-gen/src/examples/datapath.rs:31
-    wire s1_valid_not;                       // rtl-gen/src/examples/datapath.rs:31
-    wire s1_valid_or;                        // rtl-gen/src/examples/datapath.rs:31
-    wire s1_valid_and;                       // rtl-gen/src/examples/datapath.rs:31
-    wire s1_data_lt;                         // rtl-gen/src/examples/datapath.rs:35
-    wire [8:0] s1_data_sub;                  // rtl-gen/src/examples/datapath.rs:36
+    wire s1_take;                            // rtl-gen/src/examples/datapath.rs:31
     wire [8:0] abs;                          // rtl-gen/src/examples/datapath.rs:36
     reg s2_valid;                            // rtl-gen/src/examples/datapath.rs:39
     reg [8:0] s2_data;                       // rtl-gen/src/examples/datapath.rs:39
     wire s2_ready;                           // rtl-gen/src/examples/datapath.rs:39
-    wire s2_valid_not;                       // rtl-gen/src/examples/datapath.rs:39
-    wire s2_valid_or;                        // rtl-gen/src/examples/datapath.rs:39
-    wire s2_valid_and;                       // rtl-gen/src/examples/datapath.rs:39
-    wire s2_data_gt;                         // rtl-gen/src/examples/datapath.rs:41
+    wire s2_take;                            // rtl-gen/src/examples/datapath.rs:39
     wire [8:0] clamped;                      // rtl-gen/src/examples/datapath.rs:42
     reg s3_valid;                            // rtl-gen/src/examples/datapath.rs:45
     reg [8:0] s3_data;                       // rtl-gen/src/examples/datapath.rs:45
     wire s3_ready;                           // rtl-gen/src/examples/datapath.rs:45
-    wire s3_valid_not;                       // rtl-gen/src/examples/datapath.rs:45
-    wire s3_valid_or;                        // rtl-gen/src/examples/datapath.rs:45
-    wire s3_valid_and;                       // rtl-gen/src/examples/datapath.rs:45
+    wire s3_take;                            // rtl-gen/src/examples/datapath.rs:45
 
-    assign in_ready = s1_valid_or;
+    assign in_ready = s1_take;
     assign diff = {in_data[15], in_data[15:8]} - {in_data[7], in_data[7:0]};
-    assign s1_ready = s2_valid_or;
-    assign s1_valid_not = ~s1_valid;
-    assign s1_valid_or = s1_valid_not | s1_ready;
-    assign s1_valid_and = s1_valid_or & in_valid;
-    assign s1_data_lt = $signed(s1_data) < $signed(9'd0);
-    assign s1_data_sub = 9'd0 - s1_data;
-    assign abs = s1_data_lt ? s1_data_sub : s1_data;
-    assign s2_ready = s3_valid_or;
-    assign s2_valid_not = ~s2_valid;
-    assign s2_valid_or = s2_valid_not | s2_ready;
-    assign s2_valid_and = s2_valid_or & s1_valid;
-    assign s2_data_gt = s2_data > 9'd100;
-    assign clamped = s2_data_gt ? 9'd100 : s2_data;
+    assign s1_ready = s2_take;
+    assign s1_take = (~s1_valid) | s1_ready;
+    assign abs = ($signed(s1_data) < $signed(9'd0)) ? (9'd0 - s1_data) : s1_data;
+    assign s2_ready = s3_take;
+    assign s2_take = (~s2_valid) | s2_ready;
+    assign clamped = (s2_data > 9'd100) ? 9'd100 : s2_data;
     assign s3_ready = out_ready;
-    assign s3_valid_not = ~s3_valid;
-    assign s3_valid_or = s3_valid_not | s3_ready;
-    assign s3_valid_and = s3_valid_or & s2_valid;
+    assign s3_take = (~s3_valid) | s3_ready;
     assign out_valid = s3_valid;
     assign out_data = s3_data;
 
@@ -68,22 +50,22 @@ module abs_diff_w8 (
             s3_valid <= 1'b0;
             s3_data <= 9'd0;
         end else begin
-            if (s1_valid_or) begin
+            if (s1_take) begin
                 s1_valid <= in_valid;        // rtl-gen/src/examples/datapath.rs:31
             end
-            if (s1_valid_and) begin
+            if (s1_take & in_valid) begin
                 s1_data <= diff;             // rtl-gen/src/examples/datapath.rs:31
             end
-            if (s2_valid_or) begin
+            if (s2_take) begin
                 s2_valid <= s1_valid;        // rtl-gen/src/examples/datapath.rs:39
             end
-            if (s2_valid_and) begin
+            if (s2_take & s1_valid) begin
                 s2_data <= abs;              // rtl-gen/src/examples/datapath.rs:39
             end
-            if (s3_valid_or) begin
+            if (s3_take) begin
                 s3_valid <= s2_valid;        // rtl-gen/src/examples/datapath.rs:45
             end
-            if (s3_valid_and) begin
+            if (s3_take & s2_valid) begin
                 s3_data <= clamped;          // rtl-gen/src/examples/datapath.rs:45
             end
         end

@@ -9,16 +9,14 @@ module counter_w8 (
     output wire [7:0] count  // rtl-gen/src/examples/counter.rs:21
 );
     reg [7:0] count_q;                       // rtl-gen/src/examples/counter.rs:19
-    wire [7:0] count_add;                    // rtl-gen/src/examples/counter.rs:20
 
-    assign count_add = count_q + 8'd1;
     assign count = count_q;
 
     always @(posedge clk) begin
         if (rst) begin
             count_q <= 8'd0;
         end else if (en) begin
-            count_q <= count_add;            // rtl-gen/src/examples/counter.rs:20
+            count_q <= count_q + 8'd1;       // rtl-gen/src/examples/counter.rs:20
         end
     end
 endmodule

@@ -16,28 +16,20 @@ module fifo_w8_a2 (
     reg [2:0] wr_ptr;                        // rtl-gen/src/examples/fifo.rs:24
     reg [2:0] rd_ptr;                        // rtl-gen/src/examples/fifo.rs:25
     wire empty;                              // rtl-gen/src/examples/fifo.rs:27
-    wire wr_ptr_ne;                          // rtl-gen/src/examples/fifo.rs:28
-    wire wr_ptr_eq;                          // rtl-gen/src/examples/fifo.rs:28
     wire full;                               // rtl-gen/src/examples/fifo.rs:28
     wire full_not;                           // rtl-gen/src/examples/fifo.rs:29
     wire push;                               // rtl-gen/src/examples/fifo.rs:29
     wire empty_not;                          // rtl-gen/src/examples/fifo.rs:30
     wire pop;                                // rtl-gen/src/examples/fifo.rs:30
-    wire [2:0] wr_ptr_add;                   // rtl-gen/src/examples/fifo.rs:33
-    wire [2:0] rd_ptr_add;                   // rtl-gen/src/examples/fifo.rs:34
 
-    assign in_ready = ~full;
+    assign in_ready = full_not;
     assign empty = wr_ptr == rd_ptr;
-    assign wr_ptr_ne = wr_ptr[2] != rd_ptr[2];
-    assign wr_ptr_eq = wr_ptr[1:0] == rd_ptr[1:0];
-    assign full = wr_ptr_ne & wr_ptr_eq;
+    assign full = (wr_ptr[2] != rd_ptr[2]) & (wr_ptr[1:0] == rd_ptr[1:0]);
     assign full_not = ~full;
     assign push = in_valid & full_not;
     assign empty_not = ~empty;
     assign pop = empty_not & out_ready;
-    assign wr_ptr_add = wr_ptr + 3'd1;
-    assign rd_ptr_add = rd_ptr + 3'd1;
-    assign out_valid = ~empty;
+    assign out_valid = empty_not;
     assign out_data = mem[rd_ptr[1:0]];
 
     always @(posedge clk) begin
@@ -46,10 +38,10 @@ module fifo_w8_a2 (
             rd_ptr <= 3'd0;
         end else begin
             if (push) begin
-                wr_ptr <= wr_ptr_add;        // rtl-gen/src/examples/fifo.rs:33
+                wr_ptr <= wr_ptr + 3'd1;     // rtl-gen/src/examples/fifo.rs:33
             end
             if (pop) begin
-                rd_ptr <= rd_ptr_add;        // rtl-gen/src/examples/fifo.rs:34
+                rd_ptr <= rd_ptr + 3'd1;     // rtl-gen/src/examples/fifo.rs:34
             end
         end
     end

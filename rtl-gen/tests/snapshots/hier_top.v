@@ -18,38 +18,26 @@ module hier_top (
     wire [7:0] u0_y;                         // rtl-gen/tests/designs/mod.rs:67
     wire [7:0] u1_y;                         // rtl-gen/tests/designs/mod.rs:69
     wire arb_ready;                          // rtl-gen/tests/designs/mod.rs:79
-    wire a_valid_not;                        // rtl-gen/tests/designs/mod.rs:79
-    wire b_valid_and;                        // rtl-gen/tests/designs/mod.rs:79
     wire arb_valid;                          // rtl-gen/tests/designs/mod.rs:79
     wire [1:0] arb_free;                     // rtl-gen/tests/designs/mod.rs:79
     reg arb_stalled;                         // rtl-gen/tests/designs/mod.rs:79
     reg [1:0] arb_held;                      // rtl-gen/tests/designs/mod.rs:79
     wire [1:0] arb_grant;                    // rtl-gen/tests/designs/mod.rs:79
-    wire arb_ready_not;                      // rtl-gen/tests/designs/mod.rs:79
-    wire arb_stalled_next;                   // rtl-gen/tests/designs/mod.rs:79
     wire [7:0] arb_data;                     // rtl-gen/tests/designs/mod.rs:79
     reg out_q_valid;                         // rtl-gen/tests/designs/mod.rs:80
     reg [7:0] out_q_data;                    // rtl-gen/tests/designs/mod.rs:80
     wire out_q_ready;                        // rtl-gen/tests/designs/mod.rs:80
-    wire out_q_valid_not;                    // rtl-gen/tests/designs/mod.rs:80
-    wire out_q_valid_or;                     // rtl-gen/tests/designs/mod.rs:80
-    wire out_q_valid_and;                    // rtl-gen/tests/designs/mod.rs:80
+    wire out_q_take;                         // rtl-gen/tests/designs/mod.rs:80
 
     assign a_ready = arb_ready & arb_grant[0];
     assign b_ready = arb_ready & arb_grant[1];
-    assign arb_ready = out_q_valid_or;
-    assign a_valid_not = ~a_valid;
-    assign b_valid_and = b_valid & a_valid_not;
+    assign arb_ready = out_q_take;
     assign arb_valid = a_valid | b_valid;
-    assign arb_free = {b_valid_and, a_valid};
+    assign arb_free = {b_valid & (~a_valid), a_valid};
     assign arb_grant = arb_stalled ? arb_held : arb_free;
-    assign arb_ready_not = ~arb_ready;
-    assign arb_stalled_next = arb_valid & arb_ready_not;
     assign arb_data = arb_grant[0] ? u0_y : u1_y;
     assign out_q_ready = out_ready;
-    assign out_q_valid_not = ~out_q_valid;
-    assign out_q_valid_or = out_q_valid_not | out_q_ready;
-    assign out_q_valid_and = out_q_valid_or & arb_valid;
+    assign out_q_take = (~out_q_valid) | out_q_ready;
     assign out_valid = out_q_valid;
     assign out_data = out_q_data;
 
@@ -70,12 +58,12 @@ module hier_top (
             out_q_valid <= 1'b0;
             out_q_data <= 8'd0;
         end else begin
-            arb_stalled <= arb_stalled_next;
+            arb_stalled <= arb_valid & (~arb_ready);
             arb_held <= arb_grant;
-            if (out_q_valid_or) begin
+            if (out_q_take) begin
                 out_q_valid <= arb_valid;    // rtl-gen/tests/designs/mod.rs:80
             end
-            if (out_q_valid_and) begin
+            if (out_q_take & arb_valid) begin
                 out_q_data <= arb_data;      // rtl-gen/tests/designs/mod.rs:80
             end
         end

@@ -17,55 +17,14 @@ module kitchen_sink (
     output wire [2:0] red,     // rtl-gen/tests/designs/mod.rs:35
     output wire [13:0] ext     // rtl-gen/tests/designs/mod.rs:39
 );
-    wire [4:0] a_and;                        // rtl-gen/tests/designs/mod.rs:17
-    wire [4:0] a_not;                        // rtl-gen/tests/designs/mod.rs:17
-    wire [4:0] a_xor;                        // rtl-gen/tests/designs/mod.rs:17
-    wire [4:0] a_shl;                        // rtl-gen/tests/designs/mod.rs:20
-    wire [4:0] a_shr;                        // rtl-gen/tests/designs/mod.rs:20
-    wire [4:0] a_sra;                        // rtl-gen/tests/designs/mod.rs:20
-    wire [4:0] a_sra_1;                      // rtl-gen/tests/designs/mod.rs:20
-    wire a_eq;                               // rtl-gen/tests/designs/mod.rs:25
-    wire a_ne;                               // rtl-gen/tests/designs/mod.rs:26
-    wire a_lt;                               // rtl-gen/tests/designs/mod.rs:27
-    wire a_le;                               // rtl-gen/tests/designs/mod.rs:28
-    wire a_gt;                               // rtl-gen/tests/designs/mod.rs:29
-    wire a_ge;                               // rtl-gen/tests/designs/mod.rs:30
-    wire [4:0] b_not;                        // rtl-gen/tests/designs/mod.rs:34
-    wire [4:0] a_xor_1;                      // rtl-gen/tests/designs/mod.rs:34
-    wire [4:0] s_mux;                        // rtl-gen/tests/designs/mod.rs:34
-    wire [4:0] s_mux_1;                      // rtl-gen/tests/designs/mod.rs:34
-    wire a_all;                              // rtl-gen/tests/designs/mod.rs:37
-    wire a_any;                              // rtl-gen/tests/designs/mod.rs:37
-    wire b_parity;                           // rtl-gen/tests/designs/mod.rs:37
-
     assign sum = {1'b0, a} + {1'b0, b};
     assign diff = {a[4], a} - {b[4], b};
-    assign a_and = a & b;
-    assign a_not = ~a;
-    assign a_xor = a_not ^ b;
-    assign bitwise = a_and | a_xor;
-    assign a_shl = a << 2'd2;
-    assign a_shr = a >> s;
-    assign a_sra = $signed(a) >>> s;
-    assign a_sra_1 = $signed(a) >>> 1'b1;
-    assign shifts = {a_shl, a_shr, a_sra, a_sra_1};
-    assign a_eq = a == b;
-    assign a_ne = a != b;
-    assign a_lt = a < b;
-    assign a_le = $signed(a) <= $signed(b);
-    assign a_gt = a > 5'd3;
-    assign a_ge = $signed({a[4], a}) >= $signed({1'b0, b});
-    assign cmp = {a_eq, a_ne, a_lt, a_le, a_gt, a_ge};
+    assign bitwise = (a & b) | ((~a) ^ b);
+    assign shifts = {a << 2'd2, a >> s, $unsigned($signed(a) >>> s), $unsigned($signed(a) >>> 1'b1)};
+    assign cmp = {a == b, a != b, a < b, $signed(a) <= $signed(b), a > 5'd3, $signed({a[4], a}) >= $signed({1'b0, b})};
     assign mux = sel ? a : b;
-    assign b_not = ~b;
-    assign a_xor_1 = a ^ b;
-    assign s_mux = s[0] ? b : a;
-    assign s_mux_1 = s[0] ? a_xor_1 : b_not;
-    assign select = s[1] ? s_mux_1 : s_mux;
-    assign a_all = &a;
-    assign a_any = |a;
-    assign b_parity = ^b;
-    assign red = {a_all, a_any, b_parity};
+    assign select = s[1] ? (s[0] ? (a ^ b) : (~b)) : (s[0] ? b : a);
+    assign red = {&a, |a, ^b};
     assign ext = {{2'd0, a}, {{2{b[4]}}, b}};
 endmodule
 

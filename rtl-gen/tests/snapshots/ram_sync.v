@@ -18,21 +18,17 @@ module ram_sync (
 );
     reg [11:0] mem [0:15];                   // rtl-gen/tests/designs/mod.rs:47
     reg [11:0] mem_rdata;                    // rtl-gen/tests/designs/mod.rs:49
-    wire wb_ne;                              // rtl-gen/tests/designs/mod.rs:51
     reg [7:0] writes_q;                      // rtl-gen/tests/designs/mod.rs:53
-    wire [7:0] writes_next;                  // rtl-gen/tests/designs/mod.rs:54
 
     assign q = mem_rdata;
-    assign wb_ne = wb != 4'd0;
     assign peek0 = mem[4'd0];
-    assign writes_next = writes_q + 8'd1;
     assign writes = writes_q;
 
     always @(posedge clk) begin
         if (rst) begin
             writes_q <= 8'd128;
         end else begin
-            writes_q <= writes_next;
+            writes_q <= writes_q + 8'd1;
         end
     end
 
@@ -44,7 +40,7 @@ module ram_sync (
         if (we) begin
             mem[wa] <= wd;
         end
-        if (wb_ne) begin
+        if (wb != 4'd0) begin
             mem[wb] <= wd_b;
         end
     end

@@ -17,29 +17,15 @@ module skid_buffer_w8 (
     reg skid_spare_valid;                    // rtl-gen/src/examples/skid.rs:14
     reg [7:0] skid_spare_data;               // rtl-gen/src/examples/skid.rs:14
     wire skid_ready;                         // rtl-gen/src/examples/skid.rs:14
-    wire skid_valid_not;                     // rtl-gen/src/examples/skid.rs:14
-    wire skid_ready_or;                      // rtl-gen/src/examples/skid.rs:14
-    wire skid_spare_valid_not;               // rtl-gen/src/examples/skid.rs:14
-    wire in_valid_and;                       // rtl-gen/src/examples/skid.rs:14
-    wire skid_spare_valid_or;                // rtl-gen/src/examples/skid.rs:14
-    wire [7:0] skid_spare_valid_mux;         // rtl-gen/src/examples/skid.rs:14
-    wire skid_spare_valid_or_1;              // rtl-gen/src/examples/skid.rs:14
-    wire skid_spare_valid_next;              // rtl-gen/src/examples/skid.rs:14
-    wire skid_ready_not;                     // rtl-gen/src/examples/skid.rs:14
-    wire skid_ready_and;                     // rtl-gen/src/examples/skid.rs:14
+    wire skid_room;                          // rtl-gen/src/examples/skid.rs:14
+    wire skid_drain;                         // rtl-gen/src/examples/skid.rs:14
+    wire skid_take;                          // rtl-gen/src/examples/skid.rs:14
 
-    assign in_ready = ~skid_spare_valid;
+    assign in_ready = skid_room;
     assign skid_ready = out_ready;
-    assign skid_valid_not = ~skid_valid;
-    assign skid_ready_or = skid_ready | skid_valid_not;
-    assign skid_spare_valid_not = ~skid_spare_valid;
-    assign in_valid_and = in_valid & skid_spare_valid_not;
-    assign skid_spare_valid_or = skid_spare_valid | in_valid;
-    assign skid_spare_valid_mux = skid_spare_valid ? skid_spare_data : in_data;
-    assign skid_spare_valid_or_1 = skid_spare_valid | in_valid_and;
-    assign skid_spare_valid_next = skid_ready_or ? 1'b0 : skid_spare_valid_or_1;
-    assign skid_ready_not = ~skid_ready_or;
-    assign skid_ready_and = skid_ready_not & in_valid_and;
+    assign skid_room = ~skid_spare_valid;
+    assign skid_drain = skid_ready | (~skid_valid);
+    assign skid_take = in_valid & skid_room;
     assign out_valid = skid_valid;
     assign out_data = skid_data;
 
@@ -50,12 +36,12 @@ module skid_buffer_w8 (
             skid_spare_valid <= 1'b0;
             skid_spare_data <= 8'd0;
         end else begin
-            if (skid_ready_or) begin
-                skid_valid <= skid_spare_valid_or; // rtl-gen/src/examples/skid.rs:14
-                skid_data <= skid_spare_valid_mux; // rtl-gen/src/examples/skid.rs:14
+            if (skid_drain) begin
+                skid_valid <= skid_spare_valid | in_valid; // rtl-gen/src/examples/skid.rs:14
+                skid_data <= skid_spare_valid ? skid_spare_data : in_data; // rtl-gen/src/examples/skid.rs:14
             end
-            skid_spare_valid <= skid_spare_valid_next;
-            if (skid_ready_and) begin
+            skid_spare_valid <= skid_drain ? 1'b0 : (skid_spare_valid | skid_take);
+            if ((~skid_drain) & skid_take) begin
                 skid_spare_data <= in_data;  // rtl-gen/src/examples/skid.rs:14
             end
         end

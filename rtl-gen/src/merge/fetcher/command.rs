@@ -42,20 +42,21 @@ pub(super) struct Command<'m> {
 impl<'m> Command<'m> {
     /// High in phase `s`.
     pub(super) fn is(&self, cx: &Ctx<'_, 'm>, s: u64) -> Signal<'m> {
-        self.phase.eq(cx.lit(s, ph::BITS))
+        cx.m.states(ph::BITS, ph::STATES).is(self.phase, s)
     }
 }
 
 /// The phase code of `s`.
 pub(super) fn goto<'m>(cx: &Ctx<'_, 'm>, s: u64) -> Signal<'m> {
-    cx.lit(s, ph::BITS)
+    cx.m.states(ph::BITS, ph::STATES).code(s)
 }
 
 /// The `cfg` and `cmd` streams and the registers they set.
 pub(super) fn command<'m>(cx: &Ctx<'_, 'm>) -> Command<'m> {
     let (m, l, lb) = (cx.m, cx.l, cx.lb);
     let phase = m.reg("phase", ph::BITS);
-    let is = |s: u64| phase.eq(cx.lit(s, ph::BITS));
+    let phases = m.states(ph::BITS, ph::STATES);
+    let is = |s: u64| phases.is(phase, s);
     let mut n_phase = Next::new(phase);
 
     let cfg = Stream::input(m, "cfg", l.cfg_width);

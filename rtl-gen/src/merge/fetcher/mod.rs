@@ -56,6 +56,14 @@ mod ph {
     pub const WALK: u64 = 3;
     pub const DONE: u64 = 4;
     pub const BITS: u32 = 3;
+    /// Every phase by name (the Verilog's `localparam`s).
+    pub const STATES: &[(&str, u64)] = &[
+        ("IDLE", IDLE),
+        ("START", START),
+        ("ROOTS", ROOTS),
+        ("WALK", WALK),
+        ("DONE", DONE),
+    ];
 }
 
 /// Kinds of the reference stage's in-flight words (`node_ctx`).

@@ -264,7 +264,7 @@ pub(super) fn per_node_out_stages<'m>(
     ));
     n_phase.when(
         t_fire & k2.eq(kind(ok::TOK_FINAL)),
-        m.lit(ph::DONE as u128, ph::BITS),
+        m.states(ph::BITS, ph::STATES).code(ph::DONE),
     );
     PerNodePorts {
         probe_req,

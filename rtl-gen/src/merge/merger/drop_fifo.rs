@@ -21,8 +21,9 @@ impl<'m> DropFifo<'m> {
         let mem = m.memory(mem_name, width, 1 << cb);
         let wr = m.reg(&format!("{name}_wr"), cb + 1);
         let rd = m.reg(&format!("{name}_rd"), cb + 1);
-        let empty = wr.eq(rd);
-        let full = wr.slice(cb - 1, 0).eq(rd.slice(cb - 1, 0)) & !wr.bit(cb).eq(rd.bit(cb));
+        let empty = wr.eq(rd).name(&format!("{name}_empty"));
+        let full = (wr.slice(cb - 1, 0).eq(rd.slice(cb - 1, 0)) & !wr.bit(cb).eq(rd.bit(cb)))
+            .name(&format!("{name}_full"));
         DropFifo {
             m,
             mem,
@@ -37,8 +38,11 @@ impl<'m> DropFifo<'m> {
     /// Writes `data` when `push` and not full.
     pub(super) fn write(&self, data: Signal<'m>, push: Signal<'m>) {
         let cb = self.cb;
-        self.mem
-            .write(self.wr.slice(cb - 1, 0), data, push & !self.full);
+        self.mem.write(
+            self.wr.slice(cb - 1, 0),
+            data,
+            (push & !self.full).named_after(self.wr, "put"),
+        );
     }
 
     /// The oldest word (meaningful when not empty).

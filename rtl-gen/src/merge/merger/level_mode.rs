@@ -174,7 +174,8 @@ fn inputs<'m>(
         fcfg_pend.next(cfg_fire.mux(used_in[i], fcfg_fire.mux(zero, fcfg_pend)));
 
         let ph = m.reg(&format!("phase{i}"), phase::BITS);
-        let in_ph = |v: u64| ph.eq(lit(v, phase::BITS));
+        let phases = m.states(phase::BITS, phase::STATES);
+        let in_ph = |v: u64| phases.is(ph, v);
         // The candidate level an unused input's next `End` stands for.
         let cmd_lod = m.reg(&format!("cmd_lod{i}"), lb);
         let count_ph = in_ph(phase::COUNT);
@@ -223,17 +224,14 @@ fn inputs<'m>(
         let step = (cmd_fire | virt_fire | skip).name(&format!("step{i}"));
         let last_count = cmd_lod.eq(hi);
         let after_step = count_ph.mux(
-            (used[i] | last_count).mux(lit(phase::WAIT, phase::BITS), ph),
-            lit(phase::DONE, phase::BITS),
+            (used[i] | last_count).mux(phases.code(phase::WAIT), ph),
+            phases.code(phase::DONE),
         );
-        let after_choice = lit(phase::FINAL, phase::BITS);
+        let after_choice = phases.code(phase::FINAL);
         let ph_next = cfg_fire.mux(
-            counting_in.mux(
-                lit(phase::COUNT, phase::BITS),
-                lit(phase::WAIT, phase::BITS),
-            ),
+            counting_in.mux(phases.code(phase::COUNT), phases.code(phase::WAIT)),
             header_fire.mux(
-                lit(phase::NONE, phase::BITS),
+                phases.code(phase::NONE),
                 step.mux(
                     after_step,
                     (in_ph(phase::WAIT) & known).mux(after_choice, ph),
@@ -347,7 +345,7 @@ fn route_out<'m>(
             // The FIFO of LOD d.
             let q = DropFifo::new(m, &format!("leaves{d}"), &format!("leaves{d}"), word_w, cb);
             let (empty, full) = (q.empty, q.full);
-            let push = take_leaf & best_lod.eq(dl);
+            let push = (take_leaf & best_lod.eq(dl)).name(&format!("leaves{d}_push"));
             q.write(word, push);
             over_next = (push & full).mux(one, over_next);
             let head = q.head();
@@ -361,14 +359,15 @@ fn route_out<'m>(
                     (inb.kind, reused_kind),
                 ],
             );
-            let fifo_end = empty & leaves_done;
+            let fifo_end = (empty & leaves_done).name(&format!("leaves{d}_end"));
+            let from_fifo = (above & !empty).name(&format!("leaves{d}_head_out"));
             let valid = !bsent
                 & (at_m & mo_valid & !mo_ref
                     | above & (!empty | leaves_done)
                     | known & !at_m & !above);
-            let data = at_m.mux(mo_beat, (above & !empty).mux(leaf_beat, end_beat));
+            let data = at_m.mux(mo_beat, from_fifo.mux(leaf_beat, end_beat));
             let is_end = at_m.mux(mo_end, above.mux(fifo_end, one));
-            let pop = valid & ready & above & !empty;
+            let pop = (valid & ready & above & !empty).name(&format!("leaves{d}_pop"));
             q.advance(push, pop, header_fire);
             (valid, data, is_end)
         } else {

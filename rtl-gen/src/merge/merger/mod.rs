@@ -106,6 +106,14 @@ mod phase {
     /// Every command issued.
     pub const DONE: u64 = 4;
     pub const BITS: u32 = 3;
+    /// Every phase by name (the Verilog's `localparam`s).
+    pub const STATES: &[(&str, u64)] = &[
+        ("NONE", NONE),
+        ("COUNT", COUNT),
+        ("WAIT", WAIT),
+        ("FINAL", FINAL),
+        ("DONE", DONE),
+    ];
 }
 
 /// Field `f` of `s`.

@@ -13,7 +13,7 @@ use std::panic::Location;
 /// let m = Module::new("fsm");
 /// let go = m.input("go", 1);
 /// let s = m.states(2, &[("IDLE", 0), ("RUN", 1)]);
-/// let st = m.reg_reset("state", 2, 0);
+/// let st = m.reg("state", 2);
 /// st.next(go.mux(s.code(1), s.code(0)));
 /// m.output("running", s.is(st, 1));
 /// let v = emit_verilog(&m).unwrap();

@@ -8,6 +8,10 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
+use golden::layout::Bits;
+use golden::vectors::streams::{MergeBeats, StreamLayout, UnitPorts};
+
+use crate::bitvec::BitVec;
 use crate::design::Design;
 use crate::error::Result;
 use crate::icarus::IcarusMultiBatch;
@@ -17,7 +21,7 @@ use crate::tb::{
 };
 
 use super::multi_stream::{
-    status_failure, stepped_engines, ModuleEngine, ModuleMismatch, RunConfig,
+    flip_bit0, status_failure, stepped_engines, ModuleEngine, ModuleMismatch, RunConfig,
 };
 
 /// Merges of stimulus held at a time on one simulator.
@@ -37,6 +41,58 @@ pub struct UnitStreams {
 }
 
 impl UnitStreams {
+    /// The streams of `merges` (each merge's beats in `ports` order), named
+    /// by `ports`, merge after merge.
+    pub fn from_merges(ports: &UnitPorts, merges: &[MergeBeats]) -> Result<UnitStreams> {
+        let side = |streams: &[StreamLayout], pick: &dyn Fn(&MergeBeats) -> &Vec<Vec<Bits>>| {
+            streams
+                .iter()
+                .enumerate()
+                .map(|(i, s)| {
+                    let beats = merges
+                        .iter()
+                        .flat_map(|m| pick(m).get(i).into_iter().flatten())
+                        .map(|b| Ok(vec![BitVec::from_layout(b)?]))
+                        .collect::<Result<_>>()?;
+                    Ok(StreamBeats {
+                        name: s.name.clone(),
+                        beats,
+                    })
+                })
+                .collect::<Result<Vec<_>>>()
+        };
+        let starts = (0..ports.outputs.len())
+            .map(|i| {
+                let mut at = 0;
+                let mut v: Vec<usize> = merges
+                    .iter()
+                    .map(|m| {
+                        let start = at;
+                        at += m.outputs.get(i).map_or(0, Vec::len);
+                        start
+                    })
+                    .collect();
+                v.push(at);
+                v
+            })
+            .collect();
+        Ok(UnitStreams {
+            inputs: side(&ports.inputs, &|m| &m.inputs)?,
+            outputs: side(&ports.outputs, &|m| &m.outputs)?,
+            starts,
+        })
+    }
+
+    /// Flips bit 0 of merge `merge`'s first expected beat on output stream
+    /// `stream` (the test hook), if it has one.
+    pub fn flip_first(&mut self, stream: usize, merge: usize) -> Result<()> {
+        let at = self.starts[stream][merge];
+        if at < self.starts[stream][merge + 1] {
+            flip_bit0(&mut self.outputs[stream].beats[at][0])?;
+        }
+        Ok(())
+    }
+
     /// Merges in the stimulus.
     pub fn merges(&self) -> usize {
         self.inputs.first().map_or(0, |cfg| cfg.beats.len())

@@ -97,20 +97,7 @@ pub fn bench_vectors(levels: &[MergeVector], flip_expected: Option<usize>) -> Re
 /// An output beat's fields by name: the node record's (`rec.*`), the
 /// reference's (`ref.*`), `kind` and `err` (golden's `BeatLayout::output`).
 pub fn output_fields(p: &Params) -> Vec<(String, Field)> {
-    let lo = BeatLayout::output(p);
-    let mut fields: Vec<(String, Field)> = lo
-        .node
-        .fields()
-        .map(|f| (format!("rec.{}", f.name), shifted(f, lo.rec.offset)))
-        .collect();
-    fields.extend(
-        lo.reference
-            .fields()
-            .map(|f| (format!("ref.{}", f.name), shifted(f, lo.refer.offset))),
-    );
-    fields.push(("kind".into(), lo.kind));
-    fields.extend(lo.err.map(|f| ("err".to_string(), f)));
-    fields
+    golden::vectors::streams::level_beat_fields(&BeatLayout::output(p))
 }
 
 /// Decodes an output beat by field name ([`output_fields`]).
@@ -134,13 +121,6 @@ pub fn decoder(p: &Params) -> Box<crate::tb::FieldDecoder> {
             })
             .collect()
     })
-}
-
-fn shifted(f: &Field, by: u32) -> Field {
-    Field {
-        offset: f.offset + by,
-        ..*f
-    }
 }
 
 /// The exported testbench of the S614 stage (`hiermerge export-tb --unit

@@ -15,26 +15,22 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use golden::layout::{Bits, Field};
-use golden::merge::per_node_unit::{random_per_node_case, PerNodeLayout};
-use golden::merge::top::{random_top_transaction, TopLayout};
-use golden::merge::unit::BeatLayout;
-use golden::merge::MergeMode;
+use golden::layout::Field;
 use golden::translate::stimulus::SplitMix64;
 use golden::vectors::merge::MergeDesign;
+use golden::vectors::streams::{module_merge, module_ports, module_report};
 
-use crate::bitvec::BitVec;
 use crate::design::Design;
 use crate::error::{CosimError, Result};
 use crate::icarus::IcarusMultiBatch;
 use crate::tb::{
     run_multi_with_vcd_on_failure, BenchConfig, FieldDecoder, Hang, MultiReport, Progress,
-    PulseWatch, StreamBeats, Transaction,
+    PulseWatch, Transaction,
 };
 
 pub use super::chunked::UnitStreams;
 use super::chunked::{ChunkTotals, ChunkedSim};
-use super::multi_stream::{apply_patch, export_checks, export_streams, flip_bit0, stepped_engines};
+use super::multi_stream::{apply_patch, export_checks, export_streams, stepped_engines};
 pub use super::multi_stream::{
     beat_decoder, decode_fields, decoded_pair, named, status_failure, ModuleEngine, ModuleMismatch,
     RunConfig, VerilogPatch, PULSES,
@@ -44,13 +40,7 @@ use crate::export_tb::{named_fields, ExportSpec, NamedField};
 /// The stage name `hiermerge cosim --unit merge` reports for this unit.
 pub const STAGE: &str = "merge_module";
 
-/// Most voxels of a random level (as `cosim/tests/merge_module.rs`).
-pub const DEFAULT_MOST_VOXELS: usize = 12;
-
-/// LODs below `lo` of a random per-node merge's trees (as
-/// `cosim/tests/merge_per_node.rs`'s default configuration: deep enough
-/// for merges of several passes).
-pub const PER_NODE_DEPTH: u8 = 4;
+pub use golden::vectors::streams::{DEFAULT_MOST_VOXELS, PER_NODE_DEPTH};
 
 /// The unit under test.
 pub fn merge_module(d: &MergeDesign) -> rtl_gen::Module {
@@ -71,61 +61,6 @@ fn golden_err(what: impl std::fmt::Display) -> CosimError {
     CosimError::Design {
         what: format!("golden merging module: {what}"),
     }
-}
-
-/// One merge's beats, packed: the `cfg` beat, each input's beats, the
-/// expected `report` and `out` beats.
-struct PackedMerge {
-    cfg: BitVec,
-    inputs: Vec<Vec<BitVec>>,
-    reports: Vec<BitVec>,
-    out: Vec<BitVec>,
-}
-
-fn pack_all<T>(
-    items: &[T],
-    pack: impl Fn(&T) -> std::result::Result<Bits, golden::layout::LayoutError>,
-) -> Result<Vec<BitVec>> {
-    items
-        .iter()
-        .map(|x| BitVec::from_layout(&pack(x).map_err(golden_err)?))
-        .collect()
-}
-
-/// One random merge for `d`: per-node configurations draw a
-/// `random_per_node_case` (its `PerNodeCase::transaction`, SPEC 8.14),
-/// the others a `random_top_transaction` (SPEC 8.10).
-fn random_merge(rng: &mut SplitMix64, d: &MergeDesign, most_voxels: usize) -> Result<PackedMerge> {
-    let p = &d.params;
-    let (tl, lo) = (TopLayout::new(p), BeatLayout::output(p));
-    if let MergeMode::PerNode { num, den } = d.mode {
-        let pl = PerNodeLayout::new(p);
-        let tx = random_per_node_case(rng, p, d.inputs, PER_NODE_DEPTH)
-            .transaction(p, num, den)
-            .map_err(golden_err)?;
-        return Ok(PackedMerge {
-            cfg: BitVec::from_layout(&tl.pack_cfg(tx.lo, tx.hi).map_err(golden_err)?)?,
-            inputs: tx
-                .inputs
-                .iter()
-                .map(|beats| pack_all(beats, |b| b.pack(&pl)))
-                .collect::<Result<_>>()?,
-            reports: pack_all(&tx.reports, |r| r.pack(&pl))?,
-            out: pack_all(&tx.out, |b| b.pack(&lo))?,
-        });
-    }
-    let li = BeatLayout::input(p);
-    let tx = random_top_transaction(rng, p, d.inputs, &d.mode, most_voxels).map_err(golden_err)?;
-    Ok(PackedMerge {
-        cfg: BitVec::from_layout(&tl.pack_cfg(tx.lo, tx.hi).map_err(golden_err)?)?,
-        inputs: tx
-            .inputs
-            .iter()
-            .map(|beats| pack_all(beats, |b| b.pack(&li)))
-            .collect::<Result<_>>()?,
-        reports: pack_all(&tx.reports, |r| r.pack(&tl))?,
-        out: pack_all(&tx.out, |b| b.pack(&lo))?,
-    })
 }
 
 /// `count` random merges for `d` from `seed` (`random_top_transaction`,
@@ -152,78 +87,25 @@ fn generate_streams_from(
     flip_expected: Option<usize>,
 ) -> Result<UnitStreams> {
     d.validate().map_err(golden_err)?;
-    let mut cfg = Vec::with_capacity(count);
-    let mut ins: Vec<Vec<Transaction>> = vec![Vec::new(); d.inputs];
-    let mut report: Vec<Transaction> = Vec::new();
-    let mut out: Vec<Transaction> = Vec::new();
-    let mut starts = vec![Vec::with_capacity(count + 1), Vec::with_capacity(count + 1)];
-    for n in 0..count {
-        let tx = random_merge(rng, d, most_voxels)?;
-        cfg.push(vec![tx.cfg]);
-        for (s, beats) in ins.iter_mut().zip(tx.inputs) {
-            s.extend(beats.into_iter().map(|b| vec![b]));
-        }
-        starts[0].push(report.len());
-        starts[1].push(out.len());
-        report.extend(tx.reports.into_iter().map(|b| vec![b]));
-        out.extend(tx.out.into_iter().map(|b| vec![b]));
-        if flip_expected == Some(n) {
-            if let Some(first) = report.get_mut(starts[0][n]) {
-                flip_bit0(&mut first[0])?;
-            }
-        }
+    let merges = (0..count)
+        .map(|_| module_merge(rng, d, most_voxels).map_err(golden_err))
+        .collect::<Result<Vec<_>>>()?;
+    let mut streams = UnitStreams::from_merges(&module_ports(d), &merges)?;
+    if let Some(n) = flip_expected {
+        streams.flip_first(0, n)?;
     }
-    starts[0].push(report.len());
-    starts[1].push(out.len());
-    let mut inputs = vec![StreamBeats {
-        name: "cfg".into(),
-        beats: cfg,
-    }];
-    inputs.extend(ins.into_iter().enumerate().map(|(i, beats)| StreamBeats {
-        name: format!("in{i}"),
-        beats,
-    }));
-    let outputs = vec![
-        StreamBeats {
-            name: "report".into(),
-            beats: report,
-        },
-        StreamBeats {
-            name: "out".into(),
-            beats: out,
-        },
-    ];
-    Ok(UnitStreams {
-        inputs,
-        outputs,
-        starts,
-    })
+    Ok(streams)
 }
 
-/// The merging module's `report` fields in bit order (`TopLayout`).
-pub fn top_report_fields(l: &TopLayout) -> Vec<Field> {
-    vec![
-        l.lod, l.shared, l.union, l.above, l.overflow, l.chosen, l.err,
-    ]
-}
-
-/// The `report` beat's fields in bit order (`TopLayout`; per-node
-/// configurations: `PerNodeLayout`).
+/// The `report` beat's fields in bit order (golden's `module_report`:
+/// `TopLayout`, per-node configurations `PerNodeLayout`).
 pub fn report_fields(d: &MergeDesign) -> Vec<Field> {
-    if matches!(d.mode, MergeMode::PerNode { .. }) {
-        let l = PerNodeLayout::new(&d.params);
-        let [x, y, z] = l.coord;
-        vec![
-            x, y, z, l.lod, l.shared, l.union, l.descend, l.pass_end, l.more, l.err,
-        ]
-    } else {
-        top_report_fields(&TopLayout::new(&d.params))
-    }
+    module_report(d).fields.into_iter().map(|f| f.1).collect()
 }
 
 /// Decodes a `report` beat by field name ([`report_fields`]).
 pub fn report_decoder(d: &MergeDesign) -> Box<FieldDecoder> {
-    beat_decoder(named(report_fields(d)))
+    beat_decoder(module_report(d).fields)
 }
 
 /// The exported testbench of `d` (`hiermerge export-tb --unit merge`):
@@ -460,6 +342,7 @@ pub fn run_chunked(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use golden::merge::MergeMode;
     use golden::params::Params;
 
     fn small() -> MergeDesign {

@@ -14,26 +14,24 @@
 
 use std::path::Path;
 
-use golden::layout::{Bits, Field};
-use golden::merge::fetch_unit::FetchLayout;
-use golden::merge::merger_unit::{merger_transaction, MergerLayout, MergerTransaction, ModulePass};
-use golden::merge::per_node_unit::{PerNodeLayout, PerNodeReport};
-use golden::merge::stimulus::{place, soup};
+use golden::layout::Field;
+use golden::merge::merger_unit::{MergerTransaction, ModulePass};
+use golden::merge::per_node_unit::PerNodeReport;
 use golden::merge::MergeMode;
-use golden::store::{HierarchyStore, NodeRecord, Reference};
 use golden::translate::stimulus::SplitMix64;
-use golden::translate::TranslationTable;
+use golden::vectors::streams::{
+    merger_beats, merger_input_names, merger_layout, merger_output_names, merger_ports,
+    merger_stream, random_merger_merge,
+};
 use rtl_gen::merge::MergerConfig;
 
-use crate::bitvec::BitVec;
 use crate::design::Design;
 use crate::error::{CosimError, Result};
 use crate::ledger::StimulusDigest;
-use crate::tb::{FieldDecoder, StreamBeats, Transaction};
+use crate::tb::{FieldDecoder, Transaction};
 
 pub use super::chunked::{ChunkTotals, CHUNK};
 use super::chunked::{ChunkedSim, UnitStreams};
-use super::merge_module::top_report_fields;
 pub use super::multi_stream::ModuleEngine as MergerEngine;
 pub use super::multi_stream::ModuleMismatch as MergerMismatch;
 use super::multi_stream::{
@@ -45,12 +43,7 @@ use crate::export_tb::{named_fields, ExportSpec};
 /// The stage name `hiermerge cosim --unit merger` reports.
 pub const STAGE: &str = "hierarchy_merger";
 
-/// Most soups in a random merge is the merger's `k`; most triangles per soup.
-pub const MOST_TRIANGLES: u64 = 40;
-
-/// Random merges drawn before giving up on one whose leaves fit the leaf
-/// FIFOs (the merger's `leaf_bits` too small for the random scenes).
-pub const MOST_DRAWS: usize = 1000;
+pub use golden::vectors::streams::{MOST_DRAWS, MOST_TRIANGLES};
 
 /// The status outputs whose pulses a run counts.
 pub const PULSES: [&str; 2] = ["done", "idle"];
@@ -124,185 +117,49 @@ pub struct MergerStreams {
     pub stats: MergeStats,
 }
 
-/// A store read request (`f{i}_node_req`, `_ref_req`, `_cref_req`): the
-/// whole beat is the index read.
-fn index_field(fl: &FetchLayout) -> Field {
-    Field {
-        name: "index",
-        offset: 0,
-        width: fl.index_width,
-    }
-}
-
-/// The `header` beat's fields in bit order: the writer's header, then the
-/// merger's flags.
-fn header_fields(ml: &MergerLayout) -> Vec<Field> {
-    let w = &ml.writer;
-    vec![
-        w.h_out_id,
-        w.h_top,
-        w.h_roots,
-        w.h_nodes,
-        w.h_refs,
-        w.h_err,
-        ml.leaf_overflow,
-        ml.count_overflow,
-        ml.fetch_err,
-        ml.fetch_rank,
-    ]
-}
-
-/// The per-node module's `report` fields in bit order (8.14).
-fn per_node_report_fields(l: &PerNodeLayout) -> Vec<Field> {
-    let mut v = l.coord.to_vec();
-    v.extend([
-        l.lod, l.shared, l.union, l.descend, l.pass_end, l.more, l.err,
-    ]);
-    v
-}
-
 /// Whether `c` merges per node (its fetchers have a probe port, its
 /// `report` is the per-node module's).
 pub fn is_per_node(c: &MergerConfig) -> bool {
     matches!(c.design.mode, MergeMode::PerNode { .. })
 }
 
-/// The fields of output stream `stream`'s beats, from golden's layouts:
-/// `report` the merging module's (`TopLayout`, or `per_node`'s
-/// `PerNodeLayout` in per-node mode), a fetcher's `*_req` an index, `w_ref_req` and `refs` a
-/// reference (`RefLayout`), `nodes` a node record (`NodeLayout`), `header`
-/// (`header_fields`); None for a name that is no output stream of the
-/// merger.
-pub fn output_fields(
-    ml: &MergerLayout,
-    per_node: Option<&PerNodeLayout>,
-    stream: &str,
-) -> Option<Vec<Field>> {
-    match stream {
-        "report" => Some(match per_node {
-            Some(pl) => per_node_report_fields(pl),
-            None => top_report_fields(&ml.top),
-        }),
-        "w_ref_req" | "refs" => Some(ml.writer.reference.fields().copied().collect()),
-        "nodes" => Some(ml.writer.node.fields().copied().collect()),
-        "header" => Some(header_fields(ml)),
-        // The other outputs are the fetchers' store reads.
-        s if output_names(ml.k, per_node.is_some())
-            .iter()
-            .any(|n| n == s) =>
-        {
-            Some(vec![index_field(&ml.fetch)])
-        }
-        _ => None,
+/// The fields of output stream `stream`'s beats, from golden's layouts
+/// (`golden::vectors::streams::merger_stream`): `report` the merging
+/// module's (`TopLayout`, or `per_node`'s `PerNodeLayout` in per-node
+/// mode), a fetcher's `*_req` an index, `w_ref_req` and `refs` a reference
+/// (`RefLayout`), `nodes` a node record (`NodeLayout`), `header` the
+/// writer's header and the merger's flags; None for a name that is no
+/// output stream of the merger.
+pub fn output_fields(c: &MergerConfig, stream: &str) -> Option<Vec<Field>> {
+    let ml = merger_layout(&c.design, &c.sizes).ok()?;
+    let per_node = is_per_node(c);
+    if !merger_output_names(c.design.inputs, per_node)
+        .iter()
+        .any(|n| n == stream)
+    {
+        return None;
     }
+    let s = merger_stream(&ml, &c.design, stream)?;
+    Some(s.fields.into_iter().map(|f| f.1).collect())
 }
 
 /// Decodes a beat of output stream `stream` field by field
 /// ([`output_fields`]; an unknown stream shows its raw bits as `data`).
-pub fn decoder_of(
-    ml: &MergerLayout,
-    per_node: Option<&PerNodeLayout>,
-    stream: &str,
-) -> Box<FieldDecoder> {
-    beat_decoder(named(
-        output_fields(ml, per_node, stream).unwrap_or_default(),
-    ))
-}
-
-/// Per-stream beats of the merges, appended merge by merge.
-struct Lanes {
-    names: Vec<String>,
-    beats: Vec<Vec<Bits>>,
-}
-
-impl Lanes {
-    fn new(names: Vec<String>) -> Lanes {
-        let beats = vec![Vec::new(); names.len()];
-        Lanes { names, beats }
-    }
-
-    fn into_streams(self) -> Result<Vec<StreamBeats>> {
-        self.names
-            .into_iter()
-            .zip(self.beats)
-            .map(|(name, v)| {
-                Ok(StreamBeats {
-                    name,
-                    beats: v
-                        .iter()
-                        .map(|b| Ok(vec![BitVec::from_layout(b)?]))
-                        .collect::<Result<_>>()?,
-                })
-            })
-            .collect()
-    }
-}
-
-fn input_names(k: usize, per_node: bool) -> Vec<String> {
-    let mut v = vec!["cfg".to_string()];
-    for i in 0..k {
-        v.extend(["node_resp", "ref_resp", "cref_resp"].map(|s| format!("f{i}_{s}")));
-    }
-    if per_node {
-        v.extend((0..k).map(|i| format!("f{i}_probe_resp")));
-    }
-    v.push("w_ref_resp".into());
-    v
-}
-
-fn output_names(k: usize, per_node: bool) -> Vec<String> {
-    let mut v = vec!["report".to_string()];
-    for i in 0..k {
-        v.extend(["node_req", "ref_req", "cref_req"].map(|s| format!("f{i}_{s}")));
-    }
-    if per_node {
-        v.extend((0..k).map(|i| format!("f{i}_probe_req")));
-    }
-    v.extend(["w_ref_req", "nodes", "refs", "header"].map(String::from));
-    v
+pub fn decoder_of(c: &MergerConfig, stream: &str) -> Box<FieldDecoder> {
+    beat_decoder(named(output_fields(c, stream).unwrap_or_default()))
 }
 
 /// The streams of `txs` for the merger `c`, and what they exercise.
 pub fn merger_streams(c: &MergerConfig, txs: &[MergerTransaction]) -> Result<MergerStreams> {
-    let p = &c.design.params;
-    let k = c.design.inputs;
-    let ml = MergerLayout::new(p, k, c.sizes.capacity_bits).map_err(golden_err)?;
-    let fl = &ml.fetch;
-    let index_field = index_field(fl);
-    let idx = |i: &u32| -> Result<Bits> {
-        let mut b = Bits::zero(fl.index_width);
-        b.set(&index_field, *i as u64).map_err(golden_err)?;
-        Ok(b)
-    };
-    let node = |n: &NodeRecord| n.pack(&fl.node).map_err(golden_err);
-    let rf = |r: &Reference| r.pack(&fl.reference).map_err(golden_err);
-    let per_node = is_per_node(c);
-    let pl = PerNodeLayout::new(p);
-    let mut ins = Lanes::new(input_names(k, per_node));
-    let mut outs = Lanes::new(output_names(k, per_node));
-    let mut starts = vec![Vec::with_capacity(txs.len() + 1); outs.names.len()];
+    let ml = merger_layout(&c.design, &c.sizes).map_err(golden_err)?;
+    let ports = merger_ports(&c.design, &c.sizes).map_err(golden_err)?;
     let mut stats = MergeStats::default();
-    // The probe ports (per-node mode) sit between the fetchers' and the
-    // writer's streams.
-    let probes = 1 + 3 * k;
-    let np = if per_node { k } else { 0 };
-    let w_resp = probes + np;
-    let (report, w_req) = (0, probes + np);
-    let (nodes, refs, header) = (w_req + 1, w_req + 2, w_req + 3);
+    let mut merges = Vec::with_capacity(txs.len());
     for tx in txs {
-        for (s, at) in starts.iter_mut().zip(&outs.beats) {
-            s.push(at.len());
-        }
+        merges.push(merger_beats(&c.design, &ml, tx).map_err(golden_err)?);
         *stats.by_inputs.entry(tx.fetch.len()).or_default() += 1;
-        ins.beats[0].push(tx.cfg.pack(&ml).map_err(golden_err)?);
-        for r in tx.reports() {
-            outs.beats[report].push(r.pack(&ml.top).map_err(golden_err)?);
-        }
         let mut refused = tx.chosen.is_none();
         if let ModulePass::PerNode(pn) = &tx.module {
-            for r in &pn.reports {
-                outs.beats[report].push(r.pack(&pl).map_err(golden_err)?);
-            }
             refused = pn.passes == 0;
             stats.multi_pass += (pn.passes > 1) as usize;
             stats.descents += pn
@@ -312,49 +169,7 @@ pub fn merger_streams(c: &MergerConfig, txs: &[MergerTransaction]) -> Result<Mer
                 .count() as u64;
         }
         let w = &tx.writer;
-        for n in &w.nodes {
-            outs.beats[nodes].push(node(n)?);
-        }
-        for r in &w.refs {
-            outs.beats[refs].push(rf(r)?);
-        }
-        for r in &w.ref_reqs {
-            outs.beats[w_req].push(rf(r)?);
-        }
-        for r in &w.ref_resps {
-            ins.beats[w_resp].push(rf(r)?);
-        }
-        outs.beats[header].push(tx.header.pack(&ml).map_err(golden_err)?);
-        for (i, f) in tx.fetch.iter().enumerate() {
-            let (fi, fo) = (1 + 3 * i, 1 + 3 * i);
-            for n in &f.node_resps {
-                ins.beats[fi].push(node(n)?);
-            }
-            for r in &f.ref_resps {
-                ins.beats[fi + 1].push(rf(r)?);
-            }
-            for r in &f.cref_resps {
-                ins.beats[fi + 2].push(rf(r)?);
-            }
-            for r in &f.node_reqs {
-                outs.beats[fo].push(idx(r)?);
-            }
-            for r in &f.ref_reqs {
-                outs.beats[fo + 1].push(idx(r)?);
-            }
-            for r in &f.cref_reqs {
-                outs.beats[fo + 2].push(idx(r)?);
-            }
-            if per_node {
-                for n in &f.probe_resps {
-                    ins.beats[probes + i].push(node(n)?);
-                }
-                for r in &f.probe_reqs {
-                    outs.beats[probes + i].push(idx(r)?);
-                }
-            }
-            stats.module_in += f.out.len() as u64;
-        }
+        stats.module_in += tx.fetch.iter().map(|f| f.out.len() as u64).sum::<u64>();
         stats.merges += 1;
         stats.refused += refused as usize;
         stats.fetch_errors += (tx.header.fetch_err != 0) as usize;
@@ -364,73 +179,17 @@ pub fn merger_streams(c: &MergerConfig, txs: &[MergerTransaction]) -> Result<Mer
         stats.materialized += !w.ref_reqs.is_empty() as usize;
         stats.several_roots += (w.header.roots > 1) as usize;
     }
-    for (s, at) in starts.iter_mut().zip(&outs.beats) {
-        s.push(at.len());
-    }
     Ok(MergerStreams {
-        streams: UnitStreams {
-            inputs: ins.into_streams()?,
-            outputs: outs.into_streams()?,
-            starts,
-        },
+        streams: UnitStreams::from_merges(&ports, &merges)?,
         stats,
     })
 }
 
-/// A random merge: 1..=k soups of 1..=[`MOST_TRIANGLES`] triangles, each
-/// translated at its top LOD by a random fraction of the room left (per-node
-/// mode: in half the merges every soup by the first one's fraction); drawn
-/// again while the leaves overflow the merger's leaf FIFOs (at most
-/// [`MOST_DRAWS`] times).
+/// A random merge for the merger `c` (golden's `random_merger_merge`:
+/// 1..=k soups of 1..=[`MOST_TRIANGLES`] triangles, drawn again while the
+/// leaves overflow the leaf FIFOs).
 pub fn random_merge(rng: &mut SplitMix64, c: &MergerConfig) -> Result<MergerTransaction> {
-    let p = &c.design.params;
-    let k = c.design.inputs;
-    let out_id = u8::try_from(p.hier_capacity() - 1).map_err(golden_err)?;
-    // Inputs take ids 1..=k and the merge the last id, 2^H - 1.
-    if k as u64 + 2 > p.hier_capacity() {
-        return Err(CosimError::Design {
-            what: format!(
-                "{k} inputs: random merges give them ids 1..={k} and the merge id {out_id}, so at most {} inputs fit H = {}",
-                p.hier_capacity() - 2,
-                p.hier_bits
-            ),
-        });
-    }
-    for _ in 0..MOST_DRAWS {
-        let n = 1 + rng.below(k as u64) as usize;
-        // Per-node mode: half the merges place every soup where the first
-        // goes, so that voxels are contested and passes descend.
-        let together = is_per_node(c) && rng.below(2) == 0;
-        let mut first_frac = None;
-        let mut store = HierarchyStore::new();
-        let mut table = TranslationTable::new(p.hier_capacity() as usize, p).map_err(golden_err)?;
-        let mut ids = Vec::new();
-        for r in 0..n {
-            let id = 1 + r as u8;
-            let tris = 1 + rng.below(MOST_TRIANGLES) as usize;
-            let size = 0.02 + rng.below(30) as f32 / 100.0;
-            let h = soup(p, id, tris, size, rng.next_u64());
-            let mut frac = [0, 1, 2].map(|_| rng.below(101) as f64 / 100.0);
-            if together {
-                frac = *first_frac.get_or_insert(frac);
-            }
-            table
-                .write(id as u32, place(&h, frac))
-                .map_err(golden_err)?;
-            store.insert(h).map_err(golden_err)?;
-            ids.push(id);
-        }
-        if let Ok(tx) = merger_transaction(&store, &table, &ids, c.design.mode, out_id, k, c.sizes)
-        {
-            if !tx.header.leaf_overflow {
-                return Ok(tx);
-            }
-        }
-    }
-    Err(golden_err(format!(
-        "no random merge of {MOST_DRAWS} drawn fits leaf FIFOs of 2^{} entries: expected a larger leaf_bits",
-        c.sizes.leaf_bits
-    )))
+    random_merger_merge(rng, &c.design, c.sizes).map_err(|what| CosimError::Design { what })
 }
 
 /// How one run is driven.
@@ -516,11 +275,8 @@ pub fn export_spec(
 ) -> Result<ExportSpec> {
     let streams = next_chunk(&mut SplitMix64(seed), c, count, None)?.streams;
     let design = crate::from_rtl::design_from_module(&merger_module(c)?, rtl)?;
-    let ml = MergerLayout::new(&c.design.params, c.design.inputs, c.sizes.capacity_bits)
-        .map_err(golden_err)?;
-    let pl = is_per_node(c).then(|| PerNodeLayout::new(&c.design.params));
     let (inputs, outputs) = export_streams(&streams, |name| {
-        named_fields(output_fields(&ml, pl.as_ref(), name).unwrap_or_default())
+        named_fields(output_fields(c, name).unwrap_or_default())
     });
     Ok(ExportSpec {
         design,
@@ -590,20 +346,17 @@ pub fn run(
     if let Some(patch) = &config.bench.verilog_patch {
         apply_patch(&design, patch, engine)?;
     }
-    let ml = MergerLayout::new(&c.design.params, c.design.inputs, c.sizes.capacity_bits)
-        .map_err(golden_err)?;
     let k = c.design.inputs;
-    let pn_layout = is_per_node(c).then(|| PerNodeLayout::new(&c.design.params));
     let (i, o) = (
-        input_names(k, is_per_node(c)),
-        output_names(k, is_per_node(c)),
+        merger_input_names(k, is_per_node(c)),
+        merger_output_names(k, is_per_node(c)),
     );
     let i: Vec<&str> = i.iter().map(String::as_str).collect();
     let o: Vec<&str> = o.iter().map(String::as_str).collect();
     let patched = config.bench.verilog_patch.is_some();
     let sim = ChunkedSim::new(module, design, engine, &i, &o, patched)?;
     let decode = |stream: &str, e: &Transaction, g: &Transaction| {
-        decoded_pair(&*decoder_of(&ml, pn_layout.as_ref(), stream), e, g)
+        decoded_pair(&*decoder_of(c, stream), e, g)
     };
     let mut rng = SplitMix64(config.bench.seed);
     let (seed, count) = (config.bench.seed, config.count as u64);
@@ -659,10 +412,7 @@ mod tests {
     }
 
     fn fields_tile(c: &MergerConfig) {
-        let pl = PerNodeLayout::new(&c.design.params);
-        let pn = is_per_node(c).then_some(&pl);
-        let ml =
-            MergerLayout::new(&c.design.params, c.design.inputs, c.sizes.capacity_bits).unwrap();
+        let per_node = is_per_node(c);
         let mut rng = SplitMix64(5);
         let txs: Vec<_> = (0..30)
             .map(|_| random_merge(&mut rng, c).unwrap())
@@ -670,7 +420,7 @@ mod tests {
         let streams = merger_streams(c, &txs).unwrap().streams;
         let mut checked = 0;
         for out in &streams.outputs {
-            let fields = output_fields(&ml, pn, &out.name).unwrap();
+            let fields = output_fields(c, &out.name).unwrap();
             let mut end = 0;
             for f in &fields {
                 assert_eq!(
@@ -690,12 +440,9 @@ mod tests {
             checked += 1;
         }
         assert!(checked >= streams.outputs.len() - c.design.inputs);
-        assert_eq!(output_fields(&ml, pn, "f9_node_req"), None);
-        assert_eq!(output_fields(&ml, pn, "f9_probe_req"), None);
-        assert_eq!(output_fields(&ml, pn, "cfg"), None);
-        assert_eq!(
-            output_fields(&ml, pn, "f0_probe_req").is_some(),
-            pn.is_some()
-        );
+        assert_eq!(output_fields(c, "f9_node_req"), None);
+        assert_eq!(output_fields(c, "f9_probe_req"), None);
+        assert_eq!(output_fields(c, "cfg"), None);
+        assert_eq!(output_fields(c, "f0_probe_req").is_some(), per_node);
     }
 }

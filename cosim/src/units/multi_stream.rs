@@ -35,13 +35,7 @@ pub fn decode_fields(bits: &BitVec, fields: &[(String, Field)]) -> Vec<(String, 
         .collect()
 }
 
-/// A layout's fields named by their own names.
-pub fn named(fields: impl IntoIterator<Item = Field>) -> Vec<(String, Field)> {
-    fields
-        .into_iter()
-        .map(|f| (f.name.to_string(), f))
-        .collect()
-}
+pub use golden::vectors::streams::named;
 
 /// Decodes a single-payload beat with `fields` (a beat without payload
 /// decodes to nothing).

@@ -18,6 +18,8 @@
 
 pub mod classes;
 pub mod merge;
+pub mod stream_file;
+pub mod streams;
 pub mod translate;
 
 #[cfg(test)]
@@ -54,7 +56,7 @@ impl UnitKind {
     pub fn max_count(self) -> u64 {
         match self {
             UnitKind::Translate => MAX_COUNT,
-            UnitKind::Merge => MAX_MERGE_COUNT,
+            UnitKind::Merge | UnitKind::MergeModule | UnitKind::Merger => MAX_MERGE_COUNT,
         }
     }
 }
@@ -118,6 +120,12 @@ pub enum UnitKind {
     Translate,
     /// The merging module's stream stages (SPEC 8.9); records in [`merge`].
     Merge,
+    /// The whole merging module (SPEC 8.10), one merge per record; records
+    /// in [`stream_file`].
+    MergeModule,
+    /// The hierarchy merger top (SPEC 8.15), one merge per record; records
+    /// in [`stream_file`].
+    Merger,
 }
 
 impl UnitKind {
@@ -126,6 +134,8 @@ impl UnitKind {
         match self {
             UnitKind::Translate => "translate",
             UnitKind::Merge => "merge",
+            UnitKind::MergeModule => "merge_module",
+            UnitKind::Merger => "hierarchy_merger",
         }
     }
 
@@ -133,6 +143,8 @@ impl UnitKind {
         match s {
             "translate" => Some(UnitKind::Translate),
             "merge" => Some(UnitKind::Merge),
+            "merge_module" => Some(UnitKind::MergeModule),
+            "hierarchy_merger" => Some(UnitKind::Merger),
             _ => None,
         }
     }
@@ -568,6 +580,34 @@ impl<'a> Fields<'a> {
         );
         let s = self.string(key).map_err(|_| self.bad(key, &expected))?;
         wide_from_hex(s, width).ok_or_else(|| self.bad(key, &expected))
+    }
+
+    /// The keys of this object, in file order.
+    pub fn keys(&self) -> impl Iterator<Item = &'a str> + 'a {
+        self.obj.keys().map(String::as_str)
+    }
+
+    /// The length of the array field `key`.
+    pub fn array_len(&self, key: &str) -> Result<usize, VectorError> {
+        self.get(key)?
+            .as_array()
+            .map(Vec::len)
+            .ok_or_else(|| self.bad(key, "an array"))
+    }
+
+    /// Element `i` of the array field `key`, an object, for decoding its
+    /// own fields (named `key[i].field`).
+    pub fn item(&self, key: &str, i: usize) -> Result<Fields<'a>, VectorError> {
+        let at = format!("{key}[{i}]");
+        match self.get(key)?.as_array().and_then(|a| a.get(i)) {
+            Some(Value::Object(obj)) => Ok(Fields {
+                path: self.path,
+                line: self.line,
+                prefix: self.name(&at),
+                obj,
+            }),
+            _ => Err(self.bad(&at, "an object of fields")),
+        }
     }
 
     /// The object field `key`, for decoding its own fields.

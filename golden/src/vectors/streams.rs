@@ -1,0 +1,562 @@
+//! The multi-stream units' ports and random merges (SPEC.md 8.10, 8.14,
+//! 8.15): the merging module (`cfg`, `in0`.. in; `report`, `out` out) and
+//! the hierarchy merger (`cfg`, the fetchers' store responses, `w_ref_resp`
+//! in; `report`, the store requests, `nodes`, `refs`, `header` out). Every
+//! stream's beat is named field by field from golden's layouts
+//! ([`StreamLayout`]); a merge is the packed beats it puts on every stream
+//! ([`MergeBeats`]). The cosim benches and the vector files
+//! ([`super::stream_file`]) both draw their merges from here.
+
+use crate::layout::{Bits, Field};
+use crate::merge::fetch_unit::FetchLayout;
+use crate::merge::merger_unit::{
+    merger_transaction, MergerLayout, MergerSizes, MergerTransaction, ModulePass,
+};
+use crate::merge::per_node_unit::{random_per_node_case, PerNodeLayout};
+use crate::merge::stimulus::{place, soup};
+use crate::merge::top::{random_top_transaction, TopLayout};
+use crate::merge::unit::BeatLayout;
+use crate::merge::MergeMode;
+use crate::store::{HierarchyStore, NodeRecord, Reference};
+use crate::translate::stimulus::SplitMix64;
+use crate::translate::TranslationTable;
+
+use super::merge::MergeDesign;
+
+/// Most voxels of a random level of the merging module's merges.
+pub const DEFAULT_MOST_VOXELS: usize = 12;
+
+/// LODs below `lo` of a random per-node merge's trees: deep enough for
+/// merges of several passes.
+pub const PER_NODE_DEPTH: u8 = 4;
+
+/// Most soups in a random merger merge is the merger's `k`; most triangles per soup.
+pub const MOST_TRIANGLES: u64 = 40;
+
+/// Random merger merges drawn before giving up on one whose leaves fit the
+/// leaf FIFOs (the merger's `leaf_bits` too small for the random scenes).
+pub const MOST_DRAWS: usize = 1000;
+
+/// A beat's fields by name, in bit order, tiling it from bit 0.
+pub type NamedFields = Vec<(String, Field)>;
+
+/// A layout's fields named by their own names.
+pub fn named(fields: impl IntoIterator<Item = Field>) -> NamedFields {
+    fields
+        .into_iter()
+        .map(|f| (f.name.to_string(), f))
+        .collect()
+}
+
+fn shifted(f: &Field, by: u32) -> Field {
+    Field {
+        offset: f.offset + by,
+        ..*f
+    }
+}
+
+/// One stream of a unit: its port name (`<name>_valid/_ready/_data`), its
+/// beat's fields and width.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct StreamLayout {
+    /// The stream's name.
+    pub name: String,
+    /// The beat's fields, in bit order.
+    pub fields: NamedFields,
+    /// The beat's width in bits.
+    pub width: u32,
+}
+
+impl StreamLayout {
+    fn new(name: impl Into<String>, fields: NamedFields, width: u32) -> StreamLayout {
+        StreamLayout {
+            name: name.into(),
+            fields,
+            width,
+        }
+    }
+}
+
+/// A unit's streams, in port order.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct UnitPorts {
+    /// Input streams; the first is `cfg` (one beat per merge).
+    pub inputs: Vec<StreamLayout>,
+    /// Output streams.
+    pub outputs: Vec<StreamLayout>,
+}
+
+/// One merge's beats on every stream of a unit, in [`UnitPorts`] order.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MergeBeats {
+    /// Per input stream, the beats driven, in stream order.
+    pub inputs: Vec<Vec<Bits>>,
+    /// Per output stream, the beats expected, in stream order.
+    pub outputs: Vec<Vec<Bits>>,
+}
+
+fn layout_err(what: impl std::fmt::Display) -> String {
+    what.to_string()
+}
+
+fn pack_all<T>(
+    items: &[T],
+    pack: impl Fn(&T) -> Result<Bits, crate::layout::LayoutError>,
+) -> Result<Vec<Bits>, String> {
+    items.iter().map(|x| pack(x).map_err(layout_err)).collect()
+}
+
+/// An S614 beat's fields by name: the node record's (`rec.*`), the
+/// reference's (`ref.*`), `kind` and, on output beats, `err`.
+pub fn level_beat_fields(l: &BeatLayout) -> NamedFields {
+    let mut fields: NamedFields = l
+        .node
+        .fields()
+        .map(|f| (format!("rec.{}", f.name), shifted(f, l.rec.offset)))
+        .collect();
+    fields.extend(
+        l.reference
+            .fields()
+            .map(|f| (format!("ref.{}", f.name), shifted(f, l.refer.offset))),
+    );
+    fields.push(("kind".into(), l.kind));
+    fields.extend(l.err.map(|f| ("err".to_string(), f)));
+    fields
+}
+
+/// The merging module's `report` fields in bit order ([`TopLayout`]).
+pub fn top_report_fields(l: &TopLayout) -> Vec<Field> {
+    vec![
+        l.lod, l.shared, l.union, l.above, l.overflow, l.chosen, l.err,
+    ]
+}
+
+/// The per-node module's `report` fields in bit order (8.14).
+pub fn per_node_report_fields(l: &PerNodeLayout) -> Vec<Field> {
+    let mut v = l.coord.to_vec();
+    v.extend([
+        l.lod, l.shared, l.union, l.descend, l.pass_end, l.more, l.err,
+    ]);
+    v
+}
+
+/// Whether `d` merges per node (its `report` and inputs are 8.14's).
+pub fn is_per_node(d: &MergeDesign) -> bool {
+    matches!(d.mode, MergeMode::PerNode { .. })
+}
+
+/// The merging module's `report` stream ([`TopLayout`]; per-node:
+/// [`PerNodeLayout`]).
+pub fn module_report(d: &MergeDesign) -> StreamLayout {
+    if is_per_node(d) {
+        let l = PerNodeLayout::new(&d.params);
+        StreamLayout::new("report", named(per_node_report_fields(&l)), l.report_width)
+    } else {
+        let l = TopLayout::new(&d.params);
+        StreamLayout::new("report", named(top_report_fields(&l)), l.report_width)
+    }
+}
+
+/// The merging module's streams (`merge_module_unit`, SPEC 8.10): `cfg`
+/// (`lo`, `hi`), `in0`..`in{k-1}` (S614 input beats; per-node: and
+/// `probe`) in; `report`, `out` (S614 output beats) out.
+pub fn module_ports(d: &MergeDesign) -> UnitPorts {
+    let p = &d.params;
+    let tl = TopLayout::new(p);
+    let input = if is_per_node(d) {
+        let pl = PerNodeLayout::new(p);
+        let mut f = level_beat_fields(&pl.beat);
+        f.push(("probe".into(), pl.probe));
+        (f, pl.in_width)
+    } else {
+        let li = BeatLayout::input(p);
+        (level_beat_fields(&li), li.width)
+    };
+    let lo = BeatLayout::output(p);
+    let mut inputs = vec![StreamLayout::new(
+        "cfg",
+        named([tl.lo, tl.hi]),
+        tl.cfg_width,
+    )];
+    inputs.extend(
+        (0..d.inputs).map(|i| StreamLayout::new(format!("in{i}"), input.0.clone(), input.1)),
+    );
+    UnitPorts {
+        inputs,
+        outputs: vec![
+            module_report(d),
+            StreamLayout::new("out", level_beat_fields(&lo), lo.width),
+        ],
+    }
+}
+
+/// One random merge of the merging module `d`, packed: per-node
+/// configurations draw a `random_per_node_case` (trees [`PER_NODE_DEPTH`]
+/// LODs deep, SPEC 8.14), the others a `random_top_transaction` (levels
+/// of at most `most_voxels` voxels, SPEC 8.10).
+pub fn module_merge(
+    rng: &mut SplitMix64,
+    d: &MergeDesign,
+    most_voxels: usize,
+) -> Result<MergeBeats, String> {
+    let p = &d.params;
+    let (tl, lo) = (TopLayout::new(p), BeatLayout::output(p));
+    let (cfg, mut inputs, reports, out) = if let MergeMode::PerNode { num, den } = d.mode {
+        let pl = PerNodeLayout::new(p);
+        let tx = random_per_node_case(rng, p, d.inputs, PER_NODE_DEPTH)
+            .transaction(p, num, den)
+            .map_err(layout_err)?;
+        let ins = tx
+            .inputs
+            .iter()
+            .map(|beats| pack_all(beats, |b| b.pack(&pl)))
+            .collect::<Result<Vec<_>, _>>()?;
+        let cfg = tl.pack_cfg(tx.lo, tx.hi).map_err(layout_err)?;
+        (
+            cfg,
+            ins,
+            pack_all(&tx.reports, |r| r.pack(&pl))?,
+            pack_all(&tx.out, |b| b.pack(&lo))?,
+        )
+    } else {
+        let li = BeatLayout::input(p);
+        let tx =
+            random_top_transaction(rng, p, d.inputs, &d.mode, most_voxels).map_err(layout_err)?;
+        let ins = tx
+            .inputs
+            .iter()
+            .map(|beats| pack_all(beats, |b| b.pack(&li)))
+            .collect::<Result<Vec<_>, _>>()?;
+        let cfg = tl.pack_cfg(tx.lo, tx.hi).map_err(layout_err)?;
+        (
+            cfg,
+            ins,
+            pack_all(&tx.reports, |r| r.pack(&tl))?,
+            pack_all(&tx.out, |b| b.pack(&lo))?,
+        )
+    };
+    inputs.insert(0, vec![cfg]);
+    Ok(MergeBeats {
+        inputs,
+        outputs: vec![reports, out],
+    })
+}
+
+/// A store read request (`f{i}_node_req`, `_ref_req`, `_cref_req`,
+/// `_probe_req`): the whole beat is the index read.
+pub fn index_field(fl: &FetchLayout) -> Field {
+    Field {
+        name: "index",
+        offset: 0,
+        width: fl.index_width,
+    }
+}
+
+/// The merger's `header` beat's fields in bit order: the writer's header,
+/// then the merger's flags.
+pub fn header_fields(ml: &MergerLayout) -> Vec<Field> {
+    let w = &ml.writer;
+    vec![
+        w.h_out_id,
+        w.h_top,
+        w.h_roots,
+        w.h_nodes,
+        w.h_refs,
+        w.h_err,
+        ml.leaf_overflow,
+        ml.count_overflow,
+        ml.fetch_err,
+        ml.fetch_rank,
+    ]
+}
+
+/// The merger's `cfg` fields in bit order: `input<i>.*` (each a fetcher
+/// `cfg` beat), `count`, `lo`, `hi`, `out_id`.
+pub fn merger_cfg_fields(ml: &MergerLayout) -> NamedFields {
+    let fl = &ml.fetch;
+    let mut v = NamedFields::new();
+    for i in 0..ml.k {
+        let at = ml.input_offset(i);
+        for f in [fl.hier, fl.roots, fl.top, fl.nodes, fl.refs, fl.entry] {
+            v.push((format!("input{i}.{}", f.name), shifted(&f, at)));
+        }
+    }
+    v.extend(named([ml.count, ml.lo, ml.hi, ml.out_id]));
+    v
+}
+
+/// The merger's input stream names: `cfg`, per fetcher `f{i}_node_resp`,
+/// `f{i}_ref_resp`, `f{i}_cref_resp`, then (per-node mode) every
+/// `f{i}_probe_resp`, then `w_ref_resp`.
+pub fn merger_input_names(k: usize, per_node: bool) -> Vec<String> {
+    let mut v = vec!["cfg".to_string()];
+    for i in 0..k {
+        v.extend(["node_resp", "ref_resp", "cref_resp"].map(|s| format!("f{i}_{s}")));
+    }
+    if per_node {
+        v.extend((0..k).map(|i| format!("f{i}_probe_resp")));
+    }
+    v.push("w_ref_resp".into());
+    v
+}
+
+/// The merger's output stream names: `report`, per fetcher `f{i}_node_req`,
+/// `f{i}_ref_req`, `f{i}_cref_req`, then (per-node mode) every
+/// `f{i}_probe_req`, then `w_ref_req`, `nodes`, `refs`, `header` (always last).
+pub fn merger_output_names(k: usize, per_node: bool) -> Vec<String> {
+    let mut v = vec!["report".to_string()];
+    for i in 0..k {
+        v.extend(["node_req", "ref_req", "cref_req"].map(|s| format!("f{i}_{s}")));
+    }
+    if per_node {
+        v.extend((0..k).map(|i| format!("f{i}_probe_req")));
+    }
+    v.extend(["w_ref_req", "nodes", "refs", "header"].map(String::from));
+    v
+}
+
+/// The merger's layout for `d` and `sizes`.
+pub fn merger_layout(d: &MergeDesign, sizes: &MergerSizes) -> Result<MergerLayout, String> {
+    MergerLayout::new(&d.params, d.inputs, sizes.capacity_bits).map_err(layout_err)
+}
+
+/// The fields of the merger's stream `name` (input or output), from
+/// golden's layouts: `cfg` ([`merger_cfg_fields`]), `report` the merging
+/// module's, a store request an index, a node response or `nodes` a node
+/// record, a reference response, `w_ref_req` or `refs` a reference,
+/// `header` ([`header_fields`]); None for a name that is no stream of it.
+pub fn merger_stream(ml: &MergerLayout, d: &MergeDesign, name: &str) -> Option<StreamLayout> {
+    let per_node = is_per_node(d);
+    let fl = &ml.fetch;
+    let node = || named(fl.node.fields().copied());
+    let reference = || named(fl.reference.fields().copied());
+    let (fields, width) = match name {
+        "cfg" => (merger_cfg_fields(ml), ml.cfg_width),
+        "report" => {
+            let r = module_report(d);
+            (r.fields, r.width)
+        }
+        "nodes" => (node(), fl.node.width()),
+        "w_ref_req" | "refs" | "w_ref_resp" => (reference(), fl.reference.width()),
+        "header" => (named(header_fields(ml)), ml.header_width),
+        s if merger_input_names(ml.k, per_node).iter().any(|n| n == s) => {
+            if s.ends_with("node_resp") || s.ends_with("probe_resp") {
+                (node(), fl.node.width())
+            } else {
+                (reference(), fl.reference.width())
+            }
+        }
+        s if merger_output_names(ml.k, per_node).iter().any(|n| n == s) => {
+            (named([index_field(fl)]), fl.index_width)
+        }
+        _ => return None,
+    };
+    Some(StreamLayout::new(name, fields, width))
+}
+
+/// The hierarchy merger's streams (`hierarchy_merger_unit`, SPEC 8.15).
+pub fn merger_ports(d: &MergeDesign, sizes: &MergerSizes) -> Result<UnitPorts, String> {
+    let ml = merger_layout(d, sizes)?;
+    let per_node = is_per_node(d);
+    let of = |names: Vec<String>| {
+        names
+            .iter()
+            .map(|n| merger_stream(&ml, d, n).expect("a stream of the merger"))
+            .collect()
+    };
+    Ok(UnitPorts {
+        inputs: of(merger_input_names(d.inputs, per_node)),
+        outputs: of(merger_output_names(d.inputs, per_node)),
+    })
+}
+
+/// The beats of merge `tx` on every stream of the merger `d` (layout `ml`),
+/// in [`merger_input_names`] / [`merger_output_names`] order.
+pub fn merger_beats(
+    d: &MergeDesign,
+    ml: &MergerLayout,
+    tx: &MergerTransaction,
+) -> Result<MergeBeats, String> {
+    let k = d.inputs;
+    let per_node = is_per_node(d);
+    let fl = &ml.fetch;
+    let index_field = index_field(fl);
+    let idx = |i: &u32| -> Result<Bits, String> {
+        let mut b = Bits::zero(fl.index_width);
+        b.set(&index_field, *i as u64).map_err(layout_err)?;
+        Ok(b)
+    };
+    let node = |n: &NodeRecord| n.pack(&fl.node).map_err(layout_err);
+    let rf = |r: &Reference| r.pack(&fl.reference).map_err(layout_err);
+    let np = if per_node { k } else { 0 };
+    let mut ins = vec![Vec::new(); 2 + 3 * k + np];
+    let mut outs = vec![Vec::new(); 5 + 3 * k + np];
+    // The probe ports (per-node mode) sit between the fetchers' and the
+    // writer's streams.
+    let probes = 1 + 3 * k;
+    let w_resp = probes + np;
+    let (report, w_req) = (0, probes + np);
+    let (nodes, refs, header) = (w_req + 1, w_req + 2, w_req + 3);
+    ins[0].push(tx.cfg.pack(ml).map_err(layout_err)?);
+    for r in tx.reports() {
+        outs[report].push(r.pack(&ml.top).map_err(layout_err)?);
+    }
+    if let ModulePass::PerNode(pn) = &tx.module {
+        let pl = PerNodeLayout::new(&d.params);
+        for r in &pn.reports {
+            outs[report].push(r.pack(&pl).map_err(layout_err)?);
+        }
+    }
+    let w = &tx.writer;
+    for (lane, items) in [(nodes, &w.nodes)] {
+        for n in items {
+            outs[lane].push(node(n)?);
+        }
+    }
+    for (lane, items) in [(refs, &w.refs), (w_req, &w.ref_reqs)] {
+        for r in items {
+            outs[lane].push(rf(r)?);
+        }
+    }
+    for r in &w.ref_resps {
+        ins[w_resp].push(rf(r)?);
+    }
+    outs[header].push(tx.header.pack(ml).map_err(layout_err)?);
+    for (i, f) in tx.fetch.iter().enumerate() {
+        let at = 1 + 3 * i;
+        for n in &f.node_resps {
+            ins[at].push(node(n)?);
+        }
+        for (lane, items) in [(at + 1, &f.ref_resps), (at + 2, &f.cref_resps)] {
+            for r in items {
+                ins[lane].push(rf(r)?);
+            }
+        }
+        for (lane, items) in [
+            (at, &f.node_reqs),
+            (at + 1, &f.ref_reqs),
+            (at + 2, &f.cref_reqs),
+        ] {
+            for r in items {
+                outs[lane].push(idx(r)?);
+            }
+        }
+        if per_node {
+            for n in &f.probe_resps {
+                ins[probes + i].push(node(n)?);
+            }
+            for r in &f.probe_reqs {
+                outs[probes + i].push(idx(r)?);
+            }
+        }
+    }
+    Ok(MergeBeats {
+        inputs: ins,
+        outputs: outs,
+    })
+}
+
+/// A random merge of the merger `d` (sizes `sizes`): 1..=k soups of
+/// 1..=[`MOST_TRIANGLES`] triangles, each translated at its top LOD by a
+/// random fraction of the room left (per-node mode: in half the merges
+/// every soup by the first one's fraction); drawn again while the leaves
+/// overflow the merger's leaf FIFOs (at most [`MOST_DRAWS`] times).
+pub fn random_merger_merge(
+    rng: &mut SplitMix64,
+    d: &MergeDesign,
+    sizes: MergerSizes,
+) -> Result<MergerTransaction, String> {
+    let p = &d.params;
+    let k = d.inputs;
+    let out_id = u8::try_from(p.hier_capacity() - 1).map_err(layout_err)?;
+    // Inputs take ids 1..=k and the merge the last id, 2^H - 1.
+    if k as u64 + 2 > p.hier_capacity() {
+        return Err(format!(
+            "{k} inputs: random merges give them ids 1..={k} and the merge id {out_id}, so at most {} inputs fit H = {}",
+            p.hier_capacity() - 2,
+            p.hier_bits
+        ));
+    }
+    for _ in 0..MOST_DRAWS {
+        let n = 1 + rng.below(k as u64) as usize;
+        // Per-node mode: half the merges place every soup where the first
+        // goes, so that voxels are contested and passes descend.
+        let together = is_per_node(d) && rng.below(2) == 0;
+        let mut first_frac = None;
+        let mut store = HierarchyStore::new();
+        let mut table = TranslationTable::new(p.hier_capacity() as usize, p).map_err(layout_err)?;
+        let mut ids = Vec::new();
+        for r in 0..n {
+            let id = 1 + r as u8;
+            let tris = 1 + rng.below(MOST_TRIANGLES) as usize;
+            let size = 0.02 + rng.below(30) as f32 / 100.0;
+            let h = soup(p, id, tris, size, rng.next_u64());
+            let mut frac = [0, 1, 2].map(|_| rng.below(101) as f64 / 100.0);
+            if together {
+                frac = *first_frac.get_or_insert(frac);
+            }
+            table
+                .write(id as u32, place(&h, frac))
+                .map_err(layout_err)?;
+            store.insert(h).map_err(layout_err)?;
+            ids.push(id);
+        }
+        if let Ok(tx) = merger_transaction(&store, &table, &ids, d.mode, out_id, k, sizes) {
+            if !tx.header.leaf_overflow {
+                return Ok(tx);
+            }
+        }
+    }
+    Err(format!(
+        "no random merge of {MOST_DRAWS} drawn fits leaf FIFOs of 2^{} entries: expected a larger leaf_bits",
+        sizes.leaf_bits
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tiles(s: &StreamLayout) {
+        let mut end = 0;
+        for (n, f) in &s.fields {
+            assert_eq!(f.offset, end, "`{}`: field {n} not adjacent", s.name);
+            end = f.end();
+        }
+        assert_eq!(end, s.width, "`{}`", s.name);
+    }
+
+    /// Every stream's fields tile its beat, and every beat of random
+    /// merges is packed at its stream's width.
+    #[test]
+    fn stream_fields_tile_every_beat() {
+        let modes = [
+            MergeMode::Overlap { num: 1, den: 2 },
+            MergeMode::PerNode { num: 1, den: 2 },
+        ];
+        for mode in modes {
+            let d = MergeDesign {
+                mode,
+                ..MergeDesign::default()
+            };
+            let ports = module_ports(&d);
+            let mut rng = SplitMix64(3);
+            let m = module_merge(&mut rng, &d, 6).unwrap();
+            let sizes = MergerSizes::new(&d.params);
+            let mp = merger_ports(&d, &sizes).unwrap();
+            let ml = merger_layout(&d, &sizes).unwrap();
+            let tx = random_merger_merge(&mut rng, &d, sizes).unwrap();
+            let mb = merger_beats(&d, &ml, &tx).unwrap();
+            for (ports, m) in [(&ports, &m), (&mp, &mb)] {
+                assert_eq!(ports.inputs.len(), m.inputs.len());
+                assert_eq!(ports.outputs.len(), m.outputs.len());
+                let all = ports.inputs.iter().zip(&m.inputs);
+                for (s, beats) in all.chain(ports.outputs.iter().zip(&m.outputs)) {
+                    tiles(s);
+                    assert!(beats.iter().all(|b| b.width() == s.width), "{}", s.name);
+                }
+            }
+            assert_eq!(merger_stream(&ml, &d, "f9_node_req"), None);
+        }
+    }
+}

@@ -367,26 +367,41 @@ fn bad_input_is_one_clear_error() {
 #[test]
 fn vectors_are_written_with_a_header_and_one_record_per_transaction() {
     let dir = tempfile::tempdir().unwrap();
-    for unit in ["translate", "merge"] {
-        let path = dir.path().join(format!("{unit}.jsonl"));
-        let v = json(&[
-            "vectors",
-            "--unit",
-            unit,
-            "--seed",
-            "9",
-            "--count",
-            "300",
-            "--out",
-            path.to_str().unwrap(),
-            "--json",
-        ]);
-        assert_eq!(v["count"], 300);
+    // (--unit, extra flags, the header's `unit`, records)
+    let cases: [(&str, &[&str], &str, u64); 4] = [
+        ("translate", &[], "translate", 300),
+        ("merge", &[], "merge_module", 12),
+        ("merge", &["--stage", "merge-level"], "merge", 40),
+        ("merger", &[], "hierarchy_merger", 3),
+    ];
+    for (n, (unit, extra, records, count)) in cases.into_iter().enumerate() {
+        let write = |name: &str| {
+            let path = dir.path().join(format!("{n}{name}.jsonl"));
+            let count = count.to_string();
+            let mut args = vec![
+                "vectors",
+                "--unit",
+                unit,
+                "--seed",
+                "9",
+                "--count",
+                &count,
+                "--out",
+                path.to_str().unwrap(),
+                "--json",
+            ];
+            args.extend(extra);
+            let v = json(&args);
+            assert_eq!(v["count"], count.parse::<u64>().unwrap());
+            assert_eq!(v["records"], records);
+            path
+        };
+        let path = write("a");
         let text = std::fs::read_to_string(&path).unwrap();
         let lines: Vec<&str> = text.lines().collect();
-        assert_eq!(lines.len(), 301, "{unit}: header + 300 records");
+        assert_eq!(lines.len() as u64, count + 1, "{unit}: header + records");
         let header: Value = serde_json::from_str(lines[0]).unwrap();
-        assert_eq!(header["unit"], unit);
+        assert_eq!(header["unit"], records);
         assert_eq!(header["seed"], 9);
         assert_eq!(header["params"]["max_lod"], 16);
         for l in &lines[1..] {
@@ -394,19 +409,7 @@ fn vectors_are_written_with_a_header_and_one_record_per_transaction() {
             assert!(r.is_object());
         }
         // The same seed gives the same file.
-        let again = dir.path().join(format!("{unit}2.jsonl"));
-        json(&[
-            "vectors",
-            "--unit",
-            unit,
-            "--seed",
-            "9",
-            "--count",
-            "300",
-            "--out",
-            again.to_str().unwrap(),
-            "--json",
-        ]);
+        let again = write("b");
         assert_eq!(
             std::fs::read(&path).unwrap(),
             std::fs::read(&again).unwrap()
@@ -420,6 +423,72 @@ fn vectors_are_written_with_a_header_and_one_record_per_transaction() {
         "/no/such/dir/v.jsonl",
     ]);
     assert!(e.contains("/no/such/dir"), "{e}");
+}
+
+/// `--mode` chooses the merging module the vectors are for: another mode
+/// is another file (its header names the mode, its records differ), for
+/// the module and the merger; a mode, count or flag the unit does not take
+/// is refused, naming it and what was expected.
+#[test]
+fn vectors_follow_the_mode_and_refuse_bad_options() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let write = |unit: &str, mode: &str, name: &str| {
+        let path = d.join(name);
+        json(&[
+            "vectors",
+            "--unit",
+            unit,
+            "--mode",
+            mode,
+            "--count",
+            "3",
+            "--out",
+            path.to_str().unwrap(),
+            "--json",
+        ]);
+        let text = std::fs::read_to_string(&path).unwrap();
+        let header: Value = serde_json::from_str(text.lines().next().unwrap()).unwrap();
+        assert_eq!(header["params"]["mode"], mode, "{unit}");
+        text.lines().skip(1).map(String::from).collect::<Vec<_>>()
+    };
+    for unit in ["merge", "merger"] {
+        let overlap = write(unit, "overlap:1/2", "o.jsonl");
+        for mode in ["fixed:3", "per-node:1/2"] {
+            let other = write(unit, mode, "m.jsonl");
+            assert_ne!(overlap, other, "{unit} --mode {mode}: the same records");
+        }
+    }
+    let out = d.join("x.jsonl");
+    let out = out.to_str().unwrap();
+    for (args, want) in [
+        (
+            vec!["--unit", "merge", "--mode", "sideways"],
+            "--mode `sideways`: unknown mode; expected overlap",
+        ),
+        (
+            vec!["--unit", "merger", "--mode", "fixed"],
+            "--mode `fixed`: expected fixed:LEVEL",
+        ),
+        (
+            vec!["--unit", "merge", "--count", "0"],
+            "--count 0: expected at least one transaction",
+        ),
+        (
+            vec!["--unit", "merger", "--stage", "merge-level"],
+            "--stage applies to --unit merge only",
+        ),
+        (
+            vec!["--unit", "merge", "--leaf-bits", "4"],
+            "--leaf-bits apply to --unit merger only",
+        ),
+    ] {
+        let mut all = vec!["vectors", "--out", out];
+        all.extend(&args);
+        let e = fails(&all);
+        assert!(e.contains(want), "{args:?}: {e}");
+    }
+    assert!(!d.join("x.jsonl").exists());
 }
 
 #[test]

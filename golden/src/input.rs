@@ -18,6 +18,10 @@ pub const MAX_MESH_BYTES: u64 = 256 << 20;
 pub const MAX_JSON_BYTES: u64 = 16 << 20;
 /// The most bytes one line of a streamed file (a vector record) may have (1 MiB).
 pub const MAX_LINE_BYTES: u64 = 1 << 20;
+/// The most bytes one record of a multi-stream unit's vector file (every
+/// beat of one merge) may have (64 MiB): a per-node merge of the largest
+/// grids runs to a few MB.
+pub const MAX_MERGE_LINE_BYTES: u64 = 64 << 20;
 
 /// A file that cannot be read as input: `expected` says what was wanted,
 /// `found` what the file is.
@@ -129,11 +133,13 @@ pub fn read_text(path: &Path, limit: u64) -> Result<String, InputError> {
     })
 }
 
-/// A regular file read line by line, each line at most [`MAX_LINE_BYTES`].
+/// A regular file read line by line, each line at most [`MAX_LINE_BYTES`]
+/// (or the limit [`Lines::with_line_limit`] sets).
 pub struct Lines {
     reader: BufReader<File>,
     path: std::path::PathBuf,
     line: u64,
+    line_limit: u64,
 }
 
 /// Opens `path` (a regular file of any size up to `limit`) for [`Lines`].
@@ -142,18 +148,27 @@ pub fn open_lines(path: &Path, limit: u64) -> Result<Lines, InputError> {
         reader: BufReader::new(open_regular(path, limit)?),
         path: path.to_path_buf(),
         line: 0,
+        line_limit: MAX_LINE_BYTES,
     })
 }
 
 impl Lines {
+    /// These lines with at most `bytes` bytes each.
+    pub fn with_line_limit(self, bytes: u64) -> Lines {
+        Lines {
+            line_limit: bytes,
+            ..self
+        }
+    }
+
     /// The next line without its `\n`, with its 1-based number; `None` at
-    /// the end. A line longer than [`MAX_LINE_BYTES`] or not UTF-8 is an
-    /// error naming the line.
+    /// the end. A line longer than the limit or not UTF-8 is an error
+    /// naming the line.
     pub fn next_line(&mut self) -> Option<Result<(u64, String), InputError>> {
         self.line += 1;
         let mut buf = Vec::new();
         let read = (&mut self.reader)
-            .take(MAX_LINE_BYTES + 1)
+            .take(self.line_limit + 1)
             .read_until(b'\n', &mut buf);
         let n = match read {
             Ok(n) => n,
@@ -164,10 +179,11 @@ impl Lines {
         }
         if buf.last() == Some(&b'\n') {
             buf.pop();
-        } else if buf.len() as u64 > MAX_LINE_BYTES {
-            let found = format!("more than {MAX_LINE_BYTES} bytes");
+        } else if buf.len() as u64 > self.line_limit {
+            let limit = self.line_limit;
+            let found = format!("more than {limit} bytes");
             return Some(Err(self.at(
-                &format!("a line of at most {MAX_LINE_BYTES} bytes (SPEC.md section 15)"),
+                &format!("a line of at most {limit} bytes (SPEC.md section 15)"),
                 found,
             )));
         }

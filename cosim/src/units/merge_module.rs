@@ -97,6 +97,18 @@ fn generate_streams_from(
     Ok(streams)
 }
 
+/// The merges of a vectors file (`hiermerge vectors --unit merge`,
+/// golden's `read_module_vectors`) for the merging module `d`, as its
+/// streams.
+pub fn streams_from_vectors(d: &MergeDesign, path: &Path) -> Result<UnitStreams> {
+    let merges = golden::vectors::stream_file::read_module_vectors(path, d).map_err(|e| {
+        CosimError::Design {
+            what: e.to_string(),
+        }
+    })?;
+    UnitStreams::from_merges(&module_ports(d), &merges)
+}
+
 /// The `report` beat's fields in bit order (golden's `module_report`:
 /// `TopLayout`, per-node configurations `PerNodeLayout`).
 pub fn report_fields(d: &MergeDesign) -> Vec<Field> {

@@ -325,6 +325,43 @@ fn merger_module(c: &MergerConfig) -> Result<rtl_gen::Module> {
     })
 }
 
+/// The merges of a vectors file (`hiermerge vectors --unit merger`,
+/// golden's `read_merger_vectors`) for the merger `c`, as its streams.
+pub fn streams_from_vectors(c: &MergerConfig, path: &Path) -> Result<UnitStreams> {
+    let merges = golden::vectors::stream_file::read_merger_vectors(path, &c.design, c.sizes)
+        .map_err(|e| CosimError::Design {
+            what: e.to_string(),
+        })?;
+    let ports = merger_ports(&c.design, &c.sizes).map_err(golden_err)?;
+    UnitStreams::from_merges(&ports, &merges)
+}
+
+/// Runs `streams` (merges from elsewhere: [`streams_from_vectors`])
+/// through the merger `c` on `engine` as one chunk, the Verilog written
+/// to `dir`: every output beat compared, `done` counted, `idle` checked.
+pub fn run_streams(
+    c: &MergerConfig,
+    streams: &UnitStreams,
+    engine: MergerEngine,
+    bench: &ModuleRunConfig,
+    dir: &Path,
+) -> Result<ChunkTotals> {
+    let module = merger_module(c)?;
+    let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
+    let names = |s: &[crate::tb::StreamBeats]| s.iter().map(|s| s.name.clone()).collect::<Vec<_>>();
+    let (i, o) = (names(&streams.inputs), names(&streams.outputs));
+    let i: Vec<&str> = i.iter().map(String::as_str).collect();
+    let o: Vec<&str> = o.iter().map(String::as_str).collect();
+    let sim = ChunkedSim::new(module, design, engine, &i, &o, false)?;
+    let decode = |stream: &str, e: &Transaction, g: &Transaction| {
+        decoded_pair(&*decoder_of(c, stream), e, g)
+    };
+    let mut totals = ChunkTotals::default();
+    let n = streams.merges();
+    sim.run_chunk(&mut totals, n, streams, bench, &decode, &mut |_, _| {})?;
+    Ok(totals)
+}
+
 /// Runs `config.count` random merges (seeded by `config.bench.seed`) through the
 /// merger `c` on `engine`, the Verilog written to `dir`, [`CHUNK`] merges
 /// at a time on one simulator ([`ChunkedSim`]); stops after the first chunk

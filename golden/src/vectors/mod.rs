@@ -59,6 +59,16 @@ impl UnitKind {
             UnitKind::Merge | UnitKind::MergeModule | UnitKind::Merger => MAX_MERGE_COUNT,
         }
     }
+
+    /// The most bytes one record line of this unit's files may have
+    /// (SPEC.md section 15): one merge's beats are larger than a
+    /// translation's or a stage's transaction.
+    pub fn max_line_bytes(self) -> u64 {
+        match self {
+            UnitKind::Translate | UnitKind::Merge => crate::input::MAX_LINE_BYTES,
+            UnitKind::MergeModule | UnitKind::Merger => crate::input::MAX_MERGE_LINE_BYTES,
+        }
+    }
 }
 
 /// Refuses a `count` above `limit`, naming `what` asked for it.
@@ -316,8 +326,20 @@ where
     };
     line(&header.to_json(), &mut w)?;
     let mut written = 0u64;
+    let most = header.unit.max_line_bytes();
     for r in records {
-        line(&r?, &mut w)?;
+        let text = serde_json::to_string(&r?).map_err(|e| io_error(path, "write", e))?;
+        if text.len() as u64 > most {
+            return Err(VectorError::Model {
+                what: format!(
+                    "record {written} is {} bytes, above the {most} a reader takes (SPEC.md section 15)",
+                    text.len()
+                ),
+            });
+        }
+        w.write_all(text.as_bytes())
+            .and_then(|_| w.write_all(b"\n"))
+            .map_err(|e| io_error(path, "write", e))?;
         written += 1;
     }
     if written != header.count {
@@ -359,7 +381,9 @@ pub fn read_jsonl(
         action: "read",
         message: format!("expected {}, found {}", e.expected, e.found),
     };
-    let mut lines = crate::input::open_lines(path, MAX_FILE_BYTES).map_err(input)?;
+    let mut lines = crate::input::open_lines(path, MAX_FILE_BYTES)
+        .map_err(input)?
+        .with_line_limit(unit.max_line_bytes());
     let first = match lines.next_line() {
         Some(l) => l.map_err(input)?.1,
         None => {

@@ -249,3 +249,83 @@ fn check(count: u64, valid: Result<(), String>) -> Result<(), VectorError> {
     super::check_count("--count", count, super::MAX_MERGE_COUNT)
         .map_err(|what| VectorError::Model { what })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::merge::MergeMode;
+
+    /// Rewrites record `merge`'s line of `path` with `f`.
+    fn edit(path: &Path, merge: usize, f: impl Fn(&mut Value)) {
+        let text = std::fs::read_to_string(path).unwrap();
+        let mut lines: Vec<String> = text.lines().map(String::from).collect();
+        let mut v: Value = serde_json::from_str(&lines[merge + 1]).unwrap();
+        f(&mut v);
+        lines[merge + 1] = v.to_string();
+        std::fs::write(path, lines.join("\n") + "\n").unwrap();
+    }
+
+    /// A file reads back as the merges drawn for the seed; a missing,
+    /// unknown or too wide field, an unknown stream and a misnumbered
+    /// record are refused, naming line and field.
+    #[test]
+    fn stream_vectors_round_trip_and_name_bad_fields() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.jsonl");
+        let d = MergeDesign {
+            mode: MergeMode::PerNode { num: 1, den: 2 },
+            ..MergeDesign::default()
+        };
+        write_module_vectors(&path, &d, 4, 3).unwrap();
+        let back = read_module_vectors(&path, &d).unwrap();
+        let mut rng = SplitMix64(4);
+        for m in &back {
+            assert_eq!(m, &module_merge(&mut rng, &d, DEFAULT_MOST_VOXELS).unwrap());
+        }
+        let other = MergeDesign {
+            mode: MergeMode::Fixed(2),
+            ..d
+        };
+        let e = read_module_vectors(&path, &other).unwrap_err().to_string();
+        assert!(e.contains("`mode` is \"per-node:1/2\" in the file"), "{e}");
+
+        let refused = |f: &dyn Fn(&mut Value), want: &str| {
+            let p = dir.path().join("bad.jsonl");
+            std::fs::copy(&path, &p).unwrap();
+            edit(&p, 1, f);
+            let e = read_module_vectors(&p, &d).unwrap_err().to_string();
+            assert!(e.contains(":3: field `") && e.contains(want), "{e}");
+        };
+        refused(
+            &|v| v["out"]["report"][0]["bogus"] = 1.into(),
+            "out.report[0].bogus`: expected no such field",
+        );
+        refused(
+            &|v| {
+                v["in"]["cfg"][0].as_object_mut().unwrap().remove("lo");
+            },
+            "in.cfg[0].lo`: expected a value (missing)",
+        );
+        refused(
+            &|v| v["out"]["report"][0]["err"] = 4.into(),
+            "out.report[0].err`: expected an unsigned integer of 2 bits",
+        );
+        refused(
+            &|v| v["in"]["in9"] = Value::Array(vec![]),
+            "in.in9`: expected no such stream",
+        );
+        refused(&|v| v["merge"] = 0.into(), "merge`: expected 1");
+
+        let sizes = MergerSizes::new(&d.params);
+        write_merger_vectors(&path, &d, sizes, 4, 2).unwrap();
+        assert_eq!(read_merger_vectors(&path, &d, sizes).unwrap().len(), 2);
+        let bigger = MergerSizes {
+            leaf_bits: sizes.leaf_bits + 1,
+            ..sizes
+        };
+        let e = read_merger_vectors(&path, &d, bigger)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`leaf_bits`"), "{e}");
+    }
+}

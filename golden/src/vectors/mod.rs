@@ -6,7 +6,8 @@
 //! `{"format":"hiermerge-vectors","version":1,"unit":"translate","params":{...},"seed":S,"count":N}`
 //! where `params` holds every parameter of the design under test (the
 //! golden [`crate::Params`] fields and the unit's configuration). Then `N`
-//! record lines follow; their schema belongs to the unit ([`translate`]).
+//! record lines follow; their schema belongs to the unit ([`translate`],
+//! [`merge`], [`stream_file`]).
 //!
 //! Bit fields are JSON integers when at most 64 bits wide, and hex strings
 //! `"0x..."` (exactly `ceil(width / 4)` digits, most significant first) when
@@ -327,6 +328,7 @@ where
     line(&header.to_json(), &mut w)?;
     let mut written = 0u64;
     let most = header.unit.max_line_bytes();
+    let mut bytes = header.to_json().to_string().len() as u64 + 1;
     for r in records {
         let text = serde_json::to_string(&r?).map_err(|e| io_error(path, "write", e))?;
         if text.len() as u64 > most {
@@ -334,6 +336,14 @@ where
                 what: format!(
                     "record {written} is {} bytes, above the {most} a reader takes (SPEC.md section 15)",
                     text.len()
+                ),
+            });
+        }
+        bytes += text.len() as u64 + 1;
+        if bytes > MAX_FILE_BYTES {
+            return Err(VectorError::Model {
+                what: format!(
+                    "record {written} takes the file past {MAX_FILE_BYTES} bytes, the most a reader takes (SPEC.md section 15): expected a smaller --count"
                 ),
             });
         }

@@ -83,7 +83,7 @@ fn read_side(
     streams: &[StreamLayout],
 ) -> Result<Vec<Vec<Bits>>, VectorError> {
     let side = rec.object(key)?;
-    if let Some(extra) = side.keys().find(|k| !streams.iter().any(|s| &s.name == *k)) {
+    if let Some(extra) = side.keys().find(|k| !streams.iter().any(|s| s.name == *k)) {
         return Err(side.bad(extra, "no such stream of the unit (unknown)"));
     }
     streams
@@ -93,8 +93,7 @@ fn read_side(
             (0..n)
                 .map(|i| {
                     let beat = side.item(&s.name, i)?;
-                    if let Some(extra) = beat.keys().find(|k| !s.fields.iter().any(|f| &f.0 == *k))
-                    {
+                    if let Some(extra) = beat.keys().find(|k| !s.fields.iter().any(|f| f.0 == *k)) {
                         return Err(beat.bad(extra, "no such field of the beat (unknown)"));
                     }
                     let mut b = Bits::zero(s.width);

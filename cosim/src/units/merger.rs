@@ -35,7 +35,7 @@ use super::chunked::{ChunkedSim, UnitStreams};
 pub use super::multi_stream::ModuleEngine as MergerEngine;
 pub use super::multi_stream::ModuleMismatch as MergerMismatch;
 use super::multi_stream::{
-    apply_patch, beat_decoder, decoded_pair, export_checks, export_streams, flip_bit0, named,
+    apply_patch, beat_decoder, decoded_pair, export_checks, export_streams, named,
 };
 pub use super::multi_stream::{RunConfig as ModuleRunConfig, VerilogPatch};
 use crate::export_tb::{named_fields, ExportSpec};
@@ -236,12 +236,8 @@ impl Outcome {
 
 /// Flips bit 0 of merge `merge`'s expected `header` beat (its `out_id`).
 fn flip_header(streams: &mut UnitStreams, merge: usize) -> Result<()> {
-    let header = streams.outputs.len() - 1;
-    let at = streams.starts[header][merge];
-    match streams.outputs[header].beats.get_mut(at) {
-        Some(beat) => flip_bit0(&mut beat[0]),
-        None => Ok(()),
-    }
+    // `header` is the last output stream; every merge has its one beat.
+    streams.flip_first(streams.outputs.len() - 1, merge)
 }
 
 /// The next chunk of `n` random merges drawn from `rng`, as the merger's

@@ -459,6 +459,25 @@ fn vectors_follow_the_mode_and_refuse_bad_options() {
             assert_ne!(overlap, other, "{unit} --mode {mode}: the same records");
         }
     }
+    // `cosim --vectors` replays a file of whole merges through the module;
+    // a file of another mode is refused, naming the parameter.
+    let path = d.join("replay.jsonl");
+    let file = path.to_str().unwrap();
+    let replay = [
+        "--unit", "merge", "--inputs", "2", "--mode", "fixed:3", "--count", "3",
+    ];
+    json(&[&["vectors", "--out", file, "--json"][..], &replay].concat());
+    let cosim = ["cosim", "--engine", "ir", "--vectors", file, "--json"];
+    let r = json(&[&cosim[..], &replay[..6]].concat());
+    assert_eq!(r["passed"], true, "{r}");
+    assert_eq!(
+        (r["stage"].as_str(), r["transactions"].as_u64()),
+        (Some("merge_module"), Some(3)),
+        "{r}"
+    );
+    let e = fails(&[&cosim[..], &["--unit", "merge", "--inputs", "2"]].concat());
+    assert!(e.contains("`mode` is \"fixed:3\" in the file"), "{e}");
+
     let out = d.join("x.jsonl");
     let out = out.to_str().unwrap();
     for (args, want) in [

@@ -251,6 +251,36 @@ pub struct ChunkedSim {
     patched: bool,
 }
 
+/// Runs `streams` (merges from elsewhere: a vectors file) through the
+/// unit `module` (its Verilog in `design`) on `engine` as one chunk, its
+/// streams named as `streams` names them: every output beat compared,
+/// `done` counted, `idle` checked.
+pub fn run_streams(
+    module: rtl_gen::Module,
+    design: Design,
+    engine: ModuleEngine,
+    streams: &UnitStreams,
+    config: &RunConfig,
+    decode: &PairDecoder,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<ChunkTotals> {
+    let names = |s: &[StreamBeats]| s.iter().map(|s| s.name.clone()).collect::<Vec<_>>();
+    let (i, o) = (names(&streams.inputs), names(&streams.outputs));
+    let i: Vec<&str> = i.iter().map(String::as_str).collect();
+    let o: Vec<&str> = o.iter().map(String::as_str).collect();
+    let sim = ChunkedSim::new(module, design, engine, &i, &o, false)?;
+    let mut totals = ChunkTotals::default();
+    sim.run_chunk(
+        &mut totals,
+        streams.merges(),
+        streams,
+        config,
+        decode,
+        progress,
+    )?;
+    Ok(totals)
+}
+
 impl ChunkedSim {
     /// The unit `module` (its Verilog in `design`) on `engine`, with the
     /// named input and output streams; `patched`: the Verilog was broken on

@@ -109,6 +109,27 @@ pub fn streams_from_vectors(d: &MergeDesign, path: &Path) -> Result<UnitStreams>
     UnitStreams::from_merges(&module_ports(d), &merges)
 }
 
+/// Runs `streams` (merges from elsewhere: [`streams_from_vectors`])
+/// through the unit `d` on `engine` as one chunk, the Verilog written to
+/// `dir`: every output beat compared, `done` counted, `idle` checked.
+/// `progress` gets (merges, cycle).
+pub fn run_streams(
+    d: &MergeDesign,
+    streams: &UnitStreams,
+    engine: ModuleEngine,
+    config: &RunConfig,
+    dir: &Path,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<ChunkTotals> {
+    let module = merge_module(d);
+    crate::waves::check_scope(&module, config.wave_scope.as_deref())?;
+    let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
+    let decode = |stream: &str, e: &Transaction, g: &Transaction| {
+        decoded_pair(&*decoder_of(d, stream), e, g)
+    };
+    super::chunked::run_streams(module, design, engine, streams, config, &decode, progress)
+}
+
 /// The `report` beat's fields in bit order (golden's `module_report`:
 /// `TopLayout`, per-node configurations `PerNodeLayout`).
 pub fn report_fields(d: &MergeDesign) -> Vec<Field> {

@@ -344,18 +344,18 @@ pub fn run_streams(
 ) -> Result<ChunkTotals> {
     let module = merger_module(c)?;
     let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
-    let names = |s: &[crate::tb::StreamBeats]| s.iter().map(|s| s.name.clone()).collect::<Vec<_>>();
-    let (i, o) = (names(&streams.inputs), names(&streams.outputs));
-    let i: Vec<&str> = i.iter().map(String::as_str).collect();
-    let o: Vec<&str> = o.iter().map(String::as_str).collect();
-    let sim = ChunkedSim::new(module, design, engine, &i, &o, false)?;
     let decode = |stream: &str, e: &Transaction, g: &Transaction| {
         decoded_pair(&*decoder_of(c, stream), e, g)
     };
-    let mut totals = ChunkTotals::default();
-    let n = streams.merges();
-    sim.run_chunk(&mut totals, n, streams, bench, &decode, &mut |_, _| {})?;
-    Ok(totals)
+    super::chunked::run_streams(
+        module,
+        design,
+        engine,
+        streams,
+        bench,
+        &decode,
+        &mut |_, _| {},
+    )
 }
 
 /// Runs `config.count` random merges (seeded by `config.bench.seed`) through the

@@ -122,8 +122,11 @@ pub(super) fn run_module(
     flip: Option<usize>,
     dir: &Path,
 ) -> Result<Report, String> {
-    let count = count(a)?;
     let engine = module_engine(a.engine)?;
+    if let Some(path) = &a.vectors {
+        return replay_module(a, design, flip, path, engine, dir);
+    }
+    let count = count(a)?;
     let run = merge_module::LongRun {
         count,
         seed: a.seed,
@@ -146,8 +149,43 @@ pub(super) fn run_module(
     });
     pb.finish_and_clear();
     let o = o.map_err(|e| e.to_string())?;
+    module_report(a, design, flip, &o)
+}
+
+/// `--unit merge --vectors FILE` of whole merges (`hiermerge vectors
+/// --unit merge`): the file's streams through the module, one chunk.
+fn replay_module(
+    a: &Args,
+    design: &MergeDesign,
+    flip: Option<usize>,
+    path: &Path,
+    engine: merge_module::ModuleEngine,
+    dir: &Path,
+) -> Result<Report, String> {
+    let e = |e: cosim::CosimError| e.to_string();
+    let mut streams = merge_module::streams_from_vectors(design, path).map_err(e)?;
+    if let Some(n) = flip.filter(|&n| n < streams.merges()) {
+        streams.flip_first(0, n).map_err(e)?;
+    }
+    let bench = bench_config(a, merge_module::STAGE)?;
+    let pb = bar(streams.merges() as u64, a.json);
+    let o = merge_module::run_streams(design, &streams, engine, &bench, dir, &mut |m, cycle| {
+        pb.set_position(m);
+        pb.set_message(format!("cycle {cycle}"));
+    });
+    pb.finish_and_clear();
+    module_report(a, design, flip, &o.map_err(e)?)
+}
+
+/// The report of a module run (generated or replayed).
+fn module_report(
+    a: &Args,
+    design: &MergeDesign,
+    flip: Option<usize>,
+    o: &cosim::units::chunked::ChunkTotals,
+) -> Result<Report, String> {
     let stage = merge_module::STAGE;
-    let first = chunked_failure(stage, a.seed, &o);
+    let first = chunked_failure(stage, a.seed, o);
     if o.passed() {
         let top = merge_module::merge_module(design).name();
         super::bins::merge_module(&design.mode, &top, design.inputs, o.merges as u64);

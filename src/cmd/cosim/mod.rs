@@ -25,7 +25,7 @@ mod merger;
 mod report;
 mod translate;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use cosim::ir_engine::IrEngine;
 use cosim::tb::Stalls;
@@ -174,8 +174,9 @@ pub struct Args {
     #[arg(long, value_enum, default_value = "verilator")]
     engine: EngineChoice,
     /// Run the transactions of this vectors file (`hiermerge vectors`;
-    /// its header's parameters must equal the design's). Merge: its
-    /// merge_level records (implies --stage merge-level).
+    /// its header's parameters must equal the design's). Merge: a file of
+    /// whole merges runs the module; one of stage records runs its
+    /// merge_level records (--stage merge-level).
     #[arg(long, conflicts_with = "count")]
     vectors: Option<PathBuf>,
     /// Seed of the generated transactions and of the stall patterns.
@@ -295,19 +296,27 @@ fn verilog_patch() -> Result<Option<merge_module::VerilogPatch>, String> {
     }
 }
 
-/// The merging module's stage to run: `--stage`, else merge-level with
-/// `--vectors` (its files hold merge_level records), else the module.
+/// The merging module's stage to run: `--stage`, else that of the
+/// `--vectors` file (whole merges: the module; stage records:
+/// merge-level), else the module.
 fn merge_stage(a: &Args) -> Result<MergeStage, String> {
     match (a.stage, &a.vectors) {
-        (Some(MergeStage::Module), Some(_)) => Err(
-            "--stage module takes no --vectors (vectors files hold merge_level records): \
-             use --stage merge-level, or --seed/--count for the module"
-                .into(),
-        ),
         (Some(s), _) => Ok(s),
+        (None, Some(p)) if vectors_unit(p).as_deref() == Some("merge_module") => {
+            Ok(MergeStage::Module)
+        }
         (None, Some(_)) => Ok(MergeStage::MergeLevel),
         (None, None) => Ok(MergeStage::Module),
     }
+}
+
+/// The header `unit` of the vectors file `path`, if its first line says
+/// one (the reader checks the whole header, and names what is wrong).
+fn vectors_unit(path: &Path) -> Option<String> {
+    let mut lines = golden::input::open_lines(path, golden::vectors::MAX_FILE_BYTES).ok()?;
+    let (_, first) = lines.next_line()?.ok()?;
+    let v: serde_json::Value = serde_json::from_str(&first).ok()?;
+    v.get("unit")?.as_str().map(String::from)
 }
 
 /// An engine factory for `module` / `design` (`true`: able to trace).

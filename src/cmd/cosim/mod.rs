@@ -149,7 +149,7 @@ pub enum MergeStage {
     /// merge, seeded random stimulus on every stream.
     Module,
     /// Only its S614 merge-level stage (`merge_level_unit`): a transaction
-    /// is one level; what `--vectors` files hold.
+    /// is one level; what `vectors --stage merge-level` files hold.
     MergeLevel,
 }
 
@@ -168,7 +168,7 @@ pub struct Args {
     #[arg(long, value_enum)]
     unit: Unit,
     /// --unit merge only: `module` (default) or `merge-level`, the S614
-    /// stage alone (the default with --vectors, whose files hold its records).
+    /// stage alone (the default with a --vectors file of stage records).
     #[arg(long, value_enum)]
     stage: Option<MergeStage>,
     #[arg(long, value_enum, default_value = "verilator")]

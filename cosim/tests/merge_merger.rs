@@ -13,14 +13,11 @@ mod merge_common;
 
 use cosim::tb::{run_multi_stream_bench_watching, BenchConfig, MultiReport, StreamBeats};
 use cosim::units::merger::{merger_streams, random_merge, MergeStats};
-use golden::merge::fetch_unit::{
-    fetch_err, fetch_transaction_with_reports, FetchCfg, FetchCmd, FetchOut, FetchTransaction,
-};
+use golden::merge::fetch_unit::{FetchCmd, FetchOut, FetchTransaction};
 use golden::merge::merger_unit::{
-    cmd_per_level, feeds_module, merger_transaction, merger_transaction_in_range, MergerSizes,
-    MergerTransaction, ModulePass,
+    cmd_per_level, feeds_module, merger_transaction, MergerSizes, MergerTransaction,
 };
-use golden::merge::stimulus::{place, real_cases, soup};
+use golden::merge::stimulus::{place, soup};
 use golden::merge::unit::LevelBeat;
 use golden::merge::MergeMode;
 use golden::params::Params;
@@ -28,6 +25,7 @@ use golden::seed::seeded;
 use golden::store::HierarchyStore;
 use golden::translate::stimulus::SplitMix64;
 use golden::translate::TranslationTable;
+use golden::vectors::hard_merges::hard_merges;
 use golden::vectors::merge::MergeDesign;
 use merge_common::*;
 use rtl_gen::merge::MergerConfig;
@@ -116,154 +114,13 @@ fn streams(
     (s.streams.inputs, s.streams.outputs, s.stats)
 }
 
-fn modes(c: &MergerConfig) -> Vec<MergeMode> {
-    vec![c.design.mode]
-}
-
-/// An input filling the scene (its LOD-0 root gives way to several roots
-/// at LOD 1, 4.7) and a small translated one.
-fn several_roots_case(p: &Params) -> (HierarchyStore, TranslationTable, Vec<u8>) {
-    let mesh = golden::scenes::random_soup(60, 0.3, 77);
-    let (lo, hi) = mesh.bounds();
-    let grid = golden::build::GridMap::fit(lo, hi, p);
-    let big = golden::build::build(&mesh, &grid, p, 1).expect("the soup builds");
-    let small = soup(p, 2, 20, 0.2, 78);
-    let mut store = HierarchyStore::new();
-    let mut table = TranslationTable::new(p.hier_capacity() as usize, p).unwrap();
-    table
-        .write(1, golden::translate::Translation::zero(big.top_lod))
-        .unwrap();
-    table.write(2, place(&small, [0.7, 0.2, 0.5])).unwrap();
-    store.insert(big).unwrap();
-    store.insert(small).unwrap();
-    (store, table, vec![1, 2])
-}
-
-/// Real merges (overlapping, disjoint, single-triangle soups, one input
-/// alone, an input with several roots) through the configuration's mode,
-/// refusals included when the mode refuses the case.
-fn real_merges(c: &MergerConfig) -> Vec<(MergerTransaction, bool)> {
-    let p = &c.design.params;
-    let mut out = Vec::new();
-    let mut cases = real_cases(p);
-    cases.push(several_roots_case(p));
-    // A merger of k inputs takes merges of at most k.
-    cases.retain(|(_, _, ids)| ids.len() <= c.design.inputs);
-    for (store, table, ids) in cases {
-        let several = ids.iter().any(|i| store.get(*i).unwrap().root_count > 1);
-        for mode in modes(c) {
-            let out_id = (9 % p.hier_capacity()) as u8;
-            let tx =
-                merger_transaction(&store, &table, &ids, mode, out_id, c.design.inputs, c.sizes)
-                    .expect("a real merge");
-            assert!(
-                !tx.header.leaf_overflow,
-                "the leaf FIFOs hold the real merges"
-            );
-            out.push((tx, several));
-        }
-    }
-    let broken = real_cases(p)
-        .iter()
-        .find_map(|(store, table, ids)| broken_entry_merge(c, store, table, ids));
-    if let Some(tx) = broken {
-        out.insert(1, (tx, false));
-    }
-    // Bad ranges from software: refused by the merging module (the closing
-    // command, an empty base, the writer's NO_TOP header).
-    let (store, table, ids) = real_cases(p)
-        .into_iter()
-        .find(|(_, _, ids)| ids.len() <= c.design.inputs)
-        .expect("a case of at most k inputs");
-    // `hi > D` when the field holds it (not at D = 31: 5 bits).
-    let beyond = if (1u64 << p.lod_bits()) - 1 > p.max_lod as u64 {
-        (2, p.max_lod + 1)
-    } else {
-        (5, 2)
-    };
-    for range in [(4, 3), beyond] {
-        let tx = merger_transaction_in_range(
-            &store,
-            &table,
-            &ids,
-            c.design.mode,
-            (9 % p.hier_capacity()) as u8,
-            c.design.inputs,
-            c.sizes,
-            Some(range),
-        )
-        .expect("a refused merge");
-        assert!(tx.chosen.is_none());
-        out.insert(1, (tx, false));
-    }
-    out
-}
-
-/// A merge whose last input has an invalid translation entry: its fetcher
-/// answers every command with an error beat (8.13, no store read), which
-/// the glue passes on as that input's `End`, so the rest is the merge of
-/// the other inputs over the same `(lo, hi)` with the rank left empty; the
-/// header names the error and the input. `None` when the case has one input
-/// or more than `k`.
-fn broken_entry_merge(
-    c: &MergerConfig,
-    store: &HierarchyStore,
-    table: &TranslationTable,
-    ids: &[u8],
-) -> Option<MergerTransaction> {
-    let p = &c.design.params;
-    let n = ids.len();
-    if n < 2 || n > c.design.inputs {
-        return None;
-    }
-    let hs: Vec<&golden::store::Hierarchy> = ids.iter().map(|i| store.get(*i).unwrap()).collect();
-    let range = golden::merge::level::candidate_range(&hs);
-    let out_id = (9 % p.hier_capacity()) as u8;
-    let mut tx = merger_transaction_in_range(
-        store,
-        table,
-        &ids[..n - 1],
-        c.design.mode,
-        out_id,
-        c.design.inputs,
-        c.sizes,
-        Some(range),
-    )
-    .ok()?;
-    let broken = hs[n - 1];
-    tx.cfg.inputs.push(FetchCfg::of(broken, None));
-    // Per-node mode: the fetcher takes the module's whole `report` (that
-    // of the other inputs' merge: an empty input changes no decision).
-    let (reports, passes) = match &tx.module {
-        ModulePass::PerNode(pn) => (pn.reports.clone(), Some(pn.passes)),
-        ModulePass::Level(_) => (Vec::new(), None),
-    };
-    let f = fetch_transaction_with_reports(broken, 0, &tx.cmds, &reports, c.fetch_sizes()).unwrap();
-    assert!(f.node_reqs.is_empty() && f.ref_reqs.is_empty() && f.probe_reqs.is_empty());
-    // Per command the error beat (for its first level's End), then the
-    // later levels' Ends.
-    let errors = f
-        .out
-        .iter()
-        .filter(|o| {
-            matches!(
-                o,
-                FetchOut::Error {
-                    code: fetch_err::ENTRY,
-                    ..
-                }
-            )
-        })
-        .count();
-    let levels: usize = tx.cmds.iter().map(|c| c.levels()).sum();
-    assert_eq!(errors, tx.cmds.len());
-    // Per-node: the error beat stands for the first pass's End, then one
-    // End per later pass.
-    assert_eq!(f.out.len(), passes.map_or(levels, |n| n.max(1) as usize));
-    tx.fetch.push(f);
-    tx.header.fetch_err = fetch_err::ENTRY;
-    tx.header.fetch_rank = (n - 1) as u16;
-    Some(tx)
+/// The hard merges (`golden::vectors::hard_merges`: real merges, an input
+/// of several roots, a fetcher error, refused ranges) through the
+/// configuration's mode; this file's sizes hold every real merge's leaves.
+fn real_merges(c: &MergerConfig) -> (Vec<MergerTransaction>, usize) {
+    let h = hard_merges(&c.design, c.sizes).expect("the hard merges");
+    assert_eq!(h.overflowing, 0, "the leaf FIFOs hold the real merges");
+    (h.merges, h.several_root_inputs)
 }
 
 fn bench(
@@ -333,10 +190,8 @@ fn check(name: &str, runs: &[(&str, usize)], leaves: bool) {
     let dir = tempfile::tempdir().unwrap();
     let m = rtl_gen::merge::hierarchy_merger_unit(c).expect("a valid merger");
     let design = design_of(&m, dir.path());
-    let real: Vec<(MergerTransaction, bool)> = real_merges(c);
-    let several_root_inputs = real.iter().filter(|r| r.1).count();
+    let (real, several_root_inputs) = real_merges(c);
     assert!(several_root_inputs > 0);
-    let real: Vec<MergerTransaction> = real.into_iter().map(|r| r.0).collect();
     for &(kind, random) in runs {
         let t = std::time::Instant::now();
         let stall = stall_of(seed ^ kind.len() as u64).max(0.05);
@@ -479,7 +334,7 @@ fn hierarchy_merger_throughput() {
         let m = rtl_gen::merge::hierarchy_merger_unit(&c).expect("a valid merger");
         let design = design_of(&m, dir.path());
         let mut rng = SplitMix64(seeded(77));
-        let mut txs: Vec<MergerTransaction> = real_merges(&c).into_iter().map(|r| r.0).collect();
+        let mut txs: Vec<MergerTransaction> = real_merges(&c).0;
         txs.extend((0..20).map(|_| random_merge(&mut rng, &c).expect("a random merge")));
         let (ins, outs, seen) = streams(&c, &txs);
         let mut e = engine("verilator", &m, &design);

@@ -51,7 +51,8 @@ pub struct Args {
 /// volume, and whether the CI volume runs the line on a Verilator coverage
 /// build (else on the IR simulator, for its functional bins: coverage
 /// builds of every mode's merging module and of the merger tops cost more
-/// than CI's budget; `full` runs every line on Verilator).
+/// than CI's budget, a merger top's about 4 minutes at `-O0` and its 200
+/// hard merges as long again; `full` runs every line on Verilator).
 const RUNS: [(&str, bool); 12] = [
     ("--unit translate --count {4}000 --stalls coin", true),
     (
@@ -80,7 +81,10 @@ const RUNS: [(&str, bool); 12] = [
         "--unit merge --mode proportion:1/2 --count {1}00 --stalls bursty:4,4",
         false,
     ),
-    ("--unit merger --count {1}0 --stalls periodic", false),
+    (
+        "--unit merger --merges hard --count {2}0 --stalls periodic",
+        false,
+    ),
     ("--unit merger --count {1}0 --stalls none --seed 2", false),
     ("--unit merger --mode per-node:1/2 --count {1}0", false),
 ];

@@ -223,7 +223,7 @@ fn check(
         Err(what) => problems.push(format!("{path}: regenerating the netlist: {what}")),
     }
     if digest_stimulus {
-        match merger::stimulus_digest(&run.config, seed, run.count, run.stall) {
+        match merger::stimulus_digest(&run.config, seed, run.count, run.stall, run.merges) {
             Ok(d) => {
                 let current = d == e.stimulus_sha256;
                 out.stimulus_current = Some(current);

@@ -19,9 +19,10 @@ use golden::merge::merger_unit::{MergerTransaction, ModulePass};
 use golden::merge::per_node_unit::PerNodeReport;
 use golden::merge::MergeMode;
 use golden::translate::stimulus::SplitMix64;
+pub use golden::vectors::streams::Merges;
 use golden::vectors::streams::{
     merger_beats, merger_input_names, merger_layout, merger_output_names, merger_ports,
-    merger_stream, random_merger_merge,
+    merger_stream, random_merger_merge, random_merger_merge_of,
 };
 use rtl_gen::merge::MergerConfig;
 
@@ -200,6 +201,8 @@ pub struct RunConfig {
     pub bench: ModuleRunConfig,
     /// Merges to run.
     pub count: usize,
+    /// Which merges (the hard ones count towards `count`).
+    pub merges: Merges,
     /// The test hook: bit 0 of merge `n`'s expected `header` beat (its
     /// `out_id`) flipped.
     pub flip_expected: Option<usize>,
@@ -240,18 +243,50 @@ fn flip_header(streams: &mut UnitStreams, merge: usize) -> Result<()> {
     streams.flip_first(streams.outputs.len() - 1, merge)
 }
 
-/// The next chunk of `n` random merges drawn from `rng`, as the merger's
-/// streams; merge `flip` (counted in the chunk) gets its expected `header`
-/// beat's bit 0 flipped.
+/// The merges a run sends, chunk by chunk: the hard ones first (for
+/// [`Merges::Hard`]), then random ones drawn from the seed.
+struct Draw {
+    rng: SplitMix64,
+    kind: Merges,
+    hard: std::vec::IntoIter<MergerTransaction>,
+}
+
+impl Draw {
+    fn new(c: &MergerConfig, seed: u64, kind: Merges) -> Result<Draw> {
+        let hard = match kind {
+            Merges::Random => Vec::new(),
+            Merges::Hard => {
+                golden::vectors::hard_merges::hard_merges(&c.design, c.sizes)
+                    .map_err(|what| CosimError::Design { what })?
+                    .merges
+            }
+        };
+        Ok(Draw {
+            rng: SplitMix64(seed),
+            kind,
+            hard: hard.into_iter(),
+        })
+    }
+
+    fn next(&mut self, c: &MergerConfig) -> Result<MergerTransaction> {
+        match self.hard.next() {
+            Some(tx) => Ok(tx),
+            None => random_merger_merge_of(&mut self.rng, &c.design, c.sizes, self.kind)
+                .map_err(|what| CosimError::Design { what }),
+        }
+    }
+}
+
+/// The next chunk of `n` merges of `draw`, as the merger's streams; merge
+/// `flip` (counted in the chunk) gets its expected `header` beat's bit 0
+/// flipped.
 fn next_chunk(
-    rng: &mut SplitMix64,
+    draw: &mut Draw,
     c: &MergerConfig,
     n: usize,
     flip: Option<usize>,
 ) -> Result<MergerStreams> {
-    let txs = (0..n)
-        .map(|_| random_merge(rng, c))
-        .collect::<Result<Vec<_>>>()?;
+    let txs = (0..n).map(|_| draw.next(c)).collect::<Result<Vec<_>>>()?;
     let mut streams = merger_streams(c, &txs)?;
     if let Some(f) = flip {
         flip_header(&mut streams.streams, f)?;
@@ -269,7 +304,8 @@ pub fn export_spec(
     stalls: crate::tb::Stalls,
     rtl: &Path,
 ) -> Result<ExportSpec> {
-    let streams = next_chunk(&mut SplitMix64(seed), c, count, None)?.streams;
+    let mut draw = Draw::new(c, seed, Merges::Random)?;
+    let streams = next_chunk(&mut draw, c, count, None)?.streams;
     let design = crate::from_rtl::design_from_module(&merger_module(c)?, rtl)?;
     let (inputs, outputs) = export_streams(&streams, |name| {
         named_fields(output_fields(c, name).unwrap_or_default())
@@ -299,17 +335,19 @@ pub fn netlist_digest(c: &MergerConfig) -> Result<String> {
 }
 
 /// The stimulus digest (10.2) of the run [`run`] makes of `count` merges
-/// from `seed` with the stall pattern `stall`, without simulating it.
+/// of `merges` from `seed` with the stall pattern `stall`, without
+/// simulating it.
 pub fn stimulus_digest(
     c: &MergerConfig,
     seed: u64,
     count: usize,
     stall: crate::tb::Stalls,
+    merges: Merges,
 ) -> Result<String> {
-    let mut rng = SplitMix64(seed);
+    let mut draw = Draw::new(c, seed, merges)?;
     let mut digest = StimulusDigest::new(seed, count as u64, stall);
     for n in chunk_sizes(count) {
-        let s = next_chunk(&mut rng, c, n, None)?.streams;
+        let s = next_chunk(&mut draw, c, n, None)?.streams;
         digest.add_chunk(&s.inputs, &s.outputs);
     }
     Ok(digest.finish())
@@ -391,7 +429,7 @@ pub fn run(
     let decode = |stream: &str, e: &Transaction, g: &Transaction| {
         decoded_pair(&*decoder_of(c, stream), e, g)
     };
-    let mut rng = SplitMix64(config.bench.seed);
+    let mut draw = Draw::new(c, config.bench.seed, config.merges)?;
     let (seed, count) = (config.bench.seed, config.count as u64);
     let mut digest = StimulusDigest::new(seed, count, config.bench.stall);
     let mut out = Outcome {
@@ -405,7 +443,7 @@ pub fn run(
             .flip_expected
             .filter(|f| (first..first + n).contains(f))
             .map(|f| f - first);
-        let MergerStreams { streams, stats } = next_chunk(&mut rng, c, n, flip)?;
+        let MergerStreams { streams, stats } = next_chunk(&mut draw, c, n, flip)?;
         digest.add_chunk(&streams.inputs, &streams.outputs);
         out.totals.golden_wall += t.elapsed();
         out.stats.add(&stats);

@@ -18,6 +18,7 @@
 //! line is an error naming the file, the line and the field.
 
 pub mod classes;
+pub mod hard_merges;
 pub mod merge;
 pub mod stream_file;
 pub mod streams;

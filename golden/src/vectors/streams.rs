@@ -17,9 +17,9 @@ use crate::merge::stimulus::{place, soup};
 use crate::merge::top::{random_top_transaction, TopLayout};
 use crate::merge::unit::BeatLayout;
 use crate::merge::MergeMode;
-use crate::store::{HierarchyStore, NodeRecord, Reference};
+use crate::store::{Hierarchy, HierarchyStore, NodeRecord, Reference};
 use crate::translate::stimulus::SplitMix64;
-use crate::translate::TranslationTable;
+use crate::translate::{Translation, TranslationTable};
 
 use super::merge::MergeDesign;
 
@@ -466,6 +466,34 @@ pub fn random_merger_merge(
     d: &MergeDesign,
     sizes: MergerSizes,
 ) -> Result<MergerTransaction, String> {
+    random_merger_merge_of(rng, d, sizes, Merges::Random)
+}
+
+/// Which merges a merger run draws (`hiermerge cosim --merges`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Merges {
+    /// Random merges of 1..=k small soups ([`random_merger_merge`]): the
+    /// long runs' stimulus, which the ledger records.
+    #[default]
+    Random,
+    /// The hard merges ([`super::hard_merges::hard_merges`]) first, then
+    /// random merges whose soups span every scale: the coverage
+    /// regression's stimulus.
+    Hard,
+}
+
+/// A random merge as `kind` draws it: [`random_merger_merge`], or for
+/// [`Merges::Hard`] soups of one scale per merge, edges of `0.32 * 2^-e` of
+/// the scene's `2^-3` corner with `e` in `0..=12`, in half the merges every
+/// soup a voxel or two from the first. So the merging level reaches deep
+/// LODs with the merged top far above it, and every level of the upper
+/// builder and the writer between carries nodes.
+pub fn random_merger_merge_of(
+    rng: &mut SplitMix64,
+    d: &MergeDesign,
+    sizes: MergerSizes,
+    kind: Merges,
+) -> Result<MergerTransaction, String> {
     let p = &d.params;
     let k = d.inputs;
     let out_id = u8::try_from(p.hier_capacity() - 1).map_err(layout_err)?;
@@ -481,23 +509,33 @@ pub fn random_merger_merge(
         let n = 1 + rng.below(k as u64) as usize;
         // Per-node mode: half the merges place every soup where the first
         // goes, so that voxels are contested and passes descend.
-        let together = is_per_node(d) && rng.below(2) == 0;
+        let (together, scale) = match kind {
+            Merges::Random => (is_per_node(d) && rng.below(2) == 0, 0.0),
+            Merges::Hard => (rng.below(2) == 0, 0.32 * (-(rng.below(13) as f32)).exp2()),
+        };
         let mut first_frac = None;
+        let mut first_t = None;
         let mut store = HierarchyStore::new();
         let mut table = TranslationTable::new(p.hier_capacity() as usize, p).map_err(layout_err)?;
         let mut ids = Vec::new();
         for r in 0..n {
             let id = 1 + r as u8;
             let tris = 1 + rng.below(MOST_TRIANGLES) as usize;
-            let size = 0.02 + rng.below(30) as f32 / 100.0;
+            let size = match kind {
+                Merges::Random => 0.02 + rng.below(30) as f32 / 100.0,
+                Merges::Hard => scale * (1.0 + rng.below(4) as f32 / 4.0),
+            };
             let h = soup(p, id, tris, size, rng.next_u64());
-            let mut frac = [0, 1, 2].map(|_| rng.below(101) as f64 / 100.0);
-            if together {
-                frac = *first_frac.get_or_insert(frac);
-            }
-            table
-                .write(id as u32, place(&h, frac))
-                .map_err(layout_err)?;
+            let frac = [0, 1, 2].map(|_| rng.below(101) as f64 / 100.0);
+            let t = match (kind, together, first_t) {
+                (Merges::Hard, true, Some(first)) => {
+                    near(&h, first, [0, 1, 2].map(|_| rng.below(3) as i64))
+                }
+                (Merges::Random, true, _) => place(&h, *first_frac.get_or_insert(frac)),
+                _ => place(&h, frac),
+            };
+            first_t.get_or_insert(t);
+            table.write(id as u32, t).map_err(layout_err)?;
             store.insert(h).map_err(layout_err)?;
             ids.push(id);
         }
@@ -511,6 +549,21 @@ pub fn random_merger_merge(
         "no random merge of {MOST_DRAWS} drawn fits leaf FIFOs of 2^{} entries: expected a larger leaf_bits",
         sizes.leaf_bits
     ))
+}
+
+/// A translation of `h` at its top LOD `delta` voxels from `first` (moved
+/// to that LOD), within the scene.
+fn near(h: &Hierarchy, first: Translation, delta: [i64; 3]) -> Translation {
+    let room = place(h, [1.0; 3]).t;
+    let shift = h.top_lod as i32 - first.lod as i32;
+    let at = |v: i64| match shift {
+        s if s >= 0 => v << s,
+        s => v >> -s,
+    };
+    Translation {
+        lod: h.top_lod,
+        t: [0, 1, 2].map(|a| (at(first.t[a]) + delta[a]).clamp(0, room[a])),
+    }
 }
 
 #[cfg(test)]

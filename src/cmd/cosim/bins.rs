@@ -54,10 +54,23 @@ pub(super) fn merge_level(top: &str) {
     declare([format!("{top}.in.full"), format!("{top}.out.empty")]);
 }
 
-/// `merger.inputs.<n>`: merges of every input count from 1 to k.
-pub(super) fn merger(k: usize, by_inputs: &std::collections::BTreeMap<usize, usize>) {
+/// `merger.inputs.<n>`: merges of every input count from 1 to k;
+/// `merger.<outcome>`: the merger's outcomes besides a plain merge (a
+/// refused range, a fetcher error, leaves above the merging level through
+/// the leaf FIFOs, a materialized root).
+pub(super) fn merger(k: usize, s: &cosim::units::merger::MergeStats) {
     declare((1..=k).map(|n| format!("merger.inputs.{n}")));
-    for (n, m) in by_inputs {
+    for (n, m) in &s.by_inputs {
         hit(&format!("merger.inputs.{n}"), *m as u64);
+    }
+    let outcomes = [
+        ("refused", s.refused),
+        ("fetch_err", s.fetch_errors),
+        ("leaves_above", s.leaves_above),
+        ("materialized", s.materialized),
+    ];
+    declare(outcomes.iter().map(|(o, _)| format!("merger.{o}")));
+    for (o, n) in outcomes {
+        hit(&format!("merger.{o}"), n as u64);
     }
 }

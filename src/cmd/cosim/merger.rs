@@ -45,6 +45,7 @@ pub struct MergerRun {
     pub seed: u64,
     pub count: usize,
     pub stall: Stalls,
+    pub merges: merger::Merges,
 }
 
 /// What the `hiermerge cosim` arguments `args` (without the program and
@@ -78,6 +79,7 @@ pub fn merger_run(args: &[String]) -> Result<MergerRun, String> {
         seed: a.seed,
         count: count(&a)?,
         stall,
+        merges: a.merges.merges(),
     })
 }
 
@@ -98,6 +100,7 @@ pub(super) fn run(
     let config = merger::RunConfig {
         bench: bench_config(a, merger::STAGE)?,
         count,
+        merges: a.merges.merges(),
         flip_expected: flip,
     };
     if !a.json {
@@ -118,7 +121,7 @@ pub(super) fn run(
     let stage = merger::STAGE;
     let first = chunked_failure(stage, a.seed, t);
     if t.passed() {
-        super::bins::merger(c.design.inputs, &s.by_inputs);
+        super::bins::merger(c.design.inputs, s);
     }
     let counts = Counts {
         transactions: t.merges as u64,

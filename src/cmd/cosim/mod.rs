@@ -72,6 +72,24 @@ impl EngineChoice {
     }
 }
 
+/// The merges `--unit merger --merges` asks for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum MergesChoice {
+    /// Random merges of small soups (the long runs').
+    Random,
+    /// The hard merges, then random merges over every scale.
+    Hard,
+}
+
+impl MergesChoice {
+    fn merges(self) -> cosim::units::merger::Merges {
+        match self {
+            MergesChoice::Random => cosim::units::merger::Merges::Random,
+            MergesChoice::Hard => cosim::units::merger::Merges::Hard,
+        }
+    }
+}
+
 /// The waveform format `--waves` asks for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum WavesChoice {
@@ -224,6 +242,12 @@ pub struct Args {
     /// --unit merger only: log2 of each leaf FIFO's entries (default 4).
     #[arg(long = "leaf-bits")]
     leaf_bits: Option<u32>,
+    /// --unit merger only: which merges. `random`: 1..=k small random soups
+    /// (the long runs'); `hard`: the named hard merges first (real meshes,
+    /// several roots, a fetcher error, refused ranges), then random merges
+    /// whose soups span every scale (the coverage regression's).
+    #[arg(long, value_enum, default_value = "random")]
+    merges: MergesChoice,
     /// --unit merger only: also record the run, passed or failed, as an
     /// entry of the long-run ledger in this folder (SPEC 10.2; `hiermerge
     /// ledger` checks the entries against today's code).

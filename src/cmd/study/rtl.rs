@@ -67,6 +67,7 @@ pub fn measure(
             ..BenchConfig::default()
         },
         count: merges,
+        merges: cosim::units::merger::Merges::Random,
         flip_expected: None,
     };
     let o = merger::run(&c, ModuleEngine::Verilator, &config, dir, progress)

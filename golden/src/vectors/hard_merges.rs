@@ -1,0 +1,195 @@
+//! The hierarchy merger's hard merges: the named cases a run of
+//! [`Merges::Hard`] sends before its random merges over every scale, and
+//! that the merger tests run on every engine. Each is a golden transaction
+//! like a random merge's, so a bench checks it bit for bit.
+
+use crate::merge::fetch_unit::{
+    fetch_err, fetch_transaction_with_reports, FetchCfg, FetchOut, FetchTransaction,
+};
+use crate::merge::level::candidate_range;
+use crate::merge::merger_unit::MergerSizes;
+use crate::merge::merger_unit::{
+    merger_transaction, merger_transaction_in_range, MergerTransaction, ModulePass,
+};
+use crate::merge::stimulus::{place, real_cases, soup};
+use crate::params::Params;
+use crate::store::{Hierarchy, HierarchyStore};
+use crate::translate::{Translation, TranslationTable};
+
+use super::merge::MergeDesign;
+#[cfg(doc)]
+use super::streams::Merges;
+
+fn golden_err(what: impl std::fmt::Display) -> String {
+    format!("hard merges: {what}")
+}
+
+type Result<T> = std::result::Result<T, String>;
+
+/// The hard merges of a merger and what the list holds.
+#[derive(Clone, Debug, Default)]
+pub struct HardMerges {
+    /// In the order a run sends them.
+    pub merges: Vec<MergerTransaction>,
+    /// Real merges left out because their leaves overflow the merger's
+    /// leaf FIFOs (golden has no bit-exact model of a dropped leaf).
+    pub overflowing: usize,
+    /// Merges with an input of several roots.
+    pub several_root_inputs: usize,
+}
+
+/// The hard merges of the merger `d` (sizes `sizes`): the real cases of `golden::merge::stimulus`
+/// (overlapping, disjoint, single-triangle soups, one input alone, inputs
+/// overlapping in part) and an input filling the scene (several roots),
+/// each through `d`'s mode; a merge whose last input's translation entry is
+/// invalid (a fetcher error); and two bad ranges from software, which the
+/// merging module refuses (`lo > hi`, `hi > D`). Merges of more than `k`
+/// inputs, and those whose leaves overflow the leaf FIFOs, are left out.
+pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
+    let p = &d.params;
+    let k = d.inputs;
+    let out_id = (9 % p.hier_capacity()) as u8;
+    let mut out = HardMerges::default();
+    let mut cases = real_cases(p);
+    cases.push(several_roots_case(p)?);
+    cases.retain(|(_, _, ids)| ids.len() <= k);
+    for (store, table, ids) in &cases {
+        let tx =
+            merger_transaction(store, table, ids, d.mode, out_id, k, sizes).map_err(golden_err)?;
+        if tx.header.leaf_overflow {
+            out.overflowing += 1;
+            continue;
+        }
+        out.several_root_inputs +=
+            ids.iter()
+                .any(|i| store.get(*i).is_some_and(|h| h.root_count > 1)) as usize;
+        out.merges.push(tx);
+    }
+    for (store, table, ids) in &cases {
+        if let Some(tx) = broken_entry_merge(d, sizes, store, table, ids)? {
+            out.merges.insert(1.min(out.merges.len()), tx);
+            break;
+        }
+    }
+    let Some((store, table, ids)) = cases.first() else {
+        return Ok(out);
+    };
+    // `hi > D` when the field holds it (not at D = 31: 5 bits).
+    let beyond = if (1u64 << p.lod_bits()) - 1 > p.max_lod as u64 {
+        (2, p.max_lod + 1)
+    } else {
+        (5, 2)
+    };
+    for range in [(4, 3), beyond] {
+        let tx =
+            merger_transaction_in_range(store, table, ids, d.mode, out_id, k, sizes, Some(range))
+                .map_err(golden_err)?;
+        out.merges.insert(1.min(out.merges.len()), tx);
+    }
+    Ok(out)
+}
+
+/// An input filling the scene (its LOD-0 root gives way to several roots
+/// at LOD 1, 4.7) and a small translated one.
+fn several_roots_case(p: &Params) -> Result<(HierarchyStore, TranslationTable, Vec<u8>)> {
+    let mesh = crate::scenes::random_soup(60, 0.3, 77);
+    let (lo, hi) = mesh.bounds();
+    let grid = crate::build::GridMap::fit(lo, hi, p);
+    let big = crate::build::build(&mesh, &grid, p, 1).map_err(golden_err)?;
+    let small = soup(p, 2, 20, 0.2, 78);
+    let mut store = HierarchyStore::new();
+    let mut table = TranslationTable::new(p.hier_capacity() as usize, p).map_err(golden_err)?;
+    table
+        .write(1, Translation::zero(big.top_lod))
+        .map_err(golden_err)?;
+    table
+        .write(2, place(&small, [0.7, 0.2, 0.5]))
+        .map_err(golden_err)?;
+    store.insert(big).map_err(golden_err)?;
+    store.insert(small).map_err(golden_err)?;
+    Ok((store, table, vec![1, 2]))
+}
+
+/// A merge whose last input has an invalid translation entry: its fetcher
+/// answers every command with an error beat (8.13, no store read), which
+/// the glue passes on as that input's `End`, so the rest is the merge of
+/// the other inputs over the same `(lo, hi)` with the rank left empty; the
+/// header names the error and the input (docs/hardware.md, the merger's
+/// fetcher errors). `None` when the case has one input or more than `k`.
+fn broken_entry_merge(
+    d: &MergeDesign,
+    sizes: MergerSizes,
+    store: &HierarchyStore,
+    table: &TranslationTable,
+    ids: &[u8],
+) -> Result<Option<MergerTransaction>> {
+    let p = &d.params;
+    let n = ids.len();
+    if n < 2 || n > d.inputs {
+        return Ok(None);
+    }
+    let hs: Vec<&Hierarchy> = ids.iter().filter_map(|i| store.get(*i)).collect();
+    let range = candidate_range(&hs);
+    let out_id = (9 % p.hier_capacity()) as u8;
+    let Ok(mut tx) = merger_transaction_in_range(
+        store,
+        table,
+        &ids[..n - 1],
+        d.mode,
+        out_id,
+        d.inputs,
+        sizes,
+        Some(range),
+    ) else {
+        return Ok(None);
+    };
+    let broken = hs[n - 1];
+    tx.cfg.inputs.push(FetchCfg::of(broken, None));
+    // Per-node mode: the fetcher takes the module's whole `report` (that
+    // of the other inputs' merge: an empty input changes no decision).
+    let (reports, passes) = match &tx.module {
+        ModulePass::PerNode(pn) => (pn.reports.clone(), Some(pn.passes)),
+        ModulePass::Level(_) => (Vec::new(), None),
+    };
+    let f = fetch_transaction_with_reports(broken, 0, &tx.cmds, &reports, sizes.fetch)
+        .map_err(golden_err)?;
+    check_entry_errors(&f, &tx, passes)?;
+    tx.fetch.push(f);
+    tx.header.fetch_err = fetch_err::ENTRY;
+    tx.header.fetch_rank = (n - 1) as u16;
+    Ok(Some(tx))
+}
+
+/// That `f`, the fetch of an input without a translation entry, reads
+/// nothing and answers every command with an `ENTRY` error beat, then one
+/// `End` per later level (per-node: per later pass).
+fn check_entry_errors(
+    f: &FetchTransaction,
+    tx: &MergerTransaction,
+    passes: Option<u32>,
+) -> Result<()> {
+    let errors = f
+        .out
+        .iter()
+        .filter(|o| {
+            matches!(
+                o,
+                FetchOut::Error {
+                    code: fetch_err::ENTRY,
+                    ..
+                }
+            )
+        })
+        .count();
+    let levels: usize = tx.cmds.iter().map(|c| c.levels()).sum();
+    let beats = passes.map_or(levels, |n| n.max(1) as usize);
+    let read = f.node_reqs.len() + f.ref_reqs.len() + f.probe_reqs.len();
+    if read != 0 || errors != tx.cmds.len() || f.out.len() != beats {
+        return Err(golden_err(format!(
+            "the fetch of an input without a translation entry: {read} store reads (expected 0), {errors} ENTRY error beats (expected {}), {} beats (expected {beats})",
+            tx.cmds.len(),
+            f.out.len()
+        )));
+    }
+    Ok(())
+}

@@ -249,9 +249,7 @@ fn every_generated_scene_is_refused_at_a_path_or_runs_to_the_end() {
         if let Err(e) = preflight::check(&scene, &name) {
             fail(format!("accepted, then refused by the preflight: {e}"));
         }
-        let t = std::time::Instant::now();
-        let outcome = run(&scene, &options);
-        match outcome {
+        match run(&scene, &options) {
             Ok(r) if r.mismatches == 0 => {}
             Ok(r) => fail(format!("{} mismatches", r.mismatches)),
             Err(e) => fail(format!("accepted, then failed: {e}")),

@@ -22,13 +22,8 @@ fn each_group_is_one_merged_hierarchy_and_hits_agree_with_the_oracle() {
     (scene.width, scene.height) = (64, 48);
     let dir = tempfile::tempdir().unwrap();
     let options = Options {
-        out: dir.path().to_path_buf(),
-        write_to: dir.path().to_path_buf(),
-        rtl: false,
-        progress: false,
-        narrate: false,
         verify: true,
-        images: false,
+        ..Options::golden_only(dir.path())
     };
     let report = run(&scene, &options).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(report.mismatches, 0);

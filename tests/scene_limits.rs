@@ -220,15 +220,7 @@ fn every_generated_scene_is_refused_at_a_path_or_runs_to_the_end() {
     println!("scene_limits: {cases} scenes, HIERMERGE_SCENE_SEED={seed}");
     let mut rng = SplitMix64::new(seed);
     let dir = tempfile::tempdir().unwrap();
-    let options = Options {
-        out: dir.path().to_path_buf(),
-        write_to: dir.path().to_path_buf(),
-        rtl: false,
-        progress: false,
-        narrate: false,
-        verify: false,
-        images: false,
-    };
+    let options = Options::golden_only(dir.path());
     let (mut refused, mut ran, mut frames) = (0u64, 0u64, 0u64);
     for case in 0..cases {
         let file = scene(&mut rng);

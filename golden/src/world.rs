@@ -471,17 +471,16 @@ impl World {
             else {
                 // Frame 0's own failure: a rounding past the field, or
                 // the voxels it would put outside the scene.
-                return Err(match (&splits[0], moved(0)) {
-                    (Ok(_), Some((lo, hi, t))) => WorldError::Translate {
-                        id,
-                        error: TranslateError::OutsideScene {
-                            axis: a,
-                            lo: (lo / edge).floor() as i64 + t as i64,
-                            hi: (hi / edge).floor() as i64 + t as i64,
-                            lod,
-                        },
+                splits[0].clone()?;
+                let (lo, hi, t) = moved(0).unwrap_or_default();
+                return Err(WorldError::Translate {
+                    id,
+                    error: TranslateError::OutsideScene {
+                        axis: a,
+                        lo: (lo / edge).floor() as i64 + t as i64,
+                        hi: (hi / edge).floor() as i64 + t as i64,
+                        lod,
                     },
-                    (first, _) => first.clone().err().expect("an Ok has bounds"),
                 });
             };
             frame[i] = candidates[k];
@@ -909,6 +908,32 @@ mod tests {
         w.merge(&[1, 2], MergeMode::default(), 9).unwrap();
         w.check(9).unwrap();
         traces_like_separate(&w, 9, &[1, 2], 1000, 100);
+    }
+
+    /// SPEC 7.10 step 6: an object placed to end exactly on the scene's far
+    /// face, from a local geometry ending on an inner voxel face, touches a
+    /// voxel past the scene at every LOD but 0: the world falls back to LOD
+    /// 0 (no translation, the mesh where the scene puts it) instead of
+    /// refusing; the object merges and traces like the two apart.
+    #[test]
+    fn a_placement_no_finer_lod_holds_falls_back() {
+        let mut w = world();
+        let side = w.params.voxel_edge(0) as f64 * w.grid.unit;
+        let cube = crate::scenes::box_mesh(Vec3::splat(0.5), Vec3::splat(1.0));
+        let o = w.add(1, cube.clone(), DVec3::ZERO).unwrap();
+        assert!(o.determined.translation.lod > 0);
+        let to_face = DVec3::new(side - 1.0, 0.0, 0.0);
+        let o = w.add(2, cube, to_face).unwrap();
+        assert_eq!(o.determined.translation.lod, 0);
+        assert_eq!(o.determined.translation.t, [0, 0, 0]);
+        assert_eq!(o.mesh.bounds().1.x as f64, side);
+        w.check(2).unwrap();
+        w.merge(&[1, 2], MergeMode::default(), 9).unwrap();
+        w.check(9).unwrap();
+        traces_like_separate(&w, 9, &[1, 2], 1000, 50);
+        // Moved back inside, it is translated at a finer LOD again.
+        w.place(2, to_face - DVec3::new(2.0, 0.0, 0.0)).unwrap();
+        assert!(w.object(2).unwrap().determined.translation.lod > 0);
     }
 
     #[test]

@@ -43,6 +43,23 @@ pub struct Options {
     pub images: bool,
 }
 
+impl Options {
+    /// The golden model alone, quietly, into `dir`: no RTL, no progress
+    /// bars or frame lines, no oracle, no images (what a test of the
+    /// model's frames wants; set the fields it needs besides).
+    pub fn golden_only(dir: &Path) -> Options {
+        Options {
+            out: dir.to_path_buf(),
+            write_to: dir.to_path_buf(),
+            rtl: false,
+            progress: false,
+            narrate: false,
+            verify: false,
+            images: false,
+        }
+    }
+}
+
 /// The whole run.
 #[derive(Serialize)]
 pub struct RunReport {

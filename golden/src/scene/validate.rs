@@ -121,17 +121,7 @@ pub fn validate(raw: &SceneFile, file: &str, base: &Path) -> Result<Scene, Scene
                 format!("{:?}", o.name),
             ));
         }
-        let translation = raw.effects.units.translation;
-        objects.push(object(
-            o,
-            raw.frames,
-            &params,
-            &grid,
-            translation,
-            file,
-            &path,
-            base,
-        )?);
+        objects.push(object(o, raw, &params, &grid, file, &path, base)?);
     }
     if !effects.primary && (effects.shadow || effects.reflection_depth > 0) {
         return Err(e(
@@ -302,10 +292,9 @@ fn effects(raw: &SceneFile, params: &Params, file: &str) -> Result<Effects, Scen
 
 fn object(
     o: &ObjectSpec,
-    frames: u32,
+    raw: &SceneFile,
     params: &Params,
     grid: &GridMap,
-    translation: bool,
     file: &str,
     path: &str,
     base: &Path,
@@ -339,7 +328,7 @@ fn object(
             o.mirror.to_string(),
         ));
     }
-    let offsets = offsets(&o.placement, frames, file, &format!("{path}.placement"))?;
+    let offsets = offsets(&o.placement, raw.frames, file, &format!("{path}.placement"))?;
     let motion = match o.motion {
         MotionSpec::Static => Motion::Static,
         MotionSpec::Dynamic => Motion::Dynamic,
@@ -383,7 +372,7 @@ fn object(
         // With translation the world's last resort (SPEC 7.10) is the mesh
         // moved by the whole placement in grid units; without, the offset
         // baked into the vertices.
-        let by = if translation {
+        let by = if raw.effects.units.translation {
             *off / grid.unit * grid.unit
         } else {
             *off

@@ -436,20 +436,28 @@ impl World {
         // Each axis's candidate frame is judged by the residual and the
         // translation its own rounding gives: at a placement half a voxel
         // off the grid the rounding may fall the other way once the frame
-        // has moved, so frame 0's cannot stand for the others'. A candidate
-        // whose placement cannot be rounded (a translation past the field)
-        // is no candidate.
+        // has moved, so frame 0's cannot stand for the others'. Axes round
+        // independently (7.2), so each is rounded alone: a candidate whose
+        // rounding fails on one axis (a translation past the field) is no
+        // candidate there and still one on the others.
         let candidates = [0.0, edge, -edge];
-        let splits: Vec<Result<Split, WorldError>> =
-            candidates.iter().map(|&f| round(DVec3::splat(f))).collect();
+        let round_axis = |i: usize, f: f64| -> Result<(f64, f64), WorldError> {
+            let mut alone = DVec3::ZERO;
+            alone[i] = requested.value_f64(Axis::ALL[i]) - f;
+            let d = round_placement(&Placement::binary64(alone.to_array()), lod, &self.params)
+                .map_err(|error| WorldError::Translate { id, error })?;
+            Ok((residual_of(&d)[i], d.translation.t[i] as f64))
+        };
         let mut frame = DVec3::ZERO;
         for a in Axis::ALL {
             let i = a.index();
+            let splits: Vec<Result<(f64, f64), WorldError>> =
+                candidates.iter().map(|&f| round_axis(i, f)).collect();
             let moved = |k: usize| {
-                let s = splits[k].as_ref().ok()?;
-                let by = (residual_of(&s.determined)[i] + candidates[k]) * self.grid.unit;
+                let &(r, t) = splits[k].as_ref().ok()?;
+                let by = (r + candidates[k]) * self.grid.unit;
                 let (lo, hi) = placed_bounds(&self.grid, bounds, DVec3::splat(by));
-                Some((lo[i], hi[i], s.determined.translation.t[i] as f64))
+                Some((lo[i], hi[i], t))
             };
             let fits = |k: usize| {
                 moved(k).is_some_and(|(a, b, t)| {
@@ -485,10 +493,7 @@ impl World {
             };
             frame[i] = candidates[k];
         }
-        match (frame == DVec3::ZERO, &splits[0]) {
-            (true, Ok(first)) => Ok(*first),
-            _ => round(frame),
-        }
+        round(frame)
     }
 
     /// Determine (SPEC 7.2) at `lod` with the extents rule (7.4) on `h`'s roots.

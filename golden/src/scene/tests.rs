@@ -10,6 +10,7 @@ use super::*;
 
 const DEFAULT: &str = include_str!("../../../scenes/default.json");
 const BUNNY_TEAPOT: &str = include_str!("../../../scenes/bunny_teapot.json");
+const GROUPS: &str = include_str!("../../../scenes/groups.json");
 
 fn small() -> Value {
     json!({
@@ -52,6 +53,8 @@ fn shipped_scenes_parse() {
     assert_eq!(b.objects[1].mesh.len(), 3674);
     assert_eq!(b.objects[2].mesh.len(), 992);
     assert_eq!(b.effects.merge, MergeMode::PerNode { num: 1, den: 2 });
+    let g = Scene::parse(GROUPS, "groups.json", &base).unwrap();
+    assert_eq!(g.groups, vec![vec![2, 3], vec![0, 1]]);
 }
 
 #[test]
@@ -178,7 +181,7 @@ fn schema_declares_every_key_the_shipped_scenes_use() {
             _ => {}
         }
     }
-    for text in [DEFAULT, BUNNY_TEAPOT] {
+    for text in [DEFAULT, BUNNY_TEAPOT, GROUPS] {
         let v: Value = serde_json::from_str(text).unwrap();
         walk(&schema, &schema, &v, "");
     }

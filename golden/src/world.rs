@@ -317,10 +317,15 @@ impl World {
     /// SPEC 7.10: split the placement at `lod` (first the source mesh's top
     /// LOD), add the residual to the source mesh in binary32, build; while
     /// the build's top LOD is coarser than `lod`, its voxels would not stay
-    /// aligned, so split again at that LOD. `lod` only decreases: at most `D`
-    /// steps, and the result is a function of (source, offset) alone. `base`
-    /// is the source mesh's own hierarchy when the caller has it; `current`
-    /// the object's split and hierarchy, reused when a step reaches the same
+    /// aligned, so split again at that LOD. Where no split at `lod` keeps
+    /// the binary32 local geometry and the voxels it touches inside the
+    /// scene, or the extents rule refuses the built roots, `lod` falls back
+    /// one level coarser: at LOD 0 the translation is zero and the local
+    /// geometry is the mesh where the scene puts it, which scene validation
+    /// checks ([`placed_bounds`]). `lod` only decreases: at most `D` steps,
+    /// and the result is a function of (source, offset) alone. `base` is the
+    /// source mesh's own hierarchy when the caller has it; `current` the
+    /// object's split and hierarchy, reused when a step reaches the same
     /// split (the build would give it again, bit for bit).
     fn settle(
         &self,
@@ -332,18 +337,29 @@ impl World {
         current: Option<(Split, &Hierarchy)>,
     ) -> Result<Step, WorldError> {
         let requested = self.placement(id, offset)?;
-        let (lo, hi) = source.bounds();
-        let (lo, hi) = (self.grid.to_grid(lo), self.grid.to_grid(hi));
+        let bounds = source.bounds();
         let mut lod = base_lod;
         loop {
-            let at = self.split(id, &requested, lod, lo, hi)?;
+            let coarser = |lod: u8, e: WorldError| if lod == 0 { Err(e) } else { Ok(lod - 1) };
+            let at = match self.split(id, &requested, lod, bounds) {
+                Ok(at) => at,
+                Err(e) => {
+                    lod = coarser(lod, e)?;
+                    continue;
+                }
+            };
             if let Some((c, h)) = current {
                 if c.determined.translation.lod == lod
                     && c.determined.residual == at.determined.residual
                     && c.frame == at.frame
                 {
-                    let determined = self.check_extents(id, h, &at.placement, lod)?;
-                    return Ok(Step::Reuse(Split { determined, ..at }));
+                    match self.check_extents(id, h, &at.placement, lod) {
+                        Ok(determined) => return Ok(Step::Reuse(Split { determined, ..at })),
+                        Err(e) => {
+                            lod = coarser(lod, e)?;
+                            continue;
+                        }
+                    }
                 }
             }
             let moved = at.frame + residual_of(&at.determined);
@@ -364,7 +380,13 @@ impl World {
                 lod = hierarchy.top_lod;
                 continue;
             }
-            let determined = self.check_extents(id, &hierarchy, &at.placement, lod)?;
+            let determined = match self.check_extents(id, &hierarchy, &at.placement, lod) {
+                Ok(d) => d,
+                Err(e) => {
+                    lod = coarser(lod, e)?;
+                    continue;
+                }
+            };
             let local = self
                 .grid
                 .mesh_to_grid(&mesh, &self.params)
@@ -380,22 +402,26 @@ impl World {
 
     /// Splits `requested` (grid units) at `lod` (SPEC 7.10). The local frame
     /// may hold the geometry up or down by one voxel edge `E` of `lod` per
-    /// axis, which leaves its scene position alone. It does so where the
-    /// residual alone would push the source's grid bounds `[lo, hi]` out of
-    /// the scene cube, and where the moved geometry straddles two voxels of
-    /// `lod` in different parents: moved by `E`, the two share a parent, so
-    /// the next step settles one LOD coarser instead of wherever the common
-    /// ancestor of a large boundary is.
+    /// axis, which leaves its scene position alone. A frame serves an axis
+    /// when the local geometry it gives, rounded to binary32 as the build
+    /// will see it ([`placed_bounds`] of the source's world `bounds`), lies
+    /// in the scene cube and the LOD-`lod` voxels it touches stay in the
+    /// scene once translated (the extents rule, 7.4). Among those it prefers
+    /// one where the geometry straddles no two voxels of `lod` in different
+    /// parents: moved by `E`, the two share a parent, so the next step
+    /// settles one LOD coarser instead of wherever the common ancestor of a
+    /// large boundary is. An axis no frame serves is an error: the caller
+    /// falls back to a coarser LOD.
     fn split(
         &self,
         id: u8,
         requested: &Placement,
         lod: u8,
-        lo: DVec3,
-        hi: DVec3,
+        bounds: (glam::Vec3, glam::Vec3),
     ) -> Result<Split, WorldError> {
         let edge = self.params.voxel_edge(lod) as f64;
         let side = self.params.voxel_edge(0) as f64;
+        let last = ((1u64 << lod) - 1) as f64;
         let round = |frame: DVec3| -> Result<Split, WorldError> {
             let placement =
                 Placement::binary64(Axis::ALL.map(|a| requested.value_f64(a) - frame[a.index()]));
@@ -407,42 +433,67 @@ impl World {
                 determined,
             })
         };
-        // Each axis's candidate frame is judged by the residual its own
-        // rounding leaves: at a placement half a voxel off the grid the
-        // rounding may fall the other way once the frame has moved, so the
-        // residual of frame 0 cannot stand for the others'.
+        // Each axis's candidate frame is judged by the residual and the
+        // translation its own rounding gives: at a placement half a voxel
+        // off the grid the rounding may fall the other way once the frame
+        // has moved, so frame 0's cannot stand for the others'. Axes round
+        // independently (7.2), so each is rounded alone: a candidate whose
+        // rounding fails on one axis (a translation past the field) is no
+        // candidate there and still one on the others.
         let candidates = [0.0, edge, -edge];
-        let first = round(DVec3::ZERO)?;
-        // A candidate whose placement cannot be rounded is no candidate.
-        let splits: Vec<Option<Split>> = std::iter::once(Some(first))
-            .chain(candidates[1..].iter().map(|&f| round(DVec3::splat(f)).ok()))
-            .collect();
-        let frame = DVec3::from_array(Axis::ALL.map(|a| {
+        let round_axis = |i: usize, f: f64| -> Result<(f64, f64), WorldError> {
+            let mut alone = DVec3::ZERO;
+            alone[i] = requested.value_f64(Axis::ALL[i]) - f;
+            let d = round_placement(&Placement::binary64(alone.to_array()), lod, &self.params)
+                .map_err(|error| WorldError::Translate { id, error })?;
+            Ok((residual_of(&d)[i], d.translation.t[i] as f64))
+        };
+        let mut frame = DVec3::ZERO;
+        for a in Axis::ALL {
             let i = a.index();
+            let splits: Vec<Result<(f64, f64), WorldError>> =
+                candidates.iter().map(|&f| round_axis(i, f)).collect();
             let moved = |k: usize| {
-                let s = splits[k].as_ref()?;
-                let r = residual_of(&s.determined)[i] + candidates[k];
-                Some((lo[i] + r, hi[i] + r))
+                let &(r, t) = splits[k].as_ref().ok()?;
+                let by = (r + candidates[k]) * self.grid.unit;
+                let (lo, hi) = placed_bounds(&self.grid, bounds, DVec3::splat(by));
+                Some((lo[i], hi[i], t))
             };
-            let fits = |k: usize| moved(k).is_some_and(|(a, b)| a >= 0.0 && b <= side);
+            let fits = |k: usize| {
+                moved(k).is_some_and(|(a, b, t)| {
+                    let (va, vb) = ((a / edge).floor(), (b / edge).floor().min(last));
+                    a >= 0.0 && b <= side && va + t >= 0.0 && vb + t <= last
+                })
+            };
             // The voxels of `lod` the moved bounds touch share a parent.
             let shares_parent = |k: usize| {
-                let Some((a, b)) = moved(k) else {
+                let Some((a, b, _)) = moved(k) else {
                     return false;
                 };
                 let (va, vb) = ((a / edge).floor(), (b / edge).ceil() - 1.0);
                 vb <= va || (vb == va + 1.0 && va.rem_euclid(2.0) == 0.0)
             };
-            (0..candidates.len())
+            let Some(k) = (0..candidates.len())
                 .find(|&k| fits(k) && shares_parent(k))
                 .or_else(|| (0..candidates.len()).find(|&k| fits(k)))
-                .map_or(0.0, |k| candidates[k])
-        }));
-        if frame == DVec3::ZERO {
-            Ok(first)
-        } else {
-            round(frame)
+            else {
+                // Frame 0's own failure: a rounding past the field, or
+                // the voxels it would put outside the scene.
+                splits[0].clone()?;
+                let (lo, hi, t) = moved(0).unwrap_or_default();
+                return Err(WorldError::Translate {
+                    id,
+                    error: TranslateError::OutsideScene {
+                        axis: a,
+                        lo: (lo / edge).floor() as i64 + t as i64,
+                        hi: (hi / edge).floor() as i64 + t as i64,
+                        lod,
+                    },
+                });
+            };
+            frame[i] = candidates[k];
         }
+        round(frame)
     }
 
     /// Determine (SPEC 7.2) at `lod` with the extents rule (7.4) on `h`'s roots.
@@ -652,6 +703,21 @@ impl World {
     }
 }
 
+/// The grid bounds (grid units) of a mesh whose world bounds are `bounds`
+/// once every vertex is moved by `by` world units in binary64 and rounded
+/// once to binary32: the bounds the build sees of an object's local
+/// geometry (`by` its frame plus residual, SPEC 7.10) or of a mesh with its
+/// placement baked in. Both roundings are monotone, so the moved bounds are
+/// the bounds moved; `by = 0` gives the mesh's own.
+pub fn placed_bounds(
+    grid: &GridMap,
+    bounds: (glam::Vec3, glam::Vec3),
+    by: DVec3,
+) -> (DVec3, DVec3) {
+    let at = |v: glam::Vec3| grid.to_grid((v.as_dvec3() + by).as_vec3());
+    (at(bounds.0), at(bounds.1))
+}
+
 /// The residual of `d`, grid units.
 fn residual_of(d: &Determined) -> DVec3 {
     DVec3::from_array(Axis::ALL.map(|a| d.residual.value_f64(a)))
@@ -847,6 +913,32 @@ mod tests {
         w.merge(&[1, 2], MergeMode::default(), 9).unwrap();
         w.check(9).unwrap();
         traces_like_separate(&w, 9, &[1, 2], 1000, 100);
+    }
+
+    /// SPEC 7.10 step 6: an object placed to end exactly on the scene's far
+    /// face, from a local geometry ending on an inner voxel face, touches a
+    /// voxel past the scene at every LOD but 0: the world falls back to LOD
+    /// 0 (no translation, the mesh where the scene puts it) instead of
+    /// refusing; the object merges and traces like the two apart.
+    #[test]
+    fn a_placement_no_finer_lod_holds_falls_back() {
+        let mut w = world();
+        let side = w.params.voxel_edge(0) as f64 * w.grid.unit;
+        let cube = crate::scenes::box_mesh(Vec3::splat(0.5), Vec3::splat(1.0));
+        let o = w.add(1, cube.clone(), DVec3::ZERO).unwrap();
+        assert!(o.determined.translation.lod > 0);
+        let to_face = DVec3::new(side - 1.0, 0.0, 0.0);
+        let o = w.add(2, cube, to_face).unwrap();
+        assert_eq!(o.determined.translation.lod, 0);
+        assert_eq!(o.determined.translation.t, [0, 0, 0]);
+        assert_eq!(o.mesh.bounds().1.x as f64, side);
+        w.check(2).unwrap();
+        w.merge(&[1, 2], MergeMode::default(), 9).unwrap();
+        w.check(9).unwrap();
+        traces_like_separate(&w, 9, &[1, 2], 1000, 50);
+        // Moved back inside, it is translated at a finer LOD again.
+        w.place(2, to_face - DVec3::new(2.0, 0.0, 0.0)).unwrap();
+        assert!(w.object(2).unwrap().determined.translation.lod > 0);
     }
 
     #[test]

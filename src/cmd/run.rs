@@ -78,6 +78,7 @@ pub fn main(a: Args) -> CmdResult {
         progress: !a.json && std::io::IsTerminal::is_terminal(&std::io::stderr()),
         narrate: !a.json,
         verify: a.verify,
+        images: true,
     };
     let report = run(&scene, &options)?;
     let json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;

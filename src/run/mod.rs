@@ -26,6 +26,7 @@
 //!     progress: false,
 //!     narrate: false,
 //!     verify: true,
+//!     images: true,
 //! };
 //! let report = run(&scene, &options)?;
 //! assert_eq!(report.mismatches, 0);

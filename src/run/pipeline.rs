@@ -37,6 +37,27 @@ pub struct Options {
     pub narrate: bool,
     /// Judge the compared rays' merged hits by the binary64 oracle (SPEC 6.10).
     pub verify: bool,
+    /// Write the images and heat maps the report names; false for a caller
+    /// that wants the report alone (each image is synced to disk: most of
+    /// the time of a small scene's run).
+    pub images: bool,
+}
+
+impl Options {
+    /// The golden model alone, quietly, into `dir`: no RTL, no progress
+    /// bars or frame lines, no oracle, no images (what a test of the
+    /// model's frames wants; set the fields it needs besides).
+    pub fn golden_only(dir: &Path) -> Options {
+        Options {
+            out: dir.to_path_buf(),
+            write_to: dir.to_path_buf(),
+            rtl: false,
+            progress: false,
+            narrate: false,
+            verify: false,
+            images: false,
+        }
+    }
 }
 
 /// The whole run.
@@ -594,6 +615,9 @@ impl<'a> Run<'a> {
     }
 
     fn write_pair(&self, image: &Path, heat: &Path, traced: &Traced) -> Result<(), String> {
+        if !self.options.images {
+            return Ok(());
+        }
         let (w, h) = (self.scene.width, self.scene.height);
         let at = |p: &Path| {
             self.options

@@ -10,6 +10,7 @@ use super::*;
 
 const DEFAULT: &str = include_str!("../../../scenes/default.json");
 const BUNNY_TEAPOT: &str = include_str!("../../../scenes/bunny_teapot.json");
+const GROUPS: &str = include_str!("../../../scenes/groups.json");
 
 fn small() -> Value {
     json!({
@@ -52,6 +53,8 @@ fn shipped_scenes_parse() {
     assert_eq!(b.objects[1].mesh.len(), 3674);
     assert_eq!(b.objects[2].mesh.len(), 992);
     assert_eq!(b.effects.merge, MergeMode::PerNode { num: 1, den: 2 });
+    let g = Scene::parse(GROUPS, "groups.json", &base).unwrap();
+    assert_eq!(g.groups, vec![vec![2, 3], vec![0, 1]]);
 }
 
 #[test]
@@ -178,7 +181,7 @@ fn schema_declares_every_key_the_shipped_scenes_use() {
             _ => {}
         }
     }
-    for text in [DEFAULT, BUNNY_TEAPOT] {
+    for text in [DEFAULT, BUNNY_TEAPOT, GROUPS] {
         let v: Value = serde_json::from_str(text).unwrap();
         walk(&schema, &schema, &v, "");
     }
@@ -251,4 +254,33 @@ fn scenes_failing_late_are_refused_up_front() {
     let e = parse(&v).unwrap_err();
     assert_eq!(e.path, "objects[0].shape", "{e}");
     assert!(e.expected.contains("index_bits"), "{e}");
+}
+
+/// Accepted means runnable (SPEC 12.1): a placement that keeps the mesh in
+/// the cube in binary64 but not once its vertices are placed and rounded to
+/// binary32 (binary32 steps of 1/16 near 1e6, a face between two of them)
+/// is refused at its offset; one step less is accepted.
+#[test]
+fn placements_are_judged_on_binary32_bounds() {
+    let scene = |x: f64| {
+        let mut v = small();
+        v["grid"]["origin"] = json!([1e6 + 0.05, 0, 0]);
+        v["objects"][0]["shape"] =
+            json!({"box": {"lo": [1e6 + 0.0625, 0.5, 0.5], "hi": [1e6 + 1.0, 1, 1]}});
+        v["objects"][0]["placement"] = json!({"offsets": [[x, 0, 0]]});
+        v
+    };
+    // The face is at 1e6 + 8.05; 1e6 + 8.04 rounds to 1e6 + 8.0625.
+    let e = parse(&scene(7.04)).unwrap_err();
+    assert_eq!(e.path, "objects[0].placement.offsets[0]", "{e}");
+    assert!(e.expected.contains("binary32"), "{e}");
+    assert!(e.found.contains("frame 0"), "{e}");
+    for translation in [true, false] {
+        let mut v = scene(7.04);
+        v["effects"]["units"]["translation"] = json!(translation);
+        assert!(parse(&v).is_err(), "translation {translation}");
+        let mut v = scene(7.0);
+        v["effects"]["units"]["translation"] = json!(translation);
+        parse(&v).unwrap();
+    }
 }

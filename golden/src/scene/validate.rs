@@ -17,6 +17,7 @@ use crate::camera::Camera;
 use crate::frames::Motion;
 use crate::merge::MergeMode;
 use crate::params::Params;
+use crate::world::placed_bounds;
 
 /// Most frames a scene may have.
 pub const MAX_FRAMES: u32 = 1000;
@@ -120,7 +121,7 @@ pub fn validate(raw: &SceneFile, file: &str, base: &Path) -> Result<Scene, Scene
                 format!("{:?}", o.name),
             ));
         }
-        objects.push(object(o, raw.frames, &params, &grid, file, &path, base)?);
+        objects.push(object(o, raw, &params, &grid, file, &path, base)?);
     }
     if !effects.primary && (effects.shadow || effects.reflection_depth > 0) {
         return Err(e(
@@ -291,7 +292,7 @@ fn effects(raw: &SceneFile, params: &Params, file: &str) -> Result<Effects, Scen
 
 fn object(
     o: &ObjectSpec,
-    frames: u32,
+    raw: &SceneFile,
     params: &Params,
     grid: &GridMap,
     file: &str,
@@ -327,7 +328,7 @@ fn object(
             o.mirror.to_string(),
         ));
     }
-    let offsets = offsets(&o.placement, frames, file, &format!("{path}.placement"))?;
+    let offsets = offsets(&o.placement, raw.frames, file, &format!("{path}.placement"))?;
     let motion = match o.motion {
         MotionSpec::Static => Motion::Static,
         MotionSpec::Dynamic => Motion::Dynamic,
@@ -346,8 +347,10 @@ fn object(
             "a dynamic object".into(),
         ));
     }
-    let (lo, hi) = mesh.bounds();
-    let (glo, ghi) = (grid.to_grid(lo), grid.to_grid(hi));
+    // Accepted means runnable (SPEC 12.1): the bounds judged are the ones
+    // the build will see, every vertex rounded to binary32 after placement.
+    let bounds = mesh.bounds();
+    let (glo, ghi) = placed_bounds(grid, bounds, DVec3::ZERO);
     let edge = params.scene_edge() as f64;
     let inside = |a: DVec3, b: DVec3| a.min_element() >= 0.0 && b.max_element() <= edge;
     if !inside(glo, ghi) {
@@ -366,18 +369,27 @@ fn object(
         ));
     }
     for (k, off) in offsets.iter().enumerate() {
-        let shift = *off / grid.unit;
-        if !inside(glo + shift, ghi + shift) {
+        // With translation the world's last resort (SPEC 7.10) is the mesh
+        // moved by the whole placement in grid units; without, the offset
+        // baked into the vertices.
+        let by = if raw.effects.units.translation {
+            *off / grid.unit * grid.unit
+        } else {
+            *off
+        };
+        let (plo, phi) = placed_bounds(grid, bounds, by);
+        if !inside(plo, phi) {
             return Err(e(
                 placement_path(&o.placement, &format!("{path}.placement"), k),
                 &format!(
-                    "a placement keeping the object inside the scene cube, grid units [0, {edge}]"
+                    "a placement keeping the object inside the scene cube once its vertices are \
+                     placed and rounded to binary32, grid units [0, {edge}]"
                 ),
                 format!(
                     "frame {k}: offset {:?} puts it at {:?} .. {:?} in grid units",
                     off.to_array(),
-                    (glo + shift).to_array(),
-                    (ghi + shift).to_array()
+                    plo.to_array(),
+                    phi.to_array()
                 ),
             ));
         }

@@ -237,8 +237,9 @@ impl Outcome {
     }
 }
 
-/// Flips bit 0 of merge `merge`'s expected `header` beat (its `out_id`).
-fn flip_header(streams: &mut UnitStreams, merge: usize) -> Result<()> {
+/// Flips bit 0 of merge `merge`'s expected `header` beat (its `out_id`):
+/// the test hook, of generated runs and of replayed files.
+pub fn flip_header(streams: &mut UnitStreams, merge: usize) -> Result<()> {
     // `header` is the last output stream; every merge has its one beat.
     streams.flip_first(streams.outputs.len() - 1, merge)
 }

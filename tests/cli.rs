@@ -499,7 +499,7 @@ fn vectors_follow_the_mode_and_refuse_bad_options() {
         ),
         (
             vec!["--unit", "merge", "--leaf-bits", "4"],
-            "--leaf-bits apply to --unit merger only",
+            "--leaf-bits applies to --unit merger only, not to --unit merge",
         ),
     ] {
         let mut all = vec!["vectors", "--out", out];

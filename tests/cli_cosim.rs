@@ -399,3 +399,90 @@ fn stage_flags_that_do_not_fit_are_refused() {
     );
     assert!(!err.contains("panicked"), "{err}");
 }
+
+/// A flag that configures or drives other units is refused before
+/// anything is built, naming the flag and the units it applies to (never
+/// silently ignored); so are the flags of generated merges with a
+/// `--vectors` replay.
+#[test]
+fn flags_of_other_units_are_refused_naming_them() {
+    let merging = "applies to --unit merge and --unit merger only";
+    for (unit, flag, want) in [
+        ("translate", "--mode fixed:3", merging),
+        ("translate", "--inputs 3", merging),
+        (
+            "merge",
+            "--table-depth 4",
+            "--table-depth applies to --unit translate only",
+        ),
+        (
+            "merger",
+            "--binary64",
+            "--binary64 applies to --unit translate only",
+        ),
+        (
+            "merge",
+            "--merges hard",
+            "--merges applies to --unit merger only",
+        ),
+        (
+            "translate",
+            "--ledger x",
+            "--ledger applies to --unit merger only",
+        ),
+        (
+            "translate",
+            "--capacity-bits 5",
+            "--capacity-bits applies to --unit merger only",
+        ),
+    ] {
+        let line = format!("cosim --unit {unit} --engine ir --count 1 {flag}");
+        let args: Vec<&str> = line.split(' ').collect();
+        let o = hiermerge(&args, &[]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{line}: accepted");
+        let named = flag.split(' ').next().unwrap();
+        assert!(err.contains(named) && err.contains(want), "{line}: {err}");
+        assert!(
+            err.contains(&format!("not to --unit {unit}")),
+            "{line}: {err}"
+        );
+    }
+    // The same flags with their units pass the check (and fail later, on
+    // the missing file, or run).
+    let o = hiermerge(
+        &[
+            "cosim", "--unit", "merger", "--engine", "ir", "--mode", "fixed:3",
+        ]
+        .iter()
+        .chain(&["--vectors", "none.jsonl"])
+        .copied()
+        .collect::<Vec<_>>(),
+        &[],
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("none.jsonl") && !err.contains("applies to"),
+        "{err}"
+    );
+    for flag in ["--merges", "--ledger"] {
+        let value = if flag == "--merges" { "hard" } else { "x" };
+        let args = [
+            "cosim",
+            "--unit",
+            "merger",
+            "--engine",
+            "ir",
+            "--vectors",
+            "v.jsonl",
+            flag,
+            value,
+        ];
+        let o = hiermerge(&args, &[]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && err.contains(&format!("{flag} applies to generated merges")),
+            "{flag}: {err}"
+        );
+    }
+}

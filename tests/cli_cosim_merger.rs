@@ -11,7 +11,7 @@ use std::process::Output;
 
 use serde_json::Value;
 
-use common::{assert_passed, hiermerge, tool_present};
+use common::{assert_passed, hiermerge, json_of, tool_present};
 
 fn merger_run(engine: &str, seed: &str, count: &str) -> Output {
     hiermerge(
@@ -122,4 +122,56 @@ fn merger_flags_are_checked() {
         &[],
         "hierarchy merger configuration",
     );
+}
+
+/// `cosim --unit merger --vectors FILE` replays a file of `vectors --unit
+/// merger` bit for bit; a merger of other sizes refuses it naming the
+/// parameter; the flip hook's bit is caught at its merge, `out_id` named.
+#[test]
+fn merger_vectors_replay_through_the_cli() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("merger.jsonl");
+    let file = path.to_str().unwrap();
+    let design = "--inputs 2 --max-lod 8 --quant-bits 0 --index-bits 12 --hier-bits 3";
+    let sizes = "--capacity-bits 7 --leaf-bits 6";
+    let run = |line: String, env: &[(&str, &str)]| {
+        let args: Vec<&str> = line.split(' ').collect();
+        hiermerge(&args, env)
+    };
+    let o = run(
+        format!("vectors --unit merger {design} {sizes} --seed 5 --count 4 --out {file}"),
+        &[],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let replay = format!("cosim --unit merger --engine ir --vectors {file} --json {design}");
+    let r = assert_passed(&run(format!("{replay} {sizes}"), &[]), 4);
+    assert_eq!(r["vectors"], file, "{r}");
+    assert_eq!(r["stage"], "hierarchy_merger", "{r}");
+    assert!(r["cycles"].as_u64().unwrap() > 4, "{r}");
+
+    assert_refused(
+        &format!("{replay} --capacity-bits 7"),
+        &[],
+        "`leaf_bits` is 6 in the file",
+    );
+
+    let o = run(
+        format!("{replay} {sizes}"),
+        &[("HIERMERGE_COSIM_FLIP_EXPECTED", "2")],
+    );
+    assert!(!o.status.success(), "a flipped bit must fail the replay");
+    let m = &json_of(&o)["first_mismatch"];
+    assert_eq!(
+        (m["transaction"].as_u64(), m["stream"].as_str()),
+        (Some(2), Some("header")),
+        "{m}"
+    );
+    let differing: Vec<&str> = m["fields"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|f| f["differs"] == true)
+        .map(|f| f["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(differing, ["out_id"], "{m}");
 }

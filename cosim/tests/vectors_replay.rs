@@ -147,8 +147,10 @@ fn module_vectors_of_every_mode_replay_bit_for_bit() {
 }
 
 /// The hierarchy merger (overlap and per-node): the file's streams are
-/// cosim's own for the seed, replay bit for bit, and a flipped `header`
-/// bit is caught at its merge with the field named.
+/// cosim's own for the seed, replay bit for bit; a merger of other sizes or
+/// mode refuses the file naming the parameter; a `header` bit flipped by
+/// the test hook or in the file is caught at its merge with the field
+/// named.
 #[test]
 fn merger_vectors_replay_bit_for_bit() {
     let dir = tempfile::tempdir().unwrap();
@@ -182,6 +184,47 @@ fn merger_vectors_replay_bit_for_bit() {
         let expected: usize = streams.outputs.iter().map(|s| s.beats.len()).sum();
         assert_eq!(t.beats_out, expected as u64, "{mode}");
         assert_eq!(t.done_pulses, count);
+
+        // The test hook flips merge 1's expected `header` beat, out_id's bit 0.
+        let mut hooked = streams.clone();
+        merger::flip_header(&mut hooked, 1).unwrap();
+        let t = merger::run_streams(&c, &hooked, ModuleEngine::Ir, &bench(), dir.path()).unwrap();
+        let m = t.first_mismatch.expect("the hooked bit caught");
+        assert_eq!((m.stream.as_str(), m.merge), ("header", 1), "{mode}");
+        assert_eq!(differing(&m), ["out_id"], "{mode}: {:?}", m.fields);
+
+        // A merger of other sizes or another mode refuses the file, naming
+        // the header parameter that differs.
+        let other_sizes = [
+            (
+                "capacity_bits",
+                c.sizes.capacity_bits + 1,
+                c.sizes.leaf_bits,
+            ),
+            ("leaf_bits", c.sizes.capacity_bits, c.sizes.leaf_bits - 1),
+        ];
+        for (name, capacity_bits, leaf_bits) in other_sizes {
+            let other = MergerConfig {
+                sizes: MergerSizes {
+                    capacity_bits,
+                    leaf_bits,
+                    ..c.sizes
+                },
+                ..c.clone()
+            };
+            let e = merger::streams_from_vectors(&other, &path)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(&format!("`{name}` is")), "{mode}: {e}");
+        }
+        let other = MergerConfig {
+            design: small(MergeMode::Fixed(3)),
+            ..c.clone()
+        };
+        let e = merger::streams_from_vectors(&other, &path)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`mode` is"), "{mode}: {e}");
 
         let field = merger::output_fields(&c, "header").unwrap()[0].name;
         let merge = flip_in_file(&path, "header", field);

@@ -154,16 +154,64 @@ pub struct UnitOpts {
     /// Translation unit: binary64 placements as well as binary32.
     #[arg(long)]
     pub binary64: bool,
-    /// Merging module: number of merged inputs.
-    #[arg(long, default_value_t = golden::vectors::merge::MergeDesign::default().inputs)]
-    pub inputs: usize,
+    /// Merging module: number of merged inputs (default 4).
+    #[arg(long)]
+    pub inputs: Option<usize>,
     /// Merging module: how it chooses the merging level, the one mode it builds:
-    /// overlap[:N/D] (default 1/2), fixed:L, below-top:K, proportion:N/D or per-node[:N/D].
-    #[arg(long, default_value = "overlap:1/2")]
-    pub mode: String,
+    /// overlap[:N/D] (default overlap:1/2), fixed:L, below-top:K, proportion:N/D or
+    /// per-node[:N/D].
+    #[arg(long)]
+    pub mode: Option<String>,
+}
+
+/// `--mode` when not given.
+pub const DEFAULT_MODE: &str = "overlap:1/2";
+
+/// A flag of some units only: its spelling, whether it was given, and the
+/// units (as `--unit` names them) it applies to.
+pub type UnitFlag = (&'static str, bool, &'static [&'static str]);
+
+/// Refuses the first of `flags` given that does not apply to `unit`,
+/// naming it and the units it applies to: a flag another unit takes is
+/// never silently ignored.
+pub fn refuse_flags_of_other_units(unit: &str, flags: &[UnitFlag]) -> Result<(), String> {
+    for &(flag, given, units) in flags {
+        if given && !units.contains(&unit) {
+            let to: Vec<String> = units.iter().map(|u| format!("--unit {u}")).collect();
+            return Err(format!(
+                "{flag} applies to {} only, not to --unit {unit}",
+                to.join(" and ")
+            ));
+        }
+    }
+    Ok(())
 }
 
 impl UnitOpts {
+    /// The unit parameters of these flags, each with the units it
+    /// configures (the grid configures every unit).
+    pub fn unit_flags(&self) -> [UnitFlag; 4] {
+        const TRANSLATE: &[&str] = &["translate"];
+        const MERGING: &[&str] = &["merge", "merger"];
+        [
+            ("--table-depth", self.table_depth.is_some(), TRANSLATE),
+            ("--binary64", self.binary64, TRANSLATE),
+            ("--inputs", self.inputs.is_some(), MERGING),
+            ("--mode", self.mode.is_some(), MERGING),
+        ]
+    }
+
+    /// `--mode`, or its default.
+    pub fn mode(&self) -> &str {
+        self.mode.as_deref().unwrap_or(DEFAULT_MODE)
+    }
+
+    /// `--inputs`, or its default.
+    pub fn inputs(&self) -> usize {
+        self.inputs
+            .unwrap_or(golden::vectors::merge::MergeDesign::default().inputs)
+    }
+
     /// The translation unit these flags ask for, validated.
     pub fn translate_design(&self) -> Result<golden::vectors::translate::TranslateDesign, String> {
         let params = self.grid.params()?;
@@ -185,8 +233,8 @@ impl UnitOpts {
         let params = self.grid.params()?;
         let design = golden::vectors::merge::MergeDesign {
             params,
-            inputs: self.inputs,
-            mode: super::merge::parse_mode(&self.mode).map_err(|e| format!("--mode {e}"))?,
+            inputs: self.inputs(),
+            mode: super::merge::parse_mode(self.mode()).map_err(|e| format!("--mode {e}"))?,
             ..Default::default()
         };
         design

@@ -98,12 +98,8 @@ fn spec(a: &Args, count: usize, rtl: &Path) -> Result<ExportSpec, String> {
 
 pub fn main(a: Args) -> CmdResult {
     parse_stalls(&a.stalls, a.stall)?;
-    if a.stage.is_some() && a.unit != Unit::Merge {
-        return Err("--stage applies to --unit merge only".into());
-    }
-    if (a.capacity_bits.is_some() || a.leaf_bits.is_some()) && a.unit != Unit::Merger {
-        return Err("--capacity-bits and --leaf-bits apply to --unit merger only".into());
-    }
+    let (stage, capacity, leaf) = (a.stage, a.capacity_bits, a.leaf_bits);
+    super::cosim::refuse_unit_flags(a.unit, &a.design, stage, [capacity, leaf], &[])?;
     if a.count == 0 {
         return Err("--count 0: expected at least one transaction".into());
     }

@@ -82,6 +82,10 @@ pub struct MergeStats {
     pub descents: u64,
     /// Merges per number of inputs merged (1..=k).
     pub by_inputs: std::collections::BTreeMap<usize, usize>,
+    /// Merges per fetcher error code in the header (`fetch_err`, not 0).
+    pub fetch_codes: std::collections::BTreeMap<u64, usize>,
+    /// Merges per writer error code in the header (`writer_err`, not 0).
+    pub writer_errs: std::collections::BTreeMap<u64, usize>,
 }
 
 impl MergeStats {
@@ -100,6 +104,12 @@ impl MergeStats {
         self.descents += other.descents;
         for (n, m) in &other.by_inputs {
             *self.by_inputs.entry(*n).or_default() += m;
+        }
+        for (c, m) in &other.fetch_codes {
+            *self.fetch_codes.entry(*c).or_default() += m;
+        }
+        for (c, m) in &other.writer_errs {
+            *self.writer_errs.entry(*c).or_default() += m;
         }
     }
 }
@@ -169,6 +179,12 @@ pub fn merger_streams(c: &MergerConfig, txs: &[MergerTransaction]) -> Result<Mer
                 .filter(|r| matches!(r, PerNodeReport::Decision { descend: true, .. }))
                 .count() as u64;
         }
+        if tx.header.fetch_err != 0 {
+            *stats.fetch_codes.entry(tx.header.fetch_err).or_default() += 1;
+        }
+        if tx.writer.header.err != 0 {
+            *stats.writer_errs.entry(tx.writer.header.err).or_default() += 1;
+        }
         let w = &tx.writer;
         stats.module_in += tx.fetch.iter().map(|f| f.out.len() as u64).sum::<u64>();
         stats.merges += 1;
@@ -237,8 +253,9 @@ impl Outcome {
     }
 }
 
-/// Flips bit 0 of merge `merge`'s expected `header` beat (its `out_id`).
-fn flip_header(streams: &mut UnitStreams, merge: usize) -> Result<()> {
+/// Flips bit 0 of merge `merge`'s expected `header` beat (its `out_id`):
+/// the test hook, of generated runs and of replayed files.
+pub fn flip_header(streams: &mut UnitStreams, merge: usize) -> Result<()> {
     // `header` is the last output stream; every merge has its one beat.
     streams.flip_first(streams.outputs.len() - 1, merge)
 }

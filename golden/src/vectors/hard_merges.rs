@@ -38,13 +38,30 @@ pub struct HardMerges {
     pub several_root_inputs: usize,
 }
 
+/// The fetcher errors of the hard merges, one merge each: those the
+/// fetcher finds in its `cfg` beat before any store read (8.13: an invalid
+/// translation entry, a `root_count` of 0 or above `nodes`, more roots than
+/// the root sorter holds), so the input sends its error beat and `End`s and
+/// the rest is golden's merge of the other inputs, bit for bit. The other
+/// codes (`RECORD` to `ORDER`) are met mid-walk, after store reads: that
+/// input's level streams stop at the error with part of its nodes already
+/// sent, and golden's merger chain refuses such an input (`fetch_passes`)
+/// rather than model a merge of truncated streams, so no merge can expect
+/// them bit for bit (the fetcher's own tests check every code).
+pub const CFG_ERRORS: [u64; 3] = [
+    fetch_err::ENTRY,
+    fetch_err::ROOT_COUNT,
+    fetch_err::ROOT_CAPACITY,
+];
+
 /// The hard merges of the merger `d` (sizes `sizes`): the real cases of `golden::merge::stimulus`
 /// (overlapping, disjoint, single-triangle soups, one input alone, inputs
 /// overlapping in part) and an input filling the scene (several roots),
-/// each through `d`'s mode; a merge whose last input's translation entry is
-/// invalid (a fetcher error); and two bad ranges from software, which the
-/// merging module refuses (`lo > hi`, `hi > D`). Merges of more than `k`
-/// inputs, and those whose leaves overflow the leaf FIFOs, are left out.
+/// each through `d`'s mode; per code of [`CFG_ERRORS`] a merge whose last
+/// input's `cfg` makes its fetcher refuse it; and two bad ranges from
+/// software, which the merging module refuses (`lo > hi`, `hi > D`). Merges
+/// of more than `k` inputs, and those whose leaves overflow the leaf FIFOs,
+/// are left out.
 pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
     let p = &d.params;
     let k = d.inputs;
@@ -65,10 +82,12 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
                 .any(|i| store.get(*i).is_some_and(|h| h.root_count > 1)) as usize;
         out.merges.push(tx);
     }
-    for (store, table, ids) in &cases {
-        if let Some(tx) = broken_entry_merge(d, sizes, store, table, ids)? {
-            out.merges.insert(1.min(out.merges.len()), tx);
-            break;
+    for code in CFG_ERRORS.into_iter().rev() {
+        for (store, table, ids) in &cases {
+            if let Some(tx) = cfg_error_merge(d, sizes, store, table, ids, code)? {
+                out.merges.insert(1.min(out.merges.len()), tx);
+                break;
+            }
         }
     }
     let Some((store, table, ids)) = cases.first() else {
@@ -110,18 +129,23 @@ fn several_roots_case(p: &Params) -> Result<(HierarchyStore, TranslationTable, V
     Ok((store, table, vec![1, 2]))
 }
 
-/// A merge whose last input has an invalid translation entry: its fetcher
+/// A merge whose last input's `cfg` makes its fetcher refuse it with
+/// `code` (one of [`CFG_ERRORS`]): an invalid translation entry, a
+/// `root_count` of 0, or one more root than the sorter holds. Its fetcher
 /// answers every command with an error beat (8.13, no store read), which
 /// the glue passes on as that input's `End`, so the rest is the merge of
 /// the other inputs over the same `(lo, hi)` with the rank left empty; the
 /// header names the error and the input (docs/hardware.md, the merger's
-/// fetcher errors). `None` when the case has one input or more than `k`.
-fn broken_entry_merge(
+/// fetcher errors). `None` when the case has one input or more than `k`,
+/// when the other inputs' leaves overflow the leaf FIFOs, or when its last
+/// input cannot claim that many roots.
+fn cfg_error_merge(
     d: &MergeDesign,
     sizes: MergerSizes,
     store: &HierarchyStore,
     table: &TranslationTable,
     ids: &[u8],
+    code: u64,
 ) -> Result<Option<MergerTransaction>> {
     let p = &d.params;
     let n = ids.len();
@@ -143,53 +167,119 @@ fn broken_entry_merge(
     ) else {
         return Ok(None);
     };
-    let broken = hs[n - 1];
-    tx.cfg.inputs.push(FetchCfg::of(broken, None));
+    // As with the other hard merges: golden has no bit-exact model of a
+    // dropped leaf.
+    if tx.header.leaf_overflow {
+        return Ok(None);
+    }
+    // The `cfg` software sends for the input; the store keeps its records.
+    let mut broken = hs[n - 1].clone();
+    let t = table.get(ids[n - 1] as u32).ok().flatten();
+    let t = match code {
+        fetch_err::ENTRY => None,
+        fetch_err::ROOT_COUNT => {
+            broken.root_count = 0;
+            t
+        }
+        _ => {
+            let roots = sizes.fetch.roots + 1;
+            if roots > broken.nodes.len() || roots as u64 >= p.index_capacity() {
+                return Ok(None);
+            }
+            broken.root_count = roots as u32;
+            t
+        }
+    };
+    tx.cfg.inputs.push(FetchCfg::of(&broken, t.as_ref()));
     // Per-node mode: the fetcher takes the module's whole `report` (that
     // of the other inputs' merge: an empty input changes no decision).
     let (reports, passes) = match &tx.module {
         ModulePass::PerNode(pn) => (pn.reports.clone(), Some(pn.passes)),
         ModulePass::Level(_) => (Vec::new(), None),
     };
-    let f = fetch_transaction_with_reports(broken, 0, &tx.cmds, &reports, sizes.fetch)
+    let entry = crate::translate::table::pack_entry(t.as_ref(), p);
+    let f = fetch_transaction_with_reports(&broken, entry, &tx.cmds, &reports, sizes.fetch)
         .map_err(golden_err)?;
-    check_entry_errors(&f, &tx, passes)?;
+    check_cfg_errors(&f, &tx, passes, code)?;
     tx.fetch.push(f);
-    tx.header.fetch_err = fetch_err::ENTRY;
+    tx.header.fetch_err = code;
     tx.header.fetch_rank = (n - 1) as u16;
     Ok(Some(tx))
 }
 
-/// That `f`, the fetch of an input without a translation entry, reads
-/// nothing and answers every command with an `ENTRY` error beat, then one
-/// `End` per later level (per-node: per later pass).
-fn check_entry_errors(
+/// That `f`, the fetch of an input whose `cfg` its fetcher refuses with
+/// `code`, reads nothing and answers every command with a `code` error
+/// beat, then one `End` per later level (per-node: per later pass).
+fn check_cfg_errors(
     f: &FetchTransaction,
     tx: &MergerTransaction,
     passes: Option<u32>,
+    code: u64,
 ) -> Result<()> {
     let errors = f
         .out
         .iter()
-        .filter(|o| {
-            matches!(
-                o,
-                FetchOut::Error {
-                    code: fetch_err::ENTRY,
-                    ..
-                }
-            )
-        })
+        .filter(|o| matches!(o, FetchOut::Error { code: c, .. } if *c == code))
         .count();
     let levels: usize = tx.cmds.iter().map(|c| c.levels()).sum();
     let beats = passes.map_or(levels, |n| n.max(1) as usize);
     let read = f.node_reqs.len() + f.ref_reqs.len() + f.probe_reqs.len();
     if read != 0 || errors != tx.cmds.len() || f.out.len() != beats {
         return Err(golden_err(format!(
-            "the fetch of an input without a translation entry: {read} store reads (expected 0), {errors} ENTRY error beats (expected {}), {} beats (expected {beats})",
+            "the fetch of an input refused with code {code}: {read} store reads (expected 0), {errors} error beats of that code (expected {}), {} beats (expected {beats})",
             tx.cmds.len(),
             f.out.len()
         )));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::merge::MergeMode;
+
+    /// Every code of [`CFG_ERRORS`] has its merge, in the level modes and
+    /// per node: the header names the code and the last rank, that input's
+    /// fetcher reads nothing, and the merge is that of the other inputs
+    /// (their fetches and the writer's streams as without the broken one).
+    #[test]
+    fn every_cfg_error_has_its_merge() {
+        for mode in [
+            MergeMode::Overlap { num: 1, den: 2 },
+            MergeMode::PerNode { num: 1, den: 2 },
+        ] {
+            let d = MergeDesign {
+                mode,
+                ..MergeDesign::default()
+            };
+            let sizes = MergerSizes::new(&d.params);
+            let h = hard_merges(&d, sizes).unwrap();
+            for code in CFG_ERRORS {
+                let tx = h
+                    .merges
+                    .iter()
+                    .find(|t| t.header.fetch_err == code)
+                    .unwrap_or_else(|| panic!("{mode}: no merge with fetcher error {code}"));
+                let rank = tx.fetch.len() - 1;
+                assert_eq!(tx.header.fetch_rank as usize, rank, "{mode} {code}");
+                let f = &tx.fetch[rank];
+                assert!(
+                    f.node_reqs.is_empty() && f.ref_reqs.is_empty(),
+                    "{mode} {code}"
+                );
+                assert!(f
+                    .leaves
+                    .iter()
+                    .all(|l| matches!(l, crate::merge::fetch_unit::LeafOut::End)));
+                assert!(!tx.header.leaf_overflow, "{mode} {code}");
+                assert_eq!(tx.cfg.inputs.len(), tx.fetch.len(), "{mode} {code}");
+            }
+            assert_eq!(
+                h.merges.iter().filter(|t| t.header.fetch_err != 0).count(),
+                CFG_ERRORS.len(),
+                "{mode}"
+            );
+        }
+    }
 }

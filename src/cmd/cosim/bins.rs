@@ -56,8 +56,28 @@ pub(super) fn merge_level(top: &str) {
 
 /// `merger.inputs.<n>`: merges of every input count from 1 to k;
 /// `merger.<outcome>`: the merger's outcomes besides a plain merge (a
-/// refused range, a fetcher error, leaves above the merging level through
-/// the leaf FIFOs, a materialized root).
+/// refused range, leaves above the merging level through the leaf FIFOs, a
+/// materialized root); `merger.fetch_err.<code>`: every fetcher error code
+/// a merge can expect bit for bit (`golden::vectors::hard_merges::CFG_ERRORS`,
+/// whose doc says why the codes met mid-walk cannot be); and
+/// `merger.writer_err.<code>`: the writer's header errors the stimulus
+/// reaches, `capacity` being the one overflow the merger reports that a
+/// merge reaches bit for bit.
+///
+/// No bin, because no merge golden can expect bit for bit reaches them:
+/// `leaf_overflow` (a leaf or node at a full leaf FIFO is dropped, and
+/// golden has no model of the merged hierarchy without it, so the random
+/// and hard merges leave such merges out); `count_overflow` (a created
+/// node's reference count at `2^I`: `merger_transaction` refuses the merge,
+/// `module_base`); the writer's `LEVEL_OVERFLOW` (with `C < I` a builder
+/// overflow shows first as `CAPACITY`, so only a corrupt child box or count
+/// reaches it); and the count pass's `overflow` on `report` and the
+/// writer's `INDEX_OVERFLOW`, which need more than `2^I` voxels at a level
+/// or records in a merge: none of the regression's merges (I = 24, or I =
+/// 12 and 10 tried) comes near, and below I = 9 golden's soups do not
+/// build. The leaf FIFOs' full and empty are not seen at the unit's
+/// boundary: full only as `leaf_overflow`, empty not at all (the drivers
+/// and monitors count full and empty on the unit's own streams).
 pub(super) fn merger(k: usize, s: &cosim::units::merger::MergeStats) {
     declare((1..=k).map(|n| format!("merger.inputs.{n}")));
     for (n, m) in &s.by_inputs {
@@ -65,12 +85,38 @@ pub(super) fn merger(k: usize, s: &cosim::units::merger::MergeStats) {
     }
     let outcomes = [
         ("refused", s.refused),
-        ("fetch_err", s.fetch_errors),
         ("leaves_above", s.leaves_above),
         ("materialized", s.materialized),
     ];
     declare(outcomes.iter().map(|(o, _)| format!("merger.{o}")));
     for (o, n) in outcomes {
         hit(&format!("merger.{o}"), n as u64);
+    }
+    use golden::merge::fetch_unit::fetch_err;
+    let fetch_codes = [
+        (fetch_err::ENTRY, "entry"),
+        (fetch_err::ROOT_COUNT, "root_count"),
+        (fetch_err::ROOT_CAPACITY, "root_capacity"),
+    ];
+    debug_assert!(fetch_codes
+        .iter()
+        .map(|c| c.0)
+        .eq(golden::vectors::hard_merges::CFG_ERRORS));
+    codes("merger.fetch_err", &fetch_codes, &s.fetch_codes);
+    use golden::merge::writer_unit::writer_err;
+    let writer_codes = [
+        (writer_err::NO_TOP, "no_top"),
+        (writer_err::CAPACITY, "capacity"),
+    ];
+    codes("merger.writer_err", &writer_codes, &s.writer_errs);
+}
+
+/// `<prefix>.<name>` for every `(code, name)` of `names`, hit by the
+/// merges counted per code in `counts`.
+fn codes(prefix: &str, names: &[(u64, &str)], counts: &std::collections::BTreeMap<u64, usize>) {
+    declare(names.iter().map(|(_, n)| format!("{prefix}.{n}")));
+    for (code, n) in names {
+        let m = counts.get(code).copied().unwrap_or(0);
+        hit(&format!("{prefix}.{n}"), m as u64);
     }
 }

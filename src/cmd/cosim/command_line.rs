@@ -3,6 +3,7 @@
 
 use super::{merge_stage, verilog_patch, Args, MergeStage, Unit, DEFAULT_COUNT};
 use super::{FLIP_EXPECTED_VAR, PATCH_FROM_VAR, PATCH_TO_VAR};
+use cosim::units::merger::Merges;
 
 /// The one command line that runs this again, the same way: the test hooks'
 /// variables, then `hiermerge cosim` and [`run_args`], quoted for a shell.
@@ -79,8 +80,8 @@ pub(super) fn run_args(a: &Args) -> Result<Vec<String>, String> {
             }
         }
         Unit::Merge | Unit::Merger => {
-            let mode = crate::cmd::merge::parse_mode(&a.design.mode)?;
-            push("--inputs", a.design.inputs.to_string());
+            let mode = crate::cmd::merge::parse_mode(a.design.mode())?;
+            push("--inputs", a.design.inputs().to_string());
             push("--mode", mode.to_string());
             if a.unit == Unit::Merger {
                 if let Some(c) = a.capacity_bits {
@@ -88,6 +89,11 @@ pub(super) fn run_args(a: &Args) -> Result<Vec<String>, String> {
                 }
                 if let Some(l) = a.leaf_bits {
                     push("--leaf-bits", l.to_string());
+                }
+                // Only when not the default, so the ledger's entries of
+                // random merges keep their form.
+                if a.vectors.is_none() && super::merger::merges_of(a) == Merges::Hard {
+                    push("--merges", "hard".into());
                 }
             }
         }

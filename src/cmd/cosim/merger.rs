@@ -38,6 +38,11 @@ fn merger_config_of(
     merger_config(design, a.capacity_bits, a.leaf_bits)
 }
 
+/// The merges `--merges` asks for (random when not given).
+pub(super) fn merges_of(a: &Args) -> merger::Merges {
+    a.merges.unwrap_or(super::MergesChoice::Random).merges()
+}
+
 /// A `--unit merger` run as the ledger (SPEC 10.2) needs to regenerate it.
 pub struct MergerRun {
     pub config: rtl_gen::merge::MergerConfig,
@@ -79,7 +84,7 @@ pub fn merger_run(args: &[String]) -> Result<MergerRun, String> {
         seed: a.seed,
         count: count(&a)?,
         stall,
-        merges: a.merges.merges(),
+        merges: merges_of(&a),
     })
 }
 
@@ -91,16 +96,16 @@ pub(super) fn run(
     flip: Option<usize>,
     dir: &Path,
 ) -> Result<Report, String> {
-    let count = count(a)?;
-    if a.vectors.is_some() {
-        return Err("--unit merger takes no --vectors: use --seed/--count".into());
-    }
     let engine = module_engine(a.engine)?;
     let c = merger_config_of(a, design)?;
+    if let Some(path) = &a.vectors {
+        return replay(a, &c, flip, path, engine, dir);
+    }
+    let count = count(a)?;
     let config = merger::RunConfig {
         bench: bench_config(a, merger::STAGE)?,
         count,
-        merges: a.merges.merges(),
+        merges: merges_of(a),
         flip_expected: flip,
     };
     if !a.json {
@@ -151,6 +156,54 @@ pub(super) fn run(
         stimulus_sha256: o.stimulus_sha256.clone(),
     });
     Ok(report)
+}
+
+/// `--unit merger --vectors FILE` (`hiermerge vectors --unit merger`):
+/// the file's merges through the merger `c` as one chunk, its header's
+/// parameters checked against `c`'s. The flip hook flips merge `n`'s
+/// expected `header` beat, as in a generated run. The file holds beats,
+/// not golden's transactions, so neither the merger's outcome counts
+/// (`merger` in the report) nor its functional bins come from a replay:
+/// `records` counts the beats the store answered with, `nodes` the node
+/// records the file expects.
+fn replay(
+    a: &Args,
+    c: &rtl_gen::merge::MergerConfig,
+    flip: Option<usize>,
+    path: &Path,
+    engine: merger::MergerEngine,
+    dir: &Path,
+) -> Result<Report, String> {
+    let e = |e: cosim::CosimError| e.to_string();
+    let mut streams = merger::streams_from_vectors(c, path).map_err(e)?;
+    if let Some(n) = flip.filter(|&n| n < streams.merges()) {
+        merger::flip_header(&mut streams, n).map_err(e)?;
+    }
+    let bench = bench_config(a, merger::STAGE)?;
+    if !a.json {
+        eprintln!(
+            "replaying {} merges of {} on {}",
+            streams.merges(),
+            path.display(),
+            a.engine.name()
+        );
+    }
+    let t = merger::run_streams(c, &streams, engine, &bench, dir).map_err(e)?;
+    let written = streams
+        .outputs
+        .iter()
+        .find(|s| s.name == "nodes")
+        .map_or(0, |s| s.beats.len() as u64);
+    let counts = Counts {
+        transactions: t.merges as u64,
+        records: t.data_beats_in,
+        nodes: written,
+        mismatches: t.mismatches,
+        cycles: t.cycles,
+        wall_seconds: t.wall.as_secs_f64(),
+    };
+    let first = chunked_failure(merger::STAGE, a.seed, &t);
+    finish_report(a, merger::STAGE, flip, counts, first, t.vcd.as_ref())
 }
 
 /// Writes `report` (a `--unit merger` run) into the ledger folder `dir`.

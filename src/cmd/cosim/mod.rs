@@ -151,7 +151,7 @@ pub enum Unit {
 
 impl Unit {
     /// The unit as `--unit` spells it.
-    fn name(self) -> &'static str {
+    pub(crate) fn name(self) -> &'static str {
         match self {
             Unit::Translate => "translate",
             Unit::Merge => "merge",
@@ -194,7 +194,8 @@ pub struct Args {
     /// Run the transactions of this vectors file (`hiermerge vectors`;
     /// its header's parameters must equal the design's). Merge: a file of
     /// whole merges runs the module; one of stage records runs its
-    /// merge_level records (--stage merge-level).
+    /// merge_level records (--stage merge-level). Merger: a file of its
+    /// merges (`vectors --unit merger`).
     #[arg(long, conflicts_with = "count")]
     vectors: Option<PathBuf>,
     /// Seed of the generated transactions and of the stall patterns.
@@ -245,9 +246,10 @@ pub struct Args {
     /// --unit merger only: which merges. `random`: 1..=k small random soups
     /// (the long runs'); `hard`: the named hard merges first (real meshes,
     /// several roots, a fetcher error, refused ranges), then random merges
-    /// whose soups span every scale (the coverage regression's).
-    #[arg(long, value_enum, default_value = "random")]
-    merges: MergesChoice,
+    /// whose soups span every scale (the coverage regression's). Default
+    /// `random`.
+    #[arg(long, value_enum)]
+    merges: Option<MergesChoice>,
     /// --unit merger only: also record the run, passed or failed, as an
     /// entry of the long-run ledger in this folder (SPEC 10.2; `hiermerge
     /// ledger` checks the entries against today's code).
@@ -404,6 +406,52 @@ pub fn main(a: Args) -> CmdResult {
     })
 }
 
+const MERGER: &[&str] = &["merger"];
+
+/// Refuses a flag that `cosim`, `vectors` and `export-tb` share and
+/// `unit` does not take, naming it and the units it applies to: the unit
+/// parameters of `design`, `--stage`, `--capacity-bits` and `--leaf-bits`
+/// (`sizes`), then the command's own `more`.
+pub(crate) fn refuse_unit_flags(
+    unit: Unit,
+    design: &UnitOpts,
+    stage: Option<MergeStage>,
+    sizes: [Option<u32>; 2],
+    more: &[super::common::UnitFlag],
+) -> Result<(), String> {
+    let mut flags = vec![("--stage", stage.is_some(), &["merge"][..])];
+    flags.extend(design.unit_flags());
+    flags.extend([
+        ("--capacity-bits", sizes[0].is_some(), MERGER),
+        ("--leaf-bits", sizes[1].is_some(), MERGER),
+    ]);
+    flags.extend_from_slice(more);
+    super::common::refuse_flags_of_other_units(unit.name(), &flags)
+}
+
+/// Refuses a flag of another unit (naming it and the units it applies
+/// to), and a flag of generated merges with a `--vectors` replay.
+fn check_flags(a: &Args) -> Result<(), String> {
+    let merges = ("--merges", a.merges.is_some(), MERGER);
+    let ledger = ("--ledger", a.ledger.is_some(), MERGER);
+    let sizes = [a.capacity_bits, a.leaf_bits];
+    refuse_unit_flags(a.unit, &a.design, a.stage, sizes, &[merges, ledger])?;
+    if a.vectors.is_some() {
+        // A ledger entry is regenerated from its seed and count (SPEC 10.2).
+        for (flag, given) in [
+            ("--merges", a.merges.is_some()),
+            ("--ledger", a.ledger.is_some()),
+        ] {
+            if given {
+                return Err(format!(
+                    "{flag} applies to generated merges (--seed/--count), not to a --vectors replay, whose merges are the file's"
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// One run: its report printed, an error when it failed.
 pub(crate) fn run(a: Args) -> CmdResult {
     stalls(&a)?;
@@ -412,12 +460,7 @@ pub(crate) fn run(a: Args) -> CmdResult {
         return Err("--count 0: expected at least one transaction".into());
     }
     let flip = flip_expected()?;
-    if a.stage.is_some() && a.unit != Unit::Merge {
-        return Err("--stage applies to --unit merge only".into());
-    }
-    if (a.capacity_bits.is_some() || a.leaf_bits.is_some()) && a.unit != Unit::Merger {
-        return Err("--capacity-bits and --leaf-bits apply to --unit merger only".into());
-    }
+    check_flags(&a)?;
     let patchable = match a.unit {
         Unit::Translate => false,
         Unit::Merge => merge_stage(&a)? == MergeStage::Module,
@@ -428,15 +471,10 @@ pub(crate) fn run(a: Args) -> CmdResult {
             "{PATCH_FROM_VAR} applies to --unit merge (the module) and --unit merger only"
         ));
     }
-    if a.ledger.is_some() {
-        if a.unit != Unit::Merger {
-            return Err("--ledger applies to --unit merger only".into());
-        }
-        if flip.is_some() || verilog_patch()?.is_some() {
-            return Err(format!(
-                "--ledger records real runs only: unset {FLIP_EXPECTED_VAR}, {PATCH_FROM_VAR} and {PATCH_TO_VAR}"
-            ));
-        }
+    if a.ledger.is_some() && (flip.is_some() || verilog_patch()?.is_some()) {
+        return Err(format!(
+            "--ledger records real runs only: unset {FLIP_EXPECTED_VAR}, {PATCH_FROM_VAR} and {PATCH_TO_VAR}"
+        ));
     }
     let dir = tempfile::tempdir().map_err(|e| format!("temporary directory: {e}"))?;
     let report = match a.unit {

@@ -8,9 +8,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     input  wire cfg_valid,                 // rtl-gen/src/merge/merger/mod.rs:192
     input  wire [568:0] cfg_data,          // rtl-gen/src/merge/merger/mod.rs:192
     output wire cfg_ready,                 // rtl-gen/src/merge/merger/mod.rs:192
-    input  wire report_ready,              // rtl-gen/src/merge/merger/level_mode.rs:105
-    output wire report_valid,              // rtl-gen/src/merge/merger/level_mode.rs:109
-    output wire [57:0] report_data,        // rtl-gen/src/merge/merger/level_mode.rs:110
+    input  wire report_ready,              // rtl-gen/src/merge/merger/level_mode.rs:107
+    output wire report_valid,              // rtl-gen/src/merge/merger/level_mode.rs:111
+    output wire [57:0] report_data,        // rtl-gen/src/merge/merger/level_mode.rs:112
     input  wire f0_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:286
     input  wire [149:0] f0_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:286
     output wire f0_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:286
@@ -105,11 +105,11 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     output wire idle,                      // rtl-gen/src/merge/merger/tail.rs:99
     output wire module_done                // rtl-gen/src/merge/merger/tail.rs:100
 );
-    localparam [2:0] NONE = 3'd0;            // rtl-gen/src/merge/merger/level_mode.rs:234
-    localparam [2:0] COUNT = 3'd1;           // rtl-gen/src/merge/merger/level_mode.rs:178
-    localparam [2:0] WAIT = 3'd2;            // rtl-gen/src/merge/merger/level_mode.rs:227
-    localparam [2:0] FINAL = 3'd3;           // rtl-gen/src/merge/merger/level_mode.rs:178
-    localparam [2:0] DONE = 3'd4;            // rtl-gen/src/merge/merger/level_mode.rs:228
+    localparam [2:0] NONE = 3'd0;            // rtl-gen/src/merge/merger/level_mode.rs:237
+    localparam [2:0] COUNT = 3'd1;           // rtl-gen/src/merge/merger/level_mode.rs:181
+    localparam [2:0] WAIT = 3'd2;            // rtl-gen/src/merge/merger/level_mode.rs:230
+    localparam [2:0] FINAL = 3'd3;           // rtl-gen/src/merge/merger/level_mode.rs:181
+    localparam [2:0] DONE = 3'd4;            // rtl-gen/src/merge/merger/level_mode.rs:231
     reg [177:0] leaves0 [0:15];              // rtl-gen/src/merge/merger/drop_fifo.rs:21
     reg [177:0] leaves1 [0:15];              // rtl-gen/src/merge/merger/drop_fifo.rs:21
     reg [177:0] leaves2 [0:15];              // rtl-gen/src/merge/merger/drop_fifo.rs:21
@@ -314,106 +314,107 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire used2;                              // rtl-gen/src/merge/merger/level_mode.rs:46
     wire used3;                              // rtl-gen/src/merge/merger/level_mode.rs:46
     wire u_module_chosen;                    // rtl-gen/src/merge/merger/mod.rs:121
-    wire choice_seen;                        // rtl-gen/src/merge/merger/level_mode.rs:112
-    reg choice_known;                        // rtl-gen/src/merge/merger/level_mode.rs:113
-    reg choice_ok;                           // rtl-gen/src/merge/merger/level_mode.rs:114
-    reg [4:0] merge_lod;                     // rtl-gen/src/merge/merger/level_mode.rs:115
+    wire choice_seen;                        // rtl-gen/src/merge/merger/level_mode.rs:114
+    reg choice_known;                        // rtl-gen/src/merge/merger/level_mode.rs:115
+    reg choice_ok;                           // rtl-gen/src/merge/merger/level_mode.rs:116
+    reg [4:0] merge_lod;                     // rtl-gen/src/merge/merger/level_mode.rs:117
     wire [1:0] u_module_err;                 // rtl-gen/src/merge/merger/mod.rs:121
     wire [4:0] u_module_lod;                 // rtl-gen/src/merge/merger/mod.rs:121
-    wire merging;                            // rtl-gen/src/merge/merger/level_mode.rs:119
+    wire merging;                            // rtl-gen/src/merge/merger/level_mode.rs:121
     reg module_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:227
     reg writer_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:235
-    reg [3:0] fetch_err;                     // rtl-gen/src/merge/merger/level_mode.rs:162
-    reg [1:0] fetch_rank;                    // rtl-gen/src/merge/merger/level_mode.rs:163
-    wire [3:0] header_fire_mux_3;            // rtl-gen/src/merge/merger/level_mode.rs:164
-    wire [179:0] const_cat;                  // rtl-gen/src/merge/merger/level_mode.rs:166
-    reg fetch0_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:169
-    reg [2:0] phase0;                        // rtl-gen/src/merge/merger/level_mode.rs:176
-    reg [4:0] cmd_lod0;                      // rtl-gen/src/merge/merger/level_mode.rs:180
-    wire phase0_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:178
-    wire phase0_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:178
-    wire [4:0] merging_mux;                  // rtl-gen/src/merge/merger/level_mode.rs:183
-    wire [4:0] phase0_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:183
-    wire phase0_and;                         // rtl-gen/src/merge/merger/level_mode.rs:189
-    wire issuing0;                           // rtl-gen/src/merge/merger/level_mode.rs:199
-    wire used0_and;                          // rtl-gen/src/merge/merger/level_mode.rs:200
-    wire used0_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:202
+    reg [3:0] fetch_err;                     // rtl-gen/src/merge/merger/level_mode.rs:165
+    reg [1:0] fetch_rank;                    // rtl-gen/src/merge/merger/level_mode.rs:166
+    wire [3:0] header_fire_mux_3;            // rtl-gen/src/merge/merger/level_mode.rs:167
+    wire [179:0] const_cat;                  // rtl-gen/src/merge/merger/level_mode.rs:169
+    reg fetch0_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:172
+    reg [2:0] phase0;                        // rtl-gen/src/merge/merger/level_mode.rs:179
+    reg [4:0] cmd_lod0;                      // rtl-gen/src/merge/merger/level_mode.rs:183
+    wire phase0_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:181
+    wire phase0_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:181
+    wire [4:0] merging_mux;                  // rtl-gen/src/merge/merger/level_mode.rs:186
+    wire [4:0] phase0_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:186
+    wire phase0_and;                         // rtl-gen/src/merge/merger/level_mode.rs:192
+    wire issuing0;                           // rtl-gen/src/merge/merger/level_mode.rs:202
+    wire used0_and;                          // rtl-gen/src/merge/merger/level_mode.rs:203
+    wire used0_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:205
     wire [3:0] u_fetch0_err;                 // rtl-gen/src/merge/merger/mod.rs:121
     wire [1:0] u_fetch0_kind;                // rtl-gen/src/merge/merger/mod.rs:121
-    wire used0_not;                          // rtl-gen/src/merge/merger/level_mode.rs:212
-    wire virtual_end0;                       // rtl-gen/src/merge/merger/level_mode.rs:212
-    wire dropping0_or;                       // rtl-gen/src/merge/merger/level_mode.rs:216
-    wire u_fetch0_and;                       // rtl-gen/src/merge/merger/level_mode.rs:217
-    wire u_fetch0_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:219
-    wire [3:0] u_fetch0_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:220
-    wire merging_not;                        // rtl-gen/src/merge/merger/level_mode.rs:223
-    wire step0;                              // rtl-gen/src/merge/merger/level_mode.rs:224
-    wire [2:0] count_pass_mux;               // rtl-gen/src/merge/merger/level_mode.rs:232
+    wire used0_not;                          // rtl-gen/src/merge/merger/level_mode.rs:215
+    wire virtual_end0;                       // rtl-gen/src/merge/merger/level_mode.rs:215
+    wire dropping0_or;                       // rtl-gen/src/merge/merger/level_mode.rs:219
+    wire u_fetch0_and;                       // rtl-gen/src/merge/merger/level_mode.rs:220
+    wire u_fetch0_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:222
+    wire [3:0] u_fetch0_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:223
+    wire merging_not;                        // rtl-gen/src/merge/merger/level_mode.rs:226
+    wire step0;                              // rtl-gen/src/merge/merger/level_mode.rs:227
+    wire [2:0] count_pass_mux;               // rtl-gen/src/merge/merger/level_mode.rs:235
+    wire choice_known_or;                    // rtl-gen/src/merge/merger/level_mode.rs:242
     wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
     wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:280
     wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
-    reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:169
-    reg [2:0] phase1;                        // rtl-gen/src/merge/merger/level_mode.rs:176
-    reg [4:0] cmd_lod1;                      // rtl-gen/src/merge/merger/level_mode.rs:180
-    wire phase1_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:178
-    wire phase1_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:178
-    wire [4:0] phase1_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:183
-    wire phase1_and;                         // rtl-gen/src/merge/merger/level_mode.rs:189
-    wire issuing1;                           // rtl-gen/src/merge/merger/level_mode.rs:199
-    wire used1_and;                          // rtl-gen/src/merge/merger/level_mode.rs:200
-    wire used1_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:202
+    reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:172
+    reg [2:0] phase1;                        // rtl-gen/src/merge/merger/level_mode.rs:179
+    reg [4:0] cmd_lod1;                      // rtl-gen/src/merge/merger/level_mode.rs:183
+    wire phase1_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:181
+    wire phase1_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:181
+    wire [4:0] phase1_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:186
+    wire phase1_and;                         // rtl-gen/src/merge/merger/level_mode.rs:192
+    wire issuing1;                           // rtl-gen/src/merge/merger/level_mode.rs:202
+    wire used1_and;                          // rtl-gen/src/merge/merger/level_mode.rs:203
+    wire used1_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:205
     wire [3:0] u_fetch1_err;                 // rtl-gen/src/merge/merger/mod.rs:121
     wire [1:0] u_fetch1_kind;                // rtl-gen/src/merge/merger/mod.rs:121
-    wire used1_not;                          // rtl-gen/src/merge/merger/level_mode.rs:212
-    wire virtual_end1;                       // rtl-gen/src/merge/merger/level_mode.rs:212
-    wire dropping1_or;                       // rtl-gen/src/merge/merger/level_mode.rs:216
-    wire u_fetch1_and;                       // rtl-gen/src/merge/merger/level_mode.rs:217
-    wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:219
-    wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:220
-    wire step1;                              // rtl-gen/src/merge/merger/level_mode.rs:224
+    wire used1_not;                          // rtl-gen/src/merge/merger/level_mode.rs:215
+    wire virtual_end1;                       // rtl-gen/src/merge/merger/level_mode.rs:215
+    wire dropping1_or;                       // rtl-gen/src/merge/merger/level_mode.rs:219
+    wire u_fetch1_and;                       // rtl-gen/src/merge/merger/level_mode.rs:220
+    wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:222
+    wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:223
+    wire step1;                              // rtl-gen/src/merge/merger/level_mode.rs:227
     wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
     wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:280
     wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
-    reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:169
-    reg [2:0] phase2;                        // rtl-gen/src/merge/merger/level_mode.rs:176
-    reg [4:0] cmd_lod2;                      // rtl-gen/src/merge/merger/level_mode.rs:180
-    wire phase2_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:178
-    wire phase2_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:178
-    wire [4:0] phase2_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:183
-    wire phase2_and;                         // rtl-gen/src/merge/merger/level_mode.rs:189
-    wire issuing2;                           // rtl-gen/src/merge/merger/level_mode.rs:199
-    wire used2_and;                          // rtl-gen/src/merge/merger/level_mode.rs:200
-    wire used2_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:202
+    reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:172
+    reg [2:0] phase2;                        // rtl-gen/src/merge/merger/level_mode.rs:179
+    reg [4:0] cmd_lod2;                      // rtl-gen/src/merge/merger/level_mode.rs:183
+    wire phase2_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:181
+    wire phase2_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:181
+    wire [4:0] phase2_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:186
+    wire phase2_and;                         // rtl-gen/src/merge/merger/level_mode.rs:192
+    wire issuing2;                           // rtl-gen/src/merge/merger/level_mode.rs:202
+    wire used2_and;                          // rtl-gen/src/merge/merger/level_mode.rs:203
+    wire used2_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:205
     wire [3:0] u_fetch2_err;                 // rtl-gen/src/merge/merger/mod.rs:121
     wire [1:0] u_fetch2_kind;                // rtl-gen/src/merge/merger/mod.rs:121
-    wire used2_not;                          // rtl-gen/src/merge/merger/level_mode.rs:212
-    wire virtual_end2;                       // rtl-gen/src/merge/merger/level_mode.rs:212
-    wire dropping2_or;                       // rtl-gen/src/merge/merger/level_mode.rs:216
-    wire u_fetch2_and;                       // rtl-gen/src/merge/merger/level_mode.rs:217
-    wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:219
-    wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:220
-    wire step2;                              // rtl-gen/src/merge/merger/level_mode.rs:224
+    wire used2_not;                          // rtl-gen/src/merge/merger/level_mode.rs:215
+    wire virtual_end2;                       // rtl-gen/src/merge/merger/level_mode.rs:215
+    wire dropping2_or;                       // rtl-gen/src/merge/merger/level_mode.rs:219
+    wire u_fetch2_and;                       // rtl-gen/src/merge/merger/level_mode.rs:220
+    wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:222
+    wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:223
+    wire step2;                              // rtl-gen/src/merge/merger/level_mode.rs:227
     wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
     wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:280
     wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
-    reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:169
-    reg [2:0] phase3;                        // rtl-gen/src/merge/merger/level_mode.rs:176
-    reg [4:0] cmd_lod3;                      // rtl-gen/src/merge/merger/level_mode.rs:180
-    wire phase3_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:178
-    wire phase3_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:178
-    wire [4:0] phase3_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:183
-    wire phase3_and;                         // rtl-gen/src/merge/merger/level_mode.rs:189
-    wire issuing3;                           // rtl-gen/src/merge/merger/level_mode.rs:199
-    wire used3_and;                          // rtl-gen/src/merge/merger/level_mode.rs:200
-    wire used3_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:202
+    reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:172
+    reg [2:0] phase3;                        // rtl-gen/src/merge/merger/level_mode.rs:179
+    reg [4:0] cmd_lod3;                      // rtl-gen/src/merge/merger/level_mode.rs:183
+    wire phase3_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:181
+    wire phase3_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:181
+    wire [4:0] phase3_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:186
+    wire phase3_and;                         // rtl-gen/src/merge/merger/level_mode.rs:192
+    wire issuing3;                           // rtl-gen/src/merge/merger/level_mode.rs:202
+    wire used3_and;                          // rtl-gen/src/merge/merger/level_mode.rs:203
+    wire used3_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:205
     wire [3:0] u_fetch3_err;                 // rtl-gen/src/merge/merger/mod.rs:121
     wire [1:0] u_fetch3_kind;                // rtl-gen/src/merge/merger/mod.rs:121
-    wire used3_not;                          // rtl-gen/src/merge/merger/level_mode.rs:212
-    wire virtual_end3;                       // rtl-gen/src/merge/merger/level_mode.rs:212
-    wire dropping3_or;                       // rtl-gen/src/merge/merger/level_mode.rs:216
-    wire u_fetch3_and;                       // rtl-gen/src/merge/merger/level_mode.rs:217
-    wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:219
-    wire step3;                              // rtl-gen/src/merge/merger/level_mode.rs:224
+    wire used3_not;                          // rtl-gen/src/merge/merger/level_mode.rs:215
+    wire virtual_end3;                       // rtl-gen/src/merge/merger/level_mode.rs:215
+    wire dropping3_or;                       // rtl-gen/src/merge/merger/level_mode.rs:219
+    wire u_fetch3_and;                       // rtl-gen/src/merge/merger/level_mode.rs:220
+    wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:222
+    wire step3;                              // rtl-gen/src/merge/merger/level_mode.rs:227
     wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
     wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:280
     wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:280
@@ -450,355 +451,355 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaf_take;                          // rtl-gen/src/merge/merger/leaf_merge.rs:80
     wire [4:0] leaf_best_data_lod;           // rtl-gen/src/merge/merger/mod.rs:121
     wire [1:0] u_module_kind;                // rtl-gen/src/merge/merger/mod.rs:121
-    wire out_is_ref;                         // rtl-gen/src/merge/merger/level_mode.rs:296
-    wire out_is_end;                         // rtl-gen/src/merge/merger/level_mode.rs:297
+    wire out_is_ref;                         // rtl-gen/src/merge/merger/level_mode.rs:301
+    wire out_is_end;                         // rtl-gen/src/merge/merger/level_mode.rs:302
     wire u_module_err_1;                     // rtl-gen/src/merge/merger/mod.rs:121
     wire [27:0] u_module_ref;                // rtl-gen/src/merge/merger/mod.rs:121
     wire [149:0] u_module_rec;               // rtl-gen/src/merge/merger/mod.rs:121
-    wire [179:0] u_module_kind_cat;          // rtl-gen/src/merge/merger/level_mode.rs:300
-    reg crefs_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:311
-    wire choice_ok_not;                      // rtl-gen/src/merge/merger/level_mode.rs:313
-    wire crefs_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:313
-    wire choice_ok_or;                       // rtl-gen/src/merge/merger/level_mode.rs:314
-    reg leaf_overflow_q;                     // rtl-gen/src/merge/merger/level_mode.rs:336
-    reg base0_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:341
-    wire base0_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:343
+    wire [179:0] u_module_kind_cat;          // rtl-gen/src/merge/merger/level_mode.rs:305
+    reg crefs_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:316
+    wire choice_ok_not;                      // rtl-gen/src/merge/merger/level_mode.rs:318
+    wire crefs_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:318
+    wire choice_ok_or;                       // rtl-gen/src/merge/merger/level_mode.rs:319
+    reg leaf_overflow_q;                     // rtl-gen/src/merge/merger/level_mode.rs:341
+    reg base0_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:346
+    wire base0_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:348
     reg [4:0] leaves0_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves0_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves0_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves0_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves0_push;                       // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves0_push;                       // rtl-gen/src/merge/merger/level_mode.rs:353
     wire leaves0_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves0_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base0_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire base0_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:357
     wire [149:0] leaves0_rec;                // rtl-gen/src/merge/merger/mod.rs:121
     wire [27:0] leaves0_ref;                 // rtl-gen/src/merge/merger/mod.rs:121
-    wire leaves0_end;                        // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire leaves0_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire leaves0_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire base0_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire out_is_ref_not;                     // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base0_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base0_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base0_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire leaves0_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:370
-    reg base1_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:341
-    wire base1_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:343
+    wire leaves0_end;                        // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves0_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves0_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire base0_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire out_is_ref_not;                     // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base0_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base0_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base0_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire leaves0_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:375
+    reg base1_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:346
+    wire base1_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:348
     reg [4:0] leaves1_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves1_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves1_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves1_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves1_push;                       // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves1_push;                       // rtl-gen/src/merge/merger/level_mode.rs:353
     wire leaves1_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves1_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base1_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire base1_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:357
     wire [149:0] leaves1_rec;                // rtl-gen/src/merge/merger/mod.rs:121
     wire [27:0] leaves1_ref;                 // rtl-gen/src/merge/merger/mod.rs:121
-    wire leaves1_end;                        // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire leaves1_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire leaves1_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire base1_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base1_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base1_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base1_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire leaves1_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:370
-    reg base2_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:341
-    wire base2_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:343
+    wire leaves1_end;                        // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves1_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves1_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire base1_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base1_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base1_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base1_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire leaves1_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:375
+    reg base2_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:346
+    wire base2_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:348
     reg [4:0] leaves2_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves2_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves2_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves2_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves2_push;                       // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves2_push;                       // rtl-gen/src/merge/merger/level_mode.rs:353
     wire leaves2_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves2_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base2_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire base2_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:357
     wire [149:0] leaves2_rec;                // rtl-gen/src/merge/merger/mod.rs:121
     wire [27:0] leaves2_ref;                 // rtl-gen/src/merge/merger/mod.rs:121
-    wire leaves2_end;                        // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire leaves2_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire leaves2_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire base2_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base2_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base2_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base2_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire leaves2_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base2_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:383
-    reg base3_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:341
-    wire base3_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:343
+    wire leaves2_end;                        // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves2_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves2_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire base2_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base2_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base2_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base2_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire leaves2_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire base2_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:388
+    reg base3_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:346
+    wire base3_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:348
     reg [4:0] leaves3_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves3_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves3_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves3_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves3_push;                       // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves3_push;                       // rtl-gen/src/merge/merger/level_mode.rs:353
     wire leaves3_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves3_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base3_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire base3_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:357
     wire [149:0] leaves3_rec;                // rtl-gen/src/merge/merger/mod.rs:121
     wire [27:0] leaves3_ref;                 // rtl-gen/src/merge/merger/mod.rs:121
-    wire leaves3_end;                        // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire leaves3_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire leaves3_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire base3_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base3_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base3_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base3_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire leaves3_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base3_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:384
-    reg base4_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:341
-    wire base4_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:343
+    wire leaves3_end;                        // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves3_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves3_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire base3_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base3_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base3_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base3_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire leaves3_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire base3_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:389
+    reg base4_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:346
+    wire base4_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:348
     reg [4:0] leaves4_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves4_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves4_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves4_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves4_push;                       // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves4_push;                       // rtl-gen/src/merge/merger/level_mode.rs:353
     wire leaves4_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves4_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base4_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire base4_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:357
     wire [149:0] leaves4_rec;                // rtl-gen/src/merge/merger/mod.rs:121
     wire [27:0] leaves4_ref;                 // rtl-gen/src/merge/merger/mod.rs:121
-    wire leaves4_end;                        // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire leaves4_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire leaves4_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire base4_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base4_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base4_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base4_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire leaves4_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:370
-    reg base5_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:341
-    wire base5_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:343
+    wire leaves4_end;                        // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves4_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves4_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire base4_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base4_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base4_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base4_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire leaves4_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:375
+    reg base5_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:346
+    wire base5_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:348
     reg [4:0] leaves5_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves5_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves5_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves5_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves5_push;                       // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves5_push;                       // rtl-gen/src/merge/merger/level_mode.rs:353
     wire leaves5_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves5_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base5_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire base5_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:357
     wire [149:0] leaves5_rec;                // rtl-gen/src/merge/merger/mod.rs:121
     wire [27:0] leaves5_ref;                 // rtl-gen/src/merge/merger/mod.rs:121
-    wire leaves5_end;                        // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire leaves5_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire leaves5_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire base5_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base5_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base5_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base5_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire leaves5_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base5_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:383
-    reg base6_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:341
-    wire base6_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:343
+    wire leaves5_end;                        // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves5_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves5_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire base5_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base5_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base5_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base5_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire leaves5_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire base5_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:388
+    reg base6_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:346
+    wire base6_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:348
     reg [4:0] leaves6_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves6_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves6_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves6_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves6_push;                       // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves6_push;                       // rtl-gen/src/merge/merger/level_mode.rs:353
     wire leaves6_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves6_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base6_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire base6_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:357
     wire [149:0] leaves6_rec;                // rtl-gen/src/merge/merger/mod.rs:121
     wire [27:0] leaves6_ref;                 // rtl-gen/src/merge/merger/mod.rs:121
-    wire leaves6_end;                        // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire leaves6_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire leaves6_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire base6_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base6_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base6_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base6_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire leaves6_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:370
-    reg base7_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:341
-    wire base7_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:343
+    wire leaves6_end;                        // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves6_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves6_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire base6_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base6_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base6_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base6_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire leaves6_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:375
+    reg base7_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:346
+    wire base7_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:348
     reg [4:0] leaves7_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves7_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves7_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves7_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves7_push;                       // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves7_push;                       // rtl-gen/src/merge/merger/level_mode.rs:353
     wire leaves7_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves7_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base7_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire base7_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:357
     wire [149:0] leaves7_rec;                // rtl-gen/src/merge/merger/mod.rs:121
     wire [27:0] leaves7_ref;                 // rtl-gen/src/merge/merger/mod.rs:121
-    wire leaves7_end;                        // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire leaves7_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire leaves7_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire base7_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base7_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base7_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base7_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire leaves7_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base7_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:384
-    reg base8_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:341
-    wire base8_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:343
+    wire leaves7_end;                        // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves7_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves7_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire base7_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base7_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base7_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base7_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire leaves7_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire base7_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:389
+    reg base8_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:346
+    wire base8_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:348
     reg [4:0] leaves8_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves8_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves8_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves8_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves8_push;                       // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves8_push;                       // rtl-gen/src/merge/merger/level_mode.rs:353
     wire leaves8_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves8_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base8_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire base8_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:357
     wire [149:0] leaves8_rec;                // rtl-gen/src/merge/merger/mod.rs:121
     wire [27:0] leaves8_ref;                 // rtl-gen/src/merge/merger/mod.rs:121
-    wire leaves8_end;                        // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire leaves8_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire leaves8_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire base8_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base8_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base8_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base8_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire leaves8_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base8_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:383
-    reg base9_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:341
-    wire base9_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:343
+    wire leaves8_end;                        // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves8_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves8_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire base8_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base8_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base8_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base8_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire leaves8_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire base8_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:388
+    reg base9_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:346
+    wire base9_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:348
     reg [4:0] leaves9_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves9_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves9_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves9_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves9_push;                       // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves9_push;                       // rtl-gen/src/merge/merger/level_mode.rs:353
     wire leaves9_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves9_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base9_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire base9_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:357
     wire [149:0] leaves9_rec;                // rtl-gen/src/merge/merger/mod.rs:121
     wire [27:0] leaves9_ref;                 // rtl-gen/src/merge/merger/mod.rs:121
-    wire leaves9_end;                        // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire leaves9_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire leaves9_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire base9_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base9_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base9_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base9_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire leaves9_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:370
-    reg base10_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:341
-    wire base10_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:343
+    wire leaves9_end;                        // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves9_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves9_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire base9_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base9_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base9_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base9_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire leaves9_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:375
+    reg base10_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:346
+    wire base10_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:348
     reg [4:0] leaves10_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves10_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves10_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves10_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves10_push;                      // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves10_push;                      // rtl-gen/src/merge/merger/level_mode.rs:353
     wire leaves10_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves10_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base10_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire base10_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:357
     wire [149:0] leaves10_rec;               // rtl-gen/src/merge/merger/mod.rs:121
     wire [27:0] leaves10_ref;                // rtl-gen/src/merge/merger/mod.rs:121
-    wire leaves10_end;                       // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire leaves10_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire leaves10_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire base10_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base10_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base10_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base10_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire leaves10_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:370
-    reg base11_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:341
-    wire base11_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:343
+    wire leaves10_end;                       // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves10_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves10_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire base10_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base10_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base10_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base10_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire leaves10_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:375
+    reg base11_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:346
+    wire base11_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:348
     reg [4:0] leaves11_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves11_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves11_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves11_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves11_push;                      // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves11_push;                      // rtl-gen/src/merge/merger/level_mode.rs:353
     wire leaves11_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves11_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base11_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire base11_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:357
     wire [149:0] leaves11_rec;               // rtl-gen/src/merge/merger/mod.rs:121
     wire [27:0] leaves11_ref;                // rtl-gen/src/merge/merger/mod.rs:121
-    wire leaves11_end;                       // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire leaves11_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire leaves11_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire base11_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base11_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base11_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base11_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire leaves11_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base11_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire base11_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:384
-    reg base12_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:341
-    wire base12_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:343
+    wire leaves11_end;                       // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves11_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves11_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire base11_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base11_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base11_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base11_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire leaves11_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire base11_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire base11_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:389
+    reg base12_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:346
+    wire base12_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:348
     reg [4:0] leaves12_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves12_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves12_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves12_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves12_push;                      // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves12_push;                      // rtl-gen/src/merge/merger/level_mode.rs:353
     wire leaves12_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves12_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base12_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire base12_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:357
     wire [149:0] leaves12_rec;               // rtl-gen/src/merge/merger/mod.rs:121
     wire [27:0] leaves12_ref;                // rtl-gen/src/merge/merger/mod.rs:121
-    wire leaves12_end;                       // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire leaves12_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire leaves12_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire base12_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base12_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base12_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base12_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire leaves12_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:370
-    reg base13_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:341
-    wire base13_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:343
+    wire leaves12_end;                       // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves12_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves12_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire base12_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base12_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base12_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base12_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire leaves12_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:375
+    reg base13_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:346
+    wire base13_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:348
     reg [4:0] leaves13_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves13_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves13_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves13_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves13_push;                      // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves13_push;                      // rtl-gen/src/merge/merger/level_mode.rs:353
     wire leaves13_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves13_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base13_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire base13_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:357
     wire [149:0] leaves13_rec;               // rtl-gen/src/merge/merger/mod.rs:121
     wire [27:0] leaves13_ref;                // rtl-gen/src/merge/merger/mod.rs:121
-    wire leaves13_end;                       // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire leaves13_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire leaves13_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire base13_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base13_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base13_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base13_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire leaves13_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:370
-    reg base14_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:341
-    wire base14_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:343
+    wire leaves13_end;                       // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves13_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves13_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire base13_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base13_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base13_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base13_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire leaves13_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:375
+    reg base14_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:346
+    wire base14_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:348
     reg [4:0] leaves14_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves14_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves14_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves14_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves14_push;                      // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves14_push;                      // rtl-gen/src/merge/merger/level_mode.rs:353
     wire leaves14_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves14_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base14_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire base14_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:357
     wire [149:0] leaves14_rec;               // rtl-gen/src/merge/merger/mod.rs:121
     wire [27:0] leaves14_ref;                // rtl-gen/src/merge/merger/mod.rs:121
-    wire leaves14_end;                       // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire leaves14_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire leaves14_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire base14_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base14_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base14_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base14_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire leaves14_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base14_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:383
-    reg base15_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:341
-    wire base15_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:343
+    wire leaves14_end;                       // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves14_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves14_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire base14_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base14_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base14_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base14_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire leaves14_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire base14_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:388
+    reg base15_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:346
+    wire base15_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:348
     reg [4:0] leaves15_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves15_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves15_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves15_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves15_push;                      // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire leaves15_push;                      // rtl-gen/src/merge/merger/level_mode.rs:353
     wire leaves15_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves15_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base15_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:352
+    wire base15_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:357
     wire [149:0] leaves15_rec;               // rtl-gen/src/merge/merger/mod.rs:121
     wire [27:0] leaves15_ref;                // rtl-gen/src/merge/merger/mod.rs:121
-    wire leaves15_end;                       // rtl-gen/src/merge/merger/level_mode.rs:362
-    wire leaves15_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire leaves15_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire base15_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base15_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:365
-    wire base15_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:364
-    wire base15_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire leaves15_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:370
-    wire base15_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:384
-    reg base16_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:341
-    wire base16_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:343
-    wire base16_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:374
-    wire base16_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:374
-    wire base16_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:383
-    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:389
-    wire merging_and;                        // rtl-gen/src/merge/merger/level_mode.rs:388
-    reg count_overflow;                      // rtl-gen/src/merge/merger/level_mode.rs:397
+    wire leaves15_end;                       // rtl-gen/src/merge/merger/level_mode.rs:367
+    wire leaves15_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves15_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire base15_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base15_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:370
+    wire base15_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:369
+    wire base15_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire leaves15_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire base15_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:389
+    reg base16_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:346
+    wire base16_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:348
+    wire base16_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire base16_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire base16_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:388
+    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire merging_and;                        // rtl-gen/src/merge/merger/level_mode.rs:393
+    reg count_overflow;                      // rtl-gen/src/merge/merger/level_mode.rs:402
     wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:280
     wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:280
     wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:280
@@ -855,6 +856,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign merging_not = ~merging;
     assign step0 = (used0_and_1 | (virtual_end0 & u_module_in0_ready)) | ((used0_not & phase0_eq_1) & merging_not);
     assign count_pass_mux = count_pass ? COUNT : WAIT;
+    assign choice_known_or = choice_known | choice_seen;
     assign f0_node_resp_ready = u_fetch0_node_resp_ready;
     assign f0_ref_resp_ready = u_fetch0_ref_resp_ready;
     assign f0_cref_resp_ready = u_fetch0_cref_resp_ready;
@@ -1751,69 +1753,69 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:196
                 module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:234
                 writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:242
-                fetch0_cfg_pending <= cfg_data_count > 3'd0; // rtl-gen/src/merge/merger/level_mode.rs:174
-                phase0 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:231
-                cmd_lod0 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:242
-                fetch1_cfg_pending <= cfg_data_count > 3'd1; // rtl-gen/src/merge/merger/level_mode.rs:174
-                phase1 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:231
-                cmd_lod1 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:242
-                fetch2_cfg_pending <= cfg_data_count > 3'd2; // rtl-gen/src/merge/merger/level_mode.rs:174
-                phase2 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:231
-                cmd_lod2 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:242
-                fetch3_cfg_pending <= cfg_data_count > 3'd3; // rtl-gen/src/merge/merger/level_mode.rs:174
-                phase3 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:231
-                cmd_lod3 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:242
+                fetch0_cfg_pending <= cfg_data_count > 3'd0; // rtl-gen/src/merge/merger/level_mode.rs:177
+                phase0 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:234
+                cmd_lod0 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:247
+                fetch1_cfg_pending <= cfg_data_count > 3'd1; // rtl-gen/src/merge/merger/level_mode.rs:177
+                phase1 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:234
+                cmd_lod1 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:247
+                fetch2_cfg_pending <= cfg_data_count > 3'd2; // rtl-gen/src/merge/merger/level_mode.rs:177
+                phase2 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:234
+                cmd_lod2 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:247
+                fetch3_cfg_pending <= cfg_data_count > 3'd3; // rtl-gen/src/merge/merger/level_mode.rs:177
+                phase3 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:234
+                cmd_lod3 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:247
             end else begin
                 if (header_fire) begin
                     busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:197
-                    phase0 <= NONE;          // rtl-gen/src/merge/merger/level_mode.rs:233
-                    phase1 <= NONE;          // rtl-gen/src/merge/merger/level_mode.rs:233
-                    phase2 <= NONE;          // rtl-gen/src/merge/merger/level_mode.rs:233
-                    phase3 <= NONE;          // rtl-gen/src/merge/merger/level_mode.rs:233
+                    phase0 <= NONE;          // rtl-gen/src/merge/merger/level_mode.rs:236
+                    phase1 <= NONE;          // rtl-gen/src/merge/merger/level_mode.rs:236
+                    phase2 <= NONE;          // rtl-gen/src/merge/merger/level_mode.rs:236
+                    phase3 <= NONE;          // rtl-gen/src/merge/merger/level_mode.rs:236
                 end else begin
                     if (step0) begin
                         if (phase0_eq) begin
                             if (used0 | (cmd_lod0 == hi)) begin
-                                phase0 <= WAIT; // rtl-gen/src/merge/merger/level_mode.rs:227
+                                phase0 <= WAIT; // rtl-gen/src/merge/merger/level_mode.rs:230
                             end
                         end else begin
-                            phase0 <= DONE;  // rtl-gen/src/merge/merger/level_mode.rs:226
+                            phase0 <= DONE;  // rtl-gen/src/merge/merger/level_mode.rs:229
                         end
-                    end else if ((phase0 == WAIT) & choice_known) begin
-                        phase0 <= FINAL;     // rtl-gen/src/merge/merger/level_mode.rs:237
+                    end else if ((phase0 == WAIT) & choice_known_or) begin
+                        phase0 <= FINAL;     // rtl-gen/src/merge/merger/level_mode.rs:242
                     end
                     if (step1) begin
                         if (phase1_eq) begin
                             if (used1 | (cmd_lod1 == hi)) begin
-                                phase1 <= WAIT; // rtl-gen/src/merge/merger/level_mode.rs:227
+                                phase1 <= WAIT; // rtl-gen/src/merge/merger/level_mode.rs:230
                             end
                         end else begin
-                            phase1 <= DONE;  // rtl-gen/src/merge/merger/level_mode.rs:226
+                            phase1 <= DONE;  // rtl-gen/src/merge/merger/level_mode.rs:229
                         end
-                    end else if ((phase1 == WAIT) & choice_known) begin
-                        phase1 <= FINAL;     // rtl-gen/src/merge/merger/level_mode.rs:237
+                    end else if ((phase1 == WAIT) & choice_known_or) begin
+                        phase1 <= FINAL;     // rtl-gen/src/merge/merger/level_mode.rs:242
                     end
                     if (step2) begin
                         if (phase2_eq) begin
                             if (used2 | (cmd_lod2 == hi)) begin
-                                phase2 <= WAIT; // rtl-gen/src/merge/merger/level_mode.rs:227
+                                phase2 <= WAIT; // rtl-gen/src/merge/merger/level_mode.rs:230
                             end
                         end else begin
-                            phase2 <= DONE;  // rtl-gen/src/merge/merger/level_mode.rs:226
+                            phase2 <= DONE;  // rtl-gen/src/merge/merger/level_mode.rs:229
                         end
-                    end else if ((phase2 == WAIT) & choice_known) begin
-                        phase2 <= FINAL;     // rtl-gen/src/merge/merger/level_mode.rs:237
+                    end else if ((phase2 == WAIT) & choice_known_or) begin
+                        phase2 <= FINAL;     // rtl-gen/src/merge/merger/level_mode.rs:242
                     end
                     if (step3) begin
                         if (phase3_eq) begin
                             if (used3 | (cmd_lod3 == hi)) begin
-                                phase3 <= WAIT; // rtl-gen/src/merge/merger/level_mode.rs:227
+                                phase3 <= WAIT; // rtl-gen/src/merge/merger/level_mode.rs:230
                             end
                         end else begin
-                            phase3 <= DONE;  // rtl-gen/src/merge/merger/level_mode.rs:226
+                            phase3 <= DONE;  // rtl-gen/src/merge/merger/level_mode.rs:229
                         end
-                    end else if ((phase3 == WAIT) & choice_known) begin
-                        phase3 <= FINAL;     // rtl-gen/src/merge/merger/level_mode.rs:237
+                    end else if ((phase3 == WAIT) & choice_known_or) begin
+                        phase3 <= FINAL;     // rtl-gen/src/merge/merger/level_mode.rs:242
                     end
                 end
                 if (module_cfg_pending & u_module_cfg_ready) begin
@@ -1823,69 +1825,69 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                     writer_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:242
                 end
                 if (fetch0_cfg_pending & u_fetch0_cfg_ready) begin
-                    fetch0_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:174
+                    fetch0_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:177
                 end
                 if (step0 & phase0_eq) begin
-                    cmd_lod0 <= cmd_lod0 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:244
+                    cmd_lod0 <= cmd_lod0 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:249
                 end
                 if (fetch1_cfg_pending & u_fetch1_cfg_ready) begin
-                    fetch1_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:174
+                    fetch1_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:177
                 end
                 if (step1 & phase1_eq) begin
-                    cmd_lod1 <= cmd_lod1 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:244
+                    cmd_lod1 <= cmd_lod1 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:249
                 end
                 if (fetch2_cfg_pending & u_fetch2_cfg_ready) begin
-                    fetch2_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:174
+                    fetch2_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:177
                 end
                 if (step2 & phase2_eq) begin
-                    cmd_lod2 <= cmd_lod2 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:244
+                    cmd_lod2 <= cmd_lod2 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:249
                 end
                 if (fetch3_cfg_pending & u_fetch3_cfg_ready) begin
-                    fetch3_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:174
+                    fetch3_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:177
                 end
                 if (step3 & phase3_eq) begin
-                    cmd_lod3 <= cmd_lod3 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:244
+                    cmd_lod3 <= cmd_lod3 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:249
                 end
             end
             if ((used0_and_1 & phase0_eq_1) & merging_not) begin
-                dropping0 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:247
+                dropping0 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:252
             end else if (u_fetch0_and & (u_fetch0_kind == 2'd3)) begin
-                dropping0 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:247
+                dropping0 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:252
             end
             if ((used1_and_1 & phase1_eq_1) & merging_not) begin
-                dropping1 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:247
+                dropping1 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:252
             end else if (u_fetch1_and & (u_fetch1_kind == 2'd3)) begin
-                dropping1 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:247
+                dropping1 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:252
             end
             if ((used2_and_1 & phase2_eq_1) & merging_not) begin
-                dropping2 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:247
+                dropping2 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:252
             end else if (u_fetch2_and & (u_fetch2_kind == 2'd3)) begin
-                dropping2 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:247
+                dropping2 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:252
             end
             if ((used3_and_1 & phase3_eq_1) & merging_not) begin
-                dropping3 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:247
+                dropping3 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:252
             end else if (u_fetch3_and & (u_fetch3_kind == 2'd3)) begin
-                dropping3 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:247
+                dropping3 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:252
             end
             if (choice_seen) begin
-                choice_known <= 1'b1;        // rtl-gen/src/merge/merger/level_mode.rs:116
-                choice_ok <= u_module_err == 2'd0; // rtl-gen/src/merge/merger/level_mode.rs:117
-                merge_lod <= u_module_lod;   // rtl-gen/src/merge/merger/level_mode.rs:118
+                choice_known <= 1'b1;        // rtl-gen/src/merge/merger/level_mode.rs:118
+                choice_ok <= u_module_err == 2'd0; // rtl-gen/src/merge/merger/level_mode.rs:119
+                merge_lod <= u_module_lod;   // rtl-gen/src/merge/merger/level_mode.rs:120
             end else if (header_fire) begin
-                choice_known <= 1'b0;        // rtl-gen/src/merge/merger/level_mode.rs:116
-                choice_ok <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:117
+                choice_known <= 1'b0;        // rtl-gen/src/merge/merger/level_mode.rs:118
+                choice_ok <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:119
             end
             fetch_err <= u_fetch3_and_1 ? u_fetch3_err : u_fetch2_mux;
             if (u_fetch3_and_1) begin
-                fetch_rank <= 2'd3;          // rtl-gen/src/merge/merger/level_mode.rs:221
+                fetch_rank <= 2'd3;          // rtl-gen/src/merge/merger/level_mode.rs:224
             end else if (u_fetch2_and_1) begin
-                fetch_rank <= 2'd2;          // rtl-gen/src/merge/merger/level_mode.rs:221
+                fetch_rank <= 2'd2;          // rtl-gen/src/merge/merger/level_mode.rs:224
             end else if (u_fetch1_and_1) begin
-                fetch_rank <= 2'd1;          // rtl-gen/src/merge/merger/level_mode.rs:221
+                fetch_rank <= 2'd1;          // rtl-gen/src/merge/merger/level_mode.rs:224
             end else if (u_fetch0_and_1) begin
-                fetch_rank <= 2'd0;          // rtl-gen/src/merge/merger/level_mode.rs:221
+                fetch_rank <= 2'd0;          // rtl-gen/src/merge/merger/level_mode.rs:224
             end else if (header_fire) begin
-                fetch_rank <= 2'd0;          // rtl-gen/src/merge/merger/level_mode.rs:165
+                fetch_rank <= 2'd0;          // rtl-gen/src/merge/merger/level_mode.rs:168
             end
             if (leaves_all_valid & leaves_all_end) begin
                 leaves_done <= 1'b1;         // rtl-gen/src/merge/merger/leaf_merge.rs:87
@@ -1893,49 +1895,49 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 leaves_done <= 1'b0;         // rtl-gen/src/merge/merger/leaf_merge.rs:87
             end
             if ((crefs_end_sent_and & u_writer_crefs_ready) & choice_ok_or) begin
-                crefs_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:329
+                crefs_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:334
             end else if (header_fire) begin
-                crefs_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:329
+                crefs_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:334
             end
             if (leaves15_push & leaves15_full) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:355
             end else if (leaves14_push & leaves14_full) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:355
             end else if (leaves13_push & leaves13_full) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:355
             end else if (leaves12_push & leaves12_full) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:355
             end else if (leaves11_push & leaves11_full) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:355
             end else if (leaves10_push & leaves10_full) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:355
             end else if (leaves9_push & leaves9_full) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:355
             end else if (leaves8_push & leaves8_full) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:355
             end else if (leaves7_push & leaves7_full) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:355
             end else if (leaves6_push & leaves6_full) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:355
             end else if (leaves5_push & leaves5_full) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:355
             end else if (leaves4_push & leaves4_full) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:355
             end else if (leaves3_push & leaves3_full) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:355
             end else if (leaves2_push & leaves2_full) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:355
             end else if (leaves1_push & leaves1_full) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:355
             end else if (leaves0_push & leaves0_full) begin
-                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:350
+                leaf_overflow_q <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:355
             end else if (header_fire) begin
-                leaf_overflow_q <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:337
+                leaf_overflow_q <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:342
             end
             if (base0_end_sent_and_1 & (base0_at_m ? out_is_end : (base0_above_m ? leaves0_end : 1'b1))) begin
-                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:382
+                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:387
             end else if (header_fire) begin
-                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:382
+                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:387
             end
             if (header_fire) begin
                 leaves0_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
@@ -2069,89 +2071,89 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 end
             end
             if (base1_end_sent_and_1 & (base1_at_m ? out_is_end : (base1_above_m ? leaves1_end : 1'b1))) begin
-                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:382
+                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:387
             end else if (header_fire) begin
-                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:382
+                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:387
             end
             if (base2_end_sent_and_1 & (base2_at_m ? out_is_end : (base2_above_m ? leaves2_end : 1'b1))) begin
-                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:382
+                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:387
             end else if (header_fire) begin
-                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:382
+                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:387
             end
             if (base3_end_sent_and_1 & (base3_at_m ? out_is_end : (base3_above_m ? leaves3_end : 1'b1))) begin
-                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:382
+                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:387
             end else if (header_fire) begin
-                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:382
+                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:387
             end
             if (base4_end_sent_and_1 & (base4_at_m ? out_is_end : (base4_above_m ? leaves4_end : 1'b1))) begin
-                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:382
+                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:387
             end else if (header_fire) begin
-                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:382
+                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:387
             end
             if (base5_end_sent_and_1 & (base5_at_m ? out_is_end : (base5_above_m ? leaves5_end : 1'b1))) begin
-                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:382
+                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:387
             end else if (header_fire) begin
-                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:382
+                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:387
             end
             if (base6_end_sent_and_1 & (base6_at_m ? out_is_end : (base6_above_m ? leaves6_end : 1'b1))) begin
-                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:382
+                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:387
             end else if (header_fire) begin
-                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:382
+                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:387
             end
             if (base7_end_sent_and_1 & (base7_at_m ? out_is_end : (base7_above_m ? leaves7_end : 1'b1))) begin
-                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:382
+                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:387
             end else if (header_fire) begin
-                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:382
+                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:387
             end
             if (base8_end_sent_and_1 & (base8_at_m ? out_is_end : (base8_above_m ? leaves8_end : 1'b1))) begin
-                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:382
+                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:387
             end else if (header_fire) begin
-                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:382
+                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:387
             end
             if (base9_end_sent_and_1 & (base9_at_m ? out_is_end : (base9_above_m ? leaves9_end : 1'b1))) begin
-                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:382
+                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:387
             end else if (header_fire) begin
-                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:382
+                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:387
             end
             if (base10_end_sent_and_1 & (base10_at_m ? out_is_end : (base10_above_m ? leaves10_end : 1'b1))) begin
-                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:382
+                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:387
             end else if (header_fire) begin
-                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:382
+                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:387
             end
             if (base11_end_sent_and_1 & (base11_at_m ? out_is_end : (base11_above_m ? leaves11_end : 1'b1))) begin
-                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:382
+                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:387
             end else if (header_fire) begin
-                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:382
+                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:387
             end
             if (base12_end_sent_and_1 & (base12_at_m ? out_is_end : (base12_above_m ? leaves12_end : 1'b1))) begin
-                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:382
+                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:387
             end else if (header_fire) begin
-                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:382
+                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:387
             end
             if (base13_end_sent_and_1 & (base13_at_m ? out_is_end : (base13_above_m ? leaves13_end : 1'b1))) begin
-                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:382
+                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:387
             end else if (header_fire) begin
-                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:382
+                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:387
             end
             if (base14_end_sent_and_1 & (base14_at_m ? out_is_end : (base14_above_m ? leaves14_end : 1'b1))) begin
-                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:382
+                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:387
             end else if (header_fire) begin
-                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:382
+                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:387
             end
             if (base15_end_sent_and_1 & (base15_at_m ? out_is_end : (base15_above_m ? leaves15_end : 1'b1))) begin
-                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:382
+                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:387
             end else if (header_fire) begin
-                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:382
+                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:387
             end
             if ((base16_end_sent_and & u_builder_base16_ready) & (base16_at_m ? out_is_end : 1'b1)) begin
-                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:382
+                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:387
             end else if (header_fire) begin
-                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:382
+                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:387
             end
             if (((u_module_out_valid & merging_and) & (u_module_kind == 2'd0)) & u_module_err_1) begin
-                count_overflow <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                count_overflow <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:405
             end else if (header_fire) begin
-                count_overflow <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:400
+                count_overflow <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:405
             end
             done_pulse <= header_fire;
         end

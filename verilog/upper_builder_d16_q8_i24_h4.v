@@ -56,60 +56,60 @@ module upper_builder_d16_q8_i24_h4 (
     input  wire base16_valid,         // rtl-gen/src/merge/builder.rs:139
     input  wire [179:0] base16_data,  // rtl-gen/src/merge/builder.rs:139
     output wire base16_ready,         // rtl-gen/src/merge/builder.rs:139
-    output wire level16_valid,        // rtl-gen/src/merge/builder.rs:266
-    output wire [228:0] level16_data, // rtl-gen/src/merge/builder.rs:266
-    input  wire level16_ready,        // rtl-gen/src/merge/builder.rs:266
-    output wire level15_valid,        // rtl-gen/src/merge/builder.rs:266
-    output wire [228:0] level15_data, // rtl-gen/src/merge/builder.rs:266
-    input  wire level15_ready,        // rtl-gen/src/merge/builder.rs:266
-    output wire level14_valid,        // rtl-gen/src/merge/builder.rs:266
-    output wire [228:0] level14_data, // rtl-gen/src/merge/builder.rs:266
-    input  wire level14_ready,        // rtl-gen/src/merge/builder.rs:266
-    output wire level13_valid,        // rtl-gen/src/merge/builder.rs:266
-    output wire [228:0] level13_data, // rtl-gen/src/merge/builder.rs:266
-    input  wire level13_ready,        // rtl-gen/src/merge/builder.rs:266
-    output wire level12_valid,        // rtl-gen/src/merge/builder.rs:266
-    output wire [228:0] level12_data, // rtl-gen/src/merge/builder.rs:266
-    input  wire level12_ready,        // rtl-gen/src/merge/builder.rs:266
-    output wire level11_valid,        // rtl-gen/src/merge/builder.rs:266
-    output wire [228:0] level11_data, // rtl-gen/src/merge/builder.rs:266
-    input  wire level11_ready,        // rtl-gen/src/merge/builder.rs:266
-    output wire level10_valid,        // rtl-gen/src/merge/builder.rs:266
-    output wire [228:0] level10_data, // rtl-gen/src/merge/builder.rs:266
-    input  wire level10_ready,        // rtl-gen/src/merge/builder.rs:266
-    output wire level9_valid,         // rtl-gen/src/merge/builder.rs:266
-    output wire [228:0] level9_data,  // rtl-gen/src/merge/builder.rs:266
-    input  wire level9_ready,         // rtl-gen/src/merge/builder.rs:266
-    output wire level8_valid,         // rtl-gen/src/merge/builder.rs:266
-    output wire [228:0] level8_data,  // rtl-gen/src/merge/builder.rs:266
-    input  wire level8_ready,         // rtl-gen/src/merge/builder.rs:266
-    output wire level7_valid,         // rtl-gen/src/merge/builder.rs:266
-    output wire [228:0] level7_data,  // rtl-gen/src/merge/builder.rs:266
-    input  wire level7_ready,         // rtl-gen/src/merge/builder.rs:266
-    output wire level6_valid,         // rtl-gen/src/merge/builder.rs:266
-    output wire [228:0] level6_data,  // rtl-gen/src/merge/builder.rs:266
-    input  wire level6_ready,         // rtl-gen/src/merge/builder.rs:266
-    output wire level5_valid,         // rtl-gen/src/merge/builder.rs:266
-    output wire [228:0] level5_data,  // rtl-gen/src/merge/builder.rs:266
-    input  wire level5_ready,         // rtl-gen/src/merge/builder.rs:266
-    output wire level4_valid,         // rtl-gen/src/merge/builder.rs:266
-    output wire [228:0] level4_data,  // rtl-gen/src/merge/builder.rs:266
-    input  wire level4_ready,         // rtl-gen/src/merge/builder.rs:266
-    output wire level3_valid,         // rtl-gen/src/merge/builder.rs:266
-    output wire [228:0] level3_data,  // rtl-gen/src/merge/builder.rs:266
-    input  wire level3_ready,         // rtl-gen/src/merge/builder.rs:266
-    output wire level2_valid,         // rtl-gen/src/merge/builder.rs:266
-    output wire [228:0] level2_data,  // rtl-gen/src/merge/builder.rs:266
-    input  wire level2_ready,         // rtl-gen/src/merge/builder.rs:266
-    output wire level1_valid,         // rtl-gen/src/merge/builder.rs:266
-    output wire [228:0] level1_data,  // rtl-gen/src/merge/builder.rs:266
-    input  wire level1_ready,         // rtl-gen/src/merge/builder.rs:266
-    output wire level0_valid,         // rtl-gen/src/merge/builder.rs:266
-    output wire [228:0] level0_data,  // rtl-gen/src/merge/builder.rs:266
-    input  wire level0_ready,         // rtl-gen/src/merge/builder.rs:266
-    output wire done_valid,           // rtl-gen/src/merge/builder.rs:313
-    output wire [5:0] done_data,      // rtl-gen/src/merge/builder.rs:313
-    input  wire done_ready            // rtl-gen/src/merge/builder.rs:313
+    output wire level16_valid,        // rtl-gen/src/merge/builder.rs:271
+    output wire [228:0] level16_data, // rtl-gen/src/merge/builder.rs:271
+    input  wire level16_ready,        // rtl-gen/src/merge/builder.rs:271
+    output wire level15_valid,        // rtl-gen/src/merge/builder.rs:271
+    output wire [228:0] level15_data, // rtl-gen/src/merge/builder.rs:271
+    input  wire level15_ready,        // rtl-gen/src/merge/builder.rs:271
+    output wire level14_valid,        // rtl-gen/src/merge/builder.rs:271
+    output wire [228:0] level14_data, // rtl-gen/src/merge/builder.rs:271
+    input  wire level14_ready,        // rtl-gen/src/merge/builder.rs:271
+    output wire level13_valid,        // rtl-gen/src/merge/builder.rs:271
+    output wire [228:0] level13_data, // rtl-gen/src/merge/builder.rs:271
+    input  wire level13_ready,        // rtl-gen/src/merge/builder.rs:271
+    output wire level12_valid,        // rtl-gen/src/merge/builder.rs:271
+    output wire [228:0] level12_data, // rtl-gen/src/merge/builder.rs:271
+    input  wire level12_ready,        // rtl-gen/src/merge/builder.rs:271
+    output wire level11_valid,        // rtl-gen/src/merge/builder.rs:271
+    output wire [228:0] level11_data, // rtl-gen/src/merge/builder.rs:271
+    input  wire level11_ready,        // rtl-gen/src/merge/builder.rs:271
+    output wire level10_valid,        // rtl-gen/src/merge/builder.rs:271
+    output wire [228:0] level10_data, // rtl-gen/src/merge/builder.rs:271
+    input  wire level10_ready,        // rtl-gen/src/merge/builder.rs:271
+    output wire level9_valid,         // rtl-gen/src/merge/builder.rs:271
+    output wire [228:0] level9_data,  // rtl-gen/src/merge/builder.rs:271
+    input  wire level9_ready,         // rtl-gen/src/merge/builder.rs:271
+    output wire level8_valid,         // rtl-gen/src/merge/builder.rs:271
+    output wire [228:0] level8_data,  // rtl-gen/src/merge/builder.rs:271
+    input  wire level8_ready,         // rtl-gen/src/merge/builder.rs:271
+    output wire level7_valid,         // rtl-gen/src/merge/builder.rs:271
+    output wire [228:0] level7_data,  // rtl-gen/src/merge/builder.rs:271
+    input  wire level7_ready,         // rtl-gen/src/merge/builder.rs:271
+    output wire level6_valid,         // rtl-gen/src/merge/builder.rs:271
+    output wire [228:0] level6_data,  // rtl-gen/src/merge/builder.rs:271
+    input  wire level6_ready,         // rtl-gen/src/merge/builder.rs:271
+    output wire level5_valid,         // rtl-gen/src/merge/builder.rs:271
+    output wire [228:0] level5_data,  // rtl-gen/src/merge/builder.rs:271
+    input  wire level5_ready,         // rtl-gen/src/merge/builder.rs:271
+    output wire level4_valid,         // rtl-gen/src/merge/builder.rs:271
+    output wire [228:0] level4_data,  // rtl-gen/src/merge/builder.rs:271
+    input  wire level4_ready,         // rtl-gen/src/merge/builder.rs:271
+    output wire level3_valid,         // rtl-gen/src/merge/builder.rs:271
+    output wire [228:0] level3_data,  // rtl-gen/src/merge/builder.rs:271
+    input  wire level3_ready,         // rtl-gen/src/merge/builder.rs:271
+    output wire level2_valid,         // rtl-gen/src/merge/builder.rs:271
+    output wire [228:0] level2_data,  // rtl-gen/src/merge/builder.rs:271
+    input  wire level2_ready,         // rtl-gen/src/merge/builder.rs:271
+    output wire level1_valid,         // rtl-gen/src/merge/builder.rs:271
+    output wire [228:0] level1_data,  // rtl-gen/src/merge/builder.rs:271
+    input  wire level1_ready,         // rtl-gen/src/merge/builder.rs:271
+    output wire level0_valid,         // rtl-gen/src/merge/builder.rs:271
+    output wire [228:0] level0_data,  // rtl-gen/src/merge/builder.rs:271
+    input  wire level0_ready,         // rtl-gen/src/merge/builder.rs:271
+    output wire done_valid,           // rtl-gen/src/merge/builder.rs:318
+    output wire [5:0] done_data,      // rtl-gen/src/merge/builder.rs:318
+    input  wire done_ready            // rtl-gen/src/merge/builder.rs:318
 );
     wire done_in_ready;                      // rtl-gen/src/merge/builder.rs:131
     reg top_found;                           // rtl-gen/src/merge/builder.rs:132
@@ -618,478 +618,479 @@ module upper_builder_d16_q8_i24_h4 (
     reg l16_nodes_ovf;                       // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l16_records;                  // rtl-gen/src/merge/builder.rs:217
     wire level16_in_ready;                   // rtl-gen/src/merge/builder.rs:223
-    wire base16_skid_data_kind_not;          // rtl-gen/src/merge/builder.rs:225
-    wire l16_end_ok;                         // rtl-gen/src/merge/builder.rs:225
-    wire base16_skid_data_rec_leaf;          // rtl-gen/src/merge/builder.rs:226
-    wire top_found_not;                      // rtl-gen/src/merge/builder.rs:235
-    wire top_found_and;                      // rtl-gen/src/merge/builder.rs:235
-    wire l16_ready_all;                      // rtl-gen/src/merge/builder.rs:238
-    wire l16_ready_all_and;                  // rtl-gen/src/merge/builder.rs:239
-    wire base16_skid_data_kind_not_1;        // rtl-gen/src/merge/builder.rs:239
-    wire base16_skid_data_kind_or;           // rtl-gen/src/merge/builder.rs:239
-    wire l16_fire;                           // rtl-gen/src/merge/builder.rs:239
-    wire l16_fire_and;                       // rtl-gen/src/merge/builder.rs:240
-    wire l16_end_fire;                       // rtl-gen/src/merge/builder.rs:241
-    wire [24:0] l16_index_next;              // rtl-gen/src/merge/builder.rs:255
-    wire [228:0] level16_beat;               // rtl-gen/src/merge/builder.rs:258
-    wire level16_in_valid;                   // rtl-gen/src/merge/builder.rs:261
-    reg level16_skid_valid;                  // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level16_skid_data;           // rtl-gen/src/merge/builder.rs:265
-    reg level16_skid_spare_valid;            // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level16_skid_spare_data;     // rtl-gen/src/merge/builder.rs:265
-    wire level16_skid_ready;                 // rtl-gen/src/merge/builder.rs:265
-    wire level16_skid_room;                  // rtl-gen/src/merge/builder.rs:265
-    wire level16_skid_drain;                 // rtl-gen/src/merge/builder.rs:265
-    wire level16_skid_take;                  // rtl-gen/src/merge/builder.rs:265
-    wire base16_skid_data_kind_eq_1;         // rtl-gen/src/merge/builder.rs:273
-    wire l16_is_record;                      // rtl-gen/src/merge/builder.rs:273
-    wire l16_nodes_and;                      // rtl-gen/src/merge/builder.rs:283
-    wire l16_is_top;                         // rtl-gen/src/merge/builder.rs:284
+    wire l16_nodes_ovf_not;                  // rtl-gen/src/merge/builder.rs:229
+    wire base16_skid_data_kind_not;          // rtl-gen/src/merge/builder.rs:230
+    wire l16_end_ok;                         // rtl-gen/src/merge/builder.rs:230
+    wire base16_skid_data_rec_leaf;          // rtl-gen/src/merge/builder.rs:231
+    wire top_found_not;                      // rtl-gen/src/merge/builder.rs:240
+    wire top_found_and;                      // rtl-gen/src/merge/builder.rs:240
+    wire l16_ready_all;                      // rtl-gen/src/merge/builder.rs:243
+    wire l16_ready_all_and;                  // rtl-gen/src/merge/builder.rs:244
+    wire base16_skid_data_kind_not_1;        // rtl-gen/src/merge/builder.rs:244
+    wire base16_skid_data_kind_or;           // rtl-gen/src/merge/builder.rs:244
+    wire l16_fire;                           // rtl-gen/src/merge/builder.rs:244
+    wire l16_fire_and;                       // rtl-gen/src/merge/builder.rs:245
+    wire l16_end_fire;                       // rtl-gen/src/merge/builder.rs:246
+    wire [24:0] l16_index_next;              // rtl-gen/src/merge/builder.rs:260
+    wire [228:0] level16_beat;               // rtl-gen/src/merge/builder.rs:263
+    wire level16_in_valid;                   // rtl-gen/src/merge/builder.rs:266
+    reg level16_skid_valid;                  // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level16_skid_data;           // rtl-gen/src/merge/builder.rs:270
+    reg level16_skid_spare_valid;            // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level16_skid_spare_data;     // rtl-gen/src/merge/builder.rs:270
+    wire level16_skid_ready;                 // rtl-gen/src/merge/builder.rs:270
+    wire level16_skid_room;                  // rtl-gen/src/merge/builder.rs:270
+    wire level16_skid_drain;                 // rtl-gen/src/merge/builder.rs:270
+    wire level16_skid_take;                  // rtl-gen/src/merge/builder.rs:270
+    wire base16_skid_data_kind_eq_1;         // rtl-gen/src/merge/builder.rs:278
+    wire l16_is_record;                      // rtl-gen/src/merge/builder.rs:278
+    wire l16_is_top;                         // rtl-gen/src/merge/builder.rs:289
     reg l15_done;                            // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l15_nodes;                    // rtl-gen/src/merge/builder.rs:215
     reg l15_nodes_ovf;                       // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l15_records;                  // rtl-gen/src/merge/builder.rs:217
     wire level15_in_ready;                   // rtl-gen/src/merge/builder.rs:223
-    wire l15_end_not;                        // rtl-gen/src/merge/builder.rs:225
-    wire l15_end_ok;                         // rtl-gen/src/merge/builder.rs:225
-    wire l15_take_group_leaf;                // rtl-gen/src/merge/builder.rs:226
-    wire l15_ready_all;                      // rtl-gen/src/merge/builder.rs:238
-    wire l15_ready_all_and;                  // rtl-gen/src/merge/builder.rs:239
-    wire l15_end_or;                         // rtl-gen/src/merge/builder.rs:239
-    wire l15_fire;                           // rtl-gen/src/merge/builder.rs:239
-    wire l15_fire_and;                       // rtl-gen/src/merge/builder.rs:240
-    wire l15_end_fire;                       // rtl-gen/src/merge/builder.rs:241
-    wire [24:0] l15_index_next;              // rtl-gen/src/merge/builder.rs:255
-    wire [228:0] level15_beat;               // rtl-gen/src/merge/builder.rs:258
-    wire level15_in_valid;                   // rtl-gen/src/merge/builder.rs:261
-    reg level15_skid_valid;                  // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level15_skid_data;           // rtl-gen/src/merge/builder.rs:265
-    reg level15_skid_spare_valid;            // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level15_skid_spare_data;     // rtl-gen/src/merge/builder.rs:265
-    wire level15_skid_ready;                 // rtl-gen/src/merge/builder.rs:265
-    wire level15_skid_room;                  // rtl-gen/src/merge/builder.rs:265
-    wire level15_skid_drain;                 // rtl-gen/src/merge/builder.rs:265
-    wire level15_skid_take;                  // rtl-gen/src/merge/builder.rs:265
-    wire l15_take_group_eq;                  // rtl-gen/src/merge/builder.rs:273
-    wire l15_is_record;                      // rtl-gen/src/merge/builder.rs:273
-    wire l15_nodes_and;                      // rtl-gen/src/merge/builder.rs:283
-    wire l15_is_top;                         // rtl-gen/src/merge/builder.rs:284
+    wire l15_nodes_ovf_not;                  // rtl-gen/src/merge/builder.rs:229
+    wire l15_end_not;                        // rtl-gen/src/merge/builder.rs:230
+    wire l15_end_ok;                         // rtl-gen/src/merge/builder.rs:230
+    wire l15_take_group_leaf;                // rtl-gen/src/merge/builder.rs:231
+    wire l15_ready_all;                      // rtl-gen/src/merge/builder.rs:243
+    wire l15_ready_all_and;                  // rtl-gen/src/merge/builder.rs:244
+    wire l15_end_or;                         // rtl-gen/src/merge/builder.rs:244
+    wire l15_fire;                           // rtl-gen/src/merge/builder.rs:244
+    wire l15_fire_and;                       // rtl-gen/src/merge/builder.rs:245
+    wire l15_end_fire;                       // rtl-gen/src/merge/builder.rs:246
+    wire [24:0] l15_index_next;              // rtl-gen/src/merge/builder.rs:260
+    wire [228:0] level15_beat;               // rtl-gen/src/merge/builder.rs:263
+    wire level15_in_valid;                   // rtl-gen/src/merge/builder.rs:266
+    reg level15_skid_valid;                  // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level15_skid_data;           // rtl-gen/src/merge/builder.rs:270
+    reg level15_skid_spare_valid;            // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level15_skid_spare_data;     // rtl-gen/src/merge/builder.rs:270
+    wire level15_skid_ready;                 // rtl-gen/src/merge/builder.rs:270
+    wire level15_skid_room;                  // rtl-gen/src/merge/builder.rs:270
+    wire level15_skid_drain;                 // rtl-gen/src/merge/builder.rs:270
+    wire level15_skid_take;                  // rtl-gen/src/merge/builder.rs:270
+    wire l15_take_group_eq;                  // rtl-gen/src/merge/builder.rs:278
+    wire l15_is_record;                      // rtl-gen/src/merge/builder.rs:278
+    wire l15_is_top;                         // rtl-gen/src/merge/builder.rs:289
     reg l14_done;                            // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l14_nodes;                    // rtl-gen/src/merge/builder.rs:215
     reg l14_nodes_ovf;                       // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l14_records;                  // rtl-gen/src/merge/builder.rs:217
     wire level14_in_ready;                   // rtl-gen/src/merge/builder.rs:223
-    wire l14_end_not;                        // rtl-gen/src/merge/builder.rs:225
-    wire l14_end_ok;                         // rtl-gen/src/merge/builder.rs:225
-    wire l14_take_group_leaf;                // rtl-gen/src/merge/builder.rs:226
-    wire l14_ready_all;                      // rtl-gen/src/merge/builder.rs:238
-    wire l14_ready_all_and;                  // rtl-gen/src/merge/builder.rs:239
-    wire l14_end_or;                         // rtl-gen/src/merge/builder.rs:239
-    wire l14_fire;                           // rtl-gen/src/merge/builder.rs:239
-    wire l14_fire_and;                       // rtl-gen/src/merge/builder.rs:240
-    wire l14_end_fire;                       // rtl-gen/src/merge/builder.rs:241
-    wire [24:0] l14_index_next;              // rtl-gen/src/merge/builder.rs:255
-    wire [228:0] level14_beat;               // rtl-gen/src/merge/builder.rs:258
-    wire level14_in_valid;                   // rtl-gen/src/merge/builder.rs:261
-    reg level14_skid_valid;                  // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level14_skid_data;           // rtl-gen/src/merge/builder.rs:265
-    reg level14_skid_spare_valid;            // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level14_skid_spare_data;     // rtl-gen/src/merge/builder.rs:265
-    wire level14_skid_ready;                 // rtl-gen/src/merge/builder.rs:265
-    wire level14_skid_room;                  // rtl-gen/src/merge/builder.rs:265
-    wire level14_skid_drain;                 // rtl-gen/src/merge/builder.rs:265
-    wire level14_skid_take;                  // rtl-gen/src/merge/builder.rs:265
-    wire l14_take_group_eq;                  // rtl-gen/src/merge/builder.rs:273
-    wire l14_is_record;                      // rtl-gen/src/merge/builder.rs:273
-    wire l14_nodes_and;                      // rtl-gen/src/merge/builder.rs:283
-    wire l14_is_top;                         // rtl-gen/src/merge/builder.rs:284
+    wire l14_nodes_ovf_not;                  // rtl-gen/src/merge/builder.rs:229
+    wire l14_end_not;                        // rtl-gen/src/merge/builder.rs:230
+    wire l14_end_ok;                         // rtl-gen/src/merge/builder.rs:230
+    wire l14_take_group_leaf;                // rtl-gen/src/merge/builder.rs:231
+    wire l14_ready_all;                      // rtl-gen/src/merge/builder.rs:243
+    wire l14_ready_all_and;                  // rtl-gen/src/merge/builder.rs:244
+    wire l14_end_or;                         // rtl-gen/src/merge/builder.rs:244
+    wire l14_fire;                           // rtl-gen/src/merge/builder.rs:244
+    wire l14_fire_and;                       // rtl-gen/src/merge/builder.rs:245
+    wire l14_end_fire;                       // rtl-gen/src/merge/builder.rs:246
+    wire [24:0] l14_index_next;              // rtl-gen/src/merge/builder.rs:260
+    wire [228:0] level14_beat;               // rtl-gen/src/merge/builder.rs:263
+    wire level14_in_valid;                   // rtl-gen/src/merge/builder.rs:266
+    reg level14_skid_valid;                  // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level14_skid_data;           // rtl-gen/src/merge/builder.rs:270
+    reg level14_skid_spare_valid;            // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level14_skid_spare_data;     // rtl-gen/src/merge/builder.rs:270
+    wire level14_skid_ready;                 // rtl-gen/src/merge/builder.rs:270
+    wire level14_skid_room;                  // rtl-gen/src/merge/builder.rs:270
+    wire level14_skid_drain;                 // rtl-gen/src/merge/builder.rs:270
+    wire level14_skid_take;                  // rtl-gen/src/merge/builder.rs:270
+    wire l14_take_group_eq;                  // rtl-gen/src/merge/builder.rs:278
+    wire l14_is_record;                      // rtl-gen/src/merge/builder.rs:278
+    wire l14_is_top;                         // rtl-gen/src/merge/builder.rs:289
     reg l13_done;                            // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l13_nodes;                    // rtl-gen/src/merge/builder.rs:215
     reg l13_nodes_ovf;                       // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l13_records;                  // rtl-gen/src/merge/builder.rs:217
     wire level13_in_ready;                   // rtl-gen/src/merge/builder.rs:223
-    wire l13_end_not;                        // rtl-gen/src/merge/builder.rs:225
-    wire l13_end_ok;                         // rtl-gen/src/merge/builder.rs:225
-    wire l13_take_group_leaf;                // rtl-gen/src/merge/builder.rs:226
-    wire l13_ready_all;                      // rtl-gen/src/merge/builder.rs:238
-    wire l13_ready_all_and;                  // rtl-gen/src/merge/builder.rs:239
-    wire l13_end_or;                         // rtl-gen/src/merge/builder.rs:239
-    wire l13_fire;                           // rtl-gen/src/merge/builder.rs:239
-    wire l13_fire_and;                       // rtl-gen/src/merge/builder.rs:240
-    wire l13_end_fire;                       // rtl-gen/src/merge/builder.rs:241
-    wire [24:0] l13_index_next;              // rtl-gen/src/merge/builder.rs:255
-    wire [228:0] level13_beat;               // rtl-gen/src/merge/builder.rs:258
-    wire level13_in_valid;                   // rtl-gen/src/merge/builder.rs:261
-    reg level13_skid_valid;                  // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level13_skid_data;           // rtl-gen/src/merge/builder.rs:265
-    reg level13_skid_spare_valid;            // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level13_skid_spare_data;     // rtl-gen/src/merge/builder.rs:265
-    wire level13_skid_ready;                 // rtl-gen/src/merge/builder.rs:265
-    wire level13_skid_room;                  // rtl-gen/src/merge/builder.rs:265
-    wire level13_skid_drain;                 // rtl-gen/src/merge/builder.rs:265
-    wire level13_skid_take;                  // rtl-gen/src/merge/builder.rs:265
-    wire l13_take_group_eq;                  // rtl-gen/src/merge/builder.rs:273
-    wire l13_is_record;                      // rtl-gen/src/merge/builder.rs:273
-    wire l13_nodes_and;                      // rtl-gen/src/merge/builder.rs:283
-    wire l13_is_top;                         // rtl-gen/src/merge/builder.rs:284
+    wire l13_nodes_ovf_not;                  // rtl-gen/src/merge/builder.rs:229
+    wire l13_end_not;                        // rtl-gen/src/merge/builder.rs:230
+    wire l13_end_ok;                         // rtl-gen/src/merge/builder.rs:230
+    wire l13_take_group_leaf;                // rtl-gen/src/merge/builder.rs:231
+    wire l13_ready_all;                      // rtl-gen/src/merge/builder.rs:243
+    wire l13_ready_all_and;                  // rtl-gen/src/merge/builder.rs:244
+    wire l13_end_or;                         // rtl-gen/src/merge/builder.rs:244
+    wire l13_fire;                           // rtl-gen/src/merge/builder.rs:244
+    wire l13_fire_and;                       // rtl-gen/src/merge/builder.rs:245
+    wire l13_end_fire;                       // rtl-gen/src/merge/builder.rs:246
+    wire [24:0] l13_index_next;              // rtl-gen/src/merge/builder.rs:260
+    wire [228:0] level13_beat;               // rtl-gen/src/merge/builder.rs:263
+    wire level13_in_valid;                   // rtl-gen/src/merge/builder.rs:266
+    reg level13_skid_valid;                  // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level13_skid_data;           // rtl-gen/src/merge/builder.rs:270
+    reg level13_skid_spare_valid;            // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level13_skid_spare_data;     // rtl-gen/src/merge/builder.rs:270
+    wire level13_skid_ready;                 // rtl-gen/src/merge/builder.rs:270
+    wire level13_skid_room;                  // rtl-gen/src/merge/builder.rs:270
+    wire level13_skid_drain;                 // rtl-gen/src/merge/builder.rs:270
+    wire level13_skid_take;                  // rtl-gen/src/merge/builder.rs:270
+    wire l13_take_group_eq;                  // rtl-gen/src/merge/builder.rs:278
+    wire l13_is_record;                      // rtl-gen/src/merge/builder.rs:278
+    wire l13_is_top;                         // rtl-gen/src/merge/builder.rs:289
     reg l12_done;                            // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l12_nodes;                    // rtl-gen/src/merge/builder.rs:215
     reg l12_nodes_ovf;                       // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l12_records;                  // rtl-gen/src/merge/builder.rs:217
     wire level12_in_ready;                   // rtl-gen/src/merge/builder.rs:223
-    wire l12_end_not;                        // rtl-gen/src/merge/builder.rs:225
-    wire l12_end_ok;                         // rtl-gen/src/merge/builder.rs:225
-    wire l12_take_group_leaf;                // rtl-gen/src/merge/builder.rs:226
-    wire l12_ready_all;                      // rtl-gen/src/merge/builder.rs:238
-    wire l12_ready_all_and;                  // rtl-gen/src/merge/builder.rs:239
-    wire l12_end_or;                         // rtl-gen/src/merge/builder.rs:239
-    wire l12_fire;                           // rtl-gen/src/merge/builder.rs:239
-    wire l12_fire_and;                       // rtl-gen/src/merge/builder.rs:240
-    wire l12_end_fire;                       // rtl-gen/src/merge/builder.rs:241
-    wire [24:0] l12_index_next;              // rtl-gen/src/merge/builder.rs:255
-    wire [228:0] level12_beat;               // rtl-gen/src/merge/builder.rs:258
-    wire level12_in_valid;                   // rtl-gen/src/merge/builder.rs:261
-    reg level12_skid_valid;                  // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level12_skid_data;           // rtl-gen/src/merge/builder.rs:265
-    reg level12_skid_spare_valid;            // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level12_skid_spare_data;     // rtl-gen/src/merge/builder.rs:265
-    wire level12_skid_ready;                 // rtl-gen/src/merge/builder.rs:265
-    wire level12_skid_room;                  // rtl-gen/src/merge/builder.rs:265
-    wire level12_skid_drain;                 // rtl-gen/src/merge/builder.rs:265
-    wire level12_skid_take;                  // rtl-gen/src/merge/builder.rs:265
-    wire l12_take_group_eq;                  // rtl-gen/src/merge/builder.rs:273
-    wire l12_is_record;                      // rtl-gen/src/merge/builder.rs:273
-    wire l12_nodes_and;                      // rtl-gen/src/merge/builder.rs:283
-    wire l12_is_top;                         // rtl-gen/src/merge/builder.rs:284
+    wire l12_nodes_ovf_not;                  // rtl-gen/src/merge/builder.rs:229
+    wire l12_end_not;                        // rtl-gen/src/merge/builder.rs:230
+    wire l12_end_ok;                         // rtl-gen/src/merge/builder.rs:230
+    wire l12_take_group_leaf;                // rtl-gen/src/merge/builder.rs:231
+    wire l12_ready_all;                      // rtl-gen/src/merge/builder.rs:243
+    wire l12_ready_all_and;                  // rtl-gen/src/merge/builder.rs:244
+    wire l12_end_or;                         // rtl-gen/src/merge/builder.rs:244
+    wire l12_fire;                           // rtl-gen/src/merge/builder.rs:244
+    wire l12_fire_and;                       // rtl-gen/src/merge/builder.rs:245
+    wire l12_end_fire;                       // rtl-gen/src/merge/builder.rs:246
+    wire [24:0] l12_index_next;              // rtl-gen/src/merge/builder.rs:260
+    wire [228:0] level12_beat;               // rtl-gen/src/merge/builder.rs:263
+    wire level12_in_valid;                   // rtl-gen/src/merge/builder.rs:266
+    reg level12_skid_valid;                  // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level12_skid_data;           // rtl-gen/src/merge/builder.rs:270
+    reg level12_skid_spare_valid;            // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level12_skid_spare_data;     // rtl-gen/src/merge/builder.rs:270
+    wire level12_skid_ready;                 // rtl-gen/src/merge/builder.rs:270
+    wire level12_skid_room;                  // rtl-gen/src/merge/builder.rs:270
+    wire level12_skid_drain;                 // rtl-gen/src/merge/builder.rs:270
+    wire level12_skid_take;                  // rtl-gen/src/merge/builder.rs:270
+    wire l12_take_group_eq;                  // rtl-gen/src/merge/builder.rs:278
+    wire l12_is_record;                      // rtl-gen/src/merge/builder.rs:278
+    wire l12_is_top;                         // rtl-gen/src/merge/builder.rs:289
     reg l11_done;                            // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l11_nodes;                    // rtl-gen/src/merge/builder.rs:215
     reg l11_nodes_ovf;                       // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l11_records;                  // rtl-gen/src/merge/builder.rs:217
     wire level11_in_ready;                   // rtl-gen/src/merge/builder.rs:223
-    wire l11_end_not;                        // rtl-gen/src/merge/builder.rs:225
-    wire l11_end_ok;                         // rtl-gen/src/merge/builder.rs:225
-    wire l11_take_group_leaf;                // rtl-gen/src/merge/builder.rs:226
-    wire l11_ready_all;                      // rtl-gen/src/merge/builder.rs:238
-    wire l11_ready_all_and;                  // rtl-gen/src/merge/builder.rs:239
-    wire l11_end_or;                         // rtl-gen/src/merge/builder.rs:239
-    wire l11_fire;                           // rtl-gen/src/merge/builder.rs:239
-    wire l11_fire_and;                       // rtl-gen/src/merge/builder.rs:240
-    wire l11_end_fire;                       // rtl-gen/src/merge/builder.rs:241
-    wire [24:0] l11_index_next;              // rtl-gen/src/merge/builder.rs:255
-    wire [228:0] level11_beat;               // rtl-gen/src/merge/builder.rs:258
-    wire level11_in_valid;                   // rtl-gen/src/merge/builder.rs:261
-    reg level11_skid_valid;                  // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level11_skid_data;           // rtl-gen/src/merge/builder.rs:265
-    reg level11_skid_spare_valid;            // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level11_skid_spare_data;     // rtl-gen/src/merge/builder.rs:265
-    wire level11_skid_ready;                 // rtl-gen/src/merge/builder.rs:265
-    wire level11_skid_room;                  // rtl-gen/src/merge/builder.rs:265
-    wire level11_skid_drain;                 // rtl-gen/src/merge/builder.rs:265
-    wire level11_skid_take;                  // rtl-gen/src/merge/builder.rs:265
-    wire l11_take_group_eq;                  // rtl-gen/src/merge/builder.rs:273
-    wire l11_is_record;                      // rtl-gen/src/merge/builder.rs:273
-    wire l11_nodes_and;                      // rtl-gen/src/merge/builder.rs:283
-    wire l11_is_top;                         // rtl-gen/src/merge/builder.rs:284
+    wire l11_nodes_ovf_not;                  // rtl-gen/src/merge/builder.rs:229
+    wire l11_end_not;                        // rtl-gen/src/merge/builder.rs:230
+    wire l11_end_ok;                         // rtl-gen/src/merge/builder.rs:230
+    wire l11_take_group_leaf;                // rtl-gen/src/merge/builder.rs:231
+    wire l11_ready_all;                      // rtl-gen/src/merge/builder.rs:243
+    wire l11_ready_all_and;                  // rtl-gen/src/merge/builder.rs:244
+    wire l11_end_or;                         // rtl-gen/src/merge/builder.rs:244
+    wire l11_fire;                           // rtl-gen/src/merge/builder.rs:244
+    wire l11_fire_and;                       // rtl-gen/src/merge/builder.rs:245
+    wire l11_end_fire;                       // rtl-gen/src/merge/builder.rs:246
+    wire [24:0] l11_index_next;              // rtl-gen/src/merge/builder.rs:260
+    wire [228:0] level11_beat;               // rtl-gen/src/merge/builder.rs:263
+    wire level11_in_valid;                   // rtl-gen/src/merge/builder.rs:266
+    reg level11_skid_valid;                  // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level11_skid_data;           // rtl-gen/src/merge/builder.rs:270
+    reg level11_skid_spare_valid;            // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level11_skid_spare_data;     // rtl-gen/src/merge/builder.rs:270
+    wire level11_skid_ready;                 // rtl-gen/src/merge/builder.rs:270
+    wire level11_skid_room;                  // rtl-gen/src/merge/builder.rs:270
+    wire level11_skid_drain;                 // rtl-gen/src/merge/builder.rs:270
+    wire level11_skid_take;                  // rtl-gen/src/merge/builder.rs:270
+    wire l11_take_group_eq;                  // rtl-gen/src/merge/builder.rs:278
+    wire l11_is_record;                      // rtl-gen/src/merge/builder.rs:278
+    wire l11_is_top;                         // rtl-gen/src/merge/builder.rs:289
     reg l10_done;                            // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l10_nodes;                    // rtl-gen/src/merge/builder.rs:215
     reg l10_nodes_ovf;                       // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l10_records;                  // rtl-gen/src/merge/builder.rs:217
     wire level10_in_ready;                   // rtl-gen/src/merge/builder.rs:223
-    wire l10_end_not;                        // rtl-gen/src/merge/builder.rs:225
-    wire l10_end_ok;                         // rtl-gen/src/merge/builder.rs:225
-    wire l10_take_group_leaf;                // rtl-gen/src/merge/builder.rs:226
-    wire l10_ready_all;                      // rtl-gen/src/merge/builder.rs:238
-    wire l10_ready_all_and;                  // rtl-gen/src/merge/builder.rs:239
-    wire l10_end_or;                         // rtl-gen/src/merge/builder.rs:239
-    wire l10_fire;                           // rtl-gen/src/merge/builder.rs:239
-    wire l10_fire_and;                       // rtl-gen/src/merge/builder.rs:240
-    wire l10_end_fire;                       // rtl-gen/src/merge/builder.rs:241
-    wire [24:0] l10_index_next;              // rtl-gen/src/merge/builder.rs:255
-    wire [228:0] level10_beat;               // rtl-gen/src/merge/builder.rs:258
-    wire level10_in_valid;                   // rtl-gen/src/merge/builder.rs:261
-    reg level10_skid_valid;                  // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level10_skid_data;           // rtl-gen/src/merge/builder.rs:265
-    reg level10_skid_spare_valid;            // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level10_skid_spare_data;     // rtl-gen/src/merge/builder.rs:265
-    wire level10_skid_ready;                 // rtl-gen/src/merge/builder.rs:265
-    wire level10_skid_room;                  // rtl-gen/src/merge/builder.rs:265
-    wire level10_skid_drain;                 // rtl-gen/src/merge/builder.rs:265
-    wire level10_skid_take;                  // rtl-gen/src/merge/builder.rs:265
-    wire l10_take_group_eq;                  // rtl-gen/src/merge/builder.rs:273
-    wire l10_is_record;                      // rtl-gen/src/merge/builder.rs:273
-    wire l10_nodes_and;                      // rtl-gen/src/merge/builder.rs:283
-    wire l10_is_top;                         // rtl-gen/src/merge/builder.rs:284
-    wire l16_is_top_or;                      // rtl-gen/src/merge/builder.rs:286
+    wire l10_nodes_ovf_not;                  // rtl-gen/src/merge/builder.rs:229
+    wire l10_end_not;                        // rtl-gen/src/merge/builder.rs:230
+    wire l10_end_ok;                         // rtl-gen/src/merge/builder.rs:230
+    wire l10_take_group_leaf;                // rtl-gen/src/merge/builder.rs:231
+    wire l10_ready_all;                      // rtl-gen/src/merge/builder.rs:243
+    wire l10_ready_all_and;                  // rtl-gen/src/merge/builder.rs:244
+    wire l10_end_or;                         // rtl-gen/src/merge/builder.rs:244
+    wire l10_fire;                           // rtl-gen/src/merge/builder.rs:244
+    wire l10_fire_and;                       // rtl-gen/src/merge/builder.rs:245
+    wire l10_end_fire;                       // rtl-gen/src/merge/builder.rs:246
+    wire [24:0] l10_index_next;              // rtl-gen/src/merge/builder.rs:260
+    wire [228:0] level10_beat;               // rtl-gen/src/merge/builder.rs:263
+    wire level10_in_valid;                   // rtl-gen/src/merge/builder.rs:266
+    reg level10_skid_valid;                  // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level10_skid_data;           // rtl-gen/src/merge/builder.rs:270
+    reg level10_skid_spare_valid;            // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level10_skid_spare_data;     // rtl-gen/src/merge/builder.rs:270
+    wire level10_skid_ready;                 // rtl-gen/src/merge/builder.rs:270
+    wire level10_skid_room;                  // rtl-gen/src/merge/builder.rs:270
+    wire level10_skid_drain;                 // rtl-gen/src/merge/builder.rs:270
+    wire level10_skid_take;                  // rtl-gen/src/merge/builder.rs:270
+    wire l10_take_group_eq;                  // rtl-gen/src/merge/builder.rs:278
+    wire l10_is_record;                      // rtl-gen/src/merge/builder.rs:278
+    wire l10_is_top;                         // rtl-gen/src/merge/builder.rs:289
+    wire l16_is_top_or;                      // rtl-gen/src/merge/builder.rs:291
     reg l9_done;                             // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l9_nodes;                     // rtl-gen/src/merge/builder.rs:215
     reg l9_nodes_ovf;                        // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l9_records;                   // rtl-gen/src/merge/builder.rs:217
     wire level9_in_ready;                    // rtl-gen/src/merge/builder.rs:223
-    wire l9_end_not;                         // rtl-gen/src/merge/builder.rs:225
-    wire l9_end_ok;                          // rtl-gen/src/merge/builder.rs:225
-    wire l9_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:226
-    wire l9_ready_all;                       // rtl-gen/src/merge/builder.rs:238
-    wire l9_ready_all_and;                   // rtl-gen/src/merge/builder.rs:239
-    wire l9_end_or;                          // rtl-gen/src/merge/builder.rs:239
-    wire l9_fire;                            // rtl-gen/src/merge/builder.rs:239
-    wire l9_fire_and;                        // rtl-gen/src/merge/builder.rs:240
-    wire l9_end_fire;                        // rtl-gen/src/merge/builder.rs:241
-    wire [24:0] l9_index_next;               // rtl-gen/src/merge/builder.rs:255
-    wire [228:0] level9_beat;                // rtl-gen/src/merge/builder.rs:258
-    wire level9_in_valid;                    // rtl-gen/src/merge/builder.rs:261
-    reg level9_skid_valid;                   // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level9_skid_data;            // rtl-gen/src/merge/builder.rs:265
-    reg level9_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level9_skid_spare_data;      // rtl-gen/src/merge/builder.rs:265
-    wire level9_skid_ready;                  // rtl-gen/src/merge/builder.rs:265
-    wire level9_skid_room;                   // rtl-gen/src/merge/builder.rs:265
-    wire level9_skid_drain;                  // rtl-gen/src/merge/builder.rs:265
-    wire level9_skid_take;                   // rtl-gen/src/merge/builder.rs:265
-    wire l9_take_group_eq;                   // rtl-gen/src/merge/builder.rs:273
-    wire l9_is_record;                       // rtl-gen/src/merge/builder.rs:273
-    wire l9_nodes_and;                       // rtl-gen/src/merge/builder.rs:283
-    wire l9_is_top;                          // rtl-gen/src/merge/builder.rs:284
+    wire l9_nodes_ovf_not;                   // rtl-gen/src/merge/builder.rs:229
+    wire l9_end_not;                         // rtl-gen/src/merge/builder.rs:230
+    wire l9_end_ok;                          // rtl-gen/src/merge/builder.rs:230
+    wire l9_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:231
+    wire l9_ready_all;                       // rtl-gen/src/merge/builder.rs:243
+    wire l9_ready_all_and;                   // rtl-gen/src/merge/builder.rs:244
+    wire l9_end_or;                          // rtl-gen/src/merge/builder.rs:244
+    wire l9_fire;                            // rtl-gen/src/merge/builder.rs:244
+    wire l9_fire_and;                        // rtl-gen/src/merge/builder.rs:245
+    wire l9_end_fire;                        // rtl-gen/src/merge/builder.rs:246
+    wire [24:0] l9_index_next;               // rtl-gen/src/merge/builder.rs:260
+    wire [228:0] level9_beat;                // rtl-gen/src/merge/builder.rs:263
+    wire level9_in_valid;                    // rtl-gen/src/merge/builder.rs:266
+    reg level9_skid_valid;                   // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level9_skid_data;            // rtl-gen/src/merge/builder.rs:270
+    reg level9_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level9_skid_spare_data;      // rtl-gen/src/merge/builder.rs:270
+    wire level9_skid_ready;                  // rtl-gen/src/merge/builder.rs:270
+    wire level9_skid_room;                   // rtl-gen/src/merge/builder.rs:270
+    wire level9_skid_drain;                  // rtl-gen/src/merge/builder.rs:270
+    wire level9_skid_take;                   // rtl-gen/src/merge/builder.rs:270
+    wire l9_take_group_eq;                   // rtl-gen/src/merge/builder.rs:278
+    wire l9_is_record;                       // rtl-gen/src/merge/builder.rs:278
+    wire l9_is_top;                          // rtl-gen/src/merge/builder.rs:289
     reg l8_done;                             // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l8_nodes;                     // rtl-gen/src/merge/builder.rs:215
     reg l8_nodes_ovf;                        // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l8_records;                   // rtl-gen/src/merge/builder.rs:217
     wire level8_in_ready;                    // rtl-gen/src/merge/builder.rs:223
-    wire l8_end_not;                         // rtl-gen/src/merge/builder.rs:225
-    wire l8_end_ok;                          // rtl-gen/src/merge/builder.rs:225
-    wire l8_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:226
-    wire l8_ready_all;                       // rtl-gen/src/merge/builder.rs:238
-    wire l8_ready_all_and;                   // rtl-gen/src/merge/builder.rs:239
-    wire l8_end_or;                          // rtl-gen/src/merge/builder.rs:239
-    wire l8_fire;                            // rtl-gen/src/merge/builder.rs:239
-    wire l8_fire_and;                        // rtl-gen/src/merge/builder.rs:240
-    wire l8_end_fire;                        // rtl-gen/src/merge/builder.rs:241
-    wire [24:0] l8_index_next;               // rtl-gen/src/merge/builder.rs:255
-    wire [228:0] level8_beat;                // rtl-gen/src/merge/builder.rs:258
-    wire level8_in_valid;                    // rtl-gen/src/merge/builder.rs:261
-    reg level8_skid_valid;                   // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level8_skid_data;            // rtl-gen/src/merge/builder.rs:265
-    reg level8_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level8_skid_spare_data;      // rtl-gen/src/merge/builder.rs:265
-    wire level8_skid_ready;                  // rtl-gen/src/merge/builder.rs:265
-    wire level8_skid_room;                   // rtl-gen/src/merge/builder.rs:265
-    wire level8_skid_drain;                  // rtl-gen/src/merge/builder.rs:265
-    wire level8_skid_take;                   // rtl-gen/src/merge/builder.rs:265
-    wire l8_take_group_eq;                   // rtl-gen/src/merge/builder.rs:273
-    wire l8_is_record;                       // rtl-gen/src/merge/builder.rs:273
-    wire l8_nodes_and;                       // rtl-gen/src/merge/builder.rs:283
-    wire l8_is_top;                          // rtl-gen/src/merge/builder.rs:284
+    wire l8_nodes_ovf_not;                   // rtl-gen/src/merge/builder.rs:229
+    wire l8_end_not;                         // rtl-gen/src/merge/builder.rs:230
+    wire l8_end_ok;                          // rtl-gen/src/merge/builder.rs:230
+    wire l8_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:231
+    wire l8_ready_all;                       // rtl-gen/src/merge/builder.rs:243
+    wire l8_ready_all_and;                   // rtl-gen/src/merge/builder.rs:244
+    wire l8_end_or;                          // rtl-gen/src/merge/builder.rs:244
+    wire l8_fire;                            // rtl-gen/src/merge/builder.rs:244
+    wire l8_fire_and;                        // rtl-gen/src/merge/builder.rs:245
+    wire l8_end_fire;                        // rtl-gen/src/merge/builder.rs:246
+    wire [24:0] l8_index_next;               // rtl-gen/src/merge/builder.rs:260
+    wire [228:0] level8_beat;                // rtl-gen/src/merge/builder.rs:263
+    wire level8_in_valid;                    // rtl-gen/src/merge/builder.rs:266
+    reg level8_skid_valid;                   // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level8_skid_data;            // rtl-gen/src/merge/builder.rs:270
+    reg level8_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level8_skid_spare_data;      // rtl-gen/src/merge/builder.rs:270
+    wire level8_skid_ready;                  // rtl-gen/src/merge/builder.rs:270
+    wire level8_skid_room;                   // rtl-gen/src/merge/builder.rs:270
+    wire level8_skid_drain;                  // rtl-gen/src/merge/builder.rs:270
+    wire level8_skid_take;                   // rtl-gen/src/merge/builder.rs:270
+    wire l8_take_group_eq;                   // rtl-gen/src/merge/builder.rs:278
+    wire l8_is_record;                       // rtl-gen/src/merge/builder.rs:278
+    wire l8_is_top;                          // rtl-gen/src/merge/builder.rs:289
     reg l7_done;                             // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l7_nodes;                     // rtl-gen/src/merge/builder.rs:215
     reg l7_nodes_ovf;                        // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l7_records;                   // rtl-gen/src/merge/builder.rs:217
     wire level7_in_ready;                    // rtl-gen/src/merge/builder.rs:223
-    wire l7_end_not;                         // rtl-gen/src/merge/builder.rs:225
-    wire l7_end_ok;                          // rtl-gen/src/merge/builder.rs:225
-    wire l7_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:226
-    wire l7_ready_all;                       // rtl-gen/src/merge/builder.rs:238
-    wire l7_ready_all_and;                   // rtl-gen/src/merge/builder.rs:239
-    wire l7_end_or;                          // rtl-gen/src/merge/builder.rs:239
-    wire l7_fire;                            // rtl-gen/src/merge/builder.rs:239
-    wire l7_fire_and;                        // rtl-gen/src/merge/builder.rs:240
-    wire l7_end_fire;                        // rtl-gen/src/merge/builder.rs:241
-    wire [24:0] l7_index_next;               // rtl-gen/src/merge/builder.rs:255
-    wire [228:0] level7_beat;                // rtl-gen/src/merge/builder.rs:258
-    wire level7_in_valid;                    // rtl-gen/src/merge/builder.rs:261
-    reg level7_skid_valid;                   // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level7_skid_data;            // rtl-gen/src/merge/builder.rs:265
-    reg level7_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level7_skid_spare_data;      // rtl-gen/src/merge/builder.rs:265
-    wire level7_skid_ready;                  // rtl-gen/src/merge/builder.rs:265
-    wire level7_skid_room;                   // rtl-gen/src/merge/builder.rs:265
-    wire level7_skid_drain;                  // rtl-gen/src/merge/builder.rs:265
-    wire level7_skid_take;                   // rtl-gen/src/merge/builder.rs:265
-    wire l7_take_group_eq;                   // rtl-gen/src/merge/builder.rs:273
-    wire l7_is_record;                       // rtl-gen/src/merge/builder.rs:273
-    wire l7_nodes_and;                       // rtl-gen/src/merge/builder.rs:283
-    wire l7_is_top;                          // rtl-gen/src/merge/builder.rs:284
+    wire l7_nodes_ovf_not;                   // rtl-gen/src/merge/builder.rs:229
+    wire l7_end_not;                         // rtl-gen/src/merge/builder.rs:230
+    wire l7_end_ok;                          // rtl-gen/src/merge/builder.rs:230
+    wire l7_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:231
+    wire l7_ready_all;                       // rtl-gen/src/merge/builder.rs:243
+    wire l7_ready_all_and;                   // rtl-gen/src/merge/builder.rs:244
+    wire l7_end_or;                          // rtl-gen/src/merge/builder.rs:244
+    wire l7_fire;                            // rtl-gen/src/merge/builder.rs:244
+    wire l7_fire_and;                        // rtl-gen/src/merge/builder.rs:245
+    wire l7_end_fire;                        // rtl-gen/src/merge/builder.rs:246
+    wire [24:0] l7_index_next;               // rtl-gen/src/merge/builder.rs:260
+    wire [228:0] level7_beat;                // rtl-gen/src/merge/builder.rs:263
+    wire level7_in_valid;                    // rtl-gen/src/merge/builder.rs:266
+    reg level7_skid_valid;                   // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level7_skid_data;            // rtl-gen/src/merge/builder.rs:270
+    reg level7_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level7_skid_spare_data;      // rtl-gen/src/merge/builder.rs:270
+    wire level7_skid_ready;                  // rtl-gen/src/merge/builder.rs:270
+    wire level7_skid_room;                   // rtl-gen/src/merge/builder.rs:270
+    wire level7_skid_drain;                  // rtl-gen/src/merge/builder.rs:270
+    wire level7_skid_take;                   // rtl-gen/src/merge/builder.rs:270
+    wire l7_take_group_eq;                   // rtl-gen/src/merge/builder.rs:278
+    wire l7_is_record;                       // rtl-gen/src/merge/builder.rs:278
+    wire l7_is_top;                          // rtl-gen/src/merge/builder.rs:289
     reg l6_done;                             // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l6_nodes;                     // rtl-gen/src/merge/builder.rs:215
     reg l6_nodes_ovf;                        // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l6_records;                   // rtl-gen/src/merge/builder.rs:217
     wire level6_in_ready;                    // rtl-gen/src/merge/builder.rs:223
-    wire l6_end_not;                         // rtl-gen/src/merge/builder.rs:225
-    wire l6_end_ok;                          // rtl-gen/src/merge/builder.rs:225
-    wire l6_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:226
-    wire l6_ready_all;                       // rtl-gen/src/merge/builder.rs:238
-    wire l6_ready_all_and;                   // rtl-gen/src/merge/builder.rs:239
-    wire l6_end_or;                          // rtl-gen/src/merge/builder.rs:239
-    wire l6_fire;                            // rtl-gen/src/merge/builder.rs:239
-    wire l6_fire_and;                        // rtl-gen/src/merge/builder.rs:240
-    wire l6_end_fire;                        // rtl-gen/src/merge/builder.rs:241
-    wire [24:0] l6_index_next;               // rtl-gen/src/merge/builder.rs:255
-    wire [228:0] level6_beat;                // rtl-gen/src/merge/builder.rs:258
-    wire level6_in_valid;                    // rtl-gen/src/merge/builder.rs:261
-    reg level6_skid_valid;                   // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level6_skid_data;            // rtl-gen/src/merge/builder.rs:265
-    reg level6_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level6_skid_spare_data;      // rtl-gen/src/merge/builder.rs:265
-    wire level6_skid_ready;                  // rtl-gen/src/merge/builder.rs:265
-    wire level6_skid_room;                   // rtl-gen/src/merge/builder.rs:265
-    wire level6_skid_drain;                  // rtl-gen/src/merge/builder.rs:265
-    wire level6_skid_take;                   // rtl-gen/src/merge/builder.rs:265
-    wire l6_take_group_eq;                   // rtl-gen/src/merge/builder.rs:273
-    wire l6_is_record;                       // rtl-gen/src/merge/builder.rs:273
-    wire l6_nodes_and;                       // rtl-gen/src/merge/builder.rs:283
-    wire l6_is_top;                          // rtl-gen/src/merge/builder.rs:284
+    wire l6_nodes_ovf_not;                   // rtl-gen/src/merge/builder.rs:229
+    wire l6_end_not;                         // rtl-gen/src/merge/builder.rs:230
+    wire l6_end_ok;                          // rtl-gen/src/merge/builder.rs:230
+    wire l6_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:231
+    wire l6_ready_all;                       // rtl-gen/src/merge/builder.rs:243
+    wire l6_ready_all_and;                   // rtl-gen/src/merge/builder.rs:244
+    wire l6_end_or;                          // rtl-gen/src/merge/builder.rs:244
+    wire l6_fire;                            // rtl-gen/src/merge/builder.rs:244
+    wire l6_fire_and;                        // rtl-gen/src/merge/builder.rs:245
+    wire l6_end_fire;                        // rtl-gen/src/merge/builder.rs:246
+    wire [24:0] l6_index_next;               // rtl-gen/src/merge/builder.rs:260
+    wire [228:0] level6_beat;                // rtl-gen/src/merge/builder.rs:263
+    wire level6_in_valid;                    // rtl-gen/src/merge/builder.rs:266
+    reg level6_skid_valid;                   // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level6_skid_data;            // rtl-gen/src/merge/builder.rs:270
+    reg level6_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level6_skid_spare_data;      // rtl-gen/src/merge/builder.rs:270
+    wire level6_skid_ready;                  // rtl-gen/src/merge/builder.rs:270
+    wire level6_skid_room;                   // rtl-gen/src/merge/builder.rs:270
+    wire level6_skid_drain;                  // rtl-gen/src/merge/builder.rs:270
+    wire level6_skid_take;                   // rtl-gen/src/merge/builder.rs:270
+    wire l6_take_group_eq;                   // rtl-gen/src/merge/builder.rs:278
+    wire l6_is_record;                       // rtl-gen/src/merge/builder.rs:278
+    wire l6_is_top;                          // rtl-gen/src/merge/builder.rs:289
     reg l5_done;                             // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l5_nodes;                     // rtl-gen/src/merge/builder.rs:215
     reg l5_nodes_ovf;                        // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l5_records;                   // rtl-gen/src/merge/builder.rs:217
     wire level5_in_ready;                    // rtl-gen/src/merge/builder.rs:223
-    wire l5_end_not;                         // rtl-gen/src/merge/builder.rs:225
-    wire l5_end_ok;                          // rtl-gen/src/merge/builder.rs:225
-    wire l5_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:226
-    wire l5_ready_all;                       // rtl-gen/src/merge/builder.rs:238
-    wire l5_ready_all_and;                   // rtl-gen/src/merge/builder.rs:239
-    wire l5_end_or;                          // rtl-gen/src/merge/builder.rs:239
-    wire l5_fire;                            // rtl-gen/src/merge/builder.rs:239
-    wire l5_fire_and;                        // rtl-gen/src/merge/builder.rs:240
-    wire l5_end_fire;                        // rtl-gen/src/merge/builder.rs:241
-    wire [24:0] l5_index_next;               // rtl-gen/src/merge/builder.rs:255
-    wire [228:0] level5_beat;                // rtl-gen/src/merge/builder.rs:258
-    wire level5_in_valid;                    // rtl-gen/src/merge/builder.rs:261
-    reg level5_skid_valid;                   // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level5_skid_data;            // rtl-gen/src/merge/builder.rs:265
-    reg level5_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level5_skid_spare_data;      // rtl-gen/src/merge/builder.rs:265
-    wire level5_skid_ready;                  // rtl-gen/src/merge/builder.rs:265
-    wire level5_skid_room;                   // rtl-gen/src/merge/builder.rs:265
-    wire level5_skid_drain;                  // rtl-gen/src/merge/builder.rs:265
-    wire level5_skid_take;                   // rtl-gen/src/merge/builder.rs:265
-    wire l5_take_group_eq;                   // rtl-gen/src/merge/builder.rs:273
-    wire l5_is_record;                       // rtl-gen/src/merge/builder.rs:273
-    wire l5_nodes_and;                       // rtl-gen/src/merge/builder.rs:283
-    wire l5_is_top;                          // rtl-gen/src/merge/builder.rs:284
+    wire l5_nodes_ovf_not;                   // rtl-gen/src/merge/builder.rs:229
+    wire l5_end_not;                         // rtl-gen/src/merge/builder.rs:230
+    wire l5_end_ok;                          // rtl-gen/src/merge/builder.rs:230
+    wire l5_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:231
+    wire l5_ready_all;                       // rtl-gen/src/merge/builder.rs:243
+    wire l5_ready_all_and;                   // rtl-gen/src/merge/builder.rs:244
+    wire l5_end_or;                          // rtl-gen/src/merge/builder.rs:244
+    wire l5_fire;                            // rtl-gen/src/merge/builder.rs:244
+    wire l5_fire_and;                        // rtl-gen/src/merge/builder.rs:245
+    wire l5_end_fire;                        // rtl-gen/src/merge/builder.rs:246
+    wire [24:0] l5_index_next;               // rtl-gen/src/merge/builder.rs:260
+    wire [228:0] level5_beat;                // rtl-gen/src/merge/builder.rs:263
+    wire level5_in_valid;                    // rtl-gen/src/merge/builder.rs:266
+    reg level5_skid_valid;                   // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level5_skid_data;            // rtl-gen/src/merge/builder.rs:270
+    reg level5_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level5_skid_spare_data;      // rtl-gen/src/merge/builder.rs:270
+    wire level5_skid_ready;                  // rtl-gen/src/merge/builder.rs:270
+    wire level5_skid_room;                   // rtl-gen/src/merge/builder.rs:270
+    wire level5_skid_drain;                  // rtl-gen/src/merge/builder.rs:270
+    wire level5_skid_take;                   // rtl-gen/src/merge/builder.rs:270
+    wire l5_take_group_eq;                   // rtl-gen/src/merge/builder.rs:278
+    wire l5_is_record;                       // rtl-gen/src/merge/builder.rs:278
+    wire l5_is_top;                          // rtl-gen/src/merge/builder.rs:289
     reg l4_done;                             // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l4_nodes;                     // rtl-gen/src/merge/builder.rs:215
     reg l4_nodes_ovf;                        // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l4_records;                   // rtl-gen/src/merge/builder.rs:217
     wire level4_in_ready;                    // rtl-gen/src/merge/builder.rs:223
-    wire l4_end_not;                         // rtl-gen/src/merge/builder.rs:225
-    wire l4_end_ok;                          // rtl-gen/src/merge/builder.rs:225
-    wire l4_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:226
-    wire l4_ready_all;                       // rtl-gen/src/merge/builder.rs:238
-    wire l4_ready_all_and;                   // rtl-gen/src/merge/builder.rs:239
-    wire l4_end_or;                          // rtl-gen/src/merge/builder.rs:239
-    wire l4_fire;                            // rtl-gen/src/merge/builder.rs:239
-    wire l4_fire_and;                        // rtl-gen/src/merge/builder.rs:240
-    wire l4_end_fire;                        // rtl-gen/src/merge/builder.rs:241
-    wire [24:0] l4_index_next;               // rtl-gen/src/merge/builder.rs:255
-    wire [228:0] level4_beat;                // rtl-gen/src/merge/builder.rs:258
-    wire level4_in_valid;                    // rtl-gen/src/merge/builder.rs:261
-    reg level4_skid_valid;                   // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level4_skid_data;            // rtl-gen/src/merge/builder.rs:265
-    reg level4_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level4_skid_spare_data;      // rtl-gen/src/merge/builder.rs:265
-    wire level4_skid_ready;                  // rtl-gen/src/merge/builder.rs:265
-    wire level4_skid_room;                   // rtl-gen/src/merge/builder.rs:265
-    wire level4_skid_drain;                  // rtl-gen/src/merge/builder.rs:265
-    wire level4_skid_take;                   // rtl-gen/src/merge/builder.rs:265
-    wire l4_take_group_eq;                   // rtl-gen/src/merge/builder.rs:273
-    wire l4_is_record;                       // rtl-gen/src/merge/builder.rs:273
-    wire l4_nodes_and;                       // rtl-gen/src/merge/builder.rs:283
-    wire l4_is_top;                          // rtl-gen/src/merge/builder.rs:284
+    wire l4_nodes_ovf_not;                   // rtl-gen/src/merge/builder.rs:229
+    wire l4_end_not;                         // rtl-gen/src/merge/builder.rs:230
+    wire l4_end_ok;                          // rtl-gen/src/merge/builder.rs:230
+    wire l4_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:231
+    wire l4_ready_all;                       // rtl-gen/src/merge/builder.rs:243
+    wire l4_ready_all_and;                   // rtl-gen/src/merge/builder.rs:244
+    wire l4_end_or;                          // rtl-gen/src/merge/builder.rs:244
+    wire l4_fire;                            // rtl-gen/src/merge/builder.rs:244
+    wire l4_fire_and;                        // rtl-gen/src/merge/builder.rs:245
+    wire l4_end_fire;                        // rtl-gen/src/merge/builder.rs:246
+    wire [24:0] l4_index_next;               // rtl-gen/src/merge/builder.rs:260
+    wire [228:0] level4_beat;                // rtl-gen/src/merge/builder.rs:263
+    wire level4_in_valid;                    // rtl-gen/src/merge/builder.rs:266
+    reg level4_skid_valid;                   // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level4_skid_data;            // rtl-gen/src/merge/builder.rs:270
+    reg level4_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level4_skid_spare_data;      // rtl-gen/src/merge/builder.rs:270
+    wire level4_skid_ready;                  // rtl-gen/src/merge/builder.rs:270
+    wire level4_skid_room;                   // rtl-gen/src/merge/builder.rs:270
+    wire level4_skid_drain;                  // rtl-gen/src/merge/builder.rs:270
+    wire level4_skid_take;                   // rtl-gen/src/merge/builder.rs:270
+    wire l4_take_group_eq;                   // rtl-gen/src/merge/builder.rs:278
+    wire l4_is_record;                       // rtl-gen/src/merge/builder.rs:278
+    wire l4_is_top;                          // rtl-gen/src/merge/builder.rs:289
     reg l3_done;                             // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l3_nodes;                     // rtl-gen/src/merge/builder.rs:215
     reg l3_nodes_ovf;                        // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l3_records;                   // rtl-gen/src/merge/builder.rs:217
     wire level3_in_ready;                    // rtl-gen/src/merge/builder.rs:223
-    wire l3_end_not;                         // rtl-gen/src/merge/builder.rs:225
-    wire l3_end_ok;                          // rtl-gen/src/merge/builder.rs:225
-    wire l3_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:226
-    wire l3_ready_all;                       // rtl-gen/src/merge/builder.rs:238
-    wire l3_ready_all_and;                   // rtl-gen/src/merge/builder.rs:239
-    wire l3_end_or;                          // rtl-gen/src/merge/builder.rs:239
-    wire l3_fire;                            // rtl-gen/src/merge/builder.rs:239
-    wire l3_fire_and;                        // rtl-gen/src/merge/builder.rs:240
-    wire l3_end_fire;                        // rtl-gen/src/merge/builder.rs:241
-    wire [24:0] l3_index_next;               // rtl-gen/src/merge/builder.rs:255
-    wire [228:0] level3_beat;                // rtl-gen/src/merge/builder.rs:258
-    wire level3_in_valid;                    // rtl-gen/src/merge/builder.rs:261
-    reg level3_skid_valid;                   // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level3_skid_data;            // rtl-gen/src/merge/builder.rs:265
-    reg level3_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level3_skid_spare_data;      // rtl-gen/src/merge/builder.rs:265
-    wire level3_skid_ready;                  // rtl-gen/src/merge/builder.rs:265
-    wire level3_skid_room;                   // rtl-gen/src/merge/builder.rs:265
-    wire level3_skid_drain;                  // rtl-gen/src/merge/builder.rs:265
-    wire level3_skid_take;                   // rtl-gen/src/merge/builder.rs:265
-    wire l3_take_group_eq;                   // rtl-gen/src/merge/builder.rs:273
-    wire l3_is_record;                       // rtl-gen/src/merge/builder.rs:273
-    wire l3_nodes_and;                       // rtl-gen/src/merge/builder.rs:283
-    wire l3_is_top;                          // rtl-gen/src/merge/builder.rs:284
-    wire l16_is_top_or_1;                    // rtl-gen/src/merge/builder.rs:286
+    wire l3_nodes_ovf_not;                   // rtl-gen/src/merge/builder.rs:229
+    wire l3_end_not;                         // rtl-gen/src/merge/builder.rs:230
+    wire l3_end_ok;                          // rtl-gen/src/merge/builder.rs:230
+    wire l3_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:231
+    wire l3_ready_all;                       // rtl-gen/src/merge/builder.rs:243
+    wire l3_ready_all_and;                   // rtl-gen/src/merge/builder.rs:244
+    wire l3_end_or;                          // rtl-gen/src/merge/builder.rs:244
+    wire l3_fire;                            // rtl-gen/src/merge/builder.rs:244
+    wire l3_fire_and;                        // rtl-gen/src/merge/builder.rs:245
+    wire l3_end_fire;                        // rtl-gen/src/merge/builder.rs:246
+    wire [24:0] l3_index_next;               // rtl-gen/src/merge/builder.rs:260
+    wire [228:0] level3_beat;                // rtl-gen/src/merge/builder.rs:263
+    wire level3_in_valid;                    // rtl-gen/src/merge/builder.rs:266
+    reg level3_skid_valid;                   // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level3_skid_data;            // rtl-gen/src/merge/builder.rs:270
+    reg level3_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level3_skid_spare_data;      // rtl-gen/src/merge/builder.rs:270
+    wire level3_skid_ready;                  // rtl-gen/src/merge/builder.rs:270
+    wire level3_skid_room;                   // rtl-gen/src/merge/builder.rs:270
+    wire level3_skid_drain;                  // rtl-gen/src/merge/builder.rs:270
+    wire level3_skid_take;                   // rtl-gen/src/merge/builder.rs:270
+    wire l3_take_group_eq;                   // rtl-gen/src/merge/builder.rs:278
+    wire l3_is_record;                       // rtl-gen/src/merge/builder.rs:278
+    wire l3_is_top;                          // rtl-gen/src/merge/builder.rs:289
+    wire l16_is_top_or_1;                    // rtl-gen/src/merge/builder.rs:291
     reg l2_done;                             // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l2_nodes;                     // rtl-gen/src/merge/builder.rs:215
     reg l2_nodes_ovf;                        // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l2_records;                   // rtl-gen/src/merge/builder.rs:217
     wire level2_in_ready;                    // rtl-gen/src/merge/builder.rs:223
-    wire l2_end_not;                         // rtl-gen/src/merge/builder.rs:225
-    wire l2_end_ok;                          // rtl-gen/src/merge/builder.rs:225
-    wire l2_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:226
-    wire l2_ready_all;                       // rtl-gen/src/merge/builder.rs:238
-    wire l2_ready_all_and;                   // rtl-gen/src/merge/builder.rs:239
-    wire l2_end_or;                          // rtl-gen/src/merge/builder.rs:239
-    wire l2_fire;                            // rtl-gen/src/merge/builder.rs:239
-    wire l2_fire_and;                        // rtl-gen/src/merge/builder.rs:240
-    wire l2_end_fire;                        // rtl-gen/src/merge/builder.rs:241
-    wire [24:0] l2_index_next;               // rtl-gen/src/merge/builder.rs:255
-    wire [228:0] level2_beat;                // rtl-gen/src/merge/builder.rs:258
-    wire level2_in_valid;                    // rtl-gen/src/merge/builder.rs:261
-    reg level2_skid_valid;                   // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level2_skid_data;            // rtl-gen/src/merge/builder.rs:265
-    reg level2_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level2_skid_spare_data;      // rtl-gen/src/merge/builder.rs:265
-    wire level2_skid_ready;                  // rtl-gen/src/merge/builder.rs:265
-    wire level2_skid_room;                   // rtl-gen/src/merge/builder.rs:265
-    wire level2_skid_drain;                  // rtl-gen/src/merge/builder.rs:265
-    wire level2_skid_take;                   // rtl-gen/src/merge/builder.rs:265
-    wire l2_take_group_eq;                   // rtl-gen/src/merge/builder.rs:273
-    wire l2_is_record;                       // rtl-gen/src/merge/builder.rs:273
-    wire l2_nodes_and;                       // rtl-gen/src/merge/builder.rs:283
-    wire l2_is_top;                          // rtl-gen/src/merge/builder.rs:284
+    wire l2_nodes_ovf_not;                   // rtl-gen/src/merge/builder.rs:229
+    wire l2_end_not;                         // rtl-gen/src/merge/builder.rs:230
+    wire l2_end_ok;                          // rtl-gen/src/merge/builder.rs:230
+    wire l2_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:231
+    wire l2_ready_all;                       // rtl-gen/src/merge/builder.rs:243
+    wire l2_ready_all_and;                   // rtl-gen/src/merge/builder.rs:244
+    wire l2_end_or;                          // rtl-gen/src/merge/builder.rs:244
+    wire l2_fire;                            // rtl-gen/src/merge/builder.rs:244
+    wire l2_fire_and;                        // rtl-gen/src/merge/builder.rs:245
+    wire l2_end_fire;                        // rtl-gen/src/merge/builder.rs:246
+    wire [24:0] l2_index_next;               // rtl-gen/src/merge/builder.rs:260
+    wire [228:0] level2_beat;                // rtl-gen/src/merge/builder.rs:263
+    wire level2_in_valid;                    // rtl-gen/src/merge/builder.rs:266
+    reg level2_skid_valid;                   // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level2_skid_data;            // rtl-gen/src/merge/builder.rs:270
+    reg level2_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level2_skid_spare_data;      // rtl-gen/src/merge/builder.rs:270
+    wire level2_skid_ready;                  // rtl-gen/src/merge/builder.rs:270
+    wire level2_skid_room;                   // rtl-gen/src/merge/builder.rs:270
+    wire level2_skid_drain;                  // rtl-gen/src/merge/builder.rs:270
+    wire level2_skid_take;                   // rtl-gen/src/merge/builder.rs:270
+    wire l2_take_group_eq;                   // rtl-gen/src/merge/builder.rs:278
+    wire l2_is_record;                       // rtl-gen/src/merge/builder.rs:278
+    wire l2_is_top;                          // rtl-gen/src/merge/builder.rs:289
     reg l1_done;                             // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l1_nodes;                     // rtl-gen/src/merge/builder.rs:215
     reg l1_nodes_ovf;                        // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l1_records;                   // rtl-gen/src/merge/builder.rs:217
     wire level1_in_ready;                    // rtl-gen/src/merge/builder.rs:223
-    wire l1_end_not;                         // rtl-gen/src/merge/builder.rs:225
-    wire l1_end_ok;                          // rtl-gen/src/merge/builder.rs:225
-    wire l1_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:226
-    wire l1_ready_all;                       // rtl-gen/src/merge/builder.rs:238
-    wire l1_ready_all_and;                   // rtl-gen/src/merge/builder.rs:239
-    wire l1_end_or;                          // rtl-gen/src/merge/builder.rs:239
-    wire l1_fire;                            // rtl-gen/src/merge/builder.rs:239
-    wire l1_fire_and;                        // rtl-gen/src/merge/builder.rs:240
-    wire l1_end_fire;                        // rtl-gen/src/merge/builder.rs:241
-    wire [24:0] l1_index_next;               // rtl-gen/src/merge/builder.rs:255
-    wire [228:0] level1_beat;                // rtl-gen/src/merge/builder.rs:258
-    wire level1_in_valid;                    // rtl-gen/src/merge/builder.rs:261
-    reg level1_skid_valid;                   // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level1_skid_data;            // rtl-gen/src/merge/builder.rs:265
-    reg level1_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level1_skid_spare_data;      // rtl-gen/src/merge/builder.rs:265
-    wire level1_skid_ready;                  // rtl-gen/src/merge/builder.rs:265
-    wire level1_skid_room;                   // rtl-gen/src/merge/builder.rs:265
-    wire level1_skid_drain;                  // rtl-gen/src/merge/builder.rs:265
-    wire level1_skid_take;                   // rtl-gen/src/merge/builder.rs:265
-    wire l1_take_group_eq;                   // rtl-gen/src/merge/builder.rs:273
-    wire l1_is_record;                       // rtl-gen/src/merge/builder.rs:273
-    wire l1_has_leaf_not;                    // rtl-gen/src/merge/builder.rs:283
-    wire l1_is_top;                          // rtl-gen/src/merge/builder.rs:284
+    wire l1_nodes_ovf_not;                   // rtl-gen/src/merge/builder.rs:229
+    wire l1_end_not;                         // rtl-gen/src/merge/builder.rs:230
+    wire l1_end_ok;                          // rtl-gen/src/merge/builder.rs:230
+    wire l1_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:231
+    wire l1_ready_all;                       // rtl-gen/src/merge/builder.rs:243
+    wire l1_ready_all_and;                   // rtl-gen/src/merge/builder.rs:244
+    wire l1_end_or;                          // rtl-gen/src/merge/builder.rs:244
+    wire l1_fire;                            // rtl-gen/src/merge/builder.rs:244
+    wire l1_fire_and;                        // rtl-gen/src/merge/builder.rs:245
+    wire l1_end_fire;                        // rtl-gen/src/merge/builder.rs:246
+    wire [24:0] l1_index_next;               // rtl-gen/src/merge/builder.rs:260
+    wire [228:0] level1_beat;                // rtl-gen/src/merge/builder.rs:263
+    wire level1_in_valid;                    // rtl-gen/src/merge/builder.rs:266
+    reg level1_skid_valid;                   // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level1_skid_data;            // rtl-gen/src/merge/builder.rs:270
+    reg level1_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level1_skid_spare_data;      // rtl-gen/src/merge/builder.rs:270
+    wire level1_skid_ready;                  // rtl-gen/src/merge/builder.rs:270
+    wire level1_skid_room;                   // rtl-gen/src/merge/builder.rs:270
+    wire level1_skid_drain;                  // rtl-gen/src/merge/builder.rs:270
+    wire level1_skid_take;                   // rtl-gen/src/merge/builder.rs:270
+    wire l1_take_group_eq;                   // rtl-gen/src/merge/builder.rs:278
+    wire l1_is_record;                       // rtl-gen/src/merge/builder.rs:278
+    wire l1_has_leaf_not;                    // rtl-gen/src/merge/builder.rs:288
+    wire l1_is_top;                          // rtl-gen/src/merge/builder.rs:289
     reg l0_done;                             // rtl-gen/src/merge/builder.rs:214
     reg [23:0] l0_nodes;                     // rtl-gen/src/merge/builder.rs:215
     reg l0_nodes_ovf;                        // rtl-gen/src/merge/builder.rs:216
     reg [23:0] l0_records;                   // rtl-gen/src/merge/builder.rs:217
     wire level0_in_ready;                    // rtl-gen/src/merge/builder.rs:223
-    wire l0_end_not;                         // rtl-gen/src/merge/builder.rs:225
-    wire l0_end_ok;                          // rtl-gen/src/merge/builder.rs:225
-    wire l0_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:226
+    wire l0_end_not;                         // rtl-gen/src/merge/builder.rs:230
+    wire l0_end_ok;                          // rtl-gen/src/merge/builder.rs:230
+    wire l0_take_group_leaf;                 // rtl-gen/src/merge/builder.rs:231
     wire [7:0] l0_take_group_lo_x;           // rtl-gen/src/merge/builder.rs:103
     wire [7:0] l0_take_group_hi_x;           // rtl-gen/src/merge/builder.rs:104
     wire [7:0] l0_take_group_lo_y;           // rtl-gen/src/merge/builder.rs:103
@@ -1107,38 +1108,38 @@ module upper_builder_d16_q8_i24_h4 (
     wire [26:0] l0_take_group_hi_z_add_2;    // rtl-gen/src/merge/builder.rs:85
     wire [26:0] l0_take_group_hi_z_add_3;    // rtl-gen/src/merge/builder.rs:85
     wire [26:0] root_cells;                  // rtl-gen/src/merge/builder.rs:85
-    wire root_suppress;                      // rtl-gen/src/merge/builder.rs:230
-    wire root_suppressed_not;                // rtl-gen/src/merge/builder.rs:235
-    wire l0_end_mux;                         // rtl-gen/src/merge/builder.rs:234
-    wire l0_ready_all;                       // rtl-gen/src/merge/builder.rs:238
-    wire l0_ready_all_and;                   // rtl-gen/src/merge/builder.rs:239
-    wire l0_fire;                            // rtl-gen/src/merge/builder.rs:239
-    wire l0_fire_and;                        // rtl-gen/src/merge/builder.rs:240
-    wire l0_end_fire;                        // rtl-gen/src/merge/builder.rs:241
-    wire [24:0] l0_index_next;               // rtl-gen/src/merge/builder.rs:255
-    wire [228:0] level0_beat;                // rtl-gen/src/merge/builder.rs:258
-    wire level0_in_valid;                    // rtl-gen/src/merge/builder.rs:261
-    reg level0_skid_valid;                   // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level0_skid_data;            // rtl-gen/src/merge/builder.rs:265
-    reg level0_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:265
-    reg [228:0] level0_skid_spare_data;      // rtl-gen/src/merge/builder.rs:265
-    wire level0_skid_ready;                  // rtl-gen/src/merge/builder.rs:265
-    wire level0_skid_room;                   // rtl-gen/src/merge/builder.rs:265
-    wire level0_skid_drain;                  // rtl-gen/src/merge/builder.rs:265
-    wire level0_skid_take;                   // rtl-gen/src/merge/builder.rs:265
-    wire l0_take_group_eq;                   // rtl-gen/src/merge/builder.rs:273
-    wire l0_is_record;                       // rtl-gen/src/merge/builder.rs:273
-    wire l0_end_fire_and;                    // rtl-gen/src/merge/builder.rs:289
-    wire done_err_or;                        // rtl-gen/src/merge/builder.rs:301
-    wire [5:0] done_err_cat;                 // rtl-gen/src/merge/builder.rs:305
-    reg done_skid_valid;                     // rtl-gen/src/merge/builder.rs:312
-    reg [5:0] done_skid_data;                // rtl-gen/src/merge/builder.rs:312
-    reg done_skid_spare_valid;               // rtl-gen/src/merge/builder.rs:312
-    reg [5:0] done_skid_spare_data;          // rtl-gen/src/merge/builder.rs:312
-    wire done_skid_ready;                    // rtl-gen/src/merge/builder.rs:312
-    wire done_skid_room;                     // rtl-gen/src/merge/builder.rs:312
-    wire done_skid_drain;                    // rtl-gen/src/merge/builder.rs:312
-    wire done_skid_take;                     // rtl-gen/src/merge/builder.rs:312
+    wire root_suppress;                      // rtl-gen/src/merge/builder.rs:235
+    wire root_suppressed_not;                // rtl-gen/src/merge/builder.rs:240
+    wire l0_end_mux;                         // rtl-gen/src/merge/builder.rs:239
+    wire l0_ready_all;                       // rtl-gen/src/merge/builder.rs:243
+    wire l0_ready_all_and;                   // rtl-gen/src/merge/builder.rs:244
+    wire l0_fire;                            // rtl-gen/src/merge/builder.rs:244
+    wire l0_fire_and;                        // rtl-gen/src/merge/builder.rs:245
+    wire l0_end_fire;                        // rtl-gen/src/merge/builder.rs:246
+    wire [24:0] l0_index_next;               // rtl-gen/src/merge/builder.rs:260
+    wire [228:0] level0_beat;                // rtl-gen/src/merge/builder.rs:263
+    wire level0_in_valid;                    // rtl-gen/src/merge/builder.rs:266
+    reg level0_skid_valid;                   // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level0_skid_data;            // rtl-gen/src/merge/builder.rs:270
+    reg level0_skid_spare_valid;             // rtl-gen/src/merge/builder.rs:270
+    reg [228:0] level0_skid_spare_data;      // rtl-gen/src/merge/builder.rs:270
+    wire level0_skid_ready;                  // rtl-gen/src/merge/builder.rs:270
+    wire level0_skid_room;                   // rtl-gen/src/merge/builder.rs:270
+    wire level0_skid_drain;                  // rtl-gen/src/merge/builder.rs:270
+    wire level0_skid_take;                   // rtl-gen/src/merge/builder.rs:270
+    wire l0_take_group_eq;                   // rtl-gen/src/merge/builder.rs:278
+    wire l0_is_record;                       // rtl-gen/src/merge/builder.rs:278
+    wire l0_end_fire_and;                    // rtl-gen/src/merge/builder.rs:294
+    wire done_err_or;                        // rtl-gen/src/merge/builder.rs:306
+    wire [5:0] done_err_cat;                 // rtl-gen/src/merge/builder.rs:310
+    reg done_skid_valid;                     // rtl-gen/src/merge/builder.rs:317
+    reg [5:0] done_skid_data;                // rtl-gen/src/merge/builder.rs:317
+    reg done_skid_spare_valid;               // rtl-gen/src/merge/builder.rs:317
+    reg [5:0] done_skid_spare_data;          // rtl-gen/src/merge/builder.rs:317
+    wire done_skid_ready;                    // rtl-gen/src/merge/builder.rs:317
+    wire done_skid_room;                     // rtl-gen/src/merge/builder.rs:317
+    wire done_skid_drain;                    // rtl-gen/src/merge/builder.rs:317
+    wire done_skid_take;                     // rtl-gen/src/merge/builder.rs:317
 
     assign done_in_ready = done_skid_room;
     assign base0_ready = base0_skid_room;
@@ -1506,8 +1507,9 @@ module upper_builder_d16_q8_i24_h4 (
     assign l16_base_above = l15_base_above | (l15_had_base | (base15_skid_valid & (~base15_skid_data_kind_eq)));
     assign merge_clear = done_valid_q & done_in_ready;
     assign level16_in_ready = level16_skid_room;
+    assign l16_nodes_ovf_not = ~l16_nodes_ovf;
     assign base16_skid_data_kind_not = ~base16_skid_data_kind_eq;
-    assign l16_end_ok = base16_skid_data_kind_not | l16_above_known;
+    assign l16_end_ok = (base16_skid_data_kind_not | l16_above_known) | ((l16_nodes == 24'd0) & l16_nodes_ovf_not);
     assign base16_skid_data_rec_leaf = base16_skid_data[0];
     assign top_found_not = ~top_found;
     assign top_found_and = top_found_not & (~1'b0);
@@ -1529,11 +1531,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign level16_data = level16_skid_data;
     assign base16_skid_data_kind_eq_1 = base16_skid_data_kind_mux == 2'd2;
     assign l16_is_record = ~base16_skid_data_kind_eq_1;
-    assign l16_nodes_and = (((l16_nodes == 24'd1) & (~l16_nodes_ovf)) & (~l16_base_above)) & (~l16_has_leaf);
-    assign l16_is_top = (l16_end_fire & top_found_not) & l16_nodes_and;
+    assign l16_is_top = (l16_end_fire & top_found_not) & ((((l16_nodes == 24'd1) & l16_nodes_ovf_not) & (~l16_base_above)) & (~l16_has_leaf));
     assign level15_in_ready = level15_skid_room;
+    assign l15_nodes_ovf_not = ~l15_nodes_ovf;
     assign l15_end_not = ~l15_end;
-    assign l15_end_ok = l15_end_not | l15_above_known;
+    assign l15_end_ok = (l15_end_not | l15_above_known) | ((l15_nodes == 24'd0) & l15_nodes_ovf_not);
     assign l15_take_group_leaf = l15_take_group_mux[0];
     assign l15_ready_all = (l15_valid & (~l15_done)) & l15_end_ok;
     assign l15_ready_all_and = l15_ready_all & u_group14_in_ready;
@@ -1552,11 +1554,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign level15_data = level15_skid_data;
     assign l15_take_group_eq = l15_take_group_mux_1 == 2'd2;
     assign l15_is_record = ~l15_take_group_eq;
-    assign l15_nodes_and = (((l15_nodes == 24'd1) & (~l15_nodes_ovf)) & (~l15_base_above)) & (~l15_has_leaf);
-    assign l15_is_top = (l15_end_fire & top_found_not) & l15_nodes_and;
+    assign l15_is_top = (l15_end_fire & top_found_not) & ((((l15_nodes == 24'd1) & l15_nodes_ovf_not) & (~l15_base_above)) & (~l15_has_leaf));
     assign level14_in_ready = level14_skid_room;
+    assign l14_nodes_ovf_not = ~l14_nodes_ovf;
     assign l14_end_not = ~l14_end;
-    assign l14_end_ok = l14_end_not | l14_above_known;
+    assign l14_end_ok = (l14_end_not | l14_above_known) | ((l14_nodes == 24'd0) & l14_nodes_ovf_not);
     assign l14_take_group_leaf = l14_take_group_mux[0];
     assign l14_ready_all = (l14_valid & (~l14_done)) & l14_end_ok;
     assign l14_ready_all_and = l14_ready_all & u_group13_in_ready;
@@ -1575,11 +1577,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign level14_data = level14_skid_data;
     assign l14_take_group_eq = l14_take_group_mux_1 == 2'd2;
     assign l14_is_record = ~l14_take_group_eq;
-    assign l14_nodes_and = (((l14_nodes == 24'd1) & (~l14_nodes_ovf)) & (~l14_base_above)) & (~l14_has_leaf);
-    assign l14_is_top = (l14_end_fire & top_found_not) & l14_nodes_and;
+    assign l14_is_top = (l14_end_fire & top_found_not) & ((((l14_nodes == 24'd1) & l14_nodes_ovf_not) & (~l14_base_above)) & (~l14_has_leaf));
     assign level13_in_ready = level13_skid_room;
+    assign l13_nodes_ovf_not = ~l13_nodes_ovf;
     assign l13_end_not = ~l13_end;
-    assign l13_end_ok = l13_end_not | l13_above_known;
+    assign l13_end_ok = (l13_end_not | l13_above_known) | ((l13_nodes == 24'd0) & l13_nodes_ovf_not);
     assign l13_take_group_leaf = l13_take_group_mux[0];
     assign l13_ready_all = (l13_valid & (~l13_done)) & l13_end_ok;
     assign l13_ready_all_and = l13_ready_all & u_group12_in_ready;
@@ -1598,11 +1600,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign level13_data = level13_skid_data;
     assign l13_take_group_eq = l13_take_group_mux_1 == 2'd2;
     assign l13_is_record = ~l13_take_group_eq;
-    assign l13_nodes_and = (((l13_nodes == 24'd1) & (~l13_nodes_ovf)) & (~l13_base_above)) & (~l13_has_leaf);
-    assign l13_is_top = (l13_end_fire & top_found_not) & l13_nodes_and;
+    assign l13_is_top = (l13_end_fire & top_found_not) & ((((l13_nodes == 24'd1) & l13_nodes_ovf_not) & (~l13_base_above)) & (~l13_has_leaf));
     assign level12_in_ready = level12_skid_room;
+    assign l12_nodes_ovf_not = ~l12_nodes_ovf;
     assign l12_end_not = ~l12_end;
-    assign l12_end_ok = l12_end_not | l12_above_known;
+    assign l12_end_ok = (l12_end_not | l12_above_known) | ((l12_nodes == 24'd0) & l12_nodes_ovf_not);
     assign l12_take_group_leaf = l12_take_group_mux[0];
     assign l12_ready_all = (l12_valid & (~l12_done)) & l12_end_ok;
     assign l12_ready_all_and = l12_ready_all & u_group11_in_ready;
@@ -1621,11 +1623,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign level12_data = level12_skid_data;
     assign l12_take_group_eq = l12_take_group_mux_1 == 2'd2;
     assign l12_is_record = ~l12_take_group_eq;
-    assign l12_nodes_and = (((l12_nodes == 24'd1) & (~l12_nodes_ovf)) & (~l12_base_above)) & (~l12_has_leaf);
-    assign l12_is_top = (l12_end_fire & top_found_not) & l12_nodes_and;
+    assign l12_is_top = (l12_end_fire & top_found_not) & ((((l12_nodes == 24'd1) & l12_nodes_ovf_not) & (~l12_base_above)) & (~l12_has_leaf));
     assign level11_in_ready = level11_skid_room;
+    assign l11_nodes_ovf_not = ~l11_nodes_ovf;
     assign l11_end_not = ~l11_end;
-    assign l11_end_ok = l11_end_not | l11_above_known;
+    assign l11_end_ok = (l11_end_not | l11_above_known) | ((l11_nodes == 24'd0) & l11_nodes_ovf_not);
     assign l11_take_group_leaf = l11_take_group_mux[0];
     assign l11_ready_all = (l11_valid & (~l11_done)) & l11_end_ok;
     assign l11_ready_all_and = l11_ready_all & u_group10_in_ready;
@@ -1644,11 +1646,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign level11_data = level11_skid_data;
     assign l11_take_group_eq = l11_take_group_mux_1 == 2'd2;
     assign l11_is_record = ~l11_take_group_eq;
-    assign l11_nodes_and = (((l11_nodes == 24'd1) & (~l11_nodes_ovf)) & (~l11_base_above)) & (~l11_has_leaf);
-    assign l11_is_top = (l11_end_fire & top_found_not) & l11_nodes_and;
+    assign l11_is_top = (l11_end_fire & top_found_not) & ((((l11_nodes == 24'd1) & l11_nodes_ovf_not) & (~l11_base_above)) & (~l11_has_leaf));
     assign level10_in_ready = level10_skid_room;
+    assign l10_nodes_ovf_not = ~l10_nodes_ovf;
     assign l10_end_not = ~l10_end;
-    assign l10_end_ok = l10_end_not | l10_above_known;
+    assign l10_end_ok = (l10_end_not | l10_above_known) | ((l10_nodes == 24'd0) & l10_nodes_ovf_not);
     assign l10_take_group_leaf = l10_take_group_mux[0];
     assign l10_ready_all = (l10_valid & (~l10_done)) & l10_end_ok;
     assign l10_ready_all_and = l10_ready_all & u_group9_in_ready;
@@ -1667,12 +1669,12 @@ module upper_builder_d16_q8_i24_h4 (
     assign level10_data = level10_skid_data;
     assign l10_take_group_eq = l10_take_group_mux_1 == 2'd2;
     assign l10_is_record = ~l10_take_group_eq;
-    assign l10_nodes_and = (((l10_nodes == 24'd1) & (~l10_nodes_ovf)) & (~l10_base_above)) & (~l10_has_leaf);
-    assign l10_is_top = (l10_end_fire & top_found_not) & l10_nodes_and;
+    assign l10_is_top = (l10_end_fire & top_found_not) & ((((l10_nodes == 24'd1) & l10_nodes_ovf_not) & (~l10_base_above)) & (~l10_has_leaf));
     assign l16_is_top_or = ((((((1'b0 | l16_is_top) | l15_is_top) | l14_is_top) | l13_is_top) | l12_is_top) | l11_is_top) | l10_is_top;
     assign level9_in_ready = level9_skid_room;
+    assign l9_nodes_ovf_not = ~l9_nodes_ovf;
     assign l9_end_not = ~l9_end;
-    assign l9_end_ok = l9_end_not | l9_above_known;
+    assign l9_end_ok = (l9_end_not | l9_above_known) | ((l9_nodes == 24'd0) & l9_nodes_ovf_not);
     assign l9_take_group_leaf = l9_take_group_mux[0];
     assign l9_ready_all = (l9_valid & (~l9_done)) & l9_end_ok;
     assign l9_ready_all_and = l9_ready_all & u_group8_in_ready;
@@ -1691,11 +1693,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign level9_data = level9_skid_data;
     assign l9_take_group_eq = l9_take_group_mux_1 == 2'd2;
     assign l9_is_record = ~l9_take_group_eq;
-    assign l9_nodes_and = (((l9_nodes == 24'd1) & (~l9_nodes_ovf)) & (~l9_base_above)) & (~l9_has_leaf);
-    assign l9_is_top = (l9_end_fire & top_found_not) & l9_nodes_and;
+    assign l9_is_top = (l9_end_fire & top_found_not) & ((((l9_nodes == 24'd1) & l9_nodes_ovf_not) & (~l9_base_above)) & (~l9_has_leaf));
     assign level8_in_ready = level8_skid_room;
+    assign l8_nodes_ovf_not = ~l8_nodes_ovf;
     assign l8_end_not = ~l8_end;
-    assign l8_end_ok = l8_end_not | l8_above_known;
+    assign l8_end_ok = (l8_end_not | l8_above_known) | ((l8_nodes == 24'd0) & l8_nodes_ovf_not);
     assign l8_take_group_leaf = l8_take_group_mux[0];
     assign l8_ready_all = (l8_valid & (~l8_done)) & l8_end_ok;
     assign l8_ready_all_and = l8_ready_all & u_group7_in_ready;
@@ -1714,11 +1716,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign level8_data = level8_skid_data;
     assign l8_take_group_eq = l8_take_group_mux_1 == 2'd2;
     assign l8_is_record = ~l8_take_group_eq;
-    assign l8_nodes_and = (((l8_nodes == 24'd1) & (~l8_nodes_ovf)) & (~l8_base_above)) & (~l8_has_leaf);
-    assign l8_is_top = (l8_end_fire & top_found_not) & l8_nodes_and;
+    assign l8_is_top = (l8_end_fire & top_found_not) & ((((l8_nodes == 24'd1) & l8_nodes_ovf_not) & (~l8_base_above)) & (~l8_has_leaf));
     assign level7_in_ready = level7_skid_room;
+    assign l7_nodes_ovf_not = ~l7_nodes_ovf;
     assign l7_end_not = ~l7_end;
-    assign l7_end_ok = l7_end_not | l7_above_known;
+    assign l7_end_ok = (l7_end_not | l7_above_known) | ((l7_nodes == 24'd0) & l7_nodes_ovf_not);
     assign l7_take_group_leaf = l7_take_group_mux[0];
     assign l7_ready_all = (l7_valid & (~l7_done)) & l7_end_ok;
     assign l7_ready_all_and = l7_ready_all & u_group6_in_ready;
@@ -1737,11 +1739,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign level7_data = level7_skid_data;
     assign l7_take_group_eq = l7_take_group_mux_1 == 2'd2;
     assign l7_is_record = ~l7_take_group_eq;
-    assign l7_nodes_and = (((l7_nodes == 24'd1) & (~l7_nodes_ovf)) & (~l7_base_above)) & (~l7_has_leaf);
-    assign l7_is_top = (l7_end_fire & top_found_not) & l7_nodes_and;
+    assign l7_is_top = (l7_end_fire & top_found_not) & ((((l7_nodes == 24'd1) & l7_nodes_ovf_not) & (~l7_base_above)) & (~l7_has_leaf));
     assign level6_in_ready = level6_skid_room;
+    assign l6_nodes_ovf_not = ~l6_nodes_ovf;
     assign l6_end_not = ~l6_end;
-    assign l6_end_ok = l6_end_not | l6_above_known;
+    assign l6_end_ok = (l6_end_not | l6_above_known) | ((l6_nodes == 24'd0) & l6_nodes_ovf_not);
     assign l6_take_group_leaf = l6_take_group_mux[0];
     assign l6_ready_all = (l6_valid & (~l6_done)) & l6_end_ok;
     assign l6_ready_all_and = l6_ready_all & u_group5_in_ready;
@@ -1760,11 +1762,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign level6_data = level6_skid_data;
     assign l6_take_group_eq = l6_take_group_mux_1 == 2'd2;
     assign l6_is_record = ~l6_take_group_eq;
-    assign l6_nodes_and = (((l6_nodes == 24'd1) & (~l6_nodes_ovf)) & (~l6_base_above)) & (~l6_has_leaf);
-    assign l6_is_top = (l6_end_fire & top_found_not) & l6_nodes_and;
+    assign l6_is_top = (l6_end_fire & top_found_not) & ((((l6_nodes == 24'd1) & l6_nodes_ovf_not) & (~l6_base_above)) & (~l6_has_leaf));
     assign level5_in_ready = level5_skid_room;
+    assign l5_nodes_ovf_not = ~l5_nodes_ovf;
     assign l5_end_not = ~l5_end;
-    assign l5_end_ok = l5_end_not | l5_above_known;
+    assign l5_end_ok = (l5_end_not | l5_above_known) | ((l5_nodes == 24'd0) & l5_nodes_ovf_not);
     assign l5_take_group_leaf = l5_take_group_mux[0];
     assign l5_ready_all = (l5_valid & (~l5_done)) & l5_end_ok;
     assign l5_ready_all_and = l5_ready_all & u_group4_in_ready;
@@ -1783,11 +1785,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign level5_data = level5_skid_data;
     assign l5_take_group_eq = l5_take_group_mux_1 == 2'd2;
     assign l5_is_record = ~l5_take_group_eq;
-    assign l5_nodes_and = (((l5_nodes == 24'd1) & (~l5_nodes_ovf)) & (~l5_base_above)) & (~l5_has_leaf);
-    assign l5_is_top = (l5_end_fire & top_found_not) & l5_nodes_and;
+    assign l5_is_top = (l5_end_fire & top_found_not) & ((((l5_nodes == 24'd1) & l5_nodes_ovf_not) & (~l5_base_above)) & (~l5_has_leaf));
     assign level4_in_ready = level4_skid_room;
+    assign l4_nodes_ovf_not = ~l4_nodes_ovf;
     assign l4_end_not = ~l4_end;
-    assign l4_end_ok = l4_end_not | l4_above_known;
+    assign l4_end_ok = (l4_end_not | l4_above_known) | ((l4_nodes == 24'd0) & l4_nodes_ovf_not);
     assign l4_take_group_leaf = l4_take_group_mux[0];
     assign l4_ready_all = (l4_valid & (~l4_done)) & l4_end_ok;
     assign l4_ready_all_and = l4_ready_all & u_group3_in_ready;
@@ -1806,11 +1808,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign level4_data = level4_skid_data;
     assign l4_take_group_eq = l4_take_group_mux_1 == 2'd2;
     assign l4_is_record = ~l4_take_group_eq;
-    assign l4_nodes_and = (((l4_nodes == 24'd1) & (~l4_nodes_ovf)) & (~l4_base_above)) & (~l4_has_leaf);
-    assign l4_is_top = (l4_end_fire & top_found_not) & l4_nodes_and;
+    assign l4_is_top = (l4_end_fire & top_found_not) & ((((l4_nodes == 24'd1) & l4_nodes_ovf_not) & (~l4_base_above)) & (~l4_has_leaf));
     assign level3_in_ready = level3_skid_room;
+    assign l3_nodes_ovf_not = ~l3_nodes_ovf;
     assign l3_end_not = ~l3_end;
-    assign l3_end_ok = l3_end_not | l3_above_known;
+    assign l3_end_ok = (l3_end_not | l3_above_known) | ((l3_nodes == 24'd0) & l3_nodes_ovf_not);
     assign l3_take_group_leaf = l3_take_group_mux[0];
     assign l3_ready_all = (l3_valid & (~l3_done)) & l3_end_ok;
     assign l3_ready_all_and = l3_ready_all & u_group2_in_ready;
@@ -1829,12 +1831,12 @@ module upper_builder_d16_q8_i24_h4 (
     assign level3_data = level3_skid_data;
     assign l3_take_group_eq = l3_take_group_mux_1 == 2'd2;
     assign l3_is_record = ~l3_take_group_eq;
-    assign l3_nodes_and = (((l3_nodes == 24'd1) & (~l3_nodes_ovf)) & (~l3_base_above)) & (~l3_has_leaf);
-    assign l3_is_top = (l3_end_fire & top_found_not) & l3_nodes_and;
+    assign l3_is_top = (l3_end_fire & top_found_not) & ((((l3_nodes == 24'd1) & l3_nodes_ovf_not) & (~l3_base_above)) & (~l3_has_leaf));
     assign l16_is_top_or_1 = ((((((l16_is_top_or | l9_is_top) | l8_is_top) | l7_is_top) | l6_is_top) | l5_is_top) | l4_is_top) | l3_is_top;
     assign level2_in_ready = level2_skid_room;
+    assign l2_nodes_ovf_not = ~l2_nodes_ovf;
     assign l2_end_not = ~l2_end;
-    assign l2_end_ok = l2_end_not | l2_above_known;
+    assign l2_end_ok = (l2_end_not | l2_above_known) | ((l2_nodes == 24'd0) & l2_nodes_ovf_not);
     assign l2_take_group_leaf = l2_take_group_mux[0];
     assign l2_ready_all = (l2_valid & (~l2_done)) & l2_end_ok;
     assign l2_ready_all_and = l2_ready_all & u_group1_in_ready;
@@ -1853,11 +1855,11 @@ module upper_builder_d16_q8_i24_h4 (
     assign level2_data = level2_skid_data;
     assign l2_take_group_eq = l2_take_group_mux_1 == 2'd2;
     assign l2_is_record = ~l2_take_group_eq;
-    assign l2_nodes_and = (((l2_nodes == 24'd1) & (~l2_nodes_ovf)) & (~l2_base_above)) & (~l2_has_leaf);
-    assign l2_is_top = (l2_end_fire & top_found_not) & l2_nodes_and;
+    assign l2_is_top = (l2_end_fire & top_found_not) & ((((l2_nodes == 24'd1) & l2_nodes_ovf_not) & (~l2_base_above)) & (~l2_has_leaf));
     assign level1_in_ready = level1_skid_room;
+    assign l1_nodes_ovf_not = ~l1_nodes_ovf;
     assign l1_end_not = ~l1_end;
-    assign l1_end_ok = l1_end_not | l1_above_known;
+    assign l1_end_ok = (l1_end_not | l1_above_known) | ((l1_nodes == 24'd0) & l1_nodes_ovf_not);
     assign l1_take_group_leaf = l1_take_group_mux[0];
     assign l1_ready_all = (l1_valid & (~l1_done)) & l1_end_ok;
     assign l1_ready_all_and = l1_ready_all & u_group0_in_ready;
@@ -1877,10 +1879,10 @@ module upper_builder_d16_q8_i24_h4 (
     assign l1_take_group_eq = l1_take_group_mux_1 == 2'd2;
     assign l1_is_record = ~l1_take_group_eq;
     assign l1_has_leaf_not = ~l1_has_leaf;
-    assign l1_is_top = (l1_end_fire & top_found_not) & ((((l1_nodes == 24'd1) & (~l1_nodes_ovf)) & (~l1_base_above)) & l1_has_leaf_not);
+    assign l1_is_top = (l1_end_fire & top_found_not) & ((((l1_nodes == 24'd1) & l1_nodes_ovf_not) & (~l1_base_above)) & l1_has_leaf_not);
     assign level0_in_ready = level0_skid_room;
     assign l0_end_not = ~l0_end;
-    assign l0_end_ok = l0_end_not | 1'b1;
+    assign l0_end_ok = (l0_end_not | 1'b1) | 1'b0;
     assign l0_take_group_leaf = l0_take_group_mux[0];
     assign l0_take_group_lo_x = l0_take_group_mux[61:54];
     assign l0_take_group_hi_x = l0_take_group_mux[85:78];
@@ -2355,178 +2357,178 @@ module upper_builder_d16_q8_i24_h4 (
         end else begin
             top_found <= merge_clear ? 1'b0 : (top_found | (((l16_is_top_or_1 | l2_is_top) | l1_is_top) | l0_end_fire_and));
             if (merge_clear) begin
-                top_lod <= 5'd0;             // rtl-gen/src/merge/builder.rs:300
-                l16_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:270
-                l16_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:274
-                l15_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:270
-                l15_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:274
-                l14_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:270
-                l14_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:274
-                l13_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:270
-                l13_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:274
-                l12_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:270
-                l12_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:274
-                l11_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:270
-                l11_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:274
-                l10_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:270
-                l10_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:274
-                l9_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:270
-                l9_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:274
-                l8_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:270
-                l8_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:274
-                l7_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:270
-                l7_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:274
-                l6_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:270
-                l6_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:274
-                l5_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:270
-                l5_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:274
-                l4_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:270
-                l4_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:274
-                l3_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:270
-                l3_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:274
-                l2_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:270
-                l2_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:274
-                l1_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:270
-                l1_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:274
-                l0_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:270
-                l0_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:274
+                top_lod <= 5'd0;             // rtl-gen/src/merge/builder.rs:305
+                l16_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:275
+                l16_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:279
+                l15_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:275
+                l15_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:279
+                l14_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:275
+                l14_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:279
+                l13_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:275
+                l13_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:279
+                l12_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:275
+                l12_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:279
+                l11_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:275
+                l11_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:279
+                l10_nodes <= 24'd0;          // rtl-gen/src/merge/builder.rs:275
+                l10_records <= 24'd0;        // rtl-gen/src/merge/builder.rs:279
+                l9_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:275
+                l9_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:279
+                l8_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:275
+                l8_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:279
+                l7_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:275
+                l7_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:279
+                l6_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:275
+                l6_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:279
+                l5_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:275
+                l5_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:279
+                l4_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:275
+                l4_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:279
+                l3_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:275
+                l3_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:279
+                l2_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:275
+                l2_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:279
+                l1_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:275
+                l1_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:279
+                l0_nodes <= 24'd0;           // rtl-gen/src/merge/builder.rs:275
+                l0_records <= 24'd0;         // rtl-gen/src/merge/builder.rs:279
             end else begin
                 if (l0_end_fire_and) begin
-                    top_lod <= root_suppressed ? 5'd1 : 5'd0; // rtl-gen/src/merge/builder.rs:293
+                    top_lod <= root_suppressed ? 5'd1 : 5'd0; // rtl-gen/src/merge/builder.rs:298
                 end else if (l1_is_top) begin
-                    top_lod <= 5'd1;         // rtl-gen/src/merge/builder.rs:285
+                    top_lod <= 5'd1;         // rtl-gen/src/merge/builder.rs:290
                 end else if (l2_is_top) begin
-                    top_lod <= 5'd2;         // rtl-gen/src/merge/builder.rs:285
+                    top_lod <= 5'd2;         // rtl-gen/src/merge/builder.rs:290
                 end else if (l3_is_top) begin
-                    top_lod <= 5'd3;         // rtl-gen/src/merge/builder.rs:285
+                    top_lod <= 5'd3;         // rtl-gen/src/merge/builder.rs:290
                 end else if (l4_is_top) begin
-                    top_lod <= 5'd4;         // rtl-gen/src/merge/builder.rs:285
+                    top_lod <= 5'd4;         // rtl-gen/src/merge/builder.rs:290
                 end else if (l5_is_top) begin
-                    top_lod <= 5'd5;         // rtl-gen/src/merge/builder.rs:285
+                    top_lod <= 5'd5;         // rtl-gen/src/merge/builder.rs:290
                 end else if (l6_is_top) begin
-                    top_lod <= 5'd6;         // rtl-gen/src/merge/builder.rs:285
+                    top_lod <= 5'd6;         // rtl-gen/src/merge/builder.rs:290
                 end else if (l7_is_top) begin
-                    top_lod <= 5'd7;         // rtl-gen/src/merge/builder.rs:285
+                    top_lod <= 5'd7;         // rtl-gen/src/merge/builder.rs:290
                 end else if (l8_is_top) begin
-                    top_lod <= 5'd8;         // rtl-gen/src/merge/builder.rs:285
+                    top_lod <= 5'd8;         // rtl-gen/src/merge/builder.rs:290
                 end else if (l9_is_top) begin
-                    top_lod <= 5'd9;         // rtl-gen/src/merge/builder.rs:285
+                    top_lod <= 5'd9;         // rtl-gen/src/merge/builder.rs:290
                 end else if (l10_is_top) begin
-                    top_lod <= 5'd10;        // rtl-gen/src/merge/builder.rs:285
+                    top_lod <= 5'd10;        // rtl-gen/src/merge/builder.rs:290
                 end else if (l11_is_top) begin
-                    top_lod <= 5'd11;        // rtl-gen/src/merge/builder.rs:285
+                    top_lod <= 5'd11;        // rtl-gen/src/merge/builder.rs:290
                 end else if (l12_is_top) begin
-                    top_lod <= 5'd12;        // rtl-gen/src/merge/builder.rs:285
+                    top_lod <= 5'd12;        // rtl-gen/src/merge/builder.rs:290
                 end else if (l13_is_top) begin
-                    top_lod <= 5'd13;        // rtl-gen/src/merge/builder.rs:285
+                    top_lod <= 5'd13;        // rtl-gen/src/merge/builder.rs:290
                 end else if (l14_is_top) begin
-                    top_lod <= 5'd14;        // rtl-gen/src/merge/builder.rs:285
+                    top_lod <= 5'd14;        // rtl-gen/src/merge/builder.rs:290
                 end else if (l15_is_top) begin
-                    top_lod <= 5'd15;        // rtl-gen/src/merge/builder.rs:285
+                    top_lod <= 5'd15;        // rtl-gen/src/merge/builder.rs:290
                 end else if (l16_is_top) begin
-                    top_lod <= 5'd16;        // rtl-gen/src/merge/builder.rs:285
+                    top_lod <= 5'd16;        // rtl-gen/src/merge/builder.rs:290
                 end
                 if (l16_fire_and) begin
-                    l16_nodes <= l16_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l16_nodes <= l16_index_next[23:0]; // rtl-gen/src/merge/builder.rs:275
                 end
                 if (l16_fire_and & l16_is_record) begin
-                    l16_records <= l16_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
+                    l16_records <= l16_records + 24'd1; // rtl-gen/src/merge/builder.rs:279
                 end
                 if (l15_fire_and) begin
-                    l15_nodes <= l15_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l15_nodes <= l15_index_next[23:0]; // rtl-gen/src/merge/builder.rs:275
                 end
                 if (l15_fire_and & l15_is_record) begin
-                    l15_records <= l15_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
+                    l15_records <= l15_records + 24'd1; // rtl-gen/src/merge/builder.rs:279
                 end
                 if (l14_fire_and) begin
-                    l14_nodes <= l14_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l14_nodes <= l14_index_next[23:0]; // rtl-gen/src/merge/builder.rs:275
                 end
                 if (l14_fire_and & l14_is_record) begin
-                    l14_records <= l14_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
+                    l14_records <= l14_records + 24'd1; // rtl-gen/src/merge/builder.rs:279
                 end
                 if (l13_fire_and) begin
-                    l13_nodes <= l13_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l13_nodes <= l13_index_next[23:0]; // rtl-gen/src/merge/builder.rs:275
                 end
                 if (l13_fire_and & l13_is_record) begin
-                    l13_records <= l13_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
+                    l13_records <= l13_records + 24'd1; // rtl-gen/src/merge/builder.rs:279
                 end
                 if (l12_fire_and) begin
-                    l12_nodes <= l12_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l12_nodes <= l12_index_next[23:0]; // rtl-gen/src/merge/builder.rs:275
                 end
                 if (l12_fire_and & l12_is_record) begin
-                    l12_records <= l12_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
+                    l12_records <= l12_records + 24'd1; // rtl-gen/src/merge/builder.rs:279
                 end
                 if (l11_fire_and) begin
-                    l11_nodes <= l11_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l11_nodes <= l11_index_next[23:0]; // rtl-gen/src/merge/builder.rs:275
                 end
                 if (l11_fire_and & l11_is_record) begin
-                    l11_records <= l11_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
+                    l11_records <= l11_records + 24'd1; // rtl-gen/src/merge/builder.rs:279
                 end
                 if (l10_fire_and) begin
-                    l10_nodes <= l10_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l10_nodes <= l10_index_next[23:0]; // rtl-gen/src/merge/builder.rs:275
                 end
                 if (l10_fire_and & l10_is_record) begin
-                    l10_records <= l10_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
+                    l10_records <= l10_records + 24'd1; // rtl-gen/src/merge/builder.rs:279
                 end
                 if (l9_fire_and) begin
-                    l9_nodes <= l9_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l9_nodes <= l9_index_next[23:0]; // rtl-gen/src/merge/builder.rs:275
                 end
                 if (l9_fire_and & l9_is_record) begin
-                    l9_records <= l9_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
+                    l9_records <= l9_records + 24'd1; // rtl-gen/src/merge/builder.rs:279
                 end
                 if (l8_fire_and) begin
-                    l8_nodes <= l8_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l8_nodes <= l8_index_next[23:0]; // rtl-gen/src/merge/builder.rs:275
                 end
                 if (l8_fire_and & l8_is_record) begin
-                    l8_records <= l8_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
+                    l8_records <= l8_records + 24'd1; // rtl-gen/src/merge/builder.rs:279
                 end
                 if (l7_fire_and) begin
-                    l7_nodes <= l7_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l7_nodes <= l7_index_next[23:0]; // rtl-gen/src/merge/builder.rs:275
                 end
                 if (l7_fire_and & l7_is_record) begin
-                    l7_records <= l7_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
+                    l7_records <= l7_records + 24'd1; // rtl-gen/src/merge/builder.rs:279
                 end
                 if (l6_fire_and) begin
-                    l6_nodes <= l6_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l6_nodes <= l6_index_next[23:0]; // rtl-gen/src/merge/builder.rs:275
                 end
                 if (l6_fire_and & l6_is_record) begin
-                    l6_records <= l6_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
+                    l6_records <= l6_records + 24'd1; // rtl-gen/src/merge/builder.rs:279
                 end
                 if (l5_fire_and) begin
-                    l5_nodes <= l5_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l5_nodes <= l5_index_next[23:0]; // rtl-gen/src/merge/builder.rs:275
                 end
                 if (l5_fire_and & l5_is_record) begin
-                    l5_records <= l5_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
+                    l5_records <= l5_records + 24'd1; // rtl-gen/src/merge/builder.rs:279
                 end
                 if (l4_fire_and) begin
-                    l4_nodes <= l4_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l4_nodes <= l4_index_next[23:0]; // rtl-gen/src/merge/builder.rs:275
                 end
                 if (l4_fire_and & l4_is_record) begin
-                    l4_records <= l4_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
+                    l4_records <= l4_records + 24'd1; // rtl-gen/src/merge/builder.rs:279
                 end
                 if (l3_fire_and) begin
-                    l3_nodes <= l3_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l3_nodes <= l3_index_next[23:0]; // rtl-gen/src/merge/builder.rs:275
                 end
                 if (l3_fire_and & l3_is_record) begin
-                    l3_records <= l3_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
+                    l3_records <= l3_records + 24'd1; // rtl-gen/src/merge/builder.rs:279
                 end
                 if (l2_fire_and) begin
-                    l2_nodes <= l2_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l2_nodes <= l2_index_next[23:0]; // rtl-gen/src/merge/builder.rs:275
                 end
                 if (l2_fire_and & l2_is_record) begin
-                    l2_records <= l2_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
+                    l2_records <= l2_records + 24'd1; // rtl-gen/src/merge/builder.rs:279
                 end
                 if (l1_fire_and) begin
-                    l1_nodes <= l1_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l1_nodes <= l1_index_next[23:0]; // rtl-gen/src/merge/builder.rs:275
                 end
                 if (l1_fire_and & l1_is_record) begin
-                    l1_records <= l1_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
+                    l1_records <= l1_records + 24'd1; // rtl-gen/src/merge/builder.rs:279
                 end
                 if (l0_fire_and) begin
-                    l0_nodes <= l0_index_next[23:0]; // rtl-gen/src/merge/builder.rs:270
+                    l0_nodes <= l0_index_next[23:0]; // rtl-gen/src/merge/builder.rs:275
                 end
                 if (l0_fire_and & l0_is_record) begin
-                    l0_records <= l0_records + 24'd1; // rtl-gen/src/merge/builder.rs:274
+                    l0_records <= l0_records + 24'd1; // rtl-gen/src/merge/builder.rs:279
                 end
             end
             done_err <= merge_clear ? 1'b0 : done_err_or;
@@ -2704,180 +2706,180 @@ module upper_builder_d16_q8_i24_h4 (
             l16_done <= merge_clear ? 1'b0 : (l16_done | l16_end_fire);
             l16_nodes_ovf <= merge_clear ? 1'b0 : (l16_nodes_ovf | (l16_fire_and & l16_index_next[24]));
             if (level16_skid_drain) begin
-                level16_skid_valid <= level16_skid_spare_valid | level16_in_valid; // rtl-gen/src/merge/builder.rs:265
-                level16_skid_data <= level16_skid_spare_valid ? level16_skid_spare_data : level16_beat; // rtl-gen/src/merge/builder.rs:265
+                level16_skid_valid <= level16_skid_spare_valid | level16_in_valid; // rtl-gen/src/merge/builder.rs:270
+                level16_skid_data <= level16_skid_spare_valid ? level16_skid_spare_data : level16_beat; // rtl-gen/src/merge/builder.rs:270
             end
             level16_skid_spare_valid <= level16_skid_drain ? 1'b0 : (level16_skid_spare_valid | level16_skid_take);
             if ((~level16_skid_drain) & level16_skid_take) begin
-                level16_skid_spare_data <= level16_beat; // rtl-gen/src/merge/builder.rs:265
+                level16_skid_spare_data <= level16_beat; // rtl-gen/src/merge/builder.rs:270
             end
             l15_done <= merge_clear ? 1'b0 : (l15_done | l15_end_fire);
             l15_nodes_ovf <= merge_clear ? 1'b0 : (l15_nodes_ovf | (l15_fire_and & l15_index_next[24]));
             if (level15_skid_drain) begin
-                level15_skid_valid <= level15_skid_spare_valid | level15_in_valid; // rtl-gen/src/merge/builder.rs:265
-                level15_skid_data <= level15_skid_spare_valid ? level15_skid_spare_data : level15_beat; // rtl-gen/src/merge/builder.rs:265
+                level15_skid_valid <= level15_skid_spare_valid | level15_in_valid; // rtl-gen/src/merge/builder.rs:270
+                level15_skid_data <= level15_skid_spare_valid ? level15_skid_spare_data : level15_beat; // rtl-gen/src/merge/builder.rs:270
             end
             level15_skid_spare_valid <= level15_skid_drain ? 1'b0 : (level15_skid_spare_valid | level15_skid_take);
             if ((~level15_skid_drain) & level15_skid_take) begin
-                level15_skid_spare_data <= level15_beat; // rtl-gen/src/merge/builder.rs:265
+                level15_skid_spare_data <= level15_beat; // rtl-gen/src/merge/builder.rs:270
             end
             l14_done <= merge_clear ? 1'b0 : (l14_done | l14_end_fire);
             l14_nodes_ovf <= merge_clear ? 1'b0 : (l14_nodes_ovf | (l14_fire_and & l14_index_next[24]));
             if (level14_skid_drain) begin
-                level14_skid_valid <= level14_skid_spare_valid | level14_in_valid; // rtl-gen/src/merge/builder.rs:265
-                level14_skid_data <= level14_skid_spare_valid ? level14_skid_spare_data : level14_beat; // rtl-gen/src/merge/builder.rs:265
+                level14_skid_valid <= level14_skid_spare_valid | level14_in_valid; // rtl-gen/src/merge/builder.rs:270
+                level14_skid_data <= level14_skid_spare_valid ? level14_skid_spare_data : level14_beat; // rtl-gen/src/merge/builder.rs:270
             end
             level14_skid_spare_valid <= level14_skid_drain ? 1'b0 : (level14_skid_spare_valid | level14_skid_take);
             if ((~level14_skid_drain) & level14_skid_take) begin
-                level14_skid_spare_data <= level14_beat; // rtl-gen/src/merge/builder.rs:265
+                level14_skid_spare_data <= level14_beat; // rtl-gen/src/merge/builder.rs:270
             end
             l13_done <= merge_clear ? 1'b0 : (l13_done | l13_end_fire);
             l13_nodes_ovf <= merge_clear ? 1'b0 : (l13_nodes_ovf | (l13_fire_and & l13_index_next[24]));
             if (level13_skid_drain) begin
-                level13_skid_valid <= level13_skid_spare_valid | level13_in_valid; // rtl-gen/src/merge/builder.rs:265
-                level13_skid_data <= level13_skid_spare_valid ? level13_skid_spare_data : level13_beat; // rtl-gen/src/merge/builder.rs:265
+                level13_skid_valid <= level13_skid_spare_valid | level13_in_valid; // rtl-gen/src/merge/builder.rs:270
+                level13_skid_data <= level13_skid_spare_valid ? level13_skid_spare_data : level13_beat; // rtl-gen/src/merge/builder.rs:270
             end
             level13_skid_spare_valid <= level13_skid_drain ? 1'b0 : (level13_skid_spare_valid | level13_skid_take);
             if ((~level13_skid_drain) & level13_skid_take) begin
-                level13_skid_spare_data <= level13_beat; // rtl-gen/src/merge/builder.rs:265
+                level13_skid_spare_data <= level13_beat; // rtl-gen/src/merge/builder.rs:270
             end
             l12_done <= merge_clear ? 1'b0 : (l12_done | l12_end_fire);
             l12_nodes_ovf <= merge_clear ? 1'b0 : (l12_nodes_ovf | (l12_fire_and & l12_index_next[24]));
             if (level12_skid_drain) begin
-                level12_skid_valid <= level12_skid_spare_valid | level12_in_valid; // rtl-gen/src/merge/builder.rs:265
-                level12_skid_data <= level12_skid_spare_valid ? level12_skid_spare_data : level12_beat; // rtl-gen/src/merge/builder.rs:265
+                level12_skid_valid <= level12_skid_spare_valid | level12_in_valid; // rtl-gen/src/merge/builder.rs:270
+                level12_skid_data <= level12_skid_spare_valid ? level12_skid_spare_data : level12_beat; // rtl-gen/src/merge/builder.rs:270
             end
             level12_skid_spare_valid <= level12_skid_drain ? 1'b0 : (level12_skid_spare_valid | level12_skid_take);
             if ((~level12_skid_drain) & level12_skid_take) begin
-                level12_skid_spare_data <= level12_beat; // rtl-gen/src/merge/builder.rs:265
+                level12_skid_spare_data <= level12_beat; // rtl-gen/src/merge/builder.rs:270
             end
             l11_done <= merge_clear ? 1'b0 : (l11_done | l11_end_fire);
             l11_nodes_ovf <= merge_clear ? 1'b0 : (l11_nodes_ovf | (l11_fire_and & l11_index_next[24]));
             if (level11_skid_drain) begin
-                level11_skid_valid <= level11_skid_spare_valid | level11_in_valid; // rtl-gen/src/merge/builder.rs:265
-                level11_skid_data <= level11_skid_spare_valid ? level11_skid_spare_data : level11_beat; // rtl-gen/src/merge/builder.rs:265
+                level11_skid_valid <= level11_skid_spare_valid | level11_in_valid; // rtl-gen/src/merge/builder.rs:270
+                level11_skid_data <= level11_skid_spare_valid ? level11_skid_spare_data : level11_beat; // rtl-gen/src/merge/builder.rs:270
             end
             level11_skid_spare_valid <= level11_skid_drain ? 1'b0 : (level11_skid_spare_valid | level11_skid_take);
             if ((~level11_skid_drain) & level11_skid_take) begin
-                level11_skid_spare_data <= level11_beat; // rtl-gen/src/merge/builder.rs:265
+                level11_skid_spare_data <= level11_beat; // rtl-gen/src/merge/builder.rs:270
             end
             l10_done <= merge_clear ? 1'b0 : (l10_done | l10_end_fire);
             l10_nodes_ovf <= merge_clear ? 1'b0 : (l10_nodes_ovf | (l10_fire_and & l10_index_next[24]));
             if (level10_skid_drain) begin
-                level10_skid_valid <= level10_skid_spare_valid | level10_in_valid; // rtl-gen/src/merge/builder.rs:265
-                level10_skid_data <= level10_skid_spare_valid ? level10_skid_spare_data : level10_beat; // rtl-gen/src/merge/builder.rs:265
+                level10_skid_valid <= level10_skid_spare_valid | level10_in_valid; // rtl-gen/src/merge/builder.rs:270
+                level10_skid_data <= level10_skid_spare_valid ? level10_skid_spare_data : level10_beat; // rtl-gen/src/merge/builder.rs:270
             end
             level10_skid_spare_valid <= level10_skid_drain ? 1'b0 : (level10_skid_spare_valid | level10_skid_take);
             if ((~level10_skid_drain) & level10_skid_take) begin
-                level10_skid_spare_data <= level10_beat; // rtl-gen/src/merge/builder.rs:265
+                level10_skid_spare_data <= level10_beat; // rtl-gen/src/merge/builder.rs:270
             end
             l9_done <= merge_clear ? 1'b0 : (l9_done | l9_end_fire);
             l9_nodes_ovf <= merge_clear ? 1'b0 : (l9_nodes_ovf | (l9_fire_and & l9_index_next[24]));
             if (level9_skid_drain) begin
-                level9_skid_valid <= level9_skid_spare_valid | level9_in_valid; // rtl-gen/src/merge/builder.rs:265
-                level9_skid_data <= level9_skid_spare_valid ? level9_skid_spare_data : level9_beat; // rtl-gen/src/merge/builder.rs:265
+                level9_skid_valid <= level9_skid_spare_valid | level9_in_valid; // rtl-gen/src/merge/builder.rs:270
+                level9_skid_data <= level9_skid_spare_valid ? level9_skid_spare_data : level9_beat; // rtl-gen/src/merge/builder.rs:270
             end
             level9_skid_spare_valid <= level9_skid_drain ? 1'b0 : (level9_skid_spare_valid | level9_skid_take);
             if ((~level9_skid_drain) & level9_skid_take) begin
-                level9_skid_spare_data <= level9_beat; // rtl-gen/src/merge/builder.rs:265
+                level9_skid_spare_data <= level9_beat; // rtl-gen/src/merge/builder.rs:270
             end
             l8_done <= merge_clear ? 1'b0 : (l8_done | l8_end_fire);
             l8_nodes_ovf <= merge_clear ? 1'b0 : (l8_nodes_ovf | (l8_fire_and & l8_index_next[24]));
             if (level8_skid_drain) begin
-                level8_skid_valid <= level8_skid_spare_valid | level8_in_valid; // rtl-gen/src/merge/builder.rs:265
-                level8_skid_data <= level8_skid_spare_valid ? level8_skid_spare_data : level8_beat; // rtl-gen/src/merge/builder.rs:265
+                level8_skid_valid <= level8_skid_spare_valid | level8_in_valid; // rtl-gen/src/merge/builder.rs:270
+                level8_skid_data <= level8_skid_spare_valid ? level8_skid_spare_data : level8_beat; // rtl-gen/src/merge/builder.rs:270
             end
             level8_skid_spare_valid <= level8_skid_drain ? 1'b0 : (level8_skid_spare_valid | level8_skid_take);
             if ((~level8_skid_drain) & level8_skid_take) begin
-                level8_skid_spare_data <= level8_beat; // rtl-gen/src/merge/builder.rs:265
+                level8_skid_spare_data <= level8_beat; // rtl-gen/src/merge/builder.rs:270
             end
             l7_done <= merge_clear ? 1'b0 : (l7_done | l7_end_fire);
             l7_nodes_ovf <= merge_clear ? 1'b0 : (l7_nodes_ovf | (l7_fire_and & l7_index_next[24]));
             if (level7_skid_drain) begin
-                level7_skid_valid <= level7_skid_spare_valid | level7_in_valid; // rtl-gen/src/merge/builder.rs:265
-                level7_skid_data <= level7_skid_spare_valid ? level7_skid_spare_data : level7_beat; // rtl-gen/src/merge/builder.rs:265
+                level7_skid_valid <= level7_skid_spare_valid | level7_in_valid; // rtl-gen/src/merge/builder.rs:270
+                level7_skid_data <= level7_skid_spare_valid ? level7_skid_spare_data : level7_beat; // rtl-gen/src/merge/builder.rs:270
             end
             level7_skid_spare_valid <= level7_skid_drain ? 1'b0 : (level7_skid_spare_valid | level7_skid_take);
             if ((~level7_skid_drain) & level7_skid_take) begin
-                level7_skid_spare_data <= level7_beat; // rtl-gen/src/merge/builder.rs:265
+                level7_skid_spare_data <= level7_beat; // rtl-gen/src/merge/builder.rs:270
             end
             l6_done <= merge_clear ? 1'b0 : (l6_done | l6_end_fire);
             l6_nodes_ovf <= merge_clear ? 1'b0 : (l6_nodes_ovf | (l6_fire_and & l6_index_next[24]));
             if (level6_skid_drain) begin
-                level6_skid_valid <= level6_skid_spare_valid | level6_in_valid; // rtl-gen/src/merge/builder.rs:265
-                level6_skid_data <= level6_skid_spare_valid ? level6_skid_spare_data : level6_beat; // rtl-gen/src/merge/builder.rs:265
+                level6_skid_valid <= level6_skid_spare_valid | level6_in_valid; // rtl-gen/src/merge/builder.rs:270
+                level6_skid_data <= level6_skid_spare_valid ? level6_skid_spare_data : level6_beat; // rtl-gen/src/merge/builder.rs:270
             end
             level6_skid_spare_valid <= level6_skid_drain ? 1'b0 : (level6_skid_spare_valid | level6_skid_take);
             if ((~level6_skid_drain) & level6_skid_take) begin
-                level6_skid_spare_data <= level6_beat; // rtl-gen/src/merge/builder.rs:265
+                level6_skid_spare_data <= level6_beat; // rtl-gen/src/merge/builder.rs:270
             end
             l5_done <= merge_clear ? 1'b0 : (l5_done | l5_end_fire);
             l5_nodes_ovf <= merge_clear ? 1'b0 : (l5_nodes_ovf | (l5_fire_and & l5_index_next[24]));
             if (level5_skid_drain) begin
-                level5_skid_valid <= level5_skid_spare_valid | level5_in_valid; // rtl-gen/src/merge/builder.rs:265
-                level5_skid_data <= level5_skid_spare_valid ? level5_skid_spare_data : level5_beat; // rtl-gen/src/merge/builder.rs:265
+                level5_skid_valid <= level5_skid_spare_valid | level5_in_valid; // rtl-gen/src/merge/builder.rs:270
+                level5_skid_data <= level5_skid_spare_valid ? level5_skid_spare_data : level5_beat; // rtl-gen/src/merge/builder.rs:270
             end
             level5_skid_spare_valid <= level5_skid_drain ? 1'b0 : (level5_skid_spare_valid | level5_skid_take);
             if ((~level5_skid_drain) & level5_skid_take) begin
-                level5_skid_spare_data <= level5_beat; // rtl-gen/src/merge/builder.rs:265
+                level5_skid_spare_data <= level5_beat; // rtl-gen/src/merge/builder.rs:270
             end
             l4_done <= merge_clear ? 1'b0 : (l4_done | l4_end_fire);
             l4_nodes_ovf <= merge_clear ? 1'b0 : (l4_nodes_ovf | (l4_fire_and & l4_index_next[24]));
             if (level4_skid_drain) begin
-                level4_skid_valid <= level4_skid_spare_valid | level4_in_valid; // rtl-gen/src/merge/builder.rs:265
-                level4_skid_data <= level4_skid_spare_valid ? level4_skid_spare_data : level4_beat; // rtl-gen/src/merge/builder.rs:265
+                level4_skid_valid <= level4_skid_spare_valid | level4_in_valid; // rtl-gen/src/merge/builder.rs:270
+                level4_skid_data <= level4_skid_spare_valid ? level4_skid_spare_data : level4_beat; // rtl-gen/src/merge/builder.rs:270
             end
             level4_skid_spare_valid <= level4_skid_drain ? 1'b0 : (level4_skid_spare_valid | level4_skid_take);
             if ((~level4_skid_drain) & level4_skid_take) begin
-                level4_skid_spare_data <= level4_beat; // rtl-gen/src/merge/builder.rs:265
+                level4_skid_spare_data <= level4_beat; // rtl-gen/src/merge/builder.rs:270
             end
             l3_done <= merge_clear ? 1'b0 : (l3_done | l3_end_fire);
             l3_nodes_ovf <= merge_clear ? 1'b0 : (l3_nodes_ovf | (l3_fire_and & l3_index_next[24]));
             if (level3_skid_drain) begin
-                level3_skid_valid <= level3_skid_spare_valid | level3_in_valid; // rtl-gen/src/merge/builder.rs:265
-                level3_skid_data <= level3_skid_spare_valid ? level3_skid_spare_data : level3_beat; // rtl-gen/src/merge/builder.rs:265
+                level3_skid_valid <= level3_skid_spare_valid | level3_in_valid; // rtl-gen/src/merge/builder.rs:270
+                level3_skid_data <= level3_skid_spare_valid ? level3_skid_spare_data : level3_beat; // rtl-gen/src/merge/builder.rs:270
             end
             level3_skid_spare_valid <= level3_skid_drain ? 1'b0 : (level3_skid_spare_valid | level3_skid_take);
             if ((~level3_skid_drain) & level3_skid_take) begin
-                level3_skid_spare_data <= level3_beat; // rtl-gen/src/merge/builder.rs:265
+                level3_skid_spare_data <= level3_beat; // rtl-gen/src/merge/builder.rs:270
             end
             l2_done <= merge_clear ? 1'b0 : (l2_done | l2_end_fire);
             l2_nodes_ovf <= merge_clear ? 1'b0 : (l2_nodes_ovf | (l2_fire_and & l2_index_next[24]));
             if (level2_skid_drain) begin
-                level2_skid_valid <= level2_skid_spare_valid | level2_in_valid; // rtl-gen/src/merge/builder.rs:265
-                level2_skid_data <= level2_skid_spare_valid ? level2_skid_spare_data : level2_beat; // rtl-gen/src/merge/builder.rs:265
+                level2_skid_valid <= level2_skid_spare_valid | level2_in_valid; // rtl-gen/src/merge/builder.rs:270
+                level2_skid_data <= level2_skid_spare_valid ? level2_skid_spare_data : level2_beat; // rtl-gen/src/merge/builder.rs:270
             end
             level2_skid_spare_valid <= level2_skid_drain ? 1'b0 : (level2_skid_spare_valid | level2_skid_take);
             if ((~level2_skid_drain) & level2_skid_take) begin
-                level2_skid_spare_data <= level2_beat; // rtl-gen/src/merge/builder.rs:265
+                level2_skid_spare_data <= level2_beat; // rtl-gen/src/merge/builder.rs:270
             end
             l1_done <= merge_clear ? 1'b0 : (l1_done | l1_end_fire);
             l1_nodes_ovf <= merge_clear ? 1'b0 : (l1_nodes_ovf | (l1_fire_and & l1_index_next[24]));
             if (level1_skid_drain) begin
-                level1_skid_valid <= level1_skid_spare_valid | level1_in_valid; // rtl-gen/src/merge/builder.rs:265
-                level1_skid_data <= level1_skid_spare_valid ? level1_skid_spare_data : level1_beat; // rtl-gen/src/merge/builder.rs:265
+                level1_skid_valid <= level1_skid_spare_valid | level1_in_valid; // rtl-gen/src/merge/builder.rs:270
+                level1_skid_data <= level1_skid_spare_valid ? level1_skid_spare_data : level1_beat; // rtl-gen/src/merge/builder.rs:270
             end
             level1_skid_spare_valid <= level1_skid_drain ? 1'b0 : (level1_skid_spare_valid | level1_skid_take);
             if ((~level1_skid_drain) & level1_skid_take) begin
-                level1_skid_spare_data <= level1_beat; // rtl-gen/src/merge/builder.rs:265
+                level1_skid_spare_data <= level1_beat; // rtl-gen/src/merge/builder.rs:270
             end
             l0_done <= merge_clear ? 1'b0 : (l0_done | l0_end_fire);
             l0_nodes_ovf <= merge_clear ? 1'b0 : (l0_nodes_ovf | (l0_fire_and & l0_index_next[24]));
             if (level0_skid_drain) begin
-                level0_skid_valid <= level0_skid_spare_valid | level0_in_valid; // rtl-gen/src/merge/builder.rs:265
-                level0_skid_data <= level0_skid_spare_valid ? level0_skid_spare_data : level0_beat; // rtl-gen/src/merge/builder.rs:265
+                level0_skid_valid <= level0_skid_spare_valid | level0_in_valid; // rtl-gen/src/merge/builder.rs:270
+                level0_skid_data <= level0_skid_spare_valid ? level0_skid_spare_data : level0_beat; // rtl-gen/src/merge/builder.rs:270
             end
             level0_skid_spare_valid <= level0_skid_drain ? 1'b0 : (level0_skid_spare_valid | level0_skid_take);
             if ((~level0_skid_drain) & level0_skid_take) begin
-                level0_skid_spare_data <= level0_beat; // rtl-gen/src/merge/builder.rs:265
+                level0_skid_spare_data <= level0_beat; // rtl-gen/src/merge/builder.rs:270
             end
             if (done_skid_drain) begin
-                done_skid_valid <= done_skid_spare_valid | done_valid_q; // rtl-gen/src/merge/builder.rs:312
-                done_skid_data <= done_skid_spare_valid ? done_skid_spare_data : done_err_cat; // rtl-gen/src/merge/builder.rs:312
+                done_skid_valid <= done_skid_spare_valid | done_valid_q; // rtl-gen/src/merge/builder.rs:317
+                done_skid_data <= done_skid_spare_valid ? done_skid_spare_data : done_err_cat; // rtl-gen/src/merge/builder.rs:317
             end
             done_skid_spare_valid <= done_skid_drain ? 1'b0 : (done_skid_spare_valid | done_skid_take);
             if ((~done_skid_drain) & done_skid_take) begin
-                done_skid_spare_data <= done_err_cat; // rtl-gen/src/merge/builder.rs:312
+                done_skid_spare_data <= done_err_cat; // rtl-gen/src/merge/builder.rs:317
             end
         end
     end

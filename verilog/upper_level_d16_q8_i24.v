@@ -8,9 +8,9 @@ module upper_level_d16_q8_i24 (
     input  wire in_valid,         // rtl-gen/src/merge/upper.rs:48
     input  wire [101:0] in_data,  // rtl-gen/src/merge/upper.rs:48
     output wire in_ready,         // rtl-gen/src/merge/upper.rs:48
-    output wire out_valid,        // rtl-gen/src/merge/upper.rs:144
-    output wire [151:0] out_data, // rtl-gen/src/merge/upper.rs:144
-    input  wire out_ready         // rtl-gen/src/merge/upper.rs:144
+    output wire out_valid,        // rtl-gen/src/merge/upper.rs:149
+    output wire [151:0] out_data, // rtl-gen/src/merge/upper.rs:149
+    input  wire out_ready         // rtl-gen/src/merge/upper.rs:149
 );
     wire h_out_ready;                        // rtl-gen/src/merge/upper.rs:49
     wire in_end;                             // rtl-gen/src/merge/upper.rs:51
@@ -51,25 +51,29 @@ module upper_level_d16_q8_i24 (
     wire absorb;                             // rtl-gen/src/merge/upper.rs:99
     wire absorb_not;                         // rtl-gen/src/merge/upper.rs:100
     wire complete;                           // rtl-gen/src/merge/upper.rs:100
+    wire h_valid_not;                        // rtl-gen/src/merge/upper.rs:101
     wire complete_and;                       // rtl-gen/src/merge/upper.rs:101
     wire free;                               // rtl-gen/src/merge/upper.rs:101
-    wire load;                               // rtl-gen/src/merge/upper.rs:102
-    wire absorb_and;                         // rtl-gen/src/merge/upper.rs:104
-    wire [24:0] index_inc;                   // rtl-gen/src/merge/upper.rs:106
-    wire load_and;                           // rtl-gen/src/merge/upper.rs:107
-    wire [24:0] count_inc;                   // rtl-gen/src/merge/upper.rs:111
-    wire [149:0] h_count_cat;                // rtl-gen/src/merge/upper.rs:136
-    wire [151:0] h_beat;                     // rtl-gen/src/merge/upper.rs:142
-    reg out_skid_valid;                      // rtl-gen/src/merge/upper.rs:144
-    reg [151:0] out_skid_data;               // rtl-gen/src/merge/upper.rs:144
-    reg out_skid_spare_valid;                // rtl-gen/src/merge/upper.rs:144
-    reg [151:0] out_skid_spare_data;         // rtl-gen/src/merge/upper.rs:144
-    wire out_skid_ready;                     // rtl-gen/src/merge/upper.rs:144
-    wire out_skid_room;                      // rtl-gen/src/merge/upper.rs:144
-    wire out_skid_drain;                     // rtl-gen/src/merge/upper.rs:144
-    wire out_skid_take;                      // rtl-gen/src/merge/upper.rs:144
+    wire end_alone;                          // rtl-gen/src/merge/upper.rs:105
+    wire end_pass;                           // rtl-gen/src/merge/upper.rs:106
+    wire load;                               // rtl-gen/src/merge/upper.rs:107
+    wire absorb_and;                         // rtl-gen/src/merge/upper.rs:109
+    wire [24:0] index_inc;                   // rtl-gen/src/merge/upper.rs:111
+    wire level_done;                         // rtl-gen/src/merge/upper.rs:112
+    wire [24:0] count_inc;                   // rtl-gen/src/merge/upper.rs:116
+    wire [149:0] h_count_cat;                // rtl-gen/src/merge/upper.rs:141
+    wire complete_or;                        // rtl-gen/src/merge/upper.rs:145
+    wire [151:0] h_beat;                     // rtl-gen/src/merge/upper.rs:147
+    reg out_skid_valid;                      // rtl-gen/src/merge/upper.rs:149
+    reg [151:0] out_skid_data;               // rtl-gen/src/merge/upper.rs:149
+    reg out_skid_spare_valid;                // rtl-gen/src/merge/upper.rs:149
+    reg [151:0] out_skid_spare_data;         // rtl-gen/src/merge/upper.rs:149
+    wire out_skid_ready;                     // rtl-gen/src/merge/upper.rs:149
+    wire out_skid_room;                      // rtl-gen/src/merge/upper.rs:149
+    wire out_skid_drain;                     // rtl-gen/src/merge/upper.rs:149
+    wire out_skid_take;                      // rtl-gen/src/merge/upper.rs:149
 
-    assign in_ready = absorb | free;
+    assign in_ready = absorb | (end_alone ? h_out_ready : free);
     assign h_out_ready = out_skid_room;
     assign in_end = in_data[101];
     assign in_data_lod = in_data[4:0];
@@ -95,19 +99,23 @@ module upper_level_d16_q8_i24 (
     assign absorb = (((in_valid & in_end_not) & h_valid) & (~h_end)) & (parent_voxel == h_voxel);
     assign absorb_not = ~absorb;
     assign complete = ((h_valid & in_valid) & absorb_not) | (h_valid & h_end);
+    assign h_valid_not = ~h_valid;
     assign complete_and = complete & h_out_ready;
-    assign free = (~h_valid) | complete_and;
-    assign load = (in_valid & absorb_not) & free;
+    assign free = h_valid_not | complete_and;
+    assign end_alone = in_end & h_valid_not;
+    assign end_pass = in_valid & end_alone;
+    assign load = ((in_valid & absorb_not) & free) & (~end_alone);
     assign absorb_and = (absorb | load) & in_end_not;
     assign index_inc = {1'b0, index} + 25'd1;
-    assign load_and = load & in_end;
+    assign level_done = (load & in_end) | (end_pass & h_out_ready);
     assign count_inc = {1'b0, h_count} + 25'd1;
     assign h_count_cat = {h_count, h_first, h_hi2, h_hi1, h_hi0, h_lo2, h_lo1, h_lo0, h_voxel, 1'b0};
-    assign h_beat = h_end ? {2'd1, 150'h00000000000000000000000000000000000000} : {h_err, 1'b0, h_count_cat};
+    assign complete_or = complete | end_pass;
+    assign h_beat = (h_end | h_valid_not) ? {2'd1, 150'h00000000000000000000000000000000000000} : {h_err, 1'b0, h_count_cat};
     assign out_skid_ready = out_ready;
     assign out_skid_room = ~out_skid_spare_valid;
     assign out_skid_drain = out_skid_ready | (~out_skid_valid);
-    assign out_skid_take = complete & out_skid_room;
+    assign out_skid_take = complete_or & out_skid_room;
     assign out_valid = out_skid_valid;
     assign out_data = out_skid_data;
 
@@ -133,57 +141,57 @@ module upper_level_d16_q8_i24 (
             out_skid_spare_data <= 152'h00000000000000000000000000000000000000;
         end else begin
             if (load) begin
-                h_valid <= 1'b1;             // rtl-gen/src/merge/upper.rs:113
-                h_end <= in_end;             // rtl-gen/src/merge/upper.rs:114
-                h_voxel <= parent_voxel;     // rtl-gen/src/merge/upper.rs:115
-                h_lo0 <= in_data_x_cat;      // rtl-gen/src/merge/upper.rs:118
-                h_lo1 <= in_data_y_cat;      // rtl-gen/src/merge/upper.rs:118
-                h_lo2 <= in_data_z_cat;      // rtl-gen/src/merge/upper.rs:118
-                h_hi0 <= in_data_x_cat_1;    // rtl-gen/src/merge/upper.rs:119
-                h_hi1 <= in_data_y_cat_1;    // rtl-gen/src/merge/upper.rs:119
-                h_hi2 <= in_data_z_cat_1;    // rtl-gen/src/merge/upper.rs:119
-                h_first <= index;            // rtl-gen/src/merge/upper.rs:121
-                h_count <= 24'd1;            // rtl-gen/src/merge/upper.rs:122
+                h_valid <= 1'b1;             // rtl-gen/src/merge/upper.rs:118
+                h_end <= in_end;             // rtl-gen/src/merge/upper.rs:119
+                h_voxel <= parent_voxel;     // rtl-gen/src/merge/upper.rs:120
+                h_lo0 <= in_data_x_cat;      // rtl-gen/src/merge/upper.rs:123
+                h_lo1 <= in_data_y_cat;      // rtl-gen/src/merge/upper.rs:123
+                h_lo2 <= in_data_z_cat;      // rtl-gen/src/merge/upper.rs:123
+                h_hi0 <= in_data_x_cat_1;    // rtl-gen/src/merge/upper.rs:124
+                h_hi1 <= in_data_y_cat_1;    // rtl-gen/src/merge/upper.rs:124
+                h_hi2 <= in_data_z_cat_1;    // rtl-gen/src/merge/upper.rs:124
+                h_first <= index;            // rtl-gen/src/merge/upper.rs:126
+                h_count <= 24'd1;            // rtl-gen/src/merge/upper.rs:127
             end else begin
                 if (complete_and) begin
-                    h_valid <= 1'b0;         // rtl-gen/src/merge/upper.rs:113
+                    h_valid <= 1'b0;         // rtl-gen/src/merge/upper.rs:118
                 end
                 if (absorb) begin
                     if (!(h_lo0 < in_data_x_cat)) begin
-                        h_lo0 <= in_data_x_cat; // rtl-gen/src/merge/upper.rs:118
+                        h_lo0 <= in_data_x_cat; // rtl-gen/src/merge/upper.rs:123
                     end
                     if (!(h_lo1 < in_data_y_cat)) begin
-                        h_lo1 <= in_data_y_cat; // rtl-gen/src/merge/upper.rs:118
+                        h_lo1 <= in_data_y_cat; // rtl-gen/src/merge/upper.rs:123
                     end
                     if (!(h_lo2 < in_data_z_cat)) begin
-                        h_lo2 <= in_data_z_cat; // rtl-gen/src/merge/upper.rs:118
+                        h_lo2 <= in_data_z_cat; // rtl-gen/src/merge/upper.rs:123
                     end
                     if (!(h_hi0 > in_data_x_cat_1)) begin
-                        h_hi0 <= in_data_x_cat_1; // rtl-gen/src/merge/upper.rs:119
+                        h_hi0 <= in_data_x_cat_1; // rtl-gen/src/merge/upper.rs:124
                     end
                     if (!(h_hi1 > in_data_y_cat_1)) begin
-                        h_hi1 <= in_data_y_cat_1; // rtl-gen/src/merge/upper.rs:119
+                        h_hi1 <= in_data_y_cat_1; // rtl-gen/src/merge/upper.rs:124
                     end
                     if (!(h_hi2 > in_data_z_cat_1)) begin
-                        h_hi2 <= in_data_z_cat_1; // rtl-gen/src/merge/upper.rs:119
+                        h_hi2 <= in_data_z_cat_1; // rtl-gen/src/merge/upper.rs:124
                     end
-                    h_count <= count_inc[23:0]; // rtl-gen/src/merge/upper.rs:122
+                    h_count <= count_inc[23:0]; // rtl-gen/src/merge/upper.rs:127
                 end
             end
             h_err <= load ? (index_ovf | bad_box) : (h_err | (absorb & (count_inc[24] | bad_box)));
-            if (load_and) begin
-                index <= 24'd0;              // rtl-gen/src/merge/upper.rs:108
+            if (level_done) begin
+                index <= 24'd0;              // rtl-gen/src/merge/upper.rs:113
             end else if (absorb_and) begin
-                index <= index_inc[23:0];    // rtl-gen/src/merge/upper.rs:108
+                index <= index_inc[23:0];    // rtl-gen/src/merge/upper.rs:113
             end
-            index_ovf <= load_and ? 1'b0 : (index_ovf | (absorb_and & index_inc[24]));
+            index_ovf <= level_done ? 1'b0 : (index_ovf | (absorb_and & index_inc[24]));
             if (out_skid_drain) begin
-                out_skid_valid <= out_skid_spare_valid | complete; // rtl-gen/src/merge/upper.rs:144
-                out_skid_data <= out_skid_spare_valid ? out_skid_spare_data : h_beat; // rtl-gen/src/merge/upper.rs:144
+                out_skid_valid <= out_skid_spare_valid | complete_or; // rtl-gen/src/merge/upper.rs:149
+                out_skid_data <= out_skid_spare_valid ? out_skid_spare_data : h_beat; // rtl-gen/src/merge/upper.rs:149
             end
             out_skid_spare_valid <= out_skid_drain ? 1'b0 : (out_skid_spare_valid | out_skid_take);
             if ((~out_skid_drain) & out_skid_take) begin
-                out_skid_spare_data <= h_beat; // rtl-gen/src/merge/upper.rs:144
+                out_skid_spare_data <= h_beat; // rtl-gen/src/merge/upper.rs:149
             end
         end
     end

@@ -221,8 +221,13 @@ pub fn upper_builder_unit(p: &Params) -> Module {
             one
         };
         let out_ready = m.wire(&format!("level{d}_in_ready"), 1);
-        // An End waits until every base stream above is known to be empty or not.
-        let end_ok = (!h.end | known_below[d]).name(&format!("l{d}_end_ok"));
+        // An End waits until every base stream above is known to be empty
+        // or not: the top rule needs it for a level of one node. An empty
+        // level (`d >= 1`) is never the top, so its End passes at once:
+        // the empty levels below the merging level drain during the merge
+        // pass instead of after the first base node at the merging level.
+        let empty = if d > 0 { n.eq(lit(0, i)) & !ovf } else { zero };
+        let end_ok = (!h.end | known_below[d] | empty).name(&format!("l{d}_end_ok"));
         let leaf = field(h.rec, nl.leaf()).expect("leaf");
         // The half-scene rule: a grouped LOD-0 node alone in its level.
         let suppress_root = if d == 0 {

@@ -99,12 +99,17 @@ pub fn upper_level_unit(p: &Params) -> Module {
     let absorb = (input.valid & !end & h_valid & !h_end & parent_voxel.eq(h_voxel)).name("absorb");
     let complete = (h_valid & input.valid & !absorb | h_valid & h_end).name("complete");
     let free = (!h_valid | (complete & out_ready)).name("free");
-    let load = (input.valid & !absorb & free).name("load");
-    input.ready.drive(absorb | free);
+    // An `End` with no group held goes straight to the out skid buffer
+    // instead of through `h`: an empty level (every level above the
+    // merging level) then costs the builder's chain one clock, not two.
+    let end_alone = (end & !h_valid).name("end_alone");
+    let pass = (input.valid & end_alone).name("end_pass");
+    let load = (input.valid & !absorb & free & !end_alone).name("load");
+    input.ready.drive(absorb | end_alone.mux(out_ready, free));
     let taken = (absorb | load) & !end;
 
     let index_next = index.add(1, i + 1).name("index_inc");
-    let level_done = load & end;
+    let level_done = (load & end | pass & out_ready).name("level_done");
     index.next(level_done.mux(m.lit(0, i), taken.mux(index_next.slice(i - 1, 0), index)));
     index_ovf.next(level_done.mux(m.lit(0, 1), index_ovf | (taken & index_next.bit(i))));
 
@@ -137,9 +142,9 @@ pub fn upper_level_unit(p: &Params) -> Module {
     let node_beat = m.concat(&[h_err, lit0, record]);
     let end_beat = m.concat(&[m.lit(1, 2), m.lit(0, nl.width())]);
     let out = Stream {
-        valid: complete,
+        valid: complete | pass,
         ready: out_ready,
-        data: h_end.mux(end_beat, node_beat).name("h_beat"),
+        data: (h_end | !h_valid).mux(end_beat, node_beat).name("h_beat"),
     };
     out.skid_buffer("out_skid").output("out");
     m

@@ -90,6 +90,8 @@ pub(super) fn level_merger_unit(c: &MergerConfig) -> Result<Module, String> {
 struct Choice<'m> {
     /// The report's choice beat has passed.
     known: Signal<'m>,
+    /// The choice beat passes now.
+    seen: Signal<'m>,
     /// The choice is not an error.
     ok: Signal<'m>,
     /// The merging level `m`.
@@ -120,6 +122,7 @@ fn choice<'m>(m: &'m Module, p: &Params, s: &Shell<'m>) -> Choice<'m> {
 
     Choice {
         known,
+        seen: chosen_beat,
         ok,
         level,
         merging,
@@ -234,7 +237,9 @@ fn inputs<'m>(
                 phases.code(phase::NONE),
                 step.mux(
                     after_step,
-                    (in_ph(phase::WAIT) & known).mux(after_choice, ph),
+                    // Leave WAIT in the clock the choice passes, not the
+                    // next: the merge pass's commands go out a clock sooner.
+                    (in_ph(phase::WAIT) & (known | ch.seen)).mux(after_choice, ph),
                 ),
             ),
         );

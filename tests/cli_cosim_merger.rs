@@ -122,6 +122,15 @@ fn merger_flags_are_checked() {
         &[],
         "hierarchy merger configuration",
     );
+    // Soups that I = 8 cannot number are refused, naming the flag, for
+    // the random and the hard merges alike (this panicked once).
+    for merges in ["random", "hard"] {
+        assert_refused(
+            &format!("cosim --unit merger --engine ir --count 20 --index-bits 8 --capacity-bits 7 --merges {merges}"),
+            &[],
+            "does not fit in I = 8 index bits",
+        );
+    }
 }
 
 /// `cosim --unit merger --vectors FILE` replays a file of `vectors --unit

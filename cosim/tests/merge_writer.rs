@@ -150,7 +150,7 @@ fn random_merges(
 /// alone (a materialized root), at every fixed level and in per-node mode.
 fn real_merges(p: &Params, cap: u32) -> Vec<WriterTransaction> {
     let mut out = Vec::new();
-    for (store, table, ids) in real_cases(p) {
+    for (store, table, ids) in real_cases(p).expect("the real cases build") {
         let hs: Vec<&Hierarchy> = ids.iter().map(|i| store.get(*i).unwrap()).collect();
         let inputs: Vec<(&Hierarchy, Translation)> = hs
             .iter()

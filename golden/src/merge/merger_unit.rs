@@ -910,7 +910,7 @@ mod tests {
     #[test]
     fn chain_equals_merge_on_real_merges() {
         let p = Params::default();
-        let mut cases = real_cases(&p);
+        let mut cases = real_cases(&p).expect("the real cases build");
         cases.extend(several_roots_cases(&p));
         let seen = run_cases(&p, 4, 9, cases);
         eprintln!("default: {seen:?}");
@@ -924,7 +924,7 @@ mod tests {
         );
         assert!(seen.created > 0, "{seen:?}");
         let q0 = Params::new(8, 0, 12, 3).unwrap();
-        let seen = run_cases(&q0, 3, 7, real_cases(&q0));
+        let seen = run_cases(&q0, 3, 7, real_cases(&q0).expect("the real cases build"));
         eprintln!("D = 8, Q = 0: {seen:?}");
         assert!(seen.merges >= 20 && seen.per_node > 0, "{seen:?}");
     }
@@ -934,7 +934,7 @@ mod tests {
     #[test]
     fn refused_choice_closes_the_fetchers() {
         let p = Params::default();
-        let (store, table, ids) = real_cases(&p).remove(0);
+        let (store, table, ids) = real_cases(&p).expect("the real cases build").remove(0);
         let hs: Vec<&Hierarchy> = ids.iter().map(|i| store.get(*i).unwrap()).collect();
         let (lo, hi) = candidate_range(&hs);
         let sizes = MergerSizes::new(&p);
@@ -963,7 +963,7 @@ mod tests {
     #[test]
     fn bad_range_is_refused() {
         let p = Params::default();
-        let (store, table, ids) = real_cases(&p).remove(0);
+        let (store, table, ids) = real_cases(&p).expect("the real cases build").remove(0);
         let sizes = MergerSizes::new(&p);
         for mode in [MergeMode::default(), MergeMode::Fixed(4)] {
             for (lo, hi) in [(5, 4), (3, p.max_lod + 1)] {
@@ -997,7 +997,7 @@ mod tests {
     #[test]
     fn chain_refuses_what_the_merger_cannot_do() {
         let p = Params::default();
-        let (store, table, ids) = real_cases(&p).remove(0);
+        let (store, table, ids) = real_cases(&p).expect("the real cases build").remove(0);
         let sizes = MergerSizes::new(&p);
         let mode = MergeMode::default();
         assert!(matches!(
@@ -1024,7 +1024,7 @@ mod tests {
     fn leaf_overflow_is_flagged() {
         let p = Params::default();
         let mut flagged = 0;
-        for (store, table, ids) in real_cases(&p) {
+        for (store, table, ids) in real_cases(&p).expect("the real cases build") {
             for leaf_bits in [0, 12] {
                 let sizes = MergerSizes {
                     leaf_bits,
@@ -1057,7 +1057,7 @@ mod tests {
         let l = MergerLayout::new(&p, 4, 10).unwrap();
         assert_eq!(l.fetch_rank.width, 2);
         assert_eq!(l.header_width, l.writer.header_width + 8);
-        let (store, _, ids) = real_cases(&p).remove(0);
+        let (store, _, ids) = real_cases(&p).expect("the real cases build").remove(0);
         let cfg = MergerCfg {
             inputs: ids
                 .iter()

@@ -121,7 +121,20 @@ fn synthetic_input(
 }
 
 /// A soup hierarchy `id` of `n` triangles in the scene's `2^-3` corner.
+/// Panics where the soup does not build: for tests at fixed parameters.
 pub fn soup(p: &Params, id: u8, n: usize, size: f32, seed: u64) -> Hierarchy {
+    try_soup(p, id, n, size, seed).expect("the soup builds")
+}
+
+/// [`soup`], or why it does not build at `p` (for example more records
+/// than `index_bits` can number): for stimulus at parameters a user chose.
+pub fn try_soup(
+    p: &Params,
+    id: u8,
+    n: usize,
+    size: f32,
+    seed: u64,
+) -> Result<Hierarchy, crate::build::BuildError> {
     let mesh = random_soup(n, size, seed);
     let (lo, hi) = mesh.bounds();
     let fitted = GridMap::fit(lo, hi, p);
@@ -129,7 +142,7 @@ pub fn soup(p: &Params, id: u8, n: usize, size: f32, seed: u64) -> Hierarchy {
         origin: fitted.origin * 0.0,
         unit: 1.0 / (p.scene_edge() >> 3) as f64,
     };
-    build(&mesh, &grid, p, id).expect("the soup builds")
+    build(&mesh, &grid, p, id)
 }
 
 /// A translation at `h`'s top LOD by `frac` of the room left.
@@ -184,9 +197,20 @@ pub fn per_node_base(
 /// cosim): stored soups: overlapping, disjoint, single-triangle inputs with
 /// a big one, one input alone, two overlapping in part; the store, the
 /// table and the input ids of each case.
-pub fn real_cases(p: &Params) -> Vec<(HierarchyStore, TranslationTable, Vec<u8>)> {
+/// Fails, naming why, where the parameters cannot hold the soups.
+pub fn real_cases(p: &Params) -> Result<Vec<RealCase>, String> {
+    let soup = |id: u8, n: usize, size: f32, seed: u64| {
+        try_soup(p, id, n, size, seed).map_err(|e| {
+            format!(
+                "a soup of {n} triangles does not build at D = {}, I = {}: {e}",
+                p.max_lod, p.index_bits
+            )
+        })
+    };
     let same = [0.4, 0.5, 0.6];
-    let hs: Vec<Hierarchy> = (1..=3).map(|i| soup(p, i, 60, 0.2, i as u64)).collect();
+    let hs = (1..=3)
+        .map(|i| soup(i, 60, 0.2, i as u64))
+        .collect::<Result<Vec<Hierarchy>, String>>()?;
     let overlapping: Vec<(Hierarchy, Translation)> =
         hs.iter().map(|h| (h.clone(), place(h, same))).collect();
     let disjoint: Vec<(Hierarchy, Translation)> = hs
@@ -197,14 +221,14 @@ pub fn real_cases(p: &Params) -> Vec<(HierarchyStore, TranslationTable, Vec<u8>)
             (h.clone(), place(h, f))
         })
         .collect();
-    let mut single: Vec<(Hierarchy, Translation)> = (1..=2)
+    let mut single = (1..=2)
         .map(|i| {
-            let h = soup(p, i, 1, 0.001, 10 + i as u64);
+            let h = soup(i, 1, 0.001, 10 + i as u64)?;
             let t = place(&h, if i < 2 { same } else { [0.9, 0.1, 0.2] });
-            (h, t)
+            Ok((h, t))
         })
-        .collect();
-    let big = soup(p, 3, 80, 0.3, 99);
+        .collect::<Result<Vec<(Hierarchy, Translation)>, String>>()?;
+    let big = soup(3, 80, 0.3, 99)?;
     single.push((big.clone(), place(&big, same)));
     // One input alone: its root is reused at the top (materialized).
     let alone = vec![(big.clone(), place(&big, same))];
@@ -219,13 +243,19 @@ pub fn real_cases(p: &Params) -> Vec<(HierarchyStore, TranslationTable, Vec<u8>)
         .into_iter()
         .map(|case| {
             let mut store = HierarchyStore::new();
-            let mut table = TranslationTable::new(p.hier_capacity() as usize, p).unwrap();
+            let mut table = TranslationTable::new(p.hier_capacity() as usize, p)
+                .map_err(|e| format!("translation table: {e}"))?;
             let ids = case.iter().map(|(h, _)| h.id).collect();
             for (h, t) in case {
-                table.write(h.id as u32, t).unwrap();
-                store.insert(h).unwrap();
+                table
+                    .write(h.id as u32, t)
+                    .map_err(|e| format!("translation of hierarchy {}: {e}", h.id))?;
+                store.insert(h).map_err(|e| format!("store: {e}"))?;
             }
-            (store, table, ids)
+            Ok((store, table, ids))
         })
         .collect()
 }
+
+/// One case of [`real_cases`]: the store, the table and the input ids.
+pub type RealCase = (HierarchyStore, TranslationTable, Vec<u8>);

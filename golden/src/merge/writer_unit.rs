@@ -505,7 +505,7 @@ mod tests {
 
     fn check_real(p: &Params, out_id: u8) -> Reached {
         let mut seen = Reached::default();
-        for (store, table, ids) in real_cases(p) {
+        for (store, table, ids) in real_cases(p).expect("the real cases build") {
             let hs: Vec<&Hierarchy> = ids.iter().map(|i| store.get(*i).unwrap()).collect();
             let inputs: Vec<(&Hierarchy, Translation)> = hs
                 .iter()

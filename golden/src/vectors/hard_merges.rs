@@ -11,7 +11,7 @@ use crate::merge::merger_unit::MergerSizes;
 use crate::merge::merger_unit::{
     merger_transaction, merger_transaction_in_range, MergerTransaction, ModulePass,
 };
-use crate::merge::stimulus::{place, real_cases, soup};
+use crate::merge::stimulus::{place, real_cases, try_soup};
 use crate::params::Params;
 use crate::store::{Hierarchy, HierarchyStore};
 use crate::translate::{Translation, TranslationTable};
@@ -67,7 +67,7 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
     let k = d.inputs;
     let out_id = (9 % p.hier_capacity()) as u8;
     let mut out = HardMerges::default();
-    let mut cases = real_cases(p);
+    let mut cases = real_cases(p).map_err(golden_err)?;
     cases.push(several_roots_case(p)?);
     cases.retain(|(_, _, ids)| ids.len() <= k);
     for (store, table, ids) in &cases {
@@ -115,7 +115,7 @@ fn several_roots_case(p: &Params) -> Result<(HierarchyStore, TranslationTable, V
     let (lo, hi) = mesh.bounds();
     let grid = crate::build::GridMap::fit(lo, hi, p);
     let big = crate::build::build(&mesh, &grid, p, 1).map_err(golden_err)?;
-    let small = soup(p, 2, 20, 0.2, 78);
+    let small = try_soup(p, 2, 20, 0.2, 78).map_err(golden_err)?;
     let mut store = HierarchyStore::new();
     let mut table = TranslationTable::new(p.hier_capacity() as usize, p).map_err(golden_err)?;
     table

@@ -13,7 +13,7 @@ use crate::merge::merger_unit::{
     merger_transaction, MergerLayout, MergerSizes, MergerTransaction, ModulePass,
 };
 use crate::merge::per_node_unit::{random_per_node_case, PerNodeLayout};
-use crate::merge::stimulus::{place, soup};
+use crate::merge::stimulus::{place, try_soup};
 use crate::merge::top::{random_top_transaction, TopLayout};
 use crate::merge::unit::BeatLayout;
 use crate::merge::MergeMode;
@@ -525,7 +525,12 @@ pub fn random_merger_merge_of(
                 Merges::Random => 0.02 + rng.below(30) as f32 / 100.0,
                 Merges::Hard => scale * (1.0 + rng.below(4) as f32 / 4.0),
             };
-            let h = soup(p, id, tris, size, rng.next_u64());
+            let h = try_soup(p, id, tris, size, rng.next_u64()).map_err(|e| {
+                format!(
+                    "a random soup of {tris} triangles does not build at D = {}, I = {}: {e}; expected parameters that hold it (a larger --index-bits)",
+                    p.max_lod, p.index_bits
+                )
+            })?;
             let frac = [0, 1, 2].map(|_| rng.below(101) as f64 / 100.0);
             let t = match (kind, together, first_t) {
                 (Merges::Hard, true, Some(first)) => {

@@ -685,7 +685,7 @@ pub fn created_count(base: &[BaseNode]) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::merge::stimulus::{place, real_cases, soup};
+    use crate::merge::stimulus::{real_cases, several_roots_case, soup, try_scene_soup, RealCase};
     use crate::merge::writer_unit::{writer_err, CrefBeat};
     use crate::merge::{merge, MergeMode};
 
@@ -886,23 +886,13 @@ mod tests {
 
     /// An input filling the scene (its LOD-0 root gives way to several
     /// roots, 4.7) with a small translated input, in both rank orders.
-    fn several_roots_cases(p: &Params) -> Vec<(HierarchyStore, TranslationTable, Vec<u8>)> {
-        let mesh = crate::scenes::random_soup(1500, 0.05, 77);
-        let (lo, hi) = mesh.bounds();
-        let big = crate::build::build(&mesh, &crate::build::GridMap::fit(lo, hi, p), p, 1)
-            .expect("the soup builds");
+    fn several_roots_cases(p: &Params) -> Vec<RealCase> {
+        let big = try_scene_soup(p, 1, 1500, 0.05, 77).expect("the soup builds");
         let small = soup(p, 2, 40, 0.2, 78);
-        let mut out = Vec::new();
-        for ids in [vec![1u8, 2], vec![2, 1]] {
-            let mut store = HierarchyStore::new();
-            let mut table = TranslationTable::new(p.hier_capacity() as usize, p).unwrap();
-            table.write(1, Translation::zero(big.top_lod)).unwrap();
-            table.write(2, place(&small, [0.7, 0.2, 0.5])).unwrap();
-            store.insert(big.clone()).unwrap();
-            store.insert(small.clone()).unwrap();
-            out.push((store, table, ids));
-        }
-        out
+        [vec![1u8, 2], vec![2, 1]]
+            .into_iter()
+            .map(|ids| several_roots_case(p, big.clone(), small.clone(), ids).unwrap())
+            .collect()
     }
 
     /// The chain's output is `merge()`'s hierarchy on real merges in every

@@ -259,3 +259,37 @@ pub fn real_cases(p: &Params) -> Result<Vec<RealCase>, String> {
 
 /// One case of [`real_cases`]: the store, the table and the input ids.
 pub type RealCase = (HierarchyStore, TranslationTable, Vec<u8>);
+
+/// A soup of `n` triangles with the grid fitted to it, so it fills the
+/// scene: its LOD-0 root gives way to several roots (4.7).
+pub fn try_scene_soup(
+    p: &Params,
+    id: u8,
+    n: usize,
+    size: f32,
+    seed: u64,
+) -> Result<Hierarchy, crate::build::BuildError> {
+    let mesh = random_soup(n, size, seed);
+    let (lo, hi) = mesh.bounds();
+    build(&mesh, &GridMap::fit(lo, hi, p), p, id)
+}
+
+/// The several-roots case: `big` (id 1, filling the scene, untranslated)
+/// beside `small` (id 2, placed at (0.7, 0.2, 0.5) of its room), the
+/// inputs in the order `ids`.
+pub fn several_roots_case(
+    p: &Params,
+    big: Hierarchy,
+    small: Hierarchy,
+    ids: Vec<u8>,
+) -> Result<RealCase, String> {
+    let mut store = HierarchyStore::new();
+    let mut table = TranslationTable::new(p.hier_capacity() as usize, p)
+        .map_err(|e| format!("translation table: {e}"))?;
+    let at = |e: crate::translate::TranslateError| format!("translation: {e}");
+    table.write(1, Translation::zero(big.top_lod)).map_err(at)?;
+    table.write(2, place(&small, [0.7, 0.2, 0.5])).map_err(at)?;
+    store.insert(big).map_err(|e| format!("store: {e}"))?;
+    store.insert(small).map_err(|e| format!("store: {e}"))?;
+    Ok((store, table, ids))
+}

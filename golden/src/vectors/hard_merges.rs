@@ -11,10 +11,10 @@ use crate::merge::merger_unit::MergerSizes;
 use crate::merge::merger_unit::{
     merger_transaction, merger_transaction_in_range, MergerTransaction, ModulePass,
 };
-use crate::merge::stimulus::{place, real_cases, try_soup};
+use crate::merge::stimulus::{real_cases, several_roots_case, try_scene_soup, try_soup, RealCase};
 use crate::params::Params;
 use crate::store::{Hierarchy, HierarchyStore};
-use crate::translate::{Translation, TranslationTable};
+use crate::translate::TranslationTable;
 
 use super::merge::MergeDesign;
 #[cfg(doc)]
@@ -68,7 +68,7 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
     let out_id = (9 % p.hier_capacity()) as u8;
     let mut out = HardMerges::default();
     let mut cases = real_cases(p).map_err(golden_err)?;
-    cases.push(several_roots_case(p)?);
+    cases.push(several_roots(p)?);
     cases.retain(|(_, _, ids)| ids.len() <= k);
     for (store, table, ids) in &cases {
         let tx =
@@ -110,23 +110,10 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
 
 /// An input filling the scene (its LOD-0 root gives way to several roots
 /// at LOD 1, 4.7) and a small translated one.
-fn several_roots_case(p: &Params) -> Result<(HierarchyStore, TranslationTable, Vec<u8>)> {
-    let mesh = crate::scenes::random_soup(60, 0.3, 77);
-    let (lo, hi) = mesh.bounds();
-    let grid = crate::build::GridMap::fit(lo, hi, p);
-    let big = crate::build::build(&mesh, &grid, p, 1).map_err(golden_err)?;
+fn several_roots(p: &Params) -> Result<RealCase> {
+    let big = try_scene_soup(p, 1, 60, 0.3, 77).map_err(golden_err)?;
     let small = try_soup(p, 2, 20, 0.2, 78).map_err(golden_err)?;
-    let mut store = HierarchyStore::new();
-    let mut table = TranslationTable::new(p.hier_capacity() as usize, p).map_err(golden_err)?;
-    table
-        .write(1, Translation::zero(big.top_lod))
-        .map_err(golden_err)?;
-    table
-        .write(2, place(&small, [0.7, 0.2, 0.5]))
-        .map_err(golden_err)?;
-    store.insert(big).map_err(golden_err)?;
-    store.insert(small).map_err(golden_err)?;
-    Ok((store, table, vec![1, 2]))
+    several_roots_case(p, big, small, vec![1, 2]).map_err(golden_err)
 }
 
 /// A merge whose last input's `cfg` makes its fetcher refuse it with

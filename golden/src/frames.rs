@@ -19,7 +19,7 @@ use crate::merge::{MergeMode, MergeStats};
 use crate::mesh::Mesh;
 use crate::params::Params;
 use crate::store::Hierarchy;
-use crate::world::{Placing, World, WorldError};
+use crate::world::{Fallback, Placing, World, WorldError};
 
 /// Whether an object's geometry may change between frames.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -97,6 +97,9 @@ pub struct FrameReport {
     pub removed: Vec<u8>,
     /// Per group, in the order the groups were given, what its merge did.
     pub groups: Vec<GroupReport>,
+    /// Per object placed this frame (not reused) whose translation fell
+    /// back to a coarser LOD (SPEC 7.10 step 6): from which LOD and why.
+    pub fallbacks: BTreeMap<u8, Fallback>,
 }
 
 impl FrameReport {
@@ -310,9 +313,16 @@ impl Frames {
             }
         }
         let mut actions = BTreeMap::new();
+        let mut fallbacks = BTreeMap::new();
         for o in objects {
             let action = self.update_object(o)?;
             actions.insert(o.id, action);
+            let placed = self.world.object(o.id);
+            if let Some(f) = placed.and_then(|p| p.fallback.clone()) {
+                if action != ObjectAction::Reused {
+                    fallbacks.insert(o.id, f);
+                }
+            }
         }
         let removed: Vec<u8> = self
             .last
@@ -339,6 +349,7 @@ impl Frames {
             objects: actions,
             removed,
             groups,
+            fallbacks,
         };
         self.frame += 1;
         Ok(report)
@@ -459,6 +470,29 @@ mod tests {
             mesh: mesh.clone(),
             offset: DVec3::new(x, 0.0, 0.0),
         }
+    }
+
+    /// A placement that no LOD finer than 0 holds (the cube ends on the
+    /// scene's far face) is reported with the LOD refused and why; one
+    /// placed inside is not, and a reused object is not reported again.
+    #[test]
+    fn a_fallback_is_reported_with_its_reason() {
+        let p = Params::new(12, 6, 24, 4).unwrap();
+        let grid = GridMap {
+            origin: DVec3::ZERO,
+            unit: 1.0 / 256.0,
+        };
+        let mut f = Frames::new(p, grid, MergeMode::default()).unwrap();
+        let side = f.world.params.voxel_edge(0) as f64 * f.world.grid.unit;
+        let cube = Arc::new(crate::scenes::box_mesh(Vec3::splat(0.5), Vec3::splat(1.0)));
+        let at = |x: f64| obj(1, Motion::Dynamic, &cube, x);
+        let r = f.step(&[at(side - 1.0)]).unwrap();
+        let fb = &r.fallbacks[&1];
+        assert_eq!(fb.settled_lod, 0);
+        assert!(fb.refused_lod > 0 && !fb.reason.is_empty(), "{fb:?}");
+        assert!(f.step(&[at(side - 1.0)]).unwrap().fallbacks.is_empty());
+        let inside = f.step(&[at(0.25)]).unwrap();
+        assert!(inside.fallbacks.is_empty(), "{:?}", inside.fallbacks);
     }
 
     #[test]

@@ -66,6 +66,22 @@ pub struct Object {
     pub determined: Determined,
     /// The top LOD of the source mesh's own hierarchy: where determine starts (SPEC 7.10).
     pub base_lod: u8,
+    /// Set when the last placement settled its translation at a coarser LOD
+    /// than a finer one it tried (SPEC 7.10 step 6): which, and why.
+    pub fallback: Option<Fallback>,
+}
+
+/// A finer LOD that a placement's translation could not take (SPEC 7.10
+/// step 6): the world fell back from `refused_lod` to the LOD the
+/// translation holds now.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct Fallback {
+    /// The finest LOD refused.
+    pub refused_lod: u8,
+    /// The LOD the translation settled at.
+    pub settled_lod: u8,
+    /// Why `refused_lod` was refused.
+    pub reason: String,
 }
 
 /// What placing an object did to its hierarchy (SPEC 7.10).
@@ -235,7 +251,8 @@ impl World {
         base: Hierarchy,
     ) -> Result<&Object, WorldError> {
         let base_lod = base.top_lod;
-        let Step::Settled(s) = self.settle(id, &mesh, base_lod, offset, Some(base), None)? else {
+        let (step, fallback) = self.settle(id, &mesh, base_lod, offset, Some(base), None)?;
+        let Step::Settled(s) = step else {
             unreachable!("settle reuses only a current hierarchy, and there is none")
         };
         self.install(id, &s)?;
@@ -250,6 +267,7 @@ impl World {
                 placement: s.at.placement,
                 determined: s.at.determined,
                 base_lod,
+                fallback,
             },
         );
         Ok(&self.objects[&id])
@@ -268,7 +286,8 @@ impl World {
             determined: o.determined,
         };
         let source = o.source.clone();
-        let step = self.settle(id, &source, o.base_lod, offset, None, Some((current, h)))?;
+        let (step, fallback) =
+            self.settle(id, &source, o.base_lod, offset, None, Some((current, h)))?;
         let (at, how) = match step {
             Step::Reuse(at) => {
                 self.table
@@ -289,6 +308,7 @@ impl World {
         o.frame = at.frame;
         o.placement = at.placement;
         o.determined = at.determined;
+        o.fallback = fallback;
         Ok(how)
     }
 
@@ -335,12 +355,26 @@ impl World {
         offset: DVec3,
         mut base: Option<Hierarchy>,
         current: Option<(Split, &Hierarchy)>,
-    ) -> Result<Step, WorldError> {
+    ) -> Result<(Step, Option<Fallback>), WorldError> {
         let requested = self.placement(id, offset)?;
         let bounds = source.bounds();
         let mut lod = base_lod;
+        let mut refused: Option<(u8, String)> = None;
+        let fallback = |refused: Option<(u8, String)>, settled_lod: u8| {
+            refused.map(|(refused_lod, reason)| Fallback {
+                refused_lod,
+                settled_lod,
+                reason,
+            })
+        };
         loop {
-            let coarser = |lod: u8, e: WorldError| if lod == 0 { Err(e) } else { Ok(lod - 1) };
+            let mut coarser = |lod: u8, e: WorldError| {
+                if lod == 0 {
+                    return Err(e);
+                }
+                refused.get_or_insert_with(|| (lod, e.to_string()));
+                Ok(lod - 1)
+            };
             let at = match self.split(id, &requested, lod, bounds) {
                 Ok(at) => at,
                 Err(e) => {
@@ -354,7 +388,10 @@ impl World {
                     && c.frame == at.frame
                 {
                     match self.check_extents(id, h, &at.placement, lod) {
-                        Ok(determined) => return Ok(Step::Reuse(Split { determined, ..at })),
+                        Ok(determined) => {
+                            let step = Step::Reuse(Split { determined, ..at });
+                            return Ok((step, fallback(refused, lod)));
+                        }
                         Err(e) => {
                             lod = coarser(lod, e)?;
                             continue;
@@ -391,12 +428,13 @@ impl World {
                 .grid
                 .mesh_to_grid(&mesh, &self.params)
                 .map_err(|error| WorldError::Build { id, error })?;
-            return Ok(Step::Settled(Settled {
+            let step = Step::Settled(Settled {
                 hierarchy,
                 mesh,
                 local,
                 at: Split { determined, ..at },
-            }));
+            });
+            return Ok((step, fallback(refused, lod)));
         }
     }
 
@@ -927,10 +965,15 @@ mod tests {
         let cube = crate::scenes::box_mesh(Vec3::splat(0.5), Vec3::splat(1.0));
         let o = w.add(1, cube.clone(), DVec3::ZERO).unwrap();
         assert!(o.determined.translation.lod > 0);
+        assert_eq!(o.fallback, None);
         let to_face = DVec3::new(side - 1.0, 0.0, 0.0);
         let o = w.add(2, cube, to_face).unwrap();
         assert_eq!(o.determined.translation.lod, 0);
         assert_eq!(o.determined.translation.t, [0, 0, 0]);
+        // The object says which finer LOD it tried and why it fell back.
+        let f = o.fallback.clone().expect("a fallback is recorded");
+        assert_eq!(f.settled_lod, 0);
+        assert!(f.refused_lod > 0 && !f.reason.is_empty(), "{f:?}");
         assert_eq!(o.mesh.bounds().1.x as f64, side);
         w.check(2).unwrap();
         w.merge(&[1, 2], MergeMode::default(), 9).unwrap();
@@ -939,6 +982,7 @@ mod tests {
         // Moved back inside, it is translated at a finer LOD again.
         w.place(2, to_face - DVec3::new(2.0, 0.0, 0.0)).unwrap();
         assert!(w.object(2).unwrap().determined.translation.lod > 0);
+        assert_eq!(w.object(2).unwrap().fallback, None);
     }
 
     #[test]

@@ -707,6 +707,12 @@ fn describe_actions(
                 "{name}: unchanged, hierarchy and translation reused"
             )),
         }
+        if let Some(f) = rep.fallbacks.get(&id) {
+            simulated.push(format!(
+                "{name}: translated at LOD {}, not LOD {}: {}",
+                f.settled_lod, f.refused_lod, f.reason
+            ));
+        }
     }
 }
 

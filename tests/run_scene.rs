@@ -642,6 +642,7 @@ fn the_library_runs_a_scene_frame_by_frame_as_the_command_does() {
         out: out.clone(),
         write_to: out.clone(),
         rtl: false,
+        engine: hiermerge::run::RunEngine::Verilator,
         progress: false,
         narrate: false,
         verify: false,

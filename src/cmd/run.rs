@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 
 use golden::scene::{Scene, MAX_IMAGE_SIDE};
-use hiermerge::run::{closing_table, preflight, run, Options};
+use hiermerge::run::{closing_table, preflight, run, Options, RunEngine};
 
 use crate::report::{emit, CmdResult};
 
@@ -28,6 +28,10 @@ pub struct Args {
     /// Do not build or simulate RTL (the run says so); golden model only.
     #[arg(long)]
     no_rtl: bool,
+    /// The simulator of every unit: `verilator` or `ir` (rtl-gen's IR
+    /// simulator: nothing to build, slower per cycle).
+    #[arg(long, default_value = "verilator")]
+    engine: String,
     /// Print one JSON object on stdout (no progress bars).
     #[arg(long)]
     json: bool,
@@ -75,6 +79,7 @@ pub fn main(a: Args) -> CmdResult {
         out: a.out.clone(),
         write_to: staging.path().to_path_buf(),
         rtl: !a.no_rtl,
+        engine: RunEngine::parse(&a.engine)?,
         progress: !a.json && std::io::IsTerminal::is_terminal(&std::io::stderr()),
         narrate: !a.json,
         verify: a.verify,

@@ -267,12 +267,7 @@ impl MergeStage<'_> {
         secs: &mut StageSeconds,
         rtl_info: &mut RtlInfo,
     ) -> Result<Option<MergerRtlFrame>, String> {
-        let At {
-            k,
-            frames,
-            g,
-            label,
-        } = *at;
+        let (g, label) = (at.g, at.label);
         let Some(root) = g
             .root
             .filter(|_| self.simulates(g, "hierarchy merger RTL", label, lines))
@@ -280,11 +275,12 @@ impl MergeStage<'_> {
             return Ok(None);
         };
         let t = std::time::Instant::now();
-        let b = bar(self.options, format!("frame {k} merger RTL"));
+        let b = bar(self.options, format!("frame {} merger RTL", at.k));
         b.set_length(1);
+        let mode = self.scene.effects.merge;
         let r = self
             .merger
-            .run_group(&frames.world, &g.inputs, root, self.scene.effects.merge);
+            .run_group(&at.frames.world, &g.inputs, root, mode);
         b.finish_and_clear();
         secs.rtl += t.elapsed().as_secs_f64();
         let r = match r? {

@@ -259,7 +259,7 @@ impl MergeStage<'_> {
     }
 
     /// The hierarchy merger top on the group's merge, when it was redone
-    /// and the run simulates RTL (SPEC 12.2 step 3).
+    /// and the run simulates RTL (SPEC 12.2 step 4).
     fn merger(
         &mut self,
         at: &At,

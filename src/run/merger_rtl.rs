@@ -516,6 +516,40 @@ mod tests {
         assert!(r.frames.iter().all(|f| f.merger.is_none()));
     }
 
+    /// A merger is the default unless a merge needs more, then each size
+    /// grows to the power of two that holds it; a built one serves every
+    /// merge its sizes hold.
+    #[test]
+    fn merger_sizes_grow_from_the_default_only_as_needed() {
+        assert_eq!(
+            [1, 2, 3, 4, 5, 1024, 1025].map(super::bits_for),
+            [1, 1, 2, 2, 3, 10, 11]
+        );
+        let design = golden::vectors::merge::MergeDesign::default();
+        let default = rtl_gen::merge::MergerConfig::new(design);
+        let small = super::Sizes {
+            roots: 3,
+            frontier: 100,
+            capacity_bits: 4,
+            leaf_bits: 2,
+        };
+        assert_eq!(small.config(design), default);
+        assert!(small.held_by(&default));
+        let big = super::Sizes {
+            roots: 17,
+            frontier: 300,
+            capacity_bits: 12,
+            leaf_bits: 5,
+        };
+        assert!(!big.held_by(&default));
+        let c = big.config(design);
+        assert_eq!((c.design.roots, c.sizes.fetch.roots), (32, 32));
+        assert_eq!(c.sizes.fetch.frontier, 512);
+        assert_eq!((c.sizes.capacity_bits, c.sizes.leaf_bits), (12, 5));
+        assert!(big.held_by(&c) && small.held_by(&c));
+        c.validate().unwrap();
+    }
+
     /// A flipped bit of the expected `header` beat is a mismatch of the
     /// frame, decoded by field, with its cycle.
     #[test]

@@ -5,7 +5,9 @@
 use std::path::PathBuf;
 
 use golden::scene::{Scene, MAX_IMAGE_SIDE};
-use hiermerge::run::{closing_table, preflight, run, Options, RunEngine};
+use hiermerge::run::{
+    closing_table, preflight, run, Options, RunEngine, PATCH_FROM_VAR, PATCH_TO_VAR,
+};
 
 use crate::report::{emit, CmdResult};
 
@@ -103,11 +105,40 @@ pub fn main(a: Args) -> CmdResult {
     })?;
     if mismatches > 0 {
         return Err(format!(
-            "{mismatches} mismatches (RTL against golden, or merged against separate hierarchies); see {}",
-            report_path.display()
+            "{mismatches} mismatches (RTL against golden, or merged against separate hierarchies); \
+             see {} (each frame's `simulated` lines and `first_mismatch` fields, decoded); \
+             reproduce: {}",
+            report_path.display(),
+            reproduce(&a)
         ));
     }
     Ok(())
+}
+
+/// The command line that reruns `a` (the run is deterministic: the same
+/// scene and flags give the same merges, beats and cycles).
+fn reproduce(a: &Args) -> String {
+    let mut line = String::new();
+    for var in [PATCH_FROM_VAR, PATCH_TO_VAR] {
+        if let Ok(v) = std::env::var(var) {
+            // Shell-quoted: a patch's Verilog has quotes of its own (`150'd1`).
+            line += &format!("{var}='{}' ", v.replace('\'', r"'\''"));
+        }
+    }
+    line += "hiermerge run";
+    if let Some(scene) = &a.scene {
+        line += &format!(" {}", scene.display());
+    }
+    line += &format!(" --engine {}", a.engine);
+    for (flag, v) in [("--width", a.width), ("--height", a.height)] {
+        if let Some(v) = v {
+            line += &format!(" {flag} {v}");
+        }
+    }
+    if a.verify {
+        line += " --verify";
+    }
+    line
 }
 
 /// The whole `--out` folder is replaced, so it must be empty or an earlier

@@ -16,7 +16,7 @@
 //! two that holds it. A merge no buildable size holds is skipped with the
 //! reason. A built merger is kept for later merges it can hold.
 
-use cosim::units::merger::{MergerSim, ModuleRunConfig};
+use cosim::units::merger::{MergerSim, ModuleRunConfig, VerilogPatch};
 use golden::merge::fetch_unit::FetchSizes;
 use golden::merge::merger_unit::{merger_transaction, MergerSizes, MergerTransaction, ModulePass};
 use golden::merge::writer_unit::{writer_err, CrefBeat};
@@ -29,6 +29,12 @@ use rtl_gen::merge::{hierarchy_merger_name, MergerConfig};
 use serde::Serialize;
 
 use super::engine::RunEngine;
+
+/// The test hook of `hiermerge cosim` (SPEC 10.1), honoured by the run's
+/// merger top too: the one occurrence of `FROM`'s text in its emitted
+/// Verilog replaced by `TO`'s before the simulator reads it (Verilator).
+pub const PATCH_FROM_VAR: &str = "HIERMERGE_COSIM_PATCH_FROM";
+pub const PATCH_TO_VAR: &str = "HIERMERGE_COSIM_PATCH_TO";
 
 /// The largest frontier the fetcher is built with (`MergerConfig::validate`).
 const MOST_FRONTIER: usize = 1 << 16;
@@ -83,6 +89,8 @@ pub struct MergerRtl {
     built: Vec<Built>,
     /// The test hook: bit 0 of each merge's expected `header` beat flipped.
     pub(crate) flip_expected: bool,
+    /// The Verilog patch hook ([`PATCH_FROM_VAR`], [`PATCH_TO_VAR`]).
+    patch: Option<VerilogPatch>,
 }
 
 /// The sizes a merge needs, or why no merger can be built for it.
@@ -266,10 +274,17 @@ fn golden_merge(
 }
 
 impl MergerRtl {
-    /// No merger built yet; each will be built for `engine`.
+    /// No merger built yet; each will be built for `engine` (and broken
+    /// by the Verilog patch hook when both its variables are set).
     pub fn new(engine: RunEngine) -> MergerRtl {
+        let var = |name| std::env::var(name).ok();
+        let patch = match (var(PATCH_FROM_VAR), var(PATCH_TO_VAR)) {
+            (Some(from), Some(to)) => Some(VerilogPatch { from, to }),
+            _ => None,
+        };
         MergerRtl {
             engine,
+            patch,
             ..MergerRtl::default()
         }
     }
@@ -322,7 +337,8 @@ impl MergerRtl {
                     .validate()
                     .map_err(|e| format!("hierarchy merger RTL: {e}"))?;
                 let dir = tempfile::tempdir().map_err(|e| format!("temporary folder: {e}"))?;
-                let sim = MergerSim::new(&config, self.engine.merger(), dir.path())
+                let patch = self.patch.as_ref();
+                let sim = MergerSim::new(&config, self.engine.merger(), dir.path(), patch)
                     .map_err(|e| format!("hierarchy merger RTL ({}): {e}", self.engine.label()))?;
                 self.built.push(Built {
                     config,

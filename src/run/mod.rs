@@ -52,7 +52,7 @@ mod table;
 pub use compare::{Comparison, SUBSAMPLE};
 pub use engine::RunEngine;
 pub use merge_rtl::MergeRtlFrame;
-pub use merger_rtl::MergerRtlFrame;
+pub use merger_rtl::{MergerRtlFrame, PATCH_FROM_VAR, PATCH_TO_VAR};
 pub use merges::GroupOut;
 pub use pipeline::{
     run, EffectsInfo, FrameOut, ImageSummary, MergerTotals, ObjectInfo, Options, RtlInfo, Run,

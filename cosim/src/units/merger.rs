@@ -397,7 +397,7 @@ pub fn run_streams(
     bench: &ModuleRunConfig,
     dir: &Path,
 ) -> Result<ChunkTotals> {
-    MergerSim::new(c, engine, dir)?.run_streams(streams, bench)
+    MergerSim::new(c, engine, dir, None)?.run_streams(streams, bench)
 }
 
 /// The simulator of the merger `c` (`module`, its Verilog in `design`) on
@@ -431,18 +431,38 @@ pub struct MergerSim {
 
 impl MergerSim {
     /// The merger `c` on `engine`, its Verilog written to `dir` (which must
-    /// outlive the simulator: each chunk opens the design anew). Verilator
-    /// builds it here (or loads it from cosim's cache), so a run's first
-    /// chunk does not pay for the build.
-    pub fn new(c: &MergerConfig, engine: MergerEngine, dir: &Path) -> Result<MergerSim> {
+    /// outlive the simulator: each chunk opens the design anew) and broken
+    /// by `patch` when given (the test hook; not on the IR engine).
+    /// Verilator builds it here (or loads it from cosim's cache), so a
+    /// run's first chunk does not pay for the build.
+    pub fn new(
+        c: &MergerConfig,
+        engine: MergerEngine,
+        dir: &Path,
+        patch: Option<&VerilogPatch>,
+    ) -> Result<MergerSim> {
         let module = merger_module(c)?;
         let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
+        if let Some(patch) = patch {
+            apply_patch(&design, patch, engine)?;
+        }
+        // The build a chunk's engine opens: a patched design's traces, so
+        // its failure's waveform needs no second build.
         if engine == MergerEngine::Verilator {
-            crate::open_engine(crate::EngineKind::Verilator, &design, false)?;
+            let (format, scope) = ModuleRunConfig::default().waves();
+            match patch {
+                None => crate::open_engine(crate::EngineKind::Verilator, &design, false)?,
+                Some(_) => crate::open_tracing_engine(
+                    crate::EngineKind::Verilator,
+                    &design,
+                    format,
+                    scope.as_deref(),
+                )?,
+            };
         }
         Ok(MergerSim {
             config: c.clone(),
-            sim: chunked_sim(c, module, design, engine, false)?,
+            sim: chunked_sim(c, module, design, engine, patch.is_some())?,
         })
     }
 

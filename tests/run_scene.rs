@@ -251,12 +251,23 @@ fn per_node_frames_run_through_the_per_node_merging_module() {
             .unwrap()
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
             .collect();
-        assert!(
-            built
-                .iter()
-                .any(|n| n.starts_with("merge_module") && n.contains("_pn0_1")),
-            "{built:?}"
-        );
+        // The merging module and the hierarchy merger top, both per-node.
+        for unit in ["merge_module", "hierarchy_merger"] {
+            assert!(
+                built
+                    .iter()
+                    .any(|n| n.starts_with(unit) && n.contains("_k3_pn0_1")),
+                "{unit}: {built:?}"
+            );
+        }
+        for f in frames {
+            let m = &f["merger"];
+            assert_eq!(
+                (&m["merges"], &m["mismatches"]),
+                (&json!(1), &json!(0)),
+                "{m}"
+            );
+        }
     }
 }
 
@@ -320,6 +331,13 @@ fn scene_without_translation_builds_no_translation_unit_and_says_so() {
         );
         assert!(
             built.iter().any(|n| n.starts_with("merge_module")),
+            "{built:?}"
+        );
+        // The scene merges its 3 objects: the merger top of 3 inputs.
+        assert!(
+            built
+                .iter()
+                .any(|n| n.starts_with("hierarchy_merger_") && n.contains("_k3_")),
             "{built:?}"
         );
         assert!(

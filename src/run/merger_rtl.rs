@@ -229,14 +229,16 @@ fn roomy(p: &Params, hs: &[&Hierarchy]) -> MergerSizes {
 
 /// The merge of `ids` into `out` through the merger of `c`, from the
 /// world's store and table, checked against the merged hierarchy the
-/// frame stored: a disagreement of golden with itself is an error.
+/// frame stored: `Ok(Err(why))` when the chain refuses the merge (a
+/// fetcher's walk beyond `c`'s sizes), an error when golden disagrees with
+/// itself.
 fn golden_merge(
     world: &World,
     ids: &[u8],
     out: u8,
     c: &MergerConfig,
-) -> Result<MergerTransaction, String> {
-    let tx = merger_transaction(
+) -> Result<Result<MergerTransaction, String>, String> {
+    let tx = match merger_transaction(
         &world.store,
         &world.table,
         ids,
@@ -244,8 +246,10 @@ fn golden_merge(
         out,
         c.design.inputs,
         c.sizes,
-    )
-    .map_err(|e| format!("hierarchy merger RTL: golden's merger chain: {e}"))?;
+    ) {
+        Ok(tx) => tx,
+        Err(e) => return Ok(Err(format!("golden's merger chain refuses the merge: {e}"))),
+    };
     let merged = world
         .store
         .get(out)
@@ -270,7 +274,7 @@ fn golden_merge(
             merged.refs.len()
         ));
     }
-    Ok(tx)
+    Ok(Ok(tx))
 }
 
 impl MergerRtl {
@@ -319,7 +323,11 @@ impl MergerRtl {
             design,
             sizes: roomy(&p, &hs),
         };
-        let probe = golden_merge(world, ids, out, &wide)?;
+        // At the largest sizes: a refusal means no merger can be built.
+        let probe = match golden_merge(world, ids, out, &wide)? {
+            Ok(tx) => tx,
+            Err(why) => return Ok(Err(why)),
+        };
         let need = match needed_sizes(&p, &hs, &probe) {
             Ok(s) => s,
             Err(why) => return Ok(Err(why)),
@@ -352,7 +360,11 @@ impl MergerRtl {
         let b = &self.built[at];
         let tx = match b.config == wide {
             true => probe,
-            false => golden_merge(world, ids, out, &b.config)?,
+            // Sized from the probe: a refusal now is a sizing bug.
+            false => golden_merge(world, ids, out, &b.config)?.map_err(|e| {
+                let top = hierarchy_merger_name(&b.config);
+                format!("hierarchy merger RTL ({top}, sized for the merge): {e}")
+            })?,
         };
         let bench = ModuleRunConfig::default();
         let flip = self.flip_expected.then_some(0);

@@ -166,7 +166,13 @@ fn default_scene_runs_with_zero_mismatches_and_writes_every_frame() {
 fn bunny_and_teapot_scene_file_runs() {
     let dir = tempfile::tempdir().unwrap();
     let scene = repo().join("scenes/bunny_teapot.json");
-    let v = run_ok(&[scene.to_str().unwrap()], dir.path(), None);
+    // The IR simulator: the scene's features are under test here, and the
+    // per-node merger top would cost a Verilator build of its own.
+    let v = run_ok(
+        &[scene.to_str().unwrap(), "--engine", "ir"],
+        dir.path(),
+        None,
+    );
     assert_eq!(v["mismatches"], 0);
     let tris: Vec<u64> = v["objects"]
         .as_array()
@@ -245,12 +251,23 @@ fn per_node_frames_run_through_the_per_node_merging_module() {
             .unwrap()
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
             .collect();
-        assert!(
-            built
-                .iter()
-                .any(|n| n.starts_with("merge_module") && n.contains("_pn0_1")),
-            "{built:?}"
-        );
+        // The merging module and the hierarchy merger top, both per-node.
+        for unit in ["merge_module", "hierarchy_merger"] {
+            assert!(
+                built
+                    .iter()
+                    .any(|n| n.starts_with(unit) && n.contains("_k3_pn0_1")),
+                "{unit}: {built:?}"
+            );
+        }
+        for f in frames {
+            let m = &f["merger"];
+            assert_eq!(
+                (&m["merges"], &m["mismatches"]),
+                (&json!(1), &json!(0)),
+                "{m}"
+            );
+        }
     }
 }
 
@@ -314,6 +331,13 @@ fn scene_without_translation_builds_no_translation_unit_and_says_so() {
         );
         assert!(
             built.iter().any(|n| n.starts_with("merge_module")),
+            "{built:?}"
+        );
+        // The scene merges its 3 objects: the merger top of 3 inputs.
+        assert!(
+            built
+                .iter()
+                .any(|n| n.starts_with("hierarchy_merger_") && n.contains("_k3_")),
             "{built:?}"
         );
         assert!(
@@ -387,9 +411,19 @@ fn a_frame_where_nothing_moved_resimulates_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let scene = small_scene(true, json!([[2, 1, 2], [4, 1, 4], [4, 1, 4]]));
     let path = write_scene(dir.path(), "still.json", &scene);
-    let v = run_ok(&[path.to_str().unwrap()], &dir.path().join("out"), None);
+    // The IR simulator: nothing to build for a test of what a frame skips.
+    let v = run_ok(
+        &[path.to_str().unwrap(), "--engine", "ir"],
+        &dir.path().join("out"),
+        None,
+    );
     let frames = v["frames"].as_array().unwrap();
     assert_eq!(frames[1]["retranslated"], 1);
+    if verilator() {
+        let m = &frames[1]["merger"];
+        assert_eq!(m["merges"], 1, "{m}");
+        assert_eq!(m["mismatches"], 0, "{m}");
+    }
     let still = &frames[2];
     assert_eq!(still["reused"], 3);
     assert_eq!(still["built"], 0);
@@ -399,11 +433,13 @@ fn a_frame_where_nothing_moved_resimulates_nothing() {
     assert_eq!(still["nodes_created"], 0);
     assert!(still["rtl"].is_null());
     assert!(still["groups"][0]["merge_rtl"].is_null());
+    assert!(still["groups"][0]["merger_rtl"].is_null() && still["merger"].is_null());
     let skipped = strings(&still["skipped"]);
     for what in [
         "merge: no input changed",
         "trace: nothing changed",
         "translation unit RTL: no placement changed",
+        "hierarchy merger RTL: no merge redone",
     ] {
         assert!(
             skipped.iter().any(|s| s.starts_with(what)),
@@ -642,6 +678,7 @@ fn the_library_runs_a_scene_frame_by_frame_as_the_command_does() {
         out: out.clone(),
         write_to: out.clone(),
         rtl: false,
+        engine: hiermerge::run::RunEngine::Verilator,
         progress: false,
         narrate: false,
         verify: false,

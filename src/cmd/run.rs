@@ -5,7 +5,9 @@
 use std::path::PathBuf;
 
 use golden::scene::{Scene, MAX_IMAGE_SIDE};
-use hiermerge::run::{closing_table, preflight, run, Options};
+use hiermerge::run::{
+    closing_table, preflight, run, Options, RunEngine, PATCH_FROM_VAR, PATCH_TO_VAR,
+};
 
 use crate::report::{emit, CmdResult};
 
@@ -28,6 +30,10 @@ pub struct Args {
     /// Do not build or simulate RTL (the run says so); golden model only.
     #[arg(long)]
     no_rtl: bool,
+    /// The simulator of every unit: `verilator` or `ir` (rtl-gen's IR
+    /// simulator: nothing to build, slower per cycle).
+    #[arg(long, default_value = "verilator")]
+    engine: String,
     /// Print one JSON object on stdout (no progress bars).
     #[arg(long)]
     json: bool,
@@ -75,6 +81,7 @@ pub fn main(a: Args) -> CmdResult {
         out: a.out.clone(),
         write_to: staging.path().to_path_buf(),
         rtl: !a.no_rtl,
+        engine: RunEngine::parse(&a.engine)?,
         progress: !a.json && std::io::IsTerminal::is_terminal(&std::io::stderr()),
         narrate: !a.json,
         verify: a.verify,
@@ -98,11 +105,40 @@ pub fn main(a: Args) -> CmdResult {
     })?;
     if mismatches > 0 {
         return Err(format!(
-            "{mismatches} mismatches (RTL against golden, or merged against separate hierarchies); see {}",
-            report_path.display()
+            "{mismatches} mismatches (RTL against golden, or merged against separate hierarchies); \
+             see {} (each frame's `simulated` lines and `first_mismatch` fields, decoded); \
+             reproduce: {}",
+            report_path.display(),
+            reproduce(&a)
         ));
     }
     Ok(())
+}
+
+/// The command line that reruns `a` (the run is deterministic: the same
+/// scene and flags give the same merges, beats and cycles).
+fn reproduce(a: &Args) -> String {
+    let mut line = String::new();
+    for var in [PATCH_FROM_VAR, PATCH_TO_VAR] {
+        if let Ok(v) = std::env::var(var) {
+            // Shell-quoted: a patch's Verilog has quotes of its own (`150'd1`).
+            line += &format!("{var}='{}' ", v.replace('\'', r"'\''"));
+        }
+    }
+    line += "hiermerge run";
+    if let Some(scene) = &a.scene {
+        line += &format!(" {}", scene.display());
+    }
+    line += &format!(" --engine {}", a.engine);
+    for (flag, v) in [("--width", a.width), ("--height", a.height)] {
+        if let Some(v) = v {
+            line += &format!(" {flag} {v}");
+        }
+    }
+    if a.verify {
+        line += " --verify";
+    }
+    line
 }
 
 /// The whole `--out` folder is replaced, so it must be empty or an earlier

@@ -1,4 +1,4 @@
-//! The merging module's RTL on the frame's own merge, under Verilator, bit
+//! The merging module's RTL on the frame's own merge (Verilator, or the IR engine), bit
 //! for bit against golden: the merging module as one unit
 //! (`rtl_gen::merge::merge_module_unit`, SPEC 8.10) with the frame's inputs
 //! as its `k` input streams: `cfg` = the candidate levels, the count pass
@@ -12,9 +12,8 @@
 //! checked per LOD against golden per-node merging and against the frame's
 //! own merge counts (descents, created, reused).
 
-use cosim::from_rtl::design_from_module;
 use cosim::tb::{run_multi_stream_bench, run_stream_bench, BenchConfig, StreamBeats, Vector};
-use cosim::{open_engine, BitVec, Engine, EngineKind};
+use cosim::{BitVec, Engine};
 use golden::layout::{Bits, LayoutError};
 use golden::merge::level::candidate_range;
 use golden::merge::per_node_unit::{base_by_lod, PerNodeCase, PerNodeLayout};
@@ -25,6 +24,8 @@ use golden::merge::{MergeMode, MergeStats};
 use golden::store::{Hierarchy, NodeRecord};
 use golden::world::World;
 use golden::Params;
+
+use super::engine::RunEngine;
 
 /// What the stages did on one frame's merge.
 #[derive(Clone, Debug, Default, serde::Serialize)]
@@ -48,6 +49,8 @@ pub struct MergeRtlFrame {
 /// and mode.
 #[derive(Default)]
 pub struct MergeRtl {
+    /// The simulator every stage is built for.
+    pub engine: RunEngine,
     /// One per (input count, mode): merge groups of different sizes each
     /// keep theirs.
     modules: Vec<(usize, MergeMode, Box<dyn Engine>)>,
@@ -98,15 +101,6 @@ fn module_streams<I, R>(
     Ok((ins, outs))
 }
 
-fn build(m: &rtl_gen::Module) -> Result<Box<dyn Engine>, String> {
-    EngineKind::Verilator
-        .check_tools()
-        .map_err(|e| format!("merge RTL: {e}"))?;
-    let dir = tempfile::tempdir().map_err(|e| format!("temporary folder: {e}"))?;
-    let d = design_from_module(m, dir.path()).map_err(|e| format!("merge RTL: {e}"))?;
-    open_engine(EngineKind::Verilator, &d, false).map_err(|e| format!("merge RTL (Verilator): {e}"))
-}
-
 /// One transaction's beats as bench vectors: every expected output is due
 /// with the first input beat (the bench only checks order).
 fn vectors(ins: Vec<BitVec>, outs: Vec<BitVec>) -> Vec<Vector> {
@@ -133,6 +127,14 @@ fn stored_inputs<'w>(world: &'w World, ids: &[u8]) -> Result<Vec<&'w Hierarchy>,
 }
 
 impl MergeRtl {
+    /// No stage built yet; each will be built for `engine`.
+    pub fn new(engine: RunEngine) -> MergeRtl {
+        MergeRtl {
+            engine,
+            ..MergeRtl::default()
+        }
+    }
+
     /// Runs the stages the scene uses on the merge of `ids` at `level`.
     pub fn run_frame(
         &mut self,
@@ -220,7 +222,8 @@ impl MergeRtl {
             );
             if self.upper.is_none() {
                 let t = std::time::Instant::now();
-                self.upper = Some(build(&rtl_gen::merge::upper_level_unit(&p))?);
+                let m = rtl_gen::merge::upper_level_unit(&p);
+                self.upper = Some(self.engine.open(&m, "merge RTL S616")?);
                 out.build_seconds += t.elapsed().as_secs_f64();
             }
             bench(
@@ -261,7 +264,8 @@ impl MergeRtl {
             design
                 .validate()
                 .map_err(|e| format!("merge RTL merging module: {e}"))?;
-            let e = build(&rtl_gen::merge::merge_module_unit(&design))?;
+            let m = rtl_gen::merge::merge_module_unit(&design);
+            let e = self.engine.open(&m, "merge RTL merging module")?;
             out.build_seconds += t.elapsed().as_secs_f64();
             self.modules.push((k, mode, e));
         }

@@ -8,6 +8,7 @@ use golden::scene::Scene;
 use serde::Serialize;
 
 use super::merge_rtl::{MergeRtl, MergeRtlFrame};
+use super::merger_rtl::{MergerRtl, MergerRtlFrame};
 use super::pipeline::{bar, Options, RtlInfo, StageSeconds};
 
 /// One merge group in one frame.
@@ -26,6 +27,8 @@ pub struct GroupOut {
     pub merged_nodes: u64,
     /// The merging module's stages on this frame's merge of the group.
     pub merge_rtl: Option<MergeRtlFrame>,
+    /// The hierarchy merger top on this frame's merge of the group.
+    pub merger_rtl: Option<MergerRtlFrame>,
 }
 
 /// What the run keeps across frames for the merges.
@@ -33,6 +36,7 @@ pub struct MergeStage<'a> {
     pub scene: &'a Scene,
     pub options: &'a Options,
     pub rtl: MergeRtl,
+    pub merger: MergerRtl,
 }
 
 /// One group in frame `k`: what the checks and the RTL are about.
@@ -91,6 +95,7 @@ impl MergeStage<'_> {
                 _ => 0,
             };
             let merge_rtl = self.rtl(&at, lines, secs, rtl_info)?;
+            let merger_rtl = self.merger(&at, lines, secs, rtl_info)?;
             out.push(GroupOut {
                 objects: names,
                 root: g.root,
@@ -99,6 +104,7 @@ impl MergeStage<'_> {
                 nodes_created,
                 merged_nodes,
                 merge_rtl,
+                merger_rtl,
             });
         }
         Ok(out)
@@ -141,6 +147,25 @@ impl MergeStage<'_> {
         Ok(s.created())
     }
 
+    /// Whether `unit` runs on the group's merge this frame: it was redone
+    /// and the run simulates RTL; else the reason is said (nothing for a
+    /// group with no merge).
+    fn simulates(&self, g: &GroupReport, unit: &str, label: &str, lines: &mut Lines) -> bool {
+        if !g.merged {
+            if g.is_merged() {
+                lines
+                    .skipped
+                    .push(format!("{unit}{label}: no merge redone this frame"));
+            }
+            return false;
+        }
+        if !self.options.rtl {
+            lines.skipped.push(format!("{unit}{label}: --no-rtl"));
+            return false;
+        }
+        true
+    }
+
     /// The merging module's RTL on the group's merge, when it was redone
     /// and the run simulates RTL.
     fn rtl(
@@ -157,18 +182,7 @@ impl MergeStage<'_> {
             label,
         } = *at;
         let fx = &self.scene.effects;
-        if !g.merged {
-            if g.is_merged() {
-                lines.skipped.push(format!(
-                    "merging module RTL{label}: no merge redone this frame"
-                ));
-            }
-            return Ok(None);
-        }
-        if !self.options.rtl {
-            lines
-                .skipped
-                .push(format!("merging module RTL{label}: --no-rtl"));
+        if !self.simulates(g, "merging module RTL", label, lines) {
             return Ok(None);
         }
         let t = std::time::Instant::now();
@@ -234,9 +248,72 @@ impl MergeStage<'_> {
         };
         b.finish_and_clear();
         if r.build_seconds > 0.0 {
-            rtl_info.merge = format!("built (Verilator): {}", r.stages.join(", "));
+            rtl_info.merge = format!(
+                "built ({}): {}",
+                self.rtl.engine.label(),
+                r.stages.join(", ")
+            );
         }
         secs.rtl += t.elapsed().as_secs_f64();
+        Ok(Some(r))
+    }
+
+    /// The hierarchy merger top on the group's merge, when it was redone
+    /// and the run simulates RTL (SPEC 12.2 step 4).
+    fn merger(
+        &mut self,
+        at: &At,
+        lines: &mut Lines,
+        secs: &mut StageSeconds,
+        rtl_info: &mut RtlInfo,
+    ) -> Result<Option<MergerRtlFrame>, String> {
+        let (g, label) = (at.g, at.label);
+        let Some(root) = g
+            .root
+            .filter(|_| self.simulates(g, "hierarchy merger RTL", label, lines))
+        else {
+            return Ok(None);
+        };
+        let t = std::time::Instant::now();
+        let b = bar(self.options, format!("frame {} merger RTL", at.k));
+        b.set_length(1);
+        let mode = self.scene.effects.merge;
+        let r = self
+            .merger
+            .run_group(&at.frames.world, &g.inputs, root, mode);
+        b.finish_and_clear();
+        secs.rtl += t.elapsed().as_secs_f64();
+        let r = match r? {
+            Ok(r) => r,
+            Err(why) => {
+                lines
+                    .skipped
+                    .push(format!("hierarchy merger RTL{label}: {why}"));
+                return Ok(None);
+            }
+        };
+        let engine = self.merger.engine.label();
+        if r.build_seconds > 0.0 {
+            lines.simulated.push(format!(
+                "hierarchy merger RTL{label}: {} generated and built ({engine}, {:.1} s)",
+                r.top, r.build_seconds
+            ));
+            rtl_info.merger = format!("built ({engine}): {}", r.top);
+        }
+        lines.simulated.push(format!(
+            "hierarchy merger RTL{label} ({engine}): {} inputs, {} cycles, {} records \
+             ({:.2} cycles/node, {:.2} store reads/node, {:.3} records/cycle), {} mismatches{}",
+            r.n,
+            r.cycles,
+            r.records,
+            r.cycles_per_node,
+            r.store_reads_per_node,
+            r.records_per_cycle,
+            r.mismatches,
+            r.first_mismatch
+                .as_ref()
+                .map_or(String::new(), |m| format!(" (first: {m})"))
+        ));
         Ok(Some(r))
     }
 }

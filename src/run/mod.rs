@@ -4,15 +4,18 @@
 //! Per frame: bring the world to the frame (`golden::frames::Frames::step`:
 //! static hierarchies reused, dynamic ones rebuilt or re-translated, the
 //! merge redone only when an input changed), check the merged hierarchy,
-//! run the translation unit's and the merging module's RTL on what changed
-//! (when the scene uses them and `Options::rtl` asks for RTL), trace the ray
+//! run the translation unit's and the merging module's RTL on what changed,
+//! and the hierarchy merger top on every merge redone (fetchers, merging
+//! module, upper builder, record writer on the store's real contents, its
+//! written records compared bit for bit with the merged hierarchy), when
+//! the scene uses them and `Options::rtl` asks for RTL, trace the ray
 //! kinds the scene asks for through the merged hierarchy, compare node tests
 //! per ray with the separate hierarchies and a full rebuild on a subsample,
 //! and write the image and the heat map. A frame where nothing changed
 //! reuses the last frame's results and says so.
 //!
 //! ```no_run
-//! use hiermerge::run::{preflight, run, Options};
+//! use hiermerge::run::{preflight, run, Options, RunEngine};
 //! use golden::scene::Scene;
 //!
 //! let scene = Scene::load("scenes/default.json".as_ref())?;
@@ -22,7 +25,8 @@
 //! let options = Options {
 //!     out: out.clone(),
 //!     write_to: out,
-//!     rtl: false, // golden model only; true builds the units with Verilator
+//!     rtl: false, // golden model only; true builds the units with `engine`
+//!     engine: RunEngine::Verilator,
 //!     progress: false,
 //!     narrate: false,
 //!     verify: true,
@@ -35,7 +39,9 @@
 //! ```
 
 mod compare;
+mod engine;
 mod merge_rtl;
+mod merger_rtl;
 mod merges;
 mod pipeline;
 pub mod preflight;
@@ -44,11 +50,13 @@ mod rtl;
 mod table;
 
 pub use compare::{Comparison, SUBSAMPLE};
+pub use engine::RunEngine;
 pub use merge_rtl::MergeRtlFrame;
+pub use merger_rtl::{MergerRtlFrame, PATCH_FROM_VAR, PATCH_TO_VAR};
 pub use merges::GroupOut;
 pub use pipeline::{
-    run, EffectsInfo, FrameOut, ImageSummary, ObjectInfo, Options, RtlInfo, Run, RunReport,
-    StageSeconds,
+    run, EffectsInfo, FrameOut, ImageSummary, MergerTotals, ObjectInfo, Options, RtlInfo, Run,
+    RunReport, StageSeconds,
 };
 pub use render::RayCounts;
 pub use rtl::RtlFrame;

@@ -16,7 +16,9 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
 
 use super::compare::{compare, Comparison, SUBSAMPLE};
+use super::engine::RunEngine;
 use super::merge_rtl::MergeRtl;
+use super::merger_rtl::MergerRtl;
 use super::merges::{GroupOut, Lines, MergeStage};
 use super::render::{trace_frame, RayCounts, Traced};
 use super::rtl::{Placed, RtlFrame, TranslateRtl};
@@ -31,6 +33,8 @@ pub struct Options {
     pub write_to: PathBuf,
     /// Build and simulate RTL for the units the scene uses.
     pub rtl: bool,
+    /// The simulator of every unit (`--engine`; Verilator by default).
+    pub engine: RunEngine,
     /// Draw progress bars on stderr.
     pub progress: bool,
     /// Print per-frame lines on stderr.
@@ -52,6 +56,7 @@ impl Options {
             out: dir.to_path_buf(),
             write_to: dir.to_path_buf(),
             rtl: false,
+            engine: RunEngine::Verilator,
             progress: false,
             narrate: false,
             verify: false,
@@ -103,6 +108,11 @@ pub struct RtlInfo {
     pub translation: String,
     pub translation_build_seconds: f64,
     pub merge: String,
+    /// The hierarchy merger top: `built (Verilator): <top>`, `not used by
+    /// the scene`, `disabled (--no-rtl)`, `not needed`.
+    pub merger: String,
+    /// The engine the units ran on.
+    pub engine: RunEngine,
 }
 
 #[derive(Serialize)]
@@ -139,6 +149,9 @@ pub struct FrameOut {
     /// carries it (SPEC 7.10), so objects sit where the scene puts them.
     pub max_residual: f64,
     pub rtl: Option<RtlFrame>,
+    /// The hierarchy merger top over the frame's merges (None when it ran
+    /// on none).
+    pub merger: Option<MergerTotals>,
     pub rays: RayCounts,
     pub node_tests_per_ray: f64,
     /// Node tests per primary ray on the subsample: merged, separate, full rebuild.
@@ -149,6 +162,38 @@ pub struct FrameOut {
     pub image: String,
     pub heat_map: String,
     pub seconds: StageSeconds,
+}
+
+/// The hierarchy merger top over one frame's merges (every group's
+/// `merger_rtl`).
+#[derive(Serialize, Clone, Copy, Default)]
+pub struct MergerTotals {
+    /// Merges simulated.
+    pub merges: u64,
+    pub cycles: u64,
+    /// Node records the RTL wrote.
+    pub records: u64,
+    pub store_reads: u64,
+    pub cycles_per_node: f64,
+    pub store_reads_per_node: f64,
+    pub mismatches: u64,
+}
+
+impl MergerTotals {
+    /// The sums over `groups`' merger runs; None when none ran.
+    fn of(groups: &[GroupOut]) -> Option<MergerTotals> {
+        let mut t = MergerTotals::default();
+        for r in groups.iter().filter_map(|g| g.merger_rtl.as_ref()) {
+            t.merges += 1;
+            t.cycles += r.cycles;
+            t.records += r.records;
+            t.store_reads += r.store_reads;
+            t.mismatches += r.mismatches;
+        }
+        t.cycles_per_node = t.cycles as f64 / t.records.max(1) as f64;
+        t.store_reads_per_node = t.store_reads as f64 / t.records.max(1) as f64;
+        (t.merges > 0).then_some(t)
+    }
 }
 
 /// Wall time per stage.
@@ -287,7 +332,7 @@ pub struct Run<'a> {
     baked: Vec<Option<(DVec3, Arc<Mesh>)>>,
     translate_rtl: Option<TranslateRtl>,
     rtl_info: RtlInfo,
-    merges: MergeStage<'a>,
+    pub(super) merges: MergeStage<'a>,
     outs: Vec<FrameOut>,
     last_traced: Option<(Traced, Option<Comparison>)>,
     mismatches: u64,
@@ -320,6 +365,14 @@ impl<'a> Run<'a> {
             } else {
                 "disabled (--no-rtl)".into()
             },
+            merger: if !options.rtl {
+                "disabled (--no-rtl)".into()
+            } else if scene.groups.iter().all(|g| g.len() < 2) {
+                "not used by the scene: nothing to merge, no merger generated or built".into()
+            } else {
+                "not needed (no merge redone)".into()
+            },
+            engine: options.engine,
         };
         let run = Run {
             scene,
@@ -333,7 +386,8 @@ impl<'a> Run<'a> {
             merges: MergeStage {
                 scene,
                 options,
-                rtl: MergeRtl::default(),
+                rtl: MergeRtl::new(options.engine),
+                merger: MergerRtl::new(options.engine),
             },
             outs: Vec::new(),
             last_traced: None,
@@ -406,12 +460,14 @@ impl<'a> Run<'a> {
         let (image, heat) = self.write_images(k, &traced, &mut secs)?;
 
         let rays = traced.rays.primary + traced.rays.shadow + traced.rays.reflection;
+        let merger = MergerTotals::of(&groups);
         let mismatches = rtl_frame.as_ref().map_or(0, |r| r.mismatches)
             + groups
                 .iter()
                 .filter_map(|g| g.merge_rtl.as_ref())
                 .map(|r| r.mismatches)
                 .sum::<u64>()
+            + merger.map_or(0, |t| t.mismatches)
             + comparison.as_ref().map_or(0, Comparison::faults);
         self.mismatches += mismatches;
         let out = FrameOut {
@@ -432,6 +488,7 @@ impl<'a> Run<'a> {
             groups,
             max_residual,
             rtl: rtl_frame,
+            merger,
             rays: traced.rays,
             node_tests_per_ray: traced.stats.node_tests as f64 / rays.max(1) as f64,
             comparison: comparison.clone(),
@@ -495,12 +552,13 @@ impl<'a> Run<'a> {
         if self.translate_rtl.is_none() {
             let b = bar(options, "build translate RTL".into());
             b.set_length(1);
-            let unit = TranslateRtl::build(&scene.params)?;
+            let unit = TranslateRtl::build(&scene.params, options.engine)?;
             b.finish_and_clear();
-            self.rtl_info.translation = format!("built (Verilator), {:.1} s", unit.build_seconds);
+            let engine = options.engine.label();
+            self.rtl_info.translation = format!("built ({engine}), {:.1} s", unit.build_seconds);
             self.rtl_info.translation_build_seconds = unit.build_seconds;
             said.simulated.push(format!(
-                "translation unit RTL generated and built with Verilator ({:.1} s, cached by content)",
+                "translation unit RTL generated and built with {engine} ({:.1} s, cached by content)",
                 unit.build_seconds
             ));
             self.translate_rtl = Some(unit);

@@ -1,12 +1,11 @@
-//! The translation unit's generated RTL under Verilator, driven with the
+//! The translation unit's generated RTL (Verilator, or the IR engine), driven with the
 //! frame's placements and compared bit for bit with the golden unit model
 //! (`golden::vectors::translate::TranslateModel`), which is itself compared
 //! with the translations the world determined. Built the first time a frame
 //! needs it (cosim's content-addressed cache makes later runs load it), and
 //! kept across frames like the hardware's translation table.
 
-use cosim::from_rtl::design_from_module;
-use cosim::{open_engine, BitVec, Engine, EngineKind, PortId};
+use cosim::{BitVec, Engine, PortId};
 use golden::store::Hierarchy;
 use golden::translate::TranslateUnitConfig;
 use golden::translate::{TranslateInputs, Translation, VoxelRange};
@@ -17,6 +16,8 @@ use golden::Params;
 use rtl_gen::translate::ports::{pack_apply_in, pack_apply_out, pack_det_in, pack_det_out};
 use rtl_gen::translate::translate_unit;
 use rtl_gen::Bits;
+
+use super::engine::RunEngine;
 
 /// Cycles a transaction may take before the run calls the unit stuck.
 const WATCHDOG_CYCLES: u64 = 10_000;
@@ -83,18 +84,11 @@ pub fn design_for(params: &Params) -> TranslateDesign {
 }
 
 impl TranslateRtl {
-    /// Generates the unit for `params`, builds it with Verilator and resets it.
-    pub fn build(params: &Params) -> Result<TranslateRtl, String> {
+    /// Generates the unit for `params`, builds it for `engine` and resets it.
+    pub fn build(params: &Params, engine: RunEngine) -> Result<TranslateRtl, String> {
         let start = std::time::Instant::now();
         let design = design_for(params);
-        EngineKind::Verilator
-            .check_tools()
-            .map_err(|e| format!("translation unit RTL: {e}"))?;
-        let dir = tempfile::tempdir().map_err(|e| format!("temporary folder: {e}"))?;
-        let d = design_from_module(&translate_unit(&design), dir.path())
-            .map_err(|e| format!("translation unit RTL: {e}"))?;
-        let mut engine = open_engine(EngineKind::Verilator, &d, false)
-            .map_err(|e| format!("translation unit RTL (Verilator): {e}"))?;
+        let mut engine = engine.open(&translate_unit(&design), "translation unit RTL")?;
         let id = |n: &str| {
             engine
                 .port_id(n)

@@ -40,37 +40,56 @@ fn level_column(f: &super::pipeline::FrameOut) -> String {
         .join("/")
 }
 
+/// The merger top's cycles, cycles per merged node and store reads per
+/// merged node over the frame's merges; `-` when it ran on none.
+fn merger_columns(f: &super::pipeline::FrameOut) -> [String; 3] {
+    match &f.merger {
+        None => ["-".into(), "-".into(), "-".into()],
+        Some(m) => [
+            m.cycles.to_string(),
+            format!("{:.2}", m.cycles_per_node),
+            format!("{:.2}", m.store_reads_per_node),
+        ],
+    }
+}
+
 /// The per-frame table printed at the end of a run.
 pub fn closing_table(r: &RunReport) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "scene {} (D={} Q={}), merge {}, translation {}; RTL: translation {}; merge {}",
+        "scene {} (D={} Q={}), merge {}, translation {}; RTL ({}): translation {}; merge {}; \
+         merger {}",
         r.scene,
         r.params.max_lod,
         r.params.quant_bits,
         r.effects.merge_mode,
         if r.effects.translation { "on" } else { "off" },
+        r.rtl.engine.name(),
         r.rtl.translation,
-        r.rtl.merge
+        r.rtl.merge,
+        r.rtl.merger
     );
     let _ = writeln!(
         s,
-        "{:>5} {:>19} {:>6} {:>5} {:>7} {:>8} {:>5} {:>24} {:>33}",
+        "{:>5} {:>19} {:>6} {:>5} {:>7} {:>8} {:>10} {:>8} {:>7} {:>5} {:>24} {:>33}",
         "frame",
         "hierarchies",
         "merge",
         "level",
         "created",
         "RTL cyc",
+        "merger cyc",
+        "cyc/node",
+        "rd/node",
         "mism",
         "node tests/ray m/s/full",
         "ms step/check/rtl/trace/cmp/png"
     );
     let _ = writeln!(
         s,
-        "{:>5} {:>19} {:>6} {:>5} {:>7} {:>8} {:>5} {:>24} {:>33}",
-        "", "reused/built/moved/retr", "", "", "", "", "", "(subsample)", ""
+        "{:>5} {:>19} {:>6} {:>5} {:>7} {:>8} {:>10} {:>8} {:>7} {:>5} {:>24} {:>33}",
+        "", "reused/built/moved/retr", "", "", "", "", "", "", "", "", "(subsample)", ""
     );
     for f in &r.frames {
         let hier = format!(
@@ -88,15 +107,19 @@ pub fn closing_table(r: &RunReport) -> String {
         let times = [t.step, t.check, t.rtl, t.trace, t.compare, t.write]
             .map(ms)
             .join("/");
+        let [mc, mcn, mrn] = merger_columns(f);
         let _ = writeln!(
             s,
-            "{:>5} {:>19} {:>6} {:>5} {:>7} {:>8} {:>5} {:>24} {:>33}",
+            "{:>5} {:>19} {:>6} {:>5} {:>7} {:>8} {:>10} {:>8} {:>7} {:>5} {:>24} {:>33}",
             f.frame,
             hier,
             merge_column(f),
             level_column(f),
             f.nodes_created,
             rtl_cycles(f),
+            mc,
+            mcn,
+            mrn,
             f.mismatches,
             tests,
             times

@@ -126,6 +126,8 @@ pub struct ChunkTotals {
     pub data_beats_in: u64,
     /// Beats out on every output stream.
     pub beats_out: u64,
+    /// Beats out per output stream, by name (first seen order).
+    pub received: Vec<(String, u64)>,
     /// Output beats that differed.
     pub mismatches: u64,
     /// Expected output beats that never came (failing chunk).
@@ -156,6 +158,7 @@ impl Default for ChunkTotals {
             cfg_accepted: 0,
             data_beats_in: 0,
             beats_out: 0,
+            received: Vec::new(),
             mismatches: 0,
             missing: Vec::new(),
             first_mismatch: None,
@@ -201,6 +204,12 @@ impl ChunkTotals {
         self.cfg_accepted += report.sent.first().map_or(0, |cfg| cfg.1);
         self.data_beats_in += report.sent.iter().skip(1).map(|s| s.1).sum::<u64>();
         self.beats_out += report.received.iter().map(|s| s.1).sum::<u64>();
+        for (name, n) in &report.received {
+            match self.received.iter_mut().find(|r| &r.0 == name) {
+                Some(r) => r.1 += n,
+                None => self.received.push((name.clone(), *n)),
+            }
+        }
         self.mismatches += report.mismatches;
         self.wall += report.wall;
         if self.first_mismatch.is_none() {

@@ -397,20 +397,113 @@ pub fn run_streams(
     bench: &ModuleRunConfig,
     dir: &Path,
 ) -> Result<ChunkTotals> {
-    let module = merger_module(c)?;
-    let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
-    let decode = |stream: &str, e: &Transaction, g: &Transaction| {
-        decoded_pair(&*decoder_of(c, stream), e, g)
-    };
-    super::chunked::run_streams(
-        module,
-        design,
-        engine,
-        streams,
-        bench,
-        &decode,
-        &mut |_, _| {},
-    )
+    MergerSim::new(c, engine, dir, None)?.run_streams(streams, bench)
+}
+
+/// The simulator of the merger `c` (`module`, its Verilog in `design`) on
+/// `engine`, its streams named as golden names them.
+fn chunked_sim(
+    c: &MergerConfig,
+    module: rtl_gen::Module,
+    design: Design,
+    engine: MergerEngine,
+    patched: bool,
+) -> Result<ChunkedSim> {
+    let k = c.design.inputs;
+    let (i, o) = (
+        merger_input_names(k, is_per_node(c)),
+        merger_output_names(k, is_per_node(c)),
+    );
+    let i: Vec<&str> = i.iter().map(String::as_str).collect();
+    let o: Vec<&str> = o.iter().map(String::as_str).collect();
+    ChunkedSim::new(module, design, engine, &i, &o, patched)
+}
+
+/// A merger built once and run on merges from elsewhere, each run one
+/// chunk from reset with [`run`]'s bench, comparison and decoding: a
+/// vectors file ([`run_streams`]), or a scene's merges frame after frame
+/// (`hiermerge run`), each of them golden's transaction of the store's
+/// real contents.
+pub struct MergerSim {
+    config: MergerConfig,
+    sim: ChunkedSim,
+}
+
+impl MergerSim {
+    /// The merger `c` on `engine`, its Verilog written to `dir` (which must
+    /// outlive the simulator: each chunk opens the design anew) and broken
+    /// by `patch` when given (the test hook; not on the IR engine).
+    /// Verilator builds it here (or loads it from cosim's cache), so a
+    /// run's first chunk does not pay for the build.
+    pub fn new(
+        c: &MergerConfig,
+        engine: MergerEngine,
+        dir: &Path,
+        patch: Option<&VerilogPatch>,
+    ) -> Result<MergerSim> {
+        let module = merger_module(c)?;
+        let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
+        if let Some(patch) = patch {
+            apply_patch(&design, patch, engine)?;
+        }
+        // The build a chunk's engine opens: a patched design's traces, so
+        // its failure's waveform needs no second build.
+        if engine == MergerEngine::Verilator {
+            let (format, scope) = ModuleRunConfig::default().waves();
+            match patch {
+                None => crate::open_engine(crate::EngineKind::Verilator, &design, false)?,
+                Some(_) => crate::open_tracing_engine(
+                    crate::EngineKind::Verilator,
+                    &design,
+                    format,
+                    scope.as_deref(),
+                )?,
+            };
+        }
+        Ok(MergerSim {
+            config: c.clone(),
+            sim: chunked_sim(c, module, design, engine, patch.is_some())?,
+        })
+    }
+
+    /// Runs `streams` as one chunk: every output beat compared (a
+    /// mismatch decoded field by field), `done` counted, `idle` checked.
+    pub fn run_streams(
+        &self,
+        streams: &UnitStreams,
+        bench: &ModuleRunConfig,
+    ) -> Result<ChunkTotals> {
+        let c = &self.config;
+        let decode = |stream: &str, e: &Transaction, g: &Transaction| {
+            decoded_pair(&*decoder_of(c, stream), e, g)
+        };
+        let mut totals = ChunkTotals::default();
+        self.sim.run_chunk(
+            &mut totals,
+            streams.merges(),
+            streams,
+            bench,
+            &decode,
+            &mut |_, _| {},
+        )?;
+        Ok(totals)
+    }
+
+    /// Runs golden's transactions `txs` as one chunk ([`Self::run_streams`]),
+    /// with what they exercise; `flip_expected` (the test hook) flips bit 0
+    /// of that merge's expected `header` beat.
+    pub fn run(
+        &self,
+        txs: &[MergerTransaction],
+        bench: &ModuleRunConfig,
+        flip_expected: Option<usize>,
+    ) -> Result<(ChunkTotals, MergeStats)> {
+        let MergerStreams { mut streams, stats } = merger_streams(&self.config, txs)?;
+        if let Some(n) = flip_expected {
+            flip_header(&mut streams, n)?;
+        }
+        Ok((self.run_streams(&streams, bench)?, stats))
+    }
 }
 
 /// Runs `config.count` random merges (seeded by `config.bench.seed`) through the
@@ -434,15 +527,8 @@ pub fn run(
     if let Some(patch) = &config.bench.verilog_patch {
         apply_patch(&design, patch, engine)?;
     }
-    let k = c.design.inputs;
-    let (i, o) = (
-        merger_input_names(k, is_per_node(c)),
-        merger_output_names(k, is_per_node(c)),
-    );
-    let i: Vec<&str> = i.iter().map(String::as_str).collect();
-    let o: Vec<&str> = o.iter().map(String::as_str).collect();
     let patched = config.bench.verilog_patch.is_some();
-    let sim = ChunkedSim::new(module, design, engine, &i, &o, patched)?;
+    let sim = chunked_sim(c, module, design, engine, patched)?;
     let decode = |stream: &str, e: &Transaction, g: &Transaction| {
         decoded_pair(&*decoder_of(c, stream), e, g)
     };

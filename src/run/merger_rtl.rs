@@ -1,0 +1,599 @@
+//! The hierarchy merger top (fetchers, merging module, upper builder,
+//! record writer; `rtl_gen::merge::hierarchy_merger_unit`, SPEC 8.15) on a
+//! frame's own merge: golden's transaction of the store's real contents
+//! (`merger_unit::merger_transaction` over the group's stored hierarchies
+//! and their translation entries, out id the group's merged id), whose
+//! written records, references and header must equal the merged
+//! hierarchy the frame stored, through cosim's merger bench
+//! (`cosim::units::merger::MergerSim`, the bench `hiermerge cosim --unit
+//! merger` runs), every output beat compared bit for bit.
+//!
+//! The merger's sizes are derived from the merge: the root sorter holds
+//! the inputs' most roots, the frontier FIFO the most inner nodes of one
+//! input's level, the writer's buffers the merged hierarchy's largest
+//! level and its created references, each leaf FIFO the most leaves of a
+//! LOD; each is the merger's default when that suffices, else the power of
+//! two that holds it. A merge no buildable size holds is skipped with the
+//! reason. A built merger is kept for later merges it can hold.
+
+use cosim::units::merger::{MergerSim, ModuleRunConfig, VerilogPatch};
+use golden::merge::fetch_unit::FetchSizes;
+use golden::merge::merger_unit::{merger_transaction, MergerSizes, MergerTransaction, ModulePass};
+use golden::merge::writer_unit::{writer_err, CrefBeat};
+use golden::merge::MergeMode;
+use golden::store::Hierarchy;
+use golden::vectors::merge::MergeDesign;
+use golden::world::World;
+use golden::Params;
+use rtl_gen::merge::{hierarchy_merger_name, MergerConfig};
+use serde::Serialize;
+
+use super::engine::RunEngine;
+
+/// The test hook of `hiermerge cosim` (SPEC 10.1), honoured by the run's
+/// merger top too: the one occurrence of `FROM`'s text in its emitted
+/// Verilog replaced by `TO`'s before the simulator reads it (Verilator).
+pub const PATCH_FROM_VAR: &str = "HIERMERGE_COSIM_PATCH_FROM";
+pub const PATCH_TO_VAR: &str = "HIERMERGE_COSIM_PATCH_TO";
+
+/// The largest frontier the fetcher is built with (`MergerConfig::validate`).
+const MOST_FRONTIER: usize = 1 << 16;
+/// The largest leaf FIFO (`2^16` leaves per LOD).
+const MOST_LEAF_BITS: u32 = 16;
+
+/// The merger top on one group's merge in one frame.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct MergerRtlFrame {
+    /// The top simulated (its name carries the configuration).
+    pub top: String,
+    /// Inputs the merger is built with (`k`) and merged (`n`).
+    pub k: usize,
+    pub n: usize,
+    /// Cycles of the merge, from reset to the last output beat.
+    pub cycles: u64,
+    /// Node records the RTL wrote (`nodes` beats).
+    pub records: u64,
+    /// References the RTL wrote (`refs` beats).
+    pub refs: u64,
+    /// The frame's merged hierarchy: records and references golden stored.
+    pub golden_records: u64,
+    pub golden_refs: u64,
+    /// Store reads the RTL requested: every fetcher's node, reference,
+    /// child reference (and probe) requests, and the writer's.
+    pub store_reads: u64,
+    pub cycles_per_node: f64,
+    pub store_reads_per_node: f64,
+    pub records_per_cycle: f64,
+    /// Output beats that differ from golden, beats missing, a hang, or
+    /// `done`/`idle` wrong (each counted).
+    pub mismatches: u64,
+    /// The first failure, decoded: stream, beat, cycle and fields.
+    pub first_mismatch: Option<String>,
+    /// Seconds building (or loading) the top; 0 when it was reused.
+    pub build_seconds: f64,
+    pub seconds: f64,
+}
+
+/// A merger built for a configuration, kept for later merges.
+struct Built {
+    config: MergerConfig,
+    sim: MergerSim,
+    /// The Verilog the simulator opens for each merge.
+    _dir: tempfile::TempDir,
+}
+
+/// The merger tops a run built, one per configuration.
+#[derive(Default)]
+pub struct MergerRtl {
+    pub engine: RunEngine,
+    built: Vec<Built>,
+    /// The test hook: bit 0 of each merge's expected `header` beat flipped.
+    pub(crate) flip_expected: bool,
+    /// The Verilog patch hook ([`PATCH_FROM_VAR`], [`PATCH_TO_VAR`]).
+    patch: Option<VerilogPatch>,
+}
+
+/// The sizes a merge needs, or why no merger can be built for it.
+fn needed_sizes(p: &Params, hs: &[&Hierarchy], tx: &MergerTransaction) -> Result<Sizes, String> {
+    let roots = hs.iter().map(|h| h.root_count as usize).max().unwrap_or(1);
+    // The walk pushes the inner nodes of every LOD above its deepest
+    // command's; per-node passes go one LOD deeper each.
+    let passes = match &tx.module {
+        ModulePass::PerNode(pn) => pn.passes as usize,
+        ModulePass::Level(_) => 0,
+    };
+    let deepest = tx.cmds.iter().map(|c| c.lod as usize).max().unwrap_or(0) + passes;
+    let frontier = hs
+        .iter()
+        .map(|h| most_inner_per_lod(h, deepest))
+        .max()
+        .unwrap_or(0);
+    let b = tx.builder();
+    let top = (b.done.top as usize).min(b.levels.len());
+    let level = b.levels[top..]
+        .iter()
+        .map(|l| l.len().saturating_sub(1))
+        .max()
+        .unwrap_or(0);
+    let crefs = tx
+        .writer
+        .crefs
+        .iter()
+        .filter(|c| matches!(c, CrefBeat::Ref(_)))
+        .count();
+    let leaves = match tx.chosen {
+        Some(_) => &tx.leaves,
+        // Per-node mode: each LOD's FIFO holds its leaves and the module's
+        // nodes of that LOD (golden's `leaf_overflow` of the base).
+        None => &tx.base,
+    };
+    let mut per_lod = std::collections::BTreeMap::<u8, usize>::new();
+    for n in leaves {
+        *per_lod.entry(n.record.voxel.lod).or_default() += 1;
+    }
+    let leaf = per_lod.values().copied().max().unwrap_or(0);
+    let most_c = p.index_bits as u32 - 1;
+    let capacity = level.max(crefs);
+    let capacity_bits = bits_for(capacity);
+    if capacity_bits > most_c {
+        return Err(format!(
+            "the merged hierarchy has a level of {level} nodes and {crefs} created references: \
+             more than the record writer's largest buffer (2^{most_c}, below 2^I)"
+        ));
+    }
+    if frontier > MOST_FRONTIER {
+        return Err(format!(
+            "an input has {frontier} inner nodes at one LOD: more than the largest frontier FIFO \
+             ({MOST_FRONTIER})"
+        ));
+    }
+    let leaf_bits = bits_for(leaf);
+    if leaf_bits > MOST_LEAF_BITS {
+        return Err(format!(
+            "{leaf} leaves at one LOD: more than the largest leaf FIFO (2^{MOST_LEAF_BITS})"
+        ));
+    }
+    Ok(Sizes {
+        roots,
+        frontier,
+        capacity_bits,
+        leaf_bits,
+    })
+}
+
+/// What one merge needs of the merger's sizes.
+#[derive(Clone, Copy, Debug)]
+struct Sizes {
+    roots: usize,
+    frontier: usize,
+    capacity_bits: u32,
+    leaf_bits: u32,
+}
+
+impl Sizes {
+    /// Whether the merger `c` holds these.
+    fn held_by(&self, c: &MergerConfig) -> bool {
+        c.design.roots >= self.roots
+            && c.sizes.fetch.frontier >= self.frontier
+            && c.sizes.capacity_bits >= self.capacity_bits
+            && c.sizes.leaf_bits >= self.leaf_bits
+    }
+
+    /// The merger of `design` with its default sizes, each grown to the
+    /// power of two that holds what is needed.
+    fn config(&self, design: MergeDesign) -> MergerConfig {
+        let mut c = MergerConfig::new(MergeDesign {
+            roots: design.roots.max(self.roots.next_power_of_two()),
+            ..design
+        });
+        let s = &mut c.sizes;
+        s.fetch.roots = c.design.roots;
+        s.fetch.frontier = s.fetch.frontier.max(self.frontier.next_power_of_two());
+        s.capacity_bits = s.capacity_bits.max(self.capacity_bits);
+        s.leaf_bits = s.leaf_bits.max(self.leaf_bits);
+        c
+    }
+}
+
+/// Bits of an index that counts up to `n` entries (`2^b >= n`, at least 1).
+fn bits_for(n: usize) -> u32 {
+    (n.max(2) - 1).ilog2() + 1
+}
+
+/// The most inner nodes `h` has at one LOD down to `deepest`: what one
+/// level of its walk pushes on the frontier at most.
+fn most_inner_per_lod(h: &Hierarchy, deepest: usize) -> usize {
+    let mut per_lod = std::collections::BTreeMap::<u8, usize>::new();
+    for n in h
+        .nodes
+        .iter()
+        .filter(|n| !n.leaf && n.voxel.lod as usize <= deepest)
+    {
+        *per_lod.entry(n.voxel.lod).or_default() += 1;
+    }
+    per_lod.values().copied().max().unwrap_or(0)
+}
+
+/// Sizes with room for any merge of `hs` (for the first golden pass, whose
+/// streams say what the merge needs).
+fn roomy(p: &Params, hs: &[&Hierarchy]) -> MergerSizes {
+    MergerSizes {
+        fetch: FetchSizes {
+            roots: hs.iter().map(|h| h.root_count as usize).max().unwrap_or(1),
+            frontier: MOST_FRONTIER,
+        },
+        capacity_bits: p.index_bits as u32 - 1,
+        leaf_bits: MOST_LEAF_BITS,
+    }
+}
+
+/// The merge of `ids` into `out` through the merger of `c`, from the
+/// world's store and table, checked against the merged hierarchy the
+/// frame stored: `Ok(Err(why))` when the chain refuses the merge (a
+/// fetcher's walk beyond `c`'s sizes), an error when golden disagrees with
+/// itself.
+fn golden_merge(
+    world: &World,
+    ids: &[u8],
+    out: u8,
+    c: &MergerConfig,
+) -> Result<Result<MergerTransaction, String>, String> {
+    let tx = match merger_transaction(
+        &world.store,
+        &world.table,
+        ids,
+        c.design.mode,
+        out,
+        c.design.inputs,
+        c.sizes,
+    ) {
+        Ok(tx) => tx,
+        Err(e) => return Ok(Err(format!("golden's merger chain refuses the merge: {e}"))),
+    };
+    let merged = world
+        .store
+        .get(out)
+        .ok_or(format!("hierarchy merger RTL: no merged hierarchy {out}"))?;
+    let w = &tx.writer;
+    let fine = w.header.err == writer_err::NONE
+        && !tx.header.leaf_overflow
+        && w.nodes == merged.nodes
+        && w.refs == merged.refs
+        && w.header.roots == merged.root_count as u64
+        && w.header.top == merged.top_lod;
+    if !fine {
+        return Err(format!(
+            "hierarchy merger RTL: golden's merger chain (writer err {}, leaf overflow {}, {} \
+             records, {} references) differs from the frame's merged hierarchy {out} ({} records, \
+             {} references)",
+            w.header.err,
+            tx.header.leaf_overflow,
+            w.nodes.len(),
+            w.refs.len(),
+            merged.nodes.len(),
+            merged.refs.len()
+        ));
+    }
+    Ok(Ok(tx))
+}
+
+impl MergerRtl {
+    /// No merger built yet; each will be built for `engine` (and broken
+    /// by the Verilog patch hook when both its variables are set).
+    pub fn new(engine: RunEngine) -> MergerRtl {
+        let var = |name| std::env::var(name).ok();
+        let patch = match (var(PATCH_FROM_VAR), var(PATCH_TO_VAR)) {
+            (Some(from), Some(to)) => Some(VerilogPatch { from, to }),
+            _ => None,
+        };
+        MergerRtl {
+            engine,
+            patch,
+            ..MergerRtl::default()
+        }
+    }
+
+    /// The merger on the merge of `ids` (rank order) into `out` in `mode`:
+    /// `Ok(Err(why))` when no merger can be built for it.
+    pub fn run_group(
+        &mut self,
+        world: &World,
+        ids: &[u8],
+        out: u8,
+        mode: MergeMode,
+    ) -> Result<Result<MergerRtlFrame, String>, String> {
+        let start = std::time::Instant::now();
+        let p = world.params;
+        let hs: Vec<&Hierarchy> = ids
+            .iter()
+            .map(|&i| {
+                world
+                    .store
+                    .get(i)
+                    .ok_or(format!("hierarchy merger RTL: no hierarchy {i}"))
+            })
+            .collect::<Result<_, _>>()?;
+        let design = MergeDesign {
+            params: p,
+            inputs: ids.len().max(2),
+            mode,
+            ..MergeDesign::default()
+        };
+        let wide = MergerConfig {
+            design,
+            sizes: roomy(&p, &hs),
+        };
+        // At the largest sizes: a refusal means no merger can be built.
+        let probe = match golden_merge(world, ids, out, &wide)? {
+            Ok(tx) => tx,
+            Err(why) => return Ok(Err(why)),
+        };
+        let need = match needed_sizes(&p, &hs, &probe) {
+            Ok(s) => s,
+            Err(why) => return Ok(Err(why)),
+        };
+        let mut report = MergerRtlFrame::default();
+        let at = match self.built.iter().position(|b| {
+            let d = &b.config.design;
+            (d.params, d.inputs, d.mode) == (p, design.inputs, mode) && need.held_by(&b.config)
+        }) {
+            Some(at) => at,
+            None => {
+                let t = std::time::Instant::now();
+                let config = need.config(design);
+                config
+                    .validate()
+                    .map_err(|e| format!("hierarchy merger RTL: {e}"))?;
+                let dir = tempfile::tempdir().map_err(|e| format!("temporary folder: {e}"))?;
+                let patch = self.patch.as_ref();
+                let sim = MergerSim::new(&config, self.engine.merger(), dir.path(), patch)
+                    .map_err(|e| format!("hierarchy merger RTL ({}): {e}", self.engine.label()))?;
+                self.built.push(Built {
+                    config,
+                    sim,
+                    _dir: dir,
+                });
+                report.build_seconds = t.elapsed().as_secs_f64();
+                self.built.len() - 1
+            }
+        };
+        let b = &self.built[at];
+        let tx = match b.config == wide {
+            true => probe,
+            // Sized from the probe: a refusal now is a sizing bug.
+            false => golden_merge(world, ids, out, &b.config)?.map_err(|e| {
+                let top = hierarchy_merger_name(&b.config);
+                format!("hierarchy merger RTL ({top}, sized for the merge): {e}")
+            })?,
+        };
+        let bench = ModuleRunConfig::default();
+        let flip = self.flip_expected.then_some(0);
+        let (t, _) = b
+            .sim
+            .run(std::slice::from_ref(&tx), &bench, flip)
+            .map_err(|e| format!("hierarchy merger RTL: {e}"))?;
+        let got = |name: &str| {
+            t.received
+                .iter()
+                .filter(|r| r.0 == name)
+                .map(|r| r.1)
+                .sum::<u64>()
+        };
+        let store_reads = t
+            .received
+            .iter()
+            .filter(|r| r.0.ends_with("_req"))
+            .map(|r| r.1)
+            .sum::<u64>();
+        let records = got("nodes");
+        let per_node = |x: u64| x as f64 / records.max(1) as f64;
+        let mismatches = t.mismatches
+            + t.missing.iter().map(|m| m.1 as u64).sum::<u64>()
+            + t.hang.is_some() as u64
+            + t.status_failure().is_some() as u64;
+        report.first_mismatch = failure(&t);
+        Ok(Ok(MergerRtlFrame {
+            top: hierarchy_merger_name(&b.config),
+            k: b.config.design.inputs,
+            n: ids.len(),
+            cycles: t.cycles,
+            records,
+            refs: got("refs"),
+            golden_records: tx.writer.nodes.len() as u64,
+            golden_refs: tx.writer.refs.len() as u64,
+            store_reads,
+            cycles_per_node: per_node(t.cycles),
+            store_reads_per_node: per_node(store_reads),
+            records_per_cycle: records as f64 / t.cycles.max(1) as f64,
+            mismatches,
+            seconds: start.elapsed().as_secs_f64(),
+            ..report
+        }))
+    }
+}
+
+/// The first failure of a merger run, decoded: the mismatching beat's
+/// stream, index, cycle and differing fields; else a hang, missing beats
+/// or the status outputs.
+fn failure(t: &cosim::units::merger::ChunkTotals) -> Option<String> {
+    if let Some(m) = &t.first_mismatch {
+        let fields: Vec<String> = m
+            .fields
+            .iter()
+            .filter(|f| f.1 != f.2)
+            .map(|(name, e, g)| format!("{name}: expected {e}, got {g}"))
+            .collect();
+        return Some(format!(
+            "`{}` beat {} at cycle {}: {}",
+            m.stream,
+            m.beat,
+            m.cycle,
+            fields.join(", ")
+        ));
+    }
+    if let Some(h) = &t.hang {
+        return Some(format!("hung: {h}"));
+    }
+    if let Some((s, n)) = t.missing.iter().find(|m| m.1 > 0) {
+        return Some(format!("{n} `{s}` beats never came"));
+    }
+    t.status_failure()
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::run::{run, Options, Run, RunEngine};
+    use golden::scene::Scene;
+
+    /// The default scene (two merge groups: the terrain and walls, static,
+    /// merged once; the ball, ring and satellite, merged again in frames 1
+    /// and 2; nothing moves in frame 3) with coarse shapes, a few pixels
+    /// and primary rays only: the IR engine takes about a millisecond a
+    /// cycle of the merger top, and the test needs the merges, not the
+    /// picture.
+    fn scene() -> Scene {
+        let mut text = include_str!("../../scenes/default.json").to_string();
+        for (fine, coarse) in [
+            (r#""cells": 128"#, r#""cells": 6"#),
+            (
+                r#""stacks": 24, "slices": 48"#,
+                r#""stacks": 4, "slices": 6"#,
+            ),
+            (r#""rings": 48, "sides": 24"#, r#""rings": 6, "sides": 4"#),
+        ] {
+            assert!(text.contains(fine), "default.json has {fine}");
+            text = text.replace(fine, coarse);
+        }
+        let mut s = Scene::parse(&text, "scenes/default.json", std::path::Path::new("."))
+            .unwrap_or_else(|e| panic!("{e}"));
+        (s.width, s.height) = (16, 12);
+        (s.effects.shadow, s.effects.reflection_depth) = (false, 0);
+        s
+    }
+
+    fn options(dir: &std::path::Path) -> Options {
+        Options {
+            rtl: true,
+            engine: RunEngine::Ir,
+            ..Options::golden_only(dir)
+        }
+    }
+
+    /// Every merge redone goes through the merger top, whose written
+    /// records and references are the frame's merged hierarchy (0
+    /// mismatches, counts equal golden's); the report's figures are
+    /// consistent; a frame where nothing moved simulates no merger, and a
+    /// scene with nothing to merge builds none.
+    #[test]
+    fn merger_top_writes_the_frames_merged_hierarchies() {
+        let dir = tempfile::tempdir().unwrap();
+        let s = scene();
+        let r = run(&s, &options(dir.path())).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(r.mismatches, 0);
+        assert!(r.rtl.merger.starts_with("built (IR): hierarchy_merger_"));
+        let mut merges = 0;
+        for f in &r.frames {
+            let mut sum = (0, 0, 0);
+            for g in &f.groups {
+                let Some(m) = &g.merger_rtl else {
+                    assert!(!g.merged, "frame {}: a merge redone not simulated", f.frame);
+                    continue;
+                };
+                assert_eq!(m.mismatches, 0, "frame {}: {:?}", f.frame, m.first_mismatch);
+                assert!(
+                    m.cycles > 0 && m.store_reads > 0,
+                    "frame {}: {m:?}",
+                    f.frame
+                );
+                assert_eq!(
+                    (m.records, m.golden_records),
+                    (g.merged_nodes, g.merged_nodes)
+                );
+                assert!(
+                    m.refs > 0 && m.refs == m.golden_refs,
+                    "frame {}: {m:?}",
+                    f.frame
+                );
+                sum = (sum.0 + m.cycles, sum.1 + m.records, sum.2 + m.store_reads);
+                merges += 1;
+            }
+            let Some(t) = f.merger else {
+                assert_eq!(sum, (0, 0, 0));
+                continue;
+            };
+            assert_eq!((t.cycles, t.records, t.store_reads), sum);
+            assert_eq!(t.cycles_per_node, sum.0 as f64 / sum.1 as f64);
+            assert_eq!(t.store_reads_per_node, sum.2 as f64 / sum.1 as f64);
+        }
+        // Both groups in frame 0, the dynamic one in frames 1 and 2.
+        assert_eq!(merges, 4);
+        let still = r.frames.last().unwrap();
+        assert!(still.merger.is_none());
+        let said = |l: &String| l.contains("hierarchy merger RTL of group 1");
+        assert!(still.skipped.iter().any(said), "{:?}", still.skipped);
+
+        let mut alone = scene();
+        alone.frames = 1;
+        alone.groups = (0..alone.objects.len() as u8).map(|i| vec![i]).collect();
+        let r = run(&alone, &options(dir.path())).unwrap_or_else(|e| panic!("{e}"));
+        assert!(
+            r.rtl.merger.starts_with("not used by the scene"),
+            "{}",
+            r.rtl.merger
+        );
+        assert!(r.frames.iter().all(|f| f.merger.is_none()));
+    }
+
+    /// A merger is the default unless a merge needs more, then each size
+    /// grows to the power of two that holds it; a built one serves every
+    /// merge its sizes hold.
+    #[test]
+    fn merger_sizes_grow_from_the_default_only_as_needed() {
+        assert_eq!(
+            [1, 2, 3, 4, 5, 1024, 1025].map(super::bits_for),
+            [1, 1, 2, 2, 3, 10, 11]
+        );
+        let design = golden::vectors::merge::MergeDesign::default();
+        let default = rtl_gen::merge::MergerConfig::new(design);
+        let small = super::Sizes {
+            roots: 3,
+            frontier: 100,
+            capacity_bits: 4,
+            leaf_bits: 2,
+        };
+        assert_eq!(small.config(design), default);
+        assert!(small.held_by(&default));
+        let big = super::Sizes {
+            roots: 17,
+            frontier: 300,
+            capacity_bits: 12,
+            leaf_bits: 5,
+        };
+        assert!(!big.held_by(&default));
+        let c = big.config(design);
+        assert_eq!((c.design.roots, c.sizes.fetch.roots), (32, 32));
+        assert_eq!(c.sizes.fetch.frontier, 512);
+        assert_eq!((c.sizes.capacity_bits, c.sizes.leaf_bits), (12, 5));
+        assert!(big.held_by(&c) && small.held_by(&c));
+        c.validate().unwrap();
+    }
+
+    /// A flipped bit of the expected `header` beat is a mismatch of the
+    /// frame, decoded by field, with its cycle.
+    #[test]
+    fn merger_mismatch_is_counted_and_decoded() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut s = scene();
+        s.frames = 1;
+        let o = options(dir.path());
+        let mut r = Run::new(&s, &o).unwrap();
+        r.merges.merger.flip_expected = true;
+        let f = r.frame(0).unwrap_or_else(|e| panic!("{e}"));
+        let m = f.groups[0].merger_rtl.as_ref().unwrap();
+        assert_eq!(m.mismatches, 1);
+        assert!(f.mismatches >= 2, "one per group");
+        let first = m.first_mismatch.as_deref().unwrap();
+        assert!(first.starts_with("`header` beat 0 at cycle "), "{first}");
+        assert!(first.contains("out_id: expected"), "{first}");
+    }
+}

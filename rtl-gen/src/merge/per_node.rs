@@ -22,7 +22,7 @@ use golden::merge::unit::{base_kind, level_kind, rank_bits, BeatLayout};
 use golden::params::Params;
 
 use super::fields::{coords, field, with_fields};
-use super::network::{morton_code, take_minimum_head, winner_rank, MergeHead};
+use super::network::{morton_code, take_minimum_head, winner_rank, KeyOrder, MergeHead};
 use super::overlap::times_constant;
 use super::top::merge_module_name;
 use super::{merge_level_unit, MergeConfig};
@@ -88,7 +88,14 @@ pub fn per_node_network_unit(p: &Params, k: usize) -> Module {
         heads.push(head);
     }
     let all_valid = all_valid.name("all_heads");
-    let (wins, beat) = take_minimum_head(&m, &heads, all_valid, all_end, out_ready);
+    let (wins, beat) = take_minimum_head(
+        &m,
+        &heads,
+        all_valid,
+        all_end,
+        out_ready,
+        KeyOrder::Registered,
+    );
     Stream {
         valid: all_valid,
         ready: out_ready,

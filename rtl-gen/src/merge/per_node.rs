@@ -47,8 +47,8 @@ pub fn per_node_decider_name(p: &Params, k: usize, num: u32, den: u32) -> String
 /// lies in its parent's voxel), a child reference's the last node taken
 /// from its stream; so a voxel's probes (rank by rank), inner nodes, leaves
 /// and references leave in that order. Like [`super::morton_merge_unit`], a
-/// beat leaves only when every head is present, one per clock, and the key
-/// is made as a beat enters its head.
+/// beat leaves only when every head is present, one per clock, its key made
+/// as it enters its head; each pair's order is a register (hardware.md 14.7).
 pub fn per_node_network_unit(p: &Params, k: usize) -> Module {
     let m = Module::new(&per_node_network_name(p, k));
     let pl = PerNodeLayout::new(p);

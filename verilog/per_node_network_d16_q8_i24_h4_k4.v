@@ -5,31 +5,31 @@
 module per_node_network_d16_q8_i24_h4_k4 (
     input  wire clk,              // clock (implicit)
     input  wire rst,              // synchronous reset, active high (implicit)
-    input  wire in0_valid,        // rtl-gen/src/merge/network.rs:71
-    input  wire [180:0] in0_data, // rtl-gen/src/merge/network.rs:71
-    output wire in0_ready,        // rtl-gen/src/merge/network.rs:71
-    input  wire in1_valid,        // rtl-gen/src/merge/network.rs:71
-    input  wire [180:0] in1_data, // rtl-gen/src/merge/network.rs:71
-    output wire in1_ready,        // rtl-gen/src/merge/network.rs:71
-    input  wire in2_valid,        // rtl-gen/src/merge/network.rs:71
-    input  wire [180:0] in2_data, // rtl-gen/src/merge/network.rs:71
-    output wire in2_ready,        // rtl-gen/src/merge/network.rs:71
-    input  wire in3_valid,        // rtl-gen/src/merge/network.rs:71
-    input  wire [180:0] in3_data, // rtl-gen/src/merge/network.rs:71
-    output wire in3_ready,        // rtl-gen/src/merge/network.rs:71
-    output wire out_valid,        // rtl-gen/src/merge/per_node.rs:98
-    output wire [182:0] out_data, // rtl-gen/src/merge/per_node.rs:98
-    input  wire out_ready         // rtl-gen/src/merge/per_node.rs:98
+    input  wire in0_valid,        // rtl-gen/src/merge/network.rs:75
+    input  wire [180:0] in0_data, // rtl-gen/src/merge/network.rs:75
+    output wire in0_ready,        // rtl-gen/src/merge/network.rs:75
+    input  wire in1_valid,        // rtl-gen/src/merge/network.rs:75
+    input  wire [180:0] in1_data, // rtl-gen/src/merge/network.rs:75
+    output wire in1_ready,        // rtl-gen/src/merge/network.rs:75
+    input  wire in2_valid,        // rtl-gen/src/merge/network.rs:75
+    input  wire [180:0] in2_data, // rtl-gen/src/merge/network.rs:75
+    output wire in2_ready,        // rtl-gen/src/merge/network.rs:75
+    input  wire in3_valid,        // rtl-gen/src/merge/network.rs:75
+    input  wire [180:0] in3_data, // rtl-gen/src/merge/network.rs:75
+    output wire in3_ready,        // rtl-gen/src/merge/network.rs:75
+    output wire out_valid,        // rtl-gen/src/merge/per_node.rs:105
+    output wire [182:0] out_data, // rtl-gen/src/merge/per_node.rs:105
+    input  wire out_ready         // rtl-gen/src/merge/per_node.rs:105
 );
     wire net_out_ready;                      // rtl-gen/src/merge/per_node.rs:57
     wire [15:0] in0_data_rec_x;              // rtl-gen/src/merge/fields.rs:24
     wire [15:0] in0_data_rec_y;              // rtl-gen/src/merge/fields.rs:24
     wire [15:0] in0_data_rec_z;              // rtl-gen/src/merge/fields.rs:24
-    reg [15:0] in0_parent_x;                 // rtl-gen/src/merge/network.rs:74
-    reg [15:0] in0_parent_y;                 // rtl-gen/src/merge/network.rs:74
-    reg [15:0] in0_parent_z;                 // rtl-gen/src/merge/network.rs:74
+    reg [15:0] in0_parent_x;                 // rtl-gen/src/merge/network.rs:78
+    reg [15:0] in0_parent_y;                 // rtl-gen/src/merge/network.rs:78
+    reg [15:0] in0_parent_z;                 // rtl-gen/src/merge/network.rs:78
     wire in0_probe;                          // rtl-gen/src/merge/per_node.rs:67
-    wire [1:0] in0_kind;                     // rtl-gen/src/merge/per_node.rs:104
+    wire [1:0] in0_kind;                     // rtl-gen/src/merge/per_node.rs:111
     wire in0_probe_not;                      // rtl-gen/src/merge/per_node.rs:71
     wire in0_probe_and;                      // rtl-gen/src/merge/per_node.rs:72
     wire [15:0] in0_probe_mux;               // rtl-gen/src/merge/per_node.rs:75
@@ -38,25 +38,26 @@ module per_node_network_d16_q8_i24_h4_k4 (
     wire [47:0] in0_probe_morton;            // rtl-gen/src/merge/network.rs:39
     wire [50:0] in0_key;                     // rtl-gen/src/merge/per_node.rs:77
     wire in0_data_probe;                     // rtl-gen/src/merge/per_node.rs:79
-    wire in0_valid_and;                      // rtl-gen/src/merge/network.rs:80
-    wire [231:0] in0_key_cat;                // rtl-gen/src/merge/network.rs:83
-    reg in0_head_valid;                      // rtl-gen/src/merge/network.rs:84
-    reg [231:0] in0_head_data;               // rtl-gen/src/merge/network.rs:84
-    reg in0_head_spare_valid;                // rtl-gen/src/merge/network.rs:84
-    reg [231:0] in0_head_spare_data;         // rtl-gen/src/merge/network.rs:84
-    wire in0_head_ready;                     // rtl-gen/src/merge/network.rs:84
-    wire in0_head_room;                      // rtl-gen/src/merge/network.rs:84
-    wire in0_head_drain;                     // rtl-gen/src/merge/network.rs:84
-    wire in0_head_take;                      // rtl-gen/src/merge/network.rs:84
+    wire in0_valid_and;                      // rtl-gen/src/merge/network.rs:84
+    wire [231:0] in0_key_cat;                // rtl-gen/src/merge/network.rs:87
+    reg in0_head_valid;                      // rtl-gen/src/merge/network.rs:88
+    reg [231:0] in0_head_data;               // rtl-gen/src/merge/network.rs:88
+    reg in0_head_spare_valid;                // rtl-gen/src/merge/network.rs:88
+    reg [231:0] in0_head_spare_data;         // rtl-gen/src/merge/network.rs:88
+    wire in0_head_ready;                     // rtl-gen/src/merge/network.rs:88
+    wire in0_head_room;                      // rtl-gen/src/merge/network.rs:88
+    wire in0_head_drain;                     // rtl-gen/src/merge/network.rs:88
+    wire in0_head_take;                      // rtl-gen/src/merge/network.rs:88
+    wire [231:0] in0_head_spare_valid_mux;   // rtl-gen/src/merge/network.rs:88
     wire in0_is_end;                         // rtl-gen/src/merge/per_node.rs:84
     wire [15:0] in1_data_rec_x;              // rtl-gen/src/merge/fields.rs:24
     wire [15:0] in1_data_rec_y;              // rtl-gen/src/merge/fields.rs:24
     wire [15:0] in1_data_rec_z;              // rtl-gen/src/merge/fields.rs:24
-    reg [15:0] in1_parent_x;                 // rtl-gen/src/merge/network.rs:74
-    reg [15:0] in1_parent_y;                 // rtl-gen/src/merge/network.rs:74
-    reg [15:0] in1_parent_z;                 // rtl-gen/src/merge/network.rs:74
+    reg [15:0] in1_parent_x;                 // rtl-gen/src/merge/network.rs:78
+    reg [15:0] in1_parent_y;                 // rtl-gen/src/merge/network.rs:78
+    reg [15:0] in1_parent_z;                 // rtl-gen/src/merge/network.rs:78
     wire in1_probe;                          // rtl-gen/src/merge/per_node.rs:67
-    wire [1:0] in1_kind;                     // rtl-gen/src/merge/per_node.rs:104
+    wire [1:0] in1_kind;                     // rtl-gen/src/merge/per_node.rs:111
     wire in1_probe_not;                      // rtl-gen/src/merge/per_node.rs:71
     wire in1_probe_and;                      // rtl-gen/src/merge/per_node.rs:72
     wire [15:0] in1_probe_mux;               // rtl-gen/src/merge/per_node.rs:75
@@ -65,25 +66,26 @@ module per_node_network_d16_q8_i24_h4_k4 (
     wire [47:0] in1_probe_morton;            // rtl-gen/src/merge/network.rs:39
     wire [50:0] in1_key;                     // rtl-gen/src/merge/per_node.rs:77
     wire in1_data_probe;                     // rtl-gen/src/merge/per_node.rs:79
-    wire in1_valid_and;                      // rtl-gen/src/merge/network.rs:80
-    wire [231:0] in1_key_cat;                // rtl-gen/src/merge/network.rs:83
-    reg in1_head_valid;                      // rtl-gen/src/merge/network.rs:84
-    reg [231:0] in1_head_data;               // rtl-gen/src/merge/network.rs:84
-    reg in1_head_spare_valid;                // rtl-gen/src/merge/network.rs:84
-    reg [231:0] in1_head_spare_data;         // rtl-gen/src/merge/network.rs:84
-    wire in1_head_ready;                     // rtl-gen/src/merge/network.rs:84
-    wire in1_head_room;                      // rtl-gen/src/merge/network.rs:84
-    wire in1_head_drain;                     // rtl-gen/src/merge/network.rs:84
-    wire in1_head_take;                      // rtl-gen/src/merge/network.rs:84
+    wire in1_valid_and;                      // rtl-gen/src/merge/network.rs:84
+    wire [231:0] in1_key_cat;                // rtl-gen/src/merge/network.rs:87
+    reg in1_head_valid;                      // rtl-gen/src/merge/network.rs:88
+    reg [231:0] in1_head_data;               // rtl-gen/src/merge/network.rs:88
+    reg in1_head_spare_valid;                // rtl-gen/src/merge/network.rs:88
+    reg [231:0] in1_head_spare_data;         // rtl-gen/src/merge/network.rs:88
+    wire in1_head_ready;                     // rtl-gen/src/merge/network.rs:88
+    wire in1_head_room;                      // rtl-gen/src/merge/network.rs:88
+    wire in1_head_drain;                     // rtl-gen/src/merge/network.rs:88
+    wire in1_head_take;                      // rtl-gen/src/merge/network.rs:88
+    wire [231:0] in1_head_spare_valid_mux;   // rtl-gen/src/merge/network.rs:88
     wire in1_is_end;                         // rtl-gen/src/merge/per_node.rs:84
     wire [15:0] in2_data_rec_x;              // rtl-gen/src/merge/fields.rs:24
     wire [15:0] in2_data_rec_y;              // rtl-gen/src/merge/fields.rs:24
     wire [15:0] in2_data_rec_z;              // rtl-gen/src/merge/fields.rs:24
-    reg [15:0] in2_parent_x;                 // rtl-gen/src/merge/network.rs:74
-    reg [15:0] in2_parent_y;                 // rtl-gen/src/merge/network.rs:74
-    reg [15:0] in2_parent_z;                 // rtl-gen/src/merge/network.rs:74
+    reg [15:0] in2_parent_x;                 // rtl-gen/src/merge/network.rs:78
+    reg [15:0] in2_parent_y;                 // rtl-gen/src/merge/network.rs:78
+    reg [15:0] in2_parent_z;                 // rtl-gen/src/merge/network.rs:78
     wire in2_probe;                          // rtl-gen/src/merge/per_node.rs:67
-    wire [1:0] in2_kind;                     // rtl-gen/src/merge/per_node.rs:104
+    wire [1:0] in2_kind;                     // rtl-gen/src/merge/per_node.rs:111
     wire in2_probe_not;                      // rtl-gen/src/merge/per_node.rs:71
     wire in2_probe_and;                      // rtl-gen/src/merge/per_node.rs:72
     wire [15:0] in2_probe_mux;               // rtl-gen/src/merge/per_node.rs:75
@@ -92,25 +94,26 @@ module per_node_network_d16_q8_i24_h4_k4 (
     wire [47:0] in2_probe_morton;            // rtl-gen/src/merge/network.rs:39
     wire [50:0] in2_key;                     // rtl-gen/src/merge/per_node.rs:77
     wire in2_data_probe;                     // rtl-gen/src/merge/per_node.rs:79
-    wire in2_valid_and;                      // rtl-gen/src/merge/network.rs:80
-    wire [231:0] in2_key_cat;                // rtl-gen/src/merge/network.rs:83
-    reg in2_head_valid;                      // rtl-gen/src/merge/network.rs:84
-    reg [231:0] in2_head_data;               // rtl-gen/src/merge/network.rs:84
-    reg in2_head_spare_valid;                // rtl-gen/src/merge/network.rs:84
-    reg [231:0] in2_head_spare_data;         // rtl-gen/src/merge/network.rs:84
-    wire in2_head_ready;                     // rtl-gen/src/merge/network.rs:84
-    wire in2_head_room;                      // rtl-gen/src/merge/network.rs:84
-    wire in2_head_drain;                     // rtl-gen/src/merge/network.rs:84
-    wire in2_head_take;                      // rtl-gen/src/merge/network.rs:84
+    wire in2_valid_and;                      // rtl-gen/src/merge/network.rs:84
+    wire [231:0] in2_key_cat;                // rtl-gen/src/merge/network.rs:87
+    reg in2_head_valid;                      // rtl-gen/src/merge/network.rs:88
+    reg [231:0] in2_head_data;               // rtl-gen/src/merge/network.rs:88
+    reg in2_head_spare_valid;                // rtl-gen/src/merge/network.rs:88
+    reg [231:0] in2_head_spare_data;         // rtl-gen/src/merge/network.rs:88
+    wire in2_head_ready;                     // rtl-gen/src/merge/network.rs:88
+    wire in2_head_room;                      // rtl-gen/src/merge/network.rs:88
+    wire in2_head_drain;                     // rtl-gen/src/merge/network.rs:88
+    wire in2_head_take;                      // rtl-gen/src/merge/network.rs:88
+    wire [231:0] in2_head_spare_valid_mux;   // rtl-gen/src/merge/network.rs:88
     wire in2_is_end;                         // rtl-gen/src/merge/per_node.rs:84
     wire [15:0] in3_data_rec_x;              // rtl-gen/src/merge/fields.rs:24
     wire [15:0] in3_data_rec_y;              // rtl-gen/src/merge/fields.rs:24
     wire [15:0] in3_data_rec_z;              // rtl-gen/src/merge/fields.rs:24
-    reg [15:0] in3_parent_x;                 // rtl-gen/src/merge/network.rs:74
-    reg [15:0] in3_parent_y;                 // rtl-gen/src/merge/network.rs:74
-    reg [15:0] in3_parent_z;                 // rtl-gen/src/merge/network.rs:74
+    reg [15:0] in3_parent_x;                 // rtl-gen/src/merge/network.rs:78
+    reg [15:0] in3_parent_y;                 // rtl-gen/src/merge/network.rs:78
+    reg [15:0] in3_parent_z;                 // rtl-gen/src/merge/network.rs:78
     wire in3_probe;                          // rtl-gen/src/merge/per_node.rs:67
-    wire [1:0] in3_kind;                     // rtl-gen/src/merge/per_node.rs:104
+    wire [1:0] in3_kind;                     // rtl-gen/src/merge/per_node.rs:111
     wire in3_probe_not;                      // rtl-gen/src/merge/per_node.rs:71
     wire in3_probe_and;                      // rtl-gen/src/merge/per_node.rs:72
     wire [15:0] in3_probe_mux;               // rtl-gen/src/merge/per_node.rs:75
@@ -119,42 +122,43 @@ module per_node_network_d16_q8_i24_h4_k4 (
     wire [47:0] in3_probe_morton;            // rtl-gen/src/merge/network.rs:39
     wire [50:0] in3_key;                     // rtl-gen/src/merge/per_node.rs:77
     wire in3_data_probe;                     // rtl-gen/src/merge/per_node.rs:79
-    wire in3_valid_and;                      // rtl-gen/src/merge/network.rs:80
-    wire [231:0] in3_key_cat;                // rtl-gen/src/merge/network.rs:83
-    reg in3_head_valid;                      // rtl-gen/src/merge/network.rs:84
-    reg [231:0] in3_head_data;               // rtl-gen/src/merge/network.rs:84
-    reg in3_head_spare_valid;                // rtl-gen/src/merge/network.rs:84
-    reg [231:0] in3_head_spare_data;         // rtl-gen/src/merge/network.rs:84
-    wire in3_head_ready;                     // rtl-gen/src/merge/network.rs:84
-    wire in3_head_room;                      // rtl-gen/src/merge/network.rs:84
-    wire in3_head_drain;                     // rtl-gen/src/merge/network.rs:84
-    wire in3_head_take;                      // rtl-gen/src/merge/network.rs:84
+    wire in3_valid_and;                      // rtl-gen/src/merge/network.rs:84
+    wire [231:0] in3_key_cat;                // rtl-gen/src/merge/network.rs:87
+    reg in3_head_valid;                      // rtl-gen/src/merge/network.rs:88
+    reg [231:0] in3_head_data;               // rtl-gen/src/merge/network.rs:88
+    reg in3_head_spare_valid;                // rtl-gen/src/merge/network.rs:88
+    reg [231:0] in3_head_spare_data;         // rtl-gen/src/merge/network.rs:88
+    wire in3_head_ready;                     // rtl-gen/src/merge/network.rs:88
+    wire in3_head_room;                      // rtl-gen/src/merge/network.rs:88
+    wire in3_head_drain;                     // rtl-gen/src/merge/network.rs:88
+    wire in3_head_take;                      // rtl-gen/src/merge/network.rs:88
+    wire [231:0] in3_head_spare_valid_mux;   // rtl-gen/src/merge/network.rs:88
     wire in3_is_end;                         // rtl-gen/src/merge/per_node.rs:84
     wire all_heads;                          // rtl-gen/src/merge/per_node.rs:86
     wire winner_is_end;                      // rtl-gen/src/merge/per_node.rs:87
-    wire below_1_0;                          // rtl-gen/src/merge/network.rs:122
-    wire below_2_0;                          // rtl-gen/src/merge/network.rs:122
-    wire below_3_0;                          // rtl-gen/src/merge/network.rs:122
-    wire wins_0;                             // rtl-gen/src/merge/network.rs:123
-    wire below_2_1;                          // rtl-gen/src/merge/network.rs:122
-    wire below_3_1;                          // rtl-gen/src/merge/network.rs:122
-    wire wins_1;                             // rtl-gen/src/merge/network.rs:123
-    wire below_3_2;                          // rtl-gen/src/merge/network.rs:122
-    wire wins_2;                             // rtl-gen/src/merge/network.rs:123
-    wire wins_3;                             // rtl-gen/src/merge/network.rs:124
-    wire [180:0] wins_0_or;                  // rtl-gen/src/merge/network.rs:138
-    wire [180:0] winner_beat;                // rtl-gen/src/merge/network.rs:138
-    wire net_fire;                           // rtl-gen/src/merge/network.rs:141
-    wire [1:0] winner_rank;                  // rtl-gen/src/merge/network.rs:158
-    wire [182:0] net_beat;                   // rtl-gen/src/merge/per_node.rs:95
-    reg out_skid_valid;                      // rtl-gen/src/merge/per_node.rs:97
-    reg [182:0] out_skid_data;               // rtl-gen/src/merge/per_node.rs:97
-    reg out_skid_spare_valid;                // rtl-gen/src/merge/per_node.rs:97
-    reg [182:0] out_skid_spare_data;         // rtl-gen/src/merge/per_node.rs:97
-    wire out_skid_ready;                     // rtl-gen/src/merge/per_node.rs:97
-    wire out_skid_room;                      // rtl-gen/src/merge/per_node.rs:97
-    wire out_skid_drain;                     // rtl-gen/src/merge/per_node.rs:97
-    wire out_skid_take;                      // rtl-gen/src/merge/per_node.rs:97
+    reg below_1_0;                           // rtl-gen/src/merge/network.rs:161
+    reg below_2_0;                           // rtl-gen/src/merge/network.rs:161
+    reg below_3_0;                           // rtl-gen/src/merge/network.rs:161
+    wire wins_0;                             // rtl-gen/src/merge/network.rs:176
+    reg below_2_1;                           // rtl-gen/src/merge/network.rs:161
+    reg below_3_1;                           // rtl-gen/src/merge/network.rs:161
+    wire wins_1;                             // rtl-gen/src/merge/network.rs:176
+    reg below_3_2;                           // rtl-gen/src/merge/network.rs:161
+    wire wins_2;                             // rtl-gen/src/merge/network.rs:176
+    wire wins_3;                             // rtl-gen/src/merge/network.rs:177
+    wire [180:0] wins_0_or;                  // rtl-gen/src/merge/network.rs:191
+    wire [180:0] winner_beat;                // rtl-gen/src/merge/network.rs:191
+    wire net_fire;                           // rtl-gen/src/merge/network.rs:194
+    wire [1:0] winner_rank;                  // rtl-gen/src/merge/network.rs:211
+    wire [182:0] net_beat;                   // rtl-gen/src/merge/per_node.rs:102
+    reg out_skid_valid;                      // rtl-gen/src/merge/per_node.rs:104
+    reg [182:0] out_skid_data;               // rtl-gen/src/merge/per_node.rs:104
+    reg out_skid_spare_valid;                // rtl-gen/src/merge/per_node.rs:104
+    reg [182:0] out_skid_spare_data;         // rtl-gen/src/merge/per_node.rs:104
+    wire out_skid_ready;                     // rtl-gen/src/merge/per_node.rs:104
+    wire out_skid_room;                      // rtl-gen/src/merge/per_node.rs:104
+    wire out_skid_drain;                     // rtl-gen/src/merge/per_node.rs:104
+    wire out_skid_take;                      // rtl-gen/src/merge/per_node.rs:104
 
     assign net_out_ready = out_skid_room;
     assign in0_ready = in0_head_room;
@@ -177,6 +181,7 @@ module per_node_network_d16_q8_i24_h4_k4 (
     assign in0_head_room = ~in0_head_spare_valid;
     assign in0_head_drain = in0_head_ready | (~in0_head_valid);
     assign in0_head_take = in0_valid & in0_head_room;
+    assign in0_head_spare_valid_mux = in0_head_spare_valid ? in0_head_spare_data : in0_key_cat;
     assign in0_is_end = in0_head_data[231];
     assign in1_ready = in1_head_room;
     assign in1_data_rec_x = in1_data[21:6];
@@ -198,6 +203,7 @@ module per_node_network_d16_q8_i24_h4_k4 (
     assign in1_head_room = ~in1_head_spare_valid;
     assign in1_head_drain = in1_head_ready | (~in1_head_valid);
     assign in1_head_take = in1_valid & in1_head_room;
+    assign in1_head_spare_valid_mux = in1_head_spare_valid ? in1_head_spare_data : in1_key_cat;
     assign in1_is_end = in1_head_data[231];
     assign in2_ready = in2_head_room;
     assign in2_data_rec_x = in2_data[21:6];
@@ -219,6 +225,7 @@ module per_node_network_d16_q8_i24_h4_k4 (
     assign in2_head_room = ~in2_head_spare_valid;
     assign in2_head_drain = in2_head_ready | (~in2_head_valid);
     assign in2_head_take = in2_valid & in2_head_room;
+    assign in2_head_spare_valid_mux = in2_head_spare_valid ? in2_head_spare_data : in2_key_cat;
     assign in2_is_end = in2_head_data[231];
     assign in3_ready = in3_head_room;
     assign in3_data_rec_x = in3_data[21:6];
@@ -240,17 +247,12 @@ module per_node_network_d16_q8_i24_h4_k4 (
     assign in3_head_room = ~in3_head_spare_valid;
     assign in3_head_drain = in3_head_ready | (~in3_head_valid);
     assign in3_head_take = in3_valid & in3_head_room;
+    assign in3_head_spare_valid_mux = in3_head_spare_valid ? in3_head_spare_data : in3_key_cat;
     assign in3_is_end = in3_head_data[231];
     assign all_heads = (((1'b1 & in0_head_valid) & in1_head_valid) & in2_head_valid) & in3_head_valid;
     assign winner_is_end = (((1'b1 & in0_is_end) & in1_is_end) & in2_is_end) & in3_is_end;
-    assign below_1_0 = in1_head_data[231:181] < in0_head_data[231:181];
-    assign below_2_0 = in2_head_data[231:181] < in0_head_data[231:181];
-    assign below_3_0 = in3_head_data[231:181] < in0_head_data[231:181];
     assign wins_0 = ((1'b1 & (~below_1_0)) & (~below_2_0)) & (~below_3_0);
-    assign below_2_1 = in2_head_data[231:181] < in1_head_data[231:181];
-    assign below_3_1 = in3_head_data[231:181] < in1_head_data[231:181];
     assign wins_1 = ((1'b1 & below_1_0) & (~below_2_1)) & (~below_3_1);
-    assign below_3_2 = in3_head_data[231:181] < in2_head_data[231:181];
     assign wins_2 = ((1'b1 & below_2_0) & below_2_1) & (~below_3_2);
     assign wins_3 = ((1'b1 & below_3_0) & below_3_1) & below_3_2;
     assign wins_0_or = ((181'h0000000000000000000000000000000000000000000000 | (wins_0 ? in0_head_data[180:0] : 181'h0000000000000000000000000000000000000000000000)) | (wins_1 ? in1_head_data[180:0] : 181'h0000000000000000000000000000000000000000000000)) | (wins_2 ? in2_head_data[180:0] : 181'h0000000000000000000000000000000000000000000000);
@@ -295,70 +297,101 @@ module per_node_network_d16_q8_i24_h4_k4 (
             in3_head_data <= 232'h0000000000000000000000000000000000000000000000000000000000;
             in3_head_spare_valid <= 1'b0;
             in3_head_spare_data <= 232'h0000000000000000000000000000000000000000000000000000000000;
+            below_1_0 <= 1'b0;
+            below_2_0 <= 1'b0;
+            below_3_0 <= 1'b0;
+            below_2_1 <= 1'b0;
+            below_3_1 <= 1'b0;
+            below_3_2 <= 1'b0;
             out_skid_valid <= 1'b0;
             out_skid_data <= 183'h0000000000000000000000000000000000000000000000;
             out_skid_spare_valid <= 1'b0;
             out_skid_spare_data <= 183'h0000000000000000000000000000000000000000000000;
         end else begin
             if (in0_valid_and) begin
-                in0_parent_x <= in0_data_rec_x; // rtl-gen/src/merge/network.rs:86
-                in0_parent_y <= in0_data_rec_y; // rtl-gen/src/merge/network.rs:86
-                in0_parent_z <= in0_data_rec_z; // rtl-gen/src/merge/network.rs:86
+                in0_parent_x <= in0_data_rec_x; // rtl-gen/src/merge/network.rs:90
+                in0_parent_y <= in0_data_rec_y; // rtl-gen/src/merge/network.rs:90
+                in0_parent_z <= in0_data_rec_z; // rtl-gen/src/merge/network.rs:90
             end
             if (in0_head_drain) begin
-                in0_head_valid <= in0_head_spare_valid | in0_valid; // rtl-gen/src/merge/network.rs:84
-                in0_head_data <= in0_head_spare_valid ? in0_head_spare_data : in0_key_cat; // rtl-gen/src/merge/network.rs:84
+                in0_head_valid <= in0_head_spare_valid | in0_valid; // rtl-gen/src/merge/network.rs:88
+                in0_head_data <= in0_head_spare_valid_mux; // rtl-gen/src/merge/network.rs:88
+                below_1_0 <= in1_head_drain ? (in1_head_spare_valid_mux[231:181] < in0_head_spare_valid_mux[231:181]) : (in1_head_data[231:181] < in0_head_spare_valid_mux[231:181]); // rtl-gen/src/merge/network.rs:162
+                below_2_0 <= in2_head_drain ? (in2_head_spare_valid_mux[231:181] < in0_head_spare_valid_mux[231:181]) : (in2_head_data[231:181] < in0_head_spare_valid_mux[231:181]); // rtl-gen/src/merge/network.rs:162
+                below_3_0 <= in3_head_drain ? (in3_head_spare_valid_mux[231:181] < in0_head_spare_valid_mux[231:181]) : (in3_head_data[231:181] < in0_head_spare_valid_mux[231:181]); // rtl-gen/src/merge/network.rs:162
+            end else begin
+                if (in1_head_drain) begin
+                    below_1_0 <= in1_head_spare_valid_mux[231:181] < in0_head_data[231:181]; // rtl-gen/src/merge/network.rs:164
+                end
+                if (in2_head_drain) begin
+                    below_2_0 <= in2_head_spare_valid_mux[231:181] < in0_head_data[231:181]; // rtl-gen/src/merge/network.rs:164
+                end
+                if (in3_head_drain) begin
+                    below_3_0 <= in3_head_spare_valid_mux[231:181] < in0_head_data[231:181]; // rtl-gen/src/merge/network.rs:164
+                end
             end
             in0_head_spare_valid <= in0_head_drain ? 1'b0 : (in0_head_spare_valid | in0_head_take);
             if ((~in0_head_drain) & in0_head_take) begin
-                in0_head_spare_data <= in0_key_cat; // rtl-gen/src/merge/network.rs:84
+                in0_head_spare_data <= in0_key_cat; // rtl-gen/src/merge/network.rs:88
             end
             if (in1_valid_and) begin
-                in1_parent_x <= in1_data_rec_x; // rtl-gen/src/merge/network.rs:86
-                in1_parent_y <= in1_data_rec_y; // rtl-gen/src/merge/network.rs:86
-                in1_parent_z <= in1_data_rec_z; // rtl-gen/src/merge/network.rs:86
+                in1_parent_x <= in1_data_rec_x; // rtl-gen/src/merge/network.rs:90
+                in1_parent_y <= in1_data_rec_y; // rtl-gen/src/merge/network.rs:90
+                in1_parent_z <= in1_data_rec_z; // rtl-gen/src/merge/network.rs:90
             end
             if (in1_head_drain) begin
-                in1_head_valid <= in1_head_spare_valid | in1_valid; // rtl-gen/src/merge/network.rs:84
-                in1_head_data <= in1_head_spare_valid ? in1_head_spare_data : in1_key_cat; // rtl-gen/src/merge/network.rs:84
+                in1_head_valid <= in1_head_spare_valid | in1_valid; // rtl-gen/src/merge/network.rs:88
+                in1_head_data <= in1_head_spare_valid_mux; // rtl-gen/src/merge/network.rs:88
+                below_2_1 <= in2_head_drain ? (in2_head_spare_valid_mux[231:181] < in1_head_spare_valid_mux[231:181]) : (in2_head_data[231:181] < in1_head_spare_valid_mux[231:181]); // rtl-gen/src/merge/network.rs:162
+                below_3_1 <= in3_head_drain ? (in3_head_spare_valid_mux[231:181] < in1_head_spare_valid_mux[231:181]) : (in3_head_data[231:181] < in1_head_spare_valid_mux[231:181]); // rtl-gen/src/merge/network.rs:162
+            end else begin
+                if (in2_head_drain) begin
+                    below_2_1 <= in2_head_spare_valid_mux[231:181] < in1_head_data[231:181]; // rtl-gen/src/merge/network.rs:164
+                end
+                if (in3_head_drain) begin
+                    below_3_1 <= in3_head_spare_valid_mux[231:181] < in1_head_data[231:181]; // rtl-gen/src/merge/network.rs:164
+                end
             end
             in1_head_spare_valid <= in1_head_drain ? 1'b0 : (in1_head_spare_valid | in1_head_take);
             if ((~in1_head_drain) & in1_head_take) begin
-                in1_head_spare_data <= in1_key_cat; // rtl-gen/src/merge/network.rs:84
+                in1_head_spare_data <= in1_key_cat; // rtl-gen/src/merge/network.rs:88
             end
             if (in2_valid_and) begin
-                in2_parent_x <= in2_data_rec_x; // rtl-gen/src/merge/network.rs:86
-                in2_parent_y <= in2_data_rec_y; // rtl-gen/src/merge/network.rs:86
-                in2_parent_z <= in2_data_rec_z; // rtl-gen/src/merge/network.rs:86
+                in2_parent_x <= in2_data_rec_x; // rtl-gen/src/merge/network.rs:90
+                in2_parent_y <= in2_data_rec_y; // rtl-gen/src/merge/network.rs:90
+                in2_parent_z <= in2_data_rec_z; // rtl-gen/src/merge/network.rs:90
             end
             if (in2_head_drain) begin
-                in2_head_valid <= in2_head_spare_valid | in2_valid; // rtl-gen/src/merge/network.rs:84
-                in2_head_data <= in2_head_spare_valid ? in2_head_spare_data : in2_key_cat; // rtl-gen/src/merge/network.rs:84
+                in2_head_valid <= in2_head_spare_valid | in2_valid; // rtl-gen/src/merge/network.rs:88
+                in2_head_data <= in2_head_spare_valid_mux; // rtl-gen/src/merge/network.rs:88
+                below_3_2 <= in3_head_drain ? (in3_head_spare_valid_mux[231:181] < in2_head_spare_valid_mux[231:181]) : (in3_head_data[231:181] < in2_head_spare_valid_mux[231:181]); // rtl-gen/src/merge/network.rs:162
+            end else if (in3_head_drain) begin
+                below_3_2 <= in3_head_spare_valid_mux[231:181] < in2_head_data[231:181]; // rtl-gen/src/merge/network.rs:164
             end
             in2_head_spare_valid <= in2_head_drain ? 1'b0 : (in2_head_spare_valid | in2_head_take);
             if ((~in2_head_drain) & in2_head_take) begin
-                in2_head_spare_data <= in2_key_cat; // rtl-gen/src/merge/network.rs:84
+                in2_head_spare_data <= in2_key_cat; // rtl-gen/src/merge/network.rs:88
             end
             if (in3_valid_and) begin
-                in3_parent_x <= in3_data_rec_x; // rtl-gen/src/merge/network.rs:86
-                in3_parent_y <= in3_data_rec_y; // rtl-gen/src/merge/network.rs:86
-                in3_parent_z <= in3_data_rec_z; // rtl-gen/src/merge/network.rs:86
+                in3_parent_x <= in3_data_rec_x; // rtl-gen/src/merge/network.rs:90
+                in3_parent_y <= in3_data_rec_y; // rtl-gen/src/merge/network.rs:90
+                in3_parent_z <= in3_data_rec_z; // rtl-gen/src/merge/network.rs:90
             end
             if (in3_head_drain) begin
-                in3_head_valid <= in3_head_spare_valid | in3_valid; // rtl-gen/src/merge/network.rs:84
-                in3_head_data <= in3_head_spare_valid ? in3_head_spare_data : in3_key_cat; // rtl-gen/src/merge/network.rs:84
+                in3_head_valid <= in3_head_spare_valid | in3_valid; // rtl-gen/src/merge/network.rs:88
+                in3_head_data <= in3_head_spare_valid_mux; // rtl-gen/src/merge/network.rs:88
             end
             in3_head_spare_valid <= in3_head_drain ? 1'b0 : (in3_head_spare_valid | in3_head_take);
             if ((~in3_head_drain) & in3_head_take) begin
-                in3_head_spare_data <= in3_key_cat; // rtl-gen/src/merge/network.rs:84
+                in3_head_spare_data <= in3_key_cat; // rtl-gen/src/merge/network.rs:88
             end
             if (out_skid_drain) begin
-                out_skid_valid <= out_skid_spare_valid | all_heads; // rtl-gen/src/merge/per_node.rs:97
-                out_skid_data <= out_skid_spare_valid ? out_skid_spare_data : net_beat; // rtl-gen/src/merge/per_node.rs:97
+                out_skid_valid <= out_skid_spare_valid | all_heads; // rtl-gen/src/merge/per_node.rs:104
+                out_skid_data <= out_skid_spare_valid ? out_skid_spare_data : net_beat; // rtl-gen/src/merge/per_node.rs:104
             end
             out_skid_spare_valid <= out_skid_drain ? 1'b0 : (out_skid_spare_valid | out_skid_take);
             if ((~out_skid_drain) & out_skid_take) begin
-                out_skid_spare_data <= net_beat; // rtl-gen/src/merge/per_node.rs:97
+                out_skid_spare_data <= net_beat; // rtl-gen/src/merge/per_node.rs:104
             end
         end
     end

@@ -62,7 +62,7 @@ pub use names::{is_auto_name, AUTO_NAME_WORDS};
 pub use signal::{IntoSignal, ShiftAmount, ShiftBy, Signal};
 pub use sim::{Sim, SimError};
 pub use states::States;
-pub use stream::Stream;
+pub use stream::{SkidBuffer, Stream};
 pub use verilog::{emit_design, emit_verilog, write_design, DesignError};
 
 /// The README's code examples, compiled and run as doctests.

@@ -6,6 +6,19 @@
 
 use crate::{Module, Signal};
 
+/// A skid buffer ([`Stream::skid_buffer_loads`]): its output stream, and
+/// `next`, the word its output register takes at the edge where `load` is
+/// high (it keeps its word otherwise).
+#[derive(Clone, Copy, Debug)]
+pub struct SkidBuffer<'m> {
+    /// The buffered stream.
+    pub stream: Stream<'m>,
+    /// High when the output register loads at the next edge.
+    pub load: Signal<'m>,
+    /// The word it loads then.
+    pub next: Signal<'m>,
+}
+
 /// A ready/valid stream: `valid` and `data` from the producer, `ready` from
 /// the consumer. Helpers that make a stream leave its `ready` as a wire the
 /// consumer drives (with [`Signal::drive`] or another helper).
@@ -119,6 +132,25 @@ impl<'m> Stream<'m> {
     /// ```
     #[track_caller]
     pub fn skid_buffer(self, name: &str) -> Stream<'m> {
+        self.skid_buffer_loads(name).stream
+    }
+
+    /// [`Stream::skid_buffer`], also returning when its output register
+    /// loads and the word it loads then, for a consumer that works a clock
+    /// ahead on the word its output will hold.
+    ///
+    /// ```
+    /// # use rtl_gen::{Module, Stream};
+    /// let m = Module::new("m");
+    /// let skid = Stream::input(&m, "in", 8).skid_buffer_loads("skid");
+    /// let seen = m.reg("seen", 8);
+    /// seen.next_when(skid.load, skid.next);
+    /// skid.stream.output("out");
+    /// # m.output("s", seen);
+    /// # assert!(m.validate().is_ok());
+    /// ```
+    #[track_caller]
+    pub fn skid_buffer_loads(self, name: &str) -> SkidBuffer<'m> {
         let m = self.valid.module();
         let w = self.data.width();
         let out_valid = m.reg(&format!("{name}_valid"), 1);
@@ -132,13 +164,18 @@ impl<'m> Stream<'m> {
         let drain = (ready | !out_valid).name(&format!("{name}_drain"));
         let take = (self.valid & room).name(&format!("{name}_take"));
         out_valid.next(drain.mux(spare_valid | self.valid, out_valid));
-        out_data.next_when(drain, spare_valid.mux(spare_data, self.data));
+        let next = spare_valid.mux(spare_data, self.data);
+        out_data.next_when(drain, next);
         spare_valid.next(drain.mux(m.lit(0, 1), spare_valid | take));
         spare_data.next_when(!drain & take, self.data);
-        Stream {
-            valid: out_valid,
-            ready,
-            data: out_data,
+        SkidBuffer {
+            stream: Stream {
+                valid: out_valid,
+                ready,
+                data: out_data,
+            },
+            load: drain,
+            next,
         }
     }
 

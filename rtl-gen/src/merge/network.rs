@@ -54,6 +54,10 @@ pub(super) struct MergeHead<'m> {
     pub stream: Stream<'m>,
     /// Bits of the key above the beat.
     pub key_bits: u32,
+    /// High when the head loads a word at the next edge.
+    load: Signal<'m>,
+    /// The `{key, beat}` it loads then.
+    next: Signal<'m>,
 }
 
 impl<'m> MergeHead<'m> {
@@ -79,13 +83,18 @@ impl<'m> MergeHead<'m> {
         let key = key(input.data, parent).name(&format!("in{i}_key"));
         let entered_node = input.valid & input.ready & node(input.data);
         let key_bits = key.width();
-        let stream = input
+        let head = input
             .map(|d| key.concat(d))
-            .skid_buffer(&format!("in{i}_head"));
+            .skid_buffer_loads(&format!("in{i}_head"));
         for a in 0..3 {
             parent[a].next_when(entered_node, xyz[a]);
         }
-        MergeHead { stream, key_bits }
+        MergeHead {
+            stream: head.stream,
+            key_bits,
+            load: head.load,
+            next: head.next,
+        }
     }
 
     /// The head's beat.
@@ -96,30 +105,74 @@ impl<'m> MergeHead<'m> {
 
     /// The head's key.
     pub(super) fn key(&self) -> Signal<'m> {
-        let w = self.stream.data.width();
-        self.stream.data.slice(w - 1, w - self.key_bits)
+        self.key_of(self.stream.data)
     }
+
+    /// The key of the word the head loads at the next edge.
+    fn next_key(&self) -> Signal<'m> {
+        self.key_of(self.next)
+    }
+
+    /// The key of a `{key, beat}` word.
+    fn key_of(&self, word: Signal<'m>) -> Signal<'m> {
+        let w = word.width();
+        word.slice(w - 1, w - self.key_bits)
+    }
+}
+
+/// When the choice compares the heads' keys.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum KeyOrder {
+    /// In the clock that takes a head: the comparators, the winner and the
+    /// heads' `ready` in one clock.
+    Combinational,
+    /// A clock ahead: each pair's order is a register, loaded with the
+    /// comparison of the keys the two heads hold at the next edge (each
+    /// head's next word or its present one), so the clock that takes a head
+    /// starts from registered order bits. Three comparators per pair: the
+    /// per-node merging module's critical path was the comparators, the
+    /// winner and the `ready`s into the heads' skid buffers
+    /// (docs/hardware.md 14.7).
+    Registered,
 }
 
 /// The choice shared by both merge networks: with every head present, the
 /// head of least key (the lower rank on a tie) leaves when `out_ready`;
 /// when all are `End` all leave together. Returns the winner (one bit per
-/// head) and its head's beat; drives every head's `ready`.
+/// head) and its head's beat; drives every head's `ready`. `order` changes
+/// timing only, not the choice.
 pub(super) fn take_minimum_head<'m>(
     m: &'m Module,
     heads: &[MergeHead<'m>],
     all_valid: Signal<'m>,
     all_end: Signal<'m>,
     out_ready: Signal<'m>,
+    order: KeyOrder,
 ) -> (Vec<Signal<'m>>, Signal<'m>) {
     let k = heads.len();
     let keys: Vec<Signal> = heads.iter().map(MergeHead::key).collect();
+    let below = |j: usize, i: usize| {
+        let name = format!("below_{j}_{i}");
+        match order {
+            KeyOrder::Combinational => keys[j].lt(keys[i]).name(&name),
+            KeyOrder::Registered => {
+                let (hi, hj) = (&heads[i], &heads[j]);
+                let (next_i, next_j) = (hi.next_key(), hj.next_key());
+                let r = m.reg(&name, 1);
+                r.next(hi.load.mux(
+                    hj.load.mux(next_j.lt(next_i), keys[j].lt(next_i)),
+                    hj.load.mux(next_j.lt(keys[i]), r),
+                ));
+                r
+            }
+        }
+    };
     // Head i wins when it is below every later head and not above any
-    // earlier one (the lower rank wins a tie): one comparator per pair.
+    // earlier one (the lower rank wins a tie): one order bit per pair.
     let mut wins = vec![m.lit(1, 1); k];
     for i in 0..k {
         for j in i + 1..k {
-            let j_below = keys[j].lt(keys[i]).name(&format!("below_{j}_{i}"));
+            let j_below = below(j, i);
             wins[i] = wins[i] & !j_below;
             wins[j] = wins[j] & j_below;
         }
@@ -196,7 +249,14 @@ pub fn morton_merge_unit(p: &Params, k: usize, tag_rank: bool) -> Module {
         heads.push(head);
     }
     let all_valid = all_valid.name("all_heads");
-    let (wins, beat) = take_minimum_head(&m, &heads, all_valid, all_end, out_ready);
+    let (wins, beat) = take_minimum_head(
+        &m,
+        &heads,
+        all_valid,
+        all_end,
+        out_ready,
+        KeyOrder::Combinational,
+    );
     Stream {
         valid: all_valid,
         ready: out_ready,

@@ -22,7 +22,7 @@ use golden::merge::unit::{base_kind, level_kind, rank_bits, BeatLayout};
 use golden::params::Params;
 
 use super::fields::{coords, field, with_fields};
-use super::network::{morton_code, take_minimum_head, winner_rank, MergeHead};
+use super::network::{morton_code, take_minimum_head, winner_rank, KeyOrder, MergeHead};
 use super::overlap::times_constant;
 use super::top::merge_module_name;
 use super::{merge_level_unit, MergeConfig};
@@ -47,8 +47,8 @@ pub fn per_node_decider_name(p: &Params, k: usize, num: u32, den: u32) -> String
 /// lies in its parent's voxel), a child reference's the last node taken
 /// from its stream; so a voxel's probes (rank by rank), inner nodes, leaves
 /// and references leave in that order. Like [`super::morton_merge_unit`], a
-/// beat leaves only when every head is present, one per clock, and the key
-/// is made as a beat enters its head.
+/// beat leaves only when every head is present, one per clock, its key made
+/// as it enters its head; each pair's order is a register (hardware.md 14.7).
 pub fn per_node_network_unit(p: &Params, k: usize) -> Module {
     let m = Module::new(&per_node_network_name(p, k));
     let pl = PerNodeLayout::new(p);
@@ -88,7 +88,14 @@ pub fn per_node_network_unit(p: &Params, k: usize) -> Module {
         heads.push(head);
     }
     let all_valid = all_valid.name("all_heads");
-    let (wins, beat) = take_minimum_head(&m, &heads, all_valid, all_end, out_ready);
+    let (wins, beat) = take_minimum_head(
+        &m,
+        &heads,
+        all_valid,
+        all_end,
+        out_ready,
+        KeyOrder::Registered,
+    );
     Stream {
         valid: all_valid,
         ready: out_ready,

@@ -7,7 +7,9 @@
 //! (BMC from reset) reaches a full buffer and one beat more: a fault is then
 //! a counterexample from reset, not only a failed induction step.
 
+use golden::merge::per_node_unit::PerNodeLayout;
 use golden::merge::unit::{base_kind, level_kind, BeatLayout, OverlapLayout};
+use golden::merge::MergeMode;
 use golden::vectors::merge::MergeDesign;
 use golden::vectors::translate::TranslateDesign;
 
@@ -234,7 +236,135 @@ pub fn translate_unit() -> Proof {
         .check_to(Check::Status, Bmc, 12)
 }
 
-/// The names `hiermerge formal --unit` takes, in report order.
+/// `<s>` leaving with an `End` of S614's output layout for the default
+/// parameters (a merge pass's last beat).
+fn end_leaves(s: &str) -> String {
+    let ol = BeatLayout::output(&MergeDesign::default().params);
+    format!(
+        "{} && {s}_data{} == 2'd{}",
+        fire(s),
+        bits(ol.kind.offset, 2),
+        base_kind::END
+    )
+}
+
+/// The merging module of `c` (k = `c.inputs` streams `in*`, `cfg`,
+/// `report`, `out`): a merge is a transaction from its `cfg` beat to its end
+/// (`end`, SystemVerilog over ports and nets), one at a time; `idle` and
+/// `done` as SPEC 8.10 says, `cfg` taken only while idle.
+fn merge_module(c: &MergeDesign, end: &str, depth: u32) -> Proof {
+    let m = crate::merge::merge_module_unit(c);
+    let ins: Vec<String> = std::iter::once("cfg".to_string())
+        .chain((0..c.inputs).map(|i| format!("in{i}")))
+        .collect();
+    let refs: Vec<&str> = ins.iter().map(String::as_str).collect();
+    let mut p = Proof::new(m, &refs, &["report", "out"], depth).flow(Flow::Counted {
+        name: "merge_answered".into(),
+        input: fire("cfg"),
+        output: end.into(),
+        capacity: 1,
+        occupancy: Some("!dut.is_idle".into()),
+    });
+    p.status = Some(Status {
+        idle: "idle".into(),
+        done: "done".into(),
+        busy: vec![0],
+        only_when_idle: vec!["cfg".into()],
+    });
+    p
+}
+
+/// The default merging module (overlap 1/2, k = 4): a merge ends when its
+/// merge pass's `End` leaves `out`, or when its refusal (`report` beat with
+/// `err`) enters `report`'s skid buffer (the cycle `done` answers, SPEC
+/// 8.10; under a stall it leaves `report` later).
+pub fn merge_module_overlap() -> Proof {
+    let c = MergeDesign::default();
+    let end = format!(
+        "({}) || (dut.choice_reported && dut.choice_err != 2'd0)",
+        end_leaves("out")
+    );
+    merge_module(&c, &end, 4)
+        .check(Handshake, Induction)
+        .check_to(FlowCheck, Bmc, 20)
+        .check(Determined, Induction)
+        .check_to(Check::Status, Bmc, 20)
+}
+
+/// The default per-node merging module (per-node 1/2, k = 4): a merge ends
+/// when its last pass's `End` leaves `out` (`merge_done`: every pass ends
+/// with an `End`, only the last ends the merge) or its refusal enters
+/// `report`'s skid buffer.
+pub fn merge_module_per_node() -> Proof {
+    let c = MergeDesign {
+        mode: MergeMode::PerNode { num: 1, den: 2 },
+        ..MergeDesign::default()
+    };
+    merge_module(&c, "dut.merge_done || dut.refusal_sent", 4)
+        .check(Handshake, Induction)
+        .check_to(FlowCheck, Bmc, 20)
+        .check(Determined, Induction)
+        .check_to(Check::Status, Bmc, 20)
+}
+
+/// The per-node merge network (k = 4) at the default parameters: every
+/// `End` taken on `in0` is answered by one `End` leaving `out` (the network
+/// sends one `End` when every head holds one), in order.
+pub fn per_node_network() -> Proof {
+    let c = MergeDesign::default();
+    let pl = PerNodeLayout::new(&c.params);
+    // `out` is `{rank, beat}`: the beat's fields where an input has them.
+    let end_of = |s: &str| {
+        format!(
+            "{} && !{s}_data[{}] && {s}_data{} == 2'd{}",
+            fire(s),
+            pl.probe.offset,
+            bits(pl.beat.kind.offset, 2),
+            level_kind::END
+        )
+    };
+    let ins: Vec<String> = (0..c.inputs).map(|i| format!("in{i}")).collect();
+    let refs: Vec<&str> = ins.iter().map(String::as_str).collect();
+    Proof::new(
+        crate::merge::per_node_network_unit(&c.params, c.inputs),
+        &refs,
+        &["out"],
+        4,
+    )
+    .flow(Flow::Counted {
+        name: "pass_end".into(),
+        input: end_of("in0"),
+        output: end_of("out"),
+        capacity: 4,
+        occupancy: None,
+    })
+    .check(Handshake, Induction)
+    .check_to(FlowCheck, Bmc, 10)
+    .check(Determined, Induction)
+}
+
+/// The upper builder at `max_lod` = `d` (other parameters the defaults):
+/// a chain of `d` groupings, streams `base0..=base{d}` in, `level0..=level{d}`
+/// and `done` out.
+pub fn upper_builder(d: u8) -> Proof {
+    let p = golden::params::Params {
+        max_lod: d,
+        ..MergeDesign::default().params
+    };
+    let ins: Vec<String> = (0..=d).map(|l| format!("base{l}")).collect();
+    let outs: Vec<String> = (0..=d)
+        .map(|l| format!("level{l}"))
+        .chain(std::iter::once("done".to_string()))
+        .collect();
+    let ins: Vec<&str> = ins.iter().map(String::as_str).collect();
+    let outs: Vec<&str> = outs.iter().map(String::as_str).collect();
+    Proof::new(crate::merge::upper_builder_unit(&p), &ins, &outs, 4)
+        .check(Handshake, Induction)
+        .check(Determined, Induction)
+}
+
+/// The units `hiermerge formal` proves by default (and with `--all`), in
+/// report order: each check in seconds.
 pub const NAMES: [&str; 10] = [
     "pipeline_reg",
     "skid_buffer",
@@ -248,7 +378,21 @@ pub const NAMES: [&str; 10] = [
     "translate",
 ];
 
-/// The proof named `name` (one of [`NAMES`]).
+/// The larger units (`hiermerge formal --large`, or by name with `--unit`):
+/// their two-copy `determined` proofs take about a minute each, so CI runs
+/// only their handshake checks.
+pub const LARGE: [&str; 4] = [
+    "per_node_network",
+    "merge_module_overlap",
+    "merge_module_per_node",
+    "upper_builder",
+];
+
+/// The max_lod of the `upper_builder` proof: two groupings in a chain and
+/// the top rule above them (the builder has one stage per level).
+pub const UPPER_BUILDER_D: u8 = 2;
+
+/// The proof named `name` (one of [`NAMES`] or [`LARGE`]).
 pub fn by_name(name: &str) -> Option<Proof> {
     Some(match name {
         "pipeline_reg" => pipeline_reg(8),
@@ -261,6 +405,10 @@ pub fn by_name(name: &str) -> Option<Proof> {
         "morton_merge" => morton_merge(),
         "per_node_decider" => per_node_decider(),
         "translate" => translate_unit(),
+        "per_node_network" => per_node_network(),
+        "merge_module_overlap" => merge_module_overlap(),
+        "merge_module_per_node" => merge_module_per_node(),
+        "upper_builder" => upper_builder(UPPER_BUILDER_D),
         _ => return None,
     })
 }

@@ -1,9 +1,11 @@
-//! `hiermerge formal` (SPEC 11.1): every proof passes, split over a few
-//! tests so nextest runs them side by side; a skid buffer that drops a beat
-//! and a priority merge whose grant is not held (the emitted Verilog patched
-//! through `HIERMERGE_FORMAL_PATCH_FROM`/`_TO`) fail the check that should
-//! catch them, naming the property and the step. Under CI=true missing
-//! formal tools fail.
+//! `hiermerge formal` (SPEC 11.1): every proof of the default set passes,
+//! split over a few tests so nextest runs them side by side, and the larger
+//! units' handshake proofs; a skid buffer that drops a beat, a priority
+//! merge whose grant is not held and a merging module whose refusal ends
+//! without `done` (the emitted Verilog patched through
+//! `HIERMERGE_FORMAL_PATCH_FROM`/`_TO`) fail the check that should catch
+//! them, naming the property and the step. Under CI=true missing formal
+//! tools fail.
 
 mod common;
 
@@ -166,24 +168,16 @@ fn the_larger_units_hold_their_handshakes() {
 /// `unit`'s `check` with the emitted line `assign <port> = ...;` replaced
 /// by `to`: it must fail from reset (a counterexample at a step), naming
 /// only properties or invariants whose label contains `part`.
-fn assert_broken_fails(
-    unit: &str,
-    module: rtl_gen::Module,
-    port: &str,
-    to: &str,
-    check: &str,
-    part: &str,
-) {
+fn assert_broken_fails(unit: &str, line: &str, to: &str, check: &str, part: &str) {
     if !tools_present() {
         return;
     }
-    let (line, _) = common::emitted_assign(&module, port);
     let out = tempfile::tempdir().unwrap();
     let (o, r) = formal(
         &out,
         &[unit],
         &["--check", check],
-        &[(PATCH_FROM, &line), (PATCH_TO, to)],
+        &[(PATCH_FROM, line), (PATCH_TO, to)],
     );
     assert!(!o.status.success(), "a broken {unit} passed: {r}");
     let err = String::from_utf8_lossy(&o.stderr);
@@ -214,10 +208,11 @@ fn assert_broken_fails(
 #[test]
 fn a_skid_buffer_that_drops_a_beat_fails_its_flow_proof() {
     // Ready while the spare register is full: the beat taken then is lost.
+    let (line, _) =
+        common::emitted_assign(&rtl_gen::formal::units::skid_buffer(8).module, "in_ready");
     assert_broken_fails(
         "skid_buffer",
-        rtl_gen::formal::units::skid_buffer(8).module,
-        "in_ready",
+        &line,
         "assign in_ready = 1'b1;",
         "flow",
         "_f0_",
@@ -229,15 +224,29 @@ fn a_priority_merge_that_drops_its_grant_under_a_stall_fails_its_handshake_proof
     // The grant recomputed every cycle (no hold): a higher-priority input
     // arriving under a stall changes the beat offered.
     let module = rtl_gen::formal::units::merge_priority(8, 3).module;
-    let (_, rhs) = common::emitted_assign(&module, "arb_grant");
+    let (line, rhs) = common::emitted_assign(&module, "arb_grant");
     let free = rhs.rsplit(" : ").next().unwrap();
     assert_broken_fails(
         "merge_priority",
-        module,
-        "arb_grant",
+        &line,
         &format!("assign arb_grant = {free};"),
         "handshake",
         "p_out_data_held",
+    );
+}
+
+#[test]
+fn a_merging_module_whose_refusal_ends_without_done_fails_its_status_proof() {
+    // `done` pulses after a merge's End only: a refused merge leaves idle
+    // high again with no pulse.
+    let module = rtl_gen::formal::units::merge_module_overlap().module;
+    let line = common::emitted_line(&module, "done_pulse <= merge_done | ");
+    assert_broken_fails(
+        "merge_module_overlap",
+        &line,
+        "done_pulse <= merge_done;",
+        "status",
+        "p_done_pulse",
     );
 }
 

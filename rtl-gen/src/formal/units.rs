@@ -236,10 +236,10 @@ pub fn translate_unit() -> Proof {
         .check_to(Check::Status, Bmc, 12)
 }
 
-/// `<s>` leaving with an `End` of S614's output layout for the default
-/// parameters (a merge pass's last beat).
-fn end_leaves(s: &str) -> String {
-    let ol = BeatLayout::output(&MergeDesign::default().params);
+/// `<s>` leaving with an `End` of S614's output layout for `p` (a merge
+/// pass's last beat).
+fn end_leaves(s: &str, p: &golden::params::Params) -> String {
+    let ol = BeatLayout::output(p);
     format!(
         "{} && {s}_data{} == 2'd{}",
         fire(s),
@@ -282,7 +282,7 @@ pub fn merge_module_overlap() -> Proof {
     let c = MergeDesign::default();
     let end = format!(
         "({}) || (dut.choice_reported && dut.choice_err != 2'd0)",
-        end_leaves("out")
+        end_leaves("out", &c.params)
     );
     merge_module(&c, &end, 4)
         .check(Handshake, Induction)

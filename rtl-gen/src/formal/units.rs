@@ -1,7 +1,9 @@
 //! The proofs the project runs (`hiermerge formal`, SPEC 11.1): the stream
 //! primitives of [`crate::Stream`] and the library FIFO, each in a small
 //! module of its own, and the generated units small enough to prove in
-//! seconds, at their default configuration.
+//! seconds, at their default configuration ([`NAMES`]); and the larger
+//! units ([`LARGE`]): the merging modules, the per-node network and the
+//! upper builder at a small D, whose two-copy checks take about a minute.
 //!
 //! Depths: at least a flow's capacity plus three, so that the base case
 //! (BMC from reset) reaches a full buffer and one beat more: a fault is then
@@ -364,7 +366,7 @@ pub fn upper_builder(d: u8) -> Proof {
 }
 
 /// The units `hiermerge formal` proves by default (and with `--all`), in
-/// report order: each check in seconds.
+/// report order: each check takes seconds.
 pub const NAMES: [&str; 10] = [
     "pipeline_reg",
     "skid_buffer",

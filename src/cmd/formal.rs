@@ -24,7 +24,7 @@ pub struct Args {
     /// set): pipeline_reg, skid_buffer, fifo, merge_priority,
     /// overlap_counter, merge_level, upper_level, morton_merge,
     /// per_node_decider, translate; or a larger unit: per_node_network,
-    /// merge_module_overlap, merge_module_per_node, upper_builder.
+    /// merge_module_overlap, merge_module_per_node, upper_builder, fetcher.
     #[arg(long = "unit")]
     units: Vec<String>,
     /// Every unit of the default set (the default when neither --unit nor
@@ -32,8 +32,8 @@ pub struct Args {
     #[arg(long, conflicts_with = "units")]
     all: bool,
     /// The larger units (the merging modules, the per-node network, the
-    /// upper builder at D = 2; a few minutes); with --all, after the
-    /// default set.
+    /// upper builder at D = 2, the fetcher's handshake; a few minutes);
+    /// with --all, after the default set.
     #[arg(long, conflicts_with = "units")]
     large: bool,
     /// Only these checks (repeatable): handshake, flow, determined, status.

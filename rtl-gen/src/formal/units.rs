@@ -365,6 +365,22 @@ pub fn upper_builder(d: u8) -> Proof {
         .check(Determined, Induction)
 }
 
+/// The fetcher (S610 + S612, overlap configurations) at its default sizes
+/// (16 roots, a frontier of 256 ranges): every output stream leaves
+/// through a skid buffer; handshake only (its frontier FIFO and root sorter
+/// are memories, held twice by the two-copy check).
+pub fn fetcher() -> Proof {
+    let c = MergeDesign::default();
+    let sizes = golden::merge::fetch_unit::FetchSizes::default();
+    Proof::new(
+        crate::merge::fetcher_unit(&c.params, &sizes),
+        &["cfg", "cmd", "node_resp", "ref_resp", "cref_resp"],
+        &["node_req", "ref_req", "cref_req", "out", "leaves"],
+        4,
+    )
+    .check(Handshake, Induction)
+}
+
 /// The units `hiermerge formal` proves by default (and with `--all`), in
 /// report order: each check takes seconds.
 pub const NAMES: [&str; 10] = [
@@ -383,11 +399,12 @@ pub const NAMES: [&str; 10] = [
 /// The larger units (`hiermerge formal --large`, or by name with `--unit`):
 /// their two-copy `determined` proofs take about a minute each, so CI runs
 /// only their handshake checks.
-pub const LARGE: [&str; 4] = [
+pub const LARGE: [&str; 5] = [
     "per_node_network",
     "merge_module_overlap",
     "merge_module_per_node",
     "upper_builder",
+    "fetcher",
 ];
 
 /// The max_lod of the `upper_builder` proof: two groupings in a chain and
@@ -411,6 +428,7 @@ pub fn by_name(name: &str) -> Option<Proof> {
         "merge_module_overlap" => merge_module_overlap(),
         "merge_module_per_node" => merge_module_per_node(),
         "upper_builder" => upper_builder(UPPER_BUILDER_D),
+        "fetcher" => fetcher(),
         _ => return None,
     })
 }

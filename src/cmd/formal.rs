@@ -24,7 +24,9 @@ pub struct Args {
     /// set): pipeline_reg, skid_buffer, fifo, merge_priority,
     /// overlap_counter, merge_level, upper_level, morton_merge,
     /// per_node_decider, translate; or a larger unit: per_node_network,
-    /// merge_module_overlap, merge_module_per_node, upper_builder, fetcher.
+    /// merge_module_overlap, merge_module_per_node, upper_builder, fetcher,
+    /// fetcher_per_node, record_writer; or hierarchy_merger (its handshake
+    /// does not converge yet).
     #[arg(long = "unit")]
     units: Vec<String>,
     /// Every unit of the default set (the default when neither --unit nor
@@ -32,7 +34,8 @@ pub struct Args {
     #[arg(long, conflicts_with = "units")]
     all: bool,
     /// The larger units (the merging modules, the per-node network, the
-    /// upper builder at D = 2, the fetcher's handshake; a few minutes);
+    /// upper builder at D = 2, the handshakes of the fetchers and the
+    /// record writer; a few minutes);
     /// with --all, after the default set.
     #[arg(long, conflicts_with = "units")]
     large: bool,
@@ -103,7 +106,7 @@ pub fn main(a: Args) -> CmdResult {
     for n in &names {
         let p = units::by_name(n).ok_or_else(|| {
             format!(
-                "--unit {n}: expected one of {}, {}",
+                "--unit {n}: expected one of {}, {}, hierarchy_merger",
                 units::NAMES.join(", "),
                 units::LARGE.join(", ")
             )

@@ -381,6 +381,89 @@ pub fn fetcher() -> Proof {
     .check(Handshake, Induction)
 }
 
+/// The fetcher with the per-node command (per-node configurations) at its
+/// default sizes: the fetcher's streams and `report` in, `probe_resp` in,
+/// `probe_req` out; handshake only, as [`fetcher`].
+pub fn fetcher_per_node() -> Proof {
+    let c = MergeDesign::default();
+    let sizes = golden::merge::fetch_unit::FetchSizes::default();
+    Proof::new(
+        crate::merge::fetcher_per_node_unit(&c.params, &sizes),
+        &[
+            "cfg",
+            "cmd",
+            "node_resp",
+            "ref_resp",
+            "cref_resp",
+            "report",
+            "probe_resp",
+        ],
+        &[
+            "node_req",
+            "ref_req",
+            "cref_req",
+            "out",
+            "leaves",
+            "probe_req",
+        ],
+        4,
+    )
+    .check(Handshake, Induction)
+}
+
+/// The record writer at the default merger's sizes (D = 16, its level
+/// buffers memories): every output stream leaves through a skid buffer;
+/// handshake only.
+pub fn record_writer() -> Proof {
+    let c = MergeDesign::default();
+    let p = c.params;
+    let bits = crate::merge::MergerConfig::new(c).sizes.capacity_bits;
+    let m = crate::merge::record_writer_unit(&p, bits)
+        .expect("the default merger's writer capacity is valid");
+    let ins: Vec<String> = ["cfg", "done", "crefs", "ref_resp"]
+        .iter()
+        .map(|s| s.to_string())
+        .chain((0..=p.max_lod).map(|d| format!("level{d}")))
+        .collect();
+    let ins: Vec<&str> = ins.iter().map(String::as_str).collect();
+    Proof::new(m, &ins, &["header", "nodes", "refs", "ref_req"], 4).check(Handshake, Induction)
+}
+
+/// The streams of `m`'s ports (`<s>_valid`, `_ready`, `_data`): inputs,
+/// outputs, in port order.
+fn streams(m: &Module) -> (Vec<String>, Vec<String>) {
+    let ports = m.ports();
+    let has = |n: &str| ports.iter().any(|p| p.name == n);
+    let (mut ins, mut outs) = (Vec::new(), Vec::new());
+    for p in &ports {
+        let Some(s) = p.name.strip_suffix("_valid") else {
+            continue;
+        };
+        if has(&format!("{s}_ready")) && has(&format!("{s}_data")) {
+            match p.direction {
+                crate::Direction::Input => ins.push(s.to_string()),
+                crate::Direction::Output => outs.push(s.to_string()),
+            }
+        }
+    }
+    (ins, outs)
+}
+
+/// The hierarchy merger top at the default configuration (overlap 1/2,
+/// k = 4): handshake only, on every stream of its ports. Not in [`LARGE`]:
+/// its induction does not converge (`p_header_data_held`: `header`'s data
+/// adds the top's own registers to the writer's buffered beat); run it by
+/// name.
+pub fn hierarchy_merger() -> Proof {
+    let c = crate::merge::MergerConfig::new(MergeDesign::default());
+    let m =
+        crate::merge::hierarchy_merger_unit(&c).expect("the default merger configuration is valid");
+    let (ins, outs) = streams(&m);
+    let ins: Vec<&str> = ins.iter().map(String::as_str).collect();
+    let outs: Vec<&str> = outs.iter().map(String::as_str).collect();
+    Proof::new(m, &ins, &outs, 4).check(Handshake, Induction)
+}
+
 /// The units `hiermerge formal` proves by default (and with `--all`), in
 /// report order: each check takes seconds.
 pub const NAMES: [&str; 10] = [
@@ -399,19 +482,22 @@ pub const NAMES: [&str; 10] = [
 /// The larger units (`hiermerge formal --large`, or by name with `--unit`):
 /// their two-copy `determined` proofs take about a minute each, so CI runs
 /// only their handshake checks.
-pub const LARGE: [&str; 5] = [
+pub const LARGE: [&str; 7] = [
     "per_node_network",
     "merge_module_overlap",
     "merge_module_per_node",
     "upper_builder",
     "fetcher",
+    "fetcher_per_node",
+    "record_writer",
 ];
 
 /// The max_lod of the `upper_builder` proof: two groupings in a chain and
 /// the top rule above them (the builder has one stage per level).
 pub const UPPER_BUILDER_D: u8 = 2;
 
-/// The proof named `name` (one of [`NAMES`] or [`LARGE`]).
+/// The proof named `name` (one of [`NAMES`] or [`LARGE`], or
+/// `hierarchy_merger`).
 pub fn by_name(name: &str) -> Option<Proof> {
     Some(match name {
         "pipeline_reg" => pipeline_reg(8),
@@ -429,6 +515,9 @@ pub fn by_name(name: &str) -> Option<Proof> {
         "merge_module_per_node" => merge_module_per_node(),
         "upper_builder" => upper_builder(UPPER_BUILDER_D),
         "fetcher" => fetcher(),
+        "fetcher_per_node" => fetcher_per_node(),
+        "record_writer" => record_writer(),
+        "hierarchy_merger" => hierarchy_merger(),
         _ => return None,
     })
 }

@@ -1,9 +1,11 @@
-//! `hiermerge formal` (SPEC 11.1): every proof passes, split over a few
-//! tests so nextest runs them side by side; a skid buffer that drops a beat
-//! and a priority merge whose grant is not held (the emitted Verilog patched
-//! through `HIERMERGE_FORMAL_PATCH_FROM`/`_TO`) fail the check that should
-//! catch them, naming the property and the step. Under CI=true missing
-//! formal tools fail.
+//! `hiermerge formal` (SPEC 11.1): every proof of the default set passes,
+//! split over a few tests so nextest runs them side by side, and the larger
+//! units' handshake proofs; a skid buffer that drops a beat, a priority
+//! merge whose grant is not held and a merging module whose refusal ends
+//! without `done` (the emitted Verilog patched through
+//! `HIERMERGE_FORMAL_PATCH_FROM`/`_TO`) fail the check that should catch
+//! them, naming the property and the step. Under CI=true missing formal
+//! tools fail.
 
 mod common;
 
@@ -48,14 +50,15 @@ fn formal(
     (o, r)
 }
 
-/// Every check of `units` proven, each in the mode and to the depth its
-/// proof states, and nothing else in the report.
-fn assert_all_proven(units: &[&str], expected: &[(&str, &str, &str, u64)]) {
+/// Every check of `units` (those of `extra` arguments such as `--check`)
+/// proven, each in the mode and to the depth its proof states, and nothing
+/// else in the report.
+fn assert_all_proven(units: &[&str], extra: &[&str], expected: &[(&str, &str, &str, u64)]) {
     if !tools_present() {
         return;
     }
     let out = tempfile::tempdir().unwrap();
-    let (o, r) = formal(&out, units, &[], &[]);
+    let (o, r) = formal(&out, units, extra, &[]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let results = r["results"].as_array().unwrap();
     assert_eq!(results.len(), expected.len(), "{r}");
@@ -77,6 +80,7 @@ const K: &str = "k-induction";
 fn the_stream_primitives_are_proven() {
     assert_all_proven(
         &["pipeline_reg", "skid_buffer", "fifo", "merge_priority"],
+        &[],
         &[
             ("pipeline_reg", "handshake", K, 6),
             ("pipeline_reg", "flow", K, 6),
@@ -103,6 +107,7 @@ fn the_merge_stages_are_proven() {
             "upper_level",
             "per_node_decider",
         ],
+        &[],
         &[
             ("overlap_counter", "handshake", K, 4),
             ("overlap_counter", "flow", K, 4),
@@ -122,6 +127,7 @@ fn the_merge_stages_are_proven() {
 fn the_merge_network_is_proven() {
     assert_all_proven(
         &["morton_merge"],
+        &[],
         &[
             ("morton_merge", "handshake", K, 4),
             ("morton_merge", "determined", K, 4),
@@ -133,6 +139,7 @@ fn the_merge_network_is_proven() {
 fn the_translation_unit_is_proven() {
     assert_all_proven(
         &["translate"],
+        &[],
         &[
             ("translate", "handshake", K, 4),
             ("translate", "flow", "bmc", 12),
@@ -142,27 +149,42 @@ fn the_translation_unit_is_proven() {
     );
 }
 
+#[test]
+fn the_larger_units_hold_their_handshakes() {
+    // Their other checks (`formal --large`, README) take minutes: CI runs
+    // the handshake proofs only.
+    assert_all_proven(
+        &[
+            "per_node_network",
+            "merge_module_overlap",
+            "merge_module_per_node",
+            "upper_builder",
+            "fetcher",
+        ],
+        &["--check", "handshake"],
+        &[
+            ("per_node_network", "handshake", K, 4),
+            ("merge_module_overlap", "handshake", K, 4),
+            ("merge_module_per_node", "handshake", K, 4),
+            ("upper_builder", "handshake", K, 4),
+            ("fetcher", "handshake", K, 4),
+        ],
+    );
+}
+
 /// `unit`'s `check` with the emitted line `assign <port> = ...;` replaced
 /// by `to`: it must fail from reset (a counterexample at a step), naming
 /// only properties or invariants whose label contains `part`.
-fn assert_broken_fails(
-    unit: &str,
-    module: rtl_gen::Module,
-    port: &str,
-    to: &str,
-    check: &str,
-    part: &str,
-) {
+fn assert_broken_fails(unit: &str, line: &str, to: &str, check: &str, part: &str) {
     if !tools_present() {
         return;
     }
-    let (line, _) = common::emitted_assign(&module, port);
     let out = tempfile::tempdir().unwrap();
     let (o, r) = formal(
         &out,
         &[unit],
         &["--check", check],
-        &[(PATCH_FROM, &line), (PATCH_TO, to)],
+        &[(PATCH_FROM, line), (PATCH_TO, to)],
     );
     assert!(!o.status.success(), "a broken {unit} passed: {r}");
     let err = String::from_utf8_lossy(&o.stderr);
@@ -193,10 +215,11 @@ fn assert_broken_fails(
 #[test]
 fn a_skid_buffer_that_drops_a_beat_fails_its_flow_proof() {
     // Ready while the spare register is full: the beat taken then is lost.
+    let (line, _) =
+        common::emitted_assign(&rtl_gen::formal::units::skid_buffer(8).module, "in_ready");
     assert_broken_fails(
         "skid_buffer",
-        rtl_gen::formal::units::skid_buffer(8).module,
-        "in_ready",
+        &line,
         "assign in_ready = 1'b1;",
         "flow",
         "_f0_",
@@ -208,15 +231,29 @@ fn a_priority_merge_that_drops_its_grant_under_a_stall_fails_its_handshake_proof
     // The grant recomputed every cycle (no hold): a higher-priority input
     // arriving under a stall changes the beat offered.
     let module = rtl_gen::formal::units::merge_priority(8, 3).module;
-    let (_, rhs) = common::emitted_assign(&module, "arb_grant");
+    let (line, rhs) = common::emitted_assign(&module, "arb_grant");
     let free = rhs.rsplit(" : ").next().unwrap();
     assert_broken_fails(
         "merge_priority",
-        module,
-        "arb_grant",
+        &line,
         &format!("assign arb_grant = {free};"),
         "handshake",
         "p_out_data_held",
+    );
+}
+
+#[test]
+fn a_merging_module_whose_refusal_ends_without_done_fails_its_status_proof() {
+    // `done` pulses after a merge's End only: a refused merge leaves idle
+    // high again with no pulse.
+    let module = rtl_gen::formal::units::merge_module_overlap().module;
+    let line = common::emitted_line(&module, "done_pulse <= merge_done | ");
+    assert_broken_fails(
+        "merge_module_overlap",
+        &line,
+        "done_pulse <= merge_done;",
+        "status",
+        "p_done_pulse",
     );
 }
 

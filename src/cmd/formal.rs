@@ -20,14 +20,25 @@ pub const PATCH_TO_VAR: &str = "HIERMERGE_FORMAL_PATCH_TO";
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The units to prove (repeatable; default: every one): pipeline_reg,
-    /// skid_buffer, fifo, merge_priority, overlap_counter, merge_level,
-    /// upper_level, morton_merge, per_node_decider, translate.
+    /// The units to prove (repeatable; default: every unit of the default
+    /// set): pipeline_reg, skid_buffer, fifo, merge_priority,
+    /// overlap_counter, merge_level, upper_level, morton_merge,
+    /// per_node_decider, translate; or a larger unit: per_node_network,
+    /// merge_module_overlap, merge_module_per_node, upper_builder, fetcher,
+    /// fetcher_per_node, record_writer; or hierarchy_merger (its handshake
+    /// does not converge yet).
     #[arg(long = "unit")]
     units: Vec<String>,
-    /// Every unit (the default when no --unit is given).
+    /// Every unit of the default set (the default when neither --unit nor
+    /// --large is given).
     #[arg(long, conflicts_with = "units")]
     all: bool,
+    /// The larger units (the merging modules, the per-node network, the
+    /// upper builder at D = 2, the handshakes of the fetchers and the
+    /// record writer; a few minutes);
+    /// with --all, after the default set.
+    #[arg(long, conflicts_with = "units")]
+    large: bool,
     /// Only these checks (repeatable): handshake, flow, determined, status.
     #[arg(long = "check")]
     checks: Vec<String>,
@@ -84,15 +95,22 @@ fn patch() -> Result<Option<VerilogPatch>, String> {
 
 pub fn main(a: Args) -> CmdResult {
     let start = Instant::now();
-    let names: Vec<String> = if a.units.is_empty() {
-        units::NAMES.iter().map(|s| s.to_string()).collect()
-    } else {
-        a.units.clone()
-    };
+    let mut names: Vec<String> = a.units.clone();
+    if a.units.is_empty() && (a.all || !a.large) {
+        names.extend(units::NAMES.iter().map(|s| s.to_string()));
+    }
+    if a.large {
+        names.extend(units::LARGE.iter().map(|s| s.to_string()));
+    }
     let mut proofs = Vec::new();
     for n in &names {
-        let p = units::by_name(n)
-            .ok_or_else(|| format!("--unit {n}: expected one of {}", units::NAMES.join(", ")))?;
+        let p = units::by_name(n).ok_or_else(|| {
+            format!(
+                "--unit {n}: expected one of {}, {}, hierarchy_merger",
+                units::NAMES.join(", "),
+                units::LARGE.join(", ")
+            )
+        })?;
         proofs.push((n.clone(), p));
     }
     let only = parse_checks(&a.checks)?;

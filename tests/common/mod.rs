@@ -67,6 +67,15 @@ pub fn tool_present(tool: &str) -> bool {
 /// The emitted Verilog of `module`'s line `assign <port> = <rhs>;` and its
 /// `<rhs>`, as the patch hook will find them.
 pub fn emitted_assign(module: &rtl_gen::Module, port: &str) -> (String, String) {
+    let head = format!("assign {port} = ");
+    let line = emitted_line(module, &head);
+    let rhs = line[head.len()..].trim_end_matches(';').to_string();
+    (line, rhs)
+}
+
+/// The first line of `module`'s emitted Verilog (instances included) that
+/// starts with `head`, trimmed.
+pub fn emitted_line(module: &rtl_gen::Module, head: &str) -> String {
     let dir = tempfile::tempdir().unwrap();
     let design = cosim::from_rtl::design_from_module(module, dir.path()).unwrap();
     let text: String = design
@@ -74,14 +83,11 @@ pub fn emitted_assign(module: &rtl_gen::Module, port: &str) -> (String, String) 
         .iter()
         .map(|f| std::fs::read_to_string(f).unwrap())
         .collect();
-    let head = format!("assign {port} = ");
-    let line = text
-        .lines()
+    text.lines()
         .map(str::trim)
-        .find(|l| l.starts_with(&head))
-        .unwrap_or_else(|| panic!("`{}` has no `{head}...`", design.top));
-    let rhs = line[head.len()..].trim_end_matches(';').to_string();
-    (line.to_string(), rhs)
+        .find(|l| l.starts_with(head))
+        .unwrap_or_else(|| panic!("`{}` has no `{head}...`", design.top))
+        .to_string()
 }
 
 /// The width of `module`'s port `name`.

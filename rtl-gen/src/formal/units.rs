@@ -1,13 +1,17 @@
 //! The proofs the project runs (`hiermerge formal`, SPEC 11.1): the stream
 //! primitives of [`crate::Stream`] and the library FIFO, each in a small
 //! module of its own, and the generated units small enough to prove in
-//! seconds, at their default configuration.
+//! seconds, at their default configuration ([`NAMES`]); and the larger
+//! units ([`LARGE`]): the merging modules, the per-node network and the
+//! upper builder at a small D, whose two-copy checks take about a minute.
 //!
 //! Depths: at least a flow's capacity plus three, so that the base case
 //! (BMC from reset) reaches a full buffer and one beat more: a fault is then
 //! a counterexample from reset, not only a failed induction step.
 
+use golden::merge::per_node_unit::PerNodeLayout;
 use golden::merge::unit::{base_kind, level_kind, BeatLayout, OverlapLayout};
+use golden::merge::MergeMode;
 use golden::vectors::merge::MergeDesign;
 use golden::vectors::translate::TranslateDesign;
 
@@ -234,7 +238,234 @@ pub fn translate_unit() -> Proof {
         .check_to(Check::Status, Bmc, 12)
 }
 
-/// The names `hiermerge formal --unit` takes, in report order.
+/// `<s>` leaving with an `End` of S614's output layout for `p` (a merge
+/// pass's last beat).
+fn end_leaves(s: &str, p: &golden::params::Params) -> String {
+    let ol = BeatLayout::output(p);
+    format!(
+        "{} && {s}_data{} == 2'd{}",
+        fire(s),
+        bits(ol.kind.offset, 2),
+        base_kind::END
+    )
+}
+
+/// The merging module of `c` (k = `c.inputs` streams `in*`, `cfg`,
+/// `report`, `out`): a merge is a transaction from its `cfg` beat to its end
+/// (`end`, SystemVerilog over ports and nets), one at a time; `idle` and
+/// `done` as SPEC 8.10 says, `cfg` taken only while idle.
+fn merge_module(c: &MergeDesign, end: &str, depth: u32) -> Proof {
+    let m = crate::merge::merge_module_unit(c);
+    let ins: Vec<String> = std::iter::once("cfg".to_string())
+        .chain((0..c.inputs).map(|i| format!("in{i}")))
+        .collect();
+    let refs: Vec<&str> = ins.iter().map(String::as_str).collect();
+    let mut p = Proof::new(m, &refs, &["report", "out"], depth).flow(Flow::Counted {
+        name: "merge_answered".into(),
+        input: fire("cfg"),
+        output: end.into(),
+        capacity: 1,
+        occupancy: Some("!dut.is_idle".into()),
+    });
+    p.status = Some(Status {
+        idle: "idle".into(),
+        done: "done".into(),
+        busy: vec![0],
+        only_when_idle: vec!["cfg".into()],
+    });
+    p
+}
+
+/// The default merging module (overlap 1/2, k = 4): a merge ends when its
+/// merge pass's `End` leaves `out`, or when its refusal (`report` beat with
+/// `err`) enters `report`'s skid buffer (the cycle `done` answers, SPEC
+/// 8.10; under a stall it leaves `report` later).
+pub fn merge_module_overlap() -> Proof {
+    let c = MergeDesign::default();
+    let end = format!(
+        "({}) || (dut.choice_reported && dut.choice_err != 2'd0)",
+        end_leaves("out", &c.params)
+    );
+    merge_module(&c, &end, 4)
+        .check(Handshake, Induction)
+        .check_to(FlowCheck, Bmc, 20)
+        .check(Determined, Induction)
+        .check_to(Check::Status, Bmc, 20)
+}
+
+/// The default per-node merging module (per-node 1/2, k = 4): a merge ends
+/// when its last pass's `End` leaves `out` (`merge_done`: every pass ends
+/// with an `End`, only the last ends the merge) or its refusal enters
+/// `report`'s skid buffer.
+pub fn merge_module_per_node() -> Proof {
+    let c = MergeDesign {
+        mode: MergeMode::PerNode { num: 1, den: 2 },
+        ..MergeDesign::default()
+    };
+    merge_module(&c, "dut.merge_done || dut.refusal_sent", 4)
+        .check(Handshake, Induction)
+        .check_to(FlowCheck, Bmc, 20)
+        .check(Determined, Induction)
+        .check_to(Check::Status, Bmc, 20)
+}
+
+/// The per-node merge network (k = 4) at the default parameters: every
+/// `End` taken on `in0` is answered by one `End` leaving `out` (the network
+/// sends one `End` when every head holds one), in order.
+pub fn per_node_network() -> Proof {
+    let c = MergeDesign::default();
+    let pl = PerNodeLayout::new(&c.params);
+    // `out` is `{rank, beat}`: the beat's fields where an input has them.
+    let end_of = |s: &str| {
+        format!(
+            "{} && !{s}_data[{}] && {s}_data{} == 2'd{}",
+            fire(s),
+            pl.probe.offset,
+            bits(pl.beat.kind.offset, 2),
+            level_kind::END
+        )
+    };
+    let ins: Vec<String> = (0..c.inputs).map(|i| format!("in{i}")).collect();
+    let refs: Vec<&str> = ins.iter().map(String::as_str).collect();
+    Proof::new(
+        crate::merge::per_node_network_unit(&c.params, c.inputs),
+        &refs,
+        &["out"],
+        4,
+    )
+    .flow(Flow::Counted {
+        name: "pass_end".into(),
+        input: end_of("in0"),
+        output: end_of("out"),
+        capacity: 4,
+        occupancy: None,
+    })
+    .check(Handshake, Induction)
+    .check_to(FlowCheck, Bmc, 10)
+    .check(Determined, Induction)
+}
+
+/// The upper builder at `max_lod` = `d` (other parameters the defaults):
+/// a chain of `d` groupings, streams `base0..=base{d}` in, `level0..=level{d}`
+/// and `done` out.
+pub fn upper_builder(d: u8) -> Proof {
+    let p = golden::params::Params {
+        max_lod: d,
+        ..MergeDesign::default().params
+    };
+    let ins: Vec<String> = (0..=d).map(|l| format!("base{l}")).collect();
+    let outs: Vec<String> = (0..=d)
+        .map(|l| format!("level{l}"))
+        .chain(std::iter::once("done".to_string()))
+        .collect();
+    let ins: Vec<&str> = ins.iter().map(String::as_str).collect();
+    let outs: Vec<&str> = outs.iter().map(String::as_str).collect();
+    Proof::new(crate::merge::upper_builder_unit(&p), &ins, &outs, 4)
+        .check(Handshake, Induction)
+        .check(Determined, Induction)
+}
+
+/// The fetcher (S610 + S612, overlap configurations) at its default sizes
+/// (16 roots, a frontier of 256 ranges): every output stream leaves
+/// through a skid buffer; handshake only (its frontier FIFO and root sorter
+/// are memories, held twice by the two-copy check).
+pub fn fetcher() -> Proof {
+    let c = MergeDesign::default();
+    let sizes = golden::merge::fetch_unit::FetchSizes::default();
+    Proof::new(
+        crate::merge::fetcher_unit(&c.params, &sizes),
+        &["cfg", "cmd", "node_resp", "ref_resp", "cref_resp"],
+        &["node_req", "ref_req", "cref_req", "out", "leaves"],
+        4,
+    )
+    .check(Handshake, Induction)
+}
+
+/// The fetcher with the per-node command (per-node configurations) at its
+/// default sizes: the fetcher's streams and `report` in, `probe_resp` in,
+/// `probe_req` out; handshake only, as [`fetcher`].
+pub fn fetcher_per_node() -> Proof {
+    let c = MergeDesign::default();
+    let sizes = golden::merge::fetch_unit::FetchSizes::default();
+    Proof::new(
+        crate::merge::fetcher_per_node_unit(&c.params, &sizes),
+        &[
+            "cfg",
+            "cmd",
+            "node_resp",
+            "ref_resp",
+            "cref_resp",
+            "report",
+            "probe_resp",
+        ],
+        &[
+            "node_req",
+            "ref_req",
+            "cref_req",
+            "out",
+            "leaves",
+            "probe_req",
+        ],
+        4,
+    )
+    .check(Handshake, Induction)
+}
+
+/// The record writer at the default merger's sizes (D = 16, its level
+/// buffers memories): every output stream leaves through a skid buffer;
+/// handshake only.
+pub fn record_writer() -> Proof {
+    let c = MergeDesign::default();
+    let p = c.params;
+    let bits = crate::merge::MergerConfig::new(c).sizes.capacity_bits;
+    let m = crate::merge::record_writer_unit(&p, bits)
+        .expect("the default merger's writer capacity is valid");
+    let ins: Vec<String> = ["cfg", "done", "crefs", "ref_resp"]
+        .iter()
+        .map(|s| s.to_string())
+        .chain((0..=p.max_lod).map(|d| format!("level{d}")))
+        .collect();
+    let ins: Vec<&str> = ins.iter().map(String::as_str).collect();
+    Proof::new(m, &ins, &["header", "nodes", "refs", "ref_req"], 4).check(Handshake, Induction)
+}
+
+/// The streams of `m`'s ports (`<s>_valid`, `_ready`, `_data`): inputs,
+/// outputs, in port order.
+fn streams(m: &Module) -> (Vec<String>, Vec<String>) {
+    let ports = m.ports();
+    let has = |n: &str| ports.iter().any(|p| p.name == n);
+    let (mut ins, mut outs) = (Vec::new(), Vec::new());
+    for p in &ports {
+        let Some(s) = p.name.strip_suffix("_valid") else {
+            continue;
+        };
+        if has(&format!("{s}_ready")) && has(&format!("{s}_data")) {
+            match p.direction {
+                crate::Direction::Input => ins.push(s.to_string()),
+                crate::Direction::Output => outs.push(s.to_string()),
+            }
+        }
+    }
+    (ins, outs)
+}
+
+/// The hierarchy merger top at the default configuration (overlap 1/2,
+/// k = 4): handshake only, on every stream of its ports. Not in [`LARGE`]:
+/// its induction does not converge (`p_header_data_held`: `header`'s data
+/// adds the top's own registers to the writer's buffered beat); run it by
+/// name.
+pub fn hierarchy_merger() -> Proof {
+    let c = crate::merge::MergerConfig::new(MergeDesign::default());
+    let m =
+        crate::merge::hierarchy_merger_unit(&c).expect("the default merger configuration is valid");
+    let (ins, outs) = streams(&m);
+    let ins: Vec<&str> = ins.iter().map(String::as_str).collect();
+    let outs: Vec<&str> = outs.iter().map(String::as_str).collect();
+    Proof::new(m, &ins, &outs, 4).check(Handshake, Induction)
+}
+
+/// The units `hiermerge formal` proves by default (and with `--all`), in
+/// report order: each check takes seconds.
 pub const NAMES: [&str; 10] = [
     "pipeline_reg",
     "skid_buffer",
@@ -248,7 +479,25 @@ pub const NAMES: [&str; 10] = [
     "translate",
 ];
 
-/// The proof named `name` (one of [`NAMES`]).
+/// The larger units (`hiermerge formal --large`, or by name with `--unit`):
+/// their two-copy `determined` proofs take about a minute each, so CI runs
+/// only their handshake checks.
+pub const LARGE: [&str; 7] = [
+    "per_node_network",
+    "merge_module_overlap",
+    "merge_module_per_node",
+    "upper_builder",
+    "fetcher",
+    "fetcher_per_node",
+    "record_writer",
+];
+
+/// The max_lod of the `upper_builder` proof: two groupings in a chain and
+/// the top rule above them (the builder has one stage per level).
+pub const UPPER_BUILDER_D: u8 = 2;
+
+/// The proof named `name` (one of [`NAMES`] or [`LARGE`], or
+/// `hierarchy_merger`).
 pub fn by_name(name: &str) -> Option<Proof> {
     Some(match name {
         "pipeline_reg" => pipeline_reg(8),
@@ -261,6 +510,14 @@ pub fn by_name(name: &str) -> Option<Proof> {
         "morton_merge" => morton_merge(),
         "per_node_decider" => per_node_decider(),
         "translate" => translate_unit(),
+        "per_node_network" => per_node_network(),
+        "merge_module_overlap" => merge_module_overlap(),
+        "merge_module_per_node" => merge_module_per_node(),
+        "upper_builder" => upper_builder(UPPER_BUILDER_D),
+        "fetcher" => fetcher(),
+        "fetcher_per_node" => fetcher_per_node(),
+        "record_writer" => record_writer(),
+        "hierarchy_merger" => hierarchy_merger(),
         _ => return None,
     })
 }

@@ -323,7 +323,11 @@ fn bad_input_names_the_file() {
 /// Plants synthesis records (SPEC 14.5) for the D16 Q8 merger and two of
 /// its parts in a cache of its own; the figures are test data, not
 /// measurements.
-fn plant_records(cache: &Path) {
+/// Plants synthesis records of the default configuration's merger top:
+/// generic and (not placed) ECP5 for the top; ECP5 placed for the upper
+/// builder (40 MHz) and `upper_level` (150), and, with `every_part`, for
+/// every other part of the top's tree (120).
+fn plant_records(cache: &Path, every_part: bool) {
     use cosim::synth::record::{store, Recorded};
     use cosim::synth::{ecp5, generic, sources::Netlist, Spread, Target};
     let p = golden::Params::default();
@@ -373,10 +377,21 @@ fn plant_records(cache: &Path) {
     let unplaced =
         ecp5::Ecp5Figures::unplaced(synth(777), false, "does not fit: 300 EBR of 208".into());
     store(cache, Target::Ecp5, &rec(&n, &top, unplaced)).unwrap();
-    for (part, fmax) in [("upper_builder_", 40.0), ("upper_level_", 150.0)] {
+    let mut parts = vec![
+        (module("upper_builder_"), 40.0),
+        (module("upper_level_"), 150.0),
+    ];
+    if every_part {
+        for s in n.closure(&top) {
+            if s.module != top && parts.iter().all(|(m, _)| *m != s.module) {
+                parts.push((s.module.clone(), 120.0));
+            }
+        }
+    }
+    for (part, fmax) in parts {
         let mut placed = ecp5::Ecp5Figures::unplaced(synth(10), true, "fits".into());
         placed.fmax_mhz = Some(Spread::of(vec![fmax]));
-        store(cache, Target::Ecp5, &rec(&n, &module(part), placed)).unwrap();
+        store(cache, Target::Ecp5, &rec(&n, &part, placed)).unwrap();
     }
 }
 
@@ -386,7 +401,7 @@ fn plant_records(cache: &Path) {
 #[test]
 fn study_reads_synthesis_records_from_the_cache() {
     let cache = tempfile::tempdir().unwrap();
-    plant_records(cache.path());
+    plant_records(cache.path(), true);
     let out = tempfile::tempdir().unwrap();
     let c = cache.path().display().to_string();
     let s = study_with(out.path(), false, &[("HIERMERGE_CACHE", &c)]);
@@ -413,4 +428,26 @@ fn study_reads_synthesis_records_from_the_cache() {
         notes.contains("hiermerge synth --unit merge --max-lod 8 --quant-bits 0"),
         "{notes}"
     );
+}
+
+/// With ECP5 figures for only some parts, the slowest of those bounds
+/// nothing (an unmeasured part may be slower): area is shown, the clock
+/// and ns per merge say not measured, and the notes say what to run.
+#[test]
+fn a_clock_bound_needs_every_part_through_ecp5() {
+    let cache = tempfile::tempdir().unwrap();
+    plant_records(cache.path(), false);
+    let out = tempfile::tempdir().unwrap();
+    let c = cache.path().display().to_string();
+    let s = study_with(out.path(), false, &[("HIERMERGE_CACHE", &c)]);
+    let default = rows(&s)
+        .iter()
+        .find(|r| r["max_lod"] == 16 && r["quant_bits"] == 8)
+        .expect("the default configuration's row");
+    let synth = &default["synth"];
+    assert_eq!(synth["nand2_eq"], 12345.0, "{default}");
+    assert!(synth["fmax_mhz"].is_null(), "{default}");
+    assert!(default["ns_per_merge"].is_null(), "{default}");
+    let notes = s["notes"].to_string();
+    assert!(notes.contains("not every part has ECP5 figures"), "{notes}");
 }

@@ -299,6 +299,7 @@ fn attach_synth(a: &Args, rows: &mut [Row], notes: &mut Vec<String>) {
                             f.tools,
                             match (&f.fmax_of, f.fmax_bound) {
                                 (Some(m), true) => format!("; the top is not placed ({}), Fmax is the lowest of its parts placed alone ({m}), an upper bound, so ns/merge is a lower bound", f.ecp5_verdict.as_deref().unwrap_or("no ECP5 figures")),
+                                (None, _) => "; Fmax and ns/merge not measured: not every part has ECP5 figures (run it with `--target ecp5`)".into(),
                                 _ => String::new(),
                             }
                         ));

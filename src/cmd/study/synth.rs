@@ -29,7 +29,8 @@ pub struct SynthFigures {
     pub ecp5_verdict: Option<String>,
     /// The clock, MHz: the top's own lowest ECP5 Fmax over seeds when it was
     /// placed; else (`fmax_bound`) the lowest Fmax of its parts placed alone,
-    /// an upper bound of the top's clock (the top holds their paths).
+    /// an upper bound of the top's clock (the top holds their paths), once
+    /// every part has ECP5 figures; else `None`.
     pub fmax_mhz: Option<f64>,
     /// True when `fmax_mhz` is that upper bound.
     pub fmax_bound: bool,
@@ -71,10 +72,22 @@ pub fn figures_of(root: &Path, netlist: &Netlist) -> Option<SynthFigures> {
     if let Some(f) = lowest_fmax(&l) {
         (fmax_mhz, fmax_of) = (Some(f), Some(top.clone()));
     } else {
-        for part in netlist.closure(top).iter().filter(|s| &s.module != top) {
-            if let Some(f) = lowest_fmax(&lookup(root, netlist, &part.module)) {
-                if fmax_mhz.is_none_or(|m| f < m) {
-                    (fmax_mhz, fmax_of, fmax_bound) = (Some(f), Some(part.module.clone()), true);
+        // The parts' lowest Fmax bounds the top's clock only when every part
+        // went through the ECP5 flow (placed, or found not to fit): a part
+        // not yet measured may be the slowest, and a bound from the others
+        // would make the configuration look faster than it is.
+        let parts: Vec<(String, Lookup)> = netlist
+            .closure(top)
+            .iter()
+            .filter(|s| &s.module != top)
+            .map(|s| (s.module.clone(), lookup(root, netlist, &s.module)))
+            .collect();
+        if parts.iter().all(|(_, l)| l.ecp5.is_some()) {
+            for (module, l) in &parts {
+                if let Some(f) = lowest_fmax(l) {
+                    if fmax_mhz.is_none_or(|m| f < m) {
+                        (fmax_mhz, fmax_of, fmax_bound) = (Some(f), Some(module.clone()), true);
+                    }
                 }
             }
         }

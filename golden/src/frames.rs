@@ -317,9 +317,8 @@ impl Frames {
         for o in objects {
             let action = self.update_object(o)?;
             actions.insert(o.id, action);
-            let placed = self.world.object(o.id);
-            if let Some(f) = placed.and_then(|p| p.fallback.clone()) {
-                if action != ObjectAction::Reused {
+            if action != ObjectAction::Reused {
+                if let Some(f) = self.world.object(o.id).and_then(|p| p.fallback.clone()) {
                     fallbacks.insert(o.id, f);
                 }
             }

@@ -25,8 +25,8 @@ pub struct Args {
     /// overlap_counter, merge_level, upper_level, morton_merge,
     /// per_node_decider, translate; or a larger unit: per_node_network,
     /// merge_module_overlap, merge_module_per_node, upper_builder, fetcher,
-    /// fetcher_per_node, record_writer; or hierarchy_merger (its handshake
-    /// does not converge yet).
+    /// fetcher_per_node, record_writer, hierarchy_merger,
+    /// hierarchy_merger_per_node.
     #[arg(long = "unit")]
     units: Vec<String>,
     /// Every unit of the default set (the default when neither --unit nor
@@ -34,8 +34,8 @@ pub struct Args {
     #[arg(long, conflicts_with = "units")]
     all: bool,
     /// The larger units (the merging modules, the per-node network, the
-    /// upper builder at D = 2, the handshakes of the fetchers and the
-    /// record writer; a few minutes);
+    /// upper builder at D = 2, the handshakes of the fetchers, the record
+    /// writer and the merger tops; a few minutes);
     /// with --all, after the default set.
     #[arg(long, conflicts_with = "units")]
     large: bool,
@@ -106,7 +106,7 @@ pub fn main(a: Args) -> CmdResult {
     for n in &names {
         let p = units::by_name(n).ok_or_else(|| {
             format!(
-                "--unit {n}: expected one of {}, {}, hierarchy_merger",
+                "--unit {n}: expected one of {}, {}",
                 units::NAMES.join(", "),
                 units::LARGE.join(", ")
             )

@@ -78,6 +78,8 @@ pub(super) fn level_merger_unit(c: &MergerConfig) -> Result<Module, String> {
             writer_mod: &writer_mod,
             ml: &ml,
             header_fire: s.header_fire,
+            header_hold: s.header_hold,
+            commands_sent: s.commands_sent,
             flags: [leaf_over, count_over, ferr, ferr_rank],
             busy: s.busy,
             dropping: &s.dropping,
@@ -168,6 +170,7 @@ fn inputs<'m>(
     let mut ferr_rank_next = header_fire.mux(lit(0, rb), ferr_rank);
     let end_beat = with_fields(m, lit(0, inb.width), &[(inb.kind, lit(level_kind::END, 2))]);
     let mut leaves_in = Vec::new();
+    let mut sent = one;
     for (i, f) in fetchers.iter().enumerate() {
         let fcfg_pend = m.reg(&format!("fetch{i}_cfg_pending"), 1);
         f.connect("cfg_valid", fcfg_pend);
@@ -179,6 +182,7 @@ fn inputs<'m>(
         let ph = m.reg(&format!("phase{i}"), phase::BITS);
         let phases = m.states(phase::BITS, phase::STATES);
         let in_ph = |v: u64| phases.is(ph, v);
+        sent = sent & in_ph(phase::DONE);
         // The candidate level an unused input's next `End` stands for.
         let cmd_lod = m.reg(&format!("cmd_lod{i}"), lb);
         let count_ph = in_ph(phase::COUNT);
@@ -257,8 +261,9 @@ fn inputs<'m>(
         }
         leaves_in.push((f.output("leaves_valid"), f.output("leaves_data"), i));
     }
-    ferr.next(ferr_next);
-    ferr_rank.next(ferr_rank_next);
+    s.commands_sent.drive(sent);
+    ferr.next(s.header_hold.mux(ferr, ferr_next));
+    ferr_rank.next(s.header_hold.mux(ferr_rank, ferr_rank_next));
 
     (ferr, ferr_rank, leaves_in)
 }
@@ -388,7 +393,7 @@ fn route_out<'m>(
         base_m_ready = at_m.mux(ready & !bsent, base_m_ready);
         base_m_sent = at_m.mux(bsent, base_m_sent);
     }
-    leaf_over.next(over_next);
+    leaf_over.next(s.header_hold.mux(leaf_over, over_next));
     leaf_over = leaf_over.name("leaf_overflow_q");
     let mo_ready = merging
         & mo_ref.mux(
@@ -401,8 +406,9 @@ fn route_out<'m>(
     module.connect("out_ready", mo_ready);
     let count_over = m.reg("count_overflow", 1);
     let created = mo_kind.eq(base_kind::CREATED);
-    count_over
-        .next((mo_valid & mo_ready & created & mo_err).mux(one, header_fire.mux(zero, count_over)));
+    let count_next =
+        (mo_valid & mo_ready & created & mo_err).mux(one, header_fire.mux(zero, count_over));
+    count_over.next(s.header_hold.mux(count_over, count_next));
 
     (leaf_over, count_over)
 }

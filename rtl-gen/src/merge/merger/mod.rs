@@ -150,6 +150,11 @@ struct Shell<'m> {
     /// command) has not sent its End.
     dropping: Vec<Signal<'m>>,
     header_fire: Signal<'m>,
+    /// The header is offered and not taken: the flags beside the writer's
+    /// beat hold still (section 8.15).
+    header_hold: Signal<'m>,
+    /// Every command of the merge was issued (driven by the mode).
+    commands_sent: Signal<'m>,
     cfg: Stream<'m>,
     cfg_fire: Signal<'m>,
     cfg_q: Signal<'m>,
@@ -184,6 +189,8 @@ fn shell<'m>(
     let busy = m.reg("busy", 1);
     let dropping: Vec<Signal> = (0..k).map(|i| m.reg(&format!("dropping{i}"), 1)).collect();
     let header_fire = m.wire("header_fire", 1);
+    let header_hold = m.wire("header_hold", 1);
+    let commands_sent = m.wire("commands_sent", 1);
     let mut quiet = !busy & module.output("idle");
     for (i, f) in fetchers.iter().enumerate() {
         quiet = quiet & f.output("idle") & !dropping[i];
@@ -205,6 +212,8 @@ fn shell<'m>(
         busy,
         dropping,
         header_fire,
+        header_hold,
+        commands_sent,
         cfg,
         cfg_fire,
         cfg_q,

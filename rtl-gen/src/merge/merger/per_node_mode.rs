@@ -84,6 +84,8 @@ pub(super) fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
             writer_mod: &writer_mod,
             ml: &ml,
             header_fire: s.header_fire,
+            header_hold: s.header_hold,
+            commands_sent: s.commands_sent,
             flags: [leaf_over, count_over, ferr, ferr_rank],
             busy: s.busy,
             dropping: &s.dropping,
@@ -187,6 +189,7 @@ fn inputs<'m>(
     let end_beat = with_fields(m, lit(0, inb.width), &[(inb.kind, lit(level_kind::END, 2))]);
     let end_in = with_fields(m, lit(0, pl.in_width), &[(field_of(&inb), end_beat)]);
     let mut leaves_in = Vec::new();
+    let mut sent = one;
     for (i, f) in fetchers.iter().enumerate() {
         let fcfg_pend = m.reg(&format!("fetch{i}_cfg_pending"), 1);
         f.connect("cfg_valid", fcfg_pend);
@@ -214,6 +217,7 @@ fn inputs<'m>(
         f.connect("cmd_data", cmd_data);
         let cmd_fire = cmd_pend & f.output("cmd_ready");
         cmd_pend.next(cfg_fire.mux(used_in[i], cmd_fire.mux(zero, cmd_pend)));
+        sent = sent & !cmd_pend;
 
         // The module's in<i>: the fetcher's beats (err dropped, probe
         // kept), or for an unused input one End per pass: owed from the
@@ -260,8 +264,9 @@ fn inputs<'m>(
         }
         leaves_in.push((f.output("leaves_valid"), f.output("leaves_data"), i));
     }
-    ferr.next(ferr_next);
-    ferr_rank.next(ferr_rank_next);
+    s.commands_sent.drive(sent);
+    ferr.next(s.header_hold.mux(ferr, ferr_next));
+    ferr_rank.next(s.header_hold.mux(ferr_rank, ferr_rank_next));
 
     (ferr, ferr_rank, leaves_in)
 }
@@ -357,8 +362,9 @@ fn route_out<'m>(
     module.connect("out_ready", mo_ready);
     let count_over = m.reg("count_overflow", 1);
     let created = mo_kind.eq(base_kind::CREATED);
-    count_over
-        .next((mo_valid & mo_ready & created & mo_err).mux(one, header_fire.mux(zero, count_over)));
+    let count_next =
+        (mo_valid & mo_ready & created & mo_err).mux(one, header_fire.mux(zero, count_over));
+    count_over.next(s.header_hold.mux(count_over, count_next));
 
     // base{d}: the FIFO of LOD d (leaves for d < lo, the passes' nodes for
     // d >= lo), shown once the module is done and the leaves complete,
@@ -396,7 +402,7 @@ fn route_out<'m>(
         bsent.next((fire & !shows).mux(one, header_fire.mux(zero, bsent)));
         q.advance(push, pop, header_fire);
     }
-    leaf_over.next(over_next);
+    leaf_over.next(s.header_hold.mux(leaf_over, over_next));
     let leaf_over = leaf_over.name("leaf_overflow_q");
 
     (leaf_over, count_over)

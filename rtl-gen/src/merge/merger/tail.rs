@@ -17,6 +17,8 @@ pub(super) struct Tail<'a, 'm> {
     pub(super) writer_mod: &'a Module,
     pub(super) ml: &'a MergerLayout,
     pub(super) header_fire: Signal<'m>,
+    pub(super) header_hold: Signal<'m>,
+    pub(super) commands_sent: Signal<'m>,
     pub(super) flags: [Signal<'m>; 4],
     pub(super) busy: Signal<'m>,
     pub(super) dropping: &'a [Signal<'m>],
@@ -34,6 +36,8 @@ pub(super) fn finish_merger<'m>(m: &'m Module, t: Tail<'_, 'm>) {
         writer_mod,
         ml,
         header_fire,
+        header_hold,
+        commands_sent,
         flags: [leaf_over, count_over, ferr, ferr_rank],
         busy,
         dropping,
@@ -68,11 +72,20 @@ pub(super) fn finish_merger<'m>(m: &'m Module, t: Tail<'_, 'm>) {
             m.output(&format!("w_{}", q.name), writer.output(&q.name));
         }
     }
-    let h_valid = writer.output("header_valid");
+    // The header waits until every command of the merge was issued and
+    // every dropped (closing) command has sent its End: only then are the
+    // flags final, and the next merge's cannot mix in. `header_open` is a
+    // register so that the beat, once offered, stays offered.
+    let no_drop = dropping.iter().fold(one, |a, c| a & !*c);
+    let header_open = m.reg("header_open", 1);
+    let settled = (busy & commands_sent & no_drop).name("merge_settled");
+    header_open.next(header_fire.mux(lit(0, 1), header_open | settled));
+    let h_valid = (writer.output("header_valid") & header_open).name("header_offered");
     let h_data = writer.output("header_data");
     let header_ready = m.input("header_ready", 1);
-    writer.connect("header_ready", header_ready);
+    writer.connect("header_ready", header_ready & header_open);
     header_fire.drive(h_valid & header_ready);
+    header_hold.drive(h_valid & !header_ready);
     let writer_header = golden::layout::Field {
         name: "writer_header",
         offset: 0,
@@ -95,7 +108,7 @@ pub(super) fn finish_merger<'m>(m: &'m Module, t: Tail<'_, 'm>) {
     let done = m.reg("done_pulse", 1);
     done.next(header_fire);
     m.output("done", done);
-    let idle = (!busy & dropping.iter().fold(one, |a, c| a & !*c)).name("merger_idle");
+    let idle = (!busy & no_drop).name("merger_idle");
     m.output("idle", idle);
     m.output("module_done", module.output("done"));
 }

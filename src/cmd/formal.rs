@@ -24,9 +24,9 @@ pub struct Args {
     /// set): pipeline_reg, skid_buffer, fifo, merge_priority,
     /// overlap_counter, merge_level, upper_level, morton_merge,
     /// per_node_decider, translate; or a larger unit: per_node_network,
-    /// merge_module_overlap, merge_module_per_node, upper_builder, fetcher,
-    /// fetcher_per_node, record_writer, hierarchy_merger,
-    /// hierarchy_merger_per_node.
+    /// merge_module_overlap, merge_module_per_node, upper_builder,
+    /// upper_builder_default, fetcher, fetcher_per_node, record_writer,
+    /// hierarchy_merger, hierarchy_merger_per_node.
     #[arg(long = "unit")]
     units: Vec<String>,
     /// Every unit of the default set (the default when neither --unit nor
@@ -34,8 +34,9 @@ pub struct Args {
     #[arg(long, conflicts_with = "units")]
     all: bool,
     /// The larger units (the merging modules, the per-node network, the
-    /// upper builder at D = 2, the handshakes of the fetchers, the record
-    /// writer and the merger tops; a few minutes);
+    /// upper builder at D = 2, the handshakes of the upper builder at
+    /// D = 16, the fetchers, the record writer and the merger tops; a few
+    /// minutes);
     /// with --all, after the default set.
     #[arg(long, conflicts_with = "units")]
     large: bool,

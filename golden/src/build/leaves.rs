@@ -125,9 +125,11 @@ pub fn place_triangle_with<K: LeafKey>(
         return;
     }
     let prepared = PreparedTriangle::new(tri);
-    for z in i0.z..=i1.z {
-        for y in i0.y..=i1.y {
-            for x in i0.x..=i1.x {
+    // Exclusive ranges: an inclusive one carries an exhaustion flag through
+    // every step. The ends are voxel indices below `2^31`, so `+ 1` fits.
+    for z in i0.z..i1.z + 1 {
+        for y in i0.y..i1.y + 1 {
+            for x in i0.x..i1.x + 1 {
                 let vlo = DVec3::new(x as f64, y as f64, z as f64) * edge;
                 let vhi = vlo + DVec3::splat(edge);
                 // A vertex in the closed voxel is contact, where the

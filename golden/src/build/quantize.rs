@@ -27,17 +27,22 @@ pub fn quantize_interval(a: f64, b: f64, v0: f64, scale: f64, cells: u32) -> (u1
     (lo as u16, hi as u16)
 }
 
-/// `floor(t)` for `t >= 0`, and 0 for `t < 0` (finite `t`).
+/// `floor(t)` for `0 <= t < 2^63`, and 0 for `t < 0` (finite `t`).
+///
+/// Through `i64`, not `u64`: baseline x86-64 converts between binary64 and
+/// signed 64-bit integers in one instruction, while the unsigned
+/// conversions take a branch and several more. Below `2^63` the two agree,
+/// and a negative `t` truncates to a value `<= 0`, which the `max` makes 0.
 #[inline(always)]
 pub fn floor_nonneg(t: f64) -> u64 {
-    t as u64
+    (t as i64).max(0) as u64
 }
 
-/// `ceil(t)` for `t >= 0`, and 0 for `t < 0` (finite `t`).
+/// `ceil(t)` for `0 <= t < 2^63`, and 0 for `t < 0` (finite `t`).
 #[inline(always)]
 pub fn ceil_nonneg(t: f64) -> u64 {
-    let f = t as u64;
-    f + ((f as f64) < t) as u64
+    let f = (t as i64).max(0);
+    (f + ((f as f64) < t) as i64) as u64
 }
 
 /// The cells of the parent voxel (one LOD up) covering a child's cells
@@ -94,11 +99,14 @@ mod tests {
             1e15 + 0.5,
             4503599627370495.5,
             9007199254740992.0,
+            4611686018427387904.0,
         ] {
             assert_eq!(floor_nonneg(t), t.floor() as u64, "{t}");
             assert_eq!(ceil_nonneg(t), t.ceil() as u64, "{t}");
         }
-        assert_eq!((floor_nonneg(-0.5), ceil_nonneg(-0.5)), (0, 0));
+        for t in [-0.5, -1.0, -1.5, -1e18] {
+            assert_eq!((floor_nonneg(t), ceil_nonneg(t)), (0, 0), "{t}");
+        }
     }
 
     #[test]

@@ -58,6 +58,18 @@ impl PreparedTriangle {
         m
     }
 
+    /// [`Self::magnitude`] of a finite triangle and box, with
+    /// [`max_not_nan`]: the same bits, since every operand is an absolute
+    /// value (never NaN here, never `-0.0`), so equal operands are equal
+    /// bits and the order of the fold does not matter.
+    #[inline(always)]
+    pub(crate) fn magnitude_finite(&self, lo: DVec3, hi: DVec3) -> f64 {
+        let v = max3(max3(self.abs_max, lo.abs()), hi.abs());
+        let m = max_not_nan(max_not_nan(v.x, v.y), v.z);
+        debug_assert_eq!(m.to_bits(), magnitude(&self.tri, lo, hi).to_bits());
+        m
+    }
+
     /// Every coordinate of the triangle is finite.
     #[inline(always)]
     pub(crate) fn is_finite(&self) -> bool {
@@ -119,21 +131,217 @@ pub fn clip_prepared(
     hi: DVec3,
     scratch: &mut ClipScratch,
 ) -> Option<(DVec3, DVec3)> {
-    let tri = &pt.tri;
     let (tlo, thi) = (pt.lo, pt.hi);
     // Comparisons are exact, so disjoint AABBs are certainly disjoint.
     if tlo.cmpgt(hi).any() || thi.cmplt(lo).any() {
         return None;
     }
-    let bounded_lo = tlo.max(lo);
-    let bounded_hi = thi.min(hi);
-    let fallback = || {
-        if triangle_overlaps_box_prepared(pt, lo, hi) {
-            Some((bounded_lo, bounded_hi))
+    if pt.is_finite() && lo.is_finite() && hi.is_finite() {
+        let scale = pt.magnitude_finite(lo, hi);
+        if scale < FINITE_CLIP_LIMIT {
+            return clip_finite(pt, lo, hi, scale, scratch);
+        }
+    }
+    clip_general(pt, lo, hi, scratch)
+}
+
+/// Below this magnitude no value of [`clip_finite`] overflows: distances
+/// to a plane and their differences stay below `4 * 2^500`, and `t` is in
+/// `[0, 1]`.
+const FINITE_CLIP_LIMIT: f64 = 1e150;
+
+/// `f64::min` for operands that are not NaN, as one `minsd`: the same
+/// value, and on equal operands (`0.0` and `-0.0`) the same one, `a`, as
+/// `f64::min` returns here (checked bit for bit against the frozen
+/// reference clip by `tests/build_identity.rs`). `f64::min` costs about eight
+/// instructions on baseline x86-64 to pass NaN through, and the clip folds
+/// every vertex of every step through six of them.
+#[inline(always)]
+pub(crate) fn min_not_nan(a: f64, b: f64) -> f64 {
+    if b < a {
+        b
+    } else {
+        a
+    }
+}
+
+/// `f64::max` for operands that are not NaN: see [`min_not_nan`].
+#[inline(always)]
+pub(crate) fn max_not_nan(a: f64, b: f64) -> f64 {
+    if b > a {
+        b
+    } else {
+        a
+    }
+}
+
+/// [`min_not_nan`] per component.
+#[inline(always)]
+fn min3(a: DVec3, b: DVec3) -> DVec3 {
+    DVec3::new(
+        min_not_nan(a.x, b.x),
+        min_not_nan(a.y, b.y),
+        min_not_nan(a.z, b.z),
+    )
+}
+
+/// [`max_not_nan`] per component.
+#[inline(always)]
+fn max3(a: DVec3, b: DVec3) -> DVec3 {
+    DVec3::new(
+        max_not_nan(a.x, b.x),
+        max_not_nan(a.y, b.y),
+        max_not_nan(a.z, b.z),
+    )
+}
+
+/// [`clip_prepared`] when the triangle and the box are finite and their
+/// magnitude `scale` is below [`FINITE_CLIP_LIMIT`] (the builder's only
+/// case): every value is finite, so `min`/`max` become [`min_not_nan`] and
+/// [`max_not_nan`], a step whose plane has every vertex on its kept side is
+/// skipped (it would return its input: see [`clip_triangle_to_box_with`]),
+/// and the polygon's bounds are folded while its vertices are written, in
+/// the order [`Polygon::bounds`] folds them. Each step is one instance of
+/// [`clip_step`] per axis and side, so the axis is a constant. The same
+/// operations on the same values in the same order as [`clip_general`]: the
+/// same bits.
+fn clip_finite(
+    pt: &PreparedTriangle,
+    lo: DVec3,
+    hi: DVec3,
+    scale: f64,
+    scratch: &mut ClipScratch,
+) -> Option<(DVec3, DVec3)> {
+    let bounded_lo = max3(pt.lo, lo);
+    let bounded_hi = min3(pt.hi, hi);
+    let m = ROUNDING_MARGIN_REL * scale;
+    let grown_lo = lo - DVec3::splat(m);
+    let grown_hi = hi + DVec3::splat(m);
+    let [a, b] = &mut scratch.polys;
+    let (mut cur, mut next) = (a, b);
+    cur.set_triangle(&pt.tri);
+    let (mut plo, mut phi) = (pt.lo, pt.hi);
+    macro_rules! step {
+        ($axis:literal, $above:literal, $plane:expr) => {
+            match clip_step::<$axis, $above>(cur, next, $plane) {
+                Some(bounds) => {
+                    (plo, phi) = bounds;
+                    std::mem::swap(&mut cur, &mut next);
+                }
+                None => return clip_fallback(pt, lo, hi, bounded_lo, bounded_hi),
+            }
+        };
+    }
+    if plo.x < grown_lo.x {
+        step!(0, true, grown_lo.x);
+    }
+    if phi.x > grown_hi.x {
+        step!(0, false, grown_hi.x);
+    }
+    if plo.y < grown_lo.y {
+        step!(1, true, grown_lo.y);
+    }
+    if phi.y > grown_hi.y {
+        step!(1, false, grown_hi.y);
+    }
+    if plo.z < grown_lo.z {
+        step!(2, true, grown_lo.z);
+    }
+    if phi.z > grown_hi.z {
+        step!(2, false, grown_hi.z);
+    }
+    let out_lo = max3(plo - DVec3::splat(m), bounded_lo);
+    let out_hi = min3(phi + DVec3::splat(m), bounded_hi);
+    if out_lo.cmpgt(out_hi).any() {
+        return clip_fallback(pt, lo, hi, bounded_lo, bounded_hi);
+    }
+    Some((out_lo, out_hi))
+}
+
+/// What the clip answers when clipping left nothing: the box of the
+/// triangle's AABB in the box, unless the overlap test rules contact out.
+#[cold]
+fn clip_fallback(
+    pt: &PreparedTriangle,
+    lo: DVec3,
+    hi: DVec3,
+    bounded_lo: DVec3,
+    bounded_hi: DVec3,
+) -> Option<(DVec3, DVec3)> {
+    if triangle_overlaps_box_prepared(pt, lo, hi) {
+        Some((bounded_lo, bounded_hi))
+    } else {
+        None
+    }
+}
+
+/// One step of [`clip_finite`]: [`clip_against_plane`] of the finite
+/// polygon `poly` at `p[AXIS] = plane`, keeping `p[AXIS] >= plane` when
+/// `ABOVE`, else `<=`, into `out`; returns the new polygon's bounds, or
+/// `None` when nothing is left. The crossing point is computed as there
+/// (`a + (b - a) * t`, per component), its own axis then set to the plane.
+#[inline(always)]
+fn clip_step<const AXIS: usize, const ABOVE: bool>(
+    poly: &Polygon,
+    out: &mut Polygon,
+    plane: f64,
+) -> Option<(DVec3, DVec3)> {
+    let dist = |p: &DVec3| {
+        if ABOVE {
+            p.to_array()[AXIS] - plane
         } else {
-            None
+            plane - p.to_array()[AXIS]
         }
     };
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    let mut len = 0;
+    let n = poly.len;
+    let first = poly.v[0];
+    let d_first = dist(&first);
+    let (mut a, mut da) = (first, d_first);
+    for i in 0..n {
+        let (b, db) = if i + 1 == n {
+            (first, d_first)
+        } else {
+            let b = poly.v[i + 1];
+            (b, dist(&b))
+        };
+        if da >= 0.0 {
+            out.v[len] = a;
+            len += 1;
+            lo = min3(lo, a);
+            hi = max3(hi, a);
+        }
+        if (da >= 0.0) != (db >= 0.0) {
+            let t = da / (da - db);
+            let mut p = (a + (b - a) * t).to_array();
+            p[AXIS] = plane;
+            let p = DVec3::from_array(p);
+            out.v[len] = p;
+            len += 1;
+            lo = min3(lo, p);
+            hi = max3(hi, p);
+        }
+        (a, da) = (b, db);
+    }
+    out.len = len;
+    (len > 0).then_some((lo, hi))
+}
+
+/// [`clip_prepared`] for any input (non-finite or huge coordinates): the
+/// plain algorithm, skipping a step only where that is exact.
+fn clip_general(
+    pt: &PreparedTriangle,
+    lo: DVec3,
+    hi: DVec3,
+    scratch: &mut ClipScratch,
+) -> Option<(DVec3, DVec3)> {
+    let tri = &pt.tri;
+    let (tlo, thi) = (pt.lo, pt.hi);
+    let bounded_lo = tlo.max(lo);
+    let bounded_hi = thi.min(hi);
+    let fallback = || clip_fallback(pt, lo, hi, bounded_lo, bounded_hi);
 
     let m = ROUNDING_MARGIN_REL * pt.magnitude(lo, hi);
     let grown_lo = lo - DVec3::splat(m);

@@ -31,16 +31,24 @@ pub fn triangle_overlaps_box(tri: &[DVec3; 3], lo: DVec3, hi: DVec3) -> bool {
 /// [`triangle_overlaps_box`] of a prepared triangle: the same answer.
 pub fn triangle_overlaps_box_prepared(pt: &PreparedTriangle, lo: DVec3, hi: DVec3) -> bool {
     let tri = &pt.tri;
-    let scale = pt.magnitude(lo, hi);
-    if scale < FAST_PATH_LIMIT && pt.is_finite() && lo.is_finite() && hi.is_finite() {
-        overlaps_finite(tri, lo, hi, scale)
-    } else {
-        overlaps_any(tri, lo, hi, scale)
+    if pt.is_finite() && lo.is_finite() && hi.is_finite() {
+        let scale = pt.magnitude_finite(lo, hi);
+        if scale < FAST_PATH_LIMIT {
+            return overlaps_finite(tri, lo, hi, scale);
+        }
     }
+    overlaps_any(tri, lo, hi, pt.magnitude(lo, hi))
 }
 
-/// Below this magnitude no product or sum of the test overflows.
+/// Below this magnitude no product or sum of the test overflows, but for
+/// the normal's (see [`NORMAL_FINITE_LIMIT`]).
 const FAST_PATH_LIMIT: f64 = 1e150;
+
+/// Below this magnitude `s` the normal's projections are finite too: with
+/// `|v| <= 2s` per component, edges are at most `4s`, the normal's
+/// components at most `2 (4s)^2 = 32 s^2`, a projection at most
+/// `3 * 32 s^2 * 2s = 192 s^3 < 2e302`, and the radius and margin smaller.
+const NORMAL_FINITE_LIMIT: f64 = 1e100;
 
 /// The test as written: thirteen axes, each through [`separates`].
 fn overlaps_any(tri: &[DVec3; 3], lo: DVec3, hi: DVec3, scale: f64) -> bool {
@@ -95,9 +103,17 @@ fn overlaps_finite(tri: &[DVec3; 3], lo: DVec3, hi: DVec3, scale: f64) -> bool {
         }
     }
     // The normal's projections are of degree 3 and may overflow (to NaN
-    // through inf - inf) below FAST_PATH_LIMIT: the general test.
+    // through inf - inf) below FAST_PATH_LIMIT: the general test there;
+    // below NORMAL_FINITE_LIMIT they are finite, so the projections are
+    // compared without min/max (`separates` with `gap_exceeds_finite`).
     let normal = edges[0].cross(edges[1]);
-    if separates(normal, &v, half, scale) {
+    let (p, radius, margin) = projection(normal, &v, half, scale);
+    let separated = if scale < NORMAL_FINITE_LIMIT {
+        gap_exceeds_finite(p, radius, margin)
+    } else {
+        gap_exceeds(p, radius, margin)
+    };
+    if separated {
         return false;
     }
     let margin = |a: f64, b: f64| ROUNDING_MARGIN_REL * (a.abs() + b.abs()) * scale;
@@ -127,10 +143,18 @@ fn overlaps_finite(tri: &[DVec3; 3], lo: DVec3, hi: DVec3, scale: f64) -> bool {
 /// True when `axis` certainly separates the triangle `v` (relative to the box
 /// center) from the box of half-extents `half`.
 fn separates(axis: DVec3, v: &[DVec3; 3], half: DVec3, scale: f64) -> bool {
+    let (p, radius, margin) = projection(axis, v, half, scale);
+    gap_exceeds(p, radius, margin)
+}
+
+/// The triangle's projections on `axis`, the box's radius on it and the
+/// margin of the test.
+#[inline(always)]
+fn projection(axis: DVec3, v: &[DVec3; 3], half: DVec3, scale: f64) -> ([f64; 3], f64, f64) {
     let p = [axis.dot(v[0]), axis.dot(v[1]), axis.dot(v[2])];
     let radius = half.dot(axis.abs());
     let margin = ROUNDING_MARGIN_REL * axis.abs().element_sum() * scale;
-    gap_exceeds(p, radius, margin)
+    (p, radius, margin)
 }
 
 /// True when the projections `p` lie beyond `radius + margin` on one side.

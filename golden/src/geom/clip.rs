@@ -145,6 +145,25 @@ pub fn clip_prepared(
     clip_general(pt, lo, hi, scratch)
 }
 
+/// [`clip_prepared`] for a box the builder tries: the caller guarantees
+/// that the triangle and the box are finite, of magnitude below `2^32`, and
+/// that their AABBs meet (the box is a candidate voxel, from the triangle's
+/// AABB). [`clip_prepared`] would then skip none of its checks' other
+/// branches, so this is [`clip_finite`] without them: the same bits.
+#[inline]
+pub fn clip_candidate(
+    pt: &PreparedTriangle,
+    lo: DVec3,
+    hi: DVec3,
+    scratch: &mut ClipScratch,
+) -> Option<(DVec3, DVec3)> {
+    debug_assert!(pt.is_finite() && lo.is_finite() && hi.is_finite());
+    debug_assert!(!(pt.lo.cmpgt(hi).any() || pt.hi.cmplt(lo).any()));
+    let scale = pt.magnitude_finite(lo, hi);
+    debug_assert!(scale < FINITE_CLIP_LIMIT);
+    clip_finite(pt, lo, hi, scale, scratch)
+}
+
 /// Below this magnitude no value of [`clip_finite`] overflows: distances
 /// to a plane and their differences stay below `4 * 2^500`, and `t` is in
 /// `[0, 1]`.

@@ -8,9 +8,9 @@ use glam::DVec3;
 
 use super::lod::primitive_lod;
 use super::quantize::{floor_nonneg, quantize_interval};
-use super::radix::morton3_fast;
+use super::radix::{morton3_fast, SortKey};
 use crate::geom::clip::{clip_candidate, ClipScratch, PreparedTriangle};
-use crate::geom::overlap::triangle_overlaps_box_prepared;
+use crate::geom::overlap::overlaps_candidate;
 use crate::params::Params;
 
 /// The integer a [`LeafEntry`] holds its key in: `u128` holds every key
@@ -18,7 +18,7 @@ use crate::params::Params;
 /// ([`leaf_key_bits`] `<= 64`, i.e. `D <= 19`), which halves the entries'
 /// size (48 to 24 bytes) and with it the memory the sort moves. The key's
 /// value is the same either way.
-pub trait LeafKey: Copy + Eq + Send + Sync + std::fmt::Debug + 'static {
+pub trait LeafKey: Copy + Eq + Send + Sync + std::fmt::Debug + SortKey + 'static {
     /// `k`, which the caller guarantees fits.
     fn from_u128(k: u128) -> Self;
     /// The key's value.
@@ -134,7 +134,7 @@ pub fn place_triangle_with<K: LeafKey>(
                 // A vertex in the closed voxel is contact, where the
                 // conservative overlap test is true: skip computing it.
                 let holds_vertex = tri.iter().any(|v| v.cmpge(vlo).all() && v.cmple(vhi).all());
-                if !holds_vertex && !triangle_overlaps_box_prepared(&prepared, vlo, vhi) {
+                if !holds_vertex && !overlaps_candidate(&prepared, vlo, vhi) {
                     continue;
                 }
                 // A candidate's box meets the triangle's AABB, and both are

@@ -335,7 +335,7 @@ fn build_parallel_keyed<K: LeafKey>(
         &mut entries,
         &mut Vec::new(),
         leaves::leaf_key_bits(params),
-        |e| e.key.to_u128(),
+        |e| e.key,
     );
     upper::assemble(&entries, params, id)
 }
@@ -456,7 +456,7 @@ fn build_keyed<K: LeafKey>(
         &mut entries,
         &mut Vec::new(),
         leaves::leaf_key_bits(params),
-        |e| e.key.to_u128(),
+        |e| e.key,
     );
     upper::assemble(&entries, params, id)
 }

@@ -18,12 +18,21 @@
 /// Floor and ceiling are taken through the float-to-integer conversion
 /// (truncation, saturating at 0 for negative values, which is the clamp) to
 /// stay off the C library's `floor` on baseline x86-64.
+///
+/// The clamps are taken in `i64` on the truncated values: `lo` is
+/// `trunc(ta)` clamped to `[0, top]` (for `ta < 0` the truncation is
+/// `<= 0`); `hi` is `max(c - 1, lo)` then `min(top)` with `c = ceil(tb)`
+/// (for `tb < 0`, `c <= 0` and `hi` is `lo`, as the clamp of
+/// `ceil_nonneg(tb) - 1` saturating at 0 gives; for `tb >= 0`,
+/// `max(max(c - 1, 0), lo) = max(c - 1, lo)` since `lo >= 0`).
 pub fn quantize_interval(a: f64, b: f64, v0: f64, scale: f64, cells: u32) -> (u16, u16) {
-    let top = cells as u64 - 1;
-    let lo = floor_nonneg((a - v0) * scale).min(top);
-    let hi = ceil_nonneg((b - v0) * scale)
-        .saturating_sub(1)
-        .clamp(lo, top);
+    let top = cells as i64 - 1;
+    let lo = ((a - v0) * scale) as i64;
+    let lo = lo.max(0).min(top);
+    let tb = (b - v0) * scale;
+    let f = tb as i64;
+    let c = f + ((f as f64) < tb) as i64;
+    let hi = (c - 1).max(lo).min(top);
     (lo as u16, hi as u16)
 }
 

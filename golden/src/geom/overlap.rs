@@ -34,10 +34,30 @@ pub fn triangle_overlaps_box_prepared(pt: &PreparedTriangle, lo: DVec3, hi: DVec
     if pt.is_finite() && lo.is_finite() && hi.is_finite() {
         let scale = pt.magnitude_finite(lo, hi);
         if scale < FAST_PATH_LIMIT {
-            return overlaps_finite(tri, lo, hi, scale);
+            return overlaps_finite::<true>(tri, lo, hi, scale);
         }
     }
     overlaps_any(tri, lo, hi, pt.magnitude(lo, hi))
+}
+
+/// [`triangle_overlaps_box_prepared`] for a box the builder tries: the
+/// caller guarantees that the triangle and the box are finite, of magnitude
+/// below `2^32`, and that their AABBs meet (the box is a candidate voxel).
+/// The box-axis tests are left out, since they cannot separate then: the
+/// box's center and half extents are exact (corners are integers below
+/// `2^32`), and some vertex `w` has `w[a] <= hi[a]`, i.e. exactly
+/// `w[a] - center[a] <= half[a]`; rounding is monotone and `half[a]` is
+/// representable, so the computed projection is `<= half[a]` too, never
+/// beyond `half[a] + margin`; the same below. The same answer.
+#[inline]
+pub fn overlaps_candidate(pt: &PreparedTriangle, lo: DVec3, hi: DVec3) -> bool {
+    debug_assert!(pt.is_finite() && lo.is_finite() && hi.is_finite());
+    debug_assert!(!(pt.lo.cmpgt(hi).any() || pt.hi.cmplt(lo).any()));
+    let scale = pt.magnitude_finite(lo, hi);
+    debug_assert!(scale < (1u64 << 32) as f64);
+    let answer = overlaps_finite::<false>(&pt.tri, lo, hi, scale);
+    debug_assert_eq!(answer, triangle_overlaps_box_prepared(pt, lo, hi));
+    answer
 }
 
 /// Below this magnitude no product or sum of the test overflows, but for
@@ -87,7 +107,15 @@ fn overlaps_any(tri: &[DVec3; 3], lo: DVec3, hi: DVec3, scale: f64) -> bool {
 /// `e x X = (e.y 0 - 0 e.z, e.z 1 - 0 e.x, e.x 0 - 1 e.y) = (0, e.z, -e.y)`,
 /// and its projection `(0 v.x + e.z v.y) + (-e.y) v.z` is
 /// `e.z v.y - e.y v.z` rounded the same way.
-fn overlaps_finite(tri: &[DVec3; 3], lo: DVec3, hi: DVec3, scale: f64) -> bool {
+///
+/// `BOX_AXES = false` leaves the box-axis tests out (see
+/// [`overlaps_candidate`] for when they cannot separate).
+fn overlaps_finite<const BOX_AXES: bool>(
+    tri: &[DVec3; 3],
+    lo: DVec3,
+    hi: DVec3,
+    scale: f64,
+) -> bool {
     let center = (lo + hi) * 0.5;
     let half = (hi - lo) * 0.5;
     let v = [tri[0] - center, tri[1] - center, tri[2] - center];
@@ -98,7 +126,7 @@ fn overlaps_finite(tri: &[DVec3; 3], lo: DVec3, hi: DVec3, scale: f64) -> bool {
     let box_margin = ROUNDING_MARGIN_REL * 1.0 * scale;
     for a in 0..3 {
         let p = [v[0][a], v[1][a], v[2][a]];
-        if gap_exceeds_finite(p, half[a], box_margin) {
+        if BOX_AXES && gap_exceeds_finite(p, half[a], box_margin) {
             return false;
         }
     }

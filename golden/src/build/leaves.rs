@@ -94,8 +94,9 @@ pub fn place_triangle_with<K: LeafKey>(
     out: &mut Vec<LeafEntry<K>>,
     scratch: &mut ClipScratch,
 ) {
-    let tlo = tri[0].min(tri[1]).min(tri[2]);
-    let thi = tri[0].max(tri[1]).max(tri[2]);
+    // The input is checked finite: see `PreparedTriangle::new_finite`.
+    let prepared = PreparedTriangle::new_finite(tri);
+    let (tlo, thi) = (prepared.lo, prepared.hi);
     let lod = primitive_lod(tri, tlo, thi, p.max_lod);
     let edge = p.voxel_edge(lod) as f64;
     let last = (1u64 << lod) - 1;
@@ -123,7 +124,6 @@ pub fn place_triangle_with<K: LeafKey>(
         out.push(entry(i0.x, i0.y, i0.z, corner(i0.x, i0.y, i0.z), tlo, thi));
         return;
     }
-    let prepared = PreparedTriangle::new(tri);
     // Exclusive ranges: an inclusive one carries an exhaustion flag through
     // every step. The ends are voxel indices below `2^31`, so `+ 1` fits.
     for z in i0.z..i1.z + 1 {

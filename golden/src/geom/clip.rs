@@ -49,6 +49,30 @@ impl PreparedTriangle {
         }
     }
 
+    /// [`Self::new`] of a finite triangle (the builder's, checked), with
+    /// [`min_not_nan`] and [`max_not_nan`] for the NaN-passing `min`/`max`:
+    /// the same bits (the same operands folded in the same order, and the
+    /// same operand kept on a tie), and its AABB `(lo, hi)` for the caller.
+    #[inline(always)]
+    pub fn new_finite(tri: &[DVec3; 3]) -> PreparedTriangle {
+        debug_assert!(tri.iter().all(|v| v.is_finite()));
+        let lo = min3(min3(tri[0], tri[1]), tri[2]);
+        let hi = max3(max3(tri[0], tri[1]), tri[2]);
+        let abs_max = max3(max3(tri[0].abs(), tri[1].abs()), tri[2].abs());
+        debug_assert!({
+            let bits = |v: DVec3| v.to_array().map(f64::to_bits);
+            let p = PreparedTriangle::new(tri);
+            [p.lo, p.hi, p.abs_max].map(bits) == [lo, hi, abs_max].map(bits)
+        });
+        PreparedTriangle {
+            tri: *tri,
+            lo,
+            hi,
+            abs_max,
+            finite: true,
+        }
+    }
+
     /// `geom::magnitude(tri, lo, hi)`, continuing its fold from the
     /// triangle's part (`max` of non-negative values: the same result).
     #[inline(always)]
@@ -194,24 +218,22 @@ pub(crate) fn max_not_nan(a: f64, b: f64) -> f64 {
     }
 }
 
+/// `f` per component.
+#[inline(always)]
+fn per_component(a: DVec3, b: DVec3, f: impl Fn(f64, f64) -> f64) -> DVec3 {
+    DVec3::new(f(a.x, b.x), f(a.y, b.y), f(a.z, b.z))
+}
+
 /// [`min_not_nan`] per component.
 #[inline(always)]
 fn min3(a: DVec3, b: DVec3) -> DVec3 {
-    DVec3::new(
-        min_not_nan(a.x, b.x),
-        min_not_nan(a.y, b.y),
-        min_not_nan(a.z, b.z),
-    )
+    per_component(a, b, min_not_nan)
 }
 
 /// [`max_not_nan`] per component.
 #[inline(always)]
 fn max3(a: DVec3, b: DVec3) -> DVec3 {
-    DVec3::new(
-        max_not_nan(a.x, b.x),
-        max_not_nan(a.y, b.y),
-        max_not_nan(a.z, b.z),
-    )
+    per_component(a, b, max_not_nan)
 }
 
 /// [`clip_prepared`] when the triangle and the box are finite and their
@@ -315,17 +337,7 @@ fn clip_step<const AXIS: usize, const ABOVE: bool>(
     let mut lo = DVec3::splat(f64::INFINITY);
     let mut hi = DVec3::splat(f64::NEG_INFINITY);
     let mut len = 0;
-    let n = poly.len;
-    let first = poly.v[0];
-    let d_first = dist(&first);
-    let (mut a, mut da) = (first, d_first);
-    for i in 0..n {
-        let (b, db) = if i + 1 == n {
-            (first, d_first)
-        } else {
-            let b = poly.v[i + 1];
-            (b, dist(&b))
-        };
+    for_each_edge(poly, dist, |a, da, b, db| {
         if da >= 0.0 {
             out.v[len] = a;
             len += 1;
@@ -342,8 +354,7 @@ fn clip_step<const AXIS: usize, const ABOVE: bool>(
             lo = min3(lo, p);
             hi = max3(hi, p);
         }
-        (a, da) = (b, db);
-    }
+    });
     out.len = len;
     (len > 0).then_some((lo, hi))
 }
@@ -459,26 +470,15 @@ enum KeepSide {
 /// like any other.
 #[inline(always)]
 fn clip_against_plane(poly: &Polygon, out: &mut Polygon, axis: usize, plane: f64, keep: KeepSide) {
-    let dist = |p: DVec3| match keep {
+    let dist = |p: &DVec3| match keep {
         KeepSide::Above => p[axis] - plane,
         KeepSide::Below => plane - p[axis],
     };
     out.len = 0;
-    let n = poly.len;
-    if n == 0 {
+    if poly.len == 0 {
         return;
     }
-    // Each vertex's distance is computed once and carried to the next edge.
-    let first = poly.v[0];
-    let d_first = dist(first);
-    let (mut a, mut da) = (first, d_first);
-    for i in 0..n {
-        let (b, db) = if i + 1 == n {
-            (first, d_first)
-        } else {
-            let b = poly.v[i + 1];
-            (b, dist(b))
-        };
+    for_each_edge(poly, dist, |a, da, b, db| {
         if da >= 0.0 {
             out.push(a);
         }
@@ -490,6 +490,31 @@ fn clip_against_plane(poly: &Polygon, out: &mut Polygon, axis: usize, plane: f64
             p[axis] = plane;
             out.push(p);
         }
+    });
+}
+
+/// Calls `f(a, da, b, db)` for each edge `(a, b)` of the closed polygon
+/// `poly` (at least one vertex), from vertex 0 in order, the last edge back
+/// to vertex 0; `da`, `db` are the vertices' `dist`, each computed once and
+/// carried to the next edge.
+#[inline(always)]
+fn for_each_edge(
+    poly: &Polygon,
+    dist: impl Fn(&DVec3) -> f64,
+    mut f: impl FnMut(DVec3, f64, DVec3, f64),
+) {
+    let n = poly.len;
+    let first = poly.v[0];
+    let d_first = dist(&first);
+    let (mut a, mut da) = (first, d_first);
+    for i in 0..n {
+        let (b, db) = if i + 1 == n {
+            (first, d_first)
+        } else {
+            let b = poly.v[i + 1];
+            (b, dist(&b))
+        };
+        f(a, da, b, db);
         (a, da) = (b, db);
     }
 }

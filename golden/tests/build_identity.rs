@@ -390,6 +390,19 @@ fn clip_keeps_the_reference_zero_signs() {
                 let old = reference_builder::geom::clip::clip_triangle_to_box(&tri, lo, hi);
                 assert!(same_bits(new, old), "{tri:?} {lo} {hi}: {new:?} vs {old:?}");
             }
+            // The triangle's AABB ends at one zero where the box's starts or
+            // ends at the other: the clipped box's face there is a `min` or
+            // `max` of the two zeros.
+            let below = [d(a, 0.2, 0.3), d(-1.0, 0.5, 0.5), d(-0.5, 0.9, 0.1)];
+            let above = [d(a, 0.2, 0.3), d(1.0, 0.5, 0.5), d(0.5, 0.9, 0.1)];
+            for (tri, lo, hi) in [
+                (below, d(-2.0, 0.0, 0.0), d(b, 1.0, 1.0)),
+                (above, d(b, 0.0, 0.0), d(2.0, 1.0, 1.0)),
+            ] {
+                let new = clip_triangle_to_box(&tri, lo, hi);
+                let old = reference_builder::geom::clip::clip_triangle_to_box(&tri, lo, hi);
+                assert!(same_bits(new, old), "{tri:?} {lo} {hi}: {new:?} vs {old:?}");
+            }
         }
     }
 }

@@ -236,3 +236,173 @@ proptest! {
         );
     }
 }
+
+/// Hand-placed triangles for every branch of the placement: tiny ones
+/// inside one voxel (no clip), tiny ones across a voxel face, edge or
+/// corner (clip, mostly no plane crossed), triangles lying in voxel faces
+/// and segments along voxel edges (planes met exactly), a vertex on a
+/// corner, huge thin ones across the scene (many planes crossed), points,
+/// segments, repeated vertices, and `-0.0` and `2^D` coordinates (the
+/// scene's faces), at LODs from coarse to the deepest.
+fn branch_triangles(p: &Params, seed: u64) -> Vec<[DVec3; 3]> {
+    let d = |x: f64, y: f64, z: f64| DVec3::new(x, y, z);
+    let s = p.scene_edge() as f64;
+    let mut rng = SplitMix64::new(seed);
+    let mut out = Vec::new();
+    for level in [
+        1u8,
+        2,
+        p.max_lod / 2,
+        p.max_lod.saturating_sub(1),
+        p.max_lod,
+    ] {
+        let e = p.voxel_edge(level.clamp(1, p.max_lod)) as f64;
+        // A voxel corner away from the scene's faces when there is one.
+        let c = d(e, e, e).min(DVec3::splat(s / 2.0));
+        let tiny = e / 64.0;
+        let j = |rng: &mut SplitMix64| rng.next_f64() * tiny;
+        let inside = c + DVec3::splat(e / 4.0);
+        out.push([
+            inside,
+            inside + d(tiny, 0.0, j(&mut rng)),
+            inside + d(0.0, tiny, 0.0),
+        ]);
+        // Across a face, an edge and the corner of the voxel at c.
+        out.push([
+            c + d(-tiny, e / 4.0, e / 4.0),
+            c + d(tiny, e / 4.0, e / 4.0),
+            c + d(0.0, e / 4.0 + tiny, e / 4.0),
+        ]);
+        out.push([
+            c + d(-tiny, -tiny, e / 4.0),
+            c + d(tiny, tiny, e / 4.0),
+            c + d(tiny, -tiny, e / 4.0 + j(&mut rng)),
+        ]);
+        out.push([
+            c - DVec3::splat(tiny),
+            c + DVec3::splat(tiny),
+            c + d(tiny, -tiny, tiny),
+        ]);
+        // In the face z = c.z, and a segment along the voxel edge x = c.x, y = c.y.
+        out.push([
+            c + d(-e / 2.0, -e / 3.0, 0.0),
+            c + d(e * 1.5, 0.0, 0.0),
+            c + d(0.0, e * 1.25, 0.0),
+        ]);
+        out.push([
+            c + d(0.0, 0.0, -e / 2.0),
+            c + d(0.0, 0.0, e * 1.5),
+            c + d(0.0, 0.0, e / 3.0),
+        ]);
+        // A vertex exactly on the corner, the rest outside the voxel.
+        out.push([
+            c,
+            c - d(e / 2.0, e / 8.0, 0.0),
+            c - d(e / 8.0, e / 2.0, e / 4.0),
+        ]);
+        // Points and a repeated-vertex segment on the corner and inside.
+        out.push([c; 3]);
+        out.push([inside; 3]);
+        out.push([c, c + d(e, e / 2.0, e / 4.0), c]);
+    }
+    // Huge thin ones from face to face, through many voxel planes.
+    for k in 0..4 {
+        let w = s * 10f64.powi(-2 - k);
+        out.push([d(0.0, 0.0, 0.0), d(s, s, s), d(s, s - w, s)]);
+        out.push([
+            d(0.0, s / 3.0, s / 2.0),
+            d(s, s / 3.0 + w, s / 2.0),
+            d(s, s / 3.0, s / 2.0 + w),
+        ]);
+        out.push([d(s, 0.0, 0.0), d(0.0, s, w), d(w, s, 0.0)]);
+    }
+    // The scene's faces, with negative zeros (valid grid coordinates).
+    out.push([d(-0.0, 0.0, -0.0), d(s, -0.0, 0.0), d(-0.0, s, -0.0)]);
+    out.push([
+        d(-0.0, -0.0, -0.0),
+        d(1.0, -0.0, 0.5).min(DVec3::splat(s)),
+        d(-0.0, 0.5, 1.0).min(DVec3::splat(s)),
+    ]);
+    out.push([d(s, s, s), d(s, s / 2.0, s), d(s / 2.0, s, s)]);
+    // Into the scene cube where a coarse level's offsets reach past it.
+    out.iter()
+        .map(|t| t.map(|v| v.clamp(DVec3::ZERO, DVec3::splat(s))))
+        .collect()
+}
+
+/// Every leaf entry of the placement (the only input of the sort and the
+/// levels) equals the frozen reference's, on [`branch_triangles`] at many
+/// (D, Q), and so do the whole hierarchies.
+#[test]
+fn placement_branches_match_the_reference_entry_for_entry() {
+    for (d, q) in [
+        (1, 0),
+        (2, 3),
+        (5, 8),
+        (8, 0),
+        (12, 16),
+        (16, 8),
+        (19, 5),
+        (20, 4),
+        (31, 16),
+    ] {
+        let p = Params::new(d, q, 24, 4).unwrap();
+        let tris = branch_triangles(&p, d as u64 * 31 + q as u64);
+        for (i, t) in tris.iter().enumerate() {
+            let what = format!("D={d} Q={q} triangle {i} {t:?}");
+            golden::build::check_grid_triangle(t, i, &p).expect(&what);
+            let mut new = Vec::new();
+            golden::build::leaves::place_triangle(t, i as u32, &p, &mut new);
+            let mut old = Vec::new();
+            reference_builder::leaves::place_triangle(t, i as u32, &p, &mut old);
+            assert_eq!(new.len(), old.len(), "{what}: entry count");
+            for (n, o) in new.iter().zip(&old) {
+                assert_eq!(
+                    (n.key, n.prim, n.lo, n.hi),
+                    (o.key, o.prim, o.lo, o.hi),
+                    "{what}"
+                );
+            }
+        }
+        let new = build_grid_triangles(&tris, &p, 1).unwrap();
+        let old = reference_builder::build_grid_triangles(&tris, &p, 1).unwrap();
+        assert_same(&new, &old, &format!("branches D={d} Q={q}"));
+    }
+}
+
+/// The clip's finite path returns the reference's bits, zero signs
+/// included, where `-0.0` meets `0.0` (the one place its `min`/`max` could
+/// pick another operand than `f64::min`/`max`).
+#[test]
+fn clip_keeps_the_reference_zero_signs() {
+    let d = DVec3::new;
+    let zs = [0.0, -0.0];
+    for &a in &zs {
+        for &b in &zs {
+            let tri = [d(a, b, 0.5), d(1.0, a, b), d(b, 1.0, a)];
+            for (lo, hi) in [
+                (d(b, a, a), d(1.0, 1.0, 1.0)),
+                (d(-1.0, -1.0, -1.0), d(a, b, a)),
+                (d(a, a, b), d(b, b, a)),
+                (d(-0.5, b, -0.5), d(0.5, 0.5, 0.5)),
+            ] {
+                let new = clip_triangle_to_box(&tri, lo, hi);
+                let old = reference_builder::geom::clip::clip_triangle_to_box(&tri, lo, hi);
+                assert!(same_bits(new, old), "{tri:?} {lo} {hi}: {new:?} vs {old:?}");
+            }
+            // The triangle's AABB ends at one zero where the box's starts or
+            // ends at the other: the clipped box's face there is a `min` or
+            // `max` of the two zeros.
+            let below = [d(a, 0.2, 0.3), d(-1.0, 0.5, 0.5), d(-0.5, 0.9, 0.1)];
+            let above = [d(a, 0.2, 0.3), d(1.0, 0.5, 0.5), d(0.5, 0.9, 0.1)];
+            for (tri, lo, hi) in [
+                (below, d(-2.0, 0.0, 0.0), d(b, 1.0, 1.0)),
+                (above, d(b, 0.0, 0.0), d(2.0, 1.0, 1.0)),
+            ] {
+                let new = clip_triangle_to_box(&tri, lo, hi);
+                let old = reference_builder::geom::clip::clip_triangle_to_box(&tri, lo, hi);
+                assert!(same_bits(new, old), "{tri:?} {lo} {hi}: {new:?} vs {old:?}");
+            }
+        }
+    }
+}

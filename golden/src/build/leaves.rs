@@ -8,9 +8,9 @@ use glam::DVec3;
 
 use super::lod::primitive_lod;
 use super::quantize::{floor_nonneg, quantize_interval};
-use super::radix::morton3_fast;
-use crate::geom::clip::{clip_prepared, ClipScratch, PreparedTriangle};
-use crate::geom::overlap::triangle_overlaps_box_prepared;
+use super::radix::{morton3_fast, SortKey};
+use crate::geom::clip::{clip_candidate, ClipScratch, PreparedTriangle};
+use crate::geom::overlap::overlaps_candidate;
 use crate::params::Params;
 
 /// The integer a [`LeafEntry`] holds its key in: `u128` holds every key
@@ -18,7 +18,7 @@ use crate::params::Params;
 /// ([`leaf_key_bits`] `<= 64`, i.e. `D <= 19`), which halves the entries'
 /// size (48 to 24 bytes) and with it the memory the sort moves. The key's
 /// value is the same either way.
-pub trait LeafKey: Copy + Eq + Send + Sync + std::fmt::Debug + 'static {
+pub trait LeafKey: Copy + Eq + Send + Sync + std::fmt::Debug + SortKey + 'static {
     /// `k`, which the caller guarantees fits.
     fn from_u128(k: u128) -> Self;
     /// The key's value.
@@ -94,8 +94,9 @@ pub fn place_triangle_with<K: LeafKey>(
     out: &mut Vec<LeafEntry<K>>,
     scratch: &mut ClipScratch,
 ) {
-    let tlo = tri[0].min(tri[1]).min(tri[2]);
-    let thi = tri[0].max(tri[1]).max(tri[2]);
+    // The input is checked finite: see `PreparedTriangle::new_finite`.
+    let prepared = PreparedTriangle::new_finite(tri);
+    let (tlo, thi) = (prepared.lo, prepared.hi);
     let lod = primitive_lod(tri, tlo, thi, p.max_lod);
     let edge = p.voxel_edge(lod) as f64;
     let last = (1u64 << lod) - 1;
@@ -105,39 +106,41 @@ pub fn place_triangle_with<K: LeafKey>(
     let i0 = glam::UVec3::new(voxel_of(tlo.x), voxel_of(tlo.y), voxel_of(tlo.z));
     let i1 = glam::UVec3::new(voxel_of(thi.x), voxel_of(thi.y), voxel_of(thi.z));
 
-    let entry = |x: u32, y: u32, z: u32, blo: DVec3, bhi: DVec3| {
-        let v0 = DVec3::new(x as f64, y as f64, z as f64) * edge;
-        let mut lo = [0u16; 3];
-        let mut hi = [0u16; 3];
-        for a in 0..3 {
-            (lo[a], hi[a]) = quantize_interval(blo[a], bhi[a], v0[a], scale, cells);
-        }
+    // `v0` is the voxel's minimum corner, `(x, y, z) * edge`.
+    let entry = |x: u32, y: u32, z: u32, v0: DVec3, blo: DVec3, bhi: DVec3| {
+        let (lx, hx) = quantize_interval(blo.x, bhi.x, v0.x, scale, cells);
+        let (ly, hy) = quantize_interval(blo.y, bhi.y, v0.y, scale, cells);
+        let (lz, hz) = quantize_interval(blo.z, bhi.z, v0.z, scale, cells);
         LeafEntry {
             key: K::from_u128(leaf_key(lod, x, y, z, p.max_lod)),
             prim,
-            lo,
-            hi,
+            lo: [lx, ly, lz],
+            hi: [hx, hy, hz],
         }
     };
+    let corner = |x: u32, y: u32, z: u32| DVec3::new(x as f64, y as f64, z as f64) * edge;
 
     if i0 == i1 {
-        out.push(entry(i0.x, i0.y, i0.z, tlo, thi));
+        out.push(entry(i0.x, i0.y, i0.z, corner(i0.x, i0.y, i0.z), tlo, thi));
         return;
     }
-    let prepared = PreparedTriangle::new(tri);
-    for z in i0.z..=i1.z {
-        for y in i0.y..=i1.y {
-            for x in i0.x..=i1.x {
-                let vlo = DVec3::new(x as f64, y as f64, z as f64) * edge;
+    // Exclusive ranges: an inclusive one carries an exhaustion flag through
+    // every step. The ends are voxel indices below `2^31`, so `+ 1` fits.
+    for z in i0.z..i1.z + 1 {
+        for y in i0.y..i1.y + 1 {
+            for x in i0.x..i1.x + 1 {
+                let vlo = corner(x, y, z);
                 let vhi = vlo + DVec3::splat(edge);
                 // A vertex in the closed voxel is contact, where the
                 // conservative overlap test is true: skip computing it.
                 let holds_vertex = tri.iter().any(|v| v.cmpge(vlo).all() && v.cmple(vhi).all());
-                if !holds_vertex && !triangle_overlaps_box_prepared(&prepared, vlo, vhi) {
+                if !holds_vertex && !overlaps_candidate(&prepared, vlo, vhi) {
                     continue;
                 }
-                if let Some((blo, bhi)) = clip_prepared(&prepared, vlo, vhi, scratch) {
-                    out.push(entry(x, y, z, blo, bhi));
+                // A candidate's box meets the triangle's AABB, and both are
+                // finite and below 2^32: what `clip_candidate` asks.
+                if let Some((blo, bhi)) = clip_candidate(&prepared, vlo, vhi, scratch) {
+                    out.push(entry(x, y, z, vlo, blo, bhi));
                 }
             }
         }

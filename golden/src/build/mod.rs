@@ -118,6 +118,13 @@ fn power_of_two_at_least(x: f64) -> f64 {
 /// Checks one grid-space triangle: finite and inside `[0, 2^D]^3`.
 pub fn check_grid_triangle(t: &[DVec3; 3], index: usize, p: &Params) -> Result<(), BuildError> {
     let edge = p.scene_edge() as f64;
+    // Every coordinate in `[0, edge]` (a NaN or an infinity fails one of
+    // the comparisons): the common case, decided without the loop below,
+    // which finds the first bad coordinate otherwise.
+    let inside = |v: &DVec3| v.cmpge(DVec3::ZERO).all() && v.cmple(DVec3::splat(edge)).all();
+    if inside(&t[0]) && inside(&t[1]) && inside(&t[2]) {
+        return Ok(());
+    }
     for (corner, v) in t.iter().enumerate() {
         for axis in 0..3 {
             let g = v[axis];
@@ -328,7 +335,7 @@ fn build_parallel_keyed<K: LeafKey>(
         &mut entries,
         &mut Vec::new(),
         leaves::leaf_key_bits(params),
-        |e| e.key.to_u128(),
+        |e| e.key,
     );
     upper::assemble(&entries, params, id)
 }
@@ -449,7 +456,7 @@ fn build_keyed<K: LeafKey>(
         &mut entries,
         &mut Vec::new(),
         leaves::leaf_key_bits(params),
-        |e| e.key.to_u128(),
+        |e| e.key,
     );
     upper::assemble(&entries, params, id)
 }

@@ -18,26 +18,40 @@
 /// Floor and ceiling are taken through the float-to-integer conversion
 /// (truncation, saturating at 0 for negative values, which is the clamp) to
 /// stay off the C library's `floor` on baseline x86-64.
+///
+/// The clamps are taken in `i64` on the truncated values: `lo` is
+/// `trunc(ta)` clamped to `[0, top]` (for `ta < 0` the truncation is
+/// `<= 0`); `hi` is `max(c - 1, lo)` then `min(top)` with `c = ceil(tb)`
+/// (for `tb < 0`, `c <= 0` and `hi` is `lo`, as the clamp of
+/// `ceil_nonneg(tb) - 1` saturating at 0 gives; for `tb >= 0`,
+/// `max(max(c - 1, 0), lo) = max(c - 1, lo)` since `lo >= 0`).
 pub fn quantize_interval(a: f64, b: f64, v0: f64, scale: f64, cells: u32) -> (u16, u16) {
-    let top = cells as u64 - 1;
-    let lo = floor_nonneg((a - v0) * scale).min(top);
-    let hi = ceil_nonneg((b - v0) * scale)
-        .saturating_sub(1)
-        .clamp(lo, top);
+    let top = cells as i64 - 1;
+    let lo = ((a - v0) * scale) as i64;
+    let lo = lo.max(0).min(top);
+    let tb = (b - v0) * scale;
+    let f = tb as i64;
+    let c = f + ((f as f64) < tb) as i64;
+    let hi = (c - 1).max(lo).min(top);
     (lo as u16, hi as u16)
 }
 
-/// `floor(t)` for `t >= 0`, and 0 for `t < 0` (finite `t`).
+/// `floor(t)` for `0 <= t < 2^63`, and 0 for `t < 0` (finite `t`).
+///
+/// Through `i64`, not `u64`: baseline x86-64 converts between binary64 and
+/// signed 64-bit integers in one instruction, while the unsigned
+/// conversions take a branch and several more. Below `2^63` the two agree,
+/// and a negative `t` truncates to a value `<= 0`, which the `max` makes 0.
 #[inline(always)]
 pub fn floor_nonneg(t: f64) -> u64 {
-    t as u64
+    (t as i64).max(0) as u64
 }
 
-/// `ceil(t)` for `t >= 0`, and 0 for `t < 0` (finite `t`).
+/// `ceil(t)` for `0 <= t < 2^63`, and 0 for `t < 0` (finite `t`).
 #[inline(always)]
 pub fn ceil_nonneg(t: f64) -> u64 {
-    let f = t as u64;
-    f + ((f as f64) < t) as u64
+    let f = (t as i64).max(0);
+    (f + ((f as f64) < t) as i64) as u64
 }
 
 /// The cells of the parent voxel (one LOD up) covering a child's cells
@@ -94,11 +108,14 @@ mod tests {
             1e15 + 0.5,
             4503599627370495.5,
             9007199254740992.0,
+            4611686018427387904.0,
         ] {
             assert_eq!(floor_nonneg(t), t.floor() as u64, "{t}");
             assert_eq!(ceil_nonneg(t), t.ceil() as u64, "{t}");
         }
-        assert_eq!((floor_nonneg(-0.5), ceil_nonneg(-0.5)), (0, 0));
+        for t in [-0.5, -1.0, -1.5, -1e18] {
+            assert_eq!((floor_nonneg(t), ceil_nonneg(t)), (0, 0), "{t}");
+        }
     }
 
     #[test]

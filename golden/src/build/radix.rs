@@ -9,11 +9,11 @@ const BUCKETS: usize = 1 << DIGIT_BITS;
 /// `scratch` is reused storage (its contents are discarded). Histograms of
 /// all passes are taken in one read; a pass whose digit is the same for every
 /// item is skipped, since it would not move anything.
-pub fn radix_sort<T: Copy>(
+pub fn radix_sort<T: Copy, K: SortKey>(
     items: &mut Vec<T>,
     scratch: &mut Vec<T>,
     key_bits: u32,
-    key: impl Fn(&T) -> u128,
+    key: impl Fn(&T) -> K,
 ) {
     let n = items.len();
     if n < 2 || key_bits == 0 {
@@ -24,7 +24,7 @@ pub fn radix_sort<T: Copy>(
     for it in items.iter() {
         let k = key(it);
         for (p, h) in hist.iter_mut().enumerate() {
-            h[digit(k, p)] += 1;
+            h[k.digit(p)] += 1;
         }
     }
     scratch.clear();
@@ -43,7 +43,7 @@ pub fn radix_sort<T: Copy>(
             sum += c;
         }
         for it in items.iter() {
-            let d = digit(key(it), p);
+            let d = key(it).digit(p);
             scratch[offsets[d] as usize] = *it;
             offsets[d] += 1;
         }
@@ -80,11 +80,11 @@ impl<T> Slots<T> {
 /// (block, digit) gets the offset where its run goes (digits in order, and
 /// within a digit the blocks in order, which keeps the sort stable), and the
 /// blocks scatter in parallel.
-pub fn radix_sort_parallel<T: Copy + Send + Sync>(
+pub fn radix_sort_parallel<T: Copy + Send + Sync, K: SortKey>(
     items: &mut Vec<T>,
     scratch: &mut Vec<T>,
     key_bits: u32,
-    key: impl Fn(&T) -> u128 + Sync,
+    key: impl Fn(&T) -> K + Sync,
 ) {
     use rayon::prelude::*;
     let n = items.len();
@@ -99,7 +99,7 @@ pub fn radix_sort_parallel<T: Copy + Send + Sync>(
         for it in part {
             let k = key(it);
             for (h, p) in hist.iter_mut().zip(passes.clone()) {
-                h[digit(k, p)] += 1;
+                h[k.digit(p)] += 1;
             }
         }
         hist
@@ -141,7 +141,7 @@ pub fn radix_sort_parallel<T: Copy + Send + Sync>(
             .zip(offsets.par_iter_mut())
             .for_each(|(part, off)| {
                 for it in part {
-                    let d = digit(key(it), p);
+                    let d = key(it).digit(p);
                     // SAFETY: the offsets of (block, d) run over slots no
                     // other (block, digit) pair is given, all below n, within
                     // scratch's capacity; each block writes only its own.
@@ -156,9 +156,33 @@ pub fn radix_sort_parallel<T: Copy + Send + Sync>(
     }
 }
 
-#[inline(always)]
-fn digit(k: u128, pass: usize) -> usize {
-    ((k >> (pass as u32 * DIGIT_BITS)) as usize) & (BUCKETS - 1)
+/// An integer the sort takes its digits from. The leaf keys are `u64`
+/// when they fit: a shift of a `u128` by a variable amount costs several
+/// instructions and a branch on baseline x86-64, and the sort takes two
+/// digits of every item per pass.
+pub trait SortKey: Copy {
+    /// Digit `pass` (bits `pass * DIGIT_BITS ..`) of the key.
+    fn digit(self, pass: usize) -> usize;
+}
+
+impl SortKey for u128 {
+    #[inline(always)]
+    fn digit(self, pass: usize) -> usize {
+        ((self >> (pass as u32 * DIGIT_BITS)) as usize) & (BUCKETS - 1)
+    }
+}
+
+impl SortKey for u64 {
+    /// The same digit as the `u128` of the same value (zero above bit 63).
+    #[inline(always)]
+    fn digit(self, pass: usize) -> usize {
+        let shift = pass as u32 * DIGIT_BITS;
+        if shift >= 64 {
+            0
+        } else {
+            ((self >> shift) as usize) & (BUCKETS - 1)
+        }
+    }
 }
 
 /// Spreads the low 21 bits of `v` so that bit `i` lands at bit `3i`.

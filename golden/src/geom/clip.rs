@@ -49,11 +49,47 @@ impl PreparedTriangle {
         }
     }
 
+    /// [`Self::new`] of a finite triangle (the builder's, checked), with
+    /// [`min_not_nan`] and [`max_not_nan`] for the NaN-passing `min`/`max`:
+    /// the same bits (the same operands folded in the same order, and the
+    /// same operand kept on a tie), and its AABB `(lo, hi)` for the caller.
+    #[inline(always)]
+    pub fn new_finite(tri: &[DVec3; 3]) -> PreparedTriangle {
+        debug_assert!(tri.iter().all(|v| v.is_finite()));
+        let lo = min3(min3(tri[0], tri[1]), tri[2]);
+        let hi = max3(max3(tri[0], tri[1]), tri[2]);
+        let abs_max = max3(max3(tri[0].abs(), tri[1].abs()), tri[2].abs());
+        debug_assert!({
+            let bits = |v: DVec3| v.to_array().map(f64::to_bits);
+            let p = PreparedTriangle::new(tri);
+            [p.lo, p.hi, p.abs_max].map(bits) == [lo, hi, abs_max].map(bits)
+        });
+        PreparedTriangle {
+            tri: *tri,
+            lo,
+            hi,
+            abs_max,
+            finite: true,
+        }
+    }
+
     /// `geom::magnitude(tri, lo, hi)`, continuing its fold from the
     /// triangle's part (`max` of non-negative values: the same result).
     #[inline(always)]
     pub(crate) fn magnitude(&self, lo: DVec3, hi: DVec3) -> f64 {
         let m = self.abs_max.max(lo.abs()).max(hi.abs()).max_element();
+        debug_assert_eq!(m.to_bits(), magnitude(&self.tri, lo, hi).to_bits());
+        m
+    }
+
+    /// [`Self::magnitude`] of a finite triangle and box, with
+    /// [`max_not_nan`]: the same bits, since every operand is an absolute
+    /// value (never NaN here, never `-0.0`), so equal operands are equal
+    /// bits and the order of the fold does not matter.
+    #[inline(always)]
+    pub(crate) fn magnitude_finite(&self, lo: DVec3, hi: DVec3) -> f64 {
+        let v = max3(max3(self.abs_max, lo.abs()), hi.abs());
+        let m = max_not_nan(max_not_nan(v.x, v.y), v.z);
         debug_assert_eq!(m.to_bits(), magnitude(&self.tri, lo, hi).to_bits());
         m
     }
@@ -119,21 +155,223 @@ pub fn clip_prepared(
     hi: DVec3,
     scratch: &mut ClipScratch,
 ) -> Option<(DVec3, DVec3)> {
-    let tri = &pt.tri;
     let (tlo, thi) = (pt.lo, pt.hi);
     // Comparisons are exact, so disjoint AABBs are certainly disjoint.
     if tlo.cmpgt(hi).any() || thi.cmplt(lo).any() {
         return None;
     }
-    let bounded_lo = tlo.max(lo);
-    let bounded_hi = thi.min(hi);
-    let fallback = || {
-        if triangle_overlaps_box_prepared(pt, lo, hi) {
-            Some((bounded_lo, bounded_hi))
+    if pt.is_finite() && lo.is_finite() && hi.is_finite() {
+        let scale = pt.magnitude_finite(lo, hi);
+        if scale < FINITE_CLIP_LIMIT {
+            return clip_finite(pt, lo, hi, scale, scratch);
+        }
+    }
+    clip_general(pt, lo, hi, scratch)
+}
+
+/// [`clip_prepared`] for a box the builder tries: the caller guarantees
+/// that the triangle and the box are finite, of magnitude below `2^32`, and
+/// that their AABBs meet (the box is a candidate voxel, from the triangle's
+/// AABB). [`clip_prepared`] would then skip none of its checks' other
+/// branches, so this is [`clip_finite`] without them: the same bits.
+#[inline]
+pub fn clip_candidate(
+    pt: &PreparedTriangle,
+    lo: DVec3,
+    hi: DVec3,
+    scratch: &mut ClipScratch,
+) -> Option<(DVec3, DVec3)> {
+    debug_assert!(pt.is_finite() && lo.is_finite() && hi.is_finite());
+    debug_assert!(!(pt.lo.cmpgt(hi).any() || pt.hi.cmplt(lo).any()));
+    let scale = pt.magnitude_finite(lo, hi);
+    debug_assert!(scale < FINITE_CLIP_LIMIT);
+    clip_finite(pt, lo, hi, scale, scratch)
+}
+
+/// Below this magnitude no value of [`clip_finite`] overflows: distances
+/// to a plane and their differences stay below `4 * 2^500`, and `t` is in
+/// `[0, 1]`.
+const FINITE_CLIP_LIMIT: f64 = 1e150;
+
+/// `f64::min` for operands that are not NaN, as one `minsd`: the same
+/// value, and on equal operands (`0.0` and `-0.0`) the same one, `a`, as
+/// `f64::min` returns here (checked bit for bit against the frozen
+/// reference clip by `tests/build_identity.rs`). `f64::min` costs about eight
+/// instructions on baseline x86-64 to pass NaN through, and the clip folds
+/// every vertex of every step through six of them.
+#[inline(always)]
+pub(crate) fn min_not_nan(a: f64, b: f64) -> f64 {
+    if b < a {
+        b
+    } else {
+        a
+    }
+}
+
+/// `f64::max` for operands that are not NaN: see [`min_not_nan`].
+#[inline(always)]
+pub(crate) fn max_not_nan(a: f64, b: f64) -> f64 {
+    if b > a {
+        b
+    } else {
+        a
+    }
+}
+
+/// `f` per component.
+#[inline(always)]
+fn per_component(a: DVec3, b: DVec3, f: impl Fn(f64, f64) -> f64) -> DVec3 {
+    DVec3::new(f(a.x, b.x), f(a.y, b.y), f(a.z, b.z))
+}
+
+/// [`min_not_nan`] per component.
+#[inline(always)]
+fn min3(a: DVec3, b: DVec3) -> DVec3 {
+    per_component(a, b, min_not_nan)
+}
+
+/// [`max_not_nan`] per component.
+#[inline(always)]
+fn max3(a: DVec3, b: DVec3) -> DVec3 {
+    per_component(a, b, max_not_nan)
+}
+
+/// [`clip_prepared`] when the triangle and the box are finite and their
+/// magnitude `scale` is below [`FINITE_CLIP_LIMIT`] (the builder's only
+/// case): every value is finite, so `min`/`max` become [`min_not_nan`] and
+/// [`max_not_nan`], a step whose plane has every vertex on its kept side is
+/// skipped (it would return its input: see [`clip_triangle_to_box_with`]),
+/// and the polygon's bounds are folded while its vertices are written, in
+/// the order [`Polygon::bounds`] folds them. Each step is one instance of
+/// [`clip_step`] per axis and side, so the axis is a constant. The same
+/// operations on the same values in the same order as [`clip_general`]: the
+/// same bits.
+fn clip_finite(
+    pt: &PreparedTriangle,
+    lo: DVec3,
+    hi: DVec3,
+    scale: f64,
+    scratch: &mut ClipScratch,
+) -> Option<(DVec3, DVec3)> {
+    let bounded_lo = max3(pt.lo, lo);
+    let bounded_hi = min3(pt.hi, hi);
+    let m = ROUNDING_MARGIN_REL * scale;
+    let grown_lo = lo - DVec3::splat(m);
+    let grown_hi = hi + DVec3::splat(m);
+    let [a, b] = &mut scratch.polys;
+    let (mut cur, mut next) = (a, b);
+    cur.set_triangle(&pt.tri);
+    let (mut plo, mut phi) = (pt.lo, pt.hi);
+    macro_rules! step {
+        ($axis:literal, $above:literal, $plane:expr) => {
+            match clip_step::<$axis, $above>(cur, next, $plane) {
+                Some(bounds) => {
+                    (plo, phi) = bounds;
+                    std::mem::swap(&mut cur, &mut next);
+                }
+                None => return clip_fallback(pt, lo, hi, bounded_lo, bounded_hi),
+            }
+        };
+    }
+    if plo.x < grown_lo.x {
+        step!(0, true, grown_lo.x);
+    }
+    if phi.x > grown_hi.x {
+        step!(0, false, grown_hi.x);
+    }
+    if plo.y < grown_lo.y {
+        step!(1, true, grown_lo.y);
+    }
+    if phi.y > grown_hi.y {
+        step!(1, false, grown_hi.y);
+    }
+    if plo.z < grown_lo.z {
+        step!(2, true, grown_lo.z);
+    }
+    if phi.z > grown_hi.z {
+        step!(2, false, grown_hi.z);
+    }
+    let out_lo = max3(plo - DVec3::splat(m), bounded_lo);
+    let out_hi = min3(phi + DVec3::splat(m), bounded_hi);
+    if out_lo.cmpgt(out_hi).any() {
+        return clip_fallback(pt, lo, hi, bounded_lo, bounded_hi);
+    }
+    Some((out_lo, out_hi))
+}
+
+/// What the clip answers when clipping left nothing: the box of the
+/// triangle's AABB in the box, unless the overlap test rules contact out.
+#[cold]
+fn clip_fallback(
+    pt: &PreparedTriangle,
+    lo: DVec3,
+    hi: DVec3,
+    bounded_lo: DVec3,
+    bounded_hi: DVec3,
+) -> Option<(DVec3, DVec3)> {
+    if triangle_overlaps_box_prepared(pt, lo, hi) {
+        Some((bounded_lo, bounded_hi))
+    } else {
+        None
+    }
+}
+
+/// One step of [`clip_finite`]: [`clip_against_plane`] of the finite
+/// polygon `poly` at `p[AXIS] = plane`, keeping `p[AXIS] >= plane` when
+/// `ABOVE`, else `<=`, into `out`; returns the new polygon's bounds, or
+/// `None` when nothing is left. The crossing point is computed as there
+/// (`a + (b - a) * t`, per component), its own axis then set to the plane.
+#[inline(always)]
+fn clip_step<const AXIS: usize, const ABOVE: bool>(
+    poly: &Polygon,
+    out: &mut Polygon,
+    plane: f64,
+) -> Option<(DVec3, DVec3)> {
+    let dist = |p: &DVec3| {
+        if ABOVE {
+            p.to_array()[AXIS] - plane
         } else {
-            None
+            plane - p.to_array()[AXIS]
         }
     };
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    let mut len = 0;
+    for_each_edge(poly, dist, |a, da, b, db| {
+        if da >= 0.0 {
+            out.v[len] = a;
+            len += 1;
+            lo = min3(lo, a);
+            hi = max3(hi, a);
+        }
+        if (da >= 0.0) != (db >= 0.0) {
+            let t = da / (da - db);
+            let mut p = (a + (b - a) * t).to_array();
+            p[AXIS] = plane;
+            let p = DVec3::from_array(p);
+            out.v[len] = p;
+            len += 1;
+            lo = min3(lo, p);
+            hi = max3(hi, p);
+        }
+    });
+    out.len = len;
+    (len > 0).then_some((lo, hi))
+}
+
+/// [`clip_prepared`] for any input (non-finite or huge coordinates): the
+/// plain algorithm, skipping a step only where that is exact.
+fn clip_general(
+    pt: &PreparedTriangle,
+    lo: DVec3,
+    hi: DVec3,
+    scratch: &mut ClipScratch,
+) -> Option<(DVec3, DVec3)> {
+    let tri = &pt.tri;
+    let (tlo, thi) = (pt.lo, pt.hi);
+    let bounded_lo = tlo.max(lo);
+    let bounded_hi = thi.min(hi);
+    let fallback = || clip_fallback(pt, lo, hi, bounded_lo, bounded_hi);
 
     let m = ROUNDING_MARGIN_REL * pt.magnitude(lo, hi);
     let grown_lo = lo - DVec3::splat(m);
@@ -232,26 +470,15 @@ enum KeepSide {
 /// like any other.
 #[inline(always)]
 fn clip_against_plane(poly: &Polygon, out: &mut Polygon, axis: usize, plane: f64, keep: KeepSide) {
-    let dist = |p: DVec3| match keep {
+    let dist = |p: &DVec3| match keep {
         KeepSide::Above => p[axis] - plane,
         KeepSide::Below => plane - p[axis],
     };
     out.len = 0;
-    let n = poly.len;
-    if n == 0 {
+    if poly.len == 0 {
         return;
     }
-    // Each vertex's distance is computed once and carried to the next edge.
-    let first = poly.v[0];
-    let d_first = dist(first);
-    let (mut a, mut da) = (first, d_first);
-    for i in 0..n {
-        let (b, db) = if i + 1 == n {
-            (first, d_first)
-        } else {
-            let b = poly.v[i + 1];
-            (b, dist(b))
-        };
+    for_each_edge(poly, dist, |a, da, b, db| {
         if da >= 0.0 {
             out.push(a);
         }
@@ -263,6 +490,31 @@ fn clip_against_plane(poly: &Polygon, out: &mut Polygon, axis: usize, plane: f64
             p[axis] = plane;
             out.push(p);
         }
+    });
+}
+
+/// Calls `f(a, da, b, db)` for each edge `(a, b)` of the closed polygon
+/// `poly` (at least one vertex), from vertex 0 in order, the last edge back
+/// to vertex 0; `da`, `db` are the vertices' `dist`, each computed once and
+/// carried to the next edge.
+#[inline(always)]
+fn for_each_edge(
+    poly: &Polygon,
+    dist: impl Fn(&DVec3) -> f64,
+    mut f: impl FnMut(DVec3, f64, DVec3, f64),
+) {
+    let n = poly.len;
+    let first = poly.v[0];
+    let d_first = dist(&first);
+    let (mut a, mut da) = (first, d_first);
+    for i in 0..n {
+        let (b, db) = if i + 1 == n {
+            (first, d_first)
+        } else {
+            let b = poly.v[i + 1];
+            (b, dist(&b))
+        };
+        f(a, da, b, db);
         (a, da) = (b, db);
     }
 }

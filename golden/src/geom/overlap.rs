@@ -31,16 +31,44 @@ pub fn triangle_overlaps_box(tri: &[DVec3; 3], lo: DVec3, hi: DVec3) -> bool {
 /// [`triangle_overlaps_box`] of a prepared triangle: the same answer.
 pub fn triangle_overlaps_box_prepared(pt: &PreparedTriangle, lo: DVec3, hi: DVec3) -> bool {
     let tri = &pt.tri;
-    let scale = pt.magnitude(lo, hi);
-    if scale < FAST_PATH_LIMIT && pt.is_finite() && lo.is_finite() && hi.is_finite() {
-        overlaps_finite(tri, lo, hi, scale)
-    } else {
-        overlaps_any(tri, lo, hi, scale)
+    if pt.is_finite() && lo.is_finite() && hi.is_finite() {
+        let scale = pt.magnitude_finite(lo, hi);
+        if scale < FAST_PATH_LIMIT {
+            return overlaps_finite::<true>(tri, lo, hi, scale);
+        }
     }
+    overlaps_any(tri, lo, hi, pt.magnitude(lo, hi))
 }
 
-/// Below this magnitude no product or sum of the test overflows.
+/// [`triangle_overlaps_box_prepared`] for a box the builder tries: the
+/// caller guarantees that the triangle and the box are finite, of magnitude
+/// below `2^32`, and that their AABBs meet (the box is a candidate voxel).
+/// The box-axis tests are left out, since they cannot separate then: the
+/// box's center and half extents are exact (corners are integers below
+/// `2^32`), and some vertex `w` has `w[a] <= hi[a]`, i.e. exactly
+/// `w[a] - center[a] <= half[a]`; rounding is monotone and `half[a]` is
+/// representable, so the computed projection is `<= half[a]` too, never
+/// beyond `half[a] + margin`; the same below. The same answer.
+#[inline]
+pub fn overlaps_candidate(pt: &PreparedTriangle, lo: DVec3, hi: DVec3) -> bool {
+    debug_assert!(pt.is_finite() && lo.is_finite() && hi.is_finite());
+    debug_assert!(!(pt.lo.cmpgt(hi).any() || pt.hi.cmplt(lo).any()));
+    let scale = pt.magnitude_finite(lo, hi);
+    debug_assert!(scale < (1u64 << 32) as f64);
+    let answer = overlaps_finite::<false>(&pt.tri, lo, hi, scale);
+    debug_assert_eq!(answer, triangle_overlaps_box_prepared(pt, lo, hi));
+    answer
+}
+
+/// Below this magnitude no product or sum of the test overflows, but for
+/// the normal's (see [`NORMAL_FINITE_LIMIT`]).
 const FAST_PATH_LIMIT: f64 = 1e150;
+
+/// Below this magnitude `s` the normal's projections are finite too: with
+/// `|v| <= 2s` per component, edges are at most `4s`, the normal's
+/// components at most `2 (4s)^2 = 32 s^2`, a projection at most
+/// `3 * 32 s^2 * 2s = 192 s^3 < 2e302`, and the radius and margin smaller.
+const NORMAL_FINITE_LIMIT: f64 = 1e100;
 
 /// The test as written: thirteen axes, each through [`separates`].
 fn overlaps_any(tri: &[DVec3; 3], lo: DVec3, hi: DVec3, scale: f64) -> bool {
@@ -79,7 +107,15 @@ fn overlaps_any(tri: &[DVec3; 3], lo: DVec3, hi: DVec3, scale: f64) -> bool {
 /// `e x X = (e.y 0 - 0 e.z, e.z 1 - 0 e.x, e.x 0 - 1 e.y) = (0, e.z, -e.y)`,
 /// and its projection `(0 v.x + e.z v.y) + (-e.y) v.z` is
 /// `e.z v.y - e.y v.z` rounded the same way.
-fn overlaps_finite(tri: &[DVec3; 3], lo: DVec3, hi: DVec3, scale: f64) -> bool {
+///
+/// `BOX_AXES = false` leaves the box-axis tests out (see
+/// [`overlaps_candidate`] for when they cannot separate).
+fn overlaps_finite<const BOX_AXES: bool>(
+    tri: &[DVec3; 3],
+    lo: DVec3,
+    hi: DVec3,
+    scale: f64,
+) -> bool {
     let center = (lo + hi) * 0.5;
     let half = (hi - lo) * 0.5;
     let v = [tri[0] - center, tri[1] - center, tri[2] - center];
@@ -90,14 +126,22 @@ fn overlaps_finite(tri: &[DVec3; 3], lo: DVec3, hi: DVec3, scale: f64) -> bool {
     let box_margin = ROUNDING_MARGIN_REL * 1.0 * scale;
     for a in 0..3 {
         let p = [v[0][a], v[1][a], v[2][a]];
-        if gap_exceeds_finite(p, half[a], box_margin) {
+        if BOX_AXES && gap_exceeds_finite(p, half[a], box_margin) {
             return false;
         }
     }
     // The normal's projections are of degree 3 and may overflow (to NaN
-    // through inf - inf) below FAST_PATH_LIMIT: the general test.
+    // through inf - inf) below FAST_PATH_LIMIT: the general test there;
+    // below NORMAL_FINITE_LIMIT they are finite, so the projections are
+    // compared without min/max (`separates` with `gap_exceeds_finite`).
     let normal = edges[0].cross(edges[1]);
-    if separates(normal, &v, half, scale) {
+    let (p, radius, margin) = projection(normal, &v, half, scale);
+    let separated = if scale < NORMAL_FINITE_LIMIT {
+        gap_exceeds_finite(p, radius, margin)
+    } else {
+        gap_exceeds(p, radius, margin)
+    };
+    if separated {
         return false;
     }
     let margin = |a: f64, b: f64| ROUNDING_MARGIN_REL * (a.abs() + b.abs()) * scale;
@@ -127,10 +171,18 @@ fn overlaps_finite(tri: &[DVec3; 3], lo: DVec3, hi: DVec3, scale: f64) -> bool {
 /// True when `axis` certainly separates the triangle `v` (relative to the box
 /// center) from the box of half-extents `half`.
 fn separates(axis: DVec3, v: &[DVec3; 3], half: DVec3, scale: f64) -> bool {
+    let (p, radius, margin) = projection(axis, v, half, scale);
+    gap_exceeds(p, radius, margin)
+}
+
+/// The triangle's projections on `axis`, the box's radius on it and the
+/// margin of the test.
+#[inline(always)]
+fn projection(axis: DVec3, v: &[DVec3; 3], half: DVec3, scale: f64) -> ([f64; 3], f64, f64) {
     let p = [axis.dot(v[0]), axis.dot(v[1]), axis.dot(v[2])];
     let radius = half.dot(axis.abs());
     let margin = ROUNDING_MARGIN_REL * axis.abs().element_sum() * scale;
-    gap_exceeds(p, radius, margin)
+    (p, radius, margin)
 }
 
 /// True when the projections `p` lie beyond `radius + margin` on one side.

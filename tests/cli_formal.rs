@@ -160,6 +160,7 @@ fn the_larger_units_hold_their_handshakes() {
             "merge_module_per_node",
             "upper_builder",
             "fetcher",
+            "store_port",
         ],
         &["--check", "handshake"],
         &[
@@ -168,6 +169,7 @@ fn the_larger_units_hold_their_handshakes() {
             ("merge_module_per_node", "handshake", K, 4),
             ("upper_builder", "handshake", K, 4),
             ("fetcher", "handshake", K, 4),
+            ("store_port", "handshake", K, 6),
         ],
     );
 }

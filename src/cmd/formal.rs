@@ -26,7 +26,8 @@ pub struct Args {
     /// per_node_decider, translate; or a larger unit: per_node_network,
     /// merge_module_overlap, merge_module_per_node, upper_builder, fetcher,
     /// fetcher_per_node, record_writer; or hierarchy_merger (its handshake
-    /// does not converge yet).
+    /// does not converge yet), store_port (the merger's shared store front
+    /// end, handshake).
     #[arg(long = "unit")]
     units: Vec<String>,
     /// Every unit of the default set (the default when neither --unit nor
@@ -106,7 +107,7 @@ pub fn main(a: Args) -> CmdResult {
     for n in &names {
         let p = units::by_name(n).ok_or_else(|| {
             format!(
-                "--unit {n}: expected one of {}, {}, hierarchy_merger",
+                "--unit {n}: expected one of {}, {}, hierarchy_merger, store_port",
                 units::NAMES.join(", "),
                 units::LARGE.join(", ")
             )

@@ -464,6 +464,25 @@ pub fn hierarchy_merger() -> Proof {
     Proof::new(m, &ins, &outs, 4).check(Handshake, Induction)
 }
 
+/// The merger's shared store front end (SPEC 8.15, "The shared store
+/// port") at a small grid (D = 4, Q = 0, I = 8, H = 2) with three
+/// requesters (a node reader, two reference readers) and a tag FIFO of 2:
+/// handshake on every stream. Run by name (its tag FIFO is a memory, so
+/// its flows are the bench's to check, `cosim/tests/merge_store_port.rs`).
+pub fn store_port() -> Proof {
+    use golden::merge::store_port::StoreArray::{Node, Reference};
+    let c = crate::merge::StorePortConfig {
+        params: golden::params::Params::new(4, 0, 8, 2).expect("valid parameters"),
+        arrays: vec![Node, Reference, Reference],
+        tag_bits: 1,
+    };
+    let m = crate::merge::store_port_unit(&c).expect("a valid store port");
+    let (ins, outs) = streams(&m);
+    let ins: Vec<&str> = ins.iter().map(String::as_str).collect();
+    let outs: Vec<&str> = outs.iter().map(String::as_str).collect();
+    Proof::new(m, &ins, &outs, 6).check(Handshake, Induction)
+}
+
 /// The units `hiermerge formal` proves by default (and with `--all`), in
 /// report order: each check takes seconds.
 pub const NAMES: [&str; 10] = [
@@ -497,7 +516,7 @@ pub const LARGE: [&str; 7] = [
 pub const UPPER_BUILDER_D: u8 = 2;
 
 /// The proof named `name` (one of [`NAMES`] or [`LARGE`], or
-/// `hierarchy_merger`).
+/// `hierarchy_merger`, `store_port`).
 pub fn by_name(name: &str) -> Option<Proof> {
     Some(match name {
         "pipeline_reg" => pipeline_reg(8),
@@ -518,6 +537,7 @@ pub fn by_name(name: &str) -> Option<Proof> {
         "fetcher_per_node" => fetcher_per_node(),
         "record_writer" => record_writer(),
         "hierarchy_merger" => hierarchy_merger(),
+        "store_port" => store_port(),
         _ => return None,
     })
 }

@@ -26,7 +26,10 @@ mod drop_fifo;
 mod leaf_merge;
 mod level_mode;
 mod per_node_mode;
+mod store_port;
 mod tail;
+
+pub use store_port::{store_port_name, store_port_unit, StorePortConfig, CREDITS};
 
 /// The merger's configuration: the merging module's design (grid
 /// parameters, `k` inputs, mode, root-sorter capacity) and the sizes of the

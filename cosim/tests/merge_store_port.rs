@@ -10,7 +10,7 @@ mod merge_common;
 use cosim::tb::{BenchConfig, Stalls};
 use cosim::units::multi_stream::ModuleEngine;
 use cosim::units::store_port::{random_transaction, run};
-use golden::merge::store_port::StoreArray;
+use golden::merge::store_port::{StoreAddr, StoreArray};
 use golden::params::Params;
 use golden::translate::stimulus::SplitMix64;
 use merge_common::*;
@@ -96,8 +96,15 @@ fn store_port_reads_once_per_clock_without_back_pressure() {
     let mut rng = SplitMix64(7);
     let (store, _) = random_transaction(&mut rng, &c, 64, 2).unwrap();
     // Every requester the same number of reads, so all stay busy to the end.
-    let reqs: Vec<Vec<u64>> = (0..c.arrays.len())
-        .map(|_| (0..40).map(|_| rng.next_u64() % 64).collect())
+    let reqs: Vec<Vec<StoreAddr>> = (0..c.arrays.len())
+        .map(|_| {
+            (0..40)
+                .map(|_| StoreAddr {
+                    hier: rng.next_u64() % 3,
+                    index: rng.next_u64() % 64,
+                })
+                .collect()
+        })
         .collect();
     let tx = golden::merge::store_port::store_port_transaction(&c.arrays, reqs, &store).unwrap();
     let dir = tempfile::tempdir().unwrap();

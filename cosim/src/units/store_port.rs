@@ -16,7 +16,8 @@ use std::path::Path;
 
 use golden::layout::Bits;
 use golden::merge::store_port::{
-    store_port_transaction, StoreArray, StorePortLayout, StorePortTransaction, StoreWords,
+    store_port_transaction, StoreAddr, StoreArray, StorePortLayout, StorePortTransaction,
+    StoreWords,
 };
 use golden::translate::stimulus::SplitMix64;
 use rtl_gen::merge::StorePortConfig;
@@ -31,8 +32,8 @@ use crate::tb::{
 use crate::units::multi_stream::ModuleEngine;
 
 /// Where a [`StoreModel`] finds the word a read asks for: (the epoch, the
-/// array, the index) to the word, None for a read outside the store.
-pub type StoreLookup<'a> = dyn FnMut(usize, StoreArray, u64) -> Option<Bits> + 'a;
+/// array, the address) to the word, None for a read outside the store.
+pub type StoreLookup<'a> = dyn FnMut(usize, StoreArray, StoreAddr) -> Option<Bits> + 'a;
 
 /// What a [`StoreModel`] saw.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -45,6 +46,9 @@ pub struct StoreStats {
     pub first_read: u64,
     /// See `first_read`.
     pub last_read: u64,
+    /// Per epoch: the cycles from its first read to its last, both
+    /// counted (summed: [`Self::window_cycles`]).
+    pub windows: Vec<(u64, u64)>,
     /// Reads outside the store (the first few, described).
     pub errors: Vec<String>,
     /// Reads outside the store in all.
@@ -52,6 +56,16 @@ pub struct StoreStats {
 }
 
 impl StoreStats {
+    /// Cycles from each epoch's first read to its last, summed: the cycles
+    /// in which a merge was reading.
+    pub fn window_cycles(&self) -> u64 {
+        self.windows
+            .iter()
+            .filter(|w| w.0 > 0)
+            .map(|w| w.1 - w.0 + 1)
+            .sum()
+    }
+
     /// Reads per cycle from the first read to the last.
     pub fn busy_rate(&self) -> f64 {
         if self.reads == 0 {
@@ -119,10 +133,15 @@ impl<'a> StoreModel<'a> {
 
     fn answer(&mut self, beat: &BitVec, cycle: u64) -> Result<BitVec> {
         let l = &self.layout;
-        let word = beat.to_u64().unwrap_or(u64::MAX);
-        let index = word & ((1u64 << l.index.width) - 1);
-        let array = StoreArray::of_code((word >> l.array.offset) & 1);
-        let found = (self.lookup)(self.epoch, array, index);
+        let bits = Bits::from_words(beat.width() as u32, beat.words()).map_err(|e| {
+            CosimError::Design {
+                what: format!("store_req beat: {e}"),
+            }
+        })?;
+        let (array, at) = l
+            .unpack_req(&bits)
+            .map_err(|what| CosimError::Design { what })?;
+        let found = (self.lookup)(self.epoch, array, at);
         let bits = match found {
             Some(w) => l
                 .pack_resp(&w)
@@ -131,8 +150,8 @@ impl<'a> StoreModel<'a> {
                 self.stats.error_count += 1;
                 if self.stats.errors.len() < 5 {
                     self.stats.errors.push(format!(
-                        "cycle {cycle}: read of {array:?} index {index} (epoch {}) outside the store",
-                        self.epoch
+                        "cycle {cycle}: read of {array:?} hierarchy {} index {} (epoch {}) outside the store",
+                        at.hier, at.index, self.epoch
                     ));
                 }
                 Bits::zero(l.resp_width)
@@ -174,6 +193,14 @@ impl Reactor for StoreModel<'_> {
             s.reads_by_epoch.resize(self.epoch + 1, 0);
         }
         s.reads_by_epoch[self.epoch] += 1;
+        if s.windows.len() <= self.epoch {
+            s.windows.resize(self.epoch + 1, (0, 0));
+        }
+        let w = &mut s.windows[self.epoch];
+        if w.0 == 0 {
+            w.0 = cycle;
+        }
+        w.1 = cycle;
         Ok(true)
     }
 
@@ -183,7 +210,8 @@ impl Reactor for StoreModel<'_> {
 }
 
 /// A random run of the front end `c`: a store of `size` words per array
-/// (random bits), every requester reading `1..=most` random indices of it.
+/// in each of 3 hierarchies (random bits), every requester reading
+/// `1..=most` random addresses of it.
 pub fn random_transaction(
     rng: &mut SplitMix64,
     c: &StorePortConfig,
@@ -191,31 +219,37 @@ pub fn random_transaction(
     most: u64,
 ) -> Result<(StoreWords, StorePortTransaction)> {
     let l = StorePortLayout::new(&c.params);
-    let word = |rng: &mut SplitMix64, w: u32| {
-        let words: Vec<u64> = (0..w.div_ceil(64)).map(|_| rng.next_u64()).collect();
-        let mut b = Bits::zero(w);
-        for (k, v) in words.iter().enumerate() {
-            let off = 64 * k as u32;
-            let n = (w - off).min(64);
-            let f = golden::layout::Field {
-                name: "w",
-                offset: off,
-                width: n,
-            };
-            b.set(&f, v & (u64::MAX >> (64 - n))).expect("inside");
+    let word = |rng: &mut SplitMix64, w: u32| -> Result<Bits> {
+        let mut words: Vec<u64> = (0..w.div_ceil(64)).map(|_| rng.next_u64()).collect();
+        if !w.is_multiple_of(64) {
+            if let Some(last) = words.last_mut() {
+                *last &= u64::MAX >> (64 - w % 64);
+            }
         }
-        b
+        Bits::from_words(w, &words).map_err(|e| CosimError::Design {
+            what: e.to_string(),
+        })
     };
-    let store = StoreWords {
-        nodes: (0..size).map(|_| word(rng, l.node_width)).collect(),
-        refs: (0..size).map(|_| word(rng, l.ref_width)).collect(),
-    };
+    let hiers = 3.min(1u64 << l.hier.width);
+    let mut store = StoreWords::default();
+    for hier in 0..hiers {
+        for index in 0..size {
+            let at = StoreAddr { hier, index };
+            store.insert(StoreArray::Node, at, word(rng, l.node_width)?);
+            store.insert(StoreArray::Reference, at, word(rng, l.ref_width)?);
+        }
+    }
     let requests = c
         .arrays
         .iter()
         .map(|_| {
             let n = 1 + rng.next_u64() % most;
-            (0..n).map(|_| rng.next_u64() % size).collect()
+            (0..n)
+                .map(|_| StoreAddr {
+                    hier: rng.next_u64() % hiers,
+                    index: rng.next_u64() % size,
+                })
+                .collect()
         })
         .collect();
     let tx = store_port_transaction(&c.arrays, requests, &store)
@@ -276,7 +310,7 @@ pub fn run(
     for (j, (reqs, resps)) in tx.requests.iter().zip(&tx.responses).enumerate() {
         let idx = reqs
             .iter()
-            .map(|&i| BitVec::from_u64(l.index.width as usize, i))
+            .map(|a| BitVec::from_u64(l.addr_width as usize, (a.hier << l.hier.offset) | a.index))
             .collect::<Result<Vec<_>>>()?;
         inputs.push(beats(format!("r{j}_req"), idx));
         let words = resps
@@ -285,7 +319,7 @@ pub fn run(
             .collect::<Result<Vec<_>>>()?;
         outputs.push(beats(format!("r{j}_resp"), words));
     }
-    let lookup = move |_: usize, a: StoreArray, i: u64| store.word(a, i).cloned();
+    let lookup = move |_: usize, a: StoreArray, at: StoreAddr| store.word(a, at).cloned();
     let mut model = StoreModel::new(&*eng, l, config, latency, None, Box::new(lookup))?;
     let (report, watch) = run_multi_stream_bench_reactive(
         eng.as_mut(),

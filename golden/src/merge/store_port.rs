@@ -11,9 +11,32 @@
 //! depends on timing (round robin among the requesters showing a request
 //! that cycle), so it is no part of the transaction.
 
+use std::collections::HashMap;
+
 use crate::layout::{Bits, Field};
 use crate::merge::fetch_unit::FetchLayout;
 use crate::params::Params;
+
+/// How the merger's units reach the store (SPEC 8.15).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum StorePort {
+    /// Every fetcher and the writer with its own read streams, passed out of
+    /// the top (the memory system arbitrates outside).
+    #[default]
+    PerUnit,
+    /// One read port (`store_req` / `store_resp`) for every unit, its front
+    /// end in the top, with a tag FIFO of `2^tag_bits` reads in flight.
+    Shared {
+        /// The tag FIFO holds `2^tag_bits` reads (`1..=8`).
+        tag_bits: u32,
+    },
+}
+
+impl StorePort {
+    /// The shared port's default tag FIFO: 8 reads in flight, enough for a
+    /// store answering 6 clocks after the request at one read per clock.
+    pub const SHARED: StorePort = StorePort::Shared { tag_bits: 3 };
+}
 
 /// Which array of the store a read is of.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -54,11 +77,17 @@ impl StoreArray {
 /// The store port's beats for grid parameters `p`.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct StorePortLayout {
-    /// `store_req`: `index` (I bits) from bit 0.
+    /// `store_req` (and a requester's request): `index` (I bits) from bit 0.
     pub index: Field,
-    /// `store_req`: `array` (1 bit, [`StoreArray::code`]) above `index`.
+    /// `store_req` (and a requester's request): `hier` (H bits) above
+    /// `index`, the hierarchy whose array is read (a fetcher reads its
+    /// input's, the writer names it in its request).
+    pub hier: Field,
+    /// `store_req`: `array` (1 bit, [`StoreArray::code`]) above `hier`.
     pub array: Field,
-    /// Width of a `store_req` beat (`I + 1`).
+    /// Width of a requester's request (`I + H`: `hier`, `index`).
+    pub addr_width: u32,
+    /// Width of a `store_req` beat (`I + H + 1`).
     pub req_width: u32,
     /// Width of a node record (a node read's answer).
     pub node_width: u32,
@@ -75,6 +104,7 @@ impl StorePortLayout {
     pub fn new(p: &Params) -> StorePortLayout {
         let fl = FetchLayout::new(p);
         let i = fl.index_width;
+        let h = p.hier_bits as u32;
         let (node_width, ref_width) = (fl.node.width(), fl.reference.width());
         StorePortLayout {
             index: Field {
@@ -82,12 +112,18 @@ impl StorePortLayout {
                 offset: 0,
                 width: i,
             },
+            hier: Field {
+                name: "hier",
+                offset: i,
+                width: h,
+            },
             array: Field {
                 name: "array",
-                offset: i,
+                offset: i + h,
                 width: 1,
             },
-            req_width: i + 1,
+            addr_width: i + h,
+            req_width: i + h + 1,
             node_width,
             ref_width,
             resp_width: node_width.max(ref_width),
@@ -102,20 +138,24 @@ impl StorePortLayout {
         }
     }
 
-    /// The `store_req` beat of a read of `array` at `index`.
-    pub fn pack_req(&self, array: StoreArray, index: u64) -> Result<Bits, String> {
+    /// The `store_req` beat of a read of `array` at `a`.
+    pub fn pack_req(&self, array: StoreArray, a: StoreAddr) -> Result<Bits, String> {
         let mut b = Bits::zero(self.req_width);
-        b.set(&self.index, index).map_err(|e| e.to_string())?;
+        b.set(&self.index, a.index).map_err(|e| e.to_string())?;
+        b.set(&self.hier, a.hier).map_err(|e| e.to_string())?;
         b.set(&self.array, array.code())
             .map_err(|e| e.to_string())?;
         Ok(b)
     }
 
-    /// The array and index of a `store_req` beat.
-    pub fn unpack_req(&self, beat: &Bits) -> Result<(StoreArray, u64), String> {
-        let index = beat.get(&self.index).map_err(|e| e.to_string())?;
-        let array = beat.get(&self.array).map_err(|e| e.to_string())?;
-        Ok((StoreArray::of_code(array), index))
+    /// The array and address of a `store_req` beat.
+    pub fn unpack_req(&self, beat: &Bits) -> Result<(StoreArray, StoreAddr), String> {
+        let get = |f: &Field| beat.get(f).map_err(|e| e.to_string());
+        let addr = StoreAddr {
+            hier: get(&self.hier)?,
+            index: get(&self.index)?,
+        };
+        Ok((StoreArray::of_code(get(&self.array)?), addr))
     }
 
     /// The `store_resp` beat carrying `word` (an answer of at most
@@ -127,42 +167,60 @@ impl StorePortLayout {
     }
 }
 
-/// The store's contents as the port reads them: packed words per array.
+/// Where a read goes: entry `index` of hierarchy `hier`'s array.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct StoreAddr {
+    /// The hierarchy.
+    pub hier: u64,
+    /// The entry of its array.
+    pub index: u64,
+}
+
+/// The store's contents as the port reads them: packed words by array and
+/// address.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct StoreWords {
-    /// Node records, by index.
-    pub nodes: Vec<Bits>,
-    /// References, by index.
-    pub refs: Vec<Bits>,
+    words: HashMap<(StoreArray, StoreAddr), Bits>,
 }
 
 impl StoreWords {
-    /// The word at `index` of `array`, if the array holds it.
-    pub fn word(&self, array: StoreArray, index: u64) -> Option<&Bits> {
-        let a = match array {
-            StoreArray::Node => &self.nodes,
-            StoreArray::Reference => &self.refs,
-        };
-        usize::try_from(index).ok().and_then(|i| a.get(i))
+    /// Puts `word` at `a` of `array` (the first word put there stays).
+    pub fn insert(&mut self, array: StoreArray, a: StoreAddr, word: Bits) {
+        self.words.entry((array, a)).or_insert(word);
+    }
+
+    /// The word at `a` of `array`, if the store holds it.
+    pub fn word(&self, array: StoreArray, a: StoreAddr) -> Option<&Bits> {
+        self.words.get(&(array, a))
+    }
+
+    /// Words held.
+    pub fn len(&self) -> usize {
+        self.words.len()
+    }
+
+    /// Whether it holds no word.
+    pub fn is_empty(&self) -> bool {
+        self.words.is_empty()
     }
 }
 
-/// One run of the store port: per requester, its reads (indices) and the
-/// answers it gets, in its order.
+/// One run of the store port: per requester, its reads and the answers it
+/// gets, in its order.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct StorePortTransaction {
-    /// Per requester: the indices it reads, in order.
-    pub requests: Vec<Vec<u64>>,
+    /// Per requester: the addresses it reads, in order.
+    pub requests: Vec<Vec<StoreAddr>>,
     /// Per requester: the words it gets back, in order.
     pub responses: Vec<Vec<Bits>>,
 }
 
 /// The transaction of requesters of `arrays` reading `requests` (per
 /// requester, in order) from `store`; an error names the requester and the
-/// read outside its array.
+/// read the store does not hold.
 pub fn store_port_transaction(
     arrays: &[StoreArray],
-    requests: Vec<Vec<u64>>,
+    requests: Vec<Vec<StoreAddr>>,
     store: &StoreWords,
 ) -> Result<StorePortTransaction, String> {
     if arrays.len() != requests.len() {
@@ -176,11 +234,13 @@ pub fn store_port_transaction(
     for (j, (a, reqs)) in arrays.iter().zip(&requests).enumerate() {
         let words = reqs
             .iter()
-            .map(|&i| {
-                store
-                    .word(*a, i)
-                    .cloned()
-                    .ok_or_else(|| format!("requester {j}: index {i} outside the {a:?} array"))
+            .map(|&r| {
+                store.word(*a, r).cloned().ok_or_else(|| {
+                    format!(
+                        "requester {j}: hierarchy {} index {} outside the {a:?} array",
+                        r.hier, r.index
+                    )
+                })
             })
             .collect::<Result<Vec<_>, String>>()?;
         responses.push(words);
@@ -221,22 +281,35 @@ mod tests {
     #[test]
     fn requests_pack_and_answers_route() {
         let l = StorePortLayout::new(&Params::default());
-        let b = l.pack_req(StoreArray::Reference, 77).unwrap();
-        assert_eq!(l.unpack_req(&b).unwrap(), (StoreArray::Reference, 77));
+        let at = |hier, index| StoreAddr { hier, index };
+        let b = l.pack_req(StoreArray::Reference, at(3, 77)).unwrap();
+        assert_eq!(
+            l.unpack_req(&b).unwrap(),
+            (StoreArray::Reference, at(3, 77))
+        );
         assert!(l.resp_width >= l.node_width && l.resp_width >= l.ref_width);
-        let store = StoreWords {
-            nodes: (0..4u64)
-                .map(|v| Bits::from_words(l.node_width, &[v + 10]).unwrap())
-                .collect(),
-            refs: (0..4u64)
-                .map(|v| Bits::from_words(l.ref_width, &[v]).unwrap())
-                .collect(),
-        };
+        let mut store = StoreWords::default();
+        for v in 0..4u64 {
+            let node = Bits::from_words(l.node_width, &[v + 10]).unwrap();
+            store.insert(StoreArray::Node, at(1, v), node);
+            let r = Bits::from_words(l.ref_width, &[v]).unwrap();
+            store.insert(StoreArray::Reference, at(2, v), r);
+        }
         let arrays = [StoreArray::Node, StoreArray::Reference];
-        let tx = store_port_transaction(&arrays, vec![vec![3, 0], vec![2]], &store).unwrap();
-        assert_eq!(tx.responses[0][0], store.nodes[3]);
-        assert_eq!(tx.responses[1][0], store.refs[2]);
-        let e = store_port_transaction(&arrays, vec![vec![9], vec![]], &store).unwrap_err();
-        assert!(e.contains("requester 0") && e.contains("index 9"), "{e}");
+        let reqs = vec![vec![at(1, 3), at(1, 0)], vec![at(2, 2)]];
+        let tx = store_port_transaction(&arrays, reqs, &store).unwrap();
+        assert_eq!(
+            &tx.responses[0][0],
+            store.word(StoreArray::Node, at(1, 3)).unwrap()
+        );
+        assert_eq!(
+            &tx.responses[1][0],
+            store.word(StoreArray::Reference, at(2, 2)).unwrap()
+        );
+        let e = store_port_transaction(&arrays, vec![vec![at(2, 1)], vec![]], &store).unwrap_err();
+        assert!(
+            e.contains("requester 0") && e.contains("hierarchy 2 index 1"),
+            "{e}"
+        );
     }
 }

@@ -47,7 +47,7 @@ pub use fetcher::{fetcher_name, fetcher_per_node_name, fetcher_per_node_unit, fe
 pub use level::{merge_level_name, merge_level_unit};
 pub use merger::{
     hierarchy_merger_name, hierarchy_merger_unit, store_port_name, store_port_unit, MergerConfig,
-    StorePortConfig, CREDITS as STORE_PORT_CREDITS,
+    StorePortConfig,
 };
 pub use network::{morton_code, morton_merge_name, morton_merge_unit};
 pub use overlap::{overlap_counter_name, overlap_counter_unit};

@@ -169,7 +169,7 @@ fn the_larger_units_hold_their_handshakes() {
             ("merge_module_per_node", "handshake", K, 4),
             ("upper_builder", "handshake", K, 4),
             ("fetcher", "handshake", K, 4),
-            ("store_port", "handshake", K, 6),
+            ("store_port", "handshake", "bmc", 14),
         ],
     );
 }

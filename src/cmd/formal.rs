@@ -27,7 +27,7 @@ pub struct Args {
     /// merge_module_overlap, merge_module_per_node, upper_builder, fetcher,
     /// fetcher_per_node, record_writer; or hierarchy_merger (its handshake
     /// does not converge yet), store_port (the merger's shared store front
-    /// end, handshake).
+    /// end, handshake by BMC).
     #[arg(long = "unit")]
     units: Vec<String>,
     /// Every unit of the default set (the default when neither --unit nor

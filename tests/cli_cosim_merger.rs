@@ -184,3 +184,46 @@ fn merger_vectors_replay_through_the_cli() {
         .collect();
     assert_eq!(differing, ["out_id"], "{m}");
 }
+
+/// `--store-port shared`: the run passes on the IR engine with the port's
+/// figures in the JSON (as many reads as golden's units make, reads per
+/// cycle the share of the port, the records the port allows); the port's
+/// flags are refused where they do not apply.
+#[test]
+fn merger_shared_store_port_through_the_cli() {
+    let line = "cosim --unit merger --engine ir --count 3 --stalls none --store-port shared:2 \
+                --store-latency 2 --max-lod 8 --quant-bits 0 --index-bits 12 --hier-bits 3 \
+                --inputs 3 --json";
+    let o = hiermerge(&line.split_whitespace().collect::<Vec<_>>(), &[]);
+    let r = assert_passed(&o, 3);
+    let st = &r["merger"]["store"];
+    assert_eq!(st["port"], "shared:2", "{r}");
+    assert!(
+        r["merger"]["top"].as_str().unwrap().ends_with("_sp2"),
+        "{r}"
+    );
+    let (reads, cycles) = (st["reads"].as_u64().unwrap(), r["cycles"].as_u64().unwrap());
+    assert!(reads > 0 && st["expected_reads"] == reads, "{r}");
+    let of_port = st["of_port"].as_f64().unwrap();
+    assert!((of_port - reads as f64 / cycles as f64).abs() < 1e-9, "{r}");
+    assert!(of_port > 0.0 && of_port <= 1.0, "{r}");
+    let allowed = st["records_allowed_per_cycle"].as_f64().unwrap();
+    let records = r["records"].as_u64().unwrap() as f64;
+    assert!((allowed - records / reads as f64).abs() < 1e-9, "{r}");
+    let ir_merger = "cosim --unit merger --engine ir --count 1";
+    assert_refused(
+        &format!("{ir_merger} --store-latency 3"),
+        &[],
+        "--store-latency applies to --store-port shared only",
+    );
+    assert_refused(
+        &format!("{ir_merger} --store-port shared:9"),
+        &[],
+        "expected per-unit, shared or shared:T",
+    );
+    assert_refused(
+        "cosim --unit merge --engine ir --count 1 --store-port shared",
+        &[],
+        "--unit merger only",
+    );
+}

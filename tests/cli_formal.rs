@@ -161,6 +161,7 @@ fn the_larger_units_hold_their_handshakes() {
             "upper_builder",
             "fetcher",
             "hierarchy_merger",
+            "store_port",
         ],
         &["--check", "handshake"],
         &[
@@ -170,6 +171,7 @@ fn the_larger_units_hold_their_handshakes() {
             ("upper_builder", "handshake", K, 4),
             ("fetcher", "handshake", K, 4),
             ("hierarchy_merger", "handshake", K, 4),
+            ("store_port", "handshake", "bmc", 14),
         ],
     );
 }

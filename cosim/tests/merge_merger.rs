@@ -399,6 +399,7 @@ fn hierarchy_merger_verilog_lints_and_synthesizes() {
                         roots: 4,
                         frontier: 4,
                     },
+                    store_port: Default::default(),
                 },
                 design: MergeDesign {
                     roots: 4,
@@ -445,6 +446,7 @@ fn hierarchy_merger_per_node_ports_lint_and_synth() {
                 roots: 4,
                 frontier: 4,
             },
+            store_port: Default::default(),
         },
         design: MergeDesign {
             params: Params::new(4, 0, 8, 2).unwrap(),

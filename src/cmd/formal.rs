@@ -26,7 +26,8 @@ pub struct Args {
     /// per_node_decider, translate; or a larger unit: per_node_network,
     /// merge_module_overlap, merge_module_per_node, upper_builder,
     /// upper_builder_default, fetcher, fetcher_per_node, record_writer,
-    /// hierarchy_merger, hierarchy_merger_per_node.
+    /// hierarchy_merger, hierarchy_merger_per_node, store_port (the
+    /// merger's shared store front end, handshake by BMC).
     #[arg(long = "unit")]
     units: Vec<String>,
     /// Every unit of the default set (the default when neither --unit nor

@@ -224,6 +224,7 @@ fn roomy(p: &Params, hs: &[&Hierarchy]) -> MergerSizes {
         },
         capacity_bits: p.index_bits as u32 - 1,
         leaf_bits: MOST_LEAF_BITS,
+        store_port: golden::merge::store_port::StorePort::PerUnit,
     }
 }
 

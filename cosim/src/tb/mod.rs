@@ -21,8 +21,9 @@ pub use bench::{
 pub use driver::StreamDriver;
 pub use monitor::StreamMonitor;
 pub use multi::{
-    run_multi_stream_bench, run_multi_stream_bench_traced, run_multi_stream_bench_watching,
-    run_multi_with_vcd_on_failure, ActiveWindow, MultiReport, PulseCounts, PulseWatch, StreamBeats,
+    run_multi_stream_bench, run_multi_stream_bench_reactive, run_multi_stream_bench_traced,
+    run_multi_stream_bench_watching, run_multi_with_vcd_on_failure, stream_seed, ActiveWindow,
+    MultiReport, PulseCounts, PulseWatch, Reactor, StreamBeats,
 };
 pub use prng::Prng;
 pub use scoreboard::{FieldDecoder, FieldDiff, Mismatch, Scoreboard};

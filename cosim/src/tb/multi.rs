@@ -199,9 +199,72 @@ pub fn run_multi_stream_bench_traced(
     outputs: &[StreamBeats],
     config: &BenchConfig,
     pulses: &[&str],
-    mut window: Option<TraceWindow>,
+    window: Option<TraceWindow>,
     progress: &mut dyn FnMut(Progress),
 ) -> Result<(MultiReport, PulseWatch)> {
+    let hooks = Hooks {
+        pulses,
+        window,
+        progress,
+        reactor: None,
+    };
+    bench_loop(engine, inputs, outputs, config, hooks)
+}
+
+/// A model the bench steps with the design that answers what the design
+/// asks (a store answering `store_req` on `store_resp`), so its input
+/// beats cannot be precomputed.
+pub trait Reactor {
+    /// Drives its inputs for this cycle (before `eval`); `sent`: the beats
+    /// each input stream of the bench has sent so far.
+    fn drive(&mut self, engine: &mut dyn Engine, sent: &[u64]) -> Result<()>;
+    /// After `eval`: whether one of its handshakes moved.
+    fn observe(&mut self, engine: &dyn Engine) -> Result<bool>;
+    /// Nothing of its own is left to deliver.
+    fn finished(&self) -> bool;
+}
+
+/// [`run_multi_stream_bench_watching`] with `reactor` stepped alongside
+/// the drivers and monitors: the run finishes only once it has nothing
+/// left to deliver, and its handshakes count as progress for the watchdog.
+pub fn run_multi_stream_bench_reactive(
+    engine: &mut dyn Engine,
+    inputs: &[StreamBeats],
+    outputs: &[StreamBeats],
+    config: &BenchConfig,
+    pulses: &[&str],
+    reactor: &mut dyn Reactor,
+) -> Result<(MultiReport, PulseWatch)> {
+    let hooks = Hooks {
+        pulses,
+        window: None,
+        progress: &mut |_| {},
+        reactor: Some(reactor),
+    };
+    bench_loop(engine, inputs, outputs, config, hooks)
+}
+
+/// What a bench run watches and calls besides its streams.
+struct Hooks<'a> {
+    pulses: &'a [&'a str],
+    window: Option<TraceWindow>,
+    progress: &'a mut dyn FnMut(Progress),
+    reactor: Option<&'a mut dyn Reactor>,
+}
+
+fn bench_loop(
+    engine: &mut dyn Engine,
+    inputs: &[StreamBeats],
+    outputs: &[StreamBeats],
+    config: &BenchConfig,
+    hooks: Hooks<'_>,
+) -> Result<(MultiReport, PulseWatch)> {
+    let Hooks {
+        pulses,
+        mut window,
+        progress,
+        mut reactor,
+    } = hooks;
     let start = Instant::now();
     // Distinct stall patterns per stream from one seed.
     let seed_of = |j: usize| stream_seed(config.seed, j);
@@ -256,6 +319,10 @@ pub fn run_multi_stream_bench_traced(
         for (mon, _) in monitors.iter_mut() {
             mon.drive(engine)?;
         }
+        if let Some(r) = reactor.as_mut() {
+            let sent: Vec<u64> = drivers.iter().map(StreamDriver::sent).collect();
+            r.drive(engine, &sent)?;
+        }
         engine.eval()?;
         for (n, id) in pulse_counts.iter_mut().zip(&pulse_ids) {
             *n += engine.peek_bool(*id)? as u64;
@@ -273,9 +340,15 @@ pub fn run_multi_stream_bench_traced(
                 board.check(txn, engine.cycle());
             }
         }
+        if let Some(r) = reactor.as_mut() {
+            if r.observe(engine)? {
+                stop.progress(engine.cycle());
+            }
+        }
         let mismatched = monitors.iter().any(|(_, b)| b.mismatches() > 0);
         let finished = drivers.iter().all(|d| d.pending() == 0)
-            && monitors.iter().all(|(_, b)| b.outstanding() == 0);
+            && monitors.iter().all(|(_, b)| b.outstanding() == 0)
+            && reactor.as_ref().is_none_or(|r| r.finished());
         if stop.stops_after(engine, finished, config.stop_on_mismatch && mismatched) {
             break;
         }

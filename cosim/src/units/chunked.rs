@@ -189,7 +189,7 @@ impl ChunkTotals {
     }
 
     /// Adds one chunk of `n` merges; returns whether the chunk failed.
-    fn add(
+    pub(crate) fn add(
         &mut self,
         n: usize,
         chunk: &UnitStreams,
@@ -240,6 +240,23 @@ impl ChunkTotals {
             self.vcd = report.vcd.clone().or(self.vcd.take());
         }
         failed
+    }
+}
+
+/// The bench of chunk `chunks` (0-based) of a run of `config`: its own
+/// stall seed (`seed ^ chunk`).
+pub(crate) fn chunk_bench(config: &RunConfig, chunks: usize) -> BenchConfig {
+    BenchConfig {
+        seed: config.seed ^ chunks as u64,
+        in_stall: config.stall,
+        out_stall: config.stall,
+        stop_on_mismatch: false,
+        vcd_path: config.vcd_path.clone(),
+        vcd_radius: config.vcd_radius,
+        wave_scope: config.wave_scope.clone(),
+        // Cycles count from a chunk's start: the window is the first chunk's.
+        wave_window: config.wave_window.filter(|_| chunks == 0),
+        ..BenchConfig::default()
     }
 }
 
@@ -330,18 +347,7 @@ impl ChunkedSim {
         decode: &PairDecoder,
         progress: &mut dyn FnMut(u64, u64),
     ) -> Result<bool> {
-        let bench = BenchConfig {
-            seed: config.seed ^ totals.chunks as u64,
-            in_stall: config.stall,
-            out_stall: config.stall,
-            stop_on_mismatch: false,
-            vcd_path: config.vcd_path.clone(),
-            vcd_radius: config.vcd_radius,
-            wave_scope: config.wave_scope.clone(),
-            // Cycles count from a chunk's start: the window is the first chunk's.
-            wave_window: config.wave_window.filter(|_| totals.chunks == 0),
-            ..BenchConfig::default()
-        };
+        let bench = chunk_bench(config, totals.chunks);
         let (before, cycles_before) = (totals.merges as u64, totals.cycles);
         let (report, watch) = match &self.sim {
             Sim::Stepped {

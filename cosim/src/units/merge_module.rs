@@ -24,8 +24,8 @@ use crate::design::Design;
 use crate::error::{CosimError, Result};
 use crate::icarus::IcarusMultiBatch;
 use crate::tb::{
-    run_multi_with_vcd_on_failure, BenchConfig, FieldDecoder, Hang, MultiReport, Progress,
-    PulseWatch, Transaction,
+    run_multi_with_vcd_on_failure, FieldDecoder, Hang, MultiReport, Progress, PulseWatch,
+    Transaction,
 };
 
 pub use super::chunked::UnitStreams;
@@ -248,17 +248,8 @@ pub fn run(
     if let Some(patch) = &config.verilog_patch {
         apply_patch(&design, patch, engine)?;
     }
-    let bench = BenchConfig {
-        seed: config.seed,
-        in_stall: config.stall,
-        out_stall: config.stall,
-        stop_on_mismatch: false,
-        vcd_path: config.vcd_path.clone(),
-        vcd_radius: config.vcd_radius,
-        wave_scope: config.wave_scope.clone(),
-        wave_window: config.wave_window,
-        ..BenchConfig::default()
-    };
+    // One chunk, the first: the seed and the window as asked.
+    let bench = super::chunked::chunk_bench(config, 0);
     let (report, watch) = match engine {
         ModuleEngine::Ir | ModuleEngine::Verilator => {
             let patched = config.verilog_patch.is_some();

@@ -41,6 +41,9 @@ use super::multi_stream::{
 pub use super::multi_stream::{RunConfig as ModuleRunConfig, VerilogPatch};
 use crate::export_tb::{named_fields, ExportSpec};
 
+mod shared;
+pub use shared::StoreOutcome;
+
 /// The stage name `hiermerge cosim --unit merger` reports.
 pub const STAGE: &str = "hierarchy_merger";
 
@@ -126,6 +129,24 @@ pub struct MergerStreams {
     pub streams: UnitStreams,
     /// What the merges exercised.
     pub stats: MergeStats,
+}
+
+/// Whether `c`'s units share one store port (`StorePort::Shared`): its
+/// bench answers `store_req` from a store model ([`run`]).
+pub fn is_shared(c: &MergerConfig) -> bool {
+    c.sizes.store_port != golden::merge::store_port::StorePort::PerUnit
+}
+
+/// Refuses a shared-port merger where only precomputed streams run.
+fn per_unit_only(c: &MergerConfig, what: &str) -> Result<()> {
+    if is_shared(c) {
+        return Err(CosimError::Unsupported {
+            what: format!(
+                "{what} of a merger with a shared store port (its store answers reads as they come: `cosim --unit merger` runs it)"
+            ),
+        });
+    }
+    Ok(())
 }
 
 /// Whether `c` merges per node (its fetchers have a probe port, its
@@ -222,6 +243,9 @@ pub struct RunConfig {
     /// The test hook: bit 0 of merge `n`'s expected `header` beat (its
     /// `out_id`) flipped.
     pub flip_expected: Option<usize>,
+    /// A shared store port only: the store answers a read this many clocks
+    /// after taking it, at the earliest (0 counts as 1).
+    pub store_latency: u64,
 }
 
 /// What a run measured (over every chunk run): the bench's totals and
@@ -238,13 +262,15 @@ pub struct Outcome {
     pub stimulus_sha256: String,
     /// The run stopped after a failing chunk, before `count` merges.
     pub stopped_early: bool,
+    /// A shared store port only: what the store saw.
+    pub store: Option<StoreOutcome>,
 }
 
 impl Outcome {
     /// Every beat matched, none missing, nothing hung, one `done` pulse
     /// per merge, and the unit idle at the end of every chunk.
     pub fn passed(&self) -> bool {
-        self.totals.passed()
+        self.totals.passed() && self.store.as_ref().is_none_or(|s| s.failure.is_none())
     }
 
     /// Records written (`nodes` beats) per cycle.
@@ -321,6 +347,7 @@ pub fn export_spec(
     stalls: crate::tb::Stalls,
     rtl: &Path,
 ) -> Result<ExportSpec> {
+    per_unit_only(c, "an exported testbench")?;
     let mut draw = Draw::new(c, seed, Merges::Random)?;
     let streams = next_chunk(&mut draw, c, count, None)?.streams;
     let design = crate::from_rtl::design_from_module(&merger_module(c)?, rtl)?;
@@ -338,6 +365,30 @@ pub fn export_spec(
         stalls,
         command: String::new(),
     })
+}
+
+/// The next chunk of `n` merges of a run of `config` (the flip hook's
+/// merge counted over the run), added to `digest`, its golden time and
+/// what it exercises to `out`.
+fn golden_chunk(
+    draw: &mut Draw,
+    c: &MergerConfig,
+    config: &RunConfig,
+    n: usize,
+    digest: &mut StimulusDigest,
+    out: &mut Outcome,
+) -> Result<UnitStreams> {
+    let first = out.totals.merges;
+    let t = std::time::Instant::now();
+    let flip = config
+        .flip_expected
+        .filter(|f| (first..first + n).contains(f))
+        .map(|f| f - first);
+    let MergerStreams { streams, stats } = next_chunk(draw, c, n, flip)?;
+    digest.add_chunk(&streams.inputs, &streams.outputs);
+    out.totals.golden_wall += t.elapsed();
+    out.stats.add(&stats);
+    Ok(streams)
 }
 
 /// The chunk sizes of a run of `count` merges.
@@ -379,6 +430,7 @@ fn merger_module(c: &MergerConfig) -> Result<rtl_gen::Module> {
 /// The merges of a vectors file (`hiermerge vectors --unit merger`,
 /// golden's `read_merger_vectors`) for the merger `c`, as its streams.
 pub fn streams_from_vectors(c: &MergerConfig, path: &Path) -> Result<UnitStreams> {
+    per_unit_only(c, "a vectors replay")?;
     let merges = golden::vectors::stream_file::read_merger_vectors(path, &c.design, c.sizes)
         .map_err(|e| CosimError::Design {
             what: e.to_string(),
@@ -441,6 +493,7 @@ impl MergerSim {
         dir: &Path,
         patch: Option<&VerilogPatch>,
     ) -> Result<MergerSim> {
+        per_unit_only(c, "a merger simulator of precomputed streams")?;
         let module = merger_module(c)?;
         let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
         if let Some(patch) = patch {
@@ -518,6 +571,9 @@ pub fn run(
     dir: &Path,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Outcome> {
+    if is_shared(c) {
+        return shared::run_shared(c, engine, config, dir, progress);
+    }
     let module = merger_module(c)?;
     crate::waves::check_scope(&module, config.bench.wave_scope.as_deref())?;
     // Of the design as generated: a patched run is a test of the bench and
@@ -540,16 +596,7 @@ pub fn run(
         ..Outcome::default()
     };
     for n in chunk_sizes(config.count) {
-        let first = out.totals.merges;
-        let t = std::time::Instant::now();
-        let flip = config
-            .flip_expected
-            .filter(|f| (first..first + n).contains(f))
-            .map(|f| f - first);
-        let MergerStreams { streams, stats } = next_chunk(&mut draw, c, n, flip)?;
-        digest.add_chunk(&streams.inputs, &streams.outputs);
-        out.totals.golden_wall += t.elapsed();
-        out.stats.add(&stats);
+        let streams = golden_chunk(&mut draw, c, config, n, &mut digest, &mut out)?;
         if sim.run_chunk(
             &mut out.totals,
             n,

@@ -11,6 +11,7 @@ pub mod merge;
 pub mod merge_module;
 pub mod merger;
 pub mod multi_stream;
+pub mod store_port;
 pub mod translate;
 
 use crate::engine::Engine;

@@ -52,6 +52,7 @@ use super::writer_unit::{
 };
 use super::MergeMode;
 use crate::layout::{Bits, Field, LayoutError};
+use crate::merge::store_port::StorePort;
 use crate::params::{bits_to_hold, Params};
 use crate::store::{Hierarchy, HierarchyStore, Reference};
 use crate::translate::table::pack_entry;
@@ -68,6 +69,9 @@ pub struct MergerSizes {
     pub capacity_bits: u32,
     /// Each LOD's leaf FIFO holds `2^leaf_bits` entries (`1..=16`).
     pub leaf_bits: u32,
+    /// How the units reach the store: each its own read streams (the
+    /// default), or one shared port.
+    pub store_port: StorePort,
 }
 
 impl MergerSizes {
@@ -78,6 +82,7 @@ impl MergerSizes {
             fetch: FetchSizes::default(),
             capacity_bits: 10.min(p.index_bits as u32 - 1),
             leaf_bits: 4,
+            store_port: StorePort::PerUnit,
         }
     }
 }
@@ -829,6 +834,7 @@ mod tests {
             },
             capacity_bits: 13.min(p.index_bits as u32 - 1),
             leaf_bits: 12,
+            store_port: StorePort::PerUnit,
         };
         for (store, table, ids) in cases {
             let hs: Vec<&Hierarchy> = ids.iter().map(|i| store.get(*i).unwrap()).collect();

@@ -29,6 +29,7 @@ pub mod merger_unit;
 pub mod per_node;
 pub mod per_node_unit;
 pub mod stimulus;
+pub mod store_port;
 pub mod top;
 pub mod unit;
 pub mod upper;

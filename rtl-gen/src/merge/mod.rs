@@ -45,7 +45,10 @@ mod writer;
 pub use builder::{upper_builder_name, upper_builder_unit};
 pub use fetcher::{fetcher_name, fetcher_per_node_name, fetcher_per_node_unit, fetcher_unit};
 pub use level::{merge_level_name, merge_level_unit};
-pub use merger::{hierarchy_merger_name, hierarchy_merger_unit, MergerConfig};
+pub use merger::{
+    hierarchy_merger_name, hierarchy_merger_unit, store_port_name, store_port_unit, MergerConfig,
+    StorePortConfig,
+};
 pub use network::{morton_code, morton_merge_name, morton_merge_unit};
 pub use overlap::{overlap_counter_name, overlap_counter_unit};
 pub use per_node::{

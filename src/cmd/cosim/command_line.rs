@@ -90,6 +90,15 @@ pub(super) fn run_args(a: &Args) -> Result<Vec<String>, String> {
                 if let Some(l) = a.leaf_bits {
                     push("--leaf-bits", l.to_string());
                 }
+                // Only when shared, so per-unit entries keep their form.
+                if let Some(golden::merge::store_port::StorePort::Shared { tag_bits }) =
+                    a.store_port
+                {
+                    push("--store-port", format!("shared:{tag_bits}"));
+                }
+                if let Some(l) = a.store_latency {
+                    push("--store-latency", l.to_string());
+                }
                 // Only when not the default, so the ledger's entries of
                 // random merges keep their form.
                 if a.vectors.is_none() && super::merger::merges_of(a) == Merges::Hard {

@@ -8,7 +8,9 @@ use cosim::units::merger;
 use golden::vectors::merge::MergeDesign;
 
 use super::command_line::run_args;
-use super::report::{chunked_failure, finish_report, Counts, MergerReport, Report};
+use super::report::{
+    chunked_failure, finish_report, Counts, MergerReport, MismatchReport, Report, StoreReport,
+};
 use super::{bar, bench_config, count, module_engine, Args, Unit, DEFAULT_COUNT};
 
 /// The hierarchy merger of `design` with the flags `--capacity-bits`
@@ -35,7 +37,13 @@ fn merger_config_of(
     a: &Args,
     design: &MergeDesign,
 ) -> Result<rtl_gen::merge::MergerConfig, String> {
-    merger_config(design, a.capacity_bits, a.leaf_bits)
+    let mut c = merger_config(design, a.capacity_bits, a.leaf_bits)?;
+    if let Some(port) = a.store_port {
+        c.sizes.store_port = port;
+        c.validate()
+            .map_err(|e| format!("hierarchy merger configuration: {e}"))?;
+    }
+    Ok(c)
 }
 
 /// The merges `--merges` asks for (random when not given).
@@ -107,6 +115,7 @@ pub(super) fn run(
         count,
         merges: merges_of(a),
         flip_expected: flip,
+        store_latency: a.store_latency.unwrap_or(1),
     };
     if !a.json {
         eprintln!(
@@ -124,7 +133,7 @@ pub(super) fn run(
     let o = o.map_err(|e| e.to_string())?;
     let (t, s) = (&o.totals, &o.stats);
     let stage = merger::STAGE;
-    let first = chunked_failure(stage, a.seed, t);
+    let first = chunked_failure(stage, a.seed, t).or_else(|| store_failure(a, &o));
     if t.passed() {
         super::bins::merger(c.design.inputs, s);
     }
@@ -154,8 +163,60 @@ pub(super) fn run(
         top: rtl_gen::merge::hierarchy_merger_name(&c),
         netlist_sha256: o.netlist_sha256.clone(),
         stimulus_sha256: o.stimulus_sha256.clone(),
+        store: o.store.as_ref().map(|st| store_report(&c, a, &o, st)),
     });
     Ok(report)
+}
+
+/// The shared store port's figures: reads against the port's one read per
+/// clock (SPEC 8.15). A record costs `reads / records` reads, so the port
+/// allows `records / reads` records per cycle, and the run's share of that
+/// is `reads / cycles`, whichever records are counted.
+fn store_report(
+    c: &rtl_gen::merge::MergerConfig,
+    a: &Args,
+    o: &merger::Outcome,
+    st: &merger::StoreOutcome,
+) -> StoreReport {
+    let (t, s) = (&o.totals, &o.stats);
+    let cycles = t.cycles.max(1) as f64;
+    let reads = st.stats.reads.max(1) as f64;
+    StoreReport {
+        port: match c.sizes.store_port {
+            golden::merge::store_port::StorePort::Shared { tag_bits } => {
+                format!("shared:{tag_bits}")
+            }
+            golden::merge::store_port::StorePort::PerUnit => "per-unit".into(),
+        },
+        latency: a.store_latency.unwrap_or(1),
+        reads: st.stats.reads,
+        expected_reads: st.expected_reads,
+        reads_per_cycle: st.stats.reads as f64 / cycles,
+        records_per_cycle: s.module_in as f64 / cycles,
+        records_allowed_per_cycle: s.module_in as f64 / reads,
+        nodes_per_cycle: s.records as f64 / cycles,
+        nodes_allowed_per_cycle: s.records as f64 / reads,
+        of_port: st.stats.reads as f64 / cycles,
+        read_window_cycles: st.stats.window_cycles(),
+        reads_per_window_cycle: st.stats.reads as f64 / st.stats.window_cycles().max(1) as f64,
+    }
+}
+
+/// The report of a shared-port run whose reads broke the store's rules
+/// (a read outside the merge's store, or another number of reads than
+/// golden's units make), when nothing else failed first.
+fn store_failure(a: &Args, o: &merger::Outcome) -> Option<MismatchReport> {
+    let what = o.store.as_ref()?.failure.clone()?;
+    Some(MismatchReport {
+        transaction: o.totals.cfg_accepted.saturating_sub(1),
+        stream: Some("store_req".into()),
+        beat: None,
+        kind: merger::STAGE.into(),
+        cycle: o.totals.cycles,
+        seed: a.seed,
+        what,
+        fields: Vec::new(),
+    })
 }
 
 /// `--unit merger --vectors FILE` (`hiermerge vectors --unit merger`):

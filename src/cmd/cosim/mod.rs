@@ -250,6 +250,18 @@ pub struct Args {
     /// `random`.
     #[arg(long, value_enum)]
     merges: Option<MergesChoice>,
+    /// --unit merger only: how the fetchers and the writer reach the store.
+    /// `per-unit` (the default): each with its own read streams, their
+    /// responses precomputed by golden; `shared` or `shared:T`: one read
+    /// port (`store_req` / `store_resp`) behind the store front end, its tag
+    /// FIFO of 2^T reads in flight (default T = 3), answered by a store
+    /// model after --store-latency clocks.
+    #[arg(long = "store-port", value_parser = parse_store_port)]
+    store_port: Option<golden::merge::store_port::StorePort>,
+    /// --unit merger --store-port shared only: clocks from a read taken to
+    /// its answer, at the earliest (default 1).
+    #[arg(long = "store-latency")]
+    store_latency: Option<u64>,
     /// --unit merger only: also record the run, passed or failed, as an
     /// entry of the long-run ledger in this folder (SPEC 10.2; `hiermerge
     /// ledger` checks the entries against today's code).
@@ -268,6 +280,24 @@ pub struct Args {
 }
 
 const DEFAULT_COUNT: u64 = 10_000;
+
+/// `--store-port`: `per-unit`, `shared` or `shared:T` (T in 1..=8).
+fn parse_store_port(text: &str) -> Result<golden::merge::store_port::StorePort, String> {
+    use golden::merge::store_port::StorePort;
+    match text {
+        "per-unit" => return Ok(StorePort::PerUnit),
+        "shared" => return Ok(StorePort::SHARED),
+        _ => {}
+    }
+    let tag_bits = text
+        .strip_prefix("shared:")
+        .and_then(|t| t.parse::<u32>().ok())
+        .filter(|t| (1..=8).contains(t))
+        .ok_or_else(|| {
+            format!("`{text}`: expected per-unit, shared or shared:T with T in 1..=8 (a tag FIFO of 2^T reads)")
+        })?;
+    Ok(StorePort::Shared { tag_bits })
+}
 
 /// `--stall` when not given.
 const DEFAULT_STALL: f64 = 0.3;
@@ -435,7 +465,22 @@ fn check_flags(a: &Args) -> Result<(), String> {
     let merges = ("--merges", a.merges.is_some(), MERGER);
     let ledger = ("--ledger", a.ledger.is_some(), MERGER);
     let sizes = [a.capacity_bits, a.leaf_bits];
-    refuse_unit_flags(a.unit, &a.design, a.stage, sizes, &[merges, ledger])?;
+    let port = ("--store-port", a.store_port.is_some(), MERGER);
+    let latency = ("--store-latency", a.store_latency.is_some(), MERGER);
+    refuse_unit_flags(
+        a.unit,
+        &a.design,
+        a.stage,
+        sizes,
+        &[merges, ledger, port, latency],
+    )?;
+    let shared = matches!(
+        a.store_port,
+        Some(golden::merge::store_port::StorePort::Shared { .. })
+    );
+    if a.store_latency.is_some() && !shared {
+        return Err("--store-latency applies to --store-port shared only".into());
+    }
     if a.vectors.is_some() {
         // A ledger entry is regenerated from its seed and count (SPEC 10.2).
         for (flag, given) in [

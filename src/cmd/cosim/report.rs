@@ -86,6 +86,38 @@ pub(super) struct MergerReport {
     /// Digests of the simulated netlist and of the stimulus (SPEC 10.2).
     pub(super) netlist_sha256: String,
     pub(super) stimulus_sha256: String,
+    /// `--store-port shared`: the port's reads and throughput.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) store: Option<StoreReport>,
+}
+
+/// The shared store port of a `--unit merger` run: its reads against the
+/// one read per clock it allows.
+#[derive(Serialize)]
+pub(super) struct StoreReport {
+    /// `shared:T` (a tag FIFO of 2^T reads).
+    pub(super) port: String,
+    /// Clocks from a read taken to its answer, at the earliest.
+    pub(super) latency: u64,
+    /// `store_req` beats, and the reads golden's units make.
+    pub(super) reads: u64,
+    pub(super) expected_reads: u64,
+    pub(super) reads_per_cycle: f64,
+    /// Records into the merging module per cycle, and per cycle at one
+    /// read per clock (`records / reads`).
+    pub(super) records_per_cycle: f64,
+    pub(super) records_allowed_per_cycle: f64,
+    /// Node records written per cycle, and per cycle at one read per clock.
+    pub(super) nodes_per_cycle: f64,
+    pub(super) nodes_allowed_per_cycle: f64,
+    /// Records per cycle against what the port allows (= reads per cycle).
+    pub(super) of_port: f64,
+    /// Cycles from each merge's first read to its last, summed, and the
+    /// reads per such cycle: the port's use while the merges read, the
+    /// rest of the cycles being the merger's phases without reads (`cfg`,
+    /// the choice between the passes, the builder and the writer's tail).
+    pub(super) read_window_cycles: u64,
+    pub(super) reads_per_window_cycle: f64,
 }
 
 /// What a run counted (the report's counts, [`finish_report`]).
@@ -188,6 +220,24 @@ pub(super) fn print_text(r: &Report) {
         r.counts.mismatches,
         r.counts.wall_seconds
     );
+    if let Some(st) = r.merger.as_ref().and_then(|m| m.store.as_ref()) {
+        println!(
+            "store port {} (latency {}): {} reads ({} by golden's units) in {} cycles, {:.3} reads/cycle; {:.3} records/cycle of the {:.3} the port allows ({:.3} nodes/cycle of {:.3}): {:.3} of the port; {:.3} reads/cycle from each merge's first read to its last ({} cycles)",
+            st.port,
+            st.latency,
+            st.reads,
+            st.expected_reads,
+            r.counts.cycles,
+            st.reads_per_cycle,
+            st.records_per_cycle,
+            st.records_allowed_per_cycle,
+            st.nodes_per_cycle,
+            st.nodes_allowed_per_cycle,
+            st.of_port,
+            st.reads_per_window_cycle,
+            st.read_window_cycles
+        );
+    }
     if let Some(m) = &r.first_mismatch {
         println!(
             "MISMATCH: transaction {} ({}), cycle {}, seed {}: {}",

@@ -68,6 +68,7 @@ pub fn measure(
         },
         count: merges,
         merges: cosim::units::merger::Merges::Random,
+        store_latency: 1,
         flip_expected: None,
     };
     let o = merger::run(&c, ModuleEngine::Verilator, &config, dir, progress)

@@ -9,10 +9,10 @@ use golden::params::Params;
 
 use super::drop_fifo::DropFifo;
 use super::leaf_merge::{merge_leaves, LeafInputs, MergedLeaves};
-use super::tail::{finish_merger, Tail};
+use super::tail::{finish_merger, Store, Tail};
 use super::{
-    cfg_beats, get, hierarchy_merger_name, pass_stream, phase, range_good, shell, store_streams,
-    MergerConfig, Shell,
+    cfg_beats, get, hierarchy_merger_name, pass_stream, phase, range_good, shared_store, shell,
+    store_streams, MergerConfig, Shell,
 };
 use crate::merge::fields::with_fields;
 use crate::merge::{fetcher_unit, record_writer_unit};
@@ -76,6 +76,12 @@ pub(super) fn level_merger_unit(c: &MergerConfig) -> Result<Module, String> {
             builder: s.builder,
             writer: s.writer,
             writer_mod: &writer_mod,
+            store: Store {
+                config: c,
+                cfg_q: s.cfg_q,
+                fetchers: &s.fetchers,
+                fetch_mod: &fetch_mod,
+            },
             ml: &ml,
             header_fire: s.header_fire,
             header_hold: s.header_hold,
@@ -154,6 +160,7 @@ fn inputs<'m>(
 ) -> (Signal<'m>, Signal<'m>, Vec<(Signal<'m>, Signal<'m>, usize)>) {
     let p = &c.design.params;
     let k = c.design.inputs;
+    let shared = shared_store(c);
     let fl = &ml.fetch;
     let inb = BeatLayout::input(p);
     let lb = p.lod_bits();
@@ -256,7 +263,8 @@ fn inputs<'m>(
         dropping[i].next(drop_issued.mux(one, (fo_fire & fo_end).mux(zero, dropping[i])));
 
         // The store ports (every `*_req` / `*_resp` stream), straight through.
-        for (port, dir, w) in store_streams(fetch_mod) {
+        // (A shared port connects them in `finish_merger`.)
+        for (port, dir, w) in store_streams(fetch_mod).into_iter().filter(|_| !shared) {
             pass_stream(m, *f, &port, &format!("f{i}_{port}"), dir, w);
         }
         leaves_in.push((f.output("leaves_valid"), f.output("leaves_data"), i));

@@ -13,6 +13,7 @@
 
 use golden::merge::fetch_unit::FetchSizes;
 use golden::merge::merger_unit::{MergerLayout, MergerSizes};
+use golden::merge::store_port::StorePort;
 use golden::merge::top::TopLayout;
 use golden::merge::unit::BeatLayout;
 use golden::merge::MergeMode;
@@ -26,7 +27,10 @@ mod drop_fifo;
 mod leaf_merge;
 mod level_mode;
 mod per_node_mode;
+mod store_port;
 mod tail;
+
+pub use store_port::{store_port_name, store_port_unit, StorePortConfig};
 
 /// The merger's configuration: the merging module's design (grid
 /// parameters, `k` inputs, mode, root-sorter capacity) and the sizes of the
@@ -78,6 +82,13 @@ impl MergerConfig {
                 self.sizes.fetch.frontier
             ));
         }
+        if let StorePort::Shared { tag_bits } = self.sizes.store_port {
+            if !(1..=8).contains(&tag_bits) {
+                return Err(format!(
+                    "store port tag_bits = {tag_bits}: expected 1..=8 (a tag FIFO of 2^tag_bits reads)"
+                ));
+            }
+        }
         Ok(())
     }
 }
@@ -86,10 +97,21 @@ impl MergerConfig {
 pub fn hierarchy_merger_name(c: &MergerConfig) -> String {
     let inner = merge_module_name(&c.design);
     let rest = inner.strip_prefix("merge_module_").unwrap_or(&inner);
-    format!(
+    let base = format!(
         "hierarchy_merger_{rest}_r{}_f{}_c{}_l{}",
         c.design.roots, c.sizes.fetch.frontier, c.sizes.capacity_bits, c.sizes.leaf_bits
-    )
+    );
+    // Per-unit ports (the default) keep the name they always had.
+    match c.sizes.store_port {
+        StorePort::PerUnit => base,
+        StorePort::Shared { tag_bits } => format!("{base}_sp{tag_bits}"),
+    }
+}
+
+/// Whether `c`'s units share one store port (their own streams are then
+/// not passed out of the top).
+fn shared_store(c: &MergerConfig) -> bool {
+    c.sizes.store_port != StorePort::PerUnit
 }
 
 /// Phases of one input's command issuer.
@@ -316,7 +338,9 @@ fn field_of(b: &BeatLayout) -> golden::layout::Field {
 /// writer's), `header` (out, [`MergerLayout::header_width`]); every store
 /// port stream (`*_req` out, `*_resp` in) of fetcher `i` as `f{i}_<name>`
 /// (`f{i}_node_req`, `f{i}_ref_req`, ...) and of the writer as `w_<name>`,
-/// not arbitrated; outputs `idle`, `done` (one clock after a header leaves),
+/// not arbitrated (`StorePort::PerUnit`), or, with `StorePort::Shared`,
+/// the one port `store_req` (out) / `store_resp` (in) of the store front
+/// end ([`store_port_unit`]) instead; outputs `idle`, `done` (one clock after a header leaves),
 /// `module_done` and the writer's status outputs as `w_<name>`.
 pub fn hierarchy_merger_unit(c: &MergerConfig) -> Result<Module, String> {
     c.validate()?;

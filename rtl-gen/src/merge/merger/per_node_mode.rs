@@ -8,10 +8,10 @@ use golden::params::Params;
 
 use super::drop_fifo::DropFifo;
 use super::leaf_merge::{merge_leaves, LeafInputs, MergedLeaves};
-use super::tail::{finish_merger, Tail};
+use super::tail::{finish_merger, Store, Tail};
 use super::{
-    cfg_beats, field_of, get, hierarchy_merger_name, pass_stream, range_good, shell, store_streams,
-    MergerConfig, Shell,
+    cfg_beats, field_of, get, hierarchy_merger_name, pass_stream, range_good, shared_store, shell,
+    store_streams, MergerConfig, Shell,
 };
 use crate::merge::fields::{field, with_fields};
 use crate::merge::{fetcher_per_node_unit, record_writer_unit};
@@ -82,6 +82,12 @@ pub(super) fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
             builder: s.builder,
             writer: s.writer,
             writer_mod: &writer_mod,
+            store: Store {
+                config: c,
+                cfg_q: s.cfg_q,
+                fetchers: &s.fetchers,
+                fetch_mod: &fetch_mod,
+            },
             ml: &ml,
             header_fire: s.header_fire,
             header_hold: s.header_hold,
@@ -173,6 +179,7 @@ fn inputs<'m>(
 ) -> (Signal<'m>, Signal<'m>, Vec<(Signal<'m>, Signal<'m>, usize)>) {
     let p = &c.design.params;
     let k = c.design.inputs;
+    let shared = shared_store(c);
     let fpn = fl.pn.as_ref().expect("a per-node fetch layout");
     let pl = PerNodeLayout::new(p);
     let inb = BeatLayout::input(p);
@@ -259,7 +266,8 @@ fn inputs<'m>(
 
         // The store ports (every `*_req` / `*_resp` stream, the probe port
         // included), straight through.
-        for (port, dir, w) in store_streams(fetch_mod) {
+        // (A shared port connects them in `finish_merger`.)
+        for (port, dir, w) in store_streams(fetch_mod).into_iter().filter(|_| !shared) {
             pass_stream(m, *f, &port, &format!("f{i}_{port}"), dir, w);
         }
         leaves_in.push((f.output("leaves_valid"), f.output("leaves_data"), i));

@@ -2,7 +2,7 @@
 
 use golden::merge::merger_unit::MergerLayout;
 
-use super::{pass_stream, store_streams};
+use super::{pass_stream, shared_store, store_port, store_streams, MergerConfig};
 use crate::merge::fields::with_fields;
 use crate::{Direction, Module, Signal};
 
@@ -15,6 +15,7 @@ pub(super) struct Tail<'a, 'm> {
     pub(super) builder: crate::Instance<'m>,
     pub(super) writer: crate::Instance<'m>,
     pub(super) writer_mod: &'a Module,
+    pub(super) store: Store<'a, 'm>,
     pub(super) ml: &'a MergerLayout,
     pub(super) header_fire: Signal<'m>,
     pub(super) header_hold: Signal<'m>,
@@ -22,6 +23,16 @@ pub(super) struct Tail<'a, 'm> {
     pub(super) flags: [Signal<'m>; 4],
     pub(super) busy: Signal<'m>,
     pub(super) dropping: &'a [Signal<'m>],
+}
+
+/// What a shared store port connects: the configuration and every
+/// fetcher (instances of `fetch_mod`); the writer is the [`Tail`]'s.
+pub(super) struct Store<'a, 'm> {
+    pub(super) config: &'a MergerConfig,
+    /// The merge's `cfg` beat, held: each fetcher's hierarchy.
+    pub(super) cfg_q: Signal<'m>,
+    pub(super) fetchers: &'a [crate::Instance<'m>],
+    pub(super) fetch_mod: &'a Module,
 }
 
 /// The end of every merger (level modes and per-node alike): the builder's
@@ -34,6 +45,7 @@ pub(super) fn finish_merger<'m>(m: &'m Module, t: Tail<'_, 'm>) {
         builder,
         writer,
         writer_mod,
+        store,
         ml,
         header_fire,
         header_hold,
@@ -58,8 +70,24 @@ pub(super) fn finish_merger<'m>(m: &'m Module, t: Tail<'_, 'm>) {
 
     // ---- the writer's ports: nodes, refs, store ports straight through;
     // header with the merger's flags.
-    for (port, dir, w) in store_streams(writer_mod) {
-        pass_stream(m, writer, &port, &format!("w_{port}"), dir, w);
+    if shared_store(store.config) {
+        let hier = &ml.fetch.hier;
+        let mut clients: Vec<_> = store
+            .fetchers
+            .iter()
+            .enumerate()
+            .map(|(i, f)| {
+                let at = ml.input_offset(i) + hier.offset;
+                let h = store.cfg_q.slice(at + hier.width - 1, at);
+                (*f, store.fetch_mod, Some(h.name(&format!("f{i}_hier"))))
+            })
+            .collect();
+        clients.push((writer, writer_mod, None));
+        store_port::connect_shared(m, store.config, &clients);
+    } else {
+        for (port, dir, w) in store_streams(writer_mod) {
+            pass_stream(m, writer, &port, &format!("w_{port}"), dir, w);
+        }
     }
     for port in ["nodes", "refs"] {
         pass_stream(m, writer, port, port, Direction::Output, 0);

@@ -1,0 +1,243 @@
+//! The merger with one shared store port (`StorePort::Shared`, SPEC 8.15
+//! "The shared store port"): its reads reach the bench on `store_req` in an
+//! order that depends on timing, so a [`StoreModel`] answers them from the
+//! store's contents, stepped with the bench, instead of precomputed
+//! response streams.
+//!
+//! The store's contents of a merge are the words golden's per-unit
+//! transaction reads (each unit's requests paired with its responses), so
+//! a read golden does not make finds nothing and is an error. The requests
+//! cannot be checked per unit after routing (the requester of a
+//! `store_req` beat is inside the top), so the bench checks what it can
+//! from outside: every read is one golden's units make in that merge, and
+//! each merge makes exactly as many reads as golden's units do. Every
+//! output stream (`report`, `nodes`, `refs`, `header`) is compared bit for
+//! bit as in the per-unit bench. A failing chunk's waveform is not
+//! written (the reactive bench runs once, untraced).
+
+use std::path::Path;
+
+use golden::layout::Bits;
+use golden::merge::merger_unit::MergerLayout;
+use golden::merge::store_port::{StoreAddr, StoreArray, StorePortLayout, StoreWords};
+use rtl_gen::merge::MergerConfig;
+
+use super::{chunk_sizes, decoder_of, golden_chunk, merger_module, Draw, PULSES};
+use super::{MergerEngine, Outcome, RunConfig};
+use crate::design::Design;
+use crate::engine::Engine;
+use crate::error::Result;
+use crate::ledger::StimulusDigest;
+use crate::tb::{run_multi_stream_bench_reactive, Transaction};
+use crate::units::chunked::{chunk_bench, UnitStreams};
+use crate::units::multi_stream::{apply_patch, decoded_pair};
+use crate::units::store_port::{StoreModel, StoreStats};
+
+/// What the store saw over a run of the shared port, and whether it held
+/// to golden's reads.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct StoreOutcome {
+    /// Reads over every chunk, per chunk's stats added.
+    pub stats: StoreStats,
+    /// Reads golden's units make over the merges run.
+    pub expected_reads: u64,
+    /// The first way the reads broke the rules: a read outside the
+    /// merge's store, or a merge with another number of reads.
+    pub failure: Option<String>,
+}
+
+/// One chunk of a shared-port run: the streams the bench sees (`cfg` in;
+/// `report`, `nodes`, `refs`, `header` out), each merge's store, and each
+/// merge's reads as golden's units make them.
+struct SharedChunk {
+    streams: UnitStreams,
+    stores: Vec<StoreWords>,
+    reads: Vec<u64>,
+}
+
+impl SharedChunk {
+    /// From the per-unit streams of `n` merges (`ml` the merger's layout,
+    /// `l` its port's): a fetcher's reads are of its input's hierarchy
+    /// (the `hier` of its part of the merge's `cfg` beat), the writer's
+    /// name theirs.
+    fn of(
+        per_unit: &UnitStreams,
+        n: usize,
+        ml: &MergerLayout,
+        l: &StorePortLayout,
+    ) -> Result<SharedChunk> {
+        let mut stores = vec![StoreWords::default(); n];
+        let mut reads = vec![0u64; n];
+        let cfgs = &per_unit.inputs[0].beats;
+        let err = |what: String| crate::CosimError::Design { what };
+        for (s, out) in per_unit.outputs.iter().enumerate() {
+            let Some(base) = out.name.strip_suffix("_req") else {
+                continue;
+            };
+            let resp = format!("{base}_resp");
+            let Some(answers) = per_unit.inputs.iter().find(|i| i.name == resp) else {
+                continue;
+            };
+            // `f{i}_...`: fetcher i, whose hierarchy is in the cfg beat.
+            let fetcher: Option<usize> = base
+                .strip_prefix('f')
+                .and_then(|r| r.split('_').next())
+                .and_then(|i| i.parse().ok());
+            for (k, (q, a)) in out.beats.iter().zip(&answers.beats).enumerate() {
+                let e = per_unit.merge_of(s, k);
+                let word = q[0].to_u64().unwrap_or(u64::MAX);
+                let index = word & ((1u64 << l.index.width) - 1);
+                let hier = match fetcher {
+                    Some(i) => {
+                        let at = (ml.input_offset(i) + ml.fetch.hier.offset) as usize;
+                        let h = cfgs[e][0].field(at, ml.fetch.hier.width as usize)?;
+                        h.to_u64().unwrap_or(u64::MAX)
+                    }
+                    None => word >> l.hier.offset,
+                };
+                let array = if a[0].width() == l.node_width as usize {
+                    StoreArray::Node
+                } else {
+                    StoreArray::Reference
+                };
+                let bits = Bits::from_words(a[0].width() as u32, a[0].words())
+                    .map_err(|e| err(format!("`{resp}` beat {k}: {e}")))?;
+                stores[e].insert(array, StoreAddr { hier, index }, bits);
+                reads[e] += 1;
+            }
+        }
+        let keep = ["report", "nodes", "refs", "header"];
+        let picked: Vec<usize> = (0..per_unit.outputs.len())
+            .filter(|&s| keep.contains(&per_unit.outputs[s].name.as_str()))
+            .collect();
+        let streams = UnitStreams {
+            inputs: per_unit.inputs[..1].to_vec(),
+            outputs: picked
+                .iter()
+                .map(|&s| per_unit.outputs[s].clone())
+                .collect(),
+            starts: picked.iter().map(|&s| per_unit.starts[s].clone()).collect(),
+        };
+        Ok(SharedChunk {
+            streams,
+            stores,
+            reads,
+        })
+    }
+}
+
+/// A fresh engine of `kind` for the merger (`module`, its Verilog in
+/// `design`): Icarus stepped from Rust, as the store answers reads as they
+/// come (the batch runs precomputed streams only).
+fn engine_of(
+    kind: MergerEngine,
+    module: &rtl_gen::Module,
+    design: &Design,
+) -> Result<Box<dyn Engine>> {
+    Ok(match kind {
+        MergerEngine::Ir => Box::new(crate::ir_engine::IrEngine::new(module, design)?),
+        MergerEngine::Verilator => crate::open_engine(crate::EngineKind::Verilator, design, false)?,
+        MergerEngine::Iverilog => crate::open_engine(crate::EngineKind::Icarus, design, false)?,
+    })
+}
+
+/// `super::run` for a merger whose units share one store port: the same
+/// merges, chunks, comparison and digests; the store answers after
+/// `latency` clocks with the bench's stall pattern.
+pub(super) fn run_shared(
+    c: &MergerConfig,
+    engine: MergerEngine,
+    config: &RunConfig,
+    dir: &Path,
+    progress: &mut dyn FnMut(u64, u64),
+) -> Result<Outcome> {
+    let module = merger_module(c)?;
+    let netlist_sha256 = crate::ledger::netlist_digest(&module)?;
+    let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
+    if let Some(patch) = &config.bench.verilog_patch {
+        apply_patch(&design, patch, engine)?;
+    }
+    let l = StorePortLayout::new(&c.design.params);
+    let ml = golden::vectors::streams::merger_layout(&c.design, &c.sizes)
+        .map_err(|what| crate::CosimError::Design { what })?;
+    let decode = |stream: &str, e: &Transaction, g: &Transaction| {
+        decoded_pair(&*decoder_of(c, stream), e, g)
+    };
+    let mut draw = Draw::new(c, config.bench.seed, config.merges)?;
+    let (seed, count) = (config.bench.seed, config.count as u64);
+    let mut digest = StimulusDigest::new(seed, count, config.bench.stall);
+    let mut out = Outcome {
+        netlist_sha256,
+        store: Some(StoreOutcome::default()),
+        ..Outcome::default()
+    };
+    for n in chunk_sizes(config.count) {
+        let first = out.totals.merges;
+        let streams = golden_chunk(&mut draw, c, config, n, &mut digest, &mut out)?;
+        let chunk = SharedChunk::of(&streams, n, &ml, &l)?;
+        drop(streams);
+        let bench = chunk_bench(&config.bench, out.totals.chunks);
+        let mut eng = engine_of(engine, &module, &design)?;
+        let stores = &chunk.stores;
+        let lookup =
+            move |e: usize, a: StoreArray, at: StoreAddr| stores.get(e)?.word(a, at).cloned();
+        let latency = config.store_latency;
+        let mut model =
+            StoreModel::new(&*eng, l.clone(), &bench, latency, Some(0), Box::new(lookup))?;
+        let (report, watch) = run_multi_stream_bench_reactive(
+            eng.as_mut(),
+            &chunk.streams.inputs,
+            &chunk.streams.outputs,
+            &bench,
+            &PULSES,
+            &mut model,
+        )?;
+        let failed = out.totals.add(n, &chunk.streams, &report, &watch, &decode);
+        let store_failed = check_reads(out.store.as_mut(), &model.stats, &chunk.reads, first);
+        progress(out.totals.merges as u64, out.totals.cycles);
+        if failed || store_failed {
+            out.stopped_early = out.totals.merges < config.count;
+            break;
+        }
+    }
+    out.stimulus_sha256 = digest.finish();
+    Ok(out)
+}
+
+/// Adds a chunk's store `stats` to `acc` and checks them against golden's
+/// `reads` per merge (the chunk's first merge is `first` of the run);
+/// returns whether they broke a rule.
+fn check_reads(
+    acc: Option<&mut StoreOutcome>,
+    stats: &StoreStats,
+    reads: &[u64],
+    first: usize,
+) -> bool {
+    let Some(acc) = acc else {
+        return false;
+    };
+    let a = &mut acc.stats;
+    a.reads += stats.reads;
+    a.windows.extend(stats.windows.iter().copied());
+    a.error_count += stats.error_count;
+    a.errors.extend(stats.errors.iter().cloned());
+    acc.expected_reads += reads.iter().sum::<u64>();
+    if acc.failure.is_some() {
+        return true;
+    }
+    acc.failure = match stats.errors.first() {
+        Some(e) => Some(format!(
+            "the store: {e} (merge {first} is the chunk's first)"
+        )),
+        None => reads.iter().enumerate().find_map(|(e, want)| {
+            let got = stats.reads_by_epoch.get(e).copied().unwrap_or(0);
+            (got != *want).then(|| {
+                format!(
+                    "merge {}: {got} store reads, golden's units make {want}",
+                    first + e
+                )
+            })
+        }),
+    };
+    acc.failure.is_some()
+}

@@ -1,0 +1,338 @@
+//! The store front end (`rtl_gen::merge::store_port_unit`, SPEC 8.15 "The
+//! shared store port") against `golden::merge::store_port`, and the store
+//! model every bench of a shared port answers it with.
+//!
+//! The interleaving of reads on `store_req` depends on timing (which
+//! requesters show a request in a cycle), so the store's answers cannot be
+//! precomputed: [`StoreModel`] answers each `store_req` beat from the
+//! store's contents after a fixed latency, with its own seeded stalls on
+//! `store_req`'s ready and `store_resp`'s valid, stepped with the bench
+//! ([`crate::tb::Reactor`]). What is checked bit for bit is what golden
+//! defines: every requester's answers, in its order; a read outside the
+//! store is an error of its own.
+
+use std::collections::VecDeque;
+use std::path::Path;
+
+use golden::layout::Bits;
+use golden::merge::store_port::{
+    store_port_transaction, StoreAddr, StoreArray, StorePortLayout, StorePortTransaction,
+    StoreWords,
+};
+use golden::translate::stimulus::SplitMix64;
+use rtl_gen::merge::StorePortConfig;
+
+use crate::bitvec::BitVec;
+use crate::engine::Engine;
+use crate::error::{CosimError, Result};
+use crate::tb::{
+    run_multi_stream_bench_reactive, stream_seed, BenchConfig, MultiReport, Reactor, StreamBeats,
+    StreamDriver, StreamMonitor, StreamPorts,
+};
+use crate::units::multi_stream::ModuleEngine;
+
+/// Where a [`StoreModel`] finds the word a read asks for: (the epoch, the
+/// array, the address) to the word, None for a read outside the store.
+pub type StoreLookup<'a> = dyn FnMut(usize, StoreArray, StoreAddr) -> Option<Bits> + 'a;
+
+/// What a [`StoreModel`] saw.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct StoreStats {
+    /// `store_req` beats taken (reads).
+    pub reads: u64,
+    /// Reads per epoch (a merge of the merger; one epoch for the front end alone).
+    pub reads_by_epoch: Vec<u64>,
+    /// The cycles of the first and the last read.
+    pub first_read: u64,
+    /// See `first_read`.
+    pub last_read: u64,
+    /// Per epoch: the cycles from its first read to its last, both
+    /// counted (summed: [`Self::window_cycles`]).
+    pub windows: Vec<(u64, u64)>,
+    /// Reads outside the store (the first few, described).
+    pub errors: Vec<String>,
+    /// Reads outside the store in all.
+    pub error_count: u64,
+}
+
+impl StoreStats {
+    /// Cycles from each epoch's first read to its last, summed: the cycles
+    /// in which a merge was reading.
+    pub fn window_cycles(&self) -> u64 {
+        self.windows
+            .iter()
+            .filter(|w| w.0 > 0)
+            .map(|w| w.1 - w.0 + 1)
+            .sum()
+    }
+
+    /// Reads per cycle from the first read to the last.
+    pub fn busy_rate(&self) -> f64 {
+        if self.reads == 0 {
+            return 0.0;
+        }
+        self.reads as f64 / (self.last_read - self.first_read + 1) as f64
+    }
+}
+
+/// A store on the `store_req` / `store_resp` ports of a design: it takes
+/// a read when its `store_req` monitor is ready, answers it `latency`
+/// clocks later (at the earliest) in order on `store_resp`, whose driver
+/// stalls as the bench's inputs do.
+pub struct StoreModel<'a> {
+    layout: StorePortLayout,
+    req: StreamMonitor,
+    resp: StreamDriver,
+    latency: u64,
+    delayed: VecDeque<(u64, BitVec)>,
+    lookup: Box<StoreLookup<'a>>,
+    /// The input stream whose beats sent so far, less one, are the epoch
+    /// (the merger's `cfg`: a merge's reads come after its `cfg` beat).
+    epoch_input: Option<usize>,
+    epoch: usize,
+    /// What it saw.
+    pub stats: StoreStats,
+}
+
+impl<'a> StoreModel<'a> {
+    /// The store of `engine`'s design (ports `store_req`, `store_resp`) for
+    /// grid layout `layout`, answering from `lookup` after `latency` clocks
+    /// (`1..`), stalling with `config`'s patterns and seed; the epoch of a
+    /// read is the beats sent on the bench's input `epoch_input`, less one
+    /// (None: always 0).
+    pub fn new(
+        engine: &dyn Engine,
+        layout: StorePortLayout,
+        config: &BenchConfig,
+        latency: u64,
+        epoch_input: Option<usize>,
+        lookup: Box<StoreLookup<'a>>,
+    ) -> Result<StoreModel<'a>> {
+        let ports = |name: &str| {
+            StreamPorts::new(
+                engine.design(),
+                &format!("{name}_valid"),
+                &format!("{name}_ready"),
+                &[&format!("{name}_data")],
+            )
+        };
+        // Seeds apart from every bench stream's (`stream_seed` of 0..).
+        let seed = |j: usize| stream_seed(config.seed, 1000 + j);
+        Ok(StoreModel {
+            layout,
+            req: StreamMonitor::new(ports("store_req")?, seed(0), config.out_stall)?,
+            resp: StreamDriver::new(ports("store_resp")?, seed(1), config.in_stall)?,
+            latency: latency.max(1),
+            delayed: VecDeque::new(),
+            lookup,
+            epoch_input,
+            epoch: 0,
+            stats: StoreStats::default(),
+        })
+    }
+
+    fn answer(&mut self, beat: &BitVec, cycle: u64) -> Result<BitVec> {
+        let l = &self.layout;
+        let bits = Bits::from_words(beat.width() as u32, beat.words()).map_err(|e| {
+            CosimError::Design {
+                what: format!("store_req beat: {e}"),
+            }
+        })?;
+        let (array, at) = l
+            .unpack_req(&bits)
+            .map_err(|what| CosimError::Design { what })?;
+        let found = (self.lookup)(self.epoch, array, at);
+        let bits = match found {
+            Some(w) => l
+                .pack_resp(&w)
+                .map_err(|what| CosimError::Design { what })?,
+            None => {
+                self.stats.error_count += 1;
+                if self.stats.errors.len() < 5 {
+                    self.stats.errors.push(format!(
+                        "cycle {cycle}: read of {array:?} hierarchy {} index {} (epoch {}) outside the store",
+                        at.hier, at.index, self.epoch
+                    ));
+                }
+                Bits::zero(l.resp_width)
+            }
+        };
+        BitVec::from_layout(&bits)
+    }
+}
+
+impl Reactor for StoreModel<'_> {
+    fn drive(&mut self, engine: &mut dyn Engine, sent: &[u64]) -> Result<()> {
+        if let Some(j) = self.epoch_input {
+            self.epoch = sent.get(j).copied().unwrap_or(0).saturating_sub(1) as usize;
+        }
+        let now = engine.cycle();
+        while self.delayed.front().is_some_and(|d| d.0 <= now) {
+            let (_, word) = self.delayed.pop_front().expect("a front");
+            self.resp.push(vec![word]);
+        }
+        self.resp.drive(engine)?;
+        self.req.drive(engine)
+    }
+
+    fn observe(&mut self, engine: &dyn Engine) -> Result<bool> {
+        let cycle = engine.cycle();
+        let answered = self.resp.observe(engine)?.is_some();
+        let Some(txn) = self.req.observe(engine)? else {
+            return Ok(answered);
+        };
+        let word = self.answer(&txn[0], cycle)?;
+        self.delayed.push_back((cycle + self.latency, word));
+        let s = &mut self.stats;
+        if s.reads == 0 {
+            s.first_read = cycle;
+        }
+        s.reads += 1;
+        s.last_read = cycle;
+        if s.reads_by_epoch.len() <= self.epoch {
+            s.reads_by_epoch.resize(self.epoch + 1, 0);
+        }
+        s.reads_by_epoch[self.epoch] += 1;
+        if s.windows.len() <= self.epoch {
+            s.windows.resize(self.epoch + 1, (0, 0));
+        }
+        let w = &mut s.windows[self.epoch];
+        if w.0 == 0 {
+            w.0 = cycle;
+        }
+        w.1 = cycle;
+        Ok(true)
+    }
+
+    fn finished(&self) -> bool {
+        self.delayed.is_empty() && self.resp.pending() == 0
+    }
+}
+
+/// A random run of the front end `c`: a store of `size` words per array
+/// in each of 3 hierarchies (random bits), every requester reading
+/// `1..=most` random addresses of it.
+pub fn random_transaction(
+    rng: &mut SplitMix64,
+    c: &StorePortConfig,
+    size: u64,
+    most: u64,
+) -> Result<(StoreWords, StorePortTransaction)> {
+    let l = StorePortLayout::new(&c.params);
+    let word = |rng: &mut SplitMix64, w: u32| -> Result<Bits> {
+        let mut words: Vec<u64> = (0..w.div_ceil(64)).map(|_| rng.next_u64()).collect();
+        if !w.is_multiple_of(64) {
+            if let Some(last) = words.last_mut() {
+                *last &= u64::MAX >> (64 - w % 64);
+            }
+        }
+        Bits::from_words(w, &words).map_err(|e| CosimError::Design {
+            what: e.to_string(),
+        })
+    };
+    let hiers = 3.min(1u64 << l.hier.width);
+    let mut store = StoreWords::default();
+    for hier in 0..hiers {
+        for index in 0..size {
+            let at = StoreAddr { hier, index };
+            store.insert(StoreArray::Node, at, word(rng, l.node_width)?);
+            store.insert(StoreArray::Reference, at, word(rng, l.ref_width)?);
+        }
+    }
+    let requests = c
+        .arrays
+        .iter()
+        .map(|_| {
+            let n = 1 + rng.next_u64() % most;
+            (0..n)
+                .map(|_| StoreAddr {
+                    hier: rng.next_u64() % hiers,
+                    index: rng.next_u64() % size,
+                })
+                .collect()
+        })
+        .collect();
+    let tx = store_port_transaction(&c.arrays, requests, &store)
+        .map_err(|what| CosimError::Design { what })?;
+    Ok((store, tx))
+}
+
+/// What a run of the front end found.
+#[derive(Debug)]
+pub struct Outcome {
+    /// The bench's report: every requester's answers compared.
+    pub report: MultiReport,
+    /// What the store saw.
+    pub store: StoreStats,
+    /// Cycles with `idle` high.
+    pub idle_cycles: u64,
+    /// `idle` in the last cycle.
+    pub idle_at_end: bool,
+}
+
+impl Outcome {
+    /// Every answer matched and arrived, nothing hung, no read outside the
+    /// store, the port idle at the end.
+    pub fn passed(&self) -> bool {
+        self.report.passed() && self.store.error_count == 0 && self.idle_at_end
+    }
+}
+
+/// Runs `tx` (with `store`) through the front end `c` on `engine`, the
+/// Verilog written to `dir`; the store answers after `latency` clocks.
+pub fn run(
+    c: &StorePortConfig,
+    engine: ModuleEngine,
+    store: &StoreWords,
+    tx: &StorePortTransaction,
+    config: &BenchConfig,
+    latency: u64,
+    dir: &Path,
+) -> Result<Outcome> {
+    let module = rtl_gen::merge::store_port_unit(c).map_err(|what| CosimError::Design {
+        what: format!("store port: {what}"),
+    })?;
+    let design = crate::from_rtl::design_from_module(&module, dir)?;
+    let mut eng: Box<dyn Engine> = match engine {
+        ModuleEngine::Ir => Box::new(crate::ir_engine::IrEngine::new(&module, &design)?),
+        ModuleEngine::Verilator => {
+            crate::open_engine(crate::EngineKind::Verilator, &design, false)?
+        }
+        ModuleEngine::Iverilog => crate::open_engine(crate::EngineKind::Icarus, &design, false)?,
+    };
+    let l = StorePortLayout::new(&c.params);
+    let beats = |name: String, words: Vec<BitVec>| StreamBeats {
+        name,
+        beats: words.into_iter().map(|w| vec![w]).collect(),
+    };
+    let mut inputs = Vec::new();
+    let mut outputs = Vec::new();
+    for (j, (reqs, resps)) in tx.requests.iter().zip(&tx.responses).enumerate() {
+        let idx = reqs
+            .iter()
+            .map(|a| BitVec::from_u64(l.addr_width as usize, (a.hier << l.hier.offset) | a.index))
+            .collect::<Result<Vec<_>>>()?;
+        inputs.push(beats(format!("r{j}_req"), idx));
+        let words = resps
+            .iter()
+            .map(BitVec::from_layout)
+            .collect::<Result<Vec<_>>>()?;
+        outputs.push(beats(format!("r{j}_resp"), words));
+    }
+    let lookup = move |_: usize, a: StoreArray, at: StoreAddr| store.word(a, at).cloned();
+    let mut model = StoreModel::new(&*eng, l, config, latency, None, Box::new(lookup))?;
+    let (report, watch) = run_multi_stream_bench_reactive(
+        eng.as_mut(),
+        &inputs,
+        &outputs,
+        config,
+        &["idle"],
+        &mut model,
+    )?;
+    Ok(Outcome {
+        report,
+        store: model.stats,
+        idle_cycles: watch.counts.first().map_or(0, |c| c.1),
+        idle_at_end: watch.at_end.first().is_some_and(|c| c.1),
+    })
+}

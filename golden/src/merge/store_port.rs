@@ -1,0 +1,315 @@
+//! The merger's store front end (SPEC.md section 8.15, "The shared store
+//! port"): `n` read streams, each of one array of the store (a node array
+//! read answers a node record, a reference array read a reference),
+//! arbitrated round robin onto one read request stream `store_req`, whose
+//! in-order answers on `store_resp` go back to the requester that asked.
+//!
+//! The beat layouts are defined here once; the RTL
+//! (`rtl_gen::merge::store_port_unit`) and the benches read them. The
+//! transaction model: every requester gets, in its own request order, the
+//! store's word at each index it asked for; the interleaving on `store_req`
+//! depends on timing (round robin among the requesters showing a request
+//! that cycle), so it is no part of the transaction.
+
+use std::collections::HashMap;
+
+use crate::layout::{Bits, Field};
+use crate::merge::fetch_unit::FetchLayout;
+use crate::params::Params;
+
+/// How the merger's units reach the store (SPEC 8.15).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum StorePort {
+    /// Every fetcher and the writer with its own read streams, passed out of
+    /// the top (the memory system arbitrates outside).
+    #[default]
+    PerUnit,
+    /// One read port (`store_req` / `store_resp`) for every unit, its front
+    /// end in the top, with a tag FIFO of `2^tag_bits` reads in flight.
+    Shared {
+        /// The tag FIFO holds `2^tag_bits` reads (`1..=8`).
+        tag_bits: u32,
+    },
+}
+
+impl StorePort {
+    /// The shared port's default tag FIFO: 8 reads in flight, enough for a
+    /// store answering 6 clocks after the request at one read per clock.
+    pub const SHARED: StorePort = StorePort::Shared { tag_bits: 3 };
+}
+
+/// Which array of the store a read is of.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum StoreArray {
+    /// The node array: a read answers a node record.
+    Node,
+    /// The reference array: a read answers a reference.
+    Reference,
+}
+
+impl StoreArray {
+    /// The value of `store_req`'s `array` bit.
+    pub fn code(self) -> u64 {
+        match self {
+            StoreArray::Node => 0,
+            StoreArray::Reference => 1,
+        }
+    }
+
+    /// The array of `store_req`'s `array` bit `code`.
+    pub fn of_code(code: u64) -> StoreArray {
+        if code == 0 {
+            StoreArray::Node
+        } else {
+            StoreArray::Reference
+        }
+    }
+
+    /// The letter of the array in module names (`n`, `r`).
+    pub fn letter(self) -> char {
+        match self {
+            StoreArray::Node => 'n',
+            StoreArray::Reference => 'r',
+        }
+    }
+}
+
+/// The store port's beats for grid parameters `p`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct StorePortLayout {
+    /// `store_req` (and a requester's request): `index` (I bits) from bit 0.
+    pub index: Field,
+    /// `store_req` (and a requester's request): `hier` (H bits) above
+    /// `index`, the hierarchy whose array is read (a fetcher reads its
+    /// input's, the writer names it in its request).
+    pub hier: Field,
+    /// `store_req`: `array` (1 bit, [`StoreArray::code`]) above `hier`.
+    pub array: Field,
+    /// Width of a requester's request (`I + H`: `hier`, `index`).
+    pub addr_width: u32,
+    /// Width of a `store_req` beat (`I + H + 1`).
+    pub req_width: u32,
+    /// Width of a node record (a node read's answer).
+    pub node_width: u32,
+    /// Width of a reference (a reference read's answer).
+    pub ref_width: u32,
+    /// Width of a `store_resp` beat: the wider answer; a narrower answer
+    /// sits in the low bits, the rest zero.
+    pub resp_width: u32,
+}
+
+impl StorePortLayout {
+    /// The layout for `p` (the record and reference widths of the fetchers,
+    /// 8.13).
+    pub fn new(p: &Params) -> StorePortLayout {
+        let fl = FetchLayout::new(p);
+        let i = fl.index_width;
+        let h = p.hier_bits as u32;
+        let (node_width, ref_width) = (fl.node.width(), fl.reference.width());
+        StorePortLayout {
+            index: Field {
+                name: "index",
+                offset: 0,
+                width: i,
+            },
+            hier: Field {
+                name: "hier",
+                offset: i,
+                width: h,
+            },
+            array: Field {
+                name: "array",
+                offset: i + h,
+                width: 1,
+            },
+            addr_width: i + h,
+            req_width: i + h + 1,
+            node_width,
+            ref_width,
+            resp_width: node_width.max(ref_width),
+        }
+    }
+
+    /// The answer width of a read of `array`.
+    pub fn width_of(&self, array: StoreArray) -> u32 {
+        match array {
+            StoreArray::Node => self.node_width,
+            StoreArray::Reference => self.ref_width,
+        }
+    }
+
+    /// The `store_req` beat of a read of `array` at `a`.
+    pub fn pack_req(&self, array: StoreArray, a: StoreAddr) -> Result<Bits, String> {
+        let mut b = Bits::zero(self.req_width);
+        b.set(&self.index, a.index).map_err(|e| e.to_string())?;
+        b.set(&self.hier, a.hier).map_err(|e| e.to_string())?;
+        b.set(&self.array, array.code())
+            .map_err(|e| e.to_string())?;
+        Ok(b)
+    }
+
+    /// The array and address of a `store_req` beat.
+    pub fn unpack_req(&self, beat: &Bits) -> Result<(StoreArray, StoreAddr), String> {
+        let get = |f: &Field| beat.get(f).map_err(|e| e.to_string());
+        let addr = StoreAddr {
+            hier: get(&self.hier)?,
+            index: get(&self.index)?,
+        };
+        Ok((StoreArray::of_code(get(&self.array)?), addr))
+    }
+
+    /// The `store_resp` beat carrying `word` (an answer of at most
+    /// [`Self::resp_width`] bits, zero above its width).
+    pub fn pack_resp(&self, word: &Bits) -> Result<Bits, String> {
+        let mut b = Bits::zero(self.resp_width);
+        b.put(0, word).map_err(|e| e.to_string())?;
+        Ok(b)
+    }
+}
+
+/// Where a read goes: entry `index` of hierarchy `hier`'s array.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct StoreAddr {
+    /// The hierarchy.
+    pub hier: u64,
+    /// The entry of its array.
+    pub index: u64,
+}
+
+/// The store's contents as the port reads them: packed words by array and
+/// address.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct StoreWords {
+    words: HashMap<(StoreArray, StoreAddr), Bits>,
+}
+
+impl StoreWords {
+    /// Puts `word` at `a` of `array` (the first word put there stays).
+    pub fn insert(&mut self, array: StoreArray, a: StoreAddr, word: Bits) {
+        self.words.entry((array, a)).or_insert(word);
+    }
+
+    /// The word at `a` of `array`, if the store holds it.
+    pub fn word(&self, array: StoreArray, a: StoreAddr) -> Option<&Bits> {
+        self.words.get(&(array, a))
+    }
+
+    /// Words held.
+    pub fn len(&self) -> usize {
+        self.words.len()
+    }
+
+    /// Whether it holds no word.
+    pub fn is_empty(&self) -> bool {
+        self.words.is_empty()
+    }
+}
+
+/// One run of the store port: per requester, its reads and the answers it
+/// gets, in its order.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct StorePortTransaction {
+    /// Per requester: the addresses it reads, in order.
+    pub requests: Vec<Vec<StoreAddr>>,
+    /// Per requester: the words it gets back, in order.
+    pub responses: Vec<Vec<Bits>>,
+}
+
+/// The transaction of requesters of `arrays` reading `requests` (per
+/// requester, in order) from `store`; an error names the requester and the
+/// read the store does not hold.
+pub fn store_port_transaction(
+    arrays: &[StoreArray],
+    requests: Vec<Vec<StoreAddr>>,
+    store: &StoreWords,
+) -> Result<StorePortTransaction, String> {
+    if arrays.len() != requests.len() {
+        return Err(format!(
+            "{} request lists for {} requesters",
+            requests.len(),
+            arrays.len()
+        ));
+    }
+    let mut responses = Vec::with_capacity(arrays.len());
+    for (j, (a, reqs)) in arrays.iter().zip(&requests).enumerate() {
+        let words = reqs
+            .iter()
+            .map(|&r| {
+                store.word(*a, r).cloned().ok_or_else(|| {
+                    format!(
+                        "requester {j}: hierarchy {} index {} outside the {a:?} array",
+                        r.hier, r.index
+                    )
+                })
+            })
+            .collect::<Result<Vec<_>, String>>()?;
+        responses.push(words);
+    }
+    Ok(StorePortTransaction {
+        requests,
+        responses,
+    })
+}
+
+/// The round-robin rule: after a grant to requester `last`, the next grant
+/// goes to the first requester after `last` (in index order, wrapping
+/// round) that shows a request; None when none does. So a requester that
+/// keeps its request up waits for at most `n - 1` other grants.
+pub fn round_robin_next(last: usize, requesting: &[bool]) -> Option<usize> {
+    let n = requesting.len();
+    (1..=n).map(|o| (last + o) % n).find(|&j| requesting[j])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_robin_serves_every_requester_in_turn() {
+        let all = [true; 4];
+        let mut last = 3;
+        let mut order = Vec::new();
+        for _ in 0..8 {
+            last = round_robin_next(last, &all).unwrap();
+            order.push(last);
+        }
+        assert_eq!(order, [0, 1, 2, 3, 0, 1, 2, 3]);
+        assert_eq!(round_robin_next(1, &[true, false, false, false]), Some(0));
+        assert_eq!(round_robin_next(0, &[false; 3]), None);
+    }
+
+    #[test]
+    fn requests_pack_and_answers_route() {
+        let l = StorePortLayout::new(&Params::default());
+        let at = |hier, index| StoreAddr { hier, index };
+        let b = l.pack_req(StoreArray::Reference, at(3, 77)).unwrap();
+        assert_eq!(
+            l.unpack_req(&b).unwrap(),
+            (StoreArray::Reference, at(3, 77))
+        );
+        assert!(l.resp_width >= l.node_width && l.resp_width >= l.ref_width);
+        let mut store = StoreWords::default();
+        for v in 0..4u64 {
+            let node = Bits::from_words(l.node_width, &[v + 10]).unwrap();
+            store.insert(StoreArray::Node, at(1, v), node);
+            let r = Bits::from_words(l.ref_width, &[v]).unwrap();
+            store.insert(StoreArray::Reference, at(2, v), r);
+        }
+        let arrays = [StoreArray::Node, StoreArray::Reference];
+        let reqs = vec![vec![at(1, 3), at(1, 0)], vec![at(2, 2)]];
+        let tx = store_port_transaction(&arrays, reqs, &store).unwrap();
+        assert_eq!(
+            &tx.responses[0][0],
+            store.word(StoreArray::Node, at(1, 3)).unwrap()
+        );
+        assert_eq!(
+            &tx.responses[1][0],
+            store.word(StoreArray::Reference, at(2, 2)).unwrap()
+        );
+        let e = store_port_transaction(&arrays, vec![vec![at(2, 1)], vec![]], &store).unwrap_err();
+        assert!(
+            e.contains("requester 0") && e.contains("hierarchy 2 index 1"),
+            "{e}"
+        );
+    }
+}

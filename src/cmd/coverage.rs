@@ -117,15 +117,15 @@ const FLOORS: [(&str, Aims); 2] = [
     (
         "hierarchy_merger_d8_q0_i12_h3_k2_ov1_2_r16_f256_c5_l6",
         Aims {
-            line: 0.0,
-            toggle: 0.0,
+            line: 89.0,
+            toggle: 42.0,
         },
     ),
     (
         "hierarchy_merger_d8_q0_i12_h3_k2_pn1_2_r16_f256_c5_l6",
         Aims {
-            line: 0.0,
-            toggle: 0.0,
+            line: 89.0,
+            toggle: 44.0,
         },
     ),
 ];

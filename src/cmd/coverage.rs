@@ -47,13 +47,22 @@ pub struct Args {
     report_only: bool,
 }
 
+/// The hierarchy merger at the long runs' small configuration (D = 8,
+/// Q = 0, I = 12, H = 3, k = 2): every kind of its logic at a fraction of
+/// the default's build. Leaf FIFOs of `2^6` hold the real merges' leaves
+/// above the merging level (at `2^4` they overflow, and golden has no
+/// bit-exact model of a dropped leaf, so those merges are left out);
+/// writer buffers of `2^5` overflow on the real merges (CAPACITY).
+const SMALL_MERGER: &str = "--unit merger --max-lod 8 --quant-bits 0 --index-bits 12 --hier-bits 3 --inputs 2 --leaf-bits 6 --capacity-bits 5 --merges hard";
+
 /// The regression: `hiermerge cosim` argument lines, `{n}` scaled by the
-/// volume, and whether the CI volume runs the line on a Verilator coverage
-/// build (else on the IR simulator, for its functional bins: coverage
-/// builds of every mode's merging module and of the merger tops cost more
-/// than CI's budget, a merger top's about 4 minutes at `-O0` and its 200
-/// hard merges as long again; `full` runs every line on Verilator).
-const RUNS: [(&str, bool); 13] = [
+/// volume, `{merger}` [`SMALL_MERGER`], and whether the CI volume runs the
+/// line on a Verilator coverage build (else on the IR simulator, for its
+/// functional bins: coverage builds of every mode's merging module and of
+/// the default merger tops cost more than CI's budget, a default merger
+/// top's about 4 minutes at `-O0` and its 200 hard merges as long again;
+/// `full` runs every line on Verilator).
+const RUNS: [(&str, bool); 15] = [
     ("--unit translate --count {4}000 --stalls coin", true),
     (
         "--unit translate --count {1}000 --stalls bursty:4,4 --seed 2",
@@ -92,7 +101,38 @@ const RUNS: [(&str, bool); 13] = [
         false,
     ),
     ("--unit merger --mode per-node:1/2 --count {1}0", false),
+    ("{merger} --count {6}0", true),
+    (
+        "{merger} --mode per-node:1/2 --count {6}0 --stalls bursty:4,4",
+        true,
+    ),
 ];
+
+/// Units tracked below the aims: reported against the aims with every
+/// point below them listed, but failing the regression only below this
+/// floor (line/branch, toggle percent: what they had when they entered the
+/// regression, rounded down), so coverage cannot slip while stimulus is
+/// added toward the aims (SPEC 10.5).
+const FLOORS: [(&str, Aims); 2] = [
+    (
+        "hierarchy_merger_d8_q0_i12_h3_k2_ov1_2_r16_f256_c5_l6",
+        Aims {
+            line: 89.0,
+            toggle: 42.0,
+        },
+    ),
+    (
+        "hierarchy_merger_d8_q0_i12_h3_k2_pn1_2_r16_f256_c5_l6",
+        Aims {
+            line: 89.0,
+            toggle: 44.0,
+        },
+    ),
+];
+
+fn floor_of(unit: &str) -> Option<&'static Aims> {
+    FLOORS.iter().find(|(u, _)| *u == unit).map(|(_, a)| a)
+}
 
 fn run_lines(volume: Volume) -> Vec<Vec<String>> {
     let scale = match volume {
@@ -101,8 +141,8 @@ fn run_lines(volume: Volume) -> Vec<Vec<String>> {
     };
     RUNS.iter()
         .map(|(line, ci_verilator)| {
-            let mut s = line.to_string();
-            for n in 1..=4 {
+            let mut s = line.replace("{merger}", SMALL_MERGER);
+            for n in 1..=9 {
                 s = s.replace(&format!("{{{n}}}"), &(n * scale).to_string());
             }
             let engine = match volume == Volume::Full || *ci_verilator {
@@ -224,9 +264,26 @@ fn summarize(dir: &Path, waivers: &Path, strict: bool, bins: Bins) -> CmdResult 
         "code coverage (Verilator; line/branch: its line coverage, `if`/`else` arms included):"
     );
     print!("{table}");
+    let mut floored = Vec::new();
     let below: Vec<String> = code
         .units
         .iter()
+        .filter(|u| match floor_of(&u.unit) {
+            None => true,
+            Some(f) if u.line_percent() >= f.line && u.toggle_percent() >= f.toggle => {
+                floored.push(format!(
+                    "  {}: line/branch {:.1}% (floor {:.1}%), toggle {:.1}% (floor {:.1}%), {} points below the aims listed in uncovered.txt",
+                    u.unit,
+                    u.line_percent(),
+                    f.line,
+                    u.toggle_percent(),
+                    f.toggle,
+                    u.below_aim(&code.aims).len()
+                ));
+                false
+            }
+            Some(_) => true,
+        })
         .flat_map(|u| {
             u.below_aim(&code.aims).into_iter().map(move |p| {
                 format!(
@@ -240,6 +297,12 @@ fn summarize(dir: &Path, waivers: &Path, strict: bool, bins: Bins) -> CmdResult 
             })
         })
         .collect();
+    if !floored.is_empty() {
+        println!("below the aims, at or above their floor (not failing):");
+        for l in &floored {
+            println!("{l}");
+        }
+    }
     if !below.is_empty() {
         println!("below the aims, not waived ({}):", below.len());
         for l in &below {
@@ -277,6 +340,15 @@ fn summarize(dir: &Path, waivers: &Path, strict: bool, bins: Bins) -> CmdResult 
     }
     if !code.stale_waivers.is_empty() {
         fails.push(format!("{} stale waivers", code.stale_waivers.len()));
+    }
+    // A floor naming no unit that ran guards nothing: the runs' parameters
+    // changed the top's name, so the floor must follow.
+    for (unit, _) in FLOORS {
+        if !code.units.iter().any(|u| u.unit == unit) {
+            fails.push(format!(
+                "the floor of `{unit}` names no unit of this run (FLOORS in src/cmd/coverage.rs)"
+            ));
+        }
     }
     match fails.is_empty() {
         true => Ok(()),

@@ -14,7 +14,7 @@ use crate::merge::merger_unit::{
 use crate::merge::stimulus::{real_cases, several_roots_case, try_scene_soup, try_soup, RealCase};
 use crate::params::Params;
 use crate::store::{Hierarchy, HierarchyStore};
-use crate::translate::TranslationTable;
+use crate::translate::{Translation, TranslationTable};
 
 use super::merge::MergeDesign;
 #[cfg(doc)]
@@ -82,6 +82,13 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
                 .any(|i| store.get(*i).is_some_and(|h| h.root_count > 1)) as usize;
         out.merges.push(tx);
     }
+    for (store, table, ids) in deep_tops(p)?.iter().filter(|c| c.2.len() <= k) {
+        let tx =
+            merger_transaction(store, table, ids, d.mode, out_id, k, sizes).map_err(golden_err)?;
+        if !tx.header.leaf_overflow {
+            out.merges.push(tx);
+        }
+    }
     for code in CFG_ERRORS.into_iter().rev() {
         for (store, table, ids) in &cases {
             if let Some(tx) = cfg_error_merge(d, sizes, store, table, ids, code)? {
@@ -104,6 +111,51 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
             merger_transaction_in_range(store, table, ids, d.mode, out_id, k, sizes, Some(range))
                 .map_err(golden_err)?;
         out.merges.insert(1.min(out.merges.len()), tx);
+    }
+    Ok(out)
+}
+
+/// Merges whose top lies at the deepest LODs, which the soups of the other
+/// cases (spread over the scene's `2^-3` corner) never reach: one tiny
+/// triangle alone (the top at its own LOD `t`), and per `L` in `t - 4..t`
+/// (`L >= 1`) the same triangle twice, one voxel apart at LOD `t` across
+/// the boundary of two LOD-`(L + 1)` voxels, so their common ancestor, the
+/// merged top, is at LOD `L`. So the upper builder's and the writer's
+/// deepest levels hold the top.
+fn deep_tops(p: &Params) -> Result<Vec<RealCase>> {
+    let tiny = |id: u8| try_soup(p, id, 1, 0.001, 21).map_err(golden_err);
+    let (a, b) = (tiny(1)?, tiny(2)?);
+    let t = a.top_lod;
+    let Some(root) = a.roots().first().map(|n| n.voxel) else {
+        return Ok(Vec::new());
+    };
+    let at = |x: i64| Translation {
+        lod: t,
+        t: [
+            x - root.x as i64,
+            (1 << (t - 1)) - root.y as i64,
+            (1 << (t - 1)) - root.z as i64,
+        ],
+    };
+    let case = |inputs: Vec<(Hierarchy, Translation)>| -> Result<RealCase> {
+        let mut store = HierarchyStore::new();
+        let mut table = TranslationTable::new(p.hier_capacity() as usize, p).map_err(golden_err)?;
+        let ids = inputs.iter().map(|(h, _)| h.id).collect();
+        for (h, tr) in inputs {
+            table.write(h.id as u32, tr).map_err(golden_err)?;
+            store.insert(h).map_err(golden_err)?;
+        }
+        Ok((store, table, ids))
+    };
+    if t < 2 {
+        return Ok(Vec::new());
+    }
+    let half = 1i64 << (t - 1);
+    let mut out = vec![case(vec![(a.clone(), at(half))])?];
+    for l in (t.saturating_sub(4).max(1)..t).rev() {
+        // The last voxel of a LOD-(l + 1) voxel and the first of the next.
+        let x = half + (1i64 << (t - l - 1)) - 1;
+        out.push(case(vec![(a.clone(), at(x)), (b.clone(), at(x + 1))])?);
     }
     Ok(out)
 }
@@ -225,6 +277,42 @@ fn check_cfg_errors(
 mod tests {
     use super::*;
     use crate::merge::MergeMode;
+
+    /// The deep-top merges' tops are where [`deep_tops`] puts them: the
+    /// pairs' one LOD apart from the triangle's own LOD down (at D = 8 its
+    /// LOD-8 leaf root's merged top is one LOD above it), the one alone
+    /// no higher, at the default and at the long runs' small configuration.
+    #[test]
+    fn deep_tops_put_the_top_at_the_deepest_lods() {
+        let small = Params::new(8, 0, 12, 3).unwrap();
+        for p in [Params::default(), small] {
+            let d = MergeDesign {
+                params: p,
+                inputs: 2,
+                ..MergeDesign::default()
+            };
+            let sizes = MergerSizes::new(&p);
+            let cases = deep_tops(&p).unwrap();
+            let t = cases[0].0.get(1).unwrap().top_lod as i64;
+            assert_eq!(cases.len(), 5, "D = {}", p.max_lod);
+            let tops: Vec<i64> = cases
+                .iter()
+                .map(|(store, table, ids)| {
+                    let tx = merger_transaction(store, table, ids, d.mode, 7, 2, sizes).unwrap();
+                    tx.header.writer.top as i64
+                })
+                .collect();
+            let first = tops[1];
+            assert!(
+                first >= t - 1 && tops[0] >= first,
+                "D = {}: {tops:?}",
+                p.max_lod
+            );
+            for (n, top) in tops[1..].iter().enumerate() {
+                assert_eq!(*top, first - n as i64, "D = {}: {tops:?}", p.max_lod);
+            }
+        }
+    }
 
     /// Every code of [`CFG_ERRORS`] has its merge, in the level modes and
     /// per node: the header names the code and the last rank, that input's

@@ -50,7 +50,7 @@ impl PreparedTriangle {
     }
 
     /// [`Self::new`] of a finite triangle (the builder's, checked), with
-    /// [`min_not_nan`] and [`max_not_nan`] for the NaN-passing `min`/`max`:
+    /// `min_not_nan` and `max_not_nan` for the NaN-passing `min`/`max`:
     /// the same bits (the same operands folded in the same order, and the
     /// same operand kept on a tie), and its AABB `(lo, hi)` for the caller.
     #[inline(always)]
@@ -173,7 +173,7 @@ pub fn clip_prepared(
 /// that the triangle and the box are finite, of magnitude below `2^32`, and
 /// that their AABBs meet (the box is a candidate voxel, from the triangle's
 /// AABB). [`clip_prepared`] would then skip none of its checks' other
-/// branches, so this is [`clip_finite`] without them: the same bits.
+/// branches, so this is `clip_finite` without them: the same bits.
 #[inline]
 pub fn clip_candidate(
     pt: &PreparedTriangle,

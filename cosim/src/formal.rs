@@ -265,13 +265,15 @@ pub fn run_check(
     let limit = Duration::from_secs(u64::from(timeout) + 120);
     let timed_out = loop {
         if child.try_wait().map_err(io_err(folder))?.is_some() {
+            // sby has ended, but an engine it started may not have: after a
+            // failed check, an engine's smtbmc and solver were seen left
+            // running (idle) in a process group of their own.
+            kill_left_in(&folder.join(format!("{}_{}", proof.name(), check.name())));
             break false;
         }
         if start.elapsed() > limit {
             // The whole group: sby, smtbmc and the solver.
-            let _ = Command::new("kill")
-                .args(["-KILL", "--", &format!("-{}", child.id())])
-                .status();
+            kill_group(child.id());
             let _ = child.wait();
             break true;
         }
@@ -302,6 +304,42 @@ pub fn run_check(
         seconds,
         log,
     })
+}
+
+/// SIGKILL to every process whose working directory is in `folder`, one
+/// check's task folder (the other checks of the module may still run
+/// beside it): the engines sby started there and left behind (Linux
+/// `/proc`; elsewhere nothing).
+fn kill_left_in(folder: &Path) {
+    let Ok(folder) = folder.canonicalize() else {
+        return;
+    };
+    let Ok(procs) = std::fs::read_dir("/proc") else {
+        return;
+    };
+    for p in procs.flatten() {
+        let name = p.file_name();
+        let Some(pid) = name.to_str().and_then(|n| n.parse::<u32>().ok()) else {
+            continue;
+        };
+        if pid == std::process::id() {
+            continue;
+        }
+        if std::fs::read_link(p.path().join("cwd")).is_ok_and(|cwd| cwd.starts_with(&folder)) {
+            let _ = Command::new("kill")
+                .args(["-KILL", &pid.to_string()])
+                .stderr(Stdio::null())
+                .status();
+        }
+    }
+}
+
+/// SIGKILL to every process left in the group `pgid` (none: nothing).
+fn kill_group(pgid: u32) {
+    let _ = Command::new("kill")
+        .args(["-KILL", "--", &format!("-{pgid}")])
+        .stderr(Stdio::null())
+        .status();
 }
 
 /// Status, failed property labels and the base case's step from sby's

@@ -578,11 +578,7 @@ pub fn run(
     crate::waves::check_scope(&module, config.bench.wave_scope.as_deref())?;
     // Of the design as generated: a patched run is a test of the bench and
     // is never recorded in a ledger.
-    let netlist_sha256 = crate::ledger::netlist_digest(&module)?;
-    let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
-    if let Some(patch) = &config.bench.verilog_patch {
-        apply_patch(&design, patch, engine)?;
-    }
+    let (netlist_sha256, design) = merger_design(&module, dir, config, engine)?;
     let patched = config.bench.verilog_patch.is_some();
     let sim = chunked_sim(c, module, design, engine, patched)?;
     let decode = |stream: &str, e: &Transaction, g: &Transaction| {
@@ -613,6 +609,23 @@ pub fn run(
     // stimulus: its digest says so by being of what ran.
     out.stimulus_sha256 = digest.finish();
     Ok(out)
+}
+
+/// The merger top's structural digest (the ledger's netlist identity) and
+/// its design in `dir`, with the bench's Verilog patch applied: what every
+/// merger bench (per-unit or shared store port) starts from.
+pub(super) fn merger_design(
+    module: &rtl_gen::Module,
+    dir: &Path,
+    config: &RunConfig,
+    engine: MergerEngine,
+) -> Result<(String, Design)> {
+    let netlist_sha256 = crate::ledger::netlist_digest(module)?;
+    let design: Design = crate::from_rtl::design_from_module(module, dir)?;
+    if let Some(patch) = &config.bench.verilog_patch {
+        apply_patch(&design, patch, engine)?;
+    }
+    Ok((netlist_sha256, design))
 }
 
 #[cfg(test)]

@@ -30,7 +30,7 @@ use crate::error::Result;
 use crate::ledger::StimulusDigest;
 use crate::tb::{run_multi_stream_bench_reactive, Transaction};
 use crate::units::chunked::{chunk_bench, UnitStreams};
-use crate::units::multi_stream::{apply_patch, decoded_pair};
+use crate::units::multi_stream::decoded_pair;
 use crate::units::store_port::{StoreModel, StoreStats};
 
 /// What the store saw over a run of the shared port, and whether it held
@@ -152,11 +152,7 @@ pub(super) fn run_shared(
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Outcome> {
     let module = merger_module(c)?;
-    let netlist_sha256 = crate::ledger::netlist_digest(&module)?;
-    let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
-    if let Some(patch) = &config.bench.verilog_patch {
-        apply_patch(&design, patch, engine)?;
-    }
+    let (netlist_sha256, design) = super::merger_design(&module, dir, config, engine)?;
     let l = StorePortLayout::new(&c.design.params);
     let ml = golden::vectors::streams::merger_layout(&c.design, &c.sizes)
         .map_err(|what| crate::CosimError::Design { what })?;

@@ -37,7 +37,10 @@ pub(super) fn level_merger_unit(c: &MergerConfig) -> Result<Module, String> {
     let lit = |v: u64, w: u32| m.lit(v as u128, w);
     let fetch_mod = fetcher_unit(p, &c.fetch_sizes());
     let writer_mod = record_writer_unit(p, c.sizes.capacity_bits).map_err(|e| e.to_string())?;
-    let s = shell(&m, c, &ml, &fetch_mod, &writer_mod);
+    // Merges overlap behind per-unit ports. Behind a shared port the older
+    // merge's writer and the newer's fetchers would read through one
+    // stream, and `store_req` does not say whose read it is.
+    let s = shell(&m, c, &ml, &fetch_mod, &writer_mod, !shared_store(c));
     let counting_in =
         counts_pass(&m, c, get(s.cfg.data, &ml.lo), get(s.cfg.data, &ml.hi)).name("count_pass");
     let cw = ml.count.width;
@@ -85,6 +88,7 @@ pub(super) fn level_merger_unit(c: &MergerConfig) -> Result<Module, String> {
             ml: &ml,
             header_fire: s.header_fire,
             header_hold: s.header_hold,
+            header_open: s.header_open,
             commands_sent: s.commands_sent,
             flags: [leaf_over, count_over, ferr, ferr_rank],
             busy: s.busy,
@@ -95,6 +99,8 @@ pub(super) fn level_merger_unit(c: &MergerConfig) -> Result<Module, String> {
 }
 
 /// The merging level the module chose, read off its report on its way out.
+/// The choice, the `base{d}` and `crefs` ends and the leaves belong to the
+/// older merge until its header leaves: the newer merge's choice waits.
 struct Choice<'m> {
     /// The report's choice beat has passed.
     known: Signal<'m>,
@@ -113,9 +119,13 @@ fn choice<'m>(m: &'m Module, p: &Params, s: &Shell<'m>) -> Choice<'m> {
     let lb = p.lod_bits();
     let (zero, one, module, header_fire) = (s.zero, s.one, s.module, s.header_fire);
     let report_ready = m.input("report_ready", 1);
-    let report_valid = module.output("report_valid");
     let report_data = module.output("report_data");
-    module.connect("report_ready", report_ready);
+    // The newer of two merges passes its choice once the older's header
+    // has left: its count pass runs while the older's builder and writer
+    // drain, and the routing below is the older's until then.
+    let choice_waits = (s.queued & get(report_data, &tl.chosen).eq(1)).name("choice_waits");
+    let report_valid = module.output("report_valid") & !choice_waits;
+    module.connect("report_ready", report_ready & !choice_waits);
     m.output("report_valid", report_valid);
     m.output("report_data", report_data);
     let chosen_beat =
@@ -165,7 +175,7 @@ fn inputs<'m>(
     let inb = BeatLayout::input(p);
     let lb = p.lod_bits();
     let lit = |v: u64, w: u32| m.lit(v as u128, w);
-    let (zero, one, module, header_fire) = (s.zero, s.one, s.module, s.header_fire);
+    let (zero, one, module) = (s.zero, s.one, s.module);
     let (cfg, cfg_fire, cfg_q, lo, hi) = (s.cfg, s.cfg_fire, s.cfg_q, s.lo, s.hi);
     let (fetchers, dropping) = (&s.fetchers, &s.dropping);
     let (known, merging, level) = (ch.known, ch.merging, ch.level);
@@ -173,8 +183,8 @@ fn inputs<'m>(
     let rb = rank_bits(k);
     let ferr = m.reg("fetch_err", fl.err.width);
     let ferr_rank = m.reg("fetch_rank", rb);
-    let mut ferr_next = header_fire.mux(lit(0, fl.err.width), ferr);
-    let mut ferr_rank_next = header_fire.mux(lit(0, rb), ferr_rank);
+    let mut ferr_next = s.flag_clear.mux(lit(0, fl.err.width), ferr);
+    let mut ferr_rank_next = s.flag_clear.mux(lit(0, rb), ferr_rank);
     let end_beat = with_fields(m, lit(0, inb.width), &[(inb.kind, lit(level_kind::END, 2))]);
     let mut leaves_in = Vec::new();
     let mut sent = one;
@@ -242,16 +252,17 @@ fn inputs<'m>(
             phases.code(phase::DONE),
         );
         let after_choice = phases.code(phase::FINAL);
+        // A merge's phases stay DONE until the next `cfg`: with merges
+        // overlapping, the older's header leaves during the newer's passes.
+        // Leave WAIT in the clock the choice passes, not the next: the
+        // merge pass's commands go out a clock sooner. While two merges
+        // are taken, `known` is the older's.
+        let own_choice = (known & !s.queued) | ch.seen;
         let ph_next = cfg_fire.mux(
             counting_in.mux(phases.code(phase::COUNT), phases.code(phase::WAIT)),
-            header_fire.mux(
-                phases.code(phase::NONE),
-                step.mux(
-                    after_step,
-                    // Leave WAIT in the clock the choice passes, not the
-                    // next: the merge pass's commands go out a clock sooner.
-                    (in_ph(phase::WAIT) & (known | ch.seen)).mux(after_choice, ph),
-                ),
+            step.mux(
+                after_step,
+                (in_ph(phase::WAIT) & own_choice).mux(after_choice, ph),
             ),
         );
         ph.next(ph_next);
@@ -270,8 +281,10 @@ fn inputs<'m>(
         leaves_in.push((f.output("leaves_valid"), f.output("leaves_data"), i));
     }
     s.commands_sent.drive(sent);
-    ferr.next(s.header_hold.mux(ferr, ferr_next));
-    ferr_rank.next(s.header_hold.mux(ferr_rank, ferr_rank_next));
+    ferr.next(s.flag_hold.mux(ferr, ferr_next));
+    ferr_rank.next(s.flag_hold.mux(ferr_rank, ferr_rank_next));
+    let ferr = s.shown_flag(m, ferr, "fetch_err");
+    let ferr_rank = s.shown_flag(m, ferr_rank, "fetch_rank");
 
     (ferr, ferr_rank, leaves_in)
 }
@@ -352,7 +365,7 @@ fn route_out<'m>(
     let mut base_m_ready = zero;
     let mut base_m_sent = zero;
     let mut leaf_over = m.reg("leaf_overflow", 1);
-    let mut over_next = header_fire.mux(zero, leaf_over);
+    let mut over_next = s.flag_clear.mux(zero, leaf_over);
     let reused_kind = lit(base_kind::REUSED, 2);
     for d in 0..=dmax {
         let dl = lit(d as u64, lb);
@@ -401,8 +414,8 @@ fn route_out<'m>(
         base_m_ready = at_m.mux(ready & !bsent, base_m_ready);
         base_m_sent = at_m.mux(bsent, base_m_sent);
     }
-    leaf_over.next(s.header_hold.mux(leaf_over, over_next));
-    leaf_over = leaf_over.name("leaf_overflow_q");
+    leaf_over.next(s.flag_hold.mux(leaf_over, over_next));
+    leaf_over = s.shown_flag(m, leaf_over.name("leaf_overflow_q"), "leaf_overflow");
     let mo_ready = merging
         & mo_ref.mux(
             cref_ready,
@@ -415,8 +428,9 @@ fn route_out<'m>(
     let count_over = m.reg("count_overflow", 1);
     let created = mo_kind.eq(base_kind::CREATED);
     let count_next =
-        (mo_valid & mo_ready & created & mo_err).mux(one, header_fire.mux(zero, count_over));
-    count_over.next(s.header_hold.mux(count_over, count_next));
+        (mo_valid & mo_ready & created & mo_err).mux(one, s.flag_clear.mux(zero, count_over));
+    count_over.next(s.flag_hold.mux(count_over, count_next));
+    let count_over = s.shown_flag(m, count_over, "count_overflow");
 
     (leaf_over, count_over)
 }

@@ -158,8 +158,11 @@ fn range_good<'m>(m: &'m Module, c: &MergerConfig, lo: Signal<'m>, hi: Signal<'m
 
 /// What both merger bodies start with: the instances (a fetcher per input,
 /// the merging module, the upper builder, the writer) and the `cfg`
-/// handshake. A merge is taken when none is in progress and every unit is
-/// idle, and held in `cfg_q` until its header leaves (`header_fire`).
+/// handshake. A merge is held in `cfg_q` from its `cfg` beat until its
+/// header leaves (`header_fire`), or, when merges overlap, until the next
+/// merge's `cfg` beat: a level-mode merger takes the next merge's `cfg`
+/// and runs its count pass while this merge's builder and writer drain
+/// (docs/hardware.md 8.15, "Consecutive merges").
 struct Shell<'m> {
     zero: Signal<'m>,
     one: Signal<'m>,
@@ -167,7 +170,13 @@ struct Shell<'m> {
     module: crate::Instance<'m>,
     builder: crate::Instance<'m>,
     writer: crate::Instance<'m>,
+    /// Consecutive merges overlap.
+    overlap: bool,
+    /// A merge was taken and its header has not left.
     busy: Signal<'m>,
+    /// Two merges are taken: the older waits for its header, the newer
+    /// may not pass its choice (always low when merges do not overlap).
+    queued: Signal<'m>,
     /// Set while a command whose `out` beats are dropped (the closing
     /// command) has not sent its End.
     dropping: Vec<Signal<'m>>,
@@ -175,8 +184,18 @@ struct Shell<'m> {
     /// The header is offered and not taken: the flags beside the writer's
     /// beat hold still (section 8.15).
     header_hold: Signal<'m>,
+    /// The merge settled (every command issued, every dropped command
+    /// ended): its header may be offered. Driven by the tail.
+    header_open: Signal<'m>,
     /// Every command of the merge was issued (driven by the mode).
     commands_sent: Signal<'m>,
+    /// The `cfg` beats to the module and the writer are pending.
+    module_cfg_pending: Signal<'m>,
+    writer_cfg_pending: Signal<'m>,
+    /// What starts a merge's header flags afresh (its `cfg` beat when
+    /// merges overlap, else the last header leaving), and what holds them.
+    flag_clear: Signal<'m>,
+    flag_hold: Signal<'m>,
     cfg: Stream<'m>,
     cfg_fire: Signal<'m>,
     cfg_q: Signal<'m>,
@@ -188,14 +207,30 @@ struct Shell<'m> {
     out_id: Signal<'m>,
 }
 
+impl<'m> Shell<'m> {
+    /// A header flag as the header shows it, given the register `front`
+    /// the merge's events set: with two merges taken, the older merge's
+    /// value, kept from the newer's `cfg` beat in `<name>_header`.
+    fn shown_flag(&self, m: &'m Module, front: Signal<'m>, name: &str) -> Signal<'m> {
+        if !self.overlap {
+            return front;
+        }
+        let kept = m.reg(&format!("{name}_header"), front.width());
+        kept.next_when(self.cfg_fire, front);
+        self.queued.mux(kept, front)
+    }
+}
+
 /// The [`Shell`] of a merger `m` of `c`, its fetchers instances of
-/// `fetch_mod` (level-mode or per-node) and its writer of `writer_mod`.
+/// `fetch_mod` (level-mode or per-node) and its writer of `writer_mod`;
+/// with `overlap`, consecutive merges overlap.
 fn shell<'m>(
     m: &'m Module,
     c: &MergerConfig,
     ml: &MergerLayout,
     fetch_mod: &Module,
     writer_mod: &Module,
+    overlap: bool,
 ) -> Shell<'m> {
     let p = &c.design.params;
     let k = c.design.inputs;
@@ -208,22 +243,64 @@ fn shell<'m>(
     let builder = m.instance("u_builder", &upper_builder_unit(p));
     let writer = m.instance("u_writer", writer_mod);
 
-    let busy = m.reg("busy", 1);
     let dropping: Vec<Signal> = (0..k).map(|i| m.reg(&format!("dropping{i}"), 1)).collect();
     let header_fire = m.wire("header_fire", 1);
     let header_hold = m.wire("header_hold", 1);
+    let header_open = m.reg("header_open", 1);
     let commands_sent = m.wire("commands_sent", 1);
-    let mut quiet = !busy & module.output("idle");
+    let module_cfg_pending = m.reg("module_cfg_pending", 1);
+    let writer_cfg_pending = m.reg("writer_cfg_pending", 1);
+    let cfg = Stream::input(m, "cfg", ml.cfg_width);
+    let cfg_fire = cfg.fire().name("cfg_fire");
+    let (busy, queued, front_free) = if overlap {
+        // One merge taken (`busy`) or two (`queued` too). `queued` rises
+        // only with a `cfg` beat, which the choice gate below relies on.
+        let busy = m.reg("busy", 1);
+        let queued = m.reg("queued", 1);
+        busy.next(cfg_fire.mux(one, (header_fire & !queued).mux(zero, busy)));
+        queued.next((cfg_fire & busy & !header_fire).mux(one, header_fire.mux(zero, queued)));
+        // The next merge may start once this one settled: its fetchers
+        // and the module are then done with it (`quiet` below), and the
+        // `cfg` beats it sent were taken.
+        // Nor while the module offers a choice: it is this merge's, which
+        // passed already when the merge settled, and the newer merge's
+        // `choice_waits` must never withdraw a beat offered (so that the
+        // handshake proof needs no more than this).
+        let tl = TopLayout::new(p);
+        let choice_offered =
+            module.output("report_valid") & get(module.output("report_data"), &tl.chosen);
+        let settled_alone = busy
+            & header_open
+            & !queued
+            & !module_cfg_pending
+            & !writer_cfg_pending
+            & !choice_offered;
+        // (`header_open` and `queued` without `busy` never happen; the
+        // proof's induction would meet them, and there a `cfg` beat would
+        // clear the flags of a header offered.)
+        let none_taken = !busy & !queued & !header_open;
+        (busy, queued, none_taken | settled_alone)
+    } else {
+        let busy = m.reg("busy", 1);
+        busy.next(cfg_fire.mux(one, header_fire.mux(zero, busy)));
+        (busy, zero, !busy)
+    };
+    let mut quiet = front_free & module.output("idle");
     for (i, f) in fetchers.iter().enumerate() {
         quiet = quiet & f.output("idle") & !dropping[i];
     }
     let quiet = quiet.name("quiet");
-    let cfg = Stream::input(m, "cfg", ml.cfg_width);
     cfg.ready.drive(quiet);
-    let cfg_fire = cfg.fire().name("cfg_fire");
     let cfg_q = m.reg("cfg_q", ml.cfg_width);
     cfg_q.next_when(cfg_fire, cfg.data);
-    busy.next(cfg_fire.mux(one, header_fire.mux(zero, busy)));
+    let (flag_clear, flag_hold) = if overlap {
+        (
+            cfg_fire,
+            (header_hold & !queued & !cfg_fire).name("flags_hold"),
+        )
+    } else {
+        (header_fire, header_hold)
+    };
     Shell {
         zero,
         one,
@@ -231,11 +308,18 @@ fn shell<'m>(
         module,
         builder,
         writer,
+        overlap,
         busy,
+        queued,
         dropping,
         header_fire,
         header_hold,
+        header_open,
         commands_sent,
+        module_cfg_pending,
+        writer_cfg_pending,
+        flag_clear,
+        flag_hold,
         cfg,
         cfg_fire,
         cfg_q,
@@ -255,7 +339,7 @@ fn cfg_beats<'m>(m: &'m Module, p: &Params, ml: &MergerLayout, s: &Shell<'m>) {
     let lit = |v: u64, w: u32| m.lit(v as u128, w);
     let (zero, one, module, writer) = (s.zero, s.one, s.module, s.writer);
     let (cfg_fire, lo, hi, out_id) = (s.cfg_fire, s.lo, s.hi, s.out_id);
-    let mcfg_pend = m.reg("module_cfg_pending", 1);
+    let mcfg_pend = s.module_cfg_pending;
     module.connect("cfg_valid", mcfg_pend);
     module.connect(
         "cfg_data",
@@ -263,7 +347,7 @@ fn cfg_beats<'m>(m: &'m Module, p: &Params, ml: &MergerLayout, s: &Shell<'m>) {
     );
     let mcfg_fire = mcfg_pend & module.output("cfg_ready");
     mcfg_pend.next(cfg_fire.mux(one, mcfg_fire.mux(zero, mcfg_pend)));
-    let wcfg_pend = m.reg("writer_cfg_pending", 1);
+    let wcfg_pend = s.writer_cfg_pending;
     writer.connect("cfg_valid", wcfg_pend);
     writer.connect(
         "cfg_data",

@@ -34,7 +34,7 @@ pub(super) fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
     let lit = |v: u64, w: u32| m.lit(v as u128, w);
     let fetch_mod = fetcher_per_node_unit(p, &c.fetch_sizes());
     let writer_mod = record_writer_unit(p, c.sizes.capacity_bits).map_err(|e| e.to_string())?;
-    let s = shell(&m, c, &ml, &fetch_mod, &writer_mod);
+    let s = shell(&m, c, &ml, &fetch_mod, &writer_mod, false);
     let good_in =
         range_good(&m, c, get(s.cfg.data, &ml.lo), get(s.cfg.data, &ml.hi)).name("good_in");
     let good = range_good(&m, c, s.lo, s.hi).name("range_good");
@@ -91,6 +91,7 @@ pub(super) fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
             ml: &ml,
             header_fire: s.header_fire,
             header_hold: s.header_hold,
+            header_open: s.header_open,
             commands_sent: s.commands_sent,
             flags: [leaf_over, count_over, ferr, ferr_rank],
             busy: s.busy,

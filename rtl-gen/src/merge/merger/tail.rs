@@ -19,6 +19,7 @@ pub(super) struct Tail<'a, 'm> {
     pub(super) ml: &'a MergerLayout,
     pub(super) header_fire: Signal<'m>,
     pub(super) header_hold: Signal<'m>,
+    pub(super) header_open: Signal<'m>,
     pub(super) commands_sent: Signal<'m>,
     pub(super) flags: [Signal<'m>; 4],
     pub(super) busy: Signal<'m>,
@@ -49,6 +50,7 @@ pub(super) fn finish_merger<'m>(m: &'m Module, t: Tail<'_, 'm>) {
         ml,
         header_fire,
         header_hold,
+        header_open,
         commands_sent,
         flags: [leaf_over, count_over, ferr, ferr_rank],
         busy,
@@ -105,7 +107,6 @@ pub(super) fn finish_merger<'m>(m: &'m Module, t: Tail<'_, 'm>) {
     // flags final, and the next merge's cannot mix in. `header_open` is a
     // register so that the beat, once offered, stays offered.
     let no_drop = dropping.iter().fold(one, |a, c| a & !*c);
-    let header_open = m.reg("header_open", 1);
     let settled = (busy & commands_sent & no_drop).name("merge_settled");
     header_open.next(header_fire.mux(lit(0, 1), header_open | settled));
     let h_valid = (writer.output("header_valid") & header_open).name("header_offered");

@@ -683,6 +683,7 @@ fn the_library_runs_a_scene_frame_by_frame_as_the_command_does() {
         narrate: false,
         verify: false,
         images: true,
+        merger_store: Default::default(),
     };
     let run = Run::new(&scene, &options).unwrap();
     let err = run.finish().err().expect("no frame run yet");

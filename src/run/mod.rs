@@ -15,7 +15,7 @@
 //! reuses the last frame's results and says so.
 //!
 //! ```no_run
-//! use hiermerge::run::{preflight, run, Options, RunEngine};
+//! use hiermerge::run::{preflight, run, MergerStore, Options, RunEngine};
 //! use golden::scene::Scene;
 //!
 //! let scene = Scene::load("scenes/default.json".as_ref())?;
@@ -31,6 +31,7 @@
 //!     narrate: false,
 //!     verify: true,
 //!     images: true,
+//!     merger_store: MergerStore::default(), // one shared store read port
 //! };
 //! let report = run(&scene, &options)?;
 //! assert_eq!(report.mismatches, 0);
@@ -52,7 +53,7 @@ mod table;
 pub use compare::{Comparison, SUBSAMPLE};
 pub use engine::RunEngine;
 pub use merge_rtl::MergeRtlFrame;
-pub use merger_rtl::{MergerRtlFrame, PATCH_FROM_VAR, PATCH_TO_VAR};
+pub use merger_rtl::{MergerRtlFrame, MergerStore, PATCH_FROM_VAR, PATCH_TO_VAR};
 pub use merges::GroupOut;
 pub use pipeline::{
     run, EffectsInfo, FrameOut, ImageSummary, MergerTotals, ObjectInfo, Options, RtlInfo, Run,

@@ -27,7 +27,9 @@
 //! two that holds it. A merge no buildable size holds is skipped with the
 //! reason. A built merger is kept for later merges it can hold.
 
-use cosim::units::merger::{MergerSim, ModuleRunConfig, SceneStore, SimOutcome, VerilogPatch};
+use cosim::units::merger::{
+    MergerEngine, MergerSim, ModuleRunConfig, SceneStore, SimOutcome, VerilogPatch,
+};
 use golden::merge::fetch_unit::FetchSizes;
 use golden::merge::merger_unit::{merger_transaction, MergerSizes, MergerTransaction, ModulePass};
 use golden::merge::store_port::{StorePort, StoreWords};
@@ -150,9 +152,11 @@ struct Built {
 }
 
 /// The merger tops a run built, one per configuration.
-#[derive(Default)]
 pub struct MergerRtl {
-    pub engine: RunEngine,
+    /// The merger bench's engine: the run's, or Icarus stepped from Rust
+    /// (the tests of a patched top: a compile of seconds where Verilator
+    /// builds for half a minute, and the IR engine reads no Verilog).
+    pub(crate) sim_engine: MergerEngine,
     built: Vec<Built>,
     /// The test hook: bit 0 of each merge's expected `header` beat flipped.
     pub(crate) flip_expected: bool,
@@ -358,10 +362,20 @@ impl MergerRtl {
             _ => None,
         };
         MergerRtl {
-            engine,
+            sim_engine: engine.merger(),
+            built: Vec::new(),
+            flip_expected: false,
             patch,
             store,
-            ..MergerRtl::default()
+        }
+    }
+
+    /// The engine the tops run on, as the report names it.
+    pub fn engine_label(&self) -> &'static str {
+        match self.sim_engine {
+            MergerEngine::Verilator => "Verilator",
+            MergerEngine::Ir => "IR",
+            MergerEngine::Iverilog => "Icarus",
         }
     }
 
@@ -422,8 +436,8 @@ impl MergerRtl {
                     .map_err(|e| format!("hierarchy merger RTL: {e}"))?;
                 let dir = tempfile::tempdir().map_err(|e| format!("temporary folder: {e}"))?;
                 let patch = self.patch.as_ref();
-                let sim = MergerSim::new(&config, self.engine.merger(), dir.path(), patch)
-                    .map_err(|e| format!("hierarchy merger RTL ({}): {e}", self.engine.label()))?;
+                let sim = MergerSim::new(&config, self.sim_engine, dir.path(), patch)
+                    .map_err(|e| format!("hierarchy merger RTL ({}): {e}", self.engine_label()))?;
                 self.built.push(Built {
                     config,
                     sim,
@@ -618,11 +632,14 @@ mod tests {
         }
     }
 
-    /// Every merge redone goes through the merger top, whose written
-    /// records and references are the frame's merged hierarchy (0
-    /// mismatches, counts equal golden's); the report's figures are
-    /// consistent; a frame where nothing moved simulates no merger, and a
-    /// scene with nothing to merge builds none.
+    /// Every merge redone goes through the merger top with one shared
+    /// store port (the run's default), its reads answered from the store
+    /// image of the merge's inputs: its written records and references
+    /// are the frame's merged hierarchy (0 mismatches, counts equal
+    /// golden's), it reads what golden's units read, and the report's
+    /// figures are consistent (the port's one read a clock bounds the
+    /// records per cycle); a frame where nothing moved simulates no
+    /// merger, and a scene with nothing to merge builds none.
     #[test]
     fn merger_top_writes_the_frames_merged_hierarchies() {
         let dir = tempfile::tempdir().unwrap();
@@ -653,6 +670,7 @@ mod tests {
                     "frame {}: {m:?}",
                     f.frame
                 );
+                assert_shared_port_figures(m);
                 sum = (sum.0 + m.cycles, sum.1 + m.records, sum.2 + m.store_reads);
                 merges += 1;
             }
@@ -663,6 +681,14 @@ mod tests {
             assert_eq!((t.cycles, t.records, t.store_reads), sum);
             assert_eq!(t.cycles_per_node, sum.0 as f64 / sum.1 as f64);
             assert_eq!(t.store_reads_per_node, sum.2 as f64 / sum.1 as f64);
+            assert_eq!(t.records_per_cycle, sum.1 as f64 / sum.0 as f64);
+            assert_eq!(
+                (t.records_allowed_per_cycle, t.of_port),
+                (
+                    Some(sum.1 as f64 / sum.2 as f64),
+                    Some(sum.2 as f64 / sum.0 as f64)
+                )
+            );
         }
         // Both groups in frame 0, the dynamic one in frames 1 and 2.
         assert_eq!(merges, 4);
@@ -717,14 +743,43 @@ mod tests {
         c.validate().unwrap();
     }
 
+    /// A shared port's figures of one merge: as many reads as golden's
+    /// units, at most one a clock, and the records per cycle against what
+    /// that allows.
+    fn assert_shared_port_figures(m: &super::MergerRtlFrame) {
+        assert_eq!(
+            (m.store_port.as_str(), m.store_latency),
+            ("shared:3", Some(1))
+        );
+        assert!(
+            m.store_reads > 0 && m.store_reads == m.golden_store_reads,
+            "{m:?}"
+        );
+        assert!(m.cycles > m.store_reads, "one read a clock: {m:?}");
+        let allowed = m.records as f64 / m.store_reads as f64;
+        let share = m.store_reads as f64 / m.cycles as f64;
+        assert_eq!(
+            (m.records_allowed_per_cycle, m.of_port),
+            (Some(allowed), Some(share))
+        );
+        assert!(m.records_per_cycle < allowed, "{m:?}");
+    }
+
     /// A flipped bit of the expected `header` beat is a mismatch of the
-    /// frame, decoded by field, with its cycle.
+    /// frame, decoded by field, with its cycle (per-unit store ports: the
+    /// answers precomputed by golden).
     #[test]
     fn merger_mismatch_is_counted_and_decoded() {
         let dir = tempfile::tempdir().unwrap();
         let mut s = scene();
         s.frames = 1;
-        let o = options(dir.path());
+        let o = Options {
+            merger_store: super::MergerStore {
+                port: golden::merge::store_port::StorePort::PerUnit,
+                latency: 1,
+            },
+            ..options(dir.path())
+        };
         let mut r = Run::new(&s, &o).unwrap();
         r.merges.merger.flip_expected = true;
         let f = r.frame(0).unwrap_or_else(|e| panic!("{e}"));
@@ -734,5 +789,92 @@ mod tests {
         let first = m.first_mismatch.as_deref().unwrap();
         assert!(first.starts_with("`header` beat 0 at cycle "), "{first}");
         assert!(first.contains("out_id: expected"), "{first}");
+        assert_eq!((m.store_port.as_str(), m.store_latency), ("per-unit", None));
+        assert!(m.records_allowed_per_cycle.is_none() && m.of_port.is_none());
+        assert!(m.store_reads > 0 && m.store_reads == m.golden_store_reads);
+    }
+
+    /// A bit flipped in the emitted merger top (bit 0, `leaf`, of every
+    /// `nodes` beat), on a scene run with a shared store port: every merge
+    /// of the frame fails, its first failure decoded by field with its
+    /// cycle. Icarus, stepped from Rust as the store model needs: the IR
+    /// engine reads no Verilog, and Verilator would build the patched top
+    /// for half a minute.
+    #[test]
+    fn a_bit_flipped_in_the_emitted_top_is_caught_on_a_shared_port_run() {
+        if !cosim::tools::tool_available("iverilog") {
+            assert!(!cosim::tools::ci_mode(), "CI=true and iverilog missing");
+            return;
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let mut s = scene();
+        s.frames = 1;
+        let o = options(dir.path());
+        let mut r = Run::new(&s, &o).unwrap();
+        let (line, rhs) = nodes_assign(&s);
+        let width = golden::layout::NodeLayout::new(&s.params).width();
+        let m = &mut r.merges.merger;
+        m.sim_engine = cosim::units::merger::MergerEngine::Iverilog;
+        m.patch = Some(cosim::units::merger::VerilogPatch {
+            from: line,
+            to: format!("assign nodes_data = {rhs} ^ {width}'d1;"),
+        });
+        let f = r.frame(0).unwrap_or_else(|e| panic!("{e}"));
+        assert!(f.groups.len() == 2 && f.mismatches >= 2, "one per group");
+        for g in &f.groups {
+            let m = g.merger_rtl.as_ref().unwrap();
+            assert_eq!(m.mismatches, m.golden_records, "every record: {m:?}");
+            let first = m.first_mismatch.as_deref().unwrap();
+            assert!(first.starts_with("`nodes` beat 0 at cycle "), "{first}");
+            let cycle: u64 = first["`nodes` beat 0 at cycle ".len()..]
+                .split(':')
+                .next()
+                .and_then(|c| c.parse().ok())
+                .unwrap_or_else(|| panic!("a cycle: {first}"));
+            assert!(cycle > 0 && cycle < m.cycles, "{first}");
+            // Only the flipped field differs.
+            assert!(
+                first.ends_with(": leaf: expected 0x1, got 0x0")
+                    || first.ends_with(": leaf: expected 0x0, got 0x1"),
+                "{first}"
+            );
+            assert_eq!(m.store_reads, m.golden_store_reads, "{m:?}");
+        }
+        assert!(
+            f.simulated.iter().any(|l| l.contains("(Icarus)")),
+            "{:?}",
+            f.simulated
+        );
+    }
+
+    /// The emitted merger top's line `assign nodes_data = <rhs>;` (the
+    /// same in every size of the scene's shared-port top), and its rhs.
+    fn nodes_assign(s: &Scene) -> (String, String) {
+        let design = golden::vectors::merge::MergeDesign {
+            params: s.params,
+            inputs: 3,
+            mode: s.effects.merge,
+            ..golden::vectors::merge::MergeDesign::default()
+        };
+        let mut c = rtl_gen::merge::MergerConfig::new(design);
+        c.sizes.store_port = golden::merge::store_port::StorePort::SHARED;
+        let module = rtl_gen::merge::hierarchy_merger_unit(&c).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let d = cosim::from_rtl::design_from_module(&module, dir.path()).unwrap();
+        let head = "assign nodes_data = ";
+        let line = d
+            .verilog_files
+            .iter()
+            .flat_map(|f| {
+                let text = std::fs::read_to_string(f).unwrap();
+                text.lines()
+                    .map(str::trim)
+                    .map(String::from)
+                    .collect::<Vec<_>>()
+            })
+            .find(|l| l.starts_with(head))
+            .expect("the top drives nodes_data");
+        let rhs = line[head.len()..].trim_end_matches(';').to_string();
+        (line, rhs)
     }
 }

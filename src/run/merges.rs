@@ -292,7 +292,7 @@ impl MergeStage<'_> {
                 return Ok(None);
             }
         };
-        let engine = self.merger.engine.label();
+        let engine = self.merger.engine_label();
         if r.build_seconds > 0.0 {
             lines.simulated.push(format!(
                 "hierarchy merger RTL{label}: {} generated and built ({engine}, {:.1} s)",

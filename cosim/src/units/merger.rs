@@ -495,7 +495,7 @@ pub struct MergerSim {
 /// a store model on the shared port.
 enum Sim {
     PerUnit(ChunkedSim),
-    Shared(shared::SharedSim),
+    Shared(Box<shared::SharedSim>),
 }
 
 /// The store a shared-port merger reads in a [`MergerSim::run`]: its
@@ -555,7 +555,7 @@ impl MergerSim {
             };
         }
         let sim = match shared {
-            true => Sim::Shared(shared::SharedSim::new(c, module, design, engine)?),
+            true => Sim::Shared(Box::new(shared::SharedSim::new(c, module, design, engine)?)),
             false => Sim::PerUnit(chunked_sim(c, module, design, engine, patch.is_some())?),
         };
         Ok(MergerSim {

@@ -6,7 +6,8 @@
 //! merge redone only when an input changed), check the merged hierarchy,
 //! run the translation unit's and the merging module's RTL on what changed,
 //! and the hierarchy merger top on every merge redone (fetchers, merging
-//! module, upper builder, record writer on the store's real contents, its
+//! module, upper builder, record writer on the store's real contents,
+//! through one shared store read port by default: `Options::merger_store`), its
 //! written records compared bit for bit with the merged hierarchy), when
 //! the scene uses them and `Options::rtl` asks for RTL, trace the ray
 //! kinds the scene asks for through the merged hierarchy, compare node tests

@@ -371,6 +371,24 @@ fn bad_input_is_one_clear_error() {
     );
     let e = fails(&["run", "--store-port", "shared:9", "--no-rtl"]);
     assert!(e.contains("shared:9") && e.contains("T in 1..=8"), "{e}");
+    // The exported testbench answers the store from files: no shared port,
+    // and the refusal names what runs one.
+    let tb = dir.path().join("tb");
+    let tb_out = tb.to_str().unwrap();
+    let e = fails(&[
+        "export-tb",
+        "--unit",
+        "merger",
+        "--store-port",
+        "shared",
+        "--out",
+        tb_out,
+    ]);
+    assert!(
+        e.contains("depends on timing") && e.contains("cosim --unit merger --store-port shared"),
+        "{e}"
+    );
+    assert!(!tb.exists(), "nothing written");
     let e = fails(&["run", "--width", &too_wide, "--no-rtl"]);
     assert!(
         e.contains(&format!("--width {too_wide}")) && e.contains(&format!("1..={side}")),

@@ -49,6 +49,11 @@ pub struct Args {
     /// --unit merger only: log2 of each leaf FIFO's entries.
     #[arg(long = "leaf-bits")]
     leaf_bits: Option<u32>,
+    /// --unit merger only: `per-unit` (the default, and the only port the
+    /// plain testbench drives: every store answer precomputed); `shared`
+    /// is refused, saying why and what runs it instead.
+    #[arg(long = "store-port", value_parser = super::cosim::parse_store_port)]
+    store_port: Option<golden::merge::store_port::StorePort>,
     /// Print one JSON object on stdout.
     #[arg(long)]
     json: bool,
@@ -63,6 +68,26 @@ struct Report {
     beats_out: u64,
     mask_cycles: u64,
     files: usize,
+}
+
+/// Refuses `--store-port` but with `--unit merger`, and a shared port: the
+/// plain testbench answers the store from precomputed `$readmemh` streams.
+fn refuse_shared_port(a: &Args) -> Result<(), String> {
+    use golden::merge::store_port::StorePort;
+    match (a.unit, a.store_port) {
+        (_, None) | (Unit::Merger, Some(StorePort::PerUnit)) => Ok(()),
+        (Unit::Merger, Some(StorePort::Shared { .. })) => Err(
+            "--store-port shared: a merger with one shared store port reads the store in an \
+             order that depends on timing (which units show a read in a cycle), so its answers \
+             cannot be precomputed `$readmemh` streams, and the exported testbench has no store \
+             model to answer them as they come; run the shared top with `hiermerge cosim --unit \
+             merger --store-port shared` (IR, Verilator or Icarus, a store model answering from \
+             the store's contents) or on a scene with `hiermerge run --store-port shared`, or \
+             export the per-unit top (`--store-port per-unit`, the default)"
+                .into(),
+        ),
+        (_, Some(_)) => Err("--store-port applies to --unit merger only".into()),
+    }
 }
 
 /// The arguments that wrote the testbench, as a shell line.
@@ -108,6 +133,7 @@ pub fn main(a: Args) -> CmdResult {
         Unit::Merge | Unit::Merger => golden::vectors::MAX_MERGE_COUNT,
     };
     golden::vectors::check_count("--count", a.count, limit)?;
+    refuse_shared_port(&a)?;
     let count = usize::try_from(a.count).map_err(|_| "--count is too large".to_string())?;
     // Refuse a bad configuration before anything is written.
     match a.unit {

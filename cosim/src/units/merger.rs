@@ -347,17 +347,24 @@ fn next_chunk(
 
 /// The exported testbench of `c` (`hiermerge export-tb --unit merger`):
 /// `count` random merges from `seed` as [`run`] draws them (one chunk),
-/// the Verilog written to `rtl`.
+/// the Verilog written to `rtl`. A shared store port's reads are answered
+/// by the testbench's store model after `store_latency` clocks, from the
+/// words golden's units read.
 pub fn export_spec(
     c: &MergerConfig,
     seed: u64,
     count: usize,
     stalls: crate::tb::Stalls,
+    store_latency: u64,
     rtl: &Path,
 ) -> Result<ExportSpec> {
-    per_unit_only(c, "an exported testbench")?;
     let mut draw = Draw::new(c, seed, Merges::Random)?;
-    let streams = next_chunk(&mut draw, c, count, None)?.streams;
+    let mut streams = next_chunk(&mut draw, c, count, None)?.streams;
+    let mut store = None;
+    if is_shared(c) {
+        let (shared, st) = shared::export_store(c, &streams, count, store_latency)?;
+        (streams, store) = (shared, Some(st));
+    }
     let design = crate::from_rtl::design_from_module(&merger_module(c)?, rtl)?;
     let (inputs, outputs) = export_streams(&streams, |name| {
         named_fields(output_fields(c, name).unwrap_or_default())
@@ -372,6 +379,7 @@ pub fn export_spec(
         seed,
         stalls,
         command: String::new(),
+        store,
     })
 }
 

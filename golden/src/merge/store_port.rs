@@ -205,6 +205,11 @@ impl StoreWords {
         self.words.is_empty()
     }
 
+    /// Every word held, with its array and address, in no order.
+    pub fn iter(&self) -> impl Iterator<Item = (StoreArray, StoreAddr, &Bits)> + '_ {
+        self.words.iter().map(|((a, at), w)| (*a, *at, w))
+    }
+
     /// The store image of `hs` as the merger's units read it: each
     /// hierarchy's node records in the node array and its references in
     /// the reference array, at (its id, the entry's index), packed with its

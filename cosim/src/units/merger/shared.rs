@@ -24,9 +24,11 @@ use rtl_gen::merge::MergerConfig;
 
 use super::{chunk_sizes, decoder_of, golden_chunk, merger_module, Draw, PULSES};
 use super::{MergerEngine, Outcome, RunConfig};
+use crate::bitvec::BitVec;
 use crate::design::Design;
 use crate::engine::Engine;
 use crate::error::Result;
+use crate::export_tb::StoreSpec;
 use crate::ledger::StimulusDigest;
 use crate::tb::{run_multi_stream_bench_reactive, BenchConfig, Transaction};
 use crate::units::chunked::{chunk_bench, ChunkTotals, PairDecoder, UnitStreams};
@@ -124,6 +126,67 @@ impl SharedChunk {
             reads,
         })
     }
+}
+
+/// The `n` merges whose per-unit streams are `per_unit` as an exported
+/// testbench sees them on a shared port: the shared streams, and the store
+/// its model answers from after `latency` clocks (per merge, array and
+/// hierarchy a run of the words golden's units read, holes zero).
+pub(super) fn export_store(
+    c: &MergerConfig,
+    per_unit: &UnitStreams,
+    n: usize,
+    latency: u64,
+) -> Result<(UnitStreams, StoreSpec)> {
+    let l = StorePortLayout::new(&c.design.params);
+    let ml = golden::vectors::streams::merger_layout(&c.design, &c.sizes)
+        .map_err(|what| crate::CosimError::Design { what })?;
+    let chunk = SharedChunk::of(per_unit, n, &ml, &l)?;
+    let hiers = 1usize << l.hier.width;
+    let mut runs = vec![(0u32, 0u32); n * 2 * hiers];
+    let mut words = Vec::new();
+    let too_many = |what: &str| crate::CosimError::Unsupported {
+        what: format!("an exported store of {what} (the testbench counts in 32 bits)"),
+    };
+    for (e, store) in chunk.stores.iter().enumerate() {
+        for array in [StoreArray::Node, StoreArray::Reference] {
+            for hier in 0..hiers {
+                let at = |index| StoreAddr {
+                    hier: hier as u64,
+                    index,
+                };
+                let len = store
+                    .iter()
+                    .filter(|w| w.0 == array && w.1.hier == hier as u64)
+                    .map(|w| w.1.index + 1)
+                    .max()
+                    .unwrap_or(0);
+                let base = u32::try_from(words.len()).map_err(|_| too_many("2^32 words"))?;
+                let len32 = u32::try_from(len).map_err(|_| too_many("a run of 2^32 words"))?;
+                runs[(e * 2 + array.code() as usize) * hiers + hier] = (base, len32);
+                for index in 0..len {
+                    let word = match store.word(array, at(index)) {
+                        Some(w) => l.pack_resp(w),
+                        None => Ok(Bits::zero(l.resp_width)),
+                    }
+                    .map_err(|what| crate::CosimError::Design { what })?;
+                    words.push(BitVec::from_layout(&word)?);
+                }
+            }
+        }
+    }
+    let named = |f: &golden::layout::Field| crate::export_tb::NamedField::of(f.name, f);
+    let spec = StoreSpec {
+        latency,
+        epoch_input: "cfg".into(),
+        index: named(&l.index),
+        hier: named(&l.hier),
+        array: named(&l.array),
+        runs,
+        words,
+        reads: chunk.reads,
+    };
+    Ok((chunk.streams, spec))
 }
 
 /// A fresh engine of `kind` for the merger (`module`, its Verilog in

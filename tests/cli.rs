@@ -371,21 +371,33 @@ fn bad_input_is_one_clear_error() {
     );
     let e = fails(&["run", "--store-port", "shared:9", "--no-rtl"]);
     assert!(e.contains("shared:9") && e.contains("T in 1..=8"), "{e}");
-    // The exported testbench answers the store from files: no shared port,
-    // and the refusal names what runs one.
+    // export-tb's store flags: a shared port's latency, the merger's port.
     let tb = dir.path().join("tb");
     let tb_out = tb.to_str().unwrap();
     let e = fails(&[
         "export-tb",
         "--unit",
         "merger",
+        "--store-latency",
+        "3",
+        "--out",
+        tb_out,
+    ]);
+    assert!(
+        e.contains("--store-latency applies to --unit merger --store-port shared only"),
+        "{e}"
+    );
+    let e = fails(&[
+        "export-tb",
+        "--unit",
+        "merge",
         "--store-port",
         "shared",
         "--out",
         tb_out,
     ]);
     assert!(
-        e.contains("depends on timing") && e.contains("cosim --unit merger --store-port shared"),
+        e.contains("--store-port applies to --unit merger only"),
         "{e}"
     );
     assert!(!tb.exists(), "nothing written");

@@ -357,6 +357,50 @@ fn bad_input_is_one_clear_error() {
     // The image-size limit is the scene file's own (SPEC 12.1).
     let side = golden::scene::MAX_IMAGE_SIDE;
     let too_wide = (side + 1).to_string();
+    let e = fails(&[
+        "run",
+        "--store-port",
+        "per-unit",
+        "--store-latency",
+        "3",
+        "--no-rtl",
+    ]);
+    assert!(
+        e.contains("--store-latency applies to a shared store port"),
+        "{e}"
+    );
+    let e = fails(&["run", "--store-port", "shared:9", "--no-rtl"]);
+    assert!(e.contains("shared:9") && e.contains("T in 1..=8"), "{e}");
+    // export-tb's store flags: a shared port's latency, the merger's port.
+    let tb = dir.path().join("tb");
+    let tb_out = tb.to_str().unwrap();
+    let e = fails(&[
+        "export-tb",
+        "--unit",
+        "merger",
+        "--store-latency",
+        "3",
+        "--out",
+        tb_out,
+    ]);
+    assert!(
+        e.contains("--store-latency applies to --unit merger --store-port shared only"),
+        "{e}"
+    );
+    let e = fails(&[
+        "export-tb",
+        "--unit",
+        "merge",
+        "--store-port",
+        "shared",
+        "--out",
+        tb_out,
+    ]);
+    assert!(
+        e.contains("--store-port applies to --unit merger only"),
+        "{e}"
+    );
+    assert!(!tb.exists(), "nothing written");
     let e = fails(&["run", "--width", &too_wide, "--no-rtl"]);
     assert!(
         e.contains(&format!("--width {too_wide}")) && e.contains(&format!("1..={side}")),

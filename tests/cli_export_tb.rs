@@ -99,6 +99,20 @@ fn hex_line(path: &Path, line: usize) -> u64 {
     u64::from_str_radix(text.lines().nth(line).unwrap(), 16).unwrap()
 }
 
+/// The testbench in `dir` and its unit lint clean under Verilator.
+fn lint_clean(dir: &Path) {
+    let o = Command::new("sh")
+        .args([
+            "-c",
+            "verilator --lint-only -Wall --timing --top-module tb tb.v rtl/*.v",
+        ])
+        .current_dir(dir)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success() && text.is_empty(), "lint:\n{text}");
+}
+
 /// Exports `args`, runs it on every simulator (same cycles, lint-clean),
 /// then flips the lowest bit of `field` (at `offset`) in beat 1 of output
 /// `stream` and checks every simulator reports that field.
@@ -114,16 +128,7 @@ fn passes_then_fails(args: &[&str], stream: &str, field: &str, offset: u32) {
     }
     assert!(seen.windows(2).all(|w| w[0] == w[1]), "cycles {seen:?}");
     if sims.contains(&"verilator") {
-        let o = Command::new("sh")
-            .args([
-                "-c",
-                "verilator --lint-only -Wall --timing --top-module tb tb.v rtl/*.v",
-            ])
-            .current_dir(dir.path())
-            .output()
-            .unwrap();
-        let text = String::from_utf8_lossy(&o.stderr);
-        assert!(o.status.success() && text.is_empty(), "lint:\n{text}");
+        lint_clean(dir.path());
     }
     let vectors = dir.path().join("vectors");
     flip(&vectors.join(format!("{stream}.expected.hex")), 1, offset);
@@ -175,6 +180,58 @@ fn merging_module_passes_on_both_simulators_and_names_a_flipped_field() {
         "--unit", "merge", "--inputs", "2", "--count", "12", "--seed", "3",
     ];
     passes_then_fails(&args, "report", "union", f.offset);
+}
+
+/// The merger with one shared store port: the testbench's store model
+/// answers `store_req` from its `$readmemh` image after the latency, on
+/// Icarus (quick), its text lint-clean; an expected read count or a store
+/// word changed in the files fails the run, naming the merge or the beat.
+#[test]
+fn a_shared_port_merger_answers_its_store_in_the_testbench() {
+    if !tool_present("iverilog") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let args = [
+        "--unit",
+        "merger",
+        "--inputs",
+        "2",
+        "--count",
+        "6",
+        "--store-port",
+        "shared:2",
+        "--store-latency",
+        "3",
+    ];
+    export(dir.path(), &args);
+    let (ok, log) = run(dir.path(), "icarus");
+    assert!(ok, "{log}");
+    assert!(log.contains("_sp2: 6 merges"), "{log}");
+    if tool_present("verilator") {
+        lint_clean(dir.path());
+    }
+    let vectors = dir.path().join("vectors");
+    let expect = vectors.join("store.expect.hex");
+    let reads = hex_line(&expect, 2);
+    assert!(reads > 0);
+    flip(&expect, 2, 0);
+    let (ok, log) = run(dir.path(), "icarus");
+    assert!(!ok, "a wrong read count passed:\n{log}");
+    let want = format!(
+        "FAIL: merge 2 made {reads} `store_req` reads; golden's units make {}",
+        reads ^ 1
+    );
+    assert!(log.contains(&want), "{want}:\n{log}");
+    flip(&expect, 2, 0);
+    // A node record the first merge reads, changed: what the top writes
+    // or reports from it differs from golden.
+    flip(&vectors.join("store.words.hex"), 0, 0);
+    let (ok, log) = run(dir.path(), "icarus");
+    assert!(
+        !ok && log.contains("FAIL: output `"),
+        "a wrong store word passed:\n{log}"
+    );
 }
 
 /// Every other unit and mode, and the stall patterns, on Icarus (quick):

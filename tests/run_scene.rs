@@ -137,6 +137,24 @@ fn default_scene_runs_with_zero_mismatches_and_writes_every_frame() {
                 );
                 assert!(m["cycles"].as_u64().unwrap() > 100);
                 assert_eq!(m["mismatches"], 0);
+                // The merger top, with its default one shared store port:
+                // golden's reads, at most one a clock.
+                let t = &group["merger_rtl"];
+                assert_eq!(
+                    (&t["store_port"], &t["mismatches"]),
+                    (&json!("shared:3"), &json!(0)),
+                    "{t}"
+                );
+                assert_eq!(t["store_reads"], t["golden_store_reads"], "{t}");
+                let share = t["of_port"].as_f64().unwrap();
+                assert!(share > 0.0 && share <= 1.0, "{t}");
+            }
+            if let Some(m) = f["merger"].as_object() {
+                let (got, allowed) = (
+                    m["records_per_cycle"].as_f64().unwrap(),
+                    m["records_allowed_per_cycle"].as_f64().unwrap(),
+                );
+                assert!(got > 0.0 && got <= allowed, "frame {k}: {m:?}");
             }
         }
     }
@@ -683,6 +701,7 @@ fn the_library_runs_a_scene_frame_by_frame_as_the_command_does() {
         narrate: false,
         verify: false,
         images: true,
+        merger_store: Default::default(),
     };
     let run = Run::new(&scene, &options).unwrap();
     let err = run.finish().err().expect("no frame run yet");

@@ -49,6 +49,16 @@ pub struct Args {
     /// --unit merger only: log2 of each leaf FIFO's entries.
     #[arg(long = "leaf-bits")]
     leaf_bits: Option<u32>,
+    /// --unit merger only: `per-unit` (the default: every store answer a
+    /// precomputed stream), or `shared` / `shared:T`: one store read port,
+    /// answered by a store model in the testbench from a `$readmemh` store
+    /// image after --store-latency clocks.
+    #[arg(long = "store-port", value_parser = super::cosim::parse_store_port)]
+    store_port: Option<golden::merge::store_port::StorePort>,
+    /// --store-port shared only: clocks from a read taken to its answer,
+    /// at the earliest (default 1).
+    #[arg(long = "store-latency")]
+    store_latency: Option<u64>,
     /// Print one JSON object on stdout.
     #[arg(long)]
     json: bool,
@@ -63,6 +73,33 @@ struct Report {
     beats_out: u64,
     mask_cycles: u64,
     files: usize,
+}
+
+/// Refuses `--store-port` but with `--unit merger`, and `--store-latency`
+/// but with a shared port.
+fn check_store_flags(a: &Args) -> Result<(), String> {
+    use golden::merge::store_port::StorePort;
+    let shared = matches!(a.store_port, Some(StorePort::Shared { .. }));
+    if a.store_port.is_some() && a.unit != Unit::Merger {
+        return Err("--store-port applies to --unit merger only".into());
+    }
+    match a.store_latency {
+        Some(_) if !shared => {
+            Err("--store-latency applies to --unit merger --store-port shared only".into())
+        }
+        Some(0) => Err("--store-latency 0: expected 1 or more clocks".into()),
+        _ => Ok(()),
+    }
+}
+
+/// The merger `a` asks for: its sizes and store port.
+fn merger_of(a: &Args) -> Result<rtl_gen::merge::MergerConfig, String> {
+    let mut c = merger_config(&a.design.merge_design()?, a.capacity_bits, a.leaf_bits)?;
+    if let Some(port) = a.store_port {
+        c.sizes.store_port = port;
+    }
+    c.validate().map_err(|e| e.to_string())?;
+    Ok(c)
 }
 
 /// The arguments that wrote the testbench, as a shell line.
@@ -90,8 +127,9 @@ fn spec(a: &Args, count: usize, rtl: &Path) -> Result<ExportSpec, String> {
             merge::export_spec(&d, a.seed, count, stalls, rtl).map_err(e)
         }
         (Unit::Merger, _) => {
-            let c = merger_config(&a.design.merge_design()?, a.capacity_bits, a.leaf_bits)?;
-            merger::export_spec(&c, a.seed, count, stalls, rtl).map_err(e)
+            let c = merger_of(a)?;
+            let latency = a.store_latency.unwrap_or(1);
+            merger::export_spec(&c, a.seed, count, stalls, latency, rtl).map_err(e)
         }
     }
 }
@@ -108,14 +146,13 @@ pub fn main(a: Args) -> CmdResult {
         Unit::Merge | Unit::Merger => golden::vectors::MAX_MERGE_COUNT,
     };
     golden::vectors::check_count("--count", a.count, limit)?;
+    check_store_flags(&a)?;
     let count = usize::try_from(a.count).map_err(|_| "--count is too large".to_string())?;
     // Refuse a bad configuration before anything is written.
     match a.unit {
         Unit::Translate => a.design.translate_design().map(|_| ())?,
         Unit::Merge => a.design.merge_design().map(|_| ())?,
-        Unit::Merger => {
-            merger_config(&a.design.merge_design()?, a.capacity_bits, a.leaf_bits).map(|_| ())?
-        }
+        Unit::Merger => merger_of(&a).map(|_| ())?,
     }
     golden::output::check_destination(&a.out, true)?;
     let rtl = a.out.join(RTL_DIR);

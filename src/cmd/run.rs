@@ -4,9 +4,10 @@
 
 use std::path::PathBuf;
 
+use golden::merge::store_port::StorePort;
 use golden::scene::{Scene, MAX_IMAGE_SIDE};
 use hiermerge::run::{
-    closing_table, preflight, run, Options, RunEngine, PATCH_FROM_VAR, PATCH_TO_VAR,
+    closing_table, preflight, run, MergerStore, Options, RunEngine, PATCH_FROM_VAR, PATCH_TO_VAR,
 };
 
 use crate::report::{emit, CmdResult};
@@ -34,6 +35,18 @@ pub struct Args {
     /// simulator: nothing to build, slower per cycle).
     #[arg(long, default_value = "verilator")]
     engine: String,
+    /// How the hierarchy merger top reaches the store: `shared` or
+    /// `shared:T` (the default, `shared:3`): one read port for every unit,
+    /// a tag FIFO of 2^T reads in flight, answered from the store image of
+    /// the merge's inputs by a store model after --store-latency clocks;
+    /// `per-unit`: every fetcher and the writer with its own read streams,
+    /// their answers precomputed by golden.
+    #[arg(long = "store-port", value_parser = crate::cmd::cosim::parse_store_port)]
+    store_port: Option<StorePort>,
+    /// A shared store port's latency: clocks from a read taken to its
+    /// answer, at the earliest (default 1).
+    #[arg(long = "store-latency")]
+    store_latency: Option<u64>,
     /// Print one JSON object on stdout (no progress bars).
     #[arg(long)]
     json: bool,
@@ -71,6 +84,7 @@ pub fn main(a: Args) -> CmdResult {
             p.display().to_string()
         });
     preflight::check(&scene, &file).map_err(|e| e.to_string())?;
+    let merger_store = merger_store(&a)?;
     scene.width = a.width.unwrap_or(scene.width);
     scene.height = a.height.unwrap_or(scene.height);
     // A fresh folder, put in place of --out only when the run is complete
@@ -86,6 +100,7 @@ pub fn main(a: Args) -> CmdResult {
         narrate: !a.json,
         verify: a.verify,
         images: true,
+        merger_store,
     };
     let report = run(&scene, &options)?;
     let json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
@@ -138,7 +153,31 @@ fn reproduce(a: &Args) -> String {
     if a.verify {
         line += " --verify";
     }
+    if let Some(port) = a.store_port {
+        let name = MergerStore { port, latency: 1 }.port_name();
+        line += &format!(" --store-port {name}");
+    }
+    if let Some(l) = a.store_latency {
+        line += &format!(" --store-latency {l}");
+    }
     line
+}
+
+/// The merger top's store port from `--store-port` and `--store-latency`
+/// (one shared port answering the next clock when neither is given).
+fn merger_store(a: &Args) -> Result<MergerStore, String> {
+    let d = MergerStore::default();
+    let port = a.store_port.unwrap_or(d.port);
+    match (port, a.store_latency) {
+        (StorePort::PerUnit, Some(_)) => {
+            Err("--store-latency applies to a shared store port (--store-port shared[:T]) only: per-unit ports get golden's answers as streams".into())
+        }
+        (_, Some(0)) => Err("--store-latency 0: expected 1 or more clocks".into()),
+        (port, latency) => Ok(MergerStore {
+            port,
+            latency: latency.unwrap_or(d.latency),
+        }),
+    }
 }
 
 /// The whole `--out` folder is replaced, so it must be empty or an earlier

@@ -292,7 +292,7 @@ impl MergeStage<'_> {
                 return Ok(None);
             }
         };
-        let engine = self.merger.engine.label();
+        let engine = self.merger.engine_label();
         if r.build_seconds > 0.0 {
             lines.simulated.push(format!(
                 "hierarchy merger RTL{label}: {} generated and built ({engine}, {:.1} s)",
@@ -302,13 +302,14 @@ impl MergeStage<'_> {
         }
         lines.simulated.push(format!(
             "hierarchy merger RTL{label} ({engine}): {} inputs, {} cycles, {} records \
-             ({:.2} cycles/node, {:.2} store reads/node, {:.3} records/cycle), {} mismatches{}",
+             ({:.2} cycles/node, {:.2} store reads/node, {:.3} records/cycle){}, {} mismatches{}",
             r.n,
             r.cycles,
             r.records,
             r.cycles_per_node,
             r.store_reads_per_node,
             r.records_per_cycle,
+            port_said(&r),
             r.mismatches,
             r.first_mismatch
                 .as_ref()
@@ -316,4 +317,19 @@ impl MergeStage<'_> {
         ));
         Ok(Some(r))
     }
+}
+
+/// What a shared store port allowed a merge: its reads (and golden's
+/// units'), and its records per cycle against the port's one read a clock.
+fn port_said(r: &MergerRtlFrame) -> String {
+    let (Some(latency), Some(allowed), Some(share)) =
+        (r.store_latency, r.records_allowed_per_cycle, r.of_port)
+    else {
+        return String::new();
+    };
+    format!(
+        "; store port {} (latency {latency}): {} reads ({} by golden's units), {:.4} \
+         records/cycle of the {:.4} the port allows: {:.3} of the port",
+        r.store_port, r.store_reads, r.golden_store_reads, r.records_per_cycle, allowed, share
+    )
 }

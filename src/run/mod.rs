@@ -6,7 +6,8 @@
 //! merge redone only when an input changed), check the merged hierarchy,
 //! run the translation unit's and the merging module's RTL on what changed,
 //! and the hierarchy merger top on every merge redone (fetchers, merging
-//! module, upper builder, record writer on the store's real contents, its
+//! module, upper builder, record writer on the store's real contents,
+//! through one shared store read port by default: `Options::merger_store`), its
 //! written records compared bit for bit with the merged hierarchy), when
 //! the scene uses them and `Options::rtl` asks for RTL, trace the ray
 //! kinds the scene asks for through the merged hierarchy, compare node tests
@@ -15,7 +16,7 @@
 //! reuses the last frame's results and says so.
 //!
 //! ```no_run
-//! use hiermerge::run::{preflight, run, Options, RunEngine};
+//! use hiermerge::run::{preflight, run, MergerStore, Options, RunEngine};
 //! use golden::scene::Scene;
 //!
 //! let scene = Scene::load("scenes/default.json".as_ref())?;
@@ -31,6 +32,7 @@
 //!     narrate: false,
 //!     verify: true,
 //!     images: true,
+//!     merger_store: MergerStore::default(), // one shared store read port
 //! };
 //! let report = run(&scene, &options)?;
 //! assert_eq!(report.mismatches, 0);
@@ -52,7 +54,7 @@ mod table;
 pub use compare::{Comparison, SUBSAMPLE};
 pub use engine::RunEngine;
 pub use merge_rtl::MergeRtlFrame;
-pub use merger_rtl::{MergerRtlFrame, PATCH_FROM_VAR, PATCH_TO_VAR};
+pub use merger_rtl::{MergerRtlFrame, MergerStore, PATCH_FROM_VAR, PATCH_TO_VAR};
 pub use merges::GroupOut;
 pub use pipeline::{
     run, EffectsInfo, FrameOut, ImageSummary, MergerTotals, ObjectInfo, Options, RtlInfo, Run,

@@ -18,7 +18,7 @@ use serde::Serialize;
 use super::compare::{compare, Comparison, SUBSAMPLE};
 use super::engine::RunEngine;
 use super::merge_rtl::MergeRtl;
-use super::merger_rtl::MergerRtl;
+use super::merger_rtl::{MergerRtl, MergerStore};
 use super::merges::{GroupOut, Lines, MergeStage};
 use super::render::{trace_frame, RayCounts, Traced};
 use super::rtl::{Placed, RtlFrame, TranslateRtl};
@@ -45,6 +45,9 @@ pub struct Options {
     /// that wants the report alone (each image is synced to disk: most of
     /// the time of a small scene's run).
     pub images: bool,
+    /// How the hierarchy merger top reaches the store (`--store-port`,
+    /// `--store-latency`; one shared read port by default).
+    pub merger_store: MergerStore,
 }
 
 impl Options {
@@ -61,6 +64,7 @@ impl Options {
             narrate: false,
             verify: false,
             images: false,
+            merger_store: MergerStore::default(),
         }
     }
 }
@@ -111,6 +115,9 @@ pub struct RtlInfo {
     /// The hierarchy merger top: `built (Verilator): <top>`, `not used by
     /// the scene`, `disabled (--no-rtl)`, `not needed`.
     pub merger: String,
+    /// How the merger top reaches the store: `store port shared:3, latency
+    /// 1` or `per-unit store ports`.
+    pub merger_store: String,
     /// The engine the units ran on.
     pub engine: RunEngine,
 }
@@ -176,6 +183,13 @@ pub struct MergerTotals {
     pub store_reads: u64,
     pub cycles_per_node: f64,
     pub store_reads_per_node: f64,
+    /// Records written per cycle over the frame's merges.
+    pub records_per_cycle: f64,
+    /// A shared store port: the records per cycle it allows at one read a
+    /// clock (`records / store_reads`), and the share of it reached
+    /// (`store_reads / cycles`).
+    pub records_allowed_per_cycle: Option<f64>,
+    pub of_port: Option<f64>,
     pub mismatches: u64,
 }
 
@@ -183,7 +197,9 @@ impl MergerTotals {
     /// The sums over `groups`' merger runs; None when none ran.
     fn of(groups: &[GroupOut]) -> Option<MergerTotals> {
         let mut t = MergerTotals::default();
+        let mut shared = false;
         for r in groups.iter().filter_map(|g| g.merger_rtl.as_ref()) {
+            shared |= r.store_latency.is_some();
             t.merges += 1;
             t.cycles += r.cycles;
             t.records += r.records;
@@ -192,6 +208,11 @@ impl MergerTotals {
         }
         t.cycles_per_node = t.cycles as f64 / t.records.max(1) as f64;
         t.store_reads_per_node = t.store_reads as f64 / t.records.max(1) as f64;
+        t.records_per_cycle = t.records as f64 / t.cycles.max(1) as f64;
+        if shared {
+            t.records_allowed_per_cycle = Some(t.records as f64 / t.store_reads.max(1) as f64);
+            t.of_port = Some(t.store_reads as f64 / t.cycles.max(1) as f64);
+        }
         (t.merges > 0).then_some(t)
     }
 }
@@ -373,6 +394,7 @@ impl<'a> Run<'a> {
                 "not needed (no merge redone)".into()
             },
             engine: options.engine,
+            merger_store: options.merger_store.label(),
         };
         let run = Run {
             scene,
@@ -387,7 +409,7 @@ impl<'a> Run<'a> {
                 scene,
                 options,
                 rtl: MergeRtl::new(options.engine),
-                merger: MergerRtl::new(options.engine),
+                merger: MergerRtl::new(options.engine, options.merger_store),
             },
             outs: Vec::new(),
             last_traced: None,

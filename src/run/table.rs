@@ -40,15 +40,20 @@ fn level_column(f: &super::pipeline::FrameOut) -> String {
         .join("/")
 }
 
-/// The merger top's cycles, cycles per merged node and store reads per
-/// merged node over the frame's merges; `-` when it ran on none.
-fn merger_columns(f: &super::pipeline::FrameOut) -> [String; 3] {
+/// The merger top's cycles, cycles per merged node, store reads per
+/// merged node, and records per cycle (with a shared store port, `/` what
+/// the port allows) over the frame's merges; `-` when it ran on none.
+fn merger_columns(f: &super::pipeline::FrameOut) -> [String; 4] {
     match &f.merger {
-        None => ["-".into(), "-".into(), "-".into()],
+        None => ["-".into(), "-".into(), "-".into(), "-".into()],
         Some(m) => [
             m.cycles.to_string(),
             format!("{:.2}", m.cycles_per_node),
             format!("{:.2}", m.store_reads_per_node),
+            match m.records_allowed_per_cycle {
+                Some(a) => format!("{:.4}/{a:.4}", m.records_per_cycle),
+                None => format!("{:.4}", m.records_per_cycle),
+            },
         ],
     }
 }
@@ -59,7 +64,7 @@ pub fn closing_table(r: &RunReport) -> String {
     let _ = writeln!(
         s,
         "scene {} (D={} Q={}), merge {}, translation {}; RTL ({}): translation {}; merge {}; \
-         merger {}",
+         merger {} ({})",
         r.scene,
         r.params.max_lod,
         r.params.quant_bits,
@@ -68,11 +73,12 @@ pub fn closing_table(r: &RunReport) -> String {
         r.rtl.engine.name(),
         r.rtl.translation,
         r.rtl.merge,
-        r.rtl.merger
+        r.rtl.merger,
+        r.rtl.merger_store
     );
     let _ = writeln!(
         s,
-        "{:>5} {:>19} {:>6} {:>5} {:>7} {:>8} {:>10} {:>8} {:>7} {:>5} {:>24} {:>33}",
+        "{:>5} {:>19} {:>6} {:>5} {:>7} {:>8} {:>10} {:>8} {:>7} {:>13} {:>5} {:>24} {:>33}",
         "frame",
         "hierarchies",
         "merge",
@@ -82,14 +88,27 @@ pub fn closing_table(r: &RunReport) -> String {
         "merger cyc",
         "cyc/node",
         "rd/node",
+        "rec/cyc",
         "mism",
         "node tests/ray m/s/full",
         "ms step/check/rtl/trace/cmp/png"
     );
     let _ = writeln!(
         s,
-        "{:>5} {:>19} {:>6} {:>5} {:>7} {:>8} {:>10} {:>8} {:>7} {:>5} {:>24} {:>33}",
-        "", "reused/built/moved/retr", "", "", "", "", "", "", "", "", "(subsample)", ""
+        "{:>5} {:>19} {:>6} {:>5} {:>7} {:>8} {:>10} {:>8} {:>7} {:>13} {:>5} {:>24} {:>33}",
+        "",
+        "reused/built/moved/retr",
+        "",
+        "",
+        "",
+        "",
+        "",
+        "",
+        "",
+        "/port allows",
+        "",
+        "(subsample)",
+        ""
     );
     for f in &r.frames {
         let hier = format!(
@@ -107,10 +126,10 @@ pub fn closing_table(r: &RunReport) -> String {
         let times = [t.step, t.check, t.rtl, t.trace, t.compare, t.write]
             .map(ms)
             .join("/");
-        let [mc, mcn, mrn] = merger_columns(f);
+        let [mc, mcn, mrn, mrc] = merger_columns(f);
         let _ = writeln!(
             s,
-            "{:>5} {:>19} {:>6} {:>5} {:>7} {:>8} {:>10} {:>8} {:>7} {:>5} {:>24} {:>33}",
+            "{:>5} {:>19} {:>6} {:>5} {:>7} {:>8} {:>10} {:>8} {:>7} {:>13} {:>5} {:>24} {:>33}",
             f.frame,
             hier,
             merge_column(f),
@@ -120,6 +139,7 @@ pub fn closing_table(r: &RunReport) -> String {
             mc,
             mcn,
             mrn,
+            mrc,
             f.mismatches,
             tests,
             times

@@ -13,6 +13,7 @@
 //! `ready` from [`crate::icarus::multi_batch::ready_masks`], the same
 //! [`crate::tb::StallGen`] draws as the multi-stream batch.
 
+mod store;
 mod verilog;
 
 use std::fs;
@@ -26,6 +27,8 @@ use crate::design::{Design, PortDir};
 use crate::error::{io_err, CosimError, Result};
 use crate::icarus::multi_batch::{driver_gaps, ready_masks, stream_seed};
 use crate::tb::{BenchConfig, Stalls};
+
+pub use store::StoreSpec;
 
 /// The testbench's file name (its module is `tb`).
 pub const TB_FILE: &str = "tb.v";
@@ -172,6 +175,9 @@ pub struct ExportSpec {
     pub stalls: Stalls,
     /// The command line that wrote it (in the testbench's header).
     pub command: String,
+    /// A shared store port's store (`store_req` / `store_resp`), answered
+    /// by a store model in the testbench; None for a unit without one.
+    pub store: Option<StoreSpec>,
 }
 
 /// What [`write()`] wrote.
@@ -290,6 +296,9 @@ fn check(spec: &ExportSpec) -> Result<()> {
             "{beats} output beats, or an input stream of {most_in:?}: the testbench counts at most 2^31 - 1"
         )));
     }
+    if let Some(st) = &spec.store {
+        check_store(spec, st)?;
+    }
     for i in &spec.inputs {
         if !i.after.is_empty() && i.after.len() != i.stream.beats.len() {
             return Err(design_err(format!(
@@ -299,6 +308,73 @@ fn check(spec: &ExportSpec) -> Result<()> {
                 i.stream.beats.len()
             )));
         }
+    }
+    Ok(())
+}
+
+/// Refuses a store the testbench cannot answer from: missing or
+/// misdirected store ports, words of another width, a run table of
+/// another size or runs outside the words, an unknown epoch stream.
+fn check_store(spec: &ExportSpec, st: &StoreSpec) -> Result<()> {
+    let d = &spec.design;
+    let port = |name: &str, dir: PortDir| -> Result<usize> {
+        let p = d.port(d.port_id(name)?)?;
+        match p.dir == dir {
+            true => Ok(p.width),
+            false => Err(CosimError::PortMismatch {
+                port: name.to_string(),
+                what: format!("the store model needs it as {dir:?}"),
+            }),
+        }
+    };
+    port("store_req_valid", PortDir::Output)?;
+    port("store_req_ready", PortDir::Input)?;
+    port("store_resp_valid", PortDir::Input)?;
+    port("store_resp_ready", PortDir::Output)?;
+    let req = port("store_req_data", PortDir::Output)? as u32;
+    let resp = port("store_resp_data", PortDir::Input)?;
+    let fields = [&st.index, &st.hier, &st.array];
+    if let Some(f) = fields
+        .iter()
+        .find(|f| f.offset + f.width > req || f.width > 32)
+    {
+        return Err(design_err(format!(
+            "store field `{}` (bits {}..{}) outside the {req}-bit `store_req_data`",
+            f.name,
+            f.offset,
+            f.offset + f.width
+        )));
+    }
+    if let Some(w) = st.words.iter().position(|w| w.width() != resp) {
+        return Err(design_err(format!(
+            "store word {w}: {} bits for the {resp}-bit `store_resp_data`",
+            st.words[w].width()
+        )));
+    }
+    let want = st.merges() * 2 * st.hierarchies() as usize;
+    if st.runs.len() != want {
+        return Err(design_err(format!(
+            "store: {} runs for {} merges of 2 arrays of {} hierarchies",
+            st.runs.len(),
+            st.merges(),
+            st.hierarchies()
+        )));
+    }
+    if let Some(r) = st
+        .runs
+        .iter()
+        .find(|r| r.0 as usize + r.1 as usize > st.words.len())
+    {
+        return Err(design_err(format!(
+            "store run {r:?} outside its {} words",
+            st.words.len()
+        )));
+    }
+    if !spec.inputs.iter().any(|i| i.stream.name == st.epoch_input) {
+        return Err(design_err(format!(
+            "store: no input stream `{}` numbers the merges",
+            st.epoch_input
+        )));
     }
     Ok(())
 }
@@ -397,6 +473,39 @@ pub fn write(spec: &ExportSpec, dir: &Path) -> Result<Exported> {
             .map(|_| format!("{:016x}", gen.go_word(&mut rng)))
             .collect();
         put(vector_file(&st.name, "ready"), mask)?;
+    }
+    if let Some(st) = &spec.store {
+        let hex32 = |v: u64| format!("{v:08x}");
+        put(
+            vector_file("store", "words"),
+            match st.words.is_empty() {
+                true => vec!["0".into()],
+                false => st.words.iter().map(BitVec::to_hex).collect(),
+            },
+        )?;
+        put(
+            vector_file("store", "base"),
+            st.runs.iter().map(|r| hex32(r.0.into())).collect(),
+        )?;
+        put(
+            vector_file("store", "len"),
+            st.runs.iter().map(|r| hex32(r.1.into())).collect(),
+        )?;
+        put(
+            vector_file("store", "expect"),
+            st.reads.iter().map(|&r| hex32(r)).collect(),
+        )?;
+        // The store model's own stall draws, apart from every stream's.
+        for (k, what) in [(0, "req_ready"), (1, "resp_go")] {
+            let (mut rng, mut gen) = (
+                crate::tb::Prng::derived(stream_seed(spec.seed, 1000 + k), 2),
+                crate::tb::StallGen::new(spec.stalls),
+            );
+            let mask = (0..words)
+                .map(|_| format!("{:016x}", gen.go_word(&mut rng)))
+                .collect();
+            put(vector_file("store", what), mask)?;
+        }
     }
     let tb = verilog::testbench(spec, words);
     put(TB_FILE.to_string(), vec![tb])?;

@@ -14,7 +14,7 @@ use super::{RTL_DIR, TB_FILE, WATCHDOG_CYCLES};
 use crate::design::PortDir;
 
 /// Bits of an index into `n` entries (at least 1).
-fn index_bits(n: usize) -> u32 {
+pub(super) fn index_bits(n: usize) -> u32 {
     (usize::BITS - n.saturating_sub(1).leading_zeros()).max(1)
 }
 
@@ -390,8 +390,20 @@ pub(super) fn testbench(spec: &ExportSpec, mask_words: usize) -> String {
         tasks.push_str(&show_task(o, w, &spec.transaction));
         all_done.push(format!("tb_{0}_got == tb_{0}_beats", o.stream.name));
     }
-    let st = status(spec);
+    let mut st = status(spec);
     decls.push_str(&st.decls);
+    let word = format!("tb_cycle[{}:6]", index_bits(mask_words) + 5);
+    let store = spec.store.as_ref().map(|s| {
+        let w = width_of(spec, "store_resp_data");
+        super::store::parts(s, w, mask_words, &word)
+    });
+    let (mut load_store, mut drive_store, mut observe_store) = Default::default();
+    if let Some(p) = store {
+        decls.push_str(&p.decls);
+        all_done.push(p.done);
+        st.end.push_str(&p.end);
+        (load_store, drive_store, observe_store) = (p.load, p.drive, p.observe);
+    }
     let outputs: Vec<&str> = d
         .ports
         .iter()
@@ -434,7 +446,7 @@ module tb;
 {decls}
     task drive;
         begin
-{drive}        end
+{drive}{drive_store}        end
     endtask
 
     task observe;
@@ -444,7 +456,7 @@ module tb;
                 $display("FAIL: cycle %0d: an output is X or Z", tb_cycle);
                 tb_failed = 1'b1;
             end
-{accept}{observe_outputs}{status_cycle}            if (tb_failed) begin
+{observe_store}{accept}{observe_outputs}{status_cycle}            if (tb_failed) begin
                 tb_finished = 1'b1;
             end else if (tb_draining) begin
                 if (tb_drained == DRAIN_CYCLES) tb_finished = 1'b1;
@@ -464,7 +476,7 @@ module tb;
     endtask
 {tasks}
     initial begin
-{load}{reset_on}        repeat (RESET_CYCLES) begin
+{load}{load_store}{reset_on}        repeat (RESET_CYCLES) begin
             #5 {clk} = 1'b1;
             #5 {clk} = 1'b0;
         end

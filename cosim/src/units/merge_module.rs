@@ -171,6 +171,7 @@ pub fn export_spec(
         seed,
         stalls,
         command: String::new(),
+        store: None,
     })
 }
 

@@ -17,6 +17,7 @@ use std::path::Path;
 use golden::layout::Field;
 use golden::merge::merger_unit::{MergerTransaction, ModulePass};
 use golden::merge::per_node_unit::PerNodeReport;
+use golden::merge::store_port::StoreWords;
 use golden::merge::MergeMode;
 use golden::translate::stimulus::SplitMix64;
 pub use golden::vectors::streams::Merges;
@@ -137,16 +138,23 @@ pub fn is_shared(c: &MergerConfig) -> bool {
     c.sizes.store_port != golden::merge::store_port::StorePort::PerUnit
 }
 
-/// Refuses a shared-port merger where only precomputed streams run.
+/// Refuses a shared-port merger where only precomputed streams run (the
+/// shared port's reads come in an order that depends on timing, so its
+/// store's answers cannot be streams fixed in advance).
 fn per_unit_only(c: &MergerConfig, what: &str) -> Result<()> {
-    if is_shared(c) {
-        return Err(CosimError::Unsupported {
-            what: format!(
-                "{what} of a merger with a shared store port (its store answers reads as they come: `cosim --unit merger` runs it)"
-            ),
-        });
+    match is_shared(c) {
+        true => Err(shared_refused(what)),
+        false => Ok(()),
     }
-    Ok(())
+}
+
+fn shared_refused(what: &str) -> CosimError {
+    CosimError::Unsupported {
+        what: format!(
+            "{what} of a merger with a shared store port (its store answers reads as they come: \
+             `cosim --unit merger --store-port shared` and `run --store-port shared` run it)"
+        ),
+    }
 }
 
 /// Whether `c` merges per node (its fetchers have a probe port, its
@@ -339,17 +347,24 @@ fn next_chunk(
 
 /// The exported testbench of `c` (`hiermerge export-tb --unit merger`):
 /// `count` random merges from `seed` as [`run`] draws them (one chunk),
-/// the Verilog written to `rtl`.
+/// the Verilog written to `rtl`. A shared store port's reads are answered
+/// by the testbench's store model after `store_latency` clocks, from the
+/// words golden's units read.
 pub fn export_spec(
     c: &MergerConfig,
     seed: u64,
     count: usize,
     stalls: crate::tb::Stalls,
+    store_latency: u64,
     rtl: &Path,
 ) -> Result<ExportSpec> {
-    per_unit_only(c, "an exported testbench")?;
     let mut draw = Draw::new(c, seed, Merges::Random)?;
-    let streams = next_chunk(&mut draw, c, count, None)?.streams;
+    let mut streams = next_chunk(&mut draw, c, count, None)?.streams;
+    let mut store = None;
+    if is_shared(c) {
+        let (shared, st) = shared::export_store(c, &streams, count, store_latency)?;
+        (streams, store) = (shared, Some(st));
+    }
     let design = crate::from_rtl::design_from_module(&merger_module(c)?, rtl)?;
     let (inputs, outputs) = export_streams(&streams, |name| {
         named_fields(output_fields(c, name).unwrap_or_default())
@@ -364,6 +379,7 @@ pub fn export_spec(
         seed,
         stalls,
         command: String::new(),
+        store,
     })
 }
 
@@ -475,10 +491,42 @@ fn chunked_sim(
 /// chunk from reset with [`run`]'s bench, comparison and decoding: a
 /// vectors file ([`run_streams`]), or a scene's merges frame after frame
 /// (`hiermerge run`), each of them golden's transaction of the store's
-/// real contents.
+/// real contents. A merger with a shared store port answers its reads
+/// from a store model ([`SceneStore`]), as `cosim --unit merger
+/// --store-port shared` does.
 pub struct MergerSim {
     config: MergerConfig,
-    sim: ChunkedSim,
+    sim: Sim,
+}
+
+/// How a [`MergerSim`] runs: precomputed streams (per-unit store ports) or
+/// a store model on the shared port.
+enum Sim {
+    PerUnit(ChunkedSim),
+    Shared(Box<shared::SharedSim>),
+}
+
+/// The store a shared-port merger reads in a [`MergerSim::run`]: its
+/// image, and the clocks it takes to answer a read.
+#[derive(Clone, Copy, Debug)]
+pub struct SceneStore<'a> {
+    /// Every word a read may ask for (`StoreWords::of_hierarchies`).
+    pub image: &'a StoreWords,
+    /// The store answers a read this many clocks after taking it, at the
+    /// earliest (0 counts as 1).
+    pub latency: u64,
+}
+
+/// What a [`MergerSim::run`] measured.
+#[derive(Clone, Debug)]
+pub struct SimOutcome {
+    /// The bench's counts, comparison and status.
+    pub totals: ChunkTotals,
+    /// What the merges exercised.
+    pub stats: MergeStats,
+    /// A shared store port only: what the store saw, and whether its
+    /// reads were golden's units'.
+    pub store: Option<StoreOutcome>,
 }
 
 impl MergerSim {
@@ -493,17 +541,18 @@ impl MergerSim {
         dir: &Path,
         patch: Option<&VerilogPatch>,
     ) -> Result<MergerSim> {
-        per_unit_only(c, "a merger simulator of precomputed streams")?;
         let module = merger_module(c)?;
         let design: Design = crate::from_rtl::design_from_module(&module, dir)?;
         if let Some(patch) = patch {
             apply_patch(&design, patch, engine)?;
         }
-        // The build a chunk's engine opens: a patched design's traces, so
-        // its failure's waveform needs no second build.
+        let shared = is_shared(c);
+        // The build a chunk's engine opens: a patched per-unit design's
+        // traces, so its failure's waveform needs no second build (the
+        // shared port's reactive bench runs untraced).
         if engine == MergerEngine::Verilator {
             let (format, scope) = ModuleRunConfig::default().waves();
-            match patch {
+            match patch.filter(|_| !shared) {
                 None => crate::open_engine(crate::EngineKind::Verilator, &design, false)?,
                 Some(_) => crate::open_tracing_engine(
                     crate::EngineKind::Verilator,
@@ -513,25 +562,33 @@ impl MergerSim {
                 )?,
             };
         }
+        let sim = match shared {
+            true => Sim::Shared(Box::new(shared::SharedSim::new(c, module, design, engine)?)),
+            false => Sim::PerUnit(chunked_sim(c, module, design, engine, patch.is_some())?),
+        };
         Ok(MergerSim {
             config: c.clone(),
-            sim: chunked_sim(c, module, design, engine, patch.is_some())?,
+            sim,
         })
     }
 
     /// Runs `streams` as one chunk: every output beat compared (a
     /// mismatch decoded field by field), `done` counted, `idle` checked.
+    /// Per-unit store ports only (the streams carry the store's answers).
     pub fn run_streams(
         &self,
         streams: &UnitStreams,
         bench: &ModuleRunConfig,
     ) -> Result<ChunkTotals> {
         let c = &self.config;
+        let Sim::PerUnit(sim) = &self.sim else {
+            return Err(shared_refused("a replay of precomputed streams"));
+        };
         let decode = |stream: &str, e: &Transaction, g: &Transaction| {
             decoded_pair(&*decoder_of(c, stream), e, g)
         };
         let mut totals = ChunkTotals::default();
-        self.sim.run_chunk(
+        sim.run_chunk(
             &mut totals,
             streams.merges(),
             streams,
@@ -542,20 +599,55 @@ impl MergerSim {
         Ok(totals)
     }
 
-    /// Runs golden's transactions `txs` as one chunk ([`Self::run_streams`]),
-    /// with what they exercise; `flip_expected` (the test hook) flips bit 0
-    /// of that merge's expected `header` beat.
+    /// Runs golden's transactions `txs` as one chunk, with what they
+    /// exercise; `flip_expected` (the test hook) flips bit 0 of that
+    /// merge's expected `header` beat. A shared store port's reads are
+    /// answered from `store` (None: from the words golden's units read)
+    /// and checked against golden's units' (as many per merge, none
+    /// outside the store); per-unit ports get golden's answers as streams.
     pub fn run(
         &self,
         txs: &[MergerTransaction],
         bench: &ModuleRunConfig,
         flip_expected: Option<usize>,
-    ) -> Result<(ChunkTotals, MergeStats)> {
-        let MergerStreams { mut streams, stats } = merger_streams(&self.config, txs)?;
+        store: Option<SceneStore>,
+    ) -> Result<SimOutcome> {
+        let c = &self.config;
+        let MergerStreams { mut streams, stats } = merger_streams(c, txs)?;
         if let Some(n) = flip_expected {
             flip_header(&mut streams, n)?;
         }
-        Ok((self.run_streams(&streams, bench)?, stats))
+        let Sim::Shared(sim) = &self.sim else {
+            let totals = self.run_streams(&streams, bench)?;
+            return Ok(SimOutcome {
+                totals,
+                stats,
+                store: None,
+            });
+        };
+        let decode = |stream: &str, e: &Transaction, g: &Transaction| {
+            decoded_pair(&*decoder_of(c, stream), e, g)
+        };
+        let mut totals = ChunkTotals::default();
+        let mut outcome = StoreOutcome::default();
+        let bench = super::chunked::chunk_bench(bench, 0);
+        let n = txs.len();
+        let (latency, image) = store.map_or((1, None), |s| (s.latency, Some(s.image)));
+        sim.run_chunk(
+            &mut totals,
+            &mut outcome,
+            streams,
+            n,
+            &bench,
+            latency,
+            image,
+            &decode,
+        )?;
+        Ok(SimOutcome {
+            totals,
+            stats,
+            store: Some(outcome),
+        })
     }
 }
 

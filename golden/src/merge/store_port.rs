@@ -16,6 +16,7 @@ use std::collections::HashMap;
 use crate::layout::{Bits, Field};
 use crate::merge::fetch_unit::FetchLayout;
 use crate::params::Params;
+use crate::store::Hierarchy;
 
 /// How the merger's units reach the store (SPEC 8.15).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -202,6 +203,40 @@ impl StoreWords {
     /// Whether it holds no word.
     pub fn is_empty(&self) -> bool {
         self.words.is_empty()
+    }
+
+    /// Every word held, with its array and address, in no order.
+    pub fn iter(&self) -> impl Iterator<Item = (StoreArray, StoreAddr, &Bits)> + '_ {
+        self.words.iter().map(|((a, at), w)| (*a, *at, w))
+    }
+
+    /// The store image of `hs` as the merger's units read it: each
+    /// hierarchy's node records in the node array and its references in
+    /// the reference array, at (its id, the entry's index), packed with its
+    /// parameters' node and reference layouts (the fetchers' and the
+    /// writer's answers, 8.13).
+    pub fn of_hierarchies<'a>(
+        hs: impl IntoIterator<Item = &'a Hierarchy>,
+    ) -> Result<StoreWords, String> {
+        let mut store = StoreWords::default();
+        for h in hs {
+            let hier = h.id as u64;
+            let err = |what: &str, e: crate::layout::LayoutError| {
+                format!("hierarchy {}: packing its {what}: {e}", h.id)
+            };
+            let nodes = h.pack_nodes().map_err(|e| err("node records", e))?;
+            let refs = h.pack_refs().map_err(|e| err("references", e))?;
+            for (array, words) in [(StoreArray::Node, nodes), (StoreArray::Reference, refs)] {
+                for (index, word) in words.into_iter().enumerate() {
+                    let at = StoreAddr {
+                        hier,
+                        index: index as u64,
+                    };
+                    store.insert(array, at, word);
+                }
+            }
+        }
+        Ok(store)
     }
 }
 

@@ -282,7 +282,7 @@ pub struct Args {
 const DEFAULT_COUNT: u64 = 10_000;
 
 /// `--store-port`: `per-unit`, `shared` or `shared:T` (T in 1..=8).
-fn parse_store_port(text: &str) -> Result<golden::merge::store_port::StorePort, String> {
+pub(crate) fn parse_store_port(text: &str) -> Result<golden::merge::store_port::StorePort, String> {
     use golden::merge::store_port::StorePort;
     match text {
         "per-unit" => return Ok(StorePort::PerUnit),

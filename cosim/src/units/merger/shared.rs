@@ -24,12 +24,14 @@ use rtl_gen::merge::MergerConfig;
 
 use super::{chunk_sizes, decoder_of, golden_chunk, merger_module, Draw, PULSES};
 use super::{MergerEngine, Outcome, RunConfig};
+use crate::bitvec::BitVec;
 use crate::design::Design;
 use crate::engine::Engine;
 use crate::error::Result;
+use crate::export_tb::StoreSpec;
 use crate::ledger::StimulusDigest;
-use crate::tb::{run_multi_stream_bench_reactive, Transaction};
-use crate::units::chunked::{chunk_bench, UnitStreams};
+use crate::tb::{run_multi_stream_bench_reactive, BenchConfig, Transaction};
+use crate::units::chunked::{chunk_bench, ChunkTotals, PairDecoder, UnitStreams};
 use crate::units::multi_stream::decoded_pair;
 use crate::units::store_port::{StoreModel, StoreStats};
 
@@ -126,6 +128,67 @@ impl SharedChunk {
     }
 }
 
+/// The `n` merges whose per-unit streams are `per_unit` as an exported
+/// testbench sees them on a shared port: the shared streams, and the store
+/// its model answers from after `latency` clocks (per merge, array and
+/// hierarchy a run of the words golden's units read, holes zero).
+pub(super) fn export_store(
+    c: &MergerConfig,
+    per_unit: &UnitStreams,
+    n: usize,
+    latency: u64,
+) -> Result<(UnitStreams, StoreSpec)> {
+    let l = StorePortLayout::new(&c.design.params);
+    let ml = golden::vectors::streams::merger_layout(&c.design, &c.sizes)
+        .map_err(|what| crate::CosimError::Design { what })?;
+    let chunk = SharedChunk::of(per_unit, n, &ml, &l)?;
+    let hiers = 1usize << l.hier.width;
+    let mut runs = vec![(0u32, 0u32); n * 2 * hiers];
+    let mut words = Vec::new();
+    let too_many = |what: &str| crate::CosimError::Unsupported {
+        what: format!("an exported store of {what} (the testbench counts in 32 bits)"),
+    };
+    for (e, store) in chunk.stores.iter().enumerate() {
+        for array in [StoreArray::Node, StoreArray::Reference] {
+            for hier in 0..hiers {
+                let at = |index| StoreAddr {
+                    hier: hier as u64,
+                    index,
+                };
+                let len = store
+                    .iter()
+                    .filter(|w| w.0 == array && w.1.hier == hier as u64)
+                    .map(|w| w.1.index + 1)
+                    .max()
+                    .unwrap_or(0);
+                let base = u32::try_from(words.len()).map_err(|_| too_many("2^32 words"))?;
+                let len32 = u32::try_from(len).map_err(|_| too_many("a run of 2^32 words"))?;
+                runs[(e * 2 + array.code() as usize) * hiers + hier] = (base, len32);
+                for index in 0..len {
+                    let word = match store.word(array, at(index)) {
+                        Some(w) => l.pack_resp(w),
+                        None => Ok(Bits::zero(l.resp_width)),
+                    }
+                    .map_err(|what| crate::CosimError::Design { what })?;
+                    words.push(BitVec::from_layout(&word)?);
+                }
+            }
+        }
+    }
+    let named = |f: &golden::layout::Field| crate::export_tb::NamedField::of(f.name, f);
+    let spec = StoreSpec {
+        latency,
+        epoch_input: "cfg".into(),
+        index: named(&l.index),
+        hier: named(&l.hier),
+        array: named(&l.array),
+        runs,
+        words,
+        reads: chunk.reads,
+    };
+    Ok((chunk.streams, spec))
+}
+
 /// A fresh engine of `kind` for the merger (`module`, its Verilog in
 /// `design`): Icarus stepped from Rust, as the store answers reads as they
 /// come (the batch runs precomputed streams only).
@@ -141,6 +204,82 @@ fn engine_of(
     })
 }
 
+/// A merger with a shared store port, built once and run chunk after
+/// chunk, each chunk on a fresh engine from reset with a store model on
+/// its `store_req` / `store_resp`.
+pub(super) struct SharedSim {
+    module: rtl_gen::Module,
+    design: Design,
+    engine: MergerEngine,
+    layout: StorePortLayout,
+    merger: MergerLayout,
+}
+
+impl SharedSim {
+    /// The merger `c` (`module`, its Verilog, any patch applied, in
+    /// `design`) on `engine`.
+    pub(super) fn new(
+        c: &MergerConfig,
+        module: rtl_gen::Module,
+        design: Design,
+        engine: MergerEngine,
+    ) -> Result<SharedSim> {
+        let merger = golden::vectors::streams::merger_layout(&c.design, &c.sizes)
+            .map_err(|what| crate::CosimError::Design { what })?;
+        Ok(SharedSim {
+            module,
+            design,
+            engine,
+            layout: StorePortLayout::new(&c.design.params),
+            merger,
+        })
+    }
+
+    /// Runs the `n` merges whose per-unit streams are `per_unit` as one
+    /// chunk (bench `bench`) and adds it to `totals` and `store`: the
+    /// store answers after `latency` clocks from `image` when given (one
+    /// store for every merge: a scene's), else from the words golden's
+    /// units read in each merge. Returns whether the chunk failed (an
+    /// output beat, a status pulse, or the reads: [`check_reads`]).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn run_chunk(
+        &self,
+        totals: &mut ChunkTotals,
+        store: &mut StoreOutcome,
+        per_unit: UnitStreams,
+        n: usize,
+        bench: &BenchConfig,
+        latency: u64,
+        image: Option<&StoreWords>,
+        decode: &PairDecoder,
+    ) -> Result<bool> {
+        let first = totals.merges;
+        let chunk = SharedChunk::of(&per_unit, n, &self.merger, &self.layout)?;
+        // Only the shared streams are run: the per-unit ones (every
+        // response of the chunk) need not stay in memory meanwhile.
+        drop(per_unit);
+        let mut eng = engine_of(self.engine, &self.module, &self.design)?;
+        let stores = &chunk.stores;
+        let lookup = move |e: usize, a: StoreArray, at: StoreAddr| match image {
+            Some(words) => words.word(a, at).cloned(),
+            None => stores.get(e)?.word(a, at).cloned(),
+        };
+        let l = self.layout.clone();
+        let mut model = StoreModel::new(&*eng, l, bench, latency, Some(0), Box::new(lookup))?;
+        let (report, watch) = run_multi_stream_bench_reactive(
+            eng.as_mut(),
+            &chunk.streams.inputs,
+            &chunk.streams.outputs,
+            bench,
+            &PULSES,
+            &mut model,
+        )?;
+        let failed = totals.add(n, &chunk.streams, &report, &watch, decode);
+        let store_failed = check_reads(Some(store), &model.stats, &chunk.reads, first);
+        Ok(failed || store_failed)
+    }
+}
+
 /// `super::run` for a merger whose units share one store port: the same
 /// merges, chunks, comparison and digests; the store answers after
 /// `latency` clocks with the bench's stall pattern.
@@ -153,9 +292,7 @@ pub(super) fn run_shared(
 ) -> Result<Outcome> {
     let module = merger_module(c)?;
     let (netlist_sha256, design) = super::merger_design(&module, dir, config, engine)?;
-    let l = StorePortLayout::new(&c.design.params);
-    let ml = golden::vectors::streams::merger_layout(&c.design, &c.sizes)
-        .map_err(|what| crate::CosimError::Design { what })?;
+    let sim = SharedSim::new(c, module, design, engine)?;
     let decode = |stream: &str, e: &Transaction, g: &Transaction| {
         decoded_pair(&*decoder_of(c, stream), e, g)
     };
@@ -164,38 +301,30 @@ pub(super) fn run_shared(
     let mut digest = StimulusDigest::new(seed, count, config.bench.stall);
     let mut out = Outcome {
         netlist_sha256,
-        store: Some(StoreOutcome::default()),
         ..Outcome::default()
     };
+    let mut store = StoreOutcome::default();
     for n in chunk_sizes(config.count) {
-        let first = out.totals.merges;
         let streams = golden_chunk(&mut draw, c, config, n, &mut digest, &mut out)?;
-        let chunk = SharedChunk::of(&streams, n, &ml, &l)?;
-        drop(streams);
         let bench = chunk_bench(&config.bench, out.totals.chunks);
-        let mut eng = engine_of(engine, &module, &design)?;
-        let stores = &chunk.stores;
-        let lookup =
-            move |e: usize, a: StoreArray, at: StoreAddr| stores.get(e)?.word(a, at).cloned();
         let latency = config.store_latency;
-        let mut model =
-            StoreModel::new(&*eng, l.clone(), &bench, latency, Some(0), Box::new(lookup))?;
-        let (report, watch) = run_multi_stream_bench_reactive(
-            eng.as_mut(),
-            &chunk.streams.inputs,
-            &chunk.streams.outputs,
+        let failed = sim.run_chunk(
+            &mut out.totals,
+            &mut store,
+            streams,
+            n,
             &bench,
-            &PULSES,
-            &mut model,
+            latency,
+            None,
+            &decode,
         )?;
-        let failed = out.totals.add(n, &chunk.streams, &report, &watch, &decode);
-        let store_failed = check_reads(out.store.as_mut(), &model.stats, &chunk.reads, first);
         progress(out.totals.merges as u64, out.totals.cycles);
-        if failed || store_failed {
+        if failed {
             out.stopped_early = out.totals.merges < config.count;
             break;
         }
     }
+    out.store = Some(store);
     out.stimulus_sha256 = digest.finish();
     Ok(out)
 }

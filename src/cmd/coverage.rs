@@ -310,7 +310,10 @@ fn summarize(dir: &Path, waivers: &Path, strict: bool, bins: Bins) -> CmdResult 
         }
     }
     for s in &code.stale_waivers {
-        println!("stale waiver (waives nothing, or a point that was reached): {s}");
+        println!("stale waiver: {s}");
+    }
+    for c in &code.contradictions {
+        println!("proof contradicted by the run: {c}");
     }
     println!(
         "functional coverage: {} bins, {} hit (every bin: {}/functional.txt)",
@@ -340,6 +343,12 @@ fn summarize(dir: &Path, waivers: &Path, strict: bool, bins: Bins) -> CmdResult 
     }
     if !code.stale_waivers.is_empty() {
         fails.push(format!("{} stale waivers", code.stale_waivers.len()));
+    }
+    if !code.contradictions.is_empty() {
+        fails.push(format!(
+            "{} toggle bits Yosys proves constant toggled",
+            code.contradictions.len()
+        ));
     }
     // A floor naming no unit that ran guards nothing: the runs' parameters
     // changed the top's name, so the floor must follow.

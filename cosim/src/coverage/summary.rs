@@ -59,6 +59,8 @@ pub struct UnitSummary {
     pub line: (u64, u64, u64),
     /// Toggle bits: covered, waived (uncovered), total.
     pub toggle: (u64, u64, u64),
+    /// Of the waived toggle bits, those Yosys proves constant.
+    pub toggle_constant: u64,
     /// The merged `coverage.dat`.
     pub dat: PathBuf,
     /// The annotated sources.
@@ -115,6 +117,9 @@ pub struct CoverageReport {
     pub units: Vec<UnitSummary>,
     /// Waivers that matched no uncovered point (`file:line`): stale.
     pub stale_waivers: Vec<String>,
+    /// Toggle bits Yosys proves constant that toggled: the proof and the
+    /// run disagree, so neither is trusted.
+    pub contradictions: Vec<String>,
 }
 
 impl CoverageReport {
@@ -122,6 +127,7 @@ impl CoverageReport {
     /// waived, and no waiver is stale.
     pub fn passed(&self) -> bool {
         self.stale_waivers.is_empty()
+            && self.contradictions.is_empty()
             && self
                 .units
                 .iter()
@@ -131,12 +137,12 @@ impl CoverageReport {
     /// The summary table (markdown), one row per unit.
     pub fn table(&self) -> String {
         let mut s = String::from(
-            "| unit | runs | line/branch | covered / points (waived) | toggle | covered / bits (waived) | at aim |\n|---|---|---|---|---|---|---|\n",
+            "| unit | runs | line/branch | covered / points (waived) | toggle | covered / bits (waived: constant by Yosys + by hand) | at aim |\n|---|---|---|---|---|---|---|\n",
         );
         for u in &self.units {
             let ok = u.below_aim(&self.aims).is_empty();
             s += &format!(
-                "| `{}` | {} | {:.1}% | {} / {} ({}) | {:.1}% | {} / {} ({}) | {} |\n",
+                "| `{}` | {} | {:.1}% | {} / {} ({}) | {:.1}% | {} / {} ({}: {} + {}) | {} |\n",
                 u.unit,
                 u.runs,
                 u.line_percent(),
@@ -147,6 +153,8 @@ impl CoverageReport {
                 u.toggle.0,
                 u.toggle.2,
                 u.toggle.1,
+                u.toggle_constant,
+                u.toggle.1 - u.toggle_constant,
                 if ok { "yes" } else { "NO" }
             );
         }
@@ -217,14 +225,25 @@ fn line_source(p: &Point, text: &[&str], index: &SourceIndex) -> Option<String> 
         .or_else(|| at(1).and_then(comment_location))
 }
 
+/// What the hand-written waivers did, by index, over every unit.
+struct WaiverUse {
+    /// Waived an uncovered point.
+    used: Vec<bool>,
+    /// Named a point the regression reached.
+    reached: Vec<bool>,
+    /// Named a point Yosys proves constant (the proof waives it).
+    redundant: Vec<bool>,
+    /// Toggle points Yosys proves constant that toggled.
+    contradictions: Vec<String>,
+}
+
 /// Merge, annotate and summarize the unit whose raw counts are in
 /// `dir/raw/<top>` and sources in `dir/sources/<top>`.
 fn unit_summary(
     dir: &Path,
     top: &str,
     waivers: &Waivers,
-    used: &mut [bool],
-    reached: &mut [bool],
+    uses: &mut WaiverUse,
 ) -> Result<UnitSummary> {
     let raws = files_in(&dir.join("raw").join(top), "dat")?;
     let out = dir.join(top);
@@ -261,11 +280,12 @@ fn unit_summary(
 
     let netlist = Netlist::read(&sources)?;
     let index = SourceIndex::new(&netlist, top);
+    let constant = super::constants::prove(&sources, top, &out.join("constants"))?;
     let mut texts: BTreeMap<PathBuf, String> = BTreeMap::new();
     for f in &sources {
         texts.insert(f.clone(), std::fs::read_to_string(f).map_err(io_err(f))?);
     }
-    let (mut line, mut toggle) = ((0, 0, 0), (0, 0, 0));
+    let (mut line, mut toggle, mut toggle_constant) = ((0, 0, 0), (0, 0, 0), 0);
     let mut uncovered = Vec::new();
     for p in &points {
         let tally = if p.kind == Kind::Toggle {
@@ -274,11 +294,29 @@ fn unit_summary(
             &mut line
         };
         tally.2 += 1;
-        if p.covered() {
+        let mut proven = match p.kind {
+            Kind::Toggle => constant.value(&p.module, &p.what),
+            _ => None,
+        };
+        if let Some(v) = proven.filter(|&v| p.count > constant.max_count(&p.module, v)) {
+            uses.contradictions.push(format!(
+                "{} {} {}: changed {} times in {} instances, yet {}",
+                p.module,
+                p.instance,
+                p.what,
+                p.count,
+                constant.instances(&p.module),
+                super::constants::reason(v)
+            ));
+            proven = None;
+        }
+        // A proven bit Verilator counts covered only rose from its initial
+        // 0 in two instances or more: it never toggled, so it is waived.
+        if p.covered() && proven.is_none() {
             tally.0 += 1;
             if let Some(i) = waivers.find(p) {
                 // A waiver of a point the regression reached is wrong.
-                reached[i] = true;
+                uses.reached[i] = true;
             }
             continue;
         }
@@ -293,8 +331,22 @@ fn unit_summary(
         let waiver = waivers
             .find(p)
             .filter(|&i| Some(&waivers.entries[i].source) == source.as_ref());
-        if let Some(i) = waiver {
-            used[i] = true;
+        let waived = match (proven, waiver) {
+            (Some(v), w) => {
+                if let Some(i) = w {
+                    uses.redundant[i] = true;
+                }
+                toggle_constant += 1;
+                Some(super::constants::reason(v))
+            }
+            (None, Some(i)) => {
+                uses.used[i] = true;
+                let w = &waivers.entries[i];
+                Some(format!("{}: {}", w.at, w.reason))
+            }
+            (None, None) => None,
+        };
+        if waived.is_some() {
             tally.1 += 1;
         }
         uncovered.push(UncoveredPoint {
@@ -312,10 +364,7 @@ fn unit_summary(
             },
             source,
             count: p.count,
-            waived: waiver.map(|i| {
-                let w = &waivers.entries[i];
-                format!("{}: {}", w.at, w.reason)
-            }),
+            waived,
         });
     }
     Ok(UnitSummary {
@@ -323,6 +372,7 @@ fn unit_summary(
         runs: raws.len(),
         line,
         toggle,
+        toggle_constant,
         dat,
         annotated,
         uncovered,
@@ -341,21 +391,31 @@ pub fn report(dir: &Path, aims: Aims, waivers: &Waivers) -> Result<CoverageRepor
         .collect();
     tops.sort();
     let n = waivers.entries.len();
-    let (mut used, mut reached) = (vec![false; n], vec![false; n]);
+    let mut uses = WaiverUse {
+        used: vec![false; n],
+        reached: vec![false; n],
+        redundant: vec![false; n],
+        contradictions: Vec::new(),
+    };
     let mut units = Vec::new();
     for top in &tops {
-        units.push(unit_summary(dir, top, waivers, &mut used, &mut reached)?);
+        units.push(unit_summary(dir, top, waivers, &mut uses)?);
     }
     // Stale: a waiver of a module this report saw that waives nothing
-    // (the point moved, or its generator line did) or names a point the
-    // regression reached.
+    // (the point moved, or its generator line did, or Yosys now proves it
+    // constant) or names a point the regression reached.
     let stale_waivers = (0..n)
-        .filter(|&i| !used[i] || reached[i])
-        .map(|i| &waivers.entries[i])
-        .filter(|w| units.iter().any(|u| module_in(u, &w.module, dir)))
-        .map(|w| {
+        .filter(|&i| !uses.used[i] || uses.reached[i])
+        .map(|i| (i, &waivers.entries[i]))
+        .filter(|(_, w)| units.iter().any(|u| module_in(u, &w.module, dir)))
+        .map(|(i, w)| {
+            let why = match (uses.reached[i], uses.redundant[i] && !uses.used[i]) {
+                (true, _) => "names a point the regression reached",
+                (false, true) => "Yosys proves its points constant: the proof waives them",
+                (false, false) => "waives nothing",
+            };
             format!(
-                "{}: {} {} {} ({})",
+                "{}: {} {} {} ({}): {why}",
                 w.at,
                 w.module,
                 w.kind.name(),
@@ -368,6 +428,7 @@ pub fn report(dir: &Path, aims: Aims, waivers: &Waivers) -> Result<CoverageRepor
         aims,
         units,
         stale_waivers,
+        contradictions: uses.contradictions,
     })
 }
 

@@ -46,6 +46,9 @@ pub struct UncoveredPoint {
     pub count: u64,
     /// The waiver's reason (`file:line: reason`), when waived.
     pub waived: Option<String>,
+    /// Not waived: why it is still uncovered (`file:line: reason`), when
+    /// an `open` entry says.
+    pub open: Option<String>,
 }
 
 /// One unit (an emitted top and everything below it).
@@ -310,27 +313,35 @@ fn unit_summary(
             ));
             proven = None;
         }
-        // A proven bit Verilator counts covered only rose from its initial
-        // 0 in two instances or more: it never toggled, so it is waived.
-        if p.covered() && proven.is_none() {
-            tally.0 += 1;
-            if let Some(i) = waivers.find(p) {
-                // A waiver of a point the regression reached is wrong.
-                uses.reached[i] = true;
-            }
-            continue;
-        }
         let file = local(&p.file);
-        let source = match p.kind {
+        let source_of = |p: &Point| match p.kind {
             Kind::Toggle => index.declared_in(&p.module, &p.what).map(str::to_string),
             _ => {
                 let t = texts.get(&file).map(String::as_str).unwrap_or("");
                 line_source(p, &t.lines().collect::<Vec<_>>(), &index)
             }
         };
-        let waiver = waivers
-            .find(p)
-            .filter(|&i| Some(&waivers.entries[i].source) == source.as_ref());
+        // A proven bit Verilator counts covered only rose from its initial
+        // 0 in two instances or more: it never toggled, so it is waived.
+        if p.covered() && proven.is_none() {
+            tally.0 += 1;
+            // A waiver of a point the regression reached is wrong (an open
+            // reason may name a group of which some points were reached).
+            if waivers.find(p, None, false).is_some() {
+                let s = source_of(p);
+                if let Some(i) = s.and_then(|s| waivers.find(p, Some(&s), false)) {
+                    uses.reached[i] = true;
+                }
+            }
+            continue;
+        }
+        let source = source_of(p);
+        let at = source.as_deref().unwrap_or("(no generator line)");
+        let waiver = waivers.find(p, Some(at), false);
+        let open = waivers.find(p, Some(at), true);
+        if let Some(i) = open {
+            uses.used[i] = true;
+        }
         let waived = match (proven, waiver) {
             (Some(v), w) => {
                 if let Some(i) = w {
@@ -364,6 +375,9 @@ fn unit_summary(
             },
             source,
             count: p.count,
+            open: open
+                .filter(|_| waived.is_none())
+                .map(|i| format!("{}: {}", waivers.entries[i].at, waivers.entries[i].reason)),
             waived,
         });
     }
@@ -412,6 +426,7 @@ pub fn report(dir: &Path, aims: Aims, waivers: &Waivers) -> Result<CoverageRepor
             let why = match (uses.reached[i], uses.redundant[i] && !uses.used[i]) {
                 (true, _) => "names a point the regression reached",
                 (false, true) => "Yosys proves its points constant: the proof waives them",
+                (false, false) if w.open => "matches no uncovered point",
                 (false, false) => "waives nothing",
             };
             format!(

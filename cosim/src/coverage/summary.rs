@@ -473,6 +473,10 @@ module t (\n\
             q <= 2'd2;    // g/t.rs:13\n\
         end\n\
     end\n\
+    wire [1:0] z;         // g/t.rs:17\n\
+    assign z = {a, 1'b0};\n\
+    wire k;               // g/t.rs:19\n\
+    assign k = 1'b1;\n\
 endmodule\n";
 
     fn point(f: &str, l: u32, page: &str, o: &str, span: &str, count: u64) -> String {
@@ -501,7 +505,10 @@ endmodule\n";
             + &point(f, 9, "v_line/t", "block", "\u{1}S\u{2}9", 3)
             + &point(f, 7, "v_toggle/t", "b", "", 1)
             + &point(f, 5, "v_toggle/t", "q[0]", "", 1)
-            + &point(f, 5, "v_toggle/t", "q[1]", "", 0);
+            + &point(f, 5, "v_toggle/t", "q[1]", "", 0)
+            + &point(f, 17, "v_toggle/t", "z[0]", "", 0)
+            + &point(f, 17, "v_toggle/t", "z[1]", "", 2)
+            + &point(f, 19, "v_toggle/t", "k", "", 1);
         std::fs::write(raw.join("1.dat"), &first).unwrap();
         std::fs::write(raw.join("2.dat"), point(f, 5, "v_toggle/t", "q[0]", "", 1)).unwrap();
         let w = dir.path().join("w.txt");
@@ -509,26 +516,47 @@ endmodule\n";
             &w,
             "t | toggle q[1] | g/t.rs:5 | tied low in this test\n\
              t | toggle b | g/t.rs:7 | rose once only in this test\n\
-             t | branch 12 | g/t.rs:99 | wrong generator line\n",
+             t | branch 12 | g/t.rs:99 | wrong generator line\n\
+             t | toggle z[0] | g/t.rs:17 | tied 0 (Yosys proves it)\n",
         )
         .unwrap();
         let r = report(dir.path(), Aims::default(), &Waivers::read(&w).unwrap()).unwrap();
         let u = &r.units[0];
         assert_eq!((u.unit.as_str(), u.runs), ("t", 2));
-        // q[0] merged to 2 changes: covered; b changed once: not.
-        assert_eq!(u.toggle, (1, 2, 3));
+        let by = |p: &str| {
+            u.uncovered
+                .iter()
+                .find(|x| x.point == p || x.point.contains(p))
+                .unwrap()
+        };
+        // q[0] merged to 2 changes: covered; b changed once: not; z[1]
+        // toggled; z[0] and k (one rise from the initial 0, one instance)
+        // are proven constant by Yosys.
+        assert_eq!(u.toggle, (2, 4, 6));
+        assert_eq!(u.toggle_constant, 2);
+        assert!(by("z[0]").waived.as_deref().unwrap().contains("constant 0"));
+        assert!(by("k").waived.as_deref().unwrap().contains("constant 1"));
+        assert!(r.contradictions.is_empty(), "{:?}", r.contradictions);
         assert_eq!(u.line, (2, 0, 3));
-        let by = |p: &str| u.uncovered.iter().find(|x| x.point.contains(p)).unwrap();
         assert_eq!(by("t.v:12 else").source.as_deref(), Some("g/t.rs:13"));
         assert_eq!(by("b").source.as_deref(), Some("g/t.rs:7"));
         assert!(by("q[1]").waived.as_deref().unwrap().contains("tied low"));
         assert!(by("t.v:12").waived.is_none());
-        // `toggle b` waives an uncovered point, but `branch 12` names the wrong line.
-        assert_eq!(r.stale_waivers.len(), 1, "{:?}", r.stale_waivers);
+        // `toggle b` waives an uncovered point, but `branch 12` names the
+        // wrong line, and Yosys proves `z[0]`.
+        assert_eq!(r.stale_waivers.len(), 2, "{:?}", r.stale_waivers);
         assert!(r.stale_waivers[0].contains("w.txt:3"));
+        assert!(r.stale_waivers[1].contains("w.txt:4") && r.stale_waivers[1].contains("Yosys"));
         assert!(!r.passed());
         let dat = std::fs::read_to_string(&u.dat).unwrap();
         assert!(dat.contains(&src.join("t.v").display().to_string()));
         assert!(u.annotated.join("t.v").is_file());
+        // A proven bit that changed more often than its instances rose is
+        // a contradiction, never waived.
+        std::fs::write(raw.join("2.dat"), point(f, 19, "v_toggle/t", "k", "", 2)).unwrap();
+        let r = report(dir.path(), Aims::default(), &Waivers::default()).unwrap();
+        assert_eq!(r.contradictions.len(), 1, "{:?}", r.contradictions);
+        assert!(r.contradictions[0].contains("TOP.t k: changed 3 times in 1 instances"));
+        assert!(!r.passed());
     }
 }

@@ -389,7 +389,7 @@ fn open_reasons(below: &[&cosim::coverage::UncoveredPoint]) -> Vec<String> {
         by.entry(reason).or_insert((0, p.kind)).0 += 1;
     }
     let mut v: Vec<_> = by.into_iter().collect();
-    v.sort_by(|a, b| b.1 .0.cmp(&a.1 .0));
+    v.sort_by_key(|b| std::cmp::Reverse(b.1 .0));
     v.into_iter()
         .map(|(reason, (n, _))| format!("    {n} points: {reason}"))
         .collect()

@@ -46,6 +46,9 @@ pub struct UncoveredPoint {
     pub count: u64,
     /// The waiver's reason (`file:line: reason`), when waived.
     pub waived: Option<String>,
+    /// Not waived: why it is still uncovered (`file:line: reason`), when
+    /// an `open` entry says.
+    pub open: Option<String>,
 }
 
 /// One unit (an emitted top and everything below it).
@@ -59,6 +62,8 @@ pub struct UnitSummary {
     pub line: (u64, u64, u64),
     /// Toggle bits: covered, waived (uncovered), total.
     pub toggle: (u64, u64, u64),
+    /// Of the waived toggle bits, those Yosys proves constant.
+    pub toggle_constant: u64,
     /// The merged `coverage.dat`.
     pub dat: PathBuf,
     /// The annotated sources.
@@ -115,6 +120,9 @@ pub struct CoverageReport {
     pub units: Vec<UnitSummary>,
     /// Waivers that matched no uncovered point (`file:line`): stale.
     pub stale_waivers: Vec<String>,
+    /// Toggle bits Yosys proves constant that toggled: the proof and the
+    /// run disagree, so neither is trusted.
+    pub contradictions: Vec<String>,
 }
 
 impl CoverageReport {
@@ -122,6 +130,7 @@ impl CoverageReport {
     /// waived, and no waiver is stale.
     pub fn passed(&self) -> bool {
         self.stale_waivers.is_empty()
+            && self.contradictions.is_empty()
             && self
                 .units
                 .iter()
@@ -131,12 +140,12 @@ impl CoverageReport {
     /// The summary table (markdown), one row per unit.
     pub fn table(&self) -> String {
         let mut s = String::from(
-            "| unit | runs | line/branch | covered / points (waived) | toggle | covered / bits (waived) | at aim |\n|---|---|---|---|---|---|---|\n",
+            "| unit | runs | line/branch | covered / points (waived) | toggle | covered / bits (waived: constant by Yosys + by hand) | at aim |\n|---|---|---|---|---|---|---|\n",
         );
         for u in &self.units {
             let ok = u.below_aim(&self.aims).is_empty();
             s += &format!(
-                "| `{}` | {} | {:.1}% | {} / {} ({}) | {:.1}% | {} / {} ({}) | {} |\n",
+                "| `{}` | {} | {:.1}% | {} / {} ({}) | {:.1}% | {} / {} ({}: {} + {}) | {} |\n",
                 u.unit,
                 u.runs,
                 u.line_percent(),
@@ -147,6 +156,8 @@ impl CoverageReport {
                 u.toggle.0,
                 u.toggle.2,
                 u.toggle.1,
+                u.toggle_constant,
+                u.toggle.1 - u.toggle_constant,
                 if ok { "yes" } else { "NO" }
             );
         }
@@ -217,14 +228,25 @@ fn line_source(p: &Point, text: &[&str], index: &SourceIndex) -> Option<String> 
         .or_else(|| at(1).and_then(comment_location))
 }
 
+/// What the hand-written waivers did, by index, over every unit.
+struct WaiverUse {
+    /// Waived an uncovered point.
+    used: Vec<bool>,
+    /// Named a point the regression reached.
+    reached: Vec<bool>,
+    /// Named a point Yosys proves constant (the proof waives it).
+    redundant: Vec<bool>,
+    /// Toggle points Yosys proves constant that toggled.
+    contradictions: Vec<String>,
+}
+
 /// Merge, annotate and summarize the unit whose raw counts are in
 /// `dir/raw/<top>` and sources in `dir/sources/<top>`.
 fn unit_summary(
     dir: &Path,
     top: &str,
     waivers: &Waivers,
-    used: &mut [bool],
-    reached: &mut [bool],
+    uses: &mut WaiverUse,
 ) -> Result<UnitSummary> {
     let raws = files_in(&dir.join("raw").join(top), "dat")?;
     let out = dir.join(top);
@@ -261,11 +283,12 @@ fn unit_summary(
 
     let netlist = Netlist::read(&sources)?;
     let index = SourceIndex::new(&netlist, top);
+    let constant = super::constants::prove(&sources, top, &out.join("constants"))?;
     let mut texts: BTreeMap<PathBuf, String> = BTreeMap::new();
     for f in &sources {
         texts.insert(f.clone(), std::fs::read_to_string(f).map_err(io_err(f))?);
     }
-    let (mut line, mut toggle) = ((0, 0, 0), (0, 0, 0));
+    let (mut line, mut toggle, mut toggle_constant) = ((0, 0, 0), (0, 0, 0), 0);
     let mut uncovered = Vec::new();
     for p in &points {
         let tally = if p.kind == Kind::Toggle {
@@ -274,27 +297,67 @@ fn unit_summary(
             &mut line
         };
         tally.2 += 1;
-        if p.covered() {
-            tally.0 += 1;
-            if let Some(i) = waivers.find(p) {
-                // A waiver of a point the regression reached is wrong.
-                reached[i] = true;
-            }
-            continue;
+        let mut proven = match p.kind {
+            Kind::Toggle => constant.value(&p.module, &p.what),
+            _ => None,
+        };
+        if let Some(v) = proven.filter(|&v| p.count > constant.max_count(&p.module, v)) {
+            uses.contradictions.push(format!(
+                "{} {} {}: changed {} times in {} instances, yet {}",
+                p.module,
+                p.instance,
+                p.what,
+                p.count,
+                constant.instances(&p.module),
+                super::constants::reason(v)
+            ));
+            proven = None;
         }
         let file = local(&p.file);
-        let source = match p.kind {
+        let source_of = |p: &Point| match p.kind {
             Kind::Toggle => index.declared_in(&p.module, &p.what).map(str::to_string),
             _ => {
                 let t = texts.get(&file).map(String::as_str).unwrap_or("");
                 line_source(p, &t.lines().collect::<Vec<_>>(), &index)
             }
         };
-        let waiver = waivers
-            .find(p)
-            .filter(|&i| Some(&waivers.entries[i].source) == source.as_ref());
-        if let Some(i) = waiver {
-            used[i] = true;
+        // A proven bit Verilator counts covered only rose from its initial
+        // 0 in two instances or more: it never toggled, so it is waived.
+        if p.covered() && proven.is_none() {
+            tally.0 += 1;
+            // A waiver of a point the regression reached is wrong (an open
+            // reason may name a group of which some points were reached).
+            if waivers.find(p, None, false).is_some() {
+                let s = source_of(p);
+                if let Some(i) = s.and_then(|s| waivers.find(p, Some(&s), false)) {
+                    uses.reached[i] = true;
+                }
+            }
+            continue;
+        }
+        let source = source_of(p);
+        let at = source.as_deref().unwrap_or("(no generator line)");
+        let waiver = waivers.find(p, Some(at), false);
+        let open = waivers.find(p, Some(at), true);
+        if let Some(i) = open {
+            uses.used[i] = true;
+        }
+        let waived = match (proven, waiver) {
+            (Some(v), w) => {
+                if let Some(i) = w {
+                    uses.redundant[i] = true;
+                }
+                toggle_constant += 1;
+                Some(super::constants::reason(v))
+            }
+            (None, Some(i)) => {
+                uses.used[i] = true;
+                let w = &waivers.entries[i];
+                Some(format!("{}: {}", w.at, w.reason))
+            }
+            (None, None) => None,
+        };
+        if waived.is_some() {
             tally.1 += 1;
         }
         uncovered.push(UncoveredPoint {
@@ -312,10 +375,10 @@ fn unit_summary(
             },
             source,
             count: p.count,
-            waived: waiver.map(|i| {
-                let w = &waivers.entries[i];
-                format!("{}: {}", w.at, w.reason)
-            }),
+            open: open
+                .filter(|_| waived.is_none())
+                .map(|i| format!("{}: {}", waivers.entries[i].at, waivers.entries[i].reason)),
+            waived,
         });
     }
     Ok(UnitSummary {
@@ -323,6 +386,7 @@ fn unit_summary(
         runs: raws.len(),
         line,
         toggle,
+        toggle_constant,
         dat,
         annotated,
         uncovered,
@@ -341,21 +405,32 @@ pub fn report(dir: &Path, aims: Aims, waivers: &Waivers) -> Result<CoverageRepor
         .collect();
     tops.sort();
     let n = waivers.entries.len();
-    let (mut used, mut reached) = (vec![false; n], vec![false; n]);
+    let mut uses = WaiverUse {
+        used: vec![false; n],
+        reached: vec![false; n],
+        redundant: vec![false; n],
+        contradictions: Vec::new(),
+    };
     let mut units = Vec::new();
     for top in &tops {
-        units.push(unit_summary(dir, top, waivers, &mut used, &mut reached)?);
+        units.push(unit_summary(dir, top, waivers, &mut uses)?);
     }
     // Stale: a waiver of a module this report saw that waives nothing
-    // (the point moved, or its generator line did) or names a point the
-    // regression reached.
+    // (the point moved, or its generator line did, or Yosys now proves it
+    // constant) or names a point the regression reached.
     let stale_waivers = (0..n)
-        .filter(|&i| !used[i] || reached[i])
-        .map(|i| &waivers.entries[i])
-        .filter(|w| units.iter().any(|u| module_in(u, &w.module, dir)))
-        .map(|w| {
+        .filter(|&i| !uses.used[i] || uses.reached[i])
+        .map(|i| (i, &waivers.entries[i]))
+        .filter(|(_, w)| units.iter().any(|u| module_in(u, &w.module, dir)))
+        .map(|(i, w)| {
+            let why = match (uses.reached[i], uses.redundant[i] && !uses.used[i]) {
+                (true, _) => "names a point the regression reached",
+                (false, true) => "Yosys proves its points constant: the proof waives them",
+                (false, false) if w.open => "matches no uncovered point",
+                (false, false) => "waives nothing",
+            };
             format!(
-                "{}: {} {} {} ({})",
+                "{}: {} {} {} ({}): {why}",
                 w.at,
                 w.module,
                 w.kind.name(),
@@ -368,6 +443,7 @@ pub fn report(dir: &Path, aims: Aims, waivers: &Waivers) -> Result<CoverageRepor
         aims,
         units,
         stale_waivers,
+        contradictions: uses.contradictions,
     })
 }
 
@@ -397,6 +473,10 @@ module t (\n\
             q <= 2'd2;    // g/t.rs:13\n\
         end\n\
     end\n\
+    wire [1:0] z;         // g/t.rs:17\n\
+    assign z = {a, 1'b0};\n\
+    wire k;               // g/t.rs:19\n\
+    assign k = 1'b1;\n\
 endmodule\n";
 
     fn point(f: &str, l: u32, page: &str, o: &str, span: &str, count: u64) -> String {
@@ -425,7 +505,10 @@ endmodule\n";
             + &point(f, 9, "v_line/t", "block", "\u{1}S\u{2}9", 3)
             + &point(f, 7, "v_toggle/t", "b", "", 1)
             + &point(f, 5, "v_toggle/t", "q[0]", "", 1)
-            + &point(f, 5, "v_toggle/t", "q[1]", "", 0);
+            + &point(f, 5, "v_toggle/t", "q[1]", "", 0)
+            + &point(f, 17, "v_toggle/t", "z[0]", "", 0)
+            + &point(f, 17, "v_toggle/t", "z[1]", "", 2)
+            + &point(f, 19, "v_toggle/t", "k", "", 1);
         std::fs::write(raw.join("1.dat"), &first).unwrap();
         std::fs::write(raw.join("2.dat"), point(f, 5, "v_toggle/t", "q[0]", "", 1)).unwrap();
         let w = dir.path().join("w.txt");
@@ -433,26 +516,47 @@ endmodule\n";
             &w,
             "t | toggle q[1] | g/t.rs:5 | tied low in this test\n\
              t | toggle b | g/t.rs:7 | rose once only in this test\n\
-             t | branch 12 | g/t.rs:99 | wrong generator line\n",
+             t | branch 12 | g/t.rs:99 | wrong generator line\n\
+             t | toggle z[0] | g/t.rs:17 | tied 0 (Yosys proves it)\n",
         )
         .unwrap();
         let r = report(dir.path(), Aims::default(), &Waivers::read(&w).unwrap()).unwrap();
         let u = &r.units[0];
         assert_eq!((u.unit.as_str(), u.runs), ("t", 2));
-        // q[0] merged to 2 changes: covered; b changed once: not.
-        assert_eq!(u.toggle, (1, 2, 3));
+        let by = |p: &str| {
+            u.uncovered
+                .iter()
+                .find(|x| x.point == p || x.point.contains(p))
+                .unwrap()
+        };
+        // q[0] merged to 2 changes: covered; b changed once: not; z[1]
+        // toggled; z[0] and k (one rise from the initial 0, one instance)
+        // are proven constant by Yosys.
+        assert_eq!(u.toggle, (2, 4, 6));
+        assert_eq!(u.toggle_constant, 2);
+        assert!(by("z[0]").waived.as_deref().unwrap().contains("constant 0"));
+        assert!(by("k").waived.as_deref().unwrap().contains("constant 1"));
+        assert!(r.contradictions.is_empty(), "{:?}", r.contradictions);
         assert_eq!(u.line, (2, 0, 3));
-        let by = |p: &str| u.uncovered.iter().find(|x| x.point.contains(p)).unwrap();
         assert_eq!(by("t.v:12 else").source.as_deref(), Some("g/t.rs:13"));
         assert_eq!(by("b").source.as_deref(), Some("g/t.rs:7"));
         assert!(by("q[1]").waived.as_deref().unwrap().contains("tied low"));
         assert!(by("t.v:12").waived.is_none());
-        // `toggle b` waives an uncovered point, but `branch 12` names the wrong line.
-        assert_eq!(r.stale_waivers.len(), 1, "{:?}", r.stale_waivers);
+        // `toggle b` waives an uncovered point, but `branch 12` names the
+        // wrong line, and Yosys proves `z[0]`.
+        assert_eq!(r.stale_waivers.len(), 2, "{:?}", r.stale_waivers);
         assert!(r.stale_waivers[0].contains("w.txt:3"));
+        assert!(r.stale_waivers[1].contains("w.txt:4") && r.stale_waivers[1].contains("Yosys"));
         assert!(!r.passed());
         let dat = std::fs::read_to_string(&u.dat).unwrap();
         assert!(dat.contains(&src.join("t.v").display().to_string()));
         assert!(u.annotated.join("t.v").is_file());
+        // A proven bit that changed more often than its instances rose is
+        // a contradiction, never waived.
+        std::fs::write(raw.join("2.dat"), point(f, 19, "v_toggle/t", "k", "", 2)).unwrap();
+        let r = report(dir.path(), Aims::default(), &Waivers::default()).unwrap();
+        assert_eq!(r.contradictions.len(), 1, "{:?}", r.contradictions);
+        assert!(r.contradictions[0].contains("TOP.t k: changed 3 times in 1 instances"));
+        assert!(!r.passed());
     }
 }

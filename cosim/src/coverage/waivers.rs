@@ -8,8 +8,16 @@
 //!
 //! A point is `toggle NET` (every bit), `toggle NET[i]` or `toggle
 //! NET[hi:lo]` (bits of the emitted net), `line N` or `branch N` (the
-//! emitted Verilog's line). The generator line must be the one the point
-//! maps to, so a waiver goes stale, and fails, when the generator moves.
+//! emitted Verilog's line), or `toggle *`, `line *`, `branch *`: every
+//! point of that type in the module that maps to the generator line. The
+//! generator line must be the one the point maps to, so a waiver goes
+//! stale, and fails, when the generator moves.
+//!
+//! A point written `open ...` (`open toggle *`) waives nothing: it states
+//! why points the regression does not reach are still below the aims
+//! (reachable, no stimulus yet), and is stale when it matches no uncovered
+//! point; its generator line may be `*` (any). The first entry that
+//! matches a point gives its reason.
 
 use super::dat::{Kind, Point};
 use crate::error::{io_err, CosimError, Result};
@@ -35,6 +43,8 @@ pub struct Waiver {
     pub reason: String,
     /// Where the waiver is written (`file:line`).
     pub at: String,
+    /// `open`: a reason for points left uncovered, not a waiver.
+    pub open: bool,
 }
 
 fn kind_name<S: serde::Serializer>(k: &Kind, s: S) -> std::result::Result<S::Ok, S::Error> {
@@ -79,7 +89,11 @@ impl Waivers {
                     "expected `module | point | generator line | reason`, none empty".into(),
                 ));
             }
-            let (kind, target) = f[1].split_once(' ').ok_or_else(|| {
+            let (open, point) = match f[1].strip_prefix("open ") {
+                Some(rest) => (true, rest.trim()),
+                None => (false, f[1]),
+            };
+            let (kind, target) = point.split_once(' ').ok_or_else(|| {
                 bad(format!(
                     "point `{}`: expected `toggle NET`, `line N` or `branch N`",
                     f[1]
@@ -100,6 +114,14 @@ impl Waivers {
                     };
                     (Kind::Toggle, net.to_string(), range)
                 }
+                "line" | "branch" if target == "*" => {
+                    let k = if kind == "line" {
+                        Kind::Line
+                    } else {
+                        Kind::Branch
+                    };
+                    (k, String::new(), None)
+                }
                 "line" | "branch" => {
                     let n: u32 = target
                         .parse()
@@ -113,6 +135,12 @@ impl Waivers {
                 }
                 other => return Err(bad(format!("`{other}`: expected toggle, line or branch"))),
             };
+            if f[2] == "*" && !open {
+                return Err(bad(
+                    "a waiver names the generator line of its points (`*` is for open points only)"
+                        .into(),
+                ));
+            }
             entries.push(Waiver {
                 module: f[0].to_string(),
                 kind,
@@ -121,15 +149,21 @@ impl Waivers {
                 source: f[2].to_string(),
                 reason: f[3].to_string(),
                 at,
+                open,
             });
         }
         Ok(Waivers { entries })
     }
 
-    /// The index of the waiver that covers `p`, if any.
-    pub fn find(&self, p: &Point) -> Option<usize> {
+    /// The index of the first entry, a waiver or (`open`) a reason for an
+    /// open point, that names `p` at generator line `source` (`None`: any
+    /// line, for points whose line is not looked up).
+    pub fn find(&self, p: &Point, source: Option<&str>, open: bool) -> Option<usize> {
         self.entries.iter().position(|w| {
-            if w.module != p.module || w.kind != p.kind {
+            if w.module != p.module || w.kind != p.kind || w.open != open {
+                return false;
+            }
+            if source.is_some_and(|s| s != w.source && !(w.open && w.source == "*")) {
                 return false;
             }
             match p.kind {
@@ -140,14 +174,14 @@ impl Waivers {
                     };
                     // Memories give `mem[word][bit]`: the word is not a bit.
                     let bit = sel.and_then(|s| bits(&s[s.rfind('[').unwrap_or(0)..]));
-                    net == w.net
+                    (w.net == "*" || net == w.net)
                         && match (w.range, bit) {
                             (None, _) => true,
                             (Some((h, l)), Some((b, _))) => l <= b && b <= h,
                             (Some(_), None) => false,
                         }
                 }
-                Kind::Line | Kind::Branch => w.range == Some((p.line, p.line)),
+                Kind::Line | Kind::Branch => w.range.is_none_or(|r| r == (p.line, p.line)),
             }
         })
     }
@@ -181,9 +215,32 @@ mod tests {
         )
         .unwrap();
         let pts = super::super::read_points(&dat).unwrap();
-        assert_eq!(w.find(&pts[0]), Some(0));
-        assert_eq!(w.find(&pts[1]), None);
-        assert_eq!(w.find(&pts[2]), Some(1));
+        assert_eq!(w.find(&pts[0], None, false), Some(0));
+        assert_eq!(w.find(&pts[0], Some("g.rs:3"), false), Some(0));
+        assert_eq!(w.find(&pts[0], Some("g.rs:3"), true), None);
+        assert_eq!(w.find(&pts[0], Some("g.rs:4"), false), None);
+        assert_eq!(w.find(&pts[1], None, false), None);
+        assert_eq!(w.find(&pts[2], None, false), Some(1));
+        std::fs::write(
+            &p,
+            "m | open toggle * | g.rs:3 | no stimulus yet\nm | branch * | g.rs:9 | never\n",
+        )
+        .unwrap();
+        let w = Waivers::read(&p).unwrap();
+        assert!(w.entries[0].open && !w.entries[1].open);
+        assert_eq!(w.find(&pts[1], Some("g.rs:3"), true), Some(0));
+        assert_eq!(w.find(&pts[1], Some("g.rs:3"), false), None);
+        assert_eq!(w.find(&pts[2], Some("g.rs:9"), false), Some(1));
+        assert_eq!(w.find(&pts[2], Some("g.rs:3"), false), None);
+        std::fs::write(&p, "m | open line * | * | any line\n").unwrap();
+        let w = Waivers::read(&p).unwrap();
+        assert_eq!(w.find(&pts[2], Some("g.rs:7"), true), None, "a branch");
+        std::fs::write(&p, "m | branch * | * | never\n").unwrap();
+        let e = Waivers::read(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("w.txt:1") && e.contains("open points only"),
+            "{e}"
+        );
         std::fs::write(&p, "m | toggle x[1:2] | g.rs:1 | r\n").unwrap();
         let e = Waivers::read(&p).unwrap_err().to_string();
         assert!(e.contains("w.txt:1") && e.contains("hi >= lo"), "{e}");

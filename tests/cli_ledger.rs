@@ -302,6 +302,17 @@ fn a_plan_lists_the_runs_still_to_make() {
         (lines[1]["line"].as_u64(), lines[1]["done"].as_bool()),
         (Some(4), Some(false))
     );
+    // The plan's lines say how many merges its configuration needs (2 + 2,
+    // not --need's 100,000): 2 are current, so it lacks evidence.
+    let t = &r["totals"][0];
+    assert_eq!(
+        (t["merges"].as_u64(), t["need"].as_u64()),
+        (Some(2), Some(4)),
+        "{r}"
+    );
+    assert_eq!(t["met"], false, "{r}");
+    let lacking = r["lacking"].as_array().unwrap();
+    assert!(lacking.len() == 1 && lacking[0]["need"] == 4, "{r}");
     // A stale entry does not count as done.
     let entry = dir
         .path()

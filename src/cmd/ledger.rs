@@ -40,7 +40,9 @@ pub struct Args {
     /// Whose stimulus to regenerate and compare.
     #[arg(long, value_enum, default_value = "first")]
     stimulus: StimulusCheck,
-    /// Merges per configuration and engine the summary asks for.
+    /// Merges per configuration and engine the summary asks for, where
+    /// no --plan says: with a plan, a configuration and engine needs the
+    /// merges its plan lines sum to (Verilator the volume, Icarus the depth).
     #[arg(long, default_value_t = 100_000)]
     need: u64,
     /// A plan: one `hiermerge cosim` argument line per run wanted (`#`
@@ -99,6 +101,8 @@ struct Total {
     merges: u64,
     cycles: u64,
     wall_seconds: f64,
+    /// The merges asked for: the plan's lines' sum, else `--need`.
+    need: u64,
     /// `merges >= need`.
     met: bool,
 }
@@ -254,7 +258,7 @@ fn short(digest: &str) -> &str {
 type Seeds = (u64, BTreeMap<u64, (u64, u64, f64)>);
 
 /// The current, passing entries summed per (top, engine).
-fn totals(entries: &[(Entry, &Checked)], need: u64) -> Vec<Total> {
+fn totals(entries: &[(Entry, &Checked)], need: &dyn Fn(&str, &str) -> u64) -> Vec<Total> {
     let mut by: BTreeMap<(String, String), Seeds> = BTreeMap::new();
     for (e, c) in entries {
         if !(c.passed && c.netlist_current && c.stimulus_current != Some(false)) {
@@ -270,14 +274,16 @@ fn totals(entries: &[(Entry, &Checked)], need: u64) -> Vec<Total> {
     by.into_iter()
         .map(|((top, engine), (runs, seeds))| {
             let merges = seeds.values().map(|s| s.0).sum();
+            let need = need(&top, &engine);
             Total {
+                cycles: seeds.values().map(|s| s.1).sum(),
+                wall_seconds: seeds.values().map(|s| s.2).sum(),
+                met: merges >= need,
                 top,
                 engine,
                 runs,
                 merges,
-                cycles: seeds.values().map(|s| s.1).sum(),
-                wall_seconds: seeds.values().map(|s| s.2).sum(),
-                met: merges >= need,
+                need,
             }
         })
         .collect()
@@ -350,8 +356,20 @@ pub fn main(a: Args) -> CmdResult {
             m.missing.iter().for_each(|l| println!("{l}"))
         });
     }
-    let totals = totals(&pairs, a.need);
-    let lacking = lacking(&ledger, plan.as_deref(), &totals, a.need);
+    let need = |top: &str, engine: &str| -> u64 {
+        let lines = plan
+            .iter()
+            .flatten()
+            .filter(|l| l.top == top && l.engine == engine);
+        let planned: u64 = lines.map(|l| l.count).sum();
+        if planned > 0 {
+            planned
+        } else {
+            a.need
+        }
+    };
+    let totals = totals(&pairs, &need);
+    let lacking = lacking(&ledger, plan.as_deref(), &totals, &need);
     let report = Report {
         dir: a.dir.display().to_string(),
         need: a.need,
@@ -381,7 +399,7 @@ fn lacking(
     ledger: &[(PathBuf, Entry)],
     plan: Option<&[PlanLine]>,
     totals: &[Total],
-    need: u64,
+    need: &dyn Fn(&str, &str) -> u64,
 ) -> Vec<Total> {
     let mut wanted: std::collections::BTreeSet<(String, String)> = ledger
         .iter()
@@ -400,12 +418,13 @@ fn lacking(
                 .find(|t| t.top == top && t.engine == engine)
                 .cloned()
                 .unwrap_or(Total {
+                    need: need(&top, &engine),
                     top,
                     engine,
                     ..Total::default()
                 })
         })
-        .filter(|t| t.merges < need)
+        .filter(|t| t.merges < t.need)
         .collect()
 }
 
@@ -419,18 +438,19 @@ fn print_text(r: &Report) {
         r.dir
     );
     println!(
-        "{:<58} {:<10} {:>5} {:>9} {:>12} {:>9}  of {}",
-        "top", "engine", "runs", "merges", "cycles", "wall s", r.need
+        "{:<58} {:<10} {:>5} {:>9} {:>12} {:>9} {:>9}",
+        "top", "engine", "runs", "merges", "cycles", "wall s", "need"
     );
     for t in &r.totals {
         println!(
-            "{:<58} {:<10} {:>5} {:>9} {:>12} {:>9.0}  {}",
+            "{:<58} {:<10} {:>5} {:>9} {:>12} {:>9.0} {:>9}  {}",
             t.top,
             t.engine,
             t.runs,
             t.merges,
             t.cycles,
             t.wall_seconds,
+            t.need,
             if t.met { "met" } else { "not yet" }
         );
     }
@@ -451,7 +471,7 @@ fn print_text(r: &Report) {
     for t in &r.lacking {
         println!(
             "lacking evidence: {} on {}: {} current merges of {}",
-            t.top, t.engine, t.merges, r.need
+            t.top, t.engine, t.merges, t.need
         );
     }
     for s in &r.stale {

@@ -155,6 +155,10 @@ struct Placed<'a> {
     /// Instances with triangles whose nodes can be reached from this one's
     /// (itself included): whose slack its boxes must carry.
     reach: Vec<usize>,
+    /// Every node's box in the frame, indexed like the hierarchy's nodes:
+    /// the per-node part of SPEC 6.4, made once per scene so a box test
+    /// does not decode the record and map it to world units again.
+    boxes: Vec<FrameBox>,
 }
 
 /// Instances ready to trace: checked, indexed by hierarchy id.
@@ -227,6 +231,7 @@ impl<'a> TraceScene<'a> {
                 frame,
                 local_magnitude,
                 reach: Vec::new(),
+                boxes: Vec::new(),
             });
         }
         if !(grid.unit.is_finite() && grid.unit > 0.0 && grid.origin.is_finite()) {
@@ -258,6 +263,15 @@ impl<'a> TraceScene<'a> {
         }
         for k in 0..scene.placed.len() {
             scene.placed[k].reach = scene.reachable_with_triangles(k);
+            let p = &scene.placed[k];
+            let boxes = p
+                .inst
+                .hierarchy
+                .nodes
+                .iter()
+                .map(|n| scene.frame_box(p, n))
+                .collect();
+            scene.placed[k].boxes = boxes;
         }
         Ok(scene)
     }
@@ -343,26 +357,27 @@ impl<'a> TraceScene<'a> {
     }
 
     /// The box of node `n` of instance `p` in the instance's frame (world
-    /// box minus `p.frame`), rounded outward to f32 and grown by `slack`
-    /// (world units).
-    fn frame_box(&self, p: &Placed, n: &NodeRecord, slack: f64) -> (Vec3, Vec3) {
+    /// box minus `p.frame`), up to the per-ray slack: what
+    /// [`FrameBox::with_slack`] needs to give the box of SPEC 6.4.
+    fn frame_box(&self, p: &Placed, n: &NodeRecord) -> FrameBox {
         let (lo, hi) = node_box_grid(n, &p.inst.hierarchy.params);
         let off = p.inst.offset;
         let to_world =
             |g: f64, axis: usize| self.grid.origin[axis] + (g + off[axis] as f64) * self.grid.unit;
-        let mut flo = Vec3::ZERO;
-        let mut fhi = Vec3::ZERO;
+        let mut b = FrameBox::default();
         for axis in 0..3 {
             let f = p.frame[axis];
             let a = to_world(lo[axis], axis);
-            let b = to_world(hi[axis], axis);
+            let c = to_world(hi[axis], axis);
             // Binary64 rounding of the operations above and of the move into
-            // the frame is below 2^-50 of the values involved; subtract it
-            // before rounding to f32 outward.
-            flo[axis] = f32_down(a - f - slack - (a.abs() + f.abs()) * F64_GUARD);
-            fhi[axis] = f32_up(b - f + slack + (b.abs() + f.abs()) * F64_GUARD);
+            // the frame is below 2^-50 of the values involved; the guard
+            // takes it off before rounding to f32 outward.
+            b.lo[axis] = a - f;
+            b.lo_guard[axis] = (a.abs() + f.abs()) * F64_GUARD;
+            b.hi[axis] = c - f;
+            b.hi_guard[axis] = (c.abs() + f.abs()) * F64_GUARD;
         }
-        (flo, fhi)
+        b
     }
 
     /// The slack of one ray for the boxes of each instance (world units),
@@ -427,33 +442,49 @@ fn err(
 /// Relative bound on binary64 rounding in [`TraceScene::frame_box`].
 const F64_GUARD: f64 = 1.0 / (1u64 << 50) as f64;
 
-/// The largest f32 not above `x`.
+/// A node's box in its instance's frame before the ray's slack (SPEC 6.4):
+/// per axis `w - F` and the guard `(|w| + |F|) 2^-50`, in binary64.
+#[derive(Clone, Copy, Debug, Default)]
+struct FrameBox {
+    lo: [f64; 3],
+    lo_guard: [f64; 3],
+    hi: [f64; 3],
+    hi_guard: [f64; 3],
+}
+
+impl FrameBox {
+    /// The f32 box tested against the ray: SPEC 6.4's
+    /// `round_down_f32(w_lo - F - s - guard)` and
+    /// `round_up_f32(w_hi - F + s + guard)`, the same binary64 operations in
+    /// the same order as when the whole expression is evaluated per test.
+    #[inline]
+    fn with_slack(&self, slack: f64) -> (Vec3, Vec3) {
+        let lo: [f32; 3] = std::array::from_fn(|a| f32_down(self.lo[a] - slack - self.lo_guard[a]));
+        let hi: [f32; 3] = std::array::from_fn(|a| f32_up(self.hi[a] + slack + self.hi_guard[a]));
+        (Vec3::from_array(lo), Vec3::from_array(hi))
+    }
+}
+
+/// The largest f32 not above `x` (for NaN, NaN). Free of branches: about
+/// half the values round up to nearest, so a branch on it is mispredicted
+/// about as often, six times per box test.
 fn f32_down(x: f64) -> f32 {
     let f = x as f32;
-    if f as f64 > x {
-        next_toward_neg_inf(f)
-    } else {
-        f
-    }
+    let bits = f.to_bits();
+    let rounded_up = ((f as f64) > x) as u32;
+    // One step toward -inf: a positive value's bits go down by one, a
+    // negative value's up by one; +0 steps as -0 does, to the smallest
+    // negative subnormal, so it takes the sign bit first.
+    let b = bits | (((bits == 0) as u32 & rounded_up) << 31);
+    let step = (b >> 31).wrapping_mul(2).wrapping_sub(1);
+    f32::from_bits(b.wrapping_add(rounded_up.wrapping_mul(step)))
 }
 
-/// The smallest f32 not below `x`.
+/// The smallest f32 not below `x`: rounding to nearest is symmetric, so it
+/// is [`f32_down`] of `-x`, negated (a NaN comes back with its sign flipped;
+/// node boxes are finite).
 fn f32_up(x: f64) -> f32 {
-    let f = x as f32;
-    if (f as f64) < x {
-        -next_toward_neg_inf(-f)
-    } else {
-        f
-    }
-}
-
-/// The next f32 below a finite `f` (`f32::next_down` needs Rust 1.86).
-fn next_toward_neg_inf(f: f32) -> f32 {
-    if f == 0.0 {
-        return -f32::from_bits(1);
-    }
-    let b = f.to_bits();
-    f32::from_bits(if f > 0.0 { b - 1 } else { b + 1 })
+    -f32_down(-x)
 }
 
 /// The lower corner of an instance's roots in world units (binary64): the
@@ -680,9 +711,8 @@ impl TraceContext {
         let slack = self.slacks[placed];
         self.children.clear();
         for node in nodes {
-            let n = &p.inst.hierarchy.nodes[node as usize];
             stats.node_tests += 1;
-            let (lo, hi) = scene.frame_box(p, n, slack);
+            let (lo, hi) = p.boxes[node as usize].with_slack(slack);
             if let Some((entry, _)) = ray_box(&slab, lo, hi, ray.tmin, best_t) {
                 self.children.push(Pending {
                     placed,
@@ -1017,11 +1047,54 @@ mod tests {
         assert_eq!(e.field, "root hierarchy");
     }
 
+    /// The straightforward outward roundings the branch-free ones replace.
+    fn down_by_branches(x: f64) -> f32 {
+        let f = x as f32;
+        if f as f64 <= x {
+            f
+        } else if f == 0.0 {
+            -f32::from_bits(1)
+        } else if f > 0.0 {
+            f32::from_bits(f.to_bits() - 1)
+        } else {
+            f32::from_bits(f.to_bits() + 1)
+        }
+    }
+
+    fn up_by_branches(x: f64) -> f32 {
+        let f = x as f32;
+        if f as f64 >= x {
+            f
+        } else if f == 0.0 {
+            f32::from_bits(1)
+        } else if f > 0.0 {
+            f32::from_bits(f.to_bits() + 1)
+        } else {
+            f32::from_bits(f.to_bits() - 1)
+        }
+    }
+
     #[test]
     fn outward_f32_rounding() {
-        for x in [0.1f64, -0.1, 1e-40, -1e-40, 0.0, 3.0, 1e30] {
-            assert!((f32_down(x) as f64) <= x && (f32_up(x) as f64) >= x, "{x}");
+        let tiny = f32::from_bits(1) as f64;
+        let mut xs = vec![
+            0.1f64, -0.1, 1e-40, -1e-40, 0.0, -0.0, 3.0, 1e30, -1e39, 1e39,
+        ];
+        xs.extend([tiny / 2.0, -tiny / 2.0, tiny * 1.5, f32::MAX as f64 * 1.5]);
+        let mut rng = SplitMix64::new(5);
+        for _ in 0..20_000 {
+            let e = rng.below(80) as i32 - 40;
+            let x = (rng.next_f64() - 0.5) * 2f64.powi(e);
+            xs.extend([x, x as f32 as f64]);
         }
+        for x in xs {
+            let (d, u) = (f32_down(x), f32_up(x));
+            assert!((d as f64) <= x && (u as f64) >= x, "{x}");
+            assert_eq!(d.to_bits(), down_by_branches(x).to_bits(), "{x}");
+            assert_eq!(u.to_bits(), up_by_branches(x).to_bits(), "{x}");
+        }
+        assert_eq!(f32_down(-tiny / 2.0), -f32::from_bits(1));
+        assert_eq!(f32_up(tiny / 2.0), f32::from_bits(1));
         assert_eq!(f32_down(3.0), 3.0);
         assert_eq!(f32_up(0.1), 0.1f32);
         assert!(f32_down(0.1) < 0.1f32);

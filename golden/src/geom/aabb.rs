@@ -24,11 +24,12 @@ const fn gamma_f32(n: u32) -> f32 {
 /// The factor applied to the far end: `1 + 2 gamma(3)`.
 pub const FAR_SCALE: f32 = 1.0 + 2.0 * gamma_f32(3);
 
-/// Per-ray constants of the slab test.
+/// Per-ray constants of the slab test, as arrays: indexing a `Vec3` by a
+/// loop variable is a three-way branch per access.
 #[derive(Clone, Copy, Debug)]
 pub struct SlabRay {
-    origin: Vec3,
-    inv_dir: Vec3,
+    origin: [f32; 3],
+    inv_dir: [f32; 3],
     zero: [bool; 3],
 }
 
@@ -36,8 +37,8 @@ impl SlabRay {
     /// Precomputes the reciprocal direction and which components are exactly zero (SPEC 6.3).
     pub fn new(ray: &Ray) -> SlabRay {
         SlabRay {
-            origin: ray.origin,
-            inv_dir: ray.dir.recip(),
+            origin: ray.origin.to_array(),
+            inv_dir: ray.dir.recip().to_array(),
             zero: [ray.dir.x == 0.0, ray.dir.y == 0.0, ray.dir.z == 0.0],
         }
     }
@@ -48,6 +49,7 @@ impl SlabRay {
 /// certainly misses the box within that range. Conservative: never `None`
 /// when the exact ray meets the box for some `t` in `[tmin, tmax]`.
 pub fn ray_box(ray: &SlabRay, lo: Vec3, hi: Vec3, tmin: f32, tmax: f32) -> Option<(f32, f32)> {
+    let (lo, hi) = (lo.to_array(), hi.to_array());
     let mut near = tmin;
     let mut far = f32::INFINITY;
     for axis in 0..3 {

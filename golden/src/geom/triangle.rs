@@ -32,6 +32,8 @@ pub struct TriangleHit {
 #[derive(Clone, Copy, Debug)]
 pub struct ShearedRay {
     origin: Vec3,
+    // Axes index arrays, not `Vec3`s: indexing a `Vec3` by a runtime value
+    // is a three-way branch per access.
     kx: usize,
     ky: usize,
     kz: usize,
@@ -90,9 +92,9 @@ impl ShearedRay {
 pub fn intersect_triangle(ray: &ShearedRay, tri: &[Vec3; 3]) -> Option<TriangleHit> {
     let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
     // Vertices relative to the ray origin.
-    let a = tri[0] - ray.origin;
-    let b = tri[1] - ray.origin;
-    let c = tri[2] - ray.origin;
+    let a = (tri[0] - ray.origin).to_array();
+    let b = (tri[1] - ray.origin).to_array();
+    let c = (tri[2] - ray.origin).to_array();
     // Shear and scale to the ray's space (z is scaled later, only on a hit).
     let ax = a[kx] - ray.sx * a[kz];
     let ay = a[ky] - ray.sy * a[kz];

@@ -25,7 +25,7 @@ use serde::Serialize;
 use std::fmt;
 
 use crate::build::GridMap;
-use crate::geom::{intersect_triangle, ray_box, Ray, ShearedRay, SlabRay};
+use crate::geom::{intersect_triangle, intersect_triangle_in, ray_box, Ray, ShearedRay, SlabRay};
 use crate::mesh::Mesh;
 use crate::scenes::SplitMix64;
 use crate::store::{node_box_grid, Hierarchy, NodeRecord};
@@ -364,7 +364,8 @@ impl<'a> TraceScene<'a> {
         let off = p.inst.offset;
         let to_world =
             |g: f64, axis: usize| self.grid.origin[axis] + (g + off[axis] as f64) * self.grid.unit;
-        let mut b = FrameBox::default();
+        let (mut lo_d, mut lo_guard, mut hi_d, mut hi_guard) =
+            ([0.0; 3], [0.0; 3], [0.0; 3], [0.0; 3]);
         for axis in 0..3 {
             let f = p.frame[axis];
             let a = to_world(lo[axis], axis);
@@ -372,12 +373,12 @@ impl<'a> TraceScene<'a> {
             // Binary64 rounding of the operations above and of the move into
             // the frame is below 2^-50 of the values involved; the guard
             // takes it off before rounding to f32 outward.
-            b.lo[axis] = a - f;
-            b.lo_guard[axis] = (a.abs() + f.abs()) * F64_GUARD;
-            b.hi[axis] = c - f;
-            b.hi_guard[axis] = (c.abs() + f.abs()) * F64_GUARD;
+            lo_d[axis] = a - f;
+            lo_guard[axis] = (a.abs() + f.abs()) * F64_GUARD;
+            hi_d[axis] = c - f;
+            hi_guard[axis] = (c.abs() + f.abs()) * F64_GUARD;
         }
-        b
+        FrameBox::new(lo_d, lo_guard, hi_d, hi_guard)
     }
 
     /// The slack of one ray for the boxes of each instance (world units),
@@ -442,26 +443,53 @@ fn err(
 /// Relative bound on binary64 rounding in [`TraceScene::frame_box`].
 const F64_GUARD: f64 = 1.0 / (1u64 << 50) as f64;
 
-/// A node's box in its instance's frame before the ray's slack (SPEC 6.4):
-/// per axis `w - F` and the guard `(|w| + |F|) 2^-50`, in binary64.
+/// A node's box in its instance's frame before the ray's slack (SPEC 6.4),
+/// in binary64: the lower bounds `w - F` and the upper bounds negated,
+/// `-(w - F)`, with their guards `(|w| + |F|) 2^-50`. Negating the upper
+/// bounds makes all six one operation, `round_down_f32((d - s) - guard)`:
+/// rounding to nearest is symmetric, so `-((-x - s) - g) = (x + s) + g`
+/// bit for bit, and rounding the upper bound up is rounding its negation
+/// down, negated.
 #[derive(Clone, Copy, Debug, Default)]
 struct FrameBox {
-    lo: [f64; 3],
-    lo_guard: [f64; 3],
-    hi: [f64; 3],
-    hi_guard: [f64; 3],
+    d: [f64; 6],
+    guard: [f64; 6],
 }
 
 impl FrameBox {
+    fn new(lo: [f64; 3], lo_guard: [f64; 3], hi: [f64; 3], hi_guard: [f64; 3]) -> FrameBox {
+        FrameBox {
+            d: [lo[0], lo[1], lo[2], -hi[0], -hi[1], -hi[2]],
+            guard: [
+                lo_guard[0],
+                lo_guard[1],
+                lo_guard[2],
+                hi_guard[0],
+                hi_guard[1],
+                hi_guard[2],
+            ],
+        }
+    }
+
     /// The f32 box tested against the ray: SPEC 6.4's
     /// `round_down_f32(w_lo - F - s - guard)` and
     /// `round_up_f32(w_hi - F + s + guard)`, the same binary64 operations in
-    /// the same order as when the whole expression is evaluated per test.
+    /// the same order as the expression evaluated whole.
     #[inline]
     fn with_slack(&self, slack: f64) -> (Vec3, Vec3) {
-        let lo: [f32; 3] = std::array::from_fn(|a| f32_down(self.lo[a] - slack - self.lo_guard[a]));
-        let hi: [f32; 3] = std::array::from_fn(|a| f32_up(self.hi[a] + slack + self.hi_guard[a]));
-        (Vec3::from_array(lo), Vec3::from_array(hi))
+        let y: [f64; 6] = std::array::from_fn(|i| self.d[i] - slack - self.guard[i]);
+        // Six lanes of the same branch-free operations: the compiler makes
+        // vector instructions of them.
+        let r = y.map(f32_down);
+        (Vec3::new(r[0], r[1], r[2]), Vec3::new(-r[3], -r[4], -r[5]))
+    }
+
+    /// The ray's entry into the box grown by `slack`, if it meets it
+    /// within `[tmin, tmax]` ([`ray_box`]).
+    #[inline]
+    fn entry(&self, slab: &SlabRay, slack: f64, tmin: f32, tmax: f32) -> Option<f32> {
+        let (lo, hi) = self.with_slack(slack);
+        ray_box(slab, lo, hi, tmin, tmax).map(|(entry, _)| entry)
     }
 }
 
@@ -548,8 +576,7 @@ struct Pending {
 
 /// The scratch space of traversal, owned by the caller and reused from ray
 /// to ray (and from scene to scene): per instance the ray's box slack and
-/// its prepared slab and sheared rays, the stack, and the children of the
-/// node being expanded. Once its buffers have grown to a scene's size,
+/// its prepared slab and sheared rays, and the stack. Once its buffers have grown to a scene's size,
 /// tracing a ray allocates nothing. What a context traced before never
 /// changes an answer: [`TraceContext::closest_hit`] returns what
 /// [`closest_hit`] does, with the same tests counted.
@@ -587,7 +614,6 @@ pub struct TraceContext {
     slabs: Vec<Option<SlabRay>>,
     sheared: Vec<Option<ShearedRay>>,
     stack: Vec<Pending>,
-    children: Vec<Pending>,
 }
 
 impl TraceContext {
@@ -644,28 +670,8 @@ impl TraceContext {
             let h = p.inst.hierarchy;
             let n = &h.nodes[top.node as usize];
             if n.leaf {
-                let s = *self.sheared[top.placed]
-                    .get_or_insert_with(|| ShearedRay::new(&local_ray(ray, p)));
-                for &prim in h.prims_of(n) {
-                    stats.prim_tests += 1;
-                    let best_t = best.map_or(ray.tmax, |h| h.t);
-                    let tri = p.inst.mesh.triangle(prim as usize);
-                    if let Some(th) = intersect_triangle(&s.with_range(ray.tmin, best_t), &tri) {
-                        let hit = Hit {
-                            t: th.t,
-                            u: th.u,
-                            v: th.v,
-                            w: th.w,
-                            hier: h.id,
-                            prim,
-                        };
-                        if ANY {
-                            return Some(hit);
-                        }
-                        if improves(&best, &hit) {
-                            best = Some(hit);
-                        }
-                    }
+                if self.test_leaf::<ANY>(ray, p, top.placed, n, &mut best, stats) {
+                    return best;
                 }
             } else {
                 // Children may live in other instances (a merged hierarchy).
@@ -679,15 +685,8 @@ impl TraceContext {
                         .position(|r| r.hier != hier)
                         .map_or(refs.len(), |d| i + d);
                     let k = scene.by_id[hier as usize].expect("checked in TraceScene::with_roots");
-                    let best_t = best.map_or(ray.tmax, |h| h.t);
-                    self.visit(
-                        scene,
-                        ray,
-                        k,
-                        refs[i..j].iter().map(|r| r.node),
-                        best_t,
-                        stats,
-                    );
+                    let nodes = refs[i..j].iter().map(|r| r.node);
+                    self.visit(scene, ray, k, nodes, best_t, stats);
                     i = j;
                 }
             }
@@ -695,8 +694,48 @@ impl TraceContext {
         best
     }
 
+    /// Tests the triangles of leaf `n` of instance `p` (index `placed`)
+    /// against the ray over `[tmin, best_t]`, keeping the best hit in
+    /// `best`; true when `ANY` and a triangle was hit (the walk ends).
+    fn test_leaf<const ANY: bool>(
+        &mut self,
+        ray: &Ray,
+        p: &Placed,
+        placed: usize,
+        n: &NodeRecord,
+        best: &mut Option<Hit>,
+        stats: &mut TraceStats,
+    ) -> bool {
+        let h = p.inst.hierarchy;
+        let s = self.sheared[placed].get_or_insert_with(|| ShearedRay::new(&local_ray(ray, p)));
+        for &prim in h.prims_of(n) {
+            stats.prim_tests += 1;
+            let best_t = best.map_or(ray.tmax, |h| h.t);
+            let tri = p.inst.mesh.triangle(prim as usize);
+            if let Some(th) = intersect_triangle_in(s, &tri, ray.tmin, best_t) {
+                let hit = Hit {
+                    t: th.t,
+                    u: th.u,
+                    v: th.v,
+                    w: th.w,
+                    hier: h.id,
+                    prim,
+                };
+                if ANY {
+                    *best = Some(hit);
+                    return true;
+                }
+                if improves(best, &hit) {
+                    *best = Some(hit);
+                }
+            }
+        }
+        false
+    }
+
     /// Tests the boxes of `nodes` of instance `placed` and pushes those hit,
-    /// farthest first so the nearest is popped first.
+    /// farthest first so the nearest is popped first. They are pushed in
+    /// reference order and sorted where they lie on the stack.
     fn visit(
         &mut self,
         scene: &TraceScene,
@@ -707,22 +746,20 @@ impl TraceContext {
         stats: &mut TraceStats,
     ) {
         let p = &scene.placed[placed];
-        let slab = *self.slabs[placed].get_or_insert_with(|| SlabRay::new(&frame_ray(ray, p)));
+        let slab = self.slabs[placed].get_or_insert_with(|| SlabRay::new(&frame_ray(ray, p)));
         let slack = self.slacks[placed];
-        self.children.clear();
+        let start = self.stack.len();
         for node in nodes {
             stats.node_tests += 1;
-            let (lo, hi) = p.boxes[node as usize].with_slack(slack);
-            if let Some((entry, _)) = ray_box(&slab, lo, hi, ray.tmin, best_t) {
-                self.children.push(Pending {
+            if let Some(entry) = p.boxes[node as usize].entry(slab, slack, ray.tmin, best_t) {
+                self.stack.push(Pending {
                     placed,
                     node,
                     entry,
                 });
             }
         }
-        sort_farthest_first(&mut self.children);
-        self.stack.extend_from_slice(&self.children);
+        sort_farthest_first(&mut self.stack[start..]);
     }
 }
 

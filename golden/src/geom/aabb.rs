@@ -52,14 +52,13 @@ pub fn ray_box(ray: &SlabRay, lo: Vec3, hi: Vec3, tmin: f32, tmax: f32) -> Optio
     let (lo, hi) = (lo.to_array(), hi.to_array());
     let mut near = tmin;
     let mut far = f32::INFINITY;
+    // Straight-line code: every way out is folded into `miss` and taken at
+    // the end, and the choices are selects, because a branch on data that
+    // changes from ray to ray (the direction's signs) is mispredicted often.
+    // Going on past a miss changes nothing but the values it discards.
+    let mut miss = false;
     for axis in 0..3 {
         let o = ray.origin[axis];
-        if ray.zero[axis] {
-            if o < lo[axis] || o > hi[axis] {
-                return None;
-            }
-            continue;
-        }
         let inv = ray.inv_dir[axis];
         // A bound through the origin is crossed at t = 0 exactly; writing it
         // out avoids 0 * inf = NaN when a tiny (subnormal) direction
@@ -74,14 +73,25 @@ pub fn ray_box(ray: &SlabRay, lo: Vec3, hi: Vec3, tmin: f32, tmax: f32) -> Optio
         } else {
             (hi[axis] - o) * inv
         };
-        let (t_enter, t_leave) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
-        // Only non-finite input gets here with a NaN: refuse it as a miss
-        // rather than let max/min silently drop it.
-        if t_enter.is_nan() || t_leave.is_nan() {
-            return None;
+        let ordered = t0 <= t1;
+        let mut t_enter = if ordered { t0 } else { t1 };
+        let mut t_leave = if ordered { t1 } else { t0 };
+        if ray.zero[axis] {
+            // Inside the slab for every t or for none: max(near, -inf) and
+            // min(far, inf) leave near and far as they are, bit for bit.
+            miss |= o < lo[axis] || o > hi[axis];
+            t_enter = f32::NEG_INFINITY;
+            t_leave = f32::INFINITY;
+        } else {
+            // Only non-finite input gets here with a NaN: refuse it as a
+            // miss rather than let max/min silently drop it.
+            miss |= t_enter.is_nan() || t_leave.is_nan();
         }
         near = near.max(t_enter);
         far = far.min(t_leave);
+    }
+    if miss {
+        return None;
     }
     let far = (far * FAR_SCALE).min(tmax);
     (near <= far).then_some((near, far))

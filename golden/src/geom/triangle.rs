@@ -90,6 +90,18 @@ impl ShearedRay {
 /// `t = T * (1 / det)` in `[tmin, tmax]` (inclusive). Returns `None` otherwise,
 /// also for non-finite input (every comparison with NaN fails).
 pub fn intersect_triangle(ray: &ShearedRay, tri: &[Vec3; 3]) -> Option<TriangleHit> {
+    intersect_triangle_in(ray, tri, ray.tmin, ray.tmax)
+}
+
+/// [`intersect_triangle`] over `[tmin, tmax]` instead of the ray's own
+/// range: traversal narrows the range after every hit.
+#[inline]
+pub fn intersect_triangle_in(
+    ray: &ShearedRay,
+    tri: &[Vec3; 3],
+    tmin: f32,
+    tmax: f32,
+) -> Option<TriangleHit> {
     let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
     // Vertices relative to the ray origin.
     let a = (tri[0] - ray.origin).to_array();
@@ -128,7 +140,7 @@ pub fn intersect_triangle(ray: &ShearedRay, tri: &[Vec3; 3]) -> Option<TriangleH
     }
     let rcp_det = 1.0 / det;
     let t = t_scaled * rcp_det;
-    if !(t >= ray.tmin && t <= ray.tmax) {
+    if !(t >= tmin && t <= tmax) {
         return None;
     }
     Some(TriangleHit {

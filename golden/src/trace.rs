@@ -159,6 +159,12 @@ struct Placed<'a> {
     /// the per-node part of SPEC 6.4, made once per scene so a box test
     /// does not decode the record and map it to world units again.
     boxes: Vec<FrameBox>,
+    /// Every node's f32 box grown by `outer_slack` instead of the ray's
+    /// slack: a box around the exact one of every ray whose slack is at
+    /// most `outer_slack` (see [`TraceContext::visit`]).
+    outer: Vec<(Vec3, Vec3)>,
+    /// The largest slack the `outer` boxes cover.
+    outer_slack: f64,
 }
 
 /// Instances ready to trace: checked, indexed by hierarchy id.
@@ -232,6 +238,8 @@ impl<'a> TraceScene<'a> {
                 local_magnitude,
                 reach: Vec::new(),
                 boxes: Vec::new(),
+                outer: Vec::new(),
+                outer_slack: 0.0,
             });
         }
         if !(grid.unit.is_finite() && grid.unit > 0.0 && grid.origin.is_finite()) {
@@ -263,15 +271,21 @@ impl<'a> TraceScene<'a> {
         }
         for k in 0..scene.placed.len() {
             scene.placed[k].reach = scene.reachable_with_triangles(k);
+        }
+        let outer_slacks = scene.outer_slacks();
+        for (k, outer_slack) in outer_slacks.into_iter().enumerate() {
             let p = &scene.placed[k];
-            let boxes = p
+            let boxes: Vec<FrameBox> = p
                 .inst
                 .hierarchy
                 .nodes
                 .iter()
                 .map(|n| scene.frame_box(p, n))
                 .collect();
-            scene.placed[k].boxes = boxes;
+            let p = &mut scene.placed[k];
+            p.outer = boxes.iter().map(|b| b.with_slack(outer_slack)).collect();
+            p.outer_slack = outer_slack;
+            p.boxes = boxes;
         }
         Ok(scene)
     }
@@ -403,6 +417,39 @@ impl<'a> TraceScene<'a> {
                 reach
             }
         }));
+    }
+
+    /// Per instance the slack of [`TraceScene::slacks_into`] for a ray
+    /// whose origin has no coordinate above `R` in magnitude, `R` the
+    /// scene's largest coordinate plus twice its diagonal (the ray
+    /// generators reach 1.5 diagonals out), rounded generously up. Only
+    /// speed depends on it: rays with a larger slack skip the outer boxes.
+    fn outer_slacks(&self) -> Vec<f64> {
+        let (lo, hi) = self.bounds();
+        let reach = if lo.is_finite() && hi.is_finite() {
+            lo.abs().max(hi.abs()).max_element() as f64 + 2.0 * (hi - lo).length() as f64
+        } else {
+            0.0
+        };
+        let own: Vec<f64> = self
+            .placed
+            .iter()
+            .map(|p| {
+                let o = reach + p.shift.abs().max_element();
+                BOX_SLACK_REL * 2.0 * (o + p.local_magnitude)
+            })
+            .collect();
+        self.placed
+            .iter()
+            .map(|p| {
+                let r = p.reach.iter().map(|&j| own[j]).fold(0.0, f64::max);
+                if p.inst.mesh.is_empty() {
+                    r + BOX_SLACK_REL * 2.0 * (reach + p.frame.abs().max_element())
+                } else {
+                    r
+                }
+            })
+            .collect()
     }
 
     /// Every instance, for brute force and bounds.
@@ -749,9 +796,25 @@ impl TraceContext {
         let slab = self.slabs[placed].get_or_insert_with(|| SlabRay::new(&frame_ray(ray, p)));
         let slack = self.slacks[placed];
         let start = self.stack.len();
+        // A ray that misses a box around the node's exact box misses the
+        // exact box too: the slab test is monotone in the box (a larger box
+        // gives an earlier or equal entry and a later or equal exit, every
+        // rounding being monotone), and the outer box holds the exact one
+        // when the ray's slack is at most `outer_slack` (outward rounding
+        // and binary64 subtraction are monotone in the slack). So the
+        // outer box, in f32 and made once, sorts out most misses for the
+        // cost of a plain slab test; the exact box decides the rest.
+        let outer = slack <= p.outer_slack;
         for node in nodes {
             stats.node_tests += 1;
-            if let Some(entry) = p.boxes[node as usize].entry(slab, slack, ray.tmin, best_t) {
+            let i = node as usize;
+            if outer {
+                let (lo, hi) = p.outer[i];
+                if ray_box(slab, lo, hi, ray.tmin, best_t).is_none() {
+                    continue;
+                }
+            }
+            if let Some(entry) = p.boxes[i].entry(slab, slack, ray.tmin, best_t) {
                 self.stack.push(Pending {
                     placed,
                     node,

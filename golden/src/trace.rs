@@ -20,12 +20,12 @@
 //! f32): instancing, which keeps the original vertices exact. The slack
 //! covers that rounding of the origin too.
 
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec3, Vec3A};
 use serde::Serialize;
 use std::fmt;
 
 use crate::build::GridMap;
-use crate::geom::{intersect_triangle, intersect_triangle_in, ray_box, Ray, ShearedRay, SlabRay};
+use crate::geom::{intersect_triangle, intersect_triangle_in, ray_box_a, Ray, ShearedRay, SlabRay};
 use crate::mesh::Mesh;
 use crate::scenes::SplitMix64;
 use crate::store::{node_box_grid, Hierarchy, NodeRecord};
@@ -162,7 +162,7 @@ struct Placed<'a> {
     /// Every node's f32 box grown by `outer_slack` instead of the ray's
     /// slack: a box around the exact one of every ray whose slack is at
     /// most `outer_slack` (see [`TraceContext::visit`]).
-    outer: Vec<(Vec3, Vec3)>,
+    outer: Vec<(Vec3A, Vec3A)>,
     /// The largest slack the `outer` boxes cover.
     outer_slack: f64,
 }
@@ -523,20 +523,23 @@ impl FrameBox {
     /// `round_up_f32(w_hi - F + s + guard)`, the same binary64 operations in
     /// the same order as the expression evaluated whole.
     #[inline]
-    fn with_slack(&self, slack: f64) -> (Vec3, Vec3) {
+    fn with_slack(&self, slack: f64) -> (Vec3A, Vec3A) {
         let y: [f64; 6] = std::array::from_fn(|i| self.d[i] - slack - self.guard[i]);
         // Six lanes of the same branch-free operations: the compiler makes
         // vector instructions of them.
         let r = y.map(f32_down);
-        (Vec3::new(r[0], r[1], r[2]), Vec3::new(-r[3], -r[4], -r[5]))
+        (
+            Vec3A::new(r[0], r[1], r[2]),
+            Vec3A::new(-r[3], -r[4], -r[5]),
+        )
     }
 
     /// The ray's entry into the box grown by `slack`, if it meets it
-    /// within `[tmin, tmax]` ([`ray_box`]).
+    /// within `[tmin, tmax]` ([`ray_box_a`]).
     #[inline]
     fn entry(&self, slab: &SlabRay, slack: f64, tmin: f32, tmax: f32) -> Option<f32> {
         let (lo, hi) = self.with_slack(slack);
-        ray_box(slab, lo, hi, tmin, tmax).map(|(entry, _)| entry)
+        ray_box_a(slab, lo, hi, tmin, tmax).map(|(entry, _)| entry)
     }
 }
 
@@ -557,7 +560,8 @@ fn f32_down(x: f64) -> f32 {
 
 /// The smallest f32 not below `x`: rounding to nearest is symmetric, so it
 /// is [`f32_down`] of `-x`, negated (a NaN comes back with its sign flipped;
-/// node boxes are finite).
+/// node boxes are finite). [`FrameBox`] negates its upper bounds instead.
+#[cfg(test)]
 fn f32_up(x: f64) -> f32 {
     -f32_down(-x)
 }
@@ -810,7 +814,7 @@ impl TraceContext {
             let i = node as usize;
             if outer {
                 let (lo, hi) = p.outer[i];
-                if ray_box(slab, lo, hi, ray.tmin, best_t).is_none() {
+                if ray_box_a(slab, lo, hi, ray.tmin, best_t).is_none() {
                     continue;
                 }
             }

@@ -11,7 +11,7 @@
 //! origin's coordinate is crossed at `t = 0` exactly (so a subnormal
 //! component, whose reciprocal overflows, never gives `0 * inf`).
 
-use glam::Vec3;
+use glam::{BVec3A, Vec3, Vec3A};
 
 use super::ray::Ray;
 
@@ -24,23 +24,47 @@ const fn gamma_f32(n: u32) -> f32 {
 /// The factor applied to the far end: `1 + 2 gamma(3)`.
 pub const FAR_SCALE: f32 = 1.0 + 2.0 * gamma_f32(3);
 
-/// Per-ray constants of the slab test, as arrays: indexing a `Vec3` by a
-/// loop variable is a three-way branch per access.
+/// Per-ray constants of the slab test, in vector registers: the three
+/// axes are tested at once, lane by lane with the same IEEE operations.
 #[derive(Clone, Copy, Debug)]
 pub struct SlabRay {
-    origin: [f32; 3],
-    inv_dir: [f32; 3],
-    zero: [bool; 3],
+    origin: Vec3A,
+    inv_dir: Vec3A,
+    zero: BVec3A,
 }
 
 impl SlabRay {
     /// Precomputes the reciprocal direction and which components are exactly zero (SPEC 6.3).
     pub fn new(ray: &Ray) -> SlabRay {
         SlabRay {
-            origin: ray.origin.to_array(),
-            inv_dir: ray.dir.recip().to_array(),
-            zero: [ray.dir.x == 0.0, ray.dir.y == 0.0, ray.dir.z == 0.0],
+            origin: ray.origin.into(),
+            inv_dir: ray.dir.recip().into(),
+            zero: Vec3A::from(ray.dir).cmpeq(Vec3A::ZERO),
         }
+    }
+}
+
+/// `max(a, b)` for non-NaN operands, `a` on a tie: one instruction where
+/// `f32::max` adds a NaN fix-up (its NaN never gets here: a NaN makes the
+/// test a miss). The tie matters only for the sign of a zero (SPEC 6.3
+/// takes the maximum of values; an entry of -0 and one of +0 are the same
+/// point and decide no hit or miss).
+#[inline]
+fn max_keep(a: f32, b: f32) -> f32 {
+    if b > a {
+        b
+    } else {
+        a
+    }
+}
+
+/// `min(a, b)` for non-NaN operands, `a` on a tie; see [`max_keep`].
+#[inline]
+fn min_keep(a: f32, b: f32) -> f32 {
+    if b < a {
+        b
+    } else {
+        a
     }
 }
 
@@ -49,51 +73,38 @@ impl SlabRay {
 /// certainly misses the box within that range. Conservative: never `None`
 /// when the exact ray meets the box for some `t` in `[tmin, tmax]`.
 pub fn ray_box(ray: &SlabRay, lo: Vec3, hi: Vec3, tmin: f32, tmax: f32) -> Option<(f32, f32)> {
-    let (lo, hi) = (lo.to_array(), hi.to_array());
-    let mut near = tmin;
-    let mut far = f32::INFINITY;
-    // Straight-line code: every way out is folded into `miss` and taken at
-    // the end, and the choices are selects, because a branch on data that
-    // changes from ray to ray (the direction's signs) is mispredicted often.
-    // Going on past a miss changes nothing but the values it discards.
-    let mut miss = false;
-    for axis in 0..3 {
-        let o = ray.origin[axis];
-        let inv = ray.inv_dir[axis];
-        // A bound through the origin is crossed at t = 0 exactly; writing it
-        // out avoids 0 * inf = NaN when a tiny (subnormal) direction
-        // component has an infinite reciprocal.
-        let t0 = if lo[axis] == o {
-            0.0
-        } else {
-            (lo[axis] - o) * inv
-        };
-        let t1 = if hi[axis] == o {
-            0.0
-        } else {
-            (hi[axis] - o) * inv
-        };
-        let ordered = t0 <= t1;
-        let mut t_enter = if ordered { t0 } else { t1 };
-        let mut t_leave = if ordered { t1 } else { t0 };
-        if ray.zero[axis] {
-            // Inside the slab for every t or for none: max(near, -inf) and
-            // min(far, inf) leave near and far as they are, bit for bit.
-            miss |= o < lo[axis] || o > hi[axis];
-            t_enter = f32::NEG_INFINITY;
-            t_leave = f32::INFINITY;
-        } else {
-            // Only non-finite input gets here with a NaN: refuse it as a
-            // miss rather than let max/min silently drop it.
-            miss |= t_enter.is_nan() || t_leave.is_nan();
-        }
-        near = near.max(t_enter);
-        far = far.min(t_leave);
-    }
-    if miss {
+    ray_box_a(ray, lo.into(), hi.into(), tmin, tmax)
+}
+
+/// [`ray_box`] on a box already in vector registers. Straight-line code:
+/// a branch on data that changes from ray to ray (the direction's signs)
+/// is mispredicted often, so the choices are selects and every way out is
+/// one test at the end.
+#[inline]
+pub fn ray_box_a(ray: &SlabRay, lo: Vec3A, hi: Vec3A, tmin: f32, tmax: f32) -> Option<(f32, f32)> {
+    let o = ray.origin;
+    // A bound through the origin is crossed at t = 0 exactly; writing it
+    // out avoids 0 * inf = NaN when a tiny (subnormal) direction component
+    // has an infinite reciprocal.
+    let t0 = Vec3A::select(lo.cmpeq(o), Vec3A::ZERO, (lo - o) * ray.inv_dir);
+    let t1 = Vec3A::select(hi.cmpeq(o), Vec3A::ZERO, (hi - o) * ray.inv_dir);
+    let ordered = t0.cmple(t1);
+    let enter = Vec3A::select(ordered, t0, t1);
+    let leave = Vec3A::select(ordered, t1, t0);
+    // A zero component: inside the slab for every t or for none (its t0,
+    // t1 are discarded). Otherwise only non-finite input gets a NaN here:
+    // refused as a miss rather than let max/min silently drop it.
+    let outside = o.cmplt(lo) | o.cmpgt(hi);
+    let nan = enter.is_nan_mask() | leave.is_nan_mask();
+    if ((ray.zero & outside) | (!ray.zero & nan)).any() {
         return None;
     }
-    let far = (far * FAR_SCALE).min(tmax);
+    // max_keep(near, -inf) is near and min_keep(far, inf) is far.
+    let e = Vec3A::select(ray.zero, Vec3A::NEG_INFINITY, enter).to_array();
+    let l = Vec3A::select(ray.zero, Vec3A::INFINITY, leave).to_array();
+    let near = max_keep(max_keep(max_keep(tmin, e[0]), e[1]), e[2]);
+    let far = min_keep(min_keep(l[0], l[1]), l[2]);
+    let far = min_keep(far * FAR_SCALE, tmax);
     (near <= far).then_some((near, far))
 }
 

@@ -165,6 +165,9 @@ struct Placed<'a> {
     outer: Vec<(Vec3A, Vec3A)>,
     /// The largest slack the `outer` boxes cover.
     outer_slack: f64,
+    /// The mesh's triangles with their vertices in place of indices: a
+    /// leaf's triangle test reads one record instead of four.
+    tris: Vec<[Vec3; 3]>,
 }
 
 /// Instances ready to trace: checked, indexed by hierarchy id.
@@ -240,6 +243,7 @@ impl<'a> TraceScene<'a> {
                 boxes: Vec::new(),
                 outer: Vec::new(),
                 outer_slack: 0.0,
+                tris: Vec::new(),
             });
         }
         if !(grid.unit.is_finite() && grid.unit > 0.0 && grid.origin.is_finite()) {
@@ -286,6 +290,9 @@ impl<'a> TraceScene<'a> {
             p.outer = boxes.iter().map(|b| b.with_slack(outer_slack)).collect();
             p.outer_slack = outer_slack;
             p.boxes = boxes;
+            p.tris = (0..p.inst.mesh.len())
+                .map(|t| p.inst.mesh.triangle(t))
+                .collect();
         }
         Ok(scene)
     }
@@ -762,8 +769,8 @@ impl TraceContext {
         for &prim in h.prims_of(n) {
             stats.prim_tests += 1;
             let best_t = best.map_or(ray.tmax, |h| h.t);
-            let tri = p.inst.mesh.triangle(prim as usize);
-            if let Some(th) = intersect_triangle_in(s, &tri, ray.tmin, best_t) {
+            let tri = &p.tris[prim as usize];
+            if let Some(th) = intersect_triangle_in(s, tri, ray.tmin, best_t) {
                 let hit = Hit {
                     t: th.t,
                     u: th.u,

@@ -7,6 +7,11 @@
 //! origin boxes stay as tight as near it), rounded outward to f32, grown by
 //! a slack that covers the triangle test's rounding, and tested with the
 //! robust slab test ([`crate::geom::aabb`]) against the ray moved likewise.
+//! What of that does not depend on the ray is done once per scene
+//! ([`TraceScene::new`]): each node's box in binary64 up to the slack, and
+//! an f32 box around it that sorts out most misses with a plain slab test
+//! before the exact box is made (see `TraceContext::visit` for why that
+//! gives the same answers).
 //! Leaves test their triangles with the watertight test
 //! ([`crate::geom::triangle`]) on the mesh's original f32 vertices. The
 //! closest hit is the smallest `t`, ties broken by the smallest
@@ -25,7 +30,9 @@ use serde::Serialize;
 use std::fmt;
 
 use crate::build::GridMap;
-use crate::geom::{intersect_triangle, intersect_triangle_in, ray_box_a, Ray, ShearedRay, SlabRay};
+use crate::geom::{
+    intersect_triangle, intersect_triangle_in, ray_box_a, ray_meets_box, Ray, ShearedRay, SlabRay,
+};
 use crate::mesh::Mesh;
 use crate::scenes::SplitMix64;
 use crate::store::{node_box_grid, Hierarchy, NodeRecord};
@@ -821,7 +828,7 @@ impl TraceContext {
             let i = node as usize;
             if outer {
                 let (lo, hi) = p.outer[i];
-                if ray_box_a(slab, lo, hi, ray.tmin, best_t).is_none() {
+                if !ray_meets_box(slab, lo, hi, ray.tmin, best_t) {
                     continue;
                 }
             }

@@ -31,6 +31,9 @@ pub struct SlabRay {
     origin: Vec3A,
     inv_dir: Vec3A,
     zero: BVec3A,
+    /// Every reciprocal is finite (no zero or subnormal component): the
+    /// case [`ray_meets_box`] decides without the special cases.
+    finite: bool,
 }
 
 impl SlabRay {
@@ -40,6 +43,7 @@ impl SlabRay {
             origin: ray.origin.into(),
             inv_dir: ray.dir.recip().into(),
             zero: Vec3A::from(ray.dir).cmpeq(Vec3A::ZERO),
+            finite: ray.dir.recip().is_finite(),
         }
     }
 }
@@ -108,6 +112,25 @@ pub fn ray_box_a(ray: &SlabRay, lo: Vec3A, hi: Vec3A, tmin: f32, tmax: f32) -> O
     (near <= far).then_some((near, far))
 }
 
+/// `ray_box(ray, lo, hi, tmin, tmax).is_some()`, for a caller that needs
+/// only the decision (a filter before an exact test). When every
+/// reciprocal is finite no product is a NaN for finite input, a bound
+/// through the origin gives `0 * inv`, a zero of either sign where
+/// [`ray_box`] writes `+0`, and min and max of the two crossings are the
+/// values its selects take: the same `near` and `far` up to the sign of a
+/// zero, so the same `near <= far`. Other rays take [`ray_box_a`].
+#[inline]
+pub fn ray_meets_box(ray: &SlabRay, lo: Vec3A, hi: Vec3A, tmin: f32, tmax: f32) -> bool {
+    if !ray.finite {
+        return ray_box_a(ray, lo, hi, tmin, tmax).is_some();
+    }
+    let t0 = (lo - ray.origin) * ray.inv_dir;
+    let t1 = (hi - ray.origin) * ray.inv_dir;
+    let near = t0.min(t1).max_element().max(tmin);
+    let far = (t0.max(t1).min_element() * FAR_SCALE).min(tmax);
+    near <= far
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -154,6 +177,46 @@ mod tests {
             test(&r, Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 1.0, 1.0)).map(|h| h.0),
             Some(4.0)
         );
+    }
+
+    /// The decision-only test agrees with the full one, also on boxes
+    /// with a bound through the origin and on axis-parallel rays.
+    #[test]
+    fn meets_box_is_the_full_decision() {
+        let mut rng = SplitMix64::new(12);
+        let mut hits = 0;
+        for k in 0..50_000 {
+            let lo = rng.point_in(Vec3::splat(-10.0), Vec3::splat(10.0));
+            let hi = lo + rng.point_in(Vec3::ZERO, Vec3::splat(5.0));
+            let mut origin = rng.point_in(Vec3::splat(-20.0), Vec3::splat(20.0));
+            let mut dir = rng.point_in(lo, hi) - origin;
+            let axis = k % 3;
+            match k % 5 {
+                0 => origin[axis] = lo[axis],
+                1 => origin[axis] = hi[axis],
+                2 => dir[axis] = 0.0,
+                3 => dir[axis] = f32::from_bits(1),
+                _ => {}
+            }
+            let tmax = if k % 4 == 0 {
+                rng.range_f32(0.0, 2.0)
+            } else {
+                f32::INFINITY
+            };
+            let r = Ray::new(origin, dir, 0.0, tmax);
+            if !r.is_valid() {
+                continue;
+            }
+            let s = SlabRay::new(&r);
+            let full = ray_box(&s, lo, hi, r.tmin, r.tmax).is_some();
+            assert_eq!(
+                ray_meets_box(&s, lo.into(), hi.into(), r.tmin, r.tmax),
+                full,
+                "{r:?} {lo} {hi}"
+            );
+            hits += full as u32;
+        }
+        assert!(hits > 10_000, "{hits}");
     }
 
     /// Points strictly inside a box, reached along random rays, are always

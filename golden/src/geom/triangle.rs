@@ -118,12 +118,15 @@ pub fn intersect_triangle_in(
     let mut u = cx * by - cy * bx;
     let mut v = ax * cy - ay * cx;
     let mut w = bx * ay - by * ax;
-    if u == 0.0 || v == 0.0 || w == 0.0 {
+    // The conditions below use `|` and `&`, not `||` and `&&`: the same
+    // truth values, one branch instead of one per operand, each as hard to
+    // predict as whether the ray hits the triangle.
+    if (u == 0.0) | (v == 0.0) | (w == 0.0) {
         u = edge_f64(cx, by, cy, bx);
         v = edge_f64(ax, cy, ay, cx);
         w = edge_f64(bx, ay, by, ax);
     }
-    if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+    if ((u < 0.0) | (v < 0.0) | (w < 0.0)) & ((u > 0.0) | (v > 0.0) | (w > 0.0)) {
         return None;
     }
     let det = u + v + w;
@@ -135,7 +138,7 @@ pub fn intersect_triangle_in(
     let cz = ray.sz * c[kz];
     let t_scaled = u * az + v * bz + w * cz;
     // T must have det's sign: the hit is in front of the origin.
-    if (t_scaled < 0.0 && det > 0.0) || (t_scaled > 0.0 && det < 0.0) {
+    if ((t_scaled < 0.0) & (det > 0.0)) | ((t_scaled > 0.0) & (det < 0.0)) {
         return None;
     }
     let rcp_det = 1.0 / det;

@@ -32,6 +32,7 @@ use std::fmt;
 use crate::build::GridMap;
 use crate::geom::{
     intersect_triangle, intersect_triangle_in, ray_box_a, ray_meets_box, Ray, ShearedRay, SlabRay,
+    TriangleHit,
 };
 use crate::mesh::Mesh;
 use crate::scenes::SplitMix64;
@@ -88,6 +89,18 @@ pub struct Hit {
 }
 
 impl Hit {
+    /// The hit of a triangle test on triangle `prim` of hierarchy `hier`.
+    fn on(th: &TriangleHit, hier: u8, prim: u32) -> Hit {
+        Hit {
+            t: th.t,
+            u: th.u,
+            v: th.v,
+            w: th.w,
+            hier,
+            prim,
+        }
+    }
+
     /// The closest-hit order: `t`, then hierarchy id, then primitive index.
     fn precedes(&self, other: &Hit) -> bool {
         (self.t, self.hier, self.prim) < (other.t, other.hier, other.prim)
@@ -778,14 +791,7 @@ impl TraceContext {
             let best_t = best.map_or(ray.tmax, |h| h.t);
             let tri = &p.tris[prim as usize];
             if let Some(th) = intersect_triangle_in(s, tri, ray.tmin, best_t) {
-                let hit = Hit {
-                    t: th.t,
-                    u: th.u,
-                    v: th.v,
-                    w: th.w,
-                    hier: h.id,
-                    prim,
-                };
+                let hit = Hit::on(&th, h.id, prim);
                 if ANY {
                     *best = Some(hit);
                     return true;
@@ -875,14 +881,7 @@ pub fn brute_force_closest(ray: &Ray, scene: &TraceScene, stats: &mut TraceStats
         for prim in 0..p.inst.mesh.triangles.len() {
             stats.prim_tests += 1;
             if let Some(th) = intersect_triangle(&s, &p.inst.mesh.triangle(prim)) {
-                let hit = Hit {
-                    t: th.t,
-                    u: th.u,
-                    v: th.v,
-                    w: th.w,
-                    hier: p.inst.hierarchy.id,
-                    prim: prim as u32,
-                };
+                let hit = Hit::on(&th, p.inst.hierarchy.id, prim as u32);
                 if improves(&best, &hit) {
                     best = Some(hit);
                 }

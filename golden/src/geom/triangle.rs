@@ -102,7 +102,28 @@ pub fn intersect_triangle_in(
     tmin: f32,
     tmax: f32,
 ) -> Option<TriangleHit> {
-    let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
+    // One instance per axis order, with the axes as constants: no index
+    // is checked or looked up per triangle, and the match goes the same
+    // way for every triangle of a ray, so it is predicted.
+    match (ray.kx, ray.ky, ray.kz) {
+        (1, 2, 0) => intersect_axes::<1, 2, 0>(ray, tri, tmin, tmax),
+        (2, 1, 0) => intersect_axes::<2, 1, 0>(ray, tri, tmin, tmax),
+        (2, 0, 1) => intersect_axes::<2, 0, 1>(ray, tri, tmin, tmax),
+        (0, 2, 1) => intersect_axes::<0, 2, 1>(ray, tri, tmin, tmax),
+        (0, 1, 2) => intersect_axes::<0, 1, 2>(ray, tri, tmin, tmax),
+        _ => intersect_axes::<1, 0, 2>(ray, tri, tmin, tmax),
+    }
+}
+
+/// The watertight test with the ray's `kx, ky, kz` (SPEC 6.2) as `KX, KY, KZ`.
+#[inline(always)]
+fn intersect_axes<const KX: usize, const KY: usize, const KZ: usize>(
+    ray: &ShearedRay,
+    tri: &[Vec3; 3],
+    tmin: f32,
+    tmax: f32,
+) -> Option<TriangleHit> {
+    let (kx, ky, kz) = (KX, KY, KZ);
     // Vertices relative to the ray origin.
     let a = (tri[0] - ray.origin).to_array();
     let b = (tri[1] - ray.origin).to_array();

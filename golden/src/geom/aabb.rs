@@ -126,8 +126,8 @@ pub fn ray_meets_box(ray: &SlabRay, lo: Vec3A, hi: Vec3A, tmin: f32, tmax: f32) 
     }
     let t0 = (lo - ray.origin) * ray.inv_dir;
     let t1 = (hi - ray.origin) * ray.inv_dir;
-    let near = t0.min(t1).max_element().max(tmin);
-    let far = (t0.max(t1).min_element() * FAR_SCALE).min(tmax);
+    let near = max_keep(t0.min(t1).max_element(), tmin);
+    let far = min_keep(t0.max(t1).min_element() * FAR_SCALE, tmax);
     near <= far
 }
 

@@ -31,8 +31,8 @@ use std::fmt;
 
 use crate::build::GridMap;
 use crate::geom::{
-    intersect_triangle, intersect_triangle_in, ray_box_a, ray_meets_box, Ray, ShearedRay, SlabRay,
-    TriangleHit,
+    intersect_triangle, intersect_triangle_in, ray_box_entry, ray_meets_box, Ray, ShearedRay,
+    SlabRay, TriangleHit,
 };
 use crate::mesh::Mesh;
 use crate::scenes::SplitMix64;
@@ -562,11 +562,11 @@ impl FrameBox {
     }
 
     /// The ray's entry into the box grown by `slack`, if it meets it
-    /// within `[tmin, tmax]` ([`ray_box_a`]).
+    /// within `[tmin, tmax]` ([`ray_box_entry`]).
     #[inline]
     fn entry(&self, slab: &SlabRay, slack: f64, tmin: f32, tmax: f32) -> Option<f32> {
         let (lo, hi) = self.with_slack(slack);
-        ray_box_a(slab, lo, hi, tmin, tmax).map(|(entry, _)| entry)
+        ray_box_entry(slab, lo, hi, tmin, tmax)
     }
 }
 
@@ -817,28 +817,53 @@ impl TraceContext {
         stats: &mut TraceStats,
     ) {
         let p = &scene.placed[placed];
-        let slab = self.slabs[placed].get_or_insert_with(|| SlabRay::new(&frame_ray(ray, p)));
+        let slab = *self.slabs[placed].get_or_insert_with(|| SlabRay::new(&frame_ray(ray, p)));
         let slack = self.slacks[placed];
         let start = self.stack.len();
-        // A ray that misses a box around the node's exact box misses the
-        // exact box too: the slab test is monotone in the box (a larger box
-        // gives an earlier or equal entry and a later or equal exit, every
-        // rounding being monotone), and the outer box holds the exact one
-        // when the ray's slack is at most `outer_slack` (outward rounding
-        // and binary64 subtraction are monotone in the slack). So the
-        // outer box, in f32 and made once, sorts out most misses for the
-        // cost of a plain slab test; the exact box decides the rest.
-        let outer = slack <= p.outer_slack;
+        // One loop per answer, so the choice is made once per visit.
+        let (lo, hi) = (ray.tmin, best_t);
+        stats.node_tests += if slack <= p.outer_slack {
+            self.push_hits::<true>(p, placed, &slab, slack, nodes, lo, hi)
+        } else {
+            self.push_hits::<false>(p, placed, &slab, slack, nodes, lo, hi)
+        };
+        sort_farthest_first(&mut self.stack[start..]);
+    }
+
+    /// Pushes the nodes of `nodes` whose box the ray meets within
+    /// `[tmin, tmax]`, in order; returns how many boxes it tested.
+    ///
+    /// With `OUTER`, a ray that misses a box around the node's exact box
+    /// misses the exact box too: the slab test is monotone in the box (a
+    /// larger box gives an earlier or equal entry and a later or equal
+    /// exit, every rounding being monotone), and the outer box holds the
+    /// exact one when the ray's slack is at most `outer_slack` (outward
+    /// rounding and binary64 subtraction are monotone in the slack). So
+    /// the outer box, in f32 and made once, sorts out most misses for the
+    /// cost of a plain slab test; the exact box decides the rest.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn push_hits<const OUTER: bool>(
+        &mut self,
+        p: &Placed,
+        placed: usize,
+        slab: &SlabRay,
+        slack: f64,
+        nodes: impl Iterator<Item = u32>,
+        tmin: f32,
+        tmax: f32,
+    ) -> u64 {
+        let mut tested = 0;
         for node in nodes {
-            stats.node_tests += 1;
+            tested += 1;
             let i = node as usize;
-            if outer {
+            if OUTER {
                 let (lo, hi) = p.outer[i];
-                if !ray_meets_box(slab, lo, hi, ray.tmin, best_t) {
+                if !ray_meets_box(slab, lo, hi, tmin, tmax) {
                     continue;
                 }
             }
-            if let Some(entry) = p.boxes[i].entry(slab, slack, ray.tmin, best_t) {
+            if let Some(entry) = p.boxes[i].entry(slab, slack, tmin, tmax) {
                 self.stack.push(Pending {
                     placed,
                     node,
@@ -846,7 +871,7 @@ impl TraceContext {
                 });
             }
         }
-        sort_farthest_first(&mut self.stack[start..]);
+        tested
     }
 }
 

@@ -15,7 +15,7 @@ pub mod overlap;
 pub mod ray;
 pub mod triangle;
 
-pub use aabb::{ray_box, ray_box_a, ray_meets_box, SlabRay};
+pub use aabb::{ray_box, ray_box_a, ray_box_entry, ray_meets_box, SlabRay};
 pub use clip::clip_triangle_to_box;
 pub use overlap::triangle_overlaps_box;
 pub use ray::Ray;

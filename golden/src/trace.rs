@@ -31,8 +31,8 @@ use std::fmt;
 
 use crate::build::GridMap;
 use crate::geom::{
-    intersect_triangle, intersect_triangle_in, ray_box_entry, ray_meets_box, Ray, ShearedRay,
-    SlabRay, TriangleHit,
+    intersect_each, intersect_triangle, ray_box_entry, ray_meets_box, Ray, ShearedRay, SlabRay,
+    TriangleHit,
 };
 use crate::mesh::Mesh;
 use crate::scenes::SplitMix64;
@@ -786,22 +786,22 @@ impl TraceContext {
     ) -> bool {
         let h = p.inst.hierarchy;
         let s = self.sheared[placed].get_or_insert_with(|| ShearedRay::new(&local_ray(ray, p)));
-        for &prim in h.prims_of(n) {
-            stats.prim_tests += 1;
-            let best_t = best.map_or(ray.tmax, |h| h.t);
-            let tri = &p.tris[prim as usize];
-            if let Some(th) = intersect_triangle_in(s, tri, ray.tmin, best_t) {
-                let hit = Hit::on(&th, h.id, prim);
-                if ANY {
-                    *best = Some(hit);
-                    return true;
-                }
-                if improves(best, &hit) {
-                    *best = Some(hit);
-                }
+        let best_t = best.map_or(ray.tmax, |h| h.t);
+        let mut stop = false;
+        let tested = intersect_each(s, h.prims_of(n), &p.tris, ray.tmin, best_t, |prim, th| {
+            let hit = Hit::on(th, h.id, prim);
+            if ANY {
+                *best = Some(hit);
+                stop = true;
+                return None;
             }
-        }
-        false
+            if improves(best, &hit) {
+                *best = Some(hit);
+            }
+            best.map(|b| b.t)
+        });
+        stats.prim_tests += tested as u64;
+        stop
     }
 
     /// Tests the boxes of `nodes` of instance `placed` and pushes those hit,

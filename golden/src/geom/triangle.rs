@@ -115,6 +115,51 @@ pub fn intersect_triangle_in(
     }
 }
 
+/// The watertight test on the triangles `tris[prims[0]]`, `tris[prims[1]]`,
+/// ... in order, each as [`intersect_triangle_in`] over `[tmin, tmax]`,
+/// for a leaf of a hierarchy. `on_hit(prim, hit)` is told of every hit and
+/// gives the `tmax` the following triangles are tested with, or `None` to
+/// stop there. Returns how many triangles were tested. The ray's axis
+/// order is looked at once for all of them, not once per triangle.
+pub fn intersect_each(
+    ray: &ShearedRay,
+    prims: &[u32],
+    tris: &[[Vec3; 3]],
+    tmin: f32,
+    tmax: f32,
+    on_hit: impl FnMut(u32, &TriangleHit) -> Option<f32>,
+) -> usize {
+    match (ray.kx, ray.ky, ray.kz) {
+        (1, 2, 0) => each_axes::<1, 2, 0>(ray, prims, tris, tmin, tmax, on_hit),
+        (2, 1, 0) => each_axes::<2, 1, 0>(ray, prims, tris, tmin, tmax, on_hit),
+        (2, 0, 1) => each_axes::<2, 0, 1>(ray, prims, tris, tmin, tmax, on_hit),
+        (0, 2, 1) => each_axes::<0, 2, 1>(ray, prims, tris, tmin, tmax, on_hit),
+        (0, 1, 2) => each_axes::<0, 1, 2>(ray, prims, tris, tmin, tmax, on_hit),
+        _ => each_axes::<1, 0, 2>(ray, prims, tris, tmin, tmax, on_hit),
+    }
+}
+
+/// [`intersect_each`] with the ray's axis order as constants.
+#[inline(always)]
+fn each_axes<const KX: usize, const KY: usize, const KZ: usize>(
+    ray: &ShearedRay,
+    prims: &[u32],
+    tris: &[[Vec3; 3]],
+    tmin: f32,
+    mut tmax: f32,
+    mut on_hit: impl FnMut(u32, &TriangleHit) -> Option<f32>,
+) -> usize {
+    for (tested, &prim) in prims.iter().enumerate() {
+        if let Some(hit) = intersect_axes::<KX, KY, KZ>(ray, &tris[prim as usize], tmin, tmax) {
+            match on_hit(prim, &hit) {
+                Some(t) => tmax = t,
+                None => return tested + 1,
+            }
+        }
+    }
+    prims.len()
+}
+
 /// The watertight test with the ray's `kx, ky, kz` (SPEC 6.2) as `KX, KY, KZ`.
 #[inline(always)]
 fn intersect_axes<const KX: usize, const KY: usize, const KZ: usize>(
@@ -234,6 +279,45 @@ mod tests {
         // A ray in the triangle's plane.
         let tri = [Vec3::ZERO, Vec3::X, Vec3::Y];
         assert!(hit(&Ray::unbounded(Vec3::new(-1.0, 0.2, 0.0), Vec3::X), &tri).is_none());
+    }
+
+    /// The leaf loop makes the tests the one-by-one test makes, in every
+    /// axis order, narrowing `tmax` and stopping as told.
+    #[test]
+    fn each_is_one_by_one() {
+        let mut rng = SplitMix64::new(9);
+        let box_lo = Vec3::splat(-1.0);
+        let tris: Vec<[Vec3; 3]> = (0..40)
+            .map(|_| [(); 3].map(|_| rng.point_in(box_lo, Vec3::ONE)))
+            .collect();
+        let prims: Vec<u32> = (0..60).map(|_| rng.below(40) as u32).collect();
+        let mut hits = 0;
+        for k in 0..3000 {
+            let origin = rng.unit_vector() * 4.0;
+            let ray = Ray::unbounded(origin, rng.point_in(box_lo, Vec3::ONE) - origin);
+            let s = ShearedRay::new(&ray);
+            let stop_after = k % 3;
+            let (mut want, mut tmax, mut tested) = (Vec::new(), ray.tmax, 0);
+            for &p in &prims {
+                tested += 1;
+                if let Some(h) = intersect_triangle_in(&s, &tris[p as usize], ray.tmin, tmax) {
+                    want.push((p, h));
+                    tmax = tmax.min(h.t);
+                    if want.len() == stop_after {
+                        break;
+                    }
+                }
+            }
+            let mut got = Vec::new();
+            let n = intersect_each(&s, &prims, &tris, ray.tmin, ray.tmax, |p, h| {
+                got.push((p, *h));
+                (got.len() != stop_after)
+                    .then(|| got.iter().map(|g| g.1.t).fold(f32::INFINITY, f32::min))
+            });
+            assert_eq!((n, &got), (tested, &want), "{ray:?}");
+            hits += got.len();
+        }
+        assert!(hits > 1000, "{hits}");
     }
 
     /// Watertightness: rays through the shared edge and shared vertex of a

@@ -188,6 +188,52 @@ struct Placed<'a> {
     /// The mesh's triangles with their vertices in place of indices: a
     /// leaf's triangle test reads one record instead of four.
     tris: Vec<[Vec3; 3]>,
+    /// Every node as the walk reads it, indexed like the hierarchy's nodes.
+    walk: Vec<WalkNode>,
+}
+
+/// A node as the walk reads it, made once per scene: where its triangles
+/// or children are, and for an inner node the instance holding them when
+/// it is one (the usual case), so the walk neither decodes the record nor
+/// looks the children's hierarchies up.
+#[derive(Clone, Copy, Debug)]
+struct WalkNode {
+    /// First index into the hierarchy's `prims` (leaf) or `refs` (inner).
+    first: u32,
+    /// Number of triangles or children.
+    count: u32,
+    /// [`WalkNode::LEAF`], [`WalkNode::MIXED`] (children in more than one
+    /// hierarchy), or the index in `placed` of the instance holding every child.
+    target: u32,
+}
+
+impl WalkNode {
+    const LEAF: u32 = u32::MAX;
+    const MIXED: u32 = u32::MAX - 1;
+
+    fn new(n: &NodeRecord, h: &Hierarchy, by_id: &[Option<usize>]) -> WalkNode {
+        let target = if n.leaf {
+            WalkNode::LEAF
+        } else {
+            let children = h.children_of(n);
+            match children.first() {
+                Some(c) if children.iter().all(|r| r.hier == c.hier) => {
+                    by_id[c.hier as usize].map_or(WalkNode::MIXED, |k| k as u32)
+                }
+                _ => WalkNode::MIXED,
+            }
+        };
+        WalkNode {
+            first: n.first,
+            count: n.count,
+            target,
+        }
+    }
+
+    /// The node's indices into `prims` or `refs`.
+    fn range(&self) -> std::ops::Range<usize> {
+        self.first as usize..self.first as usize + self.count as usize
+    }
 }
 
 /// Instances ready to trace: checked, indexed by hierarchy id.
@@ -264,6 +310,7 @@ impl<'a> TraceScene<'a> {
                 outer: Vec::new(),
                 outer_slack: 0.0,
                 tris: Vec::new(),
+                walk: Vec::new(),
             });
         }
         if !(grid.unit.is_finite() && grid.unit > 0.0 && grid.origin.is_finite()) {
@@ -306,7 +353,15 @@ impl<'a> TraceScene<'a> {
                 .iter()
                 .map(|n| scene.frame_box(p, n))
                 .collect();
+            let walk = p
+                .inst
+                .hierarchy
+                .nodes
+                .iter()
+                .map(|n| WalkNode::new(n, p.inst.hierarchy, &scene.by_id))
+                .collect();
             let p = &mut scene.placed[k];
+            p.walk = walk;
             p.outer = boxes.iter().map(|b| b.with_slack(outer_slack)).collect();
             p.outer_slack = outer_slack;
             p.boxes = boxes;
@@ -746,14 +801,18 @@ impl TraceContext {
             }
             let p = &scene.placed[top.placed];
             let h = p.inst.hierarchy;
-            let n = &h.nodes[top.node as usize];
-            if n.leaf {
-                if self.test_leaf::<ANY>(ray, p, top.placed, n, &mut best, stats) {
+            let w = p.walk[top.node as usize];
+            if w.target == WalkNode::LEAF {
+                let prims = &h.prims[w.range()];
+                if self.test_leaf::<ANY>(ray, p, top.placed, prims, &mut best, stats) {
                     return best;
                 }
+            } else if w.target != WalkNode::MIXED {
+                let nodes = h.refs[w.range()].iter().map(|r| r.node);
+                self.visit(scene, ray, w.target as usize, nodes, best_t, stats);
             } else {
-                // Children may live in other instances (a merged hierarchy).
-                let refs = h.children_of(n);
+                // Children in other instances (a merged hierarchy).
+                let refs = &h.refs[w.range()];
                 let mut i = 0;
                 while i < refs.len() {
                     // Group consecutive references to the same hierarchy.
@@ -772,15 +831,15 @@ impl TraceContext {
         best
     }
 
-    /// Tests the triangles of leaf `n` of instance `p` (index `placed`)
-    /// against the ray over `[tmin, best_t]`, keeping the best hit in
-    /// `best`; true when `ANY` and a triangle was hit (the walk ends).
+    /// Tests the triangles `prims` of a leaf of instance `p` (index
+    /// `placed`) against the ray over `[tmin, best_t]`, keeping the best hit
+    /// in `best`; true when `ANY` and a triangle was hit (the walk ends).
     fn test_leaf<const ANY: bool>(
         &mut self,
         ray: &Ray,
         p: &Placed,
         placed: usize,
-        n: &NodeRecord,
+        prims: &[u32],
         best: &mut Option<Hit>,
         stats: &mut TraceStats,
     ) -> bool {
@@ -788,7 +847,7 @@ impl TraceContext {
         let s = self.sheared[placed].get_or_insert_with(|| ShearedRay::new(&local_ray(ray, p)));
         let best_t = best.map_or(ray.tmax, |h| h.t);
         let mut stop = false;
-        let tested = intersect_each(s, h.prims_of(n), &p.tris, ray.tmin, best_t, |prim, th| {
+        let tested = intersect_each(s, prims, &p.tris, ray.tmin, best_t, |prim, th| {
             let hit = Hit::on(th, h.id, prim);
             if ANY {
                 *best = Some(hit);

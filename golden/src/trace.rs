@@ -32,7 +32,7 @@ use std::fmt;
 use crate::build::GridMap;
 use crate::geom::{
     intersect_each, intersect_triangle, ray_box_entry, ray_meets_box, Ray, ShearedRay, SlabRay,
-    TriangleHit,
+    TriangleHit, TriangleLanes,
 };
 use crate::mesh::Mesh;
 use crate::scenes::SplitMix64;
@@ -185,9 +185,10 @@ struct Placed<'a> {
     outer: Vec<(Vec3A, Vec3A)>,
     /// The largest slack the `outer` boxes cover.
     outer_slack: f64,
-    /// The mesh's triangles with their vertices in place of indices: a
-    /// leaf's triangle test reads one record instead of four.
-    tris: Vec<[Vec3; 3]>,
+    /// The mesh's triangles with their vertices in place of indices, by
+    /// coordinate: a leaf's triangle test reads one record instead of
+    /// four, and tests the three vertices at once.
+    tris: Vec<TriangleLanes>,
     /// Every node as the walk reads it, indexed like the hierarchy's nodes.
     walk: Vec<WalkNode>,
 }
@@ -366,7 +367,7 @@ impl<'a> TraceScene<'a> {
             p.outer_slack = outer_slack;
             p.boxes = boxes;
             p.tris = (0..p.inst.mesh.len())
-                .map(|t| p.inst.mesh.triangle(t))
+                .map(|t| TriangleLanes::new(&p.inst.mesh.triangle(t)))
                 .collect();
         }
         Ok(scene)

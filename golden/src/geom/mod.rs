@@ -21,6 +21,7 @@ pub use overlap::triangle_overlaps_box;
 pub use ray::Ray;
 pub use triangle::{
     intersect_each, intersect_triangle, intersect_triangle_in, ShearedRay, TriangleHit,
+    TriangleLanes,
 };
 
 use glam::DVec3;

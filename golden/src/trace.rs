@@ -7,6 +7,11 @@
 //! origin boxes stay as tight as near it), rounded outward to f32, grown by
 //! a slack that covers the triangle test's rounding, and tested with the
 //! robust slab test ([`crate::geom::aabb`]) against the ray moved likewise.
+//! What of that does not depend on the ray is done once per scene
+//! ([`TraceScene::new`]): each node's box in binary64 up to the slack, and
+//! an f32 box around it that sorts out most misses with a plain slab test
+//! before the exact box is made (see `TraceContext::visit` for why that
+//! gives the same answers).
 //! Leaves test their triangles with the watertight test
 //! ([`crate::geom::triangle`]) on the mesh's original f32 vertices. The
 //! closest hit is the smallest `t`, ties broken by the smallest
@@ -20,12 +25,15 @@
 //! f32): instancing, which keeps the original vertices exact. The slack
 //! covers that rounding of the origin too.
 
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec3, Vec3A};
 use serde::Serialize;
 use std::fmt;
 
 use crate::build::GridMap;
-use crate::geom::{intersect_triangle, ray_box, Ray, ShearedRay, SlabRay};
+use crate::geom::{
+    intersect_each, intersect_triangle, ray_box_entry, ray_meets_box, Ray, ShearedRay, SlabRay,
+    TriangleHit, TriangleLanes,
+};
 use crate::mesh::Mesh;
 use crate::scenes::SplitMix64;
 use crate::store::{node_box_grid, Hierarchy, NodeRecord};
@@ -81,6 +89,18 @@ pub struct Hit {
 }
 
 impl Hit {
+    /// The hit of a triangle test on triangle `prim` of hierarchy `hier`.
+    fn on(th: &TriangleHit, hier: u8, prim: u32) -> Hit {
+        Hit {
+            t: th.t,
+            u: th.u,
+            v: th.v,
+            w: th.w,
+            hier,
+            prim,
+        }
+    }
+
     /// The closest-hit order: `t`, then hierarchy id, then primitive index.
     fn precedes(&self, other: &Hit) -> bool {
         (self.t, self.hier, self.prim) < (other.t, other.hier, other.prim)
@@ -155,6 +175,66 @@ struct Placed<'a> {
     /// Instances with triangles whose nodes can be reached from this one's
     /// (itself included): whose slack its boxes must carry.
     reach: Vec<usize>,
+    /// Every node's box in the frame, indexed like the hierarchy's nodes:
+    /// the per-node part of SPEC 6.4, made once per scene so a box test
+    /// does not decode the record and map it to world units again.
+    boxes: Vec<FrameBox>,
+    /// Every node's f32 box grown by `outer_slack` instead of the ray's
+    /// slack: a box around the exact one of every ray whose slack is at
+    /// most `outer_slack` (see [`TraceContext::visit`]).
+    outer: Vec<(Vec3A, Vec3A)>,
+    /// The largest slack the `outer` boxes cover.
+    outer_slack: f64,
+    /// The mesh's triangles with their vertices in place of indices, by
+    /// coordinate: a leaf's triangle test reads one record instead of
+    /// four, and tests the three vertices at once.
+    tris: Vec<TriangleLanes>,
+    /// Every node as the walk reads it, indexed like the hierarchy's nodes.
+    walk: Vec<WalkNode>,
+}
+
+/// A node as the walk reads it, made once per scene: where its triangles
+/// or children are, and for an inner node the instance holding them when
+/// it is one (the usual case), so the walk neither decodes the record nor
+/// looks the children's hierarchies up.
+#[derive(Clone, Copy, Debug)]
+struct WalkNode {
+    /// First index into the hierarchy's `prims` (leaf) or `refs` (inner).
+    first: u32,
+    /// Number of triangles or children.
+    count: u32,
+    /// [`WalkNode::LEAF`], [`WalkNode::MIXED`] (children in more than one
+    /// hierarchy), or the index in `placed` of the instance holding every child.
+    target: u32,
+}
+
+impl WalkNode {
+    const LEAF: u32 = u32::MAX;
+    const MIXED: u32 = u32::MAX - 1;
+
+    fn new(n: &NodeRecord, h: &Hierarchy, by_id: &[Option<usize>]) -> WalkNode {
+        let target = if n.leaf {
+            WalkNode::LEAF
+        } else {
+            let children = h.children_of(n);
+            match children.first() {
+                Some(c) if children.iter().all(|r| r.hier == c.hier) => {
+                    by_id[c.hier as usize].map_or(WalkNode::MIXED, |k| k as u32)
+                }
+                _ => WalkNode::MIXED,
+            }
+        };
+        WalkNode {
+            first: n.first,
+            count: n.count,
+            target,
+        }
+    }
+
+    /// The node's indices into `prims` or `refs`.
+    fn range(&self) -> std::ops::Range<usize> {
+        self.first as usize..self.first as usize + self.count as usize
+    }
 }
 
 /// Instances ready to trace: checked, indexed by hierarchy id.
@@ -227,6 +307,11 @@ impl<'a> TraceScene<'a> {
                 frame,
                 local_magnitude,
                 reach: Vec::new(),
+                boxes: Vec::new(),
+                outer: Vec::new(),
+                outer_slack: 0.0,
+                tris: Vec::new(),
+                walk: Vec::new(),
             });
         }
         if !(grid.unit.is_finite() && grid.unit > 0.0 && grid.origin.is_finite()) {
@@ -258,6 +343,32 @@ impl<'a> TraceScene<'a> {
         }
         for k in 0..scene.placed.len() {
             scene.placed[k].reach = scene.reachable_with_triangles(k);
+        }
+        let outer_slacks = scene.outer_slacks();
+        for (k, outer_slack) in outer_slacks.into_iter().enumerate() {
+            let p = &scene.placed[k];
+            let boxes: Vec<FrameBox> = p
+                .inst
+                .hierarchy
+                .nodes
+                .iter()
+                .map(|n| scene.frame_box(p, n))
+                .collect();
+            let walk = p
+                .inst
+                .hierarchy
+                .nodes
+                .iter()
+                .map(|n| WalkNode::new(n, p.inst.hierarchy, &scene.by_id))
+                .collect();
+            let p = &mut scene.placed[k];
+            p.walk = walk;
+            p.outer = boxes.iter().map(|b| b.with_slack(outer_slack)).collect();
+            p.outer_slack = outer_slack;
+            p.boxes = boxes;
+            p.tris = (0..p.inst.mesh.len())
+                .map(|t| TriangleLanes::new(&p.inst.mesh.triangle(t)))
+                .collect();
         }
         Ok(scene)
     }
@@ -343,26 +454,28 @@ impl<'a> TraceScene<'a> {
     }
 
     /// The box of node `n` of instance `p` in the instance's frame (world
-    /// box minus `p.frame`), rounded outward to f32 and grown by `slack`
-    /// (world units).
-    fn frame_box(&self, p: &Placed, n: &NodeRecord, slack: f64) -> (Vec3, Vec3) {
+    /// box minus `p.frame`), up to the per-ray slack: what
+    /// [`FrameBox::with_slack`] needs to give the box of SPEC 6.4.
+    fn frame_box(&self, p: &Placed, n: &NodeRecord) -> FrameBox {
         let (lo, hi) = node_box_grid(n, &p.inst.hierarchy.params);
         let off = p.inst.offset;
         let to_world =
             |g: f64, axis: usize| self.grid.origin[axis] + (g + off[axis] as f64) * self.grid.unit;
-        let mut flo = Vec3::ZERO;
-        let mut fhi = Vec3::ZERO;
+        let (mut lo_d, mut lo_guard, mut hi_d, mut hi_guard) =
+            ([0.0; 3], [0.0; 3], [0.0; 3], [0.0; 3]);
         for axis in 0..3 {
             let f = p.frame[axis];
             let a = to_world(lo[axis], axis);
-            let b = to_world(hi[axis], axis);
+            let c = to_world(hi[axis], axis);
             // Binary64 rounding of the operations above and of the move into
-            // the frame is below 2^-50 of the values involved; subtract it
-            // before rounding to f32 outward.
-            flo[axis] = f32_down(a - f - slack - (a.abs() + f.abs()) * F64_GUARD);
-            fhi[axis] = f32_up(b - f + slack + (b.abs() + f.abs()) * F64_GUARD);
+            // the frame is below 2^-50 of the values involved; the guard
+            // takes it off before rounding to f32 outward.
+            lo_d[axis] = a - f;
+            lo_guard[axis] = (a.abs() + f.abs()) * F64_GUARD;
+            hi_d[axis] = c - f;
+            hi_guard[axis] = (c.abs() + f.abs()) * F64_GUARD;
         }
-        (flo, fhi)
+        FrameBox::new(lo_d, lo_guard, hi_d, hi_guard)
     }
 
     /// The slack of one ray for the boxes of each instance (world units),
@@ -387,6 +500,39 @@ impl<'a> TraceScene<'a> {
                 reach
             }
         }));
+    }
+
+    /// Per instance the slack of [`TraceScene::slacks_into`] for a ray
+    /// whose origin has no coordinate above `R` in magnitude, `R` the
+    /// scene's largest coordinate plus twice its diagonal (the ray
+    /// generators reach 1.5 diagonals out), rounded generously up. Only
+    /// speed depends on it: rays with a larger slack skip the outer boxes.
+    fn outer_slacks(&self) -> Vec<f64> {
+        let (lo, hi) = self.bounds();
+        let reach = if lo.is_finite() && hi.is_finite() {
+            lo.abs().max(hi.abs()).max_element() as f64 + 2.0 * (hi - lo).length() as f64
+        } else {
+            0.0
+        };
+        let own: Vec<f64> = self
+            .placed
+            .iter()
+            .map(|p| {
+                let o = reach + p.shift.abs().max_element();
+                BOX_SLACK_REL * 2.0 * (o + p.local_magnitude)
+            })
+            .collect();
+        self.placed
+            .iter()
+            .map(|p| {
+                let r = p.reach.iter().map(|&j| own[j]).fold(0.0, f64::max);
+                if p.inst.mesh.is_empty() {
+                    r + BOX_SLACK_REL * 2.0 * (reach + p.frame.abs().max_element())
+                } else {
+                    r
+                }
+            })
+            .collect()
     }
 
     /// Every instance, for brute force and bounds.
@@ -427,33 +573,80 @@ fn err(
 /// Relative bound on binary64 rounding in [`TraceScene::frame_box`].
 const F64_GUARD: f64 = 1.0 / (1u64 << 50) as f64;
 
-/// The largest f32 not above `x`.
+/// A node's box in its instance's frame before the ray's slack (SPEC 6.4),
+/// in binary64: the lower bounds `w - F` and the upper bounds negated,
+/// `-(w - F)`, with their guards `(|w| + |F|) 2^-50`. Negating the upper
+/// bounds makes all six one operation, `round_down_f32((d - s) - guard)`:
+/// rounding to nearest is symmetric, so `-((-x - s) - g) = (x + s) + g`
+/// bit for bit, and rounding the upper bound up is rounding its negation
+/// down, negated.
+#[derive(Clone, Copy, Debug, Default)]
+struct FrameBox {
+    d: [f64; 6],
+    guard: [f64; 6],
+}
+
+impl FrameBox {
+    fn new(lo: [f64; 3], lo_guard: [f64; 3], hi: [f64; 3], hi_guard: [f64; 3]) -> FrameBox {
+        FrameBox {
+            d: [lo[0], lo[1], lo[2], -hi[0], -hi[1], -hi[2]],
+            guard: [
+                lo_guard[0],
+                lo_guard[1],
+                lo_guard[2],
+                hi_guard[0],
+                hi_guard[1],
+                hi_guard[2],
+            ],
+        }
+    }
+
+    /// The f32 box tested against the ray: SPEC 6.4's
+    /// `round_down_f32(w_lo - F - s - guard)` and
+    /// `round_up_f32(w_hi - F + s + guard)`, the same binary64 operations in
+    /// the same order as the expression evaluated whole.
+    #[inline]
+    fn with_slack(&self, slack: f64) -> (Vec3A, Vec3A) {
+        let y: [f64; 6] = std::array::from_fn(|i| self.d[i] - slack - self.guard[i]);
+        // Six lanes of the same branch-free operations: the compiler makes
+        // vector instructions of them.
+        let r = y.map(f32_down);
+        (
+            Vec3A::new(r[0], r[1], r[2]),
+            Vec3A::new(-r[3], -r[4], -r[5]),
+        )
+    }
+
+    /// The ray's entry into the box grown by `slack`, if it meets it
+    /// within `[tmin, tmax]` ([`ray_box_entry`]).
+    #[inline]
+    fn entry(&self, slab: &SlabRay, slack: f64, tmin: f32, tmax: f32) -> Option<f32> {
+        let (lo, hi) = self.with_slack(slack);
+        ray_box_entry(slab, lo, hi, tmin, tmax)
+    }
+}
+
+/// The largest f32 not above `x` (for NaN, NaN). Free of branches: about
+/// half the values round up to nearest, so a branch on it is mispredicted
+/// about as often, six times per box test.
 fn f32_down(x: f64) -> f32 {
     let f = x as f32;
-    if f as f64 > x {
-        next_toward_neg_inf(f)
-    } else {
-        f
-    }
+    let bits = f.to_bits();
+    let rounded_up = ((f as f64) > x) as u32;
+    // One step toward -inf: a positive value's bits go down by one, a
+    // negative value's up by one; +0 steps as -0 does, to the smallest
+    // negative subnormal, so it takes the sign bit first.
+    let b = bits | (((bits == 0) as u32 & rounded_up) << 31);
+    let step = (b >> 31).wrapping_mul(2).wrapping_sub(1);
+    f32::from_bits(b.wrapping_add(rounded_up.wrapping_mul(step)))
 }
 
-/// The smallest f32 not below `x`.
+/// The smallest f32 not below `x`: rounding to nearest is symmetric, so it
+/// is [`f32_down`] of `-x`, negated (a NaN comes back with its sign flipped;
+/// node boxes are finite). [`FrameBox`] negates its upper bounds instead.
+#[cfg(test)]
 fn f32_up(x: f64) -> f32 {
-    let f = x as f32;
-    if (f as f64) < x {
-        -next_toward_neg_inf(-f)
-    } else {
-        f
-    }
-}
-
-/// The next f32 below a finite `f` (`f32::next_down` needs Rust 1.86).
-fn next_toward_neg_inf(f: f32) -> f32 {
-    if f == 0.0 {
-        return -f32::from_bits(1);
-    }
-    let b = f.to_bits();
-    f32::from_bits(if f > 0.0 { b - 1 } else { b + 1 })
+    -f32_down(-x)
 }
 
 /// The lower corner of an instance's roots in world units (binary64): the
@@ -517,8 +710,7 @@ struct Pending {
 
 /// The scratch space of traversal, owned by the caller and reused from ray
 /// to ray (and from scene to scene): per instance the ray's box slack and
-/// its prepared slab and sheared rays, the stack, and the children of the
-/// node being expanded. Once its buffers have grown to a scene's size,
+/// its prepared slab and sheared rays, and the stack. Once its buffers have grown to a scene's size,
 /// tracing a ray allocates nothing. What a context traced before never
 /// changes an answer: [`TraceContext::closest_hit`] returns what
 /// [`closest_hit`] does, with the same tests counted.
@@ -556,7 +748,6 @@ pub struct TraceContext {
     slabs: Vec<Option<SlabRay>>,
     sheared: Vec<Option<ShearedRay>>,
     stack: Vec<Pending>,
-    children: Vec<Pending>,
 }
 
 impl TraceContext {
@@ -611,34 +802,18 @@ impl TraceContext {
             }
             let p = &scene.placed[top.placed];
             let h = p.inst.hierarchy;
-            let n = &h.nodes[top.node as usize];
-            if n.leaf {
-                let s = *self.sheared[top.placed]
-                    .get_or_insert_with(|| ShearedRay::new(&local_ray(ray, p)));
-                for &prim in h.prims_of(n) {
-                    stats.prim_tests += 1;
-                    let best_t = best.map_or(ray.tmax, |h| h.t);
-                    let tri = p.inst.mesh.triangle(prim as usize);
-                    if let Some(th) = intersect_triangle(&s.with_range(ray.tmin, best_t), &tri) {
-                        let hit = Hit {
-                            t: th.t,
-                            u: th.u,
-                            v: th.v,
-                            w: th.w,
-                            hier: h.id,
-                            prim,
-                        };
-                        if ANY {
-                            return Some(hit);
-                        }
-                        if improves(&best, &hit) {
-                            best = Some(hit);
-                        }
-                    }
+            let w = p.walk[top.node as usize];
+            if w.target == WalkNode::LEAF {
+                let prims = &h.prims[w.range()];
+                if self.test_leaf::<ANY>(ray, p, top.placed, prims, &mut best, stats) {
+                    return best;
                 }
+            } else if w.target != WalkNode::MIXED {
+                let nodes = h.refs[w.range()].iter().map(|r| r.node);
+                self.visit(scene, ray, w.target as usize, nodes, best_t, stats);
             } else {
-                // Children may live in other instances (a merged hierarchy).
-                let refs = h.children_of(n);
+                // Children in other instances (a merged hierarchy).
+                let refs = &h.refs[w.range()];
                 let mut i = 0;
                 while i < refs.len() {
                     // Group consecutive references to the same hierarchy.
@@ -648,15 +823,8 @@ impl TraceContext {
                         .position(|r| r.hier != hier)
                         .map_or(refs.len(), |d| i + d);
                     let k = scene.by_id[hier as usize].expect("checked in TraceScene::with_roots");
-                    let best_t = best.map_or(ray.tmax, |h| h.t);
-                    self.visit(
-                        scene,
-                        ray,
-                        k,
-                        refs[i..j].iter().map(|r| r.node),
-                        best_t,
-                        stats,
-                    );
+                    let nodes = refs[i..j].iter().map(|r| r.node);
+                    self.visit(scene, ray, k, nodes, best_t, stats);
                     i = j;
                 }
             }
@@ -664,8 +832,41 @@ impl TraceContext {
         best
     }
 
+    /// Tests the triangles `prims` of a leaf of instance `p` (index
+    /// `placed`) against the ray over `[tmin, best_t]`, keeping the best hit
+    /// in `best`; true when `ANY` and a triangle was hit (the walk ends).
+    fn test_leaf<const ANY: bool>(
+        &mut self,
+        ray: &Ray,
+        p: &Placed,
+        placed: usize,
+        prims: &[u32],
+        best: &mut Option<Hit>,
+        stats: &mut TraceStats,
+    ) -> bool {
+        let h = p.inst.hierarchy;
+        let s = self.sheared[placed].get_or_insert_with(|| ShearedRay::new(&local_ray(ray, p)));
+        let best_t = best.map_or(ray.tmax, |h| h.t);
+        let mut stop = false;
+        let tested = intersect_each(s, prims, &p.tris, ray.tmin, best_t, |prim, th| {
+            let hit = Hit::on(th, h.id, prim);
+            if ANY {
+                *best = Some(hit);
+                stop = true;
+                return None;
+            }
+            if improves(best, &hit) {
+                *best = Some(hit);
+            }
+            best.map(|b| b.t)
+        });
+        stats.prim_tests += tested as u64;
+        stop
+    }
+
     /// Tests the boxes of `nodes` of instance `placed` and pushes those hit,
-    /// farthest first so the nearest is popped first.
+    /// farthest first so the nearest is popped first. They are pushed in
+    /// reference order and sorted where they lie on the stack.
     fn visit(
         &mut self,
         scene: &TraceScene,
@@ -678,21 +879,59 @@ impl TraceContext {
         let p = &scene.placed[placed];
         let slab = *self.slabs[placed].get_or_insert_with(|| SlabRay::new(&frame_ray(ray, p)));
         let slack = self.slacks[placed];
-        self.children.clear();
+        let start = self.stack.len();
+        // One loop per answer, so the choice is made once per visit.
+        let (lo, hi) = (ray.tmin, best_t);
+        stats.node_tests += if slack <= p.outer_slack {
+            self.push_hits::<true>(p, placed, &slab, slack, nodes, lo, hi)
+        } else {
+            self.push_hits::<false>(p, placed, &slab, slack, nodes, lo, hi)
+        };
+        sort_farthest_first(&mut self.stack[start..]);
+    }
+
+    /// Pushes the nodes of `nodes` whose box the ray meets within
+    /// `[tmin, tmax]`, in order; returns how many boxes it tested.
+    ///
+    /// With `OUTER`, a ray that misses a box around the node's exact box
+    /// misses the exact box too: the slab test is monotone in the box (a
+    /// larger box gives an earlier or equal entry and a later or equal
+    /// exit, every rounding being monotone), and the outer box holds the
+    /// exact one when the ray's slack is at most `outer_slack` (outward
+    /// rounding and binary64 subtraction are monotone in the slack). So
+    /// the outer box, in f32 and made once, sorts out most misses for the
+    /// cost of a plain slab test; the exact box decides the rest.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn push_hits<const OUTER: bool>(
+        &mut self,
+        p: &Placed,
+        placed: usize,
+        slab: &SlabRay,
+        slack: f64,
+        nodes: impl Iterator<Item = u32>,
+        tmin: f32,
+        tmax: f32,
+    ) -> u64 {
+        let mut tested = 0;
         for node in nodes {
-            let n = &p.inst.hierarchy.nodes[node as usize];
-            stats.node_tests += 1;
-            let (lo, hi) = scene.frame_box(p, n, slack);
-            if let Some((entry, _)) = ray_box(&slab, lo, hi, ray.tmin, best_t) {
-                self.children.push(Pending {
+            tested += 1;
+            let i = node as usize;
+            if OUTER {
+                let (lo, hi) = p.outer[i];
+                if !ray_meets_box(slab, lo, hi, tmin, tmax) {
+                    continue;
+                }
+            }
+            if let Some(entry) = p.boxes[i].entry(slab, slack, tmin, tmax) {
+                self.stack.push(Pending {
                     placed,
                     node,
                     entry,
                 });
             }
         }
-        sort_farthest_first(&mut self.children);
-        self.stack.extend_from_slice(&self.children);
+        tested
     }
 }
 
@@ -727,14 +966,7 @@ pub fn brute_force_closest(ray: &Ray, scene: &TraceScene, stats: &mut TraceStats
         for prim in 0..p.inst.mesh.triangles.len() {
             stats.prim_tests += 1;
             if let Some(th) = intersect_triangle(&s, &p.inst.mesh.triangle(prim)) {
-                let hit = Hit {
-                    t: th.t,
-                    u: th.u,
-                    v: th.v,
-                    w: th.w,
-                    hier: p.inst.hierarchy.id,
-                    prim: prim as u32,
-                };
+                let hit = Hit::on(&th, p.inst.hierarchy.id, prim as u32);
                 if improves(&best, &hit) {
                     best = Some(hit);
                 }
@@ -1017,11 +1249,54 @@ mod tests {
         assert_eq!(e.field, "root hierarchy");
     }
 
+    /// The straightforward outward roundings the branch-free ones replace.
+    fn down_by_branches(x: f64) -> f32 {
+        let f = x as f32;
+        if f as f64 <= x {
+            f
+        } else if f == 0.0 {
+            -f32::from_bits(1)
+        } else if f > 0.0 {
+            f32::from_bits(f.to_bits() - 1)
+        } else {
+            f32::from_bits(f.to_bits() + 1)
+        }
+    }
+
+    fn up_by_branches(x: f64) -> f32 {
+        let f = x as f32;
+        if f as f64 >= x {
+            f
+        } else if f == 0.0 {
+            f32::from_bits(1)
+        } else if f > 0.0 {
+            f32::from_bits(f.to_bits() + 1)
+        } else {
+            f32::from_bits(f.to_bits() - 1)
+        }
+    }
+
     #[test]
     fn outward_f32_rounding() {
-        for x in [0.1f64, -0.1, 1e-40, -1e-40, 0.0, 3.0, 1e30] {
-            assert!((f32_down(x) as f64) <= x && (f32_up(x) as f64) >= x, "{x}");
+        let tiny = f32::from_bits(1) as f64;
+        let mut xs = vec![
+            0.1f64, -0.1, 1e-40, -1e-40, 0.0, -0.0, 3.0, 1e30, -1e39, 1e39,
+        ];
+        xs.extend([tiny / 2.0, -tiny / 2.0, tiny * 1.5, f32::MAX as f64 * 1.5]);
+        let mut rng = SplitMix64::new(5);
+        for _ in 0..20_000 {
+            let e = rng.below(80) as i32 - 40;
+            let x = (rng.next_f64() - 0.5) * 2f64.powi(e);
+            xs.extend([x, x as f32 as f64]);
         }
+        for x in xs {
+            let (d, u) = (f32_down(x), f32_up(x));
+            assert!((d as f64) <= x && (u as f64) >= x, "{x}");
+            assert_eq!(d.to_bits(), down_by_branches(x).to_bits(), "{x}");
+            assert_eq!(u.to_bits(), up_by_branches(x).to_bits(), "{x}");
+        }
+        assert_eq!(f32_down(-tiny / 2.0), -f32::from_bits(1));
+        assert_eq!(f32_up(tiny / 2.0), f32::from_bits(1));
         assert_eq!(f32_down(3.0), 3.0);
         assert_eq!(f32_up(0.1), 0.1f32);
         assert!(f32_down(0.1) < 0.1f32);

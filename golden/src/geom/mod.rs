@@ -15,11 +15,14 @@ pub mod overlap;
 pub mod ray;
 pub mod triangle;
 
-pub use aabb::{ray_box, SlabRay};
+pub use aabb::{ray_box, ray_box_a, ray_box_entry, ray_meets_box, SlabRay};
 pub use clip::clip_triangle_to_box;
 pub use overlap::triangle_overlaps_box;
 pub use ray::Ray;
-pub use triangle::{intersect_triangle, ShearedRay, TriangleHit};
+pub use triangle::{
+    intersect_each, intersect_triangle, intersect_triangle_in, ShearedRay, TriangleHit,
+    TriangleLanes,
+};
 
 use glam::DVec3;
 

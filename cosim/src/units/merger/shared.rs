@@ -9,8 +9,10 @@
 //! a read golden does not make finds nothing and is an error. The requests
 //! cannot be checked per unit after routing (the requester of a
 //! `store_req` beat is inside the top), so the bench checks what it can
-//! from outside: every read is one golden's units make in that merge, and
-//! each merge makes exactly as many reads as golden's units do. Every
+//! from outside: every read is one golden's units make in its merge (the
+//! merge in flight that the read's `slot` names: consecutive merges
+//! overlap, so the older's writer and the newer's fetchers read at once),
+//! and each merge makes exactly as many reads as golden's units do. Every
 //! output stream (`report`, `nodes`, `refs`, `header`) is compared bit for
 //! bit as in the per-unit bench. A failing chunk's waveform is not
 //! written (the reactive bench runs once, untraced).
@@ -33,7 +35,7 @@ use crate::ledger::StimulusDigest;
 use crate::tb::{run_multi_stream_bench_reactive, BenchConfig, Transaction};
 use crate::units::chunked::{chunk_bench, ChunkTotals, PairDecoder, UnitStreams};
 use crate::units::multi_stream::decoded_pair;
-use crate::units::store_port::{StoreModel, StoreStats};
+use crate::units::store_port::{Epochs, StoreModel, StoreStats};
 
 /// What the store saw over a run of the shared port, and whether it held
 /// to golden's reads.
@@ -179,8 +181,10 @@ pub(super) fn export_store(
     let spec = StoreSpec {
         latency,
         epoch_input: "cfg".into(),
+        epoch_output: "header".into(),
         index: named(&l.index),
         hier: named(&l.hier),
+        slot: named(&l.slot),
         array: named(&l.array),
         runs,
         words,
@@ -265,7 +269,13 @@ impl SharedSim {
             None => stores.get(e)?.word(a, at).cloned(),
         };
         let l = self.layout.clone();
-        let mut model = StoreModel::new(&*eng, l, bench, latency, Some(0), Box::new(lookup))?;
+        // A read's merge is the one in flight its slot names: merges start
+        // with their `cfg` beat and end with their `header` beat.
+        let epochs = Epochs {
+            start_input: 0,
+            end_output: "header".into(),
+        };
+        let mut model = StoreModel::new(&*eng, l, bench, latency, Some(epochs), Box::new(lookup))?;
         let (report, watch) = run_multi_stream_bench_reactive(
             eng.as_mut(),
             &chunk.streams.inputs,
@@ -343,7 +353,12 @@ fn check_reads(
     };
     let a = &mut acc.stats;
     a.reads += stats.reads;
-    a.windows.extend(stats.windows.iter().copied());
+    // Each chunk counts its cycles from its own reset: its windows go after
+    // the ones before, which they must not overlap.
+    let base = a.windows.iter().map(|w| w.1).max().unwrap_or(0);
+    let shifted = stats.windows.iter().filter(|w| w.0 > 0);
+    a.windows
+        .extend(shifted.map(|w| (w.0 + base, w.1 + base)));
     a.error_count += stats.error_count;
     a.errors.extend(stats.errors.iter().cloned());
     acc.expected_reads += reads.iter().sum::<u64>();

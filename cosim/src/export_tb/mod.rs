@@ -376,7 +376,11 @@ fn check_store(spec: &ExportSpec, st: &StoreSpec) -> Result<()> {
             st.epoch_input
         )));
     }
-    if !spec.outputs.iter().any(|o| o.stream.name == st.epoch_output) {
+    if !spec
+        .outputs
+        .iter()
+        .any(|o| o.stream.name == st.epoch_output)
+    {
         return Err(design_err(format!(
             "store: no output stream `{}` ends the merges",
             st.epoch_output

@@ -177,7 +177,7 @@ pub(super) fn parts(
                 // The merge in flight whose number mod 2 is the slot: the
                 // newest taken, or the one before it.
                 tb_store_e = tb_{e}_sent - 32'd1;
-                if (tb_store_e[0] != {slot_bit}) tb_store_e = tb_store_e - 32'd1;
+                if (tb_store_e[0] != store_req_data[{slot_bit}]) tb_store_e = tb_store_e - 32'd1;
                 tb_store_i = {index};
                 tb_store_t = (tb_store_e * 32'd2 + {array}) * 32'd{hc} + {hier};
                 tb_store_w = 32'd0;
@@ -208,7 +208,7 @@ pub(super) fn parts(
         index = field32("store_req_data", &st.index),
         hier = field32("store_req_data", &st.hier),
         slot = field32("store_req_data", &st.slot),
-        slot_bit = format!("store_req_data[{}]", st.slot.offset),
+        slot_bit = st.slot.offset,
         array = field32("store_req_data", &st.array),
         queue = QUEUE,
         t = ix("tb_store_t", runs),

@@ -15,7 +15,8 @@
 //! and each merge makes exactly as many reads as golden's units do. Every
 //! output stream (`report`, `nodes`, `refs`, `header`) is compared bit for
 //! bit as in the per-unit bench. A failing chunk's waveform is not
-//! written (the reactive bench runs once, untraced).
+//! written (the reactive bench runs once), only the window asked for
+//! (`--wave-window`, of the first chunk).
 
 use std::path::Path;
 
@@ -194,17 +195,19 @@ pub(super) fn export_store(
 }
 
 /// A fresh engine of `kind` for the merger (`module`, its Verilog in
-/// `design`): Icarus stepped from Rust, as the store answers reads as they
-/// come (the batch runs precomputed streams only).
+/// `design`), able to trace when `trace`: Icarus stepped from Rust, as the
+/// store answers reads as they come (the batch runs precomputed streams
+/// only).
 fn engine_of(
     kind: MergerEngine,
     module: &rtl_gen::Module,
     design: &Design,
+    trace: bool,
 ) -> Result<Box<dyn Engine>> {
     Ok(match kind {
         MergerEngine::Ir => Box::new(crate::ir_engine::IrEngine::new(module, design)?),
-        MergerEngine::Verilator => crate::open_engine(crate::EngineKind::Verilator, design, false)?,
-        MergerEngine::Iverilog => crate::open_engine(crate::EngineKind::Icarus, design, false)?,
+        MergerEngine::Verilator => crate::open_engine(crate::EngineKind::Verilator, design, trace)?,
+        MergerEngine::Iverilog => crate::open_engine(crate::EngineKind::Icarus, design, trace)?,
     })
 }
 
@@ -262,7 +265,8 @@ impl SharedSim {
         // Only the shared streams are run: the per-unit ones (every
         // response of the chunk) need not stay in memory meanwhile.
         drop(per_unit);
-        let mut eng = engine_of(self.engine, &self.module, &self.design)?;
+        let traced = bench.wave_window.is_some() && bench.vcd_path.is_some();
+        let mut eng = engine_of(self.engine, &self.module, &self.design, traced)?;
         let stores = &chunk.stores;
         let lookup = move |e: usize, a: StoreArray, at: StoreAddr| match image {
             Some(words) => words.word(a, at).cloned(),
@@ -357,8 +361,7 @@ fn check_reads(
     // the ones before, which they must not overlap.
     let base = a.windows.iter().map(|w| w.1).max().unwrap_or(0);
     let shifted = stats.windows.iter().filter(|w| w.0 > 0);
-    a.windows
-        .extend(shifted.map(|w| (w.0 + base, w.1 + base)));
+    a.windows.extend(shifted.map(|w| (w.0 + base, w.1 + base)));
     a.error_count += stats.error_count;
     a.errors.extend(stats.errors.iter().cloned());
     acc.expected_reads += reads.iter().sum::<u64>();

@@ -84,7 +84,10 @@ pub(super) fn finish_merger<'m>(m: &'m Module, t: Tail<'_, 'm>) {
                 let at = ml.input_offset(i) + hier.offset;
                 let h = store.cfg_q.slice(at + hier.width - 1, at);
                 let h = h.name(&format!("f{i}_hier"));
-                (*f, store.fetch_mod, m.concat(&[slots.fetchers, h]))
+                let above = m
+                    .concat(&[slots.fetchers, h])
+                    .name(&format!("f{i}_slot_hier"));
+                (*f, store.fetch_mod, above)
             })
             .collect();
         clients.push((writer, writer_mod, slots.writer));

@@ -106,6 +106,44 @@ fn shared_port_bench_catches_a_wrong_expected_beat() {
     assert_eq!((m.stream.as_str(), m.merge), ("header", 4), "{m:?}");
 }
 
+/// The fetchers reading under the other merge's slot (their reads then
+/// for no merge in flight, or counted to the older merge) fail the run:
+/// the store model attributes every read by its slot.
+#[test]
+fn shared_port_bench_catches_a_read_of_the_wrong_merge() {
+    if !tools_present(&["iverilog"]) {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let config = RunConfig {
+        bench: ModuleRunConfig {
+            seed: 11,
+            stall: Stalls::None,
+            verilog_patch: Some(merger::VerilogPatch {
+                from: "assign fetch_slot = ~slot_next;".into(),
+                to: "assign fetch_slot = slot_next;".into(),
+            }),
+            ..ModuleRunConfig::default()
+        },
+        count: 4,
+        merges: Merges::Random,
+        flip_expected: None,
+        store_latency: 1,
+    };
+    let o = merger::run(
+        &q0(2),
+        MergerEngine::Iverilog,
+        &config,
+        dir.path(),
+        &mut |_, _| {},
+    )
+    .expect("the bench runs");
+    let st = o.store.as_ref().expect("a shared port's store outcome");
+    assert!(!o.passed(), "{:?}", o.totals);
+    let why = st.failure.as_ref().expect("the store's reads fail");
+    assert!(why.contains("no merge in flight"), "{why}");
+}
+
 #[test]
 fn per_unit_keeps_its_name_and_the_shared_top_lints_clean() {
     let per_unit = MergerConfig {

@@ -333,7 +333,7 @@ fn check_store(spec: &ExportSpec, st: &StoreSpec) -> Result<()> {
     port("store_resp_ready", PortDir::Output)?;
     let req = port("store_req_data", PortDir::Output)? as u32;
     let resp = port("store_resp_data", PortDir::Input)?;
-    let fields = [&st.index, &st.hier, &st.array];
+    let fields = [&st.index, &st.hier, &st.slot, &st.array];
     if let Some(f) = fields
         .iter()
         .find(|f| f.offset + f.width > req || f.width > 32)
@@ -374,6 +374,16 @@ fn check_store(spec: &ExportSpec, st: &StoreSpec) -> Result<()> {
         return Err(design_err(format!(
             "store: no input stream `{}` numbers the merges",
             st.epoch_input
+        )));
+    }
+    if !spec
+        .outputs
+        .iter()
+        .any(|o| o.stream.name == st.epoch_output)
+    {
+        return Err(design_err(format!(
+            "store: no output stream `{}` ends the merges",
+            st.epoch_output
         )));
     }
     Ok(())

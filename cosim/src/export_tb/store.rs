@@ -9,7 +9,9 @@
 //! array and hierarchy a run of words (`base`, `len`) indexed by the read's
 //! `index`, holes zero. A read outside its merge's runs is a failure, and
 //! each merge must make as many reads as golden's units (checked at the
-//! end). A read's merge is the `cfg` beats sent so far, less one.
+//! end). A read's merge is the one in flight (its `cfg` beat sent, its
+//! `header` beat not yet taken: two at most) whose number mod 2 is the
+//! read's `slot`; a slot naming none is a failure.
 
 use std::fmt::Write as _;
 
@@ -22,13 +24,17 @@ use super::NamedField;
 pub struct StoreSpec {
     /// Clocks from a read taken to its answer, at the earliest (`1..`).
     pub latency: u64,
-    /// The input stream whose beats sent so far, less one, number the
-    /// merge a read belongs to (`cfg`).
+    /// The input stream whose beats start the merges (`cfg`), numbered
+    /// from 0.
     pub epoch_input: String,
+    /// The output stream whose beats end them (`header`).
+    pub epoch_output: String,
     /// `store_req`'s fields.
     pub index: NamedField,
     /// See `index`.
     pub hier: NamedField,
+    /// See `index`: the read's merge's number mod 2.
+    pub slot: NamedField,
     /// See `index`.
     pub array: NamedField,
     /// Per merge, array (node 0, reference 1) and hierarchy (`2^H` of
@@ -159,7 +165,7 @@ pub(super) fn parts(
 "#
     );
     let tail = format!("tb_store_tail[{}:0]", QUEUE.ilog2() - 1);
-    let e = &st.epoch_input;
+    let (e, o) = (&st.epoch_input, &st.epoch_output);
     let observe = format!(
         r#"            if (store_resp_valid && store_resp_ready) begin
                 tb_store_answered = 1'b1;
@@ -168,11 +174,17 @@ pub(super) fn parts(
             end
             if (store_req_valid && store_req_ready) begin
                 tb_moved = 1'b1;
+                // The merge in flight whose number mod 2 is the slot: the
+                // newest taken, or the one before it.
                 tb_store_e = tb_{e}_sent - 32'd1;
+                if (tb_store_e[0] != store_req_data[{slot_bit}]) tb_store_e = tb_store_e - 32'd1;
                 tb_store_i = {index};
                 tb_store_t = (tb_store_e * 32'd2 + {array}) * 32'd{hc} + {hier};
                 tb_store_w = 32'd0;
-                if (tb_{e}_sent == 32'd0 || tb_store_e >= tb_store_merges || tb_store_t >= 32'd{runs}
+                if (tb_{e}_sent == 32'd0 || tb_store_e > tb_{e}_sent || tb_store_e < tb_{o}_got) begin
+                    $display("FAIL: cycle %0d: `store_req` read of array %0d hierarchy %0d index %0d with slot %0d: no merge of that slot in flight (merges %0d..%0d)", tb_cycle, {array}, {hier}, tb_store_i, {slot}, tb_{o}_got, tb_{e}_sent - 32'd1);
+                    tb_failed = 1'b1;
+                end else if (tb_store_e >= tb_store_merges || tb_store_t >= 32'd{runs}
                         || tb_store_i >= tb_store_len[{t}]) begin
                     $display("FAIL: cycle %0d: `store_req` read of array %0d hierarchy %0d index %0d in merge %0d: outside the words golden's units read", tb_cycle, {array}, {hier}, tb_store_i, tb_store_e);
                     tb_failed = 1'b1;
@@ -195,6 +207,8 @@ pub(super) fn parts(
 "#,
         index = field32("store_req_data", &st.index),
         hier = field32("store_req_data", &st.hier),
+        slot = field32("store_req_data", &st.slot),
+        slot_bit = st.slot.offset,
         array = field32("store_req_data", &st.array),
         queue = QUEUE,
         t = ix("tb_store_t", runs),

@@ -227,6 +227,9 @@ pub trait Reactor {
 /// [`run_multi_stream_bench_watching`] with `reactor` stepped alongside
 /// the drivers and monitors: the run finishes only once it has nothing
 /// left to deliver, and its handshakes count as progress for the watchdog.
+/// It runs once, so it traces only the window `config` asks for
+/// (`wave_window`; the engine opened with tracing), not one around a
+/// failure.
 pub fn run_multi_stream_bench_reactive(
     engine: &mut dyn Engine,
     inputs: &[StreamBeats],
@@ -237,7 +240,7 @@ pub fn run_multi_stream_bench_reactive(
 ) -> Result<(MultiReport, PulseWatch)> {
     let hooks = Hooks {
         pulses,
-        window: None,
+        window: TraceWindow::asked(config),
         progress: &mut |_| {},
         reactor: Some(reactor),
     };

@@ -35,6 +35,50 @@ use crate::units::multi_stream::ModuleEngine;
 /// array, the address) to the word, None for a read outside the store.
 pub type StoreLookup<'a> = dyn FnMut(usize, StoreArray, StoreAddr) -> Option<Bits> + 'a;
 
+/// How a [`StoreModel`] tells the merge (epoch) a read is for: merges are
+/// numbered by the beats of the bench's input `start_input` (the merger's
+/// `cfg`), and a merge ends with its beat on output stream `end_output`
+/// (`header`). A read's `slot` (its merge's number mod 2) names one of the
+/// merges in flight (taken and not ended: two at most, SPEC 8.15); a slot
+/// naming none is a failure.
+#[derive(Clone, Debug)]
+pub struct Epochs {
+    /// The bench input whose beats start the merges.
+    pub start_input: usize,
+    /// The output stream whose beats end them.
+    pub end_output: String,
+}
+
+/// [`Epochs`] as a running model follows them.
+struct EpochState {
+    start_input: usize,
+    /// `<end_output>_valid` and `_ready`.
+    end: (crate::design::PortId, crate::design::PortId),
+    /// Merges taken (beats sent on `start_input`) and ended.
+    taken: u64,
+    ended: u64,
+}
+
+impl EpochState {
+    /// The merge in flight whose number mod 2 is `slot`, or why none is.
+    fn of_slot(&self, slot: u64) -> std::result::Result<usize, String> {
+        let newest = self.taken.checked_sub(1).ok_or("no merge taken yet")?;
+        let e = match newest % 2 == slot {
+            true => newest,
+            false => newest
+                .checked_sub(1)
+                .ok_or(format!("slot {slot}: only merge 0 was taken"))?,
+        };
+        match e >= self.ended {
+            true => Ok(e as usize),
+            false => Err(format!(
+                "slot {slot}: merge {e}, whose header has left (merges {}..={newest} in flight)",
+                self.ended
+            )),
+        }
+    }
+}
+
 /// What a [`StoreModel`] saw.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct StoreStats {
@@ -56,14 +100,21 @@ pub struct StoreStats {
 }
 
 impl StoreStats {
-    /// Cycles from each epoch's first read to its last, summed: the cycles
-    /// in which a merge was reading.
+    /// The cycles in which a merge was reading: those from some epoch's
+    /// first read to its last (epochs that overlap count their common
+    /// cycles once).
     pub fn window_cycles(&self) -> u64 {
-        self.windows
-            .iter()
-            .filter(|w| w.0 > 0)
-            .map(|w| w.1 - w.0 + 1)
-            .sum()
+        let mut w: Vec<(u64, u64)> = self.windows.iter().copied().filter(|w| w.0 > 0).collect();
+        w.sort_unstable();
+        let (mut total, mut end) = (0, 0);
+        for (from, to) in w {
+            let from = from.max(end + 1);
+            if to >= from {
+                total += to - from + 1;
+                end = to;
+            }
+        }
+        total
     }
 
     /// Reads per cycle from the first read to the last.
@@ -86,10 +137,8 @@ pub struct StoreModel<'a> {
     latency: u64,
     delayed: VecDeque<(u64, BitVec)>,
     lookup: Box<StoreLookup<'a>>,
-    /// The input stream whose beats sent so far, less one, are the epoch
-    /// (the merger's `cfg`: a merge's reads come after its `cfg` beat).
-    epoch_input: Option<usize>,
-    epoch: usize,
+    /// The merges reads are attributed to (None: one epoch, 0).
+    epochs: Option<EpochState>,
     /// What it saw.
     pub stats: StoreStats,
 }
@@ -98,14 +147,13 @@ impl<'a> StoreModel<'a> {
     /// The store of `engine`'s design (ports `store_req`, `store_resp`) for
     /// grid layout `layout`, answering from `lookup` after `latency` clocks
     /// (`1..`), stalling with `config`'s patterns and seed; the epoch of a
-    /// read is the beats sent on the bench's input `epoch_input`, less one
-    /// (None: always 0).
+    /// read is the merge of `epochs` its slot names (None: always 0).
     pub fn new(
         engine: &dyn Engine,
         layout: StorePortLayout,
         config: &BenchConfig,
         latency: u64,
-        epoch_input: Option<usize>,
+        epochs: Option<Epochs>,
         lookup: Box<StoreLookup<'a>>,
     ) -> Result<StoreModel<'a>> {
         let ports = |name: &str| {
@@ -118,6 +166,18 @@ impl<'a> StoreModel<'a> {
         };
         // Seeds apart from every bench stream's (`stream_seed` of 0..).
         let seed = |j: usize| stream_seed(config.seed, 1000 + j);
+        let epochs = match epochs {
+            Some(e) => Some(EpochState {
+                start_input: e.start_input,
+                end: (
+                    engine.port_id(&format!("{}_valid", e.end_output))?,
+                    engine.port_id(&format!("{}_ready", e.end_output))?,
+                ),
+                taken: 0,
+                ended: 0,
+            }),
+            None => None,
+        };
         Ok(StoreModel {
             layout,
             req: StreamMonitor::new(ports("store_req")?, seed(0), config.out_stall)?,
@@ -125,46 +185,83 @@ impl<'a> StoreModel<'a> {
             latency: latency.max(1),
             delayed: VecDeque::new(),
             lookup,
-            epoch_input,
-            epoch: 0,
+            epochs,
             stats: StoreStats::default(),
         })
     }
 
-    fn answer(&mut self, beat: &BitVec, cycle: u64) -> Result<BitVec> {
+    /// The answer to `beat` taken at `cycle`, and the epoch it is for
+    /// (None: its slot names no merge in flight, a failure noted).
+    fn answer(&mut self, beat: &BitVec, cycle: u64) -> Result<(BitVec, Option<usize>)> {
         let l = &self.layout;
         let bits = Bits::from_words(beat.width() as u32, beat.words()).map_err(|e| {
             CosimError::Design {
                 what: format!("store_req beat: {e}"),
             }
         })?;
-        let (array, at) = l
+        let read = l
             .unpack_req(&bits)
             .map_err(|what| CosimError::Design { what })?;
-        let found = (self.lookup)(self.epoch, array, at);
+        let (array, at) = (read.array, read.at);
+        let epoch = match &self.epochs {
+            None => Ok(0),
+            Some(e) => e.of_slot(read.slot),
+        };
+        let found = match &epoch {
+            Ok(e) => (self.lookup)(*e, array, at).ok_or(format!("(epoch {e}) outside the store")),
+            Err(why) => Err(format!("for no merge in flight: {why}")),
+        };
         let bits = match found {
-            Some(w) => l
+            Ok(w) => l
                 .pack_resp(&w)
                 .map_err(|what| CosimError::Design { what })?,
-            None => {
+            Err(why) => {
                 self.stats.error_count += 1;
                 if self.stats.errors.len() < 5 {
                     self.stats.errors.push(format!(
-                        "cycle {cycle}: read of {array:?} hierarchy {} index {} (epoch {}) outside the store",
-                        at.hier, at.index, self.epoch
+                        "cycle {cycle}: read of {array:?} hierarchy {} index {} {why}",
+                        at.hier, at.index
                     ));
                 }
                 Bits::zero(l.resp_width)
             }
         };
-        BitVec::from_layout(&bits)
+        Ok((BitVec::from_layout(&bits)?, epoch.ok()))
+    }
+}
+
+impl StoreModel<'_> {
+    /// Counts a read taken at `cycle` for `epoch` (None: for no merge in
+    /// flight, counted in all only).
+    fn count(&mut self, epoch: Option<usize>, cycle: u64) {
+        let s = &mut self.stats;
+        if s.reads == 0 {
+            s.first_read = cycle;
+        }
+        s.reads += 1;
+        s.last_read = cycle;
+        let Some(e) = epoch else {
+            return;
+        };
+        if s.reads_by_epoch.len() <= e {
+            s.reads_by_epoch.resize(e + 1, 0);
+        }
+        s.reads_by_epoch[e] += 1;
+        if s.windows.len() <= e {
+            s.windows.resize(e + 1, (0, 0));
+        }
+        let w = &mut s.windows[e];
+        if w.0 == 0 {
+            w.0 = cycle;
+        }
+        w.1 = cycle;
     }
 }
 
 impl Reactor for StoreModel<'_> {
     fn drive(&mut self, engine: &mut dyn Engine, sent: &[u64]) -> Result<()> {
-        if let Some(j) = self.epoch_input {
-            self.epoch = sent.get(j).copied().unwrap_or(0).saturating_sub(1) as usize;
+        if let Some(e) = self.epochs.as_mut() {
+            e.taken = sent.get(e.start_input).copied().unwrap_or(0);
         }
         let now = engine.cycle();
         while self.delayed.front().is_some_and(|d| d.0 <= now) {
@@ -178,30 +275,24 @@ impl Reactor for StoreModel<'_> {
     fn observe(&mut self, engine: &dyn Engine) -> Result<bool> {
         let cycle = engine.cycle();
         let answered = self.resp.observe(engine)?.is_some();
-        let Some(txn) = self.req.observe(engine)? else {
-            return Ok(answered);
+        let read = self.req.observe(engine)?;
+        // A read taken in the clock its merge's header leaves would be one
+        // the header did not wait for: the read is attributed first.
+        let moved = match read {
+            None => answered,
+            Some(txn) => {
+                let (word, epoch) = self.answer(&txn[0], cycle)?;
+                self.delayed.push_back((cycle + self.latency, word));
+                self.count(epoch, cycle);
+                true
+            }
         };
-        let word = self.answer(&txn[0], cycle)?;
-        self.delayed.push_back((cycle + self.latency, word));
-        let s = &mut self.stats;
-        if s.reads == 0 {
-            s.first_read = cycle;
+        if let Some(e) = self.epochs.as_mut() {
+            if engine.peek_bool(e.end.0)? && engine.peek_bool(e.end.1)? {
+                e.ended += 1;
+            }
         }
-        s.reads += 1;
-        s.last_read = cycle;
-        if s.reads_by_epoch.len() <= self.epoch {
-            s.reads_by_epoch.resize(self.epoch + 1, 0);
-        }
-        s.reads_by_epoch[self.epoch] += 1;
-        if s.windows.len() <= self.epoch {
-            s.windows.resize(self.epoch + 1, (0, 0));
-        }
-        let w = &mut s.windows[self.epoch];
-        if w.0 == 0 {
-            w.0 = cycle;
-        }
-        w.1 = cycle;
-        Ok(true)
+        Ok(moved)
     }
 
     fn finished(&self) -> bool {
@@ -310,7 +401,7 @@ pub fn run(
     for (j, (reqs, resps)) in tx.requests.iter().zip(&tx.responses).enumerate() {
         let idx = reqs
             .iter()
-            .map(|a| BitVec::from_u64(l.addr_width as usize, (a.hier << l.hier.offset) | a.index))
+            .map(|a| BitVec::from_u64(l.addr_width as usize, l.addr_word(0, *a)))
             .collect::<Result<Vec<_>>>()?;
         inputs.push(beats(format!("r{j}_req"), idx));
         let words = resps

@@ -84,11 +84,18 @@ pub struct StorePortLayout {
     /// `index`, the hierarchy whose array is read (a fetcher reads its
     /// input's, the writer names it in its request).
     pub hier: Field,
-    /// `store_req`: `array` (1 bit, [`StoreArray::code`]) above `hier`.
+    /// `store_req` (and a requester's request): `slot` (1 bit) above
+    /// `hier`, the merge the read is for: its sequence number since reset,
+    /// mod 2. Two merges may read at once (the older's writer, the newer's
+    /// fetchers: SPEC 8.15, "Consecutive merges overlap"), and this bit is
+    /// what tells the store whose read each is.
+    pub slot: Field,
+    /// `store_req`: `array` (1 bit, [`StoreArray::code`]) above `slot`.
     pub array: Field,
-    /// Width of a requester's request (`I + H`: `hier`, `index`).
+    /// Width of a requester's request (`I + H + 1`: `slot`, `hier`,
+    /// `index`).
     pub addr_width: u32,
-    /// Width of a `store_req` beat (`I + H + 1`).
+    /// Width of a `store_req` beat (`I + H + 2`).
     pub req_width: u32,
     /// Width of a node record (a node read's answer).
     pub node_width: u32,
@@ -118,13 +125,18 @@ impl StorePortLayout {
                 offset: i,
                 width: h,
             },
-            array: Field {
-                name: "array",
+            slot: Field {
+                name: "slot",
                 offset: i + h,
                 width: 1,
             },
-            addr_width: i + h,
-            req_width: i + h + 1,
+            array: Field {
+                name: "array",
+                offset: i + h + 1,
+                width: 1,
+            },
+            addr_width: i + h + 1,
+            req_width: i + h + 2,
             node_width,
             ref_width,
             resp_width: node_width.max(ref_width),
@@ -139,24 +151,34 @@ impl StorePortLayout {
         }
     }
 
-    /// The `store_req` beat of a read of `array` at `a`.
-    pub fn pack_req(&self, array: StoreArray, a: StoreAddr) -> Result<Bits, String> {
+    /// The `store_req` beat of a read `r`.
+    pub fn pack_req(&self, r: StoreRead) -> Result<Bits, String> {
         let mut b = Bits::zero(self.req_width);
-        b.set(&self.index, a.index).map_err(|e| e.to_string())?;
-        b.set(&self.hier, a.hier).map_err(|e| e.to_string())?;
-        b.set(&self.array, array.code())
+        b.set(&self.index, r.at.index).map_err(|e| e.to_string())?;
+        b.set(&self.hier, r.at.hier).map_err(|e| e.to_string())?;
+        b.set(&self.slot, r.slot).map_err(|e| e.to_string())?;
+        b.set(&self.array, r.array.code())
             .map_err(|e| e.to_string())?;
         Ok(b)
     }
 
-    /// The array and address of a `store_req` beat.
-    pub fn unpack_req(&self, beat: &Bits) -> Result<(StoreArray, StoreAddr), String> {
+    /// The read a `store_req` beat asks for.
+    pub fn unpack_req(&self, beat: &Bits) -> Result<StoreRead, String> {
         let get = |f: &Field| beat.get(f).map_err(|e| e.to_string());
-        let addr = StoreAddr {
-            hier: get(&self.hier)?,
-            index: get(&self.index)?,
-        };
-        Ok((StoreArray::of_code(get(&self.array)?), addr))
+        Ok(StoreRead {
+            array: StoreArray::of_code(get(&self.array)?),
+            slot: get(&self.slot)?,
+            at: StoreAddr {
+                hier: get(&self.hier)?,
+                index: get(&self.index)?,
+            },
+        })
+    }
+
+    /// A requester's request (`r{j}_req`, [`Self::addr_width`] bits) for
+    /// `at` in the merge of slot `slot`, as a number.
+    pub fn addr_word(&self, slot: u64, at: StoreAddr) -> u64 {
+        (slot << self.slot.offset) | (at.hier << self.hier.offset) | at.index
     }
 
     /// The `store_resp` beat carrying `word` (an answer of at most
@@ -166,6 +188,18 @@ impl StorePortLayout {
         b.put(0, word).map_err(|e| e.to_string())?;
         Ok(b)
     }
+}
+
+/// One `store_req` beat: a read of `array` at `at`, for the merge of slot
+/// `slot` ([`StorePortLayout::slot`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct StoreRead {
+    /// The array read.
+    pub array: StoreArray,
+    /// The merge's sequence number mod 2.
+    pub slot: u64,
+    /// Where.
+    pub at: StoreAddr,
 }
 
 /// Where a read goes: entry `index` of hierarchy `hier`'s array.
@@ -317,11 +351,15 @@ mod tests {
     fn requests_pack_and_answers_route() {
         let l = StorePortLayout::new(&Params::default());
         let at = |hier, index| StoreAddr { hier, index };
-        let b = l.pack_req(StoreArray::Reference, at(3, 77)).unwrap();
-        assert_eq!(
-            l.unpack_req(&b).unwrap(),
-            (StoreArray::Reference, at(3, 77))
-        );
+        let read = StoreRead {
+            array: StoreArray::Reference,
+            slot: 1,
+            at: at(3, 77),
+        };
+        let b = l.pack_req(read).unwrap();
+        assert_eq!(l.unpack_req(&b).unwrap(), read);
+        assert_eq!(b.get(&l.slot).unwrap(), 1);
+        assert_eq!(l.addr_word(1, at(3, 77)) >> l.slot.offset, 1);
         assert!(l.resp_width >= l.node_width && l.resp_width >= l.ref_width);
         let mut store = StoreWords::default();
         for v in 0..4u64 {

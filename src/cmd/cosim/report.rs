@@ -112,8 +112,9 @@ pub(super) struct StoreReport {
     pub(super) nodes_allowed_per_cycle: f64,
     /// Records per cycle against what the port allows (= reads per cycle).
     pub(super) of_port: f64,
-    /// Cycles from each merge's first read to its last, summed, and the
-    /// reads per such cycle: the port's use while the merges read, the
+    /// Cycles from some merge's first read to its last (overlapping merges'
+    /// common cycles once), and the reads per such cycle: the port's use
+    /// while the merges read, the
     /// rest of the cycles being the merger's phases without reads (`cfg`,
     /// the choice between the passes, the builder and the writer's tail).
     pub(super) read_window_cycles: u64,
@@ -222,7 +223,7 @@ pub(super) fn print_text(r: &Report) {
     );
     if let Some(st) = r.merger.as_ref().and_then(|m| m.store.as_ref()) {
         println!(
-            "store port {} (latency {}): {} reads ({} by golden's units) in {} cycles, {:.3} reads/cycle; {:.3} records/cycle of the {:.3} the port allows ({:.3} nodes/cycle of {:.3}): {:.3} of the port; {:.3} reads/cycle from each merge's first read to its last ({} cycles)",
+            "store port {} (latency {}): {} reads ({} by golden's units) in {} cycles, {:.3} reads/cycle; {:.3} records/cycle of the {:.3} the port allows ({:.3} nodes/cycle of {:.3}): {:.3} of the port; {:.3} reads/cycle in the cycles from some merge's first read to its last ({} cycles)",
             st.port,
             st.latency,
             st.reads,

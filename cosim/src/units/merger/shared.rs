@@ -9,11 +9,14 @@
 //! a read golden does not make finds nothing and is an error. The requests
 //! cannot be checked per unit after routing (the requester of a
 //! `store_req` beat is inside the top), so the bench checks what it can
-//! from outside: every read is one golden's units make in that merge, and
-//! each merge makes exactly as many reads as golden's units do. Every
+//! from outside: every read is one golden's units make in its merge (the
+//! merge in flight that the read's `slot` names: consecutive merges
+//! overlap, so the older's writer and the newer's fetchers read at once),
+//! and each merge makes exactly as many reads as golden's units do. Every
 //! output stream (`report`, `nodes`, `refs`, `header`) is compared bit for
 //! bit as in the per-unit bench. A failing chunk's waveform is not
-//! written (the reactive bench runs once, untraced).
+//! written (the reactive bench runs once), only the window asked for
+//! (`--wave-window`, of the first chunk).
 
 use std::path::Path;
 
@@ -33,7 +36,7 @@ use crate::ledger::StimulusDigest;
 use crate::tb::{run_multi_stream_bench_reactive, BenchConfig, Transaction};
 use crate::units::chunked::{chunk_bench, ChunkTotals, PairDecoder, UnitStreams};
 use crate::units::multi_stream::decoded_pair;
-use crate::units::store_port::{StoreModel, StoreStats};
+use crate::units::store_port::{Epochs, StoreModel, StoreStats};
 
 /// What the store saw over a run of the shared port, and whether it held
 /// to golden's reads.
@@ -179,8 +182,10 @@ pub(super) fn export_store(
     let spec = StoreSpec {
         latency,
         epoch_input: "cfg".into(),
+        epoch_output: "header".into(),
         index: named(&l.index),
         hier: named(&l.hier),
+        slot: named(&l.slot),
         array: named(&l.array),
         runs,
         words,
@@ -190,17 +195,19 @@ pub(super) fn export_store(
 }
 
 /// A fresh engine of `kind` for the merger (`module`, its Verilog in
-/// `design`): Icarus stepped from Rust, as the store answers reads as they
-/// come (the batch runs precomputed streams only).
+/// `design`), able to trace when `trace`: Icarus stepped from Rust, as the
+/// store answers reads as they come (the batch runs precomputed streams
+/// only).
 fn engine_of(
     kind: MergerEngine,
     module: &rtl_gen::Module,
     design: &Design,
+    trace: bool,
 ) -> Result<Box<dyn Engine>> {
     Ok(match kind {
         MergerEngine::Ir => Box::new(crate::ir_engine::IrEngine::new(module, design)?),
-        MergerEngine::Verilator => crate::open_engine(crate::EngineKind::Verilator, design, false)?,
-        MergerEngine::Iverilog => crate::open_engine(crate::EngineKind::Icarus, design, false)?,
+        MergerEngine::Verilator => crate::open_engine(crate::EngineKind::Verilator, design, trace)?,
+        MergerEngine::Iverilog => crate::open_engine(crate::EngineKind::Icarus, design, trace)?,
     })
 }
 
@@ -258,14 +265,21 @@ impl SharedSim {
         // Only the shared streams are run: the per-unit ones (every
         // response of the chunk) need not stay in memory meanwhile.
         drop(per_unit);
-        let mut eng = engine_of(self.engine, &self.module, &self.design)?;
+        let traced = bench.wave_window.is_some() && bench.vcd_path.is_some();
+        let mut eng = engine_of(self.engine, &self.module, &self.design, traced)?;
         let stores = &chunk.stores;
         let lookup = move |e: usize, a: StoreArray, at: StoreAddr| match image {
             Some(words) => words.word(a, at).cloned(),
             None => stores.get(e)?.word(a, at).cloned(),
         };
         let l = self.layout.clone();
-        let mut model = StoreModel::new(&*eng, l, bench, latency, Some(0), Box::new(lookup))?;
+        // A read's merge is the one in flight its slot names: merges start
+        // with their `cfg` beat and end with their `header` beat.
+        let epochs = Epochs {
+            start_input: 0,
+            end_output: "header".into(),
+        };
+        let mut model = StoreModel::new(&*eng, l, bench, latency, Some(epochs), Box::new(lookup))?;
         let (report, watch) = run_multi_stream_bench_reactive(
             eng.as_mut(),
             &chunk.streams.inputs,
@@ -343,7 +357,11 @@ fn check_reads(
     };
     let a = &mut acc.stats;
     a.reads += stats.reads;
-    a.windows.extend(stats.windows.iter().copied());
+    // Each chunk counts its cycles from its own reset: its windows go after
+    // the ones before, which they must not overlap.
+    let base = a.windows.iter().map(|w| w.1).max().unwrap_or(0);
+    let shifted = stats.windows.iter().filter(|w| w.0 > 0);
+    a.windows.extend(shifted.map(|w| (w.0 + base, w.1 + base)));
     a.error_count += stats.error_count;
     a.errors.extend(stats.errors.iter().cloned());
     acc.expected_reads += reads.iter().sum::<u64>();

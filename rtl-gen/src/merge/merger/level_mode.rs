@@ -37,10 +37,10 @@ pub(super) fn level_merger_unit(c: &MergerConfig) -> Result<Module, String> {
     let lit = |v: u64, w: u32| m.lit(v as u128, w);
     let fetch_mod = fetcher_unit(p, &c.fetch_sizes());
     let writer_mod = record_writer_unit(p, c.sizes.capacity_bits).map_err(|e| e.to_string())?;
-    // Merges overlap behind per-unit ports. Behind a shared port the older
-    // merge's writer and the newer's fetchers would read through one
-    // stream, and `store_req` does not say whose read it is.
-    let s = shell(&m, c, &ml, &fetch_mod, &writer_mod, !shared_store(c));
+    // Consecutive merges overlap; behind a shared port the older merge's
+    // writer and the newer's fetchers then read through one `store_req`,
+    // whose `slot` says whose read each is.
+    let s = shell(&m, c, &ml, &fetch_mod, &writer_mod, true);
     let counting_in =
         counts_pass(&m, c, get(s.cfg.data, &ml.lo), get(s.cfg.data, &ml.hi)).name("count_pass");
     let cw = ml.count.width;
@@ -82,6 +82,7 @@ pub(super) fn level_merger_unit(c: &MergerConfig) -> Result<Module, String> {
             store: Store {
                 config: c,
                 cfg_q: s.cfg_q,
+                slots: s.slots,
                 fetchers: &s.fetchers,
                 fetch_mod: &fetch_mod,
             },

@@ -199,12 +199,24 @@ struct Shell<'m> {
     cfg: Stream<'m>,
     cfg_fire: Signal<'m>,
     cfg_q: Signal<'m>,
+    /// A shared store port: the slot (`store_req`'s `slot`: the merge's
+    /// sequence number mod 2) of the fetchers' reads and of the writer's.
+    slots: Option<Slots<'m>>,
     /// The input count of the `cfg` beat arriving, and of the merge held.
     count_in: Signal<'m>,
     count_q: Signal<'m>,
     lo: Signal<'m>,
     hi: Signal<'m>,
     out_id: Signal<'m>,
+}
+
+/// Whose merge a shared port's reads are for: the fetchers serve the
+/// newest merge taken, the writer the oldest whose header has not left
+/// (with two merges taken, the older).
+#[derive(Clone, Copy)]
+struct Slots<'m> {
+    fetchers: Signal<'m>,
+    writer: Signal<'m>,
 }
 
 impl<'m> Shell<'m> {
@@ -293,6 +305,17 @@ fn shell<'m>(
     cfg.ready.drive(quiet);
     let cfg_q = m.reg("cfg_q", ml.cfg_width);
     cfg_q.next_when(cfg_fire, cfg.data);
+    let slots = shared_store(c).then(|| {
+        // The slot of the next merge taken: merges are numbered from 0 at
+        // reset, and at most two are taken, so a bit tells them apart.
+        let slot_next = m.reg("slot_next", 1);
+        slot_next.next(cfg_fire.mux(!slot_next, slot_next));
+        let newest = (!slot_next).name("fetch_slot");
+        Slots {
+            fetchers: newest,
+            writer: queued.mux(slot_next, newest).name("writer_slot"),
+        }
+    });
     let (flag_clear, flag_hold) = if overlap {
         (
             cfg_fire,
@@ -323,6 +346,7 @@ fn shell<'m>(
         cfg,
         cfg_fire,
         cfg_q,
+        slots,
         count_in: get(cfg.data, &ml.count),
         count_q: get(cfg_q, &ml.count),
         lo: get(cfg_q, &ml.lo).name("lo"),

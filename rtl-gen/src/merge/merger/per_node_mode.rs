@@ -85,6 +85,7 @@ pub(super) fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
             store: Store {
                 config: c,
                 cfg_q: s.cfg_q,
+                slots: s.slots,
                 fetchers: &s.fetchers,
                 fetch_mod: &fetch_mod,
             },

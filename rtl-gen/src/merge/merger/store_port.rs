@@ -2,12 +2,13 @@
 //! port"): the read streams of the fetchers and the writer arbitrated onto
 //! one read port of the store.
 //!
-//! Requester `j` (`r{j}_req`: `{hier, index}`, an entry of a hierarchy's
-//! array) is granted round robin
+//! Requester `j` (`r{j}_req`: `{slot, hier, index}`, an entry of a
+//! hierarchy's array for the merge of slot `slot`) is granted round robin
 //! (`golden::merge::store_port::round_robin_next`: after `j`, the first
 //! requester after `j` showing a request, wrapping round), so one that keeps
 //! its request up waits for at most `n - 1` other grants. The grant goes
-//! into a skid buffer whose output is `store_req` (`{array, hier, index}`), and
+//! into a skid buffer whose output is `store_req` (`{array, slot, hier,
+//! index}`), and
 //! the requester's id into a tag FIFO of `2^tag_bits` words: the reads in
 //! flight, one issued per clock. `store_resp` comes back in request order;
 //! the tag at the FIFO's head routes it to that requester (`r{j}_resp`):
@@ -101,8 +102,9 @@ fn lowest<'m>(cands: &[Signal<'m>]) -> Vec<Signal<'m>> {
 /// The store front end for `c`; an error when `c.validate()` refuses it.
 ///
 /// Ports: `clk`, `rst`; per requester `j` the streams `r{j}_req` (in,
-/// `{hier, index}`, H + I bits) and `r{j}_resp` (out, the answer: a node record or a
-/// reference); `store_req` (out, [`StorePortLayout`]'s `{array, hier, index}`),
+/// `{slot, hier, index}`, 1 + H + I bits) and `r{j}_resp` (out, the answer: a
+/// node record or a reference); `store_req` (out, [`StorePortLayout`]'s
+/// `{array, slot, hier, index}`),
 /// `store_resp` (in, [`StorePortLayout::resp_width`]); output `idle` (no
 /// read in flight, no answer buffered).
 pub fn store_port_unit(c: &StorePortConfig) -> Result<Module, String> {
@@ -208,17 +210,18 @@ pub fn store_port_unit(c: &StorePortConfig) -> Result<Module, String> {
     Ok(m)
 }
 
-/// The merger's units (`clients`: instances, their modules and, for a
-/// unit whose requests are bare indices, the hierarchy it reads: a
-/// fetcher's input's, from the held `cfg`), in requester order, on one
-/// store front end of `c`'s tag FIFO, and its `store_req` / `store_resp`
-/// as the top's streams. Every read stream of a unit (`<name>_req` out,
-/// `<name>_resp` in) is one requester; the array it reads is told by its
-/// answer's width (a node record or a reference).
+/// The merger's units (`clients`: instances, their modules and the bits
+/// the front end's request has above the unit's own: the slot of the merge
+/// the unit serves and, for a unit whose requests are bare indices, the
+/// hierarchy it reads, a fetcher's input's from the held `cfg`), in
+/// requester order, on one store front end of `c`'s tag FIFO, and its
+/// `store_req` / `store_resp` as the top's streams. Every read stream of a
+/// unit (`<name>_req` out, `<name>_resp` in) is one requester; the array it
+/// reads is told by its answer's width (a node record or a reference).
 pub(super) fn connect_shared<'m>(
     m: &'m Module,
     c: &super::MergerConfig,
-    clients: &[(crate::Instance<'m>, &Module, Option<Signal<'m>>)],
+    clients: &[(crate::Instance<'m>, &Module, Signal<'m>)],
 ) {
     let p = c.design.params;
     let l = StorePortLayout::new(&p);
@@ -227,7 +230,7 @@ pub(super) fn connect_shared<'m>(
         golden::merge::store_port::StorePort::PerUnit => return,
     };
     let mut reqs = Vec::new();
-    for (inst, module, hier) in clients {
+    for (inst, module, above) in clients {
         for (name, dir, w) in super::store_streams(module) {
             if let (crate::Direction::Input, Some(base)) = (dir, name.strip_suffix("_resp")) {
                 let array = if w == l.node_width {
@@ -235,7 +238,7 @@ pub(super) fn connect_shared<'m>(
                 } else {
                     StoreArray::Reference
                 };
-                reqs.push((*inst, base.to_string(), array, *hier));
+                reqs.push((*inst, base.to_string(), array, *above));
             }
         }
     }
@@ -248,15 +251,12 @@ pub(super) fn connect_shared<'m>(
     // fetcher's node reader, the wider answer.
     let port_mod = store_port_unit(&sc).expect("a merger's store port is valid");
     let port = m.instance("u_store_port", &port_mod);
-    for (j, (inst, base, _, hier)) in reqs.iter().enumerate() {
+    for (j, (inst, base, _, above)) in reqs.iter().enumerate() {
         let (r, q) = (format!("r{j}"), format!("{base}_req"));
         let data = inst.output(&format!("{q}_data"));
-        // A bare index gets its unit's hierarchy; the writer's request is
-        // already `{hier, index}` (a reference).
-        let addr = match hier {
-            Some(h) => m.concat(&[*h, data]),
-            None => data,
-        };
+        // A bare index gets its unit's hierarchy above it; the writer's
+        // request is already `{hier, index}` (a reference).
+        let addr = m.concat(&[*above, data]);
         port.connect(
             &format!("{r}_req_valid"),
             inst.output(&format!("{q}_valid")),

@@ -2,7 +2,7 @@
 
 use golden::merge::merger_unit::MergerLayout;
 
-use super::{pass_stream, shared_store, store_port, store_streams, MergerConfig};
+use super::{pass_stream, store_port, store_streams, MergerConfig};
 use crate::merge::fields::with_fields;
 use crate::{Direction, Module, Signal};
 
@@ -32,6 +32,8 @@ pub(super) struct Store<'a, 'm> {
     pub(super) config: &'a MergerConfig,
     /// The merge's `cfg` beat, held: each fetcher's hierarchy.
     pub(super) cfg_q: Signal<'m>,
+    /// The slots of the fetchers' and the writer's reads (a shared port).
+    pub(super) slots: Option<super::Slots<'m>>,
     pub(super) fetchers: &'a [crate::Instance<'m>],
     pub(super) fetch_mod: &'a Module,
 }
@@ -72,7 +74,7 @@ pub(super) fn finish_merger<'m>(m: &'m Module, t: Tail<'_, 'm>) {
 
     // ---- the writer's ports: nodes, refs, store ports straight through;
     // header with the merger's flags.
-    if shared_store(store.config) {
+    if let Some(slots) = store.slots {
         let hier = &ml.fetch.hier;
         let mut clients: Vec<_> = store
             .fetchers
@@ -81,10 +83,14 @@ pub(super) fn finish_merger<'m>(m: &'m Module, t: Tail<'_, 'm>) {
             .map(|(i, f)| {
                 let at = ml.input_offset(i) + hier.offset;
                 let h = store.cfg_q.slice(at + hier.width - 1, at);
-                (*f, store.fetch_mod, Some(h.name(&format!("f{i}_hier"))))
+                let h = h.name(&format!("f{i}_hier"));
+                let above = m
+                    .concat(&[slots.fetchers, h])
+                    .name(&format!("f{i}_slot_hier"));
+                (*f, store.fetch_mod, above)
             })
             .collect();
-        clients.push((writer, writer_mod, None));
+        clients.push((writer, writer_mod, slots.writer));
         store_port::connect_shared(m, store.config, &clients);
     } else {
         for (port, dir, w) in store_streams(writer_mod) {

@@ -95,12 +95,16 @@ fn instance_modules(netlist: &Netlist, top: &str) -> BTreeMap<String, String> {
 /// Yosys's script, log and netlist kept in `work`.
 pub fn prove(sources: &[PathBuf], top: &str, work: &Path) -> Result<ConstantBits> {
     std::fs::create_dir_all(work).map_err(io_err(work))?;
+    // Yosys runs inside `work`, so every path it is given is absolute: a
+    // relative `--out` (CI's `target/coverage`) would be read from there.
+    let work = &std::path::absolute(work).map_err(io_err(work))?;
     let tool = crate::synth::tools::yosys()?;
     let netlist_path = work.join("netlist.json");
-    let files: Vec<String> = sources
+    let files = sources
         .iter()
-        .map(|f| format!("\"{}\"", f.display()))
-        .collect();
+        .map(|f| std::path::absolute(f).map(|f| format!("\"{}\"", f.display())))
+        .collect::<std::io::Result<Vec<String>>>()
+        .map_err(io_err(work))?;
     let script = format!(
         "read_verilog -sv {}\nhierarchy -check -top {top}\n{}\nwrite_json \"{}\"\n",
         files.join(" "),
@@ -195,6 +199,32 @@ fn from_json(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Yosys proves a tied output bit constant, with the sources and the
+    /// work folder given relative to the current directory (as CI's
+    /// `--out target/coverage` gives them).
+    #[test]
+    fn a_relative_work_folder_is_proven_in() {
+        if crate::synth::tools::yosys().is_err() {
+            assert!(!crate::tools::ci_mode(), "yosys missing");
+            return;
+        }
+        let dir = tempfile::tempdir_in(".").expect("a folder here");
+        let rel = dir
+            .path()
+            .strip_prefix(std::env::current_dir().unwrap())
+            .expect("inside the current directory")
+            .to_path_buf();
+        let src = rel.join("tied.v");
+        std::fs::write(
+            &src,
+            "module tied(input wire a, output wire [1:0] y);\n  assign y = {1'b0, a};\nendmodule\n",
+        )
+        .unwrap();
+        let c = prove(&[src], "tied", &rel.join("constants")).expect("yosys proves");
+        assert_eq!(c.value("tied", "y[1]"), Some(false));
+        assert_eq!(c.value("tied", "y[0]"), None);
+    }
 
     /// Two instances of `c`: its `k` is tied 1 in both, its `m` in one only;
     /// the top's `t[1]` is tied 0, `t[0]` is free, `s` is declared `[4:3]`.

@@ -214,7 +214,9 @@ fn cell(v: Option<u64>) -> String {
     v.map_or("-".into(), |v| v.to_string())
 }
 
-fn print_row(name: &str, s: &FileStats, before: Option<&FileStats>) {
+/// One row: `s`, beside `before` when comparing (`compare`); a file only
+/// in the compared folder reads "new" on the before side.
+fn print_row(name: &str, s: &FileStats, before: Option<&FileStats>, compare: bool) {
     let line = |s: &FileStats| {
         format!(
             "{:>8} {:>6} {:>6} {:>6.1}% {:>7} {:>7}",
@@ -226,9 +228,13 @@ fn print_row(name: &str, s: &FileStats, before: Option<&FileStats>) {
             cell(s.cells_synth)
         )
     };
-    match before {
-        Some(b) => println!("{name:<58} {} | {}", line(b), line(s)),
-        None => println!("{name:<58} {}", line(s)),
+    match (before, compare) {
+        (Some(b), _) => println!("{name:<58} {} | {}", line(b), line(s)),
+        (None, true) => {
+            let width = line(s).len();
+            println!("{name:<58} {:>width$} | {}", "new", line(s))
+        }
+        (None, false) => println!("{name:<58} {}", line(s)),
     }
 }
 
@@ -279,10 +285,11 @@ pub fn main(a: Args) -> CmdResult {
             ),
             None => println!("{:<58} {cols}", "file"),
         }
+        let compare = r.before_dir.is_some();
         for row in &r.files {
-            print_row(&row.file, &row.after, row.before.as_ref());
+            print_row(&row.file, &row.after, row.before.as_ref(), compare);
         }
-        print_row("total", &r.total, r.total_before.as_ref());
+        print_row("total", &r.total, r.total_before.as_ref(), compare);
         if let Some(b) = &before {
             for f in b.keys().filter(|f| !after.contains_key(*f)) {
                 println!("only in {}: {f}", r.before_dir.as_deref().unwrap_or(""));

@@ -24,7 +24,8 @@
 //! - [`upper_builder_unit`]: every S616 level above the base at once (a
 //!   chain of grouping and Morton-merge stages, the top rule in flight).
 //! - [`record_writer_unit`]: S618, the merged hierarchy's records,
-//!   references and header from the builder's levels (buffered per level).
+//!   references and header from the builder's levels (buffered per level,
+//!   one level module instance each).
 //! - [`hierarchy_merger_unit`]: S610-S618 as one top module: `k` fetchers,
 //!   the merging module, the upper builder and the record writer, with the
 //!   controller, the routing of S614's out and the leaf FIFOs (SPEC 8.15).
@@ -58,7 +59,10 @@ pub use per_node::{
 pub use sorter::{root_sorter_name, root_sorter_unit};
 pub use top::{merge_module_name, merge_module_unit};
 pub use upper::{upper_level_name, upper_level_unit};
-pub use writer::{record_writer_buffers, record_writer_name, record_writer_unit, WriterBuffer};
+pub use writer::{
+    record_writer_buffers, record_writer_level_name, record_writer_name, record_writer_unit,
+    WriterBuffer,
+};
 
 use std::path::{Path, PathBuf};
 

@@ -23,7 +23,7 @@ use golden::merge::writer_unit::{writer_err, CapacityError, WriterLayout};
 use golden::params::Params;
 
 use super::fields::field;
-use crate::{Memory, Module, Signal, Stream};
+use crate::{Instance, Memory, Module, Signal, Stream};
 
 /// Module name of the record writer for `p` with `2^capacity_bits` entries
 /// per level.
@@ -31,11 +31,28 @@ pub fn record_writer_name(p: &Params, capacity_bits: u32) -> String {
     format!("record_writer_{}_c{capacity_bits}", p.tag())
 }
 
+/// Module name of one level of the record writer for `p` with
+/// `2^capacity_bits` entries per buffer: its buffers, its fill and its
+/// counts (`record_writer_unit` instantiates one per level). Level 0 is
+/// never below a top, so its module (`by_slot` false, `_top_only`) has no
+/// by-record-slot buffers.
+pub fn record_writer_level_name(p: &Params, capacity_bits: u32, by_slot: bool) -> String {
+    let variant = if by_slot { "" } else { "_top_only" };
+    format!("record_writer_level_{}_c{capacity_bits}{variant}", p.tag())
+}
+
+/// The instance of level `d`'s module in the record writer.
+fn level_instance(d: usize) -> String {
+    format!("u_level{d}")
+}
+
 /// One of the writer's buffers: a simple dual-port RAM of `depth` words of
 /// `width` bits (one write port, one registered read port).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct WriterBuffer {
-    /// The memory's name in the emitted Verilog (`<name>` in `reg [..] <name> [..]`).
+    /// The memory's hierarchical name below the writer, as Yosys names it
+    /// once the writer is flattened: `crefs_mem` in the writer itself,
+    /// `u_level<d>.<name>` in level `d`'s module.
     pub name: String,
     /// Word width in bits.
     pub width: u32,
@@ -45,10 +62,10 @@ pub struct WriterBuffer {
 
 /// The writer's buffers for `p` and `2^capacity_bits` entries (SPEC.md
 /// 8.12, "Buffers"), named as the emitted Verilog names them: `crefs_mem`;
-/// `rbody{d}_mem` and `rpar{d}_mem` for the levels 1..=D (level 0 is never
-/// below a top); `nbody{d}_mem`, `npar{d}_mem` and `child{d}_mem` for every
-/// level. Each is read synchronously, so a flow maps each onto RAM macros;
-/// `record_writer_unit` builds exactly these.
+/// in each level's module (`u_level<d>`) `rbody_mem` and `rpar_mem` for the
+/// levels 1..=D (level 0 is never below a top), `nbody_mem`, `npar_mem`
+/// and `child_mem` for every level. Each is read synchronously, so a flow
+/// maps each onto RAM macros; `record_writer_unit` builds exactly these.
 pub fn record_writer_buffers(
     p: &Params,
     capacity_bits: u32,
@@ -59,15 +76,72 @@ pub fn record_writer_buffers(
     let buf = |name: String, width: u32| WriterBuffer { name, width, depth };
     let mut out = vec![buf("crefs_mem".into(), w.cref)];
     for d in 0..=p.max_lod as usize {
-        if d > 0 {
-            out.push(buf(format!("rbody{d}_mem"), w.body));
-            out.push(buf(format!("rpar{d}_mem"), w.parent));
+        for b in Buffer::ALL.into_iter().filter(|b| d > 0 || !b.by_slot()) {
+            out.push(buf(
+                format!("{}.{}", level_instance(d), b.memory()),
+                b.width(&w),
+            ));
         }
-        out.push(buf(format!("nbody{d}_mem"), w.body));
-        out.push(buf(format!("npar{d}_mem"), w.parent));
-        out.push(buf(format!("child{d}_mem"), w.child));
     }
     Ok(out)
+}
+
+/// A level's buffers, each holding exactly what one reader takes. By
+/// record slot (`records`), for the levels below the top: a record's body
+/// and count (the record sequencer), its parent word (the reference
+/// sequencer). By position (`index`), for the top, where every node is a
+/// record: the same two words. By position, for the parents one level up:
+/// the child word. Level 0 is never below a top: no by-record-slot words
+/// there. It is nobody's child either, but its child word is what takes the
+/// level beat's `ref` index and `records`, fields the builder's beat
+/// carries at every level and nothing else reads at level 0 (SPEC 8.12).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Buffer {
+    BodyBySlot,
+    ParentBySlot,
+    BodyAtTop,
+    ParentAtTop,
+    Child,
+}
+
+impl Buffer {
+    const ALL: [Buffer; 5] = [
+        Buffer::BodyBySlot,
+        Buffer::ParentBySlot,
+        Buffer::BodyAtTop,
+        Buffer::ParentAtTop,
+        Buffer::Child,
+    ];
+
+    /// The read port's name in a level's module (`<port>` the read word,
+    /// `<port>_addr` and `<port>_en` its address and enable).
+    fn port(self) -> &'static str {
+        match self {
+            Buffer::BodyBySlot => "rbody",
+            Buffer::ParentBySlot => "rpar",
+            Buffer::BodyAtTop => "nbody",
+            Buffer::ParentAtTop => "npar",
+            Buffer::Child => "child",
+        }
+    }
+
+    /// The memory's name in a level's module.
+    fn memory(self) -> String {
+        format!("{}_mem", self.port())
+    }
+
+    /// Indexed by record slot, so only below a top (never at level 0).
+    fn by_slot(self) -> bool {
+        matches!(self, Buffer::BodyBySlot | Buffer::ParentBySlot)
+    }
+
+    fn width(self, w: &BufferWidths) -> u32 {
+        match self {
+            Buffer::BodyBySlot | Buffer::BodyAtTop => w.body,
+            Buffer::ParentBySlot | Buffer::ParentAtTop => w.parent,
+            Buffer::Child => w.child,
+        }
+    }
 }
 
 /// Word widths of the buffers: each holds exactly what its reader takes.
@@ -183,22 +257,27 @@ fn reads_level<'m>(
     }
 }
 
-/// Each level's buffer read a clock ahead: level `d`'s read register takes
-/// the word at `addr` in a clock where `want(d)`, and holds it otherwise
-/// (a RAM's registered read port with its enable). A level without the
-/// buffer reads as zero.
+/// Each level's buffer `buf` read a clock ahead: level `d`'s read register
+/// takes the word at `addr` in a clock where `want(d)`, and holds it
+/// otherwise (a RAM's registered read port with its enable). A level
+/// without the buffer reads as zero.
 fn read_ahead<'m>(
-    m: &'m Module,
-    bufs: &[Option<Memory<'m>>],
+    w: &Ctx<'_, 'm>,
+    levels: &[Instance<'m>],
+    buf: Buffer,
     addr: Signal<'m>,
     want: impl Fn(usize) -> Signal<'m>,
-    width: u32,
 ) -> Vec<Signal<'m>> {
-    bufs.iter()
+    levels
+        .iter()
         .enumerate()
-        .map(|(d, b)| match b {
-            Some(b) => b.read_sync(addr, want(d)),
-            None => m.lit(0, width),
+        .map(|(d, u)| {
+            if d == 0 && buf.by_slot() {
+                return w.lit(0, buf.width(&w.widths));
+            }
+            u.connect(&format!("{}_addr", buf.port()), addr);
+            u.connect(&format!("{}_en", buf.port()), want(d));
+            u.output(buf.port())
         })
         .collect()
 }
@@ -244,20 +323,8 @@ fn child<'m>(word: Signal<'m>, ref_w: u32) -> Child<'m> {
 pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, CapacityError> {
     let wl = WriterLayout::new(p, capacity_bits)?;
     let m = Module::new(&record_writer_name(p, capacity_bits));
-    let i = p.index_bits as u32;
-    let w = Ctx {
-        m: &m,
-        wl: &wl,
-        dmax: p.max_lod as usize,
-        c: capacity_bits,
-        i,
-        h: p.hier_bits as u32,
-        lb: p.lod_bits(),
-        widths: BufferWidths::of(&wl),
-        // A record without `first` and `count`: leaf .. hi_z.
-        body_w: wl.node.first().offset,
-        sum_w: i + capacity_bits + 1,
-    };
+    let w = Ctx::new(&m, &wl, p, capacity_bits);
+    let i = w.i;
     let lit = |v: u64, width: u32| w.lit(v, width);
 
     let st = m.reg("state", 2);
@@ -268,8 +335,7 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
     let header_ready = m.wire("header_in_ready", 1);
     let clear = (in_header & header_ready).name("merge_clear");
     let f = fill_inputs(&w, in_fill, clear);
-    let b = level_buffers(&w, f.top);
-    let levels = fill_levels(&w, &b, in_fill, clear);
+    let (b, levels) = level_units(&w, p, f.top, in_fill, clear);
     let chk = header_checks(&w, &f, &b, &levels, in_fill, clear);
     let seq = Drain {
         in_drain,
@@ -341,7 +407,24 @@ struct Ctx<'a, 'm> {
     sum_w: u32,
 }
 
-impl<'m> Ctx<'_, 'm> {
+impl<'a, 'm> Ctx<'a, 'm> {
+    fn new(m: &'m Module, wl: &'a WriterLayout, p: &Params, c: u32) -> Self {
+        let i = p.index_bits as u32;
+        Ctx {
+            m,
+            wl,
+            dmax: p.max_lod as usize,
+            c,
+            i,
+            h: p.hier_bits as u32,
+            lb: p.lod_bits(),
+            widths: BufferWidths::of(wl),
+            // A record without `first` and `count`: leaf .. hi_z.
+            body_w: wl.node.first().offset,
+            sum_w: i + c + 1,
+        }
+    }
+
     fn lit(&self, v: u64, w: u32) -> Signal<'m> {
         self.m.lit(v as u128, w)
     }
@@ -421,47 +504,41 @@ fn fill_inputs<'m>(w: &Ctx<'_, 'm>, in_fill: Signal<'m>, clear: Signal<'m>) -> I
     }
 }
 
-/// The level buffers and which levels a merge with top `top` holds.
+/// The levels, one module instance each, and which levels a merge with
+/// top `top` holds.
 struct Buffers<'m> {
-    rbody: Vec<Option<Memory<'m>>>,
-    rpar: Vec<Option<Memory<'m>>>,
-    nbody: Vec<Option<Memory<'m>>>,
-    npar: Vec<Option<Memory<'m>>>,
-    childm: Vec<Option<Memory<'m>>>,
+    /// Level `d`'s module instance (its buffers are read through it).
+    units: Vec<Instance<'m>>,
     /// Level `d` is at or below the top (`d >= top`).
     in_merge: Vec<Signal<'m>>,
     /// Level `d` is below the top (`d > top`).
     below_top: Vec<Signal<'m>>,
 }
 
-fn level_buffers<'m>(w: &Ctx<'_, 'm>, top: Signal<'m>) -> Buffers<'m> {
-    let (m, c, dmax, lb, widths) = (w.m, w.c, w.dmax, w.lb, &w.widths);
+/// Per level: what its stream has brought this merge.
+struct Levels<'m> {
+    end_seen: Vec<Signal<'m>>,
+    n_nodes: Vec<Signal<'m>>,
+    n_records: Vec<Signal<'m>>,
+    rec_sum: Vec<Signal<'m>>,
+    reused_sum: Vec<Signal<'m>>,
+    level_cap_err: Vec<Signal<'m>>,
+    level_err: Vec<Signal<'m>>,
+}
+
+/// One instance of the level module per level, each taking its level
+/// stream; the cross-level part here is which levels a merge holds (and so
+/// which it clears).
+fn level_units<'m>(
+    w: &Ctx<'_, 'm>,
+    p: &Params,
+    top: Signal<'m>,
+    in_fill: Signal<'m>,
+    clear: Signal<'m>,
+) -> (Buffers<'m>, Levels<'m>) {
+    let (m, wl, c, dmax, lb) = (w.m, w.wl, w.c, w.dmax, w.lb);
     let lit = |v: u64, width: u32| w.lit(v, width);
     let (zero, one) = (lit(0, 1), lit(1, 1));
-    // Per level: up to five buffers (`record_writer_buffers`), each holding
-    // exactly what one reader takes. By record slot (`records`), for the
-    // levels below the top: a record's body and count (the record
-    // sequencer), its parent word (the reference sequencer). By position
-    // (`index`), for the top, where every node is a record: the same two
-    // words. By position, for the parents one level up: the child word.
-    // Level 0 is never below a top: no by-record-slot words there. It is
-    // nobody's child either, but its child word is what takes the level
-    // beat's `ref` index and `records`, fields the builder's beat carries
-    // at every level and nothing else reads at level 0 (SPEC 8.12).
-    let mem = |name: &str, d: usize, w: u32| m.memory(&format!("{name}{d}_mem"), w, 1 << c);
-    let below_only = |name: &str, w: u32| -> Vec<Option<Memory>> {
-        (0..=dmax)
-            .map(|d| (d > 0).then(|| mem(name, d, w)))
-            .collect()
-    };
-    let rbody = below_only("rbody", widths.body);
-    let rpar = below_only("rpar", widths.parent);
-    let every_level = |name: &str, w: u32| -> Vec<Option<Memory>> {
-        (0..=dmax).map(|d| Some(mem(name, d, w))).collect()
-    };
-    let nbody = every_level("nbody", widths.body);
-    let npar = every_level("npar", widths.parent);
-    let childm = every_level("child", widths.child);
     // d >= top and d > top, with the comparisons that are constant (no LOD is
     // below 0 or above the widest field value) written as constants.
     let in_merge: Vec<Signal> = (0..=dmax)
@@ -476,130 +553,136 @@ fn level_buffers<'m>(w: &Ctx<'_, 'm>, top: Signal<'m>) -> Buffers<'m> {
             _ => lit(d as u64, lb).gt(top),
         })
         .collect();
-    Buffers {
-        rbody,
-        rpar,
-        nbody,
-        npar,
-        childm,
+    let top_only = level_unit(p, wl, c, false);
+    let with_slots = level_unit(p, wl, c, true);
+    let units: Vec<Instance> = (0..=dmax)
+        .map(|d| {
+            let s = Stream::input(m, &format!("level{d}"), wl.builder.level_width);
+            let u = m.instance(
+                &level_instance(d),
+                if d == 0 { &top_only } else { &with_slots },
+            );
+            u.connect("level_valid", s.valid);
+            u.connect("level_data", s.data);
+            s.ready.drive(u.output("level_ready"));
+            u.connect("in_fill", in_fill);
+            // A merge with its top at or above d consumes the level.
+            u.connect("clear", (clear & in_merge[d]).name(&format!("l{d}_clear")));
+            u
+        })
+        .collect();
+    let each = |port: &str| -> Vec<Signal<'m>> { units.iter().map(|u| u.output(port)).collect() };
+    let levels = Levels {
+        end_seen: each("ended"),
+        n_nodes: each("n_nodes"),
+        n_records: each("n_records"),
+        rec_sum: each("rec_sum"),
+        reused_sum: each("reused_sum"),
+        level_cap_err: each("capacity_error"),
+        level_err: each("level_error"),
+    };
+    let b = Buffers {
+        units,
         in_merge,
         below_top,
-    }
+    };
+    (b, levels)
 }
 
-/// Per level: what its stream has brought this merge.
-struct Levels<'m> {
-    end_seen: Vec<Signal<'m>>,
-    n_nodes: Vec<Signal<'m>>,
-    n_records: Vec<Signal<'m>>,
-    rec_sum: Vec<Signal<'m>>,
-    reused_sum: Vec<Signal<'m>>,
-    level_cap_err: Vec<Signal<'m>>,
-    level_err: Vec<Signal<'m>>,
-}
-
-/// The level streams into their buffers, with each level's counts and
-/// errors.
-fn fill_levels<'m>(
-    w: &Ctx<'_, 'm>,
-    b: &Buffers<'m>,
-    in_fill: Signal<'m>,
-    clear: Signal<'m>,
-) -> Levels<'m> {
-    let (m, wl, c, i, dmax, sum_w, body_w) = (w.m, w.wl, w.c, w.i, w.dmax, w.sum_w, w.body_w);
+/// One level of the writer: its stream into its buffers
+/// ([`Buffer`]), with the level's counts and errors, and the buffers' read
+/// ports for the drain sequencers. `by_slot`: with the by-record-slot
+/// buffers (every level but 0).
+fn level_unit(p: &Params, wl: &WriterLayout, c: u32, by_slot: bool) -> Module {
+    let m = Module::new(&record_writer_level_name(p, c, by_slot));
+    let w = Ctx::new(&m, wl, p, c);
+    let (i, sum_w, body_w) = (w.i, w.sum_w, w.body_w);
     let (bl, nl, rl) = (&wl.builder, &wl.node, &wl.reference);
     let lit = |v: u64, width: u32| w.lit(v, width);
     let zero = lit(0, 1);
-    let (rbody, rpar, nbody, npar, childm, in_merge) =
-        (&b.rbody, &b.rpar, &b.nbody, &b.npar, &b.childm, &b.in_merge);
-    let mut end_seen = Vec::new();
-    let mut n_nodes = Vec::new();
-    let mut n_records = Vec::new();
-    let mut rec_sum = Vec::new();
-    let mut reused_sum = Vec::new();
-    let mut level_cap_err = Vec::new();
-    let mut level_err = Vec::new();
-    for d in 0..=dmax {
-        let s = Stream::input(m, &format!("level{d}"), bl.level_width);
-        let seen = m.reg(&format!("l{d}_end_seen"), 1);
-        let n = m.reg(&format!("l{d}_nodes"), c + 1);
-        let r = m.reg(&format!("l{d}_records"), c + 1);
-        let rsum = m.reg(&format!("l{d}_record_counts"), sum_w);
-        let usum = m.reg(&format!("l{d}_reused_counts"), sum_w);
-        let cerr = m.reg(&format!("l{d}_cap_err"), 1);
-        let lerr = m.reg(&format!("l{d}_err"), 1);
-        let ready = (in_fill & !seen).name(&format!("l{d}_ready"));
-        s.ready.drive(ready);
-        let fire = (s.valid & ready).name(&format!("l{d}_fire"));
-        let kind = field(s.data, &bl.kind).expect("kind");
-        let rec = field(s.data, &bl.rec).expect("rec");
-        let refer = field(s.data, &bl.refer).expect("ref");
-        let index = field(s.data, &bl.index).expect("index");
-        let records = field(s.data, &bl.records).expect("records");
-        let err = field(s.data, &bl.err).expect("err");
-        let count = field(rec, nl.count()).expect("count");
-        let first = field(rec, nl.first()).expect("first");
-        let hier = field(refer, rl.hier()).expect("hier");
-        let is_end = kind_is(m, kind, level_out_kind::END).name(&format!("l{d}_is_end"));
-        let reused = kind_is(m, kind, level_out_kind::REUSED).name(&format!("l{d}_reused"));
-        let node_fire = fire & !is_end;
-        let fits = index
-            .slice(i - 1, c)
-            .eq(lit(0, i - c))
-            .name(&format!("l{d}_fits"));
-        let body_word = m.concat(&[count, rec.slice(body_w - 1, 0)]);
-        let parent_word = m.concat(&[hier, first, count, kind]);
-        let slot = records.slice(c - 1, 0);
-        let pos = index.slice(c - 1, 0);
-        let put = (node_fire & fits).name(&format!("l{d}_put"));
-        if let (Some(nb), Some(np), Some(ch)) = (nbody[d], npar[d], childm[d]) {
-            nb.write(pos, body_word, put);
-            np.write(pos, parent_word, put);
-            ch.write(pos, m.concat(&[records, refer, reused]), put);
-        }
-        if let (Some(rb), Some(rp)) = (rbody[d], rpar[d]) {
-            let put_slot = (put & !reused).name(&format!("l{d}_put_slot"));
-            rb.write(slot, body_word, put_slot);
-            rp.write(slot, parent_word, put_slot);
-        }
-        // A merge with its top at or above d consumes the level.
-        let clear_d = (clear & in_merge[d]).name(&format!("l{d}_clear"));
-        let end_fire = (fire & is_end).name(&format!("l{d}_end_fire"));
-        seen.next(clear_d.mux(zero, seen | end_fire));
-        n.next(clear_d.mux(lit(0, c + 1), end_fire.mux(index.slice(c, 0), n)));
-        r.next(clear_d.mux(lit(0, c + 1), end_fire.mux(records.slice(c, 0), r)));
-        let counted = count.zext(sum_w);
-        let none = lit(0, sum_w);
-        rsum.next(clear_d.mux(
-            none,
-            rsum.add((node_fire & !reused).mux(counted, none), sum_w),
-        ));
-        usum.next(clear_d.mux(
-            none,
-            usum.add((node_fire & reused).mux(counted, none), sum_w),
-        ));
-        cerr.next(clear_d.mux(zero, cerr | (node_fire & !fits)));
-        // A node with no references would hold its parent's sequencer forever.
-        let no_refs = node_fire & count.eq(lit(0, i));
-        lerr.next(clear_d.mux(zero, lerr | (fire & err) | no_refs));
-        end_seen.push(seen);
-        n_nodes.push(n);
-        n_records.push(r);
-        rec_sum.push(rsum);
-        reused_sum.push(usum);
-        level_cap_err.push(cerr);
-        level_err.push(lerr);
+    let s = Stream::input(&m, "level", bl.level_width);
+    let in_fill = m.input("in_fill", 1);
+    // This merge consumes the level: its counts start again.
+    let clear = m.input("clear", 1);
+    let seen = m.reg("end_seen", 1);
+    let n = m.reg("nodes", c + 1);
+    let r = m.reg("records", c + 1);
+    let rsum = m.reg("record_counts", sum_w);
+    let usum = m.reg("reused_counts", sum_w);
+    let cerr = m.reg("cap_err", 1);
+    let lerr = m.reg("err", 1);
+    let ready = (in_fill & !seen).name("ready");
+    s.ready.drive(ready);
+    let fire = (s.valid & ready).name("fire");
+    let kind = field(s.data, &bl.kind).expect("kind");
+    let rec = field(s.data, &bl.rec).expect("rec");
+    let refer = field(s.data, &bl.refer).expect("ref");
+    let index = field(s.data, &bl.index).expect("index");
+    let records = field(s.data, &bl.records).expect("records");
+    let err = field(s.data, &bl.err).expect("err");
+    let count = field(rec, nl.count()).expect("count");
+    let first = field(rec, nl.first()).expect("first");
+    let hier = field(refer, rl.hier()).expect("hier");
+    let is_end = kind_is(&m, kind, level_out_kind::END).name("is_end");
+    let reused = kind_is(&m, kind, level_out_kind::REUSED).name("reused");
+    let node_fire = fire & !is_end;
+    let fits = index.slice(i - 1, c).eq(lit(0, i - c)).name("fits");
+    let body_word = m.concat(&[count, rec.slice(body_w - 1, 0)]);
+    let parent_word = m.concat(&[hier, first, count, kind]);
+    let slot = records.slice(c - 1, 0);
+    let pos = index.slice(c - 1, 0);
+    let put = (node_fire & fits).name("put");
+    let put_slot = by_slot.then(|| (put & !reused).name("put_slot"));
+    for buf in Buffer::ALL.into_iter().filter(|b| by_slot || !b.by_slot()) {
+        let mem = m.memory(&buf.memory(), buf.width(&w.widths), 1 << c);
+        let (addr, word, en) = match buf {
+            Buffer::BodyBySlot => (slot, body_word, put_slot),
+            Buffer::ParentBySlot => (slot, parent_word, put_slot),
+            Buffer::BodyAtTop => (pos, body_word, Some(put)),
+            Buffer::ParentAtTop => (pos, parent_word, Some(put)),
+            Buffer::Child => (pos, m.concat(&[records, refer, reused]), Some(put)),
+        };
+        mem.write(
+            addr,
+            word,
+            en.expect("a by-slot buffer exists only by_slot"),
+        );
+        let read = mem.read_sync(
+            m.input(&format!("{}_addr", buf.port()), c),
+            m.input(&format!("{}_en", buf.port()), 1),
+        );
+        m.output(buf.port(), read);
     }
-
-    Levels {
-        end_seen,
-        n_nodes,
-        n_records,
-        rec_sum,
-        reused_sum,
-        level_cap_err,
-        level_err,
+    let end_fire = (fire & is_end).name("end_fire");
+    seen.next(clear.mux(zero, seen | end_fire));
+    n.next(clear.mux(lit(0, c + 1), end_fire.mux(index.slice(c, 0), n)));
+    r.next(clear.mux(lit(0, c + 1), end_fire.mux(records.slice(c, 0), r)));
+    let counted = count.zext(sum_w);
+    let none = lit(0, sum_w);
+    rsum.next(clear.mux(
+        none,
+        rsum.add((node_fire & !reused).mux(counted, none), sum_w),
+    ));
+    usum.next(clear.mux(
+        none,
+        usum.add((node_fire & reused).mux(counted, none), sum_w),
+    ));
+    cerr.next(clear.mux(zero, cerr | (node_fire & !fits)));
+    // A node with no references would hold its parent's sequencer forever.
+    let no_refs = node_fire & count.eq(lit(0, i));
+    lerr.next(clear.mux(zero, lerr | (fire & err) | no_refs));
+    for (port, v) in [
+        ("ended", seen),
+        ("n_nodes", n),
+        ("n_records", r),
+        ("rec_sum", rsum),
+        ("reused_sum", usum),
+        ("capacity_error", cerr),
+        ("level_error", lerr),
+    ] {
+        m.output(port, v);
     }
+    m
 }
 
 /// The fill's end and the header's checks.
@@ -726,7 +809,6 @@ fn record_sequencer<'m>(
         s.n_top,
         s.n_records,
     );
-    let (nbody, rbody) = (&b.nbody, &b.rbody);
     // Record sequencer: one record per clock in store order; a record's
     // `first` is the running sum of the counts before it. The buffers read
     // a clock ahead: each clock reads the word (rs_lod, rs_ptr) names in the
@@ -761,8 +843,14 @@ fn record_sequencer<'m>(
     let rs_addr_next = rs_ptr_next.slice(c - 1, 0);
     let rs_reads =
         |at_top: bool| move |d| reads_level(rs_reading, rs_d_next, rs_next_top, d, at_top);
-    let at_top = read_ahead(m, nbody, rs_addr_next, rs_reads(true), widths.body);
-    let below = read_ahead(m, rbody, rs_addr_next, rs_reads(false), widths.body);
+    let at_top = read_ahead(w, &b.units, Buffer::BodyAtTop, rs_addr_next, rs_reads(true));
+    let below = read_ahead(
+        w,
+        &b.units,
+        Buffer::BodyBySlot,
+        rs_addr_next,
+        rs_reads(false),
+    );
     let body_word = rs_top.mux(by_level(m, rs_d, &at_top), by_level(m, rs_d, &below));
     let rs_count = body_word.slice(widths.body - 1, body_w);
     let record = m.concat(&[
@@ -795,7 +883,7 @@ fn reference_sequencer<'m>(
     s: &Drain<'_, 'm>,
     f: &Inputs<'m>,
 ) -> (Signal<'m>, Signal<'m>) {
-    let (m, c, i, lb, widths) = (w.m, w.c, w.i, w.lb, &w.widths);
+    let (m, c, i, lb) = (w.m, w.c, w.i, w.lb);
     let ref_w = w.wl.reference.width();
     let lit = |v: u64, width: u32| w.lit(v, width);
     let (zero, one) = (lit(0, 1), lit(1, 1));
@@ -807,7 +895,6 @@ fn reference_sequencer<'m>(
         s.n_top,
         s.n_records,
     );
-    let (npar, rpar, childm) = (&b.npar, &b.rpar, &b.childm);
     let (out_id, crefs_mem) = (f.out_id, f.crefs_mem);
     // Reference sequencer: one reference per clock in store order, walking
     // the parents (the records) and, for a grouped one, the next nodes of
@@ -836,8 +923,8 @@ fn reference_sequencer<'m>(
     let fs_reads =
         |at_top: bool| move |d| reads_level(fs_reading, fs_d_next, fs_next_top, d, at_top);
     let par_addr = fs_ptr_next.slice(c - 1, 0);
-    let par_top = read_ahead(m, npar, par_addr, fs_reads(true), widths.parent);
-    let par_below = read_ahead(m, rpar, par_addr, fs_reads(false), widths.parent);
+    let par_top = read_ahead(w, &b.units, Buffer::ParentAtTop, par_addr, fs_reads(true));
+    let par_below = read_ahead(w, &b.units, Buffer::ParentBySlot, par_addr, fs_reads(false));
     let par = parent(
         fs_top.mux(by_level(m, fs_d, &par_top), by_level(m, fs_d, &par_below)),
         i,
@@ -850,13 +937,8 @@ fn reference_sequencer<'m>(
     // whose nodes have no children).
     let child_level = fs_d_next.add(1, lb);
     let want_child = |e: usize| fs_reading & child_level.eq(lit(e as u64, lb));
-    let children = read_ahead(
-        m,
-        childm,
-        fs_child_next.slice(c - 1, 0),
-        want_child,
-        widths.child,
-    );
+    let child_addr = fs_child_next.slice(c - 1, 0);
+    let children = read_ahead(w, &b.units, Buffer::Child, child_addr, want_child);
     let ch = child(by_level(m, fs_d.add(1, lb), &children), ref_w);
     let ch_index = fs_off.slice(i - 1, 0).add(ch.records, i);
     let ch_ref = ch.reused.mux(ch.refer, m.concat(&[out_id, ch_index]));
@@ -949,10 +1031,32 @@ mod tests {
         })
     }
 
+    /// The memories `text` (one module's Verilog) declares, each named
+    /// `<prefix><name>`.
+    fn declared_memories(text: &str, prefix: &str) -> Vec<WriterBuffer> {
+        text.lines()
+            .filter_map(declared_memory)
+            .map(|b| WriterBuffer {
+                name: format!("{prefix}{}", b.name),
+                ..b
+            })
+            .collect()
+    }
+
+    /// The instances `text` (one module's Verilog) makes of `module`:
+    /// `<module> <instance> (`.
+    fn instances_of<'t>(text: &'t str, module: &str) -> Vec<&'t str> {
+        text.lines()
+            .filter_map(|l| l.trim().strip_prefix(module)?.strip_prefix(' '))
+            .filter_map(|l| l.split_once(" (").map(|(inst, _)| inst))
+            .collect()
+    }
+
     /// The writer builds with no warning (no unread logic); and
     /// `record_writer_buffers` names exactly the memories the generator
-    /// declares (what a synthesis test counts macros from), `5D + 4` of
-    /// them, and none is read asynchronously (no `assign x = mem[a]`).
+    /// declares, in the writer and in each instance of its level modules
+    /// (what a synthesis test counts macros from), `5D + 4` of them, and
+    /// none is read asynchronously (no `assign x = mem[a]`).
     #[test]
     fn the_buffer_list_is_the_emitted_memories_all_read_synchronously() {
         let configs = [
@@ -964,27 +1068,43 @@ mod tests {
             let m = record_writer_unit(&p, c).unwrap();
             let warnings = m.validate_design().expect("valid");
             assert!(warnings.is_empty(), "D = {}: {warnings:?}", p.max_lod);
-            let text = crate::emit_verilog(&m).unwrap();
-            let mut emitted: Vec<WriterBuffer> = text.lines().filter_map(declared_memory).collect();
+            let files = crate::emit_design(&m).unwrap();
+            let text_of = |module: &str| -> &str {
+                let file = format!("{module}.v");
+                &files.iter().find(|f| f.0 == file).expect("emitted").1
+            };
+            let top = text_of(&m.name());
+            let mut emitted = declared_memories(top, "");
+            for by_slot in [false, true] {
+                let level = record_writer_level_name(&p, c, by_slot);
+                let insts = instances_of(top, &level);
+                assert_eq!(insts.len(), if by_slot { p.max_lod as usize } else { 1 });
+                for inst in insts {
+                    emitted.extend(declared_memories(text_of(&level), &format!("{inst}.")));
+                }
+            }
+            assert_eq!(files.len(), 3, "the writer and its two level modules");
             let mut listed = record_writer_buffers(&p, c).unwrap();
             emitted.sort_by(|a, b| a.name.cmp(&b.name));
             listed.sort_by(|a, b| a.name.cmp(&b.name));
             assert_eq!(emitted, listed, "D = {}", p.max_lod);
             assert_eq!(listed.len(), 5 * p.max_lod as usize + 4);
-            for b in &listed {
-                let async_read = format!("= {}[", b.name);
-                assert!(
-                    !text
-                        .lines()
-                        .any(|l| l.trim_start().starts_with("assign") && l.contains(&async_read)),
-                    "{} is read asynchronously",
-                    b.name
-                );
-                assert!(
-                    text.contains(&format!("<= {}[", b.name)),
-                    "{} has no registered read",
-                    b.name
-                );
+            for (file, text) in &files {
+                for mem in declared_memories(text, "") {
+                    let async_read = format!("= {}[", mem.name);
+                    assert!(
+                        !text.lines().any(
+                            |l| l.trim_start().starts_with("assign") && l.contains(&async_read)
+                        ),
+                        "{file}: {} is read asynchronously",
+                        mem.name
+                    );
+                    assert!(
+                        text.contains(&format!("<= {}[", mem.name)),
+                        "{file}: {} has no registered read",
+                        mem.name
+                    );
+                }
             }
         }
     }

@@ -11,90 +11,90 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     input  wire report_ready,              // rtl-gen/src/merge/merger/level_mode.rs:121
     output wire report_valid,              // rtl-gen/src/merge/merger/level_mode.rs:129
     output wire [57:0] report_data,        // rtl-gen/src/merge/merger/level_mode.rs:130
-    input  wire f0_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [149:0] f0_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f0_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f0_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [27:0] f0_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f0_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f0_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [27:0] f0_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f0_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f0_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f0_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f0_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:395
-    output wire f0_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f0_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f0_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire f0_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f0_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f0_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f1_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [149:0] f1_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f1_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f1_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [27:0] f1_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f1_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f1_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [27:0] f1_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f1_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f1_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f1_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f1_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:395
-    output wire f1_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f1_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f1_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire f1_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f1_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f1_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f2_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [149:0] f2_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f2_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f2_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [27:0] f2_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f2_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f2_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [27:0] f2_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f2_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f2_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f2_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f2_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:395
-    output wire f2_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f2_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f2_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire f2_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f2_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f2_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f3_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [149:0] f3_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f3_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f3_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [27:0] f3_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f3_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f3_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [27:0] f3_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f3_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f3_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f3_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f3_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:395
-    output wire f3_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f3_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f3_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire f3_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f3_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f3_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire w_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [27:0] w_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:398
-    output wire w_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire w_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [27:0] w_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire w_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:395
-    output wire nodes_valid,               // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [149:0] nodes_data,        // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire nodes_ready,               // rtl-gen/src/merge/merger/mod.rs:395
-    output wire refs_valid,                // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [27:0] refs_data,          // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire refs_ready,                // rtl-gen/src/merge/merger/mod.rs:395
+    input  wire f0_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [149:0] f0_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f0_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire f0_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [27:0] f0_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f0_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire f0_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [27:0] f0_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f0_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f0_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f0_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f0_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
+    output wire f0_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f0_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f0_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire f0_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f0_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f0_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f1_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [149:0] f1_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f1_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire f1_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [27:0] f1_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f1_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire f1_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [27:0] f1_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f1_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f1_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f1_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f1_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
+    output wire f1_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f1_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f1_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire f1_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f1_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f1_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f2_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [149:0] f2_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f2_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire f2_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [27:0] f2_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f2_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire f2_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [27:0] f2_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f2_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f2_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f2_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f2_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
+    output wire f2_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f2_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f2_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire f2_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f2_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f2_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f3_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [149:0] f3_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f3_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire f3_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [27:0] f3_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f3_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire f3_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [27:0] f3_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f3_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f3_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f3_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f3_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
+    output wire f3_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f3_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f3_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire f3_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f3_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f3_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire w_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [27:0] w_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:401
+    output wire w_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:401
+    output wire w_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [27:0] w_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire w_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:398
+    output wire nodes_valid,               // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [149:0] nodes_data,        // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire nodes_ready,               // rtl-gen/src/merge/merger/mod.rs:398
+    output wire refs_valid,                // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [27:0] refs_data,          // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire refs_ready,                // rtl-gen/src/merge/merger/mod.rs:398
     output wire w_filling,                 // rtl-gen/src/merge/merger/tail.rs:102
     output wire w_drain_records,           // rtl-gen/src/merge/merger/tail.rs:102
     output wire w_drain_refs,              // rtl-gen/src/merge/merger/tail.rs:102
@@ -309,7 +309,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire dropping3_not;                      // rtl-gen/src/merge/merger/mod.rs:290
     wire quiet;                              // rtl-gen/src/merge/merger/mod.rs:290
     reg [568:0] cfg_q;                       // rtl-gen/src/merge/merger/mod.rs:294
-    wire flags_hold;                         // rtl-gen/src/merge/merger/mod.rs:297
+    wire flags_hold;                         // rtl-gen/src/merge/merger/mod.rs:299
     wire [2:0] cfg_data_count;               // rtl-gen/src/merge/merger/mod.rs:143
     wire [2:0] cfg_q_count;                  // rtl-gen/src/merge/merger/mod.rs:143
     wire [4:0] lo;                           // rtl-gen/src/merge/merger/mod.rs:143
@@ -360,9 +360,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire step0;                              // rtl-gen/src/merge/merger/level_mode.rs:248
     wire choice_known_or;                    // rtl-gen/src/merge/merger/level_mode.rs:260
     wire [2:0] count_pass_mux;               // rtl-gen/src/merge/merger/level_mode.rs:262
-    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:392
-    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:392
-    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:392
+    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
+    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:395
+    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
     reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:192
     reg [2:0] phase1;                        // rtl-gen/src/merge/merger/level_mode.rs:199
     reg [4:0] cmd_lod1;                      // rtl-gen/src/merge/merger/level_mode.rs:204
@@ -382,9 +382,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:243
     wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:244
     wire step1;                              // rtl-gen/src/merge/merger/level_mode.rs:248
-    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:392
-    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:392
-    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:392
+    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
+    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:395
+    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
     reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:192
     reg [2:0] phase2;                        // rtl-gen/src/merge/merger/level_mode.rs:199
     reg [4:0] cmd_lod2;                      // rtl-gen/src/merge/merger/level_mode.rs:204
@@ -404,9 +404,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:243
     wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:244
     wire step2;                              // rtl-gen/src/merge/merger/level_mode.rs:248
-    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:392
-    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:392
-    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:392
+    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
+    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:395
+    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
     reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:192
     reg [2:0] phase3;                        // rtl-gen/src/merge/merger/level_mode.rs:199
     reg [4:0] cmd_lod3;                      // rtl-gen/src/merge/merger/level_mode.rs:204
@@ -425,9 +425,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire u_fetch3_and;                       // rtl-gen/src/merge/merger/level_mode.rs:241
     wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:243
     wire step3;                              // rtl-gen/src/merge/merger/level_mode.rs:248
-    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:392
-    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:392
-    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:392
+    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
+    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:395
+    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
     reg [3:0] fetch_err_header;              // rtl-gen/src/merge/merger/mod.rs:218
     reg [1:0] fetch_rank_header;             // rtl-gen/src/merge/merger/mod.rs:218
     reg leaves_done;                         // rtl-gen/src/merge/merger/leaf_merge.rs:46
@@ -814,9 +814,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire merging_and;                        // rtl-gen/src/merge/merger/level_mode.rs:419
     reg count_overflow;                      // rtl-gen/src/merge/merger/level_mode.rs:428
     reg count_overflow_header;               // rtl-gen/src/merge/merger/mod.rs:218
-    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:392
-    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:392
-    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:392
+    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:395
+    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:395
+    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:395
     wire dropping0_and;                      // rtl-gen/src/merge/merger/tail.rs:109
     wire merge_settled;                      // rtl-gen/src/merge/merger/tail.rs:110
     wire header_offered;                     // rtl-gen/src/merge/merger/tail.rs:112
@@ -1805,8 +1805,8 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
             end
             header_open <= header_fire ? 1'b0 : (header_open | merge_settled);
             if (cfg_fire) begin
-                module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:346
-                writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:354
+                module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:349
+                writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:357
                 busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:260
                 cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:295
                 fetch0_cfg_pending <= cfg_data_count > 3'd0; // rtl-gen/src/merge/merger/level_mode.rs:197
@@ -1827,10 +1827,10 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 count_overflow_header <= count_overflow; // rtl-gen/src/merge/merger/mod.rs:219
             end else begin
                 if (module_cfg_pending & u_module_cfg_ready) begin
-                    module_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:346
+                    module_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:349
                 end
                 if (writer_cfg_pending & u_writer_cfg_ready) begin
-                    writer_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:354
+                    writer_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:357
                 end
                 if (header_fire & queued_not) begin
                     busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:260

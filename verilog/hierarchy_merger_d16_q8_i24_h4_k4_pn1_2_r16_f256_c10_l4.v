@@ -11,114 +11,114 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     input  wire report_ready,               // rtl-gen/src/merge/merger/per_node_mode.rs:141
     output wire report_valid,               // rtl-gen/src/merge/merger/per_node_mode.rs:142
     output wire [65:0] report_data,         // rtl-gen/src/merge/merger/per_node_mode.rs:143
-    input  wire f0_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [149:0] f0_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f0_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f0_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [27:0] f0_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f0_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f0_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [27:0] f0_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f0_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f0_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [149:0] f0_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f0_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f0_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f0_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f0_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire f0_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f0_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f0_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:395
-    output wire f0_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f0_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f0_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire f0_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f0_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f0_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f1_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [149:0] f1_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f1_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f1_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [27:0] f1_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f1_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f1_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [27:0] f1_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f1_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f1_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [149:0] f1_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f1_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f1_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f1_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f1_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire f1_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f1_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f1_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:395
-    output wire f1_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f1_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f1_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire f1_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f1_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f1_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f2_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [149:0] f2_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f2_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f2_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [27:0] f2_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f2_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f2_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [27:0] f2_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f2_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f2_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [149:0] f2_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f2_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f2_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f2_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f2_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire f2_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f2_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f2_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:395
-    output wire f2_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f2_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f2_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire f2_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f2_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f2_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f3_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [149:0] f3_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f3_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f3_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [27:0] f3_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f3_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f3_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [27:0] f3_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f3_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f3_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [149:0] f3_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f3_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f3_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f3_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f3_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire f3_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f3_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f3_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:395
-    output wire f3_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f3_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f3_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:395
-    output wire f3_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [23:0] f3_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire f3_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire w_ref_resp_valid,           // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire [27:0] w_ref_resp_data,     // rtl-gen/src/merge/merger/mod.rs:398
-    output wire w_ref_resp_ready,           // rtl-gen/src/merge/merger/mod.rs:398
-    output wire w_ref_req_valid,            // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [27:0] w_ref_req_data,      // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire w_ref_req_ready,            // rtl-gen/src/merge/merger/mod.rs:395
-    output wire nodes_valid,                // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [149:0] nodes_data,         // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire nodes_ready,                // rtl-gen/src/merge/merger/mod.rs:395
-    output wire refs_valid,                 // rtl-gen/src/merge/merger/mod.rs:395
-    output wire [27:0] refs_data,           // rtl-gen/src/merge/merger/mod.rs:395
-    input  wire refs_ready,                 // rtl-gen/src/merge/merger/mod.rs:395
+    input  wire f0_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [149:0] f0_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f0_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire f0_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [27:0] f0_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f0_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire f0_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [27:0] f0_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f0_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire f0_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [149:0] f0_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f0_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f0_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f0_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f0_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire f0_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f0_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f0_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:398
+    output wire f0_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f0_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f0_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire f0_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f0_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f0_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f1_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [149:0] f1_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f1_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire f1_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [27:0] f1_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f1_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire f1_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [27:0] f1_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f1_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire f1_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [149:0] f1_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f1_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f1_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f1_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f1_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire f1_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f1_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f1_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:398
+    output wire f1_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f1_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f1_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire f1_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f1_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f1_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f2_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [149:0] f2_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f2_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire f2_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [27:0] f2_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f2_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire f2_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [27:0] f2_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f2_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire f2_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [149:0] f2_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f2_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f2_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f2_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f2_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire f2_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f2_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f2_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:398
+    output wire f2_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f2_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f2_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire f2_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f2_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f2_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f3_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [149:0] f3_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f3_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire f3_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [27:0] f3_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f3_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire f3_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [27:0] f3_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f3_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire f3_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [149:0] f3_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f3_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
+    output wire f3_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f3_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f3_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire f3_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f3_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f3_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:398
+    output wire f3_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f3_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f3_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
+    output wire f3_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [23:0] f3_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire f3_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire w_ref_resp_valid,           // rtl-gen/src/merge/merger/mod.rs:401
+    input  wire [27:0] w_ref_resp_data,     // rtl-gen/src/merge/merger/mod.rs:401
+    output wire w_ref_resp_ready,           // rtl-gen/src/merge/merger/mod.rs:401
+    output wire w_ref_req_valid,            // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [27:0] w_ref_req_data,      // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire w_ref_req_ready,            // rtl-gen/src/merge/merger/mod.rs:398
+    output wire nodes_valid,                // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [149:0] nodes_data,         // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire nodes_ready,                // rtl-gen/src/merge/merger/mod.rs:398
+    output wire refs_valid,                 // rtl-gen/src/merge/merger/mod.rs:398
+    output wire [27:0] refs_data,           // rtl-gen/src/merge/merger/mod.rs:398
+    input  wire refs_ready,                 // rtl-gen/src/merge/merger/mod.rs:398
     output wire w_filling,                  // rtl-gen/src/merge/merger/tail.rs:102
     output wire w_drain_records,            // rtl-gen/src/merge/merger/tail.rs:102
     output wire w_drain_refs,               // rtl-gen/src/merge/merger/tail.rs:102
@@ -406,10 +406,10 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire u_fetch0_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:262
     wire [3:0] u_fetch0_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:263
     wire range_good_not;                     // rtl-gen/src/merge/merger/per_node_mode.rs:265
-    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:392
-    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:392
-    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:392
-    wire f0_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:392
+    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
+    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:395
+    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
+    wire f0_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:395
     reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:202
     reg cmd1_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:211
     wire cmd1_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:226
@@ -423,10 +423,10 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire u_fetch1_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:253
     wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:262
     wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:263
-    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:392
-    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:392
-    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:392
-    wire f1_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:392
+    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
+    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:395
+    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
+    wire f1_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:395
     reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:202
     reg cmd2_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:211
     wire cmd2_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:226
@@ -440,10 +440,10 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire u_fetch2_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:253
     wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:262
     wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:263
-    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:392
-    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:392
-    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:392
-    wire f2_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:392
+    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
+    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:395
+    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
+    wire f2_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:395
     reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:202
     reg cmd3_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:211
     wire cmd3_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:226
@@ -456,10 +456,10 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire dropping3_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:252
     wire u_fetch3_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:253
     wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:262
-    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:392
-    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:392
-    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:392
-    wire f3_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:392
+    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
+    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:395
+    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
+    wire f3_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:395
     reg leaves_done;                         // rtl-gen/src/merge/merger/leaf_merge.rs:46
     wire leaves_active;                      // rtl-gen/src/merge/merger/leaf_merge.rs:47
     wire u_fetch0_end;                       // rtl-gen/src/merge/merger/mod.rs:143
@@ -717,9 +717,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire range_good_and_16;                  // rtl-gen/src/merge/merger/per_node_mode.rs:404
     wire base_open_and_32;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
     wire base_open_and_33;                   // rtl-gen/src/merge/merger/per_node_mode.rs:409
-    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:392
-    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:392
-    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:392
+    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:395
+    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:395
+    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:395
     wire dropping0_and;                      // rtl-gen/src/merge/merger/tail.rs:109
     wire merge_settled;                      // rtl-gen/src/merge/merger/tail.rs:110
     wire header_offered;                     // rtl-gen/src/merge/merger/tail.rs:112
@@ -1622,8 +1622,8 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
             end
             header_open <= header_fire ? 1'b0 : (header_open | merge_settled);
             if (cfg_fire) begin
-                module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:346
-                writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:354
+                module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:349
+                writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:357
                 busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:285
                 cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:295
                 fetch0_cfg_pending <= cfg_data_count_gt; // rtl-gen/src/merge/merger/per_node_mode.rs:207
@@ -1640,10 +1640,10 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
                 end_owed3 <= (~cfg_data_count_gt_3) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:255
             end else begin
                 if (module_cfg_pending & u_module_cfg_ready) begin
-                    module_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:346
+                    module_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:349
                 end
                 if (writer_cfg_pending & u_writer_cfg_ready) begin
-                    writer_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:354
+                    writer_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:357
                 end
                 if (header_fire) begin
                     busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:285

@@ -241,7 +241,7 @@ fn hierarchy_merger_default_matches_golden() {
     }
     check(
         "default",
-        &[("verilator", 40), ("iverilog-batch", 4), ("ir", 2)],
+        &[("verilator", 2000), ("iverilog-batch", 4), ("ir", 2)],
         true,
     );
 }
@@ -251,7 +251,7 @@ fn hierarchy_merger_d31_matches_golden() {
     if !tools_present(&["verilator", "iverilog"]) {
         return;
     }
-    check("d31", &[("verilator", 10), ("iverilog-batch", 1)], true);
+    check("d31", &[("verilator", 1000), ("iverilog-batch", 1)], true);
 }
 
 #[test]
@@ -261,7 +261,7 @@ fn hierarchy_merger_fixed_matches_golden() {
     }
     check(
         "fixed",
-        &[("verilator", 30), ("iverilog-batch", 4), ("ir", 2)],
+        &[("verilator", 1000), ("iverilog-batch", 4), ("ir", 2)],
         false,
     );
 }
@@ -276,7 +276,7 @@ fn hierarchy_merger_per_node_matches_golden() {
     }
     check(
         "pernode",
-        &[("verilator", 20), ("iverilog-batch", 2), ("ir", 1)],
+        &[("verilator", 1000), ("iverilog-batch", 2), ("ir", 1)],
         true,
     );
 }
@@ -288,7 +288,7 @@ fn hierarchy_merger_q0_matches_golden() {
     }
     check(
         "q0",
-        &[("verilator", 40), ("iverilog-batch", 4), ("ir", 2)],
+        &[("verilator", 1000), ("iverilog-batch", 4), ("ir", 2)],
         true,
     );
 }

@@ -270,35 +270,35 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
     wire [149:0] item_rec;                   // rtl-gen/src/merge/fetcher/visit.rs:173
     wire [27:0] item_ref;                    // rtl-gen/src/merge/fetcher/visit.rs:174
     wire [23:0] item_ref_node;               // rtl-gen/src/merge/fetcher/visit.rs:175
-    wire item_leaf;                          // rtl-gen/src/merge/fetcher/visit.rs:241
-    wire item_leaf_not;                      // rtl-gen/src/merge/fetcher/visit.rs:242
+    wire item_leaf;                          // rtl-gen/src/merge/fetcher/visit.rs:244
+    wire item_leaf_not;                      // rtl-gen/src/merge/fetcher/visit.rs:245
     wire [47:0] item_rec_x_morton;           // rtl-gen/src/merge/network.rs:39
-    wire [48:0] item_key;                    // rtl-gen/src/merge/fetcher/visit.rs:244
-    wire [23:0] item_rec_first;              // rtl-gen/src/merge/fetcher/visit.rs:246
-    wire [23:0] item_rec_count;              // rtl-gen/src/merge/fetcher/visit.rs:247
-    wire [24:0] item_range_end;              // rtl-gen/src/merge/fetcher/visit.rs:250
-    wire at_level;                           // rtl-gen/src/merge/fetcher/visit.rs:252
-    wire order_bad;                          // rtl-gen/src/merge/fetcher/visit.rs:253
-    wire range_bad;                          // rtl-gen/src/merge/fetcher/visit.rs:261
-    wire frontier_bad;                       // rtl-gen/src/merge/fetcher/visit.rs:262
-    wire [3:0] item_end_mux;                 // rtl-gen/src/merge/fetcher/visit.rs:265
-    wire [3:0] visit_code;                   // rtl-gen/src/merge/fetcher/visit.rs:263
-    wire visit_fails;                        // rtl-gen/src/merge/fetcher/visit.rs:278
-    wire visit_go_and;                       // rtl-gen/src/merge/fetcher/visit.rs:279
-    wire visit_passes;                       // rtl-gen/src/merge/fetcher/visit.rs:279
-    wire frontier_push;                      // rtl-gen/src/merge/fetcher/visit.rs:280
-    wire visit_errored_not;                  // rtl-gen/src/merge/fetcher/visit.rs:282
-    wire leaf_out;                           // rtl-gen/src/merge/fetcher/visit.rs:282
-    wire to_out;                             // rtl-gen/src/merge/fetcher/visit.rs:283
-    wire next_level;                         // rtl-gen/src/merge/fetcher/visit.rs:284
-    wire level_end;                          // rtl-gen/src/merge/fetcher/visit.rs:285
-    wire walk_over;                          // rtl-gen/src/merge/fetcher/visit.rs:296
-    wire marker_push;                        // rtl-gen/src/merge/fetcher/visit.rs:300
-    wire level_end_push;                     // rtl-gen/src/merge/fetcher/visit.rs:316
-    wire [4:0] item_rec_lod;                 // rtl-gen/src/merge/fetcher/visit.rs:462
-    wire walk_over_and;                      // rtl-gen/src/merge/fetcher/visit.rs:472
-    wire leaves_end_fire;                    // rtl-gen/src/merge/fetcher/visit.rs:472
-    wire [27:0] visit_fails_mux_1;           // rtl-gen/src/merge/fetcher/visit.rs:508
+    wire [48:0] item_key;                    // rtl-gen/src/merge/fetcher/visit.rs:247
+    wire [23:0] item_rec_first;              // rtl-gen/src/merge/fetcher/visit.rs:249
+    wire [23:0] item_rec_count;              // rtl-gen/src/merge/fetcher/visit.rs:250
+    wire [24:0] item_range_end;              // rtl-gen/src/merge/fetcher/visit.rs:253
+    wire at_level;                           // rtl-gen/src/merge/fetcher/visit.rs:255
+    wire order_bad;                          // rtl-gen/src/merge/fetcher/visit.rs:256
+    wire range_bad;                          // rtl-gen/src/merge/fetcher/visit.rs:264
+    wire frontier_bad;                       // rtl-gen/src/merge/fetcher/visit.rs:265
+    wire [3:0] item_end_mux;                 // rtl-gen/src/merge/fetcher/visit.rs:268
+    wire [3:0] visit_code;                   // rtl-gen/src/merge/fetcher/visit.rs:266
+    wire visit_fails;                        // rtl-gen/src/merge/fetcher/visit.rs:281
+    wire visit_go_and;                       // rtl-gen/src/merge/fetcher/visit.rs:282
+    wire visit_passes;                       // rtl-gen/src/merge/fetcher/visit.rs:282
+    wire frontier_push;                      // rtl-gen/src/merge/fetcher/visit.rs:283
+    wire visit_errored_not;                  // rtl-gen/src/merge/fetcher/visit.rs:285
+    wire leaf_out;                           // rtl-gen/src/merge/fetcher/visit.rs:285
+    wire to_out;                             // rtl-gen/src/merge/fetcher/visit.rs:286
+    wire next_level;                         // rtl-gen/src/merge/fetcher/visit.rs:287
+    wire level_end;                          // rtl-gen/src/merge/fetcher/visit.rs:288
+    wire walk_over;                          // rtl-gen/src/merge/fetcher/visit.rs:299
+    wire marker_push;                        // rtl-gen/src/merge/fetcher/visit.rs:303
+    wire level_end_push;                     // rtl-gen/src/merge/fetcher/visit.rs:319
+    wire [4:0] item_rec_lod;                 // rtl-gen/src/merge/fetcher/visit.rs:482
+    wire walk_over_and;                      // rtl-gen/src/merge/fetcher/visit.rs:492
+    wire leaves_end_fire;                    // rtl-gen/src/merge/fetcher/visit.rs:492
+    wire [27:0] visit_fails_mux_1;           // rtl-gen/src/merge/fetcher/visit.rs:528
     wire out_items_out_data_eq;              // rtl-gen/src/merge/fetcher/order.rs:175
     wire out_items_out_data_leaf;            // rtl-gen/src/merge/fetcher/order.rs:176
     wire [15:0] out_items_out_data_z;        // rtl-gen/src/merge/fetcher/order.rs:178
@@ -826,19 +826,19 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
                 first_err_code <= header_code; // rtl-gen/src/merge/fetcher/parts.rs:72
                 first_err_node <= 24'd0;     // rtl-gen/src/merge/fetcher/parts.rs:72
                 header_err <= header_code_ne; // rtl-gen/src/merge/fetcher/command.rs:210
-                level <= cfg_top;            // rtl-gen/src/merge/fetcher/visit.rs:339
-                at_top <= 1'b1;              // rtl-gen/src/merge/fetcher/visit.rs:341
-                walk_done <= 1'b0;           // rtl-gen/src/merge/fetcher/visit.rs:343
-                prev_valid <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:326
-                pushed <= 9'd0;              // rtl-gen/src/merge/fetcher/visit.rs:335
-                visit_errored <= 1'b0;       // rtl-gen/src/merge/fetcher/visit.rs:345
+                level <= cfg_top;            // rtl-gen/src/merge/fetcher/visit.rs:348
+                at_top <= 1'b1;              // rtl-gen/src/merge/fetcher/visit.rs:350
+                walk_done <= 1'b0;           // rtl-gen/src/merge/fetcher/visit.rs:352
+                prev_valid <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:329
+                pushed <= 9'd0;              // rtl-gen/src/merge/fetcher/visit.rs:344
+                visit_errored <= 1'b0;       // rtl-gen/src/merge/fetcher/visit.rs:354
                 out_errored <= 1'b0;         // rtl-gen/src/merge/fetcher/out.rs:77
                 roots_issued <= 24'd0;       // rtl-gen/src/merge/fetcher/walk.rs:105
                 roots_taken <= 24'd0;        // rtl-gen/src/merge/fetcher/walk.rs:117
                 range_valid <= 1'b0;         // rtl-gen/src/merge/fetcher/walk.rs:214
-                leaves_end_sent <= 1'b0;     // rtl-gen/src/merge/fetcher/visit.rs:476
-                end_next <= cmd_first;       // rtl-gen/src/merge/fetcher/visit.rs:317
-                final_sent <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:321
+                leaves_end_sent <= 1'b0;     // rtl-gen/src/merge/fetcher/visit.rs:496
+                end_next <= cmd_first;       // rtl-gen/src/merge/fetcher/visit.rs:320
+                final_sent <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:324
                 capacity_told <= 1'b0;       // rtl-gen/src/merge/fetcher/visit.rs:151
                 pend_valid <= 1'b0;          // rtl-gen/src/merge/fetcher/order.rs:129
                 cref_active <= 1'b0;         // rtl-gen/src/merge/fetcher/order.rs:108
@@ -854,25 +854,25 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
                     first_err_node <= roots_taken; // rtl-gen/src/merge/fetcher/parts.rs:72
                 end
                 if (marker_push) begin
-                    level <= level + 5'd1;   // rtl-gen/src/merge/fetcher/visit.rs:339
-                    prev_valid <= 1'b0;      // rtl-gen/src/merge/fetcher/visit.rs:328
-                    pushed <= 9'd0;          // rtl-gen/src/merge/fetcher/visit.rs:337
+                    level <= level + 5'd1;   // rtl-gen/src/merge/fetcher/visit.rs:348
+                    prev_valid <= 1'b0;      // rtl-gen/src/merge/fetcher/visit.rs:331
+                    pushed <= 9'd0;          // rtl-gen/src/merge/fetcher/visit.rs:346
                 end else begin
                     if (visit_go_and) begin
-                        prev_valid <= 1'b1;  // rtl-gen/src/merge/fetcher/visit.rs:328
+                        prev_valid <= 1'b1;  // rtl-gen/src/merge/fetcher/visit.rs:331
                     end
                     if (frontier_push) begin
-                        pushed <= pushed + 9'd1; // rtl-gen/src/merge/fetcher/visit.rs:337
+                        pushed <= pushed + 9'd1; // rtl-gen/src/merge/fetcher/visit.rs:346
                     end
                 end
                 if (level_end) begin
-                    at_top <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:341
+                    at_top <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:350
                 end
                 if (walk_over) begin
-                    walk_done <= 1'b1;       // rtl-gen/src/merge/fetcher/visit.rs:343
+                    walk_done <= 1'b1;       // rtl-gen/src/merge/fetcher/visit.rs:352
                 end
                 if (visit_fails) begin
-                    visit_errored <= 1'b1;   // rtl-gen/src/merge/fetcher/visit.rs:345
+                    visit_errored <= 1'b1;   // rtl-gen/src/merge/fetcher/visit.rs:354
                 end
                 if (out_first_error) begin
                     out_errored <= 1'b1;     // rtl-gen/src/merge/fetcher/out.rs:77
@@ -892,13 +892,13 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
                     range_valid <= 1'b0;     // rtl-gen/src/merge/fetcher/walk.rs:218
                 end
                 if (leaves_end_fire) begin
-                    leaves_end_sent <= 1'b1; // rtl-gen/src/merge/fetcher/visit.rs:476
+                    leaves_end_sent <= 1'b1; // rtl-gen/src/merge/fetcher/visit.rs:496
                 end
                 if ((end_fire & (~end_final)) | level_end_push) begin
-                    end_next <= end_next + 5'd1; // rtl-gen/src/merge/fetcher/visit.rs:319
+                    end_next <= end_next + 5'd1; // rtl-gen/src/merge/fetcher/visit.rs:322
                 end
                 if (end_fire & end_final) begin
-                    final_sent <= 1'b1;      // rtl-gen/src/merge/fetcher/visit.rs:323
+                    final_sent <= 1'b1;      // rtl-gen/src/merge/fetcher/visit.rs:326
                 end
                 if (visit_go & sorter_dropped) begin
                     capacity_told <= 1'b1;   // rtl-gen/src/merge/fetcher/visit.rs:151
@@ -917,7 +917,7 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
                 end
             end
             if (visit_go_and) begin
-                prev_key <= item_key;        // rtl-gen/src/merge/fetcher/visit.rs:330
+                prev_key <= item_key;        // rtl-gen/src/merge/fetcher/visit.rs:339
             end
             if (frontier_out_valid_and) begin
                 frontier_head <= frontier_head + 10'd1; // rtl-gen/src/merge/fetcher/parts.rs:41

@@ -20,9 +20,9 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     input  wire cref_resp_valid,         // rtl-gen/src/merge/fetcher/mod.rs:145
     input  wire [27:0] cref_resp_data,   // rtl-gen/src/merge/fetcher/mod.rs:145
     output wire cref_resp_ready,         // rtl-gen/src/merge/fetcher/mod.rs:145
-    input  wire report_valid,            // rtl-gen/src/merge/fetcher/visit.rs:399
-    input  wire [55:0] report_data,      // rtl-gen/src/merge/fetcher/visit.rs:399
-    output wire report_ready,            // rtl-gen/src/merge/fetcher/visit.rs:399
+    input  wire report_valid,            // rtl-gen/src/merge/fetcher/visit.rs:413
+    input  wire [55:0] report_data,      // rtl-gen/src/merge/fetcher/visit.rs:413
+    output wire report_ready,            // rtl-gen/src/merge/fetcher/visit.rs:413
     input  wire probe_resp_valid,        // rtl-gen/src/merge/fetcher/out.rs:164
     input  wire [149:0] probe_resp_data, // rtl-gen/src/merge/fetcher/out.rs:164
     output wire probe_resp_ready,        // rtl-gen/src/merge/fetcher/out.rs:164
@@ -289,33 +289,33 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire [149:0] item_rec;                   // rtl-gen/src/merge/fetcher/visit.rs:173
     wire [27:0] item_ref;                    // rtl-gen/src/merge/fetcher/visit.rs:174
     wire [23:0] item_ref_node;               // rtl-gen/src/merge/fetcher/visit.rs:175
-    wire item_leaf;                          // rtl-gen/src/merge/fetcher/visit.rs:241
-    wire item_leaf_not;                      // rtl-gen/src/merge/fetcher/visit.rs:242
+    wire item_leaf;                          // rtl-gen/src/merge/fetcher/visit.rs:244
+    wire item_leaf_not;                      // rtl-gen/src/merge/fetcher/visit.rs:245
     wire [47:0] item_rec_x_morton;           // rtl-gen/src/merge/network.rs:39
-    wire [48:0] item_key;                    // rtl-gen/src/merge/fetcher/visit.rs:244
-    wire [23:0] item_rec_first;              // rtl-gen/src/merge/fetcher/visit.rs:246
-    wire [23:0] item_rec_count;              // rtl-gen/src/merge/fetcher/visit.rs:247
-    wire [24:0] item_range_end;              // rtl-gen/src/merge/fetcher/visit.rs:250
-    wire at_level;                           // rtl-gen/src/merge/fetcher/visit.rs:252
-    wire order_bad;                          // rtl-gen/src/merge/fetcher/visit.rs:253
-    wire range_bad;                          // rtl-gen/src/merge/fetcher/visit.rs:261
-    wire frontier_bad;                       // rtl-gen/src/merge/fetcher/visit.rs:262
-    wire [3:0] item_end_mux;                 // rtl-gen/src/merge/fetcher/visit.rs:265
-    wire [3:0] visit_code;                   // rtl-gen/src/merge/fetcher/visit.rs:263
-    wire visit_fails;                        // rtl-gen/src/merge/fetcher/visit.rs:278
-    wire visit_go_and;                       // rtl-gen/src/merge/fetcher/visit.rs:279
-    wire visit_passes;                       // rtl-gen/src/merge/fetcher/visit.rs:279
-    wire frontier_push;                      // rtl-gen/src/merge/fetcher/visit.rs:280
-    wire visit_errored_not;                  // rtl-gen/src/merge/fetcher/visit.rs:282
-    wire leaf_out;                           // rtl-gen/src/merge/fetcher/visit.rs:282
-    wire to_out;                             // rtl-gen/src/merge/fetcher/visit.rs:283
-    wire next_level;                         // rtl-gen/src/merge/fetcher/visit.rs:284
-    wire level_end;                          // rtl-gen/src/merge/fetcher/visit.rs:285
-    wire walk_ran_out;                       // rtl-gen/src/merge/fetcher/visit.rs:291
-    wire pn_pass_end;                        // rtl-gen/src/merge/fetcher/visit.rs:292
-    wire walk_over;                          // rtl-gen/src/merge/fetcher/visit.rs:293
-    wire marker_push;                        // rtl-gen/src/merge/fetcher/visit.rs:300
-    wire pass_push;                          // rtl-gen/src/merge/fetcher/visit.rs:302
+    wire [48:0] item_key;                    // rtl-gen/src/merge/fetcher/visit.rs:247
+    wire [23:0] item_rec_first;              // rtl-gen/src/merge/fetcher/visit.rs:249
+    wire [23:0] item_rec_count;              // rtl-gen/src/merge/fetcher/visit.rs:250
+    wire [24:0] item_range_end;              // rtl-gen/src/merge/fetcher/visit.rs:253
+    wire at_level;                           // rtl-gen/src/merge/fetcher/visit.rs:255
+    wire order_bad;                          // rtl-gen/src/merge/fetcher/visit.rs:256
+    wire range_bad;                          // rtl-gen/src/merge/fetcher/visit.rs:264
+    wire frontier_bad;                       // rtl-gen/src/merge/fetcher/visit.rs:265
+    wire [3:0] item_end_mux;                 // rtl-gen/src/merge/fetcher/visit.rs:268
+    wire [3:0] visit_code;                   // rtl-gen/src/merge/fetcher/visit.rs:266
+    wire visit_fails;                        // rtl-gen/src/merge/fetcher/visit.rs:281
+    wire visit_go_and;                       // rtl-gen/src/merge/fetcher/visit.rs:282
+    wire visit_passes;                       // rtl-gen/src/merge/fetcher/visit.rs:282
+    wire frontier_push;                      // rtl-gen/src/merge/fetcher/visit.rs:283
+    wire visit_errored_not;                  // rtl-gen/src/merge/fetcher/visit.rs:285
+    wire leaf_out;                           // rtl-gen/src/merge/fetcher/visit.rs:285
+    wire to_out;                             // rtl-gen/src/merge/fetcher/visit.rs:286
+    wire next_level;                         // rtl-gen/src/merge/fetcher/visit.rs:287
+    wire level_end;                          // rtl-gen/src/merge/fetcher/visit.rs:288
+    wire walk_ran_out;                       // rtl-gen/src/merge/fetcher/visit.rs:294
+    wire pn_pass_end;                        // rtl-gen/src/merge/fetcher/visit.rs:295
+    wire walk_over;                          // rtl-gen/src/merge/fetcher/visit.rs:296
+    wire marker_push;                        // rtl-gen/src/merge/fetcher/visit.rs:303
+    wire pass_push;                          // rtl-gen/src/merge/fetcher/visit.rs:305
     reg [7:0] pass_head;                     // rtl-gen/src/merge/fetcher/parts.rs:19
     reg [7:0] pass_tail;                     // rtl-gen/src/merge/fetcher/parts.rs:20
     reg [8:0] pass_count;                    // rtl-gen/src/merge/fetcher/parts.rs:21
@@ -325,37 +325,39 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire pass_count_ne;                      // rtl-gen/src/merge/fetcher/parts.rs:24
     wire pass_in_valid_and;                  // rtl-gen/src/merge/fetcher/parts.rs:31
     wire pass_out_valid_and;                 // rtl-gen/src/merge/fetcher/parts.rs:32
-    wire marker_push_or;                     // rtl-gen/src/merge/fetcher/visit.rs:313
-    wire level_end_push;                     // rtl-gen/src/merge/fetcher/visit.rs:316
-    reg pn_end_left;                         // rtl-gen/src/merge/fetcher/visit.rs:401
+    wire marker_push_or;                     // rtl-gen/src/merge/fetcher/visit.rs:316
+    wire level_end_push;                     // rtl-gen/src/merge/fetcher/visit.rs:319
+    reg pn_end_left;                         // rtl-gen/src/merge/fetcher/visit.rs:415
     wire [47:0] report_key;                  // rtl-gen/src/merge/network.rs:39
-    wire report_data_pass_end;               // rtl-gen/src/merge/fetcher/visit.rs:402
-    wire report_data_more;                   // rtl-gen/src/merge/fetcher/visit.rs:402
-    wire report_data_descend;                // rtl-gen/src/merge/fetcher/visit.rs:402
-    wire [4:0] report_data_lod;              // rtl-gen/src/merge/fetcher/visit.rs:402
-    wire report_data_descend_and;            // rtl-gen/src/merge/fetcher/visit.rs:407
-    wire [47:0] pass_out_data_key;           // rtl-gen/src/merge/fetcher/visit.rs:408
-    wire [23:0] pass_out_data_first;         // rtl-gen/src/merge/fetcher/visit.rs:409
-    wire [23:0] pass_out_data_count;         // rtl-gen/src/merge/fetcher/visit.rs:410
-    wire [23:0] pass_out_data_node;          // rtl-gen/src/merge/fetcher/visit.rs:411
-    wire join_valid;                         // rtl-gen/src/merge/fetcher/visit.rs:412
-    wire join_decision;                      // rtl-gen/src/merge/fetcher/visit.rs:413
-    wire join_entry_before;                  // rtl-gen/src/merge/fetcher/visit.rs:414
-    wire join_entry_at;                      // rtl-gen/src/merge/fetcher/visit.rs:415
-    wire join_valid_and;                     // rtl-gen/src/merge/fetcher/visit.rs:416
-    wire join_entry_stays;                   // rtl-gen/src/merge/fetcher/visit.rs:416
-    wire join_match;                         // rtl-gen/src/merge/fetcher/visit.rs:417
-    wire join_descend;                       // rtl-gen/src/merge/fetcher/visit.rs:418
-    wire pass_out_valid_not;                 // rtl-gen/src/merge/fetcher/visit.rs:420
-    wire join_other_voxel;                   // rtl-gen/src/merge/fetcher/visit.rs:420
-    wire report_data_more_not;               // rtl-gen/src/merge/fetcher/visit.rs:421
-    wire join_pass_end;                      // rtl-gen/src/merge/fetcher/visit.rs:421
-    wire join_marker;                        // rtl-gen/src/merge/fetcher/visit.rs:423
-    wire [4:0] item_rec_lod;                 // rtl-gen/src/merge/fetcher/visit.rs:462
-    wire walk_ran_out_and;                   // rtl-gen/src/merge/fetcher/visit.rs:472
-    wire leaves_end_fire;                    // rtl-gen/src/merge/fetcher/visit.rs:472
-    wire [1:0] visit_fails_mux_1;            // rtl-gen/src/merge/fetcher/visit.rs:500
-    wire [27:0] visit_fails_mux_2;           // rtl-gen/src/merge/fetcher/visit.rs:508
+    wire report_data_pass_end;               // rtl-gen/src/merge/fetcher/visit.rs:416
+    wire report_data_more;                   // rtl-gen/src/merge/fetcher/visit.rs:416
+    wire report_data_descend;                // rtl-gen/src/merge/fetcher/visit.rs:416
+    wire [4:0] report_data_lod;              // rtl-gen/src/merge/fetcher/visit.rs:416
+    wire report_data_descend_and;            // rtl-gen/src/merge/fetcher/visit.rs:421
+    wire [47:0] pass_out_data_key;           // rtl-gen/src/merge/fetcher/visit.rs:422
+    wire [23:0] pass_out_data_first;         // rtl-gen/src/merge/fetcher/visit.rs:423
+    wire [23:0] pass_out_data_count;         // rtl-gen/src/merge/fetcher/visit.rs:424
+    wire [23:0] pass_out_data_node;          // rtl-gen/src/merge/fetcher/visit.rs:425
+    wire join_valid;                         // rtl-gen/src/merge/fetcher/visit.rs:426
+    wire join_decision;                      // rtl-gen/src/merge/fetcher/visit.rs:427
+    wire join_entry_before;                  // rtl-gen/src/merge/fetcher/visit.rs:428
+    wire join_entry_at;                      // rtl-gen/src/merge/fetcher/visit.rs:429
+    wire join_valid_and;                     // rtl-gen/src/merge/fetcher/visit.rs:430
+    wire join_entry_stays;                   // rtl-gen/src/merge/fetcher/visit.rs:430
+    wire join_match;                         // rtl-gen/src/merge/fetcher/visit.rs:431
+    wire join_descend;                       // rtl-gen/src/merge/fetcher/visit.rs:432
+    wire join_visit_past;                    // rtl-gen/src/merge/fetcher/visit.rs:438
+    wire pass_out_valid_not;                 // rtl-gen/src/merge/fetcher/visit.rs:439
+    wire pass_out_valid_or;                  // rtl-gen/src/merge/fetcher/visit.rs:439
+    wire join_other_voxel;                   // rtl-gen/src/merge/fetcher/visit.rs:439
+    wire report_data_more_not;               // rtl-gen/src/merge/fetcher/visit.rs:441
+    wire join_pass_end;                      // rtl-gen/src/merge/fetcher/visit.rs:441
+    wire join_marker;                        // rtl-gen/src/merge/fetcher/visit.rs:443
+    wire [4:0] item_rec_lod;                 // rtl-gen/src/merge/fetcher/visit.rs:482
+    wire walk_ran_out_and;                   // rtl-gen/src/merge/fetcher/visit.rs:492
+    wire leaves_end_fire;                    // rtl-gen/src/merge/fetcher/visit.rs:492
+    wire [1:0] visit_fails_mux_1;            // rtl-gen/src/merge/fetcher/visit.rs:520
+    wire [27:0] visit_fails_mux_2;           // rtl-gen/src/merge/fetcher/visit.rs:528
     wire out_items_out_data_eq;              // rtl-gen/src/merge/fetcher/order.rs:175
     wire out_items_out_data_leaf;            // rtl-gen/src/merge/fetcher/order.rs:176
     wire [15:0] out_items_out_data_z;        // rtl-gen/src/merge/fetcher/order.rs:178
@@ -769,8 +771,10 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     assign join_entry_stays = (join_decision & join_entry_before) | (join_valid_and & pass_out_valid);
     assign join_match = (join_decision & join_entry_at) & ((~report_data_descend_and) | frontier_in_ready);
     assign join_descend = join_match & report_data_descend_and;
+    assign join_visit_past = (prev_valid & pn_pass) & (report_key <= prev_key[48:1]);
     assign pass_out_valid_not = ~pass_out_valid;
-    assign join_other_voxel = join_decision & ((pass_out_valid_not & pn_visited) | ((pass_out_valid & (~join_entry_before)) & (~join_entry_at)));
+    assign pass_out_valid_or = (pass_out_valid_not & (pn_visited | join_visit_past)) | ((pass_out_valid & (~join_entry_before)) & (~join_entry_at));
+    assign join_other_voxel = join_decision & pass_out_valid_or;
     assign report_data_more_not = ~report_data_more;
     assign join_pass_end = (((join_valid_and & pass_out_valid_not) & pn_visited) & pn_end_left) & (report_data_more_not | frontier_in_ready);
     assign join_marker = join_pass_end & report_data_more;
@@ -1082,20 +1086,20 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                 first_err_code <= header_code; // rtl-gen/src/merge/fetcher/parts.rs:72
                 first_err_node <= 24'd0;     // rtl-gen/src/merge/fetcher/parts.rs:72
                 header_err <= header_code_ne; // rtl-gen/src/merge/fetcher/command.rs:210
-                level <= cfg_top;            // rtl-gen/src/merge/fetcher/visit.rs:339
-                at_top <= 1'b1;              // rtl-gen/src/merge/fetcher/visit.rs:341
-                walk_done <= 1'b0;           // rtl-gen/src/merge/fetcher/visit.rs:343
-                prev_valid <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:326
-                pushed <= 9'd0;              // rtl-gen/src/merge/fetcher/visit.rs:335
-                visit_errored <= 1'b0;       // rtl-gen/src/merge/fetcher/visit.rs:345
+                level <= cfg_top;            // rtl-gen/src/merge/fetcher/visit.rs:348
+                at_top <= 1'b1;              // rtl-gen/src/merge/fetcher/visit.rs:350
+                walk_done <= 1'b0;           // rtl-gen/src/merge/fetcher/visit.rs:352
+                prev_valid <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:329
+                pushed <= 9'd0;              // rtl-gen/src/merge/fetcher/visit.rs:344
+                visit_errored <= 1'b0;       // rtl-gen/src/merge/fetcher/visit.rs:354
                 out_errored <= 1'b0;         // rtl-gen/src/merge/fetcher/out.rs:257
                 roots_issued <= 24'd0;       // rtl-gen/src/merge/fetcher/walk.rs:105
                 roots_taken <= 24'd0;        // rtl-gen/src/merge/fetcher/walk.rs:117
                 range_valid <= 1'b0;         // rtl-gen/src/merge/fetcher/walk.rs:214
-                pn_visited <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:432
-                leaves_end_sent <= 1'b0;     // rtl-gen/src/merge/fetcher/visit.rs:476
-                end_next <= cmd_first;       // rtl-gen/src/merge/fetcher/visit.rs:317
-                final_sent <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:321
+                pn_visited <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:452
+                leaves_end_sent <= 1'b0;     // rtl-gen/src/merge/fetcher/visit.rs:496
+                end_next <= cmd_first;       // rtl-gen/src/merge/fetcher/visit.rs:320
+                final_sent <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:324
                 capacity_told <= 1'b0;       // rtl-gen/src/merge/fetcher/visit.rs:151
                 pn_end_left <= 1'b0;         // rtl-gen/src/merge/fetcher/mod.rs:228
                 pend_valid <= 1'b0;          // rtl-gen/src/merge/fetcher/order.rs:129
@@ -1114,25 +1118,25 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                     first_err_node <= roots_taken; // rtl-gen/src/merge/fetcher/parts.rs:72
                 end
                 if (marker_push_or) begin
-                    level <= level + 5'd1;   // rtl-gen/src/merge/fetcher/visit.rs:339
-                    prev_valid <= 1'b0;      // rtl-gen/src/merge/fetcher/visit.rs:328
-                    pushed <= 9'd0;          // rtl-gen/src/merge/fetcher/visit.rs:337
+                    level <= level + 5'd1;   // rtl-gen/src/merge/fetcher/visit.rs:348
+                    prev_valid <= 1'b0;      // rtl-gen/src/merge/fetcher/visit.rs:331
+                    pushed <= 9'd0;          // rtl-gen/src/merge/fetcher/visit.rs:346
                 end else begin
                     if (visit_go_and) begin
-                        prev_valid <= 1'b1;  // rtl-gen/src/merge/fetcher/visit.rs:328
+                        prev_valid <= 1'b1;  // rtl-gen/src/merge/fetcher/visit.rs:331
                     end
                     if (frontier_push | pass_push) begin
-                        pushed <= pushed + 9'd1; // rtl-gen/src/merge/fetcher/visit.rs:337
+                        pushed <= pushed + 9'd1; // rtl-gen/src/merge/fetcher/visit.rs:346
                     end
                 end
                 if (level_end) begin
-                    at_top <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:341
+                    at_top <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:350
                 end
                 if (walk_over) begin
-                    walk_done <= 1'b1;       // rtl-gen/src/merge/fetcher/visit.rs:343
+                    walk_done <= 1'b1;       // rtl-gen/src/merge/fetcher/visit.rs:352
                 end
                 if (visit_fails) begin
-                    visit_errored <= 1'b1;   // rtl-gen/src/merge/fetcher/visit.rs:345
+                    visit_errored <= 1'b1;   // rtl-gen/src/merge/fetcher/visit.rs:354
                 end
                 if (out_first_error) begin
                     out_errored <= 1'b1;     // rtl-gen/src/merge/fetcher/out.rs:257
@@ -1152,18 +1156,18 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                     range_valid <= 1'b0;     // rtl-gen/src/merge/fetcher/walk.rs:218
                 end
                 if (pn_pass_end) begin
-                    pn_visited <= 1'b1;      // rtl-gen/src/merge/fetcher/visit.rs:434
+                    pn_visited <= 1'b1;      // rtl-gen/src/merge/fetcher/visit.rs:454
                 end else if (join_pass_end) begin
-                    pn_visited <= 1'b0;      // rtl-gen/src/merge/fetcher/visit.rs:434
+                    pn_visited <= 1'b0;      // rtl-gen/src/merge/fetcher/visit.rs:454
                 end
                 if (leaves_end_fire) begin
-                    leaves_end_sent <= 1'b1; // rtl-gen/src/merge/fetcher/visit.rs:476
+                    leaves_end_sent <= 1'b1; // rtl-gen/src/merge/fetcher/visit.rs:496
                 end
                 if ((end_fire & (~end_final)) | level_end_push) begin
-                    end_next <= end_next + 5'd1; // rtl-gen/src/merge/fetcher/visit.rs:319
+                    end_next <= end_next + 5'd1; // rtl-gen/src/merge/fetcher/visit.rs:322
                 end
                 if (end_fire & end_final) begin
-                    final_sent <= 1'b1;      // rtl-gen/src/merge/fetcher/visit.rs:323
+                    final_sent <= 1'b1;      // rtl-gen/src/merge/fetcher/visit.rs:326
                 end
                 if (visit_go & sorter_dropped) begin
                     capacity_told <= 1'b1;   // rtl-gen/src/merge/fetcher/visit.rs:151
@@ -1196,8 +1200,8 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                     probes_sent <= 1'b0;     // rtl-gen/src/merge/fetcher/order.rs:238
                 end
             end
-            if (visit_go_and) begin
-                prev_key <= item_key;        // rtl-gen/src/merge/fetcher/visit.rs:330
+            if (visit_go_and & (~(pn_pass & order_bad))) begin
+                prev_key <= item_key;        // rtl-gen/src/merge/fetcher/visit.rs:339
             end
             if (frontier_out_valid_and) begin
                 frontier_head <= frontier_head + 10'd1; // rtl-gen/src/merge/fetcher/parts.rs:41

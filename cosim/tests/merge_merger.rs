@@ -276,7 +276,7 @@ fn hierarchy_merger_per_node_matches_golden() {
     }
     check(
         "pernode",
-        &[("verilator", 20), ("iverilog-batch", 2), ("ir", 1)],
+        &[("verilator", 1000), ("iverilog-batch", 2), ("ir", 1)],
         true,
     );
 }

@@ -456,11 +456,14 @@ impl Walk<'_> {
             return self.visit(tx, n, d, v, o, frontier);
         }
         let key = (morton(&n.record.voxel), n.record.leaf);
-        let order_bad = v.prev.is_some_and(|p| p >= key);
-        v.prev = Some(key);
-        if order_bad {
+        // Unlike the level walk's, a pass's predecessor is its highest key
+        // so far (a node out of order does not lower it): the pass's
+        // entries then rise strictly, and the hardware's join may pass over
+        // a decision below a visited key before the pass is visited (8.13).
+        if v.prev.is_some_and(|p| p >= key) {
             return self.error(tx, v, o, (n.at.node, fetch_err::ORDER));
         }
+        v.prev = Some(key);
         let inner = !n.record.leaf;
         if inner {
             if let Err(e) = self.check_range(n) {

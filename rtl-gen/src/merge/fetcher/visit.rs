@@ -222,6 +222,9 @@ pub(super) struct Visited<'m> {
     pub(super) pn_end: Option<Signal<'m>>,
     /// Per-node: the pass's inner nodes kept for the join.
     pub(super) pass_fifo: Option<Stream<'m>>,
+    /// The pass's highest visited Morton code so far, and whether it has
+    /// one: every inner node the pass still pushes lies above it.
+    pub(super) past: (Signal<'m>, Signal<'m>),
 }
 
 /// The visit stage's checks (order, range, frontier capacity) and the walk
@@ -327,7 +330,13 @@ pub(super) fn visit_checks<'m>(
         lit(0, 1),
         step_level.mux(lit(0, 1), (go & h.in_node).mux(lit(1, 1), w.prev_valid)),
     ));
-    w.prev_key.next_when(go & h.in_node, key);
+    // A pass keeps its highest key (golden `visit_per_node`), so its
+    // entries rise strictly; the level walk's predecessor is the last node.
+    let prev_load = match h.pn_pass {
+        Some(q) => go & h.in_node & !(q & order_bad),
+        None => go & h.in_node,
+    };
+    w.prev_key.next_when(prev_load, key);
     let counted_push = match &pass_fifo {
         Some((e_push, _)) => push | *e_push,
         None => push,
@@ -358,6 +367,11 @@ pub(super) fn visit_checks<'m>(
         ran_out,
         pn_end,
         pass_fifo: pass_fifo.map(|(_, entries)| entries),
+        // Above the first pass the walk's levels are no pass's.
+        past: (
+            h.pn_pass.map_or(lit(0, 1), |q| w.prev_valid & q),
+            w.prev_key.slice(key_bits - 1, 1),
+        ),
     }
 }
 
@@ -416,8 +430,14 @@ pub(super) fn frontier_push<'m>(
     let skip = (dec & e_lt | jv & r_pe & entries.valid).name("join_entry_stays");
     let matched = (dec & e_eq & (!r_desc | front_in.ready)).name("join_match");
     let j_push = (matched & r_desc).name("join_descend");
-    let passed =
-        (dec & (!entries.valid & visited | entries.valid & !e_lt & !e_eq)).name("join_other_voxel");
+    // With the FIFO empty, a decision at or below a voxel the visit has
+    // passed is another input's: every entry still to come lies above it.
+    // Waiting for the visit there could deadlock: the visit waits for
+    // `out`, which the module takes only while its `report` drains (8.14).
+    let (past_valid, past_key) = v.past;
+    let behind = (past_valid & r_key.le(past_key)).name("join_visit_past");
+    let passed = (dec & (!entries.valid & (visited | behind) | entries.valid & !e_lt & !e_eq))
+        .name("join_other_voxel");
     let pe_take = (jv & r_pe & !entries.valid & visited & end_left & (!r_more | front_in.ready))
         .name("join_pass_end");
     let j_marker = (pe_take & r_more).name("join_marker");

@@ -5,110 +5,110 @@
 module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     input  wire clk,                       // clock (implicit)
     input  wire rst,                       // synchronous reset, active high (implicit)
-    input  wire cfg_valid,                 // rtl-gen/src/merge/merger/mod.rs:253
-    input  wire [568:0] cfg_data,          // rtl-gen/src/merge/merger/mod.rs:253
-    output wire cfg_ready,                 // rtl-gen/src/merge/merger/mod.rs:253
-    input  wire report_ready,              // rtl-gen/src/merge/merger/level_mode.rs:121
-    output wire report_valid,              // rtl-gen/src/merge/merger/level_mode.rs:129
-    output wire [57:0] report_data,        // rtl-gen/src/merge/merger/level_mode.rs:130
-    input  wire f0_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [149:0] f0_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f0_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire f0_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [27:0] f0_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f0_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire f0_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [27:0] f0_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f0_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f0_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f0_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f0_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f0_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f0_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f0_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f0_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f0_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f0_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f1_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [149:0] f1_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f1_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire f1_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [27:0] f1_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f1_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire f1_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [27:0] f1_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f1_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f1_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f1_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f1_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f1_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f1_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f1_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f1_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f1_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f1_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f2_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [149:0] f2_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f2_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire f2_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [27:0] f2_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f2_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire f2_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [27:0] f2_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f2_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f2_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f2_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f2_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f2_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f2_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f2_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f2_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f2_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f2_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f3_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [149:0] f3_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f3_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire f3_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [27:0] f3_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f3_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire f3_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [27:0] f3_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f3_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f3_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f3_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f3_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f3_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f3_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f3_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f3_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f3_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f3_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire w_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [27:0] w_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:401
-    output wire w_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:401
-    output wire w_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [27:0] w_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire w_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:398
-    output wire nodes_valid,               // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [149:0] nodes_data,        // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire nodes_ready,               // rtl-gen/src/merge/merger/mod.rs:398
-    output wire refs_valid,                // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [27:0] refs_data,          // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire refs_ready,                // rtl-gen/src/merge/merger/mod.rs:398
-    output wire w_filling,                 // rtl-gen/src/merge/merger/tail.rs:102
-    output wire w_drain_records,           // rtl-gen/src/merge/merger/tail.rs:102
-    output wire w_drain_refs,              // rtl-gen/src/merge/merger/tail.rs:102
-    input  wire header_ready,              // rtl-gen/src/merge/merger/tail.rs:114
-    output wire header_valid,              // rtl-gen/src/merge/merger/tail.rs:134
-    output wire [94:0] header_data,        // rtl-gen/src/merge/merger/tail.rs:135
-    output wire done,                      // rtl-gen/src/merge/merger/tail.rs:139
-    output wire idle,                      // rtl-gen/src/merge/merger/tail.rs:141
-    output wire module_done                // rtl-gen/src/merge/merger/tail.rs:142
+    input  wire cfg_valid,                 // rtl-gen/src/merge/merger/mod.rs:265
+    input  wire [568:0] cfg_data,          // rtl-gen/src/merge/merger/mod.rs:265
+    output wire cfg_ready,                 // rtl-gen/src/merge/merger/mod.rs:265
+    input  wire report_ready,              // rtl-gen/src/merge/merger/level_mode.rs:122
+    output wire report_valid,              // rtl-gen/src/merge/merger/level_mode.rs:130
+    output wire [57:0] report_data,        // rtl-gen/src/merge/merger/level_mode.rs:131
+    input  wire f0_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [149:0] f0_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f0_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire f0_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [27:0] f0_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f0_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire f0_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [27:0] f0_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f0_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f0_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f0_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f0_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
+    output wire f0_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f0_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f0_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire f0_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f0_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f0_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f1_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [149:0] f1_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f1_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire f1_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [27:0] f1_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f1_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire f1_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [27:0] f1_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f1_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f1_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f1_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f1_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
+    output wire f1_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f1_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f1_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire f1_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f1_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f1_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f2_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [149:0] f2_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f2_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire f2_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [27:0] f2_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f2_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire f2_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [27:0] f2_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f2_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f2_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f2_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f2_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
+    output wire f2_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f2_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f2_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire f2_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f2_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f2_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f3_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [149:0] f3_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f3_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire f3_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [27:0] f3_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f3_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire f3_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [27:0] f3_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f3_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f3_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f3_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f3_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
+    output wire f3_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f3_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f3_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire f3_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f3_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f3_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire w_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [27:0] w_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:425
+    output wire w_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:425
+    output wire w_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [27:0] w_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire w_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:422
+    output wire nodes_valid,               // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [149:0] nodes_data,        // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire nodes_ready,               // rtl-gen/src/merge/merger/mod.rs:422
+    output wire refs_valid,                // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [27:0] refs_data,          // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire refs_ready,                // rtl-gen/src/merge/merger/mod.rs:422
+    output wire w_filling,                 // rtl-gen/src/merge/merger/tail.rs:108
+    output wire w_drain_records,           // rtl-gen/src/merge/merger/tail.rs:108
+    output wire w_drain_refs,              // rtl-gen/src/merge/merger/tail.rs:108
+    input  wire header_ready,              // rtl-gen/src/merge/merger/tail.rs:120
+    output wire header_valid,              // rtl-gen/src/merge/merger/tail.rs:140
+    output wire [94:0] header_data,        // rtl-gen/src/merge/merger/tail.rs:141
+    output wire done,                      // rtl-gen/src/merge/merger/tail.rs:145
+    output wire idle,                      // rtl-gen/src/merge/merger/tail.rs:147
+    output wire module_done                // rtl-gen/src/merge/merger/tail.rs:148
 );
-    localparam [2:0] COUNT = 3'd1;           // rtl-gen/src/merge/merger/level_mode.rs:201
-    localparam [2:0] WAIT = 3'd2;            // rtl-gen/src/merge/merger/level_mode.rs:251
-    localparam [2:0] FINAL = 3'd3;           // rtl-gen/src/merge/merger/level_mode.rs:201
-    localparam [2:0] DONE = 3'd4;            // rtl-gen/src/merge/merger/level_mode.rs:201
+    localparam [2:0] COUNT = 3'd1;           // rtl-gen/src/merge/merger/level_mode.rs:202
+    localparam [2:0] WAIT = 3'd2;            // rtl-gen/src/merge/merger/level_mode.rs:252
+    localparam [2:0] FINAL = 3'd3;           // rtl-gen/src/merge/merger/level_mode.rs:202
+    localparam [2:0] DONE = 3'd4;            // rtl-gen/src/merge/merger/level_mode.rs:202
     reg [177:0] leaves0 [0:15];              // rtl-gen/src/merge/merger/drop_fifo.rs:21
     reg [177:0] leaves1 [0:15];              // rtl-gen/src/merge/merger/drop_fifo.rs:21
     reg [177:0] leaves2 [0:15];              // rtl-gen/src/merge/merger/drop_fifo.rs:21
@@ -125,191 +125,191 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     reg [177:0] leaves13 [0:15];             // rtl-gen/src/merge/merger/drop_fifo.rs:21
     reg [177:0] leaves14 [0:15];             // rtl-gen/src/merge/merger/drop_fifo.rs:21
     reg [177:0] leaves15 [0:15];             // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    wire u_fetch0_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch0_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch0_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch0_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire [183:0] u_fetch0_out_data;          // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:240
-    wire [183:0] u_fetch0_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_idle;                      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch1_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch1_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch1_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire [183:0] u_fetch1_out_data;          // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:240
-    wire [183:0] u_fetch1_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_idle;                      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch2_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch2_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch2_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire [183:0] u_fetch2_out_data;          // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:240
-    wire [183:0] u_fetch2_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_idle;                      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch3_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch3_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch3_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire [183:0] u_fetch3_out_data;          // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:240
-    wire [183:0] u_fetch3_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_idle;                      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_module_in0_ready;                 // rtl-gen/src/merge/merger/mod.rs:242
-    wire u_module_in1_ready;                 // rtl-gen/src/merge/merger/mod.rs:242
-    wire u_module_in2_ready;                 // rtl-gen/src/merge/merger/mod.rs:242
-    wire u_module_in3_ready;                 // rtl-gen/src/merge/merger/mod.rs:242
-    wire u_module_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:242
-    wire u_module_report_valid;              // rtl-gen/src/merge/merger/mod.rs:242
-    wire [57:0] u_module_report_data;        // rtl-gen/src/merge/merger/mod.rs:242
-    wire u_module_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:242
-    wire [180:0] u_module_out_data;          // rtl-gen/src/merge/merger/mod.rs:242
-    wire u_module_idle;                      // rtl-gen/src/merge/merger/mod.rs:242
-    wire u_module_done;                      // rtl-gen/src/merge/merger/mod.rs:242
-    wire u_builder_base0_ready;              // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base1_ready;              // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base2_ready;              // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base3_ready;              // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base4_ready;              // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base5_ready;              // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base6_ready;              // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base7_ready;              // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base8_ready;              // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base9_ready;              // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base10_ready;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base11_ready;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base12_ready;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base13_ready;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base14_ready;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base15_ready;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base16_ready;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level16_valid;            // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level16_data;     // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level15_valid;            // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level15_data;     // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level14_valid;            // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level14_data;     // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level13_valid;            // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level13_data;     // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level12_valid;            // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level12_data;     // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level11_valid;            // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level11_data;     // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level10_valid;            // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level10_data;     // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level9_valid;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level9_data;      // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level8_valid;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level8_data;      // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level7_valid;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level7_data;      // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level6_valid;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level6_data;      // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level5_valid;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level5_data;      // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level4_valid;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level4_data;      // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level3_valid;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level3_data;      // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level2_valid;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level2_data;      // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level1_valid;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level1_data;      // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level0_valid;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level0_data;      // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_done_valid;               // rtl-gen/src/merge/merger/mod.rs:243
-    wire [5:0] u_builder_done_data;          // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_writer_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_done_ready;                // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_crefs_ready;               // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level0_ready;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level1_ready;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level2_ready;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level3_ready;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level4_ready;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level5_ready;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level6_ready;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level7_ready;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level8_ready;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level9_ready;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level10_ready;             // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level11_ready;             // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level12_ready;             // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level13_ready;             // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level14_ready;             // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level15_ready;             // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level16_ready;             // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_nodes_valid;               // rtl-gen/src/merge/merger/mod.rs:244
-    wire [149:0] u_writer_nodes_data;        // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_refs_valid;                // rtl-gen/src/merge/merger/mod.rs:244
-    wire [27:0] u_writer_refs_data;          // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:244
-    wire [27:0] u_writer_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_header_valid;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire [86:0] u_writer_header_data;        // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_filling;                   // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_drain_records;             // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_drain_refs;                // rtl-gen/src/merge/merger/mod.rs:244
-    reg dropping0;                           // rtl-gen/src/merge/merger/mod.rs:246
-    reg dropping1;                           // rtl-gen/src/merge/merger/mod.rs:246
-    reg dropping2;                           // rtl-gen/src/merge/merger/mod.rs:246
-    reg dropping3;                           // rtl-gen/src/merge/merger/mod.rs:246
-    wire header_fire;                        // rtl-gen/src/merge/merger/mod.rs:247
-    wire header_hold;                        // rtl-gen/src/merge/merger/mod.rs:248
-    reg header_open;                         // rtl-gen/src/merge/merger/mod.rs:249
-    wire commands_sent;                      // rtl-gen/src/merge/merger/mod.rs:250
-    reg module_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:251
-    reg writer_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:252
-    wire cfg_fire;                           // rtl-gen/src/merge/merger/mod.rs:254
-    reg busy;                                // rtl-gen/src/merge/merger/mod.rs:258
-    reg queued;                              // rtl-gen/src/merge/merger/mod.rs:259
-    wire queued_not;                         // rtl-gen/src/merge/merger/mod.rs:260
+    wire u_fetch0_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch0_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch0_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch0_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire [183:0] u_fetch0_out_data;          // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:252
+    wire [183:0] u_fetch0_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_idle;                      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch1_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch1_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch1_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire [183:0] u_fetch1_out_data;          // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:252
+    wire [183:0] u_fetch1_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_idle;                      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch2_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch2_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch2_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire [183:0] u_fetch2_out_data;          // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:252
+    wire [183:0] u_fetch2_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_idle;                      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch3_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch3_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch3_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire [183:0] u_fetch3_out_data;          // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:252
+    wire [183:0] u_fetch3_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_idle;                      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_module_in0_ready;                 // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_module_in1_ready;                 // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_module_in2_ready;                 // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_module_in3_ready;                 // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_module_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_module_report_valid;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire [57:0] u_module_report_data;        // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_module_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:254
+    wire [180:0] u_module_out_data;          // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_module_idle;                      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_module_done;                      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base0_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base1_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base2_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base3_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base4_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base5_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base6_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base7_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base8_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base9_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base10_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base11_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base12_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base13_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base14_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base15_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base16_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level16_valid;            // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level16_data;     // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level15_valid;            // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level15_data;     // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level14_valid;            // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level14_data;     // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level13_valid;            // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level13_data;     // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level12_valid;            // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level12_data;     // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level11_valid;            // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level11_data;     // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level10_valid;            // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level10_data;     // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level9_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level9_data;      // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level8_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level8_data;      // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level7_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level7_data;      // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level6_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level6_data;      // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level5_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level5_data;      // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level4_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level4_data;      // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level3_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level3_data;      // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level2_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level2_data;      // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level1_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level1_data;      // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level0_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level0_data;      // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_done_valid;               // rtl-gen/src/merge/merger/mod.rs:255
+    wire [5:0] u_builder_done_data;          // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_done_ready;                // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_crefs_ready;               // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level0_ready;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level1_ready;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level2_ready;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level3_ready;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level4_ready;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level5_ready;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level6_ready;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level7_ready;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level8_ready;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level9_ready;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level10_ready;             // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level11_ready;             // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level12_ready;             // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level13_ready;             // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level14_ready;             // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level15_ready;             // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level16_ready;             // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_nodes_valid;               // rtl-gen/src/merge/merger/mod.rs:256
+    wire [149:0] u_writer_nodes_data;        // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_refs_valid;                // rtl-gen/src/merge/merger/mod.rs:256
+    wire [27:0] u_writer_refs_data;          // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:256
+    wire [27:0] u_writer_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_header_valid;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire [86:0] u_writer_header_data;        // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_filling;                   // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_drain_records;             // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_drain_refs;                // rtl-gen/src/merge/merger/mod.rs:256
+    reg dropping0;                           // rtl-gen/src/merge/merger/mod.rs:258
+    reg dropping1;                           // rtl-gen/src/merge/merger/mod.rs:258
+    reg dropping2;                           // rtl-gen/src/merge/merger/mod.rs:258
+    reg dropping3;                           // rtl-gen/src/merge/merger/mod.rs:258
+    wire header_fire;                        // rtl-gen/src/merge/merger/mod.rs:259
+    wire header_hold;                        // rtl-gen/src/merge/merger/mod.rs:260
+    reg header_open;                         // rtl-gen/src/merge/merger/mod.rs:261
+    wire commands_sent;                      // rtl-gen/src/merge/merger/mod.rs:262
+    reg module_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:263
+    reg writer_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:264
+    wire cfg_fire;                           // rtl-gen/src/merge/merger/mod.rs:266
+    reg busy;                                // rtl-gen/src/merge/merger/mod.rs:270
+    reg queued;                              // rtl-gen/src/merge/merger/mod.rs:271
+    wire queued_not;                         // rtl-gen/src/merge/merger/mod.rs:272
     wire u_module_chosen;                    // rtl-gen/src/merge/merger/mod.rs:143
-    wire busy_and;                           // rtl-gen/src/merge/merger/mod.rs:272
-    wire busy_not;                           // rtl-gen/src/merge/merger/mod.rs:281
-    wire dropping0_not;                      // rtl-gen/src/merge/merger/mod.rs:290
-    wire busy_and_1;                         // rtl-gen/src/merge/merger/mod.rs:290
-    wire dropping1_not;                      // rtl-gen/src/merge/merger/mod.rs:290
-    wire dropping2_not;                      // rtl-gen/src/merge/merger/mod.rs:290
-    wire dropping3_not;                      // rtl-gen/src/merge/merger/mod.rs:290
-    wire quiet;                              // rtl-gen/src/merge/merger/mod.rs:290
-    reg [568:0] cfg_q;                       // rtl-gen/src/merge/merger/mod.rs:294
-    wire flags_hold;                         // rtl-gen/src/merge/merger/mod.rs:299
+    wire busy_and;                           // rtl-gen/src/merge/merger/mod.rs:284
+    wire busy_not;                           // rtl-gen/src/merge/merger/mod.rs:293
+    wire dropping0_not;                      // rtl-gen/src/merge/merger/mod.rs:302
+    wire busy_and_1;                         // rtl-gen/src/merge/merger/mod.rs:302
+    wire dropping1_not;                      // rtl-gen/src/merge/merger/mod.rs:302
+    wire dropping2_not;                      // rtl-gen/src/merge/merger/mod.rs:302
+    wire dropping3_not;                      // rtl-gen/src/merge/merger/mod.rs:302
+    wire quiet;                              // rtl-gen/src/merge/merger/mod.rs:302
+    reg [568:0] cfg_q;                       // rtl-gen/src/merge/merger/mod.rs:306
+    wire flags_hold;                         // rtl-gen/src/merge/merger/mod.rs:322
     wire [2:0] cfg_data_count;               // rtl-gen/src/merge/merger/mod.rs:143
     wire [2:0] cfg_q_count;                  // rtl-gen/src/merge/merger/mod.rs:143
     wire [4:0] lo;                           // rtl-gen/src/merge/merger/mod.rs:143
@@ -322,114 +322,114 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire used1;                              // rtl-gen/src/merge/merger/level_mode.rs:49
     wire used2;                              // rtl-gen/src/merge/merger/level_mode.rs:49
     wire used3;                              // rtl-gen/src/merge/merger/level_mode.rs:49
-    wire u_module_chosen_eq;                 // rtl-gen/src/merge/merger/level_mode.rs:126
-    wire choice_waits;                       // rtl-gen/src/merge/merger/level_mode.rs:126
-    wire choice_waits_not;                   // rtl-gen/src/merge/merger/level_mode.rs:127
-    wire u_module_and;                       // rtl-gen/src/merge/merger/level_mode.rs:127
-    wire choice_seen;                        // rtl-gen/src/merge/merger/level_mode.rs:132
-    reg choice_known;                        // rtl-gen/src/merge/merger/level_mode.rs:133
-    reg choice_ok;                           // rtl-gen/src/merge/merger/level_mode.rs:134
-    reg [4:0] merge_lod;                     // rtl-gen/src/merge/merger/level_mode.rs:135
+    wire u_module_chosen_eq;                 // rtl-gen/src/merge/merger/level_mode.rs:127
+    wire choice_waits;                       // rtl-gen/src/merge/merger/level_mode.rs:127
+    wire choice_waits_not;                   // rtl-gen/src/merge/merger/level_mode.rs:128
+    wire u_module_and;                       // rtl-gen/src/merge/merger/level_mode.rs:128
+    wire choice_seen;                        // rtl-gen/src/merge/merger/level_mode.rs:133
+    reg choice_known;                        // rtl-gen/src/merge/merger/level_mode.rs:134
+    reg choice_ok;                           // rtl-gen/src/merge/merger/level_mode.rs:135
+    reg [4:0] merge_lod;                     // rtl-gen/src/merge/merger/level_mode.rs:136
     wire [1:0] u_module_err;                 // rtl-gen/src/merge/merger/mod.rs:143
     wire [4:0] u_module_lod;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire merging;                            // rtl-gen/src/merge/merger/level_mode.rs:139
-    reg [3:0] fetch_err;                     // rtl-gen/src/merge/merger/level_mode.rs:184
-    reg [1:0] fetch_rank;                    // rtl-gen/src/merge/merger/level_mode.rs:185
-    wire [3:0] cfg_fire_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:186
-    wire [179:0] const_cat;                  // rtl-gen/src/merge/merger/level_mode.rs:188
-    reg fetch0_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:192
-    reg [2:0] phase0;                        // rtl-gen/src/merge/merger/level_mode.rs:199
-    reg [4:0] cmd_lod0;                      // rtl-gen/src/merge/merger/level_mode.rs:204
-    wire phase0_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:201
-    wire phase0_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:201
-    wire [4:0] merging_mux;                  // rtl-gen/src/merge/merger/level_mode.rs:207
-    wire [4:0] phase0_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:207
-    wire phase0_and;                         // rtl-gen/src/merge/merger/level_mode.rs:213
-    wire issuing0;                           // rtl-gen/src/merge/merger/level_mode.rs:223
-    wire used0_and;                          // rtl-gen/src/merge/merger/level_mode.rs:224
-    wire used0_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:226
+    wire merging;                            // rtl-gen/src/merge/merger/level_mode.rs:140
+    reg [3:0] fetch_err;                     // rtl-gen/src/merge/merger/level_mode.rs:185
+    reg [1:0] fetch_rank;                    // rtl-gen/src/merge/merger/level_mode.rs:186
+    wire [3:0] cfg_fire_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:187
+    wire [179:0] const_cat;                  // rtl-gen/src/merge/merger/level_mode.rs:189
+    reg fetch0_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:193
+    reg [2:0] phase0;                        // rtl-gen/src/merge/merger/level_mode.rs:200
+    reg [4:0] cmd_lod0;                      // rtl-gen/src/merge/merger/level_mode.rs:205
+    wire phase0_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:202
+    wire phase0_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:202
+    wire [4:0] merging_mux;                  // rtl-gen/src/merge/merger/level_mode.rs:208
+    wire [4:0] phase0_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:208
+    wire phase0_and;                         // rtl-gen/src/merge/merger/level_mode.rs:214
+    wire issuing0;                           // rtl-gen/src/merge/merger/level_mode.rs:224
+    wire used0_and;                          // rtl-gen/src/merge/merger/level_mode.rs:225
+    wire used0_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:227
     wire [3:0] u_fetch0_err;                 // rtl-gen/src/merge/merger/mod.rs:143
     wire [1:0] u_fetch0_kind;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire used0_not;                          // rtl-gen/src/merge/merger/level_mode.rs:236
-    wire virtual_end0;                       // rtl-gen/src/merge/merger/level_mode.rs:236
-    wire dropping0_or;                       // rtl-gen/src/merge/merger/level_mode.rs:240
-    wire u_fetch0_and;                       // rtl-gen/src/merge/merger/level_mode.rs:241
-    wire u_fetch0_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:243
-    wire [3:0] u_fetch0_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:244
-    wire merging_not;                        // rtl-gen/src/merge/merger/level_mode.rs:247
-    wire step0;                              // rtl-gen/src/merge/merger/level_mode.rs:248
-    wire choice_known_or;                    // rtl-gen/src/merge/merger/level_mode.rs:260
-    wire [2:0] count_pass_mux;               // rtl-gen/src/merge/merger/level_mode.rs:262
-    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
-    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:395
-    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
-    reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:192
-    reg [2:0] phase1;                        // rtl-gen/src/merge/merger/level_mode.rs:199
-    reg [4:0] cmd_lod1;                      // rtl-gen/src/merge/merger/level_mode.rs:204
-    wire phase1_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:201
-    wire phase1_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:201
-    wire [4:0] phase1_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:207
-    wire phase1_and;                         // rtl-gen/src/merge/merger/level_mode.rs:213
-    wire issuing1;                           // rtl-gen/src/merge/merger/level_mode.rs:223
-    wire used1_and;                          // rtl-gen/src/merge/merger/level_mode.rs:224
-    wire used1_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:226
+    wire used0_not;                          // rtl-gen/src/merge/merger/level_mode.rs:237
+    wire virtual_end0;                       // rtl-gen/src/merge/merger/level_mode.rs:237
+    wire dropping0_or;                       // rtl-gen/src/merge/merger/level_mode.rs:241
+    wire u_fetch0_and;                       // rtl-gen/src/merge/merger/level_mode.rs:242
+    wire u_fetch0_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:244
+    wire [3:0] u_fetch0_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:245
+    wire merging_not;                        // rtl-gen/src/merge/merger/level_mode.rs:248
+    wire step0;                              // rtl-gen/src/merge/merger/level_mode.rs:249
+    wire choice_known_or;                    // rtl-gen/src/merge/merger/level_mode.rs:261
+    wire [2:0] count_pass_mux;               // rtl-gen/src/merge/merger/level_mode.rs:263
+    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
+    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:419
+    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
+    reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:193
+    reg [2:0] phase1;                        // rtl-gen/src/merge/merger/level_mode.rs:200
+    reg [4:0] cmd_lod1;                      // rtl-gen/src/merge/merger/level_mode.rs:205
+    wire phase1_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:202
+    wire phase1_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:202
+    wire [4:0] phase1_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:208
+    wire phase1_and;                         // rtl-gen/src/merge/merger/level_mode.rs:214
+    wire issuing1;                           // rtl-gen/src/merge/merger/level_mode.rs:224
+    wire used1_and;                          // rtl-gen/src/merge/merger/level_mode.rs:225
+    wire used1_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:227
     wire [3:0] u_fetch1_err;                 // rtl-gen/src/merge/merger/mod.rs:143
     wire [1:0] u_fetch1_kind;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire used1_not;                          // rtl-gen/src/merge/merger/level_mode.rs:236
-    wire virtual_end1;                       // rtl-gen/src/merge/merger/level_mode.rs:236
-    wire dropping1_or;                       // rtl-gen/src/merge/merger/level_mode.rs:240
-    wire u_fetch1_and;                       // rtl-gen/src/merge/merger/level_mode.rs:241
-    wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:243
-    wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:244
-    wire step1;                              // rtl-gen/src/merge/merger/level_mode.rs:248
-    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
-    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:395
-    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
-    reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:192
-    reg [2:0] phase2;                        // rtl-gen/src/merge/merger/level_mode.rs:199
-    reg [4:0] cmd_lod2;                      // rtl-gen/src/merge/merger/level_mode.rs:204
-    wire phase2_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:201
-    wire phase2_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:201
-    wire [4:0] phase2_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:207
-    wire phase2_and;                         // rtl-gen/src/merge/merger/level_mode.rs:213
-    wire issuing2;                           // rtl-gen/src/merge/merger/level_mode.rs:223
-    wire used2_and;                          // rtl-gen/src/merge/merger/level_mode.rs:224
-    wire used2_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:226
+    wire used1_not;                          // rtl-gen/src/merge/merger/level_mode.rs:237
+    wire virtual_end1;                       // rtl-gen/src/merge/merger/level_mode.rs:237
+    wire dropping1_or;                       // rtl-gen/src/merge/merger/level_mode.rs:241
+    wire u_fetch1_and;                       // rtl-gen/src/merge/merger/level_mode.rs:242
+    wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:244
+    wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:245
+    wire step1;                              // rtl-gen/src/merge/merger/level_mode.rs:249
+    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
+    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:419
+    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
+    reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:193
+    reg [2:0] phase2;                        // rtl-gen/src/merge/merger/level_mode.rs:200
+    reg [4:0] cmd_lod2;                      // rtl-gen/src/merge/merger/level_mode.rs:205
+    wire phase2_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:202
+    wire phase2_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:202
+    wire [4:0] phase2_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:208
+    wire phase2_and;                         // rtl-gen/src/merge/merger/level_mode.rs:214
+    wire issuing2;                           // rtl-gen/src/merge/merger/level_mode.rs:224
+    wire used2_and;                          // rtl-gen/src/merge/merger/level_mode.rs:225
+    wire used2_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:227
     wire [3:0] u_fetch2_err;                 // rtl-gen/src/merge/merger/mod.rs:143
     wire [1:0] u_fetch2_kind;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire used2_not;                          // rtl-gen/src/merge/merger/level_mode.rs:236
-    wire virtual_end2;                       // rtl-gen/src/merge/merger/level_mode.rs:236
-    wire dropping2_or;                       // rtl-gen/src/merge/merger/level_mode.rs:240
-    wire u_fetch2_and;                       // rtl-gen/src/merge/merger/level_mode.rs:241
-    wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:243
-    wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:244
-    wire step2;                              // rtl-gen/src/merge/merger/level_mode.rs:248
-    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
-    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:395
-    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
-    reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:192
-    reg [2:0] phase3;                        // rtl-gen/src/merge/merger/level_mode.rs:199
-    reg [4:0] cmd_lod3;                      // rtl-gen/src/merge/merger/level_mode.rs:204
-    wire phase3_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:201
-    wire phase3_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:201
-    wire [4:0] phase3_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:207
-    wire phase3_and;                         // rtl-gen/src/merge/merger/level_mode.rs:213
-    wire issuing3;                           // rtl-gen/src/merge/merger/level_mode.rs:223
-    wire used3_and;                          // rtl-gen/src/merge/merger/level_mode.rs:224
-    wire used3_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:226
+    wire used2_not;                          // rtl-gen/src/merge/merger/level_mode.rs:237
+    wire virtual_end2;                       // rtl-gen/src/merge/merger/level_mode.rs:237
+    wire dropping2_or;                       // rtl-gen/src/merge/merger/level_mode.rs:241
+    wire u_fetch2_and;                       // rtl-gen/src/merge/merger/level_mode.rs:242
+    wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:244
+    wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:245
+    wire step2;                              // rtl-gen/src/merge/merger/level_mode.rs:249
+    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
+    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:419
+    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
+    reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:193
+    reg [2:0] phase3;                        // rtl-gen/src/merge/merger/level_mode.rs:200
+    reg [4:0] cmd_lod3;                      // rtl-gen/src/merge/merger/level_mode.rs:205
+    wire phase3_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:202
+    wire phase3_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:202
+    wire [4:0] phase3_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:208
+    wire phase3_and;                         // rtl-gen/src/merge/merger/level_mode.rs:214
+    wire issuing3;                           // rtl-gen/src/merge/merger/level_mode.rs:224
+    wire used3_and;                          // rtl-gen/src/merge/merger/level_mode.rs:225
+    wire used3_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:227
     wire [3:0] u_fetch3_err;                 // rtl-gen/src/merge/merger/mod.rs:143
     wire [1:0] u_fetch3_kind;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire used3_not;                          // rtl-gen/src/merge/merger/level_mode.rs:236
-    wire virtual_end3;                       // rtl-gen/src/merge/merger/level_mode.rs:236
-    wire dropping3_or;                       // rtl-gen/src/merge/merger/level_mode.rs:240
-    wire u_fetch3_and;                       // rtl-gen/src/merge/merger/level_mode.rs:241
-    wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:243
-    wire step3;                              // rtl-gen/src/merge/merger/level_mode.rs:248
-    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
-    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:395
-    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
-    reg [3:0] fetch_err_header;              // rtl-gen/src/merge/merger/mod.rs:218
-    reg [1:0] fetch_rank_header;             // rtl-gen/src/merge/merger/mod.rs:218
+    wire used3_not;                          // rtl-gen/src/merge/merger/level_mode.rs:237
+    wire virtual_end3;                       // rtl-gen/src/merge/merger/level_mode.rs:237
+    wire dropping3_or;                       // rtl-gen/src/merge/merger/level_mode.rs:241
+    wire u_fetch3_and;                       // rtl-gen/src/merge/merger/level_mode.rs:242
+    wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:244
+    wire step3;                              // rtl-gen/src/merge/merger/level_mode.rs:249
+    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
+    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:419
+    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
+    reg [3:0] fetch_err_header;              // rtl-gen/src/merge/merger/mod.rs:230
+    reg [1:0] fetch_rank_header;             // rtl-gen/src/merge/merger/mod.rs:230
     reg leaves_done;                         // rtl-gen/src/merge/merger/leaf_merge.rs:46
     wire leaves_active;                      // rtl-gen/src/merge/merger/leaf_merge.rs:47
     wire u_fetch0_end;                       // rtl-gen/src/merge/merger/mod.rs:143
@@ -463,365 +463,365 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaf_take;                          // rtl-gen/src/merge/merger/leaf_merge.rs:80
     wire [4:0] leaf_best_data_lod;           // rtl-gen/src/merge/merger/mod.rs:143
     wire [1:0] u_module_kind;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire out_is_ref;                         // rtl-gen/src/merge/merger/level_mode.rs:327
-    wire out_is_end;                         // rtl-gen/src/merge/merger/level_mode.rs:328
+    wire out_is_ref;                         // rtl-gen/src/merge/merger/level_mode.rs:328
+    wire out_is_end;                         // rtl-gen/src/merge/merger/level_mode.rs:329
     wire u_module_err_1;                     // rtl-gen/src/merge/merger/mod.rs:143
     wire [27:0] u_module_ref;                // rtl-gen/src/merge/merger/mod.rs:143
     wire [149:0] u_module_rec;               // rtl-gen/src/merge/merger/mod.rs:143
-    wire [179:0] u_module_kind_cat;          // rtl-gen/src/merge/merger/level_mode.rs:331
-    reg crefs_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:342
-    wire choice_ok_not;                      // rtl-gen/src/merge/merger/level_mode.rs:344
-    wire crefs_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:344
-    wire choice_ok_or;                       // rtl-gen/src/merge/merger/level_mode.rs:345
-    reg leaf_overflow_q;                     // rtl-gen/src/merge/merger/level_mode.rs:367
-    reg base0_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:372
-    wire base0_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:374
+    wire [179:0] u_module_kind_cat;          // rtl-gen/src/merge/merger/level_mode.rs:332
+    reg crefs_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:343
+    wire choice_ok_not;                      // rtl-gen/src/merge/merger/level_mode.rs:345
+    wire crefs_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:345
+    wire choice_ok_or;                       // rtl-gen/src/merge/merger/level_mode.rs:346
+    reg leaf_overflow_q;                     // rtl-gen/src/merge/merger/level_mode.rs:368
+    reg base0_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base0_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:375
     reg [4:0] leaves0_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves0_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves0_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves0_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves0_push;                       // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves0_push;                       // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves0_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves0_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base0_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base0_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:384
     wire [149:0] leaves0_rec;                // rtl-gen/src/merge/merger/mod.rs:143
     wire [27:0] leaves0_ref;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire leaves0_end;                        // rtl-gen/src/merge/merger/level_mode.rs:393
-    wire leaves0_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire leaves0_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire base0_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire out_is_ref_not;                     // rtl-gen/src/merge/merger/level_mode.rs:396
-    wire base0_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:396
-    wire base0_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base0_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves0_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:401
-    reg base1_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:372
-    wire base1_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:374
+    wire leaves0_end;                        // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire leaves0_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire leaves0_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire base0_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire out_is_ref_not;                     // rtl-gen/src/merge/merger/level_mode.rs:397
+    wire base0_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:397
+    wire base0_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base0_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves0_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:402
+    reg base1_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base1_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:375
     reg [4:0] leaves1_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves1_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves1_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves1_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves1_push;                       // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves1_push;                       // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves1_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves1_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base1_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base1_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:384
     wire [149:0] leaves1_rec;                // rtl-gen/src/merge/merger/mod.rs:143
     wire [27:0] leaves1_ref;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire leaves1_end;                        // rtl-gen/src/merge/merger/level_mode.rs:393
-    wire leaves1_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire leaves1_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire base1_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base1_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:396
-    wire base1_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base1_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves1_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:401
-    reg base2_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:372
-    wire base2_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:374
+    wire leaves1_end;                        // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire leaves1_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire leaves1_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire base1_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base1_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:397
+    wire base1_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base1_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves1_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:402
+    reg base2_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base2_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:375
     reg [4:0] leaves2_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves2_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves2_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves2_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves2_push;                       // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves2_push;                       // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves2_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves2_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base2_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base2_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:384
     wire [149:0] leaves2_rec;                // rtl-gen/src/merge/merger/mod.rs:143
     wire [27:0] leaves2_ref;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire leaves2_end;                        // rtl-gen/src/merge/merger/level_mode.rs:393
-    wire leaves2_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire leaves2_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire base2_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base2_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:396
-    wire base2_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base2_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves2_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base2_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:414
-    reg base3_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:372
-    wire base3_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:374
+    wire leaves2_end;                        // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire leaves2_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire leaves2_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire base2_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base2_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:397
+    wire base2_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base2_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves2_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base2_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:415
+    reg base3_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base3_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:375
     reg [4:0] leaves3_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves3_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves3_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves3_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves3_push;                       // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves3_push;                       // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves3_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves3_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base3_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base3_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:384
     wire [149:0] leaves3_rec;                // rtl-gen/src/merge/merger/mod.rs:143
     wire [27:0] leaves3_ref;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire leaves3_end;                        // rtl-gen/src/merge/merger/level_mode.rs:393
-    wire leaves3_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire leaves3_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire base3_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base3_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:396
-    wire base3_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base3_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves3_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base3_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:415
-    reg base4_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:372
-    wire base4_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:374
+    wire leaves3_end;                        // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire leaves3_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire leaves3_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire base3_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base3_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:397
+    wire base3_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base3_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves3_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base3_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:416
+    reg base4_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base4_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:375
     reg [4:0] leaves4_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves4_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves4_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves4_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves4_push;                       // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves4_push;                       // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves4_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves4_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base4_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base4_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:384
     wire [149:0] leaves4_rec;                // rtl-gen/src/merge/merger/mod.rs:143
     wire [27:0] leaves4_ref;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire leaves4_end;                        // rtl-gen/src/merge/merger/level_mode.rs:393
-    wire leaves4_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire leaves4_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire base4_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base4_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:396
-    wire base4_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base4_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves4_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:401
-    reg base5_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:372
-    wire base5_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:374
+    wire leaves4_end;                        // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire leaves4_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire leaves4_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire base4_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base4_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:397
+    wire base4_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base4_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves4_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:402
+    reg base5_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base5_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:375
     reg [4:0] leaves5_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves5_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves5_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves5_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves5_push;                       // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves5_push;                       // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves5_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves5_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base5_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base5_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:384
     wire [149:0] leaves5_rec;                // rtl-gen/src/merge/merger/mod.rs:143
     wire [27:0] leaves5_ref;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire leaves5_end;                        // rtl-gen/src/merge/merger/level_mode.rs:393
-    wire leaves5_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire leaves5_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire base5_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base5_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:396
-    wire base5_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base5_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves5_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base5_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:414
-    reg base6_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:372
-    wire base6_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:374
+    wire leaves5_end;                        // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire leaves5_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire leaves5_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire base5_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base5_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:397
+    wire base5_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base5_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves5_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base5_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:415
+    reg base6_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base6_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:375
     reg [4:0] leaves6_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves6_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves6_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves6_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves6_push;                       // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves6_push;                       // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves6_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves6_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base6_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base6_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:384
     wire [149:0] leaves6_rec;                // rtl-gen/src/merge/merger/mod.rs:143
     wire [27:0] leaves6_ref;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire leaves6_end;                        // rtl-gen/src/merge/merger/level_mode.rs:393
-    wire leaves6_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire leaves6_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire base6_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base6_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:396
-    wire base6_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base6_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves6_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:401
-    reg base7_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:372
-    wire base7_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:374
+    wire leaves6_end;                        // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire leaves6_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire leaves6_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire base6_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base6_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:397
+    wire base6_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base6_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves6_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:402
+    reg base7_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base7_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:375
     reg [4:0] leaves7_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves7_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves7_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves7_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves7_push;                       // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves7_push;                       // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves7_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves7_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base7_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base7_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:384
     wire [149:0] leaves7_rec;                // rtl-gen/src/merge/merger/mod.rs:143
     wire [27:0] leaves7_ref;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire leaves7_end;                        // rtl-gen/src/merge/merger/level_mode.rs:393
-    wire leaves7_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire leaves7_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire base7_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base7_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:396
-    wire base7_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base7_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves7_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base7_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:415
-    reg base8_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:372
-    wire base8_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:374
+    wire leaves7_end;                        // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire leaves7_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire leaves7_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire base7_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base7_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:397
+    wire base7_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base7_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves7_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base7_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:416
+    reg base8_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base8_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:375
     reg [4:0] leaves8_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves8_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves8_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves8_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves8_push;                       // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves8_push;                       // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves8_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves8_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base8_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base8_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:384
     wire [149:0] leaves8_rec;                // rtl-gen/src/merge/merger/mod.rs:143
     wire [27:0] leaves8_ref;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire leaves8_end;                        // rtl-gen/src/merge/merger/level_mode.rs:393
-    wire leaves8_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire leaves8_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire base8_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base8_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:396
-    wire base8_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base8_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves8_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base8_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:414
-    reg base9_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:372
-    wire base9_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:374
+    wire leaves8_end;                        // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire leaves8_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire leaves8_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire base8_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base8_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:397
+    wire base8_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base8_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves8_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base8_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:415
+    reg base9_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base9_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:375
     reg [4:0] leaves9_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves9_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves9_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves9_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves9_push;                       // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves9_push;                       // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves9_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves9_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base9_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base9_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:384
     wire [149:0] leaves9_rec;                // rtl-gen/src/merge/merger/mod.rs:143
     wire [27:0] leaves9_ref;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire leaves9_end;                        // rtl-gen/src/merge/merger/level_mode.rs:393
-    wire leaves9_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire leaves9_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire base9_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base9_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:396
-    wire base9_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base9_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves9_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:401
-    reg base10_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:372
-    wire base10_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:374
+    wire leaves9_end;                        // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire leaves9_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire leaves9_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire base9_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base9_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:397
+    wire base9_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base9_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves9_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:402
+    reg base10_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base10_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:375
     reg [4:0] leaves10_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves10_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves10_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves10_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves10_push;                      // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves10_push;                      // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves10_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves10_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base10_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base10_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:384
     wire [149:0] leaves10_rec;               // rtl-gen/src/merge/merger/mod.rs:143
     wire [27:0] leaves10_ref;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire leaves10_end;                       // rtl-gen/src/merge/merger/level_mode.rs:393
-    wire leaves10_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire leaves10_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire base10_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base10_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:396
-    wire base10_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base10_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves10_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:401
-    reg base11_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:372
-    wire base11_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:374
+    wire leaves10_end;                       // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire leaves10_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire leaves10_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire base10_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base10_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:397
+    wire base10_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base10_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves10_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:402
+    reg base11_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base11_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:375
     reg [4:0] leaves11_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves11_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves11_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves11_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves11_push;                      // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves11_push;                      // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves11_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves11_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base11_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base11_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:384
     wire [149:0] leaves11_rec;               // rtl-gen/src/merge/merger/mod.rs:143
     wire [27:0] leaves11_ref;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire leaves11_end;                       // rtl-gen/src/merge/merger/level_mode.rs:393
-    wire leaves11_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire leaves11_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire base11_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base11_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:396
-    wire base11_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base11_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves11_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base11_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:414
-    wire base11_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:415
-    reg base12_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:372
-    wire base12_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:374
+    wire leaves11_end;                       // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire leaves11_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire leaves11_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire base11_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base11_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:397
+    wire base11_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base11_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves11_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base11_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:415
+    wire base11_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:416
+    reg base12_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base12_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:375
     reg [4:0] leaves12_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves12_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves12_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves12_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves12_push;                      // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves12_push;                      // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves12_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves12_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base12_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base12_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:384
     wire [149:0] leaves12_rec;               // rtl-gen/src/merge/merger/mod.rs:143
     wire [27:0] leaves12_ref;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire leaves12_end;                       // rtl-gen/src/merge/merger/level_mode.rs:393
-    wire leaves12_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire leaves12_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire base12_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base12_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:396
-    wire base12_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base12_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves12_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:401
-    reg base13_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:372
-    wire base13_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:374
+    wire leaves12_end;                       // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire leaves12_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire leaves12_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire base12_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base12_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:397
+    wire base12_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base12_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves12_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:402
+    reg base13_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base13_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:375
     reg [4:0] leaves13_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves13_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves13_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves13_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves13_push;                      // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves13_push;                      // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves13_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves13_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base13_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base13_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:384
     wire [149:0] leaves13_rec;               // rtl-gen/src/merge/merger/mod.rs:143
     wire [27:0] leaves13_ref;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire leaves13_end;                       // rtl-gen/src/merge/merger/level_mode.rs:393
-    wire leaves13_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire leaves13_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire base13_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base13_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:396
-    wire base13_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base13_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves13_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:401
-    reg base14_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:372
-    wire base14_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:374
+    wire leaves13_end;                       // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire leaves13_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire leaves13_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire base13_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base13_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:397
+    wire base13_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base13_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves13_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:402
+    reg base14_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base14_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:375
     reg [4:0] leaves14_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves14_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves14_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves14_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves14_push;                      // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves14_push;                      // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves14_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves14_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base14_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base14_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:384
     wire [149:0] leaves14_rec;               // rtl-gen/src/merge/merger/mod.rs:143
     wire [27:0] leaves14_ref;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire leaves14_end;                       // rtl-gen/src/merge/merger/level_mode.rs:393
-    wire leaves14_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire leaves14_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire base14_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base14_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:396
-    wire base14_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base14_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves14_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base14_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:414
-    reg base15_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:372
-    wire base15_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:374
+    wire leaves14_end;                       // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire leaves14_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire leaves14_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire base14_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base14_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:397
+    wire base14_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base14_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves14_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base14_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:415
+    reg base15_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base15_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:375
     reg [4:0] leaves15_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] leaves15_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire leaves15_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire leaves15_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire leaves15_push;                      // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves15_push;                      // rtl-gen/src/merge/merger/level_mode.rs:380
     wire leaves15_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
     wire [177:0] leaves15_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
-    wire base15_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:383
+    wire base15_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:384
     wire [149:0] leaves15_rec;               // rtl-gen/src/merge/merger/mod.rs:143
     wire [27:0] leaves15_ref;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire leaves15_end;                       // rtl-gen/src/merge/merger/level_mode.rs:393
-    wire leaves15_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire leaves15_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:394
-    wire base15_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base15_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:396
-    wire base15_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:395
-    wire base15_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire leaves15_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:401
-    wire base15_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:415
-    reg base16_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:372
-    wire base16_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:374
-    wire base16_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:405
-    wire base16_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:405
-    wire base16_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:414
-    reg leaf_overflow_header;                // rtl-gen/src/merge/merger/mod.rs:218
-    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:420
-    wire merging_and;                        // rtl-gen/src/merge/merger/level_mode.rs:419
-    reg count_overflow;                      // rtl-gen/src/merge/merger/level_mode.rs:428
-    reg count_overflow_header;               // rtl-gen/src/merge/merger/mod.rs:218
-    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:395
-    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:395
-    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:395
-    wire dropping0_and;                      // rtl-gen/src/merge/merger/tail.rs:109
-    wire merge_settled;                      // rtl-gen/src/merge/merger/tail.rs:110
-    wire header_offered;                     // rtl-gen/src/merge/merger/tail.rs:112
-    reg done_pulse;                          // rtl-gen/src/merge/merger/tail.rs:137
-    wire merger_idle;                        // rtl-gen/src/merge/merger/tail.rs:140
+    wire leaves15_end;                       // rtl-gen/src/merge/merger/level_mode.rs:394
+    wire leaves15_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire leaves15_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:395
+    wire base15_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base15_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:397
+    wire base15_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:396
+    wire base15_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire leaves15_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:402
+    wire base15_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:416
+    reg base16_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:373
+    wire base16_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:375
+    wire base16_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire base16_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire base16_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:415
+    reg leaf_overflow_header;                // rtl-gen/src/merge/merger/mod.rs:230
+    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:421
+    wire merging_and;                        // rtl-gen/src/merge/merger/level_mode.rs:420
+    reg count_overflow;                      // rtl-gen/src/merge/merger/level_mode.rs:429
+    reg count_overflow_header;               // rtl-gen/src/merge/merger/mod.rs:230
+    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:419
+    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:419
+    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:419
+    wire dropping0_and;                      // rtl-gen/src/merge/merger/tail.rs:115
+    wire merge_settled;                      // rtl-gen/src/merge/merger/tail.rs:116
+    wire header_offered;                     // rtl-gen/src/merge/merger/tail.rs:118
+    reg done_pulse;                          // rtl-gen/src/merge/merger/tail.rs:143
+    wire merger_idle;                        // rtl-gen/src/merge/merger/tail.rs:146
 
     assign header_fire = header_offered & header_ready;
     assign header_hold = header_offered & (~header_ready);
@@ -1330,7 +1330,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign idle = merger_idle;
     assign module_done = u_module_done;
 
-    fetcher_d16_q8_i24_h4_r16_f256 u_fetch0 ( // rtl-gen/src/merge/merger/mod.rs:240
+    fetcher_d16_q8_i24_h4_r16_f256 u_fetch0 ( // rtl-gen/src/merge/merger/mod.rs:252
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch0_cfg_pending),
@@ -1366,7 +1366,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
         .idle(u_fetch0_idle)
     );
 
-    fetcher_d16_q8_i24_h4_r16_f256 u_fetch1 ( // rtl-gen/src/merge/merger/mod.rs:240
+    fetcher_d16_q8_i24_h4_r16_f256 u_fetch1 ( // rtl-gen/src/merge/merger/mod.rs:252
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch1_cfg_pending),
@@ -1402,7 +1402,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
         .idle(u_fetch1_idle)
     );
 
-    fetcher_d16_q8_i24_h4_r16_f256 u_fetch2 ( // rtl-gen/src/merge/merger/mod.rs:240
+    fetcher_d16_q8_i24_h4_r16_f256 u_fetch2 ( // rtl-gen/src/merge/merger/mod.rs:252
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch2_cfg_pending),
@@ -1438,7 +1438,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
         .idle(u_fetch2_idle)
     );
 
-    fetcher_d16_q8_i24_h4_r16_f256 u_fetch3 ( // rtl-gen/src/merge/merger/mod.rs:240
+    fetcher_d16_q8_i24_h4_r16_f256 u_fetch3 ( // rtl-gen/src/merge/merger/mod.rs:252
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch3_cfg_pending),
@@ -1474,7 +1474,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
         .idle(u_fetch3_idle)
     );
 
-    merge_module_d16_q8_i24_h4_k4_ov1_2 u_module ( // rtl-gen/src/merge/merger/mod.rs:242
+    merge_module_d16_q8_i24_h4_k4_ov1_2 u_module ( // rtl-gen/src/merge/merger/mod.rs:254
         .clk(clk),
         .rst(rst),
         .in0_valid(used0 ? (u_fetch0_out_valid & dropping0_not) : virtual_end0),
@@ -1502,7 +1502,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
         .done(u_module_done)
     );
 
-    upper_builder_d16_q8_i24_h4 u_builder ( // rtl-gen/src/merge/merger/mod.rs:243
+    upper_builder_d16_q8_i24_h4 u_builder ( // rtl-gen/src/merge/merger/mod.rs:255
         .clk(clk),
         .rst(rst),
         .base0_valid(base0_end_sent_and),
@@ -1612,7 +1612,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
         .done_ready(u_writer_done_ready)
     );
 
-    record_writer_d16_q8_i24_h4_c10 u_writer ( // rtl-gen/src/merge/merger/mod.rs:244
+    record_writer_d16_q8_i24_h4_c10 u_writer ( // rtl-gen/src/merge/merger/mod.rs:256
         .clk(clk),
         .rst(rst),
         .cfg_valid(writer_cfg_pending),
@@ -1784,191 +1784,191 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
             done_pulse <= 1'b0;
         end else begin
             if ((used0_and_1 & phase0_eq_1) & merging_not) begin
-                dropping0 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:274
+                dropping0 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:275
             end else if (u_fetch0_and & (u_fetch0_kind == 2'd3)) begin
-                dropping0 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:274
+                dropping0 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:275
             end
             if ((used1_and_1 & phase1_eq_1) & merging_not) begin
-                dropping1 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:274
+                dropping1 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:275
             end else if (u_fetch1_and & (u_fetch1_kind == 2'd3)) begin
-                dropping1 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:274
+                dropping1 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:275
             end
             if ((used2_and_1 & phase2_eq_1) & merging_not) begin
-                dropping2 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:274
+                dropping2 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:275
             end else if (u_fetch2_and & (u_fetch2_kind == 2'd3)) begin
-                dropping2 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:274
+                dropping2 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:275
             end
             if ((used3_and_1 & phase3_eq_1) & merging_not) begin
-                dropping3 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:274
+                dropping3 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:275
             end else if (u_fetch3_and & (u_fetch3_kind == 2'd3)) begin
-                dropping3 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:274
+                dropping3 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:275
             end
             header_open <= header_fire ? 1'b0 : (header_open | merge_settled);
             if (cfg_fire) begin
-                module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:349
-                writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:357
-                busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:260
-                cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:295
-                fetch0_cfg_pending <= cfg_data_count > 3'd0; // rtl-gen/src/merge/merger/level_mode.rs:197
-                phase0 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:261
-                cmd_lod0 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:269
-                fetch1_cfg_pending <= cfg_data_count > 3'd1; // rtl-gen/src/merge/merger/level_mode.rs:197
-                phase1 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:261
-                cmd_lod1 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:269
-                fetch2_cfg_pending <= cfg_data_count > 3'd2; // rtl-gen/src/merge/merger/level_mode.rs:197
-                phase2 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:261
-                cmd_lod2 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:269
-                fetch3_cfg_pending <= cfg_data_count > 3'd3; // rtl-gen/src/merge/merger/level_mode.rs:197
-                phase3 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:261
-                cmd_lod3 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:269
-                fetch_err_header <= fetch_err; // rtl-gen/src/merge/merger/mod.rs:219
-                fetch_rank_header <= fetch_rank; // rtl-gen/src/merge/merger/mod.rs:219
-                leaf_overflow_header <= leaf_overflow_q; // rtl-gen/src/merge/merger/mod.rs:219
-                count_overflow_header <= count_overflow; // rtl-gen/src/merge/merger/mod.rs:219
+                module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:373
+                writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:381
+                busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:272
+                cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:307
+                fetch0_cfg_pending <= cfg_data_count > 3'd0; // rtl-gen/src/merge/merger/level_mode.rs:198
+                phase0 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:262
+                cmd_lod0 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:270
+                fetch1_cfg_pending <= cfg_data_count > 3'd1; // rtl-gen/src/merge/merger/level_mode.rs:198
+                phase1 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:262
+                cmd_lod1 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:270
+                fetch2_cfg_pending <= cfg_data_count > 3'd2; // rtl-gen/src/merge/merger/level_mode.rs:198
+                phase2 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:262
+                cmd_lod2 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:270
+                fetch3_cfg_pending <= cfg_data_count > 3'd3; // rtl-gen/src/merge/merger/level_mode.rs:198
+                phase3 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:262
+                cmd_lod3 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:270
+                fetch_err_header <= fetch_err; // rtl-gen/src/merge/merger/mod.rs:231
+                fetch_rank_header <= fetch_rank; // rtl-gen/src/merge/merger/mod.rs:231
+                leaf_overflow_header <= leaf_overflow_q; // rtl-gen/src/merge/merger/mod.rs:231
+                count_overflow_header <= count_overflow; // rtl-gen/src/merge/merger/mod.rs:231
             end else begin
                 if (module_cfg_pending & u_module_cfg_ready) begin
-                    module_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:349
+                    module_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:373
                 end
                 if (writer_cfg_pending & u_writer_cfg_ready) begin
-                    writer_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:357
+                    writer_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:381
                 end
                 if (header_fire & queued_not) begin
-                    busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:260
+                    busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:272
                 end
                 if (fetch0_cfg_pending & u_fetch0_cfg_ready) begin
-                    fetch0_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:197
+                    fetch0_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:198
                 end
                 if (step0) begin
                     if (phase0_eq) begin
                         if (used0 | (cmd_lod0 == hi)) begin
-                            phase0 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:251
+                            phase0 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:252
                         end
                     end else begin
-                        phase0 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:250
+                        phase0 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:251
                     end
                 end else if ((phase0 == WAIT) & choice_known_or) begin
-                    phase0 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:265
+                    phase0 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:266
                 end
                 if (step0 & phase0_eq) begin
-                    cmd_lod0 <= cmd_lod0 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:271
+                    cmd_lod0 <= cmd_lod0 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:272
                 end
                 if (fetch1_cfg_pending & u_fetch1_cfg_ready) begin
-                    fetch1_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:197
+                    fetch1_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:198
                 end
                 if (step1) begin
                     if (phase1_eq) begin
                         if (used1 | (cmd_lod1 == hi)) begin
-                            phase1 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:251
+                            phase1 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:252
                         end
                     end else begin
-                        phase1 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:250
+                        phase1 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:251
                     end
                 end else if ((phase1 == WAIT) & choice_known_or) begin
-                    phase1 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:265
+                    phase1 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:266
                 end
                 if (step1 & phase1_eq) begin
-                    cmd_lod1 <= cmd_lod1 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:271
+                    cmd_lod1 <= cmd_lod1 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:272
                 end
                 if (fetch2_cfg_pending & u_fetch2_cfg_ready) begin
-                    fetch2_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:197
+                    fetch2_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:198
                 end
                 if (step2) begin
                     if (phase2_eq) begin
                         if (used2 | (cmd_lod2 == hi)) begin
-                            phase2 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:251
+                            phase2 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:252
                         end
                     end else begin
-                        phase2 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:250
+                        phase2 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:251
                     end
                 end else if ((phase2 == WAIT) & choice_known_or) begin
-                    phase2 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:265
+                    phase2 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:266
                 end
                 if (step2 & phase2_eq) begin
-                    cmd_lod2 <= cmd_lod2 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:271
+                    cmd_lod2 <= cmd_lod2 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:272
                 end
                 if (fetch3_cfg_pending & u_fetch3_cfg_ready) begin
-                    fetch3_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:197
+                    fetch3_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:198
                 end
                 if (step3) begin
                     if (phase3_eq) begin
                         if (used3 | (cmd_lod3 == hi)) begin
-                            phase3 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:251
+                            phase3 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:252
                         end
                     end else begin
-                        phase3 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:250
+                        phase3 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:251
                     end
                 end else if ((phase3 == WAIT) & choice_known_or) begin
-                    phase3 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:265
+                    phase3 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:266
                 end
                 if (step3 & phase3_eq) begin
-                    cmd_lod3 <= cmd_lod3 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:271
+                    cmd_lod3 <= cmd_lod3 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:272
                 end
             end
             if ((cfg_fire & busy) & (~header_fire)) begin
-                queued <= 1'b1;              // rtl-gen/src/merge/merger/mod.rs:261
+                queued <= 1'b1;              // rtl-gen/src/merge/merger/mod.rs:273
             end else if (header_fire) begin
-                queued <= 1'b0;              // rtl-gen/src/merge/merger/mod.rs:261
+                queued <= 1'b0;              // rtl-gen/src/merge/merger/mod.rs:273
             end
             if (choice_seen) begin
-                choice_known <= 1'b1;        // rtl-gen/src/merge/merger/level_mode.rs:136
-                choice_ok <= u_module_err == 2'd0; // rtl-gen/src/merge/merger/level_mode.rs:137
-                merge_lod <= u_module_lod;   // rtl-gen/src/merge/merger/level_mode.rs:138
+                choice_known <= 1'b1;        // rtl-gen/src/merge/merger/level_mode.rs:137
+                choice_ok <= u_module_err == 2'd0; // rtl-gen/src/merge/merger/level_mode.rs:138
+                merge_lod <= u_module_lod;   // rtl-gen/src/merge/merger/level_mode.rs:139
             end else if (header_fire) begin
-                choice_known <= 1'b0;        // rtl-gen/src/merge/merger/level_mode.rs:136
-                choice_ok <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:137
+                choice_known <= 1'b0;        // rtl-gen/src/merge/merger/level_mode.rs:137
+                choice_ok <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:138
             end
             if (!flags_hold) begin
-                fetch_err <= u_fetch3_and_1 ? u_fetch3_err : u_fetch2_mux; // rtl-gen/src/merge/merger/level_mode.rs:284
+                fetch_err <= u_fetch3_and_1 ? u_fetch3_err : u_fetch2_mux; // rtl-gen/src/merge/merger/level_mode.rs:285
                 if (u_fetch3_and_1) begin
-                    fetch_rank <= 2'd3;      // rtl-gen/src/merge/merger/level_mode.rs:245
+                    fetch_rank <= 2'd3;      // rtl-gen/src/merge/merger/level_mode.rs:246
                 end else if (u_fetch2_and_1) begin
-                    fetch_rank <= 2'd2;      // rtl-gen/src/merge/merger/level_mode.rs:245
+                    fetch_rank <= 2'd2;      // rtl-gen/src/merge/merger/level_mode.rs:246
                 end else if (u_fetch1_and_1) begin
-                    fetch_rank <= 2'd1;      // rtl-gen/src/merge/merger/level_mode.rs:245
+                    fetch_rank <= 2'd1;      // rtl-gen/src/merge/merger/level_mode.rs:246
                 end else if (u_fetch0_and_1) begin
-                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/level_mode.rs:245
+                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/level_mode.rs:246
                 end else if (cfg_fire) begin
-                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/level_mode.rs:187
+                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/level_mode.rs:188
                 end
                 if (leaves15_push & leaves15_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:381
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:382
                 end else if (leaves14_push & leaves14_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:381
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:382
                 end else if (leaves13_push & leaves13_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:381
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:382
                 end else if (leaves12_push & leaves12_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:381
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:382
                 end else if (leaves11_push & leaves11_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:381
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:382
                 end else if (leaves10_push & leaves10_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:381
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:382
                 end else if (leaves9_push & leaves9_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:381
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:382
                 end else if (leaves8_push & leaves8_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:381
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:382
                 end else if (leaves7_push & leaves7_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:381
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:382
                 end else if (leaves6_push & leaves6_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:381
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:382
                 end else if (leaves5_push & leaves5_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:381
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:382
                 end else if (leaves4_push & leaves4_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:381
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:382
                 end else if (leaves3_push & leaves3_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:381
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:382
                 end else if (leaves2_push & leaves2_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:381
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:382
                 end else if (leaves1_push & leaves1_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:381
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:382
                 end else if (leaves0_push & leaves0_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:381
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:382
                 end else if (cfg_fire) begin
-                    leaf_overflow_q <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:368
+                    leaf_overflow_q <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:369
                 end
                 if (((u_module_out_valid & merging_and) & (u_module_kind == 2'd0)) & u_module_err_1) begin
-                    count_overflow <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:431
+                    count_overflow <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:432
                 end else if (cfg_fire) begin
-                    count_overflow <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:431
+                    count_overflow <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:432
                 end
             end
             if (leaves_all_valid & leaves_all_end) begin
@@ -1977,14 +1977,14 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 leaves_done <= 1'b0;         // rtl-gen/src/merge/merger/leaf_merge.rs:87
             end
             if ((crefs_end_sent_and & u_writer_crefs_ready) & choice_ok_or) begin
-                crefs_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:360
+                crefs_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:361
             end else if (header_fire) begin
-                crefs_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:360
+                crefs_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:361
             end
             if (base0_end_sent_and_1 & (base0_at_m ? out_is_end : (base0_above_m ? leaves0_end : 1'b1))) begin
-                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:413
+                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:414
             end else if (header_fire) begin
-                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:413
+                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:414
             end
             if (header_fire) begin
                 leaves0_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
@@ -2118,84 +2118,84 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 end
             end
             if (base1_end_sent_and_1 & (base1_at_m ? out_is_end : (base1_above_m ? leaves1_end : 1'b1))) begin
-                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:413
+                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:414
             end else if (header_fire) begin
-                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:413
+                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:414
             end
             if (base2_end_sent_and_1 & (base2_at_m ? out_is_end : (base2_above_m ? leaves2_end : 1'b1))) begin
-                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:413
+                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:414
             end else if (header_fire) begin
-                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:413
+                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:414
             end
             if (base3_end_sent_and_1 & (base3_at_m ? out_is_end : (base3_above_m ? leaves3_end : 1'b1))) begin
-                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:413
+                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:414
             end else if (header_fire) begin
-                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:413
+                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:414
             end
             if (base4_end_sent_and_1 & (base4_at_m ? out_is_end : (base4_above_m ? leaves4_end : 1'b1))) begin
-                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:413
+                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:414
             end else if (header_fire) begin
-                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:413
+                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:414
             end
             if (base5_end_sent_and_1 & (base5_at_m ? out_is_end : (base5_above_m ? leaves5_end : 1'b1))) begin
-                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:413
+                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:414
             end else if (header_fire) begin
-                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:413
+                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:414
             end
             if (base6_end_sent_and_1 & (base6_at_m ? out_is_end : (base6_above_m ? leaves6_end : 1'b1))) begin
-                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:413
+                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:414
             end else if (header_fire) begin
-                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:413
+                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:414
             end
             if (base7_end_sent_and_1 & (base7_at_m ? out_is_end : (base7_above_m ? leaves7_end : 1'b1))) begin
-                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:413
+                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:414
             end else if (header_fire) begin
-                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:413
+                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:414
             end
             if (base8_end_sent_and_1 & (base8_at_m ? out_is_end : (base8_above_m ? leaves8_end : 1'b1))) begin
-                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:413
+                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:414
             end else if (header_fire) begin
-                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:413
+                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:414
             end
             if (base9_end_sent_and_1 & (base9_at_m ? out_is_end : (base9_above_m ? leaves9_end : 1'b1))) begin
-                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:413
+                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:414
             end else if (header_fire) begin
-                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:413
+                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:414
             end
             if (base10_end_sent_and_1 & (base10_at_m ? out_is_end : (base10_above_m ? leaves10_end : 1'b1))) begin
-                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:413
+                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:414
             end else if (header_fire) begin
-                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:413
+                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:414
             end
             if (base11_end_sent_and_1 & (base11_at_m ? out_is_end : (base11_above_m ? leaves11_end : 1'b1))) begin
-                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:413
+                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:414
             end else if (header_fire) begin
-                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:413
+                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:414
             end
             if (base12_end_sent_and_1 & (base12_at_m ? out_is_end : (base12_above_m ? leaves12_end : 1'b1))) begin
-                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:413
+                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:414
             end else if (header_fire) begin
-                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:413
+                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:414
             end
             if (base13_end_sent_and_1 & (base13_at_m ? out_is_end : (base13_above_m ? leaves13_end : 1'b1))) begin
-                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:413
+                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:414
             end else if (header_fire) begin
-                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:413
+                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:414
             end
             if (base14_end_sent_and_1 & (base14_at_m ? out_is_end : (base14_above_m ? leaves14_end : 1'b1))) begin
-                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:413
+                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:414
             end else if (header_fire) begin
-                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:413
+                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:414
             end
             if (base15_end_sent_and_1 & (base15_at_m ? out_is_end : (base15_above_m ? leaves15_end : 1'b1))) begin
-                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:413
+                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:414
             end else if (header_fire) begin
-                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:413
+                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:414
             end
             if ((base16_end_sent_and & u_builder_base16_ready) & (base16_at_m ? out_is_end : 1'b1)) begin
-                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:413
+                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:414
             end else if (header_fire) begin
-                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:413
+                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:414
             end
             done_pulse <= header_fire;
         end

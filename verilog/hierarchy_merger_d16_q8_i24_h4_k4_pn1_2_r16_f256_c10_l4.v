@@ -5,129 +5,129 @@
 module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     input  wire clk,                        // clock (implicit)
     input  wire rst,                        // synchronous reset, active high (implicit)
-    input  wire cfg_valid,                  // rtl-gen/src/merge/merger/mod.rs:253
-    input  wire [568:0] cfg_data,           // rtl-gen/src/merge/merger/mod.rs:253
-    output wire cfg_ready,                  // rtl-gen/src/merge/merger/mod.rs:253
-    input  wire report_ready,               // rtl-gen/src/merge/merger/per_node_mode.rs:141
-    output wire report_valid,               // rtl-gen/src/merge/merger/per_node_mode.rs:142
-    output wire [65:0] report_data,         // rtl-gen/src/merge/merger/per_node_mode.rs:143
-    input  wire f0_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [149:0] f0_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f0_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire f0_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [27:0] f0_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f0_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire f0_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [27:0] f0_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f0_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire f0_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [149:0] f0_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f0_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f0_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f0_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f0_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f0_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f0_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f0_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f0_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f0_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f0_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f0_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f0_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f0_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f1_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [149:0] f1_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f1_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire f1_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [27:0] f1_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f1_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire f1_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [27:0] f1_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f1_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire f1_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [149:0] f1_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f1_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f1_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f1_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f1_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f1_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f1_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f1_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f1_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f1_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f1_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f1_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f1_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f1_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f2_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [149:0] f2_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f2_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire f2_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [27:0] f2_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f2_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire f2_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [27:0] f2_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f2_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire f2_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [149:0] f2_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f2_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f2_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f2_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f2_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f2_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f2_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f2_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f2_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f2_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f2_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f2_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f2_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f2_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f3_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [149:0] f3_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f3_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire f3_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [27:0] f3_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f3_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire f3_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [27:0] f3_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f3_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire f3_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [149:0] f3_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f3_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:401
-    output wire f3_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f3_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f3_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f3_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f3_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f3_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f3_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f3_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f3_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:398
-    output wire f3_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [23:0] f3_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire f3_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire w_ref_resp_valid,           // rtl-gen/src/merge/merger/mod.rs:401
-    input  wire [27:0] w_ref_resp_data,     // rtl-gen/src/merge/merger/mod.rs:401
-    output wire w_ref_resp_ready,           // rtl-gen/src/merge/merger/mod.rs:401
-    output wire w_ref_req_valid,            // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [27:0] w_ref_req_data,      // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire w_ref_req_ready,            // rtl-gen/src/merge/merger/mod.rs:398
-    output wire nodes_valid,                // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [149:0] nodes_data,         // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire nodes_ready,                // rtl-gen/src/merge/merger/mod.rs:398
-    output wire refs_valid,                 // rtl-gen/src/merge/merger/mod.rs:398
-    output wire [27:0] refs_data,           // rtl-gen/src/merge/merger/mod.rs:398
-    input  wire refs_ready,                 // rtl-gen/src/merge/merger/mod.rs:398
-    output wire w_filling,                  // rtl-gen/src/merge/merger/tail.rs:102
-    output wire w_drain_records,            // rtl-gen/src/merge/merger/tail.rs:102
-    output wire w_drain_refs,               // rtl-gen/src/merge/merger/tail.rs:102
-    input  wire header_ready,               // rtl-gen/src/merge/merger/tail.rs:114
-    output wire header_valid,               // rtl-gen/src/merge/merger/tail.rs:134
-    output wire [94:0] header_data,         // rtl-gen/src/merge/merger/tail.rs:135
-    output wire done,                       // rtl-gen/src/merge/merger/tail.rs:139
-    output wire idle,                       // rtl-gen/src/merge/merger/tail.rs:141
-    output wire module_done                 // rtl-gen/src/merge/merger/tail.rs:142
+    input  wire cfg_valid,                  // rtl-gen/src/merge/merger/mod.rs:265
+    input  wire [568:0] cfg_data,           // rtl-gen/src/merge/merger/mod.rs:265
+    output wire cfg_ready,                  // rtl-gen/src/merge/merger/mod.rs:265
+    input  wire report_ready,               // rtl-gen/src/merge/merger/per_node_mode.rs:142
+    output wire report_valid,               // rtl-gen/src/merge/merger/per_node_mode.rs:143
+    output wire [65:0] report_data,         // rtl-gen/src/merge/merger/per_node_mode.rs:144
+    input  wire f0_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [149:0] f0_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f0_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire f0_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [27:0] f0_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f0_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire f0_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [27:0] f0_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f0_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire f0_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [149:0] f0_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f0_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f0_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f0_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f0_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire f0_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f0_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f0_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:422
+    output wire f0_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f0_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f0_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire f0_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f0_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f0_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f1_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [149:0] f1_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f1_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire f1_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [27:0] f1_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f1_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire f1_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [27:0] f1_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f1_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire f1_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [149:0] f1_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f1_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f1_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f1_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f1_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire f1_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f1_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f1_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:422
+    output wire f1_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f1_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f1_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire f1_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f1_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f1_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f2_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [149:0] f2_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f2_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire f2_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [27:0] f2_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f2_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire f2_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [27:0] f2_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f2_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire f2_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [149:0] f2_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f2_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f2_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f2_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f2_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire f2_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f2_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f2_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:422
+    output wire f2_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f2_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f2_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire f2_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f2_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f2_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f3_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [149:0] f3_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f3_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire f3_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [27:0] f3_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f3_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire f3_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [27:0] f3_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f3_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire f3_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [149:0] f3_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f3_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
+    output wire f3_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f3_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f3_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire f3_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f3_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f3_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:422
+    output wire f3_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f3_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f3_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
+    output wire f3_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [23:0] f3_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f3_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire w_ref_resp_valid,           // rtl-gen/src/merge/merger/mod.rs:425
+    input  wire [27:0] w_ref_resp_data,     // rtl-gen/src/merge/merger/mod.rs:425
+    output wire w_ref_resp_ready,           // rtl-gen/src/merge/merger/mod.rs:425
+    output wire w_ref_req_valid,            // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [27:0] w_ref_req_data,      // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire w_ref_req_ready,            // rtl-gen/src/merge/merger/mod.rs:422
+    output wire nodes_valid,                // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [149:0] nodes_data,         // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire nodes_ready,                // rtl-gen/src/merge/merger/mod.rs:422
+    output wire refs_valid,                 // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [27:0] refs_data,           // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire refs_ready,                 // rtl-gen/src/merge/merger/mod.rs:422
+    output wire w_filling,                  // rtl-gen/src/merge/merger/tail.rs:108
+    output wire w_drain_records,            // rtl-gen/src/merge/merger/tail.rs:108
+    output wire w_drain_refs,               // rtl-gen/src/merge/merger/tail.rs:108
+    input  wire header_ready,               // rtl-gen/src/merge/merger/tail.rs:120
+    output wire header_valid,               // rtl-gen/src/merge/merger/tail.rs:140
+    output wire [94:0] header_data,         // rtl-gen/src/merge/merger/tail.rs:141
+    output wire done,                       // rtl-gen/src/merge/merger/tail.rs:145
+    output wire idle,                       // rtl-gen/src/merge/merger/tail.rs:147
+    output wire module_done                 // rtl-gen/src/merge/merger/tail.rs:148
 );
     reg [179:0] base0_fifo [0:15];           // rtl-gen/src/merge/merger/drop_fifo.rs:21
     reg [179:0] base1_fifo [0:15];           // rtl-gen/src/merge/merger/drop_fifo.rs:21
@@ -146,202 +146,202 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     reg [179:0] base14_fifo [0:15];          // rtl-gen/src/merge/merger/drop_fifo.rs:21
     reg [179:0] base15_fifo [0:15];          // rtl-gen/src/merge/merger/drop_fifo.rs:21
     reg [179:0] base16_fifo [0:15];          // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    wire u_fetch0_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_report_ready;              // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch0_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch0_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch0_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire [184:0] u_fetch0_out_data;          // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:240
-    wire [183:0] u_fetch0_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch0_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch0_idle;                      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_report_ready;              // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch1_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch1_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch1_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire [184:0] u_fetch1_out_data;          // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:240
-    wire [183:0] u_fetch1_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch1_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch1_idle;                      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_report_ready;              // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch2_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch2_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch2_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire [184:0] u_fetch2_out_data;          // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:240
-    wire [183:0] u_fetch2_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch2_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch2_idle;                      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_report_ready;              // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch3_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch3_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch3_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:240
-    wire [184:0] u_fetch3_out_data;          // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:240
-    wire [183:0] u_fetch3_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:240
-    wire [23:0] u_fetch3_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_fetch3_idle;                      // rtl-gen/src/merge/merger/mod.rs:240
-    wire u_module_in0_ready;                 // rtl-gen/src/merge/merger/mod.rs:242
-    wire u_module_in1_ready;                 // rtl-gen/src/merge/merger/mod.rs:242
-    wire u_module_in2_ready;                 // rtl-gen/src/merge/merger/mod.rs:242
-    wire u_module_in3_ready;                 // rtl-gen/src/merge/merger/mod.rs:242
-    wire u_module_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:242
-    wire u_module_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:242
-    wire [180:0] u_module_out_data;          // rtl-gen/src/merge/merger/mod.rs:242
-    wire u_module_report_valid;              // rtl-gen/src/merge/merger/mod.rs:242
-    wire [65:0] u_module_report_data;        // rtl-gen/src/merge/merger/mod.rs:242
-    wire u_module_idle;                      // rtl-gen/src/merge/merger/mod.rs:242
-    wire u_module_done;                      // rtl-gen/src/merge/merger/mod.rs:242
-    wire u_builder_base0_ready;              // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base1_ready;              // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base2_ready;              // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base3_ready;              // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base4_ready;              // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base5_ready;              // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base6_ready;              // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base7_ready;              // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base8_ready;              // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base9_ready;              // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base10_ready;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base11_ready;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base12_ready;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base13_ready;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base14_ready;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base15_ready;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_base16_ready;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level16_valid;            // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level16_data;     // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level15_valid;            // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level15_data;     // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level14_valid;            // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level14_data;     // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level13_valid;            // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level13_data;     // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level12_valid;            // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level12_data;     // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level11_valid;            // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level11_data;     // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level10_valid;            // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level10_data;     // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level9_valid;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level9_data;      // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level8_valid;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level8_data;      // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level7_valid;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level7_data;      // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level6_valid;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level6_data;      // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level5_valid;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level5_data;      // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level4_valid;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level4_data;      // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level3_valid;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level3_data;      // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level2_valid;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level2_data;      // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level1_valid;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level1_data;      // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_level0_valid;             // rtl-gen/src/merge/merger/mod.rs:243
-    wire [228:0] u_builder_level0_data;      // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_builder_done_valid;               // rtl-gen/src/merge/merger/mod.rs:243
-    wire [5:0] u_builder_done_data;          // rtl-gen/src/merge/merger/mod.rs:243
-    wire u_writer_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_done_ready;                // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_crefs_ready;               // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level0_ready;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level1_ready;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level2_ready;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level3_ready;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level4_ready;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level5_ready;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level6_ready;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level7_ready;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level8_ready;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level9_ready;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level10_ready;             // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level11_ready;             // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level12_ready;             // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level13_ready;             // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level14_ready;             // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level15_ready;             // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_level16_ready;             // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_nodes_valid;               // rtl-gen/src/merge/merger/mod.rs:244
-    wire [149:0] u_writer_nodes_data;        // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_refs_valid;                // rtl-gen/src/merge/merger/mod.rs:244
-    wire [27:0] u_writer_refs_data;          // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:244
-    wire [27:0] u_writer_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_header_valid;              // rtl-gen/src/merge/merger/mod.rs:244
-    wire [86:0] u_writer_header_data;        // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_filling;                   // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_drain_records;             // rtl-gen/src/merge/merger/mod.rs:244
-    wire u_writer_drain_refs;                // rtl-gen/src/merge/merger/mod.rs:244
-    reg dropping0;                           // rtl-gen/src/merge/merger/mod.rs:246
-    reg dropping1;                           // rtl-gen/src/merge/merger/mod.rs:246
-    reg dropping2;                           // rtl-gen/src/merge/merger/mod.rs:246
-    reg dropping3;                           // rtl-gen/src/merge/merger/mod.rs:246
-    wire header_fire;                        // rtl-gen/src/merge/merger/mod.rs:247
-    wire header_hold;                        // rtl-gen/src/merge/merger/mod.rs:248
-    reg header_open;                         // rtl-gen/src/merge/merger/mod.rs:249
-    wire commands_sent;                      // rtl-gen/src/merge/merger/mod.rs:250
-    reg module_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:251
-    reg writer_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:252
-    wire cfg_fire;                           // rtl-gen/src/merge/merger/mod.rs:254
-    reg busy;                                // rtl-gen/src/merge/merger/mod.rs:284
-    wire busy_not;                           // rtl-gen/src/merge/merger/mod.rs:286
-    wire dropping0_not;                      // rtl-gen/src/merge/merger/mod.rs:290
-    wire dropping1_not;                      // rtl-gen/src/merge/merger/mod.rs:290
-    wire dropping2_not;                      // rtl-gen/src/merge/merger/mod.rs:290
-    wire busy_and;                           // rtl-gen/src/merge/merger/mod.rs:290
-    wire dropping3_not;                      // rtl-gen/src/merge/merger/mod.rs:290
-    wire quiet;                              // rtl-gen/src/merge/merger/mod.rs:290
-    reg [568:0] cfg_q;                       // rtl-gen/src/merge/merger/mod.rs:294
+    wire u_fetch0_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_report_ready;              // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch0_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch0_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch0_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire [184:0] u_fetch0_out_data;          // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:252
+    wire [183:0] u_fetch0_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch0_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch0_idle;                      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_report_ready;              // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch1_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch1_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch1_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire [184:0] u_fetch1_out_data;          // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:252
+    wire [183:0] u_fetch1_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch1_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch1_idle;                      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_report_ready;              // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch2_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch2_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch2_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire [184:0] u_fetch2_out_data;          // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:252
+    wire [183:0] u_fetch2_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch2_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch2_idle;                      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_report_ready;              // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch3_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch3_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch3_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:252
+    wire [184:0] u_fetch3_out_data;          // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:252
+    wire [183:0] u_fetch3_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:252
+    wire [23:0] u_fetch3_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_fetch3_idle;                      // rtl-gen/src/merge/merger/mod.rs:252
+    wire u_module_in0_ready;                 // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_module_in1_ready;                 // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_module_in2_ready;                 // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_module_in3_ready;                 // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_module_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_module_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:254
+    wire [180:0] u_module_out_data;          // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_module_report_valid;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire [65:0] u_module_report_data;        // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_module_idle;                      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_module_done;                      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base0_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base1_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base2_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base3_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base4_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base5_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base6_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base7_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base8_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base9_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base10_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base11_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base12_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base13_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base14_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base15_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_base16_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level16_valid;            // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level16_data;     // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level15_valid;            // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level15_data;     // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level14_valid;            // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level14_data;     // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level13_valid;            // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level13_data;     // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level12_valid;            // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level12_data;     // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level11_valid;            // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level11_data;     // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level10_valid;            // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level10_data;     // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level9_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level9_data;      // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level8_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level8_data;      // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level7_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level7_data;      // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level6_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level6_data;      // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level5_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level5_data;      // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level4_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level4_data;      // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level3_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level3_data;      // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level2_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level2_data;      // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level1_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level1_data;      // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_level0_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [228:0] u_builder_level0_data;      // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_builder_done_valid;               // rtl-gen/src/merge/merger/mod.rs:255
+    wire [5:0] u_builder_done_data;          // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_done_ready;                // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_crefs_ready;               // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level0_ready;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level1_ready;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level2_ready;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level3_ready;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level4_ready;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level5_ready;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level6_ready;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level7_ready;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level8_ready;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level9_ready;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level10_ready;             // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level11_ready;             // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level12_ready;             // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level13_ready;             // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level14_ready;             // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level15_ready;             // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_level16_ready;             // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_nodes_valid;               // rtl-gen/src/merge/merger/mod.rs:256
+    wire [149:0] u_writer_nodes_data;        // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_refs_valid;                // rtl-gen/src/merge/merger/mod.rs:256
+    wire [27:0] u_writer_refs_data;          // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:256
+    wire [27:0] u_writer_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_header_valid;              // rtl-gen/src/merge/merger/mod.rs:256
+    wire [86:0] u_writer_header_data;        // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_filling;                   // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_drain_records;             // rtl-gen/src/merge/merger/mod.rs:256
+    wire u_writer_drain_refs;                // rtl-gen/src/merge/merger/mod.rs:256
+    reg dropping0;                           // rtl-gen/src/merge/merger/mod.rs:258
+    reg dropping1;                           // rtl-gen/src/merge/merger/mod.rs:258
+    reg dropping2;                           // rtl-gen/src/merge/merger/mod.rs:258
+    reg dropping3;                           // rtl-gen/src/merge/merger/mod.rs:258
+    wire header_fire;                        // rtl-gen/src/merge/merger/mod.rs:259
+    wire header_hold;                        // rtl-gen/src/merge/merger/mod.rs:260
+    reg header_open;                         // rtl-gen/src/merge/merger/mod.rs:261
+    wire commands_sent;                      // rtl-gen/src/merge/merger/mod.rs:262
+    reg module_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:263
+    reg writer_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:264
+    wire cfg_fire;                           // rtl-gen/src/merge/merger/mod.rs:266
+    reg busy;                                // rtl-gen/src/merge/merger/mod.rs:296
+    wire busy_not;                           // rtl-gen/src/merge/merger/mod.rs:298
+    wire dropping0_not;                      // rtl-gen/src/merge/merger/mod.rs:302
+    wire dropping1_not;                      // rtl-gen/src/merge/merger/mod.rs:302
+    wire dropping2_not;                      // rtl-gen/src/merge/merger/mod.rs:302
+    wire busy_and;                           // rtl-gen/src/merge/merger/mod.rs:302
+    wire dropping3_not;                      // rtl-gen/src/merge/merger/mod.rs:302
+    wire quiet;                              // rtl-gen/src/merge/merger/mod.rs:302
+    reg [568:0] cfg_q;                       // rtl-gen/src/merge/merger/mod.rs:306
     wire [2:0] cfg_data_count;               // rtl-gen/src/merge/merger/mod.rs:143
     wire [2:0] cfg_q_count;                  // rtl-gen/src/merge/merger/mod.rs:143
     wire [4:0] lo;                           // rtl-gen/src/merge/merger/mod.rs:143
@@ -367,99 +367,99 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire u_module_descend;                   // rtl-gen/src/merge/merger/mod.rs:143
     wire u_module_pass_end;                  // rtl-gen/src/merge/merger/mod.rs:143
     wire u_module_more;                      // rtl-gen/src/merge/merger/mod.rs:143
-    wire [55:0] report_narrow;               // rtl-gen/src/merge/merger/per_node_mode.rs:133
-    reg report_top_taken;                    // rtl-gen/src/merge/merger/per_node_mode.rs:140
-    wire u_module_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:142
-    reg report0_taken;                       // rtl-gen/src/merge/merger/per_node_mode.rs:147
-    wire report0_feeds;                      // rtl-gen/src/merge/merger/per_node_mode.rs:148
-    wire u_module_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:149
-    reg report1_taken;                       // rtl-gen/src/merge/merger/per_node_mode.rs:147
-    wire report1_feeds;                      // rtl-gen/src/merge/merger/per_node_mode.rs:148
-    wire u_module_and_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:149
-    wire report_top_taken_and;               // rtl-gen/src/merge/merger/per_node_mode.rs:153
-    reg report2_taken;                       // rtl-gen/src/merge/merger/per_node_mode.rs:147
-    wire report2_feeds;                      // rtl-gen/src/merge/merger/per_node_mode.rs:148
-    wire u_module_and_3;                     // rtl-gen/src/merge/merger/per_node_mode.rs:149
-    reg report3_taken;                       // rtl-gen/src/merge/merger/per_node_mode.rs:147
-    wire report3_feeds;                      // rtl-gen/src/merge/merger/per_node_mode.rs:148
-    wire u_module_and_4;                     // rtl-gen/src/merge/merger/per_node_mode.rs:149
-    wire report_all_took;                    // rtl-gen/src/merge/merger/per_node_mode.rs:153
-    wire report_fire;                        // rtl-gen/src/merge/merger/per_node_mode.rs:158
-    wire next_pass;                          // rtl-gen/src/merge/merger/per_node_mode.rs:162
-    reg [3:0] fetch_err;                     // rtl-gen/src/merge/merger/per_node_mode.rs:193
-    reg [1:0] fetch_rank;                    // rtl-gen/src/merge/merger/per_node_mode.rs:194
-    wire [3:0] header_fire_mux_2;            // rtl-gen/src/merge/merger/per_node_mode.rs:195
-    wire [179:0] const_cat;                  // rtl-gen/src/merge/merger/per_node_mode.rs:197
-    wire [180:0] const_cat_1;                // rtl-gen/src/merge/merger/per_node_mode.rs:198
-    reg fetch0_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:202
-    reg cmd0_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:211
-    wire [13:0] range_good_cat;              // rtl-gen/src/merge/merger/per_node_mode.rs:212
-    wire cmd0_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:226
+    wire [55:0] report_narrow;               // rtl-gen/src/merge/merger/per_node_mode.rs:134
+    reg report_top_taken;                    // rtl-gen/src/merge/merger/per_node_mode.rs:141
+    wire u_module_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:143
+    reg report0_taken;                       // rtl-gen/src/merge/merger/per_node_mode.rs:148
+    wire report0_feeds;                      // rtl-gen/src/merge/merger/per_node_mode.rs:149
+    wire u_module_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:150
+    reg report1_taken;                       // rtl-gen/src/merge/merger/per_node_mode.rs:148
+    wire report1_feeds;                      // rtl-gen/src/merge/merger/per_node_mode.rs:149
+    wire u_module_and_2;                     // rtl-gen/src/merge/merger/per_node_mode.rs:150
+    wire report_top_taken_and;               // rtl-gen/src/merge/merger/per_node_mode.rs:154
+    reg report2_taken;                       // rtl-gen/src/merge/merger/per_node_mode.rs:148
+    wire report2_feeds;                      // rtl-gen/src/merge/merger/per_node_mode.rs:149
+    wire u_module_and_3;                     // rtl-gen/src/merge/merger/per_node_mode.rs:150
+    reg report3_taken;                       // rtl-gen/src/merge/merger/per_node_mode.rs:148
+    wire report3_feeds;                      // rtl-gen/src/merge/merger/per_node_mode.rs:149
+    wire u_module_and_4;                     // rtl-gen/src/merge/merger/per_node_mode.rs:150
+    wire report_all_took;                    // rtl-gen/src/merge/merger/per_node_mode.rs:154
+    wire report_fire;                        // rtl-gen/src/merge/merger/per_node_mode.rs:159
+    wire next_pass;                          // rtl-gen/src/merge/merger/per_node_mode.rs:163
+    reg [3:0] fetch_err;                     // rtl-gen/src/merge/merger/per_node_mode.rs:194
+    reg [1:0] fetch_rank;                    // rtl-gen/src/merge/merger/per_node_mode.rs:195
+    wire [3:0] header_fire_mux_2;            // rtl-gen/src/merge/merger/per_node_mode.rs:196
+    wire [179:0] const_cat;                  // rtl-gen/src/merge/merger/per_node_mode.rs:198
+    wire [180:0] const_cat_1;                // rtl-gen/src/merge/merger/per_node_mode.rs:199
+    reg fetch0_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:203
+    reg cmd0_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:212
+    wire [13:0] range_good_cat;              // rtl-gen/src/merge/merger/per_node_mode.rs:213
+    wire cmd0_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:227
     wire [3:0] u_fetch0_err;                 // rtl-gen/src/merge/merger/mod.rs:143
     wire [1:0] u_fetch0_kind;                // rtl-gen/src/merge/merger/mod.rs:143
     wire u_fetch0_probe;                     // rtl-gen/src/merge/merger/mod.rs:143
-    reg end_owed0;                           // rtl-gen/src/merge/merger/per_node_mode.rs:247
-    wire used0_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:248
-    wire virtual_end0;                       // rtl-gen/src/merge/merger/per_node_mode.rs:248
-    wire dropping0_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:252
-    wire u_fetch0_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:253
-    wire u_fetch0_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:262
-    wire [3:0] u_fetch0_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:263
-    wire range_good_not;                     // rtl-gen/src/merge/merger/per_node_mode.rs:265
-    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
-    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:395
-    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
-    wire f0_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:395
-    reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:202
-    reg cmd1_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:211
-    wire cmd1_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:226
+    reg end_owed0;                           // rtl-gen/src/merge/merger/per_node_mode.rs:248
+    wire used0_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:249
+    wire virtual_end0;                       // rtl-gen/src/merge/merger/per_node_mode.rs:249
+    wire dropping0_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:253
+    wire u_fetch0_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:254
+    wire u_fetch0_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:263
+    wire [3:0] u_fetch0_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:264
+    wire range_good_not;                     // rtl-gen/src/merge/merger/per_node_mode.rs:266
+    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
+    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:419
+    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
+    wire f0_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:419
+    reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:203
+    reg cmd1_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:212
+    wire cmd1_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:227
     wire [3:0] u_fetch1_err;                 // rtl-gen/src/merge/merger/mod.rs:143
     wire [1:0] u_fetch1_kind;                // rtl-gen/src/merge/merger/mod.rs:143
     wire u_fetch1_probe;                     // rtl-gen/src/merge/merger/mod.rs:143
-    reg end_owed1;                           // rtl-gen/src/merge/merger/per_node_mode.rs:247
-    wire used1_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:248
-    wire virtual_end1;                       // rtl-gen/src/merge/merger/per_node_mode.rs:248
-    wire dropping1_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:252
-    wire u_fetch1_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:253
-    wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:262
-    wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:263
-    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
-    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:395
-    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
-    wire f1_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:395
-    reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:202
-    reg cmd2_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:211
-    wire cmd2_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:226
+    reg end_owed1;                           // rtl-gen/src/merge/merger/per_node_mode.rs:248
+    wire used1_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:249
+    wire virtual_end1;                       // rtl-gen/src/merge/merger/per_node_mode.rs:249
+    wire dropping1_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:253
+    wire u_fetch1_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:254
+    wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:263
+    wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:264
+    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
+    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:419
+    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
+    wire f1_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:419
+    reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:203
+    reg cmd2_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:212
+    wire cmd2_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:227
     wire [3:0] u_fetch2_err;                 // rtl-gen/src/merge/merger/mod.rs:143
     wire [1:0] u_fetch2_kind;                // rtl-gen/src/merge/merger/mod.rs:143
     wire u_fetch2_probe;                     // rtl-gen/src/merge/merger/mod.rs:143
-    reg end_owed2;                           // rtl-gen/src/merge/merger/per_node_mode.rs:247
-    wire used2_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:248
-    wire virtual_end2;                       // rtl-gen/src/merge/merger/per_node_mode.rs:248
-    wire dropping2_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:252
-    wire u_fetch2_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:253
-    wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:262
-    wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:263
-    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
-    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:395
-    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
-    wire f2_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:395
-    reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:202
-    reg cmd3_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:211
-    wire cmd3_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:226
+    reg end_owed2;                           // rtl-gen/src/merge/merger/per_node_mode.rs:248
+    wire used2_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:249
+    wire virtual_end2;                       // rtl-gen/src/merge/merger/per_node_mode.rs:249
+    wire dropping2_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:253
+    wire u_fetch2_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:254
+    wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:263
+    wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:264
+    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
+    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:419
+    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
+    wire f2_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:419
+    reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:203
+    reg cmd3_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:212
+    wire cmd3_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:227
     wire [3:0] u_fetch3_err;                 // rtl-gen/src/merge/merger/mod.rs:143
     wire [1:0] u_fetch3_kind;                // rtl-gen/src/merge/merger/mod.rs:143
     wire u_fetch3_probe;                     // rtl-gen/src/merge/merger/mod.rs:143
-    reg end_owed3;                           // rtl-gen/src/merge/merger/per_node_mode.rs:247
-    wire used3_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:248
-    wire virtual_end3;                       // rtl-gen/src/merge/merger/per_node_mode.rs:248
-    wire dropping3_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:252
-    wire u_fetch3_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:253
-    wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:262
-    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
-    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:395
-    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:395
-    wire f3_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:395
+    reg end_owed3;                           // rtl-gen/src/merge/merger/per_node_mode.rs:248
+    wire used3_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:249
+    wire virtual_end3;                       // rtl-gen/src/merge/merger/per_node_mode.rs:249
+    wire dropping3_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:253
+    wire u_fetch3_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:254
+    wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:263
+    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
+    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:419
+    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
+    wire f3_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:419
     reg leaves_done;                         // rtl-gen/src/merge/merger/leaf_merge.rs:46
     wire leaves_active;                      // rtl-gen/src/merge/merger/leaf_merge.rs:47
     wire u_fetch0_end;                       // rtl-gen/src/merge/merger/mod.rs:143
@@ -494,237 +494,237 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire [4:0] leaf_best_data_lod;           // rtl-gen/src/merge/merger/mod.rs:143
     wire [149:0] leaf_best_data_rec;         // rtl-gen/src/merge/merger/mod.rs:143
     wire [27:0] leaf_best_data_ref;          // rtl-gen/src/merge/merger/mod.rs:143
-    wire [179:0] const_cat_2;                // rtl-gen/src/merge/merger/per_node_mode.rs:322
+    wire [179:0] const_cat_2;                // rtl-gen/src/merge/merger/per_node_mode.rs:323
     wire [1:0] u_module_kind;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire out_is_ref;                         // rtl-gen/src/merge/merger/per_node_mode.rs:335
-    wire out_is_end;                         // rtl-gen/src/merge/merger/per_node_mode.rs:336
+    wire out_is_ref;                         // rtl-gen/src/merge/merger/per_node_mode.rs:336
+    wire out_is_end;                         // rtl-gen/src/merge/merger/per_node_mode.rs:337
     wire u_module_err;                       // rtl-gen/src/merge/merger/mod.rs:143
     wire [27:0] u_module_ref;                // rtl-gen/src/merge/merger/mod.rs:143
     wire [149:0] u_module_rec;               // rtl-gen/src/merge/merger/mod.rs:143
-    wire [4:0] u_module_rec_lod;             // rtl-gen/src/merge/merger/per_node_mode.rs:340
-    wire [179:0] u_module_kind_cat;          // rtl-gen/src/merge/merger/per_node_mode.rs:341
-    wire out_is_node;                        // rtl-gen/src/merge/merger/per_node_mode.rs:350
-    reg crefs_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:354
-    wire cref_is_ref;                        // rtl-gen/src/merge/merger/per_node_mode.rs:356
-    wire crefs_end_sent_not;                 // rtl-gen/src/merge/merger/per_node_mode.rs:357
-    wire crefs_end_sent_and;                 // rtl-gen/src/merge/merger/per_node_mode.rs:357
-    wire cref_is_ref_not;                    // rtl-gen/src/merge/merger/per_node_mode.rs:363
-    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/per_node_mode.rs:370
-    reg count_overflow;                      // rtl-gen/src/merge/merger/per_node_mode.rs:372
-    reg leaf_overflow_q;                     // rtl-gen/src/merge/merger/per_node_mode.rs:382
-    wire base_open;                          // rtl-gen/src/merge/merger/per_node_mode.rs:384
-    reg base0_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:387
+    wire [4:0] u_module_rec_lod;             // rtl-gen/src/merge/merger/per_node_mode.rs:341
+    wire [179:0] u_module_kind_cat;          // rtl-gen/src/merge/merger/per_node_mode.rs:342
+    wire out_is_node;                        // rtl-gen/src/merge/merger/per_node_mode.rs:351
+    reg crefs_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:355
+    wire cref_is_ref;                        // rtl-gen/src/merge/merger/per_node_mode.rs:357
+    wire crefs_end_sent_not;                 // rtl-gen/src/merge/merger/per_node_mode.rs:358
+    wire crefs_end_sent_and;                 // rtl-gen/src/merge/merger/per_node_mode.rs:358
+    wire cref_is_ref_not;                    // rtl-gen/src/merge/merger/per_node_mode.rs:364
+    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/per_node_mode.rs:371
+    reg count_overflow;                      // rtl-gen/src/merge/merger/per_node_mode.rs:373
+    reg leaf_overflow_q;                     // rtl-gen/src/merge/merger/per_node_mode.rs:383
+    wire base_open;                          // rtl-gen/src/merge/merger/per_node_mode.rs:385
+    reg base0_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:388
     reg [4:0] base0_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base0_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire base0_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire base0_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire lo_lt;                              // rtl-gen/src/merge/merger/per_node_mode.rs:397
-    wire out_is_node_and;                    // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    wire base0_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire lo_lt;                              // rtl-gen/src/merge/merger/per_node_mode.rs:398
+    wire out_is_node_and;                    // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire base0_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base0_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire range_good_and;                     // rtl-gen/src/merge/merger/per_node_mode.rs:404
-    wire base_open_and;                      // rtl-gen/src/merge/merger/per_node_mode.rs:405
-    wire base_open_and_1;                    // rtl-gen/src/merge/merger/per_node_mode.rs:409
-    reg base1_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:387
+    wire range_good_and;                     // rtl-gen/src/merge/merger/per_node_mode.rs:405
+    wire base_open_and;                      // rtl-gen/src/merge/merger/per_node_mode.rs:406
+    wire base_open_and_1;                    // rtl-gen/src/merge/merger/per_node_mode.rs:410
+    reg base1_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:388
     reg [4:0] base1_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base1_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire base1_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire base1_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire lo_lt_1;                            // rtl-gen/src/merge/merger/per_node_mode.rs:397
-    wire out_is_node_and_1;                  // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    wire base1_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire lo_lt_1;                            // rtl-gen/src/merge/merger/per_node_mode.rs:398
+    wire out_is_node_and_1;                  // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire base1_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base1_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire range_good_and_1;                   // rtl-gen/src/merge/merger/per_node_mode.rs:404
-    wire base_open_and_2;                    // rtl-gen/src/merge/merger/per_node_mode.rs:405
-    wire base_open_and_3;                    // rtl-gen/src/merge/merger/per_node_mode.rs:409
-    reg base2_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:387
+    wire range_good_and_1;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
+    wire base_open_and_2;                    // rtl-gen/src/merge/merger/per_node_mode.rs:406
+    wire base_open_and_3;                    // rtl-gen/src/merge/merger/per_node_mode.rs:410
+    reg base2_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:388
     reg [4:0] base2_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base2_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire base2_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire base2_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire lo_lt_2;                            // rtl-gen/src/merge/merger/per_node_mode.rs:397
-    wire out_is_node_and_2;                  // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    wire base2_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire lo_lt_2;                            // rtl-gen/src/merge/merger/per_node_mode.rs:398
+    wire out_is_node_and_2;                  // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire base2_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base2_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire range_good_and_2;                   // rtl-gen/src/merge/merger/per_node_mode.rs:404
-    wire base_open_and_4;                    // rtl-gen/src/merge/merger/per_node_mode.rs:405
-    wire base_open_and_5;                    // rtl-gen/src/merge/merger/per_node_mode.rs:409
-    reg base3_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:387
+    wire range_good_and_2;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
+    wire base_open_and_4;                    // rtl-gen/src/merge/merger/per_node_mode.rs:406
+    wire base_open_and_5;                    // rtl-gen/src/merge/merger/per_node_mode.rs:410
+    reg base3_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:388
     reg [4:0] base3_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base3_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire base3_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire base3_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire lo_lt_3;                            // rtl-gen/src/merge/merger/per_node_mode.rs:397
-    wire out_is_node_and_3;                  // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    wire base3_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire lo_lt_3;                            // rtl-gen/src/merge/merger/per_node_mode.rs:398
+    wire out_is_node_and_3;                  // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire base3_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base3_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire range_good_and_3;                   // rtl-gen/src/merge/merger/per_node_mode.rs:404
-    wire base_open_and_6;                    // rtl-gen/src/merge/merger/per_node_mode.rs:405
-    wire base_open_and_7;                    // rtl-gen/src/merge/merger/per_node_mode.rs:409
-    reg base4_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:387
+    wire range_good_and_3;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
+    wire base_open_and_6;                    // rtl-gen/src/merge/merger/per_node_mode.rs:406
+    wire base_open_and_7;                    // rtl-gen/src/merge/merger/per_node_mode.rs:410
+    reg base4_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:388
     reg [4:0] base4_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base4_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire base4_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire base4_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire lo_lt_4;                            // rtl-gen/src/merge/merger/per_node_mode.rs:397
-    wire out_is_node_and_4;                  // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    wire base4_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire lo_lt_4;                            // rtl-gen/src/merge/merger/per_node_mode.rs:398
+    wire out_is_node_and_4;                  // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire base4_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base4_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire range_good_and_4;                   // rtl-gen/src/merge/merger/per_node_mode.rs:404
-    wire base_open_and_8;                    // rtl-gen/src/merge/merger/per_node_mode.rs:405
-    wire base_open_and_9;                    // rtl-gen/src/merge/merger/per_node_mode.rs:409
-    reg base5_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:387
+    wire range_good_and_4;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
+    wire base_open_and_8;                    // rtl-gen/src/merge/merger/per_node_mode.rs:406
+    wire base_open_and_9;                    // rtl-gen/src/merge/merger/per_node_mode.rs:410
+    reg base5_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:388
     reg [4:0] base5_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base5_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire base5_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire base5_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire lo_lt_5;                            // rtl-gen/src/merge/merger/per_node_mode.rs:397
-    wire out_is_node_and_5;                  // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    wire base5_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire lo_lt_5;                            // rtl-gen/src/merge/merger/per_node_mode.rs:398
+    wire out_is_node_and_5;                  // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire base5_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base5_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire range_good_and_5;                   // rtl-gen/src/merge/merger/per_node_mode.rs:404
-    wire base_open_and_10;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
-    wire base_open_and_11;                   // rtl-gen/src/merge/merger/per_node_mode.rs:409
-    reg base6_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:387
+    wire range_good_and_5;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
+    wire base_open_and_10;                   // rtl-gen/src/merge/merger/per_node_mode.rs:406
+    wire base_open_and_11;                   // rtl-gen/src/merge/merger/per_node_mode.rs:410
+    reg base6_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:388
     reg [4:0] base6_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base6_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire base6_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire base6_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire lo_lt_6;                            // rtl-gen/src/merge/merger/per_node_mode.rs:397
-    wire out_is_node_and_6;                  // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    wire base6_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire lo_lt_6;                            // rtl-gen/src/merge/merger/per_node_mode.rs:398
+    wire out_is_node_and_6;                  // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire base6_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base6_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire range_good_and_6;                   // rtl-gen/src/merge/merger/per_node_mode.rs:404
-    wire base_open_and_12;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
-    wire base_open_and_13;                   // rtl-gen/src/merge/merger/per_node_mode.rs:409
-    reg base7_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:387
+    wire range_good_and_6;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
+    wire base_open_and_12;                   // rtl-gen/src/merge/merger/per_node_mode.rs:406
+    wire base_open_and_13;                   // rtl-gen/src/merge/merger/per_node_mode.rs:410
+    reg base7_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:388
     reg [4:0] base7_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base7_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire base7_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire base7_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire lo_lt_7;                            // rtl-gen/src/merge/merger/per_node_mode.rs:397
-    wire out_is_node_and_7;                  // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    wire base7_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire lo_lt_7;                            // rtl-gen/src/merge/merger/per_node_mode.rs:398
+    wire out_is_node_and_7;                  // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire base7_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base7_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire range_good_and_7;                   // rtl-gen/src/merge/merger/per_node_mode.rs:404
-    wire base_open_and_14;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
-    wire base_open_and_15;                   // rtl-gen/src/merge/merger/per_node_mode.rs:409
-    reg base8_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:387
+    wire range_good_and_7;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
+    wire base_open_and_14;                   // rtl-gen/src/merge/merger/per_node_mode.rs:406
+    wire base_open_and_15;                   // rtl-gen/src/merge/merger/per_node_mode.rs:410
+    reg base8_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:388
     reg [4:0] base8_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base8_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire base8_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire base8_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire lo_lt_8;                            // rtl-gen/src/merge/merger/per_node_mode.rs:397
-    wire out_is_node_and_8;                  // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    wire base8_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire lo_lt_8;                            // rtl-gen/src/merge/merger/per_node_mode.rs:398
+    wire out_is_node_and_8;                  // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire base8_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base8_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire range_good_and_8;                   // rtl-gen/src/merge/merger/per_node_mode.rs:404
-    wire base_open_and_16;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
-    wire base_open_and_17;                   // rtl-gen/src/merge/merger/per_node_mode.rs:409
-    reg base9_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:387
+    wire range_good_and_8;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
+    wire base_open_and_16;                   // rtl-gen/src/merge/merger/per_node_mode.rs:406
+    wire base_open_and_17;                   // rtl-gen/src/merge/merger/per_node_mode.rs:410
+    reg base9_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:388
     reg [4:0] base9_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base9_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire base9_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire base9_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire lo_lt_9;                            // rtl-gen/src/merge/merger/per_node_mode.rs:397
-    wire out_is_node_and_9;                  // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    wire base9_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire lo_lt_9;                            // rtl-gen/src/merge/merger/per_node_mode.rs:398
+    wire out_is_node_and_9;                  // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire base9_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base9_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire range_good_and_9;                   // rtl-gen/src/merge/merger/per_node_mode.rs:404
-    wire base_open_and_18;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
-    wire base_open_and_19;                   // rtl-gen/src/merge/merger/per_node_mode.rs:409
-    reg base10_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:387
+    wire range_good_and_9;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
+    wire base_open_and_18;                   // rtl-gen/src/merge/merger/per_node_mode.rs:406
+    wire base_open_and_19;                   // rtl-gen/src/merge/merger/per_node_mode.rs:410
+    reg base10_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:388
     reg [4:0] base10_wr;                     // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base10_rd;                     // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire base10_empty;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire base10_full;                        // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire lo_lt_10;                           // rtl-gen/src/merge/merger/per_node_mode.rs:397
-    wire out_is_node_and_10;                 // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    wire base10_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire lo_lt_10;                           // rtl-gen/src/merge/merger/per_node_mode.rs:398
+    wire out_is_node_and_10;                 // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire base10_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base10_wr_put;                      // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire range_good_and_10;                  // rtl-gen/src/merge/merger/per_node_mode.rs:404
-    wire base_open_and_20;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
-    wire base_open_and_21;                   // rtl-gen/src/merge/merger/per_node_mode.rs:409
-    reg base11_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:387
+    wire range_good_and_10;                  // rtl-gen/src/merge/merger/per_node_mode.rs:405
+    wire base_open_and_20;                   // rtl-gen/src/merge/merger/per_node_mode.rs:406
+    wire base_open_and_21;                   // rtl-gen/src/merge/merger/per_node_mode.rs:410
+    reg base11_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:388
     reg [4:0] base11_wr;                     // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base11_rd;                     // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire base11_empty;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire base11_full;                        // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire lo_lt_11;                           // rtl-gen/src/merge/merger/per_node_mode.rs:397
-    wire out_is_node_and_11;                 // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    wire base11_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire lo_lt_11;                           // rtl-gen/src/merge/merger/per_node_mode.rs:398
+    wire out_is_node_and_11;                 // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire base11_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base11_wr_put;                      // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire range_good_and_11;                  // rtl-gen/src/merge/merger/per_node_mode.rs:404
-    wire base_open_and_22;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
-    wire base_open_and_23;                   // rtl-gen/src/merge/merger/per_node_mode.rs:409
-    reg base12_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:387
+    wire range_good_and_11;                  // rtl-gen/src/merge/merger/per_node_mode.rs:405
+    wire base_open_and_22;                   // rtl-gen/src/merge/merger/per_node_mode.rs:406
+    wire base_open_and_23;                   // rtl-gen/src/merge/merger/per_node_mode.rs:410
+    reg base12_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:388
     reg [4:0] base12_wr;                     // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base12_rd;                     // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire base12_empty;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire base12_full;                        // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire lo_lt_12;                           // rtl-gen/src/merge/merger/per_node_mode.rs:397
-    wire out_is_node_and_12;                 // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    wire base12_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire lo_lt_12;                           // rtl-gen/src/merge/merger/per_node_mode.rs:398
+    wire out_is_node_and_12;                 // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire base12_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base12_wr_put;                      // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire range_good_and_12;                  // rtl-gen/src/merge/merger/per_node_mode.rs:404
-    wire base_open_and_24;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
-    wire base_open_and_25;                   // rtl-gen/src/merge/merger/per_node_mode.rs:409
-    reg base13_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:387
+    wire range_good_and_12;                  // rtl-gen/src/merge/merger/per_node_mode.rs:405
+    wire base_open_and_24;                   // rtl-gen/src/merge/merger/per_node_mode.rs:406
+    wire base_open_and_25;                   // rtl-gen/src/merge/merger/per_node_mode.rs:410
+    reg base13_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:388
     reg [4:0] base13_wr;                     // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base13_rd;                     // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire base13_empty;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire base13_full;                        // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire lo_lt_13;                           // rtl-gen/src/merge/merger/per_node_mode.rs:397
-    wire out_is_node_and_13;                 // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    wire base13_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire lo_lt_13;                           // rtl-gen/src/merge/merger/per_node_mode.rs:398
+    wire out_is_node_and_13;                 // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire base13_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base13_wr_put;                      // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire range_good_and_13;                  // rtl-gen/src/merge/merger/per_node_mode.rs:404
-    wire base_open_and_26;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
-    wire base_open_and_27;                   // rtl-gen/src/merge/merger/per_node_mode.rs:409
-    reg base14_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:387
+    wire range_good_and_13;                  // rtl-gen/src/merge/merger/per_node_mode.rs:405
+    wire base_open_and_26;                   // rtl-gen/src/merge/merger/per_node_mode.rs:406
+    wire base_open_and_27;                   // rtl-gen/src/merge/merger/per_node_mode.rs:410
+    reg base14_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:388
     reg [4:0] base14_wr;                     // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base14_rd;                     // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire base14_empty;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire base14_full;                        // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire lo_lt_14;                           // rtl-gen/src/merge/merger/per_node_mode.rs:397
-    wire out_is_node_and_14;                 // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    wire base14_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire lo_lt_14;                           // rtl-gen/src/merge/merger/per_node_mode.rs:398
+    wire out_is_node_and_14;                 // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire base14_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base14_wr_put;                      // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire range_good_and_14;                  // rtl-gen/src/merge/merger/per_node_mode.rs:404
-    wire base_open_and_28;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
-    wire base_open_and_29;                   // rtl-gen/src/merge/merger/per_node_mode.rs:409
-    reg base15_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:387
+    wire range_good_and_14;                  // rtl-gen/src/merge/merger/per_node_mode.rs:405
+    wire base_open_and_28;                   // rtl-gen/src/merge/merger/per_node_mode.rs:406
+    wire base_open_and_29;                   // rtl-gen/src/merge/merger/per_node_mode.rs:410
+    reg base15_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:388
     reg [4:0] base15_wr;                     // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base15_rd;                     // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire base15_empty;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire base15_full;                        // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire lo_lt_15;                           // rtl-gen/src/merge/merger/per_node_mode.rs:397
-    wire out_is_node_and_15;                 // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    wire base15_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire lo_lt_15;                           // rtl-gen/src/merge/merger/per_node_mode.rs:398
+    wire out_is_node_and_15;                 // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire base15_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base15_wr_put;                      // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire range_good_and_15;                  // rtl-gen/src/merge/merger/per_node_mode.rs:404
-    wire base_open_and_30;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
-    wire base_open_and_31;                   // rtl-gen/src/merge/merger/per_node_mode.rs:409
-    reg base16_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:387
+    wire range_good_and_15;                  // rtl-gen/src/merge/merger/per_node_mode.rs:405
+    wire base_open_and_30;                   // rtl-gen/src/merge/merger/per_node_mode.rs:406
+    wire base_open_and_31;                   // rtl-gen/src/merge/merger/per_node_mode.rs:410
+    reg base16_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:388
     reg [4:0] base16_wr;                     // rtl-gen/src/merge/merger/drop_fifo.rs:22
     reg [4:0] base16_rd;                     // rtl-gen/src/merge/merger/drop_fifo.rs:23
     wire base16_empty;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
     wire base16_full;                        // rtl-gen/src/merge/merger/drop_fifo.rs:25
-    wire lo_lt_16;                           // rtl-gen/src/merge/merger/per_node_mode.rs:397
-    wire out_is_node_and_16;                 // rtl-gen/src/merge/merger/per_node_mode.rs:399
-    wire base16_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire lo_lt_16;                           // rtl-gen/src/merge/merger/per_node_mode.rs:398
+    wire out_is_node_and_16;                 // rtl-gen/src/merge/merger/per_node_mode.rs:400
+    wire base16_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base16_wr_put;                      // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire range_good_and_16;                  // rtl-gen/src/merge/merger/per_node_mode.rs:404
-    wire base_open_and_32;                   // rtl-gen/src/merge/merger/per_node_mode.rs:405
-    wire base_open_and_33;                   // rtl-gen/src/merge/merger/per_node_mode.rs:409
-    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:395
-    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:395
-    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:395
-    wire dropping0_and;                      // rtl-gen/src/merge/merger/tail.rs:109
-    wire merge_settled;                      // rtl-gen/src/merge/merger/tail.rs:110
-    wire header_offered;                     // rtl-gen/src/merge/merger/tail.rs:112
-    reg done_pulse;                          // rtl-gen/src/merge/merger/tail.rs:137
-    wire merger_idle;                        // rtl-gen/src/merge/merger/tail.rs:140
+    wire range_good_and_16;                  // rtl-gen/src/merge/merger/per_node_mode.rs:405
+    wire base_open_and_32;                   // rtl-gen/src/merge/merger/per_node_mode.rs:406
+    wire base_open_and_33;                   // rtl-gen/src/merge/merger/per_node_mode.rs:410
+    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:419
+    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:419
+    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:419
+    wire dropping0_and;                      // rtl-gen/src/merge/merger/tail.rs:115
+    wire merge_settled;                      // rtl-gen/src/merge/merger/tail.rs:116
+    wire header_offered;                     // rtl-gen/src/merge/merger/tail.rs:118
+    reg done_pulse;                          // rtl-gen/src/merge/merger/tail.rs:143
+    wire merger_idle;                        // rtl-gen/src/merge/merger/tail.rs:146
 
     assign header_fire = header_offered & header_ready;
     assign header_hold = header_offered & (~header_ready);
@@ -1111,7 +1111,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     assign idle = merger_idle;
     assign module_done = u_module_done;
 
-    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch0 ( // rtl-gen/src/merge/merger/mod.rs:240
+    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch0 ( // rtl-gen/src/merge/merger/mod.rs:252
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch0_cfg_pending),
@@ -1156,7 +1156,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .idle(u_fetch0_idle)
     );
 
-    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch1 ( // rtl-gen/src/merge/merger/mod.rs:240
+    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch1 ( // rtl-gen/src/merge/merger/mod.rs:252
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch1_cfg_pending),
@@ -1201,7 +1201,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .idle(u_fetch1_idle)
     );
 
-    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch2 ( // rtl-gen/src/merge/merger/mod.rs:240
+    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch2 ( // rtl-gen/src/merge/merger/mod.rs:252
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch2_cfg_pending),
@@ -1246,7 +1246,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .idle(u_fetch2_idle)
     );
 
-    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch3 ( // rtl-gen/src/merge/merger/mod.rs:240
+    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch3 ( // rtl-gen/src/merge/merger/mod.rs:252
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch3_cfg_pending),
@@ -1291,7 +1291,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .idle(u_fetch3_idle)
     );
 
-    merge_module_d16_q8_i24_h4_k4_pn1_2 u_module ( // rtl-gen/src/merge/merger/mod.rs:242
+    merge_module_d16_q8_i24_h4_k4_pn1_2 u_module ( // rtl-gen/src/merge/merger/mod.rs:254
         .clk(clk),
         .rst(rst),
         .in0_valid(used0 ? (u_fetch0_out_valid & dropping0_not) : virtual_end0),
@@ -1319,7 +1319,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .done(u_module_done)
     );
 
-    upper_builder_d16_q8_i24_h4 u_builder ( // rtl-gen/src/merge/merger/mod.rs:243
+    upper_builder_d16_q8_i24_h4 u_builder ( // rtl-gen/src/merge/merger/mod.rs:255
         .clk(clk),
         .rst(rst),
         .base0_valid(base_open_and),
@@ -1429,7 +1429,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .done_ready(u_writer_done_ready)
     );
 
-    record_writer_d16_q8_i24_h4_c10 u_writer ( // rtl-gen/src/merge/merger/mod.rs:244
+    record_writer_d16_q8_i24_h4_c10 u_writer ( // rtl-gen/src/merge/merger/mod.rs:256
         .clk(clk),
         .rst(rst),
         .cfg_valid(writer_cfg_pending),
@@ -1601,101 +1601,101 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
             done_pulse <= 1'b0;
         end else begin
             if (cmd0_pending_and & range_good_not) begin
-                dropping0 <= 1'b1;           // rtl-gen/src/merge/merger/per_node_mode.rs:266
+                dropping0 <= 1'b1;           // rtl-gen/src/merge/merger/per_node_mode.rs:267
             end else if (u_fetch0_and & (u_fetch0_kind == 2'd3)) begin
-                dropping0 <= 1'b0;           // rtl-gen/src/merge/merger/per_node_mode.rs:266
+                dropping0 <= 1'b0;           // rtl-gen/src/merge/merger/per_node_mode.rs:267
             end
             if (cmd1_pending_and & range_good_not) begin
-                dropping1 <= 1'b1;           // rtl-gen/src/merge/merger/per_node_mode.rs:266
+                dropping1 <= 1'b1;           // rtl-gen/src/merge/merger/per_node_mode.rs:267
             end else if (u_fetch1_and & (u_fetch1_kind == 2'd3)) begin
-                dropping1 <= 1'b0;           // rtl-gen/src/merge/merger/per_node_mode.rs:266
+                dropping1 <= 1'b0;           // rtl-gen/src/merge/merger/per_node_mode.rs:267
             end
             if (cmd2_pending_and & range_good_not) begin
-                dropping2 <= 1'b1;           // rtl-gen/src/merge/merger/per_node_mode.rs:266
+                dropping2 <= 1'b1;           // rtl-gen/src/merge/merger/per_node_mode.rs:267
             end else if (u_fetch2_and & (u_fetch2_kind == 2'd3)) begin
-                dropping2 <= 1'b0;           // rtl-gen/src/merge/merger/per_node_mode.rs:266
+                dropping2 <= 1'b0;           // rtl-gen/src/merge/merger/per_node_mode.rs:267
             end
             if (cmd3_pending_and & range_good_not) begin
-                dropping3 <= 1'b1;           // rtl-gen/src/merge/merger/per_node_mode.rs:266
+                dropping3 <= 1'b1;           // rtl-gen/src/merge/merger/per_node_mode.rs:267
             end else if (u_fetch3_and & (u_fetch3_kind == 2'd3)) begin
-                dropping3 <= 1'b0;           // rtl-gen/src/merge/merger/per_node_mode.rs:266
+                dropping3 <= 1'b0;           // rtl-gen/src/merge/merger/per_node_mode.rs:267
             end
             header_open <= header_fire ? 1'b0 : (header_open | merge_settled);
             if (cfg_fire) begin
-                module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:349
-                writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:357
-                busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:285
-                cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:295
-                fetch0_cfg_pending <= cfg_data_count_gt; // rtl-gen/src/merge/merger/per_node_mode.rs:207
-                cmd0_pending <= cfg_data_count_gt; // rtl-gen/src/merge/merger/per_node_mode.rs:227
-                end_owed0 <= (~cfg_data_count_gt) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:255
-                fetch1_cfg_pending <= cfg_data_count_gt_1; // rtl-gen/src/merge/merger/per_node_mode.rs:207
-                cmd1_pending <= cfg_data_count_gt_1; // rtl-gen/src/merge/merger/per_node_mode.rs:227
-                end_owed1 <= (~cfg_data_count_gt_1) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:255
-                fetch2_cfg_pending <= cfg_data_count_gt_2; // rtl-gen/src/merge/merger/per_node_mode.rs:207
-                cmd2_pending <= cfg_data_count_gt_2; // rtl-gen/src/merge/merger/per_node_mode.rs:227
-                end_owed2 <= (~cfg_data_count_gt_2) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:255
-                fetch3_cfg_pending <= cfg_data_count_gt_3; // rtl-gen/src/merge/merger/per_node_mode.rs:207
-                cmd3_pending <= cfg_data_count_gt_3; // rtl-gen/src/merge/merger/per_node_mode.rs:227
-                end_owed3 <= (~cfg_data_count_gt_3) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:255
+                module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:373
+                writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:381
+                busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:297
+                cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:307
+                fetch0_cfg_pending <= cfg_data_count_gt; // rtl-gen/src/merge/merger/per_node_mode.rs:208
+                cmd0_pending <= cfg_data_count_gt; // rtl-gen/src/merge/merger/per_node_mode.rs:228
+                end_owed0 <= (~cfg_data_count_gt) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:256
+                fetch1_cfg_pending <= cfg_data_count_gt_1; // rtl-gen/src/merge/merger/per_node_mode.rs:208
+                cmd1_pending <= cfg_data_count_gt_1; // rtl-gen/src/merge/merger/per_node_mode.rs:228
+                end_owed1 <= (~cfg_data_count_gt_1) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:256
+                fetch2_cfg_pending <= cfg_data_count_gt_2; // rtl-gen/src/merge/merger/per_node_mode.rs:208
+                cmd2_pending <= cfg_data_count_gt_2; // rtl-gen/src/merge/merger/per_node_mode.rs:228
+                end_owed2 <= (~cfg_data_count_gt_2) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:256
+                fetch3_cfg_pending <= cfg_data_count_gt_3; // rtl-gen/src/merge/merger/per_node_mode.rs:208
+                cmd3_pending <= cfg_data_count_gt_3; // rtl-gen/src/merge/merger/per_node_mode.rs:228
+                end_owed3 <= (~cfg_data_count_gt_3) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:256
             end else begin
                 if (module_cfg_pending & u_module_cfg_ready) begin
-                    module_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:349
+                    module_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:373
                 end
                 if (writer_cfg_pending & u_writer_cfg_ready) begin
-                    writer_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:357
+                    writer_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:381
                 end
                 if (header_fire) begin
-                    busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:285
-                    end_owed0 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:257
-                    end_owed1 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:257
-                    end_owed2 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:257
-                    end_owed3 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:257
+                    busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:297
+                    end_owed0 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:258
+                    end_owed1 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:258
+                    end_owed2 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:258
+                    end_owed3 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:258
                 end else begin
                     if (next_pass & used0_not) begin
-                        end_owed0 <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:259
+                        end_owed0 <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:260
                     end else if (virtual_end0 & u_module_in0_ready) begin
-                        end_owed0 <= 1'b0;   // rtl-gen/src/merge/merger/per_node_mode.rs:259
+                        end_owed0 <= 1'b0;   // rtl-gen/src/merge/merger/per_node_mode.rs:260
                     end
                     if (next_pass & used1_not) begin
-                        end_owed1 <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:259
+                        end_owed1 <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:260
                     end else if (virtual_end1 & u_module_in1_ready) begin
-                        end_owed1 <= 1'b0;   // rtl-gen/src/merge/merger/per_node_mode.rs:259
+                        end_owed1 <= 1'b0;   // rtl-gen/src/merge/merger/per_node_mode.rs:260
                     end
                     if (next_pass & used2_not) begin
-                        end_owed2 <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:259
+                        end_owed2 <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:260
                     end else if (virtual_end2 & u_module_in2_ready) begin
-                        end_owed2 <= 1'b0;   // rtl-gen/src/merge/merger/per_node_mode.rs:259
+                        end_owed2 <= 1'b0;   // rtl-gen/src/merge/merger/per_node_mode.rs:260
                     end
                     if (next_pass & used3_not) begin
-                        end_owed3 <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:259
+                        end_owed3 <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:260
                     end else if (virtual_end3 & u_module_in3_ready) begin
-                        end_owed3 <= 1'b0;   // rtl-gen/src/merge/merger/per_node_mode.rs:259
+                        end_owed3 <= 1'b0;   // rtl-gen/src/merge/merger/per_node_mode.rs:260
                     end
                 end
                 if (fetch0_cfg_pending & u_fetch0_cfg_ready) begin
-                    fetch0_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:207
+                    fetch0_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:208
                 end
                 if (cmd0_pending_and) begin
-                    cmd0_pending <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:227
+                    cmd0_pending <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:228
                 end
                 if (fetch1_cfg_pending & u_fetch1_cfg_ready) begin
-                    fetch1_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:207
+                    fetch1_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:208
                 end
                 if (cmd1_pending_and) begin
-                    cmd1_pending <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:227
+                    cmd1_pending <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:228
                 end
                 if (fetch2_cfg_pending & u_fetch2_cfg_ready) begin
-                    fetch2_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:207
+                    fetch2_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:208
                 end
                 if (cmd2_pending_and) begin
-                    cmd2_pending <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:227
+                    cmd2_pending <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:228
                 end
                 if (fetch3_cfg_pending & u_fetch3_cfg_ready) begin
-                    fetch3_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:207
+                    fetch3_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:208
                 end
                 if (cmd3_pending_and) begin
-                    cmd3_pending <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:227
+                    cmd3_pending <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:228
                 end
             end
             if (busy & u_module_done) begin
@@ -1704,82 +1704,82 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
                 module_finished <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:51
             end
             if (report_fire) begin
-                report_top_taken <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:160
-                report0_taken <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:160
-                report1_taken <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:160
-                report2_taken <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:160
-                report3_taken <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:160
+                report_top_taken <= 1'b0;    // rtl-gen/src/merge/merger/per_node_mode.rs:161
+                report0_taken <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:161
+                report1_taken <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:161
+                report2_taken <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:161
+                report3_taken <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:161
             end else begin
                 if (u_module_and & report_ready) begin
-                    report_top_taken <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:160
+                    report_top_taken <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:161
                 end
                 if (u_module_and_1 & u_fetch0_report_ready) begin
-                    report0_taken <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:160
+                    report0_taken <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:161
                 end
                 if (u_module_and_2 & u_fetch1_report_ready) begin
-                    report1_taken <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:160
+                    report1_taken <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:161
                 end
                 if (u_module_and_3 & u_fetch2_report_ready) begin
-                    report2_taken <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:160
+                    report2_taken <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:161
                 end
                 if (u_module_and_4 & u_fetch3_report_ready) begin
-                    report3_taken <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:160
+                    report3_taken <= 1'b1;   // rtl-gen/src/merge/merger/per_node_mode.rs:161
                 end
             end
             if (!header_hold) begin
-                fetch_err <= u_fetch3_and_1 ? u_fetch3_err : u_fetch2_mux; // rtl-gen/src/merge/merger/per_node_mode.rs:277
+                fetch_err <= u_fetch3_and_1 ? u_fetch3_err : u_fetch2_mux; // rtl-gen/src/merge/merger/per_node_mode.rs:278
                 if (u_fetch3_and_1) begin
-                    fetch_rank <= 2'd3;      // rtl-gen/src/merge/merger/per_node_mode.rs:264
+                    fetch_rank <= 2'd3;      // rtl-gen/src/merge/merger/per_node_mode.rs:265
                 end else if (u_fetch2_and_1) begin
-                    fetch_rank <= 2'd2;      // rtl-gen/src/merge/merger/per_node_mode.rs:264
+                    fetch_rank <= 2'd2;      // rtl-gen/src/merge/merger/per_node_mode.rs:265
                 end else if (u_fetch1_and_1) begin
-                    fetch_rank <= 2'd1;      // rtl-gen/src/merge/merger/per_node_mode.rs:264
+                    fetch_rank <= 2'd1;      // rtl-gen/src/merge/merger/per_node_mode.rs:265
                 end else if (u_fetch0_and_1) begin
-                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/per_node_mode.rs:264
+                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/per_node_mode.rs:265
                 end else if (header_fire) begin
-                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/per_node_mode.rs:196
+                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/per_node_mode.rs:197
                 end
                 if (((u_module_out_valid & out_is_ref_mux) & (u_module_kind == 2'd0)) & u_module_err) begin
-                    count_overflow <= 1'b1;  // rtl-gen/src/merge/merger/per_node_mode.rs:375
+                    count_overflow <= 1'b1;  // rtl-gen/src/merge/merger/per_node_mode.rs:376
                 end else if (header_fire) begin
-                    count_overflow <= 1'b0;  // rtl-gen/src/merge/merger/per_node_mode.rs:375
+                    count_overflow <= 1'b0;  // rtl-gen/src/merge/merger/per_node_mode.rs:376
                 end
                 if (base16_push & base16_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:402
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:403
                 end else if (base15_push & base15_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:402
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:403
                 end else if (base14_push & base14_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:402
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:403
                 end else if (base13_push & base13_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:402
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:403
                 end else if (base12_push & base12_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:402
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:403
                 end else if (base11_push & base11_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:402
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:403
                 end else if (base10_push & base10_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:402
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:403
                 end else if (base9_push & base9_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:402
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:403
                 end else if (base8_push & base8_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:402
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:403
                 end else if (base7_push & base7_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:402
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:403
                 end else if (base6_push & base6_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:402
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:403
                 end else if (base5_push & base5_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:402
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:403
                 end else if (base4_push & base4_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:402
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:403
                 end else if (base3_push & base3_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:402
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:403
                 end else if (base2_push & base2_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:402
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:403
                 end else if (base1_push & base1_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:402
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:403
                 end else if (base0_push & base0_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:402
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/per_node_mode.rs:403
                 end else if (header_fire) begin
-                    leaf_overflow_q <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:383
+                    leaf_overflow_q <= 1'b0; // rtl-gen/src/merge/merger/per_node_mode.rs:384
                 end
             end
             if (leaves_all_valid & leaves_all_end) begin
@@ -1788,14 +1788,14 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
                 leaves_done <= 1'b0;         // rtl-gen/src/merge/merger/leaf_merge.rs:87
             end
             if ((crefs_end_sent_and & u_writer_crefs_ready) & cref_is_ref_not) begin
-                crefs_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:369
+                crefs_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:370
             end else if (header_fire) begin
-                crefs_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:369
+                crefs_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:370
             end
             if (base_open_and_1 & (~range_good_and)) begin
-                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end else if (header_fire) begin
-                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end
             if (header_fire) begin
                 base0_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:57
@@ -1937,84 +1937,84 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
                 end
             end
             if (base_open_and_3 & (~range_good_and_1)) begin
-                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end else if (header_fire) begin
-                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end
             if (base_open_and_5 & (~range_good_and_2)) begin
-                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end else if (header_fire) begin
-                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end
             if (base_open_and_7 & (~range_good_and_3)) begin
-                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end else if (header_fire) begin
-                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end
             if (base_open_and_9 & (~range_good_and_4)) begin
-                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end else if (header_fire) begin
-                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end
             if (base_open_and_11 & (~range_good_and_5)) begin
-                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end else if (header_fire) begin
-                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end
             if (base_open_and_13 & (~range_good_and_6)) begin
-                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end else if (header_fire) begin
-                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end
             if (base_open_and_15 & (~range_good_and_7)) begin
-                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end else if (header_fire) begin
-                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end
             if (base_open_and_17 & (~range_good_and_8)) begin
-                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end else if (header_fire) begin
-                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end
             if (base_open_and_19 & (~range_good_and_9)) begin
-                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end else if (header_fire) begin
-                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end
             if (base_open_and_21 & (~range_good_and_10)) begin
-                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end else if (header_fire) begin
-                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end
             if (base_open_and_23 & (~range_good_and_11)) begin
-                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end else if (header_fire) begin
-                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end
             if (base_open_and_25 & (~range_good_and_12)) begin
-                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end else if (header_fire) begin
-                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end
             if (base_open_and_27 & (~range_good_and_13)) begin
-                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end else if (header_fire) begin
-                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end
             if (base_open_and_29 & (~range_good_and_14)) begin
-                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end else if (header_fire) begin
-                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end
             if (base_open_and_31 & (~range_good_and_15)) begin
-                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end else if (header_fire) begin
-                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end
             if (base_open_and_33 & (~range_good_and_16)) begin
-                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end else if (header_fire) begin
-                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:411
+                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/per_node_mode.rs:412
             end
             done_pulse <= header_fire;
         end

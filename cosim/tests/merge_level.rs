@@ -304,10 +304,17 @@ fn emit_merge_writes_every_stage() {
         &c.params, c.inputs, 1, 2,
     ));
     want.push(rtl_gen::merge::morton_merge_name(&c.params, c.inputs, true));
+    // The record writer's level modules: level 0's without by-slot buffers.
+    let capacity = rtl_gen::merge::MergerConfig::new(c).sizes.capacity_bits;
+    for by_slot in [true, false] {
+        want.push(rtl_gen::merge::record_writer_level_name(
+            &c.params, capacity, by_slot,
+        ));
+    }
     want.sort();
     // The fetcher's root sorter is the standalone one (same capacity).
     assert_eq!(names, want);
-    assert_eq!(names.len(), 10);
+    assert_eq!(names.len(), 12);
     // Each module as the top, with every emitted file so that a module
     // that instantiates others (the merging module) finds them.
     for name in &names {

@@ -137,24 +137,29 @@ fn default_scene_runs_with_zero_mismatches_and_writes_every_frame() {
                 );
                 assert!(m["cycles"].as_u64().unwrap() > 100);
                 assert_eq!(m["mismatches"], 0);
-                // The merger top, with its default one shared store port:
-                // golden's reads, at most one a clock.
+                // The group's merge in the frame's run of the merger top.
                 let t = &group["merger_rtl"];
-                assert_eq!(
-                    (&t["store_port"], &t["mismatches"]),
-                    (&json!("shared:3"), &json!(0)),
-                    "{t}"
-                );
-                assert_eq!(t["store_reads"], t["golden_store_reads"], "{t}");
-                let share = t["of_port"].as_f64().unwrap();
-                assert!(share > 0.0 && share <= 1.0, "{t}");
+                assert_eq!(t["order"], if k == 0 { g } else { 0 }, "{t}");
+                assert_eq!(t["golden_records"], group["merged_nodes"], "{t}");
             }
+            // The frame's merges back to back on one top, with its default
+            // one shared store port: golden's reads, at most one a clock.
             if let Some(m) = f["merger"].as_object() {
+                let merges = if k == 0 { 2 } else { 1 };
+                assert_eq!(m["merges"], merges, "frame {k}: {m:?}");
+                assert_eq!(
+                    (&m["store_port"], &m["mismatches"]),
+                    (&json!("shared:3"), &json!(0)),
+                    "{m:?}"
+                );
+                assert_eq!(m["store_reads"], m["golden_store_reads"], "{m:?}");
                 let (got, allowed) = (
                     m["records_per_cycle"].as_f64().unwrap(),
                     m["records_allowed_per_cycle"].as_f64().unwrap(),
                 );
                 assert!(got > 0.0 && got <= allowed, "frame {k}: {m:?}");
+                let share = m["of_port"].as_f64().unwrap();
+                assert!(share > 0.0 && share <= 1.0, "{m:?}");
             }
         }
     }

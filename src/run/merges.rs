@@ -8,7 +8,7 @@ use golden::scene::Scene;
 use serde::Serialize;
 
 use super::merge_rtl::{MergeRtl, MergeRtlFrame};
-use super::merger_rtl::{MergerRtl, MergerRtlFrame};
+use super::merger_rtl::{FrameMerge, MergerGroup, MergerRtl, MergerRtlFrame};
 use super::pipeline::{bar, Options, RtlInfo, StageSeconds};
 
 /// One merge group in one frame.
@@ -27,8 +27,8 @@ pub struct GroupOut {
     pub merged_nodes: u64,
     /// The merging module's stages on this frame's merge of the group.
     pub merge_rtl: Option<MergeRtlFrame>,
-    /// The hierarchy merger top on this frame's merge of the group.
-    pub merger_rtl: Option<MergerRtlFrame>,
+    /// The group's merge in the frame's run of the hierarchy merger top.
+    pub merger_rtl: Option<MergerGroup>,
 }
 
 /// What the run keeps across frames for the merges.
@@ -48,6 +48,14 @@ struct At<'a> {
     label: &'a str,
 }
 
+/// Frame `k`: its report and each group's label (as [`At`]'s).
+struct FrameAt<'a> {
+    k: usize,
+    frames: &'a Frames,
+    rep: &'a FrameReport,
+    labels: &'a [String],
+}
+
 /// The lines a frame prints: what was simulated and what was skipped.
 pub struct Lines<'a> {
     pub simulated: &'a mut Vec<String>,
@@ -56,7 +64,8 @@ pub struct Lines<'a> {
 
 impl MergeStage<'_> {
     /// Every group of frame `k`'s report `rep`: checked when its merge was
-    /// redone, then through the merging module's RTL.
+    /// redone, then through the merging module's RTL; then the frame's
+    /// merges back to back through the hierarchy merger top (its run).
     pub fn run(
         &mut self,
         k: usize,
@@ -65,9 +74,10 @@ impl MergeStage<'_> {
         lines: &mut Lines,
         secs: &mut StageSeconds,
         rtl_info: &mut RtlInfo,
-    ) -> Result<Vec<GroupOut>, String> {
+    ) -> Result<(Vec<GroupOut>, Option<MergerRtlFrame>), String> {
         let many = rep.groups.len() > 1;
         let mut out = Vec::with_capacity(rep.groups.len());
+        let mut labels = Vec::with_capacity(rep.groups.len());
         for (n, g) in rep.groups.iter().enumerate() {
             let names: Vec<String> = g
                 .inputs
@@ -95,7 +105,6 @@ impl MergeStage<'_> {
                 _ => 0,
             };
             let merge_rtl = self.rtl(&at, lines, secs, rtl_info)?;
-            let merger_rtl = self.merger(&at, lines, secs, rtl_info)?;
             out.push(GroupOut {
                 objects: names,
                 root: g.root,
@@ -104,10 +113,18 @@ impl MergeStage<'_> {
                 nodes_created,
                 merged_nodes,
                 merge_rtl,
-                merger_rtl,
+                merger_rtl: None,
             });
+            labels.push(label);
         }
-        Ok(out)
+        let at = FrameAt {
+            k,
+            frames,
+            rep,
+            labels: &labels,
+        };
+        let run = self.merger(&at, &mut out, lines, secs, rtl_info)?;
+        Ok((out, run))
     }
 
     /// The merge's lines and, when it was redone, the checker on it; the
@@ -258,52 +275,80 @@ impl MergeStage<'_> {
         Ok(Some(r))
     }
 
-    /// The hierarchy merger top on the group's merge, when it was redone
-    /// and the run simulates RTL (SPEC 12.2 step 4).
+    /// The hierarchy merger top on the frame's merges redone, back to
+    /// back on one top, when the run simulates RTL (SPEC 12.2 step 4):
+    /// each group's part in `out`, the run returned.
     fn merger(
         &mut self,
-        at: &At,
+        at: &FrameAt,
+        out: &mut [GroupOut],
         lines: &mut Lines,
         secs: &mut StageSeconds,
         rtl_info: &mut RtlInfo,
     ) -> Result<Option<MergerRtlFrame>, String> {
-        let (g, label) = (at.g, at.label);
-        let Some(root) = g
-            .root
-            .filter(|_| self.simulates(g, "hierarchy merger RTL", label, lines))
-        else {
+        let FrameAt {
+            k,
+            frames,
+            rep,
+            labels,
+        } = *at;
+        let mut merges = Vec::new();
+        let mut which = Vec::new();
+        for (n, g) in rep.groups.iter().enumerate() {
+            let unit = "hierarchy merger RTL";
+            if let Some(root) = g.root.filter(|_| self.simulates(g, unit, &labels[n], lines)) {
+                merges.push(FrameMerge {
+                    ids: g.inputs.clone(),
+                    out: root,
+                });
+                which.push(n);
+            }
+        }
+        if merges.is_empty() {
             return Ok(None);
-        };
+        }
         let t = std::time::Instant::now();
-        let b = bar(self.options, format!("frame {} merger RTL", at.k));
+        let b = bar(self.options, format!("frame {k} merger RTL"));
         b.set_length(1);
         let mode = self.scene.effects.merge;
-        let r = self
-            .merger
-            .run_group(&at.frames.world, &g.inputs, root, mode);
+        let r = self.merger.run_frame(&frames.world, &merges, mode);
         b.finish_and_clear();
         secs.rtl += t.elapsed().as_secs_f64();
-        let r = match r? {
-            Ok(r) => r,
-            Err(why) => {
-                lines
-                    .skipped
-                    .push(format!("hierarchy merger RTL{label}: {why}"));
-                return Ok(None);
-            }
-        };
+        let r = r?;
         let engine = self.merger.engine_label();
+        for (&n, m) in which.iter().zip(r.merges) {
+            let label = &labels[n];
+            match m {
+                Ok(m) => {
+                    lines.simulated.push(format!(
+                        "hierarchy merger RTL{label}: merge {} of the frame's run, {} inputs, \
+                         {} records, {} references, {} store reads by golden's units",
+                        m.order, m.n, m.golden_records, m.golden_refs, m.golden_store_reads
+                    ));
+                    out[n].merger_rtl = Some(m);
+                }
+                Err(why) => lines
+                    .skipped
+                    .push(format!("hierarchy merger RTL{label}: {why}")),
+            }
+        }
+        let Some(r) = r.run else {
+            return Ok(None);
+        };
         if r.build_seconds > 0.0 {
             lines.simulated.push(format!(
-                "hierarchy merger RTL{label}: {} generated and built ({engine}, {:.1} s)",
+                "hierarchy merger RTL: {} generated and built ({engine}, {:.1} s)",
                 r.top, r.build_seconds
             ));
             rtl_info.merger = format!("built ({engine}): {}", r.top);
         }
         lines.simulated.push(format!(
-            "hierarchy merger RTL{label} ({engine}): {} inputs, {} cycles, {} records \
-             ({:.2} cycles/node, {:.2} store reads/node, {:.3} records/cycle){}, {} mismatches{}",
-            r.n,
+            "hierarchy merger RTL ({engine}): {} on one top, {} cycles, {} records ({:.2} cycles/node, {:.2} store reads/node, {:.3} \
+             records/cycle){}, {} mismatches{}",
+            match r.merges {
+                1 => "the frame's merge".to_string(),
+                n => format!("the frame's {n} merges back to back"),
+            },
             r.cycles,
             r.records,
             r.cycles_per_node,
@@ -319,7 +364,7 @@ impl MergeStage<'_> {
     }
 }
 
-/// What a shared store port allowed a merge: its reads (and golden's
+/// What a shared store port allowed a run: its reads (and golden's
 /// units'), and its records per cycle against the port's one read a clock.
 fn port_said(r: &MergerRtlFrame) -> String {
     let (Some(latency), Some(allowed), Some(share)) =

@@ -54,10 +54,12 @@ mod table;
 pub use compare::{Comparison, SUBSAMPLE};
 pub use engine::RunEngine;
 pub use merge_rtl::MergeRtlFrame;
-pub use merger_rtl::{MergerRtlFrame, MergerStore, PATCH_FROM_VAR, PATCH_TO_VAR};
+pub use merger_rtl::{
+    FrameMerge, FrameRun, MergerGroup, MergerRtlFrame, MergerStore, PATCH_FROM_VAR, PATCH_TO_VAR,
+};
 pub use merges::GroupOut;
 pub use pipeline::{
-    run, EffectsInfo, FrameOut, ImageSummary, MergerTotals, ObjectInfo, Options, RtlInfo, Run,
+    run, EffectsInfo, FrameOut, ImageSummary, ObjectInfo, Options, RtlInfo, Run,
     RunReport, StageSeconds,
 };
 pub use render::RayCounts;

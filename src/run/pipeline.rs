@@ -18,7 +18,7 @@ use serde::Serialize;
 use super::compare::{compare, Comparison, SUBSAMPLE};
 use super::engine::RunEngine;
 use super::merge_rtl::MergeRtl;
-use super::merger_rtl::{MergerRtl, MergerStore};
+use super::merger_rtl::{MergerRtl, MergerRtlFrame, MergerStore};
 use super::merges::{GroupOut, Lines, MergeStage};
 use super::render::{trace_frame, RayCounts, Traced};
 use super::rtl::{Placed, RtlFrame, TranslateRtl};
@@ -156,9 +156,9 @@ pub struct FrameOut {
     /// carries it (SPEC 7.10), so objects sit where the scene puts them.
     pub max_residual: f64,
     pub rtl: Option<RtlFrame>,
-    /// The hierarchy merger top over the frame's merges (None when it ran
-    /// on none).
-    pub merger: Option<MergerTotals>,
+    /// The hierarchy merger top's run of the frame's merges, back to back
+    /// on one top (None when it ran on none).
+    pub merger: Option<MergerRtlFrame>,
     pub rays: RayCounts,
     pub node_tests_per_ray: f64,
     /// Node tests per primary ray on the subsample: merged, separate, full rebuild.
@@ -169,52 +169,6 @@ pub struct FrameOut {
     pub image: String,
     pub heat_map: String,
     pub seconds: StageSeconds,
-}
-
-/// The hierarchy merger top over one frame's merges (every group's
-/// `merger_rtl`).
-#[derive(Serialize, Clone, Copy, Default)]
-pub struct MergerTotals {
-    /// Merges simulated.
-    pub merges: u64,
-    pub cycles: u64,
-    /// Node records the RTL wrote.
-    pub records: u64,
-    pub store_reads: u64,
-    pub cycles_per_node: f64,
-    pub store_reads_per_node: f64,
-    /// Records written per cycle over the frame's merges.
-    pub records_per_cycle: f64,
-    /// A shared store port: the records per cycle it allows at one read a
-    /// clock (`records / store_reads`), and the share of it reached
-    /// (`store_reads / cycles`).
-    pub records_allowed_per_cycle: Option<f64>,
-    pub of_port: Option<f64>,
-    pub mismatches: u64,
-}
-
-impl MergerTotals {
-    /// The sums over `groups`' merger runs; None when none ran.
-    fn of(groups: &[GroupOut]) -> Option<MergerTotals> {
-        let mut t = MergerTotals::default();
-        let mut shared = false;
-        for r in groups.iter().filter_map(|g| g.merger_rtl.as_ref()) {
-            shared |= r.store_latency.is_some();
-            t.merges += 1;
-            t.cycles += r.cycles;
-            t.records += r.records;
-            t.store_reads += r.store_reads;
-            t.mismatches += r.mismatches;
-        }
-        t.cycles_per_node = t.cycles as f64 / t.records.max(1) as f64;
-        t.store_reads_per_node = t.store_reads as f64 / t.records.max(1) as f64;
-        t.records_per_cycle = t.records as f64 / t.cycles.max(1) as f64;
-        if shared {
-            t.records_allowed_per_cycle = Some(t.records as f64 / t.store_reads.max(1) as f64);
-            t.of_port = Some(t.store_reads as f64 / t.cycles.max(1) as f64);
-        }
-        (t.merges > 0).then_some(t)
-    }
 }
 
 /// Wall time per stage.
@@ -346,7 +300,7 @@ pub struct Run<'a> {
     scene: &'a Scene,
     options: &'a Options,
     started: Instant,
-    frames: Frames,
+    pub(super) frames: Frames,
     ids: Vec<u8>,
     /// Per object, its mesh with the placement baked in (scenes without
     /// translation), kept while the placement holds.
@@ -459,7 +413,7 @@ impl<'a> Run<'a> {
         describe_actions(scene, &rep, &mut said.simulated, &mut said.skipped);
         let changed = rep.merged() || rep.objects.values().any(|&a| a != ObjectAction::Reused);
 
-        let groups = self.merges.run(
+        let (groups, merger) = self.merges.run(
             k,
             &self.frames,
             &rep,
@@ -482,14 +436,13 @@ impl<'a> Run<'a> {
         let (image, heat) = self.write_images(k, &traced, &mut secs)?;
 
         let rays = traced.rays.primary + traced.rays.shadow + traced.rays.reflection;
-        let merger = MergerTotals::of(&groups);
         let mismatches = rtl_frame.as_ref().map_or(0, |r| r.mismatches)
             + groups
                 .iter()
                 .filter_map(|g| g.merge_rtl.as_ref())
                 .map(|r| r.mismatches)
                 .sum::<u64>()
-            + merger.map_or(0, |t| t.mismatches)
+            + merger.as_ref().map_or(0, |t| t.mismatches)
             + comparison.as_ref().map_or(0, Comparison::faults);
         self.mismatches += mismatches;
         let out = FrameOut {

@@ -784,7 +784,11 @@ mod tests {
                 f.frame
             );
             assert_eq!((t.golden_records, t.golden_refs), (sum.0, sum.1));
-            assert!(f.groups.iter().flat_map(|g| &g.merger_rtl).all(|m| m.top == t.top));
+            assert!(f
+                .groups
+                .iter()
+                .flat_map(|g| &g.merger_rtl)
+                .all(|m| m.top == t.top));
             assert_shared_port_figures(t);
             assert_eq!(t.cycles_per_node, t.cycles as f64 / sum.0 as f64);
             assert_eq!(t.store_reads_per_node, sum.2 as f64 / sum.0 as f64);
@@ -840,7 +844,11 @@ mod tests {
             assert_eq!((one.top.as_str(), one.mismatches), (run.top.as_str(), 0));
             alone += one.cycles;
         }
-        assert!(run.cycles < alone, "{} back to back, {alone} alone", run.cycles);
+        assert!(
+            run.cycles < alone,
+            "{} back to back, {alone} alone",
+            run.cycles
+        );
     }
 
     /// The ids of group `g`'s objects (scene order is id order).

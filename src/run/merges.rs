@@ -296,7 +296,10 @@ impl MergeStage<'_> {
         let mut which = Vec::new();
         for (n, g) in rep.groups.iter().enumerate() {
             let unit = "hierarchy merger RTL";
-            if let Some(root) = g.root.filter(|_| self.simulates(g, unit, &labels[n], lines)) {
+            if let Some(root) = g
+                .root
+                .filter(|_| self.simulates(g, unit, &labels[n], lines))
+            {
                 merges.push(FrameMerge {
                     ids: g.inputs.clone(),
                     out: root,

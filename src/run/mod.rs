@@ -59,8 +59,8 @@ pub use merger_rtl::{
 };
 pub use merges::GroupOut;
 pub use pipeline::{
-    run, EffectsInfo, FrameOut, ImageSummary, ObjectInfo, Options, RtlInfo, Run,
-    RunReport, StageSeconds,
+    run, EffectsInfo, FrameOut, ImageSummary, ObjectInfo, Options, RtlInfo, Run, RunReport,
+    StageSeconds,
 };
 pub use render::RayCounts;
 pub use rtl::RtlFrame;

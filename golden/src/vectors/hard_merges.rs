@@ -3,6 +3,7 @@
 //! that the merger tests run on every engine. Each is a golden transaction
 //! like a random merge's, so a bench checks it bit for bit.
 
+use crate::build::{build, GridMap};
 use crate::merge::fetch_unit::{
     fetch_err, fetch_transaction_with_reports, FetchCfg, FetchOut, FetchTransaction,
 };
@@ -11,10 +12,14 @@ use crate::merge::merger_unit::MergerSizes;
 use crate::merge::merger_unit::{
     merger_transaction, merger_transaction_in_range, MergerTransaction, ModulePass,
 };
-use crate::merge::stimulus::{real_cases, several_roots_case, try_scene_soup, try_soup, RealCase};
+use crate::merge::stimulus::{
+    place, real_cases, several_roots_case, try_scene_soup, try_soup, RealCase,
+};
+use crate::mesh::Mesh;
 use crate::params::Params;
 use crate::store::{Hierarchy, HierarchyStore};
 use crate::translate::{Translation, TranslationTable};
+use glam::Vec3;
 
 use super::merge::MergeDesign;
 #[cfg(doc)]
@@ -56,8 +61,10 @@ pub const CFG_ERRORS: [u64; 3] = [
 
 /// The hard merges of the merger `d` (sizes `sizes`): the real cases of `golden::merge::stimulus`
 /// (overlapping, disjoint, single-triangle soups, one input alone, inputs
-/// overlapping in part) and an input filling the scene (several roots),
-/// each through `d`'s mode; per code of [`CFG_ERRORS`] a merge whose last
+/// overlapping in part), an input filling the scene (several roots), one
+/// whose top holds 16 roots (a leaf and an inner node in each LOD-1
+/// voxel: every entry of the default root sorter), and a ladder of leaves
+/// at every LOD above the merging level, each through `d`'s mode; per code of [`CFG_ERRORS`] a merge whose last
 /// input's `cfg` makes its fetcher refuse it; and two bad ranges from
 /// software, which the merging module refuses (`lo > hi`, `hi > D`). Merges
 /// of more than `k` inputs, and those whose leaves overflow the leaf FIFOs,
@@ -69,6 +76,8 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
     let mut out = HardMerges::default();
     let mut cases = real_cases(p).map_err(golden_err)?;
     cases.push(several_roots(p)?);
+    cases.push(sixteen_roots(p)?);
+    cases.push(leaf_ladder(p)?);
     cases.retain(|(_, _, ids)| ids.len() <= k);
     for (store, table, ids) in &cases {
         let tx =
@@ -166,6 +175,78 @@ fn several_roots(p: &Params) -> Result<RealCase> {
     let big = try_scene_soup(p, 1, 60, 0.3, 77).map_err(golden_err)?;
     let small = try_soup(p, 2, 20, 0.2, 78).map_err(golden_err)?;
     several_roots_case(p, big, small, vec![1, 2]).map_err(golden_err)
+}
+
+/// A triangle of edge 0.3 near the low corner of each octant of the unit
+/// cube and a small one inside it: built fitted to the cube, each LOD-1
+/// voxel holds a leaf (the large triangle) and an inner node (the small
+/// one's), and the top rule (4.7) puts the top at LOD 1 with all 16 as
+/// roots. Beside a small soup, as [`several_roots`].
+fn sixteen_roots(p: &Params) -> Result<RealCase> {
+    let mut m = Mesh::default();
+    for o in 0..8u32 {
+        let bit = |b: u32| ((o >> b) & 1) as f32 * 0.5;
+        let c = Vec3::new(bit(0), bit(1), bit(2)) + Vec3::splat(0.05);
+        triangle(
+            &mut m,
+            c,
+            Vec3::new(0.3, 0.0, 0.0),
+            Vec3::new(0.0, 0.3, 0.3),
+        );
+        let s = c + Vec3::splat(0.2);
+        triangle(
+            &mut m,
+            s,
+            Vec3::new(0.01, 0.0, 0.0),
+            Vec3::new(0.0, 0.01, 0.0),
+        );
+    }
+    let (lo, hi) = m.bounds();
+    let big = build(&m, &GridMap::fit(lo, hi, p), p, 1).map_err(golden_err)?;
+    let small = try_soup(p, 2, 20, 0.2, 78).map_err(golden_err)?;
+    several_roots_case(p, big, small, vec![1, 2]).map_err(golden_err)
+}
+
+/// A tiny triangle alone (its top at its own deep LOD `t`, as in
+/// [`deep_tops`]) beside a ladder of triangles whose edges halve from 0.5
+/// of the scene, one per LOD: the range starts at `t`, so the merging
+/// level is `t` and the ladder's leaves above it, one LOD each, fill the
+/// leaf FIFOs of every LOD from 1 to `t - 1` (no leaf lies at LOD 0, 4.2).
+fn leaf_ladder(p: &Params) -> Result<RealCase> {
+    let tiny = try_soup(p, 1, 1, 0.001, 21).map_err(golden_err)?;
+    let mut m = Mesh::default();
+    let (mut edge, mut x) = (0.5f32, 0.0f32);
+    for _ in 0..p.max_lod {
+        let c = Vec3::new(x, 0.0, 0.0);
+        triangle(
+            &mut m,
+            c,
+            Vec3::new(edge, 0.0, 0.0),
+            Vec3::new(0.0, edge, edge * 0.5),
+        );
+        x += edge * 0.5 + 0.001;
+        edge *= 0.5;
+    }
+    let (lo, hi) = m.bounds();
+    let ladder = build(&m, &GridMap::fit(lo, hi, p), p, 2).map_err(golden_err)?;
+    let mut store = HierarchyStore::new();
+    let mut table = TranslationTable::new(p.hier_capacity() as usize, p).map_err(golden_err)?;
+    table
+        .write(1, place(&tiny, [0.5, 0.5, 0.5]))
+        .map_err(golden_err)?;
+    table
+        .write(2, Translation::zero(ladder.top_lod))
+        .map_err(golden_err)?;
+    store.insert(tiny).map_err(golden_err)?;
+    store.insert(ladder).map_err(golden_err)?;
+    Ok((store, table, vec![1, 2]))
+}
+
+/// The triangle at `a`, `a + u`, `a + v`.
+fn triangle(m: &mut Mesh, a: Vec3, u: Vec3, v: Vec3) {
+    let n = m.vertices.len() as u32;
+    m.vertices.extend([a, a + u, a + v]);
+    m.triangles.push([n, n + 1, n + 2]);
 }
 
 /// A merge whose last input's `cfg` makes its fetcher refuse it with
@@ -312,6 +393,33 @@ mod tests {
                 assert_eq!(*top, first - n as i64, "D = {}: {tops:?}", p.max_lod);
             }
         }
+    }
+
+    /// The 16-root input has 16 roots, at the default and at the long runs'
+    /// small configuration, and the ladder's merge puts leaves in the FIFO
+    /// of every LOD from 1 to the merging level (at D = 8: the top, 8).
+    #[test]
+    fn sixteen_roots_and_the_leaf_ladder_reach_what_they_name() {
+        let small = Params::new(8, 0, 12, 3).unwrap();
+        for p in [Params::default(), small] {
+            let (store, ..) = sixteen_roots(&p).unwrap();
+            assert_eq!(store.get(1).unwrap().root_count, 16, "D = {}", p.max_lod);
+            let mut sizes = MergerSizes::new(&p);
+            sizes.leaf_bits = 6;
+            let (store, table, ids) = leaf_ladder(&p).unwrap();
+            let mode = MergeMode::Overlap { num: 1, den: 2 };
+            let tx = merger_transaction(&store, &table, &ids, mode, 7, 2, sizes).unwrap();
+            let m = tx.chosen.unwrap();
+            let mut lods: Vec<u8> = tx.leaves.iter().map(|l| l.record.voxel.lod).collect();
+            lods.dedup();
+            assert_eq!(lods, (1..m).collect::<Vec<_>>(), "D = {}", p.max_lod);
+            assert!(!tx.header.leaf_overflow);
+        }
+        let (store, table, ids) = leaf_ladder(&small).unwrap();
+        let mode = MergeMode::Overlap { num: 1, den: 2 };
+        let sizes = MergerSizes::new(&small);
+        let tx = merger_transaction(&store, &table, &ids, mode, 7, 2, sizes).unwrap();
+        assert_eq!(tx.chosen, Some(small.max_lod));
     }
 
     /// Every code of [`CFG_ERRORS`] has its merge, in the level modes and

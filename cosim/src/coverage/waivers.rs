@@ -8,7 +8,8 @@
 //!
 //! A point is `toggle NET` (every bit), `toggle NET[i]` or `toggle
 //! NET[hi:lo]` (bits of the emitted net), `line N` or `branch N` (the
-//! emitted Verilog's line), or `toggle *`, `line *`, `branch *`: every
+//! emitted Verilog's line; `branch N if` or `branch N else` one arm of a
+//! line that has both), or `toggle *`, `line *`, `branch *`: every
 //! point of that type in the module that maps to the generator line. The
 //! generator line must be the one the point maps to, so a waiver goes
 //! stale, and fails, when the generator moves.
@@ -32,7 +33,8 @@ pub struct Waiver {
     /// The point's type.
     #[serde(serialize_with = "kind_name")]
     pub kind: Kind,
-    /// Toggle: the net; line/branch: empty.
+    /// Toggle: the net; line/branch: the arm (`if`, `else`, ...) or empty
+    /// (every point of the line).
     pub net: String,
     /// Toggle: the bits `(hi, lo)` waived (`None`: every bit);
     /// line/branch: the Verilog line as `(n, n)`.
@@ -123,15 +125,18 @@ impl Waivers {
                     (k, String::new(), None)
                 }
                 "line" | "branch" => {
-                    let n: u32 = target
-                        .parse()
-                        .map_err(|_| bad(format!("`{target}`: expected a Verilog line number")))?;
+                    let (line, arm) = target.split_once(' ').unwrap_or((target, ""));
+                    let n: u32 = line.parse().map_err(|_| {
+                        bad(format!(
+                            "`{target}`: expected a Verilog line number [and an arm]"
+                        ))
+                    })?;
                     let k = if kind == "line" {
                         Kind::Line
                     } else {
                         Kind::Branch
                     };
-                    (k, String::new(), Some((n, n)))
+                    (k, arm.trim().to_string(), Some((n, n)))
                 }
                 other => return Err(bad(format!("`{other}`: expected toggle, line or branch"))),
             };
@@ -181,7 +186,10 @@ impl Waivers {
                             (Some(_), None) => false,
                         }
                 }
-                Kind::Line | Kind::Branch => w.range.is_none_or(|r| r == (p.line, p.line)),
+                Kind::Line | Kind::Branch => {
+                    w.range.is_none_or(|r| r == (p.line, p.line))
+                        && (w.net.is_empty() || w.net == p.what)
+                }
             }
         })
     }
@@ -232,6 +240,14 @@ mod tests {
         assert_eq!(w.find(&pts[1], Some("g.rs:3"), false), None);
         assert_eq!(w.find(&pts[2], Some("g.rs:9"), false), Some(1));
         assert_eq!(w.find(&pts[2], Some("g.rs:3"), false), None);
+        // One arm of a line: the `if` point is named by `if`, not `else`.
+        std::fs::write(
+            &p,
+            "m | branch 12 else | g.rs:9 | never\nm | branch 12 if | g.rs:9 | never\n",
+        )
+        .unwrap();
+        let w = Waivers::read(&p).unwrap();
+        assert_eq!(w.find(&pts[2], Some("g.rs:9"), false), Some(1));
         std::fs::write(&p, "m | open line * | * | any line\n").unwrap();
         let w = Waivers::read(&p).unwrap();
         assert_eq!(w.find(&pts[2], Some("g.rs:7"), true), None, "a branch");

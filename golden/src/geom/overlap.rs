@@ -48,12 +48,14 @@ pub fn triangle_overlaps_box_prepared(pt: &PreparedTriangle, lo: DVec3, hi: DVec
 /// `2^32`), and some vertex `w` has `w[a] <= hi[a]`, i.e. exactly
 /// `w[a] - center[a] <= half[a]`; rounding is monotone and `half[a]` is
 /// representable, so the computed projection is `<= half[a]` too, never
-/// beyond `half[a] + margin`; the same below. The same answer.
+/// beyond `half[a] + margin`; the same below. The same answer. `scale` is
+/// the magnitude of the triangle and the box (`geom::magnitude`), which the
+/// caller computes once for this and the clip.
 #[inline]
-pub fn overlaps_candidate(pt: &PreparedTriangle, lo: DVec3, hi: DVec3) -> bool {
+pub fn overlaps_candidate(pt: &PreparedTriangle, lo: DVec3, hi: DVec3, scale: f64) -> bool {
     debug_assert!(pt.is_finite() && lo.is_finite() && hi.is_finite());
     debug_assert!(!(pt.lo.cmpgt(hi).any() || pt.hi.cmplt(lo).any()));
-    let scale = pt.magnitude_finite(lo, hi);
+    debug_assert_eq!(scale.to_bits(), pt.magnitude_finite(lo, hi).to_bits());
     debug_assert!(scale < (1u64 << 32) as f64);
     let answer = overlaps_finite::<false>(&pt.tri, lo, hi, scale);
     debug_assert_eq!(answer, triangle_overlaps_box_prepared(pt, lo, hi));

@@ -10,7 +10,7 @@ use super::lod::primitive_lod;
 use super::quantize::{floor_ceil_in_scene, quantize_in_voxel};
 use super::radix::{morton3_fast, SortKey};
 use crate::geom::clip::{clip_candidate, max_not_nan, ClipScratch, PreparedTriangle};
-use crate::geom::overlap::overlaps_candidate;
+use crate::geom::overlap::{overlaps_candidate, overlaps_candidate_prepared, OverlapPrep};
 use crate::params::Params;
 
 /// The integer a [`LeafEntry`] holds its key in: `u128` holds every key
@@ -151,6 +151,8 @@ pub fn place_triangle_with<K: LeafKey>(
     // The magnitude of the triangle and a candidate box (see
     // `PreparedTriangle::abs_max_element`), folded per loop level.
     let tri_scale = prepared.abs_max_element();
+    // Made at the first candidate that needs the overlap test.
+    let mut overlap_prep = None;
     // Exclusive ranges: an inclusive one carries an exhaustion flag through
     // every step. The ends are voxel indices below `2^31`, so `+ 1` fits.
     // Morton codes stepped per axis as `mx` below.
@@ -185,8 +187,17 @@ pub fn place_triangle_with<K: LeafKey>(
                     holds_vertex,
                     tri.iter().any(|v| v.cmpge(vlo).all() && v.cmple(vhi).all())
                 );
-                if !holds_vertex && !overlaps_candidate(&prepared, vlo, vhi, box_scale) {
-                    continue;
+                if !holds_vertex {
+                    let prep =
+                        overlap_prep.get_or_insert_with(|| OverlapPrep::new(tri, edge, i0, i1));
+                    let overlaps = if prep.exact {
+                        overlaps_candidate_prepared(prep, &prepared, vlo, vhi, box_scale)
+                    } else {
+                        overlaps_candidate(&prepared, vlo, vhi, box_scale)
+                    };
+                    if !overlaps {
+                        continue;
+                    }
                 }
                 // A candidate's box meets the triangle's AABB, and both are
                 // finite and below 2^32: what `clip_candidate` asks.

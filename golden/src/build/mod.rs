@@ -405,6 +405,10 @@ fn place_range<K: LeafKey>(
         let tri = triangle(i)?;
         leaves::place_triangle_with(&tri, i as u32, params, &mut entries, &mut clip_scratch);
     }
+    // The guess of four entries a triangle, or the doubling past it, leaves
+    // spare room that would stay allocated through the sort and the levels:
+    // give it back (a shrinking reallocation, not a copy, for a large block).
+    entries.shrink_to_fit();
     Ok(entries)
 }
 

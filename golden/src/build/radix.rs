@@ -21,10 +21,18 @@ pub fn radix_sort<T: Copy, K: SortKey>(
     }
     let passes = sort_passes::<K>(key_bits);
     let mut hist = vec![[0u32; BUCKETS]; passes];
-    for it in items.iter() {
-        let k = key(it);
-        for (p, h) in hist.iter_mut().enumerate() {
-            h[k.digit(p)] += 1;
+    // The common pass counts get a loop over a constant number of passes,
+    // unrolled: the same counts.
+    match passes {
+        4 => histograms::<4, T, K>(items, &key, &mut hist),
+        5 => histograms::<5, T, K>(items, &key, &mut hist),
+        _ => {
+            for it in items.iter() {
+                let k = key(it);
+                for (p, h) in hist.iter_mut().enumerate() {
+                    h[k.digit(p)] += 1;
+                }
+            }
         }
     }
     scratch.clear();
@@ -56,6 +64,22 @@ pub fn radix_sort<T: Copy, K: SortKey>(
         // SAFETY: the scatter wrote each of the first `n` slots (above).
         unsafe { scratch.set_len(n) };
         std::mem::swap(items, scratch);
+    }
+}
+
+/// The digit counts of `P` passes (`hist.len() == P`) in one read.
+#[inline(always)]
+fn histograms<const P: usize, T, K: SortKey>(
+    items: &[T],
+    key: &impl Fn(&T) -> K,
+    hist: &mut [[u32; BUCKETS]],
+) {
+    let hist: &mut [[u32; BUCKETS]; P] = hist.try_into().expect("P passes");
+    for it in items {
+        let k = key(it);
+        for (p, h) in hist.iter_mut().enumerate() {
+            h[k.digit(p)] += 1;
+        }
     }
 }
 

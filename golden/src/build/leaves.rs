@@ -7,10 +7,10 @@
 use glam::DVec3;
 
 use super::lod::primitive_lod;
-use super::quantize::{floor_nonneg, quantize_interval};
+use super::quantize::{floor_ceil_in_scene, quantize_in_voxel};
 use super::radix::{morton3_fast, SortKey};
-use crate::geom::clip::{clip_candidate, ClipScratch, PreparedTriangle};
-use crate::geom::overlap::overlaps_candidate;
+use crate::geom::clip::{clip_candidate, max_not_nan, ClipScratch, PreparedTriangle};
+use crate::geom::overlap::{overlaps_candidate, overlaps_candidate_prepared, OverlapPrep};
 use crate::params::Params;
 
 /// The integer a [`LeafEntry`] holds its key in: `u128` holds every key
@@ -61,6 +61,18 @@ pub struct LeafEntry<K: LeafKey = u128> {
     pub hi: [u16; 3],
 }
 
+/// The bits of a Morton code that hold the x coordinate (bit `i` of x at
+/// bit `3i`, for the 42 bits `morton3_fast` places).
+const MORTON_X: u128 = {
+    let mut m = 0u128;
+    let mut i = 0;
+    while i < 42 {
+        m |= 1 << (3 * i);
+        i += 1;
+    }
+    m
+};
+
 /// The sort key of voxel `(lod, x, y, z)` under `D = max_lod`.
 #[inline(always)]
 pub fn leaf_key(lod: u8, x: u32, y: u32, z: u32, max_lod: u8) -> u128 {
@@ -102,47 +114,149 @@ pub fn place_triangle_with<K: LeafKey>(
     let last = (1u64 << lod) - 1;
     let cells = p.quant_cells();
     let scale = cells as f64 / edge;
-    let voxel_of = |v: f64| floor_nonneg(v / edge).min(last) as u32;
+    // `v / edge` is `v` times the power of two `1 / edge`: exact either way
+    // (an underflow rounds the same real quotient the same way), and a
+    // product costs less than a division. A checked coordinate is in
+    // `[0, 2^D]`, so the quotient is in `[0, 2^31]`.
+    let inv_edge = 1.0 / edge;
+    let voxel_of = |v: f64| (floor_ceil_in_scene(v * inv_edge).0 as u64).min(last) as u32;
     let i0 = glam::UVec3::new(voxel_of(tlo.x), voxel_of(tlo.y), voxel_of(tlo.z));
     let i1 = glam::UVec3::new(voxel_of(thi.x), voxel_of(thi.y), voxel_of(thi.z));
+    let lod_key = (lod as u128) << (3 * p.max_lod as u32);
 
-    // `v0` is the voxel's minimum corner, `(x, y, z) * edge`.
-    let entry = |x: u32, y: u32, z: u32, v0: DVec3, blo: DVec3, bhi: DVec3| {
-        let (lx, hx) = quantize_interval(blo.x, bhi.x, v0.x, scale, cells);
-        let (ly, hy) = quantize_interval(blo.y, bhi.y, v0.y, scale, cells);
-        let (lz, hz) = quantize_interval(blo.z, bhi.z, v0.z, scale, cells);
+    // `v0` is the voxel's minimum corner, `(x, y, z) * edge`; `morton` the
+    // voxel's Morton code. Both boxes lie in the closed voxel (the clip's
+    // inside its box, the triangle's inside the one voxel that holds it),
+    // as `quantize_in_voxel` asks.
+    let entry = |morton: u128, v0: DVec3, blo: DVec3, bhi: DVec3| {
+        let (lx, hx) = quantize_in_voxel(blo.x, bhi.x, v0.x, scale, cells);
+        let (ly, hy) = quantize_in_voxel(blo.y, bhi.y, v0.y, scale, cells);
+        let (lz, hz) = quantize_in_voxel(blo.z, bhi.z, v0.z, scale, cells);
         LeafEntry {
-            key: K::from_u128(leaf_key(lod, x, y, z, p.max_lod)),
+            key: K::from_u128(lod_key | morton),
             prim,
             lo: [lx, ly, lz],
             hi: [hx, hy, hz],
         }
     };
+    // Voxel corners are integers times a power of two, below 2^62: exact.
     let corner = |x: u32, y: u32, z: u32| DVec3::new(x as f64, y as f64, z as f64) * edge;
 
     if i0 == i1 {
-        out.push(entry(i0.x, i0.y, i0.z, corner(i0.x, i0.y, i0.z), tlo, thi));
+        let v0 = corner(i0.x, i0.y, i0.z);
+        out.push(entry(morton3_fast(i0.x, i0.y, i0.z), v0, tlo, thi));
         return;
     }
+    let holds = VertexVoxels::new(tri, inv_edge, i0, i1);
+    // The magnitude of the triangle and a candidate box (see
+    // `PreparedTriangle::abs_max_element`), folded per loop level.
+    let tri_scale = prepared.abs_max_element();
+    // Made at the first candidate that needs the overlap test.
+    let mut overlap_prep = None;
     // Exclusive ranges: an inclusive one carries an exhaustion flag through
     // every step. The ends are voxel indices below `2^31`, so `+ 1` fits.
+    // Morton codes stepped per axis as `mx` below.
+    let mut mz = morton3_fast(0, 0, i0.z);
     for z in i0.z..i1.z + 1 {
+        let z0 = z as f64 * edge;
+        let mz_here = mz;
+        mz = ((mz | !(MORTON_X << 2)) + 1) & MORTON_X << 2;
+        let scale_z = max_not_nan(tri_scale, z0 + edge);
+        let mut my = morton3_fast(0, i0.y, 0);
         for y in i0.y..i1.y + 1 {
+            let y0 = y as f64 * edge;
+            let myz = my | mz_here;
+            my = ((my | !(MORTON_X << 1)) + 1) & MORTON_X << 1;
+            let scale_y = max_not_nan(scale_z, y0 + edge);
+            let row = holds.row(y - i0.y, z - i0.z);
+            // The voxel's Morton code, stepped along x: adding 1 to the x
+            // bits with the other bits set carries through them exactly as
+            // through x's own bits, so `mx` stays `morton3_fast(x, 0, 0)`.
+            let mut mx = morton3_fast(i0.x, 0, 0);
             for x in i0.x..i1.x + 1 {
-                let vlo = corner(x, y, z);
+                let morton = myz | mx;
+                debug_assert_eq!(morton, morton3_fast(x, y, z));
+                mx = ((mx | !MORTON_X) + 1) & MORTON_X;
+                let vlo = DVec3::new(x as f64 * edge, y0, z0);
                 let vhi = vlo + DVec3::splat(edge);
+                let box_scale = max_not_nan(scale_y, vhi.x);
                 // A vertex in the closed voxel is contact, where the
                 // conservative overlap test is true: skip computing it.
-                let holds_vertex = tri.iter().any(|v| v.cmpge(vlo).all() && v.cmple(vhi).all());
-                if !holds_vertex && !overlaps_candidate(&prepared, vlo, vhi) {
-                    continue;
+                let holds_vertex = row >> (x - i0.x) & 1 != 0;
+                debug_assert_eq!(
+                    holds_vertex,
+                    tri.iter().any(|v| v.cmpge(vlo).all() && v.cmple(vhi).all())
+                );
+                if !holds_vertex {
+                    let prep =
+                        overlap_prep.get_or_insert_with(|| OverlapPrep::new(tri, edge, i0, i1));
+                    let overlaps = if prep.exact {
+                        overlaps_candidate_prepared(prep, &prepared, vlo, vhi, box_scale)
+                    } else {
+                        overlaps_candidate(&prepared, vlo, vhi, box_scale)
+                    };
+                    if !overlaps {
+                        continue;
+                    }
                 }
                 // A candidate's box meets the triangle's AABB, and both are
                 // finite and below 2^32: what `clip_candidate` asks.
-                if let Some((blo, bhi)) = clip_candidate(&prepared, vlo, vhi, scratch) {
-                    out.push(entry(x, y, z, vlo, blo, bhi));
+                if let Some((blo, bhi)) = clip_candidate(&prepared, vlo, vhi, box_scale, scratch) {
+                    out.push(entry(morton, vlo, blo, bhi));
                 }
             }
         }
+    }
+}
+
+/// Which candidate voxels hold a vertex of the triangle, as bit masks: bit
+/// `k` of `mask[v][a]` is set when vertex `v` lies in the closed slab of the
+/// candidate `i0[a] + k` on axis `a`, so a voxel holds the vertex when its
+/// three bits are set. Per axis, `t = v[a] / edge` is exact (a product by
+/// the power of two `1 / edge`; an underflowed quotient is below any slab
+/// but slab 0, whose test it passes either way), so `x edge <= v[a] <= (x + 1) edge` exactly
+/// when `x <= t <= x + 1`, i.e. `ceil(t) - 1 <= x <= floor(t)`: the same
+/// answer as comparing `v` with the voxel's corners: slab `f = floor(t)`,
+/// and slab `f - 1` too when `t` is an integer. A candidate range is at
+/// most 9 voxels per axis (a triangle's extent is about one voxel at its
+/// base LOD, `2^SLIVER_LEVEL_CAP` at its LOD), far below the 63 a mask
+/// holds here (checked).
+struct VertexVoxels {
+    mask: [[u64; 3]; 3],
+}
+
+impl VertexVoxels {
+    #[inline(always)]
+    fn new(tri: &[DVec3; 3], inv_edge: f64, i0: glam::UVec3, i1: glam::UVec3) -> VertexVoxels {
+        assert!(
+            (i1 - i0).max_element() < 63,
+            "a candidate range of more than 63 voxels per axis"
+        );
+        let mut mask = [[0u64; 3]; 3];
+        for (m, v) in mask.iter_mut().zip(tri) {
+            for a in 0..3 {
+                // A vertex lies in the candidates' AABB, so `f` is in
+                // `i0[a] ..= i1[a] + 1` (`i1[a] + 1` for a vertex on the
+                // scene's far face, in slab `f - 1` only): below 64 slabs
+                // up, and the bit shifted out below slab 0 is dropped.
+                let (f, c) = floor_ceil_in_scene(v[a] * inv_edge);
+                let bit = 1u64 << (f - i0[a] as i64);
+                m[a] = if c == f { bit | bit >> 1 } else { bit };
+            }
+        }
+        VertexVoxels { mask }
+    }
+
+    /// The candidates `x` (bit `x - i0.x`) of row `(y, z)` (relative to `i0`)
+    /// that hold a vertex.
+    #[inline(always)]
+    fn row(&self, y: u32, z: u32) -> u64 {
+        let mut row = 0;
+        for m in &self.mask {
+            if m[1] >> y & m[2] >> z & 1 != 0 {
+                row |= m[0];
+            }
+        }
+        row
     }
 }

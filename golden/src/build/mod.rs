@@ -393,6 +393,11 @@ fn place_parallel<K: LeafKey>(
     Ok(entries)
 }
 
+/// Room kept free before placing a triangle: its entries are at most its
+/// candidate voxels, about `2^SLIVER_LEVEL_CAP + 1 = 9` per axis (see
+/// `leaves::VertexVoxels`); more would only make the vector grow by itself.
+const MOST_ENTRIES_PER_TRIANGLE: usize = 9 * 9 * 9;
+
 /// The entries of triangles `range`, in order.
 fn place_range<K: LeafKey>(
     range: std::ops::Range<usize>,
@@ -401,10 +406,19 @@ fn place_range<K: LeafKey>(
 ) -> Result<Vec<LeafEntry<K>>, BuildError> {
     let mut entries = Vec::with_capacity(range.len() * 4);
     let mut clip_scratch = crate::geom::clip::ClipScratch::new();
-    for i in range {
+    for i in range.clone() {
+        // Past the guess of four entries a triangle, room grows by one
+        // entry a triangle at a time, not by doubling: a scene of 4.5
+        // entries a triangle would otherwise hold room for 8 at the peak.
+        if entries.capacity() - entries.len() < MOST_ENTRIES_PER_TRIANGLE {
+            entries.reserve_exact(range.len().max(MOST_ENTRIES_PER_TRIANGLE));
+        }
         let tri = triangle(i)?;
         leaves::place_triangle_with(&tri, i as u32, params, &mut entries, &mut clip_scratch);
     }
+    // The spare room would stay allocated through the sort and the levels:
+    // give it back (shrinking a block moves nothing).
+    entries.shrink_to_fit();
     Ok(entries)
 }
 

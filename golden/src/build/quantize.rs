@@ -36,6 +36,48 @@ pub fn quantize_interval(a: f64, b: f64, v0: f64, scale: f64, cells: u32) -> (u1
     (lo as u16, hi as u16)
 }
 
+/// [`quantize_interval`] of an interval the caller guarantees inside the
+/// closed voxel, `v0 <= a <= b <= v0 + edge` with `scale = 2^Q / edge`:
+/// the builder's case (a clipped box lies in its voxel, and a triangle's
+/// box in the voxel that holds it). The same result, with fewer
+/// instructions: `ta = (a - v0) scale` and `tb` are then finite and in
+/// `[0, 2^Q]` (`a - v0` is exact, see [`quantize_interval`], and so is the
+/// product by a power of two), so the conversions need not saturate (Rust's
+/// `as` spends five instructions a conversion on NaN and range checks) and
+/// `lo = trunc(ta) >= 0` needs no `max(0)`.
+#[inline(always)]
+pub fn quantize_in_voxel(a: f64, b: f64, v0: f64, scale: f64, cells: u32) -> (u16, u16) {
+    let top = cells as i64 - 1;
+    let ta = (a - v0) * scale;
+    let tb = (b - v0) * scale;
+    debug_assert!((0.0..=cells as f64).contains(&ta) && (0.0..=cells as f64).contains(&tb));
+    debug_assert!(ta <= tb);
+    // SAFETY: `ta` and `tb` are finite and in `[0, 2^Q]` with `Q <= 16`
+    // (above), so their truncations fit `i64`.
+    let (fa, fb) = unsafe { (ta.to_int_unchecked::<i64>(), tb.to_int_unchecked::<i64>()) };
+    let lo = fa.min(top);
+    let c = fb + ((fb as f64) < tb) as i64;
+    let hi = (c - 1).max(lo).min(top);
+    debug_assert_eq!(
+        (lo as u16, hi as u16),
+        quantize_interval(a, b, v0, scale, cells)
+    );
+    (lo as u16, hi as u16)
+}
+
+/// `(floor(t), ceil(t))` for a finite `t` in `[0, 2^62]` (a grid coordinate
+/// over a voxel edge: at most `2^31`): the same values as [`floor_nonneg`]
+/// and [`ceil_nonneg`], without the saturating conversion's checks, which
+/// such a `t` never needs.
+#[inline(always)]
+pub fn floor_ceil_in_scene(t: f64) -> (i64, i64) {
+    debug_assert!((0.0..=(1u64 << 62) as f64).contains(&t));
+    // SAFETY: `t` is finite and in `[0, 2^62]` (above), so its truncation,
+    // its floor, fits `i64`.
+    let f = unsafe { t.to_int_unchecked::<i64>() };
+    (f, f + ((f as f64) < t) as i64)
+}
+
 /// `floor(t)` for `0 <= t < 2^63`, and 0 for `t < 0` (finite `t`).
 ///
 /// Through `i64`, not `u64`: baseline x86-64 converts between binary64 and
@@ -111,6 +153,12 @@ mod tests {
             4611686018427387904.0,
         ] {
             assert_eq!(floor_nonneg(t), t.floor() as u64, "{t}");
+            let (f, c) = floor_ceil_in_scene(t);
+            assert_eq!(
+                (f as u64, c as u64),
+                (floor_nonneg(t), ceil_nonneg(t)),
+                "{t}"
+            );
             assert_eq!(ceil_nonneg(t), t.ceil() as u64, "{t}");
         }
         for t in [-0.5, -1.0, -1.5, -1e18] {

@@ -19,19 +19,24 @@ pub fn radix_sort<T: Copy, K: SortKey>(
     if n < 2 || key_bits == 0 {
         return;
     }
-    let passes = key_bits.div_ceil(DIGIT_BITS) as usize;
+    let passes = sort_passes::<K>(key_bits);
     let mut hist = vec![[0u32; BUCKETS]; passes];
-    for it in items.iter() {
-        let k = key(it);
-        for (p, h) in hist.iter_mut().enumerate() {
-            h[k.digit(p)] += 1;
+    // The common pass counts get a loop over a constant number of passes,
+    // unrolled: the same counts.
+    match passes {
+        4 => histograms::<4, T, K>(items, &key, &mut hist),
+        5 => histograms::<5, T, K>(items, &key, &mut hist),
+        _ => {
+            for it in items.iter() {
+                let k = key(it);
+                for (p, h) in hist.iter_mut().enumerate() {
+                    h[k.digit(p)] += 1;
+                }
+            }
         }
     }
     scratch.clear();
     scratch.reserve(n);
-    // Safety-free: fill scratch with copies so it has length n; every slot is
-    // overwritten by the scatter below.
-    scratch.extend_from_slice(items);
     for (p, h) in hist.iter().enumerate() {
         if h.iter().any(|&c| c as usize == n) {
             continue;
@@ -42,13 +47,47 @@ pub fn radix_sort<T: Copy, K: SortKey>(
             *o = sum;
             sum += c;
         }
+        // The scatter writes every slot of `scratch`'s first `n` once (the
+        // offsets of the digits partition `0..n`), so it needs no copies
+        // in it first.
+        scratch.clear();
+        let out = &mut scratch.spare_capacity_mut()[..n];
         for it in items.iter() {
             let d = key(it).digit(p);
-            scratch[offsets[d] as usize] = *it;
+            let o = offsets[d] as usize;
+            debug_assert!(o < n);
+            // SAFETY: `o` is below `n`: digit `d`'s offsets run from the
+            // count of the smaller digits up to that plus `d`'s count.
+            unsafe { out.get_unchecked_mut(o) }.write(*it);
             offsets[d] += 1;
         }
+        // SAFETY: the scatter wrote each of the first `n` slots (above).
+        unsafe { scratch.set_len(n) };
         std::mem::swap(items, scratch);
     }
+}
+
+/// The digit counts of `P` passes (`hist.len() == P`) in one read.
+#[inline(always)]
+fn histograms<const P: usize, T, K: SortKey>(
+    items: &[T],
+    key: &impl Fn(&T) -> K,
+    hist: &mut [[u32; BUCKETS]],
+) {
+    let hist: &mut [[u32; BUCKETS]; P] = hist.try_into().expect("P passes");
+    for it in items {
+        let k = key(it);
+        for (p, h) in hist.iter_mut().enumerate() {
+            h[k.digit(p)] += 1;
+        }
+    }
+}
+
+/// The passes that sort by the low `key_bits` bits of keys `K`: bits above
+/// `K::BITS` are zero, so no pass reads beyond them, and a digit's shift is
+/// below `K::BITS` (which [`SortKey::digit`] may assume).
+fn sort_passes<K: SortKey>(key_bits: u32) -> usize {
+    key_bits.min(K::BITS).div_ceil(DIGIT_BITS) as usize
 }
 
 /// Below this many items the parallel sort runs [`radix_sort`]: splitting
@@ -92,7 +131,7 @@ pub fn radix_sort_parallel<T: Copy + Send + Sync, K: SortKey>(
     if n < PARALLEL_MIN || threads < 2 || key_bits == 0 {
         return radix_sort(items, scratch, key_bits, key);
     }
-    let passes = key_bits.div_ceil(DIGIT_BITS) as usize;
+    let passes = sort_passes::<K>(key_bits);
     let block = n.div_ceil(threads);
     let hist_of = |part: &[T], passes: std::ops::Range<usize>| {
         let mut hist = vec![[0u32; BUCKETS]; passes.len()];
@@ -161,11 +200,15 @@ pub fn radix_sort_parallel<T: Copy + Send + Sync, K: SortKey>(
 /// instructions and a branch on baseline x86-64, and the sort takes two
 /// digits of every item per pass.
 pub trait SortKey: Copy {
-    /// Digit `pass` (bits `pass * DIGIT_BITS ..`) of the key.
+    /// The key's width in bits.
+    const BITS: u32;
+    /// Digit `pass` (bits `pass * DIGIT_BITS ..`) of the key; the sort asks
+    /// only for digits starting below [`Self::BITS`] (see `sort_passes`).
     fn digit(self, pass: usize) -> usize;
 }
 
 impl SortKey for u128 {
+    const BITS: u32 = 128;
     #[inline(always)]
     fn digit(self, pass: usize) -> usize {
         ((self >> (pass as u32 * DIGIT_BITS)) as usize) & (BUCKETS - 1)
@@ -173,15 +216,13 @@ impl SortKey for u128 {
 }
 
 impl SortKey for u64 {
-    /// The same digit as the `u128` of the same value (zero above bit 63).
+    const BITS: u32 = 64;
+    /// The same digit as the `u128` of the same value.
     #[inline(always)]
     fn digit(self, pass: usize) -> usize {
         let shift = pass as u32 * DIGIT_BITS;
-        if shift >= 64 {
-            0
-        } else {
-            ((self >> shift) as usize) & (BUCKETS - 1)
-        }
+        debug_assert!(shift < 64);
+        ((self >> shift) as usize) & (BUCKETS - 1)
     }
 }
 

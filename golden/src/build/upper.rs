@@ -267,8 +267,12 @@ pub(super) fn assemble<K: LeafKey>(
         .ok_or(BuildError::EmptyMesh)?;
 
     // Records, deepest level first; inner nodes' `first` is still the index
-    // of the first child within the level below.
-    let mut nodes: Vec<NodeRecord> = Vec::with_capacity(entries.len());
+    // of the first child within the level below. Room for the leaves (one
+    // per distinct key) and as many inner nodes, more than the scenes have;
+    // room for one per entry, as before, held several times the nodes
+    // where triangles share voxels (more entries than voxels).
+    let leaf_count = 1 + entries.windows(2).filter(|w| w[0].key != w[1].key).count();
+    let mut nodes: Vec<NodeRecord> = Vec::with_capacity(2 * leaf_count + 64);
     let mut level_len = vec![0usize; deepest + 1];
     let mut d = deepest;
     let mut level = Vec::new();

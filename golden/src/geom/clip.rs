@@ -94,6 +94,15 @@ impl PreparedTriangle {
         m
     }
 
+    /// The largest absolute coordinate of the triangle: with a box of
+    /// non-negative corners `[lo, hi]`, `geom::magnitude` is the `max` of it
+    /// and `hi`'s coordinates (a `max` of non-negative values is the largest
+    /// one, whatever the order, and `|lo| <= |hi|`).
+    #[inline(always)]
+    pub fn abs_max_element(&self) -> f64 {
+        max_not_nan(max_not_nan(self.abs_max.x, self.abs_max.y), self.abs_max.z)
+    }
+
     /// Every coordinate of the triangle is finite.
     #[inline(always)]
     pub(crate) fn is_finite(&self) -> bool {
@@ -172,18 +181,21 @@ pub fn clip_prepared(
 /// [`clip_prepared`] for a box the builder tries: the caller guarantees
 /// that the triangle and the box are finite, of magnitude below `2^32`, and
 /// that their AABBs meet (the box is a candidate voxel, from the triangle's
-/// AABB). [`clip_prepared`] would then skip none of its checks' other
-/// branches, so this is `clip_finite` without them: the same bits.
+/// AABB), and passes their magnitude `scale` (`geom::magnitude`, which it
+/// computes once for this and [`crate::geom::overlap::overlaps_candidate`]).
+/// [`clip_prepared`] would then skip none of its checks' other branches, so
+/// this is `clip_finite` without them: the same bits.
 #[inline]
 pub fn clip_candidate(
     pt: &PreparedTriangle,
     lo: DVec3,
     hi: DVec3,
+    scale: f64,
     scratch: &mut ClipScratch,
 ) -> Option<(DVec3, DVec3)> {
     debug_assert!(pt.is_finite() && lo.is_finite() && hi.is_finite());
     debug_assert!(!(pt.lo.cmpgt(hi).any() || pt.hi.cmplt(lo).any()));
-    let scale = pt.magnitude_finite(lo, hi);
+    debug_assert_eq!(scale.to_bits(), pt.magnitude_finite(lo, hi).to_bits());
     debug_assert!(scale < FINITE_CLIP_LIMIT);
     clip_finite(pt, lo, hi, scale, scratch)
 }

@@ -48,15 +48,143 @@ pub fn triangle_overlaps_box_prepared(pt: &PreparedTriangle, lo: DVec3, hi: DVec
 /// `2^32`), and some vertex `w` has `w[a] <= hi[a]`, i.e. exactly
 /// `w[a] - center[a] <= half[a]`; rounding is monotone and `half[a]` is
 /// representable, so the computed projection is `<= half[a]` too, never
-/// beyond `half[a] + margin`; the same below. The same answer.
+/// beyond `half[a] + margin`; the same below. The same answer. `scale` is
+/// the magnitude of the triangle and the box (`geom::magnitude`), which the
+/// caller computes once for this and the clip.
 #[inline]
-pub fn overlaps_candidate(pt: &PreparedTriangle, lo: DVec3, hi: DVec3) -> bool {
+pub fn overlaps_candidate(pt: &PreparedTriangle, lo: DVec3, hi: DVec3, scale: f64) -> bool {
     debug_assert!(pt.is_finite() && lo.is_finite() && hi.is_finite());
     debug_assert!(!(pt.lo.cmpgt(hi).any() || pt.hi.cmplt(lo).any()));
-    let scale = pt.magnitude_finite(lo, hi);
+    debug_assert_eq!(scale.to_bits(), pt.magnitude_finite(lo, hi).to_bits());
     debug_assert!(scale < (1u64 << 32) as f64);
     let answer = overlaps_finite::<false>(&pt.tri, lo, hi, scale);
     debug_assert_eq!(answer, triangle_overlaps_box_prepared(pt, lo, hi));
+    answer
+}
+
+/// What [`overlaps_candidate`] computes of a triangle that is the same in
+/// every candidate voxel of one LOD, computed once: the edges, the normal,
+/// and each axis's radius and margin per unit of magnitude.
+///
+/// The test subtracts the voxel's center `c` from each vertex `t` and takes
+/// the edges between those. When every such difference is exact, an edge
+/// `(t1 - c) - (t0 - c)` is `t1 - t0` rounded once, whatever the voxel: the
+/// same bits as `t1 - t0`, so the edges, the normal `e0 x e1` and everything
+/// made of them and the half extent (one per LOD) are the test's own values.
+/// [`Self::new`] checks exactness for the candidates `i0..=i1` per axis (at
+/// most 32): a center is an odd multiple of `edge / 2`, so with every vertex
+/// coordinate a multiple of `g = edge 2^-48` both are multiples of `g`, and
+/// they are less than `32 edge = 2^53 g` apart (the vertex lies in the
+/// candidates' span): the difference is an integer below `2^53` times `g`,
+/// representable, hence exact. Otherwise `exact` is false and the caller
+/// runs [`overlaps_candidate`].
+pub struct OverlapPrep {
+    /// The differences are exact for every candidate: the fields below hold.
+    pub exact: bool,
+    edges: [DVec3; 3],
+    normal: DVec3,
+    normal_radius: f64,
+    /// `ROUNDING_MARGIN_REL * |normal|_1`: times the magnitude, the margin.
+    normal_margin: f64,
+    /// Per edge, the radius of the axes `e x X`, `e x Y`, `e x Z`.
+    radius: [[f64; 3]; 3],
+    /// Per edge and axis, the margin per unit of magnitude.
+    margin: [[f64; 3]; 3],
+}
+
+impl OverlapPrep {
+    /// The triangle's values for the candidates `i0..=i1` (per axis) of edge
+    /// `edge`, a power of two.
+    pub fn new(tri: &[DVec3; 3], edge: f64, i0: glam::UVec3, i1: glam::UVec3) -> OverlapPrep {
+        let inv_g = (1u64 << 48) as f64 / edge;
+        let multiple_of_g = |t: f64| {
+            let x = t * inv_g;
+            // At or above 2^52 every binary64 is an integer; below, `x` is
+            // a non-negative finite value that fits `i64`.
+            // SAFETY: `x` is finite (a checked coordinate times a power of
+            // two below 2^48) and, in this branch, in `[0, 2^52)`.
+            x >= (1u64 << 52) as f64 || unsafe { x.to_int_unchecked::<i64>() } as f64 == x
+        };
+        let exact = (i1 - i0).max_element() < 32
+            && tri.iter().all(|v| {
+                debug_assert!(v.cmpge(DVec3::ZERO).all());
+                multiple_of_g(v.x) && multiple_of_g(v.y) && multiple_of_g(v.z)
+            });
+        let edges = [tri[1] - tri[0], tri[2] - tri[1], tri[0] - tri[2]];
+        let half = DVec3::splat(edge * 0.5);
+        let normal = edges[0].cross(edges[1]);
+        let rel = ROUNDING_MARGIN_REL;
+        let axis = |a: f64, b: f64, ha: f64, hb: f64| {
+            (ha * a.abs() + hb * b.abs(), rel * (a.abs() + b.abs()))
+        };
+        let mut radius = [[0.0; 3]; 3];
+        let mut margin = [[0.0; 3]; 3];
+        for (k, e) in edges.iter().enumerate() {
+            // The radius and margin expressions of `overlaps_finite`.
+            [
+                (radius[k][0], margin[k][0]),
+                (radius[k][1], margin[k][1]),
+                (radius[k][2], margin[k][2]),
+            ] = [
+                axis(e.z, e.y, half.y, half.z),
+                axis(e.z, e.x, half.x, half.z),
+                axis(e.y, e.x, half.x, half.y),
+            ];
+        }
+        OverlapPrep {
+            exact,
+            edges,
+            normal,
+            normal_radius: half.dot(normal.abs()),
+            normal_margin: rel * normal.abs().element_sum(),
+            radius,
+            margin,
+        }
+    }
+}
+
+/// [`overlaps_candidate`] with the triangle's part precomputed: the same
+/// operations on the same values (see [`OverlapPrep`]; a margin is its
+/// coefficient times `scale`, as `ROUNDING_MARGIN_REL * |axis|_1 * scale`
+/// is evaluated left to right), so the same answer. The caller guarantees
+/// `prep.exact`, that `prep` is of `pt`'s triangle at the box's LOD and
+/// that the box is one of its candidates, besides what
+/// [`overlaps_candidate`] asks.
+#[inline]
+pub fn overlaps_candidate_prepared(
+    prep: &OverlapPrep,
+    pt: &PreparedTriangle,
+    lo: DVec3,
+    hi: DVec3,
+    scale: f64,
+) -> bool {
+    debug_assert!(prep.exact);
+    let tri = &pt.tri;
+    let center = (lo + hi) * 0.5;
+    let v = [tri[0] - center, tri[1] - center, tri[2] - center];
+    let answer = 'test: {
+        let n = prep.normal;
+        let p = [n.dot(v[0]), n.dot(v[1]), n.dot(v[2])];
+        if gap_exceeds_finite(p, prep.normal_radius, prep.normal_margin * scale) {
+            break 'test false;
+        }
+        for ((e, r), m) in prep.edges.iter().zip(&prep.radius).zip(&prep.margin) {
+            let p = v.map(|w| e.z * w.y + (-e.y) * w.z);
+            if gap_exceeds_finite(p, r[0], m[0] * scale) {
+                break 'test false;
+            }
+            let p = v.map(|w| (-e.z) * w.x + e.x * w.z);
+            if gap_exceeds_finite(p, r[1], m[1] * scale) {
+                break 'test false;
+            }
+            let p = v.map(|w| e.y * w.x + (-e.x) * w.y);
+            if gap_exceeds_finite(p, r[2], m[2] * scale) {
+                break 'test false;
+            }
+        }
+        true
+    };
+    debug_assert_eq!(answer, overlaps_candidate(pt, lo, hi, scale));
     answer
 }
 

@@ -138,18 +138,25 @@ pub enum Flow {
 }
 
 /// The status outputs' meaning.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct Status {
-    /// The `idle` port: high exactly when every flow of `busy` has nothing
-    /// outstanding (counted from the transfers of earlier cycles).
-    pub idle: String,
-    /// The `done` port: `idle` now and not idle the cycle before.
-    pub done: String,
+    /// The `idle` port, if the module has one: high exactly when every
+    /// flow of `busy` has nothing outstanding (counted from the transfers of
+    /// earlier cycles).
+    pub idle: Option<String>,
+    /// The `done` port, if it pulses as `idle` rises: `idle` now and not
+    /// idle the cycle before, low in the first cycle after reset.
+    pub done: Option<String>,
     /// Indices into [`Proof::flows`] whose occupancy is "a transaction
     /// inside".
     pub busy: Vec<usize>,
     /// Input streams taken only while idle.
     pub only_when_idle: Vec<String>,
+    /// Further promises of the status outputs, `(label, expression)`:
+    /// SystemVerilog over ports, `dut.<net>` and the flows' counters
+    /// (`f<j>_occ`), checked in every cycle after reset; one with `$past`
+    /// from the second.
+    pub rules: Vec<(String, String)>,
 }
 
 /// The properties of one module and how each check is run.
@@ -168,6 +175,10 @@ pub struct Proof {
     /// Invariants over internal nets, asserted in every check (so they are
     /// proven too) to make induction converge.
     pub invariants: Vec<(String, String)>,
+    /// What the environment promises beyond the input handshakes,
+    /// `(label, expression)` over ports and the flows' counters, assumed in
+    /// every check (e.g. a store answers only reads it has taken).
+    pub assumptions: Vec<(String, String)>,
     /// The checks run: how, and to what depth (BMC depth, or k of
     /// k-induction).
     pub checks: Vec<(Check, Mode, u32)>,
@@ -185,6 +196,7 @@ impl Proof {
             flows: Vec::new(),
             status: None,
             invariants: Vec::new(),
+            assumptions: Vec::new(),
             checks: Vec::new(),
             depth,
         }

@@ -282,7 +282,7 @@ impl Proof {
 
 #[cfg(test)]
 mod tests {
-    use super::{units, Check, Flow, Mode, Proof};
+    use super::{units, Check, Flow, Mode, Proof, Status};
 
     #[test]
     fn every_proof_has_a_harness_and_a_task_per_check() {
@@ -306,6 +306,50 @@ mod tests {
             assert!(sv.contains(&format!("    {} dut (", p.name())), "{name}");
             assert!(!sv.contains(&format!("module {} (", p.name())), "{name}");
         }
+    }
+
+    #[test]
+    fn rules_and_assumptions_are_emitted_under_their_labels() {
+        let p = units::store_port();
+        let sv = p.harness().unwrap();
+        assert!(
+            sv.contains("a_store_answers_reads_taken: assume(!store_resp_valid || f3_occ != 0);"),
+            "{sv}"
+        );
+        assert!(sv.contains("p_store_resp_taken_in_flight: assert("), "{sv}");
+        assert!(
+            sv.contains(
+                "p_idle_means_empty: assert(idle == (f0_occ == 0 && f1_occ == 0 && f2_occ == 0));"
+            ),
+            "{sv}"
+        );
+        // A rule with `$past` is checked from the second cycle after reset.
+        let sv = units::hierarchy_merger_per_node_small().harness().unwrap();
+        let clocked = sv
+            .split("always @(posedge clk) if (f_prev) begin")
+            .nth(1)
+            .unwrap();
+        assert!(
+            clocked.starts_with("\n        p_done_pulse: assert("),
+            "{sv}"
+        );
+        assert!(
+            clocked.contains("p_done_after_header: assert(done == $past("),
+            "{sv}"
+        );
+        // A counted flow's asking side may be a number.
+        let sv = units::fetcher_small().harness().unwrap();
+        assert!(
+            sv.contains("wire [3:0] f1_in = cmd_valid && cmd_ready ? ("),
+            "{sv}"
+        );
+        let mut p = units::skid_buffer(8);
+        p.status = Some(Status {
+            done: Some("done".into()),
+            ..Status::default()
+        });
+        let e = p.harness().unwrap_err();
+        assert!(e.contains("need `idle`"), "{e}");
     }
 
     #[test]

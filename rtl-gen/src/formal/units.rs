@@ -3,7 +3,10 @@
 //! module of its own, and the generated units small enough to prove in
 //! seconds, at their default configuration ([`NAMES`]); and the larger
 //! units ([`LARGE`]): the merging modules, the per-node network and the
-//! upper builder at a small D, whose two-copy checks take about a minute.
+//! upper builder at a small D, whose two-copy checks take about a minute,
+//! and the fetchers, the record writer, the merger tops and the store front
+//! end, at their default sizes (handshake) and at small configurations
+//! (every check, BMC).
 //!
 //! Depths: at least a flow's capacity plus three, so that the base case
 //! (BMC from reset) reaches a full buffer and one beat more: a fault is then
@@ -612,6 +615,8 @@ fn fetcher_small_proof(
         .flow(Flow::Counted {
             name: "command_done".into(),
             input: fire("cmd"),
+            // DONE is the fetcher's phase code 4 (its `localparam DONE`),
+            // which the harness cannot name.
             output: "dut.phase == 3'd4".into(),
             capacity: 1,
             occupancy: None,

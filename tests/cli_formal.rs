@@ -1,8 +1,11 @@
 //! `hiermerge formal` (SPEC 11.1): every proof of the default set passes,
-//! split over a few tests so nextest runs them side by side, and the larger
-//! units' handshake proofs; a skid buffer that drops a beat, a priority
-//! merge whose grant is not held and a merging module whose refusal ends
-//! without `done` (the emitted Verilog patched through
+//! split over a few tests so nextest runs them side by side, the larger
+//! units' handshake proofs and every check of the small fetchers and writer;
+//! a skid buffer that drops a beat, a priority merge whose grant is not
+//! held, a merging module whose refusal ends without `done`, a fetcher
+//! whose phase is not reset, one that takes a command while busy, one
+//! whose `End`s never leave, a writer that takes every `cfg` and a merger
+//! top idle while a merge runs (the emitted Verilog patched through
 //! `HIERMERGE_FORMAL_PATCH_FROM`/`_TO`) fail the check that should catch
 //! them, naming the property and the step. Under CI=true missing formal
 //! tools fail.
@@ -176,6 +179,51 @@ fn the_larger_units_hold_their_handshakes() {
     );
 }
 
+// Flow, determined and status at the small configurations (SPEC 11.1):
+// each check takes seconds, so CI runs them all, one test per unit so that
+// nextest runs them side by side.
+
+#[test]
+fn the_small_fetcher_is_proven() {
+    assert_all_proven(
+        &["fetcher_small"],
+        &[],
+        &[
+            ("fetcher_small", "handshake", K, 4),
+            ("fetcher_small", "flow", "bmc", 16),
+            ("fetcher_small", "determined", "bmc", 12),
+            ("fetcher_small", "status", "bmc", 16),
+        ],
+    );
+}
+
+#[test]
+fn the_small_per_node_fetcher_is_proven() {
+    assert_all_proven(
+        &["fetcher_per_node_small"],
+        &[],
+        &[
+            ("fetcher_per_node_small", "handshake", K, 4),
+            ("fetcher_per_node_small", "flow", "bmc", 16),
+            ("fetcher_per_node_small", "determined", "bmc", 12),
+            ("fetcher_per_node_small", "status", "bmc", 16),
+        ],
+    );
+}
+
+#[test]
+fn the_small_record_writer_is_proven() {
+    assert_all_proven(
+        &["record_writer_small"],
+        &[],
+        &[
+            ("record_writer_small", "handshake", K, 4),
+            ("record_writer_small", "flow", "bmc", 16),
+            ("record_writer_small", "status", "bmc", 16),
+        ],
+    );
+}
+
 /// `unit`'s `check` with the emitted line `assign <port> = ...;` replaced
 /// by `to`: it must fail from reset (a counterexample at a step), naming
 /// only properties or invariants whose label contains `part`.
@@ -291,4 +339,79 @@ fn bad_arguments_and_a_patch_that_does_not_match_once_are_refused() {
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("occurs 0 times"), "{err}");
+}
+
+#[test]
+fn a_fetcher_whose_phase_is_not_reset_fails_its_determined_proof() {
+    // The phase register left out of reset: `idle` and the `cfg`/`cmd`
+    // handshakes read a value set before reset.
+    let module = rtl_gen::formal::units::fetcher_small().module;
+    let line = common::emitted_line(&module, "phase <= 3'd0;");
+    assert_broken_fails(
+        "fetcher_small",
+        &line,
+        "phase <= phase;",
+        "determined",
+        "_determined",
+    );
+}
+
+#[test]
+fn a_fetcher_that_takes_a_command_while_busy_fails_its_status_proof() {
+    // `cmd` ready whenever an input is loaded, not only while idle.
+    let module = rtl_gen::formal::units::fetcher_small().module;
+    let (line, _) = common::emitted_assign(&module, "cmd_ready");
+    assert_broken_fails(
+        "fetcher_small",
+        &line,
+        "assign cmd_ready = cfg_have;",
+        "status",
+        "p_cmd_only_when_idle",
+    );
+}
+
+#[test]
+fn a_fetcher_that_loses_its_level_ends_fails_its_flow_proof() {
+    // Every token beat sent with kind 0: the command's `End`s never leave.
+    let module = rtl_gen::formal::units::fetcher_small().module;
+    let (line, rhs) = common::emitted_assign(&module, "out_core_data");
+    let kind = rtl_gen::formal::units::small_fetch_out_kind();
+    let w = common::port_width(&module, "out_data");
+    let mask = ((1u128 << kind.width) - 1) << kind.offset;
+    assert_broken_fails(
+        "fetcher_small",
+        &line,
+        &format!("assign out_core_data = ({rhs}) & ~{w}'h{mask:x};"),
+        "flow",
+        "p_command_ends_",
+    );
+}
+
+#[test]
+fn a_writer_that_takes_every_cfg_fails_its_flow_proof() {
+    // `cfg` always ready: merges asked without a header to answer them.
+    let module = rtl_gen::formal::units::record_writer_small().module;
+    let (line, _) = common::emitted_assign(&module, "cfg_ready");
+    assert_broken_fails(
+        "record_writer_small",
+        &line,
+        "assign cfg_ready = 1'b1;",
+        "flow",
+        "p_header_per_cfg_",
+    );
+}
+
+#[test]
+fn a_merger_top_idle_while_a_merge_runs_fails_its_status_proof() {
+    // `idle` without `!busy`: high while a merge is in flight.
+    let module = rtl_gen::formal::units::hierarchy_merger_small().module;
+    let (line, rhs) = common::emitted_assign(&module, "merger_idle");
+    let (_, rest) = rhs.split_once(" & ").expect("`!busy & ...`");
+    assert_broken_fails(
+        "hierarchy_merger_small",
+        &line,
+        &format!("assign merger_idle = {rest};"),
+        "status",
+        "p_idle_means_empty",
+    );
 }

@@ -27,7 +27,11 @@ pub struct Args {
     /// merge_module_overlap, merge_module_per_node, upper_builder,
     /// upper_builder_default, fetcher, fetcher_per_node, record_writer,
     /// hierarchy_merger, hierarchy_merger_per_node, store_port (the
-    /// merger's shared store front end, handshake by BMC).
+    /// merger's shared store front end, handshake by BMC), and at a small
+    /// configuration, every check: fetcher_small, fetcher_per_node_small,
+    /// record_writer_small, hierarchy_merger_small,
+    /// hierarchy_merger_per_node_small, hierarchy_merger_store_port (the
+    /// merger top behind one shared store port).
     #[arg(long = "unit")]
     units: Vec<String>,
     /// Every unit of the default set (the default when neither --unit nor
@@ -36,8 +40,8 @@ pub struct Args {
     all: bool,
     /// The larger units (the merging modules, the per-node network, the
     /// upper builder at D = 2, the handshakes of the upper builder at
-    /// D = 16, the fetchers, the record writer and the merger tops; a few
-    /// minutes);
+    /// D = 16, the fetchers, the record writer and the merger tops, and
+    /// those at a small configuration; about 15 minutes);
     /// with --all, after the default set.
     #[arg(long, conflicts_with = "units")]
     large: bool,

@@ -145,8 +145,16 @@ pub(super) fn emit(p: &Proof) -> Result<String, String> {
     for (j, f) in p.flows.iter().enumerate() {
         flow(j, f, &nets, &mut used, &width_of, &mut body)?;
     }
+    for (label, e) in &p.assumptions {
+        writeln!(
+            body,
+            "    // The environment's promise `{label}` (assumed).\n    always @* if (!f_init) a_{label}: assume({});\n",
+            resolve(e, &nets, &mut used)?
+        )
+        .unwrap();
+    }
     if let Some(s) = &p.status {
-        status(p, s, &mut body)?;
+        status(p, s, &nets, &mut used, &mut body)?;
     }
     let mut inv = String::new();
     for (label, e) in &p.invariants {
@@ -258,7 +266,8 @@ fn flow(
 ) -> Result<(), String> {
     let counter = |b: &mut String, cap: u32, inc: &str, dec: &str| {
         let w = bits_for(cap + 1);
-        writeln!(b, "    wire f{j}_in = {inc};\n    wire f{j}_out = {dec};\n    reg {}f{j}_occ;  // beats (events) inside, from the transfers of earlier cycles\n    always @(posedge clk) if (rst) f{j}_occ <= {w}'d0; else f{j}_occ <= f{j}_occ + f{j}_in - f{j}_out;", range(w)).unwrap();
+        // `in` may count several events at once (a number, not a bit).
+        writeln!(b, "    wire {}f{j}_in = {inc};\n    wire f{j}_out = {dec};\n    reg {}f{j}_occ;  // beats (events) inside, from the transfers of earlier cycles\n    always @(posedge clk) if (rst) f{j}_occ <= {w}'d0; else f{j}_occ <= f{j}_occ + f{j}_in - f{j}_out;", range(w), range(w)).unwrap();
     };
     match f {
         Flow::Fifo {
@@ -338,7 +347,13 @@ fn flow(
     Ok(())
 }
 
-fn status(p: &Proof, s: &Status, b: &mut String) -> Result<(), String> {
+fn status(
+    p: &Proof,
+    s: &Status,
+    nets: &Nets,
+    used: &mut BTreeMap<String, u32>,
+    b: &mut String,
+) -> Result<(), String> {
     let mut quiet = Vec::new();
     for &j in &s.busy {
         if j >= p.flows.len() {
@@ -351,16 +366,53 @@ fn status(p: &Proof, s: &Status, b: &mut String) -> Result<(), String> {
     } else {
         quiet.join(" && ")
     };
-    writeln!(b, "`ifdef CHECK_STATUS\n    // `{0}`: nothing outstanding; `{1}`: `{0}` now and not the cycle before.\n    always @* if (!f_init) begin\n        p_{0}_means_empty: assert({0} == ({quiet}));", s.idle, s.done).unwrap();
-    for i in &s.only_when_idle {
+    let (mut now, mut later) = (String::new(), String::new());
+    if let Some(idle) = &s.idle {
+        writeln!(
+            now,
+            "        p_{idle}_means_empty: assert({idle} == ({quiet}));"
+        )
+        .unwrap();
+        for i in &s.only_when_idle {
+            writeln!(
+                now,
+                "        p_{i}_only_when_{idle}: assert(!{i}_ready || {idle});"
+            )
+            .unwrap();
+        }
+        if let Some(done) = &s.done {
+            writeln!(
+                now,
+                "        if (!f_prev) p_{done}_not_at_reset: assert(!{done});"
+            )
+            .unwrap();
+            writeln!(
+                later,
+                "        p_{done}_pulse: assert({done} == ({idle} && !$past({idle})));"
+            )
+            .unwrap();
+        }
+    } else if s.done.is_some() || !s.only_when_idle.is_empty() || !s.busy.is_empty() {
+        return Err("status: `done`, `busy` and `only_when_idle` need `idle`".into());
+    }
+    for (label, e) in &s.rules {
+        let e = resolve(e, nets, used)?;
+        let to = if e.contains("$past") {
+            &mut later
+        } else {
+            &mut now
+        };
+        writeln!(to, "        p_{label}: assert({e});").unwrap();
+    }
+    writeln!(b, "`ifdef CHECK_STATUS\n    // What the status outputs promise; `done`: `idle` now and not the cycle before.\n    always @* if (!f_init) begin\n{now}    end").unwrap();
+    if !later.is_empty() {
         writeln!(
             b,
-            "        p_{i}_only_when_{0}: assert(!{i}_ready || {0});",
-            s.idle
+            "    always @(posedge clk) if (f_prev) begin\n{later}    end"
         )
         .unwrap();
     }
-    writeln!(b, "        if (!f_prev) p_{1}_not_at_reset: assert(!{1});\n    end\n    always @(posedge clk) if (f_prev) p_{1}_pulse: assert({1} == ({0} && !$past({0})));\n`endif\n", s.idle, s.done).unwrap();
+    b.push_str("`endif\n\n");
     Ok(())
 }
 

@@ -138,18 +138,25 @@ pub enum Flow {
 }
 
 /// The status outputs' meaning.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct Status {
-    /// The `idle` port: high exactly when every flow of `busy` has nothing
-    /// outstanding (counted from the transfers of earlier cycles).
-    pub idle: String,
-    /// The `done` port: `idle` now and not idle the cycle before.
-    pub done: String,
+    /// The `idle` port, if the module has one: high exactly when every
+    /// flow of `busy` has nothing outstanding (counted from the transfers of
+    /// earlier cycles).
+    pub idle: Option<String>,
+    /// The `done` port, if it pulses as `idle` rises: `idle` now and not
+    /// idle the cycle before, low in the first cycle after reset.
+    pub done: Option<String>,
     /// Indices into [`Proof::flows`] whose occupancy is "a transaction
     /// inside".
     pub busy: Vec<usize>,
     /// Input streams taken only while idle.
     pub only_when_idle: Vec<String>,
+    /// Further promises of the status outputs, `(label, expression)`:
+    /// SystemVerilog over ports, `dut.<net>` and the flows' counters
+    /// (`f<j>_occ`), checked in every cycle after reset; one with `$past`
+    /// from the second.
+    pub rules: Vec<(String, String)>,
 }
 
 /// The properties of one module and how each check is run.
@@ -168,6 +175,10 @@ pub struct Proof {
     /// Invariants over internal nets, asserted in every check (so they are
     /// proven too) to make induction converge.
     pub invariants: Vec<(String, String)>,
+    /// What the environment promises beyond the input handshakes,
+    /// `(label, expression)` over ports and the flows' counters, assumed in
+    /// every check (e.g. a store answers only reads it has taken).
+    pub assumptions: Vec<(String, String)>,
     /// The checks run: how, and to what depth (BMC depth, or k of
     /// k-induction).
     pub checks: Vec<(Check, Mode, u32)>,
@@ -185,6 +196,7 @@ impl Proof {
             flows: Vec::new(),
             status: None,
             invariants: Vec::new(),
+            assumptions: Vec::new(),
             checks: Vec::new(),
             depth,
         }
@@ -270,7 +282,7 @@ impl Proof {
 
 #[cfg(test)]
 mod tests {
-    use super::{units, Check, Flow, Mode, Proof};
+    use super::{units, Check, Flow, Mode, Proof, Status};
 
     #[test]
     fn every_proof_has_a_harness_and_a_task_per_check() {
@@ -294,6 +306,50 @@ mod tests {
             assert!(sv.contains(&format!("    {} dut (", p.name())), "{name}");
             assert!(!sv.contains(&format!("module {} (", p.name())), "{name}");
         }
+    }
+
+    #[test]
+    fn rules_and_assumptions_are_emitted_under_their_labels() {
+        let p = units::store_port();
+        let sv = p.harness().unwrap();
+        assert!(
+            sv.contains("a_store_answers_reads_taken: assume(!store_resp_valid || f3_occ != 0);"),
+            "{sv}"
+        );
+        assert!(sv.contains("p_store_resp_taken_in_flight: assert("), "{sv}");
+        assert!(
+            sv.contains(
+                "p_idle_means_empty: assert(idle == (f0_occ == 0 && f1_occ == 0 && f2_occ == 0));"
+            ),
+            "{sv}"
+        );
+        // A rule with `$past` is checked from the second cycle after reset.
+        let sv = units::hierarchy_merger_per_node_small().harness().unwrap();
+        let clocked = sv
+            .split("always @(posedge clk) if (f_prev) begin")
+            .nth(1)
+            .unwrap();
+        assert!(
+            clocked.starts_with("\n        p_done_pulse: assert("),
+            "{sv}"
+        );
+        assert!(
+            clocked.contains("p_done_after_header: assert(done == $past("),
+            "{sv}"
+        );
+        // A counted flow's asking side may be a number.
+        let sv = units::fetcher_small().harness().unwrap();
+        assert!(
+            sv.contains("wire [3:0] f1_in = cmd_valid && cmd_ready ? ("),
+            "{sv}"
+        );
+        let mut p = units::skid_buffer(8);
+        p.status = Some(Status {
+            done: Some("done".into()),
+            ..Status::default()
+        });
+        let e = p.harness().unwrap_err();
+        assert!(e.contains("need `idle`"), "{e}");
     }
 
     #[test]

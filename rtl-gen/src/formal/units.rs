@@ -814,15 +814,15 @@ fn merger_small_proof(c: &crate::merge::MergerConfig, overlap: bool) -> Proof {
 /// merge sends its `header` at step 17 (a refusal, the leaves and the
 /// writer's `NO_TOP` header), so 24 holds one whole merge and the next
 /// `cfg`.
-const MERGER_SMALL_DEPTH: u32 = 24;
+pub const MERGER_SMALL_DEPTH: u32 = 24;
 
 /// The BMC depth of the small merger tops' two-copy check: 12 (the count
 /// pass's first reads); each step past it costs about twice the one before
 /// (step 15 of BMC 20 took 3 minutes, which did not finish in 5).
-const MERGER_SMALL_DETERMINED: u32 = 12;
+pub const MERGER_SMALL_DETERMINED: u32 = 12;
 
-/// The merger top (overlap 1/2) at the small configuration of
-/// [`small_merger`]: BMC from reset (its units' buffers are memories), flow
+/// The merger top (overlap 1/2) at the small configuration (D = 4, Q = 0,
+/// I = 8, H = 2, k = 2, small buffers; SPEC 11.1): BMC from reset (its units' buffers are memories), flow
 /// and status to [`MERGER_SMALL_DEPTH`], determined to
 /// [`MERGER_SMALL_DETERMINED`].
 pub fn hierarchy_merger_small() -> Proof {

@@ -84,7 +84,7 @@ pub fn shared_mesh_path(name: &str) -> PathBuf {
 }
 
 /// Appends a free-standing triangle (three new vertices).
-fn push_triangle(m: &mut Mesh, a: Vec3, b: Vec3, c: Vec3) {
+pub(crate) fn push_triangle(m: &mut Mesh, a: Vec3, b: Vec3, c: Vec3) {
     let i = m.vertices.len() as u32;
     m.vertices.extend([a, b, c]);
     m.triangles.push([i, i + 1, i + 2]);

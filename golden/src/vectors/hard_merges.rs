@@ -17,6 +17,7 @@ use crate::merge::stimulus::{
 };
 use crate::mesh::Mesh;
 use crate::params::Params;
+use crate::scenes::push_triangle;
 use crate::store::{Hierarchy, HierarchyStore};
 use crate::translate::{Translation, TranslationTable};
 use glam::Vec3;
@@ -187,18 +188,18 @@ fn sixteen_roots(p: &Params) -> Result<RealCase> {
     for o in 0..8u32 {
         let bit = |b: u32| ((o >> b) & 1) as f32 * 0.5;
         let c = Vec3::new(bit(0), bit(1), bit(2)) + Vec3::splat(0.05);
-        triangle(
+        push_triangle(
             &mut m,
             c,
-            Vec3::new(0.3, 0.0, 0.0),
-            Vec3::new(0.0, 0.3, 0.3),
+            c + Vec3::new(0.3, 0.0, 0.0),
+            c + Vec3::new(0.0, 0.3, 0.3),
         );
         let s = c + Vec3::splat(0.2);
-        triangle(
+        push_triangle(
             &mut m,
             s,
-            Vec3::new(0.01, 0.0, 0.0),
-            Vec3::new(0.0, 0.01, 0.0),
+            s + Vec3::new(0.01, 0.0, 0.0),
+            s + Vec3::new(0.0, 0.01, 0.0),
         );
     }
     let (lo, hi) = m.bounds();
@@ -218,11 +219,11 @@ fn leaf_ladder(p: &Params) -> Result<RealCase> {
     let (mut edge, mut x) = (0.5f32, 0.0f32);
     for _ in 0..p.max_lod {
         let c = Vec3::new(x, 0.0, 0.0);
-        triangle(
+        push_triangle(
             &mut m,
             c,
-            Vec3::new(edge, 0.0, 0.0),
-            Vec3::new(0.0, edge, edge * 0.5),
+            c + Vec3::new(edge, 0.0, 0.0),
+            c + Vec3::new(0.0, edge, edge * 0.5),
         );
         x += edge * 0.5 + 0.001;
         edge *= 0.5;
@@ -240,13 +241,6 @@ fn leaf_ladder(p: &Params) -> Result<RealCase> {
     store.insert(tiny).map_err(golden_err)?;
     store.insert(ladder).map_err(golden_err)?;
     Ok((store, table, vec![1, 2]))
-}
-
-/// The triangle at `a`, `a + u`, `a + v`.
-fn triangle(m: &mut Mesh, a: Vec3, u: Vec3, v: Vec3) {
-    let n = m.vertices.len() as u32;
-    m.vertices.extend([a, a + u, a + v]);
-    m.triangles.push([n, n + 1, n + 2]);
 }
 
 /// A merge whose last input's `cfg` makes its fetcher refuse it with

@@ -35,19 +35,21 @@ pub struct LevelOverlap {
 /// which every input that has inner nodes still has one.
 pub fn candidate_range(inputs: &[&Hierarchy]) -> (u8, u8) {
     let lo = inputs.iter().map(|h| h.top_lod).max().unwrap_or(0);
-    let deep = inputs
-        .iter()
-        .map(|h| {
-            h.nodes
-                .iter()
-                .filter(|n| !n.leaf)
-                .map(|n| n.voxel.lod)
-                .max()
-                .unwrap_or(h.top_lod)
-        })
-        .min()
-        .unwrap_or(lo);
+    let deep = inputs.iter().map(|h| deep_lod(h)).min().unwrap_or(lo);
     (lo, deep.max(lo))
+}
+
+/// `deep(i)` of [`candidate_range`]: the deepest LOD of an inner node of
+/// `h` (over its `nodes` array), its top LOD when it has none. A header
+/// field of a stored hierarchy, so that hardware reads the range off the
+/// headers (the hierarchy unit, docs/hardware.md 8.16).
+pub fn deep_lod(h: &Hierarchy) -> u8 {
+    h.nodes
+        .iter()
+        .filter(|n| !n.leaf)
+        .map(|n| n.voxel.lod)
+        .max()
+        .unwrap_or(h.top_lod)
 }
 
 /// `(shared, union)` over `k` streams of voxel keys of one LOD, each sorted

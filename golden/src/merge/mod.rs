@@ -22,6 +22,7 @@
 pub mod builder_unit;
 pub mod error;
 pub mod fetch_unit;
+pub mod hierarchy_unit;
 pub mod instances;
 pub mod level;
 pub mod level_merge;

@@ -33,6 +33,7 @@
 mod builder;
 mod fetcher;
 mod fields;
+mod hierarchy_unit;
 mod level;
 mod merger;
 mod network;
@@ -44,6 +45,7 @@ mod upper;
 mod writer;
 
 pub use builder::{upper_builder_name, upper_builder_unit};
+pub use hierarchy_unit::{hierarchy_unit, hierarchy_unit_name, HierarchyUnitConfig};
 pub use fetcher::{fetcher_name, fetcher_per_node_name, fetcher_per_node_unit, fetcher_unit};
 pub use level::{merge_level_name, merge_level_unit};
 pub use merger::{
@@ -80,8 +82,10 @@ pub use golden::vectors::merge::MergeDesign as MergeConfig;
 /// then S616's one-level unit and the root sorter; then the fetcher (S610 +
 /// S612, 8.13; per-node configurations: the fetcher with the per-node
 /// command) and the record writer (S618, 8.12) with the sizes of
-/// [`MergerConfig::new`], and the hierarchy merger that instantiates them
-/// all (8.15). `c` must pass `c.validate()`.
+/// [`MergerConfig::new`], the hierarchy merger that instantiates them
+/// all (8.15), and the hierarchy unit (8.16: that merger and a translation
+/// unit with lookup ports, [`HierarchyUnitConfig::new`]). `c` must pass
+/// `c.validate()`.
 pub fn merge_units(c: &MergeConfig) -> Result<Vec<Module>, String> {
     let merger = MergerConfig::new(*c);
     let mut units = vec![
@@ -93,6 +97,7 @@ pub fn merge_units(c: &MergeConfig) -> Result<Vec<Module>, String> {
         record_writer_unit(&c.params, merger.sizes.capacity_bits).map_err(|e| e.to_string())?,
     ];
     units.push(hierarchy_merger_unit(&merger)?);
+    units.push(hierarchy_unit(&HierarchyUnitConfig::new(merger))?);
     Ok(units)
 }
 

@@ -28,7 +28,7 @@ use golden::params::Params;
 use golden::translate::TranslateUnitConfig;
 use golden::vectors::translate::TranslateDesign;
 
-pub use unit::{module_name, translate_unit};
+pub use unit::{lookup_unit_name, module_name, translate_lookup_unit, translate_unit};
 
 /// Writes the Verilog of `d`'s unit into `dir` (created if needed);
 /// returns the files written (one: `<module_name>.v`).

@@ -403,7 +403,7 @@ fn store_streams(child: &Module) -> Vec<(String, Direction, u32)> {
 /// Stream `port` of instance `inst` as this module's stream `outer`: an
 /// output stream (`dir` Output) leaves, an input stream (`width` bits)
 /// comes in.
-fn pass_stream<'m>(
+pub(crate) fn pass_stream<'m>(
     m: &'m Module,
     inst: crate::Instance<'m>,
     port: &str,

@@ -17,10 +17,10 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     output wire apply_out_valid,        // rtl-gen/src/translate/apply.rs:143
     output wire [156:0] apply_out_data, // rtl-gen/src/translate/apply.rs:143
     input  wire apply_out_ready,        // rtl-gen/src/translate/apply.rs:143
-    output wire idle,                   // rtl-gen/src/translate/unit.rs:35
-    output wire done,                   // rtl-gen/src/translate/unit.rs:36
-    output wire det_error_seen,         // rtl-gen/src/translate/unit.rs:41
-    output wire apply_error_seen        // rtl-gen/src/translate/unit.rs:42
+    output wire idle,                   // rtl-gen/src/translate/unit.rs:86
+    output wire done,                   // rtl-gen/src/translate/unit.rs:87
+    output wire det_error_seen,         // rtl-gen/src/translate/unit.rs:95
+    output wire apply_error_seen        // rtl-gen/src/translate/unit.rs:97
 );
     reg [55:0] table_ [0:15];                // rtl-gen/src/translate/table.rs:44
     reg [15:0] table_valid;                  // rtl-gen/src/translate/table.rs:43
@@ -326,12 +326,12 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire apply_out_q_drain;                  // rtl-gen/src/translate/bundle.rs:105
     wire apply_out_q_take;                   // rtl-gen/src/translate/bundle.rs:105
     wire [2:0] apply_out_q_data_code;        // rtl-gen/src/translate/bundle.rs:63
-    wire det_s1_valid_or;                    // rtl-gen/src/translate/unit.rs:30
-    wire was_busy_next;                      // rtl-gen/src/translate/unit.rs:30
-    wire idle_now;                           // rtl-gen/src/translate/unit.rs:32
-    reg was_busy;                            // rtl-gen/src/translate/unit.rs:33
-    reg det_error_seen_q;                    // rtl-gen/src/translate/unit.rs:37
-    reg apply_error_seen_q;                  // rtl-gen/src/translate/unit.rs:39
+    wire det_s1_valid_or;                    // rtl-gen/src/translate/unit.rs:81
+    wire was_busy_next;                      // rtl-gen/src/translate/unit.rs:81
+    wire idle_now;                           // rtl-gen/src/translate/unit.rs:83
+    reg was_busy;                            // rtl-gen/src/translate/unit.rs:84
+    reg det_error_seen_q;                    // rtl-gen/src/translate/unit.rs:88
+    reg apply_error_seen_q;                  // rtl-gen/src/translate/unit.rs:91
 
     assign det_in_ready = det_s1_take;
     assign err_lod = det_in_data[100:96] > 5'd16;

@@ -311,10 +311,13 @@ fn emit_merge_writes_every_stage() {
             &c.params, capacity, by_slot,
         ));
     }
+    // The hierarchy unit's translation unit, with a lookup port per input.
+    let unit = rtl_gen::merge::HierarchyUnitConfig::new(rtl_gen::merge::MergerConfig::new(c));
+    want.push(rtl_gen::translate::lookup_unit_name(&unit.table, c.inputs));
     want.sort();
     // The fetcher's root sorter is the standalone one (same capacity).
     assert_eq!(names, want);
-    assert_eq!(names.len(), 12);
+    assert_eq!(names.len(), 14);
     // Each module as the top, with every emitted file so that a module
     // that instantiates others (the merging module) finds them.
     for name in &names {

@@ -570,3 +570,74 @@ fn hierarchy_merger_steady_state() {
         }
     }
 }
+
+/// The hierarchy unit (docs/hardware.md 8.16): determine commands write
+/// the translation unit's table, the merge command after them runs the
+/// merger top on that table with `(lo, hi)` from the headers; every beat
+/// (`det_out` and the merger's) against golden, random stalls, on the three
+/// engines, at the default and at D = 31 (binary64 placements of up to 31
+/// bits) and Q = 0 with k = 3.
+#[test]
+fn hierarchy_unit_matches_golden_on_three_engines() {
+    use cosim::units::hierarchy_unit::run;
+    use cosim::units::multi_stream::{ModuleEngine, RunConfig};
+    use rtl_gen::merge::HierarchyUnitConfig;
+    let bench = RunConfig {
+        seed: seeded(8016),
+        stall: cosim::tb::Stalls::Coin(0.3),
+        ..RunConfig::default()
+    };
+    for (name, merger) in configs()
+        .into_iter()
+        .filter(|c| c.0 != "fixed" && c.0 != "pernode")
+    {
+        let c = HierarchyUnitConfig::new(merger);
+        for (engine, count) in [
+            (ModuleEngine::Ir, 3),
+            (ModuleEngine::Verilator, 30),
+            (ModuleEngine::Iverilog, 6),
+        ] {
+            let dir = tempfile::tempdir().unwrap();
+            let t = run(&c, engine, &bench, count, dir.path()).unwrap();
+            assert!(
+                t.passed(),
+                "{name} on {engine:?}: {} mismatches, first {:?}, missing {:?}, hang {:?}, {:?}",
+                t.mismatches,
+                t.first_mismatch,
+                t.missing,
+                t.hang,
+                t.status_failure()
+            );
+            assert_eq!(t.merges, count);
+            let det_out = t
+                .received
+                .iter()
+                .find(|r| r.0 == "det_out")
+                .map_or(0, |r| r.1);
+            assert!(det_out as usize >= count, "{name}: {det_out} det_out beats");
+        }
+    }
+}
+
+/// A hierarchy unit whose range ignores the headers' `deep` (`hi = lo`)
+/// fails against golden: the headers' range is what the merges use.
+#[test]
+fn hierarchy_unit_with_a_wrong_range_fails() {
+    use cosim::units::hierarchy_unit::run;
+    use cosim::units::multi_stream::{ModuleEngine, RunConfig, VerilogPatch};
+    use rtl_gen::merge::HierarchyUnitConfig;
+    let c = HierarchyUnitConfig::new(configs().remove(0).1);
+    let bench = RunConfig {
+        seed: seeded(8017),
+        verilog_patch: Some(VerilogPatch {
+            from: "assign range_hi = (deep_upto3 > range_lo) ? deep_upto3 : range_lo;".into(),
+            to: "assign range_hi = range_lo;".into(),
+        }),
+        ..RunConfig::default()
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let t = run(&c, ModuleEngine::Verilator, &bench, 30, dir.path()).unwrap();
+    assert!(!t.passed(), "the broken range passed");
+    let m = t.first_mismatch.expect("a mismatch");
+    assert_eq!(m.stream, "report", "{m:?}");
+}

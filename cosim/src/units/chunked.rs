@@ -93,9 +93,10 @@ impl UnitStreams {
         Ok(())
     }
 
-    /// Merges in the stimulus.
+    /// Merges in the stimulus (each merge's expected beats start somewhere:
+    /// a unit may take several command beats per merge).
     pub fn merges(&self) -> usize {
-        self.inputs.first().map_or(0, |cfg| cfg.beats.len())
+        self.starts.first().map_or(0, |s| s.len().saturating_sub(1))
     }
 
     /// The merge (0-based, in these streams) that output beat `beat` of

@@ -7,6 +7,7 @@
 //! runs them.
 
 pub mod chunked;
+pub mod hierarchy_unit;
 pub mod merge;
 pub mod merge_module;
 pub mod merger;

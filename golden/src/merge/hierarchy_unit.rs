@@ -292,7 +292,9 @@ mod tests {
         for id in 1..=n {
             let tris = 1 + rng.below(12) as usize;
             let size = 0.01 + rng.below(40) as f32 / 100.0;
-            store.insert(soup(&p, id, tris, size, rng.next_u64())).unwrap();
+            store
+                .insert(soup(&p, id, tris, size, rng.next_u64()))
+                .unwrap();
         }
         (store, (1..=n).collect())
     }
@@ -307,12 +309,19 @@ mod tests {
             let hs: Vec<&Hierarchy> = ids.iter().map(|&id| store.get(id).unwrap()).collect();
             let cmd = merge_cmd(&store, &ids, 0).unwrap();
             let p = hs[0].params;
-            assert_eq!(header_range(&cmd.inputs, &p), candidate_range(&hs), "seed {seed}");
+            assert_eq!(
+                header_range(&cmd.inputs, &p),
+                candidate_range(&hs),
+                "seed {seed}"
+            );
             let deep = cmd.inputs.iter().map(|h| h.deep);
             deeps_differ += (deep.clone().min() != deep.max()) as usize;
         }
         // Else the min over `deep` would go untested.
-        assert!(deeps_differ > 5, "only {deeps_differ} stores of differing depths");
+        assert!(
+            deeps_differ > 5,
+            "only {deeps_differ} stores of differing depths"
+        );
     }
 
     #[test]

@@ -494,6 +494,32 @@ pub fn random_merger_merge_of(
     sizes: MergerSizes,
     kind: Merges,
 ) -> Result<MergerTransaction, String> {
+    random_merger_case_of(rng, d, sizes, kind).map(|c| c.tx)
+}
+
+/// A random merge with what it was made of: the store and table its
+/// inputs are in, their ids (rank order) and the output id.
+#[derive(Clone, Debug)]
+pub struct MergerCase {
+    /// The inputs.
+    pub store: HierarchyStore,
+    /// Their translations.
+    pub table: TranslationTable,
+    /// The inputs' ids, rank order.
+    pub ids: Vec<u8>,
+    /// The merged hierarchy's id.
+    pub out_id: u8,
+    /// The merge through the merger.
+    pub tx: MergerTransaction,
+}
+
+/// [`random_merger_merge_of`] with its inputs (the same draws).
+pub fn random_merger_case_of(
+    rng: &mut SplitMix64,
+    d: &MergeDesign,
+    sizes: MergerSizes,
+    kind: Merges,
+) -> Result<MergerCase, String> {
     let p = &d.params;
     let k = d.inputs;
     let out_id = u8::try_from(p.hier_capacity() - 1).map_err(layout_err)?;
@@ -546,7 +572,13 @@ pub fn random_merger_merge_of(
         }
         if let Ok(tx) = merger_transaction(&store, &table, &ids, d.mode, out_id, k, sizes) {
             if !tx.header.leaf_overflow {
-                return Ok(tx);
+                return Ok(MergerCase {
+                    store,
+                    table,
+                    ids,
+                    out_id,
+                    tx,
+                });
             }
         }
     }

@@ -1,0 +1,258 @@
+//! The hierarchy unit (`rtl_gen::merge::hierarchy_unit`, docs/hardware.md
+//! 8.16) against golden, bit for bit on every out stream, with seeded
+//! stalls on every stream: the translation unit's determine commands write
+//! the table, then the merge command's merger top reads it.
+//!
+//! A case is one random merger merge (golden's `random_merger_case_of`,
+//! the merger bench's stimulus) whose translations are not packed by
+//! software but written by determine commands, one per input, before its
+//! merge command: a placement of exactly `t * 2^(D - L)` finest voxels, so
+//! the determined translation is the case's. Golden runs the determine
+//! commands on its translation unit model, whose table persists across
+//! the merges of a run as the hardware's does, and the merge through
+//! `golden::merge::hierarchy_unit::hierarchy_merge` on that table.
+
+use std::path::Path;
+
+use golden::layout::{Bits, Field};
+use golden::merge::hierarchy_unit::{hierarchy_merge, merge_cmd, CmdLayout};
+use golden::merge::merger_unit::{MergerLayout, MergerTransaction};
+use golden::store::Hierarchy;
+use golden::translate::extents::VoxelRange;
+use golden::translate::stimulus::SplitMix64;
+use golden::translate::{TranslateInputs, TranslateOutputs, Translation};
+use golden::vectors::streams::{
+    merger_beats, merger_layout, merger_ports, random_merger_case_of, MergeBeats, Merges,
+    NamedFields, StreamLayout, UnitPorts,
+};
+use golden::vectors::translate::{TranslateDesign, TranslateModel};
+use rtl_gen::merge::HierarchyUnitConfig;
+use rtl_gen::translate::ports::{det_in_layout, det_out_layout, pack_det_in, pack_det_out};
+
+use crate::error::{CosimError, Result};
+use crate::tb::Transaction;
+
+use super::chunked::{run_streams, ChunkTotals, UnitStreams, CHUNK};
+use super::multi_stream::{beat_decoder, decoded_pair, ModuleEngine, RunConfig};
+
+/// The stage name a run reports.
+pub const STAGE: &str = "hierarchy_unit";
+
+fn design_err(what: impl std::fmt::Display) -> CosimError {
+    CosimError::Design {
+        what: format!("hierarchy unit: {what}"),
+    }
+}
+
+/// One merge through the hierarchy unit: the determine commands that write
+/// its inputs' translations (with golden's outputs), then the merge.
+#[derive(Clone, Debug)]
+pub struct HierarchyCase {
+    /// Determine commands, in order, and what each puts on `det_out`.
+    pub dets: Vec<(TranslateInputs, TranslateOutputs)>,
+    /// The merge command's beat.
+    pub merge: Bits,
+    /// Golden's merge.
+    pub tx: MergerTransaction,
+}
+
+/// The determine command that writes translation `t` of `h` into entry
+/// `h.id`: a placement of `t * 2^(D - L)` finest voxels per axis (exact in
+/// the design's format; `L` is `h`'s top LOD) and `h`'s roots as extents.
+pub fn write_command(
+    d: &TranslateDesign,
+    h: &Hierarchy,
+    t: &Translation,
+) -> Result<TranslateInputs> {
+    let p = d.params();
+    if t.lod != h.top_lod {
+        return Err(design_err(format!(
+            "input {}: translation at LOD {}, expected its top LOD {}",
+            h.id, t.lod, h.top_lod
+        )));
+    }
+    let scale = f64::from(p.max_lod - t.lod).exp2();
+    let placement = t.t.map(|v| {
+        let grid = v as f64 * scale;
+        match d.binary64 {
+            true => grid.to_bits(),
+            false => u64::from((grid as f32).to_bits()),
+        }
+    });
+    let tops: Vec<_> = h.roots().iter().map(|n| n.voxel).collect();
+    let ext = VoxelRange::of_nodes(&tops, h.top_lod, p).map_err(design_err)?;
+    Ok(TranslateInputs {
+        format: d.binary64 as u8,
+        placement,
+        lod: h.top_lod,
+        extents_lo: ext.lo,
+        extents_hi: ext.hi,
+        write_enable: 1,
+        write_id: h.id as u32,
+        read_id: h.id as u32,
+    })
+}
+
+/// A random case for `c` from `rng`, its determine commands run on `model`
+/// (the table as the run's commands so far left it).
+pub fn random_case(
+    rng: &mut SplitMix64,
+    c: &HierarchyUnitConfig,
+    model: &mut TranslateModel,
+) -> Result<HierarchyCase> {
+    let design = &c.merger.design;
+    let case =
+        random_merger_case_of(rng, design, c.merger.sizes, Merges::Random).map_err(design_err)?;
+    let mut dets = Vec::new();
+    for &id in &case.ids {
+        let h = case
+            .store
+            .get(id)
+            .ok_or_else(|| design_err("an input left the store"))?;
+        let t = case.table.get(id as u32).ok().flatten().ok_or_else(|| {
+            design_err(format!("input {id} has no translation in the random case"))
+        })?;
+        let inp = write_command(&c.table, h, &t)?;
+        let out = model.determine(&inp).map_err(design_err)?;
+        if model.table().get(id as u32).ok().flatten() != Some(t) {
+            return Err(design_err(format!(
+                "input {id}: the determine command did not write translation {t:?} (outputs {out:?})"
+            )));
+        }
+        dets.push((inp, out));
+    }
+    let cmd = merge_cmd(&case.store, &case.ids, case.out_id).map_err(design_err)?;
+    let (k, sizes) = (design.inputs, c.merger.sizes);
+    let tx = hierarchy_merge(&case.store, model.table(), &cmd, design.mode, k, sizes)
+        .map_err(design_err)?;
+    let merge = c.cmd_layout().pack_merge(&cmd).map_err(design_err)?;
+    Ok(HierarchyCase { dets, merge, tx })
+}
+
+fn golden_bits(b: &rtl_gen::Bits) -> Result<Bits> {
+    Bits::from_words(b.width(), b.words()).map_err(design_err)
+}
+
+/// The fields of a translation-unit payload layout, by name.
+fn port_fields(l: &rtl_gen::translate::ports::PortLayout) -> NamedFields {
+    l.fields
+        .iter()
+        .map(|f| {
+            let field = Field::new("", f.offset, f.width);
+            (f.name.clone(), field)
+        })
+        .collect()
+}
+
+/// The hierarchy unit's streams: `cmd` and the merger's inputs but its
+/// `cfg`; `det_out` and the merger's outputs (`header` last).
+pub fn unit_ports(c: &HierarchyUnitConfig) -> Result<UnitPorts> {
+    let merger = merger_ports(&c.merger.design, &c.merger.sizes).map_err(design_err)?;
+    let cl = c.cmd_layout();
+    let mut cmd_fields: NamedFields = vec![("kind".into(), cl.kind)];
+    cmd_fields.extend(port_fields(&det_in_layout(&c.table)));
+    let cmd = StreamLayout {
+        name: "cmd".into(),
+        fields: cmd_fields,
+        width: cl.width,
+    };
+    let det_out = det_out_layout(&c.table);
+    let det_out = StreamLayout {
+        name: "det_out".into(),
+        fields: port_fields(&det_out),
+        width: det_out.width(),
+    };
+    let mut inputs = vec![cmd];
+    inputs.extend(merger.inputs.into_iter().skip(1));
+    let mut outputs = vec![det_out];
+    outputs.extend(merger.outputs);
+    Ok(UnitPorts { inputs, outputs })
+}
+
+/// Case `case`'s beats on every stream of [`unit_ports`].
+pub fn case_beats(
+    c: &HierarchyUnitConfig,
+    ml: &MergerLayout,
+    case: &HierarchyCase,
+) -> Result<MergeBeats> {
+    let cl: CmdLayout = c.cmd_layout();
+    let merger = merger_beats(&c.merger.design, ml, &case.tx).map_err(design_err)?;
+    let mut cmds = Vec::new();
+    let mut det_outs = Vec::new();
+    for (inp, out) in &case.dets {
+        let det = golden_bits(&pack_det_in(&c.table, inp).map_err(design_err)?)?;
+        cmds.push(cl.pack_determine(&det).map_err(design_err)?);
+        det_outs.push(golden_bits(
+            &pack_det_out(&c.table, out).map_err(design_err)?,
+        )?);
+    }
+    cmds.push(case.merge.clone());
+    let mut inputs = vec![cmds];
+    inputs.extend(merger.inputs.into_iter().skip(1));
+    let mut outputs = vec![det_outs];
+    outputs.extend(merger.outputs);
+    Ok(MergeBeats { inputs, outputs })
+}
+
+/// `count` random cases from `seed`, on a translation unit from reset, as
+/// the unit's streams.
+pub fn random_streams(c: &HierarchyUnitConfig, seed: u64, count: usize) -> Result<UnitStreams> {
+    let ml = merger_layout(&c.merger.design, &c.merger.sizes).map_err(design_err)?;
+    let mut model = TranslateModel::new(c.table).map_err(design_err)?;
+    let mut rng = SplitMix64(seed);
+    let merges = (0..count)
+        .map(|_| case_beats(c, &ml, &random_case(&mut rng, c, &mut model)?))
+        .collect::<Result<Vec<_>>>()?;
+    UnitStreams::from_merges(&unit_ports(c)?, &merges)
+}
+
+/// Runs `count` (at most [`CHUNK`]) random cases from `config.seed` through
+/// the hierarchy unit `c` on `engine`, its Verilog written to `dir`, as one
+/// run from reset: every output beat compared (a mismatch decoded field by
+/// field), one `done` per merge, `idle` at the end; `config`'s Verilog
+/// patch (the test hook) applied. Per-unit store ports only: the streams
+/// carry the store's answers.
+pub fn run(
+    c: &HierarchyUnitConfig,
+    engine: ModuleEngine,
+    config: &RunConfig,
+    count: usize,
+    dir: &Path,
+) -> Result<ChunkTotals> {
+    if c.merger.sizes.store_port != golden::merge::store_port::StorePort::PerUnit {
+        return Err(CosimError::Unsupported {
+            what:
+                "a hierarchy unit with a shared store port (its store answers reads as they come)"
+                    .into(),
+        });
+    }
+    if count > CHUNK {
+        return Err(CosimError::Unsupported {
+            what: format!("{count} merges in one run: expected at most {CHUNK}"),
+        });
+    }
+    let module = rtl_gen::merge::hierarchy_unit(c).map_err(design_err)?;
+    let design = crate::from_rtl::design_from_module(&module, dir)?;
+    if let Some(patch) = &config.verilog_patch {
+        super::multi_stream::apply_patch(&design, patch, engine)?;
+    }
+    let streams = random_streams(c, config.seed, count)?;
+    let ports = unit_ports(c)?;
+    let decode = |stream: &str, e: &Transaction, g: &Transaction| {
+        let fields = ports
+            .outputs
+            .iter()
+            .find(|s| s.name == stream)
+            .map_or_else(Vec::new, |s| s.fields.clone());
+        decoded_pair(&*beat_decoder(fields), e, g)
+    };
+    run_streams(
+        module,
+        design,
+        engine,
+        &streams,
+        config,
+        &decode,
+        &mut |_, _| {},
+    )
+}

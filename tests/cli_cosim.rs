@@ -406,17 +406,17 @@ fn stage_flags_that_do_not_fit_are_refused() {
 /// `--vectors` replay.
 #[test]
 fn flags_of_other_units_are_refused_naming_them() {
-    let merging = "applies to --unit merge and --unit merger only";
+    let merging = "applies to --unit merge and --unit merger and --unit hierarchy only";
     for (unit, flag, want) in [
         ("translate", "--mode fixed:3", merging),
         ("translate", "--inputs 3", merging),
         (
             "merge",
             "--table-depth 4",
-            "--table-depth applies to --unit translate only",
+            "--table-depth applies to --unit translate and --unit hierarchy only",
         ),
         (
-            "merger",
+            "hierarchy",
             "--binary64",
             "--binary64 applies to --unit translate only",
         ),
@@ -433,7 +433,7 @@ fn flags_of_other_units_are_refused_naming_them() {
         (
             "translate",
             "--capacity-bits 5",
-            "--capacity-bits applies to --unit merger only",
+            "--capacity-bits applies to --unit merger and --unit hierarchy only",
         ),
     ] {
         let line = format!("cosim --unit {unit} --engine ir --count 1 {flag}");

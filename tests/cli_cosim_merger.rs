@@ -90,7 +90,7 @@ fn merger_flags_are_checked() {
     assert_refused(
         "cosim --unit merge --leaf-bits 5 --json",
         &[],
-        "--unit merger only",
+        "--unit merger and --unit hierarchy only",
     );
     // The Verilog patch hook needs a Verilog engine and a unit that takes it.
     let patch = [
@@ -223,6 +223,64 @@ fn merger_shared_store_port_through_the_cli() {
     );
     assert_refused(
         "cosim --unit merge --engine ir --count 1 --store-port shared",
+        &[],
+        "--unit merger only",
+    );
+}
+
+/// `cosim --unit hierarchy`: the hierarchy unit (docs/hardware.md 8.16)
+/// through the CLI, its determine commands counted as records in, 0
+/// mismatches on Verilator; the flip hook's bit is caught at its merge's
+/// `header`, with a command that reproduces it; `vectors` and `export-tb`
+/// say they have no files for it, and a shared store port is refused.
+#[test]
+fn hierarchy_unit_through_the_cli() {
+    if !tool_present("verilator") {
+        return;
+    }
+    let run = |env: &[(&str, &str)]| {
+        hiermerge(
+            &[
+                "cosim",
+                "--unit",
+                "hierarchy",
+                "--seed",
+                "4",
+                "--count",
+                "12",
+                "--json",
+            ],
+            env,
+        )
+    };
+    let r = assert_passed(&run(&[]), 12);
+    assert_eq!(r["unit"], "hierarchy", "{r}");
+    assert_eq!(r["stage"], "hierarchy_unit", "{r}");
+    // One determine command per input of each merge, 1..=k inputs.
+    let dets = r["records"].as_u64().unwrap();
+    assert!((12..=48).contains(&dets), "{r}");
+    assert!(r["nodes"].as_u64().unwrap() > 0, "{r}");
+    let o = run(&[("HIERMERGE_COSIM_FLIP_EXPECTED", "5")]);
+    assert!(!o.status.success());
+    let r = json_of(&o);
+    let m = &r["first_mismatch"];
+    assert_eq!(m["transaction"], 5, "{r}");
+    assert_eq!(m["stream"], "header", "{r}");
+    assert!(
+        r["reproduce"]
+            .as_str()
+            .unwrap()
+            .contains("--unit hierarchy"),
+        "{r}"
+    );
+    for line in [
+        "vectors --unit hierarchy --count 2 --out x",
+        "export-tb --unit hierarchy --count 2 --out x",
+    ] {
+        assert_refused(line, &[], "no vector file or exported testbench");
+    }
+    assert_refused(
+        "cosim --unit hierarchy --count 1 --store-port shared",
         &[],
         "--unit merger only",
     );

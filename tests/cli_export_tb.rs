@@ -302,7 +302,7 @@ fn bad_arguments_give_one_clear_error() {
         ),
         (
             vec!["--unit", "merge", "--capacity-bits", "4", "--out", out],
-            "--unit merger only",
+            "--unit merger and --unit hierarchy only",
         ),
         (
             vec!["--unit", "translate", "--count", "2000000", "--out", out],

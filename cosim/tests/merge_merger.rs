@@ -598,7 +598,15 @@ fn hierarchy_unit_matches_golden_on_three_engines() {
             (ModuleEngine::Iverilog, 6),
         ] {
             let dir = tempfile::tempdir().unwrap();
-            let t = run(&c, engine, &bench, count, dir.path()).unwrap();
+            let t = run(
+                &c,
+                engine,
+                &bench,
+                (count, None),
+                dir.path(),
+                &mut |_, _| {},
+            )
+            .unwrap();
             assert!(
                 t.passed(),
                 "{name} on {engine:?}: {} mismatches, first {:?}, missing {:?}, hang {:?}, {:?}",
@@ -636,7 +644,15 @@ fn hierarchy_unit_with_a_wrong_range_fails() {
         ..RunConfig::default()
     };
     let dir = tempfile::tempdir().unwrap();
-    let t = run(&c, ModuleEngine::Verilator, &bench, 30, dir.path()).unwrap();
+    let t = run(
+        &c,
+        ModuleEngine::Verilator,
+        &bench,
+        (30, None),
+        dir.path(),
+        &mut |_, _| {},
+    )
+    .unwrap();
     assert!(!t.passed(), "the broken range passed");
     let m = t.first_mismatch.expect("a mismatch");
     assert_eq!(m.stream, "report", "{m:?}");

@@ -192,9 +192,10 @@ impl UnitOpts {
     /// configures (the grid configures every unit).
     pub fn unit_flags(&self) -> [UnitFlag; 4] {
         const TRANSLATE: &[&str] = &["translate"];
-        const MERGING: &[&str] = &["merge", "merger"];
+        const TABLE: &[&str] = &["translate", "hierarchy"];
+        const MERGING: &[&str] = &["merge", "merger", "hierarchy"];
         [
-            ("--table-depth", self.table_depth.is_some(), TRANSLATE),
+            ("--table-depth", self.table_depth.is_some(), TABLE),
             ("--binary64", self.binary64, TRANSLATE),
             ("--inputs", self.inputs.is_some(), MERGING),
             ("--mode", self.mode.is_some(), MERGING),

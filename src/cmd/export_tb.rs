@@ -126,6 +126,7 @@ fn spec(a: &Args, count: usize, rtl: &Path) -> Result<ExportSpec, String> {
             let d = a.design.merge_design()?;
             merge::export_spec(&d, a.seed, count, stalls, rtl).map_err(e)
         }
+        (Unit::Hierarchy, _) => Err(super::vectors::NO_HIERARCHY_FILES.into()),
         (Unit::Merger, _) => {
             let c = merger_of(a)?;
             let latency = a.store_latency.unwrap_or(1);
@@ -144,6 +145,7 @@ pub fn main(a: Args) -> CmdResult {
     let limit = match a.unit {
         Unit::Translate => golden::vectors::MAX_COUNT,
         Unit::Merge | Unit::Merger => golden::vectors::MAX_MERGE_COUNT,
+        Unit::Hierarchy => return Err(super::vectors::NO_HIERARCHY_FILES.into()),
     };
     golden::vectors::check_count("--count", a.count, limit)?;
     check_store_flags(&a)?;
@@ -153,6 +155,7 @@ pub fn main(a: Args) -> CmdResult {
         Unit::Translate => a.design.translate_design().map(|_| ())?,
         Unit::Merge => a.design.merge_design().map(|_| ())?,
         Unit::Merger => merger_of(&a).map(|_| ())?,
+        Unit::Hierarchy => return Err(super::vectors::NO_HIERARCHY_FILES.into()),
     }
     golden::output::check_destination(&a.out, true)?;
     let rtl = a.out.join(RTL_DIR);

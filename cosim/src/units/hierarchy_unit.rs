@@ -32,7 +32,7 @@ use rtl_gen::translate::ports::{det_in_layout, det_out_layout, pack_det_in, pack
 use crate::error::{CosimError, Result};
 use crate::tb::Transaction;
 
-use super::chunked::{run_streams, ChunkTotals, UnitStreams, CHUNK};
+use super::chunked::{ChunkTotals, ChunkedSim, UnitStreams, CHUNK};
 use super::multi_stream::{beat_decoder, decoded_pair, ModuleEngine, RunConfig};
 
 /// The stage name a run reports.
@@ -194,30 +194,39 @@ pub fn case_beats(
     Ok(MergeBeats { inputs, outputs })
 }
 
-/// `count` random cases from `seed`, on a translation unit from reset, as
-/// the unit's streams.
-pub fn random_streams(c: &HierarchyUnitConfig, seed: u64, count: usize) -> Result<UnitStreams> {
+/// The next `n` random cases of `rng`, on a translation unit from reset
+/// (each chunk of a run starts from reset), as the unit's streams.
+fn next_streams(c: &HierarchyUnitConfig, rng: &mut SplitMix64, n: usize) -> Result<UnitStreams> {
     let ml = merger_layout(&c.merger.design, &c.merger.sizes).map_err(design_err)?;
     let mut model = TranslateModel::new(c.table).map_err(design_err)?;
-    let mut rng = SplitMix64(seed);
-    let merges = (0..count)
-        .map(|_| case_beats(c, &ml, &random_case(&mut rng, c, &mut model)?))
+    let merges = (0..n)
+        .map(|_| case_beats(c, &ml, &random_case(rng, c, &mut model)?))
         .collect::<Result<Vec<_>>>()?;
     UnitStreams::from_merges(&unit_ports(c)?, &merges)
 }
 
-/// Runs `count` (at most [`CHUNK`]) random cases from `config.seed` through
-/// the hierarchy unit `c` on `engine`, its Verilog written to `dir`, as one
-/// run from reset: every output beat compared (a mismatch decoded field by
-/// field), one `done` per merge, `idle` at the end; `config`'s Verilog
-/// patch (the test hook) applied. Per-unit store ports only: the streams
-/// carry the store's answers.
+/// `count` random cases from `seed`, on a translation unit from reset, as
+/// the unit's streams.
+pub fn random_streams(c: &HierarchyUnitConfig, seed: u64, count: usize) -> Result<UnitStreams> {
+    next_streams(c, &mut SplitMix64(seed), count)
+}
+
+/// Runs `count` random cases from `config.seed` through the hierarchy unit
+/// `c` on `engine`, its Verilog written to `dir`, [`CHUNK`] merges at a
+/// time, each chunk from reset (the table too); stops after the first
+/// chunk that fails. Every output beat compared (a mismatch decoded field
+/// by field), one `done` per merge, `idle` at the end of every chunk;
+/// `config`'s Verilog patch (the test hook) applied. Per-unit store ports
+/// only: the streams carry the store's answers. `flip` (the test hook)
+/// flips bit 0 of that merge's expected `header` beat (its `out_id`);
+/// `progress` gets (merges whose outputs arrived so far, cycle).
 pub fn run(
     c: &HierarchyUnitConfig,
     engine: ModuleEngine,
     config: &RunConfig,
-    count: usize,
+    (count, flip): (usize, Option<usize>),
     dir: &Path,
+    progress: &mut dyn FnMut(u64, u64),
 ) -> Result<ChunkTotals> {
     if c.merger.sizes.store_port != golden::merge::store_port::StorePort::PerUnit {
         return Err(CosimError::Unsupported {
@@ -226,18 +235,27 @@ pub fn run(
                     .into(),
         });
     }
-    if count > CHUNK {
-        return Err(CosimError::Unsupported {
-            what: format!("{count} merges in one run: expected at most {CHUNK}"),
-        });
-    }
     let module = rtl_gen::merge::hierarchy_unit(c).map_err(design_err)?;
+    crate::waves::check_scope(&module, config.wave_scope.as_deref())?;
     let design = crate::from_rtl::design_from_module(&module, dir)?;
     if let Some(patch) = &config.verilog_patch {
         super::multi_stream::apply_patch(&design, patch, engine)?;
     }
-    let streams = random_streams(c, config.seed, count)?;
     let ports = unit_ports(c)?;
+    let (i, o) = (
+        ports
+            .inputs
+            .iter()
+            .map(|s| s.name.as_str())
+            .collect::<Vec<_>>(),
+        ports
+            .outputs
+            .iter()
+            .map(|s| s.name.as_str())
+            .collect::<Vec<_>>(),
+    );
+    let patched = config.verilog_patch.is_some();
+    let sim = ChunkedSim::new(module, design, engine, &i, &o, patched)?;
     let decode = |stream: &str, e: &Transaction, g: &Transaction| {
         let fields = ports
             .outputs
@@ -246,13 +264,23 @@ pub fn run(
             .map_or_else(Vec::new, |s| s.fields.clone());
         decoded_pair(&*beat_decoder(fields), e, g)
     };
-    run_streams(
-        module,
-        design,
-        engine,
-        &streams,
-        config,
-        &decode,
-        &mut |_, _| {},
-    )
+    let mut rng = SplitMix64(config.seed);
+    let mut totals = ChunkTotals::default();
+    let mut left = count;
+    while left > 0 {
+        let n = left.min(CHUNK);
+        let t = std::time::Instant::now();
+        let mut streams = next_streams(c, &mut rng, n)?;
+        totals.golden_wall += t.elapsed();
+        let first = count - left;
+        if let Some(f) = flip.filter(|f| (first..first + n).contains(f)) {
+            // `header` is the last output stream; every merge has its one beat.
+            streams.flip_first(streams.outputs.len() - 1, f - first)?;
+        }
+        if sim.run_chunk(&mut totals, n, &streams, config, &decode, progress)? {
+            break;
+        }
+        left -= n;
+    }
+    Ok(totals)
 }

@@ -19,8 +19,8 @@ use golden::translate::TranslateUnitConfig;
 use golden::vectors::translate::TranslateDesign;
 
 use super::fields::{field, with_fields};
-use super::merger::{hierarchy_merger_name, MergerConfig};
 use super::hierarchy_merger_unit;
+use super::merger::{hierarchy_merger_name, MergerConfig};
 use crate::translate::{lookup_unit_name, ports::det_in_layout, translate_lookup_unit};
 use crate::{Direction, Module, Signal, Stream};
 
@@ -162,7 +162,9 @@ fn merger_cfg<'m>(
     let mut inputs = Vec::new();
     let (mut lo, mut deep) = (m.lit(0, lb), m.lit((1u128 << lb) - 1, lb));
     for i in 0..cl.k {
-        let used = count.gt(m.lit(i as u128, count.width())).name(&format!("used{i}"));
+        let used = count
+            .gt(m.lit(i as u128, count.width()))
+            .name(&format!("used{i}"));
         let hier = get(i, &cl.input.hier);
         let entry = lookup(i, hier);
         let beat = with_fields(
@@ -180,17 +182,16 @@ fn merger_cfg<'m>(
         inputs.push(used.mux(beat, m.lit(0, fl.cfg_width)));
         let top = get(i, &cl.input.top);
         let d = get(i, &cl.input.deep);
-        lo = (used & top.gt(lo)).mux(top, lo).name(&format!("lo_upto{i}"));
-        deep = (used & d.lt(deep)).mux(d, deep).name(&format!("deep_upto{i}"));
+        lo = (used & top.gt(lo))
+            .mux(top, lo)
+            .name(&format!("lo_upto{i}"));
+        deep = (used & d.lt(deep))
+            .mux(d, deep)
+            .name(&format!("deep_upto{i}"));
     }
     let lo = lo.name("range_lo");
     let hi = deep.gt(lo).mux(deep, lo).name("range_hi");
-    let mut parts = vec![
-        field(data, &cl.out_id).expect("H >= 1"),
-        hi,
-        lo,
-        count,
-    ];
+    let mut parts = vec![field(data, &cl.out_id).expect("H >= 1"), hi, lo, count];
     parts.extend(inputs.into_iter().rev());
     let beat = m.concat(&parts).name("merger_cfg");
     debug_assert_eq!(beat.width(), ml.cfg_width);

@@ -45,8 +45,8 @@ mod upper;
 mod writer;
 
 pub use builder::{upper_builder_name, upper_builder_unit};
-pub use hierarchy_unit::{hierarchy_unit, hierarchy_unit_name, HierarchyUnitConfig};
 pub use fetcher::{fetcher_name, fetcher_per_node_name, fetcher_per_node_unit, fetcher_unit};
+pub use hierarchy_unit::{hierarchy_unit, hierarchy_unit_name, HierarchyUnitConfig};
 pub use level::{merge_level_name, merge_level_unit};
 pub use merger::{
     hierarchy_merger_name, hierarchy_merger_unit, store_port_name, store_port_unit, MergerConfig,

@@ -79,10 +79,21 @@ pub(super) fn run_args(a: &Args) -> Result<Vec<String>, String> {
                 v.push("--binary64".into());
             }
         }
-        Unit::Merge | Unit::Merger => {
+        Unit::Merge | Unit::Merger | Unit::Hierarchy => {
             let mode = crate::cmd::merge::parse_mode(a.design.mode())?;
             push("--inputs", a.design.inputs().to_string());
             push("--mode", mode.to_string());
+            if a.unit == Unit::Hierarchy {
+                for (flag, v) in [
+                    ("--capacity-bits", a.capacity_bits),
+                    ("--leaf-bits", a.leaf_bits),
+                    ("--table-depth", a.design.table_depth),
+                ] {
+                    if let Some(v) = v {
+                        push(flag, v.to_string());
+                    }
+                }
+            }
             if a.unit == Unit::Merger {
                 if let Some(c) = a.capacity_bits {
                     push("--capacity-bits", c.to_string());

@@ -20,6 +20,7 @@
 
 mod bins;
 mod command_line;
+mod hierarchy;
 mod merge;
 mod merger;
 mod report;
@@ -119,8 +120,8 @@ fn check_waves(a: &Args) -> Result<(), String> {
     if a.waves == WavesChoice::Vcd {
         return Ok(());
     }
-    let batch =
-        a.unit == Unit::Merger || (a.unit == Unit::Merge && merge_stage(a)? == MergeStage::Module);
+    let batch = matches!(a.unit, Unit::Merger | Unit::Hierarchy)
+        || (a.unit == Unit::Merge && merge_stage(a)? == MergeStage::Module);
     match a.engine {
         EngineChoice::Ir => Err("--waves fst: the IR simulator writes VCD only".into()),
         EngineChoice::Iverilog if !batch => Err(
@@ -147,6 +148,9 @@ pub enum Unit {
     Merge,
     /// The hierarchy merger, S610-S618 as one top (SPEC 8.15).
     Merger,
+    /// The hierarchy unit: the translation unit and the merger top behind
+    /// one command stream (docs/hardware.md 8.16).
+    Hierarchy,
 }
 
 impl Unit {
@@ -156,6 +160,7 @@ impl Unit {
             Unit::Translate => "translate",
             Unit::Merge => "merge",
             Unit::Merger => "merger",
+            Unit::Hierarchy => "hierarchy",
         }
     }
 }
@@ -178,11 +183,15 @@ pub enum MergeStage {
 /// `--stage merge-level` its S614 stage alone (unit 506; a transaction is
 /// one level). --unit merger: the hierarchy merger (S610-S618; a
 /// transaction is one merge, store responses precomputed from golden;
-/// run in chunks of 10,000 merges).
+/// run in chunks of 10,000 merges). --unit hierarchy: the hierarchy unit
+/// (the translation unit and the merger top behind one command stream; a
+/// transaction is one merge, its translations written by determine
+/// commands before it).
 #[derive(clap::Args, Clone)]
 pub struct Args {
     /// translate: the translation unit; merge: the merging module; merger:
-    /// the hierarchy merger.
+    /// the hierarchy merger; hierarchy: the hierarchy unit (translation
+    /// unit and merger top).
     #[arg(long, value_enum)]
     unit: Unit,
     /// --unit merge only: `module` (default) or `merge-level`, the S614
@@ -437,6 +446,8 @@ pub fn main(a: Args) -> CmdResult {
 }
 
 const MERGER: &[&str] = &["merger"];
+/// Units with a merger top inside.
+const WITH_MERGER: &[&str] = &["merger", "hierarchy"];
 
 /// Refuses a flag that `cosim`, `vectors` and `export-tb` share and
 /// `unit` does not take, naming it and the units it applies to: the unit
@@ -452,8 +463,8 @@ pub(crate) fn refuse_unit_flags(
     let mut flags = vec![("--stage", stage.is_some(), &["merge"][..])];
     flags.extend(design.unit_flags());
     flags.extend([
-        ("--capacity-bits", sizes[0].is_some(), MERGER),
-        ("--leaf-bits", sizes[1].is_some(), MERGER),
+        ("--capacity-bits", sizes[0].is_some(), WITH_MERGER),
+        ("--leaf-bits", sizes[1].is_some(), WITH_MERGER),
     ]);
     flags.extend_from_slice(more);
     super::common::refuse_flags_of_other_units(unit.name(), &flags)
@@ -509,11 +520,11 @@ pub(crate) fn run(a: Args) -> CmdResult {
     let patchable = match a.unit {
         Unit::Translate => false,
         Unit::Merge => merge_stage(&a)? == MergeStage::Module,
-        Unit::Merger => true,
+        Unit::Merger | Unit::Hierarchy => true,
     };
     if verilog_patch()?.is_some() && !patchable {
         return Err(format!(
-            "{PATCH_FROM_VAR} applies to --unit merge (the module) and --unit merger only"
+            "{PATCH_FROM_VAR} applies to --unit merge (the module), merger and hierarchy only"
         ));
     }
     if a.ledger.is_some() && (flip.is_some() || verilog_patch()?.is_some()) {
@@ -533,6 +544,7 @@ pub(crate) fn run(a: Args) -> CmdResult {
             }
         },
         Unit::Merger => merger::run(&a, &a.design.merge_design()?, flip, dir.path())?,
+        Unit::Hierarchy => hierarchy::run(&a, &a.design.merge_design()?, flip, dir.path())?,
     };
     if let Some(dir) = &a.ledger {
         let path = merger::record(&a, &report, dir)?;

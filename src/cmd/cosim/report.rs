@@ -126,11 +126,12 @@ pub(super) struct StoreReport {
 pub(super) struct Counts {
     pub(super) transactions: u64,
     /// Input records (translate: transactions; merge: beats on in0..;
-    /// merge-level: input beats; merger: beats into its merging module).
+    /// merge-level: input beats; merger: beats into its merging module;
+    /// hierarchy: determine commands).
     pub(super) records: u64,
     /// Output records (translate: transactions; merge: report and out
-    /// beats; merge-level: base-node/reference beats; merger: node
-    /// records written).
+    /// beats; merge-level: base-node/reference beats; merger, hierarchy:
+    /// node records written).
     pub(super) nodes: u64,
     pub(super) mismatches: u64,
     pub(super) cycles: u64,

@@ -327,3 +327,36 @@ fn bad_arguments_give_one_clear_error() {
     }
     assert!(!Path::new(out).exists(), "nothing written on a refusal");
 }
+
+/// The hierarchy unit's testbench (its determine commands and merge
+/// commands on `cmd`, the store's answers as input streams) passes on
+/// Icarus, and a flipped `det_out` expectation fails it naming the field.
+#[test]
+fn the_hierarchy_unit_exports_a_testbench_that_checks_det_out() {
+    if !tool_present("iverilog") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    export(
+        dir.path(),
+        &["--unit", "hierarchy", "--count", "6", "--seed", "5"],
+    );
+    let (ok, log) = run(dir.path(), "icarus");
+    assert!(ok, "{log}");
+    assert!(log.contains("6 merges"), "{log}");
+    let d = rtl_gen::merge::HierarchyUnitConfig::new(rtl_gen::merge::MergerConfig::new(
+        MergeDesign::default(),
+    ));
+    let layout = rtl_gen::translate::ports::det_out_layout(&d.table);
+    let f = layout.field("t_x").expect("a det_out field");
+    let vectors = dir.path().join("vectors");
+    flip(&vectors.join("det_out.expected.hex"), 1, f.offset);
+    let (ok, log) = run(dir.path(), "icarus");
+    assert!(!ok, "a flipped det_out expectation passed:\n{log}");
+    let starred: Vec<&str> = log
+        .lines()
+        .filter_map(|l| l.strip_prefix("  * "))
+        .filter_map(|l| l.split_whitespace().next())
+        .collect();
+    assert_eq!(starred, ["t_x", "beat"], "{log}");
+}

@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use cosim::export_tb::{self, ExportSpec, RTL_DIR};
-use cosim::units::{merge, merge_module, merger, translate};
+use cosim::units::{hierarchy_unit, merge, merge_module, merger, translate};
 use serde::Serialize;
 
 use super::common::UnitOpts;
@@ -102,6 +102,16 @@ fn merger_of(a: &Args) -> Result<rtl_gen::merge::MergerConfig, String> {
     Ok(c)
 }
 
+/// The hierarchy unit `a` asks for (per-unit store ports).
+fn hierarchy_of(a: &Args) -> Result<rtl_gen::merge::HierarchyUnitConfig, String> {
+    let mut c = rtl_gen::merge::HierarchyUnitConfig::new(merger_of(a)?);
+    if let Some(depth) = a.design.table_depth {
+        c.table.unit.table_depth = depth;
+    }
+    c.validate().map_err(|e| e.to_string())?;
+    Ok(c)
+}
+
 /// The arguments that wrote the testbench, as a shell line.
 fn command_line() -> String {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -126,7 +136,10 @@ fn spec(a: &Args, count: usize, rtl: &Path) -> Result<ExportSpec, String> {
             let d = a.design.merge_design()?;
             merge::export_spec(&d, a.seed, count, stalls, rtl).map_err(e)
         }
-        (Unit::Hierarchy, _) => Err(super::vectors::NO_HIERARCHY_FILES.into()),
+        (Unit::Hierarchy, _) => {
+            let c = hierarchy_of(a)?;
+            hierarchy_unit::export_spec(&c, a.seed, count, stalls, rtl).map_err(e)
+        }
         (Unit::Merger, _) => {
             let c = merger_of(a)?;
             let latency = a.store_latency.unwrap_or(1);
@@ -144,8 +157,7 @@ pub fn main(a: Args) -> CmdResult {
     }
     let limit = match a.unit {
         Unit::Translate => golden::vectors::MAX_COUNT,
-        Unit::Merge | Unit::Merger => golden::vectors::MAX_MERGE_COUNT,
-        Unit::Hierarchy => return Err(super::vectors::NO_HIERARCHY_FILES.into()),
+        Unit::Merger | Unit::Merge | Unit::Hierarchy => golden::vectors::MAX_MERGE_COUNT,
     };
     golden::vectors::check_count("--count", a.count, limit)?;
     check_store_flags(&a)?;
@@ -155,7 +167,7 @@ pub fn main(a: Args) -> CmdResult {
         Unit::Translate => a.design.translate_design().map(|_| ())?,
         Unit::Merge => a.design.merge_design().map(|_| ())?,
         Unit::Merger => merger_of(&a).map(|_| ())?,
-        Unit::Hierarchy => return Err(super::vectors::NO_HIERARCHY_FILES.into()),
+        Unit::Hierarchy => hierarchy_of(&a).map(|_| ())?,
     }
     golden::output::check_destination(&a.out, true)?;
     let rtl = a.out.join(RTL_DIR);

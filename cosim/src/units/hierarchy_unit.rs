@@ -284,3 +284,46 @@ pub fn run(
     }
     Ok(totals)
 }
+
+/// The exported testbench of `c` (`hiermerge export-tb --unit hierarchy`):
+/// `count` random cases from `seed` as [`run`] draws them (one run from
+/// reset), the Verilog written to `rtl`. Per-unit store ports: the store's
+/// answers are input streams.
+pub fn export_spec(
+    c: &HierarchyUnitConfig,
+    seed: u64,
+    count: usize,
+    stalls: crate::tb::Stalls,
+    rtl: &Path,
+) -> Result<crate::export_tb::ExportSpec> {
+    if c.merger.sizes.store_port != golden::merge::store_port::StorePort::PerUnit {
+        return Err(CosimError::Unsupported {
+            what: "an exported testbench of a hierarchy unit with a shared store port".into(),
+        });
+    }
+    let streams = random_streams(c, seed, count)?;
+    let module = rtl_gen::merge::hierarchy_unit(c).map_err(design_err)?;
+    let design = crate::from_rtl::design_from_module(&module, rtl)?;
+    let ports = unit_ports(c)?;
+    let (inputs, outputs) = super::multi_stream::export_streams(&streams, |name| {
+        let fields = ports.outputs.iter().find(|s| s.name == name);
+        fields.map_or_else(Vec::new, |s| {
+            s.fields
+                .iter()
+                .map(|(n, f)| crate::export_tb::NamedField::of(n.clone(), f))
+                .collect()
+        })
+    });
+    Ok(crate::export_tb::ExportSpec {
+        design,
+        transaction: "merge".into(),
+        transactions: count as u64,
+        inputs,
+        outputs,
+        checks: super::multi_stream::export_checks(count),
+        seed,
+        stalls,
+        command: String::new(),
+        store: None,
+    })
+}

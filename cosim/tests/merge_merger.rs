@@ -657,3 +657,43 @@ fn hierarchy_unit_with_a_wrong_range_fails() {
     let m = t.first_mismatch.expect("a mismatch");
     assert_eq!(m.stream, "report", "{m:?}");
 }
+
+/// The hierarchy unit behind one shared store port: the store model
+/// attributes each read to its merge by the `slot`, though determine
+/// commands come between the merge commands on `cmd`; every beat against
+/// golden and each merge's reads as many as golden's units make.
+#[test]
+fn hierarchy_unit_behind_a_shared_store_port_matches_golden() {
+    use cosim::units::hierarchy_unit::{random_case, HierarchySim};
+    use cosim::units::multi_stream::{ModuleEngine, RunConfig};
+    use golden::vectors::translate::TranslateModel;
+    use rtl_gen::merge::HierarchyUnitConfig;
+    let mut merger = configs().remove(0).1;
+    merger.sizes.store_port = golden::merge::store_port::StorePort::SHARED;
+    let c = HierarchyUnitConfig::new(merger);
+    let mut model = TranslateModel::new(c.table).unwrap();
+    let mut rng = SplitMix64(seeded(8018));
+    let cases: Vec<_> = (0..12)
+        .map(|_| random_case(&mut rng, &c, &mut model).unwrap())
+        .collect();
+    let dir = tempfile::tempdir().unwrap();
+    let sim = HierarchySim::new(&c, ModuleEngine::Verilator, dir.path(), None).unwrap();
+    let bench = RunConfig {
+        seed: seeded(8019),
+        stall: cosim::tb::Stalls::Coin(0.3),
+        ..RunConfig::default()
+    };
+    let o = sim.run(&cases, &bench, None, None).unwrap();
+    let t = &o.totals;
+    assert!(
+        t.passed(),
+        "{} mismatches, first {:?}, hang {:?}, {:?}",
+        t.mismatches,
+        t.first_mismatch,
+        t.hang,
+        t.status_failure()
+    );
+    let store = o.store.expect("a shared port's store outcome");
+    assert_eq!(store.failure, None);
+    assert!(store.stats.reads > 0 && store.stats.reads == store.expected_reads);
+}

@@ -33,7 +33,10 @@ use crate::error::{CosimError, Result};
 use crate::tb::Transaction;
 
 use super::chunked::{ChunkTotals, ChunkedSim, UnitStreams, CHUNK};
-use super::multi_stream::{beat_decoder, decoded_pair, ModuleEngine, RunConfig};
+use super::merger::shared::{Front, SharedSim};
+use super::merger::{SceneStore, SimOutcome, StoreOutcome};
+use super::multi_stream::{beat_decoder, decoded_pair, ModuleEngine, RunConfig, VerilogPatch};
+use golden::merge::store_port::StorePort;
 
 /// The stage name a run reports.
 pub const STAGE: &str = "hierarchy_unit";
@@ -326,4 +329,135 @@ pub fn export_spec(
         command: String::new(),
         store: None,
     })
+}
+
+/// A hierarchy unit built once and run on cases from elsewhere, each run
+/// one chunk from reset (the table too): a scene's frame, its determine
+/// commands then its merges (`hiermerge run`). With a shared store port its
+/// reads are answered by a store model, as the merger's are
+/// ([`super::merger::MergerSim`]).
+pub struct HierarchySim {
+    config: HierarchyUnitConfig,
+    ports: UnitPorts,
+    sim: Sim,
+}
+
+enum Sim {
+    PerUnit(ChunkedSim),
+    Shared(Box<SharedSim>),
+}
+
+impl HierarchySim {
+    /// The hierarchy unit `c` on `engine`, its Verilog written to `dir`
+    /// (which must outlive the simulator) and broken by `patch` when given
+    /// (the test hook; not on the IR engine); Verilator builds it here.
+    pub fn new(
+        c: &HierarchyUnitConfig,
+        engine: ModuleEngine,
+        dir: &Path,
+        patch: Option<&VerilogPatch>,
+    ) -> Result<HierarchySim> {
+        let module = rtl_gen::merge::hierarchy_unit(c).map_err(design_err)?;
+        let design = crate::from_rtl::design_from_module(&module, dir)?;
+        if let Some(patch) = patch {
+            super::multi_stream::apply_patch(&design, patch, engine)?;
+        }
+        let shared = c.merger.sizes.store_port != StorePort::PerUnit;
+        super::merger::prebuild(&design, engine, patch.is_some() && !shared)?;
+        let ports = unit_ports(c)?;
+        let sim = match shared {
+            true => Sim::Shared(Box::new(SharedSim::with_front(
+                &c.merger,
+                module,
+                design,
+                engine,
+                Front::Hierarchy(Box::new(c.cmd_layout())),
+            ))),
+            false => {
+                let names =
+                    |s: &[StreamLayout]| s.iter().map(|s| s.name.clone()).collect::<Vec<_>>();
+                let (i, o) = (names(&ports.inputs), names(&ports.outputs));
+                let i: Vec<&str> = i.iter().map(String::as_str).collect();
+                let o: Vec<&str> = o.iter().map(String::as_str).collect();
+                Sim::PerUnit(ChunkedSim::new(
+                    module,
+                    design,
+                    engine,
+                    &i,
+                    &o,
+                    patch.is_some(),
+                )?)
+            }
+        };
+        Ok(HierarchySim {
+            config: c.clone(),
+            ports,
+            sim,
+        })
+    }
+
+    /// Runs `cases` as one chunk from reset: every output beat compared (a
+    /// mismatch decoded field by field), one `done` per merge, `idle` at the
+    /// end; `flip_expected` (the test hook) flips bit 0 of that merge's
+    /// expected `header` beat. A shared store port's reads are answered from
+    /// `store` (None: from the words golden's units read) and checked
+    /// against golden's units' reads.
+    pub fn run(
+        &self,
+        cases: &[HierarchyCase],
+        bench: &RunConfig,
+        flip_expected: Option<usize>,
+        store: Option<SceneStore>,
+    ) -> Result<SimOutcome> {
+        let c = &self.config;
+        let ml = merger_layout(&c.merger.design, &c.merger.sizes).map_err(design_err)?;
+        let merges = cases
+            .iter()
+            .map(|case| case_beats(c, &ml, case))
+            .collect::<Result<Vec<_>>>()?;
+        let mut streams = UnitStreams::from_merges(&self.ports, &merges)?;
+        if let Some(n) = flip_expected {
+            streams.flip_first(streams.outputs.len() - 1, n)?;
+        }
+        let txs: Vec<MergerTransaction> = cases.iter().map(|c| c.tx.clone()).collect();
+        let stats = super::merger::merger_streams(&c.merger, &txs)?.stats;
+        let decode = |stream: &str, e: &Transaction, g: &Transaction| {
+            let fields = self
+                .ports
+                .outputs
+                .iter()
+                .find(|s| s.name == stream)
+                .map_or_else(Vec::new, |s| s.fields.clone());
+            decoded_pair(&*beat_decoder(fields), e, g)
+        };
+        let mut totals = ChunkTotals::default();
+        let n = cases.len();
+        let store = match &self.sim {
+            Sim::PerUnit(sim) => {
+                sim.run_chunk(&mut totals, n, &streams, bench, &decode, &mut |_, _| {})?;
+                None
+            }
+            Sim::Shared(sim) => {
+                let mut outcome = StoreOutcome::default();
+                let bench = super::chunked::chunk_bench(bench, 0);
+                let (latency, image) = store.map_or((1, None), |s| (s.latency, Some(s.image)));
+                sim.run_chunk(
+                    &mut totals,
+                    &mut outcome,
+                    streams,
+                    n,
+                    &bench,
+                    latency,
+                    image,
+                    &decode,
+                )?;
+                Some(outcome)
+            }
+        };
+        Ok(SimOutcome {
+            totals,
+            stats,
+            store,
+        })
+    }
 }

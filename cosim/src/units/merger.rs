@@ -42,7 +42,7 @@ use super::multi_stream::{
 pub use super::multi_stream::{RunConfig as ModuleRunConfig, VerilogPatch};
 use crate::export_tb::{named_fields, ExportSpec};
 
-mod shared;
+pub(crate) mod shared;
 pub use shared::StoreOutcome;
 
 /// The stage name `hiermerge cosim --unit merger` reports.
@@ -529,6 +529,26 @@ pub struct SimOutcome {
     pub store: Option<StoreOutcome>,
 }
 
+/// Builds `design` for `engine` now (or loads it from cosim's cache), so a
+/// run's first chunk does not pay for the build: with tracing when
+/// `traced` (a patched per-unit design, whose failure's waveform then needs
+/// no second build; a shared port's reactive bench runs untraced).
+pub(crate) fn prebuild(design: &Design, engine: MergerEngine, traced: bool) -> Result<()> {
+    if engine == MergerEngine::Verilator {
+        let (format, scope) = ModuleRunConfig::default().waves();
+        match traced {
+            false => crate::open_engine(crate::EngineKind::Verilator, design, false)?,
+            true => crate::open_tracing_engine(
+                crate::EngineKind::Verilator,
+                design,
+                format,
+                scope.as_deref(),
+            )?,
+        };
+    }
+    Ok(())
+}
+
 impl MergerSim {
     /// The merger `c` on `engine`, its Verilog written to `dir` (which must
     /// outlive the simulator: each chunk opens the design anew) and broken
@@ -547,21 +567,7 @@ impl MergerSim {
             apply_patch(&design, patch, engine)?;
         }
         let shared = is_shared(c);
-        // The build a chunk's engine opens: a patched per-unit design's
-        // traces, so its failure's waveform needs no second build (the
-        // shared port's reactive bench runs untraced).
-        if engine == MergerEngine::Verilator {
-            let (format, scope) = ModuleRunConfig::default().waves();
-            match patch.filter(|_| !shared) {
-                None => crate::open_engine(crate::EngineKind::Verilator, &design, false)?,
-                Some(_) => crate::open_tracing_engine(
-                    crate::EngineKind::Verilator,
-                    &design,
-                    format,
-                    scope.as_deref(),
-                )?,
-            };
-        }
+        prebuild(&design, engine, patch.is_some() && !shared)?;
         let sim = match shared {
             true => Sim::Shared(Box::new(shared::SharedSim::new(c, module, design, engine)?)),
             false => Sim::PerUnit(chunked_sim(c, module, design, engine, patch.is_some())?),

@@ -47,11 +47,16 @@ pub struct Epochs {
     pub start_input: usize,
     /// The output stream whose beats end them.
     pub end_output: String,
+    /// Merges started by the first `s` beats of `start_input`, per `s`
+    /// (None: every beat starts one; the hierarchy unit's `cmd` carries
+    /// determine commands between its merge commands).
+    pub starts: Option<Vec<u64>>,
 }
 
 /// [`Epochs`] as a running model follows them.
 struct EpochState {
     start_input: usize,
+    starts: Option<Vec<u64>>,
     /// `<end_output>_valid` and `_ready`.
     end: (crate::design::PortId, crate::design::PortId),
     /// Merges taken (beats sent on `start_input`) and ended.
@@ -169,6 +174,7 @@ impl<'a> StoreModel<'a> {
         let epochs = match epochs {
             Some(e) => Some(EpochState {
                 start_input: e.start_input,
+                starts: e.starts,
                 end: (
                     engine.port_id(&format!("{}_valid", e.end_output))?,
                     engine.port_id(&format!("{}_ready", e.end_output))?,
@@ -261,7 +267,11 @@ impl StoreModel<'_> {
 impl Reactor for StoreModel<'_> {
     fn drive(&mut self, engine: &mut dyn Engine, sent: &[u64]) -> Result<()> {
         if let Some(e) = self.epochs.as_mut() {
-            e.taken = sent.get(e.start_input).copied().unwrap_or(0);
+            let beats = sent.get(e.start_input).copied().unwrap_or(0);
+            e.taken = match &e.starts {
+                Some(s) => s.get(beats as usize).or(s.last()).copied().unwrap_or(0),
+                None => beats,
+            };
         }
         let now = engine.cycle();
         while self.delayed.front().is_some_and(|d| d.0 <= now) {

@@ -58,6 +58,57 @@ struct SharedChunk {
     streams: UnitStreams,
     stores: Vec<StoreWords>,
     reads: Vec<u64>,
+    /// Merges started by the first `s` beats of the first input, per `s`
+    /// (None: every beat starts one).
+    starts: Option<Vec<u64>>,
+}
+
+/// Where a top's merges start: its first input stream, the merger's `cfg`
+/// (a beat per merge) or the hierarchy unit's `cmd` (determine commands
+/// between the merge commands, docs/hardware.md 8.16).
+#[derive(Clone, Debug)]
+pub(crate) enum Front {
+    /// The merger top.
+    Merger(Box<MergerLayout>),
+    /// The hierarchy unit, its `cmd` laid out so.
+    Hierarchy(Box<golden::merge::hierarchy_unit::CmdLayout>),
+}
+
+impl Front {
+    /// The indices of the first input's beats that start a merge.
+    fn merge_beats(&self, first: &[Transaction]) -> Result<Vec<usize>> {
+        let Front::Hierarchy(cl) = self else {
+            return Ok((0..first.len()).collect());
+        };
+        let kind = golden::merge::hierarchy_unit::KIND_MERGE;
+        let mut at = Vec::new();
+        for (b, t) in first.iter().enumerate() {
+            let k = t[0].field(cl.kind.offset as usize, 1)?.to_u64();
+            if k == Some(kind) {
+                at.push(b);
+            }
+        }
+        Ok(at)
+    }
+
+    /// The hierarchy fetcher `i` reads in the merge whose starting beat is
+    /// `beat`: its input's `hier`.
+    fn fetcher_hier(&self, beat: &BitVec, i: usize) -> Result<u64> {
+        let (at, width) = match self {
+            Front::Merger(ml) => (
+                ml.input_offset(i) + ml.fetch.hier.offset,
+                ml.fetch.hier.width,
+            ),
+            Front::Hierarchy(cl) => {
+                let f = cl.input_field(i, &cl.input.hier);
+                (f.offset, f.width)
+            }
+        };
+        Ok(beat
+            .field(at as usize, width as usize)?
+            .to_u64()
+            .unwrap_or(u64::MAX))
+    }
 }
 
 impl SharedChunk {
@@ -68,12 +119,23 @@ impl SharedChunk {
     fn of(
         per_unit: &UnitStreams,
         n: usize,
-        ml: &MergerLayout,
+        front: &Front,
         l: &StorePortLayout,
     ) -> Result<SharedChunk> {
         let mut stores = vec![StoreWords::default(); n];
         let mut reads = vec![0u64; n];
-        let cfgs = &per_unit.inputs[0].beats;
+        let first = &per_unit.inputs[0].beats;
+        let merge_beats = front.merge_beats(first)?;
+        let starts = matches!(front, Front::Hierarchy(..)).then(|| {
+            let mut cum = vec![0u64; first.len() + 1];
+            for &b in &merge_beats {
+                cum[b + 1] = 1;
+            }
+            for s in 1..cum.len() {
+                cum[s] += cum[s - 1];
+            }
+            cum
+        });
         let err = |what: String| crate::CosimError::Design { what };
         for (s, out) in per_unit.outputs.iter().enumerate() {
             let Some(base) = out.name.strip_suffix("_req") else {
@@ -94,9 +156,10 @@ impl SharedChunk {
                 let index = word & ((1u64 << l.index.width) - 1);
                 let hier = match fetcher {
                     Some(i) => {
-                        let at = (ml.input_offset(i) + ml.fetch.hier.offset) as usize;
-                        let h = cfgs[e][0].field(at, ml.fetch.hier.width as usize)?;
-                        h.to_u64().unwrap_or(u64::MAX)
+                        let beat = merge_beats.get(e).and_then(|&b| first.get(b));
+                        let beat =
+                            beat.ok_or_else(|| err(format!("merge {e} has no start beat")))?;
+                        front.fetcher_hier(&beat[0], i)?
                     }
                     None => word >> l.hier.offset,
                 };
@@ -111,7 +174,8 @@ impl SharedChunk {
                 reads[e] += 1;
             }
         }
-        let keep = ["report", "nodes", "refs", "header"];
+        // The hierarchy unit's `det_out` too (docs/hardware.md 8.16).
+        let keep = ["det_out", "report", "nodes", "refs", "header"];
         let picked: Vec<usize> = (0..per_unit.outputs.len())
             .filter(|&s| keep.contains(&per_unit.outputs[s].name.as_str()))
             .collect();
@@ -127,6 +191,7 @@ impl SharedChunk {
             streams,
             stores,
             reads,
+            starts,
         })
     }
 }
@@ -144,7 +209,7 @@ pub(super) fn export_store(
     let l = StorePortLayout::new(&c.design.params);
     let ml = golden::vectors::streams::merger_layout(&c.design, &c.sizes)
         .map_err(|what| crate::CosimError::Design { what })?;
-    let chunk = SharedChunk::of(per_unit, n, &ml, &l)?;
+    let chunk = SharedChunk::of(per_unit, n, &Front::Merger(Box::new(ml)), &l)?;
     let hiers = 1usize << l.hier.width;
     let mut runs = vec![(0u32, 0u32); n * 2 * hiers];
     let mut words = Vec::new();
@@ -214,12 +279,12 @@ fn engine_of(
 /// A merger with a shared store port, built once and run chunk after
 /// chunk, each chunk on a fresh engine from reset with a store model on
 /// its `store_req` / `store_resp`.
-pub(super) struct SharedSim {
+pub(crate) struct SharedSim {
     module: rtl_gen::Module,
     design: Design,
     engine: MergerEngine,
     layout: StorePortLayout,
-    merger: MergerLayout,
+    front: Front,
 }
 
 impl SharedSim {
@@ -233,13 +298,31 @@ impl SharedSim {
     ) -> Result<SharedSim> {
         let merger = golden::vectors::streams::merger_layout(&c.design, &c.sizes)
             .map_err(|what| crate::CosimError::Design { what })?;
-        Ok(SharedSim {
+        Ok(SharedSim::with_front(
+            c,
+            module,
+            design,
+            engine,
+            Front::Merger(Box::new(merger)),
+        ))
+    }
+
+    /// A top of the merger `c` whose merges start as `front` says
+    /// (`module`, its Verilog in `design`) on `engine`.
+    pub(crate) fn with_front(
+        c: &MergerConfig,
+        module: rtl_gen::Module,
+        design: Design,
+        engine: MergerEngine,
+        front: Front,
+    ) -> SharedSim {
+        SharedSim {
             module,
             design,
             engine,
             layout: StorePortLayout::new(&c.design.params),
-            merger,
-        })
+            front,
+        }
     }
 
     /// Runs the `n` merges whose per-unit streams are `per_unit` as one
@@ -249,7 +332,7 @@ impl SharedSim {
     /// units read in each merge. Returns whether the chunk failed (an
     /// output beat, a status pulse, or the reads: [`check_reads`]).
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn run_chunk(
+    pub(crate) fn run_chunk(
         &self,
         totals: &mut ChunkTotals,
         store: &mut StoreOutcome,
@@ -261,7 +344,7 @@ impl SharedSim {
         decode: &PairDecoder,
     ) -> Result<bool> {
         let first = totals.merges;
-        let chunk = SharedChunk::of(&per_unit, n, &self.merger, &self.layout)?;
+        let chunk = SharedChunk::of(&per_unit, n, &self.front, &self.layout)?;
         // Only the shared streams are run: the per-unit ones (every
         // response of the chunk) need not stay in memory meanwhile.
         drop(per_unit);
@@ -278,6 +361,7 @@ impl SharedSim {
         let epochs = Epochs {
             start_input: 0,
             end_output: "header".into(),
+            starts: chunk.starts.clone(),
         };
         let mut model = StoreModel::new(&*eng, l, bench, latency, Some(epochs), Box::new(lookup))?;
         let (report, watch) = run_multi_stream_bench_reactive(

@@ -274,8 +274,9 @@ fn per_node_frames_run_through_the_per_node_merging_module() {
             .unwrap()
             .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
             .collect();
-        // The merging module and the hierarchy merger top, both per-node.
-        for unit in ["merge_module", "hierarchy_merger"] {
+        // The merging module and the hierarchy unit (around the merger
+        // top), both per-node.
+        for unit in ["merge_module", "hierarchy_unit"] {
             assert!(
                 built
                     .iter()

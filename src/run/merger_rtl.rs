@@ -1,14 +1,20 @@
 //! The hierarchy merger top (fetchers, merging module, upper builder,
 //! record writer; `rtl_gen::merge::hierarchy_merger_unit`, SPEC 8.15) on a
 //! frame's own merges, back to back on one top from reset in group order,
-//! so consecutive merges overlap as they would in a GPU (8.15 step 8):
-//! per merge, golden's transaction of the store's real contents
+//! so consecutive merges overlap as they would in a GPU (8.15 step 8). In a
+//! scene that places by translation the top is the hierarchy unit
+//! (`rtl_gen::merge::hierarchy_unit`, docs/hardware.md 8.16): the frame's
+//! determine commands write the translation unit's table and the merger
+//! reads its inputs' translations there, its candidate range computed from
+//! the inputs' headers; without translation it is the merger top alone.
+//! Per merge, golden's transaction of the store's real contents
 //! (`merger_unit::merger_transaction` over the group's stored hierarchies
 //! and their translation entries, out id the group's merged id), whose
 //! written records, references and header must equal the merged
-//! hierarchy the frame stored, through cosim's merger bench
-//! (`cosim::units::merger::MergerSim`, the bench `hiermerge cosim --unit
-//! merger` runs), every output beat compared bit for bit.
+//! hierarchy the frame stored, through cosim's bench of the top
+//! (`cosim::units::hierarchy_unit::HierarchySim`, the bench `hiermerge
+//! cosim --unit hierarchy` runs, or `cosim::units::merger::MergerSim`),
+//! every output beat compared bit for bit.
 //!
 //! With one shared store port (`--store-port shared[:T]`, the run's
 //! default: SPEC 8.15 "The shared store port") the top's reads reach the
@@ -19,7 +25,8 @@
 //! merge by its `slot`; each merge must make as many reads as golden's
 //! units, none outside the image. The port takes one read a clock, so a
 //! run of `r` reads writing `n` records is allowed at most `n / r` records
-//! per cycle; the run reports its records per cycle against that.
+//! per cycle; the run reports its records per cycle against that, over
+//! the merger's cycles (from the first merge command taken).
 //!
 //! The merger's sizes are derived from the frame's merges (`k` the most
 //! inputs of any; a merge of fewer leaves the rest unused): the root sorter holds
@@ -30,19 +37,25 @@
 //! two that holds it. A merge no buildable size holds is skipped with the
 //! reason. A built merger is kept for later merges it can hold.
 
+use cosim::units::hierarchy_unit::{placement_command, write_command, HierarchyCase, HierarchySim};
 use cosim::units::merger::{
     MergerEngine, MergerSim, ModuleRunConfig, SceneStore, SimOutcome, VerilogPatch,
 };
 use golden::merge::fetch_unit::FetchSizes;
+use golden::merge::hierarchy_unit::{hierarchy_merge, merge_cmd};
 use golden::merge::merger_unit::{merger_transaction, MergerSizes, MergerTransaction, ModulePass};
 use golden::merge::store_port::{StorePort, StoreWords};
 use golden::merge::writer_unit::{writer_err, CrefBeat};
 use golden::merge::MergeMode;
 use golden::store::Hierarchy;
+use golden::translate::Axis;
 use golden::vectors::merge::MergeDesign;
+use golden::vectors::translate::TranslateModel;
 use golden::world::World;
 use golden::Params;
-use rtl_gen::merge::{hierarchy_merger_name, MergerConfig};
+use rtl_gen::merge::{
+    hierarchy_merger_name, hierarchy_unit_name, HierarchyUnitConfig, MergerConfig,
+};
 use serde::Serialize;
 
 use super::engine::RunEngine;
@@ -111,8 +124,18 @@ pub struct MergerRtlFrame {
     pub k: usize,
     /// Merges run.
     pub merges: usize,
+    /// Determine commands before them: one per input hierarchy, writing
+    /// the table the merges read (docs/hardware.md 8.16).
+    pub determines: u64,
     /// Cycles of the run, from reset to the last output beat.
     pub cycles: u64,
+    /// Of them, the cycles before the first merge command was taken: the
+    /// first determine commands through the translation unit, which the
+    /// merge must wait for (0 when not measured: the Icarus batch).
+    pub determine_cycles: u64,
+    /// The merger's cycles: from the first merge command taken to the
+    /// end; the per-node and per-cycle figures below are over them.
+    pub merge_cycles: u64,
     /// Node records the RTL wrote (`nodes` beats).
     pub records: u64,
     /// References the RTL wrote (`refs` beats).
@@ -184,9 +207,20 @@ pub struct FrameRun {
 /// A merger built for a configuration, kept for later merges.
 struct Built {
     config: MergerConfig,
-    sim: MergerSim,
+    /// The hierarchy unit around the merger `config`.
+    unit: HierarchyUnitConfig,
+    sim: TopSim,
     /// The Verilog the simulator opens for each merge.
     _dir: tempfile::TempDir,
+}
+
+/// What a frame's merges run on: the hierarchy unit (the translation unit
+/// writes the table the merger reads, docs/hardware.md 8.16), or, in a
+/// scene that asks for no translation, the merger top alone (its `cfg`
+/// beats carry the world's entries): a run builds only what it asks for.
+enum TopSim {
+    Hierarchy(HierarchySim),
+    Merger(MergerSim),
 }
 
 /// The merger tops a run built, one per configuration.
@@ -202,6 +236,9 @@ pub struct MergerRtl {
     pub(crate) patch: Option<VerilogPatch>,
     /// How every top built reaches the store.
     store: MergerStore,
+    /// The scene places its objects by translation: the tops are
+    /// hierarchy units (else merger tops).
+    translation: bool,
 }
 
 /// The sizes a merge needs, or why no merger can be built for it.
@@ -402,8 +439,9 @@ fn golden_merge(
 impl MergerRtl {
     /// No merger built yet; each will be built for `engine` with `store`'s
     /// port (and broken by the Verilog patch hook when both its variables
-    /// are set).
-    pub fn new(engine: RunEngine, store: MergerStore) -> MergerRtl {
+    /// are set), inside a hierarchy unit when the scene asks for
+    /// `translation`.
+    pub fn new(engine: RunEngine, store: MergerStore, translation: bool) -> MergerRtl {
         let var = |name| std::env::var(name).ok();
         let patch = match (var(PATCH_FROM_VAR), var(PATCH_TO_VAR)) {
             (Some(from), Some(to)) => Some(VerilogPatch { from, to }),
@@ -415,6 +453,7 @@ impl MergerRtl {
             flip_expected: false,
             patch,
             store,
+            translation,
         }
     }
 
@@ -470,8 +509,12 @@ impl MergerRtl {
         let mut report = MergerRtlFrame::default();
         let at = self.top_for(design, need, &mut report)?;
         let b = &self.built[at];
-        let top = hierarchy_merger_name(&b.config);
+        let top = match b.sim {
+            TopSim::Hierarchy(_) => hierarchy_unit_name(&b.unit),
+            TopSim::Merger(_) => hierarchy_merger_name(&b.config),
+        };
         let mut txs = Vec::new();
+        let mut ran = Vec::new();
         let mut groups = Vec::new();
         for (m, fit) in merges.iter().zip(&fits) {
             let hs = match fit {
@@ -494,6 +537,7 @@ impl MergerRtl {
                 golden_store_reads: golden_reads(&tx),
             }));
             txs.push(tx);
+            ran.push(m);
         }
         let bench = ModuleRunConfig::default();
         let flip = self.flip_expected.then_some(0);
@@ -510,12 +554,18 @@ impl MergerRtl {
                 })
             }
         };
-        let o = b
-            .sim
-            .run(&txs, &bench, flip, store)
-            .map_err(|e| format!("hierarchy merger RTL: {e}"))?;
+        let o = match &b.sim {
+            TopSim::Hierarchy(sim) => {
+                let cases = frame_cases(world, &b.unit, &ran, txs.clone())?;
+                report.determines = cases.iter().map(|c| c.dets.len() as u64).sum();
+                sim.run(&cases, &bench, flip, store)
+            }
+            TopSim::Merger(sim) => sim.run(&txs, &bench, flip, store),
+        }
+        .map_err(|e| format!("{top}: {e}"))?;
         report.first_mismatch = failure(&o);
-        let run = frame_of(&o, &txs, &b.config, self.store, report, start);
+        report.top = top;
+        let run = frame_of(&o, &txs, &b.unit.merger, self.store, report, start);
         Ok(FrameRun {
             merges: groups,
             run: Some(run),
@@ -569,17 +619,89 @@ impl MergerRtl {
         config
             .validate()
             .map_err(|e| format!("hierarchy merger RTL: {e}"))?;
+        let unit = HierarchyUnitConfig::new(config.clone());
+        unit.validate()
+            .map_err(|e| format!("hierarchy unit RTL: {e}"))?;
         let dir = tempfile::tempdir().map_err(|e| format!("temporary folder: {e}"))?;
-        let sim = MergerSim::new(&config, self.sim_engine, dir.path(), self.patch.as_ref())
-            .map_err(|e| format!("hierarchy merger RTL ({}): {e}", self.engine_label()))?;
+        let (engine, patch) = (self.sim_engine, self.patch.as_ref());
+        let sim = match self.translation {
+            true => HierarchySim::new(&unit, engine, dir.path(), patch).map(TopSim::Hierarchy),
+            false => MergerSim::new(&config, engine, dir.path(), patch).map(TopSim::Merger),
+        }
+        .map_err(|e| format!("hierarchy merger RTL ({}): {e}", self.engine_label()))?;
         self.built.push(Built {
             config,
+            unit,
             sim,
             _dir: dir,
         });
         report.build_seconds = t.elapsed().as_secs_f64();
         Ok(self.built.len() - 1)
     }
+}
+
+/// The frame's merges `ran` (golden's `txs`) as the hierarchy unit `unit`
+/// takes them: before each merge command, a determine command per input
+/// not yet placed in this run, placing an object as the scene does (its
+/// binary64 placement at the LOD its translation settled at) and a merged
+/// input by its table entry; golden's translation unit model runs them from
+/// reset, and must write the world's table entries, on which golden's
+/// hierarchy unit must make the very merges `txs`.
+fn frame_cases(
+    world: &World,
+    unit: &HierarchyUnitConfig,
+    ran: &[&FrameMerge],
+    txs: Vec<MergerTransaction>,
+) -> Result<Vec<HierarchyCase>, String> {
+    let err = |e: String| format!("hierarchy unit RTL: {e}");
+    let mut model = TranslateModel::new(unit.table).map_err(|e| err(format!("{e:?}")))?;
+    let cl = unit.cmd_layout();
+    let (k, sizes, mode) = (
+        unit.merger.design.inputs,
+        unit.merger.sizes,
+        unit.merger.design.mode,
+    );
+    let mut placed = std::collections::BTreeSet::new();
+    let mut cases = Vec::new();
+    for (m, tx) in ran.iter().zip(txs) {
+        let mut dets = Vec::new();
+        for &id in m.ids.iter().filter(|&&id| placed.insert(id)) {
+            let h = world
+                .store
+                .get(id)
+                .ok_or(err(format!("no hierarchy {id}")))?;
+            let want = world.table.get(id as u32).ok().flatten();
+            let t = want.ok_or(err(format!("hierarchy {id} has no translation")))?;
+            let inp = match world.object(id) {
+                Some(o) => {
+                    let bits = Axis::ALL.map(|a| o.placement.value_f64(a).to_bits());
+                    placement_command(&unit.table, h, t.lod, bits)
+                }
+                None => write_command(&unit.table, h, &t),
+            }
+            .map_err(|e| err(e.to_string()))?;
+            let out = model.determine(&inp).map_err(|e| err(format!("{e:?}")))?;
+            let wrote = model.table().get(id as u32).ok().flatten();
+            if wrote != Some(t) {
+                return Err(err(format!(
+                    "the determine command of hierarchy {id} wrote {wrote:?}, the world's table holds {t:?}"
+                )));
+            }
+            dets.push((inp, out));
+        }
+        let cmd = merge_cmd(&world.store, &m.ids, m.out).map_err(|e| err(e.to_string()))?;
+        let again = hierarchy_merge(&world.store, model.table(), &cmd, mode, k, sizes)
+            .map_err(|e| err(e.to_string()))?;
+        if again != tx {
+            return Err(err(format!(
+                "merge into {}: golden's hierarchy unit and its merger chain differ",
+                m.out
+            )));
+        }
+        let merge = cl.pack_merge(&cmd).map_err(|e| err(e.to_string()))?;
+        cases.push(HierarchyCase { dets, merge, tx });
+    }
+    Ok(cases)
 }
 
 /// The stored hierarchies `ids`.
@@ -624,26 +746,30 @@ fn frame_of(
     };
     let records = got("nodes");
     let per_node = |x: u64| x as f64 / records.max(1) as f64;
+    let first = |name: &str| t.first_high.iter().find(|p| p.0 == name).and_then(|p| p.1);
+    let determine_cycles = first("translate_done").unwrap_or(0).min(t.cycles);
+    let merge_cycles = t.cycles - determine_cycles;
     let store_failed = o.store.as_ref().is_some_and(|s| s.failure.is_some());
     let mismatches = t.mismatches
         + t.missing.iter().map(|m| m.1 as u64).sum::<u64>()
         + t.hang.is_some() as u64
         + t.status_failure().is_some() as u64
         + store_failed as u64;
-    let cycles = t.cycles.max(1) as f64;
+    let cycles = merge_cycles.max(1) as f64;
     let shared = o.store.is_some();
     MergerRtlFrame {
-        top: hierarchy_merger_name(c),
         k: c.design.inputs,
         merges: txs.len(),
         cycles: t.cycles,
+        determine_cycles,
+        merge_cycles,
         records,
         refs: got("refs"),
         golden_records: txs.iter().map(|tx| tx.writer.nodes.len() as u64).sum(),
         golden_refs: txs.iter().map(|tx| tx.writer.refs.len() as u64).sum(),
         store_reads,
         golden_store_reads,
-        cycles_per_node: per_node(t.cycles),
+        cycles_per_node: per_node(merge_cycles),
         store_reads_per_node: per_node(store_reads),
         records_per_cycle: records as f64 / cycles,
         store_port: store.port_name(),
@@ -738,8 +864,9 @@ mod tests {
         }
     }
 
-    /// Every frame's merges redone go through the merger top back to back
-    /// with one shared store port (the run's default), its reads answered
+    /// Every frame's merges redone go through the hierarchy unit, their
+    /// inputs placed by its determine commands, then the merger top back
+    /// to back with one shared store port (the run's default), its reads answered
     /// from the store image of the merges' inputs: the records and
     /// references it writes are the frame's merged hierarchies (0
     /// mismatches, counts equal golden's), it reads what golden's units
@@ -752,7 +879,7 @@ mod tests {
         let s = scene();
         let r = run(&s, &options(dir.path())).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(r.mismatches, 0);
-        assert!(r.rtl.merger.starts_with("built (IR): hierarchy_merger_"));
+        assert!(r.rtl.merger.starts_with("built (IR): hierarchy_unit_"));
         let mut merges = 0;
         for f in &r.frames {
             let mut sum = (0, 0, 0, 0);
@@ -790,9 +917,20 @@ mod tests {
                 .flat_map(|g| &g.merger_rtl)
                 .all(|m| m.top == t.top));
             assert_shared_port_figures(t);
-            assert_eq!(t.cycles_per_node, t.cycles as f64 / sum.0 as f64);
+            // The frame's determine commands, one per input, wrote the
+            // table before the first merge was taken.
+            let inputs: usize = f
+                .groups
+                .iter()
+                .filter(|g| g.merger_rtl.is_some())
+                .map(|g| g.merger_rtl.as_ref().unwrap().n)
+                .sum();
+            assert_eq!(t.determines, inputs as u64, "frame {}", f.frame);
+            assert!(t.determine_cycles > t.determines, "{t:?}");
+            assert_eq!(t.determine_cycles + t.merge_cycles, t.cycles);
+            assert_eq!(t.cycles_per_node, t.merge_cycles as f64 / sum.0 as f64);
             assert_eq!(t.store_reads_per_node, sum.2 as f64 / sum.0 as f64);
-            assert_eq!(t.records_per_cycle, sum.0 as f64 / t.cycles as f64);
+            assert_eq!(t.records_per_cycle, sum.0 as f64 / t.merge_cycles as f64);
         }
         // Both groups in frame 0, the dynamic one in frames 1 and 2.
         assert_eq!(merges, 4);
@@ -905,9 +1043,9 @@ mod tests {
             m.store_reads > 0 && m.store_reads == m.golden_store_reads,
             "{m:?}"
         );
-        assert!(m.cycles > m.store_reads, "one read a clock: {m:?}");
+        assert!(m.merge_cycles > m.store_reads, "one read a clock: {m:?}");
         let allowed = m.records as f64 / m.store_reads as f64;
-        let share = m.store_reads as f64 / m.cycles as f64;
+        let share = m.store_reads as f64 / m.merge_cycles as f64;
         assert_eq!(
             (m.records_allowed_per_cycle, m.of_port),
             (Some(allowed), Some(share))

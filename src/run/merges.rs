@@ -340,19 +340,23 @@ impl MergeStage<'_> {
         };
         if r.build_seconds > 0.0 {
             lines.simulated.push(format!(
-                "hierarchy merger RTL: {} generated and built ({engine}, {:.1} s)",
+                "hierarchy unit RTL: {} generated and built ({engine}, {:.1} s)",
                 r.top, r.build_seconds
             ));
             rtl_info.merger = format!("built ({engine}): {}", r.top);
         }
         lines.simulated.push(format!(
-            "hierarchy merger RTL ({engine}): {} on one top, {} cycles, {} records ({:.2} cycles/node, {:.2} store reads/node, {:.3} \
-             records/cycle){}, {} mismatches{}",
+            "hierarchy unit RTL ({engine}): {} determine commands, then {} on one merger top; {} cycles: {} until the first \
+             merge was taken, {} merging; {} records ({:.2} cycles/node, {:.2} store reads/node, {:.3} records/cycle){}, {} \
+             mismatches{}",
+            r.determines,
             match r.merges {
                 1 => "the frame's merge".to_string(),
                 n => format!("the frame's {n} merges back to back"),
             },
             r.cycles,
+            r.determine_cycles,
+            r.merge_cycles,
             r.records,
             r.cycles_per_node,
             r.store_reads_per_node,

@@ -363,7 +363,11 @@ impl<'a> Run<'a> {
                 scene,
                 options,
                 rtl: MergeRtl::new(options.engine),
-                merger: MergerRtl::new(options.engine, options.merger_store),
+                merger: MergerRtl::new(
+                    options.engine,
+                    options.merger_store,
+                    scene.effects.translation,
+                ),
             },
             outs: Vec::new(),
             last_traced: None,

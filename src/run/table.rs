@@ -47,7 +47,7 @@ fn merger_columns(f: &super::pipeline::FrameOut) -> [String; 4] {
     match &f.merger {
         None => ["-".into(), "-".into(), "-".into(), "-".into()],
         Some(m) => [
-            m.cycles.to_string(),
+            m.merge_cycles.to_string(),
             format!("{:.2}", m.cycles_per_node),
             format!("{:.2}", m.store_reads_per_node),
             match m.records_allowed_per_cycle {

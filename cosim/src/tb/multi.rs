@@ -101,6 +101,8 @@ pub struct PulseWatch {
     pub counts: PulseCounts,
     /// Whether each was high in the last cycle.
     pub at_end: Vec<(String, bool)>,
+    /// The first cycle each was high (stepped engines; empty from a batch).
+    pub first_high: Vec<(String, Option<u64>)>,
 }
 
 impl MultiReport {
@@ -301,6 +303,7 @@ fn bench_loop(
         .map(|p| engine.design().port_id(p))
         .collect::<Result<Vec<_>>>()?;
     let mut pulse_counts = vec![0u64; pulses.len()];
+    let mut first_high: Vec<Option<u64>> = vec![None; pulses.len()];
 
     let mut stop = StopRule::new(config, engine.cycle());
     // Per stream (inputs, then outputs): beats, first and last transfer.
@@ -327,8 +330,12 @@ fn bench_loop(
             r.drive(engine, &sent)?;
         }
         engine.eval()?;
-        for (n, id) in pulse_counts.iter_mut().zip(&pulse_ids) {
-            *n += engine.peek_bool(*id)? as u64;
+        for ((n, id), first) in pulse_counts.iter_mut().zip(&pulse_ids).zip(&mut first_high) {
+            let high = engine.peek_bool(*id)?;
+            *n += high as u64;
+            if high && first.is_none() {
+                *first = Some(engine.cycle());
+            }
         }
         for (j, d) in drivers.iter_mut().enumerate() {
             if d.observe(engine)?.is_some() {
@@ -422,7 +429,8 @@ fn bench_loop(
     let names = pulses.iter().map(|p| p.to_string());
     let watch = PulseWatch {
         counts: names.clone().zip(pulse_counts).collect(),
-        at_end: names.zip(at_end).collect(),
+        at_end: names.clone().zip(at_end).collect(),
+        first_high: names.zip(first_high).collect(),
     };
     Ok((report, watch))
 }

@@ -117,6 +117,9 @@ pub type PairDecoder<'a> =
 pub struct ChunkTotals {
     /// Merges run (all of them, or up to the end of the failing chunk).
     pub merges: usize,
+    /// The first cycle each watched status output was high, in the first
+    /// chunk (stepped engines only).
+    pub first_high: Vec<(String, Option<u64>)>,
     /// Chunks run.
     pub chunks: usize,
     /// Cycles over every chunk (each chunk starts from reset).
@@ -154,6 +157,7 @@ impl Default for ChunkTotals {
     fn default() -> Self {
         ChunkTotals {
             merges: 0,
+            first_high: Vec::new(),
             chunks: 0,
             cycles: 0,
             cfg_accepted: 0,
@@ -200,6 +204,9 @@ impl ChunkTotals {
     ) -> bool {
         let pulse = |name: &str| watch.counts.iter().find(|p| p.0 == name).map_or(0, |p| p.1);
         self.done_pulses += pulse("done");
+        if self.chunks == 0 {
+            self.first_high = watch.first_high.clone();
+        }
         self.idle_at_end &= watch.at_end.iter().any(|p| p.0 == "idle" && p.1);
         self.cycles += report.cycles;
         self.cfg_accepted += report.sent.first().map_or(0, |cfg| cfg.1);
@@ -276,6 +283,8 @@ enum Sim {
 pub struct ChunkedSim {
     sim: Sim,
     patched: bool,
+    /// The status outputs whose pulses a chunk counts.
+    pulses: &'static [&'static str],
 }
 
 /// Runs `streams` (merges from elsewhere: a vectors file) through the
@@ -320,12 +329,23 @@ impl ChunkedSim {
         outputs: &[&str],
         patched: bool,
     ) -> Result<Self> {
+        let pulses = &super::merge_module::PULSES;
+        Self::watching(module, design, engine, (inputs, outputs), patched, pulses)
+    }
+
+    /// [`Self::new`] counting the pulses of the status outputs `pulses`
+    /// (among them `done` and `idle`).
+    pub fn watching(
+        module: rtl_gen::Module,
+        design: Design,
+        engine: ModuleEngine,
+        (inputs, outputs): (&[&str], &[&str]),
+        patched: bool,
+        pulses: &'static [&'static str],
+    ) -> Result<Self> {
         let sim = match engine {
             ModuleEngine::Iverilog => Sim::Batch(Box::new(IcarusMultiBatch::new_watching(
-                &design,
-                inputs,
-                outputs,
-                &super::merge_module::PULSES,
+                &design, inputs, outputs, pulses,
             )?)),
             kind => Sim::Stepped {
                 module,
@@ -333,7 +353,11 @@ impl ChunkedSim {
                 kind,
             },
         };
-        Ok(ChunkedSim { sim, patched })
+        Ok(ChunkedSim {
+            sim,
+            patched,
+            pulses,
+        })
     }
 
     /// Runs one chunk of `n` merges and adds it to `totals`; returns
@@ -368,7 +392,7 @@ impl ChunkedSim {
                     &chunk.inputs,
                     &chunk.outputs,
                     &bench,
-                    &super::merge_module::PULSES,
+                    self.pulses,
                     &mut on_progress,
                 )?
             }
@@ -377,6 +401,7 @@ impl ChunkedSim {
                 let watch = PulseWatch {
                     counts: r.pulses,
                     at_end: r.pulses_at_end,
+                    first_high: Vec::new(),
                 };
                 (r.report, watch)
             }

@@ -41,6 +41,12 @@ use golden::merge::store_port::StorePort;
 /// The stage name a run reports.
 pub const STAGE: &str = "hierarchy_unit";
 
+/// The status outputs a run counts the pulses of: `done` (one per merge),
+/// `idle` (at the end), and `translate_done`, whose first pulse is the
+/// clock the translation unit settled after the first determine
+/// commands, the first merge command taken with it.
+pub const PULSES: [&str; 3] = ["done", "idle", "translate_done"];
+
 fn design_err(what: impl std::fmt::Display) -> CosimError {
     CosimError::Design {
         what: format!("hierarchy unit: {what}"),
@@ -61,20 +67,14 @@ pub struct HierarchyCase {
 
 /// The determine command that writes translation `t` of `h` into entry
 /// `h.id`: a placement of `t * 2^(D - L)` finest voxels per axis (exact in
-/// the design's format; `L` is `h`'s top LOD) and `h`'s roots as extents.
+/// the design's format) at `t`'s LOD `L`, `h`'s roots as extents.
 pub fn write_command(
     d: &TranslateDesign,
     h: &Hierarchy,
     t: &Translation,
 ) -> Result<TranslateInputs> {
     let p = d.params();
-    if t.lod != h.top_lod {
-        return Err(design_err(format!(
-            "input {}: translation at LOD {}, expected its top LOD {}",
-            h.id, t.lod, h.top_lod
-        )));
-    }
-    let scale = f64::from(p.max_lod - t.lod).exp2();
+    let scale = f64::from(p.max_lod - t.lod.min(p.max_lod)).exp2();
     let placement = t.t.map(|v| {
         let grid = v as f64 * scale;
         match d.binary64 {
@@ -82,12 +82,29 @@ pub fn write_command(
             false => u64::from((grid as f32).to_bits()),
         }
     });
+    placement_command(d, h, t.lod, placement)
+}
+
+/// The determine command that places `h` by `placement` (the encodings of
+/// the design's format, grid units) at LOD `lod` and writes entry `h.id`,
+/// `h`'s roots as extents at `lod`.
+pub fn placement_command(
+    d: &TranslateDesign,
+    h: &Hierarchy,
+    lod: u8,
+    placement: [u64; 3],
+) -> Result<TranslateInputs> {
     let tops: Vec<_> = h.roots().iter().map(|n| n.voxel).collect();
-    let ext = VoxelRange::of_nodes(&tops, h.top_lod, p).map_err(design_err)?;
+    let ext = VoxelRange::of_nodes(&tops, lod, d.params()).map_err(|e| {
+        design_err(format!(
+            "input {}: its roots' extents at LOD {lod}: {e}",
+            h.id
+        ))
+    })?;
     Ok(TranslateInputs {
         format: d.binary64 as u8,
         placement,
-        lod: h.top_lod,
+        lod,
         extents_lo: ext.lo,
         extents_hi: ext.hi,
         write_enable: 1,
@@ -368,10 +385,10 @@ impl HierarchySim {
         let sim = match shared {
             true => Sim::Shared(Box::new(SharedSim::with_front(
                 &c.merger,
-                module,
-                design,
+                (module, design),
                 engine,
                 Front::Hierarchy(Box::new(c.cmd_layout())),
+                &PULSES,
             ))),
             false => {
                 let names =

@@ -272,6 +272,7 @@ pub fn run(
             let watch = PulseWatch {
                 counts: r.pulses,
                 at_end: r.pulses_at_end,
+                first_high: Vec::new(),
             };
             (r.report, watch)
         }

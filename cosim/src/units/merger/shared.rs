@@ -285,6 +285,8 @@ pub(crate) struct SharedSim {
     engine: MergerEngine,
     layout: StorePortLayout,
     front: Front,
+    /// The status outputs whose pulses a chunk counts.
+    pulses: &'static [&'static str],
 }
 
 impl SharedSim {
@@ -298,23 +300,25 @@ impl SharedSim {
     ) -> Result<SharedSim> {
         let merger = golden::vectors::streams::merger_layout(&c.design, &c.sizes)
             .map_err(|what| crate::CosimError::Design { what })?;
+        let front = Front::Merger(Box::new(merger));
         Ok(SharedSim::with_front(
             c,
-            module,
-            design,
+            (module, design),
             engine,
-            Front::Merger(Box::new(merger)),
+            front,
+            &PULSES,
         ))
     }
 
     /// A top of the merger `c` whose merges start as `front` says
-    /// (`module`, its Verilog in `design`) on `engine`.
+    /// (`module`, its Verilog in `design`) on `engine`, counting the pulses
+    /// of `pulses` (among them `done` and `idle`).
     pub(crate) fn with_front(
         c: &MergerConfig,
-        module: rtl_gen::Module,
-        design: Design,
+        (module, design): (rtl_gen::Module, Design),
         engine: MergerEngine,
         front: Front,
+        pulses: &'static [&'static str],
     ) -> SharedSim {
         SharedSim {
             module,
@@ -322,6 +326,7 @@ impl SharedSim {
             engine,
             layout: StorePortLayout::new(&c.design.params),
             front,
+            pulses,
         }
     }
 
@@ -369,7 +374,7 @@ impl SharedSim {
             &chunk.streams.inputs,
             &chunk.streams.outputs,
             bench,
-            &PULSES,
+            self.pulses,
             &mut model,
         )?;
         let failed = totals.add(n, &chunk.streams, &report, &watch, decode);

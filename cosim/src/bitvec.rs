@@ -90,7 +90,7 @@ impl BitVec {
     }
 
     /// A record packed by one of golden's layouts.
-    pub fn from_layout(b: &golden::layout::Bits) -> Result<BitVec> {
+    pub fn from_layout(b: &golden::bits::Bits) -> Result<BitVec> {
         BitVec::from_words(b.width() as usize, b.words())
     }
 

@@ -145,11 +145,11 @@ impl Engine for IrEngine {
                 ),
             });
         }
-        let bits = Bits::from_words(value.words(), value.width() as u32).map_err(|e| {
+        let bits = Bits::from_words(value.words(), value.width() as u32).map_err(|_| {
             CosimError::Width {
                 port: spec.name.clone(),
                 width: spec.width,
-                value_bits: e.width as usize,
+                value_bits: value.width(),
             }
         })?;
         self.sim

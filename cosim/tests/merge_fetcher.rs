@@ -226,13 +226,13 @@ fn random_fetches(
     out
 }
 
-fn bits(b: golden::layout::Bits) -> Vec<BitVec> {
+fn bits(b: golden::bits::Bits) -> Vec<BitVec> {
     vec![bitvec(&b)]
 }
 
 /// Index `v` as an `I`-bit beat.
 fn index_beat(v: u32, width: u32) -> Vec<BitVec> {
-    let mut b = golden::layout::Bits::zero(width);
+    let mut b = golden::bits::Bits::zero(width);
     b.set(
         &golden::layout::Field {
             name: "index",

@@ -89,7 +89,7 @@ fn streams_of(
         PerNodeLayout::new(p),
         BeatLayout::output(p),
     );
-    let beats = |name: String, v: Vec<golden::layout::Bits>| StreamBeats {
+    let beats = |name: String, v: Vec<golden::bits::Bits>| StreamBeats {
         name,
         beats: v.iter().map(|b| vec![bitvec(b)]).collect(),
     };

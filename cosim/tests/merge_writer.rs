@@ -56,7 +56,7 @@ struct Seen {
     longest_in: u64,
 }
 
-fn one(b: &golden::layout::Bits) -> Vec<cosim::BitVec> {
+fn one(b: &golden::bits::Bits) -> Vec<cosim::BitVec> {
     vec![bitvec(b)]
 }
 

@@ -14,7 +14,8 @@
 
 use cosim::tb::{run_multi_stream_bench, run_stream_bench, BenchConfig, StreamBeats, Vector};
 use cosim::{BitVec, Engine};
-use golden::layout::{Bits, LayoutError};
+use golden::bits::Bits;
+use golden::layout::LayoutError;
 use golden::merge::level::candidate_range;
 use golden::merge::per_node_unit::{base_by_lod, PerNodeCase, PerNodeLayout};
 use golden::merge::top::{top_transaction, Report, TopLayout};

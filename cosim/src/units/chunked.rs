@@ -8,7 +8,7 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use golden::layout::Bits;
+use golden::bits::Bits;
 use golden::vectors::streams::{MergeBeats, StreamLayout, UnitPorts};
 
 use crate::bitvec::BitVec;

@@ -8,7 +8,8 @@
 
 use std::path::{Path, PathBuf};
 
-use golden::layout::{Bits, Field};
+use golden::bits::Bits;
+use golden::layout::Field;
 use golden::merge::unit::BeatLayout;
 use golden::params::Params;
 use golden::translate::stimulus::SplitMix64;
@@ -107,7 +108,7 @@ pub fn decoder(p: &Params) -> Box<crate::tb::FieldDecoder> {
         let Some(v) = t.first() else {
             return Vec::new();
         };
-        let Ok(bits) = Bits::from_words(v.width() as u32, v.words()) else {
+        let Ok(bits) = Bits::from_words(v.words(), v.width() as u32) else {
             return vec![("out_data".into(), v.to_string())];
         };
         fields

@@ -5,7 +5,8 @@
 
 use std::path::PathBuf;
 
-use golden::layout::{Bits, Field};
+use golden::bits::Bits;
+use golden::layout::Field;
 
 use crate::bitvec::BitVec;
 use crate::design::Design;
@@ -20,7 +21,7 @@ use crate::waves::WaveFormat;
 /// the order given; a beat that is not a layout's width shows as one
 /// `data` field of raw bits.
 pub fn decode_fields(bits: &BitVec, fields: &[(String, Field)]) -> Vec<(String, String)> {
-    let Ok(b) = Bits::from_words(bits.width() as u32, bits.words()) else {
+    let Ok(b) = Bits::from_words(bits.words(), bits.width() as u32) else {
         return vec![("data".into(), bits.to_string())];
     };
     fields

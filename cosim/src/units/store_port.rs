@@ -14,7 +14,7 @@
 use std::collections::VecDeque;
 use std::path::Path;
 
-use golden::layout::Bits;
+use golden::bits::Bits;
 use golden::merge::store_port::{
     store_port_transaction, StoreAddr, StoreArray, StorePortLayout, StorePortTransaction,
     StoreWords,
@@ -194,7 +194,7 @@ impl<'a> StoreModel<'a> {
     /// (None: its slot names no merge in flight, a failure noted).
     fn answer(&mut self, beat: &BitVec, cycle: u64) -> Result<(BitVec, Option<usize>)> {
         let l = &self.layout;
-        let bits = Bits::from_words(beat.width() as u32, beat.words()).map_err(|e| {
+        let bits = Bits::from_words(beat.words(), beat.width() as u32).map_err(|e| {
             CosimError::Design {
                 what: format!("store_req beat: {e}"),
             }
@@ -317,7 +317,7 @@ pub fn random_transaction(
                 *last &= u64::MAX >> (64 - w % 64);
             }
         }
-        Bits::from_words(w, &words).map_err(|e| CosimError::Design {
+        Bits::from_words(&words, w).map_err(|e| CosimError::Design {
             what: e.to_string(),
         })
     };

@@ -55,7 +55,7 @@ pub fn engine(kind: &str, m: &Module, design: &Design) -> Box<dyn Engine> {
 }
 
 /// A golden packed beat as a cosim value.
-pub fn bitvec(b: &golden::layout::Bits) -> BitVec {
+pub fn bitvec(b: &golden::bits::Bits) -> BitVec {
     BitVec::from_words(b.width() as usize, b.words()).expect("same width")
 }
 

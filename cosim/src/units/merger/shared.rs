@@ -20,7 +20,7 @@
 
 use std::path::Path;
 
-use golden::layout::Bits;
+use golden::bits::Bits;
 use golden::merge::merger_unit::MergerLayout;
 use golden::merge::store_port::{StoreAddr, StoreArray, StorePortLayout, StoreWords};
 use rtl_gen::merge::MergerConfig;
@@ -105,7 +105,7 @@ impl SharedChunk {
                 } else {
                     StoreArray::Reference
                 };
-                let bits = Bits::from_words(a[0].width() as u32, a[0].words())
+                let bits = Bits::from_words(a[0].words(), a[0].width() as u32)
                     .map_err(|e| err(format!("`{resp}` beat {k}: {e}")))?;
                 stores[e].insert(array, StoreAddr { hier, index }, bits);
                 reads[e] += 1;

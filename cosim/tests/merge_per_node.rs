@@ -91,7 +91,7 @@ fn streams_of(
     );
     let beats = |name: String, v: Vec<golden::bits::Bits>| StreamBeats {
         name,
-        beats: v.iter().map(|b| vec![bitvec(b)]).collect(),
+        beats: v.iter().map(|b| vec![b.clone()]).collect(),
     };
     let mut cfg = Vec::new();
     let mut ins = vec![Vec::new(); d.inputs];

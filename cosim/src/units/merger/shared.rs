@@ -27,7 +27,6 @@ use rtl_gen::merge::MergerConfig;
 
 use super::{chunk_sizes, decoder_of, golden_chunk, merger_module, Draw, PULSES};
 use super::{MergerEngine, Outcome, RunConfig};
-use crate::bitvec::BitVec;
 use crate::design::Design;
 use crate::engine::Engine;
 use crate::error::Result;
@@ -74,7 +73,6 @@ impl SharedChunk {
         let mut stores = vec![StoreWords::default(); n];
         let mut reads = vec![0u64; n];
         let cfgs = &per_unit.inputs[0].beats;
-        let err = |what: String| crate::CosimError::Design { what };
         for (s, out) in per_unit.outputs.iter().enumerate() {
             let Some(base) = out.name.strip_suffix("_req") else {
                 continue;
@@ -94,20 +92,18 @@ impl SharedChunk {
                 let index = word & ((1u64 << l.index.width) - 1);
                 let hier = match fetcher {
                     Some(i) => {
-                        let at = (ml.input_offset(i) + ml.fetch.hier.offset) as usize;
-                        let h = cfgs[e][0].field(at, ml.fetch.hier.width as usize)?;
+                        let at = ml.input_offset(i) + ml.fetch.hier.offset;
+                        let h = cfgs[e][0].extract(at, ml.fetch.hier.width)?;
                         h.to_u64().unwrap_or(u64::MAX)
                     }
                     None => word >> l.hier.offset,
                 };
-                let array = if a[0].width() == l.node_width as usize {
+                let array = if a[0].width() == l.node_width {
                     StoreArray::Node
                 } else {
                     StoreArray::Reference
                 };
-                let bits = Bits::from_words(a[0].words(), a[0].width() as u32)
-                    .map_err(|e| err(format!("`{resp}` beat {k}: {e}")))?;
-                stores[e].insert(array, StoreAddr { hier, index }, bits);
+                stores[e].insert(array, StoreAddr { hier, index }, a[0].clone());
                 reads[e] += 1;
             }
         }
@@ -173,7 +169,7 @@ pub(super) fn export_store(
                         None => Ok(Bits::zero(l.resp_width)),
                     }
                     .map_err(|what| crate::CosimError::Design { what })?;
-                    words.push(BitVec::from_layout(&word)?);
+                    words.push(word);
                 }
             }
         }

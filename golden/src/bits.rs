@@ -174,7 +174,7 @@ impl Bits {
         let extra_set = words_le[n..].iter().any(|&w| w != 0);
         if extra_set || b.words[..n] != words_le[..n] {
             return Err(BitsError::DoesNotFit {
-                value: format!("{words_le:#x?}"),
+                value: format!("{words_le:x?}"),
                 width,
             });
         }
@@ -458,7 +458,10 @@ mod tests {
         assert!(Bits::from_hex("1f", 5).is_ok());
         assert!(Bits::from_words(&[0, 2], 65).is_err());
         assert!(Bits::from_words(&[0x2d, 0], 6).is_ok());
-        assert!(Bits::from_words(&[0x40], 6).is_err());
+        assert_eq!(
+            Bits::from_words(&[0x40], 6).unwrap_err().to_string(),
+            "value [40] does not fit in 6 bits"
+        );
         assert!(Bits::from_words(&[0, 1], 6).is_err());
         assert!(matches!(
             Bits::from_hex("g1", 8),

@@ -7,7 +7,7 @@
 
 use cosim::tb::{run_stream_bench, BenchConfig, Prng, StreamNames, Vector};
 use cosim::verilator::{VerilatorEngine, VerilatorOptions};
-use cosim::{BitVec, Design, Engine, PortSpec};
+use cosim::{Bits, Design, Engine, PortSpec};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -86,10 +86,8 @@ fn main() -> cosim::Result<()> {
         .map(|_| {
             let x = rng.below(1 << 16);
             Vector {
-                input: vec![BitVec::from_u64(16, x).expect("16 bits")],
-                outputs: vec![vec![
-                    BitVec::from_u64(16, (x + 1) & 0xffff).expect("16 bits")
-                ]],
+                input: vec![Bits::from_u64(x, 16).expect("16 bits")],
+                outputs: vec![vec![Bits::from_u64((x + 1) & 0xffff, 16).expect("16 bits")]],
             }
         })
         .collect();

@@ -23,14 +23,14 @@ pub struct PortSpec {
     /// The identifier in the top module.
     pub name: String,
     /// Width in bits, >= 1.
-    pub width: usize,
+    pub width: u32,
     /// Input or output.
     pub dir: PortDir,
 }
 
 impl PortSpec {
     /// An input port.
-    pub fn input(name: &str, width: usize) -> PortSpec {
+    pub fn input(name: &str, width: u32) -> PortSpec {
         PortSpec {
             name: name.to_string(),
             width,
@@ -39,7 +39,7 @@ impl PortSpec {
     }
 
     /// An output port.
-    pub fn output(name: &str, width: usize) -> PortSpec {
+    pub fn output(name: &str, width: u32) -> PortSpec {
         PortSpec {
             name: name.to_string(),
             width,
@@ -85,7 +85,7 @@ fn is_plain_identifier(name: &str) -> bool {
 
 /// Ports wider than this are refused: the Icarus pipe carries them as one hex
 /// token and nothing in hiermerge comes close.
-pub const MAX_PORT_WIDTH: usize = 65536;
+pub const MAX_PORT_WIDTH: u32 = 65536;
 
 impl Design {
     /// A design with an active-high reset named `reset` (pass `None` for none).
@@ -196,7 +196,7 @@ impl Design {
     }
 
     /// Check that `value` may be poked into `id`: an input of the same width.
-    pub fn check_poke(&self, id: PortId, value: &crate::BitVec) -> Result<&PortSpec> {
+    pub fn check_poke(&self, id: PortId, value: &crate::Bits) -> Result<&PortSpec> {
         let p = self.port(id)?;
         if p.dir != PortDir::Input {
             return Err(CosimError::NotAnInput {
@@ -252,9 +252,9 @@ mod tests {
         let d = Design::new("t", vec![PathBuf::from("x.v")], ports(), None, None).unwrap();
         let q = d.port_id("q").unwrap();
         let clk = d.port_id("clk").unwrap();
-        assert!(d.check_poke(q, &crate::BitVec::zeros(8)).is_err());
-        assert!(d.check_poke(clk, &crate::BitVec::zeros(2)).is_err());
-        assert!(d.check_poke(clk, &crate::BitVec::zeros(1)).is_ok());
+        assert!(d.check_poke(q, &crate::Bits::zero(8)).is_err());
+        assert!(d.check_poke(clk, &crate::Bits::zero(2)).is_err());
+        assert!(d.check_poke(clk, &crate::Bits::zero(1)).is_ok());
         assert!(d.port(PortId(9)).is_err());
     }
 }

@@ -5,9 +5,9 @@
 //! (outputs are only refreshed by `eval` or `step`); `step` is one full clock
 //! period (clock low, settle, clock high, settle) and advances `cycle` by one.
 
-use crate::bitvec::BitVec;
 use crate::design::{Design, PortId};
 use crate::error::{CosimError, Result};
+use golden::bits::Bits;
 use std::path::Path;
 
 /// A simulator instance of one design, stepped cycle by cycle.
@@ -19,10 +19,10 @@ pub trait Engine {
     fn design(&self) -> &Design;
 
     /// Drive input `port` with `value` (exactly the port's width).
-    fn poke(&mut self, port: PortId, value: &BitVec) -> Result<()>;
+    fn poke(&mut self, port: PortId, value: &Bits) -> Result<()>;
 
     /// The value of `port` as of the last `eval` or `step` (inputs: last poke).
-    fn peek(&self, port: PortId) -> Result<BitVec>;
+    fn peek(&self, port: PortId) -> Result<Bits>;
 
     /// Settle combinational logic after pokes, without a clock edge.
     fn eval(&mut self) -> Result<()>;
@@ -52,14 +52,14 @@ pub trait Engine {
     /// Poke a value given as u64, sized to the port (error if it does not fit).
     fn poke_u64(&mut self, port: PortId, value: u64) -> Result<()> {
         let width = self.design().port(port)?.width;
-        let v = BitVec::from_u64(width, value).map_err(|_| CosimError::Width {
+        let v = Bits::from_u64(value, width).map_err(|_| CosimError::Width {
             port: self
                 .design()
                 .port(port)
                 .map(|p| p.name.clone())
                 .unwrap_or_default(),
             width,
-            value_bits: 64 - value.leading_zeros() as usize,
+            value_bits: 64 - value.leading_zeros(),
         })?;
         self.poke(port, &v)
     }

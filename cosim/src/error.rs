@@ -31,9 +31,9 @@ pub enum CosimError {
         /// The port.
         port: String,
         /// The port's width in bits.
-        width: usize,
+        width: u32,
         /// Bits the value needs.
-        value_bits: usize,
+        value_bits: u32,
     },
     /// Poke on an output port.
     NotAnInput {
@@ -98,6 +98,9 @@ pub enum CosimError {
         /// What was expected.
         what: String,
     },
+    /// A bit vector could not be built, read or written (a value wider than
+    /// its width, a bit range past it, text that is not hex).
+    Bits(golden::bits::BitsError),
     /// The feature asked for is not available in this engine or build.
     Unsupported {
         /// The feature.
@@ -138,6 +141,7 @@ impl fmt::Display for CosimError {
                 "output `{port}` is X/Z after reset at cycle {cycle} (value {value})"
             ),
             CosimError::Parse { text, what } => write!(f, "cannot parse `{text}`: {what}"),
+            CosimError::Bits(e) => write!(f, "{e}"),
             CosimError::Unsupported { what } => write!(f, "unsupported: {what}"),
         }
     }
@@ -147,6 +151,7 @@ impl std::error::Error for CosimError {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match self {
             CosimError::Io { source, .. } => Some(source),
+            CosimError::Bits(e) => Some(e),
             _ => None,
         }
     }
@@ -159,4 +164,10 @@ pub type Result<T> = std::result::Result<T, CosimError>;
 pub(crate) fn io_err(path: impl Into<PathBuf>) -> impl FnOnce(std::io::Error) -> CosimError {
     let path = path.into();
     move |source| CosimError::Io { path, source }
+}
+
+impl From<golden::bits::BitsError> for CosimError {
+    fn from(e: golden::bits::BitsError) -> CosimError {
+        CosimError::Bits(e)
+    }
 }

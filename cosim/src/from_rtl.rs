@@ -17,8 +17,8 @@ pub fn design_from_module(module: &Module, dir: &Path) -> Result<Design> {
     let specs = ports
         .iter()
         .map(|p| match p.direction {
-            Direction::Input => PortSpec::input(&p.name, p.width as usize),
-            Direction::Output => PortSpec::output(&p.name, p.width as usize),
+            Direction::Input => PortSpec::input(&p.name, p.width),
+            Direction::Output => PortSpec::output(&p.name, p.width),
         })
         .collect();
     let has = |name: &str| ports.iter().any(|p| p.name == name);

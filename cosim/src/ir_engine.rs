@@ -7,7 +7,6 @@
 //! after `eval` and `step`. rtl-gen's clock is implicit (`Sim::step` is the
 //! rising edge), so the clock port exists in the `Design` but cannot be poked.
 
-use crate::bitvec::BitVec;
 use crate::design::{Design, PortDir, PortId};
 use crate::engine::Engine;
 use crate::error::{io_err, CosimError, Result};
@@ -26,7 +25,7 @@ pub struct IrEngine {
     /// One handle per design port, in `Design::ports` order.
     handles: Vec<Handle>,
     /// Inputs as last poked, outputs as of the last `eval`/`step`.
-    values: Vec<BitVec>,
+    values: Vec<Bits>,
     clock: Option<PortId>,
     cycle: u64,
     trace: Option<SharedVcdFile>,
@@ -52,11 +51,7 @@ impl IrEngine {
                 })
             })
             .collect::<Result<Vec<_>>>()?;
-        let values = design
-            .ports
-            .iter()
-            .map(|p| BitVec::zeros(p.width))
-            .collect();
+        let values = design.ports.iter().map(|p| Bits::zero(p.width)).collect();
         let clock = match &design.clock {
             Some(name) => Some(design.port_id(name)?),
             None => None,
@@ -79,7 +74,7 @@ impl IrEngine {
         for (i, port) in self.design.ports.iter().enumerate() {
             if port.dir == PortDir::Output {
                 let words = self.sim.get_words(self.handles[i]);
-                self.values[i] = BitVec::from_words(port.width, words)?;
+                self.values[i] = Bits::from_words(words, port.width)?;
             }
         }
         Ok(())
@@ -101,7 +96,7 @@ fn check_ports_agree(module: &Module, design: &Design) -> Result<()> {
             Direction::Input => PortDir::Input,
             Direction::Output => PortDir::Output,
         };
-        if p.width as usize != spec.width || dir != spec.dir {
+        if p.width != spec.width || dir != spec.dir {
             return Err(CosimError::PortMismatch {
                 port: spec.name.clone(),
                 what: format!(
@@ -135,7 +130,7 @@ impl Engine for IrEngine {
         &self.design
     }
 
-    fn poke(&mut self, port: PortId, value: &BitVec) -> Result<()> {
+    fn poke(&mut self, port: PortId, value: &Bits) -> Result<()> {
         let spec = self.design.check_poke(port, value)?;
         if Some(port) == self.clock {
             return Err(CosimError::Unsupported {
@@ -145,15 +140,8 @@ impl Engine for IrEngine {
                 ),
             });
         }
-        let bits = Bits::from_words(value.words(), value.width() as u32).map_err(|e| {
-            CosimError::Width {
-                port: spec.name.clone(),
-                width: spec.width,
-                value_bits: e.width as usize,
-            }
-        })?;
         self.sim
-            .set(self.handles[port.0], &bits)
+            .set(self.handles[port.0], value)
             .map_err(|e| CosimError::Protocol {
                 what: format!("IR simulator refused `{}`: {e}", spec.name),
             })?;
@@ -161,7 +149,7 @@ impl Engine for IrEngine {
         Ok(())
     }
 
-    fn peek(&self, port: PortId) -> Result<BitVec> {
+    fn peek(&self, port: PortId) -> Result<Bits> {
         self.design.port(port)?;
         Ok(self.values[port.0].clone())
     }
@@ -308,7 +296,7 @@ mod tests {
             e.poke_u64(clk, 1),
             Err(CosimError::Unsupported { .. })
         ));
-        assert!(e.poke(en, &BitVec::zeros(2)).is_err());
+        assert!(e.poke(en, &Bits::zero(2)).is_err());
         assert!(e.poke_u64(count, 1).is_err());
     }
 

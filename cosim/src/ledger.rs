@@ -277,10 +277,10 @@ fn collect_json(dir: &Path, out: &mut Vec<std::path::PathBuf>) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bitvec::BitVec;
+    use golden::bits::Bits;
 
     fn streams(bit: bool) -> Vec<StreamBeats> {
-        let mut v = BitVec::zeros(70);
+        let mut v = Bits::zero(70);
         v.set_bit(65, bit).unwrap();
         vec![StreamBeats {
             name: "s".into(),

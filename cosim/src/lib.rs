@@ -8,7 +8,6 @@
 
 #![warn(missing_docs)]
 
-pub mod bitvec;
 pub mod cache;
 pub mod coverage;
 pub mod design;
@@ -30,8 +29,10 @@ pub mod verilator;
 pub mod volume;
 pub mod waves;
 
-pub use bitvec::BitVec;
 pub use design::{Design, PortDir, PortId, PortSpec, Reset};
 pub use engine::Engine;
 pub use engines::{open_engine, open_tracing_engine, EngineKind};
 pub use error::{CosimError, Result};
+/// Port values are golden's bit vector, the same type the golden model packs
+/// and the DSL simulates.
+pub use golden::bits::{Bits, BitsError};

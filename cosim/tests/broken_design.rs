@@ -5,11 +5,11 @@
 mod common;
 
 use cosim::tb::{run_with_vcd_on_failure, BenchConfig, FieldDecoder, StreamNames, Vector};
-use cosim::{BitVec, Design, PortSpec};
+use cosim::{Bits, Design, PortSpec};
 
 /// Splits the 16-bit payload into named bytes, as a record decoder would.
 fn decoder() -> Option<Box<FieldDecoder>> {
-    Some(Box::new(|txn: &Vec<BitVec>| {
+    Some(Box::new(|txn: &Vec<Bits>| {
         let v = txn[0].to_u64().unwrap_or(0);
         vec![
             ("hi".to_string(), format!("{:#04x}", v >> 8)),
@@ -28,8 +28,8 @@ fn one_flipped_bit_is_reported_with_cycle_fields_and_vcd_on_every_engine() {
         .map(|i| {
             let x = (i * 0x0101 + 3) & 0xffff;
             Vector {
-                input: vec![BitVec::from_u64(16, x).unwrap()],
-                outputs: vec![vec![BitVec::from_u64(16, (x + 1) & 0xffff).unwrap()]],
+                input: vec![Bits::from_u64(x, 16).unwrap()],
+                outputs: vec![vec![Bits::from_u64((x + 1) & 0xffff, 16).unwrap()]],
             }
         })
         .collect();
@@ -123,8 +123,8 @@ fn a_design_that_never_accepts_input_is_failed_by_the_watchdog() {
     )
     .unwrap();
     let vectors = vec![Vector {
-        input: vec![BitVec::from_u64(8, 5).unwrap()],
-        outputs: vec![vec![BitVec::from_u64(8, 5).unwrap()]],
+        input: vec![Bits::from_u64(5, 8).unwrap()],
+        outputs: vec![vec![Bits::from_u64(5, 8).unwrap()]],
     }];
     for kind in common::ENGINES {
         let config = BenchConfig {

@@ -17,7 +17,7 @@ mod common;
 use cosim::from_rtl::design_from_module;
 use cosim::ir_engine::IrEngine;
 use cosim::tb::{run_with_vcd_on_failure, BenchConfig, Prng, StreamNames, Vector};
-use cosim::{open_engine, BitVec, Design, Engine, EngineKind};
+use cosim::{open_engine, Bits, Design, Engine, EngineKind};
 use golden::seed::seeded;
 use rtl_gen::{examples, Direction, Module};
 use std::path::{Path, PathBuf};
@@ -120,12 +120,12 @@ fn vcd_path(top: &str, kind: &str, seed: u64) -> PathBuf {
     std::env::temp_dir().join(format!("hm-example-{top}-{kind}-{seed}.vcd"))
 }
 
-fn word(width: usize, value: u128) -> BitVec {
-    BitVec::from_u128(width, value).unwrap()
+fn word(width: u32, value: u128) -> Bits {
+    Bits::from_u128(value, width).unwrap()
 }
 
 /// Random words passed through unchanged, in order (FIFO, skid buffer).
-fn identity_vectors(width: usize, count: usize, seed: u64) -> Vec<Vector> {
+fn identity_vectors(width: u32, count: usize, seed: u64) -> Vec<Vector> {
     let mut rng = Prng::new(seed);
     (0..count)
         .map(|_| {
@@ -165,8 +165,8 @@ fn abs_diff_vectors(width: u32, limit: u128, count: usize, seed: u64) -> Vec<Vec
             let (ra, rb) = (operand(0), operand(1));
             let y = abs_diff_model(limit, as_signed(ra, width), as_signed(rb, width));
             Vector {
-                input: vec![word(2 * width as usize, ra << width | rb)],
-                outputs: vec![vec![word(width as usize + 1, y)]],
+                input: vec![word(2 * width, ra << width | rb)],
+                outputs: vec![vec![word(width + 1, y)]],
             }
         })
         .collect()
@@ -180,7 +180,7 @@ fn skid_buffer_on_three_engines_under_back_pressure() {
     let width = 70;
     check_stream_example(
         &examples::skid_buffer(width),
-        &identity_vectors(width as usize, TRANSACTIONS, 1),
+        &identity_vectors(width, TRANSACTIONS, 1),
     );
 }
 
@@ -221,7 +221,7 @@ fn fifo_on_three_engines_under_back_pressure() {
     let (width, addr_bits) = (33, 3);
     check_stream_example(
         &fifo_with_data_gated_by_valid(width, addr_bits),
-        &identity_vectors(width as usize, TRANSACTIONS, 2),
+        &identity_vectors(width, TRANSACTIONS, 2),
     );
 }
 
@@ -239,7 +239,7 @@ fn pipelined_datapath_on_three_engines_under_back_pressure() {
 
 /// The counter's testbench: a random enable each cycle; `count` must be the
 /// number of enabled edges since reset, modulo 2^width, every cycle.
-fn run_counter(engine: &mut dyn Engine, width: usize, cycles: u64, seed: u64) -> cosim::Result<()> {
+fn run_counter(engine: &mut dyn Engine, width: u32, cycles: u64, seed: u64) -> cosim::Result<()> {
     let en = engine.port_id("en")?;
     let count = engine.port_id("count")?;
     engine.poke_u64(en, 1)?;
@@ -276,7 +276,7 @@ fn counter_on_three_engines_with_a_random_enable() {
     for kind in ENGINES {
         let start = Instant::now();
         let mut engine = make_engine(kind, &m, &design, false).unwrap();
-        run_counter(engine.as_mut(), width as usize, 2000, 5)
+        run_counter(engine.as_mut(), width, 2000, 5)
             .unwrap_or_else(|e| panic!("{} on {kind}: {e}", design.top));
         eprintln!(
             "{} on {kind}: 2000 cycles, {:?}",

@@ -13,7 +13,7 @@ use cosim::tb::{run_multi_stream_bench, BenchConfig, MultiReport};
 use cosim::tools::{ci_mode, tool_available, INSTALL_HINT};
 use cosim::units::merge_module::{generate_streams, input_names, UnitStreams, OUTPUT_NAMES};
 use cosim::verilator::{VerilatorEngine, VerilatorOptions};
-use cosim::{BitVec, CosimError, Design, PortSpec};
+use cosim::{Bits, CosimError, Design, PortSpec};
 use golden::merge::MergeMode;
 use golden::params::Params;
 use golden::seed::seeded;
@@ -146,7 +146,7 @@ fn a_planted_wrong_beat_is_caught_on_its_stream() {
     let n = out.beats.len() / 2;
     let mut w = out.beats[n][0].words().to_vec();
     w[0] ^= 1 << 3;
-    out.beats[n][0] = BitVec::from_words(out.beats[n][0].width(), &w).unwrap();
+    out.beats[n][0] = Bits::from_words(&w, out.beats[n][0].width()).unwrap();
     let c = config(5, 0.25);
     let (p, b) = (verilator(&u, &s, &c), batch(&u, &s, &c));
     assert!(!b.passed());
@@ -245,7 +245,7 @@ endmodule
 fn beats(values: &[u64]) -> Vec<cosim::tb::Transaction> {
     values
         .iter()
-        .map(|&v| vec![BitVec::from_u64(8, v).unwrap()])
+        .map(|&v| vec![Bits::from_u64(v, 8).unwrap()])
         .collect()
 }
 

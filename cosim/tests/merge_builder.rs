@@ -76,17 +76,13 @@ fn streams(p: &Params, txs: &[BuilderTransaction]) -> (Vec<StreamBeats>, Vec<Str
         }) as usize;
         for (s, beats) in bases.iter_mut().zip(&tx.base) {
             seen.base_beats += beats.len();
-            s.extend(
-                beats
-                    .iter()
-                    .map(|b| vec![bitvec(&b.pack(&l.base).unwrap())]),
-            );
+            s.extend(beats.iter().map(|b| vec![b.pack(&l.base).unwrap()]));
         }
         for (s, beats) in levels.iter_mut().zip(&tx.levels) {
             seen.level_beats += beats.len();
-            s.extend(beats.iter().map(|b| vec![bitvec(&b.pack(&l).unwrap())]));
+            s.extend(beats.iter().map(|b| vec![b.pack(&l).unwrap()]));
         }
-        done.push(vec![bitvec(&tx.done.pack(&l).unwrap())]);
+        done.push(vec![tx.done.pack(&l).unwrap()]);
     }
     let ins = bases
         .into_iter()

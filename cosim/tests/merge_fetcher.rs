@@ -13,7 +13,7 @@ mod merge_common;
 
 use cosim::tb::StreamBeats;
 use cosim::volume::volume;
-use cosim::BitVec;
+use cosim::Bits;
 use golden::build::{build, GridMap};
 use golden::merge::fetch_unit::{
     fetch_err, fetch_transaction, fetch_transaction_with_reports, FetchCmd, FetchLayout, FetchOut,
@@ -226,13 +226,13 @@ fn random_fetches(
     out
 }
 
-fn bits(b: golden::layout::Bits) -> Vec<BitVec> {
-    vec![bitvec(&b)]
+fn bits(b: Bits) -> Vec<Bits> {
+    vec![b]
 }
 
 /// Index `v` as an `I`-bit beat.
-fn index_beat(v: u32, width: u32) -> Vec<BitVec> {
-    let mut b = golden::layout::Bits::zero(width);
+fn index_beat(v: u32, width: u32) -> Vec<Bits> {
+    let mut b = golden::bits::Bits::zero(width);
     b.set(
         &golden::layout::Field {
             name: "index",
@@ -257,7 +257,7 @@ fn streams_of(
     l: &FetchLayout,
     txs: &[FetchTransaction],
 ) -> (Vec<StreamBeats>, Vec<StreamBeats>, Seen) {
-    let mut s: [Vec<Vec<BitVec>>; 10] = Default::default();
+    let mut s: [Vec<Vec<Bits>>; 10] = Default::default();
     let mut probe_resp = Vec::new();
     let mut report = Vec::new();
     let mut probe_req = Vec::new();
@@ -684,7 +684,7 @@ fn leaves_end_does_not_wait_on_out() {
             break;
         }
     }
-    let want: Vec<BitVec> = want_leaves.iter().map(|b| b[0].clone()).collect();
+    let want: Vec<Bits> = want_leaves.iter().map(|b| b[0].clone()).collect();
     assert_eq!(
         leaves, want,
         "every leaf and the end beat, `out` never ready"

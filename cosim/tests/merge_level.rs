@@ -51,13 +51,13 @@ fn vectors(p: &Params, seed: u64, groups: usize) -> (Vec<Vector>, usize, LevelSt
                 let outputs = if j == 0 {
                     tx.outputs[g.outputs.clone()]
                         .iter()
-                        .map(|o| vec![bitvec(&o.pack(&lo).unwrap())])
+                        .map(|o| vec![o.pack(&lo).unwrap()])
                         .collect()
                 } else {
                     Vec::new()
                 };
                 out.push(Vector {
-                    input: vec![bitvec(&b.pack(&li).unwrap())],
+                    input: vec![b.pack(&li).unwrap()],
                     outputs,
                 });
             }
@@ -254,10 +254,10 @@ fn merge_level_bench_catches_a_flipped_bit() {
         .position(|v| {
             v.outputs
                 .first()
-                .is_some_and(|o| o[0].field(l.kind.offset as usize, 2).unwrap().to_u64() == Some(0))
+                .is_some_and(|o| o[0].extract(l.kind.offset, 2).unwrap().to_u64() == Some(0))
         })
         .expect("a created node");
-    vs[target].outputs[0][0].flip_bit(flip as usize).unwrap();
+    vs[target].outputs[0][0].flip_bit(flip).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let m = rtl_gen::merge::merge_level_unit(&p);
     let design = design_of(&m, dir.path());

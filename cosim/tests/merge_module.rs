@@ -101,8 +101,7 @@ fn streams(
         ..Seen::default()
     };
     for beat in &s.outputs[0].beats {
-        let b = golden::layout::Bits::from_words(beat[0].width() as u32, beat[0].words())
-            .expect("a report beat");
+        let b = &beat[0];
         let get = |f| b.get(f).expect("a report field");
         if get(&tl.chosen) == 1 {
             seen.refused += (get(&tl.err) != 0) as usize;

@@ -58,9 +58,9 @@ fn vectors(
         let n = beats.len();
         for (j, b) in beats.iter().enumerate() {
             out.push(Vector {
-                input: vec![bitvec(&b.pack(&l).unwrap())],
+                input: vec![b.pack(&l).unwrap()],
                 outputs: if j + 1 == n {
-                    vec![vec![bitvec(&r.pack(&l).unwrap())]]
+                    vec![vec![r.pack(&l).unwrap()]]
                 } else {
                     Vec::new()
                 },

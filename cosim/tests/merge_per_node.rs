@@ -89,9 +89,9 @@ fn streams_of(
         PerNodeLayout::new(p),
         BeatLayout::output(p),
     );
-    let beats = |name: String, v: Vec<golden::layout::Bits>| StreamBeats {
+    let beats = |name: String, v: Vec<golden::bits::Bits>| StreamBeats {
         name,
-        beats: v.iter().map(|b| vec![bitvec(b)]).collect(),
+        beats: v.iter().map(|b| vec![b.clone()]).collect(),
     };
     let mut cfg = Vec::new();
     let mut ins = vec![Vec::new(); d.inputs];

@@ -9,7 +9,7 @@
 mod merge_common;
 
 use cosim::tb::Vector;
-use cosim::BitVec;
+use cosim::Bits;
 use golden::build::{build, GridMap};
 use golden::merge::level::candidate_range;
 use golden::merge::unit::*;
@@ -205,7 +205,7 @@ struct Streams {
     out_of_order_roots: usize,
 }
 
-fn one(beats_in: Vec<BitVec>, outs: Vec<BitVec>, into: &mut Vec<Vector>) {
+fn one(beats_in: Vec<Bits>, outs: Vec<Bits>, into: &mut Vec<Vector>) {
     let expected: Vec<_> = outs.into_iter().map(|o| vec![o]).collect();
     for (j, b) in beats_in.into_iter().enumerate() {
         into.push(Vector {
@@ -233,14 +233,8 @@ fn streams(c: &Case) -> Streams {
         let (_, at) = collect(&walked, l);
         let tx = level_transaction(&at, &hs, p).expect("S614");
         one(
-            tx.inputs
-                .iter()
-                .map(|b| bitvec(&b.pack(&li).unwrap()))
-                .collect(),
-            tx.outputs
-                .iter()
-                .map(|b| bitvec(&b.pack(&lo_).unwrap()))
-                .collect(),
+            tx.inputs.iter().map(|b| b.pack(&li).unwrap()).collect(),
+            tx.outputs.iter().map(|b| b.pack(&lo_).unwrap()).collect(),
             &mut s.level,
         );
         let voxels: Vec<Vec<_>> = walked
@@ -254,27 +248,20 @@ fn streams(c: &Case) -> Streams {
             .collect();
         let (beats, r) = overlap_transaction(&voxels, p, 1, 2);
         one(
-            beats
-                .iter()
-                .map(|b| bitvec(&b.pack(&ol).unwrap()))
-                .collect(),
-            vec![bitvec(&r.pack(&ol).unwrap())],
+            beats.iter().map(|b| b.pack(&ol).unwrap()).collect(),
+            vec![r.pack(&ol).unwrap()],
             &mut s.overlap,
         );
         if l >= 1 {
             let (ins, outs) = upper_transaction(&sorted_level(&at), p);
             one(
-                ins.iter()
-                    .map(|b| bitvec(&b.pack(&ul, false).unwrap()))
-                    .collect(),
-                outs.iter()
-                    .map(|b| bitvec(&b.pack(&ul, true).unwrap()))
-                    .collect(),
+                ins.iter().map(|b| b.pack(&ul, false).unwrap()).collect(),
+                outs.iter().map(|b| b.pack(&ul, true).unwrap()).collect(),
                 &mut s.upper,
             );
         }
     }
-    let err_bit = lo_.err.unwrap().offset as usize;
+    let err_bit = lo_.err.unwrap().offset;
     for w in &walked {
         let roots = &w.by_lod[w.top_lod as usize];
         let keys: Vec<_> = roots
@@ -284,11 +271,11 @@ fn streams(c: &Case) -> Streams {
         s.out_of_order_roots += keys.windows(2).any(|k| k[0] > k[1]) as usize;
         let (ins, outs) = root_sort_transaction(roots, 16);
         one(
-            ins.iter().map(|b| bitvec(&b.pack(&li).unwrap())).collect(),
+            ins.iter().map(|b| b.pack(&li).unwrap()).collect(),
             outs.iter()
                 .map(|(b, err)| {
                     let bits = b.pack(&li).unwrap();
-                    let mut v = BitVec::from_words(lo_.width as usize, bits.words()).unwrap();
+                    let mut v = Bits::from_words(bits.words(), lo_.width).unwrap();
                     v.set_bit(err_bit, *err).unwrap();
                     v
                 })
@@ -451,15 +438,12 @@ fn hard_case_merges_through_the_merging_module() {
             );
             let mut ins = vec![StreamBeats {
                 name: "cfg".into(),
-                beats: vec![vec![bitvec(&tl.pack_cfg(lo, hi).unwrap())]],
+                beats: vec![vec![tl.pack_cfg(lo, hi).unwrap()]],
             }];
             for (i, s) in tx.inputs.iter().enumerate() {
                 ins.push(StreamBeats {
                     name: format!("in{i}"),
-                    beats: s
-                        .iter()
-                        .map(|b| vec![bitvec(&b.pack(&li).unwrap())])
-                        .collect(),
+                    beats: s.iter().map(|b| vec![b.pack(&li).unwrap()]).collect(),
                 });
             }
             let outs = vec![
@@ -468,16 +452,12 @@ fn hard_case_merges_through_the_merging_module() {
                     beats: tx
                         .reports
                         .iter()
-                        .map(|r| vec![bitvec(&r.pack(&tl).unwrap())])
+                        .map(|r| vec![r.pack(&tl).unwrap()])
                         .collect(),
                 },
                 StreamBeats {
                     name: "out".into(),
-                    beats: tx
-                        .out
-                        .iter()
-                        .map(|b| vec![bitvec(&b.pack(&lo_).unwrap())])
-                        .collect(),
+                    beats: tx.out.iter().map(|b| vec![b.pack(&lo_).unwrap()]).collect(),
                 },
             ];
             eprintln!(

@@ -14,7 +14,7 @@ mod merge_common;
 
 use cosim::tb::{BenchReport, Vector};
 use cosim::volume::volume;
-use cosim::BitVec;
+use cosim::Bits;
 use golden::merge::unit::{random_roots, root_sort_transaction, BeatLayout, LevelBeat};
 use golden::params::Params;
 use golden::seed::seeded;
@@ -56,7 +56,7 @@ fn vectors(
     sets: usize,
 ) -> (Vec<Vector>, Vec<usize>, usize, usize) {
     let (li, lo) = (BeatLayout::input(p), BeatLayout::output(p));
-    let err_bit = lo.err.expect("output beats have err").offset as usize;
+    let err_bit = lo.err.expect("output beats have err").offset;
     let mut rng = SplitMix64(seed);
     let (mut out, mut ends, mut unsorted, mut overflow) = (Vec::new(), Vec::new(), 0, 0);
     for _ in 0..sets {
@@ -72,14 +72,14 @@ fn vectors(
             .iter()
             .map(|(b, err): &(LevelBeat, bool)| {
                 let bits = b.pack(&li).unwrap();
-                let mut v = BitVec::from_words(lo.width as usize, bits.words()).unwrap();
+                let mut v = Bits::from_words(bits.words(), lo.width).unwrap();
                 v.set_bit(err_bit, *err).unwrap();
                 vec![v]
             })
             .collect();
         for (j, b) in ins.iter().enumerate() {
             out.push(Vector {
-                input: vec![bitvec(&b.pack(&li).unwrap())],
+                input: vec![b.pack(&li).unwrap()],
                 outputs: if j == 0 { expected.clone() } else { Vec::new() },
             });
         }

@@ -49,11 +49,11 @@ fn vectors(p: &Params, seed: u64, groups: usize) -> (Vec<Vector>, usize, usize, 
             .count();
         let expected: Vec<_> = outs
             .iter()
-            .map(|b| vec![bitvec(&b.pack(&l, true).unwrap())])
+            .map(|b| vec![b.pack(&l, true).unwrap()])
             .collect();
         for (j, b) in ins.iter().enumerate() {
             out.push(Vector {
-                input: vec![bitvec(&b.pack(&l, false).unwrap())],
+                input: vec![b.pack(&l, false).unwrap()],
                 outputs: if j == 0 { expected.clone() } else { Vec::new() },
             });
         }

@@ -56,8 +56,8 @@ struct Seen {
     longest_in: u64,
 }
 
-fn one(b: &golden::layout::Bits) -> Vec<cosim::BitVec> {
-    vec![bitvec(b)]
+fn one(b: &cosim::Bits) -> Vec<cosim::Bits> {
+    vec![b.clone()]
 }
 
 /// The streams of a list of merges.

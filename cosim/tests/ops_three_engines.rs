@@ -23,7 +23,7 @@ mod common;
 use cosim::from_rtl::design_from_module;
 use cosim::ir_engine::IrEngine;
 use cosim::tb::Prng;
-use cosim::{open_engine, BitVec, Design, Engine, EngineKind, PortDir, PortId};
+use cosim::{open_engine, Bits, Design, Engine, EngineKind, PortDir, PortId};
 use golden::seed::seeded;
 use rtl_gen::optest::{op_suite, OpKind, WIDTHS};
 use rtl_gen::{Direction, Module};
@@ -100,17 +100,17 @@ fn shift_op(op: &str) -> bool {
 }
 
 /// Edge values of a `width`-bit operand.
-fn edges(width: usize) -> Vec<BitVec> {
+fn edges(width: u32) -> Vec<Bits> {
     let mut v = vec![
-        BitVec::zeros(width),
-        BitVec::from_u64(width, 1).unwrap(),
-        BitVec::ones(width),
+        Bits::zero(width),
+        Bits::from_u64(1, width).unwrap(),
+        Bits::ones(width),
     ];
-    let mut min = BitVec::zeros(width);
+    let mut min = Bits::zero(width);
     min.set_bit(width - 1, true).unwrap();
-    let mut max = BitVec::ones(width);
+    let mut max = Bits::ones(width);
     max.set_bit(width - 1, false).unwrap();
-    let mut alternating = BitVec::zeros(width);
+    let mut alternating = Bits::zero(width);
     for i in (0..width).step_by(2) {
         alternating.set_bit(i, true).unwrap();
     }
@@ -119,7 +119,7 @@ fn edges(width: usize) -> Vec<BitVec> {
 }
 
 /// Shift amounts around the operand width `w`, for a `port_width`-bit port.
-fn shift_edges(w: u32, port_width: usize) -> Vec<BitVec> {
+fn shift_edges(w: u32, port_width: u32) -> Vec<Bits> {
     let limit = 1u64 << port_width;
     [
         0,
@@ -132,15 +132,15 @@ fn shift_edges(w: u32, port_width: usize) -> Vec<BitVec> {
     ]
     .into_iter()
     .filter(|&s| s < limit)
-    .map(|s| BitVec::from_u64(port_width, s).unwrap())
+    .map(|s| Bits::from_u64(s, port_width).unwrap())
     .collect()
 }
 
 /// A value with only the low `k` bits random (or its bitwise complement,
 /// a small negative number when read as signed).
-fn small(rng: &mut Prng, width: usize) -> BitVec {
-    let mut v = BitVec::zeros(width);
-    let k = (rng.below(9) as usize).min(width);
+fn small(rng: &mut Prng, width: u32) -> Bits {
+    let mut v = Bits::zero(width);
+    let k = (rng.below(9) as u32).min(width);
     for i in 0..k {
         v.set_bit(i, rng.chance(0.5)).unwrap();
     }
@@ -154,7 +154,7 @@ fn small(rng: &mut Prng, width: usize) -> BitVec {
 
 /// True when input `i` is a `b` right after the `a` of the same operator
 /// (then `b` may copy `a`, so equality and near-equality are exercised).
-fn follows_its_a(inputs: &[(PortRole, usize)], i: usize) -> bool {
+fn follows_its_a(inputs: &[(PortRole, u32)], i: usize) -> bool {
     let (role, width) = &inputs[i];
     match i.checked_sub(1).map(|j| &inputs[j]) {
         Some((prev, prev_width)) => {
@@ -169,8 +169,8 @@ fn follows_its_a(inputs: &[(PortRole, usize)], i: usize) -> bool {
 }
 
 /// The input vectors for `design` (one value per input port, port order).
-fn vectors(design: &Design, count: usize, seed: u64) -> Vec<Vec<BitVec>> {
-    let inputs: Vec<(PortRole, usize)> = operand_ports(design)
+fn vectors(design: &Design, count: usize, seed: u64) -> Vec<Vec<Bits>> {
+    let inputs: Vec<(PortRole, u32)> = operand_ports(design)
         .iter()
         .map(|&id| &design.ports[id.0])
         .map(|p| (port_role(&p.name), p.width))
@@ -178,7 +178,7 @@ fn vectors(design: &Design, count: usize, seed: u64) -> Vec<Vec<BitVec>> {
     let mut rng = Prng::new(seed);
     (0..count)
         .map(|k| {
-            let mut values: Vec<BitVec> = Vec::with_capacity(inputs.len());
+            let mut values: Vec<Bits> = Vec::with_capacity(inputs.len());
             for (i, (role, width)) in inputs.iter().enumerate() {
                 let set = if shift_op(&role.op) && role.port == "s" {
                     shift_edges(role.width, *width)
@@ -193,7 +193,7 @@ fn vectors(design: &Design, count: usize, seed: u64) -> Vec<Vec<BitVec>> {
                 } else if follows_its_a(&inputs, i) && rng.chance(0.25) {
                     let mut near = values[i - 1].clone();
                     if rng.chance(0.5) {
-                        near.flip_bit(rng.below(*width as u64) as usize).unwrap();
+                        near.flip_bit(rng.below(*width as u64) as u32).unwrap();
                     }
                     near
                 } else {
@@ -215,10 +215,7 @@ fn vectors(design: &Design, count: usize, seed: u64) -> Vec<Vec<BitVec>> {
 /// combinational tops, after one rising edge for the registered ones (whose
 /// outputs must all be zero right after reset). `reset` also turns on
 /// Icarus's X/Z check; on a reset-less design it only settles.
-fn apply_vectors(
-    engine: &mut dyn Engine,
-    vectors: &[Vec<BitVec>],
-) -> cosim::Result<Vec<Vec<BitVec>>> {
+fn apply_vectors(engine: &mut dyn Engine, vectors: &[Vec<Bits>]) -> cosim::Result<Vec<Vec<Bits>>> {
     let design = engine.design().clone();
     let inputs = operand_ports(&design);
     let outputs = design.output_ids();
@@ -260,8 +257,8 @@ fn apply_vectors(
 struct Disagreement {
     vector: usize,
     output: String,
-    operands: Vec<(String, BitVec)>,
-    values: Vec<(&'static str, BitVec)>,
+    operands: Vec<(String, Bits)>,
+    values: Vec<(&'static str, Bits)>,
 }
 
 impl std::fmt::Display for Disagreement {
@@ -281,8 +278,8 @@ impl std::fmt::Display for Disagreement {
 /// operands of that output's operator.
 fn disagreements(
     design: &Design,
-    vectors: &[Vec<BitVec>],
-    runs: &[(&'static str, Vec<Vec<BitVec>>)],
+    vectors: &[Vec<Bits>],
+    runs: &[(&'static str, Vec<Vec<Bits>>)],
 ) -> Vec<Disagreement> {
     let input_names: Vec<&str> = operand_ports(design)
         .iter()

@@ -4,10 +4,10 @@
 mod common;
 
 use cosim::tb::Prng;
-use cosim::{BitVec, Design, PortSpec};
+use cosim::{Bits, Design, PortSpec};
 use golden::seed::seeded;
 
-const WIDTHS: [usize; 16] = [
+const WIDTHS: [u32; 16] = [
     1, 7, 8, 9, 16, 17, 31, 32, 33, 63, 64, 65, 96, 127, 128, 129,
 ];
 
@@ -37,7 +37,7 @@ fn design(dir: &std::path::Path) -> Design {
     Design::new("widths", vec![file], ports, None, None).unwrap()
 }
 
-fn not(v: &BitVec) -> BitVec {
+fn not(v: &Bits) -> Bits {
     let mut out = v.clone();
     for i in 0..v.width() {
         out.flip_bit(i).unwrap();
@@ -59,8 +59,8 @@ fn every_storage_class_boundary_round_trips_on_every_engine() {
             let mut pokes = Vec::new();
             for w in WIDTHS {
                 let v = match round {
-                    0 => BitVec::zeros(w),
-                    1 => BitVec::ones(w),
+                    0 => Bits::zero(w),
+                    1 => Bits::ones(w),
                     _ => rng.bits(w),
                 };
                 e.poke(e.port_id(&format!("i{w}")).unwrap(), &v).unwrap();

@@ -6,7 +6,7 @@ mod common;
 use cosim::tb::{
     run_stream_bench, run_stream_bench_with_progress, BenchConfig, Prng, StreamNames, Vector,
 };
-use cosim::BitVec;
+use cosim::Bits;
 use golden::seed::seeded;
 
 /// Random payloads and what the skid stage must emit for each.
@@ -17,8 +17,8 @@ pub fn vectors(seed: u64, count: usize) -> Vec<Vector> {
             let x = rng.below(1 << common::SKID_WIDTH);
             let y = (x + 1) & 0xffff;
             Vector {
-                input: vec![BitVec::from_u64(common::SKID_WIDTH, x).unwrap()],
-                outputs: vec![vec![BitVec::from_u64(common::SKID_WIDTH, y).unwrap()]],
+                input: vec![Bits::from_u64(x, common::SKID_WIDTH).unwrap()],
+                outputs: vec![vec![Bits::from_u64(y, common::SKID_WIDTH).unwrap()]],
             }
         })
         .collect()

@@ -13,7 +13,7 @@ use cosim::icarus::{BatchSpec, IcarusBatch, LaneVector};
 use cosim::tb::{BenchConfig, FieldDecoder, StreamNames, Vector};
 use cosim::units::translate::{run, RunConfig};
 use cosim::volume::volume;
-use cosim::{open_engine, BitVec, EngineKind};
+use cosim::{open_engine, EngineKind};
 use golden::seed::seeded;
 use golden::vectors::translate::{generate, ApplyCode, TranslateDesign, TranslateTxn};
 use rtl_gen::translate::ports::{
@@ -21,7 +21,6 @@ use rtl_gen::translate::ports::{
     PortLayout,
 };
 use rtl_gen::translate::{reference_designs, translate_unit};
-use rtl_gen::Bits;
 
 fn tools_present(kind: EngineKind) -> bool {
     match kind.check_tools() {
@@ -96,16 +95,11 @@ fn lanes() -> Vec<StreamNames> {
         .collect()
 }
 
-fn bitvec(b: &Bits) -> BitVec {
-    BitVec::from_words(b.width() as usize, b.words()).unwrap()
-}
-
 /// A scoreboard decoder printing each field of a lane's payload.
 fn decoder(layout: PortLayout) -> Box<FieldDecoder> {
     Box::new(move |txn: &cosim::tb::Transaction| {
-        let bits = Bits::from_words(txn[0].words(), txn[0].width() as u32).unwrap();
         layout
-            .decode(&bits)
+            .decode(&txn[0])
             .into_iter()
             .map(|(n, v)| (n, format!("{v:#x}")))
             .collect()
@@ -137,8 +131,8 @@ fn lane_vectors(d: &TranslateDesign, txns: &[TranslateTxn]) -> (Vec<LaneVector>,
             lane,
             wait_for_earlier_outputs: previous_lane != Some(lane),
             vector: Vector {
-                input: vec![bitvec(&input)],
-                outputs: vec![vec![bitvec(&expected)]],
+                input: vec![input.clone()],
+                outputs: vec![vec![expected.clone()]],
             },
         });
         previous_lane = Some(lane);

@@ -3,11 +3,11 @@
 mod common;
 
 use cosim::tb::Prng;
-use cosim::BitVec;
+use cosim::Bits;
 use golden::seed::seeded;
 
 /// (a + b) mod 2^width, word by word with carries.
-fn add(a: &BitVec, b: &BitVec) -> BitVec {
+fn add(a: &Bits, b: &Bits) -> Bits {
     let mut words = Vec::new();
     let mut carry = 0u64;
     for (x, y) in a.words().iter().zip(b.words()) {
@@ -16,15 +16,16 @@ fn add(a: &BitVec, b: &BitVec) -> BitVec {
         words.push(s2);
         carry = (c1 || c2) as u64;
     }
-    let mut sum = BitVec::zeros(a.width());
+    let mut sum = Bits::zero(a.width());
     for i in 0..a.width() {
-        sum.set_bit(i, words[i / 64] >> (i % 64) & 1 == 1).unwrap();
+        sum.set_bit(i, words[(i / 64) as usize] >> (i % 64) & 1 == 1)
+            .unwrap();
     }
     sum
 }
 
-fn xor(a: &BitVec, b: &BitVec) -> BitVec {
-    let mut out = BitVec::zeros(a.width());
+fn xor(a: &Bits, b: &Bits) -> Bits {
+    let mut out = Bits::zero(a.width());
     for i in 0..a.width() {
         out.set_bit(i, a.bit(i) ^ b.bit(i)).unwrap();
     }
@@ -32,15 +33,15 @@ fn xor(a: &BitVec, b: &BitVec) -> BitVec {
 }
 
 /// Edge patterns plus random ones: carries across every 32/64-bit boundary.
-fn operands(rng: &mut Prng) -> Vec<(BitVec, BitVec)> {
+fn operands(rng: &mut Prng) -> Vec<(Bits, Bits)> {
     let w = common::WIDE;
-    let one = BitVec::from_u64(w, 1).unwrap();
+    let one = Bits::from_u64(1, w).unwrap();
     let mut v = vec![
-        (BitVec::ones(w), one.clone()),
-        (BitVec::ones(w), BitVec::ones(w)),
-        (BitVec::zeros(w), BitVec::zeros(w)),
+        (Bits::ones(w), one.clone()),
+        (Bits::ones(w), Bits::ones(w)),
+        (Bits::zero(w), Bits::zero(w)),
     ];
-    let mut top = BitVec::zeros(w);
+    let mut top = Bits::zero(w);
     top.set_bit(w - 1, true).unwrap();
     v.push((top.clone(), top));
     for _ in 0..60 {
@@ -72,11 +73,11 @@ fn three_hundred_bit_ports_round_trip_exactly_on_every_engine() {
             assert_eq!(e.peek(ids[3]).unwrap(), xor(&a, &b), "{kind} #{k}: mix");
             assert_eq!(
                 e.peek(ids[4]).unwrap(),
-                a.field(0, 65).unwrap(),
+                a.extract(0, 65).unwrap(),
                 "{kind} #{k}: low65"
             );
         }
-        let narrow = BitVec::zeros(299);
+        let narrow = Bits::zero(299);
         assert!(
             e.poke(ids[0], &narrow).is_err(),
             "{kind}: 299-bit value into a 300-bit port"

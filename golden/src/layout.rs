@@ -6,12 +6,13 @@
 //! generators slice ports with it and the test vectors print it: no other
 //! module restates an offset or a width.
 //!
-//! [`Bits`] is a packed record of any width (stored as 64-bit words, least
-//! significant first). Writing a value that does not fit its field is an
-//! error, never a silent truncation.
+//! A packed record is a [`Bits`]; this module adds its access by field
+//! ([`Bits::get`], [`Bits::set`]). Writing a value that does not fit its field
+//! is an error, never a silent truncation.
 
 use std::fmt;
 
+use crate::bits::{Bits, BitsError};
 use crate::params::Params;
 
 /// One named bit range of a packed record.
@@ -78,13 +79,22 @@ pub enum LayoutError {
     },
     /// A record of `found` bits was given where the layout has `expected` bits.
     WrongWidth {
-        /// What was read: `"node record"`, `"reference"`, or the `Bits::from_words` call.
+        /// What was read: `"node record"` or `"reference"`.
         what: &'static str,
         /// Width the layout expects, in bits.
         expected: u32,
-        /// Width given, in bits (64 per word for `Bits::from_words`).
+        /// Width given, in bits.
         found: u32,
     },
+    /// Building or packing the record's bits failed (a value wider than the
+    /// record, a beat written past its end).
+    Bits(BitsError),
+}
+
+impl From<BitsError> for LayoutError {
+    fn from(e: BitsError) -> LayoutError {
+        LayoutError::Bits(e)
+    }
 }
 
 impl fmt::Display for LayoutError {
@@ -120,115 +130,20 @@ impl fmt::Display for LayoutError {
                 f,
                 "{what}: expected a {expected}-bit record, found {found} bits"
             ),
+            LayoutError::Bits(e) => write!(f, "{e}"),
         }
     }
 }
 
 impl std::error::Error for LayoutError {}
 
-/// A packed record: `width` bits in 64-bit words, least significant word first.
-/// Bits at and above `width` are always zero.
-#[derive(Clone, PartialEq, Eq, Hash)]
-pub struct Bits {
-    width: u32,
-    words: Vec<u64>,
-}
-
 impl Bits {
-    /// An all-zero record of `width` bits.
-    pub fn zero(width: u32) -> Bits {
-        Bits {
-            width,
-            words: vec![0; width.div_ceil(64) as usize],
-        }
-    }
-
-    /// A record from words (LSB first); bits at or above `width` must be zero.
-    pub fn from_words(width: u32, words: &[u64]) -> Result<Bits, LayoutError> {
-        let mut b = Bits::zero(width);
-        if words.len() > b.words.len() && words[b.words.len()..].iter().any(|&w| w != 0) {
-            return Err(LayoutError::WrongWidth {
-                what: "Bits::from_words",
-                expected: width,
-                found: words.len() as u32 * 64,
-            });
-        }
-        for (dst, src) in b.words.iter_mut().zip(words) {
-            *dst = *src;
-        }
-        if b.has_bits_above_width() {
-            return Err(LayoutError::WrongWidth {
-                what: "Bits::from_words (set bits above the width)",
-                expected: width,
-                found: b.words.len() as u32 * 64,
-            });
-        }
-        Ok(b)
-    }
-
-    fn has_bits_above_width(&self) -> bool {
-        let rem = self.width % 64;
-        match self.words.last() {
-            Some(&last) if rem != 0 => last >> rem != 0,
-            _ => false,
-        }
-    }
-
-    /// The record's width in bits.
-    pub fn width(&self) -> u32 {
-        self.width
-    }
-
-    /// The words, least significant first.
-    pub fn words(&self) -> &[u64] {
-        &self.words
-    }
-
-    /// Reads `width <= 64` bits at `offset` (caller guarantees the range is inside).
-    fn read_raw(&self, offset: u32, width: u32) -> u64 {
-        if width == 0 {
-            return 0;
-        }
-        let w = (offset / 64) as usize;
-        let s = offset % 64;
-        let mut v = self.words[w] >> s;
-        if s != 0 && s + width > 64 {
-            v |= self.words[w + 1] << (64 - s);
-        }
-        v & Field {
-            name: "",
-            offset: 0,
-            width,
-        }
-        .max_value()
-    }
-
-    /// Writes the low `width <= 64` bits of `value` at `offset` (range inside, value fits).
-    fn write_raw(&mut self, offset: u32, width: u32, value: u64) {
-        if width == 0 {
-            return;
-        }
-        let mask = Field {
-            name: "",
-            offset: 0,
-            width,
-        }
-        .max_value();
-        let w = (offset / 64) as usize;
-        let s = offset % 64;
-        self.words[w] = (self.words[w] & !(mask << s)) | (value << s);
-        if s != 0 && s + width > 64 {
-            let hi_mask = mask >> (64 - s);
-            self.words[w + 1] = (self.words[w + 1] & !hi_mask) | (value >> (64 - s));
-        }
-    }
-
     fn check_inside(&self, f: &Field) -> Result<(), LayoutError> {
-        if f.end() > self.width || f.width > 64 {
+        if f.end() > self.width() || f.width > 64 {
             return Err(LayoutError::OutOfRecord {
                 field: f.name,
                 end: f.end(),
-                record_width: self.width,
+                record_width: self.width(),
             });
         }
         Ok(())
@@ -252,60 +167,6 @@ impl Bits {
         }
         self.write_raw(f.offset, f.width, value);
         Ok(())
-    }
-
-    /// Writes all of `src` into these bits from bit `offset` up, 64 bits at a
-    /// time: how a record is packed into a wider beat. An error when it
-    /// would reach past the width.
-    pub fn put(&mut self, offset: u32, src: &Bits) -> Result<(), LayoutError> {
-        let end = offset.saturating_add(src.width);
-        if end > self.width {
-            return Err(LayoutError::OutOfRecord {
-                field: "bits",
-                end,
-                record_width: self.width,
-            });
-        }
-        let mut done = 0;
-        while done < src.width {
-            let n = (src.width - done).min(64);
-            self.write_raw(offset + done, n, src.read_raw(done, n));
-            done += n;
-        }
-        Ok(())
-    }
-
-    /// Bit `i` (false past the width).
-    pub fn bit(&self, i: u32) -> bool {
-        i < self.width && (self.words[(i / 64) as usize] >> (i % 64)) & 1 == 1
-    }
-
-    /// Hexadecimal, most significant digit first, `ceil(width / 4)` digits
-    /// (at least one): the form `$readmemh` and the test vectors use.
-    pub fn to_hex(&self) -> String {
-        let digits = self.width.div_ceil(4).max(1);
-        let mut s = String::with_capacity(digits as usize);
-        for d in (0..digits).rev() {
-            let lo = d * 4;
-            let n = (self.width.saturating_sub(lo)).min(4);
-            let v = if n == 0 { 0 } else { self.read_raw(lo, n) };
-            s.push(char::from_digit(v as u32, 16).expect("nibble"));
-        }
-        s
-    }
-
-    /// Binary, most significant bit first, exactly `width` digits.
-    pub fn to_binary(&self) -> String {
-        (0..self.width)
-            .rev()
-            .map(|i| if self.bit(i) { '1' } else { '0' })
-            .collect()
-    }
-}
-
-impl fmt::Debug for Bits {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "Bits({}'h{})", self.width, self.to_hex())
     }
 }
 
@@ -582,48 +443,8 @@ mod tests {
         .unwrap();
         assert_eq!(b.to_binary(), "101101");
         assert_eq!(b.to_hex(), "2d");
-        assert_eq!(Bits::from_words(6, &[0x2d]).unwrap(), b);
-        assert!(Bits::from_words(6, &[0x40]).is_err());
-        assert!(Bits::from_words(6, &[0, 1]).is_err());
-    }
-
-    #[test]
-    fn put_writes_every_bit_of_a_record_at_any_offset() {
-        // A 140-bit pattern (three words, the last partial) at offsets that
-        // start inside, at and across word boundaries.
-        let mut src = Bits::zero(140);
-        for i in (0..140).filter(|i| (i * 7) % 3 == 0 || i % 64 == 63) {
-            src.set(&Field::new("bit", i, 1), 1).unwrap();
-        }
-        for offset in [0, 1, 63, 64, 65, 100, 127] {
-            let mut dst = Bits::zero(300);
-            // Bits around the target stay as they are; bits inside are replaced.
-            dst.set(
-                &Field::new("below", 0, offset.min(64)),
-                Field::new("", 0, offset.min(64)).max_value(),
-            )
-            .unwrap();
-            dst.set(&Field::new("inside", offset, 64), u64::MAX)
-                .unwrap();
-            dst.put(offset, &src).unwrap();
-            for i in 0..300 {
-                let expected = if (offset..offset + 140).contains(&i) {
-                    src.bit(i - offset)
-                } else {
-                    i < offset.min(64)
-                };
-                assert_eq!(dst.bit(i), expected, "offset {offset}, bit {i}");
-            }
-        }
-        let mut dst = Bits::zero(150);
-        assert!(matches!(
-            dst.put(11, &src),
-            Err(LayoutError::OutOfRecord {
-                end: 151,
-                record_width: 150,
-                ..
-            })
-        ));
-        assert_eq!(dst, Bits::zero(150), "nothing written on an error");
+        assert_eq!(Bits::from_words(&[0x2d], 6).unwrap(), b);
+        assert!(Bits::from_words(&[0x40], 6).is_err());
+        assert!(Bits::from_words(&[0, 1], 6).is_err());
     }
 }

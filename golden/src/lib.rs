@@ -38,6 +38,7 @@
 
 #![warn(missing_docs)]
 
+pub mod bits;
 pub mod build;
 pub mod camera;
 pub mod check;

@@ -44,9 +44,10 @@ use std::path::Path;
 use glam::DVec3;
 use sha2::{Digest, Sha256};
 
+use crate::bits::Bits;
 use crate::build::GridMap;
 use crate::check::check_built;
-use crate::layout::{Bits, NodeLayout, RefLayout};
+use crate::layout::{NodeLayout, RefLayout};
 use crate::mesh::Mesh;
 use crate::params::Params;
 use crate::store::{Hierarchy, NodeRecord, Reference};
@@ -417,7 +418,7 @@ fn bits_at(b: &[u8], o: usize, width: u32, file: &str, what: String) -> Result<B
     for (k, &byte) in b[o..o + n].iter().enumerate() {
         words[k / 8] |= (byte as u64) << (8 * (k % 8));
     }
-    Bits::from_words(width, &words).map_err(|_| {
+    Bits::from_words(&words, width).map_err(|_| {
         header(
             file,
             o,

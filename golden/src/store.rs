@@ -9,8 +9,9 @@
 use std::collections::BTreeMap;
 use std::fmt;
 
+use crate::bits::Bits;
 use crate::grid::VoxelAddr;
-use crate::layout::{Bits, LayoutError, NodeLayout, RefLayout};
+use crate::layout::{LayoutError, NodeLayout, RefLayout};
 use crate::params::Params;
 
 /// One node: a voxel, a box quantized inside it, and a range of children

@@ -1,7 +1,8 @@
 //! Node records and references pack and unpack bit-exactly at the extreme
 //! parameter sets, and a value too wide for its field is an error.
 
-use golden::layout::{Bits, LayoutError, NodeLayout, RefLayout};
+use golden::bits::Bits;
+use golden::layout::{LayoutError, NodeLayout, RefLayout};
 use golden::store::{NodeRecord, Reference};
 use golden::{Params, VoxelAddr};
 use proptest::prelude::*;
@@ -92,7 +93,7 @@ proptest! {
         }
         prop_assert_eq!(NodeRecord::unpack(&bits, &l).unwrap(), n);
         // Via words, as a file or a simulator would hand them back.
-        let again = Bits::from_words(l.width(), bits.words()).unwrap();
+        let again = Bits::from_words(bits.words(), l.width()).unwrap();
         prop_assert_eq!(NodeRecord::unpack(&again, &l).unwrap(), n);
     }
 

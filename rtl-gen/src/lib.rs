@@ -26,7 +26,6 @@
 
 #![warn(missing_docs)]
 
-mod bits;
 mod diagnostic;
 pub mod examples;
 pub mod formal;
@@ -45,10 +44,10 @@ pub mod stream;
 pub mod translate;
 mod validate;
 pub mod verilog;
-#[doc(hidden)]
-pub mod words;
 
-pub use bits::{Bits, DoesNotFit};
+/// The DSL's value type (constants, reset values, the simulator's values) is
+/// golden's bit vector, so a packed record crosses crates without a copy.
+pub use golden::bits::{Bits, BitsError};
 
 /// The widest signal the DSL accepts (16 Mi bits): wider is a width error,
 /// so a typo cannot allocate gigabytes.

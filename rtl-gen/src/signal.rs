@@ -581,7 +581,7 @@ impl<'m> Signal<'m> {
         }
         match self.op() {
             Op::Const(b) => {
-                let s = b.slice(hi, lo).unwrap_or_else(|| Bits::zero(width));
+                let s = b.extract(lo, width).unwrap_or_else(|_| Bits::zero(width));
                 self.m.constant(s, false, loc)
             }
             Op::Slice(inner, inner_lo) => {

@@ -13,8 +13,9 @@
 //! own merge counts (descents, created, reused).
 
 use cosim::tb::{run_multi_stream_bench, run_stream_bench, BenchConfig, StreamBeats, Vector};
-use cosim::{BitVec, Engine};
-use golden::layout::{Bits, LayoutError};
+use cosim::Engine;
+use golden::bits::Bits;
+use golden::layout::LayoutError;
 use golden::merge::level::candidate_range;
 use golden::merge::per_node_unit::{base_by_lod, PerNodeCase, PerNodeLayout};
 use golden::merge::top::{top_transaction, Report, TopLayout};
@@ -57,10 +58,6 @@ pub struct MergeRtl {
     upper: Option<Box<dyn Engine>>,
 }
 
-fn bitvec(b: &Bits) -> Result<BitVec, String> {
-    BitVec::from_words(b.width() as usize, b.words()).map_err(|e| e.to_string())
-}
-
 /// One stream's beats, each packed by `pack` into a one-word beat; a
 /// packing error (a field too wide for its layout) is returned.
 fn packed_stream<T>(
@@ -70,7 +67,7 @@ fn packed_stream<T>(
 ) -> Result<StreamBeats, String> {
     let beats = items
         .iter()
-        .map(|item| Ok(vec![bitvec(&pack(item).map_err(|e| e.to_string())?)?]))
+        .map(|item| Ok(vec![pack(item).map_err(|e| e.to_string())?]))
         .collect::<Result<_, String>>()?;
     Ok(StreamBeats { name, beats })
 }
@@ -103,7 +100,7 @@ fn module_streams<I, R>(
 
 /// One transaction's beats as bench vectors: every expected output is due
 /// with the first input beat (the bench only checks order).
-fn vectors(ins: Vec<BitVec>, outs: Vec<BitVec>) -> Vec<Vector> {
+fn vectors(ins: Vec<Bits>, outs: Vec<Bits>) -> Vec<Vector> {
     let expected: Vec<_> = outs.into_iter().map(|o| vec![o]).collect();
     ins.into_iter()
         .enumerate()
@@ -206,16 +203,12 @@ impl MergeRtl {
         if upper_build && level >= 1 {
             let ul = UpperLayout::new(&p);
             let (ins, outs) = upper_transaction(&sorted_level(&at), &p);
-            let ins = ins.iter().map(|b| {
-                b.pack(&ul, false)
-                    .map_err(|e| e.to_string())
-                    .and_then(|x| bitvec(&x))
-            });
-            let outs = outs.iter().map(|b| {
-                b.pack(&ul, true)
-                    .map_err(|e| e.to_string())
-                    .and_then(|x| bitvec(&x))
-            });
+            let ins = ins
+                .iter()
+                .map(|b| b.pack(&ul, false).map_err(|e| e.to_string()));
+            let outs = outs
+                .iter()
+                .map(|b| b.pack(&ul, true).map_err(|e| e.to_string()));
             let v = vectors(
                 ins.collect::<Result<_, _>>()?,
                 outs.collect::<Result<_, _>>()?,

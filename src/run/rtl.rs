@@ -5,7 +5,7 @@
 //! needs it (cosim's content-addressed cache makes later runs load it), and
 //! kept across frames like the hardware's translation table.
 
-use cosim::{BitVec, Engine, PortId};
+use cosim::{Engine, PortId};
 use golden::store::Hierarchy;
 use golden::translate::TranslateUnitConfig;
 use golden::translate::{TranslateInputs, Translation, VoxelRange};
@@ -169,7 +169,7 @@ impl TranslateRtl {
             let sent = pack_det_in(&self.design, &r.inputs)?;
             let expected = pack_det_out(&self.design, &r.outputs)?;
             let got = self.transact(true, &sent)?;
-            if got != to_bitvec(&expected)? {
+            if got != expected {
                 note(
                     &mut out,
                     format!("object {}: determine output differs from golden", o.id),
@@ -193,7 +193,7 @@ impl TranslateRtl {
                 let sent = pack_apply_in(&self.design, &r.inputs)?;
                 let expected = pack_apply_out(&self.design, &r.outputs)?;
                 let got = self.transact(false, &sent)?;
-                if got != to_bitvec(&expected)? {
+                if got != expected {
                     note(
                         &mut out,
                         format!("object {}: apply output differs from golden", o.id),
@@ -209,7 +209,7 @@ impl TranslateRtl {
 
     /// One transaction on the determine (`det`) or apply stream: the input
     /// beat is offered until accepted, then the output beat is taken.
-    fn transact(&mut self, det: bool, data: &Bits) -> Result<BitVec, String> {
+    fn transact(&mut self, det: bool, data: &Bits) -> Result<Bits, String> {
         let p = &self.ports;
         let (iv, id, ir, ov, od, or) = if det {
             (
@@ -232,7 +232,7 @@ impl TranslateRtl {
         };
         let sim = |e: cosim::CosimError| format!("translation unit RTL: {e}");
         let e = &mut self.engine;
-        e.poke(id, &to_bitvec(data)?).map_err(sim)?;
+        e.poke(id, data).map_err(sim)?;
         e.poke_u64(iv, 1).map_err(sim)?;
         e.poke_u64(or, 1).map_err(sim)?;
         let start = e.cycle();
@@ -270,8 +270,4 @@ impl TranslateRtl {
 fn note(out: &mut RtlFrame, what: String) {
     out.mismatches += 1;
     out.first_mismatch.get_or_insert(what);
-}
-
-fn to_bitvec(b: &Bits) -> Result<BitVec, String> {
-    BitVec::from_words(b.width() as usize, b.words()).map_err(|e| e.to_string())
 }

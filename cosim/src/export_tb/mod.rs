@@ -22,11 +22,11 @@ use std::path::{Path, PathBuf};
 
 use golden::layout::Field;
 
-use crate::bitvec::BitVec;
 use crate::design::{Design, PortDir};
 use crate::error::{io_err, CosimError, Result};
 use crate::icarus::multi_batch::{driver_gaps, ready_masks, stream_seed};
 use crate::tb::{BenchConfig, Stalls};
+use golden::bits::Bits;
 
 pub use store::StoreSpec;
 
@@ -88,12 +88,12 @@ pub struct StreamSpec {
     /// See `valid`.
     pub data: String,
     /// One payload value per beat.
-    pub beats: Vec<BitVec>,
+    pub beats: Vec<Bits>,
 }
 
 impl StreamSpec {
     /// Stream `name` on ports `<name>_valid`, `<name>_ready`, `<name>_data`.
-    pub fn prefixed(name: &str, beats: Vec<BitVec>) -> StreamSpec {
+    pub fn prefixed(name: &str, beats: Vec<Bits>) -> StreamSpec {
         StreamSpec {
             name: name.to_string(),
             valid: format!("{name}_valid"),
@@ -211,7 +211,7 @@ fn check(spec: &ExportSpec) -> Result<()> {
     if d.clock.is_none() {
         return Err(design_err(format!("`{}` has no clock", d.top)));
     }
-    let port = |name: &str, dir: PortDir, width: Option<usize>, stream: &str| -> Result<usize> {
+    let port = |name: &str, dir: PortDir, width: Option<u32>, stream: &str| -> Result<u32> {
         let p = d.port(d.port_id(name)?)?;
         let ok_width = !matches!(width, Some(w) if p.width != w);
         if p.dir != dir || !ok_width {
@@ -260,8 +260,8 @@ fn check(spec: &ExportSpec) -> Result<()> {
         }
     }
     for o in &spec.outputs {
-        let width = o.stream.beats.first().map(BitVec::width);
-        let port_width = d.port(d.port_id(&o.stream.data)?)?.width as u32;
+        let width = o.stream.beats.first().map(Bits::width);
+        let port_width = d.port(d.port_id(&o.stream.data)?)?.width;
         if let Some(f) = o.fields.iter().find(|f| f.offset + f.width > port_width) {
             return Err(design_err(format!(
                 "stream `{}`: field `{}` (bits {}..{}) outside the {port_width}-bit beat",
@@ -317,7 +317,7 @@ fn check(spec: &ExportSpec) -> Result<()> {
 /// another size or runs outside the words, an unknown epoch stream.
 fn check_store(spec: &ExportSpec, st: &StoreSpec) -> Result<()> {
     let d = &spec.design;
-    let port = |name: &str, dir: PortDir| -> Result<usize> {
+    let port = |name: &str, dir: PortDir| -> Result<u32> {
         let p = d.port(d.port_id(name)?)?;
         match p.dir == dir {
             true => Ok(p.width),
@@ -331,7 +331,7 @@ fn check_store(spec: &ExportSpec, st: &StoreSpec) -> Result<()> {
     port("store_req_ready", PortDir::Input)?;
     port("store_resp_valid", PortDir::Input)?;
     port("store_resp_ready", PortDir::Output)?;
-    let req = port("store_req_data", PortDir::Output)? as u32;
+    let req = port("store_req_data", PortDir::Output)?;
     let resp = port("store_resp_data", PortDir::Input)?;
     let fields = [&st.index, &st.hier, &st.slot, &st.array];
     if let Some(f) = fields
@@ -438,7 +438,7 @@ pub fn write(spec: &ExportSpec, dir: &Path) -> Result<Exported> {
     let mut ins = Vec::new();
     for (s, i) in spec.inputs.iter().enumerate() {
         let st = &i.stream;
-        let widths = [st.beats.first().map_or(1, BitVec::width)];
+        let widths = [st.beats.first().map_or(1, Bits::width)];
         let gaps = driver_gaps(
             stream_seed(spec.seed, s),
             spec.stalls,
@@ -452,7 +452,7 @@ pub fn write(spec: &ExportSpec, dir: &Path) -> Result<Exported> {
         if !st.beats.is_empty() {
             put(
                 vector_file(&st.name, "data"),
-                st.beats.iter().map(BitVec::to_hex).collect(),
+                st.beats.iter().map(Bits::to_hex).collect(),
             )?;
             put(
                 vector_file(&st.name, "gap"),
@@ -472,7 +472,7 @@ pub fn write(spec: &ExportSpec, dir: &Path) -> Result<Exported> {
         if !st.beats.is_empty() {
             put(
                 vector_file(&st.name, "expected"),
-                st.beats.iter().map(BitVec::to_hex).collect(),
+                st.beats.iter().map(Bits::to_hex).collect(),
             )?;
             put(
                 vector_file(&st.name, "transaction"),
@@ -490,7 +490,7 @@ pub fn write(spec: &ExportSpec, dir: &Path) -> Result<Exported> {
             vector_file("store", "words"),
             match st.words.is_empty() {
                 true => vec!["0".into()],
-                false => st.words.iter().map(BitVec::to_hex).collect(),
+                false => st.words.iter().map(Bits::to_hex).collect(),
             },
         )?;
         put(

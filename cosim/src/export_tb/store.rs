@@ -15,7 +15,7 @@
 
 use std::fmt::Write as _;
 
-use crate::bitvec::BitVec;
+use golden::bits::Bits;
 
 use super::NamedField;
 
@@ -42,7 +42,7 @@ pub struct StoreSpec {
     /// run in `words` and the run's length.
     pub runs: Vec<(u32, u32)>,
     /// The words, each `store_resp`'s width.
-    pub words: Vec<BitVec>,
+    pub words: Vec<Bits>,
     /// Per merge, the reads golden's units make.
     pub reads: Vec<u64>,
 }
@@ -91,12 +91,7 @@ fn field32(port: &str, f: &NamedField) -> String {
 
 /// The pieces for store `st` with `store_resp` `resp_width` bits wide and
 /// masks of `mask_words` words; `word` indexes a mask by the cycle.
-pub(super) fn parts(
-    st: &StoreSpec,
-    resp_width: usize,
-    mask_words: usize,
-    word: &str,
-) -> StoreParts {
+pub(super) fn parts(st: &StoreSpec, resp_width: u32, mask_words: usize, word: &str) -> StoreParts {
     let (m, n) = (st.merges().max(1), st.words.len().max(1));
     let runs = st.runs.len().max(1);
     let w = resp_width - 1;

@@ -23,7 +23,7 @@ fn index(reg: &str, n: usize) -> String {
     format!("{reg}[{}:0]", index_bits(n) - 1)
 }
 
-fn width_of(spec: &ExportSpec, port: &str) -> usize {
+fn width_of(spec: &ExportSpec, port: &str) -> u32 {
     spec.design
         .ports
         .iter()
@@ -31,7 +31,7 @@ fn width_of(spec: &ExportSpec, port: &str) -> usize {
         .map_or(1, |p| p.width)
 }
 
-fn decl(width: usize) -> String {
+fn decl(width: u32) -> String {
     match width {
         1 => String::new(),
         w => format!("[{}:0] ", w - 1),
@@ -65,7 +65,7 @@ fn ports_and_instance(spec: &ExportSpec) -> String {
 }
 
 /// Declarations of input stream `st` (beats, gaps, `after` counts, head).
-fn input_decls(st: &StreamSpec, width: usize) -> String {
+fn input_decls(st: &StreamSpec, width: u32) -> String {
     let n = st.beats.len();
     let name = &st.name;
     if n == 0 {
@@ -94,7 +94,7 @@ fn input_decls(st: &StreamSpec, width: usize) -> String {
 
 /// Declarations of output stream `o` (expected beats, their transactions,
 /// the `ready` mask, the count received).
-fn output_decls(o: &OutputSpec, width: usize, mask_words: usize) -> String {
+fn output_decls(o: &OutputSpec, width: u32, mask_words: usize) -> String {
     let st = &o.stream;
     let (name, n) = (&st.name, st.beats.len());
     let mut s = format!(
@@ -206,7 +206,7 @@ fn padded(name: &str, width: usize) -> String {
 
 /// The task that reports output `o`'s current beat as differing, field by
 /// field (`*` marks a differing field), then the whole beat.
-fn show_task(o: &OutputSpec, width: usize, what: &str) -> String {
+fn show_task(o: &OutputSpec, width: u32, what: &str) -> String {
     let st = &o.stream;
     let (name, n) = (&st.name, st.beats.len());
     if n == 0 {

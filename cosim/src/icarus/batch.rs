@@ -43,13 +43,13 @@ use super::batch_testbench::{
     generate_batch_testbench, meta_file, payload_file, BatchTbSpec, LanePorts, BATCH_TB_MODULE,
     GARBAGE_POOL, STIM_CHUNK,
 };
-use crate::bitvec::BitVec;
 use crate::design::{Design, PortId};
 use crate::error::{io_err, CosimError, Result};
 use crate::tb::{
     AccountingReport, BenchConfig, BenchReport, FieldDecoder, Hang, Mismatch, Prng, Scoreboard,
     StallGen, StreamNames, Vector,
 };
+use golden::bits::Bits;
 use std::fs;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -69,7 +69,7 @@ pub struct BatchSpec {
     pub watch: Vec<String>,
     /// Inputs that are not part of a lane, held at a value for the whole run
     /// (every other such input is 0).
-    pub constants: Vec<(String, BitVec)>,
+    pub constants: Vec<(String, Bits)>,
 }
 
 impl BatchSpec {
@@ -111,13 +111,13 @@ pub struct WatchLog {
     /// Watched port names.
     pub ports: Vec<String>,
     /// Changes in cycle order.
-    pub changes: Vec<(u64, Vec<BitVec>)>,
+    pub changes: Vec<(u64, Vec<Bits>)>,
 }
 
 impl WatchLog {
     /// Calls `f(cycle, values)` for every cycle from the first logged one to
     /// `last` (inclusive), with the values the watched outputs had at it.
-    pub fn for_each_cycle(&self, last: u64, mut f: impl FnMut(u64, &[BitVec])) {
+    pub fn for_each_cycle(&self, last: u64, mut f: impl FnMut(u64, &[Bits])) {
         let Some(first) = self.changes.first() else {
             return;
         };
@@ -365,7 +365,7 @@ impl IcarusBatch {
             write_lines(&dir.join(meta_file(c)), &meta)?;
             for (l, lane) in self.lanes.iter().enumerate() {
                 for (k, &port) in lane.in_payload.iter().enumerate() {
-                    let zero = BitVec::zeros(self.design.ports[port.0].width).to_hex();
+                    let zero = Bits::zero(self.design.ports[port.0].width).to_hex();
                     let lines: Vec<String> = (0..STIM_CHUNK)
                         .map(|j| match beats.get(j) {
                             Some(v) if v.lane == l => v.vector.input[k].to_hex(),
@@ -385,7 +385,7 @@ impl IcarusBatch {
             let mut rng = Prng::derived(seed, 1000 + l as u64);
             for (k, &port) in lane.in_payload.iter().enumerate() {
                 let width = self.design.ports[port.0].width;
-                let mut text = String::with_capacity(GARBAGE_POOL * (width / 4 + 2));
+                let mut text = String::with_capacity(GARBAGE_POOL * (width as usize / 4 + 2));
                 for _ in 0..GARBAGE_POOL {
                     text.push_str(&rng.bits(width).to_hex());
                     text.push('\n');

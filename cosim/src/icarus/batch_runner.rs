@@ -5,12 +5,12 @@
 //! run vvp under a timeout, and read back the common records of `out.txt`
 //! (`X`, `H`, `M`; see `super::batch_tb_frame`), a window VCD included.
 
-use crate::bitvec::BitVec;
 use crate::design::{Design, PortId};
 use crate::error::{io_err, CosimError, Result};
 use crate::tb::{BenchConfig, Hang, Transaction};
 use crate::tools::INSTALL_HINT;
 use crate::waves::WaveFormat;
+use golden::bits::Bits;
 use std::fs;
 use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
@@ -368,7 +368,7 @@ impl OutLine<'_> {
                         value: text.to_string(),
                     });
                 }
-                BitVec::from_hex(port.width, text).map_err(|e| self.bad(&e.to_string()))
+                Bits::from_hex(text, port.width).map_err(|e| self.bad(&e.to_string()))
             })
             .collect()
     }

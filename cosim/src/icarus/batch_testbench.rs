@@ -293,7 +293,7 @@ fn watch_code(spec: &BatchTbSpec) -> (String, String, String) {
     if spec.watch.is_empty() {
         return (String::new(), String::new(), String::new());
     }
-    let total: usize = spec
+    let total: u32 = spec
         .watch
         .iter()
         .map(|&p| spec.design.ports[p.0].width)

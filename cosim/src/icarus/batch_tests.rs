@@ -12,7 +12,7 @@ use crate::design::{Design, PortSpec};
 use crate::error::CosimError;
 use crate::tb::{run_stream_bench, BenchConfig, Prng, StreamNames, Vector};
 use crate::tools::{ci_mode, tool_available, INSTALL_HINT};
-use crate::BitVec;
+use crate::Bits;
 use std::path::PathBuf;
 
 fn icarus_present() -> bool {
@@ -33,7 +33,7 @@ fn fixture(name: &str) -> PathBuf {
         .join(name)
 }
 
-fn stage(top: &str, file: PathBuf, width: usize) -> Design {
+fn stage(top: &str, file: PathBuf, width: u32) -> Design {
     Design::new(
         top,
         vec![file],
@@ -60,8 +60,8 @@ fn skid_vectors(seed: u64, count: usize) -> Vec<Vector> {
         .map(|_| {
             let x = rng.below(1 << 16);
             Vector {
-                input: vec![BitVec::from_u64(16, x).unwrap()],
-                outputs: vec![vec![BitVec::from_u64(16, (x + 1) & 0xffff).unwrap()]],
+                input: vec![Bits::from_u64(x, 16).unwrap()],
+                outputs: vec![vec![Bits::from_u64((x + 1) & 0xffff, 16).unwrap()]],
             }
         })
         .collect()
@@ -207,8 +207,8 @@ fn a_stuck_stage_is_a_hang_with_every_port() {
     let batch =
         IcarusBatch::new(&design, &BatchSpec::single(&StreamNames::single("data"))).unwrap();
     let vs = vec![Vector {
-        input: vec![BitVec::from_u64(8, 5).unwrap()],
-        outputs: vec![vec![BitVec::from_u64(8, 5).unwrap()]],
+        input: vec![Bits::from_u64(5, 8).unwrap()],
+        outputs: vec![vec![Bits::from_u64(5, 8).unwrap()]],
     }];
     let c = BenchConfig {
         watchdog_cycles: 50,
@@ -252,8 +252,8 @@ endmodule
     let vs: Vec<Vector> = [1u64, 2, 0x5a, 4]
         .iter()
         .map(|&x| Vector {
-            input: vec![BitVec::from_u64(8, x).unwrap()],
-            outputs: vec![vec![BitVec::from_u64(8, x).unwrap()]],
+            input: vec![Bits::from_u64(x, 8).unwrap()],
+            outputs: vec![vec![Bits::from_u64(x, 8).unwrap()]],
         })
         .collect();
     match batch.run_stream(&vs, None, &config(1, 0.0)) {

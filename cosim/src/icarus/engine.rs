@@ -1,11 +1,11 @@
 //! `IcarusEngine`: a 4-state Icarus Verilog simulation driven over pipes.
 
 use super::testbench::{generate_testbench, REPLY_PREFIX, TB_MODULE};
-use crate::bitvec::BitVec;
 use crate::design::{Design, PortId};
 use crate::engine::Engine;
 use crate::error::{io_err, CosimError, Result};
 use crate::tools::INSTALL_HINT;
+use golden::bits::Bits;
 use std::cell::RefCell;
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
@@ -41,7 +41,7 @@ struct Pipe {
 
 struct Outputs {
     /// Port values with X/Z bits read as 0, indexed like `design.ports`.
-    values: Vec<BitVec>,
+    values: Vec<Bits>,
     /// Raw `%h` text of each output as of the last reply (empty for inputs).
     raw: Vec<String>,
     /// True after a step whose reply has not been read.
@@ -101,11 +101,7 @@ impl IcarusEngine {
                 timeout: DEFAULT_REPLY_TIMEOUT,
             }),
             outputs: RefCell::new(Outputs {
-                values: design
-                    .ports
-                    .iter()
-                    .map(|p| BitVec::zeros(p.width))
-                    .collect(),
+                values: design.ports.iter().map(|p| Bits::zero(p.width)).collect(),
                 raw: vec![String::new(); design.ports.len()],
                 stale: false,
             }),
@@ -209,7 +205,7 @@ impl IcarusEngine {
                 .map(|c| if "xXzZ".contains(c) { '0' } else { c })
                 .collect();
             outputs.values[id.0] =
-                BitVec::from_hex(port.width, &known).map_err(|e| CosimError::Protocol {
+                Bits::from_hex(&known, port.width).map_err(|e| CosimError::Protocol {
                     what: format!("output `{}`: {e}", port.name),
                 })?;
             outputs.raw[id.0] = text.to_string();
@@ -293,14 +289,14 @@ impl Engine for IcarusEngine {
         &self.design
     }
 
-    fn poke(&mut self, port: PortId, value: &BitVec) -> Result<()> {
+    fn poke(&mut self, port: PortId, value: &Bits) -> Result<()> {
         self.design.check_poke(port, value)?;
         self.send(&format!("P {} {}", port.0, value.to_hex()))?;
         self.outputs.borrow_mut().values[port.0] = value.clone();
         Ok(())
     }
 
-    fn peek(&self, port: PortId) -> Result<BitVec> {
+    fn peek(&self, port: PortId) -> Result<Bits> {
         self.design.port(port)?;
         self.refresh_if_stale()?;
         Ok(self.outputs.borrow().values[port.0].clone())

@@ -324,7 +324,7 @@ impl IcarusMultiBatch {
         config: &BenchConfig,
     ) -> Result<()> {
         let ports = &self.inputs[s].1;
-        let widths: Vec<usize> = ports
+        let widths: Vec<u32> = ports
             .payload
             .iter()
             .map(|&p| self.design.ports[p.0].width)
@@ -471,10 +471,10 @@ impl IcarusMultiBatch {
 /// `tb::StreamDriver` (seeded `seed`, payload widths `widths`) raises
 /// `valid` for it: each opportunity takes one decision of `stalls`, and a
 /// stall then draws the garbage payload (`ceil(width / 64)` words per port).
-pub fn driver_gaps(seed: u64, stalls: Stalls, widths: &[usize], beats: usize) -> Result<Vec<u32>> {
+pub fn driver_gaps(seed: u64, stalls: Stalls, widths: &[u32], beats: usize) -> Result<Vec<u32>> {
     let mut rng = Prng::derived(seed, 1);
     let mut stalls = StallGen::new(stalls);
-    let garbage_words: usize = widths.iter().map(|w| w.div_ceil(64)).sum();
+    let garbage_words: usize = widths.iter().map(|w| w.div_ceil(64) as usize).sum();
     (0..beats)
         .map(|i| {
             let mut gap = 0u32;

@@ -9,10 +9,10 @@
 use super::prng::Prng;
 use super::stalls::{StallGen, Stalls};
 use super::stream::{StreamPorts, Transaction};
-use crate::bitvec::BitVec;
 use crate::design::PortId;
 use crate::engine::Engine;
 use crate::error::{CosimError, Result};
+use golden::bits::Bits;
 use std::collections::VecDeque;
 
 /// Drives one input stream of a design.
@@ -121,11 +121,11 @@ pub(crate) fn stream_bin<E: Engine + ?Sized>(
     Ok(format!("{}.{stream}.{what}", d.top))
 }
 
-pub(crate) fn bool_bits(b: bool) -> BitVec {
+pub(crate) fn bool_bits(b: bool) -> Bits {
     if b {
-        BitVec::ones(1)
+        Bits::ones(1)
     } else {
-        BitVec::zeros(1)
+        Bits::zero(1)
     }
 }
 

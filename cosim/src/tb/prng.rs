@@ -1,6 +1,6 @@
 //! A tiny seeded PRNG (SplitMix64) so every stall pattern is reproducible from a seed.
 
-use crate::bitvec::BitVec;
+use golden::bits::Bits;
 
 /// SplitMix64: fast, full-period, good enough for stall patterns and payloads.
 #[derive(Clone, Debug)]
@@ -46,11 +46,11 @@ impl Prng {
     }
 
     /// A uniformly random `width`-bit vector.
-    pub fn bits(&mut self, width: usize) -> BitVec {
+    pub fn bits(&mut self, width: u32) -> Bits {
         let words: Vec<u64> = (0..width.div_ceil(64)).map(|_| self.next_u64()).collect();
-        let mut v = BitVec::zeros(width);
+        let mut v = Bits::zero(width);
         for i in 0..width {
-            if words[i / 64] >> (i % 64) & 1 == 1 {
+            if words[(i / 64) as usize] >> (i % 64) & 1 == 1 {
                 // Cannot fail: i < width.
                 let _ = v.set_bit(i, true);
             }

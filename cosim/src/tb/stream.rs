@@ -1,11 +1,11 @@
 //! A valid/ready port group and the transaction it carries.
 
-use crate::bitvec::BitVec;
 use crate::design::{Design, PortId};
 use crate::error::Result;
+use golden::bits::Bits;
 
 /// One transaction: the payload ports' values, in the group's payload order.
-pub type Transaction = Vec<BitVec>;
+pub type Transaction = Vec<Bits>;
 
 /// The ports of one valid/ready stream.
 #[derive(Clone, Debug)]

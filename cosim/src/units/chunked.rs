@@ -8,10 +8,9 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
-use golden::layout::Bits;
+use golden::bits::Bits;
 use golden::vectors::streams::{MergeBeats, StreamLayout, UnitPorts};
 
-use crate::bitvec::BitVec;
 use crate::design::Design;
 use crate::error::Result;
 use crate::icarus::IcarusMultiBatch;
@@ -52,8 +51,8 @@ impl UnitStreams {
                     let beats = merges
                         .iter()
                         .flat_map(|m| pick(m).get(i).into_iter().flatten())
-                        .map(|b| Ok(vec![BitVec::from_layout(b)?]))
-                        .collect::<Result<_>>()?;
+                        .map(|b| vec![b.clone()])
+                        .collect();
                     Ok(StreamBeats {
                         name: s.name.clone(),
                         beats,

@@ -14,7 +14,8 @@
 
 use std::path::Path;
 
-use golden::layout::{Bits, Field};
+use golden::bits::Bits;
+use golden::layout::Field;
 use golden::merge::hierarchy_unit::{hierarchy_merge, merge_cmd, CmdLayout};
 use golden::merge::merger_unit::{MergerLayout, MergerTransaction};
 use golden::store::Hierarchy;
@@ -149,10 +150,6 @@ pub fn random_case(
     Ok(HierarchyCase { dets, merge, tx })
 }
 
-fn golden_bits(b: &rtl_gen::Bits) -> Result<Bits> {
-    Bits::from_words(b.width(), b.words()).map_err(design_err)
-}
-
 /// The fields of a translation-unit payload layout, by name.
 fn port_fields(l: &rtl_gen::translate::ports::PortLayout) -> NamedFields {
     l.fields
@@ -200,11 +197,9 @@ pub fn case_beats(
     let mut cmds = Vec::new();
     let mut det_outs = Vec::new();
     for (inp, out) in &case.dets {
-        let det = golden_bits(&pack_det_in(&c.table, inp).map_err(design_err)?)?;
+        let det = pack_det_in(&c.table, inp).map_err(design_err)?;
         cmds.push(cl.pack_determine(&det).map_err(design_err)?);
-        det_outs.push(golden_bits(
-            &pack_det_out(&c.table, out).map_err(design_err)?,
-        )?);
+        det_outs.push(pack_det_out(&c.table, out).map_err(design_err)?);
     }
     cmds.push(case.merge.clone());
     let mut inputs = vec![cmds];

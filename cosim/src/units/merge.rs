@@ -8,14 +8,14 @@
 
 use std::path::{Path, PathBuf};
 
-use golden::layout::{Bits, Field};
+use golden::bits::Bits;
+use golden::layout::Field;
 use golden::merge::unit::BeatLayout;
 use golden::params::Params;
 use golden::translate::stimulus::SplitMix64;
 use golden::vectors::merge::{generate, read_merge_vectors, MergeDesign, MergeVector};
 
 use super::{EngineFactory, ProgressFn};
-use crate::bitvec::BitVec;
 use crate::error::{CosimError, Result};
 use crate::export_tb::{ExportSpec, InputSpec, NamedField, OutputSpec, StreamSpec};
 use crate::tb::{
@@ -52,8 +52,8 @@ pub fn read_levels(path: &Path, d: &MergeDesign) -> std::result::Result<Vec<Merg
     Ok(all.into_iter().filter(|v| v.stage == STAGE).collect())
 }
 
-fn port_value(words: &[u64], width: u32) -> Result<BitVec> {
-    BitVec::from_words(width as usize, words)
+fn port_value(words: &[u64], width: u32) -> Result<Bits> {
+    Ok(Bits::from_words(words, width)?)
 }
 
 /// Bench vectors of the levels: one per input beat, each level's expected
@@ -70,7 +70,7 @@ pub fn bench_vectors(levels: &[MergeVector], flip_expected: Option<usize>) -> Re
             if let Some(first) = outputs.first_mut() {
                 let mut w = first[0].words().to_vec();
                 w[0] ^= 1;
-                first[0] = BitVec::from_words(level.out_width as usize, &w)?;
+                first[0] = Bits::from_words(&w, level.out_width)?;
             }
         }
         if level.inputs.is_empty() {
@@ -104,22 +104,8 @@ pub fn output_fields(p: &Params) -> Vec<(String, Field)> {
 pub fn decoder(p: &Params) -> Box<crate::tb::FieldDecoder> {
     let fields = output_fields(p);
     Box::new(move |t: &Transaction| {
-        let Some(v) = t.first() else {
-            return Vec::new();
-        };
-        let Ok(bits) = Bits::from_words(v.width() as u32, v.words()) else {
-            return vec![("out_data".into(), v.to_string())];
-        };
-        fields
-            .iter()
-            .map(|(name, f)| {
-                let shown = match bits.get(f) {
-                    Ok(x) => format!("{x:#x}"),
-                    Err(e) => format!("({e})"),
-                };
-                (name.clone(), shown)
-            })
-            .collect()
+        t.first()
+            .map_or_else(Vec::new, |v| super::multi_stream::decode_fields(v, &fields))
     })
 }
 

@@ -768,7 +768,7 @@ mod tests {
                 assert!(out.name.ends_with("_ref_req"), "no `{}` beat", out.name);
                 continue;
             };
-            assert_eq!(end as usize, beat[0].width(), "`{}`", out.name);
+            assert_eq!(end, beat[0].width(), "`{}`", out.name);
             checked += 1;
         }
         assert!(checked >= streams.outputs.len() - c.design.inputs);

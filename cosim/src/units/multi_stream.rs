@@ -5,9 +5,9 @@
 
 use std::path::PathBuf;
 
-use golden::layout::{Bits, Field};
+use golden::bits::Bits;
+use golden::layout::Field;
 
-use crate::bitvec::BitVec;
 use crate::design::Design;
 use crate::engines::{open_engine, open_tracing_engine, EngineKind};
 use crate::error::{CosimError, Result};
@@ -17,16 +17,12 @@ use crate::tb::{FieldDecoder, Transaction};
 use crate::waves::WaveFormat;
 
 /// `bits` decoded field by field: `(name, value in hex)` per field, in
-/// the order given; a beat that is not a layout's width shows as one
-/// `data` field of raw bits.
-pub fn decode_fields(bits: &BitVec, fields: &[(String, Field)]) -> Vec<(String, String)> {
-    let Ok(b) = Bits::from_words(bits.width() as u32, bits.words()) else {
-        return vec![("data".into(), bits.to_string())];
-    };
+/// the order given; a field the beat does not hold shows its error.
+pub fn decode_fields(bits: &Bits, fields: &[(String, Field)]) -> Vec<(String, String)> {
     fields
         .iter()
         .map(|(name, f)| {
-            let shown = match b.get(f) {
+            let shown = match bits.get(f) {
                 Ok(x) => format!("{x:#x}"),
                 Err(e) => format!("({e})"),
             };
@@ -184,7 +180,7 @@ pub fn export_streams(
     streams: &super::chunked::UnitStreams,
     fields: impl Fn(&str) -> Vec<NamedField>,
 ) -> (Vec<InputSpec>, Vec<OutputSpec>) {
-    let payload = |s: &crate::tb::StreamBeats| -> Vec<BitVec> {
+    let payload = |s: &crate::tb::StreamBeats| -> Vec<Bits> {
         s.beats.iter().filter_map(|t| t.first().cloned()).collect()
     };
     let inputs = streams
@@ -227,12 +223,12 @@ pub fn export_checks(merges: usize) -> Vec<StatusCheck> {
 }
 
 /// Flips bit 0 of an expected beat (the `FLIP_EXPECTED` test hook).
-pub(crate) fn flip_bit0(beat: &mut BitVec) -> Result<()> {
+pub(crate) fn flip_bit0(beat: &mut Bits) -> Result<()> {
     let mut w = beat.words().to_vec();
     if let Some(low) = w.first_mut() {
         *low ^= 1;
     }
-    *beat = BitVec::from_words(beat.width(), &w)?;
+    *beat = Bits::from_words(&w, beat.width())?;
     Ok(())
 }
 

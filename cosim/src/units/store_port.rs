@@ -14,7 +14,7 @@
 use std::collections::VecDeque;
 use std::path::Path;
 
-use golden::layout::Bits;
+use golden::bits::Bits;
 use golden::merge::store_port::{
     store_port_transaction, StoreAddr, StoreArray, StorePortLayout, StorePortTransaction,
     StoreWords,
@@ -22,7 +22,6 @@ use golden::merge::store_port::{
 use golden::translate::stimulus::SplitMix64;
 use rtl_gen::merge::StorePortConfig;
 
-use crate::bitvec::BitVec;
 use crate::engine::Engine;
 use crate::error::{CosimError, Result};
 use crate::tb::{
@@ -140,7 +139,7 @@ pub struct StoreModel<'a> {
     req: StreamMonitor,
     resp: StreamDriver,
     latency: u64,
-    delayed: VecDeque<(u64, BitVec)>,
+    delayed: VecDeque<(u64, Bits)>,
     lookup: Box<StoreLookup<'a>>,
     /// The merges reads are attributed to (None: one epoch, 0).
     epochs: Option<EpochState>,
@@ -198,15 +197,10 @@ impl<'a> StoreModel<'a> {
 
     /// The answer to `beat` taken at `cycle`, and the epoch it is for
     /// (None: its slot names no merge in flight, a failure noted).
-    fn answer(&mut self, beat: &BitVec, cycle: u64) -> Result<(BitVec, Option<usize>)> {
+    fn answer(&mut self, beat: &Bits, cycle: u64) -> Result<(Bits, Option<usize>)> {
         let l = &self.layout;
-        let bits = Bits::from_words(beat.width() as u32, beat.words()).map_err(|e| {
-            CosimError::Design {
-                what: format!("store_req beat: {e}"),
-            }
-        })?;
         let read = l
-            .unpack_req(&bits)
+            .unpack_req(beat)
             .map_err(|what| CosimError::Design { what })?;
         let (array, at) = (read.array, read.at);
         let epoch = match &self.epochs {
@@ -232,7 +226,7 @@ impl<'a> StoreModel<'a> {
                 Bits::zero(l.resp_width)
             }
         };
-        Ok((BitVec::from_layout(&bits)?, epoch.ok()))
+        Ok((bits, epoch.ok()))
     }
 }
 
@@ -327,7 +321,7 @@ pub fn random_transaction(
                 *last &= u64::MAX >> (64 - w % 64);
             }
         }
-        Bits::from_words(w, &words).map_err(|e| CosimError::Design {
+        Bits::from_words(&words, w).map_err(|e| CosimError::Design {
             what: e.to_string(),
         })
     };
@@ -402,7 +396,7 @@ pub fn run(
         ModuleEngine::Iverilog => crate::open_engine(crate::EngineKind::Icarus, &design, false)?,
     };
     let l = StorePortLayout::new(&c.params);
-    let beats = |name: String, words: Vec<BitVec>| StreamBeats {
+    let beats = |name: String, words: Vec<Bits>| StreamBeats {
         name,
         beats: words.into_iter().map(|w| vec![w]).collect(),
     };
@@ -411,14 +405,10 @@ pub fn run(
     for (j, (reqs, resps)) in tx.requests.iter().zip(&tx.responses).enumerate() {
         let idx = reqs
             .iter()
-            .map(|a| BitVec::from_u64(l.addr_width as usize, l.addr_word(0, *a)))
+            .map(|a| Ok(Bits::from_u64(l.addr_word(0, *a), l.addr_width)?))
             .collect::<Result<Vec<_>>>()?;
         inputs.push(beats(format!("r{j}_req"), idx));
-        let words = resps
-            .iter()
-            .map(BitVec::from_layout)
-            .collect::<Result<Vec<_>>>()?;
-        outputs.push(beats(format!("r{j}_resp"), words));
+        outputs.push(beats(format!("r{j}_resp"), resps.to_vec()));
     }
     let lookup = move |_: usize, a: StoreArray, at: StoreAddr| store.word(a, at).cloned();
     let mut model = StoreModel::new(&*eng, l, config, latency, None, Box::new(lookup))?;

@@ -2,11 +2,11 @@
 
 use super::build::{build_model, VerilatorOptions, LIBRARY_NAME};
 use super::shim::SHIM_VERSION;
-use crate::bitvec::BitVec;
 use crate::cache::cache_root;
 use crate::design::{Design, PortDir, PortId};
 use crate::engine::Engine;
 use crate::error::{CosimError, Result};
+use golden::bits::Bits;
 use std::ffi::{c_char, c_int, c_void, CString};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -143,7 +143,7 @@ impl VerilatorEngine {
             }
             for (i, p) in design.ports.iter().enumerate() {
                 let out = p.dir == PortDir::Output;
-                if width(i as u32) as usize != p.width || (is_output(i as u32) == 1) != out {
+                if width(i as u32) != p.width || (is_output(i as u32) == 1) != out {
                     return Err(CosimError::PortMismatch {
                         port: p.name.clone(),
                         what: format!("the loaded model disagrees ({path:?})"),
@@ -208,7 +208,7 @@ impl VerilatorEngine {
         &self.info
     }
 
-    fn set_raw(&mut self, port: PortId, value: &BitVec) -> Result<()> {
+    fn set_raw(&mut self, port: PortId, value: &Bits) -> Result<()> {
         let words = value.words();
         // SAFETY: `instance` is live; `words` has ceil(width/64) entries, the
         // count the shim checks before reading.
@@ -241,14 +241,14 @@ impl Engine for VerilatorEngine {
         &self.design
     }
 
-    fn poke(&mut self, port: PortId, value: &BitVec) -> Result<()> {
+    fn poke(&mut self, port: PortId, value: &Bits) -> Result<()> {
         self.design.check_poke(port, value)?;
         self.set_raw(port, value)
     }
 
-    fn peek(&self, port: PortId) -> Result<BitVec> {
+    fn peek(&self, port: PortId) -> Result<Bits> {
         let width = self.design.port(port)?.width;
-        let mut words = vec![0u64; width.div_ceil(64)];
+        let mut words = vec![0u64; width.div_ceil(64) as usize];
         // SAFETY: `instance` is live and `words` holds the count the shim checks.
         let rc = unsafe {
             (self.get)(
@@ -266,7 +266,7 @@ impl Engine for VerilatorEngine {
                 ),
             });
         }
-        BitVec::from_words(width, &words)
+        Ok(Bits::from_words(&words, width)?)
     }
 
     fn eval(&mut self) -> Result<()> {
@@ -277,9 +277,9 @@ impl Engine for VerilatorEngine {
 
     fn step(&mut self) -> Result<()> {
         if let Some(clk) = self.clock {
-            self.set_raw(clk, &BitVec::zeros(1))?;
+            self.set_raw(clk, &Bits::zero(1))?;
             self.eval()?;
-            self.set_raw(clk, &BitVec::ones(1))?;
+            self.set_raw(clk, &Bits::ones(1))?;
         }
         self.eval()?;
         self.cycle += 1;

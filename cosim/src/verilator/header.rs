@@ -14,7 +14,7 @@ pub struct HeaderPort {
     /// Port name.
     pub name: String,
     /// Width, msb - lsb + 1.
-    pub width: usize,
+    pub width: u32,
     /// Direction (inout is reported as an error by `check_ports`).
     pub dir: Option<PortDir>,
 }
@@ -44,8 +44,8 @@ fn parse_port_line(line: &str) -> Option<HeaderPort> {
     let args = rest[open + 2..].split(')').next()?;
     let mut parts = args.split(',').map(str::trim);
     let name = parts.next()?.to_string();
-    let msb: usize = parts.next()?.parse().ok()?;
-    let lsb: usize = parts.next()?.parse().ok()?;
+    let msb: u32 = parts.next()?.parse().ok()?;
+    let lsb: u32 = parts.next()?.parse().ok()?;
     Some(HeaderPort {
         name,
         width: msb.checked_sub(lsb)? + 1,

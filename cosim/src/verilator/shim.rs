@@ -27,7 +27,7 @@ pub const SHIM_VERSION: u32 = 5;
 /// The Verilator model class prefix used for every design (`--prefix`).
 pub const MODEL_PREFIX: &str = "Vhm";
 
-fn set_case(idx: usize, name: &str, width: usize) -> String {
+fn set_case(idx: usize, name: &str, width: u32) -> String {
     if width <= 64 {
         let ty = storage_type(width);
         let mask = if width == 64 {
@@ -55,7 +55,7 @@ fn set_case(idx: usize, name: &str, width: usize) -> String {
     }
 }
 
-fn get_case(idx: usize, name: &str, width: usize) -> String {
+fn get_case(idx: usize, name: &str, width: u32) -> String {
     if width <= 64 {
         format!("    case {idx}: words[0] = (uint64_t)top->{name}; return 0;\n")
     } else {
@@ -67,7 +67,7 @@ fn get_case(idx: usize, name: &str, width: usize) -> String {
     }
 }
 
-fn storage_type(width: usize) -> &'static str {
+fn storage_type(width: u32) -> &'static str {
     match width {
         0..=8 => "CData",
         9..=16 => "SData",

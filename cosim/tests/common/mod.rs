@@ -46,7 +46,7 @@ pub fn counter() -> Design {
     .unwrap()
 }
 
-pub const SKID_WIDTH: usize = 16;
+pub const SKID_WIDTH: u32 = 16;
 
 pub fn skid_from(file: &str) -> Design {
     Design::new(
@@ -72,7 +72,7 @@ pub fn skid() -> Design {
     skid_from("skid.v")
 }
 
-pub const WIDE: usize = 300;
+pub const WIDE: u32 = 300;
 
 pub fn wide() -> Design {
     Design::new(

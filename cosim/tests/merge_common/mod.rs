@@ -8,7 +8,7 @@ use std::path::Path;
 use cosim::ir_engine::IrEngine;
 use cosim::tb::{run_stream_bench, BenchConfig, BenchReport, StreamNames, Vector};
 use cosim::tools::{ci_mode, tool_available, INSTALL_HINT};
-use cosim::{BitVec, Design, Engine, PortDir};
+use cosim::{Design, Engine, PortDir};
 use rtl_gen::Module;
 
 mod multi;
@@ -52,11 +52,6 @@ pub fn engine(kind: &str, m: &Module, design: &Design) -> Box<dyn Engine> {
         "iverilog" => Box::new(cosim::icarus::IcarusEngine::new(design).expect("iverilog build")),
         other => panic!("unknown engine {other}"),
     }
-}
-
-/// A golden packed beat as a cosim value.
-pub fn bitvec(b: &golden::layout::Bits) -> BitVec {
-    BitVec::from_words(b.width() as usize, b.words()).expect("same width")
 }
 
 /// One bench run, printed; panics with the report when it fails.

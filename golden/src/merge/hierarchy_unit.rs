@@ -13,7 +13,8 @@
 //! effect in order: a merge waits until every determine before it has left
 //! the translation unit, so it sees their table writes.
 
-use crate::layout::{Bits, Field, LayoutError};
+use crate::bits::Bits;
+use crate::layout::{Field, LayoutError};
 use crate::params::{bits_to_hold, Params};
 use crate::store::{Hierarchy, HierarchyStore};
 use crate::translate::TranslationTable;

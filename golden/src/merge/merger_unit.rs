@@ -51,7 +51,8 @@ use super::writer_unit::{
     writer_transaction, CapacityError, Header, WriterLayout, WriterTransaction,
 };
 use super::MergeMode;
-use crate::layout::{Bits, Field, LayoutError};
+use crate::bits::Bits;
+use crate::layout::{Field, LayoutError};
 use crate::merge::store_port::StorePort;
 use crate::params::{bits_to_hold, Params};
 use crate::store::{Hierarchy, HierarchyStore, Reference};

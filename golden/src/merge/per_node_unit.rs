@@ -24,8 +24,9 @@ use super::per_node::PerNode;
 use super::top::choice_err;
 use super::unit::{level_transaction, BaseBeat, BeatLayout, LevelBeat};
 use super::walk::{children, collect, place_node, walk_input, PlacedNode};
+use crate::bits::Bits;
 use crate::grid::VoxelAddr;
-use crate::layout::{Bits, Field, LayoutError};
+use crate::layout::{Field, LayoutError};
 use crate::params::Params;
 use crate::store::{Hierarchy, NodeRecord, Reference};
 use crate::translate::stimulus::SplitMix64;
@@ -139,7 +140,7 @@ impl PerNodeBeat {
             PerNodeBeat::Probe { record, at } => (LevelBeat::Inner { record, at }, 1),
             PerNodeBeat::Level(b) => (b, 0),
         };
-        let mut b = Bits::from_words(l.in_width, inner.pack(&l.beat)?.words())?;
+        let mut b = Bits::from_words(inner.pack(&l.beat)?.words(), l.in_width)?;
         b.set(&l.probe, probe)?;
         Ok(b)
     }

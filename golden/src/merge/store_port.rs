@@ -13,7 +13,8 @@
 
 use std::collections::HashMap;
 
-use crate::layout::{Bits, Field};
+use crate::bits::Bits;
+use crate::layout::Field;
 use crate::merge::fetch_unit::FetchLayout;
 use crate::params::Params;
 use crate::store::Hierarchy;
@@ -363,9 +364,9 @@ mod tests {
         assert!(l.resp_width >= l.node_width && l.resp_width >= l.ref_width);
         let mut store = StoreWords::default();
         for v in 0..4u64 {
-            let node = Bits::from_words(l.node_width, &[v + 10]).unwrap();
+            let node = Bits::from_words(&[v + 10], l.node_width).unwrap();
             store.insert(StoreArray::Node, at(1, v), node);
-            let r = Bits::from_words(l.ref_width, &[v]).unwrap();
+            let r = Bits::from_words(&[v], l.ref_width).unwrap();
             store.insert(StoreArray::Reference, at(2, v), r);
         }
         let arrays = [StoreArray::Node, StoreArray::Reference];

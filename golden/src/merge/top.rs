@@ -31,7 +31,8 @@ use super::unit::{
 };
 use super::walk::{children, PlacedNode};
 use super::MergeMode;
-use crate::layout::{Bits, Field, LayoutError};
+use crate::bits::Bits;
+use crate::layout::{Field, LayoutError};
 use crate::params::Params;
 use crate::store::Hierarchy;
 use crate::translate::stimulus::SplitMix64;

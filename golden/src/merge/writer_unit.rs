@@ -25,7 +25,8 @@ use super::builder_unit::{builder_transaction, level_out_kind, BuilderLayout, Bu
 use super::error::MergeError;
 use super::level_merge::{BaseKind, BaseNode};
 use super::upper::{base_by_lod, build_upper};
-use crate::layout::{Bits, Field, LayoutError, NodeLayout, RefLayout};
+use crate::bits::Bits;
+use crate::layout::{Field, LayoutError, NodeLayout, RefLayout};
 use crate::params::Params;
 use crate::store::{Hierarchy, NodeRecord, Reference};
 

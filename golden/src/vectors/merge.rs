@@ -14,7 +14,7 @@ use serde_json::{json, Value};
 use std::path::Path;
 
 use super::{read_jsonl, wide_from_hex, wide_to_json, Header, ParamMap, UnitKind, VectorError};
-use crate::layout::Bits;
+use crate::bits::Bits;
 use crate::merge::unit::*;
 use crate::merge::MergeMode;
 use crate::params::Params;

@@ -22,7 +22,8 @@ use super::streams::{
     MergeBeats, StreamLayout, UnitPorts, DEFAULT_MOST_VOXELS,
 };
 use super::{read_jsonl, wide_to_json, Fields, Header, ParamMap, UnitKind, VectorError};
-use crate::layout::{Bits, Field};
+use crate::bits::Bits;
+use crate::layout::Field;
 use crate::merge::merger_unit::MergerSizes;
 use crate::translate::stimulus::SplitMix64;
 
@@ -102,7 +103,7 @@ fn read_side(
                             true => vec![beat.uint(name, f.width)?],
                             false => beat.wide(name, f.width)?,
                         };
-                        let v = Bits::from_words(f.width, &words).map_err(model)?;
+                        let v = Bits::from_words(&words, f.width).map_err(model)?;
                         b.put(f.offset, &v).map_err(model)?;
                     }
                     Ok(b)

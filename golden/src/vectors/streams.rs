@@ -7,7 +7,8 @@
 //! ([`MergeBeats`]). The cosim benches and the vector files
 //! ([`super::stream_file`]) both draw their merges from here.
 
-use crate::layout::{Bits, Field};
+use crate::bits::Bits;
+use crate::layout::Field;
 use crate::merge::fetch_unit::FetchLayout;
 use crate::merge::merger_unit::{
     merger_transaction, MergerLayout, MergerSizes, MergerTransaction, ModulePass,

@@ -8,9 +8,9 @@ pub(crate) mod flatten;
 mod vcd;
 
 use crate::graph::{BinOp, CmpOp, Direction, RedOp, ShiftKind};
-use crate::words::{self, words_for};
-use crate::{Bits, Diagnostics, DoesNotFit, Module, Signal};
+use crate::{Bits, BitsError, Diagnostics, Module, Signal};
 use flatten::{comb_order, flatten, FOp, F};
+use golden::bits::words::{self, words_for};
 use std::collections::BTreeMap;
 use std::fmt;
 use std::rc::Rc;
@@ -25,7 +25,7 @@ pub enum SimError {
     /// The clock is implicit: advance it with [`Sim::step`].
     ClockIsImplicit,
     /// The value does not fit the port.
-    DoesNotFit(String, DoesNotFit),
+    DoesNotFit(String, BitsError),
     /// The signal belongs to another module than the simulated top.
     ForeignSignal,
 }
@@ -47,13 +47,13 @@ impl std::error::Error for SimError {}
 /// A value that can be poked: integers (which must fit the port), `bool`, [`Bits`].
 pub trait SimValue {
     /// The value as `width` bits, or why it does not fit.
-    fn to_bits(&self, width: u32) -> Result<Bits, DoesNotFit>;
+    fn to_bits(&self, width: u32) -> Result<Bits, BitsError>;
 }
 
 macro_rules! unsigned_value {
     ($($t:ty),*) => {$(
         impl SimValue for $t {
-            fn to_bits(&self, width: u32) -> Result<Bits, DoesNotFit> {
+            fn to_bits(&self, width: u32) -> Result<Bits, BitsError> {
                 Bits::from_u128(*self as u128, width)
             }
         }
@@ -63,18 +63,18 @@ unsigned_value!(u8, u16, u32, u64, u128, bool);
 
 impl SimValue for i64 {
     /// Two's complement; must fit `width` bits as a signed number.
-    fn to_bits(&self, width: u32) -> Result<Bits, DoesNotFit> {
+    fn to_bits(&self, width: u32) -> Result<Bits, BitsError> {
         Bits::from_i128(*self as i128, width)
     }
 }
 
 impl SimValue for Bits {
-    fn to_bits(&self, width: u32) -> Result<Bits, DoesNotFit> {
+    fn to_bits(&self, width: u32) -> Result<Bits, BitsError> {
         if self.width() == width {
             return Ok(self.clone());
         }
         self.to_u128()
-            .ok_or(DoesNotFit {
+            .ok_or(BitsError::DoesNotFit {
                 value: self.to_string(),
                 width,
             })
@@ -83,7 +83,7 @@ impl SimValue for Bits {
 }
 
 impl SimValue for &Bits {
-    fn to_bits(&self, width: u32) -> Result<Bits, DoesNotFit> {
+    fn to_bits(&self, width: u32) -> Result<Bits, BitsError> {
         (*self).to_bits(width)
     }
 }
@@ -283,7 +283,7 @@ impl Sim {
             return Err(SimError::NotAnInput(self.name_of(h)));
         }
         if value.width() != w {
-            let e = DoesNotFit {
+            let e = BitsError::DoesNotFit {
                 value: value.to_string(),
                 width: w,
             };
@@ -302,7 +302,7 @@ impl Sim {
             return Err(SimError::NotAnInput(self.name_of(h)));
         }
         if w < 64 && value >> w != 0 {
-            let e = DoesNotFit {
+            let e = BitsError::DoesNotFit {
                 value: value.to_string(),
                 width: w,
             };

@@ -1,6 +1,6 @@
 //! Value-change-dump output of the IR simulator, for waveform viewers.
 
-use crate::words::words_for;
+use golden::bits::words::words_for;
 use std::io::Write;
 
 /// One traced signal: flat node, width, VCD identifier code.

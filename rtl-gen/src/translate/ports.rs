@@ -63,7 +63,8 @@ impl PortLayout {
                 let v = if f.width == 0 {
                     0
                 } else {
-                    bits.slice(f.offset + f.width - 1, f.offset)
+                    bits.extract(f.offset, f.width)
+                        .ok()
                         .and_then(|b| b.to_u64())
                         .unwrap_or(u64::MAX)
                 };

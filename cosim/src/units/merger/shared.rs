@@ -20,14 +20,13 @@
 
 use std::path::Path;
 
-use golden::layout::Bits;
+use golden::bits::Bits;
 use golden::merge::merger_unit::MergerLayout;
 use golden::merge::store_port::{StoreAddr, StoreArray, StorePortLayout, StoreWords};
 use rtl_gen::merge::MergerConfig;
 
 use super::{chunk_sizes, decoder_of, golden_chunk, merger_module, Draw, PULSES};
 use super::{MergerEngine, Outcome, RunConfig};
-use crate::bitvec::BitVec;
 use crate::design::Design;
 use crate::engine::Engine;
 use crate::error::Result;
@@ -83,7 +82,7 @@ impl Front {
         let kind = golden::merge::hierarchy_unit::KIND_MERGE;
         let mut at = Vec::new();
         for (b, t) in first.iter().enumerate() {
-            let k = t[0].field(cl.kind.offset as usize, 1)?.to_u64();
+            let k = t[0].extract(cl.kind.offset, 1)?.to_u64();
             if k == Some(kind) {
                 at.push(b);
             }
@@ -93,7 +92,7 @@ impl Front {
 
     /// The hierarchy fetcher `i` reads in the merge whose starting beat is
     /// `beat`: its input's `hier`.
-    fn fetcher_hier(&self, beat: &BitVec, i: usize) -> Result<u64> {
+    fn fetcher_hier(&self, beat: &Bits, i: usize) -> Result<u64> {
         let (at, width) = match self {
             Front::Merger(ml) => (
                 ml.input_offset(i) + ml.fetch.hier.offset,
@@ -104,10 +103,7 @@ impl Front {
                 (f.offset, f.width)
             }
         };
-        Ok(beat
-            .field(at as usize, width as usize)?
-            .to_u64()
-            .unwrap_or(u64::MAX))
+        Ok(beat.extract(at, width)?.to_u64().unwrap_or(u64::MAX))
     }
 }
 
@@ -163,14 +159,12 @@ impl SharedChunk {
                     }
                     None => word >> l.hier.offset,
                 };
-                let array = if a[0].width() == l.node_width as usize {
+                let array = if a[0].width() == l.node_width {
                     StoreArray::Node
                 } else {
                     StoreArray::Reference
                 };
-                let bits = Bits::from_words(a[0].width() as u32, a[0].words())
-                    .map_err(|e| err(format!("`{resp}` beat {k}: {e}")))?;
-                stores[e].insert(array, StoreAddr { hier, index }, bits);
+                stores[e].insert(array, StoreAddr { hier, index }, a[0].clone());
                 reads[e] += 1;
             }
         }
@@ -238,7 +232,7 @@ pub(super) fn export_store(
                         None => Ok(Bits::zero(l.resp_width)),
                     }
                     .map_err(|what| crate::CosimError::Design { what })?;
-                    words.push(BitVec::from_layout(&word)?);
+                    words.push(word);
                 }
             }
         }

@@ -2,7 +2,8 @@
 //! `cmd`, `out` and `leaves` and of the store's read ports, and the beats
 //! packed with them.
 
-use crate::layout::{Bits, Field, LayoutError, NodeLayout, RefLayout};
+use crate::bits::Bits;
+use crate::layout::{Field, LayoutError, NodeLayout, RefLayout};
 use crate::merge::per_node_unit::{PerNodeLayout, PerNodeReport};
 use crate::merge::unit::{BeatLayout, LevelBeat};
 use crate::params::Params;

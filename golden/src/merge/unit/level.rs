@@ -6,8 +6,9 @@ use std::collections::BTreeSet;
 use std::ops::Range;
 
 use super::{random_box, random_coord, random_index};
+use crate::bits::Bits;
 use crate::grid::VoxelAddr;
-use crate::layout::{Bits, Field, LayoutError, NodeLayout, RefLayout};
+use crate::layout::{Field, LayoutError, NodeLayout, RefLayout};
 use crate::merge::error::MergeError;
 use crate::merge::level_merge::{merge_level, BaseKind, BaseNode, LevelMergeCounts};
 use crate::merge::walk::PlacedNode;

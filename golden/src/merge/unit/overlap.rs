@@ -2,8 +2,9 @@
 //! golden's [`overlap_counts`] and [`above_threshold`], and its stimulus.
 
 use super::random_coord;
+use crate::bits::Bits;
 use crate::grid::VoxelAddr;
-use crate::layout::{Bits, Field, LayoutError};
+use crate::layout::{Field, LayoutError};
 use crate::merge::level::{above_threshold, overlap_counts, LevelOverlap};
 use crate::params::{bits_to_hold, Params};
 use crate::translate::stimulus::SplitMix64;

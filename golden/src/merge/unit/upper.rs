@@ -4,8 +4,9 @@
 use std::collections::BTreeSet;
 
 use super::{random_box, random_coord, random_index};
+use crate::bits::Bits;
 use crate::grid::VoxelAddr;
-use crate::layout::{Bits, Field, LayoutError, NodeLayout};
+use crate::layout::{Field, LayoutError, NodeLayout};
 use crate::params::Params;
 use crate::store::NodeRecord;
 use crate::translate::stimulus::SplitMix64;

@@ -1,6 +1,6 @@
 //! Arithmetic on little-endian `u64` word slices of a given bit width.
 //!
-//! These are the kernels shared by [`crate::Bits`] and the simulator. Every
+//! These are the kernels shared by [`super::Bits`] and the DSL simulator. Every
 //! function keeps the invariant that bits at and above `width` in the last
 //! word are zero, so equality is plain word equality.
 

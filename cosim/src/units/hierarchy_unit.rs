@@ -270,7 +270,7 @@ pub fn run(
             .collect::<Vec<_>>(),
     );
     let patched = config.verilog_patch.is_some();
-    let sim = ChunkedSim::new(module, design, engine, &i, &o, patched)?;
+    let sim = ChunkedSim::watching(module, design, engine, (&i, &o), patched, &PULSES)?;
     let decode = |stream: &str, e: &Transaction, g: &Transaction| {
         let fields = ports
             .outputs
@@ -391,13 +391,13 @@ impl HierarchySim {
                 let (i, o) = (names(&ports.inputs), names(&ports.outputs));
                 let i: Vec<&str> = i.iter().map(String::as_str).collect();
                 let o: Vec<&str> = o.iter().map(String::as_str).collect();
-                Sim::PerUnit(ChunkedSim::new(
+                Sim::PerUnit(ChunkedSim::watching(
                     module,
                     design,
                     engine,
-                    &i,
-                    &o,
+                    (&i, &o),
                     patch.is_some(),
+                    &PULSES,
                 )?)
             }
         };

@@ -415,3 +415,17 @@ fn a_merger_top_idle_while_a_merge_runs_fails_its_status_proof() {
         "p_idle_means_empty",
     );
 }
+
+#[test]
+fn a_hierarchy_unit_whose_table_is_always_settled_fails_its_status_proof() {
+    // The translation unit's `idle` held high: a merge command may then be
+    // taken while a determine command is still inside, and `idle` says
+    // nothing is outstanding while one is.
+    assert_broken_fails(
+        "hierarchy_unit_small",
+        "assign idle = idle_now;",
+        "assign idle = 1'b1;",
+        "status",
+        "p_idle_means_empty",
+    );
+}

@@ -31,7 +31,8 @@ pub struct Args {
     /// configuration, every check: fetcher_small, fetcher_per_node_small,
     /// record_writer_small, hierarchy_merger_small,
     /// hierarchy_merger_per_node_small, hierarchy_merger_store_port (the
-    /// merger top behind one shared store port).
+    /// merger top behind one shared store port), hierarchy_unit_small (the
+    /// hierarchy unit around the small merger top).
     #[arg(long = "unit")]
     units: Vec<String>,
     /// Every unit of the default set (the default when neither --unit nor

@@ -882,6 +882,63 @@ pub fn hierarchy_merger_store_port() -> Proof {
     p
 }
 
+/// The hierarchy unit (docs/hardware.md 8.16) around the small merger top
+/// of [`hierarchy_merger_small`], its translation unit binary32 with a
+/// table of 4: each merge command answered by one `header` (two taken at
+/// most, as the merger's `cfg`), each determine command by one `det_out`
+/// beat (six inside at most, as the translation unit's); `idle` exactly
+/// when neither is outstanding; `done` one clock after a `header` left; and
+/// the order that places a merge by the table: a merge command is taken
+/// only when every determine command before it has left `det_out`. BMC from
+/// reset, as the merger top.
+pub fn hierarchy_unit_small() -> Proof {
+    let merger = small_merger(MergeMode::Overlap { num: 1, den: 2 }, Default::default());
+    let mut c = crate::merge::HierarchyUnitConfig::new(merger);
+    c.table.binary64 = false;
+    let m = crate::merge::hierarchy_unit(&c).expect("the hierarchy unit configuration is valid");
+    let merge = format!("cmd_data[{}]", c.cmd_layout().kind.offset);
+    let (ins, outs) = streams(&m);
+    let ins: Vec<&str> = ins.iter().map(String::as_str).collect();
+    let outs: Vec<&str> = outs.iter().map(String::as_str).collect();
+    let cmd = fire("cmd");
+    let mut p = Proof::new(m, &ins, &outs, 4)
+        .flow(Flow::Counted {
+            name: "header_per_merge".into(),
+            input: format!("{cmd} && {merge}"),
+            output: fire("header"),
+            capacity: 2,
+            occupancy: None,
+        })
+        .flow(Flow::Counted {
+            name: "det_out_per_determine".into(),
+            input: format!("{cmd} && !{merge}"),
+            output: fire("det_out"),
+            capacity: 6,
+            occupancy: None,
+        });
+    p.status = Some(Status {
+        idle: Some("idle".into()),
+        done: None,
+        busy: vec![0, 1],
+        only_when_idle: vec![],
+        rules: vec![
+            (
+                "merge_after_its_determines".into(),
+                format!("!({cmd} && {merge}) || f1_occ == 0"),
+            ),
+            (
+                "done_after_header".into(),
+                "done == $past(header_valid && header_ready)".into(),
+            ),
+            ("done_low_after_reset".into(), "f_prev || !done".into()),
+        ],
+    });
+    p.check(Handshake, Induction)
+        .check_to(FlowCheck, Bmc, MERGER_SMALL_DEPTH)
+        .check_to(Determined, Bmc, MERGER_SMALL_DETERMINED)
+        .check_to(Check::Status, Bmc, MERGER_SMALL_DEPTH)
+}
+
 /// The units `hiermerge formal` proves by default (and with `--all`), in
 /// report order: each check takes seconds.
 pub const NAMES: [&str; 10] = [
@@ -900,7 +957,7 @@ pub const NAMES: [&str; 10] = [
 /// The larger units (`hiermerge formal --large`, or by name with `--unit`):
 /// their two-copy `determined` proofs take about a minute each, so CI runs
 /// only their handshake checks.
-pub const LARGE: [&str; 17] = [
+pub const LARGE: [&str; 18] = [
     "per_node_network",
     "merge_module_overlap",
     "merge_module_per_node",
@@ -918,6 +975,7 @@ pub const LARGE: [&str; 17] = [
     "hierarchy_merger_small",
     "hierarchy_merger_per_node_small",
     "hierarchy_merger_store_port",
+    "hierarchy_unit_small",
 ];
 
 /// The max_lod of the `upper_builder` proof: two groupings in a chain and
@@ -954,6 +1012,7 @@ pub fn by_name(name: &str) -> Option<Proof> {
         "hierarchy_merger_small" => hierarchy_merger_small(),
         "hierarchy_merger_per_node_small" => hierarchy_merger_per_node_small(),
         "hierarchy_merger_store_port" => hierarchy_merger_store_port(),
+        "hierarchy_unit_small" => hierarchy_unit_small(),
         _ => return None,
     })
 }

@@ -35,7 +35,7 @@ use crate::tb::Transaction;
 
 use super::chunked::{ChunkTotals, ChunkedSim, UnitStreams, CHUNK};
 use super::merger::shared::{Front, SharedSim};
-use super::merger::{SceneStore, SimOutcome, StoreOutcome};
+use super::merger::{SceneStore, SimOutcome};
 use super::multi_stream::{beat_decoder, decoded_pair, ModuleEngine, RunConfig, VerilogPatch};
 use golden::merge::store_port::StorePort;
 
@@ -450,19 +450,8 @@ impl HierarchySim {
                 None
             }
             Sim::Shared(sim) => {
-                let mut outcome = StoreOutcome::default();
-                let bench = super::chunked::chunk_bench(bench, 0);
-                let (latency, image) = store.map_or((1, None), |s| (s.latency, Some(s.image)));
-                sim.run_chunk(
-                    &mut totals,
-                    &mut outcome,
-                    streams,
-                    n,
-                    &bench,
-                    latency,
-                    image,
-                    &decode,
-                )?;
+                let (t, outcome) = sim.run_once(streams, n, bench, store, &decode)?;
+                totals = t;
                 Some(outcome)
             }
         };

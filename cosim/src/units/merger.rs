@@ -634,21 +634,7 @@ impl MergerSim {
         let decode = |stream: &str, e: &Transaction, g: &Transaction| {
             decoded_pair(&*decoder_of(c, stream), e, g)
         };
-        let mut totals = ChunkTotals::default();
-        let mut outcome = StoreOutcome::default();
-        let bench = super::chunked::chunk_bench(bench, 0);
-        let n = txs.len();
-        let (latency, image) = store.map_or((1, None), |s| (s.latency, Some(s.image)));
-        sim.run_chunk(
-            &mut totals,
-            &mut outcome,
-            streams,
-            n,
-            &bench,
-            latency,
-            image,
-            &decode,
-        )?;
+        let (totals, outcome) = sim.run_once(streams, txs.len(), bench, store, &decode)?;
         Ok(SimOutcome {
             totals,
             stats,

@@ -324,6 +324,36 @@ impl SharedSim {
         }
     }
 
+    /// Runs the `n` merges of `per_unit` as one chunk from reset (bench
+    /// `bench`, the first chunk's), the store answering after the scene
+    /// `store`'s latency from its image (None: after a clock, from the
+    /// words golden's units read): a scene's frame, or merges from
+    /// elsewhere.
+    pub(crate) fn run_once(
+        &self,
+        per_unit: UnitStreams,
+        n: usize,
+        bench: &crate::units::multi_stream::RunConfig,
+        store: Option<super::SceneStore>,
+        decode: &PairDecoder,
+    ) -> Result<(ChunkTotals, StoreOutcome)> {
+        let mut totals = ChunkTotals::default();
+        let mut outcome = StoreOutcome::default();
+        let bench = chunk_bench(bench, 0);
+        let (latency, image) = store.map_or((1, None), |s| (s.latency, Some(s.image)));
+        self.run_chunk(
+            &mut totals,
+            &mut outcome,
+            per_unit,
+            n,
+            &bench,
+            latency,
+            image,
+            decode,
+        )?;
+        Ok((totals, outcome))
+    }
+
     /// Runs the `n` merges whose per-unit streams are `per_unit` as one
     /// chunk (bench `bench`) and adds it to `totals` and `store`: the
     /// store answers after `latency` clocks from `image` when given (one

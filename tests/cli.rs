@@ -543,7 +543,7 @@ fn vectors_follow_the_mode_and_refuse_bad_options() {
         ),
         (
             vec!["--unit", "merge", "--leaf-bits", "4"],
-            "--leaf-bits applies to --unit merger only, not to --unit merge",
+            "--leaf-bits applies to --unit merger and --unit hierarchy only, not to --unit merge",
         ),
     ] {
         let mut all = vec!["vectors", "--out", out];

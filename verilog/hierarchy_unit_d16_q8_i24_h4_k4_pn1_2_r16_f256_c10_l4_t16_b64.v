@@ -8,9 +8,9 @@ module hierarchy_unit_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4_t16_b64 (
     input  wire cmd_valid,                  // rtl-gen/src/merge/hierarchy_unit.rs:112
     input  wire [351:0] cmd_data,           // rtl-gen/src/merge/hierarchy_unit.rs:112
     output wire cmd_ready,                  // rtl-gen/src/merge/hierarchy_unit.rs:112
-    output wire det_out_valid,              // rtl-gen/src/merge/hierarchy_unit.rs:125
-    output wire [320:0] det_out_data,       // rtl-gen/src/merge/hierarchy_unit.rs:125
-    input  wire det_out_ready,              // rtl-gen/src/merge/hierarchy_unit.rs:125
+    output wire det_out_valid,              // rtl-gen/src/merge/merger/mod.rs:422
+    output wire [320:0] det_out_data,       // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire det_out_ready,              // rtl-gen/src/merge/merger/mod.rs:422
     output wire report_valid,               // rtl-gen/src/merge/merger/mod.rs:422
     output wire [65:0] report_data,         // rtl-gen/src/merge/merger/mod.rs:422
     input  wire report_ready,               // rtl-gen/src/merge/merger/mod.rs:422
@@ -122,17 +122,17 @@ module hierarchy_unit_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4_t16_b64 (
     output wire refs_valid,                 // rtl-gen/src/merge/merger/mod.rs:422
     output wire [27:0] refs_data,           // rtl-gen/src/merge/merger/mod.rs:422
     input  wire refs_ready,                 // rtl-gen/src/merge/merger/mod.rs:422
-    output wire w_filling,                  // rtl-gen/src/merge/hierarchy_unit.rs:218
-    output wire w_drain_records,            // rtl-gen/src/merge/hierarchy_unit.rs:218
-    output wire w_drain_refs,               // rtl-gen/src/merge/hierarchy_unit.rs:218
+    output wire w_filling,                  // rtl-gen/src/merge/hierarchy_unit.rs:224
+    output wire w_drain_records,            // rtl-gen/src/merge/hierarchy_unit.rs:224
+    output wire w_drain_refs,               // rtl-gen/src/merge/hierarchy_unit.rs:224
     output wire header_valid,               // rtl-gen/src/merge/merger/mod.rs:422
     output wire [94:0] header_data,         // rtl-gen/src/merge/merger/mod.rs:422
     input  wire header_ready,               // rtl-gen/src/merge/merger/mod.rs:422
-    output wire done,                       // rtl-gen/src/merge/hierarchy_unit.rs:218
-    output wire module_done,                // rtl-gen/src/merge/hierarchy_unit.rs:218
-    output wire idle,                       // rtl-gen/src/merge/hierarchy_unit.rs:141
-    output wire det_error_seen,             // rtl-gen/src/merge/hierarchy_unit.rs:142
-    output wire translate_done              // rtl-gen/src/merge/hierarchy_unit.rs:143
+    output wire done,                       // rtl-gen/src/merge/hierarchy_unit.rs:224
+    output wire module_done,                // rtl-gen/src/merge/hierarchy_unit.rs:224
+    output wire idle,                       // rtl-gen/src/merge/hierarchy_unit.rs:147
+    output wire det_error_seen,             // rtl-gen/src/merge/hierarchy_unit.rs:148
+    output wire translate_done              // rtl-gen/src/merge/hierarchy_unit.rs:149
 );
     wire u_translate_det_in_ready;           // rtl-gen/src/merge/hierarchy_unit.rs:110
     wire u_translate_det_out_valid;          // rtl-gen/src/merge/hierarchy_unit.rs:110
@@ -212,48 +212,48 @@ module hierarchy_unit_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4_t16_b64 (
     wire u_merger_module_done;               // rtl-gen/src/merge/hierarchy_unit.rs:111
     wire cmd_data_kind;                      // rtl-gen/src/merge/hierarchy_unit.rs:113
     wire cmd_is_merge;                       // rtl-gen/src/merge/hierarchy_unit.rs:114
-    wire det_out_ready_w;                    // rtl-gen/src/merge/hierarchy_unit.rs:122
-    wire merge_valid;                        // rtl-gen/src/merge/hierarchy_unit.rs:129
-    wire [2:0] count;                        // rtl-gen/src/merge/hierarchy_unit.rs:160
-    wire used0;                              // rtl-gen/src/merge/hierarchy_unit.rs:166
-    wire [3:0] cmd_data_hier;                // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [23:0] cmd_data_roots;              // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [4:0] cmd_data_top;                 // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [23:0] cmd_data_nodes;              // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [23:0] cmd_data_refs;               // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [4:0] cmd_data_deep;                // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [4:0] lo_upto0;                     // rtl-gen/src/merge/hierarchy_unit.rs:186
-    wire [4:0] deep_upto0;                   // rtl-gen/src/merge/hierarchy_unit.rs:189
-    wire used1;                              // rtl-gen/src/merge/hierarchy_unit.rs:166
-    wire [3:0] cmd_data_hier_1;              // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [23:0] cmd_data_roots_1;            // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [4:0] cmd_data_top_1;               // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [23:0] cmd_data_nodes_1;            // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [23:0] cmd_data_refs_1;             // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [4:0] cmd_data_deep_1;              // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [4:0] lo_upto1;                     // rtl-gen/src/merge/hierarchy_unit.rs:186
-    wire [4:0] deep_upto1;                   // rtl-gen/src/merge/hierarchy_unit.rs:189
-    wire used2;                              // rtl-gen/src/merge/hierarchy_unit.rs:166
-    wire [3:0] cmd_data_hier_2;              // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [23:0] cmd_data_roots_2;            // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [4:0] cmd_data_top_2;               // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [23:0] cmd_data_nodes_2;            // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [23:0] cmd_data_refs_2;             // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [4:0] cmd_data_deep_2;              // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [4:0] lo_upto2;                     // rtl-gen/src/merge/hierarchy_unit.rs:186
-    wire [4:0] deep_upto2;                   // rtl-gen/src/merge/hierarchy_unit.rs:189
-    wire used3;                              // rtl-gen/src/merge/hierarchy_unit.rs:166
-    wire [3:0] cmd_data_hier_3;              // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [23:0] cmd_data_roots_3;            // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [4:0] cmd_data_top_3;               // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [23:0] cmd_data_nodes_3;            // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [23:0] cmd_data_refs_3;             // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [4:0] cmd_data_deep_3;              // rtl-gen/src/merge/hierarchy_unit.rs:161
-    wire [4:0] range_lo;                     // rtl-gen/src/merge/hierarchy_unit.rs:186
-    wire [4:0] deep_upto3;                   // rtl-gen/src/merge/hierarchy_unit.rs:189
-    wire [4:0] range_hi;                     // rtl-gen/src/merge/hierarchy_unit.rs:193
-    wire [3:0] cmd_data_out_id;              // rtl-gen/src/merge/hierarchy_unit.rs:194
-    wire [568:0] merger_cfg;                 // rtl-gen/src/merge/hierarchy_unit.rs:196
+    wire det_out_ready_w;                    // rtl-gen/src/merge/merger/mod.rs:419
+    wire merge_valid;                        // rtl-gen/src/merge/hierarchy_unit.rs:135
+    wire [2:0] count;                        // rtl-gen/src/merge/hierarchy_unit.rs:166
+    wire used0;                              // rtl-gen/src/merge/hierarchy_unit.rs:172
+    wire [3:0] cmd_data_hier;                // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [23:0] cmd_data_roots;              // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [4:0] cmd_data_top;                 // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [23:0] cmd_data_nodes;              // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [23:0] cmd_data_refs;               // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [4:0] cmd_data_deep;                // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [4:0] lo_upto0;                     // rtl-gen/src/merge/hierarchy_unit.rs:192
+    wire [4:0] deep_upto0;                   // rtl-gen/src/merge/hierarchy_unit.rs:195
+    wire used1;                              // rtl-gen/src/merge/hierarchy_unit.rs:172
+    wire [3:0] cmd_data_hier_1;              // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [23:0] cmd_data_roots_1;            // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [4:0] cmd_data_top_1;               // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [23:0] cmd_data_nodes_1;            // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [23:0] cmd_data_refs_1;             // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [4:0] cmd_data_deep_1;              // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [4:0] lo_upto1;                     // rtl-gen/src/merge/hierarchy_unit.rs:192
+    wire [4:0] deep_upto1;                   // rtl-gen/src/merge/hierarchy_unit.rs:195
+    wire used2;                              // rtl-gen/src/merge/hierarchy_unit.rs:172
+    wire [3:0] cmd_data_hier_2;              // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [23:0] cmd_data_roots_2;            // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [4:0] cmd_data_top_2;               // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [23:0] cmd_data_nodes_2;            // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [23:0] cmd_data_refs_2;             // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [4:0] cmd_data_deep_2;              // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [4:0] lo_upto2;                     // rtl-gen/src/merge/hierarchy_unit.rs:192
+    wire [4:0] deep_upto2;                   // rtl-gen/src/merge/hierarchy_unit.rs:195
+    wire used3;                              // rtl-gen/src/merge/hierarchy_unit.rs:172
+    wire [3:0] cmd_data_hier_3;              // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [23:0] cmd_data_roots_3;            // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [4:0] cmd_data_top_3;               // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [23:0] cmd_data_nodes_3;            // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [23:0] cmd_data_refs_3;             // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [4:0] cmd_data_deep_3;              // rtl-gen/src/merge/hierarchy_unit.rs:167
+    wire [4:0] range_lo;                     // rtl-gen/src/merge/hierarchy_unit.rs:192
+    wire [4:0] deep_upto3;                   // rtl-gen/src/merge/hierarchy_unit.rs:195
+    wire [4:0] range_hi;                     // rtl-gen/src/merge/hierarchy_unit.rs:199
+    wire [3:0] cmd_data_out_id;              // rtl-gen/src/merge/hierarchy_unit.rs:200
+    wire [568:0] merger_cfg;                 // rtl-gen/src/merge/hierarchy_unit.rs:202
     wire report_ready_w;                     // rtl-gen/src/merge/merger/mod.rs:419
     wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
     wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:419

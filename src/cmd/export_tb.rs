@@ -104,12 +104,7 @@ fn merger_of(a: &Args) -> Result<rtl_gen::merge::MergerConfig, String> {
 
 /// The hierarchy unit `a` asks for (per-unit store ports).
 fn hierarchy_of(a: &Args) -> Result<rtl_gen::merge::HierarchyUnitConfig, String> {
-    let mut c = rtl_gen::merge::HierarchyUnitConfig::new(merger_of(a)?);
-    if let Some(depth) = a.design.table_depth {
-        c.table.unit.table_depth = depth;
-    }
-    c.validate().map_err(|e| e.to_string())?;
-    Ok(c)
+    super::cosim::hierarchy::hierarchy_config(merger_of(a)?, a.design.table_depth)
 }
 
 /// The arguments that wrote the testbench, as a shell line.

@@ -226,6 +226,35 @@ pub fn random_streams(c: &HierarchyUnitConfig, seed: u64, count: usize) -> Resul
     next_streams(c, &mut SplitMix64(seed), count)
 }
 
+/// The unit's per-unit-port simulator (`module`, its Verilog in `design`)
+/// on `engine`, its streams `ports`, watching [`PULSES`].
+fn per_unit_sim(
+    module: rtl_gen::Module,
+    design: crate::design::Design,
+    engine: ModuleEngine,
+    ports: &UnitPorts,
+    patched: bool,
+) -> Result<ChunkedSim> {
+    fn names(s: &[StreamLayout]) -> Vec<&str> {
+        s.iter().map(|s| s.name.as_str()).collect()
+    }
+    let (i, o) = (names(&ports.inputs), names(&ports.outputs));
+    ChunkedSim::watching(module, design, engine, (&i, &o), patched, &PULSES)
+}
+
+/// An (expected, got) pair of output stream `stream` of `ports`, decoded
+/// by its fields.
+fn decode(
+    ports: &UnitPorts,
+    stream: &str,
+    e: &Transaction,
+    g: &Transaction,
+) -> Vec<(String, String, String)> {
+    let fields = ports.outputs.iter().find(|s| s.name == stream);
+    let fields = fields.map_or_else(Vec::new, |s| s.fields.clone());
+    decoded_pair(&*beat_decoder(fields), e, g)
+}
+
 /// Runs `count` random cases from `config.seed` through the hierarchy unit
 /// `c` on `engine`, its Verilog written to `dir`, [`CHUNK`] merges at a
 /// time, each chunk from reset (the table too); stops after the first
@@ -257,28 +286,14 @@ pub fn run(
         super::multi_stream::apply_patch(&design, patch, engine)?;
     }
     let ports = unit_ports(c)?;
-    let (i, o) = (
-        ports
-            .inputs
-            .iter()
-            .map(|s| s.name.as_str())
-            .collect::<Vec<_>>(),
-        ports
-            .outputs
-            .iter()
-            .map(|s| s.name.as_str())
-            .collect::<Vec<_>>(),
-    );
-    let patched = config.verilog_patch.is_some();
-    let sim = ChunkedSim::watching(module, design, engine, (&i, &o), patched, &PULSES)?;
-    let decode = |stream: &str, e: &Transaction, g: &Transaction| {
-        let fields = ports
-            .outputs
-            .iter()
-            .find(|s| s.name == stream)
-            .map_or_else(Vec::new, |s| s.fields.clone());
-        decoded_pair(&*beat_decoder(fields), e, g)
-    };
+    let sim = per_unit_sim(
+        module,
+        design,
+        engine,
+        &ports,
+        config.verilog_patch.is_some(),
+    )?;
+    let decode = |stream: &str, e: &Transaction, g: &Transaction| decode(&ports, stream, e, g);
     let mut rng = SplitMix64(config.seed);
     let mut totals = ChunkTotals::default();
     let mut left = count;
@@ -385,21 +400,13 @@ impl HierarchySim {
                 Front::Hierarchy(Box::new(c.cmd_layout())),
                 &PULSES,
             ))),
-            false => {
-                let names =
-                    |s: &[StreamLayout]| s.iter().map(|s| s.name.clone()).collect::<Vec<_>>();
-                let (i, o) = (names(&ports.inputs), names(&ports.outputs));
-                let i: Vec<&str> = i.iter().map(String::as_str).collect();
-                let o: Vec<&str> = o.iter().map(String::as_str).collect();
-                Sim::PerUnit(ChunkedSim::watching(
-                    module,
-                    design,
-                    engine,
-                    (&i, &o),
-                    patch.is_some(),
-                    &PULSES,
-                )?)
-            }
+            false => Sim::PerUnit(per_unit_sim(
+                module,
+                design,
+                engine,
+                &ports,
+                patch.is_some(),
+            )?),
         };
         Ok(HierarchySim {
             config: c.clone(),
@@ -432,16 +439,9 @@ impl HierarchySim {
             streams.flip_first(streams.outputs.len() - 1, n)?;
         }
         let txs: Vec<MergerTransaction> = cases.iter().map(|c| c.tx.clone()).collect();
-        let stats = super::merger::merger_streams(&c.merger, &txs)?.stats;
-        let decode = |stream: &str, e: &Transaction, g: &Transaction| {
-            let fields = self
-                .ports
-                .outputs
-                .iter()
-                .find(|s| s.name == stream)
-                .map_or_else(Vec::new, |s| s.fields.clone());
-            decoded_pair(&*beat_decoder(fields), e, g)
-        };
+        let stats = super::merger::merge_stats(&txs);
+        let decode =
+            |stream: &str, e: &Transaction, g: &Transaction| decode(&self.ports, stream, e, g);
         let mut totals = ChunkTotals::default();
         let n = cases.len();
         let store = match &self.sim {

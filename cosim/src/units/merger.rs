@@ -189,14 +189,10 @@ pub fn decoder_of(c: &MergerConfig, stream: &str) -> Box<FieldDecoder> {
     beat_decoder(named(output_fields(c, stream).unwrap_or_default()))
 }
 
-/// The streams of `txs` for the merger `c`, and what they exercise.
-pub fn merger_streams(c: &MergerConfig, txs: &[MergerTransaction]) -> Result<MergerStreams> {
-    let ml = merger_layout(&c.design, &c.sizes).map_err(golden_err)?;
-    let ports = merger_ports(&c.design, &c.sizes).map_err(golden_err)?;
+/// What the merges `txs` exercise.
+pub fn merge_stats(txs: &[MergerTransaction]) -> MergeStats {
     let mut stats = MergeStats::default();
-    let mut merges = Vec::with_capacity(txs.len());
     for tx in txs {
-        merges.push(merger_beats(&c.design, &ml, tx).map_err(golden_err)?);
         *stats.by_inputs.entry(tx.fetch.len()).or_default() += 1;
         let mut refused = tx.chosen.is_none();
         if let ModulePass::PerNode(pn) = &tx.module {
@@ -225,6 +221,18 @@ pub fn merger_streams(c: &MergerConfig, txs: &[MergerTransaction]) -> Result<Mer
         stats.materialized += !w.ref_reqs.is_empty() as usize;
         stats.several_roots += (w.header.roots > 1) as usize;
     }
+    stats
+}
+
+/// The streams of `txs` for the merger `c`, and what they exercise.
+pub fn merger_streams(c: &MergerConfig, txs: &[MergerTransaction]) -> Result<MergerStreams> {
+    let ml = merger_layout(&c.design, &c.sizes).map_err(golden_err)?;
+    let ports = merger_ports(&c.design, &c.sizes).map_err(golden_err)?;
+    let merges = txs
+        .iter()
+        .map(|tx| merger_beats(&c.design, &ml, tx).map_err(golden_err))
+        .collect::<Result<Vec<_>>>()?;
+    let stats = merge_stats(txs);
     Ok(MergerStreams {
         streams: UnitStreams::from_merges(&ports, &merges)?,
         stats,

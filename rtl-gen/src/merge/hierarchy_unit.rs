@@ -20,7 +20,7 @@ use golden::vectors::translate::TranslateDesign;
 
 use super::fields::{field, with_fields};
 use super::hierarchy_merger_unit;
-use super::merger::{hierarchy_merger_name, MergerConfig};
+use super::merger::{hierarchy_merger_name, pass_stream, MergerConfig};
 use crate::translate::{lookup_unit_name, ports::det_in_layout, translate_lookup_unit};
 use crate::{Direction, Module, Signal, Stream};
 
@@ -116,13 +116,19 @@ pub fn hierarchy_unit(c: &HierarchyUnitConfig) -> Result<Module, String> {
     // Determine commands: the translation unit's det_in, as they come.
     table.connect("det_in_valid", cmd.valid & !is_merge);
     table.connect("det_in_data", cmd.data.slice(cl.det_width - 1, 0));
-    let det_out = Stream {
-        valid: table.output("det_out_valid"),
-        data: table.output("det_out_data"),
-        ready: m.wire("det_out_ready_w", 1),
-    };
-    table.connect("det_out_ready", det_out.ready);
-    det_out.output("det_out");
+    let det_out_width = table_mod
+        .ports()
+        .iter()
+        .find(|q| q.name == "det_out_data")
+        .map_or(0, |q| q.width);
+    pass_stream(
+        &m,
+        table,
+        "det_out",
+        "det_out",
+        Direction::Output,
+        det_out_width,
+    );
 
     // A merge command: once the table holds every write before it.
     let table_settled = table.output("idle").name("table_settled");
@@ -209,7 +215,7 @@ fn pass_merger_ports<'m>(m: &'m Module, merger: crate::Instance<'m>, merger_mod:
                 continue;
             }
             let w = width(&format!("{stream}_data"));
-            super::merger::pass_stream(m, merger, stream, stream, q.direction, w);
+            pass_stream(m, merger, stream, stream, q.direction, w);
         } else if q.direction == Direction::Output
             && q.name != "idle"
             && !q.name.ends_with("_ready")

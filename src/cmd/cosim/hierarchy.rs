@@ -17,8 +17,17 @@ use super::{bar, bench_config, count, module_engine, Args};
 /// per hierarchy id) taking binary64 placements.
 pub(super) fn config_of(a: &Args, design: &MergeDesign) -> Result<HierarchyUnitConfig, String> {
     let merger = merger_config(design, a.capacity_bits, a.leaf_bits)?;
+    hierarchy_config(merger, a.design.table_depth)
+}
+
+/// The hierarchy unit around `merger` with a table of `table_depth`
+/// entries (default one per hierarchy id), validated (also `export-tb`'s).
+pub(crate) fn hierarchy_config(
+    merger: rtl_gen::merge::MergerConfig,
+    table_depth: Option<u32>,
+) -> Result<HierarchyUnitConfig, String> {
     let mut c = HierarchyUnitConfig::new(merger);
-    if let Some(depth) = a.design.table_depth {
+    if let Some(depth) = table_depth {
         c.table.unit.table_depth = depth;
     }
     c.validate()

@@ -20,7 +20,7 @@
 
 mod bins;
 mod command_line;
-mod hierarchy;
+pub(crate) mod hierarchy;
 mod merge;
 mod merger;
 mod report;

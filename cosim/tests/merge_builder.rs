@@ -1,5 +1,5 @@
 //! S616 in hardware, every level at once (`rtl_gen::merge::upper_builder_unit`,
-//! SPEC.md section 8.11) against `golden::merge::builder_unit::builder_transaction`
+//! SPEC.md section 8.11) against `golden::merge::upper_builder::unit::builder_transaction`
 //! (expected outputs from the golden `build_levels`, grouping and lift rule),
 //! bit for bit on every `level{d}` stream and on `done`, with independent
 //! random stalls (0.05..=0.5) on every `base{d}` and out stream
@@ -13,11 +13,11 @@ mod merge_common;
 
 use cosim::tb::StreamBeats;
 use golden::build::{build, GridMap};
-use golden::merge::builder_unit::{
+use golden::merge::level_choice::candidate_range;
+use golden::merge::level_merge::BaseNode;
+use golden::merge::upper_builder::unit::{
     builder_transaction, fixed_level_base, random_base, BuilderLayout, BuilderTransaction, LevelOut,
 };
-use golden::merge::level::candidate_range;
-use golden::merge::level_merge::BaseNode;
 use golden::params::Params;
 use golden::scenes::random_soup;
 use golden::seed::seeded;

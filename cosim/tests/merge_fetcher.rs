@@ -1,5 +1,5 @@
 //! The fetcher (`rtl_gen::merge::fetcher_unit`, SPEC.md section 8.13)
-//! against `golden::merge::fetch_unit::fetch_transaction`, bit for bit on
+//! against `golden::merge::fetcher::fetch_transaction`, bit for bit on
 //! `out`, `leaves`, `node_req`, `ref_req` and `cref_req`; the store's answers
 //! (`node_resp`, `ref_resp`, `cref_resp`) are precomputed from golden and presented as
 //! ordinary input streams (the unit raises `*_resp_ready` only with a read
@@ -15,11 +15,11 @@ use cosim::tb::StreamBeats;
 use cosim::volume::volume;
 use cosim::Bits;
 use golden::build::{build, GridMap};
-use golden::merge::fetch_unit::{
+use golden::merge::fetcher::{
     fetch_err, fetch_transaction, fetch_transaction_with_reports, FetchCmd, FetchLayout, FetchOut,
     FetchSizes, FetchTransaction,
 };
-use golden::merge::per_node_unit::{random_per_node_case, PerNodeReport};
+use golden::merge::per_node::unit::{random_per_node_case, PerNodeReport};
 use golden::params::Params;
 use golden::scenes::random_soup;
 use golden::seed::seeded;
@@ -963,8 +963,8 @@ fn fetcher_per_node_steady_state() {
         let deepest = h.nodes.iter().map(|n| n.voxel.lod).max().unwrap();
         let mut reports = Vec::new();
         for l in h.top_lod..=deepest {
-            let w = golden::merge::walk::walk_input(&h, 0, &t, l).unwrap();
-            let (_, mut at) = golden::merge::walk::collect(std::slice::from_ref(&w), l);
+            let w = golden::merge::fetcher::walk::walk_input(&h, 0, &t, l).unwrap();
+            let (_, mut at) = golden::merge::fetcher::walk::collect(std::slice::from_ref(&w), l);
             golden::merge::level_merge::sort_stream(&mut at);
             for n in at.iter().filter(|n| !n.record.leaf) {
                 reports.push(PerNodeReport::Decision {

@@ -1,6 +1,6 @@
 //! The hierarchy merger, S610-S618 as one top module
 //! (`rtl_gen::merge::hierarchy_merger_unit`, SPEC.md section 8.15), against
-//! `golden::merge::merger_unit::merger_transaction` (the chain of the units'
+//! `golden::merge::merger::merger_transaction` (the chain of the units'
 //! golden transactions, tested equal to `merge()` in golden), bit for bit on
 //! every out stream: `report`, every fetcher's `node_req` / `ref_req`, the
 //! writer's `ref_req`, `nodes`, `refs`, `header`. The store's responses are
@@ -13,12 +13,12 @@ mod merge_common;
 
 use cosim::tb::{run_multi_stream_bench_watching, BenchConfig, MultiReport, StreamBeats};
 use cosim::units::merger::{merger_streams, random_merge, MergeStats};
-use golden::merge::fetch_unit::{FetchCmd, FetchOut, FetchTransaction};
-use golden::merge::merger_unit::{
+use golden::merge::fetcher::{FetchCmd, FetchOut, FetchTransaction};
+use golden::merge::level_merge::unit::LevelBeat;
+use golden::merge::merger::{
     cmd_per_level, feeds_module, merger_transaction, MergerSizes, MergerTransaction,
 };
 use golden::merge::stimulus::{place, soup};
-use golden::merge::unit::LevelBeat;
 use golden::merge::MergeMode;
 use golden::params::Params;
 use golden::seed::seeded;
@@ -395,7 +395,7 @@ fn hierarchy_merger_verilog_lints_and_synthesizes() {
                 sizes: MergerSizes {
                     capacity_bits: 2,
                     leaf_bits: 1,
-                    fetch: golden::merge::fetch_unit::FetchSizes {
+                    fetch: golden::merge::fetcher::FetchSizes {
                         roots: 4,
                         frontier: 4,
                     },
@@ -442,7 +442,7 @@ fn hierarchy_merger_per_node_ports_lint_and_synth() {
         sizes: MergerSizes {
             capacity_bits: 2,
             leaf_bits: 1,
-            fetch: golden::merge::fetch_unit::FetchSizes {
+            fetch: golden::merge::fetcher::FetchSizes {
                 roots: 4,
                 frontier: 4,
             },
@@ -669,7 +669,7 @@ fn hierarchy_unit_behind_a_shared_store_port_matches_golden() {
     use golden::vectors::translate::TranslateModel;
     use rtl_gen::merge::HierarchyUnitConfig;
     let mut merger = configs().remove(0).1;
-    merger.sizes.store_port = golden::merge::store_port::StorePort::SHARED;
+    merger.sizes.store_port = golden::merge::merger::store_port::StorePort::SHARED;
     let c = HierarchyUnitConfig::new(merger);
     let mut model = TranslateModel::new(c.table).unwrap();
     let mut rng = SplitMix64(seeded(8018));

@@ -11,8 +11,8 @@ mod merge_common;
 
 use cosim::tb::Stalls;
 use cosim::units::merger::{self, MergerEngine, Merges, ModuleRunConfig, RunConfig};
-use golden::merge::merger_unit::MergerSizes;
-use golden::merge::store_port::StorePort;
+use golden::merge::merger::store_port::StorePort;
+use golden::merge::merger::MergerSizes;
 use golden::merge::MergeMode;
 use golden::params::Params;
 use golden::vectors::merge::MergeDesign;

@@ -1,6 +1,6 @@
 //! S608's overlap counter (unit 508, `rtl_gen::merge::overlap_counter_unit`)
 //! against the golden `overlap_counts` + `above_threshold` through
-//! `golden::merge::unit::overlap_transaction`, bit for bit, random
+//! `golden::merge::level_choice::unit::overlap_transaction`, bit for bit, random
 //! back-pressure (0.05..=0.5), in-order scoreboard; one transaction = one
 //! level (its beats, then `End`; one result beat). The default, D = 31,
 //! Q = 0 and I = 4 run 100,000 levels each on Verilator and on Icarus
@@ -11,7 +11,7 @@ mod merge_common;
 
 use cosim::tb::Vector;
 use cosim::volume::volume;
-use golden::merge::unit::{overlap_transaction, random_overlap_case, OverlapLayout};
+use golden::merge::level_choice::unit::{overlap_transaction, random_overlap_case, OverlapLayout};
 use golden::params::Params;
 use golden::seed::seeded;
 use golden::translate::stimulus::SplitMix64;

@@ -1,6 +1,6 @@
 //! Per-node merging built into the merging module (`per-node:N/D`,
 //! `rtl_gen::merge::per_node_module_unit`, SPEC.md section 8.14) against the
-//! golden `golden::merge::per_node_unit` transactions, bit for bit on
+//! golden `golden::merge::per_node::unit` transactions, bit for bit on
 //! `report` and `out`, with independent random stalls on `cfg`, every input,
 //! `report` and `out`, on the IR simulator, Verilator and Icarus (pipe and
 //! multi-stream batch). One transaction = one merge (cfg, every pass).
@@ -14,11 +14,11 @@ mod merge_common;
 use cosim::tb::StreamBeats;
 use cosim::volume::volume;
 use golden::build::{build, GridMap};
-use golden::merge::per_node_unit::{
+use golden::merge::level_merge::unit::BeatLayout;
+use golden::merge::merging_module::TopLayout;
+use golden::merge::per_node::unit::{
     random_per_node_case, PerNodeCase, PerNodeLayout, PerNodeReport, PerNodeTransaction,
 };
-use golden::merge::top::TopLayout;
-use golden::merge::unit::BeatLayout;
 use golden::merge::MergeMode;
 use golden::params::Params;
 use golden::scenes::random_soup;
@@ -303,7 +303,7 @@ fn per_node_real_merges_match_golden() {
             })
             .collect();
         let refs: Vec<&Hierarchy> = hs.iter().collect();
-        let (lo, hi) = golden::merge::level::candidate_range(&refs);
+        let (lo, hi) = golden::merge::level_choice::candidate_range(&refs);
         cases.push(PerNodeCase {
             hierarchies: hs,
             translations,

@@ -1,5 +1,5 @@
 //! The root sorter (`rtl_gen::merge::root_sorter_unit`) against the golden
-//! `sort_stream` through `golden::merge::unit::root_sort_transaction`, bit
+//! `sort_stream` through `golden::merge::fetcher::root_sorter::root_sort_transaction`, bit
 //! for bit, in-order scoreboard; one transaction = one input's roots
 //! (translated so that Morton order breaks; sometimes more than the
 //! capacity, which must raise `err`). Every configuration passes 100,000
@@ -15,7 +15,8 @@ mod merge_common;
 use cosim::tb::{BenchReport, Vector};
 use cosim::volume::volume;
 use cosim::Bits;
-use golden::merge::unit::{random_roots, root_sort_transaction, BeatLayout, LevelBeat};
+use golden::merge::fetcher::root_sorter::{random_roots, root_sort_transaction};
+use golden::merge::level_merge::unit::{BeatLayout, LevelBeat};
 use golden::params::Params;
 use golden::seed::seeded;
 use golden::translate::stimulus::SplitMix64;

@@ -1,5 +1,5 @@
 //! The merger's store front end (`rtl_gen::merge::store_port_unit`, SPEC.md
-//! 8.15 "The shared store port") against `golden::merge::store_port`: every
+//! 8.15 "The shared store port") against `golden::merge::merger::store_port`: every
 //! requester's answers bit for bit, in its order, on the IR simulator,
 //! Verilator and Icarus, under random and bursty stalls on every stream and
 //! on the store (which answers each read from its contents after a latency,
@@ -10,7 +10,7 @@ mod merge_common;
 use cosim::tb::{BenchConfig, Stalls};
 use cosim::units::multi_stream::ModuleEngine;
 use cosim::units::store_port::{random_transaction, run};
-use golden::merge::store_port::{StoreAddr, StoreArray};
+use golden::merge::merger::store_port::{StoreAddr, StoreArray};
 use golden::params::Params;
 use golden::translate::stimulus::SplitMix64;
 use merge_common::*;
@@ -106,7 +106,8 @@ fn store_port_reads_once_per_clock_without_back_pressure() {
                 .collect()
         })
         .collect();
-    let tx = golden::merge::store_port::store_port_transaction(&c.arrays, reqs, &store).unwrap();
+    let tx =
+        golden::merge::merger::store_port::store_port_transaction(&c.arrays, reqs, &store).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let out = run(
         &c,

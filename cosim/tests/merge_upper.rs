@@ -1,6 +1,6 @@
 //! S616 one level up (`rtl_gen::merge::upper_level_unit`) against the
 //! golden `build::upper::group_by_parent` through
-//! `golden::merge::unit::upper_transaction`, bit for bit, random
+//! `golden::merge::upper_builder::level_unit::upper_transaction`, bit for bit, random
 //! back-pressure (0.05..=0.5), in-order scoreboard; one transaction = one
 //! parent group (its children in, its record out). The default, D = 31,
 //! Q = 0 and I = 3 run 100,000 groups each on Verilator and on Icarus
@@ -11,7 +11,9 @@ mod merge_common;
 
 use cosim::tb::Vector;
 use cosim::volume::volume;
-use golden::merge::unit::{random_upper_level, upper_transaction, UpperBeat, UpperLayout};
+use golden::merge::upper_builder::level_unit::{
+    random_upper_level, upper_transaction, UpperBeat, UpperLayout,
+};
 use golden::params::Params;
 use golden::seed::seeded;
 use golden::translate::stimulus::SplitMix64;

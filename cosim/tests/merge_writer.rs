@@ -1,5 +1,5 @@
 //! S618 in hardware, the record writer (`rtl_gen::merge::record_writer_unit`,
-//! SPEC.md section 8.12) against `golden::merge::writer_unit::writer_transaction`
+//! SPEC.md section 8.12) against `golden::merge::record_writer::writer_transaction`
 //! (expected records and references: the merged hierarchy
 //! `merge::upper::build_upper` lays out, tested equal to `merge()`'s in
 //! golden), bit for bit on every out stream (`ref_req`, `nodes`, `refs`,
@@ -15,13 +15,13 @@ mod merge_common;
 
 use cosim::tb::{MultiReport, StreamBeats};
 use cosim::volume::volume;
-use golden::merge::builder_unit::fixed_level_base;
-use golden::merge::level::candidate_range;
+use golden::merge::level_choice::candidate_range;
 use golden::merge::level_merge::BaseNode;
-use golden::merge::stimulus::{per_node_base, random_case, real_cases};
-use golden::merge::writer_unit::{
+use golden::merge::record_writer::{
     pack_cfg, writer_err, writer_transaction, WriterLayout, WriterTransaction,
 };
+use golden::merge::stimulus::{per_node_base, random_case, real_cases};
+use golden::merge::upper_builder::unit::fixed_level_base;
 use golden::params::Params;
 use golden::seed::seeded;
 use golden::store::Hierarchy;
@@ -90,8 +90,8 @@ fn streams(
         seen.several_roots += (tx.header.roots > 1) as usize;
         let created_at = tx.builder.levels.iter().filter(|l| {
             l.iter().any(|b| {
-                matches!(b, golden::merge::builder_unit::LevelOut::Node { kind, .. }
-                    if *kind == golden::merge::builder_unit::level_out_kind::CREATED)
+                matches!(b, golden::merge::upper_builder::unit::LevelOut::Node { kind, .. }
+                    if *kind == golden::merge::upper_builder::unit::level_out_kind::CREATED)
             })
         });
         seen.created_lods += (created_at.count() > 1) as usize;

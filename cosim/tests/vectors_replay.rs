@@ -12,7 +12,7 @@ use std::path::Path;
 use cosim::tb::Stalls;
 use cosim::units::merge_module::{self, ModuleEngine, ModuleMismatch, RunConfig, UnitStreams};
 use cosim::units::merger;
-use golden::merge::merger_unit::MergerSizes;
+use golden::merge::merger::MergerSizes;
 use golden::merge::MergeMode;
 use golden::params::Params;
 use golden::vectors::merge::MergeDesign;

@@ -8,8 +8,8 @@
 mod merge_support;
 
 use glam::Vec3;
-use golden::merge::level::{candidate_range, overlaps, overlaps_pruned};
-use golden::merge::walk::{collect, walk_input};
+use golden::merge::fetcher::walk::{collect, walk_input};
+use golden::merge::level_choice::{candidate_range, overlaps, overlaps_pruned};
 use golden::merge::{merge, MergeError, MergeMode};
 use golden::mesh::Mesh;
 use golden::params::Params;

@@ -54,7 +54,7 @@ pub struct Args {
     /// answered by a store model in the testbench from a `$readmemh` store
     /// image after --store-latency clocks.
     #[arg(long = "store-port", value_parser = super::cosim::parse_store_port)]
-    store_port: Option<golden::merge::store_port::StorePort>,
+    store_port: Option<golden::merge::merger::store_port::StorePort>,
     /// --store-port shared only: clocks from a read taken to its answer,
     /// at the earliest (default 1).
     #[arg(long = "store-latency")]
@@ -78,7 +78,7 @@ struct Report {
 /// Refuses `--store-port` but with `--unit merger`, and `--store-latency`
 /// but with a shared port.
 fn check_store_flags(a: &Args) -> Result<(), String> {
-    use golden::merge::store_port::StorePort;
+    use golden::merge::merger::store_port::StorePort;
     let shared = matches!(a.store_port, Some(StorePort::Shared { .. }));
     if a.store_port.is_some() && a.unit != Unit::Merger {
         return Err("--store-port applies to --unit merger only".into());

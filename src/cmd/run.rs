@@ -4,7 +4,7 @@
 
 use std::path::PathBuf;
 
-use golden::merge::store_port::StorePort;
+use golden::merge::merger::store_port::StorePort;
 use golden::scene::{Scene, MAX_IMAGE_SIDE};
 use hiermerge::run::{
     closing_table, preflight, run, MergerStore, Options, RunEngine, PATCH_FROM_VAR, PATCH_TO_VAR,

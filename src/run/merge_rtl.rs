@@ -3,7 +3,7 @@
 //! (`rtl_gen::merge::merge_module_unit`, SPEC 8.10) with the frame's inputs
 //! as its `k` input streams: `cfg` = the candidate levels, the count pass
 //! (overlap mode), the choice, which must equal the frame's golden merging
-//! level, and the merge pass (S614) against `golden::merge::top`; then S616
+//! level, and the merge pass (S614) against `golden::merge::merging_module`; then S616
 //! (one upper level, grouping by parent voxel) on that level's nodes when the
 //! scene asks for the upper-level build. Each unit is generated and built the
 //! first time a frame needs it. Per-node mode has no single merging level:
@@ -16,11 +16,12 @@ use cosim::tb::{run_multi_stream_bench, run_stream_bench, BenchConfig, StreamBea
 use cosim::Engine;
 use golden::bits::Bits;
 use golden::layout::LayoutError;
-use golden::merge::level::candidate_range;
-use golden::merge::per_node_unit::{base_by_lod, PerNodeCase, PerNodeLayout};
-use golden::merge::top::{top_transaction, Report, TopLayout};
-use golden::merge::unit::{upper_transaction, BaseBeat, BeatLayout, LevelCase, UpperLayout};
-use golden::merge::walk::{collect, walk_input, PlacedNode, WalkedInput};
+use golden::merge::fetcher::walk::{collect, walk_input, PlacedNode, WalkedInput};
+use golden::merge::level_choice::candidate_range;
+use golden::merge::level_merge::unit::{BaseBeat, BeatLayout, LevelCase};
+use golden::merge::merging_module::{top_transaction, Report, TopLayout};
+use golden::merge::per_node::unit::{base_by_lod, PerNodeCase, PerNodeLayout};
+use golden::merge::upper_builder::level_unit::{upper_transaction, UpperLayout};
 use golden::merge::{MergeMode, MergeStats};
 use golden::store::{Hierarchy, NodeRecord};
 use golden::world::World;
@@ -461,13 +462,13 @@ mod tests {
     /// counts golden `merge` would report for it.
     fn case_with_descents() -> (
         PerNodeCase,
-        golden::merge::per_node_unit::PerNodeTransaction,
+        golden::merge::per_node::unit::PerNodeTransaction,
         MergeStats,
     ) {
         let p = Params::default();
         let mut rng = SplitMix64(3);
         loop {
-            let case = golden::merge::per_node_unit::random_per_node_case(&mut rng, &p, 3, 4);
+            let case = golden::merge::per_node::unit::random_per_node_case(&mut rng, &p, 3, 4);
             let tx = case.transaction(&p, 1, 2).unwrap();
             if tx.descents == 0 || tx.passes == 0 {
                 continue;

@@ -8,7 +8,7 @@
 //! reads its inputs' translations there, its candidate range computed from
 //! the inputs' headers; without translation it is the merger top alone.
 //! Per merge, golden's transaction of the store's real contents
-//! (`merger_unit::merger_transaction` over the group's stored hierarchies
+//! (`merger::merger_transaction` over the group's stored hierarchies
 //! and their translation entries, out id the group's merged id), whose
 //! written records, references and header must equal the merged
 //! hierarchy the frame stored, through cosim's bench of the top
@@ -41,11 +41,11 @@ use cosim::units::hierarchy_unit::{placement_command, write_command, HierarchyCa
 use cosim::units::merger::{
     MergerEngine, MergerSim, ModuleRunConfig, SceneStore, SimOutcome, VerilogPatch,
 };
-use golden::merge::fetch_unit::FetchSizes;
+use golden::merge::fetcher::FetchSizes;
 use golden::merge::hierarchy_unit::{hierarchy_merge, merge_cmd};
-use golden::merge::merger_unit::{merger_transaction, MergerSizes, MergerTransaction, ModulePass};
-use golden::merge::store_port::{StorePort, StoreWords};
-use golden::merge::writer_unit::{writer_err, CrefBeat};
+use golden::merge::merger::store_port::{StorePort, StoreWords};
+use golden::merge::merger::{merger_transaction, MergerSizes, MergerTransaction, ModulePass};
+use golden::merge::record_writer::{writer_err, CrefBeat};
 use golden::merge::MergeMode;
 use golden::store::Hierarchy;
 use golden::translate::Axis;
@@ -382,7 +382,7 @@ fn roomy(p: &Params, hs: &[&Hierarchy]) -> MergerSizes {
         },
         capacity_bits: p.index_bits as u32 - 1,
         leaf_bits: MOST_LEAF_BITS,
-        store_port: golden::merge::store_port::StorePort::PerUnit,
+        store_port: golden::merge::merger::store_port::StorePort::PerUnit,
     }
 }
 
@@ -1063,7 +1063,7 @@ mod tests {
         s.frames = 1;
         let o = Options {
             merger_store: super::MergerStore {
-                port: golden::merge::store_port::StorePort::PerUnit,
+                port: golden::merge::merger::store_port::StorePort::PerUnit,
                 latency: 1,
             },
             ..options(dir.path())
@@ -1144,7 +1144,7 @@ mod tests {
             ..golden::vectors::merge::MergeDesign::default()
         };
         let mut c = rtl_gen::merge::MergerConfig::new(design);
-        c.sizes.store_port = golden::merge::store_port::StorePort::SHARED;
+        c.sizes.store_port = golden::merge::merger::store_port::StorePort::SHARED;
         let module = rtl_gen::merge::hierarchy_merger_unit(&c).unwrap();
         let dir = tempfile::tempdir().unwrap();
         let d = cosim::from_rtl::design_from_module(&module, dir.path()).unwrap();

@@ -17,7 +17,7 @@ use std::path::Path;
 use golden::bits::Bits;
 use golden::layout::Field;
 use golden::merge::hierarchy_unit::{hierarchy_merge, merge_cmd, CmdLayout};
-use golden::merge::merger_unit::{MergerLayout, MergerTransaction};
+use golden::merge::merger::{MergerLayout, MergerTransaction};
 use golden::store::Hierarchy;
 use golden::translate::extents::VoxelRange;
 use golden::translate::stimulus::SplitMix64;
@@ -37,7 +37,7 @@ use super::chunked::{ChunkTotals, ChunkedSim, UnitStreams, CHUNK};
 use super::merger::shared::{Front, SharedSim};
 use super::merger::{SceneStore, SimOutcome};
 use super::multi_stream::{beat_decoder, decoded_pair, ModuleEngine, RunConfig, VerilogPatch};
-use golden::merge::store_port::StorePort;
+use golden::merge::merger::store_port::StorePort;
 
 /// The stage name a run reports.
 pub const STAGE: &str = "hierarchy_unit";
@@ -272,7 +272,7 @@ pub fn run(
     dir: &Path,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<ChunkTotals> {
-    if c.merger.sizes.store_port != golden::merge::store_port::StorePort::PerUnit {
+    if c.merger.sizes.store_port != golden::merge::merger::store_port::StorePort::PerUnit {
         return Err(CosimError::Unsupported {
             what:
                 "a hierarchy unit with a shared store port (its store answers reads as they come)"
@@ -326,7 +326,7 @@ pub fn export_spec(
     stalls: crate::tb::Stalls,
     rtl: &Path,
 ) -> Result<crate::export_tb::ExportSpec> {
-    if c.merger.sizes.store_port != golden::merge::store_port::StorePort::PerUnit {
+    if c.merger.sizes.store_port != golden::merge::merger::store_port::StorePort::PerUnit {
         return Err(CosimError::Unsupported {
             what: "an exported testbench of a hierarchy unit with a shared store port".into(),
         });

@@ -1,5 +1,5 @@
 //! The merging module as one unit (`rtl_gen::merge::merge_module_unit`,
-//! SPEC 8.10) against the golden `golden::merge::top` transactions, bit for
+//! SPEC 8.10) against the golden `golden::merge::merging_module` transactions, bit for
 //! bit on both output streams, with independent seeded stalls on every
 //! stream: `cfg`, `in0`..`in{k-1}` in, `report`, `out` out. A transaction
 //! is one merge (its `cfg` beat, count pass, choice, merge pass).

@@ -1,6 +1,6 @@
 //! The hierarchy merger (`rtl_gen::merge::hierarchy_merger_unit`, S610-S618
 //! as one top, SPEC 8.15) against
-//! `golden::merge::merger_unit::merger_transaction`, bit for bit on every
+//! `golden::merge::merger::merger_transaction`, bit for bit on every
 //! out stream, with independent seeded stalls on every stream. A
 //! transaction is one merge: its `cfg` beat in, its `header` beat out.
 //!
@@ -15,9 +15,9 @@
 use std::path::Path;
 
 use golden::layout::Field;
-use golden::merge::merger_unit::{MergerTransaction, ModulePass};
-use golden::merge::per_node_unit::PerNodeReport;
-use golden::merge::store_port::StoreWords;
+use golden::merge::merger::store_port::StoreWords;
+use golden::merge::merger::{MergerTransaction, ModulePass};
+use golden::merge::per_node::unit::PerNodeReport;
 use golden::merge::MergeMode;
 use golden::translate::stimulus::SplitMix64;
 pub use golden::vectors::streams::Merges;
@@ -135,7 +135,7 @@ pub struct MergerStreams {
 /// Whether `c`'s units share one store port (`StorePort::Shared`): its
 /// bench answers `store_req` from a store model ([`run`]).
 pub fn is_shared(c: &MergerConfig) -> bool {
-    c.sizes.store_port != golden::merge::store_port::StorePort::PerUnit
+    c.sizes.store_port != golden::merge::merger::store_port::StorePort::PerUnit
 }
 
 /// Refuses a shared-port merger where only precomputed streams run (the

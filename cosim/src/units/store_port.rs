@@ -1,5 +1,5 @@
 //! The store front end (`rtl_gen::merge::store_port_unit`, SPEC 8.15 "The
-//! shared store port") against `golden::merge::store_port`, and the store
+//! shared store port") against `golden::merge::merger::store_port`, and the store
 //! model every bench of a shared port answers it with.
 //!
 //! The interleaving of reads on `store_req` depends on timing (which
@@ -15,7 +15,7 @@ use std::collections::VecDeque;
 use std::path::Path;
 
 use golden::bits::Bits;
-use golden::merge::store_port::{
+use golden::merge::merger::store_port::{
     store_port_transaction, StoreAddr, StoreArray, StorePortLayout, StorePortTransaction,
     StoreWords,
 };

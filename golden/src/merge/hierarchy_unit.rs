@@ -19,9 +19,9 @@ use crate::params::{bits_to_hold, Params};
 use crate::store::{Hierarchy, HierarchyStore};
 use crate::translate::TranslationTable;
 
-use super::level::deep_lod;
-use super::merger_unit::{merger_transaction_in_range, MergerSizes, MergerTransaction};
 use super::{MergeError, MergeMode};
+use crate::merge::level_choice::deep_lod;
+use crate::merge::merger::{merger_transaction_in_range, MergerSizes, MergerTransaction};
 
 /// `kind` of a determine command.
 pub const KIND_DETERMINE: u64 = 0;
@@ -279,7 +279,7 @@ pub fn hierarchy_merge(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::merge::level::candidate_range;
+    use crate::merge::level_choice::candidate_range;
     use crate::merge::stimulus::soup;
     use crate::translate::stimulus::SplitMix64;
 

@@ -8,7 +8,7 @@
 
 use std::collections::BTreeMap;
 
-use super::view::grid_offset;
+use crate::merge::view::grid_offset;
 use crate::mesh::Mesh;
 use crate::store::{Hierarchy, HierarchyStore};
 use crate::trace::Instance;

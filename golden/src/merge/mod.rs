@@ -2,44 +2,51 @@
 //! section 8): merges translated input hierarchies into a new hierarchy
 //! whose records reference the inputs' nodes, leaving the inputs untouched.
 //!
-//! The stages, each a stream stage the RTL mirrors:
-//! 1. [`level`]: S608, the merging level (unit 508): candidate levels, the
-//!    overlap counts per level, the mode's choice.
-//! 2. [`walk`]: S610 + S612: each input walked from its top down to the
-//!    merging level, every node translated; leaves above the level and the
-//!    nodes at it collected.
-//! 3. [`level_merge`]: S614: merged nodes at the merging level, grouped by
-//!    voxel over the Morton-sorted union of the inputs' nodes
-//!    ([`per_node`] for the per-node mode of paragraph 55).
-//! 4. [`upper`]: S616: the upper levels, with the builder's grouping and top
-//!    rule (shared code), and the records' layout.
-//! 5. [`merge`] / [`merge_into`]: S618, the merged hierarchy (and its
-//!    statistics); [`merge_into`] stores it.
+//! One module per unit of the patent, each holding the algorithm (the
+//! module itself) and, where the unit is built in hardware, its transaction
+//! model as the RTL sees it (beat layouts, expected outputs from the
+//! algorithm, seeded stimulus). The same names are used by the generators
+//! (`rtl_gen::merge`), the benches (`cosim::units`) and docs/hardware.md:
+//! 1. [`level_choice`]: S608, the merging level (unit 508): candidate
+//!    levels, the overlap counts per level, the mode's choice;
+//!    [`level_choice::unit`] is the overlap counter.
+//! 2. [`fetcher`]: S610 + S612: each input walked from its top down to the
+//!    merging level, every node translated ([`fetcher::walk`]); the leaves
+//!    above the level and the nodes at it collected; [`fetcher::root_sorter`].
+//! 3. [`level_merge`]: S614 (unit 506): merged nodes at the merging level,
+//!    grouped by voxel over the Morton-sorted union of the inputs' nodes;
+//!    [`level_merge::unit`] holds the merging module's beat format.
+//!    [`per_node`] is the per-node mode of paragraph 55.
+//! 4. [`upper_builder`]: S616: the upper levels, with the mesh builder's
+//!    grouping and top rule (shared code), and the records' layout;
+//!    [`upper_builder::level_unit`] one level in hardware,
+//!    [`upper_builder::unit`] every level at once.
+//! 5. [`record_writer`]: S618 in hardware; [`merge`] / [`merge_into`]: the
+//!    merged hierarchy (and its statistics); [`merge_into`] stores it.
 //!
-//! [`view`] gives the checker and traversal what they need to read a merged
-//! hierarchy through its inputs' translations.
+//! The assemblies: [`merging_module`] (S608 + S614 + per-node behind one
+//! `cfg`), [`merger`] (the merger top: fetchers, merging module, upper
+//! builder, record writer, its store port [`merger::store_port`]) and
+//! [`hierarchy_unit`] (the translation unit's table feeding the merger
+//! top). [`view`] gives the checker and traversal what they need to read a
+//! merged hierarchy through its inputs' translations.
 
-pub mod builder_unit;
 pub mod error;
-pub mod fetch_unit;
+pub mod fetcher;
 pub mod hierarchy_unit;
 pub mod instances;
-pub mod level;
+pub mod level_choice;
 pub mod level_merge;
-pub mod merger_unit;
+pub mod merger;
+pub mod merging_module;
 pub mod per_node;
-pub mod per_node_unit;
+pub mod record_writer;
 pub mod stimulus;
-pub mod store_port;
-pub mod top;
-pub mod unit;
-pub mod upper;
+pub mod upper_builder;
 pub mod view;
-pub mod walk;
-pub mod writer_unit;
 
 pub use error::MergeError;
-pub use level::{overlap_counts, LevelOverlap};
+pub use level_choice::{overlap_counts, LevelOverlap};
 pub use view::MergedCheckView;
 
 use serde::Serialize;
@@ -47,9 +54,9 @@ use serde::Serialize;
 use crate::params::Params;
 use crate::store::{Hierarchy, HierarchyStore};
 use crate::translate::{Translation, TranslationTable};
+use fetcher::walk::{collect, walk_input, WalkedInput};
 use level_merge::LevelMergeCounts;
 use per_node::{PerNode, PerNodeCounts};
-use walk::{collect, walk_input, WalkedInput};
 
 /// How the merging level is chosen (paragraphs 53-55).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -226,14 +233,14 @@ pub fn merge(
     out_id: u8,
 ) -> Result<MergeResult, MergeError> {
     let (hs, ts, p) = resolve_inputs(store, inputs, table, out_id)?;
-    let (lo, hi) = level::candidate_range(&hs);
+    let (lo, hi) = level_choice::candidate_range(&hs);
     let mut stats = MergeStats {
         candidates: (lo, hi),
         ..MergeStats::default()
     };
     let (base, level) = match mode {
         MergeMode::PerNode { num, den } => {
-            level::check_ratio("PerNode", num, den)?;
+            level_choice::check_ratio("PerNode", num, den)?;
             let walked = walk_all(&hs, &ts, lo)?;
             let (above, first_level) = collect(&walked, lo);
             stats.nodes_walked = walked_count(&walked);
@@ -256,11 +263,11 @@ pub fn merge(
         _ => {
             let walked;
             let m = if let MergeMode::Overlap { num, den } = mode {
-                level::check_ratio("Overlap", num, den)?;
+                level_choice::check_ratio("Overlap", num, den)?;
                 let to_lo = walk_all(&hs, &ts, lo)?;
                 let (_, at_lo) = collect(&to_lo, lo);
-                stats.overlap = level::overlaps_pruned(&hs, &ts, at_lo, lo, hi)?;
-                let m = level::choose_level(&mode, lo, hi, &stats.overlap)?.unwrap_or(lo);
+                stats.overlap = level_choice::overlaps_pruned(&hs, &ts, at_lo, lo, hi)?;
+                let m = level_choice::choose_level(&mode, lo, hi, &stats.overlap)?.unwrap_or(lo);
                 walked = if m == lo {
                     to_lo
                 } else {
@@ -268,7 +275,7 @@ pub fn merge(
                 };
                 m
             } else {
-                let m = level::choose_level(&mode, lo, hi, &[])?.unwrap_or(lo);
+                let m = level_choice::choose_level(&mode, lo, hi, &[])?.unwrap_or(lo);
                 walked = walk_all(&hs, &ts, m)?;
                 m
             };
@@ -285,7 +292,7 @@ pub fn merge(
             (base, Some(m))
         }
     };
-    let (merged, upper) = upper::build_upper(&base, &hs, &p, out_id)?;
+    let (merged, upper) = upper_builder::build_upper(&base, &hs, &p, out_id)?;
     stats.upper_nodes = upper.grouped;
     stats.materialized = upper.materialized;
     stats.lifted = upper.lifted;

@@ -4,18 +4,19 @@
 //! not part of the model: every value they give is checked by the units'
 //! transactions, which take them as input.
 
-use super::error::MergeError;
-use super::level_merge::{BaseKind, BaseNode, LevelMergeCounts};
 use crate::build::{build, GridMap};
-use crate::merge::level::candidate_range;
+use crate::merge::error::MergeError;
+use crate::merge::fetcher::walk::{collect, walk_input, WalkedInput};
+use crate::merge::level_choice::candidate_range;
+use crate::merge::level_merge::{BaseKind, BaseNode, LevelMergeCounts};
 use crate::merge::per_node::{PerNode, PerNodeCounts};
-use crate::merge::walk::{collect, walk_input, WalkedInput};
 use crate::params::Params;
 use crate::scenes::random_soup;
 use crate::store::{Hierarchy, HierarchyStore, NodeRecord, Reference};
+use crate::translate::stimulus::SplitMix64;
 use crate::translate::{Translation, TranslationTable};
 
-/// A random writer case: `builder_unit::random_base` (every top rule,
+/// A random writer case: `upper_builder::unit::random_base` (every top rule,
 /// leaves above the merging level) with each created node's `count` its
 /// number of references (as S614 makes it) and every reused inner node
 /// pointing at a node of small synthetic stored inputs (ids from 1, never
@@ -38,7 +39,7 @@ pub fn random_case(
         .iter()
         .map(|&id| synthetic_input(rng, p, id, per_input))
         .collect();
-    let mut base = super::builder_unit::random_base(rng, p, n);
+    let mut base = crate::merge::upper_builder::unit::random_base(rng, p, n);
     // Sometimes created nodes at shallower LODs too, as per-node merging
     // (8.5) makes them.
     if rng.below(3) == 0 {
@@ -292,4 +293,39 @@ pub fn several_roots_case(
     store.insert(big).map_err(|e| format!("store: {e}"))?;
     store.insert(small).map_err(|e| format!("store: {e}"))?;
     Ok((store, table, ids))
+}
+
+// The random draws every stage's stimulus uses.
+
+pub(crate) fn random_coord(rng: &mut SplitMix64, lod: u8) -> u32 {
+    let n = 1u64 << lod;
+    match rng.below(8) {
+        0 => 0,
+        1 => (n - 1) as u32,
+        _ => rng.below(n) as u32,
+    }
+}
+
+pub(crate) fn random_box(rng: &mut SplitMix64, p: &Params) -> ([u16; 3], [u16; 3]) {
+    let cells = p.quant_cells() as u64;
+    let mut lo = [0u16; 3];
+    let mut hi = [0u16; 3];
+    for a in 0..3 {
+        let (x, y) = match rng.below(6) {
+            0 => (0, cells - 1),
+            1 => (cells - 1, cells - 1),
+            _ => (rng.below(cells), rng.below(cells)),
+        };
+        lo[a] = x.min(y) as u16;
+        hi[a] = x.max(y) as u16;
+    }
+    (lo, hi)
+}
+
+pub(crate) fn random_index(rng: &mut SplitMix64, p: &Params, at_least: u64) -> u32 {
+    let cap = p.index_capacity();
+    match rng.below(4) {
+        0 => (cap - 1) as u32,
+        _ => rng.below(cap - at_least).saturating_add(at_least) as u32,
+    }
 }

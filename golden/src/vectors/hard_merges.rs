@@ -4,12 +4,12 @@
 //! like a random merge's, so a bench checks it bit for bit.
 
 use crate::build::{build, GridMap};
-use crate::merge::fetch_unit::{
+use crate::merge::fetcher::{
     fetch_err, fetch_transaction_with_reports, FetchCfg, FetchOut, FetchTransaction,
 };
-use crate::merge::level::candidate_range;
-use crate::merge::merger_unit::MergerSizes;
-use crate::merge::merger_unit::{
+use crate::merge::level_choice::candidate_range;
+use crate::merge::merger::MergerSizes;
+use crate::merge::merger::{
     merger_transaction, merger_transaction_in_range, MergerTransaction, ModulePass,
 };
 use crate::merge::stimulus::{
@@ -448,7 +448,7 @@ mod tests {
                 assert!(f
                     .leaves
                     .iter()
-                    .all(|l| matches!(l, crate::merge::fetch_unit::LeafOut::End)));
+                    .all(|l| matches!(l, crate::merge::fetcher::LeafOut::End)));
                 assert!(!tx.header.leaf_overflow, "{mode} {code}");
                 assert_eq!(tx.cfg.inputs.len(), tx.fetch.len(), "{mode} {code}");
             }

@@ -24,7 +24,7 @@ use super::streams::{
 use super::{read_jsonl, wide_to_json, Fields, Header, ParamMap, UnitKind, VectorError};
 use crate::bits::Bits;
 use crate::layout::Field;
-use crate::merge::merger_unit::MergerSizes;
+use crate::merge::merger::MergerSizes;
 use crate::translate::stimulus::SplitMix64;
 
 /// Field `f` of `b` as 64-bit words, least significant first.

@@ -9,14 +9,14 @@
 
 use crate::bits::Bits;
 use crate::layout::Field;
-use crate::merge::fetch_unit::FetchLayout;
-use crate::merge::merger_unit::{
+use crate::merge::fetcher::FetchLayout;
+use crate::merge::level_merge::unit::BeatLayout;
+use crate::merge::merger::{
     merger_transaction, MergerLayout, MergerSizes, MergerTransaction, ModulePass,
 };
-use crate::merge::per_node_unit::{random_per_node_case, PerNodeLayout};
+use crate::merge::merging_module::{random_top_transaction, TopLayout};
+use crate::merge::per_node::unit::{random_per_node_case, PerNodeLayout};
 use crate::merge::stimulus::{place, try_soup};
-use crate::merge::top::{random_top_transaction, TopLayout};
-use crate::merge::unit::BeatLayout;
 use crate::merge::MergeMode;
 use crate::store::{Hierarchy, HierarchyStore, NodeRecord, Reference};
 use crate::translate::stimulus::SplitMix64;

@@ -12,8 +12,9 @@
 //! (BMC from reset) reaches a full buffer and one beat more: a fault is then
 //! a counterexample from reset, not only a failed induction step.
 
-use golden::merge::per_node_unit::PerNodeLayout;
-use golden::merge::unit::{base_kind, level_kind, BeatLayout, OverlapLayout};
+use golden::merge::level_choice::unit::OverlapLayout;
+use golden::merge::level_merge::unit::{base_kind, level_kind, BeatLayout};
+use golden::merge::per_node::unit::PerNodeLayout;
 use golden::merge::MergeMode;
 use golden::vectors::merge::MergeDesign;
 use golden::vectors::translate::TranslateDesign;
@@ -386,7 +387,7 @@ pub fn upper_builder_default() -> Proof {
 /// are memories, held twice by the two-copy check).
 pub fn fetcher() -> Proof {
     let c = MergeDesign::default();
-    let sizes = golden::merge::fetch_unit::FetchSizes::default();
+    let sizes = golden::merge::fetcher::FetchSizes::default();
     Proof::new(
         crate::merge::fetcher_unit(&c.params, &sizes),
         &["cfg", "cmd", "node_resp", "ref_resp", "cref_resp"],
@@ -401,7 +402,7 @@ pub fn fetcher() -> Proof {
 /// `probe_req` out; handshake only, as [`fetcher`].
 pub fn fetcher_per_node() -> Proof {
     let c = MergeDesign::default();
-    let sizes = golden::merge::fetch_unit::FetchSizes::default();
+    let sizes = golden::merge::fetcher::FetchSizes::default();
     Proof::new(
         crate::merge::fetcher_per_node_unit(&c.params, &sizes),
         &[
@@ -502,7 +503,7 @@ fn merger_handshake(design: MergeDesign) -> Proof {
 /// answers only reads it has taken. Which requester gets which word is the
 /// bench's to check (`cosim/tests/merge_store_port.rs`).
 pub fn store_port() -> Proof {
-    use golden::merge::store_port::StoreArray::{Node, Reference};
+    use golden::merge::merger::store_port::StoreArray::{Node, Reference};
     let c = crate::merge::StorePortConfig {
         params: golden::params::Params::new(4, 0, 8, 2).expect("valid parameters"),
         arrays: vec![Node, Reference, Reference],
@@ -561,7 +562,7 @@ fn small_params() -> golden::params::Params {
 
 /// The fetchers' small sizes: 2 roots, a frontier of 2 ranges (a FIFO of 8
 /// words).
-const SMALL_FETCH: golden::merge::fetch_unit::FetchSizes = golden::merge::fetch_unit::FetchSizes {
+const SMALL_FETCH: golden::merge::fetcher::FetchSizes = golden::merge::fetcher::FetchSizes {
     roots: 2,
     frontier: 2,
 };
@@ -569,7 +570,7 @@ const SMALL_FETCH: golden::merge::fetch_unit::FetchSizes = golden::merge::fetch_
 /// The `kind` field of the small fetchers' `out` beat (the tests' broken
 /// fetcher clears it).
 pub fn small_fetch_out_kind() -> golden::layout::Field {
-    golden::merge::fetch_unit::FetchLayout::new(&small_params())
+    golden::merge::fetcher::FetchLayout::new(&small_params())
         .beat
         .kind
 }
@@ -581,7 +582,7 @@ fn data(s: &str, f: &golden::layout::Field) -> String {
 
 /// The `End`-kind beats a `cmd` beat asks of a fetcher: a level command,
 /// `lod - min(from, lod) + 1` (8.13: every command sends exactly that many).
-fn levels_asked(l: &golden::merge::fetch_unit::FetchLayout) -> String {
+fn levels_asked(l: &golden::merge::fetcher::FetchLayout) -> String {
     let (lod, from) = (data("cmd", &l.lod), data("cmd", &l.from));
     format!("({lod} - ({from} < {lod} ? {from} : {lod}) + 1'b1)")
 }
@@ -597,7 +598,7 @@ fn levels_asked(l: &golden::merge::fetch_unit::FetchLayout) -> String {
 /// two of the one before in that skid buffer.
 fn fetcher_small_proof(
     m: Module,
-    l: &golden::merge::fetch_unit::FetchLayout,
+    l: &golden::merge::fetcher::FetchLayout,
     ends: String,
     capacity: u32,
     rules: Vec<(String, String)>,
@@ -654,7 +655,7 @@ fn fetcher_small_proof(
 /// at step 13), determined to 12 (16 took 5 minutes).
 pub fn fetcher_small() -> Proof {
     let p = small_params();
-    let l = golden::merge::fetch_unit::FetchLayout::new(&p);
+    let l = golden::merge::fetcher::FetchLayout::new(&p);
     let ends = format!("{} ? {} : 1'b0", fire("cmd"), levels_asked(&l));
     fetcher_small_proof(
         crate::merge::fetcher_unit(&p, &SMALL_FETCH),
@@ -672,7 +673,7 @@ pub fn fetcher_small() -> Proof {
 /// command. BMC as [`fetcher_small`].
 pub fn fetcher_per_node_small() -> Proof {
     let p = small_params();
-    let l = golden::merge::fetch_unit::FetchLayout::per_node(&p);
+    let l = golden::merge::fetcher::FetchLayout::per_node(&p);
     let pn = l.pn.as_ref().expect("per-node fields");
     let ends = format!(
         "({} ? ({} ? 1'b1 : {}) : 1'b0) + ({} && {} && {})",
@@ -751,7 +752,7 @@ pub fn record_writer_small() -> Proof {
 /// `store_port`.
 fn small_merger(
     mode: MergeMode,
-    store_port: golden::merge::store_port::StorePort,
+    store_port: golden::merge::merger::store_port::StorePort,
 ) -> crate::merge::MergerConfig {
     crate::merge::MergerConfig {
         design: MergeDesign {
@@ -760,7 +761,7 @@ fn small_merger(
             mode,
             roots: SMALL_FETCH.roots,
         },
-        sizes: golden::merge::merger_unit::MergerSizes {
+        sizes: golden::merge::merger::MergerSizes {
             fetch: SMALL_FETCH,
             capacity_bits: 2,
             leaf_bits: 1,
@@ -847,7 +848,7 @@ pub fn hierarchy_merger_per_node_small() -> Proof {
 pub fn hierarchy_merger_store_port() -> Proof {
     let c = small_merger(
         MergeMode::Overlap { num: 1, den: 2 },
-        golden::merge::store_port::StorePort::Shared { tag_bits: 1 },
+        golden::merge::merger::store_port::StorePort::Shared { tag_bits: 1 },
     );
     let mut p = merger_small_proof(&c, true).flow(Flow::Counted {
         name: "store_answered".into(),

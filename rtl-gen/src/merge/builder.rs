@@ -14,8 +14,9 @@
 //! node is completed only by the level's `End`; so when stage `d` decides
 //! that `d` is the top, no beat of a shallower level has left yet.
 
-use golden::merge::builder_unit::{level_out_kind, BuilderLayout};
-use golden::merge::unit::{base_kind, UpperLayout};
+use golden::merge::level_merge::unit::base_kind;
+use golden::merge::upper_builder::level_unit::UpperLayout;
+use golden::merge::upper_builder::unit::{level_out_kind, BuilderLayout};
 use golden::params::Params;
 
 use super::fields::{coords, field};

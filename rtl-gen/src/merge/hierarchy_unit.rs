@@ -14,7 +14,7 @@
 //! Golden: `golden::merge::hierarchy_unit`.
 
 use golden::merge::hierarchy_unit::{CmdLayout, KIND_MERGE};
-use golden::merge::merger_unit::MergerLayout;
+use golden::merge::merger::MergerLayout;
 use golden::translate::TranslateUnitConfig;
 use golden::vectors::translate::TranslateDesign;
 

@@ -14,7 +14,9 @@
 //! back-pressure the skid buffers keep them all present and one beat leaves
 //! per clock. When every head is `End`, one `End` leaves and all are taken.
 
-use golden::merge::unit::{level_kind, rank_bits, BeatLayout};
+use golden::merge::level_choice::unit::rank_bits;
+
+use golden::merge::level_merge::unit::{level_kind, BeatLayout};
 use golden::params::Params;
 
 use super::fields::{coords, field};

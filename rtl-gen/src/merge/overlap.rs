@@ -11,7 +11,7 @@
 //! A count that would reach `2^I` sets the sticky overflow flag; the output
 //! then carries zeros besides it (as the golden transaction says).
 
-use golden::merge::unit::OverlapLayout;
+use golden::merge::level_choice::unit::OverlapLayout;
 use golden::params::Params;
 
 use super::fields::field;
@@ -45,7 +45,7 @@ pub(super) fn times_constant<'m>(
 
 /// The overlap counter for `p`, `inputs` inputs (rank width) and threshold
 /// `num / den` (`0 <= num <= den`, `den >= 1`; checked by the caller with
-/// `golden::merge::level::check_ratio`).
+/// `golden::merge::level_choice::check_ratio`).
 pub fn overlap_counter_unit(p: &Params, inputs: usize, num: u32, den: u32) -> Module {
     let m = Module::new(&overlap_counter_name(p, inputs, num, den));
     let l = OverlapLayout::new(p, inputs);

@@ -16,9 +16,10 @@
 //! Only this configuration instantiates these modules: the other modes'
 //! merging modules hold no per-node logic.
 
-use golden::merge::per_node_unit::{PerNodeLayout, CHILD_COUNT_BITS};
-use golden::merge::top::{choice_err, TopLayout};
-use golden::merge::unit::{base_kind, level_kind, rank_bits, BeatLayout};
+use golden::merge::level_choice::unit::rank_bits;
+use golden::merge::level_merge::unit::{base_kind, level_kind, BeatLayout};
+use golden::merge::merging_module::{choice_err, TopLayout};
+use golden::merge::per_node::unit::{PerNodeLayout, CHILD_COUNT_BITS};
 use golden::params::Params;
 
 use super::fields::{coords, field, with_fields};

@@ -2,7 +2,7 @@
 //! 107's Morton code sorter, bounded): the roots of one input, translated,
 //! in stored order, then `End`; out, the same beats in (translated Morton
 //! code, inner before leaf) order, stable, then `End`. Sorting the roots is
-//! enough (`golden::merge::unit::root_sort_transaction` says why): below the
+//! enough (`golden::merge::fetcher::root_sorter::root_sort_transaction` says why): below the
 //! top a translation keeps every child's octant.
 //!
 //! One shift-register queue of `capacity + 1` entries holds output beats:
@@ -16,7 +16,7 @@
 //! queue never holds more than `capacity + 1` entries and the input never
 //! waits (SPEC.md 8.9 proves it). Skid buffers register both handshakes.
 
-use golden::merge::unit::{level_kind, BeatLayout};
+use golden::merge::level_merge::unit::{level_kind, BeatLayout};
 use golden::params::{bits_to_hold, Params};
 
 use super::fields::{field, with_fields};

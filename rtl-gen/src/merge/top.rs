@@ -12,9 +12,10 @@
 //! last). The mode is built in: a configuration holds only its own choice
 //! logic, and no overlap counter unless it counts.
 
-use golden::merge::level::choose_level;
-use golden::merge::top::{choice_err, TopLayout};
-use golden::merge::unit::{base_kind, level_kind, rank_bits, BeatLayout, OverlapLayout};
+use golden::merge::level_choice::choose_level;
+use golden::merge::level_choice::unit::{rank_bits, OverlapLayout};
+use golden::merge::level_merge::unit::{base_kind, level_kind, BeatLayout};
+use golden::merge::merging_module::{choice_err, TopLayout};
 use golden::merge::MergeMode;
 use golden::params::Params;
 

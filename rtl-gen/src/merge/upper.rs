@@ -14,7 +14,7 @@
 //! or a child's box has `lo > hi` (the only use of the cells' bit 0).
 //! The input beat carries only the record bits S616 reads (`lod` to `hi_z`).
 
-use golden::merge::unit::UpperLayout;
+use golden::merge::upper_builder::level_unit::UpperLayout;
 use golden::params::Params;
 
 use super::fields::field;

@@ -18,8 +18,8 @@
 //! next merge whose top is `<= d`. A merge ending with top `t` clears the
 //! levels `d >= t` and leaves the others as they are.
 
-use golden::merge::builder_unit::level_out_kind;
-use golden::merge::writer_unit::{writer_err, CapacityError, WriterLayout};
+use golden::merge::record_writer::{writer_err, CapacityError, WriterLayout};
+use golden::merge::upper_builder::unit::level_out_kind;
 use golden::params::Params;
 
 use super::fields::field;

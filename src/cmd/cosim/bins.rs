@@ -92,7 +92,7 @@ pub(super) fn merger(k: usize, s: &cosim::units::merger::MergeStats) {
     for (o, n) in outcomes {
         hit(&format!("merger.{o}"), n as u64);
     }
-    use golden::merge::fetch_unit::fetch_err;
+    use golden::merge::fetcher::fetch_err;
     let fetch_codes = [
         (fetch_err::ENTRY, "entry"),
         (fetch_err::ROOT_COUNT, "root_count"),
@@ -103,7 +103,7 @@ pub(super) fn merger(k: usize, s: &cosim::units::merger::MergeStats) {
         .map(|c| c.0)
         .eq(golden::vectors::hard_merges::CFG_ERRORS));
     codes("merger.fetch_err", &fetch_codes, &s.fetch_codes);
-    use golden::merge::writer_unit::writer_err;
+    use golden::merge::record_writer::writer_err;
     let writer_codes = [
         (writer_err::NO_TOP, "no_top"),
         (writer_err::CAPACITY, "capacity"),

@@ -102,7 +102,7 @@ pub(super) fn run_args(a: &Args) -> Result<Vec<String>, String> {
                     push("--leaf-bits", l.to_string());
                 }
                 // Only when shared, so per-unit entries keep their form.
-                if let Some(golden::merge::store_port::StorePort::Shared { tag_bits }) =
+                if let Some(golden::merge::merger::store_port::StorePort::Shared { tag_bits }) =
                     a.store_port
                 {
                     push("--store-port", format!("shared:{tag_bits}"));

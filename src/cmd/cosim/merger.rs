@@ -183,10 +183,10 @@ fn store_report(
     let reads = st.stats.reads.max(1) as f64;
     StoreReport {
         port: match c.sizes.store_port {
-            golden::merge::store_port::StorePort::Shared { tag_bits } => {
+            golden::merge::merger::store_port::StorePort::Shared { tag_bits } => {
                 format!("shared:{tag_bits}")
             }
-            golden::merge::store_port::StorePort::PerUnit => "per-unit".into(),
+            golden::merge::merger::store_port::StorePort::PerUnit => "per-unit".into(),
         },
         latency: a.store_latency.unwrap_or(1),
         reads: st.stats.reads,

@@ -266,7 +266,7 @@ pub struct Args {
     /// FIFO of 2^T reads in flight (default T = 3), answered by a store
     /// model after --store-latency clocks.
     #[arg(long = "store-port", value_parser = parse_store_port)]
-    store_port: Option<golden::merge::store_port::StorePort>,
+    store_port: Option<golden::merge::merger::store_port::StorePort>,
     /// --unit merger --store-port shared only: clocks from a read taken to
     /// its answer, at the earliest (default 1).
     #[arg(long = "store-latency")]
@@ -291,8 +291,10 @@ pub struct Args {
 const DEFAULT_COUNT: u64 = 10_000;
 
 /// `--store-port`: `per-unit`, `shared` or `shared:T` (T in 1..=8).
-pub(crate) fn parse_store_port(text: &str) -> Result<golden::merge::store_port::StorePort, String> {
-    use golden::merge::store_port::StorePort;
+pub(crate) fn parse_store_port(
+    text: &str,
+) -> Result<golden::merge::merger::store_port::StorePort, String> {
+    use golden::merge::merger::store_port::StorePort;
     match text {
         "per-unit" => return Ok(StorePort::PerUnit),
         "shared" => return Ok(StorePort::SHARED),
@@ -487,7 +489,7 @@ fn check_flags(a: &Args) -> Result<(), String> {
     )?;
     let shared = matches!(
         a.store_port,
-        Some(golden::merge::store_port::StorePort::Shared { .. })
+        Some(golden::merge::merger::store_port::StorePort::Shared { .. })
     );
     if a.store_latency.is_some() && !shared {
         return Err("--store-latency applies to --store-port shared only".into());

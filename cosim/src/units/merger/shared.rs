@@ -21,8 +21,8 @@
 use std::path::Path;
 
 use golden::bits::Bits;
-use golden::merge::merger_unit::MergerLayout;
-use golden::merge::store_port::{StoreAddr, StoreArray, StorePortLayout, StoreWords};
+use golden::merge::merger::store_port::{StoreAddr, StoreArray, StorePortLayout, StoreWords};
+use golden::merge::merger::MergerLayout;
 use rtl_gen::merge::MergerConfig;
 
 use super::{chunk_sizes, decoder_of, golden_chunk, merger_module, Draw, PULSES};

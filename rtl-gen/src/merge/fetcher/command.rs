@@ -2,7 +2,7 @@
 //! kept until the last command) and `cmd` (one walk), the phase register,
 //! and START's header checks.
 
-use golden::merge::fetch_unit::fetch_err;
+use golden::merge::fetcher::fetch_err;
 
 use super::super::fields::field;
 use super::parts::{Move, Next};

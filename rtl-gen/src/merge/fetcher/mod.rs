@@ -1,6 +1,6 @@
 //! The fetcher (S610 + S612 in hardware, SPEC.md section 8.13): walks one
 //! input hierarchy in the store, translating every node it reads, and sends
-//! the merging module's per-input stream (`golden::merge::top::input_stream`
+//! the merging module's per-input stream (`golden::merge::merging_module::input_stream`
 //! order) and the leaves above the walked level.
 //!
 //! A read pipeline, one node per clock: the roots are read in stored
@@ -33,7 +33,7 @@ mod parts;
 mod visit;
 mod walk;
 
-use golden::merge::fetch_unit::{fetch_err, FetchLayout, FetchSizes};
+use golden::merge::fetcher::{fetch_err, FetchLayout, FetchSizes};
 use golden::params::Params;
 
 use crate::{Module, Signal, Stream};
@@ -113,7 +113,7 @@ impl<'m> Ctx<'_, 'm> {
         self.m.lit(v as u128, w)
     }
 
-    /// An error code of `golden::merge::fetch_unit::fetch_err`.
+    /// An error code of `golden::merge::fetcher::fetch_err`.
     fn code4(&self, c: u64) -> Signal<'m> {
         self.lit(c, fetch_err::BITS)
     }
@@ -149,7 +149,7 @@ fn ports<'m>(cx: &Ctx<'_, 'm>) -> Ports<'m> {
 /// The fetcher for `p` with a root sorter of `sizes.roots` entries and a
 /// frontier FIFO of `2 * sizes.frontier + 1` words, rounded up to a power of
 /// two (a level's ranges popped while the next's are pushed, a marker).
-/// Streams (beats of `golden::merge::fetch_unit::FetchLayout`): `cfg`,
+/// Streams (beats of `golden::merge::fetcher::FetchLayout`): `cfg`,
 /// `cmd`, `node_resp`, `ref_resp`, `cref_resp` in; `node_req`, `ref_req`,
 /// `cref_req`, `out`, `leaves` out. `idle` is high while no command is in
 /// progress.
@@ -161,7 +161,7 @@ pub fn fetcher_unit(p: &Params, sizes: &FetchSizes) -> Module {
 /// `per_node` bit, `out`'s `probe` bit, the `report` input (the glue's
 /// narrow beat of the per-node module's `report`) and the `probe` read
 /// port (`probe_req` out, `probe_resp` in: a node index, a record), all
-/// from `golden::merge::fetch_unit::FetchLayout::per_node`. Level commands
+/// from `golden::merge::fetcher::FetchLayout::per_node`. Level commands
 /// run as in [`fetcher_unit`] (one more out stage: the probes' answers).
 pub fn fetcher_per_node_unit(p: &Params, sizes: &FetchSizes) -> Module {
     fetcher_unit_with(p, sizes, true)

@@ -2,8 +2,8 @@
 //! node's child references (`cref` reads, one a clock), as tokens for the
 //! out stage; per-node, a pass's inner node first sends its probes.
 
-use golden::merge::fetch_unit::fetch_err;
-use golden::merge::unit::level_kind;
+use golden::merge::fetcher::fetch_err;
+use golden::merge::level_merge::unit::level_kind;
 
 use super::super::fields::field;
 use super::command::Command;

@@ -3,8 +3,8 @@
 //! first of them dropped (the error stands for it). Per-node fetchers have
 //! two out stages (answer, send) for the probes.
 
-use golden::merge::fetch_unit::{fetch_err, FetchLayout};
-use golden::merge::unit::level_kind;
+use golden::merge::fetcher::{fetch_err, FetchLayout};
+use golden::merge::level_merge::unit::level_kind;
 use golden::params::Params;
 
 use super::super::fields::{field, with_fields};
@@ -122,7 +122,7 @@ pub(super) fn per_node_out_stages<'m>(
     m: &'m Module,
     p: &Params,
     l: &FetchLayout,
-    f: &golden::merge::fetch_unit::PerNodeFetchLayout,
+    f: &golden::merge::fetcher::PerNodeFetchLayout,
     io: OutStageIo<'_, 'm>,
     n_phase: &mut Next<'m>,
 ) -> PerNodePorts<'m> {

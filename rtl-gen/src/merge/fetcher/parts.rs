@@ -1,8 +1,8 @@
 //! The fetcher's building blocks: its FIFO, prioritized register
 //! updates, the node check and move (section 7.6) and the beats it packs.
 
-use golden::merge::fetch_unit::{fetch_err, FetchLayout};
-use golden::merge::unit::BeatLayout;
+use golden::merge::fetcher::{fetch_err, FetchLayout};
+use golden::merge::level_merge::unit::BeatLayout;
 use golden::params::{bits_to_hold, Params};
 
 use super::super::fields::{coords, field, with_fields};
@@ -76,7 +76,7 @@ impl<'m> Next<'m> {
 }
 
 /// What reading a node record finds: the first failing check's code (0
-/// none) in `golden::merge::fetch_unit`'s order, LOD, record, translation
+/// none) in `golden::merge::fetcher`'s order, LOD, record, translation
 /// level, then the moved coordinate on x, y, z; and the moved record.
 pub(super) struct Checked<'m> {
     pub(super) code: Signal<'m>,

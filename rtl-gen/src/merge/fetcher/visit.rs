@@ -4,7 +4,7 @@
 //! sent on `leaves`, and the level's nodes passed to the out stage; and,
 //! per-node, the join of a pass's inner nodes with the module's decisions.
 
-use golden::merge::fetch_unit::fetch_err;
+use golden::merge::fetcher::fetch_err;
 
 use super::super::fields::{coords, field, with_fields, Word};
 use super::super::network::morton_code;

@@ -2,8 +2,8 @@
 //! sorter, the frontier of ranges, the range stage (one `ref` read a clock)
 //! and the reference stage (each answer checked, its `node` read issued).
 
-use golden::merge::fetch_unit::fetch_err;
-use golden::merge::unit::{level_kind, BeatLayout};
+use golden::merge::fetcher::fetch_err;
+use golden::merge::level_merge::unit::{level_kind, BeatLayout};
 use golden::params::bits_to_hold;
 
 use super::super::fields::{field, with_fields, Word};

@@ -1,6 +1,6 @@
 //! The leaves above the merging level, merged over the fetchers.
 
-use golden::merge::fetch_unit::FetchLayout;
+use golden::merge::fetcher::FetchLayout;
 
 use super::get;
 use crate::merge::fields::coords;

@@ -2,9 +2,10 @@
 //! `below-top`, `proportion`; SPEC 8.15): in overlap mode a count pass over
 //! `lo..=hi` first, then the module's choice and one merge pass at that level.
 
-use golden::merge::merger_unit::MergerLayout;
-use golden::merge::top::TopLayout;
-use golden::merge::unit::{base_kind, level_kind, rank_bits, BeatLayout};
+use golden::merge::level_choice::unit::rank_bits;
+use golden::merge::level_merge::unit::{base_kind, level_kind, BeatLayout};
+use golden::merge::merger::MergerLayout;
+use golden::merge::merging_module::TopLayout;
 use golden::params::Params;
 
 use super::drop_fifo::DropFifo;

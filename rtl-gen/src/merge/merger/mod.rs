@@ -8,14 +8,14 @@
 //! leaves above `m`: a k-way merge by (LOD, Morton, rank) (`leaf_merge`) into
 //! one FIFO per LOD (`drop_fifo`): the builder takes `base{d}` at its pace.
 //!
-//! Golden: `golden::merge::merger_unit::merger_transaction`, the chain of the
+//! Golden: `golden::merge::merger::merger_transaction`, the chain of the
 //! units' own transactions.
 
-use golden::merge::fetch_unit::FetchSizes;
-use golden::merge::merger_unit::{MergerLayout, MergerSizes};
-use golden::merge::store_port::StorePort;
-use golden::merge::top::TopLayout;
-use golden::merge::unit::BeatLayout;
+use golden::merge::fetcher::FetchSizes;
+use golden::merge::level_merge::unit::BeatLayout;
+use golden::merge::merger::store_port::StorePort;
+use golden::merge::merger::{MergerLayout, MergerSizes};
+use golden::merge::merging_module::TopLayout;
 use golden::merge::MergeMode;
 use golden::params::Params;
 

@@ -1,9 +1,10 @@
 //! The merger of a `per-node:N/D` configuration (SPEC 8.15, per-node mode).
 
-use golden::merge::fetch_unit::FetchLayout;
-use golden::merge::merger_unit::MergerLayout;
-use golden::merge::per_node_unit::PerNodeLayout;
-use golden::merge::unit::{base_kind, level_kind, rank_bits, BeatLayout};
+use golden::merge::fetcher::FetchLayout;
+use golden::merge::level_choice::unit::rank_bits;
+use golden::merge::level_merge::unit::{base_kind, level_kind, BeatLayout};
+use golden::merge::merger::MergerLayout;
+use golden::merge::per_node::unit::PerNodeLayout;
 use golden::params::Params;
 
 use super::drop_fifo::DropFifo;
@@ -20,7 +21,7 @@ use crate::{Module, Signal};
 /// The merger of a `per-node:N/D` configuration (SPEC 8.15, per-node mode):
 /// every used fetcher gets one per-node command at `lo` (references, the
 /// leaves above `lo`, last) and the module's `report` (the narrow beat of
-/// [`golden::merge::fetch_unit::PerNodeFetchLayout`]); the module's `out`
+/// [`golden::merge::fetcher::PerNodeFetchLayout`]); the module's `out`
 /// nodes of every pass go into the FIFO of their LOD (the leaves above `lo`
 /// into theirs), its reference beats to the writer's `crefs`. The builder
 /// sees the base only once the module is done: a shallower pass's nodes

@@ -4,7 +4,7 @@
 //!
 //! Requester `j` (`r{j}_req`: `{slot, hier, index}`, an entry of a
 //! hierarchy's array for the merge of slot `slot`) is granted round robin
-//! (`golden::merge::store_port::round_robin_next`: after `j`, the first
+//! (`golden::merge::merger::store_port::round_robin_next`: after `j`, the first
 //! requester after `j` showing a request, wrapping round), so one that keeps
 //! its request up waits for at most `n - 1` other grants. The grant goes
 //! into a skid buffer whose output is `store_req` (`{array, slot, hier,
@@ -25,7 +25,7 @@
 //! which could otherwise close a wait cycle through the merging module
 //! (8.15, "Why one walk cannot deadlock").
 
-use golden::merge::store_port::{StoreArray, StorePortLayout};
+use golden::merge::merger::store_port::{StoreArray, StorePortLayout};
 use golden::params::{bits_to_hold, Params};
 
 use super::drop_fifo::DropFifo;
@@ -226,8 +226,8 @@ pub(super) fn connect_shared<'m>(
     let p = c.design.params;
     let l = StorePortLayout::new(&p);
     let tag_bits = match c.sizes.store_port {
-        golden::merge::store_port::StorePort::Shared { tag_bits } => tag_bits,
-        golden::merge::store_port::StorePort::PerUnit => return,
+        golden::merge::merger::store_port::StorePort::Shared { tag_bits } => tag_bits,
+        golden::merge::merger::store_port::StorePort::PerUnit => return,
     };
     let mut reqs = Vec::new();
     for (inst, module, above) in clients {

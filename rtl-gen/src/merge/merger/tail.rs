@@ -1,6 +1,6 @@
 //! What every merger ends with, whichever mode chose its levels.
 
-use golden::merge::merger_unit::MergerLayout;
+use golden::merge::merger::MergerLayout;
 
 use super::{pass_stream, store_port, store_streams, MergerConfig};
 use crate::merge::fields::with_fields;

@@ -12,9 +12,11 @@
 //! the nodes below voxels where inputs meet, and takes the union from a
 //! per-input [`census`]).
 
-use super::error::MergeError;
-use super::walk::WalkedInput;
-use super::MergeMode;
+pub mod unit;
+
+use crate::merge::error::MergeError;
+use crate::merge::fetcher::walk::WalkedInput;
+use crate::merge::MergeMode;
 use crate::store::Hierarchy;
 
 /// The overlap at one candidate level.
@@ -87,7 +89,7 @@ pub fn occupied_stream(w: &WalkedInput, lod: u8) -> Vec<u128> {
         .get(lod as usize)
         .map(|l| {
             l.iter()
-                .map(|n| super::walk::morton(&n.record.voxel))
+                .map(|n| crate::merge::fetcher::walk::morton(&n.record.voxel))
                 .collect()
         })
         .unwrap_or_default();
@@ -134,9 +136,13 @@ pub fn census(h: &Hierarchy, hi: u8) -> Result<Vec<u64>, MergeError> {
                     found: n.voxel.lod.to_string(),
                 });
             }
-            keys.push(super::walk::morton(&n.voxel));
+            keys.push(crate::merge::fetcher::walk::morton(&n.voxel));
             if !n.leaf && lod < hi {
-                next.extend(super::walk::children(h, i, n)?.iter().map(|c| c.node));
+                next.extend(
+                    crate::merge::fetcher::walk::children(h, i, n)?
+                        .iter()
+                        .map(|c| c.node),
+                );
             }
         }
         if !keys.is_sorted() {
@@ -161,11 +167,11 @@ pub fn census(h: &Hierarchy, hi: u8) -> Result<Vec<u64>, MergeError> {
 pub fn overlaps_pruned(
     inputs: &[&Hierarchy],
     translations: &[crate::translate::Translation],
-    at_lo: Vec<super::walk::PlacedNode>,
+    at_lo: Vec<crate::merge::fetcher::walk::PlacedNode>,
     lo: u8,
     hi: u8,
 ) -> Result<Vec<LevelOverlap>, MergeError> {
-    use super::level_merge::{sort_stream, voxel_groups};
+    use crate::merge::level_merge::{sort_stream, voxel_groups};
     let mut distinct = vec![0u64; hi as usize + 1];
     for h in inputs {
         for (l, c) in census(h, hi)?.iter().enumerate() {
@@ -192,8 +198,14 @@ pub fn overlaps_pruned(
             for n in group.iter().filter(|n| !n.record.leaf) {
                 let h = inputs[n.rank as usize];
                 let t = &translations[n.rank as usize];
-                for c in super::walk::children(h, n.at.node, &h.nodes[n.at.node as usize])? {
-                    next.push(super::walk::place_node(h, n.rank, t, c.node)?);
+                for c in crate::merge::fetcher::walk::children(
+                    h,
+                    n.at.node,
+                    &h.nodes[n.at.node as usize],
+                )? {
+                    next.push(crate::merge::fetcher::walk::place_node(
+                        h, n.rank, t, c.node,
+                    )?);
                 }
             }
         }

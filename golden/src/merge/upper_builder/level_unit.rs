@@ -3,10 +3,10 @@
 
 use std::collections::BTreeSet;
 
-use super::{random_box, random_coord, random_index};
 use crate::bits::Bits;
 use crate::grid::VoxelAddr;
 use crate::layout::{Field, LayoutError, NodeLayout};
+use crate::merge::stimulus::{random_box, random_coord, random_index};
 use crate::params::Params;
 use crate::store::NodeRecord;
 use crate::translate::stimulus::SplitMix64;

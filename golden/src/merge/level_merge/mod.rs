@@ -11,9 +11,11 @@
 //! - every leaf at `v`: reused as it is (a leaf has no children to merge;
 //!   its primitives index its input's triangles).
 
-use super::error::MergeError;
-use super::walk::{children, PlacedNode};
+pub mod unit;
+
 use crate::grid::VoxelAddr;
+use crate::merge::error::MergeError;
+use crate::merge::fetcher::walk::{children, PlacedNode};
 use crate::params::Params;
 use crate::store::{node_box_fine, voxel_box_fine, Hierarchy, NodeRecord, Reference};
 

@@ -4,8 +4,8 @@
 
 use crate::bits::Bits;
 use crate::layout::{Field, LayoutError, NodeLayout, RefLayout};
-use crate::merge::per_node_unit::{PerNodeLayout, PerNodeReport};
-use crate::merge::unit::{BeatLayout, LevelBeat};
+use crate::merge::level_merge::unit::{BeatLayout, LevelBeat};
+use crate::merge::per_node::unit::{PerNodeLayout, PerNodeReport};
 use crate::params::Params;
 use crate::store::{Hierarchy, NodeRecord, Reference};
 use crate::translate::table::entry_bits;

@@ -9,7 +9,7 @@
 //! the translated leaves above the merging level and the translated nodes at
 //! it ([`collect`]).
 
-use super::error::MergeError;
+use crate::merge::error::MergeError;
 use crate::store::{Hierarchy, NodeRecord, Reference};
 use crate::translate::{translate_node, Translation};
 

@@ -18,15 +18,15 @@
 //! followed by the next; per LOD, `out` is golden per-node's base at that
 //! LOD in Morton order (tested below).
 
-use super::error::MergeError;
-use super::level_merge::{sort_stream, voxel_groups, BaseKind, BaseNode};
-use super::per_node::PerNode;
-use super::top::choice_err;
-use super::unit::{level_transaction, BaseBeat, BeatLayout, LevelBeat};
-use super::walk::{children, collect, place_node, walk_input, PlacedNode};
 use crate::bits::Bits;
 use crate::grid::VoxelAddr;
 use crate::layout::{Field, LayoutError};
+use crate::merge::error::MergeError;
+use crate::merge::fetcher::walk::{children, collect, place_node, walk_input, PlacedNode};
+use crate::merge::level_merge::unit::{level_transaction, BaseBeat, BeatLayout, LevelBeat};
+use crate::merge::level_merge::{sort_stream, voxel_groups, BaseKind, BaseNode};
+use crate::merge::merging_module::choice_err;
+use crate::merge::per_node::PerNode;
 use crate::params::Params;
 use crate::store::{Hierarchy, NodeRecord, Reference};
 use crate::translate::stimulus::SplitMix64;
@@ -37,7 +37,7 @@ use crate::translate::Translation;
 pub const CHILD_COUNT_BITS: u32 = 4;
 
 /// Bit layouts of the per-node configuration's input and `report` beats
-/// (`cfg` is [`super::top::TopLayout`]'s, `out` S614's output beat).
+/// (`cfg` is [`crate::merge::merging_module::TopLayout`]'s, `out` S614's output beat).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct PerNodeLayout {
     /// An input beat: an S614 input beat ([`BeatLayout::input`]) then
@@ -281,7 +281,7 @@ pub fn per_node_transaction(
     lo: u8,
     hi: u8,
 ) -> Result<PerNodeTransaction, MergeError> {
-    super::level::check_ratio("PerNode", num, den)?;
+    crate::merge::level_choice::check_ratio("PerNode", num, den)?;
     let k = inputs.len();
     let mut tx = PerNodeTransaction {
         lo,

@@ -35,25 +35,30 @@
 //! which the chain checks equal to the module's inputs; a bad range gets
 //! the closing command.
 
-use super::builder_unit::BuilderTransaction;
-use super::error::MergeError;
-use super::fetch_unit::{
+pub mod store_port;
+
+use crate::bits::Bits;
+use crate::layout::{Field, LayoutError};
+use crate::merge::error::MergeError;
+use crate::merge::fetcher::walk::{collect, morton, walk_input, PlacedNode};
+use crate::merge::fetcher::{
     fetch_err, fetch_transaction_with_reports, FetchCfg, FetchCmd, FetchLayout, FetchOut,
     FetchSizes, FetchTransaction, LeafOut,
 };
-use super::level::candidate_range;
-use super::level_merge::{BaseKind, BaseNode};
-use super::per_node_unit::{self, per_node_transaction, PerNodeBeat, PerNodeTransaction};
-use super::top::{choice_err, choose, top_transaction, Report, TopLayout, TopTransaction};
-use super::unit::{rank_bits, BaseBeat, LevelBeat, LevelCase};
-use super::walk::{collect, morton, walk_input, PlacedNode};
-use super::writer_unit::{
+use crate::merge::level_choice::candidate_range;
+use crate::merge::level_choice::unit::rank_bits;
+use crate::merge::level_merge::unit::{BaseBeat, LevelBeat, LevelCase};
+use crate::merge::level_merge::{BaseKind, BaseNode};
+use crate::merge::merger::store_port::StorePort;
+use crate::merge::merging_module::{
+    choice_err, choose, top_transaction, Report, TopLayout, TopTransaction,
+};
+use crate::merge::per_node::unit::{per_node_transaction, PerNodeBeat, PerNodeTransaction};
+use crate::merge::record_writer::{
     writer_transaction, CapacityError, Header, WriterLayout, WriterTransaction,
 };
-use super::MergeMode;
-use crate::bits::Bits;
-use crate::layout::{Field, LayoutError};
-use crate::merge::store_port::StorePort;
+use crate::merge::upper_builder::unit::BuilderTransaction;
+use crate::merge::MergeMode;
 use crate::params::{bits_to_hold, Params};
 use crate::store::{Hierarchy, HierarchyStore, Reference};
 use crate::translate::table::pack_entry;
@@ -372,7 +377,7 @@ fn fetch_error(hier: u8, node: u32, code: u64) -> MergeError {
         input: hier,
         node: Some(node),
         field: "fetcher walk",
-        expected: "no fetcher error (fetch_unit::fetch_err)".into(),
+        expected: "no fetcher error (fetcher::fetch_err)".into(),
         found: format!("error code {code} ({})", fetch_err_name(code)),
     }
 }
@@ -449,11 +454,12 @@ pub fn leaf_overflow(leaves: &[BaseNode], leaf_bits: u32) -> bool {
 /// reference beats that follow them), in stream order per LOD, shallowest
 /// LOD first; an error when a created node's reference count overflowed.
 pub fn module_base(out: &[BaseBeat], p: &Params) -> Result<Vec<BaseNode>, MergeError> {
-    let by_lod = per_node_unit::base_by_lod(out, p).ok_or(MergeError::IndexOverflow {
-        what: "created node's reference count",
-        value: p.index_capacity(),
-        index_bits: p.index_bits,
-    })?;
+    let by_lod =
+        crate::merge::per_node::unit::base_by_lod(out, p).ok_or(MergeError::IndexOverflow {
+            what: "created node's reference count",
+            value: p.index_capacity(),
+            index_bits: p.index_bits,
+        })?;
     Ok(by_lod.into_iter().flatten().collect())
 }
 
@@ -691,8 +697,8 @@ pub fn created_count(base: &[BaseNode]) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::merge::record_writer::{writer_err, CrefBeat};
     use crate::merge::stimulus::{real_cases, several_roots_case, soup, try_scene_soup, RealCase};
-    use crate::merge::writer_unit::{writer_err, CrefBeat};
     use crate::merge::{merge, MergeMode};
 
     fn modes(lo: u8, hi: u8) -> Vec<MergeMode> {
@@ -728,7 +734,7 @@ mod tests {
                     assert_eq!(f.reports, pn.reports, "input {r}");
                 }
                 // Module out -> builder base{d} at and below lo.
-                let by_lod = per_node_unit::base_by_lod(&pn.out, p).unwrap();
+                let by_lod = crate::merge::per_node::unit::base_by_lod(&pn.out, p).unwrap();
                 for (d, nodes) in by_lod.iter().enumerate().skip(tx.cfg.lo as usize) {
                     let got: Vec<&BaseBeat> =
                         b.base[d].iter().filter(|x| **x != BaseBeat::End).collect();

@@ -10,22 +10,22 @@
 //!   the merging level, the reused leaves above it) in the order S616's level
 //!   lists hold them (Morton, stable), then `End`; S614's input layout
 //!   ([`BeatLayout::input`]) with S614's output kind codes
-//!   ([`base_kind`](super::unit::base_kind):
+//!   ([`base_kind`](crate::merge::level_merge::unit::base_kind):
 //!   created, reused, end; no reference beats).
 //! - out `level{d}`: level `d`'s nodes in level order, then `End` with the
 //!   level's node and record counts, for every `d` from `D` up to the top;
 //!   nothing for the levels above the top.
 //! - out `done`: one beat, the top LOD and an error flag.
 
-use super::error::MergeError;
-use super::level_merge::{merge_level, BaseKind, BaseNode, LevelMergeCounts};
-use super::unit::{BaseBeat, BeatLayout};
-use super::upper::{base_by_lod, upper_levels};
-use super::walk::{collect, walk_input, WalkedInput};
 use crate::bits::Bits;
 use crate::build::upper::LevelNode;
 use crate::grid::VoxelAddr;
 use crate::layout::{Field, LayoutError, NodeLayout, RefLayout};
+use crate::merge::error::MergeError;
+use crate::merge::fetcher::walk::{collect, walk_input, WalkedInput};
+use crate::merge::level_merge::unit::{BaseBeat, BeatLayout};
+use crate::merge::level_merge::{merge_level, BaseKind, BaseNode, LevelMergeCounts};
+use crate::merge::upper_builder::{base_by_lod, upper_levels};
 use crate::params::Params;
 use crate::store::{Hierarchy, NodeRecord, Reference};
 use crate::translate::stimulus::SplitMix64;
@@ -445,7 +445,7 @@ mod tests {
     use super::*;
     use crate::build::build;
     use crate::build::GridMap;
-    use crate::merge::level::candidate_range;
+    use crate::merge::level_choice::candidate_range;
     use crate::merge::{merge, MergeMode};
     use crate::scenes::random_soup;
     use crate::store::HierarchyStore;
@@ -524,7 +524,7 @@ mod tests {
             };
             let base = random_base(&mut rng, &p, n);
             let tx = builder_transaction(&base, &p);
-            let r = super::super::upper::build_upper(&base, &[], &p, 1);
+            let r = crate::merge::upper_builder::build_upper(&base, &[], &p, 1);
             match (&r, tx.done.err) {
                 (Err(MergeError::NoInputs), true) => empty += 1,
                 (Err(MergeError::InputLeafAtTop { .. }), true) => leaf_at_top += 1,

@@ -15,7 +15,7 @@ use std::collections::HashMap;
 
 use crate::bits::Bits;
 use crate::layout::Field;
-use crate::merge::fetch_unit::FetchLayout;
+use crate::merge::fetcher::FetchLayout;
 use crate::params::Params;
 use crate::store::Hierarchy;
 

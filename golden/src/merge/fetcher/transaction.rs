@@ -6,10 +6,10 @@ use std::collections::VecDeque;
 
 use super::beats::{fetch_err, FetchCfg, FetchCmd, FetchOut, LeafOut};
 use crate::merge::error::MergeError;
+use crate::merge::fetcher::walk::{children, morton, place_node, PlacedNode};
 use crate::merge::level_merge::sort_stream;
-use crate::merge::per_node_unit::PerNodeReport;
-use crate::merge::unit::LevelBeat;
-use crate::merge::walk::{children, morton, place_node, PlacedNode};
+use crate::merge::level_merge::unit::LevelBeat;
+use crate::merge::per_node::unit::PerNodeReport;
 use crate::store::{Hierarchy, NodeRecord, Reference};
 use crate::translate::table::unpack_entry;
 use crate::translate::{TranslateError, Translation};
@@ -670,7 +670,7 @@ pub fn fetch_transaction(
 
 /// [`fetch_transaction`] with the `report` beats the fetcher's per-node
 /// commands take, in order (the per-node module's `report` stream, e.g.
-/// [`crate::merge::per_node_unit::PerNodeTransaction::reports`]). Refused when a
+/// [`crate::merge::per_node::unit::PerNodeTransaction::reports`]). Refused when a
 /// per-node command's pass finds no `pass_end` beat left.
 pub fn fetch_transaction_with_reports(
     h: &Hierarchy,

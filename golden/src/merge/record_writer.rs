@@ -7,7 +7,7 @@
 //! Streams of one merge:
 //! - in `cfg`: the output hierarchy's id.
 //! - in `level{d}`, `done`: the upper builder's out beats (8.11,
-//!   [`BuilderLayout`]), as `builder_unit::builder_transaction` makes them.
+//!   [`BuilderLayout`]), as `upper_builder::unit::builder_transaction` makes them.
 //! - in `crefs`: the references of every created node (S614's reference
 //!   beats) in store order: by LOD from the shallowest, each LOD in its
 //!   level order (Morton, stable), each node's references in order; then
@@ -20,13 +20,15 @@
 //! - out `nodes`: the merged hierarchy's records in store order; out `refs`:
 //!   its references in order; out `header`: one beat per merge.
 
-use super::builder_unit::LevelOut;
-use super::builder_unit::{builder_transaction, level_out_kind, BuilderLayout, BuilderTransaction};
-use super::error::MergeError;
-use super::level_merge::{BaseKind, BaseNode};
-use super::upper::{base_by_lod, build_upper};
 use crate::bits::Bits;
 use crate::layout::{Field, LayoutError, NodeLayout, RefLayout};
+use crate::merge::error::MergeError;
+use crate::merge::level_merge::{BaseKind, BaseNode};
+use crate::merge::upper_builder::unit::LevelOut;
+use crate::merge::upper_builder::unit::{
+    builder_transaction, level_out_kind, BuilderLayout, BuilderTransaction,
+};
+use crate::merge::upper_builder::{base_by_lod, build_upper};
 use crate::params::Params;
 use crate::store::{Hierarchy, NodeRecord, Reference};
 
@@ -404,9 +406,9 @@ pub fn writer_transaction(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::merge::builder_unit::fixed_level_base;
-    use crate::merge::level::candidate_range;
+    use crate::merge::level_choice::candidate_range;
     use crate::merge::stimulus::{per_node_base, random_case, real_cases};
+    use crate::merge::upper_builder::unit::fixed_level_base;
     use crate::merge::{merge, MergeMode};
     use crate::translate::stimulus::SplitMix64;
     use crate::translate::Translation;

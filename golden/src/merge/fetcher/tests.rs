@@ -1,11 +1,11 @@
 use super::*;
 use crate::build::{build, GridMap};
 use crate::merge::error::MergeError;
-use crate::merge::per_node_unit::{PerNodeLayout, PerNodeReport};
-use crate::merge::top::input_stream;
-use crate::merge::unit::LevelBeat;
-use crate::merge::walk::{collect, walk_input};
-use crate::merge::walk::{morton, place_node};
+use crate::merge::fetcher::walk::{collect, walk_input};
+use crate::merge::fetcher::walk::{morton, place_node};
+use crate::merge::level_merge::unit::LevelBeat;
+use crate::merge::merging_module::input_stream;
+use crate::merge::per_node::unit::{PerNodeLayout, PerNodeReport};
 use crate::params::Params;
 use crate::scenes::random_soup;
 use crate::store::{Hierarchy, NodeRecord, Reference};
@@ -439,7 +439,7 @@ fn errors_are_the_walks_refusals() {
     assert_eq!(tx.ref_reqs, vec![0, 1]);
 }
 
-use crate::merge::per_node_unit::{random_per_node_case, PerNodeBeat, PerNodeCase};
+use crate::merge::per_node::unit::{random_per_node_case, PerNodeBeat, PerNodeCase};
 use crate::translate::stimulus::SplitMix64;
 
 /// What the per-node checks reached.
@@ -460,7 +460,7 @@ struct PerNodeSeen {
 fn check_per_node_input(
     p: &Params,
     c: &PerNodeCase,
-    tx: &crate::merge::per_node_unit::PerNodeTransaction,
+    tx: &crate::merge::per_node::unit::PerNodeTransaction,
     r: usize,
     seen: &mut PerNodeSeen,
 ) {
@@ -661,7 +661,7 @@ fn per_node_command_on_real_merges() {
             })
             .collect();
         let refs: Vec<&Hierarchy> = hs.iter().collect();
-        let (lo, hi) = crate::merge::level::candidate_range(&refs);
+        let (lo, hi) = crate::merge::level_choice::candidate_range(&refs);
         let c = PerNodeCase {
             hierarchies: hs,
             translations,

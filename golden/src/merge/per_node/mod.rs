@@ -18,9 +18,13 @@
 //! so each path ends in a created or reused node; the result is a base at
 //! several LODs, on which S616 builds the upper levels.
 
-use super::error::MergeError;
-use super::level_merge::{created_node, sort_stream, voxel_groups, BaseNode, LevelMergeCounts};
-use super::walk::{children, place_node, PlacedNode};
+pub mod unit;
+
+use crate::merge::error::MergeError;
+use crate::merge::fetcher::walk::{children, place_node, PlacedNode};
+use crate::merge::level_merge::{
+    created_node, sort_stream, voxel_groups, BaseNode, LevelMergeCounts,
+};
 use crate::params::Params;
 use crate::store::Hierarchy;
 use crate::translate::Translation;

@@ -5,13 +5,13 @@
 use std::collections::BTreeSet;
 use std::ops::Range;
 
-use super::{random_box, random_coord, random_index};
 use crate::bits::Bits;
 use crate::grid::VoxelAddr;
 use crate::layout::{Field, LayoutError, NodeLayout, RefLayout};
 use crate::merge::error::MergeError;
+use crate::merge::fetcher::walk::PlacedNode;
 use crate::merge::level_merge::{merge_level, BaseKind, BaseNode, LevelMergeCounts};
-use crate::merge::walk::PlacedNode;
+use crate::merge::stimulus::{random_box, random_coord, random_index};
 use crate::params::Params;
 use crate::store::{Hierarchy, NodeRecord, Reference};
 use crate::translate::stimulus::SplitMix64;
@@ -272,7 +272,8 @@ pub fn level_stream(
         }
         for n in group.iter().filter(|n| !n.record.leaf) {
             let h = inputs[n.rank as usize];
-            let refs = crate::merge::walk::children(h, n.at.node, &h.nodes[n.at.node as usize])?;
+            let refs =
+                crate::merge::fetcher::walk::children(h, n.at.node, &h.nodes[n.at.node as usize])?;
             beats.extend(refs.iter().map(|r| LevelBeat::ChildRef(*r)));
         }
         out.push((i..j, beats));

@@ -4,10 +4,10 @@
 
 use std::collections::BTreeSet;
 
-use super::level::LevelBeat;
-use super::{random_box, random_coord, random_index};
 use crate::grid::VoxelAddr;
-use crate::merge::walk::PlacedNode;
+use crate::merge::fetcher::walk::PlacedNode;
+use crate::merge::level_merge::unit::LevelBeat;
+use crate::merge::stimulus::{random_box, random_coord, random_index};
 use crate::params::Params;
 use crate::store::{NodeRecord, Reference};
 use crate::translate::stimulus::SplitMix64;

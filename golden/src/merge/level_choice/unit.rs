@@ -1,11 +1,11 @@
 //! S608, the overlap counter (unit 508): its beats, its transaction from
 //! golden's [`overlap_counts`] and [`above_threshold`], and its stimulus.
 
-use super::random_coord;
 use crate::bits::Bits;
 use crate::grid::VoxelAddr;
 use crate::layout::{Field, LayoutError};
-use crate::merge::level::{above_threshold, overlap_counts, LevelOverlap};
+use crate::merge::level_choice::{above_threshold, overlap_counts, LevelOverlap};
+use crate::merge::stimulus::random_coord;
 use crate::params::{bits_to_hold, Params};
 use crate::translate::stimulus::SplitMix64;
 

@@ -14,10 +14,13 @@
 //! each level in Morton order. A reference to a base node that is not a
 //! record is the input node itself, `(input id, node index)`.
 
-use super::error::MergeError;
-use super::level_merge::{BaseKind, BaseNode};
+pub mod level_unit;
+pub mod unit;
+
 use crate::build::upper::{build_levels, group_by_parent, LevelNode};
 use crate::grid::VoxelAddr;
+use crate::merge::error::MergeError;
+use crate::merge::level_merge::{BaseKind, BaseNode};
 use crate::params::Params;
 use crate::store::{Hierarchy, NodeRecord, Reference};
 
@@ -37,7 +40,7 @@ pub struct UpperCounts {
 fn level_node(b: &BaseNode, k: usize) -> LevelNode {
     let v = b.record.voxel;
     LevelNode {
-        morton: super::walk::morton(&v),
+        morton: crate::merge::fetcher::walk::morton(&v),
         x: v.x,
         y: v.y,
         z: v.z,
@@ -196,7 +199,9 @@ pub fn build_upper(
                     BaseKind::Reused { at } => {
                         let h = by_rank(at.hier).ok_or(MergeError::UnknownInput(at.hier))?;
                         let rec = &h.nodes[at.node as usize];
-                        refs.extend_from_slice(super::walk::children(h, at.node, rec)?);
+                        refs.extend_from_slice(crate::merge::fetcher::walk::children(
+                            h, at.node, rec,
+                        )?);
                         counts.materialized += 1;
                     }
                 }

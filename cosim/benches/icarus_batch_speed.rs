@@ -22,7 +22,7 @@
 
 use cosim::icarus::{BatchSpec, IcarusBatch, IcarusMultiBatch, LaneVector};
 use cosim::tb::{BenchConfig, StreamBeats, StreamNames, Vector};
-use cosim::units::{merge, merge_module, merger};
+use cosim::units::{merge_level, merge_module, merger};
 use cosim::{Design, PortDir};
 use golden::translate::stimulus::SplitMix64;
 use golden::vectors::merge::MergeDesign;
@@ -153,7 +153,7 @@ fn print(what: &str, real: (u64, f64), stand: (u64, f64)) {
     );
 }
 
-fn merging_module(dir: &Path) -> Res<()> {
+fn merge_module(dir: &Path) -> Res<()> {
     let d = MergeDesign::default();
     let module = merge_module::merge_module(&d);
     let design = cosim::from_rtl::design_from_module(&module, dir)?;
@@ -271,10 +271,10 @@ fn hierarchy_merger(dir: &Path) -> Res<()> {
 
 fn merge_level(dir: &Path) -> Res<()> {
     let d = MergeDesign::default();
-    let module = merge::merge_level_module(&d.params);
+    let module = merge_level::merge_level_module(&d.params);
     let design = cosim::from_rtl::design_from_module(&module, dir)?;
-    let levels = merge::generate_levels(&d, 5, 1500)?;
-    let vectors = merge::bench_vectors(&levels, None)?;
+    let levels = merge_level::generate_levels(&d, 5, 1500)?;
+    let vectors = merge_level::bench_vectors(&levels, None)?;
     let names = StreamNames::single("data");
     let c = config();
     let batch = IcarusBatch::new(&design, &BatchSpec::single(&names))?;
@@ -283,7 +283,7 @@ fn merge_level(dir: &Path) -> Res<()> {
         .map(|v| LaneVector::new(0, v.clone()))
         .collect();
     // A short run: whole levels (a level's beats belong together).
-    let short = merge::bench_vectors(&levels[..levels.len() / 50], None)?.len();
+    let short = merge_level::bench_vectors(&levels[..levels.len() / 50], None)?.len();
     let run_on = |batch: &IcarusBatch| {
         per_cycle(|is_long| {
             let n = if is_long { lanes.len() } else { short };
@@ -334,7 +334,7 @@ fn main() -> Res<()> {
     }
     let dir = tempfile::tempdir()?;
     hierarchy_merger(dir.path())?;
-    merging_module(dir.path())?;
+    merge_module(dir.path())?;
     merge_level(dir.path())?;
     Ok(())
 }

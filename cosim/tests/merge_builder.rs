@@ -14,7 +14,7 @@ mod merge_common;
 use cosim::tb::StreamBeats;
 use golden::build::{build, GridMap};
 use golden::merge::level_choice::candidate_range;
-use golden::merge::level_merge::BaseNode;
+use golden::merge::merge_level::BaseNode;
 use golden::merge::upper_builder::unit::{
     builder_transaction, fixed_level_base, random_base, BuilderLayout, BuilderTransaction, LevelOut,
 };

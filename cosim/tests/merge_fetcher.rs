@@ -965,7 +965,7 @@ fn fetcher_per_node_steady_state() {
         for l in h.top_lod..=deepest {
             let w = golden::merge::fetcher::walk::walk_input(&h, 0, &t, l).unwrap();
             let (_, mut at) = golden::merge::fetcher::walk::collect(std::slice::from_ref(&w), l);
-            golden::merge::level_merge::sort_stream(&mut at);
+            golden::merge::merge_level::sort_stream(&mut at);
             for n in at.iter().filter(|n| !n.record.leaf) {
                 reports.push(PerNodeReport::Decision {
                     voxel: n.record.voxel,

@@ -1,5 +1,5 @@
 //! S614 (unit 506, `rtl_gen::merge::merge_level_unit`) against the golden
-//! `merge_level` through `golden::merge::level_merge::unit::level_transaction`, bit for
+//! `merge_level` through `golden::merge::merge_level::unit::level_transaction`, bit for
 //! bit, with random back-pressure (stall 0.05..=0.5 on both streams) and an
 //! in-order scoreboard; a transaction is one voxel group (its beats in, its
 //! base nodes and references out). Each of the four configurations runs
@@ -12,7 +12,7 @@ mod merge_common;
 
 use cosim::tb::Vector;
 use cosim::volume::volume;
-use golden::merge::level_merge::unit::{random_level_case, BeatLayout, LevelTransaction};
+use golden::merge::merge_level::unit::{random_level_case, BeatLayout, LevelTransaction};
 use golden::params::Params;
 use golden::seed::seeded;
 use golden::translate::stimulus::SplitMix64;
@@ -80,7 +80,7 @@ struct LevelStats {
 
 impl LevelStats {
     fn add(&mut self, tx: &LevelTransaction) {
-        use golden::merge::level_merge::unit::BaseBeat::*;
+        use golden::merge::merge_level::unit::BaseBeat::*;
         for o in &tx.outputs {
             match o {
                 Created { count_overflow, .. } => {

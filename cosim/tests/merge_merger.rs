@@ -14,7 +14,7 @@ mod merge_common;
 use cosim::tb::{run_multi_stream_bench_watching, BenchConfig, MultiReport, StreamBeats};
 use cosim::units::merger::{merger_streams, random_merge, MergeStats};
 use golden::merge::fetcher::{FetchCmd, FetchOut, FetchTransaction};
-use golden::merge::level_merge::unit::LevelBeat;
+use golden::merge::merge_level::unit::LevelBeat;
 use golden::merge::merger::{
     cmd_per_level, feeds_module, merger_transaction, MergerSizes, MergerTransaction,
 };

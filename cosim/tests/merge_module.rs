@@ -1,5 +1,5 @@
 //! The merging module as one unit (`rtl_gen::merge::merge_module_unit`)
-//! against the golden `golden::merge::merging_module` transactions, bit for bit on every
+//! against the golden `golden::merge::merge_module` transactions, bit for bit on every
 //! stream (`report`, `out`), on the IR simulator, Verilator and Icarus, with
 //! random stalls on every input and output stream independently; one
 //! transaction = one merge (cfg, count pass in overlap mode, choice, merge
@@ -11,7 +11,7 @@ mod merge_common;
 
 use cosim::tb::StreamBeats;
 use cosim::volume::volume;
-use golden::merge::merging_module::TopLayout;
+use golden::merge::merge_module::TopLayout;
 use golden::merge::MergeMode;
 use golden::params::Params;
 use golden::seed::seeded;

@@ -14,8 +14,8 @@ mod merge_common;
 use cosim::tb::StreamBeats;
 use cosim::volume::volume;
 use golden::build::{build, GridMap};
-use golden::merge::level_merge::unit::BeatLayout;
-use golden::merge::merging_module::TopLayout;
+use golden::merge::merge_level::unit::BeatLayout;
+use golden::merge::merge_module::TopLayout;
 use golden::merge::per_node::unit::{
     random_per_node_case, PerNodeCase, PerNodeLayout, PerNodeReport, PerNodeTransaction,
 };

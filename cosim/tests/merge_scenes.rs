@@ -15,7 +15,7 @@ use golden::merge::fetcher::root_sorter::*;
 use golden::merge::fetcher::walk::{collect, walk_input, PlacedNode, WalkedInput};
 use golden::merge::level_choice::candidate_range;
 use golden::merge::level_choice::unit::*;
-use golden::merge::level_merge::unit::*;
+use golden::merge::merge_level::unit::*;
 use golden::merge::upper_builder::level_unit::*;
 use golden::params::Params;
 use golden::scenes::random_soup;
@@ -385,7 +385,7 @@ fn hard_case_scenes_through_every_unit() {
 /// Every hard-case merge through the merging module as one unit
 /// (`merge_module_unit`): the candidate levels of the real inputs, the count
 /// pass over their walked, translated levels, the choice, the merge pass;
-/// bit for bit against `golden::merge::merging_module`, whose overlap choice must equal
+/// bit for bit against `golden::merge::merge_module`, whose overlap choice must equal
 /// golden S608 on the fully walked inputs (`level::overlaps` +
 /// `choose_level`), on the IR simulator, Verilator and Icarus.
 #[test]
@@ -395,7 +395,7 @@ fn hard_case_merges_through_the_merging_module() {
     }
     use cosim::tb::{run_multi_stream_bench, BenchConfig, StreamBeats};
     use golden::merge::level_choice::{choose_level, overlaps};
-    use golden::merge::merging_module::{top_transaction, Report, TopLayout};
+    use golden::merge::merge_module::{top_transaction, Report, TopLayout};
     use golden::merge::MergeMode;
     use golden::vectors::merge::MergeDesign;
     for c in cases() {

@@ -16,7 +16,7 @@ use cosim::tb::{BenchReport, Vector};
 use cosim::volume::volume;
 use cosim::Bits;
 use golden::merge::fetcher::root_sorter::{random_roots, root_sort_transaction};
-use golden::merge::level_merge::unit::{BeatLayout, LevelBeat};
+use golden::merge::merge_level::unit::{BeatLayout, LevelBeat};
 use golden::params::Params;
 use golden::seed::seeded;
 use golden::translate::stimulus::SplitMix64;

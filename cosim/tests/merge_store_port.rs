@@ -3,13 +3,13 @@
 //! requester's answers bit for bit, in its order, on the IR simulator,
 //! Verilator and Icarus, under random and bursty stalls on every stream and
 //! on the store (which answers each read from its contents after a latency,
-//! `cosim::units::store_port::StoreModel`); one read per clock with no
+//! `cosim::units::merger::store_port::StoreModel`); one read per clock with no
 //! back-pressure; lint and synthesis with no latch.
 mod merge_common;
 
 use cosim::tb::{BenchConfig, Stalls};
+use cosim::units::merger::store_port::{random_transaction, run};
 use cosim::units::multi_stream::ModuleEngine;
-use cosim::units::store_port::{random_transaction, run};
 use golden::merge::merger::store_port::{StoreAddr, StoreArray};
 use golden::params::Params;
 use golden::translate::stimulus::SplitMix64;

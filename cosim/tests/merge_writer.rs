@@ -16,7 +16,7 @@ mod merge_common;
 use cosim::tb::{MultiReport, StreamBeats};
 use cosim::volume::volume;
 use golden::merge::level_choice::candidate_range;
-use golden::merge::level_merge::BaseNode;
+use golden::merge::merge_level::BaseNode;
 use golden::merge::record_writer::{
     pack_cfg, writer_err, writer_transaction, WriterLayout, WriterTransaction,
 };

@@ -78,7 +78,7 @@ fn all_inputs_overlapping() {
         s.add(i as u8 + 1, m, [10, 10, 10]);
     }
     let r = s.merge(&[1, 2, 3, 4], MergeMode::default(), 5);
-    assert!(r.stats.level_merge.created > 0, "{:?}", r.stats);
+    assert!(r.stats.merge_level.created > 0, "{:?}", r.stats);
     every_mode(&mut s, &[1, 2, 3, 4], 6, 2_000);
 }
 
@@ -96,7 +96,7 @@ fn all_inputs_disjoint() {
         "{:?}",
         r.stats
     );
-    assert_eq!(r.stats.level_merge.created, 0);
+    assert_eq!(r.stats.merge_level.created, 0);
     every_mode(&mut s, &[1, 2, 3, 4], 6, 2_000);
 }
 
@@ -146,8 +146,8 @@ fn single_node_inputs() {
     let r = s.merge(&[1, 2], MergeMode::default(), 5);
     assert_eq!(
         (
-            r.stats.level_merge.created,
-            r.stats.level_merge.reused_leaves
+            r.stats.merge_level.created,
+            r.stats.merge_level.reused_leaves
         ),
         (0, 2)
     );

@@ -178,7 +178,7 @@ fn overlap_mode_picks_the_deepest_level_above_the_threshold() {
             .unwrap_or(lo);
         assert_eq!(r.level, Some(expected), "{num}/{den}");
         let created = check_created(&s, &r, &[1, 2]);
-        assert_eq!(created, r.stats.level_merge.created, "{num}/{den}");
+        assert_eq!(created, r.stats.merge_level.created, "{num}/{den}");
     }
 }
 
@@ -191,7 +191,7 @@ fn fixed_below_top_and_proportion_levels() {
         let r = run(&mut s, MergeMode::Fixed(l), out);
         assert_eq!(r.level, Some(l));
         assert!(r.stats.overlap.is_empty());
-        assert_eq!(check_created(&s, &r, &[1, 2]), r.stats.level_merge.created);
+        assert_eq!(check_created(&s, &r, &[1, 2]), r.stats.merge_level.created);
         out += 1;
     }
     for k in [0u8, 1, hi - lo] {

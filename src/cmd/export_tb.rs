@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use cosim::export_tb::{self, ExportSpec, RTL_DIR};
-use cosim::units::{hierarchy_unit, merge, merge_module, merger, translate};
+use cosim::units::{hierarchy_unit, merge_level, merge_module, merger, translate};
 use serde::Serialize;
 
 use super::common::UnitOpts;
@@ -129,7 +129,7 @@ fn spec(a: &Args, count: usize, rtl: &Path) -> Result<ExportSpec, String> {
         }
         (Unit::Merge, MergeStage::MergeLevel) => {
             let d = a.design.merge_design()?;
-            merge::export_spec(&d, a.seed, count, stalls, rtl).map_err(e)
+            merge_level::export_spec(&d, a.seed, count, stalls, rtl).map_err(e)
         }
         (Unit::Hierarchy, _) => {
             let c = hierarchy_of(a)?;

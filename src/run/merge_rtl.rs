@@ -3,7 +3,7 @@
 //! (`rtl_gen::merge::merge_module_unit`, SPEC 8.10) with the frame's inputs
 //! as its `k` input streams: `cfg` = the candidate levels, the count pass
 //! (overlap mode), the choice, which must equal the frame's golden merging
-//! level, and the merge pass (S614) against `golden::merge::merging_module`; then S616
+//! level, and the merge pass (S614) against `golden::merge::merge_module`; then S616
 //! (one upper level, grouping by parent voxel) on that level's nodes when the
 //! scene asks for the upper-level build. Each unit is generated and built the
 //! first time a frame needs it. Per-node mode has no single merging level:
@@ -18,8 +18,8 @@ use golden::bits::Bits;
 use golden::layout::LayoutError;
 use golden::merge::fetcher::walk::{collect, walk_input, PlacedNode, WalkedInput};
 use golden::merge::level_choice::candidate_range;
-use golden::merge::level_merge::unit::{BaseBeat, BeatLayout, LevelCase};
-use golden::merge::merging_module::{top_transaction, Report, TopLayout};
+use golden::merge::merge_level::unit::{BaseBeat, BeatLayout, LevelCase};
+use golden::merge::merge_module::{top_transaction, Report, TopLayout};
 use golden::merge::per_node::unit::{base_by_lod, PerNodeCase, PerNodeLayout};
 use golden::merge::upper_builder::level_unit::{upper_transaction, UpperLayout};
 use golden::merge::{MergeMode, MergeStats};
@@ -389,7 +389,7 @@ fn check_against_frame(
         .iter()
         .filter(|b| matches!(b, BaseBeat::Reused { .. }))
         .count() as u64;
-    let lm = &stats.level_merge;
+    let lm = &stats.merge_level;
     let frame = (
         stats.per_node.descents,
         lm.created,
@@ -476,8 +476,8 @@ mod tests {
             let count = |f: fn(&BaseBeat) -> bool| tx.out.iter().filter(|b| f(b)).count() as u64;
             let mut stats = MergeStats::default();
             stats.per_node.descents = tx.descents;
-            stats.level_merge.created = count(|b| matches!(b, BaseBeat::Created { .. }));
-            stats.level_merge.reused_inner = count(|b| matches!(b, BaseBeat::Reused { .. }));
+            stats.merge_level.created = count(|b| matches!(b, BaseBeat::Created { .. }));
+            stats.merge_level.reused_inner = count(|b| matches!(b, BaseBeat::Reused { .. }));
             return (case, tx, stats);
         }
     }
@@ -502,7 +502,7 @@ mod tests {
         assert!(e.contains("the base at LOD"), "{e}");
         // The frame's merge created one node more than the stream.
         let mut other = stats.clone();
-        other.level_merge.created += 1;
+        other.merge_level.created += 1;
         let e = check(&tx.out, &other).unwrap_err();
         assert!(e.contains("differs from the frame's merge"), "{e}");
     }

@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! # module | point | generator line | reason
-//! merge_level_d16_q8_i24_h4 | toggle h_rec[125:102] | rtl-gen/src/merge/level.rs:53 | ...
+//! merge_level_d16_q8_i24_h4 | toggle h_rec[125:102] | rtl-gen/src/merge/merge_level.rs:53 | ...
 //! ```
 //!
 //! A point is `toggle NET` (every bit), `toggle NET[i]` or `toggle

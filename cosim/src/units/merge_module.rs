@@ -1,5 +1,5 @@
 //! The merging module as one unit (`rtl_gen::merge::merge_module_unit`,
-//! SPEC 8.10) against the golden `golden::merge::merging_module` transactions, bit for
+//! SPEC 8.10) against the golden `golden::merge::merge_module` transactions, bit for
 //! bit on both output streams, with independent seeded stalls on every
 //! stream: `cfg`, `in0`..`in{k-1}` in, `report`, `out` out. A transaction
 //! is one merge (its `cfg` beat, count pass, choice, merge pass).
@@ -153,7 +153,10 @@ pub fn export_spec(
 ) -> Result<ExportSpec> {
     let streams = generate_streams(d, seed, count, DEFAULT_MOST_VOXELS, None)?;
     let design = crate::from_rtl::design_from_module(&merge_module(d), rtl)?;
-    let (report, out) = (report_fields(d), super::merge::output_fields(&d.params));
+    let (report, out) = (
+        report_fields(d),
+        super::merge_level::output_fields(&d.params),
+    );
     let (inputs, outputs) = export_streams(&streams, |name| match name {
         "report" => named_fields(report.iter().copied()),
         _ => out
@@ -179,7 +182,7 @@ pub fn export_spec(
 pub fn decoder_of(d: &MergeDesign, name: &str) -> Box<FieldDecoder> {
     match name {
         "report" => report_decoder(d),
-        _ => super::merge::decoder(&d.params),
+        _ => super::merge_level::decoder(&d.params),
     }
 }
 

@@ -43,6 +43,7 @@ pub use super::multi_stream::{RunConfig as ModuleRunConfig, VerilogPatch};
 use crate::export_tb::{named_fields, ExportSpec};
 
 pub(crate) mod shared;
+pub mod store_port;
 pub use shared::StoreOutcome;
 
 /// The stage name `hiermerge cosim --unit merger` reports.

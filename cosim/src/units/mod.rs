@@ -1,18 +1,20 @@
 //! Complete testbenches of hiermerge's generated units, over any
 //! [`crate::Engine`], returning what they measured or the first mismatch
-//! (never panicking): the translation unit ([`translate`]), the merging
-//! module's S614 merge-level stage ([`merge`]), the merging module as one
-//! unit ([`merge_module`]) and the hierarchy merger top ([`merger`]), the
-//! last two run in chunks of a long run ([`chunked`]). `hiermerge cosim`
-//! runs them.
+//! (never panicking). One module per unit, named as its golden model
+//! (`golden::merge::<unit>`) and its generator (`rtl_gen::merge`): the
+//! translation unit ([`translate`]), the merging module's S614 stage
+//! ([`merge_level`]), the merging module as one unit ([`merge_module`]),
+//! the hierarchy merger top ([`merger`], with its store front end
+//! [`merger::store_port`]) and the hierarchy unit ([`hierarchy_unit`]); the
+//! multi-stream ones run in chunks of a long run ([`chunked`]).
+//! `hiermerge cosim` runs them.
 
 pub mod chunked;
 pub mod hierarchy_unit;
-pub mod merge;
+pub mod merge_level;
 pub mod merge_module;
 pub mod merger;
 pub mod multi_stream;
-pub mod store_port;
 pub mod translate;
 
 use crate::engine::Engine;

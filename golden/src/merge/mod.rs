@@ -13,9 +13,9 @@
 //! 2. [`fetcher`]: S610 + S612: each input walked from its top down to the
 //!    merging level, every node translated ([`fetcher::walk`]); the leaves
 //!    above the level and the nodes at it collected; [`fetcher::root_sorter`].
-//! 3. [`level_merge`]: S614 (unit 506): merged nodes at the merging level,
+//! 3. [`merge_level`]: S614 (unit 506): merged nodes at the merging level,
 //!    grouped by voxel over the Morton-sorted union of the inputs' nodes;
-//!    [`level_merge::unit`] holds the merging module's beat format.
+//!    [`merge_level::unit`] holds the merging module's beat format.
 //!    [`per_node`] is the per-node mode of paragraph 55.
 //! 4. [`upper_builder`]: S616: the upper levels, with the mesh builder's
 //!    grouping and top rule (shared code), and the records' layout;
@@ -24,7 +24,7 @@
 //! 5. [`record_writer`]: S618 in hardware; [`merge`] / [`merge_into`]: the
 //!    merged hierarchy (and its statistics); [`merge_into`] stores it.
 //!
-//! The assemblies: [`merging_module`] (S608 + S614 + per-node behind one
+//! The assemblies: [`merge_module`] (S608 + S614 + per-node behind one
 //! `cfg`), [`merger`] (the merger top: fetchers, merging module, upper
 //! builder, record writer, its store port [`merger::store_port`]) and
 //! [`hierarchy_unit`] (the translation unit's table feeding the merger
@@ -36,9 +36,9 @@ pub mod fetcher;
 pub mod hierarchy_unit;
 pub mod instances;
 pub mod level_choice;
-pub mod level_merge;
+pub mod merge_level;
+pub mod merge_module;
 pub mod merger;
-pub mod merging_module;
 pub mod per_node;
 pub mod record_writer;
 pub mod stimulus;
@@ -55,7 +55,7 @@ use crate::params::Params;
 use crate::store::{Hierarchy, HierarchyStore};
 use crate::translate::{Translation, TranslationTable};
 use fetcher::walk::{collect, walk_input, WalkedInput};
-use level_merge::LevelMergeCounts;
+use merge_level::MergeLevelCounts;
 use per_node::{PerNode, PerNodeCounts};
 
 /// How the merging level is chosen (paragraphs 53-55).
@@ -124,7 +124,7 @@ pub struct MergeStats {
     /// Input leaves above the merging level, taken as they are (S610).
     pub leaves_above: u64,
     /// S614: created merged nodes, reused input inner nodes and leaves.
-    pub level_merge: LevelMergeCounts,
+    pub merge_level: MergeLevelCounts,
     /// Per-node mode: descents and the deepest created node.
     pub per_node: PerNodeCounts,
     /// Records made by S616's grouping.
@@ -142,14 +142,14 @@ pub struct MergeStats {
 impl MergeStats {
     /// Records created by the merge (S614 + S616 + materialized roots).
     pub fn created(&self) -> u64 {
-        self.level_merge.created + self.upper_nodes + self.materialized
+        self.merge_level.created + self.upper_nodes + self.materialized
     }
 
     /// Input nodes the merged hierarchy references directly instead of
     /// making a node for them: reused inner nodes and leaves at the merging
     /// level(s), and leaves above it.
     pub fn reused(&self) -> u64 {
-        self.level_merge.reused_inner + self.level_merge.reused_leaves + self.leaves_above
+        self.merge_level.reused_inner + self.merge_level.reused_leaves + self.leaves_above
     }
 }
 
@@ -252,10 +252,10 @@ pub fn merge(
                 num,
                 den,
             };
-            let mut base: Vec<_> = above.iter().map(level_merge::BaseNode::reused).collect();
+            let mut base: Vec<_> = above.iter().map(merge_level::BaseNode::reused).collect();
             base.extend(decider.merge_from(
                 first_level,
-                &mut stats.level_merge,
+                &mut stats.merge_level,
                 &mut stats.per_node,
             )?);
             (base, None)
@@ -282,12 +282,12 @@ pub fn merge(
             stats.nodes_walked = walked_count(&walked);
             let (above, at_level) = collect(&walked, m);
             stats.leaves_above = above.len() as u64;
-            let mut base: Vec<_> = above.iter().map(level_merge::BaseNode::reused).collect();
-            base.extend(level_merge::merge_level(
+            let mut base: Vec<_> = above.iter().map(merge_level::BaseNode::reused).collect();
+            base.extend(merge_level::merge_level(
                 at_level,
                 &hs,
                 &p,
-                &mut stats.level_merge,
+                &mut stats.merge_level,
             )?);
             (base, Some(m))
         }

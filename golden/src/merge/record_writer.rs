@@ -23,7 +23,7 @@
 use crate::bits::Bits;
 use crate::layout::{Field, LayoutError, NodeLayout, RefLayout};
 use crate::merge::error::MergeError;
-use crate::merge::level_merge::{BaseKind, BaseNode};
+use crate::merge::merge_level::{BaseKind, BaseNode};
 use crate::merge::upper_builder::unit::LevelOut;
 use crate::merge::upper_builder::unit::{
     builder_transaction, level_out_kind, BuilderLayout, BuilderTransaction,

@@ -8,7 +8,7 @@ use crate::build::{build, GridMap};
 use crate::merge::error::MergeError;
 use crate::merge::fetcher::walk::{collect, walk_input, WalkedInput};
 use crate::merge::level_choice::candidate_range;
-use crate::merge::level_merge::{BaseKind, BaseNode, LevelMergeCounts};
+use crate::merge::merge_level::{BaseKind, BaseNode, MergeLevelCounts};
 use crate::merge::per_node::{PerNode, PerNodeCounts};
 use crate::params::Params;
 use crate::scenes::random_soup;
@@ -189,7 +189,7 @@ pub fn per_node_base(
         num,
         den,
     };
-    let mut counts = LevelMergeCounts::default();
+    let mut counts = MergeLevelCounts::default();
     base.extend(decider.merge_from(first, &mut counts, &mut PerNodeCounts::default())?);
     Ok(base)
 }

@@ -4,7 +4,7 @@
 //!
 //! Record `i` exercises stage `stages[i % stages.len()]` (the stages the
 //! configuration builds, [`MergeDesign::stages`]) with one transaction from the
-//! seeded stimulus of [`crate::merge::level_merge::unit`], [`crate::merge::level_choice::unit`], [`crate::merge::upper_builder::level_unit`], [`crate::merge::fetcher::root_sorter`]:
+//! seeded stimulus of [`crate::merge::merge_level::unit`], [`crate::merge::level_choice::unit`], [`crate::merge::upper_builder::level_unit`], [`crate::merge::fetcher::root_sorter`]:
 //! `{"stage": "merge_level" | "overlap_counter" | "upper_level" | "root_sorter",
 //!   "in": [beat, ...], "out": [beat, ...]}`, every beat the unit's `in_data` /
 //! `out_data` port value (an integer up to 64 bits, else a `"0x..."` hex string
@@ -17,7 +17,7 @@ use super::{read_jsonl, wide_from_hex, wide_to_json, Header, ParamMap, UnitKind,
 use crate::bits::Bits;
 use crate::merge::fetcher::root_sorter::*;
 use crate::merge::level_choice::unit::*;
-use crate::merge::level_merge::unit::*;
+use crate::merge::merge_level::unit::*;
 use crate::merge::upper_builder::level_unit::*;
 use crate::merge::MergeMode;
 use crate::params::Params;

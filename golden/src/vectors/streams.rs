@@ -10,11 +10,11 @@
 use crate::bits::Bits;
 use crate::layout::Field;
 use crate::merge::fetcher::FetchLayout;
-use crate::merge::level_merge::unit::BeatLayout;
+use crate::merge::merge_level::unit::BeatLayout;
+use crate::merge::merge_module::{random_top_transaction, TopLayout};
 use crate::merge::merger::{
     merger_transaction, MergerLayout, MergerSizes, MergerTransaction, ModulePass,
 };
-use crate::merge::merging_module::{random_top_transaction, TopLayout};
 use crate::merge::per_node::unit::{random_per_node_case, PerNodeLayout};
 use crate::merge::stimulus::{place, try_soup};
 use crate::merge::MergeMode;

@@ -13,7 +13,7 @@
 //! a counterexample from reset, not only a failed induction step.
 
 use golden::merge::level_choice::unit::OverlapLayout;
-use golden::merge::level_merge::unit::{base_kind, level_kind, BeatLayout};
+use golden::merge::merge_level::unit::{base_kind, level_kind, BeatLayout};
 use golden::merge::per_node::unit::PerNodeLayout;
 use golden::merge::MergeMode;
 use golden::vectors::merge::MergeDesign;

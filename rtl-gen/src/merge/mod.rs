@@ -1,6 +1,6 @@
 //! Generators of the hierarchy merging module (issue 5; SPEC.md section 8,
 //! "Merging module RTL"): each stage a module with ready/valid streams whose
-//! beat formats are defined by `golden::merge::unit` and whose widths come
+//! beat formats are defined by `golden::merge` (each unit beside its golden model: the same module names) and whose widths come
 //! from `golden::params` / `golden::layout` only.
 //!
 //! - [`merge_level_unit`]: S614 (unit 506), merged nodes at the merging level.
@@ -30,41 +30,39 @@
 //!   the merging module, the upper builder and the record writer, with the
 //!   controller, the routing of S614's out and the leaf FIFOs (SPEC 8.15).
 
-mod builder;
 mod fetcher;
 mod fields;
 mod hierarchy_unit;
-mod level;
+mod level_choice;
+mod merge_level;
+mod merge_module;
 mod merger;
 mod network;
-mod overlap;
 mod per_node;
-mod sorter;
-mod top;
-mod upper;
-mod writer;
+mod record_writer;
+mod upper_builder;
 
-pub use builder::{upper_builder_name, upper_builder_unit};
 pub use fetcher::{fetcher_name, fetcher_per_node_name, fetcher_per_node_unit, fetcher_unit};
+pub use fetcher::{root_sorter_name, root_sorter_unit};
 pub use hierarchy_unit::{hierarchy_unit, hierarchy_unit_name, HierarchyUnitConfig};
-pub use level::{merge_level_name, merge_level_unit};
+pub use level_choice::{overlap_counter_name, overlap_counter_unit};
+pub use merge_level::{merge_level_name, merge_level_unit};
+pub use merge_module::{merge_module_name, merge_module_unit};
 pub use merger::{
     hierarchy_merger_name, hierarchy_merger_unit, store_port_name, store_port_unit, MergerConfig,
     StorePortConfig,
 };
 pub use network::{morton_code, morton_merge_name, morton_merge_unit};
-pub use overlap::{overlap_counter_name, overlap_counter_unit};
 pub use per_node::{
     per_node_decider_name, per_node_decider_unit, per_node_module_unit, per_node_network_name,
     per_node_network_unit,
 };
-pub use sorter::{root_sorter_name, root_sorter_unit};
-pub use top::{merge_module_name, merge_module_unit};
-pub use upper::{upper_level_name, upper_level_unit};
-pub use writer::{
+pub use record_writer::{
     record_writer_buffers, record_writer_level_name, record_writer_name, record_writer_unit,
     WriterBuffer,
 };
+pub use upper_builder::{upper_builder_name, upper_builder_unit};
+pub use upper_builder::{upper_level_name, upper_level_unit};
 
 use std::path::{Path, PathBuf};
 

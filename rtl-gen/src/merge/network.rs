@@ -16,7 +16,7 @@
 
 use golden::merge::level_choice::unit::rank_bits;
 
-use golden::merge::level_merge::unit::{level_kind, BeatLayout};
+use golden::merge::merge_level::unit::{level_kind, BeatLayout};
 use golden::params::Params;
 
 use super::fields::{coords, field};

@@ -17,15 +17,15 @@
 //! merging modules hold no per-node logic.
 
 use golden::merge::level_choice::unit::rank_bits;
-use golden::merge::level_merge::unit::{base_kind, level_kind, BeatLayout};
-use golden::merge::merging_module::{choice_err, TopLayout};
+use golden::merge::merge_level::unit::{base_kind, level_kind, BeatLayout};
+use golden::merge::merge_module::{choice_err, TopLayout};
 use golden::merge::per_node::unit::{PerNodeLayout, CHILD_COUNT_BITS};
 use golden::params::Params;
 
 use super::fields::{coords, field, with_fields};
+use super::level_choice::times_constant;
+use super::merge_module::merge_module_name;
 use super::network::{morton_code, take_minimum_head, winner_rank, KeyOrder, MergeHead};
-use super::overlap::times_constant;
-use super::top::merge_module_name;
 use super::{merge_level_unit, MergeConfig};
 use crate::{Module, Signal, Stream};
 

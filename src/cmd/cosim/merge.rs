@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use cosim::from_rtl::design_from_module;
-use cosim::units::{merge, merge_module};
+use cosim::units::{merge_level, merge_module};
 use golden::vectors::merge::MergeDesign;
 
 use super::command_line::reproduce;
@@ -20,19 +20,19 @@ pub(super) fn run_level(
     dir: &Path,
 ) -> Result<Report, String> {
     let levels = match &a.vectors {
-        Some(p) => merge::read_levels(p, design)?,
+        Some(p) => merge_level::read_levels(p, design)?,
         None => {
             let count = count(a)?;
-            merge::generate_levels(design, a.seed, count).map_err(|e| e.to_string())?
+            merge_level::generate_levels(design, a.seed, count).map_err(|e| e.to_string())?
         }
     };
-    let vectors = merge::bench_vectors(&levels, flip).map_err(|e| e.to_string())?;
-    let module = merge::merge_level_module(&design.params);
+    let vectors = merge_level::bench_vectors(&levels, flip).map_err(|e| e.to_string())?;
+    let module = merge_level::merge_level_module(&design.params);
     cosim::waves::check_scope(&module, a.wave_scope.as_deref()).map_err(|e| e.to_string())?;
     let cdesign = design_from_module(&module, dir).map_err(|e| e.to_string())?;
     let mut make = factory(a, &module, &cdesign)?;
     let expected_outputs: u64 = levels.iter().map(|l| l.outputs.len() as u64).sum();
-    let config = merge::RunConfig {
+    let config = merge_level::RunConfig {
         seed: a.seed,
         stall: super::stalls(a)?,
         reproduce: Some(reproduce(a, flip)?),
@@ -40,7 +40,7 @@ pub(super) fn run_level(
         wave_window: a.wave_window,
     };
     let pb = bar(expected_outputs, a.json);
-    let report = merge::run_with_vcd_on_mismatch(
+    let report = merge_level::run_with_vcd_on_mismatch(
         &mut make,
         &design.params,
         &vectors,
@@ -73,7 +73,7 @@ pub(super) fn run_level(
         transaction: level_of(m.input_id),
         stream: None,
         beat: None,
-        kind: merge::STAGE.to_string(),
+        kind: merge_level::STAGE.to_string(),
         cycle: m.cycle,
         seed: a.seed,
         what: format!("output beat {} differs", m.output_index),
@@ -93,7 +93,7 @@ pub(super) fn run_level(
             transaction: level_of(report.inputs_sent),
             stream: None,
             beat: None,
-            kind: merge::STAGE.to_string(),
+            kind: merge_level::STAGE.to_string(),
             cycle: report.hang.as_ref().map_or(report.cycles, |h| h.cycle),
             seed: a.seed,
             what: match &report.hang {
@@ -111,7 +111,14 @@ pub(super) fn run_level(
         cycles: report.cycles,
         wall_seconds: report.wall.as_secs_f64(),
     };
-    finish_report(a, merge::STAGE, flip, counts, first, report.vcd.as_ref())
+    finish_report(
+        a,
+        merge_level::STAGE,
+        flip,
+        counts,
+        first,
+        report.vcd.as_ref(),
+    )
 }
 
 /// `--unit merge`: seeded merges through the merging module, every stream

@@ -34,8 +34,8 @@ use crate::export_tb::StoreSpec;
 use crate::ledger::StimulusDigest;
 use crate::tb::{run_multi_stream_bench_reactive, BenchConfig, Transaction};
 use crate::units::chunked::{chunk_bench, ChunkTotals, PairDecoder, UnitStreams};
+use crate::units::merger::store_port::{Epochs, StoreModel, StoreStats};
 use crate::units::multi_stream::decoded_pair;
-use crate::units::store_port::{Epochs, StoreModel, StoreStats};
 
 /// What the store saw over a run of the shared port, and whether it held
 /// to golden's reads.

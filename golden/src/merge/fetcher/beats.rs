@@ -4,7 +4,7 @@
 
 use crate::bits::Bits;
 use crate::layout::{Field, LayoutError, NodeLayout, RefLayout};
-use crate::merge::level_merge::unit::{BeatLayout, LevelBeat};
+use crate::merge::merge_level::unit::{BeatLayout, LevelBeat};
 use crate::merge::per_node::unit::{PerNodeLayout, PerNodeReport};
 use crate::params::Params;
 use crate::store::{Hierarchy, NodeRecord, Reference};

@@ -6,7 +6,7 @@ use std::collections::BTreeSet;
 
 use crate::grid::VoxelAddr;
 use crate::merge::fetcher::walk::PlacedNode;
-use crate::merge::level_merge::unit::LevelBeat;
+use crate::merge::merge_level::unit::LevelBeat;
 use crate::merge::stimulus::{random_box, random_coord, random_index};
 use crate::params::Params;
 use crate::store::{NodeRecord, Reference};
@@ -21,7 +21,7 @@ use crate::translate::stimulus::SplitMix64;
 /// for a builder-made input: 8 octants of the root voxel, an inner node and
 /// a leaf each) can come out of order; the root sorter orders them by
 /// (translated Morton code, inner before leaf), stably, as golden's
-/// [`crate::merge::level_merge::sort_stream`] orders one input.
+/// [`crate::merge::merge_level::sort_stream`] orders one input.
 ///
 /// The transaction: the roots of one input as [`LevelBeat::Inner`] /
 /// [`LevelBeat::Leaf`] beats in stored order, then `End`; out, the first
@@ -35,7 +35,7 @@ pub fn root_sort_transaction(
     let mut inputs: Vec<LevelBeat> = roots.iter().map(beat).collect();
     inputs.push(LevelBeat::End);
     let mut kept: Vec<PlacedNode> = roots.iter().take(capacity).copied().collect();
-    crate::merge::level_merge::sort_stream(&mut kept);
+    crate::merge::merge_level::sort_stream(&mut kept);
     let mut outputs: Vec<(LevelBeat, bool)> = kept.iter().map(|n| (beat(n), false)).collect();
     outputs.push((LevelBeat::End, roots.len() > capacity));
     (inputs, outputs)

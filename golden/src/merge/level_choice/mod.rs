@@ -171,7 +171,7 @@ pub fn overlaps_pruned(
     lo: u8,
     hi: u8,
 ) -> Result<Vec<LevelOverlap>, MergeError> {
-    use crate::merge::level_merge::{sort_stream, voxel_groups};
+    use crate::merge::merge_level::{sort_stream, voxel_groups};
     let mut distinct = vec![0u64; hi as usize + 1];
     for h in inputs {
         for (l, c) in census(h, hi)?.iter().enumerate() {

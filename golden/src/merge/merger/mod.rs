@@ -47,12 +47,12 @@ use crate::merge::fetcher::{
 };
 use crate::merge::level_choice::candidate_range;
 use crate::merge::level_choice::unit::rank_bits;
-use crate::merge::level_merge::unit::{BaseBeat, LevelBeat, LevelCase};
-use crate::merge::level_merge::{BaseKind, BaseNode};
-use crate::merge::merger::store_port::StorePort;
-use crate::merge::merging_module::{
+use crate::merge::merge_level::unit::{BaseBeat, LevelBeat, LevelCase};
+use crate::merge::merge_level::{BaseKind, BaseNode};
+use crate::merge::merge_module::{
     choice_err, choose, top_transaction, Report, TopLayout, TopTransaction,
 };
+use crate::merge::merger::store_port::StorePort;
 use crate::merge::per_node::unit::{per_node_transaction, PerNodeBeat, PerNodeTransaction};
 use crate::merge::record_writer::{
     writer_transaction, CapacityError, Header, WriterLayout, WriterTransaction,

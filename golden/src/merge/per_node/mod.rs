@@ -22,8 +22,8 @@ pub mod unit;
 
 use crate::merge::error::MergeError;
 use crate::merge::fetcher::walk::{children, place_node, PlacedNode};
-use crate::merge::level_merge::{
-    created_node, sort_stream, voxel_groups, BaseNode, LevelMergeCounts,
+use crate::merge::merge_level::{
+    created_node, sort_stream, voxel_groups, BaseNode, MergeLevelCounts,
 };
 use crate::params::Params;
 use crate::store::Hierarchy;
@@ -117,7 +117,7 @@ impl PerNode<'_> {
         &self,
         group: &[PlacedNode],
         out: &mut Vec<BaseNode>,
-        counts: &mut LevelMergeCounts,
+        counts: &mut MergeLevelCounts,
         pn: &mut PerNodeCounts,
     ) -> Result<(), MergeError> {
         let inner: Vec<&PlacedNode> = group.iter().filter(|n| !n.record.leaf).collect();
@@ -150,7 +150,7 @@ impl PerNode<'_> {
     pub fn merge_from(
         &self,
         mut first_level: Vec<PlacedNode>,
-        counts: &mut LevelMergeCounts,
+        counts: &mut MergeLevelCounts,
         pn: &mut PerNodeCounts,
     ) -> Result<Vec<BaseNode>, MergeError> {
         sort_stream(&mut first_level);

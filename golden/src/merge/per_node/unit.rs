@@ -23,9 +23,9 @@ use crate::grid::VoxelAddr;
 use crate::layout::{Field, LayoutError};
 use crate::merge::error::MergeError;
 use crate::merge::fetcher::walk::{children, collect, place_node, walk_input, PlacedNode};
-use crate::merge::level_merge::unit::{level_transaction, BaseBeat, BeatLayout, LevelBeat};
-use crate::merge::level_merge::{sort_stream, voxel_groups, BaseKind, BaseNode};
-use crate::merge::merging_module::choice_err;
+use crate::merge::merge_level::unit::{level_transaction, BaseBeat, BeatLayout, LevelBeat};
+use crate::merge::merge_level::{sort_stream, voxel_groups, BaseKind, BaseNode};
+use crate::merge::merge_module::choice_err;
 use crate::merge::per_node::PerNode;
 use crate::params::Params;
 use crate::store::{Hierarchy, NodeRecord, Reference};
@@ -37,7 +37,7 @@ use crate::translate::Translation;
 pub const CHILD_COUNT_BITS: u32 = 4;
 
 /// Bit layouts of the per-node configuration's input and `report` beats
-/// (`cfg` is [`crate::merge::merging_module::TopLayout`]'s, `out` S614's output beat).
+/// (`cfg` is [`crate::merge::merge_module::TopLayout`]'s, `out` S614's output beat).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct PerNodeLayout {
     /// An input beat: an S614 input beat ([`BeatLayout::input`]) then
@@ -804,7 +804,7 @@ mod tests {
                     .out
                     .iter()
                     .filter(|b| matches!(b, BaseBeat::Reused { .. }));
-                let lm = r.stats.level_merge;
+                let lm = r.stats.merge_level;
                 assert_eq!(created.count() as u64, lm.created);
                 assert_eq!(reused.count() as u64, lm.reused_inner + lm.reused_leaves);
                 let (want, _) = c.golden_base(&p, num, den).unwrap();

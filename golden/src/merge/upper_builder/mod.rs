@@ -20,7 +20,7 @@ pub mod unit;
 use crate::build::upper::{build_levels, group_by_parent, LevelNode};
 use crate::grid::VoxelAddr;
 use crate::merge::error::MergeError;
-use crate::merge::level_merge::{BaseKind, BaseNode};
+use crate::merge::merge_level::{BaseKind, BaseNode};
 use crate::params::Params;
 use crate::store::{Hierarchy, NodeRecord, Reference};
 

@@ -10,7 +10,7 @@
 //!   the merging level, the reused leaves above it) in the order S616's level
 //!   lists hold them (Morton, stable), then `End`; S614's input layout
 //!   ([`BeatLayout::input`]) with S614's output kind codes
-//!   ([`base_kind`](crate::merge::level_merge::unit::base_kind):
+//!   ([`base_kind`](crate::merge::merge_level::unit::base_kind):
 //!   created, reused, end; no reference beats).
 //! - out `level{d}`: level `d`'s nodes in level order, then `End` with the
 //!   level's node and record counts, for every `d` from `D` up to the top;
@@ -23,8 +23,8 @@ use crate::grid::VoxelAddr;
 use crate::layout::{Field, LayoutError, NodeLayout, RefLayout};
 use crate::merge::error::MergeError;
 use crate::merge::fetcher::walk::{collect, walk_input, WalkedInput};
-use crate::merge::level_merge::unit::{BaseBeat, BeatLayout};
-use crate::merge::level_merge::{merge_level, BaseKind, BaseNode, LevelMergeCounts};
+use crate::merge::merge_level::unit::{BaseBeat, BeatLayout};
+use crate::merge::merge_level::{merge_level, BaseKind, BaseNode, MergeLevelCounts};
 use crate::merge::upper_builder::{base_by_lod, upper_levels};
 use crate::params::Params;
 use crate::store::{Hierarchy, NodeRecord, Reference};
@@ -341,7 +341,7 @@ pub fn fixed_level_base(
     let (above, at) = collect(&walked, m);
     let hs: Vec<&Hierarchy> = inputs.iter().map(|(h, _)| *h).collect();
     let mut base: Vec<BaseNode> = above.iter().map(BaseNode::reused).collect();
-    base.extend(merge_level(at, &hs, p, &mut LevelMergeCounts::default())?);
+    base.extend(merge_level(at, &hs, p, &mut MergeLevelCounts::default())?);
     Ok(base)
 }
 

@@ -1,6 +1,6 @@
 //! The fetcher (S610 + S612 in hardware, SPEC.md section 8.13): walks one
 //! input hierarchy in the store, translating every node it reads, and sends
-//! the merging module's per-input stream (`golden::merge::merging_module::input_stream`
+//! the merging module's per-input stream (`golden::merge::merge_module::input_stream`
 //! order) and the leaves above the walked level.
 //!
 //! A read pipeline, one node per clock: the roots are read in stored
@@ -30,6 +30,7 @@ mod command;
 mod order;
 mod out;
 mod parts;
+mod root_sorter;
 mod visit;
 mod walk;
 
@@ -37,6 +38,8 @@ use golden::merge::fetcher::{fetch_err, FetchLayout, FetchSizes};
 use golden::params::Params;
 
 use crate::{Module, Signal, Stream};
+
+pub use root_sorter::{root_sorter_name, root_sorter_unit};
 
 /// Module name of the fetcher.
 pub fn fetcher_name(p: &Params, sizes: &FetchSizes) -> String {

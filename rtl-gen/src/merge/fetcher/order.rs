@@ -3,7 +3,7 @@
 //! out stage; per-node, a pass's inner node first sends its probes.
 
 use golden::merge::fetcher::fetch_err;
-use golden::merge::level_merge::unit::level_kind;
+use golden::merge::merge_level::unit::level_kind;
 
 use super::super::fields::field;
 use super::command::Command;

@@ -4,7 +4,7 @@
 //! two out stages (answer, send) for the probes.
 
 use golden::merge::fetcher::{fetch_err, FetchLayout};
-use golden::merge::level_merge::unit::level_kind;
+use golden::merge::merge_level::unit::level_kind;
 use golden::params::Params;
 
 use super::super::fields::{field, with_fields};

@@ -2,7 +2,7 @@
 //! updates, the node check and move (section 7.6) and the beats it packs.
 
 use golden::merge::fetcher::{fetch_err, FetchLayout};
-use golden::merge::level_merge::unit::BeatLayout;
+use golden::merge::merge_level::unit::BeatLayout;
 use golden::params::{bits_to_hold, Params};
 
 use super::super::fields::{coords, field, with_fields};

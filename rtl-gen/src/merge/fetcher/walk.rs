@@ -3,13 +3,13 @@
 //! and the reference stage (each answer checked, its `node` read issued).
 
 use golden::merge::fetcher::fetch_err;
-use golden::merge::level_merge::unit::{level_kind, BeatLayout};
+use golden::merge::merge_level::unit::{level_kind, BeatLayout};
 use golden::params::bits_to_hold;
 
 use super::super::fields::{field, with_fields, Word};
-use super::super::sorter::root_sorter_unit;
 use super::command::{goto, Command, FirstErr};
 use super::parts::{check_and_move, fifo, reference, Checked};
+use super::root_sorter::root_sorter_unit;
 use super::{nk, ph, Ctx, Ports, IN_FLIGHT};
 use crate::{Instance, Signal, Stream};
 

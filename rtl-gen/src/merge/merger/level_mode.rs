@@ -3,9 +3,9 @@
 //! `lo..=hi` first, then the module's choice and one merge pass at that level.
 
 use golden::merge::level_choice::unit::rank_bits;
-use golden::merge::level_merge::unit::{base_kind, level_kind, BeatLayout};
+use golden::merge::merge_level::unit::{base_kind, level_kind, BeatLayout};
+use golden::merge::merge_module::TopLayout;
 use golden::merge::merger::MergerLayout;
-use golden::merge::merging_module::TopLayout;
 use golden::params::Params;
 
 use super::drop_fifo::DropFifo;

@@ -12,10 +12,10 @@
 //! units' own transactions.
 
 use golden::merge::fetcher::FetchSizes;
-use golden::merge::level_merge::unit::BeatLayout;
+use golden::merge::merge_level::unit::BeatLayout;
+use golden::merge::merge_module::TopLayout;
 use golden::merge::merger::store_port::StorePort;
 use golden::merge::merger::{MergerLayout, MergerSizes};
-use golden::merge::merging_module::TopLayout;
 use golden::merge::MergeMode;
 use golden::params::Params;
 

@@ -2,7 +2,7 @@
 
 use golden::merge::fetcher::FetchLayout;
 use golden::merge::level_choice::unit::rank_bits;
-use golden::merge::level_merge::unit::{base_kind, level_kind, BeatLayout};
+use golden::merge::merge_level::unit::{base_kind, level_kind, BeatLayout};
 use golden::merge::merger::MergerLayout;
 use golden::merge::per_node::unit::PerNodeLayout;
 use golden::params::Params;

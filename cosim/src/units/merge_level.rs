@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use golden::bits::Bits;
 use golden::layout::Field;
-use golden::merge::level_merge::unit::BeatLayout;
+use golden::merge::merge_level::unit::BeatLayout;
 use golden::params::Params;
 use golden::translate::stimulus::SplitMix64;
 use golden::vectors::merge::{generate, read_merge_vectors, MergeDesign, MergeVector};

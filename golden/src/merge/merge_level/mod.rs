@@ -60,7 +60,7 @@ impl BaseNode {
 
 /// What S614 did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
-pub struct LevelMergeCounts {
+pub struct MergeLevelCounts {
     /// Created nodes: voxels where two or more inner nodes were merged into
     /// one new record.
     pub created: u64,
@@ -171,7 +171,7 @@ pub fn merge_level(
     mut at_level: Vec<PlacedNode>,
     inputs: &[&Hierarchy],
     p: &Params,
-    counts: &mut LevelMergeCounts,
+    counts: &mut MergeLevelCounts,
 ) -> Result<Vec<BaseNode>, MergeError> {
     sort_stream(&mut at_level);
     let mut out = Vec::new();

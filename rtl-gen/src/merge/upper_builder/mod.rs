@@ -14,14 +14,17 @@
 //! node is completed only by the level's `End`; so when stage `d` decides
 //! that `d` is the top, no beat of a shallower level has left yet.
 
-use golden::merge::level_merge::unit::base_kind;
+use golden::merge::merge_level::unit::base_kind;
 use golden::merge::upper_builder::level_unit::UpperLayout;
 use golden::merge::upper_builder::unit::{level_out_kind, BuilderLayout};
 use golden::params::Params;
 
 use super::fields::{coords, field};
-use super::{morton_code, upper_level_unit};
+use super::morton_code;
 use crate::{Module, Signal, Stream};
+
+mod level;
+pub use level::{upper_level_name, upper_level_unit};
 
 /// Module name of the upper builder for `p`.
 pub fn upper_builder_name(p: &Params) -> String {

@@ -16,10 +16,10 @@
 //! queue never holds more than `capacity + 1` entries and the input never
 //! waits (SPEC.md 8.9 proves it). Skid buffers register both handshakes.
 
-use golden::merge::level_merge::unit::{level_kind, BeatLayout};
+use golden::merge::merge_level::unit::{level_kind, BeatLayout};
 use golden::params::{bits_to_hold, Params};
 
-use super::fields::{field, with_fields};
+use crate::merge::fields::{field, with_fields};
 use crate::{Module, Signal, Stream};
 
 /// Module name of the root sorter.

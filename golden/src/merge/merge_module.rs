@@ -1,7 +1,7 @@
 //! The merging module as one unit (SPEC.md section 8.10): the beat formats of
 //! its ports and its transaction, one merge, whose expected outputs come from
 //! the golden stage functions ([`crate::merge::level_choice::choose_level`],
-//! [`crate::merge::level_choice::unit::overlap_transaction`], [`crate::merge::level_merge::unit::level_transaction`]),
+//! [`crate::merge::level_choice::unit::overlap_transaction`], [`crate::merge::merge_level::unit::level_transaction`]),
 //! never from a second model.
 //!
 //! A merge on the unit's ports:
@@ -16,11 +16,11 @@
 //! 4. The **merge pass**: each input stream carries its nodes at the chosen
 //!    level, each voxel's inner node(s), leaf, then the inner nodes' child
 //!    references, then `End`; `out` carries S614's base beats
-//!    ([`crate::merge::level_merge::unit::BaseBeat`]) and `End`.
+//!    ([`crate::merge::merge_level::unit::BaseBeat`]) and `End`.
 //!
 //! Inside, a k-way merge by `(Morton code, phase, rank)` (phase: inner 0,
 //! leaf 1, child reference 2) turns the `k` input streams into S614's
-//! delivery order ([`crate::merge::level_merge::unit::level_stream`]), which is what makes the
+//! delivery order ([`crate::merge::merge_level::unit::level_stream`]), which is what makes the
 //! per-input streams enough: a child reference's key is its parent's voxel.
 
 use crate::bits::Bits;
@@ -29,7 +29,7 @@ use crate::merge::error::MergeError;
 use crate::merge::fetcher::walk::{children, PlacedNode};
 use crate::merge::level_choice::unit::{overlap_transaction, OverlapResult};
 use crate::merge::level_choice::{choose_level, LevelOverlap};
-use crate::merge::level_merge::unit::{
+use crate::merge::merge_level::unit::{
     level_transaction, random_level_case_at, BaseBeat, LevelBeat, LevelCase,
 };
 use crate::merge::MergeMode;
@@ -51,7 +51,7 @@ pub mod choice_err {
 
 /// Bit layouts of the unit's `cfg` and `report` beats. The input streams
 /// carry S614 input beats and `out` S614 output beats
-/// ([`crate::merge::level_merge::unit::BeatLayout`]).
+/// ([`crate::merge::merge_level::unit::BeatLayout`]).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct TopLayout {
     /// `cfg`, from bit 0: `lo`, `hi` (`lod_bits` each).
@@ -394,7 +394,7 @@ pub fn random_top_transaction(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::merge::level_merge::unit::{level_kind, level_stream};
+    use crate::merge::merge_level::unit::{level_kind, level_stream};
 
     /// The per-input streams merged by `(Morton, kind, rank)` (a child
     /// reference keyed by its input's last node) are S614's delivery order:

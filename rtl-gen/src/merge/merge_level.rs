@@ -18,7 +18,7 @@
 //! fine-unit union returns exactly those cells.
 
 use golden::layout::NodeLayout;
-use golden::merge::level_merge::unit::{base_kind, level_kind, BeatLayout};
+use golden::merge::merge_level::unit::{base_kind, level_kind, BeatLayout};
 use golden::params::Params;
 
 use super::fields::{field, span, with_fields};

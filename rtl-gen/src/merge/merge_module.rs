@@ -14,8 +14,8 @@
 
 use golden::merge::level_choice::choose_level;
 use golden::merge::level_choice::unit::{rank_bits, OverlapLayout};
-use golden::merge::level_merge::unit::{base_kind, level_kind, BeatLayout};
-use golden::merge::merging_module::{choice_err, TopLayout};
+use golden::merge::merge_level::unit::{base_kind, level_kind, BeatLayout};
+use golden::merge::merge_module::{choice_err, TopLayout};
 use golden::merge::MergeMode;
 use golden::params::Params;
 

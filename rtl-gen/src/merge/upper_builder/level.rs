@@ -17,7 +17,7 @@
 use golden::merge::upper_builder::level_unit::UpperLayout;
 use golden::params::Params;
 
-use super::fields::field;
+use crate::merge::fields::field;
 use crate::{Module, Signal, Stream};
 
 /// Module name of the upper-level unit for `p`.

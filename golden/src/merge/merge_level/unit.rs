@@ -10,7 +10,7 @@ use crate::grid::VoxelAddr;
 use crate::layout::{Field, LayoutError, NodeLayout, RefLayout};
 use crate::merge::error::MergeError;
 use crate::merge::fetcher::walk::PlacedNode;
-use crate::merge::level_merge::{merge_level, BaseKind, BaseNode, LevelMergeCounts};
+use crate::merge::merge_level::{merge_level, BaseKind, BaseNode, MergeLevelCounts};
 use crate::merge::stimulus::{random_box, random_coord, random_index};
 use crate::params::Params;
 use crate::store::{Hierarchy, NodeRecord, Reference};
@@ -289,7 +289,7 @@ pub fn level_transaction(
     inputs: &[&Hierarchy],
     p: &Params,
 ) -> Result<LevelTransaction, MergeError> {
-    let mut counts = LevelMergeCounts::default();
+    let mut counts = MergeLevelCounts::default();
     let base = merge_level(at_level.to_vec(), inputs, p, &mut counts)?;
     let groups_in = level_stream(at_level, inputs)?;
     let mut tx = LevelTransaction {
@@ -541,7 +541,7 @@ mod tests {
             let tx = case.transaction(&p).unwrap();
             // Every golden base node appears once, in golden order.
             let hs: Vec<&Hierarchy> = case.hierarchies.iter().collect();
-            let mut c = LevelMergeCounts::default();
+            let mut c = MergeLevelCounts::default();
             let base = merge_level(case.at_level.clone(), &hs, &p, &mut c).unwrap();
             let nodes: Vec<_> = tx
                 .outputs

@@ -39,7 +39,7 @@ enum Command {
     ExportTb(cmd::export_tb::Args),
     /// The main job: build, (merge,) and trace a scene; with no argument, the embedded default scene.
     Run(cmd::run::Args),
-    /// Co-simulate a unit (translate; merge: the merging module, --stage merge-level its S614 stage; merger: the hierarchy merger top) against golden, cycle by cycle.
+    /// Co-simulate a unit (translate; merge-module: the merging module, --stage merge-level its S614 stage; merger: the hierarchy merger top) against golden, cycle by cycle.
     Cosim(cmd::cosim::Args),
     /// The coverage regression: every unit on Verilator with line/branch and toggle coverage; code coverage per unit and functional-coverage bins; fails on an unhit bin or a point below the aims without a waiver.
     Coverage(cmd::coverage::Args),

@@ -390,7 +390,7 @@ fn bad_input_is_one_clear_error() {
     let e = fails(&[
         "export-tb",
         "--unit",
-        "merge",
+        "merge-module",
         "--store-port",
         "shared",
         "--out",
@@ -414,8 +414,8 @@ fn vectors_are_written_with_a_header_and_one_record_per_transaction() {
     // (--unit, extra flags, the header's `unit`, records)
     let cases: [(&str, &[&str], &str, u64); 4] = [
         ("translate", &[], "translate", 300),
-        ("merge", &[], "merge_module", 12),
-        ("merge", &["--stage", "merge-level"], "merge", 40),
+        ("merge-module", &[], "merge_module", 12),
+        ("merge-module", &["--stage", "merge-level"], "merge", 40),
         ("merger", &[], "hierarchy_merger", 3),
     ];
     for (n, (unit, extra, records, count)) in cases.into_iter().enumerate() {
@@ -496,7 +496,7 @@ fn vectors_follow_the_mode_and_refuse_bad_options() {
         assert_eq!(header["params"]["mode"], mode, "{unit}");
         text.lines().skip(1).map(String::from).collect::<Vec<_>>()
     };
-    for unit in ["merge", "merger"] {
+    for unit in ["merge-module", "merger"] {
         let overlap = write(unit, "overlap:1/2", "o.jsonl");
         for mode in ["fixed:3", "per-node:1/2"] {
             let other = write(unit, mode, "m.jsonl");
@@ -508,7 +508,14 @@ fn vectors_follow_the_mode_and_refuse_bad_options() {
     let path = d.join("replay.jsonl");
     let file = path.to_str().unwrap();
     let replay = [
-        "--unit", "merge", "--inputs", "2", "--mode", "fixed:3", "--count", "3",
+        "--unit",
+        "merge-module",
+        "--inputs",
+        "2",
+        "--mode",
+        "fixed:3",
+        "--count",
+        "3",
     ];
     json(&[&["vectors", "--out", file, "--json"][..], &replay].concat());
     let cosim = ["cosim", "--engine", "ir", "--vectors", file, "--json"];
@@ -519,14 +526,14 @@ fn vectors_follow_the_mode_and_refuse_bad_options() {
         (Some("merge_module"), Some(3)),
         "{r}"
     );
-    let e = fails(&[&cosim[..], &["--unit", "merge", "--inputs", "2"]].concat());
+    let e = fails(&[&cosim[..], &["--unit", "merge-module", "--inputs", "2"]].concat());
     assert!(e.contains("`mode` is \"fixed:3\" in the file"), "{e}");
 
     let out = d.join("x.jsonl");
     let out = out.to_str().unwrap();
     for (args, want) in [
         (
-            vec!["--unit", "merge", "--mode", "sideways"],
+            vec!["--unit", "merge-module", "--mode", "sideways"],
             "--mode `sideways`: unknown mode; expected overlap",
         ),
         (
@@ -534,16 +541,16 @@ fn vectors_follow_the_mode_and_refuse_bad_options() {
             "--mode `fixed`: expected fixed:LEVEL",
         ),
         (
-            vec!["--unit", "merge", "--count", "0"],
+            vec!["--unit", "merge-module", "--count", "0"],
             "--count 0: expected at least one transaction",
         ),
         (
             vec!["--unit", "merger", "--stage", "merge-level"],
-            "--stage applies to --unit merge only",
+            "--stage applies to --unit merge-module only",
         ),
         (
-            vec!["--unit", "merge", "--leaf-bits", "4"],
-            "--leaf-bits applies to --unit merger and --unit hierarchy only, not to --unit merge",
+            vec!["--unit", "merge-module", "--leaf-bits", "4"],
+            "--leaf-bits applies to --unit merger and --unit hierarchy only, not to --unit merge-module",
         ),
     ] {
         let mut all = vec!["vectors", "--out", out];

@@ -2,7 +2,7 @@
 //! zero mismatches and their cycles; a vectors file for other parameters is
 //! refused naming them; a run broken through the test hook
 //! (`HIERMERGE_COSIM_FLIP_EXPECTED`) exits non-zero with the decoded fields,
-//! the reproduce command and a VCD. `--unit merge` runs the merging module
+//! the reproduce command and a VCD. `--unit merge-module` runs the merging module
 //! (Verilator, and Icarus through the multi-stream batch, cycle for cycle
 //! the same run); `--stage merge-level` its S614 stage. Under CI=true a
 //! missing Verilator or Icarus fails.
@@ -12,8 +12,9 @@ mod common;
 use std::process::Output;
 
 use golden::params::Params;
+use golden::translate::model::TranslateDesign;
 use golden::translate::TranslateUnitConfig;
-use golden::vectors::translate::{write_translate_vectors, TranslateDesign};
+use golden::vectors::translate::write_translate_vectors;
 use serde_json::Value;
 
 use common::{assert_passed, hiermerge, json_of, tool_present};
@@ -89,7 +90,7 @@ fn merge_level_on_verilator_with_back_pressure_passes() {
         &[
             "cosim",
             "--unit",
-            "merge",
+            "merge-module",
             "--stage",
             "merge-level",
             "--seed",
@@ -243,13 +244,23 @@ fn a_broken_translate_run_is_caught_and_reported() {
 
 #[test]
 fn a_broken_merge_level_run_is_caught_and_reported() {
-    check_broken(&["merge", "--stage", "merge-level"], "4", "20");
+    check_broken(&["merge-module", "--stage", "merge-level"], "4", "20");
 }
 
 fn merge_module_args<'a>(engine: &'a str, seed: &'a str, count: &'a str) -> Vec<&'a str> {
     vec![
-        "cosim", "--unit", "merge", "--engine", engine, "--seed", seed, "--count", count,
-        "--stall", "0.3", "--json",
+        "cosim",
+        "--unit",
+        "merge-module",
+        "--engine",
+        engine,
+        "--seed",
+        seed,
+        "--count",
+        count,
+        "--stall",
+        "0.3",
+        "--json",
     ]
 }
 
@@ -330,7 +341,7 @@ fn check_broken_module(engine: &str) {
     let rep = r["reproduce"].as_str().unwrap();
     for part in [
         format!("HIERMERGE_COSIM_FLIP_EXPECTED={flip} "),
-        format!("hiermerge cosim --unit merge --engine {engine} --seed 11 --count 25"),
+        format!("hiermerge cosim --unit merge-module --engine {engine} --seed 11 --count 25"),
         "--stall 0.3".into(),
         "--inputs 4 --mode overlap:1/2".into(),
     ] {
@@ -376,12 +387,15 @@ fn stage_flags_that_do_not_fit_are_refused() {
     );
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("--stage applies to --unit merge"), "{err}");
+    assert!(
+        err.contains("--stage applies to --unit merge-module"),
+        "{err}"
+    );
     let o = hiermerge(
         &[
             "cosim",
             "--unit",
-            "merge",
+            "merge-module",
             "--stage",
             "module",
             "--vectors",
@@ -406,12 +420,12 @@ fn stage_flags_that_do_not_fit_are_refused() {
 /// `--vectors` replay.
 #[test]
 fn flags_of_other_units_are_refused_naming_them() {
-    let merging = "applies to --unit merge and --unit merger and --unit hierarchy only";
+    let merging = "applies to --unit merge-module and --unit merger and --unit hierarchy only";
     for (unit, flag, want) in [
         ("translate", "--mode fixed:3", merging),
         ("translate", "--inputs 3", merging),
         (
-            "merge",
+            "merge-module",
             "--table-depth 4",
             "--table-depth applies to --unit translate and --unit hierarchy only",
         ),
@@ -421,7 +435,7 @@ fn flags_of_other_units_are_refused_naming_them() {
             "--binary64 applies to --unit translate only",
         ),
         (
-            "merge",
+            "merge-module",
             "--merges hard",
             "--merges applies to --unit merger only",
         ),

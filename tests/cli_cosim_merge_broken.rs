@@ -1,4 +1,4 @@
-//! `hiermerge cosim --unit merge` against a deliberately broken merging
+//! `hiermerge cosim --unit merge-module` against a deliberately broken merging
 //! module: the emitted Verilog patched through the test hook
 //! (`HIERMERGE_COSIM_PATCH_FROM` / `_TO`) before Verilator or Icarus reads
 //! it. A flipped bit of the `report` stream is caught with the mismatch
@@ -12,7 +12,7 @@ mod common;
 use std::path::Path;
 use std::process::Output;
 
-use golden::vectors::merge::MergeDesign;
+use golden::merge::merge_module::MergeDesign;
 use serde_json::Value;
 
 use common::{
@@ -20,7 +20,7 @@ use common::{
     tool_present, PATCH_FROM, PATCH_TO,
 };
 
-/// `hiermerge cosim --unit merge --json` (default design, `count` merges,
+/// `hiermerge cosim --unit merge-module --json` (default design, `count` merges,
 /// seed 7, stall 0.3) on `engine` with the emitted text `from` replaced by
 /// `to`, VCDs into `vcd_dir`.
 fn hiermerge_patched(engine: &str, count: &str, from: &str, to: &str, vcd_dir: &Path) -> Output {
@@ -29,7 +29,7 @@ fn hiermerge_patched(engine: &str, count: &str, from: &str, to: &str, vcd_dir: &
         &[
             "cosim",
             "--unit",
-            "merge",
+            "merge-module",
             "--engine",
             engine,
             "--count",

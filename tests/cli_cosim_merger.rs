@@ -88,7 +88,7 @@ fn assert_refused(args: &str, env: &[(&str, &str)], what: &str) {
 #[test]
 fn merger_flags_are_checked() {
     assert_refused(
-        "cosim --unit merge --leaf-bits 5 --json",
+        "cosim --unit merge-module --leaf-bits 5 --json",
         &[],
         "--unit merger and --unit hierarchy only",
     );
@@ -222,7 +222,7 @@ fn merger_shared_store_port_through_the_cli() {
         "expected per-unit, shared or shared:T",
     );
     assert_refused(
-        "cosim --unit merge --engine ir --count 1 --store-port shared",
+        "cosim --unit merge-module --engine ir --count 1 --store-port shared",
         &[],
         "--unit merger only",
     );

@@ -19,8 +19,8 @@ use common::{
     json_of, tool_present, FLIP, PATCH_FROM, PATCH_TO,
 };
 use golden::layout::NodeLayout;
+use golden::merge::merge_module::MergeDesign;
 use golden::params::Params;
-use golden::vectors::merge::MergeDesign;
 use rtl_gen::merge::MergerConfig;
 use serde_json::Value;
 

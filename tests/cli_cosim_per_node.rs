@@ -1,4 +1,4 @@
-//! `hiermerge cosim --unit merge --mode per-node:N/D`: the per-node merging
+//! `hiermerge cosim --unit merge-module --mode per-node:N/D`: the per-node merging
 //! module (SPEC 8.14) through the CLI against golden `per_node_transaction`s
 //! (`random_per_node_case`), on the IR simulator, Verilator (a few hundred
 //! merges) and Icarus (the multi-stream batch, a few merges), 0 mismatches,
@@ -18,7 +18,7 @@ fn per_node_args<'a>(engine: &'a str, seed: &'a str, count: &'a str) -> Vec<&'a 
     vec![
         "cosim",
         "--unit",
-        "merge",
+        "merge-module",
         "--mode",
         "per-node:1/2",
         "--engine",
@@ -38,7 +38,7 @@ fn per_node_args<'a>(engine: &'a str, seed: &'a str, count: &'a str) -> Vec<&'a 
 /// with a `report` beat), at most one input beat per clock.
 fn assert_passes(o: &Output, engine: &str, merges: u64) -> Value {
     let r = assert_passed(o, merges);
-    assert_eq!(r["unit"], "merge", "{r}");
+    assert_eq!(r["unit"], "merge-module", "{r}");
     assert_eq!(r["stage"], "merge_module", "{r}");
     assert_eq!(r["engine"], engine, "{r}");
     assert!(r["nodes"].as_u64().unwrap() > merges, "{r}");

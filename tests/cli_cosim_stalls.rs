@@ -75,7 +75,7 @@ fn translate_runs_each_pattern_alike_on_three_engines() {
 
 #[test]
 fn merge_module_runs_each_pattern_alike_on_three_engines() {
-    let rates = same_on_every_engine("cosim --unit merge --seed 3 --count 30", &PATTERNS);
+    let rates = same_on_every_engine("cosim --unit merge-module --seed 3 --count 30", &PATTERNS);
     slower_in_pattern_order(&rates);
 }
 

@@ -15,7 +15,7 @@ use serde_json::Value;
 
 /// A `--json` cosim run of the merging module (5 merges) with `extra`.
 fn run(engine: &str, dir: &Path, extra: &str, env: &[(&str, &str)]) -> (bool, Value) {
-    let mut a: Vec<&str> = "cosim --unit merge --count 5 --seed 2 --json"
+    let mut a: Vec<&str> = "cosim --unit merge-module --count 5 --seed 2 --json"
         .split_whitespace()
         .collect();
     a.extend(["--engine", engine, "--vcd-dir", dir.to_str().unwrap()]);
@@ -158,7 +158,9 @@ fn vcd_windows_and_scopes_and_what_is_refused() {
             "the first cycle is after the last",
         ),
     ] {
-        let mut a: Vec<&str> = "cosim --unit merge --count 2".split_whitespace().collect();
+        let mut a: Vec<&str> = "cosim --unit merge-module --count 2"
+            .split_whitespace()
+            .collect();
         a.extend(["--engine", engine]);
         a.extend(extra.split_whitespace());
         let o = hiermerge(&a, &[]);

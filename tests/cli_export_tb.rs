@@ -13,7 +13,7 @@ use std::path::Path;
 use std::process::Command;
 
 use common::{hiermerge, tool_present};
-use golden::vectors::merge::MergeDesign;
+use golden::merge::merge_module::MergeDesign;
 use golden::Params;
 
 /// Small grid: quick Verilator builds.
@@ -151,7 +151,7 @@ fn passes_then_fails(args: &[&str], stream: &str, field: &str, offset: u32) {
 
 #[test]
 fn translation_unit_passes_on_both_simulators_and_names_a_flipped_field() {
-    let d = golden::vectors::translate::TranslateDesign {
+    let d = golden::translate::model::TranslateDesign {
         unit: golden::translate::TranslateUnitConfig {
             params: params(),
             table_depth: params().hier_capacity() as u32,
@@ -177,7 +177,14 @@ fn merging_module_passes_on_both_simulators_and_names_a_flipped_field() {
         .find(|f| f.name == "union")
         .expect("a report field");
     let args = [
-        "--unit", "merge", "--inputs", "2", "--count", "12", "--seed", "3",
+        "--unit",
+        "merge-module",
+        "--inputs",
+        "2",
+        "--count",
+        "12",
+        "--seed",
+        "3",
     ];
     passes_then_fails(&args, "report", "union", f.offset);
 }
@@ -243,9 +250,9 @@ fn every_unit_exports_a_passing_testbench() {
         return;
     }
     for args in [
-        "--unit merge --stage merge-level --count 10",
-        "--unit merge --inputs 2 --mode per-node --count 6 --stalls bursty:6,4",
-        "--unit merge --inputs 3 --mode fixed:3 --count 10 --stalls periodic:2/5",
+        "--unit merge-module --stage merge-level --count 10",
+        "--unit merge-module --inputs 2 --mode per-node --count 6 --stalls bursty:6,4",
+        "--unit merge-module --inputs 3 --mode fixed:3 --count 10 --stalls periodic:2/5",
         "--unit merger --inputs 2 --count 6",
         "--unit merger --inputs 2 --mode per-node --count 4",
         "--unit translate --binary64 --count 40 --stalls none",
@@ -278,7 +285,7 @@ fn bad_arguments_give_one_clear_error() {
     let out = out.to_str().unwrap();
     for (args, expected) in [
         (
-            vec!["--unit", "merge", "--count", "0", "--out", out],
+            vec!["--unit", "merge-module", "--count", "0", "--out", out],
             "--count 0",
         ),
         (
@@ -290,18 +297,32 @@ fn bad_arguments_give_one_clear_error() {
                 "--out",
                 out,
             ],
-            "--stage applies to --unit merge only",
+            "--stage applies to --unit merge-module only",
         ),
         (
-            vec!["--unit", "merge", "--stalls", "sometimes", "--out", out],
+            vec![
+                "--unit",
+                "merge-module",
+                "--stalls",
+                "sometimes",
+                "--out",
+                out,
+            ],
             "--stalls",
         ),
         (
-            vec!["--unit", "merge", "--mode", "most", "--out", out],
+            vec!["--unit", "merge-module", "--mode", "most", "--out", out],
             "--mode",
         ),
         (
-            vec!["--unit", "merge", "--capacity-bits", "4", "--out", out],
+            vec![
+                "--unit",
+                "merge-module",
+                "--capacity-bits",
+                "4",
+                "--out",
+                out,
+            ],
             "--unit merger and --unit hierarchy only",
         ),
         (

@@ -129,7 +129,13 @@ fn counts_past_the_limits_are_refused_before_allocating() {
             "x.jsonl",
         ],
         vec![
-            "vectors", "--unit", "merge", "--count", huge, "--out", "x.jsonl",
+            "vectors",
+            "--unit",
+            "merge-module",
+            "--count",
+            huge,
+            "--out",
+            "x.jsonl",
         ],
         vec![
             "cosim",
@@ -141,7 +147,13 @@ fn counts_past_the_limits_are_refused_before_allocating() {
             huge,
         ],
         vec![
-            "cosim", "--unit", "merge", "--engine", "ir", "--count", huge,
+            "cosim",
+            "--unit",
+            "merge-module",
+            "--engine",
+            "ir",
+            "--count",
+            huge,
         ],
     ] {
         let err = fails_in(d, &args);
@@ -211,7 +223,7 @@ fn negative_numbers_are_refused_by_their_flag() {
         ("trace t.obj --rays -5", "--rays"),
         ("merge t.obj t.obj --seed -7", "--seed"),
         ("cosim --unit translate --engine ir --count -3", "--count"),
-        ("cosim --unit merge --engine ir --seed -1", "--seed"),
+        ("cosim --unit merge-module --engine ir --seed -1", "--seed"),
         ("cosim --unit translate --engine ir --stall -0.5", "--stall"),
     ] {
         let args: Vec<&str> = args.split_whitespace().collect();
@@ -286,7 +298,13 @@ fn an_interrupted_vectors_run_leaves_no_file() {
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();
         let args = [
-            "vectors", "--unit", "merge", "--count", "100000", "--out", "v.jsonl",
+            "vectors",
+            "--unit",
+            "merge-module",
+            "--count",
+            "100000",
+            "--out",
+            "v.jsonl",
         ];
         interrupt(d, d, &args, signal);
         assert!(!d.join("v.jsonl").exists());
@@ -514,7 +532,7 @@ fn a_vector_field_wider_than_its_port_is_refused_where_it_is() {
     let dir = tempfile::tempdir().unwrap();
     let mut tried = 0;
     for binary64 in [false, true] {
-        let d = golden::vectors::translate::TranslateDesign {
+        let d = golden::translate::model::TranslateDesign {
             binary64,
             ..Default::default()
         };

@@ -331,7 +331,7 @@ fn plant_records(cache: &Path, every_part: bool) {
     use cosim::synth::record::{store, Recorded};
     use cosim::synth::{ecp5, generic, sources::Netlist, Spread, Target};
     let p = golden::Params::default();
-    let design = golden::vectors::merge::MergeDesign {
+    let design = golden::merge::merge_module::MergeDesign {
         params: golden::Params::new(16, 8, p.index_bits, p.hier_bits).unwrap(),
         ..Default::default()
     };

@@ -219,10 +219,10 @@ fn fuzz_scene() {
 
 /// Packs every record of `txns` into its ports, as cosim does.
 fn pack_all(
-    d: &golden::vectors::translate::TranslateDesign,
-    txns: &[golden::vectors::translate::TranslateTxn],
+    d: &golden::translate::model::TranslateDesign,
+    txns: &[golden::translate::model::TranslateTxn],
 ) -> Result<(), String> {
-    use golden::vectors::translate::TranslateTxn;
+    use golden::translate::model::TranslateTxn;
     use rtl_gen::translate::ports::{pack_apply_in, pack_apply_out, pack_det_in, pack_det_out};
     for (i, t) in txns.iter().enumerate() {
         let r = match t {
@@ -240,10 +240,10 @@ fn pack_all(
 
 #[test]
 fn fuzz_vectors() {
-    use golden::vectors::merge::{read_merge_vectors, write_merge_vectors, MergeDesign};
-    use golden::vectors::translate::{
-        read_translate_vectors, write_translate_vectors, TranslateDesign,
-    };
+    use golden::merge::merge_module::MergeDesign;
+    use golden::translate::model::TranslateDesign;
+    use golden::vectors::merge::{read_merge_vectors, write_merge_vectors};
+    use golden::vectors::translate::{read_translate_vectors, write_translate_vectors};
     let dir = tempfile::tempdir().unwrap();
     let (td, md) = (TranslateDesign::default(), MergeDesign::default());
     let t = dir.path().join("t.jsonl");

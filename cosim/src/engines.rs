@@ -106,10 +106,11 @@ pub fn open_tracing_engine(
             Ok(Box::new(e))
         }
         EngineKind::Icarus if format == WaveFormat::Fst => Err(CosimError::Unsupported {
-            what: "FST from Icarus comes from its batch runs (--unit merge, --unit merger): \
+            what:
+                "FST from Icarus comes from its batch runs (--unit merge-module, --unit merger): \
                    the pipe engine's vvp runs on after the window, and its FST is complete \
                    only when vvp ends; use VCD, or Verilator"
-                .into(),
+                    .into(),
         }),
         EngineKind::Icarus => Ok(Box::new(IcarusEngine::new(design)?)),
     }

@@ -9,7 +9,8 @@ use std::path::Path;
 use cosim::from_rtl::design_from_module;
 use cosim::units::translate::{run_with_vcd_on_mismatch, Failure, RunConfig};
 use cosim::{open_engine, Design, Engine, EngineKind};
-use golden::vectors::translate::{generate, TranslateDesign};
+use golden::translate::model::TranslateDesign;
+use golden::vectors::translate::generate;
 
 /// The apply path's code for "outside the scene on x" is 5 (SPEC 7.9); the
 /// broken design says 1 (bit 2 of the constant flipped).

@@ -14,10 +14,10 @@ use cosim::tools::{ci_mode, tool_available, INSTALL_HINT};
 use cosim::units::merge_module::{generate_streams, input_names, UnitStreams, OUTPUT_NAMES};
 use cosim::verilator::{VerilatorEngine, VerilatorOptions};
 use cosim::{Bits, CosimError, Design, PortSpec};
+use golden::merge::merge_module::MergeDesign;
 use golden::merge::MergeMode;
 use golden::params::Params;
 use golden::seed::seeded;
-use golden::vectors::merge::MergeDesign;
 
 fn tools_present() -> bool {
     let missing: Vec<&str> = ["verilator", "iverilog"]

@@ -15,6 +15,7 @@ use cosim::tb::{run_multi_stream_bench_watching, BenchConfig, MultiReport, Strea
 use cosim::units::merger::{merger_streams, random_merge, MergeStats};
 use golden::merge::fetcher::{FetchCmd, FetchOut, FetchTransaction};
 use golden::merge::merge_level::unit::LevelBeat;
+use golden::merge::merge_module::MergeDesign;
 use golden::merge::merger::{
     cmd_per_level, feeds_module, merger_transaction, MergerSizes, MergerTransaction,
 };
@@ -26,7 +27,6 @@ use golden::store::HierarchyStore;
 use golden::translate::stimulus::SplitMix64;
 use golden::translate::TranslationTable;
 use golden::vectors::hard_merges::hard_merges;
-use golden::vectors::merge::MergeDesign;
 use merge_common::*;
 use rtl_gen::merge::MergerConfig;
 
@@ -598,7 +598,7 @@ fn hierarchy_unit_matches_golden_on_three_engines() {
             (ModuleEngine::Iverilog, 6),
         ] {
             let dir = tempfile::tempdir().unwrap();
-            let t = run(
+            let (t, stats) = run(
                 &c,
                 engine,
                 &bench,
@@ -607,6 +607,8 @@ fn hierarchy_unit_matches_golden_on_three_engines() {
                 &mut |_, _| {},
             )
             .unwrap();
+            assert_eq!(stats.merges.merges, count, "every case is counted");
+            assert_eq!(stats.determines as usize, stats.merges.by_inputs.iter().map(|(n, m)| n * m).sum::<usize>(), "one determine command per input");
             assert!(
                 t.passed(),
                 "{name} on {engine:?}: {} mismatches, first {:?}, missing {:?}, hang {:?}, {:?}",
@@ -644,7 +646,7 @@ fn hierarchy_unit_with_a_wrong_range_fails() {
         ..RunConfig::default()
     };
     let dir = tempfile::tempdir().unwrap();
-    let t = run(
+    let (t, _) = run(
         &c,
         ModuleEngine::Verilator,
         &bench,
@@ -666,7 +668,7 @@ fn hierarchy_unit_with_a_wrong_range_fails() {
 fn hierarchy_unit_behind_a_shared_store_port_matches_golden() {
     use cosim::units::hierarchy_unit::{random_case, HierarchySim};
     use cosim::units::multi_stream::{ModuleEngine, RunConfig};
-    use golden::vectors::translate::TranslateModel;
+    use golden::translate::model::TranslateModel;
     use rtl_gen::merge::HierarchyUnitConfig;
     let mut merger = configs().remove(0).1;
     merger.sizes.store_port = golden::merge::merger::store_port::StorePort::SHARED;

@@ -11,11 +11,11 @@ mod merge_common;
 
 use cosim::tb::Stalls;
 use cosim::units::merger::{self, MergerEngine, Merges, ModuleRunConfig, RunConfig};
+use golden::merge::merge_module::MergeDesign;
 use golden::merge::merger::store_port::StorePort;
 use golden::merge::merger::MergerSizes;
 use golden::merge::MergeMode;
 use golden::params::Params;
-use golden::vectors::merge::MergeDesign;
 use merge_common::*;
 use rtl_gen::merge::MergerConfig;
 

@@ -11,11 +11,11 @@ mod merge_common;
 
 use cosim::tb::StreamBeats;
 use cosim::volume::volume;
+use golden::merge::merge_module::MergeDesign;
 use golden::merge::merge_module::TopLayout;
 use golden::merge::MergeMode;
 use golden::params::Params;
 use golden::seed::seeded;
-use golden::vectors::merge::MergeDesign;
 use merge_common::*;
 
 /// Configurations, each with the most voxels of a random level.

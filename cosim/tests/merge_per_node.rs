@@ -15,6 +15,7 @@ use cosim::tb::StreamBeats;
 use cosim::volume::volume;
 use golden::build::{build, GridMap};
 use golden::merge::merge_level::unit::BeatLayout;
+use golden::merge::merge_module::MergeDesign;
 use golden::merge::merge_module::TopLayout;
 use golden::merge::per_node::unit::{
     random_per_node_case, PerNodeCase, PerNodeLayout, PerNodeReport, PerNodeTransaction,
@@ -26,7 +27,6 @@ use golden::seed::seeded;
 use golden::store::Hierarchy;
 use golden::translate::stimulus::SplitMix64;
 use golden::translate::Translation;
-use golden::vectors::merge::MergeDesign;
 use merge_common::*;
 
 fn per_node(params: Params, inputs: usize, num: u32, den: u32) -> MergeDesign {

@@ -395,9 +395,9 @@ fn hard_case_merges_through_the_merging_module() {
     }
     use cosim::tb::{run_multi_stream_bench, BenchConfig, StreamBeats};
     use golden::merge::level_choice::{choose_level, overlaps};
+    use golden::merge::merge_module::MergeDesign;
     use golden::merge::merge_module::{top_transaction, Report, TopLayout};
     use golden::merge::MergeMode;
-    use golden::vectors::merge::MergeDesign;
     for c in cases() {
         let p = c.params;
         let k = c.inputs.len();

@@ -1,7 +1,7 @@
 //! S618 in hardware, the record writer (`rtl_gen::merge::record_writer_unit`,
 //! SPEC.md section 8.12) against `golden::merge::record_writer::writer_transaction`
 //! (expected records and references: the merged hierarchy
-//! `merge::upper::build_upper` lays out, tested equal to `merge()`'s in
+//! `merge::upper_builder::build_upper` lays out, tested equal to `merge()`'s in
 //! golden), bit for bit on every out stream (`ref_req`, `nodes`, `refs`,
 //! `header`), with independent random stalls on every stream
 //! (`cosim::tb::run_multi_stream_bench`; the store's responses are an

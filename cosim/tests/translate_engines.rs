@@ -15,7 +15,8 @@ use cosim::units::translate::{run, RunConfig};
 use cosim::volume::volume;
 use cosim::{open_engine, EngineKind};
 use golden::seed::seeded;
-use golden::vectors::translate::{generate, ApplyCode, TranslateDesign, TranslateTxn};
+use golden::translate::model::{ApplyCode, TranslateDesign, TranslateTxn};
+use golden::vectors::translate::generate;
 use rtl_gen::translate::ports::{
     apply_out_layout, det_out_layout, pack_apply_in, pack_apply_out, pack_det_in, pack_det_out,
     PortLayout,

@@ -9,7 +9,8 @@ use cosim::from_rtl::design_from_module;
 use cosim::ir_engine::IrEngine;
 use cosim::units::translate::{run, Outcome, RunConfig};
 use golden::seed::seeded;
-use golden::vectors::translate::{generate, TranslateDesign, TranslateTxn};
+use golden::translate::model::{TranslateDesign, TranslateTxn};
+use golden::vectors::translate::generate;
 use rtl_gen::translate::{reference_designs, translate_unit};
 
 /// Runs `txns` on the IR simulator through the library testbench; panics
@@ -80,14 +81,14 @@ fn one_record_per_clock_without_back_pressure() {
             .copied()
             .collect();
         // Re-run through golden so the expected outputs follow this order.
-        let mut model = golden::vectors::translate::TranslateModel::new(d).unwrap();
+        let mut model = golden::translate::model::TranslateModel::new(d).unwrap();
         let mut txns = Vec::new();
         for t in std::iter::once(&load).chain(&dets).chain(&apps) {
             let inputs = match t {
                 TranslateTxn::Determine(r) => {
-                    golden::vectors::translate::TxnInputs::Determine(r.inputs)
+                    golden::translate::model::TxnInputs::Determine(r.inputs)
                 }
-                TranslateTxn::Apply(r) => golden::vectors::translate::TxnInputs::Apply(r.inputs),
+                TranslateTxn::Apply(r) => golden::translate::model::TxnInputs::Apply(r.inputs),
             };
             txns.push(model.run(&inputs).unwrap());
         }

@@ -4,7 +4,9 @@
 //! next transaction, `idle`/`done`, and the sticky error bits. Prints the
 //! waveforms the SPEC's diagrams show (`-- --nocapture`).
 
-use golden::vectors::translate::{generate, TranslateDesign, TranslateTxn};
+use golden::translate::model::{TranslateDesign, TranslateTxn};
+
+use golden::vectors::translate::generate;
 use rtl_gen::translate::ports::{pack_apply_in, pack_det_in, pack_det_out};
 use rtl_gen::translate::translate_unit;
 use rtl_gen::{Bits, Sim};
@@ -28,7 +30,7 @@ fn run_det(out_ready: &[bool], n: usize) -> Vec<(bool, bool, bool, Option<usize>
     let d = TranslateDesign::default();
     let recs = determine_records(&d, n);
     // Expected outputs in order from a fresh golden model.
-    let mut model = golden::vectors::translate::TranslateModel::new(d).unwrap();
+    let mut model = golden::translate::model::TranslateModel::new(d).unwrap();
     let exp: Vec<Bits> = recs
         .iter()
         .map(|r| pack_det_out(&d, &model.determine(&r.inputs).unwrap()).unwrap())

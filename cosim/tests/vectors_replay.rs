@@ -1,5 +1,5 @@
 //! Vector files of the whole merging module (every mode it builds) and of
-//! the hierarchy merger (`hiermerge vectors --unit merge|merger`, golden's
+//! the hierarchy merger (`hiermerge vectors --unit merge-module|merger`, golden's
 //! `stream_file`) replay bit for bit on the RTL: each file is read back,
 //! its streams driven into the generated design on the IR simulator with
 //! random stalls, and every output beat compared with the file's. The
@@ -12,10 +12,10 @@ use std::path::Path;
 use cosim::tb::Stalls;
 use cosim::units::merge_module::{self, ModuleEngine, ModuleMismatch, RunConfig, UnitStreams};
 use cosim::units::merger;
+use golden::merge::merge_module::MergeDesign;
 use golden::merge::merger::MergerSizes;
 use golden::merge::MergeMode;
 use golden::params::Params;
-use golden::vectors::merge::MergeDesign;
 use golden::vectors::stream_file::{write_merger_vectors, write_module_vectors};
 use rtl_gen::merge::MergerConfig;
 use serde_json::Value;

@@ -193,7 +193,7 @@ impl UnitOpts {
     pub fn unit_flags(&self) -> [UnitFlag; 4] {
         const TRANSLATE: &[&str] = &["translate"];
         const TABLE: &[&str] = &["translate", "hierarchy"];
-        const MERGING: &[&str] = &["merge", "merger", "hierarchy"];
+        const MERGING: &[&str] = &["merge-module", "merger", "hierarchy"];
         [
             ("--table-depth", self.table_depth.is_some(), TABLE),
             ("--binary64", self.binary64, TRANSLATE),
@@ -210,13 +210,13 @@ impl UnitOpts {
     /// `--inputs`, or its default.
     pub fn inputs(&self) -> usize {
         self.inputs
-            .unwrap_or(golden::vectors::merge::MergeDesign::default().inputs)
+            .unwrap_or(golden::merge::merge_module::MergeDesign::default().inputs)
     }
 
     /// The translation unit these flags ask for, validated.
-    pub fn translate_design(&self) -> Result<golden::vectors::translate::TranslateDesign, String> {
+    pub fn translate_design(&self) -> Result<golden::translate::model::TranslateDesign, String> {
         let params = self.grid.params()?;
-        let design = golden::vectors::translate::TranslateDesign {
+        let design = golden::translate::model::TranslateDesign {
             unit: golden::translate::TranslateUnitConfig {
                 params,
                 table_depth: self.table_depth.unwrap_or(params.hier_capacity() as u32),
@@ -230,9 +230,9 @@ impl UnitOpts {
     }
 
     /// The merging module these flags ask for, validated.
-    pub fn merge_design(&self) -> Result<golden::vectors::merge::MergeDesign, String> {
+    pub fn merge_design(&self) -> Result<golden::merge::merge_module::MergeDesign, String> {
         let params = self.grid.params()?;
-        let design = golden::vectors::merge::MergeDesign {
+        let design = golden::merge::merge_module::MergeDesign {
             params,
             inputs: self.inputs(),
             mode: super::merge::parse_mode(self.mode()).map_err(|e| format!("--mode {e}"))?,

@@ -55,39 +55,50 @@ pub struct Args {
 /// writer buffers of `2^5` overflow on the real merges (CAPACITY).
 const SMALL_MERGER: &str = "--unit merger --max-lod 8 --quant-bits 0 --index-bits 12 --hier-bits 3 --inputs 2 --leaf-bits 6 --capacity-bits 5 --merges hard";
 
+/// The hierarchy unit around [`SMALL_MERGER`]'s merger top: a translation
+/// unit of one entry per hierarchy id (8) feeding it, random merges (its
+/// determine commands write their inputs' entries first).
+const SMALL_HIERARCHY: &str = "--unit hierarchy --max-lod 8 --quant-bits 0 --index-bits 12 --hier-bits 3 --inputs 2 --leaf-bits 6 --capacity-bits 5";
+
 /// The regression: `hiermerge cosim` argument lines, `{n}` scaled by the
-/// volume, `{merger}` [`SMALL_MERGER`], and whether the CI volume runs the
+/// volume, `{merger}` [`SMALL_MERGER`], `{hierarchy}` [`SMALL_HIERARCHY`], and whether the CI volume runs the
 /// line on a Verilator coverage build (else on the IR simulator, for its
 /// functional bins: coverage builds of every mode's merging module and of
 /// the default merger tops cost more than CI's budget, a default merger
 /// top's about 4 minutes at `-O0` and its 200 hard merges as long again;
 /// `full` runs every line on Verilator).
-const RUNS: [(&str, bool); 15] = [
+const RUNS: [(&str, bool); 16] = [
     ("--unit translate --count {4}000 --stalls coin", true),
     (
         "--unit translate --count {1}000 --stalls bursty:4,4 --seed 2",
         true,
     ),
     (
-        "--unit merge --stage merge-level --count {2}00 --stalls bursty",
+        "--unit merge-module --stage merge-level --count {2}00 --stalls bursty",
         false,
     ),
     (
-        "--unit merge --mode overlap:1/2 --count {1}00 --stalls periodic",
+        "--unit merge-module --mode overlap:1/2 --count {1}00 --stalls periodic",
         true,
     ),
     (
-        "--unit merge --mode overlap:1/2 --count {1}00 --stalls bursty:4,4 --seed 2",
+        "--unit merge-module --mode overlap:1/2 --count {1}00 --stalls bursty:4,4 --seed 2",
         true,
     ),
-    ("--unit merge --mode per-node:1/2 --count {1}00", true),
     (
-        "--unit merge --mode fixed:10 --count {1}00 --stalls none",
+        "--unit merge-module --mode per-node:1/2 --count {1}00",
+        true,
+    ),
+    (
+        "--unit merge-module --mode fixed:10 --count {1}00 --stalls none",
         false,
     ),
-    ("--unit merge --mode below-top:1 --count {1}00", false),
     (
-        "--unit merge --mode proportion:1/2 --count {1}00 --stalls bursty:4,4",
+        "--unit merge-module --mode below-top:1 --count {1}00",
+        false,
+    ),
+    (
+        "--unit merge-module --mode proportion:1/2 --count {1}00 --stalls bursty:4,4",
         false,
     ),
     (
@@ -106,6 +117,7 @@ const RUNS: [(&str, bool); 15] = [
         "{merger} --mode per-node:1/2 --count {6}0 --stalls bursty:4,4",
         true,
     ),
+    ("{hierarchy} --count {4}0 --stalls coin", true),
 ];
 
 /// Units tracked below the aims: reported against the aims with every
@@ -145,7 +157,9 @@ fn run_lines(volume: Volume) -> Vec<Vec<String>> {
     };
     RUNS.iter()
         .map(|(line, ci_verilator)| {
-            let mut s = line.replace("{merger}", SMALL_MERGER);
+            let mut s = line
+                .replace("{merger}", SMALL_MERGER)
+                .replace("{hierarchy}", SMALL_HIERARCHY);
             for n in 1..=9 {
                 s = s.replace(&format!("{{{n}}}"), &(n * scale).to_string());
             }

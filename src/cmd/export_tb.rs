@@ -16,12 +16,12 @@ use crate::report::{emit, CmdResult};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// translate: the translation unit; merge: the merging module (or,
+    /// translate: the translation unit; merge-module: the merging module (or,
     /// with --stage merge-level, its S614 stage); merger: the hierarchy
     /// merger top.
     #[arg(long, value_enum)]
     unit: Unit,
-    /// --unit merge only: `module` (default) or `merge-level`.
+    /// --unit merge-module only: `module` (default) or `merge-level`.
     #[arg(long, value_enum)]
     stage: Option<MergeStage>,
     /// Seed of the stimulus and of the stall masks.
@@ -123,11 +123,11 @@ fn spec(a: &Args, count: usize, rtl: &Path) -> Result<ExportSpec, String> {
                 .map_err(|e| e.to_string())?;
             translate::export_spec(&d, &txns, a.seed, stalls, rtl).map_err(e)
         }
-        (Unit::Merge, MergeStage::Module) => {
+        (Unit::MergeModule, MergeStage::Module) => {
             let d = a.design.merge_design()?;
             merge_module::export_spec(&d, a.seed, count, stalls, rtl).map_err(e)
         }
-        (Unit::Merge, MergeStage::MergeLevel) => {
+        (Unit::MergeModule, MergeStage::MergeLevel) => {
             let d = a.design.merge_design()?;
             merge_level::export_spec(&d, a.seed, count, stalls, rtl).map_err(e)
         }
@@ -152,7 +152,7 @@ pub fn main(a: Args) -> CmdResult {
     }
     let limit = match a.unit {
         Unit::Translate => golden::vectors::MAX_COUNT,
-        Unit::Merger | Unit::Merge | Unit::Hierarchy => golden::vectors::MAX_MERGE_COUNT,
+        Unit::Merger | Unit::MergeModule | Unit::Hierarchy => golden::vectors::MAX_MERGE_COUNT,
     };
     golden::vectors::check_count("--count", a.count, limit)?;
     check_store_flags(&a)?;
@@ -160,7 +160,7 @@ pub fn main(a: Args) -> CmdResult {
     // Refuse a bad configuration before anything is written.
     match a.unit {
         Unit::Translate => a.design.translate_design().map(|_| ())?,
-        Unit::Merge => a.design.merge_design().map(|_| ())?,
+        Unit::MergeModule => a.design.merge_design().map(|_| ())?,
         Unit::Merger => merger_of(&a).map(|_| ())?,
         Unit::Hierarchy => hierarchy_of(&a).map(|_| ())?,
     }

@@ -1,9 +1,9 @@
 //! `hiermerge vectors`: write a unit's test vectors (JSON Lines: a header
 //! with every parameter and the seed, then one record per transaction with
 //! inputs and expected outputs as the RTL ports see them; SPEC section 9).
-//! `--unit merge` writes the whole merging module's merges (every stream,
+//! `--unit merge-module` writes the whole merging module's merges (every stream,
 //! field by field), or with `--stage merge-level` the stream-stage records
-//! that `cosim --unit merge --stage merge-level --vectors` replays;
+//! that `cosim --unit merge-module --stage merge-level --vectors` replays;
 //! `--unit merger` the hierarchy merger top's merges.
 
 use std::path::PathBuf;
@@ -19,11 +19,11 @@ use crate::report::{emit, CmdResult};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// translate: the translation unit; merge: the merging module (with
+    /// translate: the translation unit; merge-module: the merging module (with
     /// --stage merge-level, its stream stages); merger: the hierarchy merger top.
     #[arg(long, value_enum)]
     unit: Unit,
-    /// --unit merge only: `module` (default: one record per merge, every
+    /// --unit merge-module only: `module` (default: one record per merge, every
     /// stream) or `merge-level` (one record per stream-stage transaction).
     #[arg(long, value_enum)]
     stage: Option<MergeStage>,
@@ -71,8 +71,8 @@ pub fn main(a: Args) -> CmdResult {
     use golden::vectors::UnitKind;
     let kind = match (a.unit, a.stage.unwrap_or(MergeStage::Module)) {
         (Unit::Translate, _) => UnitKind::Translate,
-        (Unit::Merge, MergeStage::Module) => UnitKind::MergeModule,
-        (Unit::Merge, MergeStage::MergeLevel) => UnitKind::Merge,
+        (Unit::MergeModule, MergeStage::Module) => UnitKind::MergeModule,
+        (Unit::MergeModule, MergeStage::MergeLevel) => UnitKind::Merge,
         (Unit::Merger, _) => UnitKind::Merger,
         (Unit::Hierarchy, _) => return Err(NO_HIERARCHY_FILES.into()),
     };

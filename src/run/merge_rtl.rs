@@ -249,7 +249,7 @@ impl MergeRtl {
         };
         if cached(&self.modules).is_none() {
             let t = std::time::Instant::now();
-            let design = golden::vectors::merge::MergeDesign {
+            let design = golden::merge::merge_module::MergeDesign {
                 params: *p,
                 inputs: k,
                 mode,

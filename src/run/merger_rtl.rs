@@ -43,14 +43,14 @@ use cosim::units::merger::{
 };
 use golden::merge::fetcher::FetchSizes;
 use golden::merge::hierarchy_unit::{hierarchy_merge, merge_cmd};
+use golden::merge::merge_module::MergeDesign;
 use golden::merge::merger::store_port::{StorePort, StoreWords};
 use golden::merge::merger::{merger_transaction, MergerSizes, MergerTransaction, ModulePass};
 use golden::merge::record_writer::{writer_err, CrefBeat};
 use golden::merge::MergeMode;
 use golden::store::Hierarchy;
+use golden::translate::model::TranslateModel;
 use golden::translate::Axis;
-use golden::vectors::merge::MergeDesign;
-use golden::vectors::translate::TranslateModel;
 use golden::world::World;
 use golden::Params;
 use rtl_gen::merge::{
@@ -1006,7 +1006,7 @@ mod tests {
             [1, 2, 3, 4, 5, 1024, 1025].map(super::bits_for),
             [1, 1, 2, 2, 3, 10, 11]
         );
-        let design = golden::vectors::merge::MergeDesign::default();
+        let design = golden::merge::merge_module::MergeDesign::default();
         let default = rtl_gen::merge::MergerConfig::new(design);
         let small = super::Sizes {
             roots: 3,
@@ -1137,11 +1137,11 @@ mod tests {
     /// The emitted merger top's line `assign nodes_data = <rhs>;` (the
     /// same in every size of the scene's shared-port top), and its rhs.
     fn nodes_assign(s: &Scene) -> (String, String) {
-        let design = golden::vectors::merge::MergeDesign {
+        let design = golden::merge::merge_module::MergeDesign {
             params: s.params,
             inputs: 3,
             mode: s.effects.merge,
-            ..golden::vectors::merge::MergeDesign::default()
+            ..golden::merge::merge_module::MergeDesign::default()
         };
         let mut c = rtl_gen::merge::MergerConfig::new(design);
         c.sizes.store_port = golden::merge::merger::store_port::StorePort::SHARED;

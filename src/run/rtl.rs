@@ -1,17 +1,17 @@
 //! The translation unit's generated RTL (Verilator, or the IR engine), driven with the
 //! frame's placements and compared bit for bit with the golden unit model
-//! (`golden::vectors::translate::TranslateModel`), which is itself compared
+//! (`golden::translate::model::TranslateModel`), which is itself compared
 //! with the translations the world determined. Built the first time a frame
 //! needs it (cosim's content-addressed cache makes later runs load it), and
 //! kept across frames like the hardware's translation table.
 
 use cosim::{Engine, PortId};
 use golden::store::Hierarchy;
-use golden::translate::TranslateUnitConfig;
-use golden::translate::{TranslateInputs, Translation, VoxelRange};
-use golden::vectors::translate::{
+use golden::translate::model::{
     ApplyInputs, TranslateDesign, TranslateModel, TranslateTxn, TxnInputs,
 };
+use golden::translate::TranslateUnitConfig;
+use golden::translate::{TranslateInputs, Translation, VoxelRange};
 use golden::Params;
 use rtl_gen::translate::ports::{pack_apply_in, pack_apply_out, pack_det_in, pack_det_out};
 use rtl_gen::translate::translate_unit;

@@ -20,13 +20,13 @@ use golden::merge::hierarchy_unit::{hierarchy_merge, merge_cmd, CmdLayout};
 use golden::merge::merger::{MergerLayout, MergerTransaction};
 use golden::store::Hierarchy;
 use golden::translate::extents::VoxelRange;
+use golden::translate::model::{TranslateDesign, TranslateModel};
 use golden::translate::stimulus::SplitMix64;
 use golden::translate::{TranslateInputs, TranslateOutputs, Translation};
 use golden::vectors::streams::{
     merger_beats, merger_layout, merger_ports, random_merger_case_of, MergeBeats, Merges,
     NamedFields, StreamLayout, UnitPorts,
 };
-use golden::vectors::translate::{TranslateDesign, TranslateModel};
 use rtl_gen::merge::HierarchyUnitConfig;
 use rtl_gen::translate::ports::{det_in_layout, det_out_layout, pack_det_in, pack_det_out};
 
@@ -74,15 +74,39 @@ pub fn write_command(
     h: &Hierarchy,
     t: &Translation,
 ) -> Result<TranslateInputs> {
+    offset_command(d, h, t, [0.0; 3])
+}
+
+/// [`write_command`] with each axis's placement moved by `off[a]` of a
+/// voxel of `t`'s LOD, `|off[a]| < 1/2`: it still rounds to `t` (SPEC 7.3,
+/// to nearest), leaving a residual, so the determine path's rounding sees
+/// real fractions. An axis whose moved placement does not round back to
+/// `t` in the design's format is placed exactly.
+pub fn offset_command(
+    d: &TranslateDesign,
+    h: &Hierarchy,
+    t: &Translation,
+    off: [f64; 3],
+) -> Result<TranslateInputs> {
     let p = d.params();
     let scale = f64::from(p.max_lod - t.lod.min(p.max_lod)).exp2();
-    let placement = t.t.map(|v| {
-        let grid = v as f64 * scale;
-        match d.binary64 {
-            true => grid.to_bits(),
-            false => u64::from((grid as f32).to_bits()),
-        }
-    });
+    let encode = |grid: f64| match d.binary64 {
+        true => grid.to_bits(),
+        false => u64::from((grid as f32).to_bits()),
+    };
+    let decode = |bits: u64| match d.binary64 {
+        true => f64::from_bits(bits),
+        false => f64::from(f32::from_bits(bits as u32)),
+    };
+    let mut placement = [0u64; 3];
+    for a in 0..3 {
+        let exact = t.t[a] as f64 * scale;
+        let moved = encode(exact + off[a].clamp(-0.375, 0.375) * scale);
+        placement[a] = match (decode(moved) / scale - t.t[a] as f64).abs() < 0.5 {
+            true => moved,
+            false => encode(exact),
+        };
+    }
     placement_command(d, h, t.lod, placement)
 }
 
@@ -133,7 +157,10 @@ pub fn random_case(
         let t = case.table.get(id as u32).ok().flatten().ok_or_else(|| {
             design_err(format!("input {id} has no translation in the random case"))
         })?;
-        let inp = write_command(&c.table, h, &t)?;
+        // A fraction of a voxel off the grid, below half of one: the
+        // determine path rounds it away and keeps it as the residual.
+        let off = [(); 3].map(|_| (rng.below(751) as f64 - 375.0) / 1000.0);
+        let inp = offset_command(&c.table, h, &t, off)?;
         let out = model.determine(&inp).map_err(design_err)?;
         if model.table().get(id as u32).ok().flatten() != Some(t) {
             return Err(design_err(format!(
@@ -209,21 +236,55 @@ pub fn case_beats(
     Ok(MergeBeats { inputs, outputs })
 }
 
+/// What a run's cases reached, for its functional coverage: the merger's
+/// outcomes ([`super::merger::merge_stats`] of golden's merges) and the
+/// determine commands, with how many rewrote an entry an earlier merge of
+/// the chunk had read (the table persists across merges).
+#[derive(Clone, Debug, Default)]
+pub struct HierarchyStats {
+    /// The merges' outcomes.
+    pub merges: super::merger::MergeStats,
+    /// Determine commands.
+    pub determines: u64,
+    /// Determine commands that wrote an entry already written in the chunk.
+    pub rewrites: u64,
+    /// Determine commands whose placement was off the grid (a residual).
+    pub residuals: u64,
+}
+
 /// The next `n` random cases of `rng`, on a translation unit from reset
-/// (each chunk of a run starts from reset), as the unit's streams.
-fn next_streams(c: &HierarchyUnitConfig, rng: &mut SplitMix64, n: usize) -> Result<UnitStreams> {
+/// (each chunk of a run starts from reset), as the unit's streams; what
+/// they reach is added to `stats`.
+fn next_streams(
+    c: &HierarchyUnitConfig,
+    rng: &mut SplitMix64,
+    n: usize,
+    stats: &mut HierarchyStats,
+) -> Result<UnitStreams> {
     let ml = merger_layout(&c.merger.design, &c.merger.sizes).map_err(design_err)?;
     let mut model = TranslateModel::new(c.table).map_err(design_err)?;
-    let merges = (0..n)
-        .map(|_| case_beats(c, &ml, &random_case(rng, c, &mut model)?))
-        .collect::<Result<Vec<_>>>()?;
+    let mut written = std::collections::BTreeSet::new();
+    let mut merges = Vec::with_capacity(n);
+    let mut txs = Vec::with_capacity(n);
+    for _ in 0..n {
+        let case = random_case(rng, c, &mut model)?;
+        for (inp, out) in &case.dets {
+            stats.determines += 1;
+            stats.rewrites += !written.insert(inp.write_id) as u64;
+            stats.residuals += out.residual.iter().any(|&r| r != 0) as u64;
+        }
+        merges.push(case_beats(c, &ml, &case)?);
+        txs.push(case.tx);
+    }
+    let s = super::merger::merge_stats(&txs);
+    stats.merges.add(&s);
     UnitStreams::from_merges(&unit_ports(c)?, &merges)
 }
 
 /// `count` random cases from `seed`, on a translation unit from reset, as
 /// the unit's streams.
 pub fn random_streams(c: &HierarchyUnitConfig, seed: u64, count: usize) -> Result<UnitStreams> {
-    next_streams(c, &mut SplitMix64(seed), count)
+    next_streams(c, &mut SplitMix64(seed), count, &mut HierarchyStats::default())
 }
 
 /// The unit's per-unit-port simulator (`module`, its Verilog in `design`)
@@ -263,7 +324,8 @@ fn decode(
 /// `config`'s Verilog patch (the test hook) applied. Per-unit store ports
 /// only: the streams carry the store's answers. `flip` (the test hook)
 /// flips bit 0 of that merge's expected `header` beat (its `out_id`);
-/// `progress` gets (merges whose outputs arrived so far, cycle).
+/// `progress` gets (merges whose outputs arrived so far, cycle). Returns the
+/// totals and what the cases reached.
 pub fn run(
     c: &HierarchyUnitConfig,
     engine: ModuleEngine,
@@ -271,7 +333,7 @@ pub fn run(
     (count, flip): (usize, Option<usize>),
     dir: &Path,
     progress: &mut dyn FnMut(u64, u64),
-) -> Result<ChunkTotals> {
+) -> Result<(ChunkTotals, HierarchyStats)> {
     if c.merger.sizes.store_port != golden::merge::merger::store_port::StorePort::PerUnit {
         return Err(CosimError::Unsupported {
             what:
@@ -296,11 +358,12 @@ pub fn run(
     let decode = |stream: &str, e: &Transaction, g: &Transaction| decode(&ports, stream, e, g);
     let mut rng = SplitMix64(config.seed);
     let mut totals = ChunkTotals::default();
+    let mut stats = HierarchyStats::default();
     let mut left = count;
     while left > 0 {
         let n = left.min(CHUNK);
         let t = std::time::Instant::now();
-        let mut streams = next_streams(c, &mut rng, n)?;
+        let mut streams = next_streams(c, &mut rng, n, &mut stats)?;
         totals.golden_wall += t.elapsed();
         let first = count - left;
         if let Some(f) = flip.filter(|f| (first..first + n).contains(f)) {
@@ -312,7 +375,7 @@ pub fn run(
         }
         left -= n;
     }
-    Ok(totals)
+    Ok((totals, stats))
 }
 
 /// The exported testbench of `c` (`hiermerge export-tb --unit hierarchy`):

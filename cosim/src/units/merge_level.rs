@@ -11,9 +11,10 @@ use std::path::{Path, PathBuf};
 use golden::bits::Bits;
 use golden::layout::Field;
 use golden::merge::merge_level::unit::BeatLayout;
+use golden::merge::merge_module::MergeDesign;
 use golden::params::Params;
 use golden::translate::stimulus::SplitMix64;
-use golden::vectors::merge::{generate, read_merge_vectors, MergeDesign, MergeVector};
+use golden::vectors::merge::{generate, read_merge_vectors, MergeVector};
 
 use super::{EngineFactory, ProgressFn};
 use crate::error::{CosimError, Result};
@@ -22,8 +23,8 @@ use crate::tb::{
     run_with_vcd_on_failure, BenchConfig, BenchReport, StreamNames, Transaction, Vector,
 };
 
-/// The stage `hiermerge cosim --unit merge --stage merge-level` exercises
-/// (`--unit merge` alone runs the whole module, [`super::merge_module::STAGE`]).
+/// The stage `hiermerge cosim --unit merge-module --stage merge-level` exercises
+/// (`--unit merge-module` alone runs the whole module, [`super::merge_module::STAGE`]).
 pub const STAGE: &str = "merge_level";
 
 /// The unit under test.

@@ -16,8 +16,8 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use golden::layout::Field;
+use golden::merge::merge_module::MergeDesign;
 use golden::translate::stimulus::SplitMix64;
-use golden::vectors::merge::MergeDesign;
 use golden::vectors::streams::{module_merge, module_ports, module_report};
 
 use crate::design::Design;
@@ -37,7 +37,7 @@ pub use super::multi_stream::{
 };
 use crate::export_tb::{named_fields, ExportSpec, NamedField};
 
-/// The stage name `hiermerge cosim --unit merge` reports for this unit.
+/// The stage name `hiermerge cosim --unit merge-module` reports for this unit.
 pub const STAGE: &str = "merge_module";
 
 pub use golden::vectors::streams::{DEFAULT_MOST_VOXELS, PER_NODE_DEPTH};
@@ -97,7 +97,7 @@ fn generate_streams_from(
     Ok(streams)
 }
 
-/// The merges of a vectors file (`hiermerge vectors --unit merge`,
+/// The merges of a vectors file (`hiermerge vectors --unit merge-module`,
 /// golden's `read_module_vectors`) for the merging module `d`, as its
 /// streams.
 pub fn streams_from_vectors(d: &MergeDesign, path: &Path) -> Result<UnitStreams> {
@@ -141,7 +141,7 @@ pub fn report_decoder(d: &MergeDesign) -> Box<FieldDecoder> {
     beat_decoder(module_report(d).fields)
 }
 
-/// The exported testbench of `d` (`hiermerge export-tb --unit merge`):
+/// The exported testbench of `d` (`hiermerge export-tb --unit merge-module`):
 /// `count` random merges from `seed` as [`run`] drives them (levels of at
 /// most [`DEFAULT_MOST_VOXELS`] voxels), the Verilog written to `rtl`.
 pub fn export_spec(

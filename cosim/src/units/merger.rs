@@ -729,11 +729,14 @@ mod tests {
     /// to the width golden packs them at: nothing undecoded, nothing made up.
     #[test]
     fn output_fields_tile_every_packed_beat() {
-        let per_node = golden::vectors::merge::MergeDesign {
+        let per_node = golden::merge::merge_module::MergeDesign {
             mode: MergeMode::PerNode { num: 1, den: 2 },
-            ..golden::vectors::merge::MergeDesign::default()
+            ..golden::merge::merge_module::MergeDesign::default()
         };
-        for design in [golden::vectors::merge::MergeDesign::default(), per_node] {
+        for design in [
+            golden::merge::merge_module::MergeDesign::default(),
+            per_node,
+        ] {
             fields_tile(&MergerConfig::new(design));
         }
     }

@@ -16,7 +16,7 @@ use std::fmt;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use golden::vectors::translate::{ApplyCode, TranslateDesign, TranslateTxn};
+use golden::translate::model::{ApplyCode, TranslateDesign, TranslateTxn};
 use rtl_gen::translate::ports::{
     apply_out_layout, det_out_layout, pack_apply_in, pack_apply_out, pack_det_in, pack_det_out,
     PortLayout,

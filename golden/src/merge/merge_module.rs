@@ -391,6 +391,76 @@ pub fn random_top_transaction(
     top_transaction(mode, p, k, lo, hi, &levels, count_refs)
 }
 
+/// A configuration of the merging hardware (the merging module, and the
+/// merger top and the hierarchy unit built around it): what the generators,
+/// the vectors and the benches are for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MergeDesign {
+    /// Grid and record parameters (SPEC 1); they fix every beat's layout.
+    pub params: Params,
+    /// Inputs `k` of the overlap counter (and of the S614 stimulus).
+    pub inputs: usize,
+    /// How the merging module chooses the merging level: the only mode its
+    /// hardware builds ([`Self::validate`]).
+    pub mode: MergeMode,
+    /// Root sorter capacity.
+    pub roots: usize,
+}
+
+impl Default for MergeDesign {
+    fn default() -> Self {
+        MergeDesign {
+            params: Params::default(),
+            inputs: 4,
+            mode: MergeMode::default(),
+            roots: 16,
+        }
+    }
+}
+
+impl MergeDesign {
+    /// The overlap counter's threshold `num / den`, in overlap mode (the
+    /// only mode that counts).
+    pub fn threshold(&self) -> Option<(u32, u32)> {
+        match self.mode {
+            MergeMode::Overlap { num, den } => Some((num, den)),
+            _ => None,
+        }
+    }
+
+    /// Refuses what the hardware cannot build: fewer than 2 or more than
+    /// `2^H` inputs, a bad ratio, no root capacity.
+    pub fn validate(&self) -> Result<(), String> {
+        let cap = self.params.hier_capacity();
+        if self.inputs < 2 || self.inputs as u64 > cap {
+            return Err(format!(
+                "inputs = {}: expected 2..={cap} (2^hier_bits)",
+                self.inputs
+            ));
+        }
+        if self.roots == 0 {
+            return Err("roots = 0: expected a root sorter capacity of at least 1".into());
+        }
+        match self.mode {
+            MergeMode::Overlap { num, den }
+            | MergeMode::Proportion { num, den }
+            | MergeMode::PerNode { num, den }
+                if den == 0 || num > den =>
+            {
+                Err(format!(
+                    "mode {}: expected N/D with 0 <= N <= D, D >= 1",
+                    self.mode
+                ))
+            }
+            MergeMode::Fixed(l) if l > self.params.max_lod => Err(format!(
+                "mode {}: expected a level at most max_lod = {}",
+                self.mode, self.params.max_lod
+            )),
+            _ => Ok(()),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

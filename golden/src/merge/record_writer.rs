@@ -1,6 +1,6 @@
 //! S618 in hardware (SPEC.md section 8.12, `rtl_gen::merge::record_writer_unit`):
 //! the beat formats of the record writer's streams and its transaction,
-//! whose expected outputs are the merged hierarchy `merge::upper::build_upper`
+//! whose expected outputs are the merged hierarchy `merge::upper_builder::build_upper`
 //! lays out (the records and references `merge()` stores), never a second
 //! model of the layout.
 //!

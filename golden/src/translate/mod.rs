@@ -20,6 +20,7 @@ pub mod error;
 pub mod expand;
 pub mod extents;
 pub mod float;
+pub mod model;
 pub mod records;
 pub mod stimulus;
 pub mod table;

@@ -4,9 +4,9 @@
 
 use std::collections::BTreeMap;
 
-use super::translate::{ApplyCode, TranslateDesign, TranslateTxn};
 use crate::translate::determine::shift_right_round_sticky;
 use crate::translate::float::{unpack, Decoded, BINARY32, BINARY64};
+use crate::translate::model::{ApplyCode, TranslateDesign, TranslateTxn};
 
 /// The input and outcome classes of `txns` (the hard-case categories of the
 /// generated vectors and every error and status the unit reports), counted

@@ -9,6 +9,7 @@ use super::classes::{classes, expected_classes};
 use super::translate::*;
 use super::*;
 use crate::params::Params;
+use crate::translate::model::*;
 use crate::translate::TranslateUnitConfig;
 
 fn design(d: u8, q: u8, i: u8, h: u8, depth: u32, binary64: bool) -> TranslateDesign {

@@ -22,9 +22,9 @@ use crate::store::{Hierarchy, HierarchyStore};
 use crate::translate::{Translation, TranslationTable};
 use glam::Vec3;
 
-use super::merge::MergeDesign;
 #[cfg(doc)]
 use super::streams::Merges;
+use crate::merge::merge_module::MergeDesign;
 
 fn golden_err(what: impl std::fmt::Display) -> String {
     format!("hard merges: {what}")

@@ -1,5 +1,5 @@
 //! Test vectors of the merging module's stream units (`hiermerge vectors
-//! --unit merge`; SPEC.md section 8.9): JSON Lines through
+//! --unit merge-module`; SPEC.md section 8.9): JSON Lines through
 //! [`super::write_jsonl`], header params = every generator parameter.
 //!
 //! Record `i` exercises stage `stages[i % stages.len()]` (the stages the
@@ -18,9 +18,8 @@ use crate::bits::Bits;
 use crate::merge::fetcher::root_sorter::*;
 use crate::merge::level_choice::unit::*;
 use crate::merge::merge_level::unit::*;
+use crate::merge::merge_module::MergeDesign;
 use crate::merge::upper_builder::level_unit::*;
-use crate::merge::MergeMode;
-use crate::params::Params;
 use crate::translate::stimulus::SplitMix64;
 
 /// The stages, in record order.
@@ -31,41 +30,7 @@ pub const STAGES: [&str; 4] = [
     "root_sorter",
 ];
 
-/// The merging module configuration the vectors are for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct MergeDesign {
-    /// Grid and record parameters (SPEC 1); they fix every beat's layout.
-    pub params: Params,
-    /// Inputs `k` of the overlap counter (and of the S614 stimulus).
-    pub inputs: usize,
-    /// How the merging module chooses the merging level: the only mode its
-    /// hardware builds ([`Self::validate`]).
-    pub mode: MergeMode,
-    /// Root sorter capacity.
-    pub roots: usize,
-}
-
-impl Default for MergeDesign {
-    fn default() -> Self {
-        MergeDesign {
-            params: Params::default(),
-            inputs: 4,
-            mode: MergeMode::default(),
-            roots: 16,
-        }
-    }
-}
-
 impl MergeDesign {
-    /// The overlap counter's threshold `num / den`, in overlap mode (the
-    /// only mode that counts).
-    pub fn threshold(&self) -> Option<(u32, u32)> {
-        match self.mode {
-            MergeMode::Overlap { num, den } => Some((num, den)),
-            _ => None,
-        }
-    }
-
     /// The stream stages this configuration builds, in record order: the
     /// overlap counter only in overlap mode.
     pub fn stages(&self) -> Vec<&'static str> {
@@ -74,38 +39,6 @@ impl MergeDesign {
             .copied()
             .filter(|s| *s != "overlap_counter" || self.threshold().is_some())
             .collect()
-    }
-
-    /// Refuses what the hardware cannot build: fewer than 2 or more than
-    /// `2^H` inputs, a bad ratio, no root capacity.
-    pub fn validate(&self) -> Result<(), String> {
-        let cap = self.params.hier_capacity();
-        if self.inputs < 2 || self.inputs as u64 > cap {
-            return Err(format!(
-                "inputs = {}: expected 2..={cap} (2^hier_bits)",
-                self.inputs
-            ));
-        }
-        if self.roots == 0 {
-            return Err("roots = 0: expected a root sorter capacity of at least 1".into());
-        }
-        match self.mode {
-            MergeMode::Overlap { num, den }
-            | MergeMode::Proportion { num, den }
-            | MergeMode::PerNode { num, den }
-                if den == 0 || num > den =>
-            {
-                Err(format!(
-                    "mode {}: expected N/D with 0 <= N <= D, D >= 1",
-                    self.mode
-                ))
-            }
-            MergeMode::Fixed(l) if l > self.params.max_lod => Err(format!(
-                "mode {}: expected a level at most max_lod = {}",
-                self.mode, self.params.max_lod
-            )),
-            _ => Ok(()),
-        }
     }
 
     /// Every parameter by name, as the header holds them.
@@ -351,6 +284,7 @@ pub fn read_merge_vectors(path: &Path, d: &MergeDesign) -> Result<Vec<MergeVecto
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::merge::MergeMode;
 
     #[test]
     fn merge_vectors_round_trip_and_refuse_other_params() {

@@ -1,4 +1,4 @@
-//! Vector files of the multi-stream units (`hiermerge vectors --unit merge`,
+//! Vector files of the multi-stream units (`hiermerge vectors --unit merge-module`,
 //! `--unit merger`; SPEC.md section 9): JSON Lines through
 //! [`super::write_jsonl`], one record per merge, every beat of every stream
 //! field by field ([`super::streams::StreamLayout`]):
@@ -16,7 +16,6 @@ use std::path::Path;
 
 use serde_json::{json, Map, Value};
 
-use super::merge::MergeDesign;
 use super::streams::{
     merger_beats, merger_layout, merger_ports, module_merge, module_ports, random_merger_merge,
     MergeBeats, StreamLayout, UnitPorts, DEFAULT_MOST_VOXELS,
@@ -24,6 +23,7 @@ use super::streams::{
 use super::{read_jsonl, wide_to_json, Fields, Header, ParamMap, UnitKind, VectorError};
 use crate::bits::Bits;
 use crate::layout::Field;
+use crate::merge::merge_module::MergeDesign;
 use crate::merge::merger::MergerSizes;
 use crate::translate::stimulus::SplitMix64;
 
@@ -161,7 +161,7 @@ pub fn module_params(d: &MergeDesign) -> ParamMap {
 }
 
 /// Writes `count` random merges of the merging module `d` from `seed`
-/// (as `cosim --unit merge` draws them: [`module_merge`], levels of at
+/// (as `cosim --unit merge-module` draws them: [`module_merge`], levels of at
 /// most [`DEFAULT_MOST_VOXELS`] voxels) to `path`, atomically.
 pub fn write_module_vectors(
     path: &Path,

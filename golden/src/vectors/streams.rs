@@ -22,7 +22,7 @@ use crate::store::{Hierarchy, HierarchyStore, NodeRecord, Reference};
 use crate::translate::stimulus::SplitMix64;
 use crate::translate::{Translation, TranslationTable};
 
-use super::merge::MergeDesign;
+use crate::merge::merge_module::MergeDesign;
 
 /// Most voxels of a random level of the merging module's merges.
 pub const DEFAULT_MOST_VOXELS: usize = 12;

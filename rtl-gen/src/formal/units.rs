@@ -14,10 +14,10 @@
 
 use golden::merge::level_choice::unit::OverlapLayout;
 use golden::merge::merge_level::unit::{base_kind, level_kind, BeatLayout};
+use golden::merge::merge_module::MergeDesign;
 use golden::merge::per_node::unit::PerNodeLayout;
 use golden::merge::MergeMode;
-use golden::vectors::merge::MergeDesign;
-use golden::vectors::translate::TranslateDesign;
+use golden::translate::model::TranslateDesign;
 
 use super::{Check, Flow, Mode, Proof, Status};
 use crate::{Module, Stream};

@@ -15,8 +15,8 @@
 
 use golden::merge::hierarchy_unit::{CmdLayout, KIND_MERGE};
 use golden::merge::merger::MergerLayout;
+use golden::translate::model::TranslateDesign;
 use golden::translate::TranslateUnitConfig;
-use golden::vectors::translate::TranslateDesign;
 
 use super::fields::{field, with_fields};
 use super::hierarchy_merger_unit;

@@ -69,9 +69,9 @@ use std::path::{Path, PathBuf};
 use crate::{write_design, DesignError, Module};
 
 /// The merging module's configuration (grid parameters, inputs, overlap
-/// threshold, root-sorter capacity) is golden's [`MergeDesign`](golden::vectors::merge::MergeDesign): the one
+/// threshold, root-sorter capacity) is golden's [`MergeDesign`](golden::merge::merge_module::MergeDesign): the one
 /// definition the vectors, the generators and the harness share.
-pub use golden::vectors::merge::MergeDesign as MergeConfig;
+pub use golden::merge::merge_module::MergeDesign as MergeConfig;
 
 /// The top modules a configuration `c` emits, in a fixed order: the merging
 /// module (whose instances, the merge network, the overlap counter in

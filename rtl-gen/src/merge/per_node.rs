@@ -1,7 +1,7 @@
 //! Per-node merging (8.5, paragraph 55) built into the merging module
 //! (SPEC.md section 8.14): the `per-node:N/D` configuration's merging
 //! module, breadth first, one LOD pass at a time (golden
-//! `merge::per_node_unit`).
+//! `merge::per_node::unit`).
 //!
 //! - [`per_node_network_unit`]: the k-way Morton merge of the pass streams,
 //!   whose beats add `probe` (a child of the voxel's inner node) to S614's

@@ -8,7 +8,7 @@
 //! in one clock were the unit's critical path (docs/hardware.md 14.7).
 
 use golden::layout::NodeLayout;
-use golden::vectors::translate::{ApplyCode, TranslateDesign};
+use golden::translate::model::{ApplyCode, TranslateDesign};
 
 use super::bundle::Bundle;
 use super::determine::field;

@@ -13,7 +13,7 @@
 //!    write enable each have a step: any two in one clock were the unit's
 //!    critical path (docs/hardware.md 14.7).
 
-use golden::vectors::translate::TranslateDesign;
+use golden::translate::model::TranslateDesign;
 
 use super::bundle::Bundle;
 use super::float::{align, pack_residual, round, unpack, FloatPath};

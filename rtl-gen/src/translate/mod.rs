@@ -9,7 +9,7 @@
 //! payloads and packs golden transactions into port values.
 //!
 //! ```
-//! use golden::vectors::translate::TranslateDesign;
+//! use golden::translate::model::TranslateDesign;
 //! let m = rtl_gen::translate::translate_unit(&TranslateDesign::default());
 //! assert!(m.validate().is_ok());
 //! ```
@@ -25,8 +25,8 @@ mod unit;
 use std::path::{Path, PathBuf};
 
 use golden::params::Params;
+use golden::translate::model::TranslateDesign;
 use golden::translate::TranslateUnitConfig;
-use golden::vectors::translate::TranslateDesign;
 
 pub use unit::{lookup_unit_name, module_name, translate_lookup_unit, translate_unit};
 

@@ -5,9 +5,9 @@
 
 use golden::layout::NodeLayout;
 use golden::store::NodeRecord;
+use golden::translate::model::{ApplyCode, ApplyInputs, ApplyOutputs, TranslateDesign};
 use golden::translate::translation::trans_bits;
 use golden::translate::{TranslateInputs, TranslateOutputs};
-use golden::vectors::translate::{ApplyCode, ApplyInputs, ApplyOutputs, TranslateDesign};
 
 use crate::Bits;
 

@@ -5,8 +5,8 @@
 //! of an invalid entry or an id past the depth returns valid = 0 and zeros,
 //! so undefined memory words never reach an output.
 
+use golden::translate::model::TranslateDesign;
 use golden::translate::translation::trans_bits;
-use golden::vectors::translate::TranslateDesign;
 
 use crate::{Memory, Module, Signal};
 

@@ -5,7 +5,7 @@
 //! the sticky `det_error_seen` / `apply_error_seen` (an output beat with
 //! an error flag or code has left since reset).
 
-use golden::vectors::translate::TranslateDesign;
+use golden::translate::model::TranslateDesign;
 
 use super::apply::apply_path;
 use super::determine::determine_path;

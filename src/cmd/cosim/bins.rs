@@ -7,7 +7,7 @@
 use cosim::fcov::{declare, hit};
 use cosim::tb::Stalls;
 use golden::merge::MergeMode;
-use golden::vectors::translate::{TranslateDesign, TranslateTxn};
+use golden::translate::model::{TranslateDesign, TranslateTxn};
 
 /// The stall patterns, as `--stalls` names them.
 const STALLS: [&str; 4] = ["none", "coin", "bursty", "periodic"];
@@ -118,5 +118,26 @@ fn codes(prefix: &str, names: &[(u64, &str)], counts: &std::collections::BTreeMa
     for (code, n) in names {
         let m = counts.get(code).copied().unwrap_or(0);
         hit(&format!("{prefix}.{n}"), m as u64);
+    }
+}
+
+/// `hierarchy.inputs.<n>`: merges of every input count from 1 to k through
+/// the hierarchy unit, each with its determine commands;
+/// `hierarchy.rewritten`: a determine command rewriting an entry an
+/// earlier merge read (the table persists across merges);
+/// `hierarchy.residual`: a determine command whose placement lies off the
+/// voxel grid (rounded to the entry, the rest its residual). The random
+/// merges reach no refused range and, at the regression's small
+/// configuration, no leaves above the merging level in their count; the
+/// merger's own bins (`merger.*`, hard merges) cover those.
+pub(super) fn hierarchy(k: usize, s: &cosim::units::hierarchy_unit::HierarchyStats) {
+    declare((1..=k).map(|n| format!("hierarchy.inputs.{n}")));
+    for (n, m) in &s.merges.by_inputs {
+        hit(&format!("hierarchy.inputs.{n}"), *m as u64);
+    }
+    let outcomes = [("rewritten", s.rewrites), ("residual", s.residuals)];
+    declare(outcomes.iter().map(|(o, _)| format!("hierarchy.{o}")));
+    for (o, n) in outcomes {
+        hit(&format!("hierarchy.{o}"), n);
     }
 }

@@ -45,7 +45,7 @@ pub(super) fn run_args(a: &Args) -> Result<Vec<String>, String> {
     let mut v: Vec<String> = Vec::new();
     let mut push = |flag: &str, value: String| v.extend([flag.to_string(), value]);
     push("--unit", a.unit.name().into());
-    if a.unit == Unit::Merge && merge_stage(a)? == MergeStage::MergeLevel {
+    if a.unit == Unit::MergeModule && merge_stage(a)? == MergeStage::MergeLevel {
         push("--stage", "merge-level".into());
     }
     push("--engine", a.engine.name().into());
@@ -79,7 +79,7 @@ pub(super) fn run_args(a: &Args) -> Result<Vec<String>, String> {
                 v.push("--binary64".into());
             }
         }
-        Unit::Merge | Unit::Merger | Unit::Hierarchy => {
+        Unit::MergeModule | Unit::Merger | Unit::Hierarchy => {
             let mode = crate::cmd::merge::parse_mode(a.design.mode())?;
             push("--inputs", a.design.inputs().to_string());
             push("--mode", mode.to_string());

@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use cosim::units::hierarchy_unit;
-use golden::vectors::merge::MergeDesign;
+use golden::merge::merge_module::MergeDesign;
 use rtl_gen::merge::HierarchyUnitConfig;
 
 use super::merger::merger_config;
@@ -68,7 +68,10 @@ pub(super) fn run(
         },
     );
     pb.finish_and_clear();
-    let t = t.map_err(|e| e.to_string())?;
+    let (t, stats) = t.map_err(|e| e.to_string())?;
+    if t.passed() {
+        super::bins::hierarchy(c.merger.design.inputs, &stats);
+    }
     let received = |name: &str| t.received.iter().find(|r| r.0 == name).map_or(0, |r| r.1);
     let counts = Counts {
         transactions: t.merges as u64,

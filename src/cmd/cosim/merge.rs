@@ -1,11 +1,11 @@
-//! `--unit merge`: the merging module as one unit (seeded merges, every
+//! `--unit merge-module`: the merging module as one unit (seeded merges, every
 //! stream with its own stall pattern), or its S614 merge-level stage alone.
 
 use std::path::Path;
 
 use cosim::from_rtl::design_from_module;
 use cosim::units::{merge_level, merge_module};
-use golden::vectors::merge::MergeDesign;
+use golden::merge::merge_module::MergeDesign;
 
 use super::command_line::reproduce;
 use super::report::{chunked_failure, finish_report, Counts, FieldReport, MismatchReport, Report};
@@ -121,7 +121,7 @@ pub(super) fn run_level(
     )
 }
 
-/// `--unit merge`: seeded merges through the merging module, every stream
+/// `--unit merge-module`: seeded merges through the merging module, every stream
 /// with its own stall pattern, 10,000 merges at a time.
 pub(super) fn run_module(
     a: &Args,
@@ -159,8 +159,8 @@ pub(super) fn run_module(
     module_report(a, design, flip, &o)
 }
 
-/// `--unit merge --vectors FILE` of whole merges (`hiermerge vectors
-/// --unit merge`): the file's streams through the module, one chunk.
+/// `--unit merge-module --vectors FILE` of whole merges (`hiermerge vectors
+/// --unit merge-module`): the file's streams through the module, one chunk.
 fn replay_module(
     a: &Args,
     design: &MergeDesign,

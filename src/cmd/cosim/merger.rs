@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use cosim::tb::Stalls;
 use cosim::units::merger;
-use golden::vectors::merge::MergeDesign;
+use golden::merge::merge_module::MergeDesign;
 
 use super::command_line::run_args;
 use super::report::{

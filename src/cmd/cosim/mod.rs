@@ -8,7 +8,7 @@
 //! n-th transaction; merge: the first `report` beat of the n-th merge;
 //! `--stage merge-level`: the first output beat of the n-th level; merger:
 //! the `header` beat of the n-th merge), so a test can check that a broken
-//! run is caught and reported. With `--unit merge` (the module) and `--unit
+//! run is caught and reported. With `--unit merge-module` (the module) and `--unit
 //! merger`, `HIERMERGE_COSIM_PATCH_FROM=<text>` and
 //! `HIERMERGE_COSIM_PATCH_TO=<text>` replace the one occurrence of the first
 //! in the emitted Verilog by the second before Verilator or Icarus reads it:
@@ -56,7 +56,7 @@ const VCD_RADIUS: u64 = 20;
 pub enum EngineChoice {
     /// Verilator (2-state, compiled).
     Verilator,
-    /// Icarus Verilog (4-state, X/Z checked; --unit merge: the whole bench
+    /// Icarus Verilog (4-state, X/Z checked; --unit merge-module: the whole bench
     /// inside one vvp run, the multi-stream batch).
     Iverilog,
     /// rtl-gen's IR simulator (the model the Verilog was emitted from).
@@ -121,11 +121,11 @@ fn check_waves(a: &Args) -> Result<(), String> {
         return Ok(());
     }
     let batch = matches!(a.unit, Unit::Merger | Unit::Hierarchy)
-        || (a.unit == Unit::Merge && merge_stage(a)? == MergeStage::Module);
+        || (a.unit == Unit::MergeModule && merge_stage(a)? == MergeStage::Module);
     match a.engine {
         EngineChoice::Ir => Err("--waves fst: the IR simulator writes VCD only".into()),
         EngineChoice::Iverilog if !batch => Err(
-            "--waves fst: Icarus writes FST in its batch runs (--unit merge, --unit merger), \
+            "--waves fst: Icarus writes FST in its batch runs (--unit merge-module, --unit merger), \
              whose vvp ends with the run; here it runs through a pipe: use VCD, or Verilator"
                 .into(),
         ),
@@ -140,12 +140,12 @@ fn check_waves(a: &Args) -> Result<(), String> {
 
 /// The unit `hiermerge cosim` runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
-#[serde(rename_all = "lowercase")]
+#[serde(rename_all = "kebab-case")]
 pub enum Unit {
     /// The translation unit.
     Translate,
     /// The merging module (or, with `--stage merge-level`, its S614 stage).
-    Merge,
+    MergeModule,
     /// The hierarchy merger, S610-S618 as one top (SPEC 8.15).
     Merger,
     /// The hierarchy unit: the translation unit and the merger top behind
@@ -158,14 +158,14 @@ impl Unit {
     pub(crate) fn name(self) -> &'static str {
         match self {
             Unit::Translate => "translate",
-            Unit::Merge => "merge",
+            Unit::MergeModule => "merge-module",
             Unit::Merger => "merger",
             Unit::Hierarchy => "hierarchy",
         }
     }
 }
 
-/// Which part of the merging module `--unit merge` runs.
+/// Which part of the merging module `--unit merge-module` runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum MergeStage {
     /// The whole merging module (`merge_module_unit`): a transaction is one
@@ -177,7 +177,7 @@ pub enum MergeStage {
 }
 
 /// --unit translate: the whole translation unit (determine and apply
-/// streams). --unit merge: the merging module as one unit (streams cfg,
+/// streams). --unit merge-module: the merging module as one unit (streams cfg,
 /// in0.., report, out; a transaction is one merge; Icarus runs the
 /// multi-stream batch, the whole bench inside one vvp run); with
 /// `--stage merge-level` its S614 stage alone (unit 506; a transaction is
@@ -189,12 +189,12 @@ pub enum MergeStage {
 /// commands before it).
 #[derive(clap::Args, Clone)]
 pub struct Args {
-    /// translate: the translation unit; merge: the merging module; merger:
+    /// translate: the translation unit; merge-module: the merging module; merger:
     /// the hierarchy merger; hierarchy: the hierarchy unit (translation
     /// unit and merger top).
     #[arg(long, value_enum)]
     unit: Unit,
-    /// --unit merge only: `module` (default) or `merge-level`, the S614
+    /// --unit merge-module only: `module` (default) or `merge-level`, the S614
     /// stage alone (the default with a --vectors file of stage records).
     #[arg(long, value_enum)]
     stage: Option<MergeStage>,
@@ -231,7 +231,7 @@ pub struct Args {
     #[arg(long = "vcd-dir", default_value = "out/cosim")]
     vcd_dir: PathBuf,
     /// Waveform format: `vcd` (every engine) or `fst` (Verilator; Icarus
-    /// with --unit merge and merger, whose batch vvp ends with the run).
+    /// with --unit merge-module and merger, whose batch vvp ends with the run).
     #[arg(long, value_enum, default_value = "vcd")]
     waves: WavesChoice,
     /// Trace only this instance of the design and everything below it
@@ -462,7 +462,7 @@ pub(crate) fn refuse_unit_flags(
     sizes: [Option<u32>; 2],
     more: &[super::common::UnitFlag],
 ) -> Result<(), String> {
-    let mut flags = vec![("--stage", stage.is_some(), &["merge"][..])];
+    let mut flags = vec![("--stage", stage.is_some(), &["merge-module"][..])];
     flags.extend(design.unit_flags());
     flags.extend([
         ("--capacity-bits", sizes[0].is_some(), WITH_MERGER),
@@ -521,12 +521,12 @@ pub(crate) fn run(a: Args) -> CmdResult {
     check_flags(&a)?;
     let patchable = match a.unit {
         Unit::Translate => false,
-        Unit::Merge => merge_stage(&a)? == MergeStage::Module,
+        Unit::MergeModule => merge_stage(&a)? == MergeStage::Module,
         Unit::Merger | Unit::Hierarchy => true,
     };
     if verilog_patch()?.is_some() && !patchable {
         return Err(format!(
-            "{PATCH_FROM_VAR} applies to --unit merge (the module), merger and hierarchy only"
+            "{PATCH_FROM_VAR} applies to --unit merge-module (the module), merger and hierarchy only"
         ));
     }
     if a.ledger.is_some() && (flip.is_some() || verilog_patch()?.is_some()) {
@@ -537,7 +537,7 @@ pub(crate) fn run(a: Args) -> CmdResult {
     let dir = tempfile::tempdir().map_err(|e| format!("temporary directory: {e}"))?;
     let report = match a.unit {
         Unit::Translate => translate::run(&a, &a.design.translate_design()?, flip, dir.path())?,
-        Unit::Merge => match merge_stage(&a)? {
+        Unit::MergeModule => match merge_stage(&a)? {
             MergeStage::Module => {
                 merge::run_module(&a, &a.design.merge_design()?, flip, dir.path())?
             }

@@ -5,7 +5,8 @@ use std::path::Path;
 
 use cosim::from_rtl::design_from_module;
 use cosim::units::translate::{self, Failure, RunConfig};
-use golden::vectors::translate::{generate, read_translate_vectors, TranslateDesign};
+use golden::translate::model::TranslateDesign;
+use golden::vectors::translate::{generate, read_translate_vectors};
 
 use super::report::{finish_report, Counts, FieldReport, MismatchReport, Report};
 use super::{bar, count, factory, vcd_path, Args, VCD_RADIUS};

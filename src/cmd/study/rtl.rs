@@ -9,9 +9,10 @@ use std::path::Path;
 use cosim::units::merge_module::{ModuleEngine, RunConfig as BenchConfig};
 use cosim::units::{merger, translate};
 use cosim::{open_engine, EngineKind};
+use golden::merge::merge_module::MergeDesign;
+use golden::translate::model::TranslateDesign;
 use golden::translate::TranslateUnitConfig;
-use golden::vectors::merge::MergeDesign;
-use golden::vectors::translate::{generate, TranslateDesign};
+use golden::vectors::translate::generate;
 use golden::Params;
 use serde::Serialize;
 

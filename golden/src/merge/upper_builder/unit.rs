@@ -2,7 +2,7 @@
 //! 8.11, `rtl_gen::merge::upper_builder_unit`): the beat formats of the
 //! upper builder's streams and its transaction, whose expected outputs come
 //! from the golden level loop (`build::upper::build_levels`), its grouping
-//! (`group_by_parent`) and 8.6's lift rule as `merge::upper::build_upper`
+//! (`group_by_parent`) and 8.6's lift rule as `merge::upper_builder::build_upper`
 //! applies it, never from a second model.
 //!
 //! Streams of one merge:
@@ -258,7 +258,7 @@ pub fn builder_transaction(base: &[BaseNode], p: &Params) -> BuilderTransaction 
             v
         })
         .collect();
-    // The levels and the top of 8.6 exactly as `merge::upper::build_upper`
+    // The levels and the top of 8.6 exactly as `merge::upper_builder::build_upper`
     // makes them; `build_levels` reaches LOD 0 only when no level below is
     // the top, so a built top of 1 with a LOD-0 level is the half-scene cut.
     let ((levels, top, lifted, root_cut), err) = match upper_levels(base, p) {

@@ -608,7 +608,16 @@ fn hierarchy_unit_matches_golden_on_three_engines() {
             )
             .unwrap();
             assert_eq!(stats.merges.merges, count, "every case is counted");
-            assert_eq!(stats.determines as usize, stats.merges.by_inputs.iter().map(|(n, m)| n * m).sum::<usize>(), "one determine command per input");
+            assert_eq!(
+                stats.determines as usize,
+                stats
+                    .merges
+                    .by_inputs
+                    .iter()
+                    .map(|(n, m)| n * m)
+                    .sum::<usize>(),
+                "one determine command per input"
+            );
             assert!(
                 t.passed(),
                 "{name} on {engine:?}: {} mismatches, first {:?}, missing {:?}, hang {:?}, {:?}",

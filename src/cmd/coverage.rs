@@ -126,7 +126,7 @@ const RUNS: [(&str, bool); 16] = [
 /// (line/branch, toggle percent: what they last measured, rounded down,
 /// Yosys's constant bits waived), so coverage cannot slip while stimulus
 /// is added toward the aims (SPEC 10.5).
-const FLOORS: [(&str, Aims); 2] = [
+const FLOORS: [(&str, Aims); 3] = [
     (
         "hierarchy_merger_d8_q0_i12_h3_k2_ov1_2_r16_f256_c5_l6",
         // What CI's run measures with the 16-root input and the leaf ladder
@@ -142,6 +142,15 @@ const FLOORS: [(&str, Aims); 2] = [
         Aims {
             line: 90.0,
             toggle: 48.5,
+        },
+    ),
+    (
+        "hierarchy_unit_d8_q0_i12_h3_k2_ov1_2_r16_f256_c5_l6_t8_b64",
+        // Its random merges, placements a fraction off the grid (81.7% /
+        // 35.3%): the merger inside it is covered by its own hard merges.
+        Aims {
+            line: 81.5,
+            toggle: 35.0,
         },
     ),
 ];

@@ -284,7 +284,12 @@ fn next_streams(
 /// `count` random cases from `seed`, on a translation unit from reset, as
 /// the unit's streams.
 pub fn random_streams(c: &HierarchyUnitConfig, seed: u64, count: usize) -> Result<UnitStreams> {
-    next_streams(c, &mut SplitMix64(seed), count, &mut HierarchyStats::default())
+    next_streams(
+        c,
+        &mut SplitMix64(seed),
+        count,
+        &mut HierarchyStats::default(),
+    )
 }
 
 /// The unit's per-unit-port simulator (`module`, its Verilog in `design`)

@@ -20,12 +20,12 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     input  wire cref_resp_valid,         // rtl-gen/src/merge/fetcher/mod.rs:145
     input  wire [27:0] cref_resp_data,   // rtl-gen/src/merge/fetcher/mod.rs:145
     output wire cref_resp_ready,         // rtl-gen/src/merge/fetcher/mod.rs:145
-    input  wire report_valid,            // rtl-gen/src/merge/fetcher/visit.rs:413
-    input  wire [55:0] report_data,      // rtl-gen/src/merge/fetcher/visit.rs:413
-    output wire report_ready,            // rtl-gen/src/merge/fetcher/visit.rs:413
-    input  wire probe_resp_valid,        // rtl-gen/src/merge/fetcher/out.rs:164
-    input  wire [149:0] probe_resp_data, // rtl-gen/src/merge/fetcher/out.rs:164
-    output wire probe_resp_ready,        // rtl-gen/src/merge/fetcher/out.rs:164
+    input  wire report_valid,            // rtl-gen/src/merge/fetcher/visit.rs:412
+    input  wire [55:0] report_data,      // rtl-gen/src/merge/fetcher/visit.rs:412
+    output wire report_ready,            // rtl-gen/src/merge/fetcher/visit.rs:412
+    input  wire probe_resp_valid,        // rtl-gen/src/merge/fetcher/out.rs:151
+    input  wire [149:0] probe_resp_data, // rtl-gen/src/merge/fetcher/out.rs:151
+    output wire probe_resp_ready,        // rtl-gen/src/merge/fetcher/out.rs:151
     output wire node_req_valid,          // rtl-gen/src/merge/fetcher/mod.rs:242
     output wire [23:0] node_req_data,    // rtl-gen/src/merge/fetcher/mod.rs:242
     input  wire node_req_ready,          // rtl-gen/src/merge/fetcher/mod.rs:242
@@ -51,13 +51,13 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     localparam [2:0] ROOTS = 3'd2;           // rtl-gen/src/merge/fetcher/command.rs:59
     localparam [2:0] WALK = 3'd3;            // rtl-gen/src/merge/fetcher/command.rs:59
     localparam [2:0] DONE = 3'd4;            // rtl-gen/src/merge/fetcher/command.rs:51
-    reg [72:0] frontier [0:1023];            // rtl-gen/src/merge/fetcher/parts.rs:18
-    reg [24:0] ref_ctx [0:7];                // rtl-gen/src/merge/fetcher/parts.rs:18
-    reg [33:0] node_ctx [0:7];               // rtl-gen/src/merge/fetcher/parts.rs:18
-    reg [183:0] out_items [0:3];             // rtl-gen/src/merge/fetcher/parts.rs:18
-    reg [119:0] pass [0:255];                // rtl-gen/src/merge/fetcher/parts.rs:18
-    reg [186:0] out_tokens [0:3];            // rtl-gen/src/merge/fetcher/parts.rs:18
-    reg [186:0] out_probes [0:7];            // rtl-gen/src/merge/fetcher/parts.rs:18
+    reg [72:0] frontier [0:1023];            // rtl-gen/src/merge/fetcher/walk.rs:179
+    reg [24:0] ref_ctx [0:7];                // rtl-gen/src/merge/fetcher/walk.rs:203
+    reg [33:0] node_ctx [0:7];               // rtl-gen/src/merge/fetcher/walk.rs:253
+    reg [183:0] out_items [0:3];             // rtl-gen/src/merge/fetcher/visit.rs:76
+    reg [119:0] pass [0:255];                // rtl-gen/src/merge/fetcher/visit.rs:312
+    reg [186:0] out_tokens [0:3];            // rtl-gen/src/merge/fetcher/order.rs:50
+    reg [186:0] out_probes [0:7];            // rtl-gen/src/merge/fetcher/out.rs:153
     reg [2:0] phase;                         // rtl-gen/src/merge/fetcher/command.rs:57
     reg cfg_have;                            // rtl-gen/src/merge/fetcher/command.rs:64
     wire is_idle;                            // rtl-gen/src/merge/fetcher/command.rs:59
@@ -117,11 +117,11 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire roots_bad;                          // rtl-gen/src/merge/fetcher/command.rs:175
     wire roots_over;                         // rtl-gen/src/merge/fetcher/command.rs:179
     wire [3:0] header_code;                  // rtl-gen/src/merge/fetcher/command.rs:183
-    wire header_code_ne;                     // rtl-gen/src/merge/fetcher/command.rs:191
-    reg first_err_valid;                     // rtl-gen/src/merge/fetcher/command.rs:194
-    reg [3:0] first_err_code;                // rtl-gen/src/merge/fetcher/command.rs:195
-    reg [23:0] first_err_node;               // rtl-gen/src/merge/fetcher/command.rs:196
-    reg header_err;                          // rtl-gen/src/merge/fetcher/command.rs:197
+    wire header_code_ne;                     // rtl-gen/src/merge/fetcher/command.rs:192
+    reg first_err_valid;                     // rtl-gen/src/merge/fetcher/command.rs:195
+    reg [3:0] first_err_code;                // rtl-gen/src/merge/fetcher/command.rs:196
+    reg [23:0] first_err_node;               // rtl-gen/src/merge/fetcher/command.rs:197
+    reg header_err;                          // rtl-gen/src/merge/fetcher/command.rs:198
     reg [4:0] level;                         // rtl-gen/src/merge/fetcher/walk.rs:42
     reg at_top;                              // rtl-gen/src/merge/fetcher/walk.rs:43
     reg walk_done;                           // rtl-gen/src/merge/fetcher/walk.rs:44
@@ -143,27 +143,27 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire root_req_valid;                     // rtl-gen/src/merge/fetcher/walk.rs:109
     wire root_outstanding;                   // rtl-gen/src/merge/fetcher/walk.rs:110
     wire roots_all_taken;                    // rtl-gen/src/merge/fetcher/walk.rs:111
-    wire [4:0] node_resp_data_lod;           // rtl-gen/src/merge/fetcher/parts.rs:106
+    wire [4:0] node_resp_data_lod;           // rtl-gen/src/merge/fetcher/parts.rs:64
     wire [15:0] node_resp_data_x;            // rtl-gen/src/merge/fields.rs:24
     wire [15:0] node_resp_data_y;            // rtl-gen/src/merge/fields.rs:24
     wire [15:0] node_resp_data_z;            // rtl-gen/src/merge/fields.rs:24
-    wire node_resp_data_x_or;                // rtl-gen/src/merge/fetcher/parts.rs:111
-    wire [7:0] node_resp_data_lo_x;          // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire [7:0] node_resp_data_hi_x;          // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire [7:0] node_resp_data_lo_y;          // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire [7:0] node_resp_data_hi_y;          // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire [7:0] node_resp_data_lo_z;          // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire [7:0] node_resp_data_hi_z;          // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire node_resp_data_x_or_1;              // rtl-gen/src/merge/fetcher/parts.rs:118
-    wire [23:0] node_resp_data_count;        // rtl-gen/src/merge/fetcher/parts.rs:121
-    wire [4:0] node_resp_data_lod_sub;       // rtl-gen/src/merge/fetcher/parts.rs:123
-    wire [33:0] node_resp_data_x_add;        // rtl-gen/src/merge/fetcher/parts.rs:129
-    wire [33:0] node_resp_data_y_add;        // rtl-gen/src/merge/fetcher/parts.rs:129
-    wire [33:0] node_resp_data_z_add;        // rtl-gen/src/merge/fetcher/parts.rs:129
-    wire [3:0] node_resp_data_y_mux;         // rtl-gen/src/merge/fetcher/parts.rs:142
-    wire [3:0] node_resp_data_lod_mux;       // rtl-gen/src/merge/fetcher/parts.rs:138
-    wire [3:0] node_code;                    // rtl-gen/src/merge/fetcher/parts.rs:134
-    wire [149:0] node_resp_data_cat;         // rtl-gen/src/merge/fetcher/parts.rs:150
+    wire node_resp_data_x_or;                // rtl-gen/src/merge/fetcher/parts.rs:69
+    wire [7:0] node_resp_data_lo_x;          // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire [7:0] node_resp_data_hi_x;          // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire [7:0] node_resp_data_lo_y;          // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire [7:0] node_resp_data_hi_y;          // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire [7:0] node_resp_data_lo_z;          // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire [7:0] node_resp_data_hi_z;          // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire node_resp_data_x_or_1;              // rtl-gen/src/merge/fetcher/parts.rs:76
+    wire [23:0] node_resp_data_count;        // rtl-gen/src/merge/fetcher/parts.rs:79
+    wire [4:0] node_resp_data_lod_sub;       // rtl-gen/src/merge/fetcher/parts.rs:81
+    wire [33:0] node_resp_data_x_add;        // rtl-gen/src/merge/fetcher/parts.rs:87
+    wire [33:0] node_resp_data_y_add;        // rtl-gen/src/merge/fetcher/parts.rs:87
+    wire [33:0] node_resp_data_z_add;        // rtl-gen/src/merge/fetcher/parts.rs:87
+    wire [3:0] node_resp_data_y_mux;         // rtl-gen/src/merge/fetcher/parts.rs:92
+    wire [3:0] node_resp_data_lod_mux;       // rtl-gen/src/merge/fetcher/parts.rs:92
+    wire [3:0] node_code;                    // rtl-gen/src/merge/fetcher/parts.rs:92
+    wire [149:0] node_resp_data_cat;         // rtl-gen/src/merge/fetcher/parts.rs:103
     wire root_outstanding_and;               // rtl-gen/src/merge/fetcher/walk.rs:116
     wire root_take;                          // rtl-gen/src/merge/fetcher/walk.rs:116
     wire node_code_ne;                       // rtl-gen/src/merge/fetcher/walk.rs:118
@@ -175,15 +175,15 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire frontier_in_valid;                  // rtl-gen/src/merge/fetcher/walk.rs:178
     wire [72:0] frontier_in_data;            // rtl-gen/src/merge/fetcher/walk.rs:178
     wire frontier_in_ready;                  // rtl-gen/src/merge/fetcher/walk.rs:178
-    reg [9:0] frontier_head;                 // rtl-gen/src/merge/fetcher/parts.rs:19
-    reg [9:0] frontier_tail;                 // rtl-gen/src/merge/fetcher/parts.rs:20
-    reg [10:0] frontier_count;               // rtl-gen/src/merge/fetcher/parts.rs:21
-    wire frontier_out_valid;                 // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire [72:0] frontier_out_data;           // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire frontier_out_ready;                 // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire frontier_count_ne;                  // rtl-gen/src/merge/fetcher/parts.rs:24
-    wire frontier_in_valid_and;              // rtl-gen/src/merge/fetcher/parts.rs:31
-    wire frontier_out_valid_and;             // rtl-gen/src/merge/fetcher/parts.rs:32
+    reg [9:0] frontier_head;                 // rtl-gen/src/merge/fetcher/walk.rs:179
+    reg [9:0] frontier_tail;                 // rtl-gen/src/merge/fetcher/walk.rs:179
+    reg [10:0] frontier_count;               // rtl-gen/src/merge/fetcher/walk.rs:179
+    wire frontier_out_valid;                 // rtl-gen/src/merge/fetcher/walk.rs:179
+    wire [72:0] frontier_out_data;           // rtl-gen/src/merge/fetcher/walk.rs:179
+    wire frontier_out_ready;                 // rtl-gen/src/merge/fetcher/walk.rs:179
+    wire frontier_count_ne;                  // rtl-gen/src/merge/fetcher/walk.rs:179
+    wire frontier_in_valid_and;              // rtl-gen/src/merge/fetcher/walk.rs:179
+    wire frontier_out_valid_and;             // rtl-gen/src/merge/fetcher/walk.rs:179
     wire frontier_out_data_marker;           // rtl-gen/src/merge/fetcher/walk.rs:194
     wire [23:0] frontier_out_data_first;     // rtl-gen/src/merge/fetcher/walk.rs:195
     wire [23:0] frontier_out_data_count;     // rtl-gen/src/merge/fetcher/walk.rs:196
@@ -195,15 +195,15 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire ref_ctx_in_valid;                   // rtl-gen/src/merge/fetcher/walk.rs:202
     wire [24:0] ref_ctx_in_data;             // rtl-gen/src/merge/fetcher/walk.rs:202
     wire ref_ctx_in_ready;                   // rtl-gen/src/merge/fetcher/walk.rs:202
-    reg [2:0] ref_ctx_head;                  // rtl-gen/src/merge/fetcher/parts.rs:19
-    reg [2:0] ref_ctx_tail;                  // rtl-gen/src/merge/fetcher/parts.rs:20
-    reg [3:0] ref_ctx_count;                 // rtl-gen/src/merge/fetcher/parts.rs:21
-    wire ref_ctx_out_valid;                  // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire [24:0] ref_ctx_out_data;            // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire ref_ctx_out_ready;                  // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire ref_ctx_count_ne;                   // rtl-gen/src/merge/fetcher/parts.rs:24
-    wire ref_ctx_in_valid_and;               // rtl-gen/src/merge/fetcher/parts.rs:31
-    wire ref_ctx_out_valid_and;              // rtl-gen/src/merge/fetcher/parts.rs:32
+    reg [2:0] ref_ctx_head;                  // rtl-gen/src/merge/fetcher/walk.rs:203
+    reg [2:0] ref_ctx_tail;                  // rtl-gen/src/merge/fetcher/walk.rs:203
+    reg [3:0] ref_ctx_count;                 // rtl-gen/src/merge/fetcher/walk.rs:203
+    wire ref_ctx_out_valid;                  // rtl-gen/src/merge/fetcher/walk.rs:203
+    wire [24:0] ref_ctx_out_data;            // rtl-gen/src/merge/fetcher/walk.rs:203
+    wire ref_ctx_out_ready;                  // rtl-gen/src/merge/fetcher/walk.rs:203
+    wire ref_ctx_count_ne;                   // rtl-gen/src/merge/fetcher/walk.rs:203
+    wire ref_ctx_in_valid_and;               // rtl-gen/src/merge/fetcher/walk.rs:203
+    wire ref_ctx_out_valid_and;              // rtl-gen/src/merge/fetcher/walk.rs:203
     wire ref_issue;                          // rtl-gen/src/merge/fetcher/walk.rs:206
     wire [23:0] range_idx_add;               // rtl-gen/src/merge/fetcher/walk.rs:207
     wire walking_and;                        // rtl-gen/src/merge/fetcher/walk.rs:210
@@ -214,39 +214,39 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire node_ctx_in_valid;                  // rtl-gen/src/merge/fetcher/walk.rs:252
     wire [33:0] node_ctx_in_data;            // rtl-gen/src/merge/fetcher/walk.rs:252
     wire node_ctx_in_ready;                  // rtl-gen/src/merge/fetcher/walk.rs:252
-    reg [2:0] node_ctx_head;                 // rtl-gen/src/merge/fetcher/parts.rs:19
-    reg [2:0] node_ctx_tail;                 // rtl-gen/src/merge/fetcher/parts.rs:20
-    reg [3:0] node_ctx_count;                // rtl-gen/src/merge/fetcher/parts.rs:21
-    wire node_ctx_out_valid;                 // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire [33:0] node_ctx_out_data;           // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire node_ctx_out_ready;                 // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire node_ctx_count_ne;                  // rtl-gen/src/merge/fetcher/parts.rs:24
-    wire node_ctx_in_valid_and;              // rtl-gen/src/merge/fetcher/parts.rs:31
-    wire node_ctx_out_valid_and;             // rtl-gen/src/merge/fetcher/parts.rs:32
+    reg [2:0] node_ctx_head;                 // rtl-gen/src/merge/fetcher/walk.rs:253
+    reg [2:0] node_ctx_tail;                 // rtl-gen/src/merge/fetcher/walk.rs:253
+    reg [3:0] node_ctx_count;                // rtl-gen/src/merge/fetcher/walk.rs:253
+    wire node_ctx_out_valid;                 // rtl-gen/src/merge/fetcher/walk.rs:253
+    wire [33:0] node_ctx_out_data;           // rtl-gen/src/merge/fetcher/walk.rs:253
+    wire node_ctx_out_ready;                 // rtl-gen/src/merge/fetcher/walk.rs:253
+    wire node_ctx_count_ne;                  // rtl-gen/src/merge/fetcher/walk.rs:253
+    wire node_ctx_in_valid_and;              // rtl-gen/src/merge/fetcher/walk.rs:253
+    wire node_ctx_out_valid_and;             // rtl-gen/src/merge/fetcher/walk.rs:253
     wire [23:0] resp_ref_node;               // rtl-gen/src/merge/fetcher/walk.rs:254
     wire [3:0] resp_ref_hier;                // rtl-gen/src/merge/fetcher/walk.rs:257
-    wire [3:0] ref_code;                     // rtl-gen/src/merge/fetcher/walk.rs:262
-    wire walking_and_1;                      // rtl-gen/src/merge/fetcher/walk.rs:267
-    wire walking_and_2;                      // rtl-gen/src/merge/fetcher/walk.rs:267
-    wire ref_wait;                           // rtl-gen/src/merge/fetcher/walk.rs:267
-    wire ref_take;                           // rtl-gen/src/merge/fetcher/walk.rs:269
-    wire ref_stage_end;                      // rtl-gen/src/merge/fetcher/walk.rs:270
-    wire ref_take_or;                        // rtl-gen/src/merge/fetcher/walk.rs:271
-    wire ref_code_eq;                        // rtl-gen/src/merge/fetcher/walk.rs:273
-    wire walk_node_req;                      // rtl-gen/src/merge/fetcher/walk.rs:273
+    wire [3:0] ref_code;                     // rtl-gen/src/merge/fetcher/parts.rs:126
+    wire walking_and_1;                      // rtl-gen/src/merge/fetcher/walk.rs:261
+    wire walking_and_2;                      // rtl-gen/src/merge/fetcher/walk.rs:261
+    wire ref_wait;                           // rtl-gen/src/merge/fetcher/walk.rs:261
+    wire ref_take;                           // rtl-gen/src/merge/fetcher/walk.rs:263
+    wire ref_stage_end;                      // rtl-gen/src/merge/fetcher/walk.rs:264
+    wire ref_take_or;                        // rtl-gen/src/merge/fetcher/walk.rs:265
+    wire ref_code_eq;                        // rtl-gen/src/merge/fetcher/walk.rs:267
+    wire walk_node_req;                      // rtl-gen/src/merge/fetcher/walk.rs:267
     wire node_ctx_out_data_eq;               // rtl-gen/src/merge/fetcher/visit.rs:73
     wire out_items_in_valid;                 // rtl-gen/src/merge/fetcher/visit.rs:75
     wire [183:0] out_items_in_data;          // rtl-gen/src/merge/fetcher/visit.rs:75
     wire out_items_in_ready;                 // rtl-gen/src/merge/fetcher/visit.rs:75
-    reg [1:0] out_items_head;                // rtl-gen/src/merge/fetcher/parts.rs:19
-    reg [1:0] out_items_tail;                // rtl-gen/src/merge/fetcher/parts.rs:20
-    reg [2:0] out_items_count;               // rtl-gen/src/merge/fetcher/parts.rs:21
-    wire out_items_out_valid;                // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire [183:0] out_items_out_data;         // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire out_items_out_ready;                // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire out_items_count_ne;                 // rtl-gen/src/merge/fetcher/parts.rs:24
-    wire out_items_in_valid_and;             // rtl-gen/src/merge/fetcher/parts.rs:31
-    wire out_items_out_valid_and;            // rtl-gen/src/merge/fetcher/parts.rs:32
+    reg [1:0] out_items_head;                // rtl-gen/src/merge/fetcher/visit.rs:76
+    reg [1:0] out_items_tail;                // rtl-gen/src/merge/fetcher/visit.rs:76
+    reg [2:0] out_items_count;               // rtl-gen/src/merge/fetcher/visit.rs:76
+    wire out_items_out_valid;                // rtl-gen/src/merge/fetcher/visit.rs:76
+    wire [183:0] out_items_out_data;         // rtl-gen/src/merge/fetcher/visit.rs:76
+    wire out_items_out_ready;                // rtl-gen/src/merge/fetcher/visit.rs:76
+    wire out_items_count_ne;                 // rtl-gen/src/merge/fetcher/visit.rs:76
+    wire out_items_in_valid_and;             // rtl-gen/src/merge/fetcher/visit.rs:76
+    wire out_items_out_valid_and;            // rtl-gen/src/merge/fetcher/visit.rs:76
     wire visit_live;                         // rtl-gen/src/merge/fetcher/visit.rs:77
     wire above_level;                        // rtl-gen/src/merge/fetcher/visit.rs:78
     wire above_first;                        // rtl-gen/src/merge/fetcher/visit.rs:79
@@ -285,88 +285,88 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire item_err;                           // rtl-gen/src/merge/fetcher/visit.rs:159
     wire item_end;                           // rtl-gen/src/merge/fetcher/visit.rs:161
     wire item_node;                          // rtl-gen/src/merge/fetcher/visit.rs:163
-    wire [23:0] node_ctx_out_data_node;      // rtl-gen/src/merge/fetcher/visit.rs:171
-    wire [149:0] item_rec;                   // rtl-gen/src/merge/fetcher/visit.rs:173
-    wire [27:0] item_ref;                    // rtl-gen/src/merge/fetcher/visit.rs:174
-    wire [23:0] item_ref_node;               // rtl-gen/src/merge/fetcher/visit.rs:175
-    wire item_leaf;                          // rtl-gen/src/merge/fetcher/visit.rs:244
-    wire item_leaf_not;                      // rtl-gen/src/merge/fetcher/visit.rs:245
+    wire [23:0] node_ctx_out_data_node;      // rtl-gen/src/merge/fetcher/visit.rs:172
+    wire [149:0] item_rec;                   // rtl-gen/src/merge/fetcher/visit.rs:174
+    wire [27:0] item_ref;                    // rtl-gen/src/merge/fetcher/visit.rs:175
+    wire [23:0] item_ref_node;               // rtl-gen/src/merge/fetcher/visit.rs:176
+    wire item_leaf;                          // rtl-gen/src/merge/fetcher/visit.rs:245
+    wire item_leaf_not;                      // rtl-gen/src/merge/fetcher/visit.rs:246
     wire [47:0] item_rec_x_morton;           // rtl-gen/src/merge/network.rs:39
-    wire [48:0] item_key;                    // rtl-gen/src/merge/fetcher/visit.rs:247
-    wire [23:0] item_rec_first;              // rtl-gen/src/merge/fetcher/visit.rs:249
-    wire [23:0] item_rec_count;              // rtl-gen/src/merge/fetcher/visit.rs:250
-    wire [24:0] item_range_end;              // rtl-gen/src/merge/fetcher/visit.rs:253
-    wire at_level;                           // rtl-gen/src/merge/fetcher/visit.rs:255
-    wire order_bad;                          // rtl-gen/src/merge/fetcher/visit.rs:256
-    wire range_bad;                          // rtl-gen/src/merge/fetcher/visit.rs:264
-    wire frontier_bad;                       // rtl-gen/src/merge/fetcher/visit.rs:265
+    wire [48:0] item_key;                    // rtl-gen/src/merge/fetcher/visit.rs:248
+    wire [23:0] item_rec_first;              // rtl-gen/src/merge/fetcher/visit.rs:250
+    wire [23:0] item_rec_count;              // rtl-gen/src/merge/fetcher/visit.rs:251
+    wire [24:0] item_range_end;              // rtl-gen/src/merge/fetcher/visit.rs:254
+    wire at_level;                           // rtl-gen/src/merge/fetcher/visit.rs:256
+    wire order_bad;                          // rtl-gen/src/merge/fetcher/visit.rs:257
+    wire range_bad;                          // rtl-gen/src/merge/fetcher/visit.rs:265
+    wire frontier_bad;                       // rtl-gen/src/merge/fetcher/visit.rs:266
     wire [3:0] item_end_mux;                 // rtl-gen/src/merge/fetcher/visit.rs:268
-    wire [3:0] visit_code;                   // rtl-gen/src/merge/fetcher/visit.rs:266
-    wire visit_fails;                        // rtl-gen/src/merge/fetcher/visit.rs:281
-    wire visit_go_and;                       // rtl-gen/src/merge/fetcher/visit.rs:282
-    wire visit_passes;                       // rtl-gen/src/merge/fetcher/visit.rs:282
-    wire frontier_push;                      // rtl-gen/src/merge/fetcher/visit.rs:283
-    wire visit_errored_not;                  // rtl-gen/src/merge/fetcher/visit.rs:285
-    wire leaf_out;                           // rtl-gen/src/merge/fetcher/visit.rs:285
-    wire to_out;                             // rtl-gen/src/merge/fetcher/visit.rs:286
-    wire next_level;                         // rtl-gen/src/merge/fetcher/visit.rs:287
-    wire level_end;                          // rtl-gen/src/merge/fetcher/visit.rs:288
-    wire walk_ran_out;                       // rtl-gen/src/merge/fetcher/visit.rs:294
-    wire pn_pass_end;                        // rtl-gen/src/merge/fetcher/visit.rs:295
-    wire walk_over;                          // rtl-gen/src/merge/fetcher/visit.rs:296
-    wire marker_push;                        // rtl-gen/src/merge/fetcher/visit.rs:303
-    wire pass_push;                          // rtl-gen/src/merge/fetcher/visit.rs:305
-    reg [7:0] pass_head;                     // rtl-gen/src/merge/fetcher/parts.rs:19
-    reg [7:0] pass_tail;                     // rtl-gen/src/merge/fetcher/parts.rs:20
-    reg [8:0] pass_count;                    // rtl-gen/src/merge/fetcher/parts.rs:21
-    wire pass_out_valid;                     // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire [119:0] pass_out_data;              // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire pass_out_ready;                     // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire pass_count_ne;                      // rtl-gen/src/merge/fetcher/parts.rs:24
-    wire pass_in_valid_and;                  // rtl-gen/src/merge/fetcher/parts.rs:31
-    wire pass_out_valid_and;                 // rtl-gen/src/merge/fetcher/parts.rs:32
-    wire marker_push_or;                     // rtl-gen/src/merge/fetcher/visit.rs:316
-    wire level_end_push;                     // rtl-gen/src/merge/fetcher/visit.rs:319
-    reg pn_end_left;                         // rtl-gen/src/merge/fetcher/visit.rs:415
+    wire [3:0] visit_code;                   // rtl-gen/src/merge/fetcher/visit.rs:268
+    wire visit_fails;                        // rtl-gen/src/merge/fetcher/visit.rs:280
+    wire visit_go_and;                       // rtl-gen/src/merge/fetcher/visit.rs:281
+    wire visit_passes;                       // rtl-gen/src/merge/fetcher/visit.rs:281
+    wire frontier_push;                      // rtl-gen/src/merge/fetcher/visit.rs:282
+    wire visit_errored_not;                  // rtl-gen/src/merge/fetcher/visit.rs:284
+    wire leaf_out;                           // rtl-gen/src/merge/fetcher/visit.rs:284
+    wire to_out;                             // rtl-gen/src/merge/fetcher/visit.rs:285
+    wire next_level;                         // rtl-gen/src/merge/fetcher/visit.rs:286
+    wire level_end;                          // rtl-gen/src/merge/fetcher/visit.rs:287
+    wire walk_ran_out;                       // rtl-gen/src/merge/fetcher/visit.rs:293
+    wire pn_pass_end;                        // rtl-gen/src/merge/fetcher/visit.rs:294
+    wire walk_over;                          // rtl-gen/src/merge/fetcher/visit.rs:295
+    wire marker_push;                        // rtl-gen/src/merge/fetcher/visit.rs:302
+    wire pass_push;                          // rtl-gen/src/merge/fetcher/visit.rs:304
+    reg [7:0] pass_head;                     // rtl-gen/src/merge/fetcher/visit.rs:312
+    reg [7:0] pass_tail;                     // rtl-gen/src/merge/fetcher/visit.rs:312
+    reg [8:0] pass_count;                    // rtl-gen/src/merge/fetcher/visit.rs:312
+    wire pass_out_valid;                     // rtl-gen/src/merge/fetcher/visit.rs:312
+    wire [119:0] pass_out_data;              // rtl-gen/src/merge/fetcher/visit.rs:312
+    wire pass_out_ready;                     // rtl-gen/src/merge/fetcher/visit.rs:312
+    wire pass_count_ne;                      // rtl-gen/src/merge/fetcher/visit.rs:312
+    wire pass_in_valid_and;                  // rtl-gen/src/merge/fetcher/visit.rs:312
+    wire pass_out_valid_and;                 // rtl-gen/src/merge/fetcher/visit.rs:312
+    wire marker_push_or;                     // rtl-gen/src/merge/fetcher/visit.rs:315
+    wire level_end_push;                     // rtl-gen/src/merge/fetcher/visit.rs:318
+    reg pn_end_left;                         // rtl-gen/src/merge/fetcher/visit.rs:414
     wire [47:0] report_key;                  // rtl-gen/src/merge/network.rs:39
-    wire report_data_pass_end;               // rtl-gen/src/merge/fetcher/visit.rs:416
-    wire report_data_more;                   // rtl-gen/src/merge/fetcher/visit.rs:416
-    wire report_data_descend;                // rtl-gen/src/merge/fetcher/visit.rs:416
-    wire [4:0] report_data_lod;              // rtl-gen/src/merge/fetcher/visit.rs:416
-    wire report_data_descend_and;            // rtl-gen/src/merge/fetcher/visit.rs:421
-    wire [47:0] pass_out_data_key;           // rtl-gen/src/merge/fetcher/visit.rs:422
-    wire [23:0] pass_out_data_first;         // rtl-gen/src/merge/fetcher/visit.rs:423
-    wire [23:0] pass_out_data_count;         // rtl-gen/src/merge/fetcher/visit.rs:424
-    wire [23:0] pass_out_data_node;          // rtl-gen/src/merge/fetcher/visit.rs:425
-    wire join_valid;                         // rtl-gen/src/merge/fetcher/visit.rs:426
-    wire join_decision;                      // rtl-gen/src/merge/fetcher/visit.rs:427
-    wire join_entry_before;                  // rtl-gen/src/merge/fetcher/visit.rs:428
-    wire join_entry_at;                      // rtl-gen/src/merge/fetcher/visit.rs:429
-    wire join_valid_and;                     // rtl-gen/src/merge/fetcher/visit.rs:430
-    wire join_entry_stays;                   // rtl-gen/src/merge/fetcher/visit.rs:430
-    wire join_match;                         // rtl-gen/src/merge/fetcher/visit.rs:431
-    wire join_descend;                       // rtl-gen/src/merge/fetcher/visit.rs:432
-    wire join_visit_past;                    // rtl-gen/src/merge/fetcher/visit.rs:438
-    wire pass_out_valid_not;                 // rtl-gen/src/merge/fetcher/visit.rs:439
-    wire pass_out_valid_or;                  // rtl-gen/src/merge/fetcher/visit.rs:439
-    wire join_other_voxel;                   // rtl-gen/src/merge/fetcher/visit.rs:439
-    wire report_data_more_not;               // rtl-gen/src/merge/fetcher/visit.rs:441
-    wire join_pass_end;                      // rtl-gen/src/merge/fetcher/visit.rs:441
-    wire join_marker;                        // rtl-gen/src/merge/fetcher/visit.rs:443
-    wire [4:0] item_rec_lod;                 // rtl-gen/src/merge/fetcher/visit.rs:482
-    wire walk_ran_out_and;                   // rtl-gen/src/merge/fetcher/visit.rs:492
-    wire leaves_end_fire;                    // rtl-gen/src/merge/fetcher/visit.rs:492
-    wire [1:0] visit_fails_mux_1;            // rtl-gen/src/merge/fetcher/visit.rs:520
+    wire report_data_pass_end;               // rtl-gen/src/merge/fetcher/visit.rs:415
+    wire report_data_more;                   // rtl-gen/src/merge/fetcher/visit.rs:415
+    wire report_data_descend;                // rtl-gen/src/merge/fetcher/visit.rs:415
+    wire [4:0] report_data_lod;              // rtl-gen/src/merge/fetcher/visit.rs:415
+    wire report_data_descend_and;            // rtl-gen/src/merge/fetcher/visit.rs:420
+    wire [47:0] pass_out_data_key;           // rtl-gen/src/merge/fetcher/visit.rs:421
+    wire [23:0] pass_out_data_first;         // rtl-gen/src/merge/fetcher/visit.rs:422
+    wire [23:0] pass_out_data_count;         // rtl-gen/src/merge/fetcher/visit.rs:423
+    wire [23:0] pass_out_data_node;          // rtl-gen/src/merge/fetcher/visit.rs:424
+    wire join_valid;                         // rtl-gen/src/merge/fetcher/visit.rs:425
+    wire join_decision;                      // rtl-gen/src/merge/fetcher/visit.rs:426
+    wire join_entry_before;                  // rtl-gen/src/merge/fetcher/visit.rs:427
+    wire join_entry_at;                      // rtl-gen/src/merge/fetcher/visit.rs:428
+    wire join_valid_and;                     // rtl-gen/src/merge/fetcher/visit.rs:429
+    wire join_entry_stays;                   // rtl-gen/src/merge/fetcher/visit.rs:429
+    wire join_match;                         // rtl-gen/src/merge/fetcher/visit.rs:430
+    wire join_descend;                       // rtl-gen/src/merge/fetcher/visit.rs:431
+    wire join_visit_past;                    // rtl-gen/src/merge/fetcher/visit.rs:437
+    wire pass_out_valid_not;                 // rtl-gen/src/merge/fetcher/visit.rs:438
+    wire pass_out_valid_or;                  // rtl-gen/src/merge/fetcher/visit.rs:438
+    wire join_other_voxel;                   // rtl-gen/src/merge/fetcher/visit.rs:438
+    wire report_data_more_not;               // rtl-gen/src/merge/fetcher/visit.rs:440
+    wire join_pass_end;                      // rtl-gen/src/merge/fetcher/visit.rs:440
+    wire join_marker;                        // rtl-gen/src/merge/fetcher/visit.rs:442
+    wire [4:0] item_rec_lod;                 // rtl-gen/src/merge/fetcher/visit.rs:481
+    wire walk_ran_out_and;                   // rtl-gen/src/merge/fetcher/visit.rs:491
+    wire leaves_end_fire;                    // rtl-gen/src/merge/fetcher/visit.rs:491
+    wire [1:0] visit_fails_mux_1;            // rtl-gen/src/merge/fetcher/visit.rs:519
     wire [27:0] visit_fails_mux_2;           // rtl-gen/src/merge/fetcher/visit.rs:528
-    wire out_items_out_data_eq;              // rtl-gen/src/merge/fetcher/order.rs:175
-    wire out_items_out_data_leaf;            // rtl-gen/src/merge/fetcher/order.rs:176
-    wire [15:0] out_items_out_data_z;        // rtl-gen/src/merge/fetcher/order.rs:178
-    wire [15:0] out_items_out_data_y;        // rtl-gen/src/merge/fetcher/order.rs:179
-    wire [15:0] out_items_out_data_x;        // rtl-gen/src/merge/fetcher/order.rs:180
-    wire [47:0] out_items_out_data_z_cat;    // rtl-gen/src/merge/fetcher/order.rs:177
-    wire [23:0] out_items_out_data_first;    // rtl-gen/src/merge/fetcher/order.rs:182
-    wire [23:0] out_items_out_data_count;    // rtl-gen/src/merge/fetcher/order.rs:184
-    wire [24:0] out_items_out_data_first_add; // rtl-gen/src/merge/fetcher/order.rs:183
+    wire out_items_out_data_eq;              // rtl-gen/src/merge/fetcher/order.rs:174
+    wire out_items_out_data_leaf;            // rtl-gen/src/merge/fetcher/order.rs:175
+    wire [15:0] out_items_out_data_z;        // rtl-gen/src/merge/fetcher/order.rs:177
+    wire [15:0] out_items_out_data_y;        // rtl-gen/src/merge/fetcher/order.rs:178
+    wire [15:0] out_items_out_data_x;        // rtl-gen/src/merge/fetcher/order.rs:179
+    wire [47:0] out_items_out_data_z_cat;    // rtl-gen/src/merge/fetcher/order.rs:176
+    wire [23:0] out_items_out_data_first;    // rtl-gen/src/merge/fetcher/order.rs:181
+    wire [23:0] out_items_out_data_count;    // rtl-gen/src/merge/fetcher/order.rs:183
+    wire [24:0] out_items_out_data_first_add; // rtl-gen/src/merge/fetcher/order.rs:182
     reg pend_valid;                          // rtl-gen/src/merge/fetcher/order.rs:39
     reg [23:0] pend_first;                   // rtl-gen/src/merge/fetcher/order.rs:40
     reg [24:0] pend_end;                     // rtl-gen/src/merge/fetcher/order.rs:41
@@ -379,15 +379,15 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire out_tokens_in_valid;                // rtl-gen/src/merge/fetcher/order.rs:49
     wire [186:0] out_tokens_in_data;         // rtl-gen/src/merge/fetcher/order.rs:49
     wire out_tokens_in_ready;                // rtl-gen/src/merge/fetcher/order.rs:49
-    reg [1:0] out_tokens_head;               // rtl-gen/src/merge/fetcher/parts.rs:19
-    reg [1:0] out_tokens_tail;               // rtl-gen/src/merge/fetcher/parts.rs:20
-    reg [2:0] out_tokens_count;              // rtl-gen/src/merge/fetcher/parts.rs:21
-    wire out_tokens_out_valid;               // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire [186:0] out_tokens_out_data;        // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire out_tokens_out_ready;               // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire out_tokens_count_ne;                // rtl-gen/src/merge/fetcher/parts.rs:24
-    wire out_tokens_in_valid_and;            // rtl-gen/src/merge/fetcher/parts.rs:31
-    wire out_tokens_out_valid_and;           // rtl-gen/src/merge/fetcher/parts.rs:32
+    reg [1:0] out_tokens_head;               // rtl-gen/src/merge/fetcher/order.rs:50
+    reg [1:0] out_tokens_tail;               // rtl-gen/src/merge/fetcher/order.rs:50
+    reg [2:0] out_tokens_count;              // rtl-gen/src/merge/fetcher/order.rs:50
+    wire out_tokens_out_valid;               // rtl-gen/src/merge/fetcher/order.rs:50
+    wire [186:0] out_tokens_out_data;        // rtl-gen/src/merge/fetcher/order.rs:50
+    wire out_tokens_out_ready;               // rtl-gen/src/merge/fetcher/order.rs:50
+    wire out_tokens_count_ne;                // rtl-gen/src/merge/fetcher/order.rs:50
+    wire out_tokens_in_valid_and;            // rtl-gen/src/merge/fetcher/order.rs:50
+    wire out_tokens_out_valid_and;           // rtl-gen/src/merge/fetcher/order.rs:50
     wire walking_and_3;                      // rtl-gen/src/merge/fetcher/order.rs:51
     wire order_room;                         // rtl-gen/src/merge/fetcher/order.rs:51
     wire leaf_of_held;                       // rtl-gen/src/merge/fetcher/order.rs:52
@@ -411,82 +411,82 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire probe_first;                        // rtl-gen/src/merge/fetcher/order.rs:71
     wire probe_next;                         // rtl-gen/src/merge/fetcher/order.rs:72
     wire item_out;                           // rtl-gen/src/merge/fetcher/order.rs:77
-    wire [23:0] probe_idx_add;               // rtl-gen/src/merge/fetcher/order.rs:230
-    wire probe_idx_eq;                       // rtl-gen/src/merge/fetcher/order.rs:231
-    wire [23:0] out_items_out_data_node;     // rtl-gen/src/merge/fetcher/order.rs:246
-    wire [23:0] probe_parent_next;           // rtl-gen/src/merge/fetcher/order.rs:246
-    wire [4:0] out_items_out_data_lod;       // rtl-gen/src/merge/fetcher/order.rs:248
-    wire [4:0] probe_lod_next;               // rtl-gen/src/merge/fetcher/order.rs:248
+    wire [23:0] probe_idx_add;               // rtl-gen/src/merge/fetcher/order.rs:229
+    wire probe_idx_eq;                       // rtl-gen/src/merge/fetcher/order.rs:230
+    wire [23:0] out_items_out_data_node;     // rtl-gen/src/merge/fetcher/order.rs:245
+    wire [23:0] probe_parent_next;           // rtl-gen/src/merge/fetcher/order.rs:245
+    wire [4:0] out_items_out_data_lod;       // rtl-gen/src/merge/fetcher/order.rs:247
+    wire [4:0] probe_lod_next;               // rtl-gen/src/merge/fetcher/order.rs:247
     wire [23:0] cref_idx_add;                // rtl-gen/src/merge/fetcher/order.rs:106
     wire [23:0] pend_first_add;              // rtl-gen/src/merge/fetcher/order.rs:107
-    wire held_leaf_or;                       // rtl-gen/src/merge/fetcher/order.rs:122
-    wire hold_refs;                          // rtl-gen/src/merge/fetcher/order.rs:125
-    wire [184:0] const_cat;                  // rtl-gen/src/merge/fetcher/parts.rs:187
-    wire [186:0] out_items_out_data_mux;     // rtl-gen/src/merge/fetcher/order.rs:309
-    wire [186:0] out_items_out_data_mux_1;   // rtl-gen/src/merge/fetcher/order.rs:307
-    wire token_cref;                         // rtl-gen/src/merge/fetcher/out.rs:150
-    wire token_probe;                        // rtl-gen/src/merge/fetcher/out.rs:151
-    wire [23:0] cref_resp_data_node;         // rtl-gen/src/merge/fetcher/out.rs:153
-    wire [3:0] cref_resp_data_hier;          // rtl-gen/src/merge/fetcher/out.rs:154
-    wire [3:0] cref_code;                    // rtl-gen/src/merge/fetcher/out.rs:157
-    wire cref_code_eq;                       // rtl-gen/src/merge/fetcher/out.rs:162
-    wire probe_req_core_valid;               // rtl-gen/src/merge/fetcher/out.rs:163
-    wire [23:0] probe_req_core_data;         // rtl-gen/src/merge/fetcher/out.rs:163
-    wire probe_req_core_ready;               // rtl-gen/src/merge/fetcher/out.rs:163
-    wire out_probes_in_valid;                // rtl-gen/src/merge/fetcher/out.rs:165
-    wire [186:0] out_probes_in_data;         // rtl-gen/src/merge/fetcher/out.rs:165
-    wire out_probes_in_ready;                // rtl-gen/src/merge/fetcher/out.rs:165
-    reg [2:0] out_probes_head;               // rtl-gen/src/merge/fetcher/parts.rs:19
-    reg [2:0] out_probes_tail;               // rtl-gen/src/merge/fetcher/parts.rs:20
-    reg [3:0] out_probes_count;              // rtl-gen/src/merge/fetcher/parts.rs:21
-    wire out_probes_out_valid;               // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire [186:0] out_probes_out_data;        // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire out_probes_out_ready;               // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire out_probes_count_ne;                // rtl-gen/src/merge/fetcher/parts.rs:24
-    wire out_probes_in_valid_and;            // rtl-gen/src/merge/fetcher/parts.rs:31
-    wire out_probes_out_valid_and;           // rtl-gen/src/merge/fetcher/parts.rs:32
-    wire token_answered;                     // rtl-gen/src/merge/fetcher/out.rs:167
-    wire answer_room;                        // rtl-gen/src/merge/fetcher/out.rs:168
-    wire walking_and_4;                      // rtl-gen/src/merge/fetcher/out.rs:169
-    wire token_fire;                         // rtl-gen/src/merge/fetcher/out.rs:169
-    wire [186:0] token_probe_mux;            // rtl-gen/src/merge/fetcher/out.rs:204
-    wire [186:0] cref_code_mux;              // rtl-gen/src/merge/fetcher/out.rs:203
-    wire token_probe_wait;                   // rtl-gen/src/merge/fetcher/out.rs:214
-    wire [4:0] probe_resp_data_lod;          // rtl-gen/src/merge/fetcher/parts.rs:106
+    wire held_leaf_or;                       // rtl-gen/src/merge/fetcher/order.rs:121
+    wire hold_refs;                          // rtl-gen/src/merge/fetcher/order.rs:124
+    wire [184:0] const_cat;                  // rtl-gen/src/merge/fetcher/parts.rs:160
+    wire [186:0] out_items_out_data_mux;     // rtl-gen/src/merge/fetcher/order.rs:306
+    wire [186:0] out_items_out_data_mux_1;   // rtl-gen/src/merge/fetcher/order.rs:306
+    wire token_cref;                         // rtl-gen/src/merge/fetcher/out.rs:143
+    wire token_probe;                        // rtl-gen/src/merge/fetcher/out.rs:144
+    wire [23:0] cref_resp_data_node;         // rtl-gen/src/merge/fetcher/out.rs:146
+    wire [3:0] cref_resp_data_hier;          // rtl-gen/src/merge/fetcher/out.rs:147
+    wire [3:0] cref_code;                    // rtl-gen/src/merge/fetcher/parts.rs:126
+    wire cref_code_eq;                       // rtl-gen/src/merge/fetcher/out.rs:149
+    wire probe_req_core_valid;               // rtl-gen/src/merge/fetcher/out.rs:150
+    wire [23:0] probe_req_core_data;         // rtl-gen/src/merge/fetcher/out.rs:150
+    wire probe_req_core_ready;               // rtl-gen/src/merge/fetcher/out.rs:150
+    wire out_probes_in_valid;                // rtl-gen/src/merge/fetcher/out.rs:152
+    wire [186:0] out_probes_in_data;         // rtl-gen/src/merge/fetcher/out.rs:152
+    wire out_probes_in_ready;                // rtl-gen/src/merge/fetcher/out.rs:152
+    reg [2:0] out_probes_head;               // rtl-gen/src/merge/fetcher/out.rs:153
+    reg [2:0] out_probes_tail;               // rtl-gen/src/merge/fetcher/out.rs:153
+    reg [3:0] out_probes_count;              // rtl-gen/src/merge/fetcher/out.rs:153
+    wire out_probes_out_valid;               // rtl-gen/src/merge/fetcher/out.rs:153
+    wire [186:0] out_probes_out_data;        // rtl-gen/src/merge/fetcher/out.rs:153
+    wire out_probes_out_ready;               // rtl-gen/src/merge/fetcher/out.rs:153
+    wire out_probes_count_ne;                // rtl-gen/src/merge/fetcher/out.rs:153
+    wire out_probes_in_valid_and;            // rtl-gen/src/merge/fetcher/out.rs:153
+    wire out_probes_out_valid_and;           // rtl-gen/src/merge/fetcher/out.rs:153
+    wire token_answered;                     // rtl-gen/src/merge/fetcher/out.rs:154
+    wire answer_room;                        // rtl-gen/src/merge/fetcher/out.rs:155
+    wire walking_and_4;                      // rtl-gen/src/merge/fetcher/out.rs:156
+    wire token_fire;                         // rtl-gen/src/merge/fetcher/out.rs:156
+    wire [186:0] token_probe_mux;            // rtl-gen/src/merge/fetcher/out.rs:191
+    wire [186:0] cref_code_mux;              // rtl-gen/src/merge/fetcher/out.rs:190
+    wire token_probe_wait;                   // rtl-gen/src/merge/fetcher/out.rs:201
+    wire [4:0] probe_resp_data_lod;          // rtl-gen/src/merge/fetcher/parts.rs:64
     wire [15:0] probe_resp_data_x;           // rtl-gen/src/merge/fields.rs:24
     wire [15:0] probe_resp_data_y;           // rtl-gen/src/merge/fields.rs:24
     wire [15:0] probe_resp_data_z;           // rtl-gen/src/merge/fields.rs:24
-    wire probe_resp_data_x_or;               // rtl-gen/src/merge/fetcher/parts.rs:111
-    wire [7:0] probe_resp_data_lo_x;         // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire [7:0] probe_resp_data_hi_x;         // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire [7:0] probe_resp_data_lo_y;         // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire [7:0] probe_resp_data_hi_y;         // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire [7:0] probe_resp_data_lo_z;         // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire [7:0] probe_resp_data_hi_z;         // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire probe_resp_data_x_or_1;             // rtl-gen/src/merge/fetcher/parts.rs:118
-    wire [23:0] probe_resp_data_count;       // rtl-gen/src/merge/fetcher/parts.rs:121
-    wire [4:0] probe_resp_data_lod_sub;      // rtl-gen/src/merge/fetcher/parts.rs:123
-    wire [33:0] probe_resp_data_x_add;       // rtl-gen/src/merge/fetcher/parts.rs:129
-    wire [33:0] probe_resp_data_y_add;       // rtl-gen/src/merge/fetcher/parts.rs:129
-    wire [33:0] probe_resp_data_z_add;       // rtl-gen/src/merge/fetcher/parts.rs:129
-    wire [3:0] probe_resp_data_y_mux;        // rtl-gen/src/merge/fetcher/parts.rs:142
-    wire [3:0] probe_resp_data_lod_mux;      // rtl-gen/src/merge/fetcher/parts.rs:138
-    wire [3:0] probe_code;                   // rtl-gen/src/merge/fetcher/out.rs:220
-    wire [27:0] cfg_hier_cat;                // rtl-gen/src/merge/fetcher/parts.rs:164
-    wire [184:0] const_cat_1;                // rtl-gen/src/merge/fetcher/out.rs:223
-    wire probe_answered;                     // rtl-gen/src/merge/fetcher/out.rs:241
-    reg out_skip_end;                        // rtl-gen/src/merge/fetcher/out.rs:242
-    wire out_probes_out_data_eq;             // rtl-gen/src/merge/fetcher/out.rs:243
-    wire [1:0] out_probes_out_data_kind;     // rtl-gen/src/merge/fetcher/out.rs:244
-    wire token_end;                          // rtl-gen/src/merge/fetcher/out.rs:243
-    wire out_errored_not;                    // rtl-gen/src/merge/fetcher/out.rs:246
-    wire token_sent;                         // rtl-gen/src/merge/fetcher/out.rs:246
-    wire walking_and_5;                      // rtl-gen/src/merge/fetcher/out.rs:247
-    wire walking_and_6;                      // rtl-gen/src/merge/fetcher/out.rs:247
-    wire token_sent_or;                      // rtl-gen/src/merge/fetcher/out.rs:247
-    wire send_fire;                          // rtl-gen/src/merge/fetcher/out.rs:247
-    wire out_first_error;                    // rtl-gen/src/merge/fetcher/out.rs:256
-    wire pass_end_left;                      // rtl-gen/src/merge/fetcher/out.rs:271
+    wire probe_resp_data_x_or;               // rtl-gen/src/merge/fetcher/parts.rs:69
+    wire [7:0] probe_resp_data_lo_x;         // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire [7:0] probe_resp_data_hi_x;         // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire [7:0] probe_resp_data_lo_y;         // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire [7:0] probe_resp_data_hi_y;         // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire [7:0] probe_resp_data_lo_z;         // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire [7:0] probe_resp_data_hi_z;         // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire probe_resp_data_x_or_1;             // rtl-gen/src/merge/fetcher/parts.rs:76
+    wire [23:0] probe_resp_data_count;       // rtl-gen/src/merge/fetcher/parts.rs:79
+    wire [4:0] probe_resp_data_lod_sub;      // rtl-gen/src/merge/fetcher/parts.rs:81
+    wire [33:0] probe_resp_data_x_add;       // rtl-gen/src/merge/fetcher/parts.rs:87
+    wire [33:0] probe_resp_data_y_add;       // rtl-gen/src/merge/fetcher/parts.rs:87
+    wire [33:0] probe_resp_data_z_add;       // rtl-gen/src/merge/fetcher/parts.rs:87
+    wire [3:0] probe_resp_data_y_mux;        // rtl-gen/src/merge/fetcher/parts.rs:92
+    wire [3:0] probe_resp_data_lod_mux;      // rtl-gen/src/merge/fetcher/parts.rs:92
+    wire [3:0] probe_code;                   // rtl-gen/src/merge/fetcher/out.rs:207
+    wire [27:0] cfg_hier_cat;                // rtl-gen/src/merge/fetcher/parts.rs:137
+    wire [184:0] const_cat_1;                // rtl-gen/src/merge/fetcher/out.rs:210
+    wire probe_answered;                     // rtl-gen/src/merge/fetcher/out.rs:228
+    reg out_skip_end;                        // rtl-gen/src/merge/fetcher/out.rs:229
+    wire out_probes_out_data_eq;             // rtl-gen/src/merge/fetcher/out.rs:230
+    wire [1:0] out_probes_out_data_kind;     // rtl-gen/src/merge/fetcher/out.rs:231
+    wire token_end;                          // rtl-gen/src/merge/fetcher/out.rs:230
+    wire out_errored_not;                    // rtl-gen/src/merge/fetcher/out.rs:233
+    wire token_sent;                         // rtl-gen/src/merge/fetcher/out.rs:233
+    wire walking_and_5;                      // rtl-gen/src/merge/fetcher/out.rs:234
+    wire walking_and_6;                      // rtl-gen/src/merge/fetcher/out.rs:234
+    wire token_sent_or;                      // rtl-gen/src/merge/fetcher/out.rs:234
+    wire send_fire;                          // rtl-gen/src/merge/fetcher/out.rs:234
+    wire out_first_error;                    // rtl-gen/src/merge/fetcher/out.rs:243
+    wire pass_end_left;                      // rtl-gen/src/merge/fetcher/out.rs:258
     wire phase_eq_2;                         // rtl-gen/src/merge/fetcher/command.rs:45
     reg node_req_q_valid;                    // rtl-gen/src/merge/fetcher/mod.rs:242
     reg [23:0] node_req_q_data;              // rtl-gen/src/merge/fetcher/mod.rs:242
@@ -1048,7 +1048,7 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
             probe_req_q_spare_data <= 24'd0;
         end else begin
             if (cmd_fire) begin
-                phase <= START;              // rtl-gen/src/merge/fetcher/parts.rs:72
+                phase <= START;              // rtl-gen/src/merge/fetcher/parts.rs:32
                 cmd_lod <= cmd_data_lod;     // rtl-gen/src/merge/fetcher/command.rs:101
                 cmd_send_refs <= cmd_data_send_refs; // rtl-gen/src/merge/fetcher/command.rs:102
                 cmd_send_leaves <= cmd_data_send_leaves; // rtl-gen/src/merge/fetcher/command.rs:103
@@ -1056,15 +1056,15 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                 cmd_first <= cmd_data_per_node ? cmd_data_lod : ((cmd_data_from > cmd_data_lod) ? cmd_data_lod : cmd_data_from); // rtl-gen/src/merge/fetcher/command.rs:125
                 cmd_per_node <= cmd_data_per_node; // rtl-gen/src/merge/fetcher/command.rs:116
             end else if (phase_eq) begin
-                phase <= header_code_ne ? WALK : ROOTS; // rtl-gen/src/merge/fetcher/parts.rs:72
+                phase <= header_code_ne ? WALK : ROOTS; // rtl-gen/src/merge/fetcher/parts.rs:32
             end else if (roots_all_taken & u_root_sorter_in_ready) begin
-                phase <= WALK;               // rtl-gen/src/merge/fetcher/parts.rs:72
+                phase <= WALK;               // rtl-gen/src/merge/fetcher/parts.rs:32
             end else if (join_pass_end & report_data_more_not) begin
-                phase <= DONE;               // rtl-gen/src/merge/fetcher/parts.rs:72
+                phase <= DONE;               // rtl-gen/src/merge/fetcher/parts.rs:32
             end else if (send_fire & out_probes_out_data_eq) begin
-                phase <= DONE;               // rtl-gen/src/merge/fetcher/parts.rs:72
+                phase <= DONE;               // rtl-gen/src/merge/fetcher/parts.rs:32
             end else if (phase_eq_2) begin
-                phase <= IDLE;               // rtl-gen/src/merge/fetcher/parts.rs:72
+                phase <= IDLE;               // rtl-gen/src/merge/fetcher/parts.rs:32
             end
             if (cfg_fire) begin
                 cfg_have <= 1'b1;            // rtl-gen/src/merge/fetcher/mod.rs:238
@@ -1082,67 +1082,67 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                 cfg_have <= 1'b0;            // rtl-gen/src/merge/fetcher/mod.rs:238
             end
             if (phase_eq) begin
-                first_err_valid <= header_code_ne; // rtl-gen/src/merge/fetcher/parts.rs:72
-                first_err_code <= header_code; // rtl-gen/src/merge/fetcher/parts.rs:72
-                first_err_node <= 24'd0;     // rtl-gen/src/merge/fetcher/parts.rs:72
-                header_err <= header_code_ne; // rtl-gen/src/merge/fetcher/command.rs:210
-                level <= cfg_top;            // rtl-gen/src/merge/fetcher/visit.rs:348
-                at_top <= 1'b1;              // rtl-gen/src/merge/fetcher/visit.rs:350
-                walk_done <= 1'b0;           // rtl-gen/src/merge/fetcher/visit.rs:352
-                prev_valid <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:329
-                pushed <= 9'd0;              // rtl-gen/src/merge/fetcher/visit.rs:344
-                visit_errored <= 1'b0;       // rtl-gen/src/merge/fetcher/visit.rs:354
-                out_errored <= 1'b0;         // rtl-gen/src/merge/fetcher/out.rs:257
+                first_err_valid <= header_code_ne; // rtl-gen/src/merge/fetcher/parts.rs:32
+                first_err_code <= header_code; // rtl-gen/src/merge/fetcher/parts.rs:32
+                first_err_node <= 24'd0;     // rtl-gen/src/merge/fetcher/parts.rs:32
+                header_err <= header_code_ne; // rtl-gen/src/merge/fetcher/command.rs:211
+                level <= cfg_top;            // rtl-gen/src/merge/fetcher/visit.rs:347
+                at_top <= 1'b1;              // rtl-gen/src/merge/fetcher/visit.rs:349
+                walk_done <= 1'b0;           // rtl-gen/src/merge/fetcher/visit.rs:351
+                prev_valid <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:328
+                pushed <= 9'd0;              // rtl-gen/src/merge/fetcher/visit.rs:343
+                visit_errored <= 1'b0;       // rtl-gen/src/merge/fetcher/visit.rs:353
+                out_errored <= 1'b0;         // rtl-gen/src/merge/fetcher/out.rs:244
                 roots_issued <= 24'd0;       // rtl-gen/src/merge/fetcher/walk.rs:105
                 roots_taken <= 24'd0;        // rtl-gen/src/merge/fetcher/walk.rs:117
                 range_valid <= 1'b0;         // rtl-gen/src/merge/fetcher/walk.rs:214
-                pn_visited <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:452
-                leaves_end_sent <= 1'b0;     // rtl-gen/src/merge/fetcher/visit.rs:496
-                end_next <= cmd_first;       // rtl-gen/src/merge/fetcher/visit.rs:320
-                final_sent <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:324
+                pn_visited <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:451
+                leaves_end_sent <= 1'b0;     // rtl-gen/src/merge/fetcher/visit.rs:495
+                end_next <= cmd_first;       // rtl-gen/src/merge/fetcher/visit.rs:319
+                final_sent <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:323
                 capacity_told <= 1'b0;       // rtl-gen/src/merge/fetcher/visit.rs:151
                 pn_end_left <= 1'b0;         // rtl-gen/src/merge/fetcher/mod.rs:228
-                pend_valid <= 1'b0;          // rtl-gen/src/merge/fetcher/order.rs:129
+                pend_valid <= 1'b0;          // rtl-gen/src/merge/fetcher/order.rs:128
                 cref_active <= 1'b0;         // rtl-gen/src/merge/fetcher/order.rs:108
-                probe_active <= 1'b0;        // rtl-gen/src/merge/fetcher/order.rs:232
-                probes_sent <= 1'b0;         // rtl-gen/src/merge/fetcher/order.rs:236
-                out_skip_end <= 1'b0;        // rtl-gen/src/merge/fetcher/out.rs:258
+                probe_active <= 1'b0;        // rtl-gen/src/merge/fetcher/order.rs:231
+                probes_sent <= 1'b0;         // rtl-gen/src/merge/fetcher/order.rs:235
+                out_skip_end <= 1'b0;        // rtl-gen/src/merge/fetcher/out.rs:245
             end else begin
                 if (root_fail) begin
-                    first_err_valid <= 1'b1; // rtl-gen/src/merge/fetcher/parts.rs:72
+                    first_err_valid <= 1'b1; // rtl-gen/src/merge/fetcher/parts.rs:32
                 end else if (visit_go & at_top_and) begin
-                    first_err_valid <= 1'b0; // rtl-gen/src/merge/fetcher/parts.rs:72
+                    first_err_valid <= 1'b0; // rtl-gen/src/merge/fetcher/parts.rs:32
                 end
                 if (root_fail_and) begin
-                    first_err_code <= node_code; // rtl-gen/src/merge/fetcher/parts.rs:72
-                    first_err_node <= roots_taken; // rtl-gen/src/merge/fetcher/parts.rs:72
+                    first_err_code <= node_code; // rtl-gen/src/merge/fetcher/parts.rs:32
+                    first_err_node <= roots_taken; // rtl-gen/src/merge/fetcher/parts.rs:32
                 end
                 if (marker_push_or) begin
-                    level <= level + 5'd1;   // rtl-gen/src/merge/fetcher/visit.rs:348
-                    prev_valid <= 1'b0;      // rtl-gen/src/merge/fetcher/visit.rs:331
-                    pushed <= 9'd0;          // rtl-gen/src/merge/fetcher/visit.rs:346
+                    level <= level + 5'd1;   // rtl-gen/src/merge/fetcher/visit.rs:347
+                    prev_valid <= 1'b0;      // rtl-gen/src/merge/fetcher/visit.rs:330
+                    pushed <= 9'd0;          // rtl-gen/src/merge/fetcher/visit.rs:345
                 end else begin
                     if (visit_go_and) begin
-                        prev_valid <= 1'b1;  // rtl-gen/src/merge/fetcher/visit.rs:331
+                        prev_valid <= 1'b1;  // rtl-gen/src/merge/fetcher/visit.rs:330
                     end
                     if (frontier_push | pass_push) begin
-                        pushed <= pushed + 9'd1; // rtl-gen/src/merge/fetcher/visit.rs:346
+                        pushed <= pushed + 9'd1; // rtl-gen/src/merge/fetcher/visit.rs:345
                     end
                 end
                 if (level_end) begin
-                    at_top <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:350
+                    at_top <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:349
                 end
                 if (walk_over) begin
-                    walk_done <= 1'b1;       // rtl-gen/src/merge/fetcher/visit.rs:352
+                    walk_done <= 1'b1;       // rtl-gen/src/merge/fetcher/visit.rs:351
                 end
                 if (visit_fails) begin
-                    visit_errored <= 1'b1;   // rtl-gen/src/merge/fetcher/visit.rs:354
+                    visit_errored <= 1'b1;   // rtl-gen/src/merge/fetcher/visit.rs:353
                 end
                 if (out_first_error) begin
-                    out_errored <= 1'b1;     // rtl-gen/src/merge/fetcher/out.rs:257
-                    out_skip_end <= 1'b1;    // rtl-gen/src/merge/fetcher/out.rs:260
+                    out_errored <= 1'b1;     // rtl-gen/src/merge/fetcher/out.rs:244
+                    out_skip_end <= 1'b1;    // rtl-gen/src/merge/fetcher/out.rs:247
                 end else if ((send_fire & token_end) & out_errored) begin
-                    out_skip_end <= 1'b0;    // rtl-gen/src/merge/fetcher/out.rs:262
+                    out_skip_end <= 1'b0;    // rtl-gen/src/merge/fetcher/out.rs:249
                 end
                 if (phase_eq_1 & (node_req_core_valid & node_req_core_ready)) begin
                     roots_issued <= roots_issued + 24'd1; // rtl-gen/src/merge/fetcher/walk.rs:107
@@ -1156,18 +1156,18 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                     range_valid <= 1'b0;     // rtl-gen/src/merge/fetcher/walk.rs:218
                 end
                 if (pn_pass_end) begin
-                    pn_visited <= 1'b1;      // rtl-gen/src/merge/fetcher/visit.rs:454
+                    pn_visited <= 1'b1;      // rtl-gen/src/merge/fetcher/visit.rs:453
                 end else if (join_pass_end) begin
-                    pn_visited <= 1'b0;      // rtl-gen/src/merge/fetcher/visit.rs:454
+                    pn_visited <= 1'b0;      // rtl-gen/src/merge/fetcher/visit.rs:453
                 end
                 if (leaves_end_fire) begin
-                    leaves_end_sent <= 1'b1; // rtl-gen/src/merge/fetcher/visit.rs:496
+                    leaves_end_sent <= 1'b1; // rtl-gen/src/merge/fetcher/visit.rs:495
                 end
                 if ((end_fire & (~end_final)) | level_end_push) begin
-                    end_next <= end_next + 5'd1; // rtl-gen/src/merge/fetcher/visit.rs:322
+                    end_next <= end_next + 5'd1; // rtl-gen/src/merge/fetcher/visit.rs:321
                 end
                 if (end_fire & end_final) begin
-                    final_sent <= 1'b1;      // rtl-gen/src/merge/fetcher/visit.rs:326
+                    final_sent <= 1'b1;      // rtl-gen/src/merge/fetcher/visit.rs:325
                 end
                 if (visit_go & sorter_dropped) begin
                     capacity_told <= 1'b1;   // rtl-gen/src/merge/fetcher/visit.rs:151
@@ -1178,41 +1178,41 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                     pn_end_left <= 1'b1;     // rtl-gen/src/merge/fetcher/mod.rs:230
                 end
                 if (held_leaf_or) begin
-                    pend_valid <= 1'b0;      // rtl-gen/src/merge/fetcher/order.rs:131
+                    pend_valid <= 1'b0;      // rtl-gen/src/merge/fetcher/order.rs:130
                 end else if (hold_refs) begin
-                    pend_valid <= 1'b1;      // rtl-gen/src/merge/fetcher/order.rs:131
+                    pend_valid <= 1'b1;      // rtl-gen/src/merge/fetcher/order.rs:130
                 end
                 if (cref_next) begin
-                    cref_active <= {1'b0, cref_idx_add} != cref_end; // rtl-gen/src/merge/fetcher/order.rs:110
+                    cref_active <= {1'b0, cref_idx_add} != cref_end; // rtl-gen/src/merge/fetcher/order.rs:108
                 end else if (held_leaf) begin
-                    cref_active <= 1'b1;     // rtl-gen/src/merge/fetcher/order.rs:112
+                    cref_active <= 1'b1;     // rtl-gen/src/merge/fetcher/order.rs:108
                 end else if (held_refs_first) begin
-                    cref_active <= {1'b0, pend_first_add} != pend_end; // rtl-gen/src/merge/fetcher/order.rs:114
+                    cref_active <= {1'b0, pend_first_add} != pend_end; // rtl-gen/src/merge/fetcher/order.rs:108
                 end
                 if (probe_next) begin
-                    probe_active <= ~probe_idx_eq; // rtl-gen/src/merge/fetcher/order.rs:234
+                    probe_active <= ~probe_idx_eq; // rtl-gen/src/merge/fetcher/order.rs:233
                 end else if (probe_first) begin
-                    probe_active <= out_items_out_data_count != 24'd1; // rtl-gen/src/merge/fetcher/order.rs:234
+                    probe_active <= out_items_out_data_count != 24'd1; // rtl-gen/src/merge/fetcher/order.rs:233
                 end
                 if ((probe_next & probe_idx_eq) | (probe_first & (out_items_out_data_count == 24'd1))) begin
-                    probes_sent <= 1'b1;     // rtl-gen/src/merge/fetcher/order.rs:238
+                    probes_sent <= 1'b1;     // rtl-gen/src/merge/fetcher/order.rs:237
                 end else if (item_out) begin
-                    probes_sent <= 1'b0;     // rtl-gen/src/merge/fetcher/order.rs:238
+                    probes_sent <= 1'b0;     // rtl-gen/src/merge/fetcher/order.rs:237
                 end
             end
             if (visit_go_and & (~(pn_pass & order_bad))) begin
-                prev_key <= item_key;        // rtl-gen/src/merge/fetcher/visit.rs:339
+                prev_key <= item_key;        // rtl-gen/src/merge/fetcher/visit.rs:338
             end
             if (frontier_out_valid_and) begin
-                frontier_head <= frontier_head + 10'd1; // rtl-gen/src/merge/fetcher/parts.rs:41
+                frontier_head <= frontier_head + 10'd1; // rtl-gen/src/merge/fetcher/walk.rs:179
             end
             if (frontier_in_valid_and) begin
-                frontier_tail <= frontier_tail + 10'd1; // rtl-gen/src/merge/fetcher/parts.rs:42
+                frontier_tail <= frontier_tail + 10'd1; // rtl-gen/src/merge/fetcher/walk.rs:179
                 if (!frontier_out_valid_and) begin
-                    frontier_count <= frontier_count + 11'd1; // rtl-gen/src/merge/fetcher/parts.rs:44
+                    frontier_count <= frontier_count + 11'd1; // rtl-gen/src/merge/fetcher/walk.rs:179
                 end
             end else if (frontier_out_valid_and) begin
-                frontier_count <= frontier_count - 11'd1; // rtl-gen/src/merge/fetcher/parts.rs:45
+                frontier_count <= frontier_count - 11'd1; // rtl-gen/src/merge/fetcher/walk.rs:179
             end
             if (range_load) begin
                 range_idx <= frontier_out_data_first; // rtl-gen/src/merge/fetcher/walk.rs:221
@@ -1222,95 +1222,95 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                 range_idx <= range_idx_add;  // rtl-gen/src/merge/fetcher/walk.rs:221
             end
             if (ref_ctx_out_valid_and) begin
-                ref_ctx_head <= ref_ctx_head + 3'd1; // rtl-gen/src/merge/fetcher/parts.rs:41
+                ref_ctx_head <= ref_ctx_head + 3'd1; // rtl-gen/src/merge/fetcher/walk.rs:203
             end
             if (ref_ctx_in_valid_and) begin
-                ref_ctx_tail <= ref_ctx_tail + 3'd1; // rtl-gen/src/merge/fetcher/parts.rs:42
+                ref_ctx_tail <= ref_ctx_tail + 3'd1; // rtl-gen/src/merge/fetcher/walk.rs:203
                 if (!ref_ctx_out_valid_and) begin
-                    ref_ctx_count <= ref_ctx_count + 4'd1; // rtl-gen/src/merge/fetcher/parts.rs:44
+                    ref_ctx_count <= ref_ctx_count + 4'd1; // rtl-gen/src/merge/fetcher/walk.rs:203
                 end
             end else if (ref_ctx_out_valid_and) begin
-                ref_ctx_count <= ref_ctx_count - 4'd1; // rtl-gen/src/merge/fetcher/parts.rs:45
+                ref_ctx_count <= ref_ctx_count - 4'd1; // rtl-gen/src/merge/fetcher/walk.rs:203
             end
             if (node_ctx_out_valid_and) begin
-                node_ctx_head <= node_ctx_head + 3'd1; // rtl-gen/src/merge/fetcher/parts.rs:41
+                node_ctx_head <= node_ctx_head + 3'd1; // rtl-gen/src/merge/fetcher/walk.rs:253
             end
             if (node_ctx_in_valid_and) begin
-                node_ctx_tail <= node_ctx_tail + 3'd1; // rtl-gen/src/merge/fetcher/parts.rs:42
+                node_ctx_tail <= node_ctx_tail + 3'd1; // rtl-gen/src/merge/fetcher/walk.rs:253
                 if (!node_ctx_out_valid_and) begin
-                    node_ctx_count <= node_ctx_count + 4'd1; // rtl-gen/src/merge/fetcher/parts.rs:44
+                    node_ctx_count <= node_ctx_count + 4'd1; // rtl-gen/src/merge/fetcher/walk.rs:253
                 end
             end else if (node_ctx_out_valid_and) begin
-                node_ctx_count <= node_ctx_count - 4'd1; // rtl-gen/src/merge/fetcher/parts.rs:45
+                node_ctx_count <= node_ctx_count - 4'd1; // rtl-gen/src/merge/fetcher/walk.rs:253
             end
             if (out_items_out_valid_and) begin
-                out_items_head <= out_items_head + 2'd1; // rtl-gen/src/merge/fetcher/parts.rs:41
+                out_items_head <= out_items_head + 2'd1; // rtl-gen/src/merge/fetcher/visit.rs:76
             end
             if (out_items_in_valid_and) begin
-                out_items_tail <= out_items_tail + 2'd1; // rtl-gen/src/merge/fetcher/parts.rs:42
+                out_items_tail <= out_items_tail + 2'd1; // rtl-gen/src/merge/fetcher/visit.rs:76
                 if (!out_items_out_valid_and) begin
-                    out_items_count <= out_items_count + 3'd1; // rtl-gen/src/merge/fetcher/parts.rs:44
+                    out_items_count <= out_items_count + 3'd1; // rtl-gen/src/merge/fetcher/visit.rs:76
                 end
             end else if (out_items_out_valid_and) begin
-                out_items_count <= out_items_count - 3'd1; // rtl-gen/src/merge/fetcher/parts.rs:45
+                out_items_count <= out_items_count - 3'd1; // rtl-gen/src/merge/fetcher/visit.rs:76
             end
             if (pass_out_valid_and) begin
-                pass_head <= pass_head + 8'd1; // rtl-gen/src/merge/fetcher/parts.rs:41
+                pass_head <= pass_head + 8'd1; // rtl-gen/src/merge/fetcher/visit.rs:312
             end
             if (pass_in_valid_and) begin
-                pass_tail <= pass_tail + 8'd1; // rtl-gen/src/merge/fetcher/parts.rs:42
+                pass_tail <= pass_tail + 8'd1; // rtl-gen/src/merge/fetcher/visit.rs:312
                 if (!pass_out_valid_and) begin
-                    pass_count <= pass_count + 9'd1; // rtl-gen/src/merge/fetcher/parts.rs:44
+                    pass_count <= pass_count + 9'd1; // rtl-gen/src/merge/fetcher/visit.rs:312
                 end
             end else if (pass_out_valid_and) begin
-                pass_count <= pass_count - 9'd1; // rtl-gen/src/merge/fetcher/parts.rs:45
+                pass_count <= pass_count - 9'd1; // rtl-gen/src/merge/fetcher/visit.rs:312
             end
             if (hold_refs) begin
-                pend_first <= out_items_out_data_first; // rtl-gen/src/merge/fetcher/order.rs:133
-                pend_end <= out_items_out_data_first_add; // rtl-gen/src/merge/fetcher/order.rs:134
-                pend_voxel <= out_items_out_data_z_cat; // rtl-gen/src/merge/fetcher/order.rs:135
-                pend_node <= out_items_out_data_node; // rtl-gen/src/merge/fetcher/order.rs:136
+                pend_first <= out_items_out_data_first; // rtl-gen/src/merge/fetcher/order.rs:132
+                pend_end <= out_items_out_data_first_add; // rtl-gen/src/merge/fetcher/order.rs:133
+                pend_voxel <= out_items_out_data_z_cat; // rtl-gen/src/merge/fetcher/order.rs:134
+                pend_node <= out_items_out_data_node; // rtl-gen/src/merge/fetcher/order.rs:135
             end
             if (cref_next) begin
-                cref_idx <= cref_idx_add;    // rtl-gen/src/merge/fetcher/order.rs:118
+                cref_idx <= cref_idx_add;    // rtl-gen/src/merge/fetcher/order.rs:117
             end else if (held_leaf) begin
-                cref_idx <= pend_first;      // rtl-gen/src/merge/fetcher/order.rs:120
+                cref_idx <= pend_first;      // rtl-gen/src/merge/fetcher/order.rs:117
             end else if (held_refs_first) begin
-                cref_idx <= pend_first_add;  // rtl-gen/src/merge/fetcher/order.rs:120
+                cref_idx <= pend_first_add;  // rtl-gen/src/merge/fetcher/order.rs:117
             end
             if (held_leaf_or) begin
-                cref_end <= pend_end;        // rtl-gen/src/merge/fetcher/order.rs:122
-                cref_parent <= pend_node;    // rtl-gen/src/merge/fetcher/order.rs:123
+                cref_end <= pend_end;        // rtl-gen/src/merge/fetcher/order.rs:121
+                cref_parent <= pend_node;    // rtl-gen/src/merge/fetcher/order.rs:122
             end
             if (out_tokens_out_valid_and) begin
-                out_tokens_head <= out_tokens_head + 2'd1; // rtl-gen/src/merge/fetcher/parts.rs:41
+                out_tokens_head <= out_tokens_head + 2'd1; // rtl-gen/src/merge/fetcher/order.rs:50
             end
             if (out_tokens_in_valid_and) begin
-                out_tokens_tail <= out_tokens_tail + 2'd1; // rtl-gen/src/merge/fetcher/parts.rs:42
+                out_tokens_tail <= out_tokens_tail + 2'd1; // rtl-gen/src/merge/fetcher/order.rs:50
                 if (!out_tokens_out_valid_and) begin
-                    out_tokens_count <= out_tokens_count + 3'd1; // rtl-gen/src/merge/fetcher/parts.rs:44
+                    out_tokens_count <= out_tokens_count + 3'd1; // rtl-gen/src/merge/fetcher/order.rs:50
                 end
             end else if (out_tokens_out_valid_and) begin
-                out_tokens_count <= out_tokens_count - 3'd1; // rtl-gen/src/merge/fetcher/parts.rs:45
+                out_tokens_count <= out_tokens_count - 3'd1; // rtl-gen/src/merge/fetcher/order.rs:50
             end
             if (probe_first) begin
-                probe_idx <= out_items_out_data_first + 24'd1; // rtl-gen/src/merge/fetcher/order.rs:242
-                probe_end <= out_items_out_data_first_add; // rtl-gen/src/merge/fetcher/order.rs:244
+                probe_idx <= out_items_out_data_first + 24'd1; // rtl-gen/src/merge/fetcher/order.rs:241
+                probe_end <= out_items_out_data_first_add; // rtl-gen/src/merge/fetcher/order.rs:243
             end else if (probe_next) begin
-                probe_idx <= probe_idx_add;  // rtl-gen/src/merge/fetcher/order.rs:242
+                probe_idx <= probe_idx_add;  // rtl-gen/src/merge/fetcher/order.rs:241
             end
             probe_parent <= probe_parent_next;
             probe_lod <= probe_lod_next;
             if (out_probes_out_valid_and) begin
-                out_probes_head <= out_probes_head + 3'd1; // rtl-gen/src/merge/fetcher/parts.rs:41
+                out_probes_head <= out_probes_head + 3'd1; // rtl-gen/src/merge/fetcher/out.rs:153
             end
             if (out_probes_in_valid_and) begin
-                out_probes_tail <= out_probes_tail + 3'd1; // rtl-gen/src/merge/fetcher/parts.rs:42
+                out_probes_tail <= out_probes_tail + 3'd1; // rtl-gen/src/merge/fetcher/out.rs:153
                 if (!out_probes_out_valid_and) begin
-                    out_probes_count <= out_probes_count + 4'd1; // rtl-gen/src/merge/fetcher/parts.rs:44
+                    out_probes_count <= out_probes_count + 4'd1; // rtl-gen/src/merge/fetcher/out.rs:153
                 end
             end else if (out_probes_out_valid_and) begin
-                out_probes_count <= out_probes_count - 4'd1; // rtl-gen/src/merge/fetcher/parts.rs:45
+                out_probes_count <= out_probes_count - 4'd1; // rtl-gen/src/merge/fetcher/out.rs:153
             end
             if (node_req_q_drain) begin
                 node_req_q_valid <= node_req_q_spare_valid | node_req_core_valid; // rtl-gen/src/merge/fetcher/mod.rs:242

@@ -28,6 +28,7 @@
 
 mod diagnostic;
 pub mod examples;
+mod first_of;
 pub mod formal;
 mod graph;
 pub mod identity;

@@ -9,7 +9,7 @@ use golden::merge::fetch_unit::fetch_err;
 use super::super::fields::{coords, field, with_fields, Word};
 use super::super::network::morton_code;
 use super::command::{goto, Command, FirstErr};
-use super::parts::{fifo, reference};
+use super::parts::reference;
 use super::walk::{Frontier, Roots, WalkState};
 use super::{nk, ok, ph, Ctx, Ports};
 use crate::{Signal, Stream};
@@ -73,7 +73,7 @@ pub(super) fn visit_head<'m>(
     let c2_node = c2_kind.eq(lit(nk::NODE, nk::BITS));
     let oin_w = ok::BITS + fetch_err::BITS + rl.width() + nl.width();
     let oin = Stream::wires(m, "out_items_in", oin_w);
-    let items = fifo(m, "out_items", oin, 4);
+    let items = oin.fifo("out_items", 4);
     let live = (walk & !w.done).name("visit_live");
     let above = v_d.lt(c.lod).name("above_level");
     let above_first = v_d.lt(c.first).name("above_first");
@@ -161,12 +161,13 @@ pub(super) fn visit_head<'m>(
         (top_hdr_end | top_sorted & r.s_end & !top_cap | deep & c2_kind.eq(lit(nk::END, nk::BITS)))
             .name("item_end");
     let in_node = (!in_err & !in_end).name("item_node");
-    let in_err_code = top_err.mux(
-        e.code,
-        top_cap.mux(
-            code4(fetch_err::ROOT_CAPACITY),
-            c2_node.mux(r.got_code, c2_code),
-        ),
+    let in_err_code = m.first_of(
+        &[
+            (top_err, e.code),
+            (top_cap, code4(fetch_err::ROOT_CAPACITY)),
+            (c2_node, r.got_code),
+        ],
+        c2_code,
     );
     let c2_ref_node = field(c2_ref, rl.node()).expect("node");
     let in_err_node = top_err.mux(e.node, top_cap.mux(lit(0, ib), c2_ref_node));
@@ -263,20 +264,18 @@ pub(super) fn visit_checks<'m>(
     };
     let range_bad = (inner & uses_range & n_end.gt(c.refs.zext(ib + 1))).name("range_bad");
     let front_bad = (inner & counted & w.pushed.ge(lit(fcap, cb))).name("frontier_bad");
-    let visit_code = h.in_err.mux(
-        h.in_err_code,
-        h.in_end.mux(
+    let visit_code = m
+        .first_of(
+            &[
+                (h.in_err, h.in_err_code),
+                (h.in_end, code4(0)),
+                (order_bad, code4(fetch_err::ORDER)),
+                (range_bad, code4(fetch_err::RANGE)),
+                (front_bad, code4(fetch_err::FRONTIER)),
+            ],
             code4(0),
-            order_bad.mux(
-                code4(fetch_err::ORDER),
-                range_bad.mux(
-                    code4(fetch_err::RANGE),
-                    front_bad.mux(code4(fetch_err::FRONTIER), code4(0)),
-                ),
-            ),
-        ),
-    );
-    let visit_code = visit_code.name("visit_code");
+        )
+        .name("visit_code");
     let err_node = h.in_err.mux(h.in_err_node, h.rec_idx);
     let fails = (go & visit_code.ne(0)).name("visit_fails");
     let passes = (go & h.in_node & visit_code.eq(0)).name("visit_passes");
@@ -310,7 +309,7 @@ pub(super) fn visit_checks<'m>(
                 .pack(m, &[morton_part, n_first, n_count, h.rec_idx]),
         );
         let depth = (fcap.max(2)).next_power_of_two() as u32;
-        (e_push, fifo(m, "pass", pass_in, depth))
+        (e_push, pass_in.fifo("pass", depth))
     });
     let step_level = match pn_end {
         Some(e) => marker | e,
@@ -517,12 +516,13 @@ pub(super) fn visit_out<'m>(
     };
     h.oin.valid.drive(valid);
     h.oin.data.drive(m.concat(&[
-        v.fails.mux(
-            lit(ok::ERR, ok::BITS),
-            h.end_final.mux(
-                lit(ok::FINAL, ok::BITS),
-                ends.mux(lit(ok::LEVEL_END, ok::BITS), lit(ok::NODE, ok::BITS)),
-            ),
+        m.first_of(
+            &[
+                (v.fails, lit(ok::ERR, ok::BITS)),
+                (h.end_final, lit(ok::FINAL, ok::BITS)),
+                (ends, lit(ok::LEVEL_END, ok::BITS)),
+            ],
+            lit(ok::NODE, ok::BITS),
         ),
         v.visit_code,
         v.fails.mux(reference(m, c.hier, v.err_node), rec_ref),

@@ -9,7 +9,7 @@ use golden::params::bits_to_hold;
 use super::super::fields::{field, with_fields, Word};
 use super::super::sorter::root_sorter_unit;
 use super::command::{goto, Command, FirstErr};
-use super::parts::{check_and_move, fifo, reference, Checked};
+use super::parts::{check_and_move, reference, reference_code, Checked};
 use super::{nk, ph, Ctx, Ports, IN_FLIGHT};
 use crate::{Instance, Signal, Stream};
 
@@ -176,7 +176,7 @@ pub(super) fn frontier<'m>(cx: &Ctx<'_, 'm>, w: &WalkState<'m>) -> Frontier<'m> 
     // `parent`, or (`marker`) a level's end.
     let word = Word::new(&[("first", ib), ("count", ib), ("parent", ib), ("marker", 1)]);
     let push = Stream::wires(cx.m, "frontier_in", word.width());
-    let head = fifo(cx.m, "frontier", push, f_words);
+    let head = push.fifo("frontier", f_words);
     Frontier { word, push, head }
 }
 
@@ -200,7 +200,7 @@ pub(super) fn range_stage<'m>(
     let cur_end = m.reg("range_end", ib + 1);
     let cur_parent = m.reg("range_parent", ib);
     let ctx1_in = Stream::wires(m, "ref_ctx_in", ib + 1);
-    let ctx1 = fifo(m, "ref_ctx", ctx1_in, IN_FLIGHT);
+    let ctx1 = ctx1_in.fifo("ref_ctx", IN_FLIGHT);
     io.ref_req.valid.drive(walk & cur_valid & ctx1_in.ready);
     io.ref_req.data.drive(cur_idx);
     let issue = io.ref_req.fire().name("ref_issue");
@@ -250,20 +250,14 @@ pub(super) fn reference_stage<'m>(
     let c1_parent = ctx1.data.slice(ib - 1, 0);
     let ctx2_w = nk::BITS + fetch_err::BITS + rl.width();
     let ctx2_in = Stream::wires(m, "node_ctx_in", ctx2_w);
-    let ctx2 = fifo(m, "node_ctx", ctx2_in, IN_FLIGHT);
+    let ctx2 = ctx2_in.fifo("node_ctx", IN_FLIGHT);
     let r_node = field(ref_resp.data, rl.node())
         .expect("node")
         .name("resp_ref_node");
     let r_hier = field(ref_resp.data, rl.hier())
         .expect("hier")
         .name("resp_ref_hier");
-    let ref_code = r_hier
-        .ne(hier)
-        .mux(
-            code4(fetch_err::REF_HIER),
-            r_node.ge(c.nodes).mux(code4(fetch_err::REF_NODE), code4(0)),
-        )
-        .name("ref_code");
+    let ref_code = reference_code(m, r_node, r_hier, hier, c.nodes).name("ref_code");
     let rr_wait = (walk & ctx1.valid & !c1_end & ctx2_in.ready & node_req.ready).name("ref_wait");
     ref_resp.ready.drive(rr_wait);
     let rr_take = (rr_wait & ref_resp.valid).name("ref_take");

@@ -22,6 +22,7 @@ pub(super) fn order_stage<'m>(
     io: &Ports<'m>,
 ) -> (Stream<'m>, u32) {
     let (m, p, l, ib, lb) = (cx.m, cx.p, cx.l, cx.ib, cx.lb);
+    let _scope = m.scope("order");
     let rl = &l.reference;
     let lit = |v: u64, w: u32| cx.lit(v, w);
     let (walk, start, c_pn, c_refs) = (c.walk, c.start, c.per_node, c.send_refs);
@@ -46,9 +47,9 @@ pub(super) fn order_stage<'m>(
     let cr_end = m.reg("cref_end", ib + 1);
     let cr_parent = m.reg("cref_parent", ib);
     let tok_w = ok::BITS + l.out_width;
-    let tok_in = Stream::wires(m, "out_tokens_in", tok_w);
-    let toks = tok_in.fifo("out_tokens", 4);
-    let can = (walk & tok_in.ready & cref_req.ready).name("order_room");
+    let tok_in = Stream::wires(m, "tokens_in", tok_w);
+    let toks = tok_in.fifo("tokens", 4);
+    let can = (walk & tok_in.ready & cref_req.ready).name("room");
     let same_leaf = (pend_valid & o_is_node & o_leaf & o_voxel.eq(pend_voxel)).name("leaf_of_held");
     let a_cref = (can & cr_active).name("cref_next");
     let b_leaf = (can & !cr_active & items.valid & same_leaf).name("held_leaf");

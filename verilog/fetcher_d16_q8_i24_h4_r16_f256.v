@@ -44,7 +44,7 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
     localparam [2:0] DONE = 3'd4;            // rtl-gen/src/merge/fetcher/command.rs:51
     reg [72:0] frontier [0:1023];            // rtl-gen/src/merge/fetcher/walk.rs:179
     reg [24:0] range_ref_ctx [0:7];          // rtl-gen/src/merge/fetcher/walk.rs:204
-    reg [33:0] ref_stage_node_ctx [0:7];     // rtl-gen/src/merge/fetcher/walk.rs:255
+    reg [33:0] ref_stage_node_ctx [0:7];     // rtl-gen/src/merge/fetcher/walk.rs:254
     reg [183:0] visit_out_items [0:3];       // rtl-gen/src/merge/fetcher/visit.rs:77
     reg [185:0] order_tokens [0:3];          // rtl-gen/src/merge/fetcher/order.rs:51
     reg [2:0] phase;                         // rtl-gen/src/merge/fetcher/command.rs:57
@@ -193,34 +193,34 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
     wire range_ref_ctx_out_valid_and;        // rtl-gen/src/merge/fetcher/walk.rs:204
     wire range_issue;                        // rtl-gen/src/merge/fetcher/walk.rs:207
     wire [23:0] range_idx_add;               // rtl-gen/src/merge/fetcher/walk.rs:208
-    wire walking_and;                        // rtl-gen/src/merge/fetcher/walk.rs:211
-    wire range_valid_not;                    // rtl-gen/src/merge/fetcher/walk.rs:211
-    wire range_issue_and;                    // rtl-gen/src/merge/fetcher/walk.rs:211
-    wire range_load;                         // rtl-gen/src/merge/fetcher/walk.rs:211
-    wire range_marker_pop;                   // rtl-gen/src/merge/fetcher/walk.rs:213
-    wire ref_stage_node_ctx_in_valid;        // rtl-gen/src/merge/fetcher/walk.rs:254
-    wire [33:0] ref_stage_node_ctx_in_data;  // rtl-gen/src/merge/fetcher/walk.rs:254
-    wire ref_stage_node_ctx_in_ready;        // rtl-gen/src/merge/fetcher/walk.rs:254
-    reg [2:0] ref_stage_node_ctx_head;       // rtl-gen/src/merge/fetcher/walk.rs:255
-    reg [2:0] ref_stage_node_ctx_tail;       // rtl-gen/src/merge/fetcher/walk.rs:255
-    reg [3:0] ref_stage_node_ctx_count;      // rtl-gen/src/merge/fetcher/walk.rs:255
-    wire ref_stage_node_ctx_out_valid;       // rtl-gen/src/merge/fetcher/walk.rs:255
-    wire [33:0] ref_stage_node_ctx_out_data; // rtl-gen/src/merge/fetcher/walk.rs:255
-    wire ref_stage_node_ctx_out_ready;       // rtl-gen/src/merge/fetcher/walk.rs:255
-    wire ref_stage_node_ctx_count_ne;        // rtl-gen/src/merge/fetcher/walk.rs:255
-    wire ref_stage_node_ctx_in_valid_and;    // rtl-gen/src/merge/fetcher/walk.rs:255
-    wire ref_stage_node_ctx_out_valid_and;   // rtl-gen/src/merge/fetcher/walk.rs:255
-    wire [23:0] ref_stage_resp_node;         // rtl-gen/src/merge/fetcher/walk.rs:256
-    wire [3:0] ref_stage_resp_hier;          // rtl-gen/src/merge/fetcher/walk.rs:259
+    wire walking_and;                        // rtl-gen/src/merge/fetcher/walk.rs:210
+    wire range_valid_not;                    // rtl-gen/src/merge/fetcher/walk.rs:210
+    wire range_issue_and;                    // rtl-gen/src/merge/fetcher/walk.rs:210
+    wire range_load;                         // rtl-gen/src/merge/fetcher/walk.rs:210
+    wire range_marker_pop;                   // rtl-gen/src/merge/fetcher/walk.rs:212
+    wire ref_stage_node_ctx_in_valid;        // rtl-gen/src/merge/fetcher/walk.rs:253
+    wire [33:0] ref_stage_node_ctx_in_data;  // rtl-gen/src/merge/fetcher/walk.rs:253
+    wire ref_stage_node_ctx_in_ready;        // rtl-gen/src/merge/fetcher/walk.rs:253
+    reg [2:0] ref_stage_node_ctx_head;       // rtl-gen/src/merge/fetcher/walk.rs:254
+    reg [2:0] ref_stage_node_ctx_tail;       // rtl-gen/src/merge/fetcher/walk.rs:254
+    reg [3:0] ref_stage_node_ctx_count;      // rtl-gen/src/merge/fetcher/walk.rs:254
+    wire ref_stage_node_ctx_out_valid;       // rtl-gen/src/merge/fetcher/walk.rs:254
+    wire [33:0] ref_stage_node_ctx_out_data; // rtl-gen/src/merge/fetcher/walk.rs:254
+    wire ref_stage_node_ctx_out_ready;       // rtl-gen/src/merge/fetcher/walk.rs:254
+    wire ref_stage_node_ctx_count_ne;        // rtl-gen/src/merge/fetcher/walk.rs:254
+    wire ref_stage_node_ctx_in_valid_and;    // rtl-gen/src/merge/fetcher/walk.rs:254
+    wire ref_stage_node_ctx_out_valid_and;   // rtl-gen/src/merge/fetcher/walk.rs:254
+    wire [23:0] ref_stage_resp_node;         // rtl-gen/src/merge/fetcher/walk.rs:255
+    wire [3:0] ref_stage_resp_hier;          // rtl-gen/src/merge/fetcher/walk.rs:258
     wire [3:0] ref_stage_code;               // rtl-gen/src/merge/fetcher/parts.rs:126
-    wire walking_and_1;                      // rtl-gen/src/merge/fetcher/walk.rs:263
-    wire walking_and_2;                      // rtl-gen/src/merge/fetcher/walk.rs:263
-    wire ref_stage_wait;                     // rtl-gen/src/merge/fetcher/walk.rs:263
-    wire ref_stage_take;                     // rtl-gen/src/merge/fetcher/walk.rs:265
-    wire ref_stage_end;                      // rtl-gen/src/merge/fetcher/walk.rs:266
-    wire ref_stage_take_or;                  // rtl-gen/src/merge/fetcher/walk.rs:267
-    wire ref_stage_code_eq;                  // rtl-gen/src/merge/fetcher/walk.rs:269
-    wire ref_stage_node_req;                 // rtl-gen/src/merge/fetcher/walk.rs:269
+    wire walking_and_1;                      // rtl-gen/src/merge/fetcher/walk.rs:262
+    wire walking_and_2;                      // rtl-gen/src/merge/fetcher/walk.rs:262
+    wire ref_stage_wait;                     // rtl-gen/src/merge/fetcher/walk.rs:262
+    wire ref_stage_take;                     // rtl-gen/src/merge/fetcher/walk.rs:264
+    wire ref_stage_end;                      // rtl-gen/src/merge/fetcher/walk.rs:265
+    wire ref_stage_take_or;                  // rtl-gen/src/merge/fetcher/walk.rs:266
+    wire ref_stage_code_eq;                  // rtl-gen/src/merge/fetcher/walk.rs:268
+    wire ref_stage_node_req;                 // rtl-gen/src/merge/fetcher/walk.rs:268
     wire ref_stage_node_ctx_out_data_eq;     // rtl-gen/src/merge/fetcher/visit.rs:74
     wire visit_out_items_in_valid;           // rtl-gen/src/merge/fetcher/visit.rs:76
     wire [183:0] visit_out_items_in_data;    // rtl-gen/src/merge/fetcher/visit.rs:76
@@ -835,7 +835,7 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
                 out_errored <= 1'b0;         // rtl-gen/src/merge/fetcher/out.rs:71
                 roots_issued <= 24'd0;       // rtl-gen/src/merge/fetcher/walk.rs:105
                 roots_taken <= 24'd0;        // rtl-gen/src/merge/fetcher/walk.rs:117
-                range_valid <= 1'b0;         // rtl-gen/src/merge/fetcher/walk.rs:215
+                range_valid <= 1'b0;         // rtl-gen/src/merge/fetcher/walk.rs:214
                 visit_leaves_end_sent <= 1'b0; // rtl-gen/src/merge/fetcher/visit.rs:499
                 visit_end_next <= cmd_first; // rtl-gen/src/merge/fetcher/visit.rs:321
                 visit_final_sent <= 1'b0;    // rtl-gen/src/merge/fetcher/visit.rs:325
@@ -887,9 +887,9 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
                     roots_taken <= roots_taken + 24'd1; // rtl-gen/src/merge/fetcher/walk.rs:117
                 end
                 if (range_load) begin
-                    range_valid <= 1'b1;     // rtl-gen/src/merge/fetcher/walk.rs:217
+                    range_valid <= 1'b1;     // rtl-gen/src/merge/fetcher/walk.rs:216
                 end else if (range_issue_and) begin
-                    range_valid <= 1'b0;     // rtl-gen/src/merge/fetcher/walk.rs:219
+                    range_valid <= 1'b0;     // rtl-gen/src/merge/fetcher/walk.rs:218
                 end
                 if (visit_leaves_end_fire) begin
                     visit_leaves_end_sent <= 1'b1; // rtl-gen/src/merge/fetcher/visit.rs:499
@@ -931,11 +931,11 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
                 frontier_count <= frontier_count - 11'd1; // rtl-gen/src/merge/fetcher/walk.rs:179
             end
             if (range_load) begin
-                range_idx <= frontier_out_data_first; // rtl-gen/src/merge/fetcher/walk.rs:222
-                range_end <= {1'b0, frontier_out_data_first} + {1'b0, frontier_out_data_count}; // rtl-gen/src/merge/fetcher/walk.rs:223
-                range_parent <= frontier_out_data_parent; // rtl-gen/src/merge/fetcher/walk.rs:227
+                range_idx <= frontier_out_data_first; // rtl-gen/src/merge/fetcher/walk.rs:221
+                range_end <= {1'b0, frontier_out_data_first} + {1'b0, frontier_out_data_count}; // rtl-gen/src/merge/fetcher/walk.rs:222
+                range_parent <= frontier_out_data_parent; // rtl-gen/src/merge/fetcher/walk.rs:226
             end else if (range_issue) begin
-                range_idx <= range_idx_add;  // rtl-gen/src/merge/fetcher/walk.rs:222
+                range_idx <= range_idx_add;  // rtl-gen/src/merge/fetcher/walk.rs:221
             end
             if (range_ref_ctx_out_valid_and) begin
                 range_ref_ctx_head <= range_ref_ctx_head + 3'd1; // rtl-gen/src/merge/fetcher/walk.rs:204
@@ -949,15 +949,15 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
                 range_ref_ctx_count <= range_ref_ctx_count - 4'd1; // rtl-gen/src/merge/fetcher/walk.rs:204
             end
             if (ref_stage_node_ctx_out_valid_and) begin
-                ref_stage_node_ctx_head <= ref_stage_node_ctx_head + 3'd1; // rtl-gen/src/merge/fetcher/walk.rs:255
+                ref_stage_node_ctx_head <= ref_stage_node_ctx_head + 3'd1; // rtl-gen/src/merge/fetcher/walk.rs:254
             end
             if (ref_stage_node_ctx_in_valid_and) begin
-                ref_stage_node_ctx_tail <= ref_stage_node_ctx_tail + 3'd1; // rtl-gen/src/merge/fetcher/walk.rs:255
+                ref_stage_node_ctx_tail <= ref_stage_node_ctx_tail + 3'd1; // rtl-gen/src/merge/fetcher/walk.rs:254
                 if (!ref_stage_node_ctx_out_valid_and) begin
-                    ref_stage_node_ctx_count <= ref_stage_node_ctx_count + 4'd1; // rtl-gen/src/merge/fetcher/walk.rs:255
+                    ref_stage_node_ctx_count <= ref_stage_node_ctx_count + 4'd1; // rtl-gen/src/merge/fetcher/walk.rs:254
                 end
             end else if (ref_stage_node_ctx_out_valid_and) begin
-                ref_stage_node_ctx_count <= ref_stage_node_ctx_count - 4'd1; // rtl-gen/src/merge/fetcher/walk.rs:255
+                ref_stage_node_ctx_count <= ref_stage_node_ctx_count - 4'd1; // rtl-gen/src/merge/fetcher/walk.rs:254
             end
             if (visit_out_items_out_valid_and) begin
                 visit_out_items_head <= visit_out_items_head + 2'd1; // rtl-gen/src/merge/fetcher/visit.rs:77

@@ -3,7 +3,7 @@
 use crate::{Module, Stream};
 
 /// A FIFO of `2^addr_bits` words of `width` bits with ready/valid streams
-/// `in` and `out`: [`Stream::fifo`] named `fifo`.
+/// `in` and `out`: [`Stream::fifo`] named `mem`.
 ///
 /// ```
 /// use rtl_gen::{examples::fifo, Sim};
@@ -19,7 +19,7 @@ use crate::{Module, Stream};
 pub fn fifo(width: u32, addr_bits: u32) -> Module {
     let m = Module::new(&format!("fifo_w{width}_a{addr_bits}"));
     Stream::input(&m, "in", width)
-        .fifo("fifo", 1 << addr_bits)
+        .fifo("mem", 1 << addr_bits)
         .output("out");
     m
 }

@@ -91,17 +91,17 @@ pub fn fifo(width: u32, addr_bits: u32) -> Proof {
         input: "in".into(),
         output: "out".into(),
         capacity: depth,
-        occupancy: Some("dut.fifo_count".into()),
+        occupancy: Some("dut.mem_count".into()),
         slots: vec![],
     })
     .invariant(
         "count_within_depth",
-        &format!("dut.fifo_count <= {cb}'d{depth}"),
+        &format!("dut.mem_count <= {cb}'d{depth}"),
     )
     .invariant(
         "count_is_tail_minus_head",
         &format!(
-            "dut.fifo_tail - dut.fifo_head == dut.fifo_count[{}:0]",
+            "dut.mem_tail - dut.mem_head == dut.mem_count[{}:0]",
             addr_bits - 1
         ),
     )

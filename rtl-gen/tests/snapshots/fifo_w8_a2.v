@@ -12,51 +12,51 @@ module fifo_w8_a2 (
     output wire [7:0] out_data, // rtl-gen/src/examples/fifo.rs:23
     input  wire out_ready       // rtl-gen/src/examples/fifo.rs:23
 );
-    reg [7:0] fifo [0:3];                    // rtl-gen/src/examples/fifo.rs:22
-    reg [1:0] fifo_head;                     // rtl-gen/src/examples/fifo.rs:22
-    reg [1:0] fifo_tail;                     // rtl-gen/src/examples/fifo.rs:22
-    reg [2:0] fifo_count;                    // rtl-gen/src/examples/fifo.rs:22
-    wire fifo_out_valid;                     // rtl-gen/src/examples/fifo.rs:22
-    wire [7:0] fifo_out_data;                // rtl-gen/src/examples/fifo.rs:22
-    wire fifo_out_ready;                     // rtl-gen/src/examples/fifo.rs:22
-    wire fifo_count_ne;                      // rtl-gen/src/examples/fifo.rs:22
+    reg [7:0] mem [0:3];                     // rtl-gen/src/examples/fifo.rs:22
+    reg [1:0] mem_head;                      // rtl-gen/src/examples/fifo.rs:22
+    reg [1:0] mem_tail;                      // rtl-gen/src/examples/fifo.rs:22
+    reg [2:0] mem_count;                     // rtl-gen/src/examples/fifo.rs:22
+    wire mem_out_valid;                      // rtl-gen/src/examples/fifo.rs:22
+    wire [7:0] mem_out_data;                 // rtl-gen/src/examples/fifo.rs:22
+    wire mem_out_ready;                      // rtl-gen/src/examples/fifo.rs:22
+    wire mem_count_ne;                       // rtl-gen/src/examples/fifo.rs:22
     wire in_valid_and;                       // rtl-gen/src/examples/fifo.rs:22
-    wire fifo_out_valid_and;                 // rtl-gen/src/examples/fifo.rs:22
+    wire mem_out_valid_and;                  // rtl-gen/src/examples/fifo.rs:22
 
-    assign in_ready = fifo_count != 3'd4;
-    assign fifo_out_valid = fifo_count_ne;
-    assign fifo_out_data = fifo_count_ne ? fifo[fifo_head] : 8'd0;
-    assign fifo_out_ready = out_ready;
-    assign fifo_count_ne = fifo_count != 3'd0;
+    assign in_ready = mem_count != 3'd4;
+    assign mem_out_valid = mem_count_ne;
+    assign mem_out_data = mem_count_ne ? mem[mem_head] : 8'd0;
+    assign mem_out_ready = out_ready;
+    assign mem_count_ne = mem_count != 3'd0;
     assign in_valid_and = in_valid & in_ready;
-    assign fifo_out_valid_and = fifo_out_valid & fifo_out_ready;
-    assign out_valid = fifo_out_valid;
-    assign out_data = fifo_out_data;
+    assign mem_out_valid_and = mem_out_valid & mem_out_ready;
+    assign out_valid = mem_out_valid;
+    assign out_data = mem_out_data;
 
     always @(posedge clk) begin
         if (rst) begin
-            fifo_head <= 2'd0;
-            fifo_tail <= 2'd0;
-            fifo_count <= 3'd0;
+            mem_head <= 2'd0;
+            mem_tail <= 2'd0;
+            mem_count <= 3'd0;
         end else begin
-            if (fifo_out_valid_and) begin
-                fifo_head <= fifo_head + 2'd1; // rtl-gen/src/examples/fifo.rs:22
+            if (mem_out_valid_and) begin
+                mem_head <= mem_head + 2'd1; // rtl-gen/src/examples/fifo.rs:22
             end
             if (in_valid_and) begin
-                fifo_tail <= fifo_tail + 2'd1; // rtl-gen/src/examples/fifo.rs:22
-                if (!fifo_out_valid_and) begin
-                    fifo_count <= fifo_count + 3'd1; // rtl-gen/src/examples/fifo.rs:22
+                mem_tail <= mem_tail + 2'd1; // rtl-gen/src/examples/fifo.rs:22
+                if (!mem_out_valid_and) begin
+                    mem_count <= mem_count + 3'd1; // rtl-gen/src/examples/fifo.rs:22
                 end
-            end else if (fifo_out_valid_and) begin
-                fifo_count <= fifo_count - 3'd1; // rtl-gen/src/examples/fifo.rs:22
+            end else if (mem_out_valid_and) begin
+                mem_count <= mem_count - 3'd1; // rtl-gen/src/examples/fifo.rs:22
             end
         end
     end
 
-    // memory fifo: 4 x 8 bits
+    // memory mem: 4 x 8 bits
     always @(posedge clk) begin
         if (in_valid_and) begin
-            fifo[fifo_tail] <= in_data;
+            mem[mem_tail] <= in_data;
         end
     end
 endmodule

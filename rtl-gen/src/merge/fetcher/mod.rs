@@ -24,9 +24,7 @@
 //! (the visit stage, the per-node join, `leaves`), `order` (the out
 //! ordering stage) and `out` (the out stage; per-node, its answer and send
 //! stages); `parts` holds the prioritized register updates, the node check
-//! and move, and the beats. Each stage names its nets in a scope of its own
-//! (`range_`, `ref_stage_`, `visit_`, `join_`, `order_`, `out_`); its FIFOs
-//! are the DSL's `Stream::fifo`.
+//! and move, and the beats. Each stage names its nets in a scope (`visit_go`).
 
 mod command;
 mod order;

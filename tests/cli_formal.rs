@@ -3,12 +3,12 @@
 //! units' handshake proofs and every check of the small fetchers and writer;
 //! a skid buffer that drops a beat, a FIFO that reads at its tail, a
 //! priority merge whose grant is not held, a merging module whose refusal
-//! ends without `done`, a fetcher whose phase is not reset, one that takes a command while busy, one
-//! whose `End`s never leave, a writer that takes every `cfg` and a merger
-//! top idle while a merge runs (the emitted Verilog patched through
-//! `HIERMERGE_FORMAL_PATCH_FROM`/`_TO`) fail the check that should catch
-//! them, naming the property and the step. Under CI=true missing formal
-//! tools fail.
+//! ends without `done`, a fetcher whose phase is not reset, one that takes
+//! a command while busy, one whose `End`s never leave, a writer that takes
+//! every `cfg` and a merger top idle while a merge runs (the emitted
+//! Verilog patched through `HIERMERGE_FORMAL_PATCH_FROM`/`_TO`) fail the
+//! check that should catch them, naming the property and the step. Under
+//! CI=true missing formal tools fail.
 
 mod common;
 

@@ -1,14 +1,14 @@
 //! `hiermerge formal` (SPEC 11.1): every proof of the default set passes,
 //! split over a few tests so nextest runs them side by side, the larger
 //! units' handshake proofs and every check of the small fetchers and writer;
-//! a skid buffer that drops a beat, a priority merge whose grant is not
-//! held, a merging module whose refusal ends without `done`, a fetcher
-//! whose phase is not reset, one that takes a command while busy, one
-//! whose `End`s never leave, a writer that takes every `cfg` and a merger
-//! top idle while a merge runs (the emitted Verilog patched through
-//! `HIERMERGE_FORMAL_PATCH_FROM`/`_TO`) fail the check that should catch
-//! them, naming the property and the step. Under CI=true missing formal
-//! tools fail.
+//! a skid buffer that drops a beat, a FIFO that reads at its tail, a
+//! priority merge whose grant is not held, a merging module whose refusal
+//! ends without `done`, a fetcher whose phase is not reset, one that takes
+//! a command while busy, one whose `End`s never leave, a writer that takes
+//! every `cfg` and a merger top idle while a merge runs (the emitted
+//! Verilog patched through `HIERMERGE_FORMAL_PATCH_FROM`/`_TO`) fail the
+//! check that should catch them, naming the property and the step. Under
+//! CI=true missing formal tools fail.
 
 mod common;
 
@@ -273,6 +273,20 @@ fn a_skid_buffer_that_drops_a_beat_fails_its_flow_proof() {
         "skid_buffer",
         &line,
         "assign in_ready = 1'b1;",
+        "flow",
+        "_f0_",
+    );
+}
+
+#[test]
+fn a_fifo_that_reads_at_its_tail_fails_its_flow_proof() {
+    // The word offered is the one at the write address, not the oldest.
+    let (line, _) =
+        common::emitted_assign(&rtl_gen::formal::units::fifo(8, 2).module, "mem_out_data");
+    assert_broken_fails(
+        "fifo",
+        &line,
+        "assign mem_out_data = mem[mem_tail];",
         "flow",
         "_f0_",
     );

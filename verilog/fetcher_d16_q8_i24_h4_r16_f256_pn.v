@@ -20,12 +20,12 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     input  wire cref_resp_valid,         // rtl-gen/src/merge/fetcher/mod.rs:148
     input  wire [27:0] cref_resp_data,   // rtl-gen/src/merge/fetcher/mod.rs:148
     output wire cref_resp_ready,         // rtl-gen/src/merge/fetcher/mod.rs:148
-    input  wire report_valid,            // rtl-gen/src/merge/fetcher/visit.rs:413
-    input  wire [55:0] report_data,      // rtl-gen/src/merge/fetcher/visit.rs:413
-    output wire report_ready,            // rtl-gen/src/merge/fetcher/visit.rs:413
-    input  wire probe_resp_valid,        // rtl-gen/src/merge/fetcher/out.rs:164
-    input  wire [149:0] probe_resp_data, // rtl-gen/src/merge/fetcher/out.rs:164
-    output wire probe_resp_ready,        // rtl-gen/src/merge/fetcher/out.rs:164
+    input  wire report_valid,            // rtl-gen/src/merge/fetcher/visit.rs:415
+    input  wire [55:0] report_data,      // rtl-gen/src/merge/fetcher/visit.rs:415
+    output wire report_ready,            // rtl-gen/src/merge/fetcher/visit.rs:415
+    input  wire probe_resp_valid,        // rtl-gen/src/merge/fetcher/out.rs:153
+    input  wire [149:0] probe_resp_data, // rtl-gen/src/merge/fetcher/out.rs:153
+    output wire probe_resp_ready,        // rtl-gen/src/merge/fetcher/out.rs:153
     output wire node_req_valid,          // rtl-gen/src/merge/fetcher/mod.rs:245
     output wire [23:0] node_req_data,    // rtl-gen/src/merge/fetcher/mod.rs:245
     input  wire node_req_ready,          // rtl-gen/src/merge/fetcher/mod.rs:245
@@ -51,13 +51,13 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     localparam [2:0] ROOTS = 3'd2;           // rtl-gen/src/merge/fetcher/command.rs:59
     localparam [2:0] WALK = 3'd3;            // rtl-gen/src/merge/fetcher/command.rs:59
     localparam [2:0] DONE = 3'd4;            // rtl-gen/src/merge/fetcher/command.rs:51
-    reg [72:0] frontier [0:1023];            // rtl-gen/src/merge/fetcher/parts.rs:18
-    reg [24:0] ref_ctx [0:7];                // rtl-gen/src/merge/fetcher/parts.rs:18
-    reg [33:0] node_ctx [0:7];               // rtl-gen/src/merge/fetcher/parts.rs:18
-    reg [183:0] out_items [0:3];             // rtl-gen/src/merge/fetcher/parts.rs:18
-    reg [119:0] pass [0:255];                // rtl-gen/src/merge/fetcher/parts.rs:18
-    reg [186:0] out_tokens [0:3];            // rtl-gen/src/merge/fetcher/parts.rs:18
-    reg [186:0] out_probes [0:7];            // rtl-gen/src/merge/fetcher/parts.rs:18
+    reg [72:0] frontier [0:1023];            // rtl-gen/src/merge/fetcher/walk.rs:179
+    reg [24:0] range_ref_ctx [0:7];          // rtl-gen/src/merge/fetcher/walk.rs:204
+    reg [33:0] ref_stage_node_ctx [0:7];     // rtl-gen/src/merge/fetcher/walk.rs:254
+    reg [183:0] visit_out_items [0:3];       // rtl-gen/src/merge/fetcher/visit.rs:77
+    reg [119:0] visit_pass [0:255];          // rtl-gen/src/merge/fetcher/visit.rs:314
+    reg [186:0] order_tokens [0:3];          // rtl-gen/src/merge/fetcher/order.rs:51
+    reg [186:0] out_probes [0:7];            // rtl-gen/src/merge/fetcher/out.rs:155
     reg [2:0] phase;                         // rtl-gen/src/merge/fetcher/command.rs:57
     reg cfg_have;                            // rtl-gen/src/merge/fetcher/command.rs:64
     wire is_idle;                            // rtl-gen/src/merge/fetcher/command.rs:59
@@ -117,11 +117,11 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire roots_bad;                          // rtl-gen/src/merge/fetcher/command.rs:175
     wire roots_over;                         // rtl-gen/src/merge/fetcher/command.rs:179
     wire [3:0] header_code;                  // rtl-gen/src/merge/fetcher/command.rs:183
-    wire header_code_ne;                     // rtl-gen/src/merge/fetcher/command.rs:191
-    reg first_err_valid;                     // rtl-gen/src/merge/fetcher/command.rs:194
-    reg [3:0] first_err_code;                // rtl-gen/src/merge/fetcher/command.rs:195
-    reg [23:0] first_err_node;               // rtl-gen/src/merge/fetcher/command.rs:196
-    reg header_err;                          // rtl-gen/src/merge/fetcher/command.rs:197
+    wire header_code_ne;                     // rtl-gen/src/merge/fetcher/command.rs:192
+    reg first_err_valid;                     // rtl-gen/src/merge/fetcher/command.rs:195
+    reg [3:0] first_err_code;                // rtl-gen/src/merge/fetcher/command.rs:196
+    reg [23:0] first_err_node;               // rtl-gen/src/merge/fetcher/command.rs:197
+    reg header_err;                          // rtl-gen/src/merge/fetcher/command.rs:198
     reg [4:0] level;                         // rtl-gen/src/merge/fetcher/walk.rs:42
     reg at_top;                              // rtl-gen/src/merge/fetcher/walk.rs:43
     reg walk_done;                           // rtl-gen/src/merge/fetcher/walk.rs:44
@@ -143,27 +143,27 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire root_req_valid;                     // rtl-gen/src/merge/fetcher/walk.rs:109
     wire root_outstanding;                   // rtl-gen/src/merge/fetcher/walk.rs:110
     wire roots_all_taken;                    // rtl-gen/src/merge/fetcher/walk.rs:111
-    wire [4:0] node_resp_data_lod;           // rtl-gen/src/merge/fetcher/parts.rs:106
+    wire [4:0] node_resp_data_lod;           // rtl-gen/src/merge/fetcher/parts.rs:64
     wire [15:0] node_resp_data_x;            // rtl-gen/src/merge/fields.rs:24
     wire [15:0] node_resp_data_y;            // rtl-gen/src/merge/fields.rs:24
     wire [15:0] node_resp_data_z;            // rtl-gen/src/merge/fields.rs:24
-    wire node_resp_data_x_or;                // rtl-gen/src/merge/fetcher/parts.rs:111
-    wire [7:0] node_resp_data_lo_x;          // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire [7:0] node_resp_data_hi_x;          // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire [7:0] node_resp_data_lo_y;          // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire [7:0] node_resp_data_hi_y;          // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire [7:0] node_resp_data_lo_z;          // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire [7:0] node_resp_data_hi_z;          // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire node_resp_data_x_or_1;              // rtl-gen/src/merge/fetcher/parts.rs:118
-    wire [23:0] node_resp_data_count;        // rtl-gen/src/merge/fetcher/parts.rs:121
-    wire [4:0] node_resp_data_lod_sub;       // rtl-gen/src/merge/fetcher/parts.rs:123
-    wire [33:0] node_resp_data_x_add;        // rtl-gen/src/merge/fetcher/parts.rs:129
-    wire [33:0] node_resp_data_y_add;        // rtl-gen/src/merge/fetcher/parts.rs:129
-    wire [33:0] node_resp_data_z_add;        // rtl-gen/src/merge/fetcher/parts.rs:129
-    wire [3:0] node_resp_data_y_mux;         // rtl-gen/src/merge/fetcher/parts.rs:142
-    wire [3:0] node_resp_data_lod_mux;       // rtl-gen/src/merge/fetcher/parts.rs:138
-    wire [3:0] node_code;                    // rtl-gen/src/merge/fetcher/parts.rs:134
-    wire [149:0] node_resp_data_cat;         // rtl-gen/src/merge/fetcher/parts.rs:150
+    wire node_resp_data_x_or;                // rtl-gen/src/merge/fetcher/parts.rs:69
+    wire [7:0] node_resp_data_lo_x;          // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire [7:0] node_resp_data_hi_x;          // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire [7:0] node_resp_data_lo_y;          // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire [7:0] node_resp_data_hi_y;          // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire [7:0] node_resp_data_lo_z;          // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire [7:0] node_resp_data_hi_z;          // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire node_resp_data_x_or_1;              // rtl-gen/src/merge/fetcher/parts.rs:76
+    wire [23:0] node_resp_data_count;        // rtl-gen/src/merge/fetcher/parts.rs:79
+    wire [4:0] node_resp_data_lod_sub;       // rtl-gen/src/merge/fetcher/parts.rs:81
+    wire [33:0] node_resp_data_x_add;        // rtl-gen/src/merge/fetcher/parts.rs:87
+    wire [33:0] node_resp_data_y_add;        // rtl-gen/src/merge/fetcher/parts.rs:87
+    wire [33:0] node_resp_data_z_add;        // rtl-gen/src/merge/fetcher/parts.rs:87
+    wire [3:0] node_resp_data_y_mux;         // rtl-gen/src/merge/fetcher/parts.rs:92
+    wire [3:0] node_resp_data_lod_mux;       // rtl-gen/src/merge/fetcher/parts.rs:92
+    wire [3:0] node_code;                    // rtl-gen/src/merge/fetcher/parts.rs:92
+    wire [149:0] node_resp_data_cat;         // rtl-gen/src/merge/fetcher/parts.rs:103
     wire root_outstanding_and;               // rtl-gen/src/merge/fetcher/walk.rs:116
     wire root_take;                          // rtl-gen/src/merge/fetcher/walk.rs:116
     wire node_code_ne;                       // rtl-gen/src/merge/fetcher/walk.rs:118
@@ -175,318 +175,318 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     wire frontier_in_valid;                  // rtl-gen/src/merge/fetcher/walk.rs:178
     wire [72:0] frontier_in_data;            // rtl-gen/src/merge/fetcher/walk.rs:178
     wire frontier_in_ready;                  // rtl-gen/src/merge/fetcher/walk.rs:178
-    reg [9:0] frontier_head;                 // rtl-gen/src/merge/fetcher/parts.rs:19
-    reg [9:0] frontier_tail;                 // rtl-gen/src/merge/fetcher/parts.rs:20
-    reg [10:0] frontier_count;               // rtl-gen/src/merge/fetcher/parts.rs:21
-    wire frontier_out_valid;                 // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire [72:0] frontier_out_data;           // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire frontier_out_ready;                 // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire frontier_count_ne;                  // rtl-gen/src/merge/fetcher/parts.rs:24
-    wire frontier_in_valid_and;              // rtl-gen/src/merge/fetcher/parts.rs:31
-    wire frontier_out_valid_and;             // rtl-gen/src/merge/fetcher/parts.rs:32
-    wire frontier_out_data_marker;           // rtl-gen/src/merge/fetcher/walk.rs:194
-    wire [23:0] frontier_out_data_first;     // rtl-gen/src/merge/fetcher/walk.rs:195
-    wire [23:0] frontier_out_data_count;     // rtl-gen/src/merge/fetcher/walk.rs:196
-    wire [23:0] frontier_out_data_parent;    // rtl-gen/src/merge/fetcher/walk.rs:197
-    reg range_valid;                         // rtl-gen/src/merge/fetcher/walk.rs:198
-    reg [23:0] range_idx;                    // rtl-gen/src/merge/fetcher/walk.rs:199
-    reg [24:0] range_end;                    // rtl-gen/src/merge/fetcher/walk.rs:200
-    reg [23:0] range_parent;                 // rtl-gen/src/merge/fetcher/walk.rs:201
-    wire ref_ctx_in_valid;                   // rtl-gen/src/merge/fetcher/walk.rs:202
-    wire [24:0] ref_ctx_in_data;             // rtl-gen/src/merge/fetcher/walk.rs:202
-    wire ref_ctx_in_ready;                   // rtl-gen/src/merge/fetcher/walk.rs:202
-    reg [2:0] ref_ctx_head;                  // rtl-gen/src/merge/fetcher/parts.rs:19
-    reg [2:0] ref_ctx_tail;                  // rtl-gen/src/merge/fetcher/parts.rs:20
-    reg [3:0] ref_ctx_count;                 // rtl-gen/src/merge/fetcher/parts.rs:21
-    wire ref_ctx_out_valid;                  // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire [24:0] ref_ctx_out_data;            // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire ref_ctx_out_ready;                  // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire ref_ctx_count_ne;                   // rtl-gen/src/merge/fetcher/parts.rs:24
-    wire ref_ctx_in_valid_and;               // rtl-gen/src/merge/fetcher/parts.rs:31
-    wire ref_ctx_out_valid_and;              // rtl-gen/src/merge/fetcher/parts.rs:32
-    wire ref_issue;                          // rtl-gen/src/merge/fetcher/walk.rs:206
-    wire [23:0] range_idx_add;               // rtl-gen/src/merge/fetcher/walk.rs:207
+    reg [9:0] frontier_head;                 // rtl-gen/src/merge/fetcher/walk.rs:179
+    reg [9:0] frontier_tail;                 // rtl-gen/src/merge/fetcher/walk.rs:179
+    reg [10:0] frontier_count;               // rtl-gen/src/merge/fetcher/walk.rs:179
+    wire frontier_out_valid;                 // rtl-gen/src/merge/fetcher/walk.rs:179
+    wire [72:0] frontier_out_data;           // rtl-gen/src/merge/fetcher/walk.rs:179
+    wire frontier_out_ready;                 // rtl-gen/src/merge/fetcher/walk.rs:179
+    wire frontier_count_ne;                  // rtl-gen/src/merge/fetcher/walk.rs:179
+    wire frontier_in_valid_and;              // rtl-gen/src/merge/fetcher/walk.rs:179
+    wire frontier_out_valid_and;             // rtl-gen/src/merge/fetcher/walk.rs:179
+    wire frontier_out_data_marker;           // rtl-gen/src/merge/fetcher/walk.rs:195
+    wire [23:0] frontier_out_data_first;     // rtl-gen/src/merge/fetcher/walk.rs:196
+    wire [23:0] frontier_out_data_count;     // rtl-gen/src/merge/fetcher/walk.rs:197
+    wire [23:0] frontier_out_data_parent;    // rtl-gen/src/merge/fetcher/walk.rs:198
+    reg range_valid;                         // rtl-gen/src/merge/fetcher/walk.rs:199
+    reg [23:0] range_idx;                    // rtl-gen/src/merge/fetcher/walk.rs:200
+    reg [24:0] range_end;                    // rtl-gen/src/merge/fetcher/walk.rs:201
+    reg [23:0] range_parent;                 // rtl-gen/src/merge/fetcher/walk.rs:202
+    wire range_ref_ctx_in_valid;             // rtl-gen/src/merge/fetcher/walk.rs:203
+    wire [24:0] range_ref_ctx_in_data;       // rtl-gen/src/merge/fetcher/walk.rs:203
+    wire range_ref_ctx_in_ready;             // rtl-gen/src/merge/fetcher/walk.rs:203
+    reg [2:0] range_ref_ctx_head;            // rtl-gen/src/merge/fetcher/walk.rs:204
+    reg [2:0] range_ref_ctx_tail;            // rtl-gen/src/merge/fetcher/walk.rs:204
+    reg [3:0] range_ref_ctx_count;           // rtl-gen/src/merge/fetcher/walk.rs:204
+    wire range_ref_ctx_out_valid;            // rtl-gen/src/merge/fetcher/walk.rs:204
+    wire [24:0] range_ref_ctx_out_data;      // rtl-gen/src/merge/fetcher/walk.rs:204
+    wire range_ref_ctx_out_ready;            // rtl-gen/src/merge/fetcher/walk.rs:204
+    wire range_ref_ctx_count_ne;             // rtl-gen/src/merge/fetcher/walk.rs:204
+    wire range_ref_ctx_in_valid_and;         // rtl-gen/src/merge/fetcher/walk.rs:204
+    wire range_ref_ctx_out_valid_and;        // rtl-gen/src/merge/fetcher/walk.rs:204
+    wire range_issue;                        // rtl-gen/src/merge/fetcher/walk.rs:207
+    wire [23:0] range_idx_add;               // rtl-gen/src/merge/fetcher/walk.rs:208
     wire walking_and;                        // rtl-gen/src/merge/fetcher/walk.rs:210
     wire range_valid_not;                    // rtl-gen/src/merge/fetcher/walk.rs:210
-    wire ref_issue_and;                      // rtl-gen/src/merge/fetcher/walk.rs:210
+    wire range_issue_and;                    // rtl-gen/src/merge/fetcher/walk.rs:210
     wire range_load;                         // rtl-gen/src/merge/fetcher/walk.rs:210
-    wire marker_pop;                         // rtl-gen/src/merge/fetcher/walk.rs:212
-    wire node_ctx_in_valid;                  // rtl-gen/src/merge/fetcher/walk.rs:252
-    wire [33:0] node_ctx_in_data;            // rtl-gen/src/merge/fetcher/walk.rs:252
-    wire node_ctx_in_ready;                  // rtl-gen/src/merge/fetcher/walk.rs:252
-    reg [2:0] node_ctx_head;                 // rtl-gen/src/merge/fetcher/parts.rs:19
-    reg [2:0] node_ctx_tail;                 // rtl-gen/src/merge/fetcher/parts.rs:20
-    reg [3:0] node_ctx_count;                // rtl-gen/src/merge/fetcher/parts.rs:21
-    wire node_ctx_out_valid;                 // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire [33:0] node_ctx_out_data;           // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire node_ctx_out_ready;                 // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire node_ctx_count_ne;                  // rtl-gen/src/merge/fetcher/parts.rs:24
-    wire node_ctx_in_valid_and;              // rtl-gen/src/merge/fetcher/parts.rs:31
-    wire node_ctx_out_valid_and;             // rtl-gen/src/merge/fetcher/parts.rs:32
-    wire [23:0] resp_ref_node;               // rtl-gen/src/merge/fetcher/walk.rs:254
-    wire [3:0] resp_ref_hier;                // rtl-gen/src/merge/fetcher/walk.rs:257
-    wire [3:0] ref_code;                     // rtl-gen/src/merge/fetcher/walk.rs:262
-    wire walking_and_1;                      // rtl-gen/src/merge/fetcher/walk.rs:267
-    wire walking_and_2;                      // rtl-gen/src/merge/fetcher/walk.rs:267
-    wire ref_wait;                           // rtl-gen/src/merge/fetcher/walk.rs:267
-    wire ref_take;                           // rtl-gen/src/merge/fetcher/walk.rs:269
-    wire ref_stage_end;                      // rtl-gen/src/merge/fetcher/walk.rs:270
-    wire ref_take_or;                        // rtl-gen/src/merge/fetcher/walk.rs:271
-    wire ref_code_eq;                        // rtl-gen/src/merge/fetcher/walk.rs:273
-    wire walk_node_req;                      // rtl-gen/src/merge/fetcher/walk.rs:273
-    wire node_ctx_out_data_eq;               // rtl-gen/src/merge/fetcher/visit.rs:73
-    wire out_items_in_valid;                 // rtl-gen/src/merge/fetcher/visit.rs:75
-    wire [183:0] out_items_in_data;          // rtl-gen/src/merge/fetcher/visit.rs:75
-    wire out_items_in_ready;                 // rtl-gen/src/merge/fetcher/visit.rs:75
-    reg [1:0] out_items_head;                // rtl-gen/src/merge/fetcher/parts.rs:19
-    reg [1:0] out_items_tail;                // rtl-gen/src/merge/fetcher/parts.rs:20
-    reg [2:0] out_items_count;               // rtl-gen/src/merge/fetcher/parts.rs:21
-    wire out_items_out_valid;                // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire [183:0] out_items_out_data;         // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire out_items_out_ready;                // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire out_items_count_ne;                 // rtl-gen/src/merge/fetcher/parts.rs:24
-    wire out_items_in_valid_and;             // rtl-gen/src/merge/fetcher/parts.rs:31
-    wire out_items_out_valid_and;            // rtl-gen/src/merge/fetcher/parts.rs:32
-    wire visit_live;                         // rtl-gen/src/merge/fetcher/visit.rs:77
-    wire above_level;                        // rtl-gen/src/merge/fetcher/visit.rs:78
-    wire above_first;                        // rtl-gen/src/merge/fetcher/visit.rs:79
-    wire above_first_not;                    // rtl-gen/src/merge/fetcher/visit.rs:82
-    wire sending_level;                      // rtl-gen/src/merge/fetcher/visit.rs:82
-    wire pn_pass;                            // rtl-gen/src/merge/fetcher/visit.rs:86
-    reg pn_visited;                          // rtl-gen/src/merge/fetcher/visit.rs:89
-    wire pass_in_valid;                      // rtl-gen/src/merge/fetcher/visit.rs:101
-    wire [119:0] pass_in_data;               // rtl-gen/src/merge/fetcher/visit.rs:101
-    wire pass_in_ready;                      // rtl-gen/src/merge/fetcher/visit.rs:101
-    reg leaves_end_sent;                     // rtl-gen/src/merge/fetcher/visit.rs:108
-    wire leaves_end_sent_not;                // rtl-gen/src/merge/fetcher/visit.rs:109
-    wire leaves_end_due;                     // rtl-gen/src/merge/fetcher/visit.rs:109
-    wire visit_room;                         // rtl-gen/src/merge/fetcher/visit.rs:111
-    reg [4:0] end_next;                      // rtl-gen/src/merge/fetcher/visit.rs:119
-    reg final_sent;                          // rtl-gen/src/merge/fetcher/visit.rs:120
-    wire pre_ends;                           // rtl-gen/src/merge/fetcher/visit.rs:121
-    wire ends_drain;                         // rtl-gen/src/merge/fetcher/visit.rs:122
-    wire end_emit;                           // rtl-gen/src/merge/fetcher/visit.rs:123
-    wire end_final;                          // rtl-gen/src/merge/fetcher/visit.rs:124
-    wire end_fire;                           // rtl-gen/src/merge/fetcher/visit.rs:125
-    wire at_top_and;                         // rtl-gen/src/merge/fetcher/visit.rs:126
-    wire at_top_and_1;                       // rtl-gen/src/merge/fetcher/visit.rs:127
-    wire at_top_and_2;                       // rtl-gen/src/merge/fetcher/visit.rs:127
-    wire at_top_and_3;                       // rtl-gen/src/merge/fetcher/visit.rs:128
-    wire at_top_not;                         // rtl-gen/src/merge/fetcher/visit.rs:129
-    reg capacity_told;                       // rtl-gen/src/merge/fetcher/visit.rs:133
-    wire at_top_and_4;                       // rtl-gen/src/merge/fetcher/visit.rs:135
-    wire sorter_dropped;                     // rtl-gen/src/merge/fetcher/visit.rs:135
-    wire node_ctx_out_data_or;               // rtl-gen/src/merge/fetcher/visit.rs:141
-    wire visit_avail;                        // rtl-gen/src/merge/fetcher/visit.rs:137
-    wire visit_free;                         // rtl-gen/src/merge/fetcher/visit.rs:144
-    wire visit_go;                           // rtl-gen/src/merge/fetcher/visit.rs:148
-    wire sorter_dropped_not;                 // rtl-gen/src/merge/fetcher/visit.rs:150
-    wire visit_live_and;                     // rtl-gen/src/merge/fetcher/visit.rs:153
-    wire item_err;                           // rtl-gen/src/merge/fetcher/visit.rs:159
-    wire item_end;                           // rtl-gen/src/merge/fetcher/visit.rs:161
-    wire item_node;                          // rtl-gen/src/merge/fetcher/visit.rs:163
-    wire [23:0] node_ctx_out_data_node;      // rtl-gen/src/merge/fetcher/visit.rs:171
-    wire [149:0] item_rec;                   // rtl-gen/src/merge/fetcher/visit.rs:173
-    wire [27:0] item_ref;                    // rtl-gen/src/merge/fetcher/visit.rs:174
-    wire [23:0] item_ref_node;               // rtl-gen/src/merge/fetcher/visit.rs:175
-    wire item_leaf;                          // rtl-gen/src/merge/fetcher/visit.rs:244
-    wire item_leaf_not;                      // rtl-gen/src/merge/fetcher/visit.rs:245
-    wire [47:0] item_rec_x_morton;           // rtl-gen/src/merge/network.rs:41
-    wire [48:0] item_key;                    // rtl-gen/src/merge/fetcher/visit.rs:247
-    wire [23:0] item_rec_first;              // rtl-gen/src/merge/fetcher/visit.rs:249
-    wire [23:0] item_rec_count;              // rtl-gen/src/merge/fetcher/visit.rs:250
-    wire [24:0] item_range_end;              // rtl-gen/src/merge/fetcher/visit.rs:253
-    wire at_level;                           // rtl-gen/src/merge/fetcher/visit.rs:255
-    wire order_bad;                          // rtl-gen/src/merge/fetcher/visit.rs:256
-    wire range_bad;                          // rtl-gen/src/merge/fetcher/visit.rs:264
-    wire frontier_bad;                       // rtl-gen/src/merge/fetcher/visit.rs:265
-    wire [3:0] item_end_mux;                 // rtl-gen/src/merge/fetcher/visit.rs:268
-    wire [3:0] visit_code;                   // rtl-gen/src/merge/fetcher/visit.rs:266
-    wire visit_fails;                        // rtl-gen/src/merge/fetcher/visit.rs:281
-    wire visit_go_and;                       // rtl-gen/src/merge/fetcher/visit.rs:282
-    wire visit_passes;                       // rtl-gen/src/merge/fetcher/visit.rs:282
-    wire frontier_push;                      // rtl-gen/src/merge/fetcher/visit.rs:283
-    wire visit_errored_not;                  // rtl-gen/src/merge/fetcher/visit.rs:285
-    wire leaf_out;                           // rtl-gen/src/merge/fetcher/visit.rs:285
-    wire to_out;                             // rtl-gen/src/merge/fetcher/visit.rs:286
-    wire next_level;                         // rtl-gen/src/merge/fetcher/visit.rs:287
-    wire level_end;                          // rtl-gen/src/merge/fetcher/visit.rs:288
-    wire walk_ran_out;                       // rtl-gen/src/merge/fetcher/visit.rs:294
-    wire pn_pass_end;                        // rtl-gen/src/merge/fetcher/visit.rs:295
-    wire walk_over;                          // rtl-gen/src/merge/fetcher/visit.rs:296
-    wire marker_push;                        // rtl-gen/src/merge/fetcher/visit.rs:303
-    wire pass_push;                          // rtl-gen/src/merge/fetcher/visit.rs:305
-    reg [7:0] pass_head;                     // rtl-gen/src/merge/fetcher/parts.rs:19
-    reg [7:0] pass_tail;                     // rtl-gen/src/merge/fetcher/parts.rs:20
-    reg [8:0] pass_count;                    // rtl-gen/src/merge/fetcher/parts.rs:21
-    wire pass_out_valid;                     // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire [119:0] pass_out_data;              // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire pass_out_ready;                     // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire pass_count_ne;                      // rtl-gen/src/merge/fetcher/parts.rs:24
-    wire pass_in_valid_and;                  // rtl-gen/src/merge/fetcher/parts.rs:31
-    wire pass_out_valid_and;                 // rtl-gen/src/merge/fetcher/parts.rs:32
-    wire marker_push_or;                     // rtl-gen/src/merge/fetcher/visit.rs:316
-    wire level_end_push;                     // rtl-gen/src/merge/fetcher/visit.rs:319
-    reg pn_end_left;                         // rtl-gen/src/merge/fetcher/visit.rs:415
-    wire [47:0] report_key;                  // rtl-gen/src/merge/network.rs:41
-    wire report_data_pass_end;               // rtl-gen/src/merge/fetcher/visit.rs:416
-    wire report_data_more;                   // rtl-gen/src/merge/fetcher/visit.rs:416
-    wire report_data_descend;                // rtl-gen/src/merge/fetcher/visit.rs:416
-    wire [4:0] report_data_lod;              // rtl-gen/src/merge/fetcher/visit.rs:416
-    wire report_data_descend_and;            // rtl-gen/src/merge/fetcher/visit.rs:421
-    wire [47:0] pass_out_data_key;           // rtl-gen/src/merge/fetcher/visit.rs:422
-    wire [23:0] pass_out_data_first;         // rtl-gen/src/merge/fetcher/visit.rs:423
-    wire [23:0] pass_out_data_count;         // rtl-gen/src/merge/fetcher/visit.rs:424
-    wire [23:0] pass_out_data_node;          // rtl-gen/src/merge/fetcher/visit.rs:425
-    wire join_valid;                         // rtl-gen/src/merge/fetcher/visit.rs:426
-    wire join_decision;                      // rtl-gen/src/merge/fetcher/visit.rs:427
-    wire join_entry_before;                  // rtl-gen/src/merge/fetcher/visit.rs:428
-    wire join_entry_at;                      // rtl-gen/src/merge/fetcher/visit.rs:429
-    wire join_valid_and;                     // rtl-gen/src/merge/fetcher/visit.rs:430
-    wire join_entry_stays;                   // rtl-gen/src/merge/fetcher/visit.rs:430
-    wire join_match;                         // rtl-gen/src/merge/fetcher/visit.rs:431
-    wire join_descend;                       // rtl-gen/src/merge/fetcher/visit.rs:432
-    wire join_visit_past;                    // rtl-gen/src/merge/fetcher/visit.rs:438
-    wire pass_out_valid_not;                 // rtl-gen/src/merge/fetcher/visit.rs:439
-    wire pass_out_valid_or;                  // rtl-gen/src/merge/fetcher/visit.rs:439
-    wire join_other_voxel;                   // rtl-gen/src/merge/fetcher/visit.rs:439
-    wire report_data_more_not;               // rtl-gen/src/merge/fetcher/visit.rs:441
-    wire join_pass_end;                      // rtl-gen/src/merge/fetcher/visit.rs:441
-    wire join_marker;                        // rtl-gen/src/merge/fetcher/visit.rs:443
-    wire [4:0] item_rec_lod;                 // rtl-gen/src/merge/fetcher/visit.rs:482
-    wire walk_ran_out_and;                   // rtl-gen/src/merge/fetcher/visit.rs:492
-    wire leaves_end_fire;                    // rtl-gen/src/merge/fetcher/visit.rs:492
-    wire [1:0] visit_fails_mux_1;            // rtl-gen/src/merge/fetcher/visit.rs:520
-    wire [27:0] visit_fails_mux_2;           // rtl-gen/src/merge/fetcher/visit.rs:528
-    wire out_items_out_data_eq;              // rtl-gen/src/merge/fetcher/order.rs:175
-    wire out_items_out_data_leaf;            // rtl-gen/src/merge/fetcher/order.rs:176
-    wire [15:0] out_items_out_data_z;        // rtl-gen/src/merge/fetcher/order.rs:178
-    wire [15:0] out_items_out_data_y;        // rtl-gen/src/merge/fetcher/order.rs:179
-    wire [15:0] out_items_out_data_x;        // rtl-gen/src/merge/fetcher/order.rs:180
-    wire [47:0] out_items_out_data_z_cat;    // rtl-gen/src/merge/fetcher/order.rs:177
-    wire [23:0] out_items_out_data_first;    // rtl-gen/src/merge/fetcher/order.rs:182
-    wire [23:0] out_items_out_data_count;    // rtl-gen/src/merge/fetcher/order.rs:184
-    wire [24:0] out_items_out_data_first_add; // rtl-gen/src/merge/fetcher/order.rs:183
-    reg pend_valid;                          // rtl-gen/src/merge/fetcher/order.rs:39
-    reg [23:0] pend_first;                   // rtl-gen/src/merge/fetcher/order.rs:40
-    reg [24:0] pend_end;                     // rtl-gen/src/merge/fetcher/order.rs:41
-    reg [47:0] pend_voxel;                   // rtl-gen/src/merge/fetcher/order.rs:42
-    reg [23:0] pend_node;                    // rtl-gen/src/merge/fetcher/order.rs:43
-    reg cref_active;                         // rtl-gen/src/merge/fetcher/order.rs:44
-    reg [23:0] cref_idx;                     // rtl-gen/src/merge/fetcher/order.rs:45
-    reg [24:0] cref_end;                     // rtl-gen/src/merge/fetcher/order.rs:46
-    reg [23:0] cref_parent;                  // rtl-gen/src/merge/fetcher/order.rs:47
-    wire out_tokens_in_valid;                // rtl-gen/src/merge/fetcher/order.rs:49
-    wire [186:0] out_tokens_in_data;         // rtl-gen/src/merge/fetcher/order.rs:49
-    wire out_tokens_in_ready;                // rtl-gen/src/merge/fetcher/order.rs:49
-    reg [1:0] out_tokens_head;               // rtl-gen/src/merge/fetcher/parts.rs:19
-    reg [1:0] out_tokens_tail;               // rtl-gen/src/merge/fetcher/parts.rs:20
-    reg [2:0] out_tokens_count;              // rtl-gen/src/merge/fetcher/parts.rs:21
-    wire out_tokens_out_valid;               // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire [186:0] out_tokens_out_data;        // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire out_tokens_out_ready;               // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire out_tokens_count_ne;                // rtl-gen/src/merge/fetcher/parts.rs:24
-    wire out_tokens_in_valid_and;            // rtl-gen/src/merge/fetcher/parts.rs:31
-    wire out_tokens_out_valid_and;           // rtl-gen/src/merge/fetcher/parts.rs:32
-    wire walking_and_3;                      // rtl-gen/src/merge/fetcher/order.rs:51
-    wire order_room;                         // rtl-gen/src/merge/fetcher/order.rs:51
-    wire leaf_of_held;                       // rtl-gen/src/merge/fetcher/order.rs:52
-    wire cref_next;                          // rtl-gen/src/merge/fetcher/order.rs:53
-    wire cref_active_not;                    // rtl-gen/src/merge/fetcher/order.rs:54
-    wire order_room_and;                     // rtl-gen/src/merge/fetcher/order.rs:54
-    wire held_leaf;                          // rtl-gen/src/merge/fetcher/order.rs:54
-    wire leaf_of_held_not;                   // rtl-gen/src/merge/fetcher/order.rs:56
-    wire held_refs_first;                    // rtl-gen/src/merge/fetcher/order.rs:56
-    wire out_items_out_data_leaf_not;        // rtl-gen/src/merge/fetcher/order.rs:57
-    wire item_pass_inner;                    // rtl-gen/src/merge/fetcher/order.rs:57
-    reg probe_active;                        // rtl-gen/src/merge/fetcher/order.rs:59
-    reg probes_sent;                         // rtl-gen/src/merge/fetcher/order.rs:60
-    wire probe_active_not;                   // rtl-gen/src/merge/fetcher/order.rs:62
-    wire pend_valid_not;                     // rtl-gen/src/merge/fetcher/order.rs:62
-    wire probe_first_ok;                     // rtl-gen/src/merge/fetcher/order.rs:62
-    reg [23:0] probe_idx;                    // rtl-gen/src/merge/fetcher/order.rs:66
-    reg [24:0] probe_end;                    // rtl-gen/src/merge/fetcher/order.rs:67
-    reg [23:0] probe_parent;                 // rtl-gen/src/merge/fetcher/order.rs:68
-    reg [4:0] probe_lod;                     // rtl-gen/src/merge/fetcher/order.rs:69
-    wire probe_first;                        // rtl-gen/src/merge/fetcher/order.rs:71
-    wire probe_next;                         // rtl-gen/src/merge/fetcher/order.rs:72
-    wire item_out;                           // rtl-gen/src/merge/fetcher/order.rs:77
-    wire [23:0] probe_idx_add;               // rtl-gen/src/merge/fetcher/order.rs:230
-    wire probe_idx_eq;                       // rtl-gen/src/merge/fetcher/order.rs:231
-    wire [23:0] out_items_out_data_node;     // rtl-gen/src/merge/fetcher/order.rs:246
-    wire [23:0] probe_parent_next;           // rtl-gen/src/merge/fetcher/order.rs:246
-    wire [4:0] out_items_out_data_lod;       // rtl-gen/src/merge/fetcher/order.rs:248
-    wire [4:0] probe_lod_next;               // rtl-gen/src/merge/fetcher/order.rs:248
-    wire [23:0] cref_idx_add;                // rtl-gen/src/merge/fetcher/order.rs:106
-    wire [23:0] pend_first_add;              // rtl-gen/src/merge/fetcher/order.rs:107
-    wire held_leaf_or;                       // rtl-gen/src/merge/fetcher/order.rs:122
-    wire hold_refs;                          // rtl-gen/src/merge/fetcher/order.rs:125
-    wire [184:0] const_cat;                  // rtl-gen/src/merge/fetcher/parts.rs:187
-    wire [186:0] out_items_out_data_mux;     // rtl-gen/src/merge/fetcher/order.rs:309
-    wire [186:0] out_items_out_data_mux_1;   // rtl-gen/src/merge/fetcher/order.rs:307
-    wire token_cref;                         // rtl-gen/src/merge/fetcher/out.rs:150
-    wire token_probe;                        // rtl-gen/src/merge/fetcher/out.rs:151
-    wire [23:0] cref_resp_data_node;         // rtl-gen/src/merge/fetcher/out.rs:153
-    wire [3:0] cref_resp_data_hier;          // rtl-gen/src/merge/fetcher/out.rs:154
-    wire [3:0] cref_code;                    // rtl-gen/src/merge/fetcher/out.rs:157
-    wire cref_code_eq;                       // rtl-gen/src/merge/fetcher/out.rs:162
-    wire probe_req_core_valid;               // rtl-gen/src/merge/fetcher/out.rs:163
-    wire [23:0] probe_req_core_data;         // rtl-gen/src/merge/fetcher/out.rs:163
-    wire probe_req_core_ready;               // rtl-gen/src/merge/fetcher/out.rs:163
-    wire out_probes_in_valid;                // rtl-gen/src/merge/fetcher/out.rs:165
-    wire [186:0] out_probes_in_data;         // rtl-gen/src/merge/fetcher/out.rs:165
-    wire out_probes_in_ready;                // rtl-gen/src/merge/fetcher/out.rs:165
-    reg [2:0] out_probes_head;               // rtl-gen/src/merge/fetcher/parts.rs:19
-    reg [2:0] out_probes_tail;               // rtl-gen/src/merge/fetcher/parts.rs:20
-    reg [3:0] out_probes_count;              // rtl-gen/src/merge/fetcher/parts.rs:21
-    wire out_probes_out_valid;               // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire [186:0] out_probes_out_data;        // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire out_probes_out_ready;               // rtl-gen/src/merge/fetcher/parts.rs:22
-    wire out_probes_count_ne;                // rtl-gen/src/merge/fetcher/parts.rs:24
-    wire out_probes_in_valid_and;            // rtl-gen/src/merge/fetcher/parts.rs:31
-    wire out_probes_out_valid_and;           // rtl-gen/src/merge/fetcher/parts.rs:32
-    wire token_answered;                     // rtl-gen/src/merge/fetcher/out.rs:167
-    wire answer_room;                        // rtl-gen/src/merge/fetcher/out.rs:168
-    wire walking_and_4;                      // rtl-gen/src/merge/fetcher/out.rs:169
-    wire token_fire;                         // rtl-gen/src/merge/fetcher/out.rs:169
-    wire [186:0] token_probe_mux;            // rtl-gen/src/merge/fetcher/out.rs:204
-    wire [186:0] cref_code_mux;              // rtl-gen/src/merge/fetcher/out.rs:203
-    wire token_probe_wait;                   // rtl-gen/src/merge/fetcher/out.rs:214
-    wire [4:0] probe_resp_data_lod;          // rtl-gen/src/merge/fetcher/parts.rs:106
+    wire range_marker_pop;                   // rtl-gen/src/merge/fetcher/walk.rs:212
+    wire ref_stage_node_ctx_in_valid;        // rtl-gen/src/merge/fetcher/walk.rs:253
+    wire [33:0] ref_stage_node_ctx_in_data;  // rtl-gen/src/merge/fetcher/walk.rs:253
+    wire ref_stage_node_ctx_in_ready;        // rtl-gen/src/merge/fetcher/walk.rs:253
+    reg [2:0] ref_stage_node_ctx_head;       // rtl-gen/src/merge/fetcher/walk.rs:254
+    reg [2:0] ref_stage_node_ctx_tail;       // rtl-gen/src/merge/fetcher/walk.rs:254
+    reg [3:0] ref_stage_node_ctx_count;      // rtl-gen/src/merge/fetcher/walk.rs:254
+    wire ref_stage_node_ctx_out_valid;       // rtl-gen/src/merge/fetcher/walk.rs:254
+    wire [33:0] ref_stage_node_ctx_out_data; // rtl-gen/src/merge/fetcher/walk.rs:254
+    wire ref_stage_node_ctx_out_ready;       // rtl-gen/src/merge/fetcher/walk.rs:254
+    wire ref_stage_node_ctx_count_ne;        // rtl-gen/src/merge/fetcher/walk.rs:254
+    wire ref_stage_node_ctx_in_valid_and;    // rtl-gen/src/merge/fetcher/walk.rs:254
+    wire ref_stage_node_ctx_out_valid_and;   // rtl-gen/src/merge/fetcher/walk.rs:254
+    wire [23:0] ref_stage_resp_node;         // rtl-gen/src/merge/fetcher/walk.rs:255
+    wire [3:0] ref_stage_resp_hier;          // rtl-gen/src/merge/fetcher/walk.rs:258
+    wire [3:0] ref_stage_code;               // rtl-gen/src/merge/fetcher/parts.rs:126
+    wire walking_and_1;                      // rtl-gen/src/merge/fetcher/walk.rs:262
+    wire walking_and_2;                      // rtl-gen/src/merge/fetcher/walk.rs:262
+    wire ref_stage_wait;                     // rtl-gen/src/merge/fetcher/walk.rs:262
+    wire ref_stage_take;                     // rtl-gen/src/merge/fetcher/walk.rs:264
+    wire ref_stage_end;                      // rtl-gen/src/merge/fetcher/walk.rs:265
+    wire ref_stage_take_or;                  // rtl-gen/src/merge/fetcher/walk.rs:266
+    wire ref_stage_code_eq;                  // rtl-gen/src/merge/fetcher/walk.rs:268
+    wire ref_stage_node_req;                 // rtl-gen/src/merge/fetcher/walk.rs:268
+    wire ref_stage_node_ctx_out_data_eq;     // rtl-gen/src/merge/fetcher/visit.rs:74
+    wire visit_out_items_in_valid;           // rtl-gen/src/merge/fetcher/visit.rs:76
+    wire [183:0] visit_out_items_in_data;    // rtl-gen/src/merge/fetcher/visit.rs:76
+    wire visit_out_items_in_ready;           // rtl-gen/src/merge/fetcher/visit.rs:76
+    reg [1:0] visit_out_items_head;          // rtl-gen/src/merge/fetcher/visit.rs:77
+    reg [1:0] visit_out_items_tail;          // rtl-gen/src/merge/fetcher/visit.rs:77
+    reg [2:0] visit_out_items_count;         // rtl-gen/src/merge/fetcher/visit.rs:77
+    wire visit_out_items_out_valid;          // rtl-gen/src/merge/fetcher/visit.rs:77
+    wire [183:0] visit_out_items_out_data;   // rtl-gen/src/merge/fetcher/visit.rs:77
+    wire visit_out_items_out_ready;          // rtl-gen/src/merge/fetcher/visit.rs:77
+    wire visit_out_items_count_ne;           // rtl-gen/src/merge/fetcher/visit.rs:77
+    wire visit_out_items_in_valid_and;       // rtl-gen/src/merge/fetcher/visit.rs:77
+    wire visit_out_items_out_valid_and;      // rtl-gen/src/merge/fetcher/visit.rs:77
+    wire visit_live;                         // rtl-gen/src/merge/fetcher/visit.rs:78
+    wire visit_above_level;                  // rtl-gen/src/merge/fetcher/visit.rs:79
+    wire visit_above_first;                  // rtl-gen/src/merge/fetcher/visit.rs:80
+    wire visit_above_first_not;              // rtl-gen/src/merge/fetcher/visit.rs:83
+    wire visit_sending_level;                // rtl-gen/src/merge/fetcher/visit.rs:83
+    wire visit_pn_pass;                      // rtl-gen/src/merge/fetcher/visit.rs:87
+    reg visit_pn_visited;                    // rtl-gen/src/merge/fetcher/visit.rs:90
+    wire visit_pass_in_valid;                // rtl-gen/src/merge/fetcher/visit.rs:102
+    wire [119:0] visit_pass_in_data;         // rtl-gen/src/merge/fetcher/visit.rs:102
+    wire visit_pass_in_ready;                // rtl-gen/src/merge/fetcher/visit.rs:102
+    reg visit_leaves_end_sent;               // rtl-gen/src/merge/fetcher/visit.rs:109
+    wire visit_leaves_end_sent_not;          // rtl-gen/src/merge/fetcher/visit.rs:110
+    wire visit_leaves_end_due;               // rtl-gen/src/merge/fetcher/visit.rs:110
+    wire visit_room;                         // rtl-gen/src/merge/fetcher/visit.rs:112
+    reg [4:0] visit_end_next;                // rtl-gen/src/merge/fetcher/visit.rs:120
+    reg visit_final_sent;                    // rtl-gen/src/merge/fetcher/visit.rs:121
+    wire visit_pre_ends;                     // rtl-gen/src/merge/fetcher/visit.rs:122
+    wire visit_ends_drain;                   // rtl-gen/src/merge/fetcher/visit.rs:123
+    wire visit_end_emit;                     // rtl-gen/src/merge/fetcher/visit.rs:124
+    wire visit_end_final;                    // rtl-gen/src/merge/fetcher/visit.rs:125
+    wire visit_end_fire;                     // rtl-gen/src/merge/fetcher/visit.rs:126
+    wire at_top_and;                         // rtl-gen/src/merge/fetcher/visit.rs:127
+    wire at_top_and_1;                       // rtl-gen/src/merge/fetcher/visit.rs:128
+    wire at_top_and_2;                       // rtl-gen/src/merge/fetcher/visit.rs:128
+    wire at_top_and_3;                       // rtl-gen/src/merge/fetcher/visit.rs:129
+    wire at_top_not;                         // rtl-gen/src/merge/fetcher/visit.rs:130
+    reg visit_capacity_told;                 // rtl-gen/src/merge/fetcher/visit.rs:134
+    wire at_top_and_4;                       // rtl-gen/src/merge/fetcher/visit.rs:136
+    wire visit_sorter_dropped;               // rtl-gen/src/merge/fetcher/visit.rs:136
+    wire ref_stage_node_ctx_out_data_or;     // rtl-gen/src/merge/fetcher/visit.rs:142
+    wire visit_avail;                        // rtl-gen/src/merge/fetcher/visit.rs:138
+    wire visit_free;                         // rtl-gen/src/merge/fetcher/visit.rs:145
+    wire visit_go;                           // rtl-gen/src/merge/fetcher/visit.rs:149
+    wire visit_sorter_dropped_not;           // rtl-gen/src/merge/fetcher/visit.rs:151
+    wire visit_live_and;                     // rtl-gen/src/merge/fetcher/visit.rs:154
+    wire visit_item_err;                     // rtl-gen/src/merge/fetcher/visit.rs:160
+    wire visit_item_end;                     // rtl-gen/src/merge/fetcher/visit.rs:162
+    wire visit_item_node;                    // rtl-gen/src/merge/fetcher/visit.rs:164
+    wire [23:0] ref_stage_node_ctx_out_data_node; // rtl-gen/src/merge/fetcher/visit.rs:173
+    wire [149:0] visit_item_rec;             // rtl-gen/src/merge/fetcher/visit.rs:175
+    wire [27:0] visit_item_ref;              // rtl-gen/src/merge/fetcher/visit.rs:176
+    wire [23:0] visit_item_ref_node;         // rtl-gen/src/merge/fetcher/visit.rs:177
+    wire visit_item_leaf;                    // rtl-gen/src/merge/fetcher/visit.rs:247
+    wire visit_item_leaf_not;                // rtl-gen/src/merge/fetcher/visit.rs:248
+    wire [47:0] visit_item_rec_x_morton;     // rtl-gen/src/merge/network.rs:41
+    wire [48:0] visit_item_key;              // rtl-gen/src/merge/fetcher/visit.rs:250
+    wire [23:0] visit_item_rec_first;        // rtl-gen/src/merge/fetcher/visit.rs:252
+    wire [23:0] visit_item_rec_count;        // rtl-gen/src/merge/fetcher/visit.rs:253
+    wire [24:0] visit_item_range_end;        // rtl-gen/src/merge/fetcher/visit.rs:256
+    wire visit_at_level;                     // rtl-gen/src/merge/fetcher/visit.rs:258
+    wire visit_order_bad;                    // rtl-gen/src/merge/fetcher/visit.rs:259
+    wire visit_range_bad;                    // rtl-gen/src/merge/fetcher/visit.rs:267
+    wire visit_frontier_bad;                 // rtl-gen/src/merge/fetcher/visit.rs:268
+    wire [3:0] visit_item_end_mux;           // rtl-gen/src/merge/fetcher/visit.rs:270
+    wire [3:0] visit_code;                   // rtl-gen/src/merge/fetcher/visit.rs:270
+    wire visit_fails;                        // rtl-gen/src/merge/fetcher/visit.rs:282
+    wire visit_go_and;                       // rtl-gen/src/merge/fetcher/visit.rs:283
+    wire visit_passes;                       // rtl-gen/src/merge/fetcher/visit.rs:283
+    wire visit_frontier_push;                // rtl-gen/src/merge/fetcher/visit.rs:284
+    wire visit_errored_not;                  // rtl-gen/src/merge/fetcher/visit.rs:286
+    wire visit_leaf_out;                     // rtl-gen/src/merge/fetcher/visit.rs:286
+    wire visit_to_out;                       // rtl-gen/src/merge/fetcher/visit.rs:287
+    wire visit_next_level;                   // rtl-gen/src/merge/fetcher/visit.rs:288
+    wire visit_level_end;                    // rtl-gen/src/merge/fetcher/visit.rs:289
+    wire visit_walk_ran_out;                 // rtl-gen/src/merge/fetcher/visit.rs:295
+    wire visit_pn_pass_end;                  // rtl-gen/src/merge/fetcher/visit.rs:296
+    wire visit_walk_over;                    // rtl-gen/src/merge/fetcher/visit.rs:297
+    wire visit_marker_push;                  // rtl-gen/src/merge/fetcher/visit.rs:304
+    wire visit_pass_push;                    // rtl-gen/src/merge/fetcher/visit.rs:306
+    reg [7:0] visit_pass_head;               // rtl-gen/src/merge/fetcher/visit.rs:314
+    reg [7:0] visit_pass_tail;               // rtl-gen/src/merge/fetcher/visit.rs:314
+    reg [8:0] visit_pass_count;              // rtl-gen/src/merge/fetcher/visit.rs:314
+    wire visit_pass_out_valid;               // rtl-gen/src/merge/fetcher/visit.rs:314
+    wire [119:0] visit_pass_out_data;        // rtl-gen/src/merge/fetcher/visit.rs:314
+    wire visit_pass_out_ready;               // rtl-gen/src/merge/fetcher/visit.rs:314
+    wire visit_pass_count_ne;                // rtl-gen/src/merge/fetcher/visit.rs:314
+    wire visit_pass_in_valid_and;            // rtl-gen/src/merge/fetcher/visit.rs:314
+    wire visit_pass_out_valid_and;           // rtl-gen/src/merge/fetcher/visit.rs:314
+    wire visit_marker_push_or;               // rtl-gen/src/merge/fetcher/visit.rs:317
+    wire visit_level_end_push;               // rtl-gen/src/merge/fetcher/visit.rs:320
+    reg join_end_left;                       // rtl-gen/src/merge/fetcher/visit.rs:417
+    wire [47:0] join_report_key;             // rtl-gen/src/merge/network.rs:41
+    wire report_data_pass_end;               // rtl-gen/src/merge/fetcher/visit.rs:418
+    wire report_data_more;                   // rtl-gen/src/merge/fetcher/visit.rs:418
+    wire report_data_descend;                // rtl-gen/src/merge/fetcher/visit.rs:418
+    wire [4:0] report_data_lod;              // rtl-gen/src/merge/fetcher/visit.rs:418
+    wire report_data_descend_and;            // rtl-gen/src/merge/fetcher/visit.rs:423
+    wire [47:0] visit_pass_out_data_key;     // rtl-gen/src/merge/fetcher/visit.rs:424
+    wire [23:0] visit_pass_out_data_first;   // rtl-gen/src/merge/fetcher/visit.rs:425
+    wire [23:0] visit_pass_out_data_count;   // rtl-gen/src/merge/fetcher/visit.rs:426
+    wire [23:0] visit_pass_out_data_node;    // rtl-gen/src/merge/fetcher/visit.rs:427
+    wire join_valid;                         // rtl-gen/src/merge/fetcher/visit.rs:428
+    wire join_decision;                      // rtl-gen/src/merge/fetcher/visit.rs:429
+    wire join_entry_before;                  // rtl-gen/src/merge/fetcher/visit.rs:430
+    wire join_entry_at;                      // rtl-gen/src/merge/fetcher/visit.rs:431
+    wire join_valid_and;                     // rtl-gen/src/merge/fetcher/visit.rs:432
+    wire join_entry_stays;                   // rtl-gen/src/merge/fetcher/visit.rs:432
+    wire join_match;                         // rtl-gen/src/merge/fetcher/visit.rs:433
+    wire join_descend;                       // rtl-gen/src/merge/fetcher/visit.rs:434
+    wire join_visit_past;                    // rtl-gen/src/merge/fetcher/visit.rs:440
+    wire visit_pass_out_valid_not;           // rtl-gen/src/merge/fetcher/visit.rs:441
+    wire visit_pass_out_valid_or;            // rtl-gen/src/merge/fetcher/visit.rs:441
+    wire join_other_voxel;                   // rtl-gen/src/merge/fetcher/visit.rs:441
+    wire report_data_more_not;               // rtl-gen/src/merge/fetcher/visit.rs:443
+    wire join_pass_end;                      // rtl-gen/src/merge/fetcher/visit.rs:443
+    wire join_marker;                        // rtl-gen/src/merge/fetcher/visit.rs:445
+    wire [4:0] visit_item_rec_lod;           // rtl-gen/src/merge/fetcher/visit.rs:485
+    wire visit_walk_ran_out_and;             // rtl-gen/src/merge/fetcher/visit.rs:495
+    wire visit_leaves_end_fire;              // rtl-gen/src/merge/fetcher/visit.rs:495
+    wire [1:0] visit_fails_mux_1;            // rtl-gen/src/merge/fetcher/visit.rs:523
+    wire [27:0] visit_fails_mux_2;           // rtl-gen/src/merge/fetcher/visit.rs:532
+    wire visit_out_items_out_data_eq;        // rtl-gen/src/merge/fetcher/order.rs:175
+    wire visit_out_items_out_data_leaf;      // rtl-gen/src/merge/fetcher/order.rs:176
+    wire [15:0] visit_out_items_out_data_z;  // rtl-gen/src/merge/fetcher/order.rs:178
+    wire [15:0] visit_out_items_out_data_y;  // rtl-gen/src/merge/fetcher/order.rs:179
+    wire [15:0] visit_out_items_out_data_x;  // rtl-gen/src/merge/fetcher/order.rs:180
+    wire [47:0] visit_out_items_out_data_z_cat; // rtl-gen/src/merge/fetcher/order.rs:177
+    wire [23:0] visit_out_items_out_data_first; // rtl-gen/src/merge/fetcher/order.rs:182
+    wire [23:0] visit_out_items_out_data_count; // rtl-gen/src/merge/fetcher/order.rs:184
+    wire [24:0] visit_out_items_out_data_first_add; // rtl-gen/src/merge/fetcher/order.rs:183
+    reg order_pend_valid;                    // rtl-gen/src/merge/fetcher/order.rs:40
+    reg [23:0] order_pend_first;             // rtl-gen/src/merge/fetcher/order.rs:41
+    reg [24:0] order_pend_end;               // rtl-gen/src/merge/fetcher/order.rs:42
+    reg [47:0] order_pend_voxel;             // rtl-gen/src/merge/fetcher/order.rs:43
+    reg [23:0] order_pend_node;              // rtl-gen/src/merge/fetcher/order.rs:44
+    reg order_cref_active;                   // rtl-gen/src/merge/fetcher/order.rs:45
+    reg [23:0] order_cref_idx;               // rtl-gen/src/merge/fetcher/order.rs:46
+    reg [24:0] order_cref_end;               // rtl-gen/src/merge/fetcher/order.rs:47
+    reg [23:0] order_cref_parent;            // rtl-gen/src/merge/fetcher/order.rs:48
+    wire order_tokens_in_valid;              // rtl-gen/src/merge/fetcher/order.rs:50
+    wire [186:0] order_tokens_in_data;       // rtl-gen/src/merge/fetcher/order.rs:50
+    wire order_tokens_in_ready;              // rtl-gen/src/merge/fetcher/order.rs:50
+    reg [1:0] order_tokens_head;             // rtl-gen/src/merge/fetcher/order.rs:51
+    reg [1:0] order_tokens_tail;             // rtl-gen/src/merge/fetcher/order.rs:51
+    reg [2:0] order_tokens_count;            // rtl-gen/src/merge/fetcher/order.rs:51
+    wire order_tokens_out_valid;             // rtl-gen/src/merge/fetcher/order.rs:51
+    wire [186:0] order_tokens_out_data;      // rtl-gen/src/merge/fetcher/order.rs:51
+    wire order_tokens_out_ready;             // rtl-gen/src/merge/fetcher/order.rs:51
+    wire order_tokens_count_ne;              // rtl-gen/src/merge/fetcher/order.rs:51
+    wire order_tokens_in_valid_and;          // rtl-gen/src/merge/fetcher/order.rs:51
+    wire order_tokens_out_valid_and;         // rtl-gen/src/merge/fetcher/order.rs:51
+    wire walking_and_3;                      // rtl-gen/src/merge/fetcher/order.rs:52
+    wire order_room;                         // rtl-gen/src/merge/fetcher/order.rs:52
+    wire order_leaf_of_held;                 // rtl-gen/src/merge/fetcher/order.rs:53
+    wire order_cref_next;                    // rtl-gen/src/merge/fetcher/order.rs:54
+    wire order_cref_active_not;              // rtl-gen/src/merge/fetcher/order.rs:55
+    wire order_room_and;                     // rtl-gen/src/merge/fetcher/order.rs:55
+    wire order_held_leaf;                    // rtl-gen/src/merge/fetcher/order.rs:55
+    wire order_leaf_of_held_not;             // rtl-gen/src/merge/fetcher/order.rs:57
+    wire order_held_refs_first;              // rtl-gen/src/merge/fetcher/order.rs:57
+    wire visit_out_items_out_data_leaf_not;  // rtl-gen/src/merge/fetcher/order.rs:58
+    wire order_item_pass_inner;              // rtl-gen/src/merge/fetcher/order.rs:58
+    reg order_probe_active;                  // rtl-gen/src/merge/fetcher/order.rs:60
+    reg order_probes_sent;                   // rtl-gen/src/merge/fetcher/order.rs:61
+    wire order_probe_active_not;             // rtl-gen/src/merge/fetcher/order.rs:63
+    wire order_pend_valid_not;               // rtl-gen/src/merge/fetcher/order.rs:63
+    wire order_probe_first_ok;               // rtl-gen/src/merge/fetcher/order.rs:63
+    reg [23:0] order_probe_idx;              // rtl-gen/src/merge/fetcher/order.rs:67
+    reg [24:0] order_probe_end;              // rtl-gen/src/merge/fetcher/order.rs:68
+    reg [23:0] order_probe_parent;           // rtl-gen/src/merge/fetcher/order.rs:69
+    reg [4:0] order_probe_lod;               // rtl-gen/src/merge/fetcher/order.rs:70
+    wire order_probe_first;                  // rtl-gen/src/merge/fetcher/order.rs:72
+    wire order_probe_next;                   // rtl-gen/src/merge/fetcher/order.rs:73
+    wire order_item_out;                     // rtl-gen/src/merge/fetcher/order.rs:78
+    wire [23:0] order_probe_idx_add;         // rtl-gen/src/merge/fetcher/order.rs:230
+    wire order_probe_idx_eq;                 // rtl-gen/src/merge/fetcher/order.rs:231
+    wire [23:0] visit_out_items_out_data_node; // rtl-gen/src/merge/fetcher/order.rs:246
+    wire [23:0] order_probe_parent_next;     // rtl-gen/src/merge/fetcher/order.rs:246
+    wire [4:0] visit_out_items_out_data_lod; // rtl-gen/src/merge/fetcher/order.rs:248
+    wire [4:0] order_probe_lod_next;         // rtl-gen/src/merge/fetcher/order.rs:248
+    wire [23:0] order_cref_idx_add;          // rtl-gen/src/merge/fetcher/order.rs:107
+    wire [23:0] order_pend_first_add;        // rtl-gen/src/merge/fetcher/order.rs:108
+    wire order_held_leaf_or;                 // rtl-gen/src/merge/fetcher/order.rs:122
+    wire order_hold_refs;                    // rtl-gen/src/merge/fetcher/order.rs:125
+    wire [184:0] const_cat;                  // rtl-gen/src/merge/fetcher/parts.rs:160
+    wire [186:0] visit_out_items_out_data_mux; // rtl-gen/src/merge/fetcher/order.rs:307
+    wire [186:0] visit_out_items_out_data_mux_1; // rtl-gen/src/merge/fetcher/order.rs:307
+    wire out_token_cref;                     // rtl-gen/src/merge/fetcher/out.rs:145
+    wire out_token_probe;                    // rtl-gen/src/merge/fetcher/out.rs:146
+    wire [23:0] cref_resp_data_node;         // rtl-gen/src/merge/fetcher/out.rs:148
+    wire [3:0] cref_resp_data_hier;          // rtl-gen/src/merge/fetcher/out.rs:149
+    wire [3:0] out_cref_code;                // rtl-gen/src/merge/fetcher/parts.rs:126
+    wire out_cref_code_eq;                   // rtl-gen/src/merge/fetcher/out.rs:151
+    wire out_probe_req_core_valid;           // rtl-gen/src/merge/fetcher/out.rs:152
+    wire [23:0] out_probe_req_core_data;     // rtl-gen/src/merge/fetcher/out.rs:152
+    wire out_probe_req_core_ready;           // rtl-gen/src/merge/fetcher/out.rs:152
+    wire out_probes_in_valid;                // rtl-gen/src/merge/fetcher/out.rs:154
+    wire [186:0] out_probes_in_data;         // rtl-gen/src/merge/fetcher/out.rs:154
+    wire out_probes_in_ready;                // rtl-gen/src/merge/fetcher/out.rs:154
+    reg [2:0] out_probes_head;               // rtl-gen/src/merge/fetcher/out.rs:155
+    reg [2:0] out_probes_tail;               // rtl-gen/src/merge/fetcher/out.rs:155
+    reg [3:0] out_probes_count;              // rtl-gen/src/merge/fetcher/out.rs:155
+    wire out_probes_out_valid;               // rtl-gen/src/merge/fetcher/out.rs:155
+    wire [186:0] out_probes_out_data;        // rtl-gen/src/merge/fetcher/out.rs:155
+    wire out_probes_out_ready;               // rtl-gen/src/merge/fetcher/out.rs:155
+    wire out_probes_count_ne;                // rtl-gen/src/merge/fetcher/out.rs:155
+    wire out_probes_in_valid_and;            // rtl-gen/src/merge/fetcher/out.rs:155
+    wire out_probes_out_valid_and;           // rtl-gen/src/merge/fetcher/out.rs:155
+    wire out_token_answered;                 // rtl-gen/src/merge/fetcher/out.rs:156
+    wire out_answer_room;                    // rtl-gen/src/merge/fetcher/out.rs:157
+    wire walking_and_4;                      // rtl-gen/src/merge/fetcher/out.rs:158
+    wire out_token_fire;                     // rtl-gen/src/merge/fetcher/out.rs:158
+    wire [186:0] out_token_probe_mux;        // rtl-gen/src/merge/fetcher/out.rs:193
+    wire [186:0] out_cref_code_mux;          // rtl-gen/src/merge/fetcher/out.rs:192
+    wire out_token_probe_wait;               // rtl-gen/src/merge/fetcher/out.rs:203
+    wire [4:0] probe_resp_data_lod;          // rtl-gen/src/merge/fetcher/parts.rs:64
     wire [15:0] probe_resp_data_x;           // rtl-gen/src/merge/fields.rs:24
     wire [15:0] probe_resp_data_y;           // rtl-gen/src/merge/fields.rs:24
     wire [15:0] probe_resp_data_z;           // rtl-gen/src/merge/fields.rs:24
-    wire probe_resp_data_x_or;               // rtl-gen/src/merge/fetcher/parts.rs:111
-    wire [7:0] probe_resp_data_lo_x;         // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire [7:0] probe_resp_data_hi_x;         // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire [7:0] probe_resp_data_lo_y;         // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire [7:0] probe_resp_data_hi_y;         // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire [7:0] probe_resp_data_lo_z;         // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire [7:0] probe_resp_data_hi_z;         // rtl-gen/src/merge/fetcher/parts.rs:117
-    wire probe_resp_data_x_or_1;             // rtl-gen/src/merge/fetcher/parts.rs:118
-    wire [23:0] probe_resp_data_count;       // rtl-gen/src/merge/fetcher/parts.rs:121
-    wire [4:0] probe_resp_data_lod_sub;      // rtl-gen/src/merge/fetcher/parts.rs:123
-    wire [33:0] probe_resp_data_x_add;       // rtl-gen/src/merge/fetcher/parts.rs:129
-    wire [33:0] probe_resp_data_y_add;       // rtl-gen/src/merge/fetcher/parts.rs:129
-    wire [33:0] probe_resp_data_z_add;       // rtl-gen/src/merge/fetcher/parts.rs:129
-    wire [3:0] probe_resp_data_y_mux;        // rtl-gen/src/merge/fetcher/parts.rs:142
-    wire [3:0] probe_resp_data_lod_mux;      // rtl-gen/src/merge/fetcher/parts.rs:138
-    wire [3:0] probe_code;                   // rtl-gen/src/merge/fetcher/out.rs:220
-    wire [27:0] cfg_hier_cat;                // rtl-gen/src/merge/fetcher/parts.rs:164
-    wire [184:0] const_cat_1;                // rtl-gen/src/merge/fetcher/out.rs:223
-    wire probe_answered;                     // rtl-gen/src/merge/fetcher/out.rs:241
-    reg out_skip_end;                        // rtl-gen/src/merge/fetcher/out.rs:242
-    wire out_probes_out_data_eq;             // rtl-gen/src/merge/fetcher/out.rs:243
-    wire [1:0] out_probes_out_data_kind;     // rtl-gen/src/merge/fetcher/out.rs:244
-    wire token_end;                          // rtl-gen/src/merge/fetcher/out.rs:243
-    wire out_errored_not;                    // rtl-gen/src/merge/fetcher/out.rs:246
-    wire token_sent;                         // rtl-gen/src/merge/fetcher/out.rs:246
-    wire walking_and_5;                      // rtl-gen/src/merge/fetcher/out.rs:247
-    wire walking_and_6;                      // rtl-gen/src/merge/fetcher/out.rs:247
-    wire token_sent_or;                      // rtl-gen/src/merge/fetcher/out.rs:247
-    wire send_fire;                          // rtl-gen/src/merge/fetcher/out.rs:247
-    wire out_first_error;                    // rtl-gen/src/merge/fetcher/out.rs:256
-    wire pass_end_left;                      // rtl-gen/src/merge/fetcher/out.rs:271
+    wire probe_resp_data_x_or;               // rtl-gen/src/merge/fetcher/parts.rs:69
+    wire [7:0] probe_resp_data_lo_x;         // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire [7:0] probe_resp_data_hi_x;         // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire [7:0] probe_resp_data_lo_y;         // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire [7:0] probe_resp_data_hi_y;         // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire [7:0] probe_resp_data_lo_z;         // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire [7:0] probe_resp_data_hi_z;         // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire probe_resp_data_x_or_1;             // rtl-gen/src/merge/fetcher/parts.rs:76
+    wire [23:0] probe_resp_data_count;       // rtl-gen/src/merge/fetcher/parts.rs:79
+    wire [4:0] probe_resp_data_lod_sub;      // rtl-gen/src/merge/fetcher/parts.rs:81
+    wire [33:0] probe_resp_data_x_add;       // rtl-gen/src/merge/fetcher/parts.rs:87
+    wire [33:0] probe_resp_data_y_add;       // rtl-gen/src/merge/fetcher/parts.rs:87
+    wire [33:0] probe_resp_data_z_add;       // rtl-gen/src/merge/fetcher/parts.rs:87
+    wire [3:0] probe_resp_data_y_mux;        // rtl-gen/src/merge/fetcher/parts.rs:92
+    wire [3:0] probe_resp_data_lod_mux;      // rtl-gen/src/merge/fetcher/parts.rs:92
+    wire [3:0] out_probe_code;               // rtl-gen/src/merge/fetcher/out.rs:209
+    wire [27:0] cfg_hier_cat;                // rtl-gen/src/merge/fetcher/parts.rs:137
+    wire [184:0] const_cat_1;                // rtl-gen/src/merge/fetcher/out.rs:212
+    wire out_probe_answered;                 // rtl-gen/src/merge/fetcher/out.rs:230
+    reg out_skip_end;                        // rtl-gen/src/merge/fetcher/out.rs:231
+    wire out_probes_out_data_eq;             // rtl-gen/src/merge/fetcher/out.rs:232
+    wire [1:0] out_probes_out_data_kind;     // rtl-gen/src/merge/fetcher/out.rs:233
+    wire out_token_end;                      // rtl-gen/src/merge/fetcher/out.rs:232
+    wire out_errored_not;                    // rtl-gen/src/merge/fetcher/out.rs:235
+    wire out_token_sent;                     // rtl-gen/src/merge/fetcher/out.rs:235
+    wire walking_and_5;                      // rtl-gen/src/merge/fetcher/out.rs:236
+    wire walking_and_6;                      // rtl-gen/src/merge/fetcher/out.rs:236
+    wire out_token_sent_or;                  // rtl-gen/src/merge/fetcher/out.rs:236
+    wire out_send_fire;                      // rtl-gen/src/merge/fetcher/out.rs:236
+    wire out_first_error;                    // rtl-gen/src/merge/fetcher/out.rs:245
+    wire out_pass_end_left;                  // rtl-gen/src/merge/fetcher/out.rs:260
     wire phase_eq_2;                         // rtl-gen/src/merge/fetcher/command.rs:45
     reg node_req_q_valid;                    // rtl-gen/src/merge/fetcher/mod.rs:245
     reg [23:0] node_req_q_data;              // rtl-gen/src/merge/fetcher/mod.rs:245
@@ -562,24 +562,24 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     assign walking = phase == WALK;
     assign phase_eq = phase == START;
     assign phase_eq_1 = phase == ROOTS;
-    assign node_req_core_valid = root_req_valid | walk_node_req;
-    assign node_req_core_data = phase_eq_1 ? roots_issued : resp_ref_node;
+    assign node_req_core_valid = root_req_valid | ref_stage_node_req;
+    assign node_req_core_data = phase_eq_1 ? roots_issued : ref_stage_resp_node;
     assign node_req_core_ready = node_req_q_room;
-    assign ref_req_core_valid = (walking & range_valid) & ref_ctx_in_ready;
+    assign ref_req_core_valid = (walking & range_valid) & range_ref_ctx_in_ready;
     assign ref_req_core_data = range_idx;
     assign ref_req_core_ready = ref_req_q_room;
-    assign cref_req_core_valid = walking_and_3 & (((cref_active | (((cref_active_not & out_items_out_valid) & pend_valid) & leaf_of_held_not)) | probe_active) | probe_first_ok);
-    assign cref_req_core_data = probe_active ? probe_idx : (probe_first_ok ? out_items_out_data_first : (cref_active ? cref_idx : pend_first));
+    assign cref_req_core_valid = walking_and_3 & (((order_cref_active | (((order_cref_active_not & visit_out_items_out_valid) & order_pend_valid) & order_leaf_of_held_not)) | order_probe_active) | order_probe_first_ok);
+    assign cref_req_core_data = order_probe_active ? order_probe_idx : (order_probe_first_ok ? visit_out_items_out_data_first : (order_cref_active ? order_cref_idx : order_pend_first));
     assign cref_req_core_ready = cref_req_q_room;
-    assign out_core_valid = walking_and_6 & token_sent;
-    assign out_core_data = token_probe_wait ? ((probe_code == 4'd0) ? const_cat_1 : {1'b0, probe_code, 2'd3, cfg_hier_cat, 150'h00000000000000000000000000000000000000}) : out_probes_out_data[184:0];
+    assign out_core_valid = walking_and_6 & out_token_sent;
+    assign out_core_data = out_token_probe_wait ? ((out_probe_code == 4'd0) ? const_cat_1 : {1'b0, out_probe_code, 2'd3, cfg_hier_cat, 150'h00000000000000000000000000000000000000}) : out_probes_out_data[184:0];
     assign out_core_ready = out_q_room;
-    assign leaves_core_valid = (leaf_out | walk_ran_out_and) | leaves_end_due;
-    assign leaves_core_data = leaf_out ? {1'b0, item_rec_lod, item_ref, item_rec} : {1'b1, 183'h0000000000000000000000000000000000000000000000};
+    assign leaves_core_valid = (visit_leaf_out | visit_walk_ran_out_and) | visit_leaves_end_due;
+    assign leaves_core_data = visit_leaf_out ? {1'b0, visit_item_rec_lod, visit_item_ref, visit_item_rec} : {1'b1, 183'h0000000000000000000000000000000000000000000000};
     assign leaves_core_ready = leaves_q_room;
-    assign node_resp_ready = (root_outstanding & u_root_sorter_in_ready) | (((visit_live_and & node_ctx_out_valid) & node_ctx_out_data_eq) & visit_free);
-    assign ref_resp_ready = ref_wait;
-    assign cref_resp_ready = (walking_and_4 & token_cref) & answer_room;
+    assign node_resp_ready = (root_outstanding & u_root_sorter_in_ready) | (((visit_live_and & ref_stage_node_ctx_out_valid) & ref_stage_node_ctx_out_data_eq) & visit_free);
+    assign ref_resp_ready = ref_stage_wait;
+    assign cref_resp_ready = (walking_and_4 & out_token_cref) & out_answer_room;
     assign roots_bad = (cfg_roots == 24'd0) | (cfg_roots > cfg_nodes);
     assign roots_over = cfg_roots > 24'd16;
     assign header_code = (~entry_ok) ? 4'd1 : (roots_bad ? 4'd2 : (roots_over ? 4'd3 : 4'd0));
@@ -621,12 +621,12 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     assign root_fail_and = root_fail & first_err_valid_not;
     assign node_resp_data_leaf = node_resp_data[0];
     assign roots_all_taken_mux = roots_all_taken ? {2'd3, 178'h000000000000000000000000000000000000000000000} : {node_resp_data_leaf ? 2'd1 : 2'd0, {cfg_hier, roots_taken}, node_resp_data_cat};
-    assign frontier_in_valid = ((frontier_push | marker_push) | join_descend) | join_marker;
-    assign frontier_in_data = (join_descend | join_marker) ? {join_marker, pass_out_data_node, pass_out_data_count, pass_out_data_first} : {marker_push, item_ref_node, item_rec_count, item_rec_first};
+    assign frontier_in_valid = ((visit_frontier_push | visit_marker_push) | join_descend) | join_marker;
+    assign frontier_in_data = (join_descend | join_marker) ? {join_marker, visit_pass_out_data_node, visit_pass_out_data_count, visit_pass_out_data_first} : {visit_marker_push, visit_item_ref_node, visit_item_rec_count, visit_item_rec_first};
     assign frontier_in_ready = frontier_count != 11'd1024;
     assign frontier_out_valid = frontier_count_ne;
     assign frontier_out_data = frontier_count_ne ? frontier[frontier_head] : 73'h0000000000000000000;
-    assign frontier_out_ready = range_load | marker_pop;
+    assign frontier_out_ready = range_load | range_marker_pop;
     assign frontier_count_ne = frontier_count != 11'd0;
     assign frontier_in_valid_and = frontier_in_valid & frontier_in_ready;
     assign frontier_out_valid_and = frontier_out_valid & frontier_out_ready;
@@ -634,229 +634,229 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     assign frontier_out_data_first = frontier_out_data[23:0];
     assign frontier_out_data_count = frontier_out_data[47:24];
     assign frontier_out_data_parent = frontier_out_data[71:48];
-    assign ref_ctx_in_valid = ref_issue | marker_pop;
-    assign ref_ctx_in_data = {marker_pop, marker_pop ? 24'd0 : range_parent};
-    assign ref_ctx_in_ready = ref_ctx_count != 4'd8;
-    assign ref_ctx_out_valid = ref_ctx_count_ne;
-    assign ref_ctx_out_data = ref_ctx_count_ne ? ref_ctx[ref_ctx_head] : 25'd0;
-    assign ref_ctx_out_ready = ref_take_or;
-    assign ref_ctx_count_ne = ref_ctx_count != 4'd0;
-    assign ref_ctx_in_valid_and = ref_ctx_in_valid & ref_ctx_in_ready;
-    assign ref_ctx_out_valid_and = ref_ctx_out_valid & ref_ctx_out_ready;
-    assign ref_issue = ref_req_core_valid & ref_req_core_ready;
+    assign range_ref_ctx_in_valid = range_issue | range_marker_pop;
+    assign range_ref_ctx_in_data = {range_marker_pop, range_marker_pop ? 24'd0 : range_parent};
+    assign range_ref_ctx_in_ready = range_ref_ctx_count != 4'd8;
+    assign range_ref_ctx_out_valid = range_ref_ctx_count_ne;
+    assign range_ref_ctx_out_data = range_ref_ctx_count_ne ? range_ref_ctx[range_ref_ctx_head] : 25'd0;
+    assign range_ref_ctx_out_ready = ref_stage_take_or;
+    assign range_ref_ctx_count_ne = range_ref_ctx_count != 4'd0;
+    assign range_ref_ctx_in_valid_and = range_ref_ctx_in_valid & range_ref_ctx_in_ready;
+    assign range_ref_ctx_out_valid_and = range_ref_ctx_out_valid & range_ref_ctx_out_ready;
+    assign range_issue = ref_req_core_valid & ref_req_core_ready;
     assign range_idx_add = range_idx + 24'd1;
     assign walking_and = walking & frontier_out_valid;
     assign range_valid_not = ~range_valid;
-    assign ref_issue_and = ref_issue & ({1'b0, range_idx_add} == range_end);
-    assign range_load = (walking_and & (~frontier_out_data_marker)) & (range_valid_not | ref_issue_and);
-    assign marker_pop = ((walking_and & frontier_out_data_marker) & range_valid_not) & ref_ctx_in_ready;
-    assign node_ctx_in_valid = ref_take_or;
-    assign node_ctx_in_data = ref_stage_end ? {2'd2, 4'd0, 28'd0} : (ref_code_eq ? {2'd0, 4'd0, ref_resp_data} : {2'd1, ref_code, {cfg_hier, ref_ctx_out_data[23:0]}});
-    assign node_ctx_in_ready = node_ctx_count != 4'd8;
-    assign node_ctx_out_valid = node_ctx_count_ne;
-    assign node_ctx_out_data = node_ctx_count_ne ? node_ctx[node_ctx_head] : 34'd0;
-    assign node_ctx_out_ready = (visit_live_and & node_ctx_out_data_or) & visit_free;
-    assign node_ctx_count_ne = node_ctx_count != 4'd0;
-    assign node_ctx_in_valid_and = node_ctx_in_valid & node_ctx_in_ready;
-    assign node_ctx_out_valid_and = node_ctx_out_valid & node_ctx_out_ready;
-    assign resp_ref_node = ref_resp_data[23:0];
-    assign resp_ref_hier = ref_resp_data[27:24];
-    assign ref_code = (resp_ref_hier != cfg_hier) ? 4'd7 : ((resp_ref_node >= cfg_nodes) ? 4'd8 : 4'd0);
-    assign walking_and_1 = walking & ref_ctx_out_valid;
-    assign walking_and_2 = (walking_and_1 & (~ref_ctx_out_data[24])) & node_ctx_in_ready;
-    assign ref_wait = walking_and_2 & node_req_core_ready;
-    assign ref_take = ref_wait & ref_resp_valid;
-    assign ref_stage_end = (walking_and_1 & ref_ctx_out_data[24]) & node_ctx_in_ready;
-    assign ref_take_or = ref_take | ref_stage_end;
-    assign ref_code_eq = ref_code == 4'd0;
-    assign walk_node_req = (walking_and_2 & ref_resp_valid) & ref_code_eq;
-    assign node_ctx_out_data_eq = node_ctx_out_data[33:32] == 2'd0;
-    assign out_items_in_valid = (((to_out | (visit_fails & visit_errored_not)) | level_end_push) | end_emit) | pn_pass_end;
-    assign out_items_in_data = {visit_fails_mux_1, visit_code, visit_fails_mux_2, item_rec};
-    assign out_items_in_ready = out_items_count != 3'd4;
-    assign out_items_out_valid = out_items_count_ne;
-    assign out_items_out_data = out_items_count_ne ? out_items[out_items_head] : 184'h0000000000000000000000000000000000000000000000;
-    assign out_items_out_ready = held_leaf | item_out;
-    assign out_items_count_ne = out_items_count != 3'd0;
-    assign out_items_in_valid_and = out_items_in_valid & out_items_in_ready;
-    assign out_items_out_valid_and = out_items_out_valid & out_items_out_ready;
+    assign range_issue_and = range_issue & ({1'b0, range_idx_add} == range_end);
+    assign range_load = (walking_and & (~frontier_out_data_marker)) & (range_valid_not | range_issue_and);
+    assign range_marker_pop = ((walking_and & frontier_out_data_marker) & range_valid_not) & range_ref_ctx_in_ready;
+    assign ref_stage_node_ctx_in_valid = ref_stage_take_or;
+    assign ref_stage_node_ctx_in_data = ref_stage_end ? {2'd2, 4'd0, 28'd0} : (ref_stage_code_eq ? {2'd0, 4'd0, ref_resp_data} : {2'd1, ref_stage_code, {cfg_hier, range_ref_ctx_out_data[23:0]}});
+    assign ref_stage_node_ctx_in_ready = ref_stage_node_ctx_count != 4'd8;
+    assign ref_stage_node_ctx_out_valid = ref_stage_node_ctx_count_ne;
+    assign ref_stage_node_ctx_out_data = ref_stage_node_ctx_count_ne ? ref_stage_node_ctx[ref_stage_node_ctx_head] : 34'd0;
+    assign ref_stage_node_ctx_out_ready = (visit_live_and & ref_stage_node_ctx_out_data_or) & visit_free;
+    assign ref_stage_node_ctx_count_ne = ref_stage_node_ctx_count != 4'd0;
+    assign ref_stage_node_ctx_in_valid_and = ref_stage_node_ctx_in_valid & ref_stage_node_ctx_in_ready;
+    assign ref_stage_node_ctx_out_valid_and = ref_stage_node_ctx_out_valid & ref_stage_node_ctx_out_ready;
+    assign ref_stage_resp_node = ref_resp_data[23:0];
+    assign ref_stage_resp_hier = ref_resp_data[27:24];
+    assign ref_stage_code = (ref_stage_resp_hier != cfg_hier) ? 4'd7 : ((ref_stage_resp_node >= cfg_nodes) ? 4'd8 : 4'd0);
+    assign walking_and_1 = walking & range_ref_ctx_out_valid;
+    assign walking_and_2 = (walking_and_1 & (~range_ref_ctx_out_data[24])) & ref_stage_node_ctx_in_ready;
+    assign ref_stage_wait = walking_and_2 & node_req_core_ready;
+    assign ref_stage_take = ref_stage_wait & ref_resp_valid;
+    assign ref_stage_end = (walking_and_1 & range_ref_ctx_out_data[24]) & ref_stage_node_ctx_in_ready;
+    assign ref_stage_take_or = ref_stage_take | ref_stage_end;
+    assign ref_stage_code_eq = ref_stage_code == 4'd0;
+    assign ref_stage_node_req = (walking_and_2 & ref_resp_valid) & ref_stage_code_eq;
+    assign ref_stage_node_ctx_out_data_eq = ref_stage_node_ctx_out_data[33:32] == 2'd0;
+    assign visit_out_items_in_valid = (((visit_to_out | (visit_fails & visit_errored_not)) | visit_level_end_push) | visit_end_emit) | visit_pn_pass_end;
+    assign visit_out_items_in_data = {visit_fails_mux_1, visit_code, visit_fails_mux_2, visit_item_rec};
+    assign visit_out_items_in_ready = visit_out_items_count != 3'd4;
+    assign visit_out_items_out_valid = visit_out_items_count_ne;
+    assign visit_out_items_out_data = visit_out_items_count_ne ? visit_out_items[visit_out_items_head] : 184'h0000000000000000000000000000000000000000000000;
+    assign visit_out_items_out_ready = order_held_leaf | order_item_out;
+    assign visit_out_items_count_ne = visit_out_items_count != 3'd0;
+    assign visit_out_items_in_valid_and = visit_out_items_in_valid & visit_out_items_in_ready;
+    assign visit_out_items_out_valid_and = visit_out_items_out_valid & visit_out_items_out_ready;
     assign visit_live = walking & (~walk_done);
-    assign above_level = level < cmd_lod;
-    assign above_first = level < cmd_first;
-    assign above_first_not = ~above_first;
-    assign sending_level = above_first_not & ((level <= cmd_lod) | cmd_per_node);
-    assign pn_pass = cmd_per_node & (~above_level);
-    assign pass_in_valid = pass_push;
-    assign pass_in_data = {item_ref_node, item_rec_count, item_rec_first, item_key[48:1]};
-    assign pass_in_ready = pass_count != 9'd256;
-    assign leaves_end_sent_not = ~leaves_end_sent;
-    assign leaves_end_due = ((visit_live & cmd_send_leaves) & leaves_end_sent_not) & above_first_not;
-    assign visit_room = (out_items_in_ready & frontier_in_ready) & (above_first ? leaves_core_ready : ((~cmd_send_leaves) | leaves_end_sent));
-    assign pre_ends = (visit_live & (end_next < cfg_top)) & (end_next < cmd_lod);
-    assign ends_drain = (walking & walk_done) & (~final_sent);
-    assign end_emit = pre_ends | ends_drain;
-    assign end_final = ends_drain & (end_next == cmd_lod);
-    assign end_fire = end_emit & out_items_in_ready;
+    assign visit_above_level = level < cmd_lod;
+    assign visit_above_first = level < cmd_first;
+    assign visit_above_first_not = ~visit_above_first;
+    assign visit_sending_level = visit_above_first_not & ((level <= cmd_lod) | cmd_per_node);
+    assign visit_pn_pass = cmd_per_node & (~visit_above_level);
+    assign visit_pass_in_valid = visit_pass_push;
+    assign visit_pass_in_data = {visit_item_ref_node, visit_item_rec_count, visit_item_rec_first, visit_item_key[48:1]};
+    assign visit_pass_in_ready = visit_pass_count != 9'd256;
+    assign visit_leaves_end_sent_not = ~visit_leaves_end_sent;
+    assign visit_leaves_end_due = ((visit_live & cmd_send_leaves) & visit_leaves_end_sent_not) & visit_above_first_not;
+    assign visit_room = (visit_out_items_in_ready & frontier_in_ready) & (visit_above_first ? leaves_core_ready : ((~cmd_send_leaves) | visit_leaves_end_sent));
+    assign visit_pre_ends = (visit_live & (visit_end_next < cfg_top)) & (visit_end_next < cmd_lod);
+    assign visit_ends_drain = (walking & walk_done) & (~visit_final_sent);
+    assign visit_end_emit = visit_pre_ends | visit_ends_drain;
+    assign visit_end_final = visit_ends_drain & (visit_end_next == cmd_lod);
+    assign visit_end_fire = visit_end_emit & visit_out_items_in_ready;
     assign at_top_and = at_top & first_err_valid;
     assign at_top_and_1 = at_top & first_err_valid_not;
     assign at_top_and_2 = at_top_and_1 & header_err;
     assign at_top_and_3 = at_top_and_1 & (~header_err);
     assign at_top_not = ~at_top;
     assign at_top_and_4 = at_top_and_3 & u_root_sorter_out_valid;
-    assign sorter_dropped = ((at_top_and_4 & sorted_end) & u_root_sorter_err) & (~capacity_told);
-    assign node_ctx_out_data_or = (~node_ctx_out_data_eq) | node_resp_valid;
-    assign visit_avail = visit_live & (((at_top_and | at_top_and_2) | at_top_and_4) | ((at_top_not & node_ctx_out_valid) & node_ctx_out_data_or));
-    assign visit_free = ((visit_room & (~pre_ends)) & (~pn_visited)) & pass_in_ready;
+    assign visit_sorter_dropped = ((at_top_and_4 & sorted_end) & u_root_sorter_err) & (~visit_capacity_told);
+    assign ref_stage_node_ctx_out_data_or = (~ref_stage_node_ctx_out_data_eq) | node_resp_valid;
+    assign visit_avail = visit_live & (((at_top_and | at_top_and_2) | at_top_and_4) | ((at_top_not & ref_stage_node_ctx_out_valid) & ref_stage_node_ctx_out_data_or));
+    assign visit_free = ((visit_room & (~visit_pre_ends)) & (~visit_pn_visited)) & visit_pass_in_ready;
     assign visit_go = visit_avail & visit_free;
-    assign sorter_dropped_not = ~sorter_dropped;
+    assign visit_sorter_dropped_not = ~visit_sorter_dropped;
     assign visit_live_and = visit_live & at_top_not;
-    assign item_err = (at_top_and | sorter_dropped) | (at_top_not & (node_ctx_out_data_eq ? node_code_ne : (node_ctx_out_data[33:32] == 2'd1)));
-    assign item_end = (at_top_and_2 | ((at_top_and_3 & sorted_end) & sorter_dropped_not)) | (at_top_not & (node_ctx_out_data[33:32] == 2'd2));
-    assign item_node = (~item_err) & (~item_end);
-    assign node_ctx_out_data_node = node_ctx_out_data[23:0];
-    assign item_rec = at_top ? sorted_rec : node_resp_data_cat;
-    assign item_ref = at_top ? u_root_sorter_ref : node_ctx_out_data[27:0];
-    assign item_ref_node = item_ref[23:0];
-    assign item_leaf = item_rec[0];
-    assign item_leaf_not = ~item_leaf;
-    assign item_rec_x_morton = {item_rec[53], item_rec[37], item_rec[21], item_rec[52], item_rec[36], item_rec[20], item_rec[51], item_rec[35], item_rec[19], item_rec[50], item_rec[34], item_rec[18], item_rec[49], item_rec[33], item_rec[17], item_rec[48], item_rec[32], item_rec[16], item_rec[47], item_rec[31], item_rec[15], item_rec[46], item_rec[30], item_rec[14], item_rec[45], item_rec[29], item_rec[13], item_rec[44], item_rec[28], item_rec[12], item_rec[43], item_rec[27], item_rec[11], item_rec[42], item_rec[26], item_rec[10], item_rec[41], item_rec[25], item_rec[9], item_rec[40], item_rec[24], item_rec[8], item_rec[39], item_rec[23], item_rec[7], item_rec[38], item_rec[22], item_rec[6]};
-    assign item_key = {item_rec_x_morton, item_leaf};
-    assign item_rec_first = item_rec[125:102];
-    assign item_rec_count = item_rec[149:126];
-    assign item_range_end = {1'b0, item_rec_first} + {1'b0, item_rec_count};
-    assign at_level = level == cmd_lod;
-    assign order_bad = prev_valid & (item_key <= prev_key);
-    assign range_bad = (item_leaf_not & ((above_level | (at_level & cmd_send_refs)) | pn_pass)) & (item_range_end > {1'b0, cfg_refs});
-    assign frontier_bad = (item_leaf_not & (above_level | pn_pass)) & (pushed >= 9'd256);
-    assign item_end_mux = item_end ? 4'd0 : (order_bad ? 4'd14 : (range_bad ? 4'd6 : (frontier_bad ? 4'd13 : 4'd0)));
-    assign visit_code = item_err ? (at_top_and ? first_err_code : (sorter_dropped ? 4'd3 : (node_ctx_out_data_eq ? node_code : node_ctx_out_data[31:28]))) : item_end_mux;
+    assign visit_item_err = (at_top_and | visit_sorter_dropped) | (at_top_not & (ref_stage_node_ctx_out_data_eq ? node_code_ne : (ref_stage_node_ctx_out_data[33:32] == 2'd1)));
+    assign visit_item_end = (at_top_and_2 | ((at_top_and_3 & sorted_end) & visit_sorter_dropped_not)) | (at_top_not & (ref_stage_node_ctx_out_data[33:32] == 2'd2));
+    assign visit_item_node = (~visit_item_err) & (~visit_item_end);
+    assign ref_stage_node_ctx_out_data_node = ref_stage_node_ctx_out_data[23:0];
+    assign visit_item_rec = at_top ? sorted_rec : node_resp_data_cat;
+    assign visit_item_ref = at_top ? u_root_sorter_ref : ref_stage_node_ctx_out_data[27:0];
+    assign visit_item_ref_node = visit_item_ref[23:0];
+    assign visit_item_leaf = visit_item_rec[0];
+    assign visit_item_leaf_not = ~visit_item_leaf;
+    assign visit_item_rec_x_morton = {visit_item_rec[53], visit_item_rec[37], visit_item_rec[21], visit_item_rec[52], visit_item_rec[36], visit_item_rec[20], visit_item_rec[51], visit_item_rec[35], visit_item_rec[19], visit_item_rec[50], visit_item_rec[34], visit_item_rec[18], visit_item_rec[49], visit_item_rec[33], visit_item_rec[17], visit_item_rec[48], visit_item_rec[32], visit_item_rec[16], visit_item_rec[47], visit_item_rec[31], visit_item_rec[15], visit_item_rec[46], visit_item_rec[30], visit_item_rec[14], visit_item_rec[45], visit_item_rec[29], visit_item_rec[13], visit_item_rec[44], visit_item_rec[28], visit_item_rec[12], visit_item_rec[43], visit_item_rec[27], visit_item_rec[11], visit_item_rec[42], visit_item_rec[26], visit_item_rec[10], visit_item_rec[41], visit_item_rec[25], visit_item_rec[9], visit_item_rec[40], visit_item_rec[24], visit_item_rec[8], visit_item_rec[39], visit_item_rec[23], visit_item_rec[7], visit_item_rec[38], visit_item_rec[22], visit_item_rec[6]};
+    assign visit_item_key = {visit_item_rec_x_morton, visit_item_leaf};
+    assign visit_item_rec_first = visit_item_rec[125:102];
+    assign visit_item_rec_count = visit_item_rec[149:126];
+    assign visit_item_range_end = {1'b0, visit_item_rec_first} + {1'b0, visit_item_rec_count};
+    assign visit_at_level = level == cmd_lod;
+    assign visit_order_bad = prev_valid & (visit_item_key <= prev_key);
+    assign visit_range_bad = (visit_item_leaf_not & ((visit_above_level | (visit_at_level & cmd_send_refs)) | visit_pn_pass)) & (visit_item_range_end > {1'b0, cfg_refs});
+    assign visit_frontier_bad = (visit_item_leaf_not & (visit_above_level | visit_pn_pass)) & (pushed >= 9'd256);
+    assign visit_item_end_mux = visit_item_end ? 4'd0 : (visit_order_bad ? 4'd14 : (visit_range_bad ? 4'd6 : (visit_frontier_bad ? 4'd13 : 4'd0)));
+    assign visit_code = visit_item_err ? (at_top_and ? first_err_code : (visit_sorter_dropped ? 4'd3 : (ref_stage_node_ctx_out_data_eq ? node_code : ref_stage_node_ctx_out_data[31:28]))) : visit_item_end_mux;
     assign visit_fails = visit_go & (visit_code != 4'd0);
-    assign visit_go_and = visit_go & item_node;
+    assign visit_go_and = visit_go & visit_item_node;
     assign visit_passes = visit_go_and & (visit_code == 4'd0);
-    assign frontier_push = (visit_passes & above_level) & item_leaf_not;
+    assign visit_frontier_push = (visit_passes & visit_above_level) & visit_item_leaf_not;
     assign visit_errored_not = ~visit_errored;
-    assign leaf_out = (((visit_passes & above_first) & item_leaf) & cmd_send_leaves) & visit_errored_not;
-    assign to_out = visit_passes & sending_level;
-    assign next_level = above_level & (pushed != 9'd0);
-    assign level_end = visit_go & item_end;
-    assign walk_ran_out = level_end & (~next_level);
-    assign pn_pass_end = walk_ran_out & cmd_per_node;
-    assign walk_over = walk_ran_out & (~cmd_per_node);
-    assign marker_push = level_end & next_level;
-    assign pass_push = (visit_passes & pn_pass) & item_leaf_not;
-    assign pass_out_valid = pass_count_ne;
-    assign pass_out_data = pass_count_ne ? pass[pass_head] : 120'h000000000000000000000000000000;
-    assign pass_out_ready = join_entry_stays | join_match;
-    assign pass_count_ne = pass_count != 9'd0;
-    assign pass_in_valid_and = pass_in_valid & pass_in_ready;
-    assign pass_out_valid_and = pass_out_valid & pass_out_ready;
-    assign marker_push_or = marker_push | pn_pass_end;
-    assign level_end_push = marker_push & (end_next == level);
+    assign visit_leaf_out = (((visit_passes & visit_above_first) & visit_item_leaf) & cmd_send_leaves) & visit_errored_not;
+    assign visit_to_out = visit_passes & visit_sending_level;
+    assign visit_next_level = visit_above_level & (pushed != 9'd0);
+    assign visit_level_end = visit_go & visit_item_end;
+    assign visit_walk_ran_out = visit_level_end & (~visit_next_level);
+    assign visit_pn_pass_end = visit_walk_ran_out & cmd_per_node;
+    assign visit_walk_over = visit_walk_ran_out & (~cmd_per_node);
+    assign visit_marker_push = visit_level_end & visit_next_level;
+    assign visit_pass_push = (visit_passes & visit_pn_pass) & visit_item_leaf_not;
+    assign visit_pass_out_valid = visit_pass_count_ne;
+    assign visit_pass_out_data = visit_pass_count_ne ? visit_pass[visit_pass_head] : 120'h000000000000000000000000000000;
+    assign visit_pass_out_ready = join_entry_stays | join_match;
+    assign visit_pass_count_ne = visit_pass_count != 9'd0;
+    assign visit_pass_in_valid_and = visit_pass_in_valid & visit_pass_in_ready;
+    assign visit_pass_out_valid_and = visit_pass_out_valid & visit_pass_out_ready;
+    assign visit_marker_push_or = visit_marker_push | visit_pn_pass_end;
+    assign visit_level_end_push = visit_marker_push & (visit_end_next == level);
     assign report_ready = (join_match | join_other_voxel) | join_pass_end;
-    assign report_key = {report_data[47], report_data[31], report_data[15], report_data[46], report_data[30], report_data[14], report_data[45], report_data[29], report_data[13], report_data[44], report_data[28], report_data[12], report_data[43], report_data[27], report_data[11], report_data[42], report_data[26], report_data[10], report_data[41], report_data[25], report_data[9], report_data[40], report_data[24], report_data[8], report_data[39], report_data[23], report_data[7], report_data[38], report_data[22], report_data[6], report_data[37], report_data[21], report_data[5], report_data[36], report_data[20], report_data[4], report_data[35], report_data[19], report_data[3], report_data[34], report_data[18], report_data[2], report_data[33], report_data[17], report_data[1], report_data[32], report_data[16], report_data[0]};
+    assign join_report_key = {report_data[47], report_data[31], report_data[15], report_data[46], report_data[30], report_data[14], report_data[45], report_data[29], report_data[13], report_data[44], report_data[28], report_data[12], report_data[43], report_data[27], report_data[11], report_data[42], report_data[26], report_data[10], report_data[41], report_data[25], report_data[9], report_data[40], report_data[24], report_data[8], report_data[39], report_data[23], report_data[7], report_data[38], report_data[22], report_data[6], report_data[37], report_data[21], report_data[5], report_data[36], report_data[20], report_data[4], report_data[35], report_data[19], report_data[3], report_data[34], report_data[18], report_data[2], report_data[33], report_data[17], report_data[1], report_data[32], report_data[16], report_data[0]};
     assign report_data_pass_end = report_data[54];
     assign report_data_more = report_data[55];
     assign report_data_descend = report_data[53];
     assign report_data_lod = report_data[52:48];
     assign report_data_descend_and = report_data_descend & (report_data_lod < 5'd16);
-    assign pass_out_data_key = pass_out_data[47:0];
-    assign pass_out_data_first = pass_out_data[71:48];
-    assign pass_out_data_count = pass_out_data[95:72];
-    assign pass_out_data_node = pass_out_data[119:96];
+    assign visit_pass_out_data_key = visit_pass_out_data[47:0];
+    assign visit_pass_out_data_first = visit_pass_out_data[71:48];
+    assign visit_pass_out_data_count = visit_pass_out_data[95:72];
+    assign visit_pass_out_data_node = visit_pass_out_data[119:96];
     assign join_valid = (walking & cmd_per_node) & report_valid;
     assign join_decision = join_valid & (~report_data_pass_end);
-    assign join_entry_before = pass_out_valid & (pass_out_data_key < report_key);
-    assign join_entry_at = pass_out_valid & (pass_out_data_key == report_key);
+    assign join_entry_before = visit_pass_out_valid & (visit_pass_out_data_key < join_report_key);
+    assign join_entry_at = visit_pass_out_valid & (visit_pass_out_data_key == join_report_key);
     assign join_valid_and = join_valid & report_data_pass_end;
-    assign join_entry_stays = (join_decision & join_entry_before) | (join_valid_and & pass_out_valid);
+    assign join_entry_stays = (join_decision & join_entry_before) | (join_valid_and & visit_pass_out_valid);
     assign join_match = (join_decision & join_entry_at) & ((~report_data_descend_and) | frontier_in_ready);
     assign join_descend = join_match & report_data_descend_and;
-    assign join_visit_past = (prev_valid & pn_pass) & (report_key <= prev_key[48:1]);
-    assign pass_out_valid_not = ~pass_out_valid;
-    assign pass_out_valid_or = (pass_out_valid_not & (pn_visited | join_visit_past)) | ((pass_out_valid & (~join_entry_before)) & (~join_entry_at));
-    assign join_other_voxel = join_decision & pass_out_valid_or;
+    assign join_visit_past = (prev_valid & visit_pn_pass) & (join_report_key <= prev_key[48:1]);
+    assign visit_pass_out_valid_not = ~visit_pass_out_valid;
+    assign visit_pass_out_valid_or = (visit_pass_out_valid_not & (visit_pn_visited | join_visit_past)) | ((visit_pass_out_valid & (~join_entry_before)) & (~join_entry_at));
+    assign join_other_voxel = join_decision & visit_pass_out_valid_or;
     assign report_data_more_not = ~report_data_more;
-    assign join_pass_end = (((join_valid_and & pass_out_valid_not) & pn_visited) & pn_end_left) & (report_data_more_not | frontier_in_ready);
+    assign join_pass_end = (((join_valid_and & visit_pass_out_valid_not) & visit_pn_visited) & join_end_left) & (report_data_more_not | frontier_in_ready);
     assign join_marker = join_pass_end & report_data_more;
-    assign item_rec_lod = item_rec[5:1];
-    assign walk_ran_out_and = ((walk_ran_out & leaves_end_sent_not) & above_first) & cmd_send_leaves;
-    assign leaves_end_fire = walk_ran_out_and | (leaves_end_due & leaves_core_ready);
-    assign visit_fails_mux_1 = visit_fails ? 2'd1 : (end_final ? 2'd2 : (((level_end_push | end_emit) | pn_pass_end) ? 2'd3 : 2'd0));
-    assign visit_fails_mux_2 = visit_fails ? {cfg_hier, item_err ? (at_top_and ? first_err_node : (sorter_dropped ? 24'd0 : node_ctx_out_data_node)) : item_ref_node} : item_ref;
-    assign out_items_out_data_eq = out_items_out_data[183:182] == 2'd0;
-    assign out_items_out_data_leaf = out_items_out_data[0];
-    assign out_items_out_data_z = out_items_out_data[53:38];
-    assign out_items_out_data_y = out_items_out_data[37:22];
-    assign out_items_out_data_x = out_items_out_data[21:6];
-    assign out_items_out_data_z_cat = {out_items_out_data_z, out_items_out_data_y, out_items_out_data_x};
-    assign out_items_out_data_first = out_items_out_data[125:102];
-    assign out_items_out_data_count = out_items_out_data[149:126];
-    assign out_items_out_data_first_add = {1'b0, out_items_out_data_first} + {1'b0, out_items_out_data_count};
-    assign out_tokens_in_valid = ((((cref_next | held_leaf) | held_refs_first) | item_out) | probe_first) | probe_next;
-    assign out_tokens_in_data = (probe_first | probe_next) ? {2'd2, 155'h000000000000000000000000000000000000000, probe_lod_next, 1'b1, probe_parent_next} : ((cref_next | held_refs_first) ? {2'd2, 161'h00000000000000000000000000000000000000000, cref_active ? cref_parent : pend_node} : out_items_out_data_mux_1);
-    assign out_tokens_in_ready = out_tokens_count != 3'd4;
-    assign out_tokens_out_valid = out_tokens_count_ne;
-    assign out_tokens_out_data = out_tokens_count_ne ? out_tokens[out_tokens_head] : 187'h00000000000000000000000000000000000000000000000;
-    assign out_tokens_out_ready = token_fire;
-    assign out_tokens_count_ne = out_tokens_count != 3'd0;
-    assign out_tokens_in_valid_and = out_tokens_in_valid & out_tokens_in_ready;
-    assign out_tokens_out_valid_and = out_tokens_out_valid & out_tokens_out_ready;
-    assign walking_and_3 = walking & out_tokens_in_ready;
+    assign visit_item_rec_lod = visit_item_rec[5:1];
+    assign visit_walk_ran_out_and = ((visit_walk_ran_out & visit_leaves_end_sent_not) & visit_above_first) & cmd_send_leaves;
+    assign visit_leaves_end_fire = visit_walk_ran_out_and | (visit_leaves_end_due & leaves_core_ready);
+    assign visit_fails_mux_1 = visit_fails ? 2'd1 : (visit_end_final ? 2'd2 : (((visit_level_end_push | visit_end_emit) | visit_pn_pass_end) ? 2'd3 : 2'd0));
+    assign visit_fails_mux_2 = visit_fails ? {cfg_hier, visit_item_err ? (at_top_and ? first_err_node : (visit_sorter_dropped ? 24'd0 : ref_stage_node_ctx_out_data_node)) : visit_item_ref_node} : visit_item_ref;
+    assign visit_out_items_out_data_eq = visit_out_items_out_data[183:182] == 2'd0;
+    assign visit_out_items_out_data_leaf = visit_out_items_out_data[0];
+    assign visit_out_items_out_data_z = visit_out_items_out_data[53:38];
+    assign visit_out_items_out_data_y = visit_out_items_out_data[37:22];
+    assign visit_out_items_out_data_x = visit_out_items_out_data[21:6];
+    assign visit_out_items_out_data_z_cat = {visit_out_items_out_data_z, visit_out_items_out_data_y, visit_out_items_out_data_x};
+    assign visit_out_items_out_data_first = visit_out_items_out_data[125:102];
+    assign visit_out_items_out_data_count = visit_out_items_out_data[149:126];
+    assign visit_out_items_out_data_first_add = {1'b0, visit_out_items_out_data_first} + {1'b0, visit_out_items_out_data_count};
+    assign order_tokens_in_valid = ((((order_cref_next | order_held_leaf) | order_held_refs_first) | order_item_out) | order_probe_first) | order_probe_next;
+    assign order_tokens_in_data = (order_probe_first | order_probe_next) ? {2'd2, 155'h000000000000000000000000000000000000000, order_probe_lod_next, 1'b1, order_probe_parent_next} : ((order_cref_next | order_held_refs_first) ? {2'd2, 161'h00000000000000000000000000000000000000000, order_cref_active ? order_cref_parent : order_pend_node} : visit_out_items_out_data_mux_1);
+    assign order_tokens_in_ready = order_tokens_count != 3'd4;
+    assign order_tokens_out_valid = order_tokens_count_ne;
+    assign order_tokens_out_data = order_tokens_count_ne ? order_tokens[order_tokens_head] : 187'h00000000000000000000000000000000000000000000000;
+    assign order_tokens_out_ready = out_token_fire;
+    assign order_tokens_count_ne = order_tokens_count != 3'd0;
+    assign order_tokens_in_valid_and = order_tokens_in_valid & order_tokens_in_ready;
+    assign order_tokens_out_valid_and = order_tokens_out_valid & order_tokens_out_ready;
+    assign walking_and_3 = walking & order_tokens_in_ready;
     assign order_room = walking_and_3 & cref_req_core_ready;
-    assign leaf_of_held = ((pend_valid & out_items_out_data_eq) & out_items_out_data_leaf) & (out_items_out_data_z_cat == pend_voxel);
-    assign cref_next = order_room & cref_active;
-    assign cref_active_not = ~cref_active;
-    assign order_room_and = (order_room & cref_active_not) & out_items_out_valid;
-    assign held_leaf = order_room_and & leaf_of_held;
-    assign leaf_of_held_not = ~leaf_of_held;
-    assign held_refs_first = (order_room_and & pend_valid) & leaf_of_held_not;
-    assign out_items_out_data_leaf_not = ~out_items_out_data_leaf;
-    assign item_pass_inner = (out_items_out_data_eq & out_items_out_data_leaf_not) & cmd_per_node;
-    assign probe_active_not = ~probe_active;
-    assign pend_valid_not = ~pend_valid;
-    assign probe_first_ok = ((((cref_active_not & probe_active_not) & out_items_out_valid) & pend_valid_not) & item_pass_inner) & (~probes_sent);
-    assign probe_first = order_room & probe_first_ok;
-    assign probe_next = order_room & probe_active;
-    assign item_out = ((order_room_and & pend_valid_not) & probe_active_not) & ((~item_pass_inner) | probes_sent);
-    assign probe_idx_add = probe_idx + 24'd1;
-    assign probe_idx_eq = {1'b0, probe_idx_add} == probe_end;
-    assign out_items_out_data_node = out_items_out_data[173:150];
-    assign probe_parent_next = probe_first ? out_items_out_data_node : probe_parent;
-    assign out_items_out_data_lod = out_items_out_data[5:1];
-    assign probe_lod_next = probe_first ? out_items_out_data_lod : probe_lod;
-    assign cref_idx_add = cref_idx + 24'd1;
-    assign pend_first_add = pend_first + 24'd1;
-    assign held_leaf_or = held_leaf | held_refs_first;
-    assign hold_refs = ((item_out & out_items_out_data_eq) & out_items_out_data_leaf_not) & (cmd_send_refs | cmd_per_node);
+    assign order_leaf_of_held = ((order_pend_valid & visit_out_items_out_data_eq) & visit_out_items_out_data_leaf) & (visit_out_items_out_data_z_cat == order_pend_voxel);
+    assign order_cref_next = order_room & order_cref_active;
+    assign order_cref_active_not = ~order_cref_active;
+    assign order_room_and = (order_room & order_cref_active_not) & visit_out_items_out_valid;
+    assign order_held_leaf = order_room_and & order_leaf_of_held;
+    assign order_leaf_of_held_not = ~order_leaf_of_held;
+    assign order_held_refs_first = (order_room_and & order_pend_valid) & order_leaf_of_held_not;
+    assign visit_out_items_out_data_leaf_not = ~visit_out_items_out_data_leaf;
+    assign order_item_pass_inner = (visit_out_items_out_data_eq & visit_out_items_out_data_leaf_not) & cmd_per_node;
+    assign order_probe_active_not = ~order_probe_active;
+    assign order_pend_valid_not = ~order_pend_valid;
+    assign order_probe_first_ok = ((((order_cref_active_not & order_probe_active_not) & visit_out_items_out_valid) & order_pend_valid_not) & order_item_pass_inner) & (~order_probes_sent);
+    assign order_probe_first = order_room & order_probe_first_ok;
+    assign order_probe_next = order_room & order_probe_active;
+    assign order_item_out = ((order_room_and & order_pend_valid_not) & order_probe_active_not) & ((~order_item_pass_inner) | order_probes_sent);
+    assign order_probe_idx_add = order_probe_idx + 24'd1;
+    assign order_probe_idx_eq = {1'b0, order_probe_idx_add} == order_probe_end;
+    assign visit_out_items_out_data_node = visit_out_items_out_data[173:150];
+    assign order_probe_parent_next = order_probe_first ? visit_out_items_out_data_node : order_probe_parent;
+    assign visit_out_items_out_data_lod = visit_out_items_out_data[5:1];
+    assign order_probe_lod_next = order_probe_first ? visit_out_items_out_data_lod : order_probe_lod;
+    assign order_cref_idx_add = order_cref_idx + 24'd1;
+    assign order_pend_first_add = order_pend_first + 24'd1;
+    assign order_held_leaf_or = order_held_leaf | order_held_refs_first;
+    assign order_hold_refs = ((order_item_out & visit_out_items_out_data_eq) & visit_out_items_out_data_leaf_not) & (cmd_send_refs | cmd_per_node);
     assign const_cat = {5'd0, 2'd3, 178'h000000000000000000000000000000000000000000000};
-    assign out_items_out_data_mux = (out_items_out_data[183:182] == 2'd1) ? {2'd1, {1'b0, out_items_out_data[181:178], 2'd3, out_items_out_data[177:150], 150'h00000000000000000000000000000000000000}} : ((out_items_out_data[183:182] == 2'd2) ? {2'd3, const_cat} : {2'd0, const_cat});
-    assign out_items_out_data_mux_1 = out_items_out_data_eq ? {2'd0, {5'd0, out_items_out_data_leaf ? 2'd1 : 2'd0, out_items_out_data[177:150], out_items_out_data[149:0]}} : out_items_out_data_mux;
-    assign token_cref = out_tokens_out_data[186:185] == 2'd2;
-    assign token_probe = token_cref & out_tokens_out_data[24];
+    assign visit_out_items_out_data_mux = (visit_out_items_out_data[183:182] == 2'd1) ? {2'd1, {1'b0, visit_out_items_out_data[181:178], 2'd3, visit_out_items_out_data[177:150], 150'h00000000000000000000000000000000000000}} : ((visit_out_items_out_data[183:182] == 2'd2) ? {2'd3, const_cat} : {2'd0, const_cat});
+    assign visit_out_items_out_data_mux_1 = visit_out_items_out_data_eq ? {2'd0, {5'd0, visit_out_items_out_data_leaf ? 2'd1 : 2'd0, visit_out_items_out_data[177:150], visit_out_items_out_data[149:0]}} : visit_out_items_out_data_mux;
+    assign out_token_cref = order_tokens_out_data[186:185] == 2'd2;
+    assign out_token_probe = out_token_cref & order_tokens_out_data[24];
     assign cref_resp_data_node = cref_resp_data[23:0];
     assign cref_resp_data_hier = cref_resp_data[27:24];
-    assign cref_code = (cref_resp_data_hier != cfg_hier) ? 4'd7 : ((cref_resp_data_node >= cfg_nodes) ? 4'd8 : 4'd0);
-    assign cref_code_eq = cref_code == 4'd0;
-    assign probe_req_core_valid = (((walking_and_4 & token_probe) & cref_resp_valid) & cref_code_eq) & out_probes_in_ready;
-    assign probe_req_core_data = cref_resp_data_node;
-    assign probe_req_core_ready = probe_req_q_room;
-    assign probe_resp_ready = (walking_and_5 & token_probe_wait) & token_sent_or;
-    assign out_probes_in_valid = token_fire;
-    assign out_probes_in_data = token_cref ? cref_code_mux : out_tokens_out_data;
+    assign out_cref_code = (cref_resp_data_hier != cfg_hier) ? 4'd7 : ((cref_resp_data_node >= cfg_nodes) ? 4'd8 : 4'd0);
+    assign out_cref_code_eq = out_cref_code == 4'd0;
+    assign out_probe_req_core_valid = (((walking_and_4 & out_token_probe) & cref_resp_valid) & out_cref_code_eq) & out_probes_in_ready;
+    assign out_probe_req_core_data = cref_resp_data_node;
+    assign out_probe_req_core_ready = probe_req_q_room;
+    assign probe_resp_ready = (walking_and_5 & out_token_probe_wait) & out_token_sent_or;
+    assign out_probes_in_valid = out_token_fire;
+    assign out_probes_in_data = out_token_cref ? out_cref_code_mux : order_tokens_out_data;
     assign out_probes_in_ready = out_probes_count != 4'd8;
     assign out_probes_out_valid = out_probes_count_ne;
     assign out_probes_out_data = out_probes_count_ne ? out_probes[out_probes_head] : 187'h00000000000000000000000000000000000000000000000;
-    assign out_probes_out_ready = send_fire;
+    assign out_probes_out_ready = out_send_fire;
     assign out_probes_count_ne = out_probes_count != 4'd0;
     assign out_probes_in_valid_and = out_probes_in_valid & out_probes_in_ready;
     assign out_probes_out_valid_and = out_probes_out_valid & out_probes_out_ready;
-    assign token_answered = (~token_cref) | cref_resp_valid;
-    assign answer_room = out_probes_in_ready & ((~token_probe) | probe_req_core_ready);
-    assign walking_and_4 = walking & out_tokens_out_valid;
-    assign token_fire = (walking_and_4 & token_answered) & answer_room;
-    assign token_probe_mux = token_probe ? {2'd2, 155'h000000000000000000000000000000000000000, {1'b0, out_tokens_out_data[29:25]} + 6'd1, cref_resp_data_node} : {2'd0, {5'd0, 2'd2, cref_resp_data, 150'h00000000000000000000000000000000000000}};
-    assign cref_code_mux = cref_code_eq ? token_probe_mux : {2'd1, {1'b0, cref_code, 2'd3, {cfg_hier, out_tokens_out_data[23:0]}, 150'h00000000000000000000000000000000000000}};
-    assign token_probe_wait = out_probes_out_data[186:185] == 2'd2;
+    assign out_token_answered = (~out_token_cref) | cref_resp_valid;
+    assign out_answer_room = out_probes_in_ready & ((~out_token_probe) | out_probe_req_core_ready);
+    assign walking_and_4 = walking & order_tokens_out_valid;
+    assign out_token_fire = (walking_and_4 & out_token_answered) & out_answer_room;
+    assign out_token_probe_mux = out_token_probe ? {2'd2, 155'h000000000000000000000000000000000000000, {1'b0, order_tokens_out_data[29:25]} + 6'd1, cref_resp_data_node} : {2'd0, {5'd0, 2'd2, cref_resp_data, 150'h00000000000000000000000000000000000000}};
+    assign out_cref_code_mux = out_cref_code_eq ? out_token_probe_mux : {2'd1, {1'b0, out_cref_code, 2'd3, {cfg_hier, order_tokens_out_data[23:0]}, 150'h00000000000000000000000000000000000000}};
+    assign out_token_probe_wait = out_probes_out_data[186:185] == 2'd2;
     assign probe_resp_data_lod = probe_resp_data[5:1];
     assign probe_resp_data_x = probe_resp_data[21:6];
     assign probe_resp_data_y = probe_resp_data[37:22];
@@ -876,21 +876,21 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     assign probe_resp_data_z_add = {18'd0, probe_resp_data_z} + ({{17{cfg_entry_t2[16]}}, cfg_entry_t2} << probe_resp_data_lod_sub);
     assign probe_resp_data_y_mux = (probe_resp_data_y_add[33] | ((probe_resp_data_y_add >> probe_resp_data_lod) != 34'd0)) ? 4'd11 : ((probe_resp_data_z_add[33] | ((probe_resp_data_z_add >> probe_resp_data_lod) != 34'd0)) ? 4'd12 : 4'd0);
     assign probe_resp_data_lod_mux = (probe_resp_data_lod < cfg_entry_lod) ? 4'd9 : ((probe_resp_data_x_add[33] | ((probe_resp_data_x_add >> probe_resp_data_lod) != 34'd0)) ? 4'd10 : probe_resp_data_y_mux);
-    assign probe_code = out_probes_out_data[29] ? 4'd5 : ((probe_resp_data_lod != out_probes_out_data[28:24]) ? 4'd5 : ((probe_resp_data_x_or_1 | (probe_resp_data_count == 24'd0)) ? 4'd4 : probe_resp_data_lod_mux));
+    assign out_probe_code = out_probes_out_data[29] ? 4'd5 : ((probe_resp_data_lod != out_probes_out_data[28:24]) ? 4'd5 : ((probe_resp_data_x_or_1 | (probe_resp_data_count == 24'd0)) ? 4'd4 : probe_resp_data_lod_mux));
     assign cfg_hier_cat = {cfg_hier, out_probes_out_data[23:0]};
     assign const_cat_1 = {1'b1, 4'd0, 2'd0, cfg_hier_cat, {probe_resp_data[149:54], probe_resp_data_z_add[15:0], probe_resp_data_y_add[15:0], probe_resp_data_x_add[15:0], probe_resp_data[5:0]}};
-    assign probe_answered = (~token_probe_wait) | probe_resp_valid;
+    assign out_probe_answered = (~out_token_probe_wait) | probe_resp_valid;
     assign out_probes_out_data_eq = out_probes_out_data[186:185] == 2'd3;
     assign out_probes_out_data_kind = out_probes_out_data[179:178];
-    assign token_end = out_probes_out_data_eq | ((out_probes_out_data[186:185] == 2'd0) & (out_probes_out_data_kind == 2'd3));
+    assign out_token_end = out_probes_out_data_eq | ((out_probes_out_data[186:185] == 2'd0) & (out_probes_out_data_kind == 2'd3));
     assign out_errored_not = ~out_errored;
-    assign token_sent = out_errored_not | (token_end & (~out_skip_end));
+    assign out_token_sent = out_errored_not | (out_token_end & (~out_skip_end));
     assign walking_and_5 = walking & out_probes_out_valid;
-    assign walking_and_6 = walking_and_5 & probe_answered;
-    assign token_sent_or = (~token_sent) | out_core_ready;
-    assign send_fire = walking_and_6 & token_sent_or;
-    assign out_first_error = (send_fire & ((out_probes_out_data[186:185] == 2'd1) | (token_probe_wait & (probe_code != 4'd0)))) & out_errored_not;
-    assign pass_end_left = send_fire & token_end;
+    assign walking_and_6 = walking_and_5 & out_probe_answered;
+    assign out_token_sent_or = (~out_token_sent) | out_core_ready;
+    assign out_send_fire = walking_and_6 & out_token_sent_or;
+    assign out_first_error = (out_send_fire & ((out_probes_out_data[186:185] == 2'd1) | (out_token_probe_wait & (out_probe_code != 4'd0)))) & out_errored_not;
+    assign out_pass_end_left = out_send_fire & out_token_end;
     assign phase_eq_2 = phase == DONE;
     assign node_req_q_ready = node_req_ready;
     assign node_req_q_room = ~node_req_q_spare_valid;
@@ -925,7 +925,7 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
     assign probe_req_q_ready = probe_req_ready;
     assign probe_req_q_room = ~probe_req_q_spare_valid;
     assign probe_req_q_drain = probe_req_q_ready | (~probe_req_q_valid);
-    assign probe_req_q_take = probe_req_core_valid & probe_req_q_room;
+    assign probe_req_q_take = out_probe_req_core_valid & probe_req_q_room;
     assign probe_req_valid = probe_req_q_valid;
     assign probe_req_data = probe_req_q_data;
     assign idle = is_idle;
@@ -938,7 +938,7 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
         .in_ready(u_root_sorter_in_ready),
         .out_valid(u_root_sorter_out_valid),
         .out_data(u_root_sorter_out_data),
-        .out_ready(((visit_live & at_top_and_3) & sorter_dropped_not) & visit_free)
+        .out_ready(((visit_live & at_top_and_3) & visit_sorter_dropped_not) & visit_free)
     );
 
     always @(posedge clk) begin
@@ -982,42 +982,42 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
             range_idx <= 24'd0;
             range_end <= 25'd0;
             range_parent <= 24'd0;
-            ref_ctx_head <= 3'd0;
-            ref_ctx_tail <= 3'd0;
-            ref_ctx_count <= 4'd0;
-            node_ctx_head <= 3'd0;
-            node_ctx_tail <= 3'd0;
-            node_ctx_count <= 4'd0;
-            out_items_head <= 2'd0;
-            out_items_tail <= 2'd0;
-            out_items_count <= 3'd0;
-            pn_visited <= 1'b0;
-            leaves_end_sent <= 1'b0;
-            end_next <= 5'd0;
-            final_sent <= 1'b0;
-            capacity_told <= 1'b0;
-            pass_head <= 8'd0;
-            pass_tail <= 8'd0;
-            pass_count <= 9'd0;
-            pn_end_left <= 1'b0;
-            pend_valid <= 1'b0;
-            pend_first <= 24'd0;
-            pend_end <= 25'd0;
-            pend_voxel <= 48'd0;
-            pend_node <= 24'd0;
-            cref_active <= 1'b0;
-            cref_idx <= 24'd0;
-            cref_end <= 25'd0;
-            cref_parent <= 24'd0;
-            out_tokens_head <= 2'd0;
-            out_tokens_tail <= 2'd0;
-            out_tokens_count <= 3'd0;
-            probe_active <= 1'b0;
-            probes_sent <= 1'b0;
-            probe_idx <= 24'd0;
-            probe_end <= 25'd0;
-            probe_parent <= 24'd0;
-            probe_lod <= 5'd0;
+            range_ref_ctx_head <= 3'd0;
+            range_ref_ctx_tail <= 3'd0;
+            range_ref_ctx_count <= 4'd0;
+            ref_stage_node_ctx_head <= 3'd0;
+            ref_stage_node_ctx_tail <= 3'd0;
+            ref_stage_node_ctx_count <= 4'd0;
+            visit_out_items_head <= 2'd0;
+            visit_out_items_tail <= 2'd0;
+            visit_out_items_count <= 3'd0;
+            visit_pn_visited <= 1'b0;
+            visit_leaves_end_sent <= 1'b0;
+            visit_end_next <= 5'd0;
+            visit_final_sent <= 1'b0;
+            visit_capacity_told <= 1'b0;
+            visit_pass_head <= 8'd0;
+            visit_pass_tail <= 8'd0;
+            visit_pass_count <= 9'd0;
+            join_end_left <= 1'b0;
+            order_pend_valid <= 1'b0;
+            order_pend_first <= 24'd0;
+            order_pend_end <= 25'd0;
+            order_pend_voxel <= 48'd0;
+            order_pend_node <= 24'd0;
+            order_cref_active <= 1'b0;
+            order_cref_idx <= 24'd0;
+            order_cref_end <= 25'd0;
+            order_cref_parent <= 24'd0;
+            order_tokens_head <= 2'd0;
+            order_tokens_tail <= 2'd0;
+            order_tokens_count <= 3'd0;
+            order_probe_active <= 1'b0;
+            order_probes_sent <= 1'b0;
+            order_probe_idx <= 24'd0;
+            order_probe_end <= 25'd0;
+            order_probe_parent <= 24'd0;
+            order_probe_lod <= 5'd0;
             out_probes_head <= 3'd0;
             out_probes_tail <= 3'd0;
             out_probes_count <= 4'd0;
@@ -1048,7 +1048,7 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
             probe_req_q_spare_data <= 24'd0;
         end else begin
             if (cmd_fire) begin
-                phase <= START;              // rtl-gen/src/merge/fetcher/parts.rs:72
+                phase <= START;              // rtl-gen/src/merge/fetcher/parts.rs:32
                 cmd_lod <= cmd_data_lod;     // rtl-gen/src/merge/fetcher/command.rs:101
                 cmd_send_refs <= cmd_data_send_refs; // rtl-gen/src/merge/fetcher/command.rs:102
                 cmd_send_leaves <= cmd_data_send_leaves; // rtl-gen/src/merge/fetcher/command.rs:103
@@ -1056,15 +1056,15 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                 cmd_first <= cmd_data_per_node ? cmd_data_lod : ((cmd_data_from > cmd_data_lod) ? cmd_data_lod : cmd_data_from); // rtl-gen/src/merge/fetcher/command.rs:125
                 cmd_per_node <= cmd_data_per_node; // rtl-gen/src/merge/fetcher/command.rs:116
             end else if (phase_eq) begin
-                phase <= header_code_ne ? WALK : ROOTS; // rtl-gen/src/merge/fetcher/parts.rs:72
+                phase <= header_code_ne ? WALK : ROOTS; // rtl-gen/src/merge/fetcher/parts.rs:32
             end else if (roots_all_taken & u_root_sorter_in_ready) begin
-                phase <= WALK;               // rtl-gen/src/merge/fetcher/parts.rs:72
+                phase <= WALK;               // rtl-gen/src/merge/fetcher/parts.rs:32
             end else if (join_pass_end & report_data_more_not) begin
-                phase <= DONE;               // rtl-gen/src/merge/fetcher/parts.rs:72
-            end else if (send_fire & out_probes_out_data_eq) begin
-                phase <= DONE;               // rtl-gen/src/merge/fetcher/parts.rs:72
+                phase <= DONE;               // rtl-gen/src/merge/fetcher/parts.rs:32
+            end else if (out_send_fire & out_probes_out_data_eq) begin
+                phase <= DONE;               // rtl-gen/src/merge/fetcher/parts.rs:32
             end else if (phase_eq_2) begin
-                phase <= IDLE;               // rtl-gen/src/merge/fetcher/parts.rs:72
+                phase <= IDLE;               // rtl-gen/src/merge/fetcher/parts.rs:32
             end
             if (cfg_fire) begin
                 cfg_have <= 1'b1;            // rtl-gen/src/merge/fetcher/mod.rs:241
@@ -1082,67 +1082,67 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                 cfg_have <= 1'b0;            // rtl-gen/src/merge/fetcher/mod.rs:241
             end
             if (phase_eq) begin
-                first_err_valid <= header_code_ne; // rtl-gen/src/merge/fetcher/parts.rs:72
-                first_err_code <= header_code; // rtl-gen/src/merge/fetcher/parts.rs:72
-                first_err_node <= 24'd0;     // rtl-gen/src/merge/fetcher/parts.rs:72
-                header_err <= header_code_ne; // rtl-gen/src/merge/fetcher/command.rs:210
-                level <= cfg_top;            // rtl-gen/src/merge/fetcher/visit.rs:348
-                at_top <= 1'b1;              // rtl-gen/src/merge/fetcher/visit.rs:350
-                walk_done <= 1'b0;           // rtl-gen/src/merge/fetcher/visit.rs:352
-                prev_valid <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:329
-                pushed <= 9'd0;              // rtl-gen/src/merge/fetcher/visit.rs:344
-                visit_errored <= 1'b0;       // rtl-gen/src/merge/fetcher/visit.rs:354
-                out_errored <= 1'b0;         // rtl-gen/src/merge/fetcher/out.rs:257
+                first_err_valid <= header_code_ne; // rtl-gen/src/merge/fetcher/parts.rs:32
+                first_err_code <= header_code; // rtl-gen/src/merge/fetcher/parts.rs:32
+                first_err_node <= 24'd0;     // rtl-gen/src/merge/fetcher/parts.rs:32
+                header_err <= header_code_ne; // rtl-gen/src/merge/fetcher/command.rs:211
+                level <= cfg_top;            // rtl-gen/src/merge/fetcher/visit.rs:349
+                at_top <= 1'b1;              // rtl-gen/src/merge/fetcher/visit.rs:351
+                walk_done <= 1'b0;           // rtl-gen/src/merge/fetcher/visit.rs:353
+                prev_valid <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:330
+                pushed <= 9'd0;              // rtl-gen/src/merge/fetcher/visit.rs:345
+                visit_errored <= 1'b0;       // rtl-gen/src/merge/fetcher/visit.rs:355
+                out_errored <= 1'b0;         // rtl-gen/src/merge/fetcher/out.rs:246
                 roots_issued <= 24'd0;       // rtl-gen/src/merge/fetcher/walk.rs:105
                 roots_taken <= 24'd0;        // rtl-gen/src/merge/fetcher/walk.rs:117
                 range_valid <= 1'b0;         // rtl-gen/src/merge/fetcher/walk.rs:214
-                pn_visited <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:452
-                leaves_end_sent <= 1'b0;     // rtl-gen/src/merge/fetcher/visit.rs:496
-                end_next <= cmd_first;       // rtl-gen/src/merge/fetcher/visit.rs:320
-                final_sent <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:324
-                capacity_told <= 1'b0;       // rtl-gen/src/merge/fetcher/visit.rs:151
-                pn_end_left <= 1'b0;         // rtl-gen/src/merge/fetcher/mod.rs:231
-                pend_valid <= 1'b0;          // rtl-gen/src/merge/fetcher/order.rs:129
-                cref_active <= 1'b0;         // rtl-gen/src/merge/fetcher/order.rs:108
-                probe_active <= 1'b0;        // rtl-gen/src/merge/fetcher/order.rs:232
-                probes_sent <= 1'b0;         // rtl-gen/src/merge/fetcher/order.rs:236
-                out_skip_end <= 1'b0;        // rtl-gen/src/merge/fetcher/out.rs:258
+                visit_pn_visited <= 1'b0;    // rtl-gen/src/merge/fetcher/visit.rs:454
+                visit_leaves_end_sent <= 1'b0; // rtl-gen/src/merge/fetcher/visit.rs:499
+                visit_end_next <= cmd_first; // rtl-gen/src/merge/fetcher/visit.rs:321
+                visit_final_sent <= 1'b0;    // rtl-gen/src/merge/fetcher/visit.rs:325
+                visit_capacity_told <= 1'b0; // rtl-gen/src/merge/fetcher/visit.rs:152
+                join_end_left <= 1'b0;       // rtl-gen/src/merge/fetcher/mod.rs:231
+                order_pend_valid <= 1'b0;    // rtl-gen/src/merge/fetcher/order.rs:129
+                order_cref_active <= 1'b0;   // rtl-gen/src/merge/fetcher/order.rs:109
+                order_probe_active <= 1'b0;  // rtl-gen/src/merge/fetcher/order.rs:232
+                order_probes_sent <= 1'b0;   // rtl-gen/src/merge/fetcher/order.rs:236
+                out_skip_end <= 1'b0;        // rtl-gen/src/merge/fetcher/out.rs:247
             end else begin
                 if (root_fail) begin
-                    first_err_valid <= 1'b1; // rtl-gen/src/merge/fetcher/parts.rs:72
+                    first_err_valid <= 1'b1; // rtl-gen/src/merge/fetcher/parts.rs:32
                 end else if (visit_go & at_top_and) begin
-                    first_err_valid <= 1'b0; // rtl-gen/src/merge/fetcher/parts.rs:72
+                    first_err_valid <= 1'b0; // rtl-gen/src/merge/fetcher/parts.rs:32
                 end
                 if (root_fail_and) begin
-                    first_err_code <= node_code; // rtl-gen/src/merge/fetcher/parts.rs:72
-                    first_err_node <= roots_taken; // rtl-gen/src/merge/fetcher/parts.rs:72
+                    first_err_code <= node_code; // rtl-gen/src/merge/fetcher/parts.rs:32
+                    first_err_node <= roots_taken; // rtl-gen/src/merge/fetcher/parts.rs:32
                 end
-                if (marker_push_or) begin
-                    level <= level + 5'd1;   // rtl-gen/src/merge/fetcher/visit.rs:348
-                    prev_valid <= 1'b0;      // rtl-gen/src/merge/fetcher/visit.rs:331
-                    pushed <= 9'd0;          // rtl-gen/src/merge/fetcher/visit.rs:346
+                if (visit_marker_push_or) begin
+                    level <= level + 5'd1;   // rtl-gen/src/merge/fetcher/visit.rs:349
+                    prev_valid <= 1'b0;      // rtl-gen/src/merge/fetcher/visit.rs:332
+                    pushed <= 9'd0;          // rtl-gen/src/merge/fetcher/visit.rs:347
                 end else begin
                     if (visit_go_and) begin
-                        prev_valid <= 1'b1;  // rtl-gen/src/merge/fetcher/visit.rs:331
+                        prev_valid <= 1'b1;  // rtl-gen/src/merge/fetcher/visit.rs:332
                     end
-                    if (frontier_push | pass_push) begin
-                        pushed <= pushed + 9'd1; // rtl-gen/src/merge/fetcher/visit.rs:346
+                    if (visit_frontier_push | visit_pass_push) begin
+                        pushed <= pushed + 9'd1; // rtl-gen/src/merge/fetcher/visit.rs:347
                     end
                 end
-                if (level_end) begin
-                    at_top <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:350
+                if (visit_level_end) begin
+                    at_top <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:351
                 end
-                if (walk_over) begin
-                    walk_done <= 1'b1;       // rtl-gen/src/merge/fetcher/visit.rs:352
+                if (visit_walk_over) begin
+                    walk_done <= 1'b1;       // rtl-gen/src/merge/fetcher/visit.rs:353
                 end
                 if (visit_fails) begin
-                    visit_errored <= 1'b1;   // rtl-gen/src/merge/fetcher/visit.rs:354
+                    visit_errored <= 1'b1;   // rtl-gen/src/merge/fetcher/visit.rs:355
                 end
                 if (out_first_error) begin
-                    out_errored <= 1'b1;     // rtl-gen/src/merge/fetcher/out.rs:257
-                    out_skip_end <= 1'b1;    // rtl-gen/src/merge/fetcher/out.rs:260
-                end else if ((send_fire & token_end) & out_errored) begin
-                    out_skip_end <= 1'b0;    // rtl-gen/src/merge/fetcher/out.rs:262
+                    out_errored <= 1'b1;     // rtl-gen/src/merge/fetcher/out.rs:246
+                    out_skip_end <= 1'b1;    // rtl-gen/src/merge/fetcher/out.rs:249
+                end else if ((out_send_fire & out_token_end) & out_errored) begin
+                    out_skip_end <= 1'b0;    // rtl-gen/src/merge/fetcher/out.rs:251
                 end
                 if (phase_eq_1 & (node_req_core_valid & node_req_core_ready)) begin
                     roots_issued <= roots_issued + 24'd1; // rtl-gen/src/merge/fetcher/walk.rs:107
@@ -1152,165 +1152,165 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                 end
                 if (range_load) begin
                     range_valid <= 1'b1;     // rtl-gen/src/merge/fetcher/walk.rs:216
-                end else if (ref_issue_and) begin
+                end else if (range_issue_and) begin
                     range_valid <= 1'b0;     // rtl-gen/src/merge/fetcher/walk.rs:218
                 end
-                if (pn_pass_end) begin
-                    pn_visited <= 1'b1;      // rtl-gen/src/merge/fetcher/visit.rs:454
+                if (visit_pn_pass_end) begin
+                    visit_pn_visited <= 1'b1; // rtl-gen/src/merge/fetcher/visit.rs:456
                 end else if (join_pass_end) begin
-                    pn_visited <= 1'b0;      // rtl-gen/src/merge/fetcher/visit.rs:454
+                    visit_pn_visited <= 1'b0; // rtl-gen/src/merge/fetcher/visit.rs:456
                 end
-                if (leaves_end_fire) begin
-                    leaves_end_sent <= 1'b1; // rtl-gen/src/merge/fetcher/visit.rs:496
+                if (visit_leaves_end_fire) begin
+                    visit_leaves_end_sent <= 1'b1; // rtl-gen/src/merge/fetcher/visit.rs:499
                 end
-                if ((end_fire & (~end_final)) | level_end_push) begin
-                    end_next <= end_next + 5'd1; // rtl-gen/src/merge/fetcher/visit.rs:322
+                if ((visit_end_fire & (~visit_end_final)) | visit_level_end_push) begin
+                    visit_end_next <= visit_end_next + 5'd1; // rtl-gen/src/merge/fetcher/visit.rs:323
                 end
-                if (end_fire & end_final) begin
-                    final_sent <= 1'b1;      // rtl-gen/src/merge/fetcher/visit.rs:326
+                if (visit_end_fire & visit_end_final) begin
+                    visit_final_sent <= 1'b1; // rtl-gen/src/merge/fetcher/visit.rs:327
                 end
-                if (visit_go & sorter_dropped) begin
-                    capacity_told <= 1'b1;   // rtl-gen/src/merge/fetcher/visit.rs:151
+                if (visit_go & visit_sorter_dropped) begin
+                    visit_capacity_told <= 1'b1; // rtl-gen/src/merge/fetcher/visit.rs:152
                 end
                 if (join_pass_end) begin
-                    pn_end_left <= 1'b0;     // rtl-gen/src/merge/fetcher/mod.rs:233
-                end else if (pass_end_left) begin
-                    pn_end_left <= 1'b1;     // rtl-gen/src/merge/fetcher/mod.rs:233
+                    join_end_left <= 1'b0;   // rtl-gen/src/merge/fetcher/mod.rs:233
+                end else if (out_pass_end_left) begin
+                    join_end_left <= 1'b1;   // rtl-gen/src/merge/fetcher/mod.rs:233
                 end
-                if (held_leaf_or) begin
-                    pend_valid <= 1'b0;      // rtl-gen/src/merge/fetcher/order.rs:131
-                end else if (hold_refs) begin
-                    pend_valid <= 1'b1;      // rtl-gen/src/merge/fetcher/order.rs:131
+                if (order_held_leaf_or) begin
+                    order_pend_valid <= 1'b0; // rtl-gen/src/merge/fetcher/order.rs:131
+                end else if (order_hold_refs) begin
+                    order_pend_valid <= 1'b1; // rtl-gen/src/merge/fetcher/order.rs:131
                 end
-                if (cref_next) begin
-                    cref_active <= {1'b0, cref_idx_add} != cref_end; // rtl-gen/src/merge/fetcher/order.rs:110
-                end else if (held_leaf) begin
-                    cref_active <= 1'b1;     // rtl-gen/src/merge/fetcher/order.rs:112
-                end else if (held_refs_first) begin
-                    cref_active <= {1'b0, pend_first_add} != pend_end; // rtl-gen/src/merge/fetcher/order.rs:114
+                if (order_cref_next) begin
+                    order_cref_active <= {1'b0, order_cref_idx_add} != order_cref_end; // rtl-gen/src/merge/fetcher/order.rs:109
+                end else if (order_held_leaf) begin
+                    order_cref_active <= 1'b1; // rtl-gen/src/merge/fetcher/order.rs:109
+                end else if (order_held_refs_first) begin
+                    order_cref_active <= {1'b0, order_pend_first_add} != order_pend_end; // rtl-gen/src/merge/fetcher/order.rs:109
                 end
-                if (probe_next) begin
-                    probe_active <= ~probe_idx_eq; // rtl-gen/src/merge/fetcher/order.rs:234
-                end else if (probe_first) begin
-                    probe_active <= out_items_out_data_count != 24'd1; // rtl-gen/src/merge/fetcher/order.rs:234
+                if (order_probe_next) begin
+                    order_probe_active <= ~order_probe_idx_eq; // rtl-gen/src/merge/fetcher/order.rs:234
+                end else if (order_probe_first) begin
+                    order_probe_active <= visit_out_items_out_data_count != 24'd1; // rtl-gen/src/merge/fetcher/order.rs:234
                 end
-                if ((probe_next & probe_idx_eq) | (probe_first & (out_items_out_data_count == 24'd1))) begin
-                    probes_sent <= 1'b1;     // rtl-gen/src/merge/fetcher/order.rs:238
-                end else if (item_out) begin
-                    probes_sent <= 1'b0;     // rtl-gen/src/merge/fetcher/order.rs:238
+                if ((order_probe_next & order_probe_idx_eq) | (order_probe_first & (visit_out_items_out_data_count == 24'd1))) begin
+                    order_probes_sent <= 1'b1; // rtl-gen/src/merge/fetcher/order.rs:238
+                end else if (order_item_out) begin
+                    order_probes_sent <= 1'b0; // rtl-gen/src/merge/fetcher/order.rs:238
                 end
             end
-            if (visit_go_and & (~(pn_pass & order_bad))) begin
-                prev_key <= item_key;        // rtl-gen/src/merge/fetcher/visit.rs:339
+            if (visit_go_and & (~(visit_pn_pass & visit_order_bad))) begin
+                prev_key <= visit_item_key;  // rtl-gen/src/merge/fetcher/visit.rs:340
             end
             if (frontier_out_valid_and) begin
-                frontier_head <= frontier_head + 10'd1; // rtl-gen/src/merge/fetcher/parts.rs:41
+                frontier_head <= frontier_head + 10'd1; // rtl-gen/src/merge/fetcher/walk.rs:179
             end
             if (frontier_in_valid_and) begin
-                frontier_tail <= frontier_tail + 10'd1; // rtl-gen/src/merge/fetcher/parts.rs:42
+                frontier_tail <= frontier_tail + 10'd1; // rtl-gen/src/merge/fetcher/walk.rs:179
                 if (!frontier_out_valid_and) begin
-                    frontier_count <= frontier_count + 11'd1; // rtl-gen/src/merge/fetcher/parts.rs:44
+                    frontier_count <= frontier_count + 11'd1; // rtl-gen/src/merge/fetcher/walk.rs:179
                 end
             end else if (frontier_out_valid_and) begin
-                frontier_count <= frontier_count - 11'd1; // rtl-gen/src/merge/fetcher/parts.rs:45
+                frontier_count <= frontier_count - 11'd1; // rtl-gen/src/merge/fetcher/walk.rs:179
             end
             if (range_load) begin
                 range_idx <= frontier_out_data_first; // rtl-gen/src/merge/fetcher/walk.rs:221
                 range_end <= {1'b0, frontier_out_data_first} + {1'b0, frontier_out_data_count}; // rtl-gen/src/merge/fetcher/walk.rs:222
                 range_parent <= frontier_out_data_parent; // rtl-gen/src/merge/fetcher/walk.rs:226
-            end else if (ref_issue) begin
+            end else if (range_issue) begin
                 range_idx <= range_idx_add;  // rtl-gen/src/merge/fetcher/walk.rs:221
             end
-            if (ref_ctx_out_valid_and) begin
-                ref_ctx_head <= ref_ctx_head + 3'd1; // rtl-gen/src/merge/fetcher/parts.rs:41
+            if (range_ref_ctx_out_valid_and) begin
+                range_ref_ctx_head <= range_ref_ctx_head + 3'd1; // rtl-gen/src/merge/fetcher/walk.rs:204
             end
-            if (ref_ctx_in_valid_and) begin
-                ref_ctx_tail <= ref_ctx_tail + 3'd1; // rtl-gen/src/merge/fetcher/parts.rs:42
-                if (!ref_ctx_out_valid_and) begin
-                    ref_ctx_count <= ref_ctx_count + 4'd1; // rtl-gen/src/merge/fetcher/parts.rs:44
+            if (range_ref_ctx_in_valid_and) begin
+                range_ref_ctx_tail <= range_ref_ctx_tail + 3'd1; // rtl-gen/src/merge/fetcher/walk.rs:204
+                if (!range_ref_ctx_out_valid_and) begin
+                    range_ref_ctx_count <= range_ref_ctx_count + 4'd1; // rtl-gen/src/merge/fetcher/walk.rs:204
                 end
-            end else if (ref_ctx_out_valid_and) begin
-                ref_ctx_count <= ref_ctx_count - 4'd1; // rtl-gen/src/merge/fetcher/parts.rs:45
+            end else if (range_ref_ctx_out_valid_and) begin
+                range_ref_ctx_count <= range_ref_ctx_count - 4'd1; // rtl-gen/src/merge/fetcher/walk.rs:204
             end
-            if (node_ctx_out_valid_and) begin
-                node_ctx_head <= node_ctx_head + 3'd1; // rtl-gen/src/merge/fetcher/parts.rs:41
+            if (ref_stage_node_ctx_out_valid_and) begin
+                ref_stage_node_ctx_head <= ref_stage_node_ctx_head + 3'd1; // rtl-gen/src/merge/fetcher/walk.rs:254
             end
-            if (node_ctx_in_valid_and) begin
-                node_ctx_tail <= node_ctx_tail + 3'd1; // rtl-gen/src/merge/fetcher/parts.rs:42
-                if (!node_ctx_out_valid_and) begin
-                    node_ctx_count <= node_ctx_count + 4'd1; // rtl-gen/src/merge/fetcher/parts.rs:44
+            if (ref_stage_node_ctx_in_valid_and) begin
+                ref_stage_node_ctx_tail <= ref_stage_node_ctx_tail + 3'd1; // rtl-gen/src/merge/fetcher/walk.rs:254
+                if (!ref_stage_node_ctx_out_valid_and) begin
+                    ref_stage_node_ctx_count <= ref_stage_node_ctx_count + 4'd1; // rtl-gen/src/merge/fetcher/walk.rs:254
                 end
-            end else if (node_ctx_out_valid_and) begin
-                node_ctx_count <= node_ctx_count - 4'd1; // rtl-gen/src/merge/fetcher/parts.rs:45
+            end else if (ref_stage_node_ctx_out_valid_and) begin
+                ref_stage_node_ctx_count <= ref_stage_node_ctx_count - 4'd1; // rtl-gen/src/merge/fetcher/walk.rs:254
             end
-            if (out_items_out_valid_and) begin
-                out_items_head <= out_items_head + 2'd1; // rtl-gen/src/merge/fetcher/parts.rs:41
+            if (visit_out_items_out_valid_and) begin
+                visit_out_items_head <= visit_out_items_head + 2'd1; // rtl-gen/src/merge/fetcher/visit.rs:77
             end
-            if (out_items_in_valid_and) begin
-                out_items_tail <= out_items_tail + 2'd1; // rtl-gen/src/merge/fetcher/parts.rs:42
-                if (!out_items_out_valid_and) begin
-                    out_items_count <= out_items_count + 3'd1; // rtl-gen/src/merge/fetcher/parts.rs:44
+            if (visit_out_items_in_valid_and) begin
+                visit_out_items_tail <= visit_out_items_tail + 2'd1; // rtl-gen/src/merge/fetcher/visit.rs:77
+                if (!visit_out_items_out_valid_and) begin
+                    visit_out_items_count <= visit_out_items_count + 3'd1; // rtl-gen/src/merge/fetcher/visit.rs:77
                 end
-            end else if (out_items_out_valid_and) begin
-                out_items_count <= out_items_count - 3'd1; // rtl-gen/src/merge/fetcher/parts.rs:45
+            end else if (visit_out_items_out_valid_and) begin
+                visit_out_items_count <= visit_out_items_count - 3'd1; // rtl-gen/src/merge/fetcher/visit.rs:77
             end
-            if (pass_out_valid_and) begin
-                pass_head <= pass_head + 8'd1; // rtl-gen/src/merge/fetcher/parts.rs:41
+            if (visit_pass_out_valid_and) begin
+                visit_pass_head <= visit_pass_head + 8'd1; // rtl-gen/src/merge/fetcher/visit.rs:314
             end
-            if (pass_in_valid_and) begin
-                pass_tail <= pass_tail + 8'd1; // rtl-gen/src/merge/fetcher/parts.rs:42
-                if (!pass_out_valid_and) begin
-                    pass_count <= pass_count + 9'd1; // rtl-gen/src/merge/fetcher/parts.rs:44
+            if (visit_pass_in_valid_and) begin
+                visit_pass_tail <= visit_pass_tail + 8'd1; // rtl-gen/src/merge/fetcher/visit.rs:314
+                if (!visit_pass_out_valid_and) begin
+                    visit_pass_count <= visit_pass_count + 9'd1; // rtl-gen/src/merge/fetcher/visit.rs:314
                 end
-            end else if (pass_out_valid_and) begin
-                pass_count <= pass_count - 9'd1; // rtl-gen/src/merge/fetcher/parts.rs:45
+            end else if (visit_pass_out_valid_and) begin
+                visit_pass_count <= visit_pass_count - 9'd1; // rtl-gen/src/merge/fetcher/visit.rs:314
             end
-            if (hold_refs) begin
-                pend_first <= out_items_out_data_first; // rtl-gen/src/merge/fetcher/order.rs:133
-                pend_end <= out_items_out_data_first_add; // rtl-gen/src/merge/fetcher/order.rs:134
-                pend_voxel <= out_items_out_data_z_cat; // rtl-gen/src/merge/fetcher/order.rs:135
-                pend_node <= out_items_out_data_node; // rtl-gen/src/merge/fetcher/order.rs:136
+            if (order_hold_refs) begin
+                order_pend_first <= visit_out_items_out_data_first; // rtl-gen/src/merge/fetcher/order.rs:133
+                order_pend_end <= visit_out_items_out_data_first_add; // rtl-gen/src/merge/fetcher/order.rs:134
+                order_pend_voxel <= visit_out_items_out_data_z_cat; // rtl-gen/src/merge/fetcher/order.rs:135
+                order_pend_node <= visit_out_items_out_data_node; // rtl-gen/src/merge/fetcher/order.rs:136
             end
-            if (cref_next) begin
-                cref_idx <= cref_idx_add;    // rtl-gen/src/merge/fetcher/order.rs:118
-            end else if (held_leaf) begin
-                cref_idx <= pend_first;      // rtl-gen/src/merge/fetcher/order.rs:120
-            end else if (held_refs_first) begin
-                cref_idx <= pend_first_add;  // rtl-gen/src/merge/fetcher/order.rs:120
+            if (order_cref_next) begin
+                order_cref_idx <= order_cref_idx_add; // rtl-gen/src/merge/fetcher/order.rs:118
+            end else if (order_held_leaf) begin
+                order_cref_idx <= order_pend_first; // rtl-gen/src/merge/fetcher/order.rs:118
+            end else if (order_held_refs_first) begin
+                order_cref_idx <= order_pend_first_add; // rtl-gen/src/merge/fetcher/order.rs:118
             end
-            if (held_leaf_or) begin
-                cref_end <= pend_end;        // rtl-gen/src/merge/fetcher/order.rs:122
-                cref_parent <= pend_node;    // rtl-gen/src/merge/fetcher/order.rs:123
+            if (order_held_leaf_or) begin
+                order_cref_end <= order_pend_end; // rtl-gen/src/merge/fetcher/order.rs:122
+                order_cref_parent <= order_pend_node; // rtl-gen/src/merge/fetcher/order.rs:123
             end
-            if (out_tokens_out_valid_and) begin
-                out_tokens_head <= out_tokens_head + 2'd1; // rtl-gen/src/merge/fetcher/parts.rs:41
+            if (order_tokens_out_valid_and) begin
+                order_tokens_head <= order_tokens_head + 2'd1; // rtl-gen/src/merge/fetcher/order.rs:51
             end
-            if (out_tokens_in_valid_and) begin
-                out_tokens_tail <= out_tokens_tail + 2'd1; // rtl-gen/src/merge/fetcher/parts.rs:42
-                if (!out_tokens_out_valid_and) begin
-                    out_tokens_count <= out_tokens_count + 3'd1; // rtl-gen/src/merge/fetcher/parts.rs:44
+            if (order_tokens_in_valid_and) begin
+                order_tokens_tail <= order_tokens_tail + 2'd1; // rtl-gen/src/merge/fetcher/order.rs:51
+                if (!order_tokens_out_valid_and) begin
+                    order_tokens_count <= order_tokens_count + 3'd1; // rtl-gen/src/merge/fetcher/order.rs:51
                 end
-            end else if (out_tokens_out_valid_and) begin
-                out_tokens_count <= out_tokens_count - 3'd1; // rtl-gen/src/merge/fetcher/parts.rs:45
+            end else if (order_tokens_out_valid_and) begin
+                order_tokens_count <= order_tokens_count - 3'd1; // rtl-gen/src/merge/fetcher/order.rs:51
             end
-            if (probe_first) begin
-                probe_idx <= out_items_out_data_first + 24'd1; // rtl-gen/src/merge/fetcher/order.rs:242
-                probe_end <= out_items_out_data_first_add; // rtl-gen/src/merge/fetcher/order.rs:244
-            end else if (probe_next) begin
-                probe_idx <= probe_idx_add;  // rtl-gen/src/merge/fetcher/order.rs:242
+            if (order_probe_first) begin
+                order_probe_idx <= visit_out_items_out_data_first + 24'd1; // rtl-gen/src/merge/fetcher/order.rs:242
+                order_probe_end <= visit_out_items_out_data_first_add; // rtl-gen/src/merge/fetcher/order.rs:244
+            end else if (order_probe_next) begin
+                order_probe_idx <= order_probe_idx_add; // rtl-gen/src/merge/fetcher/order.rs:242
             end
-            probe_parent <= probe_parent_next;
-            probe_lod <= probe_lod_next;
+            order_probe_parent <= order_probe_parent_next;
+            order_probe_lod <= order_probe_lod_next;
             if (out_probes_out_valid_and) begin
-                out_probes_head <= out_probes_head + 3'd1; // rtl-gen/src/merge/fetcher/parts.rs:41
+                out_probes_head <= out_probes_head + 3'd1; // rtl-gen/src/merge/fetcher/out.rs:155
             end
             if (out_probes_in_valid_and) begin
-                out_probes_tail <= out_probes_tail + 3'd1; // rtl-gen/src/merge/fetcher/parts.rs:42
+                out_probes_tail <= out_probes_tail + 3'd1; // rtl-gen/src/merge/fetcher/out.rs:155
                 if (!out_probes_out_valid_and) begin
-                    out_probes_count <= out_probes_count + 4'd1; // rtl-gen/src/merge/fetcher/parts.rs:44
+                    out_probes_count <= out_probes_count + 4'd1; // rtl-gen/src/merge/fetcher/out.rs:155
                 end
             end else if (out_probes_out_valid_and) begin
-                out_probes_count <= out_probes_count - 4'd1; // rtl-gen/src/merge/fetcher/parts.rs:45
+                out_probes_count <= out_probes_count - 4'd1; // rtl-gen/src/merge/fetcher/out.rs:155
             end
             if (node_req_q_drain) begin
                 node_req_q_valid <= node_req_q_spare_valid | node_req_core_valid; // rtl-gen/src/merge/fetcher/mod.rs:245
@@ -1353,12 +1353,12 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
                 leaves_q_spare_data <= leaves_core_data; // rtl-gen/src/merge/fetcher/mod.rs:249
             end
             if (probe_req_q_drain) begin
-                probe_req_q_valid <= probe_req_q_spare_valid | probe_req_core_valid; // rtl-gen/src/merge/fetcher/mod.rs:251
-                probe_req_q_data <= probe_req_q_spare_valid ? probe_req_q_spare_data : probe_req_core_data; // rtl-gen/src/merge/fetcher/mod.rs:251
+                probe_req_q_valid <= probe_req_q_spare_valid | out_probe_req_core_valid; // rtl-gen/src/merge/fetcher/mod.rs:251
+                probe_req_q_data <= probe_req_q_spare_valid ? probe_req_q_spare_data : out_probe_req_core_data; // rtl-gen/src/merge/fetcher/mod.rs:251
             end
             probe_req_q_spare_valid <= probe_req_q_drain ? 1'b0 : (probe_req_q_spare_valid | probe_req_q_take);
             if ((~probe_req_q_drain) & probe_req_q_take) begin
-                probe_req_q_spare_data <= probe_req_core_data; // rtl-gen/src/merge/fetcher/mod.rs:251
+                probe_req_q_spare_data <= out_probe_req_core_data; // rtl-gen/src/merge/fetcher/mod.rs:251
             end
         end
     end
@@ -1370,38 +1370,38 @@ module fetcher_d16_q8_i24_h4_r16_f256_pn (
         end
     end
 
-    // memory ref_ctx: 8 x 25 bits
+    // memory range_ref_ctx: 8 x 25 bits
     always @(posedge clk) begin
-        if (ref_ctx_in_valid_and) begin
-            ref_ctx[ref_ctx_tail] <= ref_ctx_in_data;
+        if (range_ref_ctx_in_valid_and) begin
+            range_ref_ctx[range_ref_ctx_tail] <= range_ref_ctx_in_data;
         end
     end
 
-    // memory node_ctx: 8 x 34 bits
+    // memory ref_stage_node_ctx: 8 x 34 bits
     always @(posedge clk) begin
-        if (node_ctx_in_valid_and) begin
-            node_ctx[node_ctx_tail] <= node_ctx_in_data;
+        if (ref_stage_node_ctx_in_valid_and) begin
+            ref_stage_node_ctx[ref_stage_node_ctx_tail] <= ref_stage_node_ctx_in_data;
         end
     end
 
-    // memory out_items: 4 x 184 bits
+    // memory visit_out_items: 4 x 184 bits
     always @(posedge clk) begin
-        if (out_items_in_valid_and) begin
-            out_items[out_items_tail] <= out_items_in_data;
+        if (visit_out_items_in_valid_and) begin
+            visit_out_items[visit_out_items_tail] <= visit_out_items_in_data;
         end
     end
 
-    // memory pass: 256 x 120 bits
+    // memory visit_pass: 256 x 120 bits
     always @(posedge clk) begin
-        if (pass_in_valid_and) begin
-            pass[pass_tail] <= pass_in_data;
+        if (visit_pass_in_valid_and) begin
+            visit_pass[visit_pass_tail] <= visit_pass_in_data;
         end
     end
 
-    // memory out_tokens: 4 x 187 bits
+    // memory order_tokens: 4 x 187 bits
     always @(posedge clk) begin
-        if (out_tokens_in_valid_and) begin
-            out_tokens[out_tokens_tail] <= out_tokens_in_data;
+        if (order_tokens_in_valid_and) begin
+            order_tokens[order_tokens_tail] <= order_tokens_in_data;
         end
     end
 

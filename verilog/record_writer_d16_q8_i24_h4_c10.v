@@ -65,18 +65,18 @@ module record_writer_d16_q8_i24_h4_c10 (
     input  wire level16_valid,        // rtl-gen/src/merge/record_writer.rs:560
     input  wire [228:0] level16_data, // rtl-gen/src/merge/record_writer.rs:560
     output wire level16_ready,        // rtl-gen/src/merge/record_writer.rs:560
-    output wire nodes_valid,          // rtl-gen/src/merge/record_writer.rs:868
-    output wire [149:0] nodes_data,   // rtl-gen/src/merge/record_writer.rs:868
-    input  wire nodes_ready,          // rtl-gen/src/merge/record_writer.rs:868
-    input  wire ref_resp_valid,       // rtl-gen/src/merge/record_writer.rs:947
-    input  wire [27:0] ref_resp_data, // rtl-gen/src/merge/record_writer.rs:947
-    output wire ref_resp_ready,       // rtl-gen/src/merge/record_writer.rs:947
-    output wire refs_valid,           // rtl-gen/src/merge/record_writer.rs:964
-    output wire [27:0] refs_data,     // rtl-gen/src/merge/record_writer.rs:964
-    input  wire refs_ready,           // rtl-gen/src/merge/record_writer.rs:964
-    output wire ref_req_valid,        // rtl-gen/src/merge/record_writer.rs:976
-    output wire [27:0] ref_req_data,  // rtl-gen/src/merge/record_writer.rs:976
-    input  wire ref_req_ready,        // rtl-gen/src/merge/record_writer.rs:976
+    output wire nodes_valid,          // rtl-gen/src/merge/record_writer.rs:867
+    output wire [149:0] nodes_data,   // rtl-gen/src/merge/record_writer.rs:867
+    input  wire nodes_ready,          // rtl-gen/src/merge/record_writer.rs:867
+    input  wire ref_resp_valid,       // rtl-gen/src/merge/record_writer.rs:946
+    input  wire [27:0] ref_resp_data, // rtl-gen/src/merge/record_writer.rs:946
+    output wire ref_resp_ready,       // rtl-gen/src/merge/record_writer.rs:946
+    output wire refs_valid,           // rtl-gen/src/merge/record_writer.rs:963
+    output wire [27:0] refs_data,     // rtl-gen/src/merge/record_writer.rs:963
+    input  wire refs_ready,           // rtl-gen/src/merge/record_writer.rs:963
+    output wire ref_req_valid,        // rtl-gen/src/merge/record_writer.rs:975
+    output wire [27:0] ref_req_data,  // rtl-gen/src/merge/record_writer.rs:975
+    input  wire ref_req_ready,        // rtl-gen/src/merge/record_writer.rs:975
     output wire header_valid,         // rtl-gen/src/merge/record_writer.rs:371
     output wire [86:0] header_data,   // rtl-gen/src/merge/record_writer.rs:371
     input  wire header_ready,         // rtl-gen/src/merge/record_writer.rs:371
@@ -402,26 +402,26 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire u_level0_or_5;                      // rtl-gen/src/merge/record_writer.rs:204
     wire u_level0_or_6;                      // rtl-gen/src/merge/record_writer.rs:204
     wire u_level0_or_7;                      // rtl-gen/src/merge/record_writer.rs:204
-    wire [2:0] u_level0_mux;                 // rtl-gen/src/merge/record_writer.rs:754
+    wire [2:0] u_level0_mux;                 // rtl-gen/src/merge/record_writer.rs:750
     wire [2:0] done_err_mux;                 // rtl-gen/src/merge/record_writer.rs:750
-    wire fill_ok;                            // rtl-gen/src/merge/record_writer.rs:760
-    reg [2:0] err_code;                      // rtl-gen/src/merge/record_writer.rs:761
-    reg [24:0] h_roots;                      // rtl-gen/src/merge/record_writer.rs:762
-    reg [24:0] h_nodes;                      // rtl-gen/src/merge/record_writer.rs:763
-    reg [24:0] h_refs;                       // rtl-gen/src/merge/record_writer.rs:764
-    wire drain_start;                        // rtl-gen/src/merge/record_writer.rs:769
-    reg [4:0] rs_lod;                        // rtl-gen/src/merge/record_writer.rs:817
-    reg [10:0] rs_ptr;                       // rtl-gen/src/merge/record_writer.rs:818
-    reg [24:0] rs_first;                     // rtl-gen/src/merge/record_writer.rs:819
-    reg rs_done;                             // rtl-gen/src/merge/record_writer.rs:820
-    wire rs_lod_eq;                          // rtl-gen/src/merge/record_writer.rs:821
+    wire fill_ok;                            // rtl-gen/src/merge/record_writer.rs:759
+    reg [2:0] err_code;                      // rtl-gen/src/merge/record_writer.rs:760
+    reg [24:0] h_roots;                      // rtl-gen/src/merge/record_writer.rs:761
+    reg [24:0] h_nodes;                      // rtl-gen/src/merge/record_writer.rs:762
+    reg [24:0] h_refs;                       // rtl-gen/src/merge/record_writer.rs:763
+    wire drain_start;                        // rtl-gen/src/merge/record_writer.rs:768
+    reg [4:0] rs_lod;                        // rtl-gen/src/merge/record_writer.rs:816
+    reg [10:0] rs_ptr;                       // rtl-gen/src/merge/record_writer.rs:817
+    reg [24:0] rs_first;                     // rtl-gen/src/merge/record_writer.rs:818
+    reg rs_done;                             // rtl-gen/src/merge/record_writer.rs:819
+    wire rs_lod_eq;                          // rtl-gen/src/merge/record_writer.rs:820
     wire [10:0] rs_lod_mux;                  // rtl-gen/src/merge/record_writer.rs:191
     wire [10:0] rs_lod_mux_1;                // rtl-gen/src/merge/record_writer.rs:191
     wire [10:0] rs_lod_mux_2;                // rtl-gen/src/merge/record_writer.rs:191
-    wire [10:0] rs_ptr_add;                  // rtl-gen/src/merge/record_writer.rs:823
-    wire nodes_in_valid;                     // rtl-gen/src/merge/record_writer.rs:824
-    wire nodes_in_ready;                     // rtl-gen/src/merge/record_writer.rs:826
-    wire nodes_in_valid_and;                 // rtl-gen/src/merge/record_writer.rs:827
+    wire [10:0] rs_ptr_add;                  // rtl-gen/src/merge/record_writer.rs:822
+    wire nodes_in_valid;                     // rtl-gen/src/merge/record_writer.rs:823
+    wire nodes_in_ready;                     // rtl-gen/src/merge/record_writer.rs:825
+    wire nodes_in_valid_and;                 // rtl-gen/src/merge/record_writer.rs:826
     wire u_level16_ne;                       // rtl-gen/src/merge/record_writer.rs:232
     wire rs_lod_has_l16;                     // rtl-gen/src/merge/record_writer.rs:232
     wire u_level15_ne;                       // rtl-gen/src/merge/record_writer.rs:232
@@ -461,12 +461,12 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire rs_lod_has_l1;                      // rtl-gen/src/merge/record_writer.rs:232
     wire rs_lod_has_l16_or_2;                // rtl-gen/src/merge/record_writer.rs:234
     wire [4:0] rs_lod_has_l1_mux;            // rtl-gen/src/merge/record_writer.rs:235
-    wire nodes_in_valid_and_1;               // rtl-gen/src/merge/record_writer.rs:830
-    wire nodes_in_valid_and_2;               // rtl-gen/src/merge/record_writer.rs:831
-    wire [4:0] rs_lod_next;                  // rtl-gen/src/merge/record_writer.rs:834
-    wire [10:0] rs_ptr_next;                 // rtl-gen/src/merge/record_writer.rs:837
-    wire drain_start_or;                     // rtl-gen/src/merge/record_writer.rs:841
-    wire rs_lod_next_eq;                     // rtl-gen/src/merge/record_writer.rs:842
+    wire nodes_in_valid_and_1;               // rtl-gen/src/merge/record_writer.rs:829
+    wire nodes_in_valid_and_2;               // rtl-gen/src/merge/record_writer.rs:830
+    wire [4:0] rs_lod_next;                  // rtl-gen/src/merge/record_writer.rs:833
+    wire [10:0] rs_ptr_next;                 // rtl-gen/src/merge/record_writer.rs:836
+    wire drain_start_or;                     // rtl-gen/src/merge/record_writer.rs:840
+    wire rs_lod_next_eq;                     // rtl-gen/src/merge/record_writer.rs:841
     wire rs_lod_next_reads_l0;               // rtl-gen/src/merge/record_writer.rs:252
     wire rs_lod_next_reads_l1;               // rtl-gen/src/merge/record_writer.rs:252
     wire rs_lod_next_reads_l2;               // rtl-gen/src/merge/record_writer.rs:252
@@ -491,36 +491,36 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire [125:0] rs_lod_mux_6;               // rtl-gen/src/merge/record_writer.rs:191
     wire [125:0] rs_lod_mux_7;               // rtl-gen/src/merge/record_writer.rs:191
     wire [125:0] rs_lod_mux_8;               // rtl-gen/src/merge/record_writer.rs:191
-    wire [125:0] rs_lod_mux_9;               // rtl-gen/src/merge/record_writer.rs:854
-    wire [149:0] nodes_in_valid_mux;         // rtl-gen/src/merge/record_writer.rs:866
-    reg nodes_skid_valid;                    // rtl-gen/src/merge/record_writer.rs:868
-    reg [149:0] nodes_skid_data;             // rtl-gen/src/merge/record_writer.rs:868
-    reg nodes_skid_spare_valid;              // rtl-gen/src/merge/record_writer.rs:868
-    reg [149:0] nodes_skid_spare_data;       // rtl-gen/src/merge/record_writer.rs:868
-    wire nodes_skid_ready;                   // rtl-gen/src/merge/record_writer.rs:868
-    wire nodes_skid_room;                    // rtl-gen/src/merge/record_writer.rs:868
-    wire nodes_skid_drain;                   // rtl-gen/src/merge/record_writer.rs:868
-    wire nodes_skid_take;                    // rtl-gen/src/merge/record_writer.rs:868
-    reg [4:0] fs_lod;                        // rtl-gen/src/merge/record_writer.rs:905
-    reg [10:0] fs_ptr;                       // rtl-gen/src/merge/record_writer.rs:906
-    reg [23:0] fs_j;                         // rtl-gen/src/merge/record_writer.rs:907
-    reg [23:0] fs_req;                       // rtl-gen/src/merge/record_writer.rs:908
-    reg [10:0] fs_child;                     // rtl-gen/src/merge/record_writer.rs:909
-    reg [10:0] fs_cref;                      // rtl-gen/src/merge/record_writer.rs:910
-    reg [24:0] fs_child_offset;              // rtl-gen/src/merge/record_writer.rs:911
-    reg fs_done;                             // rtl-gen/src/merge/record_writer.rs:912
-    wire [4:0] fs_lod_next;                  // rtl-gen/src/merge/record_writer.rs:913
-    wire [10:0] fs_ptr_next;                 // rtl-gen/src/merge/record_writer.rs:914
-    wire [10:0] fs_child_next;               // rtl-gen/src/merge/record_writer.rs:915
-    wire [10:0] fs_cref_next;                // rtl-gen/src/merge/record_writer.rs:916
-    wire fs_lod_eq;                          // rtl-gen/src/merge/record_writer.rs:917
+    wire [125:0] rs_lod_mux_9;               // rtl-gen/src/merge/record_writer.rs:853
+    wire [149:0] nodes_in_valid_mux;         // rtl-gen/src/merge/record_writer.rs:865
+    reg nodes_skid_valid;                    // rtl-gen/src/merge/record_writer.rs:867
+    reg [149:0] nodes_skid_data;             // rtl-gen/src/merge/record_writer.rs:867
+    reg nodes_skid_spare_valid;              // rtl-gen/src/merge/record_writer.rs:867
+    reg [149:0] nodes_skid_spare_data;       // rtl-gen/src/merge/record_writer.rs:867
+    wire nodes_skid_ready;                   // rtl-gen/src/merge/record_writer.rs:867
+    wire nodes_skid_room;                    // rtl-gen/src/merge/record_writer.rs:867
+    wire nodes_skid_drain;                   // rtl-gen/src/merge/record_writer.rs:867
+    wire nodes_skid_take;                    // rtl-gen/src/merge/record_writer.rs:867
+    reg [4:0] fs_lod;                        // rtl-gen/src/merge/record_writer.rs:904
+    reg [10:0] fs_ptr;                       // rtl-gen/src/merge/record_writer.rs:905
+    reg [23:0] fs_j;                         // rtl-gen/src/merge/record_writer.rs:906
+    reg [23:0] fs_req;                       // rtl-gen/src/merge/record_writer.rs:907
+    reg [10:0] fs_child;                     // rtl-gen/src/merge/record_writer.rs:908
+    reg [10:0] fs_cref;                      // rtl-gen/src/merge/record_writer.rs:909
+    reg [24:0] fs_child_offset;              // rtl-gen/src/merge/record_writer.rs:910
+    reg fs_done;                             // rtl-gen/src/merge/record_writer.rs:911
+    wire [4:0] fs_lod_next;                  // rtl-gen/src/merge/record_writer.rs:912
+    wire [10:0] fs_ptr_next;                 // rtl-gen/src/merge/record_writer.rs:913
+    wire [10:0] fs_child_next;               // rtl-gen/src/merge/record_writer.rs:914
+    wire [10:0] fs_cref_next;                // rtl-gen/src/merge/record_writer.rs:915
+    wire fs_lod_eq;                          // rtl-gen/src/merge/record_writer.rs:916
     wire [10:0] fs_lod_mux;                  // rtl-gen/src/merge/record_writer.rs:191
     wire [10:0] fs_lod_mux_1;                // rtl-gen/src/merge/record_writer.rs:191
     wire [10:0] fs_lod_mux_2;                // rtl-gen/src/merge/record_writer.rs:191
-    wire [10:0] fs_ptr_add;                  // rtl-gen/src/merge/record_writer.rs:919
-    wire fs_busy;                            // rtl-gen/src/merge/record_writer.rs:920
-    wire drain_start_or_1;                   // rtl-gen/src/merge/record_writer.rs:921
-    wire fs_lod_next_eq;                     // rtl-gen/src/merge/record_writer.rs:922
+    wire [10:0] fs_ptr_add;                  // rtl-gen/src/merge/record_writer.rs:918
+    wire fs_busy;                            // rtl-gen/src/merge/record_writer.rs:919
+    wire drain_start_or_1;                   // rtl-gen/src/merge/record_writer.rs:920
+    wire fs_lod_next_eq;                     // rtl-gen/src/merge/record_writer.rs:921
     wire fs_lod_next_reads_l0;               // rtl-gen/src/merge/record_writer.rs:252
     wire fs_lod_next_reads_l1;               // rtl-gen/src/merge/record_writer.rs:252
     wire fs_lod_next_reads_l2;               // rtl-gen/src/merge/record_writer.rs:252
@@ -545,45 +545,45 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire [53:0] fs_lod_mux_6;                // rtl-gen/src/merge/record_writer.rs:191
     wire [53:0] fs_lod_mux_7;                // rtl-gen/src/merge/record_writer.rs:191
     wire [53:0] fs_lod_mux_8;                // rtl-gen/src/merge/record_writer.rs:191
-    wire [53:0] fs_lod_mux_9;                // rtl-gen/src/merge/record_writer.rs:929
+    wire [53:0] fs_lod_mux_9;                // rtl-gen/src/merge/record_writer.rs:928
     wire fs_lod_eq_1;                        // rtl-gen/src/merge/record_writer.rs:196
     wire fs_lod_eq_2;                        // rtl-gen/src/merge/record_writer.rs:196
     wire fs_lod_eq_3;                        // rtl-gen/src/merge/record_writer.rs:196
-    wire [4:0] fs_lod_next_add;              // rtl-gen/src/merge/record_writer.rs:938
-    wire [4:0] fs_lod_add;                   // rtl-gen/src/merge/record_writer.rs:942
+    wire [4:0] fs_lod_next_add;              // rtl-gen/src/merge/record_writer.rs:937
+    wire [4:0] fs_lod_add;                   // rtl-gen/src/merge/record_writer.rs:941
     wire [52:0] fs_lod_mux_10;               // rtl-gen/src/merge/record_writer.rs:191
     wire [52:0] fs_lod_mux_11;               // rtl-gen/src/merge/record_writer.rs:191
     wire [52:0] fs_lod_mux_12;               // rtl-gen/src/merge/record_writer.rs:191
     wire [52:0] fs_lod_mux_13;               // rtl-gen/src/merge/record_writer.rs:191
-    wire fs_req_ne;                          // rtl-gen/src/merge/record_writer.rs:946
-    wire refs_in_ready;                      // rtl-gen/src/merge/record_writer.rs:948
-    wire refs_in_valid;                      // rtl-gen/src/merge/record_writer.rs:950
-    reg [27:0] crefs_mem_rdata;              // rtl-gen/src/merge/record_writer.rs:954
-    wire [27:0] fs_lod_mux_14;               // rtl-gen/src/merge/record_writer.rs:951
-    wire [27:0] refs_in_valid_mux;           // rtl-gen/src/merge/record_writer.rs:961
-    wire refs_fire;                          // rtl-gen/src/merge/record_writer.rs:963
-    reg refs_skid_valid;                     // rtl-gen/src/merge/record_writer.rs:964
-    reg [27:0] refs_skid_data;               // rtl-gen/src/merge/record_writer.rs:964
-    reg refs_skid_spare_valid;               // rtl-gen/src/merge/record_writer.rs:964
-    reg [27:0] refs_skid_spare_data;         // rtl-gen/src/merge/record_writer.rs:964
-    wire refs_skid_ready;                    // rtl-gen/src/merge/record_writer.rs:964
-    wire refs_skid_room;                     // rtl-gen/src/merge/record_writer.rs:964
-    wire refs_skid_drain;                    // rtl-gen/src/merge/record_writer.rs:964
-    wire refs_skid_take;                     // rtl-gen/src/merge/record_writer.rs:964
-    wire fs_busy_and;                        // rtl-gen/src/merge/record_writer.rs:967
-    wire ref_req_in_valid;                   // rtl-gen/src/merge/record_writer.rs:968
-    wire ref_req_in_ready;                   // rtl-gen/src/merge/record_writer.rs:972
-    wire [27:0] ref_req_in_valid_mux;        // rtl-gen/src/merge/record_writer.rs:973
-    reg ref_req_skid_valid;                  // rtl-gen/src/merge/record_writer.rs:976
-    reg [27:0] ref_req_skid_data;            // rtl-gen/src/merge/record_writer.rs:976
-    reg ref_req_skid_spare_valid;            // rtl-gen/src/merge/record_writer.rs:976
-    reg [27:0] ref_req_skid_spare_data;      // rtl-gen/src/merge/record_writer.rs:976
-    wire ref_req_skid_ready;                 // rtl-gen/src/merge/record_writer.rs:976
-    wire ref_req_skid_room;                  // rtl-gen/src/merge/record_writer.rs:976
-    wire ref_req_skid_drain;                 // rtl-gen/src/merge/record_writer.rs:976
-    wire ref_req_skid_take;                  // rtl-gen/src/merge/record_writer.rs:976
-    wire [23:0] fs_j_add;                    // rtl-gen/src/merge/record_writer.rs:977
-    wire refs_fire_and;                      // rtl-gen/src/merge/record_writer.rs:977
+    wire fs_req_ne;                          // rtl-gen/src/merge/record_writer.rs:945
+    wire refs_in_ready;                      // rtl-gen/src/merge/record_writer.rs:947
+    wire refs_in_valid;                      // rtl-gen/src/merge/record_writer.rs:949
+    reg [27:0] crefs_mem_rdata;              // rtl-gen/src/merge/record_writer.rs:953
+    wire [27:0] fs_lod_mux_14;               // rtl-gen/src/merge/record_writer.rs:950
+    wire [27:0] refs_in_valid_mux;           // rtl-gen/src/merge/record_writer.rs:960
+    wire refs_fire;                          // rtl-gen/src/merge/record_writer.rs:962
+    reg refs_skid_valid;                     // rtl-gen/src/merge/record_writer.rs:963
+    reg [27:0] refs_skid_data;               // rtl-gen/src/merge/record_writer.rs:963
+    reg refs_skid_spare_valid;               // rtl-gen/src/merge/record_writer.rs:963
+    reg [27:0] refs_skid_spare_data;         // rtl-gen/src/merge/record_writer.rs:963
+    wire refs_skid_ready;                    // rtl-gen/src/merge/record_writer.rs:963
+    wire refs_skid_room;                     // rtl-gen/src/merge/record_writer.rs:963
+    wire refs_skid_drain;                    // rtl-gen/src/merge/record_writer.rs:963
+    wire refs_skid_take;                     // rtl-gen/src/merge/record_writer.rs:963
+    wire fs_busy_and;                        // rtl-gen/src/merge/record_writer.rs:966
+    wire ref_req_in_valid;                   // rtl-gen/src/merge/record_writer.rs:967
+    wire ref_req_in_ready;                   // rtl-gen/src/merge/record_writer.rs:971
+    wire [27:0] ref_req_in_valid_mux;        // rtl-gen/src/merge/record_writer.rs:972
+    reg ref_req_skid_valid;                  // rtl-gen/src/merge/record_writer.rs:975
+    reg [27:0] ref_req_skid_data;            // rtl-gen/src/merge/record_writer.rs:975
+    reg ref_req_skid_spare_valid;            // rtl-gen/src/merge/record_writer.rs:975
+    reg [27:0] ref_req_skid_spare_data;      // rtl-gen/src/merge/record_writer.rs:975
+    wire ref_req_skid_ready;                 // rtl-gen/src/merge/record_writer.rs:975
+    wire ref_req_skid_room;                  // rtl-gen/src/merge/record_writer.rs:975
+    wire ref_req_skid_drain;                 // rtl-gen/src/merge/record_writer.rs:975
+    wire ref_req_skid_take;                  // rtl-gen/src/merge/record_writer.rs:975
+    wire [23:0] fs_j_add;                    // rtl-gen/src/merge/record_writer.rs:976
+    wire refs_fire_and;                      // rtl-gen/src/merge/record_writer.rs:976
     wire fs_lod_has_l16;                     // rtl-gen/src/merge/record_writer.rs:232
     wire fs_lod_has_l15;                     // rtl-gen/src/merge/record_writer.rs:232
     wire fs_lod_has_l14;                     // rtl-gen/src/merge/record_writer.rs:232
@@ -607,10 +607,10 @@ module record_writer_d16_q8_i24_h4_c10 (
     wire fs_lod_has_l1;                      // rtl-gen/src/merge/record_writer.rs:232
     wire fs_lod_has_l16_or_2;                // rtl-gen/src/merge/record_writer.rs:234
     wire [4:0] fs_lod_has_l1_mux;            // rtl-gen/src/merge/record_writer.rs:235
-    wire refs_fire_and_1;                    // rtl-gen/src/merge/record_writer.rs:980
-    wire refs_fire_and_2;                    // rtl-gen/src/merge/record_writer.rs:981
-    wire drain_start_or_2;                   // rtl-gen/src/merge/record_writer.rs:987
-    wire drain_start_or_3;                   // rtl-gen/src/merge/record_writer.rs:991
+    wire refs_fire_and_1;                    // rtl-gen/src/merge/record_writer.rs:979
+    wire refs_fire_and_2;                    // rtl-gen/src/merge/record_writer.rs:980
+    wire drain_start_or_2;                   // rtl-gen/src/merge/record_writer.rs:986
+    wire drain_start_or_3;                   // rtl-gen/src/merge/record_writer.rs:990
     wire [10:0] fs_lod_has_l1_mux_1;         // rtl-gen/src/merge/record_writer.rs:191
     wire [10:0] fs_lod_has_l1_mux_2;         // rtl-gen/src/merge/record_writer.rs:191
     wire [10:0] fs_lod_has_l1_mux_3;         // rtl-gen/src/merge/record_writer.rs:191
@@ -1516,11 +1516,11 @@ module record_writer_d16_q8_i24_h4_c10 (
             if (merge_clear) begin
                 state <= FILL;               // rtl-gen/src/merge/record_writer.rs:375
                 cref_wptr <= 11'd0;          // rtl-gen/src/merge/record_writer.rs:492
-                err_code <= 3'd0;            // rtl-gen/src/merge/record_writer.rs:765
+                err_code <= 3'd0;            // rtl-gen/src/merge/record_writer.rs:764
             end else begin
                 if (fill_done) begin
                     state <= fill_ok ? DRAIN : HEADER; // rtl-gen/src/merge/record_writer.rs:377
-                    err_code <= done_err_mux; // rtl-gen/src/merge/record_writer.rs:765
+                    err_code <= done_err_mux; // rtl-gen/src/merge/record_writer.rs:764
                 end else if ((in_drain & rs_done) & fs_done) begin
                     state <= HEADER;         // rtl-gen/src/merge/record_writer.rs:380
                 end
@@ -1542,63 +1542,63 @@ module record_writer_d16_q8_i24_h4_c10 (
             cref_end <= merge_clear ? 1'b0 : (cref_end | (crefs_valid_and & crefs_data_end));
             cref_cap_err <= merge_clear ? 1'b0 : (cref_cap_err | (crefs_valid_and_1 & cref_wptr[10]));
             if (fill_done) begin
-                h_roots <= {14'd0, top_nodes}; // rtl-gen/src/merge/record_writer.rs:766
-                h_nodes <= nodes_total[24:0]; // rtl-gen/src/merge/record_writer.rs:767
-                h_refs <= refs_total[24:0];  // rtl-gen/src/merge/record_writer.rs:768
+                h_roots <= {14'd0, top_nodes}; // rtl-gen/src/merge/record_writer.rs:765
+                h_nodes <= nodes_total[24:0]; // rtl-gen/src/merge/record_writer.rs:766
+                h_refs <= refs_total[24:0];  // rtl-gen/src/merge/record_writer.rs:767
             end
             rs_lod <= rs_lod_next;
             rs_ptr <= rs_ptr_next;
             if (drain_start) begin
-                rs_first <= 25'd0;           // rtl-gen/src/merge/record_writer.rs:869
-                fs_child_offset <= {14'd0, top_nodes}; // rtl-gen/src/merge/record_writer.rs:1007
+                rs_first <= 25'd0;           // rtl-gen/src/merge/record_writer.rs:868
+                fs_child_offset <= {14'd0, top_nodes}; // rtl-gen/src/merge/record_writer.rs:1006
             end else begin
                 if (nodes_in_valid_and) begin
-                    rs_first <= rs_first + {1'b0, rs_lod_mux_9[125:102]}; // rtl-gen/src/merge/record_writer.rs:871
+                    rs_first <= rs_first + {1'b0, rs_lod_mux_9[125:102]}; // rtl-gen/src/merge/record_writer.rs:870
                 end
                 if (refs_fire_and_2) begin
-                    fs_child_offset <= fs_child_offset + {14'd0, fs_lod_has_l1_mux[4] ? fs_lod_has_l1_mux_3 : (fs_lod_has_l1_mux[3] ? fs_lod_has_l1_mux_2 : fs_lod_has_l1_mux_1)}; // rtl-gen/src/merge/record_writer.rs:1009
+                    fs_child_offset <= fs_child_offset + {14'd0, fs_lod_has_l1_mux[4] ? fs_lod_has_l1_mux_3 : (fs_lod_has_l1_mux[3] ? fs_lod_has_l1_mux_2 : fs_lod_has_l1_mux_1)}; // rtl-gen/src/merge/record_writer.rs:1008
                 end
             end
             rs_done <= merge_clear ? 1'b0 : (rs_done | (nodes_in_valid_and_1 & (~rs_lod_has_l16_or_2)));
             if (nodes_skid_drain) begin
-                nodes_skid_valid <= nodes_skid_spare_valid | nodes_in_valid; // rtl-gen/src/merge/record_writer.rs:868
-                nodes_skid_data <= nodes_skid_spare_valid ? nodes_skid_spare_data : nodes_in_valid_mux; // rtl-gen/src/merge/record_writer.rs:868
+                nodes_skid_valid <= nodes_skid_spare_valid | nodes_in_valid; // rtl-gen/src/merge/record_writer.rs:867
+                nodes_skid_data <= nodes_skid_spare_valid ? nodes_skid_spare_data : nodes_in_valid_mux; // rtl-gen/src/merge/record_writer.rs:867
             end
             nodes_skid_spare_valid <= nodes_skid_drain ? 1'b0 : (nodes_skid_spare_valid | nodes_skid_take);
             if ((~nodes_skid_drain) & nodes_skid_take) begin
-                nodes_skid_spare_data <= nodes_in_valid_mux; // rtl-gen/src/merge/record_writer.rs:868
+                nodes_skid_spare_data <= nodes_in_valid_mux; // rtl-gen/src/merge/record_writer.rs:867
             end
             fs_lod <= fs_lod_next;
             fs_ptr <= fs_ptr_next;
             if (drain_start_or_3) begin
-                fs_j <= 24'd0;               // rtl-gen/src/merge/record_writer.rs:991
-                fs_req <= 24'd0;             // rtl-gen/src/merge/record_writer.rs:992
+                fs_j <= 24'd0;               // rtl-gen/src/merge/record_writer.rs:990
+                fs_req <= 24'd0;             // rtl-gen/src/merge/record_writer.rs:991
             end else begin
                 if (refs_fire) begin
-                    fs_j <= fs_j_add;        // rtl-gen/src/merge/record_writer.rs:991
+                    fs_j <= fs_j_add;        // rtl-gen/src/merge/record_writer.rs:990
                 end
                 if (ref_req_in_valid & ref_req_in_ready) begin
-                    fs_req <= fs_req + 24'd1; // rtl-gen/src/merge/record_writer.rs:992
+                    fs_req <= fs_req + 24'd1; // rtl-gen/src/merge/record_writer.rs:991
                 end
             end
             fs_child <= fs_child_next;
             fs_cref <= fs_cref_next;
             fs_done <= merge_clear ? 1'b0 : (fs_done | (refs_fire_and_1 & (~fs_lod_has_l16_or_2)));
             if (refs_skid_drain) begin
-                refs_skid_valid <= refs_skid_spare_valid | refs_in_valid; // rtl-gen/src/merge/record_writer.rs:964
-                refs_skid_data <= refs_skid_spare_valid ? refs_skid_spare_data : refs_in_valid_mux; // rtl-gen/src/merge/record_writer.rs:964
+                refs_skid_valid <= refs_skid_spare_valid | refs_in_valid; // rtl-gen/src/merge/record_writer.rs:963
+                refs_skid_data <= refs_skid_spare_valid ? refs_skid_spare_data : refs_in_valid_mux; // rtl-gen/src/merge/record_writer.rs:963
             end
             refs_skid_spare_valid <= refs_skid_drain ? 1'b0 : (refs_skid_spare_valid | refs_skid_take);
             if ((~refs_skid_drain) & refs_skid_take) begin
-                refs_skid_spare_data <= refs_in_valid_mux; // rtl-gen/src/merge/record_writer.rs:964
+                refs_skid_spare_data <= refs_in_valid_mux; // rtl-gen/src/merge/record_writer.rs:963
             end
             if (ref_req_skid_drain) begin
-                ref_req_skid_valid <= ref_req_skid_spare_valid | ref_req_in_valid; // rtl-gen/src/merge/record_writer.rs:976
-                ref_req_skid_data <= ref_req_skid_spare_valid ? ref_req_skid_spare_data : ref_req_in_valid_mux; // rtl-gen/src/merge/record_writer.rs:976
+                ref_req_skid_valid <= ref_req_skid_spare_valid | ref_req_in_valid; // rtl-gen/src/merge/record_writer.rs:975
+                ref_req_skid_data <= ref_req_skid_spare_valid ? ref_req_skid_spare_data : ref_req_in_valid_mux; // rtl-gen/src/merge/record_writer.rs:975
             end
             ref_req_skid_spare_valid <= ref_req_skid_drain ? 1'b0 : (ref_req_skid_spare_valid | ref_req_skid_take);
             if ((~ref_req_skid_drain) & ref_req_skid_take) begin
-                ref_req_skid_spare_data <= ref_req_in_valid_mux; // rtl-gen/src/merge/record_writer.rs:976
+                ref_req_skid_spare_data <= ref_req_in_valid_mux; // rtl-gen/src/merge/record_writer.rs:975
             end
             if (header_skid_drain) begin
                 header_skid_valid <= header_skid_spare_valid | in_header; // rtl-gen/src/merge/record_writer.rs:370

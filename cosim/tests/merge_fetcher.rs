@@ -621,8 +621,8 @@ fn fetcher_verilog_lints_and_synthesizes() {
 
 /// The `leaves` end beat does not wait on `out` (SPEC 8.13 step 6, the
 /// merger's deadlock argument in 8.15): with `out` never ready, a command
-/// whose level holds more beats than the out pipeline (`out_items`,
-/// `out_tokens`, the skid buffer) still sends every leaf above the level and
+/// whose level holds more beats than the out pipeline (`visit_out_items`,
+/// `order_tokens`, the skid buffer) still sends every leaf above the level and
 /// its end beat, while its first level beat waits on `out`. Before session
 /// 4 the end beat came after the walk and never left here. IR simulator,
 /// memory answering every clock.

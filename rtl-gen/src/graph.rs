@@ -197,6 +197,8 @@ pub(crate) struct Graph {
     pub rst: Option<NodeId>,
     /// Errors found while building.
     pub errors: Vec<Diagnostic>,
+    /// The open [`crate::Scope`]s' names, outermost first.
+    pub scopes: Vec<String>,
 }
 
 /// The operator word of a field view ([`crate::Signal::field_view`]): an
@@ -220,6 +222,7 @@ impl Graph {
             clk: None,
             rst: None,
             errors: Vec::new(),
+            scopes: Vec::new(),
         }
     }
 

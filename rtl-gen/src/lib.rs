@@ -28,6 +28,7 @@
 
 mod diagnostic;
 pub mod examples;
+mod first_of;
 pub mod formal;
 mod graph;
 pub mod identity;
@@ -37,6 +38,7 @@ pub mod merge;
 mod module;
 mod names;
 pub mod optest;
+mod scope;
 mod signal;
 pub mod sim;
 mod states;
@@ -58,6 +60,7 @@ pub use instance::Instance;
 pub use memory::Memory;
 pub use module::{Module, PortInfo};
 pub use names::{is_auto_name, AUTO_NAME_WORDS};
+pub use scope::Scope;
 pub use signal::{IntoSignal, ShiftAmount, ShiftBy, Signal};
 pub use sim::{Sim, SimError};
 pub use states::States;

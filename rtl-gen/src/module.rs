@@ -200,12 +200,16 @@ impl Module {
                 return Err(self.fail(DiagKind::Name, Some(name.into()), loc, why, width));
             }
         }
+        let name = match port {
+            Some(_) => name.to_string(),
+            None => self.scoped(name),
+        };
         let mut g = self.graph_mut();
         let id = g.push(Node {
             op,
             width,
-            name: Some(name.to_string()),
-            base: name.to_string(),
+            name: Some(name.clone()),
+            base: name,
             opname: "",
             loc,
             port,
@@ -622,9 +626,10 @@ impl Module {
                 "a memory word needs at least one bit".into(),
             );
         }
+        let name = self.scoped(name);
         let mut g = self.graph_mut();
         g.mems.push(crate::graph::MemData {
-            name: name.to_string(),
+            name,
             width: width.max(1),
             depth,
             addr_width,

@@ -247,7 +247,11 @@ impl<'m> Signal<'m> {
     /// ```
     #[track_caller]
     pub fn name(self, name: &str) -> Signal<'m> {
-        let loc = Location::caller();
+        self.name_unscoped(&self.m.scoped(name), Location::caller())
+    }
+
+    /// [`Signal::name`] with `name` as it is, whatever scope is open.
+    pub(crate) fn name_unscoped(self, name: &str, loc: Loc) -> Signal<'m> {
         let is_port = self.m.graph().node(self.id).port.is_some();
         if is_port {
             self.m.graph_mut().error(
@@ -535,7 +539,7 @@ impl<'m> Signal<'m> {
     #[track_caller]
     pub fn named_after(self, source: Signal<'m>, role: &str) -> Signal<'m> {
         let name = format!("{}_{role}", source.base());
-        self.name(&name)
+        self.name_unscoped(&name, Location::caller())
     }
 
     /// Bits `hi` down to `lo` as field `field` of this record: where

@@ -46,7 +46,11 @@ impl<'m> States<'m> {
     pub fn code(&self, value: u64) -> Signal<'m> {
         let loc = Location::caller();
         match self.names.iter().find(|s| s.1 == value) {
-            Some((name, _)) => self.m.lit(value.into(), self.width).name(name),
+            // One constant per state in the module, whatever scope uses it.
+            Some((name, _)) => self
+                .m
+                .lit(value.into(), self.width)
+                .name_unscoped(name, loc),
             None => self.m.fail(
                 DiagKind::Misuse,
                 None,

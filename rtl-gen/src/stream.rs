@@ -179,6 +179,50 @@ impl<'m> Stream<'m> {
         }
     }
 
+    /// A FIFO of `depth` words (a power of two) on a memory, in order:
+    /// this stream's `ready` is driven here (room left), the returned
+    /// stream's `ready` by its consumer. A word pushed is readable from the
+    /// next clock; a push and a pop may share a clock, so a depth of 2 runs
+    /// one word a clock. Registers `<name>_head`, `<name>_tail` (read and
+    /// write addresses) and `<name>_count` (the words held, so full and
+    /// empty are one compare each); the output's data is zero while it is
+    /// empty, never an unwritten (X in 4-state simulators) word.
+    ///
+    /// ```
+    /// # use rtl_gen::{Module, Stream};
+    /// let m = Module::new("m");
+    /// Stream::input(&m, "in", 8).fifo("q", 4).output("out");
+    /// # assert!(m.validate().is_ok());
+    /// ```
+    #[track_caller]
+    pub fn fifo(self, name: &str, depth: u32) -> Stream<'m> {
+        let m = self.valid.module();
+        let width = self.data.width();
+        // The memory reports a depth that is not a power of two >= 2.
+        let aw = depth.max(2).next_power_of_two().trailing_zeros();
+        let cb = golden::params::bits_to_hold(depth as u64);
+        let mem = m.memory(name, width, depth);
+        let head = m.reg(&format!("{name}_head"), aw);
+        let tail = m.reg(&format!("{name}_tail"), aw);
+        let count = m.reg(&format!("{name}_count"), cb);
+        let out = Stream::wires(m, &format!("{name}_out"), width);
+        self.ready.drive(count.ne(m.lit(depth as u128, cb)));
+        let nonempty = count.ne(0);
+        out.valid.drive(nonempty);
+        out.data
+            .drive(nonempty.mux(mem.read(head), m.lit(0, width)));
+        let push = self.fire();
+        let pop = out.fire();
+        mem.write(tail, self.data, push);
+        head.next(pop.mux(head.add(1, aw), head));
+        tail.next(push.mux(tail.add(1, aw), tail));
+        count.next(push.mux(
+            pop.mux(count, count.add(1, cb)),
+            pop.mux(count.sub(1, cb), count),
+        ));
+        out
+    }
+
     /// Merges streams of equal width into one by fixed priority: the
     /// lowest-numbered valid input wins and is the only one told `ready`.
     /// While the output is stalled (valid, not ready) the grant is held to

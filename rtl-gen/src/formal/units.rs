@@ -73,13 +73,15 @@ pub fn skid_buffer(width: u32) -> Proof {
         .check(Determined, Induction)
 }
 
-/// The library FIFO ([`crate::examples::fifo`]) of `2^addr_bits` words:
-/// its words are a memory, which the harness cannot name, so the flow and
-/// determinism are proven by BMC, to a depth in which its pointers wrap
-/// (`2^(addr_bits + 1)` beats in) and it fills and drains.
+/// The library FIFO ([`Stream::fifo`], [`crate::examples::fifo`]) of
+/// `2^addr_bits` words: its words are a memory, which the harness cannot
+/// name, so the flow and determinism are proven by BMC, to a depth in which
+/// its addresses wrap (`2^(addr_bits + 1)` beats in) and it fills and
+/// drains. The handshake's induction needs the count to match the
+/// addresses, or a push could overwrite the word at the head.
 pub fn fifo(width: u32, addr_bits: u32) -> Proof {
     let depth = 1u32 << addr_bits;
-    let pw = addr_bits + 1;
+    let cb = golden::params::bits_to_hold(depth as u64);
     Proof::new(
         crate::examples::fifo(width, addr_bits),
         &["in"],
@@ -90,12 +92,19 @@ pub fn fifo(width: u32, addr_bits: u32) -> Proof {
         input: "in".into(),
         output: "out".into(),
         capacity: depth,
-        occupancy: Some("dut.wr_ptr - dut.rd_ptr".into()),
+        occupancy: Some("dut.mem_count".into()),
         slots: vec![],
     })
     .invariant(
-        "pointers_within_depth",
-        &format!("dut.wr_ptr - dut.rd_ptr <= {pw}'d{depth}"),
+        "count_within_depth",
+        &format!("dut.mem_count <= {cb}'d{depth}"),
+    )
+    .invariant(
+        "count_is_tail_minus_head",
+        &format!(
+            "dut.mem_tail - dut.mem_head == dut.mem_count[{}:0]",
+            addr_bits - 1
+        ),
     )
     .check(Handshake, Induction)
     .check(FlowCheck, Bmc)

@@ -747,15 +747,14 @@ fn header_checks<'m>(
     let cap_err = any_where(m, level_cap_err, in_merge) | cref_cap_err;
     let lev_err = any_where(m, level_err, in_merge);
     let code = |v: u64| lit(v, 3);
-    let fill_code = done_err.mux(
-        code(writer_err::NO_TOP),
-        cap_err.mux(
-            code(writer_err::CAPACITY),
-            lev_err.mux(
-                code(writer_err::LEVEL_OVERFLOW),
-                overflow.mux(code(writer_err::INDEX_OVERFLOW), code(writer_err::NONE)),
-            ),
-        ),
+    let fill_code = m.first_of(
+        &[
+            (done_err, code(writer_err::NO_TOP)),
+            (cap_err, code(writer_err::CAPACITY)),
+            (lev_err, code(writer_err::LEVEL_OVERFLOW)),
+            (overflow, code(writer_err::INDEX_OVERFLOW)),
+        ],
+        code(writer_err::NONE),
     );
     let fill_ok = fill_code.eq(code(writer_err::NONE)).name("fill_ok");
     let err_code = m.reg("err_code", 3);

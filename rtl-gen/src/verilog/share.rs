@@ -173,6 +173,7 @@ pub(crate) fn share(g: &Graph) -> (Graph, Vec<bool>) {
         clk: g.clk,
         rst: g.rst,
         errors: Vec::new(),
+        scopes: Vec::new(),
     };
     (shared, dead)
 }

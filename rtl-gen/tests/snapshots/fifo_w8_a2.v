@@ -8,48 +8,55 @@ module fifo_w8_a2 (
     input  wire in_valid,       // rtl-gen/src/examples/fifo.rs:21
     input  wire [7:0] in_data,  // rtl-gen/src/examples/fifo.rs:21
     output wire in_ready,       // rtl-gen/src/examples/fifo.rs:21
-    input  wire out_ready,      // rtl-gen/src/examples/fifo.rs:22
-    output wire out_valid,      // rtl-gen/src/examples/fifo.rs:35
-    output wire [7:0] out_data  // rtl-gen/src/examples/fifo.rs:36
+    output wire out_valid,      // rtl-gen/src/examples/fifo.rs:23
+    output wire [7:0] out_data, // rtl-gen/src/examples/fifo.rs:23
+    input  wire out_ready       // rtl-gen/src/examples/fifo.rs:23
 );
-    reg [7:0] mem [0:3];                     // rtl-gen/src/examples/fifo.rs:23
-    reg [2:0] wr_ptr;                        // rtl-gen/src/examples/fifo.rs:24
-    reg [2:0] rd_ptr;                        // rtl-gen/src/examples/fifo.rs:25
-    wire empty;                              // rtl-gen/src/examples/fifo.rs:27
-    wire full;                               // rtl-gen/src/examples/fifo.rs:28
-    wire full_not;                           // rtl-gen/src/examples/fifo.rs:29
-    wire push;                               // rtl-gen/src/examples/fifo.rs:29
-    wire empty_not;                          // rtl-gen/src/examples/fifo.rs:30
-    wire pop;                                // rtl-gen/src/examples/fifo.rs:30
+    reg [7:0] mem [0:3];                     // rtl-gen/src/examples/fifo.rs:22
+    reg [1:0] mem_head;                      // rtl-gen/src/examples/fifo.rs:22
+    reg [1:0] mem_tail;                      // rtl-gen/src/examples/fifo.rs:22
+    reg [2:0] mem_count;                     // rtl-gen/src/examples/fifo.rs:22
+    wire mem_out_valid;                      // rtl-gen/src/examples/fifo.rs:22
+    wire [7:0] mem_out_data;                 // rtl-gen/src/examples/fifo.rs:22
+    wire mem_out_ready;                      // rtl-gen/src/examples/fifo.rs:22
+    wire mem_count_ne;                       // rtl-gen/src/examples/fifo.rs:22
+    wire in_valid_and;                       // rtl-gen/src/examples/fifo.rs:22
+    wire mem_out_valid_and;                  // rtl-gen/src/examples/fifo.rs:22
 
-    assign in_ready = full_not;
-    assign empty = wr_ptr == rd_ptr;
-    assign full = (wr_ptr[2] != rd_ptr[2]) & (wr_ptr[1:0] == rd_ptr[1:0]);
-    assign full_not = ~full;
-    assign push = in_valid & full_not;
-    assign empty_not = ~empty;
-    assign pop = empty_not & out_ready;
-    assign out_valid = empty_not;
-    assign out_data = mem[rd_ptr[1:0]];
+    assign in_ready = mem_count != 3'd4;
+    assign mem_out_valid = mem_count_ne;
+    assign mem_out_data = mem_count_ne ? mem[mem_head] : 8'd0;
+    assign mem_out_ready = out_ready;
+    assign mem_count_ne = mem_count != 3'd0;
+    assign in_valid_and = in_valid & in_ready;
+    assign mem_out_valid_and = mem_out_valid & mem_out_ready;
+    assign out_valid = mem_out_valid;
+    assign out_data = mem_out_data;
 
     always @(posedge clk) begin
         if (rst) begin
-            wr_ptr <= 3'd0;
-            rd_ptr <= 3'd0;
+            mem_head <= 2'd0;
+            mem_tail <= 2'd0;
+            mem_count <= 3'd0;
         end else begin
-            if (push) begin
-                wr_ptr <= wr_ptr + 3'd1;     // rtl-gen/src/examples/fifo.rs:33
+            if (mem_out_valid_and) begin
+                mem_head <= mem_head + 2'd1; // rtl-gen/src/examples/fifo.rs:22
             end
-            if (pop) begin
-                rd_ptr <= rd_ptr + 3'd1;     // rtl-gen/src/examples/fifo.rs:34
+            if (in_valid_and) begin
+                mem_tail <= mem_tail + 2'd1; // rtl-gen/src/examples/fifo.rs:22
+                if (!mem_out_valid_and) begin
+                    mem_count <= mem_count + 3'd1; // rtl-gen/src/examples/fifo.rs:22
+                end
+            end else if (mem_out_valid_and) begin
+                mem_count <= mem_count - 3'd1; // rtl-gen/src/examples/fifo.rs:22
             end
         end
     end
 
     // memory mem: 4 x 8 bits
     always @(posedge clk) begin
-        if (push) begin
-            mem[wr_ptr[1:0]] <= in_data;
+        if (in_valid_and) begin
+            mem[mem_tail] <= in_data;
         end
     end
 endmodule

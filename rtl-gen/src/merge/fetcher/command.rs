@@ -179,13 +179,14 @@ pub(super) fn header_checks<'m>(cx: &Ctx<'_, 'm>, c: &mut Command<'m>) -> FirstE
         roots.gt(cx.lit(cx.sizes.roots as u64, ib))
     }
     .name("roots_over");
-    let hdr_code = (!c.entry_ok)
-        .mux(
-            cx.code4(fetch_err::ENTRY),
-            roots_bad.mux(
-                cx.code4(fetch_err::ROOT_COUNT),
-                roots_over.mux(cx.code4(fetch_err::ROOT_CAPACITY), cx.code4(0)),
-            ),
+    let hdr_code = m
+        .first_of(
+            &[
+                (!c.entry_ok, cx.code4(fetch_err::ENTRY)),
+                (roots_bad, cx.code4(fetch_err::ROOT_COUNT)),
+                (roots_over, cx.code4(fetch_err::ROOT_CAPACITY)),
+            ],
+            cx.code4(0),
         )
         .name("header_code");
     let hdr_bad = hdr_code.ne(0);

@@ -23,8 +23,8 @@
 //! into the sorter, the frontier, the range and reference stages), `visit`
 //! (the visit stage, the per-node join, `leaves`), `order` (the out
 //! ordering stage) and `out` (the out stage; per-node, its answer and send
-//! stages); `parts` holds the FIFO, the prioritized register updates, the
-//! node check and move, and the beats.
+//! stages); `parts` holds the prioritized register updates, the node check
+//! and move, and the beats. Each stage names its nets in a scope (`visit_go`).
 
 mod command;
 mod order;

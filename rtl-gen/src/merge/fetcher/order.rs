@@ -7,7 +7,7 @@ use golden::merge::merge_level::unit::level_kind;
 
 use super::super::fields::field;
 use super::command::Command;
-use super::parts::{fifo, out_beat};
+use super::parts::out_beat;
 use super::visit::Head;
 use super::{ok, Ctx, Ports};
 use crate::{Signal, Stream};
@@ -22,6 +22,7 @@ pub(super) fn order_stage<'m>(
     io: &Ports<'m>,
 ) -> (Stream<'m>, u32) {
     let (m, p, l, ib, lb) = (cx.m, cx.p, cx.l, cx.ib, cx.lb);
+    let _scope = m.scope("order");
     let rl = &l.reference;
     let lit = |v: u64, w: u32| cx.lit(v, w);
     let (walk, start, c_pn, c_refs) = (c.walk, c.start, c.per_node, c.send_refs);
@@ -46,9 +47,9 @@ pub(super) fn order_stage<'m>(
     let cr_end = m.reg("cref_end", ib + 1);
     let cr_parent = m.reg("cref_parent", ib);
     let tok_w = ok::BITS + l.out_width;
-    let tok_in = Stream::wires(m, "out_tokens_in", tok_w);
-    let toks = fifo(m, "out_tokens", tok_in, 4);
-    let can = (walk & tok_in.ready & cref_req.ready).name("order_room");
+    let tok_in = Stream::wires(m, "tokens_in", tok_w);
+    let toks = tok_in.fifo("tokens", 4);
+    let can = (walk & tok_in.ready & cref_req.ready).name("room");
     let same_leaf = (pend_valid & o_is_node & o_leaf & o_voxel.eq(pend_voxel)).name("leaf_of_held");
     let a_cref = (can & cr_active).name("cref_next");
     let b_leaf = (can & !cr_active & items.valid & same_leaf).name("held_leaf");
@@ -105,19 +106,18 @@ pub(super) fn order_stage<'m>(
     }
     let cr_next = cr_idx.add(1, ib);
     let pf_next = pend_first.add(1, ib);
-    cr_active.next(start.mux(
-        lit(0, 1),
-        a_cref.mux(
-            cr_next.zext(ib + 1).ne(cr_end),
-            b_leaf.mux(
-                lit(1, 1),
-                c_flush.mux(pf_next.zext(ib + 1).ne(pend_end), cr_active),
-            ),
-        ),
+    cr_active.next(m.first_of(
+        &[
+            (start, lit(0, 1)),
+            (a_cref, cr_next.zext(ib + 1).ne(cr_end)),
+            (b_leaf, lit(1, 1)),
+            (c_flush, pf_next.zext(ib + 1).ne(pend_end)),
+        ],
+        cr_active,
     ));
-    cr_idx.next(a_cref.mux(
-        cr_next,
-        b_leaf.mux(pend_first, c_flush.mux(pf_next, cr_idx)),
+    cr_idx.next(m.first_of(
+        &[(a_cref, cr_next), (b_leaf, pend_first), (c_flush, pf_next)],
+        cr_idx,
     ));
     cr_end.next_when(b_leaf | c_flush, pend_end);
     cr_parent.next_when(b_leaf | c_flush, pend_node);
@@ -304,15 +304,22 @@ fn drive_tokens<'m>(
         m.lit(0, l.out_width - ib),
         cref_parent,
     ]);
-    let item_tok = o_kind.eq(lit(ok::NODE, ok::BITS)).mux(
-        m.concat(&[lit(ok::TOK_BEAT, ok::BITS), node_beat]),
-        o_kind.eq(lit(ok::ERR, ok::BITS)).mux(
-            m.concat(&[lit(ok::TOK_ERR, ok::BITS), err_beat]),
-            o_kind.eq(lit(ok::FINAL, ok::BITS)).mux(
-                m.concat(&[lit(ok::TOK_FINAL, ok::BITS), end_out]),
-                m.concat(&[lit(ok::TOK_BEAT, ok::BITS), end_out]),
+    let item_tok = m.first_of(
+        &[
+            (
+                o_kind.eq(lit(ok::NODE, ok::BITS)),
+                m.concat(&[lit(ok::TOK_BEAT, ok::BITS), node_beat]),
             ),
-        ),
+            (
+                o_kind.eq(lit(ok::ERR, ok::BITS)),
+                m.concat(&[lit(ok::TOK_ERR, ok::BITS), err_beat]),
+            ),
+            (
+                o_kind.eq(lit(ok::FINAL, ok::BITS)),
+                m.concat(&[lit(ok::TOK_FINAL, ok::BITS), end_out]),
+            ),
+        ],
+        m.concat(&[lit(ok::TOK_BEAT, ok::BITS), end_out]),
     );
     match probe_run {
         Some(pr) => {

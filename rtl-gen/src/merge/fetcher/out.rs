@@ -9,7 +9,7 @@ use golden::params::Params;
 
 use super::super::fields::{field, with_fields};
 use super::command::{goto, Command};
-use super::parts::{check_and_move, fifo, out_beat, reference, Move, Next};
+use super::parts::{check_and_move, out_beat, reference, reference_code, Move, Next};
 use super::{ok, ph, Ctx};
 use crate::{Module, Signal, Stream};
 
@@ -24,9 +24,9 @@ pub(super) fn level_out_stage<'m>(
     out: Stream<'m>,
 ) {
     let (m, l, ib) = (cx.m, cx.l, cx.ib);
+    let _scope = m.scope("out");
     let (rl, bl) = (&l.reference, &l.beat);
     let lit = |v: u64, w: u32| cx.lit(v, w);
-    let code4 = |v: u64| cx.code4(v);
     let (walk, start, hier, nodes) = (c.walk, c.start, c.hier, c.nodes);
     let t_kind = toks.data.slice(tok_w - 1, tok_w - ok::BITS);
     let t_beat = toks.data.slice(l.out_width - 1, 0);
@@ -34,15 +34,9 @@ pub(super) fn level_out_stage<'m>(
     let t_cref = t_kind.eq(lit(ok::TOK_CREF, ok::BITS)).name("token_cref");
     let cr_node = field(cref_resp.data, rl.node()).expect("node");
     let cr_hier = field(cref_resp.data, rl.hier()).expect("hier");
-    let cref_code = cr_hier
-        .ne(hier)
-        .mux(
-            code4(fetch_err::REF_HIER),
-            cr_node.ge(nodes).mux(code4(fetch_err::REF_NODE), code4(0)),
-        )
-        .name("cref_code");
+    let cref_code = reference_code(m, cr_node, cr_hier, hier, nodes).name("cref_code");
     let answered = (!t_cref | cref_resp.valid).name("token_answered");
-    let o_skip = m.reg("out_skip_end", 1);
+    let o_skip = m.reg("skip_end", 1);
     let t_end = (t_kind.eq(lit(ok::TOK_FINAL, ok::BITS))
         | t_kind.eq(lit(ok::TOK_BEAT, ok::BITS))
             & field(t_beat, &bl.kind).expect("kind").eq(level_kind::END))
@@ -73,7 +67,7 @@ pub(super) fn level_out_stage<'m>(
     out.data
         .drive(t_cref.mux(cref_code.eq(0).mux(child_beat, cref_err_beat), t_beat));
     let errs = t_kind.eq(lit(ok::TOK_ERR, ok::BITS)) | t_cref & cref_code.ne(0);
-    let first_err = (t_fire & errs & !o_errored).name("out_first_error");
+    let first_err = (t_fire & errs & !o_errored).name("first_error");
     o_errored.next(start.mux(lit(0, 1), first_err.mux(lit(1, 1), o_errored)));
     o_skip.next(start.mux(
         lit(0, 1),
@@ -127,6 +121,7 @@ pub(super) fn per_node_out_stages<'m>(
     n_phase: &mut Next<'m>,
 ) -> PerNodePorts<'m> {
     const IN_FLIGHT: u32 = 8;
+    let _scope = m.scope("out");
     let (nl, rl, bl) = (&l.node, &l.reference, &l.beat);
     let (ib, lb) = (p.index_bits as u32, p.lod_bits());
     let lit = |v: u64, w: u32| m.lit(v as u128, w);
@@ -152,18 +147,12 @@ pub(super) fn per_node_out_stages<'m>(
     let t_plod = toks.data.slice(ib + lb, ib + 1);
     let cr_node = field(cref_resp.data, rl.node()).expect("node");
     let cr_hier = field(cref_resp.data, rl.hier()).expect("hier");
-    let cref_code = cr_hier
-        .ne(hier)
-        .mux(
-            code4(fetch_err::REF_HIER),
-            cr_node.ge(nodes).mux(code4(fetch_err::REF_NODE), code4(0)),
-        )
-        .name("cref_code");
+    let cref_code = reference_code(m, cr_node, cr_hier, hier, nodes).name("cref_code");
     let cref_ok = cref_code.eq(0);
     let probe_req = Stream::wires(m, "probe_req_core", ib);
     let probe_resp = Stream::input(m, "probe_resp", nl.width());
-    let tok2_in = Stream::wires(m, "out_probes_in", tok_w);
-    let toks2 = fifo(m, "out_probes", tok2_in, IN_FLIGHT);
+    let tok2_in = Stream::wires(m, "probes_in", tok_w);
+    let toks2 = tok2_in.fifo("probes", IN_FLIGHT);
     let answered = (!t_cref | cref_resp.valid).name("token_answered");
     let room = (tok2_in.ready & (!t_probe | probe_req.ready)).name("answer_room");
     let a_fire = (walk & toks.valid & answered & room).name("token_fire");
@@ -239,7 +228,7 @@ pub(super) fn per_node_out_stages<'m>(
         Some(p_code),
     );
     let answered2 = (!t_wait | probe_resp.valid).name("probe_answered");
-    let o_skip = m.reg("out_skip_end", 1);
+    let o_skip = m.reg("skip_end", 1);
     let t_end = (k2.eq(kind(ok::TOK_FINAL))
         | k2.eq(kind(ok::TOK_BEAT)) & field(b2, &bl.kind).expect("kind").eq(level_kind::END))
     .name("token_end");
@@ -253,7 +242,7 @@ pub(super) fn per_node_out_stages<'m>(
     out.data
         .drive(t_wait.mux(p_code.eq(0).mux(probe_beat, probe_err), b2));
     let errs = k2.eq(kind(ok::TOK_ERR)) | t_wait & p_code.ne(0);
-    let first_err = (t_fire & errs & !o_errored).name("out_first_error");
+    let first_err = (t_fire & errs & !o_errored).name("first_error");
     o_errored.next(start.mux(lit(0, 1), first_err.mux(lit(1, 1), o_errored)));
     o_skip.next(start.mux(
         lit(0, 1),

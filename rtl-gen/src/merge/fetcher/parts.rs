@@ -1,51 +1,12 @@
-//! The fetcher's building blocks: its FIFO, prioritized register
-//! updates, the node check and move (section 7.6) and the beats it packs.
+//! The fetcher's building blocks: prioritized register updates, the node
+//! check and move (section 7.6) and the beats it packs.
 
 use golden::merge::fetcher::{fetch_err, FetchLayout};
 use golden::merge::merge_level::unit::BeatLayout;
-use golden::params::{bits_to_hold, Params};
+use golden::params::Params;
 
 use super::super::fields::{coords, field, with_fields};
-use crate::{Module, Signal, Stream};
-
-/// A FIFO of `depth` (a power of two) words, in-order: `input.ready` is
-/// driven here (space left), the returned stream's `ready` by its consumer.
-/// A word pushed is readable from the next clock; push and pop may share a
-/// clock, so a depth of 2 runs one word a clock.
-pub(super) fn fifo<'m>(m: &'m Module, name: &str, input: Stream<'m>, depth: u32) -> Stream<'m> {
-    let aw = depth.trailing_zeros();
-    let cb = bits_to_hold(depth as u64);
-    let mem = m.memory(name, input.data.width(), depth);
-    let head = m.reg(&format!("{name}_head"), aw.max(1));
-    let tail = m.reg(&format!("{name}_tail"), aw.max(1));
-    let count = m.reg(&format!("{name}_count"), cb);
-    let out = Stream::wires(m, &format!("{name}_out"), input.data.width());
-    input.ready.drive(count.ne(m.lit(depth as u128, cb)));
-    let nonempty = count.ne(0);
-    out.valid.drive(nonempty);
-    // Zero when empty: an unwritten word is X in 4-state simulators.
-    out.data.drive(nonempty.mux(
-        mem.read(head.slice(aw.max(1) - 1, 0)),
-        m.lit(0, input.data.width()),
-    ));
-    let push = input.fire();
-    let pop = out.fire();
-    mem.write(tail, input.data, push);
-    let step = |r: Signal<'m>| {
-        if aw == 0 {
-            r
-        } else {
-            r.add(1, aw)
-        }
-    };
-    head.next(pop.mux(step(head), head));
-    tail.next(push.mux(step(tail), tail));
-    count.next(push.mux(
-        pop.mux(count, count.add(1, cb)),
-        pop.mux(count.sub(1, cb), count),
-    ));
-    out
-}
+use crate::{Module, Signal};
 
 /// Prioritized register updates: the first arm whose condition holds sets
 /// the next value; none holding keeps the register.
@@ -67,11 +28,8 @@ impl<'m> Next<'m> {
     }
 
     pub(super) fn apply(self) {
-        let mut v = self.reg;
-        for (c, val) in self.arms.into_iter().rev() {
-            v = c.mux(val, v);
-        }
-        self.reg.next(v);
+        let m = self.reg.module();
+        self.reg.next(m.first_of(&self.arms, self.reg));
     }
 }
 
@@ -131,21 +89,16 @@ pub(super) fn check_and_move<'m>(
         moved.push(sum.slice(dmax - 1, 0));
     }
     let code = |c: u64| m.lit(c as u128, fetch_err::BITS);
-    let code = lod.ne(want).mux(
-        code(fetch_err::LOD),
-        bad.mux(
-            code(fetch_err::RECORD),
-            above.mux(
-                code(fetch_err::ABOVE),
-                outside[0].mux(
-                    code(fetch_err::OUTSIDE_X),
-                    outside[1].mux(
-                        code(fetch_err::OUTSIDE_Y),
-                        outside[2].mux(code(fetch_err::OUTSIDE_Z), code(fetch_err::NONE)),
-                    ),
-                ),
-            ),
-        ),
+    let code = m.first_of(
+        &[
+            (lod.ne(want), code(fetch_err::LOD)),
+            (bad, code(fetch_err::RECORD)),
+            (above, code(fetch_err::ABOVE)),
+            (outside[0], code(fetch_err::OUTSIDE_X)),
+            (outside[1], code(fetch_err::OUTSIDE_Y)),
+            (outside[2], code(fetch_err::OUTSIDE_Z)),
+        ],
+        code(fetch_err::NONE),
     );
     let moved = with_fields(
         m,
@@ -157,6 +110,26 @@ pub(super) fn check_and_move<'m>(
         ],
     );
     Checked { code, moved }
+}
+
+/// The check of a reference `(r_hier, r_node)` read from the store
+/// (`fetch_err` order): another hierarchy than `hier`, a node not below
+/// `nodes`, else 0.
+pub(super) fn reference_code<'m>(
+    m: &'m Module,
+    r_node: Signal<'m>,
+    r_hier: Signal<'m>,
+    hier: Signal<'m>,
+    nodes: Signal<'m>,
+) -> Signal<'m> {
+    let code = |c: u64| m.lit(c as u128, fetch_err::BITS);
+    m.first_of(
+        &[
+            (r_hier.ne(hier), code(fetch_err::REF_HIER)),
+            (r_node.ge(nodes), code(fetch_err::REF_NODE)),
+        ],
+        code(0),
+    )
 }
 
 /// A reference `(hier, node)` as the reference layout packs it (node low).

@@ -9,7 +9,7 @@ use golden::merge::fetcher::fetch_err;
 use super::super::fields::{coords, field, with_fields, Word};
 use super::super::network::morton_code;
 use super::command::{goto, Command, FirstErr};
-use super::parts::{fifo, reference};
+use super::parts::reference;
 use super::walk::{Frontier, Roots, WalkState};
 use super::{nk, ok, ph, Ctx, Ports};
 use crate::{Signal, Stream};
@@ -61,6 +61,7 @@ pub(super) fn visit_head<'m>(
     io: &Ports<'m>,
 ) -> Head<'m> {
     let (m, l, ib, lb) = (cx.m, cx.l, cx.ib, cx.lb);
+    let _scope = m.scope("visit");
     let (nl, rl) = (&l.node, &l.reference);
     let lit = |v: u64, w: u32| cx.lit(v, w);
     let code4 = |v: u64| cx.code4(v);
@@ -73,8 +74,8 @@ pub(super) fn visit_head<'m>(
     let c2_node = c2_kind.eq(lit(nk::NODE, nk::BITS));
     let oin_w = ok::BITS + fetch_err::BITS + rl.width() + nl.width();
     let oin = Stream::wires(m, "out_items_in", oin_w);
-    let items = fifo(m, "out_items", oin, 4);
-    let live = (walk & !w.done).name("visit_live");
+    let items = oin.fifo("out_items", 4);
+    let live = (walk & !w.done).name("live");
     let above = v_d.lt(c.lod).name("above_level");
     let above_first = v_d.lt(c.first).name("above_first");
     // Per-node: every level from the first pass on is a pass (`pn_pass`).
@@ -109,7 +110,7 @@ pub(super) fn visit_head<'m>(
     let lend_due = (live & c.send_leaves & !lend_sent & !above_first).name("leaves_end_due");
     let downstream =
         (oin.ready & f.push.ready & above_first.mux(io.leaves.ready, !c.send_leaves | lend_sent))
-            .name("visit_room");
+            .name("room");
     // The sent levels' `End`s: `end_next` is the level owed next. The
     // levels above the top but the last hold no node: their `End`s go
     // first, before any item (`pre_ends`); a level's `End` goes with its
@@ -139,13 +140,13 @@ pub(super) fn visit_head<'m>(
             | top_hdr_end
             | top_sorted & r.s_out_valid
             | deep & ctx2.valid & (!c2_node | node_resp.valid)))
-        .name("visit_avail");
+        .name("avail");
     let visit_room = match (pn_visited, pass_in) {
         (Some(v), Some(p)) => downstream & !pre_ends & !v & p.ready,
         _ => downstream & !pre_ends,
     }
-    .name("visit_free");
-    let go = (in_avail & visit_room).name("visit_go");
+    .name("free");
+    let go = (in_avail & visit_room).name("go");
     r.sorter
         .connect("out_ready", live & top_sorted & !top_cap & visit_room);
     cap_told.next(start.mux(lit(0, 1), (go & top_cap).mux(lit(1, 1), cap_told)));
@@ -161,12 +162,13 @@ pub(super) fn visit_head<'m>(
         (top_hdr_end | top_sorted & r.s_end & !top_cap | deep & c2_kind.eq(lit(nk::END, nk::BITS)))
             .name("item_end");
     let in_node = (!in_err & !in_end).name("item_node");
-    let in_err_code = top_err.mux(
-        e.code,
-        top_cap.mux(
-            code4(fetch_err::ROOT_CAPACITY),
-            c2_node.mux(r.got_code, c2_code),
-        ),
+    let in_err_code = m.first_of(
+        &[
+            (top_err, e.code),
+            (top_cap, code4(fetch_err::ROOT_CAPACITY)),
+            (c2_node, r.got_code),
+        ],
+        c2_code,
     );
     let c2_ref_node = field(c2_ref, rl.node()).expect("node");
     let in_err_node = top_err.mux(e.node, top_cap.mux(lit(0, ib), c2_ref_node));
@@ -236,6 +238,7 @@ pub(super) fn visit_checks<'m>(
     h: &Head<'m>,
 ) -> Visited<'m> {
     let (m, l, ib, lb) = (cx.m, cx.l, cx.ib, cx.lb);
+    let _scope = m.scope("visit");
     let nl = &l.node;
     let lit = |v: u64, w: u32| cx.lit(v, w);
     let code4 = |v: u64| cx.code4(v);
@@ -263,23 +266,21 @@ pub(super) fn visit_checks<'m>(
     };
     let range_bad = (inner & uses_range & n_end.gt(c.refs.zext(ib + 1))).name("range_bad");
     let front_bad = (inner & counted & w.pushed.ge(lit(fcap, cb))).name("frontier_bad");
-    let visit_code = h.in_err.mux(
-        h.in_err_code,
-        h.in_end.mux(
+    let visit_code = m
+        .first_of(
+            &[
+                (h.in_err, h.in_err_code),
+                (h.in_end, code4(0)),
+                (order_bad, code4(fetch_err::ORDER)),
+                (range_bad, code4(fetch_err::RANGE)),
+                (front_bad, code4(fetch_err::FRONTIER)),
+            ],
             code4(0),
-            order_bad.mux(
-                code4(fetch_err::ORDER),
-                range_bad.mux(
-                    code4(fetch_err::RANGE),
-                    front_bad.mux(code4(fetch_err::FRONTIER), code4(0)),
-                ),
-            ),
-        ),
-    );
-    let visit_code = visit_code.name("visit_code");
+        )
+        .name("code");
     let err_node = h.in_err.mux(h.in_err_node, h.rec_idx);
-    let fails = (go & visit_code.ne(0)).name("visit_fails");
-    let passes = (go & h.in_node & visit_code.eq(0)).name("visit_passes");
+    let fails = (go & visit_code.ne(0)).name("fails");
+    let passes = (go & h.in_node & visit_code.eq(0)).name("passes");
     let push = (passes & above & inner).name("frontier_push");
     let leaf_out =
         (passes & h.above_first & leaf & c.send_leaves & !w.visit_errored).name("leaf_out");
@@ -310,7 +311,7 @@ pub(super) fn visit_checks<'m>(
                 .pack(m, &[morton_part, n_first, n_count, h.rec_idx]),
         );
         let depth = (fcap.max(2)).next_power_of_two() as u32;
-        (e_push, fifo(m, "pass", pass_in, depth))
+        (e_push, pass_in.fifo("pass", depth))
     });
     let step_level = match pn_end {
         Some(e) => marker | e,
@@ -397,6 +398,7 @@ pub(super) fn frontier_push<'m>(
     v: &Visited<'m>,
 ) -> Option<Join<'m>> {
     let (m, l, lb) = (cx.m, cx.l, cx.lb);
+    let _scope = m.scope("join");
     let lit = |x: u64, w: u32| cx.lit(x, w);
     let front_in = f.push;
     let (entries, pf) = match (v.pass_fifo, &l.pn) {
@@ -412,7 +414,7 @@ pub(super) fn frontier_push<'m>(
     let dmax = cx.p.max_lod as u64;
     let report = Stream::input(m, "report", pf.report_width);
     let visited = h.pn_visited.expect("per-node");
-    let end_left = m.reg("pn_end_left", 1);
+    let end_left = m.reg("end_left", 1);
     let r = |f: &golden::layout::Field| field(report.data, f).expect("report field");
     let r_key = morton_code(m, [0, 1, 2].map(|a| r(&pf.report_coord[a]))).name("report_key");
     let r_pe = r(&pf.report_pass_end);
@@ -423,24 +425,24 @@ pub(super) fn frontier_push<'m>(
     let e_first = h.pass_word.get(entries.data, "first");
     let e_count = h.pass_word.get(entries.data, "count");
     let e_node = h.pass_word.get(entries.data, "node");
-    let jv = (c.walk & c.per_node.expect("per-node") & report.valid).name("join_valid");
-    let dec = (jv & !r_pe).name("join_decision");
-    let e_lt = (entries.valid & e_key.lt(r_key)).name("join_entry_before");
-    let e_eq = (entries.valid & e_key.eq(r_key)).name("join_entry_at");
-    let skip = (dec & e_lt | jv & r_pe & entries.valid).name("join_entry_stays");
-    let matched = (dec & e_eq & (!r_desc | front_in.ready)).name("join_match");
-    let j_push = (matched & r_desc).name("join_descend");
+    let jv = (c.walk & c.per_node.expect("per-node") & report.valid).name("valid");
+    let dec = (jv & !r_pe).name("decision");
+    let e_lt = (entries.valid & e_key.lt(r_key)).name("entry_before");
+    let e_eq = (entries.valid & e_key.eq(r_key)).name("entry_at");
+    let skip = (dec & e_lt | jv & r_pe & entries.valid).name("entry_stays");
+    let matched = (dec & e_eq & (!r_desc | front_in.ready)).name("match");
+    let j_push = (matched & r_desc).name("descend");
     // With the FIFO empty, a decision at or below a voxel the visit has
     // passed is another input's: every entry still to come lies above it.
     // Waiting for the visit there could deadlock: the visit waits for
     // `out`, which the module takes only while its `report` drains (8.14).
     let (past_valid, past_key) = v.past;
-    let behind = (past_valid & r_key.le(past_key)).name("join_visit_past");
+    let behind = (past_valid & r_key.le(past_key)).name("visit_past");
     let passed = (dec & (!entries.valid & (visited | behind) | entries.valid & !e_lt & !e_eq))
-        .name("join_other_voxel");
+        .name("other_voxel");
     let pe_take = (jv & r_pe & !entries.valid & visited & end_left & (!r_more | front_in.ready))
-        .name("join_pass_end");
-    let j_marker = (pe_take & r_more).name("join_marker");
+        .name("pass_end");
+    let j_marker = (pe_take & r_more).name("marker");
     entries.ready.drive(skip | matched);
     report.ready.drive(matched | passed | pe_take);
     front_in.valid.drive(v.push | v.marker | j_push | j_marker);
@@ -471,6 +473,7 @@ pub(super) fn visit_out<'m>(
     io: &Ports<'m>,
 ) {
     let (m, l) = (cx.m, cx.l);
+    let _scope = m.scope("visit");
     let lit = |x: u64, w: u32| cx.lit(x, w);
     let (rec, rec_ref, above_first) = (h.rec, h.rec_ref, h.above_first);
     let leaf_beat = with_fields(
@@ -517,12 +520,13 @@ pub(super) fn visit_out<'m>(
     };
     h.oin.valid.drive(valid);
     h.oin.data.drive(m.concat(&[
-        v.fails.mux(
-            lit(ok::ERR, ok::BITS),
-            h.end_final.mux(
-                lit(ok::FINAL, ok::BITS),
-                ends.mux(lit(ok::LEVEL_END, ok::BITS), lit(ok::NODE, ok::BITS)),
-            ),
+        m.first_of(
+            &[
+                (v.fails, lit(ok::ERR, ok::BITS)),
+                (h.end_final, lit(ok::FINAL, ok::BITS)),
+                (ends, lit(ok::LEVEL_END, ok::BITS)),
+            ],
+            lit(ok::NODE, ok::BITS),
         ),
         v.visit_code,
         v.fails.mux(reference(m, c.hier, v.err_node), rec_ref),

@@ -8,7 +8,7 @@ use golden::params::bits_to_hold;
 
 use super::super::fields::{field, with_fields, Word};
 use super::command::{goto, Command, FirstErr};
-use super::parts::{check_and_move, fifo, reference, Checked};
+use super::parts::{check_and_move, reference, reference_code, Checked};
 use super::root_sorter::root_sorter_unit;
 use super::{nk, ph, Ctx, Ports, IN_FLIGHT};
 use crate::{Instance, Signal, Stream};
@@ -176,7 +176,7 @@ pub(super) fn frontier<'m>(cx: &Ctx<'_, 'm>, w: &WalkState<'m>) -> Frontier<'m> 
     // `parent`, or (`marker`) a level's end.
     let word = Word::new(&[("first", ib), ("count", ib), ("parent", ib), ("marker", 1)]);
     let push = Stream::wires(cx.m, "frontier_in", word.width());
-    let head = fifo(cx.m, "frontier", push, f_words);
+    let head = push.fifo("frontier", f_words);
     Frontier { word, push, head }
 }
 
@@ -190,24 +190,24 @@ pub(super) fn range_stage<'m>(
     io: &Ports<'m>,
 ) -> Stream<'m> {
     let (m, ib) = (cx.m, cx.ib);
+    let _scope = m.scope("range");
     let (walk, start, front) = (c.walk, c.start, f.head);
     let fo_marker = f.word.get(front.data, "marker");
     let fo_first = f.word.get(front.data, "first");
     let fo_count = f.word.get(front.data, "count");
     let fo_parent = f.word.get(front.data, "parent");
-    let cur_valid = m.reg("range_valid", 1);
-    let cur_idx = m.reg("range_idx", ib);
-    let cur_end = m.reg("range_end", ib + 1);
-    let cur_parent = m.reg("range_parent", ib);
+    let cur_valid = m.reg("valid", 1);
+    let cur_idx = m.reg("idx", ib);
+    let cur_end = m.reg("end", ib + 1);
+    let cur_parent = m.reg("parent", ib);
     let ctx1_in = Stream::wires(m, "ref_ctx_in", ib + 1);
-    let ctx1 = fifo(m, "ref_ctx", ctx1_in, IN_FLIGHT);
+    let ctx1 = ctx1_in.fifo("ref_ctx", IN_FLIGHT);
     io.ref_req.valid.drive(walk & cur_valid & ctx1_in.ready);
     io.ref_req.data.drive(cur_idx);
-    let issue = io.ref_req.fire().name("ref_issue");
+    let issue = io.ref_req.fire().name("issue");
     let idx_next = cur_idx.add(1, ib);
     let cur_last = idx_next.zext(ib + 1).eq(cur_end);
-    let load =
-        (walk & front.valid & !fo_marker & (!cur_valid | issue & cur_last)).name("range_load");
+    let load = (walk & front.valid & !fo_marker & (!cur_valid | issue & cur_last)).name("load");
     let pop_marker =
         (walk & front.valid & fo_marker & !cur_valid & ctx1_in.ready).name("marker_pop");
     front.ready.drive(load | pop_marker);
@@ -242,6 +242,7 @@ pub(super) fn reference_stage<'m>(
     io: &Ports<'m>,
 ) -> (Stream<'m>, u32) {
     let (m, ib) = (cx.m, cx.ib);
+    let _scope = m.scope("ref_stage");
     let rl = &cx.l.reference;
     let (walk, hier, ref_resp, node_req) = (c.walk, c.hier, io.ref_resp, io.node_req);
     let lit = |v: u64, w: u32| cx.lit(v, w);
@@ -250,28 +251,22 @@ pub(super) fn reference_stage<'m>(
     let c1_parent = ctx1.data.slice(ib - 1, 0);
     let ctx2_w = nk::BITS + fetch_err::BITS + rl.width();
     let ctx2_in = Stream::wires(m, "node_ctx_in", ctx2_w);
-    let ctx2 = fifo(m, "node_ctx", ctx2_in, IN_FLIGHT);
+    let ctx2 = ctx2_in.fifo("node_ctx", IN_FLIGHT);
     let r_node = field(ref_resp.data, rl.node())
         .expect("node")
-        .name("resp_ref_node");
+        .name("resp_node");
     let r_hier = field(ref_resp.data, rl.hier())
         .expect("hier")
-        .name("resp_ref_hier");
-    let ref_code = r_hier
-        .ne(hier)
-        .mux(
-            code4(fetch_err::REF_HIER),
-            r_node.ge(c.nodes).mux(code4(fetch_err::REF_NODE), code4(0)),
-        )
-        .name("ref_code");
-    let rr_wait = (walk & ctx1.valid & !c1_end & ctx2_in.ready & node_req.ready).name("ref_wait");
+        .name("resp_hier");
+    let ref_code = reference_code(m, r_node, r_hier, hier, c.nodes).name("code");
+    let rr_wait = (walk & ctx1.valid & !c1_end & ctx2_in.ready & node_req.ready).name("wait");
     ref_resp.ready.drive(rr_wait);
-    let rr_take = (rr_wait & ref_resp.valid).name("ref_take");
-    let rr_end = (walk & ctx1.valid & c1_end & ctx2_in.ready).name("ref_stage_end");
+    let rr_take = (rr_wait & ref_resp.valid).name("take");
+    let rr_end = (walk & ctx1.valid & c1_end & ctx2_in.ready).name("end");
     ctx1.ready.drive(rr_take | rr_end);
     let walk_node_req =
         (walk & ctx1.valid & !c1_end & ctx2_in.ready & ref_resp.valid & ref_code.eq(0))
-            .name("walk_node_req");
+            .name("node_req");
     node_req.valid.drive(r.req_valid | walk_node_req);
     node_req.data.drive(c.roots_ph.mux(r.issued, r_node));
     ctx2_in.valid.drive(rr_take | rr_end);

@@ -65,12 +65,12 @@ fn base_fields<'m>(m: &'m Module, bl: &BuilderLayout, data: Signal<'m>) -> BaseF
         rec: field(data, &bl.base.rec).expect("record"),
         refer: field(data, &bl.base.refer).expect("reference"),
         end,
-        kind: end.mux(
-            lit(level_out_kind::END, 2),
-            created.mux(
-                lit(level_out_kind::CREATED, 2),
-                lit(level_out_kind::REUSED, 2),
-            ),
+        kind: m.first_of(
+            &[
+                (end, lit(level_out_kind::END, 2)),
+                (created, lit(level_out_kind::CREATED, 2)),
+            ],
+            lit(level_out_kind::REUSED, 2),
         ),
     }
 }

@@ -10,6 +10,7 @@ use super::lod::primitive_lod;
 use super::quantize::{floor_ceil_in_scene, quantize_in_voxel};
 use super::radix::{morton3_fast, SortKey};
 use crate::geom::clip::{clip_candidate, max_not_nan, ClipScratch, PreparedTriangle};
+use crate::geom::lanes::{Lanes, Plain};
 use crate::geom::overlap::{overlaps_candidate, overlaps_candidate_prepared, OverlapPrep};
 use crate::params::Params;
 
@@ -100,6 +101,20 @@ pub fn place_triangle(tri: &[DVec3; 3], prim: u32, p: &Params, out: &mut Vec<Lea
 /// [`place_triangle`] with clip buffers reused across triangles, into
 /// entries of either key type (`K = u64` only when [`leaf_key_bits`] `<= 64`).
 pub fn place_triangle_with<K: LeafKey>(
+    tri: &[DVec3; 3],
+    prim: u32,
+    p: &Params,
+    out: &mut Vec<LeafEntry<K>>,
+    scratch: &mut ClipScratch,
+) {
+    place_triangle_in::<K, Plain>(tri, prim, p, out, scratch)
+}
+
+/// [`place_triangle_with`] with the kernels computing in `L` (see
+/// [`Lanes`]): the same entries whichever `L`. Inlined with its kernels
+/// into the builder's AVX copy (see `build::place_range`).
+#[inline(always)]
+pub(crate) fn place_triangle_in<K: LeafKey, L: Lanes>(
     tri: &[DVec3; 3],
     prim: u32,
     p: &Params,
@@ -201,7 +216,9 @@ pub fn place_triangle_with<K: LeafKey>(
                 }
                 // A candidate's box meets the triangle's AABB, and both are
                 // finite and below 2^32: what `clip_candidate` asks.
-                if let Some((blo, bhi)) = clip_candidate(&prepared, vlo, vhi, box_scale, scratch) {
+                if let Some((blo, bhi)) =
+                    clip_candidate::<L>(&prepared, vlo, vhi, box_scale, scratch)
+                {
                     out.push(entry(morton, vlo, blo, bhi));
                 }
             }

@@ -177,7 +177,8 @@ pub fn clip_prepared(
     if pt.is_finite() && lo.is_finite() && hi.is_finite() {
         let scale = pt.magnitude_finite(lo, hi);
         if scale < FINITE_CLIP_LIMIT {
-            return clip_finite::<Plain>(pt, lo, hi, scale, scratch);
+            return clip_finite::<Plain>(pt, lo, hi, scale, scratch)
+                .map(|(l, h)| (l.xyz(), h.xyz()));
         }
     }
     clip_general(pt, lo, hi, scratch)
@@ -190,7 +191,8 @@ pub fn clip_prepared(
 /// computes once for this and [`crate::geom::overlap::overlaps_candidate`]).
 /// [`clip_prepared`] would then skip none of its checks' other branches, so
 /// this is `clip_finite` without them: the same bits. `L` is how the
-/// points are computed on (see [`Lanes`]): the same bits either way.
+/// points are computed on (see [`Lanes`]): the same bits either way. The
+/// box comes in lanes, for the caller's quantization in lanes.
 #[inline(always)]
 pub(crate) fn clip_candidate<L: Lanes>(
     pt: &PreparedTriangle,
@@ -198,7 +200,7 @@ pub(crate) fn clip_candidate<L: Lanes>(
     hi: DVec3,
     scale: f64,
     scratch: &mut ClipScratch,
-) -> Option<(DVec3, DVec3)> {
+) -> Option<(P4, P4)> {
     debug_assert!(pt.is_finite() && lo.is_finite() && hi.is_finite());
     debug_assert!(!(pt.lo.cmpgt(hi).any() || pt.hi.cmplt(lo).any()));
     debug_assert_eq!(scale.to_bits(), pt.magnitude_finite(lo, hi).to_bits());
@@ -271,7 +273,10 @@ fn clip_finite<L: Lanes>(
     hi: DVec3,
     scale: f64,
     scratch: &mut ClipScratch,
-) -> Option<(DVec3, DVec3)> {
+) -> Option<(P4, P4)> {
+    let fallback = |bounded_lo, bounded_hi| {
+        clip_fallback(pt, lo, hi, bounded_lo, bounded_hi).map(|(l, h)| (P4::new(l), P4::new(h)))
+    };
     let bounded_lo = max3(pt.lo, lo);
     let bounded_hi = min3(pt.hi, hi);
     let m = ROUNDING_MARGIN_REL * scale;
@@ -288,7 +293,7 @@ fn clip_finite<L: Lanes>(
                     (plo, phi) = (L::store(l), L::store(h));
                     std::mem::swap(&mut cur, &mut next);
                 }
-                None => return clip_fallback(pt, lo, hi, bounded_lo, bounded_hi),
+                None => return fallback(bounded_lo, bounded_hi),
             }
         };
     }
@@ -313,9 +318,9 @@ fn clip_finite<L: Lanes>(
     let m4 = L::splat(m);
     let out_lo = L::max(L::sub(L::load(&plo), m4), L::load(&P4::new(bounded_lo)));
     let out_hi = L::min(L::add(L::load(&phi), m4), L::load(&P4::new(bounded_hi)));
-    let (out_lo, out_hi) = (L::store(out_lo).xyz(), L::store(out_hi).xyz());
-    if out_lo.cmpgt(out_hi).any() {
-        return clip_fallback(pt, lo, hi, bounded_lo, bounded_hi);
+    let (out_lo, out_hi) = (L::store(out_lo), L::store(out_hi));
+    if (0..3).any(|a| out_lo.0[a] > out_hi.0[a]) {
+        return fallback(bounded_lo, bounded_hi);
     }
     Some((out_lo, out_hi))
 }

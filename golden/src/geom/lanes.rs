@@ -10,6 +10,7 @@
 use glam::DVec3;
 
 use super::clip::{max_not_nan, min_not_nan};
+use crate::build::quantize::quantize_in_voxel;
 
 /// `(x, y, z, pad)`, aligned so that a point is one vector load or store.
 #[derive(Clone, Copy, Debug)]
@@ -67,6 +68,9 @@ pub(crate) trait Lanes {
     fn max(a: Self::V, b: Self::V) -> Self::V;
     /// `v` with lane `LANE` (0 to 2) replaced by `s`.
     fn with_lane<const LANE: usize>(v: Self::V, s: f64) -> Self::V;
+    /// `quantize_in_voxel` of the box `[lo, hi]` in the voxel of minimum
+    /// corner `v0`, per axis: its `(lo, hi)` cells.
+    fn quantize(lo: &P4, hi: &P4, v0: &P4, scale: f64, cells: u32) -> ([u16; 3], [u16; 3]);
 }
 
 /// [`Lanes`] in plain arrays: what the compiler makes of them.
@@ -111,6 +115,12 @@ impl Lanes for Plain {
         v.0[LANE] = s;
         v
     }
+    #[inline(always)]
+    fn quantize(lo: &P4, hi: &P4, v0: &P4, scale: f64, cells: u32) -> ([u16; 3], [u16; 3]) {
+        let q = |a: usize| quantize_in_voxel(lo.0[a], hi.0[a], v0.0[a], scale, cells);
+        let [(lx, hx), (ly, hy), (lz, hz)] = [q(0), q(1), q(2)];
+        ([lx, ly, lz], [hx, hy, hz])
+    }
 }
 
 /// [`Lanes`] in AVX registers, for the builder's AVX copy only: its
@@ -121,7 +131,7 @@ pub(crate) struct Avx;
 
 #[cfg(target_arch = "x86_64")]
 mod avx {
-    use super::{Avx, Lanes, P4};
+    use super::{Avx, Lanes, Plain, P4};
     use std::arch::x86_64::*;
 
     // SAFETY (every `unsafe` below): `Avx` is used only inside functions
@@ -178,5 +188,89 @@ mod avx {
                 }
             }
         }
+        /// `quantize_in_voxel`'s integers as binary64 integers, all exact
+        /// (below `2^17`): `ta = (a - v0) scale` and `tb` are the same
+        /// products, in `[0, 2^Q]`; its `lo = min(trunc(ta), top)`; its
+        /// `c = trunc(tb) + (trunc(tb) < tb)` is `ceil(tb)` for `tb >= 0`;
+        /// its `hi = min(max(c - 1, lo), top)`. `min`/`max` of integers
+        /// (never NaN, equal only when the same integer) are those of `i64`.
+        #[inline(always)]
+        fn quantize(lo: &P4, hi: &P4, v0: &P4, scale: f64, cells: u32) -> ([u16; 3], [u16; 3]) {
+            let (v0, scale4) = (Self::load(v0), Self::splat(scale));
+            let ta = Self::mul(Self::sub(Self::load(lo), v0), scale4);
+            let tb = Self::mul(Self::sub(Self::load(hi), v0), scale4);
+            let top = Self::splat((cells - 1) as f64);
+            let mut cells16 = [0u16; 8];
+            unsafe {
+                let ql = Self::min(
+                    _mm256_round_pd::<{ _MM_FROUND_TO_ZERO | _MM_FROUND_NO_EXC }>(ta),
+                    top,
+                );
+                let c = _mm256_round_pd::<{ _MM_FROUND_TO_POS_INF | _MM_FROUND_NO_EXC }>(tb);
+                let qh = Self::min(Self::max(Self::sub(c, Self::splat(1.0)), ql), top);
+                // Integers in `[0, 2^16 - 1]`: exact as `i32`, then as `u16`.
+                let packed = _mm_packus_epi32(_mm256_cvttpd_epi32(ql), _mm256_cvttpd_epi32(qh));
+                _mm_storeu_si128(cells16.as_mut_ptr().cast(), packed);
+            }
+            let [lx, ly, lz, _, hx, hy, hz, _] = cells16;
+            let out = ([lx, ly, lz], [hx, hy, hz]);
+            debug_assert_eq!(out, Plain::quantize(lo, hi, &Self::store(v0), scale, cells));
+            out
+        }
+    }
+}
+
+#[cfg(all(test, target_arch = "x86_64"))]
+mod tests {
+    use super::*;
+
+    /// `Avx`'s min and max of `(a, b)`, compiled with AVX.
+    #[target_feature(enable = "avx")]
+    fn avx_min_max(a: &P4, b: &P4) -> [P4; 2] {
+        let (va, vb) = (Avx::load(a), Avx::load(b));
+        [Avx::store(Avx::min(va, vb)), Avx::store(Avx::max(va, vb))]
+    }
+
+    fn bits(p: P4) -> [u64; 4] {
+        p.0.map(f64::to_bits)
+    }
+
+    /// The lanes pick the operand the scalar `min_not_nan`/`max_not_nan`
+    /// pick, zero signs included (the tie the instruction's operand order
+    /// decides), and quantize as the scalar code does. Only where the CPU
+    /// has AVX, the only place the AVX lanes run.
+    #[test]
+    fn avx_lanes_match_the_plain_ones() {
+        if !std::arch::is_x86_feature_detected!("avx") {
+            return;
+        }
+        let values = [0.0, -0.0, 1.0, 0.5, 2.0, -1.0];
+        for &x in &values {
+            for &y in &values {
+                let (a, b) = (P4([x, y, x, y]), P4([y, x, x, y]));
+                // SAFETY: the CPU has AVX (checked above).
+                let [min, max] = unsafe { avx_min_max(&a, &b) };
+                assert_eq!(bits(min), bits(Plain::min(a, b)), "min {a:?} {b:?}");
+                assert_eq!(bits(max), bits(Plain::max(a, b)), "max {a:?} {b:?}");
+            }
+        }
+        // Boxes in the voxel [8, 16]^3 at 256 cells: every cell boundary,
+        // and values between them.
+        let scale = 256.0 / 8.0;
+        for i in 0..=512 {
+            let t = 8.0 + i as f64 / 64.0;
+            let lo = P4([8.0, t.min(12.0), t, 0.0]);
+            let hi = P4([t, 16.0, t.max(12.0), 0.0]);
+            let v0 = P4::splat(8.0);
+            let want = Plain::quantize(&lo, &hi, &v0, scale, 256);
+            // SAFETY: the CPU has AVX (checked above).
+            let got = unsafe { avx_quantize(&lo, &hi, &v0, scale) };
+            assert_eq!(got, want, "{lo:?} {hi:?}");
+        }
+    }
+
+    #[target_feature(enable = "avx")]
+    fn avx_quantize(lo: &P4, hi: &P4, v0: &P4, scale: f64) -> ([u16; 3], [u16; 3]) {
+        Avx::quantize(lo, hi, v0, scale, 256)
     }
 }

@@ -7,9 +7,10 @@
 use glam::DVec3;
 
 use super::lod::primitive_lod;
-use super::quantize::{floor_ceil_in_scene, quantize_in_voxel};
+use super::quantize::floor_ceil_in_scene;
 use super::radix::{morton3_fast, SortKey};
 use crate::geom::clip::{clip_candidate, max_not_nan, ClipScratch, PreparedTriangle};
+use crate::geom::lanes::{Lanes, Plain, P4};
 use crate::geom::overlap::{overlaps_candidate, overlaps_candidate_prepared, OverlapPrep};
 use crate::params::Params;
 
@@ -106,6 +107,20 @@ pub fn place_triangle_with<K: LeafKey>(
     out: &mut Vec<LeafEntry<K>>,
     scratch: &mut ClipScratch,
 ) {
+    place_triangle_in::<K, Plain>(tri, prim, p, out, scratch)
+}
+
+/// [`place_triangle_with`] with the kernels computing in `L` (see
+/// [`Lanes`]): the same entries whichever `L`. Inlined with its kernels
+/// into the builder's AVX copy (see `build::place_range`).
+#[inline(always)]
+pub(crate) fn place_triangle_in<K: LeafKey, L: Lanes>(
+    tri: &[DVec3; 3],
+    prim: u32,
+    p: &Params,
+    out: &mut Vec<LeafEntry<K>>,
+    scratch: &mut ClipScratch,
+) {
     // The input is checked finite: see `PreparedTriangle::new_finite`.
     let prepared = PreparedTriangle::new_finite(tri);
     let (tlo, thi) = (prepared.lo, prepared.hi);
@@ -128,23 +143,33 @@ pub fn place_triangle_with<K: LeafKey>(
     // voxel's Morton code. Both boxes lie in the closed voxel (the clip's
     // inside its box, the triangle's inside the one voxel that holds it),
     // as `quantize_in_voxel` asks.
-    let entry = |morton: u128, v0: DVec3, blo: DVec3, bhi: DVec3| {
-        let (lx, hx) = quantize_in_voxel(blo.x, bhi.x, v0.x, scale, cells);
-        let (ly, hy) = quantize_in_voxel(blo.y, bhi.y, v0.y, scale, cells);
-        let (lz, hz) = quantize_in_voxel(blo.z, bhi.z, v0.z, scale, cells);
+    // The voxel's entry: a function, not a closure, so that it is inlined
+    // (the closure was not) and the AVX copy's quantization is compiled
+    // with AVX.
+    #[inline(always)]
+    fn entry<K: LeafKey, L: Lanes>(
+        key: u128,
+        prim: u32,
+        (v0, blo, bhi): (DVec3, &P4, &P4),
+        scale: f64,
+        cells: u32,
+    ) -> LeafEntry<K> {
+        let (lo, hi) = L::quantize(blo, bhi, &P4::new(v0), scale, cells);
         LeafEntry {
-            key: K::from_u128(lod_key | morton),
+            key: K::from_u128(key),
             prim,
-            lo: [lx, ly, lz],
-            hi: [hx, hy, hz],
+            lo,
+            hi,
         }
-    };
+    }
     // Voxel corners are integers times a power of two, below 2^62: exact.
     let corner = |x: u32, y: u32, z: u32| DVec3::new(x as f64, y as f64, z as f64) * edge;
 
     if i0 == i1 {
         let v0 = corner(i0.x, i0.y, i0.z);
-        out.push(entry(morton3_fast(i0.x, i0.y, i0.z), v0, tlo, thi));
+        let (blo, bhi) = (P4::new(tlo), P4::new(thi));
+        let key = lod_key | morton3_fast(i0.x, i0.y, i0.z);
+        out.push(entry::<K, L>(key, prim, (v0, &blo, &bhi), scale, cells));
         return;
     }
     let holds = VertexVoxels::new(tri, inv_edge, i0, i1);
@@ -201,8 +226,11 @@ pub fn place_triangle_with<K: LeafKey>(
                 }
                 // A candidate's box meets the triangle's AABB, and both are
                 // finite and below 2^32: what `clip_candidate` asks.
-                if let Some((blo, bhi)) = clip_candidate(&prepared, vlo, vhi, box_scale, scratch) {
-                    out.push(entry(morton, vlo, blo, bhi));
+                if let Some((blo, bhi)) =
+                    clip_candidate::<L>(&prepared, vlo, vhi, box_scale, scratch)
+                {
+                    let key = lod_key | morton;
+                    out.push(entry::<K, L>(key, prim, (vlo, &blo, &bhi), scale, cells));
                 }
             }
         }

@@ -399,7 +399,41 @@ fn place_parallel<K: LeafKey>(
 const MOST_ENTRIES_PER_TRIANGLE: usize = 9 * 9 * 9;
 
 /// The entries of triangles `range`, in order.
+///
+/// On a CPU with AVX the placement is compiled a second time with it
+/// ([`place_range_avx`]): four binary64 lanes per instruction where the
+/// kernels work on lanes. Both copies make the same IEEE operations on the
+/// same values (Rust never fuses a multiply and an add by itself, and AVX
+/// rounds every lane as the scalar instruction does), so the same entries.
 fn place_range<K: LeafKey>(
+    range: std::ops::Range<usize>,
+    params: &Params,
+    triangle: &dyn Fn(usize) -> Result<[DVec3; 3], BuildError>,
+) -> Result<Vec<LeafEntry<K>>, BuildError> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx") {
+        // SAFETY: the CPU has AVX, checked just above.
+        return unsafe { place_range_avx(range, params, triangle) };
+    }
+    place_range_in::<K, crate::geom::lanes::Plain>(range, params, triangle)
+}
+
+/// [`place_range_in`] compiled with AVX, its kernels computing in AVX
+/// registers; the caller checks the CPU has it.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+fn place_range_avx<K: LeafKey>(
+    range: std::ops::Range<usize>,
+    params: &Params,
+    triangle: &dyn Fn(usize) -> Result<[DVec3; 3], BuildError>,
+) -> Result<Vec<LeafEntry<K>>, BuildError> {
+    place_range_in::<K, crate::geom::lanes::Avx>(range, params, triangle)
+}
+
+/// [`place_range`]'s work, inlined into each of its two copies with the
+/// kernels it calls.
+#[inline(always)]
+fn place_range_in<K: LeafKey, L: crate::geom::lanes::Lanes>(
     range: std::ops::Range<usize>,
     params: &Params,
     triangle: &dyn Fn(usize) -> Result<[DVec3; 3], BuildError>,
@@ -414,7 +448,7 @@ fn place_range<K: LeafKey>(
             entries.reserve_exact(range.len().max(MOST_ENTRIES_PER_TRIANGLE));
         }
         let tri = triangle(i)?;
-        leaves::place_triangle_with(&tri, i as u32, params, &mut entries, &mut clip_scratch);
+        leaves::place_triangle_in::<K, L>(&tri, i as u32, params, &mut entries, &mut clip_scratch);
     }
     // The spare room would stay allocated through the sort and the levels:
     // give it back (shrinking a block moves nothing).

@@ -14,6 +14,7 @@
 
 use glam::DVec3;
 
+use super::lanes::{Lanes, Plain, P4};
 use super::overlap::triangle_overlaps_box_prepared;
 use super::{magnitude, triangle_bounds, ROUNDING_MARGIN_REL};
 
@@ -33,6 +34,8 @@ pub struct PreparedTriangle {
     abs_max: DVec3,
     /// Every coordinate finite.
     finite: bool,
+    /// The vertices in lanes, as the clip's polygon starts.
+    lanes: [P4; 3],
 }
 
 impl PreparedTriangle {
@@ -46,6 +49,7 @@ impl PreparedTriangle {
             hi,
             abs_max: tri[0].abs().max(tri[1].abs()).max(tri[2].abs()),
             finite: tri.iter().all(|v| v.is_finite()),
+            lanes: tri.map(P4::new),
         }
     }
 
@@ -70,6 +74,7 @@ impl PreparedTriangle {
             hi,
             abs_max,
             finite: true,
+            lanes: tri.map(P4::new),
         }
     }
 
@@ -172,7 +177,8 @@ pub fn clip_prepared(
     if pt.is_finite() && lo.is_finite() && hi.is_finite() {
         let scale = pt.magnitude_finite(lo, hi);
         if scale < FINITE_CLIP_LIMIT {
-            return clip_finite(pt, lo, hi, scale, scratch);
+            return clip_finite::<Plain>(pt, lo, hi, scale, scratch)
+                .map(|(l, h)| (l.xyz(), h.xyz()));
         }
     }
     clip_general(pt, lo, hi, scratch)
@@ -184,20 +190,22 @@ pub fn clip_prepared(
 /// AABB), and passes their magnitude `scale` (`geom::magnitude`, which it
 /// computes once for this and [`crate::geom::overlap::overlaps_candidate`]).
 /// [`clip_prepared`] would then skip none of its checks' other branches, so
-/// this is `clip_finite` without them: the same bits.
-#[inline]
-pub fn clip_candidate(
+/// this is `clip_finite` without them: the same bits. `L` is how the
+/// points are computed on (see [`Lanes`]): the same bits either way. The
+/// box comes in lanes, for the caller's quantization in lanes.
+#[inline(always)]
+pub(crate) fn clip_candidate<L: Lanes>(
     pt: &PreparedTriangle,
     lo: DVec3,
     hi: DVec3,
     scale: f64,
     scratch: &mut ClipScratch,
-) -> Option<(DVec3, DVec3)> {
+) -> Option<(P4, P4)> {
     debug_assert!(pt.is_finite() && lo.is_finite() && hi.is_finite());
     debug_assert!(!(pt.lo.cmpgt(hi).any() || pt.hi.cmplt(lo).any()));
     debug_assert_eq!(scale.to_bits(), pt.magnitude_finite(lo, hi).to_bits());
     debug_assert!(scale < FINITE_CLIP_LIMIT);
-    clip_finite(pt, lo, hi, scale, scratch)
+    clip_finite::<L>(pt, lo, hi, scale, scratch)
 }
 
 /// Below this magnitude no value of [`clip_finite`] overflows: distances
@@ -258,13 +266,17 @@ fn max3(a: DVec3, b: DVec3) -> DVec3 {
 /// [`clip_step`] per axis and side, so the axis is a constant. The same
 /// operations on the same values in the same order as [`clip_general`]: the
 /// same bits.
-fn clip_finite(
+#[inline(always)]
+fn clip_finite<L: Lanes>(
     pt: &PreparedTriangle,
     lo: DVec3,
     hi: DVec3,
     scale: f64,
     scratch: &mut ClipScratch,
-) -> Option<(DVec3, DVec3)> {
+) -> Option<(P4, P4)> {
+    let fallback = |bounded_lo, bounded_hi| {
+        clip_fallback(pt, lo, hi, bounded_lo, bounded_hi).map(|(l, h)| (P4::new(l), P4::new(h)))
+    };
     let bounded_lo = max3(pt.lo, lo);
     let bounded_hi = min3(pt.hi, hi);
     let m = ROUNDING_MARGIN_REL * scale;
@@ -272,41 +284,43 @@ fn clip_finite(
     let grown_hi = hi + DVec3::splat(m);
     let [a, b] = &mut scratch.polys;
     let (mut cur, mut next) = (a, b);
-    cur.set_triangle(&pt.tri);
-    let (mut plo, mut phi) = (pt.lo, pt.hi);
+    cur.set_lanes(&pt.lanes);
+    let (mut plo, mut phi) = (P4::new(pt.lo), P4::new(pt.hi));
     macro_rules! step {
         ($axis:literal, $above:literal, $plane:expr) => {
-            match clip_step::<$axis, $above>(cur, next, $plane) {
-                Some(bounds) => {
-                    (plo, phi) = bounds;
+            match clip_step::<L, $axis, $above>(cur, next, $plane) {
+                Some((l, h)) => {
+                    (plo, phi) = (L::store(l), L::store(h));
                     std::mem::swap(&mut cur, &mut next);
                 }
-                None => return clip_fallback(pt, lo, hi, bounded_lo, bounded_hi),
+                None => return fallback(bounded_lo, bounded_hi),
             }
         };
     }
-    if plo.x < grown_lo.x {
+    if plo.0[0] < grown_lo.x {
         step!(0, true, grown_lo.x);
     }
-    if phi.x > grown_hi.x {
+    if phi.0[0] > grown_hi.x {
         step!(0, false, grown_hi.x);
     }
-    if plo.y < grown_lo.y {
+    if plo.0[1] < grown_lo.y {
         step!(1, true, grown_lo.y);
     }
-    if phi.y > grown_hi.y {
+    if phi.0[1] > grown_hi.y {
         step!(1, false, grown_hi.y);
     }
-    if plo.z < grown_lo.z {
+    if plo.0[2] < grown_lo.z {
         step!(2, true, grown_lo.z);
     }
-    if phi.z > grown_hi.z {
+    if phi.0[2] > grown_hi.z {
         step!(2, false, grown_hi.z);
     }
-    let out_lo = max3(plo - DVec3::splat(m), bounded_lo);
-    let out_hi = min3(phi + DVec3::splat(m), bounded_hi);
-    if out_lo.cmpgt(out_hi).any() {
-        return clip_fallback(pt, lo, hi, bounded_lo, bounded_hi);
+    let m4 = L::splat(m);
+    let out_lo = L::max(L::sub(L::load(&plo), m4), L::load(&P4::new(bounded_lo)));
+    let out_hi = L::min(L::add(L::load(&phi), m4), L::load(&P4::new(bounded_hi)));
+    let (out_lo, out_hi) = (L::store(out_lo), L::store(out_hi));
+    if (0..3).any(|a| out_lo.0[a] > out_hi.0[a]) {
+        return fallback(bounded_lo, bounded_hi);
     }
     Some((out_lo, out_hi))
 }
@@ -332,41 +346,50 @@ fn clip_fallback(
 /// polygon `poly` at `p[AXIS] = plane`, keeping `p[AXIS] >= plane` when
 /// `ABOVE`, else `<=`, into `out`; returns the new polygon's bounds, or
 /// `None` when nothing is left. The crossing point is computed as there
-/// (`a + (b - a) * t`, per component), its own axis then set to the plane.
+/// (`a + (b - a) * t`, per component, in lanes), its own axis then set to
+/// the plane; the bounds are [`min3`] and [`max3`] in lanes.
 #[inline(always)]
-fn clip_step<const AXIS: usize, const ABOVE: bool>(
-    poly: &Polygon,
+fn clip_step<L: Lanes, const AXIS: usize, const ABOVE: bool>(
+    poly: &mut Polygon,
     out: &mut Polygon,
     plane: f64,
-) -> Option<(DVec3, DVec3)> {
-    let dist = |p: &DVec3| {
+) -> Option<(L::V, L::V)> {
+    let dist = |p: &P4| {
         if ABOVE {
-            p.to_array()[AXIS] - plane
+            p.0[AXIS] - plane
         } else {
-            plane - p.to_array()[AXIS]
+            plane - p.0[AXIS]
         }
     };
-    let mut lo = DVec3::splat(f64::INFINITY);
-    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    let mut lo = L::splat(f64::INFINITY);
+    let mut hi = L::splat(f64::NEG_INFINITY);
     let mut len = 0;
-    for_each_edge(poly, dist, |a, da, b, db| {
+    // `for_each_edge`'s loop, written out: as a closure the body was not
+    // inlined into the builder's AVX copy. A distance is read from memory,
+    // a point kept in lanes.
+    let n = poly.len;
+    poly.v[n] = poly.v[0];
+    let (mut a, mut da) = (L::load(&poly.v[0]), dist(&poly.v[0]));
+    for b in &poly.v[1..n + 1] {
+        let db = dist(b);
+        let b = L::load(b);
         if da >= 0.0 {
-            out.v[len] = a;
+            out.v[len] = L::store(a);
             len += 1;
-            lo = min3(lo, a);
-            hi = max3(hi, a);
+            lo = L::min(lo, a);
+            hi = L::max(hi, a);
         }
         if (da >= 0.0) != (db >= 0.0) {
             let t = da / (da - db);
-            let mut p = (a + (b - a) * t).to_array();
-            p[AXIS] = plane;
-            let p = DVec3::from_array(p);
-            out.v[len] = p;
+            let p = L::add(a, L::mul(L::sub(b, a), L::splat(t)));
+            let p = L::with_lane::<AXIS>(p, plane);
+            out.v[len] = L::store(p);
             len += 1;
-            lo = min3(lo, p);
-            hi = max3(hi, p);
+            lo = L::min(lo, p);
+            hi = L::max(hi, p);
         }
-    });
+        (a, da) = (b, db);
+    }
     out.len = len;
     (len > 0).then_some((lo, hi))
 }
@@ -391,7 +414,7 @@ fn clip_general(
     let may_skip = pt.is_finite() && grown_lo.is_finite() && grown_hi.is_finite();
     let [a, b] = &mut scratch.polys;
     let (mut cur, mut next) = (a, b);
-    cur.set_triangle(tri);
+    cur.set_lanes(&tri.map(P4::new));
     let (mut plo, mut phi) = cur.bounds();
     for axis in 0..3 {
         if !(may_skip && plo[axis] >= grown_lo[axis]) {
@@ -426,9 +449,10 @@ fn clip_general(
 /// is not promised to keep it convex). From 3: 4, 6, 9, 13, 19, 28.
 const MAX_POLYGON: usize = 28;
 
-/// A polygon in a fixed buffer: clipping allocates nothing.
+/// A polygon in a fixed buffer: clipping allocates nothing. One slot past
+/// the last vertex is kept for [`for_each_edge`]'s copy of vertex 0.
 struct Polygon {
-    v: [DVec3; MAX_POLYGON],
+    v: [P4; MAX_POLYGON + 1],
     len: usize,
 }
 
@@ -436,20 +460,20 @@ impl Polygon {
     #[inline(always)]
     fn empty() -> Polygon {
         Polygon {
-            v: [DVec3::ZERO; MAX_POLYGON],
+            v: [P4::splat(0.0); MAX_POLYGON + 1],
             len: 0,
         }
     }
 
     #[inline(always)]
-    fn set_triangle(&mut self, tri: &[DVec3; 3]) {
+    fn set_lanes(&mut self, tri: &[P4; 3]) {
         self.v[..3].copy_from_slice(tri);
         self.len = 3;
     }
 
     #[inline(always)]
     fn push(&mut self, p: DVec3) {
-        self.v[self.len] = p;
+        self.v[self.len] = P4::new(p);
         self.len += 1;
     }
 
@@ -459,9 +483,9 @@ impl Polygon {
     fn bounds(&self) -> (DVec3, DVec3) {
         let mut lo = DVec3::splat(f64::INFINITY);
         let mut hi = DVec3::splat(f64::NEG_INFINITY);
-        for &p in &self.v[..self.len] {
-            lo = lo.min(p);
-            hi = hi.max(p);
+        for p in &self.v[..self.len] {
+            lo = lo.min(p.xyz());
+            hi = hi.max(p.xyz());
         }
         (lo, hi)
     }
@@ -481,16 +505,23 @@ enum KeepSide {
 /// one or two vertices (repeated vertices are simply repeated) is clipped
 /// like any other.
 #[inline(always)]
-fn clip_against_plane(poly: &Polygon, out: &mut Polygon, axis: usize, plane: f64, keep: KeepSide) {
-    let dist = |p: &DVec3| match keep {
-        KeepSide::Above => p[axis] - plane,
-        KeepSide::Below => plane - p[axis],
+fn clip_against_plane(
+    poly: &mut Polygon,
+    out: &mut Polygon,
+    axis: usize,
+    plane: f64,
+    keep: KeepSide,
+) {
+    let dist = |p: &P4| match keep {
+        KeepSide::Above => p.0[axis] - plane,
+        KeepSide::Below => plane - p.0[axis],
     };
     out.len = 0;
     if poly.len == 0 {
         return;
     }
     for_each_edge(poly, dist, |a, da, b, db| {
+        let (a, b) = (a.xyz(), b.xyz());
         if da >= 0.0 {
             out.push(a);
         }
@@ -508,26 +539,22 @@ fn clip_against_plane(poly: &Polygon, out: &mut Polygon, axis: usize, plane: f64
 /// Calls `f(a, da, b, db)` for each edge `(a, b)` of the closed polygon
 /// `poly` (at least one vertex), from vertex 0 in order, the last edge back
 /// to vertex 0; `da`, `db` are the vertices' `dist`, each computed once and
-/// carried to the next edge.
+/// carried to the next edge (vertex 0's twice: the same value). Vertex 0 is
+/// copied past the last so that every edge reads its end the same way,
+/// without a branch for the last one.
 #[inline(always)]
 fn for_each_edge(
-    poly: &Polygon,
-    dist: impl Fn(&DVec3) -> f64,
-    mut f: impl FnMut(DVec3, f64, DVec3, f64),
+    poly: &mut Polygon,
+    dist: impl Fn(&P4) -> f64,
+    mut f: impl FnMut(P4, f64, P4, f64),
 ) {
     let n = poly.len;
-    let first = poly.v[0];
-    let d_first = dist(&first);
-    let (mut a, mut da) = (first, d_first);
-    for i in 0..n {
-        let (b, db) = if i + 1 == n {
-            (first, d_first)
-        } else {
-            let b = poly.v[i + 1];
-            (b, dist(&b))
-        };
-        f(a, da, b, db);
-        (a, da) = (b, db);
+    poly.v[n] = poly.v[0];
+    let (mut a, mut da) = (poly.v[0], dist(&poly.v[0]));
+    for b in &poly.v[1..n + 1] {
+        let db = dist(b);
+        f(a, da, *b, db);
+        (a, da) = (*b, db);
     }
 }
 

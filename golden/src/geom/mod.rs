@@ -11,6 +11,7 @@
 
 pub mod aabb;
 pub mod clip;
+pub(crate) mod lanes;
 pub mod overlap;
 pub mod ray;
 pub mod triangle;

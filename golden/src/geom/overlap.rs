@@ -150,7 +150,7 @@ impl OverlapPrep {
 /// `prep.exact`, that `prep` is of `pt`'s triangle at the box's LOD and
 /// that the box is one of its candidates, besides what
 /// [`overlaps_candidate`] asks.
-#[inline]
+#[inline(always)]
 pub fn overlaps_candidate_prepared(
     prep: &OverlapPrep,
     pt: &PreparedTriangle,

@@ -645,11 +645,12 @@ fn hierarchy_unit_with_a_wrong_range_fails() {
     use cosim::units::hierarchy_unit::run;
     use cosim::units::multi_stream::{ModuleEngine, RunConfig, VerilogPatch};
     use rtl_gen::merge::HierarchyUnitConfig;
-    let c = HierarchyUnitConfig::new(configs().remove(0).1);
+    // The Q = 0 configuration (k = 3): a third of the default's build.
+    let c = HierarchyUnitConfig::new(configs().remove(1).1);
     let bench = RunConfig {
         seed: seeded(8017),
         verilog_patch: Some(VerilogPatch {
-            from: "assign range_hi = (deep_upto3 > range_lo) ? deep_upto3 : range_lo;".into(),
+            from: "assign range_hi = (deep_upto2 > range_lo) ? deep_upto2 : range_lo;".into(),
             to: "assign range_hi = range_lo;".into(),
         }),
         ..RunConfig::default()

@@ -79,10 +79,7 @@ pub(super) fn merge_level(top: &str) {
 /// boundary: full only as `leaf_overflow`, empty not at all (the drivers
 /// and monitors count full and empty on the unit's own streams).
 pub(super) fn merger(k: usize, s: &cosim::units::merger::MergeStats) {
-    declare((1..=k).map(|n| format!("merger.inputs.{n}")));
-    for (n, m) in &s.by_inputs {
-        hit(&format!("merger.inputs.{n}"), *m as u64);
-    }
+    input_counts("merger", k, &s.by_inputs);
     let outcomes = [
         ("refused", s.refused),
         ("leaves_above", s.leaves_above),
@@ -131,13 +128,19 @@ fn codes(prefix: &str, names: &[(u64, &str)], counts: &std::collections::BTreeMa
 /// configuration, no leaves above the merging level in their count; the
 /// merger's own bins (`merger.*`, hard merges) cover those.
 pub(super) fn hierarchy(k: usize, s: &cosim::units::hierarchy_unit::HierarchyStats) {
-    declare((1..=k).map(|n| format!("hierarchy.inputs.{n}")));
-    for (n, m) in &s.merges.by_inputs {
-        hit(&format!("hierarchy.inputs.{n}"), *m as u64);
-    }
+    input_counts("hierarchy", k, &s.merges.by_inputs);
     let outcomes = [("rewritten", s.rewrites), ("residual", s.residuals)];
     declare(outcomes.iter().map(|(o, _)| format!("hierarchy.{o}")));
     for (o, n) in outcomes {
         hit(&format!("hierarchy.{o}"), n);
+    }
+}
+
+/// `<prefix>.inputs.<n>` for every input count `1..=k`, hit by the merges
+/// counted per input count in `by_inputs`.
+fn input_counts(prefix: &str, k: usize, by_inputs: &std::collections::BTreeMap<usize, usize>) {
+    declare((1..=k).map(|n| format!("{prefix}.inputs.{n}")));
+    for (n, m) in by_inputs {
+        hit(&format!("{prefix}.inputs.{n}"), *m as u64);
     }
 }

@@ -442,7 +442,7 @@ fn flags_of_other_units_are_refused_naming_them() {
         (
             "translate",
             "--ledger x",
-            "--ledger applies to --unit merger only",
+            "--ledger applies to --unit merger and --unit hierarchy only",
         ),
         (
             "translate",

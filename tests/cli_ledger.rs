@@ -339,3 +339,62 @@ fn a_plan_lists_the_runs_still_to_make() {
         "{err}"
     );
 }
+
+/// The hierarchy unit (translation unit and merger top) has its own
+/// entries: recorded with its unit and top, current while its netlist and
+/// stimulus are, an entry whose `unit` contradicts its args is named, and
+/// a plan line of it is done once its run is recorded.
+#[test]
+fn hierarchy_unit_runs_are_recorded_and_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path().to_str().unwrap();
+    let small = "--unit hierarchy --engine ir --seed 9 --count 2 --max-lod 8 --quant-bits 0 --index-bits 12 --hier-bits 3 --inputs 2";
+    let mut args: Vec<&str> = vec!["cosim"];
+    args.extend(small.split(' '));
+    args.extend(["--ledger", d, "--json"]);
+    let o = hiermerge(&args, &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r = json_of(&o);
+    let top = r["hierarchy"]["top"].as_str().unwrap();
+    assert!(top.starts_with("hierarchy_unit_d8_"), "{r}");
+    let path = dir.path().join(top).join("ir-seed9-n2.json");
+    let entry: Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    assert_eq!(entry["unit"], "hierarchy");
+    assert_eq!(entry["stimulus_sha256"], r["hierarchy"]["stimulus_sha256"]);
+    let plan = dir.path().join("plan.txt");
+    std::fs::write(&plan, format!("{small}\n")).unwrap();
+    let p = plan.to_str().unwrap();
+    let ledger = |extra: &[&str]| {
+        let mut a = vec!["ledger", "--dir", d, "--plan", p, "--stimulus", "all"];
+        a.extend(extra);
+        a.push("--json");
+        hiermerge(&a, &[])
+    };
+    let o = ledger(&[]);
+    let r = json_of(&o);
+    assert!(o.status.success(), "{r}");
+    assert_eq!(r["plan"][0]["done"], true, "{r}");
+    assert_eq!(r["entries"][0]["stimulus_current"], true, "{r}");
+    // A run of two other merges is not this entry's evidence.
+    edit(&path, |v| {
+        v["stimulus_sha256"] = Value::from("0".repeat(64))
+    });
+    let r = json_of(&ledger(&[]));
+    assert_eq!(r["plan"][0]["done"], false, "{r}");
+    assert!(
+        strings(&r["stale"])
+            .iter()
+            .any(|s| s.contains("the stimulus changed")),
+        "{r}"
+    );
+    edit(&path, |v| v["unit"] = Value::from("merger"));
+    let o = ledger(&[]);
+    assert!(!o.status.success());
+    let r = json_of(&o);
+    assert!(
+        problems(&r)
+            .iter()
+            .any(|p| p.contains("field unit `merger`, but its args run `--unit hierarchy`")),
+        "{r}"
+    );
+}

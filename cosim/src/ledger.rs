@@ -102,7 +102,7 @@ impl StimulusDigest {
 pub struct Entry {
     /// [`FORMAT`].
     pub format: String,
-    /// The unit (`merger`).
+    /// The unit (`merger` or `hierarchy`).
     pub unit: String,
     /// The top module's name: the configuration, spelled by the generator.
     pub top: String,

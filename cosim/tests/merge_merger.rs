@@ -598,7 +598,7 @@ fn hierarchy_unit_matches_golden_on_three_engines() {
             (ModuleEngine::Iverilog, 6),
         ] {
             let dir = tempfile::tempdir().unwrap();
-            let (t, stats) = run(
+            let o = run(
                 &c,
                 engine,
                 &bench,
@@ -607,6 +607,7 @@ fn hierarchy_unit_matches_golden_on_three_engines() {
                 &mut |_, _| {},
             )
             .unwrap();
+            let (t, stats) = (o.totals, o.stats);
             assert_eq!(stats.merges.merges, count, "every case is counted");
             assert_eq!(
                 stats.determines as usize,
@@ -656,7 +657,7 @@ fn hierarchy_unit_with_a_wrong_range_fails() {
         ..RunConfig::default()
     };
     let dir = tempfile::tempdir().unwrap();
-    let (t, _) = run(
+    let t = run(
         &c,
         ModuleEngine::Verilator,
         &bench,
@@ -664,7 +665,8 @@ fn hierarchy_unit_with_a_wrong_range_fails() {
         dir.path(),
         &mut |_, _| {},
     )
-    .unwrap();
+    .unwrap()
+    .totals;
     assert!(!t.passed(), "the broken range passed");
     let m = t.first_mismatch.expect("a mismatch");
     assert_eq!(m.stream, "report", "{m:?}");

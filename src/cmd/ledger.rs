@@ -13,11 +13,10 @@ use std::collections::{BTreeMap, HashMap};
 use std::path::PathBuf;
 
 use cosim::ledger::{read_ledger, Entry};
-use cosim::units::merger;
 use indicatif::ProgressBar;
 use serde::Serialize;
 
-use super::cosim::merger_run;
+use super::cosim::ledger_run;
 use crate::report::{emit, CmdResult};
 
 /// Which entries get their stimulus regenerated (golden, no simulation;
@@ -143,8 +142,8 @@ fn read_plan(
         }
         let at = |what: String| format!("{} line {}: {what}", path.display(), i + 1);
         let args: Vec<String> = line.split_whitespace().map(String::from).collect();
-        let run = merger_run(&args).map_err(at)?;
-        let top = rtl_gen::merge::hierarchy_merger_name(&run.config);
+        let run = ledger_run(&args).map_err(at)?;
+        let top = run.top.clone();
         let (engine, seed, count) = (run.engine.to_string(), run.seed, run.count as u64);
         let done = good.contains(&(top.clone(), engine.clone(), seed, count));
         out.push(PlanLine {
@@ -185,11 +184,7 @@ fn check(
             e.mismatches
         ));
     }
-    if e.unit != "merger" {
-        problems.push(format!("{path}: unit `{}`: expected `merger`", e.unit));
-        return out;
-    }
-    let run = match merger_run(&e.args) {
+    let run = match ledger_run(&e.args) {
         Ok(r) => r,
         Err(what) => {
             problems.push(format!("{path}: field args: {what}"));
@@ -204,8 +199,15 @@ fn check(
         ));
         return out;
     }
-    // `merger_run` validated the configuration.
-    let top = rtl_gen::merge::hierarchy_merger_name(&run.config);
+    if run.unit != e.unit {
+        problems.push(format!(
+            "{path}: field unit `{}`, but its args run `--unit {}`",
+            e.unit, run.unit
+        ));
+        return out;
+    }
+    // `ledger_run` validated the configuration.
+    let top = run.top.clone();
     if top != e.top {
         problems.push(format!(
             "{path}: field top `{}`, but its args generate `{top}`",
@@ -213,9 +215,7 @@ fn check(
         ));
         return out;
     }
-    let digest = netlists
-        .entry(top)
-        .or_insert_with(|| merger::netlist_digest(&run.config).map_err(|e| e.to_string()));
+    let digest = netlists.entry(top).or_insert_with(|| run.netlist_digest());
     match digest {
         Ok(d) if *d == e.netlist_sha256 => out.netlist_current = true,
         Ok(d) => stale.push(format!(
@@ -227,7 +227,7 @@ fn check(
         Err(what) => problems.push(format!("{path}: regenerating the netlist: {what}")),
     }
     if digest_stimulus {
-        match merger::stimulus_digest(&run.config, seed, run.count, run.stall, run.merges) {
+        match run.stimulus_digest() {
             Ok(d) => {
                 let current = d == e.stimulus_sha256;
                 out.stimulus_current = Some(current);

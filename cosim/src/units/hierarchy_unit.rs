@@ -31,11 +31,12 @@ use rtl_gen::merge::HierarchyUnitConfig;
 use rtl_gen::translate::ports::{det_in_layout, det_out_layout, pack_det_in, pack_det_out};
 
 use crate::error::{CosimError, Result};
+use crate::ledger::StimulusDigest;
 use crate::tb::Transaction;
 
-use super::chunked::{ChunkTotals, ChunkedSim, UnitStreams, CHUNK};
+use super::chunked::{ChunkTotals, ChunkedSim, UnitStreams};
 use super::merger::shared::{Front, SharedSim};
-use super::merger::{SceneStore, SimOutcome};
+use super::merger::{chunk_sizes, SceneStore, SimOutcome};
 use super::multi_stream::{beat_decoder, decoded_pair, ModuleEngine, RunConfig, VerilogPatch};
 use golden::merge::merger::store_port::StorePort;
 
@@ -321,16 +322,56 @@ fn decode(
     decoded_pair(&*beat_decoder(fields), e, g)
 }
 
+/// What a [`run`] did: its totals, what its cases reached, and the
+/// digests its long-run ledger entry records (SPEC 10.2).
+#[derive(Clone, Debug, Default)]
+pub struct Outcome {
+    /// Beats, mismatches, cycles and pulses of every chunk run.
+    pub totals: ChunkTotals,
+    /// What the cases reached.
+    pub stats: HierarchyStats,
+    /// [`netlist_digest`] of the unit as generated (a patched run is a
+    /// test of the bench, never recorded in a ledger).
+    pub netlist_sha256: String,
+    /// The stimulus digest of the chunks that ran: a run stopped after a
+    /// failing chunk says so by a digest of what ran.
+    pub stimulus_sha256: String,
+}
+
+/// The hierarchy unit `c`'s netlist digest (10.2): structural, so a rename
+/// that keeps behaviour keeps a ledger entry current.
+pub fn netlist_digest(c: &HierarchyUnitConfig) -> Result<String> {
+    crate::ledger::netlist_digest(&rtl_gen::merge::hierarchy_unit(c).map_err(design_err)?)
+}
+
+/// The stimulus digest (10.2) of the run [`run`] makes of `count` cases
+/// from `seed` with the stall pattern `stall`, without simulating it.
+pub fn stimulus_digest(
+    c: &HierarchyUnitConfig,
+    seed: u64,
+    count: usize,
+    stall: crate::tb::Stalls,
+) -> Result<String> {
+    let mut rng = SplitMix64(seed);
+    let mut digest = StimulusDigest::new(seed, count as u64, stall);
+    let mut stats = HierarchyStats::default();
+    for n in chunk_sizes(count) {
+        let s = next_streams(c, &mut rng, n, &mut stats)?;
+        digest.add_chunk(&s.inputs, &s.outputs);
+    }
+    Ok(digest.finish())
+}
+
 /// Runs `count` random cases from `config.seed` through the hierarchy unit
-/// `c` on `engine`, its Verilog written to `dir`, [`CHUNK`] merges at a
-/// time, each chunk from reset (the table too); stops after the first
+/// `c` on `engine`, its Verilog written to `dir`,
+/// [`super::chunked::CHUNK`] merges at a time, each chunk from reset (the
+/// table too); stops after the first
 /// chunk that fails. Every output beat compared (a mismatch decoded field
 /// by field), one `done` per merge, `idle` at the end of every chunk;
 /// `config`'s Verilog patch (the test hook) applied. Per-unit store ports
 /// only: the streams carry the store's answers. `flip` (the test hook)
 /// flips bit 0 of that merge's expected `header` beat (its `out_id`);
-/// `progress` gets (merges whose outputs arrived so far, cycle). Returns the
-/// totals and what the cases reached.
+/// `progress` gets (merges whose outputs arrived so far, cycle).
 pub fn run(
     c: &HierarchyUnitConfig,
     engine: ModuleEngine,
@@ -338,7 +379,7 @@ pub fn run(
     (count, flip): (usize, Option<usize>),
     dir: &Path,
     progress: &mut dyn FnMut(u64, u64),
-) -> Result<(ChunkTotals, HierarchyStats)> {
+) -> Result<Outcome> {
     if c.merger.sizes.store_port != golden::merge::merger::store_port::StorePort::PerUnit {
         return Err(CosimError::Unsupported {
             what:
@@ -348,6 +389,10 @@ pub fn run(
     }
     let module = rtl_gen::merge::hierarchy_unit(c).map_err(design_err)?;
     crate::waves::check_scope(&module, config.wave_scope.as_deref())?;
+    let mut out = Outcome {
+        netlist_sha256: crate::ledger::netlist_digest(&module)?,
+        ..Outcome::default()
+    };
     let design = crate::from_rtl::design_from_module(&module, dir)?;
     if let Some(patch) = &config.verilog_patch {
         super::multi_stream::apply_patch(&design, patch, engine)?;
@@ -362,25 +407,24 @@ pub fn run(
     )?;
     let decode = |stream: &str, e: &Transaction, g: &Transaction| decode(&ports, stream, e, g);
     let mut rng = SplitMix64(config.seed);
-    let mut totals = ChunkTotals::default();
-    let mut stats = HierarchyStats::default();
-    let mut left = count;
-    while left > 0 {
-        let n = left.min(CHUNK);
+    let mut digest = StimulusDigest::new(config.seed, count as u64, config.stall);
+    let mut first = 0;
+    for n in chunk_sizes(count) {
         let t = std::time::Instant::now();
-        let mut streams = next_streams(c, &mut rng, n, &mut stats)?;
-        totals.golden_wall += t.elapsed();
-        let first = count - left;
+        let mut streams = next_streams(c, &mut rng, n, &mut out.stats)?;
+        digest.add_chunk(&streams.inputs, &streams.outputs);
+        out.totals.golden_wall += t.elapsed();
         if let Some(f) = flip.filter(|f| (first..first + n).contains(f)) {
             // `header` is the last output stream; every merge has its one beat.
             streams.flip_first(streams.outputs.len() - 1, f - first)?;
         }
-        if sim.run_chunk(&mut totals, n, &streams, config, &decode, progress)? {
+        if sim.run_chunk(&mut out.totals, n, &streams, config, &decode, progress)? {
             break;
         }
-        left -= n;
+        first += n;
     }
-    Ok((totals, stats))
+    out.stimulus_sha256 = digest.finish();
+    Ok(out)
 }
 
 /// The exported testbench of `c` (`hiermerge export-tb --unit hierarchy`):

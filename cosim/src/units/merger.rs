@@ -417,7 +417,7 @@ fn golden_chunk(
 }
 
 /// The chunk sizes of a run of `count` merges.
-fn chunk_sizes(count: usize) -> impl Iterator<Item = usize> {
+pub(super) fn chunk_sizes(count: usize) -> impl Iterator<Item = usize> {
     (0..count.div_ceil(CHUNK)).map(move |i| CHUNK.min(count - i * CHUNK))
 }
 

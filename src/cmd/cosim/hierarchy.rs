@@ -9,7 +9,7 @@ use golden::merge::merge_module::MergeDesign;
 use rtl_gen::merge::HierarchyUnitConfig;
 
 use super::merger::merger_config;
-use super::report::{chunked_failure, finish_report, Counts, Report};
+use super::report::{chunked_failure, finish_report, Counts, HierarchyReport, Report};
 use super::{bar, bench_config, count, module_engine, Args};
 
 /// The hierarchy unit `a` asks for: the merger of `design` with the sizes
@@ -56,7 +56,7 @@ pub(super) fn run(
         );
     }
     let pb = bar(count as u64, a.json);
-    let t = hierarchy_unit::run(
+    let o = hierarchy_unit::run(
         &c,
         engine,
         &bench,
@@ -68,9 +68,10 @@ pub(super) fn run(
         },
     );
     pb.finish_and_clear();
-    let (t, stats) = t.map_err(|e| e.to_string())?;
+    let o = o.map_err(|e| e.to_string())?;
+    let (t, stats) = (&o.totals, &o.stats);
     if t.passed() {
-        super::bins::hierarchy(c.merger.design.inputs, &stats);
+        super::bins::hierarchy(c.merger.design.inputs, stats);
     }
     let received = |name: &str| t.received.iter().find(|r| r.0 == name).map_or(0, |r| r.1);
     let counts = Counts {
@@ -81,6 +82,18 @@ pub(super) fn run(
         cycles: t.cycles,
         wall_seconds: t.wall.as_secs_f64(),
     };
-    let first = chunked_failure(stage, a.seed, &t);
-    finish_report(a, stage, flip, counts, first, t.vcd.as_ref())
+    let first = chunked_failure(stage, a.seed, t);
+    let mut report = finish_report(a, stage, flip, counts, first, t.vcd.as_ref())?;
+    report.hierarchy = Some(HierarchyReport {
+        determines: stats.determines,
+        rewrites: stats.rewrites,
+        residuals: stats.residuals,
+        refused: stats.merges.refused as u64,
+        fetch_errors: stats.merges.fetch_errors as u64,
+        golden_seconds: t.golden_wall.as_secs_f64(),
+        top: rtl_gen::merge::hierarchy_unit_name(&c),
+        netlist_sha256: o.netlist_sha256.clone(),
+        stimulus_sha256: o.stimulus_sha256.clone(),
+    });
+    Ok(report)
 }

@@ -51,19 +51,56 @@ pub(super) fn merges_of(a: &Args) -> merger::Merges {
     a.merges.unwrap_or(super::MergesChoice::Random).merges()
 }
 
-/// A `--unit merger` run as the ledger (SPEC 10.2) needs to regenerate it.
-pub struct MergerRun {
-    pub config: rtl_gen::merge::MergerConfig,
+/// A `--unit merger` or `--unit hierarchy` run as the ledger (SPEC 10.2)
+/// needs to regenerate it.
+pub struct LedgerRun {
+    /// `merger` or `hierarchy`.
+    pub unit: &'static str,
+    /// The top module, as the generator names the configuration.
+    pub top: String,
     pub engine: &'static str,
     pub seed: u64,
     pub count: usize,
     pub stall: Stalls,
-    pub merges: merger::Merges,
+    design: LedgerDesign,
+}
+
+enum LedgerDesign {
+    Merger {
+        config: rtl_gen::merge::MergerConfig,
+        merges: merger::Merges,
+    },
+    Hierarchy(rtl_gen::merge::HierarchyUnitConfig),
+}
+
+impl LedgerRun {
+    /// The netlist digest of the configuration as generated today.
+    pub fn netlist_digest(&self) -> Result<String, String> {
+        match &self.design {
+            LedgerDesign::Merger { config, .. } => merger::netlist_digest(config),
+            LedgerDesign::Hierarchy(c) => cosim::units::hierarchy_unit::netlist_digest(c),
+        }
+        .map_err(|e| e.to_string())
+    }
+
+    /// The stimulus digest of the run as golden draws it today.
+    pub fn stimulus_digest(&self) -> Result<String, String> {
+        match &self.design {
+            LedgerDesign::Merger { config, merges } => {
+                merger::stimulus_digest(config, self.seed, self.count, self.stall, *merges)
+            }
+            LedgerDesign::Hierarchy(c) => {
+                cosim::units::hierarchy_unit::stimulus_digest(c, self.seed, self.count, self.stall)
+            }
+        }
+        .map_err(|e| e.to_string())
+    }
 }
 
 /// What the `hiermerge cosim` arguments `args` (without the program and
-/// subcommand names) run, when they are a `--unit merger` run.
-pub fn merger_run(args: &[String]) -> Result<MergerRun, String> {
+/// subcommand names) run, when they are a `--unit merger` or `--unit
+/// hierarchy` run.
+pub fn ledger_run(args: &[String]) -> Result<LedgerRun, String> {
     #[derive(clap::Parser)]
     #[command(name = "hiermerge cosim", no_binary_name = true)]
     struct Line {
@@ -82,17 +119,34 @@ pub fn merger_run(args: &[String]) -> Result<MergerRun, String> {
             )
         })?
         .args;
-    if a.unit != Unit::Merger {
-        return Err(format!("`{}`: expected --unit merger", args.join(" ")));
-    }
-    let stall = super::stalls(&a)?;
-    Ok(MergerRun {
-        config: merger_config_of(&a, &a.design.merge_design()?)?,
+    let design = &a.design.merge_design()?;
+    let (unit, top, design) = match a.unit {
+        Unit::Merger => {
+            let config = merger_config_of(&a, design)?;
+            let top = rtl_gen::merge::hierarchy_merger_name(&config);
+            let merges = merges_of(&a);
+            ("merger", top, LedgerDesign::Merger { config, merges })
+        }
+        Unit::Hierarchy => {
+            let c = super::hierarchy::config_of(&a, design)?;
+            let top = rtl_gen::merge::hierarchy_unit_name(&c);
+            ("hierarchy", top, LedgerDesign::Hierarchy(c))
+        }
+        _ => {
+            return Err(format!(
+                "`{}`: expected --unit merger or --unit hierarchy",
+                args.join(" ")
+            ))
+        }
+    };
+    Ok(LedgerRun {
+        unit,
+        top,
         engine: a.engine.name(),
         seed: a.seed,
         count: count(&a)?,
-        stall,
-        merges: merges_of(&a),
+        stall: super::stalls(&a)?,
+        design,
     })
 }
 
@@ -267,17 +321,19 @@ fn replay(
     finish_report(a, merger::STAGE, flip, counts, first, t.vcd.as_ref())
 }
 
-/// Writes `report` (a `--unit merger` run) into the ledger folder `dir`.
+/// Writes `report` (a `--unit merger` or `--unit hierarchy` run) into the
+/// ledger folder `dir`.
 pub(super) fn record(a: &Args, report: &Report, dir: &Path) -> Result<PathBuf, String> {
-    let m = report
-        .merger
-        .as_ref()
-        .ok_or("--ledger: the run has no merger report")?;
+    let (unit, top, netlist, stimulus) = match (&report.merger, &report.hierarchy) {
+        (Some(m), _) => ("merger", &m.top, &m.netlist_sha256, &m.stimulus_sha256),
+        (None, Some(h)) => ("hierarchy", &h.top, &h.netlist_sha256, &h.stimulus_sha256),
+        (None, None) => return Err("--ledger: the run has no merger or hierarchy report".into()),
+    };
     let args = run_args(a)?;
     let entry = cosim::ledger::Entry {
         format: cosim::ledger::FORMAT.into(),
-        unit: "merger".into(),
-        top: m.top.clone(),
+        unit: unit.into(),
+        top: top.clone(),
         engine: a.engine.name().into(),
         args,
         seed: a.seed,
@@ -287,8 +343,8 @@ pub(super) fn record(a: &Args, report: &Report, dir: &Path) -> Result<PathBuf, S
         mismatches: report.counts.mismatches,
         cycles: report.counts.cycles,
         wall_seconds: report.counts.wall_seconds,
-        netlist_sha256: m.netlist_sha256.clone(),
-        stimulus_sha256: m.stimulus_sha256.clone(),
+        netlist_sha256: netlist.clone(),
+        stimulus_sha256: stimulus.clone(),
         hiermerge_version: env!("CARGO_PKG_VERSION").into(),
     };
     entry.write_into(dir).map_err(|e| format!("--ledger: {e}"))

@@ -40,7 +40,7 @@ use super::common::UnitOpts;
 use crate::report::{emit, CmdResult};
 use report::print_text;
 
-pub use merger::{merger_config, merger_run};
+pub use merger::{ledger_run, merger_config};
 
 /// The environment variable of the test hook (see the module docs).
 pub const FLIP_EXPECTED_VAR: &str = "HIERMERGE_COSIM_FLIP_EXPECTED";
@@ -476,7 +476,7 @@ pub(crate) fn refuse_unit_flags(
 /// to), and a flag of generated merges with a `--vectors` replay.
 fn check_flags(a: &Args) -> Result<(), String> {
     let merges = ("--merges", a.merges.is_some(), MERGER);
-    let ledger = ("--ledger", a.ledger.is_some(), MERGER);
+    let ledger = ("--ledger", a.ledger.is_some(), WITH_MERGER);
     let sizes = [a.capacity_bits, a.leaf_bits];
     let port = ("--store-port", a.store_port.is_some(), MERGER);
     let latency = ("--store-latency", a.store_latency.is_some(), MERGER);

@@ -57,6 +57,29 @@ pub(super) struct Report {
     /// --unit merger: what the merges exercised.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub(super) merger: Option<MergerReport>,
+    /// --unit hierarchy: what the cases exercised.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) hierarchy: Option<HierarchyReport>,
+}
+
+/// What `--unit hierarchy`'s cases exercised.
+#[derive(Serialize)]
+pub(super) struct HierarchyReport {
+    /// Determine commands; those that rewrote an entry an earlier merge of
+    /// their chunk read; those whose placement lay off the grid.
+    pub(super) determines: u64,
+    pub(super) rewrites: u64,
+    pub(super) residuals: u64,
+    /// Merges golden refused, and merges with a fetcher error.
+    pub(super) refused: u64,
+    pub(super) fetch_errors: u64,
+    /// Wall time of generating the golden stimulus (not in wall_seconds).
+    pub(super) golden_seconds: f64,
+    /// The simulated top module: the configuration, as the generator names it.
+    pub(super) top: String,
+    /// Digests of the simulated netlist and of the stimulus (SPEC 10.2).
+    pub(super) netlist_sha256: String,
+    pub(super) stimulus_sha256: String,
 }
 
 /// What `--unit merger`'s merges exercised.
@@ -175,6 +198,7 @@ pub(super) fn finish_report(
             Some(reproduce(a, flip)?)
         },
         merger: None,
+        hierarchy: None,
     })
 }
 

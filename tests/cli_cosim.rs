@@ -437,7 +437,7 @@ fn flags_of_other_units_are_refused_naming_them() {
         (
             "merge-module",
             "--merges hard",
-            "--merges applies to --unit merger only",
+            "--merges applies to --unit merger and --unit hierarchy only",
         ),
         (
             "translate",

@@ -581,7 +581,7 @@ fn hierarchy_merger_steady_state() {
 /// 100,000 and 2,000 merges per configuration are the long-run ledger's.
 #[test]
 fn hierarchy_unit_matches_golden_on_three_engines() {
-    use cosim::units::hierarchy_unit::run;
+    use cosim::units::hierarchy_unit::{run, Cases};
     use cosim::units::multi_stream::{ModuleEngine, RunConfig};
     use rtl_gen::merge::HierarchyUnitConfig;
     let bench = RunConfig {
@@ -604,7 +604,7 @@ fn hierarchy_unit_matches_golden_on_three_engines() {
                 &c,
                 engine,
                 &bench,
-                (count, None),
+                Cases::random(count),
                 dir.path(),
                 &mut |_, _| {},
             )
@@ -638,6 +638,23 @@ fn hierarchy_unit_matches_golden_on_three_engines() {
                 .map_or(0, |r| r.1);
             assert!(det_out as usize >= count, "{name}: {det_out} det_out beats");
         }
+        // Golden's named hard cases (deep tops, several and sixteen roots,
+        // the leaf ladder, the real merges), written by determine commands.
+        let dir = tempfile::tempdir().unwrap();
+        let hard = Cases {
+            count: 20,
+            merges: golden::vectors::streams::Merges::Hard,
+            flip: None,
+        };
+        let engine = ModuleEngine::Verilator;
+        let o = run(&c, engine, &bench, hard, dir.path(), &mut |_, _| {}).unwrap();
+        assert!(o.stats.named > 0, "{name}: no named hard case");
+        assert!(
+            o.totals.passed(),
+            "{name}, hard merges: {} mismatches, first {:?}",
+            o.totals.mismatches,
+            o.totals.first_mismatch
+        );
     }
 }
 
@@ -645,7 +662,7 @@ fn hierarchy_unit_matches_golden_on_three_engines() {
 /// fails against golden: the headers' range is what the merges use.
 #[test]
 fn hierarchy_unit_with_a_wrong_range_fails() {
-    use cosim::units::hierarchy_unit::run;
+    use cosim::units::hierarchy_unit::{run, Cases};
     use cosim::units::multi_stream::{ModuleEngine, RunConfig, VerilogPatch};
     use rtl_gen::merge::HierarchyUnitConfig;
     // The Q = 0 configuration (k = 3): a third of the default's build.
@@ -663,7 +680,7 @@ fn hierarchy_unit_with_a_wrong_range_fails() {
         &c,
         ModuleEngine::Verilator,
         &bench,
-        (30, None),
+        Cases::random(30),
         dir.path(),
         &mut |_, _| {},
     )
@@ -690,7 +707,15 @@ fn hierarchy_unit_behind_a_shared_store_port_matches_golden() {
     let mut model = TranslateModel::new(c.table).unwrap();
     let mut rng = SplitMix64(seeded(8018));
     let cases: Vec<_> = (0..12)
-        .map(|_| random_case(&mut rng, &c, &mut model).unwrap())
+        .map(|_| {
+            random_case(
+                &mut rng,
+                &c,
+                &mut model,
+                golden::vectors::streams::Merges::Random,
+            )
+            .unwrap()
+        })
         .collect();
     let dir = tempfile::tempdir().unwrap();
     let sim = HierarchySim::new(&c, ModuleEngine::Verilator, dir.path(), None).unwrap();

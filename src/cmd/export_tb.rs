@@ -133,7 +133,14 @@ fn spec(a: &Args, count: usize, rtl: &Path) -> Result<ExportSpec, String> {
         }
         (Unit::Hierarchy, _) => {
             let c = hierarchy_of(a)?;
-            hierarchy_unit::export_spec(&c, a.seed, count, stalls, rtl).map_err(e)
+            hierarchy_unit::export_spec(
+                &c,
+                a.seed,
+                (count, golden::vectors::streams::Merges::Random),
+                stalls,
+                rtl,
+            )
+            .map_err(e)
         }
         (Unit::Merger, _) => {
             let c = merger_of(a)?;

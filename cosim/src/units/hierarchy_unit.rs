@@ -18,11 +18,11 @@ use golden::bits::Bits;
 use golden::layout::Field;
 use golden::merge::hierarchy_unit::{hierarchy_merge, merge_cmd, CmdLayout};
 use golden::merge::merger::{MergerLayout, MergerTransaction};
-use golden::store::Hierarchy;
+use golden::store::{Hierarchy, HierarchyStore};
 use golden::translate::extents::VoxelRange;
 use golden::translate::model::{TranslateDesign, TranslateModel};
 use golden::translate::stimulus::SplitMix64;
-use golden::translate::{TranslateInputs, TranslateOutputs, Translation};
+use golden::translate::{TranslateInputs, TranslateOutputs, Translation, TranslationTable};
 use golden::vectors::streams::{
     merger_beats, merger_layout, merger_ports, random_merger_case_of, MergeBeats, Merges,
     NamedFields, StreamLayout, UnitPorts,
@@ -139,25 +139,48 @@ pub fn placement_command(
     })
 }
 
-/// A random case for `c` from `rng`, its determine commands run on `model`
-/// (the table as the run's commands so far left it).
+/// A random case for `c` from `rng` (`kind`: the merger bench's random or
+/// hard-kind draws), its determine commands run on `model` (the table as
+/// the run's commands so far left it).
 pub fn random_case(
     rng: &mut SplitMix64,
     c: &HierarchyUnitConfig,
     model: &mut TranslateModel,
+    kind: Merges,
+) -> Result<HierarchyCase> {
+    let case =
+        random_merger_case_of(rng, &c.merger.design, c.merger.sizes, kind).map_err(design_err)?;
+    case_of(
+        rng,
+        c,
+        model,
+        (&case.store, &case.table, &case.ids),
+        case.out_id,
+    )
+}
+
+/// The case merging `ids` of `store` into `out_id`: per input a determine
+/// command that writes its translation of `table` into the unit's table
+/// (run on `model`), a random fraction of a voxel off the grid, then the
+/// merge command and golden's merge on that table.
+pub fn case_of(
+    rng: &mut SplitMix64,
+    c: &HierarchyUnitConfig,
+    model: &mut TranslateModel,
+    (store, table, ids): (&HierarchyStore, &TranslationTable, &[u8]),
+    out_id: u8,
 ) -> Result<HierarchyCase> {
     let design = &c.merger.design;
-    let case =
-        random_merger_case_of(rng, design, c.merger.sizes, Merges::Random).map_err(design_err)?;
     let mut dets = Vec::new();
-    for &id in &case.ids {
-        let h = case
-            .store
+    for &id in ids {
+        let h = store
             .get(id)
             .ok_or_else(|| design_err("an input left the store"))?;
-        let t = case.table.get(id as u32).ok().flatten().ok_or_else(|| {
-            design_err(format!("input {id} has no translation in the random case"))
-        })?;
+        let t = table
+            .get(id as u32)
+            .ok()
+            .flatten()
+            .ok_or_else(|| design_err(format!("input {id} has no translation in the case")))?;
         // A fraction of a voxel off the grid, below half of one: the
         // determine path rounds it away and keeps it as the residual.
         let off = [(); 3].map(|_| (rng.below(751) as f64 - 375.0) / 1000.0);
@@ -170,12 +193,61 @@ pub fn random_case(
         }
         dets.push((inp, out));
     }
-    let cmd = merge_cmd(&case.store, &case.ids, case.out_id).map_err(design_err)?;
+    let cmd = merge_cmd(store, ids, out_id).map_err(design_err)?;
     let (k, sizes) = (design.inputs, c.merger.sizes);
-    let tx = hierarchy_merge(&case.store, model.table(), &cmd, design.mode, k, sizes)
-        .map_err(design_err)?;
+    let tx =
+        hierarchy_merge(store, model.table(), &cmd, design.mode, k, sizes).map_err(design_err)?;
     let merge = c.cmd_layout().pack_merge(&cmd).map_err(design_err)?;
     Ok(HierarchyCase { dets, merge, tx })
+}
+
+/// The cases of a run in order: with [`Merges::Hard`], first golden's
+/// named hard cases of valid inputs (`hard_merges::hard_cases`: real
+/// merges, several and sixteen roots, the leaf ladder, the deep tops;
+/// those whose leaves overflow the leaf FIFOs left out), then random
+/// merges of `kind`.
+pub struct Draw {
+    rng: SplitMix64,
+    kind: Merges,
+    named: std::collections::VecDeque<golden::merge::stimulus::RealCase>,
+    /// Named cases drawn so far (those left out for leaf overflow not
+    /// counted).
+    pub named_drawn: u64,
+}
+
+impl Draw {
+    /// The draws of a run of `kind` from `seed` for `c`.
+    pub fn new(c: &HierarchyUnitConfig, seed: u64, kind: Merges) -> Result<Draw> {
+        let named = match kind {
+            Merges::Hard => golden::vectors::hard_merges::hard_cases(&c.merger.design)
+                .map_err(design_err)?
+                .into(),
+            Merges::Random => Default::default(),
+        };
+        Ok(Draw {
+            rng: SplitMix64(seed),
+            kind,
+            named,
+            named_drawn: 0,
+        })
+    }
+
+    /// The next case, its determine commands run on `model`.
+    pub fn next(
+        &mut self,
+        c: &HierarchyUnitConfig,
+        model: &mut TranslateModel,
+    ) -> Result<HierarchyCase> {
+        let out_id = (9 % c.merger.design.params.hier_capacity()) as u8;
+        while let Some((store, table, ids)) = self.named.pop_front() {
+            let case = case_of(&mut self.rng, c, model, (&store, &table, &ids), out_id)?;
+            if !case.tx.header.leaf_overflow {
+                self.named_drawn += 1;
+                return Ok(case);
+            }
+        }
+        random_case(&mut self.rng, c, model, self.kind)
+    }
 }
 
 /// The fields of a translation-unit payload layout, by name.
@@ -251,14 +323,16 @@ pub struct HierarchyStats {
     pub rewrites: u64,
     /// Determine commands whose placement was off the grid (a residual).
     pub residuals: u64,
+    /// Merges of golden's named hard cases ([`Draw`]).
+    pub named: u64,
 }
 
-/// The next `n` random cases of `rng`, on a translation unit from reset
-/// (each chunk of a run starts from reset), as the unit's streams; what
-/// they reach is added to `stats`.
+/// The next `n` cases of `draw`, on a translation unit from reset (each
+/// chunk of a run starts from reset), as the unit's streams; what they
+/// reach is added to `stats`.
 fn next_streams(
     c: &HierarchyUnitConfig,
-    rng: &mut SplitMix64,
+    draw: &mut Draw,
     n: usize,
     stats: &mut HierarchyStats,
 ) -> Result<UnitStreams> {
@@ -267,8 +341,9 @@ fn next_streams(
     let mut written = std::collections::BTreeSet::new();
     let mut merges = Vec::with_capacity(n);
     let mut txs = Vec::with_capacity(n);
+    let named_before = draw.named_drawn;
     for _ in 0..n {
-        let case = random_case(rng, c, &mut model)?;
+        let case = draw.next(c, &mut model)?;
         for (inp, out) in &case.dets {
             stats.determines += 1;
             stats.rewrites += !written.insert(inp.write_id) as u64;
@@ -277,17 +352,23 @@ fn next_streams(
         merges.push(case_beats(c, &ml, &case)?);
         txs.push(case.tx);
     }
+    stats.named += draw.named_drawn - named_before;
     let s = super::merger::merge_stats(&txs);
     stats.merges.add(&s);
     UnitStreams::from_merges(&unit_ports(c)?, &merges)
 }
 
-/// `count` random cases from `seed`, on a translation unit from reset, as
-/// the unit's streams.
-pub fn random_streams(c: &HierarchyUnitConfig, seed: u64, count: usize) -> Result<UnitStreams> {
+/// `count` cases of `merges` from `seed`, on a translation unit from
+/// reset, as the unit's streams.
+pub fn case_streams(
+    c: &HierarchyUnitConfig,
+    seed: u64,
+    count: usize,
+    merges: Merges,
+) -> Result<UnitStreams> {
     next_streams(
         c,
-        &mut SplitMix64(seed),
+        &mut Draw::new(c, seed, merges)?,
         count,
         &mut HierarchyStats::default(),
     )
@@ -344,39 +425,60 @@ pub fn netlist_digest(c: &HierarchyUnitConfig) -> Result<String> {
     crate::ledger::netlist_digest(&rtl_gen::merge::hierarchy_unit(c).map_err(design_err)?)
 }
 
-/// The stimulus digest (10.2) of the run [`run`] makes of `count` cases
-/// from `seed` with the stall pattern `stall`, without simulating it.
+/// The cases of a [`run`]: how many, which kind, and the flip hook.
+#[derive(Clone, Copy, Debug)]
+pub struct Cases {
+    /// Merges to run.
+    pub count: usize,
+    /// Random merges, or the hard cases first ([`Draw`]).
+    pub merges: Merges,
+    /// The test hook: flips bit 0 of this merge's expected `header` beat
+    /// (its `out_id`).
+    pub flip: Option<usize>,
+}
+
+impl Cases {
+    /// `count` random merges, nothing flipped.
+    pub fn random(count: usize) -> Cases {
+        Cases {
+            count,
+            merges: Merges::Random,
+            flip: None,
+        }
+    }
+}
+
+/// The stimulus digest (10.2) of the run [`run`] makes of `cases` from
+/// `seed` with the stall pattern `stall`, without simulating it.
 pub fn stimulus_digest(
     c: &HierarchyUnitConfig,
     seed: u64,
-    count: usize,
+    cases: Cases,
     stall: crate::tb::Stalls,
 ) -> Result<String> {
-    let mut rng = SplitMix64(seed);
-    let mut digest = StimulusDigest::new(seed, count as u64, stall);
+    let mut draw = Draw::new(c, seed, cases.merges)?;
+    let mut digest = StimulusDigest::new(seed, cases.count as u64, stall);
     let mut stats = HierarchyStats::default();
-    for n in chunk_sizes(count) {
-        let s = next_streams(c, &mut rng, n, &mut stats)?;
+    for n in chunk_sizes(cases.count) {
+        let s = next_streams(c, &mut draw, n, &mut stats)?;
         digest.add_chunk(&s.inputs, &s.outputs);
     }
     Ok(digest.finish())
 }
 
-/// Runs `count` random cases from `config.seed` through the hierarchy unit
-/// `c` on `engine`, its Verilog written to `dir`,
-/// [`super::chunked::CHUNK`] merges at a time, each chunk from reset (the
-/// table too); stops after the first
-/// chunk that fails. Every output beat compared (a mismatch decoded field
-/// by field), one `done` per merge, `idle` at the end of every chunk;
-/// `config`'s Verilog patch (the test hook) applied. Per-unit store ports
-/// only: the streams carry the store's answers. `flip` (the test hook)
-/// flips bit 0 of that merge's expected `header` beat (its `out_id`);
-/// `progress` gets (merges whose outputs arrived so far, cycle).
+/// Runs `cases` from `config.seed` through the hierarchy unit `c` on
+/// `engine`, its Verilog written to `dir`, [`super::chunked::CHUNK`]
+/// merges at a time, each chunk from reset (the table too); stops after
+/// the first chunk that fails. Every output beat compared (a mismatch
+/// decoded field by field), one `done` per merge, `idle` at the end of
+/// every chunk; `config`'s Verilog patch (the test hook) applied. Per-unit
+/// store ports only: the streams carry the store's answers. `progress`
+/// gets (merges whose outputs arrived so far, cycle).
 pub fn run(
     c: &HierarchyUnitConfig,
     engine: ModuleEngine,
     config: &RunConfig,
-    (count, flip): (usize, Option<usize>),
+    cases: Cases,
     dir: &Path,
     progress: &mut dyn FnMut(u64, u64),
 ) -> Result<Outcome> {
@@ -406,15 +508,15 @@ pub fn run(
         config.verilog_patch.is_some(),
     )?;
     let decode = |stream: &str, e: &Transaction, g: &Transaction| decode(&ports, stream, e, g);
-    let mut rng = SplitMix64(config.seed);
-    let mut digest = StimulusDigest::new(config.seed, count as u64, config.stall);
+    let mut draw = Draw::new(c, config.seed, cases.merges)?;
+    let mut digest = StimulusDigest::new(config.seed, cases.count as u64, config.stall);
     let mut first = 0;
-    for n in chunk_sizes(count) {
+    for n in chunk_sizes(cases.count) {
         let t = std::time::Instant::now();
-        let mut streams = next_streams(c, &mut rng, n, &mut out.stats)?;
+        let mut streams = next_streams(c, &mut draw, n, &mut out.stats)?;
         digest.add_chunk(&streams.inputs, &streams.outputs);
         out.totals.golden_wall += t.elapsed();
-        if let Some(f) = flip.filter(|f| (first..first + n).contains(f)) {
+        if let Some(f) = cases.flip.filter(|f| (first..first + n).contains(f)) {
             // `header` is the last output stream; every merge has its one beat.
             streams.flip_first(streams.outputs.len() - 1, f - first)?;
         }
@@ -428,13 +530,13 @@ pub fn run(
 }
 
 /// The exported testbench of `c` (`hiermerge export-tb --unit hierarchy`):
-/// `count` random cases from `seed` as [`run`] draws them (one run from
-/// reset), the Verilog written to `rtl`. Per-unit store ports: the store's
-/// answers are input streams.
+/// `count` cases of `merges` from `seed` as [`run`] draws them (one run
+/// from reset), the Verilog written to `rtl`. Per-unit store ports: the
+/// store's answers are input streams.
 pub fn export_spec(
     c: &HierarchyUnitConfig,
     seed: u64,
-    count: usize,
+    (count, merges): (usize, Merges),
     stalls: crate::tb::Stalls,
     rtl: &Path,
 ) -> Result<crate::export_tb::ExportSpec> {
@@ -443,7 +545,7 @@ pub fn export_spec(
             what: "an exported testbench of a hierarchy unit with a shared store port".into(),
         });
     }
-    let streams = random_streams(c, seed, count)?;
+    let streams = case_streams(c, seed, count, merges)?;
     let module = rtl_gen::merge::hierarchy_unit(c).map_err(design_err)?;
     let design = crate::from_rtl::design_from_module(&module, rtl)?;
     let ports = unit_ports(c)?;

@@ -125,6 +125,22 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
     Ok(out)
 }
 
+/// The named cases of [`hard_merges`] whose inputs are all valid, in its
+/// order: the real cases, an input filling the scene, the 16-root input,
+/// the leaf ladder and the deep tops, those of at most `k` inputs (what
+/// the hierarchy unit's hard merges write into its table by determine
+/// commands: a case's translations are its table's).
+pub fn hard_cases(d: &MergeDesign) -> Result<Vec<RealCase>> {
+    let p = &d.params;
+    let mut cases = real_cases(p).map_err(golden_err)?;
+    cases.push(several_roots(p)?);
+    cases.push(sixteen_roots(p)?);
+    cases.push(leaf_ladder(p)?);
+    cases.extend(deep_tops(p)?);
+    cases.retain(|(_, _, ids)| ids.len() <= d.inputs);
+    Ok(cases)
+}
+
 /// Merges whose top lies at the deepest LODs, which the soups of the other
 /// cases (spread over the scene's `2^-3` corner) never reach: one tiny
 /// triangle alone (the top at its own LOD `t`), and per `L` in `t - 4..t`

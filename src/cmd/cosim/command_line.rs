@@ -110,11 +110,12 @@ pub(super) fn run_args(a: &Args) -> Result<Vec<String>, String> {
                 if let Some(l) = a.store_latency {
                     push("--store-latency", l.to_string());
                 }
-                // Only when not the default, so the ledger's entries of
-                // random merges keep their form.
-                if a.vectors.is_none() && super::merger::merges_of(a) == Merges::Hard {
-                    push("--merges", "hard".into());
-                }
+            }
+            // Only when not the default, so the ledger's entries of
+            // random merges keep their form.
+            let hard = a.vectors.is_none() && super::merger::merges_of(a) == Merges::Hard;
+            if a.unit != Unit::MergeModule && hard {
+                push("--merges", "hard".into());
             }
         }
     }

@@ -60,7 +60,11 @@ pub(super) fn run(
         &c,
         engine,
         &bench,
-        (count, flip),
+        hierarchy_unit::Cases {
+            count,
+            merges: super::merger::merges_of(a),
+            flip,
+        },
         dir,
         &mut |merges, cycle| {
             pb.set_position(merges);
@@ -88,6 +92,7 @@ pub(super) fn run(
         determines: stats.determines,
         rewrites: stats.rewrites,
         residuals: stats.residuals,
+        hard_cases: stats.named,
         refused: stats.merges.refused as u64,
         fetch_errors: stats.merges.fetch_errors as u64,
         golden_seconds: t.golden_wall.as_secs_f64(),

@@ -70,7 +70,10 @@ enum LedgerDesign {
         config: rtl_gen::merge::MergerConfig,
         merges: merger::Merges,
     },
-    Hierarchy(rtl_gen::merge::HierarchyUnitConfig),
+    Hierarchy {
+        config: rtl_gen::merge::HierarchyUnitConfig,
+        merges: merger::Merges,
+    },
 }
 
 impl LedgerRun {
@@ -78,7 +81,9 @@ impl LedgerRun {
     pub fn netlist_digest(&self) -> Result<String, String> {
         match &self.design {
             LedgerDesign::Merger { config, .. } => merger::netlist_digest(config),
-            LedgerDesign::Hierarchy(c) => cosim::units::hierarchy_unit::netlist_digest(c),
+            LedgerDesign::Hierarchy { config, .. } => {
+                cosim::units::hierarchy_unit::netlist_digest(config)
+            }
         }
         .map_err(|e| e.to_string())
     }
@@ -89,8 +94,13 @@ impl LedgerRun {
             LedgerDesign::Merger { config, merges } => {
                 merger::stimulus_digest(config, self.seed, self.count, self.stall, *merges)
             }
-            LedgerDesign::Hierarchy(c) => {
-                cosim::units::hierarchy_unit::stimulus_digest(c, self.seed, self.count, self.stall)
+            LedgerDesign::Hierarchy { config, merges } => {
+                let cases = cosim::units::hierarchy_unit::Cases {
+                    count: self.count,
+                    merges: *merges,
+                    flip: None,
+                };
+                cosim::units::hierarchy_unit::stimulus_digest(config, self.seed, cases, self.stall)
             }
         }
         .map_err(|e| e.to_string())
@@ -128,9 +138,10 @@ pub fn ledger_run(args: &[String]) -> Result<LedgerRun, String> {
             ("merger", top, LedgerDesign::Merger { config, merges })
         }
         Unit::Hierarchy => {
-            let c = super::hierarchy::config_of(&a, design)?;
-            let top = rtl_gen::merge::hierarchy_unit_name(&c);
-            ("hierarchy", top, LedgerDesign::Hierarchy(c))
+            let config = super::hierarchy::config_of(&a, design)?;
+            let top = rtl_gen::merge::hierarchy_unit_name(&config);
+            let merges = merges_of(&a);
+            ("hierarchy", top, LedgerDesign::Hierarchy { config, merges })
         }
         _ => {
             return Err(format!(

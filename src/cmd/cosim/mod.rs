@@ -475,7 +475,7 @@ pub(crate) fn refuse_unit_flags(
 /// Refuses a flag of another unit (naming it and the units it applies
 /// to), and a flag of generated merges with a `--vectors` replay.
 fn check_flags(a: &Args) -> Result<(), String> {
-    let merges = ("--merges", a.merges.is_some(), MERGER);
+    let merges = ("--merges", a.merges.is_some(), WITH_MERGER);
     let ledger = ("--ledger", a.ledger.is_some(), WITH_MERGER);
     let sizes = [a.capacity_bits, a.leaf_bits];
     let port = ("--store-port", a.store_port.is_some(), MERGER);

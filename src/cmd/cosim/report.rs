@@ -70,6 +70,8 @@ pub(super) struct HierarchyReport {
     pub(super) determines: u64,
     pub(super) rewrites: u64,
     pub(super) residuals: u64,
+    /// Merges of golden's named hard cases (`--merges hard`).
+    pub(super) hard_cases: u64,
     /// Merges golden refused, and merges with a fetcher error.
     pub(super) refused: u64,
     pub(super) fetch_errors: u64,

@@ -7,9 +7,11 @@
 //! the hierarchy merger top ([`merger`], with its store front end
 //! [`merger::store_port`]) and the hierarchy unit ([`hierarchy_unit`]); the
 //! multi-stream ones run in chunks of a long run ([`chunked`]).
-//! `hiermerge cosim` runs them.
+//! `hiermerge cosim` runs them. The fetcher ([`fetcher`], with its root
+//! sorter [`fetcher::root_sorter`]) is run by the integration tests.
 
 pub mod chunked;
+pub mod fetcher;
 pub mod hierarchy_unit;
 pub mod merge_level;
 pub mod merge_module;

@@ -8,7 +8,9 @@
 //! [`merger::store_port`]) and the hierarchy unit ([`hierarchy_unit`]); the
 //! multi-stream ones run in chunks of a long run ([`chunked`]).
 //! `hiermerge cosim` runs them. The fetcher ([`fetcher`], with its root
-//! sorter [`fetcher::root_sorter`]) is run by the integration tests.
+//! sorter [`fetcher::root_sorter`]) and the upper builder
+//! ([`upper_builder`], one level [`upper_builder::level`]) are run by the
+//! integration tests.
 
 pub mod chunked;
 pub mod fetcher;
@@ -18,6 +20,7 @@ pub mod merge_module;
 pub mod merger;
 pub mod multi_stream;
 pub mod translate;
+pub mod upper_builder;
 
 use crate::engine::Engine;
 use crate::error::Result;

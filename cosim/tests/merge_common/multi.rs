@@ -40,18 +40,6 @@ pub fn check_passed(r: &MultiReport, stall: f64, what: &str) {
     assert!(r.passed(), "{what} stall {stall}:\n{r}");
 }
 
-/// One run of `ins` -> `outs` on `engine`; printed, a panic when it fails.
-pub fn multi_bench(
-    engine: &mut dyn cosim::Engine,
-    ins: &[StreamBeats],
-    outs: &[StreamBeats],
-    seed: u64,
-    stall: f64,
-    what: &str,
-) -> MultiReport {
-    multi_bench_watching(engine, ins, outs, seed, stall, what, &[]).0
-}
-
 /// One run of a merging module: as [`multi_bench_watching`], and its `done` output
 /// pulses once per merge, i.e. once per beat of the first input (`cfg`).
 pub fn multi_bench_done_per_merge(

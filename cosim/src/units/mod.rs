@@ -8,9 +8,9 @@
 //! [`merger::store_port`]) and the hierarchy unit ([`hierarchy_unit`]); the
 //! multi-stream ones run in chunks of a long run ([`chunked`]).
 //! `hiermerge cosim` runs them. The fetcher ([`fetcher`], with its root
-//! sorter [`fetcher::root_sorter`]) and the upper builder
-//! ([`upper_builder`], one level [`upper_builder::level`]) are run by the
-//! integration tests.
+//! sorter [`fetcher::root_sorter`]), the upper builder ([`upper_builder`],
+//! one level [`upper_builder::level`]) and the record writer
+//! ([`record_writer`]) are run by the integration tests.
 
 pub mod chunked;
 pub mod fetcher;
@@ -19,6 +19,7 @@ pub mod merge_level;
 pub mod merge_module;
 pub mod merger;
 pub mod multi_stream;
+pub mod record_writer;
 pub mod translate;
 pub mod upper_builder;
 

@@ -235,8 +235,8 @@ fn fetcher_throughput_without_back_pressure() {
             assert!(!txs.is_empty());
             let s = streams(&p, &txs);
             let mut e = engine("verilator", &m, &design);
-            let what = format!("fetcher {name} rate ({what})");
-            let r = bench(MultiSim::Stepped(e.as_mut()), &s, 1, 0.0, &what);
+            let run = format!("fetcher {name} rate ({what})");
+            let r = bench(MultiSim::Stepped(e.as_mut()), &s, 1, 0.0, &run);
             let seen = s.seen;
             let c = r.cycles as f64;
             println!(

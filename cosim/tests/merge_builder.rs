@@ -8,22 +8,18 @@
 //! bases, leaves above the merging level, small-I overflows) and the bases of
 //! real merges (golden-built soups, translated, walked and merged by S614 at
 //! every candidate level: `fixed_level_base`). Throughput with no
-//! back-pressure printed; lint and synthesis.
+//! back-pressure printed; lint and synthesis. The bench (streams, stimulus,
+//! run) is `cosim::units::upper_builder`; this file holds the
+//! configurations, seeds and what each run must reach.
 mod merge_common;
 
-use cosim::tb::StreamBeats;
-use golden::build::{build, GridMap};
-use golden::merge::level_choice::candidate_range;
-use golden::merge::merge_level::BaseNode;
-use golden::merge::upper_builder::unit::{
-    builder_transaction, fixed_level_base, random_base, BuilderLayout, BuilderTransaction, LevelOut,
-};
+use cosim::tb::MultiReport;
+use cosim::units::multi_stream::MultiSim;
+use cosim::units::upper_builder::{self, random_merges, real_merges, BuilderStreams};
+use golden::merge::upper_builder::unit::{builder_transaction, random_base, BuilderTransaction};
 use golden::params::Params;
-use golden::scenes::random_soup;
 use golden::seed::seeded;
-use golden::store::Hierarchy;
 use golden::translate::stimulus::SplitMix64;
-use golden::translate::Translation;
 use merge_common::*;
 
 fn configs() -> Vec<(&'static str, Params)> {
@@ -36,159 +32,24 @@ fn configs() -> Vec<(&'static str, Params)> {
     ]
 }
 
-/// What the stimulus exercised.
-#[derive(Default, Debug)]
-struct Seen {
-    merges: usize,
-    no_top: usize,
-    top_above_base: usize,
-    several_roots: usize,
-    lifted: usize,
-    root_cut: usize,
-    overflow: usize,
-    base_beats: usize,
-    level_beats: usize,
+/// The streams of `txs`.
+fn streams(p: &Params, txs: &[BuilderTransaction]) -> BuilderStreams {
+    upper_builder::streams(p, txs).expect("the beats pack")
 }
 
-/// The streams of a list of merges.
-fn streams(p: &Params, txs: &[BuilderTransaction]) -> (Vec<StreamBeats>, Vec<StreamBeats>, Seen) {
-    let l = BuilderLayout::new(p);
-    let d = p.max_lod as usize;
-    let mut bases = vec![Vec::new(); d + 1];
-    let mut levels = vec![Vec::new(); d + 1];
-    let mut done = Vec::new();
-    let mut seen = Seen::default();
-    for tx in txs {
-        seen.merges += 1;
-        seen.no_top += tx.done.err as usize;
-        seen.lifted += (tx.lifted > 0) as usize;
-        seen.root_cut += tx.root_cut as usize;
-        let top = tx.done.top as usize;
-        let n_top = tx.levels[top].len() - 1;
-        seen.several_roots += (!tx.done.err && n_top > 1) as usize;
-        let deepest_base = tx.base.iter().rposition(|b| b.len() > 1).unwrap_or(0);
-        seen.top_above_base += (top + 1 < deepest_base) as usize;
-        seen.overflow += tx.levels.iter().flatten().any(|b| {
-            matches!(
-                b,
-                LevelOut::Node { err: true, .. } | LevelOut::End { err: true, .. }
-            )
-        }) as usize;
-        for (s, beats) in bases.iter_mut().zip(&tx.base) {
-            seen.base_beats += beats.len();
-            s.extend(beats.iter().map(|b| vec![b.pack(&l.base).unwrap()]));
-        }
-        for (s, beats) in levels.iter_mut().zip(&tx.levels) {
-            seen.level_beats += beats.len();
-            s.extend(beats.iter().map(|b| vec![b.pack(&l).unwrap()]));
-        }
-        done.push(vec![tx.done.pack(&l).unwrap()]);
-    }
-    let ins = bases
-        .into_iter()
-        .enumerate()
-        .map(|(i, beats)| StreamBeats {
-            name: format!("base{i}"),
-            beats,
-        })
-        .collect();
-    let mut outs: Vec<StreamBeats> = levels
-        .into_iter()
-        .enumerate()
-        .map(|(i, beats)| StreamBeats {
-            name: format!("level{i}"),
-            beats,
-        })
-        .collect();
-    outs.push(StreamBeats {
-        name: "done".into(),
-        beats: done,
-    });
-    (ins, outs, seen)
-}
-
-/// `merges` random merges of up to `most` base nodes.
-fn random_merges(p: &Params, seed: u64, merges: usize, most: u64) -> Vec<BuilderTransaction> {
-    let mut rng = SplitMix64(seed);
-    (0..merges)
-        .map(|_| {
-            let n = match rng.below(4) {
-                0 => rng.below(3),
-                _ => rng.below(most + 1),
-            };
-            builder_transaction(&random_base(&mut rng, p, n as usize), p)
-        })
-        .collect()
-}
-
-/// A soup hierarchy `id` of `n` triangles in the scene's `2^-3` corner.
-fn soup(p: &Params, id: u8, n: usize, size: f32, seed: u64) -> Hierarchy {
-    let mesh = random_soup(n, size, seed);
-    let (lo, hi) = mesh.bounds();
-    let fitted = GridMap::fit(lo, hi, p);
-    let grid = GridMap {
-        origin: fitted.origin * 0.0,
-        unit: 1.0 / (p.scene_edge() >> 3) as f64,
-    };
-    build(&mesh, &grid, p, id).expect("the soup builds")
-}
-
-/// A translation at `h`'s top LOD by `frac` of the room left in the scene.
-fn place(h: &Hierarchy, frac: [f64; 3]) -> Translation {
-    let l = h.top_lod;
-    let max = [0, 1, 2].map(|a| {
-        h.roots()
-            .iter()
-            .map(|n| [n.voxel.x, n.voxel.y, n.voxel.z][a] as i64)
-            .max()
-            .unwrap()
-    });
-    let room = [0, 1, 2].map(|a| (1i64 << l) - 1 - max[a]);
-    Translation {
-        lod: l,
-        t: [0, 1, 2].map(|a| (room[a] as f64 * frac[a]) as i64),
-    }
-}
-
-/// Real merges: overlapping soups, disjoint soups, single-triangle inputs
-/// with a big one; every candidate level of each.
-fn real_merges(p: &Params) -> Vec<BuilderTransaction> {
-    let same = [0.4, 0.5, 0.6];
-    let hs: Vec<Hierarchy> = (1..=3).map(|i| soup(p, i, 60, 0.2, i as u64)).collect();
-    let mut cases: Vec<Vec<(Hierarchy, Translation)>> = Vec::new();
-    cases.push(hs.iter().map(|h| (h.clone(), place(h, same))).collect());
-    cases.push(
-        hs.iter()
-            .enumerate()
-            .map(|(i, h)| {
-                (
-                    h.clone(),
-                    place(h, [0.1 + 0.3 * i as f64, 0.9 - 0.3 * i as f64, 0.3]),
-                )
-            })
-            .collect(),
-    );
-    let mut single: Vec<(Hierarchy, Translation)> = (1..=2)
-        .map(|i| {
-            let h = soup(p, i, 1, 0.001, 10 + i as u64);
-            let t = place(&h, if i < 2 { same } else { [0.9, 0.1, 0.2] });
-            (h, t)
-        })
-        .collect();
-    let big = soup(p, 3, 80, 0.3, 99);
-    single.push((big.clone(), place(&big, same)));
-    cases.push(single);
-    let mut out = Vec::new();
-    for c in &cases {
-        let refs: Vec<&Hierarchy> = c.iter().map(|(h, _)| h).collect();
-        let inputs: Vec<(&Hierarchy, Translation)> = c.iter().map(|(h, t)| (h, *t)).collect();
-        let (lo, hi) = candidate_range(&refs);
-        for m in lo..=hi {
-            let base: Vec<BaseNode> = fixed_level_base(&inputs, m, p).expect("the merge walks");
-            out.push(builder_transaction(&base, p));
-        }
-    }
-    out
+/// One run of `s` on `engine`, every stream stalling with probability
+/// `stall`; printed, a panic naming the run when it fails.
+fn bench(
+    engine: &mut dyn cosim::Engine,
+    s: &BuilderStreams,
+    seed: u64,
+    stall: f64,
+    what: &str,
+) -> MultiReport {
+    let sim = MultiSim::Stepped(engine);
+    let r = upper_builder::run(sim, s, &stalled(seed, stall)).expect("the bench runs");
+    check_passed(&r, stall, what);
+    r
 }
 
 /// Random merges on every engine (`runs`: engine, merges), then the real
@@ -199,11 +60,11 @@ fn check(name: &str, runs: &[(&str, usize)], most: u64) {
     let p = all[i].1;
     let seed = seeded(0xb11d + i as u64);
     let dir = tempfile::tempdir().unwrap();
-    let m = rtl_gen::merge::upper_builder_unit(&p);
+    let m = upper_builder::upper_builder_module(&p);
     let design = design_of(&m, dir.path());
     // Soups need more than 2^I triangle indices at small I: random bases only.
     let real = if p.index_bits >= 8 {
-        real_merges(&p)
+        real_merges(&p).expect("the real merges build")
     } else {
         Vec::new()
     };
@@ -211,7 +72,8 @@ fn check(name: &str, runs: &[(&str, usize)], most: u64) {
         let stall = stall_of(seed ^ kind.len() as u64).max(0.05);
         let mut e = engine(kind, &m, &design);
         let txs = random_merges(&p, seed, merges, most);
-        let (ins, outs, seen) = streams(&p, &txs);
+        let s = streams(&p, &txs);
+        let seen = &s.seen;
         eprintln!("upper_builder {name}/{kind} random: {seen:?}");
         assert!(
             seen.no_top > 0 && seen.several_roots > 0 && seen.top_above_base > 0,
@@ -224,7 +86,7 @@ fn check(name: &str, runs: &[(&str, usize)], most: u64) {
             assert!(seen.overflow > 0, "{seen:?}");
         }
         let what = format!("merge_builder {name} {kind} random");
-        let r = multi_bench(e.as_mut(), &ins, &outs, seed, stall, &what);
+        let r = bench(e.as_mut(), &s, seed, stall, &what);
         println!(
             "upper_builder {name} {kind}: {merges} random merges, {} base beats, {} level beats, {} cycles, stall {stall:.2}, {:.1?}",
             seen.base_beats, seen.level_beats, r.cycles, r.wall
@@ -233,10 +95,11 @@ fn check(name: &str, runs: &[(&str, usize)], most: u64) {
             continue;
         }
         let count = if kind == "iverilog" { 3 } else { real.len() };
-        let (ins, outs, seen) = streams(&p, &real[..count.min(real.len())]);
+        let s = streams(&p, &real[..count.min(real.len())]);
+        let seen = &s.seen;
         let mut e = engine(kind, &m, &design);
         let what = format!("merge_builder {name} {kind} real");
-        let r = multi_bench(e.as_mut(), &ins, &outs, seed + 1, stall, &what);
+        let r = bench(e.as_mut(), &s, seed + 1, stall, &what);
         println!(
             "upper_builder {name} {kind}: {} real merges, {} base beats, {} level beats, {} cycles",
             seen.merges, seen.base_beats, seen.level_beats, r.cycles
@@ -250,7 +113,7 @@ fn check(name: &str, runs: &[(&str, usize)], most: u64) {
 fn throughput(name: &str) -> (f64, f64) {
     let p = configs().into_iter().find(|c| c.0 == name).unwrap().1;
     let dir = tempfile::tempdir().unwrap();
-    let m = rtl_gen::merge::upper_builder_unit(&p);
+    let m = upper_builder::upper_builder_module(&p);
     let design = design_of(&m, dir.path());
     // One merging level per merge, 2000 nodes there, no leaves above.
     let mut rng = SplitMix64(seeded(0x7b));
@@ -263,16 +126,11 @@ fn throughput(name: &str) -> (f64, f64) {
             txs.push(builder_transaction(&base, &p));
         }
     }
-    let (ins, outs, seen) = streams(&p, &txs);
+    let s = streams(&p, &txs);
+    let seen = &s.seen;
     let mut e = engine("verilator", &m, &design);
-    let r = multi_bench(
-        e.as_mut(),
-        &ins,
-        &outs,
-        1,
-        0.0,
-        &format!("merge_builder {name} throughput"),
-    );
+    let what = format!("merge_builder {name} throughput");
+    let r = bench(e.as_mut(), &s, 1, 0.0, &what);
     let cycles = r.cycles as f64;
     let base_in: u64 = r.sent.iter().map(|s| s.1).sum();
     let deepest = txs
@@ -367,7 +225,7 @@ fn upper_builder_verilog_lints_and_synthesizes() {
     for (name, p) in configs() {
         let t = std::time::Instant::now();
         let dir = tempfile::tempdir().unwrap();
-        let m = rtl_gen::merge::upper_builder_unit(&p);
+        let m = upper_builder::upper_builder_module(&p);
         let warnings = m.validate_design().expect("valid");
         assert!(warnings.is_empty(), "{name}: {warnings:?}");
         let design = design_of(&m, dir.path());

@@ -9,22 +9,24 @@
 //! of `golden::scenes::random_soup`), translated, walked to every level with
 //! random flags, and the same inputs corrupted so that every error code
 //! occurs. Throughput with no back-pressure printed; lint and synthesis.
+//! The bench (streams, stimulus, run) is `cosim::units::fetcher`; this file
+//! holds the configurations, seeds and what each run must reach.
 mod merge_common;
 
-use cosim::tb::StreamBeats;
+use cosim::tb::MultiReport;
+use cosim::units::fetcher::stimulus::{
+    descend_everywhere, random_fetches, random_per_node_fetches, soup, PerNodeSeen,
+};
+use cosim::units::fetcher::{self, FetchStreams};
+use cosim::units::multi_stream::MultiSim;
 use cosim::volume::volume;
 use cosim::Bits;
-use golden::build::{build, GridMap};
 use golden::merge::fetcher::{
     fetch_err, fetch_transaction, fetch_transaction_with_reports, FetchCmd, FetchLayout, FetchOut,
     FetchSizes, FetchTransaction,
 };
-use golden::merge::per_node::unit::{random_per_node_case, PerNodeReport};
 use golden::params::Params;
-use golden::scenes::random_soup;
 use golden::seed::seeded;
-use golden::store::{Hierarchy, Reference};
-use golden::translate::stimulus::SplitMix64;
 use golden::translate::table::pack_entry;
 use golden::translate::Translation;
 use merge_common::*;
@@ -61,288 +63,17 @@ fn configs() -> Vec<(&'static str, Params, FetchSizes)> {
     ]
 }
 
-/// A soup hierarchy `id` of `n` triangles in the scene's `2^-3` corner.
-fn soup(p: &Params, id: u8, n: usize, size: f32, seed: u64) -> Option<Hierarchy> {
-    let mesh = random_soup(n, size, seed);
-    let (lo, hi) = mesh.bounds();
-    let grid = GridMap {
-        origin: GridMap::fit(lo, hi, p).origin * 0.0,
-        unit: 1.0 / (p.scene_edge() >> 3) as f64,
-    };
-    let h = build(&mesh, &grid, p, id).ok()?;
-    let cap = p.index_capacity() as usize;
-    (h.nodes.len() < cap && h.refs.len() < cap).then_some(h)
+/// The streams of `txs` for the level modes' fetcher.
+fn streams(p: &Params, txs: &[FetchTransaction]) -> FetchStreams {
+    fetcher::streams(&FetchLayout::new(p), txs).expect("the beats pack")
 }
 
-/// A random translation of `h`: mostly at or above its top, inside the
-/// scene; sometimes past the edge or below the top (errors).
-fn random_translation(rng: &mut SplitMix64, h: &Hierarchy) -> Translation {
-    let top = h.top_lod;
-    let p = &h.params;
-    let lod = if rng.below(20) == 0 && top < p.max_lod {
-        top + 1
-    } else {
-        rng.below(top as u64 + 1) as u8
-    };
-    let t = [0, 1, 2].map(|a| {
-        let shift = top - lod;
-        let (mut lo, mut hi) = (i64::MAX, i64::MIN);
-        for n in h.roots() {
-            let c = [n.voxel.x, n.voxel.y, n.voxel.z][a] as i64 >> shift;
-            lo = lo.min(c);
-            hi = hi.max(c);
-        }
-        let room_hi = (1i64 << lod) - 1 - hi;
-        if rng.below(25) == 0 {
-            room_hi + 1
-        } else if room_hi + lo <= 0 {
-            0
-        } else {
-            rng.range_i64(-lo, room_hi)
-        }
-    });
-    Translation { lod, t }
-}
-
-/// `h` with one random defect (or none), and the sizes' limits in play.
-fn corrupt(rng: &mut SplitMix64, h: &Hierarchy) -> Hierarchy {
-    let mut h = h.clone();
-    let p = h.params;
-    let n = h.nodes.len();
-    let pick = rng.below(n as u64) as usize;
-    match rng.below(16) {
-        0 => h.nodes[pick].voxel.lod = (h.nodes[pick].voxel.lod + 1).min(p.max_lod),
-        1 => {
-            let lod = h.nodes[pick].voxel.lod;
-            if lod < p.max_lod {
-                h.nodes[pick].voxel.x = 1 << lod;
-            }
-        }
-        2 if p.quant_bits > 0 => {
-            h.nodes[pick].lo[1] = 1;
-            h.nodes[pick].hi[1] = 0;
-        }
-        3 => h.nodes[pick].count = 0,
-        4 if !h.nodes[pick].leaf => h.nodes[pick].count = h.refs.len() as u32,
-        5 if !h.refs.is_empty() => {
-            let j = rng.below(h.refs.len() as u64) as usize;
-            h.refs[j].hier = ((h.id as u64 + 1) % p.hier_capacity()) as u8;
-        }
-        6 if !h.refs.is_empty() => {
-            let j = rng.below(h.refs.len() as u64) as usize;
-            h.refs[j].node = n as u32 + rng.below(3) as u32;
-        }
-        7 if h.refs.len() >= 2 => {
-            let j = rng.below(h.refs.len() as u64 - 1) as usize;
-            h.refs.swap(j, j + 1);
-        }
-        8 => h.root_count = if rng.below(2) == 0 { 0 } else { n as u32 + 1 },
-        // Every node a root: LOD errors, or more roots than the sorter holds.
-        9 => h.root_count = n as u32,
-        _ => {}
-    }
-    h
-}
-
-/// What the stimulus reached.
-#[derive(Default, Debug)]
-struct Seen {
-    inputs: usize,
-    cmds: usize,
-    codes: [usize; 15],
-    /// Commands sending several levels, and those with an error.
-    multi: usize,
-    multi_errors: usize,
-    out_beats: usize,
-    leaf_beats: usize,
-    node_reads: usize,
-    ref_reads: usize,
-    probe_reads: usize,
-}
-
-/// Random fetches: soups of 1 to `most` triangles, random translations,
-/// corrupted half the time, each with 1 to 4 commands at random levels.
-fn random_fetches(
-    p: &Params,
-    sizes: FetchSizes,
-    seed: u64,
-    cmds: usize,
-    most: usize,
-) -> Vec<FetchTransaction> {
-    let mut rng = SplitMix64(seed);
-    let mut out = Vec::new();
-    let mut pool: Vec<Hierarchy> = Vec::new();
-    let mut sent = 0;
-    while sent < cmds {
-        if pool.len() < 24 || rng.below(8) == 0 {
-            let n = 1 + rng.below(most as u64) as usize;
-            let size = [0.01, 0.05, 0.2][rng.below(3) as usize];
-            let id = rng.below(p.hier_capacity()) as u8;
-            if let Some(h) = soup(p, id, n, size, rng.next_u64()) {
-                if pool.len() >= 24 {
-                    let at = rng.below(pool.len() as u64) as usize;
-                    pool[at] = h;
-                } else {
-                    pool.push(h);
-                }
-            }
-            continue;
-        }
-        let h = &pool[rng.below(pool.len() as u64) as usize];
-        let t = random_translation(&mut rng, h);
-        let h = if rng.below(2) == 0 {
-            corrupt(&mut rng, h)
-        } else {
-            h.clone()
-        };
-        let entry = if rng.below(40) == 0 {
-            0
-        } else {
-            pack_entry(Some(&t), p)
-        };
-        let deepest = h.nodes.iter().map(|n| n.voxel.lod).max().unwrap_or(0);
-        let k = 1 + rng.below(4) as usize;
-        let list: Vec<FetchCmd> = (0..k)
-            .map(|i| {
-                let lod = (h.top_lod as u64 + rng.below((deepest - h.top_lod) as u64 + 3))
-                    .saturating_sub(1)
-                    .min(p.max_lod as u64) as u8;
-                // A third of the commands send several levels from one walk
-                // (from above the top at times), a few have `from` past `lod`.
-                let from = match rng.below(12) {
-                    0..=3 => rng.below(lod as u64 + 1) as u8,
-                    4 => (lod as u64 + 1 + rng.below(3)).min((1 << p.lod_bits()) - 1) as u8,
-                    _ => lod,
-                };
-                FetchCmd {
-                    from,
-                    ..FetchCmd::level(lod, rng.below(2) == 0, rng.below(3) != 0, i + 1 == k)
-                }
-            })
-            .collect();
-        sent += k;
-        out.push(fetch_transaction(&h, entry, &list, sizes).expect("representable"));
-    }
-    out
-}
-
-fn bits(b: Bits) -> Vec<Bits> {
-    vec![b]
-}
-
-/// Index `v` as an `I`-bit beat.
-fn index_beat(v: u32, width: u32) -> Vec<Bits> {
-    let mut b = golden::bits::Bits::zero(width);
-    b.set(
-        &golden::layout::Field {
-            name: "index",
-            offset: 0,
-            width,
-        },
-        v as u64,
-    )
-    .unwrap();
-    bits(b)
-}
-
-/// The streams of a list of fetches.
-fn streams(p: &Params, txs: &[FetchTransaction]) -> (Vec<StreamBeats>, Vec<StreamBeats>, Seen) {
-    streams_of(&FetchLayout::new(p), txs)
-}
-
-/// The streams of a list of fetches for a fetcher of layout `l` (with the
-/// per-node command's `probe_resp`, `report` and `probe_req` when it has
-/// them).
-fn streams_of(
-    l: &FetchLayout,
-    txs: &[FetchTransaction],
-) -> (Vec<StreamBeats>, Vec<StreamBeats>, Seen) {
-    let mut s: [Vec<Vec<Bits>>; 10] = Default::default();
-    let mut probe_resp = Vec::new();
-    let mut report = Vec::new();
-    let mut probe_req = Vec::new();
-    let mut seen = Seen::default();
-    for tx in txs {
-        seen.inputs += 1;
-        seen.cmds += tx.cmds.len();
-        seen.multi += tx.cmds.iter().filter(|c| c.levels() > 1).count();
-        if tx.cmds.iter().any(|c| c.levels() > 1)
-            && tx.out.iter().any(|o| matches!(o, FetchOut::Error { .. }))
-        {
-            seen.multi_errors += 1;
-        }
-        s[0].push(bits(tx.cfg.pack(l).unwrap()));
-        s[1].extend(tx.cmds.iter().map(|c| bits(c.pack(l).unwrap())));
-        s[2].extend(tx.node_resps.iter().map(|r| bits(r.pack(&l.node).unwrap())));
-        s[3].extend(
-            tx.ref_resps
-                .iter()
-                .map(|r: &Reference| bits(r.pack(&l.reference).unwrap())),
-        );
-        s[4].extend(
-            tx.cref_resps
-                .iter()
-                .map(|r: &Reference| bits(r.pack(&l.reference).unwrap())),
-        );
-        s[5].extend(tx.node_reqs.iter().map(|&i| index_beat(i, l.index_width)));
-        s[6].extend(tx.ref_reqs.iter().map(|&i| index_beat(i, l.index_width)));
-        s[7].extend(tx.cref_reqs.iter().map(|&i| index_beat(i, l.index_width)));
-        s[8].extend(tx.out.iter().map(|o| bits(o.pack(l).unwrap())));
-        s[9].extend(tx.leaves.iter().map(|o| bits(o.pack(l).unwrap())));
-        if let Some(f) = &l.pn {
-            probe_resp.extend(
-                tx.probe_resps
-                    .iter()
-                    .map(|r| bits(r.pack(&l.node).unwrap())),
-            );
-            report.extend(tx.reports.iter().map(|r| bits(f.pack_report(r).unwrap())));
-            probe_req.extend(tx.probe_reqs.iter().map(|&i| index_beat(i, l.index_width)));
-        }
-        seen.probe_reads += tx.probe_reqs.len();
-        for o in &tx.out {
-            if let FetchOut::Error { code, .. } = o {
-                seen.codes[*code as usize] += 1;
-            }
-        }
-        seen.out_beats += tx.out.len();
-        seen.leaf_beats += tx.leaves.len();
-        seen.node_reads += tx.node_reqs.len();
-        seen.ref_reads += tx.ref_reqs.len() + tx.cref_reqs.len();
-    }
-    let names = [
-        "cfg",
-        "cmd",
-        "node_resp",
-        "ref_resp",
-        "cref_resp",
-        "node_req",
-        "ref_req",
-        "cref_req",
-        "out",
-        "leaves",
-    ];
-    let mut all: Vec<StreamBeats> = names
-        .iter()
-        .zip(s)
-        .map(|(n, beats)| StreamBeats {
-            name: n.to_string(),
-            beats,
-        })
-        .collect();
-    let mut outs = all.split_off(5);
-    if l.pn.is_some() {
-        for (name, beats) in [("probe_resp", probe_resp), ("report", report)] {
-            all.push(StreamBeats {
-                name: name.into(),
-                beats,
-            });
-        }
-        outs.push(StreamBeats {
-            name: "probe_req".into(),
-            beats: probe_req,
-        });
-    }
-    (all, outs, seen)
+/// One run of `s` on `sim`, every stream stalling with probability
+/// `stall`; printed, a panic naming the run when it fails.
+fn bench(sim: MultiSim, s: &FetchStreams, seed: u64, stall: f64, what: &str) -> MultiReport {
+    let r = fetcher::run(sim, s, &stalled(seed, stall)).expect("the bench runs");
+    check_passed(&r, stall, what);
+    r
 }
 
 /// Commands per bench run: longer runs go in chunks of fresh stimulus.
@@ -359,7 +90,7 @@ fn check(name: &str, runs: &[(&str, usize)], most: usize) {
     let i = all.iter().position(|c| c.0 == name).unwrap();
     let (_, p, sizes) = all[i];
     let dir = tempfile::tempdir().unwrap();
-    let m = rtl_gen::merge::fetcher_unit(&p, &sizes);
+    let m = fetcher::fetcher_module(&p, &sizes);
     let design = design_of(&m, dir.path());
     for &(kind, cmds) in runs {
         let cmds = if kind == "verilator" {
@@ -376,13 +107,12 @@ fn check(name: &str, runs: &[(&str, usize)], most: usize) {
             let n = CHUNK.min(cmds - total);
             let seed = seeded(0xfe7c + 0x100 * i as u64 + chunk);
             let stall = stall_of(seed ^ kind.len() as u64).max(0.05);
-            let txs = random_fetches(&p, sizes, seed, n, most);
-            let (ins, outs, seen) = streams(&p, &txs);
+            let txs = random_fetches(&p, sizes, seed, n, most).expect("representable");
+            let s = streams(&p, &txs);
             let what = format!("merge_fetcher {name} {kind} chunk {chunk}");
-            let r = match e.as_mut() {
-                Some(e) => multi_bench(e.as_mut(), &ins, &outs, seed, stall, &what),
-                None => multi_batch_bench(&design, &ins, &outs, seed, stall, &what),
-            };
+            let sim = sim_of(&mut e, &design);
+            let r = bench(sim, &s, seed, stall, &what);
+            let seen = s.seen;
             for (c, k) in codes.iter_mut().zip(seen.codes) {
                 *c += k;
             }
@@ -476,7 +206,7 @@ fn fetcher_throughput_without_back_pressure() {
     }
     for (name, p, sizes) in configs().into_iter().take(3) {
         let dir = tempfile::tempdir().unwrap();
-        let m = rtl_gen::merge::fetcher_unit(&p, &sizes);
+        let m = fetcher::fetcher_module(&p, &sizes);
         let design = design_of(&m, dir.path());
         for what in ["every level", "every level, one walk", "deepest level"] {
             let mut txs = Vec::new();
@@ -503,16 +233,11 @@ fn fetcher_throughput_without_back_pressure() {
                 }
             }
             assert!(!txs.is_empty());
-            let (ins, outs, seen) = streams(&p, &txs);
+            let s = streams(&p, &txs);
             let mut e = engine("verilator", &m, &design);
-            let r = multi_bench(
-                e.as_mut(),
-                &ins,
-                &outs,
-                1,
-                0.0,
-                &format!("fetcher {name} rate ({what})"),
-            );
+            let run = format!("fetcher {name} rate ({what})");
+            let r = bench(MultiSim::Stepped(e.as_mut()), &s, 1, 0.0, &run);
+            let seen = s.seen;
             let c = r.cycles as f64;
             println!(
                 "fetcher {name} throughput ({what}): {} commands, {} out beats in {} cycles: {:.4} out beats/cycle; {} node reads: {:.4} node reads/cycle; {} ref + cref reads; {:.3} reads/cycle in all",
@@ -547,7 +272,7 @@ fn fetcher_steady_state_on_a_large_input() {
             frontier: 2048,
         };
         let dir = tempfile::tempdir().unwrap();
-        let m = rtl_gen::merge::fetcher_unit(&p, &sizes);
+        let m = fetcher::fetcher_module(&p, &sizes);
         let design = design_of(&m, dir.path());
         // The largest of these soups that fits the configuration's I.
         let h = [1500, 300]
@@ -565,16 +290,11 @@ fn fetcher_steady_state_on_a_large_input() {
             println!("fetcher {name} steady state: frontier over capacity, not measured");
             continue;
         }
-        let (ins, outs, seen) = streams(&p, &[tx]);
+        let s = streams(&p, &[tx]);
         let mut e = engine("verilator", &m, &design);
-        let r = multi_bench(
-            e.as_mut(),
-            &ins,
-            &outs,
-            1,
-            0.0,
-            &format!("fetcher {name} steady state"),
-        );
+        let what = format!("fetcher {name} steady state");
+        let r = bench(MultiSim::Stepped(e.as_mut()), &s, 1, 0.0, &what);
+        let seen = s.seen;
         let rate = seen.node_reads as f64 / r.cycles as f64;
         println!(
             "fetcher {name} steady state ({} nodes, {} refs, deepest LOD {deepest}): {} node reads in {} cycles: {rate:.4} node reads/cycle; {} out beats",
@@ -603,7 +323,7 @@ fn fetcher_verilog_lints_and_synthesizes() {
     for (name, p, sizes) in configs() {
         let t = std::time::Instant::now();
         let dir = tempfile::tempdir().unwrap();
-        let m = rtl_gen::merge::fetcher_unit(&p, &sizes);
+        let m = fetcher::fetcher_module(&p, &sizes);
         let warnings = m.validate_design().expect("valid");
         assert!(warnings.is_empty(), "{name}: {warnings:?}");
         let design = design_of(&m, dir.path());
@@ -642,9 +362,13 @@ fn leaves_end_does_not_wait_on_out() {
         .max_by_key(|t| t.out.len())
         .expect("a level with leaves above it");
     assert!(tx.out.len() > 16, "{} beats at the level", tx.out.len());
-    let (ins, outs, _) = streams(&p, std::slice::from_ref(&tx));
+    let FetchStreams {
+        inputs: ins,
+        outputs: outs,
+        ..
+    } = streams(&p, std::slice::from_ref(&tx));
     let dir = tempfile::tempdir().unwrap();
-    let m = rtl_gen::merge::fetcher_unit(&p, &sizes);
+    let m = fetcher::fetcher_module(&p, &sizes);
     let design = design_of(&m, dir.path());
     let mut e = engine("ir", &m, &design);
     let port = |e: &dyn cosim::Engine, n: &str| e.port_id(n).unwrap();
@@ -705,161 +429,37 @@ fn leaves_end_does_not_wait_on_out() {
 // ---------------------------------------------------------------------------
 // The per-node command (`rtl_gen::merge::fetcher_per_node_unit`)
 
-/// What the per-node stimulus reached.
-#[derive(Default, Debug)]
-struct PnSeen {
-    fetches: usize,
-    passes: usize,
-    multi_pass: usize,
-    descents: usize,
-    probes: usize,
-    level_cmds: usize,
-    errors: usize,
-    corrupted: usize,
-}
-
-/// Random per-node fetches: the inputs of random per-node merges
-/// (`random_per_node_case`, 2-`k` inputs, trees 4 LODs deep, ratio 1/2 or
-/// 0/1), each input's fetcher given the module's `report` stream with one
-/// decision in 8 flipped (so descents are random, at the contested voxels),
-/// one input in 4 corrupted (errors: then only the passes' `End`s follow
-/// it), half the inputs first given a level command.
-fn random_per_node_fetches(
-    p: &Params,
-    sizes: FetchSizes,
-    seed: u64,
-    merges: usize,
-) -> (Vec<FetchTransaction>, PnSeen) {
-    let mut rng = SplitMix64(seed);
-    let mut out = Vec::new();
-    let mut seen = PnSeen::default();
-    let k = 2 + (seed % 3) as usize;
-    while seen.fetches < merges {
-        let c = random_per_node_case(&mut rng, p, k, 4);
-        let (num, den) = if rng.below(2) == 0 { (1, 2) } else { (0, 1) };
-        let Ok(tx) = c.transaction(p, num, den) else {
-            continue;
-        };
-        if tx.passes == 0 {
-            continue;
-        }
-        seen.fetches += 1;
-        for (h, t) in c.hierarchies.iter().zip(&c.translations) {
-            // One descent in 4 refused; a pass left with none ends the
-            // merge (the module's `more`: some voxel descended, `l < D`).
-            let mut reports = Vec::new();
-            let mut descended = false;
-            for r in &tx.reports {
-                match *r {
-                    PerNodeReport::Decision {
-                        voxel,
-                        shared,
-                        union,
-                        descend,
-                    } => {
-                        let descend = descend && rng.below(4) != 0;
-                        descended |= descend;
-                        reports.push(PerNodeReport::Decision {
-                            voxel,
-                            shared,
-                            union,
-                            descend,
-                        });
-                    }
-                    PerNodeReport::PassEnd { lod, more } => {
-                        let more = more && descended;
-                        reports.push(PerNodeReport::PassEnd { lod, more });
-                        if !more {
-                            break;
-                        }
-                        descended = false;
-                    }
-                    other => reports.push(other),
-                }
-            }
-            let h = if rng.below(4) == 0 {
-                seen.corrupted += 1;
-                corrupt(&mut rng, h)
-            } else {
-                h.clone()
-            };
-            let entry = if rng.below(40) == 0 {
-                0
-            } else {
-                pack_entry(Some(t), p)
-            };
-            let mut cmds = Vec::new();
-            if rng.below(2) == 0 {
-                seen.level_cmds += 1;
-                let lod = c.lo.saturating_sub(rng.below(2) as u8);
-                cmds.push(FetchCmd::level(
-                    lod,
-                    rng.below(2) == 0,
-                    rng.below(2) == 0,
-                    false,
-                ));
-            }
-            cmds.push(FetchCmd::per_node(c.lo, rng.below(4) != 0, true));
-            let f = fetch_transaction_with_reports(&h, entry, &cmds, &reports, sizes)
-                .expect("representable, every pass closed");
-            let passes = f
-                .reports
-                .iter()
-                .filter(|r| !matches!(r, PerNodeReport::Decision { .. }))
-                .count();
-            seen.passes += passes;
-            seen.multi_pass += (passes > 1) as usize;
-            seen.descents += f
-                .reports
-                .iter()
-                .filter(|r| matches!(r, PerNodeReport::Decision { descend: true, .. }))
-                .count();
-            seen.probes += f.probe_reqs.len();
-            seen.errors += f.out.iter().any(|o| matches!(o, FetchOut::Error { .. })) as usize;
-            out.push(f);
-        }
-    }
-    (out, seen)
-}
-
 /// Per-node fetches on each engine of `runs` (engine, merges), in chunks.
 fn check_per_node(name: &str, runs: &[(&str, usize)]) {
     let all = configs();
     let i = all.iter().position(|c| c.0 == name).unwrap();
     let (_, p, sizes) = all[i];
     let dir = tempfile::tempdir().unwrap();
-    let m = rtl_gen::merge::fetcher_per_node_unit(&p, &sizes);
+    let m = fetcher::fetcher_per_node_module(&p, &sizes);
     let design = design_of(&m, dir.path());
     let l = FetchLayout::per_node(&p);
     for &(kind, merges) in runs {
         let (mut total, mut chunk) = (0, 0u64);
         let (mut beats, mut cycles, mut wall) = (0usize, 0u64, 0.0f64);
-        let mut all_seen = PnSeen::default();
+        let mut all_seen = PerNodeSeen::default();
         let mut e = (kind != "iverilog").then(|| engine(kind, &m, &design));
         while total < merges {
             let n = 2_000.min(merges - total);
             let seed = seeded(0x9e7c + 0x100 * i as u64 + chunk);
             let stall = stall_of(seed ^ kind.len() as u64).max(0.05);
-            let (txs, seen) = random_per_node_fetches(&p, sizes, seed, n);
-            let (ins, outs, s) = streams_of(&l, &txs);
+            let (txs, seen) =
+                random_per_node_fetches(&p, sizes, seed, n).expect("representable, passes closed");
+            let st = fetcher::streams(&l, &txs).expect("the beats pack");
             let what = format!("merge_fetcher per-node {name} {kind} chunk {chunk}");
-            let r = match e.as_mut() {
-                Some(e) => multi_bench(e.as_mut(), &ins, &outs, seed, stall, &what),
-                None => multi_batch_bench(&design, &ins, &outs, seed, stall, &what),
-            };
+            let sim = sim_of(&mut e, &design);
+            let r = bench(sim, &st, seed, stall, &what);
+            let s = st.seen;
             total += seen.fetches;
             beats += s.out_beats + s.leaf_beats + s.node_reads + s.ref_reads + s.probe_reads;
             cycles += r.cycles;
             wall += r.wall.as_secs_f64();
             chunk += 1;
-            all_seen.fetches += seen.fetches;
-            all_seen.passes += seen.passes;
-            all_seen.multi_pass += seen.multi_pass;
-            all_seen.descents += seen.descents;
-            all_seen.probes += seen.probes;
-            all_seen.level_cmds += seen.level_cmds;
-            all_seen.errors += seen.errors;
-            all_seen.corrupted += seen.corrupted;
+            all_seen.add(&seen);
         }
         println!(
             "fetcher per-node {name} {kind}: {total} merges, {beats} beats (out, leaves, requests), {cycles} cycles, {wall:.1} s wall; {all_seen:?}"
@@ -911,7 +511,7 @@ fn fetcher_per_node_lints_and_synthesizes() {
     }
     for (name, p, sizes) in configs() {
         let dir = tempfile::tempdir().unwrap();
-        let m = rtl_gen::merge::fetcher_per_node_unit(&p, &sizes);
+        let m = fetcher::fetcher_per_node_module(&p, &sizes);
         let warnings = m.validate_design().expect("valid");
         assert!(warnings.is_empty(), "{name}: {warnings:?}");
         let design = design_of(&m, dir.path());
@@ -920,7 +520,7 @@ fn fetcher_per_node_lints_and_synthesizes() {
         } else {
             lint_only(&design);
         }
-        let plain = rtl_gen::merge::fetcher_unit(&p, &sizes);
+        let plain = fetcher::fetcher_module(&p, &sizes);
         let plain = design_of(&plain, tempfile::tempdir().unwrap().path());
         for port in ["report", "probe_req", "probe_resp"] {
             assert!(
@@ -961,24 +561,7 @@ fn fetcher_per_node_steady_state() {
             .expect("a 300-triangle soup fits every configuration's I");
         let t = Translation::zero(h.top_lod);
         let deepest = h.nodes.iter().map(|n| n.voxel.lod).max().unwrap();
-        let mut reports = Vec::new();
-        for l in h.top_lod..=deepest {
-            let w = golden::merge::fetcher::walk::walk_input(&h, 0, &t, l).unwrap();
-            let (_, mut at) = golden::merge::fetcher::walk::collect(std::slice::from_ref(&w), l);
-            golden::merge::merge_level::sort_stream(&mut at);
-            for n in at.iter().filter(|n| !n.record.leaf) {
-                reports.push(PerNodeReport::Decision {
-                    voxel: n.record.voxel,
-                    shared: 1,
-                    union: 1,
-                    descend: true,
-                });
-            }
-            reports.push(PerNodeReport::PassEnd {
-                lod: l,
-                more: l < deepest,
-            });
-        }
+        let reports = descend_everywhere(&h, &t).expect("the walk of a builder-made input");
         let cmd = FetchCmd::per_node(h.top_lod, true, true);
         let entry = pack_entry(Some(&t), &p);
         let tx = fetch_transaction_with_reports(&h, entry, &[cmd], &reports, sizes).unwrap();
@@ -987,19 +570,14 @@ fn fetcher_per_node_steady_state() {
             continue;
         }
         let l = FetchLayout::per_node(&p);
-        let (ins, outs, seen) = streams_of(&l, std::slice::from_ref(&tx));
+        let st = fetcher::streams(&l, std::slice::from_ref(&tx)).expect("the beats pack");
         let dir = tempfile::tempdir().unwrap();
-        let m = rtl_gen::merge::fetcher_per_node_unit(&p, &sizes);
+        let m = fetcher::fetcher_per_node_module(&p, &sizes);
         let design = design_of(&m, dir.path());
         let mut e = engine("verilator", &m, &design);
-        let r = multi_bench(
-            e.as_mut(),
-            &ins,
-            &outs,
-            1,
-            0.0,
-            &format!("fetcher per-node {name} steady state"),
-        );
+        let what = format!("fetcher per-node {name} steady state");
+        let r = bench(MultiSim::Stepped(e.as_mut()), &st, 1, 0.0, &what);
+        let seen = st.seen;
         let c = r.cycles as f64;
         println!(
             "fetcher per-node {name} steady state ({} nodes, {} passes): {} node reads, {} probe reads, {} cref reads in {} cycles: {:.4} node + probe reads/cycle, {:.4} out beats/cycle ({} beats)",

@@ -9,17 +9,15 @@
 //! fewer on the IR simulator and the Icarus pipe engine (random); with no
 //! back-pressure the input rate (a cycle count of the RTL, deterministic:
 //! the same in every simulator) must be at least 0.95 beats per cycle.
-//! Lint and synthesis of every configuration.
+//! Lint and synthesis of every configuration. The vectors are
+//! `cosim::units::fetcher::root_sorter`'s.
 mod merge_common;
 
 use cosim::tb::{BenchReport, Vector};
+use cosim::units::fetcher::root_sorter::{root_sorter_module, vectors, SortVectors};
 use cosim::volume::volume;
-use cosim::Bits;
-use golden::merge::fetcher::root_sorter::{random_roots, root_sort_transaction};
-use golden::merge::merge_level::unit::{BeatLayout, LevelBeat};
 use golden::params::Params;
 use golden::seed::seeded;
-use golden::translate::stimulus::SplitMix64;
 use merge_common::*;
 
 /// Sets per configuration in Verilator at full volume (issue 5: 100,000
@@ -46,47 +44,6 @@ fn configs() -> Vec<(&'static str, Params, usize, u64)> {
         ("q0", Params::new(8, 0, 12, 3).unwrap(), 8, 0x5109),
         ("n2", Params::new(4, 2, 6, 2).unwrap(), 2, 0x510a),
     ]
-}
-
-/// Root sets until `sets` transactions; returns the vectors, the level
-/// ends, how many sets were out of Morton order and how many overflowed.
-fn vectors(
-    p: &Params,
-    n: usize,
-    seed: u64,
-    sets: usize,
-) -> (Vec<Vector>, Vec<usize>, usize, usize) {
-    let (li, lo) = (BeatLayout::input(p), BeatLayout::output(p));
-    let err_bit = lo.err.expect("output beats have err").offset;
-    let mut rng = SplitMix64(seed);
-    let (mut out, mut ends, mut unsorted, mut overflow) = (Vec::new(), Vec::new(), 0, 0);
-    for _ in 0..sets {
-        let roots = random_roots(&mut rng, p, n);
-        let keys: Vec<_> = roots
-            .iter()
-            .map(|r| (r.record.voxel.morton(), r.record.leaf))
-            .collect();
-        unsorted += keys.windows(2).any(|w| w[0] > w[1]) as usize;
-        let (ins, outs) = root_sort_transaction(&roots, n);
-        overflow += outs.last().is_some_and(|o| o.1) as usize;
-        let expected: Vec<_> = outs
-            .iter()
-            .map(|(b, err): &(LevelBeat, bool)| {
-                let bits = b.pack(&li).unwrap();
-                let mut v = Bits::from_words(bits.words(), lo.width).unwrap();
-                v.set_bit(err_bit, *err).unwrap();
-                vec![v]
-            })
-            .collect();
-        for (j, b) in ins.iter().enumerate() {
-            out.push(Vector {
-                input: vec![b.pack(&li).unwrap()],
-                outputs: if j == 0 { expected.clone() } else { Vec::new() },
-            });
-        }
-        ends.push(out.len());
-    }
-    (out, ends, unsorted, overflow)
 }
 
 /// The Icarus batch mode: the whole bench inside one `vvp` run.
@@ -126,9 +83,14 @@ fn matches_golden(
     stall: f64,
 ) {
     let dir = tempfile::tempdir().unwrap();
-    let m = rtl_gen::merge::root_sorter_unit(p, n);
+    let m = root_sorter_module(p, n);
     let design = design_of(&m, dir.path());
-    let (vs, _, unsorted, overflow) = vectors(p, n, seed, sets);
+    let SortVectors {
+        vectors: vs,
+        unsorted,
+        overflow,
+        ..
+    } = vectors(p, n, seed, sets).expect("the beats pack");
     eprintln!(
         "sorter {name}/{engine_kind}: {sets} sets, {} beats, {unsorted} out of order, {overflow} overflowed",
         vs.len()
@@ -142,10 +104,12 @@ fn matches_golden(
 /// whole sets, checked against golden too; at least [`MIN_RATE`].
 fn rate_without_back_pressure(name: &str, p: &Params, n: usize, seed: u64, engine_kind: &str) {
     let dir = tempfile::tempdir().unwrap();
-    let m = rtl_gen::merge::root_sorter_unit(p, n);
+    let m = root_sorter_module(p, n);
     let design = design_of(&m, dir.path());
     // A set is at least two beats: enough sets for RATE_BEATS beats.
-    let (vs, ends, _, _) = vectors(p, n, seed, RATE_BEATS / 2);
+    let SortVectors {
+        vectors: vs, ends, ..
+    } = vectors(p, n, seed, RATE_BEATS / 2).expect("the beats pack");
     let part = &vs[..level_prefix(&ends, RATE_BEATS)];
     let what = format!("merge_sorter {name} {engine_kind}");
     let sets = ends.iter().filter(|&&e| e <= part.len()).count();
@@ -243,7 +207,7 @@ fn root_sorter_verilog_lints_and_synthesizes() {
     }
     for (_, p, n, _) in configs() {
         let dir = tempfile::tempdir().unwrap();
-        let m = rtl_gen::merge::root_sorter_unit(&p, n);
+        let m = root_sorter_module(&p, n);
         let warnings = m.validate_design().expect("valid");
         assert!(warnings.is_empty(), "{warnings:?}");
         lint_and_synth(&design_of(&m, dir.path()));

@@ -6,17 +6,14 @@
 //! Q = 0 and I = 3 run 100,000 groups each on Verilator and on Icarus
 //! Verilog (batch mode, 4-state), Q = 1 20,000; the IR simulator 100,000
 //! default, 5,000 other. Throughput with no back-pressure printed (>= 0.95 beats per
-//! cycle); lint and synthesis of every configuration.
+//! cycle); lint and synthesis of every configuration. The vectors are
+//! `cosim::units::upper_builder::level`'s.
 mod merge_common;
 
-use cosim::tb::Vector;
+use cosim::units::upper_builder::level::{upper_level_module, vectors, LevelVectors};
 use cosim::volume::volume;
-use golden::merge::upper_builder::level_unit::{
-    random_upper_level, upper_transaction, UpperBeat, UpperLayout,
-};
 use golden::params::Params;
 use golden::seed::seeded;
-use golden::translate::stimulus::SplitMix64;
 use merge_common::*;
 
 fn configs() -> Vec<(&'static str, Params)> {
@@ -29,42 +26,6 @@ fn configs() -> Vec<(&'static str, Params)> {
     ]
 }
 
-/// Where each level ends: (beats so far, transactions so far).
-type Ends = (Vec<usize>, Vec<usize>);
-
-/// Levels until `groups` parent groups (transactions); a level's outputs
-/// are expected with its first beat. Also counts the groups with `err`.
-fn vectors(p: &Params, seed: u64, groups: usize) -> (Vec<Vector>, usize, usize, Ends) {
-    let l = UpperLayout::new(p);
-    let mut rng = SplitMix64(seed);
-    let mut out = Vec::new();
-    let (mut n, mut errs) = (0, 0);
-    let mut ends = (Vec::new(), Vec::new());
-    while n < groups {
-        let size = 1 + rng.below(40) as usize;
-        let level = random_upper_level(&mut rng, p, size);
-        let (ins, outs) = upper_transaction(&level, p);
-        n += outs.len() - 1;
-        errs += outs
-            .iter()
-            .filter(|b| matches!(b, UpperBeat::Node { err: true, .. }))
-            .count();
-        let expected: Vec<_> = outs
-            .iter()
-            .map(|b| vec![b.pack(&l, true).unwrap()])
-            .collect();
-        for (j, b) in ins.iter().enumerate() {
-            out.push(Vector {
-                input: vec![b.pack(&l, false).unwrap()],
-                outputs: if j == 0 { expected.clone() } else { Vec::new() },
-            });
-        }
-        ends.0.push(out.len());
-        ends.1.push(n);
-    }
-    (out, n, errs, ends)
-}
-
 /// Every engine on `groups` random transactions with random back-pressure
 /// (stall 0.05..=0.5; Verilator on `volume(groups)`, the IR simulator and Icarus on `ir_groups`), then without
 /// back-pressure on the first 100k beats (at least 0.95 beats per cycle).
@@ -75,15 +36,22 @@ fn check(name: &str, groups: usize, ir_groups: usize) {
     let p = all[i].1;
     let seed = seeded(0x5616 + i as u64);
     let dir = tempfile::tempdir().unwrap();
-    let m = rtl_gen::merge::upper_level_unit(&p);
+    let m = upper_level_module(&p);
     let design = design_of(&m, dir.path());
     let batch = icarus_batch(&design);
     // Verilator at volume; the IR simulator and Icarus (4-state) at depth.
     let groups = volume(groups);
-    let full = vectors(&p, seed, groups);
-    let ir = (ir_groups != groups).then(|| vectors(&p, seed, ir_groups));
+    let levels = |groups| vectors(&p, seed, groups).expect("the beats pack");
+    let full = levels(groups);
+    let ir = (ir_groups != groups).then(|| levels(ir_groups));
     for kind in ["ir", "verilator", "iverilog"] {
-        let (vs, n, errs, ends) = match (&ir, kind) {
+        let LevelVectors {
+            vectors: vs,
+            groups: n,
+            errs,
+            ends,
+            groups_at_end,
+        } = match (&ir, kind) {
             (Some(v), "ir" | "iverilog") => v,
             _ => &full,
         };
@@ -101,8 +69,8 @@ fn check(name: &str, groups: usize, ir_groups: usize) {
         let stall = stall_of(seed ^ kind.len() as u64).max(0.05);
         let what = format!("merge_upper {name} {kind}");
         run_sim(sim(kind), vs, *n, seed, stall, &what);
-        let cut = level_prefix(&ends.0, 100_000);
-        let part_groups = ends.1[ends.0.iter().position(|&e| e == cut).unwrap()];
+        let cut = level_prefix(ends, 100_000);
+        let part_groups = groups_at_end[ends.iter().position(|&e| e == cut).unwrap()];
         let r = run_sim(sim(kind), &vs[..cut], part_groups, seed + 1, 0.0, &what);
         println!(
             "upper_level {name} {kind}: {} input beats in {} cycles: {:.4} beats/cycle",
@@ -165,7 +133,7 @@ fn upper_level_verilog_lints_and_synthesizes() {
     }
     for (_, p) in configs() {
         let dir = tempfile::tempdir().unwrap();
-        let m = rtl_gen::merge::upper_level_unit(&p);
+        let m = upper_level_module(&p);
         let warnings = m.validate_design().expect("valid");
         assert!(warnings.is_empty(), "{warnings:?}");
         lint_and_synth(&design_of(&m, dir.path()));

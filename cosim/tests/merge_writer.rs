@@ -10,23 +10,20 @@
 //! rule, materialized roots, capacity and index overflows at small I) and
 //! real merges (golden-built soups at every fixed level and in per-node
 //! mode, created nodes at several LODs). Throughput with no back-pressure;
-//! lint and synthesis.
+//! lint and synthesis. The bench (streams, stimulus, run) is
+//! `cosim::units::record_writer`; this file holds the configurations, seeds
+//! and what each run must reach.
 mod merge_common;
 
-use cosim::tb::{MultiReport, StreamBeats};
-use cosim::volume::volume;
-use golden::merge::level_choice::candidate_range;
-use golden::merge::merge_level::BaseNode;
-use golden::merge::record_writer::{
-    pack_cfg, writer_err, writer_transaction, WriterLayout, WriterTransaction,
+use cosim::tb::{MultiReport, PulseCounts};
+use cosim::units::multi_stream::MultiSim;
+use cosim::units::record_writer::{
+    self, random_merges, real_merges, record_writer_module, Seen, WriterStreams,
 };
-use golden::merge::stimulus::{per_node_base, random_case, real_cases};
-use golden::merge::upper_builder::unit::fixed_level_base;
+use cosim::volume::volume;
+use golden::merge::record_writer::{writer_err, WriterTransaction};
 use golden::params::Params;
 use golden::seed::seeded;
-use golden::store::Hierarchy;
-use golden::translate::stimulus::SplitMix64;
-use golden::translate::Translation;
 use merge_common::*;
 
 /// Name, parameters, capacity bits (2^C entries per level buffer).
@@ -40,148 +37,24 @@ fn configs() -> Vec<(&'static str, Params, u32)> {
     ]
 }
 
-/// What the stimulus exercised.
-#[derive(Default, Debug)]
-struct Seen {
-    merges: usize,
-    codes: [usize; 5],
-    materialized: usize,
-    several_roots: usize,
-    /// Merges with created nodes at two or more LODs.
-    created_lods: usize,
-    level_beats: u64,
-    records: u64,
-    refs: u64,
-    /// Per merge, the longest in stream (a level or `crefs`).
-    longest_in: u64,
+/// The streams of `txs` for a writer of `2^cap` entries per level buffer.
+fn streams(p: &Params, cap: u32, txs: &[WriterTransaction]) -> WriterStreams {
+    record_writer::streams(p, cap, txs).expect("the beats pack")
 }
 
-fn one(b: &cosim::Bits) -> Vec<cosim::Bits> {
-    vec![b.clone()]
-}
-
-/// The streams of a list of merges.
-fn streams(
-    p: &Params,
-    cap: u32,
-    txs: &[WriterTransaction],
-) -> (Vec<StreamBeats>, Vec<StreamBeats>, Seen) {
-    let wl = WriterLayout::new(p, cap).unwrap();
-    let bl = &wl.builder;
-    let d = p.max_lod as usize;
-    let named = |name: &str| StreamBeats {
-        name: name.into(),
-        beats: Vec::new(),
-    };
-    let mut cfg = named("cfg");
-    let mut levels: Vec<StreamBeats> = (0..=d).map(|i| named(&format!("level{i}"))).collect();
-    let mut done = named("done");
-    let mut crefs = named("crefs");
-    let mut ref_resp = named("ref_resp");
-    let mut ref_req = named("ref_req");
-    let mut nodes = named("nodes");
-    let mut refs = named("refs");
-    let mut header = named("header");
-    let mut seen = Seen::default();
-    for tx in txs {
-        seen.merges += 1;
-        seen.codes[tx.header.err as usize] += 1;
-        seen.materialized += !tx.ref_reqs.is_empty() as usize;
-        seen.several_roots += (tx.header.roots > 1) as usize;
-        let created_at = tx.builder.levels.iter().filter(|l| {
-            l.iter().any(|b| {
-                matches!(b, golden::merge::upper_builder::unit::LevelOut::Node { kind, .. }
-                    if *kind == golden::merge::upper_builder::unit::level_out_kind::CREATED)
-            })
-        });
-        seen.created_lods += (created_at.count() > 1) as usize;
-        seen.records += tx.nodes.len() as u64;
-        seen.refs += tx.refs.len() as u64;
-        let mut longest = tx.crefs.len();
-        cfg.beats.push(one(&pack_cfg(tx.out_id, &wl).unwrap()));
-        for (s, beats) in levels.iter_mut().zip(&tx.builder.levels) {
-            seen.level_beats += beats.len() as u64;
-            longest = longest.max(beats.len());
-            s.beats
-                .extend(beats.iter().map(|b| one(&b.pack(bl).unwrap())));
-        }
-        seen.longest_in += longest as u64;
-        done.beats.push(one(&tx.builder.done.pack(bl).unwrap()));
-        crefs
-            .beats
-            .extend(tx.crefs.iter().map(|c| one(&c.pack(&wl).unwrap())));
-        let r = |x: &golden::store::Reference| one(&x.pack(&wl.reference).unwrap());
-        let n = |x: &golden::store::NodeRecord| one(&x.pack(&wl.node).unwrap());
-        ref_req.beats.extend(tx.ref_reqs.iter().map(r));
-        ref_resp.beats.extend(tx.ref_resps.iter().map(r));
-        nodes.beats.extend(tx.nodes.iter().map(n));
-        refs.beats.extend(tx.refs.iter().map(r));
-        header.beats.push(one(&tx.header.pack(&wl).unwrap()));
-    }
-    let mut ins = vec![cfg];
-    ins.extend(levels);
-    ins.extend([done, crefs, ref_resp]);
-    (ins, vec![ref_req, nodes, refs, header], seen)
-}
-
-/// `merges` random cases of up to `most` base nodes.
-fn random_merges(
-    p: &Params,
-    cap: u32,
-    seed: u64,
-    merges: usize,
-    most: u64,
-) -> Vec<WriterTransaction> {
-    let mut rng = SplitMix64(seed);
-    (0..merges)
-        .map(|_| {
-            let n = match rng.below(4) {
-                0 => rng.below(3),
-                _ => rng.below(most + 1),
-            };
-            let (base, inputs) = random_case(&mut rng, p, n as usize, 0);
-            let hs: Vec<&Hierarchy> = inputs.iter().collect();
-            writer_transaction(&base, &hs, p, cap, 0).expect("a random case lays out")
-        })
-        .collect()
-}
-
-/// Real merges: overlapping, disjoint, single-triangle soups and one input
-/// alone (a materialized root), at every fixed level and in per-node mode.
-fn real_merges(p: &Params, cap: u32) -> Vec<WriterTransaction> {
-    let mut out = Vec::new();
-    for (store, table, ids) in real_cases(p).expect("the real cases build") {
-        let hs: Vec<&Hierarchy> = ids.iter().map(|i| store.get(*i).unwrap()).collect();
-        let inputs: Vec<(&Hierarchy, Translation)> = hs
-            .iter()
-            .map(|h| (*h, table.read(h.id as u32).unwrap()))
-            .collect();
-        let (lo, hi) = candidate_range(&hs);
-        let mut bases: Vec<Vec<BaseNode>> = (lo..=hi)
-            .map(|m| fixed_level_base(&inputs, m, p).expect("the merge walks"))
-            .collect();
-        for (num, den) in [(0, 1), (1, 4), (1, 2)] {
-            bases.push(per_node_base(&inputs, num, den, p).expect("per-node merge"));
-        }
-        for base in bases {
-            let out_id = (p.hier_capacity() - 1) as u8;
-            out.push(writer_transaction(&base, &hs, p, cap, out_id).unwrap());
-        }
-    }
-    out
-}
-
-/// A writer run counting the cycles each phase output is high.
-fn writer_bench(
-    engine: &mut dyn cosim::Engine,
-    ins: &[StreamBeats],
-    outs: &[StreamBeats],
+/// One run of `s` on `sim`, every stream stalling with probability
+/// `stall`, counting the phase outputs on a stepped engine; printed, a
+/// panic naming the run when it fails.
+fn bench(
+    sim: MultiSim,
+    s: &WriterStreams,
     seed: u64,
     stall: f64,
     what: &str,
-) -> (MultiReport, Vec<(String, u64)>) {
-    let pulses = ["filling", "drain_records", "drain_refs"];
-    multi_bench_watching(engine, ins, outs, seed, stall, what, &pulses)
+) -> (MultiReport, PulseCounts) {
+    let r = record_writer::run(sim, s, &stalled(seed, stall)).expect("the bench runs");
+    check_passed(&r.0, stall, what);
+    r
 }
 
 /// Merges per bench run; longer runs go in chunks of fresh stimulus on the
@@ -196,11 +69,11 @@ fn check(name: &str, runs: &[(&str, usize)], most: u64) {
     let (_, p, cap) = all[k];
     let seed = seeded(0x5618 + k as u64);
     let dir = tempfile::tempdir().unwrap();
-    let m = rtl_gen::merge::record_writer_unit(&p, cap).expect("a valid capacity");
+    let m = record_writer_module(&p, cap).expect("a valid capacity");
     let design = design_of(&m, dir.path());
     // Soups need more than 2^I triangle indices at small I: random only.
     let real = if p.index_bits >= 8 {
-        real_merges(&p, cap)
+        real_merges(&p, cap).expect("the real merges build")
     } else {
         Vec::new()
     };
@@ -213,31 +86,15 @@ fn check(name: &str, runs: &[(&str, usize)], most: u64) {
         let mut all_seen = Seen::default();
         while done < total {
             let merges = CHUNK.min(total - done);
-            let txs = random_merges(&p, cap, seed + chunk, merges, most);
-            let (ins, outs, seen) = streams(&p, cap, &txs);
-            let r = match e.as_mut() {
-                Some(e) => {
-                    let before = e.cycle();
-                    writer_bench(e.as_mut(), &ins, &outs, seed + chunk, stall, &what)
-                        .0
-                        .cycles
-                        - before
-                }
-                None => multi_batch_bench(&design, &ins, &outs, seed + chunk, stall, &what).cycles,
-            };
-            cycles += r;
+            let txs = random_merges(&p, cap, seed + chunk, merges, most).expect("a case lays out");
+            let s = streams(&p, cap, &txs);
+            // A stepped engine's cycle count runs on over the chunks.
+            let before = e.as_ref().map_or(0, |e| e.cycle());
+            let sim = sim_of(&mut e, &design);
+            cycles += bench(sim, &s, seed + chunk, stall, &what).0.cycles - before;
             done += merges;
             chunk += 1;
-            all_seen.merges += seen.merges;
-            for c in 0..5 {
-                all_seen.codes[c] += seen.codes[c];
-            }
-            all_seen.materialized += seen.materialized;
-            all_seen.several_roots += seen.several_roots;
-            all_seen.created_lods += seen.created_lods;
-            all_seen.level_beats += seen.level_beats;
-            all_seen.records += seen.records;
-            all_seen.refs += seen.refs;
+            all_seen.add(&s.seen);
         }
         eprintln!("merge_writer {name}/{kind} random: {all_seen:?}");
         if total >= 100 {
@@ -265,21 +122,14 @@ fn check(name: &str, runs: &[(&str, usize)], most: u64) {
             continue;
         }
         let count = if kind == "iverilog" { 3 } else { real.len() };
-        let (ins, outs, seen) = streams(&p, cap, &real[..count.min(real.len())]);
+        let s = streams(&p, cap, &real[..count.min(real.len())]);
+        let seen = &s.seen;
         let created_lods = seen.created_lods;
         assert_eq!(seen.codes[0], seen.merges, "real merges fit: {seen:?}");
         let what = format!("merge_writer {name} {kind} real");
-        let cycles = match kind {
-            "iverilog-batch" => {
-                multi_batch_bench(&design, &ins, &outs, seed + 1, stall, &what).cycles
-            }
-            _ => {
-                let mut e = engine(kind, &m, &design);
-                writer_bench(e.as_mut(), &ins, &outs, seed + 1, stall, &what)
-                    .0
-                    .cycles
-            }
-        };
+        let mut e = (kind != "iverilog-batch").then(|| engine(kind, &m, &design));
+        let sim = sim_of(&mut e, &design);
+        let cycles = bench(sim, &s, seed + 1, stall, &what).0.cycles;
         println!(
             "merge_writer {name} {kind}: {} real merges ({created_lods} with created nodes at several LODs, {} materialized), {} level beats, {} records, {} refs, {cycles} cycles",
             seen.merges, seen.materialized, seen.level_beats, seen.records, seen.refs
@@ -342,25 +192,21 @@ fn record_writer_one_word_per_clock() {
     for name in ["default", "q0"] {
         let (_, p, cap) = configs().into_iter().find(|c| c.0 == name).unwrap();
         let dir = tempfile::tempdir().unwrap();
-        let m = rtl_gen::merge::record_writer_unit(&p, cap).unwrap();
+        let m = record_writer_module(&p, cap).unwrap();
         let design = design_of(&m, dir.path());
         // Large merges: real ones, then random cases of up to 2^C / 2 nodes.
-        let mut txs = real_merges(&p, cap);
+        let mut txs = real_merges(&p, cap).expect("the real merges build");
         txs.extend(
             random_merges(&p, cap, 0x7b, 400, 1 << (cap - 1))
+                .expect("a case lays out")
                 .into_iter()
                 .filter(|t| t.header.err == writer_err::NONE),
         );
-        let (ins, outs, seen) = streams(&p, cap, &txs);
+        let s = streams(&p, cap, &txs);
+        let seen = &s.seen;
         let mut e = engine("verilator", &m, &design);
-        let (r, counts) = writer_bench(
-            e.as_mut(),
-            &ins,
-            &outs,
-            1,
-            0.0,
-            &format!("merge_writer {name} throughput"),
-        );
+        let what = format!("merge_writer {name} throughput");
+        let (r, counts) = bench(MultiSim::Stepped(e.as_mut()), &s, 1, 0.0, &what);
         let count = |n: &str| counts.iter().find(|c| c.0 == n).unwrap().1 as f64;
         let fill = seen.longest_in as f64 / count("filling");
         let records = seen.records as f64 / count("drain_records");
@@ -393,7 +239,7 @@ fn record_writer_verilog_lints_and_synthesizes() {
     for (name, p, cap) in configs() {
         let t = std::time::Instant::now();
         let dir = tempfile::tempdir().unwrap();
-        let m = rtl_gen::merge::record_writer_unit(&p, cap).unwrap();
+        let m = record_writer_module(&p, cap).unwrap();
         let warnings = m.validate_design().expect("valid");
         assert!(warnings.is_empty(), "{name}: {warnings:?}");
         let design = design_of(&m, dir.path());

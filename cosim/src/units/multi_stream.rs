@@ -1,7 +1,8 @@
 //! What the multi-stream units (the merging module, the hierarchy merger)
 //! share: the engine choice, how a run is driven, the test hooks (a Verilog
 //! patch, a flipped expectation), the first mismatch decoded field by field,
-//! the status-output rule, and the stepped engines' factory.
+//! the status-output rule, the stepped engines' factory, and one run of a
+//! unit's streams on a stepped engine or the Icarus batch ([`run_multi`]).
 
 use std::path::PathBuf;
 
@@ -13,7 +14,10 @@ use crate::engines::{open_engine, open_tracing_engine, EngineKind};
 use crate::error::{CosimError, Result};
 use crate::export_tb::{InputSpec, NamedField, OutputSpec, StatusCheck, StreamSpec};
 use crate::ir_engine::IrEngine;
-use crate::tb::{FieldDecoder, Transaction};
+use crate::tb::{
+    run_multi_stream_bench_watching, BenchConfig, FieldDecoder, MultiReport, PulseCounts,
+    StreamBeats, Transaction,
+};
 use crate::waves::WaveFormat;
 
 /// `bits` decoded field by field: `(name, value in hex)` per field, in
@@ -57,6 +61,80 @@ pub fn decoded_pair(
             (name.unwrap_or_default(), shown(&e, i), shown(&g, i))
         })
         .collect()
+}
+
+/// Where one multi-stream run goes.
+pub enum MultiSim<'a> {
+    /// An engine stepped from Rust (the IR simulator, Verilator, Icarus's
+    /// pipe engine), kept by the caller so that chunks of a long run share
+    /// one build.
+    Stepped(&'a mut dyn crate::Engine),
+    /// Icarus's multi-stream batch ([`crate::icarus::IcarusMultiBatch`]):
+    /// the testbench is built for this run's streams, so each run builds it.
+    Batch(&'a Design),
+}
+
+/// One run of `inputs` -> `outputs` on `sim`: every output beat compared bit
+/// for bit with its expected beat, in order per stream, and the cycles each
+/// 1-bit output of `pulses` is high counted. The report says whether the run
+/// passed; an `Err` is a bench that could not run (a build, a missing port).
+pub fn run_multi(
+    sim: MultiSim,
+    inputs: &[StreamBeats],
+    outputs: &[StreamBeats],
+    config: &BenchConfig,
+    pulses: &[&str],
+) -> Result<(MultiReport, PulseCounts)> {
+    match sim {
+        MultiSim::Stepped(engine) => {
+            run_multi_stream_bench_watching(engine, inputs, outputs, config, pulses)
+        }
+        MultiSim::Batch(design) => {
+            let names = |s: &[StreamBeats]| s.iter().map(|b| b.name.clone()).collect::<Vec<_>>();
+            let (i, o) = (names(inputs), names(outputs));
+            let i: Vec<&str> = i.iter().map(String::as_str).collect();
+            let o: Vec<&str> = o.iter().map(String::as_str).collect();
+            let batch = crate::icarus::IcarusMultiBatch::new_watching(design, &i, &o, pulses)?;
+            let r = batch.run(inputs, outputs, config)?;
+            Ok((r.report, r.pulses))
+        }
+    }
+}
+
+/// A unit's streams for a list of transactions (input beats, expected
+/// output beats, in the unit's port order) with what the transactions
+/// reached (`S`, per unit), so that a test can tell its stimulus met the
+/// cases it is there for.
+#[derive(Clone, Debug)]
+pub struct StreamSet<S> {
+    /// The input streams.
+    pub inputs: Vec<StreamBeats>,
+    /// The output streams: the beats expected, in order.
+    pub outputs: Vec<StreamBeats>,
+    /// What the transactions reached.
+    pub seen: S,
+}
+
+impl<S> StreamSet<S> {
+    /// One run of these streams on `sim` ([`run_multi`]).
+    pub fn run(
+        &self,
+        sim: MultiSim,
+        config: &BenchConfig,
+        pulses: &[&str],
+    ) -> Result<(MultiReport, PulseCounts)> {
+        run_multi(sim, &self.inputs, &self.outputs, config, pulses)
+    }
+}
+
+/// A packed beat as a one-payload transaction; a layout error names `unit`.
+pub fn packed(
+    beat: std::result::Result<Bits, golden::layout::LayoutError>,
+    unit: &str,
+) -> Result<Transaction> {
+    beat.map(|b| vec![b]).map_err(|e| CosimError::Design {
+        what: format!("{unit} beat: {e}"),
+    })
 }
 
 /// Which simulator runs the unit.

@@ -8,6 +8,7 @@ use std::path::Path;
 use cosim::ir_engine::IrEngine;
 use cosim::tb::{run_stream_bench, BenchConfig, BenchReport, StreamNames, Vector};
 use cosim::tools::{ci_mode, tool_available, INSTALL_HINT};
+use cosim::units::{run_vectors, StreamSim};
 use cosim::{Design, Engine, PortDir};
 use rtl_gen::Module;
 
@@ -194,19 +195,10 @@ pub fn run_sim(
         ..BenchConfig::default()
     };
     let report = match sim {
-        Sim::Stepped(mut e) => run_stream_bench(
-            e.as_mut(),
-            &StreamNames::single("data"),
-            vectors,
-            None,
-            &config,
-            None,
-        )
-        .expect("the bench runs"),
-        Sim::Batch(b) => b
-            .run_stream(vectors, None, &config)
-            .unwrap_or_else(|e| panic!("{what}: {e}")),
-    };
+        Sim::Stepped(mut e) => run_vectors(StreamSim::Stepped(e.as_mut()), vectors, &config),
+        Sim::Batch(b) => run_vectors(StreamSim::Batch(b), vectors, &config),
+    }
+    .unwrap_or_else(|e| panic!("{what}: {e}"));
     println!(
         "{what}: {} stall {stall:.2}: {transactions} transactions, {} beats, {} cycles, {:.2} s wall, {:.0} cycles/s",
         report.engine,

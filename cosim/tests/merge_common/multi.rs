@@ -3,7 +3,8 @@
 //! builder, per-node and merging module): one stall setting for every
 //! stream, the report printed, a failed run a panic naming the run.
 
-use cosim::tb::{run_multi_stream_bench_watching, BenchConfig, MultiReport, StreamBeats};
+use cosim::tb::{BenchConfig, MultiReport, StreamBeats};
+use cosim::units::multi_stream::{run_multi, MultiSim};
 
 /// Every stream stalls with probability `stall`, drawn from `seed`.
 pub fn stalled(seed: u64, stall: f64) -> BenchConfig {
@@ -26,27 +27,20 @@ pub fn multi_bench_watching(
     what: &str,
     pulses: &[&str],
 ) -> (MultiReport, Vec<(String, u64)>) {
+    let sim = MultiSim::Stepped(engine);
     let (r, counts) =
-        run_multi_stream_bench_watching(engine, ins, outs, &stalled(seed, stall), pulses)
-            .expect("the bench runs");
-    eprint!("{what}: stall {stall:.2}: {r}");
-    assert!(r.passed(), "{what} stall {stall}:\n{r}");
+        run_multi(sim, ins, outs, &stalled(seed, stall), pulses).expect("the bench runs");
+    check_passed(&r, stall, what);
     (r, counts)
 }
 
-/// One run of `ins` -> `outs` on `engine`; printed, a panic when it fails.
-pub fn multi_bench(
-    engine: &mut dyn cosim::Engine,
-    ins: &[StreamBeats],
-    outs: &[StreamBeats],
-    seed: u64,
-    stall: f64,
-    what: &str,
-) -> MultiReport {
-    multi_bench_watching(engine, ins, outs, seed, stall, what, &[]).0
+/// `r` printed; a panic naming the run when it failed.
+pub fn check_passed(r: &MultiReport, stall: f64, what: &str) {
+    eprint!("{what}: stall {stall:.2}: {r}");
+    assert!(r.passed(), "{what} stall {stall}:\n{r}");
 }
 
-/// One run of a merging module: as [`multi_bench`], and its `done` output
+/// One run of a merging module: as [`multi_bench_watching`], and its `done` output
 /// pulses once per merge, i.e. once per beat of the first input (`cfg`).
 pub fn multi_bench_done_per_merge(
     engine: &mut dyn cosim::Engine,
@@ -75,16 +69,20 @@ pub fn multi_batch_bench(
     stall: f64,
     what: &str,
 ) -> MultiReport {
-    let names = |s: &[StreamBeats]| s.iter().map(|b| b.name.clone()).collect::<Vec<_>>();
-    let (i, o) = (names(ins), names(outs));
-    let i: Vec<&str> = i.iter().map(String::as_str).collect();
-    let o: Vec<&str> = o.iter().map(String::as_str).collect();
-    let batch = cosim::icarus::IcarusMultiBatch::new(design, &i, &o).expect("iverilog build");
-    let r = batch
-        .run(ins, outs, &stalled(seed, stall))
-        .expect("the batch runs")
-        .report;
-    eprint!("{what}: stall {stall:.2}: {r}");
-    assert!(r.passed(), "{what} stall {stall}:\n{r}");
+    let sim = MultiSim::Batch(design);
+    let (r, _) = run_multi(sim, ins, outs, &stalled(seed, stall), &[]).expect("the batch runs");
+    check_passed(&r, stall, what);
     r
+}
+
+/// Where a run goes: the stepped engine kept across a test's runs, or,
+/// without one, Icarus's multi-stream batch of `design`.
+pub fn sim_of<'a>(
+    engine: &'a mut Option<Box<dyn cosim::Engine>>,
+    design: &'a cosim::Design,
+) -> MultiSim<'a> {
+    match engine {
+        Some(e) => MultiSim::Stepped(e.as_mut()),
+        None => MultiSim::Batch(design),
+    }
 }

@@ -764,7 +764,7 @@ pub fn record_writer_small() -> Proof {
 pub const WRITER_SMALL_DETERMINED: u32 = 8;
 
 /// The labels of [`builder_contract`]'s promises.
-pub fn builder_contract_labels(max_lod: u8) -> Vec<String> {
+fn builder_contract_labels(max_lod: u8) -> Vec<String> {
     let mut v = Vec::new();
     for d in 0..=max_lod {
         v.push(format!("l{d}_index_counts_nodes"));

@@ -405,6 +405,29 @@ mod tests {
     }
 
     #[test]
+    fn trackers_are_declared_first_and_a_promise_of_one_check_is_under_its_define() {
+        let sv = units::record_writer_small().harness().unwrap();
+        let regs = sv.find("    reg [7:0] t_l0_nodes;").expect("declared");
+        let next = sv
+            .find("        t_l0_nodes <= rst ? 8'd0 : (")
+            .expect("zero in the reset cycle");
+        // Every tracker is declared before any is assigned (a `next` may
+        // read a later one).
+        assert!(regs < next && sv[..next].contains("reg [10:0] t_ended_crefs;"));
+        let promise = sv.find("a_top_has_nodes: assume(").unwrap();
+        let define = sv[..promise].rfind("`ifdef CHECK_DETERMINED\n").unwrap();
+        assert!(!sv[define..promise].contains("`endif"), "{sv}");
+        assert_eq!(sv.matches("a_top_has_nodes: assume(").count(), 1);
+        // A promise of every check is under no define.
+        let sv = units::store_port().harness().unwrap();
+        let promise = sv.find("a_store_answers_reads_taken").unwrap();
+        let opened = sv[..promise].matches("`ifdef").count();
+        assert_eq!(opened, sv[..promise].matches("`endif").count(), "{sv}");
+        let p = units::skid_buffer(8).tracker("none", 0, "1'b0");
+        assert!(p.harness().unwrap_err().contains("tracker `none`: width 0"));
+    }
+
+    #[test]
     fn a_depth_given_overrides_every_check() {
         let sby = units::skid_buffer(8).sby(&["skid_buffer_w8.v".into()], Some(3), 60);
         assert_eq!(sby.matches(": depth 3\n").count(), 3, "{sby}");

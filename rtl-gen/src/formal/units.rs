@@ -763,21 +763,6 @@ pub fn record_writer_small() -> Proof {
 /// holds its first records and references; step 8 alone took two minutes.
 pub const WRITER_SMALL_DETERMINED: u32 = 8;
 
-/// The labels of [`builder_contract`]'s promises.
-fn builder_contract_labels(max_lod: u8) -> Vec<String> {
-    let mut v = Vec::new();
-    for d in 0..=max_lod {
-        v.push(format!("l{d}_index_counts_nodes"));
-        v.push(format!("l{d}_records_count_records"));
-    }
-    v.push("top_has_nodes".into());
-    for d in 0..max_lod {
-        v.push(format!("l{d}_grouped_counts_l{}_nodes", d + 1));
-    }
-    v.push("crefs_are_created_counts".into());
-    v
-}
-
 /// The upper builder's contract with the record writer `pr` (built for `p`
 /// with `2^capacity_bits` words per buffer; SPEC 8.11, 8.12), as
 /// environment promises of its `determined` check only (its other checks
@@ -802,12 +787,7 @@ pub fn builder_contract(mut pr: Proof, p: &golden::params::Params, capacity_bits
     let lb = p.lod_bits();
     let count = bl.node.count();
     let zext = |e: &str, w: u32| format!("{{{}'d0, {e}}}", sum_w - w);
-    let labels = builder_contract_labels(p.max_lod);
-    let mut promises = labels.iter();
-    let mut promise = |pr: Proof, expr: String| {
-        let label = promises.next().expect("a label per promise");
-        pr.assume(label, &expr, &[Determined])
-    };
+    let promise = |pr: Proof, label: String, expr: String| pr.assume(&label, &expr, &[Determined]);
     for d in 0..=p.max_lod {
         let s = format!("level{d}");
         let f = |field: &golden::layout::Field| data(&s, field);
@@ -852,10 +832,12 @@ pub fn builder_contract(mut pr: Proof, p: &golden::params::Params, capacity_bits
         }
         pr = promise(
             pr,
+            format!("l{d}_index_counts_nodes"),
             format!("!{s}_valid || {} == {}", f(&bl.index), t("nodes")),
         );
         pr = promise(
             pr,
+            format!("l{d}_records_count_records"),
             format!("!{s}_valid || {} == {}", f(&bl.records), t("records")),
         );
     }
@@ -882,10 +864,15 @@ pub fn builder_contract(mut pr: Proof, p: &golden::params::Params, capacity_bits
     let top_nodes: String = (0..=p.max_lod)
         .map(|d| format!("dut.top == {} ? t_l{d}_ended_nodes : ", lod(d)))
         .collect();
-    pr = promise(pr, format!("{whole}({top_nodes}{i}'d0) != {i}'d0"));
+    pr = promise(
+        pr,
+        "top_has_nodes".into(),
+        format!("{whole}({top_nodes}{i}'d0) != {i}'d0"),
+    );
     for d in 0..p.max_lod {
         pr = promise(
             pr,
+            format!("l{d}_grouped_counts_l{}_nodes", d + 1),
             format!(
                 "{whole}dut.top > {} || t_l{d}_ended_grouped == {}",
                 lod(d),
@@ -898,6 +885,7 @@ pub fn builder_contract(mut pr: Proof, p: &golden::params::Params, capacity_bits
         .collect();
     promise(
         pr,
+        "crefs_are_created_counts".into(),
         format!("{whole}t_ended_crefs == {}", created.join(" + ")),
     )
 }

@@ -7,8 +7,9 @@
 //! a command while busy, one whose `End`s never leave, a writer that takes
 //! every `cfg` and a merger top idle while a merge runs (the emitted
 //! Verilog patched through `HIERMERGE_FORMAL_PATCH_FROM`/`_TO`) fail the
-//! check that should catch them, naming the property and the step. Under
-//! CI=true missing formal tools fail.
+//! check that should catch them, naming the property and the step; the
+//! record writer is not determined without each part of the upper
+//! builder's contract. Under CI=true missing formal tools fail.
 
 mod common;
 
@@ -219,6 +220,7 @@ fn the_small_record_writer_is_proven() {
         &[
             ("record_writer_small", "handshake", K, 4),
             ("record_writer_small", "flow", "bmc", 16),
+            ("record_writer_small", "determined", "bmc", 8),
             ("record_writer_small", "status", "bmc", 16),
         ],
     );
@@ -413,6 +415,59 @@ fn a_writer_that_takes_every_cfg_fails_its_flow_proof() {
         "flow",
         "p_header_per_cfg_",
     );
+}
+
+#[test]
+fn the_writer_is_not_determined_without_each_promise_of_the_builder() {
+    // Each part of the upper builder's contract left out in turn: a merge
+    // that breaks it makes the drain read a buffer word no beat wrote since
+    // reset, and the two copies disagree on what they write.
+    if !tools_present() {
+        return;
+    }
+    let tools = cosim::formal::formal_tools().unwrap();
+    let parts = [
+        "_index_counts_nodes",
+        "_records_count_records",
+        "top_has_nodes",
+        "_grouped_counts_",
+        "crefs_are_created_counts",
+    ];
+    for a in &rtl_gen::formal::units::record_writer_small().assumptions {
+        assert!(
+            parts.iter().any(|p| a.label.contains(p)),
+            "{} is in no part",
+            a.label
+        );
+    }
+    // Each counterexample ends by step 6: BMC 7 finds it in seconds (the
+    // proof's depth, 8, spends most of its time in its last step).
+    let depth = Some(7);
+    for part in parts {
+        let mut p = rtl_gen::formal::units::record_writer_small();
+        let before = p.assumptions.len();
+        p.assumptions.retain(|a| !a.label.contains(part));
+        assert!(p.assumptions.len() < before, "{part}");
+        let out = tempfile::tempdir().unwrap();
+        let folder = cosim::formal::prepare(&p, out.path(), depth, 300, None).unwrap();
+        let r = cosim::formal::run_check(
+            &tools,
+            "record_writer_small",
+            &p,
+            &folder,
+            rtl_gen::formal::Check::Determined,
+            depth,
+            300,
+        )
+        .unwrap();
+        eprintln!("without {part}: {r:?}");
+        assert_eq!(r.status, "FAIL", "without {part}: {r:?}");
+        assert!(
+            !r.failed.is_empty() && r.failed.iter().all(|f| f.ends_with("_determined")),
+            "without {part}: {r:?}"
+        );
+        assert!(r.step.is_some(), "a counterexample from reset: {r:?}");
+    }
 }
 
 #[test]

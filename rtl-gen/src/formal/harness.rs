@@ -145,13 +145,23 @@ pub(super) fn emit(p: &Proof) -> Result<String, String> {
     for (j, f) in p.flows.iter().enumerate() {
         flow(j, f, &nets, &mut used, &width_of, &mut body)?;
     }
-    for (label, e) in &p.assumptions {
-        writeln!(
-            body,
-            "    // The environment's promise `{label}` (assumed).\n    always @* if (!f_init) a_{label}: assume({});\n",
-            resolve(e, &nets, &mut used)?
-        )
-        .unwrap();
+    trackers(p, &nets, &mut used, &mut body)?;
+    for a in &p.assumptions {
+        let line = format!(
+            "    // The environment's promise `{}` (assumed).\n    always @* if (!f_init) a_{}: assume({});\n",
+            a.label,
+            a.label,
+            resolve(&a.expr, &nets, &mut used)?
+        );
+        if a.checks.is_empty() {
+            writeln!(body, "{line}").unwrap();
+        }
+        // One define per task: a promise of several checks is written
+        // under each.
+        for c in &a.checks {
+            let define = c.name().to_uppercase();
+            writeln!(body, "`ifdef CHECK_{define}\n{line}`endif\n").unwrap();
+        }
     }
     if let Some(s) = &p.status {
         status(p, s, &nets, &mut used, &mut body)?;
@@ -236,6 +246,39 @@ pub(super) fn emit(p: &Proof) -> Result<String, String> {
     s += &body;
     s += "endmodule\n\n`default_nettype wire\n";
     Ok(s)
+}
+
+/// The trackers: every register declared first, so a tracker's `next`
+/// may read any of them.
+fn trackers(
+    p: &Proof,
+    nets: &Nets,
+    used: &mut BTreeMap<String, u32>,
+    b: &mut String,
+) -> Result<(), String> {
+    if p.trackers.is_empty() {
+        return Ok(());
+    }
+    b.push_str(
+        "    // Environment-side state the promises read (not the design's): zero after reset.\n",
+    );
+    let mut next = String::new();
+    for t in &p.trackers {
+        if t.width == 0 {
+            return Err(format!("tracker `{}`: width 0", t.name));
+        }
+        writeln!(b, "    reg {}t_{};", range(t.width), t.name).unwrap();
+        writeln!(
+            next,
+            "        t_{} <= rst ? {}'d0 : ({});",
+            t.name,
+            t.width,
+            resolve(&t.next, nets, used)?
+        )
+        .unwrap();
+    }
+    writeln!(b, "    always @(posedge clk) begin\n{next}    end\n").unwrap();
+    Ok(())
 }
 
 fn reset_and_assumptions(p: &Proof, b: &mut String) {

@@ -159,6 +159,35 @@ pub struct Status {
     pub rules: Vec<(String, String)>,
 }
 
+/// A promise of the environment, assumed: SystemVerilog over ports,
+/// `dut.<net>`, the flows' counters (`f<j>_occ`) and the trackers
+/// (`t_<name>`), in every cycle after reset.
+#[derive(Clone, Debug)]
+pub struct Assumption {
+    /// Its label (an identifier): the harness names it `a_<label>`.
+    pub label: String,
+    /// The expression assumed true.
+    pub expr: String,
+    /// The checks that assume it; empty: every check. A promise only one
+    /// check needs is kept out of the others, which then hold for more
+    /// environments.
+    pub checks: Vec<Check>,
+}
+
+/// A register of the harness on the environment's side, for a promise that
+/// needs history (e.g. the nodes a stream has sent since its last `End`):
+/// zero in the reset cycle, then `next` each clock. It watches the ports
+/// (and may read `dut.<net>`); the design never sees it.
+#[derive(Clone, Debug)]
+pub struct Tracker {
+    /// Its name (an identifier): the harness declares `t_<name>`.
+    pub name: String,
+    /// Width in bits.
+    pub width: u32,
+    /// Its next value: SystemVerilog over what an [`Assumption`] reads.
+    pub next: String,
+}
+
 /// The properties of one module and how each check is run.
 pub struct Proof {
     /// The module, as `gen` emits it.
@@ -175,10 +204,11 @@ pub struct Proof {
     /// Invariants over internal nets, asserted in every check (so they are
     /// proven too) to make induction converge.
     pub invariants: Vec<(String, String)>,
-    /// What the environment promises beyond the input handshakes,
-    /// `(label, expression)` over ports and the flows' counters, assumed in
-    /// every check (e.g. a store answers only reads it has taken).
-    pub assumptions: Vec<(String, String)>,
+    /// What the environment promises beyond the input handshakes (e.g. a
+    /// store answers only reads it has taken).
+    pub assumptions: Vec<Assumption>,
+    /// Environment-side registers the promises read, in order.
+    pub trackers: Vec<Tracker>,
     /// The checks run: how, and to what depth (BMC depth, or k of
     /// k-induction).
     pub checks: Vec<(Check, Mode, u32)>,
@@ -197,6 +227,7 @@ impl Proof {
             status: None,
             invariants: Vec::new(),
             assumptions: Vec::new(),
+            trackers: Vec::new(),
             checks: Vec::new(),
             depth,
         }
@@ -217,6 +248,27 @@ impl Proof {
     /// Adds a flow.
     pub fn flow(mut self, flow: Flow) -> Proof {
         self.flows.push(flow);
+        self
+    }
+
+    /// Adds the environment's promise `label` (an identifier), assumed in
+    /// `checks` (empty: every check).
+    pub fn assume(mut self, label: &str, expr: &str, checks: &[Check]) -> Proof {
+        self.assumptions.push(Assumption {
+            label: label.to_string(),
+            expr: expr.to_string(),
+            checks: checks.to_vec(),
+        });
+        self
+    }
+
+    /// Adds the tracker `t_<name>` of `width` bits, `next` its next value.
+    pub fn tracker(mut self, name: &str, width: u32, next: &str) -> Proof {
+        self.trackers.push(Tracker {
+            name: name.to_string(),
+            width,
+            next: next.to_string(),
+        });
         self
     }
 
@@ -350,6 +402,29 @@ mod tests {
         });
         let e = p.harness().unwrap_err();
         assert!(e.contains("need `idle`"), "{e}");
+    }
+
+    #[test]
+    fn trackers_are_declared_first_and_a_promise_of_one_check_is_under_its_define() {
+        let sv = units::record_writer_small().harness().unwrap();
+        let regs = sv.find("    reg [7:0] t_l0_nodes;").expect("declared");
+        let next = sv
+            .find("        t_l0_nodes <= rst ? 8'd0 : (")
+            .expect("zero in the reset cycle");
+        // Every tracker is declared before any is assigned (a `next` may
+        // read a later one).
+        assert!(regs < next && sv[..next].contains("reg [10:0] t_ended_crefs;"));
+        let promise = sv.find("a_top_has_nodes: assume(").unwrap();
+        let define = sv[..promise].rfind("`ifdef CHECK_DETERMINED\n").unwrap();
+        assert!(!sv[define..promise].contains("`endif"), "{sv}");
+        assert_eq!(sv.matches("a_top_has_nodes: assume(").count(), 1);
+        // A promise of every check is under no define.
+        let sv = units::store_port().harness().unwrap();
+        let promise = sv.find("a_store_answers_reads_taken").unwrap();
+        let opened = sv[..promise].matches("`ifdef").count();
+        assert_eq!(opened, sv[..promise].matches("`endif").count(), "{sv}");
+        let p = units::skid_buffer(8).tracker("none", 0, "1'b0");
+        assert!(p.harness().unwrap_err().contains("tracker `none`: width 0"));
     }
 
     #[test]

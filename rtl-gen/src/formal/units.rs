@@ -543,10 +543,11 @@ pub fn store_port() -> Proof {
         capacity: 1 << c.tag_bits,
         occupancy: None,
     });
-    p.assumptions.push((
-        "store_answers_reads_taken".into(),
-        format!("!store_resp_valid || f{n}_occ != 0"),
-    ));
+    let mut p = p.assume(
+        "store_answers_reads_taken",
+        &format!("!store_resp_valid || f{n}_occ != 0"),
+        &[],
+    );
     p.status = Some(Status {
         idle: Some("idle".into()),
         busy: (0..n).collect(),
@@ -710,12 +711,11 @@ pub fn fetcher_per_node_small() -> Proof {
 /// merge's `cfg` may be taken while the header waits in its skid buffer:
 /// at most 3 outstanding); its status outputs as 8.12 says: the level,
 /// `done` and `crefs` streams are taken only while `filling`, and neither
-/// sequencer drains then. BMC (its buffers are memories), flow and status
-/// to 16. No `determined`: its two copies disagree (BMC 8, step 4) after a
-/// merge whose top level sends its `End` with no node before it and whose
-/// `done` has no error (the builder never sends that: its top holds the
-/// roots; the writer does not refuse it): the reference sequencer then
-/// reads the top's parent word 0, never written since reset.
+/// sequencer drains then; determined under the upper builder's contract
+/// ([`builder_contract`]), which the writer does not check: a merge that
+/// breaks it makes the drain read buffer words no beat wrote since reset.
+/// BMC (its buffers are memories): flow and status to 16, determined to
+/// [`WRITER_SMALL_DETERMINED`].
 pub fn record_writer_small() -> Proof {
     let p = small_params();
     let m = crate::merge::record_writer_unit(&p, 2).expect("a valid writer capacity");
@@ -751,9 +751,143 @@ pub fn record_writer_small() -> Proof {
         rules,
         ..Status::default()
     });
-    pr.check(Handshake, Induction)
+    builder_contract(pr, &p, 2)
+        .check(Handshake, Induction)
         .check_to(FlowCheck, Bmc, 16)
+        .check_to(Determined, Bmc, WRITER_SMALL_DETERMINED)
         .check_to(Check::Status, Bmc, 16)
+}
+
+/// The BMC depth of the small record writer's two-copy check: a merge of
+/// one node per level is whole at step 3 and drains from step 4, so 8
+/// holds its first records and references; step 8 alone took two minutes.
+pub const WRITER_SMALL_DETERMINED: u32 = 8;
+
+/// The upper builder's contract with the record writer `pr` (built for `p`
+/// with `2^capacity_bits` words per buffer; SPEC 8.11, 8.12), as
+/// environment promises of its `determined` check only (its other checks
+/// hold for any beats). Trackers count, per level, the nodes, records
+/// (grouped and created nodes) and the grouped and created nodes' `count`s
+/// since its last `End`, and hold them from that `End` on; and the `crefs`
+/// references before their `End`. Promised: each level beat's `index` and
+/// `records` are the nodes and records before it (an `End`'s, its level's);
+/// and once the writer has a whole merge (`fill_done`) whose `done` has no
+/// error, that its top level sent a node (the builder's top holds the
+/// roots), that each level's grouped nodes have as many references as the
+/// level below has nodes, and that the created nodes' references of the
+/// merge's levels are the `crefs` references. Which level is the top, the
+/// writer's `top` register says (`done`'s field).
+pub fn builder_contract(mut pr: Proof, p: &golden::params::Params, capacity_bits: u32) -> Proof {
+    use golden::merge::upper_builder::unit::level_out_kind as kind;
+    let wl = golden::merge::record_writer::WriterLayout::new(p, capacity_bits)
+        .expect("a valid writer capacity");
+    let bl = &wl.builder;
+    let i = p.index_bits as u32;
+    let sum_w = i + capacity_bits + 1;
+    let lb = p.lod_bits();
+    let count = bl.node.count();
+    let zext = |e: &str, w: u32| format!("{{{}'d0, {e}}}", sum_w - w);
+    let promise = |pr: Proof, label: String, expr: String| pr.assume(&label, &expr, &[Determined]);
+    for d in 0..=p.max_lod {
+        let s = format!("level{d}");
+        let f = |field: &golden::layout::Field| data(&s, field);
+        let fired = format!("({})", fire(&s));
+        let k = f(&bl.kind);
+        let end = format!("({k} == 2'd{})", kind::END);
+        let cnt = zext(
+            &data(
+                &s,
+                &golden::layout::Field::new("count", bl.rec.offset + count.offset, count.width),
+            ),
+            count.width,
+        );
+        let t = |n: &str| format!("t_l{d}_{n}");
+        let step =
+            |n: &str, add: String| format!("{fired} ? ({end} ? 0 : {} + {add}) : {}", t(n), t(n));
+        let of_kind = |code: u64| format!("({k} == 2'd{code} ? {cnt} : {sum_w}'d0)");
+        pr = pr
+            .tracker(&format!("l{d}_nodes"), i, &step("nodes", format!("{i}'d1")))
+            .tracker(
+                &format!("l{d}_records"),
+                i,
+                &step("records", format!("({k} != 2'd{})", kind::REUSED)),
+            )
+            .tracker(
+                &format!("l{d}_grouped"),
+                sum_w,
+                &step("grouped", of_kind(kind::GROUPED)),
+            )
+            .tracker(
+                &format!("l{d}_created"),
+                sum_w,
+                &step("created", of_kind(kind::CREATED)),
+            );
+        for (n, w) in [("nodes", i), ("grouped", sum_w), ("created", sum_w)] {
+            let ended = format!("ended_{n}");
+            pr = pr.tracker(
+                &format!("l{d}_{ended}"),
+                w,
+                &format!("{fired} && {end} ? {} : {}", t(n), t(&ended)),
+            );
+        }
+        pr = promise(
+            pr,
+            format!("l{d}_index_counts_nodes"),
+            format!("!{s}_valid || {} == {}", f(&bl.index), t("nodes")),
+        );
+        pr = promise(
+            pr,
+            format!("l{d}_records_count_records"),
+            format!("!{s}_valid || {} == {}", f(&bl.records), t("records")),
+        );
+    }
+    let crefs_end = data("crefs", &wl.cref_end);
+    pr = pr
+        .tracker(
+            "crefs",
+            sum_w,
+            &format!(
+                "({}) ? ({crefs_end} ? 0 : t_crefs + 1'b1) : t_crefs",
+                fire("crefs")
+            ),
+        )
+        .tracker(
+            "ended_crefs",
+            sum_w,
+            &format!(
+                "({}) && {crefs_end} ? t_crefs : t_ended_crefs",
+                fire("crefs")
+            ),
+        );
+    let whole = "!(dut.fill_done && !dut.done_err) || ";
+    let lod = |d: u8| format!("{lb}'d{d}");
+    let top_nodes: String = (0..=p.max_lod)
+        .map(|d| format!("dut.top == {} ? t_l{d}_ended_nodes : ", lod(d)))
+        .collect();
+    pr = promise(
+        pr,
+        "top_has_nodes".into(),
+        format!("{whole}({top_nodes}{i}'d0) != {i}'d0"),
+    );
+    for d in 0..p.max_lod {
+        pr = promise(
+            pr,
+            format!("l{d}_grouped_counts_l{}_nodes", d + 1),
+            format!(
+                "{whole}dut.top > {} || t_l{d}_ended_grouped == {}",
+                lod(d),
+                zext(&format!("t_l{}_ended_nodes", d + 1), i)
+            ),
+        );
+    }
+    let created: Vec<String> = (0..=p.max_lod)
+        .map(|d| format!("(dut.top > {} ? {sum_w}'d0 : t_l{d}_ended_created)", lod(d)))
+        .collect();
+    promise(
+        pr,
+        "crefs_are_created_counts".into(),
+        format!("{whole}t_ended_crefs == {}", created.join(" + ")),
+    )
 }
 
 /// The small merger configurations: [`small_params`], k = 2, 2 roots, a
@@ -859,7 +993,7 @@ pub fn hierarchy_merger_store_port() -> Proof {
         MergeMode::Overlap { num: 1, den: 2 },
         golden::merge::merger::store_port::StorePort::Shared { tag_bits: 1 },
     );
-    let mut p = merger_small_proof(&c, true).flow(Flow::Counted {
+    let p = merger_small_proof(&c, true).flow(Flow::Counted {
         name: "store_answered".into(),
         input: fire("store_req"),
         output: fire("store_resp"),
@@ -869,10 +1003,11 @@ pub fn hierarchy_merger_store_port() -> Proof {
     // `store_resp_ready` is high from a read's grant, before the store has
     // taken it from `store_req`'s skid buffer: a store answering a read it
     // never took would be taken as that read's answer.
-    p.assumptions.push((
-        "store_answers_reads_taken".into(),
-        "!store_resp_valid || f1_occ != 0".into(),
-    ));
+    let mut p = p.assume(
+        "store_answers_reads_taken",
+        "!store_resp_valid || f1_occ != 0",
+        &[],
+    );
     if let Some(s) = p.status.as_mut() {
         s.rules.push((
             "store_resp_taken_in_flight".into(),

@@ -238,7 +238,7 @@ impl Draw {
         c: &HierarchyUnitConfig,
         model: &mut TranslateModel,
     ) -> Result<HierarchyCase> {
-        let out_id = (9 % c.merger.design.params.hier_capacity()) as u8;
+        let out_id = golden::vectors::hard_merges::out_id(&c.merger.design.params);
         while let Some((store, table, ids)) = self.named.pop_front() {
             let case = case_of(&mut self.rng, c, model, (&store, &table, &ids), out_id)?;
             if !case.tx.header.leaf_overflow {

@@ -73,7 +73,7 @@ pub const CFG_ERRORS: [u64; 3] = [
 pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
     let p = &d.params;
     let k = d.inputs;
-    let out_id = (9 % p.hier_capacity()) as u8;
+    let out_id = out_id(p);
     let mut out = HardMerges::default();
     let mut cases = real_cases(p).map_err(golden_err)?;
     cases.push(several_roots(p)?);
@@ -123,6 +123,11 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
         out.merges.insert(1.min(out.merges.len()), tx);
     }
     Ok(out)
+}
+
+/// The merged hierarchy's id of every hard merge.
+pub fn out_id(p: &Params) -> u8 {
+    (9 % p.hier_capacity()) as u8
 }
 
 /// The named cases of [`hard_merges`] whose inputs are all valid, in its
@@ -284,7 +289,7 @@ fn cfg_error_merge(
     }
     let hs: Vec<&Hierarchy> = ids.iter().filter_map(|i| store.get(*i)).collect();
     let range = candidate_range(&hs);
-    let out_id = (9 % p.hier_capacity()) as u8;
+    let out_id = out_id(p);
     let Ok(mut tx) = merger_transaction_in_range(
         store,
         table,

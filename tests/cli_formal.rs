@@ -83,7 +83,13 @@ const K: &str = "k-induction";
 #[test]
 fn the_stream_primitives_are_proven() {
     assert_all_proven(
-        &["pipeline_reg", "skid_buffer", "fifo", "merge_priority"],
+        &[
+            "pipeline_reg",
+            "skid_buffer",
+            "fifo",
+            "drop_fifo",
+            "merge_priority",
+        ],
         &[],
         &[
             ("pipeline_reg", "handshake", K, 6),
@@ -95,6 +101,9 @@ fn the_stream_primitives_are_proven() {
             ("fifo", "handshake", K, 10),
             ("fifo", "flow", "bmc", 10),
             ("fifo", "determined", "bmc", 10),
+            ("drop_fifo", "handshake", K, 10),
+            ("drop_fifo", "flow", "bmc", 10),
+            ("drop_fifo", "determined", "bmc", 10),
             ("merge_priority", "handshake", K, 6),
             ("merge_priority", "flow", K, 6),
             ("merge_priority", "determined", K, 6),
@@ -291,6 +300,22 @@ fn a_fifo_that_reads_at_its_tail_fails_its_flow_proof() {
         "assign mem_out_data = mem[mem_tail];",
         "flow",
         "_f0_",
+    );
+}
+
+#[test]
+fn a_drop_fifo_that_keeps_a_push_while_full_fails_its_proof() {
+    // Every push kept: one while full overwrites the oldest word and moves
+    // the write pointer a lap ahead of the read pointer. The handshake
+    // check's producer is free to push while full.
+    let (line, _) =
+        common::emitted_assign(&rtl_gen::formal::units::drop_fifo(8, 2).module, "q_wr_put");
+    assert_broken_fails(
+        "drop_fifo",
+        &line,
+        "assign q_wr_put = in_valid;",
+        "handshake",
+        "within_depth",
     );
 }
 

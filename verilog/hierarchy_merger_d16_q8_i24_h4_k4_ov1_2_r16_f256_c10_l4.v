@@ -5,96 +5,96 @@
 module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     input  wire clk,                       // clock (implicit)
     input  wire rst,                       // synchronous reset, active high (implicit)
-    input  wire cfg_valid,                 // rtl-gen/src/merge/merger/mod.rs:265
-    input  wire [568:0] cfg_data,          // rtl-gen/src/merge/merger/mod.rs:265
-    output wire cfg_ready,                 // rtl-gen/src/merge/merger/mod.rs:265
+    input  wire cfg_valid,                 // rtl-gen/src/merge/merger/mod.rs:264
+    input  wire [568:0] cfg_data,          // rtl-gen/src/merge/merger/mod.rs:264
+    output wire cfg_ready,                 // rtl-gen/src/merge/merger/mod.rs:264
     input  wire report_ready,              // rtl-gen/src/merge/merger/level_mode.rs:123
     output wire report_valid,              // rtl-gen/src/merge/merger/level_mode.rs:131
     output wire [57:0] report_data,        // rtl-gen/src/merge/merger/level_mode.rs:132
-    input  wire f0_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [149:0] f0_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f0_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f0_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f0_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f0_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f0_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f0_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f0_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f0_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f0_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f0_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f0_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f0_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f0_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f0_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f0_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f0_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f1_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [149:0] f1_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f1_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f1_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f1_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f1_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f1_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f1_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f1_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f1_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f1_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f1_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f1_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f1_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f1_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f1_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f1_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f1_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f2_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [149:0] f2_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f2_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f2_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f2_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f2_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f2_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f2_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f2_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f2_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f2_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f2_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f2_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f2_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f2_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f2_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f2_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f2_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f3_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [149:0] f3_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f3_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f3_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f3_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f3_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f3_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f3_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f3_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f3_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f3_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f3_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f3_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f3_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f3_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f3_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f3_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f3_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire w_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] w_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:425
-    output wire w_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:425
-    output wire w_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [27:0] w_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire w_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:422
-    output wire nodes_valid,               // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [149:0] nodes_data,        // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire nodes_ready,               // rtl-gen/src/merge/merger/mod.rs:422
-    output wire refs_valid,                // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [27:0] refs_data,          // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire refs_ready,                // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f0_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [149:0] f0_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f0_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f0_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f0_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f0_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f0_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f0_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f0_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f0_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f0_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f0_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f0_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f0_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f0_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f0_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f0_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f0_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f1_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [149:0] f1_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f1_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f1_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f1_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f1_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f1_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f1_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f1_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f1_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f1_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f1_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f1_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f1_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f1_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f1_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f1_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f1_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f2_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [149:0] f2_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f2_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f2_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f2_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f2_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f2_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f2_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f2_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f2_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f2_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f2_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f2_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f2_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f2_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f2_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f2_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f2_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f3_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [149:0] f3_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f3_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f3_ref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f3_ref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f3_ref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f3_cref_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f3_cref_resp_data,  // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f3_cref_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f3_node_req_valid,         // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f3_node_req_data,   // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f3_node_req_ready,         // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f3_ref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f3_ref_req_data,    // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f3_ref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f3_cref_req_valid,         // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f3_cref_req_data,   // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f3_cref_req_ready,         // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire w_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] w_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:424
+    output wire w_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:424
+    output wire w_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [27:0] w_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire w_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:421
+    output wire nodes_valid,               // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [149:0] nodes_data,        // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire nodes_ready,               // rtl-gen/src/merge/merger/mod.rs:421
+    output wire refs_valid,                // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [27:0] refs_data,          // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire refs_ready,                // rtl-gen/src/merge/merger/mod.rs:421
     output wire w_filling,                 // rtl-gen/src/merge/merger/tail.rs:108
     output wire w_drain_records,           // rtl-gen/src/merge/merger/tail.rs:108
     output wire w_drain_refs,              // rtl-gen/src/merge/merger/tail.rs:108
@@ -109,215 +109,215 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     localparam [2:0] WAIT = 3'd2;            // rtl-gen/src/merge/merger/level_mode.rs:253
     localparam [2:0] FINAL = 3'd3;           // rtl-gen/src/merge/merger/level_mode.rs:203
     localparam [2:0] DONE = 3'd4;            // rtl-gen/src/merge/merger/level_mode.rs:203
-    reg [177:0] leaves0 [0:15];              // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [177:0] leaves1 [0:15];              // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [177:0] leaves2 [0:15];              // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [177:0] leaves3 [0:15];              // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [177:0] leaves4 [0:15];              // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [177:0] leaves5 [0:15];              // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [177:0] leaves6 [0:15];              // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [177:0] leaves7 [0:15];              // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [177:0] leaves8 [0:15];              // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [177:0] leaves9 [0:15];              // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [177:0] leaves10 [0:15];             // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [177:0] leaves11 [0:15];             // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [177:0] leaves12 [0:15];             // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [177:0] leaves13 [0:15];             // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [177:0] leaves14 [0:15];             // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [177:0] leaves15 [0:15];             // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    wire u_fetch0_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch0_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch0_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch0_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire [183:0] u_fetch0_out_data;          // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:252
-    wire [183:0] u_fetch0_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_idle;                      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch1_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch1_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch1_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire [183:0] u_fetch1_out_data;          // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:252
-    wire [183:0] u_fetch1_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_idle;                      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch2_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch2_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch2_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire [183:0] u_fetch2_out_data;          // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:252
-    wire [183:0] u_fetch2_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_idle;                      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch3_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch3_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch3_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire [183:0] u_fetch3_out_data;          // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:252
-    wire [183:0] u_fetch3_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_idle;                      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_module_in0_ready;                 // rtl-gen/src/merge/merger/mod.rs:254
-    wire u_module_in1_ready;                 // rtl-gen/src/merge/merger/mod.rs:254
-    wire u_module_in2_ready;                 // rtl-gen/src/merge/merger/mod.rs:254
-    wire u_module_in3_ready;                 // rtl-gen/src/merge/merger/mod.rs:254
-    wire u_module_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:254
-    wire u_module_report_valid;              // rtl-gen/src/merge/merger/mod.rs:254
-    wire [57:0] u_module_report_data;        // rtl-gen/src/merge/merger/mod.rs:254
-    wire u_module_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:254
-    wire [180:0] u_module_out_data;          // rtl-gen/src/merge/merger/mod.rs:254
-    wire u_module_idle;                      // rtl-gen/src/merge/merger/mod.rs:254
-    wire u_module_done;                      // rtl-gen/src/merge/merger/mod.rs:254
-    wire u_builder_base0_ready;              // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base1_ready;              // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base2_ready;              // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base3_ready;              // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base4_ready;              // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base5_ready;              // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base6_ready;              // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base7_ready;              // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base8_ready;              // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base9_ready;              // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base10_ready;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base11_ready;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base12_ready;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base13_ready;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base14_ready;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base15_ready;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base16_ready;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level16_valid;            // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level16_data;     // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level15_valid;            // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level15_data;     // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level14_valid;            // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level14_data;     // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level13_valid;            // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level13_data;     // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level12_valid;            // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level12_data;     // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level11_valid;            // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level11_data;     // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level10_valid;            // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level10_data;     // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level9_valid;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level9_data;      // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level8_valid;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level8_data;      // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level7_valid;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level7_data;      // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level6_valid;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level6_data;      // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level5_valid;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level5_data;      // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level4_valid;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level4_data;      // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level3_valid;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level3_data;      // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level2_valid;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level2_data;      // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level1_valid;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level1_data;      // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level0_valid;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level0_data;      // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_done_valid;               // rtl-gen/src/merge/merger/mod.rs:255
-    wire [5:0] u_builder_done_data;          // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_writer_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_done_ready;                // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_crefs_ready;               // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level0_ready;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level1_ready;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level2_ready;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level3_ready;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level4_ready;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level5_ready;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level6_ready;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level7_ready;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level8_ready;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level9_ready;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level10_ready;             // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level11_ready;             // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level12_ready;             // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level13_ready;             // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level14_ready;             // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level15_ready;             // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level16_ready;             // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_nodes_valid;               // rtl-gen/src/merge/merger/mod.rs:256
-    wire [149:0] u_writer_nodes_data;        // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_refs_valid;                // rtl-gen/src/merge/merger/mod.rs:256
-    wire [27:0] u_writer_refs_data;          // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:256
-    wire [27:0] u_writer_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_header_valid;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire [86:0] u_writer_header_data;        // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_filling;                   // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_drain_records;             // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_drain_refs;                // rtl-gen/src/merge/merger/mod.rs:256
-    reg dropping0;                           // rtl-gen/src/merge/merger/mod.rs:258
-    reg dropping1;                           // rtl-gen/src/merge/merger/mod.rs:258
-    reg dropping2;                           // rtl-gen/src/merge/merger/mod.rs:258
-    reg dropping3;                           // rtl-gen/src/merge/merger/mod.rs:258
-    wire header_fire;                        // rtl-gen/src/merge/merger/mod.rs:259
-    wire header_hold;                        // rtl-gen/src/merge/merger/mod.rs:260
-    reg header_open;                         // rtl-gen/src/merge/merger/mod.rs:261
-    wire commands_sent;                      // rtl-gen/src/merge/merger/mod.rs:262
-    reg module_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:263
-    reg writer_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:264
-    wire cfg_fire;                           // rtl-gen/src/merge/merger/mod.rs:266
-    reg busy;                                // rtl-gen/src/merge/merger/mod.rs:270
-    reg queued;                              // rtl-gen/src/merge/merger/mod.rs:271
-    wire queued_not;                         // rtl-gen/src/merge/merger/mod.rs:272
-    wire u_module_chosen;                    // rtl-gen/src/merge/merger/mod.rs:143
-    wire busy_and;                           // rtl-gen/src/merge/merger/mod.rs:284
-    wire busy_not;                           // rtl-gen/src/merge/merger/mod.rs:293
-    wire dropping0_not;                      // rtl-gen/src/merge/merger/mod.rs:302
-    wire busy_and_1;                         // rtl-gen/src/merge/merger/mod.rs:302
-    wire dropping1_not;                      // rtl-gen/src/merge/merger/mod.rs:302
-    wire dropping2_not;                      // rtl-gen/src/merge/merger/mod.rs:302
-    wire dropping3_not;                      // rtl-gen/src/merge/merger/mod.rs:302
-    wire quiet;                              // rtl-gen/src/merge/merger/mod.rs:302
-    reg [568:0] cfg_q;                       // rtl-gen/src/merge/merger/mod.rs:306
-    wire flags_hold;                         // rtl-gen/src/merge/merger/mod.rs:322
-    wire [2:0] cfg_data_count;               // rtl-gen/src/merge/merger/mod.rs:143
-    wire [2:0] cfg_q_count;                  // rtl-gen/src/merge/merger/mod.rs:143
-    wire [4:0] lo;                           // rtl-gen/src/merge/merger/mod.rs:143
-    wire [4:0] hi;                           // rtl-gen/src/merge/merger/mod.rs:143
-    wire [3:0] cfg_q_out_id;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire [4:0] cfg_data_lo;                  // rtl-gen/src/merge/merger/mod.rs:143
-    wire [4:0] cfg_data_hi;                  // rtl-gen/src/merge/merger/mod.rs:143
-    wire count_pass;                         // rtl-gen/src/merge/merger/mod.rs:156
+    reg [177:0] leaves0 [0:15];              // rtl-gen/src/drop_fifo.rs:56
+    reg [177:0] leaves1 [0:15];              // rtl-gen/src/drop_fifo.rs:56
+    reg [177:0] leaves2 [0:15];              // rtl-gen/src/drop_fifo.rs:56
+    reg [177:0] leaves3 [0:15];              // rtl-gen/src/drop_fifo.rs:56
+    reg [177:0] leaves4 [0:15];              // rtl-gen/src/drop_fifo.rs:56
+    reg [177:0] leaves5 [0:15];              // rtl-gen/src/drop_fifo.rs:56
+    reg [177:0] leaves6 [0:15];              // rtl-gen/src/drop_fifo.rs:56
+    reg [177:0] leaves7 [0:15];              // rtl-gen/src/drop_fifo.rs:56
+    reg [177:0] leaves8 [0:15];              // rtl-gen/src/drop_fifo.rs:56
+    reg [177:0] leaves9 [0:15];              // rtl-gen/src/drop_fifo.rs:56
+    reg [177:0] leaves10 [0:15];             // rtl-gen/src/drop_fifo.rs:56
+    reg [177:0] leaves11 [0:15];             // rtl-gen/src/drop_fifo.rs:56
+    reg [177:0] leaves12 [0:15];             // rtl-gen/src/drop_fifo.rs:56
+    reg [177:0] leaves13 [0:15];             // rtl-gen/src/drop_fifo.rs:56
+    reg [177:0] leaves14 [0:15];             // rtl-gen/src/drop_fifo.rs:56
+    reg [177:0] leaves15 [0:15];             // rtl-gen/src/drop_fifo.rs:56
+    wire u_fetch0_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch0_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch0_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch0_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire [183:0] u_fetch0_out_data;          // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:251
+    wire [183:0] u_fetch0_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_idle;                      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch1_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch1_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch1_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire [183:0] u_fetch1_out_data;          // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:251
+    wire [183:0] u_fetch1_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_idle;                      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch2_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch2_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch2_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire [183:0] u_fetch2_out_data;          // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:251
+    wire [183:0] u_fetch2_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_idle;                      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch3_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch3_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch3_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire [183:0] u_fetch3_out_data;          // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:251
+    wire [183:0] u_fetch3_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_idle;                      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_module_in0_ready;                 // rtl-gen/src/merge/merger/mod.rs:253
+    wire u_module_in1_ready;                 // rtl-gen/src/merge/merger/mod.rs:253
+    wire u_module_in2_ready;                 // rtl-gen/src/merge/merger/mod.rs:253
+    wire u_module_in3_ready;                 // rtl-gen/src/merge/merger/mod.rs:253
+    wire u_module_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:253
+    wire u_module_report_valid;              // rtl-gen/src/merge/merger/mod.rs:253
+    wire [57:0] u_module_report_data;        // rtl-gen/src/merge/merger/mod.rs:253
+    wire u_module_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:253
+    wire [180:0] u_module_out_data;          // rtl-gen/src/merge/merger/mod.rs:253
+    wire u_module_idle;                      // rtl-gen/src/merge/merger/mod.rs:253
+    wire u_module_done;                      // rtl-gen/src/merge/merger/mod.rs:253
+    wire u_builder_base0_ready;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base1_ready;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base2_ready;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base3_ready;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base4_ready;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base5_ready;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base6_ready;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base7_ready;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base8_ready;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base9_ready;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base10_ready;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base11_ready;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base12_ready;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base13_ready;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base14_ready;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base15_ready;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base16_ready;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level16_valid;            // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level16_data;     // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level15_valid;            // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level15_data;     // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level14_valid;            // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level14_data;     // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level13_valid;            // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level13_data;     // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level12_valid;            // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level12_data;     // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level11_valid;            // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level11_data;     // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level10_valid;            // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level10_data;     // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level9_valid;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level9_data;      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level8_valid;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level8_data;      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level7_valid;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level7_data;      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level6_valid;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level6_data;      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level5_valid;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level5_data;      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level4_valid;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level4_data;      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level3_valid;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level3_data;      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level2_valid;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level2_data;      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level1_valid;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level1_data;      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level0_valid;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level0_data;      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_done_valid;               // rtl-gen/src/merge/merger/mod.rs:254
+    wire [5:0] u_builder_done_data;          // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_writer_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_done_ready;                // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_crefs_ready;               // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level0_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level1_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level2_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level3_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level4_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level5_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level6_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level7_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level8_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level9_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level10_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level11_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level12_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level13_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level14_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level15_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level16_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_nodes_valid;               // rtl-gen/src/merge/merger/mod.rs:255
+    wire [149:0] u_writer_nodes_data;        // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_refs_valid;                // rtl-gen/src/merge/merger/mod.rs:255
+    wire [27:0] u_writer_refs_data;          // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [27:0] u_writer_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_header_valid;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire [86:0] u_writer_header_data;        // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_filling;                   // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_drain_records;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_drain_refs;                // rtl-gen/src/merge/merger/mod.rs:255
+    reg dropping0;                           // rtl-gen/src/merge/merger/mod.rs:257
+    reg dropping1;                           // rtl-gen/src/merge/merger/mod.rs:257
+    reg dropping2;                           // rtl-gen/src/merge/merger/mod.rs:257
+    reg dropping3;                           // rtl-gen/src/merge/merger/mod.rs:257
+    wire header_fire;                        // rtl-gen/src/merge/merger/mod.rs:258
+    wire header_hold;                        // rtl-gen/src/merge/merger/mod.rs:259
+    reg header_open;                         // rtl-gen/src/merge/merger/mod.rs:260
+    wire commands_sent;                      // rtl-gen/src/merge/merger/mod.rs:261
+    reg module_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:262
+    reg writer_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:263
+    wire cfg_fire;                           // rtl-gen/src/merge/merger/mod.rs:265
+    reg busy;                                // rtl-gen/src/merge/merger/mod.rs:269
+    reg queued;                              // rtl-gen/src/merge/merger/mod.rs:270
+    wire queued_not;                         // rtl-gen/src/merge/merger/mod.rs:271
+    wire u_module_chosen;                    // rtl-gen/src/merge/merger/mod.rs:142
+    wire busy_and;                           // rtl-gen/src/merge/merger/mod.rs:283
+    wire busy_not;                           // rtl-gen/src/merge/merger/mod.rs:292
+    wire dropping0_not;                      // rtl-gen/src/merge/merger/mod.rs:301
+    wire busy_and_1;                         // rtl-gen/src/merge/merger/mod.rs:301
+    wire dropping1_not;                      // rtl-gen/src/merge/merger/mod.rs:301
+    wire dropping2_not;                      // rtl-gen/src/merge/merger/mod.rs:301
+    wire dropping3_not;                      // rtl-gen/src/merge/merger/mod.rs:301
+    wire quiet;                              // rtl-gen/src/merge/merger/mod.rs:301
+    reg [568:0] cfg_q;                       // rtl-gen/src/merge/merger/mod.rs:305
+    wire flags_hold;                         // rtl-gen/src/merge/merger/mod.rs:321
+    wire [2:0] cfg_data_count;               // rtl-gen/src/merge/merger/mod.rs:142
+    wire [2:0] cfg_q_count;                  // rtl-gen/src/merge/merger/mod.rs:142
+    wire [4:0] lo;                           // rtl-gen/src/merge/merger/mod.rs:142
+    wire [4:0] hi;                           // rtl-gen/src/merge/merger/mod.rs:142
+    wire [3:0] cfg_q_out_id;                 // rtl-gen/src/merge/merger/mod.rs:142
+    wire [4:0] cfg_data_lo;                  // rtl-gen/src/merge/merger/mod.rs:142
+    wire [4:0] cfg_data_hi;                  // rtl-gen/src/merge/merger/mod.rs:142
+    wire count_pass;                         // rtl-gen/src/merge/merger/mod.rs:155
     wire used0;                              // rtl-gen/src/merge/merger/level_mode.rs:50
     wire used1;                              // rtl-gen/src/merge/merger/level_mode.rs:50
     wire used2;                              // rtl-gen/src/merge/merger/level_mode.rs:50
@@ -330,8 +330,8 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     reg choice_known;                        // rtl-gen/src/merge/merger/level_mode.rs:135
     reg choice_ok;                           // rtl-gen/src/merge/merger/level_mode.rs:136
     reg [4:0] merge_lod;                     // rtl-gen/src/merge/merger/level_mode.rs:137
-    wire [1:0] u_module_err;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire [4:0] u_module_lod;                 // rtl-gen/src/merge/merger/mod.rs:143
+    wire [1:0] u_module_err;                 // rtl-gen/src/merge/merger/mod.rs:142
+    wire [4:0] u_module_lod;                 // rtl-gen/src/merge/merger/mod.rs:142
     wire merging;                            // rtl-gen/src/merge/merger/level_mode.rs:141
     reg [3:0] fetch_err;                     // rtl-gen/src/merge/merger/level_mode.rs:186
     reg [1:0] fetch_rank;                    // rtl-gen/src/merge/merger/level_mode.rs:187
@@ -348,8 +348,8 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire issuing0;                           // rtl-gen/src/merge/merger/level_mode.rs:225
     wire used0_and;                          // rtl-gen/src/merge/merger/level_mode.rs:226
     wire used0_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:228
-    wire [3:0] u_fetch0_err;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire [1:0] u_fetch0_kind;                // rtl-gen/src/merge/merger/mod.rs:143
+    wire [3:0] u_fetch0_err;                 // rtl-gen/src/merge/merger/mod.rs:142
+    wire [1:0] u_fetch0_kind;                // rtl-gen/src/merge/merger/mod.rs:142
     wire used0_not;                          // rtl-gen/src/merge/merger/level_mode.rs:238
     wire virtual_end0;                       // rtl-gen/src/merge/merger/level_mode.rs:238
     wire dropping0_or;                       // rtl-gen/src/merge/merger/level_mode.rs:242
@@ -360,9 +360,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire step0;                              // rtl-gen/src/merge/merger/level_mode.rs:250
     wire choice_known_or;                    // rtl-gen/src/merge/merger/level_mode.rs:262
     wire [2:0] count_pass_mux;               // rtl-gen/src/merge/merger/level_mode.rs:264
-    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
-    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:419
-    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
+    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
+    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:418
+    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
     reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:194
     reg [2:0] phase1;                        // rtl-gen/src/merge/merger/level_mode.rs:201
     reg [4:0] cmd_lod1;                      // rtl-gen/src/merge/merger/level_mode.rs:206
@@ -373,8 +373,8 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire issuing1;                           // rtl-gen/src/merge/merger/level_mode.rs:225
     wire used1_and;                          // rtl-gen/src/merge/merger/level_mode.rs:226
     wire used1_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:228
-    wire [3:0] u_fetch1_err;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire [1:0] u_fetch1_kind;                // rtl-gen/src/merge/merger/mod.rs:143
+    wire [3:0] u_fetch1_err;                 // rtl-gen/src/merge/merger/mod.rs:142
+    wire [1:0] u_fetch1_kind;                // rtl-gen/src/merge/merger/mod.rs:142
     wire used1_not;                          // rtl-gen/src/merge/merger/level_mode.rs:238
     wire virtual_end1;                       // rtl-gen/src/merge/merger/level_mode.rs:238
     wire dropping1_or;                       // rtl-gen/src/merge/merger/level_mode.rs:242
@@ -382,9 +382,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:245
     wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:246
     wire step1;                              // rtl-gen/src/merge/merger/level_mode.rs:250
-    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
-    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:419
-    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
+    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
+    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:418
+    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
     reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:194
     reg [2:0] phase2;                        // rtl-gen/src/merge/merger/level_mode.rs:201
     reg [4:0] cmd_lod2;                      // rtl-gen/src/merge/merger/level_mode.rs:206
@@ -395,8 +395,8 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire issuing2;                           // rtl-gen/src/merge/merger/level_mode.rs:225
     wire used2_and;                          // rtl-gen/src/merge/merger/level_mode.rs:226
     wire used2_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:228
-    wire [3:0] u_fetch2_err;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire [1:0] u_fetch2_kind;                // rtl-gen/src/merge/merger/mod.rs:143
+    wire [3:0] u_fetch2_err;                 // rtl-gen/src/merge/merger/mod.rs:142
+    wire [1:0] u_fetch2_kind;                // rtl-gen/src/merge/merger/mod.rs:142
     wire used2_not;                          // rtl-gen/src/merge/merger/level_mode.rs:238
     wire virtual_end2;                       // rtl-gen/src/merge/merger/level_mode.rs:238
     wire dropping2_or;                       // rtl-gen/src/merge/merger/level_mode.rs:242
@@ -404,9 +404,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:245
     wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:246
     wire step2;                              // rtl-gen/src/merge/merger/level_mode.rs:250
-    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
-    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:419
-    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
+    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
+    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:418
+    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
     reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:194
     reg [2:0] phase3;                        // rtl-gen/src/merge/merger/level_mode.rs:201
     reg [4:0] cmd_lod3;                      // rtl-gen/src/merge/merger/level_mode.rs:206
@@ -417,39 +417,39 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire issuing3;                           // rtl-gen/src/merge/merger/level_mode.rs:225
     wire used3_and;                          // rtl-gen/src/merge/merger/level_mode.rs:226
     wire used3_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:228
-    wire [3:0] u_fetch3_err;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire [1:0] u_fetch3_kind;                // rtl-gen/src/merge/merger/mod.rs:143
+    wire [3:0] u_fetch3_err;                 // rtl-gen/src/merge/merger/mod.rs:142
+    wire [1:0] u_fetch3_kind;                // rtl-gen/src/merge/merger/mod.rs:142
     wire used3_not;                          // rtl-gen/src/merge/merger/level_mode.rs:238
     wire virtual_end3;                       // rtl-gen/src/merge/merger/level_mode.rs:238
     wire dropping3_or;                       // rtl-gen/src/merge/merger/level_mode.rs:242
     wire u_fetch3_and;                       // rtl-gen/src/merge/merger/level_mode.rs:243
     wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:245
     wire step3;                              // rtl-gen/src/merge/merger/level_mode.rs:250
-    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
-    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:419
-    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
-    reg [3:0] fetch_err_header;              // rtl-gen/src/merge/merger/mod.rs:230
-    reg [1:0] fetch_rank_header;             // rtl-gen/src/merge/merger/mod.rs:230
+    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
+    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:418
+    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
+    reg [3:0] fetch_err_header;              // rtl-gen/src/merge/merger/mod.rs:229
+    reg [1:0] fetch_rank_header;             // rtl-gen/src/merge/merger/mod.rs:229
     reg leaves_done;                         // rtl-gen/src/merge/merger/leaf_merge.rs:46
     wire leaves_active;                      // rtl-gen/src/merge/merger/leaf_merge.rs:47
-    wire u_fetch0_end;                       // rtl-gen/src/merge/merger/mod.rs:143
+    wire u_fetch0_end;                       // rtl-gen/src/merge/merger/mod.rs:142
     wire used0_or;                           // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire [4:0] u_fetch0_lod;                 // rtl-gen/src/merge/merger/mod.rs:143
+    wire [4:0] u_fetch0_lod;                 // rtl-gen/src/merge/merger/mod.rs:142
     wire [47:0] u_fetch0_rec_x_morton;       // rtl-gen/src/merge/network.rs:41
     wire [53:0] leaf_key0;                   // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire u_fetch1_end;                       // rtl-gen/src/merge/merger/mod.rs:143
+    wire u_fetch1_end;                       // rtl-gen/src/merge/merger/mod.rs:142
     wire used1_or;                           // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire [4:0] u_fetch1_lod;                 // rtl-gen/src/merge/merger/mod.rs:143
+    wire [4:0] u_fetch1_lod;                 // rtl-gen/src/merge/merger/mod.rs:142
     wire [47:0] u_fetch1_rec_x_morton;       // rtl-gen/src/merge/network.rs:41
     wire [53:0] leaf_key1;                   // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire u_fetch2_end;                       // rtl-gen/src/merge/merger/mod.rs:143
+    wire u_fetch2_end;                       // rtl-gen/src/merge/merger/mod.rs:142
     wire used2_or;                           // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire [4:0] u_fetch2_lod;                 // rtl-gen/src/merge/merger/mod.rs:143
+    wire [4:0] u_fetch2_lod;                 // rtl-gen/src/merge/merger/mod.rs:142
     wire [47:0] u_fetch2_rec_x_morton;       // rtl-gen/src/merge/network.rs:41
     wire [53:0] leaf_key2;                   // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire u_fetch3_end;                       // rtl-gen/src/merge/merger/mod.rs:143
+    wire u_fetch3_end;                       // rtl-gen/src/merge/merger/mod.rs:142
     wire used3_or;                           // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire [4:0] u_fetch3_lod;                 // rtl-gen/src/merge/merger/mod.rs:143
+    wire [4:0] u_fetch3_lod;                 // rtl-gen/src/merge/merger/mod.rs:142
     wire [47:0] u_fetch3_rec_x_morton;       // rtl-gen/src/merge/network.rs:41
     wire [53:0] leaf_key3;                   // rtl-gen/src/merge/merger/leaf_merge.rs:57
     wire leaves_all_valid;                   // rtl-gen/src/merge/merger/leaf_merge.rs:59
@@ -461,13 +461,13 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire [182:0] leaf_best_data;             // rtl-gen/src/merge/merger/leaf_merge.rs:75
     wire [1:0] leaf_best;                    // rtl-gen/src/merge/merger/leaf_merge.rs:76
     wire leaf_take;                          // rtl-gen/src/merge/merger/leaf_merge.rs:80
-    wire [4:0] leaf_best_data_lod;           // rtl-gen/src/merge/merger/mod.rs:143
-    wire [1:0] u_module_kind;                // rtl-gen/src/merge/merger/mod.rs:143
+    wire [4:0] leaf_best_data_lod;           // rtl-gen/src/merge/merger/mod.rs:142
+    wire [1:0] u_module_kind;                // rtl-gen/src/merge/merger/mod.rs:142
     wire out_is_ref;                         // rtl-gen/src/merge/merger/level_mode.rs:329
     wire out_is_end;                         // rtl-gen/src/merge/merger/level_mode.rs:330
-    wire u_module_err_1;                     // rtl-gen/src/merge/merger/mod.rs:143
-    wire [27:0] u_module_ref;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire [149:0] u_module_rec;               // rtl-gen/src/merge/merger/mod.rs:143
+    wire u_module_err_1;                     // rtl-gen/src/merge/merger/mod.rs:142
+    wire [27:0] u_module_ref;                // rtl-gen/src/merge/merger/mod.rs:142
+    wire [149:0] u_module_rec;               // rtl-gen/src/merge/merger/mod.rs:142
     wire [179:0] u_module_kind_cat;          // rtl-gen/src/merge/merger/level_mode.rs:333
     reg crefs_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:344
     wire choice_ok_not;                      // rtl-gen/src/merge/merger/level_mode.rs:346
@@ -476,16 +476,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     reg leaf_overflow_q;                     // rtl-gen/src/merge/merger/level_mode.rs:369
     reg base0_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:374
     wire base0_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:376
-    reg [4:0] leaves0_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] leaves0_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves0_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves0_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] leaves0_wr;                    // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] leaves0_rd;                    // rtl-gen/src/drop_fifo.rs:58
+    wire leaves0_empty;                      // rtl-gen/src/drop_fifo.rs:59
+    wire leaves0_full;                       // rtl-gen/src/drop_fifo.rs:60
     wire leaves0_push;                       // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire leaves0_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire [177:0] leaves0_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire leaves0_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
+    wire [177:0] leaves0_rd_1;               // rtl-gen/src/drop_fifo.rs:95
     wire base0_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire [149:0] leaves0_rec;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire [27:0] leaves0_ref;                 // rtl-gen/src/merge/merger/mod.rs:143
+    wire [149:0] leaves0_rec;                // rtl-gen/src/merge/merger/mod.rs:142
+    wire [27:0] leaves0_ref;                 // rtl-gen/src/merge/merger/mod.rs:142
     wire leaves0_end;                        // rtl-gen/src/merge/merger/level_mode.rs:395
     wire leaves0_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:396
     wire leaves0_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:396
@@ -497,16 +497,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves0_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:403
     reg base1_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:374
     wire base1_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:376
-    reg [4:0] leaves1_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] leaves1_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves1_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves1_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] leaves1_wr;                    // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] leaves1_rd;                    // rtl-gen/src/drop_fifo.rs:58
+    wire leaves1_empty;                      // rtl-gen/src/drop_fifo.rs:59
+    wire leaves1_full;                       // rtl-gen/src/drop_fifo.rs:60
     wire leaves1_push;                       // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire leaves1_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire [177:0] leaves1_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire leaves1_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
+    wire [177:0] leaves1_rd_1;               // rtl-gen/src/drop_fifo.rs:95
     wire base1_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire [149:0] leaves1_rec;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire [27:0] leaves1_ref;                 // rtl-gen/src/merge/merger/mod.rs:143
+    wire [149:0] leaves1_rec;                // rtl-gen/src/merge/merger/mod.rs:142
+    wire [27:0] leaves1_ref;                 // rtl-gen/src/merge/merger/mod.rs:142
     wire leaves1_end;                        // rtl-gen/src/merge/merger/level_mode.rs:395
     wire leaves1_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:396
     wire leaves1_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:396
@@ -517,16 +517,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves1_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:403
     reg base2_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:374
     wire base2_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:376
-    reg [4:0] leaves2_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] leaves2_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves2_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves2_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] leaves2_wr;                    // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] leaves2_rd;                    // rtl-gen/src/drop_fifo.rs:58
+    wire leaves2_empty;                      // rtl-gen/src/drop_fifo.rs:59
+    wire leaves2_full;                       // rtl-gen/src/drop_fifo.rs:60
     wire leaves2_push;                       // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire leaves2_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire [177:0] leaves2_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire leaves2_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
+    wire [177:0] leaves2_rd_1;               // rtl-gen/src/drop_fifo.rs:95
     wire base2_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire [149:0] leaves2_rec;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire [27:0] leaves2_ref;                 // rtl-gen/src/merge/merger/mod.rs:143
+    wire [149:0] leaves2_rec;                // rtl-gen/src/merge/merger/mod.rs:142
+    wire [27:0] leaves2_ref;                 // rtl-gen/src/merge/merger/mod.rs:142
     wire leaves2_end;                        // rtl-gen/src/merge/merger/level_mode.rs:395
     wire leaves2_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:396
     wire leaves2_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:396
@@ -538,16 +538,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire base2_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:416
     reg base3_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:374
     wire base3_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:376
-    reg [4:0] leaves3_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] leaves3_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves3_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves3_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] leaves3_wr;                    // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] leaves3_rd;                    // rtl-gen/src/drop_fifo.rs:58
+    wire leaves3_empty;                      // rtl-gen/src/drop_fifo.rs:59
+    wire leaves3_full;                       // rtl-gen/src/drop_fifo.rs:60
     wire leaves3_push;                       // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire leaves3_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire [177:0] leaves3_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire leaves3_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
+    wire [177:0] leaves3_rd_1;               // rtl-gen/src/drop_fifo.rs:95
     wire base3_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire [149:0] leaves3_rec;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire [27:0] leaves3_ref;                 // rtl-gen/src/merge/merger/mod.rs:143
+    wire [149:0] leaves3_rec;                // rtl-gen/src/merge/merger/mod.rs:142
+    wire [27:0] leaves3_ref;                 // rtl-gen/src/merge/merger/mod.rs:142
     wire leaves3_end;                        // rtl-gen/src/merge/merger/level_mode.rs:395
     wire leaves3_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:396
     wire leaves3_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:396
@@ -559,16 +559,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire base3_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:417
     reg base4_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:374
     wire base4_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:376
-    reg [4:0] leaves4_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] leaves4_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves4_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves4_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] leaves4_wr;                    // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] leaves4_rd;                    // rtl-gen/src/drop_fifo.rs:58
+    wire leaves4_empty;                      // rtl-gen/src/drop_fifo.rs:59
+    wire leaves4_full;                       // rtl-gen/src/drop_fifo.rs:60
     wire leaves4_push;                       // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire leaves4_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire [177:0] leaves4_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire leaves4_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
+    wire [177:0] leaves4_rd_1;               // rtl-gen/src/drop_fifo.rs:95
     wire base4_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire [149:0] leaves4_rec;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire [27:0] leaves4_ref;                 // rtl-gen/src/merge/merger/mod.rs:143
+    wire [149:0] leaves4_rec;                // rtl-gen/src/merge/merger/mod.rs:142
+    wire [27:0] leaves4_ref;                 // rtl-gen/src/merge/merger/mod.rs:142
     wire leaves4_end;                        // rtl-gen/src/merge/merger/level_mode.rs:395
     wire leaves4_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:396
     wire leaves4_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:396
@@ -579,16 +579,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves4_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:403
     reg base5_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:374
     wire base5_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:376
-    reg [4:0] leaves5_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] leaves5_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves5_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves5_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] leaves5_wr;                    // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] leaves5_rd;                    // rtl-gen/src/drop_fifo.rs:58
+    wire leaves5_empty;                      // rtl-gen/src/drop_fifo.rs:59
+    wire leaves5_full;                       // rtl-gen/src/drop_fifo.rs:60
     wire leaves5_push;                       // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire leaves5_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire [177:0] leaves5_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire leaves5_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
+    wire [177:0] leaves5_rd_1;               // rtl-gen/src/drop_fifo.rs:95
     wire base5_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire [149:0] leaves5_rec;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire [27:0] leaves5_ref;                 // rtl-gen/src/merge/merger/mod.rs:143
+    wire [149:0] leaves5_rec;                // rtl-gen/src/merge/merger/mod.rs:142
+    wire [27:0] leaves5_ref;                 // rtl-gen/src/merge/merger/mod.rs:142
     wire leaves5_end;                        // rtl-gen/src/merge/merger/level_mode.rs:395
     wire leaves5_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:396
     wire leaves5_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:396
@@ -600,16 +600,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire base5_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:416
     reg base6_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:374
     wire base6_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:376
-    reg [4:0] leaves6_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] leaves6_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves6_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves6_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] leaves6_wr;                    // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] leaves6_rd;                    // rtl-gen/src/drop_fifo.rs:58
+    wire leaves6_empty;                      // rtl-gen/src/drop_fifo.rs:59
+    wire leaves6_full;                       // rtl-gen/src/drop_fifo.rs:60
     wire leaves6_push;                       // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire leaves6_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire [177:0] leaves6_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire leaves6_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
+    wire [177:0] leaves6_rd_1;               // rtl-gen/src/drop_fifo.rs:95
     wire base6_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire [149:0] leaves6_rec;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire [27:0] leaves6_ref;                 // rtl-gen/src/merge/merger/mod.rs:143
+    wire [149:0] leaves6_rec;                // rtl-gen/src/merge/merger/mod.rs:142
+    wire [27:0] leaves6_ref;                 // rtl-gen/src/merge/merger/mod.rs:142
     wire leaves6_end;                        // rtl-gen/src/merge/merger/level_mode.rs:395
     wire leaves6_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:396
     wire leaves6_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:396
@@ -620,16 +620,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves6_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:403
     reg base7_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:374
     wire base7_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:376
-    reg [4:0] leaves7_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] leaves7_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves7_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves7_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] leaves7_wr;                    // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] leaves7_rd;                    // rtl-gen/src/drop_fifo.rs:58
+    wire leaves7_empty;                      // rtl-gen/src/drop_fifo.rs:59
+    wire leaves7_full;                       // rtl-gen/src/drop_fifo.rs:60
     wire leaves7_push;                       // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire leaves7_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire [177:0] leaves7_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire leaves7_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
+    wire [177:0] leaves7_rd_1;               // rtl-gen/src/drop_fifo.rs:95
     wire base7_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire [149:0] leaves7_rec;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire [27:0] leaves7_ref;                 // rtl-gen/src/merge/merger/mod.rs:143
+    wire [149:0] leaves7_rec;                // rtl-gen/src/merge/merger/mod.rs:142
+    wire [27:0] leaves7_ref;                 // rtl-gen/src/merge/merger/mod.rs:142
     wire leaves7_end;                        // rtl-gen/src/merge/merger/level_mode.rs:395
     wire leaves7_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:396
     wire leaves7_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:396
@@ -641,16 +641,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire base7_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:417
     reg base8_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:374
     wire base8_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:376
-    reg [4:0] leaves8_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] leaves8_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves8_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves8_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] leaves8_wr;                    // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] leaves8_rd;                    // rtl-gen/src/drop_fifo.rs:58
+    wire leaves8_empty;                      // rtl-gen/src/drop_fifo.rs:59
+    wire leaves8_full;                       // rtl-gen/src/drop_fifo.rs:60
     wire leaves8_push;                       // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire leaves8_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire [177:0] leaves8_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire leaves8_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
+    wire [177:0] leaves8_rd_1;               // rtl-gen/src/drop_fifo.rs:95
     wire base8_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire [149:0] leaves8_rec;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire [27:0] leaves8_ref;                 // rtl-gen/src/merge/merger/mod.rs:143
+    wire [149:0] leaves8_rec;                // rtl-gen/src/merge/merger/mod.rs:142
+    wire [27:0] leaves8_ref;                 // rtl-gen/src/merge/merger/mod.rs:142
     wire leaves8_end;                        // rtl-gen/src/merge/merger/level_mode.rs:395
     wire leaves8_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:396
     wire leaves8_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:396
@@ -662,16 +662,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire base8_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:416
     reg base9_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:374
     wire base9_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:376
-    reg [4:0] leaves9_wr;                    // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] leaves9_rd;                    // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves9_empty;                      // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves9_full;                       // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] leaves9_wr;                    // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] leaves9_rd;                    // rtl-gen/src/drop_fifo.rs:58
+    wire leaves9_empty;                      // rtl-gen/src/drop_fifo.rs:59
+    wire leaves9_full;                       // rtl-gen/src/drop_fifo.rs:60
     wire leaves9_push;                       // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire leaves9_wr_put;                     // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire [177:0] leaves9_rd_1;               // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire leaves9_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
+    wire [177:0] leaves9_rd_1;               // rtl-gen/src/drop_fifo.rs:95
     wire base9_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire [149:0] leaves9_rec;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire [27:0] leaves9_ref;                 // rtl-gen/src/merge/merger/mod.rs:143
+    wire [149:0] leaves9_rec;                // rtl-gen/src/merge/merger/mod.rs:142
+    wire [27:0] leaves9_ref;                 // rtl-gen/src/merge/merger/mod.rs:142
     wire leaves9_end;                        // rtl-gen/src/merge/merger/level_mode.rs:395
     wire leaves9_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:396
     wire leaves9_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:396
@@ -682,16 +682,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves9_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:403
     reg base10_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:374
     wire base10_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:376
-    reg [4:0] leaves10_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] leaves10_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves10_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves10_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] leaves10_wr;                   // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] leaves10_rd;                   // rtl-gen/src/drop_fifo.rs:58
+    wire leaves10_empty;                     // rtl-gen/src/drop_fifo.rs:59
+    wire leaves10_full;                      // rtl-gen/src/drop_fifo.rs:60
     wire leaves10_push;                      // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire leaves10_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire [177:0] leaves10_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire leaves10_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
+    wire [177:0] leaves10_rd_1;              // rtl-gen/src/drop_fifo.rs:95
     wire base10_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire [149:0] leaves10_rec;               // rtl-gen/src/merge/merger/mod.rs:143
-    wire [27:0] leaves10_ref;                // rtl-gen/src/merge/merger/mod.rs:143
+    wire [149:0] leaves10_rec;               // rtl-gen/src/merge/merger/mod.rs:142
+    wire [27:0] leaves10_ref;                // rtl-gen/src/merge/merger/mod.rs:142
     wire leaves10_end;                       // rtl-gen/src/merge/merger/level_mode.rs:395
     wire leaves10_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:396
     wire leaves10_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:396
@@ -702,16 +702,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves10_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:403
     reg base11_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:374
     wire base11_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:376
-    reg [4:0] leaves11_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] leaves11_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves11_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves11_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] leaves11_wr;                   // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] leaves11_rd;                   // rtl-gen/src/drop_fifo.rs:58
+    wire leaves11_empty;                     // rtl-gen/src/drop_fifo.rs:59
+    wire leaves11_full;                      // rtl-gen/src/drop_fifo.rs:60
     wire leaves11_push;                      // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire leaves11_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire [177:0] leaves11_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire leaves11_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
+    wire [177:0] leaves11_rd_1;              // rtl-gen/src/drop_fifo.rs:95
     wire base11_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire [149:0] leaves11_rec;               // rtl-gen/src/merge/merger/mod.rs:143
-    wire [27:0] leaves11_ref;                // rtl-gen/src/merge/merger/mod.rs:143
+    wire [149:0] leaves11_rec;               // rtl-gen/src/merge/merger/mod.rs:142
+    wire [27:0] leaves11_ref;                // rtl-gen/src/merge/merger/mod.rs:142
     wire leaves11_end;                       // rtl-gen/src/merge/merger/level_mode.rs:395
     wire leaves11_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:396
     wire leaves11_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:396
@@ -724,16 +724,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire base11_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:417
     reg base12_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:374
     wire base12_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:376
-    reg [4:0] leaves12_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] leaves12_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves12_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves12_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] leaves12_wr;                   // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] leaves12_rd;                   // rtl-gen/src/drop_fifo.rs:58
+    wire leaves12_empty;                     // rtl-gen/src/drop_fifo.rs:59
+    wire leaves12_full;                      // rtl-gen/src/drop_fifo.rs:60
     wire leaves12_push;                      // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire leaves12_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire [177:0] leaves12_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire leaves12_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
+    wire [177:0] leaves12_rd_1;              // rtl-gen/src/drop_fifo.rs:95
     wire base12_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire [149:0] leaves12_rec;               // rtl-gen/src/merge/merger/mod.rs:143
-    wire [27:0] leaves12_ref;                // rtl-gen/src/merge/merger/mod.rs:143
+    wire [149:0] leaves12_rec;               // rtl-gen/src/merge/merger/mod.rs:142
+    wire [27:0] leaves12_ref;                // rtl-gen/src/merge/merger/mod.rs:142
     wire leaves12_end;                       // rtl-gen/src/merge/merger/level_mode.rs:395
     wire leaves12_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:396
     wire leaves12_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:396
@@ -744,16 +744,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves12_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:403
     reg base13_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:374
     wire base13_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:376
-    reg [4:0] leaves13_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] leaves13_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves13_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves13_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] leaves13_wr;                   // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] leaves13_rd;                   // rtl-gen/src/drop_fifo.rs:58
+    wire leaves13_empty;                     // rtl-gen/src/drop_fifo.rs:59
+    wire leaves13_full;                      // rtl-gen/src/drop_fifo.rs:60
     wire leaves13_push;                      // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire leaves13_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire [177:0] leaves13_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire leaves13_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
+    wire [177:0] leaves13_rd_1;              // rtl-gen/src/drop_fifo.rs:95
     wire base13_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire [149:0] leaves13_rec;               // rtl-gen/src/merge/merger/mod.rs:143
-    wire [27:0] leaves13_ref;                // rtl-gen/src/merge/merger/mod.rs:143
+    wire [149:0] leaves13_rec;               // rtl-gen/src/merge/merger/mod.rs:142
+    wire [27:0] leaves13_ref;                // rtl-gen/src/merge/merger/mod.rs:142
     wire leaves13_end;                       // rtl-gen/src/merge/merger/level_mode.rs:395
     wire leaves13_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:396
     wire leaves13_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:396
@@ -764,16 +764,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaves13_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:403
     reg base14_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:374
     wire base14_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:376
-    reg [4:0] leaves14_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] leaves14_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves14_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves14_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] leaves14_wr;                   // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] leaves14_rd;                   // rtl-gen/src/drop_fifo.rs:58
+    wire leaves14_empty;                     // rtl-gen/src/drop_fifo.rs:59
+    wire leaves14_full;                      // rtl-gen/src/drop_fifo.rs:60
     wire leaves14_push;                      // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire leaves14_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire [177:0] leaves14_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire leaves14_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
+    wire [177:0] leaves14_rd_1;              // rtl-gen/src/drop_fifo.rs:95
     wire base14_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire [149:0] leaves14_rec;               // rtl-gen/src/merge/merger/mod.rs:143
-    wire [27:0] leaves14_ref;                // rtl-gen/src/merge/merger/mod.rs:143
+    wire [149:0] leaves14_rec;               // rtl-gen/src/merge/merger/mod.rs:142
+    wire [27:0] leaves14_ref;                // rtl-gen/src/merge/merger/mod.rs:142
     wire leaves14_end;                       // rtl-gen/src/merge/merger/level_mode.rs:395
     wire leaves14_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:396
     wire leaves14_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:396
@@ -785,16 +785,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire base14_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:416
     reg base15_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:374
     wire base15_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:376
-    reg [4:0] leaves15_wr;                   // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] leaves15_rd;                   // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire leaves15_empty;                     // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire leaves15_full;                      // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] leaves15_wr;                   // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] leaves15_rd;                   // rtl-gen/src/drop_fifo.rs:58
+    wire leaves15_empty;                     // rtl-gen/src/drop_fifo.rs:59
+    wire leaves15_full;                      // rtl-gen/src/drop_fifo.rs:60
     wire leaves15_push;                      // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire leaves15_wr_put;                    // rtl-gen/src/merge/merger/drop_fifo.rs:44
-    wire [177:0] leaves15_rd_1;              // rtl-gen/src/merge/merger/drop_fifo.rs:50
+    wire leaves15_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
+    wire [177:0] leaves15_rd_1;              // rtl-gen/src/drop_fifo.rs:95
     wire base15_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:385
-    wire [149:0] leaves15_rec;               // rtl-gen/src/merge/merger/mod.rs:143
-    wire [27:0] leaves15_ref;                // rtl-gen/src/merge/merger/mod.rs:143
+    wire [149:0] leaves15_rec;               // rtl-gen/src/merge/merger/mod.rs:142
+    wire [27:0] leaves15_ref;                // rtl-gen/src/merge/merger/mod.rs:142
     wire leaves15_end;                       // rtl-gen/src/merge/merger/level_mode.rs:395
     wire leaves15_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:396
     wire leaves15_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:396
@@ -809,14 +809,14 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire base16_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:407
     wire base16_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:407
     wire base16_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:416
-    reg leaf_overflow_header;                // rtl-gen/src/merge/merger/mod.rs:230
+    reg leaf_overflow_header;                // rtl-gen/src/merge/merger/mod.rs:229
     wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:422
     wire merging_and;                        // rtl-gen/src/merge/merger/level_mode.rs:421
     reg count_overflow;                      // rtl-gen/src/merge/merger/level_mode.rs:430
-    reg count_overflow_header;               // rtl-gen/src/merge/merger/mod.rs:230
-    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:419
-    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:419
-    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:419
+    reg count_overflow_header;               // rtl-gen/src/merge/merger/mod.rs:229
+    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:418
+    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:418
+    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:418
     wire dropping0_and;                      // rtl-gen/src/merge/merger/tail.rs:115
     wire merge_settled;                      // rtl-gen/src/merge/merger/tail.rs:116
     wire header_offered;                     // rtl-gen/src/merge/merger/tail.rs:118
@@ -1330,7 +1330,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     assign idle = merger_idle;
     assign module_done = u_module_done;
 
-    fetcher_d16_q8_i24_h4_r16_f256 u_fetch0 ( // rtl-gen/src/merge/merger/mod.rs:252
+    fetcher_d16_q8_i24_h4_r16_f256 u_fetch0 ( // rtl-gen/src/merge/merger/mod.rs:251
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch0_cfg_pending),
@@ -1366,7 +1366,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
         .idle(u_fetch0_idle)
     );
 
-    fetcher_d16_q8_i24_h4_r16_f256 u_fetch1 ( // rtl-gen/src/merge/merger/mod.rs:252
+    fetcher_d16_q8_i24_h4_r16_f256 u_fetch1 ( // rtl-gen/src/merge/merger/mod.rs:251
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch1_cfg_pending),
@@ -1402,7 +1402,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
         .idle(u_fetch1_idle)
     );
 
-    fetcher_d16_q8_i24_h4_r16_f256 u_fetch2 ( // rtl-gen/src/merge/merger/mod.rs:252
+    fetcher_d16_q8_i24_h4_r16_f256 u_fetch2 ( // rtl-gen/src/merge/merger/mod.rs:251
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch2_cfg_pending),
@@ -1438,7 +1438,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
         .idle(u_fetch2_idle)
     );
 
-    fetcher_d16_q8_i24_h4_r16_f256 u_fetch3 ( // rtl-gen/src/merge/merger/mod.rs:252
+    fetcher_d16_q8_i24_h4_r16_f256 u_fetch3 ( // rtl-gen/src/merge/merger/mod.rs:251
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch3_cfg_pending),
@@ -1474,7 +1474,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
         .idle(u_fetch3_idle)
     );
 
-    merge_module_d16_q8_i24_h4_k4_ov1_2 u_module ( // rtl-gen/src/merge/merger/mod.rs:254
+    merge_module_d16_q8_i24_h4_k4_ov1_2 u_module ( // rtl-gen/src/merge/merger/mod.rs:253
         .clk(clk),
         .rst(rst),
         .in0_valid(used0 ? (u_fetch0_out_valid & dropping0_not) : virtual_end0),
@@ -1502,7 +1502,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
         .done(u_module_done)
     );
 
-    upper_builder_d16_q8_i24_h4 u_builder ( // rtl-gen/src/merge/merger/mod.rs:255
+    upper_builder_d16_q8_i24_h4 u_builder ( // rtl-gen/src/merge/merger/mod.rs:254
         .clk(clk),
         .rst(rst),
         .base0_valid(base0_end_sent_and),
@@ -1612,7 +1612,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
         .done_ready(u_writer_done_ready)
     );
 
-    record_writer_d16_q8_i24_h4_c10 u_writer ( // rtl-gen/src/merge/merger/mod.rs:256
+    record_writer_d16_q8_i24_h4_c10 u_writer ( // rtl-gen/src/merge/merger/mod.rs:255
         .clk(clk),
         .rst(rst),
         .cfg_valid(writer_cfg_pending),
@@ -1805,10 +1805,10 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
             end
             header_open <= header_fire ? 1'b0 : (header_open | merge_settled);
             if (cfg_fire) begin
-                module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:373
-                writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:381
-                busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:272
-                cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:307
+                module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:372
+                writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:380
+                busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:271
+                cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:306
                 fetch0_cfg_pending <= cfg_data_count > 3'd0; // rtl-gen/src/merge/merger/level_mode.rs:199
                 phase0 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:263
                 cmd_lod0 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:271
@@ -1821,19 +1821,19 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 fetch3_cfg_pending <= cfg_data_count > 3'd3; // rtl-gen/src/merge/merger/level_mode.rs:199
                 phase3 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:263
                 cmd_lod3 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:271
-                fetch_err_header <= fetch_err; // rtl-gen/src/merge/merger/mod.rs:231
-                fetch_rank_header <= fetch_rank; // rtl-gen/src/merge/merger/mod.rs:231
-                leaf_overflow_header <= leaf_overflow_q; // rtl-gen/src/merge/merger/mod.rs:231
-                count_overflow_header <= count_overflow; // rtl-gen/src/merge/merger/mod.rs:231
+                fetch_err_header <= fetch_err; // rtl-gen/src/merge/merger/mod.rs:230
+                fetch_rank_header <= fetch_rank; // rtl-gen/src/merge/merger/mod.rs:230
+                leaf_overflow_header <= leaf_overflow_q; // rtl-gen/src/merge/merger/mod.rs:230
+                count_overflow_header <= count_overflow; // rtl-gen/src/merge/merger/mod.rs:230
             end else begin
                 if (module_cfg_pending & u_module_cfg_ready) begin
-                    module_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:373
+                    module_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:372
                 end
                 if (writer_cfg_pending & u_writer_cfg_ready) begin
-                    writer_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:381
+                    writer_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:380
                 end
                 if (header_fire & queued_not) begin
-                    busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:272
+                    busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:271
                 end
                 if (fetch0_cfg_pending & u_fetch0_cfg_ready) begin
                     fetch0_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:199
@@ -1905,9 +1905,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 end
             end
             if ((cfg_fire & busy) & (~header_fire)) begin
-                queued <= 1'b1;              // rtl-gen/src/merge/merger/mod.rs:273
+                queued <= 1'b1;              // rtl-gen/src/merge/merger/mod.rs:272
             end else if (header_fire) begin
-                queued <= 1'b0;              // rtl-gen/src/merge/merger/mod.rs:273
+                queued <= 1'b0;              // rtl-gen/src/merge/merger/mod.rs:272
             end
             if (choice_seen) begin
                 choice_known <= 1'b1;        // rtl-gen/src/merge/merger/level_mode.rs:138
@@ -1987,134 +1987,134 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:415
             end
             if (header_fire) begin
-                leaves0_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                leaves0_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                leaves1_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                leaves1_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                leaves2_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                leaves2_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                leaves3_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                leaves3_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                leaves4_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                leaves4_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                leaves5_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                leaves5_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                leaves6_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                leaves6_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                leaves7_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                leaves7_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                leaves8_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                leaves8_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                leaves9_wr <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                leaves9_rd <= 5'd0;          // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                leaves10_wr <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                leaves10_rd <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                leaves11_wr <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                leaves11_rd <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                leaves12_wr <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                leaves12_rd <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                leaves13_wr <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                leaves13_rd <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                leaves14_wr <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                leaves14_rd <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                leaves15_wr <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                leaves15_rd <= 5'd0;         // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                leaves0_wr <= 5'd0;          // rtl-gen/src/drop_fifo.rs:103
+                leaves0_rd <= 5'd0;          // rtl-gen/src/drop_fifo.rs:104
+                leaves1_wr <= 5'd0;          // rtl-gen/src/drop_fifo.rs:103
+                leaves1_rd <= 5'd0;          // rtl-gen/src/drop_fifo.rs:104
+                leaves2_wr <= 5'd0;          // rtl-gen/src/drop_fifo.rs:103
+                leaves2_rd <= 5'd0;          // rtl-gen/src/drop_fifo.rs:104
+                leaves3_wr <= 5'd0;          // rtl-gen/src/drop_fifo.rs:103
+                leaves3_rd <= 5'd0;          // rtl-gen/src/drop_fifo.rs:104
+                leaves4_wr <= 5'd0;          // rtl-gen/src/drop_fifo.rs:103
+                leaves4_rd <= 5'd0;          // rtl-gen/src/drop_fifo.rs:104
+                leaves5_wr <= 5'd0;          // rtl-gen/src/drop_fifo.rs:103
+                leaves5_rd <= 5'd0;          // rtl-gen/src/drop_fifo.rs:104
+                leaves6_wr <= 5'd0;          // rtl-gen/src/drop_fifo.rs:103
+                leaves6_rd <= 5'd0;          // rtl-gen/src/drop_fifo.rs:104
+                leaves7_wr <= 5'd0;          // rtl-gen/src/drop_fifo.rs:103
+                leaves7_rd <= 5'd0;          // rtl-gen/src/drop_fifo.rs:104
+                leaves8_wr <= 5'd0;          // rtl-gen/src/drop_fifo.rs:103
+                leaves8_rd <= 5'd0;          // rtl-gen/src/drop_fifo.rs:104
+                leaves9_wr <= 5'd0;          // rtl-gen/src/drop_fifo.rs:103
+                leaves9_rd <= 5'd0;          // rtl-gen/src/drop_fifo.rs:104
+                leaves10_wr <= 5'd0;         // rtl-gen/src/drop_fifo.rs:103
+                leaves10_rd <= 5'd0;         // rtl-gen/src/drop_fifo.rs:104
+                leaves11_wr <= 5'd0;         // rtl-gen/src/drop_fifo.rs:103
+                leaves11_rd <= 5'd0;         // rtl-gen/src/drop_fifo.rs:104
+                leaves12_wr <= 5'd0;         // rtl-gen/src/drop_fifo.rs:103
+                leaves12_rd <= 5'd0;         // rtl-gen/src/drop_fifo.rs:104
+                leaves13_wr <= 5'd0;         // rtl-gen/src/drop_fifo.rs:103
+                leaves13_rd <= 5'd0;         // rtl-gen/src/drop_fifo.rs:104
+                leaves14_wr <= 5'd0;         // rtl-gen/src/drop_fifo.rs:103
+                leaves14_rd <= 5'd0;         // rtl-gen/src/drop_fifo.rs:104
+                leaves15_wr <= 5'd0;         // rtl-gen/src/drop_fifo.rs:103
+                leaves15_rd <= 5'd0;         // rtl-gen/src/drop_fifo.rs:104
             end else begin
                 if (leaves0_wr_put) begin
-                    leaves0_wr <= leaves0_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    leaves0_wr <= leaves0_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (leaves0_pop) begin
-                    leaves0_rd <= leaves0_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    leaves0_rd <= leaves0_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (leaves1_wr_put) begin
-                    leaves1_wr <= leaves1_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    leaves1_wr <= leaves1_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (leaves1_pop) begin
-                    leaves1_rd <= leaves1_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    leaves1_rd <= leaves1_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (leaves2_wr_put) begin
-                    leaves2_wr <= leaves2_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    leaves2_wr <= leaves2_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (leaves2_pop) begin
-                    leaves2_rd <= leaves2_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    leaves2_rd <= leaves2_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (leaves3_wr_put) begin
-                    leaves3_wr <= leaves3_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    leaves3_wr <= leaves3_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (leaves3_pop) begin
-                    leaves3_rd <= leaves3_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    leaves3_rd <= leaves3_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (leaves4_wr_put) begin
-                    leaves4_wr <= leaves4_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    leaves4_wr <= leaves4_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (leaves4_pop) begin
-                    leaves4_rd <= leaves4_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    leaves4_rd <= leaves4_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (leaves5_wr_put) begin
-                    leaves5_wr <= leaves5_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    leaves5_wr <= leaves5_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (leaves5_pop) begin
-                    leaves5_rd <= leaves5_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    leaves5_rd <= leaves5_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (leaves6_wr_put) begin
-                    leaves6_wr <= leaves6_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    leaves6_wr <= leaves6_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (leaves6_pop) begin
-                    leaves6_rd <= leaves6_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    leaves6_rd <= leaves6_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (leaves7_wr_put) begin
-                    leaves7_wr <= leaves7_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    leaves7_wr <= leaves7_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (leaves7_pop) begin
-                    leaves7_rd <= leaves7_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    leaves7_rd <= leaves7_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (leaves8_wr_put) begin
-                    leaves8_wr <= leaves8_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    leaves8_wr <= leaves8_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (leaves8_pop) begin
-                    leaves8_rd <= leaves8_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    leaves8_rd <= leaves8_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (leaves9_wr_put) begin
-                    leaves9_wr <= leaves9_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    leaves9_wr <= leaves9_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (leaves9_pop) begin
-                    leaves9_rd <= leaves9_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    leaves9_rd <= leaves9_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (leaves10_wr_put) begin
-                    leaves10_wr <= leaves10_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    leaves10_wr <= leaves10_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (leaves10_pop) begin
-                    leaves10_rd <= leaves10_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    leaves10_rd <= leaves10_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (leaves11_wr_put) begin
-                    leaves11_wr <= leaves11_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    leaves11_wr <= leaves11_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (leaves11_pop) begin
-                    leaves11_rd <= leaves11_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    leaves11_rd <= leaves11_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (leaves12_wr_put) begin
-                    leaves12_wr <= leaves12_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    leaves12_wr <= leaves12_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (leaves12_pop) begin
-                    leaves12_rd <= leaves12_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    leaves12_rd <= leaves12_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (leaves13_wr_put) begin
-                    leaves13_wr <= leaves13_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    leaves13_wr <= leaves13_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (leaves13_pop) begin
-                    leaves13_rd <= leaves13_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    leaves13_rd <= leaves13_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (leaves14_wr_put) begin
-                    leaves14_wr <= leaves14_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    leaves14_wr <= leaves14_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (leaves14_pop) begin
-                    leaves14_rd <= leaves14_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    leaves14_rd <= leaves14_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (leaves15_wr_put) begin
-                    leaves15_wr <= leaves15_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    leaves15_wr <= leaves15_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (leaves15_pop) begin
-                    leaves15_rd <= leaves15_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    leaves15_rd <= leaves15_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
             end
             if (base1_end_sent_and_1 & (base1_at_m ? out_is_end : (base1_above_m ? leaves1_end : 1'b1))) begin

@@ -5,120 +5,120 @@
 module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     input  wire clk,                        // clock (implicit)
     input  wire rst,                        // synchronous reset, active high (implicit)
-    input  wire cfg_valid,                  // rtl-gen/src/merge/merger/mod.rs:265
-    input  wire [568:0] cfg_data,           // rtl-gen/src/merge/merger/mod.rs:265
-    output wire cfg_ready,                  // rtl-gen/src/merge/merger/mod.rs:265
+    input  wire cfg_valid,                  // rtl-gen/src/merge/merger/mod.rs:264
+    input  wire [568:0] cfg_data,           // rtl-gen/src/merge/merger/mod.rs:264
+    output wire cfg_ready,                  // rtl-gen/src/merge/merger/mod.rs:264
     input  wire report_ready,               // rtl-gen/src/merge/merger/per_node_mode.rs:143
     output wire report_valid,               // rtl-gen/src/merge/merger/per_node_mode.rs:144
     output wire [65:0] report_data,         // rtl-gen/src/merge/merger/per_node_mode.rs:145
-    input  wire f0_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [149:0] f0_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f0_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f0_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f0_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f0_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f0_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f0_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f0_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f0_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [149:0] f0_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f0_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f0_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f0_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f0_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f0_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f0_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f0_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f0_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f0_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f0_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f0_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f0_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f0_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f1_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [149:0] f1_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f1_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f1_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f1_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f1_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f1_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f1_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f1_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f1_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [149:0] f1_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f1_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f1_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f1_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f1_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f1_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f1_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f1_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f1_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f1_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f1_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f1_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f1_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f1_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f2_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [149:0] f2_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f2_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f2_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f2_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f2_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f2_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f2_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f2_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f2_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [149:0] f2_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f2_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f2_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f2_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f2_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f2_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f2_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f2_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f2_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f2_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f2_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f2_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f2_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f2_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f3_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [149:0] f3_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f3_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f3_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f3_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f3_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f3_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f3_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f3_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f3_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [149:0] f3_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f3_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f3_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f3_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f3_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f3_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f3_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f3_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f3_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f3_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f3_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f3_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f3_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f3_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire w_ref_resp_valid,           // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] w_ref_resp_data,     // rtl-gen/src/merge/merger/mod.rs:425
-    output wire w_ref_resp_ready,           // rtl-gen/src/merge/merger/mod.rs:425
-    output wire w_ref_req_valid,            // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [27:0] w_ref_req_data,      // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire w_ref_req_ready,            // rtl-gen/src/merge/merger/mod.rs:422
-    output wire nodes_valid,                // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [149:0] nodes_data,         // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire nodes_ready,                // rtl-gen/src/merge/merger/mod.rs:422
-    output wire refs_valid,                 // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [27:0] refs_data,           // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire refs_ready,                 // rtl-gen/src/merge/merger/mod.rs:422
+    input  wire f0_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [149:0] f0_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f0_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f0_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f0_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f0_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f0_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f0_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f0_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f0_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [149:0] f0_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f0_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f0_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f0_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f0_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f0_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f0_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f0_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f0_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f0_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f0_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f0_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f0_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f0_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f1_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [149:0] f1_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f1_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f1_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f1_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f1_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f1_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f1_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f1_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f1_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [149:0] f1_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f1_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f1_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f1_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f1_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f1_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f1_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f1_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f1_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f1_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f1_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f1_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f1_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f1_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f2_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [149:0] f2_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f2_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f2_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f2_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f2_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f2_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f2_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f2_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f2_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [149:0] f2_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f2_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f2_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f2_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f2_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f2_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f2_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f2_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f2_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f2_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f2_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f2_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f2_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f2_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f3_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [149:0] f3_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f3_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f3_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f3_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f3_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f3_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f3_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f3_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f3_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [149:0] f3_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f3_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f3_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f3_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f3_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f3_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f3_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f3_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f3_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f3_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f3_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f3_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f3_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f3_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire w_ref_resp_valid,           // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] w_ref_resp_data,     // rtl-gen/src/merge/merger/mod.rs:424
+    output wire w_ref_resp_ready,           // rtl-gen/src/merge/merger/mod.rs:424
+    output wire w_ref_req_valid,            // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [27:0] w_ref_req_data,      // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire w_ref_req_ready,            // rtl-gen/src/merge/merger/mod.rs:421
+    output wire nodes_valid,                // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [149:0] nodes_data,         // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire nodes_ready,                // rtl-gen/src/merge/merger/mod.rs:421
+    output wire refs_valid,                 // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [27:0] refs_data,           // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire refs_ready,                 // rtl-gen/src/merge/merger/mod.rs:421
     output wire w_filling,                  // rtl-gen/src/merge/merger/tail.rs:108
     output wire w_drain_records,            // rtl-gen/src/merge/merger/tail.rs:108
     output wire w_drain_refs,               // rtl-gen/src/merge/merger/tail.rs:108
@@ -129,228 +129,228 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     output wire idle,                       // rtl-gen/src/merge/merger/tail.rs:147
     output wire module_done                 // rtl-gen/src/merge/merger/tail.rs:148
 );
-    reg [179:0] base0_fifo [0:15];           // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [179:0] base1_fifo [0:15];           // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [179:0] base2_fifo [0:15];           // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [179:0] base3_fifo [0:15];           // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [179:0] base4_fifo [0:15];           // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [179:0] base5_fifo [0:15];           // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [179:0] base6_fifo [0:15];           // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [179:0] base7_fifo [0:15];           // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [179:0] base8_fifo [0:15];           // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [179:0] base9_fifo [0:15];           // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [179:0] base10_fifo [0:15];          // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [179:0] base11_fifo [0:15];          // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [179:0] base12_fifo [0:15];          // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [179:0] base13_fifo [0:15];          // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [179:0] base14_fifo [0:15];          // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [179:0] base15_fifo [0:15];          // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    reg [179:0] base16_fifo [0:15];          // rtl-gen/src/merge/merger/drop_fifo.rs:21
-    wire u_fetch0_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_report_ready;              // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch0_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch0_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch0_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire [184:0] u_fetch0_out_data;          // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:252
-    wire [183:0] u_fetch0_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch0_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch0_idle;                      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_report_ready;              // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch1_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch1_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch1_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire [184:0] u_fetch1_out_data;          // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:252
-    wire [183:0] u_fetch1_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch1_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch1_idle;                      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_report_ready;              // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch2_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch2_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch2_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire [184:0] u_fetch2_out_data;          // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:252
-    wire [183:0] u_fetch2_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch2_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch2_idle;                      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_report_ready;              // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch3_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch3_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch3_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:252
-    wire [184:0] u_fetch3_out_data;          // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:252
-    wire [183:0] u_fetch3_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:252
-    wire [23:0] u_fetch3_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_fetch3_idle;                      // rtl-gen/src/merge/merger/mod.rs:252
-    wire u_module_in0_ready;                 // rtl-gen/src/merge/merger/mod.rs:254
-    wire u_module_in1_ready;                 // rtl-gen/src/merge/merger/mod.rs:254
-    wire u_module_in2_ready;                 // rtl-gen/src/merge/merger/mod.rs:254
-    wire u_module_in3_ready;                 // rtl-gen/src/merge/merger/mod.rs:254
-    wire u_module_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:254
-    wire u_module_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:254
-    wire [180:0] u_module_out_data;          // rtl-gen/src/merge/merger/mod.rs:254
-    wire u_module_report_valid;              // rtl-gen/src/merge/merger/mod.rs:254
-    wire [65:0] u_module_report_data;        // rtl-gen/src/merge/merger/mod.rs:254
-    wire u_module_idle;                      // rtl-gen/src/merge/merger/mod.rs:254
-    wire u_module_done;                      // rtl-gen/src/merge/merger/mod.rs:254
-    wire u_builder_base0_ready;              // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base1_ready;              // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base2_ready;              // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base3_ready;              // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base4_ready;              // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base5_ready;              // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base6_ready;              // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base7_ready;              // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base8_ready;              // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base9_ready;              // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base10_ready;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base11_ready;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base12_ready;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base13_ready;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base14_ready;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base15_ready;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_base16_ready;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level16_valid;            // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level16_data;     // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level15_valid;            // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level15_data;     // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level14_valid;            // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level14_data;     // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level13_valid;            // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level13_data;     // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level12_valid;            // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level12_data;     // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level11_valid;            // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level11_data;     // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level10_valid;            // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level10_data;     // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level9_valid;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level9_data;      // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level8_valid;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level8_data;      // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level7_valid;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level7_data;      // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level6_valid;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level6_data;      // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level5_valid;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level5_data;      // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level4_valid;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level4_data;      // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level3_valid;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level3_data;      // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level2_valid;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level2_data;      // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level1_valid;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level1_data;      // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_level0_valid;             // rtl-gen/src/merge/merger/mod.rs:255
-    wire [228:0] u_builder_level0_data;      // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_builder_done_valid;               // rtl-gen/src/merge/merger/mod.rs:255
-    wire [5:0] u_builder_done_data;          // rtl-gen/src/merge/merger/mod.rs:255
-    wire u_writer_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_done_ready;                // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_crefs_ready;               // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level0_ready;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level1_ready;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level2_ready;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level3_ready;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level4_ready;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level5_ready;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level6_ready;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level7_ready;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level8_ready;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level9_ready;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level10_ready;             // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level11_ready;             // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level12_ready;             // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level13_ready;             // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level14_ready;             // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level15_ready;             // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_level16_ready;             // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_nodes_valid;               // rtl-gen/src/merge/merger/mod.rs:256
-    wire [149:0] u_writer_nodes_data;        // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_refs_valid;                // rtl-gen/src/merge/merger/mod.rs:256
-    wire [27:0] u_writer_refs_data;          // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:256
-    wire [27:0] u_writer_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_header_valid;              // rtl-gen/src/merge/merger/mod.rs:256
-    wire [86:0] u_writer_header_data;        // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_filling;                   // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_drain_records;             // rtl-gen/src/merge/merger/mod.rs:256
-    wire u_writer_drain_refs;                // rtl-gen/src/merge/merger/mod.rs:256
-    reg dropping0;                           // rtl-gen/src/merge/merger/mod.rs:258
-    reg dropping1;                           // rtl-gen/src/merge/merger/mod.rs:258
-    reg dropping2;                           // rtl-gen/src/merge/merger/mod.rs:258
-    reg dropping3;                           // rtl-gen/src/merge/merger/mod.rs:258
-    wire header_fire;                        // rtl-gen/src/merge/merger/mod.rs:259
-    wire header_hold;                        // rtl-gen/src/merge/merger/mod.rs:260
-    reg header_open;                         // rtl-gen/src/merge/merger/mod.rs:261
-    wire commands_sent;                      // rtl-gen/src/merge/merger/mod.rs:262
-    reg module_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:263
-    reg writer_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:264
-    wire cfg_fire;                           // rtl-gen/src/merge/merger/mod.rs:266
-    reg busy;                                // rtl-gen/src/merge/merger/mod.rs:296
-    wire busy_not;                           // rtl-gen/src/merge/merger/mod.rs:298
-    wire dropping0_not;                      // rtl-gen/src/merge/merger/mod.rs:302
-    wire dropping1_not;                      // rtl-gen/src/merge/merger/mod.rs:302
-    wire dropping2_not;                      // rtl-gen/src/merge/merger/mod.rs:302
-    wire busy_and;                           // rtl-gen/src/merge/merger/mod.rs:302
-    wire dropping3_not;                      // rtl-gen/src/merge/merger/mod.rs:302
-    wire quiet;                              // rtl-gen/src/merge/merger/mod.rs:302
-    reg [568:0] cfg_q;                       // rtl-gen/src/merge/merger/mod.rs:306
-    wire [2:0] cfg_data_count;               // rtl-gen/src/merge/merger/mod.rs:143
-    wire [2:0] cfg_q_count;                  // rtl-gen/src/merge/merger/mod.rs:143
-    wire [4:0] lo;                           // rtl-gen/src/merge/merger/mod.rs:143
-    wire [4:0] hi;                           // rtl-gen/src/merge/merger/mod.rs:143
-    wire [3:0] cfg_q_out_id;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire [4:0] cfg_data_lo;                  // rtl-gen/src/merge/merger/mod.rs:143
-    wire [4:0] cfg_data_hi;                  // rtl-gen/src/merge/merger/mod.rs:143
-    wire good_in;                            // rtl-gen/src/merge/merger/mod.rs:156
-    wire range_good;                         // rtl-gen/src/merge/merger/mod.rs:156
+    reg [179:0] base0_fifo [0:15];           // rtl-gen/src/drop_fifo.rs:56
+    reg [179:0] base1_fifo [0:15];           // rtl-gen/src/drop_fifo.rs:56
+    reg [179:0] base2_fifo [0:15];           // rtl-gen/src/drop_fifo.rs:56
+    reg [179:0] base3_fifo [0:15];           // rtl-gen/src/drop_fifo.rs:56
+    reg [179:0] base4_fifo [0:15];           // rtl-gen/src/drop_fifo.rs:56
+    reg [179:0] base5_fifo [0:15];           // rtl-gen/src/drop_fifo.rs:56
+    reg [179:0] base6_fifo [0:15];           // rtl-gen/src/drop_fifo.rs:56
+    reg [179:0] base7_fifo [0:15];           // rtl-gen/src/drop_fifo.rs:56
+    reg [179:0] base8_fifo [0:15];           // rtl-gen/src/drop_fifo.rs:56
+    reg [179:0] base9_fifo [0:15];           // rtl-gen/src/drop_fifo.rs:56
+    reg [179:0] base10_fifo [0:15];          // rtl-gen/src/drop_fifo.rs:56
+    reg [179:0] base11_fifo [0:15];          // rtl-gen/src/drop_fifo.rs:56
+    reg [179:0] base12_fifo [0:15];          // rtl-gen/src/drop_fifo.rs:56
+    reg [179:0] base13_fifo [0:15];          // rtl-gen/src/drop_fifo.rs:56
+    reg [179:0] base14_fifo [0:15];          // rtl-gen/src/drop_fifo.rs:56
+    reg [179:0] base15_fifo [0:15];          // rtl-gen/src/drop_fifo.rs:56
+    reg [179:0] base16_fifo [0:15];          // rtl-gen/src/drop_fifo.rs:56
+    wire u_fetch0_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_report_ready;              // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch0_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch0_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch0_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire [184:0] u_fetch0_out_data;          // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:251
+    wire [183:0] u_fetch0_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch0_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch0_idle;                      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_report_ready;              // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch1_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch1_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch1_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire [184:0] u_fetch1_out_data;          // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:251
+    wire [183:0] u_fetch1_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch1_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch1_idle;                      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_report_ready;              // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch2_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch2_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch2_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire [184:0] u_fetch2_out_data;          // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:251
+    wire [183:0] u_fetch2_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch2_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch2_idle;                      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_cmd_ready;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_node_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_cref_resp_ready;           // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_report_ready;              // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_probe_resp_ready;          // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_node_req_valid;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch3_node_req_data;      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch3_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_cref_req_valid;            // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch3_cref_req_data;      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:251
+    wire [184:0] u_fetch3_out_data;          // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_leaves_valid;              // rtl-gen/src/merge/merger/mod.rs:251
+    wire [183:0] u_fetch3_leaves_data;       // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_probe_req_valid;           // rtl-gen/src/merge/merger/mod.rs:251
+    wire [23:0] u_fetch3_probe_req_data;     // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_fetch3_idle;                      // rtl-gen/src/merge/merger/mod.rs:251
+    wire u_module_in0_ready;                 // rtl-gen/src/merge/merger/mod.rs:253
+    wire u_module_in1_ready;                 // rtl-gen/src/merge/merger/mod.rs:253
+    wire u_module_in2_ready;                 // rtl-gen/src/merge/merger/mod.rs:253
+    wire u_module_in3_ready;                 // rtl-gen/src/merge/merger/mod.rs:253
+    wire u_module_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:253
+    wire u_module_out_valid;                 // rtl-gen/src/merge/merger/mod.rs:253
+    wire [180:0] u_module_out_data;          // rtl-gen/src/merge/merger/mod.rs:253
+    wire u_module_report_valid;              // rtl-gen/src/merge/merger/mod.rs:253
+    wire [65:0] u_module_report_data;        // rtl-gen/src/merge/merger/mod.rs:253
+    wire u_module_idle;                      // rtl-gen/src/merge/merger/mod.rs:253
+    wire u_module_done;                      // rtl-gen/src/merge/merger/mod.rs:253
+    wire u_builder_base0_ready;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base1_ready;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base2_ready;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base3_ready;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base4_ready;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base5_ready;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base6_ready;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base7_ready;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base8_ready;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base9_ready;              // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base10_ready;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base11_ready;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base12_ready;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base13_ready;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base14_ready;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base15_ready;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_base16_ready;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level16_valid;            // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level16_data;     // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level15_valid;            // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level15_data;     // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level14_valid;            // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level14_data;     // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level13_valid;            // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level13_data;     // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level12_valid;            // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level12_data;     // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level11_valid;            // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level11_data;     // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level10_valid;            // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level10_data;     // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level9_valid;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level9_data;      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level8_valid;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level8_data;      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level7_valid;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level7_data;      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level6_valid;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level6_data;      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level5_valid;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level5_data;      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level4_valid;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level4_data;      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level3_valid;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level3_data;      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level2_valid;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level2_data;      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level1_valid;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level1_data;      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_level0_valid;             // rtl-gen/src/merge/merger/mod.rs:254
+    wire [228:0] u_builder_level0_data;      // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_builder_done_valid;               // rtl-gen/src/merge/merger/mod.rs:254
+    wire [5:0] u_builder_done_data;          // rtl-gen/src/merge/merger/mod.rs:254
+    wire u_writer_cfg_ready;                 // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_done_ready;                // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_crefs_ready;               // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level0_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level1_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level2_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level3_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level4_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level5_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level6_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level7_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level8_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level9_ready;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level10_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level11_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level12_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level13_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level14_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level15_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_level16_ready;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_nodes_valid;               // rtl-gen/src/merge/merger/mod.rs:255
+    wire [149:0] u_writer_nodes_data;        // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_ref_resp_ready;            // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_refs_valid;                // rtl-gen/src/merge/merger/mod.rs:255
+    wire [27:0] u_writer_refs_data;          // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_ref_req_valid;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire [27:0] u_writer_ref_req_data;       // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_header_valid;              // rtl-gen/src/merge/merger/mod.rs:255
+    wire [86:0] u_writer_header_data;        // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_filling;                   // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_drain_records;             // rtl-gen/src/merge/merger/mod.rs:255
+    wire u_writer_drain_refs;                // rtl-gen/src/merge/merger/mod.rs:255
+    reg dropping0;                           // rtl-gen/src/merge/merger/mod.rs:257
+    reg dropping1;                           // rtl-gen/src/merge/merger/mod.rs:257
+    reg dropping2;                           // rtl-gen/src/merge/merger/mod.rs:257
+    reg dropping3;                           // rtl-gen/src/merge/merger/mod.rs:257
+    wire header_fire;                        // rtl-gen/src/merge/merger/mod.rs:258
+    wire header_hold;                        // rtl-gen/src/merge/merger/mod.rs:259
+    reg header_open;                         // rtl-gen/src/merge/merger/mod.rs:260
+    wire commands_sent;                      // rtl-gen/src/merge/merger/mod.rs:261
+    reg module_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:262
+    reg writer_cfg_pending;                  // rtl-gen/src/merge/merger/mod.rs:263
+    wire cfg_fire;                           // rtl-gen/src/merge/merger/mod.rs:265
+    reg busy;                                // rtl-gen/src/merge/merger/mod.rs:295
+    wire busy_not;                           // rtl-gen/src/merge/merger/mod.rs:297
+    wire dropping0_not;                      // rtl-gen/src/merge/merger/mod.rs:301
+    wire dropping1_not;                      // rtl-gen/src/merge/merger/mod.rs:301
+    wire dropping2_not;                      // rtl-gen/src/merge/merger/mod.rs:301
+    wire busy_and;                           // rtl-gen/src/merge/merger/mod.rs:301
+    wire dropping3_not;                      // rtl-gen/src/merge/merger/mod.rs:301
+    wire quiet;                              // rtl-gen/src/merge/merger/mod.rs:301
+    reg [568:0] cfg_q;                       // rtl-gen/src/merge/merger/mod.rs:305
+    wire [2:0] cfg_data_count;               // rtl-gen/src/merge/merger/mod.rs:142
+    wire [2:0] cfg_q_count;                  // rtl-gen/src/merge/merger/mod.rs:142
+    wire [4:0] lo;                           // rtl-gen/src/merge/merger/mod.rs:142
+    wire [4:0] hi;                           // rtl-gen/src/merge/merger/mod.rs:142
+    wire [3:0] cfg_q_out_id;                 // rtl-gen/src/merge/merger/mod.rs:142
+    wire [4:0] cfg_data_lo;                  // rtl-gen/src/merge/merger/mod.rs:142
+    wire [4:0] cfg_data_hi;                  // rtl-gen/src/merge/merger/mod.rs:142
+    wire good_in;                            // rtl-gen/src/merge/merger/mod.rs:155
+    wire range_good;                         // rtl-gen/src/merge/merger/mod.rs:155
     wire cfg_data_count_gt;                  // rtl-gen/src/merge/merger/per_node_mode.rs:43
     wire cfg_data_count_gt_1;                // rtl-gen/src/merge/merger/per_node_mode.rs:43
     wire cfg_data_count_gt_2;                // rtl-gen/src/merge/merger/per_node_mode.rs:43
@@ -360,13 +360,13 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire used2;                              // rtl-gen/src/merge/merger/per_node_mode.rs:45
     wire used3;                              // rtl-gen/src/merge/merger/per_node_mode.rs:45
     reg module_finished;                     // rtl-gen/src/merge/merger/per_node_mode.rs:50
-    wire [15:0] u_module_x;                  // rtl-gen/src/merge/merger/mod.rs:143
-    wire [15:0] u_module_y;                  // rtl-gen/src/merge/merger/mod.rs:143
-    wire [15:0] u_module_z;                  // rtl-gen/src/merge/merger/mod.rs:143
-    wire [4:0] u_module_lod;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire u_module_descend;                   // rtl-gen/src/merge/merger/mod.rs:143
-    wire u_module_pass_end;                  // rtl-gen/src/merge/merger/mod.rs:143
-    wire u_module_more;                      // rtl-gen/src/merge/merger/mod.rs:143
+    wire [15:0] u_module_x;                  // rtl-gen/src/merge/merger/mod.rs:142
+    wire [15:0] u_module_y;                  // rtl-gen/src/merge/merger/mod.rs:142
+    wire [15:0] u_module_z;                  // rtl-gen/src/merge/merger/mod.rs:142
+    wire [4:0] u_module_lod;                 // rtl-gen/src/merge/merger/mod.rs:142
+    wire u_module_descend;                   // rtl-gen/src/merge/merger/mod.rs:142
+    wire u_module_pass_end;                  // rtl-gen/src/merge/merger/mod.rs:142
+    wire u_module_more;                      // rtl-gen/src/merge/merger/mod.rs:142
     wire [55:0] report_narrow;               // rtl-gen/src/merge/merger/per_node_mode.rs:135
     reg report_top_taken;                    // rtl-gen/src/merge/merger/per_node_mode.rs:142
     wire u_module_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:144
@@ -395,9 +395,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     reg cmd0_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:213
     wire [13:0] range_good_cat;              // rtl-gen/src/merge/merger/per_node_mode.rs:214
     wire cmd0_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:228
-    wire [3:0] u_fetch0_err;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire [1:0] u_fetch0_kind;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire u_fetch0_probe;                     // rtl-gen/src/merge/merger/mod.rs:143
+    wire [3:0] u_fetch0_err;                 // rtl-gen/src/merge/merger/mod.rs:142
+    wire [1:0] u_fetch0_kind;                // rtl-gen/src/merge/merger/mod.rs:142
+    wire u_fetch0_probe;                     // rtl-gen/src/merge/merger/mod.rs:142
     reg end_owed0;                           // rtl-gen/src/merge/merger/per_node_mode.rs:249
     wire used0_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:250
     wire virtual_end0;                       // rtl-gen/src/merge/merger/per_node_mode.rs:250
@@ -406,16 +406,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire u_fetch0_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:264
     wire [3:0] u_fetch0_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:265
     wire range_good_not;                     // rtl-gen/src/merge/merger/per_node_mode.rs:267
-    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
-    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:419
-    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
-    wire f0_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:419
+    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
+    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:418
+    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
+    wire f0_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:418
     reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:204
     reg cmd1_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:213
     wire cmd1_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:228
-    wire [3:0] u_fetch1_err;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire [1:0] u_fetch1_kind;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire u_fetch1_probe;                     // rtl-gen/src/merge/merger/mod.rs:143
+    wire [3:0] u_fetch1_err;                 // rtl-gen/src/merge/merger/mod.rs:142
+    wire [1:0] u_fetch1_kind;                // rtl-gen/src/merge/merger/mod.rs:142
+    wire u_fetch1_probe;                     // rtl-gen/src/merge/merger/mod.rs:142
     reg end_owed1;                           // rtl-gen/src/merge/merger/per_node_mode.rs:249
     wire used1_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:250
     wire virtual_end1;                       // rtl-gen/src/merge/merger/per_node_mode.rs:250
@@ -423,16 +423,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire u_fetch1_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:255
     wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:264
     wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:265
-    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
-    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:419
-    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
-    wire f1_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:419
+    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
+    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:418
+    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
+    wire f1_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:418
     reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:204
     reg cmd2_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:213
     wire cmd2_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:228
-    wire [3:0] u_fetch2_err;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire [1:0] u_fetch2_kind;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire u_fetch2_probe;                     // rtl-gen/src/merge/merger/mod.rs:143
+    wire [3:0] u_fetch2_err;                 // rtl-gen/src/merge/merger/mod.rs:142
+    wire [1:0] u_fetch2_kind;                // rtl-gen/src/merge/merger/mod.rs:142
+    wire u_fetch2_probe;                     // rtl-gen/src/merge/merger/mod.rs:142
     reg end_owed2;                           // rtl-gen/src/merge/merger/per_node_mode.rs:249
     wire used2_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:250
     wire virtual_end2;                       // rtl-gen/src/merge/merger/per_node_mode.rs:250
@@ -440,46 +440,46 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire u_fetch2_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:255
     wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:264
     wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/per_node_mode.rs:265
-    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
-    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:419
-    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
-    wire f2_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:419
+    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
+    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:418
+    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
+    wire f2_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:418
     reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/per_node_mode.rs:204
     reg cmd3_pending;                        // rtl-gen/src/merge/merger/per_node_mode.rs:213
     wire cmd3_pending_and;                   // rtl-gen/src/merge/merger/per_node_mode.rs:228
-    wire [3:0] u_fetch3_err;                 // rtl-gen/src/merge/merger/mod.rs:143
-    wire [1:0] u_fetch3_kind;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire u_fetch3_probe;                     // rtl-gen/src/merge/merger/mod.rs:143
+    wire [3:0] u_fetch3_err;                 // rtl-gen/src/merge/merger/mod.rs:142
+    wire [1:0] u_fetch3_kind;                // rtl-gen/src/merge/merger/mod.rs:142
+    wire u_fetch3_probe;                     // rtl-gen/src/merge/merger/mod.rs:142
     reg end_owed3;                           // rtl-gen/src/merge/merger/per_node_mode.rs:249
     wire used3_not;                          // rtl-gen/src/merge/merger/per_node_mode.rs:250
     wire virtual_end3;                       // rtl-gen/src/merge/merger/per_node_mode.rs:250
     wire dropping3_or;                       // rtl-gen/src/merge/merger/per_node_mode.rs:254
     wire u_fetch3_and;                       // rtl-gen/src/merge/merger/per_node_mode.rs:255
     wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/per_node_mode.rs:264
-    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
-    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:419
-    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
-    wire f3_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:419
+    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
+    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:418
+    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
+    wire f3_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:418
     reg leaves_done;                         // rtl-gen/src/merge/merger/leaf_merge.rs:46
     wire leaves_active;                      // rtl-gen/src/merge/merger/leaf_merge.rs:47
-    wire u_fetch0_end;                       // rtl-gen/src/merge/merger/mod.rs:143
+    wire u_fetch0_end;                       // rtl-gen/src/merge/merger/mod.rs:142
     wire used0_or;                           // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire [4:0] u_fetch0_lod;                 // rtl-gen/src/merge/merger/mod.rs:143
+    wire [4:0] u_fetch0_lod;                 // rtl-gen/src/merge/merger/mod.rs:142
     wire [47:0] u_fetch0_rec_x_morton;       // rtl-gen/src/merge/network.rs:41
     wire [53:0] leaf_key0;                   // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire u_fetch1_end;                       // rtl-gen/src/merge/merger/mod.rs:143
+    wire u_fetch1_end;                       // rtl-gen/src/merge/merger/mod.rs:142
     wire used1_or;                           // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire [4:0] u_fetch1_lod;                 // rtl-gen/src/merge/merger/mod.rs:143
+    wire [4:0] u_fetch1_lod;                 // rtl-gen/src/merge/merger/mod.rs:142
     wire [47:0] u_fetch1_rec_x_morton;       // rtl-gen/src/merge/network.rs:41
     wire [53:0] leaf_key1;                   // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire u_fetch2_end;                       // rtl-gen/src/merge/merger/mod.rs:143
+    wire u_fetch2_end;                       // rtl-gen/src/merge/merger/mod.rs:142
     wire used2_or;                           // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire [4:0] u_fetch2_lod;                 // rtl-gen/src/merge/merger/mod.rs:143
+    wire [4:0] u_fetch2_lod;                 // rtl-gen/src/merge/merger/mod.rs:142
     wire [47:0] u_fetch2_rec_x_morton;       // rtl-gen/src/merge/network.rs:41
     wire [53:0] leaf_key2;                   // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire u_fetch3_end;                       // rtl-gen/src/merge/merger/mod.rs:143
+    wire u_fetch3_end;                       // rtl-gen/src/merge/merger/mod.rs:142
     wire used3_or;                           // rtl-gen/src/merge/merger/leaf_merge.rs:57
-    wire [4:0] u_fetch3_lod;                 // rtl-gen/src/merge/merger/mod.rs:143
+    wire [4:0] u_fetch3_lod;                 // rtl-gen/src/merge/merger/mod.rs:142
     wire [47:0] u_fetch3_rec_x_morton;       // rtl-gen/src/merge/network.rs:41
     wire [53:0] leaf_key3;                   // rtl-gen/src/merge/merger/leaf_merge.rs:57
     wire leaves_all_valid;                   // rtl-gen/src/merge/merger/leaf_merge.rs:59
@@ -491,16 +491,16 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     wire [182:0] leaf_best_data;             // rtl-gen/src/merge/merger/leaf_merge.rs:75
     wire [1:0] leaf_best;                    // rtl-gen/src/merge/merger/leaf_merge.rs:76
     wire leaf_take;                          // rtl-gen/src/merge/merger/leaf_merge.rs:80
-    wire [4:0] leaf_best_data_lod;           // rtl-gen/src/merge/merger/mod.rs:143
-    wire [149:0] leaf_best_data_rec;         // rtl-gen/src/merge/merger/mod.rs:143
-    wire [27:0] leaf_best_data_ref;          // rtl-gen/src/merge/merger/mod.rs:143
+    wire [4:0] leaf_best_data_lod;           // rtl-gen/src/merge/merger/mod.rs:142
+    wire [149:0] leaf_best_data_rec;         // rtl-gen/src/merge/merger/mod.rs:142
+    wire [27:0] leaf_best_data_ref;          // rtl-gen/src/merge/merger/mod.rs:142
     wire [179:0] const_cat_2;                // rtl-gen/src/merge/merger/per_node_mode.rs:324
-    wire [1:0] u_module_kind;                // rtl-gen/src/merge/merger/mod.rs:143
+    wire [1:0] u_module_kind;                // rtl-gen/src/merge/merger/mod.rs:142
     wire out_is_ref;                         // rtl-gen/src/merge/merger/per_node_mode.rs:337
     wire out_is_end;                         // rtl-gen/src/merge/merger/per_node_mode.rs:338
-    wire u_module_err;                       // rtl-gen/src/merge/merger/mod.rs:143
-    wire [27:0] u_module_ref;                // rtl-gen/src/merge/merger/mod.rs:143
-    wire [149:0] u_module_rec;               // rtl-gen/src/merge/merger/mod.rs:143
+    wire u_module_err;                       // rtl-gen/src/merge/merger/mod.rs:142
+    wire [27:0] u_module_ref;                // rtl-gen/src/merge/merger/mod.rs:142
+    wire [149:0] u_module_rec;               // rtl-gen/src/merge/merger/mod.rs:142
     wire [4:0] u_module_rec_lod;             // rtl-gen/src/merge/merger/per_node_mode.rs:342
     wire [179:0] u_module_kind_cat;          // rtl-gen/src/merge/merger/per_node_mode.rs:343
     wire out_is_node;                        // rtl-gen/src/merge/merger/per_node_mode.rs:352
@@ -514,212 +514,212 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     reg leaf_overflow_q;                     // rtl-gen/src/merge/merger/per_node_mode.rs:384
     wire base_open;                          // rtl-gen/src/merge/merger/per_node_mode.rs:386
     reg base0_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    reg [4:0] base0_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] base0_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base0_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base0_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] base0_wr;                      // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] base0_rd;                      // rtl-gen/src/drop_fifo.rs:58
+    wire base0_empty;                        // rtl-gen/src/drop_fifo.rs:59
+    wire base0_full;                         // rtl-gen/src/drop_fifo.rs:60
     wire lo_lt;                              // rtl-gen/src/merge/merger/per_node_mode.rs:399
     wire out_is_node_and;                    // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base0_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:402
-    wire base0_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire base0_wr_put;                       // rtl-gen/src/drop_fifo.rs:89
     wire range_good_and;                     // rtl-gen/src/merge/merger/per_node_mode.rs:406
     wire base_open_and;                      // rtl-gen/src/merge/merger/per_node_mode.rs:407
     wire base_open_and_1;                    // rtl-gen/src/merge/merger/per_node_mode.rs:411
     reg base1_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    reg [4:0] base1_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] base1_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base1_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base1_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] base1_wr;                      // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] base1_rd;                      // rtl-gen/src/drop_fifo.rs:58
+    wire base1_empty;                        // rtl-gen/src/drop_fifo.rs:59
+    wire base1_full;                         // rtl-gen/src/drop_fifo.rs:60
     wire lo_lt_1;                            // rtl-gen/src/merge/merger/per_node_mode.rs:399
     wire out_is_node_and_1;                  // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base1_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:402
-    wire base1_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire base1_wr_put;                       // rtl-gen/src/drop_fifo.rs:89
     wire range_good_and_1;                   // rtl-gen/src/merge/merger/per_node_mode.rs:406
     wire base_open_and_2;                    // rtl-gen/src/merge/merger/per_node_mode.rs:407
     wire base_open_and_3;                    // rtl-gen/src/merge/merger/per_node_mode.rs:411
     reg base2_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    reg [4:0] base2_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] base2_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base2_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base2_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] base2_wr;                      // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] base2_rd;                      // rtl-gen/src/drop_fifo.rs:58
+    wire base2_empty;                        // rtl-gen/src/drop_fifo.rs:59
+    wire base2_full;                         // rtl-gen/src/drop_fifo.rs:60
     wire lo_lt_2;                            // rtl-gen/src/merge/merger/per_node_mode.rs:399
     wire out_is_node_and_2;                  // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base2_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:402
-    wire base2_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire base2_wr_put;                       // rtl-gen/src/drop_fifo.rs:89
     wire range_good_and_2;                   // rtl-gen/src/merge/merger/per_node_mode.rs:406
     wire base_open_and_4;                    // rtl-gen/src/merge/merger/per_node_mode.rs:407
     wire base_open_and_5;                    // rtl-gen/src/merge/merger/per_node_mode.rs:411
     reg base3_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    reg [4:0] base3_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] base3_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base3_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base3_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] base3_wr;                      // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] base3_rd;                      // rtl-gen/src/drop_fifo.rs:58
+    wire base3_empty;                        // rtl-gen/src/drop_fifo.rs:59
+    wire base3_full;                         // rtl-gen/src/drop_fifo.rs:60
     wire lo_lt_3;                            // rtl-gen/src/merge/merger/per_node_mode.rs:399
     wire out_is_node_and_3;                  // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base3_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:402
-    wire base3_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire base3_wr_put;                       // rtl-gen/src/drop_fifo.rs:89
     wire range_good_and_3;                   // rtl-gen/src/merge/merger/per_node_mode.rs:406
     wire base_open_and_6;                    // rtl-gen/src/merge/merger/per_node_mode.rs:407
     wire base_open_and_7;                    // rtl-gen/src/merge/merger/per_node_mode.rs:411
     reg base4_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    reg [4:0] base4_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] base4_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base4_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base4_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] base4_wr;                      // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] base4_rd;                      // rtl-gen/src/drop_fifo.rs:58
+    wire base4_empty;                        // rtl-gen/src/drop_fifo.rs:59
+    wire base4_full;                         // rtl-gen/src/drop_fifo.rs:60
     wire lo_lt_4;                            // rtl-gen/src/merge/merger/per_node_mode.rs:399
     wire out_is_node_and_4;                  // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base4_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:402
-    wire base4_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire base4_wr_put;                       // rtl-gen/src/drop_fifo.rs:89
     wire range_good_and_4;                   // rtl-gen/src/merge/merger/per_node_mode.rs:406
     wire base_open_and_8;                    // rtl-gen/src/merge/merger/per_node_mode.rs:407
     wire base_open_and_9;                    // rtl-gen/src/merge/merger/per_node_mode.rs:411
     reg base5_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    reg [4:0] base5_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] base5_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base5_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base5_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] base5_wr;                      // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] base5_rd;                      // rtl-gen/src/drop_fifo.rs:58
+    wire base5_empty;                        // rtl-gen/src/drop_fifo.rs:59
+    wire base5_full;                         // rtl-gen/src/drop_fifo.rs:60
     wire lo_lt_5;                            // rtl-gen/src/merge/merger/per_node_mode.rs:399
     wire out_is_node_and_5;                  // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base5_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:402
-    wire base5_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire base5_wr_put;                       // rtl-gen/src/drop_fifo.rs:89
     wire range_good_and_5;                   // rtl-gen/src/merge/merger/per_node_mode.rs:406
     wire base_open_and_10;                   // rtl-gen/src/merge/merger/per_node_mode.rs:407
     wire base_open_and_11;                   // rtl-gen/src/merge/merger/per_node_mode.rs:411
     reg base6_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    reg [4:0] base6_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] base6_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base6_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base6_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] base6_wr;                      // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] base6_rd;                      // rtl-gen/src/drop_fifo.rs:58
+    wire base6_empty;                        // rtl-gen/src/drop_fifo.rs:59
+    wire base6_full;                         // rtl-gen/src/drop_fifo.rs:60
     wire lo_lt_6;                            // rtl-gen/src/merge/merger/per_node_mode.rs:399
     wire out_is_node_and_6;                  // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base6_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:402
-    wire base6_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire base6_wr_put;                       // rtl-gen/src/drop_fifo.rs:89
     wire range_good_and_6;                   // rtl-gen/src/merge/merger/per_node_mode.rs:406
     wire base_open_and_12;                   // rtl-gen/src/merge/merger/per_node_mode.rs:407
     wire base_open_and_13;                   // rtl-gen/src/merge/merger/per_node_mode.rs:411
     reg base7_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    reg [4:0] base7_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] base7_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base7_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base7_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] base7_wr;                      // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] base7_rd;                      // rtl-gen/src/drop_fifo.rs:58
+    wire base7_empty;                        // rtl-gen/src/drop_fifo.rs:59
+    wire base7_full;                         // rtl-gen/src/drop_fifo.rs:60
     wire lo_lt_7;                            // rtl-gen/src/merge/merger/per_node_mode.rs:399
     wire out_is_node_and_7;                  // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base7_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:402
-    wire base7_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire base7_wr_put;                       // rtl-gen/src/drop_fifo.rs:89
     wire range_good_and_7;                   // rtl-gen/src/merge/merger/per_node_mode.rs:406
     wire base_open_and_14;                   // rtl-gen/src/merge/merger/per_node_mode.rs:407
     wire base_open_and_15;                   // rtl-gen/src/merge/merger/per_node_mode.rs:411
     reg base8_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    reg [4:0] base8_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] base8_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base8_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base8_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] base8_wr;                      // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] base8_rd;                      // rtl-gen/src/drop_fifo.rs:58
+    wire base8_empty;                        // rtl-gen/src/drop_fifo.rs:59
+    wire base8_full;                         // rtl-gen/src/drop_fifo.rs:60
     wire lo_lt_8;                            // rtl-gen/src/merge/merger/per_node_mode.rs:399
     wire out_is_node_and_8;                  // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base8_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:402
-    wire base8_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire base8_wr_put;                       // rtl-gen/src/drop_fifo.rs:89
     wire range_good_and_8;                   // rtl-gen/src/merge/merger/per_node_mode.rs:406
     wire base_open_and_16;                   // rtl-gen/src/merge/merger/per_node_mode.rs:407
     wire base_open_and_17;                   // rtl-gen/src/merge/merger/per_node_mode.rs:411
     reg base9_end_sent;                      // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    reg [4:0] base9_wr;                      // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] base9_rd;                      // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base9_empty;                        // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base9_full;                         // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] base9_wr;                      // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] base9_rd;                      // rtl-gen/src/drop_fifo.rs:58
+    wire base9_empty;                        // rtl-gen/src/drop_fifo.rs:59
+    wire base9_full;                         // rtl-gen/src/drop_fifo.rs:60
     wire lo_lt_9;                            // rtl-gen/src/merge/merger/per_node_mode.rs:399
     wire out_is_node_and_9;                  // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base9_push;                         // rtl-gen/src/merge/merger/per_node_mode.rs:402
-    wire base9_wr_put;                       // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire base9_wr_put;                       // rtl-gen/src/drop_fifo.rs:89
     wire range_good_and_9;                   // rtl-gen/src/merge/merger/per_node_mode.rs:406
     wire base_open_and_18;                   // rtl-gen/src/merge/merger/per_node_mode.rs:407
     wire base_open_and_19;                   // rtl-gen/src/merge/merger/per_node_mode.rs:411
     reg base10_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    reg [4:0] base10_wr;                     // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] base10_rd;                     // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base10_empty;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base10_full;                        // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] base10_wr;                     // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] base10_rd;                     // rtl-gen/src/drop_fifo.rs:58
+    wire base10_empty;                       // rtl-gen/src/drop_fifo.rs:59
+    wire base10_full;                        // rtl-gen/src/drop_fifo.rs:60
     wire lo_lt_10;                           // rtl-gen/src/merge/merger/per_node_mode.rs:399
     wire out_is_node_and_10;                 // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base10_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:402
-    wire base10_wr_put;                      // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire base10_wr_put;                      // rtl-gen/src/drop_fifo.rs:89
     wire range_good_and_10;                  // rtl-gen/src/merge/merger/per_node_mode.rs:406
     wire base_open_and_20;                   // rtl-gen/src/merge/merger/per_node_mode.rs:407
     wire base_open_and_21;                   // rtl-gen/src/merge/merger/per_node_mode.rs:411
     reg base11_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    reg [4:0] base11_wr;                     // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] base11_rd;                     // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base11_empty;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base11_full;                        // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] base11_wr;                     // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] base11_rd;                     // rtl-gen/src/drop_fifo.rs:58
+    wire base11_empty;                       // rtl-gen/src/drop_fifo.rs:59
+    wire base11_full;                        // rtl-gen/src/drop_fifo.rs:60
     wire lo_lt_11;                           // rtl-gen/src/merge/merger/per_node_mode.rs:399
     wire out_is_node_and_11;                 // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base11_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:402
-    wire base11_wr_put;                      // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire base11_wr_put;                      // rtl-gen/src/drop_fifo.rs:89
     wire range_good_and_11;                  // rtl-gen/src/merge/merger/per_node_mode.rs:406
     wire base_open_and_22;                   // rtl-gen/src/merge/merger/per_node_mode.rs:407
     wire base_open_and_23;                   // rtl-gen/src/merge/merger/per_node_mode.rs:411
     reg base12_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    reg [4:0] base12_wr;                     // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] base12_rd;                     // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base12_empty;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base12_full;                        // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] base12_wr;                     // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] base12_rd;                     // rtl-gen/src/drop_fifo.rs:58
+    wire base12_empty;                       // rtl-gen/src/drop_fifo.rs:59
+    wire base12_full;                        // rtl-gen/src/drop_fifo.rs:60
     wire lo_lt_12;                           // rtl-gen/src/merge/merger/per_node_mode.rs:399
     wire out_is_node_and_12;                 // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base12_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:402
-    wire base12_wr_put;                      // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire base12_wr_put;                      // rtl-gen/src/drop_fifo.rs:89
     wire range_good_and_12;                  // rtl-gen/src/merge/merger/per_node_mode.rs:406
     wire base_open_and_24;                   // rtl-gen/src/merge/merger/per_node_mode.rs:407
     wire base_open_and_25;                   // rtl-gen/src/merge/merger/per_node_mode.rs:411
     reg base13_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    reg [4:0] base13_wr;                     // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] base13_rd;                     // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base13_empty;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base13_full;                        // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] base13_wr;                     // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] base13_rd;                     // rtl-gen/src/drop_fifo.rs:58
+    wire base13_empty;                       // rtl-gen/src/drop_fifo.rs:59
+    wire base13_full;                        // rtl-gen/src/drop_fifo.rs:60
     wire lo_lt_13;                           // rtl-gen/src/merge/merger/per_node_mode.rs:399
     wire out_is_node_and_13;                 // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base13_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:402
-    wire base13_wr_put;                      // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire base13_wr_put;                      // rtl-gen/src/drop_fifo.rs:89
     wire range_good_and_13;                  // rtl-gen/src/merge/merger/per_node_mode.rs:406
     wire base_open_and_26;                   // rtl-gen/src/merge/merger/per_node_mode.rs:407
     wire base_open_and_27;                   // rtl-gen/src/merge/merger/per_node_mode.rs:411
     reg base14_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    reg [4:0] base14_wr;                     // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] base14_rd;                     // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base14_empty;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base14_full;                        // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] base14_wr;                     // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] base14_rd;                     // rtl-gen/src/drop_fifo.rs:58
+    wire base14_empty;                       // rtl-gen/src/drop_fifo.rs:59
+    wire base14_full;                        // rtl-gen/src/drop_fifo.rs:60
     wire lo_lt_14;                           // rtl-gen/src/merge/merger/per_node_mode.rs:399
     wire out_is_node_and_14;                 // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base14_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:402
-    wire base14_wr_put;                      // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire base14_wr_put;                      // rtl-gen/src/drop_fifo.rs:89
     wire range_good_and_14;                  // rtl-gen/src/merge/merger/per_node_mode.rs:406
     wire base_open_and_28;                   // rtl-gen/src/merge/merger/per_node_mode.rs:407
     wire base_open_and_29;                   // rtl-gen/src/merge/merger/per_node_mode.rs:411
     reg base15_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    reg [4:0] base15_wr;                     // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] base15_rd;                     // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base15_empty;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base15_full;                        // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] base15_wr;                     // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] base15_rd;                     // rtl-gen/src/drop_fifo.rs:58
+    wire base15_empty;                       // rtl-gen/src/drop_fifo.rs:59
+    wire base15_full;                        // rtl-gen/src/drop_fifo.rs:60
     wire lo_lt_15;                           // rtl-gen/src/merge/merger/per_node_mode.rs:399
     wire out_is_node_and_15;                 // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base15_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:402
-    wire base15_wr_put;                      // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire base15_wr_put;                      // rtl-gen/src/drop_fifo.rs:89
     wire range_good_and_15;                  // rtl-gen/src/merge/merger/per_node_mode.rs:406
     wire base_open_and_30;                   // rtl-gen/src/merge/merger/per_node_mode.rs:407
     wire base_open_and_31;                   // rtl-gen/src/merge/merger/per_node_mode.rs:411
     reg base16_end_sent;                     // rtl-gen/src/merge/merger/per_node_mode.rs:389
-    reg [4:0] base16_wr;                     // rtl-gen/src/merge/merger/drop_fifo.rs:22
-    reg [4:0] base16_rd;                     // rtl-gen/src/merge/merger/drop_fifo.rs:23
-    wire base16_empty;                       // rtl-gen/src/merge/merger/drop_fifo.rs:24
-    wire base16_full;                        // rtl-gen/src/merge/merger/drop_fifo.rs:25
+    reg [4:0] base16_wr;                     // rtl-gen/src/drop_fifo.rs:57
+    reg [4:0] base16_rd;                     // rtl-gen/src/drop_fifo.rs:58
+    wire base16_empty;                       // rtl-gen/src/drop_fifo.rs:59
+    wire base16_full;                        // rtl-gen/src/drop_fifo.rs:60
     wire lo_lt_16;                           // rtl-gen/src/merge/merger/per_node_mode.rs:399
     wire out_is_node_and_16;                 // rtl-gen/src/merge/merger/per_node_mode.rs:401
     wire base16_push;                        // rtl-gen/src/merge/merger/per_node_mode.rs:402
-    wire base16_wr_put;                      // rtl-gen/src/merge/merger/drop_fifo.rs:44
+    wire base16_wr_put;                      // rtl-gen/src/drop_fifo.rs:89
     wire range_good_and_16;                  // rtl-gen/src/merge/merger/per_node_mode.rs:406
     wire base_open_and_32;                   // rtl-gen/src/merge/merger/per_node_mode.rs:407
     wire base_open_and_33;                   // rtl-gen/src/merge/merger/per_node_mode.rs:411
-    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:419
-    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:419
-    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:419
+    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:418
+    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:418
+    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:418
     wire dropping0_and;                      // rtl-gen/src/merge/merger/tail.rs:115
     wire merge_settled;                      // rtl-gen/src/merge/merger/tail.rs:116
     wire header_offered;                     // rtl-gen/src/merge/merger/tail.rs:118
@@ -1111,7 +1111,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
     assign idle = merger_idle;
     assign module_done = u_module_done;
 
-    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch0 ( // rtl-gen/src/merge/merger/mod.rs:252
+    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch0 ( // rtl-gen/src/merge/merger/mod.rs:251
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch0_cfg_pending),
@@ -1156,7 +1156,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .idle(u_fetch0_idle)
     );
 
-    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch1 ( // rtl-gen/src/merge/merger/mod.rs:252
+    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch1 ( // rtl-gen/src/merge/merger/mod.rs:251
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch1_cfg_pending),
@@ -1201,7 +1201,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .idle(u_fetch1_idle)
     );
 
-    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch2 ( // rtl-gen/src/merge/merger/mod.rs:252
+    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch2 ( // rtl-gen/src/merge/merger/mod.rs:251
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch2_cfg_pending),
@@ -1246,7 +1246,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .idle(u_fetch2_idle)
     );
 
-    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch3 ( // rtl-gen/src/merge/merger/mod.rs:252
+    fetcher_d16_q8_i24_h4_r16_f256_pn u_fetch3 ( // rtl-gen/src/merge/merger/mod.rs:251
         .clk(clk),
         .rst(rst),
         .cfg_valid(fetch3_cfg_pending),
@@ -1291,7 +1291,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .idle(u_fetch3_idle)
     );
 
-    merge_module_d16_q8_i24_h4_k4_pn1_2 u_module ( // rtl-gen/src/merge/merger/mod.rs:254
+    merge_module_d16_q8_i24_h4_k4_pn1_2 u_module ( // rtl-gen/src/merge/merger/mod.rs:253
         .clk(clk),
         .rst(rst),
         .in0_valid(used0 ? (u_fetch0_out_valid & dropping0_not) : virtual_end0),
@@ -1319,7 +1319,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .done(u_module_done)
     );
 
-    upper_builder_d16_q8_i24_h4 u_builder ( // rtl-gen/src/merge/merger/mod.rs:255
+    upper_builder_d16_q8_i24_h4 u_builder ( // rtl-gen/src/merge/merger/mod.rs:254
         .clk(clk),
         .rst(rst),
         .base0_valid(base_open_and),
@@ -1429,7 +1429,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
         .done_ready(u_writer_done_ready)
     );
 
-    record_writer_d16_q8_i24_h4_c10 u_writer ( // rtl-gen/src/merge/merger/mod.rs:256
+    record_writer_d16_q8_i24_h4_c10 u_writer ( // rtl-gen/src/merge/merger/mod.rs:255
         .clk(clk),
         .rst(rst),
         .cfg_valid(writer_cfg_pending),
@@ -1622,10 +1622,10 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
             end
             header_open <= header_fire ? 1'b0 : (header_open | merge_settled);
             if (cfg_fire) begin
-                module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:373
-                writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:381
-                busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:297
-                cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:307
+                module_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:372
+                writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:380
+                busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:296
+                cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:306
                 fetch0_cfg_pending <= cfg_data_count_gt; // rtl-gen/src/merge/merger/per_node_mode.rs:209
                 cmd0_pending <= cfg_data_count_gt; // rtl-gen/src/merge/merger/per_node_mode.rs:229
                 end_owed0 <= (~cfg_data_count_gt) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:257
@@ -1640,13 +1640,13 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
                 end_owed3 <= (~cfg_data_count_gt_3) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:257
             end else begin
                 if (module_cfg_pending & u_module_cfg_ready) begin
-                    module_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:373
+                    module_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:372
                 end
                 if (writer_cfg_pending & u_writer_cfg_ready) begin
-                    writer_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:381
+                    writer_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/mod.rs:380
                 end
                 if (header_fire) begin
-                    busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:297
+                    busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:296
                     end_owed0 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:259
                     end_owed1 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:259
                     end_owed2 <= 1'b0;       // rtl-gen/src/merge/merger/per_node_mode.rs:259
@@ -1798,142 +1798,142 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
                 base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:413
             end
             if (header_fire) begin
-                base0_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                base0_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                base1_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                base1_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                base2_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                base2_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                base3_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                base3_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                base4_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                base4_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                base5_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                base5_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                base6_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                base6_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                base7_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                base7_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                base8_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                base8_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                base9_wr <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                base9_rd <= 5'd0;            // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                base10_wr <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                base10_rd <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                base11_wr <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                base11_rd <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                base12_wr <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                base12_rd <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                base13_wr <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                base13_rd <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                base14_wr <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                base14_rd <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                base15_wr <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                base15_rd <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:58
-                base16_wr <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:57
-                base16_rd <= 5'd0;           // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                base0_wr <= 5'd0;            // rtl-gen/src/drop_fifo.rs:103
+                base0_rd <= 5'd0;            // rtl-gen/src/drop_fifo.rs:104
+                base1_wr <= 5'd0;            // rtl-gen/src/drop_fifo.rs:103
+                base1_rd <= 5'd0;            // rtl-gen/src/drop_fifo.rs:104
+                base2_wr <= 5'd0;            // rtl-gen/src/drop_fifo.rs:103
+                base2_rd <= 5'd0;            // rtl-gen/src/drop_fifo.rs:104
+                base3_wr <= 5'd0;            // rtl-gen/src/drop_fifo.rs:103
+                base3_rd <= 5'd0;            // rtl-gen/src/drop_fifo.rs:104
+                base4_wr <= 5'd0;            // rtl-gen/src/drop_fifo.rs:103
+                base4_rd <= 5'd0;            // rtl-gen/src/drop_fifo.rs:104
+                base5_wr <= 5'd0;            // rtl-gen/src/drop_fifo.rs:103
+                base5_rd <= 5'd0;            // rtl-gen/src/drop_fifo.rs:104
+                base6_wr <= 5'd0;            // rtl-gen/src/drop_fifo.rs:103
+                base6_rd <= 5'd0;            // rtl-gen/src/drop_fifo.rs:104
+                base7_wr <= 5'd0;            // rtl-gen/src/drop_fifo.rs:103
+                base7_rd <= 5'd0;            // rtl-gen/src/drop_fifo.rs:104
+                base8_wr <= 5'd0;            // rtl-gen/src/drop_fifo.rs:103
+                base8_rd <= 5'd0;            // rtl-gen/src/drop_fifo.rs:104
+                base9_wr <= 5'd0;            // rtl-gen/src/drop_fifo.rs:103
+                base9_rd <= 5'd0;            // rtl-gen/src/drop_fifo.rs:104
+                base10_wr <= 5'd0;           // rtl-gen/src/drop_fifo.rs:103
+                base10_rd <= 5'd0;           // rtl-gen/src/drop_fifo.rs:104
+                base11_wr <= 5'd0;           // rtl-gen/src/drop_fifo.rs:103
+                base11_rd <= 5'd0;           // rtl-gen/src/drop_fifo.rs:104
+                base12_wr <= 5'd0;           // rtl-gen/src/drop_fifo.rs:103
+                base12_rd <= 5'd0;           // rtl-gen/src/drop_fifo.rs:104
+                base13_wr <= 5'd0;           // rtl-gen/src/drop_fifo.rs:103
+                base13_rd <= 5'd0;           // rtl-gen/src/drop_fifo.rs:104
+                base14_wr <= 5'd0;           // rtl-gen/src/drop_fifo.rs:103
+                base14_rd <= 5'd0;           // rtl-gen/src/drop_fifo.rs:104
+                base15_wr <= 5'd0;           // rtl-gen/src/drop_fifo.rs:103
+                base15_rd <= 5'd0;           // rtl-gen/src/drop_fifo.rs:104
+                base16_wr <= 5'd0;           // rtl-gen/src/drop_fifo.rs:103
+                base16_rd <= 5'd0;           // rtl-gen/src/drop_fifo.rs:104
             end else begin
                 if (base0_wr_put) begin
-                    base0_wr <= base0_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    base0_wr <= base0_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (base_open_and_1 & range_good_and) begin
-                    base0_rd <= base0_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    base0_rd <= base0_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (base1_wr_put) begin
-                    base1_wr <= base1_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    base1_wr <= base1_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (base_open_and_3 & range_good_and_1) begin
-                    base1_rd <= base1_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    base1_rd <= base1_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (base2_wr_put) begin
-                    base2_wr <= base2_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    base2_wr <= base2_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (base_open_and_5 & range_good_and_2) begin
-                    base2_rd <= base2_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    base2_rd <= base2_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (base3_wr_put) begin
-                    base3_wr <= base3_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    base3_wr <= base3_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (base_open_and_7 & range_good_and_3) begin
-                    base3_rd <= base3_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    base3_rd <= base3_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (base4_wr_put) begin
-                    base4_wr <= base4_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    base4_wr <= base4_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (base_open_and_9 & range_good_and_4) begin
-                    base4_rd <= base4_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    base4_rd <= base4_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (base5_wr_put) begin
-                    base5_wr <= base5_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    base5_wr <= base5_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (base_open_and_11 & range_good_and_5) begin
-                    base5_rd <= base5_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    base5_rd <= base5_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (base6_wr_put) begin
-                    base6_wr <= base6_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    base6_wr <= base6_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (base_open_and_13 & range_good_and_6) begin
-                    base6_rd <= base6_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    base6_rd <= base6_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (base7_wr_put) begin
-                    base7_wr <= base7_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    base7_wr <= base7_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (base_open_and_15 & range_good_and_7) begin
-                    base7_rd <= base7_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    base7_rd <= base7_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (base8_wr_put) begin
-                    base8_wr <= base8_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    base8_wr <= base8_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (base_open_and_17 & range_good_and_8) begin
-                    base8_rd <= base8_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    base8_rd <= base8_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (base9_wr_put) begin
-                    base9_wr <= base9_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    base9_wr <= base9_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (base_open_and_19 & range_good_and_9) begin
-                    base9_rd <= base9_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    base9_rd <= base9_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (base10_wr_put) begin
-                    base10_wr <= base10_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    base10_wr <= base10_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (base_open_and_21 & range_good_and_10) begin
-                    base10_rd <= base10_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    base10_rd <= base10_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (base11_wr_put) begin
-                    base11_wr <= base11_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    base11_wr <= base11_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (base_open_and_23 & range_good_and_11) begin
-                    base11_rd <= base11_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    base11_rd <= base11_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (base12_wr_put) begin
-                    base12_wr <= base12_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    base12_wr <= base12_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (base_open_and_25 & range_good_and_12) begin
-                    base12_rd <= base12_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    base12_rd <= base12_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (base13_wr_put) begin
-                    base13_wr <= base13_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    base13_wr <= base13_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (base_open_and_27 & range_good_and_13) begin
-                    base13_rd <= base13_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    base13_rd <= base13_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (base14_wr_put) begin
-                    base14_wr <= base14_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    base14_wr <= base14_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (base_open_and_29 & range_good_and_14) begin
-                    base14_rd <= base14_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    base14_rd <= base14_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (base15_wr_put) begin
-                    base15_wr <= base15_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    base15_wr <= base15_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (base_open_and_31 & range_good_and_15) begin
-                    base15_rd <= base15_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    base15_rd <= base15_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
                 if (base16_wr_put) begin
-                    base16_wr <= base16_wr + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:57
+                    base16_wr <= base16_wr + 5'd1; // rtl-gen/src/drop_fifo.rs:103
                 end
                 if (base_open_and_33 & range_good_and_16) begin
-                    base16_rd <= base16_rd + 5'd1; // rtl-gen/src/merge/merger/drop_fifo.rs:58
+                    base16_rd <= base16_rd + 5'd1; // rtl-gen/src/drop_fifo.rs:104
                 end
             end
             if (base_open_and_3 & (~range_good_and_1)) begin

@@ -8,126 +8,126 @@ module hierarchy_unit_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4_t16_b64 (
     input  wire cmd_valid,                  // rtl-gen/src/merge/hierarchy_unit.rs:112
     input  wire [351:0] cmd_data,           // rtl-gen/src/merge/hierarchy_unit.rs:112
     output wire cmd_ready,                  // rtl-gen/src/merge/hierarchy_unit.rs:112
-    output wire det_out_valid,              // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [320:0] det_out_data,       // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire det_out_ready,              // rtl-gen/src/merge/merger/mod.rs:422
-    output wire report_valid,               // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [65:0] report_data,         // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire report_ready,               // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f0_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [149:0] f0_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f0_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f0_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f0_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f0_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f0_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f0_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f0_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f0_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [149:0] f0_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f0_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f0_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f0_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f0_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f0_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f0_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f0_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f0_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f0_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f0_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f0_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f0_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f0_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f1_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [149:0] f1_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f1_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f1_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f1_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f1_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f1_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f1_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f1_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f1_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [149:0] f1_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f1_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f1_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f1_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f1_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f1_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f1_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f1_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f1_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f1_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f1_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f1_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f1_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f1_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f2_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [149:0] f2_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f2_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f2_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f2_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f2_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f2_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f2_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f2_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f2_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [149:0] f2_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f2_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f2_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f2_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f2_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f2_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f2_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f2_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f2_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f2_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f2_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f2_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f2_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f2_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f3_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [149:0] f3_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f3_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f3_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f3_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f3_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f3_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] f3_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f3_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire f3_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [149:0] f3_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f3_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:425
-    output wire f3_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f3_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f3_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f3_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f3_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f3_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f3_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f3_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f3_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:422
-    output wire f3_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [23:0] f3_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire f3_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire w_ref_resp_valid,           // rtl-gen/src/merge/merger/mod.rs:425
-    input  wire [27:0] w_ref_resp_data,     // rtl-gen/src/merge/merger/mod.rs:425
-    output wire w_ref_resp_ready,           // rtl-gen/src/merge/merger/mod.rs:425
-    output wire w_ref_req_valid,            // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [27:0] w_ref_req_data,      // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire w_ref_req_ready,            // rtl-gen/src/merge/merger/mod.rs:422
-    output wire nodes_valid,                // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [149:0] nodes_data,         // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire nodes_ready,                // rtl-gen/src/merge/merger/mod.rs:422
-    output wire refs_valid,                 // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [27:0] refs_data,           // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire refs_ready,                 // rtl-gen/src/merge/merger/mod.rs:422
+    output wire det_out_valid,              // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [320:0] det_out_data,       // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire det_out_ready,              // rtl-gen/src/merge/merger/mod.rs:421
+    output wire report_valid,               // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [65:0] report_data,         // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire report_ready,               // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f0_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [149:0] f0_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f0_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f0_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f0_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f0_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f0_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f0_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f0_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f0_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [149:0] f0_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f0_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f0_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f0_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f0_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f0_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f0_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f0_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f0_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f0_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f0_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f0_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f0_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f0_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f1_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [149:0] f1_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f1_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f1_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f1_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f1_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f1_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f1_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f1_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f1_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [149:0] f1_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f1_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f1_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f1_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f1_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f1_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f1_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f1_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f1_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f1_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f1_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f1_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f1_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f1_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f2_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [149:0] f2_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f2_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f2_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f2_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f2_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f2_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f2_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f2_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f2_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [149:0] f2_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f2_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f2_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f2_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f2_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f2_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f2_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f2_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f2_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f2_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f2_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f2_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f2_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f2_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f3_node_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [149:0] f3_node_resp_data,  // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f3_node_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f3_ref_resp_valid,          // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f3_ref_resp_data,    // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f3_ref_resp_ready,          // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f3_cref_resp_valid,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] f3_cref_resp_data,   // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f3_cref_resp_ready,         // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire f3_probe_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [149:0] f3_probe_resp_data, // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f3_probe_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:424
+    output wire f3_node_req_valid,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f3_node_req_data,    // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f3_node_req_ready,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f3_ref_req_valid,           // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f3_ref_req_data,     // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f3_ref_req_ready,           // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f3_cref_req_valid,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f3_cref_req_data,    // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f3_cref_req_ready,          // rtl-gen/src/merge/merger/mod.rs:421
+    output wire f3_probe_req_valid,         // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [23:0] f3_probe_req_data,   // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire f3_probe_req_ready,         // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire w_ref_resp_valid,           // rtl-gen/src/merge/merger/mod.rs:424
+    input  wire [27:0] w_ref_resp_data,     // rtl-gen/src/merge/merger/mod.rs:424
+    output wire w_ref_resp_ready,           // rtl-gen/src/merge/merger/mod.rs:424
+    output wire w_ref_req_valid,            // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [27:0] w_ref_req_data,      // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire w_ref_req_ready,            // rtl-gen/src/merge/merger/mod.rs:421
+    output wire nodes_valid,                // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [149:0] nodes_data,         // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire nodes_ready,                // rtl-gen/src/merge/merger/mod.rs:421
+    output wire refs_valid,                 // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [27:0] refs_data,           // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire refs_ready,                 // rtl-gen/src/merge/merger/mod.rs:421
     output wire w_filling,                  // rtl-gen/src/merge/hierarchy_unit.rs:224
     output wire w_drain_records,            // rtl-gen/src/merge/hierarchy_unit.rs:224
     output wire w_drain_refs,               // rtl-gen/src/merge/hierarchy_unit.rs:224
-    output wire header_valid,               // rtl-gen/src/merge/merger/mod.rs:422
-    output wire [94:0] header_data,         // rtl-gen/src/merge/merger/mod.rs:422
-    input  wire header_ready,               // rtl-gen/src/merge/merger/mod.rs:422
+    output wire header_valid,               // rtl-gen/src/merge/merger/mod.rs:421
+    output wire [94:0] header_data,         // rtl-gen/src/merge/merger/mod.rs:421
+    input  wire header_ready,               // rtl-gen/src/merge/merger/mod.rs:421
     output wire done,                       // rtl-gen/src/merge/hierarchy_unit.rs:224
     output wire module_done,                // rtl-gen/src/merge/hierarchy_unit.rs:224
     output wire idle,                       // rtl-gen/src/merge/hierarchy_unit.rs:147
@@ -212,7 +212,7 @@ module hierarchy_unit_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4_t16_b64 (
     wire u_merger_module_done;               // rtl-gen/src/merge/hierarchy_unit.rs:111
     wire cmd_data_kind;                      // rtl-gen/src/merge/hierarchy_unit.rs:113
     wire cmd_is_merge;                       // rtl-gen/src/merge/hierarchy_unit.rs:114
-    wire det_out_ready_w;                    // rtl-gen/src/merge/merger/mod.rs:419
+    wire det_out_ready_w;                    // rtl-gen/src/merge/merger/mod.rs:418
     wire merge_valid;                        // rtl-gen/src/merge/hierarchy_unit.rs:135
     wire [2:0] count;                        // rtl-gen/src/merge/hierarchy_unit.rs:166
     wire used0;                              // rtl-gen/src/merge/hierarchy_unit.rs:172
@@ -254,27 +254,27 @@ module hierarchy_unit_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4_t16_b64 (
     wire [4:0] range_hi;                     // rtl-gen/src/merge/hierarchy_unit.rs:199
     wire [3:0] cmd_data_out_id;              // rtl-gen/src/merge/hierarchy_unit.rs:200
     wire [568:0] merger_cfg;                 // rtl-gen/src/merge/hierarchy_unit.rs:202
-    wire report_ready_w;                     // rtl-gen/src/merge/merger/mod.rs:419
-    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
-    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:419
-    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
-    wire f0_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:419
-    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
-    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:419
-    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
-    wire f1_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:419
-    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
-    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:419
-    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
-    wire f2_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:419
-    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
-    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:419
-    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:419
-    wire f3_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:419
-    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:419
-    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:419
-    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:419
-    wire header_ready_w;                     // rtl-gen/src/merge/merger/mod.rs:419
+    wire report_ready_w;                     // rtl-gen/src/merge/merger/mod.rs:418
+    wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
+    wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:418
+    wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
+    wire f0_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:418
+    wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
+    wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:418
+    wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
+    wire f1_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:418
+    wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
+    wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:418
+    wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
+    wire f2_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:418
+    wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
+    wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:418
+    wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:418
+    wire f3_probe_req_ready_w;               // rtl-gen/src/merge/merger/mod.rs:418
+    wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:418
+    wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:418
+    wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:418
+    wire header_ready_w;                     // rtl-gen/src/merge/merger/mod.rs:418
 
     assign cmd_ready = cmd_is_merge ? (u_merger_cfg_ready & table_settled) : u_translate_det_in_ready;
     assign cmd_data_kind = cmd_data[351];

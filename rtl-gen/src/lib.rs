@@ -27,6 +27,7 @@
 #![warn(missing_docs)]
 
 mod diagnostic;
+mod drop_fifo;
 pub mod examples;
 mod first_of;
 pub mod formal;
@@ -55,6 +56,7 @@ pub use golden::bits::{Bits, BitsError};
 /// so a typo cannot allocate gigabytes.
 pub const MAX_WIDTH: u32 = 1 << 24;
 pub use diagnostic::{DiagKind, Diagnostic, Diagnostics, Loc, Severity};
+pub use drop_fifo::DropFifo;
 pub use graph::{CmpOp, Direction, CLOCK, RESET};
 pub use instance::Instance;
 pub use memory::Memory;

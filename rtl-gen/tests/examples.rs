@@ -100,6 +100,18 @@ fn run_stream(
     (p.sent, got)
 }
 
+/// `out` offers the model queue's head, and only while it holds one.
+fn offers_head(sim: &mut Sim, model: &VecDeque<u64>, cycle: usize) {
+    assert_eq!(
+        get(sim, "out_valid") == 1,
+        !model.is_empty(),
+        "cycle {cycle}"
+    );
+    if let Some(&head) = model.front() {
+        assert_eq!(get(sim, "out_data"), head, "cycle {cycle}");
+    }
+}
+
 #[test]
 fn fifo_matches_a_queue_model_under_back_pressure() {
     for (width, addr_bits) in [(8u32, 2u32), (33, 1), (16, 4)] {
@@ -129,14 +141,7 @@ fn fifo_matches_a_queue_model_under_back_pressure() {
                 model.len() < cap,
                 "cycle {cycle}"
             );
-            assert_eq!(
-                get(&mut sim, "out_valid") == 1,
-                !model.is_empty(),
-                "cycle {cycle}"
-            );
-            if let Some(&head) = model.front() {
-                assert_eq!(get(&mut sim, "out_data"), head, "cycle {cycle}");
-            }
+            offers_head(&mut sim, &model, cycle);
             let push = p.valid && model.len() < cap;
             let pop = !model.is_empty() && out_ready;
             if pop {
@@ -150,6 +155,54 @@ fn fifo_matches_a_queue_model_under_back_pressure() {
         }
         assert!(received.len() > 600, "traffic flowed: {}", received.len());
         assert_eq!(received[..], p.sent[..received.len()]);
+    }
+}
+
+#[test]
+fn drop_fifo_matches_a_queue_model_that_drops_while_full() {
+    for (width, cb) in [(8u32, 2u32), (33, 1)] {
+        let m = examples::drop_fifo(width, cb);
+        let mut sim = Sim::new(&m).unwrap();
+        let cap = 1usize << cb;
+        let mask = (1u64 << width) - 1;
+        let mut model: VecDeque<u64> = VecDeque::new();
+        let mut rng = Rng(7 + width as u64);
+        sim.reset();
+        let (mut dropped, mut cleared, mut popped) = (0, 0, 0);
+        for cycle in 0..4000 {
+            // Phases that fill it (drops), drain it, and mix.
+            let (in_pct, out_pct) = [(90, 20), (20, 90), (60, 60)][(cycle / 200) % 3];
+            let push = rng.chance(in_pct, 100);
+            let data = rng.next_u64() & mask;
+            let out_ready = rng.chance(out_pct, 100);
+            let clear = rng.chance(1, 100);
+            sim.poke("in_valid", push).unwrap();
+            sim.poke("in_data", data).unwrap();
+            sim.poke("out_ready", out_ready).unwrap();
+            sim.poke("clear", clear).unwrap();
+            assert_eq!(get(&mut sim, "in_ready"), 1, "cycle {cycle}");
+            let full = model.len() == cap;
+            assert_eq!(get(&mut sim, "dropped") == 1, push && full, "cycle {cycle}");
+            offers_head(&mut sim, &model, cycle);
+            dropped += (push && full) as usize;
+            if clear {
+                cleared += !model.is_empty() as usize;
+                model.clear();
+            } else {
+                if !model.is_empty() && out_ready {
+                    model.pop_front();
+                    popped += 1;
+                }
+                if push && !full {
+                    model.push_back(data);
+                }
+            }
+            sim.step();
+        }
+        assert!(
+            dropped > 50 && cleared > 5 && popped > 1000,
+            "every case came: {dropped} dropped, {cleared} clears, {popped} popped"
+        );
     }
 }
 

@@ -57,6 +57,11 @@ fn fifo_snapshot() {
 }
 
 #[test]
+fn drop_fifo_snapshot() {
+    check(&examples::drop_fifo(8, 2));
+}
+
+#[test]
 fn skid_buffer_snapshot() {
     check(&examples::skid_buffer(8));
 }

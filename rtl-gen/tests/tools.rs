@@ -15,6 +15,8 @@ fn examples_lint_and_synthesize() {
         examples::counter(8),
         examples::fifo(8, 3),
         examples::fifo(33, 1),
+        examples::drop_fifo(8, 2),
+        examples::drop_fifo(33, 1),
         examples::skid_buffer(16),
         examples::abs_diff_pipeline(8, 100),
         examples::abs_diff_pipeline(70, 1 << 69),

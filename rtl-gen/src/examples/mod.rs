@@ -9,5 +9,5 @@ mod skid;
 
 pub use counter::counter;
 pub use datapath::abs_diff_pipeline;
-pub use fifo::fifo;
+pub use fifo::{drop_fifo, fifo};
 pub use skid::skid_buffer;

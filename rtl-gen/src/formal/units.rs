@@ -82,19 +82,11 @@ pub fn skid_buffer(width: u32) -> Proof {
 pub fn fifo(width: u32, addr_bits: u32) -> Proof {
     let depth = 1u32 << addr_bits;
     let cb = golden::params::bits_to_hold(depth as u64);
-    Proof::new(
+    memory_fifo(
         crate::examples::fifo(width, addr_bits),
-        &["in"],
-        &["out"],
-        2 * depth + 2,
+        depth,
+        "dut.mem_count",
     )
-    .flow(Flow::Fifo {
-        input: "in".into(),
-        output: "out".into(),
-        capacity: depth,
-        occupancy: Some("dut.mem_count".into()),
-        slots: vec![],
-    })
     .invariant(
         "count_within_depth",
         &format!("dut.mem_count <= {cb}'d{depth}"),
@@ -109,6 +101,42 @@ pub fn fifo(width: u32, addr_bits: u32) -> Proof {
     .check(Handshake, Induction)
     .check(FlowCheck, Bmc)
     .check(Determined, Bmc)
+}
+
+/// The library's drop FIFO ([`crate::DropFifo`],
+/// [`crate::examples::drop_fifo`]) of `2^cb` words, to the same depth as
+/// [`fifo`]. Its producer is never held, so the flow (no beat lost,
+/// duplicated or reordered) holds under the promise its callers keep or
+/// flag (no push while full), and the handshake with `clear` low; the
+/// occupancy stays within the depth, and nothing is X after reset, with
+/// `clear` free.
+pub fn drop_fifo(width: u32, cb: u32) -> Proof {
+    let depth = 1u32 << cb;
+    let occ = "(dut.q_wr - dut.q_rd)";
+    memory_fifo(crate::examples::drop_fifo(width, cb), depth, occ)
+        .assume(
+            "no_push_while_full",
+            "!(in_valid && dut.q_full)",
+            &[FlowCheck],
+        )
+        .assume("no_clear", "!clear", &[Handshake, FlowCheck])
+        .invariant("within_depth", &format!("{occ} <= {}'d{depth}", cb + 1))
+        .check(Handshake, Induction)
+        .check(FlowCheck, Bmc)
+        .check(Determined, Bmc)
+}
+
+/// A FIFO of `depth` words on a memory between streams `in` and `out`,
+/// `occupancy` its words held: the flow of both library FIFOs, to a depth
+/// in which the addresses wrap and it fills and drains.
+fn memory_fifo(m: Module, depth: u32, occupancy: &str) -> Proof {
+    Proof::new(m, &["in"], &["out"], 2 * depth + 2).flow(Flow::Fifo {
+        input: "in".into(),
+        output: "out".into(),
+        capacity: depth,
+        occupancy: Some(occupancy.into()),
+        slots: vec![],
+    })
 }
 
 /// [`Stream::merge_priority`] of `n` streams of `width` bits.
@@ -1086,10 +1114,11 @@ pub fn hierarchy_unit_small() -> Proof {
 
 /// The units `hiermerge formal` proves by default (and with `--all`), in
 /// report order: each check takes seconds.
-pub const NAMES: [&str; 10] = [
+pub const NAMES: [&str; 11] = [
     "pipeline_reg",
     "skid_buffer",
     "fifo",
+    "drop_fifo",
     "merge_priority",
     "overlap_counter",
     "merge_level",
@@ -1133,6 +1162,7 @@ pub fn by_name(name: &str) -> Option<Proof> {
         "pipeline_reg" => pipeline_reg(8),
         "skid_buffer" => skid_buffer(8),
         "fifo" => fifo(8, 2),
+        "drop_fifo" => drop_fifo(8, 2),
         "merge_priority" => merge_priority(8, 3),
         "overlap_counter" => overlap_counter(),
         "merge_level" => merge_level(),

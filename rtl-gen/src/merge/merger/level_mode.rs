@@ -8,7 +8,6 @@ use golden::merge::merge_module::TopLayout;
 use golden::merge::merger::MergerLayout;
 use golden::params::Params;
 
-use super::drop_fifo::DropFifo;
 use super::leaf_merge::{merge_leaves, LeafInputs, MergedLeaves};
 use super::tail::{finish_merger, Store, Tail};
 use super::{
@@ -17,6 +16,7 @@ use super::{
 };
 use crate::merge::fields::with_fields;
 use crate::merge::{fetcher_unit, record_writer_unit};
+use crate::DropFifo;
 use crate::{Module, Signal};
 
 /// The count pass runs in overlap mode on a good range (the merging
@@ -377,7 +377,7 @@ fn route_out<'m>(
         let (valid, data, is_end) = if d < dmax {
             // The FIFO of LOD d.
             let q = DropFifo::new(m, &format!("leaves{d}"), &format!("leaves{d}"), word_w, cb);
-            let (empty, full) = (q.empty, q.full);
+            let (empty, full) = (q.empty(), q.full());
             let push = (take_leaf & best_lod.eq(dl)).name(&format!("leaves{d}_push"));
             q.write(word, push);
             over_next = (push & full).mux(one, over_next);

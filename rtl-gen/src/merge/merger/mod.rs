@@ -6,7 +6,7 @@
 //! pass; `level_mode`, `per_node_mode`), the routing of the merging module's
 //! `out` (nodes to the builder, references to the writer's `crefs`), and the
 //! leaves above `m`: a k-way merge by (LOD, Morton, rank) (`leaf_merge`) into
-//! one FIFO per LOD (`drop_fifo`): the builder takes `base{d}` at its pace.
+//! one FIFO per LOD ([`crate::DropFifo`]): the builder takes `base{d}` at its pace.
 //!
 //! Golden: `golden::merge::merger::merger_transaction`, the chain of the
 //! units' own transactions.
@@ -23,7 +23,6 @@ use super::fields::{field, with_fields};
 use super::{merge_module_name, merge_module_unit, upper_builder_unit, MergeConfig};
 use crate::{Direction, Module, Signal, Stream};
 
-mod drop_fifo;
 mod leaf_merge;
 mod level_mode;
 mod per_node_mode;

@@ -7,7 +7,6 @@ use golden::merge::merger::MergerLayout;
 use golden::merge::per_node::unit::PerNodeLayout;
 use golden::params::Params;
 
-use super::drop_fifo::DropFifo;
 use super::leaf_merge::{merge_leaves, LeafInputs, MergedLeaves};
 use super::tail::{finish_merger, Store, Tail};
 use super::{
@@ -16,6 +15,7 @@ use super::{
 };
 use crate::merge::fields::{field, with_fields};
 use crate::merge::{fetcher_per_node_unit, record_writer_unit};
+use crate::DropFifo;
 use crate::{Module, Signal};
 
 /// The merger of a `per-node:N/D` configuration (SPEC 8.15, per-node mode):
@@ -395,7 +395,7 @@ fn route_out<'m>(
             inb.width,
             cb,
         );
-        let (empty, full) = (q.empty, q.full);
+        let (empty, full) = (q.empty(), q.full());
         let above_lo = dl.lt(lo);
         let push_leaf = take_leaf & best_lod.eq(dl) & above_lo;
         let push_node = mo_node & mo_lod.eq(dl) & !above_lo;

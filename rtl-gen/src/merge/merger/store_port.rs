@@ -28,7 +28,7 @@
 use golden::merge::merger::store_port::{StoreArray, StorePortLayout};
 use golden::params::{bits_to_hold, Params};
 
-use super::drop_fifo::DropFifo;
+use crate::DropFifo;
 use crate::{Module, Signal, Stream};
 
 /// A store front end: the grid parameters (index, record and reference
@@ -156,13 +156,13 @@ pub fn store_port_unit(c: &StorePortConfig) -> Result<Module, String> {
         tag = grant[j].mux(lit(j as u64, tw), tag);
     }
     let arb = Stream {
-        valid: (any & !tags.full).name("arb_valid"),
+        valid: (any & !tags.full()).name("arb_valid"),
         data: beat.name("arb_data"),
         ready: m.wire("arb_ready", 1),
     };
     let issue = arb.fire().name("issue");
     for (j, r) in reqs.iter().enumerate() {
-        r.ready.drive(grant[j] & arb.ready & !tags.full);
+        r.ready.drive(grant[j] & arb.ready & !tags.full());
     }
     arb.skid_buffer("store_req_q").output("store_req");
     let tag = tag.name("grant_tag");
@@ -174,7 +174,7 @@ pub fn store_port_unit(c: &StorePortConfig) -> Result<Module, String> {
     // else into its buffer (never full: the credits).
     let store_resp = Stream::input(&m, "store_resp", l.resp_width);
     let head = tags.head().name("tag_head");
-    let waiting = (!tags.empty).name("tag_waiting");
+    let waiting = (!tags.empty()).name("tag_waiting");
     store_resp.ready.drive(waiting);
     let answered = store_resp.fire().name("answered");
     let mut idle = lit(1, 1);
@@ -190,14 +190,14 @@ pub fn store_port_unit(c: &StorePortConfig) -> Result<Module, String> {
             c.tag_bits,
         );
         let out = Stream {
-            valid: (!buf.empty | arrive).name(&format!("r{j}_resp_valid_w")),
-            data: buf.empty.mux(word, buf.head()),
+            valid: (!buf.empty() | arrive).name(&format!("r{j}_resp_valid_w")),
+            data: buf.empty().mux(word, buf.head()),
             ready: m.wire(&format!("r{j}_resp_ready_w"), 1),
         };
         let taken = out.fire();
-        let push = arrive & !(buf.empty & out.ready);
+        let push = arrive & !(buf.empty() & out.ready);
         buf.write(word, push);
-        buf.advance(push, taken & !buf.empty, lit(0, 1));
+        buf.advance(push, taken & !buf.empty(), lit(0, 1));
         out.output(&format!("r{j}_resp"));
         let got = issue & grant[j];
         let cr = credits[j];

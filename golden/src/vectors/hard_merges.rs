@@ -64,7 +64,8 @@ pub const CFG_ERRORS: [u64; 3] = [
 /// (overlapping, disjoint, single-triangle soups, one input alone, inputs
 /// overlapping in part), an input filling the scene (several roots), one
 /// whose top holds 16 roots (a leaf and an inner node in each LOD-1
-/// voxel: every entry of the default root sorter), and a ladder of leaves
+/// voxel: every entry of the default root sorter), the same stored in
+/// reverse (every entry of the sorter moves), and a ladder of leaves
 /// at every LOD above the merging level, each through `d`'s mode; per code of [`CFG_ERRORS`] a merge whose last
 /// input's `cfg` makes its fetcher refuse it; and two bad ranges from
 /// software, which the merging module refuses (`lo > hi`, `hi > D`). Merges
@@ -78,6 +79,7 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
     let mut cases = real_cases(p).map_err(golden_err)?;
     cases.push(several_roots(p)?);
     cases.push(sixteen_roots(p)?);
+    cases.push(sixteen_roots_reversed(p)?);
     cases.push(leaf_ladder(p)?);
     cases.retain(|(_, _, ids)| ids.len() <= k);
     for (store, table, ids) in &cases {
@@ -227,6 +229,22 @@ fn sixteen_roots(p: &Params) -> Result<RealCase> {
     let big = build(&m, &GridMap::fit(lo, hi, p), p, 1).map_err(golden_err)?;
     let small = try_soup(p, 2, 20, 0.2, 78).map_err(golden_err)?;
     several_roots_case(p, big, small, vec![1, 2]).map_err(golden_err)
+}
+
+/// [`sixteen_roots`] with the 16 roots stored in reverse: Morton order
+/// descending, each voxel's leaf before its inner node. A builder never
+/// stores them so (4.8), and a translation keeps roots in order (they lie
+/// at LOD 1, and every one moves by the same `t`); a store written by other
+/// software may, and the fetcher's root sorter (paragraph 107) orders them
+/// again, so the merge is [`sixteen_roots`]'s. Every root that arrives
+/// moves every one the sorter holds.
+fn sixteen_roots_reversed(p: &Params) -> Result<RealCase> {
+    let (store, _, ids) = sixteen_roots(p)?;
+    let missing = |id: u8| golden_err(format!("the 16-root case has no input {id}"));
+    let mut big = store.get(1).ok_or_else(|| missing(1))?.clone();
+    let small = store.get(2).ok_or_else(|| missing(2))?.clone();
+    big.nodes[..big.root_count as usize].reverse();
+    several_roots_case(p, big, small, ids).map_err(golden_err)
 }
 
 /// A tiny triangle alone (its top at its own deep LOD `t`, as in
@@ -435,6 +453,54 @@ mod tests {
         let sizes = MergerSizes::new(&small);
         let tx = merger_transaction(&store, &table, &ids, mode, 7, 2, sizes).unwrap();
         assert_eq!(tx.chosen, Some(small.max_lod));
+    }
+
+    /// Roots stored in reverse are read in stored order and merge into
+    /// the hierarchy of the roots stored in order, in every mode: the same
+    /// module input, records and header, and references to the same
+    /// nodes where they are stored.
+    #[test]
+    fn reversed_roots_merge_as_the_ordered_ones() {
+        use crate::store::Reference;
+        let small = Params::new(8, 0, 12, 3).unwrap();
+        for p in [Params::default(), small] {
+            for mode in [
+                MergeMode::Overlap { num: 1, den: 2 },
+                MergeMode::PerNode { num: 1, den: 2 },
+            ] {
+                let mut sizes = MergerSizes::new(&p);
+                sizes.leaf_bits = 6;
+                let merge = |(store, table, ids): RealCase| {
+                    merger_transaction(&store, &table, &ids, mode, 7, 2, sizes).unwrap()
+                };
+                let ordered = merge(sixteen_roots(&p).unwrap());
+                let reversed = merge(sixteen_roots_reversed(&p).unwrap());
+                let at = format!("D = {}, {mode}", p.max_lod);
+                let roots_read = |t: &MergerTransaction| t.fetch[0].node_resps[..16].to_vec();
+                let mut read = roots_read(&ordered);
+                read.reverse();
+                assert_eq!(roots_read(&reversed), read, "{at}: stored order");
+                assert_eq!(reversed.fetch[0].out, ordered.fetch[0].out, "{at}: sorted");
+                assert_eq!(reversed.writer.nodes, ordered.writer.nodes, "{at}");
+                // A reused root is named where it is stored: root `n` of
+                // input 1 is stored at `15 - n` in the reversed store.
+                let stored: Vec<_> = reversed
+                    .writer
+                    .refs
+                    .iter()
+                    .map(|r| match (r.hier, r.node) {
+                        (1, n) if n < 16 => Reference {
+                            hier: 1,
+                            node: 15 - n,
+                        },
+                        _ => *r,
+                    })
+                    .collect();
+                assert_eq!(stored, ordered.writer.refs, "{at}");
+                assert_eq!(reversed.header, ordered.header, "{at}");
+                assert!(!ordered.writer.nodes.is_empty(), "{at}");
+            }
+        }
     }
 
     /// Every code of [`CFG_ERRORS`] has its merge, in the level modes and

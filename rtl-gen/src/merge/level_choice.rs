@@ -14,7 +14,6 @@
 use golden::merge::level_choice::unit::OverlapLayout;
 use golden::params::Params;
 
-use super::fields::field;
 use crate::{Module, Signal, Stream};
 
 /// Module name of the overlap counter.
@@ -56,10 +55,8 @@ pub fn overlap_counter_unit(p: &Params, inputs: usize, num: u32, den: u32) -> Mo
         .data
         .slice(l.coord[2].end() - 1, l.coord[0].offset)
         .name("in_voxel");
-    let rank = field(input.data, &l.rank)
-        .expect("rank bits")
-        .name("in_rank");
-    let end = field(input.data, &l.end).expect("end bit").name("in_end");
+    let rank = input.data.view(&l.rank).name("in_rank");
+    let end = input.data.view(&l.end).name("in_end");
 
     let g_valid = m.reg("g_valid", 1);
     let g_voxel = m.reg("g_voxel", voxel.width());

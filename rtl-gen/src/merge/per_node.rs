@@ -22,7 +22,7 @@ use golden::merge::merge_module::{choice_err, TopLayout};
 use golden::merge::per_node::unit::{PerNodeLayout, CHILD_COUNT_BITS};
 use golden::params::Params;
 
-use super::fields::{coords, field, with_fields};
+use super::fields::{coords, with_fields};
 use super::level_choice::times_constant;
 use super::merge_module::merge_module_name;
 use super::network::{morton_code, take_minimum_head, winner_rank, KeyOrder, MergeHead};
@@ -65,9 +65,7 @@ pub fn per_node_network_unit(p: &Params, k: usize) -> Module {
             i,
             pl.in_width,
             |d, parent| {
-                let probe = field(d, &pl.probe)
-                    .expect("probe bit")
-                    .name(&format!("in{i}_probe"));
+                let probe = d.view(&pl.probe).name(&format!("in{i}_probe"));
                 let kind = beat_kind(d, bl).name(&format!("in{i}_kind"));
                 let is_end = !probe & kind.eq(level_kind::END);
                 let is_ref = !probe & kind.eq(level_kind::CHILD_REF);
@@ -77,7 +75,7 @@ pub fn per_node_network_unit(p: &Params, k: usize) -> Module {
                 let phase = probe.mux(m.lit(0, 2), kind.add(1, 2));
                 m.concat(&[is_end, morton_code(&m, key_xyz), phase])
             },
-            |d| !field(d, &pl.probe).expect("probe bit") & !beat_kind(d, bl).bit(1),
+            |d| !d.view(&pl.probe) & !beat_kind(d, bl).bit(1),
             |d| beat_xyz(d, bl),
         );
         let is_end = head
@@ -109,13 +107,13 @@ pub fn per_node_network_unit(p: &Params, k: usize) -> Module {
 
 /// The kind of the beat in a head's `{probe, beat}`.
 fn beat_kind<'m>(d: Signal<'m>, bl: &BeatLayout) -> Signal<'m> {
-    field(d.slice(bl.width - 1, 0), &bl.kind).expect("kind bits")
+    d.slice(bl.width - 1, 0).view(&bl.kind)
 }
 
 /// The voxel of the record in a head's `{probe, beat}`.
 fn beat_xyz<'m>(d: Signal<'m>, bl: &BeatLayout) -> [Signal<'m>; 3] {
     let beat = d.slice(bl.width - 1, 0);
-    coords(field(beat, &bl.rec).expect("record bits"), &bl.node)
+    coords(beat.view(&bl.rec), &bl.node)
 }
 
 /// The number of set bits of an 8-bit mask, [`CHILD_COUNT_BITS`] wide.
@@ -160,18 +158,16 @@ pub fn per_node_decider_unit(p: &Params, k: usize, num: u32, den: u32) -> Module
     let start_lod = m.input("start_lod", lb);
     let input = Stream::input(&m, "in", pl.in_width + rb);
     let beat = input.data.slice(bl.width - 1, 0).name("in_beat");
-    let probe = field(input.data, &pl.probe)
-        .expect("probe bit")
-        .name("in_probe");
+    let probe = input.data.view(&pl.probe).name("in_probe");
     let rank = input
         .data
         .slice(pl.in_width + rb - 1, pl.in_width)
         .name("in_rank");
-    let kind = field(beat, &bl.kind).expect("kind bits").name("in_kind");
+    let kind = beat.view(&bl.kind).name("in_kind");
     let is_end = (!probe & kind.eq(level_kind::END)).name("in_is_end");
     let is_inner = !probe & kind.eq(level_kind::INNER);
     let is_ref = !probe & kind.eq(level_kind::CHILD_REF);
-    let xyz = coords(field(beat, &bl.rec).expect("record bits"), &bl.node);
+    let xyz = coords(beat.view(&bl.rec), &bl.node);
 
     let run = m.reg("probe_run", 1);
     let g_any = m.reg("g_any", 8);
@@ -332,8 +328,8 @@ pub fn per_node_module_unit(c: &MergeConfig, num: u32, den: u32) -> Module {
     let cfg = Stream::input(&m, "cfg", tl.cfg_width);
     cfg.ready.drive(idle);
     let cfg_fire = cfg.fire().name("cfg_fire");
-    let cfg_lo = field(cfg.data, &tl.lo).expect("lo").name("cfg_lo");
-    let cfg_hi = field(cfg.data, &tl.hi).expect("hi").name("cfg_hi");
+    let cfg_lo = cfg.data.view(&tl.lo).name("cfg_lo");
+    let cfg_hi = cfg.data.view(&tl.hi).name("cfg_hi");
     // `hi > D` only when the field can hold it (D = 31 fills 5 bits).
     let beyond = if (1u64 << lb) - 1 > p.max_lod as u64 {
         cfg_hi.gt(lit(p.max_lod as u64, lb))
@@ -365,8 +361,7 @@ pub fn per_node_module_unit(c: &MergeConfig, num: u32, den: u32) -> Module {
     m.output("out_data", out_data);
     let ol = BeatLayout::output(p);
     let out_end =
-        (out_valid & out_ready & field(out_data, &ol.kind).expect("kind").eq(base_kind::END))
-            .name("out_end");
+        (out_valid & out_ready & out_data.view(&ol.kind).eq(base_kind::END)).name("out_end");
 
     // Passes whose End entered the decider and has not left `out`.
     let fw = lb + 1;

@@ -14,7 +14,7 @@ use super::{
     cfg_beats, field_of, get, hierarchy_merger_name, pass_stream, range_good, shared_store, shell,
     store_streams, MergerConfig, Shell,
 };
-use crate::merge::fields::{field, with_fields};
+use crate::merge::fields::with_fields;
 use crate::merge::{fetcher_per_node_unit, record_writer_unit};
 use crate::{Module, Signal};
 
@@ -339,7 +339,7 @@ fn route_out<'m>(
     let mo_err = get(mo_data, outb.err.as_ref().expect("an output beat has err"));
     let mo_refer = get(mo_data, &outb.refer);
     let mo_rec = get(mo_data, &outb.rec);
-    let mo_lod = field(mo_rec, nl.lod()).expect("a record's lod");
+    let mo_lod = mo_rec.view(nl.lod());
     let mo_beat = with_fields(
         m,
         lit(0, inb.width),

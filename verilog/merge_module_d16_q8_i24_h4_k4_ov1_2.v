@@ -20,14 +20,14 @@ module merge_module_d16_q8_i24_h4_k4_ov1_2 (
     input  wire cfg_valid,          // rtl-gen/src/merge/merge_module.rs:143
     input  wire [9:0] cfg_data,     // rtl-gen/src/merge/merge_module.rs:143
     output wire cfg_ready,          // rtl-gen/src/merge/merge_module.rs:143
-    output wire report_valid,       // rtl-gen/src/merge/merge_module.rs:250
-    output wire [57:0] report_data, // rtl-gen/src/merge/merge_module.rs:250
-    input  wire report_ready,       // rtl-gen/src/merge/merge_module.rs:250
-    input  wire out_ready,          // rtl-gen/src/merge/merge_module.rs:263
-    output wire out_valid,          // rtl-gen/src/merge/merge_module.rs:265
-    output wire [180:0] out_data,   // rtl-gen/src/merge/merge_module.rs:266
-    output wire idle,               // rtl-gen/src/merge/merge_module.rs:298
-    output wire done                // rtl-gen/src/merge/merge_module.rs:303
+    output wire report_valid,       // rtl-gen/src/merge/merge_module.rs:257
+    output wire [57:0] report_data, // rtl-gen/src/merge/merge_module.rs:257
+    input  wire report_ready,       // rtl-gen/src/merge/merge_module.rs:257
+    input  wire out_ready,          // rtl-gen/src/merge/merge_module.rs:270
+    output wire out_valid,          // rtl-gen/src/merge/merge_module.rs:272
+    output wire [180:0] out_data,   // rtl-gen/src/merge/merge_module.rs:273
+    output wire idle,               // rtl-gen/src/merge/merge_module.rs:305
+    output wire done                // rtl-gen/src/merge/merge_module.rs:310
 );
     localparam [1:0] IDLE = 2'd0;            // rtl-gen/src/merge/merge_module.rs:124
     localparam [1:0] COUNT = 2'd1;           // rtl-gen/src/merge/merge_module.rs:124
@@ -56,52 +56,52 @@ module merge_module_d16_q8_i24_h4_k4_ov1_2 (
     wire [180:0] u_merge_level_out_data;     // rtl-gen/src/merge/merge_module.rs:160
     wire is_count;                           // rtl-gen/src/merge/merge_module.rs:124
     reg [4:0] hi;                            // rtl-gen/src/merge/merge_module.rs:166
-    wire [1:0] net_rank;                     // rtl-gen/src/merge/merge_module.rs:168
-    wire [1:0] net_kind;                     // rtl-gen/src/merge/merge_module.rs:169
-    wire net_end;                            // rtl-gen/src/merge/merge_module.rs:170
-    wire net_ref;                            // rtl-gen/src/merge/merge_module.rs:171
-    wire u_overlap_in_ready;                 // rtl-gen/src/merge/merge_module.rs:172
-    wire u_overlap_out_valid;                // rtl-gen/src/merge/merge_module.rs:172
-    wire [49:0] u_overlap_out_data;          // rtl-gen/src/merge/merge_module.rs:172
-    reg sending;                             // rtl-gen/src/merge/merge_module.rs:174
-    reg [4:0] send_lod;                      // rtl-gen/src/merge/merge_module.rs:175
-    reg [4:0] result_lod;                    // rtl-gen/src/merge/merge_module.rs:176
-    reg [4:0] best_lod;                      // rtl-gen/src/merge/merge_module.rs:177
-    reg count_overflowed;                    // rtl-gen/src/merge/merge_module.rs:178
-    wire [15:0] net_beat_rec_x;              // rtl-gen/src/merge/merge_module.rs:181
-    wire [15:0] net_beat_rec_y;              // rtl-gen/src/merge/merge_module.rs:181
-    wire [15:0] net_beat_rec_z;              // rtl-gen/src/merge/merge_module.rs:181
-    wire [50:0] count_beat;                  // rtl-gen/src/merge/merge_module.rs:184
-    wire is_count_and;                       // rtl-gen/src/merge/merge_module.rs:188
-    wire to_counter_valid;                   // rtl-gen/src/merge/merge_module.rs:188
-    wire count_take;                         // rtl-gen/src/merge/merge_module.rs:193
-    wire count_level_sent;                   // rtl-gen/src/merge/merge_module.rs:194
-    wire u_overlap_above;                    // rtl-gen/src/merge/merge_module.rs:203
-    wire u_overlap_overflow;                 // rtl-gen/src/merge/merge_module.rs:204
-    wire result_valid;                       // rtl-gen/src/merge/merge_module.rs:205
-    wire result_taken;                       // rtl-gen/src/merge/merge_module.rs:207
-    wire count_done;                         // rtl-gen/src/merge/merge_module.rs:208
-    wire [4:0] u_overlap_above_mux;          // rtl-gen/src/merge/merge_module.rs:210
-    wire count_overflowed_or;                // rtl-gen/src/merge/merge_module.rs:212
-    wire [57:0] report_in_data;              // rtl-gen/src/merge/merge_module.rs:228
-    wire report_in_valid;                    // rtl-gen/src/merge/merge_module.rs:229
-    wire choice_reported;                    // rtl-gen/src/merge/merge_module.rs:249
-    reg report_skid_valid;                   // rtl-gen/src/merge/merge_module.rs:250
-    reg [57:0] report_skid_data;             // rtl-gen/src/merge/merge_module.rs:250
-    reg report_skid_spare_valid;             // rtl-gen/src/merge/merge_module.rs:250
-    reg [57:0] report_skid_spare_data;       // rtl-gen/src/merge/merge_module.rs:250
-    wire report_skid_ready;                  // rtl-gen/src/merge/merge_module.rs:250
-    wire report_skid_room;                   // rtl-gen/src/merge/merge_module.rs:250
-    wire report_skid_drain;                  // rtl-gen/src/merge/merge_module.rs:250
-    wire report_skid_take;                   // rtl-gen/src/merge/merge_module.rs:250
-    reg merge_feeding;                       // rtl-gen/src/merge/merge_module.rs:255
-    wire to_merge_level_valid;               // rtl-gen/src/merge/merge_module.rs:256
-    wire [1:0] u_merge_level_kind;           // rtl-gen/src/merge/merge_module.rs:267
-    wire merge_done;                         // rtl-gen/src/merge/merge_module.rs:268
-    wire [1:0] net_beat_kind;                // rtl-gen/src/merge/merge_module.rs:275
-    wire merge_level_sent;                   // rtl-gen/src/merge/merge_module.rs:276
-    wire choice_err_eq;                      // rtl-gen/src/merge/merge_module.rs:288
-    reg done_pulse;                          // rtl-gen/src/merge/merge_module.rs:301
+    wire [1:0] net_rank;                     // rtl-gen/src/merge/merge_module.rs:169
+    wire [1:0] net_kind;                     // rtl-gen/src/merge/merge_module.rs:171
+    wire net_end;                            // rtl-gen/src/merge/merge_module.rs:172
+    wire net_ref;                            // rtl-gen/src/merge/merge_module.rs:173
+    wire u_overlap_in_ready;                 // rtl-gen/src/merge/merge_module.rs:174
+    wire u_overlap_out_valid;                // rtl-gen/src/merge/merge_module.rs:174
+    wire [49:0] u_overlap_out_data;          // rtl-gen/src/merge/merge_module.rs:174
+    reg sending;                             // rtl-gen/src/merge/merge_module.rs:176
+    reg [4:0] send_lod;                      // rtl-gen/src/merge/merge_module.rs:177
+    reg [4:0] result_lod;                    // rtl-gen/src/merge/merge_module.rs:178
+    reg [4:0] best_lod;                      // rtl-gen/src/merge/merge_module.rs:179
+    reg count_overflowed;                    // rtl-gen/src/merge/merge_module.rs:180
+    wire [15:0] net_beat_rec_x;              // rtl-gen/src/merge/merge_module.rs:183
+    wire [15:0] net_beat_rec_y;              // rtl-gen/src/merge/merge_module.rs:183
+    wire [15:0] net_beat_rec_z;              // rtl-gen/src/merge/merge_module.rs:183
+    wire [50:0] count_beat;                  // rtl-gen/src/merge/merge_module.rs:186
+    wire is_count_and;                       // rtl-gen/src/merge/merge_module.rs:190
+    wire to_counter_valid;                   // rtl-gen/src/merge/merge_module.rs:190
+    wire count_take;                         // rtl-gen/src/merge/merge_module.rs:195
+    wire count_level_sent;                   // rtl-gen/src/merge/merge_module.rs:196
+    wire u_overlap_above;                    // rtl-gen/src/merge/merge_module.rs:205
+    wire u_overlap_overflow;                 // rtl-gen/src/merge/merge_module.rs:206
+    wire result_valid;                       // rtl-gen/src/merge/merge_module.rs:207
+    wire result_taken;                       // rtl-gen/src/merge/merge_module.rs:209
+    wire count_done;                         // rtl-gen/src/merge/merge_module.rs:210
+    wire [4:0] u_overlap_above_mux;          // rtl-gen/src/merge/merge_module.rs:212
+    wire count_overflowed_or;                // rtl-gen/src/merge/merge_module.rs:214
+    wire [57:0] report_in_data;              // rtl-gen/src/merge/merge_module.rs:235
+    wire report_in_valid;                    // rtl-gen/src/merge/merge_module.rs:236
+    wire choice_reported;                    // rtl-gen/src/merge/merge_module.rs:256
+    reg report_skid_valid;                   // rtl-gen/src/merge/merge_module.rs:257
+    reg [57:0] report_skid_data;             // rtl-gen/src/merge/merge_module.rs:257
+    reg report_skid_spare_valid;             // rtl-gen/src/merge/merge_module.rs:257
+    reg [57:0] report_skid_spare_data;       // rtl-gen/src/merge/merge_module.rs:257
+    wire report_skid_ready;                  // rtl-gen/src/merge/merge_module.rs:257
+    wire report_skid_room;                   // rtl-gen/src/merge/merge_module.rs:257
+    wire report_skid_drain;                  // rtl-gen/src/merge/merge_module.rs:257
+    wire report_skid_take;                   // rtl-gen/src/merge/merge_module.rs:257
+    reg merge_feeding;                       // rtl-gen/src/merge/merge_module.rs:262
+    wire to_merge_level_valid;               // rtl-gen/src/merge/merge_module.rs:263
+    wire [1:0] u_merge_level_kind;           // rtl-gen/src/merge/merge_module.rs:274
+    wire merge_done;                         // rtl-gen/src/merge/merge_module.rs:275
+    wire [1:0] net_beat_kind;                // rtl-gen/src/merge/merge_module.rs:282
+    wire merge_level_sent;                   // rtl-gen/src/merge/merge_module.rs:283
+    wire choice_err_eq;                      // rtl-gen/src/merge/merge_module.rs:295
+    reg done_pulse;                          // rtl-gen/src/merge/merge_module.rs:308
 
     assign is_idle = state == IDLE;
     assign is_choose = state == CHOOSE;
@@ -188,7 +188,7 @@ module merge_module_d16_q8_i24_h4_k4_ov1_2 (
         .out_ready(out_ready)
     );
 
-    overlap_counter_d16_i24_k4_t1_2 u_overlap ( // rtl-gen/src/merge/merge_module.rs:172
+    overlap_counter_d16_i24_k4_t1_2 u_overlap ( // rtl-gen/src/merge/merge_module.rs:174
         .clk(clk),
         .rst(rst),
         .in_valid(to_counter_valid),
@@ -218,49 +218,49 @@ module merge_module_d16_q8_i24_h4_k4_ov1_2 (
             done_pulse <= 1'b0;
         end else begin
             if (cfg_fire) begin
-                state <= bad_range ? CHOOSE : COUNT; // rtl-gen/src/merge/merge_module.rs:290
-                choice_lod <= 5'd0;          // rtl-gen/src/merge/merge_module.rs:214
-                choice_err <= bad_range ? 2'd3 : 2'd0; // rtl-gen/src/merge/merge_module.rs:218
+                state <= bad_range ? CHOOSE : COUNT; // rtl-gen/src/merge/merge_module.rs:297
+                choice_lod <= 5'd0;          // rtl-gen/src/merge/merge_module.rs:216
+                choice_err <= bad_range ? 2'd3 : 2'd0; // rtl-gen/src/merge/merge_module.rs:220
                 hi <= cfg_hi;                // rtl-gen/src/merge/merge_module.rs:167
-                sending <= ~bad_range;       // rtl-gen/src/merge/merge_module.rs:195
-                send_lod <= cfg_lo;          // rtl-gen/src/merge/merge_module.rs:199
-                result_lod <= cfg_lo;        // rtl-gen/src/merge/merge_module.rs:209
-                best_lod <= cfg_lo;          // rtl-gen/src/merge/merge_module.rs:211
-                count_overflowed <= 1'b0;    // rtl-gen/src/merge/merge_module.rs:213
+                sending <= ~bad_range;       // rtl-gen/src/merge/merge_module.rs:197
+                send_lod <= cfg_lo;          // rtl-gen/src/merge/merge_module.rs:201
+                result_lod <= cfg_lo;        // rtl-gen/src/merge/merge_module.rs:211
+                best_lod <= cfg_lo;          // rtl-gen/src/merge/merge_module.rs:213
+                count_overflowed <= 1'b0;    // rtl-gen/src/merge/merge_module.rs:215
             end else begin
                 if (count_done) begin
-                    state <= CHOOSE;         // rtl-gen/src/merge/merge_module.rs:292
-                    choice_lod <= count_overflowed_or ? 5'd0 : u_overlap_above_mux; // rtl-gen/src/merge/merge_module.rs:216
-                    choice_err <= count_overflowed_or ? 2'd2 : 2'd0; // rtl-gen/src/merge/merge_module.rs:220
+                    state <= CHOOSE;         // rtl-gen/src/merge/merge_module.rs:299
+                    choice_lod <= count_overflowed_or ? 5'd0 : u_overlap_above_mux; // rtl-gen/src/merge/merge_module.rs:218
+                    choice_err <= count_overflowed_or ? 2'd2 : 2'd0; // rtl-gen/src/merge/merge_module.rs:222
                 end else if (choice_reported) begin
-                    state <= choice_err_eq ? MERGE : IDLE; // rtl-gen/src/merge/merge_module.rs:294
+                    state <= choice_err_eq ? MERGE : IDLE; // rtl-gen/src/merge/merge_module.rs:301
                 end else if (merge_done) begin
-                    state <= IDLE;           // rtl-gen/src/merge/merge_module.rs:294
+                    state <= IDLE;           // rtl-gen/src/merge/merge_module.rs:301
                 end
                 if (count_level_sent & (send_lod == hi)) begin
-                    sending <= 1'b0;         // rtl-gen/src/merge/merge_module.rs:197
+                    sending <= 1'b0;         // rtl-gen/src/merge/merge_module.rs:199
                 end
                 if (count_level_sent) begin
-                    send_lod <= send_lod + 5'd1; // rtl-gen/src/merge/merge_module.rs:199
+                    send_lod <= send_lod + 5'd1; // rtl-gen/src/merge/merge_module.rs:201
                 end
                 if (result_taken) begin
-                    result_lod <= result_lod + 5'd1; // rtl-gen/src/merge/merge_module.rs:209
-                    best_lod <= u_overlap_above_mux; // rtl-gen/src/merge/merge_module.rs:211
-                    count_overflowed <= count_overflowed_or; // rtl-gen/src/merge/merge_module.rs:213
+                    result_lod <= result_lod + 5'd1; // rtl-gen/src/merge/merge_module.rs:211
+                    best_lod <= u_overlap_above_mux; // rtl-gen/src/merge/merge_module.rs:213
+                    count_overflowed <= count_overflowed_or; // rtl-gen/src/merge/merge_module.rs:215
                 end
             end
             if (report_skid_drain) begin
-                report_skid_valid <= report_skid_spare_valid | report_in_valid; // rtl-gen/src/merge/merge_module.rs:250
-                report_skid_data <= report_skid_spare_valid ? report_skid_spare_data : report_in_data; // rtl-gen/src/merge/merge_module.rs:250
+                report_skid_valid <= report_skid_spare_valid | report_in_valid; // rtl-gen/src/merge/merge_module.rs:257
+                report_skid_data <= report_skid_spare_valid ? report_skid_spare_data : report_in_data; // rtl-gen/src/merge/merge_module.rs:257
             end
             report_skid_spare_valid <= report_skid_drain ? 1'b0 : (report_skid_spare_valid | report_skid_take);
             if ((~report_skid_drain) & report_skid_take) begin
-                report_skid_spare_data <= report_in_data; // rtl-gen/src/merge/merge_module.rs:250
+                report_skid_spare_data <= report_in_data; // rtl-gen/src/merge/merge_module.rs:257
             end
             if (choice_reported) begin
-                merge_feeding <= 1'b1;       // rtl-gen/src/merge/merge_module.rs:277
+                merge_feeding <= 1'b1;       // rtl-gen/src/merge/merge_module.rs:284
             end else if (merge_level_sent) begin
-                merge_feeding <= 1'b0;       // rtl-gen/src/merge/merge_module.rs:277
+                merge_feeding <= 1'b0;       // rtl-gen/src/merge/merge_module.rs:284
             end
             done_pulse <= merge_done | (choice_reported & (~choice_err_eq));
         end

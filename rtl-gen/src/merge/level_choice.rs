@@ -48,7 +48,7 @@ pub(super) fn times_constant<'m>(
 pub fn overlap_counter_unit(p: &Params, inputs: usize, num: u32, den: u32) -> Module {
     let m = Module::new(&overlap_counter_name(p, inputs, num, den));
     let l = OverlapLayout::new(p, inputs);
-    let input = Stream::input(&m, "in", l.in_width);
+    let input = Stream::input(&m, "in", l.input.width());
     let i = p.index_bits as u32;
 
     let voxel = input

@@ -36,7 +36,7 @@ pub fn merge_level_unit(p: &Params) -> Module {
     let li = BeatLayout::input(p);
     let lo_ = BeatLayout::output(p);
     let nl: &NodeLayout = &li.node;
-    let input = Stream::input(&m, "in", li.width);
+    let input = Stream::input(&m, "in", li.width());
     let out_ready = m.wire("h_out_ready", 1);
 
     let in_rec = input.data.view(&li.rec);
@@ -106,7 +106,7 @@ pub fn merge_level_unit(p: &Params) -> Module {
     let out_rec = created.mux(created_rec, h_rec);
     let out_ref = created.mux(lit(0, li.refer.width), h_ref);
     let err = created & h_ovf;
-    debug_assert_eq!(lo_.width, li.width + 1);
+    debug_assert_eq!(lo_.width(), li.width() + 1);
     let out = Stream {
         valid: complete,
         ready: out_ready,

@@ -130,17 +130,17 @@ pub fn merge_module_unit(c: &MergeConfig) -> Module {
     let counts = c.threshold().is_some();
     let net = m.instance("u_network", &morton_merge_unit(p, k, counts));
     for i in 0..k {
-        let s = Stream::input(&m, &format!("in{i}"), bl.width);
+        let s = Stream::input(&m, &format!("in{i}"), bl.width());
         net.connect(&format!("in{i}_valid"), s.valid);
         net.connect(&format!("in{i}_data"), s.data);
         s.ready.drive(net.output(&format!("in{i}_ready")));
     }
     let net_valid = net.output("out_valid");
     let net_data = net.output("out_data");
-    let net_beat = net_data.slice(bl.width - 1, 0).name("net_beat");
+    let net_beat = net_data.slice(bl.width() - 1, 0).name("net_beat");
 
     // cfg: accepted when idle.
-    let cfg = Stream::input(&m, "cfg", tl.cfg_width);
+    let cfg = Stream::input(&m, "cfg", tl.cfg.width());
     cfg.ready.drive(idle);
     let cfg_fire = cfg.fire().name("cfg_fire");
     let cfg_lo = cfg.data.view(&tl.lo).name("cfg_lo");
@@ -165,7 +165,9 @@ pub fn merge_module_unit(c: &MergeConfig) -> Module {
         // The deepest candidate: the count pass ends there.
         let hi = m.reg("hi", lb);
         hi.next_when(cfg_fire, cfg_hi);
-        let net_rank = net_data.slice(bl.width + rb - 1, bl.width).name("net_rank");
+        let net_rank = net_data
+            .slice(bl.width() + rb - 1, bl.width())
+            .name("net_rank");
         let net_kind = net_beat.view(&bl.kind).name("net_kind");
         let net_end = net_kind.eq(level_kind::END).name("net_end");
         let net_ref = net_kind.eq(level_kind::CHILD_REF).name("net_ref");
@@ -183,7 +185,7 @@ pub fn merge_module_unit(c: &MergeConfig) -> Module {
         let count_beat = m
             .concat(&[net_end, net_rank, xyz[2], xyz[1], xyz[0]])
             .name("count_beat");
-        debug_assert_eq!(count_beat.width(), ol.in_width);
+        debug_assert_eq!(count_beat.width(), ol.input.width());
         debug_assert_eq!(xyz[0].width(), d);
         let to_counter = (counting & sending & net_valid & !net_ref).name("to_counter_valid");
         counter.connect("in_valid", to_counter);
@@ -223,8 +225,13 @@ pub fn merge_module_unit(c: &MergeConfig) -> Module {
             ),
         ));
         // A counted level: lod, the counter's shared/union/above/overflow.
-        let counted = m.concat(&[lit(0, 3), res.slice(ol.out_width - 1, 0), res_lod]);
-        let chosen = m.concat(&[choice_err_r, lit(1, 1), lit(0, ol.out_width), choice_lod]);
+        let counted = m.concat(&[lit(0, 3), res.slice(ol.output.width() - 1, 0), res_lod]);
+        let chosen = m.concat(&[
+            choice_err_r,
+            lit(1, 1),
+            lit(0, ol.output.width()),
+            choice_lod,
+        ]);
         let data = counting.mux(counted, chosen);
         (shown | choosing, data, Some((count_take, last)))
     } else {
@@ -240,7 +247,7 @@ pub fn merge_module_unit(c: &MergeConfig) -> Module {
         let chosen = m.concat(&[choice_err_r, lit(1, 1), lit(0, 2 * i + 2), choice_lod]);
         (choosing, chosen, None)
     };
-    debug_assert_eq!(report_data.width(), tl.report_width);
+    debug_assert_eq!(report_data.width(), tl.report.width());
     let report = Stream {
         valid: report_valid.name("report_in_valid"),
         ready: report_in_ready,

@@ -230,7 +230,7 @@ pub fn morton_merge_unit(p: &Params, k: usize, tag_rank: bool) -> Module {
         let head = MergeHead::new(
             &m,
             i,
-            l.width,
+            l.width(),
             |d, parent| {
                 let kind = kind_of(d).name(&format!("in{i}_kind"));
                 let is_end = kind.eq(level_kind::END);

@@ -63,7 +63,7 @@ pub fn per_node_network_unit(p: &Params, k: usize) -> Module {
         let head = MergeHead::new(
             &m,
             i,
-            pl.in_width,
+            pl.input.width(),
             |d, parent| {
                 let probe = d.view(&pl.probe).name(&format!("in{i}_probe"));
                 let kind = beat_kind(d, bl).name(&format!("in{i}_kind"));
@@ -107,12 +107,12 @@ pub fn per_node_network_unit(p: &Params, k: usize) -> Module {
 
 /// The kind of the beat in a head's `{probe, beat}`.
 fn beat_kind<'m>(d: Signal<'m>, bl: &BeatLayout) -> Signal<'m> {
-    d.slice(bl.width - 1, 0).view(&bl.kind)
+    d.slice(bl.width() - 1, 0).view(&bl.kind)
 }
 
 /// The voxel of the record in a head's `{probe, beat}`.
 fn beat_xyz<'m>(d: Signal<'m>, bl: &BeatLayout) -> [Signal<'m>; 3] {
-    let beat = d.slice(bl.width - 1, 0);
+    let beat = d.slice(bl.width() - 1, 0);
     coords(beat.view(&bl.rec), &bl.node)
 }
 
@@ -156,12 +156,12 @@ pub fn per_node_decider_unit(p: &Params, k: usize, num: u32, den: u32) -> Module
 
     let start = m.input("start", 1);
     let start_lod = m.input("start_lod", lb);
-    let input = Stream::input(&m, "in", pl.in_width + rb);
-    let beat = input.data.slice(bl.width - 1, 0).name("in_beat");
+    let input = Stream::input(&m, "in", pl.input.width() + rb);
+    let beat = input.data.slice(bl.width() - 1, 0).name("in_beat");
     let probe = input.data.view(&pl.probe).name("in_probe");
     let rank = input
         .data
-        .slice(pl.in_width + rb - 1, pl.in_width)
+        .slice(pl.input.width() + rb - 1, pl.input.width())
         .name("in_rank");
     let kind = beat.view(&bl.kind).name("in_kind");
     let is_end = (!probe & kind.eq(level_kind::END)).name("in_is_end");
@@ -215,7 +215,7 @@ pub fn per_node_decider_unit(p: &Params, k: usize, num: u32, den: u32) -> Module
 
     let report_data = with_fields(
         &m,
-        lit(0, pl.report_width),
+        lit(0, pl.report.width()),
         &[
             (pl.coord[0], g_voxel[0]),
             (pl.coord[1], g_voxel[1]),
@@ -233,7 +233,7 @@ pub fn per_node_decider_unit(p: &Params, k: usize, num: u32, den: u32) -> Module
     let report_data = is_end
         .mux(
             m.concat(&[
-                report_data.slice(pl.report_width - 1, voxel_bits),
+                report_data.slice(pl.report.width() - 1, voxel_bits),
                 lit(0, voxel_bits),
             ]),
             report_data,
@@ -319,13 +319,13 @@ pub fn per_node_module_unit(c: &MergeConfig, num: u32, den: u32) -> Module {
 
     let net = m.instance("u_network", &per_node_network_unit(p, k));
     for i in 0..k {
-        let s = Stream::input(&m, &format!("in{i}"), pl.in_width);
+        let s = Stream::input(&m, &format!("in{i}"), pl.input.width());
         net.connect(&format!("in{i}_valid"), s.valid);
         net.connect(&format!("in{i}_data"), s.data);
         s.ready.drive(net.output(&format!("in{i}_ready")));
     }
 
-    let cfg = Stream::input(&m, "cfg", tl.cfg_width);
+    let cfg = Stream::input(&m, "cfg", tl.cfg.width());
     cfg.ready.drive(idle);
     let cfg_fire = cfg.fire().name("cfg_fire");
     let cfg_lo = cfg.data.view(&tl.lo).name("cfg_lo");
@@ -383,7 +383,7 @@ pub fn per_node_module_unit(c: &MergeConfig, num: u32, den: u32) -> Module {
     let dec_valid = dec.output("report_valid");
     let refusal = with_fields(
         &m,
-        lit(0, pl.report_width),
+        lit(0, pl.report.width()),
         &[
             (pl.pass_end, lit(1, 1)),
             (pl.err, lit(choice_err::BAD_RANGE, 2)),

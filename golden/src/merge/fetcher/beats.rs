@@ -255,7 +255,7 @@ impl FetchLayout {
         let beat = BeatLayout::input(p);
         let err = Field {
             name: "err",
-            offset: beat.width,
+            offset: beat.width(),
             width: fetch_err::BITS,
         };
         let ([leaf_rec, leaf_ref, leaf_lod, leaf_end], leaves_width) = consecutive([

@@ -82,7 +82,7 @@ fn output_beat<'m>(
     let root = m.concat(&[m.lit(0, 1), beat]);
     let end = with_fields(
         m,
-        m.lit(0, lo.width),
+        m.lit(0, lo.width()),
         &[
             (lo.kind, m.lit(level_kind::END as u128, lo.kind.width)),
             (err, overflow),
@@ -101,13 +101,13 @@ pub fn root_sorter_unit(p: &Params, capacity: usize) -> Module {
     // Room for a full set and its `End`: the least that cannot deadlock,
     // and enough for one beat per clock (SPEC.md 8.9).
     let depth = n + 1;
-    let input = Stream::input(&m, "in", li.width).skid_buffer("in_skid");
+    let input = Stream::input(&m, "in", li.width()).skid_buffer("in_skid");
     let out_ready = m.wire("core_out_ready", 1);
     let kind = input.data.view(&li.kind).name("in_kind");
     let is_end = kind.eq(level_kind::END).name("in_is_end");
     let new_key = sort_key(&m, input.data, &li).name("new_key");
 
-    let q: Vec<Entry> = (0..depth).map(|i| Entry::reg(&m, i, lo.width)).collect();
+    let q: Vec<Entry> = (0..depth).map(|i| Entry::reg(&m, i, lo.width())).collect();
     // Roots of the arriving set taken so far (at most `n`), and whether one
     // beyond `n` was dropped.
     let count_bits = bits_to_hold(n as u64);
@@ -148,7 +148,7 @@ pub fn root_sorter_unit(p: &Params, capacity: usize) -> Module {
     let inserted: Vec<Entry> = (0..=depth)
         .map(|i| {
             let here = q.get(i).copied().unwrap_or(Entry {
-                beat: m.lit(0, lo.width),
+                beat: m.lit(0, lo.width()),
                 valid: m.lit(0, 1),
                 open: m.lit(0, 1),
             });

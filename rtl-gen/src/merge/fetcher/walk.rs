@@ -120,7 +120,7 @@ pub(super) fn roots_stage<'m>(
     e.n_node.when(root_fail & !e.valid, taken);
     let root_beat = with_fields(
         m,
-        m.lit(0, bl.width),
+        m.lit(0, bl.width()),
         &[
             (bl.rec, got.moved),
             (bl.refer, reference(m, c.hier, taken)),
@@ -135,7 +135,7 @@ pub(super) fn roots_stage<'m>(
     );
     let end_beat = with_fields(
         m,
-        m.lit(0, bl.width),
+        m.lit(0, bl.width()),
         &[(bl.kind, cx.lit(level_kind::END, bl.kind.width))],
     );
     sorter.connect(

@@ -367,7 +367,7 @@ fn cfg_beats<'m>(m: &'m Module, p: &Params, ml: &MergerLayout, s: &Shell<'m>) {
     module.connect("cfg_valid", mcfg_pend);
     module.connect(
         "cfg_data",
-        with_fields(m, lit(0, tl.cfg_width), &[(tl.lo, lo), (tl.hi, hi)]),
+        with_fields(m, lit(0, tl.cfg.width()), &[(tl.lo, lo), (tl.hi, hi)]),
     );
     let mcfg_fire = mcfg_pend & module.output("cfg_ready");
     mcfg_pend.next(cfg_fire.mux(one, mcfg_fire.mux(zero, mcfg_pend)));
@@ -435,7 +435,7 @@ fn field_of(b: &BeatLayout) -> golden::layout::Field {
     golden::layout::Field {
         name: "beat",
         offset: 0,
-        width: b.width,
+        width: b.width(),
     }
 }
 

@@ -196,8 +196,12 @@ fn inputs<'m>(
     let ferr_rank = m.reg("fetch_rank", rb);
     let mut ferr_next = header_fire.mux(lit(0, fl.err.width), ferr);
     let mut ferr_rank_next = header_fire.mux(lit(0, rb), ferr_rank);
-    let end_beat = with_fields(m, lit(0, inb.width), &[(inb.kind, lit(level_kind::END, 2))]);
-    let end_in = with_fields(m, lit(0, pl.in_width), &[(field_of(&inb), end_beat)]);
+    let end_beat = with_fields(
+        m,
+        lit(0, inb.width()),
+        &[(inb.kind, lit(level_kind::END, 2))],
+    );
+    let end_in = with_fields(m, lit(0, pl.input.width()), &[(field_of(&inb), end_beat)]);
     let mut leaves_in = Vec::new();
     let mut sent = one;
     for (i, f) in fetchers.iter().enumerate() {
@@ -236,11 +240,11 @@ fn inputs<'m>(
         let fo_valid = f.output("out_valid");
         let fo_data = f.output("out_data");
         let fo_err = get(fo_data, &fl.err);
-        let fo_beat = fo_data.slice(fl.beat.width - 1, 0);
+        let fo_beat = fo_data.slice(fl.beat.width() - 1, 0);
         let fo_end = get(fo_beat, &inb.kind).eq(level_kind::END);
         let fo_in = with_fields(
             m,
-            lit(0, pl.in_width),
+            lit(0, pl.input.width()),
             &[
                 (field_of(&inb), fo_beat),
                 (pl.probe, get(fo_data, &fpn.probe)),
@@ -319,11 +323,15 @@ fn route_out<'m>(
         data: best_data,
         lod: best_lod,
     } = *merged;
-    let end_beat = with_fields(m, lit(0, inb.width), &[(inb.kind, lit(level_kind::END, 2))]);
+    let end_beat = with_fields(
+        m,
+        lit(0, inb.width()),
+        &[(inb.kind, lit(level_kind::END, 2))],
+    );
     let nl = &fl.node;
     let leaf_beat = with_fields(
         m,
-        lit(0, inb.width),
+        lit(0, inb.width()),
         &[
             (inb.rec, get(best_data, &fl.leaf_rec)),
             (inb.refer, get(best_data, &fl.leaf_ref)),
@@ -342,7 +350,7 @@ fn route_out<'m>(
     let mo_lod = mo_rec.view(nl.lod());
     let mo_beat = with_fields(
         m,
-        lit(0, inb.width),
+        lit(0, inb.width()),
         &[
             (inb.rec, mo_rec),
             (inb.refer, mo_refer),
@@ -392,7 +400,7 @@ fn route_out<'m>(
             m,
             &format!("base{d}_fifo"),
             &format!("base{d}"),
-            inb.width,
+            inb.width(),
             cb,
         );
         let (empty, full) = (q.empty, q.full);

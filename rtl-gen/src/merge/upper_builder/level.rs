@@ -45,7 +45,7 @@ pub fn upper_level_unit(p: &Params) -> Module {
     let l = UpperLayout::new(p);
     let nl = &l.node;
     let i = p.index_bits as u32;
-    let input = Stream::input(&m, "in", l.in_width);
+    let input = Stream::input(&m, "in", l.input.width());
     let out_ready = m.wire("h_out_ready", 1);
     let rec = input.data;
     let end = input.data.view(&l.in_end).name("in_end");

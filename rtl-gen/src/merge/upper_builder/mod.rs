@@ -140,7 +140,7 @@ pub fn upper_builder_unit(p: &Params) -> Module {
 
     let bases: Vec<Stream> = (0..=dmax)
         .map(|d| {
-            Stream::input(&m, &format!("base{d}"), bl.base.width)
+            Stream::input(&m, &format!("base{d}"), bl.base.width())
                 .skid_buffer(&format!("base{d}_skid"))
         })
         .collect();

@@ -358,7 +358,7 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
         f.top,
         out_id,
     ]);
-    debug_assert_eq!(header_data.width(), wl.header_width);
+    debug_assert_eq!(header_data.width(), wl.header.width());
     let header_ok = err_code.eq(code(writer_err::NONE));
     let failed = m.concat(&[err_code, lit(0, 3 * (i + 1) + w.lb), out_id]);
     Stream {
@@ -449,7 +449,7 @@ fn fill_inputs<'m>(w: &Ctx<'_, 'm>, in_fill: Signal<'m>, clear: Signal<'m>) -> I
     let zero = w.lit(0, 1);
     let lit = |v: u64, width: u32| w.lit(v, width);
     // cfg: the output id, one beat per merge.
-    let cfg = Stream::input(m, "cfg", wl.cfg_width);
+    let cfg = Stream::input(m, "cfg", wl.cfg.width());
     let have_cfg = m.reg("have_cfg", 1);
     let out_id = m.reg("out_id", h);
     cfg.ready.drive(!have_cfg);
@@ -458,7 +458,7 @@ fn fill_inputs<'m>(w: &Ctx<'_, 'm>, in_fill: Signal<'m>, clear: Signal<'m>) -> I
     out_id.next(cfg_fire.mux(cfg.data.view(&wl.cfg_out_id), out_id));
 
     // done: the top.
-    let done = Stream::input(m, "done", bl.done_width);
+    let done = Stream::input(m, "done", bl.done.width());
     let have_done = m.reg("have_done", 1);
     let top = m.reg("top", lb);
     let done_err = m.reg("done_err", 1);
@@ -470,7 +470,7 @@ fn fill_inputs<'m>(w: &Ctx<'_, 'm>, in_fill: Signal<'m>, clear: Signal<'m>) -> I
     done_err.next(done_fire.mux(done.data.view(&bl.done_err), done_err));
 
     // crefs: the created nodes' references, buffered in arrival order.
-    let crefs = Stream::input(m, "crefs", wl.cref_width);
+    let crefs = Stream::input(m, "crefs", wl.crefs.width());
     let crefs_mem = m.memory("crefs_mem", widths.cref, 1 << c);
     let cref_end = m.reg("cref_end", 1);
     let cref_wptr = m.reg("cref_wptr", c + 1);
@@ -556,7 +556,7 @@ fn level_units<'m>(
     let with_slots = level_unit(p, wl, c, true);
     let units: Vec<Instance> = (0..=dmax)
         .map(|d| {
-            let s = Stream::input(m, &format!("level{d}"), wl.builder.level_width);
+            let s = Stream::input(m, &format!("level{d}"), wl.builder.level.width());
             let u = m.instance(
                 &level_instance(d),
                 if d == 0 { &top_only } else { &with_slots },
@@ -599,7 +599,7 @@ fn level_unit(p: &Params, wl: &WriterLayout, c: u32, by_slot: bool) -> Module {
     let (bl, nl, rl) = (&wl.builder, &wl.node, &wl.reference);
     let lit = |v: u64, width: u32| w.lit(v, width);
     let zero = lit(0, 1);
-    let s = Stream::input(&m, "level", bl.level_width);
+    let s = Stream::input(&m, "level", bl.level.width());
     let in_fill = m.input("in_fill", 1);
     // This merge consumes the level: its counts start again.
     let clear = m.input("clear", 1);

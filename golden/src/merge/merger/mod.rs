@@ -177,7 +177,7 @@ impl MergerLayout {
         let hi = Field::new("hi", lo.end(), lb);
         let out_id = Field::new("out_id", hi.end(), p.hier_bits as u32);
         let writer = WriterLayout::new(p, capacity_bits)?;
-        let leaf_overflow = Field::new("leaf_overflow", writer.header_width, 1);
+        let leaf_overflow = Field::new("leaf_overflow", writer.header.width(), 1);
         let count_overflow = Field::new("count_overflow", leaf_overflow.end(), 1);
         let fetch_err = Field::new("fetch_err", count_overflow.end(), fetch_err::BITS);
         let fetch_rank = Field::new("fetch_rank", fetch_err.end(), rank_bits(k));
@@ -1059,7 +1059,7 @@ mod tests {
         let p = Params::default();
         let l = MergerLayout::new(&p, 4, 10).unwrap();
         assert_eq!(l.fetch_rank.width, 2);
-        assert_eq!(l.header_width, l.writer.header_width + 8);
+        assert_eq!(l.header_width, l.writer.header.width() + 8);
         let (store, _, ids) = real_cases(&p).expect("the real cases build").remove(0);
         let cfg = MergerCfg {
             inputs: ids

@@ -355,7 +355,7 @@ fn route_out<'m>(
     let cref_is_end = !ok | mo_end;
     let cref_data = with_fields(
         m,
-        lit(0, wl.cref_width),
+        lit(0, wl.crefs.width()),
         &[
             (
                 wl.cref,

@@ -375,7 +375,7 @@ fn cfg_beats<'m>(m: &'m Module, p: &Params, ml: &MergerLayout, s: &Shell<'m>) {
     writer.connect("cfg_valid", wcfg_pend);
     writer.connect(
         "cfg_data",
-        with_fields(m, lit(0, wl.cfg_width), &[(wl.cfg_out_id, out_id)]),
+        with_fields(m, lit(0, wl.cfg.width()), &[(wl.cfg_out_id, out_id)]),
     );
     let wcfg_fire = wcfg_pend & writer.output("cfg_ready");
     wcfg_pend.next(cfg_fire.mux(one, wcfg_fire.mux(zero, wcfg_pend)));

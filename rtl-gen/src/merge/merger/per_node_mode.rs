@@ -367,7 +367,7 @@ fn route_out<'m>(
     let cref_valid = !csent & busy & (cref_ref | finished);
     let cref_data = with_fields(
         m,
-        lit(0, wl.cref_width),
+        lit(0, wl.crefs.width()),
         &[
             (wl.cref, cref_ref.mux(mo_refer, lit(0, mo_refer.width()))),
             (wl.cref_end, !cref_ref),

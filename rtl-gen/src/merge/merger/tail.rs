@@ -124,7 +124,7 @@ pub(super) fn finish_merger<'m>(m: &'m Module, t: Tail<'_, 'm>) {
     let writer_header = golden::layout::Field {
         name: "writer_header",
         offset: 0,
-        width: wl.header_width,
+        width: wl.header.width(),
     };
     let header = with_fields(
         m,

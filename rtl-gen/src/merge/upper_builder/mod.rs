@@ -265,7 +265,7 @@ pub fn upper_builder_unit(p: &Params) -> Module {
         let rec_out = h.end.mux(lit(0, h.rec.width()), h.rec);
         let ref_out = h.end.mux(lit(0, h.refer.width()), h.refer);
         let data = m.concat(&[h.gerr | ovf, r, n, h.kind, ref_out, rec_out]);
-        debug_assert_eq!(data.width(), bl.level_width);
+        debug_assert_eq!(data.width(), bl.level.width());
         Stream {
             valid: (ready_all & up_ready & emit).name(&format!("level{d}_in_valid")),
             ready: out_ready,
@@ -312,7 +312,7 @@ pub fn upper_builder_unit(p: &Params) -> Module {
 
     // `done` leaves through a skid buffer the clock after stage 0's End.
     let done_beat = m.concat(&[done_err, top_lod]);
-    debug_assert_eq!(done_beat.width(), bl.done_width);
+    debug_assert_eq!(done_beat.width(), bl.done.width());
     Stream {
         valid: done_valid,
         ready: done_ready,

@@ -175,7 +175,7 @@ fn merger_cfg<'m>(
         let entry = lookup(i, hier);
         let beat = with_fields(
             m,
-            m.lit(0, fl.cfg_width),
+            m.lit(0, fl.cfg.width()),
             &[
                 (fl.hier, hier),
                 (fl.roots, get(i, &cl.input.roots)),
@@ -185,7 +185,7 @@ fn merger_cfg<'m>(
                 (fl.entry, entry),
             ],
         );
-        inputs.push(used.mux(beat, m.lit(0, fl.cfg_width)));
+        inputs.push(used.mux(beat, m.lit(0, fl.cfg.width())));
         let top = get(i, &cl.input.top);
         let d = get(i, &cl.input.deep);
         lo = (used & top.gt(lo))

@@ -170,7 +170,7 @@ impl MergerLayout {
     /// The layout for `p`, `k` inputs and writer buffers of `2^capacity_bits`.
     pub fn new(p: &Params, k: usize, capacity_bits: u32) -> Result<MergerLayout, CapacityError> {
         let fetch = FetchLayout::new(p);
-        let input_width = fetch.cfg_width;
+        let input_width = fetch.cfg.width();
         let lb = p.lod_bits();
         let count = Field::new("count", k as u32 * input_width, bits_to_hold(k as u64));
         let lo = Field::new("lo", count.end(), lb);

@@ -58,8 +58,8 @@ pub(super) fn command<'m>(cx: &Ctx<'_, 'm>) -> Command<'m> {
     let is = |s: u64| phases.is(phase, s);
     let mut n_phase = Next::new(phase);
 
-    let cfg = Stream::input(m, "cfg", l.cfg_width);
-    let cmd = Stream::input(m, "cmd", l.cmd_width);
+    let cfg = Stream::input(m, "cfg", l.cfg.width());
+    let cmd = Stream::input(m, "cmd", l.cmd.width());
     let cfg_have = m.reg("cfg_have", 1);
     let idle = is(ph::IDLE).name("is_idle");
     cfg.ready.drive(idle & !cfg_have);

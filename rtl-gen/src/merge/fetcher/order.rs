@@ -45,7 +45,7 @@ pub(super) fn order_stage<'m>(
     let cr_idx = m.reg("cref_idx", ib);
     let cr_end = m.reg("cref_end", ib + 1);
     let cr_parent = m.reg("cref_parent", ib);
-    let tok_w = ok::BITS + l.out_width;
+    let tok_w = ok::BITS + l.out.width();
     let tok_in = Stream::wires(m, "tokens_in", tok_w);
     let toks = tok_in.fifo("tokens", 4);
     let can = (walk & tok_in.ready & cref_req.ready).name("room");
@@ -293,7 +293,7 @@ fn drive_tokens<'m>(
     let end_out = out_beat(m, l, None, None, lit(level_kind::END, bl.kind.width), None);
     let cref_tok = m.concat(&[
         lit(ok::TOK_CREF, ok::BITS),
-        m.lit(0, l.out_width - ib),
+        m.lit(0, l.out.width() - ib),
         cref_parent,
     ]);
     let item_tok = m.first_of(
@@ -319,7 +319,7 @@ fn drive_tokens<'m>(
             // LOD above it.
             let probe_tok = m.concat(&[
                 lit(ok::TOK_CREF, ok::BITS),
-                m.lit(0, l.out_width - ib - 1 - lb),
+                m.lit(0, l.out.width() - ib - 1 - lb),
                 pr.begin.mux(o_rec.view(nl.lod()), pr.lod),
                 lit(1, 1),
                 pr.begin.mux(o_ref.view(rl.node()), pr.parent),

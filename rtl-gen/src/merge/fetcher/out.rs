@@ -29,7 +29,7 @@ pub(super) fn level_out_stage<'m>(
     let lit = |v: u64, w: u32| cx.lit(v, w);
     let (walk, start, hier, nodes) = (c.walk, c.start, c.hier, c.nodes);
     let t_kind = toks.data.slice(tok_w - 1, tok_w - ok::BITS);
-    let t_beat = toks.data.slice(l.out_width - 1, 0);
+    let t_beat = toks.data.slice(l.out.width() - 1, 0);
     let t_parent = toks.data.slice(ib - 1, 0);
     let t_cref = t_kind.eq(lit(ok::TOK_CREF, ok::BITS)).name("token_cref");
     let cr_node = cref_resp.data.view(rl.node());
@@ -166,7 +166,7 @@ pub(super) fn per_node_out_stages<'m>(
     let want = t_plod.zext(lb + 1).add(1, lb + 1);
     let wait_tok = m.concat(&[
         kind(ok::TOK_CREF),
-        m.lit(0, l.out_width - ib - lb - 1),
+        m.lit(0, l.out.width() - ib - lb - 1),
         want,
         cr_node,
     ]);
@@ -198,7 +198,7 @@ pub(super) fn per_node_out_stages<'m>(
     // ---- send stage: after the error beat only the later passes' `End`s,
     // the first of them dropped (the error stands for it)
     let k2 = toks2.data.slice(tok_w - 1, tok_w - ok::BITS);
-    let b2 = toks2.data.slice(l.out_width - 1, 0);
+    let b2 = toks2.data.slice(l.out.width() - 1, 0);
     let t_wait = k2.eq(kind(ok::TOK_CREF)).name("token_probe_wait");
     let p_idx = toks2.data.slice(ib - 1, 0);
     let p_want = toks2.data.slice(ib + lb, ib);
@@ -210,7 +210,7 @@ pub(super) fn per_node_out_stages<'m>(
     let p_ref = reference(m, hier, p_idx);
     let probe_beat = with_fields(
         m,
-        m.lit(0, l.out_width),
+        m.lit(0, l.out.width()),
         &[
             (bl.kind, lit(level_kind::INNER, bl.kind.width)),
             (bl.rec, got.moved),

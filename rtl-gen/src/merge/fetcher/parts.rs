@@ -157,5 +157,5 @@ pub(super) fn out_beat<'m>(
     if let Some(e) = err {
         f.push((l.err, e));
     }
-    with_fields(m, m.lit(0, l.out_width), &f)
+    with_fields(m, m.lit(0, l.out.width()), &f)
 }

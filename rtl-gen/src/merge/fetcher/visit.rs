@@ -419,7 +419,7 @@ pub(super) fn frontier_push<'m>(
         }
     };
     let dmax = cx.p.max_lod as u64;
-    let report = Stream::input(m, "report", pf.report_width);
+    let report = Stream::input(m, "report", pf.report.width());
     let visited = h.pn_visited.expect("per-node");
     let end_left = m.reg("end_left", 1);
     let r = |f: &golden::layout::Field| report.data.view(f);
@@ -485,14 +485,14 @@ pub(super) fn visit_out<'m>(
     let (rec, rec_ref, above_first) = (h.rec, h.rec_ref, h.above_first);
     let leaf_beat = with_fields(
         m,
-        m.lit(0, l.leaves_width),
+        m.lit(0, l.leaves.width()),
         &[
             (l.leaf_rec, rec),
             (l.leaf_ref, rec_ref),
             (l.leaf_lod, rec.view(l.node.lod())),
         ],
     );
-    let leaf_end_beat = with_fields(m, m.lit(0, l.leaves_width), &[(l.leaf_end, lit(1, 1))]);
+    let leaf_end_beat = with_fields(m, m.lit(0, l.leaves.width()), &[(l.leaf_end, lit(1, 1))]);
     // The end beat: the walk over above the first level, or it reached.
     // (Per-node: the walk may run out above the first pass once per pass.)
     let lend_out = match c.per_node {

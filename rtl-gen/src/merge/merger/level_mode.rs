@@ -198,7 +198,7 @@ fn inputs<'m>(
         let fcfg_pend = m.reg(&format!("fetch{i}_cfg_pending"), 1);
         f.connect("cfg_valid", fcfg_pend);
         let off = ml.input_offset(i);
-        f.connect("cfg_data", cfg_q.slice(off + fl.cfg_width - 1, off));
+        f.connect("cfg_data", cfg_q.slice(off + fl.cfg.width() - 1, off));
         let fcfg_fire = fcfg_pend & f.output("cfg_ready");
         fcfg_pend.next(cfg_fire.mux(used_in[i], fcfg_fire.mux(zero, fcfg_pend)));
 
@@ -213,7 +213,7 @@ fn inputs<'m>(
         let lod = count_ph.mux(hi, merging.mux(level, lo));
         let cmd_data = with_fields(
             m,
-            lit(0, fl.cmd_width),
+            lit(0, fl.cmd.width()),
             &[
                 (fl.lod, lod),
                 (fl.send_refs, final_ph & merging),

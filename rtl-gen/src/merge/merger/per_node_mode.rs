@@ -134,7 +134,7 @@ fn report_fork<'m>(
     let rep_d = module.output("report_data");
     let narrow = with_fields(
         m,
-        lit(0, fpn.report_width),
+        lit(0, fpn.report.width()),
         &fpn.report_sources(&pl)
             .map(|(to, from)| (to, get(rep_d, &from))),
     )
@@ -208,7 +208,7 @@ fn inputs<'m>(
         let fcfg_pend = m.reg(&format!("fetch{i}_cfg_pending"), 1);
         f.connect("cfg_valid", fcfg_pend);
         let off = ml.input_offset(i);
-        f.connect("cfg_data", cfg_q.slice(off + fl.cfg_width - 1, off));
+        f.connect("cfg_data", cfg_q.slice(off + fl.cfg.width() - 1, off));
         let fcfg_fire = fcfg_pend & f.output("cfg_ready");
         fcfg_pend.next(cfg_fire.mux(used_in[i], fcfg_fire.mux(zero, fcfg_pend)));
 
@@ -217,7 +217,7 @@ fn inputs<'m>(
         let cmd_pend = m.reg(&format!("cmd{i}_pending"), 1);
         let cmd_data = with_fields(
             m,
-            lit(0, fl.cmd_width),
+            lit(0, fl.cmd.width()),
             &[
                 (fl.lod, lo),
                 (fl.send_refs, good),

@@ -317,14 +317,14 @@ pub fn merger_stream(ml: &MergerLayout, d: &MergeDesign, name: &str) -> Option<S
     let node = || named(fl.node.fields().copied());
     let reference = || named(fl.reference.fields().copied());
     let (fields, width) = match name {
-        "cfg" => (merger_cfg_fields(ml), ml.cfg_width),
+        "cfg" => (merger_cfg_fields(ml), ml.cfg.width()),
         "report" => {
             let r = module_report(d);
             (r.fields, r.width)
         }
         "nodes" => (node(), fl.node.width()),
         "w_ref_req" | "refs" | "w_ref_resp" => (reference(), fl.reference.width()),
-        "header" => (named(header_fields(ml)), ml.header_width),
+        "header" => (named(header_fields(ml)), ml.header.width()),
         s if merger_input_names(ml.k, per_node).iter().any(|n| n == s) => {
             if s.ends_with("node_resp") || s.ends_with("probe_resp") {
                 (node(), fl.node.width())

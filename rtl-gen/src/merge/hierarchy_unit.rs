@@ -200,7 +200,7 @@ fn merger_cfg<'m>(
     let mut parts = vec![data.view(&cl.out_id), hi, lo, count];
     parts.extend(inputs.into_iter().rev());
     let beat = m.concat(&parts).name("merger_cfg");
-    debug_assert_eq!(beat.width(), ml.cfg_width);
+    debug_assert_eq!(beat.width(), ml.cfg.width());
     beat
 }
 

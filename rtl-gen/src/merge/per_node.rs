@@ -40,7 +40,7 @@ pub fn per_node_decider_name(p: &Params, k: usize, num: u32, den: u32) -> String
 }
 
 /// The merge network of the per-node passes: streams `in0`..`in{k-1}` of
-/// [`PerNodeLayout::in_width`] beats, stream `out` of `{rank, beat}`.
+/// [`PerNodeLayout::input`] beats, stream `out` of `{rank, beat}`.
 ///
 /// Each head's key is `{end, Morton code, phase}` with phase probe 0, inner
 /// 1, leaf 2, child reference 3, and the lower rank wins a tie. A probe's

@@ -163,7 +163,7 @@ impl StorePortLayout {
         })
     }
 
-    /// A requester's request (`r{j}_req`, [`Self::addr_width`] bits) for
+    /// A requester's request (`r{j}_req`, [`Self::addr`]) for
     /// `at` in the merge of slot `slot`, as a number.
     pub fn addr_word(&self, slot: u64, at: StoreAddr) -> u64 {
         (slot << self.slot.offset) | (at.hier << self.hier.offset) | at.index

@@ -121,7 +121,7 @@ pub enum PerNodeBeat {
 }
 
 impl PerNodeBeat {
-    /// The packed beat ([`PerNodeLayout::in_width`] bits).
+    /// The packed beat ([`PerNodeLayout::input`]).
     pub fn pack(&self, l: &PerNodeLayout) -> Result<Bits, LayoutError> {
         let (inner, probe) = match *self {
             PerNodeBeat::Probe { record, at } => (LevelBeat::Inner { record, at }, 1),

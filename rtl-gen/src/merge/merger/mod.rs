@@ -262,7 +262,7 @@ fn shell<'m>(
     let commands_sent = m.wire("commands_sent", 1);
     let module_cfg_pending = m.reg("module_cfg_pending", 1);
     let writer_cfg_pending = m.reg("writer_cfg_pending", 1);
-    let cfg = Stream::input(m, "cfg", ml.cfg_width);
+    let cfg = Stream::input(m, "cfg", ml.cfg.width());
     let cfg_fire = cfg.fire().name("cfg_fire");
     let (busy, queued, front_free) = if overlap {
         // One merge taken (`busy`) or two (`queued` too). `queued` rises
@@ -303,7 +303,7 @@ fn shell<'m>(
     }
     let quiet = quiet.name("quiet");
     cfg.ready.drive(quiet);
-    let cfg_q = m.reg("cfg_q", ml.cfg_width);
+    let cfg_q = m.reg("cfg_q", ml.cfg.width());
     cfg_q.next_when(cfg_fire, cfg.data);
     let slots = shared_store(c).then(|| {
         // The slot of the next merge taken: merges are numbered from 0 at
@@ -441,9 +441,9 @@ fn field_of(b: &BeatLayout) -> golden::layout::Field {
 
 /// The hierarchy merger for `c`; an error when `c.validate()` refuses it.
 ///
-/// Ports: `clk`, `rst`; streams `cfg` (in, [`MergerLayout::cfg_width`]),
+/// Ports: `clk`, `rst`; streams `cfg` (in, [`MergerLayout::cfg`]),
 /// `report` (out, the merging module's), `nodes`, `refs` (out, the
-/// writer's), `header` (out, [`MergerLayout::header_width`]); every store
+/// writer's), `header` (out, [`MergerLayout::header`]); every store
 /// port stream (`*_req` out, `*_resp` in) of fetcher `i` as `f{i}_<name>`
 /// (`f{i}_node_req`, `f{i}_ref_req`, ...) and of the writer as `w_<name>`,
 /// not arbitrated (`StorePort::PerUnit`), or, with `StorePort::Shared`,

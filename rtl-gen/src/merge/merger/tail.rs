@@ -128,7 +128,7 @@ pub(super) fn finish_merger<'m>(m: &'m Module, t: Tail<'_, 'm>) {
     };
     let header = with_fields(
         m,
-        lit(0, ml.header_width),
+        lit(0, ml.header.width()),
         &[
             (writer_header, h_data),
             (ml.leaf_overflow, leaf_over),

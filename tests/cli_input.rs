@@ -560,11 +560,7 @@ fn a_vector_field_wider_than_its_port_is_refused_where_it_is() {
                 // field: every value but 0 is refused (file_tests.rs).
                 // A 64-bit field (binary64 placements) cannot be exceeded by
                 // a JSON integer the reader takes (u64).
-                let Some(f) = layout
-                    .fields
-                    .iter()
-                    .find(|f| f.name == name && f.width < 64)
-                else {
+                let Some(f) = layout.fields().find(|f| f.name == name && f.width < 64) else {
                     continue;
                 };
                 let mut wide = record.clone();

@@ -8,58 +8,58 @@ module merge_level_d16_q8_i24_h4 (
     input  wire in_valid,         // rtl-gen/src/merge/merge_level.rs:39
     input  wire [179:0] in_data,  // rtl-gen/src/merge/merge_level.rs:39
     output wire in_ready,         // rtl-gen/src/merge/merge_level.rs:39
-    output wire out_valid,        // rtl-gen/src/merge/merge_level.rs:117
-    output wire [180:0] out_data, // rtl-gen/src/merge/merge_level.rs:117
-    input  wire out_ready         // rtl-gen/src/merge/merge_level.rs:117
+    output wire out_valid,        // rtl-gen/src/merge/merge_level.rs:115
+    output wire [180:0] out_data, // rtl-gen/src/merge/merge_level.rs:115
+    input  wire out_ready         // rtl-gen/src/merge/merge_level.rs:115
 );
     wire h_out_ready;                        // rtl-gen/src/merge/merge_level.rs:40
     wire [149:0] in_data_rec;                // rtl-gen/src/merge/merge_level.rs:42
     wire [27:0] in_data_ref;                 // rtl-gen/src/merge/merge_level.rs:43
     wire [1:0] in_kind;                      // rtl-gen/src/merge/merge_level.rs:44
-    reg h_valid;                             // rtl-gen/src/merge/merge_level.rs:48
-    reg h_open;                              // rtl-gen/src/merge/merge_level.rs:49
-    reg h_multi;                             // rtl-gen/src/merge/merge_level.rs:50
-    reg h_ovf;                               // rtl-gen/src/merge/merge_level.rs:51
-    reg [1:0] h_kind;                        // rtl-gen/src/merge/merge_level.rs:52
-    reg [149:0] h_rec;                       // rtl-gen/src/merge/merge_level.rs:53
-    reg [27:0] h_ref;                        // rtl-gen/src/merge/merge_level.rs:54
-    reg grp_created;                         // rtl-gen/src/merge/merge_level.rs:55
-    wire in_is_inner;                        // rtl-gen/src/merge/merge_level.rs:57
-    wire in_is_ref;                          // rtl-gen/src/merge/merge_level.rs:58
-    wire same_voxel;                         // rtl-gen/src/merge/merge_level.rs:60
-    wire absorb;                             // rtl-gen/src/merge/merge_level.rs:62
-    wire in_valid_and;                       // rtl-gen/src/merge/merge_level.rs:63
-    wire complete;                           // rtl-gen/src/merge/merge_level.rs:63
-    wire complete_and;                       // rtl-gen/src/merge/merge_level.rs:64
-    wire free;                               // rtl-gen/src/merge/merge_level.rs:64
-    wire load;                               // rtl-gen/src/merge/merge_level.rs:65
-    wire created_now;                        // rtl-gen/src/merge/merge_level.rs:67
-    wire [23:0] h_rec_count;                 // rtl-gen/src/merge/merge_level.rs:74
-    wire [23:0] in_data_rec_count;           // rtl-gen/src/merge/merge_level.rs:76
-    wire [24:0] count_sum;                   // rtl-gen/src/merge/merge_level.rs:76
-    wire [7:0] h_rec_lo_x;                   // rtl-gen/src/merge/merge_level.rs:80
-    wire [7:0] in_data_rec_lo_x;             // rtl-gen/src/merge/merge_level.rs:80
-    wire [7:0] h_rec_hi_x;                   // rtl-gen/src/merge/merge_level.rs:83
-    wire [7:0] in_data_rec_hi_x;             // rtl-gen/src/merge/merge_level.rs:83
-    wire [7:0] h_rec_lo_y;                   // rtl-gen/src/merge/merge_level.rs:80
-    wire [7:0] in_data_rec_lo_y;             // rtl-gen/src/merge/merge_level.rs:80
-    wire [7:0] h_rec_hi_y;                   // rtl-gen/src/merge/merge_level.rs:83
-    wire [7:0] in_data_rec_hi_y;             // rtl-gen/src/merge/merge_level.rs:83
-    wire [7:0] h_rec_lo_z;                   // rtl-gen/src/merge/merge_level.rs:80
-    wire [7:0] in_data_rec_lo_z;             // rtl-gen/src/merge/merge_level.rs:80
-    wire [7:0] h_rec_hi_z;                   // rtl-gen/src/merge/merge_level.rs:83
-    wire [7:0] in_data_rec_hi_z;             // rtl-gen/src/merge/merge_level.rs:83
-    wire [149:0] merged_rec;                 // rtl-gen/src/merge/merge_level.rs:87
-    wire h_created;                          // rtl-gen/src/merge/merge_level.rs:102
-    wire [180:0] h_beat;                     // rtl-gen/src/merge/merge_level.rs:115
-    reg out_skid_valid;                      // rtl-gen/src/merge/merge_level.rs:117
-    reg [180:0] out_skid_data;               // rtl-gen/src/merge/merge_level.rs:117
-    reg out_skid_spare_valid;                // rtl-gen/src/merge/merge_level.rs:117
-    reg [180:0] out_skid_spare_data;         // rtl-gen/src/merge/merge_level.rs:117
-    wire out_skid_ready;                     // rtl-gen/src/merge/merge_level.rs:117
-    wire out_skid_room;                      // rtl-gen/src/merge/merge_level.rs:117
-    wire out_skid_drain;                     // rtl-gen/src/merge/merge_level.rs:117
-    wire out_skid_take;                      // rtl-gen/src/merge/merge_level.rs:117
+    reg h_valid;                             // rtl-gen/src/merge/merge_level.rs:46
+    reg h_open;                              // rtl-gen/src/merge/merge_level.rs:47
+    reg h_multi;                             // rtl-gen/src/merge/merge_level.rs:48
+    reg h_ovf;                               // rtl-gen/src/merge/merge_level.rs:49
+    reg [1:0] h_kind;                        // rtl-gen/src/merge/merge_level.rs:50
+    reg [149:0] h_rec;                       // rtl-gen/src/merge/merge_level.rs:51
+    reg [27:0] h_ref;                        // rtl-gen/src/merge/merge_level.rs:52
+    reg grp_created;                         // rtl-gen/src/merge/merge_level.rs:53
+    wire in_is_inner;                        // rtl-gen/src/merge/merge_level.rs:55
+    wire in_is_ref;                          // rtl-gen/src/merge/merge_level.rs:56
+    wire same_voxel;                         // rtl-gen/src/merge/merge_level.rs:58
+    wire absorb;                             // rtl-gen/src/merge/merge_level.rs:60
+    wire in_valid_and;                       // rtl-gen/src/merge/merge_level.rs:61
+    wire complete;                           // rtl-gen/src/merge/merge_level.rs:61
+    wire complete_and;                       // rtl-gen/src/merge/merge_level.rs:62
+    wire free;                               // rtl-gen/src/merge/merge_level.rs:62
+    wire load;                               // rtl-gen/src/merge/merge_level.rs:63
+    wire created_now;                        // rtl-gen/src/merge/merge_level.rs:65
+    wire [23:0] h_rec_count;                 // rtl-gen/src/merge/merge_level.rs:73
+    wire [23:0] in_data_rec_count;           // rtl-gen/src/merge/merge_level.rs:74
+    wire [24:0] count_sum;                   // rtl-gen/src/merge/merge_level.rs:74
+    wire [7:0] h_rec_lo_x;                   // rtl-gen/src/merge/merge_level.rs:78
+    wire [7:0] in_data_rec_lo_x;             // rtl-gen/src/merge/merge_level.rs:78
+    wire [7:0] h_rec_hi_x;                   // rtl-gen/src/merge/merge_level.rs:81
+    wire [7:0] in_data_rec_hi_x;             // rtl-gen/src/merge/merge_level.rs:81
+    wire [7:0] h_rec_lo_y;                   // rtl-gen/src/merge/merge_level.rs:78
+    wire [7:0] in_data_rec_lo_y;             // rtl-gen/src/merge/merge_level.rs:78
+    wire [7:0] h_rec_hi_y;                   // rtl-gen/src/merge/merge_level.rs:81
+    wire [7:0] in_data_rec_hi_y;             // rtl-gen/src/merge/merge_level.rs:81
+    wire [7:0] h_rec_lo_z;                   // rtl-gen/src/merge/merge_level.rs:78
+    wire [7:0] in_data_rec_lo_z;             // rtl-gen/src/merge/merge_level.rs:78
+    wire [7:0] h_rec_hi_z;                   // rtl-gen/src/merge/merge_level.rs:81
+    wire [7:0] in_data_rec_hi_z;             // rtl-gen/src/merge/merge_level.rs:81
+    wire [149:0] merged_rec;                 // rtl-gen/src/merge/merge_level.rs:85
+    wire h_created;                          // rtl-gen/src/merge/merge_level.rs:100
+    wire [180:0] h_beat;                     // rtl-gen/src/merge/merge_level.rs:113
+    reg out_skid_valid;                      // rtl-gen/src/merge/merge_level.rs:115
+    reg [180:0] out_skid_data;               // rtl-gen/src/merge/merge_level.rs:115
+    reg out_skid_spare_valid;                // rtl-gen/src/merge/merge_level.rs:115
+    reg [180:0] out_skid_spare_data;         // rtl-gen/src/merge/merge_level.rs:115
+    wire out_skid_ready;                     // rtl-gen/src/merge/merge_level.rs:115
+    wire out_skid_room;                      // rtl-gen/src/merge/merge_level.rs:115
+    wire out_skid_drain;                     // rtl-gen/src/merge/merge_level.rs:115
+    wire out_skid_take;                      // rtl-gen/src/merge/merge_level.rs:115
 
     assign in_ready = absorb | free;
     assign h_out_ready = out_skid_room;
@@ -117,31 +117,31 @@ module merge_level_d16_q8_i24_h4 (
             out_skid_spare_data <= 181'h0000000000000000000000000000000000000000000000;
         end else begin
             if (load) begin
-                h_valid <= ~(in_is_ref & (~created_now)); // rtl-gen/src/merge/merge_level.rs:91
-                h_open <= in_is_inner;       // rtl-gen/src/merge/merge_level.rs:92
-                h_kind <= in_data[179] ? in_kind : 2'd1; // rtl-gen/src/merge/merge_level.rs:96
-                h_rec <= in_data_rec;        // rtl-gen/src/merge/merge_level.rs:97
-                h_ref <= in_data_ref;        // rtl-gen/src/merge/merge_level.rs:98
+                h_valid <= ~(in_is_ref & (~created_now)); // rtl-gen/src/merge/merge_level.rs:89
+                h_open <= in_is_inner;       // rtl-gen/src/merge/merge_level.rs:90
+                h_kind <= in_data[179] ? in_kind : 2'd1; // rtl-gen/src/merge/merge_level.rs:94
+                h_rec <= in_data_rec;        // rtl-gen/src/merge/merge_level.rs:95
+                h_ref <= in_data_ref;        // rtl-gen/src/merge/merge_level.rs:96
             end else begin
                 if (complete_and) begin
-                    h_valid <= 1'b0;         // rtl-gen/src/merge/merge_level.rs:91
+                    h_valid <= 1'b0;         // rtl-gen/src/merge/merge_level.rs:89
                 end
                 if (absorb) begin
-                    h_rec <= merged_rec;     // rtl-gen/src/merge/merge_level.rs:97
+                    h_rec <= merged_rec;     // rtl-gen/src/merge/merge_level.rs:95
                 end
             end
             h_multi <= load ? 1'b0 : (absorb | h_multi);
             h_ovf <= load ? 1'b0 : ((absorb & count_sum[24]) | h_ovf);
             if ((load & h_valid) & h_open) begin
-                grp_created <= h_multi;      // rtl-gen/src/merge/merge_level.rs:99
+                grp_created <= h_multi;      // rtl-gen/src/merge/merge_level.rs:97
             end
             if (out_skid_drain) begin
-                out_skid_valid <= out_skid_spare_valid | complete; // rtl-gen/src/merge/merge_level.rs:117
-                out_skid_data <= out_skid_spare_valid ? out_skid_spare_data : h_beat; // rtl-gen/src/merge/merge_level.rs:117
+                out_skid_valid <= out_skid_spare_valid | complete; // rtl-gen/src/merge/merge_level.rs:115
+                out_skid_data <= out_skid_spare_valid ? out_skid_spare_data : h_beat; // rtl-gen/src/merge/merge_level.rs:115
             end
             out_skid_spare_valid <= out_skid_drain ? 1'b0 : (out_skid_spare_valid | out_skid_take);
             if ((~out_skid_drain) & out_skid_take) begin
-                out_skid_spare_data <= h_beat; // rtl-gen/src/merge/merge_level.rs:117
+                out_skid_spare_data <= h_beat; // rtl-gen/src/merge/merge_level.rs:115
             end
         end
     end

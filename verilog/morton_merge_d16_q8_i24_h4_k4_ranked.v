@@ -22,9 +22,9 @@ module morton_merge_d16_q8_i24_h4_k4_ranked (
     input  wire out_ready         // rtl-gen/src/merge/network.rs:272
 );
     wire net_out_ready;                      // rtl-gen/src/merge/network.rs:224
-    wire [15:0] in0_data_rec_x;              // rtl-gen/src/merge/fields.rs:24
-    wire [15:0] in0_data_rec_y;              // rtl-gen/src/merge/fields.rs:24
-    wire [15:0] in0_data_rec_z;              // rtl-gen/src/merge/fields.rs:24
+    wire [15:0] in0_data_rec_x;              // rtl-gen/src/merge/fields.rs:50
+    wire [15:0] in0_data_rec_y;              // rtl-gen/src/merge/fields.rs:50
+    wire [15:0] in0_data_rec_z;              // rtl-gen/src/merge/fields.rs:50
     reg [15:0] in0_parent_x;                 // rtl-gen/src/merge/network.rs:80
     reg [15:0] in0_parent_y;                 // rtl-gen/src/merge/network.rs:80
     reg [15:0] in0_parent_z;                 // rtl-gen/src/merge/network.rs:80
@@ -46,9 +46,9 @@ module morton_merge_d16_q8_i24_h4_k4_ranked (
     wire in0_head_drain;                     // rtl-gen/src/merge/network.rs:90
     wire in0_head_take;                      // rtl-gen/src/merge/network.rs:90
     wire in0_is_end;                         // rtl-gen/src/merge/network.rs:247
-    wire [15:0] in1_data_rec_x;              // rtl-gen/src/merge/fields.rs:24
-    wire [15:0] in1_data_rec_y;              // rtl-gen/src/merge/fields.rs:24
-    wire [15:0] in1_data_rec_z;              // rtl-gen/src/merge/fields.rs:24
+    wire [15:0] in1_data_rec_x;              // rtl-gen/src/merge/fields.rs:50
+    wire [15:0] in1_data_rec_y;              // rtl-gen/src/merge/fields.rs:50
+    wire [15:0] in1_data_rec_z;              // rtl-gen/src/merge/fields.rs:50
     reg [15:0] in1_parent_x;                 // rtl-gen/src/merge/network.rs:80
     reg [15:0] in1_parent_y;                 // rtl-gen/src/merge/network.rs:80
     reg [15:0] in1_parent_z;                 // rtl-gen/src/merge/network.rs:80
@@ -70,9 +70,9 @@ module morton_merge_d16_q8_i24_h4_k4_ranked (
     wire in1_head_drain;                     // rtl-gen/src/merge/network.rs:90
     wire in1_head_take;                      // rtl-gen/src/merge/network.rs:90
     wire in1_is_end;                         // rtl-gen/src/merge/network.rs:247
-    wire [15:0] in2_data_rec_x;              // rtl-gen/src/merge/fields.rs:24
-    wire [15:0] in2_data_rec_y;              // rtl-gen/src/merge/fields.rs:24
-    wire [15:0] in2_data_rec_z;              // rtl-gen/src/merge/fields.rs:24
+    wire [15:0] in2_data_rec_x;              // rtl-gen/src/merge/fields.rs:50
+    wire [15:0] in2_data_rec_y;              // rtl-gen/src/merge/fields.rs:50
+    wire [15:0] in2_data_rec_z;              // rtl-gen/src/merge/fields.rs:50
     reg [15:0] in2_parent_x;                 // rtl-gen/src/merge/network.rs:80
     reg [15:0] in2_parent_y;                 // rtl-gen/src/merge/network.rs:80
     reg [15:0] in2_parent_z;                 // rtl-gen/src/merge/network.rs:80
@@ -94,9 +94,9 @@ module morton_merge_d16_q8_i24_h4_k4_ranked (
     wire in2_head_drain;                     // rtl-gen/src/merge/network.rs:90
     wire in2_head_take;                      // rtl-gen/src/merge/network.rs:90
     wire in2_is_end;                         // rtl-gen/src/merge/network.rs:247
-    wire [15:0] in3_data_rec_x;              // rtl-gen/src/merge/fields.rs:24
-    wire [15:0] in3_data_rec_y;              // rtl-gen/src/merge/fields.rs:24
-    wire [15:0] in3_data_rec_z;              // rtl-gen/src/merge/fields.rs:24
+    wire [15:0] in3_data_rec_x;              // rtl-gen/src/merge/fields.rs:50
+    wire [15:0] in3_data_rec_y;              // rtl-gen/src/merge/fields.rs:50
+    wire [15:0] in3_data_rec_z;              // rtl-gen/src/merge/fields.rs:50
     reg [15:0] in3_parent_x;                 // rtl-gen/src/merge/network.rs:80
     reg [15:0] in3_parent_y;                 // rtl-gen/src/merge/network.rs:80
     reg [15:0] in3_parent_z;                 // rtl-gen/src/merge/network.rs:80

@@ -17,27 +17,27 @@ module per_node_network_d16_q8_i24_h4_k4 (
     input  wire in3_valid,        // rtl-gen/src/merge/network.rs:77
     input  wire [180:0] in3_data, // rtl-gen/src/merge/network.rs:77
     output wire in3_ready,        // rtl-gen/src/merge/network.rs:77
-    output wire out_valid,        // rtl-gen/src/merge/per_node.rs:106
-    output wire [182:0] out_data, // rtl-gen/src/merge/per_node.rs:106
-    input  wire out_ready         // rtl-gen/src/merge/per_node.rs:106
+    output wire out_valid,        // rtl-gen/src/merge/per_node.rs:104
+    output wire [182:0] out_data, // rtl-gen/src/merge/per_node.rs:104
+    input  wire out_ready         // rtl-gen/src/merge/per_node.rs:104
 );
     wire net_out_ready;                      // rtl-gen/src/merge/per_node.rs:58
-    wire [15:0] in0_data_rec_x;              // rtl-gen/src/merge/fields.rs:24
-    wire [15:0] in0_data_rec_y;              // rtl-gen/src/merge/fields.rs:24
-    wire [15:0] in0_data_rec_z;              // rtl-gen/src/merge/fields.rs:24
+    wire [15:0] in0_data_rec_x;              // rtl-gen/src/merge/fields.rs:50
+    wire [15:0] in0_data_rec_y;              // rtl-gen/src/merge/fields.rs:50
+    wire [15:0] in0_data_rec_z;              // rtl-gen/src/merge/fields.rs:50
     reg [15:0] in0_parent_x;                 // rtl-gen/src/merge/network.rs:80
     reg [15:0] in0_parent_y;                 // rtl-gen/src/merge/network.rs:80
     reg [15:0] in0_parent_z;                 // rtl-gen/src/merge/network.rs:80
     wire in0_probe;                          // rtl-gen/src/merge/per_node.rs:68
-    wire [1:0] in0_kind;                     // rtl-gen/src/merge/per_node.rs:112
-    wire in0_probe_not;                      // rtl-gen/src/merge/per_node.rs:72
-    wire in0_probe_and;                      // rtl-gen/src/merge/per_node.rs:73
-    wire [15:0] in0_probe_mux;               // rtl-gen/src/merge/per_node.rs:76
-    wire [15:0] in0_probe_mux_1;             // rtl-gen/src/merge/per_node.rs:76
-    wire [15:0] in0_probe_mux_2;             // rtl-gen/src/merge/per_node.rs:76
+    wire [1:0] in0_kind;                     // rtl-gen/src/merge/per_node.rs:110
+    wire in0_probe_not;                      // rtl-gen/src/merge/per_node.rs:70
+    wire in0_probe_and;                      // rtl-gen/src/merge/per_node.rs:71
+    wire [15:0] in0_probe_mux;               // rtl-gen/src/merge/per_node.rs:74
+    wire [15:0] in0_probe_mux_1;             // rtl-gen/src/merge/per_node.rs:74
+    wire [15:0] in0_probe_mux_2;             // rtl-gen/src/merge/per_node.rs:74
     wire [47:0] in0_probe_morton;            // rtl-gen/src/merge/network.rs:41
-    wire [50:0] in0_key;                     // rtl-gen/src/merge/per_node.rs:78
-    wire in0_data_probe;                     // rtl-gen/src/merge/per_node.rs:80
+    wire [50:0] in0_key;                     // rtl-gen/src/merge/per_node.rs:76
+    wire in0_data_probe;                     // rtl-gen/src/merge/per_node.rs:78
     wire in0_valid_and;                      // rtl-gen/src/merge/network.rs:86
     wire [231:0] in0_key_cat;                // rtl-gen/src/merge/network.rs:89
     reg in0_head_valid;                      // rtl-gen/src/merge/network.rs:90
@@ -49,23 +49,23 @@ module per_node_network_d16_q8_i24_h4_k4 (
     wire in0_head_drain;                     // rtl-gen/src/merge/network.rs:90
     wire in0_head_take;                      // rtl-gen/src/merge/network.rs:90
     wire [231:0] in0_head_spare_valid_mux;   // rtl-gen/src/merge/network.rs:90
-    wire in0_is_end;                         // rtl-gen/src/merge/per_node.rs:85
-    wire [15:0] in1_data_rec_x;              // rtl-gen/src/merge/fields.rs:24
-    wire [15:0] in1_data_rec_y;              // rtl-gen/src/merge/fields.rs:24
-    wire [15:0] in1_data_rec_z;              // rtl-gen/src/merge/fields.rs:24
+    wire in0_is_end;                         // rtl-gen/src/merge/per_node.rs:83
+    wire [15:0] in1_data_rec_x;              // rtl-gen/src/merge/fields.rs:50
+    wire [15:0] in1_data_rec_y;              // rtl-gen/src/merge/fields.rs:50
+    wire [15:0] in1_data_rec_z;              // rtl-gen/src/merge/fields.rs:50
     reg [15:0] in1_parent_x;                 // rtl-gen/src/merge/network.rs:80
     reg [15:0] in1_parent_y;                 // rtl-gen/src/merge/network.rs:80
     reg [15:0] in1_parent_z;                 // rtl-gen/src/merge/network.rs:80
     wire in1_probe;                          // rtl-gen/src/merge/per_node.rs:68
-    wire [1:0] in1_kind;                     // rtl-gen/src/merge/per_node.rs:112
-    wire in1_probe_not;                      // rtl-gen/src/merge/per_node.rs:72
-    wire in1_probe_and;                      // rtl-gen/src/merge/per_node.rs:73
-    wire [15:0] in1_probe_mux;               // rtl-gen/src/merge/per_node.rs:76
-    wire [15:0] in1_probe_mux_1;             // rtl-gen/src/merge/per_node.rs:76
-    wire [15:0] in1_probe_mux_2;             // rtl-gen/src/merge/per_node.rs:76
+    wire [1:0] in1_kind;                     // rtl-gen/src/merge/per_node.rs:110
+    wire in1_probe_not;                      // rtl-gen/src/merge/per_node.rs:70
+    wire in1_probe_and;                      // rtl-gen/src/merge/per_node.rs:71
+    wire [15:0] in1_probe_mux;               // rtl-gen/src/merge/per_node.rs:74
+    wire [15:0] in1_probe_mux_1;             // rtl-gen/src/merge/per_node.rs:74
+    wire [15:0] in1_probe_mux_2;             // rtl-gen/src/merge/per_node.rs:74
     wire [47:0] in1_probe_morton;            // rtl-gen/src/merge/network.rs:41
-    wire [50:0] in1_key;                     // rtl-gen/src/merge/per_node.rs:78
-    wire in1_data_probe;                     // rtl-gen/src/merge/per_node.rs:80
+    wire [50:0] in1_key;                     // rtl-gen/src/merge/per_node.rs:76
+    wire in1_data_probe;                     // rtl-gen/src/merge/per_node.rs:78
     wire in1_valid_and;                      // rtl-gen/src/merge/network.rs:86
     wire [231:0] in1_key_cat;                // rtl-gen/src/merge/network.rs:89
     reg in1_head_valid;                      // rtl-gen/src/merge/network.rs:90
@@ -77,23 +77,23 @@ module per_node_network_d16_q8_i24_h4_k4 (
     wire in1_head_drain;                     // rtl-gen/src/merge/network.rs:90
     wire in1_head_take;                      // rtl-gen/src/merge/network.rs:90
     wire [231:0] in1_head_spare_valid_mux;   // rtl-gen/src/merge/network.rs:90
-    wire in1_is_end;                         // rtl-gen/src/merge/per_node.rs:85
-    wire [15:0] in2_data_rec_x;              // rtl-gen/src/merge/fields.rs:24
-    wire [15:0] in2_data_rec_y;              // rtl-gen/src/merge/fields.rs:24
-    wire [15:0] in2_data_rec_z;              // rtl-gen/src/merge/fields.rs:24
+    wire in1_is_end;                         // rtl-gen/src/merge/per_node.rs:83
+    wire [15:0] in2_data_rec_x;              // rtl-gen/src/merge/fields.rs:50
+    wire [15:0] in2_data_rec_y;              // rtl-gen/src/merge/fields.rs:50
+    wire [15:0] in2_data_rec_z;              // rtl-gen/src/merge/fields.rs:50
     reg [15:0] in2_parent_x;                 // rtl-gen/src/merge/network.rs:80
     reg [15:0] in2_parent_y;                 // rtl-gen/src/merge/network.rs:80
     reg [15:0] in2_parent_z;                 // rtl-gen/src/merge/network.rs:80
     wire in2_probe;                          // rtl-gen/src/merge/per_node.rs:68
-    wire [1:0] in2_kind;                     // rtl-gen/src/merge/per_node.rs:112
-    wire in2_probe_not;                      // rtl-gen/src/merge/per_node.rs:72
-    wire in2_probe_and;                      // rtl-gen/src/merge/per_node.rs:73
-    wire [15:0] in2_probe_mux;               // rtl-gen/src/merge/per_node.rs:76
-    wire [15:0] in2_probe_mux_1;             // rtl-gen/src/merge/per_node.rs:76
-    wire [15:0] in2_probe_mux_2;             // rtl-gen/src/merge/per_node.rs:76
+    wire [1:0] in2_kind;                     // rtl-gen/src/merge/per_node.rs:110
+    wire in2_probe_not;                      // rtl-gen/src/merge/per_node.rs:70
+    wire in2_probe_and;                      // rtl-gen/src/merge/per_node.rs:71
+    wire [15:0] in2_probe_mux;               // rtl-gen/src/merge/per_node.rs:74
+    wire [15:0] in2_probe_mux_1;             // rtl-gen/src/merge/per_node.rs:74
+    wire [15:0] in2_probe_mux_2;             // rtl-gen/src/merge/per_node.rs:74
     wire [47:0] in2_probe_morton;            // rtl-gen/src/merge/network.rs:41
-    wire [50:0] in2_key;                     // rtl-gen/src/merge/per_node.rs:78
-    wire in2_data_probe;                     // rtl-gen/src/merge/per_node.rs:80
+    wire [50:0] in2_key;                     // rtl-gen/src/merge/per_node.rs:76
+    wire in2_data_probe;                     // rtl-gen/src/merge/per_node.rs:78
     wire in2_valid_and;                      // rtl-gen/src/merge/network.rs:86
     wire [231:0] in2_key_cat;                // rtl-gen/src/merge/network.rs:89
     reg in2_head_valid;                      // rtl-gen/src/merge/network.rs:90
@@ -105,23 +105,23 @@ module per_node_network_d16_q8_i24_h4_k4 (
     wire in2_head_drain;                     // rtl-gen/src/merge/network.rs:90
     wire in2_head_take;                      // rtl-gen/src/merge/network.rs:90
     wire [231:0] in2_head_spare_valid_mux;   // rtl-gen/src/merge/network.rs:90
-    wire in2_is_end;                         // rtl-gen/src/merge/per_node.rs:85
-    wire [15:0] in3_data_rec_x;              // rtl-gen/src/merge/fields.rs:24
-    wire [15:0] in3_data_rec_y;              // rtl-gen/src/merge/fields.rs:24
-    wire [15:0] in3_data_rec_z;              // rtl-gen/src/merge/fields.rs:24
+    wire in2_is_end;                         // rtl-gen/src/merge/per_node.rs:83
+    wire [15:0] in3_data_rec_x;              // rtl-gen/src/merge/fields.rs:50
+    wire [15:0] in3_data_rec_y;              // rtl-gen/src/merge/fields.rs:50
+    wire [15:0] in3_data_rec_z;              // rtl-gen/src/merge/fields.rs:50
     reg [15:0] in3_parent_x;                 // rtl-gen/src/merge/network.rs:80
     reg [15:0] in3_parent_y;                 // rtl-gen/src/merge/network.rs:80
     reg [15:0] in3_parent_z;                 // rtl-gen/src/merge/network.rs:80
     wire in3_probe;                          // rtl-gen/src/merge/per_node.rs:68
-    wire [1:0] in3_kind;                     // rtl-gen/src/merge/per_node.rs:112
-    wire in3_probe_not;                      // rtl-gen/src/merge/per_node.rs:72
-    wire in3_probe_and;                      // rtl-gen/src/merge/per_node.rs:73
-    wire [15:0] in3_probe_mux;               // rtl-gen/src/merge/per_node.rs:76
-    wire [15:0] in3_probe_mux_1;             // rtl-gen/src/merge/per_node.rs:76
-    wire [15:0] in3_probe_mux_2;             // rtl-gen/src/merge/per_node.rs:76
+    wire [1:0] in3_kind;                     // rtl-gen/src/merge/per_node.rs:110
+    wire in3_probe_not;                      // rtl-gen/src/merge/per_node.rs:70
+    wire in3_probe_and;                      // rtl-gen/src/merge/per_node.rs:71
+    wire [15:0] in3_probe_mux;               // rtl-gen/src/merge/per_node.rs:74
+    wire [15:0] in3_probe_mux_1;             // rtl-gen/src/merge/per_node.rs:74
+    wire [15:0] in3_probe_mux_2;             // rtl-gen/src/merge/per_node.rs:74
     wire [47:0] in3_probe_morton;            // rtl-gen/src/merge/network.rs:41
-    wire [50:0] in3_key;                     // rtl-gen/src/merge/per_node.rs:78
-    wire in3_data_probe;                     // rtl-gen/src/merge/per_node.rs:80
+    wire [50:0] in3_key;                     // rtl-gen/src/merge/per_node.rs:76
+    wire in3_data_probe;                     // rtl-gen/src/merge/per_node.rs:78
     wire in3_valid_and;                      // rtl-gen/src/merge/network.rs:86
     wire [231:0] in3_key_cat;                // rtl-gen/src/merge/network.rs:89
     reg in3_head_valid;                      // rtl-gen/src/merge/network.rs:90
@@ -133,9 +133,9 @@ module per_node_network_d16_q8_i24_h4_k4 (
     wire in3_head_drain;                     // rtl-gen/src/merge/network.rs:90
     wire in3_head_take;                      // rtl-gen/src/merge/network.rs:90
     wire [231:0] in3_head_spare_valid_mux;   // rtl-gen/src/merge/network.rs:90
-    wire in3_is_end;                         // rtl-gen/src/merge/per_node.rs:85
-    wire all_heads;                          // rtl-gen/src/merge/per_node.rs:87
-    wire winner_is_end;                      // rtl-gen/src/merge/per_node.rs:88
+    wire in3_is_end;                         // rtl-gen/src/merge/per_node.rs:83
+    wire all_heads;                          // rtl-gen/src/merge/per_node.rs:85
+    wire winner_is_end;                      // rtl-gen/src/merge/per_node.rs:86
     reg below_1_0;                           // rtl-gen/src/merge/network.rs:163
     reg below_2_0;                           // rtl-gen/src/merge/network.rs:163
     reg below_3_0;                           // rtl-gen/src/merge/network.rs:163
@@ -150,15 +150,15 @@ module per_node_network_d16_q8_i24_h4_k4 (
     wire [180:0] winner_beat;                // rtl-gen/src/merge/network.rs:193
     wire net_fire;                           // rtl-gen/src/merge/network.rs:196
     wire [1:0] winner_rank;                  // rtl-gen/src/merge/network.rs:213
-    wire [182:0] net_beat;                   // rtl-gen/src/merge/per_node.rs:103
-    reg out_skid_valid;                      // rtl-gen/src/merge/per_node.rs:105
-    reg [182:0] out_skid_data;               // rtl-gen/src/merge/per_node.rs:105
-    reg out_skid_spare_valid;                // rtl-gen/src/merge/per_node.rs:105
-    reg [182:0] out_skid_spare_data;         // rtl-gen/src/merge/per_node.rs:105
-    wire out_skid_ready;                     // rtl-gen/src/merge/per_node.rs:105
-    wire out_skid_room;                      // rtl-gen/src/merge/per_node.rs:105
-    wire out_skid_drain;                     // rtl-gen/src/merge/per_node.rs:105
-    wire out_skid_take;                      // rtl-gen/src/merge/per_node.rs:105
+    wire [182:0] net_beat;                   // rtl-gen/src/merge/per_node.rs:101
+    reg out_skid_valid;                      // rtl-gen/src/merge/per_node.rs:103
+    reg [182:0] out_skid_data;               // rtl-gen/src/merge/per_node.rs:103
+    reg out_skid_spare_valid;                // rtl-gen/src/merge/per_node.rs:103
+    reg [182:0] out_skid_spare_data;         // rtl-gen/src/merge/per_node.rs:103
+    wire out_skid_ready;                     // rtl-gen/src/merge/per_node.rs:103
+    wire out_skid_room;                      // rtl-gen/src/merge/per_node.rs:103
+    wire out_skid_drain;                     // rtl-gen/src/merge/per_node.rs:103
+    wire out_skid_take;                      // rtl-gen/src/merge/per_node.rs:103
 
     assign net_out_ready = out_skid_room;
     assign in0_ready = in0_head_room;
@@ -386,12 +386,12 @@ module per_node_network_d16_q8_i24_h4_k4 (
                 in3_head_spare_data <= in3_key_cat; // rtl-gen/src/merge/network.rs:90
             end
             if (out_skid_drain) begin
-                out_skid_valid <= out_skid_spare_valid | all_heads; // rtl-gen/src/merge/per_node.rs:105
-                out_skid_data <= out_skid_spare_valid ? out_skid_spare_data : net_beat; // rtl-gen/src/merge/per_node.rs:105
+                out_skid_valid <= out_skid_spare_valid | all_heads; // rtl-gen/src/merge/per_node.rs:103
+                out_skid_data <= out_skid_spare_valid ? out_skid_spare_data : net_beat; // rtl-gen/src/merge/per_node.rs:103
             end
             out_skid_spare_valid <= out_skid_drain ? 1'b0 : (out_skid_spare_valid | out_skid_take);
             if ((~out_skid_drain) & out_skid_take) begin
-                out_skid_spare_data <= net_beat; // rtl-gen/src/merge/per_node.rs:105
+                out_skid_spare_data <= net_beat; // rtl-gen/src/merge/per_node.rs:103
             end
         end
     end

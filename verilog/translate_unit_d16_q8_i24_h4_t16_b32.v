@@ -5,12 +5,12 @@
 module translate_unit_d16_q8_i24_h4_t16_b32 (
     input  wire clk,                    // clock (implicit)
     input  wire rst,                    // synchronous reset, active high (implicit)
-    input  wire det_in_valid,           // rtl-gen/src/translate/determine.rs:50
-    input  wire [205:0] det_in_data,    // rtl-gen/src/translate/determine.rs:50
-    output wire det_in_ready,           // rtl-gen/src/translate/determine.rs:50
-    output wire det_out_valid,          // rtl-gen/src/translate/determine.rs:252
-    output wire [221:0] det_out_data,   // rtl-gen/src/translate/determine.rs:252
-    input  wire det_out_ready,          // rtl-gen/src/translate/determine.rs:252
+    input  wire det_in_valid,           // rtl-gen/src/translate/determine.rs:49
+    input  wire [205:0] det_in_data,    // rtl-gen/src/translate/determine.rs:49
+    output wire det_in_ready,           // rtl-gen/src/translate/determine.rs:49
+    output wire det_out_valid,          // rtl-gen/src/translate/determine.rs:251
+    output wire [221:0] det_out_data,   // rtl-gen/src/translate/determine.rs:251
+    input  wire det_out_ready,          // rtl-gen/src/translate/determine.rs:251
     input  wire apply_in_valid,         // rtl-gen/src/translate/apply.rs:32
     input  wire [153:0] apply_in_data,  // rtl-gen/src/translate/apply.rs:32
     output wire apply_in_ready,         // rtl-gen/src/translate/apply.rs:32
@@ -24,8 +24,8 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
 );
     reg [55:0] table_ [0:15];                // rtl-gen/src/translate/table.rs:44
     reg [15:0] table_valid;                  // rtl-gen/src/translate/table.rs:43
-    wire err_lod;                            // rtl-gen/src/translate/determine.rs:57
-    wire [4:0] k;                            // rtl-gen/src/translate/determine.rs:58
+    wire err_lod;                            // rtl-gen/src/translate/determine.rs:56
+    wire [4:0] k;                            // rtl-gen/src/translate/determine.rs:57
     wire det_in_data_eq;                     // rtl-gen/src/translate/float.rs:78
     wire [12:0] det_in_data_sub;             // rtl-gen/src/translate/float.rs:86
     wire det_in_data_all;                    // rtl-gen/src/translate/float.rs:90
@@ -44,80 +44,80 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire det_in_data_any_2;                  // rtl-gen/src/translate/float.rs:91
     wire [23:0] z_m;                         // rtl-gen/src/translate/float.rs:92
     wire [5:0] z_a;                          // rtl-gen/src/translate/float.rs:129
-    wire [17:0] const_shl;                   // rtl-gen/src/translate/determine.rs:81
-    wire det_in_data_or;                     // rtl-gen/src/translate/determine.rs:85
-    wire [323:0] k_cat;                      // rtl-gen/src/translate/bundle.rs:50
-    reg det_s1_valid;                        // rtl-gen/src/translate/bundle.rs:88
-    reg [323:0] det_s1_data;                 // rtl-gen/src/translate/bundle.rs:88
-    wire det_s1_ready;                       // rtl-gen/src/translate/bundle.rs:88
-    wire det_s1_take;                        // rtl-gen/src/translate/bundle.rs:88
-    wire det_s1_data_x_s;                    // rtl-gen/src/translate/bundle.rs:63
-    wire [23:0] det_s1_data_x_m;             // rtl-gen/src/translate/bundle.rs:63
-    wire [5:0] det_s1_data_x_a;              // rtl-gen/src/translate/bundle.rs:63
-    wire det_s1_data_x_nan;                  // rtl-gen/src/translate/bundle.rs:63
-    wire det_s1_data_x_inf;                  // rtl-gen/src/translate/bundle.rs:63
-    wire [31:0] det_s1_data_x_enc;           // rtl-gen/src/translate/bundle.rs:63
-    wire det_s1_data_y_s;                    // rtl-gen/src/translate/bundle.rs:63
-    wire [23:0] det_s1_data_y_m;             // rtl-gen/src/translate/bundle.rs:63
-    wire [5:0] det_s1_data_y_a;              // rtl-gen/src/translate/bundle.rs:63
-    wire det_s1_data_y_nan;                  // rtl-gen/src/translate/bundle.rs:63
-    wire det_s1_data_y_inf;                  // rtl-gen/src/translate/bundle.rs:63
-    wire [31:0] det_s1_data_y_enc;           // rtl-gen/src/translate/bundle.rs:63
-    wire det_s1_data_z_s;                    // rtl-gen/src/translate/bundle.rs:63
-    wire [23:0] det_s1_data_z_m;             // rtl-gen/src/translate/bundle.rs:63
-    wire [5:0] det_s1_data_z_a;              // rtl-gen/src/translate/bundle.rs:63
-    wire det_s1_data_z_nan;                  // rtl-gen/src/translate/bundle.rs:63
-    wire det_s1_data_z_inf;                  // rtl-gen/src/translate/bundle.rs:63
-    wire [31:0] det_s1_data_z_enc;           // rtl-gen/src/translate/bundle.rs:63
-    wire [17:0] det_s1_data_t_min_x;         // rtl-gen/src/translate/bundle.rs:63
-    wire [17:0] det_s1_data_t_max_x;         // rtl-gen/src/translate/bundle.rs:63
-    wire [17:0] det_s1_data_t_min_y;         // rtl-gen/src/translate/bundle.rs:63
-    wire [17:0] det_s1_data_t_max_y;         // rtl-gen/src/translate/bundle.rs:63
-    wire [17:0] det_s1_data_t_min_z;         // rtl-gen/src/translate/bundle.rs:63
-    wire [17:0] det_s1_data_t_max_z;         // rtl-gen/src/translate/bundle.rs:63
-    wire det_s1_data_err_extents;            // rtl-gen/src/translate/bundle.rs:63
-    wire det_s1_data_err_lod;                // rtl-gen/src/translate/bundle.rs:63
-    wire [4:0] det_s1_data_lod;              // rtl-gen/src/translate/bundle.rs:63
-    wire det_s1_data_write_enable;           // rtl-gen/src/translate/bundle.rs:63
-    wire [3:0] det_s1_data_write_id;         // rtl-gen/src/translate/bundle.rs:63
-    wire [3:0] det_s1_data_read_id;          // rtl-gen/src/translate/bundle.rs:63
-    wire [4:0] det_s1_data_k;                // rtl-gen/src/translate/bundle.rs:63
+    wire [17:0] const_shl;                   // rtl-gen/src/translate/determine.rs:80
+    wire det_in_data_or;                     // rtl-gen/src/translate/determine.rs:84
+    wire [323:0] k_cat;                      // rtl-gen/src/translate/bundle.rs:64
+    reg det_s1_valid;                        // rtl-gen/src/translate/bundle.rs:100
+    reg [323:0] det_s1_data;                 // rtl-gen/src/translate/bundle.rs:100
+    wire det_s1_ready;                       // rtl-gen/src/translate/bundle.rs:100
+    wire det_s1_take;                        // rtl-gen/src/translate/bundle.rs:100
+    wire det_s1_data_x_s;                    // rtl-gen/src/translate/bundle.rs:76
+    wire [23:0] det_s1_data_x_m;             // rtl-gen/src/translate/bundle.rs:76
+    wire [5:0] det_s1_data_x_a;              // rtl-gen/src/translate/bundle.rs:76
+    wire det_s1_data_x_nan;                  // rtl-gen/src/translate/bundle.rs:76
+    wire det_s1_data_x_inf;                  // rtl-gen/src/translate/bundle.rs:76
+    wire [31:0] det_s1_data_x_enc;           // rtl-gen/src/translate/bundle.rs:76
+    wire det_s1_data_y_s;                    // rtl-gen/src/translate/bundle.rs:76
+    wire [23:0] det_s1_data_y_m;             // rtl-gen/src/translate/bundle.rs:76
+    wire [5:0] det_s1_data_y_a;              // rtl-gen/src/translate/bundle.rs:76
+    wire det_s1_data_y_nan;                  // rtl-gen/src/translate/bundle.rs:76
+    wire det_s1_data_y_inf;                  // rtl-gen/src/translate/bundle.rs:76
+    wire [31:0] det_s1_data_y_enc;           // rtl-gen/src/translate/bundle.rs:76
+    wire det_s1_data_z_s;                    // rtl-gen/src/translate/bundle.rs:76
+    wire [23:0] det_s1_data_z_m;             // rtl-gen/src/translate/bundle.rs:76
+    wire [5:0] det_s1_data_z_a;              // rtl-gen/src/translate/bundle.rs:76
+    wire det_s1_data_z_nan;                  // rtl-gen/src/translate/bundle.rs:76
+    wire det_s1_data_z_inf;                  // rtl-gen/src/translate/bundle.rs:76
+    wire [31:0] det_s1_data_z_enc;           // rtl-gen/src/translate/bundle.rs:76
+    wire [17:0] det_s1_data_t_min_x;         // rtl-gen/src/translate/bundle.rs:76
+    wire [17:0] det_s1_data_t_max_x;         // rtl-gen/src/translate/bundle.rs:76
+    wire [17:0] det_s1_data_t_min_y;         // rtl-gen/src/translate/bundle.rs:76
+    wire [17:0] det_s1_data_t_max_y;         // rtl-gen/src/translate/bundle.rs:76
+    wire [17:0] det_s1_data_t_min_z;         // rtl-gen/src/translate/bundle.rs:76
+    wire [17:0] det_s1_data_t_max_z;         // rtl-gen/src/translate/bundle.rs:76
+    wire det_s1_data_err_extents;            // rtl-gen/src/translate/bundle.rs:76
+    wire det_s1_data_err_lod;                // rtl-gen/src/translate/bundle.rs:76
+    wire [4:0] det_s1_data_lod;              // rtl-gen/src/translate/bundle.rs:76
+    wire det_s1_data_write_enable;           // rtl-gen/src/translate/bundle.rs:76
+    wire [3:0] det_s1_data_write_id;         // rtl-gen/src/translate/bundle.rs:76
+    wire [3:0] det_s1_data_read_id;          // rtl-gen/src/translate/bundle.rs:76
+    wire [4:0] det_s1_data_k;                // rtl-gen/src/translate/bundle.rs:76
     wire [64:0] x_aligned;                   // rtl-gen/src/translate/float.rs:150
     wire [64:0] y_aligned;                   // rtl-gen/src/translate/float.rs:150
     wire [64:0] z_aligned;                   // rtl-gen/src/translate/float.rs:150
-    wire [431:0] det_s1_data_k_cat;          // rtl-gen/src/translate/bundle.rs:50
-    reg det_align_valid;                     // rtl-gen/src/translate/bundle.rs:88
-    reg [431:0] det_align_data;              // rtl-gen/src/translate/bundle.rs:88
-    wire det_align_ready;                    // rtl-gen/src/translate/bundle.rs:88
-    wire det_align_take;                     // rtl-gen/src/translate/bundle.rs:88
-    wire det_align_data_x_m_nz;              // rtl-gen/src/translate/bundle.rs:63
-    wire det_align_data_x_s;                 // rtl-gen/src/translate/bundle.rs:63
-    wire [31:0] det_align_data_x_enc;        // rtl-gen/src/translate/bundle.rs:63
-    wire det_align_data_x_nan;               // rtl-gen/src/translate/bundle.rs:63
-    wire det_align_data_x_inf;               // rtl-gen/src/translate/bundle.rs:63
-    wire det_align_data_y_m_nz;              // rtl-gen/src/translate/bundle.rs:63
-    wire det_align_data_y_s;                 // rtl-gen/src/translate/bundle.rs:63
-    wire [31:0] det_align_data_y_enc;        // rtl-gen/src/translate/bundle.rs:63
-    wire det_align_data_y_nan;               // rtl-gen/src/translate/bundle.rs:63
-    wire det_align_data_y_inf;               // rtl-gen/src/translate/bundle.rs:63
-    wire det_align_data_z_m_nz;              // rtl-gen/src/translate/bundle.rs:63
-    wire det_align_data_z_s;                 // rtl-gen/src/translate/bundle.rs:63
-    wire [31:0] det_align_data_z_enc;        // rtl-gen/src/translate/bundle.rs:63
-    wire det_align_data_z_nan;               // rtl-gen/src/translate/bundle.rs:63
-    wire det_align_data_z_inf;               // rtl-gen/src/translate/bundle.rs:63
-    wire [17:0] det_align_data_t_min_x;      // rtl-gen/src/translate/bundle.rs:63
-    wire [17:0] det_align_data_t_max_x;      // rtl-gen/src/translate/bundle.rs:63
-    wire [17:0] det_align_data_t_min_y;      // rtl-gen/src/translate/bundle.rs:63
-    wire [17:0] det_align_data_t_max_y;      // rtl-gen/src/translate/bundle.rs:63
-    wire [17:0] det_align_data_t_min_z;      // rtl-gen/src/translate/bundle.rs:63
-    wire [17:0] det_align_data_t_max_z;      // rtl-gen/src/translate/bundle.rs:63
-    wire det_align_data_err_extents;         // rtl-gen/src/translate/bundle.rs:63
-    wire det_align_data_err_lod;             // rtl-gen/src/translate/bundle.rs:63
-    wire [4:0] det_align_data_lod;           // rtl-gen/src/translate/bundle.rs:63
-    wire det_align_data_write_enable;        // rtl-gen/src/translate/bundle.rs:63
-    wire [3:0] det_align_data_write_id;      // rtl-gen/src/translate/bundle.rs:63
-    wire [3:0] det_align_data_read_id;       // rtl-gen/src/translate/bundle.rs:63
-    wire [4:0] det_align_data_k;             // rtl-gen/src/translate/bundle.rs:63
+    wire [431:0] det_s1_data_k_cat;          // rtl-gen/src/translate/bundle.rs:64
+    reg det_align_valid;                     // rtl-gen/src/translate/bundle.rs:100
+    reg [431:0] det_align_data;              // rtl-gen/src/translate/bundle.rs:100
+    wire det_align_ready;                    // rtl-gen/src/translate/bundle.rs:100
+    wire det_align_take;                     // rtl-gen/src/translate/bundle.rs:100
+    wire det_align_data_x_m_nz;              // rtl-gen/src/translate/bundle.rs:76
+    wire det_align_data_x_s;                 // rtl-gen/src/translate/bundle.rs:76
+    wire [31:0] det_align_data_x_enc;        // rtl-gen/src/translate/bundle.rs:76
+    wire det_align_data_x_nan;               // rtl-gen/src/translate/bundle.rs:76
+    wire det_align_data_x_inf;               // rtl-gen/src/translate/bundle.rs:76
+    wire det_align_data_y_m_nz;              // rtl-gen/src/translate/bundle.rs:76
+    wire det_align_data_y_s;                 // rtl-gen/src/translate/bundle.rs:76
+    wire [31:0] det_align_data_y_enc;        // rtl-gen/src/translate/bundle.rs:76
+    wire det_align_data_y_nan;               // rtl-gen/src/translate/bundle.rs:76
+    wire det_align_data_y_inf;               // rtl-gen/src/translate/bundle.rs:76
+    wire det_align_data_z_m_nz;              // rtl-gen/src/translate/bundle.rs:76
+    wire det_align_data_z_s;                 // rtl-gen/src/translate/bundle.rs:76
+    wire [31:0] det_align_data_z_enc;        // rtl-gen/src/translate/bundle.rs:76
+    wire det_align_data_z_nan;               // rtl-gen/src/translate/bundle.rs:76
+    wire det_align_data_z_inf;               // rtl-gen/src/translate/bundle.rs:76
+    wire [17:0] det_align_data_t_min_x;      // rtl-gen/src/translate/bundle.rs:76
+    wire [17:0] det_align_data_t_max_x;      // rtl-gen/src/translate/bundle.rs:76
+    wire [17:0] det_align_data_t_min_y;      // rtl-gen/src/translate/bundle.rs:76
+    wire [17:0] det_align_data_t_max_y;      // rtl-gen/src/translate/bundle.rs:76
+    wire [17:0] det_align_data_t_min_z;      // rtl-gen/src/translate/bundle.rs:76
+    wire [17:0] det_align_data_t_max_z;      // rtl-gen/src/translate/bundle.rs:76
+    wire det_align_data_err_extents;         // rtl-gen/src/translate/bundle.rs:76
+    wire det_align_data_err_lod;             // rtl-gen/src/translate/bundle.rs:76
+    wire [4:0] det_align_data_lod;           // rtl-gen/src/translate/bundle.rs:76
+    wire det_align_data_write_enable;        // rtl-gen/src/translate/bundle.rs:76
+    wire [3:0] det_align_data_write_id;      // rtl-gen/src/translate/bundle.rs:76
+    wire [3:0] det_align_data_read_id;       // rtl-gen/src/translate/bundle.rs:76
+    wire [4:0] det_align_data_k;             // rtl-gen/src/translate/bundle.rs:76
     wire x_inc;                              // rtl-gen/src/translate/float.rs:175
     wire [40:0] x_mag;                       // rtl-gen/src/translate/float.rs:176
     wire [16:0] x_t;                         // rtl-gen/src/translate/float.rs:179
@@ -130,52 +130,52 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire [40:0] z_mag;                       // rtl-gen/src/translate/float.rs:176
     wire [16:0] z_t;                         // rtl-gen/src/translate/float.rs:179
     wire [24:0] z_r;                         // rtl-gen/src/translate/float.rs:181
-    wire [368:0] det_align_data_err_lod_cat; // rtl-gen/src/translate/bundle.rs:50
-    reg det_s2_valid;                        // rtl-gen/src/translate/bundle.rs:88
-    reg [368:0] det_s2_data;                 // rtl-gen/src/translate/bundle.rs:88
-    wire det_s2_ready;                       // rtl-gen/src/translate/bundle.rs:88
-    wire det_s2_take;                        // rtl-gen/src/translate/bundle.rs:88
-    wire [16:0] det_s2_data_x_t;             // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_x_too_large;            // rtl-gen/src/translate/bundle.rs:63
-    wire [24:0] det_s2_data_x_r;             // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_x_r_sign;               // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_x_t_zero;               // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_x_m_nz;                 // rtl-gen/src/translate/bundle.rs:63
-    wire [31:0] det_s2_data_x_enc;           // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_x_nan;                  // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_x_inf;                  // rtl-gen/src/translate/bundle.rs:63
-    wire [16:0] det_s2_data_y_t;             // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_y_too_large;            // rtl-gen/src/translate/bundle.rs:63
-    wire [24:0] det_s2_data_y_r;             // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_y_r_sign;               // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_y_t_zero;               // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_y_m_nz;                 // rtl-gen/src/translate/bundle.rs:63
-    wire [31:0] det_s2_data_y_enc;           // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_y_nan;                  // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_y_inf;                  // rtl-gen/src/translate/bundle.rs:63
-    wire [16:0] det_s2_data_z_t;             // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_z_too_large;            // rtl-gen/src/translate/bundle.rs:63
-    wire [24:0] det_s2_data_z_r;             // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_z_r_sign;               // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_z_t_zero;               // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_z_m_nz;                 // rtl-gen/src/translate/bundle.rs:63
-    wire [31:0] det_s2_data_z_enc;           // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_z_nan;                  // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_z_inf;                  // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_err_extents;            // rtl-gen/src/translate/bundle.rs:63
-    wire [4:0] det_s2_data_lod;              // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_write_enable;           // rtl-gen/src/translate/bundle.rs:63
-    wire [3:0] det_s2_data_write_id;         // rtl-gen/src/translate/bundle.rs:63
-    wire [3:0] det_s2_data_read_id;          // rtl-gen/src/translate/bundle.rs:63
-    wire [4:0] det_s2_data_k;                // rtl-gen/src/translate/bundle.rs:63
-    wire [17:0] det_s2_data_t_min_x;         // rtl-gen/src/translate/bundle.rs:63
-    wire [17:0] det_s2_data_t_min_y;         // rtl-gen/src/translate/bundle.rs:63
-    wire [17:0] det_s2_data_t_min_z;         // rtl-gen/src/translate/bundle.rs:63
-    wire [17:0] det_s2_data_t_max_x;         // rtl-gen/src/translate/bundle.rs:63
-    wire [17:0] det_s2_data_t_max_y;         // rtl-gen/src/translate/bundle.rs:63
-    wire [17:0] det_s2_data_t_max_z;         // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_err_lod;                // rtl-gen/src/translate/bundle.rs:63
-    wire det_s2_data_err_lod_not;            // rtl-gen/src/translate/determine.rs:146
+    wire [368:0] det_align_data_err_lod_cat; // rtl-gen/src/translate/bundle.rs:64
+    reg det_s2_valid;                        // rtl-gen/src/translate/bundle.rs:100
+    reg [368:0] det_s2_data;                 // rtl-gen/src/translate/bundle.rs:100
+    wire det_s2_ready;                       // rtl-gen/src/translate/bundle.rs:100
+    wire det_s2_take;                        // rtl-gen/src/translate/bundle.rs:100
+    wire [16:0] det_s2_data_x_t;             // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_x_too_large;            // rtl-gen/src/translate/bundle.rs:76
+    wire [24:0] det_s2_data_x_r;             // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_x_r_sign;               // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_x_t_zero;               // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_x_m_nz;                 // rtl-gen/src/translate/bundle.rs:76
+    wire [31:0] det_s2_data_x_enc;           // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_x_nan;                  // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_x_inf;                  // rtl-gen/src/translate/bundle.rs:76
+    wire [16:0] det_s2_data_y_t;             // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_y_too_large;            // rtl-gen/src/translate/bundle.rs:76
+    wire [24:0] det_s2_data_y_r;             // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_y_r_sign;               // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_y_t_zero;               // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_y_m_nz;                 // rtl-gen/src/translate/bundle.rs:76
+    wire [31:0] det_s2_data_y_enc;           // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_y_nan;                  // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_y_inf;                  // rtl-gen/src/translate/bundle.rs:76
+    wire [16:0] det_s2_data_z_t;             // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_z_too_large;            // rtl-gen/src/translate/bundle.rs:76
+    wire [24:0] det_s2_data_z_r;             // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_z_r_sign;               // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_z_t_zero;               // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_z_m_nz;                 // rtl-gen/src/translate/bundle.rs:76
+    wire [31:0] det_s2_data_z_enc;           // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_z_nan;                  // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_z_inf;                  // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_err_extents;            // rtl-gen/src/translate/bundle.rs:76
+    wire [4:0] det_s2_data_lod;              // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_write_enable;           // rtl-gen/src/translate/bundle.rs:76
+    wire [3:0] det_s2_data_write_id;         // rtl-gen/src/translate/bundle.rs:76
+    wire [3:0] det_s2_data_read_id;          // rtl-gen/src/translate/bundle.rs:76
+    wire [4:0] det_s2_data_k;                // rtl-gen/src/translate/bundle.rs:76
+    wire [17:0] det_s2_data_t_min_x;         // rtl-gen/src/translate/bundle.rs:76
+    wire [17:0] det_s2_data_t_min_y;         // rtl-gen/src/translate/bundle.rs:76
+    wire [17:0] det_s2_data_t_min_z;         // rtl-gen/src/translate/bundle.rs:76
+    wire [17:0] det_s2_data_t_max_x;         // rtl-gen/src/translate/bundle.rs:76
+    wire [17:0] det_s2_data_t_max_y;         // rtl-gen/src/translate/bundle.rs:76
+    wire [17:0] det_s2_data_t_max_z;         // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_err_lod;                // rtl-gen/src/translate/bundle.rs:76
+    wire det_s2_data_err_lod_not;            // rtl-gen/src/translate/determine.rs:145
     wire det_s2_data_x_r_eq;                 // rtl-gen/src/translate/float.rs:205
     wire [24:0] det_s2_data_x_r_mux;         // rtl-gen/src/translate/float.rs:206
     wire det_s2_data_x_r_eq_1;               // rtl-gen/src/translate/float.rs:205
@@ -190,8 +190,8 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire [31:0] x_residual;                  // rtl-gen/src/translate/float.rs:261
     wire det_s2_data_x_nan_or;               // rtl-gen/src/translate/float.rs:263
     wire det_s2_data_x_nan_and;              // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_err_extents_not;        // rtl-gen/src/translate/determine.rs:163
-    wire det_s2_data_err_extents_and;        // rtl-gen/src/translate/determine.rs:163
+    wire det_s2_data_err_extents_not;        // rtl-gen/src/translate/determine.rs:162
+    wire det_s2_data_err_extents_and;        // rtl-gen/src/translate/determine.rs:162
     wire det_s2_data_y_r_eq;                 // rtl-gen/src/translate/float.rs:205
     wire [24:0] det_s2_data_y_r_mux;         // rtl-gen/src/translate/float.rs:206
     wire det_s2_data_y_r_eq_1;               // rtl-gen/src/translate/float.rs:205
@@ -205,7 +205,7 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire [31:0] y_residual;                  // rtl-gen/src/translate/float.rs:261
     wire det_s2_data_y_nan_or;               // rtl-gen/src/translate/float.rs:263
     wire det_s2_data_y_nan_and;              // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_err_extents_and_1;      // rtl-gen/src/translate/determine.rs:163
+    wire det_s2_data_err_extents_and_1;      // rtl-gen/src/translate/determine.rs:162
     wire det_s2_data_z_r_eq;                 // rtl-gen/src/translate/float.rs:205
     wire [24:0] det_s2_data_z_r_mux;         // rtl-gen/src/translate/float.rs:206
     wire det_s2_data_z_r_eq_1;               // rtl-gen/src/translate/float.rs:205
@@ -219,53 +219,53 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire [31:0] z_residual;                  // rtl-gen/src/translate/float.rs:261
     wire det_s2_data_z_nan_or;               // rtl-gen/src/translate/float.rs:263
     wire det_s2_data_z_nan_and;              // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_err_extents_and_2;      // rtl-gen/src/translate/determine.rs:163
-    wire [2:0] det_s2_data_err_lod_cat;      // rtl-gen/src/translate/determine.rs:172
-    wire [2:0] det_s2_data_err_lod_cat_1;    // rtl-gen/src/translate/determine.rs:172
-    wire [2:0] det_s2_data_err_lod_cat_2;    // rtl-gen/src/translate/determine.rs:172
-    wire [2:0] det_s2_data_err_lod_cat_3;    // rtl-gen/src/translate/determine.rs:172
-    wire det_s2_data_err_lod_and;            // rtl-gen/src/translate/determine.rs:148
-    wire det_s2_data_err_lod_or;             // rtl-gen/src/translate/determine.rs:177
-    wire det_ok;                             // rtl-gen/src/translate/determine.rs:184
-    wire det_written;                        // rtl-gen/src/translate/determine.rs:193
-    wire [177:0] det_s2_data_read_id_cat;    // rtl-gen/src/translate/bundle.rs:50
-    reg det_s3_valid;                        // rtl-gen/src/translate/bundle.rs:88
-    reg [177:0] det_s3_data;                 // rtl-gen/src/translate/bundle.rs:88
-    wire det_s3_ready;                       // rtl-gen/src/translate/bundle.rs:88
-    wire det_s3_take;                        // rtl-gen/src/translate/bundle.rs:88
-    wire det_s3_data_ok;                     // rtl-gen/src/translate/bundle.rs:63
-    wire [16:0] det_s3_data_t_x;             // rtl-gen/src/translate/bundle.rs:63
-    wire [16:0] det_s3_data_t_y;             // rtl-gen/src/translate/bundle.rs:63
-    wire [16:0] det_s3_data_t_z;             // rtl-gen/src/translate/bundle.rs:63
-    wire [31:0] det_s3_data_residual_x;      // rtl-gen/src/translate/bundle.rs:63
-    wire [31:0] det_s3_data_residual_y;      // rtl-gen/src/translate/bundle.rs:63
-    wire [31:0] det_s3_data_residual_z;      // rtl-gen/src/translate/bundle.rs:63
-    wire det_s3_data_err_lod;                // rtl-gen/src/translate/bundle.rs:63
-    wire det_s3_data_err_extents;            // rtl-gen/src/translate/bundle.rs:63
-    wire [2:0] det_s3_data_err_nan;          // rtl-gen/src/translate/bundle.rs:63
-    wire [2:0] det_s3_data_err_inf;          // rtl-gen/src/translate/bundle.rs:63
-    wire [2:0] det_s3_data_err_range;        // rtl-gen/src/translate/bundle.rs:63
-    wire [2:0] det_s3_data_err_outside;      // rtl-gen/src/translate/bundle.rs:63
-    wire det_s3_data_err_write_id;           // rtl-gen/src/translate/bundle.rs:63
-    wire det_s3_data_written;                // rtl-gen/src/translate/bundle.rs:63
-    wire det_s3_data_err_read_id;            // rtl-gen/src/translate/bundle.rs:63
-    wire [4:0] det_s3_data_lod;              // rtl-gen/src/translate/bundle.rs:63
-    wire [3:0] det_s3_data_write_id;         // rtl-gen/src/translate/bundle.rs:63
-    wire [3:0] det_s3_data_read_id;          // rtl-gen/src/translate/bundle.rs:63
+    wire det_s2_data_err_extents_and_2;      // rtl-gen/src/translate/determine.rs:162
+    wire [2:0] det_s2_data_err_lod_cat;      // rtl-gen/src/translate/determine.rs:171
+    wire [2:0] det_s2_data_err_lod_cat_1;    // rtl-gen/src/translate/determine.rs:171
+    wire [2:0] det_s2_data_err_lod_cat_2;    // rtl-gen/src/translate/determine.rs:171
+    wire [2:0] det_s2_data_err_lod_cat_3;    // rtl-gen/src/translate/determine.rs:171
+    wire det_s2_data_err_lod_and;            // rtl-gen/src/translate/determine.rs:147
+    wire det_s2_data_err_lod_or;             // rtl-gen/src/translate/determine.rs:176
+    wire det_ok;                             // rtl-gen/src/translate/determine.rs:183
+    wire det_written;                        // rtl-gen/src/translate/determine.rs:192
+    wire [177:0] det_s2_data_read_id_cat;    // rtl-gen/src/translate/bundle.rs:64
+    reg det_s3_valid;                        // rtl-gen/src/translate/bundle.rs:100
+    reg [177:0] det_s3_data;                 // rtl-gen/src/translate/bundle.rs:100
+    wire det_s3_ready;                       // rtl-gen/src/translate/bundle.rs:100
+    wire det_s3_take;                        // rtl-gen/src/translate/bundle.rs:100
+    wire det_s3_data_ok;                     // rtl-gen/src/translate/bundle.rs:76
+    wire [16:0] det_s3_data_t_x;             // rtl-gen/src/translate/bundle.rs:76
+    wire [16:0] det_s3_data_t_y;             // rtl-gen/src/translate/bundle.rs:76
+    wire [16:0] det_s3_data_t_z;             // rtl-gen/src/translate/bundle.rs:76
+    wire [31:0] det_s3_data_residual_x;      // rtl-gen/src/translate/bundle.rs:76
+    wire [31:0] det_s3_data_residual_y;      // rtl-gen/src/translate/bundle.rs:76
+    wire [31:0] det_s3_data_residual_z;      // rtl-gen/src/translate/bundle.rs:76
+    wire det_s3_data_err_lod;                // rtl-gen/src/translate/bundle.rs:76
+    wire det_s3_data_err_extents;            // rtl-gen/src/translate/bundle.rs:76
+    wire [2:0] det_s3_data_err_nan;          // rtl-gen/src/translate/bundle.rs:76
+    wire [2:0] det_s3_data_err_inf;          // rtl-gen/src/translate/bundle.rs:76
+    wire [2:0] det_s3_data_err_range;        // rtl-gen/src/translate/bundle.rs:76
+    wire [2:0] det_s3_data_err_outside;      // rtl-gen/src/translate/bundle.rs:76
+    wire det_s3_data_err_write_id;           // rtl-gen/src/translate/bundle.rs:76
+    wire det_s3_data_written;                // rtl-gen/src/translate/bundle.rs:76
+    wire det_s3_data_err_read_id;            // rtl-gen/src/translate/bundle.rs:76
+    wire [4:0] det_s3_data_lod;              // rtl-gen/src/translate/bundle.rs:76
+    wire [3:0] det_s3_data_write_id;         // rtl-gen/src/translate/bundle.rs:76
+    wire [3:0] det_s3_data_read_id;          // rtl-gen/src/translate/bundle.rs:76
     wire det_s3_data_read_id_mux;            // rtl-gen/src/translate/table.rs:78
     wire det_s3_data_read_id_mux_1;          // rtl-gen/src/translate/table.rs:78
     wire det_read_valid;                     // rtl-gen/src/translate/table.rs:78
     wire [55:0] det_read_entry;              // rtl-gen/src/translate/table.rs:81
-    wire [221:0] det_read_entry_cat;         // rtl-gen/src/translate/bundle.rs:50
-    reg det_out_q_valid;                     // rtl-gen/src/translate/bundle.rs:105
-    reg [221:0] det_out_q_data;              // rtl-gen/src/translate/bundle.rs:105
-    reg det_out_q_spare_valid;               // rtl-gen/src/translate/bundle.rs:105
-    reg [221:0] det_out_q_spare_data;        // rtl-gen/src/translate/bundle.rs:105
-    wire det_out_q_ready;                    // rtl-gen/src/translate/bundle.rs:105
-    wire det_out_q_room;                     // rtl-gen/src/translate/bundle.rs:105
-    wire det_out_q_drain;                    // rtl-gen/src/translate/bundle.rs:105
-    wire det_out_q_take;                     // rtl-gen/src/translate/bundle.rs:105
-    wire det_s3_valid_and;                   // rtl-gen/src/translate/determine.rs:249
+    wire [221:0] det_read_entry_cat;         // rtl-gen/src/translate/bundle.rs:64
+    reg det_out_q_valid;                     // rtl-gen/src/translate/bundle.rs:117
+    reg [221:0] det_out_q_data;              // rtl-gen/src/translate/bundle.rs:117
+    reg det_out_q_spare_valid;               // rtl-gen/src/translate/bundle.rs:117
+    reg [221:0] det_out_q_spare_data;        // rtl-gen/src/translate/bundle.rs:117
+    wire det_out_q_ready;                    // rtl-gen/src/translate/bundle.rs:117
+    wire det_out_q_room;                     // rtl-gen/src/translate/bundle.rs:117
+    wire det_out_q_drain;                    // rtl-gen/src/translate/bundle.rs:117
+    wire det_out_q_take;                     // rtl-gen/src/translate/bundle.rs:117
+    wire det_s3_valid_and;                   // rtl-gen/src/translate/determine.rs:248
     wire [149:0] apply_record;               // rtl-gen/src/translate/apply.rs:33
     wire apply_in_data_mux;                  // rtl-gen/src/translate/table.rs:78
     wire apply_in_data_mux_1;                // rtl-gen/src/translate/table.rs:78
@@ -274,58 +274,58 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire apply_record_or;                    // rtl-gen/src/translate/apply.rs:43
     wire [2:0] apply_early_code;             // rtl-gen/src/translate/apply.rs:53
     wire [4:0] apply_shift;                  // rtl-gen/src/translate/apply.rs:62
-    reg apply_s1_valid;                      // rtl-gen/src/translate/bundle.rs:88
-    reg [212:0] apply_s1_data;               // rtl-gen/src/translate/bundle.rs:88
-    wire apply_s1_ready;                     // rtl-gen/src/translate/bundle.rs:88
-    wire apply_s1_take;                      // rtl-gen/src/translate/bundle.rs:88
-    wire [149:0] apply_s1_data_record;       // rtl-gen/src/translate/bundle.rs:63
-    wire [3:0] apply_s1_data_hier;           // rtl-gen/src/translate/bundle.rs:63
-    wire [2:0] apply_s1_data_code;           // rtl-gen/src/translate/bundle.rs:63
-    wire [4:0] apply_s1_data_shift;          // rtl-gen/src/translate/bundle.rs:63
-    wire [16:0] apply_s1_data_t0;            // rtl-gen/src/translate/bundle.rs:63
-    wire [16:0] apply_s1_data_t1;            // rtl-gen/src/translate/bundle.rs:63
-    wire [16:0] apply_s1_data_t2;            // rtl-gen/src/translate/bundle.rs:63
+    reg apply_s1_valid;                      // rtl-gen/src/translate/bundle.rs:100
+    reg [212:0] apply_s1_data;               // rtl-gen/src/translate/bundle.rs:100
+    wire apply_s1_ready;                     // rtl-gen/src/translate/bundle.rs:100
+    wire apply_s1_take;                      // rtl-gen/src/translate/bundle.rs:100
+    wire [149:0] apply_s1_data_record;       // rtl-gen/src/translate/bundle.rs:76
+    wire [3:0] apply_s1_data_hier;           // rtl-gen/src/translate/bundle.rs:76
+    wire [2:0] apply_s1_data_code;           // rtl-gen/src/translate/bundle.rs:76
+    wire [4:0] apply_s1_data_shift;          // rtl-gen/src/translate/bundle.rs:76
+    wire [16:0] apply_s1_data_t0;            // rtl-gen/src/translate/bundle.rs:76
+    wire [16:0] apply_s1_data_t1;            // rtl-gen/src/translate/bundle.rs:76
+    wire [16:0] apply_s1_data_t2;            // rtl-gen/src/translate/bundle.rs:76
     wire [33:0] apply_high;                  // rtl-gen/src/translate/apply.rs:79
-    wire [292:0] apply_s1_data_t2_cat;       // rtl-gen/src/translate/bundle.rs:50
-    reg apply_s2_valid;                      // rtl-gen/src/translate/bundle.rs:88
-    reg [292:0] apply_s2_data;               // rtl-gen/src/translate/bundle.rs:88
-    wire apply_s2_ready;                     // rtl-gen/src/translate/bundle.rs:88
-    wire apply_s2_take;                      // rtl-gen/src/translate/bundle.rs:88
-    wire [149:0] apply_s2_data_record;       // rtl-gen/src/translate/bundle.rs:63
-    wire [3:0] apply_s2_data_hier;           // rtl-gen/src/translate/bundle.rs:63
-    wire [2:0] apply_s2_data_code;           // rtl-gen/src/translate/bundle.rs:63
-    wire [33:0] apply_s2_data_high;          // rtl-gen/src/translate/bundle.rs:63
-    wire [33:0] apply_s2_data_offset0;       // rtl-gen/src/translate/bundle.rs:63
-    wire [33:0] apply_s2_data_offset1;       // rtl-gen/src/translate/bundle.rs:63
-    wire [33:0] apply_s2_data_offset2;       // rtl-gen/src/translate/bundle.rs:63
+    wire [292:0] apply_s1_data_t2_cat;       // rtl-gen/src/translate/bundle.rs:64
+    reg apply_s2_valid;                      // rtl-gen/src/translate/bundle.rs:100
+    reg [292:0] apply_s2_data;               // rtl-gen/src/translate/bundle.rs:100
+    wire apply_s2_ready;                     // rtl-gen/src/translate/bundle.rs:100
+    wire apply_s2_take;                      // rtl-gen/src/translate/bundle.rs:100
+    wire [149:0] apply_s2_data_record;       // rtl-gen/src/translate/bundle.rs:76
+    wire [3:0] apply_s2_data_hier;           // rtl-gen/src/translate/bundle.rs:76
+    wire [2:0] apply_s2_data_code;           // rtl-gen/src/translate/bundle.rs:76
+    wire [33:0] apply_s2_data_high;          // rtl-gen/src/translate/bundle.rs:76
+    wire [33:0] apply_s2_data_offset0;       // rtl-gen/src/translate/bundle.rs:76
+    wire [33:0] apply_s2_data_offset1;       // rtl-gen/src/translate/bundle.rs:76
+    wire [33:0] apply_s2_data_offset2;       // rtl-gen/src/translate/bundle.rs:76
     wire [33:0] apply_sum_x;                 // rtl-gen/src/translate/apply.rs:94
     wire [33:0] apply_sum_y;                 // rtl-gen/src/translate/apply.rs:94
     wire [33:0] apply_sum_z;                 // rtl-gen/src/translate/apply.rs:94
-    wire [207:0] apply_sum_z_cat;            // rtl-gen/src/translate/bundle.rs:50
-    reg apply_s3_valid;                      // rtl-gen/src/translate/bundle.rs:88
-    reg [207:0] apply_s3_data;               // rtl-gen/src/translate/bundle.rs:88
-    wire apply_s3_ready;                     // rtl-gen/src/translate/bundle.rs:88
-    wire apply_s3_take;                      // rtl-gen/src/translate/bundle.rs:88
-    wire [149:0] apply_s3_data_record;       // rtl-gen/src/translate/bundle.rs:63
-    wire [3:0] apply_s3_data_hier;           // rtl-gen/src/translate/bundle.rs:63
-    wire [2:0] apply_s3_data_code;           // rtl-gen/src/translate/bundle.rs:63
-    wire [15:0] apply_s3_data_moved0;        // rtl-gen/src/translate/bundle.rs:63
-    wire apply_outside_x;                    // rtl-gen/src/translate/bundle.rs:63
-    wire [15:0] apply_s3_data_moved1;        // rtl-gen/src/translate/bundle.rs:63
-    wire apply_outside_y;                    // rtl-gen/src/translate/bundle.rs:63
-    wire [15:0] apply_s3_data_moved2;        // rtl-gen/src/translate/bundle.rs:63
-    wire apply_outside_z;                    // rtl-gen/src/translate/bundle.rs:63
+    wire [207:0] apply_sum_z_cat;            // rtl-gen/src/translate/bundle.rs:64
+    reg apply_s3_valid;                      // rtl-gen/src/translate/bundle.rs:100
+    reg [207:0] apply_s3_data;               // rtl-gen/src/translate/bundle.rs:100
+    wire apply_s3_ready;                     // rtl-gen/src/translate/bundle.rs:100
+    wire apply_s3_take;                      // rtl-gen/src/translate/bundle.rs:100
+    wire [149:0] apply_s3_data_record;       // rtl-gen/src/translate/bundle.rs:76
+    wire [3:0] apply_s3_data_hier;           // rtl-gen/src/translate/bundle.rs:76
+    wire [2:0] apply_s3_data_code;           // rtl-gen/src/translate/bundle.rs:76
+    wire [15:0] apply_s3_data_moved0;        // rtl-gen/src/translate/bundle.rs:76
+    wire apply_outside_x;                    // rtl-gen/src/translate/bundle.rs:76
+    wire [15:0] apply_s3_data_moved1;        // rtl-gen/src/translate/bundle.rs:76
+    wire apply_outside_y;                    // rtl-gen/src/translate/bundle.rs:76
+    wire [15:0] apply_s3_data_moved2;        // rtl-gen/src/translate/bundle.rs:76
+    wire apply_outside_z;                    // rtl-gen/src/translate/bundle.rs:76
     wire [2:0] apply_code;                   // rtl-gen/src/translate/apply.rs:125
-    wire [156:0] apply_code_cat;             // rtl-gen/src/translate/bundle.rs:50
-    reg apply_out_q_valid;                   // rtl-gen/src/translate/bundle.rs:105
-    reg [156:0] apply_out_q_data;            // rtl-gen/src/translate/bundle.rs:105
-    reg apply_out_q_spare_valid;             // rtl-gen/src/translate/bundle.rs:105
-    reg [156:0] apply_out_q_spare_data;      // rtl-gen/src/translate/bundle.rs:105
-    wire apply_out_q_ready;                  // rtl-gen/src/translate/bundle.rs:105
-    wire apply_out_q_room;                   // rtl-gen/src/translate/bundle.rs:105
-    wire apply_out_q_drain;                  // rtl-gen/src/translate/bundle.rs:105
-    wire apply_out_q_take;                   // rtl-gen/src/translate/bundle.rs:105
-    wire [2:0] apply_out_q_data_code;        // rtl-gen/src/translate/bundle.rs:63
+    wire [156:0] apply_code_cat;             // rtl-gen/src/translate/bundle.rs:64
+    reg apply_out_q_valid;                   // rtl-gen/src/translate/bundle.rs:117
+    reg [156:0] apply_out_q_data;            // rtl-gen/src/translate/bundle.rs:117
+    reg apply_out_q_spare_valid;             // rtl-gen/src/translate/bundle.rs:117
+    reg [156:0] apply_out_q_spare_data;      // rtl-gen/src/translate/bundle.rs:117
+    wire apply_out_q_ready;                  // rtl-gen/src/translate/bundle.rs:117
+    wire apply_out_q_room;                   // rtl-gen/src/translate/bundle.rs:117
+    wire apply_out_q_drain;                  // rtl-gen/src/translate/bundle.rs:117
+    wire apply_out_q_take;                   // rtl-gen/src/translate/bundle.rs:117
+    wire [2:0] apply_out_q_data_code;        // rtl-gen/src/translate/bundle.rs:76
     wire det_s1_valid_or;                    // rtl-gen/src/translate/unit.rs:81
     wire was_busy_next;                      // rtl-gen/src/translate/unit.rs:81
     wire idle_now;                           // rtl-gen/src/translate/unit.rs:83
@@ -660,62 +660,62 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
                 table_valid <= table_valid | (16'd1 << det_s3_data_write_id); // rtl-gen/src/translate/table.rs:109
             end
             if (det_s1_take) begin
-                det_s1_valid <= det_in_valid; // rtl-gen/src/translate/bundle.rs:88
+                det_s1_valid <= det_in_valid; // rtl-gen/src/translate/bundle.rs:100
             end
             if (det_s1_take & det_in_valid) begin
-                det_s1_data <= k_cat;        // rtl-gen/src/translate/bundle.rs:88
+                det_s1_data <= k_cat;        // rtl-gen/src/translate/bundle.rs:100
             end
             if (det_align_take) begin
-                det_align_valid <= det_s1_valid; // rtl-gen/src/translate/bundle.rs:88
+                det_align_valid <= det_s1_valid; // rtl-gen/src/translate/bundle.rs:100
             end
             if (det_align_take & det_s1_valid) begin
-                det_align_data <= det_s1_data_k_cat; // rtl-gen/src/translate/bundle.rs:88
+                det_align_data <= det_s1_data_k_cat; // rtl-gen/src/translate/bundle.rs:100
             end
             if (det_s2_take) begin
-                det_s2_valid <= det_align_valid; // rtl-gen/src/translate/bundle.rs:88
+                det_s2_valid <= det_align_valid; // rtl-gen/src/translate/bundle.rs:100
             end
             if (det_s2_take & det_align_valid) begin
-                det_s2_data <= det_align_data_err_lod_cat; // rtl-gen/src/translate/bundle.rs:88
+                det_s2_data <= det_align_data_err_lod_cat; // rtl-gen/src/translate/bundle.rs:100
             end
             if (det_s3_take) begin
-                det_s3_valid <= det_s2_valid; // rtl-gen/src/translate/bundle.rs:88
+                det_s3_valid <= det_s2_valid; // rtl-gen/src/translate/bundle.rs:100
             end
             if (det_s3_take & det_s2_valid) begin
-                det_s3_data <= det_s2_data_read_id_cat; // rtl-gen/src/translate/bundle.rs:88
+                det_s3_data <= det_s2_data_read_id_cat; // rtl-gen/src/translate/bundle.rs:100
             end
             if (det_out_q_drain) begin
-                det_out_q_valid <= det_out_q_spare_valid | det_s3_valid; // rtl-gen/src/translate/bundle.rs:105
-                det_out_q_data <= det_out_q_spare_valid ? det_out_q_spare_data : det_read_entry_cat; // rtl-gen/src/translate/bundle.rs:105
+                det_out_q_valid <= det_out_q_spare_valid | det_s3_valid; // rtl-gen/src/translate/bundle.rs:117
+                det_out_q_data <= det_out_q_spare_valid ? det_out_q_spare_data : det_read_entry_cat; // rtl-gen/src/translate/bundle.rs:117
             end
             det_out_q_spare_valid <= det_out_q_drain ? 1'b0 : (det_out_q_spare_valid | det_out_q_take);
             if ((~det_out_q_drain) & det_out_q_take) begin
-                det_out_q_spare_data <= det_read_entry_cat; // rtl-gen/src/translate/bundle.rs:105
+                det_out_q_spare_data <= det_read_entry_cat; // rtl-gen/src/translate/bundle.rs:117
             end
             if (apply_s1_take) begin
-                apply_s1_valid <= apply_in_valid; // rtl-gen/src/translate/bundle.rs:88
+                apply_s1_valid <= apply_in_valid; // rtl-gen/src/translate/bundle.rs:100
             end
             if (apply_s1_take & apply_in_valid) begin
-                apply_s1_data <= {apply_read_entry[55:39], apply_read_entry[38:22], apply_read_entry[21:5], apply_shift, apply_early_code, apply_in_data[153:150], apply_record}; // rtl-gen/src/translate/bundle.rs:88
+                apply_s1_data <= {apply_read_entry[55:39], apply_read_entry[38:22], apply_read_entry[21:5], apply_shift, apply_early_code, apply_in_data[153:150], apply_record}; // rtl-gen/src/translate/bundle.rs:100
             end
             if (apply_s2_take) begin
-                apply_s2_valid <= apply_s1_valid; // rtl-gen/src/translate/bundle.rs:88
+                apply_s2_valid <= apply_s1_valid; // rtl-gen/src/translate/bundle.rs:100
             end
             if (apply_s2_take & apply_s1_valid) begin
-                apply_s2_data <= apply_s1_data_t2_cat; // rtl-gen/src/translate/bundle.rs:88
+                apply_s2_data <= apply_s1_data_t2_cat; // rtl-gen/src/translate/bundle.rs:100
             end
             if (apply_s3_take) begin
-                apply_s3_valid <= apply_s2_valid; // rtl-gen/src/translate/bundle.rs:88
+                apply_s3_valid <= apply_s2_valid; // rtl-gen/src/translate/bundle.rs:100
             end
             if (apply_s3_take & apply_s2_valid) begin
-                apply_s3_data <= apply_sum_z_cat; // rtl-gen/src/translate/bundle.rs:88
+                apply_s3_data <= apply_sum_z_cat; // rtl-gen/src/translate/bundle.rs:100
             end
             if (apply_out_q_drain) begin
-                apply_out_q_valid <= apply_out_q_spare_valid | apply_s3_valid; // rtl-gen/src/translate/bundle.rs:105
-                apply_out_q_data <= apply_out_q_spare_valid ? apply_out_q_spare_data : apply_code_cat; // rtl-gen/src/translate/bundle.rs:105
+                apply_out_q_valid <= apply_out_q_spare_valid | apply_s3_valid; // rtl-gen/src/translate/bundle.rs:117
+                apply_out_q_data <= apply_out_q_spare_valid ? apply_out_q_spare_data : apply_code_cat; // rtl-gen/src/translate/bundle.rs:117
             end
             apply_out_q_spare_valid <= apply_out_q_drain ? 1'b0 : (apply_out_q_spare_valid | apply_out_q_take);
             if ((~apply_out_q_drain) & apply_out_q_take) begin
-                apply_out_q_spare_data <= apply_code_cat; // rtl-gen/src/translate/bundle.rs:105
+                apply_out_q_spare_data <= apply_code_cat; // rtl-gen/src/translate/bundle.rs:117
             end
             was_busy <= was_busy_next;
             det_error_seen_q <= det_error_seen_q | ((det_out_q_valid & det_out_q_ready) & (~det_out_q_data[0]));

@@ -8,70 +8,70 @@ module upper_level_d16_q8_i24 (
     input  wire in_valid,         // rtl-gen/src/merge/upper_builder/level.rs:48
     input  wire [101:0] in_data,  // rtl-gen/src/merge/upper_builder/level.rs:48
     output wire in_ready,         // rtl-gen/src/merge/upper_builder/level.rs:48
-    output wire out_valid,        // rtl-gen/src/merge/upper_builder/level.rs:149
-    output wire [151:0] out_data, // rtl-gen/src/merge/upper_builder/level.rs:149
-    input  wire out_ready         // rtl-gen/src/merge/upper_builder/level.rs:149
+    output wire out_valid,        // rtl-gen/src/merge/upper_builder/level.rs:145
+    output wire [151:0] out_data, // rtl-gen/src/merge/upper_builder/level.rs:145
+    input  wire out_ready         // rtl-gen/src/merge/upper_builder/level.rs:145
 );
     wire h_out_ready;                        // rtl-gen/src/merge/upper_builder/level.rs:49
     wire in_end;                             // rtl-gen/src/merge/upper_builder/level.rs:51
-    wire [4:0] in_data_lod;                  // rtl-gen/src/merge/upper_builder/level.rs:57
-    wire [4:0] parent_lod;                   // rtl-gen/src/merge/upper_builder/level.rs:58
-    wire [15:0] in_data_x;                   // rtl-gen/src/merge/upper_builder/level.rs:60
-    wire [15:0] in_data_y;                   // rtl-gen/src/merge/upper_builder/level.rs:60
-    wire [15:0] in_data_z;                   // rtl-gen/src/merge/upper_builder/level.rs:60
-    wire [52:0] parent_voxel;                // rtl-gen/src/merge/upper_builder/level.rs:64
-    wire [7:0] in_data_lo_x;                 // rtl-gen/src/merge/upper_builder/level.rs:70
-    wire [7:0] in_data_hi_x;                 // rtl-gen/src/merge/upper_builder/level.rs:70
+    wire [4:0] in_data_lod;                  // rtl-gen/src/merge/upper_builder/level.rs:55
+    wire [4:0] parent_lod;                   // rtl-gen/src/merge/upper_builder/level.rs:56
+    wire [15:0] in_data_x;                   // rtl-gen/src/merge/upper_builder/level.rs:57
+    wire [15:0] in_data_y;                   // rtl-gen/src/merge/upper_builder/level.rs:57
+    wire [15:0] in_data_z;                   // rtl-gen/src/merge/upper_builder/level.rs:57
+    wire [52:0] parent_voxel;                // rtl-gen/src/merge/upper_builder/level.rs:60
+    wire [7:0] in_data_lo_x;                 // rtl-gen/src/merge/upper_builder/level.rs:66
+    wire [7:0] in_data_hi_x;                 // rtl-gen/src/merge/upper_builder/level.rs:66
     wire [7:0] in_data_x_cat;                // rtl-gen/src/merge/upper_builder/level.rs:37
     wire [7:0] in_data_x_cat_1;              // rtl-gen/src/merge/upper_builder/level.rs:37
-    wire [7:0] in_data_lo_y;                 // rtl-gen/src/merge/upper_builder/level.rs:70
-    wire [7:0] in_data_hi_y;                 // rtl-gen/src/merge/upper_builder/level.rs:70
+    wire [7:0] in_data_lo_y;                 // rtl-gen/src/merge/upper_builder/level.rs:66
+    wire [7:0] in_data_hi_y;                 // rtl-gen/src/merge/upper_builder/level.rs:66
     wire [7:0] in_data_y_cat;                // rtl-gen/src/merge/upper_builder/level.rs:37
     wire [7:0] in_data_y_cat_1;              // rtl-gen/src/merge/upper_builder/level.rs:37
-    wire [7:0] in_data_lo_z;                 // rtl-gen/src/merge/upper_builder/level.rs:70
-    wire [7:0] in_data_hi_z;                 // rtl-gen/src/merge/upper_builder/level.rs:70
+    wire [7:0] in_data_lo_z;                 // rtl-gen/src/merge/upper_builder/level.rs:66
+    wire [7:0] in_data_hi_z;                 // rtl-gen/src/merge/upper_builder/level.rs:66
     wire [7:0] in_data_z_cat;                // rtl-gen/src/merge/upper_builder/level.rs:37
     wire [7:0] in_data_z_cat_1;              // rtl-gen/src/merge/upper_builder/level.rs:37
-    wire bad_box;                            // rtl-gen/src/merge/upper_builder/level.rs:74
-    reg h_valid;                             // rtl-gen/src/merge/upper_builder/level.rs:79
-    reg h_end;                               // rtl-gen/src/merge/upper_builder/level.rs:80
-    reg [52:0] h_voxel;                      // rtl-gen/src/merge/upper_builder/level.rs:81
-    reg [7:0] h_lo0;                         // rtl-gen/src/merge/upper_builder/level.rs:85
-    reg [7:0] h_lo1;                         // rtl-gen/src/merge/upper_builder/level.rs:85
-    reg [7:0] h_lo2;                         // rtl-gen/src/merge/upper_builder/level.rs:85
-    reg [7:0] h_hi0;                         // rtl-gen/src/merge/upper_builder/level.rs:90
-    reg [7:0] h_hi1;                         // rtl-gen/src/merge/upper_builder/level.rs:90
-    reg [7:0] h_hi2;                         // rtl-gen/src/merge/upper_builder/level.rs:90
-    reg [23:0] h_first;                      // rtl-gen/src/merge/upper_builder/level.rs:92
-    reg [23:0] h_count;                      // rtl-gen/src/merge/upper_builder/level.rs:93
-    reg h_err;                               // rtl-gen/src/merge/upper_builder/level.rs:94
-    reg [23:0] index;                        // rtl-gen/src/merge/upper_builder/level.rs:96
-    reg index_ovf;                           // rtl-gen/src/merge/upper_builder/level.rs:97
-    wire in_end_not;                         // rtl-gen/src/merge/upper_builder/level.rs:99
-    wire absorb;                             // rtl-gen/src/merge/upper_builder/level.rs:99
-    wire absorb_not;                         // rtl-gen/src/merge/upper_builder/level.rs:100
-    wire complete;                           // rtl-gen/src/merge/upper_builder/level.rs:100
-    wire h_valid_not;                        // rtl-gen/src/merge/upper_builder/level.rs:101
-    wire complete_and;                       // rtl-gen/src/merge/upper_builder/level.rs:101
-    wire free;                               // rtl-gen/src/merge/upper_builder/level.rs:101
-    wire end_alone;                          // rtl-gen/src/merge/upper_builder/level.rs:105
-    wire end_pass;                           // rtl-gen/src/merge/upper_builder/level.rs:106
-    wire load;                               // rtl-gen/src/merge/upper_builder/level.rs:107
-    wire absorb_and;                         // rtl-gen/src/merge/upper_builder/level.rs:109
-    wire [24:0] index_inc;                   // rtl-gen/src/merge/upper_builder/level.rs:111
-    wire level_done;                         // rtl-gen/src/merge/upper_builder/level.rs:112
-    wire [24:0] count_inc;                   // rtl-gen/src/merge/upper_builder/level.rs:116
-    wire [149:0] h_count_cat;                // rtl-gen/src/merge/upper_builder/level.rs:141
-    wire complete_or;                        // rtl-gen/src/merge/upper_builder/level.rs:145
-    wire [151:0] h_beat;                     // rtl-gen/src/merge/upper_builder/level.rs:147
-    reg out_skid_valid;                      // rtl-gen/src/merge/upper_builder/level.rs:149
-    reg [151:0] out_skid_data;               // rtl-gen/src/merge/upper_builder/level.rs:149
-    reg out_skid_spare_valid;                // rtl-gen/src/merge/upper_builder/level.rs:149
-    reg [151:0] out_skid_spare_data;         // rtl-gen/src/merge/upper_builder/level.rs:149
-    wire out_skid_ready;                     // rtl-gen/src/merge/upper_builder/level.rs:149
-    wire out_skid_room;                      // rtl-gen/src/merge/upper_builder/level.rs:149
-    wire out_skid_drain;                     // rtl-gen/src/merge/upper_builder/level.rs:149
-    wire out_skid_take;                      // rtl-gen/src/merge/upper_builder/level.rs:149
+    wire bad_box;                            // rtl-gen/src/merge/upper_builder/level.rs:70
+    reg h_valid;                             // rtl-gen/src/merge/upper_builder/level.rs:75
+    reg h_end;                               // rtl-gen/src/merge/upper_builder/level.rs:76
+    reg [52:0] h_voxel;                      // rtl-gen/src/merge/upper_builder/level.rs:77
+    reg [7:0] h_lo0;                         // rtl-gen/src/merge/upper_builder/level.rs:81
+    reg [7:0] h_lo1;                         // rtl-gen/src/merge/upper_builder/level.rs:81
+    reg [7:0] h_lo2;                         // rtl-gen/src/merge/upper_builder/level.rs:81
+    reg [7:0] h_hi0;                         // rtl-gen/src/merge/upper_builder/level.rs:86
+    reg [7:0] h_hi1;                         // rtl-gen/src/merge/upper_builder/level.rs:86
+    reg [7:0] h_hi2;                         // rtl-gen/src/merge/upper_builder/level.rs:86
+    reg [23:0] h_first;                      // rtl-gen/src/merge/upper_builder/level.rs:88
+    reg [23:0] h_count;                      // rtl-gen/src/merge/upper_builder/level.rs:89
+    reg h_err;                               // rtl-gen/src/merge/upper_builder/level.rs:90
+    reg [23:0] index;                        // rtl-gen/src/merge/upper_builder/level.rs:92
+    reg index_ovf;                           // rtl-gen/src/merge/upper_builder/level.rs:93
+    wire in_end_not;                         // rtl-gen/src/merge/upper_builder/level.rs:95
+    wire absorb;                             // rtl-gen/src/merge/upper_builder/level.rs:95
+    wire absorb_not;                         // rtl-gen/src/merge/upper_builder/level.rs:96
+    wire complete;                           // rtl-gen/src/merge/upper_builder/level.rs:96
+    wire h_valid_not;                        // rtl-gen/src/merge/upper_builder/level.rs:97
+    wire complete_and;                       // rtl-gen/src/merge/upper_builder/level.rs:97
+    wire free;                               // rtl-gen/src/merge/upper_builder/level.rs:97
+    wire end_alone;                          // rtl-gen/src/merge/upper_builder/level.rs:101
+    wire end_pass;                           // rtl-gen/src/merge/upper_builder/level.rs:102
+    wire load;                               // rtl-gen/src/merge/upper_builder/level.rs:103
+    wire absorb_and;                         // rtl-gen/src/merge/upper_builder/level.rs:105
+    wire [24:0] index_inc;                   // rtl-gen/src/merge/upper_builder/level.rs:107
+    wire level_done;                         // rtl-gen/src/merge/upper_builder/level.rs:108
+    wire [24:0] count_inc;                   // rtl-gen/src/merge/upper_builder/level.rs:112
+    wire [149:0] h_count_cat;                // rtl-gen/src/merge/upper_builder/level.rs:137
+    wire complete_or;                        // rtl-gen/src/merge/upper_builder/level.rs:141
+    wire [151:0] h_beat;                     // rtl-gen/src/merge/upper_builder/level.rs:143
+    reg out_skid_valid;                      // rtl-gen/src/merge/upper_builder/level.rs:145
+    reg [151:0] out_skid_data;               // rtl-gen/src/merge/upper_builder/level.rs:145
+    reg out_skid_spare_valid;                // rtl-gen/src/merge/upper_builder/level.rs:145
+    reg [151:0] out_skid_spare_data;         // rtl-gen/src/merge/upper_builder/level.rs:145
+    wire out_skid_ready;                     // rtl-gen/src/merge/upper_builder/level.rs:145
+    wire out_skid_room;                      // rtl-gen/src/merge/upper_builder/level.rs:145
+    wire out_skid_drain;                     // rtl-gen/src/merge/upper_builder/level.rs:145
+    wire out_skid_take;                      // rtl-gen/src/merge/upper_builder/level.rs:145
 
     assign in_ready = absorb | (end_alone ? h_out_ready : free);
     assign h_out_ready = out_skid_room;
@@ -141,57 +141,57 @@ module upper_level_d16_q8_i24 (
             out_skid_spare_data <= 152'h00000000000000000000000000000000000000;
         end else begin
             if (load) begin
-                h_valid <= 1'b1;             // rtl-gen/src/merge/upper_builder/level.rs:118
-                h_end <= in_end;             // rtl-gen/src/merge/upper_builder/level.rs:119
-                h_voxel <= parent_voxel;     // rtl-gen/src/merge/upper_builder/level.rs:120
-                h_lo0 <= in_data_x_cat;      // rtl-gen/src/merge/upper_builder/level.rs:123
-                h_lo1 <= in_data_y_cat;      // rtl-gen/src/merge/upper_builder/level.rs:123
-                h_lo2 <= in_data_z_cat;      // rtl-gen/src/merge/upper_builder/level.rs:123
-                h_hi0 <= in_data_x_cat_1;    // rtl-gen/src/merge/upper_builder/level.rs:124
-                h_hi1 <= in_data_y_cat_1;    // rtl-gen/src/merge/upper_builder/level.rs:124
-                h_hi2 <= in_data_z_cat_1;    // rtl-gen/src/merge/upper_builder/level.rs:124
-                h_first <= index;            // rtl-gen/src/merge/upper_builder/level.rs:126
-                h_count <= 24'd1;            // rtl-gen/src/merge/upper_builder/level.rs:127
+                h_valid <= 1'b1;             // rtl-gen/src/merge/upper_builder/level.rs:114
+                h_end <= in_end;             // rtl-gen/src/merge/upper_builder/level.rs:115
+                h_voxel <= parent_voxel;     // rtl-gen/src/merge/upper_builder/level.rs:116
+                h_lo0 <= in_data_x_cat;      // rtl-gen/src/merge/upper_builder/level.rs:119
+                h_lo1 <= in_data_y_cat;      // rtl-gen/src/merge/upper_builder/level.rs:119
+                h_lo2 <= in_data_z_cat;      // rtl-gen/src/merge/upper_builder/level.rs:119
+                h_hi0 <= in_data_x_cat_1;    // rtl-gen/src/merge/upper_builder/level.rs:120
+                h_hi1 <= in_data_y_cat_1;    // rtl-gen/src/merge/upper_builder/level.rs:120
+                h_hi2 <= in_data_z_cat_1;    // rtl-gen/src/merge/upper_builder/level.rs:120
+                h_first <= index;            // rtl-gen/src/merge/upper_builder/level.rs:122
+                h_count <= 24'd1;            // rtl-gen/src/merge/upper_builder/level.rs:123
             end else begin
                 if (complete_and) begin
-                    h_valid <= 1'b0;         // rtl-gen/src/merge/upper_builder/level.rs:118
+                    h_valid <= 1'b0;         // rtl-gen/src/merge/upper_builder/level.rs:114
                 end
                 if (absorb) begin
                     if (!(h_lo0 < in_data_x_cat)) begin
-                        h_lo0 <= in_data_x_cat; // rtl-gen/src/merge/upper_builder/level.rs:123
+                        h_lo0 <= in_data_x_cat; // rtl-gen/src/merge/upper_builder/level.rs:119
                     end
                     if (!(h_lo1 < in_data_y_cat)) begin
-                        h_lo1 <= in_data_y_cat; // rtl-gen/src/merge/upper_builder/level.rs:123
+                        h_lo1 <= in_data_y_cat; // rtl-gen/src/merge/upper_builder/level.rs:119
                     end
                     if (!(h_lo2 < in_data_z_cat)) begin
-                        h_lo2 <= in_data_z_cat; // rtl-gen/src/merge/upper_builder/level.rs:123
+                        h_lo2 <= in_data_z_cat; // rtl-gen/src/merge/upper_builder/level.rs:119
                     end
                     if (!(h_hi0 > in_data_x_cat_1)) begin
-                        h_hi0 <= in_data_x_cat_1; // rtl-gen/src/merge/upper_builder/level.rs:124
+                        h_hi0 <= in_data_x_cat_1; // rtl-gen/src/merge/upper_builder/level.rs:120
                     end
                     if (!(h_hi1 > in_data_y_cat_1)) begin
-                        h_hi1 <= in_data_y_cat_1; // rtl-gen/src/merge/upper_builder/level.rs:124
+                        h_hi1 <= in_data_y_cat_1; // rtl-gen/src/merge/upper_builder/level.rs:120
                     end
                     if (!(h_hi2 > in_data_z_cat_1)) begin
-                        h_hi2 <= in_data_z_cat_1; // rtl-gen/src/merge/upper_builder/level.rs:124
+                        h_hi2 <= in_data_z_cat_1; // rtl-gen/src/merge/upper_builder/level.rs:120
                     end
-                    h_count <= count_inc[23:0]; // rtl-gen/src/merge/upper_builder/level.rs:127
+                    h_count <= count_inc[23:0]; // rtl-gen/src/merge/upper_builder/level.rs:123
                 end
             end
             h_err <= load ? (index_ovf | bad_box) : (h_err | (absorb & (count_inc[24] | bad_box)));
             if (level_done) begin
-                index <= 24'd0;              // rtl-gen/src/merge/upper_builder/level.rs:113
+                index <= 24'd0;              // rtl-gen/src/merge/upper_builder/level.rs:109
             end else if (absorb_and) begin
-                index <= index_inc[23:0];    // rtl-gen/src/merge/upper_builder/level.rs:113
+                index <= index_inc[23:0];    // rtl-gen/src/merge/upper_builder/level.rs:109
             end
             index_ovf <= level_done ? 1'b0 : (index_ovf | (absorb_and & index_inc[24]));
             if (out_skid_drain) begin
-                out_skid_valid <= out_skid_spare_valid | complete_or; // rtl-gen/src/merge/upper_builder/level.rs:149
-                out_skid_data <= out_skid_spare_valid ? out_skid_spare_data : h_beat; // rtl-gen/src/merge/upper_builder/level.rs:149
+                out_skid_valid <= out_skid_spare_valid | complete_or; // rtl-gen/src/merge/upper_builder/level.rs:145
+                out_skid_data <= out_skid_spare_valid ? out_skid_spare_data : h_beat; // rtl-gen/src/merge/upper_builder/level.rs:145
             end
             out_skid_spare_valid <= out_skid_drain ? 1'b0 : (out_skid_spare_valid | out_skid_take);
             if ((~out_skid_drain) & out_skid_take) begin
-                out_skid_spare_data <= h_beat; // rtl-gen/src/merge/upper_builder/level.rs:149
+                out_skid_spare_data <= h_beat; // rtl-gen/src/merge/upper_builder/level.rs:145
             end
         end
     end

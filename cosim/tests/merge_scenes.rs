@@ -278,7 +278,7 @@ fn streams(c: &Case) -> Streams {
             outs.iter()
                 .map(|(b, err)| {
                     let bits = b.pack(&li).unwrap();
-                    let mut v = Bits::from_words(bits.words(), lo_.width).unwrap();
+                    let mut v = Bits::from_words(bits.words(), lo_.width()).unwrap();
                     v.set_bit(err_bit, *err).unwrap();
                     v
                 })

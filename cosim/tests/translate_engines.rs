@@ -19,7 +19,6 @@ use golden::translate::model::{ApplyCode, TranslateDesign, TranslateTxn};
 use golden::vectors::translate::generate;
 use rtl_gen::translate::ports::{
     apply_out_layout, det_out_layout, pack_apply_in, pack_apply_out, pack_det_in, pack_det_out,
-    PortLayout,
 };
 use rtl_gen::translate::{reference_designs, translate_unit};
 
@@ -97,14 +96,16 @@ fn lanes() -> Vec<StreamNames> {
 }
 
 /// A scoreboard decoder printing each field of a lane's payload.
-fn decoder(layout: PortLayout) -> Box<FieldDecoder> {
-    Box::new(move |txn: &cosim::tb::Transaction| {
-        layout
-            .decode(&txn[0])
-            .into_iter()
-            .map(|(n, v)| (n, format!("{v:#x}")))
-            .collect()
-    })
+fn decoder(layout: golden::layout::Layout) -> Box<FieldDecoder> {
+    Box::new(
+        move |txn: &cosim::tb::Transaction| match layout.unpack(&txn[0]) {
+            Ok(fields) => fields
+                .into_iter()
+                .map(|(n, v)| (n.to_string(), format!("{v:#x}")))
+                .collect(),
+            Err(e) => vec![("undecodable".to_string(), e.to_string())],
+        },
+    )
 }
 
 /// The batch vectors of `txns`: each on its path's lane, the first of a run

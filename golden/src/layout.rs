@@ -1,10 +1,12 @@
 //! The bit layout of a node record and of a child reference (SPEC.md section 3),
 //! defined once, as data.
 //!
-//! A layout is a list of [`Field`]s, each a named bit range, packed from bit 0
-//! upward in a fixed order. The golden model packs records with it, the RTL
-//! generators slice ports with it and the test vectors print it: no other
-//! module restates an offset or a width.
+//! A [`Layout`] is a list of [`Field`]s, each a named bit range, in bit
+//! order. The golden model packs and unpacks words with it, the RTL
+//! generators slice ports and pipeline buses with it, the testbenches decode
+//! beats with it and the test vectors print it: no other module restates an
+//! offset or a width. [`NodeLayout`] and [`RefLayout`] are layouts with an
+//! accessor per field.
 //!
 //! A packed record is a [`Bits`]; this module adds its access by field
 //! ([`Bits::get`], [`Bits::set`]). Writing a value that does not fit its field
@@ -86,6 +88,32 @@ pub enum LayoutError {
         /// Width given, in bits.
         found: u32,
     },
+    /// Layout `layout` has no field called `field`.
+    NoField {
+        /// The layout's name.
+        layout: String,
+        /// The name looked up.
+        field: String,
+    },
+    /// [`Layout::pack`] was given field `field` `given` times (0 or more
+    /// than once) instead of exactly once.
+    Unpacked {
+        /// The layout's name.
+        layout: String,
+        /// The field.
+        field: &'static str,
+        /// How often a value was given for it (0, or 2 for "more than once").
+        given: u8,
+    },
+    /// A word of `found` bits was given where layout `layout` has `expected`.
+    WrongWidthOf {
+        /// The layout's name.
+        layout: String,
+        /// Width the layout expects, in bits.
+        expected: u32,
+        /// Width given, in bits.
+        found: u32,
+    },
     /// Building or packing the record's bits failed (a value wider than the
     /// record, a beat written past its end).
     Bits(BitsError),
@@ -130,6 +158,30 @@ impl fmt::Display for LayoutError {
                 f,
                 "{what}: expected a {expected}-bit record, found {found} bits"
             ),
+            LayoutError::NoField { layout, field } => {
+                write!(f, "layout `{layout}` has no field `{field}`")
+            }
+            LayoutError::Unpacked {
+                layout,
+                field,
+                given,
+            } => write!(
+                f,
+                "layout `{layout}`: field `{field}` {}",
+                if *given == 0 {
+                    "given no value"
+                } else {
+                    "given more than one value"
+                }
+            ),
+            LayoutError::WrongWidthOf {
+                layout,
+                expected,
+                found,
+            } => write!(
+                f,
+                "layout `{layout}`: expected a {expected}-bit word, found {found} bits"
+            ),
             LayoutError::Bits(e) => write!(f, "{e}"),
         }
     }
@@ -170,7 +222,191 @@ impl Bits {
     }
 }
 
-/// Index of each node-record field in [`NodeLayout::fields`] (bit order).
+/// Field names are `&'static str` so that a [`Field`] stays `Copy`; layouts
+/// built at run time (port payloads named per axis, pipeline bundles) get
+/// their names from here. Each distinct name is stored once for the life of
+/// the process, and the set of names a design uses is small and fixed.
+pub fn intern(name: &str) -> &'static str {
+    use std::collections::HashSet;
+    use std::sync::{Mutex, OnceLock};
+    static NAMES: OnceLock<Mutex<HashSet<&'static str>>> = OnceLock::new();
+    let mut names = NAMES
+        .get_or_init(|| Mutex::new(HashSet::new()))
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
+    if let Some(n) = names.get(name) {
+        return n;
+    }
+    let n: &'static str = Box::leak(name.to_owned().into_boxed_str());
+    names.insert(n);
+    n
+}
+
+/// A packed word of named fields: the one description that golden packs and
+/// unpacks with, the RTL generators slice signals by and the testbenches
+/// decode beats with.
+///
+/// Fields are kept in bit order (lowest offset first). Most layouts tile
+/// their width from bit 0 ([`Layout::packed`], [`Layout::push`]); a few
+/// leave gaps or start a field at a fixed bit ([`Layout::from_fields`]).
+/// Fields never overlap and never reach past [`Layout::width`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Layout {
+    name: String,
+    fields: Vec<Field>,
+    width: u32,
+}
+
+impl Layout {
+    /// An empty layout called `name` (the name errors report: `"node
+    /// record"`, `"det_in_data"`, ...).
+    pub fn new(name: impl Into<String>) -> Layout {
+        Layout {
+            name: name.into(),
+            fields: Vec::new(),
+            width: 0,
+        }
+    }
+
+    /// `(name, width)` pairs laid out consecutively from bit 0.
+    pub fn packed(name: impl Into<String>, parts: &[(&str, u32)]) -> Layout {
+        let mut l = Layout::new(name);
+        for &(n, w) in parts {
+            l.push(n, w);
+        }
+        l
+    }
+
+    /// `fields` at their own offsets inside a `width`-bit word. Panics when
+    /// two fields overlap, a field reaches past `width` or a name repeats:
+    /// layouts are built from parameters by code, so that is a bug there.
+    #[track_caller]
+    pub fn from_fields(name: impl Into<String>, fields: &[Field], width: u32) -> Layout {
+        let mut l = Layout::new(name);
+        let mut sorted = fields.to_vec();
+        sorted.sort_by_key(|f| (f.offset, f.width));
+        for f in sorted {
+            l.insert(f);
+        }
+        assert!(
+            l.width <= width,
+            "layout `{}`: fields end at bit {}, past its {width} bits",
+            l.name,
+            l.width
+        );
+        l.width = width;
+        l
+    }
+
+    /// Appends field `name`, `width` bits wide, above every field so far;
+    /// returns it.
+    #[track_caller]
+    pub fn push(&mut self, name: &str, width: u32) -> Field {
+        let f = Field::new(intern(name), self.width, width);
+        self.insert(f);
+        f
+    }
+
+    #[track_caller]
+    fn insert(&mut self, f: Field) {
+        assert!(
+            f.offset >= self.width,
+            "layout `{}`: field `{}` at bit {} overlaps the fields below bit {}",
+            self.name,
+            f.name,
+            f.offset,
+            self.width
+        );
+        assert!(
+            self.field(f.name).is_none(),
+            "layout `{}`: field `{}` twice",
+            self.name,
+            f.name
+        );
+        self.width = f.end();
+        self.fields.push(f);
+    }
+
+    /// The layout's name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+
+    /// Width of a packed word in bits.
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// The fields in bit order (lowest offset first).
+    pub fn fields(&self) -> std::slice::Iter<'_, Field> {
+        self.fields.iter()
+    }
+
+    /// The field called `name`, if any.
+    pub fn field(&self, name: &str) -> Option<&Field> {
+        self.fields.iter().find(|f| f.name == name)
+    }
+
+    /// The field called `name`; an error naming the layout and the field
+    /// when there is none.
+    pub fn get(&self, name: &str) -> Result<&Field, LayoutError> {
+        self.field(name).ok_or_else(|| LayoutError::NoField {
+            layout: self.name.clone(),
+            field: name.to_string(),
+        })
+    }
+
+    /// The `i`-th field in bit order. Panics past the last field.
+    pub fn at(&self, i: usize) -> &Field {
+        &self.fields[i]
+    }
+
+    /// A zero word of this layout's width.
+    pub fn zero(&self) -> Bits {
+        Bits::zero(self.width)
+    }
+
+    /// The word holding `values`: every field given exactly once, by name,
+    /// each value fitting its field. Bits outside every field are 0.
+    pub fn pack<S: AsRef<str>>(&self, values: &[(S, u64)]) -> Result<Bits, LayoutError> {
+        let mut b = self.zero();
+        for (name, _) in values {
+            self.get(name.as_ref())?;
+        }
+        for f in &self.fields {
+            let mut given = values.iter().filter(|(n, _)| n.as_ref() == f.name);
+            match (given.next(), given.next()) {
+                (Some(&(_, v)), None) => b.set(f, v)?,
+                (found, _) => {
+                    return Err(LayoutError::Unpacked {
+                        layout: self.name.clone(),
+                        field: f.name,
+                        given: if found.is_some() { 2 } else { 0 },
+                    })
+                }
+            }
+        }
+        Ok(b)
+    }
+
+    /// Every field's value in `word`, in bit order. `word` must be exactly
+    /// as wide as the layout, and every field at most 64 bits wide.
+    pub fn unpack(&self, word: &Bits) -> Result<Vec<(&'static str, u64)>, LayoutError> {
+        if word.width() != self.width {
+            return Err(LayoutError::WrongWidthOf {
+                layout: self.name.clone(),
+                expected: self.width,
+                found: word.width(),
+            });
+        }
+        self.fields
+            .iter()
+            .map(|f| Ok((f.name, word.get(f)?)))
+            .collect()
+    }
+}
+
+/// Index of each node-record field in bit order.
 const LEAF: usize = 0;
 const LOD: usize = 1;
 const COORD: usize = 2; // x, y, z
@@ -178,164 +414,132 @@ const LO: usize = 5; // lo_x, lo_y, lo_z
 const HI: usize = 8; // hi_x, hi_y, hi_z
 const FIRST: usize = 11;
 const COUNT: usize = 12;
-const NODE_FIELDS: usize = 13;
 
 /// The node-record layout of SPEC.md section 3 for one parameter set:
 /// `leaf, lod, x, y, z, lo_x, lo_y, lo_z, hi_x, hi_y, hi_z, first, count`,
-/// packed from bit 0 upward.
+/// packed from bit 0 upward. A [`Layout`] (through `Deref`) with an
+/// accessor per field.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub struct NodeLayout {
-    fields: [Field; NODE_FIELDS],
-    width: u32,
-}
+pub struct NodeLayout(Layout);
 
-/// Lays out `(name, width)` pairs consecutively from bit 0.
-fn pack_consecutively<const N: usize>(spec: [(&'static str, u32); N]) -> ([Field; N], u32) {
-    let mut offset = 0;
-    let fields = spec.map(|(name, width)| {
-        let f = Field {
-            name,
-            offset,
-            width,
-        };
-        offset += width;
-        f
-    });
-    (fields, offset)
+impl std::ops::Deref for NodeLayout {
+    type Target = Layout;
+    fn deref(&self) -> &Layout {
+        &self.0
+    }
 }
 
 impl NodeLayout {
-    /// The layout for `p` (widths from [`Params`]: lod_bits, D, Q, I).
+    /// The layout for `p` (widths from [`Params`]: lod_bits, D, Q, I); its
+    /// width is `W = 1 + lod_bits + 3D + 6Q + 2I`.
     pub fn new(p: &Params) -> NodeLayout {
         let lod = p.lod_bits();
         let d = p.coord_bits();
         let q = p.quant_bits as u32;
         let i = p.index_bits as u32;
-        let (fields, width) = pack_consecutively([
-            ("leaf", 1),
-            ("lod", lod),
-            ("x", d),
-            ("y", d),
-            ("z", d),
-            ("lo_x", q),
-            ("lo_y", q),
-            ("lo_z", q),
-            ("hi_x", q),
-            ("hi_y", q),
-            ("hi_z", q),
-            ("first", i),
-            ("count", i),
-        ]);
-        NodeLayout { fields, width }
+        NodeLayout(Layout::packed(
+            "node record",
+            &[
+                ("leaf", 1),
+                ("lod", lod),
+                ("x", d),
+                ("y", d),
+                ("z", d),
+                ("lo_x", q),
+                ("lo_y", q),
+                ("lo_z", q),
+                ("hi_x", q),
+                ("hi_y", q),
+                ("hi_z", q),
+                ("first", i),
+                ("count", i),
+            ],
+        ))
     }
 
-    /// Record width `W = 1 + lod_bits + 3D + 6Q + 2I`.
-    pub fn width(&self) -> u32 {
-        self.width
-    }
-
-    /// The fields in bit order (lowest offset first).
-    pub fn fields(&self) -> impl Iterator<Item = &Field> + '_ {
-        self.fields.iter()
-    }
-
-    /// The field called `name`, if any.
-    pub fn field(&self, name: &str) -> Option<&Field> {
-        self.fields.iter().find(|f| f.name == name)
+    /// The plain [`Layout`].
+    pub fn layout(&self) -> &Layout {
+        &self.0
     }
 
     /// The `leaf` flag (1 bit): 1 for a leaf, 0 for an inner node.
     pub fn leaf(&self) -> &Field {
-        &self.fields[LEAF]
+        self.at(LEAF)
     }
     /// The node's LOD `d` (`lod_bits` wide).
     pub fn lod(&self) -> &Field {
-        &self.fields[LOD]
+        self.at(LOD)
     }
     /// Voxel x coordinate (D bits).
     pub fn x(&self) -> &Field {
-        &self.fields[COORD]
+        self.at(COORD)
     }
     /// Voxel y coordinate (D bits).
     pub fn y(&self) -> &Field {
-        &self.fields[COORD + 1]
+        self.at(COORD + 1)
     }
     /// Voxel z coordinate (D bits).
     pub fn z(&self) -> &Field {
-        &self.fields[COORD + 2]
+        self.at(COORD + 2)
     }
     /// Voxel coordinate of `axis` (0 = x, 1 = y, 2 = z). Panics on axis > 2.
     pub fn coord(&self, axis: usize) -> &Field {
         assert!(axis < 3, "axis {axis} is not 0, 1 or 2");
-        &self.fields[COORD + axis]
+        self.at(COORD + axis)
     }
     /// Box minimum cell on `axis`. Panics on axis > 2.
     pub fn lo(&self, axis: usize) -> &Field {
         assert!(axis < 3, "axis {axis} is not 0, 1 or 2");
-        &self.fields[LO + axis]
+        self.at(LO + axis)
     }
     /// Box maximum cell (inclusive) on `axis`. Panics on axis > 2.
     pub fn hi(&self, axis: usize) -> &Field {
         assert!(axis < 3, "axis {axis} is not 0, 1 or 2");
-        &self.fields[HI + axis]
+        self.at(HI + axis)
     }
     /// First index into `refs` (inner node) or `prims` (leaf); I bits.
     pub fn first(&self) -> &Field {
-        &self.fields[FIRST]
+        self.at(FIRST)
     }
     /// Number of children or primitives, at least 1; I bits.
     pub fn count(&self) -> &Field {
-        &self.fields[COUNT]
-    }
-
-    /// A zero record of this layout's width.
-    pub fn zero(&self) -> Bits {
-        Bits::zero(self.width)
+        self.at(COUNT)
     }
 }
 
 /// The child-reference layout: `node` in bits `[0, I)`, `hier` in `[I, I + H)`.
+/// A [`Layout`] (through `Deref`) with an accessor per field.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub struct RefLayout {
-    fields: [Field; 2],
-    width: u32,
+pub struct RefLayout(Layout);
+
+impl std::ops::Deref for RefLayout {
+    type Target = Layout;
+    fn deref(&self) -> &Layout {
+        &self.0
+    }
 }
 
 impl RefLayout {
-    /// The layout for `p` (widths I and H).
+    /// The layout for `p` (widths I and H; `I + H` in all).
     pub fn new(p: &Params) -> RefLayout {
-        let (fields, width) =
-            pack_consecutively([("node", p.index_bits as u32), ("hier", p.hier_bits as u32)]);
-        RefLayout { fields, width }
+        RefLayout(Layout::packed(
+            "reference",
+            &[("node", p.index_bits as u32), ("hier", p.hier_bits as u32)],
+        ))
     }
 
-    /// `I + H`.
-    pub fn width(&self) -> u32 {
-        self.width
-    }
-
-    /// The fields in bit order.
-    pub fn fields(&self) -> impl Iterator<Item = &Field> + '_ {
-        self.fields.iter()
-    }
-
-    /// The field called `name`, if any.
-    pub fn field(&self, name: &str) -> Option<&Field> {
-        self.fields.iter().find(|f| f.name == name)
+    /// The plain [`Layout`].
+    pub fn layout(&self) -> &Layout {
+        &self.0
     }
 
     /// Node index into the named hierarchy's `nodes`, bits `[0, I)`.
     pub fn node(&self) -> &Field {
-        &self.fields[0]
+        self.at(0)
     }
     /// Hierarchy id, bits `[I, I + H)`.
     pub fn hier(&self) -> &Field {
-        &self.fields[1]
-    }
-
-    /// A zero record of this layout's width.
-    pub fn zero(&self) -> Bits {
-        Bits::zero(self.width)
+        self.at(1)
     }
 }
 
@@ -427,6 +631,93 @@ mod tests {
         };
         assert!(matches!(b.set(&g, 1), Err(LayoutError::OutOfRecord { .. })));
         assert!(matches!(b.get(&g), Err(LayoutError::OutOfRecord { .. })));
+    }
+
+    #[test]
+    fn a_layout_packs_by_name_and_unpacks_what_it_packed() {
+        let l = Layout::packed("beat", &[("a", 5), ("none", 0), ("b", 1), ("c", 64)]);
+        assert_eq!(l.width(), 70);
+        assert_eq!(
+            (l.get("b").unwrap().offset, l.get("c").unwrap().offset),
+            (5, 6)
+        );
+        let values = [("c", u64::MAX - 1), ("a", 0b10110), ("b", 1), ("none", 0)];
+        let w = l.pack(&values).unwrap();
+        assert_eq!(w.get(l.get("a").unwrap()).unwrap(), 0b10110);
+        assert!(w.bit(5));
+        assert_eq!(
+            l.unpack(&w).unwrap(),
+            vec![("a", 0b10110), ("none", 0), ("b", 1), ("c", u64::MAX - 1)]
+        );
+    }
+
+    #[test]
+    fn a_layout_refuses_what_it_cannot_pack_exactly() {
+        let l = Layout::packed("beat", &[("a", 3), ("b", 1)]);
+        let e = l.get("c").unwrap_err();
+        assert!(
+            e.to_string().contains("layout `beat` has no field `c`"),
+            "{e}"
+        );
+        assert!(matches!(
+            l.pack(&[("a", 8), ("b", 0)]),
+            Err(LayoutError::DoesNotFit { field: "a", .. })
+        ));
+        assert!(matches!(
+            l.pack(&[("a", 1)]),
+            Err(LayoutError::Unpacked {
+                field: "b",
+                given: 0,
+                ..
+            })
+        ));
+        assert!(matches!(
+            l.pack(&[("a", 1), ("b", 0), ("b", 1)]),
+            Err(LayoutError::Unpacked {
+                field: "b",
+                given: 2,
+                ..
+            })
+        ));
+        assert!(matches!(
+            l.pack(&[("a", 1), ("b", 0), ("z", 1)]),
+            Err(LayoutError::NoField { .. })
+        ));
+        let e = l.unpack(&Bits::zero(5)).unwrap_err();
+        assert!(
+            e.to_string().contains("expected a 4-bit word, found 5"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn fixed_offsets_keep_their_gaps_and_overlaps_are_refused() {
+        let l = Layout::from_fields(
+            "cmd",
+            &[Field::new("kind", 9, 1), Field::new("count", 0, 2)],
+            12,
+        );
+        assert_eq!(l.width(), 12);
+        assert_eq!(
+            l.fields().map(|f| f.name).collect::<Vec<_>>(),
+            ["count", "kind"]
+        );
+        let w = l.pack(&[("kind", 1), ("count", 3)]).unwrap();
+        assert_eq!(w.to_u64(), Some((1 << 9) | 3));
+        let overlap = std::panic::catch_unwind(|| {
+            Layout::from_fields("bad", &[Field::new("a", 0, 4), Field::new("b", 3, 1)], 8)
+        });
+        assert!(overlap.is_err());
+        let past =
+            std::panic::catch_unwind(|| Layout::from_fields("bad", &[Field::new("a", 0, 4)], 3));
+        assert!(past.is_err());
+    }
+
+    #[test]
+    fn interned_names_are_shared() {
+        let a = intern(&format!("{}_{}", "placement", "x"));
+        assert_eq!(a, "placement_x");
+        assert!(std::ptr::eq(a, intern("placement_x")));
     }
 
     #[test]

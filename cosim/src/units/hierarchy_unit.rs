@@ -15,7 +15,6 @@
 use std::path::Path;
 
 use golden::bits::Bits;
-use golden::layout::Field;
 use golden::merge::hierarchy_unit::{hierarchy_merge, merge_cmd, CmdLayout};
 use golden::merge::merger::{MergerLayout, MergerTransaction};
 use golden::store::{Hierarchy, HierarchyStore};
@@ -255,14 +254,8 @@ impl Draw {
 }
 
 /// The fields of a translation-unit payload layout, by name.
-fn port_fields(l: &rtl_gen::translate::ports::PortLayout) -> NamedFields {
-    l.fields
-        .iter()
-        .map(|f| {
-            let field = Field::new("", f.offset, f.width);
-            (f.name.clone(), field)
-        })
-        .collect()
+fn port_fields(l: &golden::layout::Layout) -> NamedFields {
+    golden::vectors::streams::named(l.fields().copied())
 }
 
 /// The hierarchy unit's streams: `cmd` and the merger's inputs but its

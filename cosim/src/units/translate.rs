@@ -16,10 +16,10 @@ use std::fmt;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
+use golden::layout::{Layout, LayoutError};
 use golden::translate::model::{ApplyCode, TranslateDesign, TranslateTxn};
 use rtl_gen::translate::ports::{
     apply_out_layout, det_out_layout, pack_apply_in, pack_apply_out, pack_det_in, pack_det_out,
-    PortLayout,
 };
 use rtl_gen::Bits;
 
@@ -188,13 +188,13 @@ struct Side {
     out_valid: PortId,
     out_data: PortId,
     out_ready: PortId,
-    layout: PortLayout,
+    layout: Layout,
 }
 
 impl Ports {
     fn of(engine: &dyn Engine, d: &TranslateDesign) -> Result<Ports, CosimError> {
         let id = |n: &str| engine.port_id(n);
-        let side = |p: &str, layout: PortLayout| -> Result<Side, CosimError> {
+        let side = |p: &str, layout: Layout| -> Result<Side, CosimError> {
             Ok(Side {
                 in_valid: id(&format!("{p}_in_valid"))?,
                 in_data: id(&format!("{p}_in_data"))?,
@@ -360,7 +360,10 @@ pub fn run(
                 if v != exps[got] {
                     let mut f = fail(engine, i + got, kind, "output differs".into());
                     if let Failure::Mismatch(m) = &mut f {
-                        m.fields = diff(&side.layout, &exps[got], &v);
+                        match diff(&side.layout, &exps[got], &v) {
+                            Ok(fields) => m.fields = fields,
+                            Err(e) => m.what = format!("{}; {e}", m.what),
+                        }
                     }
                     result = Err(f);
                     break 'runs;
@@ -451,17 +454,17 @@ fn check_end(
 }
 
 /// Every field of a payload, expected against got.
-fn diff(layout: &PortLayout, expected: &Bits, got: &Bits) -> Vec<FieldDiff> {
-    layout
-        .decode(expected)
+fn diff(layout: &Layout, expected: &Bits, got: &Bits) -> Result<Vec<FieldDiff>, LayoutError> {
+    Ok(layout
+        .unpack(expected)?
         .into_iter()
-        .zip(layout.decode(got))
+        .zip(layout.unpack(got)?)
         .map(|((name, e), (_, g))| FieldDiff {
-            name,
+            name: name.to_string(),
             expected: e,
             got: g,
         })
-        .collect()
+        .collect())
 }
 
 /// One side's streams of the exported testbench: inputs, their `after`
@@ -509,17 +512,16 @@ pub fn export_spec(
         i = j;
     }
     let [det, app] = sides;
-    let fields = |l: PortLayout| {
-        l.fields
-            .iter()
+    let fields = |l: Layout| {
+        l.fields()
             .map(|f| crate::export_tb::NamedField {
-                name: f.name.clone(),
+                name: f.name.to_string(),
                 offset: f.offset,
                 width: f.width,
             })
             .collect()
     };
-    let side = |p: &str, s: ExportSide, l: PortLayout| {
+    let side = |p: &str, s: ExportSide, l: Layout| {
         (
             InputSpec {
                 stream: StreamSpec::prefixed(&format!("{p}_in"), s.ins),

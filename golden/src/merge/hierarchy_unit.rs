@@ -14,7 +14,7 @@
 //! the translation unit, so it sees their table writes.
 
 use crate::bits::Bits;
-use crate::layout::{Field, LayoutError};
+use crate::layout::{Field, Layout, LayoutError};
 use crate::params::{bits_to_hold, Params};
 use crate::store::{Hierarchy, HierarchyStore};
 use crate::translate::TranslationTable;
@@ -86,7 +86,8 @@ pub fn header_range(inputs: &[InputHeader], p: &Params) -> (u8, u8) {
 /// The fields of one input's header in a merge command, from the input's
 /// first bit: `hier` (H), `roots` (I), `top`, `deep` (`lod_bits` each),
 /// `nodes`, `refs` (I each).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// A [`Layout`] (through `Deref`) with an accessor per field.
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct InputFields {
     /// The input's hierarchy id.
     pub hier: Field,
@@ -100,19 +101,26 @@ pub struct InputFields {
     pub nodes: Field,
     /// The `refs` array's length.
     pub refs: Field,
-    /// Bits of one input.
-    pub width: u32,
+    layout: Layout,
+}
+
+impl std::ops::Deref for InputFields {
+    type Target = Layout;
+    fn deref(&self) -> &Layout {
+        &self.layout
+    }
 }
 
 impl InputFields {
     fn new(p: &Params) -> InputFields {
         let (h, i, lb) = (p.hier_bits as u32, p.index_bits as u32, p.lod_bits());
-        let hier = Field::new("hier", 0, h);
-        let roots = Field::new("roots", hier.end(), i);
-        let top = Field::new("top", roots.end(), lb);
-        let deep = Field::new("deep", top.end(), lb);
-        let nodes = Field::new("nodes", deep.end(), i);
-        let refs = Field::new("refs", nodes.end(), i);
+        let mut layout = Layout::new("merge command input");
+        let hier = layout.push("hier", h);
+        let roots = layout.push("roots", i);
+        let top = layout.push("top", lb);
+        let deep = layout.push("deep", lb);
+        let nodes = layout.push("nodes", i);
+        let refs = layout.push("refs", i);
         InputFields {
             hier,
             roots,
@@ -120,15 +128,8 @@ impl InputFields {
             deep,
             nodes,
             refs,
-            width: refs.end(),
+            layout,
         }
-    }
-
-    /// The fields in bit order, with their names.
-    pub fn all(&self) -> [Field; 6] {
-        [
-            self.hier, self.roots, self.top, self.deep, self.nodes, self.refs,
-        ]
     }
 }
 
@@ -162,7 +163,7 @@ impl CmdLayout {
     /// bits (the translation unit's, which its generator lays out).
     pub fn new(p: &Params, k: usize, det_width: u32) -> CmdLayout {
         let input = InputFields::new(p);
-        let count = Field::new("count", k as u32 * input.width, bits_to_hold(k as u64));
+        let count = Field::new("count", k as u32 * input.width(), bits_to_hold(k as u64));
         let out_id = Field::new("out_id", count.end(), p.hier_bits as u32);
         let merge_width = out_id.end();
         let kind = Field::new("kind", merge_width.max(det_width), 1);
@@ -180,7 +181,7 @@ impl CmdLayout {
 
     /// Where `input<i>` starts.
     pub fn input_offset(&self, i: usize) -> u32 {
-        i as u32 * self.input.width
+        i as u32 * self.input.width()
     }
 
     /// Field `f` of [`InputFields`] moved to input `i`.
@@ -215,10 +216,10 @@ impl CmdLayout {
         }
         let mut b = Bits::zero(self.width);
         for (i, h) in cmd.inputs.iter().enumerate() {
-            let f = self.input;
+            let f = &self.input;
             let values = [h.hier as u64, h.roots as u64, h.top as u64];
             let more = [h.deep as u64, h.nodes as u64, h.refs as u64];
-            for (field, v) in f.all().iter().zip(values.into_iter().chain(more)) {
+            for (field, v) in f.fields().zip(values.into_iter().chain(more)) {
                 b.set(&self.input_field(i, field), v)?;
             }
         }

@@ -24,7 +24,7 @@
 //! per-input streams enough: a child reference's key is its parent's voxel.
 
 use crate::bits::Bits;
-use crate::layout::{Field, LayoutError};
+use crate::layout::{Field, Layout, LayoutError};
 use crate::merge::error::MergeError;
 use crate::merge::fetcher::walk::{children, PlacedNode};
 use crate::merge::level_choice::unit::{overlap_transaction, OverlapResult};
@@ -54,14 +54,16 @@ pub mod choice_err {
 /// ([`crate::merge::merge_level::unit::BeatLayout`]).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct TopLayout {
-    /// `cfg`, from bit 0: `lo`, `hi` (`lod_bits` each).
+    /// The `cfg` beat, from bit 0: `lo`, `hi` (`lod_bits` each).
+    pub cfg: Layout,
+    /// `cfg`: `lo` (`lod_bits`), the shallowest candidate level.
     pub lo: Field,
     /// `cfg`: `hi` (`lod_bits`), the deepest candidate level.
     pub hi: Field,
-    /// Width of the `cfg` beat in bits.
-    pub cfg_width: u32,
-    /// `report`, from bit 0: `lod`, `shared`, `union` (I each), `above`,
-    /// `overflow`, `chosen` (1 each), `err` (2).
+    /// The `report` beat, from bit 0: `lod`, `shared`, `union` (I each),
+    /// `above`, `overflow`, `chosen` (1 each), `err` (2).
+    pub report: Layout,
+    /// `report`: `lod` (`lod_bits`), the counted or chosen level.
     pub lod: Field,
     /// `report`: `shared` (I bits), a counted level's shared voxels.
     pub shared: Field,
@@ -75,16 +77,6 @@ pub struct TopLayout {
     pub chosen: Field,
     /// `report`: `err` (2 bits), the choice's [`choice_err`] code.
     pub err: Field,
-    /// Width of a `report` beat in bits.
-    pub report_width: u32,
-}
-
-fn after(name: &'static str, prev: &Field, width: u32) -> Field {
-    Field {
-        name,
-        offset: prev.end(),
-        width,
-    }
 }
 
 impl TopLayout {
@@ -92,27 +84,22 @@ impl TopLayout {
     pub fn new(p: &Params) -> TopLayout {
         let lb = p.lod_bits();
         let i = p.index_bits as u32;
-        let lo = Field {
-            name: "lo",
-            offset: 0,
-            width: lb,
-        };
-        let hi = after("hi", &lo, lb);
-        let lod = Field {
-            name: "lod",
-            offset: 0,
-            width: lb,
-        };
-        let shared = after("shared", &lod, i);
-        let union = after("union", &shared, i);
-        let above = after("above", &union, 1);
-        let overflow = after("overflow", &above, 1);
-        let chosen = after("chosen", &overflow, 1);
-        let err = after("err", &chosen, 2);
+        let mut cfg = Layout::new("merging module cfg");
+        let lo = cfg.push("lo", lb);
+        let hi = cfg.push("hi", lb);
+        let mut report = Layout::new("merging module report");
+        let lod = report.push("lod", lb);
+        let shared = report.push("shared", i);
+        let union = report.push("union", i);
+        let above = report.push("above", 1);
+        let overflow = report.push("overflow", 1);
+        let chosen = report.push("chosen", 1);
+        let err = report.push("err", 2);
         TopLayout {
+            cfg,
             lo,
             hi,
-            cfg_width: hi.end(),
+            report,
             lod,
             shared,
             union,
@@ -120,16 +107,12 @@ impl TopLayout {
             overflow,
             chosen,
             err,
-            report_width: err.end(),
         }
     }
 
     /// The packed `cfg` beat.
     pub fn pack_cfg(&self, lo: u8, hi: u8) -> Result<Bits, LayoutError> {
-        let mut b = Bits::zero(self.cfg_width);
-        b.set(&self.lo, lo as u64)?;
-        b.set(&self.hi, hi as u64)?;
-        Ok(b)
+        self.cfg.pack(&[("lo", lo as u64), ("hi", hi as u64)])
     }
 }
 
@@ -155,7 +138,7 @@ pub enum Report {
 impl Report {
     /// The packed beat.
     pub fn pack(&self, l: &TopLayout) -> Result<Bits, LayoutError> {
-        let mut b = Bits::zero(l.report_width);
+        let mut b = l.report.zero();
         match self {
             Report::Counted { lod, result } => {
                 b.set(&l.lod, *lod as u64)?;

@@ -21,7 +21,7 @@
 //!   its references in order; out `header`: one beat per merge.
 
 use crate::bits::Bits;
-use crate::layout::{Field, LayoutError, NodeLayout, RefLayout};
+use crate::layout::{Field, Layout, LayoutError, NodeLayout, RefLayout};
 use crate::merge::error::MergeError;
 use crate::merge::merge_level::{BaseKind, BaseNode};
 use crate::merge::upper_builder::unit::LevelOut;
@@ -92,16 +92,18 @@ pub struct WriterLayout {
     pub reference: RefLayout,
     /// Each level's and the created references' buffer holds `2^C` entries.
     pub capacity_bits: u32,
+    /// The `cfg` beat: `out_id`.
+    pub cfg: Layout,
     /// `cfg`: `out_id` (H bits), the merged hierarchy's id.
     pub cfg_out_id: Field,
-    /// Width of the `cfg` beat in bits.
-    pub cfg_width: u32,
+    /// The `crefs` beat: `ref`, `end`.
+    pub crefs: Layout,
     /// `crefs`: `ref` (I + H bits, from bit 0), a created node's reference.
     pub cref: Field,
     /// `crefs`: `end` (1 bit), set on the merge's last `crefs` beat.
     pub cref_end: Field,
-    /// Width of a `crefs` beat in bits.
-    pub cref_width: u32,
+    /// The `header` beat: `out_id`, `top`, `roots`, `nodes`, `refs`, `err`.
+    pub header: Layout,
     /// `header`: `out_id` (H bits, from bit 0).
     pub h_out_id: Field,
     /// `header`: `top` (`lod_bits`), the LOD of the merged roots.
@@ -114,8 +116,6 @@ pub struct WriterLayout {
     pub h_refs: Field,
     /// `header`: `err` (3 bits), a [`writer_err`] code.
     pub h_err: Field,
-    /// Width of the `header` beat in bits.
-    pub header_width: u32,
 }
 
 impl WriterLayout {
@@ -132,24 +132,27 @@ impl WriterLayout {
         let node = NodeLayout::new(p);
         let reference = RefLayout::new(p);
         let h = p.hier_bits as u32;
-        let cfg_out_id = Field::new("out_id", 0, h);
-        let cref = Field::new("ref", 0, reference.width());
-        let cref_end = Field::new("end", cref.end(), 1);
-        let h_out_id = Field::new("out_id", 0, h);
-        let h_top = Field::new("top", h_out_id.end(), p.lod_bits());
-        let h_roots = Field::new("roots", h_top.end(), i + 1);
-        let h_nodes = Field::new("nodes", h_roots.end(), i + 1);
-        let h_refs = Field::new("refs", h_nodes.end(), i + 1);
-        let h_err = Field::new("err", h_refs.end(), 3);
+        let mut cfg = Layout::new("record writer cfg");
+        let cfg_out_id = cfg.push("out_id", h);
+        let mut crefs = Layout::new("record writer crefs");
+        let cref = crefs.push("ref", reference.width());
+        let cref_end = crefs.push("end", 1);
+        let mut header = Layout::new("record writer header");
+        let h_out_id = header.push("out_id", h);
+        let h_top = header.push("top", p.lod_bits());
+        let h_roots = header.push("roots", i + 1);
+        let h_nodes = header.push("nodes", i + 1);
+        let h_refs = header.push("refs", i + 1);
+        let h_err = header.push("err", 3);
         Ok(WriterLayout {
             builder: BuilderLayout::new(p),
             capacity_bits,
-            cfg_width: cfg_out_id.end(),
+            cfg,
             cfg_out_id,
-            cref_width: cref_end.end(),
+            crefs,
             cref,
             cref_end,
-            header_width: h_err.end(),
+            header,
             h_out_id,
             h_top,
             h_roots,
@@ -174,7 +177,7 @@ pub enum CrefBeat {
 impl CrefBeat {
     /// The packed beat.
     pub fn pack(&self, l: &WriterLayout) -> Result<Bits, LayoutError> {
-        let mut b = Bits::zero(l.cref_width);
+        let mut b = l.crefs.zero();
         match self {
             CrefBeat::Ref(r) => b.put(l.cref.offset, &r.pack(&l.reference)?)?,
             CrefBeat::End => b.set(&l.cref_end, 1)?,
@@ -203,7 +206,7 @@ pub struct Header {
 impl Header {
     /// The packed beat.
     pub fn pack(&self, l: &WriterLayout) -> Result<Bits, LayoutError> {
-        let mut b = Bits::zero(l.header_width);
+        let mut b = l.header.zero();
         b.set(&l.h_out_id, self.out_id as u64)?;
         b.set(&l.h_top, self.top as u64)?;
         b.set(&l.h_roots, self.roots)?;
@@ -216,7 +219,7 @@ impl Header {
 
 /// The `cfg` beat.
 pub fn pack_cfg(out_id: u8, l: &WriterLayout) -> Result<Bits, LayoutError> {
-    let mut b = Bits::zero(l.cfg_width);
+    let mut b = l.cfg.zero();
     b.set(&l.cfg_out_id, out_id as u64)?;
     Ok(b)
 }

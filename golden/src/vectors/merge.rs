@@ -111,7 +111,7 @@ pub fn generate(
                 .iter()
                 .map(|b| words(b.pack(&lo)))
                 .collect::<Result<_, _>>()?;
-            (li.width, lo.width, ins, outs)
+            (li.width(), lo.width(), ins, outs)
         }
         "overlap_counter" => {
             let l = OverlapLayout::new(p, d.inputs);
@@ -122,7 +122,12 @@ pub fn generate(
                 .iter()
                 .map(|b| words(b.pack(&l)))
                 .collect::<Result<_, _>>()?;
-            (l.in_width, l.out_width, ins, vec![words(r.pack(&l))?])
+            (
+                l.input.width(),
+                l.output.width(),
+                ins,
+                vec![words(r.pack(&l))?],
+            )
         }
         "upper_level" => {
             let l = UpperLayout::new(p);
@@ -136,7 +141,7 @@ pub fn generate(
                 .iter()
                 .map(|b| words(b.pack(&l, true)))
                 .collect::<Result<_, _>>()?;
-            (l.in_width, l.out_width, i, o)
+            (l.input.width(), l.output.width(), i, o)
         }
         _ => {
             let (li, lo) = (BeatLayout::input(p), BeatLayout::output(p));
@@ -149,12 +154,12 @@ pub fn generate(
                 .collect::<Result<_, _>>()?;
             let mut o = Vec::new();
             for (b, e) in outs {
-                let mut bits = Bits::zero(lo.width);
+                let mut bits = Bits::zero(lo.width());
                 bits.put(0, &b.pack(&li).map_err(model)?).map_err(model)?;
                 bits.set(&err, e as u64).map_err(model)?;
                 o.push(bits.words().to_vec());
             }
-            (li.width, lo.width, i, o)
+            (li.width(), lo.width(), i, o)
         }
     };
     Ok(MergeVector {

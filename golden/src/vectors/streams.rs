@@ -8,7 +8,7 @@
 //! ([`super::stream_file`]) both draw their merges from here.
 
 use crate::bits::Bits;
-use crate::layout::Field;
+use crate::layout::{Field, Layout};
 use crate::merge::fetcher::FetchLayout;
 use crate::merge::merge_level::unit::BeatLayout;
 use crate::merge::merge_module::{random_top_transaction, TopLayout};
@@ -76,6 +76,11 @@ impl StreamLayout {
             width,
         }
     }
+
+    /// Stream `name` carrying beats of `layout`, fields by their own names.
+    fn of(name: impl Into<String>, layout: &Layout) -> StreamLayout {
+        StreamLayout::new(name, named(layout.fields().copied()), layout.width())
+    }
 }
 
 /// A unit's streams, in port order.
@@ -125,22 +130,6 @@ pub fn level_beat_fields(l: &BeatLayout) -> NamedFields {
     fields
 }
 
-/// The merging module's `report` fields in bit order ([`TopLayout`]).
-pub fn top_report_fields(l: &TopLayout) -> Vec<Field> {
-    vec![
-        l.lod, l.shared, l.union, l.above, l.overflow, l.chosen, l.err,
-    ]
-}
-
-/// The per-node module's `report` fields in bit order (8.14).
-pub fn per_node_report_fields(l: &PerNodeLayout) -> Vec<Field> {
-    let mut v = l.coord.to_vec();
-    v.extend([
-        l.lod, l.shared, l.union, l.descend, l.pass_end, l.more, l.err,
-    ]);
-    v
-}
-
 /// Whether `d` merges per node (its `report` and inputs are 8.14's).
 pub fn is_per_node(d: &MergeDesign) -> bool {
     matches!(d.mode, MergeMode::PerNode { .. })
@@ -151,10 +140,10 @@ pub fn is_per_node(d: &MergeDesign) -> bool {
 pub fn module_report(d: &MergeDesign) -> StreamLayout {
     if is_per_node(d) {
         let l = PerNodeLayout::new(&d.params);
-        StreamLayout::new("report", named(per_node_report_fields(&l)), l.report_width)
+        StreamLayout::of("report", &l.report)
     } else {
         let l = TopLayout::new(&d.params);
-        StreamLayout::new("report", named(top_report_fields(&l)), l.report_width)
+        StreamLayout::of("report", &l.report)
     }
 }
 
@@ -168,17 +157,13 @@ pub fn module_ports(d: &MergeDesign) -> UnitPorts {
         let pl = PerNodeLayout::new(p);
         let mut f = level_beat_fields(&pl.beat);
         f.push(("probe".into(), pl.probe));
-        (f, pl.in_width)
+        (f, pl.input.width())
     } else {
         let li = BeatLayout::input(p);
-        (level_beat_fields(&li), li.width)
+        (level_beat_fields(&li), li.width())
     };
     let lo = BeatLayout::output(p);
-    let mut inputs = vec![StreamLayout::new(
-        "cfg",
-        named([tl.lo, tl.hi]),
-        tl.cfg_width,
-    )];
+    let mut inputs = vec![StreamLayout::of("cfg", &tl.cfg)];
     inputs.extend(
         (0..d.inputs).map(|i| StreamLayout::new(format!("in{i}"), input.0.clone(), input.1)),
     );
@@ -186,7 +171,7 @@ pub fn module_ports(d: &MergeDesign) -> UnitPorts {
         inputs,
         outputs: vec![
             module_report(d),
-            StreamLayout::new("out", level_beat_fields(&lo), lo.width),
+            StreamLayout::new("out", level_beat_fields(&lo), lo.width()),
         ],
     }
 }
@@ -332,14 +317,14 @@ pub fn merger_stream(ml: &MergerLayout, d: &MergeDesign, name: &str) -> Option<S
     let node = || named(fl.node.fields().copied());
     let reference = || named(fl.reference.fields().copied());
     let (fields, width) = match name {
-        "cfg" => (merger_cfg_fields(ml), ml.cfg_width),
+        "cfg" => (merger_cfg_fields(ml), ml.cfg.width()),
         "report" => {
             let r = module_report(d);
             (r.fields, r.width)
         }
         "nodes" => (node(), fl.node.width()),
         "w_ref_req" | "refs" | "w_ref_resp" => (reference(), fl.reference.width()),
-        "header" => (named(header_fields(ml)), ml.header_width),
+        "header" => (named(header_fields(ml)), ml.header.width()),
         s if merger_input_names(ml.k, per_node).iter().any(|n| n == s) => {
             if s.ends_with("node_resp") || s.ends_with("probe_resp") {
                 (node(), fl.node.width())

@@ -2,7 +2,7 @@
 //! layout's [`Field`]s: the one place the merge generators turn a field
 //! description into slices, so no offset is restated.
 
-use golden::layout::{Field, NodeLayout};
+use golden::layout::{Field, Layout, NodeLayout};
 
 use crate::{Module, Signal};
 
@@ -18,10 +18,36 @@ pub fn field<'m>(record: Signal<'m>, f: &Field) -> Option<Signal<'m>> {
     }
 }
 
+impl<'m> Signal<'m> {
+    /// Field `f` of this packed word, named `<word>_<field>`. Only box
+    /// bounds are ever zero-width (`Q = 0`); reading one here is a generator
+    /// bug, reported naming the field. Read those with [`field`].
+    #[track_caller]
+    pub fn view(self, f: &Field) -> Signal<'m> {
+        assert!(
+            f.width > 0,
+            "field `{}` has no bits: read it with `fields::field`",
+            f.name
+        );
+        self.field_view(f.end() - 1, f.offset, f.name)
+    }
+
+    /// Field `name` of this word of `layout` (as [`Signal::view`]); an
+    /// unknown name is a generator bug, reported naming layout and field.
+    #[track_caller]
+    pub fn view_named(self, layout: &Layout, name: &str) -> Signal<'m> {
+        let f = match layout.get(name) {
+            Ok(f) => f,
+            Err(e) => panic!("{e}"),
+        };
+        self.view(f)
+    }
+}
+
 /// The voxel coordinates of a node record: its `x`, `y`, `z` fields.
 #[track_caller]
 pub fn coords<'m>(record: Signal<'m>, nl: &NodeLayout) -> [Signal<'m>; 3] {
-    [0, 1, 2].map(|a| field(record, nl.coord(a)).expect("coordinates are never zero-width"))
+    [0, 1, 2].map(|a| record.view(nl.coord(a)))
 }
 
 /// The contiguous bits from field `first` to field `last` inclusive (e.g.
@@ -61,64 +87,30 @@ pub fn with_fields<'m>(
     m.concat(&low_first)
 }
 
-/// An internal word of named fields packed from bit 0 upward, such as a
-/// FIFO's entry: one definition for the concatenation that packs it and
-/// the slices that unpack it, so the two cannot drift apart. Golden's
-/// layouts describe what crosses a port; this describes what never does.
-#[derive(Clone, Debug)]
-pub struct Word {
-    fields: Vec<Field>,
-}
-
-impl Word {
-    /// Fields `(name, width)` from bit 0 upward; every width at least 1.
-    pub fn new(parts: &[(&'static str, u32)]) -> Word {
-        let mut offset = 0;
-        let fields = parts
-            .iter()
-            .map(|&(name, width)| {
-                assert!(width > 0, "word field `{name}` has no bits");
-                let f = Field {
-                    name,
-                    offset,
-                    width,
-                };
-                offset += width;
-                f
-            })
-            .collect();
-        Word { fields }
+/// The word of `layout` holding `values`, one per field in bit order, each
+/// exactly as wide as its field: the concatenation that the views of
+/// [`Signal::view_named`] take apart, so packing and unpacking an internal
+/// word (a FIFO's entry) cannot drift apart.
+#[track_caller]
+pub fn pack<'m>(m: &'m Module, layout: &Layout, values: &[Signal<'m>]) -> Signal<'m> {
+    assert_eq!(
+        values.len(),
+        layout.fields().len(),
+        "layout `{}`: one value per field",
+        layout.name()
+    );
+    for (f, v) in layout.fields().zip(values) {
+        assert_eq!(
+            v.width(),
+            f.width,
+            "layout `{}`: a {}-bit value for field `{}`",
+            layout.name(),
+            v.width(),
+            f.name
+        );
     }
-
-    /// Bits in all.
-    pub fn width(&self) -> u32 {
-        self.fields.last().map_or(0, Field::end)
-    }
-
-    /// The field named `name`.
-    #[track_caller]
-    pub fn field(&self, name: &str) -> &Field {
-        self.fields
-            .iter()
-            .find(|f| f.name == name)
-            .unwrap_or_else(|| panic!("word has no field `{name}`"))
-    }
-
-    /// The word of `values`, one per field from bit 0 upward (each as wide
-    /// as its field; the module's builder checks the widths).
-    #[track_caller]
-    pub fn pack<'m>(&self, m: &'m Module, values: &[Signal<'m>]) -> Signal<'m> {
-        assert_eq!(values.len(), self.fields.len(), "one value per word field");
-        let msb_first: Vec<Signal<'m>> = values.iter().rev().copied().collect();
-        m.concat(&msb_first)
-    }
-
-    /// Field `name` of `word`.
-    #[track_caller]
-    pub fn get<'m>(&self, word: Signal<'m>, name: &str) -> Signal<'m> {
-        let f = self.field(name);
-        word.field_view(f.end() - 1, f.offset, name)
-    }
+    let msb_first: Vec<Signal<'m>> = values.iter().rev().copied().collect();
+    m.concat(&msb_first)
 }
 
 #[cfg(test)]
@@ -128,16 +120,15 @@ mod tests {
 
     #[test]
     fn a_word_packs_from_bit_0_and_unpacks_what_it_packed() {
-        let w = Word::new(&[("first", 5), ("flag", 1), ("count", 6)]);
+        let w = Layout::packed("word", &[("first", 5), ("flag", 1), ("count", 6)]);
         assert_eq!(w.width(), 12);
-        assert_eq!((w.field("flag").offset, w.field("count").offset), (5, 6));
         let m = Module::new("word");
         let (a, f, c) = (m.input("a", 5), m.input("f", 1), m.input("c", 6));
-        let packed = w.pack(&m, &[a, f, c]);
+        let packed = pack(&m, &w, &[a, f, c]);
         m.output("word_out", packed);
-        m.output("a_out", w.get(packed, "first"));
-        m.output("f_out", w.get(packed, "flag"));
-        m.output("c_out", w.get(packed, "count"));
+        m.output("a_out", packed.view_named(&w, "first"));
+        m.output("f_out", packed.view_named(&w, "flag"));
+        m.output("c_out", packed.view_named(&w, "count"));
         let mut sim = Sim::new(&m).unwrap();
         sim.poke("a", 0b10110u64).unwrap();
         sim.poke("f", 1u64).unwrap();
@@ -150,5 +141,21 @@ mod tests {
         assert_eq!(peek(&mut sim, "a_out"), 0b10110);
         assert_eq!(peek(&mut sim, "f_out"), 1);
         assert_eq!(peek(&mut sim, "c_out"), 0b100011);
+    }
+
+    #[test]
+    #[should_panic(expected = "layout `word`: a 4-bit value for field `first`")]
+    fn a_value_of_the_wrong_width_is_refused() {
+        let w = Layout::packed("word", &[("first", 5), ("flag", 1)]);
+        let m = Module::new("word");
+        pack(&m, &w, &[m.input("a", 4), m.input("f", 1)]);
+    }
+
+    #[test]
+    #[should_panic(expected = "layout `word` has no field `last`")]
+    fn an_unknown_field_is_named_with_its_layout() {
+        let w = Layout::packed("word", &[("first", 5)]);
+        let m = Module::new("word");
+        m.input("a", 5).view_named(&w, "last");
     }
 }

@@ -18,7 +18,7 @@ use golden::merge::merger::MergerLayout;
 use golden::translate::model::TranslateDesign;
 use golden::translate::TranslateUnitConfig;
 
-use super::fields::{field, with_fields};
+use super::fields::with_fields;
 use super::hierarchy_merger_unit;
 use super::merger::{hierarchy_merger_name, pass_stream, MergerConfig};
 use crate::translate::{lookup_unit_name, ports::det_in_layout, translate_lookup_unit};
@@ -110,7 +110,7 @@ pub fn hierarchy_unit(c: &HierarchyUnitConfig) -> Result<Module, String> {
     let table = m.instance("u_translate", &table_mod);
     let merger = m.instance("u_merger", &merger_mod);
     let cmd = Stream::input(&m, "cmd", cl.width);
-    let kind = field(cmd.data, &cl.kind).expect("one bit");
+    let kind = cmd.data.view(&cl.kind);
     let is_merge = kind.eq(m.lit(KIND_MERGE as u128, 1)).name("cmd_is_merge");
 
     // Determine commands: the translation unit's det_in, as they come.
@@ -163,8 +163,8 @@ fn merger_cfg<'m>(
 ) -> Signal<'m> {
     let fl = &ml.fetch;
     let lb = ml.lo.width;
-    let count = field(data, &cl.count).expect("k >= 1").name("count");
-    let get = |i: usize, f| field(data, &cl.input_field(i, f)).expect("header fields have width");
+    let count = data.view(&cl.count).name("count");
+    let get = |i: usize, f| data.view(&cl.input_field(i, f));
     let mut inputs = Vec::new();
     let (mut lo, mut deep) = (m.lit(0, lb), m.lit((1u128 << lb) - 1, lb));
     for i in 0..cl.k {
@@ -175,7 +175,7 @@ fn merger_cfg<'m>(
         let entry = lookup(i, hier);
         let beat = with_fields(
             m,
-            m.lit(0, fl.cfg_width),
+            m.lit(0, fl.cfg.width()),
             &[
                 (fl.hier, hier),
                 (fl.roots, get(i, &cl.input.roots)),
@@ -185,7 +185,7 @@ fn merger_cfg<'m>(
                 (fl.entry, entry),
             ],
         );
-        inputs.push(used.mux(beat, m.lit(0, fl.cfg_width)));
+        inputs.push(used.mux(beat, m.lit(0, fl.cfg.width())));
         let top = get(i, &cl.input.top);
         let d = get(i, &cl.input.deep);
         lo = (used & top.gt(lo))
@@ -197,10 +197,10 @@ fn merger_cfg<'m>(
     }
     let lo = lo.name("range_lo");
     let hi = deep.gt(lo).mux(deep, lo).name("range_hi");
-    let mut parts = vec![field(data, &cl.out_id).expect("H >= 1"), hi, lo, count];
+    let mut parts = vec![data.view(&cl.out_id), hi, lo, count];
     parts.extend(inputs.into_iter().rev());
     let beat = m.concat(&parts).name("merger_cfg");
-    debug_assert_eq!(beat.width(), ml.cfg_width);
+    debug_assert_eq!(beat.width(), ml.cfg.width());
     beat
 }
 

@@ -14,7 +14,6 @@
 use golden::merge::level_choice::unit::OverlapLayout;
 use golden::params::Params;
 
-use super::fields::field;
 use crate::{Module, Signal, Stream};
 
 /// Module name of the overlap counter.
@@ -49,17 +48,15 @@ pub(super) fn times_constant<'m>(
 pub fn overlap_counter_unit(p: &Params, inputs: usize, num: u32, den: u32) -> Module {
     let m = Module::new(&overlap_counter_name(p, inputs, num, den));
     let l = OverlapLayout::new(p, inputs);
-    let input = Stream::input(&m, "in", l.in_width);
+    let input = Stream::input(&m, "in", l.input.width());
     let i = p.index_bits as u32;
 
     let voxel = input
         .data
         .slice(l.coord[2].end() - 1, l.coord[0].offset)
         .name("in_voxel");
-    let rank = field(input.data, &l.rank)
-        .expect("rank bits")
-        .name("in_rank");
-    let end = field(input.data, &l.end).expect("end bit").name("in_end");
+    let rank = input.data.view(&l.rank).name("in_rank");
+    let end = input.data.view(&l.end).name("in_end");
 
     let g_valid = m.reg("g_valid", 1);
     let g_voxel = m.reg("g_voxel", voxel.width());

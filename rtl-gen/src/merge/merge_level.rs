@@ -36,14 +36,12 @@ pub fn merge_level_unit(p: &Params) -> Module {
     let li = BeatLayout::input(p);
     let lo_ = BeatLayout::output(p);
     let nl: &NodeLayout = &li.node;
-    let input = Stream::input(&m, "in", li.width);
+    let input = Stream::input(&m, "in", li.width());
     let out_ready = m.wire("h_out_ready", 1);
 
-    let in_rec = field(input.data, &li.rec).expect("a record has bits");
-    let in_ref = field(input.data, &li.refer).expect("a reference has bits");
-    let in_kind = field(input.data, &li.kind)
-        .expect("two kind bits")
-        .name("in_kind");
+    let in_rec = input.data.view(&li.rec);
+    let in_ref = input.data.view(&li.refer);
+    let in_kind = input.data.view(&li.kind).name("in_kind");
 
     let h_valid = m.reg("h_valid", 1);
     let h_open = m.reg("h_open", 1);
@@ -71,9 +69,9 @@ pub fn merge_level_unit(p: &Params) -> Module {
 
     // The accumulator absorbing one more inner node of its voxel.
     let i = p.index_bits as u32;
-    let count_sum = field(h_rec, nl.count())
-        .expect("count")
-        .add(field(in_rec, nl.count()).expect("count"), i + 1)
+    let count_sum = h_rec
+        .view(nl.count())
+        .add(in_rec.view(nl.count()), i + 1)
         .name("count_sum");
     let mut merged = vec![(*nl.count(), count_sum.slice(i - 1, 0))];
     for a in 0..3 {
@@ -108,7 +106,7 @@ pub fn merge_level_unit(p: &Params) -> Module {
     let out_rec = created.mux(created_rec, h_rec);
     let out_ref = created.mux(lit(0, li.refer.width), h_ref);
     let err = created & h_ovf;
-    debug_assert_eq!(lo_.width, li.width + 1);
+    debug_assert_eq!(lo_.width(), li.width() + 1);
     let out = Stream {
         valid: complete,
         ready: out_ready,

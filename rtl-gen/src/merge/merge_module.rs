@@ -19,7 +19,6 @@ use golden::merge::merge_module::{choice_err, TopLayout};
 use golden::merge::MergeMode;
 use golden::params::Params;
 
-use super::fields::field;
 use super::{merge_level_unit, morton_merge_unit, overlap_counter_unit, MergeConfig};
 use crate::{Module, Signal, Stream};
 
@@ -131,21 +130,21 @@ pub fn merge_module_unit(c: &MergeConfig) -> Module {
     let counts = c.threshold().is_some();
     let net = m.instance("u_network", &morton_merge_unit(p, k, counts));
     for i in 0..k {
-        let s = Stream::input(&m, &format!("in{i}"), bl.width);
+        let s = Stream::input(&m, &format!("in{i}"), bl.width());
         net.connect(&format!("in{i}_valid"), s.valid);
         net.connect(&format!("in{i}_data"), s.data);
         s.ready.drive(net.output(&format!("in{i}_ready")));
     }
     let net_valid = net.output("out_valid");
     let net_data = net.output("out_data");
-    let net_beat = net_data.slice(bl.width - 1, 0).name("net_beat");
+    let net_beat = net_data.slice(bl.width() - 1, 0).name("net_beat");
 
     // cfg: accepted when idle.
-    let cfg = Stream::input(&m, "cfg", tl.cfg_width);
+    let cfg = Stream::input(&m, "cfg", tl.cfg.width());
     cfg.ready.drive(idle);
     let cfg_fire = cfg.fire().name("cfg_fire");
-    let cfg_lo = field(cfg.data, &tl.lo).expect("lo").name("cfg_lo");
-    let cfg_hi = field(cfg.data, &tl.hi).expect("hi").name("cfg_hi");
+    let cfg_lo = cfg.data.view(&tl.lo).name("cfg_lo");
+    let cfg_hi = cfg.data.view(&tl.hi).name("cfg_hi");
     // `hi > D` only when the field can hold it (D = 31 fills 5 bits).
     let beyond = if (1u64 << lb) - 1 > p.max_lod as u64 {
         cfg_hi.gt(lit(p.max_lod as u64, lb))
@@ -166,8 +165,10 @@ pub fn merge_module_unit(c: &MergeConfig) -> Module {
         // The deepest candidate: the count pass ends there.
         let hi = m.reg("hi", lb);
         hi.next_when(cfg_fire, cfg_hi);
-        let net_rank = net_data.slice(bl.width + rb - 1, bl.width).name("net_rank");
-        let net_kind = field(net_beat, &bl.kind).expect("kind").name("net_kind");
+        let net_rank = net_data
+            .slice(bl.width() + rb - 1, bl.width())
+            .name("net_rank");
+        let net_kind = net_beat.view(&bl.kind).name("net_kind");
         let net_end = net_kind.eq(level_kind::END).name("net_end");
         let net_ref = net_kind.eq(level_kind::CHILD_REF).name("net_ref");
         let counter = m.instance("u_overlap", &overlap_counter_unit(p, k, num, den));
@@ -178,15 +179,13 @@ pub fn merge_module_unit(c: &MergeConfig) -> Module {
         let best = m.reg("best_lod", lb);
         let overflowed = m.reg("count_overflowed", 1);
 
-        let rec = field(net_beat, &bl.rec).expect("record");
-        let xyz: Vec<Signal> = (0..3)
-            .map(|a| field(rec, bl.node.coord(a)).expect("coordinate"))
-            .collect();
+        let rec = net_beat.view(&bl.rec);
+        let xyz: Vec<Signal> = (0..3).map(|a| rec.view(bl.node.coord(a))).collect();
         let d = p.coord_bits();
         let count_beat = m
             .concat(&[net_end, net_rank, xyz[2], xyz[1], xyz[0]])
             .name("count_beat");
-        debug_assert_eq!(count_beat.width(), ol.in_width);
+        debug_assert_eq!(count_beat.width(), ol.input.width());
         debug_assert_eq!(xyz[0].width(), d);
         let to_counter = (counting & sending & net_valid & !net_ref).name("to_counter_valid");
         counter.connect("in_valid", to_counter);
@@ -203,8 +202,8 @@ pub fn merge_module_unit(c: &MergeConfig) -> Module {
 
         let res_valid = counter.output("out_valid");
         let res = counter.output("out_data");
-        let above = field(res, &ol.above).expect("above");
-        let ovf = field(res, &ol.overflow).expect("overflow");
+        let above = res.view(&ol.above);
+        let ovf = res.view(&ol.overflow);
         let shown = (counting & res_valid).name("result_valid");
         counter.connect("out_ready", counting & report_in_ready);
         let took = (shown & report_in_ready).name("result_taken");
@@ -226,8 +225,13 @@ pub fn merge_module_unit(c: &MergeConfig) -> Module {
             ),
         ));
         // A counted level: lod, the counter's shared/union/above/overflow.
-        let counted = m.concat(&[lit(0, 3), res.slice(ol.out_width - 1, 0), res_lod]);
-        let chosen = m.concat(&[choice_err_r, lit(1, 1), lit(0, ol.out_width), choice_lod]);
+        let counted = m.concat(&[lit(0, 3), res.slice(ol.output.width() - 1, 0), res_lod]);
+        let chosen = m.concat(&[
+            choice_err_r,
+            lit(1, 1),
+            lit(0, ol.output.width()),
+            choice_lod,
+        ]);
         let data = counting.mux(counted, chosen);
         (shown | choosing, data, Some((count_take, last)))
     } else {
@@ -243,7 +247,7 @@ pub fn merge_module_unit(c: &MergeConfig) -> Module {
         let chosen = m.concat(&[choice_err_r, lit(1, 1), lit(0, 2 * i + 2), choice_lod]);
         (choosing, chosen, None)
     };
-    debug_assert_eq!(report_data.width(), tl.report_width);
+    debug_assert_eq!(report_data.width(), tl.report.width());
     let report = Stream {
         valid: report_valid.name("report_in_valid"),
         ready: report_in_ready,
@@ -267,7 +271,7 @@ pub fn merge_module_unit(c: &MergeConfig) -> Module {
     ml.connect("out_ready", out_ready);
     m.output("out_valid", out_valid);
     m.output("out_data", out_data);
-    let out_kind = field(out_data, &ol_.kind).expect("kind");
+    let out_kind = out_data.view(&ol_.kind);
     let merge_done = (out_valid & out_ready & out_kind.eq(base_kind::END)).name("merge_done");
 
     let (count_take, count_done) = match count_done {
@@ -275,7 +279,7 @@ pub fn merge_module_unit(c: &MergeConfig) -> Module {
         None => (lit(0, 1), lit(0, 1)),
     };
     net.connect("out_ready", merging.mux(feeding & ml_ready, count_take));
-    let net_kind = field(net_beat, &bl.kind).expect("kind");
+    let net_kind = net_beat.view(&bl.kind);
     let level_in = (to_ml & ml_ready & net_kind.eq(level_kind::END)).name("merge_level_sent");
     feeding.next(choice_fire.mux(lit(1, 1), level_in.mux(lit(0, 1), feeding)));
 

@@ -19,7 +19,7 @@ use golden::merge::level_choice::unit::rank_bits;
 use golden::merge::merge_level::unit::{level_kind, BeatLayout};
 use golden::params::Params;
 
-use super::fields::{coords, field};
+use super::fields::coords;
 use crate::{Module, Signal, Stream};
 
 /// Module name of the merge network for `p`, `k` inputs, rank tag or not.
@@ -225,22 +225,22 @@ pub fn morton_merge_unit(p: &Params, k: usize, tag_rank: bool) -> Module {
     let mut heads = Vec::with_capacity(k);
     let mut all_valid = m.lit(1, 1);
     let mut all_end = m.lit(1, 1);
-    let kind_of = |d| field(d, &l.kind).expect("kind bits");
+    let kind_of = |d| Signal::view(d, &l.kind);
     for i in 0..k {
         let head = MergeHead::new(
             &m,
             i,
-            l.width,
+            l.width(),
             |d, parent| {
                 let kind = kind_of(d).name(&format!("in{i}_kind"));
                 let is_end = kind.eq(level_kind::END);
                 let is_ref = kind.eq(level_kind::CHILD_REF);
-                let xyz = coords(field(d, &l.rec).expect("record bits"), nl);
+                let xyz = coords(d.view(&l.rec), nl);
                 let key_xyz = [0, 1, 2].map(|a| is_ref.mux(parent[a], xyz[a]));
                 m.concat(&[is_end, morton_code(&m, key_xyz), kind])
             },
             |d| !kind_of(d).bit(1),
-            |d| coords(field(d, &l.rec).expect("record bits"), nl),
+            |d| coords(d.view(&l.rec), nl),
         );
         let is_end = head
             .key()

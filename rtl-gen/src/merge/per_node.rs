@@ -22,7 +22,7 @@ use golden::merge::merge_module::{choice_err, TopLayout};
 use golden::merge::per_node::unit::{PerNodeLayout, CHILD_COUNT_BITS};
 use golden::params::Params;
 
-use super::fields::{coords, field, with_fields};
+use super::fields::{coords, with_fields};
 use super::level_choice::times_constant;
 use super::merge_module::merge_module_name;
 use super::network::{morton_code, take_minimum_head, winner_rank, KeyOrder, MergeHead};
@@ -40,7 +40,7 @@ pub fn per_node_decider_name(p: &Params, k: usize, num: u32, den: u32) -> String
 }
 
 /// The merge network of the per-node passes: streams `in0`..`in{k-1}` of
-/// [`PerNodeLayout::in_width`] beats, stream `out` of `{rank, beat}`.
+/// [`PerNodeLayout::input`] beats, stream `out` of `{rank, beat}`.
 ///
 /// Each head's key is `{end, Morton code, phase}` with phase probe 0, inner
 /// 1, leaf 2, child reference 3, and the lower rank wins a tie. A probe's
@@ -63,11 +63,9 @@ pub fn per_node_network_unit(p: &Params, k: usize) -> Module {
         let head = MergeHead::new(
             &m,
             i,
-            pl.in_width,
+            pl.input.width(),
             |d, parent| {
-                let probe = field(d, &pl.probe)
-                    .expect("probe bit")
-                    .name(&format!("in{i}_probe"));
+                let probe = d.view(&pl.probe).name(&format!("in{i}_probe"));
                 let kind = beat_kind(d, bl).name(&format!("in{i}_kind"));
                 let is_end = !probe & kind.eq(level_kind::END);
                 let is_ref = !probe & kind.eq(level_kind::CHILD_REF);
@@ -77,7 +75,7 @@ pub fn per_node_network_unit(p: &Params, k: usize) -> Module {
                 let phase = probe.mux(m.lit(0, 2), kind.add(1, 2));
                 m.concat(&[is_end, morton_code(&m, key_xyz), phase])
             },
-            |d| !field(d, &pl.probe).expect("probe bit") & !beat_kind(d, bl).bit(1),
+            |d| !d.view(&pl.probe) & !beat_kind(d, bl).bit(1),
             |d| beat_xyz(d, bl),
         );
         let is_end = head
@@ -109,13 +107,13 @@ pub fn per_node_network_unit(p: &Params, k: usize) -> Module {
 
 /// The kind of the beat in a head's `{probe, beat}`.
 fn beat_kind<'m>(d: Signal<'m>, bl: &BeatLayout) -> Signal<'m> {
-    field(d.slice(bl.width - 1, 0), &bl.kind).expect("kind bits")
+    d.slice(bl.width() - 1, 0).view(&bl.kind)
 }
 
 /// The voxel of the record in a head's `{probe, beat}`.
 fn beat_xyz<'m>(d: Signal<'m>, bl: &BeatLayout) -> [Signal<'m>; 3] {
-    let beat = d.slice(bl.width - 1, 0);
-    coords(field(beat, &bl.rec).expect("record bits"), &bl.node)
+    let beat = d.slice(bl.width() - 1, 0);
+    coords(beat.view(&bl.rec), &bl.node)
 }
 
 /// The number of set bits of an 8-bit mask, [`CHILD_COUNT_BITS`] wide.
@@ -158,20 +156,18 @@ pub fn per_node_decider_unit(p: &Params, k: usize, num: u32, den: u32) -> Module
 
     let start = m.input("start", 1);
     let start_lod = m.input("start_lod", lb);
-    let input = Stream::input(&m, "in", pl.in_width + rb);
-    let beat = input.data.slice(bl.width - 1, 0).name("in_beat");
-    let probe = field(input.data, &pl.probe)
-        .expect("probe bit")
-        .name("in_probe");
+    let input = Stream::input(&m, "in", pl.input.width() + rb);
+    let beat = input.data.slice(bl.width() - 1, 0).name("in_beat");
+    let probe = input.data.view(&pl.probe).name("in_probe");
     let rank = input
         .data
-        .slice(pl.in_width + rb - 1, pl.in_width)
+        .slice(pl.input.width() + rb - 1, pl.input.width())
         .name("in_rank");
-    let kind = field(beat, &bl.kind).expect("kind bits").name("in_kind");
+    let kind = beat.view(&bl.kind).name("in_kind");
     let is_end = (!probe & kind.eq(level_kind::END)).name("in_is_end");
     let is_inner = !probe & kind.eq(level_kind::INNER);
     let is_ref = !probe & kind.eq(level_kind::CHILD_REF);
-    let xyz = coords(field(beat, &bl.rec).expect("record bits"), &bl.node);
+    let xyz = coords(beat.view(&bl.rec), &bl.node);
 
     let run = m.reg("probe_run", 1);
     let g_any = m.reg("g_any", 8);
@@ -219,7 +215,7 @@ pub fn per_node_decider_unit(p: &Params, k: usize, num: u32, den: u32) -> Module
 
     let report_data = with_fields(
         &m,
-        lit(0, pl.report_width),
+        lit(0, pl.report.width()),
         &[
             (pl.coord[0], g_voxel[0]),
             (pl.coord[1], g_voxel[1]),
@@ -237,7 +233,7 @@ pub fn per_node_decider_unit(p: &Params, k: usize, num: u32, den: u32) -> Module
     let report_data = is_end
         .mux(
             m.concat(&[
-                report_data.slice(pl.report_width - 1, voxel_bits),
+                report_data.slice(pl.report.width() - 1, voxel_bits),
                 lit(0, voxel_bits),
             ]),
             report_data,
@@ -323,17 +319,17 @@ pub fn per_node_module_unit(c: &MergeConfig, num: u32, den: u32) -> Module {
 
     let net = m.instance("u_network", &per_node_network_unit(p, k));
     for i in 0..k {
-        let s = Stream::input(&m, &format!("in{i}"), pl.in_width);
+        let s = Stream::input(&m, &format!("in{i}"), pl.input.width());
         net.connect(&format!("in{i}_valid"), s.valid);
         net.connect(&format!("in{i}_data"), s.data);
         s.ready.drive(net.output(&format!("in{i}_ready")));
     }
 
-    let cfg = Stream::input(&m, "cfg", tl.cfg_width);
+    let cfg = Stream::input(&m, "cfg", tl.cfg.width());
     cfg.ready.drive(idle);
     let cfg_fire = cfg.fire().name("cfg_fire");
-    let cfg_lo = field(cfg.data, &tl.lo).expect("lo").name("cfg_lo");
-    let cfg_hi = field(cfg.data, &tl.hi).expect("hi").name("cfg_hi");
+    let cfg_lo = cfg.data.view(&tl.lo).name("cfg_lo");
+    let cfg_hi = cfg.data.view(&tl.hi).name("cfg_hi");
     // `hi > D` only when the field can hold it (D = 31 fills 5 bits).
     let beyond = if (1u64 << lb) - 1 > p.max_lod as u64 {
         cfg_hi.gt(lit(p.max_lod as u64, lb))
@@ -365,8 +361,7 @@ pub fn per_node_module_unit(c: &MergeConfig, num: u32, den: u32) -> Module {
     m.output("out_data", out_data);
     let ol = BeatLayout::output(p);
     let out_end =
-        (out_valid & out_ready & field(out_data, &ol.kind).expect("kind").eq(base_kind::END))
-            .name("out_end");
+        (out_valid & out_ready & out_data.view(&ol.kind).eq(base_kind::END)).name("out_end");
 
     // Passes whose End entered the decider and has not left `out`.
     let fw = lb + 1;
@@ -388,7 +383,7 @@ pub fn per_node_module_unit(c: &MergeConfig, num: u32, den: u32) -> Module {
     let dec_valid = dec.output("report_valid");
     let refusal = with_fields(
         &m,
-        lit(0, pl.report_width),
+        lit(0, pl.report.width()),
         &[
             (pl.pass_end, lit(1, 1)),
             (pl.err, lit(choice_err::BAD_RANGE, 2)),

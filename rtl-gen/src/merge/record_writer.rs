@@ -22,7 +22,6 @@ use golden::merge::record_writer::{writer_err, CapacityError, WriterLayout};
 use golden::merge::upper_builder::unit::level_out_kind;
 use golden::params::Params;
 
-use super::fields::field;
 use crate::{Instance, Memory, Module, Signal, Stream};
 
 /// Module name of the record writer for `p` with `2^capacity_bits` entries
@@ -359,7 +358,7 @@ pub fn record_writer_unit(p: &Params, capacity_bits: u32) -> Result<Module, Capa
         f.top,
         out_id,
     ]);
-    debug_assert_eq!(header_data.width(), wl.header_width);
+    debug_assert_eq!(header_data.width(), wl.header.width());
     let header_ok = err_code.eq(code(writer_err::NONE));
     let failed = m.concat(&[err_code, lit(0, 3 * (i + 1) + w.lb), out_id]);
     Stream {
@@ -450,16 +449,16 @@ fn fill_inputs<'m>(w: &Ctx<'_, 'm>, in_fill: Signal<'m>, clear: Signal<'m>) -> I
     let zero = w.lit(0, 1);
     let lit = |v: u64, width: u32| w.lit(v, width);
     // cfg: the output id, one beat per merge.
-    let cfg = Stream::input(m, "cfg", wl.cfg_width);
+    let cfg = Stream::input(m, "cfg", wl.cfg.width());
     let have_cfg = m.reg("have_cfg", 1);
     let out_id = m.reg("out_id", h);
     cfg.ready.drive(!have_cfg);
     let cfg_fire = cfg.valid & !have_cfg;
     have_cfg.next(clear.mux(zero, have_cfg | cfg_fire));
-    out_id.next(cfg_fire.mux(field(cfg.data, &wl.cfg_out_id).expect("out_id"), out_id));
+    out_id.next(cfg_fire.mux(cfg.data.view(&wl.cfg_out_id), out_id));
 
     // done: the top.
-    let done = Stream::input(m, "done", bl.done_width);
+    let done = Stream::input(m, "done", bl.done.width());
     let have_done = m.reg("have_done", 1);
     let top = m.reg("top", lb);
     let done_err = m.reg("done_err", 1);
@@ -467,11 +466,11 @@ fn fill_inputs<'m>(w: &Ctx<'_, 'm>, in_fill: Signal<'m>, clear: Signal<'m>) -> I
     done.ready.drive(done_ready);
     let done_fire = done.valid & done_ready;
     have_done.next(clear.mux(zero, have_done | done_fire));
-    top.next(done_fire.mux(field(done.data, &bl.top).expect("top"), top));
-    done_err.next(done_fire.mux(field(done.data, &bl.done_err).expect("err"), done_err));
+    top.next(done_fire.mux(done.data.view(&bl.top), top));
+    done_err.next(done_fire.mux(done.data.view(&bl.done_err), done_err));
 
     // crefs: the created nodes' references, buffered in arrival order.
-    let crefs = Stream::input(m, "crefs", wl.cref_width);
+    let crefs = Stream::input(m, "crefs", wl.crefs.width());
     let crefs_mem = m.memory("crefs_mem", widths.cref, 1 << c);
     let cref_end = m.reg("cref_end", 1);
     let cref_wptr = m.reg("cref_wptr", c + 1);
@@ -479,12 +478,12 @@ fn fill_inputs<'m>(w: &Ctx<'_, 'm>, in_fill: Signal<'m>, clear: Signal<'m>) -> I
     let cref_ready = in_fill & !cref_end;
     crefs.ready.drive(cref_ready);
     let cref_fire = crefs.valid & cref_ready;
-    let cref_is_end = field(crefs.data, &wl.cref_end).expect("end");
+    let cref_is_end = crefs.data.view(&wl.cref_end);
     let cref_ref_fire = cref_fire & !cref_is_end;
     let cref_full = cref_wptr.bit(c);
     crefs_mem.write(
         cref_wptr.slice(c - 1, 0),
-        field(crefs.data, &wl.cref).expect("ref"),
+        crefs.data.view(&wl.cref),
         cref_ref_fire & !cref_full,
     );
     cref_end.next(clear.mux(zero, cref_end | (cref_fire & cref_is_end)));
@@ -557,7 +556,7 @@ fn level_units<'m>(
     let with_slots = level_unit(p, wl, c, true);
     let units: Vec<Instance> = (0..=dmax)
         .map(|d| {
-            let s = Stream::input(m, &format!("level{d}"), wl.builder.level_width);
+            let s = Stream::input(m, &format!("level{d}"), wl.builder.level.width());
             let u = m.instance(
                 &level_instance(d),
                 if d == 0 { &top_only } else { &with_slots },
@@ -600,7 +599,7 @@ fn level_unit(p: &Params, wl: &WriterLayout, c: u32, by_slot: bool) -> Module {
     let (bl, nl, rl) = (&wl.builder, &wl.node, &wl.reference);
     let lit = |v: u64, width: u32| w.lit(v, width);
     let zero = lit(0, 1);
-    let s = Stream::input(&m, "level", bl.level_width);
+    let s = Stream::input(&m, "level", bl.level.width());
     let in_fill = m.input("in_fill", 1);
     // This merge consumes the level: its counts start again.
     let clear = m.input("clear", 1);
@@ -614,15 +613,15 @@ fn level_unit(p: &Params, wl: &WriterLayout, c: u32, by_slot: bool) -> Module {
     let ready = (in_fill & !seen).name("ready");
     s.ready.drive(ready);
     let fire = (s.valid & ready).name("fire");
-    let kind = field(s.data, &bl.kind).expect("kind");
-    let rec = field(s.data, &bl.rec).expect("rec");
-    let refer = field(s.data, &bl.refer).expect("ref");
-    let index = field(s.data, &bl.index).expect("index");
-    let records = field(s.data, &bl.records).expect("records");
-    let err = field(s.data, &bl.err).expect("err");
-    let count = field(rec, nl.count()).expect("count");
-    let first = field(rec, nl.first()).expect("first");
-    let hier = field(refer, rl.hier()).expect("hier");
+    let kind = s.data.view(&bl.kind);
+    let rec = s.data.view(&bl.rec);
+    let refer = s.data.view(&bl.refer);
+    let index = s.data.view(&bl.index);
+    let records = s.data.view(&bl.records);
+    let err = s.data.view(&bl.err);
+    let count = rec.view(nl.count());
+    let first = rec.view(nl.first());
+    let hier = refer.view(rl.hier());
     let is_end = kind_is(&m, kind, level_out_kind::END).name("is_end");
     let reused = kind_is(&m, kind, level_out_kind::REUSED).name("reused");
     let node_fire = fire & !is_end;

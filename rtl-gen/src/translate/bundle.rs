@@ -2,9 +2,12 @@
 //! bus, so that a stage boundary is a single [`Stream::pipeline_reg`] or
 //! [`Stream::skid_buffer`] whatever the stage carries.
 
+use golden::layout::Layout;
+
 use crate::{Signal, Stream};
 
-/// Named signals, packed into a bus in insertion order from bit 0 upward.
+/// Named signals, packed into a bus in insertion order from bit 0 upward,
+/// as [`Bundle::layout`] describes it.
 #[derive(Clone, Default)]
 pub(crate) struct Bundle<'m> {
     parts: Vec<(String, Signal<'m>)>,
@@ -40,6 +43,17 @@ impl<'m> Bundle<'m> {
         self.parts.iter().map(|(_, s)| s.width()).sum()
     }
 
+    /// The bus's layout, called `name`: each part's name and width, the
+    /// first part in the low bits. [`Bundle::unpack`] slices by it and a
+    /// testbench decodes the bus with it.
+    pub(crate) fn layout(&self, name: &str) -> Layout {
+        let mut l = Layout::new(name);
+        for (n, s) in &self.parts {
+            l.push(n, s.width());
+        }
+        l
+    }
+
     /// The bus: the first part in the low bits.
     fn pack(&self) -> Signal<'m> {
         let sigs: Vec<Signal<'m>> = self.parts.iter().rev().map(|(_, s)| *s).collect();
@@ -53,20 +67,18 @@ impl<'m> Bundle<'m> {
 
     /// The same names and widths sliced out of `bus`; signedness restored.
     fn unpack(&self, bus: Signal<'m>) -> Bundle<'m> {
-        let mut at = 0;
+        let layout = self.layout("bundle");
         let mut out = Bundle::new();
-        for (name, s) in &self.parts {
-            let w = s.width();
-            let mut part = if w == bus.width() {
+        for (f, (_, s)) in layout.fields().zip(&self.parts) {
+            let mut part = if f.width == bus.width() {
                 bus
             } else {
-                bus.field_view(at + w - 1, at, name)
+                bus.view(f)
             };
             if s.is_signed() {
                 part = part.as_signed();
             }
-            out.put(name, part);
-            at += w;
+            out.put(f.name, part);
         }
         out
     }
@@ -105,5 +117,36 @@ impl<'m> Bundle<'m> {
         .skid_buffer(name);
         let b = self.unpack(s.data);
         (s, b)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Module, Sim};
+
+    #[test]
+    fn a_bundles_bus_decodes_by_its_layout() {
+        let m = Module::new("bundle");
+        let mut b = Bundle::new();
+        b.put("a", m.input("a", 3));
+        b.put("b", m.input("b", 5).as_signed());
+        b.put("c", m.input("c", 1));
+        let l = b.layout("s1");
+        assert_eq!(l.width(), b.width());
+        let offsets: Vec<(&str, u32)> = l.fields().map(|f| (f.name, f.offset)).collect();
+        assert_eq!(offsets, [("a", 0), ("b", 3), ("c", 8)]);
+        let bus = b.pack();
+        m.output("bus", bus);
+        let back = b.unpack(bus);
+        assert!(back.get("b").is_signed());
+        m.output("b_back", back.get("b").as_unsigned());
+        let mut sim = Sim::new(&m).unwrap();
+        for (n, v) in [("a", 5u64), ("b", 0b10110), ("c", 1)] {
+            sim.poke(n, v).unwrap();
+        }
+        let got = l.unpack(&sim.peek("bus").unwrap()).unwrap();
+        assert_eq!(got, [("a", 5), ("b", 0b10110), ("c", 1)]);
+        assert_eq!(sim.peek("b_back").unwrap().to_u64(), Some(0b10110));
     }
 }

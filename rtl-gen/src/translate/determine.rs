@@ -13,21 +13,20 @@
 //!    write enable each have a step: any two in one clock were the unit's
 //!    critical path (docs/hardware.md 14.7).
 
+use golden::layout::Layout;
 use golden::translate::model::TranslateDesign;
 
 use super::bundle::Bundle;
 use super::float::{align, pack_residual, round, unpack, FloatPath};
-use super::ports::{det_in_layout, det_out_layout, PortLayout};
+use super::ports::{det_in_layout, det_out_layout};
 use super::table::Table;
 use crate::{Module, Signal, Stream};
 
 const AXES: [&str; 3] = ["x", "y", "z"];
 
 /// The slice of `data` holding field `name` of `layout`.
-pub(crate) fn field<'m>(data: Signal<'m>, layout: &PortLayout, name: &str) -> Signal<'m> {
-    let f = layout
-        .field(name)
-        .unwrap_or_else(|| panic!("payload has no field `{name}`"));
+pub(crate) fn field<'m>(data: Signal<'m>, layout: &Layout, name: &str) -> Signal<'m> {
+    let f = layout.get(name).unwrap_or_else(|e| panic!("{e}"));
     data.slice(f.offset + f.width - 1, f.offset)
 }
 

@@ -3,7 +3,7 @@
 //! (`Params`, `NodeLayout`, `trans_bits`), and packing of the golden
 //! transactions into port values and back, for testbenches and tools.
 
-use golden::layout::NodeLayout;
+use golden::layout::{Layout, NodeLayout};
 use golden::store::NodeRecord;
 use golden::translate::model::{ApplyCode, ApplyInputs, ApplyOutputs, TranslateDesign};
 use golden::translate::translation::trans_bits;
@@ -11,118 +11,34 @@ use golden::translate::{TranslateInputs, TranslateOutputs};
 
 use crate::Bits;
 
-/// One field of a payload: bits `[offset, offset + width)`.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct PortField {
-    /// Field name (SPEC.md 7.9), axis fields suffixed `_x`, `_y`, `_z`.
-    pub name: String,
-    /// Bit of the field's lsb in the payload.
-    pub offset: u32,
-    /// Bits.
-    pub width: u32,
-}
-
-/// A payload layout: fields packed from bit 0 upward in order.
-#[derive(Clone, Debug, PartialEq, Eq, Default)]
-pub struct PortLayout {
-    /// Fields in bit order.
-    pub fields: Vec<PortField>,
-}
-
-impl PortLayout {
-    fn push(&mut self, name: &str, width: u32) {
-        let offset = self.width();
-        self.fields.push(PortField {
-            name: name.to_string(),
-            offset,
-            width,
-        });
-    }
-
-    fn push3(&mut self, name: &str, width: u32) {
-        for axis in AXES {
-            self.push(&format!("{name}_{axis}"), width);
-        }
-    }
-
-    /// Total width in bits.
-    pub fn width(&self) -> u32 {
-        self.fields.last().map(|f| f.offset + f.width).unwrap_or(0)
-    }
-
-    /// The field called `name`.
-    pub fn field(&self, name: &str) -> Option<&PortField> {
-        self.fields.iter().find(|f| f.name == name)
-    }
-
-    /// Every field's value in `bits` (fields are at most 64 bits wide).
-    pub fn decode(&self, bits: &Bits) -> Vec<(String, u64)> {
-        self.fields
-            .iter()
-            .map(|f| {
-                let v = if f.width == 0 {
-                    0
-                } else {
-                    bits.extract(f.offset, f.width)
-                        .ok()
-                        .and_then(|b| b.to_u64())
-                        .unwrap_or(u64::MAX)
-                };
-                (f.name.clone(), v)
-            })
-            .collect()
-    }
-
-    /// Packs `(name, value)` pairs; every field must be given exactly once
-    /// and fit its width.
-    pub fn encode(&self, values: &[(String, u64)]) -> Result<Bits, String> {
-        let w = self.width();
-        let mut words = vec![0u64; w.div_ceil(64).max(1) as usize];
-        for f in &self.fields {
-            let mut found = values.iter().filter(|(n, _)| *n == f.name);
-            let v = match (found.next(), found.next()) {
-                (Some((_, v)), None) => *v,
-                _ => return Err(format!("field `{}` missing or given twice", f.name)),
-            };
-            if f.width < 64 && v >> f.width != 0 {
-                return Err(format!(
-                    "field `{}`: {v} does not fit in {} bits",
-                    f.name, f.width
-                ));
-            }
-            put(&mut words, f.offset, f.width, v);
-        }
-        if values.len() != self.fields.len() {
-            return Err("a value names no field of the layout".into());
-        }
-        Bits::from_words(&words, w).map_err(|e| format!("{e:?}"))
-    }
-}
-
 const AXES: [&str; 3] = ["x", "y", "z"];
 
-fn put(words: &mut [u64], offset: u32, width: u32, v: u64) {
-    for i in 0..width {
-        if (v >> i) & 1 == 1 {
-            let b = offset + i;
-            words[(b / 64) as usize] |= 1 << (b % 64);
-        }
+/// Appends `{name}_x`, `{name}_y`, `{name}_z`, each `width` bits.
+fn push3(l: &mut Layout, name: &str, width: u32) {
+    for axis in AXES {
+        l.push(&format!("{name}_{axis}"), width);
     }
+}
+
+/// `values` packed into `l`: every field given exactly once, each fitting
+/// its width.
+fn encode(l: &Layout, values: &[(String, u64)]) -> Result<Bits, String> {
+    l.pack(values).map_err(|e| e.to_string())
 }
 
 /// `det_in_data`: `format` (binary64 designs only), `placement_{x,y,z}`
 /// (32 or 64 bits), `lod`, `extents_lo_{x,y,z}`, `extents_hi_{x,y,z}` (D),
 /// `write_enable`, `write_id`, `read_id` (H).
-pub fn det_in_layout(d: &TranslateDesign) -> PortLayout {
+pub fn det_in_layout(d: &TranslateDesign) -> Layout {
     let p = d.params();
-    let mut l = PortLayout::default();
+    let mut l = Layout::new("det_in_data");
     if d.binary64 {
         l.push("format", 1);
     }
-    l.push3("placement", d.placement_bits());
+    push3(&mut l, "placement", d.placement_bits());
     l.push("lod", p.lod_bits());
-    l.push3("extents_lo", p.coord_bits());
-    l.push3("extents_hi", p.coord_bits());
+    push3(&mut l, "extents_lo", p.coord_bits());
+    push3(&mut l, "extents_hi", p.coord_bits());
     l.push("write_enable", 1);
     l.push("write_id", p.hier_bits as u32);
     l.push("read_id", p.hier_bits as u32);
@@ -134,13 +50,13 @@ pub fn det_in_layout(d: &TranslateDesign) -> PortLayout {
 /// `err_inf`, `err_range`, `err_outside` (3 each, bit per axis),
 /// `err_write_id`, `written`, `err_read_id`, `read_valid`, `read_lod`,
 /// `read_t_{x,y,z}`.
-pub fn det_out_layout(d: &TranslateDesign) -> PortLayout {
+pub fn det_out_layout(d: &TranslateDesign) -> Layout {
     let p = d.params();
     let tb = trans_bits(p);
-    let mut l = PortLayout::default();
+    let mut l = Layout::new("det_out_data");
     l.push("ok", 1);
-    l.push3("t", tb);
-    l.push3("residual", d.placement_bits());
+    push3(&mut l, "t", tb);
+    push3(&mut l, "residual", d.placement_bits());
     l.push("err_lod", 1);
     l.push("err_extents", 1);
     if d.binary64 {
@@ -153,15 +69,19 @@ pub fn det_out_layout(d: &TranslateDesign) -> PortLayout {
         l.push(f, 1);
     }
     l.push("read_lod", p.lod_bits());
-    l.push3("read_t", tb);
+    push3(&mut l, "read_t", tb);
     l
 }
 
 /// `apply_in_data`: the node record (golden `NodeLayout`, `W` bits) then
 /// `hier` (H).
-pub fn apply_in_layout(d: &TranslateDesign) -> PortLayout {
+pub fn apply_in_layout(d: &TranslateDesign) -> Layout {
+    apply_layout(d, "apply_in_data")
+}
+
+fn apply_layout(d: &TranslateDesign, name: &str) -> Layout {
     let p = d.params();
-    let mut l = PortLayout::default();
+    let mut l = Layout::new(name);
     for f in NodeLayout::new(p).fields() {
         l.push(f.name, f.width);
     }
@@ -170,8 +90,8 @@ pub fn apply_in_layout(d: &TranslateDesign) -> PortLayout {
 }
 
 /// `apply_out_data`: the node record, `hier`, then `code` (3 bits).
-pub fn apply_out_layout(d: &TranslateDesign) -> PortLayout {
-    let mut l = apply_in_layout(d);
+pub fn apply_out_layout(d: &TranslateDesign) -> Layout {
+    let mut l = apply_layout(d, "apply_out_data");
     l.push("code", ApplyCode::BITS);
     l
 }
@@ -197,7 +117,7 @@ pub fn pack_det_in(d: &TranslateDesign, i: &TranslateInputs) -> Result<Bits, Str
     v.push(("write_enable".into(), i.write_enable as u64));
     v.push(("write_id".into(), i.write_id as u64));
     v.push(("read_id".into(), i.read_id as u64));
-    det_in_layout(d).encode(&v)
+    encode(&det_in_layout(d), &v)
 }
 
 /// The `det_out_data` value of a transaction's expected outputs.
@@ -226,7 +146,7 @@ pub fn pack_det_out(d: &TranslateDesign, o: &TranslateOutputs) -> Result<Bits, S
         v.push((n.into(), x as u64));
     }
     v.extend(named3("read_t", o.read_t));
-    det_out_layout(d).encode(&v)
+    encode(&det_out_layout(d), &v)
 }
 
 fn node_values(n: &NodeRecord) -> Vec<(String, u64)> {
@@ -245,7 +165,7 @@ fn node_values(n: &NodeRecord) -> Vec<(String, u64)> {
 pub fn pack_apply_in(d: &TranslateDesign, i: &ApplyInputs) -> Result<Bits, String> {
     let mut v = node_values(&i.node);
     v.push(("hier".into(), i.hier as u64));
-    apply_in_layout(d).encode(&v)
+    encode(&apply_in_layout(d), &v)
 }
 
 /// The `apply_out_data` value of an apply transaction's expected outputs.
@@ -253,5 +173,5 @@ pub fn pack_apply_out(d: &TranslateDesign, o: &ApplyOutputs) -> Result<Bits, Str
     let mut v = node_values(&o.node);
     v.push(("hier".into(), o.hier as u64));
     v.push(("code".into(), o.code as u64));
-    apply_out_layout(d).encode(&v)
+    encode(&apply_out_layout(d), &v)
 }

@@ -68,7 +68,7 @@ pub fn vectors(p: &Params, capacity: usize, seed: u64, sets: usize) -> Result<So
             .iter()
             .map(|(b, err): &(LevelBeat, bool)| {
                 let bits = b.pack(&li).map_err(layout_err)?;
-                let mut v = Bits::from_words(bits.words(), lo.width)?;
+                let mut v = Bits::from_words(bits.words(), lo.width())?;
                 v.set_bit(err_bit.offset, *err)?;
                 Ok(vec![v])
             })

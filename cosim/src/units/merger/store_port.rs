@@ -405,7 +405,7 @@ pub fn run(
     for (j, (reqs, resps)) in tx.requests.iter().zip(&tx.responses).enumerate() {
         let idx = reqs
             .iter()
-            .map(|a| Ok(Bits::from_u64(l.addr_word(0, *a), l.addr_width)?))
+            .map(|a| Ok(Bits::from_u64(l.addr_word(0, *a), l.addr.width())?))
             .collect::<Result<Vec<_>>>()?;
         inputs.push(beats(format!("r{j}_req"), idx));
         outputs.push(beats(format!("r{j}_resp"), resps.to_vec()));

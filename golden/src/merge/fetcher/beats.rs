@@ -3,7 +3,7 @@
 //! packed with them.
 
 use crate::bits::Bits;
-use crate::layout::{Field, LayoutError, NodeLayout, RefLayout};
+use crate::layout::{Field, Layout, LayoutError, NodeLayout, RefLayout};
 use crate::merge::merge_level::unit::{BeatLayout, LevelBeat};
 use crate::merge::per_node::unit::{PerNodeLayout, PerNodeReport};
 use crate::params::Params;
@@ -85,8 +85,8 @@ pub struct FetchLayout {
     pub entry_lod: Field,
     /// `cfg`: the entry's `tx`, `ty`, `tz` (D + 1 bits each), the translation codes.
     pub entry_t: [Field; 3],
-    /// Width of the `cfg` beat in bits.
-    pub cfg_width: u32,
+    /// The `cfg` beat: `hier`, `roots`, `top`, `nodes`, `refs`, `entry`.
+    pub cfg: Layout,
     /// `cmd`: `lod` (lod_bits), `send_refs`, `send_leaves`, `last` (1
     /// each), `from` (lod_bits: the first level sent, [`FetchCmd::from`]).
     pub lod: Field,
@@ -98,8 +98,8 @@ pub struct FetchLayout {
     pub last: Field,
     /// `cmd`: `from` (`lod_bits`); the first level sent is `min(from, lod)`.
     pub from: Field,
-    /// Width of the `cmd` beat in bits (`per_node` included when built with it).
-    pub cmd_width: u32,
+    /// The `cmd` beat (`per_node` included when built with it).
+    pub cmd: Layout,
     /// `node_req` / `ref_req`: an index (I). `node_resp`: a record (W);
     /// `ref_resp`: a reference (I + H).
     pub index_width: u32,
@@ -109,8 +109,9 @@ pub struct FetchLayout {
     /// `out`: `err` ([`fetch_err::BITS`] bits), a [`fetch_err`] code; 0 but on an
     /// error beat.
     pub err: Field,
-    /// Width of an `out` beat in bits (`probe` included when built with it).
-    pub out_width: u32,
+    /// The `out` beat: `rec`, `ref`, `kind`, `err` (`probe` included when
+    /// built with it).
+    pub out: Layout,
     /// `leaves`: `rec` (W), `ref` (I + H), `lod` (lod_bits), `end` (1).
     pub leaf_rec: Field,
     /// `leaves`: `ref` (I + H bits), where the leaf is stored: `(hier, node index)`.
@@ -119,8 +120,8 @@ pub struct FetchLayout {
     pub leaf_lod: Field,
     /// `leaves`: `end` (1 bit), set on the command's last `leaves` beat.
     pub leaf_end: Field,
-    /// Width of a `leaves` beat in bits.
-    pub leaves_width: u32,
+    /// The `leaves` beat: `rec`, `ref`, `lod`, `end`.
+    pub leaves: Layout,
     /// The per-node command's fields, only in a fetcher built for
     /// per-node merging ([`FetchLayout::per_node`]); without them the
     /// layout (and the fetcher) is exactly the level modes' one.
@@ -152,14 +153,15 @@ pub struct PerNodeFetchLayout {
     pub report_pass_end: Field,
     /// `report`: `more`, with `pass_end`: another pass follows.
     pub report_more: Field,
-    /// Width of the fetcher's `report` beat in bits.
-    pub report_width: u32,
+    /// The fetcher's `report` beat: `x`, `y`, `z`, `lod`, `descend`,
+    /// `pass_end`, `more`.
+    pub report: Layout,
 }
 
 impl PerNodeFetchLayout {
     /// The fetcher's `report` beat of the module's `report` beat `r`.
     pub fn pack_report(&self, r: &PerNodeReport) -> Result<Bits, LayoutError> {
-        let mut b = Bits::zero(self.report_width);
+        let mut b = self.report.zero();
         match *r {
             PerNodeReport::Decision { voxel, descend, .. } => {
                 for (f, v) in self.report_coord.iter().zip([voxel.x, voxel.y, voxel.z]) {
@@ -193,21 +195,6 @@ impl PerNodeFetchLayout {
     }
 }
 
-/// Lays out `(name, width)` consecutively from bit 0.
-fn consecutive<const N: usize>(spec: [(&'static str, u32); N]) -> ([Field; N], u32) {
-    let mut at = 0;
-    let f = spec.map(|(name, width)| {
-        let f = Field {
-            name,
-            offset: at,
-            width,
-        };
-        at += width;
-        f
-    });
-    (f, at)
-}
-
 impl FetchLayout {
     /// The layouts for `p` (no per-node command).
     pub fn new(p: &Params) -> FetchLayout {
@@ -226,74 +213,54 @@ impl FetchLayout {
         let node = NodeLayout::new(p);
         let reference = RefLayout::new(p);
         let (i, h, lb) = (p.index_bits as u32, p.hier_bits as u32, p.lod_bits());
-        let ([hier, roots, top, nodes, refs, entry], cfg_width) = consecutive([
-            ("hier", h),
-            ("roots", i),
-            ("top", lb),
-            ("nodes", i),
-            ("refs", i),
-            ("entry", entry_bits(p)),
-        ]);
-        let (inside, _) = consecutive([
-            ("entry_valid", 1),
-            ("entry_lod", lb),
-            ("entry_tx", trans_bits(p)),
-            ("entry_ty", trans_bits(p)),
-            ("entry_tz", trans_bits(p)),
-        ]);
-        let at = |f: Field| Field {
-            offset: f.offset + entry.offset,
-            ..f
-        };
-        let ([lod, send_refs, send_leaves, last, from], cmd_width) = consecutive([
-            ("lod", lb),
-            ("send_refs", 1),
-            ("send_leaves", 1),
-            ("last", 1),
-            ("from", lb),
-        ]);
+        let mut cfg = Layout::new("fetcher cfg");
+        let hier = cfg.push("hier", h);
+        let roots = cfg.push("roots", i);
+        let top = cfg.push("top", lb);
+        let nodes = cfg.push("nodes", i);
+        let refs = cfg.push("refs", i);
+        let entry = cfg.push("entry", entry_bits(p));
+        // The entry's own fields, at their place inside `entry`.
+        let mut inside = Layout::from_fields("table entry", &[], entry.offset);
+        let entry_valid = inside.push("entry_valid", 1);
+        let entry_lod = inside.push("entry_lod", lb);
+        let entry_t = ["entry_tx", "entry_ty", "entry_tz"].map(|n| inside.push(n, trans_bits(p)));
+        let mut cmd = Layout::new("fetcher cmd");
+        let lod = cmd.push("lod", lb);
+        let send_refs = cmd.push("send_refs", 1);
+        let send_leaves = cmd.push("send_leaves", 1);
+        let last = cmd.push("last", 1);
+        let from = cmd.push("from", lb);
         let beat = BeatLayout::input(p);
-        let err = Field {
-            name: "err",
-            offset: beat.width,
-            width: fetch_err::BITS,
-        };
-        let ([leaf_rec, leaf_ref, leaf_lod, leaf_end], leaves_width) = consecutive([
-            ("rec", node.width()),
-            ("ref", reference.width()),
-            ("lod", lb),
-            ("end", 1),
-        ]);
-        let d = p.coord_bits();
-        let (report, report_width) = consecutive([
-            ("x", d),
-            ("y", d),
-            ("z", d),
-            ("lod", p.lod_bits()),
-            ("descend", 1),
-            ("pass_end", 1),
-            ("more", 1),
-        ]);
-        let pn = per_node.then(|| PerNodeFetchLayout {
-            per_node: Field {
-                name: "per_node",
-                offset: cmd_width,
-                width: 1,
-            },
-            probe: Field {
-                name: "probe",
-                offset: err.end(),
-                width: 1,
-            },
-            report_coord: report[..3].try_into().expect("three axes"),
-            report_lod: report[3],
-            report_descend: report[4],
-            report_pass_end: report[5],
-            report_more: report[6],
-            report_width,
+        let mut out = Layout::new("fetcher out");
+        for f in beat.fields() {
+            out.push(f.name, f.width);
+        }
+        let err = out.push("err", fetch_err::BITS);
+        let mut leaves = Layout::new("fetcher leaves");
+        let leaf_rec = leaves.push("rec", node.width());
+        let leaf_ref = leaves.push("ref", reference.width());
+        let leaf_lod = leaves.push("lod", lb);
+        let leaf_end = leaves.push("end", 1);
+        let pn = per_node.then(|| {
+            let d = p.coord_bits();
+            let mut report = Layout::new("fetcher report");
+            let report_coord = ["x", "y", "z"].map(|n| report.push(n, d));
+            let report_lod = report.push("lod", lb);
+            let report_descend = report.push("descend", 1);
+            let report_pass_end = report.push("pass_end", 1);
+            let report_more = report.push("more", 1);
+            PerNodeFetchLayout {
+                per_node: cmd.push("per_node", 1),
+                probe: out.push("probe", 1),
+                report_coord,
+                report_lod,
+                report_descend,
+                report_pass_end,
+                report_more,
+                report,
+            }
         });
-        let cmd_width = pn.as_ref().map_or(cmd_width, |f| f.per_node.end());
-        let out_width = pn.as_ref().map_or(err.end(), |f| f.probe.end());
         FetchLayout {
             node,
             reference,
@@ -303,25 +270,25 @@ impl FetchLayout {
             nodes,
             refs,
             entry,
-            entry_valid: at(inside[0]),
-            entry_lod: at(inside[1]),
-            entry_t: [at(inside[2]), at(inside[3]), at(inside[4])],
-            cfg_width,
+            entry_valid,
+            entry_lod,
+            entry_t,
+            cfg,
             lod,
             send_refs,
             send_leaves,
             last,
             from,
-            cmd_width,
+            cmd,
             index_width: i,
             err,
-            out_width,
+            out,
             beat,
             leaf_rec,
             leaf_ref,
             leaf_lod,
             leaf_end,
-            leaves_width,
+            leaves,
             pn,
         }
     }
@@ -383,7 +350,7 @@ impl FetchCfg {
 
     /// The packed `cfg` beat; an error when a count needs more than `I` bits.
     pub fn pack(&self, l: &FetchLayout) -> Result<Bits, LayoutError> {
-        let mut b = Bits::zero(l.cfg_width);
+        let mut b = l.cfg.zero();
         b.set(&l.hier, self.hier as u64)?;
         b.set(&l.roots, self.root_count as u64)?;
         b.set(&l.top, self.top_lod as u64)?;
@@ -470,7 +437,7 @@ impl FetchCmd {
     /// The packed `cmd` beat; `per_node` needs a layout that has the field
     /// ([`FetchLayout::per_node`]).
     pub fn pack(&self, l: &FetchLayout) -> Result<Bits, LayoutError> {
-        let mut b = Bits::zero(l.cmd_width);
+        let mut b = l.cmd.zero();
         b.set(&l.lod, self.lod as u64)?;
         b.set(&l.send_refs, self.send_refs as u64)?;
         b.set(&l.send_leaves, self.send_leaves as u64)?;
@@ -523,7 +490,7 @@ pub enum FetchOut {
 impl FetchOut {
     /// The packed beat.
     pub fn pack(&self, l: &FetchLayout) -> Result<Bits, LayoutError> {
-        let mut b = Bits::zero(l.out_width);
+        let mut b = l.out.zero();
         match self {
             FetchOut::Beat(beat) => b.put(0, &beat.pack(&l.beat)?)?,
             FetchOut::Probe { record, at } => {
@@ -567,7 +534,7 @@ pub enum LeafOut {
 impl LeafOut {
     /// The packed beat (`lod` = the record's LOD).
     pub fn pack(&self, l: &FetchLayout) -> Result<Bits, LayoutError> {
-        let mut b = Bits::zero(l.leaves_width);
+        let mut b = l.leaves.zero();
         match self {
             LeafOut::Leaf { record, at } => {
                 b.put(l.leaf_rec.offset, &record.pack(&l.node)?)?;

@@ -3,7 +3,7 @@
 
 use crate::bits::Bits;
 use crate::grid::VoxelAddr;
-use crate::layout::{Field, LayoutError};
+use crate::layout::{Field, Layout, LayoutError};
 use crate::merge::level_choice::{above_threshold, overlap_counts, LevelOverlap};
 use crate::merge::stimulus::random_coord;
 use crate::params::{bits_to_hold, Params};
@@ -14,14 +14,16 @@ use crate::translate::stimulus::SplitMix64;
 /// output beat: `shared`, `union` (I bits each), `above` (1), `overflow` (1).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct OverlapLayout {
+    /// The input beat: `x`, `y`, `z`, `rank`, `end`.
+    pub input: Layout,
     /// In beat: `x`, `y`, `z` of the translated voxel (D bits each), from bit 0.
     pub coord: [Field; 3],
     /// In beat: the rank of the input holding the voxel ([`rank_bits`]`(k)` bits).
     pub rank: Field,
     /// In beat: 1 on the `End` beat closing the level.
     pub end: Field,
-    /// Width of an input beat in bits.
-    pub in_width: u32,
+    /// The output beat: `shared`, `union`, `above`, `overflow`.
+    pub output: Layout,
     /// Out beat: `shared` (I bits, from bit 0), voxels held by two or more inputs.
     pub shared: Field,
     /// Out beat: `union` (I bits), voxels held by any input.
@@ -30,8 +32,6 @@ pub struct OverlapLayout {
     pub above: Field,
     /// Out beat: `overflow` (1 bit), `union` reached `2^I`; the other fields are then 0.
     pub overflow: Field,
-    /// Width of the output beat in bits.
-    pub out_width: u32,
 }
 
 impl OverlapLayout {
@@ -39,27 +39,25 @@ impl OverlapLayout {
     pub fn new(p: &Params, k: usize) -> OverlapLayout {
         let d = p.coord_bits();
         let i = p.index_bits as u32;
-        let coord = [
-            Field::new("x", 0, d),
-            Field::new("y", d, d),
-            Field::new("z", 2 * d, d),
-        ];
-        let rank = Field::new("rank", 3 * d, rank_bits(k));
-        let end = Field::new("end", rank.end(), 1);
-        let shared = Field::new("shared", 0, i);
-        let union = Field::new("union", i, i);
-        let above = Field::new("above", 2 * i, 1);
-        let overflow = Field::new("overflow", 2 * i + 1, 1);
+        let mut input = Layout::new("overlap counter input");
+        let coord = ["x", "y", "z"].map(|n| input.push(n, d));
+        let rank = input.push("rank", rank_bits(k));
+        let end = input.push("end", 1);
+        let mut output = Layout::new("overlap counter output");
+        let shared = output.push("shared", i);
+        let union = output.push("union", i);
+        let above = output.push("above", 1);
+        let overflow = output.push("overflow", 1);
         OverlapLayout {
+            input,
             coord,
             rank,
             end,
-            in_width: end.end(),
+            output,
             shared,
             union,
             above,
             overflow,
-            out_width: overflow.end(),
         }
     }
 }
@@ -100,7 +98,7 @@ pub struct OverlapResult {
 impl OverlapBeat {
     /// The packed beat.
     pub fn pack(&self, l: &OverlapLayout) -> Result<Bits, LayoutError> {
-        let mut b = Bits::zero(l.in_width);
+        let mut b = l.input.zero();
         match self {
             OverlapBeat::Voxel { voxel, rank } => {
                 for (f, c) in l.coord.iter().zip([voxel.x, voxel.y, voxel.z]) {
@@ -117,7 +115,7 @@ impl OverlapBeat {
 impl OverlapResult {
     /// The packed beat.
     pub fn pack(&self, l: &OverlapLayout) -> Result<Bits, LayoutError> {
-        let mut b = Bits::zero(l.out_width);
+        let mut b = l.output.zero();
         b.set(&l.shared, self.shared)?;
         b.set(&l.union, self.union)?;
         b.set(&l.above, self.above as u64)?;

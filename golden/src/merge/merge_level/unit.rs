@@ -7,7 +7,7 @@ use std::ops::Range;
 
 use crate::bits::Bits;
 use crate::grid::VoxelAddr;
-use crate::layout::{Field, LayoutError, NodeLayout, RefLayout};
+use crate::layout::{Field, Layout, LayoutError, NodeLayout, RefLayout};
 use crate::merge::error::MergeError;
 use crate::merge::fetcher::walk::PlacedNode;
 use crate::merge::merge_level::{merge_level, BaseKind, BaseNode, MergeLevelCounts};
@@ -90,6 +90,7 @@ pub enum BaseBeat {
 
 /// Bit layout of an S614 beat, from bit 0: `rec` (a node record, section 3),
 /// `ref` (a reference), `kind` (2 bits), and on output beats `err` (1 bit).
+/// A [`Layout`] (through `Deref`) with an accessor per field.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct BeatLayout {
     /// Layout of the node record in `rec`.
@@ -105,35 +106,29 @@ pub struct BeatLayout {
     pub kind: Field,
     /// Output beats only: the count-overflow flag.
     pub err: Option<Field>,
-    /// Width of the beat in bits.
-    pub width: u32,
+    beat: Layout,
+}
+
+impl std::ops::Deref for BeatLayout {
+    type Target = Layout;
+    fn deref(&self) -> &Layout {
+        &self.beat
+    }
 }
 
 impl BeatLayout {
     fn new(p: &Params, with_err: bool) -> BeatLayout {
         let node = NodeLayout::new(p);
         let reference = RefLayout::new(p);
-        let rec = Field {
-            name: "rec",
-            offset: 0,
-            width: node.width(),
-        };
-        let refer = Field {
-            name: "ref",
-            offset: rec.end(),
-            width: reference.width(),
-        };
-        let kind = Field {
-            name: "kind",
-            offset: refer.end(),
-            width: 2,
-        };
-        let err = with_err.then_some(Field {
-            name: "err",
-            offset: kind.end(),
-            width: 1,
+        let mut beat = Layout::new(if with_err {
+            "S614 output beat"
+        } else {
+            "S614 input beat"
         });
-        let width = err.map_or(kind.end(), |e| e.end());
+        let rec = beat.push("rec", node.width());
+        let refer = beat.push("ref", reference.width());
+        let kind = beat.push("kind", 2);
+        let err = with_err.then(|| beat.push("err", 1));
         BeatLayout {
             node,
             reference,
@@ -141,7 +136,7 @@ impl BeatLayout {
             refer,
             kind,
             err,
-            width,
+            beat,
         }
     }
 
@@ -161,7 +156,7 @@ impl BeatLayout {
         r: Option<&Reference>,
         kind: u64,
     ) -> Result<Bits, LayoutError> {
-        let mut b = Bits::zero(self.width);
+        let mut b = Bits::zero(self.width());
         if let Some(n) = rec {
             b.put(self.rec.offset, &n.pack(&self.node)?)?;
         }
@@ -566,7 +561,7 @@ mod tests {
             let l_in = BeatLayout::input(&p);
             let l_out = BeatLayout::output(&p);
             for b in &tx.inputs {
-                assert_eq!(b.pack(&l_in).unwrap().width(), l_in.width);
+                assert_eq!(b.pack(&l_in).unwrap().width(), l_in.width());
             }
             for b in &tx.outputs {
                 b.pack(&l_out).unwrap();

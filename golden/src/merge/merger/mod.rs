@@ -38,7 +38,7 @@
 pub mod store_port;
 
 use crate::bits::Bits;
-use crate::layout::{Field, LayoutError};
+use crate::layout::{Field, Layout, LayoutError};
 use crate::merge::error::MergeError;
 use crate::merge::fetcher::walk::{collect, morton, walk_input, PlacedNode};
 use crate::merge::fetcher::{
@@ -114,7 +114,7 @@ pub struct MergerHeader {
 impl MergerHeader {
     /// The packed beat.
     pub fn pack(&self, l: &MergerLayout) -> Result<Bits, LayoutError> {
-        let mut b = Bits::zero(l.header_width);
+        let mut b = l.header.zero();
         b.put(0, &self.writer.pack(&l.writer)?)?;
         b.set(&l.leaf_overflow, self.leaf_overflow as u64)?;
         b.set(&l.count_overflow, self.count_overflow as u64)?;
@@ -125,8 +125,7 @@ impl MergerHeader {
 }
 
 /// Bit layout of the merger's `cfg` beat, from bit 0: `input0` ..
-/// `input{k-1}` (each a fetcher `cfg` beat, [`FetchLayout::cfg_width`]
-/// bits), `count` (`bits_to_hold(k)`: inputs used, `1..=k`), `lo`, `hi`
+/// `input{k-1}` (each a fetcher `cfg` beat, [`FetchLayout::cfg`]), `count` (`bits_to_hold(k)`: inputs used, `1..=k`), `lo`, `hi`
 /// (`lod_bits` each), `out_id` (H). `report` is the merging module's
 /// ([`TopLayout`]). `header`, from bit 0: the writer's header
 /// ([`WriterLayout`]), `leaf_overflow`, `count_overflow` (1 each),
@@ -142,7 +141,7 @@ pub struct MergerLayout {
     /// The record writer's layouts; `header` starts with its header.
     pub writer: WriterLayout,
     /// Width of each `input<i>` field of `cfg`, the fetcher's `cfg` beat
-    /// (`fetch.cfg_width`); `input<i>` starts at [`Self::input_offset`].
+    /// (`fetch.cfg.width()`); `input<i>` starts at [`Self::input_offset`].
     pub input_width: u32,
     /// `cfg`: `count` (`bits_to_hold(k)`), the inputs used, after `input{k-1}`.
     pub count: Field,
@@ -152,8 +151,8 @@ pub struct MergerLayout {
     pub hi: Field,
     /// `cfg`: `out_id` (H bits), the merged hierarchy's id.
     pub out_id: Field,
-    /// Width of the `cfg` beat in bits.
-    pub cfg_width: u32,
+    /// The `cfg` beat: `input0` .. `input{k-1}`, `count`, `lo`, `hi`, `out_id`.
+    pub cfg: Layout,
     /// `header`: `leaf_overflow` (1 bit), right after the writer's header.
     pub leaf_overflow: Field,
     /// `header`: `count_overflow` (1 bit).
@@ -162,25 +161,34 @@ pub struct MergerLayout {
     pub fetch_err: Field,
     /// `header`: `fetch_rank` (`rank_bits(k)`), the rank that reported it.
     pub fetch_rank: Field,
-    /// Width of the `header` beat in bits.
-    pub header_width: u32,
+    /// The `header` beat: the writer's header fields, then `leaf_overflow`,
+    /// `count_overflow`, `fetch_err`, `fetch_rank`.
+    pub header: Layout,
 }
 
 impl MergerLayout {
     /// The layout for `p`, `k` inputs and writer buffers of `2^capacity_bits`.
     pub fn new(p: &Params, k: usize, capacity_bits: u32) -> Result<MergerLayout, CapacityError> {
         let fetch = FetchLayout::new(p);
-        let input_width = fetch.cfg_width;
+        let input_width = fetch.cfg.width();
         let lb = p.lod_bits();
-        let count = Field::new("count", k as u32 * input_width, bits_to_hold(k as u64));
-        let lo = Field::new("lo", count.end(), lb);
-        let hi = Field::new("hi", lo.end(), lb);
-        let out_id = Field::new("out_id", hi.end(), p.hier_bits as u32);
+        let mut cfg = Layout::new("merger cfg");
+        for i in 0..k {
+            cfg.push(&format!("input{i}"), input_width);
+        }
+        let count = cfg.push("count", bits_to_hold(k as u64));
+        let lo = cfg.push("lo", lb);
+        let hi = cfg.push("hi", lb);
+        let out_id = cfg.push("out_id", p.hier_bits as u32);
         let writer = WriterLayout::new(p, capacity_bits)?;
-        let leaf_overflow = Field::new("leaf_overflow", writer.header_width, 1);
-        let count_overflow = Field::new("count_overflow", leaf_overflow.end(), 1);
-        let fetch_err = Field::new("fetch_err", count_overflow.end(), fetch_err::BITS);
-        let fetch_rank = Field::new("fetch_rank", fetch_err.end(), rank_bits(k));
+        let mut header = Layout::new("merger header");
+        for f in writer.header.fields() {
+            header.push(f.name, f.width);
+        }
+        let leaf_overflow = header.push("leaf_overflow", 1);
+        let count_overflow = header.push("count_overflow", 1);
+        let fetch_err = header.push("fetch_err", fetch_err::BITS);
+        let fetch_rank = header.push("fetch_rank", rank_bits(k));
         Ok(MergerLayout {
             k,
             top: TopLayout::new(p),
@@ -189,14 +197,14 @@ impl MergerLayout {
             count_overflow,
             fetch_err,
             fetch_rank,
-            header_width: fetch_rank.end(),
+            header,
             fetch,
             input_width,
             count,
             lo,
             hi,
             out_id,
-            cfg_width: out_id.end(),
+            cfg,
         })
     }
 
@@ -230,7 +238,7 @@ impl MergerCfg {
                 width: l.count.width,
             });
         }
-        let mut b = Bits::zero(l.cfg_width);
+        let mut b = l.cfg.zero();
         for (i, c) in self.inputs.iter().enumerate() {
             b.put(l.input_offset(i), &c.pack(&l.fetch)?)?;
         }
@@ -1059,7 +1067,7 @@ mod tests {
         let p = Params::default();
         let l = MergerLayout::new(&p, 4, 10).unwrap();
         assert_eq!(l.fetch_rank.width, 2);
-        assert_eq!(l.header_width, l.writer.header_width + 8);
+        assert_eq!(l.header.width(), l.writer.header.width() + 8);
         let (store, _, ids) = real_cases(&p).expect("the real cases build").remove(0);
         let cfg = MergerCfg {
             inputs: ids

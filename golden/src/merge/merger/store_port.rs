@@ -14,7 +14,7 @@
 use std::collections::HashMap;
 
 use crate::bits::Bits;
-use crate::layout::Field;
+use crate::layout::{Field, Layout};
 use crate::merge::fetcher::FetchLayout;
 use crate::params::Params;
 use crate::store::Hierarchy;
@@ -79,6 +79,10 @@ impl StoreArray {
 /// The store port's beats for grid parameters `p`.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct StorePortLayout {
+    /// A requester's request: `index`, `hier`, `slot` (`I + H + 1` bits).
+    pub addr: Layout,
+    /// A `store_req` beat: a request's fields, then `array` (`I + H + 2`).
+    pub req: Layout,
     /// `store_req` (and a requester's request): `index` (I bits) from bit 0.
     pub index: Field,
     /// `store_req` (and a requester's request): `hier` (H bits) above
@@ -93,11 +97,6 @@ pub struct StorePortLayout {
     pub slot: Field,
     /// `store_req`: `array` (1 bit, [`StoreArray::code`]) above `slot`.
     pub array: Field,
-    /// Width of a requester's request (`I + H + 1`: `slot`, `hier`,
-    /// `index`).
-    pub addr_width: u32,
-    /// Width of a `store_req` beat (`I + H + 2`).
-    pub req_width: u32,
     /// Width of a node record (a node read's answer).
     pub node_width: u32,
     /// Width of a reference (a reference read's answer).
@@ -112,32 +111,20 @@ impl StorePortLayout {
     /// 8.13).
     pub fn new(p: &Params) -> StorePortLayout {
         let fl = FetchLayout::new(p);
-        let i = fl.index_width;
-        let h = p.hier_bits as u32;
         let (node_width, ref_width) = (fl.node.width(), fl.reference.width());
+        let mut addr = Layout::new("store request address");
+        let index = addr.push("index", fl.index_width);
+        let hier = addr.push("hier", p.hier_bits as u32);
+        let slot = addr.push("slot", 1);
+        let mut req = addr.clone();
+        let array = req.push("array", 1);
         StorePortLayout {
-            index: Field {
-                name: "index",
-                offset: 0,
-                width: i,
-            },
-            hier: Field {
-                name: "hier",
-                offset: i,
-                width: h,
-            },
-            slot: Field {
-                name: "slot",
-                offset: i + h,
-                width: 1,
-            },
-            array: Field {
-                name: "array",
-                offset: i + h + 1,
-                width: 1,
-            },
-            addr_width: i + h + 1,
-            req_width: i + h + 2,
+            addr,
+            req,
+            index,
+            hier,
+            slot,
+            array,
             node_width,
             ref_width,
             resp_width: node_width.max(ref_width),
@@ -154,7 +141,7 @@ impl StorePortLayout {
 
     /// The `store_req` beat of a read `r`.
     pub fn pack_req(&self, r: StoreRead) -> Result<Bits, String> {
-        let mut b = Bits::zero(self.req_width);
+        let mut b = self.req.zero();
         b.set(&self.index, r.at.index).map_err(|e| e.to_string())?;
         b.set(&self.hier, r.at.hier).map_err(|e| e.to_string())?;
         b.set(&self.slot, r.slot).map_err(|e| e.to_string())?;
@@ -176,7 +163,7 @@ impl StorePortLayout {
         })
     }
 
-    /// A requester's request (`r{j}_req`, [`Self::addr_width`] bits) for
+    /// A requester's request (`r{j}_req`, [`Self::addr`]) for
     /// `at` in the merge of slot `slot`, as a number.
     pub fn addr_word(&self, slot: u64, at: StoreAddr) -> u64 {
         (slot << self.slot.offset) | (at.hier << self.hier.offset) | at.index

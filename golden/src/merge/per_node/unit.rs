@@ -20,7 +20,7 @@
 
 use crate::bits::Bits;
 use crate::grid::VoxelAddr;
-use crate::layout::{Field, LayoutError};
+use crate::layout::{Field, Layout, LayoutError};
 use crate::merge::error::MergeError;
 use crate::merge::fetcher::walk::{children, collect, place_node, walk_input, PlacedNode};
 use crate::merge::merge_level::unit::{level_transaction, BaseBeat, BeatLayout, LevelBeat};
@@ -40,17 +40,19 @@ pub const CHILD_COUNT_BITS: u32 = 4;
 /// (`cfg` is [`crate::merge::merge_module::TopLayout`]'s, `out` S614's output beat).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct PerNodeLayout {
-    /// An input beat: an S614 input beat ([`BeatLayout::input`]) then
-    /// `probe` (1): a child's record and reference, for counting only.
+    /// The S614 input beat ([`BeatLayout::input`]) an input beat starts with.
     pub beat: BeatLayout,
+    /// An input beat: the S614 beat's `rec`, `ref`, `kind`, then `probe`
+    /// (1): a child's record and reference, for counting only.
+    pub input: Layout,
     /// Input beat: `probe` (1 bit) after the S614 beat, set on a probe.
     pub probe: Field,
-    /// Width of an input beat in bits.
-    pub in_width: u32,
-    /// `report`, from bit 0: `x`, `y`, `z` (D each, the voxel of a
-    /// decision), `lod` (`lod_bits`), `shared`, `union`
-    /// ([`CHILD_COUNT_BITS`] each), `descend`, `pass_end`, `more` (1 each),
-    /// `err` (2, [`choice_err`]).
+    /// The `report` beat, from bit 0: `x`, `y`, `z` (D each, the voxel of
+    /// a decision), `lod` (`lod_bits`), `shared`, `union`
+    /// ([`CHILD_COUNT_BITS`] each), `descend`, `pass_end`, `more` (1
+    /// each), `err` (2, [`choice_err`]).
+    pub report: Layout,
+    /// `report`: `x`, `y`, `z` (D bits each).
     pub coord: [Field; 3],
     /// `report`: `lod` (`lod_bits`), the decision's voxel LOD or the ended pass's LOD.
     pub lod: Field,
@@ -66,47 +68,33 @@ pub struct PerNodeLayout {
     pub more: Field,
     /// `report`: `err` (2 bits), [`choice_err::BAD_RANGE`] on a refusal, else 0.
     pub err: Field,
-    /// Width of a `report` beat in bits.
-    pub report_width: u32,
-}
-
-fn after(name: &'static str, prev: &Field, width: u32) -> Field {
-    Field {
-        name,
-        offset: prev.end(),
-        width,
-    }
 }
 
 impl PerNodeLayout {
     /// The layouts for `p`.
     pub fn new(p: &Params) -> PerNodeLayout {
         let beat = BeatLayout::input(p);
-        let probe = Field {
-            name: "probe",
-            offset: beat.width,
-            width: 1,
-        };
+        let mut input = Layout::new("per-node input");
+        for f in beat.fields() {
+            input.push(f.name, f.width);
+        }
+        let probe = input.push("probe", 1);
         let d = p.coord_bits();
-        let x = Field {
-            name: "x",
-            offset: 0,
-            width: d,
-        };
-        let y = after("y", &x, d);
-        let z = after("z", &y, d);
-        let lod = after("lod", &z, p.lod_bits());
-        let shared = after("shared", &lod, CHILD_COUNT_BITS);
-        let union = after("union", &shared, CHILD_COUNT_BITS);
-        let descend = after("descend", &union, 1);
-        let pass_end = after("pass_end", &descend, 1);
-        let more = after("more", &pass_end, 1);
-        let err = after("err", &more, 2);
+        let mut report = Layout::new("per-node report");
+        let coord = ["x", "y", "z"].map(|n| report.push(n, d));
+        let lod = report.push("lod", p.lod_bits());
+        let shared = report.push("shared", CHILD_COUNT_BITS);
+        let union = report.push("union", CHILD_COUNT_BITS);
+        let descend = report.push("descend", 1);
+        let pass_end = report.push("pass_end", 1);
+        let more = report.push("more", 1);
+        let err = report.push("err", 2);
         PerNodeLayout {
-            in_width: probe.end(),
             beat,
+            input,
             probe,
-            coord: [x, y, z],
+            report,
+            coord,
             lod,
             shared,
             union,
@@ -114,7 +102,6 @@ impl PerNodeLayout {
             pass_end,
             more,
             err,
-            report_width: err.end(),
         }
     }
 }
@@ -134,13 +121,13 @@ pub enum PerNodeBeat {
 }
 
 impl PerNodeBeat {
-    /// The packed beat ([`PerNodeLayout::in_width`] bits).
+    /// The packed beat ([`PerNodeLayout::input`]).
     pub fn pack(&self, l: &PerNodeLayout) -> Result<Bits, LayoutError> {
         let (inner, probe) = match *self {
             PerNodeBeat::Probe { record, at } => (LevelBeat::Inner { record, at }, 1),
             PerNodeBeat::Level(b) => (b, 0),
         };
-        let mut b = Bits::from_words(inner.pack(&l.beat)?.words(), l.in_width)?;
+        let mut b = Bits::from_words(inner.pack(&l.beat)?.words(), l.input.width())?;
         b.set(&l.probe, probe)?;
         Ok(b)
     }
@@ -177,7 +164,7 @@ pub enum PerNodeReport {
 impl PerNodeReport {
     /// The packed beat.
     pub fn pack(&self, l: &PerNodeLayout) -> Result<Bits, LayoutError> {
-        let mut b = Bits::zero(l.report_width);
+        let mut b = l.report.zero();
         match *self {
             PerNodeReport::Decision {
                 voxel,
@@ -818,9 +805,9 @@ mod tests {
     fn layouts_hold_their_fields() {
         for (p, _) in configs() {
             let l = PerNodeLayout::new(&p);
-            assert_eq!(l.in_width, BeatLayout::input(&p).width + 1);
+            assert_eq!(l.input.width(), BeatLayout::input(&p).width() + 1);
             assert_eq!(
-                l.report_width,
+                l.report.width(),
                 3 * p.coord_bits() + p.lod_bits() + 2 * CHILD_COUNT_BITS + 5
             );
             let v = VoxelAddr::new(p.max_lod, 1, 2, 3);

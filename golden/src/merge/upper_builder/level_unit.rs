@@ -5,7 +5,7 @@ use std::collections::BTreeSet;
 
 use crate::bits::Bits;
 use crate::grid::VoxelAddr;
-use crate::layout::{Field, LayoutError, NodeLayout};
+use crate::layout::{Field, Layout, LayoutError, NodeLayout};
 use crate::merge::stimulus::{random_box, random_coord, random_index};
 use crate::params::Params;
 use crate::store::NodeRecord;
@@ -21,10 +21,14 @@ use crate::translate::stimulus::SplitMix64;
 pub struct UpperLayout {
     /// Layout of the node record (`rec`, and the part `child` carries).
     pub node: NodeLayout,
+    /// The input beat: `child`, `end`.
+    pub input: Layout,
     /// In beat: `child` (from bit 0), record bits `[1, first.offset)`: `lod` through `hi_z`.
     pub child: Field,
     /// In beat: `end` (1 bit), set on the `End` beat closing the level.
     pub in_end: Field,
+    /// The output beat: `rec`, `end`, `err`.
+    pub output: Layout,
     /// Out beat: `rec` (W bits, from bit 0), the parent's inner record.
     pub rec: Field,
     /// Out beat: `end` (1 bit), set on the `End` beat.
@@ -32,30 +36,28 @@ pub struct UpperLayout {
     /// Out beat: `err` (1 bit), the group's `first` or `count` reached `2^I`, or
     /// a child had `lo > hi`.
     pub err: Field,
-    /// Width of an input beat in bits.
-    pub in_width: u32,
-    /// Width of an output beat in bits.
-    pub out_width: u32,
 }
 
 impl UpperLayout {
     /// The layouts for `p`.
     pub fn new(p: &Params) -> UpperLayout {
         let node = NodeLayout::new(p);
-        let child = Field::new("child", 0, node.first().offset - 1);
-        let in_end = Field::new("end", child.end(), 1);
-        let rec = Field::new("rec", 0, node.width());
-        let end = Field::new("end", rec.end(), 1);
-        let err = Field::new("err", end.end(), 1);
+        let mut input = Layout::new("upper level input");
+        let child = input.push("child", node.first().offset - 1);
+        let in_end = input.push("end", 1);
+        let mut output = Layout::new("upper level output");
+        let rec = output.push("rec", node.width());
+        let end = output.push("end", 1);
+        let err = output.push("err", 1);
         UpperLayout {
+            node,
+            input,
             child,
             in_end,
+            output,
             rec,
             end,
             err,
-            in_width: in_end.end(),
-            out_width: err.end(),
-            node,
         }
     }
 
@@ -87,7 +89,11 @@ impl UpperBeat {
     /// Packed as an input beat (`child` bits of the record; `err` ignored)
     /// or an output beat.
     pub fn pack(&self, l: &UpperLayout, output: bool) -> Result<Bits, LayoutError> {
-        let mut b = Bits::zero(if output { l.out_width } else { l.in_width });
+        let mut b = Bits::zero(if output {
+            l.output.width()
+        } else {
+            l.input.width()
+        });
         match self {
             UpperBeat::Node { record, err } => {
                 let r = record.pack(&l.node)?;

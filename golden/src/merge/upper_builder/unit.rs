@@ -20,7 +20,7 @@
 use crate::bits::Bits;
 use crate::build::upper::LevelNode;
 use crate::grid::VoxelAddr;
-use crate::layout::{Field, LayoutError, NodeLayout, RefLayout};
+use crate::layout::{Field, Layout, LayoutError, NodeLayout, RefLayout};
 use crate::merge::error::MergeError;
 use crate::merge::fetcher::walk::{collect, walk_input, WalkedInput};
 use crate::merge::merge_level::unit::{BaseBeat, BeatLayout};
@@ -68,6 +68,8 @@ pub struct BuilderLayout {
     pub reference: RefLayout,
     /// The `base{d}` in beat.
     pub base: BeatLayout,
+    /// The `level{d}` out beat: `rec`, `ref`, `kind`, `index`, `records`, `err`.
+    pub level: Layout,
     /// `level{d}`: `rec` (W bits, from bit 0), the node's record; 0 on `End`.
     pub rec: Field,
     /// `level{d}`: `ref` (I + H bits), where a reused node is stored; else 0.
@@ -82,14 +84,12 @@ pub struct BuilderLayout {
     pub records: Field,
     /// `level{d}`: `err` (1 bit), an overflow or a child box with `lo > hi`.
     pub err: Field,
-    /// Width of a `level{d}` beat in bits.
-    pub level_width: u32,
+    /// The `done` out beat: `top`, `err`.
+    pub done: Layout,
     /// `done`: `top` (`lod_bits`, from bit 0), the LOD of the merged roots.
     pub top: Field,
     /// `done`: `err` (1 bit), no top.
     pub done_err: Field,
-    /// Width of the `done` beat in bits.
-    pub done_width: u32,
 }
 
 impl BuilderLayout {
@@ -98,26 +98,28 @@ impl BuilderLayout {
         let node = NodeLayout::new(p);
         let reference = RefLayout::new(p);
         let i = p.index_bits as u32;
-        let rec = Field::new("rec", 0, node.width());
-        let refer = Field::new("ref", rec.end(), reference.width());
-        let kind = Field::new("kind", refer.end(), 2);
-        let index = Field::new("index", kind.end(), i);
-        let records = Field::new("records", index.end(), i);
-        let err = Field::new("err", records.end(), 1);
-        let top = Field::new("top", 0, p.lod_bits());
-        let done_err = Field::new("err", top.end(), 1);
+        let mut level = Layout::new("upper builder level");
+        let rec = level.push("rec", node.width());
+        let refer = level.push("ref", reference.width());
+        let kind = level.push("kind", 2);
+        let index = level.push("index", i);
+        let records = level.push("records", i);
+        let err = level.push("err", 1);
+        let mut done = Layout::new("upper builder done");
+        let top = done.push("top", p.lod_bits());
+        let done_err = done.push("err", 1);
         BuilderLayout {
             base: BeatLayout::input(p),
+            level,
             rec,
             refer,
             kind,
             index,
             records,
             err,
-            level_width: err.end(),
+            done,
             top,
             done_err,
-            done_width: done_err.end(),
             node,
             reference,
         }
@@ -170,7 +172,7 @@ pub struct Done {
 impl LevelOut {
     /// The packed beat ([`BuilderLayout`]'s level layout).
     pub fn pack(&self, l: &BuilderLayout) -> Result<Bits, LayoutError> {
-        let mut b = Bits::zero(l.level_width);
+        let mut b = l.level.zero();
         match self {
             LevelOut::Node {
                 kind,
@@ -205,7 +207,7 @@ impl LevelOut {
 impl Done {
     /// The packed beat ([`BuilderLayout`]'s done layout).
     pub fn pack(&self, l: &BuilderLayout) -> Result<Bits, LayoutError> {
-        let mut b = Bits::zero(l.done_width);
+        let mut b = l.done.zero();
         b.set(&l.top, self.top as u64)?;
         b.set(&l.done_err, self.err as u64)?;
         Ok(b)

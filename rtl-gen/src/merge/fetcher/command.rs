@@ -4,7 +4,6 @@
 
 use golden::merge::fetcher::fetch_err;
 
-use super::super::fields::field;
 use super::parts::{Move, Next};
 use super::{ph, Ctx};
 use crate::{Signal, Stream};
@@ -59,8 +58,8 @@ pub(super) fn command<'m>(cx: &Ctx<'_, 'm>) -> Command<'m> {
     let is = |s: u64| phases.is(phase, s);
     let mut n_phase = Next::new(phase);
 
-    let cfg = Stream::input(m, "cfg", l.cfg_width);
-    let cmd = Stream::input(m, "cmd", l.cmd_width);
+    let cfg = Stream::input(m, "cfg", l.cfg.width());
+    let cmd = Stream::input(m, "cmd", l.cmd.width());
     let cfg_have = m.reg("cfg_have", 1);
     let idle = is(ph::IDLE).name("is_idle");
     cfg.ready.drive(idle & !cfg_have);
@@ -70,7 +69,7 @@ pub(super) fn command<'m>(cx: &Ctx<'_, 'm>) -> Command<'m> {
     let cfg_data = cfg.data;
     let keep = |name: &str, f: &golden::layout::Field| {
         let r = m.reg(name, f.width);
-        r.next_when(cfg_fire, field(cfg_data, f).expect("a cfg field"));
+        r.next_when(cfg_fire, cfg_data.view(f));
         r
     };
     let hier = keep("cfg_hier", &l.hier);
@@ -98,28 +97,23 @@ pub(super) fn command<'m>(cx: &Ctx<'_, 'm>) -> Command<'m> {
     let c_refs = m.reg("cmd_send_refs", 1);
     let c_leaves = m.reg("cmd_send_leaves", 1);
     let c_last = m.reg("cmd_last", 1);
-    c_lod.next_when(cmd_fire, field(cmd.data, &l.lod).expect("lod"));
-    c_refs.next_when(cmd_fire, field(cmd.data, &l.send_refs).expect("send_refs"));
-    c_leaves.next_when(
-        cmd_fire,
-        field(cmd.data, &l.send_leaves).expect("send_leaves"),
-    );
-    c_last.next_when(cmd_fire, field(cmd.data, &l.last).expect("last"));
+    c_lod.next_when(cmd_fire, cmd.data.view(&l.lod));
+    c_refs.next_when(cmd_fire, cmd.data.view(&l.send_refs));
+    c_leaves.next_when(cmd_fire, cmd.data.view(&l.send_leaves));
+    c_last.next_when(cmd_fire, cmd.data.view(&l.last));
     // The first level sent: `min(from, lod)` (`from >= lod`: one level).
     let c_first = m.reg("cmd_first", lb);
-    let cmd_from = field(cmd.data, &l.from).expect("from");
-    let cmd_lod = field(cmd.data, &l.lod).expect("lod");
+    let cmd_from = cmd.data.view(&l.from);
+    let cmd_lod = cmd.data.view(&l.lod);
     let first = cmd_from.gt(cmd_lod).mux(cmd_lod, cmd_from);
     // The per-node command's passes start at `lod` (`from` not read).
     let c_pn = l.pn.as_ref().map(|f| {
         let r = m.reg("cmd_per_node", 1);
-        r.next_when(cmd_fire, field(cmd.data, &f.per_node).expect("per_node"));
+        r.next_when(cmd_fire, cmd.data.view(&f.per_node));
         r
     });
     let first = match &l.pn {
-        Some(f) => field(cmd.data, &f.per_node)
-            .expect("per_node")
-            .mux(cmd_lod, first),
+        Some(f) => cmd.data.view(&f.per_node).mux(cmd_lod, first),
         None => first,
     };
     c_first.next_when(cmd_fire, first);

@@ -5,7 +5,6 @@
 use golden::merge::fetcher::fetch_err;
 use golden::merge::merge_level::unit::level_kind;
 
-use super::super::fields::field;
 use super::command::Command;
 use super::parts::out_beat;
 use super::visit::Head;
@@ -46,7 +45,7 @@ pub(super) fn order_stage<'m>(
     let cr_idx = m.reg("cref_idx", ib);
     let cr_end = m.reg("cref_end", ib + 1);
     let cr_parent = m.reg("cref_parent", ib);
-    let tok_w = ok::BITS + l.out_width;
+    let tok_w = ok::BITS + l.out.width();
     let tok_in = Stream::wires(m, "tokens_in", tok_w);
     let toks = tok_in.fifo("tokens", 4);
     let can = (walk & tok_in.ready & cref_req.ready).name("room");
@@ -133,7 +132,7 @@ pub(super) fn order_stage<'m>(
     pend_first.next_when(hold, o_first);
     pend_end.next_when(hold, o_end);
     pend_voxel.next_when(hold, o_voxel);
-    pend_node.next_when(hold, field(o_ref, rl.node()).expect("node"));
+    pend_node.next_when(hold, o_ref.view(rl.node()));
     let moves = Moves {
         a_cref,
         b_leaf,
@@ -173,17 +172,12 @@ fn decode_item<'m>(cx: &Ctx<'_, 'm>, items: Stream<'m>, oin_w: u32) -> Item<'m> 
     );
     let o_kind = items.data.slice(oin_w - 1, oin_w - ok::BITS);
     let o_is_node = o_kind.eq(lit(ok::NODE, ok::BITS));
-    let o_leaf = field(o_rec, nl.leaf()).expect("leaf");
-    let o_voxel = m.concat(&[
-        field(o_rec, nl.z()).expect("z"),
-        field(o_rec, nl.y()).expect("y"),
-        field(o_rec, nl.x()).expect("x"),
-    ]);
-    let o_first = field(o_rec, nl.first()).expect("first");
-    let o_end = o_first.zext(ib + 1).add(
-        field(o_rec, nl.count()).expect("count").zext(ib + 1),
-        ib + 1,
-    );
+    let o_leaf = o_rec.view(nl.leaf());
+    let o_voxel = m.concat(&[o_rec.view(nl.z()), o_rec.view(nl.y()), o_rec.view(nl.x())]);
+    let o_first = o_rec.view(nl.first());
+    let o_end = o_first
+        .zext(ib + 1)
+        .add(o_rec.view(nl.count()).zext(ib + 1), ib + 1);
     Item {
         rec: o_rec,
         refer: o_ref,
@@ -226,7 +220,7 @@ fn probe_run_next<'m>(
     let lit = |v: u64, w: u32| cx.lit(v, w);
     let start = c.start;
     let (o_rec, o_ref, o_first, o_end) = (item.rec, item.refer, item.first, item.end);
-    let o_count = field(o_rec, nl.count()).expect("count");
+    let o_count = o_rec.view(nl.count());
     let idx_next = pr.idx.add(1, ib);
     let last = idx_next.zext(ib + 1).eq(pr.end);
     pr.active.next(start.mux(
@@ -242,10 +236,8 @@ fn probe_run_next<'m>(
             .mux(o_first.add(1, ib), pr.next.mux(idx_next, pr.idx)),
     );
     pr.end.next_when(pr.begin, o_end);
-    pr.parent
-        .next_when(pr.begin, field(o_ref, rl.node()).expect("node"));
-    pr.lod
-        .next_when(pr.begin, field(o_rec, nl.lod()).expect("lod"));
+    pr.parent.next_when(pr.begin, o_ref.view(rl.node()));
+    pr.lod.next_when(pr.begin, o_rec.view(nl.lod()));
 }
 
 /// Which of the ordering stage's moves happen this clock: the next `cref`
@@ -301,7 +293,7 @@ fn drive_tokens<'m>(
     let end_out = out_beat(m, l, None, None, lit(level_kind::END, bl.kind.width), None);
     let cref_tok = m.concat(&[
         lit(ok::TOK_CREF, ok::BITS),
-        m.lit(0, l.out_width - ib),
+        m.lit(0, l.out.width() - ib),
         cref_parent,
     ]);
     let item_tok = m.first_of(
@@ -327,11 +319,10 @@ fn drive_tokens<'m>(
             // LOD above it.
             let probe_tok = m.concat(&[
                 lit(ok::TOK_CREF, ok::BITS),
-                m.lit(0, l.out_width - ib - 1 - lb),
-                pr.begin.mux(field(o_rec, nl.lod()).expect("lod"), pr.lod),
+                m.lit(0, l.out.width() - ib - 1 - lb),
+                pr.begin.mux(o_rec.view(nl.lod()), pr.lod),
                 lit(1, 1),
-                pr.begin
-                    .mux(field(o_ref, rl.node()).expect("node"), pr.parent),
+                pr.begin.mux(o_ref.view(rl.node()), pr.parent),
             ]);
             tok_in
                 .valid

@@ -7,7 +7,7 @@ use golden::merge::fetcher::{fetch_err, FetchLayout};
 use golden::merge::merge_level::unit::level_kind;
 use golden::params::Params;
 
-use super::super::fields::{field, with_fields};
+use super::super::fields::with_fields;
 use super::command::{goto, Command};
 use super::parts::{check_and_move, out_beat, reference, reference_code, Move, Next};
 use super::{ok, ph, Ctx};
@@ -29,17 +29,16 @@ pub(super) fn level_out_stage<'m>(
     let lit = |v: u64, w: u32| cx.lit(v, w);
     let (walk, start, hier, nodes) = (c.walk, c.start, c.hier, c.nodes);
     let t_kind = toks.data.slice(tok_w - 1, tok_w - ok::BITS);
-    let t_beat = toks.data.slice(l.out_width - 1, 0);
+    let t_beat = toks.data.slice(l.out.width() - 1, 0);
     let t_parent = toks.data.slice(ib - 1, 0);
     let t_cref = t_kind.eq(lit(ok::TOK_CREF, ok::BITS)).name("token_cref");
-    let cr_node = field(cref_resp.data, rl.node()).expect("node");
-    let cr_hier = field(cref_resp.data, rl.hier()).expect("hier");
+    let cr_node = cref_resp.data.view(rl.node());
+    let cr_hier = cref_resp.data.view(rl.hier());
     let cref_code = reference_code(m, cr_node, cr_hier, hier, nodes).name("cref_code");
     let answered = (!t_cref | cref_resp.valid).name("token_answered");
     let o_skip = m.reg("skip_end", 1);
     let t_end = (t_kind.eq(lit(ok::TOK_FINAL, ok::BITS))
-        | t_kind.eq(lit(ok::TOK_BEAT, ok::BITS))
-            & field(t_beat, &bl.kind).expect("kind").eq(level_kind::END))
+        | t_kind.eq(lit(ok::TOK_BEAT, ok::BITS)) & t_beat.view(&bl.kind).eq(level_kind::END))
     .name("token_end");
     let t_send = (!o_errored | t_end & !o_skip).name("token_sent");
     let t_fire = (walk & toks.valid & answered & (!t_send | out.ready)).name("token_fire");
@@ -145,8 +144,8 @@ pub(super) fn per_node_out_stages<'m>(
     let t_cref = t_kind.eq(kind(ok::TOK_CREF)).name("token_cref");
     let t_probe = (t_cref & toks.data.bit(ib)).name("token_probe");
     let t_plod = toks.data.slice(ib + lb, ib + 1);
-    let cr_node = field(cref_resp.data, rl.node()).expect("node");
-    let cr_hier = field(cref_resp.data, rl.hier()).expect("hier");
+    let cr_node = cref_resp.data.view(rl.node());
+    let cr_hier = cref_resp.data.view(rl.hier());
     let cref_code = reference_code(m, cr_node, cr_hier, hier, nodes).name("cref_code");
     let cref_ok = cref_code.eq(0);
     let probe_req = Stream::wires(m, "probe_req_core", ib);
@@ -167,7 +166,7 @@ pub(super) fn per_node_out_stages<'m>(
     let want = t_plod.zext(lb + 1).add(1, lb + 1);
     let wait_tok = m.concat(&[
         kind(ok::TOK_CREF),
-        m.lit(0, l.out_width - ib - lb - 1),
+        m.lit(0, l.out.width() - ib - lb - 1),
         want,
         cr_node,
     ]);
@@ -199,7 +198,7 @@ pub(super) fn per_node_out_stages<'m>(
     // ---- send stage: after the error beat only the later passes' `End`s,
     // the first of them dropped (the error stands for it)
     let k2 = toks2.data.slice(tok_w - 1, tok_w - ok::BITS);
-    let b2 = toks2.data.slice(l.out_width - 1, 0);
+    let b2 = toks2.data.slice(l.out.width() - 1, 0);
     let t_wait = k2.eq(kind(ok::TOK_CREF)).name("token_probe_wait");
     let p_idx = toks2.data.slice(ib - 1, 0);
     let p_want = toks2.data.slice(ib + lb, ib);
@@ -211,7 +210,7 @@ pub(super) fn per_node_out_stages<'m>(
     let p_ref = reference(m, hier, p_idx);
     let probe_beat = with_fields(
         m,
-        m.lit(0, l.out_width),
+        m.lit(0, l.out.width()),
         &[
             (bl.kind, lit(level_kind::INNER, bl.kind.width)),
             (bl.rec, got.moved),
@@ -230,7 +229,7 @@ pub(super) fn per_node_out_stages<'m>(
     let answered2 = (!t_wait | probe_resp.valid).name("probe_answered");
     let o_skip = m.reg("skip_end", 1);
     let t_end = (k2.eq(kind(ok::TOK_FINAL))
-        | k2.eq(kind(ok::TOK_BEAT)) & field(b2, &bl.kind).expect("kind").eq(level_kind::END))
+        | k2.eq(kind(ok::TOK_BEAT)) & b2.view(&bl.kind).eq(level_kind::END))
     .name("token_end");
     let t_send = (!o_errored | t_end & !o_skip).name("token_sent");
     let t_fire = (walk & toks2.valid & answered2 & (!t_send | out.ready)).name("send_fire");

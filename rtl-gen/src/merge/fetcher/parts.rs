@@ -61,7 +61,7 @@ pub(super) fn check_and_move<'m>(
     let nl = &l.node;
     let lb = p.lod_bits();
     let dmax = p.max_lod as u32;
-    let lod = field(rec, nl.lod()).expect("lod");
+    let lod = rec.view(nl.lod());
     let coords = coords(rec, nl);
     let mut bad = coords
         .iter()
@@ -76,7 +76,7 @@ pub(super) fn check_and_move<'m>(
             bad = bad | lo.gt(hi);
         }
     }
-    bad = bad | field(rec, nl.count()).expect("count").eq(0);
+    bad = bad | rec.view(nl.count()).eq(0);
     let above = lod.lt(mv.lod);
     let shift = lod.sub(mv.lod, lb);
     let sum_bits = 2 * dmax + 2;
@@ -157,5 +157,5 @@ pub(super) fn out_beat<'m>(
     if let Some(e) = err {
         f.push((l.err, e));
     }
-    with_fields(m, m.lit(0, l.out_width), &f)
+    with_fields(m, m.lit(0, l.out.width()), &f)
 }

@@ -19,7 +19,7 @@
 use golden::merge::merge_level::unit::{level_kind, BeatLayout};
 use golden::params::{bits_to_hold, Params};
 
-use crate::merge::fields::{field, with_fields};
+use crate::merge::fields::with_fields;
 use crate::{Module, Signal, Stream};
 
 /// Module name of the root sorter.
@@ -30,16 +30,14 @@ pub fn root_sorter_name(p: &Params, capacity: usize) -> String {
 /// The sort key of a beat: the Morton code of its voxel (bit `i` of x, y, z
 /// at `3i`, `3i + 1`, `3i + 2`), then the leaf bit (inner first).
 fn sort_key<'m>(m: &'m Module, beat: Signal<'m>, l: &BeatLayout) -> Signal<'m> {
-    let rec = field(beat, &l.rec).expect("record bits");
+    let rec = beat.view(&l.rec);
     let nl = &l.node;
-    let c: Vec<Signal> = (0..3)
-        .map(|a| field(rec, nl.coord(a)).expect("coordinate"))
-        .collect();
+    let c: Vec<Signal> = (0..3).map(|a| rec.view(nl.coord(a))).collect();
     let mut high_first = Vec::new();
     for i in (0..nl.x().width).rev() {
         high_first.extend([c[2].bit(i), c[1].bit(i), c[0].bit(i)]);
     }
-    high_first.push(field(rec, nl.leaf()).expect("leaf bit"));
+    high_first.push(rec.view(nl.leaf()));
     m.concat(&high_first)
 }
 
@@ -84,7 +82,7 @@ fn output_beat<'m>(
     let root = m.concat(&[m.lit(0, 1), beat]);
     let end = with_fields(
         m,
-        m.lit(0, lo.width),
+        m.lit(0, lo.width()),
         &[
             (lo.kind, m.lit(level_kind::END as u128, lo.kind.width)),
             (err, overflow),
@@ -103,13 +101,13 @@ pub fn root_sorter_unit(p: &Params, capacity: usize) -> Module {
     // Room for a full set and its `End`: the least that cannot deadlock,
     // and enough for one beat per clock (SPEC.md 8.9).
     let depth = n + 1;
-    let input = Stream::input(&m, "in", li.width).skid_buffer("in_skid");
+    let input = Stream::input(&m, "in", li.width()).skid_buffer("in_skid");
     let out_ready = m.wire("core_out_ready", 1);
-    let kind = field(input.data, &li.kind).expect("kind").name("in_kind");
+    let kind = input.data.view(&li.kind).name("in_kind");
     let is_end = kind.eq(level_kind::END).name("in_is_end");
     let new_key = sort_key(&m, input.data, &li).name("new_key");
 
-    let q: Vec<Entry> = (0..depth).map(|i| Entry::reg(&m, i, lo.width)).collect();
+    let q: Vec<Entry> = (0..depth).map(|i| Entry::reg(&m, i, lo.width())).collect();
     // Roots of the arriving set taken so far (at most `n`), and whether one
     // beyond `n` was dropped.
     let count_bits = bits_to_hold(n as u64);
@@ -150,7 +148,7 @@ pub fn root_sorter_unit(p: &Params, capacity: usize) -> Module {
     let inserted: Vec<Entry> = (0..=depth)
         .map(|i| {
             let here = q.get(i).copied().unwrap_or(Entry {
-                beat: m.lit(0, lo.width),
+                beat: m.lit(0, lo.width()),
                 valid: m.lit(0, 1),
                 open: m.lit(0, 1),
             });

@@ -4,9 +4,10 @@
 //! sent on `leaves`, and the level's nodes passed to the out stage; and,
 //! per-node, the join of a pass's inner nodes with the module's decisions.
 
+use golden::layout::Layout;
 use golden::merge::fetcher::fetch_err;
 
-use super::super::fields::{coords, field, with_fields, Word};
+use super::super::fields::{coords, pack, with_fields};
 use super::super::network::morton_code;
 use super::command::{goto, Command, FirstErr};
 use super::parts::reference;
@@ -27,7 +28,7 @@ pub(super) struct Head<'m> {
     pub(super) sending: Signal<'m>,
     pub(super) pn_pass: Option<Signal<'m>>,
     pub(super) pn_visited: Option<Signal<'m>>,
-    pub(super) pass_word: Word,
+    pub(super) pass_word: Layout,
     pub(super) pass_in: Option<Stream<'m>>,
     pub(super) lend_sent: Signal<'m>,
     pub(super) lend_due: Signal<'m>,
@@ -91,12 +92,15 @@ pub(super) fn visit_head<'m>(
     // Per-node: an inner node of this pass, at Morton `key` (without the
     // walk's leading bit), with its child range; joined with the module's
     // decisions in key order.
-    let pass_word = Word::new(&[
-        ("key", w.key_bits - 1),
-        ("first", ib),
-        ("count", ib),
-        ("node", ib),
-    ]);
+    let pass_word = Layout::packed(
+        "pass entry",
+        &[
+            ("key", w.key_bits - 1),
+            ("first", ib),
+            ("count", ib),
+            ("node", ib),
+        ],
+    );
     let pass_in = c
         .per_node
         .map(|_| Stream::wires(m, "pass_in", pass_word.width()));
@@ -170,11 +174,11 @@ pub(super) fn visit_head<'m>(
         ],
         c2_code,
     );
-    let c2_ref_node = field(c2_ref, rl.node()).expect("node");
+    let c2_ref_node = c2_ref.view(rl.node());
     let in_err_node = top_err.mux(e.node, top_cap.mux(lit(0, ib), c2_ref_node));
     let rec = v_top.mux(r.s_rec, r.got.moved).name("item_rec");
     let rec_ref = v_top.mux(r.s_ref, c2_ref).name("item_ref");
-    let rec_idx = field(rec_ref, rl.node()).expect("node");
+    let rec_idx = rec_ref.view(rl.node());
     Head {
         oin,
         items,
@@ -244,13 +248,13 @@ pub(super) fn visit_checks<'m>(
     let code4 = |v: u64| cx.code4(v);
     let (start, v_d, go, rec) = (c.start, w.level, h.go, h.rec);
     let (fcap, cb, key_bits) = (w.fcap, w.cb, w.key_bits);
-    let leaf = field(rec, nl.leaf()).expect("leaf").name("item_leaf");
+    let leaf = rec.view(nl.leaf()).name("item_leaf");
     let inner = !leaf;
     let key = m
         .concat(&[morton_code(m, coords(rec, nl)), leaf])
         .name("item_key");
-    let n_first = field(rec, nl.first()).expect("first");
-    let n_count = field(rec, nl.count()).expect("count");
+    let n_first = rec.view(nl.first());
+    let n_count = rec.view(nl.count());
     let n_end = n_first
         .zext(ib + 1)
         .add(n_count.zext(ib + 1), ib + 1)
@@ -306,10 +310,11 @@ pub(super) fn visit_checks<'m>(
         let e_push = (passes & q & inner).name("pass_push");
         pass_in.valid.drive(e_push);
         let morton_part = key.slice(key_bits - 1, 1);
-        pass_in.data.drive(
-            h.pass_word
-                .pack(m, &[morton_part, n_first, n_count, h.rec_idx]),
-        );
+        pass_in.data.drive(pack(
+            m,
+            &h.pass_word,
+            &[morton_part, n_first, n_count, h.rec_idx],
+        ));
         let depth = (fcap.max(2)).next_power_of_two() as u32;
         (e_push, pass_in.fifo("pass", depth))
     });
@@ -405,26 +410,28 @@ pub(super) fn frontier_push<'m>(
         (Some(entries), Some(pf)) => (entries, pf),
         _ => {
             front_in.valid.drive(v.push | v.marker);
-            front_in
-                .data
-                .drive(f.word.pack(m, &[v.n_first, v.n_count, h.rec_idx, v.marker]));
+            front_in.data.drive(pack(
+                m,
+                &f.word,
+                &[v.n_first, v.n_count, h.rec_idx, v.marker],
+            ));
             return None;
         }
     };
     let dmax = cx.p.max_lod as u64;
-    let report = Stream::input(m, "report", pf.report_width);
+    let report = Stream::input(m, "report", pf.report.width());
     let visited = h.pn_visited.expect("per-node");
     let end_left = m.reg("end_left", 1);
-    let r = |f: &golden::layout::Field| field(report.data, f).expect("report field");
+    let r = |f: &golden::layout::Field| report.data.view(f);
     let r_key = morton_code(m, [0, 1, 2].map(|a| r(&pf.report_coord[a]))).name("report_key");
     let r_pe = r(&pf.report_pass_end);
     let r_more = r(&pf.report_more);
     // A voxel at D has no child voxels: never followed.
     let r_desc = r(&pf.report_descend) & r(&pf.report_lod).lt(lit(dmax, lb));
-    let e_key = h.pass_word.get(entries.data, "key");
-    let e_first = h.pass_word.get(entries.data, "first");
-    let e_count = h.pass_word.get(entries.data, "count");
-    let e_node = h.pass_word.get(entries.data, "node");
+    let e_key = entries.data.view_named(&h.pass_word, "key");
+    let e_first = entries.data.view_named(&h.pass_word, "first");
+    let e_count = entries.data.view_named(&h.pass_word, "count");
+    let e_node = entries.data.view_named(&h.pass_word, "node");
     let jv = (c.walk & c.per_node.expect("per-node") & report.valid).name("valid");
     let dec = (jv & !r_pe).name("decision");
     let e_lt = (entries.valid & e_key.lt(r_key)).name("entry_before");
@@ -447,8 +454,8 @@ pub(super) fn frontier_push<'m>(
     report.ready.drive(matched | passed | pe_take);
     front_in.valid.drive(v.push | v.marker | j_push | j_marker);
     front_in.data.drive((j_push | j_marker).mux(
-        f.word.pack(m, &[e_first, e_count, e_node, j_marker]),
-        f.word.pack(m, &[v.n_first, v.n_count, h.rec_idx, v.marker]),
+        pack(m, &f.word, &[e_first, e_count, e_node, j_marker]),
+        pack(m, &f.word, &[v.n_first, v.n_count, h.rec_idx, v.marker]),
     ));
     let pn_end = v.pn_end.expect("per-node");
     visited.next(c.start.mux(
@@ -478,14 +485,14 @@ pub(super) fn visit_out<'m>(
     let (rec, rec_ref, above_first) = (h.rec, h.rec_ref, h.above_first);
     let leaf_beat = with_fields(
         m,
-        m.lit(0, l.leaves_width),
+        m.lit(0, l.leaves.width()),
         &[
             (l.leaf_rec, rec),
             (l.leaf_ref, rec_ref),
-            (l.leaf_lod, field(rec, l.node.lod()).expect("lod")),
+            (l.leaf_lod, rec.view(l.node.lod())),
         ],
     );
-    let leaf_end_beat = with_fields(m, m.lit(0, l.leaves_width), &[(l.leaf_end, lit(1, 1))]);
+    let leaf_end_beat = with_fields(m, m.lit(0, l.leaves.width()), &[(l.leaf_end, lit(1, 1))]);
     // The end beat: the walk over above the first level, or it reached.
     // (Per-node: the walk may run out above the first pass once per pass.)
     let lend_out = match c.per_node {

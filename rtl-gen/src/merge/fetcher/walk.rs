@@ -2,11 +2,12 @@
 //! sorter, the frontier of ranges, the range stage (one `ref` read a clock)
 //! and the reference stage (each answer checked, its `node` read issued).
 
+use golden::layout::Layout;
 use golden::merge::fetcher::fetch_err;
 use golden::merge::merge_level::unit::{level_kind, BeatLayout};
 use golden::params::bits_to_hold;
 
-use super::super::fields::{field, with_fields, Word};
+use super::super::fields::with_fields;
 use super::command::{goto, Command, FirstErr};
 use super::parts::{check_and_move, reference, reference_code, Checked};
 use super::root_sorter::root_sorter_unit;
@@ -91,15 +92,13 @@ pub(super) fn roots_stage<'m>(
     let s_in_ready = sorter.output("in_ready");
     let s_out_valid = sorter.output("out_valid");
     let s_out_data = sorter.output("out_data");
-    let s_rec = field(s_out_data, &sorted.rec)
-        .expect("rec")
-        .name("sorted_rec");
-    let s_ref = field(s_out_data, &sorted.refer).expect("ref");
-    let s_end = field(s_out_data, &sorted.kind)
-        .expect("kind")
+    let s_rec = s_out_data.view(&sorted.rec).name("sorted_rec");
+    let s_ref = s_out_data.view(&sorted.refer);
+    let s_end = s_out_data
+        .view(&sorted.kind)
         .eq(level_kind::END)
         .name("sorted_end");
-    let s_err = field(s_out_data, &sorted.err.expect("output beats have err")).expect("err");
+    let s_err = s_out_data.view(&sorted.err.expect("output beats have err"));
     let issued = m.reg("roots_issued", ib);
     let taken = m.reg("roots_taken", ib);
     issued.next(start.mux(
@@ -121,13 +120,13 @@ pub(super) fn roots_stage<'m>(
     e.n_node.when(root_fail & !e.valid, taken);
     let root_beat = with_fields(
         m,
-        m.lit(0, bl.width),
+        m.lit(0, bl.width()),
         &[
             (bl.rec, got.moved),
             (bl.refer, reference(m, c.hier, taken)),
             (
                 bl.kind,
-                field(node_resp.data, nl.leaf()).expect("leaf").mux(
+                node_resp.data.view(nl.leaf()).mux(
                     cx.lit(level_kind::LEAF, bl.kind.width),
                     cx.lit(level_kind::INNER, bl.kind.width),
                 ),
@@ -136,7 +135,7 @@ pub(super) fn roots_stage<'m>(
     );
     let end_beat = with_fields(
         m,
-        m.lit(0, bl.width),
+        m.lit(0, bl.width()),
         &[(bl.kind, cx.lit(level_kind::END, bl.kind.width))],
     );
     sorter.connect(
@@ -163,7 +162,7 @@ pub(super) fn roots_stage<'m>(
 
 /// The frontier: ranges (first, count, parent) and level markers.
 pub(super) struct Frontier<'m> {
-    pub(super) word: Word,
+    pub(super) word: Layout,
     /// Its input, driven by the visit stage (and the per-node join).
     pub(super) push: Stream<'m>,
     pub(super) head: Stream<'m>,
@@ -174,7 +173,10 @@ pub(super) fn frontier<'m>(cx: &Ctx<'_, 'm>, w: &WalkState<'m>) -> Frontier<'m> 
     let f_words = (2 * w.fcap + 1).max(2).next_power_of_two() as u32;
     // A range of `count` references from `first`, read by inner node
     // `parent`, or (`marker`) a level's end.
-    let word = Word::new(&[("first", ib), ("count", ib), ("parent", ib), ("marker", 1)]);
+    let word = Layout::packed(
+        "frontier entry",
+        &[("first", ib), ("count", ib), ("parent", ib), ("marker", 1)],
+    );
     let push = Stream::wires(cx.m, "frontier_in", word.width());
     let head = push.fifo("frontier", f_words);
     Frontier { word, push, head }
@@ -192,10 +194,10 @@ pub(super) fn range_stage<'m>(
     let (m, ib) = (cx.m, cx.ib);
     let _scope = m.scope("range");
     let (walk, start, front) = (c.walk, c.start, f.head);
-    let fo_marker = f.word.get(front.data, "marker");
-    let fo_first = f.word.get(front.data, "first");
-    let fo_count = f.word.get(front.data, "count");
-    let fo_parent = f.word.get(front.data, "parent");
+    let fo_marker = front.data.view_named(&f.word, "marker");
+    let fo_first = front.data.view_named(&f.word, "first");
+    let fo_count = front.data.view_named(&f.word, "count");
+    let fo_parent = front.data.view_named(&f.word, "parent");
     let cur_valid = m.reg("valid", 1);
     let cur_idx = m.reg("idx", ib);
     let cur_end = m.reg("end", ib + 1);
@@ -252,12 +254,8 @@ pub(super) fn reference_stage<'m>(
     let ctx2_w = nk::BITS + fetch_err::BITS + rl.width();
     let ctx2_in = Stream::wires(m, "node_ctx_in", ctx2_w);
     let ctx2 = ctx2_in.fifo("node_ctx", IN_FLIGHT);
-    let r_node = field(ref_resp.data, rl.node())
-        .expect("node")
-        .name("resp_node");
-    let r_hier = field(ref_resp.data, rl.hier())
-        .expect("hier")
-        .name("resp_hier");
+    let r_node = ref_resp.data.view(rl.node()).name("resp_node");
+    let r_hier = ref_resp.data.view(rl.hier()).name("resp_hier");
     let ref_code = reference_code(m, r_node, r_hier, hier, c.nodes).name("code");
     let rr_wait = (walk & ctx1.valid & !c1_end & ctx2_in.ready & node_req.ready).name("wait");
     ref_resp.ready.drive(rr_wait);

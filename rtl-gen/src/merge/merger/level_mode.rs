@@ -187,14 +187,18 @@ fn inputs<'m>(
     let ferr_rank = m.reg("fetch_rank", rb);
     let mut ferr_next = s.flag_clear.mux(lit(0, fl.err.width), ferr);
     let mut ferr_rank_next = s.flag_clear.mux(lit(0, rb), ferr_rank);
-    let end_beat = with_fields(m, lit(0, inb.width), &[(inb.kind, lit(level_kind::END, 2))]);
+    let end_beat = with_fields(
+        m,
+        lit(0, inb.width()),
+        &[(inb.kind, lit(level_kind::END, 2))],
+    );
     let mut leaves_in = Vec::new();
     let mut sent = one;
     for (i, f) in fetchers.iter().enumerate() {
         let fcfg_pend = m.reg(&format!("fetch{i}_cfg_pending"), 1);
         f.connect("cfg_valid", fcfg_pend);
         let off = ml.input_offset(i);
-        f.connect("cfg_data", cfg_q.slice(off + fl.cfg_width - 1, off));
+        f.connect("cfg_data", cfg_q.slice(off + fl.cfg.width() - 1, off));
         let fcfg_fire = fcfg_pend & f.output("cfg_ready");
         fcfg_pend.next(cfg_fire.mux(used_in[i], fcfg_fire.mux(zero, fcfg_pend)));
 
@@ -209,7 +213,7 @@ fn inputs<'m>(
         let lod = count_ph.mux(hi, merging.mux(level, lo));
         let cmd_data = with_fields(
             m,
-            lit(0, fl.cmd_width),
+            lit(0, fl.cmd.width()),
             &[
                 (fl.lod, lod),
                 (fl.send_refs, final_ph & merging),
@@ -233,7 +237,7 @@ fn inputs<'m>(
         let fo_valid = f.output("out_valid");
         let fo_data = f.output("out_data");
         let fo_err = get(fo_data, &fl.err);
-        let fo_beat = fo_data.slice(fl.beat.width - 1, 0);
+        let fo_beat = fo_data.slice(fl.beat.width() - 1, 0);
         let fo_end = get(fo_beat, &inb.kind).eq(level_kind::END);
         let virt = (!used[i] & (count_ph | (final_ph & merging))).name(&format!("virtual_end{i}"));
         let drop = dropping[i];
@@ -322,7 +326,11 @@ fn route_out<'m>(
     // A FIFO word: the leaves beat's `rec` and `ref` (from bit 0).
     let word_w = fl.leaf_ref.end().max(fl.leaf_rec.end());
     let word = best_data.slice(word_w - 1, 0);
-    let end_beat = with_fields(m, lit(0, inb.width), &[(inb.kind, lit(level_kind::END, 2))]);
+    let end_beat = with_fields(
+        m,
+        lit(0, inb.width()),
+        &[(inb.kind, lit(level_kind::END, 2))],
+    );
     let mo_valid = module.output("out_valid");
     let mo_data = module.output("out_data");
     let mo_kind = get(mo_data, &outb.kind);
@@ -332,7 +340,7 @@ fn route_out<'m>(
     let mo_refer = get(mo_data, &outb.refer);
     let mo_beat = with_fields(
         m,
-        lit(0, inb.width),
+        lit(0, inb.width()),
         &[
             (inb.rec, get(mo_data, &outb.rec)),
             (inb.refer, mo_refer),
@@ -347,7 +355,7 @@ fn route_out<'m>(
     let cref_is_end = !ok | mo_end;
     let cref_data = with_fields(
         m,
-        lit(0, wl.cref_width),
+        lit(0, wl.crefs.width()),
         &[
             (
                 wl.cref,
@@ -385,7 +393,7 @@ fn route_out<'m>(
             let above = (merging & dl.lt(level)).name(&format!("base{d}_above_m"));
             let leaf_beat = with_fields(
                 m,
-                lit(0, inb.width),
+                lit(0, inb.width()),
                 &[
                     (inb.rec, get(head, &fl.leaf_rec)),
                     (inb.refer, get(head, &fl.leaf_ref)),

@@ -19,7 +19,7 @@ use golden::merge::merger::{MergerLayout, MergerSizes};
 use golden::merge::MergeMode;
 use golden::params::Params;
 
-use super::fields::{field, with_fields};
+use super::fields::with_fields;
 use super::{merge_module_name, merge_module_unit, upper_builder_unit, MergeConfig};
 use crate::{Direction, Module, Signal, Stream};
 
@@ -139,7 +139,7 @@ mod phase {
 
 /// Field `f` of `s`.
 fn get<'m>(s: Signal<'m>, f: &golden::layout::Field) -> Signal<'m> {
-    field(s, f).expect("a non-empty field")
+    s.view(f)
 }
 
 /// The merging module's range check (8.10, 8.14): `lo <= hi` and `hi <= D`
@@ -261,7 +261,7 @@ fn shell<'m>(
     let commands_sent = m.wire("commands_sent", 1);
     let module_cfg_pending = m.reg("module_cfg_pending", 1);
     let writer_cfg_pending = m.reg("writer_cfg_pending", 1);
-    let cfg = Stream::input(m, "cfg", ml.cfg_width);
+    let cfg = Stream::input(m, "cfg", ml.cfg.width());
     let cfg_fire = cfg.fire().name("cfg_fire");
     let (busy, queued, front_free) = if overlap {
         // One merge taken (`busy`) or two (`queued` too). `queued` rises
@@ -302,7 +302,7 @@ fn shell<'m>(
     }
     let quiet = quiet.name("quiet");
     cfg.ready.drive(quiet);
-    let cfg_q = m.reg("cfg_q", ml.cfg_width);
+    let cfg_q = m.reg("cfg_q", ml.cfg.width());
     cfg_q.next_when(cfg_fire, cfg.data);
     let slots = shared_store(c).then(|| {
         // The slot of the next merge taken: merges are numbered from 0 at
@@ -366,7 +366,7 @@ fn cfg_beats<'m>(m: &'m Module, p: &Params, ml: &MergerLayout, s: &Shell<'m>) {
     module.connect("cfg_valid", mcfg_pend);
     module.connect(
         "cfg_data",
-        with_fields(m, lit(0, tl.cfg_width), &[(tl.lo, lo), (tl.hi, hi)]),
+        with_fields(m, lit(0, tl.cfg.width()), &[(tl.lo, lo), (tl.hi, hi)]),
     );
     let mcfg_fire = mcfg_pend & module.output("cfg_ready");
     mcfg_pend.next(cfg_fire.mux(one, mcfg_fire.mux(zero, mcfg_pend)));
@@ -374,7 +374,7 @@ fn cfg_beats<'m>(m: &'m Module, p: &Params, ml: &MergerLayout, s: &Shell<'m>) {
     writer.connect("cfg_valid", wcfg_pend);
     writer.connect(
         "cfg_data",
-        with_fields(m, lit(0, wl.cfg_width), &[(wl.cfg_out_id, out_id)]),
+        with_fields(m, lit(0, wl.cfg.width()), &[(wl.cfg_out_id, out_id)]),
     );
     let wcfg_fire = wcfg_pend & writer.output("cfg_ready");
     wcfg_pend.next(cfg_fire.mux(one, wcfg_fire.mux(zero, wcfg_pend)));
@@ -434,15 +434,15 @@ fn field_of(b: &BeatLayout) -> golden::layout::Field {
     golden::layout::Field {
         name: "beat",
         offset: 0,
-        width: b.width,
+        width: b.width(),
     }
 }
 
 /// The hierarchy merger for `c`; an error when `c.validate()` refuses it.
 ///
-/// Ports: `clk`, `rst`; streams `cfg` (in, [`MergerLayout::cfg_width`]),
+/// Ports: `clk`, `rst`; streams `cfg` (in, [`MergerLayout::cfg`]),
 /// `report` (out, the merging module's), `nodes`, `refs` (out, the
-/// writer's), `header` (out, [`MergerLayout::header_width`]); every store
+/// writer's), `header` (out, [`MergerLayout::header`]); every store
 /// port stream (`*_req` out, `*_resp` in) of fetcher `i` as `f{i}_<name>`
 /// (`f{i}_node_req`, `f{i}_ref_req`, ...) and of the writer as `w_<name>`,
 /// not arbitrated (`StorePort::PerUnit`), or, with `StorePort::Shared`,

@@ -13,7 +13,7 @@ use super::{
     cfg_beats, field_of, get, hierarchy_merger_name, pass_stream, range_good, shared_store, shell,
     store_streams, MergerConfig, Shell,
 };
-use crate::merge::fields::{field, with_fields};
+use crate::merge::fields::with_fields;
 use crate::merge::{fetcher_per_node_unit, record_writer_unit};
 use crate::DropFifo;
 use crate::{Module, Signal};
@@ -134,7 +134,7 @@ fn report_fork<'m>(
     let rep_d = module.output("report_data");
     let narrow = with_fields(
         m,
-        lit(0, fpn.report_width),
+        lit(0, fpn.report.width()),
         &fpn.report_sources(&pl)
             .map(|(to, from)| (to, get(rep_d, &from))),
     )
@@ -196,15 +196,19 @@ fn inputs<'m>(
     let ferr_rank = m.reg("fetch_rank", rb);
     let mut ferr_next = header_fire.mux(lit(0, fl.err.width), ferr);
     let mut ferr_rank_next = header_fire.mux(lit(0, rb), ferr_rank);
-    let end_beat = with_fields(m, lit(0, inb.width), &[(inb.kind, lit(level_kind::END, 2))]);
-    let end_in = with_fields(m, lit(0, pl.in_width), &[(field_of(&inb), end_beat)]);
+    let end_beat = with_fields(
+        m,
+        lit(0, inb.width()),
+        &[(inb.kind, lit(level_kind::END, 2))],
+    );
+    let end_in = with_fields(m, lit(0, pl.input.width()), &[(field_of(&inb), end_beat)]);
     let mut leaves_in = Vec::new();
     let mut sent = one;
     for (i, f) in fetchers.iter().enumerate() {
         let fcfg_pend = m.reg(&format!("fetch{i}_cfg_pending"), 1);
         f.connect("cfg_valid", fcfg_pend);
         let off = ml.input_offset(i);
-        f.connect("cfg_data", cfg_q.slice(off + fl.cfg_width - 1, off));
+        f.connect("cfg_data", cfg_q.slice(off + fl.cfg.width() - 1, off));
         let fcfg_fire = fcfg_pend & f.output("cfg_ready");
         fcfg_pend.next(cfg_fire.mux(used_in[i], fcfg_fire.mux(zero, fcfg_pend)));
 
@@ -213,7 +217,7 @@ fn inputs<'m>(
         let cmd_pend = m.reg(&format!("cmd{i}_pending"), 1);
         let cmd_data = with_fields(
             m,
-            lit(0, fl.cmd_width),
+            lit(0, fl.cmd.width()),
             &[
                 (fl.lod, lo),
                 (fl.send_refs, good),
@@ -236,11 +240,11 @@ fn inputs<'m>(
         let fo_valid = f.output("out_valid");
         let fo_data = f.output("out_data");
         let fo_err = get(fo_data, &fl.err);
-        let fo_beat = fo_data.slice(fl.beat.width - 1, 0);
+        let fo_beat = fo_data.slice(fl.beat.width() - 1, 0);
         let fo_end = get(fo_beat, &inb.kind).eq(level_kind::END);
         let fo_in = with_fields(
             m,
-            lit(0, pl.in_width),
+            lit(0, pl.input.width()),
             &[
                 (field_of(&inb), fo_beat),
                 (pl.probe, get(fo_data, &fpn.probe)),
@@ -319,11 +323,15 @@ fn route_out<'m>(
         data: best_data,
         lod: best_lod,
     } = *merged;
-    let end_beat = with_fields(m, lit(0, inb.width), &[(inb.kind, lit(level_kind::END, 2))]);
+    let end_beat = with_fields(
+        m,
+        lit(0, inb.width()),
+        &[(inb.kind, lit(level_kind::END, 2))],
+    );
     let nl = &fl.node;
     let leaf_beat = with_fields(
         m,
-        lit(0, inb.width),
+        lit(0, inb.width()),
         &[
             (inb.rec, get(best_data, &fl.leaf_rec)),
             (inb.refer, get(best_data, &fl.leaf_ref)),
@@ -339,10 +347,10 @@ fn route_out<'m>(
     let mo_err = get(mo_data, outb.err.as_ref().expect("an output beat has err"));
     let mo_refer = get(mo_data, &outb.refer);
     let mo_rec = get(mo_data, &outb.rec);
-    let mo_lod = field(mo_rec, nl.lod()).expect("a record's lod");
+    let mo_lod = mo_rec.view(nl.lod());
     let mo_beat = with_fields(
         m,
-        lit(0, inb.width),
+        lit(0, inb.width()),
         &[
             (inb.rec, mo_rec),
             (inb.refer, mo_refer),
@@ -359,7 +367,7 @@ fn route_out<'m>(
     let cref_valid = !csent & busy & (cref_ref | finished);
     let cref_data = with_fields(
         m,
-        lit(0, wl.cref_width),
+        lit(0, wl.crefs.width()),
         &[
             (wl.cref, cref_ref.mux(mo_refer, lit(0, mo_refer.width()))),
             (wl.cref_end, !cref_ref),
@@ -392,7 +400,7 @@ fn route_out<'m>(
             m,
             &format!("base{d}_fifo"),
             &format!("base{d}"),
-            inb.width,
+            inb.width(),
             cb,
         );
         let (empty, full) = (q.empty(), q.full());

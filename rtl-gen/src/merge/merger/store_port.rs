@@ -115,7 +115,7 @@ pub fn store_port_unit(c: &StorePortConfig) -> Result<Module, String> {
     let m = Module::new(&store_port_name(c));
     let lit = |v: u64, w: u32| m.lit(v as u128, w);
     let reqs: Vec<Stream> = (0..n)
-        .map(|j| Stream::input(&m, &format!("r{j}_req"), l.addr_width))
+        .map(|j| Stream::input(&m, &format!("r{j}_req"), l.addr.width()))
         .collect();
     // A requester's reads in flight or answered and not taken: at most
     // its answer buffer's `2^tag_bits`.
@@ -149,7 +149,7 @@ pub fn store_port_unit(c: &StorePortConfig) -> Result<Module, String> {
         })
         .collect();
     let any = eligible.iter().fold(lit(0, 1), |a, s| a | *s);
-    let (mut beat, mut tag) = (lit(0, l.req_width), lit(0, tw));
+    let (mut beat, mut tag) = (lit(0, l.req.width()), lit(0, tw));
     for j in 0..n {
         let b = m.concat(&[lit(c.arrays[j].code(), 1), reqs[j].data]);
         beat = grant[j].mux(b, beat);

@@ -124,11 +124,11 @@ pub(super) fn finish_merger<'m>(m: &'m Module, t: Tail<'_, 'm>) {
     let writer_header = golden::layout::Field {
         name: "writer_header",
         offset: 0,
-        width: wl.header_width,
+        width: wl.header.width(),
     };
     let header = with_fields(
         m,
-        lit(0, ml.header_width),
+        lit(0, ml.header.width()),
         &[
             (writer_header, h_data),
             (ml.leaf_overflow, leaf_over),

@@ -45,20 +45,16 @@ pub fn upper_level_unit(p: &Params) -> Module {
     let l = UpperLayout::new(p);
     let nl = &l.node;
     let i = p.index_bits as u32;
-    let input = Stream::input(&m, "in", l.in_width);
+    let input = Stream::input(&m, "in", l.input.width());
     let out_ready = m.wire("h_out_ready", 1);
     let rec = input.data;
-    let end = field(input.data, &l.in_end)
-        .expect("end bit")
-        .name("in_end");
+    let end = input.data.view(&l.in_end).name("in_end");
     let f = |x: &golden::layout::Field| l.in_child(x);
 
     // The parent of the incoming record: lod - 1, coordinates >> 1.
-    let lod = field(rec, &f(nl.lod())).expect("lod bits");
+    let lod = rec.view(&f(nl.lod()));
     let parent_lod = lod.sub(1, lod.width()).name("parent_lod");
-    let coords: Vec<Signal> = (0..3)
-        .map(|a| field(rec, &f(nl.coord(a))).expect("coordinate"))
-        .collect();
+    let coords: Vec<Signal> = (0..3).map(|a| rec.view(&f(nl.coord(a)))).collect();
     let parent_xyz: Vec<Signal> = coords.iter().map(|c| c.srl(1u32)).collect();
     let parent_voxel = m
         .concat(&[parent_xyz[2], parent_xyz[1], parent_xyz[0], parent_lod])

@@ -19,7 +19,7 @@ use golden::merge::upper_builder::level_unit::UpperLayout;
 use golden::merge::upper_builder::unit::{level_out_kind, BuilderLayout};
 use golden::params::Params;
 
-use super::fields::{coords, field};
+use super::fields::coords;
 use super::morton_code;
 use crate::{Module, Signal, Stream};
 
@@ -58,12 +58,12 @@ struct BaseFields<'m> {
 
 fn base_fields<'m>(m: &'m Module, bl: &BuilderLayout, data: Signal<'m>) -> BaseFields<'m> {
     let lit = |v: u64, w: u32| m.lit(v as u128, w);
-    let kind = field(data, &bl.base.kind).expect("kind");
+    let kind = data.view(&bl.base.kind);
     let end = kind.eq(lit(base_kind::END, 2));
     let created = kind.eq(lit(base_kind::CREATED, 2));
     BaseFields {
-        rec: field(data, &bl.base.rec).expect("record"),
-        refer: field(data, &bl.base.refer).expect("reference"),
+        rec: data.view(&bl.base.rec),
+        refer: data.view(&bl.base.refer),
         end,
         kind: m.first_of(
             &[
@@ -104,8 +104,8 @@ fn covers_most_of_scene<'m>(
         return m.lit(1, 1);
     }
     let extent = |a: usize| {
-        let lo = field(rec, bl.node.lo(a)).expect("lo");
-        let hi = field(rec, bl.node.hi(a)).expect("hi");
+        let lo = rec.view(bl.node.lo(a));
+        let hi = rec.view(bl.node.hi(a));
         hi.sub(lo, q).zext(q + 1).add(1, q + 1)
     };
     let w = 3 * q + 3;
@@ -140,7 +140,7 @@ pub fn upper_builder_unit(p: &Params) -> Module {
 
     let bases: Vec<Stream> = (0..=dmax)
         .map(|d| {
-            Stream::input(&m, &format!("base{d}"), bl.base.width)
+            Stream::input(&m, &format!("base{d}"), bl.base.width())
                 .skid_buffer(&format!("base{d}_skid"))
         })
         .collect();
@@ -170,9 +170,9 @@ pub fn upper_builder_unit(p: &Params) -> Module {
             let g = groups[d];
             let g_valid = g.output("out_valid");
             let g_data = g.output("out_data");
-            let g_rec = field(g_data, &ul.rec).expect("record");
-            let g_end = field(g_data, &ul.end).expect("end");
-            let g_err = field(g_data, &ul.err).expect("err");
+            let g_rec = g_data.view(&ul.rec);
+            let g_end = g_data.view(&ul.end);
+            let g_err = g_data.view(&ul.err);
             let g_first = morton_code(&m, coords(g_rec, nl)).le(morton_code(&m, coords(b.rec, nl)));
             let both_end = (g_end & b.end).name(&format!("l{d}_end"));
             let take_g = (!g_end & (b.end | g_first)).name(&format!("l{d}_take_group"));
@@ -232,7 +232,7 @@ pub fn upper_builder_unit(p: &Params) -> Module {
         // pass instead of after the first base node at the merging level.
         let empty = if d > 0 { n.eq(lit(0, i)) & !ovf } else { zero };
         let end_ok = (!h.end | known_below[d] | empty).name(&format!("l{d}_end_ok"));
-        let leaf = field(h.rec, nl.leaf()).expect("leaf");
+        let leaf = h.rec.view(nl.leaf());
         // The half-scene rule: a grouped LOD-0 node alone in its level.
         let suppress_root = if d == 0 {
             let covers = covers_most_of_scene(&m, &bl, h.rec, p.quant_bits as u32);
@@ -265,7 +265,7 @@ pub fn upper_builder_unit(p: &Params) -> Module {
         let rec_out = h.end.mux(lit(0, h.rec.width()), h.rec);
         let ref_out = h.end.mux(lit(0, h.refer.width()), h.refer);
         let data = m.concat(&[h.gerr | ovf, r, n, h.kind, ref_out, rec_out]);
-        debug_assert_eq!(data.width(), bl.level_width);
+        debug_assert_eq!(data.width(), bl.level.width());
         Stream {
             valid: (ready_all & up_ready & emit).name(&format!("level{d}_in_valid")),
             ready: out_ready,
@@ -312,7 +312,7 @@ pub fn upper_builder_unit(p: &Params) -> Module {
 
     // `done` leaves through a skid buffer the clock after stage 0's End.
     let done_beat = m.concat(&[done_err, top_lod]);
-    debug_assert_eq!(done_beat.width(), bl.done_width);
+    debug_assert_eq!(done_beat.width(), bl.done.width());
     Stream {
         valid: done_valid,
         ready: done_ready,

@@ -21,7 +21,7 @@ pub fn field<'m>(record: Signal<'m>, f: &Field) -> Option<Signal<'m>> {
 impl<'m> Signal<'m> {
     /// Field `f` of this packed word, named `<word>_<field>`. Only box
     /// bounds are ever zero-width (`Q = 0`); reading one here is a generator
-    /// bug, reported naming the field. Read those with [`field`].
+    /// bug, reported naming the field. Read those with `merge::fields::field`.
     #[track_caller]
     pub fn view(self, f: &Field) -> Signal<'m> {
         assert!(

@@ -173,7 +173,7 @@ fn merging_module_passes_on_both_simulators_and_names_a_flipped_field() {
     };
     let fields = cosim::units::merge_module::report_fields(&d);
     let f = fields
-        .iter()
+        .fields()
         .find(|f| f.name == "union")
         .expect("a report field");
     let args = [

@@ -125,10 +125,8 @@ fn module_vectors_of_every_mode_replay_bit_for_bit() {
         assert_eq!(o.merges, count);
 
         // The report's first field, flipped in the file, is named.
-        let field = golden::vectors::streams::module_report(&d).fields[0]
-            .0
-            .clone();
-        let merge = flip_in_file(&path, "report", &field);
+        let field = golden::vectors::streams::module_report(&d).at(0).name;
+        let merge = flip_in_file(&path, "report", field);
         let broken = merge_module::streams_from_vectors(&d, &path).unwrap();
         let o = merge_module::run(
             &d,
@@ -142,7 +140,7 @@ fn module_vectors_of_every_mode_replay_bit_for_bit() {
         assert!(!o.passed(), "{mode}: the flipped bit went unnoticed");
         let m = o.first_mismatch.expect("a mismatch");
         assert_eq!((m.stream.as_str(), m.merge), ("report", merge), "{mode}");
-        assert_eq!(differing(&m), [field.as_str()], "{mode}: {:?}", m.fields);
+        assert_eq!(differing(&m), [field], "{mode}: {:?}", m.fields);
     }
 }
 
@@ -226,7 +224,7 @@ fn merger_vectors_replay_bit_for_bit() {
             .to_string();
         assert!(e.contains("`mode` is"), "{mode}: {e}");
 
-        let field = merger::output_fields(&c, "header").unwrap()[0].name;
+        let field = merger::output_fields(&c, "header").unwrap().at(0).name;
         let merge = flip_in_file(&path, "header", field);
         let broken = merger::streams_from_vectors(&c, &path).unwrap();
         let t = merger::run_streams(&c, &broken, ModuleEngine::Ir, &bench(), dir.path()).unwrap();

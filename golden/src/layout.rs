@@ -307,6 +307,72 @@ impl Layout {
         f
     }
 
+    /// Field `name`, `width` bits from bit `offset` up, above every field
+    /// so far: the bits between are a gap that packs as 0. For a field
+    /// placed above the wider of two alternatives (a command's `kind`
+    /// above either payload).
+    #[track_caller]
+    pub fn push_at(&mut self, name: &str, offset: u32, width: u32) -> Field {
+        let f = Field::new(intern(name), offset, width);
+        self.insert(f);
+        f
+    }
+
+    /// Appends `inner`'s fields above every field so far, each named
+    /// `prefix.name`, keeping `inner`'s gaps: a struct inside a struct.
+    /// Returns the whole group as one field called `prefix` (not itself
+    /// a field of this layout), for code that moves the group at once.
+    #[track_caller]
+    pub fn nest(&mut self, prefix: &str, inner: &Layout) -> Field {
+        let at = self.width;
+        for f in &inner.fields {
+            self.insert(Field::new(
+                intern(&format!("{prefix}.{}", f.name)),
+                at + f.offset,
+                f.width,
+            ));
+        }
+        self.width = at + inner.width;
+        Field::new(intern(prefix), at, inner.width)
+    }
+
+    /// This layout called `name`, with every field for which `inner` gives
+    /// a layout replaced by that layout's fields, named `field.name`: the
+    /// view a testbench decodes a beat with, where the generator slices the
+    /// field whole. `inner`'s layout must be exactly as wide as the field.
+    #[track_caller]
+    pub fn flattened<'a>(
+        &self,
+        name: impl Into<String>,
+        inner: impl Fn(&Field) -> Option<&'a Layout>,
+    ) -> Layout {
+        let mut l = Layout::new(name);
+        for f in &self.fields {
+            let Some(group) = inner(f) else {
+                l.insert(*f);
+                continue;
+            };
+            assert_eq!(
+                group.width, f.width,
+                "layout `{}`: field `{}` flattened as `{}`, {} bits for {}",
+                self.name, f.name, group.name, group.width, f.width
+            );
+            l.width = f.offset;
+            l.nest(f.name, group);
+        }
+        l.width = self.width;
+        l
+    }
+
+    /// This layout under another name (a stream named after its port
+    /// carrying beats of this layout).
+    pub fn renamed(&self, name: impl Into<String>) -> Layout {
+        Layout {
+            name: name.into(),
+            ..self.clone()
+        }
+    }
+
     #[track_caller]
     fn insert(&mut self, f: Field) {
         assert!(
@@ -711,6 +777,56 @@ mod tests {
         let past =
             std::panic::catch_unwind(|| Layout::from_fields("bad", &[Field::new("a", 0, 4)], 3));
         assert!(past.is_err());
+    }
+
+    #[test]
+    fn nested_and_flattened_layouts_name_fields_by_path() {
+        let mut inner = Layout::new("input");
+        inner.push("a", 3);
+        inner.push_at("b", 5, 2);
+        assert_eq!(inner.width(), 7);
+        let mut outer = Layout::new("cmd");
+        let g0 = outer.nest("in0", &inner);
+        let g1 = outer.nest("in1", &inner);
+        let kind = outer.push_at("kind", 20, 1);
+        assert_eq!((g0.offset, g0.width, g1.offset, g1.name), (0, 7, 7, "in1"));
+        assert_eq!(outer.get("in1.b").unwrap().offset, 12);
+        assert_eq!((kind.offset, outer.width()), (20, 21));
+        let w = outer
+            .pack(&[
+                ("in0.a", 5),
+                ("in0.b", 1),
+                ("in1.a", 2),
+                ("in1.b", 3),
+                ("kind", 1),
+            ])
+            .unwrap();
+        assert_eq!(w.to_u64(), Some(5 | 1 << 5 | 2 << 7 | 3 << 12 | 1 << 20));
+
+        let coarse = Layout::packed("cfg", &[("in0", 7), ("count", 2), ("in1", 7)]);
+        let flat = coarse.flattened("cfg stream", |f| f.name.starts_with("in").then_some(&inner));
+        let names: Vec<_> = flat.fields().map(|f| (f.name, f.offset)).collect();
+        assert_eq!(
+            names,
+            [
+                ("in0.a", 0),
+                ("in0.b", 5),
+                ("count", 7),
+                ("in1.a", 9),
+                ("in1.b", 14)
+            ]
+        );
+        assert_eq!((flat.name(), flat.width()), ("cfg stream", 16));
+        let narrow = std::panic::catch_unwind(|| coarse.flattened("bad", |_| Some(&inner)));
+        assert!(
+            narrow.is_err(),
+            "a 7-bit layout flattened into `count`'s 2 bits"
+        );
+        let gap = std::panic::catch_unwind(|| {
+            let mut l = Layout::packed("l", &[("a", 4)]);
+            l.push_at("b", 2, 1)
+        });
+        assert!(gap.is_err(), "a field placed below the top is an overlap");
     }
 
     #[test]

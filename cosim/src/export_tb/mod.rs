@@ -20,7 +20,7 @@ use std::fs;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use golden::layout::Field;
+use golden::layout::Layout;
 
 use crate::design::{Design, PortDir};
 use crate::error::{io_err, CosimError, Result};
@@ -45,36 +45,6 @@ pub const VECTORS_DIR: &str = "vectors";
 /// Cycles the testbench lets pass without a handshake before it reports a
 /// hang (the cosim benches' watchdog).
 pub const WATCHDOG_CYCLES: u64 = 1000;
-
-/// One named bit field of an output beat (shown in a mismatch report).
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct NamedField {
-    /// Name as the unit's layout spells it.
-    pub name: String,
-    /// Least significant bit in the beat.
-    pub offset: u32,
-    /// Bits (a 0-bit field is not shown).
-    pub width: u32,
-}
-
-impl NamedField {
-    /// A golden layout field under `name`.
-    pub fn of(name: impl Into<String>, f: &Field) -> NamedField {
-        NamedField {
-            name: name.into(),
-            offset: f.offset,
-            width: f.width,
-        }
-    }
-}
-
-/// The fields of a golden layout under their own names.
-pub fn named_fields(fields: impl IntoIterator<Item = Field>) -> Vec<NamedField> {
-    fields
-        .into_iter()
-        .map(|f| NamedField::of(f.name, &f))
-        .collect()
-}
 
 /// A stream's three ports and its beats (sent, or expected in order).
 #[derive(Clone, Debug)]
@@ -122,8 +92,8 @@ pub struct OutputSpec {
     pub stream: StreamSpec,
     /// Per expected beat, the transaction it belongs to.
     pub transaction: Vec<u64>,
-    /// The beat's fields, from the unit's golden layout.
-    pub fields: Vec<NamedField>,
+    /// The beat's layout, golden's (a 0-bit field is not shown).
+    pub fields: Layout,
 }
 
 /// A status rule the testbench checks besides the streams.
@@ -262,7 +232,7 @@ fn check(spec: &ExportSpec) -> Result<()> {
     for o in &spec.outputs {
         let width = o.stream.beats.first().map(Bits::width);
         let port_width = d.port(d.port_id(&o.stream.data)?)?.width;
-        if let Some(f) = o.fields.iter().find(|f| f.offset + f.width > port_width) {
+        if let Some(f) = o.fields.fields().find(|f| f.offset + f.width > port_width) {
             return Err(design_err(format!(
                 "stream `{}`: field `{}` (bits {}..{}) outside the {port_width}-bit beat",
                 o.stream.name,

@@ -17,7 +17,7 @@ use std::fmt::Write as _;
 
 use golden::bits::Bits;
 
-use super::NamedField;
+use golden::layout::Field;
 
 /// The store a testbench answers a shared port's reads from.
 #[derive(Clone, Debug)]
@@ -30,13 +30,13 @@ pub struct StoreSpec {
     /// The output stream whose beats end them (`header`).
     pub epoch_output: String,
     /// `store_req`'s fields.
-    pub index: NamedField,
+    pub index: Field,
     /// See `index`.
-    pub hier: NamedField,
+    pub hier: Field,
     /// See `index`: the read's merge's number mod 2.
-    pub slot: NamedField,
+    pub slot: Field,
     /// See `index`.
-    pub array: NamedField,
+    pub array: Field,
     /// Per merge, array (node 0, reference 1) and hierarchy (`2^H` of
     /// them), at `(merge * 2 + array) * 2^H + hier`: the first word of its
     /// run in `words` and the run's length.
@@ -78,7 +78,7 @@ fn ix(reg: &str, n: usize) -> String {
 }
 
 /// `data[hi:lo]` of field `f` of `port`, zero-extended to 32 bits.
-fn field32(port: &str, f: &NamedField) -> String {
+fn field32(port: &str, f: &Field) -> String {
     let bits = match f.width {
         1 => format!("{port}[{}]", f.offset),
         w => format!("{port}[{}:{}]", f.offset + w - 1, f.offset),

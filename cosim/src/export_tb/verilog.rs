@@ -9,9 +9,10 @@
 
 use std::fmt::Write as _;
 
-use super::{vector_file, ExportSpec, NamedField, OutputSpec, StatusCheck, StreamSpec};
+use super::{vector_file, ExportSpec, OutputSpec, StatusCheck, StreamSpec};
 use super::{RTL_DIR, TB_FILE, WATCHDOG_CYCLES};
 use crate::design::PortDir;
+use golden::layout::Field;
 
 /// Bits of an index into `n` entries (at least 1).
 pub(super) fn index_bits(n: usize) -> u32 {
@@ -213,7 +214,7 @@ fn show_task(o: &OutputSpec, width: u32, what: &str) -> String {
         return String::new();
     }
     let at = index(&format!("tb_{name}_got"), n);
-    let fields: Vec<&NamedField> = o.fields.iter().filter(|f| f.width > 0).collect();
+    let fields: Vec<&Field> = o.fields.fields().filter(|f| f.width > 0).collect();
     let pad = fields
         .iter()
         .map(|f| f.name.len())
@@ -229,7 +230,7 @@ fn show_task(o: &OutputSpec, width: u32, what: &str) -> String {
         let _ = writeln!(
             lines,
             "            $display(\"  %s {} expected 'h%0h got 'h%0h\", (tb_e{bits} != {data}{bits}) ? \"*\" : \" \", tb_e{bits}, {data}{bits});",
-            padded(&f.name, pad),
+            padded(f.name, pad),
             data = st.data
         );
     }

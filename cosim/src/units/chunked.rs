@@ -9,7 +9,8 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use golden::bits::Bits;
-use golden::vectors::streams::{MergeBeats, StreamLayout, UnitPorts};
+use golden::layout::Layout;
+use golden::vectors::streams::{MergeBeats, UnitPorts};
 
 use crate::design::Design;
 use crate::error::Result;
@@ -43,7 +44,7 @@ impl UnitStreams {
     /// The streams of `merges` (each merge's beats in `ports` order), named
     /// by `ports`, merge after merge.
     pub fn from_merges(ports: &UnitPorts, merges: &[MergeBeats]) -> Result<UnitStreams> {
-        let side = |streams: &[StreamLayout], pick: &dyn Fn(&MergeBeats) -> &Vec<Vec<Bits>>| {
+        let side = |streams: &[Layout], pick: &dyn Fn(&MergeBeats) -> &Vec<Vec<Bits>>| {
             streams
                 .iter()
                 .enumerate()
@@ -54,7 +55,7 @@ impl UnitStreams {
                         .map(|b| vec![b.clone()])
                         .collect();
                     Ok(StreamBeats {
-                        name: s.name.clone(),
+                        name: s.name().to_string(),
                         beats,
                     })
                 })

@@ -23,8 +23,7 @@ use golden::translate::model::{TranslateDesign, TranslateModel};
 use golden::translate::stimulus::SplitMix64;
 use golden::translate::{TranslateInputs, TranslateOutputs, Translation, TranslationTable};
 use golden::vectors::streams::{
-    merger_beats, merger_layout, merger_ports, random_merger_case_of, MergeBeats, Merges,
-    NamedFields, StreamLayout, UnitPorts,
+    merger_beats, merger_layout, merger_ports, random_merger_case_of, MergeBeats, Merges, UnitPorts,
 };
 use rtl_gen::merge::HierarchyUnitConfig;
 use rtl_gen::translate::ports::{det_in_layout, det_out_layout, pack_det_in, pack_det_out};
@@ -253,29 +252,14 @@ impl Draw {
     }
 }
 
-/// The fields of a translation-unit payload layout, by name.
-fn port_fields(l: &golden::layout::Layout) -> NamedFields {
-    golden::vectors::streams::named(l.fields().copied())
-}
-
 /// The hierarchy unit's streams: `cmd` and the merger's inputs but its
 /// `cfg`; `det_out` and the merger's outputs (`header` last).
 pub fn unit_ports(c: &HierarchyUnitConfig) -> Result<UnitPorts> {
     let merger = merger_ports(&c.merger.design, &c.merger.sizes).map_err(design_err)?;
-    let cl = c.cmd_layout();
-    let mut cmd_fields: NamedFields = vec![("kind".into(), cl.kind)];
-    cmd_fields.extend(port_fields(&det_in_layout(&c.table)));
-    let cmd = StreamLayout {
-        name: "cmd".into(),
-        fields: cmd_fields,
-        width: cl.width,
-    };
-    let det_out = det_out_layout(&c.table);
-    let det_out = StreamLayout {
-        name: "det_out".into(),
-        fields: port_fields(&det_out),
-        width: det_out.width(),
-    };
+    // Shown as a determine command: a merge command's fields overlap it.
+    let det_in = det_in_layout(&c.table);
+    let cmd = (c.cmd_layout().determine).flattened("cmd", |f| (f.name == "det").then_some(&det_in));
+    let det_out = det_out_layout(&c.table).renamed("det_out");
     let mut inputs = vec![cmd];
     inputs.extend(merger.inputs.into_iter().skip(1));
     let mut outputs = vec![det_out];
@@ -380,8 +364,8 @@ fn per_unit_sim(
     ports: &UnitPorts,
     patched: bool,
 ) -> Result<ChunkedSim> {
-    fn names(s: &[StreamLayout]) -> Vec<&str> {
-        s.iter().map(|s| s.name.as_str()).collect()
+    fn names(s: &[golden::layout::Layout]) -> Vec<&str> {
+        s.iter().map(|s| s.name()).collect()
     }
     let (i, o) = (names(&ports.inputs), names(&ports.outputs));
     ChunkedSim::watching(module, design, engine, (&i, &o), patched, &PULSES)
@@ -395,9 +379,9 @@ fn decode(
     e: &Transaction,
     g: &Transaction,
 ) -> Vec<(String, String, String)> {
-    let fields = ports.outputs.iter().find(|s| s.name == stream);
-    let fields = fields.map_or_else(Vec::new, |s| s.fields.clone());
-    decoded_pair(&*beat_decoder(fields), e, g)
+    let layout = ports.outputs.iter().find(|s| s.name() == stream);
+    let layout = layout.map_or_else(|| golden::layout::Layout::new(stream), Clone::clone);
+    decoded_pair(&*beat_decoder(layout), e, g)
 }
 
 /// What a [`run`] did: its totals, what its cases reached, and the
@@ -547,13 +531,8 @@ pub fn export_spec(
     let design = crate::from_rtl::design_from_module(&module, rtl)?;
     let ports = unit_ports(c)?;
     let (inputs, outputs) = super::multi_stream::export_streams(&streams, |name| {
-        let fields = ports.outputs.iter().find(|s| s.name == name);
-        fields.map_or_else(Vec::new, |s| {
-            s.fields
-                .iter()
-                .map(|(n, f)| crate::export_tb::NamedField::of(n.clone(), f))
-                .collect()
-        })
+        let layout = ports.outputs.iter().find(|s| s.name() == name);
+        layout.map_or_else(|| golden::layout::Layout::new(name), Clone::clone)
     });
     Ok(crate::export_tb::ExportSpec {
         design,

@@ -9,7 +9,6 @@
 use std::path::{Path, PathBuf};
 
 use golden::bits::Bits;
-use golden::layout::Field;
 use golden::merge::merge_level::unit::BeatLayout;
 use golden::merge::merge_module::MergeDesign;
 use golden::params::Params;
@@ -18,10 +17,11 @@ use golden::vectors::merge::{generate, read_merge_vectors, MergeVector};
 
 use super::{EngineFactory, ProgressFn};
 use crate::error::{CosimError, Result};
-use crate::export_tb::{ExportSpec, InputSpec, NamedField, OutputSpec, StreamSpec};
+use crate::export_tb::{ExportSpec, InputSpec, OutputSpec, StreamSpec};
 use crate::tb::{
     run_with_vcd_on_failure, BenchConfig, BenchReport, StreamNames, Transaction, Vector,
 };
+use golden::layout::Layout;
 
 /// The stage `hiermerge cosim --unit merge-module --stage merge-level` exercises
 /// (`--unit merge-module` alone runs the whole module, [`super::merge_module::STAGE`]).
@@ -95,10 +95,11 @@ pub fn bench_vectors(levels: &[MergeVector], flip_expected: Option<usize>) -> Re
     Ok(out)
 }
 
-/// An output beat's fields by name: the node record's (`rec.*`), the
+/// The `out` stream's layout: the node record's fields (`rec.*`), the
 /// reference's (`ref.*`), `kind` and `err` (golden's `BeatLayout::output`).
-pub fn output_fields(p: &Params) -> Vec<(String, Field)> {
-    golden::vectors::streams::level_beat_fields(&BeatLayout::output(p))
+pub fn output_fields(p: &Params) -> Layout {
+    let out = BeatLayout::output(p);
+    golden::vectors::streams::level_beat_stream("out", &out, &out)
 }
 
 /// Decodes an output beat by field name ([`output_fields`]).
@@ -145,10 +146,7 @@ pub fn export_spec(
         outputs: vec![OutputSpec {
             stream: StreamSpec::prefixed("out", outs),
             transaction: txn,
-            fields: fields
-                .iter()
-                .map(|(n, f)| NamedField::of(n.as_str(), f))
-                .collect(),
+            fields,
         }],
         checks: Vec::new(),
         seed,

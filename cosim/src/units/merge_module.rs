@@ -15,7 +15,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use golden::layout::Field;
+use golden::layout::Layout;
 use golden::merge::merge_module::MergeDesign;
 use golden::translate::stimulus::SplitMix64;
 use golden::vectors::streams::{module_merge, module_ports, module_report};
@@ -32,10 +32,10 @@ pub use super::chunked::UnitStreams;
 use super::chunked::{ChunkTotals, ChunkedSim};
 use super::multi_stream::{apply_patch, export_checks, export_streams, stepped_engines};
 pub use super::multi_stream::{
-    beat_decoder, decode_fields, decoded_pair, named, status_failure, ModuleEngine, ModuleMismatch,
+    beat_decoder, decode_fields, decoded_pair, status_failure, ModuleEngine, ModuleMismatch,
     RunConfig, VerilogPatch, PULSES,
 };
-use crate::export_tb::{named_fields, ExportSpec, NamedField};
+use crate::export_tb::ExportSpec;
 
 /// The stage name `hiermerge cosim --unit merge-module` reports for this unit.
 pub const STAGE: &str = "merge_module";
@@ -130,15 +130,15 @@ pub fn run_streams(
     super::chunked::run_streams(module, design, engine, streams, config, &decode, progress)
 }
 
-/// The `report` beat's fields in bit order (golden's `module_report`:
-/// `TopLayout`, per-node configurations `PerNodeLayout`).
-pub fn report_fields(d: &MergeDesign) -> Vec<Field> {
-    module_report(d).fields.into_iter().map(|f| f.1).collect()
+/// The `report` stream's layout (golden's `module_report`: `TopLayout`,
+/// per-node configurations `PerNodeLayout`).
+pub fn report_fields(d: &MergeDesign) -> Layout {
+    module_report(d)
 }
 
 /// Decodes a `report` beat by field name ([`report_fields`]).
 pub fn report_decoder(d: &MergeDesign) -> Box<FieldDecoder> {
-    beat_decoder(module_report(d).fields)
+    beat_decoder(module_report(d))
 }
 
 /// The exported testbench of `d` (`hiermerge export-tb --unit merge-module`):
@@ -158,11 +158,8 @@ pub fn export_spec(
         super::merge_level::output_fields(&d.params),
     );
     let (inputs, outputs) = export_streams(&streams, |name| match name {
-        "report" => named_fields(report.iter().copied()),
-        _ => out
-            .iter()
-            .map(|(n, f)| NamedField::of(n.as_str(), f))
-            .collect(),
+        "report" => report.clone(),
+        _ => out.clone(),
     });
     Ok(ExportSpec {
         design,

@@ -14,7 +14,7 @@
 
 use std::path::Path;
 
-use golden::layout::Field;
+use golden::layout::Layout;
 use golden::merge::merger::store_port::StoreWords;
 use golden::merge::merger::{MergerTransaction, ModulePass};
 use golden::merge::per_node::unit::PerNodeReport;
@@ -36,11 +36,9 @@ pub use super::chunked::{ChunkTotals, CHUNK};
 use super::chunked::{ChunkedSim, UnitStreams};
 pub use super::multi_stream::ModuleEngine as MergerEngine;
 pub use super::multi_stream::ModuleMismatch as MergerMismatch;
-use super::multi_stream::{
-    apply_patch, beat_decoder, decoded_pair, export_checks, export_streams, named,
-};
+use super::multi_stream::{apply_patch, beat_decoder, decoded_pair, export_checks, export_streams};
 pub use super::multi_stream::{RunConfig as ModuleRunConfig, VerilogPatch};
-use crate::export_tb::{named_fields, ExportSpec};
+use crate::export_tb::ExportSpec;
 
 pub(crate) mod shared;
 pub mod store_port;
@@ -171,7 +169,7 @@ pub fn is_per_node(c: &MergerConfig) -> bool {
 /// (`RefLayout`), `nodes` a node record (`NodeLayout`), `header` the
 /// writer's header and the merger's flags; None for a name that is no
 /// output stream of the merger.
-pub fn output_fields(c: &MergerConfig, stream: &str) -> Option<Vec<Field>> {
+pub fn output_fields(c: &MergerConfig, stream: &str) -> Option<Layout> {
     let ml = merger_layout(&c.design, &c.sizes).ok()?;
     let per_node = is_per_node(c);
     if !merger_output_names(c.design.inputs, per_node)
@@ -180,14 +178,13 @@ pub fn output_fields(c: &MergerConfig, stream: &str) -> Option<Vec<Field>> {
     {
         return None;
     }
-    let s = merger_stream(&ml, &c.design, stream)?;
-    Some(s.fields.into_iter().map(|f| f.1).collect())
+    merger_stream(&ml, &c.design, stream)
 }
 
 /// Decodes a beat of output stream `stream` field by field
 /// ([`output_fields`]; an unknown stream shows its raw bits as `data`).
 pub fn decoder_of(c: &MergerConfig, stream: &str) -> Box<FieldDecoder> {
-    beat_decoder(named(output_fields(c, stream).unwrap_or_default()))
+    beat_decoder(output_fields(c, stream).unwrap_or_else(|| Layout::new(stream)))
 }
 
 /// What the merges `txs` exercise.
@@ -376,7 +373,7 @@ pub fn export_spec(
     }
     let design = crate::from_rtl::design_from_module(&merger_module(c)?, rtl)?;
     let (inputs, outputs) = export_streams(&streams, |name| {
-        named_fields(output_fields(c, name).unwrap_or_default())
+        output_fields(c, name).unwrap_or_else(|| Layout::new(name))
     });
     Ok(ExportSpec {
         design,
@@ -752,7 +749,7 @@ mod tests {
         for out in &streams.outputs {
             let fields = output_fields(c, &out.name).unwrap();
             let mut end = 0;
-            for f in &fields {
+            for f in fields.fields() {
                 assert_eq!(
                     f.offset, end,
                     "`{}`: field {} not adjacent",

@@ -7,12 +7,12 @@
 use std::path::PathBuf;
 
 use golden::bits::Bits;
-use golden::layout::Field;
+use golden::layout::Layout;
 
 use crate::design::Design;
 use crate::engines::{open_engine, open_tracing_engine, EngineKind};
 use crate::error::{CosimError, Result};
-use crate::export_tb::{InputSpec, NamedField, OutputSpec, StatusCheck, StreamSpec};
+use crate::export_tb::{InputSpec, OutputSpec, StatusCheck, StreamSpec};
 use crate::ir_engine::IrEngine;
 use crate::tb::{
     run_multi_stream_bench_watching, BenchConfig, FieldDecoder, MultiReport, PulseCounts,
@@ -20,27 +20,25 @@ use crate::tb::{
 };
 use crate::waves::WaveFormat;
 
-/// `bits` decoded field by field: `(name, value in hex)` per field, in
-/// the order given; a field the beat does not hold shows its error.
-pub fn decode_fields(bits: &Bits, fields: &[(String, Field)]) -> Vec<(String, String)> {
-    fields
-        .iter()
-        .map(|(name, f)| {
+/// `bits` decoded field by field: `(name, value in hex)` per field of
+/// `layout`, in bit order; a field the beat does not hold shows its error.
+pub fn decode_fields(bits: &Bits, layout: &Layout) -> Vec<(String, String)> {
+    layout
+        .fields()
+        .map(|f| {
             let shown = match bits.get(f) {
                 Ok(x) => format!("{x:#x}"),
                 Err(e) => format!("({e})"),
             };
-            (name.clone(), shown)
+            (f.name.to_string(), shown)
         })
         .collect()
 }
 
-pub use golden::vectors::streams::named;
-
-/// Decodes a single-payload beat with `fields` (a beat without payload
+/// Decodes a single-payload beat with `layout` (a beat without payload
 /// decodes to nothing).
-pub fn beat_decoder(fields: Vec<(String, Field)>) -> Box<FieldDecoder> {
-    Box::new(move |t: &Transaction| t.first().map_or(Vec::new(), |v| decode_fields(v, &fields)))
+pub fn beat_decoder(layout: Layout) -> Box<FieldDecoder> {
+    Box::new(move |t: &Transaction| t.first().map_or(Vec::new(), |v| decode_fields(v, &layout)))
 }
 
 /// `expected` and `got` decoded with `decoder`, side by side: `(field,
@@ -256,7 +254,7 @@ pub fn status_failure(
 /// output beat under its merge, decoded with `fields(stream)`.
 pub fn export_streams(
     streams: &super::chunked::UnitStreams,
-    fields: impl Fn(&str) -> Vec<NamedField>,
+    fields: impl Fn(&str) -> Layout,
 ) -> (Vec<InputSpec>, Vec<OutputSpec>) {
     let payload = |s: &crate::tb::StreamBeats| -> Vec<Bits> {
         s.beats.iter().filter_map(|t| t.first().cloned()).collect()

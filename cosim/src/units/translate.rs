@@ -512,15 +512,6 @@ pub fn export_spec(
         i = j;
     }
     let [det, app] = sides;
-    let fields = |l: Layout| {
-        l.fields()
-            .map(|f| crate::export_tb::NamedField {
-                name: f.name.to_string(),
-                offset: f.offset,
-                width: f.width,
-            })
-            .collect()
-    };
     let side = |p: &str, s: ExportSide, l: Layout| {
         (
             InputSpec {
@@ -530,7 +521,7 @@ pub fn export_spec(
             OutputSpec {
                 stream: StreamSpec::prefixed(&format!("{p}_out"), s.expected),
                 transaction: s.transaction,
-                fields: fields(l),
+                fields: l,
             },
         )
     };

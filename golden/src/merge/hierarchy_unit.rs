@@ -137,13 +137,19 @@ impl InputFields {
 /// `det_in` beat (`det_width` bits, 7.9) or a merge command, `input0` ..
 /// `input{k-1}` ([`InputFields`]), `count` (`bits_to_hold(k)`), `out_id`
 /// (H); then `kind` (1 bit, [`KIND_DETERMINE`] or [`KIND_MERGE`]) above the
-/// wider of the two.
+/// wider of the two. The two commands are two [`Layout`]s of one width,
+/// [`Self::determine`] and [`Self::merge`], that agree on `kind`.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct CmdLayout {
     /// Inputs the merger has.
     pub k: usize,
     /// One input's header fields, relative to [`Self::input_offset`].
     pub input: InputFields,
+    /// A determine command: `det` (the `det_in` beat), `kind`.
+    pub determine: Layout,
+    /// A merge command: `input<i>.hier` .. `input<i>.refs` per input,
+    /// `count`, `out_id`, `kind`.
+    pub merge: Layout,
     /// Inputs used, `1..=k`.
     pub count: Field,
     /// The merged hierarchy's id.
@@ -156,6 +162,7 @@ pub struct CmdLayout {
     pub kind: Field,
     /// Bits of the beat.
     pub width: u32,
+    inputs: Vec<Field>,
 }
 
 impl CmdLayout {
@@ -163,25 +170,35 @@ impl CmdLayout {
     /// bits (the translation unit's, which its generator lays out).
     pub fn new(p: &Params, k: usize, det_width: u32) -> CmdLayout {
         let input = InputFields::new(p);
-        let count = Field::new("count", k as u32 * input.width(), bits_to_hold(k as u64));
-        let out_id = Field::new("out_id", count.end(), p.hier_bits as u32);
-        let merge_width = out_id.end();
-        let kind = Field::new("kind", merge_width.max(det_width), 1);
+        let mut merge = Layout::new("merge command");
+        let inputs = (0..k)
+            .map(|i| merge.nest(&format!("input{i}"), &input))
+            .collect();
+        let count = merge.push("count", bits_to_hold(k as u64));
+        let out_id = merge.push("out_id", p.hier_bits as u32);
+        let merge_width = merge.width();
+        let kind = merge.push_at("kind", merge_width.max(det_width), 1);
+        let mut determine = Layout::new("determine command");
+        determine.push("det", det_width);
+        determine.push_at("kind", kind.offset, 1);
         CmdLayout {
             k,
             input,
+            determine,
+            merge,
             count,
             out_id,
             merge_width,
             det_width,
             kind,
             width: kind.end(),
+            inputs,
         }
     }
 
     /// Where `input<i>` starts.
     pub fn input_offset(&self, i: usize) -> u32 {
-        i as u32 * self.input.width()
+        self.inputs[i].offset
     }
 
     /// Field `f` of [`InputFields`] moved to input `i`.
@@ -198,7 +215,8 @@ impl CmdLayout {
                 found: det.width(),
             });
         }
-        let mut b = Bits::zero(self.width);
+        // `det` may be wider than the 64 bits `Layout::pack` takes per field.
+        let mut b = self.determine.zero();
         b.put(0, det)?;
         b.set(&self.kind, KIND_DETERMINE)?;
         Ok(b)
@@ -214,19 +232,27 @@ impl CmdLayout {
                 width: self.count.width,
             });
         }
-        let mut b = Bits::zero(self.width);
-        for (i, h) in cmd.inputs.iter().enumerate() {
-            let f = &self.input;
-            let values = [h.hier as u64, h.roots as u64, h.top as u64];
-            let more = [h.deep as u64, h.nodes as u64, h.refs as u64];
-            for (field, v) in f.fields().zip(values.into_iter().chain(more)) {
-                b.set(&self.input_field(i, field), v)?;
+        let mut values = Vec::new();
+        for i in 0..self.k {
+            let header = cmd.inputs.get(i).map_or([0; 6], |h| {
+                let (hier, top, deep) = (h.hier as u64, h.top as u64, h.deep as u64);
+                [
+                    hier,
+                    h.roots as u64,
+                    top,
+                    deep,
+                    h.nodes as u64,
+                    h.refs as u64,
+                ]
+            });
+            for (f, v) in self.input.fields().zip(header) {
+                values.push((format!("input{i}.{}", f.name), v));
             }
         }
-        b.set(&self.count, cmd.inputs.len() as u64)?;
-        b.set(&self.out_id, cmd.out_id as u64)?;
-        b.set(&self.kind, KIND_MERGE)?;
-        Ok(b)
+        values.push(("count".into(), cmd.inputs.len() as u64));
+        values.push(("out_id".into(), cmd.out_id as u64));
+        values.push(("kind".into(), KIND_MERGE));
+        self.merge.pack(&values)
     }
 }
 
@@ -346,6 +372,12 @@ mod tests {
         let b = l.pack_determine(&det).unwrap();
         assert_eq!(b.get(&l.kind).unwrap(), KIND_DETERMINE);
         assert!(l.pack_determine(&Bits::zero(299)).is_err());
+        assert_eq!(l.determine.width(), l.merge.width());
+        assert_eq!(l.merge.get("kind").unwrap(), &l.kind);
+        assert_eq!(l.merge.get("input2.roots").unwrap(), &{
+            let f = l.input_field(2, &l.input.roots);
+            Field::new("input2.roots", f.offset, f.width)
+        });
         let h = InputHeader {
             hier: 3,
             roots: 2,

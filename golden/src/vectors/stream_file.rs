@@ -1,7 +1,7 @@
 //! Vector files of the multi-stream units (`hiermerge vectors --unit merge-module`,
 //! `--unit merger`; SPEC.md section 9): JSON Lines through
 //! [`super::write_jsonl`], one record per merge, every beat of every stream
-//! field by field ([`super::streams::StreamLayout`]):
+//! field by field (each stream a [`Layout`] called by its name):
 //!
 //! `{"merge": n, "in": {"cfg": [{"lo": 2, "hi": 5}], "in0": [...], ...},
 //!   "out": {"report": [{"lod": 2, ...}], "out": [...]}}`
@@ -18,11 +18,11 @@ use serde_json::{json, Map, Value};
 
 use super::streams::{
     merger_beats, merger_layout, merger_ports, module_merge, module_ports, random_merger_merge,
-    MergeBeats, StreamLayout, UnitPorts, DEFAULT_MOST_VOXELS,
+    MergeBeats, UnitPorts, DEFAULT_MOST_VOXELS,
 };
 use super::{read_jsonl, wide_to_json, Fields, Header, ParamMap, UnitKind, VectorError};
 use crate::bits::Bits;
-use crate::layout::Field;
+use crate::layout::{Field, Layout};
 use crate::merge::merge_module::MergeDesign;
 use crate::merge::merger::MergerSizes;
 use crate::translate::stimulus::SplitMix64;
@@ -44,29 +44,29 @@ fn model(e: impl std::fmt::Display) -> VectorError {
 }
 
 /// A beat as its JSON object of fields.
-fn beat_json(s: &StreamLayout, b: &Bits) -> Result<Value, VectorError> {
+fn beat_json(s: &Layout, b: &Bits) -> Result<Value, VectorError> {
     let mut m = Map::new();
-    for (name, f) in &s.fields {
+    for f in s.fields() {
         let w = field_words(b, f)?;
         let v = match f.width <= 64 {
             true => json!(w.first().copied().unwrap_or(0)),
             false => wide_to_json(&w, f.width),
         };
-        m.insert(name.clone(), v);
+        m.insert(f.name.to_string(), v);
     }
     Ok(Value::Object(m))
 }
 
 /// One merge's record.
 fn record_json(ports: &UnitPorts, n: usize, m: &MergeBeats) -> Result<Value, VectorError> {
-    let side = |streams: &[StreamLayout], beats: &[Vec<Bits>]| -> Result<Value, VectorError> {
+    let side = |streams: &[Layout], beats: &[Vec<Bits>]| -> Result<Value, VectorError> {
         let mut o = Map::new();
         for (s, bs) in streams.iter().zip(beats) {
             let arr = bs
                 .iter()
                 .map(|b| beat_json(s, b))
                 .collect::<Result<Vec<_>, _>>()?;
-            o.insert(s.name.clone(), Value::Array(arr));
+            o.insert(s.name().to_string(), Value::Array(arr));
         }
         Ok(Value::Object(o))
     };
@@ -78,30 +78,29 @@ fn record_json(ports: &UnitPorts, n: usize, m: &MergeBeats) -> Result<Value, Vec
 }
 
 /// The beats of one side (`in` or `out`) of a record.
-fn read_side(
-    rec: &Fields,
-    key: &str,
-    streams: &[StreamLayout],
-) -> Result<Vec<Vec<Bits>>, VectorError> {
+fn read_side(rec: &Fields, key: &str, streams: &[Layout]) -> Result<Vec<Vec<Bits>>, VectorError> {
     let side = rec.object(key)?;
-    if let Some(extra) = side.keys().find(|k| !streams.iter().any(|s| s.name == *k)) {
+    if let Some(extra) = side
+        .keys()
+        .find(|k| !streams.iter().any(|s| s.name() == *k))
+    {
         return Err(side.bad(extra, "no such stream of the unit (unknown)"));
     }
     streams
         .iter()
         .map(|s| {
-            let n = side.array_len(&s.name)?;
+            let n = side.array_len(s.name())?;
             (0..n)
                 .map(|i| {
-                    let beat = side.item(&s.name, i)?;
-                    if let Some(extra) = beat.keys().find(|k| !s.fields.iter().any(|f| f.0 == *k)) {
+                    let beat = side.item(s.name(), i)?;
+                    if let Some(extra) = beat.keys().find(|k| s.field(k).is_none()) {
                         return Err(beat.bad(extra, "no such field of the beat (unknown)"));
                     }
-                    let mut b = Bits::zero(s.width);
-                    for (name, f) in &s.fields {
+                    let mut b = s.zero();
+                    for f in s.fields() {
                         let words = match f.width <= 64 {
-                            true => vec![beat.uint(name, f.width)?],
-                            false => beat.wide(name, f.width)?,
+                            true => vec![beat.uint(f.name, f.width)?],
+                            false => beat.wide(f.name, f.width)?,
                         };
                         let v = Bits::from_words(&words, f.width).map_err(model)?;
                         b.put(f.offset, &v).map_err(model)?;

@@ -2,13 +2,13 @@
 //! 8.15): the merging module (`cfg`, `in0`.. in; `report`, `out` out) and
 //! the hierarchy merger (`cfg`, the fetchers' store responses, `w_ref_resp`
 //! in; `report`, the store requests, `nodes`, `refs`, `header` out). Every
-//! stream's beat is named field by field from golden's layouts
-//! ([`StreamLayout`]); a merge is the packed beats it puts on every stream
+//! stream is a [`Layout`] called by the stream's name, its beat's fields
+//! named from golden's layouts (`rec.lod` inside a beat); a merge is the packed beats it puts on every stream
 //! ([`MergeBeats`]). The cosim benches and the vector files
 //! ([`super::stream_file`]) both draw their merges from here.
 
 use crate::bits::Bits;
-use crate::layout::{Field, Layout};
+use crate::layout::Layout;
 use crate::merge::fetcher::FetchLayout;
 use crate::merge::merge_level::unit::BeatLayout;
 use crate::merge::merge_module::{random_top_transaction, TopLayout};
@@ -38,58 +38,14 @@ pub const MOST_TRIANGLES: u64 = 40;
 /// leaf FIFOs (the merger's `leaf_bits` too small for the random scenes).
 pub const MOST_DRAWS: usize = 1000;
 
-/// A beat's fields by name, in bit order, tiling it from bit 0.
-pub type NamedFields = Vec<(String, Field)>;
-
-/// A layout's fields named by their own names.
-pub fn named(fields: impl IntoIterator<Item = Field>) -> NamedFields {
-    fields
-        .into_iter()
-        .map(|f| (f.name.to_string(), f))
-        .collect()
-}
-
-fn shifted(f: &Field, by: u32) -> Field {
-    Field {
-        offset: f.offset + by,
-        ..*f
-    }
-}
-
-/// One stream of a unit: its port name (`<name>_valid/_ready/_data`), its
-/// beat's fields and width.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct StreamLayout {
-    /// The stream's name.
-    pub name: String,
-    /// The beat's fields, in bit order.
-    pub fields: NamedFields,
-    /// The beat's width in bits.
-    pub width: u32,
-}
-
-impl StreamLayout {
-    fn new(name: impl Into<String>, fields: NamedFields, width: u32) -> StreamLayout {
-        StreamLayout {
-            name: name.into(),
-            fields,
-            width,
-        }
-    }
-
-    /// Stream `name` carrying beats of `layout`, fields by their own names.
-    fn of(name: impl Into<String>, layout: &Layout) -> StreamLayout {
-        StreamLayout::new(name, named(layout.fields().copied()), layout.width())
-    }
-}
-
 /// A unit's streams, in port order.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct UnitPorts {
-    /// Input streams; the first is `cfg` (one beat per merge).
-    pub inputs: Vec<StreamLayout>,
+    /// Input streams, each a layout called by the stream's name; the
+    /// first is `cfg` (one beat per merge).
+    pub inputs: Vec<Layout>,
     /// Output streams.
-    pub outputs: Vec<StreamLayout>,
+    pub outputs: Vec<Layout>,
 }
 
 /// One merge's beats on every stream of a unit, in [`UnitPorts`] order.
@@ -112,22 +68,16 @@ fn pack_all<T>(
     items.iter().map(|x| pack(x).map_err(layout_err)).collect()
 }
 
-/// An S614 beat's fields by name: the node record's (`rec.*`), the
-/// reference's (`ref.*`), `kind` and, on output beats, `err`.
-pub fn level_beat_fields(l: &BeatLayout) -> NamedFields {
-    let mut fields: NamedFields = l
-        .node
-        .fields()
-        .map(|f| (format!("rec.{}", f.name), shifted(f, l.rec.offset)))
-        .collect();
-    fields.extend(
-        l.reference
-            .fields()
-            .map(|f| (format!("ref.{}", f.name), shifted(f, l.refer.offset))),
-    );
-    fields.push(("kind".into(), l.kind));
-    fields.extend(l.err.map(|f| ("err".to_string(), f)));
-    fields
+/// Stream `name` carrying S614 beats of `beat` (`l`'s layout, or the
+/// per-node input's, which adds `probe`): the node record's fields as
+/// `rec.*`, the reference's as `ref.*`, then `kind` and, on output beats,
+/// `err`.
+pub fn level_beat_stream(name: &str, l: &BeatLayout, beat: &Layout) -> Layout {
+    beat.flattened(name, |f| match f.name {
+        "rec" => Some(l.node.layout()),
+        "ref" => Some(l.reference.layout()),
+        _ => None,
+    })
 }
 
 /// Whether `d` merges per node (its `report` and inputs are 8.14's).
@@ -137,13 +87,11 @@ pub fn is_per_node(d: &MergeDesign) -> bool {
 
 /// The merging module's `report` stream ([`TopLayout`]; per-node:
 /// [`PerNodeLayout`]).
-pub fn module_report(d: &MergeDesign) -> StreamLayout {
+pub fn module_report(d: &MergeDesign) -> Layout {
     if is_per_node(d) {
-        let l = PerNodeLayout::new(&d.params);
-        StreamLayout::of("report", &l.report)
+        PerNodeLayout::new(&d.params).report.renamed("report")
     } else {
-        let l = TopLayout::new(&d.params);
-        StreamLayout::of("report", &l.report)
+        TopLayout::new(&d.params).report.renamed("report")
     }
 }
 
@@ -153,26 +101,21 @@ pub fn module_report(d: &MergeDesign) -> StreamLayout {
 pub fn module_ports(d: &MergeDesign) -> UnitPorts {
     let p = &d.params;
     let tl = TopLayout::new(p);
-    let input = if is_per_node(d) {
-        let pl = PerNodeLayout::new(p);
-        let mut f = level_beat_fields(&pl.beat);
-        f.push(("probe".into(), pl.probe));
-        (f, pl.input.width())
-    } else {
-        let li = BeatLayout::input(p);
-        (level_beat_fields(&li), li.width())
+    let input = |name: &str| {
+        if is_per_node(d) {
+            let pl = PerNodeLayout::new(p);
+            level_beat_stream(name, &pl.beat, &pl.input)
+        } else {
+            let li = BeatLayout::input(p);
+            level_beat_stream(name, &li, &li)
+        }
     };
     let lo = BeatLayout::output(p);
-    let mut inputs = vec![StreamLayout::of("cfg", &tl.cfg)];
-    inputs.extend(
-        (0..d.inputs).map(|i| StreamLayout::new(format!("in{i}"), input.0.clone(), input.1)),
-    );
+    let mut inputs = vec![tl.cfg.renamed("cfg")];
+    inputs.extend((0..d.inputs).map(|i| input(&format!("in{i}"))));
     UnitPorts {
         inputs,
-        outputs: vec![
-            module_report(d),
-            StreamLayout::new("out", level_beat_fields(&lo), lo.width()),
-        ],
+        outputs: vec![module_report(d), level_beat_stream("out", &lo, &lo)],
     }
 }
 
@@ -229,46 +172,18 @@ pub fn module_merge(
 }
 
 /// A store read request (`f{i}_node_req`, `_ref_req`, `_cref_req`,
-/// `_probe_req`): the whole beat is the index read.
-pub fn index_field(fl: &FetchLayout) -> Field {
-    Field {
-        name: "index",
-        offset: 0,
-        width: fl.index_width,
-    }
+/// `_probe_req`) called `name`: the whole beat is the `index` read.
+pub fn index_stream(fl: &FetchLayout, name: &str) -> Layout {
+    Layout::packed(name, &[("index", fl.index_width)])
 }
 
-/// The merger's `header` beat's fields in bit order: the writer's header,
-/// then the merger's flags.
-pub fn header_fields(ml: &MergerLayout) -> Vec<Field> {
-    let w = &ml.writer;
-    vec![
-        w.h_out_id,
-        w.h_top,
-        w.h_roots,
-        w.h_nodes,
-        w.h_refs,
-        w.h_err,
-        ml.leaf_overflow,
-        ml.count_overflow,
-        ml.fetch_err,
-        ml.fetch_rank,
-    ]
-}
-
-/// The merger's `cfg` fields in bit order: `input<i>.*` (each a fetcher
-/// `cfg` beat), `count`, `lo`, `hi`, `out_id`.
-pub fn merger_cfg_fields(ml: &MergerLayout) -> NamedFields {
-    let fl = &ml.fetch;
-    let mut v = NamedFields::new();
-    for i in 0..ml.k {
-        let at = ml.input_offset(i);
-        for f in [fl.hier, fl.roots, fl.top, fl.nodes, fl.refs, fl.entry] {
-            v.push((format!("input{i}.{}", f.name), shifted(&f, at)));
-        }
-    }
-    v.extend(named([ml.count, ml.lo, ml.hi, ml.out_id]));
-    v
+/// The merger's `cfg` stream: its `cfg` beat with each `input<i>` (a
+/// fetcher `cfg` beat) shown field by field as `input<i>.*`, then `count`,
+/// `lo`, `hi`, `out_id`.
+pub fn merger_cfg_stream(ml: &MergerLayout) -> Layout {
+    let input = &ml.fetch.cfg;
+    ml.cfg
+        .flattened("cfg", |f| f.name.starts_with("input").then_some(input))
 }
 
 /// The merger's input stream names: `cfg`, per fetcher `f{i}_node_resp`,
@@ -306,38 +221,30 @@ pub fn merger_layout(d: &MergeDesign, sizes: &MergerSizes) -> Result<MergerLayou
     MergerLayout::new(&d.params, d.inputs, sizes.capacity_bits).map_err(layout_err)
 }
 
-/// The fields of the merger's stream `name` (input or output), from
-/// golden's layouts: `cfg` ([`merger_cfg_fields`]), `report` the merging
-/// module's, a store request an index, a node response or `nodes` a node
-/// record, a reference response, `w_ref_req` or `refs` a reference,
-/// `header` ([`header_fields`]); None for a name that is no stream of it.
-pub fn merger_stream(ml: &MergerLayout, d: &MergeDesign, name: &str) -> Option<StreamLayout> {
+/// The merger's stream `name` (input or output), from golden's layouts:
+/// `cfg` ([`merger_cfg_stream`]), `report` the merging module's, a store
+/// request an index, a node response or `nodes` a node record, a reference
+/// response, `w_ref_req` or `refs` a reference, `header` the writer's
+/// header and the merger's flags; None for a name that is no stream of it.
+pub fn merger_stream(ml: &MergerLayout, d: &MergeDesign, name: &str) -> Option<Layout> {
     let per_node = is_per_node(d);
     let fl = &ml.fetch;
-    let node = || named(fl.node.fields().copied());
-    let reference = || named(fl.reference.fields().copied());
-    let (fields, width) = match name {
-        "cfg" => (merger_cfg_fields(ml), ml.cfg.width()),
-        "report" => {
-            let r = module_report(d);
-            (r.fields, r.width)
-        }
-        "nodes" => (node(), fl.node.width()),
-        "w_ref_req" | "refs" | "w_ref_resp" => (reference(), fl.reference.width()),
-        "header" => (named(header_fields(ml)), ml.header.width()),
+    Some(match name {
+        "cfg" => merger_cfg_stream(ml),
+        "report" => module_report(d),
+        "nodes" => fl.node.renamed(name),
+        "w_ref_req" | "refs" | "w_ref_resp" => fl.reference.renamed(name),
+        "header" => ml.header.renamed(name),
         s if merger_input_names(ml.k, per_node).iter().any(|n| n == s) => {
             if s.ends_with("node_resp") || s.ends_with("probe_resp") {
-                (node(), fl.node.width())
+                fl.node.renamed(name)
             } else {
-                (reference(), fl.reference.width())
+                fl.reference.renamed(name)
             }
         }
-        s if merger_output_names(ml.k, per_node).iter().any(|n| n == s) => {
-            (named([index_field(fl)]), fl.index_width)
-        }
+        s if merger_output_names(ml.k, per_node).iter().any(|n| n == s) => index_stream(fl, name),
         _ => return None,
-    };
-    Some(StreamLayout::new(name, fields, width))
+    })
 }
 
 /// The hierarchy merger's streams (`hierarchy_merger_unit`, SPEC 8.15).
@@ -366,12 +273,8 @@ pub fn merger_beats(
     let k = d.inputs;
     let per_node = is_per_node(d);
     let fl = &ml.fetch;
-    let index_field = index_field(fl);
-    let idx = |i: &u32| -> Result<Bits, String> {
-        let mut b = Bits::zero(fl.index_width);
-        b.set(&index_field, *i as u64).map_err(layout_err)?;
-        Ok(b)
-    };
+    let index = index_stream(fl, "index");
+    let idx = |i: &u32| index.pack(&[("index", *i as u64)]).map_err(layout_err);
     let node = |n: &NodeRecord| n.pack(&fl.node).map_err(layout_err);
     let rf = |r: &Reference| r.pack(&fl.reference).map_err(layout_err);
     let np = if per_node { k } else { 0 };
@@ -593,13 +496,19 @@ fn near(h: &Hierarchy, first: Translation, delta: [i64; 3]) -> Translation {
 mod tests {
     use super::*;
 
-    fn tiles(s: &StreamLayout) {
+    fn tiles(s: &Layout) {
         let mut end = 0;
-        for (n, f) in &s.fields {
-            assert_eq!(f.offset, end, "`{}`: field {n} not adjacent", s.name);
+        for f in s.fields() {
+            assert_eq!(
+                f.offset,
+                end,
+                "`{}`: field {} not adjacent",
+                s.name(),
+                f.name
+            );
             end = f.end();
         }
-        assert_eq!(end, s.width, "`{}`", s.name);
+        assert_eq!(end, s.width(), "`{}`", s.name());
     }
 
     /// Every stream's fields tile its beat, and every beat of random
@@ -629,7 +538,7 @@ mod tests {
                 let all = ports.inputs.iter().zip(&m.inputs);
                 for (s, beats) in all.chain(ports.outputs.iter().zip(&m.outputs)) {
                     tiles(s);
-                    assert!(beats.iter().all(|b| b.width() == s.width), "{}", s.name);
+                    assert!(beats.iter().all(|b| b.width() == s.width()), "{}", s.name());
                 }
             }
             assert_eq!(merger_stream(&ml, &d, "f9_node_req"), None);

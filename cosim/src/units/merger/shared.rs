@@ -237,15 +237,14 @@ pub(super) fn export_store(
             }
         }
     }
-    let named = |f: &golden::layout::Field| crate::export_tb::NamedField::of(f.name, f);
     let spec = StoreSpec {
         latency,
         epoch_input: "cfg".into(),
         epoch_output: "header".into(),
-        index: named(&l.index),
-        hier: named(&l.hier),
-        slot: named(&l.slot),
-        array: named(&l.array),
+        index: l.index,
+        hier: l.hier,
+        slot: l.slot,
+        array: l.array,
         runs,
         words,
         reads: chunk.reads,

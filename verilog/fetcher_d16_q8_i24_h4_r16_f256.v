@@ -42,10 +42,10 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
     localparam [2:0] ROOTS = 3'd2;           // rtl-gen/src/merge/fetcher/command.rs:58
     localparam [2:0] WALK = 3'd3;            // rtl-gen/src/merge/fetcher/command.rs:58
     localparam [2:0] DONE = 3'd4;            // rtl-gen/src/merge/fetcher/command.rs:50
-    reg [72:0] frontier [0:1023];            // rtl-gen/src/merge/fetcher/walk.rs:181
-    reg [24:0] range_ref_ctx [0:7];          // rtl-gen/src/merge/fetcher/walk.rs:206
-    reg [33:0] ref_stage_node_ctx [0:7];     // rtl-gen/src/merge/fetcher/walk.rs:256
-    reg [183:0] visit_out_items [0:3];       // rtl-gen/src/merge/fetcher/visit.rs:78
+    reg [72:0] frontier [0:1023];            // rtl-gen/src/merge/fetcher/walk.rs:174
+    reg [24:0] range_ref_ctx [0:7];          // rtl-gen/src/merge/fetcher/walk.rs:199
+    reg [33:0] ref_stage_node_ctx [0:7];     // rtl-gen/src/merge/fetcher/walk.rs:249
+    reg [183:0] visit_out_items [0:3];       // rtl-gen/src/merge/fetcher/visit.rs:77
     reg [185:0] order_tokens [0:3];          // rtl-gen/src/merge/fetcher/order.rs:50
     reg [2:0] phase;                         // rtl-gen/src/merge/fetcher/command.rs:56
     reg cfg_have;                            // rtl-gen/src/merge/fetcher/command.rs:63
@@ -109,196 +109,196 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
     reg [3:0] first_err_code;                // rtl-gen/src/merge/fetcher/command.rs:190
     reg [23:0] first_err_node;               // rtl-gen/src/merge/fetcher/command.rs:191
     reg header_err;                          // rtl-gen/src/merge/fetcher/command.rs:192
-    reg [4:0] level;                         // rtl-gen/src/merge/fetcher/walk.rs:43
-    reg at_top;                              // rtl-gen/src/merge/fetcher/walk.rs:44
-    reg walk_done;                           // rtl-gen/src/merge/fetcher/walk.rs:45
-    reg prev_valid;                          // rtl-gen/src/merge/fetcher/walk.rs:46
-    reg [48:0] prev_key;                     // rtl-gen/src/merge/fetcher/walk.rs:47
-    reg [8:0] pushed;                        // rtl-gen/src/merge/fetcher/walk.rs:48
-    reg visit_errored;                       // rtl-gen/src/merge/fetcher/walk.rs:49
-    reg out_errored;                         // rtl-gen/src/merge/fetcher/walk.rs:50
-    wire u_root_sorter_in_ready;             // rtl-gen/src/merge/fetcher/walk.rs:91
-    wire u_root_sorter_out_valid;            // rtl-gen/src/merge/fetcher/walk.rs:91
-    wire [180:0] u_root_sorter_out_data;     // rtl-gen/src/merge/fetcher/walk.rs:91
-    wire [149:0] sorted_rec;                 // rtl-gen/src/merge/fetcher/walk.rs:95
-    wire [27:0] u_root_sorter_ref;           // rtl-gen/src/merge/fetcher/walk.rs:96
-    wire [1:0] u_root_sorter_kind;           // rtl-gen/src/merge/fetcher/walk.rs:98
-    wire sorted_end;                         // rtl-gen/src/merge/fetcher/walk.rs:99
-    wire u_root_sorter_err;                  // rtl-gen/src/merge/fetcher/walk.rs:101
-    reg [23:0] roots_issued;                 // rtl-gen/src/merge/fetcher/walk.rs:102
-    reg [23:0] roots_taken;                  // rtl-gen/src/merge/fetcher/walk.rs:103
-    wire root_req_valid;                     // rtl-gen/src/merge/fetcher/walk.rs:108
-    wire root_outstanding;                   // rtl-gen/src/merge/fetcher/walk.rs:109
-    wire roots_all_taken;                    // rtl-gen/src/merge/fetcher/walk.rs:110
-    wire [4:0] node_resp_data_lod;           // rtl-gen/src/merge/fetcher/parts.rs:64
-    wire [15:0] node_resp_data_x;            // rtl-gen/src/merge/fields.rs:50
-    wire [15:0] node_resp_data_y;            // rtl-gen/src/merge/fields.rs:50
-    wire [15:0] node_resp_data_z;            // rtl-gen/src/merge/fields.rs:50
-    wire node_resp_data_x_or;                // rtl-gen/src/merge/fetcher/parts.rs:69
-    wire [7:0] node_resp_data_lo_x;          // rtl-gen/src/merge/fetcher/parts.rs:75
-    wire [7:0] node_resp_data_hi_x;          // rtl-gen/src/merge/fetcher/parts.rs:75
-    wire [7:0] node_resp_data_lo_y;          // rtl-gen/src/merge/fetcher/parts.rs:75
-    wire [7:0] node_resp_data_hi_y;          // rtl-gen/src/merge/fetcher/parts.rs:75
-    wire [7:0] node_resp_data_lo_z;          // rtl-gen/src/merge/fetcher/parts.rs:75
-    wire [7:0] node_resp_data_hi_z;          // rtl-gen/src/merge/fetcher/parts.rs:75
-    wire node_resp_data_x_or_1;              // rtl-gen/src/merge/fetcher/parts.rs:76
-    wire [23:0] node_resp_data_count;        // rtl-gen/src/merge/fetcher/parts.rs:79
-    wire [4:0] node_resp_data_lod_sub;       // rtl-gen/src/merge/fetcher/parts.rs:81
-    wire [33:0] node_resp_data_x_add;        // rtl-gen/src/merge/fetcher/parts.rs:87
-    wire [33:0] node_resp_data_y_add;        // rtl-gen/src/merge/fetcher/parts.rs:87
-    wire [33:0] node_resp_data_z_add;        // rtl-gen/src/merge/fetcher/parts.rs:87
-    wire [3:0] node_resp_data_y_mux;         // rtl-gen/src/merge/fetcher/parts.rs:92
-    wire [3:0] node_resp_data_lod_mux;       // rtl-gen/src/merge/fetcher/parts.rs:92
-    wire [3:0] node_code;                    // rtl-gen/src/merge/fetcher/parts.rs:92
-    wire [149:0] node_resp_data_cat;         // rtl-gen/src/merge/fetcher/parts.rs:103
-    wire root_outstanding_and;               // rtl-gen/src/merge/fetcher/walk.rs:115
-    wire root_take;                          // rtl-gen/src/merge/fetcher/walk.rs:115
-    wire node_code_ne;                       // rtl-gen/src/merge/fetcher/walk.rs:117
-    wire root_fail;                          // rtl-gen/src/merge/fetcher/walk.rs:117
-    wire first_err_valid_not;                // rtl-gen/src/merge/fetcher/walk.rs:119
-    wire root_fail_and;                      // rtl-gen/src/merge/fetcher/walk.rs:119
-    wire node_resp_data_leaf;                // rtl-gen/src/merge/fetcher/walk.rs:129
-    wire [179:0] roots_all_taken_mux;        // rtl-gen/src/merge/fetcher/walk.rs:145
-    wire frontier_in_valid;                  // rtl-gen/src/merge/fetcher/walk.rs:180
-    wire [72:0] frontier_in_data;            // rtl-gen/src/merge/fetcher/walk.rs:180
-    wire frontier_in_ready;                  // rtl-gen/src/merge/fetcher/walk.rs:180
-    reg [9:0] frontier_head;                 // rtl-gen/src/merge/fetcher/walk.rs:181
-    reg [9:0] frontier_tail;                 // rtl-gen/src/merge/fetcher/walk.rs:181
-    reg [10:0] frontier_count;               // rtl-gen/src/merge/fetcher/walk.rs:181
-    wire frontier_out_valid;                 // rtl-gen/src/merge/fetcher/walk.rs:181
-    wire [72:0] frontier_out_data;           // rtl-gen/src/merge/fetcher/walk.rs:181
-    wire frontier_out_ready;                 // rtl-gen/src/merge/fetcher/walk.rs:181
-    wire frontier_count_ne;                  // rtl-gen/src/merge/fetcher/walk.rs:181
-    wire frontier_in_valid_and;              // rtl-gen/src/merge/fetcher/walk.rs:181
-    wire frontier_out_valid_and;             // rtl-gen/src/merge/fetcher/walk.rs:181
-    wire frontier_out_data_marker;           // rtl-gen/src/merge/fetcher/walk.rs:197
-    wire [23:0] frontier_out_data_first;     // rtl-gen/src/merge/fetcher/walk.rs:198
-    wire [23:0] frontier_out_data_count;     // rtl-gen/src/merge/fetcher/walk.rs:199
-    wire [23:0] frontier_out_data_parent;    // rtl-gen/src/merge/fetcher/walk.rs:200
-    reg range_valid;                         // rtl-gen/src/merge/fetcher/walk.rs:201
-    reg [23:0] range_idx;                    // rtl-gen/src/merge/fetcher/walk.rs:202
-    reg [24:0] range_end;                    // rtl-gen/src/merge/fetcher/walk.rs:203
-    reg [23:0] range_parent;                 // rtl-gen/src/merge/fetcher/walk.rs:204
-    wire range_ref_ctx_in_valid;             // rtl-gen/src/merge/fetcher/walk.rs:205
-    wire [24:0] range_ref_ctx_in_data;       // rtl-gen/src/merge/fetcher/walk.rs:205
-    wire range_ref_ctx_in_ready;             // rtl-gen/src/merge/fetcher/walk.rs:205
-    reg [2:0] range_ref_ctx_head;            // rtl-gen/src/merge/fetcher/walk.rs:206
-    reg [2:0] range_ref_ctx_tail;            // rtl-gen/src/merge/fetcher/walk.rs:206
-    reg [3:0] range_ref_ctx_count;           // rtl-gen/src/merge/fetcher/walk.rs:206
-    wire range_ref_ctx_out_valid;            // rtl-gen/src/merge/fetcher/walk.rs:206
-    wire [24:0] range_ref_ctx_out_data;      // rtl-gen/src/merge/fetcher/walk.rs:206
-    wire range_ref_ctx_out_ready;            // rtl-gen/src/merge/fetcher/walk.rs:206
-    wire range_ref_ctx_count_ne;             // rtl-gen/src/merge/fetcher/walk.rs:206
-    wire range_ref_ctx_in_valid_and;         // rtl-gen/src/merge/fetcher/walk.rs:206
-    wire range_ref_ctx_out_valid_and;        // rtl-gen/src/merge/fetcher/walk.rs:206
-    wire range_issue;                        // rtl-gen/src/merge/fetcher/walk.rs:209
-    wire [23:0] range_idx_add;               // rtl-gen/src/merge/fetcher/walk.rs:210
-    wire walking_and;                        // rtl-gen/src/merge/fetcher/walk.rs:212
-    wire range_valid_not;                    // rtl-gen/src/merge/fetcher/walk.rs:212
-    wire range_issue_and;                    // rtl-gen/src/merge/fetcher/walk.rs:212
-    wire range_load;                         // rtl-gen/src/merge/fetcher/walk.rs:212
-    wire range_marker_pop;                   // rtl-gen/src/merge/fetcher/walk.rs:214
-    wire ref_stage_node_ctx_in_valid;        // rtl-gen/src/merge/fetcher/walk.rs:255
-    wire [33:0] ref_stage_node_ctx_in_data;  // rtl-gen/src/merge/fetcher/walk.rs:255
-    wire ref_stage_node_ctx_in_ready;        // rtl-gen/src/merge/fetcher/walk.rs:255
-    reg [2:0] ref_stage_node_ctx_head;       // rtl-gen/src/merge/fetcher/walk.rs:256
-    reg [2:0] ref_stage_node_ctx_tail;       // rtl-gen/src/merge/fetcher/walk.rs:256
-    reg [3:0] ref_stage_node_ctx_count;      // rtl-gen/src/merge/fetcher/walk.rs:256
-    wire ref_stage_node_ctx_out_valid;       // rtl-gen/src/merge/fetcher/walk.rs:256
-    wire [33:0] ref_stage_node_ctx_out_data; // rtl-gen/src/merge/fetcher/walk.rs:256
-    wire ref_stage_node_ctx_out_ready;       // rtl-gen/src/merge/fetcher/walk.rs:256
-    wire ref_stage_node_ctx_count_ne;        // rtl-gen/src/merge/fetcher/walk.rs:256
-    wire ref_stage_node_ctx_in_valid_and;    // rtl-gen/src/merge/fetcher/walk.rs:256
-    wire ref_stage_node_ctx_out_valid_and;   // rtl-gen/src/merge/fetcher/walk.rs:256
-    wire [23:0] ref_stage_resp_node;         // rtl-gen/src/merge/fetcher/walk.rs:257
-    wire [3:0] ref_stage_resp_hier;          // rtl-gen/src/merge/fetcher/walk.rs:258
-    wire [3:0] ref_stage_code;               // rtl-gen/src/merge/fetcher/parts.rs:126
-    wire walking_and_1;                      // rtl-gen/src/merge/fetcher/walk.rs:260
-    wire walking_and_2;                      // rtl-gen/src/merge/fetcher/walk.rs:260
-    wire ref_stage_wait;                     // rtl-gen/src/merge/fetcher/walk.rs:260
-    wire ref_stage_take;                     // rtl-gen/src/merge/fetcher/walk.rs:262
-    wire ref_stage_end;                      // rtl-gen/src/merge/fetcher/walk.rs:263
-    wire ref_stage_take_or;                  // rtl-gen/src/merge/fetcher/walk.rs:264
-    wire ref_stage_code_eq;                  // rtl-gen/src/merge/fetcher/walk.rs:266
-    wire ref_stage_node_req;                 // rtl-gen/src/merge/fetcher/walk.rs:266
-    wire ref_stage_node_ctx_out_data_eq;     // rtl-gen/src/merge/fetcher/visit.rs:75
-    wire visit_out_items_in_valid;           // rtl-gen/src/merge/fetcher/visit.rs:77
-    wire [183:0] visit_out_items_in_data;    // rtl-gen/src/merge/fetcher/visit.rs:77
-    wire visit_out_items_in_ready;           // rtl-gen/src/merge/fetcher/visit.rs:77
-    reg [1:0] visit_out_items_head;          // rtl-gen/src/merge/fetcher/visit.rs:78
-    reg [1:0] visit_out_items_tail;          // rtl-gen/src/merge/fetcher/visit.rs:78
-    reg [2:0] visit_out_items_count;         // rtl-gen/src/merge/fetcher/visit.rs:78
-    wire visit_out_items_out_valid;          // rtl-gen/src/merge/fetcher/visit.rs:78
-    wire [183:0] visit_out_items_out_data;   // rtl-gen/src/merge/fetcher/visit.rs:78
-    wire visit_out_items_out_ready;          // rtl-gen/src/merge/fetcher/visit.rs:78
-    wire visit_out_items_count_ne;           // rtl-gen/src/merge/fetcher/visit.rs:78
-    wire visit_out_items_in_valid_and;       // rtl-gen/src/merge/fetcher/visit.rs:78
-    wire visit_out_items_out_valid_and;      // rtl-gen/src/merge/fetcher/visit.rs:78
-    wire visit_live;                         // rtl-gen/src/merge/fetcher/visit.rs:79
-    wire visit_above_level;                  // rtl-gen/src/merge/fetcher/visit.rs:80
-    wire visit_above_first;                  // rtl-gen/src/merge/fetcher/visit.rs:81
-    wire visit_above_first_not;              // rtl-gen/src/merge/fetcher/visit.rs:85
-    wire visit_sending_level;                // rtl-gen/src/merge/fetcher/visit.rs:85
-    reg visit_leaves_end_sent;               // rtl-gen/src/merge/fetcher/visit.rs:113
-    wire visit_leaves_end_due;               // rtl-gen/src/merge/fetcher/visit.rs:114
-    wire visit_room;                         // rtl-gen/src/merge/fetcher/visit.rs:116
-    reg [4:0] visit_end_next;                // rtl-gen/src/merge/fetcher/visit.rs:124
-    reg visit_final_sent;                    // rtl-gen/src/merge/fetcher/visit.rs:125
-    wire visit_pre_ends;                     // rtl-gen/src/merge/fetcher/visit.rs:126
-    wire visit_ends_drain;                   // rtl-gen/src/merge/fetcher/visit.rs:127
-    wire visit_end_emit;                     // rtl-gen/src/merge/fetcher/visit.rs:128
-    wire visit_end_final;                    // rtl-gen/src/merge/fetcher/visit.rs:129
-    wire visit_end_fire;                     // rtl-gen/src/merge/fetcher/visit.rs:130
-    wire at_top_and;                         // rtl-gen/src/merge/fetcher/visit.rs:131
-    wire at_top_and_1;                       // rtl-gen/src/merge/fetcher/visit.rs:132
-    wire at_top_and_2;                       // rtl-gen/src/merge/fetcher/visit.rs:132
-    wire at_top_and_3;                       // rtl-gen/src/merge/fetcher/visit.rs:133
-    wire at_top_not;                         // rtl-gen/src/merge/fetcher/visit.rs:134
-    reg visit_capacity_told;                 // rtl-gen/src/merge/fetcher/visit.rs:138
-    wire at_top_and_4;                       // rtl-gen/src/merge/fetcher/visit.rs:140
-    wire visit_sorter_dropped;               // rtl-gen/src/merge/fetcher/visit.rs:140
-    wire ref_stage_node_ctx_out_data_or;     // rtl-gen/src/merge/fetcher/visit.rs:146
-    wire visit_avail;                        // rtl-gen/src/merge/fetcher/visit.rs:142
-    wire visit_free;                         // rtl-gen/src/merge/fetcher/visit.rs:150
-    wire visit_go;                           // rtl-gen/src/merge/fetcher/visit.rs:153
-    wire visit_sorter_dropped_not;           // rtl-gen/src/merge/fetcher/visit.rs:155
-    wire visit_live_and;                     // rtl-gen/src/merge/fetcher/visit.rs:158
-    wire visit_item_err;                     // rtl-gen/src/merge/fetcher/visit.rs:164
-    wire visit_item_end;                     // rtl-gen/src/merge/fetcher/visit.rs:166
-    wire visit_item_node;                    // rtl-gen/src/merge/fetcher/visit.rs:168
-    wire [23:0] ref_stage_node_ctx_out_data_node; // rtl-gen/src/merge/fetcher/visit.rs:177
-    wire [149:0] visit_item_rec;             // rtl-gen/src/merge/fetcher/visit.rs:179
-    wire [27:0] visit_item_ref;              // rtl-gen/src/merge/fetcher/visit.rs:180
-    wire [23:0] visit_item_ref_node;         // rtl-gen/src/merge/fetcher/visit.rs:181
-    wire visit_item_leaf;                    // rtl-gen/src/merge/fetcher/visit.rs:251
-    wire visit_item_leaf_not;                // rtl-gen/src/merge/fetcher/visit.rs:252
-    wire [47:0] visit_item_rec_x_morton;     // rtl-gen/src/merge/network.rs:41
-    wire [48:0] visit_item_key;              // rtl-gen/src/merge/fetcher/visit.rs:254
-    wire [23:0] visit_item_rec_first;        // rtl-gen/src/merge/fetcher/visit.rs:256
-    wire [23:0] visit_item_rec_count;        // rtl-gen/src/merge/fetcher/visit.rs:257
-    wire [24:0] visit_item_range_end;        // rtl-gen/src/merge/fetcher/visit.rs:260
-    wire visit_at_level;                     // rtl-gen/src/merge/fetcher/visit.rs:262
-    wire visit_order_bad;                    // rtl-gen/src/merge/fetcher/visit.rs:263
-    wire visit_range_bad;                    // rtl-gen/src/merge/fetcher/visit.rs:271
-    wire visit_frontier_bad;                 // rtl-gen/src/merge/fetcher/visit.rs:272
-    wire [3:0] visit_item_end_mux;           // rtl-gen/src/merge/fetcher/visit.rs:274
-    wire [3:0] visit_code;                   // rtl-gen/src/merge/fetcher/visit.rs:274
-    wire visit_fails;                        // rtl-gen/src/merge/fetcher/visit.rs:286
-    wire visit_go_and;                       // rtl-gen/src/merge/fetcher/visit.rs:287
-    wire visit_passes;                       // rtl-gen/src/merge/fetcher/visit.rs:287
-    wire visit_frontier_push;                // rtl-gen/src/merge/fetcher/visit.rs:288
-    wire visit_errored_not;                  // rtl-gen/src/merge/fetcher/visit.rs:290
-    wire visit_leaf_out;                     // rtl-gen/src/merge/fetcher/visit.rs:290
-    wire visit_to_out;                       // rtl-gen/src/merge/fetcher/visit.rs:291
-    wire visit_next_level;                   // rtl-gen/src/merge/fetcher/visit.rs:292
-    wire visit_level_end;                    // rtl-gen/src/merge/fetcher/visit.rs:293
-    wire visit_walk_over;                    // rtl-gen/src/merge/fetcher/visit.rs:304
-    wire visit_marker_push;                  // rtl-gen/src/merge/fetcher/visit.rs:308
-    wire visit_level_end_push;               // rtl-gen/src/merge/fetcher/visit.rs:325
-    wire [4:0] visit_item_rec_lod;           // rtl-gen/src/merge/fetcher/visit.rs:492
-    wire visit_walk_over_and;                // rtl-gen/src/merge/fetcher/visit.rs:502
-    wire visit_leaves_end_fire;              // rtl-gen/src/merge/fetcher/visit.rs:502
-    wire [27:0] visit_fails_mux_1;           // rtl-gen/src/merge/fetcher/visit.rs:539
+    reg [4:0] level;                         // rtl-gen/src/merge/fetcher/walk.rs:42
+    reg at_top;                              // rtl-gen/src/merge/fetcher/walk.rs:43
+    reg walk_done;                           // rtl-gen/src/merge/fetcher/walk.rs:44
+    reg prev_valid;                          // rtl-gen/src/merge/fetcher/walk.rs:45
+    reg [48:0] prev_key;                     // rtl-gen/src/merge/fetcher/walk.rs:46
+    reg [8:0] pushed;                        // rtl-gen/src/merge/fetcher/walk.rs:47
+    reg visit_errored;                       // rtl-gen/src/merge/fetcher/walk.rs:48
+    reg out_errored;                         // rtl-gen/src/merge/fetcher/walk.rs:49
+    wire u_root_sorter_in_ready;             // rtl-gen/src/merge/fetcher/walk.rs:90
+    wire u_root_sorter_out_valid;            // rtl-gen/src/merge/fetcher/walk.rs:90
+    wire [180:0] u_root_sorter_out_data;     // rtl-gen/src/merge/fetcher/walk.rs:90
+    wire [149:0] sorted_rec;                 // rtl-gen/src/merge/fetcher/walk.rs:94
+    wire [27:0] u_root_sorter_ref;           // rtl-gen/src/merge/fetcher/walk.rs:95
+    wire [1:0] u_root_sorter_kind;           // rtl-gen/src/merge/fetcher/walk.rs:97
+    wire sorted_end;                         // rtl-gen/src/merge/fetcher/walk.rs:98
+    wire u_root_sorter_err;                  // rtl-gen/src/merge/fetcher/walk.rs:100
+    reg [23:0] roots_issued;                 // rtl-gen/src/merge/fetcher/walk.rs:101
+    reg [23:0] roots_taken;                  // rtl-gen/src/merge/fetcher/walk.rs:102
+    wire root_req_valid;                     // rtl-gen/src/merge/fetcher/walk.rs:107
+    wire root_outstanding;                   // rtl-gen/src/merge/fetcher/walk.rs:108
+    wire roots_all_taken;                    // rtl-gen/src/merge/fetcher/walk.rs:109
+    wire [4:0] node_resp_data_lod;           // rtl-gen/src/merge/fetcher/parts.rs:63
+    wire [15:0] node_resp_data_x;            // rtl-gen/src/view.rs:57
+    wire [15:0] node_resp_data_y;            // rtl-gen/src/view.rs:57
+    wire [15:0] node_resp_data_z;            // rtl-gen/src/view.rs:57
+    wire node_resp_data_x_or;                // rtl-gen/src/merge/fetcher/parts.rs:68
+    wire [7:0] node_resp_data_lo_x;          // rtl-gen/src/merge/fetcher/parts.rs:74
+    wire [7:0] node_resp_data_hi_x;          // rtl-gen/src/merge/fetcher/parts.rs:74
+    wire [7:0] node_resp_data_lo_y;          // rtl-gen/src/merge/fetcher/parts.rs:74
+    wire [7:0] node_resp_data_hi_y;          // rtl-gen/src/merge/fetcher/parts.rs:74
+    wire [7:0] node_resp_data_lo_z;          // rtl-gen/src/merge/fetcher/parts.rs:74
+    wire [7:0] node_resp_data_hi_z;          // rtl-gen/src/merge/fetcher/parts.rs:74
+    wire node_resp_data_x_or_1;              // rtl-gen/src/merge/fetcher/parts.rs:75
+    wire [23:0] node_resp_data_count;        // rtl-gen/src/merge/fetcher/parts.rs:78
+    wire [4:0] node_resp_data_lod_sub;       // rtl-gen/src/merge/fetcher/parts.rs:80
+    wire [33:0] node_resp_data_x_add;        // rtl-gen/src/merge/fetcher/parts.rs:86
+    wire [33:0] node_resp_data_y_add;        // rtl-gen/src/merge/fetcher/parts.rs:86
+    wire [33:0] node_resp_data_z_add;        // rtl-gen/src/merge/fetcher/parts.rs:86
+    wire [3:0] node_resp_data_y_mux;         // rtl-gen/src/merge/fetcher/parts.rs:91
+    wire [3:0] node_resp_data_lod_mux;       // rtl-gen/src/merge/fetcher/parts.rs:91
+    wire [3:0] node_code;                    // rtl-gen/src/merge/fetcher/parts.rs:91
+    wire [149:0] node_resp_data_cat;         // rtl-gen/src/merge/fetcher/parts.rs:102
+    wire root_outstanding_and;               // rtl-gen/src/merge/fetcher/walk.rs:114
+    wire root_take;                          // rtl-gen/src/merge/fetcher/walk.rs:114
+    wire node_code_ne;                       // rtl-gen/src/merge/fetcher/walk.rs:116
+    wire root_fail;                          // rtl-gen/src/merge/fetcher/walk.rs:116
+    wire first_err_valid_not;                // rtl-gen/src/merge/fetcher/walk.rs:118
+    wire root_fail_and;                      // rtl-gen/src/merge/fetcher/walk.rs:118
+    wire node_resp_data_leaf;                // rtl-gen/src/merge/fetcher/walk.rs:125
+    wire [179:0] roots_all_taken_mux;        // rtl-gen/src/merge/fetcher/walk.rs:138
+    wire frontier_in_valid;                  // rtl-gen/src/merge/fetcher/walk.rs:173
+    wire [72:0] frontier_in_data;            // rtl-gen/src/merge/fetcher/walk.rs:173
+    wire frontier_in_ready;                  // rtl-gen/src/merge/fetcher/walk.rs:173
+    reg [9:0] frontier_head;                 // rtl-gen/src/merge/fetcher/walk.rs:174
+    reg [9:0] frontier_tail;                 // rtl-gen/src/merge/fetcher/walk.rs:174
+    reg [10:0] frontier_count;               // rtl-gen/src/merge/fetcher/walk.rs:174
+    wire frontier_out_valid;                 // rtl-gen/src/merge/fetcher/walk.rs:174
+    wire [72:0] frontier_out_data;           // rtl-gen/src/merge/fetcher/walk.rs:174
+    wire frontier_out_ready;                 // rtl-gen/src/merge/fetcher/walk.rs:174
+    wire frontier_count_ne;                  // rtl-gen/src/merge/fetcher/walk.rs:174
+    wire frontier_in_valid_and;              // rtl-gen/src/merge/fetcher/walk.rs:174
+    wire frontier_out_valid_and;             // rtl-gen/src/merge/fetcher/walk.rs:174
+    wire frontier_out_data_marker;           // rtl-gen/src/merge/fetcher/walk.rs:190
+    wire [23:0] frontier_out_data_first;     // rtl-gen/src/merge/fetcher/walk.rs:191
+    wire [23:0] frontier_out_data_count;     // rtl-gen/src/merge/fetcher/walk.rs:192
+    wire [23:0] frontier_out_data_parent;    // rtl-gen/src/merge/fetcher/walk.rs:193
+    reg range_valid;                         // rtl-gen/src/merge/fetcher/walk.rs:194
+    reg [23:0] range_idx;                    // rtl-gen/src/merge/fetcher/walk.rs:195
+    reg [24:0] range_end;                    // rtl-gen/src/merge/fetcher/walk.rs:196
+    reg [23:0] range_parent;                 // rtl-gen/src/merge/fetcher/walk.rs:197
+    wire range_ref_ctx_in_valid;             // rtl-gen/src/merge/fetcher/walk.rs:198
+    wire [24:0] range_ref_ctx_in_data;       // rtl-gen/src/merge/fetcher/walk.rs:198
+    wire range_ref_ctx_in_ready;             // rtl-gen/src/merge/fetcher/walk.rs:198
+    reg [2:0] range_ref_ctx_head;            // rtl-gen/src/merge/fetcher/walk.rs:199
+    reg [2:0] range_ref_ctx_tail;            // rtl-gen/src/merge/fetcher/walk.rs:199
+    reg [3:0] range_ref_ctx_count;           // rtl-gen/src/merge/fetcher/walk.rs:199
+    wire range_ref_ctx_out_valid;            // rtl-gen/src/merge/fetcher/walk.rs:199
+    wire [24:0] range_ref_ctx_out_data;      // rtl-gen/src/merge/fetcher/walk.rs:199
+    wire range_ref_ctx_out_ready;            // rtl-gen/src/merge/fetcher/walk.rs:199
+    wire range_ref_ctx_count_ne;             // rtl-gen/src/merge/fetcher/walk.rs:199
+    wire range_ref_ctx_in_valid_and;         // rtl-gen/src/merge/fetcher/walk.rs:199
+    wire range_ref_ctx_out_valid_and;        // rtl-gen/src/merge/fetcher/walk.rs:199
+    wire range_issue;                        // rtl-gen/src/merge/fetcher/walk.rs:202
+    wire [23:0] range_idx_add;               // rtl-gen/src/merge/fetcher/walk.rs:203
+    wire walking_and;                        // rtl-gen/src/merge/fetcher/walk.rs:205
+    wire range_valid_not;                    // rtl-gen/src/merge/fetcher/walk.rs:205
+    wire range_issue_and;                    // rtl-gen/src/merge/fetcher/walk.rs:205
+    wire range_load;                         // rtl-gen/src/merge/fetcher/walk.rs:205
+    wire range_marker_pop;                   // rtl-gen/src/merge/fetcher/walk.rs:207
+    wire ref_stage_node_ctx_in_valid;        // rtl-gen/src/merge/fetcher/walk.rs:248
+    wire [33:0] ref_stage_node_ctx_in_data;  // rtl-gen/src/merge/fetcher/walk.rs:248
+    wire ref_stage_node_ctx_in_ready;        // rtl-gen/src/merge/fetcher/walk.rs:248
+    reg [2:0] ref_stage_node_ctx_head;       // rtl-gen/src/merge/fetcher/walk.rs:249
+    reg [2:0] ref_stage_node_ctx_tail;       // rtl-gen/src/merge/fetcher/walk.rs:249
+    reg [3:0] ref_stage_node_ctx_count;      // rtl-gen/src/merge/fetcher/walk.rs:249
+    wire ref_stage_node_ctx_out_valid;       // rtl-gen/src/merge/fetcher/walk.rs:249
+    wire [33:0] ref_stage_node_ctx_out_data; // rtl-gen/src/merge/fetcher/walk.rs:249
+    wire ref_stage_node_ctx_out_ready;       // rtl-gen/src/merge/fetcher/walk.rs:249
+    wire ref_stage_node_ctx_count_ne;        // rtl-gen/src/merge/fetcher/walk.rs:249
+    wire ref_stage_node_ctx_in_valid_and;    // rtl-gen/src/merge/fetcher/walk.rs:249
+    wire ref_stage_node_ctx_out_valid_and;   // rtl-gen/src/merge/fetcher/walk.rs:249
+    wire [23:0] ref_stage_resp_node;         // rtl-gen/src/merge/fetcher/walk.rs:250
+    wire [3:0] ref_stage_resp_hier;          // rtl-gen/src/merge/fetcher/walk.rs:251
+    wire [3:0] ref_stage_code;               // rtl-gen/src/merge/fetcher/parts.rs:121
+    wire walking_and_1;                      // rtl-gen/src/merge/fetcher/walk.rs:253
+    wire walking_and_2;                      // rtl-gen/src/merge/fetcher/walk.rs:253
+    wire ref_stage_wait;                     // rtl-gen/src/merge/fetcher/walk.rs:253
+    wire ref_stage_take;                     // rtl-gen/src/merge/fetcher/walk.rs:255
+    wire ref_stage_end;                      // rtl-gen/src/merge/fetcher/walk.rs:256
+    wire ref_stage_take_or;                  // rtl-gen/src/merge/fetcher/walk.rs:257
+    wire ref_stage_code_eq;                  // rtl-gen/src/merge/fetcher/walk.rs:259
+    wire ref_stage_node_req;                 // rtl-gen/src/merge/fetcher/walk.rs:259
+    wire ref_stage_node_ctx_out_data_eq;     // rtl-gen/src/merge/fetcher/visit.rs:74
+    wire visit_out_items_in_valid;           // rtl-gen/src/merge/fetcher/visit.rs:76
+    wire [183:0] visit_out_items_in_data;    // rtl-gen/src/merge/fetcher/visit.rs:76
+    wire visit_out_items_in_ready;           // rtl-gen/src/merge/fetcher/visit.rs:76
+    reg [1:0] visit_out_items_head;          // rtl-gen/src/merge/fetcher/visit.rs:77
+    reg [1:0] visit_out_items_tail;          // rtl-gen/src/merge/fetcher/visit.rs:77
+    reg [2:0] visit_out_items_count;         // rtl-gen/src/merge/fetcher/visit.rs:77
+    wire visit_out_items_out_valid;          // rtl-gen/src/merge/fetcher/visit.rs:77
+    wire [183:0] visit_out_items_out_data;   // rtl-gen/src/merge/fetcher/visit.rs:77
+    wire visit_out_items_out_ready;          // rtl-gen/src/merge/fetcher/visit.rs:77
+    wire visit_out_items_count_ne;           // rtl-gen/src/merge/fetcher/visit.rs:77
+    wire visit_out_items_in_valid_and;       // rtl-gen/src/merge/fetcher/visit.rs:77
+    wire visit_out_items_out_valid_and;      // rtl-gen/src/merge/fetcher/visit.rs:77
+    wire visit_live;                         // rtl-gen/src/merge/fetcher/visit.rs:78
+    wire visit_above_level;                  // rtl-gen/src/merge/fetcher/visit.rs:79
+    wire visit_above_first;                  // rtl-gen/src/merge/fetcher/visit.rs:80
+    wire visit_above_first_not;              // rtl-gen/src/merge/fetcher/visit.rs:84
+    wire visit_sending_level;                // rtl-gen/src/merge/fetcher/visit.rs:84
+    reg visit_leaves_end_sent;               // rtl-gen/src/merge/fetcher/visit.rs:112
+    wire visit_leaves_end_due;               // rtl-gen/src/merge/fetcher/visit.rs:113
+    wire visit_room;                         // rtl-gen/src/merge/fetcher/visit.rs:115
+    reg [4:0] visit_end_next;                // rtl-gen/src/merge/fetcher/visit.rs:123
+    reg visit_final_sent;                    // rtl-gen/src/merge/fetcher/visit.rs:124
+    wire visit_pre_ends;                     // rtl-gen/src/merge/fetcher/visit.rs:125
+    wire visit_ends_drain;                   // rtl-gen/src/merge/fetcher/visit.rs:126
+    wire visit_end_emit;                     // rtl-gen/src/merge/fetcher/visit.rs:127
+    wire visit_end_final;                    // rtl-gen/src/merge/fetcher/visit.rs:128
+    wire visit_end_fire;                     // rtl-gen/src/merge/fetcher/visit.rs:129
+    wire at_top_and;                         // rtl-gen/src/merge/fetcher/visit.rs:130
+    wire at_top_and_1;                       // rtl-gen/src/merge/fetcher/visit.rs:131
+    wire at_top_and_2;                       // rtl-gen/src/merge/fetcher/visit.rs:131
+    wire at_top_and_3;                       // rtl-gen/src/merge/fetcher/visit.rs:132
+    wire at_top_not;                         // rtl-gen/src/merge/fetcher/visit.rs:133
+    reg visit_capacity_told;                 // rtl-gen/src/merge/fetcher/visit.rs:137
+    wire at_top_and_4;                       // rtl-gen/src/merge/fetcher/visit.rs:139
+    wire visit_sorter_dropped;               // rtl-gen/src/merge/fetcher/visit.rs:139
+    wire ref_stage_node_ctx_out_data_or;     // rtl-gen/src/merge/fetcher/visit.rs:145
+    wire visit_avail;                        // rtl-gen/src/merge/fetcher/visit.rs:141
+    wire visit_free;                         // rtl-gen/src/merge/fetcher/visit.rs:149
+    wire visit_go;                           // rtl-gen/src/merge/fetcher/visit.rs:152
+    wire visit_sorter_dropped_not;           // rtl-gen/src/merge/fetcher/visit.rs:154
+    wire visit_live_and;                     // rtl-gen/src/merge/fetcher/visit.rs:157
+    wire visit_item_err;                     // rtl-gen/src/merge/fetcher/visit.rs:163
+    wire visit_item_end;                     // rtl-gen/src/merge/fetcher/visit.rs:165
+    wire visit_item_node;                    // rtl-gen/src/merge/fetcher/visit.rs:167
+    wire [23:0] ref_stage_node_ctx_out_data_node; // rtl-gen/src/merge/fetcher/visit.rs:176
+    wire [149:0] visit_item_rec;             // rtl-gen/src/merge/fetcher/visit.rs:178
+    wire [27:0] visit_item_ref;              // rtl-gen/src/merge/fetcher/visit.rs:179
+    wire [23:0] visit_item_ref_node;         // rtl-gen/src/merge/fetcher/visit.rs:180
+    wire visit_item_leaf;                    // rtl-gen/src/merge/fetcher/visit.rs:250
+    wire visit_item_leaf_not;                // rtl-gen/src/merge/fetcher/visit.rs:251
+    wire [47:0] visit_item_rec_x_morton;     // rtl-gen/src/merge/network.rs:40
+    wire [48:0] visit_item_key;              // rtl-gen/src/merge/fetcher/visit.rs:253
+    wire [23:0] visit_item_rec_first;        // rtl-gen/src/merge/fetcher/visit.rs:255
+    wire [23:0] visit_item_rec_count;        // rtl-gen/src/merge/fetcher/visit.rs:256
+    wire [24:0] visit_item_range_end;        // rtl-gen/src/merge/fetcher/visit.rs:259
+    wire visit_at_level;                     // rtl-gen/src/merge/fetcher/visit.rs:261
+    wire visit_order_bad;                    // rtl-gen/src/merge/fetcher/visit.rs:262
+    wire visit_range_bad;                    // rtl-gen/src/merge/fetcher/visit.rs:270
+    wire visit_frontier_bad;                 // rtl-gen/src/merge/fetcher/visit.rs:271
+    wire [3:0] visit_item_end_mux;           // rtl-gen/src/merge/fetcher/visit.rs:273
+    wire [3:0] visit_code;                   // rtl-gen/src/merge/fetcher/visit.rs:273
+    wire visit_fails;                        // rtl-gen/src/merge/fetcher/visit.rs:285
+    wire visit_go_and;                       // rtl-gen/src/merge/fetcher/visit.rs:286
+    wire visit_passes;                       // rtl-gen/src/merge/fetcher/visit.rs:286
+    wire visit_frontier_push;                // rtl-gen/src/merge/fetcher/visit.rs:287
+    wire visit_errored_not;                  // rtl-gen/src/merge/fetcher/visit.rs:289
+    wire visit_leaf_out;                     // rtl-gen/src/merge/fetcher/visit.rs:289
+    wire visit_to_out;                       // rtl-gen/src/merge/fetcher/visit.rs:290
+    wire visit_next_level;                   // rtl-gen/src/merge/fetcher/visit.rs:291
+    wire visit_level_end;                    // rtl-gen/src/merge/fetcher/visit.rs:292
+    wire visit_walk_over;                    // rtl-gen/src/merge/fetcher/visit.rs:303
+    wire visit_marker_push;                  // rtl-gen/src/merge/fetcher/visit.rs:307
+    wire visit_level_end_push;               // rtl-gen/src/merge/fetcher/visit.rs:322
+    wire [4:0] visit_item_rec_lod;           // rtl-gen/src/merge/fetcher/visit.rs:484
+    wire visit_walk_over_and;                // rtl-gen/src/merge/fetcher/visit.rs:495
+    wire visit_leaves_end_fire;              // rtl-gen/src/merge/fetcher/visit.rs:495
+    wire [27:0] visit_fails_mux_1;           // rtl-gen/src/merge/fetcher/visit.rs:532
     wire visit_out_items_out_data_eq;        // rtl-gen/src/merge/fetcher/order.rs:174
     wire visit_out_items_out_data_leaf;      // rtl-gen/src/merge/fetcher/order.rs:175
     wire [15:0] visit_out_items_out_data_z;  // rtl-gen/src/merge/fetcher/order.rs:176
@@ -343,26 +343,26 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
     wire order_held_leaf_or;                 // rtl-gen/src/merge/fetcher/order.rs:121
     wire order_hold_refs;                    // rtl-gen/src/merge/fetcher/order.rs:125
     wire [23:0] visit_out_items_out_data_node; // rtl-gen/src/merge/fetcher/order.rs:135
-    wire [183:0] const_cat;                  // rtl-gen/src/merge/fetcher/parts.rs:160
+    wire [183:0] const_cat;                  // rtl-gen/src/merge/fetcher/parts.rs:155
     wire [185:0] visit_out_items_out_data_mux; // rtl-gen/src/merge/fetcher/order.rs:299
     wire [185:0] visit_out_items_out_data_mux_1; // rtl-gen/src/merge/fetcher/order.rs:299
-    wire out_token_cref;                     // rtl-gen/src/merge/fetcher/out.rs:34
-    wire [23:0] cref_resp_data_node;         // rtl-gen/src/merge/fetcher/out.rs:35
-    wire [3:0] cref_resp_data_hier;          // rtl-gen/src/merge/fetcher/out.rs:36
-    wire [3:0] out_cref_code;                // rtl-gen/src/merge/fetcher/parts.rs:126
-    wire out_token_answered;                 // rtl-gen/src/merge/fetcher/out.rs:38
-    reg out_skip_end;                        // rtl-gen/src/merge/fetcher/out.rs:39
-    wire order_tokens_out_data_eq;           // rtl-gen/src/merge/fetcher/out.rs:40
-    wire [1:0] order_tokens_out_data_kind;   // rtl-gen/src/merge/fetcher/out.rs:41
-    wire out_token_end;                      // rtl-gen/src/merge/fetcher/out.rs:40
-    wire out_errored_not;                    // rtl-gen/src/merge/fetcher/out.rs:43
-    wire out_token_sent;                     // rtl-gen/src/merge/fetcher/out.rs:43
-    wire walking_and_4;                      // rtl-gen/src/merge/fetcher/out.rs:44
-    wire walking_and_5;                      // rtl-gen/src/merge/fetcher/out.rs:44
-    wire out_token_sent_or;                  // rtl-gen/src/merge/fetcher/out.rs:44
-    wire out_token_fire;                     // rtl-gen/src/merge/fetcher/out.rs:44
-    wire [183:0] out_cref_code_mux;          // rtl-gen/src/merge/fetcher/out.rs:67
-    wire out_first_error;                    // rtl-gen/src/merge/fetcher/out.rs:69
+    wire out_token_cref;                     // rtl-gen/src/merge/fetcher/out.rs:33
+    wire [23:0] cref_resp_data_node;         // rtl-gen/src/merge/fetcher/out.rs:34
+    wire [3:0] cref_resp_data_hier;          // rtl-gen/src/merge/fetcher/out.rs:35
+    wire [3:0] out_cref_code;                // rtl-gen/src/merge/fetcher/parts.rs:121
+    wire out_token_answered;                 // rtl-gen/src/merge/fetcher/out.rs:37
+    reg out_skip_end;                        // rtl-gen/src/merge/fetcher/out.rs:38
+    wire order_tokens_out_data_eq;           // rtl-gen/src/merge/fetcher/out.rs:39
+    wire [1:0] order_tokens_out_data_kind;   // rtl-gen/src/merge/fetcher/out.rs:40
+    wire out_token_end;                      // rtl-gen/src/merge/fetcher/out.rs:39
+    wire out_errored_not;                    // rtl-gen/src/merge/fetcher/out.rs:42
+    wire out_token_sent;                     // rtl-gen/src/merge/fetcher/out.rs:42
+    wire walking_and_4;                      // rtl-gen/src/merge/fetcher/out.rs:43
+    wire walking_and_5;                      // rtl-gen/src/merge/fetcher/out.rs:43
+    wire out_token_sent_or;                  // rtl-gen/src/merge/fetcher/out.rs:43
+    wire out_token_fire;                     // rtl-gen/src/merge/fetcher/out.rs:43
+    wire [183:0] out_cref_code_mux;          // rtl-gen/src/merge/fetcher/out.rs:66
+    wire out_first_error;                    // rtl-gen/src/merge/fetcher/out.rs:68
     wire phase_eq_2;                         // rtl-gen/src/merge/fetcher/command.rs:44
     reg node_req_q_valid;                    // rtl-gen/src/merge/fetcher/mod.rs:245
     reg [23:0] node_req_q_data;              // rtl-gen/src/merge/fetcher/mod.rs:245
@@ -692,7 +692,7 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
     assign leaves_data = leaves_q_data;
     assign idle = is_idle;
 
-    root_sorter_d16_q8_i24_h4_n16 u_root_sorter ( // rtl-gen/src/merge/fetcher/walk.rs:91
+    root_sorter_d16_q8_i24_h4_n16 u_root_sorter ( // rtl-gen/src/merge/fetcher/walk.rs:90
         .clk(clk),
         .rst(rst),
         .in_valid((root_outstanding_and & (node_code == 4'd0)) | roots_all_taken),
@@ -791,20 +791,20 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
             leaves_q_spare_data <= 184'h0000000000000000000000000000000000000000000000;
         end else begin
             if (cmd_fire) begin
-                phase <= START;              // rtl-gen/src/merge/fetcher/parts.rs:32
+                phase <= START;              // rtl-gen/src/merge/fetcher/parts.rs:31
                 cmd_lod <= cmd_data_lod;     // rtl-gen/src/merge/fetcher/command.rs:100
                 cmd_send_refs <= cmd_data_send_refs; // rtl-gen/src/merge/fetcher/command.rs:101
                 cmd_send_leaves <= cmd_data_send_leaves; // rtl-gen/src/merge/fetcher/command.rs:102
                 cmd_last <= cmd_data_last;   // rtl-gen/src/merge/fetcher/command.rs:103
                 cmd_first <= (cmd_data_from > cmd_data_lod) ? cmd_data_lod : cmd_data_from; // rtl-gen/src/merge/fetcher/command.rs:119
             end else if (phase_eq) begin
-                phase <= header_code_ne ? WALK : ROOTS; // rtl-gen/src/merge/fetcher/parts.rs:32
+                phase <= header_code_ne ? WALK : ROOTS; // rtl-gen/src/merge/fetcher/parts.rs:31
             end else if (roots_all_taken & u_root_sorter_in_ready) begin
-                phase <= WALK;               // rtl-gen/src/merge/fetcher/parts.rs:32
+                phase <= WALK;               // rtl-gen/src/merge/fetcher/parts.rs:31
             end else if (out_token_fire & order_tokens_out_data_eq) begin
-                phase <= DONE;               // rtl-gen/src/merge/fetcher/parts.rs:32
+                phase <= DONE;               // rtl-gen/src/merge/fetcher/parts.rs:31
             end else if (phase_eq_2) begin
-                phase <= IDLE;               // rtl-gen/src/merge/fetcher/parts.rs:32
+                phase <= IDLE;               // rtl-gen/src/merge/fetcher/parts.rs:31
             end
             if (cfg_fire) begin
                 cfg_have <= 1'b1;            // rtl-gen/src/merge/fetcher/mod.rs:241
@@ -822,86 +822,86 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
                 cfg_have <= 1'b0;            // rtl-gen/src/merge/fetcher/mod.rs:241
             end
             if (phase_eq) begin
-                first_err_valid <= header_code_ne; // rtl-gen/src/merge/fetcher/parts.rs:32
-                first_err_code <= header_code; // rtl-gen/src/merge/fetcher/parts.rs:32
-                first_err_node <= 24'd0;     // rtl-gen/src/merge/fetcher/parts.rs:32
+                first_err_valid <= header_code_ne; // rtl-gen/src/merge/fetcher/parts.rs:31
+                first_err_code <= header_code; // rtl-gen/src/merge/fetcher/parts.rs:31
+                first_err_node <= 24'd0;     // rtl-gen/src/merge/fetcher/parts.rs:31
                 header_err <= header_code_ne; // rtl-gen/src/merge/fetcher/command.rs:205
-                level <= cfg_top;            // rtl-gen/src/merge/fetcher/visit.rs:354
-                at_top <= 1'b1;              // rtl-gen/src/merge/fetcher/visit.rs:356
-                walk_done <= 1'b0;           // rtl-gen/src/merge/fetcher/visit.rs:358
-                prev_valid <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:335
-                pushed <= 9'd0;              // rtl-gen/src/merge/fetcher/visit.rs:350
-                visit_errored <= 1'b0;       // rtl-gen/src/merge/fetcher/visit.rs:360
-                out_errored <= 1'b0;         // rtl-gen/src/merge/fetcher/out.rs:70
-                roots_issued <= 24'd0;       // rtl-gen/src/merge/fetcher/walk.rs:104
-                roots_taken <= 24'd0;        // rtl-gen/src/merge/fetcher/walk.rs:116
-                range_valid <= 1'b0;         // rtl-gen/src/merge/fetcher/walk.rs:216
-                visit_leaves_end_sent <= 1'b0; // rtl-gen/src/merge/fetcher/visit.rs:506
-                visit_end_next <= cmd_first; // rtl-gen/src/merge/fetcher/visit.rs:326
-                visit_final_sent <= 1'b0;    // rtl-gen/src/merge/fetcher/visit.rs:330
-                visit_capacity_told <= 1'b0; // rtl-gen/src/merge/fetcher/visit.rs:156
+                level <= cfg_top;            // rtl-gen/src/merge/fetcher/visit.rs:351
+                at_top <= 1'b1;              // rtl-gen/src/merge/fetcher/visit.rs:353
+                walk_done <= 1'b0;           // rtl-gen/src/merge/fetcher/visit.rs:355
+                prev_valid <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:332
+                pushed <= 9'd0;              // rtl-gen/src/merge/fetcher/visit.rs:347
+                visit_errored <= 1'b0;       // rtl-gen/src/merge/fetcher/visit.rs:357
+                out_errored <= 1'b0;         // rtl-gen/src/merge/fetcher/out.rs:69
+                roots_issued <= 24'd0;       // rtl-gen/src/merge/fetcher/walk.rs:103
+                roots_taken <= 24'd0;        // rtl-gen/src/merge/fetcher/walk.rs:115
+                range_valid <= 1'b0;         // rtl-gen/src/merge/fetcher/walk.rs:209
+                visit_leaves_end_sent <= 1'b0; // rtl-gen/src/merge/fetcher/visit.rs:499
+                visit_end_next <= cmd_first; // rtl-gen/src/merge/fetcher/visit.rs:323
+                visit_final_sent <= 1'b0;    // rtl-gen/src/merge/fetcher/visit.rs:327
+                visit_capacity_told <= 1'b0; // rtl-gen/src/merge/fetcher/visit.rs:155
                 order_pend_valid <= 1'b0;    // rtl-gen/src/merge/fetcher/order.rs:128
                 order_cref_active <= 1'b0;   // rtl-gen/src/merge/fetcher/order.rs:108
-                out_skip_end <= 1'b0;        // rtl-gen/src/merge/fetcher/out.rs:71
+                out_skip_end <= 1'b0;        // rtl-gen/src/merge/fetcher/out.rs:70
             end else begin
                 if (root_fail) begin
-                    first_err_valid <= 1'b1; // rtl-gen/src/merge/fetcher/parts.rs:32
+                    first_err_valid <= 1'b1; // rtl-gen/src/merge/fetcher/parts.rs:31
                 end else if (visit_go & at_top_and) begin
-                    first_err_valid <= 1'b0; // rtl-gen/src/merge/fetcher/parts.rs:32
+                    first_err_valid <= 1'b0; // rtl-gen/src/merge/fetcher/parts.rs:31
                 end
                 if (root_fail_and) begin
-                    first_err_code <= node_code; // rtl-gen/src/merge/fetcher/parts.rs:32
-                    first_err_node <= roots_taken; // rtl-gen/src/merge/fetcher/parts.rs:32
+                    first_err_code <= node_code; // rtl-gen/src/merge/fetcher/parts.rs:31
+                    first_err_node <= roots_taken; // rtl-gen/src/merge/fetcher/parts.rs:31
                 end
                 if (visit_marker_push) begin
-                    level <= level + 5'd1;   // rtl-gen/src/merge/fetcher/visit.rs:354
-                    prev_valid <= 1'b0;      // rtl-gen/src/merge/fetcher/visit.rs:337
-                    pushed <= 9'd0;          // rtl-gen/src/merge/fetcher/visit.rs:352
+                    level <= level + 5'd1;   // rtl-gen/src/merge/fetcher/visit.rs:351
+                    prev_valid <= 1'b0;      // rtl-gen/src/merge/fetcher/visit.rs:334
+                    pushed <= 9'd0;          // rtl-gen/src/merge/fetcher/visit.rs:349
                 end else begin
                     if (visit_go_and) begin
-                        prev_valid <= 1'b1;  // rtl-gen/src/merge/fetcher/visit.rs:337
+                        prev_valid <= 1'b1;  // rtl-gen/src/merge/fetcher/visit.rs:334
                     end
                     if (visit_frontier_push) begin
-                        pushed <= pushed + 9'd1; // rtl-gen/src/merge/fetcher/visit.rs:352
+                        pushed <= pushed + 9'd1; // rtl-gen/src/merge/fetcher/visit.rs:349
                     end
                 end
                 if (visit_level_end) begin
-                    at_top <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:356
+                    at_top <= 1'b0;          // rtl-gen/src/merge/fetcher/visit.rs:353
                 end
                 if (visit_walk_over) begin
-                    walk_done <= 1'b1;       // rtl-gen/src/merge/fetcher/visit.rs:358
+                    walk_done <= 1'b1;       // rtl-gen/src/merge/fetcher/visit.rs:355
                 end
                 if (visit_fails) begin
-                    visit_errored <= 1'b1;   // rtl-gen/src/merge/fetcher/visit.rs:360
+                    visit_errored <= 1'b1;   // rtl-gen/src/merge/fetcher/visit.rs:357
                 end
                 if (out_first_error) begin
-                    out_errored <= 1'b1;     // rtl-gen/src/merge/fetcher/out.rs:70
-                    out_skip_end <= 1'b1;    // rtl-gen/src/merge/fetcher/out.rs:73
+                    out_errored <= 1'b1;     // rtl-gen/src/merge/fetcher/out.rs:69
+                    out_skip_end <= 1'b1;    // rtl-gen/src/merge/fetcher/out.rs:72
                 end else if ((out_token_fire & out_token_end) & out_errored) begin
-                    out_skip_end <= 1'b0;    // rtl-gen/src/merge/fetcher/out.rs:75
+                    out_skip_end <= 1'b0;    // rtl-gen/src/merge/fetcher/out.rs:74
                 end
                 if (phase_eq_1 & (node_req_core_valid & node_req_core_ready)) begin
-                    roots_issued <= roots_issued + 24'd1; // rtl-gen/src/merge/fetcher/walk.rs:106
+                    roots_issued <= roots_issued + 24'd1; // rtl-gen/src/merge/fetcher/walk.rs:105
                 end
                 if (root_take) begin
-                    roots_taken <= roots_taken + 24'd1; // rtl-gen/src/merge/fetcher/walk.rs:116
+                    roots_taken <= roots_taken + 24'd1; // rtl-gen/src/merge/fetcher/walk.rs:115
                 end
                 if (range_load) begin
-                    range_valid <= 1'b1;     // rtl-gen/src/merge/fetcher/walk.rs:218
+                    range_valid <= 1'b1;     // rtl-gen/src/merge/fetcher/walk.rs:211
                 end else if (range_issue_and) begin
-                    range_valid <= 1'b0;     // rtl-gen/src/merge/fetcher/walk.rs:220
+                    range_valid <= 1'b0;     // rtl-gen/src/merge/fetcher/walk.rs:213
                 end
                 if (visit_leaves_end_fire) begin
-                    visit_leaves_end_sent <= 1'b1; // rtl-gen/src/merge/fetcher/visit.rs:506
+                    visit_leaves_end_sent <= 1'b1; // rtl-gen/src/merge/fetcher/visit.rs:499
                 end
                 if ((visit_end_fire & (~visit_end_final)) | visit_level_end_push) begin
-                    visit_end_next <= visit_end_next + 5'd1; // rtl-gen/src/merge/fetcher/visit.rs:328
+                    visit_end_next <= visit_end_next + 5'd1; // rtl-gen/src/merge/fetcher/visit.rs:325
                 end
                 if (visit_end_fire & visit_end_final) begin
-                    visit_final_sent <= 1'b1; // rtl-gen/src/merge/fetcher/visit.rs:332
+                    visit_final_sent <= 1'b1; // rtl-gen/src/merge/fetcher/visit.rs:329
                 end
                 if (visit_go & visit_sorter_dropped) begin
-                    visit_capacity_told <= 1'b1; // rtl-gen/src/merge/fetcher/visit.rs:156
+                    visit_capacity_told <= 1'b1; // rtl-gen/src/merge/fetcher/visit.rs:155
                 end
                 if (order_held_leaf_or) begin
                     order_pend_valid <= 1'b0; // rtl-gen/src/merge/fetcher/order.rs:130
@@ -917,58 +917,58 @@ module fetcher_d16_q8_i24_h4_r16_f256 (
                 end
             end
             if (visit_go_and) begin
-                prev_key <= visit_item_key;  // rtl-gen/src/merge/fetcher/visit.rs:345
+                prev_key <= visit_item_key;  // rtl-gen/src/merge/fetcher/visit.rs:342
             end
             if (frontier_out_valid_and) begin
-                frontier_head <= frontier_head + 10'd1; // rtl-gen/src/merge/fetcher/walk.rs:181
+                frontier_head <= frontier_head + 10'd1; // rtl-gen/src/merge/fetcher/walk.rs:174
             end
             if (frontier_in_valid_and) begin
-                frontier_tail <= frontier_tail + 10'd1; // rtl-gen/src/merge/fetcher/walk.rs:181
+                frontier_tail <= frontier_tail + 10'd1; // rtl-gen/src/merge/fetcher/walk.rs:174
                 if (!frontier_out_valid_and) begin
-                    frontier_count <= frontier_count + 11'd1; // rtl-gen/src/merge/fetcher/walk.rs:181
+                    frontier_count <= frontier_count + 11'd1; // rtl-gen/src/merge/fetcher/walk.rs:174
                 end
             end else if (frontier_out_valid_and) begin
-                frontier_count <= frontier_count - 11'd1; // rtl-gen/src/merge/fetcher/walk.rs:181
+                frontier_count <= frontier_count - 11'd1; // rtl-gen/src/merge/fetcher/walk.rs:174
             end
             if (range_load) begin
-                range_idx <= frontier_out_data_first; // rtl-gen/src/merge/fetcher/walk.rs:223
-                range_end <= {1'b0, frontier_out_data_first} + {1'b0, frontier_out_data_count}; // rtl-gen/src/merge/fetcher/walk.rs:224
-                range_parent <= frontier_out_data_parent; // rtl-gen/src/merge/fetcher/walk.rs:228
+                range_idx <= frontier_out_data_first; // rtl-gen/src/merge/fetcher/walk.rs:216
+                range_end <= {1'b0, frontier_out_data_first} + {1'b0, frontier_out_data_count}; // rtl-gen/src/merge/fetcher/walk.rs:217
+                range_parent <= frontier_out_data_parent; // rtl-gen/src/merge/fetcher/walk.rs:221
             end else if (range_issue) begin
-                range_idx <= range_idx_add;  // rtl-gen/src/merge/fetcher/walk.rs:223
+                range_idx <= range_idx_add;  // rtl-gen/src/merge/fetcher/walk.rs:216
             end
             if (range_ref_ctx_out_valid_and) begin
-                range_ref_ctx_head <= range_ref_ctx_head + 3'd1; // rtl-gen/src/merge/fetcher/walk.rs:206
+                range_ref_ctx_head <= range_ref_ctx_head + 3'd1; // rtl-gen/src/merge/fetcher/walk.rs:199
             end
             if (range_ref_ctx_in_valid_and) begin
-                range_ref_ctx_tail <= range_ref_ctx_tail + 3'd1; // rtl-gen/src/merge/fetcher/walk.rs:206
+                range_ref_ctx_tail <= range_ref_ctx_tail + 3'd1; // rtl-gen/src/merge/fetcher/walk.rs:199
                 if (!range_ref_ctx_out_valid_and) begin
-                    range_ref_ctx_count <= range_ref_ctx_count + 4'd1; // rtl-gen/src/merge/fetcher/walk.rs:206
+                    range_ref_ctx_count <= range_ref_ctx_count + 4'd1; // rtl-gen/src/merge/fetcher/walk.rs:199
                 end
             end else if (range_ref_ctx_out_valid_and) begin
-                range_ref_ctx_count <= range_ref_ctx_count - 4'd1; // rtl-gen/src/merge/fetcher/walk.rs:206
+                range_ref_ctx_count <= range_ref_ctx_count - 4'd1; // rtl-gen/src/merge/fetcher/walk.rs:199
             end
             if (ref_stage_node_ctx_out_valid_and) begin
-                ref_stage_node_ctx_head <= ref_stage_node_ctx_head + 3'd1; // rtl-gen/src/merge/fetcher/walk.rs:256
+                ref_stage_node_ctx_head <= ref_stage_node_ctx_head + 3'd1; // rtl-gen/src/merge/fetcher/walk.rs:249
             end
             if (ref_stage_node_ctx_in_valid_and) begin
-                ref_stage_node_ctx_tail <= ref_stage_node_ctx_tail + 3'd1; // rtl-gen/src/merge/fetcher/walk.rs:256
+                ref_stage_node_ctx_tail <= ref_stage_node_ctx_tail + 3'd1; // rtl-gen/src/merge/fetcher/walk.rs:249
                 if (!ref_stage_node_ctx_out_valid_and) begin
-                    ref_stage_node_ctx_count <= ref_stage_node_ctx_count + 4'd1; // rtl-gen/src/merge/fetcher/walk.rs:256
+                    ref_stage_node_ctx_count <= ref_stage_node_ctx_count + 4'd1; // rtl-gen/src/merge/fetcher/walk.rs:249
                 end
             end else if (ref_stage_node_ctx_out_valid_and) begin
-                ref_stage_node_ctx_count <= ref_stage_node_ctx_count - 4'd1; // rtl-gen/src/merge/fetcher/walk.rs:256
+                ref_stage_node_ctx_count <= ref_stage_node_ctx_count - 4'd1; // rtl-gen/src/merge/fetcher/walk.rs:249
             end
             if (visit_out_items_out_valid_and) begin
-                visit_out_items_head <= visit_out_items_head + 2'd1; // rtl-gen/src/merge/fetcher/visit.rs:78
+                visit_out_items_head <= visit_out_items_head + 2'd1; // rtl-gen/src/merge/fetcher/visit.rs:77
             end
             if (visit_out_items_in_valid_and) begin
-                visit_out_items_tail <= visit_out_items_tail + 2'd1; // rtl-gen/src/merge/fetcher/visit.rs:78
+                visit_out_items_tail <= visit_out_items_tail + 2'd1; // rtl-gen/src/merge/fetcher/visit.rs:77
                 if (!visit_out_items_out_valid_and) begin
-                    visit_out_items_count <= visit_out_items_count + 3'd1; // rtl-gen/src/merge/fetcher/visit.rs:78
+                    visit_out_items_count <= visit_out_items_count + 3'd1; // rtl-gen/src/merge/fetcher/visit.rs:77
                 end
             end else if (visit_out_items_out_valid_and) begin
-                visit_out_items_count <= visit_out_items_count - 3'd1; // rtl-gen/src/merge/fetcher/visit.rs:78
+                visit_out_items_count <= visit_out_items_count - 3'd1; // rtl-gen/src/merge/fetcher/visit.rs:77
             end
             if (order_hold_refs) begin
                 order_pend_first <= visit_out_items_out_data_first; // rtl-gen/src/merge/fetcher/order.rs:132

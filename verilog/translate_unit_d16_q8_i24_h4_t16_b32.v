@@ -5,12 +5,12 @@
 module translate_unit_d16_q8_i24_h4_t16_b32 (
     input  wire clk,                    // clock (implicit)
     input  wire rst,                    // synchronous reset, active high (implicit)
-    input  wire det_in_valid,           // rtl-gen/src/translate/determine.rs:49
-    input  wire [205:0] det_in_data,    // rtl-gen/src/translate/determine.rs:49
-    output wire det_in_ready,           // rtl-gen/src/translate/determine.rs:49
-    output wire det_out_valid,          // rtl-gen/src/translate/determine.rs:251
-    output wire [221:0] det_out_data,   // rtl-gen/src/translate/determine.rs:251
-    input  wire det_out_ready,          // rtl-gen/src/translate/determine.rs:251
+    input  wire det_in_valid,           // rtl-gen/src/translate/determine.rs:47
+    input  wire [205:0] det_in_data,    // rtl-gen/src/translate/determine.rs:47
+    output wire det_in_ready,           // rtl-gen/src/translate/determine.rs:47
+    output wire det_out_valid,          // rtl-gen/src/translate/determine.rs:279
+    output wire [221:0] det_out_data,   // rtl-gen/src/translate/determine.rs:279
+    input  wire det_out_ready,          // rtl-gen/src/translate/determine.rs:279
     input  wire apply_in_valid,         // rtl-gen/src/translate/apply.rs:32
     input  wire [153:0] apply_in_data,  // rtl-gen/src/translate/apply.rs:32
     output wire apply_in_ready,         // rtl-gen/src/translate/apply.rs:32
@@ -24,8 +24,8 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
 );
     reg [55:0] table_ [0:15];                // rtl-gen/src/translate/table.rs:44
     reg [15:0] table_valid;                  // rtl-gen/src/translate/table.rs:43
-    wire err_lod;                            // rtl-gen/src/translate/determine.rs:56
-    wire [4:0] k;                            // rtl-gen/src/translate/determine.rs:57
+    wire err_lod;                            // rtl-gen/src/translate/determine.rs:197
+    wire [4:0] k;                            // rtl-gen/src/translate/determine.rs:198
     wire det_in_data_eq;                     // rtl-gen/src/translate/float.rs:78
     wire [12:0] det_in_data_sub;             // rtl-gen/src/translate/float.rs:86
     wire det_in_data_all;                    // rtl-gen/src/translate/float.rs:90
@@ -44,8 +44,8 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire det_in_data_any_2;                  // rtl-gen/src/translate/float.rs:91
     wire [23:0] z_m;                         // rtl-gen/src/translate/float.rs:92
     wire [5:0] z_a;                          // rtl-gen/src/translate/float.rs:129
-    wire [17:0] const_shl;                   // rtl-gen/src/translate/determine.rs:80
-    wire det_in_data_or;                     // rtl-gen/src/translate/determine.rs:84
+    wire [17:0] const_shl;                   // rtl-gen/src/translate/determine.rs:221
+    wire det_in_data_or;                     // rtl-gen/src/translate/determine.rs:225
     wire [323:0] k_cat;                      // rtl-gen/src/translate/bundle.rs:64
     reg det_s1_valid;                        // rtl-gen/src/translate/bundle.rs:100
     reg [323:0] det_s1_data;                 // rtl-gen/src/translate/bundle.rs:100
@@ -175,7 +175,7 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire [17:0] det_s2_data_t_max_y;         // rtl-gen/src/translate/bundle.rs:76
     wire [17:0] det_s2_data_t_max_z;         // rtl-gen/src/translate/bundle.rs:76
     wire det_s2_data_err_lod;                // rtl-gen/src/translate/bundle.rs:76
-    wire det_s2_data_err_lod_not;            // rtl-gen/src/translate/determine.rs:145
+    wire det_s2_data_err_lod_not;            // rtl-gen/src/translate/determine.rs:98
     wire det_s2_data_x_r_eq;                 // rtl-gen/src/translate/float.rs:205
     wire [24:0] det_s2_data_x_r_mux;         // rtl-gen/src/translate/float.rs:206
     wire det_s2_data_x_r_eq_1;               // rtl-gen/src/translate/float.rs:205
@@ -190,8 +190,8 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire [31:0] x_residual;                  // rtl-gen/src/translate/float.rs:261
     wire det_s2_data_x_nan_or;               // rtl-gen/src/translate/float.rs:263
     wire det_s2_data_x_nan_and;              // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_err_extents_not;        // rtl-gen/src/translate/determine.rs:162
-    wire det_s2_data_err_extents_and;        // rtl-gen/src/translate/determine.rs:162
+    wire det_s2_data_err_extents_not;        // rtl-gen/src/translate/determine.rs:115
+    wire det_s2_data_err_extents_and;        // rtl-gen/src/translate/determine.rs:115
     wire det_s2_data_y_r_eq;                 // rtl-gen/src/translate/float.rs:205
     wire [24:0] det_s2_data_y_r_mux;         // rtl-gen/src/translate/float.rs:206
     wire det_s2_data_y_r_eq_1;               // rtl-gen/src/translate/float.rs:205
@@ -205,7 +205,7 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire [31:0] y_residual;                  // rtl-gen/src/translate/float.rs:261
     wire det_s2_data_y_nan_or;               // rtl-gen/src/translate/float.rs:263
     wire det_s2_data_y_nan_and;              // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_err_extents_and_1;      // rtl-gen/src/translate/determine.rs:162
+    wire det_s2_data_err_extents_and_1;      // rtl-gen/src/translate/determine.rs:115
     wire det_s2_data_z_r_eq;                 // rtl-gen/src/translate/float.rs:205
     wire [24:0] det_s2_data_z_r_mux;         // rtl-gen/src/translate/float.rs:206
     wire det_s2_data_z_r_eq_1;               // rtl-gen/src/translate/float.rs:205
@@ -219,15 +219,15 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire [31:0] z_residual;                  // rtl-gen/src/translate/float.rs:261
     wire det_s2_data_z_nan_or;               // rtl-gen/src/translate/float.rs:263
     wire det_s2_data_z_nan_and;              // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_err_extents_and_2;      // rtl-gen/src/translate/determine.rs:162
-    wire [2:0] det_s2_data_err_lod_cat;      // rtl-gen/src/translate/determine.rs:171
-    wire [2:0] det_s2_data_err_lod_cat_1;    // rtl-gen/src/translate/determine.rs:171
-    wire [2:0] det_s2_data_err_lod_cat_2;    // rtl-gen/src/translate/determine.rs:171
-    wire [2:0] det_s2_data_err_lod_cat_3;    // rtl-gen/src/translate/determine.rs:171
-    wire det_s2_data_err_lod_and;            // rtl-gen/src/translate/determine.rs:147
-    wire det_s2_data_err_lod_or;             // rtl-gen/src/translate/determine.rs:176
-    wire det_ok;                             // rtl-gen/src/translate/determine.rs:183
-    wire det_written;                        // rtl-gen/src/translate/determine.rs:192
+    wire det_s2_data_err_extents_and_2;      // rtl-gen/src/translate/determine.rs:115
+    wire [2:0] det_s2_data_err_lod_cat;      // rtl-gen/src/translate/determine.rs:124
+    wire [2:0] det_s2_data_err_lod_cat_1;    // rtl-gen/src/translate/determine.rs:124
+    wire [2:0] det_s2_data_err_lod_cat_2;    // rtl-gen/src/translate/determine.rs:124
+    wire [2:0] det_s2_data_err_lod_cat_3;    // rtl-gen/src/translate/determine.rs:124
+    wire det_s2_data_err_lod_and;            // rtl-gen/src/translate/determine.rs:100
+    wire det_s2_data_err_lod_or;             // rtl-gen/src/translate/determine.rs:129
+    wire det_ok;                             // rtl-gen/src/translate/determine.rs:136
+    wire det_written;                        // rtl-gen/src/translate/determine.rs:145
     wire [177:0] det_s2_data_read_id_cat;    // rtl-gen/src/translate/bundle.rs:64
     reg det_s3_valid;                        // rtl-gen/src/translate/bundle.rs:100
     reg [177:0] det_s3_data;                 // rtl-gen/src/translate/bundle.rs:100
@@ -265,7 +265,7 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire det_out_q_room;                     // rtl-gen/src/translate/bundle.rs:117
     wire det_out_q_drain;                    // rtl-gen/src/translate/bundle.rs:117
     wire det_out_q_take;                     // rtl-gen/src/translate/bundle.rs:117
-    wire det_s3_valid_and;                   // rtl-gen/src/translate/determine.rs:248
+    wire det_s3_valid_and;                   // rtl-gen/src/translate/determine.rs:276
     wire [149:0] apply_record;               // rtl-gen/src/translate/apply.rs:33
     wire apply_in_data_mux;                  // rtl-gen/src/translate/table.rs:78
     wire apply_in_data_mux_1;                // rtl-gen/src/translate/table.rs:78

@@ -5,12 +5,12 @@
 module translate_unit_d16_q8_i24_h4_t16_b64_lookup4 (
     input  wire clk,                  // clock (implicit)
     input  wire rst,                  // synchronous reset, active high (implicit)
-    input  wire det_in_valid,         // rtl-gen/src/translate/determine.rs:49
-    input  wire [302:0] det_in_data,  // rtl-gen/src/translate/determine.rs:49
-    output wire det_in_ready,         // rtl-gen/src/translate/determine.rs:49
-    output wire det_out_valid,        // rtl-gen/src/translate/determine.rs:251
-    output wire [320:0] det_out_data, // rtl-gen/src/translate/determine.rs:251
-    input  wire det_out_ready,        // rtl-gen/src/translate/determine.rs:251
+    input  wire det_in_valid,         // rtl-gen/src/translate/determine.rs:47
+    input  wire [302:0] det_in_data,  // rtl-gen/src/translate/determine.rs:47
+    output wire det_in_ready,         // rtl-gen/src/translate/determine.rs:47
+    output wire det_out_valid,        // rtl-gen/src/translate/determine.rs:279
+    output wire [320:0] det_out_data, // rtl-gen/src/translate/determine.rs:279
+    input  wire det_out_ready,        // rtl-gen/src/translate/determine.rs:279
     input  wire [3:0] lookup0_id,     // rtl-gen/src/translate/unit.rs:65
     output wire [56:0] lookup0_entry, // rtl-gen/src/translate/unit.rs:74
     input  wire [3:0] lookup1_id,     // rtl-gen/src/translate/unit.rs:65
@@ -25,8 +25,8 @@ module translate_unit_d16_q8_i24_h4_t16_b64_lookup4 (
 );
     reg [55:0] table_ [0:15];                // rtl-gen/src/translate/table.rs:44
     reg [15:0] table_valid;                  // rtl-gen/src/translate/table.rs:43
-    wire err_lod;                            // rtl-gen/src/translate/determine.rs:56
-    wire [4:0] k;                            // rtl-gen/src/translate/determine.rs:57
+    wire err_lod;                            // rtl-gen/src/translate/determine.rs:197
+    wire [4:0] k;                            // rtl-gen/src/translate/determine.rs:198
     wire det_in_data_eq;                     // rtl-gen/src/translate/float.rs:78
     wire det_in_data_eq_1;                   // rtl-gen/src/translate/float.rs:78
     wire det_in_data_not;                    // rtl-gen/src/translate/float.rs:116
@@ -52,8 +52,8 @@ module translate_unit_d16_q8_i24_h4_t16_b64_lookup4 (
     wire [52:0] z_m;                         // rtl-gen/src/translate/float.rs:114
     wire [12:0] det_in_data_mux_8;           // rtl-gen/src/translate/float.rs:114
     wire [6:0] z_a;                          // rtl-gen/src/translate/float.rs:129
-    wire [17:0] const_shl;                   // rtl-gen/src/translate/determine.rs:80
-    wire det_in_data_or;                     // rtl-gen/src/translate/determine.rs:84
+    wire [17:0] const_shl;                   // rtl-gen/src/translate/determine.rs:221
+    wire det_in_data_or;                     // rtl-gen/src/translate/determine.rs:225
     wire [513:0] k_cat;                      // rtl-gen/src/translate/bundle.rs:64
     reg det_s1_valid;                        // rtl-gen/src/translate/bundle.rs:100
     reg [513:0] det_s1_data;                 // rtl-gen/src/translate/bundle.rs:100
@@ -195,7 +195,7 @@ module translate_unit_d16_q8_i24_h4_t16_b64_lookup4 (
     wire [17:0] det_s2_data_t_max_z;         // rtl-gen/src/translate/bundle.rs:76
     wire det_s2_data_err_lod;                // rtl-gen/src/translate/bundle.rs:76
     wire det_s2_data_format;                 // rtl-gen/src/translate/bundle.rs:76
-    wire det_s2_data_err_lod_not;            // rtl-gen/src/translate/determine.rs:145
+    wire det_s2_data_err_lod_not;            // rtl-gen/src/translate/determine.rs:98
     wire det_s2_data_x_r_eq;                 // rtl-gen/src/translate/float.rs:205
     wire [53:0] det_s2_data_x_r_mux;         // rtl-gen/src/translate/float.rs:206
     wire det_s2_data_x_r_eq_1;               // rtl-gen/src/translate/float.rs:205
@@ -216,8 +216,8 @@ module translate_unit_d16_q8_i24_h4_t16_b64_lookup4 (
     wire det_s2_data_x_wide_and;             // rtl-gen/src/translate/float.rs:267
     wire det_s2_data_x_wide_and_1;           // rtl-gen/src/translate/float.rs:267
     wire det_s2_data_x_wide_and_2;           // rtl-gen/src/translate/float.rs:267
-    wire det_s2_data_err_extents_not;        // rtl-gen/src/translate/determine.rs:162
-    wire det_s2_data_err_extents_and;        // rtl-gen/src/translate/determine.rs:162
+    wire det_s2_data_err_extents_not;        // rtl-gen/src/translate/determine.rs:115
+    wire det_s2_data_err_extents_and;        // rtl-gen/src/translate/determine.rs:115
     wire det_s2_data_y_r_eq;                 // rtl-gen/src/translate/float.rs:205
     wire [53:0] det_s2_data_y_r_mux;         // rtl-gen/src/translate/float.rs:206
     wire det_s2_data_y_r_eq_1;               // rtl-gen/src/translate/float.rs:205
@@ -236,7 +236,7 @@ module translate_unit_d16_q8_i24_h4_t16_b64_lookup4 (
     wire det_s2_data_y_wide_and;             // rtl-gen/src/translate/float.rs:267
     wire det_s2_data_y_wide_and_1;           // rtl-gen/src/translate/float.rs:267
     wire det_s2_data_y_wide_and_2;           // rtl-gen/src/translate/float.rs:267
-    wire det_s2_data_err_extents_and_1;      // rtl-gen/src/translate/determine.rs:162
+    wire det_s2_data_err_extents_and_1;      // rtl-gen/src/translate/determine.rs:115
     wire det_s2_data_z_r_eq;                 // rtl-gen/src/translate/float.rs:205
     wire [53:0] det_s2_data_z_r_mux;         // rtl-gen/src/translate/float.rs:206
     wire det_s2_data_z_r_eq_1;               // rtl-gen/src/translate/float.rs:205
@@ -255,16 +255,16 @@ module translate_unit_d16_q8_i24_h4_t16_b64_lookup4 (
     wire det_s2_data_z_wide_and;             // rtl-gen/src/translate/float.rs:267
     wire det_s2_data_z_wide_and_1;           // rtl-gen/src/translate/float.rs:267
     wire det_s2_data_z_wide_and_2;           // rtl-gen/src/translate/float.rs:267
-    wire det_s2_data_err_extents_and_2;      // rtl-gen/src/translate/determine.rs:162
-    wire [2:0] det_s2_data_err_lod_cat;      // rtl-gen/src/translate/determine.rs:171
-    wire [2:0] det_s2_data_err_lod_cat_1;    // rtl-gen/src/translate/determine.rs:171
-    wire [2:0] det_s2_data_err_lod_cat_2;    // rtl-gen/src/translate/determine.rs:171
-    wire [2:0] det_s2_data_err_lod_cat_3;    // rtl-gen/src/translate/determine.rs:171
-    wire [2:0] det_s2_data_err_lod_cat_4;    // rtl-gen/src/translate/determine.rs:171
-    wire det_s2_data_err_lod_and;            // rtl-gen/src/translate/determine.rs:147
-    wire det_s2_data_err_lod_or;             // rtl-gen/src/translate/determine.rs:176
-    wire det_ok;                             // rtl-gen/src/translate/determine.rs:183
-    wire det_written;                        // rtl-gen/src/translate/determine.rs:192
+    wire det_s2_data_err_extents_and_2;      // rtl-gen/src/translate/determine.rs:115
+    wire [2:0] det_s2_data_err_lod_cat;      // rtl-gen/src/translate/determine.rs:124
+    wire [2:0] det_s2_data_err_lod_cat_1;    // rtl-gen/src/translate/determine.rs:124
+    wire [2:0] det_s2_data_err_lod_cat_2;    // rtl-gen/src/translate/determine.rs:124
+    wire [2:0] det_s2_data_err_lod_cat_3;    // rtl-gen/src/translate/determine.rs:124
+    wire [2:0] det_s2_data_err_lod_cat_4;    // rtl-gen/src/translate/determine.rs:124
+    wire det_s2_data_err_lod_and;            // rtl-gen/src/translate/determine.rs:100
+    wire det_s2_data_err_lod_or;             // rtl-gen/src/translate/determine.rs:129
+    wire det_ok;                             // rtl-gen/src/translate/determine.rs:136
+    wire det_written;                        // rtl-gen/src/translate/determine.rs:145
     wire [276:0] det_s2_data_read_id_cat;    // rtl-gen/src/translate/bundle.rs:64
     reg det_s3_valid;                        // rtl-gen/src/translate/bundle.rs:100
     reg [276:0] det_s3_data;                 // rtl-gen/src/translate/bundle.rs:100
@@ -303,7 +303,7 @@ module translate_unit_d16_q8_i24_h4_t16_b64_lookup4 (
     wire det_out_q_room;                     // rtl-gen/src/translate/bundle.rs:117
     wire det_out_q_drain;                    // rtl-gen/src/translate/bundle.rs:117
     wire det_out_q_take;                     // rtl-gen/src/translate/bundle.rs:117
-    wire det_s3_valid_and;                   // rtl-gen/src/translate/determine.rs:248
+    wire det_s3_valid_and;                   // rtl-gen/src/translate/determine.rs:276
     wire lookup0_id_mux;                     // rtl-gen/src/translate/table.rs:78
     wire lookup0_id_mux_1;                   // rtl-gen/src/translate/table.rs:78
     wire lookup0_valid;                      // rtl-gen/src/translate/table.rs:78

@@ -47,6 +47,7 @@ pub mod stream;
 pub mod translate;
 mod validate;
 pub mod verilog;
+mod view;
 
 /// The DSL's value type (constants, reset values, the simulator's values) is
 /// golden's bit vector, so a packed record crosses crates without a copy.

@@ -18,7 +18,6 @@ use golden::merge::merger::MergerLayout;
 use golden::translate::model::TranslateDesign;
 use golden::translate::TranslateUnitConfig;
 
-use super::fields::with_fields;
 use super::hierarchy_merger_unit;
 use super::merger::{hierarchy_merger_name, pass_stream, MergerConfig};
 use crate::translate::{lookup_unit_name, ports::det_in_layout, translate_lookup_unit};
@@ -173,18 +172,14 @@ fn merger_cfg<'m>(
             .name(&format!("used{i}"));
         let hier = get(i, &cl.input.hier);
         let entry = lookup(i, hier);
-        let beat = with_fields(
-            m,
-            m.lit(0, fl.cfg.width()),
-            &[
-                (fl.hier, hier),
-                (fl.roots, get(i, &cl.input.roots)),
-                (fl.top, get(i, &cl.input.top)),
-                (fl.nodes, get(i, &cl.input.nodes)),
-                (fl.refs, get(i, &cl.input.refs)),
-                (fl.entry, entry),
-            ],
-        );
+        let beat = m.lit(0, fl.cfg.width()).with_fields(&[
+            (fl.hier, hier),
+            (fl.roots, get(i, &cl.input.roots)),
+            (fl.top, get(i, &cl.input.top)),
+            (fl.nodes, get(i, &cl.input.nodes)),
+            (fl.refs, get(i, &cl.input.refs)),
+            (fl.entry, entry),
+        ]);
         inputs.push(used.mux(beat, m.lit(0, fl.cfg.width())));
         let top = get(i, &cl.input.top);
         let d = get(i, &cl.input.deep);

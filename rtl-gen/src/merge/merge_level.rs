@@ -21,7 +21,6 @@ use golden::layout::NodeLayout;
 use golden::merge::merge_level::unit::{base_kind, level_kind, BeatLayout};
 use golden::params::Params;
 
-use super::fields::{field, span, with_fields};
 use crate::{Module, Stream};
 
 /// Module name of the S614 unit for `p`.
@@ -54,8 +53,9 @@ pub fn merge_level_unit(p: &Params) -> Module {
 
     let is_inner = in_kind.eq(level_kind::INNER).name("in_is_inner");
     let is_ref = in_kind.eq(level_kind::CHILD_REF).name("in_is_ref");
-    let same_voxel = span(in_rec, nl.lod(), nl.z())
-        .eq(span(h_rec, nl.lod(), nl.z()))
+    let same_voxel = in_rec
+        .view_span(nl.lod(), nl.z())
+        .eq(h_rec.view_span(nl.lod(), nl.z()))
         .name("same_voxel");
     let absorb = (input.valid & is_inner & h_valid & h_open & same_voxel).name("absorb");
     let complete = (h_valid & (!h_open | (input.valid & !absorb))).name("complete");
@@ -75,14 +75,14 @@ pub fn merge_level_unit(p: &Params) -> Module {
         .name("count_sum");
     let mut merged = vec![(*nl.count(), count_sum.slice(i - 1, 0))];
     for a in 0..3 {
-        if let (Some(hl), Some(il)) = (field(h_rec, nl.lo(a)), field(in_rec, nl.lo(a))) {
+        if let (Some(hl), Some(il)) = (h_rec.view_opt(nl.lo(a)), in_rec.view_opt(nl.lo(a))) {
             merged.push((*nl.lo(a), hl.lt(il).mux(hl, il)));
         }
-        if let (Some(hh), Some(ih)) = (field(h_rec, nl.hi(a)), field(in_rec, nl.hi(a))) {
+        if let (Some(hh), Some(ih)) = (h_rec.view_opt(nl.hi(a)), in_rec.view_opt(nl.hi(a))) {
             merged.push((*nl.hi(a), hh.gt(ih).mux(hh, ih)));
         }
     }
-    let merged_rec = with_fields(&m, h_rec, &merged).name("merged_rec");
+    let merged_rec = h_rec.with_fields(&merged).name("merged_rec");
 
     let lit = |v: u64, w: u32| m.lit(v as u128, w);
     let drained = complete & out_ready;
@@ -102,7 +102,7 @@ pub fn merge_level_unit(p: &Params) -> Module {
         h_multi.mux(lit(base_kind::CREATED, 2), lit(base_kind::REUSED, 2)),
         h_kind,
     );
-    let created_rec = with_fields(&m, h_rec, &[(*nl.first(), lit(0, i))]);
+    let created_rec = h_rec.with_fields(&[(*nl.first(), lit(0, i))]);
     let out_rec = created.mux(created_rec, h_rec);
     let out_ref = created.mux(lit(0, li.refer.width), h_ref);
     let err = created & h_ovf;

@@ -31,7 +31,6 @@
 //!   controller, the routing of S614's out and the leaf FIFOs (SPEC 8.15).
 
 mod fetcher;
-mod fields;
 mod hierarchy_unit;
 mod level_choice;
 mod merge_level;

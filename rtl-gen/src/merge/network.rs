@@ -19,7 +19,6 @@ use golden::merge::level_choice::unit::rank_bits;
 use golden::merge::merge_level::unit::{level_kind, BeatLayout};
 use golden::params::Params;
 
-use super::fields::coords;
 use crate::{Module, Signal, Stream};
 
 /// Module name of the merge network for `p`, `k` inputs, rank tag or not.
@@ -235,12 +234,12 @@ pub fn morton_merge_unit(p: &Params, k: usize, tag_rank: bool) -> Module {
                 let kind = kind_of(d).name(&format!("in{i}_kind"));
                 let is_end = kind.eq(level_kind::END);
                 let is_ref = kind.eq(level_kind::CHILD_REF);
-                let xyz = coords(d.view(&l.rec), nl);
+                let xyz = d.view(&l.rec).coords(nl);
                 let key_xyz = [0, 1, 2].map(|a| is_ref.mux(parent[a], xyz[a]));
                 m.concat(&[is_end, morton_code(&m, key_xyz), kind])
             },
             |d| !kind_of(d).bit(1),
-            |d| coords(d.view(&l.rec), nl),
+            |d| d.view(&l.rec).coords(nl),
         );
         let is_end = head
             .key()

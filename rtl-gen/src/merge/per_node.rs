@@ -22,7 +22,6 @@ use golden::merge::merge_module::{choice_err, TopLayout};
 use golden::merge::per_node::unit::{PerNodeLayout, CHILD_COUNT_BITS};
 use golden::params::Params;
 
-use super::fields::{coords, with_fields};
 use super::level_choice::times_constant;
 use super::merge_module::merge_module_name;
 use super::network::{morton_code, take_minimum_head, winner_rank, KeyOrder, MergeHead};
@@ -113,7 +112,7 @@ fn beat_kind<'m>(d: Signal<'m>, bl: &BeatLayout) -> Signal<'m> {
 /// The voxel of the record in a head's `{probe, beat}`.
 fn beat_xyz<'m>(d: Signal<'m>, bl: &BeatLayout) -> [Signal<'m>; 3] {
     let beat = d.slice(bl.width() - 1, 0);
-    coords(beat.view(&bl.rec), &bl.node)
+    beat.view(&bl.rec).coords(&bl.node)
 }
 
 /// The number of set bits of an 8-bit mask, [`CHILD_COUNT_BITS`] wide.
@@ -167,7 +166,7 @@ pub fn per_node_decider_unit(p: &Params, k: usize, num: u32, den: u32) -> Module
     let is_end = (!probe & kind.eq(level_kind::END)).name("in_is_end");
     let is_inner = !probe & kind.eq(level_kind::INNER);
     let is_ref = !probe & kind.eq(level_kind::CHILD_REF);
-    let xyz = coords(beat.view(&bl.rec), &bl.node);
+    let xyz = beat.view(&bl.rec).coords(&bl.node);
 
     let run = m.reg("probe_run", 1);
     let g_any = m.reg("g_any", 8);
@@ -213,21 +212,17 @@ pub fn per_node_decider_unit(p: &Params, k: usize, num: u32, den: u32) -> Module
     .skid_buffer("out_skid")
     .output("out");
 
-    let report_data = with_fields(
-        &m,
-        lit(0, pl.report.width()),
-        &[
-            (pl.coord[0], g_voxel[0]),
-            (pl.coord[1], g_voxel[1]),
-            (pl.coord[2], g_voxel[2]),
-            (pl.lod, lod),
-            (pl.shared, is_end.mux(lit(0, CHILD_COUNT_BITS), shared)),
-            (pl.union, is_end.mux(lit(0, CHILD_COUNT_BITS), union)),
-            (pl.descend, !is_end & descend),
-            (pl.pass_end, is_end),
-            (pl.more, is_end & more),
-        ],
-    );
+    let report_data = lit(0, pl.report.width()).with_fields(&[
+        (pl.coord[0], g_voxel[0]),
+        (pl.coord[1], g_voxel[1]),
+        (pl.coord[2], g_voxel[2]),
+        (pl.lod, lod),
+        (pl.shared, is_end.mux(lit(0, CHILD_COUNT_BITS), shared)),
+        (pl.union, is_end.mux(lit(0, CHILD_COUNT_BITS), union)),
+        (pl.descend, !is_end & descend),
+        (pl.pass_end, is_end),
+        (pl.more, is_end & more),
+    ]);
     // A pass-end beat carries no voxel.
     let voxel_bits = pl.coord[2].end();
     let report_data = is_end
@@ -381,14 +376,10 @@ pub fn per_node_module_unit(c: &MergeConfig, num: u32, den: u32) -> Module {
     // report: the decider's beats, or the refusal.
     let report_in_ready = m.wire("report_in_ready", 1);
     let dec_valid = dec.output("report_valid");
-    let refusal = with_fields(
-        &m,
-        lit(0, pl.report.width()),
-        &[
-            (pl.pass_end, lit(1, 1)),
-            (pl.err, lit(choice_err::BAD_RANGE, 2)),
-        ],
-    );
+    let refusal = lit(0, pl.report.width()).with_fields(&[
+        (pl.pass_end, lit(1, 1)),
+        (pl.err, lit(choice_err::BAD_RANGE, 2)),
+    ]);
     dec.connect("report_ready", report_in_ready);
     let refused = (refusing & !dec_valid & report_in_ready).name("refusal_sent");
     Stream {

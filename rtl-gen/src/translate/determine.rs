@@ -40,59 +40,12 @@ pub(crate) fn determine_path<'m>(
 ) -> (Vec<Signal<'m>>, Signal<'m>, Signal<'m>) {
     let p = d.params();
     let dmax = p.max_lod as u32;
-    let lb = p.lod_bits();
     let fp = FloatPath {
         binary64: d.binary64,
         max_lod: dmax,
     };
-    let in_layout = det_in_layout(d);
-    let input = Stream::input(m, "det_in", in_layout.width());
-    let get = |n: &str| field(input.data, &in_layout, n);
-
-    // Step 1.
-    let mut s1 = Bundle::new();
-    let lod = get("lod");
-    let format = d.binary64.then(|| get("format"));
-    let err_lod = ((1u32 << lb) - 1 > dmax).then(|| lod.gt(dmax as u128).name("err_lod"));
-    let k = m.lit(dmax as u128, lb).sub(lod, lb).name("k");
-    for a in AXES {
-        unpack(
-            &fp,
-            get(&format!("placement_{a}")),
-            format,
-            k,
-            &format!("{a}_"),
-            &mut s1,
-        );
-    }
-    let mut bad_extents = Vec::new();
-    for a in AXES {
-        let (lo, hi) = (
-            get(&format!("extents_lo_{a}")),
-            get(&format!("extents_hi_{a}")),
-        );
-        bad_extents.push(lo.gt(hi) | hi.srl(lod).ne(0));
-        // The extents rule's bounds on t, so that step 4 compares without
-        // adding: `lo + t < 0` is `t < -lo`, `hi + t >= 2^L` is
-        // `t >= 2^L - hi` (signed D + 2 bits hold every operand; past D,
-        // `err_lod` masks the rule).
-        let wide = dmax + 2;
-        let limit = m.lit(1, wide) << lod;
-        s1.put(&format!("t_min_{a}"), m.lit(0, wide).sub(lo, wide));
-        s1.put(&format!("t_max_{a}"), limit.sub(hi, wide));
-    }
-    let err_extents = bad_extents[0] | bad_extents[1] | bad_extents[2];
-    s1.put("err_extents", err_extents);
-    if let Some(e) = err_lod {
-        s1.put("err_lod", e);
-    }
-    if let Some(f) = format {
-        s1.put("format", f);
-    }
-    for n in ["lod", "write_enable", "write_id", "read_id"] {
-        s1.put(n, get(n));
-    }
-    s1.put("k", k);
+    let input = Stream::input(m, "det_in", det_in_layout(d).width());
+    let (s1, err_lod, format) = unpack_step(m, d, &fp, input.data);
     let (st1, b1) = s1.pipeline_reg(input.valid, input.ready, "det_s1");
 
     // Step 2.
@@ -221,12 +174,87 @@ pub(crate) fn determine_path<'m>(
     }
     let (st3, b3) = s3.pipeline_reg(st2.valid, st2.ready, "det_s3");
 
-    // Step 5.
+    read_write_step(m, d, table, (st3, b3), &payload, &[st1, sta, st2])
+}
+
+/// Step 1 on the `det_in` beat `data`: the encodings unpacked, `k = D -
+/// L`, the extents' validity and bounds on `t` (the bundle before
+/// `det_s1`); with `err_lod` where `L` can exceed `D` and `format` where
+/// binary64 is built.
+fn unpack_step<'m>(
+    m: &'m Module,
+    d: &TranslateDesign,
+    fp: &FloatPath,
+    data: Signal<'m>,
+) -> (Bundle<'m>, Option<Signal<'m>>, Option<Signal<'m>>) {
+    let p = d.params();
+    let (dmax, lb) = (p.max_lod as u32, p.lod_bits());
+    let in_layout = det_in_layout(d);
+    let get = |n: &str| field(data, &in_layout, n);
+    let mut s1 = Bundle::new();
+    let lod = get("lod");
+    let format = d.binary64.then(|| get("format"));
+    let err_lod = ((1u32 << lb) - 1 > dmax).then(|| lod.gt(dmax as u128).name("err_lod"));
+    let k = m.lit(dmax as u128, lb).sub(lod, lb).name("k");
+    for a in AXES {
+        unpack(
+            fp,
+            get(&format!("placement_{a}")),
+            format,
+            k,
+            &format!("{a}_"),
+            &mut s1,
+        );
+    }
+    let mut bad_extents = Vec::new();
+    for a in AXES {
+        let (lo, hi) = (
+            get(&format!("extents_lo_{a}")),
+            get(&format!("extents_hi_{a}")),
+        );
+        bad_extents.push(lo.gt(hi) | hi.srl(lod).ne(0));
+        // The extents rule's bounds on t, so that step 4 compares without
+        // adding: `lo + t < 0` is `t < -lo`, `hi + t >= 2^L` is
+        // `t >= 2^L - hi` (signed D + 2 bits hold every operand; past D,
+        // `err_lod` masks the rule).
+        let wide = dmax + 2;
+        let limit = m.lit(1, wide) << lod;
+        s1.put(&format!("t_min_{a}"), m.lit(0, wide).sub(lo, wide));
+        s1.put(&format!("t_max_{a}"), limit.sub(hi, wide));
+    }
+    let err_extents = bad_extents[0] | bad_extents[1] | bad_extents[2];
+    s1.put("err_extents", err_extents);
+    if let Some(e) = err_lod {
+        s1.put("err_lod", e);
+    }
+    if let Some(f) = format {
+        s1.put("format", f);
+    }
+    for n in ["lod", "write_enable", "write_id", "read_id"] {
+        s1.put(n, get(n));
+    }
+    s1.put("k", k);
+    (s1, err_lod, format)
+}
+
+/// Step 5 after `det_s3` (`b3`, its stream `st3`): entry `read_id` read
+/// into the output payload (`t` and the residual zeroed when not `ok`),
+/// entry `write_id` written on the edge the result leaves, the skid buffer
+/// `det_out_q` onto `det_out`. Returns what [`determine_path`] returns,
+/// `earlier` being the streams of the registers before `det_s3`.
+fn read_write_step<'m>(
+    m: &'m Module,
+    d: &TranslateDesign,
+    table: &Table<'m>,
+    (st3, b3): (Stream<'m>, Bundle<'m>),
+    payload: &[String],
+    earlier: &[Stream<'m>],
+) -> (Vec<Signal<'m>>, Signal<'m>, Signal<'m>) {
     let read_id = b3.get("read_id");
     let entry = table.read(read_id, "det_read");
     let ok = b3.get("ok");
     let mut out = Bundle::new();
-    for n in &payload {
+    for n in payload {
         let v = b3.get(n);
         if n.starts_with("t_") || n.starts_with("residual_") {
             out.put(n, ok.mux(v, m.lit(0, v.width())));
@@ -250,9 +278,7 @@ pub(crate) fn determine_path<'m>(
     let ok_out = st4.data.bit(0);
     st4.output("det_out");
     let out_fire = out_fire_valid & st4.ready;
-    (
-        vec![st1.valid, sta.valid, st2.valid, st3.valid, st4.valid],
-        out_fire,
-        !ok_out,
-    )
+    let mut valids: Vec<Signal<'m>> = earlier.iter().map(|s| s.valid).collect();
+    valids.extend([st3.valid, out_fire_valid]);
+    (valids, out_fire, !ok_out)
 }

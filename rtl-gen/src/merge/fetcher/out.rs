@@ -7,7 +7,6 @@ use golden::merge::fetcher::{fetch_err, FetchLayout};
 use golden::merge::merge_level::unit::level_kind;
 use golden::params::Params;
 
-use super::super::fields::with_fields;
 use super::command::{goto, Command};
 use super::parts::{check_and_move, out_beat, reference, reference_code, Move, Next};
 use super::{ok, ph, Ctx};
@@ -208,16 +207,12 @@ pub(super) fn per_node_out_stages<'m>(
         .mux(code4(fetch_err::LOD), got.code)
         .name("probe_code");
     let p_ref = reference(m, hier, p_idx);
-    let probe_beat = with_fields(
-        m,
-        m.lit(0, l.out.width()),
-        &[
-            (bl.kind, lit(level_kind::INNER, bl.kind.width)),
-            (bl.rec, got.moved),
-            (bl.refer, p_ref),
-            (f.probe, lit(1, 1)),
-        ],
-    );
+    let probe_beat = m.lit(0, l.out.width()).with_fields(&[
+        (bl.kind, lit(level_kind::INNER, bl.kind.width)),
+        (bl.rec, got.moved),
+        (bl.refer, p_ref),
+        (f.probe, lit(1, 1)),
+    ]);
     let probe_err = out_beat(
         m,
         l,

@@ -5,7 +5,6 @@ use golden::merge::fetcher::{fetch_err, FetchLayout};
 use golden::merge::merge_level::unit::BeatLayout;
 use golden::params::Params;
 
-use super::super::fields::{coords, field, with_fields};
 use crate::{Module, Signal};
 
 /// Prioritized register updates: the first arm whose condition holds sets
@@ -62,7 +61,7 @@ pub(super) fn check_and_move<'m>(
     let lb = p.lod_bits();
     let dmax = p.max_lod as u32;
     let lod = rec.view(nl.lod());
-    let coords = coords(rec, nl);
+    let coords = rec.coords(nl);
     let mut bad = coords
         .iter()
         .map(|c| c.srl(lod).ne(0))
@@ -72,7 +71,7 @@ pub(super) fn check_and_move<'m>(
         bad = bad | lod.gt(m.lit(dmax as u128, lb));
     }
     for a in 0..3 {
-        if let (Some(lo), Some(hi)) = (field(rec, nl.lo(a)), field(rec, nl.hi(a))) {
+        if let (Some(lo), Some(hi)) = (rec.view_opt(nl.lo(a)), rec.view_opt(nl.hi(a))) {
             bad = bad | lo.gt(hi);
         }
     }
@@ -100,15 +99,11 @@ pub(super) fn check_and_move<'m>(
         ],
         code(fetch_err::NONE),
     );
-    let moved = with_fields(
-        m,
-        rec,
-        &[
-            (*nl.x(), moved[0]),
-            (*nl.y(), moved[1]),
-            (*nl.z(), moved[2]),
-        ],
-    );
+    let moved = rec.with_fields(&[
+        (*nl.x(), moved[0]),
+        (*nl.y(), moved[1]),
+        (*nl.z(), moved[2]),
+    ]);
     Checked { code, moved }
 }
 
@@ -157,5 +152,5 @@ pub(super) fn out_beat<'m>(
     if let Some(e) = err {
         f.push((l.err, e));
     }
-    with_fields(m, m.lit(0, l.out.width()), &f)
+    m.lit(0, l.out.width()).with_fields(&f)
 }

@@ -19,7 +19,6 @@
 use golden::merge::merge_level::unit::{level_kind, BeatLayout};
 use golden::params::{bits_to_hold, Params};
 
-use crate::merge::fields::with_fields;
 use crate::{Module, Signal, Stream};
 
 /// Module name of the root sorter.
@@ -80,14 +79,10 @@ fn output_beat<'m>(
 ) -> Signal<'m> {
     let err = lo.err.expect("output beats have err");
     let root = m.concat(&[m.lit(0, 1), beat]);
-    let end = with_fields(
-        m,
-        m.lit(0, lo.width()),
-        &[
-            (lo.kind, m.lit(level_kind::END as u128, lo.kind.width)),
-            (err, overflow),
-        ],
-    );
+    let end = m.lit(0, lo.width()).with_fields(&[
+        (lo.kind, m.lit(level_kind::END as u128, lo.kind.width)),
+        (err, overflow),
+    ]);
     is_end.mux(end, root)
 }
 

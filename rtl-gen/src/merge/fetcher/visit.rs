@@ -7,7 +7,6 @@
 use golden::layout::Layout;
 use golden::merge::fetcher::fetch_err;
 
-use super::super::fields::{coords, pack, with_fields};
 use super::super::network::morton_code;
 use super::command::{goto, Command, FirstErr};
 use super::parts::reference;
@@ -251,7 +250,7 @@ pub(super) fn visit_checks<'m>(
     let leaf = rec.view(nl.leaf()).name("item_leaf");
     let inner = !leaf;
     let key = m
-        .concat(&[morton_code(m, coords(rec, nl)), leaf])
+        .concat(&[morton_code(m, rec.coords(nl)), leaf])
         .name("item_key");
     let n_first = rec.view(nl.first());
     let n_count = rec.view(nl.count());
@@ -310,11 +309,9 @@ pub(super) fn visit_checks<'m>(
         let e_push = (passes & q & inner).name("pass_push");
         pass_in.valid.drive(e_push);
         let morton_part = key.slice(key_bits - 1, 1);
-        pass_in.data.drive(pack(
-            m,
-            &h.pass_word,
-            &[morton_part, n_first, n_count, h.rec_idx],
-        ));
+        pass_in
+            .data
+            .drive(m.pack(&h.pass_word, &[morton_part, n_first, n_count, h.rec_idx]));
         let depth = (fcap.max(2)).next_power_of_two() as u32;
         (e_push, pass_in.fifo("pass", depth))
     });
@@ -410,11 +407,9 @@ pub(super) fn frontier_push<'m>(
         (Some(entries), Some(pf)) => (entries, pf),
         _ => {
             front_in.valid.drive(v.push | v.marker);
-            front_in.data.drive(pack(
-                m,
-                &f.word,
-                &[v.n_first, v.n_count, h.rec_idx, v.marker],
-            ));
+            front_in
+                .data
+                .drive(m.pack(&f.word, &[v.n_first, v.n_count, h.rec_idx, v.marker]));
             return None;
         }
     };
@@ -454,8 +449,8 @@ pub(super) fn frontier_push<'m>(
     report.ready.drive(matched | passed | pe_take);
     front_in.valid.drive(v.push | v.marker | j_push | j_marker);
     front_in.data.drive((j_push | j_marker).mux(
-        pack(m, &f.word, &[e_first, e_count, e_node, j_marker]),
-        pack(m, &f.word, &[v.n_first, v.n_count, h.rec_idx, v.marker]),
+        m.pack(&f.word, &[e_first, e_count, e_node, j_marker]),
+        m.pack(&f.word, &[v.n_first, v.n_count, h.rec_idx, v.marker]),
     ));
     let pn_end = v.pn_end.expect("per-node");
     visited.next(c.start.mux(
@@ -483,16 +478,14 @@ pub(super) fn visit_out<'m>(
     let _scope = m.scope("visit");
     let lit = |x: u64, w: u32| cx.lit(x, w);
     let (rec, rec_ref, above_first) = (h.rec, h.rec_ref, h.above_first);
-    let leaf_beat = with_fields(
-        m,
-        m.lit(0, l.leaves.width()),
-        &[
-            (l.leaf_rec, rec),
-            (l.leaf_ref, rec_ref),
-            (l.leaf_lod, rec.view(l.node.lod())),
-        ],
-    );
-    let leaf_end_beat = with_fields(m, m.lit(0, l.leaves.width()), &[(l.leaf_end, lit(1, 1))]);
+    let leaf_beat = m.lit(0, l.leaves.width()).with_fields(&[
+        (l.leaf_rec, rec),
+        (l.leaf_ref, rec_ref),
+        (l.leaf_lod, rec.view(l.node.lod())),
+    ]);
+    let leaf_end_beat = m
+        .lit(0, l.leaves.width())
+        .with_fields(&[(l.leaf_end, lit(1, 1))]);
     // The end beat: the walk over above the first level, or it reached.
     // (Per-node: the walk may run out above the first pass once per pass.)
     let lend_out = match c.per_node {

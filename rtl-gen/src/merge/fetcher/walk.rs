@@ -7,7 +7,6 @@ use golden::merge::fetcher::fetch_err;
 use golden::merge::merge_level::unit::{level_kind, BeatLayout};
 use golden::params::bits_to_hold;
 
-use super::super::fields::with_fields;
 use super::command::{goto, Command, FirstErr};
 use super::parts::{check_and_move, reference, reference_code, Checked};
 use super::root_sorter::root_sorter_unit;
@@ -118,26 +117,20 @@ pub(super) fn roots_stage<'m>(
     e.n_valid.when(root_fail, cx.lit(1, 1));
     e.n_code.when(root_fail & !e.valid, got_code);
     e.n_node.when(root_fail & !e.valid, taken);
-    let root_beat = with_fields(
-        m,
-        m.lit(0, bl.width()),
-        &[
-            (bl.rec, got.moved),
-            (bl.refer, reference(m, c.hier, taken)),
-            (
-                bl.kind,
-                node_resp.data.view(nl.leaf()).mux(
-                    cx.lit(level_kind::LEAF, bl.kind.width),
-                    cx.lit(level_kind::INNER, bl.kind.width),
-                ),
+    let root_beat = m.lit(0, bl.width()).with_fields(&[
+        (bl.rec, got.moved),
+        (bl.refer, reference(m, c.hier, taken)),
+        (
+            bl.kind,
+            node_resp.data.view(nl.leaf()).mux(
+                cx.lit(level_kind::LEAF, bl.kind.width),
+                cx.lit(level_kind::INNER, bl.kind.width),
             ),
-        ],
-    );
-    let end_beat = with_fields(
-        m,
-        m.lit(0, bl.width()),
-        &[(bl.kind, cx.lit(level_kind::END, bl.kind.width))],
-    );
+        ),
+    ]);
+    let end_beat = m
+        .lit(0, bl.width())
+        .with_fields(&[(bl.kind, cx.lit(level_kind::END, bl.kind.width))]);
     sorter.connect(
         "in_valid",
         root_out & node_resp.valid & got_code.eq(0) | all_taken,

@@ -3,7 +3,6 @@
 use golden::merge::fetcher::FetchLayout;
 
 use super::get;
-use crate::merge::fields::coords;
 use crate::merge::network::morton_code;
 use crate::{Module, Signal};
 
@@ -52,7 +51,7 @@ pub(super) fn merge_leaves<'m>(m: &'m Module, t: LeafInputs<'_, 'm>) -> MergedLe
     for &(v, d, i) in leaves_in {
         let end = get(d, &fl.leaf_end);
         let rec = get(d, &fl.leaf_rec);
-        let xyz = coords(rec, nl);
+        let xyz = rec.coords(nl);
         let key = m
             .concat(&[!used[i] | end, get(d, &fl.leaf_lod), morton_code(m, xyz)])
             .name(&format!("leaf_key{i}"));

@@ -14,7 +14,6 @@ use super::{
     cfg_beats, get, hierarchy_merger_name, pass_stream, phase, range_good, shared_store, shell,
     store_streams, MergerConfig, Shell,
 };
-use crate::merge::fields::with_fields;
 use crate::merge::{fetcher_unit, record_writer_unit};
 use crate::DropFifo;
 use crate::{Module, Signal};
@@ -187,11 +186,7 @@ fn inputs<'m>(
     let ferr_rank = m.reg("fetch_rank", rb);
     let mut ferr_next = s.flag_clear.mux(lit(0, fl.err.width), ferr);
     let mut ferr_rank_next = s.flag_clear.mux(lit(0, rb), ferr_rank);
-    let end_beat = with_fields(
-        m,
-        lit(0, inb.width()),
-        &[(inb.kind, lit(level_kind::END, 2))],
-    );
+    let end_beat = lit(0, inb.width()).with_fields(&[(inb.kind, lit(level_kind::END, 2))]);
     let mut leaves_in = Vec::new();
     let mut sent = one;
     for (i, f) in fetchers.iter().enumerate() {
@@ -211,21 +206,17 @@ fn inputs<'m>(
         let count_ph = in_ph(phase::COUNT);
         let final_ph = in_ph(phase::FINAL);
         let lod = count_ph.mux(hi, merging.mux(level, lo));
-        let cmd_data = with_fields(
-            m,
-            lit(0, fl.cmd.width()),
-            &[
-                (fl.lod, lod),
-                (fl.send_refs, final_ph & merging),
-                // The leaves above m come with level m (SPEC 8.15: no
-                // deadlock, the fetcher ends `leaves` before level m).
-                (fl.send_leaves, final_ph & merging),
-                (fl.last, final_ph),
-                // The count pass sends lo..=hi from one walk; the other
-                // commands one level.
-                (fl.from, count_ph.mux(lo, lod)),
-            ],
-        );
+        let cmd_data = lit(0, fl.cmd.width()).with_fields(&[
+            (fl.lod, lod),
+            (fl.send_refs, final_ph & merging),
+            // The leaves above m come with level m (SPEC 8.15: no
+            // deadlock, the fetcher ends `leaves` before level m).
+            (fl.send_leaves, final_ph & merging),
+            (fl.last, final_ph),
+            // The count pass sends lo..=hi from one walk; the other
+            // commands one level.
+            (fl.from, count_ph.mux(lo, lod)),
+        ]);
         let issuing = (count_ph | final_ph).name(&format!("issuing{i}"));
         f.connect("cmd_valid", used[i] & issuing);
         f.connect("cmd_data", cmd_data);
@@ -326,11 +317,7 @@ fn route_out<'m>(
     // A FIFO word: the leaves beat's `rec` and `ref` (from bit 0).
     let word_w = fl.leaf_ref.end().max(fl.leaf_rec.end());
     let word = best_data.slice(word_w - 1, 0);
-    let end_beat = with_fields(
-        m,
-        lit(0, inb.width()),
-        &[(inb.kind, lit(level_kind::END, 2))],
-    );
+    let end_beat = lit(0, inb.width()).with_fields(&[(inb.kind, lit(level_kind::END, 2))]);
     let mo_valid = module.output("out_valid");
     let mo_data = module.output("out_data");
     let mo_kind = get(mo_data, &outb.kind);
@@ -338,32 +325,24 @@ fn route_out<'m>(
     let mo_end = mo_kind.eq(base_kind::END).name("out_is_end");
     let mo_err = get(mo_data, outb.err.as_ref().expect("an output beat has err"));
     let mo_refer = get(mo_data, &outb.refer);
-    let mo_beat = with_fields(
-        m,
-        lit(0, inb.width()),
-        &[
-            (inb.rec, get(mo_data, &outb.rec)),
-            (inb.refer, mo_refer),
-            (inb.kind, mo_kind),
-        ],
-    );
+    let mo_beat = lit(0, inb.width()).with_fields(&[
+        (inb.rec, get(mo_data, &outb.rec)),
+        (inb.refer, mo_refer),
+        (inb.kind, mo_kind),
+    ]);
 
     // crefs: the reference beats, then End (a refused merge: End alone).
     let csent = m.reg("crefs_end_sent", 1);
     let cref_ready = writer.output("crefs_ready");
     let cref_valid = !csent & known & (!ok | (mo_valid & (mo_ref | mo_end)));
     let cref_is_end = !ok | mo_end;
-    let cref_data = with_fields(
-        m,
-        lit(0, wl.crefs.width()),
-        &[
-            (
-                wl.cref,
-                (ok & mo_ref).mux(mo_refer, lit(0, mo_refer.width())),
-            ),
-            (wl.cref_end, cref_is_end),
-        ],
-    );
+    let cref_data = lit(0, wl.crefs.width()).with_fields(&[
+        (
+            wl.cref,
+            (ok & mo_ref).mux(mo_refer, lit(0, mo_refer.width())),
+        ),
+        (wl.cref_end, cref_is_end),
+    ]);
     writer.connect("crefs_valid", cref_valid);
     writer.connect("crefs_data", cref_data);
     let cref_fire = cref_valid & cref_ready;
@@ -391,15 +370,11 @@ fn route_out<'m>(
             over_next = (push & full).mux(one, over_next);
             let head = q.head();
             let above = (merging & dl.lt(level)).name(&format!("base{d}_above_m"));
-            let leaf_beat = with_fields(
-                m,
-                lit(0, inb.width()),
-                &[
-                    (inb.rec, get(head, &fl.leaf_rec)),
-                    (inb.refer, get(head, &fl.leaf_ref)),
-                    (inb.kind, reused_kind),
-                ],
-            );
+            let leaf_beat = lit(0, inb.width()).with_fields(&[
+                (inb.rec, get(head, &fl.leaf_rec)),
+                (inb.refer, get(head, &fl.leaf_ref)),
+                (inb.kind, reused_kind),
+            ]);
             let fifo_end = (empty & leaves_done).name(&format!("leaves{d}_end"));
             let from_fifo = (above & !empty).name(&format!("leaves{d}_head_out"));
             let valid = !bsent

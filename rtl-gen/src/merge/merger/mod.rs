@@ -19,7 +19,6 @@ use golden::merge::merger::{MergerLayout, MergerSizes};
 use golden::merge::MergeMode;
 use golden::params::Params;
 
-use super::fields::with_fields;
 use super::{merge_module_name, merge_module_unit, upper_builder_unit, MergeConfig};
 use crate::{Direction, Module, Signal, Stream};
 
@@ -366,7 +365,7 @@ fn cfg_beats<'m>(m: &'m Module, p: &Params, ml: &MergerLayout, s: &Shell<'m>) {
     module.connect("cfg_valid", mcfg_pend);
     module.connect(
         "cfg_data",
-        with_fields(m, lit(0, tl.cfg.width()), &[(tl.lo, lo), (tl.hi, hi)]),
+        lit(0, tl.cfg.width()).with_fields(&[(tl.lo, lo), (tl.hi, hi)]),
     );
     let mcfg_fire = mcfg_pend & module.output("cfg_ready");
     mcfg_pend.next(cfg_fire.mux(one, mcfg_fire.mux(zero, mcfg_pend)));
@@ -374,7 +373,7 @@ fn cfg_beats<'m>(m: &'m Module, p: &Params, ml: &MergerLayout, s: &Shell<'m>) {
     writer.connect("cfg_valid", wcfg_pend);
     writer.connect(
         "cfg_data",
-        with_fields(m, lit(0, wl.cfg.width()), &[(wl.cfg_out_id, out_id)]),
+        lit(0, wl.cfg.width()).with_fields(&[(wl.cfg_out_id, out_id)]),
     );
     let wcfg_fire = wcfg_pend & writer.output("cfg_ready");
     wcfg_pend.next(cfg_fire.mux(one, wcfg_fire.mux(zero, wcfg_pend)));

@@ -13,7 +13,6 @@ use super::{
     cfg_beats, field_of, get, hierarchy_merger_name, pass_stream, range_good, shared_store, shell,
     store_streams, MergerConfig, Shell,
 };
-use crate::merge::fields::with_fields;
 use crate::merge::{fetcher_per_node_unit, record_writer_unit};
 use crate::DropFifo;
 use crate::{Module, Signal};
@@ -132,13 +131,12 @@ fn report_fork<'m>(
     let (used, good) = (g.used, g.good);
     let rep_v = module.output("report_valid");
     let rep_d = module.output("report_data");
-    let narrow = with_fields(
-        m,
-        lit(0, fpn.report.width()),
-        &fpn.report_sources(&pl)
-            .map(|(to, from)| (to, get(rep_d, &from))),
-    )
-    .name("report_narrow");
+    let narrow = lit(0, fpn.report.width())
+        .with_fields(
+            &fpn.report_sources(&pl)
+                .map(|(to, from)| (to, get(rep_d, &from))),
+        )
+        .name("report_narrow");
     let top_taken = m.reg("report_top_taken", 1);
     let report_ready = m.input("report_ready", 1);
     m.output("report_valid", rep_v & !top_taken);
@@ -196,12 +194,8 @@ fn inputs<'m>(
     let ferr_rank = m.reg("fetch_rank", rb);
     let mut ferr_next = header_fire.mux(lit(0, fl.err.width), ferr);
     let mut ferr_rank_next = header_fire.mux(lit(0, rb), ferr_rank);
-    let end_beat = with_fields(
-        m,
-        lit(0, inb.width()),
-        &[(inb.kind, lit(level_kind::END, 2))],
-    );
-    let end_in = with_fields(m, lit(0, pl.input.width()), &[(field_of(&inb), end_beat)]);
+    let end_beat = lit(0, inb.width()).with_fields(&[(inb.kind, lit(level_kind::END, 2))]);
+    let end_in = lit(0, pl.input.width()).with_fields(&[(field_of(&inb), end_beat)]);
     let mut leaves_in = Vec::new();
     let mut sent = one;
     for (i, f) in fetchers.iter().enumerate() {
@@ -215,18 +209,14 @@ fn inputs<'m>(
         // One command per merge: per-node at lo on a good range, else the
         // closing command (its beats dropped).
         let cmd_pend = m.reg(&format!("cmd{i}_pending"), 1);
-        let cmd_data = with_fields(
-            m,
-            lit(0, fl.cmd.width()),
-            &[
-                (fl.lod, lo),
-                (fl.send_refs, good),
-                (fl.send_leaves, good),
-                (fl.last, one),
-                (fl.from, lo),
-                (fpn.per_node, good),
-            ],
-        );
+        let cmd_data = lit(0, fl.cmd.width()).with_fields(&[
+            (fl.lod, lo),
+            (fl.send_refs, good),
+            (fl.send_leaves, good),
+            (fl.last, one),
+            (fl.from, lo),
+            (fpn.per_node, good),
+        ]);
         f.connect("cmd_valid", cmd_pend);
         f.connect("cmd_data", cmd_data);
         let cmd_fire = cmd_pend & f.output("cmd_ready");
@@ -242,14 +232,10 @@ fn inputs<'m>(
         let fo_err = get(fo_data, &fl.err);
         let fo_beat = fo_data.slice(fl.beat.width() - 1, 0);
         let fo_end = get(fo_beat, &inb.kind).eq(level_kind::END);
-        let fo_in = with_fields(
-            m,
-            lit(0, pl.input.width()),
-            &[
-                (field_of(&inb), fo_beat),
-                (pl.probe, get(fo_data, &fpn.probe)),
-            ],
-        );
+        let fo_in = lit(0, pl.input.width()).with_fields(&[
+            (field_of(&inb), fo_beat),
+            (pl.probe, get(fo_data, &fpn.probe)),
+        ]);
         let owed = m.reg(&format!("end_owed{i}"), 1);
         let virt = (!used[i] & owed).name(&format!("virtual_end{i}"));
         let drop = dropping[i];
@@ -323,21 +309,13 @@ fn route_out<'m>(
         data: best_data,
         lod: best_lod,
     } = *merged;
-    let end_beat = with_fields(
-        m,
-        lit(0, inb.width()),
-        &[(inb.kind, lit(level_kind::END, 2))],
-    );
+    let end_beat = lit(0, inb.width()).with_fields(&[(inb.kind, lit(level_kind::END, 2))]);
     let nl = &fl.node;
-    let leaf_beat = with_fields(
-        m,
-        lit(0, inb.width()),
-        &[
-            (inb.rec, get(best_data, &fl.leaf_rec)),
-            (inb.refer, get(best_data, &fl.leaf_ref)),
-            (inb.kind, lit(base_kind::REUSED, 2)),
-        ],
-    );
+    let leaf_beat = lit(0, inb.width()).with_fields(&[
+        (inb.rec, get(best_data, &fl.leaf_rec)),
+        (inb.refer, get(best_data, &fl.leaf_ref)),
+        (inb.kind, lit(base_kind::REUSED, 2)),
+    ]);
 
     let mo_valid = module.output("out_valid");
     let mo_data = module.output("out_data");
@@ -348,15 +326,11 @@ fn route_out<'m>(
     let mo_refer = get(mo_data, &outb.refer);
     let mo_rec = get(mo_data, &outb.rec);
     let mo_lod = mo_rec.view(nl.lod());
-    let mo_beat = with_fields(
-        m,
-        lit(0, inb.width()),
-        &[
-            (inb.rec, mo_rec),
-            (inb.refer, mo_refer),
-            (inb.kind, mo_kind),
-        ],
-    );
+    let mo_beat = lit(0, inb.width()).with_fields(&[
+        (inb.rec, mo_rec),
+        (inb.refer, mo_refer),
+        (inb.kind, mo_kind),
+    ]);
     let mo_node = (mo_valid & !mo_ref & !mo_end).name("out_is_node");
 
     // crefs: the reference beats of every pass, then End once the module
@@ -365,14 +339,10 @@ fn route_out<'m>(
     let cref_ready = writer.output("crefs_ready");
     let cref_ref = (mo_valid & mo_ref).name("cref_is_ref");
     let cref_valid = !csent & busy & (cref_ref | finished);
-    let cref_data = with_fields(
-        m,
-        lit(0, wl.crefs.width()),
-        &[
-            (wl.cref, cref_ref.mux(mo_refer, lit(0, mo_refer.width()))),
-            (wl.cref_end, !cref_ref),
-        ],
-    );
+    let cref_data = lit(0, wl.crefs.width()).with_fields(&[
+        (wl.cref, cref_ref.mux(mo_refer, lit(0, mo_refer.width()))),
+        (wl.cref_end, !cref_ref),
+    ]);
     writer.connect("crefs_valid", cref_valid);
     writer.connect("crefs_data", cref_data);
     let cref_fire = cref_valid & cref_ready;

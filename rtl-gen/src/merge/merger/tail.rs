@@ -3,7 +3,6 @@
 use golden::merge::merger::MergerLayout;
 
 use super::{pass_stream, store_port, store_streams, MergerConfig};
-use crate::merge::fields::with_fields;
 use crate::{Direction, Module, Signal};
 
 /// What both merger bodies hand to [`finish_merger`]: the instances, the
@@ -126,17 +125,13 @@ pub(super) fn finish_merger<'m>(m: &'m Module, t: Tail<'_, 'm>) {
         offset: 0,
         width: wl.header.width(),
     };
-    let header = with_fields(
-        m,
-        lit(0, ml.header.width()),
-        &[
-            (writer_header, h_data),
-            (ml.leaf_overflow, leaf_over),
-            (ml.count_overflow, count_over),
-            (ml.fetch_err, ferr),
-            (ml.fetch_rank, ferr_rank),
-        ],
-    );
+    let header = lit(0, ml.header.width()).with_fields(&[
+        (writer_header, h_data),
+        (ml.leaf_overflow, leaf_over),
+        (ml.count_overflow, count_over),
+        (ml.fetch_err, ferr),
+        (ml.fetch_rank, ferr_rank),
+    ]);
     m.output("header_valid", h_valid);
     m.output("header_data", header);
 

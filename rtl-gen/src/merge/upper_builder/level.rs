@@ -17,7 +17,6 @@
 use golden::merge::upper_builder::level_unit::UpperLayout;
 use golden::params::Params;
 
-use crate::merge::fields::field;
 use crate::{Module, Signal, Stream};
 
 /// Module name of the upper-level unit for `p`.
@@ -63,7 +62,7 @@ pub fn upper_level_unit(p: &Params) -> Module {
     let mut in_hi = Vec::new();
     let mut bad_box = m.lit(0, 1);
     for (a, coord) in coords.iter().enumerate() {
-        if let (Some(lo), Some(hi)) = (field(rec, &f(nl.lo(a))), field(rec, &f(nl.hi(a)))) {
+        if let (Some(lo), Some(hi)) = (rec.view_opt(&f(nl.lo(a))), rec.view_opt(&f(nl.hi(a)))) {
             let odd = coord.bit(0);
             in_lo.push(cell_in_parent(&m, lo, odd));
             in_hi.push(cell_in_parent(&m, hi, odd));

@@ -19,7 +19,6 @@ use golden::merge::upper_builder::level_unit::UpperLayout;
 use golden::merge::upper_builder::unit::{level_out_kind, BuilderLayout};
 use golden::params::Params;
 
-use super::fields::coords;
 use super::morton_code;
 use crate::{Module, Signal, Stream};
 
@@ -173,7 +172,7 @@ pub fn upper_builder_unit(p: &Params) -> Module {
             let g_rec = g_data.view(&ul.rec);
             let g_end = g_data.view(&ul.end);
             let g_err = g_data.view(&ul.err);
-            let g_first = morton_code(&m, coords(g_rec, nl)).le(morton_code(&m, coords(b.rec, nl)));
+            let g_first = morton_code(&m, g_rec.coords(nl)).le(morton_code(&m, b.rec.coords(nl)));
             let both_end = (g_end & b.end).name(&format!("l{d}_end"));
             let take_g = (!g_end & (b.end | g_first)).name(&format!("l{d}_take_group"));
             Head {

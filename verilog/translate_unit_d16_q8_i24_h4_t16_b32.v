@@ -5,18 +5,18 @@
 module translate_unit_d16_q8_i24_h4_t16_b32 (
     input  wire clk,                    // clock (implicit)
     input  wire rst,                    // synchronous reset, active high (implicit)
-    input  wire det_in_valid,           // rtl-gen/src/translate/determine.rs:47
-    input  wire [205:0] det_in_data,    // rtl-gen/src/translate/determine.rs:47
-    output wire det_in_ready,           // rtl-gen/src/translate/determine.rs:47
-    output wire det_out_valid,          // rtl-gen/src/translate/determine.rs:279
-    output wire [221:0] det_out_data,   // rtl-gen/src/translate/determine.rs:279
-    input  wire det_out_ready,          // rtl-gen/src/translate/determine.rs:279
-    input  wire apply_in_valid,         // rtl-gen/src/translate/apply.rs:32
-    input  wire [153:0] apply_in_data,  // rtl-gen/src/translate/apply.rs:32
-    output wire apply_in_ready,         // rtl-gen/src/translate/apply.rs:32
-    output wire apply_out_valid,        // rtl-gen/src/translate/apply.rs:143
-    output wire [156:0] apply_out_data, // rtl-gen/src/translate/apply.rs:143
-    input  wire apply_out_ready,        // rtl-gen/src/translate/apply.rs:143
+    input  wire det_in_valid,           // rtl-gen/src/translate/determine.rs:40
+    input  wire [205:0] det_in_data,    // rtl-gen/src/translate/determine.rs:40
+    output wire det_in_ready,           // rtl-gen/src/translate/determine.rs:40
+    output wire det_out_valid,          // rtl-gen/src/translate/determine.rs:272
+    output wire [221:0] det_out_data,   // rtl-gen/src/translate/determine.rs:272
+    input  wire det_out_ready,          // rtl-gen/src/translate/determine.rs:272
+    input  wire apply_in_valid,         // rtl-gen/src/translate/apply.rs:31
+    input  wire [153:0] apply_in_data,  // rtl-gen/src/translate/apply.rs:31
+    output wire apply_in_ready,         // rtl-gen/src/translate/apply.rs:31
+    output wire apply_out_valid,        // rtl-gen/src/translate/apply.rs:140
+    output wire [156:0] apply_out_data, // rtl-gen/src/translate/apply.rs:140
+    input  wire apply_out_ready,        // rtl-gen/src/translate/apply.rs:140
     output wire idle,                   // rtl-gen/src/translate/unit.rs:86
     output wire done,                   // rtl-gen/src/translate/unit.rs:87
     output wire det_error_seen,         // rtl-gen/src/translate/unit.rs:95
@@ -24,28 +24,41 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
 );
     reg [55:0] table_ [0:15];                // rtl-gen/src/translate/table.rs:44
     reg [15:0] table_valid;                  // rtl-gen/src/translate/table.rs:43
-    wire err_lod;                            // rtl-gen/src/translate/determine.rs:197
-    wire [4:0] k;                            // rtl-gen/src/translate/determine.rs:198
-    wire det_in_data_eq;                     // rtl-gen/src/translate/float.rs:78
-    wire [12:0] det_in_data_sub;             // rtl-gen/src/translate/float.rs:86
-    wire det_in_data_all;                    // rtl-gen/src/translate/float.rs:90
-    wire det_in_data_any;                    // rtl-gen/src/translate/float.rs:91
+    wire [4:0] det_in_data_lod;              // rtl-gen/src/translate/determine.rs:186
+    wire err_lod;                            // rtl-gen/src/translate/determine.rs:190
+    wire [4:0] k;                            // rtl-gen/src/translate/determine.rs:191
+    wire [31:0] det_in_data_placement_x;     // rtl-gen/src/translate/determine.rs:186
+    wire det_in_data_placement_x_eq;         // rtl-gen/src/translate/float.rs:78
+    wire [12:0] det_in_data_placement_x_sub; // rtl-gen/src/translate/float.rs:86
+    wire det_in_data_placement_x_all;        // rtl-gen/src/translate/float.rs:90
+    wire det_in_data_placement_x_any;        // rtl-gen/src/translate/float.rs:91
     wire [23:0] x_m;                         // rtl-gen/src/translate/float.rs:92
     wire [5:0] x_a;                          // rtl-gen/src/translate/float.rs:129
-    wire det_in_data_eq_1;                   // rtl-gen/src/translate/float.rs:78
-    wire [12:0] det_in_data_sub_1;           // rtl-gen/src/translate/float.rs:86
-    wire det_in_data_all_1;                  // rtl-gen/src/translate/float.rs:90
-    wire det_in_data_any_1;                  // rtl-gen/src/translate/float.rs:91
+    wire [31:0] det_in_data_placement_y;     // rtl-gen/src/translate/determine.rs:186
+    wire det_in_data_placement_y_eq;         // rtl-gen/src/translate/float.rs:78
+    wire [12:0] det_in_data_placement_y_sub; // rtl-gen/src/translate/float.rs:86
+    wire det_in_data_placement_y_all;        // rtl-gen/src/translate/float.rs:90
+    wire det_in_data_placement_y_any;        // rtl-gen/src/translate/float.rs:91
     wire [23:0] y_m;                         // rtl-gen/src/translate/float.rs:92
     wire [5:0] y_a;                          // rtl-gen/src/translate/float.rs:129
-    wire det_in_data_eq_2;                   // rtl-gen/src/translate/float.rs:78
-    wire [12:0] det_in_data_sub_2;           // rtl-gen/src/translate/float.rs:86
-    wire det_in_data_all_2;                  // rtl-gen/src/translate/float.rs:90
-    wire det_in_data_any_2;                  // rtl-gen/src/translate/float.rs:91
+    wire [31:0] det_in_data_placement_z;     // rtl-gen/src/translate/determine.rs:186
+    wire det_in_data_placement_z_eq;         // rtl-gen/src/translate/float.rs:78
+    wire [12:0] det_in_data_placement_z_sub; // rtl-gen/src/translate/float.rs:86
+    wire det_in_data_placement_z_all;        // rtl-gen/src/translate/float.rs:90
+    wire det_in_data_placement_z_any;        // rtl-gen/src/translate/float.rs:91
     wire [23:0] z_m;                         // rtl-gen/src/translate/float.rs:92
     wire [5:0] z_a;                          // rtl-gen/src/translate/float.rs:129
-    wire [17:0] const_shl;                   // rtl-gen/src/translate/determine.rs:221
-    wire det_in_data_or;                     // rtl-gen/src/translate/determine.rs:225
+    wire [15:0] det_in_data_extents_lo_x;    // rtl-gen/src/translate/determine.rs:186
+    wire [15:0] det_in_data_extents_hi_x;    // rtl-gen/src/translate/determine.rs:186
+    wire [17:0] const_shl;                   // rtl-gen/src/translate/determine.rs:214
+    wire [15:0] det_in_data_extents_lo_y;    // rtl-gen/src/translate/determine.rs:186
+    wire [15:0] det_in_data_extents_hi_y;    // rtl-gen/src/translate/determine.rs:186
+    wire [15:0] det_in_data_extents_lo_z;    // rtl-gen/src/translate/determine.rs:186
+    wire [15:0] det_in_data_extents_hi_z;    // rtl-gen/src/translate/determine.rs:186
+    wire det_in_data_extents_lo_x_or;        // rtl-gen/src/translate/determine.rs:218
+    wire det_in_data_write_enable;           // rtl-gen/src/translate/determine.rs:186
+    wire [3:0] det_in_data_write_id;         // rtl-gen/src/translate/determine.rs:186
+    wire [3:0] det_in_data_read_id;          // rtl-gen/src/translate/determine.rs:186
     wire [323:0] k_cat;                      // rtl-gen/src/translate/bundle.rs:64
     reg det_s1_valid;                        // rtl-gen/src/translate/bundle.rs:100
     reg [323:0] det_s1_data;                 // rtl-gen/src/translate/bundle.rs:100
@@ -175,7 +188,7 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire [17:0] det_s2_data_t_max_y;         // rtl-gen/src/translate/bundle.rs:76
     wire [17:0] det_s2_data_t_max_z;         // rtl-gen/src/translate/bundle.rs:76
     wire det_s2_data_err_lod;                // rtl-gen/src/translate/bundle.rs:76
-    wire det_s2_data_err_lod_not;            // rtl-gen/src/translate/determine.rs:98
+    wire det_s2_data_err_lod_not;            // rtl-gen/src/translate/determine.rs:91
     wire det_s2_data_x_r_eq;                 // rtl-gen/src/translate/float.rs:205
     wire [24:0] det_s2_data_x_r_mux;         // rtl-gen/src/translate/float.rs:206
     wire det_s2_data_x_r_eq_1;               // rtl-gen/src/translate/float.rs:205
@@ -190,8 +203,8 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire [31:0] x_residual;                  // rtl-gen/src/translate/float.rs:261
     wire det_s2_data_x_nan_or;               // rtl-gen/src/translate/float.rs:263
     wire det_s2_data_x_nan_and;              // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_err_extents_not;        // rtl-gen/src/translate/determine.rs:115
-    wire det_s2_data_err_extents_and;        // rtl-gen/src/translate/determine.rs:115
+    wire det_s2_data_err_extents_not;        // rtl-gen/src/translate/determine.rs:108
+    wire det_s2_data_err_extents_and;        // rtl-gen/src/translate/determine.rs:108
     wire det_s2_data_y_r_eq;                 // rtl-gen/src/translate/float.rs:205
     wire [24:0] det_s2_data_y_r_mux;         // rtl-gen/src/translate/float.rs:206
     wire det_s2_data_y_r_eq_1;               // rtl-gen/src/translate/float.rs:205
@@ -205,7 +218,7 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire [31:0] y_residual;                  // rtl-gen/src/translate/float.rs:261
     wire det_s2_data_y_nan_or;               // rtl-gen/src/translate/float.rs:263
     wire det_s2_data_y_nan_and;              // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_err_extents_and_1;      // rtl-gen/src/translate/determine.rs:115
+    wire det_s2_data_err_extents_and_1;      // rtl-gen/src/translate/determine.rs:108
     wire det_s2_data_z_r_eq;                 // rtl-gen/src/translate/float.rs:205
     wire [24:0] det_s2_data_z_r_mux;         // rtl-gen/src/translate/float.rs:206
     wire det_s2_data_z_r_eq_1;               // rtl-gen/src/translate/float.rs:205
@@ -219,15 +232,15 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire [31:0] z_residual;                  // rtl-gen/src/translate/float.rs:261
     wire det_s2_data_z_nan_or;               // rtl-gen/src/translate/float.rs:263
     wire det_s2_data_z_nan_and;              // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_err_extents_and_2;      // rtl-gen/src/translate/determine.rs:115
-    wire [2:0] det_s2_data_err_lod_cat;      // rtl-gen/src/translate/determine.rs:124
-    wire [2:0] det_s2_data_err_lod_cat_1;    // rtl-gen/src/translate/determine.rs:124
-    wire [2:0] det_s2_data_err_lod_cat_2;    // rtl-gen/src/translate/determine.rs:124
-    wire [2:0] det_s2_data_err_lod_cat_3;    // rtl-gen/src/translate/determine.rs:124
-    wire det_s2_data_err_lod_and;            // rtl-gen/src/translate/determine.rs:100
-    wire det_s2_data_err_lod_or;             // rtl-gen/src/translate/determine.rs:129
-    wire det_ok;                             // rtl-gen/src/translate/determine.rs:136
-    wire det_written;                        // rtl-gen/src/translate/determine.rs:145
+    wire det_s2_data_err_extents_and_2;      // rtl-gen/src/translate/determine.rs:108
+    wire [2:0] det_s2_data_err_lod_cat;      // rtl-gen/src/translate/determine.rs:117
+    wire [2:0] det_s2_data_err_lod_cat_1;    // rtl-gen/src/translate/determine.rs:117
+    wire [2:0] det_s2_data_err_lod_cat_2;    // rtl-gen/src/translate/determine.rs:117
+    wire [2:0] det_s2_data_err_lod_cat_3;    // rtl-gen/src/translate/determine.rs:117
+    wire det_s2_data_err_lod_and;            // rtl-gen/src/translate/determine.rs:93
+    wire det_s2_data_err_lod_or;             // rtl-gen/src/translate/determine.rs:122
+    wire det_ok;                             // rtl-gen/src/translate/determine.rs:129
+    wire det_written;                        // rtl-gen/src/translate/determine.rs:138
     wire [177:0] det_s2_data_read_id_cat;    // rtl-gen/src/translate/bundle.rs:64
     reg det_s3_valid;                        // rtl-gen/src/translate/bundle.rs:100
     reg [177:0] det_s3_data;                 // rtl-gen/src/translate/bundle.rs:100
@@ -265,15 +278,20 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire det_out_q_room;                     // rtl-gen/src/translate/bundle.rs:117
     wire det_out_q_drain;                    // rtl-gen/src/translate/bundle.rs:117
     wire det_out_q_take;                     // rtl-gen/src/translate/bundle.rs:117
-    wire det_s3_valid_and;                   // rtl-gen/src/translate/determine.rs:276
-    wire [149:0] apply_record;               // rtl-gen/src/translate/apply.rs:33
-    wire apply_in_data_mux;                  // rtl-gen/src/translate/table.rs:78
-    wire apply_in_data_mux_1;                // rtl-gen/src/translate/table.rs:78
+    wire det_s3_valid_and;                   // rtl-gen/src/translate/determine.rs:269
+    wire [149:0] apply_record;               // rtl-gen/src/translate/apply.rs:32
+    wire [3:0] apply_in_data_hier;           // rtl-gen/src/translate/apply.rs:33
+    wire apply_in_data_hier_mux;             // rtl-gen/src/translate/table.rs:78
+    wire apply_in_data_hier_mux_1;           // rtl-gen/src/translate/table.rs:78
     wire apply_read_valid;                   // rtl-gen/src/translate/table.rs:78
     wire [55:0] apply_read_entry;            // rtl-gen/src/translate/table.rs:81
-    wire apply_record_or;                    // rtl-gen/src/translate/apply.rs:43
-    wire [2:0] apply_early_code;             // rtl-gen/src/translate/apply.rs:53
-    wire [4:0] apply_shift;                  // rtl-gen/src/translate/apply.rs:62
+    wire [4:0] apply_record_lod;             // rtl-gen/src/translate/apply.rs:37
+    wire [15:0] apply_record_x;              // rtl-gen/src/translate/apply.rs:38
+    wire [15:0] apply_record_y;              // rtl-gen/src/translate/apply.rs:38
+    wire [15:0] apply_record_z;              // rtl-gen/src/translate/apply.rs:38
+    wire apply_record_x_or;                  // rtl-gen/src/translate/apply.rs:40
+    wire [2:0] apply_early_code;             // rtl-gen/src/translate/apply.rs:50
+    wire [4:0] apply_shift;                  // rtl-gen/src/translate/apply.rs:59
     reg apply_s1_valid;                      // rtl-gen/src/translate/bundle.rs:100
     reg [212:0] apply_s1_data;               // rtl-gen/src/translate/bundle.rs:100
     wire apply_s1_ready;                     // rtl-gen/src/translate/bundle.rs:100
@@ -285,7 +303,8 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire [16:0] apply_s1_data_t0;            // rtl-gen/src/translate/bundle.rs:76
     wire [16:0] apply_s1_data_t1;            // rtl-gen/src/translate/bundle.rs:76
     wire [16:0] apply_s1_data_t2;            // rtl-gen/src/translate/bundle.rs:76
-    wire [33:0] apply_high;                  // rtl-gen/src/translate/apply.rs:79
+    wire [4:0] apply_s1_data_record_lod;     // rtl-gen/src/translate/apply.rs:68
+    wire [33:0] apply_high;                  // rtl-gen/src/translate/apply.rs:76
     wire [292:0] apply_s1_data_t2_cat;       // rtl-gen/src/translate/bundle.rs:64
     reg apply_s2_valid;                      // rtl-gen/src/translate/bundle.rs:100
     reg [292:0] apply_s2_data;               // rtl-gen/src/translate/bundle.rs:100
@@ -298,9 +317,12 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire [33:0] apply_s2_data_offset0;       // rtl-gen/src/translate/bundle.rs:76
     wire [33:0] apply_s2_data_offset1;       // rtl-gen/src/translate/bundle.rs:76
     wire [33:0] apply_s2_data_offset2;       // rtl-gen/src/translate/bundle.rs:76
-    wire [33:0] apply_sum_x;                 // rtl-gen/src/translate/apply.rs:94
-    wire [33:0] apply_sum_y;                 // rtl-gen/src/translate/apply.rs:94
-    wire [33:0] apply_sum_z;                 // rtl-gen/src/translate/apply.rs:94
+    wire [15:0] apply_s2_data_record_x;      // rtl-gen/src/translate/apply.rs:89
+    wire [33:0] apply_sum_x;                 // rtl-gen/src/translate/apply.rs:91
+    wire [15:0] apply_s2_data_record_y;      // rtl-gen/src/translate/apply.rs:89
+    wire [33:0] apply_sum_y;                 // rtl-gen/src/translate/apply.rs:91
+    wire [15:0] apply_s2_data_record_z;      // rtl-gen/src/translate/apply.rs:89
+    wire [33:0] apply_sum_z;                 // rtl-gen/src/translate/apply.rs:91
     wire [207:0] apply_sum_z_cat;            // rtl-gen/src/translate/bundle.rs:64
     reg apply_s3_valid;                      // rtl-gen/src/translate/bundle.rs:100
     reg [207:0] apply_s3_data;               // rtl-gen/src/translate/bundle.rs:100
@@ -315,7 +337,7 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire apply_outside_y;                    // rtl-gen/src/translate/bundle.rs:76
     wire [15:0] apply_s3_data_moved2;        // rtl-gen/src/translate/bundle.rs:76
     wire apply_outside_z;                    // rtl-gen/src/translate/bundle.rs:76
-    wire [2:0] apply_code;                   // rtl-gen/src/translate/apply.rs:125
+    wire [2:0] apply_code;                   // rtl-gen/src/translate/apply.rs:122
     wire [156:0] apply_code_cat;             // rtl-gen/src/translate/bundle.rs:64
     reg apply_out_q_valid;                   // rtl-gen/src/translate/bundle.rs:117
     reg [156:0] apply_out_q_data;            // rtl-gen/src/translate/bundle.rs:117
@@ -334,29 +356,42 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     reg apply_error_seen_q;                  // rtl-gen/src/translate/unit.rs:91
 
     assign det_in_ready = det_s1_take;
-    assign err_lod = det_in_data[100:96] > 5'd16;
-    assign k = 5'd16 - det_in_data[100:96];
-    assign det_in_data_eq = det_in_data[30:23] == 8'd0;
-    assign det_in_data_sub = ({5'd0, det_in_data_eq ? 8'd1 : det_in_data[30:23]} - 13'd125) - {8'd0, k};
-    assign det_in_data_all = &det_in_data[30:23];
-    assign det_in_data_any = |det_in_data[22:0];
-    assign x_m = {~det_in_data_eq, det_in_data[22:0]};
-    assign x_a = ($signed(det_in_data_sub) < $signed(13'd0)) ? 6'd0 : (($signed(det_in_data_sub) > $signed(13'd41)) ? 6'd41 : det_in_data_sub[5:0]);
-    assign det_in_data_eq_1 = det_in_data[62:55] == 8'd0;
-    assign det_in_data_sub_1 = ({5'd0, det_in_data_eq_1 ? 8'd1 : det_in_data[62:55]} - 13'd125) - {8'd0, k};
-    assign det_in_data_all_1 = &det_in_data[62:55];
-    assign det_in_data_any_1 = |det_in_data[54:32];
-    assign y_m = {~det_in_data_eq_1, det_in_data[54:32]};
-    assign y_a = ($signed(det_in_data_sub_1) < $signed(13'd0)) ? 6'd0 : (($signed(det_in_data_sub_1) > $signed(13'd41)) ? 6'd41 : det_in_data_sub_1[5:0]);
-    assign det_in_data_eq_2 = det_in_data[94:87] == 8'd0;
-    assign det_in_data_sub_2 = ({5'd0, det_in_data_eq_2 ? 8'd1 : det_in_data[94:87]} - 13'd125) - {8'd0, k};
-    assign det_in_data_all_2 = &det_in_data[94:87];
-    assign det_in_data_any_2 = |det_in_data[86:64];
-    assign z_m = {~det_in_data_eq_2, det_in_data[86:64]};
-    assign z_a = ($signed(det_in_data_sub_2) < $signed(13'd0)) ? 6'd0 : (($signed(det_in_data_sub_2) > $signed(13'd41)) ? 6'd41 : det_in_data_sub_2[5:0]);
-    assign const_shl = 18'd1 << det_in_data[100:96];
-    assign det_in_data_or = ((det_in_data[116:101] > det_in_data[164:149]) | ((det_in_data[164:149] >> det_in_data[100:96]) != 16'd0)) | ((det_in_data[132:117] > det_in_data[180:165]) | ((det_in_data[180:165] >> det_in_data[100:96]) != 16'd0));
-    assign k_cat = {k, det_in_data[205:202], det_in_data[201:198], det_in_data[197], det_in_data[100:96], err_lod, det_in_data_or | ((det_in_data[148:133] > det_in_data[196:181]) | ((det_in_data[196:181] >> det_in_data[100:96]) != 16'd0)), const_shl - {2'd0, det_in_data[196:181]}, 18'd0 - {2'd0, det_in_data[148:133]}, const_shl - {2'd0, det_in_data[180:165]}, 18'd0 - {2'd0, det_in_data[132:117]}, const_shl - {2'd0, det_in_data[164:149]}, 18'd0 - {2'd0, det_in_data[116:101]}, det_in_data[95:64], det_in_data_all_2 & (~det_in_data_any_2), det_in_data_all_2 & det_in_data_any_2, z_a, z_m, det_in_data[95], det_in_data[63:32], det_in_data_all_1 & (~det_in_data_any_1), det_in_data_all_1 & det_in_data_any_1, y_a, y_m, det_in_data[63], det_in_data[31:0], det_in_data_all & (~det_in_data_any), det_in_data_all & det_in_data_any, x_a, x_m, det_in_data[31]};
+    assign det_in_data_lod = det_in_data[100:96];
+    assign err_lod = det_in_data_lod > 5'd16;
+    assign k = 5'd16 - det_in_data_lod;
+    assign det_in_data_placement_x = det_in_data[31:0];
+    assign det_in_data_placement_x_eq = det_in_data[30:23] == 8'd0;
+    assign det_in_data_placement_x_sub = ({5'd0, det_in_data_placement_x_eq ? 8'd1 : det_in_data[30:23]} - 13'd125) - {8'd0, k};
+    assign det_in_data_placement_x_all = &det_in_data[30:23];
+    assign det_in_data_placement_x_any = |det_in_data[22:0];
+    assign x_m = {~det_in_data_placement_x_eq, det_in_data[22:0]};
+    assign x_a = ($signed(det_in_data_placement_x_sub) < $signed(13'd0)) ? 6'd0 : (($signed(det_in_data_placement_x_sub) > $signed(13'd41)) ? 6'd41 : det_in_data_placement_x_sub[5:0]);
+    assign det_in_data_placement_y = det_in_data[63:32];
+    assign det_in_data_placement_y_eq = det_in_data[62:55] == 8'd0;
+    assign det_in_data_placement_y_sub = ({5'd0, det_in_data_placement_y_eq ? 8'd1 : det_in_data[62:55]} - 13'd125) - {8'd0, k};
+    assign det_in_data_placement_y_all = &det_in_data[62:55];
+    assign det_in_data_placement_y_any = |det_in_data[54:32];
+    assign y_m = {~det_in_data_placement_y_eq, det_in_data[54:32]};
+    assign y_a = ($signed(det_in_data_placement_y_sub) < $signed(13'd0)) ? 6'd0 : (($signed(det_in_data_placement_y_sub) > $signed(13'd41)) ? 6'd41 : det_in_data_placement_y_sub[5:0]);
+    assign det_in_data_placement_z = det_in_data[95:64];
+    assign det_in_data_placement_z_eq = det_in_data[94:87] == 8'd0;
+    assign det_in_data_placement_z_sub = ({5'd0, det_in_data_placement_z_eq ? 8'd1 : det_in_data[94:87]} - 13'd125) - {8'd0, k};
+    assign det_in_data_placement_z_all = &det_in_data[94:87];
+    assign det_in_data_placement_z_any = |det_in_data[86:64];
+    assign z_m = {~det_in_data_placement_z_eq, det_in_data[86:64]};
+    assign z_a = ($signed(det_in_data_placement_z_sub) < $signed(13'd0)) ? 6'd0 : (($signed(det_in_data_placement_z_sub) > $signed(13'd41)) ? 6'd41 : det_in_data_placement_z_sub[5:0]);
+    assign det_in_data_extents_lo_x = det_in_data[116:101];
+    assign det_in_data_extents_hi_x = det_in_data[164:149];
+    assign const_shl = 18'd1 << det_in_data_lod;
+    assign det_in_data_extents_lo_y = det_in_data[132:117];
+    assign det_in_data_extents_hi_y = det_in_data[180:165];
+    assign det_in_data_extents_lo_z = det_in_data[148:133];
+    assign det_in_data_extents_hi_z = det_in_data[196:181];
+    assign det_in_data_extents_lo_x_or = ((det_in_data_extents_lo_x > det_in_data_extents_hi_x) | ((det_in_data_extents_hi_x >> det_in_data_lod) != 16'd0)) | ((det_in_data_extents_lo_y > det_in_data_extents_hi_y) | ((det_in_data_extents_hi_y >> det_in_data_lod) != 16'd0));
+    assign det_in_data_write_enable = det_in_data[197];
+    assign det_in_data_write_id = det_in_data[201:198];
+    assign det_in_data_read_id = det_in_data[205:202];
+    assign k_cat = {k, det_in_data_read_id, det_in_data_write_id, det_in_data_write_enable, det_in_data_lod, err_lod, det_in_data_extents_lo_x_or | ((det_in_data_extents_lo_z > det_in_data_extents_hi_z) | ((det_in_data_extents_hi_z >> det_in_data_lod) != 16'd0)), const_shl - {2'd0, det_in_data_extents_hi_z}, 18'd0 - {2'd0, det_in_data_extents_lo_z}, const_shl - {2'd0, det_in_data_extents_hi_y}, 18'd0 - {2'd0, det_in_data_extents_lo_y}, const_shl - {2'd0, det_in_data_extents_hi_x}, 18'd0 - {2'd0, det_in_data_extents_lo_x}, det_in_data_placement_z, det_in_data_placement_z_all & (~det_in_data_placement_z_any), det_in_data_placement_z_all & det_in_data_placement_z_any, z_a, z_m, det_in_data[95], det_in_data_placement_y, det_in_data_placement_y_all & (~det_in_data_placement_y_any), det_in_data_placement_y_all & det_in_data_placement_y_any, y_a, y_m, det_in_data[63], det_in_data_placement_x, det_in_data_placement_x_all & (~det_in_data_placement_x_any), det_in_data_placement_x_all & det_in_data_placement_x_any, x_a, x_m, det_in_data[31]};
     assign det_s1_ready = det_align_take;
     assign det_s1_take = (~det_s1_valid) | det_s1_ready;
     assign det_s1_data_x_s = det_s1_data[0];
@@ -568,13 +603,18 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     assign det_out_data = det_out_q_data;
     assign apply_in_ready = apply_s1_take;
     assign apply_record = apply_in_data[149:0];
-    assign apply_in_data_mux = apply_in_data[152] ? (apply_in_data[151] ? (apply_in_data[150] ? table_valid[7] : table_valid[6]) : (apply_in_data[150] ? table_valid[5] : table_valid[4])) : (apply_in_data[151] ? (apply_in_data[150] ? table_valid[3] : table_valid[2]) : (apply_in_data[150] ? table_valid[1] : table_valid[0]));
-    assign apply_in_data_mux_1 = apply_in_data[152] ? (apply_in_data[151] ? (apply_in_data[150] ? table_valid[15] : table_valid[14]) : (apply_in_data[150] ? table_valid[13] : table_valid[12])) : (apply_in_data[151] ? (apply_in_data[150] ? table_valid[11] : table_valid[10]) : (apply_in_data[150] ? table_valid[9] : table_valid[8]));
-    assign apply_read_valid = apply_in_data[153] ? apply_in_data_mux_1 : apply_in_data_mux;
-    assign apply_read_entry = apply_read_valid ? table_[apply_in_data[153:150]] : 56'd0;
-    assign apply_record_or = (((apply_in_data[21:6] >> apply_in_data[5:1]) != 16'd0) | ((apply_in_data[37:22] >> apply_in_data[5:1]) != 16'd0)) | ((apply_in_data[53:38] >> apply_in_data[5:1]) != 16'd0);
-    assign apply_early_code = (~apply_read_valid) ? 3'd2 : (((apply_in_data[5:1] > 5'd16) | apply_record_or) ? 3'd3 : ((apply_in_data[5:1] < apply_read_entry[4:0]) ? 3'd4 : 3'd0));
-    assign apply_shift = apply_in_data[5:1] - apply_read_entry[4:0];
+    assign apply_in_data_hier = apply_in_data[153:150];
+    assign apply_in_data_hier_mux = apply_in_data[152] ? (apply_in_data[151] ? (apply_in_data[150] ? table_valid[7] : table_valid[6]) : (apply_in_data[150] ? table_valid[5] : table_valid[4])) : (apply_in_data[151] ? (apply_in_data[150] ? table_valid[3] : table_valid[2]) : (apply_in_data[150] ? table_valid[1] : table_valid[0]));
+    assign apply_in_data_hier_mux_1 = apply_in_data[152] ? (apply_in_data[151] ? (apply_in_data[150] ? table_valid[15] : table_valid[14]) : (apply_in_data[150] ? table_valid[13] : table_valid[12])) : (apply_in_data[151] ? (apply_in_data[150] ? table_valid[11] : table_valid[10]) : (apply_in_data[150] ? table_valid[9] : table_valid[8]));
+    assign apply_read_valid = apply_in_data[153] ? apply_in_data_hier_mux_1 : apply_in_data_hier_mux;
+    assign apply_read_entry = apply_read_valid ? table_[apply_in_data_hier] : 56'd0;
+    assign apply_record_lod = apply_in_data[5:1];
+    assign apply_record_x = apply_in_data[21:6];
+    assign apply_record_y = apply_in_data[37:22];
+    assign apply_record_z = apply_in_data[53:38];
+    assign apply_record_x_or = (((apply_record_x >> apply_record_lod) != 16'd0) | ((apply_record_y >> apply_record_lod) != 16'd0)) | ((apply_record_z >> apply_record_lod) != 16'd0);
+    assign apply_early_code = (~apply_read_valid) ? 3'd2 : (((apply_record_lod > 5'd16) | apply_record_x_or) ? 3'd3 : ((apply_record_lod < apply_read_entry[4:0]) ? 3'd4 : 3'd0));
+    assign apply_shift = apply_record_lod - apply_read_entry[4:0];
     assign apply_s1_ready = apply_s2_take;
     assign apply_s1_take = (~apply_s1_valid) | apply_s1_ready;
     assign apply_s1_data_record = apply_s1_data[149:0];
@@ -584,7 +624,8 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     assign apply_s1_data_t0 = apply_s1_data[178:162];
     assign apply_s1_data_t1 = apply_s1_data[195:179];
     assign apply_s1_data_t2 = apply_s1_data[212:196];
-    assign apply_high = 34'd17179869183 << apply_s1_data[5:1];
+    assign apply_s1_data_record_lod = apply_s1_data[5:1];
+    assign apply_high = 34'd17179869183 << apply_s1_data_record_lod;
     assign apply_s1_data_t2_cat = {{{17{apply_s1_data_t2[16]}}, apply_s1_data_t2} << apply_s1_data_shift, {{17{apply_s1_data_t1[16]}}, apply_s1_data_t1} << apply_s1_data_shift, {{17{apply_s1_data_t0[16]}}, apply_s1_data_t0} << apply_s1_data_shift, apply_high, apply_s1_data_code, apply_s1_data_hier, apply_s1_data_record};
     assign apply_s2_ready = apply_s3_take;
     assign apply_s2_take = (~apply_s2_valid) | apply_s2_ready;
@@ -595,9 +636,12 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     assign apply_s2_data_offset0 = apply_s2_data[224:191];
     assign apply_s2_data_offset1 = apply_s2_data[258:225];
     assign apply_s2_data_offset2 = apply_s2_data[292:259];
-    assign apply_sum_x = {18'd0, apply_s2_data[21:6]} + apply_s2_data_offset0;
-    assign apply_sum_y = {18'd0, apply_s2_data[37:22]} + apply_s2_data_offset1;
-    assign apply_sum_z = {18'd0, apply_s2_data[53:38]} + apply_s2_data_offset2;
+    assign apply_s2_data_record_x = apply_s2_data[21:6];
+    assign apply_sum_x = {18'd0, apply_s2_data_record_x} + apply_s2_data_offset0;
+    assign apply_s2_data_record_y = apply_s2_data[37:22];
+    assign apply_sum_y = {18'd0, apply_s2_data_record_y} + apply_s2_data_offset1;
+    assign apply_s2_data_record_z = apply_s2_data[53:38];
+    assign apply_sum_z = {18'd0, apply_s2_data_record_z} + apply_s2_data_offset2;
     assign apply_sum_z_cat = {($signed(apply_sum_z) < $signed(34'd0)) | ((apply_sum_z & apply_s2_data_high) != 34'd0), apply_sum_z[15:0], ($signed(apply_sum_y) < $signed(34'd0)) | ((apply_sum_y & apply_s2_data_high) != 34'd0), apply_sum_y[15:0], ($signed(apply_sum_x) < $signed(34'd0)) | ((apply_sum_x & apply_s2_data_high) != 34'd0), apply_sum_x[15:0], apply_s2_data_code, apply_s2_data_hier, apply_s2_data_record};
     assign apply_s3_ready = apply_out_q_room;
     assign apply_s3_take = (~apply_s3_valid) | apply_s3_ready;
@@ -695,7 +739,7 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
                 apply_s1_valid <= apply_in_valid; // rtl-gen/src/translate/bundle.rs:100
             end
             if (apply_s1_take & apply_in_valid) begin
-                apply_s1_data <= {apply_read_entry[55:39], apply_read_entry[38:22], apply_read_entry[21:5], apply_shift, apply_early_code, apply_in_data[153:150], apply_record}; // rtl-gen/src/translate/bundle.rs:100
+                apply_s1_data <= {apply_read_entry[55:39], apply_read_entry[38:22], apply_read_entry[21:5], apply_shift, apply_early_code, apply_in_data_hier, apply_record}; // rtl-gen/src/translate/bundle.rs:100
             end
             if (apply_s2_take) begin
                 apply_s2_valid <= apply_s1_valid; // rtl-gen/src/translate/bundle.rs:100

@@ -5,12 +5,12 @@
 module translate_unit_d16_q8_i24_h4_t16_b64_lookup4 (
     input  wire clk,                  // clock (implicit)
     input  wire rst,                  // synchronous reset, active high (implicit)
-    input  wire det_in_valid,         // rtl-gen/src/translate/determine.rs:47
-    input  wire [302:0] det_in_data,  // rtl-gen/src/translate/determine.rs:47
-    output wire det_in_ready,         // rtl-gen/src/translate/determine.rs:47
-    output wire det_out_valid,        // rtl-gen/src/translate/determine.rs:279
-    output wire [320:0] det_out_data, // rtl-gen/src/translate/determine.rs:279
-    input  wire det_out_ready,        // rtl-gen/src/translate/determine.rs:279
+    input  wire det_in_valid,         // rtl-gen/src/translate/determine.rs:40
+    input  wire [302:0] det_in_data,  // rtl-gen/src/translate/determine.rs:40
+    output wire det_in_ready,         // rtl-gen/src/translate/determine.rs:40
+    output wire det_out_valid,        // rtl-gen/src/translate/determine.rs:272
+    output wire [320:0] det_out_data, // rtl-gen/src/translate/determine.rs:272
+    input  wire det_out_ready,        // rtl-gen/src/translate/determine.rs:272
     input  wire [3:0] lookup0_id,     // rtl-gen/src/translate/unit.rs:65
     output wire [56:0] lookup0_entry, // rtl-gen/src/translate/unit.rs:74
     input  wire [3:0] lookup1_id,     // rtl-gen/src/translate/unit.rs:65
@@ -25,35 +25,49 @@ module translate_unit_d16_q8_i24_h4_t16_b64_lookup4 (
 );
     reg [55:0] table_ [0:15];                // rtl-gen/src/translate/table.rs:44
     reg [15:0] table_valid;                  // rtl-gen/src/translate/table.rs:43
-    wire err_lod;                            // rtl-gen/src/translate/determine.rs:197
-    wire [4:0] k;                            // rtl-gen/src/translate/determine.rs:198
-    wire det_in_data_eq;                     // rtl-gen/src/translate/float.rs:78
-    wire det_in_data_eq_1;                   // rtl-gen/src/translate/float.rs:78
-    wire det_in_data_not;                    // rtl-gen/src/translate/float.rs:116
+    wire [4:0] det_in_data_lod;              // rtl-gen/src/translate/determine.rs:186
+    wire det_in_data_format;                 // rtl-gen/src/translate/determine.rs:186
+    wire err_lod;                            // rtl-gen/src/translate/determine.rs:190
+    wire [4:0] k;                            // rtl-gen/src/translate/determine.rs:191
+    wire [63:0] det_in_data_placement_x;     // rtl-gen/src/translate/determine.rs:186
+    wire det_in_data_placement_x_eq;         // rtl-gen/src/translate/float.rs:78
+    wire det_in_data_placement_x_eq_1;       // rtl-gen/src/translate/float.rs:78
+    wire det_in_data_format_not;             // rtl-gen/src/translate/float.rs:116
     wire x_wide;                             // rtl-gen/src/translate/float.rs:116
-    wire det_in_data_mux;                    // rtl-gen/src/translate/float.rs:114
-    wire det_in_data_mux_1;                  // rtl-gen/src/translate/float.rs:114
+    wire det_in_data_format_mux;             // rtl-gen/src/translate/float.rs:114
+    wire det_in_data_format_mux_1;           // rtl-gen/src/translate/float.rs:114
     wire [52:0] x_m;                         // rtl-gen/src/translate/float.rs:114
-    wire [12:0] det_in_data_mux_2;           // rtl-gen/src/translate/float.rs:114
+    wire [12:0] det_in_data_format_mux_2;    // rtl-gen/src/translate/float.rs:114
     wire [6:0] x_a;                          // rtl-gen/src/translate/float.rs:129
-    wire det_in_data_eq_2;                   // rtl-gen/src/translate/float.rs:78
-    wire det_in_data_eq_3;                   // rtl-gen/src/translate/float.rs:78
+    wire [63:0] det_in_data_placement_y;     // rtl-gen/src/translate/determine.rs:186
+    wire det_in_data_placement_y_eq;         // rtl-gen/src/translate/float.rs:78
+    wire det_in_data_placement_y_eq_1;       // rtl-gen/src/translate/float.rs:78
     wire y_wide;                             // rtl-gen/src/translate/float.rs:116
-    wire det_in_data_mux_3;                  // rtl-gen/src/translate/float.rs:114
-    wire det_in_data_mux_4;                  // rtl-gen/src/translate/float.rs:114
+    wire det_in_data_format_mux_3;           // rtl-gen/src/translate/float.rs:114
+    wire det_in_data_format_mux_4;           // rtl-gen/src/translate/float.rs:114
     wire [52:0] y_m;                         // rtl-gen/src/translate/float.rs:114
-    wire [12:0] det_in_data_mux_5;           // rtl-gen/src/translate/float.rs:114
+    wire [12:0] det_in_data_format_mux_5;    // rtl-gen/src/translate/float.rs:114
     wire [6:0] y_a;                          // rtl-gen/src/translate/float.rs:129
-    wire det_in_data_eq_4;                   // rtl-gen/src/translate/float.rs:78
-    wire det_in_data_eq_5;                   // rtl-gen/src/translate/float.rs:78
+    wire [63:0] det_in_data_placement_z;     // rtl-gen/src/translate/determine.rs:186
+    wire det_in_data_placement_z_eq;         // rtl-gen/src/translate/float.rs:78
+    wire det_in_data_placement_z_eq_1;       // rtl-gen/src/translate/float.rs:78
     wire z_wide;                             // rtl-gen/src/translate/float.rs:116
-    wire det_in_data_mux_6;                  // rtl-gen/src/translate/float.rs:114
-    wire det_in_data_mux_7;                  // rtl-gen/src/translate/float.rs:114
+    wire det_in_data_format_mux_6;           // rtl-gen/src/translate/float.rs:114
+    wire det_in_data_format_mux_7;           // rtl-gen/src/translate/float.rs:114
     wire [52:0] z_m;                         // rtl-gen/src/translate/float.rs:114
-    wire [12:0] det_in_data_mux_8;           // rtl-gen/src/translate/float.rs:114
+    wire [12:0] det_in_data_format_mux_8;    // rtl-gen/src/translate/float.rs:114
     wire [6:0] z_a;                          // rtl-gen/src/translate/float.rs:129
-    wire [17:0] const_shl;                   // rtl-gen/src/translate/determine.rs:221
-    wire det_in_data_or;                     // rtl-gen/src/translate/determine.rs:225
+    wire [15:0] det_in_data_extents_lo_x;    // rtl-gen/src/translate/determine.rs:186
+    wire [15:0] det_in_data_extents_hi_x;    // rtl-gen/src/translate/determine.rs:186
+    wire [17:0] const_shl;                   // rtl-gen/src/translate/determine.rs:214
+    wire [15:0] det_in_data_extents_lo_y;    // rtl-gen/src/translate/determine.rs:186
+    wire [15:0] det_in_data_extents_hi_y;    // rtl-gen/src/translate/determine.rs:186
+    wire [15:0] det_in_data_extents_lo_z;    // rtl-gen/src/translate/determine.rs:186
+    wire [15:0] det_in_data_extents_hi_z;    // rtl-gen/src/translate/determine.rs:186
+    wire det_in_data_extents_lo_x_or;        // rtl-gen/src/translate/determine.rs:218
+    wire det_in_data_write_enable;           // rtl-gen/src/translate/determine.rs:186
+    wire [3:0] det_in_data_write_id;         // rtl-gen/src/translate/determine.rs:186
+    wire [3:0] det_in_data_read_id;          // rtl-gen/src/translate/determine.rs:186
     wire [513:0] k_cat;                      // rtl-gen/src/translate/bundle.rs:64
     reg det_s1_valid;                        // rtl-gen/src/translate/bundle.rs:100
     reg [513:0] det_s1_data;                 // rtl-gen/src/translate/bundle.rs:100
@@ -195,7 +209,7 @@ module translate_unit_d16_q8_i24_h4_t16_b64_lookup4 (
     wire [17:0] det_s2_data_t_max_z;         // rtl-gen/src/translate/bundle.rs:76
     wire det_s2_data_err_lod;                // rtl-gen/src/translate/bundle.rs:76
     wire det_s2_data_format;                 // rtl-gen/src/translate/bundle.rs:76
-    wire det_s2_data_err_lod_not;            // rtl-gen/src/translate/determine.rs:98
+    wire det_s2_data_err_lod_not;            // rtl-gen/src/translate/determine.rs:91
     wire det_s2_data_x_r_eq;                 // rtl-gen/src/translate/float.rs:205
     wire [53:0] det_s2_data_x_r_mux;         // rtl-gen/src/translate/float.rs:206
     wire det_s2_data_x_r_eq_1;               // rtl-gen/src/translate/float.rs:205
@@ -216,8 +230,8 @@ module translate_unit_d16_q8_i24_h4_t16_b64_lookup4 (
     wire det_s2_data_x_wide_and;             // rtl-gen/src/translate/float.rs:267
     wire det_s2_data_x_wide_and_1;           // rtl-gen/src/translate/float.rs:267
     wire det_s2_data_x_wide_and_2;           // rtl-gen/src/translate/float.rs:267
-    wire det_s2_data_err_extents_not;        // rtl-gen/src/translate/determine.rs:115
-    wire det_s2_data_err_extents_and;        // rtl-gen/src/translate/determine.rs:115
+    wire det_s2_data_err_extents_not;        // rtl-gen/src/translate/determine.rs:108
+    wire det_s2_data_err_extents_and;        // rtl-gen/src/translate/determine.rs:108
     wire det_s2_data_y_r_eq;                 // rtl-gen/src/translate/float.rs:205
     wire [53:0] det_s2_data_y_r_mux;         // rtl-gen/src/translate/float.rs:206
     wire det_s2_data_y_r_eq_1;               // rtl-gen/src/translate/float.rs:205
@@ -236,7 +250,7 @@ module translate_unit_d16_q8_i24_h4_t16_b64_lookup4 (
     wire det_s2_data_y_wide_and;             // rtl-gen/src/translate/float.rs:267
     wire det_s2_data_y_wide_and_1;           // rtl-gen/src/translate/float.rs:267
     wire det_s2_data_y_wide_and_2;           // rtl-gen/src/translate/float.rs:267
-    wire det_s2_data_err_extents_and_1;      // rtl-gen/src/translate/determine.rs:115
+    wire det_s2_data_err_extents_and_1;      // rtl-gen/src/translate/determine.rs:108
     wire det_s2_data_z_r_eq;                 // rtl-gen/src/translate/float.rs:205
     wire [53:0] det_s2_data_z_r_mux;         // rtl-gen/src/translate/float.rs:206
     wire det_s2_data_z_r_eq_1;               // rtl-gen/src/translate/float.rs:205
@@ -255,16 +269,16 @@ module translate_unit_d16_q8_i24_h4_t16_b64_lookup4 (
     wire det_s2_data_z_wide_and;             // rtl-gen/src/translate/float.rs:267
     wire det_s2_data_z_wide_and_1;           // rtl-gen/src/translate/float.rs:267
     wire det_s2_data_z_wide_and_2;           // rtl-gen/src/translate/float.rs:267
-    wire det_s2_data_err_extents_and_2;      // rtl-gen/src/translate/determine.rs:115
-    wire [2:0] det_s2_data_err_lod_cat;      // rtl-gen/src/translate/determine.rs:124
-    wire [2:0] det_s2_data_err_lod_cat_1;    // rtl-gen/src/translate/determine.rs:124
-    wire [2:0] det_s2_data_err_lod_cat_2;    // rtl-gen/src/translate/determine.rs:124
-    wire [2:0] det_s2_data_err_lod_cat_3;    // rtl-gen/src/translate/determine.rs:124
-    wire [2:0] det_s2_data_err_lod_cat_4;    // rtl-gen/src/translate/determine.rs:124
-    wire det_s2_data_err_lod_and;            // rtl-gen/src/translate/determine.rs:100
-    wire det_s2_data_err_lod_or;             // rtl-gen/src/translate/determine.rs:129
-    wire det_ok;                             // rtl-gen/src/translate/determine.rs:136
-    wire det_written;                        // rtl-gen/src/translate/determine.rs:145
+    wire det_s2_data_err_extents_and_2;      // rtl-gen/src/translate/determine.rs:108
+    wire [2:0] det_s2_data_err_lod_cat;      // rtl-gen/src/translate/determine.rs:117
+    wire [2:0] det_s2_data_err_lod_cat_1;    // rtl-gen/src/translate/determine.rs:117
+    wire [2:0] det_s2_data_err_lod_cat_2;    // rtl-gen/src/translate/determine.rs:117
+    wire [2:0] det_s2_data_err_lod_cat_3;    // rtl-gen/src/translate/determine.rs:117
+    wire [2:0] det_s2_data_err_lod_cat_4;    // rtl-gen/src/translate/determine.rs:117
+    wire det_s2_data_err_lod_and;            // rtl-gen/src/translate/determine.rs:93
+    wire det_s2_data_err_lod_or;             // rtl-gen/src/translate/determine.rs:122
+    wire det_ok;                             // rtl-gen/src/translate/determine.rs:129
+    wire det_written;                        // rtl-gen/src/translate/determine.rs:138
     wire [276:0] det_s2_data_read_id_cat;    // rtl-gen/src/translate/bundle.rs:64
     reg det_s3_valid;                        // rtl-gen/src/translate/bundle.rs:100
     reg [276:0] det_s3_data;                 // rtl-gen/src/translate/bundle.rs:100
@@ -303,7 +317,7 @@ module translate_unit_d16_q8_i24_h4_t16_b64_lookup4 (
     wire det_out_q_room;                     // rtl-gen/src/translate/bundle.rs:117
     wire det_out_q_drain;                    // rtl-gen/src/translate/bundle.rs:117
     wire det_out_q_take;                     // rtl-gen/src/translate/bundle.rs:117
-    wire det_s3_valid_and;                   // rtl-gen/src/translate/determine.rs:276
+    wire det_s3_valid_and;                   // rtl-gen/src/translate/determine.rs:269
     wire lookup0_id_mux;                     // rtl-gen/src/translate/table.rs:78
     wire lookup0_id_mux_1;                   // rtl-gen/src/translate/table.rs:78
     wire lookup0_valid;                      // rtl-gen/src/translate/table.rs:78
@@ -326,36 +340,50 @@ module translate_unit_d16_q8_i24_h4_t16_b64_lookup4 (
     reg det_error_seen_q;                    // rtl-gen/src/translate/unit.rs:88
 
     assign det_in_ready = det_s1_take;
-    assign err_lod = det_in_data[197:193] > 5'd16;
-    assign k = 5'd16 - det_in_data[197:193];
-    assign det_in_data_eq = det_in_data[31:24] == 8'd0;
-    assign det_in_data_eq_1 = det_in_data[63:53] == 11'd0;
-    assign det_in_data_not = ~det_in_data[0];
-    assign x_wide = det_in_data_not & (|det_in_data[64:33]);
-    assign det_in_data_mux = det_in_data[0] ? (&det_in_data[63:53]) : (&det_in_data[31:24]);
-    assign det_in_data_mux_1 = det_in_data[0] ? (|det_in_data[52:1]) : (|det_in_data[23:1]);
-    assign x_m = det_in_data[0] ? {~det_in_data_eq_1, det_in_data[52:1]} : {{~det_in_data_eq, det_in_data[23:1]}, 29'd0};
-    assign det_in_data_mux_2 = det_in_data[0] ? (({2'd0, det_in_data_eq_1 ? 11'd1 : det_in_data[63:53]} - 13'd1021) - {8'd0, k}) : (({5'd0, det_in_data_eq ? 8'd1 : det_in_data[31:24]} - 13'd125) - {8'd0, k});
-    assign x_a = ($signed(det_in_data_mux_2) < $signed(13'd0)) ? 7'd0 : (($signed(det_in_data_mux_2) > $signed(13'd70)) ? 7'd70 : det_in_data_mux_2[6:0]);
-    assign det_in_data_eq_2 = det_in_data[95:88] == 8'd0;
-    assign det_in_data_eq_3 = det_in_data[127:117] == 11'd0;
-    assign y_wide = det_in_data_not & (|det_in_data[128:97]);
-    assign det_in_data_mux_3 = det_in_data[0] ? (&det_in_data[127:117]) : (&det_in_data[95:88]);
-    assign det_in_data_mux_4 = det_in_data[0] ? (|det_in_data[116:65]) : (|det_in_data[87:65]);
-    assign y_m = det_in_data[0] ? {~det_in_data_eq_3, det_in_data[116:65]} : {{~det_in_data_eq_2, det_in_data[87:65]}, 29'd0};
-    assign det_in_data_mux_5 = det_in_data[0] ? (({2'd0, det_in_data_eq_3 ? 11'd1 : det_in_data[127:117]} - 13'd1021) - {8'd0, k}) : (({5'd0, det_in_data_eq_2 ? 8'd1 : det_in_data[95:88]} - 13'd125) - {8'd0, k});
-    assign y_a = ($signed(det_in_data_mux_5) < $signed(13'd0)) ? 7'd0 : (($signed(det_in_data_mux_5) > $signed(13'd70)) ? 7'd70 : det_in_data_mux_5[6:0]);
-    assign det_in_data_eq_4 = det_in_data[159:152] == 8'd0;
-    assign det_in_data_eq_5 = det_in_data[191:181] == 11'd0;
-    assign z_wide = det_in_data_not & (|det_in_data[192:161]);
-    assign det_in_data_mux_6 = det_in_data[0] ? (&det_in_data[191:181]) : (&det_in_data[159:152]);
-    assign det_in_data_mux_7 = det_in_data[0] ? (|det_in_data[180:129]) : (|det_in_data[151:129]);
-    assign z_m = det_in_data[0] ? {~det_in_data_eq_5, det_in_data[180:129]} : {{~det_in_data_eq_4, det_in_data[151:129]}, 29'd0};
-    assign det_in_data_mux_8 = det_in_data[0] ? (({2'd0, det_in_data_eq_5 ? 11'd1 : det_in_data[191:181]} - 13'd1021) - {8'd0, k}) : (({5'd0, det_in_data_eq_4 ? 8'd1 : det_in_data[159:152]} - 13'd125) - {8'd0, k});
-    assign z_a = ($signed(det_in_data_mux_8) < $signed(13'd0)) ? 7'd0 : (($signed(det_in_data_mux_8) > $signed(13'd70)) ? 7'd70 : det_in_data_mux_8[6:0]);
-    assign const_shl = 18'd1 << det_in_data[197:193];
-    assign det_in_data_or = ((det_in_data[213:198] > det_in_data[261:246]) | ((det_in_data[261:246] >> det_in_data[197:193]) != 16'd0)) | ((det_in_data[229:214] > det_in_data[277:262]) | ((det_in_data[277:262] >> det_in_data[197:193]) != 16'd0));
-    assign k_cat = {k, det_in_data[302:299], det_in_data[298:295], det_in_data[294], det_in_data[197:193], det_in_data[0], err_lod, det_in_data_or | ((det_in_data[245:230] > det_in_data[293:278]) | ((det_in_data[293:278] >> det_in_data[197:193]) != 16'd0)), const_shl - {2'd0, det_in_data[293:278]}, 18'd0 - {2'd0, det_in_data[245:230]}, const_shl - {2'd0, det_in_data[277:262]}, 18'd0 - {2'd0, det_in_data[229:214]}, const_shl - {2'd0, det_in_data[261:246]}, 18'd0 - {2'd0, det_in_data[213:198]}, det_in_data[192:129], det_in_data_mux_6 & (~det_in_data_mux_7), det_in_data_mux_6 & det_in_data_mux_7, z_a, z_m, det_in_data[0] ? det_in_data[192] : det_in_data[160], z_wide, det_in_data[128:65], det_in_data_mux_3 & (~det_in_data_mux_4), det_in_data_mux_3 & det_in_data_mux_4, y_a, y_m, det_in_data[0] ? det_in_data[128] : det_in_data[96], y_wide, det_in_data[64:1], det_in_data_mux & (~det_in_data_mux_1), det_in_data_mux & det_in_data_mux_1, x_a, x_m, det_in_data[0] ? det_in_data[64] : det_in_data[32], x_wide};
+    assign det_in_data_lod = det_in_data[197:193];
+    assign det_in_data_format = det_in_data[0];
+    assign err_lod = det_in_data_lod > 5'd16;
+    assign k = 5'd16 - det_in_data_lod;
+    assign det_in_data_placement_x = det_in_data[64:1];
+    assign det_in_data_placement_x_eq = det_in_data[31:24] == 8'd0;
+    assign det_in_data_placement_x_eq_1 = det_in_data[63:53] == 11'd0;
+    assign det_in_data_format_not = ~det_in_data_format;
+    assign x_wide = det_in_data_format_not & (|det_in_data[64:33]);
+    assign det_in_data_format_mux = det_in_data_format ? (&det_in_data[63:53]) : (&det_in_data[31:24]);
+    assign det_in_data_format_mux_1 = det_in_data_format ? (|det_in_data[52:1]) : (|det_in_data[23:1]);
+    assign x_m = det_in_data_format ? {~det_in_data_placement_x_eq_1, det_in_data[52:1]} : {{~det_in_data_placement_x_eq, det_in_data[23:1]}, 29'd0};
+    assign det_in_data_format_mux_2 = det_in_data_format ? (({2'd0, det_in_data_placement_x_eq_1 ? 11'd1 : det_in_data[63:53]} - 13'd1021) - {8'd0, k}) : (({5'd0, det_in_data_placement_x_eq ? 8'd1 : det_in_data[31:24]} - 13'd125) - {8'd0, k});
+    assign x_a = ($signed(det_in_data_format_mux_2) < $signed(13'd0)) ? 7'd0 : (($signed(det_in_data_format_mux_2) > $signed(13'd70)) ? 7'd70 : det_in_data_format_mux_2[6:0]);
+    assign det_in_data_placement_y = det_in_data[128:65];
+    assign det_in_data_placement_y_eq = det_in_data[95:88] == 8'd0;
+    assign det_in_data_placement_y_eq_1 = det_in_data[127:117] == 11'd0;
+    assign y_wide = det_in_data_format_not & (|det_in_data[128:97]);
+    assign det_in_data_format_mux_3 = det_in_data_format ? (&det_in_data[127:117]) : (&det_in_data[95:88]);
+    assign det_in_data_format_mux_4 = det_in_data_format ? (|det_in_data[116:65]) : (|det_in_data[87:65]);
+    assign y_m = det_in_data_format ? {~det_in_data_placement_y_eq_1, det_in_data[116:65]} : {{~det_in_data_placement_y_eq, det_in_data[87:65]}, 29'd0};
+    assign det_in_data_format_mux_5 = det_in_data_format ? (({2'd0, det_in_data_placement_y_eq_1 ? 11'd1 : det_in_data[127:117]} - 13'd1021) - {8'd0, k}) : (({5'd0, det_in_data_placement_y_eq ? 8'd1 : det_in_data[95:88]} - 13'd125) - {8'd0, k});
+    assign y_a = ($signed(det_in_data_format_mux_5) < $signed(13'd0)) ? 7'd0 : (($signed(det_in_data_format_mux_5) > $signed(13'd70)) ? 7'd70 : det_in_data_format_mux_5[6:0]);
+    assign det_in_data_placement_z = det_in_data[192:129];
+    assign det_in_data_placement_z_eq = det_in_data[159:152] == 8'd0;
+    assign det_in_data_placement_z_eq_1 = det_in_data[191:181] == 11'd0;
+    assign z_wide = det_in_data_format_not & (|det_in_data[192:161]);
+    assign det_in_data_format_mux_6 = det_in_data_format ? (&det_in_data[191:181]) : (&det_in_data[159:152]);
+    assign det_in_data_format_mux_7 = det_in_data_format ? (|det_in_data[180:129]) : (|det_in_data[151:129]);
+    assign z_m = det_in_data_format ? {~det_in_data_placement_z_eq_1, det_in_data[180:129]} : {{~det_in_data_placement_z_eq, det_in_data[151:129]}, 29'd0};
+    assign det_in_data_format_mux_8 = det_in_data_format ? (({2'd0, det_in_data_placement_z_eq_1 ? 11'd1 : det_in_data[191:181]} - 13'd1021) - {8'd0, k}) : (({5'd0, det_in_data_placement_z_eq ? 8'd1 : det_in_data[159:152]} - 13'd125) - {8'd0, k});
+    assign z_a = ($signed(det_in_data_format_mux_8) < $signed(13'd0)) ? 7'd0 : (($signed(det_in_data_format_mux_8) > $signed(13'd70)) ? 7'd70 : det_in_data_format_mux_8[6:0]);
+    assign det_in_data_extents_lo_x = det_in_data[213:198];
+    assign det_in_data_extents_hi_x = det_in_data[261:246];
+    assign const_shl = 18'd1 << det_in_data_lod;
+    assign det_in_data_extents_lo_y = det_in_data[229:214];
+    assign det_in_data_extents_hi_y = det_in_data[277:262];
+    assign det_in_data_extents_lo_z = det_in_data[245:230];
+    assign det_in_data_extents_hi_z = det_in_data[293:278];
+    assign det_in_data_extents_lo_x_or = ((det_in_data_extents_lo_x > det_in_data_extents_hi_x) | ((det_in_data_extents_hi_x >> det_in_data_lod) != 16'd0)) | ((det_in_data_extents_lo_y > det_in_data_extents_hi_y) | ((det_in_data_extents_hi_y >> det_in_data_lod) != 16'd0));
+    assign det_in_data_write_enable = det_in_data[294];
+    assign det_in_data_write_id = det_in_data[298:295];
+    assign det_in_data_read_id = det_in_data[302:299];
+    assign k_cat = {k, det_in_data_read_id, det_in_data_write_id, det_in_data_write_enable, det_in_data_lod, det_in_data_format, err_lod, det_in_data_extents_lo_x_or | ((det_in_data_extents_lo_z > det_in_data_extents_hi_z) | ((det_in_data_extents_hi_z >> det_in_data_lod) != 16'd0)), const_shl - {2'd0, det_in_data_extents_hi_z}, 18'd0 - {2'd0, det_in_data_extents_lo_z}, const_shl - {2'd0, det_in_data_extents_hi_y}, 18'd0 - {2'd0, det_in_data_extents_lo_y}, const_shl - {2'd0, det_in_data_extents_hi_x}, 18'd0 - {2'd0, det_in_data_extents_lo_x}, det_in_data_placement_z, det_in_data_format_mux_6 & (~det_in_data_format_mux_7), det_in_data_format_mux_6 & det_in_data_format_mux_7, z_a, z_m, det_in_data_format ? det_in_data[192] : det_in_data[160], z_wide, det_in_data_placement_y, det_in_data_format_mux_3 & (~det_in_data_format_mux_4), det_in_data_format_mux_3 & det_in_data_format_mux_4, y_a, y_m, det_in_data_format ? det_in_data[128] : det_in_data[96], y_wide, det_in_data_placement_x, det_in_data_format_mux & (~det_in_data_format_mux_1), det_in_data_format_mux & det_in_data_format_mux_1, x_a, x_m, det_in_data_format ? det_in_data[64] : det_in_data[32], x_wide};
     assign det_s1_ready = det_align_take;
     assign det_s1_take = (~det_s1_valid) | det_s1_ready;
     assign det_s1_data_x_wide = det_s1_data[0];

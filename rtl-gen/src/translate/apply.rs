@@ -11,7 +11,6 @@ use golden::layout::NodeLayout;
 use golden::translate::model::{ApplyCode, TranslateDesign};
 
 use super::bundle::Bundle;
-use super::determine::field;
 use super::ports::{apply_in_layout, apply_out_layout};
 use super::table::Table;
 use crate::{Module, Signal, Stream};
@@ -31,14 +30,12 @@ pub(crate) fn apply_path<'m>(
     let in_layout = apply_in_layout(d);
     let input = Stream::input(m, "apply_in", in_layout.width());
     let record = input.data.slice(nl.width() - 1, 0).name("apply_record");
-    let hier = field(input.data, &in_layout, "hier");
-    let node_field =
-        |rec: Signal<'m>, f: &golden::layout::Field| rec.slice(f.offset + f.width - 1, f.offset);
+    let hier = input.data.view_named(&in_layout, "hier");
 
     // Step 1: the entry and every check that does not need the sums.
     let entry = table.read(hier, "apply_read");
-    let lod = node_field(record, nl.lod());
-    let coords = [0, 1, 2].map(|a| node_field(record, nl.coord(a)));
+    let lod = record.view(nl.lod());
+    let coords = [0, 1, 2].map(|a| record.view(nl.coord(a)));
     let mut bad_node =
         coords[0].srl(lod).ne(0) | coords[1].srl(lod).ne(0) | coords[2].srl(lod).ne(0);
     if (1u32 << lb) - 1 > dmax {
@@ -68,7 +65,7 @@ pub(crate) fn apply_path<'m>(
     // Step 2: the shifted translations, and the bits of a sum at or above
     // the record's level (`x' >> d != 0` is a nonzero masked sum).
     let record = b1.get("record");
-    let lod = node_field(record, nl.lod());
+    let lod = record.view(nl.lod());
     let shift = b1.get("shift");
     let sum_bits = 2 * dmax + 2;
     let mut s2 = Bundle::new();
@@ -89,7 +86,7 @@ pub(crate) fn apply_path<'m>(
     let mut moved = Vec::new();
     let mut outside = Vec::new();
     for a in 0..3 {
-        let x = node_field(record, nl.coord(a));
+        let x = record.view(nl.coord(a));
         let sum = x
             .add(b2.get(&format!("offset{a}")), sum_bits)
             .name(&format!("apply_sum_{}", ["x", "y", "z"][a]));

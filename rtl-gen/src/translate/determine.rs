@@ -13,7 +13,6 @@
 //!    write enable each have a step: any two in one clock were the unit's
 //!    critical path (docs/hardware.md 14.7).
 
-use golden::layout::Layout;
 use golden::translate::model::TranslateDesign;
 
 use super::bundle::Bundle;
@@ -23,12 +22,6 @@ use super::table::Table;
 use crate::{Module, Signal, Stream};
 
 const AXES: [&str; 3] = ["x", "y", "z"];
-
-/// The slice of `data` holding field `name` of `layout`.
-pub(crate) fn field<'m>(data: Signal<'m>, layout: &Layout, name: &str) -> Signal<'m> {
-    let f = layout.get(name).unwrap_or_else(|e| panic!("{e}"));
-    data.slice(f.offset + f.width - 1, f.offset)
-}
 
 /// Builds the path: ports `det_in_*`, `det_out_*`. Returns the valid bits
 /// of its pipeline registers (for `idle`) and the output handshake (for
@@ -190,7 +183,7 @@ fn unpack_step<'m>(
     let p = d.params();
     let (dmax, lb) = (p.max_lod as u32, p.lod_bits());
     let in_layout = det_in_layout(d);
-    let get = |n: &str| field(data, &in_layout, n);
+    let get = |n: &str| data.view_named(&in_layout, n);
     let mut s1 = Bundle::new();
     let lod = get("lod");
     let format = d.binary64.then(|| get("format"));

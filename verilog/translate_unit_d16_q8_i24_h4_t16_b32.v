@@ -189,49 +189,49 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     wire [17:0] det_s2_data_t_max_z;         // rtl-gen/src/translate/bundle.rs:76
     wire det_s2_data_err_lod;                // rtl-gen/src/translate/bundle.rs:76
     wire det_s2_data_err_lod_not;            // rtl-gen/src/translate/determine.rs:91
-    wire det_s2_data_x_r_eq;                 // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_x_r_mux;         // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_x_r_eq_1;               // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_x_r_mux_1;       // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_x_r_eq_2;               // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_x_r_mux_2;       // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_x_r_eq_3;               // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_x_r_mux_3;       // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_x_r_eq_4;               // rtl-gen/src/translate/float.rs:210
-    wire [23:0] det_s2_data_x_r_mux_4;       // rtl-gen/src/translate/float.rs:212
-    wire [7:0] det_s2_data_k_add;            // rtl-gen/src/translate/float.rs:245
-    wire [31:0] x_residual;                  // rtl-gen/src/translate/float.rs:261
-    wire det_s2_data_x_nan_or;               // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_x_nan_and;              // rtl-gen/src/translate/float.rs:263
+    wire det_s2_data_x_r_zero16;             // rtl-gen/src/translate/float.rs:207
+    wire [24:0] det_s2_data_x_r_shifted16;   // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_x_r_zero8;              // rtl-gen/src/translate/float.rs:207
+    wire [24:0] det_s2_data_x_r_shifted8;    // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_x_r_zero4;              // rtl-gen/src/translate/float.rs:207
+    wire [24:0] det_s2_data_x_r_shifted4;    // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_x_r_zero2;              // rtl-gen/src/translate/float.rs:207
+    wire [24:0] det_s2_data_x_r_shifted2;    // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_x_r_shifted2_eq;        // rtl-gen/src/translate/float.rs:215
+    wire [23:0] det_s2_data_x_r_shifted2_mux; // rtl-gen/src/translate/float.rs:217
+    wire [7:0] det_s2_data_k_add;            // rtl-gen/src/translate/float.rs:250
+    wire [31:0] x_residual;                  // rtl-gen/src/translate/float.rs:266
+    wire det_s2_data_x_nan_or;               // rtl-gen/src/translate/float.rs:268
+    wire det_s2_data_x_nan_and;              // rtl-gen/src/translate/float.rs:268
     wire det_s2_data_err_extents_not;        // rtl-gen/src/translate/determine.rs:108
     wire det_s2_data_err_extents_and;        // rtl-gen/src/translate/determine.rs:108
-    wire det_s2_data_y_r_eq;                 // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_y_r_mux;         // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_y_r_eq_1;               // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_y_r_mux_1;       // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_y_r_eq_2;               // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_y_r_mux_2;       // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_y_r_eq_3;               // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_y_r_mux_3;       // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_y_r_eq_4;               // rtl-gen/src/translate/float.rs:210
-    wire [23:0] det_s2_data_y_r_mux_4;       // rtl-gen/src/translate/float.rs:212
-    wire [31:0] y_residual;                  // rtl-gen/src/translate/float.rs:261
-    wire det_s2_data_y_nan_or;               // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_y_nan_and;              // rtl-gen/src/translate/float.rs:263
+    wire det_s2_data_y_r_zero16;             // rtl-gen/src/translate/float.rs:207
+    wire [24:0] det_s2_data_y_r_shifted16;   // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_y_r_zero8;              // rtl-gen/src/translate/float.rs:207
+    wire [24:0] det_s2_data_y_r_shifted8;    // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_y_r_zero4;              // rtl-gen/src/translate/float.rs:207
+    wire [24:0] det_s2_data_y_r_shifted4;    // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_y_r_zero2;              // rtl-gen/src/translate/float.rs:207
+    wire [24:0] det_s2_data_y_r_shifted2;    // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_y_r_shifted2_eq;        // rtl-gen/src/translate/float.rs:215
+    wire [23:0] det_s2_data_y_r_shifted2_mux; // rtl-gen/src/translate/float.rs:217
+    wire [31:0] y_residual;                  // rtl-gen/src/translate/float.rs:266
+    wire det_s2_data_y_nan_or;               // rtl-gen/src/translate/float.rs:268
+    wire det_s2_data_y_nan_and;              // rtl-gen/src/translate/float.rs:268
     wire det_s2_data_err_extents_and_1;      // rtl-gen/src/translate/determine.rs:108
-    wire det_s2_data_z_r_eq;                 // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_z_r_mux;         // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_z_r_eq_1;               // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_z_r_mux_1;       // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_z_r_eq_2;               // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_z_r_mux_2;       // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_z_r_eq_3;               // rtl-gen/src/translate/float.rs:205
-    wire [24:0] det_s2_data_z_r_mux_3;       // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_z_r_eq_4;               // rtl-gen/src/translate/float.rs:210
-    wire [23:0] det_s2_data_z_r_mux_4;       // rtl-gen/src/translate/float.rs:212
-    wire [31:0] z_residual;                  // rtl-gen/src/translate/float.rs:261
-    wire det_s2_data_z_nan_or;               // rtl-gen/src/translate/float.rs:263
-    wire det_s2_data_z_nan_and;              // rtl-gen/src/translate/float.rs:263
+    wire det_s2_data_z_r_zero16;             // rtl-gen/src/translate/float.rs:207
+    wire [24:0] det_s2_data_z_r_shifted16;   // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_z_r_zero8;              // rtl-gen/src/translate/float.rs:207
+    wire [24:0] det_s2_data_z_r_shifted8;    // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_z_r_zero4;              // rtl-gen/src/translate/float.rs:207
+    wire [24:0] det_s2_data_z_r_shifted4;    // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_z_r_zero2;              // rtl-gen/src/translate/float.rs:207
+    wire [24:0] det_s2_data_z_r_shifted2;    // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_z_r_shifted2_eq;        // rtl-gen/src/translate/float.rs:215
+    wire [23:0] det_s2_data_z_r_shifted2_mux; // rtl-gen/src/translate/float.rs:217
+    wire [31:0] z_residual;                  // rtl-gen/src/translate/float.rs:266
+    wire det_s2_data_z_nan_or;               // rtl-gen/src/translate/float.rs:268
+    wire det_s2_data_z_nan_and;              // rtl-gen/src/translate/float.rs:268
     wire det_s2_data_err_extents_and_2;      // rtl-gen/src/translate/determine.rs:108
     wire [2:0] det_s2_data_err_lod_cat;      // rtl-gen/src/translate/determine.rs:117
     wire [2:0] det_s2_data_err_lod_cat_1;    // rtl-gen/src/translate/determine.rs:117
@@ -515,47 +515,47 @@ module translate_unit_d16_q8_i24_h4_t16_b32 (
     assign det_s2_data_t_max_z = det_s2_data[367:350];
     assign det_s2_data_err_lod = det_s2_data[368];
     assign det_s2_data_err_lod_not = ~det_s2_data_err_lod;
-    assign det_s2_data_x_r_eq = det_s2_data[42:27] == 16'd0;
-    assign det_s2_data_x_r_mux = det_s2_data_x_r_eq ? (det_s2_data_x_r << 5'd16) : det_s2_data_x_r;
-    assign det_s2_data_x_r_eq_1 = det_s2_data_x_r_mux[24:17] == 8'd0;
-    assign det_s2_data_x_r_mux_1 = det_s2_data_x_r_eq_1 ? (det_s2_data_x_r_mux << 4'd8) : det_s2_data_x_r_mux;
-    assign det_s2_data_x_r_eq_2 = det_s2_data_x_r_mux_1[24:21] == 4'd0;
-    assign det_s2_data_x_r_mux_2 = det_s2_data_x_r_eq_2 ? (det_s2_data_x_r_mux_1 << 3'd4) : det_s2_data_x_r_mux_1;
-    assign det_s2_data_x_r_eq_3 = det_s2_data_x_r_mux_2[24:23] == 2'd0;
-    assign det_s2_data_x_r_mux_3 = det_s2_data_x_r_eq_3 ? (det_s2_data_x_r_mux_2 << 2'd2) : det_s2_data_x_r_mux_2;
-    assign det_s2_data_x_r_eq_4 = det_s2_data_x_r_mux_3[24] == 1'b0;
-    assign det_s2_data_x_r_mux_4 = det_s2_data_x_r_eq_4 ? det_s2_data_x_r_mux_3[23:0] : det_s2_data_x_r_mux_3[24:1];
+    assign det_s2_data_x_r_zero16 = det_s2_data[42:27] == 16'd0;
+    assign det_s2_data_x_r_shifted16 = det_s2_data_x_r_zero16 ? (det_s2_data_x_r << 5'd16) : det_s2_data_x_r;
+    assign det_s2_data_x_r_zero8 = det_s2_data_x_r_shifted16[24:17] == 8'd0;
+    assign det_s2_data_x_r_shifted8 = det_s2_data_x_r_zero8 ? (det_s2_data_x_r_shifted16 << 4'd8) : det_s2_data_x_r_shifted16;
+    assign det_s2_data_x_r_zero4 = det_s2_data_x_r_shifted8[24:21] == 4'd0;
+    assign det_s2_data_x_r_shifted4 = det_s2_data_x_r_zero4 ? (det_s2_data_x_r_shifted8 << 3'd4) : det_s2_data_x_r_shifted8;
+    assign det_s2_data_x_r_zero2 = det_s2_data_x_r_shifted4[24:23] == 2'd0;
+    assign det_s2_data_x_r_shifted2 = det_s2_data_x_r_zero2 ? (det_s2_data_x_r_shifted4 << 2'd2) : det_s2_data_x_r_shifted4;
+    assign det_s2_data_x_r_shifted2_eq = det_s2_data_x_r_shifted2[24] == 1'b0;
+    assign det_s2_data_x_r_shifted2_mux = det_s2_data_x_r_shifted2_eq ? det_s2_data_x_r_shifted2[23:0] : det_s2_data_x_r_shifted2[24:1];
     assign det_s2_data_k_add = {3'd0, det_s2_data_k} + 8'd126;
-    assign x_residual = det_s2_data_x_t_zero ? (det_s2_data_x_m_nz ? det_s2_data_x_enc : 32'd0) : (det_s2_data_x_r_mux_4[23] ? {{det_s2_data_x_r_sign, det_s2_data_k_add - {3'd0, {det_s2_data_x_r_eq, det_s2_data_x_r_eq_1, det_s2_data_x_r_eq_2, det_s2_data_x_r_eq_3, det_s2_data_x_r_eq_4}}}, det_s2_data_x_r_mux_4[22:0]} : 32'd0);
+    assign x_residual = det_s2_data_x_t_zero ? (det_s2_data_x_m_nz ? det_s2_data_x_enc : 32'd0) : (det_s2_data_x_r_shifted2_mux[23] ? {{det_s2_data_x_r_sign, det_s2_data_k_add - {3'd0, {det_s2_data_x_r_zero16, det_s2_data_x_r_zero8, det_s2_data_x_r_zero4, det_s2_data_x_r_zero2, det_s2_data_x_r_shifted2_eq}}}, det_s2_data_x_r_shifted2_mux[22:0]} : 32'd0);
     assign det_s2_data_x_nan_or = det_s2_data_x_nan | det_s2_data_x_inf;
     assign det_s2_data_x_nan_and = (~det_s2_data_x_nan_or) & det_s2_data_x_too_large;
     assign det_s2_data_err_extents_not = ~det_s2_data_err_extents;
     assign det_s2_data_err_extents_and = (det_s2_data_err_extents_not & (~(det_s2_data_x_nan_or | det_s2_data_x_nan_and))) & (($signed({det_s2_data_x_t[16], det_s2_data_x_t}) < $signed(det_s2_data_t_min_x)) | ($signed({det_s2_data_x_t[16], det_s2_data_x_t}) >= $signed(det_s2_data_t_max_x)));
-    assign det_s2_data_y_r_eq = det_s2_data[122:107] == 16'd0;
-    assign det_s2_data_y_r_mux = det_s2_data_y_r_eq ? (det_s2_data_y_r << 5'd16) : det_s2_data_y_r;
-    assign det_s2_data_y_r_eq_1 = det_s2_data_y_r_mux[24:17] == 8'd0;
-    assign det_s2_data_y_r_mux_1 = det_s2_data_y_r_eq_1 ? (det_s2_data_y_r_mux << 4'd8) : det_s2_data_y_r_mux;
-    assign det_s2_data_y_r_eq_2 = det_s2_data_y_r_mux_1[24:21] == 4'd0;
-    assign det_s2_data_y_r_mux_2 = det_s2_data_y_r_eq_2 ? (det_s2_data_y_r_mux_1 << 3'd4) : det_s2_data_y_r_mux_1;
-    assign det_s2_data_y_r_eq_3 = det_s2_data_y_r_mux_2[24:23] == 2'd0;
-    assign det_s2_data_y_r_mux_3 = det_s2_data_y_r_eq_3 ? (det_s2_data_y_r_mux_2 << 2'd2) : det_s2_data_y_r_mux_2;
-    assign det_s2_data_y_r_eq_4 = det_s2_data_y_r_mux_3[24] == 1'b0;
-    assign det_s2_data_y_r_mux_4 = det_s2_data_y_r_eq_4 ? det_s2_data_y_r_mux_3[23:0] : det_s2_data_y_r_mux_3[24:1];
-    assign y_residual = det_s2_data_y_t_zero ? (det_s2_data_y_m_nz ? det_s2_data_y_enc : 32'd0) : (det_s2_data_y_r_mux_4[23] ? {{det_s2_data_y_r_sign, det_s2_data_k_add - {3'd0, {det_s2_data_y_r_eq, det_s2_data_y_r_eq_1, det_s2_data_y_r_eq_2, det_s2_data_y_r_eq_3, det_s2_data_y_r_eq_4}}}, det_s2_data_y_r_mux_4[22:0]} : 32'd0);
+    assign det_s2_data_y_r_zero16 = det_s2_data[122:107] == 16'd0;
+    assign det_s2_data_y_r_shifted16 = det_s2_data_y_r_zero16 ? (det_s2_data_y_r << 5'd16) : det_s2_data_y_r;
+    assign det_s2_data_y_r_zero8 = det_s2_data_y_r_shifted16[24:17] == 8'd0;
+    assign det_s2_data_y_r_shifted8 = det_s2_data_y_r_zero8 ? (det_s2_data_y_r_shifted16 << 4'd8) : det_s2_data_y_r_shifted16;
+    assign det_s2_data_y_r_zero4 = det_s2_data_y_r_shifted8[24:21] == 4'd0;
+    assign det_s2_data_y_r_shifted4 = det_s2_data_y_r_zero4 ? (det_s2_data_y_r_shifted8 << 3'd4) : det_s2_data_y_r_shifted8;
+    assign det_s2_data_y_r_zero2 = det_s2_data_y_r_shifted4[24:23] == 2'd0;
+    assign det_s2_data_y_r_shifted2 = det_s2_data_y_r_zero2 ? (det_s2_data_y_r_shifted4 << 2'd2) : det_s2_data_y_r_shifted4;
+    assign det_s2_data_y_r_shifted2_eq = det_s2_data_y_r_shifted2[24] == 1'b0;
+    assign det_s2_data_y_r_shifted2_mux = det_s2_data_y_r_shifted2_eq ? det_s2_data_y_r_shifted2[23:0] : det_s2_data_y_r_shifted2[24:1];
+    assign y_residual = det_s2_data_y_t_zero ? (det_s2_data_y_m_nz ? det_s2_data_y_enc : 32'd0) : (det_s2_data_y_r_shifted2_mux[23] ? {{det_s2_data_y_r_sign, det_s2_data_k_add - {3'd0, {det_s2_data_y_r_zero16, det_s2_data_y_r_zero8, det_s2_data_y_r_zero4, det_s2_data_y_r_zero2, det_s2_data_y_r_shifted2_eq}}}, det_s2_data_y_r_shifted2_mux[22:0]} : 32'd0);
     assign det_s2_data_y_nan_or = det_s2_data_y_nan | det_s2_data_y_inf;
     assign det_s2_data_y_nan_and = (~det_s2_data_y_nan_or) & det_s2_data_y_too_large;
     assign det_s2_data_err_extents_and_1 = (det_s2_data_err_extents_not & (~(det_s2_data_y_nan_or | det_s2_data_y_nan_and))) & (($signed({det_s2_data_y_t[16], det_s2_data_y_t}) < $signed(det_s2_data_t_min_y)) | ($signed({det_s2_data_y_t[16], det_s2_data_y_t}) >= $signed(det_s2_data_t_max_y)));
-    assign det_s2_data_z_r_eq = det_s2_data[202:187] == 16'd0;
-    assign det_s2_data_z_r_mux = det_s2_data_z_r_eq ? (det_s2_data_z_r << 5'd16) : det_s2_data_z_r;
-    assign det_s2_data_z_r_eq_1 = det_s2_data_z_r_mux[24:17] == 8'd0;
-    assign det_s2_data_z_r_mux_1 = det_s2_data_z_r_eq_1 ? (det_s2_data_z_r_mux << 4'd8) : det_s2_data_z_r_mux;
-    assign det_s2_data_z_r_eq_2 = det_s2_data_z_r_mux_1[24:21] == 4'd0;
-    assign det_s2_data_z_r_mux_2 = det_s2_data_z_r_eq_2 ? (det_s2_data_z_r_mux_1 << 3'd4) : det_s2_data_z_r_mux_1;
-    assign det_s2_data_z_r_eq_3 = det_s2_data_z_r_mux_2[24:23] == 2'd0;
-    assign det_s2_data_z_r_mux_3 = det_s2_data_z_r_eq_3 ? (det_s2_data_z_r_mux_2 << 2'd2) : det_s2_data_z_r_mux_2;
-    assign det_s2_data_z_r_eq_4 = det_s2_data_z_r_mux_3[24] == 1'b0;
-    assign det_s2_data_z_r_mux_4 = det_s2_data_z_r_eq_4 ? det_s2_data_z_r_mux_3[23:0] : det_s2_data_z_r_mux_3[24:1];
-    assign z_residual = det_s2_data_z_t_zero ? (det_s2_data_z_m_nz ? det_s2_data_z_enc : 32'd0) : (det_s2_data_z_r_mux_4[23] ? {{det_s2_data_z_r_sign, det_s2_data_k_add - {3'd0, {det_s2_data_z_r_eq, det_s2_data_z_r_eq_1, det_s2_data_z_r_eq_2, det_s2_data_z_r_eq_3, det_s2_data_z_r_eq_4}}}, det_s2_data_z_r_mux_4[22:0]} : 32'd0);
+    assign det_s2_data_z_r_zero16 = det_s2_data[202:187] == 16'd0;
+    assign det_s2_data_z_r_shifted16 = det_s2_data_z_r_zero16 ? (det_s2_data_z_r << 5'd16) : det_s2_data_z_r;
+    assign det_s2_data_z_r_zero8 = det_s2_data_z_r_shifted16[24:17] == 8'd0;
+    assign det_s2_data_z_r_shifted8 = det_s2_data_z_r_zero8 ? (det_s2_data_z_r_shifted16 << 4'd8) : det_s2_data_z_r_shifted16;
+    assign det_s2_data_z_r_zero4 = det_s2_data_z_r_shifted8[24:21] == 4'd0;
+    assign det_s2_data_z_r_shifted4 = det_s2_data_z_r_zero4 ? (det_s2_data_z_r_shifted8 << 3'd4) : det_s2_data_z_r_shifted8;
+    assign det_s2_data_z_r_zero2 = det_s2_data_z_r_shifted4[24:23] == 2'd0;
+    assign det_s2_data_z_r_shifted2 = det_s2_data_z_r_zero2 ? (det_s2_data_z_r_shifted4 << 2'd2) : det_s2_data_z_r_shifted4;
+    assign det_s2_data_z_r_shifted2_eq = det_s2_data_z_r_shifted2[24] == 1'b0;
+    assign det_s2_data_z_r_shifted2_mux = det_s2_data_z_r_shifted2_eq ? det_s2_data_z_r_shifted2[23:0] : det_s2_data_z_r_shifted2[24:1];
+    assign z_residual = det_s2_data_z_t_zero ? (det_s2_data_z_m_nz ? det_s2_data_z_enc : 32'd0) : (det_s2_data_z_r_shifted2_mux[23] ? {{det_s2_data_z_r_sign, det_s2_data_k_add - {3'd0, {det_s2_data_z_r_zero16, det_s2_data_z_r_zero8, det_s2_data_z_r_zero4, det_s2_data_z_r_zero2, det_s2_data_z_r_shifted2_eq}}}, det_s2_data_z_r_shifted2_mux[22:0]} : 32'd0);
     assign det_s2_data_z_nan_or = det_s2_data_z_nan | det_s2_data_z_inf;
     assign det_s2_data_z_nan_and = (~det_s2_data_z_nan_or) & det_s2_data_z_too_large;
     assign det_s2_data_err_extents_and_2 = (det_s2_data_err_extents_not & (~(det_s2_data_z_nan_or | det_s2_data_z_nan_and))) & (($signed({det_s2_data_z_t[16], det_s2_data_z_t}) < $signed(det_s2_data_t_min_z)) | ($signed({det_s2_data_z_t[16], det_s2_data_z_t}) >= $signed(det_s2_data_t_max_z)));

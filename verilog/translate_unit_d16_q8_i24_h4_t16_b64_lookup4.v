@@ -210,65 +210,65 @@ module translate_unit_d16_q8_i24_h4_t16_b64_lookup4 (
     wire det_s2_data_err_lod;                // rtl-gen/src/translate/bundle.rs:76
     wire det_s2_data_format;                 // rtl-gen/src/translate/bundle.rs:76
     wire det_s2_data_err_lod_not;            // rtl-gen/src/translate/determine.rs:91
-    wire det_s2_data_x_r_eq;                 // rtl-gen/src/translate/float.rs:205
-    wire [53:0] det_s2_data_x_r_mux;         // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_x_r_eq_1;               // rtl-gen/src/translate/float.rs:205
-    wire [53:0] det_s2_data_x_r_mux_1;       // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_x_r_eq_2;               // rtl-gen/src/translate/float.rs:205
-    wire [53:0] det_s2_data_x_r_mux_2;       // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_x_r_eq_3;               // rtl-gen/src/translate/float.rs:205
-    wire [53:0] det_s2_data_x_r_mux_3;       // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_x_r_eq_4;               // rtl-gen/src/translate/float.rs:205
-    wire [53:0] det_s2_data_x_r_mux_4;       // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_x_r_eq_5;               // rtl-gen/src/translate/float.rs:210
-    wire [52:0] det_s2_data_x_r_mux_5;       // rtl-gen/src/translate/float.rs:212
-    wire [5:0] det_s2_data_x_r_cat;          // rtl-gen/src/translate/float.rs:214
-    wire [7:0] det_s2_data_k_add;            // rtl-gen/src/translate/float.rs:245
-    wire [10:0] det_s2_data_k_add_1;         // rtl-gen/src/translate/float.rs:245
-    wire [63:0] x_residual;                  // rtl-gen/src/translate/float.rs:261
-    wire det_s2_data_x_wide_not;             // rtl-gen/src/translate/float.rs:267
-    wire det_s2_data_x_wide_and;             // rtl-gen/src/translate/float.rs:267
-    wire det_s2_data_x_wide_and_1;           // rtl-gen/src/translate/float.rs:267
-    wire det_s2_data_x_wide_and_2;           // rtl-gen/src/translate/float.rs:267
+    wire det_s2_data_x_r_zero32;             // rtl-gen/src/translate/float.rs:207
+    wire [53:0] det_s2_data_x_r_shifted32;   // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_x_r_zero16;             // rtl-gen/src/translate/float.rs:207
+    wire [53:0] det_s2_data_x_r_shifted16;   // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_x_r_zero8;              // rtl-gen/src/translate/float.rs:207
+    wire [53:0] det_s2_data_x_r_shifted8;    // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_x_r_zero4;              // rtl-gen/src/translate/float.rs:207
+    wire [53:0] det_s2_data_x_r_shifted4;    // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_x_r_zero2;              // rtl-gen/src/translate/float.rs:207
+    wire [53:0] det_s2_data_x_r_shifted2;    // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_x_r_shifted2_eq;        // rtl-gen/src/translate/float.rs:215
+    wire [52:0] det_s2_data_x_r_shifted2_mux; // rtl-gen/src/translate/float.rs:217
+    wire [5:0] det_s2_data_x_r_zero32_cat;   // rtl-gen/src/translate/float.rs:219
+    wire [7:0] det_s2_data_k_add;            // rtl-gen/src/translate/float.rs:250
+    wire [10:0] det_s2_data_k_add_1;         // rtl-gen/src/translate/float.rs:250
+    wire [63:0] x_residual;                  // rtl-gen/src/translate/float.rs:266
+    wire det_s2_data_x_wide_not;             // rtl-gen/src/translate/float.rs:272
+    wire det_s2_data_x_wide_and;             // rtl-gen/src/translate/float.rs:272
+    wire det_s2_data_x_wide_and_1;           // rtl-gen/src/translate/float.rs:272
+    wire det_s2_data_x_wide_and_2;           // rtl-gen/src/translate/float.rs:272
     wire det_s2_data_err_extents_not;        // rtl-gen/src/translate/determine.rs:108
     wire det_s2_data_err_extents_and;        // rtl-gen/src/translate/determine.rs:108
-    wire det_s2_data_y_r_eq;                 // rtl-gen/src/translate/float.rs:205
-    wire [53:0] det_s2_data_y_r_mux;         // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_y_r_eq_1;               // rtl-gen/src/translate/float.rs:205
-    wire [53:0] det_s2_data_y_r_mux_1;       // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_y_r_eq_2;               // rtl-gen/src/translate/float.rs:205
-    wire [53:0] det_s2_data_y_r_mux_2;       // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_y_r_eq_3;               // rtl-gen/src/translate/float.rs:205
-    wire [53:0] det_s2_data_y_r_mux_3;       // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_y_r_eq_4;               // rtl-gen/src/translate/float.rs:205
-    wire [53:0] det_s2_data_y_r_mux_4;       // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_y_r_eq_5;               // rtl-gen/src/translate/float.rs:210
-    wire [52:0] det_s2_data_y_r_mux_5;       // rtl-gen/src/translate/float.rs:212
-    wire [5:0] det_s2_data_y_r_cat;          // rtl-gen/src/translate/float.rs:214
-    wire [63:0] y_residual;                  // rtl-gen/src/translate/float.rs:261
-    wire det_s2_data_y_wide_not;             // rtl-gen/src/translate/float.rs:267
-    wire det_s2_data_y_wide_and;             // rtl-gen/src/translate/float.rs:267
-    wire det_s2_data_y_wide_and_1;           // rtl-gen/src/translate/float.rs:267
-    wire det_s2_data_y_wide_and_2;           // rtl-gen/src/translate/float.rs:267
+    wire det_s2_data_y_r_zero32;             // rtl-gen/src/translate/float.rs:207
+    wire [53:0] det_s2_data_y_r_shifted32;   // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_y_r_zero16;             // rtl-gen/src/translate/float.rs:207
+    wire [53:0] det_s2_data_y_r_shifted16;   // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_y_r_zero8;              // rtl-gen/src/translate/float.rs:207
+    wire [53:0] det_s2_data_y_r_shifted8;    // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_y_r_zero4;              // rtl-gen/src/translate/float.rs:207
+    wire [53:0] det_s2_data_y_r_shifted4;    // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_y_r_zero2;              // rtl-gen/src/translate/float.rs:207
+    wire [53:0] det_s2_data_y_r_shifted2;    // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_y_r_shifted2_eq;        // rtl-gen/src/translate/float.rs:215
+    wire [52:0] det_s2_data_y_r_shifted2_mux; // rtl-gen/src/translate/float.rs:217
+    wire [5:0] det_s2_data_y_r_zero32_cat;   // rtl-gen/src/translate/float.rs:219
+    wire [63:0] y_residual;                  // rtl-gen/src/translate/float.rs:266
+    wire det_s2_data_y_wide_not;             // rtl-gen/src/translate/float.rs:272
+    wire det_s2_data_y_wide_and;             // rtl-gen/src/translate/float.rs:272
+    wire det_s2_data_y_wide_and_1;           // rtl-gen/src/translate/float.rs:272
+    wire det_s2_data_y_wide_and_2;           // rtl-gen/src/translate/float.rs:272
     wire det_s2_data_err_extents_and_1;      // rtl-gen/src/translate/determine.rs:108
-    wire det_s2_data_z_r_eq;                 // rtl-gen/src/translate/float.rs:205
-    wire [53:0] det_s2_data_z_r_mux;         // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_z_r_eq_1;               // rtl-gen/src/translate/float.rs:205
-    wire [53:0] det_s2_data_z_r_mux_1;       // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_z_r_eq_2;               // rtl-gen/src/translate/float.rs:205
-    wire [53:0] det_s2_data_z_r_mux_2;       // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_z_r_eq_3;               // rtl-gen/src/translate/float.rs:205
-    wire [53:0] det_s2_data_z_r_mux_3;       // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_z_r_eq_4;               // rtl-gen/src/translate/float.rs:205
-    wire [53:0] det_s2_data_z_r_mux_4;       // rtl-gen/src/translate/float.rs:206
-    wire det_s2_data_z_r_eq_5;               // rtl-gen/src/translate/float.rs:210
-    wire [52:0] det_s2_data_z_r_mux_5;       // rtl-gen/src/translate/float.rs:212
-    wire [5:0] det_s2_data_z_r_cat;          // rtl-gen/src/translate/float.rs:214
-    wire [63:0] z_residual;                  // rtl-gen/src/translate/float.rs:261
-    wire det_s2_data_z_wide_not;             // rtl-gen/src/translate/float.rs:267
-    wire det_s2_data_z_wide_and;             // rtl-gen/src/translate/float.rs:267
-    wire det_s2_data_z_wide_and_1;           // rtl-gen/src/translate/float.rs:267
-    wire det_s2_data_z_wide_and_2;           // rtl-gen/src/translate/float.rs:267
+    wire det_s2_data_z_r_zero32;             // rtl-gen/src/translate/float.rs:207
+    wire [53:0] det_s2_data_z_r_shifted32;   // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_z_r_zero16;             // rtl-gen/src/translate/float.rs:207
+    wire [53:0] det_s2_data_z_r_shifted16;   // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_z_r_zero8;              // rtl-gen/src/translate/float.rs:207
+    wire [53:0] det_s2_data_z_r_shifted8;    // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_z_r_zero4;              // rtl-gen/src/translate/float.rs:207
+    wire [53:0] det_s2_data_z_r_shifted4;    // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_z_r_zero2;              // rtl-gen/src/translate/float.rs:207
+    wire [53:0] det_s2_data_z_r_shifted2;    // rtl-gen/src/translate/float.rs:210
+    wire det_s2_data_z_r_shifted2_eq;        // rtl-gen/src/translate/float.rs:215
+    wire [52:0] det_s2_data_z_r_shifted2_mux; // rtl-gen/src/translate/float.rs:217
+    wire [5:0] det_s2_data_z_r_zero32_cat;   // rtl-gen/src/translate/float.rs:219
+    wire [63:0] z_residual;                  // rtl-gen/src/translate/float.rs:266
+    wire det_s2_data_z_wide_not;             // rtl-gen/src/translate/float.rs:272
+    wire det_s2_data_z_wide_and;             // rtl-gen/src/translate/float.rs:272
+    wire det_s2_data_z_wide_and_1;           // rtl-gen/src/translate/float.rs:272
+    wire det_s2_data_z_wide_and_2;           // rtl-gen/src/translate/float.rs:272
     wire det_s2_data_err_extents_and_2;      // rtl-gen/src/translate/determine.rs:108
     wire [2:0] det_s2_data_err_lod_cat;      // rtl-gen/src/translate/determine.rs:117
     wire [2:0] det_s2_data_err_lod_cat_1;    // rtl-gen/src/translate/determine.rs:117
@@ -519,61 +519,61 @@ module translate_unit_d16_q8_i24_h4_t16_b64_lookup4 (
     assign det_s2_data_err_lod = det_s2_data[554];
     assign det_s2_data_format = det_s2_data[555];
     assign det_s2_data_err_lod_not = ~det_s2_data_err_lod;
-    assign det_s2_data_x_r_eq = det_s2_data[71:40] == 32'd0;
-    assign det_s2_data_x_r_mux = det_s2_data_x_r_eq ? (det_s2_data_x_r << 6'd32) : det_s2_data_x_r;
-    assign det_s2_data_x_r_eq_1 = det_s2_data_x_r_mux[53:38] == 16'd0;
-    assign det_s2_data_x_r_mux_1 = det_s2_data_x_r_eq_1 ? (det_s2_data_x_r_mux << 5'd16) : det_s2_data_x_r_mux;
-    assign det_s2_data_x_r_eq_2 = det_s2_data_x_r_mux_1[53:46] == 8'd0;
-    assign det_s2_data_x_r_mux_2 = det_s2_data_x_r_eq_2 ? (det_s2_data_x_r_mux_1 << 4'd8) : det_s2_data_x_r_mux_1;
-    assign det_s2_data_x_r_eq_3 = det_s2_data_x_r_mux_2[53:50] == 4'd0;
-    assign det_s2_data_x_r_mux_3 = det_s2_data_x_r_eq_3 ? (det_s2_data_x_r_mux_2 << 3'd4) : det_s2_data_x_r_mux_2;
-    assign det_s2_data_x_r_eq_4 = det_s2_data_x_r_mux_3[53:52] == 2'd0;
-    assign det_s2_data_x_r_mux_4 = det_s2_data_x_r_eq_4 ? (det_s2_data_x_r_mux_3 << 2'd2) : det_s2_data_x_r_mux_3;
-    assign det_s2_data_x_r_eq_5 = det_s2_data_x_r_mux_4[53] == 1'b0;
-    assign det_s2_data_x_r_mux_5 = det_s2_data_x_r_eq_5 ? det_s2_data_x_r_mux_4[52:0] : det_s2_data_x_r_mux_4[53:1];
-    assign det_s2_data_x_r_cat = {det_s2_data_x_r_eq, det_s2_data_x_r_eq_1, det_s2_data_x_r_eq_2, det_s2_data_x_r_eq_3, det_s2_data_x_r_eq_4, det_s2_data_x_r_eq_5};
+    assign det_s2_data_x_r_zero32 = det_s2_data[71:40] == 32'd0;
+    assign det_s2_data_x_r_shifted32 = det_s2_data_x_r_zero32 ? (det_s2_data_x_r << 6'd32) : det_s2_data_x_r;
+    assign det_s2_data_x_r_zero16 = det_s2_data_x_r_shifted32[53:38] == 16'd0;
+    assign det_s2_data_x_r_shifted16 = det_s2_data_x_r_zero16 ? (det_s2_data_x_r_shifted32 << 5'd16) : det_s2_data_x_r_shifted32;
+    assign det_s2_data_x_r_zero8 = det_s2_data_x_r_shifted16[53:46] == 8'd0;
+    assign det_s2_data_x_r_shifted8 = det_s2_data_x_r_zero8 ? (det_s2_data_x_r_shifted16 << 4'd8) : det_s2_data_x_r_shifted16;
+    assign det_s2_data_x_r_zero4 = det_s2_data_x_r_shifted8[53:50] == 4'd0;
+    assign det_s2_data_x_r_shifted4 = det_s2_data_x_r_zero4 ? (det_s2_data_x_r_shifted8 << 3'd4) : det_s2_data_x_r_shifted8;
+    assign det_s2_data_x_r_zero2 = det_s2_data_x_r_shifted4[53:52] == 2'd0;
+    assign det_s2_data_x_r_shifted2 = det_s2_data_x_r_zero2 ? (det_s2_data_x_r_shifted4 << 2'd2) : det_s2_data_x_r_shifted4;
+    assign det_s2_data_x_r_shifted2_eq = det_s2_data_x_r_shifted2[53] == 1'b0;
+    assign det_s2_data_x_r_shifted2_mux = det_s2_data_x_r_shifted2_eq ? det_s2_data_x_r_shifted2[52:0] : det_s2_data_x_r_shifted2[53:1];
+    assign det_s2_data_x_r_zero32_cat = {det_s2_data_x_r_zero32, det_s2_data_x_r_zero16, det_s2_data_x_r_zero8, det_s2_data_x_r_zero4, det_s2_data_x_r_zero2, det_s2_data_x_r_shifted2_eq};
     assign det_s2_data_k_add = {3'd0, det_s2_data_k} + 8'd126;
     assign det_s2_data_k_add_1 = {6'd0, det_s2_data_k} + 11'd1022;
-    assign x_residual = det_s2_data_x_t_zero ? (det_s2_data_x_m_nz ? det_s2_data_x_enc : 64'd0) : (det_s2_data_x_r_mux_5[52] ? (det_s2_data_format ? {{det_s2_data_x_r_sign, det_s2_data_k_add_1 - {5'd0, det_s2_data_x_r_cat}}, det_s2_data_x_r_mux_5[51:0]} : {32'd0, {{det_s2_data_x_r_sign, det_s2_data_k_add - {2'd0, det_s2_data_x_r_cat}}, det_s2_data_x_r_mux_5[51:29]}}) : 64'd0);
+    assign x_residual = det_s2_data_x_t_zero ? (det_s2_data_x_m_nz ? det_s2_data_x_enc : 64'd0) : (det_s2_data_x_r_shifted2_mux[52] ? (det_s2_data_format ? {{det_s2_data_x_r_sign, det_s2_data_k_add_1 - {5'd0, det_s2_data_x_r_zero32_cat}}, det_s2_data_x_r_shifted2_mux[51:0]} : {32'd0, {{det_s2_data_x_r_sign, det_s2_data_k_add - {2'd0, det_s2_data_x_r_zero32_cat}}, det_s2_data_x_r_shifted2_mux[51:29]}}) : 64'd0);
     assign det_s2_data_x_wide_not = ~det_s2_data_x_wide;
     assign det_s2_data_x_wide_and = det_s2_data_x_wide_not & det_s2_data_x_nan;
     assign det_s2_data_x_wide_and_1 = det_s2_data_x_wide_not & det_s2_data_x_inf;
     assign det_s2_data_x_wide_and_2 = det_s2_data_x_wide_not & ((~(det_s2_data_x_nan | det_s2_data_x_inf)) & det_s2_data_x_too_large);
     assign det_s2_data_err_extents_not = ~det_s2_data_err_extents;
     assign det_s2_data_err_extents_and = (det_s2_data_err_extents_not & (~(((det_s2_data_x_wide | det_s2_data_x_wide_and) | det_s2_data_x_wide_and_1) | det_s2_data_x_wide_and_2))) & (($signed({det_s2_data_x_t[16], det_s2_data_x_t}) < $signed(det_s2_data_t_min_x)) | ($signed({det_s2_data_x_t[16], det_s2_data_x_t}) >= $signed(det_s2_data_t_max_x)));
-    assign det_s2_data_y_r_eq = det_s2_data[213:182] == 32'd0;
-    assign det_s2_data_y_r_mux = det_s2_data_y_r_eq ? (det_s2_data_y_r << 6'd32) : det_s2_data_y_r;
-    assign det_s2_data_y_r_eq_1 = det_s2_data_y_r_mux[53:38] == 16'd0;
-    assign det_s2_data_y_r_mux_1 = det_s2_data_y_r_eq_1 ? (det_s2_data_y_r_mux << 5'd16) : det_s2_data_y_r_mux;
-    assign det_s2_data_y_r_eq_2 = det_s2_data_y_r_mux_1[53:46] == 8'd0;
-    assign det_s2_data_y_r_mux_2 = det_s2_data_y_r_eq_2 ? (det_s2_data_y_r_mux_1 << 4'd8) : det_s2_data_y_r_mux_1;
-    assign det_s2_data_y_r_eq_3 = det_s2_data_y_r_mux_2[53:50] == 4'd0;
-    assign det_s2_data_y_r_mux_3 = det_s2_data_y_r_eq_3 ? (det_s2_data_y_r_mux_2 << 3'd4) : det_s2_data_y_r_mux_2;
-    assign det_s2_data_y_r_eq_4 = det_s2_data_y_r_mux_3[53:52] == 2'd0;
-    assign det_s2_data_y_r_mux_4 = det_s2_data_y_r_eq_4 ? (det_s2_data_y_r_mux_3 << 2'd2) : det_s2_data_y_r_mux_3;
-    assign det_s2_data_y_r_eq_5 = det_s2_data_y_r_mux_4[53] == 1'b0;
-    assign det_s2_data_y_r_mux_5 = det_s2_data_y_r_eq_5 ? det_s2_data_y_r_mux_4[52:0] : det_s2_data_y_r_mux_4[53:1];
-    assign det_s2_data_y_r_cat = {det_s2_data_y_r_eq, det_s2_data_y_r_eq_1, det_s2_data_y_r_eq_2, det_s2_data_y_r_eq_3, det_s2_data_y_r_eq_4, det_s2_data_y_r_eq_5};
-    assign y_residual = det_s2_data_y_t_zero ? (det_s2_data_y_m_nz ? det_s2_data_y_enc : 64'd0) : (det_s2_data_y_r_mux_5[52] ? (det_s2_data_format ? {{det_s2_data_y_r_sign, det_s2_data_k_add_1 - {5'd0, det_s2_data_y_r_cat}}, det_s2_data_y_r_mux_5[51:0]} : {32'd0, {{det_s2_data_y_r_sign, det_s2_data_k_add - {2'd0, det_s2_data_y_r_cat}}, det_s2_data_y_r_mux_5[51:29]}}) : 64'd0);
+    assign det_s2_data_y_r_zero32 = det_s2_data[213:182] == 32'd0;
+    assign det_s2_data_y_r_shifted32 = det_s2_data_y_r_zero32 ? (det_s2_data_y_r << 6'd32) : det_s2_data_y_r;
+    assign det_s2_data_y_r_zero16 = det_s2_data_y_r_shifted32[53:38] == 16'd0;
+    assign det_s2_data_y_r_shifted16 = det_s2_data_y_r_zero16 ? (det_s2_data_y_r_shifted32 << 5'd16) : det_s2_data_y_r_shifted32;
+    assign det_s2_data_y_r_zero8 = det_s2_data_y_r_shifted16[53:46] == 8'd0;
+    assign det_s2_data_y_r_shifted8 = det_s2_data_y_r_zero8 ? (det_s2_data_y_r_shifted16 << 4'd8) : det_s2_data_y_r_shifted16;
+    assign det_s2_data_y_r_zero4 = det_s2_data_y_r_shifted8[53:50] == 4'd0;
+    assign det_s2_data_y_r_shifted4 = det_s2_data_y_r_zero4 ? (det_s2_data_y_r_shifted8 << 3'd4) : det_s2_data_y_r_shifted8;
+    assign det_s2_data_y_r_zero2 = det_s2_data_y_r_shifted4[53:52] == 2'd0;
+    assign det_s2_data_y_r_shifted2 = det_s2_data_y_r_zero2 ? (det_s2_data_y_r_shifted4 << 2'd2) : det_s2_data_y_r_shifted4;
+    assign det_s2_data_y_r_shifted2_eq = det_s2_data_y_r_shifted2[53] == 1'b0;
+    assign det_s2_data_y_r_shifted2_mux = det_s2_data_y_r_shifted2_eq ? det_s2_data_y_r_shifted2[52:0] : det_s2_data_y_r_shifted2[53:1];
+    assign det_s2_data_y_r_zero32_cat = {det_s2_data_y_r_zero32, det_s2_data_y_r_zero16, det_s2_data_y_r_zero8, det_s2_data_y_r_zero4, det_s2_data_y_r_zero2, det_s2_data_y_r_shifted2_eq};
+    assign y_residual = det_s2_data_y_t_zero ? (det_s2_data_y_m_nz ? det_s2_data_y_enc : 64'd0) : (det_s2_data_y_r_shifted2_mux[52] ? (det_s2_data_format ? {{det_s2_data_y_r_sign, det_s2_data_k_add_1 - {5'd0, det_s2_data_y_r_zero32_cat}}, det_s2_data_y_r_shifted2_mux[51:0]} : {32'd0, {{det_s2_data_y_r_sign, det_s2_data_k_add - {2'd0, det_s2_data_y_r_zero32_cat}}, det_s2_data_y_r_shifted2_mux[51:29]}}) : 64'd0);
     assign det_s2_data_y_wide_not = ~det_s2_data_y_wide;
     assign det_s2_data_y_wide_and = det_s2_data_y_wide_not & det_s2_data_y_nan;
     assign det_s2_data_y_wide_and_1 = det_s2_data_y_wide_not & det_s2_data_y_inf;
     assign det_s2_data_y_wide_and_2 = det_s2_data_y_wide_not & ((~(det_s2_data_y_nan | det_s2_data_y_inf)) & det_s2_data_y_too_large);
     assign det_s2_data_err_extents_and_1 = (det_s2_data_err_extents_not & (~(((det_s2_data_y_wide | det_s2_data_y_wide_and) | det_s2_data_y_wide_and_1) | det_s2_data_y_wide_and_2))) & (($signed({det_s2_data_y_t[16], det_s2_data_y_t}) < $signed(det_s2_data_t_min_y)) | ($signed({det_s2_data_y_t[16], det_s2_data_y_t}) >= $signed(det_s2_data_t_max_y)));
-    assign det_s2_data_z_r_eq = det_s2_data[355:324] == 32'd0;
-    assign det_s2_data_z_r_mux = det_s2_data_z_r_eq ? (det_s2_data_z_r << 6'd32) : det_s2_data_z_r;
-    assign det_s2_data_z_r_eq_1 = det_s2_data_z_r_mux[53:38] == 16'd0;
-    assign det_s2_data_z_r_mux_1 = det_s2_data_z_r_eq_1 ? (det_s2_data_z_r_mux << 5'd16) : det_s2_data_z_r_mux;
-    assign det_s2_data_z_r_eq_2 = det_s2_data_z_r_mux_1[53:46] == 8'd0;
-    assign det_s2_data_z_r_mux_2 = det_s2_data_z_r_eq_2 ? (det_s2_data_z_r_mux_1 << 4'd8) : det_s2_data_z_r_mux_1;
-    assign det_s2_data_z_r_eq_3 = det_s2_data_z_r_mux_2[53:50] == 4'd0;
-    assign det_s2_data_z_r_mux_3 = det_s2_data_z_r_eq_3 ? (det_s2_data_z_r_mux_2 << 3'd4) : det_s2_data_z_r_mux_2;
-    assign det_s2_data_z_r_eq_4 = det_s2_data_z_r_mux_3[53:52] == 2'd0;
-    assign det_s2_data_z_r_mux_4 = det_s2_data_z_r_eq_4 ? (det_s2_data_z_r_mux_3 << 2'd2) : det_s2_data_z_r_mux_3;
-    assign det_s2_data_z_r_eq_5 = det_s2_data_z_r_mux_4[53] == 1'b0;
-    assign det_s2_data_z_r_mux_5 = det_s2_data_z_r_eq_5 ? det_s2_data_z_r_mux_4[52:0] : det_s2_data_z_r_mux_4[53:1];
-    assign det_s2_data_z_r_cat = {det_s2_data_z_r_eq, det_s2_data_z_r_eq_1, det_s2_data_z_r_eq_2, det_s2_data_z_r_eq_3, det_s2_data_z_r_eq_4, det_s2_data_z_r_eq_5};
-    assign z_residual = det_s2_data_z_t_zero ? (det_s2_data_z_m_nz ? det_s2_data_z_enc : 64'd0) : (det_s2_data_z_r_mux_5[52] ? (det_s2_data_format ? {{det_s2_data_z_r_sign, det_s2_data_k_add_1 - {5'd0, det_s2_data_z_r_cat}}, det_s2_data_z_r_mux_5[51:0]} : {32'd0, {{det_s2_data_z_r_sign, det_s2_data_k_add - {2'd0, det_s2_data_z_r_cat}}, det_s2_data_z_r_mux_5[51:29]}}) : 64'd0);
+    assign det_s2_data_z_r_zero32 = det_s2_data[355:324] == 32'd0;
+    assign det_s2_data_z_r_shifted32 = det_s2_data_z_r_zero32 ? (det_s2_data_z_r << 6'd32) : det_s2_data_z_r;
+    assign det_s2_data_z_r_zero16 = det_s2_data_z_r_shifted32[53:38] == 16'd0;
+    assign det_s2_data_z_r_shifted16 = det_s2_data_z_r_zero16 ? (det_s2_data_z_r_shifted32 << 5'd16) : det_s2_data_z_r_shifted32;
+    assign det_s2_data_z_r_zero8 = det_s2_data_z_r_shifted16[53:46] == 8'd0;
+    assign det_s2_data_z_r_shifted8 = det_s2_data_z_r_zero8 ? (det_s2_data_z_r_shifted16 << 4'd8) : det_s2_data_z_r_shifted16;
+    assign det_s2_data_z_r_zero4 = det_s2_data_z_r_shifted8[53:50] == 4'd0;
+    assign det_s2_data_z_r_shifted4 = det_s2_data_z_r_zero4 ? (det_s2_data_z_r_shifted8 << 3'd4) : det_s2_data_z_r_shifted8;
+    assign det_s2_data_z_r_zero2 = det_s2_data_z_r_shifted4[53:52] == 2'd0;
+    assign det_s2_data_z_r_shifted2 = det_s2_data_z_r_zero2 ? (det_s2_data_z_r_shifted4 << 2'd2) : det_s2_data_z_r_shifted4;
+    assign det_s2_data_z_r_shifted2_eq = det_s2_data_z_r_shifted2[53] == 1'b0;
+    assign det_s2_data_z_r_shifted2_mux = det_s2_data_z_r_shifted2_eq ? det_s2_data_z_r_shifted2[52:0] : det_s2_data_z_r_shifted2[53:1];
+    assign det_s2_data_z_r_zero32_cat = {det_s2_data_z_r_zero32, det_s2_data_z_r_zero16, det_s2_data_z_r_zero8, det_s2_data_z_r_zero4, det_s2_data_z_r_zero2, det_s2_data_z_r_shifted2_eq};
+    assign z_residual = det_s2_data_z_t_zero ? (det_s2_data_z_m_nz ? det_s2_data_z_enc : 64'd0) : (det_s2_data_z_r_shifted2_mux[52] ? (det_s2_data_format ? {{det_s2_data_z_r_sign, det_s2_data_k_add_1 - {5'd0, det_s2_data_z_r_zero32_cat}}, det_s2_data_z_r_shifted2_mux[51:0]} : {32'd0, {{det_s2_data_z_r_sign, det_s2_data_k_add - {2'd0, det_s2_data_z_r_zero32_cat}}, det_s2_data_z_r_shifted2_mux[51:29]}}) : 64'd0);
     assign det_s2_data_z_wide_not = ~det_s2_data_z_wide;
     assign det_s2_data_z_wide_and = det_s2_data_z_wide_not & det_s2_data_z_nan;
     assign det_s2_data_z_wide_and_1 = det_s2_data_z_wide_not & det_s2_data_z_inf;

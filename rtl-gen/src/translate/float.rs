@@ -202,8 +202,13 @@ fn normalize<'m>(r: Signal<'m>) -> (Signal<'m>, Signal<'m>) {
     let mut clz_bits = Vec::new();
     let mut s = 1u32 << (31 - (w - 1).leading_zeros());
     while s > 1 {
-        let top_zero = x.slice(w - 1, w - s).eq(0);
-        x = top_zero.mux(x << s, x);
+        let top_zero = x
+            .slice(w - 1, w - s)
+            .eq(0)
+            .named_after(r, &format!("zero{s}"));
+        x = top_zero
+            .mux(x << s, x)
+            .named_after(r, &format!("shifted{s}"));
         clz_bits.push(top_zero);
         s /= 2;
     }

@@ -37,7 +37,7 @@ fn sort_key<'m>(m: &'m Module, beat: Signal<'m>, l: &BeatLayout) -> Signal<'m> {
         high_first.extend([c[2].bit(i), c[1].bit(i), c[0].bit(i)]);
     }
     high_first.push(rec.view(nl.leaf()));
-    m.concat(&high_first)
+    m.concat(&high_first).named_after(beat, "key")
 }
 
 /// One queue entry: an output beat, whether the entry holds one, and whether
@@ -55,6 +55,17 @@ impl<'m> Entry<'m> {
             beat: m.reg(&format!("e{i}_beat"), width),
             valid: m.reg(&format!("e{i}_valid"), 1),
             open: m.reg(&format!("e{i}_open"), 1),
+        }
+    }
+
+    /// This entry's signals named `e<i>_beat_<role>`, `e<i>_valid_<role>`,
+    /// `e<i>_open_<role>`.
+    fn named(self, i: usize, role: &str) -> Entry<'m> {
+        let name = |s: Signal<'m>, what: &str| s.name(&format!("e{i}_{what}_{role}"));
+        Entry {
+            beat: name(self.beat, "beat"),
+            valid: name(self.valid, "valid"),
+            open: name(self.open, "open"),
         }
     }
 
@@ -153,7 +164,13 @@ pub fn root_sorter_unit(p: &Params, capacity: usize) -> Module {
             } else {
                 Entry::mux(moves_up[i - 1], q[i - 1], new_entry)
             };
-            Entry::mux(moves, from_below, here)
+            let e = Entry::mux(moves, from_below, here);
+            // Entries 0 and `depth` are read once each, so they stay inline.
+            if i == 0 || i == depth {
+                e
+            } else {
+                e.named(i, "inserted")
+            }
         })
         .collect();
     for (i, e) in q.iter().enumerate() {

@@ -371,6 +371,13 @@ fn per_unit_sim(
     ChunkedSim::watching(module, design, engine, (&i, &o), patched, &PULSES)
 }
 
+/// The layout of output stream `name` of `ports` (an empty one, showing
+/// no field, for a name that is no output).
+fn output_layout(ports: &UnitPorts, name: &str) -> golden::layout::Layout {
+    let layout = ports.outputs.iter().find(|s| s.name() == name);
+    layout.map_or_else(|| golden::layout::Layout::new(name), Clone::clone)
+}
+
 /// An (expected, got) pair of output stream `stream` of `ports`, decoded
 /// by its fields.
 fn decode(
@@ -379,9 +386,7 @@ fn decode(
     e: &Transaction,
     g: &Transaction,
 ) -> Vec<(String, String, String)> {
-    let layout = ports.outputs.iter().find(|s| s.name() == stream);
-    let layout = layout.map_or_else(|| golden::layout::Layout::new(stream), Clone::clone);
-    decoded_pair(&*beat_decoder(layout), e, g)
+    decoded_pair(&*beat_decoder(output_layout(ports, stream)), e, g)
 }
 
 /// What a [`run`] did: its totals, what its cases reached, and the
@@ -530,10 +535,8 @@ pub fn export_spec(
     let module = rtl_gen::merge::hierarchy_unit(c).map_err(design_err)?;
     let design = crate::from_rtl::design_from_module(&module, rtl)?;
     let ports = unit_ports(c)?;
-    let (inputs, outputs) = super::multi_stream::export_streams(&streams, |name| {
-        let layout = ports.outputs.iter().find(|s| s.name() == name);
-        layout.map_or_else(|| golden::layout::Layout::new(name), Clone::clone)
-    });
+    let (inputs, outputs) =
+        super::multi_stream::export_streams(&streams, |name| output_layout(&ports, name));
     Ok(crate::export_tb::ExportSpec {
         design,
         transaction: "merge".into(),

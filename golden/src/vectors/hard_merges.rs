@@ -18,9 +18,10 @@ use crate::merge::stimulus::{
 use crate::mesh::Mesh;
 use crate::params::Params;
 use crate::scenes::push_triangle;
-use crate::store::{Hierarchy, HierarchyStore};
+use crate::scenes::random_soup;
+use crate::store::{Hierarchy, HierarchyStore, NodeRecord, Reference};
 use crate::translate::{Translation, TranslationTable};
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 #[cfg(doc)]
 use super::streams::Merges;
@@ -65,8 +66,9 @@ pub const CFG_ERRORS: [u64; 3] = [
 /// overlapping in part), an input filling the scene (several roots), one
 /// whose top holds 16 roots (a leaf and an inner node in each LOD-1
 /// voxel: every entry of the default root sorter), the same stored in
-/// reverse (every entry of the sorter moves), and a ladder of leaves
-/// at every LOD above the merging level, each through `d`'s mode; per code of [`CFG_ERRORS`] a merge whose last
+/// reverse (every entry of the sorter moves), a ladder of leaves
+/// at every LOD above the merging level, and an input stored depth first
+/// with indices near `2^I`, each through `d`'s mode; per code of [`CFG_ERRORS`] a merge whose last
 /// input's `cfg` makes its fetcher refuse it; and two bad ranges from
 /// software, which the merging module refuses (`lo > hi`, `hi > D`). Merges
 /// of more than `k` inputs, and those whose leaves overflow the leaf FIFOs,
@@ -81,6 +83,7 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
     cases.push(sixteen_roots(p)?);
     cases.push(sixteen_roots_reversed(p)?);
     cases.push(leaf_ladder(p)?);
+    cases.push(depth_first_store(p)?);
     cases.retain(|(_, _, ids)| ids.len() <= k);
     for (store, table, ids) in &cases {
         let tx =
@@ -134,7 +137,7 @@ pub fn out_id(p: &Params) -> u8 {
 
 /// The named cases of [`hard_merges`] whose inputs are all valid, in its
 /// order: the real cases, an input filling the scene, the 16-root input,
-/// the leaf ladder and the deep tops, those of at most `k` inputs (what
+/// the leaf ladder, the depth-first store and the deep tops, those of at most `k` inputs (what
 /// the hierarchy unit's hard merges write into its table by determine
 /// commands: a case's translations are its table's).
 pub fn hard_cases(d: &MergeDesign) -> Result<Vec<RealCase>> {
@@ -143,6 +146,7 @@ pub fn hard_cases(d: &MergeDesign) -> Result<Vec<RealCase>> {
     cases.push(several_roots(p)?);
     cases.push(sixteen_roots(p)?);
     cases.push(leaf_ladder(p)?);
+    cases.push(depth_first_store(p)?);
     cases.extend(deep_tops(p)?);
     cases.retain(|(_, _, ids)| ids.len() <= d.inputs);
     Ok(cases)
@@ -280,6 +284,122 @@ fn leaf_ladder(p: &Params) -> Result<RealCase> {
     store.insert(tiny).map_err(golden_err)?;
     store.insert(ladder).map_err(golden_err)?;
     Ok((store, table, vec![1, 2]))
+}
+
+/// Triangle counts of [`depth_first_store`]'s dense input, largest first:
+/// the first whose records `I` can number is taken (1,200 gives about
+/// 2,600 records, which at `I = 12` reach index bit 11).
+const DEPTH_FIRST_TRIANGLES: [usize; 5] = [1200, 300, 60, 12, 1];
+
+/// A dense input stored depth first ([`stored_depth_first`]) beside a small
+/// soup over it. Its triangles fill the LOD-`(D - 4)` corner voxel, so the
+/// fetcher's walk above the merging level stays four levels from the
+/// leaves and narrow, while the store holds every record below: the
+/// indices the fetcher reads (the top's `first`, the reused nodes'
+/// references) come near `2^I`, where a builder's store (level by level,
+/// 4.8) keeps them small for any input whose walk fits the frontier.
+fn depth_first_store(p: &Params) -> Result<RealCase> {
+    let (_, _, dense) = dense_corner(p)?;
+    let small = try_soup(p, 2, 20, 0.2, 78).map_err(golden_err)?;
+    let mut store = HierarchyStore::new();
+    let mut table = TranslationTable::new(p.hier_capacity() as usize, p).map_err(golden_err)?;
+    table
+        .write(1, Translation::zero(dense.top_lod))
+        .map_err(golden_err)?;
+    table
+        .write(2, place(&small, [0.1, 0.1, 0.1]))
+        .map_err(golden_err)?;
+    store
+        .insert(stored_depth_first(&dense))
+        .map_err(golden_err)?;
+    store.insert(small).map_err(golden_err)?;
+    Ok((store, table, vec![1, 2]))
+}
+
+/// [`depth_first_store`]'s dense input as the builder stores it, with its
+/// mesh and grid: the largest soup of [`DEPTH_FIRST_TRIANGLES`] that fits.
+fn dense_corner(p: &Params) -> Result<(Mesh, GridMap, Hierarchy)> {
+    let lod = p.max_lod.saturating_sub(4);
+    let grid = GridMap {
+        origin: DVec3::ZERO,
+        unit: 1.0 / (p.scene_edge() >> lod) as f64,
+    };
+    DEPTH_FIRST_TRIANGLES
+        .into_iter()
+        .find_map(|n| {
+            let mesh = random_soup(n, 0.05, 7);
+            let h = build(&mesh, &grid, p, 1).ok()?;
+            Some((mesh, grid, h))
+        })
+        .ok_or_else(|| golden_err("no dense soup of the depth-first case builds"))
+}
+
+/// `h` as a writer that stores depth first would: the roots keep `0..`
+/// `root_count`, every other record is numbered in pre-order, and each
+/// inner node's references follow those of its whole subtree (the top's
+/// come last). The same nodes and the same children, in another order:
+/// SPEC 3 fixes no order beyond the roots at the front.
+fn stored_depth_first(h: &Hierarchy) -> Hierarchy {
+    let mut order = DepthFirst {
+        h,
+        number: (0..h.nodes.len() as u32).collect(),
+        next: h.root_count,
+        first: h.nodes.iter().map(|n| n.first).collect(),
+        refs: Vec::with_capacity(h.refs.len()),
+    };
+    for root in 0..h.root_count {
+        order.visit(root);
+    }
+    let mut nodes = h.nodes.clone();
+    for (old, rec) in h.nodes.iter().enumerate() {
+        let at = order.number[old] as usize;
+        nodes[at] = NodeRecord {
+            first: order.first[old],
+            ..*rec
+        };
+    }
+    Hierarchy {
+        nodes,
+        refs: order.refs,
+        ..h.clone()
+    }
+}
+
+/// [`stored_depth_first`]'s walk: new numbers on the way down, reference
+/// blocks on the way up.
+struct DepthFirst<'a> {
+    h: &'a Hierarchy,
+    /// Per stored record, its new index.
+    number: Vec<u32>,
+    next: u32,
+    /// Per stored record, its new `first` (a leaf's, into `prims`, stays).
+    first: Vec<u32>,
+    refs: Vec<Reference>,
+}
+
+impl DepthFirst<'_> {
+    fn visit(&mut self, at: u32) {
+        let h = self.h;
+        let node = &h.nodes[at as usize];
+        let children = h.children_of(node);
+        for c in children.iter().filter(|c| c.hier == h.id) {
+            self.number[c.node as usize] = self.next;
+            self.next += 1;
+            self.visit(c.node);
+        }
+        if node.leaf {
+            return;
+        }
+        self.first[at as usize] = self.refs.len() as u32;
+        for c in children {
+            let node = if c.hier == h.id {
+                self.number[c.node as usize]
+            } else {
+                c.node
+            };
+            self.refs.push(Reference { hier: c.hier, node });
+        }
+    }
 }
 
 /// A merge whose last input's `cfg` makes its fetcher refuse it with
@@ -544,6 +664,73 @@ mod tests {
                 CFG_ERRORS.len(),
                 "{mode}"
             );
+        }
+    }
+
+    /// The depth-first store is a store the checker accepts (an
+    /// independent walk over the triangles), and at the coverage
+    /// configuration (`I = 12`) it puts the top's `first` and references
+    /// to reused nodes at index bit 11, which the builder's order does not.
+    #[test]
+    fn a_depth_first_store_is_valid_and_reaches_the_top_index_bit() {
+        let p = Params::new(8, 0, 12, 3).unwrap();
+        let (mesh, grid, built) = dense_corner(&p).unwrap();
+        let tris: Vec<_> = (0..mesh.triangles.len())
+            .map(|i| grid.triangle(&mesh, i, &p).unwrap())
+            .collect();
+        let stored = stored_depth_first(&built);
+        crate::check::check_built(&stored, &tris).unwrap();
+        let high = 1 << (p.index_bits - 1);
+        let top = |h: &Hierarchy| h.roots().iter().map(|n| n.first).max().unwrap();
+        let deepest_ref = |h: &Hierarchy| {
+            h.children_of(&h.nodes[0])
+                .iter()
+                .map(|r| r.node)
+                .max()
+                .unwrap()
+        };
+        assert!(top(&stored) >= high && deepest_ref(&stored) >= high);
+        assert!(top(&built) < high && deepest_ref(&built) < high);
+    }
+
+    /// Merged from the depth-first store, the merge writes what it writes
+    /// from the builder's store, references to reused nodes renumbered:
+    /// the order of a store changes where records are, not the merge.
+    #[test]
+    fn a_depth_first_store_merges_as_the_builders_store() {
+        for p in [Params::default(), Params::new(8, 0, 12, 3).unwrap()] {
+            let (_, _, built) = dense_corner(&p).unwrap();
+            let (stored, table, ids) = depth_first_store(&p).unwrap();
+            let mut ordered = stored.clone();
+            ordered.replace(built.clone()).unwrap();
+            let renumber = |r: &Reference| match r.hier {
+                1 => {
+                    let rec = built.nodes[r.node as usize];
+                    let at = stored.get(1).unwrap().nodes.iter().position(|n| {
+                        (n.voxel, n.leaf, n.lo, n.hi) == (rec.voxel, rec.leaf, rec.lo, rec.hi)
+                    });
+                    Reference {
+                        hier: 1,
+                        node: at.unwrap() as u32,
+                    }
+                }
+                _ => *r,
+            };
+            for mode in [
+                MergeMode::Overlap { num: 1, den: 2 },
+                MergeMode::PerNode { num: 1, den: 2 },
+            ] {
+                let sizes = MergerSizes::new(&p);
+                let a = merger_transaction(&stored, &table, &ids, mode, 7, 2, sizes).unwrap();
+                let b = merger_transaction(&ordered, &table, &ids, mode, 7, 2, sizes).unwrap();
+                let at = format!("D = {} {mode}", p.max_lod);
+                assert_eq!(a.header, b.header, "{at}");
+                assert_eq!(a.header.fetch_err, 0, "{at}");
+                assert_eq!(a.writer.nodes, b.writer.nodes, "{at}");
+                let renumbered: Vec<Reference> = b.writer.refs.iter().map(renumber).collect();
+                assert_eq!(a.writer.refs, renumbered, "{at}");
+                assert!(a.writer.refs.iter().any(|r| r.hier == 1), "{at}");
+            }
         }
     }
 }

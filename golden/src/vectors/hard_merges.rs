@@ -67,8 +67,9 @@ pub const CFG_ERRORS: [u64; 3] = [
 /// whose top holds 16 roots (a leaf and an inner node in each LOD-1
 /// voxel: every entry of the default root sorter), the same stored in
 /// reverse (every entry of the sorter moves), a ladder of leaves
-/// at every LOD above the merging level, and an input stored depth first
-/// with indices near `2^I`, each through `d`'s mode; per code of [`CFG_ERRORS`] a merge whose last
+/// at every LOD above the merging level, an input stored depth first
+/// with indices near `2^I`, the deep tops and the deep clusters, each
+/// through `d`'s mode; per code of [`CFG_ERRORS`] a merge whose last
 /// input's `cfg` makes its fetcher refuse it; and two bad ranges from
 /// software, which the merging module refuses (`lo > hi`, `hi > D`). Merges
 /// of more than `k` inputs, and those whose leaves overflow the leaf FIFOs,
@@ -97,7 +98,9 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
                 .any(|i| store.get(*i).is_some_and(|h| h.root_count > 1)) as usize;
         out.merges.push(tx);
     }
-    for (store, table, ids) in deep_tops(p)?.iter().filter(|c| c.2.len() <= k) {
+    let mut deep = deep_tops(p)?;
+    deep.extend(deep_clusters(p)?);
+    for (store, table, ids) in deep.iter().filter(|c| c.2.len() <= k) {
         let tx =
             merger_transaction(store, table, ids, d.mode, out_id, k, sizes).map_err(golden_err)?;
         if !tx.header.leaf_overflow {
@@ -137,7 +140,7 @@ pub fn out_id(p: &Params) -> u8 {
 
 /// The named cases of [`hard_merges`] whose inputs are all valid, in its
 /// order: the real cases, an input filling the scene, the 16-root input,
-/// the leaf ladder, the depth-first store and the deep tops, those of at most `k` inputs (what
+/// the leaf ladder, the depth-first store, the deep tops and clusters, those of at most `k` inputs (what
 /// the hierarchy unit's hard merges write into its table by determine
 /// commands: a case's translations are its table's).
 pub fn hard_cases(d: &MergeDesign) -> Result<Vec<RealCase>> {
@@ -148,20 +151,52 @@ pub fn hard_cases(d: &MergeDesign) -> Result<Vec<RealCase>> {
     cases.push(leaf_ladder(p)?);
     cases.push(depth_first_store(p)?);
     cases.extend(deep_tops(p)?);
+    cases.extend(deep_clusters(p)?);
     cases.retain(|(_, _, ids)| ids.len() <= d.inputs);
     Ok(cases)
 }
 
 /// Merges whose top lies at the deepest LODs, which the soups of the other
-/// cases (spread over the scene's `2^-3` corner) never reach: one tiny
-/// triangle alone (the top at its own LOD `t`), and per `L` in `t - 4..t`
-/// (`L >= 1`) the same triangle twice, one voxel apart at LOD `t` across
-/// the boundary of two LOD-`(L + 1)` voxels, so their common ancestor, the
-/// merged top, is at LOD `L`. So the upper builder's and the writer's
+/// cases (spread over the scene's `2^-3` corner) never reach
+/// ([`tops_across_voxels`] of one tiny triangle: the top at its own LOD `t`
+/// and at the four LODs above). So the upper builder's and the writer's
 /// deepest levels hold the top.
 fn deep_tops(p: &Params) -> Result<Vec<RealCase>> {
     let tiny = |id: u8| try_soup(p, id, 1, 0.001, 21).map_err(golden_err);
-    let (a, b) = (tiny(1)?, tiny(2)?);
+    tops_across_voxels(p, tiny(1)?, tiny(2)?)
+}
+
+/// Per `c` in `D - 4..D - 1` (`c >= 1`), two small soups filling the same
+/// LOD-`c` voxel: the merged top at `c`, and created records at every LOD
+/// from it down to the merging level, several per LOD, where the deep
+/// tops' single triangles write one. (At `c = D - 1` the merging level is
+/// `D - 1` too, and its one created node is all that is written.)
+fn deep_clusters(p: &Params) -> Result<Vec<RealCase>> {
+    let mut out = Vec::new();
+    for c in p.max_lod.saturating_sub(4).max(1)..p.max_lod.saturating_sub(1) {
+        let grid = GridMap {
+            origin: DVec3::ZERO,
+            unit: 1.0 / (p.scene_edge() >> c) as f64,
+        };
+        let mut store = HierarchyStore::new();
+        let mut table = TranslationTable::new(p.hier_capacity() as usize, p).map_err(golden_err)?;
+        for (id, seed) in [(1u8, 31u64), (2, 32)] {
+            let h = build(&random_soup(8, 0.3, seed), &grid, p, id).map_err(golden_err)?;
+            table
+                .write(id as u32, Translation::zero(h.top_lod))
+                .map_err(golden_err)?;
+            store.insert(h).map_err(golden_err)?;
+        }
+        out.push((store, table, vec![1, 2]));
+    }
+    Ok(out)
+}
+
+/// `a` alone at its own top LOD `t`, and per `L` in `t - 4..t` (`L >= 1`)
+/// `a` and `b` one voxel apart at LOD `t` across the boundary of two
+/// LOD-`(L + 1)` voxels, so that their common ancestor, the merged top,
+/// is at LOD `L`.
+fn tops_across_voxels(p: &Params, a: Hierarchy, b: Hierarchy) -> Result<Vec<RealCase>> {
     let t = a.top_lod;
     let Some(root) = a.roots().first().map(|n| n.voxel) else {
         return Ok(Vec::new());
@@ -544,6 +579,28 @@ mod tests {
             );
             for (n, top) in tops[1..].iter().enumerate() {
                 assert_eq!(*top, first - n as i64, "D = {}: {tops:?}", p.max_lod);
+            }
+        }
+    }
+
+    /// The deep clusters' merges have their top at the clusters' LOD and
+    /// write several created records, within the coverage configuration's
+    /// writer (`2^5` entries a buffer), at the default and at D = 8.
+    #[test]
+    fn deep_clusters_write_records_at_the_deep_lods() {
+        let small = Params::new(8, 0, 12, 3).unwrap();
+        for p in [Params::default(), small] {
+            let mut sizes = MergerSizes::new(&p);
+            sizes.capacity_bits = 5;
+            let cases = deep_clusters(&p).unwrap();
+            assert_eq!(cases.len(), 3, "D = {}", p.max_lod);
+            for (c, (store, table, ids)) in (p.max_lod - 4..).zip(&cases) {
+                let mode = MergeMode::Overlap { num: 1, den: 2 };
+                let tx = merger_transaction(store, table, ids, mode, 7, 2, sizes).unwrap();
+                let w = &tx.header.writer;
+                let at = format!("D = {} c = {c}: {w:?}", p.max_lod);
+                assert_eq!((w.top, w.err), (c, 0), "{at}");
+                assert!(w.nodes >= 4, "{at}");
             }
         }
     }

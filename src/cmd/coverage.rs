@@ -130,29 +130,30 @@ const FLOORS: [(&str, Aims); 3] = [
     (
         "hierarchy_merger_d8_q0_i12_h3_k2_ov1_2_r16_f256_c5_l6",
         // What CI's run measures with the hard merges of
-        // `golden::vectors::hard_merges` (92.0% / 49.8% with the
-        // depth-first store, which drives index bits up to 11, and the deep
-        // clusters, which write whole deep levels), rounded down.
+        // `golden::vectors::hard_merges` (92.4% / 52.3% with the
+        // depth-first store, which drives index bits up to 11, the deep
+        // clusters, which write whole deep levels, and the sixteen deep
+        // roots, which fill the root sorter with varied roots), rounded down.
         Aims {
-            line: 91.5,
-            toggle: 49.5,
+            line: 92.0,
+            toggle: 52.0,
         },
     ),
     (
         "hierarchy_merger_d8_q0_i12_h3_k2_pn1_2_r16_f256_c5_l6",
-        // Likewise (90.7% / 51.1%).
+        // Likewise (91.0% / 54.0%).
         Aims {
             line: 90.5,
-            toggle: 51.0,
+            toggle: 53.5,
         },
     ),
     (
         "hierarchy_unit_d8_q0_i12_h3_k2_ov1_2_r16_f256_c5_l6_t8_b64",
         // Its hard cases, then hard-kind random merges, placements a
-        // fraction off the grid (90.8% / 55.3%), rounded down.
+        // fraction off the grid (91.1% / 56.6%), rounded down.
         Aims {
             line: 90.5,
-            toggle: 55.0,
+            toggle: 56.5,
         },
     ),
 ];

@@ -66,7 +66,8 @@ pub const CFG_ERRORS: [u64; 3] = [
 /// overlapping in part), an input filling the scene (several roots), one
 /// whose top holds 16 roots (a leaf and an inner node in each LOD-1
 /// voxel: every entry of the default root sorter), the same stored in
-/// reverse (every entry of the sorter moves), a ladder of leaves
+/// reverse (every entry of the sorter moves), sixteen roots at LOD 5
+/// stored against Morton order, a ladder of leaves
 /// at every LOD above the merging level, an input stored depth first
 /// with indices near `2^I`, the deep tops and the deep clusters, each
 /// through `d`'s mode; per code of [`CFG_ERRORS`] a merge whose last
@@ -85,6 +86,7 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
     cases.push(sixteen_roots_reversed(p)?);
     cases.push(leaf_ladder(p)?);
     cases.push(depth_first_store(p)?);
+    cases.extend(sixteen_deep_roots(p)?);
     cases.retain(|(_, _, ids)| ids.len() <= k);
     for (store, table, ids) in &cases {
         let tx =
@@ -140,7 +142,8 @@ pub fn out_id(p: &Params) -> u8 {
 
 /// The named cases of [`hard_merges`] whose inputs are all valid, in its
 /// order: the real cases, an input filling the scene, the 16-root input,
-/// the leaf ladder, the depth-first store, the deep tops and clusters, those of at most `k` inputs (what
+/// the leaf ladder, the depth-first store, the sixteen deep roots, the
+/// deep tops and clusters, those of at most `k` inputs (what
 /// the hierarchy unit's hard merges write into its table by determine
 /// commands: a case's translations are its table's).
 pub fn hard_cases(d: &MergeDesign) -> Result<Vec<RealCase>> {
@@ -150,6 +153,7 @@ pub fn hard_cases(d: &MergeDesign) -> Result<Vec<RealCase>> {
     cases.push(sixteen_roots(p)?);
     cases.push(leaf_ladder(p)?);
     cases.push(depth_first_store(p)?);
+    cases.extend(sixteen_deep_roots(p)?);
     cases.extend(deep_tops(p)?);
     cases.extend(deep_clusters(p)?);
     cases.retain(|(_, _, ids)| ids.len() <= d.inputs);
@@ -174,10 +178,7 @@ fn deep_tops(p: &Params) -> Result<Vec<RealCase>> {
 fn deep_clusters(p: &Params) -> Result<Vec<RealCase>> {
     let mut out = Vec::new();
     for c in p.max_lod.saturating_sub(4).max(1)..p.max_lod.saturating_sub(1) {
-        let grid = GridMap {
-            origin: DVec3::ZERO,
-            unit: 1.0 / (p.scene_edge() >> c) as f64,
-        };
+        let grid = corner_grid(p, c);
         let mut store = HierarchyStore::new();
         let mut table = TranslationTable::new(p.hier_capacity() as usize, p).map_err(golden_err)?;
         for (id, seed) in [(1u8, 31u64), (2, 32)] {
@@ -354,11 +355,7 @@ fn depth_first_store(p: &Params) -> Result<RealCase> {
 /// [`depth_first_store`]'s dense input as the builder stores it, with its
 /// mesh and grid: the largest soup of [`DEPTH_FIRST_TRIANGLES`] that fits.
 fn dense_corner(p: &Params) -> Result<(Mesh, GridMap, Hierarchy)> {
-    let lod = p.max_lod.saturating_sub(4);
-    let grid = GridMap {
-        origin: DVec3::ZERO,
-        unit: 1.0 / (p.scene_edge() >> lod) as f64,
-    };
+    let grid = corner_grid(p, p.max_lod.saturating_sub(4));
     DEPTH_FIRST_TRIANGLES
         .into_iter()
         .find_map(|n| {
@@ -375,29 +372,118 @@ fn dense_corner(p: &Params) -> Result<(Mesh, GridMap, Hierarchy)> {
 /// come last). The same nodes and the same children, in another order:
 /// SPEC 3 fixes no order beyond the roots at the front.
 fn stored_depth_first(h: &Hierarchy) -> Hierarchy {
+    let roots: Vec<u32> = (0..h.root_count).collect();
+    relaid_depth_first(h, &roots)
+}
+
+/// The hierarchy below `roots` (stored records of `h`, all of one LOD, in
+/// the order given), stored depth first as in [`stored_depth_first`]:
+/// `roots` become the roots, in that order, and what they do not reach is
+/// dropped. The prims stay as they are.
+fn relaid_depth_first(h: &Hierarchy, roots: &[u32]) -> Hierarchy {
     let mut order = DepthFirst {
         h,
-        number: (0..h.nodes.len() as u32).collect(),
-        next: h.root_count,
+        number: vec![u32::MAX; h.nodes.len()],
+        next: roots.len() as u32,
         first: h.nodes.iter().map(|n| n.first).collect(),
         refs: Vec::with_capacity(h.refs.len()),
     };
-    for root in 0..h.root_count {
-        order.visit(root);
+    for (i, root) in roots.iter().enumerate() {
+        order.number[*root as usize] = i as u32;
     }
-    let mut nodes = h.nodes.clone();
+    for root in roots {
+        order.visit(*root);
+    }
+    let mut nodes = vec![h.nodes[0]; order.next as usize];
     for (old, rec) in h.nodes.iter().enumerate() {
-        let at = order.number[old] as usize;
-        nodes[at] = NodeRecord {
-            first: order.first[old],
-            ..*rec
-        };
+        if let Some(at) = nodes.get_mut(order.number[old] as usize) {
+            *at = NodeRecord {
+                first: order.first[old],
+                ..*rec
+            };
+        }
     }
+    let top_lod = roots
+        .first()
+        .map_or(h.top_lod, |r| h.nodes[*r as usize].voxel.lod);
     Hierarchy {
         nodes,
         refs: order.refs,
+        root_count: roots.len() as u32,
+        top_lod,
         ..h.clone()
     }
+}
+
+/// [`sixteen_deep_roots`]'s triangles in the unit cube, which
+/// `corner_grid(p, 3)` maps onto the LOD-3 corner voxel, whose LOD-5
+/// voxels are quarters of it: one tiny triangle in each of sixteen of
+/// them, edges from 0.004 to 0.02.
+fn deep_roots_mesh() -> Mesh {
+    let mut m = Mesh::default();
+    for i in 0..16u32 {
+        let v = [i % 4, (i / 4) % 4, (i * 3 + i / 4) % 4];
+        let c = Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32) * 0.25
+            + Vec3::splat(0.03 + 0.01 * i as f32);
+        let e = 0.004 * (1 + i % 5) as f32;
+        push_triangle(
+            &mut m,
+            c,
+            c + Vec3::new(e, 0.0, 0.0),
+            c + Vec3::new(0.0, e, e),
+        );
+    }
+    m
+}
+
+/// The grid map that puts the unit cube onto the scene's LOD-`lod` corner
+/// voxel.
+fn corner_grid(p: &Params, lod: u8) -> GridMap {
+    GridMap {
+        origin: DVec3::ZERO,
+        unit: 1.0 / (p.scene_edge() >> lod) as f64,
+    }
+}
+
+/// Sixteen roots at LOD 5 (at `D >= 6`), stored against Morton order, and
+/// placed near the scene's far corner: a hierarchy of sixteen tiny
+/// triangles, one in each of sixteen LOD-5 voxels, cut below its LOD-4
+/// nodes (which hold no leaf), so that its roots are those voxels'
+/// nodes, and stored from the last root to the first (a store written by
+/// other software: SPEC 3 asks only that every root lie at `top_lod`).
+/// The root sorter then holds sixteen roots whose coordinates, boxes,
+/// `first` and `count` all differ, where the builder's several roots lie
+/// at LOD 1 (4.7) and the 16-root case's differ in one coordinate bit.
+/// `None` below `D = 6`.
+fn sixteen_deep_roots(p: &Params) -> Result<Option<RealCase>> {
+    const LOD: u8 = 5;
+    if p.max_lod <= LOD {
+        return Ok(None);
+    }
+    let built = build(&deep_roots_mesh(), &corner_grid(p, 3), p, 1).map_err(golden_err)?;
+    let mut roots: Vec<u32> = (0..built.nodes.len() as u32)
+        .filter(|n| built.nodes[*n as usize].voxel.lod == LOD)
+        .collect();
+    if roots.len() != 16 || built.nodes.iter().any(|n| n.leaf && n.voxel.lod < LOD) {
+        return Err(golden_err(format!(
+            "the deep roots' mesh has {} nodes at LOD {LOD} (expected 16, no leaf above)",
+            roots.len()
+        )));
+    }
+    roots.reverse();
+    let deep = relaid_depth_first(&built, &roots);
+    let small = try_soup(p, 2, 20, 0.2, 78).map_err(golden_err)?;
+    let mut store = HierarchyStore::new();
+    let mut table = TranslationTable::new(p.hier_capacity() as usize, p).map_err(golden_err)?;
+    table
+        .write(1, place(&deep, [0.9, 0.8, 0.95]))
+        .map_err(golden_err)?;
+    table
+        .write(2, place(&small, [0.7, 0.6, 0.8]))
+        .map_err(golden_err)?;
+    store.insert(deep).map_err(golden_err)?;
+    store.insert(small).map_err(golden_err)?;
+    Ok(Some((store, table, vec![1, 2])))
 }
 
 /// [`stored_depth_first`]'s walk: new numbers on the way down, reference
@@ -787,6 +873,48 @@ mod tests {
                 let renumbered: Vec<Reference> = b.writer.refs.iter().map(renumber).collect();
                 assert_eq!(a.writer.refs, renumbered, "{at}");
                 assert!(a.writer.refs.iter().any(|r| r.hier == 1), "{at}");
+            }
+        }
+    }
+
+    /// The deep roots are sixteen roots at LOD 5 that the checker accepts
+    /// (an independent walk over the triangles), stored against Morton
+    /// order; merged, they give what the same cut stored in Morton order
+    /// gives (the root sorter's order is the merge's), at the default and
+    /// at D = 8.
+    #[test]
+    fn sixteen_deep_roots_merge_as_the_ordered_ones() {
+        let shallow = Params::new(5, 2, 12, 3).unwrap();
+        assert!(sixteen_deep_roots(&shallow).unwrap().is_none());
+        for p in [Params::default(), Params::new(8, 0, 12, 3).unwrap()] {
+            let (store, table, ids) = sixteen_deep_roots(&p).unwrap().unwrap();
+            let deep = store.get(1).unwrap();
+            assert_eq!((deep.root_count, deep.top_lod), (16, 5));
+            let grid = corner_grid(&p, 3);
+            let mesh = deep_roots_mesh();
+            let tris: Vec<_> = (0..mesh.triangles.len())
+                .map(|i| grid.triangle(&mesh, i, &p).unwrap())
+                .collect();
+            crate::check::check_built(deep, &tris).unwrap();
+            let morton = |n: &NodeRecord| crate::grid::morton3(n.voxel.x, n.voxel.y, n.voxel.z);
+            assert!(deep
+                .roots()
+                .windows(2)
+                .all(|w| morton(&w[0]) > morton(&w[1])));
+            let roots: Vec<u32> = (0..16).rev().collect();
+            let mut ordered = store.clone();
+            ordered.replace(relaid_depth_first(deep, &roots)).unwrap();
+            for mode in [
+                MergeMode::Overlap { num: 1, den: 2 },
+                MergeMode::PerNode { num: 1, den: 2 },
+            ] {
+                let sizes = MergerSizes::new(&p);
+                let a = merger_transaction(&store, &table, &ids, mode, 7, 2, sizes).unwrap();
+                let b = merger_transaction(&ordered, &table, &ids, mode, 7, 2, sizes).unwrap();
+                let at = format!("D = {} {mode}", p.max_lod);
+                assert_eq!((a.header.writer.err, a.header.fetch_err), (0, 0), "{at}");
+                assert_eq!(a.header, b.header, "{at}");
+                assert_eq!(a.writer.nodes, b.writer.nodes, "{at}");
             }
         }
     }

@@ -633,6 +633,12 @@ mod tests {
     use super::*;
     use crate::merge::MergeMode;
 
+    /// The level-mode and per-node merges every store-order case runs.
+    const BOTH_MODES: [MergeMode; 2] = [
+        MergeMode::Overlap { num: 1, den: 2 },
+        MergeMode::PerNode { num: 1, den: 2 },
+    ];
+
     /// The deep-top merges' tops are where [`deep_tops`] puts them: the
     /// pairs' one LOD apart from the triangle's own LOD down (at D = 8 its
     /// LOD-8 leaf root's merged top is one LOD above it), the one alone
@@ -727,10 +733,7 @@ mod tests {
         use crate::store::Reference;
         let small = Params::new(8, 0, 12, 3).unwrap();
         for p in [Params::default(), small] {
-            for mode in [
-                MergeMode::Overlap { num: 1, den: 2 },
-                MergeMode::PerNode { num: 1, den: 2 },
-            ] {
+            for mode in BOTH_MODES {
                 let mut sizes = MergerSizes::new(&p);
                 sizes.leaf_bits = 6;
                 let merge = |(store, table, ids): RealCase| {
@@ -772,10 +775,7 @@ mod tests {
     /// (their fetches and the writer's streams as without the broken one).
     #[test]
     fn every_cfg_error_has_its_merge() {
-        for mode in [
-            MergeMode::Overlap { num: 1, den: 2 },
-            MergeMode::PerNode { num: 1, den: 2 },
-        ] {
+        for mode in BOTH_MODES {
             let d = MergeDesign {
                 mode,
                 ..MergeDesign::default()
@@ -859,10 +859,7 @@ mod tests {
                 }
                 _ => *r,
             };
-            for mode in [
-                MergeMode::Overlap { num: 1, den: 2 },
-                MergeMode::PerNode { num: 1, den: 2 },
-            ] {
+            for mode in BOTH_MODES {
                 let sizes = MergerSizes::new(&p);
                 let a = merger_transaction(&stored, &table, &ids, mode, 7, 2, sizes).unwrap();
                 let b = merger_transaction(&ordered, &table, &ids, mode, 7, 2, sizes).unwrap();
@@ -904,10 +901,7 @@ mod tests {
             let roots: Vec<u32> = (0..16).rev().collect();
             let mut ordered = store.clone();
             ordered.replace(relaid_depth_first(deep, &roots)).unwrap();
-            for mode in [
-                MergeMode::Overlap { num: 1, den: 2 },
-                MergeMode::PerNode { num: 1, den: 2 },
-            ] {
+            for mode in BOTH_MODES {
                 let sizes = MergerSizes::new(&p);
                 let a = merger_transaction(&store, &table, &ids, mode, 7, 2, sizes).unwrap();
                 let b = merger_transaction(&ordered, &table, &ids, mode, 7, 2, sizes).unwrap();

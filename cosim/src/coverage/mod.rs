@@ -10,6 +10,7 @@
 //! or line and the generator line the emitted Verilog's comments give
 //! (the same index `hiermerge synth` uses for its critical path).
 
+pub mod by_design;
 pub mod constants;
 mod dat;
 mod summary;

@@ -64,6 +64,9 @@ pub struct UnitSummary {
     pub toggle: (u64, u64, u64),
     /// Of the waived toggle bits, those Yosys proves constant.
     pub toggle_constant: u64,
+    /// Of the waived toggle bits, those a rule of
+    /// [`super::by_design`] names.
+    pub toggle_by_design: u64,
     /// The merged `coverage.dat`.
     pub dat: PathBuf,
     /// The annotated sources.
@@ -140,12 +143,12 @@ impl CoverageReport {
     /// The summary table (markdown), one row per unit.
     pub fn table(&self) -> String {
         let mut s = String::from(
-            "| unit | runs | line/branch | covered / points (waived) | toggle | covered / bits (waived: constant by Yosys + by hand) | at aim |\n|---|---|---|---|---|---|---|\n",
+            "| unit | runs | line/branch | covered / points (waived) | toggle | covered / bits (waived: constant by Yosys + by design + by hand) | at aim |\n|---|---|---|---|---|---|---|\n",
         );
         for u in &self.units {
             let ok = u.below_aim(&self.aims).is_empty();
             s += &format!(
-                "| `{}` | {} | {:.1}% | {} / {} ({}) | {:.1}% | {} / {} ({}: {} + {}) | {} |\n",
+                "| `{}` | {} | {:.1}% | {} / {} ({}) | {:.1}% | {} / {} ({}: {} + {} + {}) | {} |\n",
                 u.unit,
                 u.runs,
                 u.line_percent(),
@@ -157,7 +160,8 @@ impl CoverageReport {
                 u.toggle.2,
                 u.toggle.1,
                 u.toggle_constant,
-                u.toggle.1 - u.toggle_constant,
+                u.toggle_by_design,
+                u.toggle.1 - u.toggle_constant - u.toggle_by_design,
                 if ok { "yes" } else { "NO" }
             );
         }
@@ -288,7 +292,8 @@ fn unit_summary(
     for f in &sources {
         texts.insert(f.clone(), std::fs::read_to_string(f).map_err(io_err(f))?);
     }
-    let (mut line, mut toggle, mut toggle_constant) = ((0, 0, 0), (0, 0, 0), 0);
+    let (mut line, mut toggle) = ((0, 0, 0), (0, 0, 0));
+    let (mut toggle_constant, mut toggle_by_design) = (0, 0);
     let mut uncovered = Vec::new();
     for p in &points {
         let tally = if p.kind == Kind::Toggle {
@@ -312,6 +317,17 @@ fn unit_summary(
                 super::constants::reason(v)
             ));
             proven = None;
+        }
+        let mut by_design = match (p.kind, proven) {
+            (Kind::Toggle, None) => super::by_design::reason(&p.module, &p.what),
+            _ => None,
+        };
+        if let Some(why) = by_design.as_ref().filter(|_| p.count > 0) {
+            uses.contradictions.push(format!(
+                "{} {} {}: changed {} times, yet {why}",
+                p.module, p.instance, p.what, p.count
+            ));
+            by_design = None;
         }
         let file = local(&p.file);
         let source_of = |p: &Point| match p.kind {
@@ -350,6 +366,13 @@ fn unit_summary(
                 toggle_constant += 1;
                 Some(super::constants::reason(v))
             }
+            (None, w) if by_design.is_some() => {
+                if let Some(i) = w {
+                    uses.redundant[i] = true;
+                }
+                toggle_by_design += 1;
+                by_design
+            }
             (None, Some(i)) => {
                 uses.used[i] = true;
                 let w = &waivers.entries[i];
@@ -387,6 +410,7 @@ fn unit_summary(
         line,
         toggle,
         toggle_constant,
+        toggle_by_design,
         dat,
         annotated,
         uncovered,
@@ -425,7 +449,7 @@ pub fn report(dir: &Path, aims: Aims, waivers: &Waivers) -> Result<CoverageRepor
         .map(|(i, w)| {
             let why = match (uses.reached[i], uses.redundant[i] && !uses.used[i]) {
                 (true, _) => "names a point the regression reached",
-                (false, true) => "Yosys proves its points constant: the proof waives them",
+                (false, true) => "Yosys proves its points constant, or a by-design rule names them: they are waived without it",
                 (false, false) if w.open => "matches no uncovered point",
                 (false, false) => "waives nothing",
             };
@@ -557,6 +581,60 @@ endmodule\n";
         let r = report(dir.path(), Aims::default(), &Waivers::default()).unwrap();
         assert_eq!(r.contradictions.len(), 1, "{:?}", r.contradictions);
         assert!(r.contradictions[0].contains("TOP.t k: changed 3 times in 1 instances"));
+        assert!(!r.passed());
+    }
+
+    /// A by-design bit (`cosim::coverage::by_design`: at D = 2, `x` bit 1 of
+    /// a level-1 beat) is waived while it never changed, and is a
+    /// contradiction once it did; a bit the rule does not name is neither.
+    #[test]
+    fn by_design_bits_are_waived_until_they_toggle() {
+        if !crate::tools::tool_available("verilator_coverage") {
+            assert!(std::env::var("CI").is_err(), "verilator_coverage missing");
+            return;
+        }
+        const TOP: &str = "upper_builder_d2_q0_i2_h1";
+        let verilog = format!(
+            "module {TOP} (\n    input wire [12:0] level1_data, // g/u.rs:3\n    output wire o\n);\n    assign o = ^level1_data;\nendmodule\n"
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let (raw, src) = (
+            dir.path().join("raw").join(TOP),
+            dir.path().join("sources").join(TOP),
+        );
+        std::fs::create_dir_all(&raw).unwrap();
+        std::fs::create_dir_all(&src).unwrap();
+        std::fs::write(src.join("u.v"), verilog).unwrap();
+        let page = format!("v_toggle/{TOP}");
+        let at = |what: &str, count: u64| {
+            format!(
+                "C '\u{1}f\u{2}/gone/u.v\u{1}l\u{2}2\u{1}n\u{2}5\u{1}page\u{2}{page}\u{1}o\u{2}{what}\u{1}h\u{2}TOP.{TOP}' {count}\n"
+            )
+        };
+        // Record at D = 2: leaf 0, lod 1..=2, x 3..=4, y 5..=6, z 7..=8.
+        std::fs::write(
+            raw.join("1.dat"),
+            at("level1_data[4]", 0) + &at("level1_data[3]", 0),
+        )
+        .unwrap();
+        let r = report(dir.path(), Aims::default(), &Waivers::default()).unwrap();
+        let u = &r.units[0];
+        assert_eq!((u.toggle, u.toggle_by_design), ((0, 1, 2), 1));
+        let x1 = u
+            .uncovered
+            .iter()
+            .find(|p| p.point == "level1_data[4]")
+            .unwrap();
+        assert!(x1
+            .waived
+            .as_deref()
+            .unwrap()
+            .contains("`x` bit 1 of a level-1 beat"));
+        assert!(r.contradictions.is_empty(), "{:?}", r.contradictions);
+        std::fs::write(raw.join("1.dat"), at("level1_data[4]", 2)).unwrap();
+        let r = report(dir.path(), Aims::default(), &Waivers::default()).unwrap();
+        assert_eq!(r.contradictions.len(), 1, "{:?}", r.contradictions);
+        assert!(r.contradictions[0].contains("level1_data[4]: changed 2 times"));
         assert!(!r.passed());
     }
 }

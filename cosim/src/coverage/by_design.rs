@@ -1,0 +1,122 @@
+//! Toggle bits unreachable by design that a netlist proof cannot see,
+//! because they hold by what the streams carry rather than by the logic
+//! (SPEC 10.5). The upper builder's level streams carry, at level `L`, node
+//! records of LOD `L` or an `End` beat whose record is 0 (docs/hardware.md,
+//! the upper builder's `level{d}` beat). A record is a valid node (SPEC 3:
+//! the fetchers refuse any other, 8.13), so at LOD `L` its coordinates are
+//! below `2^L` and its `lod` field is `L`. In a level-`L` beat the
+//! coordinate bits from `L` up, and the `lod` bits that are 0 in `L`, never
+//! change. Like Yosys's constants these are computed on every report, from
+//! the layout golden defines, and a bit named here that the regression
+//! toggled is a contradiction that fails the report.
+
+use golden::layout::{Field, NodeLayout};
+use golden::Params;
+
+/// The nets that carry one level's beats, by module prefix: `{L}` is the
+/// level. The record sits at bit 0 of each (the builder's `level` layout).
+const LEVEL_NETS: [(&str, &[&str]); 3] = [
+    (
+        "upper_builder_",
+        &[
+            "level{L}_beat",
+            "level{L}_data",
+            "level{L}_skid_data",
+            "level{L}_skid_spare_data",
+        ],
+    ),
+    ("record_writer_", &["level{L}_data"]),
+    ("hierarchy_merger_", &["u_builder_level{L}_data"]),
+];
+
+/// The reason the toggle point `what` (`net[bit]`) of `module` cannot
+/// toggle, when a rule names it.
+pub fn reason(module: &str, what: &str) -> Option<String> {
+    let (net, bit) = what.split_once('[')?;
+    let bit: u32 = bit.strip_suffix(']')?.parse().ok()?;
+    let (prefix, nets) = LEVEL_NETS
+        .iter()
+        .find(|(prefix, _)| module.starts_with(prefix))?;
+    // `record_writer_level_*` serves every level in one module.
+    if module.starts_with("record_writer_level") {
+        return None;
+    }
+    let p = params_of(&module[prefix.len()..])?;
+    let level = nets.iter().find_map(|n| level_of(n, net))?;
+    if level > p.max_lod as u32 {
+        return None;
+    }
+    let nl = NodeLayout::new(&p);
+    let k = |f: &Field| {
+        (f.offset..f.offset + f.width)
+            .contains(&bit)
+            .then(|| bit - f.offset)
+    };
+    if let Some(k) = k(nl.lod()) {
+        return ((level >> k) & 1 == 0).then(|| {
+            format!("`lod` bit {k} of a level-{level} beat: 0 in {level} and in an `End` beat's 0 (by design, cosim::coverage::by_design)")
+        });
+    }
+    let (axis, k) = [("x", nl.x()), ("y", nl.y()), ("z", nl.z())]
+        .into_iter()
+        .find_map(|(a, f)| k(f).map(|k| (a, k)))?;
+    (k >= level).then(|| {
+        format!("`{axis}` bit {k} of a level-{level} beat: a node of LOD {level} lies below 2^{level} (by design, cosim::coverage::by_design)")
+    })
+}
+
+/// The level `L` of `net` when it is `pattern` with `{L}` replaced.
+fn level_of(pattern: &str, net: &str) -> Option<u32> {
+    let (head, tail) = pattern.split_once("{L}")?;
+    let digits = net.strip_prefix(head)?.strip_suffix(tail)?;
+    if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    digits.parse().ok()
+}
+
+/// The parameters of a module named `..._d{D}_q{Q}_i{I}_h{H}...` after its
+/// prefix ([`Params::tag`]).
+fn params_of(rest: &str) -> Option<Params> {
+    let mut parts = rest.split('_');
+    let mut next = |c: char| -> Option<u8> { parts.next()?.strip_prefix(c)?.parse().ok() };
+    let (d, q, i, h) = (next('d')?, next('q')?, next('i')?, next('h')?);
+    Params::new(d, q, i, h).ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// At D = 8 the record is `leaf` (bit 0), `lod` (bits 1..=4), `x`
+    /// (5..=12), `y`, `z`: the rule names the coordinate bits from `L` up
+    /// and the `lod` bits 0 in `L`, nothing else, and only on level nets.
+    #[test]
+    fn names_coordinates_above_the_level_and_lod_bits_zero_in_it() {
+        let ub = "upper_builder_d8_q0_i12_h3";
+        // Level 3 = 0b0011: lod bits 2 and 3 (nets bits 3, 4) never change.
+        assert!(reason(ub, "level3_data[1]").is_none());
+        assert!(reason(ub, "level3_data[3]")
+            .unwrap()
+            .contains("`lod` bit 2"));
+        assert!(reason(ub, "level3_data[4]").is_some());
+        // x bits 0..=2 reachable at level 3, 3..=7 not.
+        assert!(reason(ub, "level3_data[7]").is_none());
+        assert!(reason(ub, "level3_data[8]").unwrap().contains("`x` bit 3"));
+        assert!(reason(ub, "level3_skid_spare_data[12]").is_some());
+        assert!(reason(ub, "level3_beat[20]").unwrap().contains("`y` bit 7"));
+        assert!(reason(ub, "level3_beat[21]").is_none());
+        assert!(reason(ub, "level3_beat[28]").unwrap().contains("`z` bit 7"));
+        // `first` and beyond: not the rule's.
+        assert!(reason(ub, "level0_data[29]").is_none());
+        // Level 8 = D: every coordinate bit is reachable.
+        assert!(reason(ub, "level8_data[12]").is_none());
+        assert!(reason(ub, "level9_data[12]").is_none());
+        assert!(reason(ub, "base3_data[12]").is_none());
+        assert!(reason("record_writer_d8_q0_i12_h3_c5", "level0_data[5]").is_some());
+        assert!(reason("record_writer_level_d8_q0_i12_h3_c5", "level_data[5]").is_none());
+        let top = "hierarchy_merger_d8_q0_i12_h3_k2_ov1_2_r16_f256_c5_l6";
+        assert!(reason(top, "u_builder_level2_data[27]").is_some());
+        assert!(reason(top, "u_builder_level2_data").is_none());
+    }
+}

@@ -1,8 +1,9 @@
 //! Toggle bits unreachable by design that a netlist proof cannot see,
 //! because they hold by what the streams carry rather than by the logic
-//! (SPEC 10.5). The upper builder's level streams carry, at level `L`, node
-//! records of LOD `L` or an `End` beat whose record is 0 (docs/hardware.md,
-//! the upper builder's `level{d}` beat). A record is a valid node (SPEC 3:
+//! (SPEC 10.5). The streams and buffers of one LOD `L` ([`LEVEL_NETS`])
+//! carry node records of LOD `L`, or a record of 0 (an `End` or reference
+//! beat, an unwritten word; docs/hardware.md, the upper builder's `base{d}`
+//! and `level{d}` beats). A record is a valid node (SPEC 3:
 //! the fetchers refuse any other, 8.13), so at LOD `L` its coordinates are
 //! below `2^L` and its `lod` field is `L`. In a level-`L` beat the
 //! coordinate bits from `L` up, and the `lod` bits that are 0 in `L`, never
@@ -13,20 +14,35 @@
 use golden::layout::{Field, NodeLayout};
 use golden::Params;
 
-/// The nets that carry one level's beats, by module prefix: `{L}` is the
-/// level. The record sits at bit 0 of each (the builder's `level` layout).
+/// The nets that carry one LOD's records, by module prefix: `{L}` is the
+/// LOD. The record sits at bit 0 of each: the builder's `base{d}` and
+/// `level{d}` beats, a grouping unit's output (`u_group{d}` groups level
+/// `d + 1` into LOD `d`), the writer's body words (`count` above the
+/// record's low bits), the merger's leaf FIFO words of LOD `d`.
 const LEVEL_NETS: [(&str, &[&str]); 3] = [
     (
         "upper_builder_",
         &[
+            "base{L}_data",
+            "base{L}_skid_data",
+            "base{L}_skid_data_rec",
+            "base{L}_skid_spare_data",
             "level{L}_beat",
             "level{L}_data",
             "level{L}_skid_data",
             "level{L}_skid_spare_data",
+            "u_group{L}_out_data",
+            "u_group{L}_rec",
         ],
     ),
-    ("record_writer_", &["level{L}_data"]),
-    ("hierarchy_merger_", &["u_builder_level{L}_data"]),
+    (
+        "record_writer_",
+        &["level{L}_data", "u_level{L}_nbody", "u_level{L}_rbody"],
+    ),
+    (
+        "hierarchy_merger_",
+        &["u_builder_level{L}_data", "leaves{L}_rec"],
+    ),
 ];
 
 /// The reason the toggle point `what` (`net[bit]`) of `module` cannot
@@ -112,11 +128,17 @@ mod tests {
         // Level 8 = D: every coordinate bit is reachable.
         assert!(reason(ub, "level8_data[12]").is_none());
         assert!(reason(ub, "level9_data[12]").is_none());
-        assert!(reason(ub, "base3_data[12]").is_none());
+        assert!(reason(ub, "base3_data[12]").is_some());
+        assert!(reason(ub, "l3_nodes[12]").is_none());
         assert!(reason("record_writer_d8_q0_i12_h3_c5", "level0_data[5]").is_some());
+        assert!(reason("record_writer_d8_q0_i12_h3_c5", "u_level2_rbody[27]").is_some());
+        assert!(reason(ub, "u_group7_rec[11]").is_none());
+        assert!(reason(ub, "u_group7_rec[12]").is_some());
+        assert!(reason(ub, "u_group6_rec[12]").is_some());
         assert!(reason("record_writer_level_d8_q0_i12_h3_c5", "level_data[5]").is_none());
         let top = "hierarchy_merger_d8_q0_i12_h3_k2_ov1_2_r16_f256_c5_l6";
         assert!(reason(top, "u_builder_level2_data[27]").is_some());
+        assert!(reason(top, "leaves5_rec[12]").is_some());
         assert!(reason(top, "u_builder_level2_data").is_none());
     }
 }

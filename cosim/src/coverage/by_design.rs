@@ -45,24 +45,45 @@ const LEVEL_NETS: [(&str, &[&str]); 3] = [
     ),
 ];
 
+/// Morton codes of one LOD's records (coordinates interleaved, `x` lowest,
+/// by `merge::network::morton_code`), by module prefix as [`LEVEL_NETS`].
+const MORTON_NETS: [(&str, &[&str]); 1] = [(
+    "upper_builder_",
+    &["base{L}_skid_data_rec_x_morton", "u_group{L}_rec_x_morton"],
+)];
+
+/// One table's nets: the module's prefix, and the net patterns.
+type Nets = [(&'static str, &'static [&'static str])];
+
 /// The reason the toggle point `what` (`net[bit]`) of `module` cannot
 /// toggle, when a rule names it.
 pub fn reason(module: &str, what: &str) -> Option<String> {
     let (net, bit) = what.split_once('[')?;
     let bit: u32 = bit.strip_suffix(']')?.parse().ok()?;
-    let (prefix, nets) = LEVEL_NETS
-        .iter()
-        .find(|(prefix, _)| module.starts_with(prefix))?;
     // `record_writer_level_*` serves every level in one module.
     if module.starts_with("record_writer_level") {
         return None;
     }
-    let p = params_of(&module[prefix.len()..])?;
-    let level = nets.iter().find_map(|n| level_of(n, net))?;
-    if level > p.max_lod as u32 {
-        return None;
+    let level_in = |table: &Nets| -> Option<(Params, u32)> {
+        let (prefix, nets) = table
+            .iter()
+            .find(|(prefix, _)| module.starts_with(prefix))?;
+        let p = params_of(&module[prefix.len()..])?;
+        let level = nets.iter().find_map(|n| level_of(n, net))?;
+        (level <= p.max_lod as u32).then_some((p, level))
+    };
+    if let Some((p, level)) = level_in(&MORTON_NETS) {
+        return (bit >= 3 * level && bit < 3 * p.coord_bits()).then(|| {
+            format!("Morton bit {bit} of a LOD-{level} record: its coordinates lie below 2^{level}, so its bits from {} up are 0 (by design, cosim::coverage::by_design)", 3 * level)
+        });
     }
-    let nl = NodeLayout::new(&p);
+    let (p, level) = level_in(&LEVEL_NETS)?;
+    record_bit(&p, level, bit)
+}
+
+/// Why bit `bit` of a record of LOD `level` never changes, if it does not.
+fn record_bit(p: &Params, level: u32, bit: u32) -> Option<String> {
+    let nl = NodeLayout::new(p);
     let k = |f: &Field| {
         (f.offset..f.offset + f.width)
             .contains(&bit)
@@ -139,6 +160,13 @@ mod tests {
         let top = "hierarchy_merger_d8_q0_i12_h3_k2_ov1_2_r16_f256_c5_l6";
         assert!(reason(top, "u_builder_level2_data[27]").is_some());
         assert!(reason(top, "leaves5_rec[12]").is_some());
+        // Morton codes (24 bits at D = 8): from 3L up.
+        assert!(reason(ub, "u_group2_rec_x_morton[5]").is_none());
+        assert!(reason(ub, "u_group2_rec_x_morton[6]")
+            .unwrap()
+            .contains("Morton bit 6"));
+        assert!(reason(ub, "base0_skid_data_rec_x_morton[0]").is_some());
+        assert!(reason(ub, "base8_skid_data_rec_x_morton[23]").is_none());
         assert!(reason(top, "u_builder_level2_data").is_none());
     }
 }

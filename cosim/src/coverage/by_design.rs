@@ -1,6 +1,6 @@
 //! Toggle bits unreachable by design that a netlist proof cannot see,
 //! because they hold by what the streams carry rather than by the logic
-//! (SPEC 10.5). The streams and buffers of one LOD `L` ([`LEVEL_NETS`])
+//! (SPEC 10.5). The streams and buffers of one LOD `L` (`LEVEL_NETS`)
 //! carry node records of LOD `L`, or a record of 0 (an `End` or reference
 //! beat, an unwritten word; docs/hardware.md, the upper builder's `base{d}`
 //! and `level{d}` beats). A record is a valid node (SPEC 3:

@@ -100,9 +100,7 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
                 .any(|i| store.get(*i).is_some_and(|h| h.root_count > 1)) as usize;
         out.merges.push(tx);
     }
-    let mut deep = deep_tops(p)?;
-    deep.extend(deep_clusters(p)?);
-    for (store, table, ids) in deep.iter().filter(|c| c.2.len() <= k) {
+    for (store, table, ids) in deep_cases(p)?.iter().filter(|c| c.2.len() <= k) {
         let tx =
             merger_transaction(store, table, ids, d.mode, out_id, k, sizes).map_err(golden_err)?;
         if !tx.header.leaf_overflow {
@@ -154,9 +152,15 @@ pub fn hard_cases(d: &MergeDesign) -> Result<Vec<RealCase>> {
     cases.push(leaf_ladder(p)?);
     cases.push(depth_first_store(p)?);
     cases.extend(sixteen_deep_roots(p)?);
-    cases.extend(deep_tops(p)?);
-    cases.extend(deep_clusters(p)?);
+    cases.extend(deep_cases(p)?);
     cases.retain(|(_, _, ids)| ids.len() <= d.inputs);
+    Ok(cases)
+}
+
+/// The deep tops, then the deep clusters.
+fn deep_cases(p: &Params) -> Result<Vec<RealCase>> {
+    let mut cases = deep_tops(p)?;
+    cases.extend(deep_clusters(p)?);
     Ok(cases)
 }
 
@@ -179,18 +183,27 @@ fn deep_clusters(p: &Params) -> Result<Vec<RealCase>> {
     let mut out = Vec::new();
     for c in p.max_lod.saturating_sub(4).max(1)..p.max_lod.saturating_sub(1) {
         let grid = corner_grid(p, c);
-        let mut store = HierarchyStore::new();
-        let mut table = TranslationTable::new(p.hier_capacity() as usize, p).map_err(golden_err)?;
+        let mut inputs = Vec::new();
         for (id, seed) in [(1u8, 31u64), (2, 32)] {
             let h = build(&random_soup(8, 0.3, seed), &grid, p, id).map_err(golden_err)?;
-            table
-                .write(id as u32, Translation::zero(h.top_lod))
-                .map_err(golden_err)?;
-            store.insert(h).map_err(golden_err)?;
+            inputs.push((h.clone(), Translation::zero(h.top_lod)));
         }
-        out.push((store, table, vec![1, 2]));
+        out.push(case_of(p, inputs)?);
     }
     Ok(out)
+}
+
+/// A case of `inputs`, each written into the table with its translation,
+/// merged in the order given.
+fn case_of(p: &Params, inputs: Vec<(Hierarchy, Translation)>) -> Result<RealCase> {
+    let mut store = HierarchyStore::new();
+    let mut table = TranslationTable::new(p.hier_capacity() as usize, p).map_err(golden_err)?;
+    let ids = inputs.iter().map(|(h, _)| h.id).collect();
+    for (h, tr) in inputs {
+        table.write(h.id as u32, tr).map_err(golden_err)?;
+        store.insert(h).map_err(golden_err)?;
+    }
+    Ok((store, table, ids))
 }
 
 /// `a` alone at its own top LOD `t`, and per `L` in `t - 4..t` (`L >= 1`)
@@ -210,16 +223,7 @@ fn tops_across_voxels(p: &Params, a: Hierarchy, b: Hierarchy) -> Result<Vec<Real
             (1 << (t - 1)) - root.z as i64,
         ],
     };
-    let case = |inputs: Vec<(Hierarchy, Translation)>| -> Result<RealCase> {
-        let mut store = HierarchyStore::new();
-        let mut table = TranslationTable::new(p.hier_capacity() as usize, p).map_err(golden_err)?;
-        let ids = inputs.iter().map(|(h, _)| h.id).collect();
-        for (h, tr) in inputs {
-            table.write(h.id as u32, tr).map_err(golden_err)?;
-            store.insert(h).map_err(golden_err)?;
-        }
-        Ok((store, table, ids))
-    };
+    let case = |inputs| case_of(p, inputs);
     if t < 2 {
         return Ok(Vec::new());
     }
@@ -337,19 +341,11 @@ const DEPTH_FIRST_TRIANGLES: [usize; 5] = [1200, 300, 60, 12, 1];
 fn depth_first_store(p: &Params) -> Result<RealCase> {
     let (_, _, dense) = dense_corner(p)?;
     let small = try_soup(p, 2, 20, 0.2, 78).map_err(golden_err)?;
-    let mut store = HierarchyStore::new();
-    let mut table = TranslationTable::new(p.hier_capacity() as usize, p).map_err(golden_err)?;
-    table
-        .write(1, Translation::zero(dense.top_lod))
-        .map_err(golden_err)?;
-    table
-        .write(2, place(&small, [0.1, 0.1, 0.1]))
-        .map_err(golden_err)?;
-    store
-        .insert(stored_depth_first(&dense))
-        .map_err(golden_err)?;
-    store.insert(small).map_err(golden_err)?;
-    Ok((store, table, vec![1, 2]))
+    let (tr_dense, tr_small) = (Translation::zero(dense.top_lod), place(&small, [0.1; 3]));
+    case_of(
+        p,
+        vec![(stored_depth_first(&dense), tr_dense), (small, tr_small)],
+    )
 }
 
 /// [`depth_first_store`]'s dense input as the builder stores it, with its
@@ -473,17 +469,11 @@ fn sixteen_deep_roots(p: &Params) -> Result<Option<RealCase>> {
     roots.reverse();
     let deep = relaid_depth_first(&built, &roots);
     let small = try_soup(p, 2, 20, 0.2, 78).map_err(golden_err)?;
-    let mut store = HierarchyStore::new();
-    let mut table = TranslationTable::new(p.hier_capacity() as usize, p).map_err(golden_err)?;
-    table
-        .write(1, place(&deep, [0.9, 0.8, 0.95]))
-        .map_err(golden_err)?;
-    table
-        .write(2, place(&small, [0.7, 0.6, 0.8]))
-        .map_err(golden_err)?;
-    store.insert(deep).map_err(golden_err)?;
-    store.insert(small).map_err(golden_err)?;
-    Ok(Some((store, table, vec![1, 2])))
+    let (tr_deep, tr_small) = (
+        place(&deep, [0.9, 0.8, 0.95]),
+        place(&small, [0.7, 0.6, 0.8]),
+    );
+    case_of(p, vec![(deep, tr_deep), (small, tr_small)]).map(Some)
 }
 
 /// [`stored_depth_first`]'s walk: new numbers on the way down, reference

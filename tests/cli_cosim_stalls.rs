@@ -14,10 +14,13 @@ use serde_json::Value;
 
 const ENGINES: [&str; 3] = ["ir", "verilator", "iverilog"];
 
-/// One passing `--json` run of `args` with `--stalls stalls`.
+/// One passing `--json` run of `args` with `--stalls stalls` (and what
+/// else `stalls` holds: `none --stall-stream out=...`).
 fn passes(args: &str, engine: &str, stalls: &str) -> Value {
     let mut a: Vec<&str> = args.split_whitespace().collect();
-    a.extend(["--engine", engine, "--stalls", stalls, "--json"]);
+    a.extend(["--engine", engine, "--stalls"]);
+    a.extend(stalls.split_whitespace());
+    a.push("--json");
     let r = succeeded(&hiermerge(&a, &[]));
     assert_eq!(r["passed"], true, "{r}");
     assert_eq!(r["mismatches"], 0, "{r}");
@@ -123,4 +126,62 @@ fn a_mismatch_under_a_pattern_reproduces_with_it() {
         err.contains("--stall 0.2 is the probability of --stalls coin"),
         "{err}"
     );
+}
+
+/// A stream's own pattern (`--stall-stream`) holds that stream alone: the
+/// merging module with its `out` stream in long stall runs and no other
+/// stall runs alike on three engines, slower than with no stall at all,
+/// and the report, the reproduce command and the refusals name it.
+#[test]
+fn a_streams_own_pattern_holds_that_stream_alone_on_three_engines() {
+    let args = "cosim --unit merge-module --seed 3 --count 30";
+    let held = "none --stall-stream out=bursty:60,3";
+    let rates = same_on_every_engine(args, &[("none", "none"), (held, "none")]);
+    slower_in_pattern_order(&rates);
+    let r = passes(args, "ir", held);
+    assert_eq!(
+        r["stream_stalls"],
+        serde_json::json!(["out=bursty:60,3"]),
+        "{r}"
+    );
+
+    let dir = tempfile::tempdir().unwrap();
+    let vcd = dir.path().to_str().unwrap();
+    let mut a: Vec<&str> = args.split_whitespace().collect();
+    a.extend(["--engine", "ir", "--stalls"]);
+    a.extend(held.split_whitespace());
+    a.extend(["--json", "--vcd-dir", vcd]);
+    let env = [("HIERMERGE_COSIM_FLIP_EXPECTED", "7")];
+    let o = hiermerge(&a, &env);
+    assert!(!o.status.success());
+    let r = json_of(&o);
+    let rep = r["reproduce"].as_str().unwrap();
+    assert!(rep.contains("--stall-stream out=bursty:60,3"), "{rep}");
+    let words: Vec<&str> = rep.split_whitespace().collect();
+    let mut again: Vec<&str> = words[2..].to_vec();
+    again.extend(["--vcd-dir", vcd, "--json"]);
+    assert_eq!(
+        json_of(&hiermerge(&again, &env))["first_mismatch"],
+        r["first_mismatch"]
+    );
+
+    for (line, want) in [
+        (
+            "cosim --unit merge-module --engine ir --count 1 --stall-stream outt=none",
+            "stream `outt`, which the design does not have; its streams: in0, in1, in2, in3, cfg, report, out",
+        ),
+        (
+            "cosim --unit merge-module --engine ir --count 1 --stall-stream out=coin",
+            "--stall-stream `out=coin`: a coin here takes its probability: coin:P",
+        ),
+        (
+            "cosim --unit translate --engine ir --count 1 --stall-stream out=none",
+            "--unit translate has one input and one output stream",
+        ),
+    ] {
+        let o = hiermerge(&line.split_whitespace().collect::<Vec<_>>(), &[]);
+        assert!(!o.status.success(), "{line}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(want), "{line}: {err}");
+    }
 }

@@ -101,6 +101,12 @@ pub enum CosimError {
     /// A bit vector could not be built, read or written (a value wider than
     /// its width, a bit range past it, text that is not hex).
     Bits(golden::bits::BitsError),
+    /// The bench was asked for something the design cannot give it (a
+    /// stall pattern for a stream it does not have).
+    Bench {
+        /// What was asked, and what the design has.
+        what: String,
+    },
     /// The feature asked for is not available in this engine or build.
     Unsupported {
         /// The feature.
@@ -112,6 +118,7 @@ impl fmt::Display for CosimError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             CosimError::Design { what } => write!(f, "design description: {what}"),
+            CosimError::Bench { what } => write!(f, "bench: {what}"),
             CosimError::UnknownPort { name } => write!(f, "the design has no port named `{name}`"),
             CosimError::BadPortId { index, count } => {
                 write!(

@@ -22,7 +22,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::cache::CacheKey;
 use crate::error::{io_err, Result};
-use crate::tb::{Stalls, StreamBeats};
+use crate::tb::{Stalls, StreamBeats, StreamStalls};
 
 /// The `format` every entry carries; bumped when fields change meaning.
 pub const FORMAT: &str = "hiermerge-longrun-2";
@@ -54,10 +54,12 @@ pub struct StimulusDigest {
 
 impl StimulusDigest {
     /// Starts the digest of a run of `count` transactions from `seed` with
-    /// the stall pattern `stalls` (every number that drives the bench). A
-    /// coin is keyed by its probability alone, as before there were other
-    /// patterns, so the entries of coin runs stay current.
-    pub fn new(seed: u64, count: u64, stalls: Stalls) -> Self {
+    /// the stall pattern `stalls` and the named streams' own `streams`
+    /// (every number that drives the bench). A coin is keyed by its
+    /// probability alone, as before there were other patterns, and no
+    /// stream's own pattern adds nothing, so the entries of earlier runs
+    /// stay current.
+    pub fn new(seed: u64, count: u64, stalls: Stalls, streams: &StreamStalls) -> Self {
         let mut key = CacheKey::new();
         key.add("format", FORMAT.as_bytes());
         key.add("seed", &seed.to_le_bytes());
@@ -66,6 +68,9 @@ impl StimulusDigest {
             Stalls::Coin(p) => key.add("stall", &p.to_bits().to_le_bytes()),
             other => key.add("stalls", other.to_string().as_bytes()),
         };
+        if !streams.is_empty() {
+            key.add("stream stalls", streams.to_string().as_bytes());
+        }
         StimulusDigest { key }
     }
 
@@ -290,11 +295,14 @@ mod tests {
 
     #[test]
     fn the_stimulus_digest_sees_every_bit_and_every_knob() {
-        let digest = |seed, count, stall, bit| {
-            let mut d = StimulusDigest::new(seed, count, stall);
+        let none = StreamStalls::default();
+        let header = StreamStalls::parse(["header=bursty:200,2"]).unwrap();
+        let digest_of = |seed, count, stall, own: &StreamStalls, bit| {
+            let mut d = StimulusDigest::new(seed, count, stall, own);
             d.add_chunk(&streams(bit), &[]);
             d.finish()
         };
+        let digest = |seed, count, stall, bit| digest_of(seed, count, stall, &none, bit);
         let coin = Stalls::Coin(0.3);
         let base = digest(1, 10, coin, false);
         assert_eq!(base, digest(1, 10, coin, false));
@@ -307,11 +315,12 @@ mod tests {
             digest(1, 10, Stalls::PERIODIC, false),
             digest(1, 10, Stalls::None, false),
             digest(1, 10, coin, true),
+            digest_of(1, 10, coin, &header, false),
         ] {
             assert_ne!(base, other);
         }
         // The same beats as an input or as an expected output differ too.
-        let mut d = StimulusDigest::new(1, 10, coin);
+        let mut d = StimulusDigest::new(1, 10, coin, &none);
         d.add_chunk(&[], &streams(false));
         assert_ne!(base, d.finish());
     }

@@ -72,6 +72,58 @@ impl Point {
     }
 }
 
+impl Point {
+    /// What names this point in every run of its unit, whichever folder
+    /// the run's Verilog was in (the file's name, not its path).
+    fn key(&self) -> (Kind, &str, &str, u32, Option<&str>, &str, &str) {
+        let name = self.file.rsplit('/').next().unwrap_or(&self.file);
+        let span = self.span.as_deref();
+        (
+            self.kind,
+            &self.module,
+            name,
+            self.line,
+            span,
+            &self.what,
+            &self.instance,
+        )
+    }
+
+    /// The point with its count set to `count`, its line too.
+    fn with_count(mut self, count: u64) -> Point {
+        if let Some((fields, _)) = self.raw.rsplit_once("' ") {
+            self.raw = format!("{fields}' {count}");
+        }
+        self.count = count;
+        self
+    }
+}
+
+/// `merged` (the runs' counts summed, as `verilator_coverage --write`
+/// merges them) with every toggle count replaced by the most changes one
+/// run of `runs` saw. A run starts from Verilator's initial zeros, so a bit
+/// it counts once only rose; summed over two runs it would count as rising
+/// and falling. A bit toggled in the union of the runs only if one of them
+/// saw it change twice.
+pub fn toggles_per_run(merged: Vec<Point>, runs: &[std::path::PathBuf]) -> Result<Vec<Point>> {
+    let per_run: Vec<Vec<Point>> = runs.iter().map(|r| read_points(r)).collect::<Result<_>>()?;
+    let mut most = std::collections::HashMap::new();
+    for p in per_run.iter().flatten().filter(|p| p.kind == Kind::Toggle) {
+        let m = most.entry(p.key()).or_insert(0u64);
+        *m = (*m).max(p.count);
+    }
+    Ok(merged
+        .into_iter()
+        .map(|p| match p.kind {
+            Kind::Toggle => {
+                let count = most.get(&p.key()).copied().unwrap_or(0);
+                p.with_count(count)
+            }
+            _ => p,
+        })
+        .collect())
+}
+
 /// The points of one `coverage.dat`.
 pub fn read_points(path: &Path) -> Result<Vec<Point>> {
     let text = std::fs::read_to_string(path).map_err(io_err(path))?;
@@ -160,5 +212,35 @@ mod tests {
         std::fs::write(&p, "C 'x' 1\n").unwrap();
         let e = read_points(&p).unwrap_err().to_string();
         assert!(e.contains("c.dat:1"), "{e}");
+    }
+
+    /// Two runs each saw `q` change once (it rose) and `r` change twice
+    /// in one: `q` is not toggled though the sum is 2, `r` is; line
+    /// counts stay summed.
+    #[test]
+    fn a_toggle_counts_what_one_run_saw() {
+        let dir = tempfile::tempdir().unwrap();
+        let pt = |dir: &str, what: &str, page: &str, count: u64| {
+            format!("C '\u{1}f\u{2}/{dir}/t.v\u{1}l\u{2}3\u{1}page\u{2}{page}/t\u{1}o\u{2}{what}\u{1}h\u{2}TOP.t' {count}\n")
+        };
+        let runs = [dir.path().join("1.dat"), dir.path().join("2.dat")];
+        let body = |d: &str, r: u64| {
+            pt(d, "q", "v_toggle", 1) + &pt(d, "r", "v_toggle", r) + &pt(d, "block", "v_line", 2)
+        };
+        std::fs::write(&runs[0], body("a", 2)).unwrap();
+        std::fs::write(&runs[1], body("b", 0)).unwrap();
+        let merged = dir.path().join("m.dat");
+        // As verilator_coverage sums them: q 2, r 2, the line 4.
+        let sums = pt("m", "q", "v_toggle", 2)
+            + &pt("m", "r", "v_toggle", 2)
+            + &pt("m", "block", "v_line", 4);
+        std::fs::write(&merged, sums).unwrap();
+        let pts = toggles_per_run(read_points(&merged).unwrap(), &runs).unwrap();
+        let got: Vec<(&str, u64, bool)> = pts
+            .iter()
+            .map(|p| (p.what.as_str(), p.count, p.covered()))
+            .collect();
+        assert_eq!(got, [("q", 1, false), ("r", 2, true), ("block", 4, true)]);
+        assert!(pts[0].raw.ends_with("' 1"), "{}", pts[0].raw);
     }
 }

@@ -436,7 +436,7 @@ pub fn write(spec: &ExportSpec, dir: &Path) -> Result<Exported> {
         ins.push(InputFiles { gaps });
     }
     let words = mask_words(&ins, spec);
-    let masks = ready_masks(spec.seed, spec.outputs.len(), spec.stalls);
+    let masks = ready_masks(spec.seed, &vec![spec.stalls; spec.outputs.len()]);
     for (o, (mut rng, mut gen)) in spec.outputs.iter().zip(masks) {
         let st = &o.stream;
         if !st.beats.is_empty() {

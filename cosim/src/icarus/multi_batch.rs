@@ -233,6 +233,7 @@ impl IcarusMultiBatch {
         let start = Instant::now();
         crate::tb::driver::check_stalls(&config.in_stall)?;
         crate::tb::driver::check_stalls(&config.out_stall)?;
+        crate::tb::multi::check_stream_stalls(&self.design, config)?;
         self.check_streams(inputs, &self.inputs, "input")?;
         self.check_streams(outputs, &self.outputs, "output")?;
         let dir = self.image.run_dir()?;
@@ -243,7 +244,12 @@ impl IcarusMultiBatch {
         for (s, beats) in inputs.iter().enumerate() {
             self.write_input(dir.path(), s, beats, config)?;
         }
-        let mut masks = ready_masks(config.seed, self.outputs.len(), config.out_stall);
+        let stalls: Vec<Stalls> = self
+            .outputs
+            .iter()
+            .map(|(name, _)| config.out_stall_of(name))
+            .collect();
+        let mut masks = ready_masks(config.seed, &stalls);
         let fst = dump_is_fst(dump.as_ref().map(|d| d.1.as_path()), config)?;
         let sim_wall = self.image.run_vvp(dir.path(), fst, move || {
             mask_line(masks.iter_mut().map(|(rng, stalls)| stalls.go_word(rng)))
@@ -331,7 +337,7 @@ impl IcarusMultiBatch {
             .collect();
         let gaps = driver_gaps(
             stream_seed(config.seed, s),
-            config.in_stall,
+            config.in_stall_of(&self.inputs[s].0),
             &widths,
             stream.beats.len(),
         )?;
@@ -491,15 +497,17 @@ pub fn driver_gaps(seed: u64, stalls: Stalls, widths: &[u32], beats: usize) -> R
         .collect()
 }
 
-/// The ready generators of `outputs` output streams: output `j` takes one
-/// decision of `stalls` per cycle from `Prng::derived(stream_seed(seed,
-/// 100 + j), 2)` (as `tb::StreamMonitor`).
-pub fn ready_masks(seed: u64, outputs: usize, stalls: Stalls) -> Vec<(Prng, StallGen)> {
-    (0..outputs)
-        .map(|j| {
+/// The ready generators of the output streams, `stalls[j]` output `j`'s
+/// pattern: output `j` takes one decision per cycle from
+/// `Prng::derived(stream_seed(seed, 100 + j), 2)` (as `tb::StreamMonitor`).
+pub fn ready_masks(seed: u64, stalls: &[Stalls]) -> Vec<(Prng, StallGen)> {
+    stalls
+        .iter()
+        .enumerate()
+        .map(|(j, &s)| {
             (
                 Prng::derived(stream_seed(seed, 100 + j), 2),
-                StallGen::new(stalls),
+                StallGen::new(s),
             )
         })
         .collect()

@@ -9,7 +9,7 @@ use super::accounting::AccountingReport;
 use super::driver::StreamDriver;
 use super::monitor::StreamMonitor;
 use super::scoreboard::{FieldDecoder, Mismatch, Scoreboard};
-use super::stalls::Stalls;
+use super::stalls::{Stalls, StreamStalls};
 use super::stop_rule::StopRule;
 use super::stream::{StreamPorts, Transaction};
 use super::trace_window::TraceWindow;
@@ -70,6 +70,9 @@ pub struct BenchConfig {
     pub in_stall: Stalls,
     /// When the monitor holds ready low.
     pub out_stall: Stalls,
+    /// Named streams' own patterns, replacing `in_stall` or `out_stall` on
+    /// those streams (multi-stream benches).
+    pub stream_stalls: StreamStalls,
     /// Rising edges with reset held.
     pub reset_cycles: u32,
     /// Watchdog limit: cycles without any handshake.
@@ -92,12 +95,25 @@ pub struct BenchConfig {
     pub drain_cycles: u64,
 }
 
+impl BenchConfig {
+    /// The pattern of input stream `name`'s driver.
+    pub fn in_stall_of(&self, name: &str) -> Stalls {
+        self.stream_stalls.of(name, self.in_stall)
+    }
+
+    /// The pattern of output stream `name`'s monitor.
+    pub fn out_stall_of(&self, name: &str) -> Stalls {
+        self.stream_stalls.of(name, self.out_stall)
+    }
+}
+
 impl Default for BenchConfig {
     fn default() -> Self {
         BenchConfig {
             seed: 1,
             in_stall: Stalls::None,
             out_stall: Stalls::None,
+            stream_stalls: StreamStalls::default(),
             reset_cycles: 2,
             watchdog_cycles: 1000,
             stop_on_mismatch: true,

@@ -27,7 +27,7 @@ pub use multi::{
 };
 pub use prng::Prng;
 pub use scoreboard::{FieldDecoder, FieldDiff, Mismatch, Scoreboard};
-pub use stalls::{StallGen, Stalls};
+pub use stalls::{StallGen, Stalls, StreamStalls};
 pub use stop_rule::StopRule;
 pub use stream::{StreamPorts, Transaction};
 pub use trace_window::TraceWindow;

@@ -16,7 +16,7 @@ use super::trace_window::TraceWindow;
 use super::watchdog::Hang;
 use super::BenchConfig;
 use crate::engine::Engine;
-use crate::error::Result;
+use crate::error::{CosimError, Result};
 use std::fmt;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -213,6 +213,19 @@ pub fn run_multi_stream_bench_traced(
     bench_loop(engine, inputs, outputs, config, hooks)
 }
 
+/// Refuses a stall pattern for a stream `design` does not have (a stream:
+/// a port `<name>_valid`), listing the streams it has.
+pub fn check_stream_stalls(design: &crate::design::Design, config: &BenchConfig) -> Result<()> {
+    let streams = design
+        .ports
+        .iter()
+        .filter_map(|p| p.name.strip_suffix("_valid"));
+    config
+        .stream_stalls
+        .check_names(streams)
+        .map_err(|what| CosimError::Bench { what })
+}
+
 /// A model the bench steps with the design that answers what the design
 /// asks (a store answering `store_req` on `store_resp`), so its input
 /// beats cannot be precomputed.
@@ -273,9 +286,11 @@ fn bench_loop(
     let start = Instant::now();
     // Distinct stall patterns per stream from one seed.
     let seed_of = |j: usize| stream_seed(config.seed, j);
+    check_stream_stalls(engine.design(), config)?;
     let mut drivers = Vec::new();
     for (j, s) in inputs.iter().enumerate() {
-        let mut d = StreamDriver::new(ports(engine, &s.name)?, seed_of(j), config.in_stall)?;
+        let stalls = config.in_stall_of(&s.name);
+        let mut d = StreamDriver::new(ports(engine, &s.name)?, seed_of(j), stalls)?;
         for b in &s.beats {
             d.push(b.clone());
         }
@@ -287,7 +302,7 @@ fn bench_loop(
         let p = ports(engine, &s.name)?;
         let mut board = Scoreboard::with_port_names(p.payload_names.clone());
         board.expect_input(s.beats.clone());
-        let mon = StreamMonitor::new(p, seed_of(100 + j), config.out_stall)?;
+        let mon = StreamMonitor::new(p, seed_of(100 + j), config.out_stall_of(&s.name))?;
         engine.poke_u64(engine.design().port_id(&format!("{}_ready", s.name))?, 0)?;
         monitors.push((mon, board));
     }

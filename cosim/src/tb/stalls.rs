@@ -154,6 +154,90 @@ impl fmt::Display for Stalls {
     }
 }
 
+/// Patterns for named streams, each replacing the bench's pattern of its
+/// side (inputs or outputs) on that stream alone: stalling the writer's
+/// outputs while the fetchers' answers flow is what fills the skid buffers
+/// inside a top, which stalling every stream alike never does.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct StreamStalls {
+    streams: Vec<(String, Stalls)>,
+}
+
+impl StreamStalls {
+    /// None: every stream takes its side's pattern.
+    pub fn is_empty(&self) -> bool {
+        self.streams.is_empty()
+    }
+
+    /// The named streams and their patterns, in the order given.
+    pub fn iter(&self) -> impl Iterator<Item = (&str, Stalls)> {
+        self.streams.iter().map(|(n, s)| (n.as_str(), *s))
+    }
+
+    /// Reads `NAME=PATTERN` items ([`Stalls::parse`]'s patterns, a coin
+    /// with its probability), refusing a malformed item, a bad pattern or a
+    /// stream named twice, saying which.
+    pub fn parse<'a>(items: impl IntoIterator<Item = &'a str>) -> Result<StreamStalls, String> {
+        let mut streams: Vec<(String, Stalls)> = Vec::new();
+        for item in items {
+            let (name, pattern) = item
+                .split_once('=')
+                .filter(|(n, _)| !n.is_empty())
+                .ok_or_else(|| {
+                    format!("`{item}`: expected STREAM=PATTERN, e.g. header=bursty:200,2")
+                })?;
+            if pattern == "coin" {
+                return Err(format!(
+                    "`{item}`: a coin here takes its probability: coin:P"
+                ));
+            }
+            let stalls = Stalls::parse(pattern, 0.0).map_err(|e| format!("`{item}`: {e}"))?;
+            if streams.iter().any(|(n, _)| n == name) {
+                return Err(format!("`{item}`: stream `{name}` is named twice"));
+            }
+            streams.push((name.to_string(), stalls));
+        }
+        Ok(StreamStalls { streams })
+    }
+
+    /// The pattern of stream `name`: its own, else `side` (its side's).
+    pub fn of(&self, name: &str, side: Stalls) -> Stalls {
+        self.streams
+            .iter()
+            .find(|(n, _)| n == name)
+            .map_or(side, |(_, s)| *s)
+    }
+
+    /// Refuses a name that is none of `streams` (a design's), listing them.
+    pub fn check_names<'a>(
+        &self,
+        streams: impl Iterator<Item = &'a str> + Clone,
+    ) -> Result<(), String> {
+        for (name, _) in &self.streams {
+            if !streams.clone().any(|s| s == name) {
+                let known: Vec<&str> = streams.collect();
+                return Err(format!(
+                    "a stall pattern for stream `{name}`, which the design does not have; its streams: {}",
+                    known.join(", ")
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// `NAME=PATTERN` items separated by spaces, which [`StreamStalls::parse`]
+/// reads back item by item.
+impl fmt::Display for StreamStalls {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (k, (name, s)) in self.streams.iter().enumerate() {
+            let sep = if k == 0 { "" } else { " " };
+            write!(f, "{sep}{name}={s}")?;
+        }
+        Ok(())
+    }
+}
+
 /// A pattern's state in one stream.
 #[derive(Clone, Debug)]
 pub struct StallGen {
@@ -333,5 +417,39 @@ mod tests {
             let e = Stalls::parse(text, 0.3).unwrap_err();
             assert!(e.contains(want), "{text}: {e}");
         }
+    }
+
+    #[test]
+    fn stream_stalls_replace_their_streams_pattern_alone() {
+        let s = StreamStalls::parse(["header=bursty:200,2", "nodes=none"]).unwrap();
+        assert_eq!(
+            s.of("header", Stalls::Coin(0.3)),
+            Stalls::Bursty { stall: 200, go: 2 }
+        );
+        assert_eq!(s.of("nodes", Stalls::Coin(0.3)), Stalls::None);
+        assert_eq!(s.of("cfg", Stalls::PERIODIC), Stalls::PERIODIC);
+        let text = s.to_string();
+        assert_eq!(text, "header=bursty:200,2 nodes=none");
+        assert_eq!(StreamStalls::parse(text.split(' ')), Ok(s.clone()));
+        assert_eq!(
+            s.check_names(["cfg", "header", "nodes"].into_iter()),
+            Ok(())
+        );
+        let e = s.check_names(["cfg", "nodes"].into_iter()).unwrap_err();
+        assert!(
+            e.contains("stream `header`") && e.contains("its streams: cfg, nodes"),
+            "{e}"
+        );
+        for (item, want) in [
+            ("header", "expected STREAM=PATTERN"),
+            ("=none", "expected STREAM=PATTERN"),
+            ("header=coin", "coin:P"),
+            ("header=bursty:0,2", "longest stall run 0"),
+        ] {
+            let e = StreamStalls::parse([item]).unwrap_err();
+            assert!(e.contains(want), "{item}: {e}");
+        }
+        let e = StreamStalls::parse(["a=none", "a=coin:0.5"]).unwrap_err();
+        assert!(e.contains("named twice"), "{e}");
     }
 }

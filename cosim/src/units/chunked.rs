@@ -258,6 +258,7 @@ pub(crate) fn chunk_bench(config: &RunConfig, chunks: usize) -> BenchConfig {
         seed: config.seed ^ chunks as u64,
         in_stall: config.stall,
         out_stall: config.stall,
+        stream_stalls: config.stream_stalls.clone(),
         stop_on_mismatch: false,
         vcd_path: config.vcd_path.clone(),
         vcd_radius: config.vcd_radius,

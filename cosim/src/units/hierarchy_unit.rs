@@ -435,15 +435,16 @@ impl Cases {
 }
 
 /// The stimulus digest (10.2) of the run [`run`] makes of `cases` from
-/// `seed` with the stall pattern `stall`, without simulating it.
+/// `seed` with the stall pattern `stall` and the named streams' own
+/// `streams`, without simulating it.
 pub fn stimulus_digest(
     c: &HierarchyUnitConfig,
     seed: u64,
     cases: Cases,
-    stall: crate::tb::Stalls,
+    (stall, streams): (crate::tb::Stalls, &crate::tb::StreamStalls),
 ) -> Result<String> {
     let mut draw = Draw::new(c, seed, cases.merges)?;
-    let mut digest = StimulusDigest::new(seed, cases.count as u64, stall);
+    let mut digest = StimulusDigest::new(seed, cases.count as u64, stall, streams);
     let mut stats = HierarchyStats::default();
     for n in chunk_sizes(cases.count) {
         let s = next_streams(c, &mut draw, n, &mut stats)?;
@@ -495,7 +496,12 @@ pub fn run(
     )?;
     let decode = |stream: &str, e: &Transaction, g: &Transaction| decode(&ports, stream, e, g);
     let mut draw = Draw::new(c, config.seed, cases.merges)?;
-    let mut digest = StimulusDigest::new(config.seed, cases.count as u64, config.stall);
+    let mut digest = StimulusDigest::new(
+        config.seed,
+        cases.count as u64,
+        config.stall,
+        &config.stream_stalls,
+    );
     let mut first = 0;
     for n in chunk_sizes(cases.count) {
         let t = std::time::Instant::now();

@@ -425,17 +425,17 @@ pub fn netlist_digest(c: &MergerConfig) -> Result<String> {
 }
 
 /// The stimulus digest (10.2) of the run [`run`] makes of `count` merges
-/// of `merges` from `seed` with the stall pattern `stall`, without
-/// simulating it.
+/// of `merges` from `seed` with the stall pattern `stall` and the named
+/// streams' own `streams`, without simulating it.
 pub fn stimulus_digest(
     c: &MergerConfig,
     seed: u64,
     count: usize,
-    stall: crate::tb::Stalls,
+    (stall, streams): (crate::tb::Stalls, &crate::tb::StreamStalls),
     merges: Merges,
 ) -> Result<String> {
     let mut draw = Draw::new(c, seed, merges)?;
-    let mut digest = StimulusDigest::new(seed, count as u64, stall);
+    let mut digest = StimulusDigest::new(seed, count as u64, stall, streams);
     for n in chunk_sizes(count) {
         let s = next_chunk(&mut draw, c, n, None)?.streams;
         digest.add_chunk(&s.inputs, &s.outputs);
@@ -676,7 +676,8 @@ pub fn run(
     };
     let mut draw = Draw::new(c, config.bench.seed, config.merges)?;
     let (seed, count) = (config.bench.seed, config.count as u64);
-    let mut digest = StimulusDigest::new(seed, count, config.bench.stall);
+    let b = &config.bench;
+    let mut digest = StimulusDigest::new(seed, count, b.stall, &b.stream_stalls);
     let mut out = Outcome {
         netlist_sha256,
         ..Outcome::default()

@@ -154,6 +154,8 @@ pub struct RunConfig {
     /// The stall pattern of every driver and every monitor (each stream
     /// its own seed).
     pub stall: crate::tb::Stalls,
+    /// Named streams' own patterns, replacing `stall` on them.
+    pub stream_stalls: crate::tb::StreamStalls,
     /// Where the VCD around the first failure goes (None: no VCD).
     pub vcd_path: Option<PathBuf>,
     /// Cycles traced either side of the failure.

@@ -65,6 +65,9 @@ pub(super) fn run_args(a: &Args) -> Result<Vec<String>, String> {
         cosim::tb::Stalls::Coin(p) => push("--stall", p.to_string()),
         other => push("--stalls", other.to_string()),
     }
+    for (stream, stalls) in super::stream_stalls(a)?.iter() {
+        push("--stall-stream", format!("{stream}={stalls}"));
+    }
     let g = &a.design.grid;
     push("--max-lod", g.max_lod.to_string());
     push("--quant-bits", g.quant_bits.to_string());

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use cosim::tb::Stalls;
+use cosim::tb::{Stalls, StreamStalls};
 use cosim::units::merger;
 use golden::merge::merge_module::MergeDesign;
 
@@ -62,6 +62,7 @@ pub struct LedgerRun {
     pub seed: u64,
     pub count: usize,
     pub stall: Stalls,
+    pub stream_stalls: StreamStalls,
     design: LedgerDesign,
 }
 
@@ -92,7 +93,8 @@ impl LedgerRun {
     pub fn stimulus_digest(&self) -> Result<String, String> {
         match &self.design {
             LedgerDesign::Merger { config, merges } => {
-                merger::stimulus_digest(config, self.seed, self.count, self.stall, *merges)
+                let stalls = (self.stall, &self.stream_stalls);
+                merger::stimulus_digest(config, self.seed, self.count, stalls, *merges)
             }
             LedgerDesign::Hierarchy { config, merges } => {
                 let cases = cosim::units::hierarchy_unit::Cases {
@@ -100,7 +102,8 @@ impl LedgerRun {
                     merges: *merges,
                     flip: None,
                 };
-                cosim::units::hierarchy_unit::stimulus_digest(config, self.seed, cases, self.stall)
+                let stalls = (self.stall, &self.stream_stalls);
+                cosim::units::hierarchy_unit::stimulus_digest(config, self.seed, cases, stalls)
             }
         }
         .map_err(|e| e.to_string())
@@ -157,6 +160,7 @@ pub fn ledger_run(args: &[String]) -> Result<LedgerRun, String> {
         seed: a.seed,
         count: count(&a)?,
         stall: super::stalls(&a)?,
+        stream_stalls: super::stream_stalls(&a)?,
         design,
     })
 }

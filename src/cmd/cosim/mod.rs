@@ -29,7 +29,7 @@ mod translate;
 use std::path::{Path, PathBuf};
 
 use cosim::ir_engine::IrEngine;
-use cosim::tb::Stalls;
+use cosim::tb::{Stalls, StreamStalls};
 use cosim::units::merge_module::{self, ModuleEngine};
 use cosim::waves::WaveFormat;
 use cosim::{open_engine, open_tracing_engine, Design, Engine, EngineKind};
@@ -226,6 +226,13 @@ pub struct Args {
     /// stalls of every N decisions at a seeded phase; default 1/3), `none`.
     #[arg(long, default_value = "coin")]
     stalls: String,
+    /// One stream's own pattern, `STREAM=PATTERN` (`header=bursty:200,2`;
+    /// a coin as `coin:P`), in place of `--stalls` on that stream alone;
+    /// repeat for more streams. The multi-stream units (merge-module,
+    /// merger, hierarchy) only: stalling a unit's outputs while its inputs
+    /// flow fills the buffers inside it.
+    #[arg(long = "stall-stream", value_name = "STREAM=PATTERN")]
+    stall_stream: Vec<String>,
     /// Directory of the waveform written on a mismatch (or asked by
     /// --wave-window).
     #[arg(long = "vcd-dir", default_value = "out/cosim")]
@@ -332,6 +339,23 @@ pub fn parse_stalls(stalls: &str, stall: Option<f64>) -> Result<Stalls, String> 
         ));
     }
     Ok(s)
+}
+
+/// The streams' own patterns `--stall-stream` asks for, checked.
+fn stream_stalls(a: &Args) -> Result<StreamStalls, String> {
+    StreamStalls::parse(a.stall_stream.iter().map(String::as_str))
+        .map_err(|e| format!("--stall-stream {e}"))
+}
+
+/// Refuses `--stall-stream` for a unit whose bench has one input and one
+/// output stream (`unit`), which `--stalls` already names.
+fn no_stream_stalls(a: &Args, unit: &str) -> Result<(), String> {
+    if a.stall_stream.is_empty() {
+        return Ok(());
+    }
+    Err(format!(
+        "--stall-stream: {unit} has one input and one output stream; --stalls sets their pattern"
+    ))
 }
 
 /// `--count`, or the default, as a number of transactions.
@@ -593,6 +617,7 @@ fn bench_config(a: &Args, stage: &str) -> Result<merge_module::RunConfig, String
     Ok(merge_module::RunConfig {
         seed: a.seed,
         stall: stalls(a)?,
+        stream_stalls: stream_stalls(a)?,
         vcd_path: Some(vcd_path(a, stage)),
         vcd_radius: VCD_RADIUS,
         wave_scope: a.wave_scope.clone(),

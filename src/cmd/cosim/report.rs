@@ -43,6 +43,8 @@ pub(super) struct Report {
     pub(super) stall: Option<f64>,
     /// The stall pattern (`coin:0.3`, `bursty:16,16`, `periodic:1/3`, `none`).
     pub(super) stalls: String,
+    /// Streams with their own pattern (`--stall-stream`), `STREAM=PATTERN`.
+    pub(super) stream_stalls: Vec<String>,
     pub(super) vectors: Option<String>,
     pub(super) passed: bool,
     #[serde(flatten)]
@@ -186,6 +188,10 @@ pub(super) fn finish_report(
             _ => None,
         },
         stalls: super::stalls(a)?.to_string(),
+        stream_stalls: super::stream_stalls(a)?
+            .iter()
+            .map(|(name, s)| format!("{name}={s}"))
+            .collect(),
         vectors: a.vectors.as_ref().map(|p| p.display().to_string()),
         passed,
         records_per_cycle: per_cycle(counts.records),
@@ -234,11 +240,16 @@ fn stream_mismatch(kind: &str, m: &ModuleMismatch, seed: u64) -> MismatchReport 
 
 pub(super) fn print_text(r: &Report) {
     println!(
-        "{} ({}) on {}, stalls {}: {} transactions, {} records in, {} out, {} cycles ({:.3} records/cycle, {:.3} nodes/cycle), {} mismatches, {:.2} s",
+        "{} ({}) on {}, stalls {}{}: {} transactions, {} records in, {} out, {} cycles ({:.3} records/cycle, {:.3} nodes/cycle), {} mismatches, {:.2} s",
         r.unit.name(),
         r.stage,
         r.engine,
         r.stalls,
+        if r.stream_stalls.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", r.stream_stalls.join(" "))
+        },
         r.counts.transactions,
         r.counts.records,
         r.counts.nodes,

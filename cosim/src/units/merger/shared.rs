@@ -424,7 +424,8 @@ pub(super) fn run_shared(
     };
     let mut draw = Draw::new(c, config.bench.seed, config.merges)?;
     let (seed, count) = (config.bench.seed, config.count as u64);
-    let mut digest = StimulusDigest::new(seed, count, config.bench.stall);
+    let b = &config.bench;
+    let mut digest = StimulusDigest::new(seed, count, b.stall, &b.stream_stalls);
     let mut out = Outcome {
         netlist_sha256,
         ..Outcome::default()

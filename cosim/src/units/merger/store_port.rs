@@ -185,8 +185,16 @@ impl<'a> StoreModel<'a> {
         };
         Ok(StoreModel {
             layout,
-            req: StreamMonitor::new(ports("store_req")?, seed(0), config.out_stall)?,
-            resp: StreamDriver::new(ports("store_resp")?, seed(1), config.in_stall)?,
+            req: StreamMonitor::new(
+                ports("store_req")?,
+                seed(0),
+                config.out_stall_of("store_req"),
+            )?,
+            resp: StreamDriver::new(
+                ports("store_resp")?,
+                seed(1),
+                config.in_stall_of("store_resp"),
+            )?,
             latency: latency.max(1),
             delayed: VecDeque::new(),
             lookup,

@@ -67,6 +67,10 @@ pub struct UnitSummary {
     /// Of the waived toggle bits, those a rule of
     /// [`super::by_design`] names.
     pub toggle_by_design: u64,
+    /// Of the covered toggle bits, those of a module instantiated `m > 1`
+    /// times that changed at most `m` times: Verilator counts the
+    /// instances on one counter, so each may only have risen once.
+    pub toggle_uncertain: u64,
     /// The merged `coverage.dat`.
     pub dat: PathBuf,
     /// The annotated sources.
@@ -94,6 +98,14 @@ impl UnitSummary {
     /// Toggle coverage in percent, waived bits not counted.
     pub fn toggle_percent(&self) -> f64 {
         percent(self.toggle)
+    }
+
+    /// Toggle coverage in percent counting none of the uncertain bits
+    /// ([`UnitSummary::toggle_uncertain`]): the true figure lies between
+    /// this and [`UnitSummary::toggle_percent`].
+    pub fn toggle_percent_certain(&self) -> f64 {
+        let (covered, waived, total) = self.toggle;
+        percent((covered - self.toggle_uncertain, waived, total))
     }
 
     /// Uncovered, unwaived points of a kind whose coverage is below its aim.
@@ -143,12 +155,12 @@ impl CoverageReport {
     /// The summary table (markdown), one row per unit.
     pub fn table(&self) -> String {
         let mut s = String::from(
-            "| unit | runs | line/branch | covered / points (waived) | toggle | covered / bits (waived: constant by Yosys + by design + by hand) | at aim |\n|---|---|---|---|---|---|---|\n",
+            "| unit | runs | line/branch | covered / points (waived) | toggle (certain) | covered / bits (waived: constant by Yosys + by design + by hand) | at aim |\n|---|---|---|---|---|---|---|\n",
         );
         for u in &self.units {
             let ok = u.below_aim(&self.aims).is_empty();
             s += &format!(
-                "| `{}` | {} | {:.1}% | {} / {} ({}) | {:.1}% | {} / {} ({}: {} + {} + {}) | {} |\n",
+                "| `{}` | {} | {:.1}% | {} / {} ({}) | {:.1}% ({:.1}%) | {} / {} ({}: {} + {} + {}) | {} |\n",
                 u.unit,
                 u.runs,
                 u.line_percent(),
@@ -156,6 +168,7 @@ impl CoverageReport {
                 u.line.2,
                 u.line.1,
                 u.toggle_percent(),
+                u.toggle_percent_certain(),
                 u.toggle.0,
                 u.toggle.2,
                 u.toggle.1,
@@ -293,7 +306,7 @@ fn unit_summary(
         texts.insert(f.clone(), std::fs::read_to_string(f).map_err(io_err(f))?);
     }
     let (mut line, mut toggle) = ((0, 0, 0), (0, 0, 0));
-    let (mut toggle_constant, mut toggle_by_design) = (0, 0);
+    let (mut toggle_constant, mut toggle_by_design, mut toggle_uncertain) = (0, 0, 0);
     let mut uncovered = Vec::new();
     for p in &points {
         let tally = if p.kind == Kind::Toggle {
@@ -341,6 +354,10 @@ fn unit_summary(
         // 0 in two instances or more: it never toggled, so it is waived.
         if p.covered() && proven.is_none() {
             tally.0 += 1;
+            let instances = constant.instances(&p.module);
+            if p.kind == Kind::Toggle && instances > 1 && p.count <= instances {
+                toggle_uncertain += 1;
+            }
             // A waiver of a point the regression reached is wrong (an open
             // reason may name a group of which some points were reached).
             if waivers.find(p, None, false).is_some() {
@@ -411,6 +428,7 @@ fn unit_summary(
         toggle,
         toggle_constant,
         toggle_by_design,
+        toggle_uncertain,
         dat,
         annotated,
         uncovered,
@@ -638,5 +656,48 @@ endmodule\n";
         assert_eq!(r.contradictions.len(), 1, "{:?}", r.contradictions);
         assert!(r.contradictions[0].contains("level1_data[4]: changed 2 times"));
         assert!(!r.passed());
+    }
+
+    /// A bit of a module instantiated twice that changed twice may only
+    /// have risen once in each instance: covered, but not certain; three
+    /// changes are certain (one instance changed twice), and so is a bit of
+    /// the top, which has one instance.
+    #[test]
+    fn a_shared_counter_at_most_its_instances_is_uncertain() {
+        if !crate::tools::tool_available("verilator_coverage") {
+            assert!(std::env::var("CI").is_err(), "verilator_coverage missing");
+            return;
+        }
+        let child = "module c (\n    input wire [1:0] d, // g/c.rs:2\n    output wire o\n);\n    assign o = ^d;\nendmodule\n";
+        let top = "module t (\n    input wire [1:0] a, // g/t.rs:8\n    input wire [1:0] b,\n    output wire o\n);\n\
+            wire p, q;\n    c u_a (\n        .d(a),\n        .o(p)\n    );\n    c u_b (\n        .d(b),\n        .o(q)\n    );\n    assign o = p ^ q ^ a[0];\nendmodule\n";
+        let dir = tempfile::tempdir().unwrap();
+        let (raw, src) = (dir.path().join("raw/t"), dir.path().join("sources/t"));
+        std::fs::create_dir_all(&raw).unwrap();
+        std::fs::create_dir_all(&src).unwrap();
+        std::fs::write(src.join("c.v"), child).unwrap();
+        std::fs::write(src.join("t.v"), top).unwrap();
+        let at = |module: &str, h: &str, what: &str, count: u64| {
+            format!(
+                "C '\u{1}f\u{2}/gone/t.v\u{1}l\u{2}2\u{1}n\u{2}5\u{1}page\u{2}v_toggle/{module}\u{1}o\u{2}{what}\u{1}h\u{2}{h}' {count}\n"
+            )
+        };
+        std::fs::write(
+            raw.join("1.dat"),
+            at("c", "TOP.t.u_*", "d[0]", 2)
+                + &at("c", "TOP.t.u_*", "d[1]", 3)
+                + &at("t", "TOP.t", "a[0]", 2),
+        )
+        .unwrap();
+        let r = report(dir.path(), Aims::default(), &Waivers::default()).unwrap();
+        let u = &r.units[0];
+        assert_eq!(
+            (u.toggle.0, u.toggle.2, u.toggle_uncertain),
+            (3, 3, 1),
+            "{u:?}"
+        );
+        assert!((u.toggle_percent() - 100.0).abs() < 1e-9);
+        assert!((u.toggle_percent_certain() - 200.0 / 3.0).abs() < 1e-9);
+        assert!(r.table().contains("| 100.0% (66.7%) |"), "{}", r.table());
     }
 }

@@ -381,3 +381,57 @@ fn the_hierarchy_unit_exports_a_testbench_that_checks_det_out() {
         .collect();
     assert_eq!(starred, ["t_x", "beat"], "{log}");
 }
+
+/// A stream's own pattern (`--stall-stream`, as `hiermerge cosim`'s): the
+/// merging module's `out` held in long stall runs, nothing else stalled,
+/// passes on both simulators with the same cycles, more than with no
+/// stall, and the PASS line names it; a stream the unit lacks is refused,
+/// naming its streams.
+#[test]
+fn a_streams_own_pattern_is_exported() {
+    let sims = simulators();
+    let cycles_of = |extra: &[&str]| {
+        let dir = tempfile::tempdir().unwrap();
+        let mut args = vec![
+            "--unit",
+            "merge-module",
+            "--count",
+            "10",
+            "--stalls",
+            "none",
+        ];
+        args.extend(extra);
+        export(dir.path(), &args);
+        let seen: Vec<u64> = sims
+            .iter()
+            .map(|sim| {
+                let (ok, log) = run(dir.path(), sim);
+                assert!(ok, "{args:?} on {sim}:\n{log}");
+                if !extra.is_empty() {
+                    assert!(log.contains("stalls none out=bursty:60,3)"), "{log}");
+                }
+                cycles(&log)
+            })
+            .collect();
+        assert!(seen.windows(2).all(|w| w[0] == w[1]), "cycles {seen:?}");
+        seen[0]
+    };
+    let free = cycles_of(&[]);
+    let held = cycles_of(&["--stall-stream", "out=bursty:60,3"]);
+    assert!(held > 2 * free, "held {held}, free {free}");
+    let dir = tempfile::tempdir().unwrap();
+    let mut a = vec!["export-tb", "--unit", "merge-module", "--count", "2"];
+    a.extend([
+        "--stall-stream",
+        "outx=none",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    let o = hiermerge(&a, &[]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("stream `outx`") && err.contains("its streams: cfg, in0"),
+        "{err}"
+    );
+}

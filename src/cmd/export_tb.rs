@@ -38,6 +38,10 @@ pub struct Args {
     /// --stalls`: `coin`, `bursty[:S,G]`, `periodic[:K/N]`, `none`.
     #[arg(long, default_value = "coin")]
     stalls: String,
+    /// One stream's own pattern, as `hiermerge cosim --stall-stream`
+    /// (`STREAM=PATTERN`, repeatable; merge-module, merger, hierarchy).
+    #[arg(long = "stall-stream", value_name = "STREAM=PATTERN")]
+    stall_stream: Vec<String>,
     /// Output folder (created; files in it are replaced).
     #[arg(long)]
     out: PathBuf,
@@ -113,7 +117,26 @@ fn command_line() -> String {
     format!("hiermerge {}", args.join(" "))
 }
 
+/// The streams' own patterns `--stall-stream` asks for, checked; refused
+/// where `hiermerge cosim` refuses them (one input and one output stream).
+fn stream_stalls(a: &Args) -> Result<cosim::tb::StreamStalls, String> {
+    let s = cosim::tb::StreamStalls::parse(a.stall_stream.iter().map(String::as_str))
+        .map_err(|e| format!("--stall-stream {e}"))?;
+    let single = a.unit == Unit::Translate
+        || (a.unit == Unit::MergeModule && a.stage == Some(MergeStage::MergeLevel));
+    if single && !s.is_empty() {
+        return Err("--stall-stream: this unit has one input and one output stream; --stalls sets their pattern".into());
+    }
+    Ok(s)
+}
+
 fn spec(a: &Args, count: usize, rtl: &Path) -> Result<ExportSpec, String> {
+    let mut spec = unit_spec(a, count, rtl)?;
+    spec.stream_stalls = stream_stalls(a)?;
+    Ok(spec)
+}
+
+fn unit_spec(a: &Args, count: usize, rtl: &Path) -> Result<ExportSpec, String> {
     let stalls = parse_stalls(&a.stalls, a.stall)?;
     let e = |e: cosim::CosimError| e.to_string();
     match (a.unit, a.stage.unwrap_or(MergeStage::Module)) {
@@ -152,6 +175,7 @@ fn spec(a: &Args, count: usize, rtl: &Path) -> Result<ExportSpec, String> {
 
 pub fn main(a: Args) -> CmdResult {
     parse_stalls(&a.stalls, a.stall)?;
+    stream_stalls(&a)?;
     let (stage, capacity, leaf) = (a.stage, a.capacity_bits, a.leaf_bits);
     super::cosim::refuse_unit_flags(a.unit, &a.design, stage, [capacity, leaf], &[])?;
     if a.count == 0 {

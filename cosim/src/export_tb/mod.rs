@@ -25,7 +25,7 @@ use golden::layout::Layout;
 use crate::design::{Design, PortDir};
 use crate::error::{io_err, CosimError, Result};
 use crate::icarus::multi_batch::{driver_gaps, ready_masks, stream_seed};
-use crate::tb::{BenchConfig, Stalls};
+use crate::tb::{BenchConfig, Stalls, StreamStalls};
 use golden::bits::Bits;
 
 pub use store::StoreSpec;
@@ -143,6 +143,9 @@ pub struct ExportSpec {
     pub seed: u64,
     /// The stall pattern of every driver and monitor.
     pub stalls: Stalls,
+    /// Named streams' own patterns, replacing `stalls` on them (the store
+    /// model's as `store_req` and `store_resp`).
+    pub stream_stalls: StreamStalls,
     /// The command line that wrote it (in the testbench's header).
     pub command: String,
     /// A shared store port's store (`store_req` / `store_resp`), answered
@@ -397,6 +400,15 @@ fn mask_words(inputs: &[InputFiles], spec: &ExportSpec) -> usize {
 pub fn write(spec: &ExportSpec, dir: &Path) -> Result<Exported> {
     check(spec)?;
     crate::tb::driver::check_stalls(&spec.stalls)?;
+    let mut streams: Vec<&str> = spec.inputs.iter().map(|i| i.stream.name.as_str()).collect();
+    streams.extend(spec.outputs.iter().map(|o| o.stream.name.as_str()));
+    if spec.store.is_some() {
+        streams.extend(["store_req", "store_resp"]);
+    }
+    spec.stream_stalls
+        .check_names(streams.iter().copied())
+        .map_err(|what| CosimError::Bench { what })?;
+    let stalls_of = |name: &str| spec.stream_stalls.of(name, spec.stalls);
     let vectors = dir.join(VECTORS_DIR);
     fs::create_dir_all(&vectors).map_err(io_err(&vectors))?;
     let mut files = Vec::new();
@@ -411,7 +423,7 @@ pub fn write(spec: &ExportSpec, dir: &Path) -> Result<Exported> {
         let widths = [st.beats.first().map_or(1, Bits::width)];
         let gaps = driver_gaps(
             stream_seed(spec.seed, s),
-            spec.stalls,
+            stalls_of(&st.name),
             &widths,
             st.beats.len(),
         )?;
@@ -436,7 +448,12 @@ pub fn write(spec: &ExportSpec, dir: &Path) -> Result<Exported> {
         ins.push(InputFiles { gaps });
     }
     let words = mask_words(&ins, spec);
-    let masks = ready_masks(spec.seed, &vec![spec.stalls; spec.outputs.len()]);
+    let out_stalls: Vec<Stalls> = spec
+        .outputs
+        .iter()
+        .map(|o| stalls_of(&o.stream.name))
+        .collect();
+    let masks = ready_masks(spec.seed, &out_stalls);
     for (o, (mut rng, mut gen)) in spec.outputs.iter().zip(masks) {
         let st = &o.stream;
         if !st.beats.is_empty() {
@@ -476,10 +493,10 @@ pub fn write(spec: &ExportSpec, dir: &Path) -> Result<Exported> {
             st.reads.iter().map(|&r| hex32(r)).collect(),
         )?;
         // The store model's own stall draws, apart from every stream's.
-        for (k, what) in [(0, "req_ready"), (1, "resp_go")] {
+        for (k, what, stream) in [(0, "req_ready", "store_req"), (1, "resp_go", "store_resp")] {
             let (mut rng, mut gen) = (
                 crate::tb::Prng::derived(stream_seed(spec.seed, 1000 + k), 2),
-                crate::tb::StallGen::new(spec.stalls),
+                crate::tb::StallGen::new(stalls_of(stream)),
             );
             let mask = (0..words)
                 .map(|_| format!("{:016x}", gen.go_word(&mut rng)))

@@ -526,7 +526,10 @@ endmodule
             .map(|o| o.stream.beats.len())
             .sum::<usize>(),
         seed = spec.seed,
-        stalls = spec.stalls,
+        stalls = match spec.stream_stalls.is_empty() {
+            true => spec.stalls.to_string(),
+            false => format!("{} {}", spec.stalls, spec.stream_stalls),
+        },
     )
 }
 

@@ -552,6 +552,7 @@ pub fn export_spec(
         checks: super::multi_stream::export_checks(count),
         seed,
         stalls,
+        stream_stalls: crate::tb::StreamStalls::default(),
         command: String::new(),
         store: None,
     })

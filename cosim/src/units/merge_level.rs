@@ -151,6 +151,7 @@ pub fn export_spec(
         checks: Vec::new(),
         seed,
         stalls,
+        stream_stalls: crate::tb::StreamStalls::default(),
         command: String::new(),
         store: None,
     })

@@ -170,6 +170,7 @@ pub fn export_spec(
         checks: export_checks(count),
         seed,
         stalls,
+        stream_stalls: crate::tb::StreamStalls::default(),
         command: String::new(),
         store: None,
     })

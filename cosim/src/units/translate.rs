@@ -548,6 +548,7 @@ pub fn export_spec(
         ],
         seed,
         stalls,
+        stream_stalls: crate::tb::StreamStalls::default(),
         command: String::new(),
         store: None,
     })

@@ -155,9 +155,9 @@ impl fmt::Display for Stalls {
 }
 
 /// Patterns for named streams, each replacing the bench's pattern of its
-/// side (inputs or outputs) on that stream alone: stalling the writer's
-/// outputs while the fetchers' answers flow is what fills the skid buffers
-/// inside a top, which stalling every stream alike never does.
+/// side (inputs or outputs) on that stream alone: a unit's outputs held in
+/// long runs while its inputs flow, which stalling every stream alike
+/// never gives.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct StreamStalls {
     streams: Vec<(String, Stalls)>,

@@ -229,8 +229,8 @@ pub struct Args {
     /// One stream's own pattern, `STREAM=PATTERN` (`header=bursty:200,2`;
     /// a coin as `coin:P`), in place of `--stalls` on that stream alone;
     /// repeat for more streams. The multi-stream units (merge-module,
-    /// merger, hierarchy) only: stalling a unit's outputs while its inputs
-    /// flow fills the buffers inside it.
+    /// merger, hierarchy) only: e.g. a unit's outputs held while its inputs
+    /// flow.
     #[arg(long = "stall-stream", value_name = "STREAM=PATTERN")]
     stall_stream: Vec<String>,
     /// Directory of the waveform written on a mismatch (or asked by

@@ -185,3 +185,19 @@ fn a_streams_own_pattern_holds_that_stream_alone_on_three_engines() {
         assert!(err.contains(want), "{line}: {err}");
     }
 }
+
+/// The per-node merger top with its `report` held in long stall runs and
+/// nothing else stalled: its header waits until the merge's report has
+/// reached the fetchers. Before it did, the header could leave first, the
+/// merge's end cut a fetcher off from its last decisions, and the next
+/// `cfg` waited for that fetcher forever (a hang at merge 18 of these 30).
+#[test]
+fn the_per_node_merger_drains_its_report_before_its_header() {
+    let r = passes(
+        "cosim --unit merger --mode per-node:1/2 --max-lod 8 --quant-bits 0 --index-bits 12 \
+         --hier-bits 3 --inputs 2 --leaf-bits 6 --capacity-bits 5 --merges hard --count 30 --seed 3",
+        "ir",
+        "none --stall-stream report=bursty:100,2",
+    );
+    assert_eq!(r["transactions"], 30, "{r}");
+}

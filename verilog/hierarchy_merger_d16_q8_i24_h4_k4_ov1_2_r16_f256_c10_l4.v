@@ -8,9 +8,9 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     input  wire cfg_valid,                 // rtl-gen/src/merge/merger/mod.rs:263
     input  wire [568:0] cfg_data,          // rtl-gen/src/merge/merger/mod.rs:263
     output wire cfg_ready,                 // rtl-gen/src/merge/merger/mod.rs:263
-    input  wire report_ready,              // rtl-gen/src/merge/merger/level_mode.rs:122
-    output wire report_valid,              // rtl-gen/src/merge/merger/level_mode.rs:130
-    output wire [57:0] report_data,        // rtl-gen/src/merge/merger/level_mode.rs:131
+    input  wire report_ready,              // rtl-gen/src/merge/merger/level_mode.rs:123
+    output wire report_valid,              // rtl-gen/src/merge/merger/level_mode.rs:131
+    output wire [57:0] report_data,        // rtl-gen/src/merge/merger/level_mode.rs:132
     input  wire f0_node_resp_valid,        // rtl-gen/src/merge/merger/mod.rs:423
     input  wire [149:0] f0_node_resp_data, // rtl-gen/src/merge/merger/mod.rs:423
     output wire f0_node_resp_ready,        // rtl-gen/src/merge/merger/mod.rs:423
@@ -95,20 +95,20 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     output wire refs_valid,                // rtl-gen/src/merge/merger/mod.rs:420
     output wire [27:0] refs_data,          // rtl-gen/src/merge/merger/mod.rs:420
     input  wire refs_ready,                // rtl-gen/src/merge/merger/mod.rs:420
-    output wire w_filling,                 // rtl-gen/src/merge/merger/tail.rs:107
-    output wire w_drain_records,           // rtl-gen/src/merge/merger/tail.rs:107
-    output wire w_drain_refs,              // rtl-gen/src/merge/merger/tail.rs:107
-    input  wire header_ready,              // rtl-gen/src/merge/merger/tail.rs:119
-    output wire header_valid,              // rtl-gen/src/merge/merger/tail.rs:135
-    output wire [94:0] header_data,        // rtl-gen/src/merge/merger/tail.rs:136
-    output wire done,                      // rtl-gen/src/merge/merger/tail.rs:140
-    output wire idle,                      // rtl-gen/src/merge/merger/tail.rs:142
-    output wire module_done                // rtl-gen/src/merge/merger/tail.rs:143
+    output wire w_filling,                 // rtl-gen/src/merge/merger/tail.rs:111
+    output wire w_drain_records,           // rtl-gen/src/merge/merger/tail.rs:111
+    output wire w_drain_refs,              // rtl-gen/src/merge/merger/tail.rs:111
+    input  wire header_ready,              // rtl-gen/src/merge/merger/tail.rs:129
+    output wire header_valid,              // rtl-gen/src/merge/merger/tail.rs:145
+    output wire [94:0] header_data,        // rtl-gen/src/merge/merger/tail.rs:146
+    output wire done,                      // rtl-gen/src/merge/merger/tail.rs:150
+    output wire idle,                      // rtl-gen/src/merge/merger/tail.rs:152
+    output wire module_done                // rtl-gen/src/merge/merger/tail.rs:153
 );
-    localparam [2:0] COUNT = 3'd1;           // rtl-gen/src/merge/merger/level_mode.rs:202
-    localparam [2:0] WAIT = 3'd2;            // rtl-gen/src/merge/merger/level_mode.rs:248
-    localparam [2:0] FINAL = 3'd3;           // rtl-gen/src/merge/merger/level_mode.rs:202
-    localparam [2:0] DONE = 3'd4;            // rtl-gen/src/merge/merger/level_mode.rs:202
+    localparam [2:0] COUNT = 3'd1;           // rtl-gen/src/merge/merger/level_mode.rs:203
+    localparam [2:0] WAIT = 3'd2;            // rtl-gen/src/merge/merger/level_mode.rs:249
+    localparam [2:0] FINAL = 3'd3;           // rtl-gen/src/merge/merger/level_mode.rs:203
+    localparam [2:0] DONE = 3'd4;            // rtl-gen/src/merge/merger/level_mode.rs:203
     reg [177:0] leaves0 [0:15];              // rtl-gen/src/drop_fifo.rs:56
     reg [177:0] leaves1 [0:15];              // rtl-gen/src/drop_fifo.rs:56
     reg [177:0] leaves2 [0:15];              // rtl-gen/src/drop_fifo.rs:56
@@ -322,109 +322,109 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire used1;                              // rtl-gen/src/merge/merger/level_mode.rs:49
     wire used2;                              // rtl-gen/src/merge/merger/level_mode.rs:49
     wire used3;                              // rtl-gen/src/merge/merger/level_mode.rs:49
-    wire u_module_chosen_eq;                 // rtl-gen/src/merge/merger/level_mode.rs:127
-    wire choice_waits;                       // rtl-gen/src/merge/merger/level_mode.rs:127
-    wire choice_waits_not;                   // rtl-gen/src/merge/merger/level_mode.rs:128
-    wire u_module_and;                       // rtl-gen/src/merge/merger/level_mode.rs:128
-    wire choice_seen;                        // rtl-gen/src/merge/merger/level_mode.rs:133
-    reg choice_known;                        // rtl-gen/src/merge/merger/level_mode.rs:134
-    reg choice_ok;                           // rtl-gen/src/merge/merger/level_mode.rs:135
-    reg [4:0] merge_lod;                     // rtl-gen/src/merge/merger/level_mode.rs:136
+    wire u_module_chosen_eq;                 // rtl-gen/src/merge/merger/level_mode.rs:128
+    wire choice_waits;                       // rtl-gen/src/merge/merger/level_mode.rs:128
+    wire choice_waits_not;                   // rtl-gen/src/merge/merger/level_mode.rs:129
+    wire u_module_and;                       // rtl-gen/src/merge/merger/level_mode.rs:129
+    wire choice_seen;                        // rtl-gen/src/merge/merger/level_mode.rs:134
+    reg choice_known;                        // rtl-gen/src/merge/merger/level_mode.rs:135
+    reg choice_ok;                           // rtl-gen/src/merge/merger/level_mode.rs:136
+    reg [4:0] merge_lod;                     // rtl-gen/src/merge/merger/level_mode.rs:137
     wire [1:0] u_module_err;                 // rtl-gen/src/merge/merger/mod.rs:141
     wire [4:0] u_module_lod;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire merging;                            // rtl-gen/src/merge/merger/level_mode.rs:140
-    reg [3:0] fetch_err;                     // rtl-gen/src/merge/merger/level_mode.rs:185
-    reg [1:0] fetch_rank;                    // rtl-gen/src/merge/merger/level_mode.rs:186
-    wire [3:0] cfg_fire_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:187
-    wire [179:0] const_cat;                  // rtl-gen/src/merge/merger/level_mode.rs:189
-    reg fetch0_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:193
-    reg [2:0] phase0;                        // rtl-gen/src/merge/merger/level_mode.rs:200
-    reg [4:0] cmd_lod0;                      // rtl-gen/src/merge/merger/level_mode.rs:205
-    wire phase0_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:202
-    wire phase0_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:202
-    wire [4:0] merging_mux;                  // rtl-gen/src/merge/merger/level_mode.rs:208
-    wire [4:0] phase0_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:208
-    wire phase0_and;                         // rtl-gen/src/merge/merger/level_mode.rs:211
-    wire issuing0;                           // rtl-gen/src/merge/merger/level_mode.rs:220
-    wire used0_and;                          // rtl-gen/src/merge/merger/level_mode.rs:221
-    wire used0_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:223
+    wire merging;                            // rtl-gen/src/merge/merger/level_mode.rs:141
+    reg [3:0] fetch_err;                     // rtl-gen/src/merge/merger/level_mode.rs:186
+    reg [1:0] fetch_rank;                    // rtl-gen/src/merge/merger/level_mode.rs:187
+    wire [3:0] cfg_fire_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:188
+    wire [179:0] const_cat;                  // rtl-gen/src/merge/merger/level_mode.rs:190
+    reg fetch0_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:194
+    reg [2:0] phase0;                        // rtl-gen/src/merge/merger/level_mode.rs:201
+    reg [4:0] cmd_lod0;                      // rtl-gen/src/merge/merger/level_mode.rs:206
+    wire phase0_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:203
+    wire phase0_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:203
+    wire [4:0] merging_mux;                  // rtl-gen/src/merge/merger/level_mode.rs:209
+    wire [4:0] phase0_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:209
+    wire phase0_and;                         // rtl-gen/src/merge/merger/level_mode.rs:212
+    wire issuing0;                           // rtl-gen/src/merge/merger/level_mode.rs:221
+    wire used0_and;                          // rtl-gen/src/merge/merger/level_mode.rs:222
+    wire used0_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:224
     wire [3:0] u_fetch0_err;                 // rtl-gen/src/merge/merger/mod.rs:141
     wire [1:0] u_fetch0_kind;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire used0_not;                          // rtl-gen/src/merge/merger/level_mode.rs:233
-    wire virtual_end0;                       // rtl-gen/src/merge/merger/level_mode.rs:233
-    wire dropping0_or;                       // rtl-gen/src/merge/merger/level_mode.rs:237
-    wire u_fetch0_and;                       // rtl-gen/src/merge/merger/level_mode.rs:238
-    wire u_fetch0_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:240
-    wire [3:0] u_fetch0_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:241
-    wire merging_not;                        // rtl-gen/src/merge/merger/level_mode.rs:244
-    wire step0;                              // rtl-gen/src/merge/merger/level_mode.rs:245
-    wire choice_known_or;                    // rtl-gen/src/merge/merger/level_mode.rs:257
-    wire [2:0] count_pass_mux;               // rtl-gen/src/merge/merger/level_mode.rs:259
+    wire used0_not;                          // rtl-gen/src/merge/merger/level_mode.rs:234
+    wire virtual_end0;                       // rtl-gen/src/merge/merger/level_mode.rs:234
+    wire dropping0_or;                       // rtl-gen/src/merge/merger/level_mode.rs:238
+    wire u_fetch0_and;                       // rtl-gen/src/merge/merger/level_mode.rs:239
+    wire u_fetch0_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:241
+    wire [3:0] u_fetch0_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:242
+    wire merging_not;                        // rtl-gen/src/merge/merger/level_mode.rs:245
+    wire step0;                              // rtl-gen/src/merge/merger/level_mode.rs:246
+    wire choice_known_or;                    // rtl-gen/src/merge/merger/level_mode.rs:258
+    wire [2:0] count_pass_mux;               // rtl-gen/src/merge/merger/level_mode.rs:260
     wire f0_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
     wire f0_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:417
     wire f0_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:193
-    reg [2:0] phase1;                        // rtl-gen/src/merge/merger/level_mode.rs:200
-    reg [4:0] cmd_lod1;                      // rtl-gen/src/merge/merger/level_mode.rs:205
-    wire phase1_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:202
-    wire phase1_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:202
-    wire [4:0] phase1_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:208
-    wire phase1_and;                         // rtl-gen/src/merge/merger/level_mode.rs:211
-    wire issuing1;                           // rtl-gen/src/merge/merger/level_mode.rs:220
-    wire used1_and;                          // rtl-gen/src/merge/merger/level_mode.rs:221
-    wire used1_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:223
+    reg fetch1_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:194
+    reg [2:0] phase1;                        // rtl-gen/src/merge/merger/level_mode.rs:201
+    reg [4:0] cmd_lod1;                      // rtl-gen/src/merge/merger/level_mode.rs:206
+    wire phase1_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:203
+    wire phase1_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:203
+    wire [4:0] phase1_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:209
+    wire phase1_and;                         // rtl-gen/src/merge/merger/level_mode.rs:212
+    wire issuing1;                           // rtl-gen/src/merge/merger/level_mode.rs:221
+    wire used1_and;                          // rtl-gen/src/merge/merger/level_mode.rs:222
+    wire used1_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:224
     wire [3:0] u_fetch1_err;                 // rtl-gen/src/merge/merger/mod.rs:141
     wire [1:0] u_fetch1_kind;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire used1_not;                          // rtl-gen/src/merge/merger/level_mode.rs:233
-    wire virtual_end1;                       // rtl-gen/src/merge/merger/level_mode.rs:233
-    wire dropping1_or;                       // rtl-gen/src/merge/merger/level_mode.rs:237
-    wire u_fetch1_and;                       // rtl-gen/src/merge/merger/level_mode.rs:238
-    wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:240
-    wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:241
-    wire step1;                              // rtl-gen/src/merge/merger/level_mode.rs:245
+    wire used1_not;                          // rtl-gen/src/merge/merger/level_mode.rs:234
+    wire virtual_end1;                       // rtl-gen/src/merge/merger/level_mode.rs:234
+    wire dropping1_or;                       // rtl-gen/src/merge/merger/level_mode.rs:238
+    wire u_fetch1_and;                       // rtl-gen/src/merge/merger/level_mode.rs:239
+    wire u_fetch1_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:241
+    wire [3:0] u_fetch1_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:242
+    wire step1;                              // rtl-gen/src/merge/merger/level_mode.rs:246
     wire f1_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
     wire f1_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:417
     wire f1_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:193
-    reg [2:0] phase2;                        // rtl-gen/src/merge/merger/level_mode.rs:200
-    reg [4:0] cmd_lod2;                      // rtl-gen/src/merge/merger/level_mode.rs:205
-    wire phase2_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:202
-    wire phase2_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:202
-    wire [4:0] phase2_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:208
-    wire phase2_and;                         // rtl-gen/src/merge/merger/level_mode.rs:211
-    wire issuing2;                           // rtl-gen/src/merge/merger/level_mode.rs:220
-    wire used2_and;                          // rtl-gen/src/merge/merger/level_mode.rs:221
-    wire used2_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:223
+    reg fetch2_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:194
+    reg [2:0] phase2;                        // rtl-gen/src/merge/merger/level_mode.rs:201
+    reg [4:0] cmd_lod2;                      // rtl-gen/src/merge/merger/level_mode.rs:206
+    wire phase2_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:203
+    wire phase2_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:203
+    wire [4:0] phase2_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:209
+    wire phase2_and;                         // rtl-gen/src/merge/merger/level_mode.rs:212
+    wire issuing2;                           // rtl-gen/src/merge/merger/level_mode.rs:221
+    wire used2_and;                          // rtl-gen/src/merge/merger/level_mode.rs:222
+    wire used2_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:224
     wire [3:0] u_fetch2_err;                 // rtl-gen/src/merge/merger/mod.rs:141
     wire [1:0] u_fetch2_kind;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire used2_not;                          // rtl-gen/src/merge/merger/level_mode.rs:233
-    wire virtual_end2;                       // rtl-gen/src/merge/merger/level_mode.rs:233
-    wire dropping2_or;                       // rtl-gen/src/merge/merger/level_mode.rs:237
-    wire u_fetch2_and;                       // rtl-gen/src/merge/merger/level_mode.rs:238
-    wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:240
-    wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:241
-    wire step2;                              // rtl-gen/src/merge/merger/level_mode.rs:245
+    wire used2_not;                          // rtl-gen/src/merge/merger/level_mode.rs:234
+    wire virtual_end2;                       // rtl-gen/src/merge/merger/level_mode.rs:234
+    wire dropping2_or;                       // rtl-gen/src/merge/merger/level_mode.rs:238
+    wire u_fetch2_and;                       // rtl-gen/src/merge/merger/level_mode.rs:239
+    wire u_fetch2_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:241
+    wire [3:0] u_fetch2_mux;                 // rtl-gen/src/merge/merger/level_mode.rs:242
+    wire step2;                              // rtl-gen/src/merge/merger/level_mode.rs:246
     wire f2_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
     wire f2_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:417
     wire f2_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
-    reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:193
-    reg [2:0] phase3;                        // rtl-gen/src/merge/merger/level_mode.rs:200
-    reg [4:0] cmd_lod3;                      // rtl-gen/src/merge/merger/level_mode.rs:205
-    wire phase3_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:202
-    wire phase3_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:202
-    wire [4:0] phase3_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:208
-    wire phase3_and;                         // rtl-gen/src/merge/merger/level_mode.rs:211
-    wire issuing3;                           // rtl-gen/src/merge/merger/level_mode.rs:220
-    wire used3_and;                          // rtl-gen/src/merge/merger/level_mode.rs:221
-    wire used3_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:223
+    reg fetch3_cfg_pending;                  // rtl-gen/src/merge/merger/level_mode.rs:194
+    reg [2:0] phase3;                        // rtl-gen/src/merge/merger/level_mode.rs:201
+    reg [4:0] cmd_lod3;                      // rtl-gen/src/merge/merger/level_mode.rs:206
+    wire phase3_eq;                          // rtl-gen/src/merge/merger/level_mode.rs:203
+    wire phase3_eq_1;                        // rtl-gen/src/merge/merger/level_mode.rs:203
+    wire [4:0] phase3_mux;                   // rtl-gen/src/merge/merger/level_mode.rs:209
+    wire phase3_and;                         // rtl-gen/src/merge/merger/level_mode.rs:212
+    wire issuing3;                           // rtl-gen/src/merge/merger/level_mode.rs:221
+    wire used3_and;                          // rtl-gen/src/merge/merger/level_mode.rs:222
+    wire used3_and_1;                        // rtl-gen/src/merge/merger/level_mode.rs:224
     wire [3:0] u_fetch3_err;                 // rtl-gen/src/merge/merger/mod.rs:141
     wire [1:0] u_fetch3_kind;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire used3_not;                          // rtl-gen/src/merge/merger/level_mode.rs:233
-    wire virtual_end3;                       // rtl-gen/src/merge/merger/level_mode.rs:233
-    wire dropping3_or;                       // rtl-gen/src/merge/merger/level_mode.rs:237
-    wire u_fetch3_and;                       // rtl-gen/src/merge/merger/level_mode.rs:238
-    wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:240
-    wire step3;                              // rtl-gen/src/merge/merger/level_mode.rs:245
+    wire used3_not;                          // rtl-gen/src/merge/merger/level_mode.rs:234
+    wire virtual_end3;                       // rtl-gen/src/merge/merger/level_mode.rs:234
+    wire dropping3_or;                       // rtl-gen/src/merge/merger/level_mode.rs:238
+    wire u_fetch3_and;                       // rtl-gen/src/merge/merger/level_mode.rs:239
+    wire u_fetch3_and_1;                     // rtl-gen/src/merge/merger/level_mode.rs:241
+    wire step3;                              // rtl-gen/src/merge/merger/level_mode.rs:246
     wire f3_node_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
     wire f3_ref_req_ready_w;                 // rtl-gen/src/merge/merger/mod.rs:417
     wire f3_cref_req_ready_w;                // rtl-gen/src/merge/merger/mod.rs:417
@@ -463,365 +463,365 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
     wire leaf_take;                          // rtl-gen/src/merge/merger/leaf_merge.rs:79
     wire [4:0] leaf_best_data_lod;           // rtl-gen/src/merge/merger/mod.rs:141
     wire [1:0] u_module_kind;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire out_is_ref;                         // rtl-gen/src/merge/merger/level_mode.rs:324
-    wire out_is_end;                         // rtl-gen/src/merge/merger/level_mode.rs:325
+    wire out_is_ref;                         // rtl-gen/src/merge/merger/level_mode.rs:325
+    wire out_is_end;                         // rtl-gen/src/merge/merger/level_mode.rs:326
     wire u_module_err_1;                     // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] u_module_ref;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [149:0] u_module_rec;               // rtl-gen/src/merge/merger/mod.rs:141
-    wire [179:0] u_module_kind_cat;          // rtl-gen/src/merge/merger/level_mode.rs:328
-    reg crefs_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:335
-    wire choice_ok_not;                      // rtl-gen/src/merge/merger/level_mode.rs:337
-    wire crefs_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:337
-    wire choice_ok_or;                       // rtl-gen/src/merge/merger/level_mode.rs:338
-    reg leaf_overflow_q;                     // rtl-gen/src/merge/merger/level_mode.rs:356
-    reg base0_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:361
-    wire base0_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire [179:0] u_module_kind_cat;          // rtl-gen/src/merge/merger/level_mode.rs:329
+    reg crefs_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:336
+    wire choice_ok_not;                      // rtl-gen/src/merge/merger/level_mode.rs:338
+    wire crefs_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:338
+    wire choice_ok_or;                       // rtl-gen/src/merge/merger/level_mode.rs:339
+    reg leaf_overflow_q;                     // rtl-gen/src/merge/merger/level_mode.rs:357
+    reg base0_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire base0_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves0_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves0_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves0_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves0_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves0_push;                       // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves0_push;                       // rtl-gen/src/merge/merger/level_mode.rs:369
     wire leaves0_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves0_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base0_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire base0_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:373
     wire [149:0] leaves0_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves0_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves0_end;                        // rtl-gen/src/merge/merger/level_mode.rs:378
-    wire leaves0_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves0_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire base0_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire out_is_ref_not;                     // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base0_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base0_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base0_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire leaves0_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:386
-    reg base1_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:361
-    wire base1_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves0_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves0_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire leaves0_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire base0_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire out_is_ref_not;                     // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base0_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base0_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base0_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire leaves0_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:387
+    reg base1_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire base1_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves1_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves1_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves1_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves1_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves1_push;                       // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves1_push;                       // rtl-gen/src/merge/merger/level_mode.rs:369
     wire leaves1_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves1_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base1_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire base1_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:373
     wire [149:0] leaves1_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves1_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves1_end;                        // rtl-gen/src/merge/merger/level_mode.rs:378
-    wire leaves1_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves1_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire base1_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base1_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base1_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base1_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire leaves1_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:386
-    reg base2_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:361
-    wire base2_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves1_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves1_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire leaves1_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire base1_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base1_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base1_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base1_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire leaves1_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:387
+    reg base2_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire base2_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves2_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves2_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves2_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves2_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves2_push;                       // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves2_push;                       // rtl-gen/src/merge/merger/level_mode.rs:369
     wire leaves2_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves2_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base2_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire base2_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:373
     wire [149:0] leaves2_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves2_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves2_end;                        // rtl-gen/src/merge/merger/level_mode.rs:378
-    wire leaves2_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves2_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire base2_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base2_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base2_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base2_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire leaves2_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire base2_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:399
-    reg base3_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:361
-    wire base3_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves2_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves2_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire leaves2_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire base2_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base2_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base2_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base2_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire leaves2_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire base2_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:400
+    reg base3_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire base3_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves3_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves3_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves3_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves3_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves3_push;                       // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves3_push;                       // rtl-gen/src/merge/merger/level_mode.rs:369
     wire leaves3_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves3_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base3_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire base3_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:373
     wire [149:0] leaves3_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves3_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves3_end;                        // rtl-gen/src/merge/merger/level_mode.rs:378
-    wire leaves3_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves3_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire base3_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base3_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base3_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base3_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire leaves3_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire base3_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:400
-    reg base4_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:361
-    wire base4_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves3_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves3_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire leaves3_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire base3_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base3_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base3_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base3_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire leaves3_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire base3_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:401
+    reg base4_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire base4_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves4_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves4_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves4_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves4_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves4_push;                       // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves4_push;                       // rtl-gen/src/merge/merger/level_mode.rs:369
     wire leaves4_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves4_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base4_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire base4_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:373
     wire [149:0] leaves4_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves4_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves4_end;                        // rtl-gen/src/merge/merger/level_mode.rs:378
-    wire leaves4_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves4_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire base4_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base4_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base4_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base4_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire leaves4_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:386
-    reg base5_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:361
-    wire base5_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves4_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves4_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire leaves4_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire base4_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base4_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base4_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base4_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire leaves4_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:387
+    reg base5_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire base5_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves5_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves5_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves5_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves5_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves5_push;                       // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves5_push;                       // rtl-gen/src/merge/merger/level_mode.rs:369
     wire leaves5_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves5_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base5_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire base5_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:373
     wire [149:0] leaves5_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves5_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves5_end;                        // rtl-gen/src/merge/merger/level_mode.rs:378
-    wire leaves5_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves5_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire base5_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base5_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base5_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base5_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire leaves5_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire base5_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:399
-    reg base6_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:361
-    wire base6_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves5_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves5_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire leaves5_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire base5_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base5_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base5_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base5_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire leaves5_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire base5_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:400
+    reg base6_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire base6_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves6_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves6_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves6_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves6_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves6_push;                       // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves6_push;                       // rtl-gen/src/merge/merger/level_mode.rs:369
     wire leaves6_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves6_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base6_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire base6_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:373
     wire [149:0] leaves6_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves6_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves6_end;                        // rtl-gen/src/merge/merger/level_mode.rs:378
-    wire leaves6_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves6_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire base6_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base6_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base6_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base6_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire leaves6_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:386
-    reg base7_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:361
-    wire base7_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves6_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves6_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire leaves6_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire base6_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base6_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base6_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base6_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire leaves6_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:387
+    reg base7_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire base7_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves7_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves7_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves7_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves7_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves7_push;                       // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves7_push;                       // rtl-gen/src/merge/merger/level_mode.rs:369
     wire leaves7_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves7_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base7_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire base7_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:373
     wire [149:0] leaves7_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves7_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves7_end;                        // rtl-gen/src/merge/merger/level_mode.rs:378
-    wire leaves7_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves7_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire base7_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base7_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base7_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base7_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire leaves7_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire base7_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:400
-    reg base8_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:361
-    wire base8_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves7_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves7_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire leaves7_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire base7_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base7_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base7_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base7_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire leaves7_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire base7_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:401
+    reg base8_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire base8_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves8_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves8_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves8_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves8_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves8_push;                       // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves8_push;                       // rtl-gen/src/merge/merger/level_mode.rs:369
     wire leaves8_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves8_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base8_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire base8_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:373
     wire [149:0] leaves8_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves8_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves8_end;                        // rtl-gen/src/merge/merger/level_mode.rs:378
-    wire leaves8_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves8_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire base8_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base8_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base8_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base8_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire leaves8_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire base8_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:399
-    reg base9_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:361
-    wire base9_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves8_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves8_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire leaves8_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire base8_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base8_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base8_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base8_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire leaves8_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire base8_at_m_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:400
+    reg base9_end_sent;                      // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire base9_at_m;                         // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves9_wr;                    // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves9_rd;                    // rtl-gen/src/drop_fifo.rs:58
     wire leaves9_empty;                      // rtl-gen/src/drop_fifo.rs:59
     wire leaves9_full;                       // rtl-gen/src/drop_fifo.rs:60
-    wire leaves9_push;                       // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves9_push;                       // rtl-gen/src/merge/merger/level_mode.rs:369
     wire leaves9_wr_put;                     // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves9_rd_1;               // rtl-gen/src/drop_fifo.rs:95
-    wire base9_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire base9_above_m;                      // rtl-gen/src/merge/merger/level_mode.rs:373
     wire [149:0] leaves9_rec;                // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves9_ref;                 // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves9_end;                        // rtl-gen/src/merge/merger/level_mode.rs:378
-    wire leaves9_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves9_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire base9_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base9_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base9_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base9_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire leaves9_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:386
-    reg base10_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:361
-    wire base10_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves9_end;                        // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves9_empty_not;                  // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire leaves9_head_out;                   // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire base9_end_sent_not;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base9_at_m_or;                      // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base9_end_sent_and;                 // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base9_end_sent_and_1;               // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire leaves9_pop;                        // rtl-gen/src/merge/merger/level_mode.rs:387
+    reg base10_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire base10_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves10_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves10_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves10_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves10_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves10_push;                      // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves10_push;                      // rtl-gen/src/merge/merger/level_mode.rs:369
     wire leaves10_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves10_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base10_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire base10_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:373
     wire [149:0] leaves10_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves10_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves10_end;                       // rtl-gen/src/merge/merger/level_mode.rs:378
-    wire leaves10_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves10_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire base10_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base10_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base10_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base10_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire leaves10_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:386
-    reg base11_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:361
-    wire base11_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves10_end;                       // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves10_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire leaves10_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire base10_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base10_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base10_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base10_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire leaves10_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:387
+    reg base11_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire base11_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves11_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves11_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves11_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves11_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves11_push;                      // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves11_push;                      // rtl-gen/src/merge/merger/level_mode.rs:369
     wire leaves11_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves11_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base11_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire base11_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:373
     wire [149:0] leaves11_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves11_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves11_end;                       // rtl-gen/src/merge/merger/level_mode.rs:378
-    wire leaves11_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves11_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire base11_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base11_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base11_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base11_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire leaves11_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire base11_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:399
-    wire base11_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:400
-    reg base12_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:361
-    wire base12_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves11_end;                       // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves11_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire leaves11_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire base11_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base11_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base11_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base11_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire leaves11_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire base11_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:400
+    wire base11_at_m_mux_1;                  // rtl-gen/src/merge/merger/level_mode.rs:401
+    reg base12_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire base12_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves12_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves12_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves12_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves12_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves12_push;                      // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves12_push;                      // rtl-gen/src/merge/merger/level_mode.rs:369
     wire leaves12_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves12_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base12_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire base12_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:373
     wire [149:0] leaves12_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves12_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves12_end;                       // rtl-gen/src/merge/merger/level_mode.rs:378
-    wire leaves12_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves12_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire base12_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base12_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base12_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base12_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire leaves12_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:386
-    reg base13_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:361
-    wire base13_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves12_end;                       // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves12_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire leaves12_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire base12_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base12_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base12_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base12_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire leaves12_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:387
+    reg base13_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire base13_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves13_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves13_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves13_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves13_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves13_push;                      // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves13_push;                      // rtl-gen/src/merge/merger/level_mode.rs:369
     wire leaves13_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves13_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base13_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire base13_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:373
     wire [149:0] leaves13_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves13_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves13_end;                       // rtl-gen/src/merge/merger/level_mode.rs:378
-    wire leaves13_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves13_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire base13_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base13_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base13_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base13_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire leaves13_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:386
-    reg base14_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:361
-    wire base14_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves13_end;                       // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves13_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire leaves13_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire base13_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base13_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base13_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base13_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire leaves13_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:387
+    reg base14_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire base14_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves14_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves14_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves14_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves14_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves14_push;                      // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves14_push;                      // rtl-gen/src/merge/merger/level_mode.rs:369
     wire leaves14_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves14_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base14_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire base14_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:373
     wire [149:0] leaves14_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves14_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves14_end;                       // rtl-gen/src/merge/merger/level_mode.rs:378
-    wire leaves14_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves14_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire base14_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base14_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base14_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base14_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire leaves14_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire base14_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:399
-    reg base15_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:361
-    wire base15_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:363
+    wire leaves14_end;                       // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves14_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire leaves14_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire base14_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base14_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base14_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base14_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire leaves14_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire base14_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:400
+    reg base15_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire base15_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:364
     reg [4:0] leaves15_wr;                   // rtl-gen/src/drop_fifo.rs:57
     reg [4:0] leaves15_rd;                   // rtl-gen/src/drop_fifo.rs:58
     wire leaves15_empty;                     // rtl-gen/src/drop_fifo.rs:59
     wire leaves15_full;                      // rtl-gen/src/drop_fifo.rs:60
-    wire leaves15_push;                      // rtl-gen/src/merge/merger/level_mode.rs:368
+    wire leaves15_push;                      // rtl-gen/src/merge/merger/level_mode.rs:369
     wire leaves15_wr_put;                    // rtl-gen/src/drop_fifo.rs:89
     wire [177:0] leaves15_rd_1;              // rtl-gen/src/drop_fifo.rs:95
-    wire base15_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:372
+    wire base15_above_m;                     // rtl-gen/src/merge/merger/level_mode.rs:373
     wire [149:0] leaves15_rec;               // rtl-gen/src/merge/merger/mod.rs:141
     wire [27:0] leaves15_ref;                // rtl-gen/src/merge/merger/mod.rs:141
-    wire leaves15_end;                       // rtl-gen/src/merge/merger/level_mode.rs:378
-    wire leaves15_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire leaves15_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:379
-    wire base15_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base15_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:381
-    wire base15_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:380
-    wire base15_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire leaves15_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:386
-    wire base15_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:400
-    reg base16_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:361
-    wire base16_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:363
-    wire base16_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:390
-    wire base16_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:390
-    wire base16_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:399
+    wire leaves15_end;                       // rtl-gen/src/merge/merger/level_mode.rs:379
+    wire leaves15_empty_not;                 // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire leaves15_head_out;                  // rtl-gen/src/merge/merger/level_mode.rs:380
+    wire base15_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base15_at_m_or;                     // rtl-gen/src/merge/merger/level_mode.rs:382
+    wire base15_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:381
+    wire base15_end_sent_and_1;              // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire leaves15_pop;                       // rtl-gen/src/merge/merger/level_mode.rs:387
+    wire base15_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:401
+    reg base16_end_sent;                     // rtl-gen/src/merge/merger/level_mode.rs:362
+    wire base16_at_m;                        // rtl-gen/src/merge/merger/level_mode.rs:364
+    wire base16_end_sent_not;                // rtl-gen/src/merge/merger/level_mode.rs:391
+    wire base16_end_sent_and;                // rtl-gen/src/merge/merger/level_mode.rs:391
+    wire base16_at_m_mux;                    // rtl-gen/src/merge/merger/level_mode.rs:400
     reg leaf_overflow_header;                // rtl-gen/src/merge/merger/mod.rs:228
-    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:405
-    wire merging_and;                        // rtl-gen/src/merge/merger/level_mode.rs:404
-    reg count_overflow;                      // rtl-gen/src/merge/merger/level_mode.rs:413
+    wire out_is_ref_mux;                     // rtl-gen/src/merge/merger/level_mode.rs:406
+    wire merging_and;                        // rtl-gen/src/merge/merger/level_mode.rs:405
+    reg count_overflow;                      // rtl-gen/src/merge/merger/level_mode.rs:414
     reg count_overflow_header;               // rtl-gen/src/merge/merger/mod.rs:228
     wire w_ref_req_ready_w;                  // rtl-gen/src/merge/merger/mod.rs:417
     wire nodes_ready_w;                      // rtl-gen/src/merge/merger/mod.rs:417
     wire refs_ready_w;                       // rtl-gen/src/merge/merger/mod.rs:417
-    wire dropping0_and;                      // rtl-gen/src/merge/merger/tail.rs:114
-    wire merge_settled;                      // rtl-gen/src/merge/merger/tail.rs:115
-    wire header_offered;                     // rtl-gen/src/merge/merger/tail.rs:117
-    reg done_pulse;                          // rtl-gen/src/merge/merger/tail.rs:138
-    wire merger_idle;                        // rtl-gen/src/merge/merger/tail.rs:141
+    wire dropping0_and;                      // rtl-gen/src/merge/merger/tail.rs:120
+    wire merge_settled;                      // rtl-gen/src/merge/merger/tail.rs:123
+    wire header_offered;                     // rtl-gen/src/merge/merger/tail.rs:127
+    reg done_pulse;                          // rtl-gen/src/merge/merger/tail.rs:148
+    wire merger_idle;                        // rtl-gen/src/merge/merger/tail.rs:151
 
     assign header_fire = header_offered & header_ready;
     assign header_hold = header_offered & (~header_ready);
@@ -1784,24 +1784,24 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
             done_pulse <= 1'b0;
         end else begin
             if ((used0_and_1 & phase0_eq_1) & merging_not) begin
-                dropping0 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:271
+                dropping0 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:272
             end else if (u_fetch0_and & (u_fetch0_kind == 2'd3)) begin
-                dropping0 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:271
+                dropping0 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:272
             end
             if ((used1_and_1 & phase1_eq_1) & merging_not) begin
-                dropping1 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:271
+                dropping1 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:272
             end else if (u_fetch1_and & (u_fetch1_kind == 2'd3)) begin
-                dropping1 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:271
+                dropping1 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:272
             end
             if ((used2_and_1 & phase2_eq_1) & merging_not) begin
-                dropping2 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:271
+                dropping2 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:272
             end else if (u_fetch2_and & (u_fetch2_kind == 2'd3)) begin
-                dropping2 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:271
+                dropping2 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:272
             end
             if ((used3_and_1 & phase3_eq_1) & merging_not) begin
-                dropping3 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:271
+                dropping3 <= 1'b1;           // rtl-gen/src/merge/merger/level_mode.rs:272
             end else if (u_fetch3_and & (u_fetch3_kind == 2'd3)) begin
-                dropping3 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:271
+                dropping3 <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:272
             end
             header_open <= header_fire ? 1'b0 : (header_open | merge_settled);
             if (cfg_fire) begin
@@ -1809,18 +1809,18 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:379
                 busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:270
                 cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:305
-                fetch0_cfg_pending <= cfg_data_count > 3'd0; // rtl-gen/src/merge/merger/level_mode.rs:198
-                phase0 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:258
-                cmd_lod0 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:266
-                fetch1_cfg_pending <= cfg_data_count > 3'd1; // rtl-gen/src/merge/merger/level_mode.rs:198
-                phase1 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:258
-                cmd_lod1 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:266
-                fetch2_cfg_pending <= cfg_data_count > 3'd2; // rtl-gen/src/merge/merger/level_mode.rs:198
-                phase2 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:258
-                cmd_lod2 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:266
-                fetch3_cfg_pending <= cfg_data_count > 3'd3; // rtl-gen/src/merge/merger/level_mode.rs:198
-                phase3 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:258
-                cmd_lod3 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:266
+                fetch0_cfg_pending <= cfg_data_count > 3'd0; // rtl-gen/src/merge/merger/level_mode.rs:199
+                phase0 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:259
+                cmd_lod0 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:267
+                fetch1_cfg_pending <= cfg_data_count > 3'd1; // rtl-gen/src/merge/merger/level_mode.rs:199
+                phase1 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:259
+                cmd_lod1 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:267
+                fetch2_cfg_pending <= cfg_data_count > 3'd2; // rtl-gen/src/merge/merger/level_mode.rs:199
+                phase2 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:259
+                cmd_lod2 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:267
+                fetch3_cfg_pending <= cfg_data_count > 3'd3; // rtl-gen/src/merge/merger/level_mode.rs:199
+                phase3 <= count_pass_mux;    // rtl-gen/src/merge/merger/level_mode.rs:259
+                cmd_lod3 <= cfg_data_lo;     // rtl-gen/src/merge/merger/level_mode.rs:267
                 fetch_err_header <= fetch_err; // rtl-gen/src/merge/merger/mod.rs:229
                 fetch_rank_header <= fetch_rank; // rtl-gen/src/merge/merger/mod.rs:229
                 leaf_overflow_header <= leaf_overflow_q; // rtl-gen/src/merge/merger/mod.rs:229
@@ -1836,72 +1836,72 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                     busy <= 1'b0;            // rtl-gen/src/merge/merger/mod.rs:270
                 end
                 if (fetch0_cfg_pending & u_fetch0_cfg_ready) begin
-                    fetch0_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:198
+                    fetch0_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:199
                 end
                 if (step0) begin
                     if (phase0_eq) begin
                         if (used0 | (cmd_lod0 == hi)) begin
-                            phase0 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:248
+                            phase0 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:249
                         end
                     end else begin
-                        phase0 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:247
+                        phase0 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:248
                     end
                 end else if ((phase0 == WAIT) & choice_known_or) begin
-                    phase0 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:262
+                    phase0 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:263
                 end
                 if (step0 & phase0_eq) begin
-                    cmd_lod0 <= cmd_lod0 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:268
+                    cmd_lod0 <= cmd_lod0 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:269
                 end
                 if (fetch1_cfg_pending & u_fetch1_cfg_ready) begin
-                    fetch1_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:198
+                    fetch1_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:199
                 end
                 if (step1) begin
                     if (phase1_eq) begin
                         if (used1 | (cmd_lod1 == hi)) begin
-                            phase1 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:248
+                            phase1 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:249
                         end
                     end else begin
-                        phase1 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:247
+                        phase1 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:248
                     end
                 end else if ((phase1 == WAIT) & choice_known_or) begin
-                    phase1 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:262
+                    phase1 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:263
                 end
                 if (step1 & phase1_eq) begin
-                    cmd_lod1 <= cmd_lod1 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:268
+                    cmd_lod1 <= cmd_lod1 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:269
                 end
                 if (fetch2_cfg_pending & u_fetch2_cfg_ready) begin
-                    fetch2_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:198
+                    fetch2_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:199
                 end
                 if (step2) begin
                     if (phase2_eq) begin
                         if (used2 | (cmd_lod2 == hi)) begin
-                            phase2 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:248
+                            phase2 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:249
                         end
                     end else begin
-                        phase2 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:247
+                        phase2 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:248
                     end
                 end else if ((phase2 == WAIT) & choice_known_or) begin
-                    phase2 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:262
+                    phase2 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:263
                 end
                 if (step2 & phase2_eq) begin
-                    cmd_lod2 <= cmd_lod2 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:268
+                    cmd_lod2 <= cmd_lod2 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:269
                 end
                 if (fetch3_cfg_pending & u_fetch3_cfg_ready) begin
-                    fetch3_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:198
+                    fetch3_cfg_pending <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:199
                 end
                 if (step3) begin
                     if (phase3_eq) begin
                         if (used3 | (cmd_lod3 == hi)) begin
-                            phase3 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:248
+                            phase3 <= WAIT;  // rtl-gen/src/merge/merger/level_mode.rs:249
                         end
                     end else begin
-                        phase3 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:247
+                        phase3 <= DONE;      // rtl-gen/src/merge/merger/level_mode.rs:248
                     end
                 end else if ((phase3 == WAIT) & choice_known_or) begin
-                    phase3 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:262
+                    phase3 <= FINAL;         // rtl-gen/src/merge/merger/level_mode.rs:263
                 end
                 if (step3 & phase3_eq) begin
-                    cmd_lod3 <= cmd_lod3 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:268
+                    cmd_lod3 <= cmd_lod3 + 5'd1; // rtl-gen/src/merge/merger/level_mode.rs:269
                 end
             end
             if ((cfg_fire & busy) & (~header_fire)) begin
@@ -1910,65 +1910,65 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 queued <= 1'b0;              // rtl-gen/src/merge/merger/mod.rs:271
             end
             if (choice_seen) begin
-                choice_known <= 1'b1;        // rtl-gen/src/merge/merger/level_mode.rs:137
-                choice_ok <= u_module_err == 2'd0; // rtl-gen/src/merge/merger/level_mode.rs:138
-                merge_lod <= u_module_lod;   // rtl-gen/src/merge/merger/level_mode.rs:139
+                choice_known <= 1'b1;        // rtl-gen/src/merge/merger/level_mode.rs:138
+                choice_ok <= u_module_err == 2'd0; // rtl-gen/src/merge/merger/level_mode.rs:139
+                merge_lod <= u_module_lod;   // rtl-gen/src/merge/merger/level_mode.rs:140
             end else if (header_fire) begin
-                choice_known <= 1'b0;        // rtl-gen/src/merge/merger/level_mode.rs:137
-                choice_ok <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:138
+                choice_known <= 1'b0;        // rtl-gen/src/merge/merger/level_mode.rs:138
+                choice_ok <= 1'b0;           // rtl-gen/src/merge/merger/level_mode.rs:139
             end
             if (!flags_hold) begin
-                fetch_err <= u_fetch3_and_1 ? u_fetch3_err : u_fetch2_mux; // rtl-gen/src/merge/merger/level_mode.rs:281
+                fetch_err <= u_fetch3_and_1 ? u_fetch3_err : u_fetch2_mux; // rtl-gen/src/merge/merger/level_mode.rs:282
                 if (u_fetch3_and_1) begin
-                    fetch_rank <= 2'd3;      // rtl-gen/src/merge/merger/level_mode.rs:242
+                    fetch_rank <= 2'd3;      // rtl-gen/src/merge/merger/level_mode.rs:243
                 end else if (u_fetch2_and_1) begin
-                    fetch_rank <= 2'd2;      // rtl-gen/src/merge/merger/level_mode.rs:242
+                    fetch_rank <= 2'd2;      // rtl-gen/src/merge/merger/level_mode.rs:243
                 end else if (u_fetch1_and_1) begin
-                    fetch_rank <= 2'd1;      // rtl-gen/src/merge/merger/level_mode.rs:242
+                    fetch_rank <= 2'd1;      // rtl-gen/src/merge/merger/level_mode.rs:243
                 end else if (u_fetch0_and_1) begin
-                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/level_mode.rs:242
+                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/level_mode.rs:243
                 end else if (cfg_fire) begin
-                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/level_mode.rs:188
+                    fetch_rank <= 2'd0;      // rtl-gen/src/merge/merger/level_mode.rs:189
                 end
                 if (leaves15_push & leaves15_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:370
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
                 end else if (leaves14_push & leaves14_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:370
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
                 end else if (leaves13_push & leaves13_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:370
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
                 end else if (leaves12_push & leaves12_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:370
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
                 end else if (leaves11_push & leaves11_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:370
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
                 end else if (leaves10_push & leaves10_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:370
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
                 end else if (leaves9_push & leaves9_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:370
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
                 end else if (leaves8_push & leaves8_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:370
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
                 end else if (leaves7_push & leaves7_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:370
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
                 end else if (leaves6_push & leaves6_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:370
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
                 end else if (leaves5_push & leaves5_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:370
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
                 end else if (leaves4_push & leaves4_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:370
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
                 end else if (leaves3_push & leaves3_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:370
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
                 end else if (leaves2_push & leaves2_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:370
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
                 end else if (leaves1_push & leaves1_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:370
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
                 end else if (leaves0_push & leaves0_full) begin
-                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:370
+                    leaf_overflow_q <= 1'b1; // rtl-gen/src/merge/merger/level_mode.rs:371
                 end else if (cfg_fire) begin
-                    leaf_overflow_q <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:357
+                    leaf_overflow_q <= 1'b0; // rtl-gen/src/merge/merger/level_mode.rs:358
                 end
                 if (((u_module_out_valid & merging_and) & (u_module_kind == 2'd0)) & u_module_err_1) begin
-                    count_overflow <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:416
+                    count_overflow <= 1'b1;  // rtl-gen/src/merge/merger/level_mode.rs:417
                 end else if (cfg_fire) begin
-                    count_overflow <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:416
+                    count_overflow <= 1'b0;  // rtl-gen/src/merge/merger/level_mode.rs:417
                 end
             end
             if (leaves_all_valid & leaves_all_end) begin
@@ -1977,14 +1977,14 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 leaves_done <= 1'b0;         // rtl-gen/src/merge/merger/leaf_merge.rs:86
             end
             if ((crefs_end_sent_and & u_writer_crefs_ready) & choice_ok_or) begin
-                crefs_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:349
+                crefs_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:350
             end else if (header_fire) begin
-                crefs_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:349
+                crefs_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:350
             end
             if (base0_end_sent_and_1 & (base0_at_m ? out_is_end : (base0_above_m ? leaves0_end : 1'b1))) begin
-                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:398
+                base0_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:399
             end else if (header_fire) begin
-                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:398
+                base0_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:399
             end
             if (header_fire) begin
                 leaves0_wr <= 5'd0;          // rtl-gen/src/drop_fifo.rs:103
@@ -2118,84 +2118,84 @@ module hierarchy_merger_d16_q8_i24_h4_k4_ov1_2_r16_f256_c10_l4 (
                 end
             end
             if (base1_end_sent_and_1 & (base1_at_m ? out_is_end : (base1_above_m ? leaves1_end : 1'b1))) begin
-                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:398
+                base1_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:399
             end else if (header_fire) begin
-                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:398
+                base1_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:399
             end
             if (base2_end_sent_and_1 & (base2_at_m ? out_is_end : (base2_above_m ? leaves2_end : 1'b1))) begin
-                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:398
+                base2_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:399
             end else if (header_fire) begin
-                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:398
+                base2_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:399
             end
             if (base3_end_sent_and_1 & (base3_at_m ? out_is_end : (base3_above_m ? leaves3_end : 1'b1))) begin
-                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:398
+                base3_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:399
             end else if (header_fire) begin
-                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:398
+                base3_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:399
             end
             if (base4_end_sent_and_1 & (base4_at_m ? out_is_end : (base4_above_m ? leaves4_end : 1'b1))) begin
-                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:398
+                base4_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:399
             end else if (header_fire) begin
-                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:398
+                base4_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:399
             end
             if (base5_end_sent_and_1 & (base5_at_m ? out_is_end : (base5_above_m ? leaves5_end : 1'b1))) begin
-                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:398
+                base5_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:399
             end else if (header_fire) begin
-                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:398
+                base5_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:399
             end
             if (base6_end_sent_and_1 & (base6_at_m ? out_is_end : (base6_above_m ? leaves6_end : 1'b1))) begin
-                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:398
+                base6_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:399
             end else if (header_fire) begin
-                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:398
+                base6_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:399
             end
             if (base7_end_sent_and_1 & (base7_at_m ? out_is_end : (base7_above_m ? leaves7_end : 1'b1))) begin
-                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:398
+                base7_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:399
             end else if (header_fire) begin
-                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:398
+                base7_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:399
             end
             if (base8_end_sent_and_1 & (base8_at_m ? out_is_end : (base8_above_m ? leaves8_end : 1'b1))) begin
-                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:398
+                base8_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:399
             end else if (header_fire) begin
-                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:398
+                base8_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:399
             end
             if (base9_end_sent_and_1 & (base9_at_m ? out_is_end : (base9_above_m ? leaves9_end : 1'b1))) begin
-                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:398
+                base9_end_sent <= 1'b1;      // rtl-gen/src/merge/merger/level_mode.rs:399
             end else if (header_fire) begin
-                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:398
+                base9_end_sent <= 1'b0;      // rtl-gen/src/merge/merger/level_mode.rs:399
             end
             if (base10_end_sent_and_1 & (base10_at_m ? out_is_end : (base10_above_m ? leaves10_end : 1'b1))) begin
-                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:398
+                base10_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:399
             end else if (header_fire) begin
-                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:398
+                base10_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:399
             end
             if (base11_end_sent_and_1 & (base11_at_m ? out_is_end : (base11_above_m ? leaves11_end : 1'b1))) begin
-                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:398
+                base11_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:399
             end else if (header_fire) begin
-                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:398
+                base11_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:399
             end
             if (base12_end_sent_and_1 & (base12_at_m ? out_is_end : (base12_above_m ? leaves12_end : 1'b1))) begin
-                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:398
+                base12_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:399
             end else if (header_fire) begin
-                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:398
+                base12_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:399
             end
             if (base13_end_sent_and_1 & (base13_at_m ? out_is_end : (base13_above_m ? leaves13_end : 1'b1))) begin
-                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:398
+                base13_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:399
             end else if (header_fire) begin
-                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:398
+                base13_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:399
             end
             if (base14_end_sent_and_1 & (base14_at_m ? out_is_end : (base14_above_m ? leaves14_end : 1'b1))) begin
-                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:398
+                base14_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:399
             end else if (header_fire) begin
-                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:398
+                base14_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:399
             end
             if (base15_end_sent_and_1 & (base15_at_m ? out_is_end : (base15_above_m ? leaves15_end : 1'b1))) begin
-                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:398
+                base15_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:399
             end else if (header_fire) begin
-                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:398
+                base15_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:399
             end
             if ((base16_end_sent_and & u_builder_base16_ready) & (base16_at_m ? out_is_end : 1'b1)) begin
-                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:398
+                base16_end_sent <= 1'b1;     // rtl-gen/src/merge/merger/level_mode.rs:399
             end else if (header_fire) begin
-                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:398
+                base16_end_sent <= 1'b0;     // rtl-gen/src/merge/merger/level_mode.rs:399
             end
             done_pulse <= header_fire;
         end

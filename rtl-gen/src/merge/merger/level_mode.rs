@@ -91,6 +91,7 @@ pub(super) fn level_merger_unit(c: &MergerConfig) -> Result<Module, String> {
             header_hold: s.header_hold,
             header_open: s.header_open,
             commands_sent: s.commands_sent,
+            report_drained: None,
             flags: [leaf_over, count_over, ferr, ferr_rank],
             busy: s.busy,
             dropping: &s.dropping,

@@ -57,7 +57,7 @@ pub(super) fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
         good,
         finished,
     };
-    let next_pass = report_fork(&m, p, &fl, &s, &g);
+    let (next_pass, report_drained) = report_fork(&m, p, &fl, &s, &g);
     let (ferr, ferr_rank, leaves_in) = inputs(&m, c, &ml, &fl, &s, &g, next_pass, &fetch_mod);
 
     // ---- the leaves above lo: k-way merge by (LOD, Morton, rank).
@@ -94,6 +94,7 @@ pub(super) fn per_node_merger_unit(c: &MergerConfig) -> Result<Module, String> {
             header_hold: s.header_hold,
             header_open: s.header_open,
             commands_sent: s.commands_sent,
+            report_drained: Some(report_drained),
             flags: [leaf_over, count_over, ferr, ferr_rank],
             busy: s.busy,
             dropping: &s.dropping,
@@ -116,14 +117,17 @@ struct Merge<'a, 'm> {
 /// The module's `report`: an eager fork to the top's `report` and, as the
 /// narrow beat, to every fetcher running the per-node command. Each side
 /// takes the beat once (`taken`); the module's beat leaves when all have.
-/// Returns the clock a `pass_end` beat with `more` leaves.
+/// Returns the clock a `pass_end` beat with `more` leaves, and whether the
+/// merge's last report beat (the `pass_end` without `more` that ends every
+/// merge, a refusal's included) has left: the fetchers are fed only while
+/// the merge is busy, so its header waits for that.
 fn report_fork<'m>(
     m: &'m Module,
     p: &Params,
     fl: &FetchLayout,
     s: &Shell<'m>,
     g: &Merge<'_, 'm>,
-) -> Signal<'m> {
+) -> (Signal<'m>, Signal<'m>) {
     let fpn = fl.pn.as_ref().expect("a per-node fetch layout");
     let pl = PerNodeLayout::new(p);
     let lit = |v: u64, w: u32| m.lit(v as u128, w);
@@ -159,9 +163,15 @@ fn report_fork<'m>(
     for (taken, fire) in fork {
         taken.next(rep_fire.mux(zero, fire.mux(one, taken)));
     }
-    let next_pass = (rep_fire & get(rep_d, &pl.pass_end) & get(rep_d, &pl.more)).name("next_pass");
-
-    next_pass
+    let pass_end = get(rep_d, &pl.pass_end);
+    let more = get(rep_d, &pl.more);
+    let next_pass = (rep_fire & pass_end & more).name("next_pass");
+    let drained = m.reg("report_drained", 1);
+    drained.next(
+        s.cfg_fire
+            .mux(zero, (rep_fire & pass_end & !more).mux(one, drained)),
+    );
+    (next_pass, drained)
 }
 
 /// Per input: its cfg, its one command, its stream into the module and its

@@ -20,6 +20,9 @@ pub(super) struct Tail<'a, 'm> {
     pub(super) header_hold: Signal<'m>,
     pub(super) header_open: Signal<'m>,
     pub(super) commands_sent: Signal<'m>,
+    /// Per-node: the merge's report has reached every side it feeds (the
+    /// fetchers wait for its decisions). Level modes feed no fetcher.
+    pub(super) report_drained: Option<Signal<'m>>,
     pub(super) flags: [Signal<'m>; 4],
     pub(super) busy: Signal<'m>,
     pub(super) dropping: &'a [Signal<'m>],
@@ -53,6 +56,7 @@ pub(super) fn finish_merger<'m>(m: &'m Module, t: Tail<'_, 'm>) {
         header_hold,
         header_open,
         commands_sent,
+        report_drained,
         flags: [leaf_over, count_over, ferr, ferr_rank],
         busy,
         dropping,
@@ -109,10 +113,16 @@ pub(super) fn finish_merger<'m>(m: &'m Module, t: Tail<'_, 'm>) {
     }
     // The header waits until every command of the merge was issued and
     // every dropped (closing) command has sent its End: only then are the
-    // flags final, and the next merge's cannot mix in. `header_open` is a
-    // register so that the beat, once offered, stays offered.
+    // flags final, and the next merge's cannot mix in. Per-node, it waits
+    // for the merge's report too: its header ends the merge (`busy`), after
+    // which no report beat reaches a fetcher. `header_open` is a register so
+    // that the beat, once offered, stays offered.
     let no_drop = dropping.iter().fold(one, |a, c| a & !*c);
-    let settled = (busy & commands_sent & no_drop).name("merge_settled");
+    let settled = match report_drained {
+        Some(drained) => busy & commands_sent & no_drop & drained,
+        None => busy & commands_sent & no_drop,
+    }
+    .name("merge_settled");
     header_open.next(header_fire.mux(lit(0, 1), header_open | settled));
     let h_valid = (writer.output("header_valid") & header_open).name("header_offered");
     let h_data = writer.output("header_data");

@@ -1630,7 +1630,7 @@ module hierarchy_merger_d16_q8_i24_h4_k4_pn1_2_r16_f256_c10_l4 (
                 writer_cfg_pending <= 1'b1;  // rtl-gen/src/merge/merger/mod.rs:379
                 busy <= 1'b1;                // rtl-gen/src/merge/merger/mod.rs:295
                 cfg_q <= cfg_data;           // rtl-gen/src/merge/merger/mod.rs:305
-                report_drained <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:170
+                report_drained <= 1'b0;      // rtl-gen/src/merge/merger/per_node_mode.rs:172
                 fetch0_cfg_pending <= cfg_data_count_gt; // rtl-gen/src/merge/merger/per_node_mode.rs:217
                 cmd0_pending <= cfg_data_count_gt; // rtl-gen/src/merge/merger/per_node_mode.rs:233
                 end_owed0 <= (~cfg_data_count_gt) & good_in; // rtl-gen/src/merge/merger/per_node_mode.rs:257

@@ -11,7 +11,9 @@ use cosim::units::{hierarchy_unit, merge_level, merge_module, merger, translate}
 use serde::Serialize;
 
 use super::common::UnitOpts;
-use super::cosim::{merger_config, parse_stalls, MergeStage, Unit};
+use super::cosim::{
+    merger_config, no_stream_stalls, parse_stalls, parse_stream_stalls, MergeStage, Unit,
+};
 use crate::report::{emit, CmdResult};
 
 #[derive(clap::Args)]
@@ -120,14 +122,14 @@ fn command_line() -> String {
 /// The streams' own patterns `--stall-stream` asks for, checked; refused
 /// where `hiermerge cosim` refuses them (one input and one output stream).
 fn stream_stalls(a: &Args) -> Result<cosim::tb::StreamStalls, String> {
-    let s = cosim::tb::StreamStalls::parse(a.stall_stream.iter().map(String::as_str))
-        .map_err(|e| format!("--stall-stream {e}"))?;
-    let single = a.unit == Unit::Translate
-        || (a.unit == Unit::MergeModule && a.stage == Some(MergeStage::MergeLevel));
-    if single && !s.is_empty() {
-        return Err("--stall-stream: this unit has one input and one output stream; --stalls sets their pattern".into());
+    match (a.unit, a.stage) {
+        (Unit::Translate, _) => no_stream_stalls(&a.stall_stream, "--unit translate")?,
+        (Unit::MergeModule, Some(MergeStage::MergeLevel)) => {
+            no_stream_stalls(&a.stall_stream, "--stage merge-level")?
+        }
+        _ => {}
     }
-    Ok(s)
+    parse_stream_stalls(&a.stall_stream)
 }
 
 fn spec(a: &Args, count: usize, rtl: &Path) -> Result<ExportSpec, String> {

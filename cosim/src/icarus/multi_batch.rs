@@ -233,7 +233,7 @@ impl IcarusMultiBatch {
         let start = Instant::now();
         crate::tb::driver::check_stalls(&config.in_stall)?;
         crate::tb::driver::check_stalls(&config.out_stall)?;
-        crate::tb::multi::check_stream_stalls(&self.design, config)?;
+        crate::tb::multi::check_stream_stalls(&self.design, &config.stream_stalls)?;
         self.check_streams(inputs, &self.inputs, "input")?;
         self.check_streams(outputs, &self.outputs, "output")?;
         let dir = self.image.run_dir()?;

@@ -10,6 +10,7 @@ use super::bench::Progress;
 use super::driver::StreamDriver;
 use super::monitor::StreamMonitor;
 use super::scoreboard::{Mismatch, Scoreboard};
+use super::stalls::StreamStalls;
 use super::stop_rule::StopRule;
 use super::stream::{StreamPorts, Transaction};
 use super::trace_window::TraceWindow;
@@ -215,14 +216,12 @@ pub fn run_multi_stream_bench_traced(
 
 /// Refuses a stall pattern for a stream `design` does not have (a stream:
 /// a port `<name>_valid`), listing the streams it has.
-pub fn check_stream_stalls(design: &crate::design::Design, config: &BenchConfig) -> Result<()> {
+pub fn check_stream_stalls(design: &crate::design::Design, own: &StreamStalls) -> Result<()> {
     let streams = design
         .ports
         .iter()
         .filter_map(|p| p.name.strip_suffix("_valid"));
-    config
-        .stream_stalls
-        .check_names(streams)
+    own.check_names(streams)
         .map_err(|what| CosimError::Bench { what })
 }
 
@@ -286,7 +285,7 @@ fn bench_loop(
     let start = Instant::now();
     // Distinct stall patterns per stream from one seed.
     let seed_of = |j: usize| stream_seed(config.seed, j);
-    check_stream_stalls(engine.design(), config)?;
+    check_stream_stalls(engine.design(), &config.stream_stalls)?;
     let mut drivers = Vec::new();
     for (j, s) in inputs.iter().enumerate() {
         let stalls = config.in_stall_of(&s.name);

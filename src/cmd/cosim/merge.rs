@@ -32,7 +32,7 @@ pub(super) fn run_level(
     let cdesign = design_from_module(&module, dir).map_err(|e| e.to_string())?;
     let mut make = factory(a, &module, &cdesign)?;
     let expected_outputs: u64 = levels.iter().map(|l| l.outputs.len() as u64).sum();
-    super::no_stream_stalls(a, "--stage merge-level")?;
+    super::no_stream_stalls(&a.stall_stream, "--stage merge-level")?;
     let config = merge_level::RunConfig {
         seed: a.seed,
         stall: super::stalls(a)?,

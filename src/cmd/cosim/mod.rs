@@ -343,14 +343,19 @@ pub fn parse_stalls(stalls: &str, stall: Option<f64>) -> Result<Stalls, String> 
 
 /// The streams' own patterns `--stall-stream` asks for, checked.
 fn stream_stalls(a: &Args) -> Result<StreamStalls, String> {
-    StreamStalls::parse(a.stall_stream.iter().map(String::as_str))
-        .map_err(|e| format!("--stall-stream {e}"))
+    parse_stream_stalls(&a.stall_stream)
 }
 
-/// Refuses `--stall-stream` for a unit whose bench has one input and one
-/// output stream (`unit`), which `--stalls` already names.
-fn no_stream_stalls(a: &Args, unit: &str) -> Result<(), String> {
-    if a.stall_stream.is_empty() {
+/// The `--stall-stream` items `items`, checked (also `hiermerge export-tb`'s).
+pub fn parse_stream_stalls(items: &[String]) -> Result<StreamStalls, String> {
+    StreamStalls::parse(items.iter().map(String::as_str)).map_err(|e| format!("--stall-stream {e}"))
+}
+
+/// Refuses `--stall-stream` items for a unit whose bench has one input and
+/// one output stream (`unit`), which `--stalls` already names (also
+/// `hiermerge export-tb`'s).
+pub fn no_stream_stalls(items: &[String], unit: &str) -> Result<(), String> {
+    if items.is_empty() {
         return Ok(());
     }
     Err(format!(

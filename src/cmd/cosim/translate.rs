@@ -33,7 +33,7 @@ pub(super) fn run(
     cosim::waves::check_scope(&module, a.wave_scope.as_deref()).map_err(|e| e.to_string())?;
     let cdesign = design_from_module(&module, dir).map_err(|e| e.to_string())?;
     let mut make = factory(a, &module, &cdesign)?;
-    super::no_stream_stalls(a, "--unit translate")?;
+    super::no_stream_stalls(&a.stall_stream, "--unit translate")?;
     let config = RunConfig {
         seed: a.seed,
         stall: super::stalls(a)?,

@@ -8,11 +8,14 @@
 //! 3. [`radix`]: one LSD radix sort of the entries by (LOD, Morton).
 //! 4. `upper`: one leaf per (LOD, voxel), then level by level one inner
 //!    node per parent voxel, up to the top rule; laid out in store order.
+//!    The parallel build makes the levels below LOD 3 one subtree at a
+//!    time (`subtrees`).
 
 pub mod leaves;
 pub mod lod;
 pub mod quantize;
 pub mod radix;
+mod subtrees;
 pub(crate) mod upper;
 
 use std::fmt;
@@ -305,7 +308,8 @@ pub fn build_grid_triangles(
 /// [`build`] on the threads of the current rayon pool: the same
 /// hierarchy, bit for bit, or the same error. Triangles are placed in
 /// chunks, each chunk on one thread, and the chunks' entries are kept in
-/// triangle order, so the sort sees exactly the sequence [`build`] makes.
+/// triangle order, so the sort sees exactly the sequence [`build`] makes;
+/// the levels are then built one subtree at a time (`subtrees`).
 pub fn build_parallel(
     mesh: &Mesh,
     grid: &GridMap,
@@ -337,7 +341,7 @@ fn build_parallel_keyed<K: LeafKey>(
         leaves::leaf_key_bits(params),
         |e| e.key,
     );
-    upper::assemble(&entries, params, id)
+    subtrees::assemble_parallel(&entries, params, id)
 }
 
 /// Most triangles per chunk of the parallel placement: large enough that a

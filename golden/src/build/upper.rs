@@ -46,7 +46,7 @@ fn morton_coord(m: u128, axis: u32) -> u32 {
 
 /// The entries of each LOD (index = LOD) as a range of the sorted entries:
 /// the key's high bits are the LOD, so each LOD's entries are contiguous.
-fn entry_ranges_by_lod<K: LeafKey>(
+pub(super) fn entry_ranges_by_lod<K: LeafKey>(
     entries: &[LeafEntry<K>],
     p: &Params,
 ) -> Vec<std::ops::Range<usize>> {
@@ -64,7 +64,7 @@ fn entry_ranges_by_lod<K: LeafKey>(
 /// per voxel, in Morton order, into `out` (cleared first). A leaf's `first`
 /// indexes the whole entry array.
 #[allow(clippy::needless_range_loop)] // per-axis loops over parallel arrays
-fn leaves_of_lod_into<K: LeafKey>(
+pub(super) fn leaves_of_lod_into<K: LeafKey>(
     entries: &[LeafEntry<K>],
     range: std::ops::Range<usize>,
     p: &Params,
@@ -113,7 +113,7 @@ pub(crate) fn group_by_parent(level: &[LevelNode], quant_bits: u8) -> Vec<LevelN
 
 /// [`group_by_parent`] into `out` (cleared first), reusing its storage.
 #[allow(clippy::needless_range_loop)] // per-axis loops over parallel arrays
-fn group_by_parent_into(level: &[LevelNode], quant_bits: u8, out: &mut Vec<LevelNode>) {
+pub(super) fn group_by_parent_into(level: &[LevelNode], quant_bits: u8, out: &mut Vec<LevelNode>) {
     out.clear();
     let mut i = 0;
     while i < level.len() {
@@ -148,7 +148,11 @@ fn group_by_parent_into(level: &[LevelNode], quant_bits: u8, out: &mut Vec<Level
 }
 
 /// [`merge_level`] into `out` (cleared first), reusing its storage.
-fn merge_level_into(inner: &[LevelNode], leaves: &[LevelNode], out: &mut Vec<LevelNode>) {
+pub(super) fn merge_level_into(
+    inner: &[LevelNode],
+    leaves: &[LevelNode],
+    out: &mut Vec<LevelNode>,
+) {
     out.clear();
     out.reserve(inner.len() + leaves.len());
     let (mut a, mut b) = (0, 0);
@@ -192,7 +196,7 @@ pub(crate) fn covers_most_of_scene(n: &LevelNode, quant_bits: u8) -> bool {
     cells * 2 > 1u64 << (3 * quant_bits as u32)
 }
 
-fn check_index(what: &'static str, value: u64, p: &Params) -> Result<(), BuildError> {
+pub(super) fn check_index(what: &'static str, value: u64, p: &Params) -> Result<(), BuildError> {
     if value >= p.index_capacity() {
         return Err(BuildError::IndexOverflow {
             what,
@@ -327,6 +331,22 @@ pub(super) fn assemble<K: LeafKey>(
             }
         }
     }
+    let prims = entries.iter().map(|e| e.prim).collect();
+    finish(nodes, prims, root_count, top, p, id)
+}
+
+/// The hierarchy of the node array `nodes` (store order, `first`s final)
+/// and the primitives `prims`: its references, `refs[k]` naming node
+/// `root_count + k` (see [`assemble`]), their count checked.
+pub(super) fn finish(
+    nodes: Vec<NodeRecord>,
+    prims: Vec<u32>,
+    root_count: u64,
+    top: usize,
+    p: &Params,
+    id: u8,
+) -> Result<Hierarchy, BuildError> {
+    let total_nodes = nodes.len() as u64;
     let refs_len = total_nodes - root_count;
     check_index("refs length - 1", refs_len.saturating_sub(1), p)?;
     let refs = (root_count..total_nodes)
@@ -340,7 +360,7 @@ pub(super) fn assemble<K: LeafKey>(
         params: *p,
         nodes,
         refs,
-        prims: entries.iter().map(|e| e.prim).collect(),
+        prims,
         root_count: root_count as u32,
         top_lod: top as u8,
     })
@@ -349,14 +369,19 @@ pub(super) fn assemble<K: LeafKey>(
 /// Appends the records of one level (LOD `lod`) in reverse order, so that
 /// reversing the whole array later puts them back in order.
 fn push_records(nodes: &mut Vec<NodeRecord>, level: &[LevelNode], lod: usize) {
-    nodes.extend(level.iter().rev().map(|n| NodeRecord {
+    nodes.extend(level.iter().rev().map(|n| record_of(n, lod)));
+}
+
+/// The record of node `n` of LOD `lod`, its `first` as the level gave it.
+pub(super) fn record_of(n: &LevelNode, lod: usize) -> NodeRecord {
+    NodeRecord {
         leaf: n.leaf,
         voxel: VoxelAddr::new(lod as u8, n.x, n.y, n.z),
         lo: n.lo,
         hi: n.hi,
         first: n.first,
         count: n.count,
-    }));
+    }
 }
 
 #[cfg(test)]

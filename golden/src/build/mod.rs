@@ -334,13 +334,8 @@ fn build_parallel_keyed<K: LeafKey>(
     id: u8,
     triangle: &(dyn Fn(usize) -> Result<[DVec3; 3], BuildError> + Sync),
 ) -> Result<Hierarchy, BuildError> {
-    let mut entries = place_parallel::<K>(n, params, triangle)?;
-    radix::radix_sort_parallel(
-        &mut entries,
-        &mut Vec::new(),
-        leaves::leaf_key_bits(params),
-        |e| e.key,
-    );
+    let parts = place_parallel::<K>(n, params, triangle)?;
+    let entries = radix::radix_sort_parts(parts, leaves::leaf_key_bits(params), |e| e.key);
     subtrees::assemble_parallel(&entries, params, id)
 }
 
@@ -352,49 +347,29 @@ const PLACE_CHUNK: usize = 1 << 13;
 /// Fewest triangles per chunk (below it a chunk's setup is no longer small).
 const PLACE_CHUNK_MIN: usize = 256;
 
-/// The entries of triangles `0..n` in triangle order, placed in chunks on
-/// the current rayon pool; the error of the lowest failing triangle.
+/// The entries of triangles `0..n` in triangle order, as the entries of
+/// consecutive chunks placed on the current rayon pool (the sort reads them
+/// where they are); the error of the lowest failing triangle.
 fn place_parallel<K: LeafKey>(
     n: usize,
     params: &Params,
     triangle: &(dyn Fn(usize) -> Result<[DVec3; 3], BuildError> + Sync),
-) -> Result<Vec<LeafEntry<K>>, BuildError> {
+) -> Result<Vec<Vec<LeafEntry<K>>>, BuildError> {
     use rayon::prelude::*;
     let chunk = n
         .div_ceil(8 * rayon::current_num_threads())
         .clamp(PLACE_CHUNK_MIN, PLACE_CHUNK);
-    let chunks: Vec<Result<Vec<LeafEntry<K>>, BuildError>> = (0..n.div_ceil(chunk))
+    (0..n.div_ceil(chunk))
         .into_par_iter()
         .map(|c| {
             let range = c * chunk..((c + 1) * chunk).min(n);
             place_range(range, params, triangle)
         })
-        .collect();
-    let mut parts = Vec::with_capacity(chunks.len());
-    for c in chunks {
-        parts.push(c?);
-    }
-    // The copy into one vector is parallel too: each part into its own slice.
-    let total = parts.iter().map(Vec::len).sum();
-    let mut entries = Vec::with_capacity(total);
-    let mut slices = Vec::with_capacity(parts.len());
-    let mut rest = &mut entries.spare_capacity_mut()[..total];
-    for p in &parts {
-        let (head, tail) = rest.split_at_mut(p.len());
-        slices.push(head);
-        rest = tail;
-    }
-    slices
-        .into_par_iter()
-        .zip(parts.par_iter())
-        .for_each(|(dst, src)| {
-            for (d, s) in dst.iter_mut().zip(src) {
-                d.write(*s);
-            }
-        });
-    // SAFETY: the slices cover the first `total` slots, each written above.
-    unsafe { entries.set_len(total) };
-    Ok(entries)
+        // In chunk order, so that the first error is the lowest chunk's
+        // (rayon's own collect into a `Result` gives any chunk's).
+        .collect::<Vec<_>>()
+        .into_iter()
+        .collect()
 }
 
 /// Room kept free before placing a triangle: its entries are at most its

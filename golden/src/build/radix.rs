@@ -132,66 +132,182 @@ pub fn radix_sort_parallel<T: Copy + Send + Sync, K: SortKey>(
         return radix_sort(items, scratch, key_bits, key);
     }
     let passes = sort_passes::<K>(key_bits);
-    let block = n.div_ceil(threads);
-    let hist_of = |part: &[T], passes: std::ops::Range<usize>| {
-        let mut hist = vec![[0u32; BUCKETS]; passes.len()];
-        for it in part {
-            let k = key(it);
-            for (h, p) in hist.iter_mut().zip(passes.clone()) {
-                h[k.digit(p)] += 1;
-            }
-        }
-        hist
-    };
-    // A pass whose digit is the same for every item moves nothing.
     let total = items
-        .par_chunks(block)
-        .map(|part| hist_of(part, 0..passes))
+        .par_chunks(n.div_ceil(threads))
+        .map(|part| histograms_of(part, 0..passes, &key))
         .reduce_with(|mut a, b| {
-            for (ha, hb) in a.iter_mut().zip(&b) {
-                for (x, y) in ha.iter_mut().zip(hb) {
-                    *x += y;
-                }
-            }
+            add_counts(&mut a, &b);
             a
         })
         .expect("n > 0");
-    for (p, h) in total.iter().enumerate() {
-        if h.iter().any(|&c| c as usize == n) {
-            continue;
+    let todo = moving_passes(&total, n);
+    passes_parallel(items, scratch, &todo, &key);
+}
+
+/// The items of `parts`, one after the other, sorted as [`radix_sort`]
+/// sorts them, on the threads of the current rayon pool. The first pass
+/// that moves anything scatters from the parts themselves, so they are
+/// never copied into one vector first.
+pub fn radix_sort_parts<T: Copy + Send + Sync, K: SortKey>(
+    parts: Vec<Vec<T>>,
+    key_bits: u32,
+    key: impl Fn(&T) -> K + Sync,
+) -> Vec<T> {
+    use rayon::prelude::*;
+    let n: usize = parts.iter().map(Vec::len).sum();
+    let mut out = Vec::with_capacity(n);
+    if n < PARALLEL_MIN || rayon::current_num_threads() < 2 || key_bits == 0 {
+        for p in &parts {
+            out.extend_from_slice(p);
         }
-        let hists: Vec<[u32; BUCKETS]> = items
-            .par_chunks(block)
-            .map(|part| hist_of(part, p..p + 1)[0])
+        radix_sort(&mut out, &mut Vec::new(), key_bits, key);
+        return out;
+    }
+    let passes = sort_passes::<K>(key_bits);
+    let hists: Vec<Vec<[u32; BUCKETS]>> = parts
+        .par_iter()
+        .map(|part| histograms_of(part, 0..passes, &key))
+        .collect();
+    let mut total = vec![[0u32; BUCKETS]; passes];
+    for h in &hists {
+        add_counts(&mut total, h);
+    }
+    let todo = moving_passes(&total, n);
+    let blocks: Vec<&[T]> = parts.iter().map(Vec::as_slice).collect();
+    match todo.first() {
+        Some(&p) => {
+            let first: Vec<[u32; BUCKETS]> = hists.iter().map(|h| h[p]).collect();
+            scatter(&blocks, &first, p, &key, &mut out);
+        }
+        None => {
+            let counts: Vec<[u32; BUCKETS]> = parts
+                .iter()
+                .map(|part| {
+                    let mut h = [0u32; BUCKETS];
+                    h[0] = part.len() as u32;
+                    h
+                })
+                .collect();
+            scatter(&blocks, &counts, 0, &|_: &T| Zero, &mut out);
+        }
+    }
+    drop(blocks);
+    drop(parts);
+    passes_parallel(
+        &mut out,
+        &mut Vec::new(),
+        todo.get(1..).unwrap_or(&[]),
+        &key,
+    );
+    out
+}
+
+/// A key of digit 0 in every pass: scattered by it, blocks are copied in
+/// order.
+#[derive(Clone, Copy)]
+struct Zero;
+
+impl SortKey for Zero {
+    const BITS: u32 = 0;
+    #[inline(always)]
+    fn digit(self, _pass: usize) -> usize {
+        0
+    }
+}
+
+/// The digit counts of `passes` over `part`, in one read.
+fn histograms_of<T, K: SortKey>(
+    part: &[T],
+    passes: std::ops::Range<usize>,
+    key: &impl Fn(&T) -> K,
+) -> Vec<[u32; BUCKETS]> {
+    let mut hist = vec![[0u32; BUCKETS]; passes.len()];
+    for it in part {
+        let k = key(it);
+        for (h, p) in hist.iter_mut().zip(passes.clone()) {
+            h[k.digit(p)] += 1;
+        }
+    }
+    hist
+}
+
+/// The passes that move something: a pass whose digit is the same for
+/// every one of the `n` items (`total`: each pass's counts) moves nothing.
+fn moving_passes(total: &[[u32; BUCKETS]], n: usize) -> Vec<usize> {
+    (0..total.len())
+        .filter(|&p| !total[p].iter().any(|&c| c as usize == n))
+        .collect()
+}
+
+/// Passes `todo` of the parallel sort over `items`, in order: per pass, one
+/// block per thread, each block's counts, then the scatter into `scratch`,
+/// which becomes the items.
+fn passes_parallel<T: Copy + Send + Sync, K: SortKey>(
+    items: &mut Vec<T>,
+    scratch: &mut Vec<T>,
+    todo: &[usize],
+    key: &(impl Fn(&T) -> K + Sync),
+) {
+    use rayon::prelude::*;
+    let block = items.len().div_ceil(rayon::current_num_threads()).max(1);
+    for &p in todo {
+        let blocks: Vec<&[T]> = items.chunks(block).collect();
+        let hists: Vec<[u32; BUCKETS]> = blocks
+            .par_iter()
+            .map(|part| histograms_of(part, p..p + 1, key)[0])
             .collect();
-        let mut offsets = vec![[0u32; BUCKETS]; hists.len()];
-        let mut sum = 0u32;
-        for d in 0..BUCKETS {
-            for (o, h) in offsets.iter_mut().zip(&hists) {
-                o[d] = sum;
-                sum += h[d];
-            }
-        }
-        scratch.clear();
-        scratch.reserve(n);
-        let out = Slots(scratch.as_mut_ptr());
-        items
-            .par_chunks(block)
-            .zip(offsets.par_iter_mut())
-            .for_each(|(part, off)| {
-                for it in part {
-                    let d = key(it).digit(p);
-                    // SAFETY: the offsets of (block, d) run over slots no
-                    // other (block, digit) pair is given, all below n, within
-                    // scratch's capacity; each block writes only its own.
-                    unsafe { out.write(off[d] as usize, *it) };
-                    off[d] += 1;
-                }
-            });
-        // SAFETY: the scatter wrote each of the n slots once (the offsets
-        // of all (block, digit) pairs partition 0..n).
-        unsafe { scratch.set_len(n) };
+        scatter(&blocks, &hists, p, key, scratch);
         std::mem::swap(items, scratch);
+    }
+}
+
+/// One pass: the items of `blocks` (in order; `hists[b]`: block `b`'s
+/// counts of digit `p`) stably scattered by digit `p` into `out` (cleared
+/// first), the blocks in parallel.
+fn scatter<T: Copy + Send + Sync, K: SortKey>(
+    blocks: &[&[T]],
+    hists: &[[u32; BUCKETS]],
+    p: usize,
+    key: &(impl Fn(&T) -> K + Sync),
+    out: &mut Vec<T>,
+) {
+    use rayon::prelude::*;
+    let n: usize = blocks.iter().map(|b| b.len()).sum();
+    let mut offsets = vec![[0u32; BUCKETS]; hists.len()];
+    let mut sum = 0u32;
+    for d in 0..BUCKETS {
+        for (o, h) in offsets.iter_mut().zip(hists) {
+            o[d] = sum;
+            sum += h[d];
+        }
+    }
+    out.clear();
+    out.reserve(n);
+    let slots = Slots(out.as_mut_ptr());
+    blocks
+        .par_iter()
+        .zip(offsets.par_iter_mut())
+        .for_each(|(part, off)| {
+            for it in part.iter() {
+                let d = key(it).digit(p);
+                // SAFETY: the offsets of (block, d) run over slots no other
+                // (block, digit) pair is given, all below n, within out's
+                // capacity; each block writes only its own.
+                unsafe { slots.write(off[d] as usize, *it) };
+                off[d] += 1;
+            }
+        });
+    // SAFETY: the scatter wrote each of the n slots once (the offsets of
+    // all (block, digit) pairs partition 0..n).
+    unsafe { out.set_len(n) };
+}
+
+/// Adds the digit counts `b` into `a`, pass by pass.
+fn add_counts(a: &mut [[u32; BUCKETS]], b: &[[u32; BUCKETS]]) {
+    for (ha, hb) in a.iter_mut().zip(b) {
+        for (x, y) in ha.iter_mut().zip(hb) {
+            *x += y;
+        }
     }
 }
 
@@ -282,6 +398,40 @@ mod tests {
         let mut scratch = Vec::new();
         radix_sort(&mut v, &mut scratch, 92, |e| e.0);
         assert_eq!(v, expect);
+    }
+
+    /// Sorting from parts gives the sequential sort of their items one
+    /// after the other: several parts, an empty one, every pass moving or
+    /// none (all keys equal), and fewer items than the parallel minimum.
+    #[test]
+    fn sorting_parts_is_the_sequential_sort() {
+        let mut s = 7u64;
+        let mut item = |i: usize, spread: u128| {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (((s >> 20) as u128 % spread) | ((s as u128 & 1) << 50), i)
+        };
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        for (n, spread, same) in [
+            (3 * PARALLEL_MIN + 5, 4000, false),
+            (3 * PARALLEL_MIN, 1, true),
+            (100, 50, false),
+        ] {
+            let all: Vec<(u128, usize)> = (0..n)
+                .map(|i| if same { (9, i) } else { item(i, spread) })
+                .collect();
+            let cuts = [0, n / 5, n / 5, n / 2, n];
+            let parts: Vec<Vec<(u128, usize)>> =
+                cuts.windows(2).map(|w| all[w[0]..w[1]].to_vec()).collect();
+            let mut expect = all.clone();
+            expect.sort_by_key(|e| e.0);
+            let got = pool.install(|| radix_sort_parts(parts, 52, |e| e.0));
+            assert_eq!(got, expect, "{n} items");
+        }
     }
 
     #[test]

@@ -8,8 +8,8 @@
 //! 3. [`radix`]: one LSD radix sort of the entries by (LOD, Morton).
 //! 4. `upper`: one leaf per (LOD, voxel), then level by level one inner
 //!    node per parent voxel, up to the top rule; laid out in store order.
-//!    The parallel build makes the levels below LOD 3 one subtree at a
-//!    time (`subtrees`).
+//!    The parallel build makes the levels from LOD 2 down one subtree at
+//!    a time (`subtrees`).
 
 pub mod leaves;
 pub mod lod;

@@ -24,9 +24,11 @@ use super::BuildError;
 use crate::params::Params;
 use crate::store::{Hierarchy, NodeRecord};
 
-/// The LOD the levels are cut at: `8^3 = 512` subtrees, enough for the
-/// threads to share them evenly when a scene fills only part of the cube.
-const SPLIT: usize = 3;
+/// The LOD the levels are cut at: `8^2 = 64` subtrees, enough for the
+/// threads to share them evenly when a scene fills only part of the cube,
+/// few enough that a subtree's levels are not mostly setup (512 made the
+/// building's assemble slower).
+const SPLIT: usize = 2;
 
 /// Fewest entries for the parallel assemble: below it the threads' setup
 /// costs more than it saves, and [`upper::assemble`] runs.

@@ -3,7 +3,9 @@
 //! that the merger tests run on every engine. Each is a golden transaction
 //! like a random merge's, so a bench checks it bit for bit.
 
+use crate::build::quantize::child_cells_in_parent;
 use crate::build::{build, GridMap};
+use crate::grid::VoxelAddr;
 use crate::merge::fetcher::{
     fetch_err, fetch_transaction_with_reports, FetchCfg, FetchOut, FetchTransaction,
 };
@@ -69,7 +71,8 @@ pub const CFG_ERRORS: [u64; 3] = [
 /// reverse (every entry of the sorter moves), sixteen roots at LOD 5
 /// stored against Morton order, a ladder of leaves
 /// at every LOD above the merging level, an input stored depth first
-/// with indices near `2^I`, the deep tops and the deep clusters, each
+/// with indices near `2^I`, two inputs under LOD-0 roots (the merged top
+/// at LOD 0), the deep tops and the deep clusters, each
 /// through `d`'s mode; per code of [`CFG_ERRORS`] a merge whose last
 /// input's `cfg` makes its fetcher refuse it; and two bad ranges from
 /// software, which the merging module refuses (`lo > hi`, `hi > D`). Merges
@@ -87,6 +90,7 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
     cases.push(leaf_ladder(p)?);
     cases.push(depth_first_store(p)?);
     cases.extend(sixteen_deep_roots(p)?);
+    cases.push(lod0_tops(p)?);
     cases.retain(|(_, _, ids)| ids.len() <= k);
     for (store, table, ids) in &cases {
         let tx =
@@ -152,9 +156,77 @@ pub fn hard_cases(d: &MergeDesign) -> Result<Vec<RealCase>> {
     cases.push(leaf_ladder(p)?);
     cases.push(depth_first_store(p)?);
     cases.extend(sixteen_deep_roots(p)?);
+    cases.push(lod0_tops(p)?);
     cases.extend(deep_cases(p)?);
     cases.retain(|(_, _, ids)| ids.len() <= d.inputs);
     Ok(cases)
+}
+
+/// Two inputs filling the scene, each under a LOD-0 root: `lo` is 0, so
+/// the merge may choose LOD 0, and its merged top is then the created
+/// LOD-0 node. The builder drops a LOD-0 root at Q = 0 (4.7: it always
+/// covers more than half the scene there), but a store may hold one: no
+/// built input reaches a top at LOD 0 at Q = 0, nor the upper builder's and
+/// the writer's LOD-0 levels.
+fn lod0_tops(p: &Params) -> Result<RealCase> {
+    let input = |id: u8, seed: u64| -> Result<(Hierarchy, Translation)> {
+        let h = under_lod0_root(try_scene_soup(p, id, 10, 0.3, seed).map_err(golden_err)?);
+        let top = h.top_lod;
+        Ok((h, Translation::zero(top)))
+    };
+    case_of(p, vec![input(1, 91)?, input(2, 92)?])
+}
+
+/// `h` with its top at LOD 1 put under one LOD-0 root whose children are
+/// its roots (`h` unchanged at any other top): the root first in `nodes`
+/// and its references first in `refs`, every other index moved along; the
+/// root's box the roots' boxes in its own cells, as a grouping makes it.
+fn under_lod0_root(h: Hierarchy) -> Hierarchy {
+    if h.top_lod != 1 {
+        return h;
+    }
+    let roots = h.root_count;
+    let q = h.params.quant_bits;
+    let (mut lo, mut hi) = ([u16::MAX; 3], [0u16; 3]);
+    for r in h.roots() {
+        let odd = [r.voxel.x & 1 == 1, r.voxel.y & 1 == 1, r.voxel.z & 1 == 1];
+        for a in 0..3 {
+            let (l, u) = child_cells_in_parent(r.lo[a], r.hi[a], odd[a], q);
+            lo[a] = lo[a].min(l);
+            hi[a] = hi[a].max(u);
+        }
+    }
+    let root = NodeRecord {
+        leaf: false,
+        voxel: VoxelAddr::new(0, 0, 0, 0),
+        lo,
+        hi,
+        first: 0,
+        count: roots,
+    };
+    let moved = |n: &NodeRecord| NodeRecord {
+        first: n.first + if n.leaf { 0 } else { roots },
+        ..*n
+    };
+    let refs = (0..roots)
+        .map(|i| Reference {
+            hier: h.id,
+            node: 1 + i,
+        })
+        .chain(h.refs.iter().map(|r| Reference {
+            node: r.node + 1,
+            ..*r
+        }))
+        .collect();
+    Hierarchy {
+        nodes: std::iter::once(root)
+            .chain(h.nodes.iter().map(moved))
+            .collect(),
+        refs,
+        root_count: 1,
+        top_lod: 0,
+        ..h
+    }
 }
 
 /// The deep tops, then the deep clusters.
@@ -824,6 +896,41 @@ mod tests {
         };
         assert!(top(&stored) >= high && deepest_ref(&stored) >= high);
         assert!(top(&built) < high && deepest_ref(&built) < high);
+    }
+
+    /// An input put under a LOD-0 root is a valid store (the checker
+    /// against its triangles), and the merge of two such inputs writes its
+    /// top at LOD 0 in both modes, at the coverage configuration (Q = 0,
+    /// where no built input has a LOD-0 root; its writer of `2^5` entries a
+    /// buffer) and at the default.
+    #[test]
+    fn lod0_roots_are_valid_and_put_the_merged_top_at_lod_0() {
+        let small = Params::new(8, 0, 12, 3).unwrap();
+        let mesh = random_soup(40, 0.3, 91);
+        let (lo, hi) = mesh.bounds();
+        let grid = GridMap::fit(lo, hi, &small);
+        let built = build(&mesh, &grid, &small, 1).unwrap();
+        assert_eq!(built.top_lod, 1);
+        let wrapped = under_lod0_root(built.clone());
+        let tris = grid.mesh_to_grid(&mesh, &small).unwrap();
+        crate::check::check_built(&wrapped, &tris).unwrap();
+        assert_eq!(
+            (wrapped.top_lod, wrapped.root_count, wrapped.nodes[0].count),
+            (0, 1, built.root_count)
+        );
+        for p in [small, Params::default()] {
+            let (store, table, ids) = lod0_tops(&p).unwrap();
+            for mode in BOTH_MODES {
+                let mut sizes = MergerSizes::new(&p);
+                sizes.capacity_bits = 5;
+                sizes.leaf_bits = 6;
+                let tx = merger_transaction(&store, &table, &ids, mode, 7, 2, sizes).unwrap();
+                let w = &tx.header.writer;
+                let at = format!("D = {} {mode:?}: {w:?}", p.max_lod);
+                assert_eq!((w.top, w.err), (0, 0), "{at}");
+                assert!(w.nodes >= 1, "{at}");
+            }
+        }
     }
 
     /// Merged from the depth-first store, the merge writes what it writes

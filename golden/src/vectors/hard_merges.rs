@@ -75,7 +75,8 @@ pub const CFG_ERRORS: [u64; 3] = [
 /// at LOD 0), the deep tops and the deep clusters, each
 /// through `d`'s mode; per code of [`CFG_ERRORS`] a merge whose last
 /// input's `cfg` makes its fetcher refuse it; and two bad ranges from
-/// software, which the merging module refuses (`lo > hi`, `hi > D`). Merges
+/// software, which the merging module refuses (`lo > hi`, `hi > D`), on
+/// the first case of the most inputs. Merges
 /// of more than `k` inputs, and those whose leaves overflow the leaf FIFOs,
 /// are left out.
 pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
@@ -119,7 +120,10 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
             }
         }
     }
-    let Some((store, table, ids)) = cases.first() else {
+    // The bad ranges on the first case of the most inputs: a refused merge
+    // sends each used input its closing command.
+    let most = cases.iter().map(|c| c.2.len()).max();
+    let Some((store, table, ids)) = cases.iter().find(|c| Some(c.2.len()) == most) else {
         return Ok(out);
     };
     // `hi > D` when the field holds it (not at D = 31: 5 bits).

@@ -158,9 +158,12 @@ pub fn radix_sort_parallel<T: Copy + Send + Sync, K: SortKey>(
 }
 
 /// The items of `parts`, one after the other, sorted as [`radix_sort`]
-/// sorts them, on the threads of the current rayon pool when there are
-/// enough. The first pass that moves anything scatters from the parts
-/// themselves, so they are never copied into one vector first.
+/// sorts them. With enough items, on the threads of the current rayon pool,
+/// and the first pass that moves anything scatters from the parts
+/// themselves, so they are never copied into one vector first. With fewer,
+/// the parts are copied into one vector and sorted on one thread: each
+/// part's digit counts would cost more than the copy (measured on the
+/// bunny's 15 parts).
 pub fn radix_sort_parts<T: Copy + Send + Sync, K: SortKey>(
     parts: Vec<Vec<T>>,
     key_bits: u32,
@@ -168,24 +171,30 @@ pub fn radix_sort_parts<T: Copy + Send + Sync, K: SortKey>(
 ) -> Vec<T> {
     use rayon::prelude::*;
     let n: usize = parts.iter().map(Vec::len).sum();
-    let parallel = n >= PARALLEL_MIN && rayon::current_num_threads() >= 2;
+    let mut out = Vec::with_capacity(n);
+    if n < PARALLEL_MIN || rayon::current_num_threads() < 2 {
+        for part in &parts {
+            out.extend_from_slice(part);
+        }
+        drop(parts);
+        radix_sort(&mut out, &mut Vec::new(), key_bits, key);
+        return out;
+    }
     let passes = sort_passes::<K>(key_bits);
-    let counts = |part: &Vec<T>| histograms_of(part, 0..passes, &key);
-    let hists: Vec<Vec<[u32; BUCKETS]>> = match parallel {
-        true => parts.par_iter().map(counts).collect(),
-        false => parts.iter().map(counts).collect(),
-    };
+    let hists: Vec<Vec<[u32; BUCKETS]>> = parts
+        .par_iter()
+        .map(|part| histograms_of(part, 0..passes, &key))
+        .collect();
     let mut total = vec![[0u32; BUCKETS]; passes];
     for h in &hists {
         add_counts(&mut total, h);
     }
     let todo = moving_passes(&total, n);
     let blocks: Vec<&[T]> = parts.iter().map(Vec::as_slice).collect();
-    let mut out = Vec::with_capacity(n);
     match todo.first() {
         Some(&p) => {
             let first: Vec<[u32; BUCKETS]> = hists.iter().map(|h| h[p]).collect();
-            scatter(&blocks, &first, p, &key, &mut out, parallel);
+            scatter(&blocks, &first, p, &key, &mut out);
         }
         None => {
             let counts: Vec<[u32; BUCKETS]> = parts
@@ -196,16 +205,13 @@ pub fn radix_sort_parts<T: Copy + Send + Sync, K: SortKey>(
                     h
                 })
                 .collect();
-            scatter(&blocks, &counts, 0, &|_: &T| Zero, &mut out, parallel);
+            scatter(&blocks, &counts, 0, &|_: &T| Zero, &mut out);
         }
     }
     drop(blocks);
     drop(parts);
     let rest = todo.get(1..).unwrap_or(&[]);
-    match parallel {
-        true => passes_parallel(&mut out, &mut Vec::new(), rest, &key),
-        false => passes_serial(&mut out, &mut Vec::new(), &total, rest, &key),
-    }
+    passes_parallel(&mut out, &mut Vec::new(), rest, &key);
     out
 }
 
@@ -263,21 +269,20 @@ fn passes_parallel<T: Copy + Send + Sync, K: SortKey>(
             .par_iter()
             .map(|part| histograms_of(part, p..p + 1, key)[0])
             .collect();
-        scatter(&blocks, &hists, p, key, scratch, true);
+        scatter(&blocks, &hists, p, key, scratch);
         std::mem::swap(items, scratch);
     }
 }
 
 /// One pass: the items of `blocks` (in order; `hists[b]`: block `b`'s
 /// counts of digit `p`) stably scattered by digit `p` into `out` (cleared
-/// first), the blocks in parallel or one after the other.
+/// first), the blocks in parallel.
 fn scatter<T: Copy + Send + Sync, K: SortKey>(
     blocks: &[&[T]],
     hists: &[[u32; BUCKETS]],
     p: usize,
     key: &(impl Fn(&T) -> K + Sync),
     out: &mut Vec<T>,
-    parallel: bool,
 ) {
     use rayon::prelude::*;
     let n: usize = blocks.iter().map(|b| b.len()).sum();
@@ -302,13 +307,10 @@ fn scatter<T: Copy + Send + Sync, K: SortKey>(
             off[d] += 1;
         }
     };
-    match parallel {
-        true => blocks
-            .par_iter()
-            .zip(offsets.par_iter_mut())
-            .for_each(block),
-        false => blocks.iter().zip(offsets.iter_mut()).for_each(block),
-    }
+    blocks
+        .par_iter()
+        .zip(offsets.par_iter_mut())
+        .for_each(block);
     // SAFETY: the scatter wrote each of the n slots once (the offsets of
     // all (block, digit) pairs partition 0..n).
     unsafe { out.set_len(n) };

@@ -61,8 +61,8 @@ pub(super) fn assemble_parallel<K: LeafKey>(
     assemble_split(entries, &ranges, p, id, deepest, shallowest_base)
 }
 
-/// [`assemble_parallel`]'s work, for entries whose deepest LOD is below
-/// `SPLIT`.
+/// [`assemble_parallel`]'s work, for entries whose deepest LOD is deeper
+/// than `SPLIT` (`ranges`: each LOD's entries).
 fn assemble_split<K: LeafKey>(
     entries: &[LeafEntry<K>],
     ranges: &[Range<usize>],
@@ -71,8 +71,7 @@ fn assemble_split<K: LeafKey>(
     deepest: usize,
     shallowest_base: usize,
 ) -> Result<Hierarchy, BuildError> {
-    let ranges = ranges.to_vec();
-    let bounds = subtree_bounds(entries, &ranges, p, deepest);
+    let bounds = subtree_bounds(entries, ranges, p, deepest);
     let subtrees: Vec<Subtree> = (0..1usize << (3 * SPLIT))
         .into_par_iter()
         .map(|s| {
@@ -94,7 +93,7 @@ fn assemble_split<K: LeafKey>(
                 .iter()
                 .flat_map(|t| t.split_level.iter().copied())
                 .collect();
-            levels_above_split(level, entries, &ranges, p, stops)
+            levels_above_split(level, entries, ranges, p, stops)
         }
     };
     let level_len = |lod: usize| match lod < SPLIT {

@@ -103,8 +103,8 @@ fn sort_passes<K: SortKey>(key_bits: u32) -> usize {
 }
 
 /// Below this many items the sorts run on one thread: the threads' setup
-/// per pass costs more than it saves (measured on the generated building,
-/// 67,054 entries: 1.6 ms on one thread, 1.9 ms on two).
+/// per pass costs more than it saves (on the generated building's 67,054
+/// entries two threads sorted slower than one).
 const PARALLEL_MIN: usize = 1 << 18;
 
 /// A raw pointer the scatter threads share; each writes a disjoint set of

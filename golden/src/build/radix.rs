@@ -196,16 +196,11 @@ pub fn radix_sort_parts<T: Copy + Send + Sync, K: SortKey>(
             let first: Vec<[u32; BUCKETS]> = hists.iter().map(|h| h[p]).collect();
             scatter(&blocks, &first, p, &key, &mut out);
         }
+        // No pass moves anything: the items are already in order.
         None => {
-            let counts: Vec<[u32; BUCKETS]> = parts
-                .iter()
-                .map(|part| {
-                    let mut h = [0u32; BUCKETS];
-                    h[0] = part.len() as u32;
-                    h
-                })
-                .collect();
-            scatter(&blocks, &counts, 0, &|_: &T| Zero, &mut out);
+            for part in &blocks {
+                out.extend_from_slice(part);
+            }
         }
     }
     drop(blocks);
@@ -213,19 +208,6 @@ pub fn radix_sort_parts<T: Copy + Send + Sync, K: SortKey>(
     let rest = todo.get(1..).unwrap_or(&[]);
     passes_parallel(&mut out, &mut Vec::new(), rest, &key);
     out
-}
-
-/// A key of digit 0 in every pass: scattered by it, blocks are copied in
-/// order.
-#[derive(Clone, Copy)]
-struct Zero;
-
-impl SortKey for Zero {
-    const BITS: u32 = 0;
-    #[inline(always)]
-    fn digit(self, _pass: usize) -> usize {
-        0
-    }
 }
 
 /// The digit counts of `passes` over `part`, in one read.

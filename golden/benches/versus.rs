@@ -4,7 +4,8 @@
 //! thread), its parallel build ([`golden::build::build_parallel`] in a rayon
 //! pool of 2 threads) and obvhs's PLOC BVH2 builder with
 //! `BvhBuildParams::fastest_build()` (obvhs without its `parallel` feature:
-//! one thread) are run alternately, `BUILDS` rounds. Printed per builder:
+//! one thread) are run alternately, at least `BUILDS` rounds and more on a
+//! small mesh (`BUILD_TIME`). Printed per builder:
 //! the best wall time and triangles per second from it, and the peak of live
 //! heap bytes during one build (a counting global allocator,
 //! `support/counting_alloc.rs`; the result included) per million triangles.
@@ -59,8 +60,15 @@ use shadow::shadow_rays;
 #[global_allocator]
 static ALLOC: Counting = Counting;
 
-/// Rounds of each build, alternating between the builders.
+/// Fewest rounds of each build, alternating between the builders.
 const BUILDS: usize = 5;
+/// Rounds go on past [`BUILDS`] until golden's one-thread builds have taken
+/// this long in all: a small mesh builds in about a millisecond, where one
+/// late wake-up of the second thread is a large part of a round, so its best
+/// round needs many draws to find. At most [`BUILDS_MAX`] rounds.
+const BUILD_TIME: Duration = Duration::from_millis(400);
+/// Most rounds of each build.
+const BUILDS_MAX: usize = 300;
 /// Rounds of each traversal, alternating between golden and obvhs.
 const ROUNDS: usize = 3;
 /// Random primary rays per mesh.
@@ -132,10 +140,15 @@ fn compare_builds(
     let two = pool(2);
     let (mut one_t, mut two_t, mut ob_t) = Default::default();
     let (mut h, mut bvh) = (None, None);
-    for _ in 0..BUILDS {
+    let mut rounds = 0;
+    let mut one_thread_total = Duration::ZERO;
+    while rounds < BUILDS || (one_thread_total < BUILD_TIME && rounds < BUILDS_MAX) {
+        rounds += 1;
+        let t = Instant::now();
         let a = BuildTiming::run(&mut one_t, || {
             build(mesh, &grid, p, 0).expect("golden builds")
         });
+        one_thread_total += t.elapsed();
         let b = two.install(|| {
             BuildTiming::run(&mut two_t, || {
                 build_parallel(mesh, &grid, p, 0).expect("golden builds in parallel")
@@ -156,7 +169,7 @@ fn compare_builds(
     }
     let n = mesh.triangles.len() as f64;
     println!(
-        "build {name:<16} tris {:>8} | {} | {} | {} | obvhs/golden {:>5.2}x (2 threads {:>5.2}x), golden 1/2 threads {:>5.2}x",
+        "build {name:<16} tris {:>8} {rounds:>3} rounds | {} | {} | {} | obvhs/golden {:>5.2}x (2 threads {:>5.2}x), golden 1/2 threads {:>5.2}x",
         mesh.triangles.len(),
         one_t.describe("golden 1 thread", n),
         two_t.describe("golden 2 threads", n),
@@ -363,7 +376,7 @@ fn run(name: &str, mesh: &Mesh) {
 
 fn main() {
     println!(
-        "golden against obvhs (PLOC fastest_build, one thread); Params {:?}; {BUILDS} build rounds, {ROUNDS} trace rounds; best wall times",
+        "golden against obvhs (PLOC fastest_build, one thread); Params {:?}; {BUILDS} to {BUILDS_MAX} build rounds (until golden's one-thread builds take {BUILD_TIME:?}), {ROUNDS} trace rounds; best wall times",
         Params::default()
     );
     for name in ["bunny.obj", "teapot.obj"] {

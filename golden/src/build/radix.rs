@@ -103,11 +103,9 @@ fn sort_passes<K: SortKey>(key_bits: u32) -> usize {
 }
 
 /// Below this many items the sorts run on one thread: the threads' setup
-/// per pass costs more than it saves. At 2^11 the bunny's parallel build
-/// (about 10^4 entries) was slower than at 2^14; at 2^18 the generated
-/// building's 67,054 entries were sorted on one thread, a quarter of its
-/// 2-thread build (`cargo bench -p golden --bench versus`, README).
-const PARALLEL_MIN: usize = 1 << 14;
+/// per pass costs more than it saves (on the generated building's 67,054
+/// entries two threads sorted slower than one).
+const PARALLEL_MIN: usize = 1 << 18;
 
 /// A raw pointer the scatter threads share; each writes a disjoint set of
 /// slots (its own block's items at offsets no other block is given).

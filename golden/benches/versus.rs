@@ -10,7 +10,13 @@
 //! heap bytes during one build (a counting global allocator,
 //! `support/counting_alloc.rs`; the result included) per million triangles.
 //! The ratios are obvhs's time over golden's (above 1: golden is faster) and
-//! golden's one-thread time over its 2-thread time. golden's time includes
+//! golden's one-thread time over its 2-thread time. A second line per mesh
+//! times the one-thread builders with their buffers kept from round to
+//! round, as a scene rebuilding a hierarchy every frame keeps them: golden's
+//! [`BuildContext`] against obvhs's `PlocBuilder`, reinsertion optimizer and
+//! BVH kept ([`ObvhsKept`], checked to build what `build_bvh2_from_tris`
+//! builds); their peak heap is their first build's, which makes the
+//! buffers. golden's time includes
 //! reading the vertices through the mesh's index buffer and the grid map;
 //! obvhs is handed its triangles ready (not timed). The parallel build's
 //! output is checked equal to the one-thread build's.
@@ -43,7 +49,7 @@ use std::time::{Duration, Instant};
 use counting_alloc::{peak_during, Counting};
 use glam::Vec3;
 use glam034::Vec3A;
-use golden::build::{build, build_parallel, GridMap};
+use golden::build::{build, build_parallel, BuildContext, GridMap};
 use golden::geom::Ray;
 use golden::mesh::Mesh;
 use golden::scenes::{self, shared_mesh_path};
@@ -51,7 +57,10 @@ use golden::store::Hierarchy;
 use golden::trace::{random_rays, Instance, TraceContext, TraceScene, TraceStats};
 use golden::Params;
 use obvhs::bvh2::builder::build_bvh2_from_tris;
+use obvhs::bvh2::leaf_collapser::collapse;
+use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
 use obvhs::bvh2::Bvh2;
+use obvhs::ploc::PlocBuilder;
 use obvhs::ray::{Ray as ORay, RayHit};
 use obvhs::triangle::Triangle;
 use obvhs::BvhBuildParams;
@@ -127,6 +136,61 @@ fn pool(threads: usize) -> rayon::ThreadPool {
         .expect("a rayon pool")
 }
 
+/// obvhs's `build_bvh2_from_tris` with `fastest_build()` (no pre-split)
+/// step by step, with its builder, optimizer and BVH kept from build to
+/// build, as its documentation suggests for repeated builds: the
+/// counterpart of golden's [`BuildContext`].
+#[derive(Default)]
+struct ObvhsKept {
+    ploc: PlocBuilder,
+    reinsertion: ReinsertionOptimizer,
+    bvh: Bvh2,
+}
+
+impl ObvhsKept {
+    fn build(&mut self, tris: &[Triangle]) {
+        let c = BvhBuildParams::fastest_build();
+        assert!(!c.pre_split, "the kept build has no pre-split");
+        self.ploc.build_with_bvh(
+            &mut self.bvh,
+            c.ploc_search_distance,
+            tris,
+            (0..tris.len() as u32).collect(),
+            c.sort_precision,
+            c.search_depth_threshold,
+        );
+        self.bvh.uses_spatial_splits = c.pre_split;
+        self.reinsertion
+            .run(&mut self.bvh, c.reinsertion_batch_ratio, None);
+        collapse(
+            &mut self.bvh,
+            c.max_prims_per_leaf.clamp(1, 255),
+            c.collapse_traversal_cost,
+        );
+        let post = c.reinsertion_batch_ratio * c.post_collapse_reinsertion_batch_ratio_multiplier;
+        self.reinsertion.run(&mut self.bvh, post, None);
+    }
+}
+
+/// The same BVH: nodes (box, first index, primitive count) and primitive
+/// indices.
+fn same_bvh(a: &Bvh2, b: &Bvh2) -> bool {
+    let node = |n: &obvhs::bvh2::node::Bvh2Node| {
+        (
+            n.aabb.min.to_array().map(f32::to_bits),
+            n.aabb.max.to_array().map(f32::to_bits),
+            n.first_index,
+            n.prim_count,
+        )
+    };
+    a.primitive_indices == b.primitive_indices
+        && a.nodes.len() == b.nodes.len()
+        && a.nodes
+            .iter()
+            .zip(&b.nodes)
+            .all(|(x, y)| node(x) == node(y))
+}
+
 /// Builds `mesh` with each builder; returns golden's hierarchy, its grid
 /// map and obvhs's BVH for the trace comparison.
 fn compare_builds(
@@ -139,6 +203,8 @@ fn compare_builds(
     let grid = GridMap::fit(lo, hi, p);
     let two = pool(2);
     let (mut one_t, mut two_t, mut ob_t) = Default::default();
+    let (mut kept_t, mut ob_kept_t): (BuildTiming, BuildTiming) = Default::default();
+    let (mut ctx, mut ob_kept) = (BuildContext::new(), ObvhsKept::default());
     let (mut h, mut bvh) = (None, None);
     let mut rounds = 0;
     let mut one_thread_total = Duration::ZERO;
@@ -165,8 +231,19 @@ fn compare_builds(
                 &mut Duration::default(),
             )
         }));
+        let c = BuildTiming::run(&mut kept_t, || {
+            ctx.build(mesh, &grid, p, 0)
+                .expect("golden builds in its context")
+        });
+        assert!(a == c, "{name}: the build in a kept context differs");
+        BuildTiming::run(&mut ob_kept_t, || ob_kept.build(tris));
         h = Some(a);
     }
+    let bvh = bvh.expect("built");
+    assert!(
+        same_bvh(&bvh, &ob_kept.bvh),
+        "{name}: obvhs's kept build differs from build_bvh2_from_tris"
+    );
     let n = mesh.triangles.len() as f64;
     println!(
         "build {name:<16} tris {:>8} {rounds:>3} rounds | {} | {} | {} | obvhs/golden {:>5.2}x (2 threads {:>5.2}x), golden 1/2 threads {:>5.2}x",
@@ -178,7 +255,13 @@ fn compare_builds(
         ob_t.secs() / two_t.secs(),
         one_t.secs() / two_t.secs(),
     );
-    (h.expect("built"), grid, bvh.expect("built"))
+    println!(
+        "build {name:<16} kept buffers   | {} | {} | obvhs/golden {:>5.2}x",
+        kept_t.describe("golden 1 thread, BuildContext", n),
+        ob_kept_t.describe("obvhs kept PlocBuilder", n),
+        ob_kept_t.secs() / kept_t.secs(),
+    );
+    (h.expect("built"), grid, bvh)
 }
 
 fn to_obvhs(r: &Ray) -> ORay {

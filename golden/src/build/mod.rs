@@ -11,6 +11,7 @@
 //!    The parallel build makes the levels from LOD 2 down one subtree at
 //!    a time (`subtrees`).
 
+mod context;
 pub mod leaves;
 pub mod lod;
 pub mod quantize;
@@ -25,6 +26,7 @@ use glam::{DVec3, Vec3};
 use crate::mesh::Mesh;
 use crate::params::{ParamError, Params};
 use crate::store::Hierarchy;
+pub use context::BuildContext;
 use leaves::{LeafEntry, LeafKey};
 
 /// How world coordinates map to grid units: `g = (p - origin) / unit`,
@@ -377,24 +379,39 @@ fn place_parallel<K: LeafKey>(
 /// `leaves::VertexVoxels`); more would only make the vector grow by itself.
 const MOST_ENTRIES_PER_TRIANGLE: usize = 9 * 9 * 9;
 
-/// The entries of triangles `range`, in order.
+/// The entries of triangles `range`, in order, in a vector of their own
+/// (no spare room: it would stay allocated through the sort and the levels;
+/// shrinking a block moves nothing).
+fn place_range<K: LeafKey>(
+    range: std::ops::Range<usize>,
+    params: &Params,
+    triangle: &dyn Fn(usize) -> Result<[DVec3; 3], BuildError>,
+) -> Result<Vec<LeafEntry<K>>, BuildError> {
+    let mut entries = Vec::with_capacity(range.len() * 4);
+    place_range_into(range, params, triangle, &mut entries)?;
+    entries.shrink_to_fit();
+    Ok(entries)
+}
+
+/// The entries of triangles `range`, in order, appended to `entries`.
 ///
 /// On a CPU with AVX the placement is compiled a second time with it
 /// ([`place_range_avx`]): four binary64 lanes per instruction where the
 /// kernels work on lanes. Both copies make the same IEEE operations on the
 /// same values (Rust never fuses a multiply and an add by itself, and AVX
 /// rounds every lane as the scalar instruction does), so the same entries.
-fn place_range<K: LeafKey>(
+fn place_range_into<K: LeafKey>(
     range: std::ops::Range<usize>,
     params: &Params,
     triangle: &dyn Fn(usize) -> Result<[DVec3; 3], BuildError>,
-) -> Result<Vec<LeafEntry<K>>, BuildError> {
+    entries: &mut Vec<LeafEntry<K>>,
+) -> Result<(), BuildError> {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx") {
         // SAFETY: the CPU has AVX, checked just above.
-        return unsafe { place_range_avx(range, params, triangle) };
+        return unsafe { place_range_avx(range, params, triangle, entries) };
     }
-    place_range_in::<K, crate::geom::lanes::Plain>(range, params, triangle)
+    place_range_in::<K, crate::geom::lanes::Plain>(range, params, triangle, entries)
 }
 
 /// [`place_range_in`] compiled with AVX, its kernels computing in AVX
@@ -405,34 +422,32 @@ fn place_range_avx<K: LeafKey>(
     range: std::ops::Range<usize>,
     params: &Params,
     triangle: &dyn Fn(usize) -> Result<[DVec3; 3], BuildError>,
-) -> Result<Vec<LeafEntry<K>>, BuildError> {
-    place_range_in::<K, crate::geom::lanes::Avx>(range, params, triangle)
+    entries: &mut Vec<LeafEntry<K>>,
+) -> Result<(), BuildError> {
+    place_range_in::<K, crate::geom::lanes::Avx>(range, params, triangle, entries)
 }
 
-/// [`place_range`]'s work, inlined into each of its two copies with the
-/// kernels it calls.
+/// [`place_range_into`]'s work, inlined into each of its two copies with
+/// the kernels it calls.
 #[inline(always)]
 fn place_range_in<K: LeafKey, L: crate::geom::lanes::Lanes>(
     range: std::ops::Range<usize>,
     params: &Params,
     triangle: &dyn Fn(usize) -> Result<[DVec3; 3], BuildError>,
-) -> Result<Vec<LeafEntry<K>>, BuildError> {
-    let mut entries = Vec::with_capacity(range.len() * 4);
+    entries: &mut Vec<LeafEntry<K>>,
+) -> Result<(), BuildError> {
     let mut clip_scratch = crate::geom::clip::ClipScratch::new();
     for i in range.clone() {
-        // Past the guess of four entries a triangle, room grows by one
-        // entry a triangle at a time, not by doubling: a scene of 4.5
-        // entries a triangle would otherwise hold room for 8 at the peak.
+        // Past the room there is, it grows by one entry a triangle at a
+        // time, not by doubling: a scene of 4.5 entries a triangle would
+        // otherwise hold room for 8 at the peak.
         if entries.capacity() - entries.len() < MOST_ENTRIES_PER_TRIANGLE {
             entries.reserve_exact(range.len().max(MOST_ENTRIES_PER_TRIANGLE));
         }
         let tri = triangle(i)?;
-        leaves::place_triangle_in::<K, L>(&tri, i as u32, params, &mut entries, &mut clip_scratch);
+        leaves::place_triangle_in::<K, L>(&tri, i as u32, params, entries, &mut clip_scratch);
     }
-    // The spare room would stay allocated through the sort and the levels:
-    // give it back (shrinking a block moves nothing).
-    entries.shrink_to_fit();
-    Ok(entries)
+    Ok(())
 }
 
 /// The checks every build makes before placing a triangle.
@@ -479,6 +494,7 @@ fn build_keyed<K: LeafKey>(
     triangle: &dyn Fn(usize) -> Result<[DVec3; 3], BuildError>,
 ) -> Result<Hierarchy, BuildError> {
     let mut entries = place_range::<K>(0..n, params, triangle)?;
+    // The sort's second buffer is gone before the levels are made.
     radix::radix_sort(
         &mut entries,
         &mut Vec::new(),

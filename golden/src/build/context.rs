@@ -1,0 +1,161 @@
+//! [`BuildContext`]: the one-thread build with its working buffers kept
+//! from one build to the next.
+//!
+//! A scene rebuilds its dynamic hierarchies every frame. The entries and
+//! the sort's second buffer are most of a build's memory (about 24 bytes an
+//! entry each, four to five entries a triangle), and fresh buffers are
+//! mapped and zeroed by the kernel page by page as they are first written:
+//! on a 1M-triangle terrain that is about a quarter of the build. Kept,
+//! they are written over.
+
+use glam::DVec3;
+
+use super::leaves::{self, LeafEntry, LeafKey};
+use super::{check_build, place_range_into, radix, upper, BuildError, GridMap};
+use crate::mesh::Mesh;
+use crate::params::Params;
+use crate::store::Hierarchy;
+
+/// The buffers of one key width.
+#[derive(Default)]
+struct Buffers<K: LeafKey> {
+    entries: Vec<LeafEntry<K>>,
+    scratch: Vec<LeafEntry<K>>,
+}
+
+impl<K: LeafKey> Buffers<K> {
+    fn build(
+        &mut self,
+        n: usize,
+        params: &Params,
+        id: u8,
+        triangle: &dyn Fn(usize) -> Result<[DVec3; 3], BuildError>,
+    ) -> Result<Hierarchy, BuildError> {
+        self.entries.clear();
+        // The one-shot build's first guess, four entries a triangle; no
+        // more once a build has made the room.
+        self.entries.reserve(n.saturating_mul(4));
+        place_range_into(0..n, params, triangle, &mut self.entries)?;
+        let key_bits = leaves::leaf_key_bits(params);
+        radix::radix_sort(&mut self.entries, &mut self.scratch, key_bits, |e| e.key);
+        upper::assemble(&self.entries, params, id)
+    }
+
+    fn bytes(&self) -> usize {
+        (self.entries.capacity() + self.scratch.capacity()) * std::mem::size_of::<LeafEntry<K>>()
+    }
+}
+
+/// The one-thread builder with its buffers kept across builds: the same
+/// hierarchy as [`super::build`], bit for bit, or the same error.
+///
+/// ```
+/// use golden::build::{BuildContext, GridMap};
+/// use golden::mesh::Mesh;
+/// use golden::Params;
+/// use glam::Vec3;
+///
+/// let mesh = Mesh {
+///     vertices: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+///     triangles: vec![[0, 1, 2]],
+/// };
+/// let p = Params::default();
+/// let (lo, hi) = mesh.bounds();
+/// let grid = GridMap::fit(lo, hi, &p);
+/// let mut ctx = BuildContext::new();
+/// for _frame in 0..3 {
+///     let h = ctx.build(&mesh, &grid, &p, 0)?;
+///     assert_eq!(h, golden::build::build(&mesh, &grid, &p, 0)?);
+/// }
+/// # Ok::<(), golden::build::BuildError>(())
+/// ```
+#[derive(Default)]
+pub struct BuildContext {
+    /// Keys of `3D + 5 <= 64` bits (`D <= 19`).
+    narrow: Buffers<u64>,
+    /// Wider keys.
+    wide: Buffers<u128>,
+}
+
+impl BuildContext {
+    /// A context with no buffers yet: the first build makes them.
+    pub fn new() -> BuildContext {
+        BuildContext::default()
+    }
+
+    /// [`super::build`] in this context's buffers.
+    pub fn build(
+        &mut self,
+        mesh: &Mesh,
+        grid: &GridMap,
+        params: &Params,
+        id: u8,
+    ) -> Result<Hierarchy, BuildError> {
+        grid.validate()?;
+        let n = mesh.triangles.len();
+        check_build(n, params, id)?;
+        let triangle = |i| grid.triangle(mesh, i, params);
+        if leaves::leaf_key_bits(params) <= 64 {
+            self.narrow.build(n, params, id, &triangle)
+        } else {
+            self.wide.build(n, params, id, &triangle)
+        }
+    }
+
+    /// The bytes its buffers hold.
+    pub fn bytes(&self) -> usize {
+        self.narrow.bytes() + self.wide.bytes()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::build::build;
+    use crate::scenes;
+    use glam::Vec3;
+
+    fn built(ctx: &mut BuildContext, mesh: &Mesh, p: &Params) {
+        let (lo, hi) = mesh.bounds();
+        let grid = GridMap::fit(lo, hi, p);
+        assert_eq!(ctx.build(mesh, &grid, p, 1), build(mesh, &grid, p, 1));
+    }
+
+    /// One context through meshes large and small, both key widths, and a
+    /// refused mesh between builds: each build is the one-shot build.
+    #[test]
+    fn a_kept_context_builds_what_build_builds() {
+        let narrow = Params::default();
+        let wide = Params {
+            max_lod: 24,
+            ..Params::default()
+        };
+        assert!(leaves::leaf_key_bits(&narrow) <= 64 && leaves::leaf_key_bits(&wide) > 64);
+        let mut ctx = BuildContext::new();
+        let big = scenes::terrain(40, 3);
+        let small = scenes::random_soup(50, 0.05, 7);
+        built(&mut ctx, &big, &narrow);
+        let room = ctx.bytes();
+        assert!(room > 0);
+        built(&mut ctx, &small, &narrow);
+        // The smaller build fits in the room the bigger one made.
+        assert_eq!(ctx.bytes(), room);
+        built(&mut ctx, &scenes::architecture(1, 2), &wide);
+        built(&mut ctx, &small, &wide);
+
+        // A vertex off the grid, after the first triangles have been
+        // placed: the same error, and the context builds on after it.
+        let mut bad = small.clone();
+        bad.vertices.push(Vec3::splat(f32::NAN));
+        let last = bad.vertices.len() as u32 - 1;
+        bad.triangles[30][1] = last;
+        built(&mut ctx, &bad, &narrow);
+        let (lo, hi) = small.bounds();
+        let grid = GridMap::fit(lo, hi, &narrow);
+        assert!(matches!(
+            ctx.build(&bad, &grid, &narrow, 1),
+            Err(BuildError::NonFinite { triangle: 30, .. })
+        ));
+        built(&mut ctx, &big, &narrow);
+    }
+}

@@ -11,7 +11,7 @@
 use glam::DVec3;
 
 use super::leaves::{self, LeafEntry, LeafKey};
-use super::{check_build, place_range_into, radix, upper, BuildError, GridMap};
+use super::{place_range_into, radix, upper, BuildError, GridMap, MeshInput};
 use crate::mesh::Mesh;
 use crate::params::Params;
 use crate::store::Hierarchy;
@@ -91,10 +91,8 @@ impl BuildContext {
         params: &Params,
         id: u8,
     ) -> Result<Hierarchy, BuildError> {
-        grid.validate()?;
-        let n = mesh.triangles.len();
-        check_build(n, params, id)?;
-        let triangle = |i| grid.triangle(mesh, i, params);
+        let input = MeshInput::checked(mesh, grid, params, id)?;
+        let (n, triangle) = (mesh.triangles.len(), |i| input.triangle(i));
         if leaves::leaf_key_bits(params) <= 64 {
             self.narrow.build(n, params, id, &triangle)
         } else {

@@ -318,14 +318,37 @@ pub fn build_parallel(
     params: &Params,
     id: u8,
 ) -> Result<Hierarchy, BuildError> {
-    grid.validate()?;
-    let n = mesh.triangles.len();
-    check_build(n, params, id)?;
-    let triangle = |i| grid.triangle(mesh, i, params);
+    let input = MeshInput::checked(mesh, grid, params, id)?;
+    let (n, triangle) = (mesh.triangles.len(), |i| input.triangle(i));
     if leaves::leaf_key_bits(params) <= 64 {
         build_parallel_keyed::<u64>(n, params, id, &triangle)
     } else {
         build_parallel_keyed::<u128>(n, params, id, &triangle)
+    }
+}
+
+/// A mesh a build has checked (its grid map, then [`check_build`]).
+struct MeshInput<'a> {
+    mesh: &'a Mesh,
+    grid: &'a GridMap,
+    params: &'a Params,
+}
+
+impl<'a> MeshInput<'a> {
+    fn checked(
+        mesh: &'a Mesh,
+        grid: &'a GridMap,
+        params: &'a Params,
+        id: u8,
+    ) -> Result<MeshInput<'a>, BuildError> {
+        grid.validate()?;
+        check_build(mesh.triangles.len(), params, id)?;
+        Ok(MeshInput { mesh, grid, params })
+    }
+
+    /// Triangle `i` in grid units.
+    fn triangle(&self, i: usize) -> Result<[DVec3; 3], BuildError> {
+        self.grid.triangle(self.mesh, i, self.params)
     }
 }
 

@@ -13,7 +13,8 @@
 //! golden's one-thread time over its 2-thread time. A second line per mesh
 //! times the one-thread builders with their buffers kept from round to
 //! round, as a scene rebuilding a hierarchy every frame keeps them: golden's
-//! [`BuildContext`] against obvhs's `PlocBuilder`, reinsertion optimizer and
+//! [`BuildContext`] (one thread, and its parallel build in the pool of 2)
+//! against obvhs's `PlocBuilder`, reinsertion optimizer and
 //! BVH kept ([`ObvhsKept`], checked to build what `build_bvh2_from_tris`
 //! builds); their peak heap is their first build's, which makes the
 //! buffers. golden's time includes
@@ -203,7 +204,8 @@ fn compare_builds(
     let grid = GridMap::fit(lo, hi, p);
     let two = pool(2);
     let (mut one_t, mut two_t, mut ob_t) = Default::default();
-    let (mut kept_t, mut ob_kept_t): (BuildTiming, BuildTiming) = Default::default();
+    let (mut kept_t, mut kept2_t, mut ob_kept_t): (BuildTiming, BuildTiming, BuildTiming) =
+        Default::default();
     let (mut ctx, mut ob_kept) = (BuildContext::new(), ObvhsKept::default());
     let (mut h, mut bvh) = (None, None);
     let mut rounds = 0;
@@ -236,6 +238,16 @@ fn compare_builds(
                 .expect("golden builds in its context")
         });
         assert!(a == c, "{name}: the build in a kept context differs");
+        let d = two.install(|| {
+            BuildTiming::run(&mut kept2_t, || {
+                ctx.build_parallel(mesh, &grid, p, 0)
+                    .expect("golden builds in parallel in its context")
+            })
+        });
+        assert!(
+            a == d,
+            "{name}: the parallel build in a kept context differs"
+        );
         BuildTiming::run(&mut ob_kept_t, || ob_kept.build(tris));
         h = Some(a);
     }
@@ -256,10 +268,13 @@ fn compare_builds(
         one_t.secs() / two_t.secs(),
     );
     println!(
-        "build {name:<16} kept buffers   | {} | {} | obvhs/golden {:>5.2}x",
+        "build {name:<16} kept buffers   | {} | {} | {} | obvhs/golden {:>5.2}x (2 threads {:>5.2}x), golden 1/2 threads {:>5.2}x",
         kept_t.describe("golden 1 thread, BuildContext", n),
+        kept2_t.describe("golden 2 threads, BuildContext", n),
         ob_kept_t.describe("obvhs kept PlocBuilder", n),
         ob_kept_t.secs() / kept_t.secs(),
+        ob_kept_t.secs() / kept2_t.secs(),
+        kept_t.secs() / kept2_t.secs(),
     );
     (h.expect("built"), grid, bvh)
 }

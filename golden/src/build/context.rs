@@ -11,7 +11,10 @@
 use glam::DVec3;
 
 use super::leaves::{self, LeafEntry, LeafKey};
-use super::{place_range_into, radix, upper, BuildError, GridMap, MeshInput};
+use super::radix::SortBuffers;
+use super::{
+    place_parallel_into, place_range_into, radix, subtrees, upper, BuildError, GridMap, MeshInput,
+};
 use crate::mesh::Mesh;
 use crate::params::Params;
 use crate::store::Hierarchy;
@@ -21,15 +24,34 @@ use crate::store::Hierarchy;
 struct Buffers<K: LeafKey> {
     entries: Vec<LeafEntry<K>>,
     scratch: Vec<LeafEntry<K>>,
+    /// The parallel placement's chunks.
+    parts: Vec<Vec<LeafEntry<K>>>,
 }
 
+/// A triangle in grid units, by index.
+type TriangleOf<'a> = &'a (dyn Fn(usize) -> Result<[DVec3; 3], BuildError> + Sync);
+
 impl<K: LeafKey> Buffers<K> {
+    fn run(
+        &mut self,
+        n: usize,
+        params: &Params,
+        id: u8,
+        triangle: TriangleOf<'_>,
+        parallel: bool,
+    ) -> Result<Hierarchy, BuildError> {
+        match parallel {
+            false => self.build(n, params, id, triangle),
+            true => self.build_parallel(n, params, id, triangle),
+        }
+    }
+
     fn build(
         &mut self,
         n: usize,
         params: &Params,
         id: u8,
-        triangle: &dyn Fn(usize) -> Result<[DVec3; 3], BuildError>,
+        triangle: TriangleOf<'_>,
     ) -> Result<Hierarchy, BuildError> {
         self.entries.clear();
         // The one-shot build's first guess, four entries a triangle; no
@@ -41,8 +63,29 @@ impl<K: LeafKey> Buffers<K> {
         upper::assemble(&self.entries, params, id)
     }
 
+    fn build_parallel(
+        &mut self,
+        n: usize,
+        params: &Params,
+        id: u8,
+        triangle: TriangleOf<'_>,
+    ) -> Result<Hierarchy, BuildError> {
+        place_parallel_into(n, params, triangle, &mut self.parts, false)?;
+        let bufs = SortBuffers {
+            out: &mut self.entries,
+            scratch: &mut self.scratch,
+            keep_parts: true,
+        };
+        radix::radix_sort_parts_into(&mut self.parts, bufs, leaves::leaf_key_bits(params), |e| {
+            e.key
+        });
+        subtrees::assemble_parallel(&self.entries, params, id)
+    }
+
     fn bytes(&self) -> usize {
-        (self.entries.capacity() + self.scratch.capacity()) * std::mem::size_of::<LeafEntry<K>>()
+        let parts: usize = self.parts.iter().map(Vec::capacity).sum();
+        (self.entries.capacity() + self.scratch.capacity() + parts)
+            * std::mem::size_of::<LeafEntry<K>>()
     }
 }
 
@@ -91,12 +134,34 @@ impl BuildContext {
         params: &Params,
         id: u8,
     ) -> Result<Hierarchy, BuildError> {
+        self.run(mesh, grid, params, id, false)
+    }
+
+    /// [`super::build_parallel`] in this context's buffers: the same
+    /// hierarchy as [`super::build`], bit for bit, or the same error.
+    pub fn build_parallel(
+        &mut self,
+        mesh: &Mesh,
+        grid: &GridMap,
+        params: &Params,
+        id: u8,
+    ) -> Result<Hierarchy, BuildError> {
+        self.run(mesh, grid, params, id, true)
+    }
+
+    fn run(
+        &mut self,
+        mesh: &Mesh,
+        grid: &GridMap,
+        params: &Params,
+        id: u8,
+        parallel: bool,
+    ) -> Result<Hierarchy, BuildError> {
         let input = MeshInput::checked(mesh, grid, params, id)?;
         let (n, triangle) = (mesh.triangles.len(), |i| input.triangle(i));
-        if leaves::leaf_key_bits(params) <= 64 {
-            self.narrow.build(n, params, id, &triangle)
-        } else {
-            self.wide.build(n, params, id, &triangle)
+        match leaves::leaf_key_bits(params) <= 64 {
+            true => self.narrow.run(n, params, id, &triangle, parallel),
+            false => self.wide.run(n, params, id, &triangle, parallel),
         }
     }
 
@@ -113,10 +178,18 @@ mod tests {
     use crate::scenes;
     use glam::Vec3;
 
+    /// The context's one-thread and 2-thread builds against the one-shot
+    /// build.
     fn built(ctx: &mut BuildContext, mesh: &Mesh, p: &Params) {
         let (lo, hi) = mesh.bounds();
         let grid = GridMap::fit(lo, hi, p);
-        assert_eq!(ctx.build(mesh, &grid, p, 1), build(mesh, &grid, p, 1));
+        let want = build(mesh, &grid, p, 1);
+        assert_eq!(ctx.build(mesh, &grid, p, 1), want);
+        let two = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .expect("a pool");
+        assert_eq!(two.install(|| ctx.build_parallel(mesh, &grid, p, 1)), want);
     }
 
     /// One context through meshes large and small, both key widths, and a
@@ -130,9 +203,12 @@ mod tests {
         };
         assert!(leaves::leaf_key_bits(&narrow) <= 64 && leaves::leaf_key_bits(&wide) > 64);
         let mut ctx = BuildContext::new();
-        let big = scenes::terrain(40, 3);
+        // Over 2^18 entries: the parallel sort and the levels built one
+        // subtree at a time run (below, both run on one thread).
+        let big = scenes::terrain(200, 3);
         let small = scenes::random_soup(50, 0.05, 7);
         built(&mut ctx, &big, &narrow);
+        assert!(ctx.narrow.entries.len() > 1 << 18);
         let room = ctx.bytes();
         assert!(room > 0);
         built(&mut ctx, &small, &narrow);

@@ -359,7 +359,8 @@ fn build_parallel_keyed<K: LeafKey>(
     id: u8,
     triangle: &(dyn Fn(usize) -> Result<[DVec3; 3], BuildError> + Sync),
 ) -> Result<Hierarchy, BuildError> {
-    let parts = place_parallel::<K>(n, params, triangle)?;
+    let mut parts = Vec::new();
+    place_parallel_into::<K>(n, params, triangle, &mut parts, true)?;
     let entries = radix::radix_sort_parts(parts, leaves::leaf_key_bits(params), |e| e.key);
     subtrees::assemble_parallel(&entries, params, id)
 }
@@ -373,22 +374,40 @@ const PLACE_CHUNK: usize = 1 << 13;
 const PLACE_CHUNK_MIN: usize = 256;
 
 /// The entries of triangles `0..n` in triangle order, as the entries of
-/// consecutive chunks placed on the current rayon pool (the sort reads them
-/// where they are); the error of the lowest failing triangle.
-fn place_parallel<K: LeafKey>(
+/// consecutive chunks placed on the current rayon pool into `parts` (one
+/// vector a chunk, emptied first, and any more left empty; the sort reads
+/// them where they are);
+/// the error of the lowest failing triangle. `shrink`: give each chunk's
+/// spare room back (a one-shot build; a kept context keeps it).
+fn place_parallel_into<K: LeafKey>(
     n: usize,
     params: &Params,
     triangle: &(dyn Fn(usize) -> Result<[DVec3; 3], BuildError> + Sync),
-) -> Result<Vec<Vec<LeafEntry<K>>>, BuildError> {
+    parts: &mut Vec<Vec<LeafEntry<K>>>,
+    shrink: bool,
+) -> Result<(), BuildError> {
     use rayon::prelude::*;
     let chunk = n
         .div_ceil(8 * rayon::current_num_threads())
         .clamp(PLACE_CHUNK_MIN, PLACE_CHUNK);
-    (0..n.div_ceil(chunk))
-        .into_par_iter()
-        .map(|c| {
+    let chunks = n.div_ceil(chunk);
+    if parts.len() < chunks {
+        parts.resize_with(chunks, Vec::new);
+    }
+    // A kept context's vectors past this mesh's chunks stay, empty.
+    parts[chunks..].iter_mut().for_each(Vec::clear);
+    parts[..chunks]
+        .par_iter_mut()
+        .enumerate()
+        .map(|(c, part)| {
             let range = c * chunk..((c + 1) * chunk).min(n);
-            place_range(range, params, triangle)
+            part.clear();
+            part.reserve(range.len() * 4);
+            place_range_into(range, params, triangle, part)?;
+            if shrink {
+                part.shrink_to_fit();
+            }
+            Ok(())
         })
         // In chunk order, so that the first error is the lowest chunk's
         // (rayon's own collect into a `Result` gives any chunk's).

@@ -165,20 +165,57 @@ pub fn radix_sort_parallel<T: Copy + Send + Sync, K: SortKey>(
 /// part's digit counts would cost more than the copy (measured on the
 /// bunny's 15 parts).
 pub fn radix_sort_parts<T: Copy + Send + Sync, K: SortKey>(
-    parts: Vec<Vec<T>>,
+    mut parts: Vec<Vec<T>>,
     key_bits: u32,
     key: impl Fn(&T) -> K + Sync,
 ) -> Vec<T> {
+    let mut out = Vec::new();
+    let bufs = SortBuffers {
+        out: &mut out,
+        scratch: &mut Vec::new(),
+        keep_parts: false,
+    };
+    radix_sort_parts_into(&mut parts, bufs, key_bits, key);
+    out
+}
+
+/// Where [`radix_sort_parts_into`] sorts.
+pub struct SortBuffers<'a, T> {
+    /// Receives the sorted items (cleared first).
+    pub out: &'a mut Vec<T>,
+    /// The passes' second buffer.
+    pub scratch: &'a mut Vec<T>,
+    /// Keep the parts' vectors (emptied) for the next use; else they are
+    /// freed as soon as they have been read, which lowers the peak.
+    pub keep_parts: bool,
+}
+
+/// [`radix_sort_parts`] into kept buffers: the same order.
+pub fn radix_sort_parts_into<T: Copy + Send + Sync, K: SortKey>(
+    parts: &mut Vec<Vec<T>>,
+    bufs: SortBuffers<'_, T>,
+    key_bits: u32,
+    key: impl Fn(&T) -> K + Sync,
+) {
     use rayon::prelude::*;
+    let SortBuffers {
+        out,
+        scratch,
+        keep_parts,
+    } = bufs;
+    let release = |parts: &mut Vec<Vec<T>>| match keep_parts {
+        true => parts.iter_mut().for_each(Vec::clear),
+        false => *parts = Vec::new(),
+    };
     let n: usize = parts.iter().map(Vec::len).sum();
-    let mut out = Vec::with_capacity(n);
+    out.clear();
+    out.reserve(n);
     if n < PARALLEL_MIN || rayon::current_num_threads() < 2 {
-        for part in &parts {
+        for part in parts.iter() {
             out.extend_from_slice(part);
         }
-        drop(parts);
-        radix_sort(&mut out, &mut Vec::new(), key_bits, key);
-        return out;
+        release(parts);
+        return radix_sort(out, scratch, key_bits, key);
     }
     let passes = sort_passes::<K>(key_bits);
     let hists: Vec<Vec<[u32; BUCKETS]>> = parts
@@ -194,7 +231,7 @@ pub fn radix_sort_parts<T: Copy + Send + Sync, K: SortKey>(
     match todo.first() {
         Some(&p) => {
             let first: Vec<[u32; BUCKETS]> = hists.iter().map(|h| h[p]).collect();
-            scatter(&blocks, &first, p, &key, &mut out);
+            scatter(&blocks, &first, p, &key, out);
         }
         // No pass moves anything: the items are already in order.
         None => {
@@ -204,10 +241,9 @@ pub fn radix_sort_parts<T: Copy + Send + Sync, K: SortKey>(
         }
     }
     drop(blocks);
-    drop(parts);
+    release(parts);
     let rest = todo.get(1..).unwrap_or(&[]);
-    passes_parallel(&mut out, &mut Vec::new(), rest, &key);
-    out
+    passes_parallel(out, scratch, rest, &key);
 }
 
 /// The digit counts of `passes` over `part`, in one read.

@@ -71,7 +71,7 @@ pub const CFG_ERRORS: [u64; 3] = [
 /// reverse (every entry of the sorter moves), sixteen roots at LOD 5
 /// stored against Morton order, a ladder of leaves
 /// at every LOD above the merging level, an input stored depth first
-/// with indices near `2^I`, two inputs under LOD-0 roots (the merged top
+/// with indices near `2^I`, three merges of two inputs under LOD-0 roots (the merged top
 /// at LOD 0), the deep tops and the deep clusters, each
 /// through `d`'s mode; per code of [`CFG_ERRORS`] a merge whose last
 /// input's `cfg` makes its fetcher refuse it; and two bad ranges from
@@ -91,7 +91,7 @@ pub fn hard_merges(d: &MergeDesign, sizes: MergerSizes) -> Result<HardMerges> {
     cases.push(leaf_ladder(p)?);
     cases.push(depth_first_store(p)?);
     cases.extend(sixteen_deep_roots(p)?);
-    cases.push(lod0_tops(p)?);
+    cases.extend(lod0_tops(p)?);
     cases.retain(|(_, _, ids)| ids.len() <= k);
     for (store, table, ids) in &cases {
         let tx =
@@ -160,7 +160,7 @@ pub fn hard_cases(d: &MergeDesign) -> Result<Vec<RealCase>> {
     cases.push(leaf_ladder(p)?);
     cases.push(depth_first_store(p)?);
     cases.extend(sixteen_deep_roots(p)?);
-    cases.push(lod0_tops(p)?);
+    cases.extend(lod0_tops(p)?);
     cases.extend(deep_cases(p)?);
     cases.retain(|(_, _, ids)| ids.len() <= d.inputs);
     Ok(cases)
@@ -172,13 +172,18 @@ pub fn hard_cases(d: &MergeDesign) -> Result<Vec<RealCase>> {
 /// covers more than half the scene there), but a store may hold one: no
 /// built input reaches a top at LOD 0 at Q = 0, nor the upper builder's and
 /// the writer's LOD-0 levels.
-fn lod0_tops(p: &Params) -> Result<RealCase> {
-    let input = |id: u8, seed: u64| -> Result<(Hierarchy, Translation)> {
-        let h = under_lod0_root(try_scene_soup(p, id, 10, 0.3, seed).map_err(golden_err)?);
+/// Three such merges, of 10, 3 and 6 triangles an input, so that the
+/// LOD-0 records' fields take several values.
+fn lod0_tops(p: &Params) -> Result<Vec<RealCase>> {
+    let input = |id: u8, n: usize, seed: u64| -> Result<(Hierarchy, Translation)> {
+        let h = under_lod0_root(try_scene_soup(p, id, n, 0.3, seed).map_err(golden_err)?);
         let top = h.top_lod;
         Ok((h, Translation::zero(top)))
     };
-    case_of(p, vec![input(1, 91)?, input(2, 92)?])
+    [(10, 91), (3, 93), (6, 95)]
+        .into_iter()
+        .map(|(n, seed)| case_of(p, vec![input(1, n, seed)?, input(2, n, seed + 1)?]))
+        .collect()
 }
 
 /// `h` with its top at LOD 1 put under one LOD-0 root whose children are
@@ -903,8 +908,8 @@ mod tests {
     }
 
     /// An input put under a LOD-0 root is a valid store (the checker
-    /// against its triangles), and the merge of two such inputs writes its
-    /// top at LOD 0 in both modes, at the coverage configuration (Q = 0,
+    /// against its triangles), and each merge of two such inputs writes
+    /// its top at LOD 0 in both modes, at the coverage configuration (Q = 0,
     /// where no built input has a LOD-0 root; its writer of `2^5` entries a
     /// buffer) and at the default.
     #[test]
@@ -923,16 +928,17 @@ mod tests {
             (0, 1, built.root_count)
         );
         for p in [small, Params::default()] {
-            let (store, table, ids) = lod0_tops(&p).unwrap();
-            for mode in BOTH_MODES {
-                let mut sizes = MergerSizes::new(&p);
-                sizes.capacity_bits = 5;
-                sizes.leaf_bits = 6;
-                let tx = merger_transaction(&store, &table, &ids, mode, 7, 2, sizes).unwrap();
-                let w = &tx.header.writer;
-                let at = format!("D = {} {mode:?}: {w:?}", p.max_lod);
-                assert_eq!((w.top, w.err), (0, 0), "{at}");
-                assert!(w.nodes >= 1, "{at}");
+            for (store, table, ids) in lod0_tops(&p).unwrap() {
+                for mode in BOTH_MODES {
+                    let mut sizes = MergerSizes::new(&p);
+                    sizes.capacity_bits = 5;
+                    sizes.leaf_bits = 6;
+                    let tx = merger_transaction(&store, &table, &ids, mode, 7, 2, sizes).unwrap();
+                    let w = &tx.header.writer;
+                    let at = format!("D = {} {mode:?}: {w:?}", p.max_lod);
+                    assert_eq!((w.top, w.err), (0, 0), "{at}");
+                    assert!(w.nodes >= 1, "{at}");
+                }
             }
         }
     }

@@ -1,12 +1,12 @@
-//! [`BuildContext`]: the one-thread build with its working buffers kept
-//! from one build to the next.
+//! [`BuildContext`]: the builder (one thread, or the parallel build) with
+//! its working buffers kept from one build to the next.
 //!
-//! A scene rebuilds its dynamic hierarchies every frame. The entries and
-//! the sort's second buffer are most of a build's memory (about 24 bytes an
-//! entry each, four to five entries a triangle), and fresh buffers are
-//! mapped and zeroed by the kernel page by page as they are first written:
-//! on a 1M-triangle terrain that is about a quarter of the build. Kept,
-//! they are written over.
+//! A scene rebuilds its dynamic hierarchies every frame. The entries, the
+//! sort's second buffer and the parallel placement's chunks are most of a
+//! build's memory (24 bytes an entry at D <= 19, four to five entries a
+//! triangle), and fresh buffers are mapped and zeroed by the kernel page by
+//! page as they are first written: on the versus bench's 1M-triangle
+//! terrain, a fifth of the one-thread build. Kept, they are written over.
 
 use glam::DVec3;
 

@@ -448,11 +448,13 @@ fn uncovered_text(code: &CoverageReport) -> String {
     for u in &code.units {
         s += &format!("# {} ({} uncovered)\n", u.unit, u.uncovered.len());
         for p in &u.uncovered {
+            let field = p.field.as_ref().map(|f| format!(" ({f})"));
             s += &format!(
-                "{} {} {} count={} -> {}{}\n",
+                "{} {} {}{} count={} -> {}{}\n",
                 p.kind,
                 p.instance,
                 p.point,
+                field.unwrap_or_default(),
                 p.count,
                 p.source.as_deref().unwrap_or("(no generator line)"),
                 match (&p.waived, &p.open) {

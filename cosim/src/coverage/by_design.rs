@@ -81,6 +81,64 @@ pub fn reason(module: &str, what: &str) -> Option<String> {
     record_bit(&p, level, bit)
 }
 
+/// The nets whose whole word is the builder's level beat
+/// (`BuilderLayout::level`: `rec`, `ref`, `kind`, `index`, `records`,
+/// `err`), by module prefix as [`LEVEL_NETS`]; the other level nets carry
+/// the record at bit 0 and other words above it.
+const LEVEL_BEAT_NETS: [(&str, &[&str]); 3] = [
+    (
+        "upper_builder_",
+        &[
+            "level{L}_beat",
+            "level{L}_data",
+            "level{L}_skid_data",
+            "level{L}_skid_spare_data",
+        ],
+    ),
+    ("record_writer_", &["level{L}_data"]),
+    ("hierarchy_merger_", &["u_builder_level{L}_data"]),
+];
+
+/// The field of golden's layouts that toggle point `what` (`net[bit]`) of
+/// `module` is, when the net carries one LOD's records ([`LEVEL_NETS`]):
+/// `rec.count[11]`, `index[5]`. The report prints it beside the point, so
+/// that a bit is read as the field it is.
+pub fn field_of(module: &str, what: &str) -> Option<String> {
+    let (net, bit) = what.split_once('[')?;
+    let bit: u32 = bit.strip_suffix(']')?.parse().ok()?;
+    let on = |table: &Nets| -> Option<Params> {
+        let (prefix, nets) = table
+            .iter()
+            .find(|(prefix, _)| module.starts_with(prefix))?;
+        let p = params_of(&module[prefix.len()..])?;
+        nets.iter().find_map(|n| level_of(n, net))?;
+        Some(p)
+    };
+    let p = on(&LEVEL_NETS)?;
+    let named = |f: &Field, prefix: &str| {
+        (f.offset..f.offset + f.width)
+            .contains(&bit)
+            .then(|| format!("{prefix}{}[{}]", f.name, bit - f.offset))
+    };
+    let nl = NodeLayout::new(&p);
+    if let Some(f) = nl.layout().fields().find_map(|f| named(f, "rec.")) {
+        return Some(f);
+    }
+    on(&LEVEL_BEAT_NETS)?;
+    let bl = golden::merge::upper_builder::unit::BuilderLayout::new(&p);
+    let rl = golden::layout::RefLayout::new(&p);
+    let in_ref = (bl.refer.offset..bl.refer.offset + bl.refer.width).contains(&bit);
+    if in_ref {
+        let k = bit - bl.refer.offset;
+        return rl.layout().fields().find_map(|f| {
+            (f.offset..f.offset + f.width)
+                .contains(&k)
+                .then(|| format!("ref.{}[{}]", f.name, k - f.offset))
+        });
+    }
+    bl.level.fields().find_map(|f| named(f, ""))
+}
+
 /// Why bit `bit` of a record of LOD `level` never changes, if it does not.
 fn record_bit(p: &Params, level: u32, bit: u32) -> Option<String> {
     let nl = NodeLayout::new(p);
@@ -168,5 +226,52 @@ mod tests {
         assert!(reason(ub, "base0_skid_data_rec_x_morton[0]").is_some());
         assert!(reason(ub, "base8_skid_data_rec_x_morton[23]").is_none());
         assert!(reason(top, "u_builder_level2_data").is_none());
+    }
+
+    /// At D = 8, I = 12, H = 3 the level beat is `rec` (bits 0..=52:
+    /// `leaf`, `lod`, `x`, `y`, `z`, `first` from 29, `count` from 41),
+    /// `ref` (53..=67: `node`, then `hier`), `kind`, `index` (70..=81),
+    /// `records`, `err` (94).
+    #[test]
+    fn names_the_field_of_a_level_net_bit() {
+        let ub = "upper_builder_d8_q0_i12_h3";
+        assert_eq!(
+            field_of(ub, "level3_data[0]").as_deref(),
+            Some("rec.leaf[0]")
+        );
+        assert_eq!(
+            field_of(ub, "level3_data[40]").as_deref(),
+            Some("rec.first[11]")
+        );
+        assert_eq!(
+            field_of(ub, "level3_beat[41]").as_deref(),
+            Some("rec.count[0]")
+        );
+        assert_eq!(
+            field_of(ub, "level3_data[53]").as_deref(),
+            Some("ref.node[0]")
+        );
+        assert_eq!(
+            field_of(ub, "level3_data[67]").as_deref(),
+            Some("ref.hier[2]")
+        );
+        assert_eq!(field_of(ub, "level3_data[75]").as_deref(), Some("index[5]"));
+        assert_eq!(field_of(ub, "level3_data[94]").as_deref(), Some("err[0]"));
+        let top = "hierarchy_merger_d8_q0_i12_h3_k2_ov1_2_r16_f256_c5_l6";
+        assert_eq!(
+            field_of(top, "u_builder_level0_data[82]").as_deref(),
+            Some("records[0]")
+        );
+        // A record's bits on a net that carries other words above it.
+        assert_eq!(
+            field_of(ub, "base2_data[30]").as_deref(),
+            Some("rec.first[1]")
+        );
+        assert_eq!(field_of(ub, "base2_data[60]"), None);
+        assert_eq!(field_of(ub, "l3_nodes[2]"), None);
+        assert_eq!(
+            field_of("record_writer_level_d8_q0_i12_h3_c5", "level_data[5]"),
+            None
+        );
     }
 }

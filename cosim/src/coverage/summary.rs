@@ -44,6 +44,10 @@ pub struct UncoveredPoint {
     pub source: Option<String>,
     /// Its count (a toggle bit that rose once and never fell has 1).
     pub count: u64,
+    /// Toggle: the field of golden's layouts the bit is, when its net
+    /// carries one LOD's records (`rec.count[11]`, `index[5]`;
+    /// `by_design::field_of`).
+    pub field: Option<String>,
     /// The waiver's reason (`file:line: reason`), when waived.
     pub waived: Option<String>,
     /// Not waived: why it is still uncovered (`file:line: reason`), when
@@ -415,6 +419,10 @@ fn unit_summary(
             },
             source,
             count: p.count,
+            field: match p.kind {
+                Kind::Toggle => super::by_design::field_of(&p.module, &p.what),
+                _ => None,
+            },
             open: open
                 .filter(|_| waived.is_none())
                 .map(|i| format!("{}: {}", waivers.entries[i].at, waivers.entries[i].reason)),

@@ -100,7 +100,7 @@ const LEVEL_BEAT_NETS: [(&str, &[&str]); 3] = [
 ];
 
 /// The field of golden's layouts that toggle point `what` (`net[bit]`) of
-/// `module` is, when the net carries one LOD's records ([`LEVEL_NETS`]):
+/// `module` is, when the net carries one LOD's records (`LEVEL_NETS`):
 /// `rec.count[11]`, `index[5]`. The report prints it beside the point, so
 /// that a bit is read as the field it is.
 pub fn field_of(module: &str, what: &str) -> Option<String> {

@@ -27,6 +27,7 @@ fn build_hierarchy_builds_and_checks() {
     let out = build_hierarchy::run(None).unwrap();
     has(&out, "9152 triangles, parameters d16_q8_i24_h4");
     has(&out, "checker: ok");
+    has(&out, "rebuilt 3 times in a kept context");
     // A mesh file, as a user passes one.
     let bunny = golden::scenes::shared_mesh_path("bunny.obj");
     let out = build_hierarchy::run(Some(bunny.to_str().unwrap())).unwrap();

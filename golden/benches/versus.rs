@@ -11,7 +11,7 @@
 //! `support/counting_alloc.rs`; the result included) per million triangles.
 //! The ratios are obvhs's time over golden's (above 1: golden is faster) and
 //! golden's one-thread time over its 2-thread time. A second line per mesh
-//! times the one-thread builders with their buffers kept from round to
+//! times the builders with their buffers kept from round to
 //! round, as a scene rebuilding a hierarchy every frame keeps them: golden's
 //! [`BuildContext`] (one thread, and its parallel build in the pool of 2)
 //! against obvhs's `PlocBuilder`, reinsertion optimizer and

@@ -64,14 +64,7 @@ pub fn reason(module: &str, what: &str) -> Option<String> {
     if module.starts_with("record_writer_level") {
         return None;
     }
-    let level_in = |table: &Nets| -> Option<(Params, u32)> {
-        let (prefix, nets) = table
-            .iter()
-            .find(|(prefix, _)| module.starts_with(prefix))?;
-        let p = params_of(&module[prefix.len()..])?;
-        let level = nets.iter().find_map(|n| level_of(n, net))?;
-        (level <= p.max_lod as u32).then_some((p, level))
-    };
+    let level_in = |table: &Nets| level_net(table, module, net);
     if let Some((p, level)) = level_in(&MORTON_NETS) {
         return (bit >= 3 * level && bit < 3 * p.coord_bits()).then(|| {
             format!("Morton bit {bit} of a LOD-{level} record: its coordinates lie below 2^{level}, so its bits from {} up are 0 (by design, cosim::coverage::by_design)", 3 * level)
@@ -106,37 +99,36 @@ const LEVEL_BEAT_NETS: [(&str, &[&str]); 3] = [
 pub fn field_of(module: &str, what: &str) -> Option<String> {
     let (net, bit) = what.split_once('[')?;
     let bit: u32 = bit.strip_suffix(']')?.parse().ok()?;
-    let on = |table: &Nets| -> Option<Params> {
-        let (prefix, nets) = table
-            .iter()
-            .find(|(prefix, _)| module.starts_with(prefix))?;
-        let p = params_of(&module[prefix.len()..])?;
-        nets.iter().find_map(|n| level_of(n, net))?;
-        Some(p)
-    };
-    let p = on(&LEVEL_NETS)?;
-    let named = |f: &Field, prefix: &str| {
+    let (p, _) = level_net(&LEVEL_NETS, module, net)?;
+    if let Some(f) = field_at(NodeLayout::new(&p).layout(), bit, "rec.") {
+        return Some(f);
+    }
+    level_net(&LEVEL_BEAT_NETS, module, net)?;
+    let bl = golden::merge::upper_builder::unit::BuilderLayout::new(&p);
+    match bit.checked_sub(bl.refer.offset) {
+        Some(k) if k < bl.refer.width => field_at(&golden::layout::RefLayout::new(&p), k, "ref."),
+        _ => field_at(&bl.level, bit, ""),
+    }
+}
+
+/// The parameters and the LOD of `net` of `module` when `table` names it
+/// (the net's LOD within the module's `D`).
+fn level_net(table: &Nets, module: &str, net: &str) -> Option<(Params, u32)> {
+    let (prefix, nets) = table
+        .iter()
+        .find(|(prefix, _)| module.starts_with(prefix))?;
+    let p = params_of(&module[prefix.len()..])?;
+    let level = nets.iter().find_map(|n| level_of(n, net))?;
+    (level <= p.max_lod as u32).then_some((p, level))
+}
+
+/// The field of `layout` holding bit `bit`, as `{prefix}{name}[k]`.
+fn field_at(layout: &golden::layout::Layout, bit: u32, prefix: &str) -> Option<String> {
+    layout.fields().find_map(|f| {
         (f.offset..f.offset + f.width)
             .contains(&bit)
             .then(|| format!("{prefix}{}[{}]", f.name, bit - f.offset))
-    };
-    let nl = NodeLayout::new(&p);
-    if let Some(f) = nl.layout().fields().find_map(|f| named(f, "rec.")) {
-        return Some(f);
-    }
-    on(&LEVEL_BEAT_NETS)?;
-    let bl = golden::merge::upper_builder::unit::BuilderLayout::new(&p);
-    let rl = golden::layout::RefLayout::new(&p);
-    let in_ref = (bl.refer.offset..bl.refer.offset + bl.refer.width).contains(&bit);
-    if in_ref {
-        let k = bit - bl.refer.offset;
-        return rl.layout().fields().find_map(|f| {
-            (f.offset..f.offset + f.width)
-                .contains(&k)
-                .then(|| format!("ref.{}[{}]", f.name, k - f.offset))
-        });
-    }
-    bl.level.fields().find_map(|f| named(f, ""))
+    })
 }
 
 /// Why bit `bit` of a record of LOD `level` never changes, if it does not.

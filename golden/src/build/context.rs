@@ -8,12 +8,11 @@
 //! page as they are first written: on the versus bench's 1M-triangle
 //! terrain, a fifth of the one-thread build. Kept, they are written over.
 
-use glam::DVec3;
-
 use super::leaves::{self, LeafEntry, LeafKey};
 use super::radix::SortBuffers;
 use super::{
     place_parallel_into, place_range_into, radix, subtrees, upper, BuildError, GridMap, MeshInput,
+    TriangleOf,
 };
 use crate::mesh::Mesh;
 use crate::params::Params;
@@ -27,9 +26,6 @@ struct Buffers<K: LeafKey> {
     /// The parallel placement's chunks.
     parts: Vec<Vec<LeafEntry<K>>>,
 }
-
-/// A triangle in grid units, by index.
-type TriangleOf<'a> = &'a (dyn Fn(usize) -> Result<[DVec3; 3], BuildError> + Sync);
 
 impl<K: LeafKey> Buffers<K> {
     fn run(
@@ -89,8 +85,9 @@ impl<K: LeafKey> Buffers<K> {
     }
 }
 
-/// The one-thread builder with its buffers kept across builds: the same
-/// hierarchy as [`super::build`], bit for bit, or the same error.
+/// The builder, on one thread or on the rayon pool, with its buffers kept
+/// across builds: the same hierarchy as [`super::build`], bit for bit, or
+/// the same error.
 ///
 /// ```
 /// use golden::build::{BuildContext, GridMap};

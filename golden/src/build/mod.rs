@@ -327,6 +327,9 @@ pub fn build_parallel(
     }
 }
 
+/// A triangle in grid units, by index, as the parallel builds read it.
+type TriangleOf<'a> = &'a (dyn Fn(usize) -> Result<[DVec3; 3], BuildError> + Sync);
+
 /// A mesh a build has checked (its grid map, then [`check_build`]).
 struct MeshInput<'a> {
     mesh: &'a Mesh,
@@ -357,7 +360,7 @@ fn build_parallel_keyed<K: LeafKey>(
     n: usize,
     params: &Params,
     id: u8,
-    triangle: &(dyn Fn(usize) -> Result<[DVec3; 3], BuildError> + Sync),
+    triangle: TriangleOf<'_>,
 ) -> Result<Hierarchy, BuildError> {
     let mut parts = Vec::new();
     place_parallel_into::<K>(n, params, triangle, &mut parts, true)?;
@@ -376,13 +379,13 @@ const PLACE_CHUNK_MIN: usize = 256;
 /// The entries of triangles `0..n` in triangle order, as the entries of
 /// consecutive chunks placed on the current rayon pool into `parts` (one
 /// vector a chunk, emptied first, and any more left empty; the sort reads
-/// them where they are);
-/// the error of the lowest failing triangle. `shrink`: give each chunk's
-/// spare room back (a one-shot build; a kept context keeps it).
+/// them where they are); the error of the lowest failing triangle.
+/// `shrink`: give each chunk's spare room back (a one-shot build; a kept
+/// context keeps it).
 fn place_parallel_into<K: LeafKey>(
     n: usize,
     params: &Params,
-    triangle: &(dyn Fn(usize) -> Result<[DVec3; 3], BuildError> + Sync),
+    triangle: TriangleOf<'_>,
     parts: &mut Vec<Vec<LeafEntry<K>>>,
     shrink: bool,
 ) -> Result<(), BuildError> {

@@ -71,8 +71,8 @@ pub const CFG_ERRORS: [u64; 3] = [
 /// reverse (every entry of the sorter moves), sixteen roots at LOD 5
 /// stored against Morton order, a ladder of leaves
 /// at every LOD above the merging level, an input stored depth first
-/// with indices near `2^I`, three merges of two inputs under LOD-0 roots (the merged top
-/// at LOD 0), the deep tops and the deep clusters, each
+/// with indices near `2^I`, three merges of two inputs under LOD-0 roots
+/// (the merged top at LOD 0), the deep tops and the deep clusters, each
 /// through `d`'s mode; per code of [`CFG_ERRORS`] a merge whose last
 /// input's `cfg` makes its fetcher refuse it; and two bad ranges from
 /// software, which the merging module refuses (`lo > hi`, `hi > D`), on
